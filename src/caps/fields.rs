@@ -1,0 +1,186 @@
+//! Turns the feature / property structs of [`DeviceInfo`] into JSON objects keyed by the Vulkan
+//! structure name and member names (`"VkPhysicalDeviceRayTracingPipelineFeaturesKHR":
+//! {"rayTracingPipeline": true}`) — the layout the Vulkan Profiles JSON format uses, so the caps
+//! report and the profile export share one representation. A struct the device lacks is absent.
+use crate::vk::DeviceInfo;
+use ash::vk;
+use serde_json::{json, Map, Value};
+
+macro_rules! obj {
+    ($s:expr; $($kind:ident $name:literal $field:ident),* $(,)?) => {{
+        let s = &$s;
+        let mut m = Map::new();
+        $( m.insert($name.to_string(), obj!(@v $kind s.$field)); )*
+        Value::Object(m)
+    }};
+    (@v b $e:expr) => { Value::Bool($e == vk::TRUE) };
+    (@v n $e:expr) => { json!($e) };
+}
+
+fn put(m: &mut Map<String, Value>, key: &str, v: Option<Value>) {
+    if let Some(v) = v {
+        m.insert(key.to_string(), v);
+    }
+}
+
+/// Features, one object per Vulkan struct the device has.
+pub fn features(info: &DeviceInfo) -> Map<String, Value> {
+    let f = &info.features;
+    let mut m = Map::new();
+    put(&mut m, "VkPhysicalDeviceFeatures", Some(obj!(f.core;
+        b "robustBufferAccess" robust_buffer_access, b "shaderInt64" shader_int64, b "shaderInt16" shader_int16,
+        b "shaderFloat64" shader_float64, b "fragmentStoresAndAtomics" fragment_stores_and_atomics,
+        b "vertexPipelineStoresAndAtomics" vertex_pipeline_stores_and_atomics,
+        b "shaderUniformBufferArrayDynamicIndexing" shader_uniform_buffer_array_dynamic_indexing,
+        b "shaderSampledImageArrayDynamicIndexing" shader_sampled_image_array_dynamic_indexing,
+        b "shaderStorageBufferArrayDynamicIndexing" shader_storage_buffer_array_dynamic_indexing,
+        b "shaderStorageImageArrayDynamicIndexing" shader_storage_image_array_dynamic_indexing,
+    )));
+    put(&mut m, "VkPhysicalDeviceVulkan11Features", f.v11.map(|s| obj!(s;
+        b "storageBuffer16BitAccess" storage_buffer16_bit_access, b "variablePointersStorageBuffer" variable_pointers_storage_buffer,
+        b "variablePointers" variable_pointers, b "shaderDrawParameters" shader_draw_parameters,
+    )));
+    put(&mut m, "VkPhysicalDeviceVulkan12Features", f.v12.map(|s| obj!(s;
+        b "descriptorIndexing" descriptor_indexing,
+        b "shaderUniformBufferArrayNonUniformIndexing" shader_uniform_buffer_array_non_uniform_indexing,
+        b "shaderSampledImageArrayNonUniformIndexing" shader_sampled_image_array_non_uniform_indexing,
+        b "shaderStorageBufferArrayNonUniformIndexing" shader_storage_buffer_array_non_uniform_indexing,
+        b "shaderStorageImageArrayNonUniformIndexing" shader_storage_image_array_non_uniform_indexing,
+        b "descriptorBindingUniformBufferUpdateAfterBind" descriptor_binding_uniform_buffer_update_after_bind,
+        b "descriptorBindingSampledImageUpdateAfterBind" descriptor_binding_sampled_image_update_after_bind,
+        b "descriptorBindingStorageImageUpdateAfterBind" descriptor_binding_storage_image_update_after_bind,
+        b "descriptorBindingStorageBufferUpdateAfterBind" descriptor_binding_storage_buffer_update_after_bind,
+        b "descriptorBindingUpdateUnusedWhilePending" descriptor_binding_update_unused_while_pending,
+        b "descriptorBindingPartiallyBound" descriptor_binding_partially_bound,
+        b "descriptorBindingVariableDescriptorCount" descriptor_binding_variable_descriptor_count,
+        b "runtimeDescriptorArray" runtime_descriptor_array,
+        b "bufferDeviceAddress" buffer_device_address, b "bufferDeviceAddressCaptureReplay" buffer_device_address_capture_replay,
+        b "scalarBlockLayout" scalar_block_layout, b "timelineSemaphore" timeline_semaphore,
+        b "vulkanMemoryModel" vulkan_memory_model, b "shaderInt8" shader_int8, b "shaderFloat16" shader_float16,
+    )));
+    put(&mut m, "VkPhysicalDeviceVulkan13Features", f.v13.map(|s| obj!(s;
+        b "robustImageAccess" robust_image_access, b "synchronization2" synchronization2,
+        b "maintenance4" maintenance4, b "dynamicRendering" dynamic_rendering, b "inlineUniformBlock" inline_uniform_block,
+    )));
+    put(&mut m, "VkPhysicalDeviceRayTracingPipelineFeaturesKHR", f.rt_pipeline.map(|s| obj!(s;
+        b "rayTracingPipeline" ray_tracing_pipeline,
+        b "rayTracingPipelineShaderGroupHandleCaptureReplay" ray_tracing_pipeline_shader_group_handle_capture_replay,
+        b "rayTracingPipelineShaderGroupHandleCaptureReplayMixed" ray_tracing_pipeline_shader_group_handle_capture_replay_mixed,
+        b "rayTracingPipelineTraceRaysIndirect" ray_tracing_pipeline_trace_rays_indirect,
+        b "rayTraversalPrimitiveCulling" ray_traversal_primitive_culling,
+    )));
+    put(&mut m, "VkPhysicalDeviceAccelerationStructureFeaturesKHR", f.accel.map(|s| obj!(s;
+        b "accelerationStructure" acceleration_structure,
+        b "accelerationStructureCaptureReplay" acceleration_structure_capture_replay,
+        b "accelerationStructureIndirectBuild" acceleration_structure_indirect_build,
+        b "accelerationStructureHostCommands" acceleration_structure_host_commands,
+        b "descriptorBindingAccelerationStructureUpdateAfterBind" descriptor_binding_acceleration_structure_update_after_bind,
+    )));
+    put(&mut m, "VkPhysicalDeviceRayQueryFeaturesKHR", f.ray_query.map(|s| obj!(s; b "rayQuery" ray_query)));
+    put(&mut m, "VkPhysicalDeviceRayTracingMaintenance1FeaturesKHR", f.rt_maintenance1.map(|s| obj!(s;
+        b "rayTracingMaintenance1" ray_tracing_maintenance1,
+        b "rayTracingPipelineTraceRaysIndirect2" ray_tracing_pipeline_trace_rays_indirect2,
+    )));
+    put(&mut m, "VkPhysicalDeviceRayTracingPositionFetchFeaturesKHR", f.position_fetch.map(|s| obj!(s;
+        b "rayTracingPositionFetch" ray_tracing_position_fetch)));
+    put(&mut m, "VkPhysicalDeviceDescriptorBufferFeaturesEXT", f.descriptor_buffer.map(|s| obj!(s;
+        b "descriptorBuffer" descriptor_buffer, b "descriptorBufferCaptureReplay" descriptor_buffer_capture_replay,
+        b "descriptorBufferImageLayoutIgnored" descriptor_buffer_image_layout_ignored,
+        b "descriptorBufferPushDescriptors" descriptor_buffer_push_descriptors,
+    )));
+    put(&mut m, "VkPhysicalDeviceDescriptorHeapFeaturesEXT", f.descriptor_heap.map(|s| obj!(s;
+        b "descriptorHeap" descriptor_heap, b "descriptorHeapCaptureReplay" descriptor_heap_capture_replay)));
+    put(&mut m, "VkPhysicalDeviceRobustness2FeaturesEXT", f.robustness2.map(|s| obj!(s;
+        b "robustBufferAccess2" robust_buffer_access2, b "robustImageAccess2" robust_image_access2, b "nullDescriptor" null_descriptor)));
+    put(&mut m, "VkPhysicalDeviceFaultFeaturesEXT", f.fault.map(|s| obj!(s;
+        b "deviceFault" device_fault, b "deviceFaultVendorBinary" device_fault_vendor_binary)));
+    put(&mut m, "VkPhysicalDeviceMaintenance5FeaturesKHR", f.maintenance5.map(|s| obj!(s; b "maintenance5" maintenance5)));
+    put(&mut m, "VkPhysicalDeviceMaintenance6FeaturesKHR", f.maintenance6.map(|s| obj!(s; b "maintenance6" maintenance6)));
+    m
+}
+
+/// Properties and limits, one object per Vulkan struct the device has.
+pub fn properties(info: &DeviceInfo) -> Map<String, Value> {
+    let p = &info.properties;
+    let mut m = Map::new();
+    let limits = obj!(p.core.limits;
+        n "maxBoundDescriptorSets" max_bound_descriptor_sets, n "maxPushConstantsSize" max_push_constants_size,
+        n "maxPerStageDescriptorStorageBuffers" max_per_stage_descriptor_storage_buffers,
+        n "maxPerStageDescriptorUniformBuffers" max_per_stage_descriptor_uniform_buffers,
+        n "maxPerStageDescriptorSampledImages" max_per_stage_descriptor_sampled_images,
+        n "maxPerStageDescriptorStorageImages" max_per_stage_descriptor_storage_images,
+        n "maxPerStageResources" max_per_stage_resources,
+        n "maxDescriptorSetStorageBuffers" max_descriptor_set_storage_buffers,
+        n "maxDescriptorSetSampledImages" max_descriptor_set_sampled_images,
+        n "maxStorageBufferRange" max_storage_buffer_range, n "maxUniformBufferRange" max_uniform_buffer_range,
+        n "maxImageDimension2D" max_image_dimension2_d,
+        n "maxComputeWorkGroupInvocations" max_compute_work_group_invocations,
+        n "maxComputeWorkGroupSize" max_compute_work_group_size,
+        n "minStorageBufferOffsetAlignment" min_storage_buffer_offset_alignment,
+        n "minUniformBufferOffsetAlignment" min_uniform_buffer_offset_alignment,
+        n "nonCoherentAtomSize" non_coherent_atom_size, n "timestampPeriod" timestamp_period,
+    );
+    m.insert("VkPhysicalDeviceProperties".into(), json!({ "limits": limits }));
+    put(&mut m, "VkPhysicalDeviceVulkan12Properties", p.v12.map(|s| obj!(s;
+        n "maxUpdateAfterBindDescriptorsInAllPools" max_update_after_bind_descriptors_in_all_pools,
+        b "shaderUniformBufferArrayNonUniformIndexingNative" shader_uniform_buffer_array_non_uniform_indexing_native,
+        b "shaderSampledImageArrayNonUniformIndexingNative" shader_sampled_image_array_non_uniform_indexing_native,
+        b "shaderStorageBufferArrayNonUniformIndexingNative" shader_storage_buffer_array_non_uniform_indexing_native,
+        b "shaderStorageImageArrayNonUniformIndexingNative" shader_storage_image_array_non_uniform_indexing_native,
+        b "robustBufferAccessUpdateAfterBind" robust_buffer_access_update_after_bind,
+        n "maxPerStageDescriptorUpdateAfterBindUniformBuffers" max_per_stage_descriptor_update_after_bind_uniform_buffers,
+        n "maxPerStageDescriptorUpdateAfterBindStorageBuffers" max_per_stage_descriptor_update_after_bind_storage_buffers,
+        n "maxPerStageDescriptorUpdateAfterBindSampledImages" max_per_stage_descriptor_update_after_bind_sampled_images,
+        n "maxPerStageDescriptorUpdateAfterBindStorageImages" max_per_stage_descriptor_update_after_bind_storage_images,
+        n "maxPerStageUpdateAfterBindResources" max_per_stage_update_after_bind_resources,
+        n "maxDescriptorSetUpdateAfterBindUniformBuffers" max_descriptor_set_update_after_bind_uniform_buffers,
+        n "maxDescriptorSetUpdateAfterBindStorageBuffers" max_descriptor_set_update_after_bind_storage_buffers,
+        n "maxDescriptorSetUpdateAfterBindSampledImages" max_descriptor_set_update_after_bind_sampled_images,
+        n "maxDescriptorSetUpdateAfterBindStorageImages" max_descriptor_set_update_after_bind_storage_images,
+    )));
+    put(&mut m, "VkPhysicalDeviceRayTracingPipelinePropertiesKHR", p.rt_pipeline.map(|s| obj!(s;
+        n "shaderGroupHandleSize" shader_group_handle_size, n "maxRayRecursionDepth" max_ray_recursion_depth,
+        n "maxShaderGroupStride" max_shader_group_stride, n "shaderGroupBaseAlignment" shader_group_base_alignment,
+        n "shaderGroupHandleCaptureReplaySize" shader_group_handle_capture_replay_size,
+        n "maxRayDispatchInvocationCount" max_ray_dispatch_invocation_count,
+        n "shaderGroupHandleAlignment" shader_group_handle_alignment, n "maxRayHitAttributeSize" max_ray_hit_attribute_size,
+    )));
+    put(&mut m, "VkPhysicalDeviceAccelerationStructurePropertiesKHR", p.accel.map(|s| obj!(s;
+        n "maxGeometryCount" max_geometry_count, n "maxInstanceCount" max_instance_count,
+        n "maxPrimitiveCount" max_primitive_count,
+        n "maxPerStageDescriptorAccelerationStructures" max_per_stage_descriptor_acceleration_structures,
+        n "maxPerStageDescriptorUpdateAfterBindAccelerationStructures" max_per_stage_descriptor_update_after_bind_acceleration_structures,
+        n "maxDescriptorSetAccelerationStructures" max_descriptor_set_acceleration_structures,
+        n "maxDescriptorSetUpdateAfterBindAccelerationStructures" max_descriptor_set_update_after_bind_acceleration_structures,
+        n "minAccelerationStructureScratchOffsetAlignment" min_acceleration_structure_scratch_offset_alignment,
+    )));
+    put(&mut m, "VkPhysicalDeviceDescriptorBufferPropertiesEXT", p.descriptor_buffer.map(|s| obj!(s;
+        b "combinedImageSamplerDescriptorSingleArray" combined_image_sampler_descriptor_single_array,
+        b "bufferlessPushDescriptors" bufferless_push_descriptors,
+        n "descriptorBufferOffsetAlignment" descriptor_buffer_offset_alignment,
+        n "maxDescriptorBufferBindings" max_descriptor_buffer_bindings,
+        n "maxResourceDescriptorBufferBindings" max_resource_descriptor_buffer_bindings,
+        n "maxSamplerDescriptorBufferBindings" max_sampler_descriptor_buffer_bindings,
+        n "samplerDescriptorSize" sampler_descriptor_size, n "combinedImageSamplerDescriptorSize" combined_image_sampler_descriptor_size,
+        n "sampledImageDescriptorSize" sampled_image_descriptor_size, n "storageImageDescriptorSize" storage_image_descriptor_size,
+        n "uniformBufferDescriptorSize" uniform_buffer_descriptor_size, n "storageBufferDescriptorSize" storage_buffer_descriptor_size,
+        n "robustUniformBufferDescriptorSize" robust_uniform_buffer_descriptor_size,
+        n "robustStorageBufferDescriptorSize" robust_storage_buffer_descriptor_size,
+        n "accelerationStructureDescriptorSize" acceleration_structure_descriptor_size,
+        n "maxSamplerDescriptorBufferRange" max_sampler_descriptor_buffer_range,
+        n "maxResourceDescriptorBufferRange" max_resource_descriptor_buffer_range,
+        n "resourceDescriptorBufferAddressSpaceSize" resource_descriptor_buffer_address_space_size,
+        n "descriptorBufferAddressSpaceSize" descriptor_buffer_address_space_size,
+    )));
+    put(&mut m, "VkPhysicalDeviceDescriptorHeapPropertiesEXT", p.descriptor_heap.map(|s| obj!(s;
+        n "samplerHeapAlignment" sampler_heap_alignment, n "resourceHeapAlignment" resource_heap_alignment,
+        n "maxSamplerHeapSize" max_sampler_heap_size, n "maxResourceHeapSize" max_resource_heap_size,
+        n "imageDescriptorSize" image_descriptor_size, n "bufferDescriptorSize" buffer_descriptor_size,
+        n "maxPushDataSize" max_push_data_size,
+    )));
+    put(&mut m, "VkPhysicalDeviceRobustness2PropertiesEXT", p.robustness2.map(|s| obj!(s;
+        n "robustStorageBufferAccessSizeAlignment" robust_storage_buffer_access_size_alignment,
+        n "robustUniformBufferAccessSizeAlignment" robust_uniform_buffer_access_size_alignment,
+    )));
+    m
+}

@@ -1,0 +1,156 @@
+//! What the matrix can run on a device, per axis value, decided from the queried features only.
+//! `Unsupported` is said only when the device's features or extensions say so; `NotImplemented`
+//! marks what rtprobe itself cannot do yet, which is never blamed on the device.
+use crate::matrix::{AsAccess, DescriptorModel, IndexSource, Resource, Stage};
+use crate::vk::{heap, DeviceInfo};
+use ash::{ext, khr, vk};
+use serde::Serialize;
+
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+#[serde(tag = "status", rename_all = "snake_case")]
+pub enum Support {
+    Supported,
+    Unsupported { reason: String },
+    NotImplemented { reason: String },
+}
+
+impl Support {
+    pub fn is_supported(&self) -> bool {
+        matches!(self, Support::Supported)
+    }
+
+    fn require(checks: &[(bool, &str)]) -> Support {
+        let missing: Vec<&str> = checks.iter().filter(|(ok, _)| !ok).map(|(_, what)| *what).collect();
+        if missing.is_empty() {
+            Support::Supported
+        } else {
+            Support::Unsupported { reason: format!("device lacks {}", missing.join(", ")) }
+        }
+    }
+
+    /// The first non-supported of several, or `Supported`.
+    pub fn all(items: impl IntoIterator<Item = Support>) -> Support {
+        items.into_iter().find(|s| !s.is_supported()).unwrap_or(Support::Supported)
+    }
+}
+
+fn on(b: vk::Bool32) -> bool {
+    b == vk::TRUE
+}
+
+pub fn stage(info: &DeviceInfo, s: Stage) -> Support {
+    if s.is_ray_tracing() {
+        let missing = info.rt_pipeline_missing();
+        if !missing.is_empty() {
+            return Support::Unsupported { reason: format!("device lacks {}", missing.join(", ")) };
+        }
+        return Support::Supported;
+    }
+    match s {
+        Stage::Fragment => Support::require(&[
+            (info.universal_queue_family().is_some(), "a graphics queue"),
+            (on(info.features.core.fragment_stores_and_atomics), "fragmentStoresAndAtomics"),
+        ]),
+        _ => Support::Supported,
+    }
+}
+
+pub fn resource(info: &DeviceInfo, r: Resource) -> Support {
+    let fmt = info.probe_image_format.optimal_tiling_features;
+    match r {
+        Resource::StorageBuffer | Resource::UniformBuffer => Support::Supported,
+        Resource::SampledImage => Support::require(&[(
+            fmt.contains(vk::FormatFeatureFlags::SAMPLED_IMAGE),
+            "sampled R32G32B32A32_SFLOAT images",
+        )]),
+        Resource::StorageImage => Support::require(&[(
+            fmt.contains(vk::FormatFeatureFlags::STORAGE_IMAGE),
+            "storage R32G32B32A32_SFLOAT images",
+        )]),
+        Resource::AccelerationStructure => Support::require(&[(
+            info.features.accel.is_some_and(|a| on(a.acceleration_structure)),
+            "accelerationStructure (VK_KHR_acceleration_structure)",
+        )]),
+    }
+}
+
+/// Dynamic (runtime) indexing of an array of `r`, with or without `nonuniformEXT`.
+pub fn dynamic_index(info: &DeviceInfo, r: Resource, nonuniform: bool) -> Support {
+    let c = &info.features.core;
+    let v12 = info.features.v12.unwrap_or_default();
+    let (dynamic, nu, name) = match r {
+        Resource::StorageBuffer => (c.shader_storage_buffer_array_dynamic_indexing, v12.shader_storage_buffer_array_non_uniform_indexing, "StorageBuffer"),
+        Resource::UniformBuffer => (c.shader_uniform_buffer_array_dynamic_indexing, v12.shader_uniform_buffer_array_non_uniform_indexing, "UniformBuffer"),
+        Resource::SampledImage => (c.shader_sampled_image_array_dynamic_indexing, v12.shader_sampled_image_array_non_uniform_indexing, "SampledImage"),
+        Resource::StorageImage => (c.shader_storage_image_array_dynamic_indexing, v12.shader_storage_image_array_non_uniform_indexing, "StorageImage"),
+        // Arrays of acceleration structures: dynamic indexing is always allowed; non-uniform
+        // indexing has no feature bit of its own in VK_KHR_acceleration_structure.
+        Resource::AccelerationStructure => (vk::TRUE, vk::TRUE, "AccelerationStructure"),
+    };
+    let dyn_name = format!("shader{name}ArrayDynamicIndexing");
+    let nu_name = format!("shader{name}ArrayNonUniformIndexing");
+    let mut checks = vec![(on(v12.runtime_descriptor_array), "runtimeDescriptorArray"), (on(dynamic), dyn_name.as_str())];
+    if nonuniform {
+        checks.push((on(nu), nu_name.as_str()));
+    }
+    Support::require(&checks)
+}
+
+pub fn index(info: &DeviceInfo, i: IndexSource) -> Support {
+    match i {
+        IndexSource::Literal | IndexSource::SpecConstant | IndexSource::PushConstant => Support::Supported,
+        IndexSource::Dynamic => {
+            // Supported as an axis value when at least one resource kind can be indexed dynamically.
+            let any = Resource::ALL.iter().any(|r| dynamic_index(info, *r, false).is_supported());
+            if any {
+                Support::Supported
+            } else {
+                dynamic_index(info, Resource::StorageBuffer, false)
+            }
+        }
+    }
+}
+
+pub fn as_access(info: &DeviceInfo, a: AsAccess) -> Support {
+    let accel = info.features.accel.is_some_and(|x| on(x.acceleration_structure));
+    let v12 = info.features.v12.unwrap_or_default();
+    match a {
+        AsAccess::Descriptor => Support::require(&[(accel, "accelerationStructure")]),
+        AsAccess::Address => Support::require(&[
+            (accel, "accelerationStructure"),
+            (on(v12.buffer_device_address), "bufferDeviceAddress"),
+            (on(info.features.core.shader_int64), "shaderInt64"),
+        ]),
+        AsAccess::AddressPatched => Support::NotImplemented {
+            reason: "needs rtprobe's as-to-address SPIR-V patch, not implemented yet".into(),
+        },
+    }
+}
+
+pub fn descriptor_model(info: &DeviceInfo, m: DescriptorModel) -> Support {
+    let v12 = info.features.v12.unwrap_or_default();
+    match m {
+        DescriptorModel::DescriptorIndexing => Support::require(&[
+            (on(v12.runtime_descriptor_array), "runtimeDescriptorArray"),
+            (on(v12.descriptor_binding_partially_bound), "descriptorBindingPartiallyBound"),
+        ]),
+        DescriptorModel::DescriptorBuffer => {
+            if !info.has_extension(ext::descriptor_buffer::NAME) {
+                return Support::Unsupported { reason: "driver does not expose VK_EXT_descriptor_buffer".into() };
+            }
+            Support::require(&[
+                (info.features.descriptor_buffer.is_some_and(|d| on(d.descriptor_buffer)), "descriptorBuffer"),
+                (on(v12.buffer_device_address), "bufferDeviceAddress"),
+            ])
+        }
+        DescriptorModel::DescriptorHeap => {
+            if !info.has_extension(heap::NAME) {
+                return Support::Unsupported { reason: "driver does not expose VK_EXT_descriptor_heap".into() };
+            }
+            Support::require(&[
+                (info.features.descriptor_heap.is_some_and(|d| on(d.descriptor_heap)), "descriptorHeap"),
+                (info.has_extension(khr::maintenance5::NAME) || info.api_version() >= vk::make_api_version(0, 1, 4, 0), "VK_KHR_maintenance5"),
+            ])
+        }
+    }
+}

@@ -1,0 +1,44 @@
+//! The command line: clap definitions ([`args`]), exit codes ([`exit`]), and dispatch. Nothing
+//! below this module knows about clap.
+pub mod args;
+pub mod commands;
+pub mod exit;
+
+use args::{Cli, Command};
+use clap::Parser;
+
+fn init_tracing(verbose: u8) {
+    use tracing_subscriber::EnvFilter;
+    let default = match verbose {
+        0 => "warn",
+        1 => "info",
+        _ => "debug",
+    };
+    let filter = EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new(default));
+    let _ = tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).with_target(false).try_init();
+}
+
+/// Parse the command line, run the command, and return the process exit code. Errors are printed
+/// as one line on stderr.
+pub fn main_entry() -> u8 {
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() { exit::USAGE } else { exit::OK };
+        }
+    };
+    init_tracing(cli.verbose);
+    let g = commands::Globals { validate: cli.validate };
+    let result = match &cli.command {
+        Command::Devices(a) => commands::devices(&g, a),
+        Command::Caps(a) => commands::caps_cmd(&g, a),
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("rtprobe: error: {}", format!("{e:#}").replace('\n', " "));
+            exit::code_for(&e)
+        }
+    }
+}

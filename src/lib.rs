@@ -1,0 +1,9 @@
+//! rtprobe: find and pin down GPU driver faults in Vulkan ray tracing.
+//!
+//! The flow (see ARCHITECTURE.md): CLI → plan → supervisor → workers (device, scene, shaders,
+//! trace) → CPU reference → outcome → report.
+pub mod caps;
+pub mod cli;
+pub mod matrix;
+pub mod report;
+pub mod vk;

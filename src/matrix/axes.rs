@@ -1,0 +1,89 @@
+//! The matrix axes and their values. The snake_case names here are the user's contract: cell ids,
+//! `--filter`, reports and baselines all use them. Each axis lists its values in one `ALL` array,
+//! in the order cells are planned.
+use serde::{Deserialize, Serialize};
+use std::fmt;
+
+macro_rules! axis {
+    ($(#[$m:meta])* $name:ident, $axis:literal { $($(#[$vm:meta])* $v:ident = $s:literal),* $(,)? }) => {
+        $(#[$m])*
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+        #[serde(rename_all = "snake_case")]
+        pub enum $name { $($(#[$vm])* $v),* }
+        impl $name {
+            pub const AXIS: &'static str = $axis;
+            pub const ALL: &'static [$name] = &[$($name::$v),*];
+            pub fn as_str(self) -> &'static str { match self { $($name::$v => $s),* } }
+            pub fn parse(s: &str) -> Option<Self> { match s { $($s => Some($name::$v),)* _ => None } }
+            pub fn names() -> Vec<&'static str> { Self::ALL.iter().map(|v| v.as_str()).collect() }
+        }
+        impl fmt::Display for $name {
+            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result { f.write_str(self.as_str()) }
+        }
+    };
+}
+
+axis!(
+    /// The shader stage that performs the probed read.
+    Stage, "stage" {
+        Raygen = "raygen", ClosestHit = "closest_hit", AnyHit = "any_hit", Miss = "miss",
+        Intersection = "intersection", Callable = "callable", Fragment = "fragment", Compute = "compute",
+    }
+);
+
+axis!(
+    /// The kind of descriptor the probed stage reads.
+    Resource, "resource" {
+        StorageBuffer = "storage_buffer", UniformBuffer = "uniform_buffer", SampledImage = "sampled_image",
+        StorageImage = "storage_image", AccelerationStructure = "acceleration_structure",
+    }
+);
+
+axis!(
+    /// How the array element / descriptor slot is chosen.
+    IndexSource, "index" {
+        Literal = "literal", SpecConstant = "spec_constant", PushConstant = "push_constant", Dynamic = "dynamic",
+    }
+);
+
+axis!(
+    /// How an acceleration structure is reached (only for `resource=acceleration_structure`).
+    AsAccess, "as_access" {
+        Descriptor = "descriptor", Address = "address", AddressPatched = "address_patched",
+    }
+);
+
+axis!(
+    /// How descriptors are bound.
+    DescriptorModel, "descriptor_model" {
+        DescriptorIndexing = "descriptor_indexing", DescriptorBuffer = "descriptor_buffer", DescriptorHeap = "descriptor_heap",
+    }
+);
+
+impl Stage {
+    /// Stages of a ray tracing pipeline (the rest are graphics / compute).
+    pub fn is_ray_tracing(self) -> bool {
+        !matches!(self, Stage::Fragment | Stage::Compute)
+    }
+
+    /// Stages where `traceRayEXT` is allowed by the Vulkan spec (raygen, closest-hit, miss);
+    /// elsewhere tracing needs ray queries.
+    pub fn can_trace_ray(self) -> bool {
+        matches!(self, Stage::Raygen | Stage::ClosestHit | Stage::Miss)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_round_trip() {
+        for s in Stage::ALL {
+            assert_eq!(Stage::parse(s.as_str()), Some(*s));
+            assert_eq!(serde_json::to_value(s).unwrap(), serde_json::Value::String(s.as_str().into()));
+        }
+        assert_eq!(DescriptorModel::parse("descriptor_heap"), Some(DescriptorModel::DescriptorHeap));
+        assert_eq!(IndexSource::parse("nope"), None);
+    }
+}

@@ -1,0 +1,198 @@
+//! Logical device creation. [`Requirements`] says what the work at hand needs; [`Gpu::new`]
+//! enables exactly that — the extensions and the individual feature bits — and nothing else, so
+//! a fault can never be blamed on a feature the probe did not ask for.
+use super::error::{VkError, VkResultExt};
+use super::features::DeviceInfo;
+use super::instance::Instance;
+use ash::{ext, khr, vk};
+use std::ffi::CStr;
+use std::sync::Arc;
+
+/// What a piece of work needs from the device.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Requirements {
+    /// VK_KHR_ray_tracing_pipeline + VK_KHR_acceleration_structure (+ deferred host operations).
+    pub rt_pipeline: bool,
+    /// VK_KHR_ray_query (tracing from fragment / compute / non-tracing RT stages).
+    pub ray_query: bool,
+    /// Buffer device address (implied by acceleration structures; also AS-by-address, records).
+    pub buffer_device_address: bool,
+    /// Runtime descriptor arrays, partially bound, variable count, update-after-bind, and the
+    /// non-uniform indexing bits the device supports.
+    pub descriptor_indexing: bool,
+    /// VK_EXT_descriptor_buffer.
+    pub descriptor_buffer: bool,
+    /// VK_EXT_device_fault (queried after a device loss).
+    pub device_fault: bool,
+    /// shaderInt64 (64-bit addresses in shaders).
+    pub int64: bool,
+    /// fragmentStoresAndAtomics (fragment probes write records to an SSBO).
+    pub fragment_stores: bool,
+}
+
+impl Requirements {
+    /// Requirements that `info` does not meet, as human-readable names.
+    pub fn missing_on(&self, info: &DeviceInfo) -> Vec<String> {
+        let f = &info.features;
+        let mut m = Vec::new();
+        if self.rt_pipeline {
+            m.extend(info.rt_pipeline_missing());
+        }
+        let v12 = f.v12.unwrap_or_default();
+        if self.ray_query && !f.ray_query.is_some_and(|x| x.ray_query == vk::TRUE) {
+            m.push("rayQuery (VK_KHR_ray_query)".into());
+        }
+        if self.buffer_device_address && v12.buffer_device_address == vk::FALSE {
+            m.push("bufferDeviceAddress".into());
+        }
+        if self.descriptor_indexing && (v12.runtime_descriptor_array == vk::FALSE || v12.descriptor_binding_partially_bound == vk::FALSE) {
+            m.push("runtimeDescriptorArray + descriptorBindingPartiallyBound".into());
+        }
+        if self.descriptor_buffer && !f.descriptor_buffer.is_some_and(|x| x.descriptor_buffer == vk::TRUE) {
+            m.push("descriptorBuffer (VK_EXT_descriptor_buffer)".into());
+        }
+        if self.device_fault && !f.fault.is_some_and(|x| x.device_fault == vk::TRUE) {
+            m.push("deviceFault (VK_EXT_device_fault)".into());
+        }
+        if self.int64 && f.core.shader_int64 == vk::FALSE {
+            m.push("shaderInt64".into());
+        }
+        if self.fragment_stores && f.core.fragment_stores_and_atomics == vk::FALSE {
+            m.push("fragmentStoresAndAtomics".into());
+        }
+        m
+    }
+}
+
+/// A logical device with one universal queue and the extension loaders it enabled.
+pub struct Gpu {
+    pub instance: Arc<Instance>,
+    pub info: DeviceInfo,
+    pub device: ash::Device,
+    pub queue: vk::Queue,
+    pub queue_family: u32,
+    pub enabled: Requirements,
+    pub rt: Option<khr::ray_tracing_pipeline::Device>,
+    pub accel: Option<khr::acceleration_structure::Device>,
+    pub descriptor_buffer: Option<ext::descriptor_buffer::Device>,
+    pub fault: Option<ext::device_fault::Device>,
+}
+
+impl Gpu {
+    pub fn new(instance: Arc<Instance>, info: DeviceInfo, req: Requirements) -> Result<Self, VkError> {
+        let missing = req.missing_on(&info);
+        if !missing.is_empty() {
+            return Err(VkError::Unsupported { index: info.index, name: info.name(), missing: missing.join(", ") });
+        }
+        let queue_family = info.universal_queue_family().ok_or_else(|| VkError::Unsupported {
+            index: info.index,
+            name: info.name(),
+            missing: "a graphics+compute queue".into(),
+        })?;
+        let sup = &info.features;
+        let sup12 = sup.v12.unwrap_or_default();
+
+        let mut exts: Vec<&CStr> = Vec::new();
+        let mut core = vk::PhysicalDeviceFeatures::default();
+        let mut v12 = vk::PhysicalDeviceVulkan12Features::default();
+        let mut rt = vk::PhysicalDeviceRayTracingPipelineFeaturesKHR::default();
+        let mut accel = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default();
+        let mut rq = vk::PhysicalDeviceRayQueryFeaturesKHR::default();
+        let mut db = vk::PhysicalDeviceDescriptorBufferFeaturesEXT::default();
+        let mut fault = vk::PhysicalDeviceFaultFeaturesEXT::default();
+
+        let bda = req.buffer_device_address || req.rt_pipeline || req.ray_query || req.descriptor_buffer;
+        if req.rt_pipeline || req.ray_query {
+            exts.extend([khr::acceleration_structure::NAME, khr::deferred_host_operations::NAME]);
+            accel.acceleration_structure = vk::TRUE;
+        }
+        if req.rt_pipeline {
+            exts.push(khr::ray_tracing_pipeline::NAME);
+            rt.ray_tracing_pipeline = vk::TRUE;
+        }
+        if req.ray_query {
+            exts.push(khr::ray_query::NAME);
+            rq.ray_query = vk::TRUE;
+        }
+        if bda {
+            v12.buffer_device_address = vk::TRUE;
+        }
+        if req.descriptor_indexing {
+            let c = &sup.core;
+            core.shader_storage_buffer_array_dynamic_indexing = c.shader_storage_buffer_array_dynamic_indexing;
+            core.shader_uniform_buffer_array_dynamic_indexing = c.shader_uniform_buffer_array_dynamic_indexing;
+            core.shader_sampled_image_array_dynamic_indexing = c.shader_sampled_image_array_dynamic_indexing;
+            core.shader_storage_image_array_dynamic_indexing = c.shader_storage_image_array_dynamic_indexing;
+            v12.descriptor_indexing = sup12.descriptor_indexing;
+            v12.runtime_descriptor_array = sup12.runtime_descriptor_array;
+            v12.descriptor_binding_partially_bound = sup12.descriptor_binding_partially_bound;
+            v12.descriptor_binding_variable_descriptor_count = sup12.descriptor_binding_variable_descriptor_count;
+            v12.shader_storage_buffer_array_non_uniform_indexing = sup12.shader_storage_buffer_array_non_uniform_indexing;
+            v12.shader_uniform_buffer_array_non_uniform_indexing = sup12.shader_uniform_buffer_array_non_uniform_indexing;
+            v12.shader_sampled_image_array_non_uniform_indexing = sup12.shader_sampled_image_array_non_uniform_indexing;
+            v12.shader_storage_image_array_non_uniform_indexing = sup12.shader_storage_image_array_non_uniform_indexing;
+            v12.descriptor_binding_storage_buffer_update_after_bind = sup12.descriptor_binding_storage_buffer_update_after_bind;
+            v12.descriptor_binding_uniform_buffer_update_after_bind = sup12.descriptor_binding_uniform_buffer_update_after_bind;
+            v12.descriptor_binding_sampled_image_update_after_bind = sup12.descriptor_binding_sampled_image_update_after_bind;
+            v12.descriptor_binding_storage_image_update_after_bind = sup12.descriptor_binding_storage_image_update_after_bind;
+        }
+        if req.descriptor_buffer {
+            exts.push(ext::descriptor_buffer::NAME);
+            db.descriptor_buffer = vk::TRUE;
+        }
+        if req.device_fault {
+            exts.push(ext::device_fault::NAME);
+            fault.device_fault = vk::TRUE;
+            fault.device_fault_vendor_binary = sup.fault.map(|f| f.device_fault_vendor_binary).unwrap_or(vk::FALSE);
+        }
+        core.shader_int64 = if req.int64 || bda { sup.core.shader_int64 } else { vk::FALSE };
+        core.fragment_stores_and_atomics = if req.fragment_stores { vk::TRUE } else { vk::FALSE };
+        core.vertex_pipeline_stores_and_atomics = vk::FALSE;
+
+        let prio = [1.0f32];
+        let qci = [vk::DeviceQueueCreateInfo::default().queue_family_index(queue_family).queue_priorities(&prio)];
+        let ext_ptrs: Vec<*const i8> = exts.iter().map(|e| e.as_ptr()).collect();
+        let mut f2 = vk::PhysicalDeviceFeatures2::default().features(core).push_next(&mut v12);
+        if req.rt_pipeline || req.ray_query {
+            f2 = f2.push_next(&mut accel);
+        }
+        if req.rt_pipeline {
+            f2 = f2.push_next(&mut rt);
+        }
+        if req.ray_query {
+            f2 = f2.push_next(&mut rq);
+        }
+        if req.descriptor_buffer {
+            f2 = f2.push_next(&mut db);
+        }
+        if req.device_fault {
+            f2 = f2.push_next(&mut fault);
+        }
+        let ci = vk::DeviceCreateInfo::default().queue_create_infos(&qci).enabled_extension_names(&ext_ptrs).push_next(&mut f2);
+        let device = unsafe { instance.raw.create_device(info.raw, &ci, None) }.at("vkCreateDevice")?;
+        let queue = unsafe { device.get_device_queue(queue_family, 0) };
+        let inst = &instance.raw;
+        let gpu = Gpu {
+            rt: req.rt_pipeline.then(|| khr::ray_tracing_pipeline::Device::new(inst, &device)),
+            accel: (req.rt_pipeline || req.ray_query).then(|| khr::acceleration_structure::Device::new(inst, &device)),
+            descriptor_buffer: req.descriptor_buffer.then(|| ext::descriptor_buffer::Device::new(inst, &device)),
+            fault: req.device_fault.then(|| ext::device_fault::Device::new(inst, &device)),
+            instance: instance.clone(),
+            info,
+            device,
+            queue,
+            queue_family,
+            enabled: req,
+        };
+        Ok(gpu)
+    }
+}
+
+impl Drop for Gpu {
+    fn drop(&mut self) {
+        unsafe {
+            let _ = self.device.device_wait_idle();
+            self.device.destroy_device(None);
+        }
+    }
+}

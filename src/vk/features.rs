@@ -1,0 +1,304 @@
+//! [`DeviceInfo`]: the one struct holding everything rtprobe knows about a physical device —
+//! extensions, features and properties — queried in one place ([`DeviceInfo::query`]), which is
+//! also the only place that builds the `pNext` chains for `vkGetPhysicalDevice{Features,Properties}2`.
+//!
+//! Each extension-provided struct is an `Option`: `Some` exactly when the driver lists the
+//! extension (or the core version that promoted it), `None` otherwise. The core Vulkan 1.1/1.2/1.3
+//! structs are `Some` when the device's API version has them.
+use super::error::{VkError, VkResultExt};
+use super::heap;
+use super::instance::Instance;
+use ash::{ext, khr, vk};
+use std::collections::BTreeMap;
+use std::ffi::CStr;
+
+/// Extensions rtprobe looks for (the only place their names are listed; names come from ash).
+pub const TRACKED_EXTENSIONS: &[&CStr] = &[
+    khr::ray_tracing_pipeline::NAME,
+    khr::acceleration_structure::NAME,
+    khr::ray_query::NAME,
+    khr::deferred_host_operations::NAME,
+    khr::ray_tracing_maintenance1::NAME,
+    khr::ray_tracing_position_fetch::NAME,
+    khr::buffer_device_address::NAME,
+    khr::spirv_1_4::NAME,
+    khr::shader_float_controls::NAME,
+    ext::descriptor_indexing::NAME,
+    ext::descriptor_buffer::NAME,
+    heap::NAME,
+    ext::robustness2::NAME,
+    ext::device_fault::NAME,
+    khr::maintenance4::NAME,
+    khr::maintenance5::NAME,
+    khr::maintenance6::NAME,
+    khr::synchronization2::NAME,
+    khr::pipeline_library::NAME,
+];
+
+/// Features of the device. Extension structs are `Some` only when the extension is present.
+#[derive(Clone, Default)]
+pub struct Features {
+    pub core: vk::PhysicalDeviceFeatures,
+    pub v11: Option<vk::PhysicalDeviceVulkan11Features<'static>>,
+    /// Descriptor indexing, buffer device address, timeline semaphores, ...
+    pub v12: Option<vk::PhysicalDeviceVulkan12Features<'static>>,
+    pub v13: Option<vk::PhysicalDeviceVulkan13Features<'static>>,
+    pub rt_pipeline: Option<vk::PhysicalDeviceRayTracingPipelineFeaturesKHR<'static>>,
+    pub accel: Option<vk::PhysicalDeviceAccelerationStructureFeaturesKHR<'static>>,
+    pub ray_query: Option<vk::PhysicalDeviceRayQueryFeaturesKHR<'static>>,
+    pub rt_maintenance1: Option<vk::PhysicalDeviceRayTracingMaintenance1FeaturesKHR<'static>>,
+    pub position_fetch: Option<vk::PhysicalDeviceRayTracingPositionFetchFeaturesKHR<'static>>,
+    pub descriptor_buffer: Option<vk::PhysicalDeviceDescriptorBufferFeaturesEXT<'static>>,
+    pub descriptor_heap: Option<heap::PhysicalDeviceDescriptorHeapFeaturesEXT>,
+    pub robustness2: Option<vk::PhysicalDeviceRobustness2FeaturesEXT<'static>>,
+    pub fault: Option<vk::PhysicalDeviceFaultFeaturesEXT<'static>>,
+    pub maintenance5: Option<vk::PhysicalDeviceMaintenance5FeaturesKHR<'static>>,
+    pub maintenance6: Option<vk::PhysicalDeviceMaintenance6FeaturesKHR<'static>>,
+}
+
+/// Properties and limits of the device, same `Option` rule as [`Features`].
+#[derive(Clone, Default)]
+pub struct Properties {
+    pub core: vk::PhysicalDeviceProperties,
+    pub v11: Option<vk::PhysicalDeviceVulkan11Properties<'static>>,
+    /// Driver id/name/info, conformance version, descriptor indexing limits.
+    pub v12: Option<vk::PhysicalDeviceVulkan12Properties<'static>>,
+    pub v13: Option<vk::PhysicalDeviceVulkan13Properties<'static>>,
+    pub rt_pipeline: Option<vk::PhysicalDeviceRayTracingPipelinePropertiesKHR<'static>>,
+    pub accel: Option<vk::PhysicalDeviceAccelerationStructurePropertiesKHR<'static>>,
+    pub descriptor_buffer: Option<vk::PhysicalDeviceDescriptorBufferPropertiesEXT<'static>>,
+    pub descriptor_heap: Option<heap::PhysicalDeviceDescriptorHeapPropertiesEXT>,
+    pub robustness2: Option<vk::PhysicalDeviceRobustness2PropertiesEXT<'static>>,
+}
+
+/// Everything rtprobe knows about one physical device.
+#[derive(Clone)]
+pub struct DeviceInfo {
+    /// Index in the loader's enumeration order (what `--device N` selects).
+    pub index: usize,
+    pub raw: vk::PhysicalDevice,
+    /// Extension name → spec version, for every extension the driver lists.
+    pub extensions: BTreeMap<String, u32>,
+    pub features: Features,
+    pub properties: Properties,
+    pub queue_families: Vec<vk::QueueFamilyProperties>,
+    pub memory: vk::PhysicalDeviceMemoryProperties,
+    /// Format features of [`PROBE_IMAGE_FORMAT`], the format of the probes' images.
+    pub probe_image_format: vk::FormatProperties,
+}
+
+/// The format rtprobe's sampled and storage image probes use.
+pub const PROBE_IMAGE_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
+
+fn null_next<T>(s: &mut Option<T>, f: impl Fn(&mut T)) {
+    if let Some(x) = s.as_mut() {
+        f(x)
+    }
+}
+
+impl DeviceInfo {
+    pub fn query(instance: &Instance, index: usize, pd: vk::PhysicalDevice) -> Result<Self, VkError> {
+        let inst = &instance.raw;
+        let core_props = unsafe { inst.get_physical_device_properties(pd) };
+        let api = core_props.api_version;
+        let extensions: BTreeMap<String, u32> =
+            unsafe { inst.enumerate_device_extension_properties(pd) }
+                .at("vkEnumerateDeviceExtensionProperties")?
+                .iter()
+                .filter_map(|e| {
+                    e.extension_name_as_c_str()
+                        .ok()
+                        .map(|n| (n.to_string_lossy().into_owned(), e.spec_version))
+                })
+                .collect();
+        let mut extensions = extensions;
+        // What-if switch: hide extensions (comma-separated names) as if the driver lacked them;
+        // their feature structs are then never chained. Used to preview plans for older drivers.
+        if let Ok(hide) = std::env::var("RTPROBE_HIDE_EXTENSIONS") {
+            for name in hide.split(',').map(str::trim).filter(|n| !n.is_empty()) {
+                if extensions.remove(name).is_some() {
+                    tracing::info!("RTPROBE_HIDE_EXTENSIONS: hiding {name}");
+                }
+            }
+        }
+        let has = |n: &CStr| extensions.contains_key(n.to_str().unwrap_or_default());
+        let v12 = api >= vk::API_VERSION_1_2;
+        let v13 = api >= vk::API_VERSION_1_3;
+
+        let mut f = Features {
+            v11: v12.then(Default::default),
+            v12: v12.then(Default::default),
+            v13: v13.then(Default::default),
+            rt_pipeline: has(khr::ray_tracing_pipeline::NAME).then(Default::default),
+            accel: has(khr::acceleration_structure::NAME).then(Default::default),
+            ray_query: has(khr::ray_query::NAME).then(Default::default),
+            rt_maintenance1: has(khr::ray_tracing_maintenance1::NAME).then(Default::default),
+            position_fetch: has(khr::ray_tracing_position_fetch::NAME).then(Default::default),
+            descriptor_buffer: has(ext::descriptor_buffer::NAME).then(Default::default),
+            descriptor_heap: has(heap::NAME).then(Default::default),
+            robustness2: has(ext::robustness2::NAME).then(Default::default),
+            fault: has(ext::device_fault::NAME).then(Default::default),
+            maintenance5: has(khr::maintenance5::NAME).then(Default::default),
+            maintenance6: has(khr::maintenance6::NAME).then(Default::default),
+            core: Default::default(),
+        };
+        let mut p = Properties {
+            v11: v12.then(Default::default),
+            v12: v12.then(Default::default),
+            v13: v13.then(Default::default),
+            rt_pipeline: f.rt_pipeline.map(|_| Default::default()),
+            accel: f.accel.map(|_| Default::default()),
+            descriptor_buffer: f.descriptor_buffer.map(|_| Default::default()),
+            descriptor_heap: f.descriptor_heap.map(|_| Default::default()),
+            robustness2: f.robustness2.map(|_| Default::default()),
+            core: core_props,
+        };
+
+        // The one place the pNext chains are built. Each Some(..) struct is chained, queried,
+        // then its pNext is cleared so the stored copies hold no dangling pointers.
+        {
+            let mut f2 = vk::PhysicalDeviceFeatures2::default();
+            macro_rules! chain_f { ($($s:ident),*) => { $( if let Some(x) = f.$s.as_mut() { f2 = f2.push_next(x); } )* } }
+            chain_f!(v11, v12, v13, rt_pipeline, accel, ray_query, rt_maintenance1, position_fetch,
+                descriptor_buffer, descriptor_heap, robustness2, fault, maintenance5, maintenance6);
+            unsafe { inst.get_physical_device_features2(pd, &mut f2) };
+            f.core = f2.features;
+        }
+        macro_rules! clear_f { ($($s:ident),*) => { $( null_next(&mut f.$s, |x| x.p_next = std::ptr::null_mut()); )* } }
+        clear_f!(v11, v12, v13, rt_pipeline, accel, ray_query, rt_maintenance1, position_fetch,
+            descriptor_buffer, descriptor_heap, robustness2, fault, maintenance5, maintenance6);
+
+        {
+            let mut p2 = vk::PhysicalDeviceProperties2::default();
+            macro_rules! chain_p { ($($s:ident),*) => { $( if let Some(x) = p.$s.as_mut() { p2 = p2.push_next(x); } )* } }
+            chain_p!(v11, v12, v13, rt_pipeline, accel, descriptor_buffer, descriptor_heap, robustness2);
+            unsafe { inst.get_physical_device_properties2(pd, &mut p2) };
+            p.core = p2.properties;
+        }
+        macro_rules! clear_p { ($($s:ident),*) => { $( null_next(&mut p.$s, |x| x.p_next = std::ptr::null_mut()); )* } }
+        clear_p!(v11, v12, v13, rt_pipeline, accel, descriptor_buffer, descriptor_heap, robustness2);
+
+        let queue_families = unsafe { inst.get_physical_device_queue_family_properties(pd) };
+        let memory = unsafe { inst.get_physical_device_memory_properties(pd) };
+        let probe_image_format = unsafe { inst.get_physical_device_format_properties(pd, PROBE_IMAGE_FORMAT) };
+        Ok(Self { index, raw: pd, extensions, features: f, properties: p, queue_families, memory, probe_image_format })
+    }
+
+    pub fn name(&self) -> String {
+        self.properties.core.device_name_as_c_str().map(|c| c.to_string_lossy().into_owned()).unwrap_or_default()
+    }
+
+    pub fn has_extension(&self, name: &CStr) -> bool {
+        self.extensions.contains_key(name.to_str().unwrap_or_default())
+    }
+
+    pub fn api_version(&self) -> u32 {
+        self.properties.core.api_version
+    }
+
+    pub fn driver_id(&self) -> vk::DriverId {
+        self.properties.v12.map(|p| p.driver_id).unwrap_or_default()
+    }
+
+    pub fn driver_name(&self) -> String {
+        self.properties.v12.and_then(|p| p.driver_name_as_c_str().ok().map(|c| c.to_string_lossy().into_owned())).unwrap_or_default()
+    }
+
+    pub fn driver_info(&self) -> String {
+        self.properties.v12.and_then(|p| p.driver_info_as_c_str().ok().map(|c| c.to_string_lossy().into_owned())).unwrap_or_default()
+    }
+
+    /// The decoded driver version. Some Mesa drivers (lavapipe) put a placeholder in
+    /// `driverVersion`; for Mesa drivers the version in `driverInfo` ("Mesa 25.0.7-...") wins.
+    pub fn driver_version(&self) -> String {
+        if let Some(v) = super::driver_version::mesa_version_from_info(&self.driver_info()) {
+            return v;
+        }
+        super::driver_version::decode_driver_version(
+            self.properties.core.vendor_id,
+            self.driver_id(),
+            self.properties.core.driver_version,
+        )
+    }
+
+    /// A queue family that supports graphics and compute (ray tracing runs on such a queue).
+    pub fn universal_queue_family(&self) -> Option<u32> {
+        let want = vk::QueueFlags::GRAPHICS | vk::QueueFlags::COMPUTE;
+        self.queue_families.iter().position(|q| q.queue_flags.contains(want)).map(|i| i as u32)
+    }
+
+    /// Why this device cannot run rtprobe's ray tracing pipelines; empty when it can.
+    pub fn rt_pipeline_missing(&self) -> Vec<String> {
+        let mut m = Vec::new();
+        if self.api_version() < vk::API_VERSION_1_2 {
+            m.push(format!("Vulkan 1.2 (device has {})", super::driver_version::format_api_version(self.api_version())));
+        }
+        for ext in [khr::ray_tracing_pipeline::NAME, khr::acceleration_structure::NAME, khr::deferred_host_operations::NAME] {
+            if !self.has_extension(ext) {
+                m.push(ext.to_string_lossy().into_owned());
+            }
+        }
+        let f = &self.features;
+        if f.rt_pipeline.is_some_and(|x| x.ray_tracing_pipeline == vk::FALSE) {
+            m.push("rayTracingPipeline feature".into());
+        }
+        if f.accel.is_some_and(|x| x.acceleration_structure == vk::FALSE) {
+            m.push("accelerationStructure feature".into());
+        }
+        if f.v12.is_some_and(|x| x.buffer_device_address == vk::FALSE) {
+            m.push("bufferDeviceAddress feature".into());
+        }
+        if self.universal_queue_family().is_none() {
+            m.push("a graphics+compute queue".into());
+        }
+        m
+    }
+
+    pub fn memory_type_index(&self, type_bits: u32, flags: vk::MemoryPropertyFlags) -> Option<u32> {
+        (0..self.memory.memory_type_count).find(|&i| {
+            type_bits & (1 << i) != 0 && self.memory.memory_types[i as usize].property_flags.contains(flags)
+        })
+    }
+}
+
+/// Query every physical device, in enumeration order.
+pub fn query_all(instance: &Instance) -> Result<Vec<DeviceInfo>, VkError> {
+    instance
+        .physical_devices()?
+        .into_iter()
+        .enumerate()
+        .map(|(i, pd)| DeviceInfo::query(instance, i, pd))
+        .collect()
+}
+
+/// Resolve `--device` (an index, or a case-insensitive substring of the name). Without a spec,
+/// the first device that can run RT pipelines, preferring discrete GPUs.
+pub fn select<'a>(devices: &'a [DeviceInfo], spec: Option<&str>) -> Result<&'a DeviceInfo, VkError> {
+    let listing = || {
+        devices.iter().map(|d| format!("{}: {}", d.index, d.name())).collect::<Vec<_>>().join(", ")
+    };
+    match spec {
+        Some(s) => {
+            if let Ok(i) = s.trim().parse::<usize>() {
+                return devices.get(i).ok_or_else(|| VkError::NoSuchDevice { spec: s.into(), available: listing() });
+            }
+            let needle = s.to_lowercase();
+            let hits: Vec<&DeviceInfo> = devices.iter().filter(|d| d.name().to_lowercase().contains(&needle)).collect();
+            match hits.as_slice() {
+                [] => Err(VkError::NoSuchDevice { spec: s.into(), available: listing() }),
+                [one] => Ok(one),
+                many => Err(VkError::AmbiguousDevice {
+                    spec: s.into(),
+                    matches: many.iter().map(|d| format!("{}: {}", d.index, d.name())).collect::<Vec<_>>().join(", "),
+                }),
+            }
+        }
+        None => {
+            let capable = devices.iter().filter(|d| d.rt_pipeline_missing().is_empty());
+            let best = capable.clone().find(|d| d.properties.core.device_type == vk::PhysicalDeviceType::DISCRETE_GPU).or_else(|| capable.clone().next());
+            best.ok_or_else(|| VkError::NoRtDevice {
+                details: devices.iter().map(|d| format!("{}: {} lacks {}", d.index, d.name(), d.rt_pipeline_missing().join(", "))).collect::<Vec<_>>().join("; "),
+            })
+        }
+    }
+}

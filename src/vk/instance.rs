@@ -1,0 +1,151 @@
+//! The Vulkan instance: loading the loader, the optional validation layer with a debug messenger
+//! that counts validation errors, and enumerating physical devices.
+use super::error::{VkError, VkResultExt};
+use ash::{ext, vk};
+use std::ffi::{c_void, CStr};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+pub const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
+
+static VALIDATION_ERRORS: AtomicU64 = AtomicU64::new(0);
+
+/// Number of validation-layer errors reported since the process started.
+pub fn validation_error_count() -> u64 {
+    VALIDATION_ERRORS.load(Ordering::Relaxed)
+}
+
+#[derive(Clone, Debug, Default)]
+pub struct InstanceOptions {
+    /// Enable VK_LAYER_KHRONOS_validation when it is installed.
+    pub validate: bool,
+}
+
+pub struct Instance {
+    pub entry: ash::Entry,
+    pub raw: ash::Instance,
+    /// Instance-level API version the loader supports.
+    pub loader_version: u32,
+    /// Whether the validation layer is active.
+    pub validation: bool,
+    debug: Option<(ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
+}
+
+unsafe extern "system" fn debug_callback(
+    severity: vk::DebugUtilsMessageSeverityFlagsEXT,
+    _types: vk::DebugUtilsMessageTypeFlagsEXT,
+    data: *const vk::DebugUtilsMessengerCallbackDataEXT<'_>,
+    _user: *mut c_void,
+) -> vk::Bool32 {
+    let msg = if data.is_null() || (*data).p_message.is_null() {
+        "<no message>".into()
+    } else {
+        CStr::from_ptr((*data).p_message).to_string_lossy()
+    };
+    if severity.contains(vk::DebugUtilsMessageSeverityFlagsEXT::ERROR) {
+        VALIDATION_ERRORS.fetch_add(1, Ordering::Relaxed);
+        tracing::error!(target: "validation", "{msg}");
+    } else if severity.contains(vk::DebugUtilsMessageSeverityFlagsEXT::WARNING) {
+        tracing::warn!(target: "validation", "{msg}");
+    } else {
+        tracing::debug!(target: "validation", "{msg}");
+    }
+    vk::FALSE
+}
+
+impl Instance {
+    pub fn new(opts: &InstanceOptions) -> Result<Self, VkError> {
+        // SAFETY: loading the system loader library; ash keeps it alive with the Entry.
+        let entry = match std::env::var_os("RTPROBE_VULKAN_LIB") {
+            Some(path) => unsafe { ash::Entry::load_from(&path) },
+            None => unsafe { ash::Entry::load() },
+        }
+        .map_err(|e| VkError::LoaderMissing { detail: e.to_string() })?;
+
+        let loader_version = unsafe { entry.try_enumerate_instance_version() }
+            .at("vkEnumerateInstanceVersion")?
+            .unwrap_or(vk::API_VERSION_1_0);
+        if loader_version < vk::API_VERSION_1_2 {
+            return Err(VkError::LoaderTooOld {
+                found: super::driver_version::format_api_version(loader_version),
+            });
+        }
+
+        let mut layers = Vec::new();
+        let mut extensions = Vec::new();
+        let mut validation = false;
+        if opts.validate {
+            let available = unsafe { entry.enumerate_instance_layer_properties() }
+                .at("vkEnumerateInstanceLayerProperties")?;
+            if available.iter().any(|l| l.layer_name_as_c_str() == Ok(VALIDATION_LAYER)) {
+                layers.push(VALIDATION_LAYER.as_ptr());
+                extensions.push(ext::debug_utils::NAME.as_ptr());
+                validation = true;
+            } else {
+                tracing::warn!("--validate: VK_LAYER_KHRONOS_validation is not installed (apt-get install vulkan-validationlayers); running without it");
+            }
+        }
+
+        let app = vk::ApplicationInfo::default()
+            .application_name(c"rtprobe")
+            .application_version(vk::make_api_version(0, 0, 1, 0))
+            .engine_name(c"rtprobe")
+            .api_version(vk::API_VERSION_1_3.min(loader_version));
+        let info = vk::InstanceCreateInfo::default()
+            .application_info(&app)
+            .enabled_layer_names(&layers)
+            .enabled_extension_names(&extensions);
+        let raw = match unsafe { entry.create_instance(&info, None) } {
+            Ok(i) => i,
+            Err(vk::Result::ERROR_INCOMPATIBLE_DRIVER) => {
+                return Err(VkError::NoDriver {
+                    detail: "vkCreateInstance: VK_ERROR_INCOMPATIBLE_DRIVER".into(),
+                })
+            }
+            Err(e) => return Err(VkError::from_result("vkCreateInstance", e)),
+        };
+
+        let debug = if validation {
+            let du = ext::debug_utils::Instance::new(&entry, &raw);
+            let ci = vk::DebugUtilsMessengerCreateInfoEXT::default()
+                .message_severity(
+                    vk::DebugUtilsMessageSeverityFlagsEXT::ERROR
+                        | vk::DebugUtilsMessageSeverityFlagsEXT::WARNING,
+                )
+                .message_type(
+                    vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
+                        | vk::DebugUtilsMessageTypeFlagsEXT::GENERAL,
+                )
+                .pfn_user_callback(Some(debug_callback));
+            let m = unsafe { du.create_debug_utils_messenger(&ci, None) }
+                .at("vkCreateDebugUtilsMessengerEXT")?;
+            Some((du, m))
+        } else {
+            None
+        };
+        Ok(Self { entry, raw, loader_version, validation, debug })
+    }
+
+    /// All physical devices, in the loader's order (that order is what `--device INDEX` means).
+    pub fn physical_devices(&self) -> Result<Vec<vk::PhysicalDevice>, VkError> {
+        let pds = match unsafe { self.raw.enumerate_physical_devices() } {
+            Ok(p) => p,
+            Err(vk::Result::ERROR_INITIALIZATION_FAILED) => Vec::new(),
+            Err(e) => return Err(VkError::from_result("vkEnumeratePhysicalDevices", e)),
+        };
+        if pds.is_empty() {
+            return Err(VkError::NoDriver { detail: "the loader found no physical device".into() });
+        }
+        Ok(pds)
+    }
+}
+
+impl Drop for Instance {
+    fn drop(&mut self) {
+        unsafe {
+            if let Some((du, m)) = self.debug.take() {
+                du.destroy_debug_utils_messenger(m, None);
+            }
+            self.raw.destroy_instance(None);
+        }
+    }
+}
