@@ -50,6 +50,7 @@ pub fn stage(info: &DeviceInfo, s: Stage) -> Support {
         Stage::Fragment => Support::require(&[
             (info.universal_queue_family().is_some(), "a graphics queue"),
             (on(info.features.core.fragment_stores_and_atomics), "fragmentStoresAndAtomics"),
+            (info.features.v13.is_some_and(|v| on(v.dynamic_rendering)), "dynamicRendering"),
         ]),
         _ => Support::Supported,
     }

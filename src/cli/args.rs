@@ -31,6 +31,90 @@ pub enum Command {
     Devices(DevicesArgs),
     /// Show what a device can do for ray tracing, and which matrix axis values it can run
     Caps(CapsArgs),
+    /// Run the matrix of generated shader variants in full RT scenes, each checked against a CPU
+    /// reference, each fault isolated; writes a JSON report
+    Run(RunArgs),
+    /// Internal: run cells for the supervisor (`rtprobe run`); not for direct use
+    #[command(name = "__worker", hide = true)]
+    Worker {
+        /// The job file written by the supervisor
+        job: PathBuf,
+    },
+}
+
+#[derive(Args, Debug)]
+pub struct RunArgs {
+    /// Device index or case-insensitive name substring (default: the first RT-capable device)
+    #[arg(long, short = 'd', value_name = "INDEX|NAME")]
+    pub device: Option<String>,
+
+    /// Select cells: `axis=value[|value],...`, every term must match; repeat for more filters
+    /// (all must match). Axes: stage, resource, index, nonuniform, as_access, descriptor_model
+    #[arg(long, value_name = "FILTER")]
+    pub filter: Vec<String>,
+
+    /// Print the planned cells (unsupported ones with the reason) and the rules that kept
+    /// combinations out; run nothing
+    #[arg(long)]
+    pub list: bool,
+
+    /// Report file (default: reports/run-<timestamp>-<device>.json)
+    #[arg(long, short = 'o', value_name = "FILE")]
+    pub out: Option<PathBuf>,
+
+    /// Continue an interrupted run from its report (finished cells are kept, not re-run)
+    #[arg(long, value_name = "REPORT")]
+    pub resume: Option<PathBuf>,
+
+    /// Also write JUnit XML (findings as failures, unsupported cells as skipped)
+    #[arg(long, value_name = "FILE")]
+    pub junit: Option<PathBuf>,
+
+    /// Write each cell's generated GLSL and SPIR-V under DIR/<cell id>/
+    #[arg(long, value_name = "DIR")]
+    pub dump: Option<PathBuf>,
+
+    /// Worker processes running cells in parallel (default 1)
+    #[arg(long, short = 'j', default_value_t = 1)]
+    pub jobs: usize,
+
+    /// `worker`: a worker runs many cells and is replaced after a fault;
+    /// `process-per-cell`: every cell in a fresh process
+    #[arg(long, value_enum, default_value = "worker")]
+    pub isolation: crate::runner::supervisor::Isolation,
+
+    /// Deadline for one cell, in seconds (a cell past it is a `timeout`)
+    #[arg(long, default_value_t = 20.0, value_name = "SECONDS")]
+    pub timeout: f64,
+
+    /// Do not re-run faulting cells alone in a fresh worker
+    #[arg(long)]
+    pub no_confirm: bool,
+
+    /// Add canary cells (invalid address read, endless loop) that prove crash, device-loss and
+    /// timeout detection on this driver
+    #[arg(long)]
+    pub canaries: bool,
+
+    /// Scene seed
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+
+    /// Image size WIDTHxHEIGHT (one primary ray per pixel; multiples of 8)
+    #[arg(long, default_value = "64x64", value_name = "WxH")]
+    pub size: String,
+
+    /// TLAS instances (at least 16)
+    #[arg(long, default_value_t = 16)]
+    pub instances: u32,
+
+    /// Quads per side of the largest mesh (meshes have detail/4, detail/2, detail)
+    #[arg(long, default_value_t = 16)]
+    pub mesh_detail: u32,
+
+    /// Tests only: perturb the expected values so that correct results must mismatch
+    #[arg(long, hide = true)]
+    pub corrupt_expected: bool,
 }
 
 #[derive(Args, Debug)]

@@ -63,6 +63,7 @@ pub fn full_requirements(info: &DeviceInfo) -> Requirements {
         device_fault: info.features.fault.is_some_and(|f| f.device_fault == ash::vk::TRUE),
         int64: info.features.core.shader_int64 == ash::vk::TRUE,
         fragment_stores: fragment && support::resource(info, Resource::StorageBuffer).is_supported(),
+        dynamic_rendering: fragment,
     }
 }
 

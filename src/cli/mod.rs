@@ -3,6 +3,7 @@
 pub mod args;
 pub mod commands;
 pub mod exit;
+pub mod run;
 
 use args::{Cli, Command};
 use clap::Parser;
@@ -33,6 +34,8 @@ pub fn main_entry() -> u8 {
     let result = match &cli.command {
         Command::Devices(a) => commands::devices(&g, a),
         Command::Caps(a) => commands::caps_cmd(&g, a),
+        Command::Run(a) => run::run(&g, a),
+        Command::Worker { job } => return crate::runner::worker::main(job),
     };
     match result {
         Ok(code) => code,

@@ -1,5 +1,9 @@
-//! Reports: writing them atomically (and, with the runner, their schema, reading, JUnit and Markdown).
+//! Reports: atomic writes, timestamps, the run report schema and its writer, JUnit and the
+//! terminal summary.
 pub mod atomic;
+pub mod junit;
+pub mod run_report;
+pub mod summary;
 pub mod time;
 
 pub use atomic::write_atomic;

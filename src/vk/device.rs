@@ -28,6 +28,8 @@ pub struct Requirements {
     pub int64: bool,
     /// fragmentStoresAndAtomics (fragment probes write records to an SSBO).
     pub fragment_stores: bool,
+    /// dynamicRendering (Vulkan 1.3; fragment probes render without a render pass object).
+    pub dynamic_rendering: bool,
 }
 
 impl Requirements {
@@ -59,6 +61,9 @@ impl Requirements {
         }
         if self.fragment_stores && f.core.fragment_stores_and_atomics == vk::FALSE {
             m.push("fragmentStoresAndAtomics".into());
+        }
+        if self.dynamic_rendering && !f.v13.is_some_and(|x| x.dynamic_rendering == vk::TRUE) {
+            m.push("dynamicRendering (Vulkan 1.3)".into());
         }
         m
     }
@@ -100,6 +105,7 @@ impl Gpu {
         let mut rq = vk::PhysicalDeviceRayQueryFeaturesKHR::default();
         let mut db = vk::PhysicalDeviceDescriptorBufferFeaturesEXT::default();
         let mut fault = vk::PhysicalDeviceFaultFeaturesEXT::default();
+        let mut v13 = vk::PhysicalDeviceVulkan13Features::default().dynamic_rendering(req.dynamic_rendering);
 
         let bda = req.buffer_device_address || req.rt_pipeline || req.ray_query || req.descriptor_buffer;
         if req.rt_pipeline || req.ray_query {
@@ -135,6 +141,8 @@ impl Gpu {
             v12.descriptor_binding_uniform_buffer_update_after_bind = sup12.descriptor_binding_uniform_buffer_update_after_bind;
             v12.descriptor_binding_sampled_image_update_after_bind = sup12.descriptor_binding_sampled_image_update_after_bind;
             v12.descriptor_binding_storage_image_update_after_bind = sup12.descriptor_binding_storage_image_update_after_bind;
+            accel.descriptor_binding_acceleration_structure_update_after_bind =
+                sup.accel.map(|a| a.descriptor_binding_acceleration_structure_update_after_bind).unwrap_or(vk::FALSE);
         }
         if req.descriptor_buffer {
             exts.push(ext::descriptor_buffer::NAME);
@@ -153,6 +161,9 @@ impl Gpu {
         let qci = [vk::DeviceQueueCreateInfo::default().queue_family_index(queue_family).queue_priorities(&prio)];
         let ext_ptrs: Vec<*const i8> = exts.iter().map(|e| e.as_ptr()).collect();
         let mut f2 = vk::PhysicalDeviceFeatures2::default().features(core).push_next(&mut v12);
+        if req.dynamic_rendering {
+            f2 = f2.push_next(&mut v13);
+        }
         if req.rt_pipeline || req.ray_query {
             f2 = f2.push_next(&mut accel);
         }

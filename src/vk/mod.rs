@@ -12,3 +12,6 @@ pub use device::{Gpu, Requirements};
 pub use error::{VkError, VkResultExt};
 pub use features::DeviceInfo;
 pub use instance::{Instance, InstanceOptions};
+pub mod fault;
+pub mod memory;
+pub mod submit;

@@ -1,0 +1,198 @@
+//! `rtprobe run`: resolve arguments into a plan (before any GPU work), print it (`--list`) or
+//! hand it to the supervisor, and keep the report, progress bar and summary.
+use super::args::RunArgs;
+use super::commands::{open_instance, Globals};
+use super::exit::{self, coded};
+use crate::caps;
+use crate::matrix::plan::{self, Filter, PlanOptions, PlanStatus};
+use crate::reference::SceneReference;
+use crate::report::run_report::{PlanSummary, ReportWriter, RunReport, SceneSummary, TimingSummary, SCHEMA};
+use crate::report::{junit, summary, time, write_atomic};
+use crate::runner::supervisor::{Event, Isolation, Supervisor, SupervisorOptions};
+use crate::scene::{Scene, SceneParams};
+use crate::vk::features;
+use anyhow::{Context, Result};
+use serde_json::json;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+fn scene_params(a: &RunArgs) -> Result<SceneParams> {
+    let (w, h) = a
+        .size
+        .split_once(['x', 'X'])
+        .and_then(|(w, h)| Some((w.trim().parse::<u32>().ok()?, h.trim().parse::<u32>().ok()?)))
+        .ok_or_else(|| coded(exit::USAGE, format!("--size {:?} is not WIDTHxHEIGHT (e.g. 64x64)", a.size)))?;
+    let p = SceneParams { seed: a.seed, width: w, height: h, instances: a.instances, mesh_detail: a.mesh_detail };
+    p.validate().map_err(|e| coded(exit::USAGE, format!("scene: {e}")))?;
+    Ok(p)
+}
+
+fn slug(name: &str) -> String {
+    let s: String = name.chars().map(|c| if c.is_ascii_alphanumeric() { c.to_ascii_lowercase() } else { '-' }).collect();
+    s.split('-').filter(|p| !p.is_empty()).take(4).collect::<Vec<_>>().join("-")
+}
+
+pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
+    let filters = a.filter.iter().map(|f| Filter::parse(f).map_err(|e| coded(exit::USAGE, e))).collect::<Result<Vec<_>>>()?;
+    let params = scene_params(a)?;
+    if a.jobs == 0 || a.jobs > 64 {
+        return Err(coded(exit::USAGE, "--jobs must be 1..=64"));
+    }
+    if !(a.timeout > 0.0 && a.timeout <= 3600.0) {
+        return Err(coded(exit::USAGE, "--timeout must be in (0, 3600] seconds"));
+    }
+    let inst = open_instance(g)?;
+    let all = features::query_all(&inst)?;
+    let info = features::select(&all, a.device.as_deref())?.clone();
+    drop(all);
+    let the_plan = plan::plan(&info, &PlanOptions { filters: filters.clone(), canaries: a.canaries });
+
+    if a.list {
+        for pc in &the_plan.cells {
+            match &pc.status {
+                PlanStatus::Run => println!("run          {}", pc.cell.id()),
+                PlanStatus::Unsupported { reason } => println!("unsupported  {}  ({reason})", pc.cell.id()),
+            }
+        }
+        let to_run = the_plan.to_run().count();
+        println!("{} planned: {} to run, {} unsupported; {} filtered out", the_plan.cells.len(), to_run, the_plan.unsupported_count(), the_plan.filtered_out);
+        for ng in &the_plan.not_generated {
+            println!("not generated: {} ({} combinations)", ng.rule, ng.count);
+        }
+        return Ok(exit::OK);
+    }
+
+    let scene = Scene::build(&params);
+    let sref = SceneReference::compute(&scene);
+    let started = time::now_unix();
+    let out = match (&a.out, &a.resume) {
+        (Some(o), _) => o.clone(),
+        (None, Some(r)) => r.clone(),
+        (None, None) => PathBuf::from("reports").join(format!("run-{}-{}.json", time::stamp(started), slug(&info.name()))),
+    };
+    let fresh = RunReport {
+        schema: SCHEMA.into(),
+        tool: json!({ "name": "rtprobe", "version": env!("CARGO_PKG_VERSION") }),
+        command_line: std::env::args().collect(),
+        started: format!("{} ({started})", time::stamp(started)),
+        finished: None,
+        complete: false,
+        device: caps::device_json(&info),
+        matrix_support: caps::matrix_json(&info),
+        scene: SceneSummary {
+            params,
+            instances: scene.instances.len(),
+            blas: scene.meshes.len() + 1,
+            triangles: scene.triangle_count(),
+            ambiguous_pixels: sref.ambiguous_pixels(),
+        },
+        options: json!({
+            "jobs": a.jobs, "isolation": a.isolation, "timeout_s": a.timeout, "confirm": !a.no_confirm,
+            "canaries": a.canaries, "filters": a.filter, "validate": g.validate, "corrupt_expected": a.corrupt_expected,
+        }),
+        plan: PlanSummary {
+            generated: plan::all_cells().0.len(),
+            filtered_out: the_plan.filtered_out,
+            planned: the_plan.cells.len(),
+            to_run: the_plan.to_run().count(),
+            unsupported: the_plan.unsupported_count(),
+            not_generated: the_plan.not_generated.clone(),
+        },
+        summary: Default::default(),
+        timing: TimingSummary::default(),
+        cells: vec![],
+    };
+    let base = match &a.resume {
+        Some(r) => {
+            let old = RunReport::load(r).map_err(|e| coded(exit::BAD_INPUT, e))?;
+            if old.device["name"] != fresh.device["name"] || old.scene.params != params {
+                return Err(coded(exit::BAD_INPUT, format!("{} was made on another device or scene; resume needs the same --device and scene options", r.display())));
+            }
+            RunReport { command_line: fresh.command_line.clone(), complete: false, finished: None, ..old }
+        }
+        None => fresh,
+    };
+    let writer = ReportWriter::new(out.clone(), base, &the_plan);
+    let done = if a.resume.is_some() { writer.done() } else { Default::default() };
+    let cells: Vec<_> = the_plan.to_run().filter(|c| !done.contains(&c.id())).copied().collect();
+    writer.save(false).with_context(|| "writing the report")?;
+
+    let job_dir = std::env::temp_dir().join(format!("rtprobe-{}", std::process::id()));
+    let mut sup = Supervisor::new(SupervisorOptions {
+        device_index: info.index,
+        scene: params,
+        jobs: a.jobs,
+        isolation: a.isolation,
+        timeout: Duration::from_secs_f64(a.timeout),
+        setup_timeout: Duration::from_secs(120),
+        grace: Duration::from_millis(500),
+        validate: g.validate,
+        corrupt_expected: a.corrupt_expected,
+        dump: a.dump.clone(),
+        job_dir: job_dir.clone(),
+    });
+    let bar = indicatif::ProgressBar::new(cells.len() as u64);
+    bar.set_style(indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} {msg}").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()));
+    let wall = Instant::now();
+    let mut st = RunState { writer, bar, device_ms_sum: 0.0, save_error: None };
+    sup.run(&cells, false, &mut |ev| st.on_event(ev));
+    if !a.no_confirm && a.isolation == Isolation::Worker {
+        let again: Vec<_> = st
+            .writer
+            .report
+            .cells
+            .iter()
+            .filter(|c| c.cell.canary.is_none() && c.attempts.len() == 1 && c.outcome.worth_confirming())
+            .map(|c| c.cell)
+            .collect();
+        if !again.is_empty() {
+            st.bar.inc_length(again.len() as u64);
+            sup.run(&again, true, &mut |ev| st.on_event(ev));
+        }
+    }
+    let RunState { mut writer, bar, device_ms_sum, save_error } = st;
+    bar.finish_and_clear();
+    let _ = std::fs::remove_dir_all(&job_dir);
+    if let Some(e) = save_error {
+        return Err(anyhow::Error::from(e).context("writing the report"));
+    }
+    let r = &mut writer.report;
+    r.timing.wall_ms += wall.elapsed().as_secs_f64() * 1e3;
+    r.timing.device_ms_mean = if r.timing.workers_started > 0 { device_ms_sum / r.timing.workers_started as f64 } else { 0.0 };
+    let now = time::now_unix();
+    r.finished = Some(format!("{} ({now})", time::stamp(now)));
+    r.complete = true;
+    writer.save(true).with_context(|| "writing the report")?;
+    if let Some(j) = &a.junit {
+        write_atomic(j, junit::render(&writer.report).as_bytes()).with_context(|| "writing the JUnit file")?;
+    }
+    print!("{}", summary::render(&writer.report));
+    println!("report: {}", out.display());
+    Ok(if writer.report.findings().next().is_some() { exit::FINDINGS } else { exit::OK })
+}
+
+struct RunState {
+    writer: ReportWriter,
+    bar: indicatif::ProgressBar,
+    device_ms_sum: f64,
+    save_error: Option<crate::report::atomic::WriteError>,
+}
+
+impl RunState {
+    fn on_event(&mut self, ev: Event) {
+        match ev {
+            Event::WorkerReady { device_ms, .. } => {
+                self.writer.report.timing.workers_started += 1;
+                self.device_ms_sum += device_ms;
+            }
+            Event::Attempt { cell, attempt } => {
+                self.bar.inc(1);
+                self.bar.set_message(format!("{} {}", attempt.outcome.as_str(), cell.id()));
+                self.writer.record(cell, attempt);
+                if let Err(e) = self.writer.save(false) {
+                    self.save_error.get_or_insert(e);
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,214 @@
+//! Binding the cell's descriptors under each descriptor model: `descriptor_indexing` (a descriptor
+//! set with a runtime-sized, partially bound, update-after-bind array where the device allows) and
+//! `descriptor_buffer` (VK_EXT_descriptor_buffer: descriptors written with vkGetDescriptorEXT into
+//! a buffer). Binding 0 is the records SSBO, 1 the scene TLAS, 2 the probed array. The
+//! `descriptor_heap` model never reaches here: the plan marks it unsupported where the driver lacks
+//! VK_EXT_descriptor_heap, and not implemented where it has it.
+use super::resources::{descriptor_type, Target};
+use crate::matrix::{DescriptorModel, Resource};
+use crate::vk::memory::{Buffer, Location};
+use crate::vk::{Gpu, VkError, VkResultExt};
+use ash::vk;
+
+pub const PUSH_CONSTANT_BYTES: u32 = 40;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct LayoutKey {
+    /// Stages that see the bindings and push constants (exactly the pipeline's stages).
+    pub stages: vk::ShaderStageFlags,
+    pub model: DescriptorModel,
+    pub scene_tlas: bool,
+    pub probe: Option<Resource>,
+}
+
+enum Bound {
+    Set { pool: vk::DescriptorPool, set: vk::DescriptorSet },
+    /// `usage`: the descriptor-buffer usage the layout needs (SAMPLER only with samplers).
+    Buffer { buffer: Buffer, usage: vk::BufferUsageFlags },
+}
+
+pub struct Binding {
+    pub set_layout: vk::DescriptorSetLayout,
+    pub pipeline_layout: vk::PipelineLayout,
+    bound: Bound,
+}
+
+fn update_after_bind_supported(gpu: &Gpu, ty: vk::DescriptorType) -> bool {
+    let v12 = gpu.info.features.v12.unwrap_or_default();
+    let on = |b: vk::Bool32| b == vk::TRUE;
+    match ty {
+        vk::DescriptorType::STORAGE_BUFFER => on(v12.descriptor_binding_storage_buffer_update_after_bind),
+        vk::DescriptorType::UNIFORM_BUFFER => on(v12.descriptor_binding_uniform_buffer_update_after_bind),
+        vk::DescriptorType::COMBINED_IMAGE_SAMPLER => on(v12.descriptor_binding_sampled_image_update_after_bind),
+        vk::DescriptorType::STORAGE_IMAGE => on(v12.descriptor_binding_storage_image_update_after_bind),
+        vk::DescriptorType::ACCELERATION_STRUCTURE_KHR => {
+            gpu.info.features.accel.is_some_and(|a| on(a.descriptor_binding_acceleration_structure_update_after_bind))
+        }
+        _ => false,
+    }
+}
+
+impl Binding {
+    /// `targets[b]` are the descriptors of binding `b` (records, scene TLAS, probe array), in the
+    /// order of the layout's bindings.
+    pub fn create(gpu: &Gpu, key: LayoutKey, targets: &[(u32, vk::DescriptorType, Vec<Target>)]) -> Result<Binding, VkError> {
+        let d = &gpu.device;
+        let mut bindings = Vec::new();
+        let mut flags = Vec::new();
+        let mut uab = false;
+        for (b, ty, t) in targets {
+            bindings.push(vk::DescriptorSetLayoutBinding::default().binding(*b).descriptor_type(*ty).descriptor_count(t.len() as u32).stage_flags(key.stages));
+            let f = if *b == 2 && key.model == DescriptorModel::DescriptorIndexing {
+                let mut f = vk::DescriptorBindingFlags::PARTIALLY_BOUND;
+                if update_after_bind_supported(gpu, *ty) {
+                    f |= vk::DescriptorBindingFlags::UPDATE_AFTER_BIND;
+                    uab = true;
+                }
+                f
+            } else {
+                vk::DescriptorBindingFlags::empty()
+            };
+            flags.push(f);
+        }
+        let mut flags_info = vk::DescriptorSetLayoutBindingFlagsCreateInfo::default().binding_flags(&flags);
+        let mut ci = vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings);
+        match key.model {
+            DescriptorModel::DescriptorIndexing => {
+                if uab {
+                    ci = ci.flags(vk::DescriptorSetLayoutCreateFlags::UPDATE_AFTER_BIND_POOL);
+                }
+                ci = ci.push_next(&mut flags_info);
+            }
+            DescriptorModel::DescriptorBuffer => ci = ci.flags(vk::DescriptorSetLayoutCreateFlags::DESCRIPTOR_BUFFER_EXT),
+            DescriptorModel::DescriptorHeap => unreachable!("the plan never runs descriptor_heap cells"),
+        }
+        let set_layout = unsafe { d.create_descriptor_set_layout(&ci, None) }.at("vkCreateDescriptorSetLayout")?;
+        let ranges = [vk::PushConstantRange { stage_flags: key.stages, offset: 0, size: PUSH_CONSTANT_BYTES }];
+        let layouts = [set_layout];
+        let pipeline_layout = unsafe { d.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&layouts).push_constant_ranges(&ranges), None) }
+            .at("vkCreatePipelineLayout")?;
+        let bound = match key.model {
+            DescriptorModel::DescriptorIndexing => Self::write_set(gpu, set_layout, uab, targets)?,
+            _ => Self::write_buffer(gpu, set_layout, targets)?,
+        };
+        Ok(Binding { set_layout, pipeline_layout, bound })
+    }
+
+    fn write_set(gpu: &Gpu, layout: vk::DescriptorSetLayout, uab: bool, targets: &[(u32, vk::DescriptorType, Vec<Target>)]) -> Result<Bound, VkError> {
+        let d = &gpu.device;
+        let sizes: Vec<vk::DescriptorPoolSize> = targets.iter().map(|(_, ty, t)| vk::DescriptorPoolSize { ty: *ty, descriptor_count: t.len() as u32 }).collect();
+        let mut pci = vk::DescriptorPoolCreateInfo::default().max_sets(1).pool_sizes(&sizes);
+        if uab {
+            pci = pci.flags(vk::DescriptorPoolCreateFlags::UPDATE_AFTER_BIND);
+        }
+        let pool = unsafe { d.create_descriptor_pool(&pci, None) }.at("vkCreateDescriptorPool")?;
+        let layouts = [layout];
+        let set = unsafe { d.allocate_descriptor_sets(&vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&layouts)) }
+            .at("vkAllocateDescriptorSets")?[0];
+        for (b, ty, ts) in targets {
+            let mut buffer_infos = Vec::new();
+            let mut image_infos = Vec::new();
+            let mut accels = Vec::new();
+            for t in ts {
+                match *t {
+                    Target::Buffer { raw, range, .. } => buffer_infos.push(vk::DescriptorBufferInfo { buffer: raw, offset: 0, range }),
+                    Target::Image { view, sampler } => image_infos.push(vk::DescriptorImageInfo { sampler, image_view: view, image_layout: vk::ImageLayout::GENERAL }),
+                    Target::Accel { raw, .. } => accels.push(raw),
+                }
+            }
+            let mut as_write = vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(&accels);
+            let mut w = vk::WriteDescriptorSet::default().dst_set(set).dst_binding(*b).descriptor_type(*ty);
+            if !buffer_infos.is_empty() {
+                w = w.buffer_info(&buffer_infos);
+            } else if !image_infos.is_empty() {
+                w = w.image_info(&image_infos);
+            } else {
+                w.descriptor_count = accels.len() as u32;
+                w = w.push_next(&mut as_write);
+            }
+            unsafe { d.update_descriptor_sets(&[w], &[]) };
+        }
+        Ok(Bound::Set { pool, set })
+    }
+
+    fn write_buffer(gpu: &Gpu, layout: vk::DescriptorSetLayout, targets: &[(u32, vk::DescriptorType, Vec<Target>)]) -> Result<Bound, VkError> {
+        let db = gpu.descriptor_buffer.as_ref().expect("descriptor buffer enabled");
+        let props = gpu.info.properties.descriptor_buffer.expect("descriptor buffer properties");
+        let size = unsafe { db.get_descriptor_set_layout_size(layout) };
+        let mut usage = vk::BufferUsageFlags::RESOURCE_DESCRIPTOR_BUFFER_EXT;
+        if targets.iter().any(|(_, ty, _)| *ty == vk::DescriptorType::COMBINED_IMAGE_SAMPLER) {
+            usage |= vk::BufferUsageFlags::SAMPLER_DESCRIPTOR_BUFFER_EXT;
+        }
+        let buffer = Buffer::new(gpu, size, usage | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS, Location::Host, "descriptor buffer")?;
+        let mut bytes = vec![0u8; size as usize];
+        for (b, ty, ts) in targets {
+            let offset = unsafe { db.get_descriptor_set_layout_binding_offset(layout, *b) } as usize;
+            let stride = match *ty {
+                vk::DescriptorType::STORAGE_BUFFER => props.storage_buffer_descriptor_size,
+                vk::DescriptorType::UNIFORM_BUFFER => props.uniform_buffer_descriptor_size,
+                vk::DescriptorType::COMBINED_IMAGE_SAMPLER => props.combined_image_sampler_descriptor_size,
+                vk::DescriptorType::STORAGE_IMAGE => props.storage_image_descriptor_size,
+                _ => props.acceleration_structure_descriptor_size,
+            };
+            for (i, t) in ts.iter().enumerate() {
+                let at = offset + i * stride;
+                let dst = &mut bytes[at..at + stride];
+                match *t {
+                    Target::Buffer { address, range, .. } => {
+                        let info = vk::DescriptorAddressInfoEXT::default().address(address).range(range).format(vk::Format::UNDEFINED);
+                        let data = if *ty == vk::DescriptorType::UNIFORM_BUFFER {
+                            vk::DescriptorDataEXT { p_uniform_buffer: &info }
+                        } else {
+                            vk::DescriptorDataEXT { p_storage_buffer: &info }
+                        };
+                        unsafe { db.get_descriptor(&vk::DescriptorGetInfoEXT::default().ty(*ty).data(data), dst) };
+                    }
+                    Target::Image { view, sampler } => {
+                        let info = vk::DescriptorImageInfo { sampler, image_view: view, image_layout: vk::ImageLayout::GENERAL };
+                        let data = if *ty == vk::DescriptorType::COMBINED_IMAGE_SAMPLER {
+                            vk::DescriptorDataEXT { p_combined_image_sampler: &info }
+                        } else {
+                            vk::DescriptorDataEXT { p_storage_image: &info }
+                        };
+                        unsafe { db.get_descriptor(&vk::DescriptorGetInfoEXT::default().ty(*ty).data(data), dst) };
+                    }
+                    Target::Accel { address, .. } => {
+                        let data = vk::DescriptorDataEXT { acceleration_structure: address };
+                        unsafe { db.get_descriptor(&vk::DescriptorGetInfoEXT::default().ty(*ty).data(data), dst) };
+                    }
+                }
+            }
+        }
+        buffer.write(0, &bytes);
+        Ok(Bound::Buffer { buffer, usage })
+    }
+
+    pub fn bind(&self, gpu: &Gpu, cmd: vk::CommandBuffer, point: vk::PipelineBindPoint) {
+        match &self.bound {
+            Bound::Set { set, .. } => unsafe { gpu.device.cmd_bind_descriptor_sets(cmd, point, self.pipeline_layout, 0, &[*set], &[]) },
+            Bound::Buffer { buffer, usage } => {
+                let db = gpu.descriptor_buffer.as_ref().expect("descriptor buffer enabled");
+                let info = [vk::DescriptorBufferBindingInfoEXT::default().address(buffer.address).usage(*usage)];
+                unsafe {
+                    db.cmd_bind_descriptor_buffers(cmd, &info);
+                    db.cmd_set_descriptor_buffer_offsets(cmd, point, self.pipeline_layout, 0, &[0], &[0]);
+                }
+            }
+        }
+    }
+
+    pub fn destroy(&self, gpu: &Gpu) {
+        unsafe {
+            match &self.bound {
+                Bound::Set { pool, .. } => gpu.device.destroy_descriptor_pool(*pool, None),
+                Bound::Buffer { buffer, .. } => buffer.destroy(gpu),
+            }
+            gpu.device.destroy_pipeline_layout(self.pipeline_layout, None);
+            gpu.device.destroy_descriptor_set_layout(self.set_layout, None);
+        }
+    }
+}
+
+pub fn probe_descriptor_type(r: Resource) -> vk::DescriptorType {
+    descriptor_type(r)
+}

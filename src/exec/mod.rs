@@ -1,0 +1,390 @@
+//! Runs cells on one device: builds the scene's acceleration structures, the probed resources,
+//! descriptor bindings and pipelines the first time a cell needs them (and reuses them after),
+//! records and submits the trace / draw / dispatch with a deadline, reads the records back and
+//! compares them with the CPU reference. Everything that can go wrong becomes an [`Outcome`].
+pub mod bindings;
+pub mod pipeline;
+pub mod resources;
+
+use crate::matrix::{Canary, Cell, Resource};
+use crate::outcome::{CellResult, Outcome, Timings};
+use crate::probe::{self, Record, RECORD_SIZE};
+use crate::reference::{self, SceneReference};
+use crate::scene::gpu::{BuildError, SceneGpu};
+use crate::scene::{Scene, SceneParams};
+use crate::shadergen::{self, compile::Compiler, compile::CompileError, PipelineKind};
+use crate::vk::memory::{color_range, Buffer, Image, Location};
+use crate::vk::submit::{Submitter, Waited};
+use crate::vk::{fault, Gpu, VkError, VkResultExt};
+use ash::vk;
+use bindings::{Binding, LayoutKey};
+use pipeline::Pipeline;
+use resources::{ResourceArray, Target};
+use std::collections::HashMap;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+/// An address no driver maps: the invalid-address canary reads there.
+pub const CANARY_BAD_ADDRESS: u64 = 0xdead_0000_0000;
+
+#[derive(Clone, Debug)]
+pub struct ExecOptions {
+    /// Fence deadline per submission.
+    pub timeout: Duration,
+    /// Tests only: perturb expected values so correct results must mismatch.
+    pub corrupt_expected: bool,
+    /// Write each cell's GLSL and SPIR-V under this folder.
+    pub dump: Option<PathBuf>,
+}
+
+#[derive(Debug, thiserror::Error)]
+enum CellError {
+    #[error(transparent)]
+    Vk(#[from] VkError),
+    #[error(transparent)]
+    Compile(#[from] CompileError),
+    #[error(transparent)]
+    Build(#[from] BuildError),
+    #[error("{0} did not finish within the deadline")]
+    Timeout(&'static str),
+    #[error("{0}")]
+    Io(String),
+}
+
+pub struct Executor {
+    pub gpu: Gpu,
+    scene: Scene,
+    sref: SceneReference,
+    opts: ExecOptions,
+    compiler: Compiler,
+    submitter: Submitter,
+    records: Buffer,
+    sampler: vk::Sampler,
+    cache: vk::PipelineCache,
+    scene_gpu: Option<SceneGpu>,
+    arrays: HashMap<Resource, ResourceArray>,
+    as_table: Option<Buffer>,
+    color: Option<Image>,
+    bindings: HashMap<LayoutKey, Binding>,
+    pipelines: HashMap<u64, Pipeline>,
+    /// Milliseconds the CPU reference took.
+    pub reference_ms: f64,
+}
+
+impl Executor {
+    pub fn new(gpu: Gpu, params: &SceneParams, opts: ExecOptions) -> Result<Self, VkError> {
+        let scene = Scene::build(params);
+        let t = Instant::now();
+        let sref = SceneReference::compute(&scene);
+        let reference_ms = t.elapsed().as_secs_f64() * 1e3;
+        let compiler = Compiler::new().map_err(|_| VkError::Call { call: "shaderc init", result: vk::Result::ERROR_INITIALIZATION_FAILED })?;
+        let submitter = Submitter::new(&gpu)?;
+        let records = Buffer::new(
+            &gpu,
+            (params.pixels() * RECORD_SIZE) as u64,
+            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+            Location::Host,
+            "records",
+        )?;
+        let sampler = resources::create_sampler(&gpu)?;
+        let cache = unsafe { gpu.device.create_pipeline_cache(&vk::PipelineCacheCreateInfo::default(), None) }.at("vkCreatePipelineCache")?;
+        Ok(Executor {
+            gpu,
+            scene,
+            sref,
+            opts,
+            compiler,
+            submitter,
+            records,
+            sampler,
+            cache,
+            scene_gpu: None,
+            arrays: HashMap::new(),
+            as_table: None,
+            color: None,
+            bindings: HashMap::new(),
+            pipelines: HashMap::new(),
+            reference_ms,
+        })
+    }
+
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    pub fn reference(&self) -> &SceneReference {
+        &self.sref
+    }
+
+    /// Run one cell. Never panics on driver misbehaviour; every failure is an outcome.
+    pub fn run(&mut self, cell: &Cell) -> CellResult {
+        let start = Instant::now();
+        let mut timings = Timings::default();
+        let result = self.try_run(cell, &mut timings);
+        let mut out = match result {
+            Ok(records) => {
+                let t = Instant::now();
+                let r = self.check(cell, &records);
+                timings.check_ms += t.elapsed().as_secs_f64() * 1e3;
+                CellResult { timings: timings.clone(), ..r }
+            }
+            Err(CellError::Vk(e)) if e.is_device_lost() => CellResult {
+                outcome: Outcome::DeviceLost,
+                detail: Some(e.to_string()),
+                timings: timings.clone(),
+                comparison: None,
+                fault: fault::query(&self.gpu),
+            },
+            Err(CellError::Timeout(_)) | Err(CellError::Build(BuildError::TimedOut(_))) => {
+                CellResult { outcome: Outcome::Timeout, detail: Some(format!("fence wait exceeded {:?}", self.opts.timeout)), timings: timings.clone(), comparison: None, fault: None }
+            }
+            Err(e) => CellResult { outcome: Outcome::Error, detail: Some(e.to_string()), timings: timings.clone(), comparison: None, fault: None },
+        };
+        out.timings.total_ms = start.elapsed().as_secs_f64() * 1e3;
+        out
+    }
+
+    fn check(&self, cell: &Cell, records: &[Record]) -> CellResult {
+        let none = |outcome, detail: &str| CellResult { outcome, detail: Some(detail.into()), timings: Timings::default(), comparison: None, fault: None };
+        if let Some(c) = cell.canary {
+            return none(Outcome::Pass, &format!("canary {} ran to completion: this driver did not fault on it", c.as_str()));
+        }
+        let expected = reference::expected(cell, &self.scene, &self.sref, self.opts.corrupt_expected);
+        let cmp = reference::compare(&expected, records, self.scene.params.width);
+        let outcome = if cmp.passed() { Outcome::Pass } else { Outcome::Mismatch };
+        let detail = (!cmp.passed()).then(|| format!("{} of {} compared pixels differ ({:?})", cmp.mismatched_pixels, cmp.compared, cmp.by_field));
+        CellResult { outcome, detail, timings: Timings::default(), comparison: Some(cmp), fault: None }
+    }
+
+    fn ensure_scene(&mut self) -> Result<&SceneGpu, CellError> {
+        if self.scene_gpu.is_none() {
+            self.scene_gpu = Some(SceneGpu::build(&self.gpu, &self.scene, &self.submitter, self.opts.timeout)?);
+        }
+        Ok(self.scene_gpu.as_ref().expect("built above"))
+    }
+
+    fn slots(&self) -> u32 {
+        probe::slot_count(self.scene.params.instances)
+    }
+
+    /// Targets of bindings 0..=2 for `key`, creating what is missing.
+    fn targets(&mut self, key: LayoutKey) -> Result<Vec<(u32, vk::DescriptorType, Vec<Target>)>, CellError> {
+        let mut t = vec![(0, vk::DescriptorType::STORAGE_BUFFER, vec![Target::Buffer { raw: self.records.raw, address: self.records.address, range: self.records.size }])];
+        if key.scene_tlas {
+            let s = self.ensure_scene()?;
+            t.push((1, vk::DescriptorType::ACCELERATION_STRUCTURE_KHR, vec![Target::Accel { raw: s.tlas[0].raw, address: s.tlas[0].address }]));
+        }
+        if let Some(r) = key.probe {
+            let slots = self.slots();
+            let targets = if r == Resource::AccelerationStructure {
+                let s = self.ensure_scene()?;
+                (0..slots).map(|k| { let a = &s.tlas[probe::as_slot_tlas(k)]; Target::Accel { raw: a.raw, address: a.address } }).collect()
+            } else {
+                if !self.arrays.contains_key(&r) {
+                    let a = ResourceArray::create(&self.gpu, r, slots, &self.submitter, self.opts.timeout)?;
+                    self.arrays.insert(r, a);
+                }
+                self.arrays[&r].targets(self.sampler)
+            };
+            t.push((2, resources::descriptor_type(r), targets));
+        }
+        Ok(t)
+    }
+
+    fn try_run(&mut self, cell: &Cell, timings: &mut Timings) -> Result<Vec<Record>, CellError> {
+        let shaders = shadergen::generate(cell);
+        // SPIR-V
+        let mut spirv = Vec::new();
+        for s in &shaders.shaders {
+            let (words, ms) = self.compiler.compile(s.role, &s.glsl)?;
+            timings.compile_ms += ms;
+            spirv.push(words);
+        }
+        if let Some(dir) = &self.opts.dump {
+            dump(dir, cell, &shaders, &spirv).map_err(CellError::Io)?;
+        }
+        // scene, resources, bindings
+        let t = Instant::now();
+        let stages = match shaders.kind {
+            PipelineKind::RayTracing => {
+                vk::ShaderStageFlags::RAYGEN_KHR
+                    | vk::ShaderStageFlags::MISS_KHR
+                    | vk::ShaderStageFlags::CLOSEST_HIT_KHR
+                    | vk::ShaderStageFlags::ANY_HIT_KHR
+                    | vk::ShaderStageFlags::INTERSECTION_KHR
+                    | vk::ShaderStageFlags::CALLABLE_KHR
+            }
+            PipelineKind::Graphics => vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT,
+            PipelineKind::Compute => vk::ShaderStageFlags::COMPUTE,
+        };
+        let key = LayoutKey {
+            stages,
+            model: cell.descriptor_model,
+            scene_tlas: shaders.uses_scene_tlas,
+            probe: shaders.uses_probe_binding.then_some(cell.resource),
+        };
+        if shaders.kind == PipelineKind::RayTracing || cell.resource == Resource::AccelerationStructure {
+            self.ensure_scene()?;
+        }
+        if !self.bindings.contains_key(&key) {
+            let targets = self.targets(key)?;
+            let b = Binding::create(&self.gpu, key, &targets)?;
+            self.bindings.insert(key, b);
+        }
+        let mut as_table_address = 0;
+        if shadergen::as_by_address(cell) {
+            if self.as_table.is_none() {
+                let s = self.ensure_scene()?;
+                let addrs = [s.tlas[0].address, s.tlas[1].address];
+                self.as_table = Some(resources::as_table(&self.gpu, addrs, self.slots())?);
+            }
+            as_table_address = self.as_table.as_ref().map(|b| b.address).unwrap_or(0);
+        }
+        let (w, h) = (self.scene.params.width, self.scene.params.height);
+        if shaders.kind == PipelineKind::Graphics && self.color.is_none() {
+            self.color = Some(Image::new(&self.gpu, vk::Extent2D { width: w, height: h }, pipeline::COLOR_FORMAT, vk::ImageUsageFlags::COLOR_ATTACHMENT)?);
+        }
+        timings.setup_ms = t.elapsed().as_secs_f64() * 1e3;
+
+        // pipeline (reused for identical SPIR-V and model)
+        let pkey = {
+            use std::hash::{Hash, Hasher};
+            let mut hs = std::collections::hash_map::DefaultHasher::new();
+            for s in &spirv {
+                s.hash(&mut hs);
+            }
+            cell.descriptor_model.hash(&mut hs);
+            key.hash(&mut hs);
+            shaders.recursion_depth.hash(&mut hs);
+            hs.finish()
+        };
+        if !self.pipelines.contains_key(&pkey) {
+            let t = Instant::now();
+            let layout = self.bindings[&key].pipeline_layout;
+            let p = pipeline::create(&self.gpu, self.cache, &shaders, &spirv, layout, cell.descriptor_model)?;
+            timings.pipeline_ms = t.elapsed().as_secs_f64() * 1e3;
+            self.pipelines.insert(pkey, p);
+        }
+
+        // push constants
+        let mut pc = Vec::with_capacity(40);
+        for v in [w, h, probe::PUSH_SLOT, probe::DYNAMIC_BASE, self.slots(), u32::from(cell.canary == Some(Canary::InfiniteLoop))] {
+            pc.extend_from_slice(&v.to_le_bytes());
+        }
+        pc.extend_from_slice(&as_table_address.to_le_bytes());
+        let bad = if cell.canary == Some(Canary::InvalidAddress) { CANARY_BAD_ADDRESS } else { 0 };
+        pc.extend_from_slice(&bad.to_le_bytes());
+
+        let gpu = &self.gpu;
+        let pipe = &self.pipelines[&pkey];
+        let binding = &self.bindings[&key];
+        let records = &self.records;
+        let color = self.color.as_ref();
+        // Sentinel: a record no probe wrote reads as flags 0xffffffff. Written from the host
+        // (the buffer is mapped): a vkCmdFillBuffer is an internal compute dispatch on some
+        // drivers and must not disturb the state this cell binds.
+        records.write(0, &vec![0xffu8; self.scene.params.pixels() * RECORD_SIZE]);
+        let waited = self.submitter.run(gpu, self.opts.timeout, |cmd| unsafe {
+            let d = &gpu.device;
+            match pipe.kind {
+                PipelineKind::RayTracing => {
+                    let point = vk::PipelineBindPoint::RAY_TRACING_KHR;
+                    binding.bind(gpu, cmd, point);
+                    d.cmd_bind_pipeline(cmd, point, pipe.raw);
+                    d.cmd_push_constants(cmd, binding.pipeline_layout, key.stages, 0, &pc);
+                    let sbt = pipe.sbt.as_ref().expect("RT pipelines have an SBT");
+                    gpu.rt.as_ref().expect("RT enabled").cmd_trace_rays(cmd, &sbt.raygen, &sbt.miss, &sbt.hit, &sbt.callable, w, h, 1);
+                }
+                PipelineKind::Compute => {
+                    let point = vk::PipelineBindPoint::COMPUTE;
+                    binding.bind(gpu, cmd, point);
+                    d.cmd_bind_pipeline(cmd, point, pipe.raw);
+                    d.cmd_push_constants(cmd, binding.pipeline_layout, key.stages, 0, &pc);
+                    d.cmd_dispatch(cmd, w.div_ceil(8), h.div_ceil(8), 1);
+                }
+                PipelineKind::Graphics => {
+                    let img = color.expect("color target created");
+                    let to_att = vk::ImageMemoryBarrier::default()
+                        .image(img.raw)
+                        .subresource_range(color_range())
+                        .old_layout(vk::ImageLayout::UNDEFINED)
+                        .new_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
+                        .dst_access_mask(vk::AccessFlags::COLOR_ATTACHMENT_WRITE);
+                    d.cmd_pipeline_barrier(cmd, vk::PipelineStageFlags::TOP_OF_PIPE, vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT, vk::DependencyFlags::empty(), &[], &[], &[to_att]);
+                    let att = [vk::RenderingAttachmentInfo::default()
+                        .image_view(img.view)
+                        .image_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
+                        .load_op(vk::AttachmentLoadOp::CLEAR)
+                        .store_op(vk::AttachmentStoreOp::STORE)];
+                    let area = vk::Rect2D { offset: vk::Offset2D::default(), extent: vk::Extent2D { width: w, height: h } };
+                    d.cmd_begin_rendering(cmd, &vk::RenderingInfo::default().render_area(area).layer_count(1).color_attachments(&att));
+                    let point = vk::PipelineBindPoint::GRAPHICS;
+                    binding.bind(gpu, cmd, point);
+                    d.cmd_bind_pipeline(cmd, point, pipe.raw);
+                    d.cmd_push_constants(cmd, binding.pipeline_layout, key.stages, 0, &pc);
+                    d.cmd_set_viewport(cmd, 0, &[vk::Viewport { x: 0.0, y: 0.0, width: w as f32, height: h as f32, min_depth: 0.0, max_depth: 1.0 }]);
+                    d.cmd_set_scissor(cmd, 0, &[area]);
+                    d.cmd_draw(cmd, 6, (w / probe::TILE) * (h / probe::TILE), 0, 0);
+                    d.cmd_end_rendering(cmd);
+                }
+            }
+            let to_host = [vk::MemoryBarrier::default().src_access_mask(vk::AccessFlags::MEMORY_WRITE).dst_access_mask(vk::AccessFlags::HOST_READ)];
+            d.cmd_pipeline_barrier(cmd, vk::PipelineStageFlags::ALL_COMMANDS, vk::PipelineStageFlags::HOST, vk::DependencyFlags::empty(), &to_host, &[], &[]);
+        })?;
+        match waited {
+            Waited::TimedOut => return Err(CellError::Timeout("the cell's submission")),
+            Waited::Done(d) => timings.trace_ms = d.as_secs_f64() * 1e3,
+        }
+        let t = Instant::now();
+        let bytes = self.records.read(self.scene.params.pixels() * RECORD_SIZE);
+        let recs = bytes.chunks_exact(RECORD_SIZE).map(Record::from_bytes).collect();
+        timings.check_ms = t.elapsed().as_secs_f64() * 1e3;
+        Ok(recs)
+    }
+}
+
+fn dump(dir: &std::path::Path, cell: &Cell, shaders: &shadergen::CellShaders, spirv: &[std::sync::Arc<Vec<u32>>]) -> Result<(), String> {
+    let d = dir.join(cell.id());
+    std::fs::create_dir_all(&d).map_err(|e| format!("--dump {}: {e}", d.display()))?;
+    for (s, words) in shaders.shaders.iter().zip(spirv) {
+        let glsl = d.join(format!("{}.glsl", s.role.file_name()));
+        std::fs::write(&glsl, &s.glsl).map_err(|e| format!("--dump {}: {e}", glsl.display()))?;
+        let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+        let spv = d.join(format!("{}.spv", s.role.file_name()));
+        std::fs::write(&spv, bytes).map_err(|e| format!("--dump {}: {e}", spv.display()))?;
+    }
+    Ok(())
+}
+
+impl Drop for Executor {
+    fn drop(&mut self) {
+        let gpu = &self.gpu;
+        unsafe {
+            let _ = gpu.device.device_wait_idle();
+        }
+        for p in self.pipelines.values() {
+            p.destroy(gpu);
+        }
+        for b in self.bindings.values() {
+            b.destroy(gpu);
+        }
+        for a in self.arrays.values() {
+            a.destroy(gpu);
+        }
+        if let Some(t) = &self.as_table {
+            t.destroy(gpu);
+        }
+        if let Some(c) = &self.color {
+            c.destroy(gpu);
+        }
+        if let Some(s) = &self.scene_gpu {
+            s.destroy(gpu);
+        }
+        self.records.destroy(gpu);
+        self.submitter.destroy(gpu);
+        unsafe {
+            gpu.device.destroy_sampler(self.sampler, None);
+            gpu.device.destroy_pipeline_cache(self.cache, None);
+        }
+    }
+}

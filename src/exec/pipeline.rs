@@ -1,0 +1,236 @@
+//! Pipelines of a cell: ray tracing (with its shader binding table), graphics (fragment probes,
+//! dynamic rendering, one quad per tile) or compute. The group layout of every RT pipeline is
+//! fixed: raygen; miss 0 (primary), miss 1 (AS probe ray); hit group 0 triangles, hit group 1
+//! procedural (intersection); callable 0 when the callable stage is probed.
+use crate::matrix::DescriptorModel;
+use crate::probe;
+use crate::shadergen::{CellShaders, PipelineKind, Role};
+use crate::vk::memory::{Buffer, Location};
+use crate::vk::{Gpu, VkError};
+use ash::vk;
+use std::ffi::CStr;
+
+pub const COLOR_FORMAT: vk::Format = vk::Format::R8G8B8A8_UNORM;
+
+pub struct Sbt {
+    buffer: Buffer,
+    pub raygen: vk::StridedDeviceAddressRegionKHR,
+    pub miss: vk::StridedDeviceAddressRegionKHR,
+    pub hit: vk::StridedDeviceAddressRegionKHR,
+    pub callable: vk::StridedDeviceAddressRegionKHR,
+}
+
+pub struct Pipeline {
+    pub raw: vk::Pipeline,
+    pub kind: PipelineKind,
+    pub sbt: Option<Sbt>,
+}
+
+fn align(x: u64, a: u64) -> u64 {
+    x.div_ceil(a.max(1)) * a.max(1)
+}
+
+const MAIN: &CStr = c"main";
+
+fn stage_flag(role: Role) -> vk::ShaderStageFlags {
+    match role {
+        Role::Raygen => vk::ShaderStageFlags::RAYGEN_KHR,
+        Role::Miss | Role::ProbeMiss => vk::ShaderStageFlags::MISS_KHR,
+        Role::ClosestHitTriangles | Role::ClosestHitProcedural => vk::ShaderStageFlags::CLOSEST_HIT_KHR,
+        Role::Intersection => vk::ShaderStageFlags::INTERSECTION_KHR,
+        Role::AnyHit => vk::ShaderStageFlags::ANY_HIT_KHR,
+        Role::Callable => vk::ShaderStageFlags::CALLABLE_KHR,
+        Role::Vertex => vk::ShaderStageFlags::VERTEX,
+        Role::Fragment => vk::ShaderStageFlags::FRAGMENT,
+        Role::Compute => vk::ShaderStageFlags::COMPUTE,
+    }
+}
+
+/// Create the pipeline for `shaders` (SPIR-V in `spirv`, same order), specializing constant 0 to
+/// `probe::SPEC_SLOT` in every stage.
+pub fn create(
+    gpu: &Gpu,
+    cache: vk::PipelineCache,
+    shaders: &CellShaders,
+    spirv: &[std::sync::Arc<Vec<u32>>],
+    layout: vk::PipelineLayout,
+    model: DescriptorModel,
+) -> Result<Pipeline, VkError> {
+    let d = &gpu.device;
+    let mut modules = Vec::new();
+    for words in spirv {
+        match unsafe { d.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(words), None) } {
+            Ok(m) => modules.push(m),
+            Err(e) => {
+                for m in &modules {
+                    unsafe { d.destroy_shader_module(*m, None) };
+                }
+                return Err(VkError::from_result("vkCreateShaderModule", e));
+            }
+        }
+    }
+    let spec_data = probe::SPEC_SLOT.to_le_bytes();
+    let spec_entries = [vk::SpecializationMapEntry { constant_id: 0, offset: 0, size: 4 }];
+    let spec = vk::SpecializationInfo::default().map_entries(&spec_entries).data(&spec_data);
+    let stages: Vec<vk::PipelineShaderStageCreateInfo> = shaders
+        .shaders
+        .iter()
+        .zip(&modules)
+        .map(|(s, m)| vk::PipelineShaderStageCreateInfo::default().stage(stage_flag(s.role)).module(*m).name(MAIN).specialization_info(&spec))
+        .collect();
+    let flags = if model == DescriptorModel::DescriptorBuffer { vk::PipelineCreateFlags::DESCRIPTOR_BUFFER_EXT } else { vk::PipelineCreateFlags::empty() };
+    let result = match shaders.kind {
+        PipelineKind::RayTracing => create_rt(gpu, cache, shaders, &stages, layout, flags),
+        PipelineKind::Compute => {
+            let ci = vk::ComputePipelineCreateInfo::default().stage(stages[0]).layout(layout).flags(flags);
+            unsafe { d.create_compute_pipelines(cache, &[ci], None) }
+                .map_err(|(_, e)| VkError::from_result("vkCreateComputePipelines", e))
+                .map(|p| Pipeline { raw: p[0], kind: PipelineKind::Compute, sbt: None })
+        }
+        PipelineKind::Graphics => create_graphics(gpu, cache, &stages, layout, flags),
+    };
+    for m in &modules {
+        unsafe { d.destroy_shader_module(*m, None) };
+    }
+    result
+}
+
+fn create_graphics(
+    gpu: &Gpu,
+    cache: vk::PipelineCache,
+    stages: &[vk::PipelineShaderStageCreateInfo],
+    layout: vk::PipelineLayout,
+    flags: vk::PipelineCreateFlags,
+) -> Result<Pipeline, VkError> {
+    let formats = [COLOR_FORMAT];
+    let mut rendering = vk::PipelineRenderingCreateInfo::default().color_attachment_formats(&formats);
+    let vi = vk::PipelineVertexInputStateCreateInfo::default();
+    let ia = vk::PipelineInputAssemblyStateCreateInfo::default().topology(vk::PrimitiveTopology::TRIANGLE_LIST);
+    let vp = vk::PipelineViewportStateCreateInfo::default().viewport_count(1).scissor_count(1);
+    let rs = vk::PipelineRasterizationStateCreateInfo::default().polygon_mode(vk::PolygonMode::FILL).cull_mode(vk::CullModeFlags::NONE).line_width(1.0);
+    let ms = vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(vk::SampleCountFlags::TYPE_1);
+    let att = [vk::PipelineColorBlendAttachmentState::default().color_write_mask(vk::ColorComponentFlags::RGBA)];
+    let cb = vk::PipelineColorBlendStateCreateInfo::default().attachments(&att);
+    let dyn_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
+    let ds = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dyn_states);
+    let ci = vk::GraphicsPipelineCreateInfo::default()
+        .flags(flags)
+        .stages(stages)
+        .vertex_input_state(&vi)
+        .input_assembly_state(&ia)
+        .viewport_state(&vp)
+        .rasterization_state(&rs)
+        .multisample_state(&ms)
+        .color_blend_state(&cb)
+        .dynamic_state(&ds)
+        .layout(layout)
+        .push_next(&mut rendering);
+    unsafe { gpu.device.create_graphics_pipelines(cache, &[ci], None) }
+        .map_err(|(_, e)| VkError::from_result("vkCreateGraphicsPipelines", e))
+        .map(|p| Pipeline { raw: p[0], kind: PipelineKind::Graphics, sbt: None })
+}
+
+fn create_rt(
+    gpu: &Gpu,
+    cache: vk::PipelineCache,
+    shaders: &CellShaders,
+    stages: &[vk::PipelineShaderStageCreateInfo],
+    layout: vk::PipelineLayout,
+    flags: vk::PipelineCreateFlags,
+) -> Result<Pipeline, VkError> {
+    let rt = gpu.rt.as_ref().expect("ray tracing pipeline enabled");
+    let idx = |r: Role| shaders.shaders.iter().position(|s| s.role == r).map(|i| i as u32).unwrap_or(vk::SHADER_UNUSED_KHR);
+    let general = |r: Role| {
+        vk::RayTracingShaderGroupCreateInfoKHR::default()
+            .ty(vk::RayTracingShaderGroupTypeKHR::GENERAL)
+            .general_shader(idx(r))
+            .closest_hit_shader(vk::SHADER_UNUSED_KHR)
+            .any_hit_shader(vk::SHADER_UNUSED_KHR)
+            .intersection_shader(vk::SHADER_UNUSED_KHR)
+    };
+    let mut groups = vec![
+        general(Role::Raygen),
+        general(Role::Miss),
+        general(Role::ProbeMiss),
+        vk::RayTracingShaderGroupCreateInfoKHR::default()
+            .ty(vk::RayTracingShaderGroupTypeKHR::TRIANGLES_HIT_GROUP)
+            .general_shader(vk::SHADER_UNUSED_KHR)
+            .closest_hit_shader(idx(Role::ClosestHitTriangles))
+            .any_hit_shader(idx(Role::AnyHit))
+            .intersection_shader(vk::SHADER_UNUSED_KHR),
+        vk::RayTracingShaderGroupCreateInfoKHR::default()
+            .ty(vk::RayTracingShaderGroupTypeKHR::PROCEDURAL_HIT_GROUP)
+            .general_shader(vk::SHADER_UNUSED_KHR)
+            .closest_hit_shader(idx(Role::ClosestHitProcedural))
+            .any_hit_shader(idx(Role::AnyHit))
+            .intersection_shader(idx(Role::Intersection)),
+    ];
+    let has_callable = shaders.get(Role::Callable).is_some();
+    if has_callable {
+        groups.push(general(Role::Callable));
+    }
+    let ci = vk::RayTracingPipelineCreateInfoKHR::default()
+        .flags(flags)
+        .stages(stages)
+        .groups(&groups)
+        .max_pipeline_ray_recursion_depth(shaders.recursion_depth)
+        .layout(layout);
+    let raw = unsafe { rt.create_ray_tracing_pipelines(vk::DeferredOperationKHR::null(), cache, &[ci], None) }
+        .map_err(|(_, e)| VkError::from_result("vkCreateRayTracingPipelinesKHR", e))?[0];
+
+    let props = gpu.info.properties.rt_pipeline.expect("RT pipeline properties");
+    let h = props.shader_group_handle_size as u64;
+    let ha = props.shader_group_handle_alignment as u64;
+    let ba = props.shader_group_base_alignment as u64;
+    let n = groups.len() as u32;
+    let handles = match unsafe { rt.get_ray_tracing_shader_group_handles(raw, 0, n, (n as u64 * h) as usize) } {
+        Ok(h) => h,
+        Err(e) => {
+            unsafe { gpu.device.destroy_pipeline(raw, None) };
+            return Err(VkError::from_result("vkGetRayTracingShaderGroupHandlesKHR", e));
+        }
+    };
+    let stride = align(h, ha);
+    let rg_size = align(h, ba);
+    let miss_off = align(rg_size, ba);
+    let hit_off = align(miss_off + 2 * stride, ba);
+    let call_off = align(hit_off + 2 * stride, ba);
+    let total = call_off + stride + ba;
+    let buffer = Buffer::new(
+        gpu,
+        total,
+        vk::BufferUsageFlags::SHADER_BINDING_TABLE_KHR | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+        Location::Host,
+        "shader binding table",
+    )?;
+    let base = align(buffer.address, ba);
+    let shift = (base - buffer.address) as usize;
+    let handle = |g: usize| &handles[g * h as usize..(g + 1) * h as usize];
+    let put = |off: u64, g: usize| buffer.write(shift + off as usize, handle(g));
+    put(0, 0);
+    put(miss_off, 1);
+    put(miss_off + stride, 2);
+    put(hit_off, 3);
+    put(hit_off + stride, 4);
+    if has_callable {
+        put(call_off, 5);
+    }
+    let region = |off: u64, stride: u64, size: u64| vk::StridedDeviceAddressRegionKHR { device_address: base + off, stride, size };
+    let sbt = Sbt {
+        raygen: region(0, rg_size, rg_size),
+        miss: region(miss_off, stride, 2 * stride),
+        hit: region(hit_off, stride, 2 * stride),
+        callable: if has_callable { region(call_off, stride, stride) } else { vk::StridedDeviceAddressRegionKHR::default() },
+        buffer,
+    };
+    Ok(Pipeline { raw, kind: PipelineKind::RayTracing, sbt: Some(sbt) })
+}
+
+impl Pipeline {
+    pub fn destroy(&self, gpu: &Gpu) {
+        unsafe { gpu.device.destroy_pipeline(self.raw, None) };
+        if let Some(s) = &self.sbt {
+            s.buffer.destroy(gpu);
+        }
+    }
+}

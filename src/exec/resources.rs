@@ -1,0 +1,129 @@
+//! The probed resources, one array per kind, created the first time a cell needs that kind: one
+//! buffer or image per slot (as an engine keeps one SSBO per mesh and one texture per material),
+//! each holding `probe::resource_value(kind, slot)`; plus the TLAS address table.
+use crate::matrix::Resource;
+use crate::probe;
+use crate::vk::features::PROBE_IMAGE_FORMAT;
+use crate::vk::memory::{color_range, Buffer, Image, Location};
+use crate::vk::submit::{Submitter, Waited};
+use crate::vk::{Gpu, VkError, VkResultExt};
+use ash::vk;
+use std::time::Duration;
+
+/// What one descriptor points at.
+#[derive(Clone, Copy, Debug)]
+pub enum Target {
+    Buffer { raw: vk::Buffer, address: u64, range: u64 },
+    Image { view: vk::ImageView, sampler: vk::Sampler },
+    Accel { raw: vk::AccelerationStructureKHR, address: u64 },
+}
+
+pub struct ResourceArray {
+    pub buffers: Vec<Buffer>,
+    pub images: Vec<Image>,
+}
+
+impl ResourceArray {
+    pub fn create(gpu: &Gpu, kind: Resource, slots: u32, submitter: &Submitter, timeout: Duration) -> Result<Self, VkError> {
+        let mut buffers = Vec::new();
+        let mut images = Vec::new();
+        let value_bytes = |slot: u32| -> Vec<u8> { probe::resource_value(kind, slot).iter().flat_map(|f| f.to_le_bytes()).collect() };
+        match kind {
+            Resource::StorageBuffer | Resource::UniformBuffer => {
+                let usage = if kind == Resource::StorageBuffer { vk::BufferUsageFlags::STORAGE_BUFFER } else { vk::BufferUsageFlags::UNIFORM_BUFFER };
+                for s in 0..slots {
+                    buffers.push(Buffer::with_data(gpu, &value_bytes(s), usage | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS, "probe buffer")?);
+                }
+            }
+            Resource::SampledImage | Resource::StorageImage => {
+                let usage = vk::ImageUsageFlags::TRANSFER_DST
+                    | if kind == Resource::SampledImage { vk::ImageUsageFlags::SAMPLED } else { vk::ImageUsageFlags::STORAGE };
+                let extent = vk::Extent2D { width: 2, height: 2 };
+                let mut staging = Vec::new();
+                for s in 0..slots {
+                    images.push(Image::new(gpu, extent, PROBE_IMAGE_FORMAT, usage)?);
+                    let texel = value_bytes(s);
+                    let data: Vec<u8> = (0..4).flat_map(|_| texel.clone()).collect();
+                    staging.push(Buffer::with_data(gpu, &data, vk::BufferUsageFlags::TRANSFER_SRC, "staging")?);
+                }
+                let waited = submitter.run(gpu, timeout, |cmd| unsafe {
+                    for (img, st) in images.iter().zip(&staging) {
+                        let to_dst = vk::ImageMemoryBarrier::default()
+                            .image(img.raw)
+                            .subresource_range(color_range())
+                            .old_layout(vk::ImageLayout::UNDEFINED)
+                            .new_layout(vk::ImageLayout::TRANSFER_DST_OPTIMAL)
+                            .dst_access_mask(vk::AccessFlags::TRANSFER_WRITE);
+                        gpu.device.cmd_pipeline_barrier(cmd, vk::PipelineStageFlags::TOP_OF_PIPE, vk::PipelineStageFlags::TRANSFER, vk::DependencyFlags::empty(), &[], &[], &[to_dst]);
+                        let region = vk::BufferImageCopy::default()
+                            .image_subresource(vk::ImageSubresourceLayers { aspect_mask: vk::ImageAspectFlags::COLOR, mip_level: 0, base_array_layer: 0, layer_count: 1 })
+                            .image_extent(vk::Extent3D { width: 2, height: 2, depth: 1 });
+                        gpu.device.cmd_copy_buffer_to_image(cmd, st.raw, img.raw, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &[region]);
+                        let to_general = vk::ImageMemoryBarrier::default()
+                            .image(img.raw)
+                            .subresource_range(color_range())
+                            .old_layout(vk::ImageLayout::TRANSFER_DST_OPTIMAL)
+                            .new_layout(vk::ImageLayout::GENERAL)
+                            .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+                            .dst_access_mask(vk::AccessFlags::SHADER_READ);
+                        gpu.device.cmd_pipeline_barrier(cmd, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), &[], &[], &[to_general]);
+                    }
+                });
+                for st in &staging {
+                    st.destroy(gpu);
+                }
+                if waited? == Waited::TimedOut {
+                    return Err(VkError::Call { call: "image upload (fence wait)", result: vk::Result::TIMEOUT });
+                }
+            }
+            Resource::AccelerationStructure => {}
+        }
+        Ok(ResourceArray { buffers, images })
+    }
+
+    pub fn targets(&self, sampler: vk::Sampler) -> Vec<Target> {
+        if !self.buffers.is_empty() {
+            return self.buffers.iter().map(|b| Target::Buffer { raw: b.raw, address: b.address, range: 16 }).collect();
+        }
+        self.images.iter().map(|i| Target::Image { view: i.view, sampler }).collect()
+    }
+
+    pub fn destroy(&self, gpu: &Gpu) {
+        for b in &self.buffers {
+            b.destroy(gpu);
+        }
+        for i in &self.images {
+            i.destroy(gpu);
+        }
+    }
+}
+
+pub fn create_sampler(gpu: &Gpu) -> Result<vk::Sampler, VkError> {
+    let ci = vk::SamplerCreateInfo::default()
+        .mag_filter(vk::Filter::NEAREST)
+        .min_filter(vk::Filter::NEAREST)
+        .mipmap_mode(vk::SamplerMipmapMode::NEAREST)
+        .address_mode_u(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+        .address_mode_v(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+        .address_mode_w(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+        .max_lod(0.0);
+    unsafe { gpu.device.create_sampler(&ci, None) }.at("vkCreateSampler")
+}
+
+pub fn descriptor_type(kind: Resource) -> vk::DescriptorType {
+    match kind {
+        Resource::StorageBuffer => vk::DescriptorType::STORAGE_BUFFER,
+        Resource::UniformBuffer => vk::DescriptorType::UNIFORM_BUFFER,
+        Resource::SampledImage => vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+        Resource::StorageImage => vk::DescriptorType::STORAGE_IMAGE,
+        Resource::AccelerationStructure => vk::DescriptorType::ACCELERATION_STRUCTURE_KHR,
+    }
+}
+
+/// A buffer of `slots` device addresses: slot k → TLAS `probe::as_slot_tlas(k)`.
+pub fn as_table(gpu: &Gpu, tlas_addresses: [u64; 2], slots: u32) -> Result<Buffer, VkError> {
+    let bytes: Vec<u8> = (0..slots).flat_map(|k| tlas_addresses[probe::as_slot_tlas(k)].to_le_bytes()).collect();
+    let b = Buffer::new(gpu, bytes.len() as u64, vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS, Location::Host, "AS address table")?;
+    b.write(0, &bytes);
+    Ok(b)
+}

@@ -1,0 +1,75 @@
+//! The terminal summary printed at the end of `rtprobe run`.
+use super::run_report::RunReport;
+use crate::outcome::Outcome;
+use std::fmt::Write;
+
+fn mark(o: Outcome) -> &'static str {
+    match o {
+        Outcome::Pass => "✅",
+        Outcome::Unsupported => "➖",
+        Outcome::Mismatch => "❌",
+        Outcome::DeviceLost => "💥",
+        Outcome::Crash => "💥",
+        Outcome::Timeout => "⏱",
+        Outcome::Error => "⚠",
+    }
+}
+
+pub fn render(r: &RunReport) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "rtprobe run on {} ({} {})", r.device["name"].as_str().unwrap_or("?"), r.device["driver_name"].as_str().unwrap_or("?"), r.device["driver_version"]["decoded"].as_str().unwrap_or("?"));
+    let _ = writeln!(
+        s,
+        "plan: {} generated, {} filtered out, {} planned ({} to run, {} unsupported)",
+        r.plan.generated, r.plan.filtered_out, r.plan.planned, r.plan.to_run, r.plan.unsupported
+    );
+    let _ = write!(s, "outcomes:");
+    for o in Outcome::ALL {
+        let n = r.summary.get(o.as_str()).copied().unwrap_or(0);
+        let _ = write!(s, "  {} {} {n}", mark(*o), o.as_str());
+    }
+    let _ = writeln!(s);
+    let canaries: Vec<_> = r.cells.iter().filter(|c| c.canary_check.is_some()).collect();
+    for c in &canaries {
+        let chk = c.canary_check.as_ref().expect("filtered");
+        let _ = writeln!(
+            s,
+            "canary {}: {} ({})",
+            c.id,
+            c.outcome.as_str(),
+            if chk.detected { "detected as expected" } else { "NOT detected: fault classification unproven on this driver" }
+        );
+    }
+    let findings: Vec<_> = r.findings().collect();
+    if findings.is_empty() {
+        let _ = writeln!(s, "no faults or mismatches");
+    } else {
+        let _ = writeln!(s, "findings ({}):", findings.len());
+        for c in findings.iter().take(40) {
+            let conf = match c.confirmed {
+                Some(true) => " [confirmed alone]",
+                Some(false) => " [NOT reproduced alone]",
+                None => "",
+            };
+            let _ = writeln!(s, "  {} {:<12} {}{} — {}", mark(c.outcome), c.outcome.as_str(), c.id, conf, c.reason.as_deref().unwrap_or(""));
+        }
+        if findings.len() > 40 {
+            let _ = writeln!(s, "  … and {} more (see the report)", findings.len() - 40);
+        }
+    }
+    let t = &r.timing;
+    let n = t.cells_timed.max(1) as f64;
+    let _ = writeln!(
+        s,
+        "time: {:.1} s wall, {} workers (device {:.0} ms each); per cell: compile {:.1} ms, pipeline {:.1} ms, trace {:.1} ms, check {:.1} ms, overhead {:.1} ms",
+        t.wall_ms / 1e3,
+        t.workers_started,
+        t.device_ms_mean,
+        t.compile_ms / n,
+        t.pipeline_ms / n,
+        t.trace_ms / n,
+        t.check_ms / n,
+        t.overhead_ms / n
+    );
+    s
+}

@@ -1,0 +1,52 @@
+//! GLSL → SPIR-V with shaderc (Vulkan 1.2 / SPIR-V 1.5, no optimization: the driver must see
+//! the shape the cell asks for). Each distinct source is compiled once per process.
+use super::Role;
+use std::collections::HashMap;
+use std::hash::{Hash, Hasher};
+use std::sync::Arc;
+use std::time::Instant;
+
+#[derive(Debug, thiserror::Error)]
+pub enum CompileError {
+    #[error("shaderc could not be initialised")]
+    Init,
+    #[error("{file}: {message}")]
+    Glsl { file: &'static str, message: String },
+}
+
+pub struct Compiler {
+    inner: shaderc::Compiler,
+    cache: HashMap<u64, Arc<Vec<u32>>>,
+}
+
+pub fn source_hash(role: Role, glsl: &str) -> u64 {
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    role.hash(&mut h);
+    glsl.hash(&mut h);
+    h.finish()
+}
+
+impl Compiler {
+    pub fn new() -> Result<Self, CompileError> {
+        Ok(Self { inner: shaderc::Compiler::new().map_err(|_| CompileError::Init)?, cache: HashMap::new() })
+    }
+
+    /// SPIR-V words for `glsl`, and the milliseconds spent compiling (0 when cached).
+    pub fn compile(&mut self, role: Role, glsl: &str) -> Result<(Arc<Vec<u32>>, f64), CompileError> {
+        let key = source_hash(role, glsl);
+        if let Some(s) = self.cache.get(&key) {
+            return Ok((s.clone(), 0.0));
+        }
+        let t = Instant::now();
+        let mut opts = shaderc::CompileOptions::new().map_err(|_| CompileError::Init)?;
+        opts.set_target_env(shaderc::TargetEnv::Vulkan, shaderc::EnvVersion::Vulkan1_2 as u32);
+        opts.set_target_spirv(shaderc::SpirvVersion::V1_5);
+        let out = self
+            .inner
+            .compile_into_spirv(glsl, role.kind(), role.file_name(), "main", Some(&opts))
+            .map_err(|e| CompileError::Glsl { file: role.file_name(), message: e.to_string().replace('\n', " | ") })?;
+        let words = Arc::new(out.as_binary().to_vec());
+        self.cache.insert(key, words.clone());
+        Ok((words, t.elapsed().as_secs_f64() * 1e3))
+    }
+}

@@ -1,0 +1,322 @@
+//! Generates the GLSL of every shader a cell needs: the probed stage reads the cell's resource
+//! with the cell's index source (and `nonuniformEXT`, and AS access path); every other stage stays
+//! trivial. Shared declarations come from `probes/common.glsl`. [`compile`] turns sources into
+//! SPIR-V with shaderc, caching by source.
+pub mod compile;
+mod probe_code;
+
+use crate::matrix::{AsAccess, Canary, Cell, Resource, Stage};
+use probe_code::ProbeCode;
+
+const COMMON: &str = include_str!("../../probes/common.glsl");
+
+/// The role a shader plays in a cell's pipeline.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Role {
+    Raygen,
+    Miss,
+    /// Miss shader 1: clears the probe ray's payload (AS probes that trace).
+    ProbeMiss,
+    ClosestHitTriangles,
+    ClosestHitProcedural,
+    Intersection,
+    AnyHit,
+    Callable,
+    Vertex,
+    Fragment,
+    Compute,
+}
+
+impl Role {
+    pub fn kind(self) -> shaderc::ShaderKind {
+        use shaderc::ShaderKind as K;
+        match self {
+            Role::Raygen => K::RayGeneration,
+            Role::Miss | Role::ProbeMiss => K::Miss,
+            Role::ClosestHitTriangles | Role::ClosestHitProcedural => K::ClosestHit,
+            Role::Intersection => K::Intersection,
+            Role::AnyHit => K::AnyHit,
+            Role::Callable => K::Callable,
+            Role::Vertex => K::Vertex,
+            Role::Fragment => K::Fragment,
+            Role::Compute => K::Compute,
+        }
+    }
+
+    pub fn file_name(self) -> &'static str {
+        match self {
+            Role::Raygen => "raygen.rgen",
+            Role::Miss => "miss.rmiss",
+            Role::ProbeMiss => "probe_miss.rmiss",
+            Role::ClosestHitTriangles => "closest_hit_triangles.rchit",
+            Role::ClosestHitProcedural => "closest_hit_procedural.rchit",
+            Role::Intersection => "intersection.rint",
+            Role::AnyHit => "any_hit.rahit",
+            Role::Callable => "callable.rcall",
+            Role::Vertex => "tiles.vert",
+            Role::Fragment => "probe.frag",
+            Role::Compute => "probe.comp",
+        }
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct ShaderSource {
+    pub role: Role,
+    pub glsl: String,
+}
+
+/// Which pipeline a cell runs in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum PipelineKind {
+    RayTracing,
+    Graphics,
+    Compute,
+}
+
+#[derive(Clone, Debug)]
+pub struct CellShaders {
+    pub kind: PipelineKind,
+    pub shaders: Vec<ShaderSource>,
+    /// `maxPipelineRayRecursionDepth` the pipeline needs.
+    pub recursion_depth: u32,
+    /// The probed array is bound at binding 2 (false when AS are reached by address).
+    pub uses_probe_binding: bool,
+    /// The scene TLAS is bound at binding 1 (ray tracing pipelines).
+    pub uses_scene_tlas: bool,
+    /// Uses ray queries.
+    pub uses_ray_query: bool,
+}
+
+impl CellShaders {
+    pub fn get(&self, role: Role) -> Option<&ShaderSource> {
+        self.shaders.iter().find(|s| s.role == role)
+    }
+}
+
+fn header(rt: bool, probe: Option<&ProbeCode>, extra_ext: &[&str]) -> String {
+    let mut s = String::from("#version 460\n");
+    if rt {
+        s += "#extension GL_EXT_ray_tracing : require\n";
+    }
+    let mut exts: Vec<&str> = extra_ext.to_vec();
+    if let Some(p) = probe {
+        exts.extend(p.extensions.iter().copied());
+    }
+    exts.sort();
+    exts.dedup();
+    for e in exts {
+        s += &format!("#extension {e} : require\n");
+    }
+    s += COMMON;
+    if let Some(p) = probe {
+        s += "\n// ---- probe declarations ----\n";
+        s += &p.decls;
+    }
+    s
+}
+
+const RECORD_ZERO: &str = "Record(0u, 0u, 0u, 0.0, vec2(0.0), 0u, 0u, vec4(0.0))";
+
+/// Generate all shaders of `cell`.
+pub fn generate(cell: &Cell) -> CellShaders {
+    if let Some(c) = cell.canary {
+        return canary(c);
+    }
+    let probe = ProbeCode::new(cell);
+    let here = |s: Stage| (cell.stage == s).then_some(&probe);
+    match cell.stage {
+        Stage::Fragment => {
+            let vert = format!(
+                "{}\nlayout(location = 0) flat out uint outSlot;\nconst vec2 corners[6] = vec2[](vec2(0, 0), vec2(1, 0), vec2(0, 1), vec2(1, 0), vec2(1, 1), vec2(0, 1));\n\
+void main() {{\n    uint tilesX = pc.width / {t}u;\n    uint tile = uint(gl_InstanceIndex);\n    vec2 corner = (vec2(float(tile % tilesX), float(tile / tilesX)) + corners[gl_VertexIndex]) * {t}.0;\n    \
+gl_Position = vec4(corner / vec2(float(pc.width), float(pc.height)) * 2.0 - 1.0, 0.0, 1.0);\n    outSlot = tile % pc.slotCount;\n}}\n",
+                header(false, None, &[]),
+                t = crate::probe::TILE
+            );
+            let frag = format!(
+                "{}\nlayout(location = 0) flat in uint inSlot;\nlayout(location = 0) out vec4 color;\nvoid main() {{\n    uvec2 px = uvec2(gl_FragCoord.xy);\n    uint i = px.x + px.y * pc.width;\n{}    \
+records[i] = Record(2u, 0u, 0u, 0.0, vec2(0.0), probeSlot, 0u, probeValue);\n    color = vec4(0.0);\n}}\n",
+                header(false, Some(&probe), &[]),
+                probe.body
+            );
+            CellShaders {
+                kind: PipelineKind::Graphics,
+                shaders: vec![ShaderSource { role: Role::Vertex, glsl: vert }, ShaderSource { role: Role::Fragment, glsl: frag }],
+                recursion_depth: 0,
+                uses_probe_binding: probe.uses_binding,
+                uses_scene_tlas: false,
+                uses_ray_query: probe.ray_query,
+            }
+        }
+        Stage::Compute => {
+            let comp = format!(
+                "{}\nlayout(local_size_x = 8, local_size_y = 8) in;\nvoid main() {{\n    uvec2 px = gl_GlobalInvocationID.xy;\n    if (px.x >= pc.width || px.y >= pc.height) return;\n    uint i = px.x + px.y * pc.width;\n{}    \
+records[i] = Record(2u, 0u, 0u, 0.0, vec2(0.0), probeSlot, 0u, probeValue);\n}}\n",
+                header(false, Some(&probe), &[]),
+                probe.body
+            );
+            CellShaders {
+                kind: PipelineKind::Compute,
+                shaders: vec![ShaderSource { role: Role::Compute, glsl: comp }],
+                recursion_depth: 0,
+                uses_probe_binding: probe.uses_binding,
+                uses_scene_tlas: false,
+                uses_ray_query: probe.ray_query,
+            }
+        }
+        _ => ray_tracing(cell, &probe, here),
+    }
+}
+
+fn ray_flags(cell: &Cell) -> &'static str {
+    if cell.stage == Stage::AnyHit {
+        "gl_RayFlagsNoOpaqueEXT"
+    } else {
+        "gl_RayFlagsOpaqueEXT"
+    }
+}
+
+fn ray_tracing<'a>(cell: &Cell, probe: &'a ProbeCode, here: impl Fn(Stage) -> Option<&'a ProbeCode>) -> CellShaders {
+    let store = "    pl.flags |= 2u;\n    pl.slot = probeSlot;\n    pl.value = probeValue;\n";
+    let mut shaders = Vec::new();
+    let call_data = "struct CallData { uint slot; uint p0; uint p1; uint p2; vec4 value; };\n";
+
+    // raygen
+    let mut rgen = header(true, here(Stage::Raygen), &[]);
+    rgen += "layout(set = 0, binding = 1) uniform accelerationStructureEXT sceneTlas;\nlayout(location = 0) rayPayloadEXT Record pl;\n";
+    if cell.stage == Stage::Callable {
+        rgen += call_data;
+        rgen += "layout(location = 2) callableDataEXT CallData cd;\n";
+    }
+    rgen += &format!(
+        "void main() {{\n    uvec2 px = gl_LaunchIDEXT.xy;\n    uint i = px.x + px.y * pc.width;\n    pl = {RECORD_ZERO};\n    \
+traceRayEXT(sceneTlas, {}, 0xFF, 0, 0, 0, primaryOrigin(px), TMIN, vec3(0.0, 0.0, 1.0), TMAX, 0);\n",
+        ray_flags(cell)
+    );
+    if here(Stage::Raygen).is_some() {
+        rgen += &probe.body;
+        rgen += store;
+    }
+    if cell.stage == Stage::Callable {
+        rgen += "    executeCallableEXT(0, 2);\n    pl.flags |= 2u;\n    pl.slot = cd.slot;\n    pl.value = cd.value;\n";
+    }
+    rgen += "    records[i] = pl;\n}\n";
+    shaders.push(ShaderSource { role: Role::Raygen, glsl: rgen });
+
+    // miss 0
+    let mut miss = header(true, here(Stage::Miss), &[]);
+    miss += "layout(location = 0) rayPayloadInEXT Record pl;\nvoid main() {\n";
+    if here(Stage::Miss).is_some() {
+        miss += "    uvec2 px = gl_LaunchIDEXT.xy;\n";
+        miss += &probe.body;
+        miss += store;
+    }
+    miss += "}\n";
+    shaders.push(ShaderSource { role: Role::Miss, glsl: miss });
+
+    // miss 1: the AS probe ray's miss
+    let pmiss = format!("{}layout(location = 1) rayPayloadInEXT uint probeHit;\nvoid main() {{\n    probeHit = 0u;\n}}\n", header(true, None, &[]));
+    shaders.push(ShaderSource { role: Role::ProbeMiss, glsl: pmiss });
+
+    // closest hits
+    let chit_probe = here(Stage::ClosestHit);
+    let chit_common = "    pl.flags |= 1u;\n    pl.instance = uint(gl_InstanceCustomIndexEXT);\n    pl.primitive = uint(gl_PrimitiveID);\n    pl.t = gl_HitTEXT;\n";
+    let chit_body = |extra: &str| {
+        let mut b = String::new();
+        b += "void main() {\n";
+        b += chit_common;
+        b += extra;
+        if chit_probe.is_some() {
+            b += "    uvec2 px = gl_LaunchIDEXT.xy;\n";
+            b += &probe.body;
+            b += store;
+        }
+        b += "}\n";
+        b
+    };
+    let mut tri = header(true, chit_probe, &[]);
+    tri += "layout(location = 0) rayPayloadInEXT Record pl;\nhitAttributeEXT vec2 bary;\n";
+    tri += &chit_body("    pl.bary = bary;\n");
+    shaders.push(ShaderSource { role: Role::ClosestHitTriangles, glsl: tri });
+
+    let attr = "struct ProbeAttr { vec4 value; uint slot; };\nhitAttributeEXT ProbeAttr attr;\n";
+    let mut proc_ = header(true, chit_probe, &[]);
+    proc_ += "layout(location = 0) rayPayloadInEXT Record pl;\n";
+    proc_ += attr;
+    let from_attr = if cell.stage == Stage::Intersection {
+        "    pl.bary = vec2(0.0);\n    pl.flags |= 2u;\n    pl.slot = attr.slot;\n    pl.value = attr.value;\n"
+    } else {
+        "    pl.bary = vec2(0.0);\n"
+    };
+    proc_ += &chit_body(from_attr);
+    shaders.push(ShaderSource { role: Role::ClosestHitProcedural, glsl: proc_ });
+
+    // intersection
+    let mut rint = header(true, here(Stage::Intersection), &[]);
+    rint += attr;
+    rint += "void main() {\n    float t;\n    if (sphereHit(gl_ObjectRayOriginEXT, gl_ObjectRayDirectionEXT, gl_RayTminEXT, gl_RayTmaxEXT, t)) {\n";
+    if here(Stage::Intersection).is_some() {
+        rint += "    uvec2 px = gl_LaunchIDEXT.xy;\n";
+        rint += &probe.body;
+        rint += "        attr.slot = probeSlot;\n        attr.value = probeValue;\n";
+    } else {
+        rint += "        attr.slot = 0u;\n        attr.value = vec4(0.0);\n";
+    }
+    rint += "        reportIntersectionEXT(t, 0u);\n    }\n}\n";
+    shaders.push(ShaderSource { role: Role::Intersection, glsl: rint });
+
+    if cell.stage == Stage::AnyHit {
+        let mut ahit = header(true, Some(probe), &[]);
+        ahit += "layout(location = 0) rayPayloadInEXT Record pl;\nvoid main() {\n    uvec2 px = gl_LaunchIDEXT.xy;\n";
+        ahit += &probe.body;
+        ahit += store;
+        ahit += "}\n";
+        shaders.push(ShaderSource { role: Role::AnyHit, glsl: ahit });
+    }
+    if cell.stage == Stage::Callable {
+        let mut call = header(true, Some(probe), &[]);
+        call += call_data;
+        call += "layout(location = 2) callableDataInEXT CallData cd;\nvoid main() {\n    uvec2 px = gl_LaunchIDEXT.xy;\n";
+        call += &probe.body;
+        call += "    cd.slot = probeSlot;\n    cd.value = probeValue;\n}\n";
+        shaders.push(ShaderSource { role: Role::Callable, glsl: call });
+    }
+    let traces_from_hit_or_miss = probe.traces && matches!(cell.stage, Stage::ClosestHit | Stage::Miss);
+    CellShaders {
+        kind: PipelineKind::RayTracing,
+        shaders,
+        recursion_depth: if traces_from_hit_or_miss { 2 } else { 1 },
+        uses_probe_binding: probe.uses_binding,
+        uses_scene_tlas: true,
+        uses_ray_query: probe.ray_query,
+    }
+}
+
+fn canary(c: Canary) -> CellShaders {
+    let cell = Cell::canary(c);
+    let mut shaders = ray_tracing(&cell, &ProbeCode::none(), |_| None).shaders;
+    let exts: &[&str] = match c {
+        Canary::InvalidAddress => &["GL_EXT_buffer_reference", "GL_EXT_shader_explicit_arithmetic_types_int64"],
+        Canary::InfiniteLoop => &[],
+    };
+    let mut rgen = header(true, None, exts);
+    rgen += "layout(set = 0, binding = 1) uniform accelerationStructureEXT sceneTlas;\n";
+    let body = match c {
+        Canary::InvalidAddress => {
+            rgen += "layout(buffer_reference, std430) readonly buffer Bad { vec4 v[]; };\n";
+            "    Bad bad = Bad(packUint2x32(pc.badAddress));\n    vec4 v = bad.v[i * 4096u];\n    records[i] = Record(2u, 0u, 0u, 0.0, vec2(0.0), 0u, 0u, v);\n"
+        }
+        Canary::InfiniteLoop => {
+            "    uint n = 0u;\n    while (pc.loopForever != 0u) {\n        n += 1u;\n        records[i].pad = n;\n    }\n    records[i] = Record(2u, 0u, 0u, 0.0, vec2(0.0), 0u, n, vec4(0.0));\n"
+        }
+    };
+    rgen += &format!("void main() {{\n    uvec2 px = gl_LaunchIDEXT.xy;\n    uint i = px.x + px.y * pc.width;\n{body}}}\n");
+    shaders[0] = ShaderSource { role: Role::Raygen, glsl: rgen };
+    CellShaders { kind: PipelineKind::RayTracing, shaders, recursion_depth: 1, uses_probe_binding: false, uses_scene_tlas: true, uses_ray_query: false }
+}
+
+/// Whether this cell's AS probe reaches the AS through an address.
+pub fn as_by_address(cell: &Cell) -> bool {
+    cell.resource == Resource::AccelerationStructure && matches!(cell.as_access, Some(AsAccess::Address))
+}

@@ -1,0 +1,153 @@
+//! Buffers and images with their memory: one allocation each (the probes' scenes are small), host
+//! visible where the CPU writes or reads them, device local for acceleration structures.
+use super::error::{VkError, VkResultExt};
+use super::Gpu;
+use ash::vk;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Location {
+    /// HOST_VISIBLE | HOST_COHERENT, persistently mapped.
+    Host,
+    /// DEVICE_LOCAL.
+    Device,
+}
+
+pub struct Buffer {
+    pub raw: vk::Buffer,
+    pub memory: vk::DeviceMemory,
+    pub size: u64,
+    /// Device address (0 unless created with SHADER_DEVICE_ADDRESS usage).
+    pub address: u64,
+    mapped: *mut u8,
+}
+
+fn allocate(gpu: &Gpu, req: vk::MemoryRequirements, loc: Location, device_address: bool, what: &'static str) -> Result<vk::DeviceMemory, VkError> {
+    let flags = match loc {
+        Location::Host => vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_COHERENT,
+        Location::Device => vk::MemoryPropertyFlags::DEVICE_LOCAL,
+    };
+    let type_index = gpu
+        .info
+        .memory_type_index(req.memory_type_bits, flags)
+        .or_else(|| (loc == Location::Device).then(|| gpu.info.memory_type_index(req.memory_type_bits, vk::MemoryPropertyFlags::empty())).flatten())
+        .ok_or(VkError::NoMemoryType { what, type_bits: req.memory_type_bits, flags })?;
+    let mut flags_info = vk::MemoryAllocateFlagsInfo::default().flags(vk::MemoryAllocateFlags::DEVICE_ADDRESS);
+    let mut info = vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(type_index);
+    if device_address {
+        info = info.push_next(&mut flags_info);
+    }
+    unsafe { gpu.device.allocate_memory(&info, None) }.at("vkAllocateMemory")
+}
+
+impl Buffer {
+    pub fn new(gpu: &Gpu, size: u64, usage: vk::BufferUsageFlags, loc: Location, what: &'static str) -> Result<Buffer, VkError> {
+        let d = &gpu.device;
+        let size = size.max(16);
+        let raw = unsafe { d.create_buffer(&vk::BufferCreateInfo::default().size(size).usage(usage), None) }.at("vkCreateBuffer")?;
+        let req = unsafe { d.get_buffer_memory_requirements(raw) };
+        let bda = usage.contains(vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS);
+        let memory = match allocate(gpu, req, loc, bda, what) {
+            Ok(m) => m,
+            Err(e) => {
+                unsafe { d.destroy_buffer(raw, None) };
+                return Err(e);
+            }
+        };
+        unsafe { d.bind_buffer_memory(raw, memory, 0) }.at("vkBindBufferMemory")?;
+        let mapped = if loc == Location::Host {
+            unsafe { d.map_memory(memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty()) }.at("vkMapMemory")? as *mut u8
+        } else {
+            std::ptr::null_mut()
+        };
+        let address = if bda { unsafe { d.get_buffer_device_address(&vk::BufferDeviceAddressInfo::default().buffer(raw)) } } else { 0 };
+        Ok(Buffer { raw, memory, size, address, mapped })
+    }
+
+    /// A host-visible buffer holding `bytes`.
+    pub fn with_data(gpu: &Gpu, bytes: &[u8], usage: vk::BufferUsageFlags, what: &'static str) -> Result<Buffer, VkError> {
+        let b = Buffer::new(gpu, bytes.len() as u64, usage, Location::Host, what)?;
+        b.write(0, bytes);
+        Ok(b)
+    }
+
+    pub fn write(&self, offset: usize, bytes: &[u8]) {
+        assert!(!self.mapped.is_null(), "write to a device-local buffer");
+        assert!(offset + bytes.len() <= self.size as usize, "write past the end of a buffer");
+        // SAFETY: mapped for the buffer's whole size; bounds checked above.
+        unsafe { std::ptr::copy_nonoverlapping(bytes.as_ptr(), self.mapped.add(offset), bytes.len()) };
+    }
+
+    pub fn read(&self, len: usize) -> Vec<u8> {
+        assert!(!self.mapped.is_null(), "read from a device-local buffer");
+        let len = len.min(self.size as usize);
+        let mut v = vec![0u8; len];
+        // SAFETY: mapped for the buffer's whole size; len clamped.
+        unsafe { std::ptr::copy_nonoverlapping(self.mapped, v.as_mut_ptr(), len) };
+        v
+    }
+
+    pub fn destroy(&self, gpu: &Gpu) {
+        unsafe {
+            gpu.device.destroy_buffer(self.raw, None);
+            gpu.device.free_memory(self.memory, None);
+        }
+    }
+}
+
+/// A small 2D image with one view, left in `GENERAL` layout (valid for sampling and storage).
+pub struct Image {
+    pub raw: vk::Image,
+    pub view: vk::ImageView,
+    pub memory: vk::DeviceMemory,
+    pub extent: vk::Extent2D,
+}
+
+impl Image {
+    pub fn new(gpu: &Gpu, extent: vk::Extent2D, format: vk::Format, usage: vk::ImageUsageFlags) -> Result<Image, VkError> {
+        let d = &gpu.device;
+        let ci = vk::ImageCreateInfo::default()
+            .image_type(vk::ImageType::TYPE_2D)
+            .format(format)
+            .extent(vk::Extent3D { width: extent.width, height: extent.height, depth: 1 })
+            .mip_levels(1)
+            .array_layers(1)
+            .samples(vk::SampleCountFlags::TYPE_1)
+            .tiling(vk::ImageTiling::OPTIMAL)
+            .usage(usage)
+            .initial_layout(vk::ImageLayout::UNDEFINED);
+        let raw = unsafe { d.create_image(&ci, None) }.at("vkCreateImage")?;
+        let req = unsafe { d.get_image_memory_requirements(raw) };
+        let memory = allocate(gpu, req, Location::Device, false, "image")?;
+        unsafe { d.bind_image_memory(raw, memory, 0) }.at("vkBindImageMemory")?;
+        let vci = vk::ImageViewCreateInfo::default()
+            .image(raw)
+            .view_type(vk::ImageViewType::TYPE_2D)
+            .format(format)
+            .subresource_range(color_range());
+        let view = unsafe { d.create_image_view(&vci, None) }.at("vkCreateImageView")?;
+        Ok(Image { raw, view, memory, extent })
+    }
+
+    pub fn destroy(&self, gpu: &Gpu) {
+        unsafe {
+            gpu.device.destroy_image_view(self.view, None);
+            gpu.device.destroy_image(self.raw, None);
+            gpu.device.free_memory(self.memory, None);
+        }
+    }
+}
+
+pub fn color_range() -> vk::ImageSubresourceRange {
+    vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 }
+}
+
+/// A full memory barrier between everything before and after (probes are small; precision of
+/// synchronization is not what they test).
+pub fn full_barrier(gpu: &Gpu, cmd: vk::CommandBuffer) {
+    let mb = [vk::MemoryBarrier::default()
+        .src_access_mask(vk::AccessFlags::MEMORY_WRITE)
+        .dst_access_mask(vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE)];
+    unsafe {
+        gpu.device.cmd_pipeline_barrier(cmd, vk::PipelineStageFlags::ALL_COMMANDS, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), &mb, &[], &[])
+    };
+}
