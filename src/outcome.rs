@@ -90,6 +90,14 @@ pub struct CellResult {
     pub comparison: Option<Comparison>,
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub fault: Option<FaultInfo>,
+    /// Errors the validation layer reported while this cell ran (with `--validate`): rtprobe
+    /// itself misused the API, so the cell's outcome is not evidence about the driver.
+    #[serde(skip_serializing_if = "is_zero", default)]
+    pub validation_errors: u64,
+}
+
+fn is_zero(n: &u64) -> bool {
+    *n == 0
 }
 
 #[cfg(test)]

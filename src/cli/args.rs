@@ -74,9 +74,10 @@ pub struct RunArgs {
     #[arg(long, value_name = "DIR")]
     pub dump: Option<PathBuf>,
 
-    /// Worker processes running cells in parallel (default 1)
-    #[arg(long, short = 'j', default_value_t = 1)]
-    pub jobs: usize,
+    /// Worker processes running cells in parallel (default: one per CPU core, at most 8, on CPU
+    /// devices such as lavapipe, whose pipeline compiles are single-threaded; 1 on GPUs)
+    #[arg(long, short = 'j')]
+    pub jobs: Option<usize>,
 
     /// `worker`: a worker runs many cells and is replaced after a fault;
     /// `process-per-cell`: every cell in a fresh process

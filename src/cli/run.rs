@@ -27,6 +27,16 @@ fn scene_params(a: &RunArgs) -> Result<SceneParams> {
     Ok(p)
 }
 
+/// One worker per core on CPU implementations (lavapipe JITs each pipeline on one thread), one
+/// on GPUs (the driver parallelises; several processes only contend for one device).
+fn default_jobs(info: &crate::vk::DeviceInfo) -> usize {
+    if info.properties.core.device_type == ash::vk::PhysicalDeviceType::CPU {
+        std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1).clamp(1, 8)
+    } else {
+        1
+    }
+}
+
 fn slug(name: &str) -> String {
     let s: String = name.chars().map(|c| if c.is_ascii_alphanumeric() { c.to_ascii_lowercase() } else { '-' }).collect();
     s.split('-').filter(|p| !p.is_empty()).take(4).collect::<Vec<_>>().join("-")
@@ -35,7 +45,7 @@ fn slug(name: &str) -> String {
 pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     let filters = a.filter.iter().map(|f| Filter::parse(f).map_err(|e| coded(exit::USAGE, e))).collect::<Result<Vec<_>>>()?;
     let params = scene_params(a)?;
-    if a.jobs == 0 || a.jobs > 64 {
+    if a.jobs.is_some_and(|j| j == 0 || j > 64) {
         return Err(coded(exit::USAGE, "--jobs must be 1..=64"));
     }
     if !(a.timeout > 0.0 && a.timeout <= 3600.0) {
@@ -45,6 +55,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     let all = features::query_all(&inst)?;
     let info = features::select(&all, a.device.as_deref())?.clone();
     drop(all);
+    let jobs = a.jobs.unwrap_or_else(|| default_jobs(&info));
     let the_plan = plan::plan(&info, &PlanOptions { filters: filters.clone(), canaries: a.canaries });
 
     if a.list {
@@ -87,7 +98,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             ambiguous_pixels: sref.ambiguous_pixels(),
         },
         options: json!({
-            "jobs": a.jobs, "isolation": a.isolation, "timeout_s": a.timeout, "confirm": !a.no_confirm,
+            "jobs": jobs, "isolation": a.isolation, "timeout_s": a.timeout, "confirm": !a.no_confirm,
             "canaries": a.canaries, "filters": a.filter, "validate": g.validate, "corrupt_expected": a.corrupt_expected,
         }),
         plan: PlanSummary {
@@ -121,7 +132,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     let mut sup = Supervisor::new(SupervisorOptions {
         device_index: info.index,
         scene: params,
-        jobs: a.jobs,
+        jobs,
         isolation: a.isolation,
         timeout: Duration::from_secs_f64(a.timeout),
         setup_timeout: Duration::from_secs(120),

@@ -119,6 +119,7 @@ impl Executor {
     /// Run one cell. Never panics on driver misbehaviour; every failure is an outcome.
     pub fn run(&mut self, cell: &Cell) -> CellResult {
         let start = Instant::now();
+        let validation_before = crate::vk::instance::validation_error_count();
         let mut timings = Timings::default();
         let result = self.try_run(cell, &mut timings);
         let mut out = match result {
@@ -134,18 +135,27 @@ impl Executor {
                 timings: timings.clone(),
                 comparison: None,
                 fault: fault::query(&self.gpu),
+                validation_errors: 0,
             },
             Err(CellError::Timeout(_)) | Err(CellError::Build(BuildError::TimedOut(_))) => {
-                CellResult { outcome: Outcome::Timeout, detail: Some(format!("fence wait exceeded {:?}", self.opts.timeout)), timings: timings.clone(), comparison: None, fault: None }
+                CellResult {
+                    outcome: Outcome::Timeout,
+                    detail: Some(format!("fence wait exceeded {:?}", self.opts.timeout)),
+                    timings: timings.clone(),
+                    comparison: None,
+                    fault: None,
+                    validation_errors: 0,
+                }
             }
-            Err(e) => CellResult { outcome: Outcome::Error, detail: Some(e.to_string()), timings: timings.clone(), comparison: None, fault: None },
+            Err(e) => CellResult { outcome: Outcome::Error, detail: Some(e.to_string()), timings: timings.clone(), comparison: None, fault: None, validation_errors: 0 },
         };
         out.timings.total_ms = start.elapsed().as_secs_f64() * 1e3;
+        out.validation_errors = crate::vk::instance::validation_error_count() - validation_before;
         out
     }
 
     fn check(&self, cell: &Cell, records: &[Record]) -> CellResult {
-        let none = |outcome, detail: &str| CellResult { outcome, detail: Some(detail.into()), timings: Timings::default(), comparison: None, fault: None };
+        let none = |outcome, detail: &str| CellResult { outcome, detail: Some(detail.into()), timings: Timings::default(), comparison: None, fault: None, validation_errors: 0 };
         if let Some(c) = cell.canary {
             return none(Outcome::Pass, &format!("canary {} ran to completion: this driver did not fault on it", c.as_str()));
         }
@@ -153,7 +163,7 @@ impl Executor {
         let cmp = reference::compare(&expected, records, self.scene.params.width);
         let outcome = if cmp.passed() { Outcome::Pass } else { Outcome::Mismatch };
         let detail = (!cmp.passed()).then(|| format!("{} of {} compared pixels differ ({:?})", cmp.mismatched_pixels, cmp.compared, cmp.by_field));
-        CellResult { outcome, detail, timings: Timings::default(), comparison: Some(cmp), fault: None }
+        CellResult { outcome, detail, timings: Timings::default(), comparison: Some(cmp), fault: None, validation_errors: 0 }
     }
 
     fn ensure_scene(&mut self) -> Result<&SceneGpu, CellError> {

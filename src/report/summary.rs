@@ -40,6 +40,10 @@ pub fn render(r: &RunReport) -> String {
             if chk.detected { "detected as expected" } else { "NOT detected: fault classification unproven on this driver" }
         );
     }
+    let vcells: Vec<_> = r.cells.iter().filter(|c| c.attempts.iter().any(|a| a.result.as_ref().is_some_and(|x| x.validation_errors > 0))).collect();
+    if !vcells.is_empty() {
+        let _ = writeln!(s, "validation errors in {} cells (rtprobe misused the API there; their outcomes prove nothing): first {}", vcells.len(), vcells[0].id);
+    }
     let findings: Vec<_> = r.findings().collect();
     if findings.is_empty() {
         let _ = writeln!(s, "no faults or mismatches");

@@ -1,0 +1,199 @@
+//! End-to-end tests of `rtprobe run` on lavapipe: the default matrix passes with canaries
+//! classified, unsupported cells carry the device's reason, corrupted expectations are caught,
+//! reports survive a killed supervisor and resume, isolation modes and dumps work.
+mod common;
+use common::*;
+use serde_json::Value;
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+fn report(path: &Path) -> Value {
+    serde_json::from_slice(&std::fs::read(path).expect("report written")).expect("report is JSON")
+}
+
+fn cells(r: &Value) -> &Vec<Value> {
+    r["cells"].as_array().expect("cells")
+}
+
+#[test]
+fn default_matrix_passes_on_lavapipe_and_canaries_are_classified() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("r.json");
+    let junit = dir.path().join("j.xml");
+    let o = run(&["run", "--canaries", "--timeout", "5", "-o", out.to_str().unwrap(), "--junit", junit.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "stdout: {}\nstderr: {}", stdout(&o), stderr(&o));
+    let r = report(&out);
+    assert_eq!(r["schema"], "rtprobe.report/1");
+    assert_eq!(r["complete"], true);
+    let cs = cells(&r);
+    assert_eq!(cs.len() as u64, r["plan"]["planned"].as_u64().unwrap());
+    assert!(r["plan"]["to_run"].as_u64().unwrap() >= 400, "{}", r["plan"]);
+    let mut passed = 0;
+    for c in cs {
+        let id = c["id"].as_str().unwrap();
+        match c["outcome"].as_str().unwrap() {
+            "pass" => passed += 1,
+            "unsupported" => assert!(c["reason"].as_str().is_some_and(|s| !s.is_empty()), "{id} has no reason"),
+            other if id.starts_with("canary.") => assert_eq!(c["canary_check"]["detected"], true, "{id}: {other}"),
+            other => panic!("{id}: {other} ({})", c["reason"]),
+        }
+        for a in c["attempts"].as_array().unwrap() {
+            assert!(a["result"]["validation_errors"].is_null(), "{id}: validation errors {}", a["result"]["validation_errors"]);
+        }
+    }
+    assert!(passed >= 400, "passed {passed}");
+    // Canaries: an invalid read crashes the lavapipe worker, an endless loop times out.
+    let canary = |id: &str| cs.iter().find(|c| c["id"] == id).unwrap()["outcome"].as_str().unwrap().to_string();
+    assert_eq!(canary("canary.invalid_address"), "crash");
+    assert_eq!(canary("canary.infinite_loop"), "timeout");
+    // Every descriptor_heap cell is unsupported, with the reason from the device.
+    let heap: Vec<_> = cs.iter().filter(|c| c["descriptor_model"] == "descriptor_heap").collect();
+    assert!(!heap.is_empty());
+    for c in heap {
+        assert_eq!(c["outcome"], "unsupported");
+        assert!(c["reason"].as_str().unwrap().contains("VK_EXT_descriptor_heap"));
+    }
+    // Every stage, resource and index source actually ran somewhere.
+    for (axis, values) in [
+        ("stage", vec!["raygen", "closest_hit", "any_hit", "miss", "intersection", "callable", "fragment", "compute"]),
+        ("resource", vec!["storage_buffer", "uniform_buffer", "sampled_image", "storage_image", "acceleration_structure"]),
+        ("index", vec!["literal", "spec_constant", "push_constant", "dynamic"]),
+    ] {
+        for v in values {
+            assert!(cs.iter().any(|c| c[axis] == v && c["outcome"] == "pass"), "no passing cell with {axis}={v}");
+        }
+    }
+    // The summary on the terminal and the JUnit file agree with the report.
+    let text = stdout(&o);
+    assert!(text.contains(&format!("pass {passed}")), "{text}");
+    let xml = std::fs::read_to_string(&junit).unwrap();
+    assert_eq!(xml.matches("<testcase ").count(), cs.len());
+    assert!(xml.contains("<skipped"));
+}
+
+#[test]
+fn corrupted_expectations_are_reported_as_confirmed_mismatches() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("r.json");
+    let o = run(&[
+        "run", "--corrupt-expected", "--filter", "stage=raygen|closest_hit,resource=storage_buffer,descriptor_model=descriptor_indexing",
+        "-o", out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "findings exit 1; stderr {}", stderr(&o));
+    let r = report(&out);
+    let cs = cells(&r);
+    assert_eq!(cs.len(), 10);
+    for c in cs {
+        assert_eq!(c["outcome"], "mismatch", "{}", c["id"]);
+        assert_eq!(c["confirmed"], true, "re-run alone gives the same outcome");
+        let cmp = &c["attempts"][0]["result"]["comparison"];
+        assert!(cmp["by_field"]["value"].as_u64().unwrap() > 0);
+        assert!(cmp["worst_value"].as_f64().unwrap() >= 1.0);
+        assert!(!cmp["examples"].as_array().unwrap().is_empty());
+    }
+    assert!(stdout(&o).contains("findings (10)"));
+}
+
+#[test]
+fn list_says_what_is_planned_skipped_and_not_generated() {
+    let o = run(&["run", "--list"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    let to_run = out.lines().filter(|l| l.starts_with("run ")).count();
+    let unsupported = out.lines().filter(|l| l.starts_with("unsupported ")).count();
+    assert!(to_run > 0 && unsupported > 0);
+    assert!(out.contains(&format!("{} planned: {to_run} to run, {unsupported} unsupported", to_run + unsupported)), "{out}");
+    assert!(out.contains("not generated: nonuniform only applies to index=dynamic"));
+    assert!(out.contains("address_patched"));
+    let o = run(&["run", "--list", "--filter", "stage=closest_hit,index=dynamic,descriptor_model=descriptor_indexing"]);
+    let out = stdout(&o);
+    assert!(out.lines().filter(|l| l.starts_with("run ")).all(|l| l.contains("closest_hit.") && l.contains(".dynamic")));
+}
+
+#[test]
+fn bad_run_arguments_are_usage_errors() {
+    assert_one_line_error(&run(&["run", "--filter", "stage=nope"]), 2, "closest_hit");
+    assert_one_line_error(&run(&["run", "--filter", "colour=red"]), 2, "unknown axis");
+    assert_one_line_error(&run(&["run", "--size", "10x10"]), 2, "multiple of 8");
+    assert_one_line_error(&run(&["run", "--instances", "3"]), 2, "instances");
+    assert_one_line_error(&run(&["run", "--jobs", "0"]), 2, "--jobs");
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.json");
+    std::fs::write(&bad, b"{not json").unwrap();
+    assert_one_line_error(&run(&["run", "--resume", bad.to_str().unwrap()]), 9, "not an rtprobe run report");
+}
+
+#[test]
+fn killed_supervisor_loses_no_finished_cell_and_resume_completes() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("r.json");
+    let filter = "descriptor_model=descriptor_indexing,resource=storage_buffer|uniform_buffer";
+    let mut child = bin().args(["run", "--filter", filter, "-o", out.to_str().unwrap()]).stdout(std::process::Stdio::null()).stderr(std::process::Stdio::null()).spawn().unwrap();
+    let start = Instant::now();
+    let finished_before_kill = loop {
+        if let Ok(b) = std::fs::read(&out) {
+            if let Ok(r) = serde_json::from_slice::<Value>(&b) {
+                let n = cells(&r).iter().filter(|c| !c["attempts"].as_array().unwrap().is_empty()).count();
+                if n >= 5 {
+                    break r;
+                }
+            }
+        }
+        assert!(start.elapsed() < Duration::from_secs(120), "run made no progress");
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    child.kill().unwrap();
+    let _ = child.wait();
+    // What is on disk is a whole report, marked incomplete, holding at least what we saw.
+    let on_disk = report(&out);
+    assert_eq!(on_disk["complete"], false);
+    let done: Vec<(String, Value)> = cells(&on_disk)
+        .iter()
+        .filter(|c| !c["attempts"].as_array().unwrap().is_empty())
+        .map(|c| (c["id"].as_str().unwrap().to_string(), c["attempts"].clone()))
+        .collect();
+    assert!(done.len() >= cells(&finished_before_kill).iter().filter(|c| !c["attempts"].as_array().unwrap().is_empty()).count());
+
+    let o = run(&["run", "--filter", filter, "--resume", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let r = report(&out);
+    assert_eq!(r["complete"], true);
+    assert!(cells(&r).iter().all(|c| c["outcome"] == "pass"));
+    for (id, attempts) in done {
+        let c = cells(&r).iter().find(|c| c["id"] == id.as_str()).unwrap();
+        assert_eq!(c["attempts"], attempts, "{id} was re-run instead of kept");
+    }
+}
+
+#[test]
+fn process_per_cell_starts_a_worker_per_cell() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("r.json");
+    let o = run(&["run", "--isolation", "process-per-cell", "--filter", "stage=raygen|compute,resource=storage_buffer,descriptor_model=descriptor_indexing", "-o", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let r = report(&out);
+    assert_eq!(r["timing"]["workers_started"].as_u64().unwrap() as usize, cells(&r).len());
+    assert!(cells(&r).iter().all(|c| c["attempts"][0]["isolated"] == true));
+}
+
+#[test]
+fn dump_writes_glsl_and_valid_spirv() {
+    let dir = tempfile::tempdir().unwrap();
+    let dump = dir.path().join("dump");
+    let out = dir.path().join("r.json");
+    let o = run(&["run", "--filter", "stage=closest_hit,index=dynamic,nonuniform=true,descriptor_model=descriptor_indexing", "--dump", dump.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let cell = dump.join("closest_hit.storage_buffer.dynamic.nonuniform.descriptor_indexing");
+    let glsl = std::fs::read_to_string(cell.join("closest_hit_triangles.rchit.glsl")).unwrap();
+    assert!(glsl.contains("probeBuf[nonuniformEXT((pc.dynBase + uint(gl_InstanceCustomIndexEXT)))]"), "{glsl}");
+    let mut checked = 0;
+    for e in std::fs::read_dir(&cell).unwrap() {
+        let p = e.unwrap().path();
+        if p.extension().is_some_and(|x| x == "spv") {
+            let v = std::process::Command::new("spirv-val").args(["--target-env", "vulkan1.2"]).arg(&p).output().expect("spirv-val (apt-get install spirv-tools)");
+            assert!(v.status.success(), "{}: {}", p.display(), String::from_utf8_lossy(&v.stderr));
+            checked += 1;
+        }
+    }
+    assert!(checked >= 5);
+}
