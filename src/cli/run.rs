@@ -125,7 +125,9 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     };
     let writer = ReportWriter::new(out.clone(), base, &the_plan);
     let done = if a.resume.is_some() { writer.done() } else { Default::default() };
-    let cells: Vec<_> = the_plan.to_run().filter(|c| !done.contains(&c.id())).copied().collect();
+    let pending: Vec<_> = the_plan.to_run().filter(|c| !done.contains(&c.id())).copied().collect();
+    // Canaries run after every probe cell and its confirmation (they may wedge a real GPU).
+    let (canaries, cells): (Vec<_>, Vec<_>) = pending.into_iter().partition(|c| c.canary.is_some());
     writer.save(false).with_context(|| "writing the report")?;
 
     let job_dir = std::env::temp_dir().join(format!("rtprobe-{}", std::process::id()));
@@ -142,7 +144,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         dump: a.dump.clone(),
         job_dir: job_dir.clone(),
     });
-    let bar = indicatif::ProgressBar::new(cells.len() as u64);
+    let bar = indicatif::ProgressBar::new((cells.len() + canaries.len()) as u64);
     bar.set_style(indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} {msg}").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()));
     let wall = Instant::now();
     let mut st = RunState { writer, bar, device_ms_sum: 0.0, save_error: None };
@@ -160,6 +162,9 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             st.bar.inc_length(again.len() as u64);
             sup.run(&again, true, &mut |ev| st.on_event(ev));
         }
+    }
+    if !canaries.is_empty() {
+        sup.run(&canaries, false, &mut |ev| st.on_event(ev));
     }
     let RunState { mut writer, bar, device_ms_sum, save_error } = st;
     bar.finish_and_clear();

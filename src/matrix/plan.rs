@@ -188,16 +188,19 @@ pub fn plan(info: &DeviceInfo, opts: &PlanOptions) -> RunPlan {
         };
         cells.push(PlannedCell { cell, status });
     };
-    if opts.canaries {
-        for &c in Canary::ALL {
-            push(Cell::canary(c), &mut cells);
-        }
-    }
     for cell in all {
         if opts.filters.iter().all(|f| f.matches(&cell)) {
             push(cell, &mut cells);
         } else {
             filtered_out += 1;
+        }
+    }
+    // Canaries last: on a real GPU a canary may wedge the device for every process after it
+    // (seen on NVIDIA 580: the invalid read hung instead of faulting), so no probe cell may
+    // run after one.
+    if opts.canaries {
+        for &c in Canary::ALL {
+            push(Cell::canary(c), &mut cells);
         }
     }
     RunPlan { cells, not_generated, filtered_out }
