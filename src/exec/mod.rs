@@ -69,6 +69,7 @@ pub struct Executor {
     pipelines: HashMap<u64, Pipeline>,
     /// Milliseconds the CPU reference took.
     pub reference_ms: f64,
+    all_stages: bool,
 }
 
 impl Executor {
@@ -105,6 +106,7 @@ impl Executor {
             bindings: HashMap::new(),
             pipelines: HashMap::new(),
             reference_ms,
+            all_stages: std::env::var("RTPROBE_BINDING_STAGES").is_ok_and(|v| v == "all"),
         })
     }
 
@@ -227,6 +229,9 @@ impl Executor {
             PipelineKind::Graphics => vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT,
             PipelineKind::Compute => vk::ShaderStageFlags::COMPUTE,
         };
+        // RTPROBE_BINDING_STAGES=all: declare bindings and push constants for VK_SHADER_STAGE_ALL
+        // instead of the pipeline's stages (reproduces reports/lavapipe/FINDINGS.md).
+        let stages = if self.all_stages { vk::ShaderStageFlags::ALL } else { stages };
         let key = LayoutKey {
             stages,
             model: cell.descriptor_model,
