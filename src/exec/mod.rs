@@ -13,7 +13,7 @@ use crate::reference::{self, SceneReference};
 use crate::scene::gpu::{BuildError, SceneGpu};
 use crate::scene::{Scene, SceneParams};
 use crate::shadergen::{self, compile::Compiler, compile::CompileError, PipelineKind};
-use crate::vk::memory::{color_range, Buffer, Image, Location};
+use crate::vk::memory::{transition, Buffer, Image, Location, Transition};
 use crate::vk::submit::{Submitter, Waited};
 use crate::vk::{fault, Gpu, VkError, VkResultExt};
 use ash::vk;
@@ -319,13 +319,9 @@ impl Executor {
                 }
                 PipelineKind::Graphics => {
                     let img = color.expect("color target created");
-                    let to_att = vk::ImageMemoryBarrier::default()
-                        .image(img.raw)
-                        .subresource_range(color_range())
-                        .old_layout(vk::ImageLayout::UNDEFINED)
-                        .new_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
-                        .dst_access_mask(vk::AccessFlags::COLOR_ATTACHMENT_WRITE);
-                    d.cmd_pipeline_barrier(cmd, vk::PipelineStageFlags::TOP_OF_PIPE, vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT, vk::DependencyFlags::empty(), &[], &[], &[to_att]);
+                    let top = (vk::ImageLayout::UNDEFINED, vk::AccessFlags::empty(), vk::PipelineStageFlags::TOP_OF_PIPE);
+                    let att = (vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, vk::AccessFlags::COLOR_ATTACHMENT_WRITE, vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT);
+                    transition(gpu, cmd, img.raw, Transition { from: top, to: att });
                     let att = [vk::RenderingAttachmentInfo::default()
                         .image_view(img.view)
                         .image_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)

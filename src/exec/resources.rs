@@ -4,7 +4,7 @@
 use crate::matrix::Resource;
 use crate::probe;
 use crate::vk::features::PROBE_IMAGE_FORMAT;
-use crate::vk::memory::{color_range, Buffer, Image, Location};
+use crate::vk::memory::{transition, Buffer, Image, Location, Transition};
 use crate::vk::submit::{Submitter, Waited};
 use crate::vk::{Gpu, VkError, VkResultExt};
 use ash::vk;
@@ -48,25 +48,15 @@ impl ResourceArray {
                 }
                 let waited = submitter.run(gpu, timeout, |cmd| unsafe {
                     for (img, st) in images.iter().zip(&staging) {
-                        let to_dst = vk::ImageMemoryBarrier::default()
-                            .image(img.raw)
-                            .subresource_range(color_range())
-                            .old_layout(vk::ImageLayout::UNDEFINED)
-                            .new_layout(vk::ImageLayout::TRANSFER_DST_OPTIMAL)
-                            .dst_access_mask(vk::AccessFlags::TRANSFER_WRITE);
-                        gpu.device.cmd_pipeline_barrier(cmd, vk::PipelineStageFlags::TOP_OF_PIPE, vk::PipelineStageFlags::TRANSFER, vk::DependencyFlags::empty(), &[], &[], &[to_dst]);
+                        let dst = (vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::AccessFlags::TRANSFER_WRITE, vk::PipelineStageFlags::TRANSFER);
+                        let top = (vk::ImageLayout::UNDEFINED, vk::AccessFlags::empty(), vk::PipelineStageFlags::TOP_OF_PIPE);
+                        transition(gpu, cmd, img.raw, Transition { from: top, to: dst });
                         let region = vk::BufferImageCopy::default()
                             .image_subresource(vk::ImageSubresourceLayers { aspect_mask: vk::ImageAspectFlags::COLOR, mip_level: 0, base_array_layer: 0, layer_count: 1 })
                             .image_extent(vk::Extent3D { width: 2, height: 2, depth: 1 });
                         gpu.device.cmd_copy_buffer_to_image(cmd, st.raw, img.raw, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &[region]);
-                        let to_general = vk::ImageMemoryBarrier::default()
-                            .image(img.raw)
-                            .subresource_range(color_range())
-                            .old_layout(vk::ImageLayout::TRANSFER_DST_OPTIMAL)
-                            .new_layout(vk::ImageLayout::GENERAL)
-                            .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-                            .dst_access_mask(vk::AccessFlags::SHADER_READ);
-                        gpu.device.cmd_pipeline_barrier(cmd, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), &[], &[], &[to_general]);
+                        let general = (vk::ImageLayout::GENERAL, vk::AccessFlags::SHADER_READ, vk::PipelineStageFlags::ALL_COMMANDS);
+                        transition(gpu, cmd, img.raw, Transition { from: dst, to: general });
                     }
                 });
                 for st in &staging {

@@ -88,14 +88,7 @@ impl SceneGpu {
         inputs.push(ab);
 
         let mut all_scratch = Vec::new();
-        let mut blas = Vec::new();
-        let mut blas_builds = Vec::new();
-        for p in &blas_pending {
-            let (a, scratch, info) = Self::prepare(gpu, p)?;
-            blas_builds.push((info, p.range));
-            all_scratch.push(scratch);
-            blas.push(a);
-        }
+        let (blas, blas_builds) = Self::prepare_all(gpu, &blas_pending, &mut all_scratch)?;
 
         // Instances: TLAS 0 all, TLAS 1 the even custom indices.
         let blas_index = |g: Geometry| match g {
@@ -128,14 +121,7 @@ impl SceneGpu {
             });
             inputs.push(ib);
         }
-        let mut tlas = Vec::new();
-        let mut tlas_builds = Vec::new();
-        for p in &tlas_pending {
-            let (a, scratch, info) = Self::prepare(gpu, p)?;
-            tlas_builds.push((info, p.range));
-            all_scratch.push(scratch);
-            tlas.push(a);
-        }
+        let (mut tlas, tlas_builds) = Self::prepare_all(gpu, &tlas_pending, &mut all_scratch)?;
 
         let waited = submitter.run(gpu, timeout, |cmd| unsafe {
             for (info, range) in &blas_builds {
@@ -158,6 +144,24 @@ impl SceneGpu {
         let t1 = tlas.pop().expect("two TLAS");
         let t0 = tlas.pop().expect("two TLAS");
         Ok(SceneGpu { blas, tlas: [t0, t1], inputs, build_ms: start.elapsed().as_secs_f64() * 1e3 })
+    }
+
+    /// [`Self::prepare`] for each of `pending`; scratch buffers go to `scratch` (freed after the build).
+    #[allow(clippy::type_complexity)]
+    fn prepare_all<'a>(
+        gpu: &Gpu,
+        pending: &'a [Pending],
+        scratch: &mut Vec<Buffer>,
+    ) -> Result<(Vec<AccelStruct>, Vec<(vk::AccelerationStructureBuildGeometryInfoKHR<'a>, vk::AccelerationStructureBuildRangeInfoKHR)>), VkError> {
+        let mut out = Vec::new();
+        let mut builds = Vec::new();
+        for p in pending {
+            let (a, s, info) = Self::prepare(gpu, p)?;
+            builds.push((info, p.range));
+            scratch.push(s);
+            out.push(a);
+        }
+        Ok((out, builds))
     }
 
     /// Sizes, buffer, AS object and scratch for one build; returns the build info pointing at `p`.

@@ -151,3 +151,20 @@ pub fn full_barrier(gpu: &Gpu, cmd: vk::CommandBuffer) {
         gpu.device.cmd_pipeline_barrier(cmd, vk::PipelineStageFlags::ALL_COMMANDS, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), &mb, &[], &[])
     };
 }
+
+/// One image layout transition (whole color image).
+pub struct Transition {
+    pub from: (vk::ImageLayout, vk::AccessFlags, vk::PipelineStageFlags),
+    pub to: (vk::ImageLayout, vk::AccessFlags, vk::PipelineStageFlags),
+}
+
+pub fn transition(gpu: &Gpu, cmd: vk::CommandBuffer, image: vk::Image, t: Transition) {
+    let b = vk::ImageMemoryBarrier::default()
+        .image(image)
+        .subresource_range(color_range())
+        .old_layout(t.from.0)
+        .new_layout(t.to.0)
+        .src_access_mask(t.from.1)
+        .dst_access_mask(t.to.1);
+    unsafe { gpu.device.cmd_pipeline_barrier(cmd, t.from.2, t.to.2, vk::DependencyFlags::empty(), &[], &[], &[b]) };
+}
