@@ -14,3 +14,4 @@ pub mod shadergen;
 pub mod outcome;
 pub mod exec;
 pub mod runner;
+pub mod patches;

@@ -117,14 +117,11 @@ pub fn as_access(info: &DeviceInfo, a: AsAccess) -> Support {
     let v12 = info.features.v12.unwrap_or_default();
     match a {
         AsAccess::Descriptor => Support::require(&[(accel, "accelerationStructure")]),
-        AsAccess::Address => Support::require(&[
+        AsAccess::Address | AsAccess::AddressPatched => Support::require(&[
             (accel, "accelerationStructure"),
             (on(v12.buffer_device_address), "bufferDeviceAddress"),
             (on(info.features.core.shader_int64), "shaderInt64"),
         ]),
-        AsAccess::AddressPatched => Support::NotImplemented {
-            reason: "needs rtprobe's as-to-address SPIR-V patch, not implemented yet".into(),
-        },
     }
 }
 
@@ -148,10 +145,16 @@ pub fn descriptor_model(info: &DeviceInfo, m: DescriptorModel) -> Support {
             if !info.has_extension(heap::NAME) {
                 return Support::Unsupported { reason: "driver does not expose VK_EXT_descriptor_heap".into() };
             }
-            Support::require(&[
+            match Support::require(&[
                 (info.features.descriptor_heap.is_some_and(|d| on(d.descriptor_heap)), "descriptorHeap"),
                 (info.has_extension(khr::maintenance5::NAME) || info.api_version() >= vk::make_api_version(0, 1, 4, 0), "VK_KHR_maintenance5"),
-            ])
+            ]) {
+                // The device could; rtprobe's heap binding path does not exist yet.
+                Support::Supported => Support::NotImplemented {
+                    reason: "the device supports VK_EXT_descriptor_heap, but rtprobe cannot bind descriptors through heaps yet".into(),
+                },
+                other => other,
+            }
         }
     }
 }

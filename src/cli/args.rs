@@ -34,6 +34,8 @@ pub enum Command {
     /// Run the matrix of generated shader variants in full RT scenes, each checked against a CPU
     /// reference, each fault isolated; writes a JSON report
     Run(RunArgs),
+    /// Apply SPIR-V workaround patches to a shader (SPIR-V binary, or GLSL with --glsl)
+    Patch(PatchArgs),
     /// Internal: run cells for the supervisor (`rtprobe run`); not for direct use
     #[command(name = "__worker", hide = true)]
     Worker {
@@ -147,4 +149,38 @@ pub struct CapsArgs {
     /// Do not create a logical device to check that the features the matrix needs can be enabled
     #[arg(long)]
     pub no_device_check: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct PatchArgs {
+    /// Input: a SPIR-V binary (or GLSL source with --glsl)
+    pub input: Option<PathBuf>,
+
+    /// Patches to apply, in order: as-to-address, nonuniform, pin-index (comma-separated)
+    #[arg(long, short = 'a', value_delimiter = ',', value_name = "PATCH,...")]
+    pub apply: Vec<String>,
+
+    /// A patch option KEY=VALUE (repeatable); see --list for each patch's keys
+    #[arg(long = "option", value_name = "KEY=VALUE")]
+    pub options: Vec<String>,
+
+    /// Output SPIR-V file (written only if every patch applied and the result validates)
+    #[arg(long, short = 'o', value_name = "FILE")]
+    pub out: Option<PathBuf>,
+
+    /// List the patches and their options
+    #[arg(long)]
+    pub list: bool,
+
+    /// The input is GLSL: compile it with shaderc (Vulkan 1.2, SPIR-V 1.5) first
+    #[arg(long)]
+    pub glsl: bool,
+
+    /// Stage of GLSL input: rgen, rchit, rahit, rmiss, rint, rcall, vert, frag, comp
+    #[arg(long, value_name = "STAGE")]
+    pub stage: Option<String>,
+
+    /// Print the diff of the disassembly before and after
+    #[arg(long)]
+    pub disassemble: bool,
 }

@@ -3,6 +3,7 @@
 pub mod args;
 pub mod commands;
 pub mod exit;
+pub mod patch;
 pub mod run;
 
 use args::{Cli, Command};
@@ -35,6 +36,7 @@ pub fn main_entry() -> u8 {
         Command::Devices(a) => commands::devices(&g, a),
         Command::Caps(a) => commands::caps_cmd(&g, a),
         Command::Run(a) => run::run(&g, a),
+        Command::Patch(a) => patch::patch(a),
         Command::Worker { job } => return crate::runner::worker::main(job),
     };
     match result {

@@ -10,7 +10,8 @@ use crate::vk::memory::{Buffer, Location};
 use crate::vk::{Gpu, VkError, VkResultExt};
 use ash::vk;
 
-pub const PUSH_CONSTANT_BYTES: u32 = 40;
+/// The probes' 40-byte block plus the 8-byte AS table address the as-to-address patch appends.
+pub const PUSH_CONSTANT_BYTES: u32 = 48;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct LayoutKey {

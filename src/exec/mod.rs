@@ -49,6 +49,8 @@ enum CellError {
     Timeout(&'static str),
     #[error("{0}")]
     Io(String),
+    #[error("as-to-address patch: {0}")]
+    Patch(#[from] crate::patches::PatchError),
 }
 
 pub struct Executor {
@@ -204,13 +206,31 @@ impl Executor {
     }
 
     fn try_run(&mut self, cell: &Cell, timings: &mut Timings) -> Result<Vec<Record>, CellError> {
-        let shaders = shadergen::generate(cell);
+        let shaders = shadergen::generate(&shadergen::source_cell(cell));
         // SPIR-V
         let mut spirv = Vec::new();
         for s in &shaders.shaders {
             let (words, ms) = self.compiler.compile(s.role, &s.glsl)?;
             timings.compile_ms += ms;
             spirv.push(words);
+        }
+        if cell.as_access == Some(crate::matrix::AsAccess::AddressPatched) {
+            let t = Instant::now();
+            let mut patched_any = false;
+            for words in spirv.iter_mut() {
+                match patch_as_to_address(words) {
+                    Ok(Some(p)) => {
+                        *words = std::sync::Arc::new(p);
+                        patched_any = true;
+                    }
+                    Ok(None) => {}
+                    Err(e) => return Err(e.into()),
+                }
+            }
+            timings.compile_ms += t.elapsed().as_secs_f64() * 1e3;
+            if !patched_any {
+                return Err(crate::patches::PatchError::NothingToPatch { patch: "as-to-address", what: "no module of the cell reads the probed AS array".into() }.into());
+            }
         }
         if let Some(dir) = &self.opts.dump {
             dump(dir, cell, &shaders, &spirv).map_err(CellError::Io)?;
@@ -289,6 +309,8 @@ impl Executor {
         pc.extend_from_slice(&as_table_address.to_le_bytes());
         let bad = if cell.canary == Some(Canary::InvalidAddress) { CANARY_BAD_ADDRESS } else { 0 };
         pc.extend_from_slice(&bad.to_le_bytes());
+        // offset 40: the table address of as-to-address-patched modules
+        pc.extend_from_slice(&as_table_address.to_le_bytes());
 
         let gpu = &self.gpu;
         let pipe = &self.pipelines[&pkey];
@@ -351,6 +373,20 @@ impl Executor {
         let recs = bytes.chunks_exact(RECORD_SIZE).map(Record::from_bytes).collect();
         timings.check_ms = t.elapsed().as_secs_f64() * 1e3;
         Ok(recs)
+    }
+}
+
+/// The probed AS array (binding 2) of one module reached by address: `Some(words)` when the
+/// module had one, `None` when it has nothing to patch.
+fn patch_as_to_address(words: &[u32]) -> Result<Option<Vec<u32>>, crate::patches::PatchError> {
+    use crate::patches::{self, PatchError, PatchName};
+    let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+    let mut m = patches::load(&bytes)?;
+    let opts = [("binding".to_string(), "2".to_string()), ("offset".to_string(), shadergen::PATCHED_TABLE_OFFSET.to_string()), ("mode".to_string(), "table".to_string())];
+    match patches::apply(&mut m, &[PatchName::AsToAddress], &opts.into_iter().collect()) {
+        Ok(_) => Ok(Some(patches::assemble(&m))),
+        Err(PatchError::NothingToPatch { .. }) => Ok(None),
+        Err(e) => Err(e),
     }
 }
 

@@ -11,7 +11,7 @@ pub enum CompileError {
     #[error("shaderc could not be initialised")]
     Init,
     #[error("{file}: {message}")]
-    Glsl { file: &'static str, message: String },
+    Glsl { file: String, message: String },
 }
 
 pub struct Compiler {
@@ -38,15 +38,20 @@ impl Compiler {
             return Ok((s.clone(), 0.0));
         }
         let t = Instant::now();
+        let words = Arc::new(self.compile_glsl(role.kind(), role.file_name(), glsl)?);
+        self.cache.insert(key, words.clone());
+        Ok((words, t.elapsed().as_secs_f64() * 1e3))
+    }
+
+    /// Compile one GLSL source (uncached).
+    pub fn compile_glsl(&mut self, kind: shaderc::ShaderKind, file: &str, glsl: &str) -> Result<Vec<u32>, CompileError> {
         let mut opts = shaderc::CompileOptions::new().map_err(|_| CompileError::Init)?;
         opts.set_target_env(shaderc::TargetEnv::Vulkan, shaderc::EnvVersion::Vulkan1_2 as u32);
         opts.set_target_spirv(shaderc::SpirvVersion::V1_5);
         let out = self
             .inner
-            .compile_into_spirv(glsl, role.kind(), role.file_name(), "main", Some(&opts))
-            .map_err(|e| CompileError::Glsl { file: role.file_name(), message: e.to_string().replace('\n', " | ") })?;
-        let words = Arc::new(out.as_binary().to_vec());
-        self.cache.insert(key, words.clone());
-        Ok((words, t.elapsed().as_secs_f64() * 1e3))
+            .compile_into_spirv(glsl, kind, file, "main", Some(&opts))
+            .map_err(|e| CompileError::Glsl { file: file.to_string(), message: e.to_string().replace('\n', " | ") })?;
+        Ok(out.as_binary().to_vec())
     }
 }

@@ -316,7 +316,21 @@ fn canary(c: Canary) -> CellShaders {
     CellShaders { kind: PipelineKind::RayTracing, shaders, recursion_depth: 1, uses_probe_binding: false, uses_scene_tlas: true, uses_ray_query: false }
 }
 
-/// Whether this cell's AS probe reaches the AS through an address.
+/// Whether this cell's AS probe reaches the AS through an address (written so, or patched).
 pub fn as_by_address(cell: &Cell) -> bool {
-    cell.resource == Resource::AccelerationStructure && matches!(cell.as_access, Some(AsAccess::Address))
+    cell.resource == Resource::AccelerationStructure && matches!(cell.as_access, Some(AsAccess::Address | AsAccess::AddressPatched))
 }
+
+/// `as_access=address_patched` runs the `descriptor` variant's shaders rewritten by the
+/// as-to-address patch: this is the cell whose GLSL is generated.
+pub fn source_cell(cell: &Cell) -> Cell {
+    if cell.as_access == Some(AsAccess::AddressPatched) {
+        Cell { as_access: Some(AsAccess::Descriptor), ..*cell }
+    } else {
+        *cell
+    }
+}
+
+/// Push-constant offset of the AS table address the as-to-address patch adds (the end of the
+/// probes' own 40-byte block).
+pub const PATCHED_TABLE_OFFSET: u32 = 40;

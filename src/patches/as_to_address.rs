@@ -1,0 +1,278 @@
+//! `as-to-address`: every acceleration structure read through a descriptor (a `UniformConstant`
+//! variable of `OpTypeAccelerationStructureKHR`, or an array of them) becomes
+//! `OpConvertUToAccelerationStructureKHR` of a 64-bit device address taken from push constants —
+//! the known workaround for drivers that fault reading the AS descriptor.
+//!
+//! SPIR-V rules relied on:
+//! - `OpConvertUToAccelerationStructureKHR` (SPV_KHR_ray_tracing / SPV_KHR_ray_query) turns a
+//!   64-bit unsigned device address into an AS object usable wherever a loaded AS is; the rewritten
+//!   `OpLoad` keeps its result id, so every user stays valid.
+//! - A push-constant block is a `Block`-decorated struct in `PushConstant` storage with explicit
+//!   member `Offset`s; appending a member at an unused 8-aligned offset leaves the others intact.
+//! - `direct` mode reads the AS address itself from the block (non-array variables); `table` mode
+//!   (arrays, or on request) reads the address of a table of 64-bit addresses and loads element
+//!   `index` through a `PhysicalStorageBuffer` pointer, which needs the `PhysicalStorageBuffer64`
+//!   addressing model, the `PhysicalStorageBufferAddresses` capability and an `Aligned` operand.
+//! - From SPIR-V 1.4 an entry point's interface lists every global it references: the removed
+//!   variables leave it, a new push-constant variable joins it.
+//!
+//! Handled shapes: `OpLoad %var`, and `OpLoad (OpAccessChain %var %index)`. Any other use of the
+//! variable (passing its pointer to a function, copying it) is refused, naming the instruction.
+use super::edit::{self, id_operand};
+use super::PatchError;
+use rspirv::dr::{Instruction, Module, Operand};
+use rspirv::spirv::{AddressingModel, Capability, Decoration, MemoryAccess, Op, StorageClass, Word};
+use std::collections::HashSet;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    Direct,
+    Table,
+}
+
+#[derive(Clone, Debug, Default)]
+pub struct Options {
+    /// Byte offset of the new 64-bit push-constant member (default: the end of the existing block
+    /// rounded up to 8, or 0 when the module has none).
+    pub offset: Option<u32>,
+    /// Default: `table` when any AS variable is an array, else `direct`.
+    pub mode: Option<Mode>,
+    /// Only the AS variable with this binding (default: every AS descriptor variable).
+    pub binding: Option<u32>,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Report {
+    pub rewritten_loads: usize,
+    pub removed_variables: usize,
+    pub offset: u32,
+    pub mode: Mode,
+}
+
+struct Site {
+    func: usize,
+    block: usize,
+    inst: usize,
+    /// None: direct load of a non-array variable.
+    index: Option<Word>,
+}
+
+/// Byte size of simple member types (scalars, vectors), for finding the end of a push block.
+fn simple_size(m: &Module, ty: Word) -> Option<u32> {
+    let d = edit::def(m, ty)?;
+    match d.class.opcode {
+        Op::TypeInt | Op::TypeFloat => match d.operands.first() {
+            Some(Operand::LiteralBit32(w)) => Some(w / 8),
+            _ => None,
+        },
+        Op::TypeVector => {
+            let comp = simple_size(m, id_operand(d, 0)?)?;
+            match d.operands.get(1) {
+                Some(Operand::LiteralBit32(n)) => Some(comp * n),
+                _ => None,
+            }
+        }
+        _ => None,
+    }
+}
+
+fn member_offsets(m: &Module, st: Word) -> Vec<(u32, u32)> {
+    m.annotations
+        .iter()
+        .filter(|a| a.class.opcode == Op::MemberDecorate && id_operand(a, 0) == Some(st))
+        .filter_map(|a| match (a.operands.get(1), a.operands.get(2), a.operands.get(3)) {
+            (Some(Operand::LiteralBit32(idx)), Some(Operand::Decoration(Decoration::Offset)), Some(Operand::LiteralBit32(off))) => Some((*idx, *off)),
+            _ => None,
+        })
+        .collect()
+}
+
+pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
+    const NAME: &str = "as-to-address";
+    let as_types: HashSet<Word> = m.types_global_values.iter().filter(|i| i.class.opcode == Op::TypeAccelerationStructureKHR).filter_map(|i| i.result_id).collect();
+    if as_types.is_empty() {
+        return Err(PatchError::NothingToPatch { patch: NAME, what: "the module declares no acceleration structure type".into() });
+    }
+    // AS descriptor variables: var id -> (is array, AS type)
+    let mut vars: Vec<(Word, bool, Word)> = Vec::new();
+    for v in m.types_global_values.iter().filter(|i| i.class.opcode == Op::Variable) {
+        let (Some(id), Some(ptr)) = (v.result_id, v.result_type) else { continue };
+        let Some((StorageClass::UniformConstant, pointee)) = edit::pointer_info(m, ptr) else { continue };
+        if as_types.contains(&pointee) {
+            vars.push((id, false, pointee));
+        } else if let Some(d) = edit::def(m, pointee) {
+            if matches!(d.class.opcode, Op::TypeArray | Op::TypeRuntimeArray) {
+                if let Some(elem) = id_operand(d, 0).filter(|e| as_types.contains(e)) {
+                    vars.push((id, true, elem));
+                }
+            }
+        }
+    }
+    if let Some(b) = opts.binding {
+        vars.retain(|v| edit::decoration_literal(m, v.0, Decoration::Binding) == Some(b));
+    }
+    if vars.is_empty() {
+        let what = match opts.binding {
+            Some(b) => format!("no acceleration-structure descriptor at binding {b}"),
+            None => "no acceleration structure is read through a descriptor".into(),
+        };
+        return Err(PatchError::NothingToPatch { patch: NAME, what });
+    }
+    let var_ids: HashSet<Word> = vars.iter().map(|v| v.0).collect();
+
+    // Find the load sites; refuse shapes we do not handle.
+    let mut chains: std::collections::HashMap<Word, Word> = Default::default(); // chain id -> index id
+    let mut sites = Vec::new();
+    let mut removed: HashSet<Word> = var_ids.clone();
+    for (fi, f) in m.functions.iter().enumerate() {
+        for (bi, b) in f.blocks.iter().enumerate() {
+            for (ii, i) in b.instructions.iter().enumerate() {
+                let uses_var = i.operands.iter().any(|o| matches!(o, Operand::IdRef(w) if var_ids.contains(w)));
+                let uses_chain = i.operands.iter().any(|o| matches!(o, Operand::IdRef(w) if chains.contains_key(w)));
+                match i.class.opcode {
+                    Op::AccessChain | Op::InBoundsAccessChain if uses_var => {
+                        if i.operands.len() != 2 {
+                            return Err(PatchError::Unsupported { patch: NAME, id: i.result_id.unwrap_or(0), what: "an access chain into an AS array with more than one index".into() });
+                        }
+                        let idx = id_operand(i, 1).expect("index operand");
+                        chains.insert(i.result_id.expect("chains have ids"), idx);
+                        removed.insert(i.result_id.expect("chains have ids"));
+                    }
+                    Op::Load if uses_var => sites.push(Site { func: fi, block: bi, inst: ii, index: None }),
+                    Op::Load if uses_chain => {
+                        let c = id_operand(i, 0).expect("pointer operand");
+                        sites.push(Site { func: fi, block: bi, inst: ii, index: Some(chains[&c]) });
+                    }
+                    _ if uses_var || uses_chain => {
+                        return Err(PatchError::Unsupported {
+                            patch: NAME,
+                            id: i.result_id.unwrap_or(0),
+                            what: format!("Op{:?} uses an acceleration-structure descriptor in a way this patch does not rewrite", i.class.opcode),
+                        })
+                    }
+                    _ => {}
+                }
+            }
+        }
+    }
+    if sites.is_empty() {
+        return Err(PatchError::NothingToPatch { patch: NAME, what: "acceleration-structure descriptors are declared but never loaded".into() });
+    }
+    let any_array = vars.iter().any(|v| v.1);
+    let mode = opts.mode.unwrap_or(if any_array { Mode::Table } else { Mode::Direct });
+    if mode == Mode::Direct && any_array && sites.iter().any(|s| s.index.is_some()) {
+        return Err(PatchError::BadOption { patch: NAME, what: "mode=direct cannot address the elements of an AS array; use mode=table".into() });
+    }
+
+    // Types and the push-constant member.
+    let u32_t = edit::type_int(m, 32, false);
+    let u64_t = edit::type_int(m, 64, false);
+    let pc_var = m.types_global_values.iter().find(|i| {
+        i.class.opcode == Op::Variable && i.operands.first() == Some(&Operand::StorageClass(StorageClass::PushConstant))
+    });
+    let (pc_var, member, offset) = match pc_var.and_then(|v| Some((v.result_id?, v.result_type?))) {
+        Some((var, ptr)) => {
+            let (_, st) = edit::pointer_info(m, ptr).ok_or(PatchError::Unsupported { patch: NAME, id: var, what: "push-constant variable without pointer type".into() })?;
+            let st_def = edit::def(m, st).cloned().ok_or(PatchError::Unsupported { patch: NAME, id: st, what: "push-constant block type not found".into() })?;
+            let members: Vec<Word> = st_def.operands.iter().filter_map(|o| if let Operand::IdRef(w) = o { Some(*w) } else { None }).collect();
+            let offs = member_offsets(m, st);
+            let end = offs.iter().map(|(i, o)| members.get(*i as usize).and_then(|t| simple_size(m, *t)).map(|s| o + s)).collect::<Option<Vec<_>>>().map(|v| v.into_iter().max().unwrap_or(0));
+            let offset = match (opts.offset, end) {
+                (Some(o), Some(e)) if o < e => return Err(PatchError::BadOption { patch: NAME, what: format!("offset={o} overlaps the push-constant block, which ends at {e}") }),
+                (Some(o), _) => o,
+                (None, Some(e)) => e.div_ceil(8) * 8,
+                (None, None) => return Err(PatchError::BadOption { patch: NAME, what: "cannot size the existing push-constant block; pass --option offset=N".into() }),
+            };
+            if offset % 8 != 0 {
+                return Err(PatchError::BadOption { patch: NAME, what: format!("offset={offset} is not 8-byte aligned") });
+            }
+            let k = members.len() as u32;
+            if let Some(s) = m.types_global_values.iter_mut().find(|i| i.result_id == Some(st)) {
+                s.operands.push(Operand::IdRef(u64_t));
+            }
+            m.annotations.push(Instruction::new(
+                Op::MemberDecorate,
+                None,
+                None,
+                vec![Operand::IdRef(st), Operand::LiteralBit32(k), Operand::Decoration(Decoration::Offset), Operand::LiteralBit32(offset)],
+            ));
+            (var, k, offset)
+        }
+        None => {
+            let offset = opts.offset.unwrap_or(0);
+            if offset % 8 != 0 {
+                return Err(PatchError::BadOption { patch: NAME, what: format!("offset={offset} is not 8-byte aligned") });
+            }
+            let st = edit::next_id(m);
+            m.types_global_values.push(Instruction::new(Op::TypeStruct, None, Some(st), vec![Operand::IdRef(u64_t)]));
+            edit::decorate(m, st, Decoration::Block, &[]);
+            m.annotations.push(Instruction::new(
+                Op::MemberDecorate,
+                None,
+                None,
+                vec![Operand::IdRef(st), Operand::LiteralBit32(0), Operand::Decoration(Decoration::Offset), Operand::LiteralBit32(offset)],
+            ));
+            let ptr = edit::type_pointer(m, StorageClass::PushConstant, st);
+            let var = edit::next_id(m);
+            m.types_global_values.push(Instruction::new(Op::Variable, Some(ptr), Some(var), vec![Operand::StorageClass(StorageClass::PushConstant)]));
+            edit::add_to_interfaces(m, var);
+            (var, 0, offset)
+        }
+    };
+    let ptr_pc_u64 = edit::type_pointer(m, StorageClass::PushConstant, u64_t);
+    let member_c = edit::constant(m, u32_t, member as u64, false);
+    let (ptr_psb_u64, eight) = if mode == Mode::Table {
+        edit::add_capability(m, Capability::PhysicalStorageBufferAddresses);
+        if edit::version(m) < (1, 5) {
+            edit::add_extension(m, "SPV_KHR_physical_storage_buffer");
+        }
+        if let Some(mm) = m.memory_model.as_mut() {
+            mm.operands[0] = Operand::AddressingModel(AddressingModel::PhysicalStorageBuffer64);
+        }
+        (edit::type_pointer(m, StorageClass::PhysicalStorageBuffer, u64_t), edit::constant(m, u64_t, 8, true))
+    } else {
+        (0, 0)
+    };
+
+    // Rewrite every site, last first so indices stay valid.
+    let n_sites = sites.len();
+    sites.sort_by_key(|s| std::cmp::Reverse((s.func, s.block, s.inst)));
+    for s in sites {
+        let mut new = Vec::new();
+        let mut fresh = || edit::next_id(m);
+        let pm = fresh();
+        new.push(Instruction::new(Op::AccessChain, Some(ptr_pc_u64), Some(pm), vec![Operand::IdRef(pc_var), Operand::IdRef(member_c)]));
+        let base = fresh();
+        new.push(Instruction::new(Op::Load, Some(u64_t), Some(base), vec![Operand::IdRef(pm)]));
+        let addr = match mode {
+            Mode::Direct => base,
+            Mode::Table => {
+                let at = match s.index {
+                    Some(idx) => {
+                        let idx64 = fresh();
+                        let off = fresh();
+                        let sum = fresh();
+                        new.push(Instruction::new(Op::UConvert, Some(u64_t), Some(idx64), vec![Operand::IdRef(idx)]));
+                        new.push(Instruction::new(Op::IMul, Some(u64_t), Some(off), vec![Operand::IdRef(idx64), Operand::IdRef(eight)]));
+                        new.push(Instruction::new(Op::IAdd, Some(u64_t), Some(sum), vec![Operand::IdRef(base), Operand::IdRef(off)]));
+                        sum
+                    }
+                    None => base,
+                };
+                let p = fresh();
+                let a = fresh();
+                new.push(Instruction::new(Op::ConvertUToPtr, Some(ptr_psb_u64), Some(p), vec![Operand::IdRef(at)]));
+                new.push(Instruction::new(Op::Load, Some(u64_t), Some(a), vec![Operand::IdRef(p), Operand::MemoryAccess(MemoryAccess::ALIGNED), Operand::LiteralBit32(8)]));
+                a
+            }
+        };
+        let block = &mut m.functions[s.func].blocks[s.block];
+        let load = &mut block.instructions[s.inst];
+        *load = Instruction::new(Op::ConvertUToAccelerationStructureKHR, load.result_type, load.result_id, vec![Operand::IdRef(addr)]);
+        for (k, i) in new.into_iter().enumerate() {
+            block.instructions.insert(s.inst + k, i);
+        }
+    }
+    edit::remove_ids(m, &removed);
+    Ok(Report { rewritten_loads: n_sites, removed_variables: var_ids.len(), offset, mode })
+}

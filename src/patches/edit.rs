@@ -1,0 +1,176 @@
+//! Small, rule-abiding edits of an `rspirv::dr::Module` shared by the patches: fresh ids, finding
+//! or adding types / constants / capabilities, finding definitions and users, and removing ids
+//! with every decoration, name and entry-point interface entry that mentions them.
+use rspirv::dr::{Instruction, Module, Operand};
+use rspirv::spirv::{Capability, Decoration, Op, StorageClass, Word};
+use std::collections::HashSet;
+
+pub fn next_id(m: &mut Module) -> Word {
+    let h = m.header.as_mut().expect("loaded modules have a header");
+    let id = h.bound;
+    h.bound += 1;
+    id
+}
+
+pub fn def(m: &Module, id: Word) -> Option<&Instruction> {
+    m.types_global_values
+        .iter()
+        .chain(m.functions.iter().flat_map(|f| f.parameters.iter().chain(f.blocks.iter().flat_map(|b| b.instructions.iter()))))
+        .find(|i| i.result_id == Some(id))
+}
+
+pub fn id_operand(i: &Instruction, n: usize) -> Option<Word> {
+    match i.operands.get(n) {
+        Some(Operand::IdRef(w)) => Some(*w),
+        _ => None,
+    }
+}
+
+pub fn has_decoration(m: &Module, id: Word, d: Decoration) -> bool {
+    m.annotations.iter().any(|a| {
+        a.class.opcode == Op::Decorate && id_operand(a, 0) == Some(id) && matches!(a.operands.get(1), Some(Operand::Decoration(x)) if *x == d)
+    })
+}
+
+pub fn decoration_literal(m: &Module, id: Word, d: Decoration) -> Option<u32> {
+    m.annotations.iter().find_map(|a| {
+        let ok = a.class.opcode == Op::Decorate && id_operand(a, 0) == Some(id) && matches!(a.operands.get(1), Some(Operand::Decoration(x)) if *x == d);
+        match (ok, a.operands.get(2)) {
+            (true, Some(Operand::LiteralBit32(v))) => Some(*v),
+            _ => None,
+        }
+    })
+}
+
+pub fn decorate(m: &mut Module, id: Word, d: Decoration, extra: &[Operand]) {
+    let mut ops = vec![Operand::IdRef(id), Operand::Decoration(d)];
+    ops.extend_from_slice(extra);
+    m.annotations.push(Instruction::new(Op::Decorate, None, None, ops));
+}
+
+pub fn add_capability(m: &mut Module, c: Capability) {
+    if !m.capabilities.iter().any(|i| matches!(i.operands.first(), Some(Operand::Capability(x)) if *x == c)) {
+        m.capabilities.push(Instruction::new(Op::Capability, None, None, vec![Operand::Capability(c)]));
+    }
+}
+
+pub fn add_extension(m: &mut Module, name: &str) {
+    if !m.extensions.iter().any(|i| matches!(i.operands.first(), Some(Operand::LiteralString(x)) if x == name)) {
+        m.extensions.push(Instruction::new(Op::Extension, None, None, vec![Operand::LiteralString(name.into())]));
+    }
+}
+
+/// SPIR-V version of the module as (major, minor).
+pub fn version(m: &Module) -> (u8, u8) {
+    m.header.as_ref().map(|h| (((h.version >> 16) & 0xff) as u8, ((h.version >> 8) & 0xff) as u8)).unwrap_or((1, 0))
+}
+
+/// `OpTypeInt width signedness`, added at the front of the globals (it depends on nothing).
+pub fn type_int(m: &mut Module, width: u32, signed: bool) -> Word {
+    let found = m.types_global_values.iter().find(|i| {
+        i.class.opcode == Op::TypeInt && i.operands == [Operand::LiteralBit32(width), Operand::LiteralBit32(signed as u32)]
+    });
+    if let Some(i) = found {
+        return i.result_id.expect("types have ids");
+    }
+    if width == 64 {
+        add_capability(m, Capability::Int64);
+    }
+    let id = next_id(m);
+    m.types_global_values.insert(0, Instruction::new(Op::TypeInt, None, Some(id), vec![Operand::LiteralBit32(width), Operand::LiteralBit32(signed as u32)]));
+    id
+}
+
+/// `OpTypePointer sc pointee`, found or appended.
+pub fn type_pointer(m: &mut Module, sc: StorageClass, pointee: Word) -> Word {
+    let found = m.types_global_values.iter().find(|i| {
+        i.class.opcode == Op::TypePointer && i.operands == [Operand::StorageClass(sc), Operand::IdRef(pointee)]
+    });
+    if let Some(i) = found {
+        return i.result_id.expect("types have ids");
+    }
+    let id = next_id(m);
+    m.types_global_values.push(Instruction::new(Op::TypePointer, None, Some(id), vec![Operand::StorageClass(sc), Operand::IdRef(pointee)]));
+    id
+}
+
+/// `OpConstant ty value` (32- or 64-bit literal by `wide`), found or appended.
+pub fn constant(m: &mut Module, ty: Word, value: u64, wide: bool) -> Word {
+    let lit = if wide { Operand::LiteralBit64(value) } else { Operand::LiteralBit32(value as u32) };
+    let found = m.types_global_values.iter().find(|i| i.class.opcode == Op::Constant && i.result_type == Some(ty) && i.operands == [lit.clone()]);
+    if let Some(i) = found {
+        return i.result_id.expect("constants have ids");
+    }
+    let id = next_id(m);
+    m.types_global_values.push(Instruction::new(Op::Constant, Some(ty), Some(id), vec![lit]));
+    id
+}
+
+pub fn is_constant(m: &Module, id: Word) -> bool {
+    def(m, id).is_some_and(|d| {
+        matches!(d.class.opcode, Op::Constant | Op::ConstantComposite | Op::ConstantNull | Op::SpecConstant | Op::SpecConstantOp | Op::ConstantTrue | Op::ConstantFalse)
+    })
+}
+
+/// Remove the global definitions of `ids` and every annotation, name and entry-point interface
+/// entry that names them.
+pub fn remove_ids(m: &mut Module, ids: &HashSet<Word>) {
+    m.types_global_values.retain(|i| !i.result_id.is_some_and(|r| ids.contains(&r)));
+    let names = |i: &Instruction| id_operand(i, 0).is_some_and(|t| ids.contains(&t));
+    m.annotations.retain(|i| !names(i));
+    m.debug_names.retain(|i| !names(i));
+    for ep in &mut m.entry_points {
+        // OpEntryPoint: model, function id, name, interface ids...
+        let head = 3.min(ep.operands.len());
+        let (fixed, iface) = ep.operands.split_at(head);
+        let kept: Vec<Operand> = iface.iter().filter(|o| !matches!(o, Operand::IdRef(w) if ids.contains(w))).cloned().collect();
+        ep.operands = fixed.iter().cloned().chain(kept).collect();
+    }
+    for f in &mut m.functions {
+        for b in &mut f.blocks {
+            b.instructions.retain(|i| !i.result_id.is_some_and(|r| ids.contains(&r)));
+        }
+    }
+}
+
+/// Add `var` to the interface of every entry point (SPIR-V 1.4+ lists all referenced globals).
+pub fn add_to_interfaces(m: &mut Module, var: Word) {
+    let (major, minor) = version(m);
+    if (major, minor) < (1, 4) {
+        return;
+    }
+    for ep in &mut m.entry_points {
+        if !ep.operands.iter().skip(3).any(|o| *o == Operand::IdRef(var)) {
+            ep.operands.push(Operand::IdRef(var));
+        }
+    }
+}
+
+/// The storage class and pointee of a pointer type id.
+pub fn pointer_info(m: &Module, ptr_ty: Word) -> Option<(StorageClass, Word)> {
+    let d = def(m, ptr_ty)?;
+    match (d.class.opcode, d.operands.first(), d.operands.get(1)) {
+        (Op::TypePointer, Some(Operand::StorageClass(sc)), Some(Operand::IdRef(p))) => Some((*sc, *p)),
+        _ => None,
+    }
+}
+
+/// Global descriptor variables (those with a DescriptorSet decoration).
+pub fn descriptor_variables(m: &Module) -> Vec<Word> {
+    m.types_global_values
+        .iter()
+        .filter(|i| i.class.opcode == Op::Variable)
+        .filter_map(|i| i.result_id)
+        .filter(|id| has_decoration(m, *id, Decoration::DescriptorSet))
+        .collect()
+}
+
+/// Every instruction (in functions) that names `id` among its operands.
+pub fn users(m: &Module, id: Word) -> Vec<Word> {
+    m.functions
+        .iter()
+        .flat_map(|f| f.blocks.iter().flat_map(|b| b.instructions.iter()))
+        .filter(|i| i.operands.iter().any(|o| *o == Operand::IdRef(id)))
+        .filter_map(|i| i.result_id)
+        .collect()
+}

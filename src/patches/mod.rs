@@ -1,0 +1,241 @@
+//! SPIR-V rewrites that work around driver faults (`rtprobe patch`, and `as_access=address_patched`
+//! cells of the matrix). Each patch is a plain function over `&mut rspirv::dr::Module`, in its own
+//! file with the SPIR-V rules it relies on: [`as_to_address`], [`nonuniform`], [`pin_index`].
+//! Loading never panics on arbitrary bytes; every output can be checked with `spirv-val`.
+pub mod as_to_address;
+mod dynamic_access;
+pub mod edit;
+pub mod nonuniform;
+pub mod pin_index;
+
+use rspirv::binary::{Assemble, Disassemble};
+use rspirv::dr::Module;
+use std::collections::BTreeMap;
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum PatchError {
+    #[error("not a SPIR-V module: {0}")]
+    NotSpirv(String),
+    #[error("{patch}: nothing to patch: {what}")]
+    NothingToPatch { patch: &'static str, what: String },
+    #[error("{patch}: cannot rewrite %{id}: {what}")]
+    Unsupported { patch: &'static str, id: u32, what: String },
+    #[error("{patch}: {what}")]
+    BadOption { patch: &'static str, what: String },
+    #[error("unknown patch {0:?}; `rtprobe patch --list` shows them")]
+    Unknown(String),
+    #[error("option {0:?} belongs to none of the applied patches")]
+    UnknownOption(String),
+    #[error("internal error while patching ({0}); please report it with the input module")]
+    Internal(String),
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PatchName {
+    AsToAddress,
+    Nonuniform,
+    PinIndex,
+}
+
+/// Name, options and one-line description of each patch.
+pub const LIST: &[(&str, &str, &str)] = &[
+    ("as-to-address", "offset=BYTES mode=direct|table binding=N", "acceleration structures read through descriptors become OpConvertUToAccelerationStructureKHR of a 64-bit address from push constants (table mode: address of a table of addresses, indexed like the descriptor array)"),
+    ("nonuniform", "strip=true|false", "decorate every dynamically indexed descriptor access NonUniform (what nonuniformEXT would give), or strip every NonUniform decoration"),
+    ("pin-index", "binding=N value=K spec-id=ID", "replace the runtime index of dynamically indexed descriptor arrays by an OpSpecConstant (default value K)"),
+];
+
+impl PatchName {
+    pub fn parse(s: &str) -> Result<Self, PatchError> {
+        match s.trim() {
+            "as-to-address" => Ok(PatchName::AsToAddress),
+            "nonuniform" => Ok(PatchName::Nonuniform),
+            "pin-index" => Ok(PatchName::PinIndex),
+            other => Err(PatchError::Unknown(other.into())),
+        }
+    }
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            PatchName::AsToAddress => "as-to-address",
+            PatchName::Nonuniform => "nonuniform",
+            PatchName::PinIndex => "pin-index",
+        }
+    }
+
+    fn keys(self) -> &'static [&'static str] {
+        match self {
+            PatchName::AsToAddress => &["offset", "mode", "binding"],
+            PatchName::Nonuniform => &["strip"],
+            PatchName::PinIndex => &["binding", "value", "spec-id"],
+        }
+    }
+}
+
+fn quietly<T>(f: impl FnOnce() -> T + std::panic::UnwindSafe) -> Result<T, String> {
+    let hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(|_| {}));
+    let r = std::panic::catch_unwind(f);
+    std::panic::set_hook(hook);
+    r.map_err(|e| e.downcast_ref::<&str>().map(|s| s.to_string()).or_else(|| e.downcast_ref::<String>().cloned()).unwrap_or_else(|| "panic".into()))
+}
+
+/// Parse a SPIR-V binary (either endianness). Never panics.
+pub fn load(bytes: &[u8]) -> Result<Module, PatchError> {
+    if bytes.len() < 20 {
+        return Err(PatchError::NotSpirv(format!("{} bytes is shorter than a SPIR-V header", bytes.len())));
+    }
+    if bytes.len() % 4 != 0 {
+        return Err(PatchError::NotSpirv(format!("{} bytes is not a whole number of 32-bit words", bytes.len())));
+    }
+    let magic = u32::from_le_bytes([bytes[0], bytes[1], bytes[2], bytes[3]]);
+    let words: Vec<u32> = match magic {
+        0x0723_0203 => bytes.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect(),
+        0x0302_2307 => bytes.chunks_exact(4).map(|c| u32::from_be_bytes([c[0], c[1], c[2], c[3]])).collect(),
+        _ => return Err(PatchError::NotSpirv(format!("bad magic number {magic:#010x}"))),
+    };
+    match quietly(move || rspirv::dr::load_words(&words)) {
+        Ok(Ok(m)) if m.header.is_some() => Ok(m),
+        Ok(Ok(_)) => Err(PatchError::NotSpirv("no header".into())),
+        Ok(Err(e)) => Err(PatchError::NotSpirv(e.to_string())),
+        Err(p) => Err(PatchError::NotSpirv(format!("unparseable ({p})"))),
+    }
+}
+
+/// Apply `patches` in order with `options` (`key=value`, each key belonging to one of them).
+/// Returns one line per patch saying what it did.
+pub fn apply(m: &mut Module, patches: &[PatchName], options: &BTreeMap<String, String>) -> Result<Vec<String>, PatchError> {
+    for k in options.keys() {
+        if !patches.iter().any(|p| p.keys().contains(&k.as_str())) {
+            return Err(PatchError::UnknownOption(k.clone()));
+        }
+    }
+    let num = |p: PatchName, k: &str| -> Result<Option<u32>, PatchError> {
+        options.get(k).map(|v| v.parse::<u32>().map_err(|_| PatchError::BadOption { patch: p.as_str(), what: format!("{k}={v:?} is not a number") })).transpose()
+    };
+    let mut lines = Vec::new();
+    for &p in patches {
+        let line = match p {
+            PatchName::AsToAddress => {
+                let mode = match options.get("mode").map(String::as_str) {
+                    None => None,
+                    Some("direct") => Some(as_to_address::Mode::Direct),
+                    Some("table") => Some(as_to_address::Mode::Table),
+                    Some(o) => return Err(PatchError::BadOption { patch: p.as_str(), what: format!("mode={o:?}: use direct or table") }),
+                };
+                let opts = as_to_address::Options { offset: num(p, "offset")?, mode, binding: num(p, "binding")? };
+                let mut work = m.clone();
+                let r = quietly(std::panic::AssertUnwindSafe(|| as_to_address::apply(&mut work, &opts))).map_err(PatchError::Internal)??;
+                *m = work;
+                format!("as-to-address: {} loads rewritten, {} descriptor variables removed, address at push-constant offset {} ({:?} mode)", r.rewritten_loads, r.removed_variables, r.offset, r.mode)
+            }
+            PatchName::Nonuniform => {
+                let strip = match options.get("strip").map(String::as_str) {
+                    None | Some("false") => false,
+                    Some("true") => true,
+                    Some(o) => return Err(PatchError::BadOption { patch: p.as_str(), what: format!("strip={o:?}: use true or false") }),
+                };
+                let mut work = m.clone();
+                let r = quietly(std::panic::AssertUnwindSafe(|| nonuniform::apply(&mut work, strip))).map_err(PatchError::Internal)??;
+                *m = work;
+                if strip { format!("nonuniform: {} NonUniform decorations stripped", r.stripped) } else { format!("nonuniform: {} objects decorated NonUniform", r.decorated) }
+            }
+            PatchName::PinIndex => {
+                let opts = pin_index::Options { binding: num(p, "binding")?, value: num(p, "value")?.unwrap_or(0), spec_id: num(p, "spec-id")? };
+                let mut work = m.clone();
+                let r = quietly(std::panic::AssertUnwindSafe(|| pin_index::apply(&mut work, &opts))).map_err(PatchError::Internal)??;
+                *m = work;
+                format!("pin-index: {} accesses now index with SpecId {} (default {})", r.pinned, r.spec_id, opts.value)
+            }
+        };
+        lines.push(line);
+    }
+    Ok(lines)
+}
+
+pub fn assemble(m: &Module) -> Vec<u32> {
+    m.assemble()
+}
+
+pub fn disassemble(m: &Module) -> String {
+    m.disassemble()
+}
+
+/// What `spirv-val` said.
+#[derive(Debug, PartialEq)]
+pub enum Validation {
+    /// spirv-val is not installed.
+    Unavailable,
+    Valid,
+    Invalid(String),
+}
+
+/// Run `spirv-val --target-env vulkan1.2` on `words`, if it is installed.
+pub fn validate(words: &[u32]) -> Validation {
+    let dir = std::env::temp_dir().join(format!("rtprobe-val-{}-{}", std::process::id(), words.len()));
+    let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+    if std::fs::write(&dir, bytes).is_err() {
+        return Validation::Unavailable;
+    }
+    let out = std::process::Command::new("spirv-val").args(["--target-env", "vulkan1.2"]).arg(&dir).output();
+    let _ = std::fs::remove_file(&dir);
+    match out {
+        Err(_) => Validation::Unavailable,
+        Ok(o) if o.status.success() => Validation::Valid,
+        Ok(o) => Validation::Invalid(String::from_utf8_lossy(&o.stderr).trim().replace('\n', " | ")),
+    }
+}
+
+/// Line diff (`- ` removed, `+ ` added) of two disassemblies, by longest common subsequence.
+pub fn diff(before: &str, after: &str) -> String {
+    let a: Vec<&str> = before.lines().collect();
+    let b: Vec<&str> = after.lines().collect();
+    let (n, m) = (a.len(), b.len());
+    let mut lcs = vec![vec![0u32; m + 1]; n + 1];
+    for i in (0..n).rev() {
+        for j in (0..m).rev() {
+            lcs[i][j] = if a[i] == b[j] { lcs[i + 1][j + 1] + 1 } else { lcs[i + 1][j].max(lcs[i][j + 1]) };
+        }
+    }
+    let (mut i, mut j, mut out) = (0, 0, String::new());
+    while i < n || j < m {
+        if i < n && j < m && a[i] == b[j] {
+            i += 1;
+            j += 1;
+        } else if j < m && (i == n || lcs[i][j + 1] >= lcs[i + 1][j]) {
+            out += &format!("+ {}\n", b[j]);
+            j += 1;
+        } else {
+            out += &format!("- {}\n", a[i]);
+            i += 1;
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn load_never_panics_on_arbitrary_bytes() {
+        let mut x = 0x9e37_79b9_u32;
+        for len in 0..400usize {
+            let mut b = Vec::with_capacity(len);
+            for _ in 0..len {
+                x ^= x << 13;
+                x ^= x >> 17;
+                x ^= x << 5;
+                b.push(x as u8);
+            }
+            if len >= 4 && len % 3 == 0 {
+                b[..4].copy_from_slice(&0x0723_0203u32.to_le_bytes());
+            }
+            assert!(load(&b).is_err() || len >= 20);
+        }
+    }
+
+    #[test]
+    fn diff_marks_changed_lines() {
+        assert_eq!(diff("a\nb\nc\n", "a\nx\nc\n"), "+ x\n- b\n");
+    }
+}

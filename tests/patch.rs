@@ -1,0 +1,157 @@
+//! End-to-end tests of `rtprobe patch`: SPIR-V assembly in (spirv-as), disassembly out
+//! (spirv-dis), spirv-val clean; engine-like GLSL shaders patched; bad and random input refused
+//! with one line and no output file.
+mod common;
+use common::*;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn tool(name: &str, args: &[&str]) -> std::process::Output {
+    Command::new(name).args(args).output().unwrap_or_else(|e| panic!("{name}: {e} (apt-get install spirv-tools)"))
+}
+
+fn assemble(src: &Path, out: &Path) {
+    let o = tool("spirv-as", &["--target-env", "vulkan1.2", src.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert!(o.status.success(), "spirv-as: {}", String::from_utf8_lossy(&o.stderr));
+}
+
+fn dis(p: &Path) -> String {
+    let o = tool("spirv-dis", &["--raw-id", p.to_str().unwrap()]);
+    assert!(o.status.success());
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn val(p: &Path) {
+    let o = tool("spirv-val", &["--target-env", "vulkan1.2", p.to_str().unwrap()]);
+    assert!(o.status.success(), "spirv-val {}: {}", p.display(), String::from_utf8_lossy(&o.stderr));
+}
+
+fn shaders() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/shaders")
+}
+
+#[test]
+fn as_to_address_rewrites_hand_written_spirv() {
+    let d = tempfile::tempdir().unwrap();
+    let input = d.path().join("in.spv");
+    let out = d.path().join("out.spv");
+    assemble(&shaders().join("as_array.spvasm"), &input);
+    val(&input);
+    let o = run(&["patch", input.to_str().unwrap(), "--apply", "as-to-address", "-o", out.to_str().unwrap(), "--disassemble"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    val(&out);
+    let text = dis(&out);
+    // The descriptor array is gone; the handle comes from an address in a table whose address is
+    // appended to the existing push-constant block at the first free 8-aligned offset (8).
+    assert!(!text.lines().any(|l| l.contains("OpVariable") && l.contains("UniformConstant")), "{text}");
+    assert!(!text.contains("DescriptorSet"), "{text}");
+    assert!(text.contains("OpMemoryModel PhysicalStorageBuffer64 GLSL450"), "{text}");
+    assert!(text.contains("OpMemberDecorate %") && text.contains(" 1 Offset 8"), "{text}");
+    assert!(text.contains("OpConvertUToPtr"), "{text}");
+    assert!(text.contains("Aligned 8"), "{text}");
+    assert!(text.contains("OpConvertUToAccelerationStructureKHR"), "{text}");
+    // The diff printed on request shows the load being replaced.
+    let diff = stdout(&o);
+    assert!(diff.lines().any(|l| l.starts_with("- ") && l.contains("OpLoad") && l.contains("%chain") || l.starts_with("- ") && l.contains("OpAccessChain")), "{diff}");
+    assert!(diff.contains("+ ") && diff.contains("OpConvertUToAccelerationStructureKHR"), "{diff}");
+}
+
+#[test]
+fn engine_shaders_are_patched_from_glsl() {
+    let d = tempfile::tempdir().unwrap();
+    let chit = shaders().join("engine_closest_hit.rchit");
+    let rgen = shaders().join("engine_raygen.rgen");
+    // nonuniform: the mesh and material indices become NonUniform (the engine forgot nonuniformEXT).
+    let out = d.path().join("chit_nu.spv");
+    let o = run(&["patch", chit.to_str().unwrap(), "--glsl", "--stage", "rchit", "--apply", "nonuniform", "-o", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = dis(&out);
+    assert!(text.contains("OpCapability ShaderNonUniform"));
+    assert!(text.contains("OpCapability StorageBufferArrayNonUniformIndexing"));
+    assert!(text.contains("OpCapability SampledImageArrayNonUniformIndexing"));
+    assert!(text.matches("NonUniform\n").count() >= 4, "{text}");
+    val(&out);
+    // then strip it again
+    let back = d.path().join("chit_strip.spv");
+    let o = run(&["patch", out.to_str().unwrap(), "--apply", "nonuniform", "--option", "strip=true", "-o", back.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!dis(&back).contains("OpDecorate %") || !dis(&back).contains(" NonUniform\n"));
+    // pin-index: the material texture index (binding 1 of set 1) becomes a spec constant.
+    let pinned = d.path().join("chit_pin.spv");
+    let o = run(&["patch", chit.to_str().unwrap(), "--glsl", "--stage", "rchit", "--apply", "pin-index", "--option", "binding=1", "--option", "value=3", "-o", pinned.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = dis(&pinned);
+    assert!(text.contains("SpecId 0") && text.lines().any(|l| l.contains("OpSpecConstant") && l.ends_with(" 3")), "{text}");
+    val(&pinned);
+    // as-to-address on the raygen: its TLAS array is reached through an address table.
+    let raddr = d.path().join("rgen_addr.spv");
+    let o = run(&["patch", rgen.to_str().unwrap(), "--glsl", "--stage", "rgen", "--apply", "as-to-address", "-o", raddr.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("address at push-constant offset 8"), "{}", stdout(&o));
+    let text = dis(&raddr);
+    assert!(text.contains("OpConvertUToAccelerationStructureKHR") && !text.contains("%tlas"), "{text}");
+    val(&raddr);
+}
+
+#[test]
+fn bad_input_is_refused_with_one_line_and_no_output() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("out.spv");
+    let outs = out.to_str().unwrap();
+    let junk = d.path().join("junk.spv");
+    std::fs::write(&junk, b"this is not spir-v at all!!").unwrap();
+    assert_one_line_error(&run(&["patch", junk.to_str().unwrap(), "-a", "nonuniform", "-o", outs]), 9, "not a SPIR-V module");
+    // truncated valid module
+    let good = d.path().join("good.spv");
+    assemble(&shaders().join("as_array.spvasm"), &good);
+    let bytes = std::fs::read(&good).unwrap();
+    let trunc = d.path().join("trunc.spv");
+    std::fs::write(&trunc, &bytes[..bytes.len() / 2 / 4 * 4]).unwrap();
+    assert_one_line_error(&run(&["patch", trunc.to_str().unwrap(), "-a", "as-to-address", "-o", outs]), 9, "not a SPIR-V module");
+    // a patch that changes nothing: no acceleration structure in a closest-hit shader
+    let chit = shaders().join("engine_closest_hit.rchit");
+    assert_one_line_error(&run(&["patch", chit.to_str().unwrap(), "--glsl", "--stage", "rchit", "-a", "as-to-address", "-o", outs]), 9, "nothing to patch");
+    assert_one_line_error(&run(&["patch", chit.to_str().unwrap(), "--glsl", "--stage", "rchit", "-a", "pin-index", "--option", "binding=7", "-o", outs]), 9, "binding 7");
+    assert_one_line_error(&run(&["patch", good.to_str().unwrap(), "-a", "nonuniform", "--option", "strip=true", "-o", outs]), 9, "nothing to patch");
+    // options that belong to no applied patch, unknown patches, overlapping offsets
+    assert_one_line_error(&run(&["patch", good.to_str().unwrap(), "-a", "nonuniform", "--option", "offset=8", "-o", outs]), 9, "offset");
+    assert_one_line_error(&run(&["patch", good.to_str().unwrap(), "-a", "make-it-fast", "-o", outs]), 2, "unknown patch");
+    assert_one_line_error(&run(&["patch", good.to_str().unwrap(), "-a", "as-to-address", "--option", "offset=0", "-o", outs]), 9, "overlaps");
+    assert!(!out.exists(), "no output file after a refusal");
+    let o = run(&["patch", "--list"]);
+    assert!(stdout(&o).contains("as-to-address") && stdout(&o).contains("pin-index"));
+}
+
+#[test]
+fn random_and_truncated_modules_never_panic() {
+    let d = tempfile::tempdir().unwrap();
+    let good = d.path().join("good.spv");
+    assemble(&shaders().join("as_array.spvasm"), &good);
+    let bytes = std::fs::read(&good).unwrap();
+    let out = d.path().join("o.spv");
+    let mut seed = 0x1234_5678_u64;
+    let mut rnd = || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        seed
+    };
+    for i in 0..24 {
+        // corrupt a few words of a valid module, or cut it
+        let mut b = bytes.clone();
+        if i % 2 == 0 {
+            for _ in 0..4 {
+                let at = (rnd() as usize % (b.len() / 4 - 5) + 5) * 4;
+                b[at..at + 4].copy_from_slice(&(rnd() as u32).to_le_bytes());
+            }
+        } else {
+            b.truncate((rnd() as usize % b.len()) / 4 * 4);
+        }
+        let p = d.path().join(format!("case{i}.spv"));
+        std::fs::write(&p, &b).unwrap();
+        let o = run(&["patch", p.to_str().unwrap(), "-a", "as-to-address,nonuniform", "-o", out.to_str().unwrap()]);
+        let err = stderr(&o);
+        assert!(!err.contains("panicked"), "case {i}: {err}");
+        assert!(matches!(o.status.code(), Some(0) | Some(9)), "case {i}: {:?} {err}", o.status);
+    }
+}
