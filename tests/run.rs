@@ -76,7 +76,7 @@ fn corrupted_expectations_are_reported_as_confirmed_mismatches() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("r.json");
     let o = run(&[
-        "run", "--corrupt-expected", "--filter", "stage=raygen|closest_hit,resource=storage_buffer,descriptor_model=descriptor_indexing",
+        "run", "--corrupt-expected", "--patches", "none", "--filter", "stage=raygen|closest_hit,resource=storage_buffer,descriptor_model=descriptor_indexing",
         "-o", out.to_str().unwrap(),
     ]);
     assert_eq!(o.status.code(), Some(1), "findings exit 1; stderr {}", stderr(&o));
@@ -196,4 +196,48 @@ fn dump_writes_glsl_and_valid_spirv() {
         }
     }
     assert!(checked >= 5);
+}
+
+#[test]
+fn patched_variants_render_like_the_originals() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("r.json");
+    let o = run(&[
+        "run", "--patches", "all", "--filter", "stage=closest_hit|compute|fragment,resource=storage_buffer|sampled_image|acceleration_structure,index=dynamic,descriptor_model=descriptor_indexing",
+        "-o", out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}\n{}", stdout(&o), stderr(&o));
+    let r = report(&out);
+    let cs = cells(&r);
+    for patch in ["nonuniform", "pin-index", "as-to-address"] {
+        let n = cs.iter().filter(|c| c["patch"] == patch).count();
+        assert!(n > 0, "no cell with patch {patch}");
+    }
+    // Every patched variant and every address_patched cell matches the CPU reference, exactly as
+    // its unpatched twin does.
+    for c in cs.iter().filter(|c| c["outcome"] != "unsupported") {
+        assert_eq!(c["outcome"], "pass", "{}: {}", c["id"], c["reason"]);
+    }
+    let patched_as = cs.iter().filter(|c| c["as_access"] == "address_patched" && c["outcome"] == "pass").count();
+    let address = cs.iter().filter(|c| c["as_access"] == "address" && c["outcome"] == "pass").count();
+    assert!(patched_as > 0 && address > 0);
+}
+
+#[test]
+fn faulting_cells_are_retried_with_each_applicable_workaround() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("r.json");
+    let o = run(&[
+        "run", "--corrupt-expected", "--no-confirm", "--filter", "stage=closest_hit,resource=storage_buffer,index=dynamic,nonuniform=false,descriptor_model=descriptor_indexing",
+        "-o", out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let r = report(&out);
+    let base = cells(&r).iter().find(|c| c["id"] == "closest_hit.storage_buffer.dynamic.descriptor_indexing").unwrap();
+    assert_eq!(base["outcome"], "mismatch");
+    let tried: Vec<&str> = base["workarounds"].as_array().unwrap().iter().map(|w| w["patch"].as_str().unwrap()).collect();
+    assert_eq!(tried, vec!["nonuniform", "pin-index"]);
+    // The expectation itself is corrupted, so no patch can make the cell pass: none is verified.
+    assert!(base["workarounds"].as_array().unwrap().iter().all(|w| w["verified"] == false));
+    assert!(stdout(&o).contains("no verified workaround (nonuniform → mismatch, pin-index → mismatch)"), "{}", stdout(&o));
 }

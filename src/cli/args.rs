@@ -99,6 +99,11 @@ pub struct RunArgs {
     #[arg(long)]
     pub canaries: bool,
 
+    /// The `patch` axis: `faults` retries every faulting cell with each SPIR-V workaround that
+    /// applies (the report names the verified ones); `all` plans every cell with each; `none`
+    #[arg(long, value_enum, default_value = "faults")]
+    pub patches: crate::matrix::plan::PatchMode,
+
     /// Scene seed
     #[arg(long, default_value_t = 1)]
     pub seed: u64,

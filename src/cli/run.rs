@@ -4,7 +4,7 @@ use super::args::RunArgs;
 use super::commands::{open_instance, Globals};
 use super::exit::{self, coded};
 use crate::caps;
-use crate::matrix::plan::{self, Filter, PlanOptions, PlanStatus};
+use crate::matrix::plan::{self, Filter, PatchMode, PlanOptions, PlanStatus};
 use crate::reference::SceneReference;
 use crate::report::run_report::{PlanSummary, ReportWriter, RunReport, SceneSummary, TimingSummary, SCHEMA};
 use crate::report::{junit, summary, time, write_atomic};
@@ -56,7 +56,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     let info = features::select(&all, a.device.as_deref())?.clone();
     drop(all);
     let jobs = a.jobs.unwrap_or_else(|| default_jobs(&info));
-    let the_plan = plan::plan(&info, &PlanOptions { filters: filters.clone(), canaries: a.canaries });
+    let the_plan = plan::plan(&info, &PlanOptions { filters: filters.clone(), canaries: a.canaries, patches: a.patches });
 
     if a.list {
         for pc in &the_plan.cells {
@@ -99,7 +99,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         },
         options: json!({
             "jobs": jobs, "isolation": a.isolation, "timeout_s": a.timeout, "confirm": !a.no_confirm,
-            "canaries": a.canaries, "filters": a.filter, "validate": g.validate, "corrupt_expected": a.corrupt_expected,
+            "canaries": a.canaries, "filters": a.filter, "patches": a.patches, "validate": g.validate, "corrupt_expected": a.corrupt_expected,
         }),
         plan: PlanSummary {
             generated: plan::all_cells().0.len(),
@@ -163,9 +163,24 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             sup.run(&again, true, &mut |ev| st.on_event(ev));
         }
     }
+    if a.patches == PatchMode::Faults {
+        // Retry every faulting cell with each workaround that applies and that the device can run.
+        let retries: Vec<_> = st
+            .writer
+            .report
+            .findings()
+            .flat_map(|c| c.cell.applicable_patches().into_iter().map(move |p| crate::matrix::Cell { patch: Some(p), ..c.cell }))
+            .filter(|c| plan::device_support(&info, c).is_supported())
+            .collect();
+        if !retries.is_empty() {
+            st.bar.inc_length(retries.len() as u64);
+            sup.run(&retries, false, &mut |ev| st.on_event(ev));
+        }
+    }
     if !canaries.is_empty() {
         sup.run(&canaries, false, &mut |ev| st.on_event(ev));
     }
+    st.writer.report.annotate_workarounds();
     let RunState { mut writer, bar, device_ms_sum, save_error } = st;
     bar.finish_and_clear();
     let _ = std::fs::remove_dir_all(&job_dir);

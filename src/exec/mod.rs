@@ -214,11 +214,17 @@ impl Executor {
             timings.compile_ms += ms;
             spirv.push(words);
         }
-        if cell.as_access == Some(crate::matrix::AsAccess::AddressPatched) {
+        // address_patched cells are as-to-address applied to the descriptor variant; a cell of the
+        // patch axis adds its own workaround (in that order).
+        let workarounds = (cell.as_access == Some(crate::matrix::AsAccess::AddressPatched))
+            .then_some(crate::matrix::cell::Workaround::AsToAddress)
+            .into_iter()
+            .chain(cell.patch);
+        for w in workarounds {
             let t = Instant::now();
             let mut patched_any = false;
             for words in spirv.iter_mut() {
-                match patch_as_to_address(words) {
+                match patch_module(words, w) {
                     Ok(Some(p)) => {
                         *words = std::sync::Arc::new(p);
                         patched_any = true;
@@ -229,7 +235,7 @@ impl Executor {
             }
             timings.compile_ms += t.elapsed().as_secs_f64() * 1e3;
             if !patched_any {
-                return Err(crate::patches::PatchError::NothingToPatch { patch: "as-to-address", what: "no module of the cell reads the probed AS array".into() }.into());
+                return Err(crate::patches::PatchError::NothingToPatch { patch: w.as_str(), what: "no module of the cell has the access this workaround rewrites".into() }.into());
             }
         }
         if let Some(dir) = &self.opts.dump {
@@ -376,14 +382,24 @@ impl Executor {
     }
 }
 
-/// The probed AS array (binding 2) of one module reached by address: `Some(words)` when the
-/// module had one, `None` when it has nothing to patch.
-fn patch_as_to_address(words: &[u32]) -> Result<Option<Vec<u32>>, crate::patches::PatchError> {
+/// Apply the workaround `w` to one module, restricted to the probed array (binding 2):
+/// `Some(words)` when the module had something to rewrite, `None` when not.
+fn patch_module(words: &[u32], w: crate::matrix::cell::Workaround) -> Result<Option<Vec<u32>>, crate::patches::PatchError> {
+    use crate::matrix::cell::Workaround;
     use crate::patches::{self, PatchError, PatchName};
     let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
     let mut m = patches::load(&bytes)?;
-    let opts = [("binding".to_string(), "2".to_string()), ("offset".to_string(), shadergen::PATCHED_TABLE_OFFSET.to_string()), ("mode".to_string(), "table".to_string())];
-    match patches::apply(&mut m, &[PatchName::AsToAddress], &opts.into_iter().collect()) {
+    let kv = |pairs: &[(&str, String)]| pairs.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
+    let (name, opts) = match w {
+        Workaround::AsToAddress => (
+            PatchName::AsToAddress,
+            kv(&[("binding", "2".into()), ("offset", shadergen::PATCHED_TABLE_OFFSET.to_string()), ("mode", "table".into())]),
+        ),
+        Workaround::Nonuniform => (PatchName::Nonuniform, kv(&[])),
+        // SpecId 0 is what every pipeline specializes to probe::SPEC_SLOT.
+        Workaround::PinIndex => (PatchName::PinIndex, kv(&[("binding", "2".into()), ("spec-id", "0".into()), ("value", probe::SPEC_SLOT.to_string())])),
+    };
+    match patches::apply(&mut m, &[name], &opts) {
         Ok(_) => Ok(Some(patches::assemble(&m))),
         Err(PatchError::NothingToPatch { .. }) => Ok(None),
         Err(e) => Err(e),

@@ -24,6 +24,29 @@ impl Canary {
     }
 }
 
+/// The `patch` axis: a SPIR-V workaround applied to the cell's compiled shaders.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Workaround {
+    /// `nonuniform`: NonUniform on the dynamic descriptor access (for index=dynamic without it).
+    Nonuniform,
+    /// `pin-index`: the dynamic index becomes a spec constant (set to `probe::SPEC_SLOT`).
+    PinIndex,
+    /// `as-to-address`: the AS descriptor array read becomes an address-table read.
+    AsToAddress,
+}
+
+impl Workaround {
+    pub const ALL: &'static [Workaround] = &[Workaround::Nonuniform, Workaround::PinIndex, Workaround::AsToAddress];
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Workaround::Nonuniform => "nonuniform",
+            Workaround::PinIndex => "pin-index",
+            Workaround::AsToAddress => "as-to-address",
+        }
+    }
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
 pub struct Cell {
     pub stage: Stage,
@@ -35,6 +58,9 @@ pub struct Cell {
     pub descriptor_model: DescriptorModel,
     /// A canary cell (the other axes are then the canary's carrier shape).
     pub canary: Option<Canary>,
+    /// The SPIR-V workaround applied (`patch` axis; none for plain cells).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub patch: Option<Workaround>,
 }
 
 impl Cell {
@@ -47,7 +73,33 @@ impl Cell {
             as_access: None,
             descriptor_model: DescriptorModel::DescriptorIndexing,
             canary: Some(c),
+            patch: None,
         }
+    }
+
+    /// The cell without its workaround.
+    pub fn base(&self) -> Cell {
+        Cell { patch: None, ..*self }
+    }
+
+    /// The workarounds that apply to this cell's shaders.
+    pub fn applicable_patches(&self) -> Vec<Workaround> {
+        if self.canary.is_some() || self.patch.is_some() {
+            return vec![];
+        }
+        // After as-to-address (written or patched) there is no descriptor array left to decorate or pin.
+        let descriptor_array = self.resource != Resource::AccelerationStructure || self.as_access == Some(AsAccess::Descriptor);
+        let mut v = Vec::new();
+        if self.index == IndexSource::Dynamic && !self.nonuniform && descriptor_array {
+            v.push(Workaround::Nonuniform);
+        }
+        if self.index == IndexSource::Dynamic && descriptor_array {
+            v.push(Workaround::PinIndex);
+        }
+        if self.resource == Resource::AccelerationStructure && self.as_access == Some(AsAccess::Descriptor) {
+            v.push(Workaround::AsToAddress);
+        }
+        v
     }
 
     pub fn id(&self) -> String {
@@ -62,7 +114,12 @@ impl Cell {
             parts.push(a.as_str());
         }
         parts.push(self.descriptor_model.as_str());
-        parts.join(".")
+        let mut id = parts.join(".");
+        if let Some(p) = self.patch {
+            id.push_str(".patch-");
+            id.push_str(p.as_str());
+        }
+        id
     }
 
     /// The value of an axis by its name, for filters.
@@ -75,12 +132,13 @@ impl Cell {
             "as_access" => self.as_access.map(|a| a.as_str()).unwrap_or("none").into(),
             "descriptor_model" => self.descriptor_model.as_str().into(),
             "canary" => self.canary.map(|c| c.as_str()).unwrap_or("none").into(),
+            "patch" => self.patch.map(|p| p.as_str()).unwrap_or("none").into(),
             _ => return None,
         })
     }
 }
 
-pub const AXIS_NAMES: &[&str] = &["stage", "resource", "index", "nonuniform", "as_access", "descriptor_model", "canary"];
+pub const AXIS_NAMES: &[&str] = &["stage", "resource", "index", "nonuniform", "as_access", "descriptor_model", "canary", "patch"];
 
 #[cfg(test)]
 mod tests {
@@ -96,8 +154,12 @@ mod tests {
             as_access: None,
             descriptor_model: DescriptorModel::DescriptorIndexing,
             canary: None,
+            patch: None,
         };
         assert_eq!(c.id(), "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_indexing");
+        let p = Cell { nonuniform: false, patch: Some(Workaround::Nonuniform), ..c };
+        assert_eq!(p.id(), "closest_hit.storage_buffer.dynamic.descriptor_indexing.patch-nonuniform");
+        assert_eq!(p.base().applicable_patches(), vec![Workaround::Nonuniform, Workaround::PinIndex]);
         let a = Cell { resource: Resource::AccelerationStructure, as_access: Some(AsAccess::Address), nonuniform: false, ..c };
         assert_eq!(a.id(), "closest_hit.acceleration_structure.dynamic.address.descriptor_indexing");
         assert_eq!(Cell::canary(Canary::InfiniteLoop).id(), "canary.infinite_loop");

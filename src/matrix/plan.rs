@@ -27,6 +27,7 @@ fn valid_values(axis: &str) -> Vec<String> {
         }
         "descriptor_model" => DescriptorModel::names(),
         "canary" => vec!["invalid_address", "infinite_loop", "none"],
+        "patch" => vec!["nonuniform", "pin-index", "as-to-address", "none"],
         _ => vec![],
     };
     v.into_iter().map(String::from).collect()
@@ -100,9 +101,22 @@ impl RunPlan {
     }
 }
 
+/// Which cells of the `patch` axis run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum PatchMode {
+    /// No patched cells.
+    None,
+    /// After the run, retry each faulting cell with every workaround that applies to it.
+    Faults,
+    /// Plan every cell with every workaround that applies to it.
+    All,
+}
+
 pub struct PlanOptions {
     pub filters: Vec<Filter>,
     pub canaries: bool,
+    pub patches: PatchMode,
 }
 
 /// Why the device cannot run `cell`, from its queried features; `None` when it can.
@@ -153,7 +167,7 @@ pub fn all_cells() -> (Vec<Cell>, Vec<NotGenerated>) {
                                 nonuniform_address += 1;
                                 continue;
                             }
-                            cells.push(Cell { stage, resource, index, nonuniform, as_access, descriptor_model, canary: None });
+                            cells.push(Cell { stage, resource, index, nonuniform, as_access, descriptor_model, canary: None, patch: None });
                         }
                     }
                 }
@@ -188,10 +202,15 @@ pub fn plan(info: &DeviceInfo, opts: &PlanOptions) -> RunPlan {
         cells.push(PlannedCell { cell, status });
     };
     for cell in all {
-        if opts.filters.iter().all(|f| f.matches(&cell)) {
-            push(cell, &mut cells);
-        } else {
-            filtered_out += 1;
+        let variants = std::iter::once(cell).chain(
+            (opts.patches == PatchMode::All).then(|| cell.applicable_patches()).unwrap_or_default().into_iter().map(move |p| Cell { patch: Some(p), ..cell }),
+        );
+        for cell in variants {
+            if opts.filters.iter().all(|f| f.matches(&cell)) {
+                push(cell, &mut cells);
+            } else {
+                filtered_out += 1;
+            }
         }
     }
     // Canaries last: on a real GPU a canary may wedge the device for every process after it

@@ -119,6 +119,9 @@ pub fn expected(cell: &Cell, scene: &Scene, sref: &SceneReference, corrupt: bool
                 };
                 rec.flags |= FLAG_PROBE;
                 rec.slot = slot;
+                // pin-index: the shader still records its computed slot, but reads the pinned one.
+                let pinned = cell.patch == Some(crate::matrix::cell::Workaround::PinIndex);
+                let slot = if pinned { probe::SPEC_SLOT } else { slot };
                 let as_value = |t: &TraceRef| [if t.hit.is_some() { 1.0 } else { 0.0 }, 0.0, 0.0, 1.0];
                 rec.value = if cell.resource == Resource::AccelerationStructure {
                     let t = if probe::as_slot_tlas(slot) == 0 { sref.full[p] } else { sref.even[p] };
@@ -127,7 +130,8 @@ pub fn expected(cell: &Cell, scene: &Scene, sref: &SceneReference, corrupt: bool
                 } else {
                     probe::resource_value(cell.resource, slot)
                 };
-                if cell.index == IndexSource::Dynamic && !cell.nonuniform && !corrupt {
+                let made_uniform = matches!(cell.patch, Some(crate::matrix::cell::Workaround::Nonuniform | crate::matrix::cell::Workaround::PinIndex));
+                if cell.index == IndexSource::Dynamic && !cell.nonuniform && !made_uniform && !corrupt {
                     if cell.resource == Resource::AccelerationStructure {
                         ambiguous |= sref.full[p].ambiguous || sref.even[p].ambiguous;
                     }
@@ -247,7 +251,7 @@ mod tests {
     use crate::scene::SceneParams;
 
     fn cell(stage: Stage, index: IndexSource) -> Cell {
-        Cell { stage, resource: Resource::StorageBuffer, index, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, canary: None }
+        Cell { stage, resource: Resource::StorageBuffer, index, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, canary: None, patch: None }
     }
 
     #[test]

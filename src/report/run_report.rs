@@ -41,8 +41,20 @@ pub struct CellReport {
     pub confirmed: Option<bool>,
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub canary_check: Option<CanaryCheck>,
+    /// For a cell with a finding: each workaround tried and its outcome.
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub workarounds: Vec<WorkaroundResult>,
     #[serde(default)]
     pub attempts: Vec<Attempt>,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct WorkaroundResult {
+    pub patch: crate::matrix::cell::Workaround,
+    pub cell: String,
+    pub outcome: Outcome,
+    /// The patched cell passed where the plain one did not: a verified workaround.
+    pub verified: bool,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -116,8 +128,26 @@ impl RunReport {
         self.summary = m;
     }
 
+    /// Cells with a finding (canaries and workaround variants excluded).
     pub fn findings(&self) -> impl Iterator<Item = &CellReport> {
-        self.cells.iter().filter(|c| c.cell.canary.is_none() && c.outcome.is_finding())
+        self.cells.iter().filter(|c| c.cell.canary.is_none() && c.cell.patch.is_none() && c.outcome.is_finding())
+    }
+
+    /// Attach to each finding the outcome of its workaround variants present in the report.
+    pub fn annotate_workarounds(&mut self) {
+        let variants: Vec<(Cell, String, Outcome)> = self.cells.iter().filter(|c| c.cell.patch.is_some()).map(|c| (c.cell, c.id.clone(), c.outcome)).collect();
+        for c in self.cells.iter_mut().filter(|c| c.cell.patch.is_none() && c.cell.canary.is_none()) {
+            c.workarounds = variants
+                .iter()
+                .filter(|(v, _, _)| v.base() == c.cell)
+                .map(|(v, id, o)| WorkaroundResult {
+                    patch: v.patch.expect("filtered"),
+                    cell: id.clone(),
+                    outcome: *o,
+                    verified: c.outcome.is_finding() && *o == Outcome::Pass,
+                })
+                .collect();
+        }
     }
 
     pub fn load(path: &Path) -> Result<RunReport, String> {
@@ -150,6 +180,7 @@ impl ReportWriter {
                         reason: Some(reason.clone()),
                         confirmed: None,
                         canary_check: None,
+                        workarounds: vec![],
                         attempts: vec![],
                     });
                 }
@@ -162,7 +193,13 @@ impl ReportWriter {
 
     fn sort(&mut self) {
         let order = &self.order;
-        self.report.cells.sort_by_key(|c| order.get(&c.id).copied().unwrap_or(usize::MAX));
+        // Workaround variants sit right after their plain cell.
+        let key = |c: &CellReport| {
+            let base = c.cell.base().id();
+            let patch = c.cell.patch.map(|p| 1 + p as usize).unwrap_or(0);
+            (order.get(&c.id).or_else(|| order.get(&base)).copied().unwrap_or(usize::MAX), patch)
+        };
+        self.report.cells.sort_by_key(key);
         self.report.recount();
     }
 
@@ -204,6 +241,7 @@ impl ReportWriter {
                     reason: attempt.detail.clone(),
                     confirmed: None,
                     canary_check,
+                    workarounds: vec![],
                     attempts: vec![attempt],
                 });
             }

@@ -56,6 +56,15 @@ pub fn render(r: &RunReport) -> String {
                 None => "",
             };
             let _ = writeln!(s, "  {} {:<12} {}{} — {}", mark(c.outcome), c.outcome.as_str(), c.id, conf, c.reason.as_deref().unwrap_or(""));
+            if !c.workarounds.is_empty() {
+                let verified: Vec<&str> = c.workarounds.iter().filter(|w| w.verified).map(|w| w.patch.as_str()).collect();
+                let tried: Vec<String> = c.workarounds.iter().map(|w| format!("{} → {}", w.patch.as_str(), w.outcome.as_str())).collect();
+                if verified.is_empty() {
+                    let _ = writeln!(s, "      no verified workaround ({})", tried.join(", "));
+                } else {
+                    let _ = writeln!(s, "      verified workaround: {} ({})", verified.join(", "), tried.join(", "));
+                }
+            }
         }
         if findings.len() > 40 {
             let _ = writeln!(s, "  … and {} more (see the report)", findings.len() - 40);

@@ -318,16 +318,18 @@ fn canary(c: Canary) -> CellShaders {
 
 /// Whether this cell's AS probe reaches the AS through an address (written so, or patched).
 pub fn as_by_address(cell: &Cell) -> bool {
-    cell.resource == Resource::AccelerationStructure && matches!(cell.as_access, Some(AsAccess::Address | AsAccess::AddressPatched))
+    cell.resource == Resource::AccelerationStructure
+        && (matches!(cell.as_access, Some(AsAccess::Address | AsAccess::AddressPatched)) || cell.patch == Some(crate::matrix::cell::Workaround::AsToAddress))
 }
 
 /// `as_access=address_patched` runs the `descriptor` variant's shaders rewritten by the
 /// as-to-address patch: this is the cell whose GLSL is generated.
 pub fn source_cell(cell: &Cell) -> Cell {
+    let c = Cell { patch: None, ..*cell };
     if cell.as_access == Some(AsAccess::AddressPatched) {
-        Cell { as_access: Some(AsAccess::Descriptor), ..*cell }
+        Cell { as_access: Some(AsAccess::Descriptor), ..c }
     } else {
-        *cell
+        c
     }
 }
 
