@@ -94,6 +94,28 @@ fn engine_shaders_are_patched_from_glsl() {
 }
 
 #[test]
+fn ssbo_to_address_turns_the_mesh_array_into_address_loads() {
+    let d = tempfile::tempdir().unwrap();
+    let chit = shaders().join("engine_closest_hit.rchit");
+    let out = d.path().join("chit_addr.spv");
+    let o = run(&["patch", chit.to_str().unwrap(), "--glsl", "--stage", "rchit", "--apply", "ssbo-to-address", "-o", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("3 loads now read through buffer addresses"), "{}", stdout(&o));
+    val(&out);
+    let text = dis(&out);
+    assert!(text.contains("OpMemoryModel PhysicalStorageBuffer64"), "{text}");
+    // the per-mesh array is gone; the single material buffer (not an array) is untouched
+    assert!(!text.contains("\"meshVertices\""), "{text}");
+    assert!(text.contains("\"materials\""), "{text}");
+    assert!(text.matches("OpConvertUToPtr").count() >= 6, "{text}");
+    // A store into an SSBO array is a shape the patch refuses, naming the instruction.
+    let w = d.path().join("w.comp");
+    std::fs::write(&w, "#version 460\n#extension GL_EXT_nonuniform_qualifier : require\nlayout(local_size_x = 1) in;\nlayout(set = 0, binding = 0) buffer B { uint v[]; } bufs[];\nlayout(push_constant) uniform P { uint i; } p;\nvoid main() { bufs[p.i].v[0] = 1u; }\n").unwrap();
+    let o = run(&["patch", w.to_str().unwrap(), "--glsl", "--stage", "comp", "--apply", "ssbo-to-address", "-o", d.path().join("w.spv").to_str().unwrap()]);
+    assert_one_line_error(&o, 9, "only loads are rewritten");
+}
+
+#[test]
 fn bad_input_is_refused_with_one_line_and_no_output() {
     let d = tempfile::tempdir().unwrap();
     let out = d.path().join("out.spv");

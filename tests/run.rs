@@ -209,7 +209,7 @@ fn patched_variants_render_like_the_originals() {
     assert_eq!(o.status.code(), Some(0), "{}\n{}", stdout(&o), stderr(&o));
     let r = report(&out);
     let cs = cells(&r);
-    for patch in ["nonuniform", "pin-index", "as-to-address"] {
+    for patch in ["nonuniform", "pin-index", "as-to-address", "ssbo-to-address"] {
         let n = cs.iter().filter(|c| c["patch"] == patch).count();
         assert!(n > 0, "no cell with patch {patch}");
     }
@@ -236,8 +236,8 @@ fn faulting_cells_are_retried_with_each_applicable_workaround() {
     let base = cells(&r).iter().find(|c| c["id"] == "closest_hit.storage_buffer.dynamic.descriptor_indexing").unwrap();
     assert_eq!(base["outcome"], "mismatch");
     let tried: Vec<&str> = base["workarounds"].as_array().unwrap().iter().map(|w| w["patch"].as_str().unwrap()).collect();
-    assert_eq!(tried, vec!["nonuniform", "pin-index"]);
+    assert_eq!(tried, vec!["nonuniform", "pin-index", "ssbo-to-address"]);
     // The expectation itself is corrupted, so no patch can make the cell pass: none is verified.
     assert!(base["workarounds"].as_array().unwrap().iter().all(|w| w["verified"] == false));
-    assert!(stdout(&o).contains("no verified workaround (nonuniform → mismatch, pin-index → mismatch)"), "{}", stdout(&o));
+    assert!(stdout(&o).contains("no verified workaround (nonuniform → mismatch, pin-index → mismatch, ssbo-to-address → mismatch)"), "{}", stdout(&o));
 }

@@ -66,6 +66,7 @@ pub struct Executor {
     scene_gpu: Option<SceneGpu>,
     arrays: HashMap<Resource, ResourceArray>,
     as_table: Option<Buffer>,
+    ssbo_table: Option<Buffer>,
     color: Option<Image>,
     bindings: HashMap<LayoutKey, Binding>,
     pipelines: HashMap<u64, Pipeline>,
@@ -104,6 +105,7 @@ impl Executor {
             scene_gpu: None,
             arrays: HashMap::new(),
             as_table: None,
+            ssbo_table: None,
             color: None,
             bindings: HashMap::new(),
             pipelines: HashMap::new(),
@@ -272,6 +274,23 @@ impl Executor {
             let b = Binding::create(&self.gpu, key, &targets)?;
             self.bindings.insert(key, b);
         }
+        // The table the address patches read at push-constant offset 40 (as_table_address at 24
+        // is the hand-written address variant's).
+        let mut patched_table_address = 0;
+        if cell.patch == Some(crate::matrix::cell::Workaround::SsboToAddress) {
+            if self.ssbo_table.is_none() {
+                let slots = self.slots();
+                if !self.arrays.contains_key(&Resource::StorageBuffer) {
+                    let a = ResourceArray::create(&self.gpu, Resource::StorageBuffer, slots, &self.submitter, self.opts.timeout)?;
+                    self.arrays.insert(Resource::StorageBuffer, a);
+                }
+                let bytes: Vec<u8> = self.arrays[&Resource::StorageBuffer].buffers.iter().flat_map(|b| b.address.to_le_bytes()).collect();
+                let t = Buffer::new(&self.gpu, bytes.len() as u64, vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS, Location::Host, "SSBO address table")?;
+                t.write(0, &bytes);
+                self.ssbo_table = Some(t);
+            }
+            patched_table_address = self.ssbo_table.as_ref().map(|b| b.address).unwrap_or(0);
+        }
         let mut as_table_address = 0;
         if shadergen::as_by_address(cell) {
             if self.as_table.is_none() {
@@ -280,6 +299,7 @@ impl Executor {
                 self.as_table = Some(resources::as_table(&self.gpu, addrs, self.slots())?);
             }
             as_table_address = self.as_table.as_ref().map(|b| b.address).unwrap_or(0);
+            patched_table_address = as_table_address;
         }
         let (w, h) = (self.scene.params.width, self.scene.params.height);
         if shaders.kind == PipelineKind::Graphics && self.color.is_none() {
@@ -315,8 +335,8 @@ impl Executor {
         pc.extend_from_slice(&as_table_address.to_le_bytes());
         let bad = if cell.canary == Some(Canary::InvalidAddress) { CANARY_BAD_ADDRESS } else { 0 };
         pc.extend_from_slice(&bad.to_le_bytes());
-        // offset 40: the table address of as-to-address-patched modules
-        pc.extend_from_slice(&as_table_address.to_le_bytes());
+        // offset 40: the table address of modules rewritten by the address patches
+        pc.extend_from_slice(&patched_table_address.to_le_bytes());
 
         let gpu = &self.gpu;
         let pipe = &self.pipelines[&pkey];
@@ -398,6 +418,7 @@ fn patch_module(words: &[u32], w: crate::matrix::cell::Workaround) -> Result<Opt
         Workaround::Nonuniform => (PatchName::Nonuniform, kv(&[])),
         // SpecId 0 is what every pipeline specializes to probe::SPEC_SLOT.
         Workaround::PinIndex => (PatchName::PinIndex, kv(&[("binding", "2".into()), ("spec-id", "0".into()), ("value", probe::SPEC_SLOT.to_string())])),
+        Workaround::SsboToAddress => (PatchName::SsboToAddress, kv(&[("binding", "2".into()), ("offset", shadergen::PATCHED_TABLE_OFFSET.to_string())])),
     };
     match patches::apply(&mut m, &[name], &opts) {
         Ok(_) => Ok(Some(patches::assemble(&m))),
@@ -434,7 +455,7 @@ impl Drop for Executor {
         for a in self.arrays.values() {
             a.destroy(gpu);
         }
-        if let Some(t) = &self.as_table {
+        for t in self.as_table.iter().chain(self.ssbo_table.iter()) {
             t.destroy(gpu);
         }
         if let Some(c) = &self.color {

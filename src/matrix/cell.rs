@@ -34,15 +34,18 @@ pub enum Workaround {
     PinIndex,
     /// `as-to-address`: the AS descriptor array read becomes an address-table read.
     AsToAddress,
+    /// `ssbo-to-address`: the SSBO descriptor array read becomes a load through a buffer address.
+    SsboToAddress,
 }
 
 impl Workaround {
-    pub const ALL: &'static [Workaround] = &[Workaround::Nonuniform, Workaround::PinIndex, Workaround::AsToAddress];
+    pub const ALL: &'static [Workaround] = &[Workaround::Nonuniform, Workaround::PinIndex, Workaround::AsToAddress, Workaround::SsboToAddress];
     pub fn as_str(self) -> &'static str {
         match self {
             Workaround::Nonuniform => "nonuniform",
             Workaround::PinIndex => "pin-index",
             Workaround::AsToAddress => "as-to-address",
+            Workaround::SsboToAddress => "ssbo-to-address",
         }
     }
 }
@@ -98,6 +101,9 @@ impl Cell {
         }
         if self.resource == Resource::AccelerationStructure && self.as_access == Some(AsAccess::Descriptor) {
             v.push(Workaround::AsToAddress);
+        }
+        if self.resource == Resource::StorageBuffer && self.index == IndexSource::Dynamic {
+            v.push(Workaround::SsboToAddress);
         }
         v
     }
@@ -159,7 +165,7 @@ mod tests {
         assert_eq!(c.id(), "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_indexing");
         let p = Cell { nonuniform: false, patch: Some(Workaround::Nonuniform), ..c };
         assert_eq!(p.id(), "closest_hit.storage_buffer.dynamic.descriptor_indexing.patch-nonuniform");
-        assert_eq!(p.base().applicable_patches(), vec![Workaround::Nonuniform, Workaround::PinIndex]);
+        assert_eq!(p.base().applicable_patches(), vec![Workaround::Nonuniform, Workaround::PinIndex, Workaround::SsboToAddress]);
         let a = Cell { resource: Resource::AccelerationStructure, as_access: Some(AsAccess::Address), nonuniform: false, ..c };
         assert_eq!(a.id(), "closest_hit.acceleration_structure.dynamic.address.descriptor_indexing");
         assert_eq!(Cell::canary(Canary::InfiniteLoop).id(), "canary.infinite_loop");

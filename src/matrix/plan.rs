@@ -27,7 +27,7 @@ fn valid_values(axis: &str) -> Vec<String> {
         }
         "descriptor_model" => DescriptorModel::names(),
         "canary" => vec!["invalid_address", "infinite_loop", "none"],
-        "patch" => vec!["nonuniform", "pin-index", "as-to-address", "none"],
+        "patch" => vec!["nonuniform", "pin-index", "as-to-address", "ssbo-to-address", "none"],
         _ => vec![],
     };
     v.into_iter().map(String::from).collect()
@@ -131,6 +131,9 @@ pub fn device_support(info: &DeviceInfo, cell: &Cell) -> Support {
     }
     if let Some(a) = cell.as_access {
         checks.push(support::as_access(info, a));
+    }
+    if matches!(cell.patch, Some(super::cell::Workaround::AsToAddress | super::cell::Workaround::SsboToAddress)) {
+        checks.push(support::as_access(info, AsAccess::Address));
     }
     if cell.resource == Resource::AccelerationStructure {
         if !cell.stage.can_trace_ray() && !info.features.ray_query.is_some_and(|r| r.ray_query == ash::vk::TRUE) {

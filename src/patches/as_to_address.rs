@@ -167,58 +167,7 @@ pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
     // Types and the push-constant member.
     let u32_t = edit::type_int(m, 32, false);
     let u64_t = edit::type_int(m, 64, false);
-    let pc_var = m.types_global_values.iter().find(|i| {
-        i.class.opcode == Op::Variable && i.operands.first() == Some(&Operand::StorageClass(StorageClass::PushConstant))
-    });
-    let (pc_var, member, offset) = match pc_var.and_then(|v| Some((v.result_id?, v.result_type?))) {
-        Some((var, ptr)) => {
-            let (_, st) = edit::pointer_info(m, ptr).ok_or(PatchError::Unsupported { patch: NAME, id: var, what: "push-constant variable without pointer type".into() })?;
-            let st_def = edit::def(m, st).cloned().ok_or(PatchError::Unsupported { patch: NAME, id: st, what: "push-constant block type not found".into() })?;
-            let members: Vec<Word> = st_def.operands.iter().filter_map(|o| if let Operand::IdRef(w) = o { Some(*w) } else { None }).collect();
-            let offs = member_offsets(m, st);
-            let end = offs.iter().map(|(i, o)| members.get(*i as usize).and_then(|t| simple_size(m, *t)).map(|s| o + s)).collect::<Option<Vec<_>>>().map(|v| v.into_iter().max().unwrap_or(0));
-            let offset = match (opts.offset, end) {
-                (Some(o), Some(e)) if o < e => return Err(PatchError::BadOption { patch: NAME, what: format!("offset={o} overlaps the push-constant block, which ends at {e}") }),
-                (Some(o), _) => o,
-                (None, Some(e)) => e.div_ceil(8) * 8,
-                (None, None) => return Err(PatchError::BadOption { patch: NAME, what: "cannot size the existing push-constant block; pass --option offset=N".into() }),
-            };
-            if offset % 8 != 0 {
-                return Err(PatchError::BadOption { patch: NAME, what: format!("offset={offset} is not 8-byte aligned") });
-            }
-            let k = members.len() as u32;
-            if let Some(s) = m.types_global_values.iter_mut().find(|i| i.result_id == Some(st)) {
-                s.operands.push(Operand::IdRef(u64_t));
-            }
-            m.annotations.push(Instruction::new(
-                Op::MemberDecorate,
-                None,
-                None,
-                vec![Operand::IdRef(st), Operand::LiteralBit32(k), Operand::Decoration(Decoration::Offset), Operand::LiteralBit32(offset)],
-            ));
-            (var, k, offset)
-        }
-        None => {
-            let offset = opts.offset.unwrap_or(0);
-            if offset % 8 != 0 {
-                return Err(PatchError::BadOption { patch: NAME, what: format!("offset={offset} is not 8-byte aligned") });
-            }
-            let st = edit::next_id(m);
-            m.types_global_values.push(Instruction::new(Op::TypeStruct, None, Some(st), vec![Operand::IdRef(u64_t)]));
-            edit::decorate(m, st, Decoration::Block, &[]);
-            m.annotations.push(Instruction::new(
-                Op::MemberDecorate,
-                None,
-                None,
-                vec![Operand::IdRef(st), Operand::LiteralBit32(0), Operand::Decoration(Decoration::Offset), Operand::LiteralBit32(offset)],
-            ));
-            let ptr = edit::type_pointer(m, StorageClass::PushConstant, st);
-            let var = edit::next_id(m);
-            m.types_global_values.push(Instruction::new(Op::Variable, Some(ptr), Some(var), vec![Operand::StorageClass(StorageClass::PushConstant)]));
-            edit::add_to_interfaces(m, var);
-            (var, 0, offset)
-        }
-    };
+    let (pc_var, member, offset) = push_constant_u64(m, opts.offset, NAME)?;
     let ptr_pc_u64 = edit::type_pointer(m, StorageClass::PushConstant, u64_t);
     let member_c = edit::constant(m, u32_t, member as u64, false);
     let (ptr_psb_u64, eight) = if mode == Mode::Table {
@@ -275,4 +224,63 @@ pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
     }
     edit::remove_ids(m, &removed);
     Ok(Report { rewritten_loads: n_sites, removed_variables: var_ids.len(), offset, mode })
+}
+
+/// Append a 64-bit member to the module's push-constant block at `offset` (default: the block's
+/// end, 8-aligned), creating the block if there is none. Returns (variable, member index, offset).
+pub(super) fn push_constant_u64(m: &mut Module, offset: Option<u32>, patch: &'static str) -> Result<(Word, u32, u32), PatchError> {
+    let u64_t = edit::type_int(m, 64, false);
+    let pc_var = m.types_global_values.iter().find(|i| {
+        i.class.opcode == Op::Variable && i.operands.first() == Some(&Operand::StorageClass(StorageClass::PushConstant))
+    });
+    let found = match pc_var.and_then(|v| Some((v.result_id?, v.result_type?))) {
+        Some((var, ptr)) => {
+            let (_, st) = edit::pointer_info(m, ptr).ok_or(PatchError::Unsupported { patch, id: var, what: "push-constant variable without pointer type".into() })?;
+            let st_def = edit::def(m, st).cloned().ok_or(PatchError::Unsupported { patch, id: st, what: "push-constant block type not found".into() })?;
+            let members: Vec<Word> = st_def.operands.iter().filter_map(|o| if let Operand::IdRef(w) = o { Some(*w) } else { None }).collect();
+            let offs = member_offsets(m, st);
+            let end = offs.iter().map(|(i, o)| members.get(*i as usize).and_then(|t| simple_size(m, *t)).map(|s| o + s)).collect::<Option<Vec<_>>>().map(|v| v.into_iter().max().unwrap_or(0));
+            let offset = match (offset, end) {
+                (Some(o), Some(e)) if o < e => return Err(PatchError::BadOption { patch, what: format!("offset={o} overlaps the push-constant block, which ends at {e}") }),
+                (Some(o), _) => o,
+                (None, Some(e)) => e.div_ceil(8) * 8,
+                (None, None) => return Err(PatchError::BadOption { patch, what: "cannot size the existing push-constant block; pass --option offset=N".into() }),
+            };
+            if offset % 8 != 0 {
+                return Err(PatchError::BadOption { patch, what: format!("offset={offset} is not 8-byte aligned") });
+            }
+            let k = members.len() as u32;
+            if let Some(s) = m.types_global_values.iter_mut().find(|i| i.result_id == Some(st)) {
+                s.operands.push(Operand::IdRef(u64_t));
+            }
+            m.annotations.push(Instruction::new(
+                Op::MemberDecorate,
+                None,
+                None,
+                vec![Operand::IdRef(st), Operand::LiteralBit32(k), Operand::Decoration(Decoration::Offset), Operand::LiteralBit32(offset)],
+            ));
+            (var, k, offset)
+        }
+        None => {
+            let offset = offset.unwrap_or(0);
+            if offset % 8 != 0 {
+                return Err(PatchError::BadOption { patch, what: format!("offset={offset} is not 8-byte aligned") });
+            }
+            let st = edit::next_id(m);
+            m.types_global_values.push(Instruction::new(Op::TypeStruct, None, Some(st), vec![Operand::IdRef(u64_t)]));
+            edit::decorate(m, st, Decoration::Block, &[]);
+            m.annotations.push(Instruction::new(
+                Op::MemberDecorate,
+                None,
+                None,
+                vec![Operand::IdRef(st), Operand::LiteralBit32(0), Operand::Decoration(Decoration::Offset), Operand::LiteralBit32(offset)],
+            ));
+            let ptr = edit::type_pointer(m, StorageClass::PushConstant, st);
+            let var = edit::next_id(m);
+            m.types_global_values.push(Instruction::new(Op::Variable, Some(ptr), Some(var), vec![Operand::StorageClass(StorageClass::PushConstant)]));
+            edit::add_to_interfaces(m, var);
+            (var, 0, offset)
+        }
+    };
+    Ok(found)
 }

@@ -7,6 +7,7 @@ mod dynamic_access;
 pub mod edit;
 pub mod nonuniform;
 pub mod pin_index;
+pub mod ssbo_to_address;
 
 use rspirv::binary::{Assemble, Disassemble};
 use rspirv::dr::Module;
@@ -35,6 +36,7 @@ pub enum PatchName {
     AsToAddress,
     Nonuniform,
     PinIndex,
+    SsboToAddress,
 }
 
 /// Name, options and one-line description of each patch.
@@ -42,6 +44,7 @@ pub const LIST: &[(&str, &str, &str)] = &[
     ("as-to-address", "offset=BYTES mode=direct|table binding=N", "acceleration structures read through descriptors become OpConvertUToAccelerationStructureKHR of a 64-bit address from push constants (table mode: address of a table of addresses, indexed like the descriptor array)"),
     ("nonuniform", "strip=true|false", "decorate every dynamically indexed descriptor access NonUniform (what nonuniformEXT would give), or strip every NonUniform decoration"),
     ("pin-index", "binding=N value=K spec-id=ID", "replace the runtime index of dynamically indexed descriptor arrays by an OpSpecConstant (default value K)"),
+    ("ssbo-to-address", "offset=BYTES binding=N", "reads of a storage-buffer descriptor array become PhysicalStorageBuffer loads from a table of buffer addresses in push constants (reads only)"),
 ];
 
 impl PatchName {
@@ -50,6 +53,7 @@ impl PatchName {
             "as-to-address" => Ok(PatchName::AsToAddress),
             "nonuniform" => Ok(PatchName::Nonuniform),
             "pin-index" => Ok(PatchName::PinIndex),
+            "ssbo-to-address" => Ok(PatchName::SsboToAddress),
             other => Err(PatchError::Unknown(other.into())),
         }
     }
@@ -59,6 +63,7 @@ impl PatchName {
             PatchName::AsToAddress => "as-to-address",
             PatchName::Nonuniform => "nonuniform",
             PatchName::PinIndex => "pin-index",
+            PatchName::SsboToAddress => "ssbo-to-address",
         }
     }
 
@@ -67,6 +72,7 @@ impl PatchName {
             PatchName::AsToAddress => &["offset", "mode", "binding"],
             PatchName::Nonuniform => &["strip"],
             PatchName::PinIndex => &["binding", "value", "spec-id"],
+            PatchName::SsboToAddress => &["offset", "binding"],
         }
     }
 }
@@ -145,6 +151,13 @@ pub fn apply(m: &mut Module, patches: &[PatchName], options: &BTreeMap<String, S
                 let r = quietly(std::panic::AssertUnwindSafe(|| pin_index::apply(&mut work, &opts))).map_err(PatchError::Internal)??;
                 *m = work;
                 format!("pin-index: {} accesses now index with SpecId {} (default {})", r.pinned, r.spec_id, opts.value)
+            }
+            PatchName::SsboToAddress => {
+                let opts = ssbo_to_address::Options { offset: num(p, "offset")?, binding: num(p, "binding")? };
+                let mut work = m.clone();
+                let r = quietly(std::panic::AssertUnwindSafe(|| ssbo_to_address::apply(&mut work, &opts))).map_err(PatchError::Internal)??;
+                *m = work;
+                format!("ssbo-to-address: {} loads now read through buffer addresses (table address at push-constant offset {})", r.rewritten_loads, r.offset)
             }
         };
         lines.push(line);

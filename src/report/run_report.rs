@@ -211,7 +211,9 @@ impl ReportWriter {
     pub fn record(&mut self, cell: &Cell, attempt: Attempt) {
         let id = cell.id();
         let t = &mut self.report.timing;
-        if let Some(r) = &attempt.result {
+        // Timing statistics only from cells that ran to completion (a hung fence wait or a crash
+        // says nothing about per-cell cost).
+        if let Some(r) = attempt.result.as_ref().filter(|r| matches!(r.outcome, Outcome::Pass | Outcome::Mismatch)) {
             let tm = &r.timings;
             t.compile_ms += tm.compile_ms;
             t.pipeline_ms += tm.pipeline_ms;

@@ -4,6 +4,7 @@
 //! could block on a hung queue).
 use super::protocol::{WorkerJob, WorkerMsg};
 use crate::exec::{ExecOptions, Executor};
+use crate::matrix::cell::Workaround;
 use crate::matrix::{AsAccess, Canary, Cell, DescriptorModel, Resource, Stage};
 use crate::vk::{features, Gpu, Instance, InstanceOptions, Requirements};
 use std::io::Write;
@@ -21,7 +22,11 @@ pub fn requirements(info: &crate::vk::DeviceInfo, cells: &[Cell]) -> Requirement
         descriptor_indexing: true,
         descriptor_buffer: any(&|c| c.descriptor_model == DescriptorModel::DescriptorBuffer),
         device_fault: info.features.fault.is_some_and(|f| f.device_fault == ash::vk::TRUE),
-        int64: any(&|c| c.as_access == Some(AsAccess::Address) || c.canary == Some(Canary::InvalidAddress)),
+        int64: any(&|c| {
+            matches!(c.as_access, Some(AsAccess::Address | AsAccess::AddressPatched))
+                || matches!(c.patch, Some(Workaround::AsToAddress | Workaround::SsboToAddress))
+                || c.canary == Some(Canary::InvalidAddress)
+        }),
         fragment_stores: fragment,
         dynamic_rendering: fragment,
     }
