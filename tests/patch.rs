@@ -57,6 +57,34 @@ fn as_to_address_rewrites_hand_written_spirv() {
 }
 
 #[test]
+fn nonuniform_and_pin_index_rewrite_hand_written_spirv() {
+    let d = tempfile::tempdir().unwrap();
+    let input = d.path().join("in.spv");
+    assemble(&shaders().join("as_array.spvasm"), &input);
+    // nonuniform: the push-constant index, the chain into the AS array and the loaded handle.
+    let nu = d.path().join("nu.spv");
+    let o = run(&["patch", input.to_str().unwrap(), "--apply", "nonuniform", "-o", nu.to_str().unwrap(), "--disassemble"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("3 objects decorated NonUniform"), "{}", stdout(&o));
+    let diff = stdout(&o);
+    assert_eq!(diff.lines().filter(|l| l.starts_with("+ ") && l.ends_with(" NonUniform")).count(), 3, "{diff}");
+    assert!(diff.contains("+ OpCapability ShaderNonUniform"), "{diff}");
+    val(&nu);
+    // pin-index: the chain indexes with a new spec constant (SpecId 0, default 2).
+    let pin = d.path().join("pin.spv");
+    let o = run(&["patch", input.to_str().unwrap(), "--apply", "pin-index", "--option", "value=2", "-o", pin.to_str().unwrap(), "--disassemble"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let diff = stdout(&o);
+    assert!(diff.lines().any(|l| l.starts_with("+ ") && l.contains("OpSpecConstant") && l.ends_with(" 2")), "{diff}");
+    assert!(diff.lines().any(|l| l.starts_with("+ ") && l.contains("SpecId 0")), "{diff}");
+    assert!(diff.lines().any(|l| l.starts_with("- ") && l.contains("OpAccessChain")), "{diff}");
+    val(&pin);
+    // the spec id is refused when already used
+    let again = d.path().join("again.spv");
+    assert_one_line_error(&run(&["patch", pin.to_str().unwrap(), "--apply", "pin-index", "--option", "spec-id=0", "-o", again.to_str().unwrap()]), 9, "");
+}
+
+#[test]
 fn engine_shaders_are_patched_from_glsl() {
     let d = tempfile::tempdir().unwrap();
     let chit = shaders().join("engine_closest_hit.rchit");

@@ -21,7 +21,7 @@
 use super::edit::{self, id_operand};
 use super::PatchError;
 use rspirv::dr::{Instruction, Module, Operand};
-use rspirv::spirv::{AddressingModel, Capability, Decoration, MemoryAccess, Op, StorageClass, Word};
+use rspirv::spirv::{Decoration, Op, StorageClass, Word};
 use std::collections::HashSet;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -170,49 +170,33 @@ pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
     let (pc_var, member, offset) = push_constant_u64(m, opts.offset, NAME)?;
     let ptr_pc_u64 = edit::type_pointer(m, StorageClass::PushConstant, u64_t);
     let member_c = edit::constant(m, u32_t, member as u64, false);
-    let (ptr_psb_u64, eight) = if mode == Mode::Table {
-        edit::add_capability(m, Capability::PhysicalStorageBufferAddresses);
-        if edit::version(m) < (1, 5) {
-            edit::add_extension(m, "SPV_KHR_physical_storage_buffer");
-        }
-        if let Some(mm) = m.memory_model.as_mut() {
-            mm.operands[0] = Operand::AddressingModel(AddressingModel::PhysicalStorageBuffer64);
-        }
-        (edit::type_pointer(m, StorageClass::PhysicalStorageBuffer, u64_t), edit::constant(m, u64_t, 8, true))
+    let table = if mode == Mode::Table {
+        edit::enable_physical_storage_buffer(m);
+        Some(edit::TableTypes {
+            pc_var,
+            member: member_c,
+            ptr_pc_u64,
+            u64_t,
+            ptr_psb_u64: edit::type_pointer(m, StorageClass::PhysicalStorageBuffer, u64_t),
+            eight: edit::constant(m, u64_t, 8, true),
+        })
     } else {
-        (0, 0)
+        None
     };
 
     // Rewrite every site, last first so indices stay valid.
     let n_sites = sites.len();
     sites.sort_by_key(|s| std::cmp::Reverse((s.func, s.block, s.inst)));
     for s in sites {
-        let mut new = Vec::new();
-        let mut fresh = || edit::next_id(m);
-        let pm = fresh();
-        new.push(Instruction::new(Op::AccessChain, Some(ptr_pc_u64), Some(pm), vec![Operand::IdRef(pc_var), Operand::IdRef(member_c)]));
-        let base = fresh();
-        new.push(Instruction::new(Op::Load, Some(u64_t), Some(base), vec![Operand::IdRef(pm)]));
-        let addr = match mode {
-            Mode::Direct => base,
-            Mode::Table => {
-                let at = match s.index {
-                    Some(idx) => {
-                        let idx64 = fresh();
-                        let off = fresh();
-                        let sum = fresh();
-                        new.push(Instruction::new(Op::UConvert, Some(u64_t), Some(idx64), vec![Operand::IdRef(idx)]));
-                        new.push(Instruction::new(Op::IMul, Some(u64_t), Some(off), vec![Operand::IdRef(idx64), Operand::IdRef(eight)]));
-                        new.push(Instruction::new(Op::IAdd, Some(u64_t), Some(sum), vec![Operand::IdRef(base), Operand::IdRef(off)]));
-                        sum
-                    }
-                    None => base,
-                };
-                let p = fresh();
-                let a = fresh();
-                new.push(Instruction::new(Op::ConvertUToPtr, Some(ptr_psb_u64), Some(p), vec![Operand::IdRef(at)]));
-                new.push(Instruction::new(Op::Load, Some(u64_t), Some(a), vec![Operand::IdRef(p), Operand::MemoryAccess(MemoryAccess::ALIGNED), Operand::LiteralBit32(8)]));
-                a
+        let (new, addr) = match &table {
+            Some(t) => edit::table_entry(m, t, s.index),
+            None => {
+                let (pm, base) = (edit::next_id(m), edit::next_id(m));
+                let new = vec![
+                    Instruction::new(Op::AccessChain, Some(ptr_pc_u64), Some(pm), vec![Operand::IdRef(pc_var), Operand::IdRef(member_c)]),
+                    Instruction::new(Op::Load, Some(u64_t), Some(base), vec![Operand::IdRef(pm)]),
+                ];
+                (new, base)
             }
         };
         let block = &mut m.functions[s.func].blocks[s.block];

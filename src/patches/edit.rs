@@ -174,3 +174,52 @@ pub fn users(m: &Module, id: Word) -> Vec<Word> {
         .filter_map(|i| i.result_id)
         .collect()
 }
+
+/// Ids the address-table loads need (see [`table_entry`]).
+pub struct TableTypes {
+    pub pc_var: Word,
+    pub member: Word,
+    pub ptr_pc_u64: Word,
+    pub u64_t: Word,
+    pub ptr_psb_u64: Word,
+    pub eight: Word,
+}
+
+/// Instructions loading entry `index` (None: entry 0) of a table of 64-bit addresses whose own
+/// address is push-constant member `member`: `OpAccessChain`/`OpLoad` of the member, then
+/// `index * 8` added, `OpConvertUToPtr` to a PhysicalStorageBuffer pointer, `OpLoad ... Aligned 8`.
+/// Returns the instructions and the id of the loaded address.
+pub fn table_entry(m: &mut Module, t: &TableTypes, index: Option<Word>) -> (Vec<Instruction>, Word) {
+    use rspirv::spirv::MemoryAccess;
+    let mut out = Vec::new();
+    let pm = next_id(m);
+    out.push(Instruction::new(Op::AccessChain, Some(t.ptr_pc_u64), Some(pm), vec![Operand::IdRef(t.pc_var), Operand::IdRef(t.member)]));
+    let base = next_id(m);
+    out.push(Instruction::new(Op::Load, Some(t.u64_t), Some(base), vec![Operand::IdRef(pm)]));
+    let at = match index {
+        Some(idx) => {
+            let (idx64, off, sum) = (next_id(m), next_id(m), next_id(m));
+            out.push(Instruction::new(Op::UConvert, Some(t.u64_t), Some(idx64), vec![Operand::IdRef(idx)]));
+            out.push(Instruction::new(Op::IMul, Some(t.u64_t), Some(off), vec![Operand::IdRef(idx64), Operand::IdRef(t.eight)]));
+            out.push(Instruction::new(Op::IAdd, Some(t.u64_t), Some(sum), vec![Operand::IdRef(base), Operand::IdRef(off)]));
+            sum
+        }
+        None => base,
+    };
+    let (p, a) = (next_id(m), next_id(m));
+    out.push(Instruction::new(Op::ConvertUToPtr, Some(t.ptr_psb_u64), Some(p), vec![Operand::IdRef(at)]));
+    out.push(Instruction::new(Op::Load, Some(t.u64_t), Some(a), vec![Operand::IdRef(p), Operand::MemoryAccess(MemoryAccess::ALIGNED), Operand::LiteralBit32(8)]));
+    (out, a)
+}
+
+/// Switch the module to PhysicalStorageBuffer64 addressing (capability, extension before 1.5).
+pub fn enable_physical_storage_buffer(m: &mut Module) {
+    use rspirv::spirv::AddressingModel;
+    add_capability(m, Capability::PhysicalStorageBufferAddresses);
+    if version(m) < (1, 5) {
+        add_extension(m, "SPV_KHR_physical_storage_buffer");
+    }
+    if let Some(mm) = m.memory_model.as_mut() {
+        mm.operands[0] = Operand::AddressingModel(AddressingModel::PhysicalStorageBuffer64);
+    }
+}

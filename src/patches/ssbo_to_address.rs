@@ -20,7 +20,7 @@
 use super::edit::{self, id_operand};
 use super::PatchError;
 use rspirv::dr::{Instruction, Module, Operand};
-use rspirv::spirv::{AddressingModel, Capability, Decoration, MemoryAccess, Op, StorageClass, Word};
+use rspirv::spirv::{Decoration, MemoryAccess, Op, StorageClass, Word};
 use std::collections::{HashMap, HashSet};
 
 #[derive(Clone, Debug, Default)]
@@ -106,17 +106,15 @@ pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
     let (pc_var, member, offset) = super::as_to_address::push_constant_u64(m, opts.offset, NAME)?;
     let u32_t = edit::type_int(m, 32, false);
     let u64_t = edit::type_int(m, 64, false);
-    let ptr_pc_u64 = edit::type_pointer(m, StorageClass::PushConstant, u64_t);
-    let member_c = edit::constant(m, u32_t, member as u64, false);
-    edit::add_capability(m, Capability::PhysicalStorageBufferAddresses);
-    if edit::version(m) < (1, 5) {
-        edit::add_extension(m, "SPV_KHR_physical_storage_buffer");
-    }
-    if let Some(mm) = m.memory_model.as_mut() {
-        mm.operands[0] = Operand::AddressingModel(AddressingModel::PhysicalStorageBuffer64);
-    }
-    let ptr_psb_u64 = edit::type_pointer(m, StorageClass::PhysicalStorageBuffer, u64_t);
-    let eight = edit::constant(m, u64_t, 8, true);
+    edit::enable_physical_storage_buffer(m);
+    let table = edit::TableTypes {
+        pc_var,
+        member: edit::constant(m, u32_t, member as u64, false),
+        ptr_pc_u64: edit::type_pointer(m, StorageClass::PushConstant, u64_t),
+        u64_t,
+        ptr_psb_u64: edit::type_pointer(m, StorageClass::PhysicalStorageBuffer, u64_t),
+        eight: edit::constant(m, u64_t, 8, true),
+    };
     // Re-point every chain's result type to PhysicalStorageBuffer.
     let mut psb_of: HashMap<Word, Word> = HashMap::new();
     for c in &chains {
@@ -138,18 +136,9 @@ pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
     let mut order: Vec<&Chain> = chains.iter().collect();
     order.sort_by_key(|c| std::cmp::Reverse((c.func, c.block, c.inst)));
     for c in order {
-        let mut fresh = || edit::next_id(m);
-        let (pm, base, idx64, off, at, p, addr, blk) = (fresh(), fresh(), fresh(), fresh(), fresh(), fresh(), fresh(), fresh());
-        let new = vec![
-            Instruction::new(Op::AccessChain, Some(ptr_pc_u64), Some(pm), vec![Operand::IdRef(pc_var), Operand::IdRef(member_c)]),
-            Instruction::new(Op::Load, Some(u64_t), Some(base), vec![Operand::IdRef(pm)]),
-            Instruction::new(Op::UConvert, Some(u64_t), Some(idx64), vec![Operand::IdRef(c.index)]),
-            Instruction::new(Op::IMul, Some(u64_t), Some(off), vec![Operand::IdRef(idx64), Operand::IdRef(eight)]),
-            Instruction::new(Op::IAdd, Some(u64_t), Some(at), vec![Operand::IdRef(base), Operand::IdRef(off)]),
-            Instruction::new(Op::ConvertUToPtr, Some(ptr_psb_u64), Some(p), vec![Operand::IdRef(at)]),
-            Instruction::new(Op::Load, Some(u64_t), Some(addr), vec![Operand::IdRef(p), Operand::MemoryAccess(MemoryAccess::ALIGNED), Operand::LiteralBit32(8)]),
-            Instruction::new(Op::ConvertUToPtr, Some(block_ptrs[&c.var]), Some(blk), vec![Operand::IdRef(addr)]),
-        ];
+        let (mut new, addr) = edit::table_entry(m, &table, Some(c.index));
+        let blk = edit::next_id(m);
+        new.push(Instruction::new(Op::ConvertUToPtr, Some(block_ptrs[&c.var]), Some(blk), vec![Operand::IdRef(addr)]));
         let block = &mut m.functions[c.func].blocks[c.block];
         let ch = &mut block.instructions[c.inst];
         let rest: Vec<Operand> = ch.operands[2..].to_vec();
