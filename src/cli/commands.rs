@@ -1,8 +1,8 @@
 //! The `devices` and `caps` commands: glue between parsed arguments and the library modules.
 use super::args::{CapsArgs, DevicesArgs};
 use super::exit;
-use crate::caps::{self, support, DeviceCreationCheck};
-use crate::matrix::{DescriptorModel, Resource, Stage};
+use crate::caps::{self, DeviceCreationCheck};
+use crate::matrix::plan::{self, PatchMode, PlanOptions};
 use crate::report::write_atomic;
 use crate::vk::{driver_version::format_api_version, features, DeviceInfo, Gpu, Instance, InstanceOptions, Requirements, VkError};
 use anyhow::{Context, Result};
@@ -51,20 +51,12 @@ pub fn devices(g: &Globals, args: &DevicesArgs) -> Result<u8> {
     Ok(exit::OK)
 }
 
-/// Everything the matrix could ask of `info` that `info` supports.
+/// What the whole matrix (every workaround, canaries) needs of `info`, as far as `info` can run it:
+/// the same rule a worker uses for its own cells.
 pub fn full_requirements(info: &DeviceInfo) -> Requirements {
-    let fragment = support::stage(info, Stage::Fragment).is_supported();
-    Requirements {
-        rt_pipeline: support::stage(info, Stage::Raygen).is_supported(),
-        ray_query: info.features.ray_query.is_some_and(|r| r.ray_query == ash::vk::TRUE),
-        buffer_device_address: info.features.v12.is_some_and(|v| v.buffer_device_address == ash::vk::TRUE),
-        descriptor_indexing: support::descriptor_model(info, DescriptorModel::DescriptorIndexing).is_supported(),
-        descriptor_buffer: support::descriptor_model(info, DescriptorModel::DescriptorBuffer).is_supported(),
-        device_fault: info.features.fault.is_some_and(|f| f.device_fault == ash::vk::TRUE),
-        int64: info.features.core.shader_int64 == ash::vk::TRUE,
-        fragment_stores: fragment && support::resource(info, Resource::StorageBuffer).is_supported(),
-        dynamic_rendering: fragment,
-    }
+    let opts = PlanOptions { filters: vec![], canaries: true, patches: PatchMode::All };
+    let cells: Vec<_> = plan::plan(info, &opts).to_run().copied().collect();
+    crate::runner::worker::requirements(info, &cells)
 }
 
 fn check_device_creation(inst: &Arc<Instance>, info: &DeviceInfo) -> DeviceCreationCheck {

@@ -4,7 +4,7 @@
 //! a buffer). Binding 0 is the records SSBO, 1 the scene TLAS, 2 the probed array. The
 //! `descriptor_heap` model never reaches here: the plan marks it unsupported where the driver lacks
 //! VK_EXT_descriptor_heap, and not implemented where it has it.
-use super::resources::{descriptor_type, Target};
+use super::resources::Target;
 use crate::matrix::{DescriptorModel, Resource};
 use crate::vk::memory::{Buffer, Location};
 use crate::vk::{Gpu, VkError, VkResultExt};
@@ -208,8 +208,4 @@ impl Binding {
             gpu.device.destroy_descriptor_set_layout(self.set_layout, None);
         }
     }
-}
-
-pub fn probe_descriptor_type(r: Resource) -> vk::DescriptorType {
-    descriptor_type(r)
 }

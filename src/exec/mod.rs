@@ -114,14 +114,6 @@ impl Executor {
         })
     }
 
-    pub fn scene(&self) -> &Scene {
-        &self.scene
-    }
-
-    pub fn reference(&self) -> &SceneReference {
-        &self.sref
-    }
-
     /// Run one cell. Never panics on driver misbehaviour; every failure is an outcome.
     pub fn run(&mut self, cell: &Cell) -> CellResult {
         let start = Instant::now();
