@@ -102,7 +102,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             "canaries": a.canaries, "filters": a.filter, "patches": a.patches, "validate": g.validate, "corrupt_expected": a.corrupt_expected,
         }),
         plan: PlanSummary {
-            generated: plan::all_cells().0.len(),
+            generated: the_plan.generated,
             filtered_out: the_plan.filtered_out,
             planned: the_plan.cells.len(),
             to_run: the_plan.to_run().count(),

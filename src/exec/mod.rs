@@ -276,10 +276,8 @@ impl Executor {
                     let a = ResourceArray::create(&self.gpu, Resource::StorageBuffer, slots, &self.submitter, self.opts.timeout)?;
                     self.arrays.insert(Resource::StorageBuffer, a);
                 }
-                let bytes: Vec<u8> = self.arrays[&Resource::StorageBuffer].buffers.iter().flat_map(|b| b.address.to_le_bytes()).collect();
-                let t = Buffer::new(&self.gpu, bytes.len() as u64, vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS, Location::Host, "SSBO address table")?;
-                t.write(0, &bytes);
-                self.ssbo_table = Some(t);
+                let addrs: Vec<u64> = self.arrays[&Resource::StorageBuffer].buffers.iter().map(|b| b.address).collect();
+                self.ssbo_table = Some(resources::address_table(&self.gpu, &addrs, "SSBO address table")?);
             }
             patched_table_address = self.ssbo_table.as_ref().map(|b| b.address).unwrap_or(0);
         }

@@ -4,7 +4,7 @@
 use crate::matrix::Resource;
 use crate::probe;
 use crate::vk::features::PROBE_IMAGE_FORMAT;
-use crate::vk::memory::{transition, Buffer, Image, Location, Transition};
+use crate::vk::memory::{transition, Buffer, Image, Transition};
 use crate::vk::submit::{Submitter, Waited};
 use crate::vk::{Gpu, VkError, VkResultExt};
 use ash::vk;
@@ -112,8 +112,12 @@ pub fn descriptor_type(kind: Resource) -> vk::DescriptorType {
 
 /// A buffer of `slots` device addresses: slot k → TLAS `probe::as_slot_tlas(k)`.
 pub fn as_table(gpu: &Gpu, tlas_addresses: [u64; 2], slots: u32) -> Result<Buffer, VkError> {
-    let bytes: Vec<u8> = (0..slots).flat_map(|k| tlas_addresses[probe::as_slot_tlas(k)].to_le_bytes()).collect();
-    let b = Buffer::new(gpu, bytes.len() as u64, vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS, Location::Host, "AS address table")?;
-    b.write(0, &bytes);
-    Ok(b)
+    let addrs: Vec<u64> = (0..slots).map(|k| tlas_addresses[probe::as_slot_tlas(k)]).collect();
+    address_table(gpu, &addrs, "AS address table")
+}
+
+/// A host-visible buffer holding `addresses` as 64-bit values, itself reachable by address.
+pub fn address_table(gpu: &Gpu, addresses: &[u64], what: &'static str) -> Result<Buffer, VkError> {
+    let bytes: Vec<u8> = addresses.iter().flat_map(|a| a.to_le_bytes()).collect();
+    Buffer::with_data(gpu, &bytes, vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS, what)
 }

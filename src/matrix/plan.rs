@@ -86,6 +86,8 @@ pub struct NotGenerated {
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RunPlan {
+    /// Cells of the full matrix (before filters, support checks and workaround variants).
+    pub generated: usize,
     pub cells: Vec<PlannedCell>,
     pub not_generated: Vec<NotGenerated>,
     pub filtered_out: usize,
@@ -186,7 +188,7 @@ pub fn all_cells() -> (Vec<Cell>, Vec<NotGenerated>) {
 
 pub fn plan(info: &DeviceInfo, opts: &PlanOptions) -> RunPlan {
     let (all, not_generated) = all_cells();
-    let not_generated: Vec<NotGenerated> = not_generated;
+    let generated = all.len();
     let mut not_generated = not_generated;
     let mut cells = Vec::new();
     let mut filtered_out = 0;
@@ -225,7 +227,7 @@ pub fn plan(info: &DeviceInfo, opts: &PlanOptions) -> RunPlan {
         }
     }
     not_generated.extend(not_implemented.into_iter().map(|(rule, count)| NotGenerated { rule: format!("not implemented in rtprobe: {rule}"), count }));
-    RunPlan { cells, not_generated, filtered_out }
+    RunPlan { generated, cells, not_generated, filtered_out }
 }
 
 #[cfg(test)]

@@ -85,6 +85,15 @@ fn quietly<T>(f: impl FnOnce() -> T + std::panic::UnwindSafe) -> Result<T, Strin
     r.map_err(|e| e.downcast_ref::<&str>().map(|s| s.to_string()).or_else(|| e.downcast_ref::<String>().cloned()).unwrap_or_else(|| "panic".into()))
 }
 
+/// Run `f` on a copy of `m`, catching panics; `m` takes the copy only when `f` succeeds, so a
+/// failed patch leaves the module as it was.
+fn on_copy<R>(m: &mut Module, f: impl FnOnce(&mut Module) -> Result<R, PatchError>) -> Result<R, PatchError> {
+    let mut work = m.clone();
+    let r = quietly(std::panic::AssertUnwindSafe(|| f(&mut work))).map_err(PatchError::Internal)??;
+    *m = work;
+    Ok(r)
+}
+
 /// Parse a SPIR-V binary (either endianness). Never panics.
 pub fn load(bytes: &[u8]) -> Result<Module, PatchError> {
     if bytes.len() < 20 {
@@ -129,9 +138,7 @@ pub fn apply(m: &mut Module, patches: &[PatchName], options: &BTreeMap<String, S
                     Some(o) => return Err(PatchError::BadOption { patch: p.as_str(), what: format!("mode={o:?}: use direct or table") }),
                 };
                 let opts = as_to_address::Options { offset: num(p, "offset")?, mode, binding: num(p, "binding")? };
-                let mut work = m.clone();
-                let r = quietly(std::panic::AssertUnwindSafe(|| as_to_address::apply(&mut work, &opts))).map_err(PatchError::Internal)??;
-                *m = work;
+                let r = on_copy(m, |w| as_to_address::apply(w, &opts))?;
                 format!("as-to-address: {} loads rewritten, {} descriptor variables removed, address at push-constant offset {} ({:?} mode)", r.rewritten_loads, r.removed_variables, r.offset, r.mode)
             }
             PatchName::Nonuniform => {
@@ -140,23 +147,17 @@ pub fn apply(m: &mut Module, patches: &[PatchName], options: &BTreeMap<String, S
                     Some("true") => true,
                     Some(o) => return Err(PatchError::BadOption { patch: p.as_str(), what: format!("strip={o:?}: use true or false") }),
                 };
-                let mut work = m.clone();
-                let r = quietly(std::panic::AssertUnwindSafe(|| nonuniform::apply(&mut work, strip))).map_err(PatchError::Internal)??;
-                *m = work;
+                let r = on_copy(m, |w| nonuniform::apply(w, strip))?;
                 if strip { format!("nonuniform: {} NonUniform decorations stripped", r.stripped) } else { format!("nonuniform: {} objects decorated NonUniform", r.decorated) }
             }
             PatchName::PinIndex => {
                 let opts = pin_index::Options { binding: num(p, "binding")?, value: num(p, "value")?.unwrap_or(0), spec_id: num(p, "spec-id")? };
-                let mut work = m.clone();
-                let r = quietly(std::panic::AssertUnwindSafe(|| pin_index::apply(&mut work, &opts))).map_err(PatchError::Internal)??;
-                *m = work;
+                let r = on_copy(m, |w| pin_index::apply(w, &opts))?;
                 format!("pin-index: {} accesses now index with SpecId {} (default {})", r.pinned, r.spec_id, opts.value)
             }
             PatchName::SsboToAddress => {
                 let opts = ssbo_to_address::Options { offset: num(p, "offset")?, binding: num(p, "binding")? };
-                let mut work = m.clone();
-                let r = quietly(std::panic::AssertUnwindSafe(|| ssbo_to_address::apply(&mut work, &opts))).map_err(PatchError::Internal)??;
-                *m = work;
+                let r = on_copy(m, |w| ssbo_to_address::apply(w, &opts))?;
                 format!("ssbo-to-address: {} loads now read through buffer addresses (table address at push-constant offset {})", r.rewritten_loads, r.offset)
             }
         };

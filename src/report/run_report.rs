@@ -203,9 +203,9 @@ impl ReportWriter {
         self.report.recount();
     }
 
-    /// Cells already finished (for --resume).
+    /// Cells already finished (for --resume): every cell the report holds.
     pub fn done(&self) -> std::collections::HashSet<String> {
-        self.report.cells.iter().filter(|c| c.outcome != Outcome::Unsupported || c.attempts.is_empty()).map(|c| c.id.clone()).collect()
+        self.report.cells.iter().map(|c| c.id.clone()).collect()
     }
 
     pub fn record(&mut self, cell: &Cell, attempt: Attempt) {

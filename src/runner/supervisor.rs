@@ -246,7 +246,7 @@ impl Supervisor {
                     if w.generation != gen {
                         continue;
                     }
-                    self.handle(&mut slots[i], i, line, per_cell, on);
+                    self.handle(&mut slots[i], line, per_cell, on);
                 }
                 Err(RecvTimeoutError::Timeout) => self.expire(&mut slots, per_cell, on),
                 Err(RecvTimeoutError::Disconnected) => break,
@@ -254,7 +254,7 @@ impl Supervisor {
         }
     }
 
-    fn handle(&mut self, slot: &mut Slot, _i: usize, line: Line, per_cell: bool, on: &mut dyn FnMut(Event)) {
+    fn handle(&mut self, slot: &mut Slot, line: Line, per_cell: bool, on: &mut dyn FnMut(Event)) {
         let w = slot.worker.as_mut().expect("checked by caller");
         match line {
             Line::Msg(WorkerMsg::Ready { device_ms, reference_ms }) => {
