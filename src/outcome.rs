@@ -55,6 +55,20 @@ impl Outcome {
         }
     }
 
+    /// How bad an attempt's outcome is: a cell's verdict is its worst attempt. Faults of the
+    /// driver rank above a mismatch, which ranks above rtprobe's own errors.
+    pub fn severity(self) -> u8 {
+        match self {
+            Outcome::Pass => 0,
+            Outcome::Unsupported => 1,
+            Outcome::Error => 2,
+            Outcome::Mismatch => 3,
+            Outcome::Timeout => 4,
+            Outcome::Crash => 5,
+            Outcome::DeviceLost => 6,
+        }
+    }
+
     /// Worth re-running alone in a fresh worker (`--confirm`).
     pub fn worth_confirming(self) -> bool {
         match self {
@@ -111,5 +125,13 @@ mod tests {
         }
         assert!(!Outcome::Unsupported.is_finding());
         assert!(Outcome::Crash.ends_worker() && !Outcome::Mismatch.ends_worker());
+        // Severity is a total order over every outcome, and every finding outranks a pass.
+        let mut s: Vec<u8> = Outcome::ALL.iter().map(|o| o.severity()).collect();
+        s.sort();
+        s.dedup();
+        assert_eq!(s.len(), Outcome::ALL.len());
+        for o in Outcome::ALL {
+            assert!(!o.is_finding() || o.severity() > Outcome::Pass.severity());
+        }
     }
 }

@@ -33,7 +33,13 @@ pub fn device_json(info: &DeviceInfo) -> Value {
         "driver_version": { "raw": p.driver_version, "decoded": info.driver_version() },
         "api_version": driver_version::format_api_version(p.api_version),
         "conformance_version": conformance,
+        "driver_uuid": info.properties.v11.map(|v| hex(&v.driver_uuid)),
+        "device_uuid": info.properties.v11.map(|v| hex(&v.device_uuid)),
     })
+}
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
 fn support_map<T: Copy>(all: &[T], name: impl Fn(T) -> &'static str, f: impl Fn(T) -> Support) -> Value {

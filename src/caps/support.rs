@@ -112,6 +112,13 @@ pub fn index(info: &DeviceInfo, i: IndexSource) -> Support {
     }
 }
 
+/// Loads through a raw device address (`--inject-fault` device/flaky): bufferDeviceAddress and
+/// shaderInt64.
+pub fn device_address_loads(info: &DeviceInfo) -> Support {
+    let v12 = info.features.v12.unwrap_or_default();
+    Support::require(&[(on(v12.buffer_device_address), "bufferDeviceAddress"), (on(info.features.core.shader_int64), "shaderInt64")])
+}
+
 pub fn as_access(info: &DeviceInfo, a: AsAccess) -> Support {
     let accel = info.features.accel.is_some_and(|x| on(x.acceleration_structure));
     let v12 = info.features.v12.unwrap_or_default();

@@ -120,9 +120,16 @@ pub struct RunArgs {
     #[arg(long, default_value_t = 16)]
     pub mesh_detail: u32,
 
-    /// Tests only: perturb the expected values so that correct results must mismatch
-    #[arg(long, hide = true)]
-    pub corrupt_expected: bool,
+    /// Make cells misbehave on purpose: `PREDICATE[@KIND]`, PREDICATE in --filter syntax; KIND
+    /// device (default: a load through an invalid address), hang, value[:FRACTION], nan, flaky:P.
+    /// Repeatable; RTPROBE_INJECT_FAULT takes a `;`-separated list. Proves detection on your driver.
+    #[arg(long = "inject-fault", value_name = "PREDICATE[@KIND]", env = "RTPROBE_INJECT_FAULT", value_delimiter = ';')]
+    pub inject_fault: Vec<String>,
+
+    /// Run each faulting cell until it has N attempts (each alone in a fresh worker) and report
+    /// k of N with the chance that a fault of the observed rate would have been missed
+    #[arg(long, value_name = "N")]
+    pub repeat: Option<u32>,
 }
 
 #[derive(Args, Debug)]

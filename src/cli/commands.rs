@@ -54,7 +54,7 @@ pub fn devices(g: &Globals, args: &DevicesArgs) -> Result<u8> {
 /// What the whole matrix (every workaround, canaries) needs of `info`, as far as `info` can run it:
 /// the same rule a worker uses for its own cells.
 pub fn full_requirements(info: &DeviceInfo) -> Requirements {
-    let opts = PlanOptions { filters: vec![], canaries: true, patches: PatchMode::All };
+    let opts = PlanOptions { filters: vec![], canaries: true, patches: PatchMode::All, inject: vec![] };
     let cells: Vec<_> = plan::plan(info, &opts).to_run().copied().collect();
     crate::runner::worker::requirements(info, &cells)
 }

@@ -4,6 +4,7 @@ use super::args::RunArgs;
 use super::commands::{open_instance, Globals};
 use super::exit::{self, coded};
 use crate::caps;
+use crate::matrix::inject::Injection;
 use crate::matrix::plan::{self, Filter, PatchMode, PlanOptions, PlanStatus};
 use crate::reference::SceneReference;
 use crate::report::run_report::{PlanSummary, ReportWriter, RunReport, SceneSummary, TimingSummary, SCHEMA};
@@ -44,6 +45,10 @@ fn slug(name: &str) -> String {
 
 pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     let filters = a.filter.iter().map(|f| Filter::parse(f).map_err(|e| coded(exit::USAGE, e))).collect::<Result<Vec<_>>>()?;
+    let inject = a.inject_fault.iter().filter(|s| !s.trim().is_empty()).map(|s| Injection::parse(s).map_err(|e| coded(exit::USAGE, e))).collect::<Result<Vec<_>>>()?;
+    if a.repeat.is_some_and(|n| n == 0 || n > 1000) {
+        return Err(coded(exit::USAGE, "--repeat must be 1..=1000"));
+    }
     let params = scene_params(a)?;
     if a.jobs.is_some_and(|j| j == 0 || j > 64) {
         return Err(coded(exit::USAGE, "--jobs must be 1..=64"));
@@ -56,7 +61,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     let info = features::select(&all, a.device.as_deref())?.clone();
     drop(all);
     let jobs = a.jobs.unwrap_or_else(|| default_jobs(&info));
-    let the_plan = plan::plan(&info, &PlanOptions { filters: filters.clone(), canaries: a.canaries, patches: a.patches });
+    let the_plan = plan::plan(&info, &PlanOptions { filters: filters.clone(), canaries: a.canaries, patches: a.patches, inject: inject.clone() });
 
     if a.list {
         for pc in &the_plan.cells {
@@ -99,7 +104,8 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         },
         options: json!({
             "jobs": jobs, "isolation": a.isolation, "timeout_s": a.timeout, "confirm": !a.no_confirm,
-            "canaries": a.canaries, "filters": a.filter, "patches": a.patches, "validate": g.validate, "corrupt_expected": a.corrupt_expected,
+            "canaries": a.canaries, "filters": a.filter, "patches": a.patches, "validate": g.validate,
+            "inject": inject.iter().map(|i| i.spec.clone()).collect::<Vec<_>>(), "repeat": a.repeat,
         }),
         plan: PlanSummary {
             generated: the_plan.generated,
@@ -110,15 +116,14 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             not_generated: the_plan.not_generated.clone(),
         },
         summary: Default::default(),
+        tally: Default::default(),
         timing: TimingSummary::default(),
         cells: vec![],
     };
     let base = match &a.resume {
         Some(r) => {
             let old = RunReport::load(r).map_err(|e| coded(exit::BAD_INPUT, e))?;
-            if old.device["name"] != fresh.device["name"] || old.scene.params != params {
-                return Err(coded(exit::BAD_INPUT, format!("{} was made on another device or scene; resume needs the same --device and scene options", r.display())));
-            }
+            resumable(&old, &fresh).map_err(|why| coded(exit::BAD_INPUT, format!("cannot resume {}: {why}; start a new run instead", r.display())))?;
             RunReport { command_line: fresh.command_line.clone(), complete: false, finished: None, ..old }
         }
         None => fresh,
@@ -140,7 +145,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         setup_timeout: Duration::from_secs(120),
         grace: Duration::from_millis(500),
         validate: g.validate,
-        corrupt_expected: a.corrupt_expected,
+        inject: inject.clone(),
         dump: a.dump.clone(),
         job_dir: job_dir.clone(),
     });
@@ -163,14 +168,27 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             sup.run(&again, true, &mut |ev| st.on_event(ev));
         }
     }
+    if let Some(n) = a.repeat {
+        // Every faulting cell gets n attempts in all, each alone in a fresh worker.
+        loop {
+            let more: Vec<_> = st.writer.report.findings().filter(|c| (c.attempts.len() as u32) < n).map(|c| c.cell).collect();
+            if more.is_empty() {
+                break;
+            }
+            st.bar.inc_length(more.len() as u64);
+            sup.run(&more, true, &mut |ev| st.on_event(ev));
+        }
+    }
     if a.patches == PatchMode::Faults {
-        // Retry every faulting cell with each workaround that applies and that the device can run.
+        // Retry every faulting cell with each workaround that applies and that the device can
+        // run (not again after a resume).
+        let done = st.writer.done();
         let retries: Vec<_> = st
             .writer
             .report
             .findings()
             .flat_map(|c| c.cell.applicable_patches().into_iter().map(move |p| crate::matrix::Cell { patch: Some(p), ..c.cell }))
-            .filter(|c| plan::device_support(&info, c).is_supported())
+            .filter(|c| plan::device_support(&info, c).is_supported() && !done.contains(&c.id()))
             .collect();
         if !retries.is_empty() {
             st.bar.inc_length(retries.len() as u64);
@@ -199,7 +217,37 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     }
     print!("{}", summary::render(&writer.report));
     println!("report: {}", out.display());
-    Ok(if writer.report.findings().next().is_some() { exit::FINDINGS } else { exit::OK })
+    Ok(exit_code(&writer.report))
+}
+
+/// Findings first (exit 1), then canaries whose fault went undetected (exit 11).
+fn exit_code(r: &RunReport) -> u8 {
+    if r.findings().next().is_some() {
+        exit::FINDINGS
+    } else if r.undetected_canaries().next().is_some() {
+        exit::CANARY_UNDETECTED
+    } else {
+        exit::OK
+    }
+}
+
+/// Whether `old` can be continued by a run that would write `fresh`: same device identity and
+/// the same options that change results. Says what differs.
+fn resumable(old: &RunReport, fresh: &RunReport) -> Result<(), String> {
+    for key in ["name", "driver_version", "api_version", "driver_uuid", "device_uuid"] {
+        if old.device[key] != fresh.device[key] {
+            return Err(format!("it was made on another device ({key} {} here {})", old.device[key], fresh.device[key]));
+        }
+    }
+    if old.scene.params != fresh.scene.params {
+        return Err(format!("its scene differs (size, seed, instances or mesh detail: {:?} here {:?})", old.scene.params, fresh.scene.params));
+    }
+    for key in ["patches", "inject", "filters", "canaries", "validate"] {
+        if old.options[key] != fresh.options[key] {
+            return Err(format!("its --{} differs ({} here {})", key.replace('_', "-"), old.options[key], fresh.options[key]));
+        }
+    }
+    Ok(())
 }
 
 struct RunState {
@@ -225,5 +273,57 @@ impl RunState {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::matrix::{Canary, Cell};
+    use crate::outcome::Outcome;
+    use crate::report::run_report::CellReport;
+    use crate::runner::supervisor::Attempt;
+
+    fn report(cells: Vec<CellReport>) -> RunReport {
+        let mut r = RunReport {
+            schema: SCHEMA.into(),
+            tool: json!({}),
+            command_line: vec![],
+            started: String::new(),
+            finished: None,
+            complete: true,
+            device: json!({}),
+            matrix_support: json!({}),
+            scene: SceneSummary { params: SceneParams::default(), instances: 16, blas: 4, triangles: 0, ambiguous_pixels: 0 },
+            options: json!({}),
+            plan: PlanSummary { generated: 0, filtered_out: 0, planned: cells.len(), to_run: cells.len(), unsupported: 0, not_generated: vec![] },
+            summary: Default::default(),
+            tally: Default::default(),
+            timing: TimingSummary::default(),
+            cells,
+        };
+        r.recount();
+        r
+    }
+
+    fn ran(cell: Cell, outcome: Outcome) -> CellReport {
+        CellReport::new(&cell, Attempt { outcome, isolated: false, detail: None, result: None, worker_exit: None, injected: None, wall_ms: 0.0 })
+    }
+
+    #[test]
+    fn an_undetected_canary_fails_the_run_and_a_detected_one_does_not() {
+        let detected = report(vec![ran(Cell::canary(Canary::InvalidAddress), Outcome::Crash), ran(Cell::canary(Canary::InfiniteLoop), Outcome::Timeout)]);
+        assert_eq!(exit_code(&detected), exit::OK);
+        assert_eq!(detected.tally.canaries_detected, 2);
+        assert_eq!(detected.summary["crash"], 0, "a detected canary is not a crash finding");
+        let junit = crate::report::junit::render(&detected);
+        assert!(junit.contains("failures=\"0\""), "{junit}");
+        // A driver on which the invalid read ran to completion: classification unproven.
+        let undetected = report(vec![ran(Cell::canary(Canary::InvalidAddress), Outcome::Pass)]);
+        assert_eq!(exit_code(&undetected), exit::CANARY_UNDETECTED);
+        assert_eq!(undetected.tally.canaries_undetected, 1);
+        let junit = crate::report::junit::render(&undetected);
+        assert!(junit.contains("failures=\"1\"") && junit.contains("canary_undetected"), "{junit}");
+        assert!(crate::report::summary::render(&undetected).contains("NOT detected"));
     }
 }

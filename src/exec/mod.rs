@@ -7,6 +7,7 @@ pub mod pipeline;
 pub mod resources;
 
 use crate::matrix::{Canary, Cell, Resource};
+use crate::matrix::inject::InjectedFault;
 use crate::outcome::{CellResult, Outcome, Timings};
 use crate::probe::{self, Record, RECORD_SIZE};
 use crate::reference::{self, SceneReference};
@@ -31,8 +32,10 @@ pub const CANARY_BAD_ADDRESS: u64 = 0xdead_0000_0000;
 pub struct ExecOptions {
     /// Fence deadline per submission.
     pub timeout: Duration,
-    /// Tests only: perturb expected values so correct results must mismatch.
-    pub corrupt_expected: bool,
+    /// `--inject-fault`: cells matching one of these misbehave at the probed read.
+    pub inject: Vec<crate::matrix::inject::Injection>,
+    /// Seed of this worker's flaky-injection dice (recorded in each injected result).
+    pub inject_seed: u64,
     /// Write each cell's GLSL and SPIR-V under this folder.
     pub dump: Option<PathBuf>,
 }
@@ -119,7 +122,8 @@ impl Executor {
         let start = Instant::now();
         let validation_before = crate::vk::instance::validation_error_count();
         let mut timings = Timings::default();
-        let result = self.try_run(cell, &mut timings);
+        let injected = crate::matrix::inject::roll(&self.opts.inject, cell, self.opts.inject_seed);
+        let result = self.try_run(cell, injected.as_ref(), &mut timings);
         let mut out = match result {
             Ok(records) => {
                 let t = Instant::now();
@@ -157,7 +161,7 @@ impl Executor {
         if let Some(c) = cell.canary {
             return none(Outcome::Pass, &format!("canary {} ran to completion: this driver did not fault on it", c.as_str()));
         }
-        let expected = reference::expected(cell, &self.scene, &self.sref, self.opts.corrupt_expected);
+        let expected = reference::expected(cell, &self.scene, &self.sref, false);
         let cmp = reference::compare(&expected, records, self.scene.params.width);
         let outcome = if cmp.passed() { Outcome::Pass } else { Outcome::Mismatch };
         let detail = (!cmp.passed()).then(|| format!("{} of {} compared pixels differ ({:?})", cmp.mismatched_pixels, cmp.compared, cmp.by_field));
@@ -199,8 +203,8 @@ impl Executor {
         Ok(t)
     }
 
-    fn try_run(&mut self, cell: &Cell, timings: &mut Timings) -> Result<Vec<Record>, CellError> {
-        let shaders = shadergen::generate(&shadergen::source_cell(cell));
+    fn try_run(&mut self, cell: &Cell, injected: Option<&InjectedFault>, timings: &mut Timings) -> Result<Vec<Record>, CellError> {
+        let shaders = shadergen::generate_with(&shadergen::source_cell(cell), injected.map(|i| i.fault));
         // SPIR-V
         let mut spirv = Vec::new();
         for s in &shaders.shaders {
@@ -319,11 +323,14 @@ impl Executor {
 
         // push constants
         let mut pc = Vec::with_capacity(40);
-        for v in [w, h, probe::PUSH_SLOT, probe::DYNAMIC_BASE, self.slots(), u32::from(cell.canary == Some(Canary::InfiniteLoop))] {
+        let fault = injected.map(|i| i.fault);
+        let loop_forever = cell.canary == Some(Canary::InfiniteLoop) || fault == Some(crate::matrix::inject::FaultKind::Hang);
+        for v in [w, h, probe::PUSH_SLOT, probe::DYNAMIC_BASE, self.slots(), u32::from(loop_forever)] {
             pc.extend_from_slice(&v.to_le_bytes());
         }
         pc.extend_from_slice(&as_table_address.to_le_bytes());
-        let bad = if cell.canary == Some(Canary::InvalidAddress) { CANARY_BAD_ADDRESS } else { 0 };
+        let injected_bad = injected.is_some_and(|i| i.fault.reads_bad_address() && i.armed != Some(false));
+        let bad = if cell.canary == Some(Canary::InvalidAddress) || injected_bad { CANARY_BAD_ADDRESS } else { 0 };
         pc.extend_from_slice(&bad.to_le_bytes());
         // offset 40: the table address of modules rewritten by the address patches
         pc.extend_from_slice(&patched_table_address.to_le_bytes());

@@ -2,6 +2,7 @@
 //! plan built from options and device features before any GPU work.
 pub mod axes;
 pub mod cell;
+pub mod inject;
 pub mod plan;
 
 pub use axes::{AsAccess, DescriptorModel, IndexSource, Resource, Stage};

@@ -119,6 +119,8 @@ pub struct PlanOptions {
     pub filters: Vec<Filter>,
     pub canaries: bool,
     pub patches: PatchMode,
+    /// `--inject-fault`: an injected invalid-address load needs what address probes need.
+    pub inject: Vec<super::inject::Injection>,
 }
 
 /// Why the device cannot run `cell`, from its queried features; `None` when it can.
@@ -196,7 +198,11 @@ pub fn plan(info: &DeviceInfo, opts: &PlanOptions) -> RunPlan {
     // the rules that kept combinations out.
     let mut not_implemented: std::collections::BTreeMap<String, usize> = Default::default();
     let mut push = |cell: Cell, cells: &mut Vec<PlannedCell>| {
-        let status = match device_support(info, &cell) {
+        let mut support = device_support(info, &cell);
+        if super::inject::for_cell(&opts.inject, &cell).is_some_and(|i| i.fault.reads_bad_address()) {
+            support = Support::all(vec![support, support::device_address_loads(info)]);
+        }
+        let status = match support {
             Support::Supported => PlanStatus::Run,
             Support::Unsupported { reason } => PlanStatus::Unsupported { reason },
             Support::NotImplemented { reason } => {

@@ -17,8 +17,17 @@ fn esc(s: &str) -> String {
         .collect()
 }
 
+/// Whether the JUnit testcase fails: a finding of a probe cell (flaky ones too), or a canary
+/// whose fault was not detected. A detected canary is a success.
+fn fails(c: &super::run_report::CellReport) -> bool {
+    match &c.canary_check {
+        Some(chk) => !chk.detected,
+        None => c.outcome.is_finding(),
+    }
+}
+
 pub fn render(r: &RunReport) -> String {
-    let failures = r.cells.iter().filter(|c| c.outcome.is_finding()).count();
+    let failures = r.cells.iter().filter(|c| fails(c)).count();
     let skipped = r.cells.iter().filter(|c| c.outcome == Outcome::Unsupported).count();
     let mut s = format!(
         "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuites>\n<testsuite name=\"rtprobe\" tests=\"{}\" failures=\"{failures}\" skipped=\"{skipped}\">\n",
@@ -29,11 +38,24 @@ pub fn render(r: &RunReport) -> String {
         let secs = c.attempts.last().map(|a| a.wall_ms / 1e3).unwrap_or(0.0);
         s += &format!("  <testcase classname=\"{}\" name=\"{}\" time=\"{secs:.3}\">", esc(&class), esc(&c.id));
         let reason = esc(c.reason.as_deref().unwrap_or(""));
-        match c.outcome {
-            Outcome::Pass => {}
-            Outcome::Unsupported => s += &format!("<skipped message=\"{reason}\"/>"),
-            Outcome::Mismatch | Outcome::DeviceLost | Outcome::Crash | Outcome::Timeout | Outcome::Error => {
-                s += &format!("<failure type=\"{}\" message=\"{reason}\"/>", c.outcome.as_str())
+        if let Some(inc) = c.incidence.as_ref().filter(|_| c.flaky) {
+            s += &format!("<properties><property name=\"flaky\" value=\"{}\"/></properties>", esc(&inc.label()));
+        }
+        if let Some(chk) = &c.canary_check {
+            let expected: Vec<&str> = chk.expected.iter().map(|o| o.as_str()).collect();
+            s += &if chk.detected {
+                format!("<system-out>canary detected: {} (expected {})</system-out>", c.outcome.as_str(), expected.join(" or "))
+            } else {
+                format!("<failure type=\"canary_undetected\" message=\"expected {}, got {}: {reason}\"/>", expected.join(" or "), c.outcome.as_str())
+            };
+        } else {
+            match c.outcome {
+                Outcome::Pass => {}
+                Outcome::Unsupported => s += &format!("<skipped message=\"{reason}\"/>"),
+                Outcome::Mismatch | Outcome::DeviceLost | Outcome::Crash | Outcome::Timeout | Outcome::Error => {
+                    let kind = if c.flaky { format!("{} (flaky)", c.outcome.as_str()) } else { c.outcome.as_str().to_string() };
+                    s += &format!("<failure type=\"{}\" message=\"{reason}\"/>", esc(&kind))
+                }
             }
         }
         s += "</testcase>\n";

@@ -33,12 +33,22 @@ pub struct CellReport {
     pub id: String,
     #[serde(flatten)]
     pub cell: Cell,
+    /// The verdict: the worst outcome of all attempts (a fault seen once stays a finding).
     pub outcome: Outcome,
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub reason: Option<String>,
-    /// `Some(true)` when a re-run alone in a fresh worker gave the same outcome.
+    /// With several attempts: `Some(true)` when the verdict's fault was seen more than once.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub confirmed: Option<bool>,
+    /// How often the cell faulted, for a cell with a finding.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub incidence: Option<Incidence>,
+    /// The attempts disagree (some faulted, some did not, or they faulted differently).
+    #[serde(skip_serializing_if = "std::ops::Not::not", default)]
+    pub flaky: bool,
+    /// The `--inject-fault` argument that made this cell misbehave on purpose.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub injected: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub canary_check: Option<CanaryCheck>,
     /// For a cell with a finding: each workaround tried and its outcome.
@@ -46,6 +56,92 @@ pub struct CellReport {
     pub workarounds: Vec<WorkaroundResult>,
     #[serde(default)]
     pub attempts: Vec<Attempt>,
+}
+
+/// `faulted` of `attempts` attempts were findings.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Incidence {
+    pub faulted: u32,
+    pub attempts: u32,
+    /// Whether any attempt that ran alone in a fresh worker faulted (None: none ran alone).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub reproduced_alone: Option<bool>,
+    /// The chance that a fault of the observed rate (faulted / attempts) would pass all of
+    /// `attempts` attempts: `(1 - faulted/attempts)^attempts` (binomial, independent attempts).
+    pub miss_probability: f64,
+}
+
+impl Incidence {
+    pub fn rate(&self) -> f64 {
+        self.faulted as f64 / self.attempts.max(1) as f64
+    }
+
+    /// `1 of 2 attempts; not reproduced alone`
+    pub fn label(&self) -> String {
+        let mut s = format!("{} of {} attempts", self.faulted, self.attempts);
+        match self.reproduced_alone {
+            Some(false) => s += "; not reproduced alone",
+            Some(true) | None => {}
+        }
+        if self.faulted < self.attempts {
+            s += &format!("; {:.2}% chance that {} attempts miss a fault of this rate", 100.0 * self.miss_probability, self.attempts);
+        }
+        s
+    }
+}
+
+/// The chance that `n` independent attempts all pass when each faults with probability `p`.
+pub fn miss_probability(p: f64, n: u32) -> f64 {
+    (1.0 - p.clamp(0.0, 1.0)).powi(n as i32)
+}
+
+impl CellReport {
+    /// A cell with its first attempt.
+    pub fn new(cell: &Cell, attempt: Attempt) -> Self {
+        let mut c = CellReport {
+            id: cell.id(),
+            cell: *cell,
+            outcome: attempt.outcome,
+            reason: None,
+            confirmed: None,
+            incidence: None,
+            flaky: false,
+            injected: None,
+            canary_check: None,
+            workarounds: vec![],
+            attempts: vec![attempt],
+        };
+        c.refresh();
+        c
+    }
+
+    /// Recompute the verdict from every attempt: the worst outcome, its incidence, whether the
+    /// attempts disagree, and (for a canary) whether the fault was detected.
+    pub fn refresh(&mut self) {
+        let Some(worst) = self.attempts.iter().max_by_key(|a| a.outcome.severity()) else { return };
+        let (outcome, detail) = (worst.outcome, worst.detail.clone());
+        let n = self.attempts.len() as u32;
+        let k = self.attempts.iter().filter(|a| a.outcome.is_finding()).count() as u32;
+        let alone: Vec<&Attempt> = self.attempts.iter().skip(1).filter(|a| a.isolated).collect();
+        self.outcome = outcome;
+        self.flaky = self.attempts.iter().any(|a| a.outcome != outcome);
+        self.confirmed = (n > 1).then(|| self.attempts.iter().filter(|a| a.outcome == outcome).count() > 1);
+        self.incidence = outcome.is_finding().then(|| Incidence {
+            faulted: k,
+            attempts: n,
+            reproduced_alone: (!alone.is_empty()).then(|| alone.iter().any(|a| a.outcome.is_finding())),
+            miss_probability: miss_probability(k as f64 / n as f64, n),
+        });
+        self.injected = self.attempts.iter().find_map(|a| a.injected.as_ref()).map(|i| i.spec.clone());
+        self.reason = match (&self.incidence, detail) {
+            (Some(inc), d) if n > 1 => Some(format!("{} ({})", d.unwrap_or_else(|| outcome.as_str().into()), inc.label())),
+            (_, d) => d,
+        };
+        self.canary_check = self.cell.canary.map(|c| {
+            let expected = canary_expectation(c);
+            CanaryCheck { detected: expected.contains(&outcome), expected }
+        });
+    }
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -76,6 +172,17 @@ pub struct SceneSummary {
     pub triangles: usize,
     /// Pixels skipped by the comparison because their primary hit lies within the margin.
     pub ambiguous_pixels: usize,
+}
+
+/// What the run found, beside the outcome counts.
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+pub struct Tally {
+    /// Probe cells with a finding (their worst attempt faulted or mismatched).
+    pub findings: usize,
+    /// Findings whose attempts disagree.
+    pub flaky: usize,
+    pub canaries_detected: usize,
+    pub canaries_undetected: usize,
 }
 
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
@@ -111,21 +218,39 @@ pub struct RunReport {
     pub options: Value,
     pub plan: PlanSummary,
     pub summary: BTreeMap<String, usize>,
+    #[serde(default)]
+    pub tally: Tally,
     pub timing: TimingSummary,
     pub cells: Vec<CellReport>,
 }
 
 impl RunReport {
     /// The outcome counts, every outcome present.
+    /// The outcome counts of the probe cells (every outcome present; canaries are tallied apart,
+    /// since their expected outcome is a fault), and the tally of findings, flaky cells and
+    /// canaries.
     pub fn recount(&mut self) {
         let mut m = BTreeMap::new();
         for o in Outcome::ALL {
             m.insert(o.as_str().to_string(), 0);
         }
+        let mut t = Tally::default();
         for c in &self.cells {
-            *m.entry(c.outcome.as_str().to_string()).or_default() += 1;
+            match &c.canary_check {
+                Some(chk) if chk.detected => t.canaries_detected += 1,
+                Some(_) => t.canaries_undetected += 1,
+                None => *m.entry(c.outcome.as_str().to_string()).or_default() += 1,
+            }
         }
+        t.findings = self.findings().count();
+        t.flaky = self.findings().filter(|c| c.flaky).count();
         self.summary = m;
+        self.tally = t;
+    }
+
+    /// Canaries whose fault rtprobe did not classify as expected: detection is unproven.
+    pub fn undetected_canaries(&self) -> impl Iterator<Item = &CellReport> {
+        self.cells.iter().filter(|c| c.canary_check.as_ref().is_some_and(|k| !k.detected))
     }
 
     /// Cells with a finding (canaries and workaround variants excluded).
@@ -179,6 +304,9 @@ impl ReportWriter {
                         outcome: Outcome::Unsupported,
                         reason: Some(reason.clone()),
                         confirmed: None,
+                        incidence: None,
+                        flaky: false,
+                        injected: None,
                         canary_check: None,
                         workarounds: vec![],
                         attempts: vec![],
@@ -203,9 +331,10 @@ impl ReportWriter {
         self.report.recount();
     }
 
-    /// Cells already finished (for --resume): every cell the report holds.
+    /// Cells already run (for --resume): every cell with an attempt. Follow-ups (confirmation,
+    /// repeats, workarounds) are chosen from the report's state, so a resumed run finishes them.
     pub fn done(&self) -> std::collections::HashSet<String> {
-        self.report.cells.iter().map(|c| c.id.clone()).collect()
+        self.report.cells.iter().filter(|c| !c.attempts.is_empty()).map(|c| c.id.clone()).collect()
     }
 
     pub fn record(&mut self, cell: &Cell, attempt: Attempt) {
@@ -224,29 +353,13 @@ impl ReportWriter {
             t.cells_timed += 1;
         }
         match self.report.cells.iter_mut().find(|c| c.id == id) {
+            // An unsupported entry of an older plan (resume) is replaced by what ran.
+            Some(existing) if existing.attempts.is_empty() => *existing = CellReport::new(cell, attempt),
             Some(existing) => {
-                let first = existing.attempts.first().map(|a| a.outcome);
-                existing.confirmed = first.map(|f| f == attempt.outcome);
-                existing.outcome = attempt.outcome;
-                existing.reason = attempt.detail.clone();
                 existing.attempts.push(attempt);
+                existing.refresh();
             }
-            None => {
-                let canary_check = cell.canary.map(|c| {
-                    let expected = canary_expectation(c);
-                    CanaryCheck { detected: expected.contains(&attempt.outcome), expected }
-                });
-                self.report.cells.push(CellReport {
-                    id,
-                    cell: *cell,
-                    outcome: attempt.outcome,
-                    reason: attempt.detail.clone(),
-                    confirmed: None,
-                    canary_check,
-                    workarounds: vec![],
-                    attempts: vec![attempt],
-                });
-            }
+            None => self.report.cells.push(CellReport::new(cell, attempt)),
         }
         self.sort();
     }
@@ -255,5 +368,59 @@ impl ReportWriter {
     pub fn save(&self, pretty: bool) -> Result<(), crate::report::atomic::WriteError> {
         let bytes = if pretty { serde_json::to_vec_pretty(&self.report) } else { serde_json::to_vec(&self.report) }.expect("report serializes");
         crate::report::atomic::write_atomic_with(&self.path, &bytes, pretty)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::matrix::{DescriptorModel, IndexSource, Resource, Stage};
+
+    fn cell() -> Cell {
+        Cell { stage: Stage::ClosestHit, resource: Resource::StorageBuffer, index: IndexSource::Dynamic, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, canary: None, patch: None }
+    }
+
+    fn attempt(outcome: Outcome, isolated: bool) -> Attempt {
+        Attempt { outcome, isolated, detail: Some(format!("{} happened", outcome.as_str())), result: None, worker_exit: None, injected: None, wall_ms: 1.0 }
+    }
+
+    #[test]
+    fn a_fault_that_does_not_repeat_alone_stays_the_verdict() {
+        let mut c = CellReport::new(&cell(), attempt(Outcome::DeviceLost, false));
+        c.attempts.push(attempt(Outcome::Pass, true));
+        c.refresh();
+        assert_eq!(c.outcome, Outcome::DeviceLost);
+        assert!(c.flaky);
+        assert_eq!(c.confirmed, Some(false));
+        let inc = c.incidence.clone().unwrap();
+        assert_eq!((inc.faulted, inc.attempts, inc.reproduced_alone), (1, 2, Some(false)));
+        assert!((inc.miss_probability - 0.25).abs() < 1e-12);
+        assert!(c.reason.as_deref().unwrap().contains("1 of 2 attempts; not reproduced alone"), "{:?}", c.reason);
+    }
+
+    #[test]
+    fn the_worst_attempt_wins_in_any_order_and_repeats_confirm() {
+        for order in [[Outcome::Pass, Outcome::Mismatch], [Outcome::Mismatch, Outcome::Pass]] {
+            let mut c = CellReport::new(&cell(), attempt(order[0], false));
+            c.attempts.push(attempt(order[1], true));
+            c.refresh();
+            assert_eq!(c.outcome, Outcome::Mismatch);
+            assert!(c.flaky);
+        }
+        let mut c = CellReport::new(&cell(), attempt(Outcome::Crash, false));
+        c.attempts.push(attempt(Outcome::Crash, true));
+        c.refresh();
+        assert_eq!((c.outcome, c.flaky, c.confirmed), (Outcome::Crash, false, Some(true)));
+        assert_eq!(c.incidence.as_ref().unwrap().miss_probability, 0.0);
+        assert_eq!(c.incidence.as_ref().unwrap().reproduced_alone, Some(true));
+        let pass = CellReport::new(&cell(), attempt(Outcome::Pass, false));
+        assert!(pass.incidence.is_none() && !pass.flaky && pass.confirmed.is_none());
+    }
+
+    #[test]
+    fn miss_probability_is_binomial() {
+        assert!((miss_probability(0.5, 8) - 1.0 / 256.0).abs() < 1e-15);
+        assert_eq!(miss_probability(1.0, 3), 0.0);
+        assert_eq!(miss_probability(0.0, 3), 1.0);
     }
 }

@@ -34,11 +34,16 @@ pub fn render(r: &RunReport) -> String {
         let chk = c.canary_check.as_ref().expect("filtered");
         let _ = writeln!(
             s,
-            "canary {}: {} ({})",
+            "canary {}: {} {} ({})",
             c.id,
+            if chk.detected { "✅" } else { "❌" },
             c.outcome.as_str(),
-            if chk.detected { "detected as expected" } else { "NOT detected: fault classification unproven on this driver" }
+            if chk.detected { "detected as expected" } else { "NOT detected: fault classification unproven on this driver; the run fails" }
         );
+    }
+    if !r.options["inject"].as_array().is_none_or(|a| a.is_empty()) {
+        let injected = r.cells.iter().filter(|c| c.injected.is_some()).count();
+        let _ = writeln!(s, "fault injection: {injected} cells misbehave on purpose ({})", r.options["inject"]);
     }
     let vcells: Vec<_> = r.cells.iter().filter(|c| c.attempts.iter().any(|a| a.result.as_ref().is_some_and(|x| x.validation_errors > 0))).collect();
     if !vcells.is_empty() {
@@ -48,14 +53,12 @@ pub fn render(r: &RunReport) -> String {
     if findings.is_empty() {
         let _ = writeln!(s, "no faults or mismatches");
     } else {
-        let _ = writeln!(s, "findings ({}):", findings.len());
+        let flaky = findings.iter().filter(|c| c.flaky).count();
+        let _ = writeln!(s, "findings ({}{}):", findings.len(), if flaky > 0 { format!(", {flaky} flaky") } else { String::new() });
         for c in findings.iter().take(40) {
-            let conf = match c.confirmed {
-                Some(true) => " [confirmed alone]",
-                Some(false) => " [NOT reproduced alone]",
-                None => "",
-            };
-            let _ = writeln!(s, "  {} {:<12} {}{} — {}", mark(c.outcome), c.outcome.as_str(), c.id, conf, c.reason.as_deref().unwrap_or(""));
+            // The reason already carries "k of N attempts"; a flaky cell says so up front.
+            let tag = if c.flaky { " [FLAKY]" } else { "" };
+            let _ = writeln!(s, "  {} {:<12} {}{} — {}", mark(c.outcome), c.outcome.as_str(), c.id, tag, c.reason.as_deref().unwrap_or(""));
             if !c.workarounds.is_empty() {
                 let verified: Vec<&str> = c.workarounds.iter().filter(|w| w.verified).map(|w| w.patch.as_str()).collect();
                 let tried: Vec<String> = c.workarounds.iter().map(|w| format!("{} → {}", w.patch.as_str(), w.outcome.as_str())).collect();

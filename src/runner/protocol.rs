@@ -15,7 +15,12 @@ pub struct WorkerJob {
     /// Fence deadline inside the worker (shorter than the supervisor's hard deadline).
     pub fence_timeout_ms: u64,
     pub validate: bool,
-    pub corrupt_expected: bool,
+    /// `--inject-fault` injections (the worker applies the first that matches each cell).
+    #[serde(default)]
+    pub inject: Vec<crate::matrix::inject::Injection>,
+    /// Seed of the flaky-injection dice.
+    #[serde(default)]
+    pub inject_seed: u64,
     pub dump: Option<PathBuf>,
     pub cells: Vec<Cell>,
 }

@@ -38,7 +38,8 @@ pub struct SupervisorOptions {
     pub setup_timeout: Duration,
     pub grace: Duration,
     pub validate: bool,
-    pub corrupt_expected: bool,
+    /// `--inject-fault`, passed to every worker.
+    pub inject: Vec<crate::matrix::inject::Injection>,
     pub dump: Option<PathBuf>,
     pub job_dir: PathBuf,
 }
@@ -67,6 +68,9 @@ pub struct Attempt {
     /// How the worker ended, when it ended during this cell.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub worker_exit: Option<WorkerExit>,
+    /// The fault `--inject-fault` put into this attempt (recorded even when the worker died).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub injected: Option<crate::matrix::inject::InjectedFault>,
     pub wall_ms: f64,
 }
 
@@ -128,6 +132,8 @@ fn exit_of(status: Option<std::process::ExitStatus>, stderr: &Arc<Mutex<String>>
 
 pub struct Supervisor {
     opts: SupervisorOptions,
+    /// The dice seed of the worker each cell was last sent to (`--inject-fault flaky`).
+    seeds: std::rc::Rc<std::cell::RefCell<std::collections::HashMap<String, u64>>>,
     tx: Sender<(usize, u64, Line)>,
     rx: Receiver<(usize, u64, Line)>,
     generation: u64,
@@ -136,18 +142,23 @@ pub struct Supervisor {
 impl Supervisor {
     pub fn new(opts: SupervisorOptions) -> Self {
         let (tx, rx) = channel();
-        Supervisor { opts, tx, rx, generation: 0 }
+        Supervisor { opts, tx, rx, generation: 0, seeds: Default::default() }
     }
 
     fn spawn(&mut self, slot: usize, cells: Vec<Cell>) -> std::io::Result<Worker> {
         self.generation += 1;
         let gen = self.generation;
+        let seed = inject_seed(gen);
+        for c in &cells {
+            self.seeds.borrow_mut().insert(c.id(), seed);
+        }
         let job = WorkerJob {
             device_index: self.opts.device_index,
             scene: self.opts.scene,
             fence_timeout_ms: (self.opts.timeout.as_millis() as u64 * 8 / 10).max(100),
             validate: self.opts.validate,
-            corrupt_expected: self.opts.corrupt_expected,
+            inject: self.opts.inject.clone(),
+            inject_seed: seed,
             dump: self.opts.dump.clone(),
             cells,
         };
@@ -204,6 +215,19 @@ impl Supervisor {
     /// Run `cells`, calling `on` for each attempt as it finishes. `isolated` forces one fresh
     /// worker per cell.
     pub fn run(&mut self, cells: &[Cell], isolated: bool, on: &mut dyn FnMut(Event)) {
+        // Every attempt records what was injected into it, worked out as the worker did.
+        let inject = self.opts.inject.clone();
+        let seeds = self.seeds.clone();
+        let mut tagged = |ev: Event| match ev {
+            Event::Attempt { cell, mut attempt } => {
+                if let Some(seed) = seeds.borrow().get(&cell.id()).copied() {
+                    attempt.injected = crate::matrix::inject::roll(&inject, cell, seed);
+                }
+                on(Event::Attempt { cell, attempt })
+            }
+            other => on(other),
+        };
+        let on: &mut dyn FnMut(Event) = &mut tagged;
         let per_cell = isolated || self.opts.isolation == Isolation::ProcessPerCell;
         let jobs = self.opts.jobs.max(1).min(cells.len().max(1));
         let chunk = cells.len().div_ceil(jobs).max(1);
@@ -218,7 +242,7 @@ impl Supervisor {
                         Err(e) => {
                             let msg = format!("cannot start a worker: {e}");
                             for c in slots[i].queue.drain(..) {
-                                on(Event::Attempt { cell: &c, attempt: Attempt { outcome: Outcome::Error, isolated: per_cell, detail: Some(msg.clone()), result: None, worker_exit: None, wall_ms: 0.0 } });
+                                on(Event::Attempt { cell: &c, attempt: Attempt { outcome: Outcome::Error, isolated: per_cell, detail: Some(msg.clone()), result: None, worker_exit: None, injected: None, wall_ms: 0.0 } });
                             }
                         }
                     }
@@ -278,6 +302,7 @@ impl Supervisor {
                         detail: result.detail.clone(),
                         result: Some(result),
                         worker_exit: None,
+                        injected: None,
                         wall_ms: since.elapsed().as_secs_f64() * 1e3,
                     };
                     on(Event::Attempt { cell: &c, attempt });
@@ -295,7 +320,7 @@ impl Supervisor {
                 for c in slot.queue.drain(..) {
                     on(Event::Attempt {
                         cell: &c,
-                        attempt: Attempt { outcome: Outcome::Error, isolated: per_cell, detail: Some(format!("worker could not start: {message}")), result: None, worker_exit: Some(exit.clone()), wall_ms: 0.0 },
+                        attempt: Attempt { outcome: Outcome::Error, isolated: per_cell, detail: Some(format!("worker could not start: {message}")), result: None, worker_exit: Some(exit.clone()), injected: None, wall_ms: 0.0 },
                     });
                 }
             }
@@ -316,13 +341,13 @@ impl Supervisor {
                         (None, Some(c)) => format!("worker exited with code {c} mid-cell"),
                         (None, None) => "worker vanished mid-cell".into(),
                     };
-                    on(Event::Attempt { cell: &cell, attempt: Attempt { outcome, isolated: per_cell, detail: Some(detail), result: None, worker_exit: Some(exit), wall_ms: since.elapsed().as_secs_f64() * 1e3 } });
+                    on(Event::Attempt { cell: &cell, attempt: Attempt { outcome, isolated: per_cell, detail: Some(detail), result: None, worker_exit: Some(exit), injected: None, wall_ms: since.elapsed().as_secs_f64() * 1e3 } });
                 } else if !w.ready {
                     slot.setup_failures += 1;
                     if slot.setup_failures >= 2 {
                         let detail = format!("worker died during setup twice (exit {:?}, signal {:?})", exit.code, exit.signal);
                         for c in slot.queue.drain(..) {
-                            on(Event::Attempt { cell: &c, attempt: Attempt { outcome: Outcome::Error, isolated: per_cell, detail: Some(detail.clone()), result: None, worker_exit: Some(exit.clone()), wall_ms: 0.0 } });
+                            on(Event::Attempt { cell: &c, attempt: Attempt { outcome: Outcome::Error, isolated: per_cell, detail: Some(detail.clone()), result: None, worker_exit: Some(exit.clone()), injected: None, wall_ms: 0.0 } });
                         }
                     }
                 }
@@ -343,14 +368,14 @@ impl Supervisor {
                         slot.queue.remove(pos);
                     }
                     let detail = format!("no result within {:?}; worker process group killed", self.opts.timeout);
-                    on(Event::Attempt { cell: &cell, attempt: Attempt { outcome: Outcome::Timeout, isolated: per_cell, detail: Some(detail), result: None, worker_exit: Some(exit), wall_ms: since.elapsed().as_secs_f64() * 1e3 } });
+                    on(Event::Attempt { cell: &cell, attempt: Attempt { outcome: Outcome::Timeout, isolated: per_cell, detail: Some(detail), result: None, worker_exit: Some(exit), injected: None, wall_ms: since.elapsed().as_secs_f64() * 1e3 } });
                 }
                 None if !w.ready && now >= w.spawned + self.opts.setup_timeout => {
                     let mut w = slot.worker.take().expect("present");
                     let exit = kill_group(&mut w, self.opts.grace);
                     let detail = format!("worker setup took longer than {:?}", self.opts.setup_timeout);
                     for c in slot.queue.drain(..) {
-                        on(Event::Attempt { cell: &c, attempt: Attempt { outcome: Outcome::Error, isolated: per_cell, detail: Some(detail.clone()), result: None, worker_exit: Some(exit.clone()), wall_ms: 0.0 } });
+                        on(Event::Attempt { cell: &c, attempt: Attempt { outcome: Outcome::Error, isolated: per_cell, detail: Some(detail.clone()), result: None, worker_exit: Some(exit.clone()), injected: None, wall_ms: 0.0 } });
                     }
                 }
                 _ => {}
@@ -368,6 +393,12 @@ fn wait_or_kill(w: &mut Worker, grace: Duration) {
         std::thread::sleep(Duration::from_millis(5));
     }
     kill_group(w, Duration::from_millis(200));
+}
+
+/// A fresh seed for each worker's flaky-injection dice (recorded in every injected result).
+fn inject_seed(generation: u64) -> u64 {
+    let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_nanos() as u64).unwrap_or(0);
+    nanos ^ (u64::from(std::process::id()) << 32) ^ generation.wrapping_mul(0x9e37_79b9_7f4a_7c15)
 }
 
 pub fn signal_name(sig: i32) -> &'static str {

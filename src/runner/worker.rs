@@ -53,9 +53,11 @@ pub fn main(job_path: &std::path::Path) -> u8 {
         let inst = Arc::new(Instance::new(&InstanceOptions { validate: job.validate }).map_err(|e| e.to_string())?);
         let all = features::query_all(&inst).map_err(|e| e.to_string())?;
         let info = all.get(job.device_index).ok_or_else(|| format!("device {} vanished", job.device_index))?.clone();
-        let req = requirements(&info, &job.cells);
+        let mut req = requirements(&info, &job.cells);
+        // Injected invalid-address loads need 64-bit integers, as the address probes do.
+        req.int64 |= job.cells.iter().any(|c| crate::matrix::inject::for_cell(&job.inject, c).is_some_and(|i| i.fault.reads_bad_address()));
         let gpu = Gpu::new(inst, info, req).map_err(|e| e.to_string())?;
-        let opts = ExecOptions { timeout: Duration::from_millis(job.fence_timeout_ms), corrupt_expected: job.corrupt_expected, dump: job.dump.clone() };
+        let opts = ExecOptions { timeout: Duration::from_millis(job.fence_timeout_ms), inject: job.inject.clone(), inject_seed: job.inject_seed, dump: job.dump.clone() };
         Executor::new(gpu, &job.scene, opts).map_err(|e| e.to_string())
     })();
     let mut exec = match setup {

@@ -3,6 +3,7 @@
 //! trivial. Shared declarations come from `probes/common.glsl`. [`compile`] turns sources into
 //! SPIR-V with shaderc, caching by source.
 pub mod compile;
+mod inject;
 mod probe_code;
 
 use crate::matrix::{AsAccess, Canary, Cell, Resource, Stage};
@@ -120,10 +121,19 @@ const RECORD_ZERO: &str = "Record(0u, 0u, 0u, 0.0, vec2(0.0), 0u, 0u, vec4(0.0))
 
 /// Generate all shaders of `cell`.
 pub fn generate(cell: &Cell) -> CellShaders {
+    generate_with(cell, None)
+}
+
+/// Generate all shaders of `cell`, with `fault` injected at the probed read.
+pub fn generate_with(cell: &Cell, fault: Option<crate::matrix::inject::FaultKind>) -> CellShaders {
     if let Some(c) = cell.canary {
         return canary(c);
     }
-    let probe = ProbeCode::new(cell);
+    let mut probe = ProbeCode::new(cell);
+    if let Some(f) = fault {
+        inject::apply(&mut probe, f);
+    }
+    let probe = probe;
     let here = |s: Stage| (cell.stage == s).then_some(&probe);
     match cell.stage {
         Stage::Fragment => {
