@@ -36,6 +36,13 @@ pub enum Command {
     Run(RunArgs),
     /// Apply SPIR-V workaround patches to a shader (SPIR-V binary, or GLSL with --glsl)
     Patch(PatchArgs),
+    /// Write the expectations (baseline) of a finished run, for `run --baseline`
+    Baseline(BaselineArgs),
+    /// Join the reports of shards (`run --shard I/N`) or re-runs into one report
+    Merge(MergeArgs),
+    /// What changed between two run reports: per cell (fixed, regressed, new, gone) and time per
+    /// phase; text or Markdown (exit 1 when an outcome changed)
+    Diff(DiffArgs),
     /// Internal: run cells for the supervisor (`rtprobe run`); not for direct use
     #[command(name = "__worker", hide = true)]
     Worker {
@@ -126,6 +133,21 @@ pub struct RunArgs {
     #[arg(long = "inject-fault", value_name = "PREDICATE[@KIND]", env = "RTPROBE_INJECT_FAULT", value_delimiter = ';')]
     pub inject_fault: Vec<String>,
 
+    /// Hold the run to these expectations (from `rtprobe baseline`, or deqp-runner `test,Status`
+    /// lines): exit 1 only on regressions, on improvements (unless --allow-improvements) and on
+    /// phases slower than the baseline's bounds
+    #[arg(long, value_name = "FILE")]
+    pub baseline: Option<PathBuf>,
+
+    /// With --baseline: cells better than expected are reported but do not fail the run
+    #[arg(long)]
+    pub allow_improvements: bool,
+
+    /// Run only shard I of N (1-based): a deterministic, balanced split of the planned cells by
+    /// cell id, for a CI system's parallel jobs; join the reports with `rtprobe merge`
+    #[arg(long, value_name = "I/N")]
+    pub shard: Option<String>,
+
     /// Run each faulting cell until it has N attempts (each alone in a fresh worker) and report
     /// k of N with the chance that a fault of the observed rate would have been missed
     #[arg(long, value_name = "N")]
@@ -195,4 +217,84 @@ pub struct PatchArgs {
     /// Print the diff of the disassembly before and after
     #[arg(long)]
     pub disassemble: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct BaselineArgs {
+    /// A finished run report
+    pub report: PathBuf,
+
+    /// Output file
+    #[arg(long, short = 'o', value_name = "FILE")]
+    pub out: PathBuf,
+
+    /// `json` (rtprobe's own, with flake details and performance bounds) or `deqp`
+    /// (deqp-runner's `test,Status` lines)
+    #[arg(long, value_enum, default_value = "json")]
+    pub format: BaselineFormat,
+
+    /// Also bound the mean time per cell of these phases (compile, pipeline, setup, trace, check)
+    #[arg(long, value_delimiter = ',', value_name = "PHASE,...")]
+    pub perf: Vec<String>,
+
+    /// A bounded phase fails a later run above FACTOR × this run's mean + --perf-slack-ms
+    #[arg(long, default_value_t = 2.0, value_name = "FACTOR")]
+    pub perf_factor: f64,
+
+    /// Absolute slack added to each performance bound, in milliseconds per cell
+    #[arg(long, default_value_t = 1.0, value_name = "MS")]
+    pub perf_slack_ms: f64,
+
+    /// A bug link recorded with every expected failure
+    #[arg(long, value_name = "URL")]
+    pub bug: Option<String>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum BaselineFormat {
+    Json,
+    Deqp,
+}
+
+#[derive(Args, Debug)]
+pub struct MergeArgs {
+    /// Run reports (shards of one run, or re-runs of parts of it)
+    #[arg(required = true, num_args = 1..)]
+    pub reports: Vec<PathBuf>,
+
+    /// Output report
+    #[arg(long, short = 'o', value_name = "FILE")]
+    pub out: PathBuf,
+
+    /// Merge even reports of different devices, scenes, options or rtprobe versions
+    #[arg(long)]
+    pub force: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct DiffArgs {
+    pub old: PathBuf,
+    pub new: PathBuf,
+
+    /// `text` (a table) or `md` (Markdown for a PR comment)
+    #[arg(long, value_enum, default_value = "text")]
+    pub format: DiffFormat,
+
+    /// Also write the diff to FILE (in --format)
+    #[arg(long, short = 'o', value_name = "FILE")]
+    pub out: Option<PathBuf>,
+
+    /// Report a phase's time per cell only when it changed by more than this factor (0.5 = ±50%)
+    #[arg(long, default_value_t = 0.5)]
+    pub noise: f64,
+
+    /// ... and by more than this many milliseconds per cell
+    #[arg(long, default_value_t = 0.5, value_name = "MS")]
+    pub noise_floor_ms: f64,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum DiffFormat {
+    Text,
+    Md,
 }

@@ -3,6 +3,7 @@
 pub mod args;
 pub mod commands;
 pub mod exit;
+pub mod fleet;
 pub mod patch;
 pub mod run;
 
@@ -37,6 +38,9 @@ pub fn main_entry() -> u8 {
         Command::Caps(a) => commands::caps_cmd(&g, a),
         Command::Run(a) => run::run(&g, a),
         Command::Patch(a) => patch::patch(a),
+        Command::Baseline(a) => fleet::baseline(a),
+        Command::Merge(a) => fleet::merge_cmd(a),
+        Command::Diff(a) => fleet::diff_cmd(a),
         Command::Worker { job } => return crate::runner::worker::main(job),
     };
     match result {

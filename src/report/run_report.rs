@@ -162,6 +162,13 @@ pub struct PlanSummary {
     pub to_run: usize,
     pub unsupported: usize,
     pub not_generated: Vec<NotGenerated>,
+    /// Cells left to the other shards (`--shard I/N`).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub sharded_out: usize,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -221,6 +228,9 @@ pub struct RunReport {
     #[serde(default)]
     pub tally: Tally,
     pub timing: TimingSummary,
+    /// With `--baseline`: how the run compared with its expectations.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub baseline: Option<crate::fleet::baseline::BaselineCheck>,
     pub cells: Vec<CellReport>,
 }
 
