@@ -33,7 +33,7 @@ pub struct ExecOptions {
     pub timeout: Duration,
     /// Tests only: perturb expected values so correct results must mismatch.
     pub corrupt_expected: bool,
-    /// Write each cell's GLSL and SPIR-V under this folder.
+    /// Write each cell's GLSL and SPIR-V under this folder, and pictures of each mismatch.
     pub dump: Option<PathBuf>,
 }
 
@@ -158,9 +158,16 @@ impl Executor {
             return none(Outcome::Pass, &format!("canary {} ran to completion: this driver did not fault on it", c.as_str()));
         }
         let expected = reference::expected(cell, &self.scene, &self.sref, self.opts.corrupt_expected);
-        let cmp = reference::compare(&expected, records, self.scene.params.width);
+        let (w, h) = (self.scene.params.width, self.scene.params.height);
+        let mut cmp = reference::compare(&expected, records, w);
         let outcome = if cmp.passed() { Outcome::Pass } else { Outcome::Mismatch };
-        let detail = (!cmp.passed()).then(|| format!("{} of {} compared pixels differ ({:?})", cmp.mismatched_pixels, cmp.compared, cmp.by_field));
+        let mut detail = (!cmp.passed()).then(|| format!("{} of {} compared pixels differ ({:?})", cmp.mismatched_pixels, cmp.compared, cmp.by_field));
+        if let (Some(dir), Some(d)) = (self.opts.dump.as_ref().filter(|_| !cmp.passed()), detail.as_mut()) {
+            match crate::report::pictures::write(&dir.join(cell.id()), &expected, records, w, h) {
+                Ok(paths) => cmp.pictures = paths,
+                Err(e) => d.push_str(&format!("; pictures not written: {e}")),
+            }
+        }
         CellResult { outcome, detail, timings: Timings::default(), comparison: Some(cmp), fault: None, validation_errors: 0 }
     }
 

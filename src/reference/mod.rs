@@ -176,6 +176,9 @@ pub struct Comparison {
     pub any_element_values: usize,
     /// The first few mismatches, for the report.
     pub examples: Vec<Mismatch>,
+    /// Pictures of a mismatching comparison (expected, actual, diff PNGs; `run --dump`).
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub pictures: Vec<String>,
 }
 
 impl Comparison {
