@@ -206,3 +206,28 @@ fn unwritable_output_is_one_line_exit_9() {
     let o = run(&["caps", "-o", "/proc/nope/caps.json"]);
     assert_one_line_error(&o, 9, "/proc/nope/caps.json");
 }
+
+#[test]
+fn reorder_cells_are_unsupported_on_lavapipe_with_the_reason() {
+    let v = json(&run(&["caps", "--json"]));
+    let has_ser = v["extensions"]["VK_NV_ray_tracing_invocation_reorder"]["present"] == true;
+    for r in ["reorder", "reorder_hint"] {
+        let s = &v["matrix"]["reorder"][r];
+        assert_eq!(s["status"], if has_ser { "supported" } else { "unsupported" }, "{r}: {s}");
+    }
+    assert!(!has_ser, "lavapipe grew SER: the cells below would now run");
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("r.json");
+    let o = run(&["run", "--filter", "reorder=reorder|reorder_hint,descriptor_model=descriptor_indexing", "-o", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
+    let cells = r["cells"].as_array().unwrap();
+    // closest_hit x dynamic: 4 resources x (nonuniform or not) + AS (2 descriptor, 1 address, 2 patched), x 2 values
+    assert_eq!(cells.len(), (4 * 2 + 5) * 2);
+    for c in cells {
+        assert_eq!(c["outcome"], "unsupported", "{}", c["id"]);
+        assert!(c["reason"].as_str().unwrap().contains("VK_NV_ray_tracing_invocation_reorder"), "{c}");
+        assert!(c["id"].as_str().unwrap().contains(".reorder"), "{}", c["id"]);
+        assert_eq!(c["stage"], "closest_hit");
+    }
+}

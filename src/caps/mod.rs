@@ -6,7 +6,7 @@ pub mod profile;
 pub mod support;
 pub mod text;
 
-use crate::matrix::{AsAccess, DescriptorModel, IndexSource, Resource, Stage};
+use crate::matrix::{AsAccess, DescriptorModel, IndexSource, Reorder, Resource, Stage};
 use crate::vk::{driver_version, features::TRACKED_EXTENSIONS, DeviceInfo};
 use serde_json::{json, Map, Value};
 use std::collections::BTreeMap;
@@ -55,6 +55,7 @@ pub fn matrix_json(info: &DeviceInfo) -> Value {
         "nonuniform_by_resource": nonuniform,
         "as_access": support_map(AsAccess::ALL, AsAccess::as_str, |a| support::as_access(info, a)),
         "descriptor_model": support_map(DescriptorModel::ALL, DescriptorModel::as_str, |m| support::descriptor_model(info, m)),
+        "reorder": support_map(Reorder::ALL, Reorder::as_str, |r| support::reorder(info, r)),
     })
 }
 
