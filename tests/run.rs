@@ -76,7 +76,7 @@ fn corrupted_expectations_are_reported_as_confirmed_mismatches() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("r.json");
     let o = run(&[
-        "run", "--corrupt-expected", "--patches", "none", "--filter", "stage=raygen|closest_hit,resource=storage_buffer,descriptor_model=descriptor_indexing",
+        "run", "--corrupt-expected", "--patches", "none", "--filter", "stage=raygen|closest_hit,resource=storage_buffer,descriptor_model=descriptor_indexing,reorder=none",
         "-o", out.to_str().unwrap(),
     ]);
     assert_eq!(o.status.code(), Some(1), "findings exit 1; stderr {}", stderr(&o));
@@ -127,7 +127,7 @@ fn bad_run_arguments_are_usage_errors() {
 fn killed_supervisor_loses_no_finished_cell_and_resume_completes() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("r.json");
-    let filter = "descriptor_model=descriptor_indexing,resource=storage_buffer|uniform_buffer";
+    let filter = "descriptor_model=descriptor_indexing,resource=storage_buffer|uniform_buffer,reorder=none";
     let mut child = bin().args(["run", "--filter", filter, "-o", out.to_str().unwrap()]).stdout(std::process::Stdio::null()).stderr(std::process::Stdio::null()).spawn().unwrap();
     let start = Instant::now();
     let finished_before_kill = loop {
