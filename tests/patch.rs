@@ -279,6 +279,12 @@ fn glsl_include_errors_are_one_line_naming_the_file_and_chain() {
     let o = patch(&chit, "rchit", &["-I", inc.to_str().unwrap()]);
     assert_one_line_error(&o, 9, "MAX_MATERIALS must be defined");
     assert!(stderr(&o).contains("render/bindings.glsl:"), "{}", stderr(&o));
+    // An include cycle ends with one line instead of a hang.
+    std::fs::write(d.path().join("cycle.comp"), "#version 460\n#extension GL_GOOGLE_include_directive : require\n#include \"a.glsl\"\nlayout(local_size_x = 1) in;\nvoid main() {}\n").unwrap();
+    std::fs::write(d.path().join("a.glsl"), "#include \"b.glsl\"\n").unwrap();
+    std::fs::write(d.path().join("b.glsl"), "#include \"a.glsl\"\n").unwrap();
+    let o = patch(&d.path().join("cycle.comp"), "comp", &[]);
+    assert_one_line_error(&o, 9, "include cycle");
     // Bad flags are usage errors.
     assert_one_line_error(&patch(&chit, "rchit", &["-D", "1BAD=2"]), 2, "GLSL identifier");
     assert_one_line_error(&patch(&chit, "rchit", &["-I", "/nonexistent/dir"]), 2, "not a directory");

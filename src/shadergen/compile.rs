@@ -63,7 +63,7 @@ impl Compiler {
             opts.add_macro_definition(name, value.as_deref());
         }
         if let Some(inc) = &includes {
-            opts.set_include_callback(move |req, ty, from, _depth| inc.resolve(req, ty, from));
+            opts.set_include_callback(move |req, ty, from, depth| inc.resolve(req, ty, from, depth));
         }
         let out = self.inner.compile_into_spirv(glsl, kind, file, "main", Some(&opts)).map_err(|e| {
             let message = e.to_string();

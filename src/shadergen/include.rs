@@ -9,6 +9,9 @@ use std::cell::RefCell;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
+/// Deepest include nesting followed.
+pub const MAX_DEPTH: usize = 32;
+
 /// Where a resolved file was included from: (including file, 1-based line).
 type Origin = (String, usize);
 
@@ -37,8 +40,12 @@ impl Includes {
         Self { search, origins: RefCell::new(HashMap::new()), sources: RefCell::new(sources) }
     }
 
-    /// The include callback: resolve `requested` from `requester`.
-    pub fn resolve(&self, requested: &str, ty: shaderc::IncludeType, requester: &str) -> shaderc::IncludeCallbackResult {
+    /// The include callback: resolve `requested` from `requester`, `depth` includes deep.
+    pub fn resolve(&self, requested: &str, ty: shaderc::IncludeType, requester: &str, depth: usize) -> shaderc::IncludeCallbackResult {
+        // glslang follows an include cycle without end; header guards do not stop it either.
+        if depth > MAX_DEPTH {
+            return Err(format!("includes nested deeper than {MAX_DEPTH} (an include cycle?) at {requested:?}"));
+        }
         let mut candidates = Vec::new();
         if ty == shaderc::IncludeType::Relative {
             if let Some(dir) = Path::new(requester).parent() {
@@ -124,9 +131,9 @@ mod tests {
         let main = d.path().join("main.rgen");
         let root = display(&main);
         let inc = Includes::new(&main, &root, &std::fs::read_to_string(&main).unwrap(), &[d.path().join("inc")]);
-        let a = inc.resolve("a.glsl", shaderc::IncludeType::Relative, &root).unwrap();
+        let a = inc.resolve("a.glsl", shaderc::IncludeType::Relative, &root, 1).unwrap();
         assert!(a.resolved_name.ends_with("inc/a.glsl"), "{}", a.resolved_name);
-        let b = inc.resolve("sub/b.glsl", shaderc::IncludeType::Relative, &a.resolved_name).unwrap();
+        let b = inc.resolve("sub/b.glsl", shaderc::IncludeType::Relative, &a.resolved_name, 2).unwrap();
         assert!(b.resolved_name.ends_with("inc/sub/b.glsl"));
         let chain = inc.chain_of(&b.resolved_name);
         assert!(chain.contains(&format!("a.glsl:2, from {root}:3")), "{chain}");
@@ -141,9 +148,11 @@ mod tests {
         let main = d.path().join("main.rgen");
         let root = display(&main);
         let inc = Includes::new(&main, &root, "", &[]);
-        let e = inc.resolve("nope.glsl", shaderc::IncludeType::Standard, &root).unwrap_err();
+        let e = inc.resolve("nope.glsl", shaderc::IncludeType::Standard, &root, 1).unwrap_err();
         assert!(e.contains("cannot find \"nope.glsl\""), "{e}");
         // Without -I the input's own directory is the only place searched; a.glsl lives in inc/.
-        assert!(inc.resolve("a.glsl", shaderc::IncludeType::Relative, &root).is_err());
+        assert!(inc.resolve("a.glsl", shaderc::IncludeType::Relative, &root, 1).is_err());
+        let e = Includes::new(&main, &root, "", &[d.path().join("inc")]).resolve("a.glsl", shaderc::IncludeType::Relative, &root, MAX_DEPTH + 1).unwrap_err();
+        assert!(e.contains("include cycle"), "{e}");
     }
 }
