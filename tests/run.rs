@@ -81,7 +81,7 @@ fn default_matrix_passes_on_lavapipe_and_canaries_are_classified() {
 fn injected_wrong_values_are_reported_as_confirmed_mismatches() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("r.json");
-    let filter = "stage=raygen|closest_hit,resource=storage_buffer,descriptor_model=descriptor_indexing";
+    let filter = "stage=raygen|closest_hit,resource=storage_buffer,descriptor_model=descriptor_indexing,reorder=none";
     let o = run(&["run", "--inject-fault", &format!("{filter}@value"), "--patches", "none", "--filter", filter, "-o", out.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(1), "findings exit 1; stderr {}", stderr(&o));
     let r = report(&out);
@@ -133,7 +133,7 @@ fn bad_run_arguments_are_usage_errors() {
 fn killed_supervisor_loses_no_finished_cell_and_resume_completes() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("r.json");
-    let filter = "descriptor_model=descriptor_indexing,resource=storage_buffer|uniform_buffer";
+    let filter = "descriptor_model=descriptor_indexing,resource=storage_buffer|uniform_buffer,reorder=none";
     let mut child = bin().args(["run", "--filter", filter, "-o", out.to_str().unwrap()]).stdout(std::process::Stdio::null()).stderr(std::process::Stdio::null()).spawn().unwrap();
     let start = Instant::now();
     let finished_before_kill = loop {

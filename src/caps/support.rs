@@ -1,9 +1,9 @@
 //! What the matrix can run on a device, per axis value, decided from the queried features only.
 //! `Unsupported` is said only when the device's features or extensions say so; `NotImplemented`
 //! marks what rtprobe itself cannot do yet, which is never blamed on the device.
-use crate::matrix::{AsAccess, DescriptorModel, IndexSource, Resource, Stage};
+use crate::matrix::{AsAccess, DescriptorModel, IndexSource, Reorder, Resource, Stage};
 use crate::vk::{heap, DeviceInfo};
-use ash::{ext, khr, vk};
+use ash::{ext, khr, nv, vk};
 use serde::Serialize;
 
 #[derive(Clone, Debug, PartialEq, Eq, Serialize)]
@@ -162,6 +162,24 @@ pub fn descriptor_model(info: &DeviceInfo, m: DescriptorModel) -> Support {
                 },
                 other => other,
             }
+        }
+    }
+}
+
+/// Shader execution reordering in raygen: GL_NV_shader_invocation_reorder needs
+/// VK_NV_ray_tracing_invocation_reorder with `rayTracingInvocationReorder`. Both values of the
+/// axis need the same; a driver whose hint is `NONE` still runs them (reordering is then a no-op,
+/// which the spec allows).
+pub fn reorder(info: &DeviceInfo, r: Reorder) -> Support {
+    match r {
+        Reorder::Reorder | Reorder::ReorderHint => {
+            if !info.has_extension(nv::ray_tracing_invocation_reorder::NAME) {
+                return Support::Unsupported { reason: "driver does not expose VK_NV_ray_tracing_invocation_reorder".into() };
+            }
+            Support::require(&[(
+                info.features.invocation_reorder_nv.is_some_and(|f| on(f.ray_tracing_invocation_reorder)),
+                "rayTracingInvocationReorder (VK_NV_ray_tracing_invocation_reorder)",
+            )])
         }
     }
 }

@@ -79,7 +79,8 @@ pub struct RunArgs {
     #[arg(long, value_name = "FILE")]
     pub junit: Option<PathBuf>,
 
-    /// Write each cell's generated GLSL and SPIR-V under DIR/<cell id>/
+    /// Write each cell's generated GLSL and SPIR-V under DIR/<cell id>/, and for a cell whose
+    /// records mismatch, pictures of them there: expected.png, actual.png, diff.png
     #[arg(long, value_name = "DIR")]
     pub dump: Option<PathBuf>,
 
@@ -206,9 +207,22 @@ pub struct PatchArgs {
     #[arg(long)]
     pub list: bool,
 
-    /// The input is GLSL: compile it with shaderc (Vulkan 1.2, SPIR-V 1.5) first
+    /// The input is GLSL: compile it with shaderc first (see --target-env, -I, -D)
     #[arg(long)]
     pub glsl: bool,
+
+    /// GLSL include directory (repeatable, searched in order after the input's own directory);
+    /// `#include "x"` also looks next to the including file first
+    #[arg(short = 'I', long = "include-dir", value_name = "DIR", requires = "glsl")]
+    pub include_dirs: Vec<PathBuf>,
+
+    /// GLSL macro NAME or NAME=VALUE (repeatable)
+    #[arg(short = 'D', long = "define", value_name = "NAME[=VALUE]", requires = "glsl")]
+    pub defines: Vec<String>,
+
+    /// Vulkan environment of GLSL input: vulkan1.2 (SPIR-V 1.5), vulkan1.3 or vulkan1.4 (SPIR-V 1.6)
+    #[arg(long, value_enum, default_value = "vulkan1.2", value_name = "ENV")]
+    pub target_env: crate::shadergen::compile::TargetEnv,
 
     /// Stage of GLSL input: rgen, rchit, rahit, rmiss, rint, rcall, vert, frag, comp
     #[arg(long, value_name = "STAGE")]

@@ -36,7 +36,7 @@ pub struct ExecOptions {
     pub inject: Vec<crate::matrix::inject::Injection>,
     /// Seed of this worker's flaky-injection dice (recorded in each injected result).
     pub inject_seed: u64,
-    /// Write each cell's GLSL and SPIR-V under this folder.
+    /// Write each cell's GLSL and SPIR-V under this folder, and pictures of each mismatch.
     pub dump: Option<PathBuf>,
 }
 
@@ -162,9 +162,16 @@ impl Executor {
             return none(Outcome::Pass, &format!("canary {} ran to completion: this driver did not fault on it", c.as_str()));
         }
         let expected = reference::expected(cell, &self.scene, &self.sref, false);
-        let cmp = reference::compare(&expected, records, self.scene.params.width);
+        let (w, h) = (self.scene.params.width, self.scene.params.height);
+        let mut cmp = reference::compare(&expected, records, w);
         let outcome = if cmp.passed() { Outcome::Pass } else { Outcome::Mismatch };
-        let detail = (!cmp.passed()).then(|| format!("{} of {} compared pixels differ ({:?})", cmp.mismatched_pixels, cmp.compared, cmp.by_field));
+        let mut detail = (!cmp.passed()).then(|| format!("{} of {} compared pixels differ ({:?})", cmp.mismatched_pixels, cmp.compared, cmp.by_field));
+        if let (Some(dir), Some(d)) = (self.opts.dump.as_ref().filter(|_| !cmp.passed()), detail.as_mut()) {
+            match crate::report::pictures::write(&dir.join(cell.id()), &expected, records, w, h) {
+                Ok(paths) => cmp.pictures = paths,
+                Err(e) => d.push_str(&format!("; pictures not written: {e}")),
+            }
+        }
         CellResult { outcome, detail, timings: Timings::default(), comparison: Some(cmp), fault: None, validation_errors: 0 }
     }
 

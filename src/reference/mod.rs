@@ -176,6 +176,9 @@ pub struct Comparison {
     pub any_element_values: usize,
     /// The first few mismatches, for the report.
     pub examples: Vec<Mismatch>,
+    /// Pictures of a mismatching comparison (expected, actual, diff PNGs; `run --dump`).
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub pictures: Vec<String>,
 }
 
 impl Comparison {
@@ -251,7 +254,7 @@ mod tests {
     use crate::scene::SceneParams;
 
     fn cell(stage: Stage, index: IndexSource) -> Cell {
-        Cell { stage, resource: Resource::StorageBuffer, index, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, canary: None, patch: None }
+        Cell { stage, resource: Resource::StorageBuffer, index, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, canary: None, patch: None, reorder: None }
     }
 
     #[test]

@@ -387,7 +387,7 @@ mod tests {
     use crate::matrix::{DescriptorModel, IndexSource, Resource, Stage};
 
     fn cell() -> Cell {
-        Cell { stage: Stage::ClosestHit, resource: Resource::StorageBuffer, index: IndexSource::Dynamic, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, canary: None, patch: None }
+        Cell { stage: Stage::ClosestHit, resource: Resource::StorageBuffer, index: IndexSource::Dynamic, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, canary: None, patch: None, reorder: None }
     }
 
     fn attempt(outcome: Outcome, isolated: bool) -> Attempt {

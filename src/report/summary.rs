@@ -59,6 +59,9 @@ pub fn render(r: &RunReport) -> String {
             // The reason already carries "k of N attempts"; a flaky cell says so up front.
             let tag = if c.flaky { " [FLAKY]" } else { "" };
             let _ = writeln!(s, "  {} {:<12} {}{} — {}", mark(c.outcome), c.outcome.as_str(), c.id, tag, c.reason.as_deref().unwrap_or(""));
+            if let Some(diff) = c.attempts.iter().rev().find_map(|a| a.result.as_ref()?.comparison.as_ref()?.pictures.last()) {
+                let _ = writeln!(s, "      pictures: {diff} (expected.png and actual.png beside it)");
+            }
             if !c.workarounds.is_empty() {
                 let verified: Vec<&str> = c.workarounds.iter().filter(|w| w.verified).map(|w| w.patch.as_str()).collect();
                 let tried: Vec<String> = c.workarounds.iter().map(|w| format!("{} → {}", w.patch.as_str(), w.outcome.as_str())).collect();

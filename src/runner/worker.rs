@@ -29,6 +29,7 @@ pub fn requirements(info: &crate::vk::DeviceInfo, cells: &[Cell]) -> Requirement
         }),
         fragment_stores: fragment,
         dynamic_rendering: fragment,
+        invocation_reorder: any(&|c| c.reorder.is_some()),
     }
 }
 

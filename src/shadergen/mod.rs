@@ -3,10 +3,11 @@
 //! trivial. Shared declarations come from `probes/common.glsl`. [`compile`] turns sources into
 //! SPIR-V with shaderc, caching by source.
 pub mod compile;
+pub mod include;
 mod inject;
 mod probe_code;
 
-use crate::matrix::{AsAccess, Canary, Cell, Resource, Stage};
+use crate::matrix::{AsAccess, Canary, Cell, Reorder, Resource, Stage};
 use probe_code::ProbeCode;
 
 const COMMON: &str = include_str!("../../probes/common.glsl");
@@ -187,23 +188,37 @@ fn ray_flags(cell: &Cell) -> &'static str {
     }
 }
 
+/// The raygen's primary ray: `traceRayEXT`, or with a `reorder` value, the same ray traced into a
+/// hit object, the invocations reordered (with the hit instance's custom index as coherence hint
+/// for `reorder_hint`; misses get a hint of their own), then the hit object's closest-hit or miss
+/// shader run — the same records, with invocations regrouped before the probed closest-hit read.
+fn primary_trace(cell: &Cell) -> String {
+    let args = format!("sceneTlas, {}, 0xFF, 0, 0, 0, primaryOrigin(px), TMIN, vec3(0.0, 0.0, 1.0), TMAX, 0", ray_flags(cell));
+    let reorder = match cell.reorder {
+        None => return format!("    traceRayEXT({args});\n"),
+        Some(Reorder::Reorder) => "    reorderThreadNV(hitObj);\n".to_string(),
+        Some(Reorder::ReorderHint) => "    uint hint = hitObjectIsHitNV(hitObj) ? uint(hitObjectGetInstanceCustomIndexNV(hitObj)) : 0xFFFFu;\n    \
+reorderThreadNV(hitObj, hint, 16);\n"
+            .to_string(),
+    };
+    format!("    hitObjectNV hitObj;\n    hitObjectTraceRayNV(hitObj, {args});\n{reorder}    hitObjectExecuteShaderNV(hitObj, 0);\n")
+}
+
 fn ray_tracing<'a>(cell: &Cell, probe: &'a ProbeCode, here: impl Fn(Stage) -> Option<&'a ProbeCode>) -> CellShaders {
     let store = "    pl.flags |= 2u;\n    pl.slot = probeSlot;\n    pl.value = probeValue;\n";
     let mut shaders = Vec::new();
     let call_data = "struct CallData { uint slot; uint p0; uint p1; uint p2; vec4 value; };\n";
 
     // raygen
-    let mut rgen = header(true, here(Stage::Raygen), &[]);
+    let reorder_ext: &[&str] = if cell.reorder.is_some() { &["GL_NV_shader_invocation_reorder"] } else { &[] };
+    let mut rgen = header(true, here(Stage::Raygen), reorder_ext);
     rgen += "layout(set = 0, binding = 1) uniform accelerationStructureEXT sceneTlas;\nlayout(location = 0) rayPayloadEXT Record pl;\n";
     if cell.stage == Stage::Callable {
         rgen += call_data;
         rgen += "layout(location = 2) callableDataEXT CallData cd;\n";
     }
-    rgen += &format!(
-        "void main() {{\n    uvec2 px = gl_LaunchIDEXT.xy;\n    uint i = px.x + px.y * pc.width;\n    pl = {RECORD_ZERO};\n    \
-traceRayEXT(sceneTlas, {}, 0xFF, 0, 0, 0, primaryOrigin(px), TMIN, vec3(0.0, 0.0, 1.0), TMAX, 0);\n",
-        ray_flags(cell)
-    );
+    rgen += &format!("void main() {{\n    uvec2 px = gl_LaunchIDEXT.xy;\n    uint i = px.x + px.y * pc.width;\n    pl = {RECORD_ZERO};\n");
+    rgen += &primary_trace(cell);
     if here(Stage::Raygen).is_some() {
         rgen += &probe.body;
         rgen += store;
@@ -346,3 +361,43 @@ pub fn source_cell(cell: &Cell) -> Cell {
 /// Push-constant offset of the AS table address the as-to-address patch adds (the end of the
 /// probes' own 40-byte block).
 pub const PATCHED_TABLE_OFFSET: u32 = 40;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::matrix::{DescriptorModel, IndexSource};
+
+    fn reorder_cell(r: Option<Reorder>, resource: Resource) -> Cell {
+        let as_access = (resource == Resource::AccelerationStructure).then_some(AsAccess::Descriptor);
+        Cell { stage: Stage::ClosestHit, resource, index: IndexSource::Dynamic, nonuniform: true, as_access, descriptor_model: DescriptorModel::DescriptorIndexing, canary: None, patch: None, reorder: r }
+    }
+
+    /// Lavapipe has no SER, so these shaders never reach a driver in the test suite: they are
+    /// compiled here and checked with spirv-val (when installed) instead.
+    #[test]
+    fn reorder_cells_trace_into_a_hit_object_and_compile_to_valid_spirv() {
+        let mut c = compile::Compiler::new().unwrap();
+        for resource in [Resource::StorageBuffer, Resource::AccelerationStructure] {
+            for r in Reorder::ALL {
+                let shaders = generate(&reorder_cell(Some(*r), resource));
+                let rgen = &shaders.get(Role::Raygen).unwrap().glsl;
+                assert!(rgen.contains("hitObjectTraceRayNV(hitObj, sceneTlas") && rgen.contains("hitObjectExecuteShaderNV(hitObj, 0)"), "{rgen}");
+                assert!(!rgen.contains("traceRayEXT("), "{rgen}");
+                assert_eq!(rgen.contains("hitObjectGetInstanceCustomIndexNV"), *r == Reorder::ReorderHint, "{rgen}");
+                for s in &shaders.shaders {
+                    let (words, _) = c.compile(s.role, &s.glsl).unwrap_or_else(|e| panic!("{r:?} {:?}: {e}\n{}", s.role, s.glsl));
+                    match crate::patches::validate(&words) {
+                        crate::patches::Validation::Invalid(m) => panic!("{r:?} {:?}: {m}", s.role),
+                        crate::patches::Validation::Valid | crate::patches::Validation::Unavailable => {}
+                    }
+                }
+                // Every shader but the raygen is the plain cell's.
+                let plain = generate(&reorder_cell(None, resource));
+                for s in plain.shaders.iter().filter(|s| s.role != Role::Raygen) {
+                    assert_eq!(shaders.get(s.role).map(|x| &x.glsl), Some(&s.glsl), "{:?}", s.role);
+                }
+                assert!(plain.get(Role::Raygen).unwrap().glsl.contains("traceRayEXT(sceneTlas"));
+            }
+        }
+    }
+}

@@ -4,7 +4,7 @@
 use super::error::{VkError, VkResultExt};
 use super::features::DeviceInfo;
 use super::instance::Instance;
-use ash::{ext, khr, vk};
+use ash::{ext, khr, nv, vk};
 use std::ffi::CStr;
 use std::sync::Arc;
 
@@ -30,6 +30,8 @@ pub struct Requirements {
     pub fragment_stores: bool,
     /// dynamicRendering (Vulkan 1.3; fragment probes render without a render pass object).
     pub dynamic_rendering: bool,
+    /// VK_NV_ray_tracing_invocation_reorder (hit objects and reorderThreadNV in raygen).
+    pub invocation_reorder: bool,
 }
 
 impl Requirements {
@@ -64,6 +66,9 @@ impl Requirements {
         }
         if self.dynamic_rendering && !f.v13.is_some_and(|x| x.dynamic_rendering == vk::TRUE) {
             m.push("dynamicRendering (Vulkan 1.3)".into());
+        }
+        if self.invocation_reorder && !f.invocation_reorder_nv.is_some_and(|x| x.ray_tracing_invocation_reorder == vk::TRUE) {
+            m.push("rayTracingInvocationReorder (VK_NV_ray_tracing_invocation_reorder)".into());
         }
         m
     }
@@ -105,6 +110,7 @@ impl Gpu {
         let mut rq = vk::PhysicalDeviceRayQueryFeaturesKHR::default();
         let mut db = vk::PhysicalDeviceDescriptorBufferFeaturesEXT::default();
         let mut fault = vk::PhysicalDeviceFaultFeaturesEXT::default();
+        let mut reorder = vk::PhysicalDeviceRayTracingInvocationReorderFeaturesNV::default();
         let mut v13 = vk::PhysicalDeviceVulkan13Features::default().dynamic_rendering(req.dynamic_rendering);
 
         let bda = req.buffer_device_address || req.rt_pipeline || req.ray_query || req.descriptor_buffer;
@@ -153,6 +159,10 @@ impl Gpu {
             fault.device_fault = vk::TRUE;
             fault.device_fault_vendor_binary = sup.fault.map(|f| f.device_fault_vendor_binary).unwrap_or(vk::FALSE);
         }
+        if req.invocation_reorder {
+            exts.push(nv::ray_tracing_invocation_reorder::NAME);
+            reorder.ray_tracing_invocation_reorder = vk::TRUE;
+        }
         core.shader_int64 = if req.int64 || bda { sup.core.shader_int64 } else { vk::FALSE };
         core.fragment_stores_and_atomics = if req.fragment_stores { vk::TRUE } else { vk::FALSE };
         core.vertex_pipeline_stores_and_atomics = vk::FALSE;
@@ -178,6 +188,9 @@ impl Gpu {
         }
         if req.device_fault {
             f2 = f2.push_next(&mut fault);
+        }
+        if req.invocation_reorder {
+            f2 = f2.push_next(&mut reorder);
         }
         let ci = vk::DeviceCreateInfo::default().queue_create_infos(&qci).enabled_extension_names(&ext_ptrs).push_next(&mut f2);
         let device = unsafe { instance.raw.create_device(info.raw, &ci, None) }.at("vkCreateDevice")?;
