@@ -51,6 +51,9 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     if !(a.timeout > 0.0 && a.timeout <= 3600.0) {
         return Err(coded(exit::USAGE, "--timeout must be in (0, 3600] seconds"));
     }
+    if !(a.setup_timeout > 0.0 && a.setup_timeout <= 3600.0) {
+        return Err(coded(exit::USAGE, "--setup-timeout must be in (0, 3600] seconds"));
+    }
     let inst = open_instance(g)?;
     let all = features::query_all(&inst)?;
     let info = features::select(&all, a.device.as_deref())?.clone();
@@ -98,7 +101,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             ambiguous_pixels: sref.ambiguous_pixels(),
         },
         options: json!({
-            "jobs": jobs, "isolation": a.isolation, "timeout_s": a.timeout, "confirm": !a.no_confirm,
+            "jobs": jobs, "isolation": a.isolation, "timeout_s": a.timeout, "setup_timeout_s": a.setup_timeout, "confirm": !a.no_confirm,
             "canaries": a.canaries, "filters": a.filter, "patches": a.patches, "validate": g.validate, "corrupt_expected": a.corrupt_expected,
         }),
         plan: PlanSummary {
@@ -111,6 +114,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         },
         summary: Default::default(),
         timing: TimingSummary::default(),
+        workers: vec![],
         cells: vec![],
     };
     let base = match &a.resume {
@@ -137,8 +141,9 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         jobs,
         isolation: a.isolation,
         timeout: Duration::from_secs_f64(a.timeout),
-        setup_timeout: Duration::from_secs(120),
+        setup_timeout: Duration::from_secs_f64(a.setup_timeout),
         grace: Duration::from_millis(500),
+        kill_wait: Duration::from_secs(5),
         validate: g.validate,
         corrupt_expected: a.corrupt_expected,
         dump: a.dump.clone(),
@@ -155,7 +160,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             .report
             .cells
             .iter()
-            .filter(|c| c.cell.canary.is_none() && c.attempts.len() == 1 && c.outcome.worth_confirming())
+            .filter(|c| c.cell.canary.is_none() && c.attempts.len() == 1 && !c.attempts[0].not_run() && c.outcome.worth_confirming())
             .map(|c| c.cell)
             .collect();
         if !again.is_empty() {
@@ -199,7 +204,9 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     }
     print!("{}", summary::render(&writer.report));
     println!("report: {}", out.display());
-    Ok(if writer.report.findings().next().is_some() { exit::FINDINGS } else { exit::OK })
+    // A worker fault outside any cell (a crash between cells, a hung teardown) is a finding too.
+    let worker_faults = writer.report.workers.iter().any(|w| w.outcome.is_finding());
+    Ok(if writer.report.findings().next().is_some() || worker_faults { exit::FINDINGS } else { exit::OK })
 }
 
 struct RunState {
@@ -215,6 +222,12 @@ impl RunState {
             Event::WorkerReady { device_ms, .. } => {
                 self.writer.report.timing.workers_started += 1;
                 self.device_ms_sum += device_ms;
+            }
+            Event::Worker(w) => {
+                self.writer.record_worker(w);
+                if let Err(e) = self.writer.save(false) {
+                    self.save_error.get_or_insert(e);
+                }
             }
             Event::Attempt { cell, attempt } => {
                 self.bar.inc(1);

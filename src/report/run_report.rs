@@ -5,7 +5,7 @@
 use crate::matrix::plan::{NotGenerated, PlanStatus, RunPlan};
 use crate::matrix::{Canary, Cell};
 use crate::outcome::Outcome;
-use crate::runner::supervisor::Attempt;
+use crate::runner::supervisor::{Attempt, WorkerEvent};
 use crate::scene::SceneParams;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
@@ -112,6 +112,9 @@ pub struct RunReport {
     pub plan: PlanSummary,
     pub summary: BTreeMap<String, usize>,
     pub timing: TimingSummary,
+    /// Each worker's setup (`pass` once ready) and its faults outside any cell.
+    #[serde(default)]
+    pub workers: Vec<WorkerEvent>,
     pub cells: Vec<CellReport>,
 }
 
@@ -249,6 +252,10 @@ impl ReportWriter {
             }
         }
         self.sort();
+    }
+
+    pub fn record_worker(&mut self, event: WorkerEvent) {
+        self.report.workers.push(event);
     }
 
     /// Save (compact while running, pretty when final).

@@ -40,6 +40,14 @@ pub fn render(r: &RunReport) -> String {
             if chk.detected { "detected as expected" } else { "NOT detected: fault classification unproven on this driver" }
         );
     }
+    // Worker faults outside any cell (failed setups, crashes between cells, hung teardowns).
+    let faults: Vec<_> = r.workers.iter().filter(|w| w.outcome != Outcome::Pass).collect();
+    if !faults.is_empty() {
+        let _ = writeln!(s, "worker faults outside cells ({}):", faults.len());
+        for w in faults.iter().take(10) {
+            let _ = writeln!(s, "  {} worker {} {} in {} — {}", mark(w.outcome), w.worker, w.outcome.as_str(), w.phase, w.detail.as_deref().unwrap_or(""));
+        }
+    }
     let vcells: Vec<_> = r.cells.iter().filter(|c| c.attempts.iter().any(|a| a.result.as_ref().is_some_and(|x| x.validation_errors > 0))).collect();
     if !vcells.is_empty() {
         let _ = writeln!(s, "validation errors in {} cells (rtprobe misused the API there; their outcomes prove nothing): first {}", vcells.len(), vcells[0].id);
