@@ -34,7 +34,9 @@ fn run_bounded(args: &[&str], fault: Option<&str>, limit: Duration) -> (Output, 
     if let Some(f) = fault {
         c.env("RTPROBE_WORKER_FAULT", f);
     }
-    let child = c.args(args).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("spawn rtprobe");
+    // `-vv` logs can be huge when the supervisor fails to stop a flooding worker: not kept.
+    let err = if args.contains(&"-vv") { Stdio::null() } else { Stdio::piped() };
+    let child = c.args(args).stdout(Stdio::piped()).stderr(err).spawn().expect("spawn rtprobe");
     let pid = child.id() as i32;
     let (tx, rx) = std::sync::mpsc::channel();
     let t = Instant::now();
@@ -51,9 +53,14 @@ fn run_bounded(args: &[&str], fault: Option<&str>, limit: Duration) -> (Output, 
 }
 
 fn fault_run(fault: &str, filter: &str, extra: &[&str], limit: Duration) -> (Output, Value, Duration) {
+    fault_run_with(&[], fault, filter, extra, limit)
+}
+
+fn fault_run_with(global: &[&str], fault: &str, filter: &str, extra: &[&str], limit: Duration) -> (Output, Value, Duration) {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("r.json");
-    let mut args = vec!["run", "-j", "1", "--no-confirm", "--patches", "none", "--filter", filter, "-o", out.to_str().unwrap()];
+    let mut args = global.to_vec();
+    args.extend_from_slice(&["run", "-j", "1", "--no-confirm", "--patches", "none", "--filter", filter, "-o", out.to_str().unwrap()]);
     args.extend_from_slice(extra);
     let (o, took) = run_bounded(&args, Some(fault), limit);
     let r = report(&out);
@@ -118,7 +125,10 @@ fn a_hang_in_pipeline_creation_is_a_timeout_in_pipeline() {
 
 #[test]
 fn a_worker_that_keeps_printing_still_times_out() {
-    let (o, r, took) = fault_run("trace:spam", ONE, &["--timeout", "3"], Duration::from_secs(120));
+    // With debug logs on (`-vv`, as when someone investigates a hang) the supervisor handles each
+    // line slower than the worker prints them: its queue never runs dry, and the deadline must
+    // still fire.
+    let (o, r, took) = fault_run_with(&["-vv"], "trace:spam", ONE, &["--timeout", "3"], Duration::from_secs(60));
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(took < Duration::from_secs(60), "took {took:?}");
     let cs = cells(&r);
@@ -201,12 +211,16 @@ fn live_workers(job_dir: &str) -> Vec<i32> {
     found
 }
 
-/// Start a run, wait until a cell finished and a worker is running, then `kill` the supervisor
-/// with `sig`. Returns the report path (in `dir`), the supervisor's exit and its stderr.
-fn interrupt_mid_run(dir: &Path, sig: i32, filter: &str) -> (std::process::ExitStatus, String, String) {
-    let out = dir.join("r.json");
-    let mut child = bin()
-        .args(["run", "-j", "2", "--patches", "none", "--filter", filter, "-o", out.to_str().unwrap()])
+/// Start a run (with the worker fault `fault`, if any), wait until a worker runs (and, without a
+/// fault, a cell finished), then `kill` the supervisor with `sig`, and check that no worker of
+/// this run is left. Returns the supervisor's exit and its stderr.
+fn interrupt_mid_run(out: &Path, sig: i32, filter: &str, fault: Option<&str>) -> (std::process::ExitStatus, String) {
+    let mut c = bin();
+    if let Some(f) = fault {
+        c.env("RTPROBE_WORKER_FAULT", f);
+    }
+    let mut child = c
+        .args(["run", "-j", "2", "--timeout", "60", "--patches", "none", "--filter", filter, "-o", out.to_str().unwrap()])
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()
@@ -214,12 +228,16 @@ fn interrupt_mid_run(dir: &Path, sig: i32, filter: &str) -> (std::process::ExitS
     let job_dir = format!("rtprobe-{}/", child.id());
     let start = Instant::now();
     loop {
-        let done = std::fs::read(&out).ok().and_then(|b| serde_json::from_slice::<Value>(&b).ok()).map(|r| cells(&r).iter().filter(|c| !c["attempts"].as_array().unwrap().is_empty()).count()).unwrap_or(0);
-        if done >= 1 && !live_workers(&job_dir).is_empty() {
+        let done = std::fs::read(out).ok().and_then(|b| serde_json::from_slice::<Value>(&b).ok()).map(|r| cells(&r).iter().filter(|c| !c["attempts"].as_array().unwrap().is_empty()).count()).unwrap_or(0);
+        if (done >= 1 || fault.is_some()) && !live_workers(&job_dir).is_empty() {
             break;
         }
         assert!(start.elapsed() < Duration::from_secs(120), "run made no progress");
         std::thread::sleep(Duration::from_millis(20));
+    }
+    if fault.is_some() {
+        // Let the worker reach its hang.
+        std::thread::sleep(Duration::from_millis(1500));
     }
     unsafe { libc::kill(child.id() as i32, sig) };
     let status = child.wait().unwrap();
@@ -228,23 +246,31 @@ fn interrupt_mid_run(dir: &Path, sig: i32, filter: &str) -> (std::process::ExitS
     child.stderr.take().unwrap().read_to_string(&mut err).unwrap();
     // Nothing of this run may still be running (SIGKILL and reaping take a moment).
     let start = Instant::now();
-    while !live_workers(&job_dir).is_empty() {
-        assert!(start.elapsed() < Duration::from_secs(3), "workers outlived the supervisor: {:?}", live_workers(&job_dir));
+    loop {
+        let left = live_workers(&job_dir);
+        if left.is_empty() {
+            break;
+        }
+        if start.elapsed() > Duration::from_secs(3) {
+            for pid in &left {
+                unsafe { libc::kill(*pid, libc::SIGKILL) };
+            }
+            panic!("workers outlived the supervisor: {left:?}");
+        }
         std::thread::sleep(Duration::from_millis(20));
     }
-    (status, err, job_dir)
+    (status, err)
 }
 
 const MANY: &str = "descriptor_model=descriptor_indexing,resource=storage_buffer|uniform_buffer,stage=raygen|closest_hit|miss|compute";
 
 #[test]
 fn ctrl_c_kills_every_worker_keeps_the_report_and_resume_finishes() {
-    use std::os::unix::process::ExitStatusExt;
     let dir = tempfile::tempdir().unwrap();
-    let (status, err, _) = interrupt_mid_run(dir.path(), libc::SIGINT, MANY);
-    assert_eq!(status.code(), Some(130), "{status:?} {}", status.signal().unwrap_or(0));
-    assert!(err.contains("interrupted (SIGINT)") && err.contains("--resume"), "{err}");
     let out = dir.path().join("r.json");
+    let (status, err) = interrupt_mid_run(&out, libc::SIGINT, MANY, None);
+    assert_eq!(status.code(), Some(130), "{status:?}");
+    assert!(err.contains("interrupted (SIGINT)") && err.contains("--resume"), "{err}");
     let r = report(&out);
     assert_eq!(r["complete"], false);
     let o = run(&["run", "-j", "2", "--patches", "none", "--filter", MANY, "--resume", out.to_str().unwrap()]);
@@ -255,9 +281,18 @@ fn ctrl_c_kills_every_worker_keeps_the_report_and_resume_finishes() {
 }
 
 #[test]
-fn a_killed_supervisor_leaves_no_worker_running() {
+fn sigterm_kills_a_hung_worker_too() {
     let dir = tempfile::tempdir().unwrap();
-    let (status, _, _) = interrupt_mid_run(dir.path(), libc::SIGKILL, MANY);
+    let (status, err) = interrupt_mid_run(&dir.path().join("r.json"), libc::SIGTERM, ONE, Some("pipeline:hang"));
+    assert_eq!(status.code(), Some(143), "{status:?}");
+    assert!(err.contains("terminated (SIGTERM)"), "{err}");
+}
+
+#[test]
+fn a_killed_supervisor_leaves_no_worker_running() {
+    // The worker hangs in pipeline creation: nothing but the supervisor's death can end it.
+    let dir = tempfile::tempdir().unwrap();
+    let (status, _) = interrupt_mid_run(&dir.path().join("r.json"), libc::SIGKILL, ONE, Some("pipeline:hang"));
     use std::os::unix::process::ExitStatusExt;
     assert_eq!(status.signal(), Some(libc::SIGKILL));
 }

@@ -160,6 +160,8 @@ struct Worker {
     batch: usize,
     /// It produced at least one attempt.
     progressed: bool,
+    /// Lines that were not protocol messages (logged up to a limit: a worker can flood them).
+    garbage: u64,
 }
 
 impl Worker {
@@ -187,6 +189,7 @@ struct Slot {
 }
 
 const STDERR_TAIL: usize = 4000;
+const GARBAGE_LOGGED: u64 = 20;
 
 fn poll_exit(child: &mut Child, bound: Duration) -> Option<ExitStatus> {
     let until = Instant::now() + bound;
@@ -336,6 +339,7 @@ impl Supervisor {
             batch_left: batch,
             batch,
             progressed: false,
+            garbage: 0,
         })
     }
 
@@ -413,7 +417,10 @@ impl Supervisor {
                 w.step = step;
             }
             Line::Msg(WorkerMsg::Start { cell }) => {
-                if let Some(c) = slot.queue.iter().find(|c| c.id() == cell) {
+                // Only between cells: a repeated `start` must not restart the running cell's clock.
+                if !matches!(w.state, State::Between { .. }) {
+                    tracing::debug!("worker {} sent start {cell} while not between cells; ignored", w.id);
+                } else if let Some(c) = slot.queue.iter().find(|c| c.id() == cell) {
                     w.state = State::Cell { cell: *c, since: Instant::now() };
                     w.phase = Phase::Compile;
                     w.step = None;
@@ -459,7 +466,14 @@ impl Supervisor {
                 let detail = format!("worker setup failed in {}: {message}", w.where_());
                 self.worker_failed(slot, &w, outcome, detail, exit, per_cell, on);
             }
-            Line::Garbage(text) => tracing::debug!("worker said: {text}"),
+            Line::Garbage(text) => {
+                w.garbage += 1;
+                if w.garbage <= GARBAGE_LOGGED {
+                    tracing::debug!("worker {} said: {text}", w.id);
+                } else if w.garbage == GARBAGE_LOGGED + 1 {
+                    tracing::debug!("worker {} keeps printing; further lines not logged", w.id);
+                }
+            }
             Line::Eof => {
                 let mut w = slot.worker.take().expect("present");
                 let exit = match poll_exit(&mut w.child, self.opts.grace) {
