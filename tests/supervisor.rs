@@ -157,6 +157,17 @@ fn a_crash_between_cells_is_recorded_and_the_rest_still_run() {
 }
 
 #[test]
+fn a_hang_between_cells_is_the_workers_and_the_next_cell_still_runs() {
+    let (o, r, took) = fault_run("between_cells:hang", TWO, &["--timeout", "3"], Duration::from_secs(120));
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(took < Duration::from_secs(60), "took {took:?}");
+    assert!(cells(&r).iter().all(|c| c["outcome"] == "pass"), "{:?}", cells(&r));
+    let hung: Vec<_> = workers(&r).into_iter().filter(|w| w["outcome"] == "timeout").collect();
+    assert_eq!(hung.len(), 1, "{:?}", workers(&r));
+    assert_eq!(hung[0]["phase"], "between_cells");
+}
+
+#[test]
 fn a_hang_in_teardown_is_bounded_and_reported() {
     let (o, r, took) = fault_run("teardown:hang", ONE, &["--timeout", "3"], Duration::from_secs(120));
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));

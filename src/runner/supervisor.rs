@@ -557,8 +557,8 @@ impl Supervisor {
     }
 
     /// A worker failed outside any cell: in setup, between cells or in teardown. Recorded as its
-    /// own event; a slot whose workers fail twice in a row without running a cell gives up, and
-    /// records its remaining cells as not run, with that outcome.
+    /// own event; when two workers in a row fail without running a cell, the cells of the last
+    /// one's job are recorded as not run, with its outcome.
     #[allow(clippy::too_many_arguments)]
     fn worker_failed(&self, slot: &mut Slot, w: &Worker, outcome: Outcome, detail: String, exit: WorkerExit, per_cell: bool, on: &mut dyn FnMut(Event)) {
         on(Event::Worker(WorkerEvent {
@@ -580,7 +580,9 @@ impl Supervisor {
         }
         slot.fruitless = 0;
         let why = format!("not run: two workers in a row failed before running a cell; the last: {} in {}: {detail}", outcome.as_str(), w.phase);
-        for c in slot.queue.drain(..) {
+        // Its job is a prefix of the queue (all of it, or one cell in process-per-cell).
+        let n = w.batch.min(slot.queue.len());
+        for c in slot.queue.drain(..n) {
             let attempt = Attempt {
                 outcome,
                 isolated: per_cell,
