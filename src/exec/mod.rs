@@ -142,12 +142,19 @@ impl Executor {
     }
 
     /// Build everything `cells` need before any of them runs: the scene's acceleration
-    /// structures, resource arrays, address tables, the color target. A fault here is the
-    /// worker's setup fault (no cell ran on this device).
+    /// structures, resource arrays, address tables, the color target. A device loss or a fence
+    /// timeout here is the worker's setup fault (no cell ran on this device). A plain creation
+    /// error (say, a format the driver refuses) is left to the cells that need that resource:
+    /// they retry it and report it as their own `error`.
     pub fn prepare(&mut self, cells: &[Cell]) -> Result<(), CellError> {
         for cell in cells {
             let shaders = shadergen::generate(&shadergen::source_cell(cell));
-            self.ensure_resources(cell, &shaders)?;
+            if let Err(e) = self.ensure_resources(cell, &shaders) {
+                if e.outcome() != Outcome::Error {
+                    return Err(e);
+                }
+                tracing::warn!("setup for {}: {e}; left to the cell", cell.id());
+            }
         }
         Ok(())
     }
@@ -167,10 +174,7 @@ impl Executor {
             }
             Err(e) => {
                 let outcome = e.outcome();
-                let detail = match outcome {
-                    Outcome::Timeout => format!("{e} (fence wait limit {:?})", self.opts.timeout),
-                    _ => e.to_string(),
-                };
+                let detail = if outcome == Outcome::Timeout { format!("{e} (fence wait limit {:?})", self.opts.timeout) } else { e.to_string() };
                 let fault = if outcome == Outcome::DeviceLost { fault::query(&self.gpu) } else { None };
                 CellResult { outcome, detail: Some(detail), timings: timings.clone(), comparison: None, fault, validation_errors: 0 }
             }
