@@ -98,6 +98,11 @@ pub struct RunArgs {
     #[arg(long, default_value_t = 20.0, value_name = "SECONDS")]
     pub timeout: f64,
 
+    /// Deadline for a worker's setup (instance, device, scene acceleration structures,
+    /// resources), in seconds; a failed setup is retried once in a fresh worker
+    #[arg(long, default_value_t = 120.0, value_name = "SECONDS")]
+    pub setup_timeout: f64,
+
     /// Do not re-run faulting cells alone in a fresh worker
     #[arg(long)]
     pub no_confirm: bool,

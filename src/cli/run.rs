@@ -59,6 +59,9 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     if !(a.timeout > 0.0 && a.timeout <= 3600.0) {
         return Err(coded(exit::USAGE, "--timeout must be in (0, 3600] seconds"));
     }
+    if !(a.setup_timeout > 0.0 && a.setup_timeout <= 3600.0) {
+        return Err(coded(exit::USAGE, "--setup-timeout must be in (0, 3600] seconds"));
+    }
     let inst = open_instance(g)?;
     let all = features::query_all(&inst)?;
     let info = features::select(&all, a.device.as_deref())?.clone();
@@ -110,7 +113,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             ambiguous_pixels: sref.ambiguous_pixels(),
         },
         options: json!({
-            "jobs": jobs, "isolation": a.isolation, "timeout_s": a.timeout, "confirm": !a.no_confirm,
+            "jobs": jobs, "isolation": a.isolation, "timeout_s": a.timeout, "setup_timeout_s": a.setup_timeout, "confirm": !a.no_confirm,
             "canaries": a.canaries, "filters": a.filter, "patches": a.patches, "validate": g.validate,
             "inject": inject.iter().map(|i| i.spec.clone()).collect::<Vec<_>>(), "repeat": a.repeat,
             "shard": shard.map(|s| s.label()), "binding_stages": std::env::var("RTPROBE_BINDING_STAGES").ok(),
@@ -128,6 +131,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         tally: Default::default(),
         timing: TimingSummary::default(),
         baseline: None,
+        workers: vec![],
         cells: vec![],
     };
     let base = match &a.resume {
@@ -153,8 +157,9 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         jobs,
         isolation: a.isolation,
         timeout: Duration::from_secs_f64(a.timeout),
-        setup_timeout: Duration::from_secs(120),
+        setup_timeout: Duration::from_secs_f64(a.setup_timeout),
         grace: Duration::from_millis(500),
+        kill_wait: Duration::from_secs(5),
         validate: g.validate,
         inject: inject.clone(),
         dump: a.dump.clone(),
@@ -171,7 +176,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             .report
             .cells
             .iter()
-            .filter(|c| c.cell.canary.is_none() && c.attempts.len() == 1 && c.outcome.worth_confirming())
+            .filter(|c| c.cell.canary.is_none() && c.attempts.len() == 1 && !c.attempts[0].not_run() && c.outcome.worth_confirming())
             .map(|c| c.cell)
             .collect();
         if !again.is_empty() {
@@ -238,12 +243,15 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
 }
 
 /// Without a baseline: findings first (exit 1), then canaries whose fault went undetected (exit
-/// 11). With one, only what the baseline did not expect is a finding.
+/// 11). With one, only what the baseline did not expect is a finding. A worker fault outside any
+/// cell (a crash between cells, a hung teardown) is always a finding.
 fn exit_code(r: &RunReport, allow_improvements: bool) -> u8 {
-    let findings = match &r.baseline {
-        Some(c) => !c.ok(allow_improvements),
-        None => r.findings().next().is_some(),
-    };
+    let worker_faults = r.workers.iter().any(|w| w.outcome.is_finding());
+    let findings = worker_faults
+        || match &r.baseline {
+            Some(c) => !c.ok(allow_improvements),
+            None => r.findings().next().is_some(),
+        };
     if findings {
         exit::FINDINGS
     } else if r.undetected_canaries().next().is_some() {
@@ -267,6 +275,12 @@ impl RunState {
             Event::WorkerReady { device_ms, .. } => {
                 self.writer.report.timing.workers_started += 1;
                 self.device_ms_sum += device_ms;
+            }
+            Event::Worker(w) => {
+                self.writer.record_worker(w);
+                if let Err(e) = self.writer.save(false) {
+                    self.save_error.get_or_insert(e);
+                }
             }
             Event::Attempt { cell, attempt } => {
                 self.bar.inc(1);
@@ -305,6 +319,7 @@ mod tests {
             tally: Default::default(),
             timing: TimingSummary::default(),
             baseline: None,
+            workers: vec![],
             cells,
         };
         r.recount();
@@ -312,7 +327,7 @@ mod tests {
     }
 
     fn ran(cell: Cell, outcome: Outcome) -> CellReport {
-        CellReport::new(&cell, Attempt { outcome, isolated: false, detail: None, result: None, worker_exit: None, injected: None, wall_ms: 0.0 })
+        CellReport::new(&cell, Attempt { outcome, isolated: false, detail: None, result: None, worker_exit: None, injected: None, wall_ms: 0.0, phase: None, worker: 0, device_features: vec![] })
     }
 
     #[test]

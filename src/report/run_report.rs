@@ -5,7 +5,7 @@
 use crate::matrix::plan::{NotGenerated, PlanStatus, RunPlan};
 use crate::matrix::{Canary, Cell};
 use crate::outcome::Outcome;
-use crate::runner::supervisor::Attempt;
+use crate::runner::supervisor::{Attempt, WorkerEvent};
 use crate::scene::SceneParams;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
@@ -231,6 +231,9 @@ pub struct RunReport {
     /// With `--baseline`: how the run compared with its expectations.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub baseline: Option<crate::fleet::baseline::BaselineCheck>,
+    /// Each worker's setup (`pass` once ready) and its faults outside any cell.
+    #[serde(default)]
+    pub workers: Vec<WorkerEvent>,
     pub cells: Vec<CellReport>,
 }
 
@@ -374,6 +377,10 @@ impl ReportWriter {
         self.sort();
     }
 
+    pub fn record_worker(&mut self, event: WorkerEvent) {
+        self.report.workers.push(event);
+    }
+
     /// Save (compact while running, pretty when final).
     pub fn save(&self, pretty: bool) -> Result<(), crate::report::atomic::WriteError> {
         let bytes = if pretty { serde_json::to_vec_pretty(&self.report) } else { serde_json::to_vec(&self.report) }.expect("report serializes");
@@ -391,7 +398,7 @@ mod tests {
     }
 
     fn attempt(outcome: Outcome, isolated: bool) -> Attempt {
-        Attempt { outcome, isolated, detail: Some(format!("{} happened", outcome.as_str())), result: None, worker_exit: None, injected: None, wall_ms: 1.0 }
+        Attempt { outcome, isolated, detail: Some(format!("{} happened", outcome.as_str())), result: None, worker_exit: None, injected: None, wall_ms: 1.0, phase: None, worker: 0, device_features: vec![] }
     }
 
     #[test]

@@ -45,6 +45,14 @@ pub fn render(r: &RunReport) -> String {
         let injected = r.cells.iter().filter(|c| c.injected.is_some()).count();
         let _ = writeln!(s, "fault injection: {injected} cells misbehave on purpose ({})", r.options["inject"]);
     }
+    // Worker faults outside any cell (failed setups, crashes between cells, hung teardowns).
+    let faults: Vec<_> = r.workers.iter().filter(|w| w.outcome != Outcome::Pass).collect();
+    if !faults.is_empty() {
+        let _ = writeln!(s, "worker faults outside cells ({}):", faults.len());
+        for w in faults.iter().take(10) {
+            let _ = writeln!(s, "  {} worker {} {} in {} — {}", mark(w.outcome), w.worker, w.outcome.as_str(), w.phase, w.detail.as_deref().unwrap_or(""));
+        }
+    }
     let vcells: Vec<_> = r.cells.iter().filter(|c| c.attempts.iter().any(|a| a.result.as_ref().is_some_and(|x| x.validation_errors > 0))).collect();
     if !vcells.is_empty() {
         let _ = writeln!(s, "validation errors in {} cells (rtprobe misused the API there; their outcomes prove nothing): first {}", vcells.len(), vcells[0].id);
