@@ -419,6 +419,10 @@ impl Supervisor {
     fn handle(&mut self, slot: &mut Slot, line: Line, per_cell: bool, on: &mut dyn FnMut(Event)) {
         let w = slot.worker.as_mut().expect("checked by caller");
         match line {
+            Line::Msg(WorkerMsg::Ready { .. }) if !matches!(w.state, State::Setup) => {
+                // Only once, at the end of setup: it must not restart any clock.
+                tracing::debug!("worker {} sent ready again; ignored", w.id);
+            }
             Line::Msg(WorkerMsg::Ready { device_ms, reference_ms, device_features }) => {
                 w.state = State::Between { since: Instant::now() };
                 w.phase = Phase::BetweenCells;
@@ -660,6 +664,16 @@ mod tests {
         assert!(t.elapsed() < Duration::from_secs(2));
         child.kill().unwrap();
         assert!(poll_exit(&mut child, Duration::from_secs(5)).is_some());
+    }
+
+    #[test]
+    fn a_death_is_a_crash_unless_the_exit_was_clean() {
+        let exit = |code, signal| WorkerExit { code, signal, ..Default::default() };
+        assert_eq!(died(&exit(None, Some(libc::SIGSEGV))).0, Outcome::Crash);
+        assert!(died(&exit(None, Some(libc::SIGSEGV))).1.contains("SIGSEGV"));
+        assert_eq!(died(&exit(Some(3), None)).0, Outcome::Crash);
+        assert_eq!(died(&exit(Some(0), None)).0, Outcome::Error);
+        assert_eq!(died(&exit(None, None)).0, Outcome::Error);
     }
 
     #[test]
