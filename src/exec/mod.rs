@@ -176,17 +176,17 @@ impl Executor {
     }
 
     /// Targets of bindings 0..=2 for `key`, creating what is missing.
-    fn targets(&mut self, key: LayoutKey) -> Result<Vec<(u32, vk::DescriptorType, Vec<Target>)>, CellError> {
-        let mut t = vec![(0, vk::DescriptorType::STORAGE_BUFFER, vec![Target::Buffer { raw: self.records.raw, address: self.records.address, range: self.records.size }])];
+    fn targets(&mut self, key: LayoutKey) -> Result<Vec<(u32, Resource, Vec<Target>)>, CellError> {
+        let mut t = vec![(0, Resource::StorageBuffer, vec![Target::Buffer { raw: self.records.raw, address: self.records.address, range: self.records.size }])];
         if key.scene_tlas {
             let s = self.ensure_scene()?;
-            t.push((1, vk::DescriptorType::ACCELERATION_STRUCTURE_KHR, vec![Target::Accel { raw: s.tlas[0].raw, address: s.tlas[0].address }]));
+            t.push((1, Resource::AccelerationStructure, vec![Target::Accel { raw: s.scene_tlas.raw, address: s.scene_tlas.address }]));
         }
         if let Some(r) = key.probe {
             let slots = self.slots();
             let targets = if r == Resource::AccelerationStructure {
                 let s = self.ensure_scene()?;
-                (0..slots).map(|k| { let a = &s.tlas[probe::as_slot_tlas(k)]; Target::Accel { raw: a.raw, address: a.address } }).collect()
+                (0..slots).map(|k| { let a = &s.probe_tlas[probe::as_slot_tlas(k, slots)]; Target::Accel { raw: a.raw, address: a.address } }).collect()
             } else {
                 if !self.arrays.contains_key(&r) {
                     let a = ResourceArray::create(&self.gpu, r, slots, &self.submitter, self.opts.timeout)?;
@@ -194,7 +194,7 @@ impl Executor {
                 }
                 self.arrays[&r].targets(self.sampler)
             };
-            t.push((2, resources::descriptor_type(r), targets));
+            t.push((2, r, targets));
         }
         Ok(t)
     }
@@ -266,8 +266,8 @@ impl Executor {
             let b = Binding::create(&self.gpu, key, &targets)?;
             self.bindings.insert(key, b);
         }
-        // The table the address patches read at push-constant offset 40 (as_table_address at 24
-        // is the hand-written address variant's).
+        // The table the address patches read at push-constant offset probe::PATCHED_TABLE_OFFSET
+        // (PushConstants::as_table is the hand-written address variant's).
         let mut patched_table_address = 0;
         if cell.patch == Some(crate::matrix::cell::Workaround::SsboToAddress) {
             if self.ssbo_table.is_none() {
@@ -285,8 +285,9 @@ impl Executor {
         if shadergen::as_by_address(cell) {
             if self.as_table.is_none() {
                 let s = self.ensure_scene()?;
-                let addrs = [s.tlas[0].address, s.tlas[1].address];
-                self.as_table = Some(resources::as_table(&self.gpu, addrs, self.slots())?);
+                let addrs: Vec<u64> = s.probe_tlas.iter().map(|t| t.address).collect();
+                let slots = self.slots();
+                self.as_table = Some(resources::as_table(&self.gpu, &addrs, slots)?);
             }
             as_table_address = self.as_table.as_ref().map(|b| b.address).unwrap_or(0);
             patched_table_address = as_table_address;
@@ -317,16 +318,14 @@ impl Executor {
             self.pipelines.insert(pkey, p);
         }
 
-        // push constants
-        let mut pc = Vec::with_capacity(40);
-        for v in [w, h, probe::PUSH_SLOT, probe::DYNAMIC_BASE, self.slots(), u32::from(cell.canary == Some(Canary::InfiniteLoop))] {
-            pc.extend_from_slice(&v.to_le_bytes());
+        // push constants (layout: probe::PushConstants, then the patches' table address)
+        let pc = probe::PushConstants {
+            loop_forever: u32::from(cell.canary == Some(Canary::InfiniteLoop)),
+            as_table: as_table_address,
+            bad_address: if cell.canary == Some(Canary::InvalidAddress) { CANARY_BAD_ADDRESS } else { 0 },
+            ..probe::push_constants(w, h, self.scene.params.instances)
         }
-        pc.extend_from_slice(&as_table_address.to_le_bytes());
-        let bad = if cell.canary == Some(Canary::InvalidAddress) { CANARY_BAD_ADDRESS } else { 0 };
-        pc.extend_from_slice(&bad.to_le_bytes());
-        // offset 40: the table address of modules rewritten by the address patches
-        pc.extend_from_slice(&patched_table_address.to_le_bytes());
+        .to_bytes(patched_table_address);
 
         let gpu = &self.gpu;
         let pipe = &self.pipelines[&pkey];
