@@ -444,6 +444,20 @@ mod tests {
         e.iter().map(|x| x.record).collect()
     }
 
+    /// The expected records with every probe pixel's value replaced by `read(record)` (what a
+    /// faulty driver would read there).
+    fn reading(e: &[Expected], read: impl Fn(&Record) -> [f32; 4]) -> Vec<Record> {
+        e.iter()
+            .map(|x| {
+                let mut a = x.record;
+                if a.flags & FLAG_PROBE != 0 {
+                    a.value = read(&a);
+                }
+                a
+            })
+            .collect()
+    }
+
     #[test]
     fn default_scene_has_hits_misses_spheres_and_few_ambiguous_pixels() {
         let (_, r) = world();
@@ -573,16 +587,7 @@ mod tests {
         let (scene, r) = world();
         let c = Cell { resource: Resource::UniformBuffer, ..cell(Stage::ClosestHit, IndexSource::Dynamic) };
         let e = expected(&c, scene, r, false);
-        let base_dropped: Vec<Record> = e
-            .iter()
-            .map(|x| {
-                let mut a = x.record;
-                if a.flags & FLAG_PROBE != 0 {
-                    a.value = crate::probe::resource_value(Resource::UniformBuffer, a.slot - crate::probe::DYNAMIC_BASE, a.element);
-                }
-                a
-            })
-            .collect();
+        let base_dropped = reading(&e, |a| crate::probe::resource_value(Resource::UniformBuffer, a.slot - crate::probe::DYNAMIC_BASE, a.element));
         let cmp = compare(&e, &base_dropped, 64);
         let reads = cmp.element_reads.clone().expect("no-nonuniform cells count their reads");
         assert_eq!(reads.outside_spec, NO_NONUNIFORM_VUID);
@@ -608,16 +613,7 @@ mod tests {
         let elements: std::collections::BTreeSet<u32> = e.iter().filter(|x| x.record.flags & FLAG_PROBE != 0).map(|x| x.record.element).collect();
         assert_eq!(elements.len() as u32, crate::probe::ELEMENTS);
         // a driver that always reads v[0] is caught wherever the element is not 0
-        let v0: Vec<Record> = e
-            .iter()
-            .map(|x| {
-                let mut a = x.record;
-                if a.flags & FLAG_PROBE != 0 {
-                    a.value = crate::probe::resource_value(Resource::StorageBuffer, a.slot, 0);
-                }
-                a
-            })
-            .collect();
+        let v0 = reading(&e, |a| crate::probe::resource_value(Resource::StorageBuffer, a.slot, 0));
         let cmp = compare(&e, &v0, 64);
         let nonzero = e.iter().filter(|x| !x.ambiguous && x.record.flags & FLAG_PROBE != 0 && x.record.element != 0).count();
         assert_eq!(cmp.by_field.get("value"), Some(&nonzero));

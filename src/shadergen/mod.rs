@@ -164,7 +164,7 @@ records[i] = probeRecord(probeSlot, probeElement, probeValue);\n}}\n",
                 uses_ray_query: probe.ray_query,
             }
         }
-        _ => ray_tracing(cell, &probe, here),
+        Stage::Raygen | Stage::ClosestHit | Stage::AnyHit | Stage::Miss | Stage::Intersection | Stage::Callable => ray_tracing(cell, &probe, here),
     }
 }
 
