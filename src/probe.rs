@@ -401,7 +401,7 @@ mod tests {
     fn slots_fit_the_array_and_values_are_distinct() {
         let n = slot_count(16);
         assert_eq!(n, DYNAMIC_BASE + 16);
-        assert!(LITERAL_SLOT < n && SPEC_SLOT < n && PUSH_SLOT < n);
+        assert!([LITERAL_SLOT, SPEC_SLOT, PUSH_SLOT].iter().all(|s| *s < n));
         assert_eq!(dynamic_slot(Stage::ClosestHit, 0, 0, 64, 0xfffff5, n), DYNAMIC_BASE + 5);
         assert!(dynamic_slot(Stage::Fragment, 63, 63, 64, 0, n) < n);
         let mut seen = std::collections::HashSet::new();

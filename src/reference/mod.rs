@@ -318,12 +318,12 @@ fn compare_hit(c: &mut Comparison, bad: &mut Bad, r: &Record, a: &Record) {
     }
     let te = ((a.t as f64 - r.t as f64) / (r.t as f64).abs().max(1.0)).abs();
     c.worst_t_rel = worst(c.worst_t_rel, te);
-    if !(te <= T_REL_TOL) {
+    if te.is_nan() || te > T_REL_TOL {
         bad.push(("t", r.t.to_string(), a.t.to_string()));
     }
     let be = (0..2).map(|k| (a.bary[k] as f64 - r.bary[k] as f64).abs()).fold(0.0, worst);
     c.worst_bary = worst(c.worst_bary, be);
-    if !(be <= BARY_TOL) {
+    if be.is_nan() || be > BARY_TOL {
         bad.push(("bary", format!("{:?}", r.bary), format!("{:?}", a.bary)));
     }
 }
