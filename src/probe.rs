@@ -192,33 +192,47 @@ pub const DYNAMIC_BASE: u32 = 3;
 pub const TILE: u32 = 8;
 /// Elements per slot: every probed buffer holds `vec4 v[ELEMENTS]`, every image 2×2 texels.
 pub const ELEMENTS: u32 = 4;
-/// Probe TLAS variants at most (slot k reads variant `k % as_variants(slots)`).
-pub const MAX_AS_VARIANTS: u32 = 32;
+/// The largest `dyn_mask` of an AS probe array: AS arrays stay small (one TLAS variant per slot)
+/// whatever the scene's size.
+pub const AS_DYN_MASK_MAX: u32 = 31;
+/// Probe TLAS variants at most: one per slot of the largest AS array.
+pub const MAX_AS_VARIANTS: u32 = DYNAMIC_BASE + AS_DYN_MASK_MAX + 1;
 /// Probe TLAS custom indices: `variant * AS_CUSTOM_STRIDE + instance` (the floor is instance
 /// `instances`), so that every variant answers differently wherever the probe ray hits.
 pub const AS_CUSTOM_STRIDE: u32 = 8192;
 /// Direction of the AS probe ray (from the pixel's primary origin), unlike the primary ray's +z.
 pub const PROBE_DIR: [f32; 3] = [0.25, -0.125, 1.0];
 
-/// Slots of the hit-stage dynamic range: the custom index's low bits, masked by `dyn_mask`.
-pub fn dyn_mask(instances: u32) -> u32 {
+/// The bits of a custom index that tell instances apart (custom indices keep a permutation of
+/// the instance indices there).
+pub fn instance_mask(instances: u32) -> u32 {
     instances.next_power_of_two() - 1
 }
 
-/// Number of descriptors in the probed array (and of addresses in the AS address table).
-pub fn slot_count(instances: u32) -> u32 {
-    DYNAMIC_BASE + dyn_mask(instances) + 1
+/// The mask `index=dynamic` applies to the custom index in hit stages for an array of `resource`.
+pub fn dyn_mask(resource: Resource, instances: u32) -> u32 {
+    match resource {
+        Resource::StorageBuffer | Resource::UniformBuffer | Resource::SampledImage | Resource::StorageImage => instance_mask(instances),
+        Resource::AccelerationStructure => instance_mask(instances).min(AS_DYN_MASK_MAX),
+    }
 }
 
-/// The push constants of a probe cell (the canary fields and table address set by the caller).
-pub fn push_constants(width: u32, height: u32, instances: u32) -> PushConstants {
+/// Number of descriptors in the probed array of `resource` (and of addresses in the AS address
+/// table): the base, then one slot per value of the masked custom index.
+pub fn slot_count(resource: Resource, instances: u32) -> u32 {
+    DYNAMIC_BASE + dyn_mask(resource, instances) + 1
+}
+
+/// The push constants of a probe cell reading `resource` (the canary fields and table address
+/// set by the caller).
+pub fn push_constants(width: u32, height: u32, instances: u32, resource: Resource) -> PushConstants {
     PushConstants {
         width,
         height,
         push_slot: PUSH_SLOT,
         dyn_base: DYNAMIC_BASE,
-        slot_count: slot_count(instances),
-        dyn_mask: dyn_mask(instances),
+        slot_count: slot_count(resource, instances),
+        dyn_mask: dyn_mask(resource, instances),
         ..Default::default()
     }
 }
@@ -230,14 +244,15 @@ pub fn resource_value(resource: Resource, slot: u32, element: u32) -> [f32; 4] {
     [slot as f32 + 1.0, r * 16.0 + 1.0, 1000.0 + (slot * ELEMENTS + element) as f32, 0.25 + element as f32]
 }
 
-/// Number of probe TLAS variants for an array of `slots`.
-pub fn as_variants(slots: u32) -> u32 {
-    slots.min(MAX_AS_VARIANTS)
+/// Number of probe TLAS variants: one per slot of the AS array, so that every slot answers
+/// differently.
+pub fn as_variants(instances: u32) -> u32 {
+    slot_count(Resource::AccelerationStructure, instances)
 }
 
-/// Which probe TLAS variant an acceleration-structure slot refers to.
-pub fn as_slot_tlas(slot: u32, slots: u32) -> usize {
-    (slot % as_variants(slots)) as usize
+/// Which probe TLAS variant an acceleration-structure slot refers to (its own).
+pub fn as_slot_tlas(slot: u32) -> usize {
+    slot as usize
 }
 
 /// Whether probe TLAS `variant` holds scene instance `k` (the floor is in every variant).
@@ -388,7 +403,7 @@ mod tests {
 
     #[test]
     fn push_constants_bytes_follow_the_offsets() {
-        let p = PushConstants { as_table: 0x1122_3344_5566_7788, bad_address: 9, ..push_constants(64, 32, 16) };
+        let p = PushConstants { as_table: 0x1122_3344_5566_7788, bad_address: 9, ..push_constants(64, 32, 16, Resource::StorageBuffer) };
         let b = p.to_bytes(0xabcd);
         assert_eq!(b.len() as u32, PUSH_CONSTANT_BYTES);
         let u64_at = |o: usize| u64::from_le_bytes(b[o..o + 8].try_into().unwrap());
@@ -399,8 +414,11 @@ mod tests {
 
     #[test]
     fn slots_fit_the_array_and_values_are_distinct() {
-        let n = slot_count(16);
+        let n = slot_count(Resource::StorageBuffer, 16);
         assert_eq!(n, DYNAMIC_BASE + 16);
+        assert_eq!(slot_count(Resource::AccelerationStructure, 16), n);
+        assert_eq!(slot_count(Resource::StorageBuffer, 4096), DYNAMIC_BASE + 4096);
+        assert_eq!(as_variants(4096), MAX_AS_VARIANTS);
         assert!([LITERAL_SLOT, SPEC_SLOT, PUSH_SLOT].iter().all(|s| *s < n));
         assert_eq!(dynamic_slot(Stage::ClosestHit, 0, 0, 64, 0xfffff5, n), DYNAMIC_BASE + 5);
         assert!(dynamic_slot(Stage::Fragment, 63, 63, 64, 0, n) < n);
@@ -412,7 +430,7 @@ mod tests {
                 }
             }
         }
-        assert_eq!(as_variants(n), n);
+        assert_eq!(as_variants(16), n);
         assert_ne!(as_value(Some(as_custom(1, 3))), as_value(Some(as_custom(2, 3))));
     }
 }

@@ -171,8 +171,8 @@ impl Executor {
         Ok(self.scene_gpu.as_ref().expect("built above"))
     }
 
-    fn slots(&self) -> u32 {
-        probe::slot_count(self.scene.params.instances)
+    fn slots(&self, r: Resource) -> u32 {
+        probe::slot_count(r, self.scene.params.instances)
     }
 
     /// Targets of bindings 0..=2 for `key`, creating what is missing.
@@ -183,10 +183,10 @@ impl Executor {
             t.push((1, Resource::AccelerationStructure, vec![Target::Accel { raw: s.scene_tlas.raw, address: s.scene_tlas.address }]));
         }
         if let Some(r) = key.probe {
-            let slots = self.slots();
+            let slots = self.slots(r);
             let targets = if r == Resource::AccelerationStructure {
                 let s = self.ensure_scene()?;
-                (0..slots).map(|k| { let a = &s.probe_tlas[probe::as_slot_tlas(k, slots)]; Target::Accel { raw: a.raw, address: a.address } }).collect()
+                (0..slots).map(|k| { let a = &s.probe_tlas[probe::as_slot_tlas(k)]; Target::Accel { raw: a.raw, address: a.address } }).collect()
             } else {
                 if !self.arrays.contains_key(&r) {
                     let a = ResourceArray::create(&self.gpu, r, slots, &self.submitter, self.opts.timeout)?;
@@ -271,7 +271,7 @@ impl Executor {
         let mut patched_table_address = 0;
         if cell.patch == Some(crate::matrix::cell::Workaround::SsboToAddress) {
             if self.ssbo_table.is_none() {
-                let slots = self.slots();
+                let slots = self.slots(Resource::StorageBuffer);
                 if !self.arrays.contains_key(&Resource::StorageBuffer) {
                     let a = ResourceArray::create(&self.gpu, Resource::StorageBuffer, slots, &self.submitter, self.opts.timeout)?;
                     self.arrays.insert(Resource::StorageBuffer, a);
@@ -286,7 +286,7 @@ impl Executor {
             if self.as_table.is_none() {
                 let s = self.ensure_scene()?;
                 let addrs: Vec<u64> = s.probe_tlas.iter().map(|t| t.address).collect();
-                let slots = self.slots();
+                let slots = self.slots(Resource::AccelerationStructure);
                 self.as_table = Some(resources::as_table(&self.gpu, &addrs, slots)?);
             }
             as_table_address = self.as_table.as_ref().map(|b| b.address).unwrap_or(0);
@@ -323,7 +323,7 @@ impl Executor {
             loop_forever: u32::from(cell.canary == Some(Canary::InfiniteLoop)),
             as_table: as_table_address,
             bad_address: if cell.canary == Some(Canary::InvalidAddress) { CANARY_BAD_ADDRESS } else { 0 },
-            ..probe::push_constants(w, h, self.scene.params.instances)
+            ..probe::push_constants(w, h, self.scene.params.instances, cell.resource)
         }
         .to_bytes(patched_table_address);
 

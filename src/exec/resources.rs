@@ -115,7 +115,7 @@ pub fn descriptor_type(kind: Resource) -> vk::DescriptorType {
 
 /// A buffer of `slots` device addresses: slot k → probe TLAS variant `probe::as_slot_tlas(k)`.
 pub fn as_table(gpu: &Gpu, variant_addresses: &[u64], slots: u32) -> Result<Buffer, VkError> {
-    let addrs: Vec<u64> = (0..slots).map(|k| variant_addresses[probe::as_slot_tlas(k, slots)]).collect();
+    let addrs: Vec<u64> = (0..slots).map(|k| variant_addresses[probe::as_slot_tlas(k)]).collect();
     address_table(gpu, &addrs, "AS address table")
 }
 

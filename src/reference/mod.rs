@@ -42,15 +42,13 @@ pub struct SceneReference {
     pub full: Vec<TraceRef>,
     /// `probe[v][pixel]`: the AS probe ray through probe TLAS variant `v`.
     pub probe: Vec<Vec<TraceRef>>,
-    pub slots: u32,
 }
 
 impl SceneReference {
     pub fn compute(scene: &Scene) -> Self {
         let (w, h) = (scene.params.width, scene.params.height);
         let n = scene.instances.len() as u32;
-        let slots = probe::slot_count(scene.params.instances);
-        let variants = probe::as_variants(slots);
+        let variants = probe::as_variants(scene.params.instances);
         let mut full = Vec::with_capacity(scene.params.pixels());
         let mut probe_rays: Vec<Vec<TraceRef>> = (0..variants).map(|_| Vec::with_capacity(scene.params.pixels())).collect();
         let with_floor: Vec<(u32, &crate::scene::Instance)> =
@@ -65,7 +63,7 @@ impl SceneReference {
                 }
             }
         }
-        Self { full, probe: probe_rays, slots }
+        Self { full, probe: probe_rays }
     }
 
     pub fn ambiguous_pixels(&self) -> usize {
@@ -74,7 +72,7 @@ impl SceneReference {
 
     /// The AS probe's value through AS slot `slot` at pixel `p`, and whether it is ambiguous.
     pub fn as_value(&self, slot: u32, p: usize) -> ([f32; 4], bool) {
-        let v = probe::as_slot_tlas(slot, self.slots);
+        let v = probe::as_slot_tlas(slot);
         let t = self.probe[v][p];
         (probe::as_value(t.hit.map(|h| probe::as_custom(v as u32, h.instance_id))), t.ambiguous)
     }
@@ -125,8 +123,8 @@ fn buffer_value_discriminates(resource: Resource, slots: u32, slot: u32, element
 /// checks it exactly, so that a correct GPU result must be reported as a mismatch.
 pub fn expected(cell: &Cell, scene: &Scene, sref: &SceneReference, corrupt: bool) -> Vec<Expected> {
     let (w, h) = (scene.params.width, scene.params.height);
-    let slots = sref.slots;
-    let variants = probe::as_variants(slots);
+    let slots = probe::slot_count(cell.resource, scene.params.instances);
+    let variants = probe::as_variants(scene.params.instances);
     // buffer/image discrimination depends only on (slot, element): computed once each
     let mut buffer_disc: Vec<Option<bool>> = vec![None; (slots * probe::ELEMENTS) as usize];
     let mut out = Vec::with_capacity(scene.params.pixels());
@@ -558,7 +556,7 @@ mod tests {
             let as_access = (resource == Resource::AccelerationStructure).then_some(AsAccess::Descriptor);
             let c = Cell { resource, as_access, nonuniform: true, ..cell(Stage::ClosestHit, IndexSource::Dynamic) };
             let e = expected(&c, scene, r, false);
-            let slots = r.slots;
+            let slots = crate::probe::slot_count(resource, scene.params.instances);
             // What the GPU would write if gl_InstanceCustomIndexEXT returned gl_InstanceID.
             let actual: Vec<Record> = e
                 .iter()
@@ -648,6 +646,21 @@ mod tests {
         let e = expected(&cell(Stage::Miss, IndexSource::Literal), scene, r, false);
         for (x, t) in e.iter().zip(&r.full) {
             assert_eq!(x.record.flags & FLAG_PROBE != 0, t.hit.is_none());
+        }
+    }
+
+    /// AS arrays keep one TLAS variant per slot in larger scenes (their dynamic mask is capped
+    /// instead), so a wrong slot is still caught everywhere.
+    #[test]
+    fn as_cells_discriminate_in_a_large_scene() {
+        let scene = Scene::build(&SceneParams { instances: 256, width: 32, height: 32, ..SceneParams::default() });
+        let r = SceneReference::compute(&scene);
+        assert_eq!(r.probe.len() as u32, crate::probe::slot_count(Resource::AccelerationStructure, 256));
+        for stage in [Stage::Raygen, Stage::ClosestHit, Stage::Miss, Stage::Compute] {
+            let c = Cell { resource: Resource::AccelerationStructure, as_access: Some(AsAccess::Descriptor), nonuniform: true, ..cell(stage, IndexSource::Dynamic) };
+            let e = expected(&c, &scene, &r, false);
+            let cmp = compare(&e, &records(&e), 32);
+            assert!(cmp.discrimination.is_some_and(|d| d >= 0.5), "{}: {:?}", c.id(), cmp.discrimination);
         }
     }
 

@@ -115,7 +115,7 @@ impl SceneGpu {
         };
         let n = scene.instances.len() as u32;
         let mut lists = vec![scene.instances.iter().map(|i| instance(i, i.custom_index)).collect::<Vec<_>>()];
-        for v in 0..probe::as_variants(probe::slot_count(n)) {
+        for v in 0..probe::as_variants(n) {
             let mut l: Vec<_> = (0..n).filter(|k| probe::as_variant_has(v, *k)).map(|k| instance(&scene.instances[k as usize], probe::as_custom(v, k))).collect();
             l.push(instance(&scene.floor, probe::as_custom(v, n)));
             lists.push(l);

@@ -129,7 +129,7 @@ fn floor_quad() -> Mesh {
     Mesh { positions, indices: vec![[0, 1, 2], [1, 3, 2]], geometries: split(2, 2) }
 }
 
-/// Custom indices of `n` instances: low bits (under `probe::dyn_mask`) a seeded permutation of
+/// Custom indices of `n` instances: low bits (under `probe::instance_mask`) a seeded permutation of
 /// 0..n without fixed points (so custom & mask != instance index), high bits sparse, every fourth
 /// instance's all ones (custom near 2^24−1).
 fn custom_indices(n: u32, seed: u64) -> Vec<u32> {
@@ -144,7 +144,7 @@ fn custom_indices(n: u32, seed: u64) -> Vec<u32> {
             perm.swap(i, (i + 1) % n as usize);
         }
     }
-    let bits = crate::probe::dyn_mask(n).count_ones();
+    let bits = crate::probe::instance_mask(n).count_ones();
     let high_max = ((1u32 << 24) - 1) >> bits;
     perm.iter()
         .enumerate()
@@ -262,7 +262,7 @@ mod tests {
         assert_ne!(a.instances[0].transform, c.instances[0].transform);
         // custom indices are distinct, 24-bit, unlike the instance index (also under the mask),
         // and some are near 2^24-1
-        let mask = crate::probe::dyn_mask(16);
+        let mask = crate::probe::instance_mask(16);
         let mut ids: Vec<u32> = a.instances.iter().map(|i| i.custom_index).collect();
         assert!(ids.iter().enumerate().all(|(k, c)| *c < 1 << 24 && c & mask != k as u32), "{ids:?}");
         assert!(ids.iter().filter(|c| **c >= (1 << 24) - 16).count() >= 4, "{ids:?}");
