@@ -16,7 +16,9 @@
 //! nothing there; engines do it anyway, so the cells stay. Their value must be the value of *some*
 //! element of the array ([`ValueRule::AnyElement`]), which still catches garbage reads, device
 //! losses and crashes; [`ElementReads`] counts pixels that read their own element, another one,
-//! or neither. The slot the shader computed is still exact.
+//! or neither. The slot the shader computed is still exact. Where no descriptor array is indexed
+//! any more (`as_access=address|address_patched`, the `as-to-address` / `ssbo-to-address`
+//! patches) a non-uniform index reads memory, which is well defined: those cells are exact.
 //!
 //! Discrimination: on each exactly checked probe pixel, whether every other slot of the array and
 //! every other element of the slot holds a different value, i.e. whether reading any wrong
@@ -24,7 +26,7 @@
 pub mod intersect;
 
 use crate::matrix::cell::Workaround;
-use crate::matrix::{Cell, IndexSource, Resource, Stage};
+use crate::matrix::{AsAccess, Cell, IndexSource, Resource, Stage};
 use crate::probe::{self, HitIds, Record, FLAG_HIT, FLAG_PROBE, MAX_AS_VARIANTS};
 use crate::scene::Scene;
 use intersect::TraceRef;
@@ -119,6 +121,22 @@ fn buffer_value_discriminates(resource: Resource, slots: u32, slot: u32, element
     (0..slots).all(|s| (0..probe::ELEMENTS).all(|e| (s, e) == (slot, element) || probe::resource_value(resource, s, e) != value))
 }
 
+/// Whether `cell` indexes a descriptor array with a non-uniform value that carries no
+/// `NonUniform` ([`NO_NONUNIFORM_VUID`]): not after the nonuniform / pin-index patches, and not
+/// where no descriptor is indexed any more (an address table, written so or patched), since a
+/// non-uniform index into memory is well defined.
+fn undefined_descriptor_read(cell: &Cell) -> bool {
+    let descriptor_indexed = match cell.as_access {
+        None | Some(AsAccess::Descriptor) => true,
+        Some(AsAccess::Address | AsAccess::AddressPatched) => false,
+    };
+    let patch_keeps_it = match cell.patch {
+        None => true,
+        Some(Workaround::Nonuniform | Workaround::PinIndex | Workaround::AsToAddress | Workaround::SsboToAddress) => false,
+    };
+    cell.index == IndexSource::Dynamic && !cell.nonuniform && descriptor_indexed && patch_keeps_it
+}
+
 /// What `cell` must write for every pixel. `corrupt` (tests only) perturbs every probed value and
 /// checks it exactly, so that a correct GPU result must be reported as a mismatch.
 pub fn expected(cell: &Cell, scene: &Scene, sref: &SceneReference, corrupt: bool) -> Vec<Expected> {
@@ -178,8 +196,7 @@ pub fn expected(cell: &Cell, scene: &Scene, sref: &SceneReference, corrupt: bool
                     let k = (read * probe::ELEMENTS + rec.element) as usize;
                     discriminating = *buffer_disc[k].get_or_insert_with(|| buffer_value_discriminates(cell.resource, slots, read, rec.element));
                 }
-                let made_uniform = matches!(cell.patch, Some(Workaround::Nonuniform | Workaround::PinIndex));
-                if cell.index == IndexSource::Dynamic && !cell.nonuniform && !made_uniform && !corrupt {
+                if undefined_descriptor_read(cell) && !corrupt {
                     let mut as_values = [0.0; MAX_AS_VARIANTS as usize];
                     if cell.resource == Resource::AccelerationStructure {
                         for v in 0..variants {
@@ -638,6 +655,31 @@ mod tests {
         let nu = Cell { nonuniform: true, ..c };
         let e = expected(&nu, scene, r, false);
         assert!(!compare(&e, &actual, 64).passed());
+    }
+
+    #[test]
+    fn dynamic_indices_into_memory_are_checked_exactly() {
+        // Without a descriptor array (an address table, written so or patched) a non-uniform
+        // index is well defined: another slot's value is a mismatch, not "some element".
+        let (scene, r) = world();
+        let base = Cell { resource: Resource::AccelerationStructure, as_access: Some(AsAccess::Descriptor), ..cell(Stage::Raygen, IndexSource::Dynamic) };
+        let cells = [
+            Cell { as_access: Some(AsAccess::Address), ..base },
+            Cell { as_access: Some(AsAccess::AddressPatched), ..base },
+            Cell { patch: Some(Workaround::AsToAddress), ..base },
+            Cell { resource: Resource::StorageBuffer, as_access: None, patch: Some(Workaround::SsboToAddress), ..base },
+        ];
+        for c in cells {
+            let e = expected(&c, scene, r, false);
+            let other_slot = reading(&e, |a| {
+                let s = (a.slot + 1) % crate::probe::slot_count(c.resource, scene.params.instances);
+                if c.resource == Resource::AccelerationStructure { crate::probe::as_value(Some(crate::probe::as_custom(s, 0))) } else { crate::probe::resource_value(c.resource, s, a.element) }
+            });
+            let cmp = compare(&e, &other_slot, 64);
+            assert!(!cmp.passed() && cmp.element_reads.is_none() && cmp.discrimination.is_some(), "{}: {cmp:?}", c.id());
+        }
+        // the descriptor variant itself is outside the spec's guarantees
+        assert!(compare(&expected(&base, scene, r, false), &records(&expected(&base, scene, r, false)), 64).element_reads.is_some());
     }
 
     #[test]
