@@ -556,6 +556,10 @@ mod tests {
         actual[tri].bary[1] = f32::NAN;
         let cmp = compare(&e, &actual, 64);
         assert!(cmp.worst_bary.is_nan(), "{cmp:?}");
+        // the worker sends comparisons to the supervisor as JSON: NaN survives the trip
+        let text = serde_json::to_string(&cmp).unwrap();
+        assert!(text.contains(r#""worst_bary":"NaN""#), "{text}");
+        assert!(serde_json::from_str::<Comparison>(&text).unwrap().worst_bary.is_nan());
         actual[tri].bary[1] = good[tri].bary[1];
         actual[tri].value[2] = f32::INFINITY;
         let cmp = compare(&e, &actual, 64);
