@@ -122,6 +122,29 @@ fn engine_shaders_are_patched_from_glsl() {
 }
 
 #[test]
+fn as_to_address_sizes_an_engine_camera_push_block() {
+    // Matrices (column- and row-major), 8/16/64-bit members and a struct array in the push block:
+    // the table address goes right after it without --option offset, and an offset inside it is
+    // refused.
+    let d = tempfile::tempdir().unwrap();
+    let rgen = shaders().join("engine_camera.rgen");
+    let out = d.path().join("camera_addr.spv");
+    let o = run(&["patch", rgen.to_str().unwrap(), "--glsl", "--stage", "rgen", "--apply", "as-to-address", "-o", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("address at push-constant offset 200"), "{}", stdout(&o));
+    let text = dis(&out);
+    assert!(text.contains(" Offset 200"), "{text}");
+    val(&out);
+    let outs = d.path().join("overlap.spv");
+    assert_one_line_error(
+        &run(&["patch", rgen.to_str().unwrap(), "--glsl", "--stage", "rgen", "--apply", "as-to-address", "--option", "offset=184", "-o", outs.to_str().unwrap()]),
+        9,
+        "overlaps",
+    );
+    assert!(!outs.exists());
+}
+
+#[test]
 fn ssbo_to_address_turns_the_mesh_array_into_address_loads() {
     let d = tempfile::tempdir().unwrap();
     let chit = shaders().join("engine_closest_hit.rchit");

@@ -39,20 +39,22 @@ fn on(b: vk::Bool32) -> bool {
 }
 
 pub fn stage(info: &DeviceInfo, s: Stage) -> Support {
-    if s.is_ray_tracing() {
-        let missing = info.rt_pipeline_missing();
-        if !missing.is_empty() {
-            return Support::Unsupported { reason: format!("device lacks {}", missing.join(", ")) };
-        }
-        return Support::Supported;
-    }
     match s {
+        Stage::Raygen | Stage::ClosestHit | Stage::AnyHit | Stage::Miss | Stage::Intersection | Stage::Callable => {
+            let missing = info.rt_pipeline_missing();
+            if missing.is_empty() {
+                Support::Supported
+            } else {
+                Support::Unsupported { reason: format!("device lacks {}", missing.join(", ")) }
+            }
+        }
         Stage::Fragment => Support::require(&[
             (info.universal_queue_family().is_some(), "a graphics queue"),
             (on(info.features.core.fragment_stores_and_atomics), "fragmentStoresAndAtomics"),
             (info.features.v13.is_some_and(|v| on(v.dynamic_rendering)), "dynamicRendering"),
         ]),
-        _ => Support::Supported,
+        // Compute shaders and storage buffers are core Vulkan 1.0.
+        Stage::Compute => Support::Supported,
     }
 }
 

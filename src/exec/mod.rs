@@ -193,7 +193,7 @@ impl Executor {
         if let Some(c) = cell.canary {
             return none(Outcome::Pass, &format!("canary {} ran to completion: this driver did not fault on it", c.as_str()));
         }
-        let expected = reference::expected(cell, &self.scene, &self.sref, false);
+        let expected = reference::expected(cell, &self.scene, &self.sref);
         let (w, h) = (self.scene.params.width, self.scene.params.height);
         let mut cmp = reference::compare(&expected, records, w);
         let outcome = if cmp.passed() { Outcome::Pass } else { Outcome::Mismatch };
@@ -214,27 +214,27 @@ impl Executor {
         Ok(self.scene_gpu.as_ref().expect("built above"))
     }
 
-    fn slots(&self) -> u32 {
-        probe::slot_count(self.scene.params.instances)
+    fn slots(&self, r: Resource) -> u32 {
+        probe::slot_count(r, self.scene.params.instances)
     }
 
     /// Targets of bindings 0..=2 for `key`, creating what is missing.
-    fn targets(&mut self, key: LayoutKey) -> Result<Vec<(u32, vk::DescriptorType, Vec<Target>)>, CellError> {
-        let mut t = vec![(0, vk::DescriptorType::STORAGE_BUFFER, vec![Target::Buffer { raw: self.records.raw, address: self.records.address, range: self.records.size }])];
+    fn targets(&mut self, key: LayoutKey) -> Result<Vec<(u32, Resource, Vec<Target>)>, CellError> {
+        let mut t = vec![(0, Resource::StorageBuffer, vec![Target::Buffer { raw: self.records.raw, address: self.records.address, range: self.records.size }])];
         if key.scene_tlas {
             let s = self.ensure_scene()?;
-            t.push((1, vk::DescriptorType::ACCELERATION_STRUCTURE_KHR, vec![Target::Accel { raw: s.tlas[0].raw, address: s.tlas[0].address }]));
+            t.push((1, Resource::AccelerationStructure, vec![Target::Accel { raw: s.scene_tlas.raw, address: s.scene_tlas.address }]));
         }
         if let Some(r) = key.probe {
-            let slots = self.slots();
+            let slots = self.slots(r);
             let targets = if r == Resource::AccelerationStructure {
                 let s = self.ensure_scene()?;
-                (0..slots).map(|k| { let a = &s.tlas[probe::as_slot_tlas(k)]; Target::Accel { raw: a.raw, address: a.address } }).collect()
+                (0..slots).map(|k| { let a = &s.probe_tlas[probe::as_slot_tlas(k)]; Target::Accel { raw: a.raw, address: a.address } }).collect()
             } else {
                 self.ensure_array(r)?;
                 self.arrays[&r].targets(self.sampler)
             };
-            t.push((2, resources::descriptor_type(r), targets));
+            t.push((2, r, targets));
         }
         Ok(t)
     }
@@ -255,8 +255,9 @@ impl Executor {
         }
         if shadergen::as_by_address(cell) && self.as_table.is_none() {
             let s = self.ensure_scene()?;
-            let addrs = [s.tlas[0].address, s.tlas[1].address];
-            self.as_table = Some(resources::as_table(&self.gpu, addrs, self.slots())?);
+            let addrs: Vec<u64> = s.probe_tlas.iter().map(|t| t.address).collect();
+            let slots = self.slots(Resource::AccelerationStructure);
+            self.as_table = Some(resources::as_table(&self.gpu, &addrs, slots)?);
         }
         if shaders.kind == PipelineKind::Graphics && self.color.is_none() {
             let (w, h) = (self.scene.params.width, self.scene.params.height);
@@ -267,7 +268,7 @@ impl Executor {
 
     fn ensure_array(&mut self, r: Resource) -> Result<(), CellError> {
         if !self.arrays.contains_key(&r) {
-            let a = ResourceArray::create(&self.gpu, r, self.slots(), &self.submitter, self.opts.timeout)?;
+            let a = ResourceArray::create(&self.gpu, r, self.slots(r), &self.submitter, self.opts.timeout)?;
             self.arrays.insert(r, a);
         }
         Ok(())
@@ -340,8 +341,8 @@ impl Executor {
             let b = Binding::create(&self.gpu, key, &targets)?;
             self.bindings.insert(key, b);
         }
-        // The table the address patches read at push-constant offset 40 (as_table_address at 24
-        // is the hand-written address variant's).
+        // The table the address patches read at push-constant offset probe::PATCHED_TABLE_OFFSET
+        // (PushConstants::as_table is the hand-written address variant's).
         let mut patched_table_address = 0;
         if cell.patch == Some(crate::matrix::cell::Workaround::SsboToAddress) {
             patched_table_address = self.ssbo_table.as_ref().map(|b| b.address).unwrap_or(0);
@@ -374,20 +375,17 @@ impl Executor {
             self.pipelines.insert(pkey, p);
         }
 
-        // push constants
+        // push constants (layout: probe::PushConstants, then the patches' table address)
         on_phase(Phase::Record)?;
-        let mut pc = Vec::with_capacity(40);
         let fault = injected.map(|i| i.fault);
-        let loop_forever = cell.canary == Some(Canary::InfiniteLoop) || fault == Some(crate::matrix::inject::FaultKind::Hang);
-        for v in [w, h, probe::PUSH_SLOT, probe::DYNAMIC_BASE, self.slots(), u32::from(loop_forever)] {
-            pc.extend_from_slice(&v.to_le_bytes());
-        }
-        pc.extend_from_slice(&as_table_address.to_le_bytes());
         let injected_bad = injected.is_some_and(|i| i.fault.reads_bad_address() && i.armed != Some(false));
-        let bad = if cell.canary == Some(Canary::InvalidAddress) || injected_bad { CANARY_BAD_ADDRESS } else { 0 };
-        pc.extend_from_slice(&bad.to_le_bytes());
-        // offset 40: the table address of modules rewritten by the address patches
-        pc.extend_from_slice(&patched_table_address.to_le_bytes());
+        let pc = probe::PushConstants {
+            loop_forever: u32::from(cell.canary == Some(Canary::InfiniteLoop) || fault == Some(crate::matrix::inject::FaultKind::Hang)),
+            as_table: as_table_address,
+            bad_address: if cell.canary == Some(Canary::InvalidAddress) || injected_bad { CANARY_BAD_ADDRESS } else { 0 },
+            ..probe::push_constants(w, h, self.scene.params.instances, cell.resource)
+        }
+        .to_bytes(patched_table_address);
 
         let gpu = &self.gpu;
         let pipe = &self.pipelines[&pkey];

@@ -26,8 +26,8 @@ fn valid_values(axis: &str) -> Vec<String> {
             v
         }
         "descriptor_model" => DescriptorModel::names(),
-        "canary" => vec!["invalid_address", "infinite_loop", "none"],
-        "patch" => vec!["nonuniform", "pin-index", "as-to-address", "ssbo-to-address", "none"],
+        "canary" => Canary::ALL.iter().map(|c| c.as_str()).chain(["none"]).collect(),
+        "patch" => super::cell::Workaround::ALL.iter().map(|w| w.as_str()).chain(["none"]).collect(),
         "reorder" => {
             let mut v = Reorder::names();
             v.push("none");

@@ -50,7 +50,7 @@ pub fn field_colour(r: &Record, panel: usize) -> [u8; 3] {
     let probed = r.flags & FLAG_PROBE != 0;
     match panel {
         0 => [0, if hit { 255 } else { 0 }, if probed { 255 } else { 0 }],
-        1 if hit => false_colour(r.instance as u64),
+        1 if hit => false_colour(r.custom as u64),
         2 if hit => false_colour((1 << 40) | r.primitive as u64),
         3 if probed => {
             let bits = r.value.iter().fold(0u64, |a, v| a.rotate_left(16) ^ v.to_bits() as u64);
@@ -132,7 +132,7 @@ mod tests {
     use crate::reference::ValueRule;
 
     fn rec(flags: u32, instance: u32, value: f32) -> Record {
-        Record { flags, instance, primitive: 2, value: [value, 1.0, 2.0, 0.25], ..Default::default() }
+        Record { flags, custom: instance, primitive: 2, value: [value, 1.0, 2.0, 0.25], ..Default::default() }
     }
 
     fn decode(p: &str) -> (u32, u32, Vec<u8>) {
@@ -147,7 +147,7 @@ mod tests {
     #[test]
     fn diff_marks_mismatches_red_and_ambiguous_grey_and_panels_show_fields() {
         // 2x2: a match, a value mismatch, an ambiguous pixel (differs, but skipped), a miss.
-        let e = |r: Record, ambiguous| Expected { record: r, ambiguous, rule: ValueRule::Exact };
+        let e = |r: Record, ambiguous| Expected { record: r, ambiguous, rule: ValueRule::Exact, discriminating: false };
         let expected = vec![e(rec(3, 4, 5.0), false), e(rec(3, 4, 5.0), false), e(rec(3, 4, 5.0), true), e(rec(0, 0, 0.0), false)];
         let actual = vec![rec(3, 4, 5.0), rec(3, 4, 6.0), rec(3, 9, 5.0), rec(0, 0, 0.0)];
         let d = tempfile::tempdir().unwrap();
