@@ -123,6 +123,7 @@ fn reports_carry_discrimination_and_the_reads_of_cells_without_nonuniform() {
             undefined += 1;
             let reads = &cmp["element_reads"];
             assert_eq!(reads["outside_spec"], "VUID-RuntimeSpirv-NonUniform-06274", "{}", c["id"]);
+            assert_eq!(c["outside_spec"], "VUID-RuntimeSpirv-NonUniform-06274", "the cell is labelled: {}", c["id"]);
             assert_eq!(reads["neither"], 0);
             assert!(reads["own"].as_u64().unwrap() + reads["other"].as_u64().unwrap() > 50, "{}", c["id"]);
             assert!(cmp["discrimination"].is_null());
@@ -131,9 +132,11 @@ fn reports_carry_discrimination_and_the_reads_of_cells_without_nonuniform() {
             let d = cmp["discrimination"].as_f64().unwrap_or_else(|| panic!("{}: {cmp}", c["id"]));
             assert!(d >= 0.5, "{}: discrimination {d}", c["id"]);
             assert!(cmp.get("element_reads").is_none());
+            assert!(c.get("outside_spec").is_none(), "{}", c["id"]);
         }
     }
     assert!(exact >= 20 && undefined >= 4, "{exact} exact, {undefined} without nonuniform");
+    assert!(stdout(&o).contains(&format!("outside the spec's guarantees: {undefined} cells")), "{}", stdout(&o));
 }
 
 #[test]

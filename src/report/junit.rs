@@ -50,8 +50,19 @@ pub fn render(r: &RunReport) -> String {
         let secs = c.attempts.last().map(|a| a.wall_ms / 1e3).unwrap_or(0.0);
         s += &format!("  <testcase classname=\"{}\" name=\"{}\" time=\"{secs:.3}\">", esc(&class), esc(&c.id));
         let reason = esc(c.reason.as_deref().unwrap_or(""));
+        let mut props = vec![];
         if let Some(inc) = c.incidence.as_ref().filter(|_| c.flaky) {
-            s += &format!("<properties><property name=\"flaky\" value=\"{}\"/></properties>", esc(&inc.label()));
+            props.push(("flaky", inc.label()));
+        }
+        if let Some(rule) = &c.outside_spec {
+            props.push(("outside_spec", rule.clone()));
+        }
+        if !props.is_empty() {
+            s += "<properties>";
+            for (k, v) in props {
+                s += &format!("<property name=\"{k}\" value=\"{}\"/>", esc(&v));
+            }
+            s += "</properties>";
         }
         if let Some(chk) = &c.canary_check {
             let expected: Vec<&str> = chk.expected.iter().map(|o| o.as_str()).collect();

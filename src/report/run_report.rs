@@ -49,6 +49,11 @@ pub struct CellReport {
     /// The `--inject-fault` argument that made this cell misbehave on purpose.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub injected: Option<String>,
+    /// A dynamic descriptor index without `nonuniformEXT`: the rule it breaks (the spec
+    /// guarantees nothing about which element it reads); the reads are counted per attempt in
+    /// `comparison.element_reads`.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub outside_spec: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub canary_check: Option<CanaryCheck>,
     /// For a cell with a finding: each workaround tried and its outcome.
@@ -96,6 +101,12 @@ pub fn miss_probability(p: f64, n: u32) -> f64 {
 }
 
 impl CellReport {
+    /// The own/other/neither element reads of each attempt that compared (cells without
+    /// `nonuniformEXT` on a dynamic descriptor index).
+    pub fn element_reads(&self) -> impl Iterator<Item = &crate::reference::ElementReads> {
+        self.attempts.iter().filter_map(|a| a.result.as_ref()?.comparison.as_ref()?.element_reads.as_ref())
+    }
+
     /// A cell with its first attempt.
     pub fn new(cell: &Cell, attempt: Attempt) -> Self {
         let mut c = CellReport {
@@ -107,6 +118,7 @@ impl CellReport {
             incidence: None,
             flaky: false,
             injected: None,
+            outside_spec: None,
             canary_check: None,
             workarounds: vec![],
             attempts: vec![attempt],
@@ -133,6 +145,8 @@ impl CellReport {
             miss_probability: miss_probability(k as f64 / n as f64, n),
         });
         self.injected = self.attempts.iter().find_map(|a| a.injected.as_ref()).map(|i| i.spec.clone());
+        let rule = self.element_reads().next().map(|e| e.outside_spec.clone());
+        self.outside_spec = rule;
         self.reason = match (&self.incidence, detail) {
             (Some(inc), d) if n > 1 => Some(format!("{} ({})", d.unwrap_or_else(|| outcome.as_str().into()), inc.label())),
             (_, d) => d,
@@ -320,6 +334,7 @@ impl ReportWriter {
                         incidence: None,
                         flaky: false,
                         injected: None,
+                        outside_spec: None,
                         canary_check: None,
                         workarounds: vec![],
                         attempts: vec![],

@@ -53,6 +53,16 @@ pub fn render(r: &RunReport) -> String {
             let _ = writeln!(s, "  {} worker {} {} in {} — {}", mark(w.outcome), w.worker, w.outcome.as_str(), w.phase, w.detail.as_deref().unwrap_or(""));
         }
     }
+    let outside: Vec<_> = r.cells.iter().filter(|c| c.outside_spec.is_some()).collect();
+    if let Some(first) = outside.first() {
+        let other = outside.iter().filter(|c| c.element_reads().any(|e| e.other > 0)).count();
+        let _ = writeln!(
+            s,
+            "outside the spec's guarantees: {} cells index descriptors dynamically without nonuniformEXT ({}); {other} of them read another element of the array on some pixels (allowed there; counts per cell in the report)",
+            outside.len(),
+            first.outside_spec.as_deref().unwrap_or("")
+        );
+    }
     let vcells: Vec<_> = r.cells.iter().filter(|c| c.attempts.iter().any(|a| a.result.as_ref().is_some_and(|x| x.validation_errors > 0))).collect();
     if !vcells.is_empty() {
         let _ = writeln!(s, "validation errors in {} cells (rtprobe misused the API there; their outcomes prove nothing): first {}", vcells.len(), vcells[0].id);
