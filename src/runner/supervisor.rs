@@ -387,8 +387,10 @@ impl Supervisor {
             let deadline = slots.iter().filter_map(|s| s.worker.as_ref()).map(|w| w.deadline(&self.opts)).min().unwrap_or(now + Duration::from_millis(50));
             match self.rx.recv_timeout(deadline.saturating_duration_since(now)) {
                 Ok((i, id, line)) => {
-                    if slots[i].worker.as_ref().is_some_and(|w| w.id == id) {
-                        self.handle(&mut slots[i], line, per_cell, on);
+                    // Worker ids are unique per supervisor; a late line from a worker of an
+                    // earlier `run` (more slots, or a slot since reused) matches no worker here.
+                    if let Some(slot) = slots.get_mut(i).filter(|s| s.worker.as_ref().is_some_and(|w| w.id == id)) {
+                        self.handle(slot, line, per_cell, on);
                     }
                 }
                 Err(RecvTimeoutError::Timeout) => {}
