@@ -109,11 +109,19 @@ impl CellReport {
 
     /// A cell with its first attempt.
     pub fn new(cell: &Cell, attempt: Attempt) -> Self {
-        let mut c = CellReport {
+        let mut c = CellReport::unrun(cell, attempt.outcome, String::new());
+        c.attempts.push(attempt);
+        c.refresh();
+        c
+    }
+
+    /// A planned cell that did not run (`unsupported`, with the device's reason).
+    pub fn unrun(cell: &Cell, outcome: Outcome, reason: String) -> Self {
+        CellReport {
             id: cell.id(),
             cell: *cell,
-            outcome: attempt.outcome,
-            reason: None,
+            outcome,
+            reason: Some(reason),
             confirmed: None,
             incidence: None,
             flaky: false,
@@ -121,10 +129,8 @@ impl CellReport {
             outside_spec: None,
             canary_check: None,
             workarounds: vec![],
-            attempts: vec![attempt],
-        };
-        c.refresh();
-        c
+            attempts: vec![],
+        }
     }
 
     /// Recompute the verdict from every attempt: the worst outcome, its incidence, whether the
@@ -325,20 +331,7 @@ impl ReportWriter {
         for pc in &plan.cells {
             if let PlanStatus::Unsupported { reason } = &pc.status {
                 if !report.cells.iter().any(|c| c.id == pc.cell.id()) {
-                    report.cells.push(CellReport {
-                        id: pc.cell.id(),
-                        cell: pc.cell,
-                        outcome: Outcome::Unsupported,
-                        reason: Some(reason.clone()),
-                        confirmed: None,
-                        incidence: None,
-                        flaky: false,
-                        injected: None,
-                        outside_spec: None,
-                        canary_check: None,
-                        workarounds: vec![],
-                        attempts: vec![],
-                    });
+                    report.cells.push(CellReport::unrun(&pc.cell, Outcome::Unsupported, reason.clone()));
                 }
             }
         }
