@@ -63,10 +63,18 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             match &pc.status {
                 PlanStatus::Run => println!("run          {}", pc.cell.id()),
                 PlanStatus::Unsupported { reason } => println!("unsupported  {}  ({reason})", pc.cell.id()),
+                PlanStatus::NotImplemented { reason } => println!("not_implemented  {}  ({reason})", pc.cell.id()),
             }
         }
         let to_run = the_plan.to_run().count();
-        println!("{} planned: {} to run, {} unsupported; {} filtered out", the_plan.cells.len(), to_run, the_plan.unsupported_count(), the_plan.filtered_out);
+        println!(
+            "{} planned: {} to run, {} unsupported, {} not implemented in rtprobe; {} filtered out",
+            the_plan.cells.len(),
+            to_run,
+            the_plan.unsupported_count(),
+            the_plan.not_implemented_count(),
+            the_plan.filtered_out
+        );
         for ng in &the_plan.not_generated {
             println!("not generated: {} ({} combinations)", ng.rule, ng.count);
         }
@@ -107,6 +115,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             planned: the_plan.cells.len(),
             to_run: the_plan.to_run().count(),
             unsupported: the_plan.unsupported_count(),
+            not_implemented: the_plan.not_implemented_count(),
             not_generated: the_plan.not_generated.clone(),
         },
         summary: Default::default(),

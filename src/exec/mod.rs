@@ -3,6 +3,7 @@
 //! records and submits the trace / draw / dispatch with a deadline, reads the records back and
 //! compares them with the CPU reference. Everything that can go wrong becomes an [`Outcome`].
 pub mod bindings;
+pub mod heap;
 pub mod pipeline;
 pub mod resources;
 
@@ -51,6 +52,9 @@ enum CellError {
     Io(String),
     #[error("as-to-address patch: {0}")]
     Patch(#[from] crate::patches::PatchError),
+    /// rtprobe's own gap (outcome `not_implemented`).
+    #[error("not implemented in rtprobe: {0}")]
+    NotImplemented(String),
 }
 
 pub struct Executor {
@@ -145,6 +149,9 @@ impl Executor {
                     validation_errors: 0,
                 }
             }
+            Err(e @ CellError::NotImplemented(_)) => {
+                CellResult { outcome: Outcome::NotImplemented, detail: Some(e.to_string()), timings: timings.clone(), comparison: None, fault: None, validation_errors: 0 }
+            }
             Err(e) => CellResult { outcome: Outcome::Error, detail: Some(e.to_string()), timings: timings.clone(), comparison: None, fault: None, validation_errors: 0 },
         };
         out.timings.total_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -200,6 +207,9 @@ impl Executor {
     }
 
     fn try_run(&mut self, cell: &Cell, timings: &mut Timings) -> Result<Vec<Record>, CellError> {
+        if cell.heap_access == Some(crate::matrix::HeapAccess::Direct) && shadergen::glslang::find().is_none() {
+            return Err(CellError::NotImplemented(shadergen::glslang::missing_reason()));
+        }
         let shaders = shadergen::generate(&shadergen::source_cell(cell));
         // SPIR-V
         let mut spirv = Vec::new();
@@ -257,6 +267,7 @@ impl Executor {
             model: cell.descriptor_model,
             scene_tlas: shaders.uses_scene_tlas,
             probe: shaders.uses_probe_binding.then_some(cell.resource),
+            heap_direct: cell.heap_access == Some(crate::matrix::HeapAccess::Direct),
         };
         if shaders.kind == PipelineKind::RayTracing || cell.resource == Resource::AccelerationStructure {
             self.ensure_scene()?;
@@ -305,14 +316,19 @@ impl Executor {
                 s.hash(&mut hs);
             }
             cell.descriptor_model.hash(&mut hs);
+            cell.heap_access.hash(&mut hs);
             key.hash(&mut hs);
             shaders.recursion_depth.hash(&mut hs);
             hs.finish()
         };
         if !self.pipelines.contains_key(&pkey) {
             let t = Instant::now();
-            let layout = self.bindings[&key].pipeline_layout;
-            let p = pipeline::create(&self.gpu, self.cache, &shaders, &spirv, layout, cell.descriptor_model)?;
+            let binding = &self.bindings[&key];
+            let layout = binding.heap_layout();
+            let mapping = cell.heap_access.zip(layout.as_ref()).map(|(access, l)| heap::PipelineMapping::new(access, l));
+            let record = layout.map(|l| heap::shader_record(cell.heap_access, &l)).unwrap_or_default();
+            let heap_pipeline = mapping.as_ref().map(|m| pipeline::HeapPipeline { mapping: m, shader_record: &record });
+            let p = pipeline::create(&self.gpu, self.cache, &shaders, &spirv, binding.pipeline_layout, cell.descriptor_model, heap_pipeline.as_ref())?;
             timings.pipeline_ms = t.elapsed().as_secs_f64() * 1e3;
             self.pipelines.insert(pkey, p);
         }
@@ -344,7 +360,7 @@ impl Executor {
                     let point = vk::PipelineBindPoint::RAY_TRACING_KHR;
                     binding.bind(gpu, cmd, point);
                     d.cmd_bind_pipeline(cmd, point, pipe.raw);
-                    d.cmd_push_constants(cmd, binding.pipeline_layout, key.stages, 0, &pc);
+                    binding.push(gpu, cmd, key.stages, &pc);
                     let sbt = pipe.sbt.as_ref().expect("RT pipelines have an SBT");
                     gpu.rt.as_ref().expect("RT enabled").cmd_trace_rays(cmd, &sbt.raygen, &sbt.miss, &sbt.hit, &sbt.callable, w, h, 1);
                 }
@@ -352,7 +368,7 @@ impl Executor {
                     let point = vk::PipelineBindPoint::COMPUTE;
                     binding.bind(gpu, cmd, point);
                     d.cmd_bind_pipeline(cmd, point, pipe.raw);
-                    d.cmd_push_constants(cmd, binding.pipeline_layout, key.stages, 0, &pc);
+                    binding.push(gpu, cmd, key.stages, &pc);
                     d.cmd_dispatch(cmd, w.div_ceil(8), h.div_ceil(8), 1);
                 }
                 PipelineKind::Graphics => {
@@ -370,7 +386,7 @@ impl Executor {
                     let point = vk::PipelineBindPoint::GRAPHICS;
                     binding.bind(gpu, cmd, point);
                     d.cmd_bind_pipeline(cmd, point, pipe.raw);
-                    d.cmd_push_constants(cmd, binding.pipeline_layout, key.stages, 0, &pc);
+                    binding.push(gpu, cmd, key.stages, &pc);
                     d.cmd_set_viewport(cmd, 0, &[vk::Viewport { x: 0.0, y: 0.0, width: w as f32, height: h as f32, min_depth: 0.0, max_depth: 1.0 }]);
                     d.cmd_set_scissor(cmd, 0, &[area]);
                     d.cmd_draw(cmd, 6, (w / probe::TILE) * (h / probe::TILE), 0, 0);

@@ -1,6 +1,6 @@
 //! One cell of the matrix and its stable id, built from the axes (never from run order):
-//! `stage.resource.index[.nonuniform][.as_access].descriptor_model`, or `canary.<name>`.
-use super::axes::{AsAccess, DescriptorModel, IndexSource, Resource, Stage};
+//! `stage.resource.index[.nonuniform][.as_access].descriptor_model[.heap_access]`, or `canary.<name>`.
+use super::axes::{AsAccess, DescriptorModel, HeapAccess, IndexSource, Resource, Stage};
 use serde::{Deserialize, Serialize};
 
 /// Deliberately faulting cells that prove fault detection works on the device at hand.
@@ -59,6 +59,9 @@ pub struct Cell {
     /// Only for `resource=acceleration_structure`.
     pub as_access: Option<AsAccess>,
     pub descriptor_model: DescriptorModel,
+    /// How the shaders reach the heap; only (and always) for `descriptor_model=descriptor_heap`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub heap_access: Option<HeapAccess>,
     /// A canary cell (the other axes are then the canary's carrier shape).
     pub canary: Option<Canary>,
     /// The SPIR-V workaround applied (`patch` axis; none for plain cells).
@@ -75,6 +78,7 @@ impl Cell {
             nonuniform: false,
             as_access: None,
             descriptor_model: DescriptorModel::DescriptorIndexing,
+            heap_access: None,
             canary: Some(c),
             patch: None,
         }
@@ -87,7 +91,8 @@ impl Cell {
 
     /// The workarounds that apply to this cell's shaders.
     pub fn applicable_patches(&self) -> Vec<Workaround> {
-        if self.canary.is_some() || self.patch.is_some() {
+        // Direct heap reads are untyped access chains, which no workaround rewrites.
+        if self.canary.is_some() || self.patch.is_some() || self.heap_access == Some(HeapAccess::Direct) {
             return vec![];
         }
         // After as-to-address (written or patched) there is no descriptor array left to decorate or pin.
@@ -120,6 +125,9 @@ impl Cell {
             parts.push(a.as_str());
         }
         parts.push(self.descriptor_model.as_str());
+        if let Some(h) = self.heap_access {
+            parts.push(h.as_str());
+        }
         let mut id = parts.join(".");
         if let Some(p) = self.patch {
             id.push_str(".patch-");
@@ -137,6 +145,7 @@ impl Cell {
             "nonuniform" => self.nonuniform.to_string(),
             "as_access" => self.as_access.map(|a| a.as_str()).unwrap_or("none").into(),
             "descriptor_model" => self.descriptor_model.as_str().into(),
+            "heap_access" => self.heap_access.map(|h| h.as_str()).unwrap_or("none").into(),
             "canary" => self.canary.map(|c| c.as_str()).unwrap_or("none").into(),
             "patch" => self.patch.map(|p| p.as_str()).unwrap_or("none").into(),
             _ => return None,
@@ -144,7 +153,7 @@ impl Cell {
     }
 }
 
-pub const AXIS_NAMES: &[&str] = &["stage", "resource", "index", "nonuniform", "as_access", "descriptor_model", "canary", "patch"];
+pub const AXIS_NAMES: &[&str] = &["stage", "resource", "index", "nonuniform", "as_access", "descriptor_model", "heap_access", "canary", "patch"];
 
 #[cfg(test)]
 mod tests {
@@ -159,6 +168,7 @@ mod tests {
             nonuniform: true,
             as_access: None,
             descriptor_model: DescriptorModel::DescriptorIndexing,
+            heap_access: None,
             canary: None,
             patch: None,
         };
@@ -169,5 +179,8 @@ mod tests {
         let a = Cell { resource: Resource::AccelerationStructure, as_access: Some(AsAccess::Address), nonuniform: false, ..c };
         assert_eq!(a.id(), "closest_hit.acceleration_structure.dynamic.address.descriptor_indexing");
         assert_eq!(Cell::canary(Canary::InfiniteLoop).id(), "canary.infinite_loop");
+        let h = Cell { descriptor_model: DescriptorModel::DescriptorHeap, heap_access: Some(HeapAccess::MappedPushIndex), ..c };
+        assert_eq!(h.id(), "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_heap.mapped_push_index");
+        assert_eq!(h.axis_value("heap_access").as_deref(), Some("mapped_push_index"));
     }
 }

@@ -4,6 +4,6 @@ pub mod axes;
 pub mod cell;
 pub mod plan;
 
-pub use axes::{AsAccess, DescriptorModel, IndexSource, Resource, Stage};
+pub use axes::{AsAccess, DescriptorModel, HeapAccess, IndexSource, Resource, Stage};
 pub use cell::{Canary, Cell};
 pub use plan::{Filter, PlanOptions, RunPlan};

@@ -251,7 +251,7 @@ mod tests {
     use crate::scene::SceneParams;
 
     fn cell(stage: Stage, index: IndexSource) -> Cell {
-        Cell { stage, resource: Resource::StorageBuffer, index, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, canary: None, patch: None }
+        Cell { stage, resource: Resource::StorageBuffer, index, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None }
     }
 
     #[test]

@@ -19,7 +19,7 @@ fn esc(s: &str) -> String {
 
 pub fn render(r: &RunReport) -> String {
     let failures = r.cells.iter().filter(|c| c.outcome.is_finding()).count();
-    let skipped = r.cells.iter().filter(|c| c.outcome == Outcome::Unsupported).count();
+    let skipped = r.cells.iter().filter(|c| matches!(c.outcome, Outcome::Unsupported | Outcome::NotImplemented)).count();
     let mut s = format!(
         "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuites>\n<testsuite name=\"rtprobe\" tests=\"{}\" failures=\"{failures}\" skipped=\"{skipped}\">\n",
         r.cells.len()
@@ -31,7 +31,7 @@ pub fn render(r: &RunReport) -> String {
         let reason = esc(c.reason.as_deref().unwrap_or(""));
         match c.outcome {
             Outcome::Pass => {}
-            Outcome::Unsupported => s += &format!("<skipped message=\"{reason}\"/>"),
+            Outcome::Unsupported | Outcome::NotImplemented => s += &format!("<skipped message=\"{reason}\"/>"),
             Outcome::Mismatch | Outcome::DeviceLost | Outcome::Crash | Outcome::Timeout | Outcome::Error => {
                 s += &format!("<failure type=\"{}\" message=\"{reason}\"/>", c.outcome.as_str())
             }

@@ -65,6 +65,9 @@ pub struct PlanSummary {
     pub planned: usize,
     pub to_run: usize,
     pub unsupported: usize,
+    /// Planned cells rtprobe cannot run yet (outcome `not_implemented`, with the reason).
+    #[serde(default)]
+    pub not_implemented: usize,
     pub not_generated: Vec<NotGenerated>,
 }
 
@@ -171,12 +174,17 @@ impl ReportWriter {
     pub fn new(path: PathBuf, mut report: RunReport, plan: &RunPlan) -> Self {
         let order = plan.cells.iter().enumerate().map(|(i, c)| (c.cell.id(), i)).collect();
         for pc in &plan.cells {
-            if let PlanStatus::Unsupported { reason } = &pc.status {
+            let not_run = match &pc.status {
+                PlanStatus::Run => None,
+                PlanStatus::Unsupported { reason } => Some((Outcome::Unsupported, reason)),
+                PlanStatus::NotImplemented { reason } => Some((Outcome::NotImplemented, reason)),
+            };
+            if let Some((outcome, reason)) = not_run {
                 if !report.cells.iter().any(|c| c.id == pc.cell.id()) {
                     report.cells.push(CellReport {
                         id: pc.cell.id(),
                         cell: pc.cell,
-                        outcome: Outcome::Unsupported,
+                        outcome,
                         reason: Some(reason.clone()),
                         confirmed: None,
                         canary_check: None,

@@ -3,6 +3,7 @@
 //! trivial. Shared declarations come from `probes/common.glsl`. [`compile`] turns sources into
 //! SPIR-V with shaderc, caching by source.
 pub mod compile;
+pub mod glslang;
 mod probe_code;
 
 use crate::matrix::{AsAccess, Canary, Cell, Resource, Stage};

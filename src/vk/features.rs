@@ -26,6 +26,7 @@ pub const TRACKED_EXTENSIONS: &[&CStr] = &[
     ext::descriptor_indexing::NAME,
     ext::descriptor_buffer::NAME,
     heap::NAME,
+    heap::UNTYPED_POINTERS_NAME,
     ext::robustness2::NAME,
     ext::device_fault::NAME,
     khr::maintenance4::NAME,
@@ -50,6 +51,7 @@ pub struct Features {
     pub position_fetch: Option<vk::PhysicalDeviceRayTracingPositionFetchFeaturesKHR<'static>>,
     pub descriptor_buffer: Option<vk::PhysicalDeviceDescriptorBufferFeaturesEXT<'static>>,
     pub descriptor_heap: Option<heap::PhysicalDeviceDescriptorHeapFeaturesEXT>,
+    pub untyped_pointers: Option<heap::PhysicalDeviceShaderUntypedPointersFeaturesKHR>,
     pub robustness2: Option<vk::PhysicalDeviceRobustness2FeaturesEXT<'static>>,
     pub fault: Option<vk::PhysicalDeviceFaultFeaturesEXT<'static>>,
     pub maintenance5: Option<vk::PhysicalDeviceMaintenance5FeaturesKHR<'static>>,
@@ -136,6 +138,7 @@ impl DeviceInfo {
             position_fetch: has(khr::ray_tracing_position_fetch::NAME).then(Default::default),
             descriptor_buffer: has(ext::descriptor_buffer::NAME).then(Default::default),
             descriptor_heap: has(heap::NAME).then(Default::default),
+            untyped_pointers: has(heap::UNTYPED_POINTERS_NAME).then(Default::default),
             robustness2: has(ext::robustness2::NAME).then(Default::default),
             fault: has(ext::device_fault::NAME).then(Default::default),
             maintenance5: has(khr::maintenance5::NAME).then(Default::default),
@@ -160,13 +163,13 @@ impl DeviceInfo {
             let mut f2 = vk::PhysicalDeviceFeatures2::default();
             macro_rules! chain_f { ($($s:ident),*) => { $( if let Some(x) = f.$s.as_mut() { f2 = f2.push_next(x); } )* } }
             chain_f!(v11, v12, v13, rt_pipeline, accel, ray_query, rt_maintenance1, position_fetch,
-                descriptor_buffer, descriptor_heap, robustness2, fault, maintenance5, maintenance6);
+                descriptor_buffer, descriptor_heap, untyped_pointers, robustness2, fault, maintenance5, maintenance6);
             unsafe { inst.get_physical_device_features2(pd, &mut f2) };
             f.core = f2.features;
         }
         macro_rules! clear_f { ($($s:ident),*) => { $( null_next(&mut f.$s, |x| x.p_next = std::ptr::null_mut()); )* } }
         clear_f!(v11, v12, v13, rt_pipeline, accel, ray_query, rt_maintenance1, position_fetch,
-            descriptor_buffer, descriptor_heap, robustness2, fault, maintenance5, maintenance6);
+            descriptor_buffer, descriptor_heap, untyped_pointers, robustness2, fault, maintenance5, maintenance6);
 
         {
             let mut p2 = vk::PhysicalDeviceProperties2::default();
