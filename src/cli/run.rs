@@ -78,6 +78,11 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         for ng in &the_plan.not_generated {
             println!("not generated: {} ({} combinations)", ng.rule, ng.count);
         }
+        if the_plan.to_run().any(|c| c.heap_access == Some(crate::matrix::HeapAccess::Direct)) {
+            if let Some(g) = crate::shadergen::glslang::find() {
+                println!("compiler: heap_access=direct shaders by {} {}; all others by shaderc", g.path.display(), g.version);
+            }
+        }
         return Ok(exit::OK);
     }
 
