@@ -86,7 +86,11 @@ fn sid_plans_every_heap_cell_and_drops_none() {
     let out = stdout(&o);
     let (to_run, _, not_implemented) = list_counts(&out);
     assert!(to_run > 0, "lavapipe 26 has VK_EXT_descriptor_heap: {out}");
-    assert_eq!(not_implemented, 0, "the root's glslang 16.6 compiles the direct way: {out}");
+    // The root's glslang 16.6 compiles the direct way; only the as-to-address rewrite of its
+    // untyped-pointer SPIR-V is rtprobe's gap there.
+    assert!(not_implemented > 0);
+    assert!(out.lines().filter(|l| l.starts_with("not_implemented ")).all(|l| l.contains(".address_patched.descriptor_heap.direct ") && l.contains("as-to-address")), "{out}");
+    assert!(out.contains("compiler: heap_access=direct shaders by glslangValidator 16."), "{out}");
     for way in ["mapped_constant_offset", "mapped_push_index", "mapped_shader_record_index", "direct"] {
         assert!(out.lines().any(|l| l.starts_with("run ") && l.ends_with(&format!(".descriptor_heap.{way}"))), "{way} runs: {out}");
     }
@@ -134,7 +138,7 @@ fn sid_runs_heap_cells_against_the_reference() {
         assert!(!ran.is_empty(), "{way} cells ran");
     }
     for r in ["storage_buffer", "uniform_buffer", "sampled_image", "storage_image", "acceleration_structure"] {
-        assert!(cells.iter().any(|c| c["cell"]["resource"] == r && outcome(c, "pass")), "a {r} heap cell passes");
+        assert!(cells.iter().any(|c| c["resource"] == r && outcome(c, "pass")), "a {r} heap cell passes");
     }
     // Whatever did not pass is a finding with its reason (lavapipe's heap bugs; see
     // reports/lavapipe-26/FINDINGS.md), never a silent gap: the exit code says so.
@@ -152,13 +156,15 @@ fn sid_runs_direct_heap_cells_compiled_by_the_roots_glslang() {
         return;
     }
     let path = report_path("heap-direct");
-    let filter = "descriptor_model=descriptor_heap,heap_access=direct,stage=closest_hit|compute,index=dynamic";
+    // (Acceleration structures read straight from the heap are a lavapipe 26 finding: not here.)
+    let filter = "descriptor_model=descriptor_heap,heap_access=direct,stage=closest_hit|compute,index=dynamic,resource=storage_buffer|uniform_buffer|sampled_image|storage_image";
     let o = in_sid(&["run", "--filter", filter, "--no-confirm", "--patches", "none", "-o", path.to_str().unwrap()]);
     let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap_or_else(|e| panic!("no report ({e}): {}", stderr(&o)))).unwrap();
     let cells = report["cells"].as_array().unwrap();
     assert!(!cells.is_empty());
-    assert!(cells.iter().all(|c| c["outcome"] != "not_implemented" && c["outcome"] != "error"), "{}", stdout(&o));
-    assert!(cells.iter().any(|c| c["outcome"] == "pass"), "{}", stdout(&o));
+    assert_eq!(cells.len(), 16, "2 stages x 4 resources x nonuniform or not");
+    assert!(cells.iter().all(|c| c["outcome"] == "pass"), "{}", stdout(&o));
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
 }
 
 #[test]
