@@ -51,6 +51,17 @@ fn report_path(name: &str) -> PathBuf {
     p
 }
 
+/// `rtprobe run --filter FILTER` of heap cells in the root (no confirmation, no workarounds, plus
+/// `extra` arguments), and its report.
+fn run_in_sid(name: &str, filter: &str, extra: &[&str], env: &[(&str, &str)]) -> (Output, serde_json::Value) {
+    let path = report_path(name);
+    let mut args = vec!["run", "--filter", filter, "--no-confirm", "--patches", "none", "-o", path.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    let o = in_sid_env(&args, env);
+    let report = serde_json::from_slice(&std::fs::read(&path).unwrap_or_else(|e| panic!("no report ({e}): {}", stderr(&o)))).unwrap();
+    (o, report)
+}
+
 fn list_counts(out: &str) -> (usize, usize, usize) {
     let n = |p: &str| out.lines().filter(|l| l.starts_with(p)).count();
     (n("run "), n("unsupported "), n("not_implemented "))
@@ -118,13 +129,7 @@ fn sid_runs_heap_cells_against_the_reference() {
     // Every stage and resource kind, every heap access way, dynamic indices (the original
     // fault's shape, with and without nonuniformEXT). Without a compiler for the direct way
     // (forced here) its cells come out not_implemented, counted in the report and the summary.
-    let path = report_path("heap-run");
-    let filter = "descriptor_model=descriptor_heap,index=dynamic";
-    let o = in_sid_env(
-        &["run", "--filter", filter, "--no-confirm", "--patches", "none", "-o", path.to_str().unwrap()],
-        &[("RTPROBE_GLSLANG", "/nonexistent/glslangValidator")],
-    );
-    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap_or_else(|e| panic!("no report ({e}): {}", stderr(&o)))).unwrap();
+    let (o, report) = run_in_sid("heap-run", "descriptor_model=descriptor_heap,index=dynamic", &[], &[("RTPROBE_GLSLANG", "/nonexistent/glslangValidator")]);
     let cells = report["cells"].as_array().unwrap();
     let count = |f: &dyn Fn(&serde_json::Value) -> bool| cells.iter().filter(|c| f(c)).count();
     let outcome = |c: &serde_json::Value, o: &str| c["outcome"] == o;
@@ -155,13 +160,10 @@ fn sid_runs_direct_heap_cells_compiled_by_the_roots_glslang() {
     if !have_sid() {
         return;
     }
-    let path = report_path("heap-direct");
     // (Acceleration structures read straight from the heap are a lavapipe 26 finding: not here.)
     let filter = "descriptor_model=descriptor_heap,heap_access=direct,stage=closest_hit|compute,index=dynamic,resource=storage_buffer|uniform_buffer|sampled_image|storage_image";
-    let o = in_sid(&["run", "--filter", filter, "--no-confirm", "--patches", "none", "-o", path.to_str().unwrap()]);
-    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap_or_else(|e| panic!("no report ({e}): {}", stderr(&o)))).unwrap();
+    let (o, report) = run_in_sid("heap-direct", filter, &[], &[]);
     let cells = report["cells"].as_array().unwrap();
-    assert!(!cells.is_empty());
     assert_eq!(cells.len(), 16, "2 stages x 4 resources x nonuniform or not");
     assert!(cells.iter().all(|c| c["outcome"] == "pass"), "{}", stdout(&o));
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
@@ -173,11 +175,9 @@ fn sid_heap_cells_are_checked_corrupted_expectations_mismatch() {
         return;
     }
     // The twin of the run above: with expected values perturbed, a passing heap cell must mismatch.
-    let path = report_path("heap-corrupt");
     let filter = "descriptor_model=descriptor_heap,stage=closest_hit,resource=storage_buffer,index=dynamic,nonuniform=true,heap_access=mapped_push_index";
-    let o = in_sid(&["run", "--filter", filter, "--no-confirm", "--patches", "none", "--corrupt-expected", "-o", path.to_str().unwrap()]);
+    let (o, report) = run_in_sid("heap-corrupt", filter, &["--corrupt-expected"], &[]);
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
-    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
     let cells = report["cells"].as_array().unwrap();
     assert_eq!(cells.len(), 1);
     assert_eq!(cells[0]["outcome"], "mismatch", "{}", cells[0]);
