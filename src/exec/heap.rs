@@ -326,9 +326,50 @@ pub fn shader_record(access: Option<HeapAccess>, l: &HeapLayout) -> Vec<u8> {
     }
 }
 
+/// SPIR-V `OpDecorate` and the `NonUniform` decoration.
+const OP_DECORATE: u32 = 71;
+const DECORATION_NON_UNIFORM: u32 = 5300;
+
+/// Whether a module decorates anything `NonUniform` (what `nonuniformEXT` must produce on the
+/// descriptor access; SPIR-V 2.16.2: the decoration goes on the index or the access chain).
+pub fn has_nonuniform(words: &[u32]) -> bool {
+    let mut i = 5; // after the header
+    while i < words.len() {
+        let (count, op) = ((words[i] >> 16) as usize, words[i] & 0xffff);
+        if op == OP_DECORATE && count >= 3 && words.get(i + 2) == Some(&DECORATION_NON_UNIFORM) {
+            return true;
+        }
+        i += count.max(1);
+    }
+    false
+}
+
+/// For a `direct` heap cell with `nonuniformEXT`: a note when no compiled module carries a
+/// `NonUniform` decoration, i.e. the compiler dropped the qualifier and the driver saw a uniform
+/// index (glslang 16.6 does so on `layout(descriptor_heap)` arrays; reports/lavapipe-26/FINDINGS.md).
+pub fn dropped_nonuniform(cell: &crate::matrix::Cell, spirv: &[std::sync::Arc<Vec<u32>>]) -> Option<String> {
+    let direct = cell.heap_access == Some(HeapAccess::Direct);
+    (direct && cell.nonuniform && !spirv.iter().any(|w| has_nonuniform(w)))
+        .then(|| "the GLSL compiler dropped nonuniformEXT: no NonUniform decoration reached the driver".to_string())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn nonuniform_decorations_are_found_and_their_absence_too() {
+        let header = [0x0723_0203, 0x0001_0600, 0, 10, 0];
+        // OpCapability Shader; OpDecorate %5 NonUniform
+        let with: Vec<u32> = header.iter().copied().chain([(2 << 16) | 17, 1, (3 << 16) | OP_DECORATE, 5, DECORATION_NON_UNIFORM]).collect();
+        // OpCapability Shader; OpDecorate %5 Binding 2 (a NonUniform-valued operand must not count)
+        let without: Vec<u32> = header.iter().copied().chain([(2 << 16) | 17, 1, (4 << 16) | OP_DECORATE, 5, 33, DECORATION_NON_UNIFORM]).collect();
+        assert!(has_nonuniform(&with));
+        assert!(!has_nonuniform(&without));
+        assert!(!has_nonuniform(&header));
+        // a zero word count ends nowhere near an infinite loop
+        assert!(!has_nonuniform(&[0, 0, 0, 0, 0, 0, 0]));
+    }
 
     #[test]
     fn layouts_keep_descriptors_apart_and_index_sources_agree() {

@@ -125,11 +125,15 @@ impl Executor {
         let mut timings = Timings::default();
         let result = self.try_run(cell, &mut timings);
         let mut out = match result {
-            Ok(records) => {
+            Ok((records, note)) => {
                 let t = Instant::now();
                 let r = self.check(cell, &records);
                 timings.check_ms += t.elapsed().as_secs_f64() * 1e3;
-                CellResult { timings: timings.clone(), ..r }
+                let detail = match (r.detail.clone(), note) {
+                    (Some(d), Some(n)) => Some(format!("{d}; {n}")),
+                    (d, n) => d.or(n),
+                };
+                CellResult { timings: timings.clone(), detail, ..r }
             }
             Err(CellError::Vk(e)) if e.is_device_lost() => CellResult {
                 outcome: Outcome::DeviceLost,
@@ -206,7 +210,8 @@ impl Executor {
         Ok(t)
     }
 
-    fn try_run(&mut self, cell: &Cell, timings: &mut Timings) -> Result<Vec<Record>, CellError> {
+    /// The cell's records, and a note on what the compiler did to the cell's shape (if anything).
+    fn try_run(&mut self, cell: &Cell, timings: &mut Timings) -> Result<(Vec<Record>, Option<String>), CellError> {
         if cell.heap_access == Some(crate::matrix::HeapAccess::Direct) && shadergen::glslang::find().is_none() {
             return Err(CellError::NotImplemented(shadergen::glslang::missing_reason()));
         }
@@ -245,6 +250,7 @@ impl Executor {
         if let Some(dir) = &self.opts.dump {
             dump(dir, cell, &shaders, &spirv).map_err(CellError::Io)?;
         }
+        let note = heap::dropped_nonuniform(cell, &spirv);
         // scene, resources, bindings
         let t = Instant::now();
         let stages = match shaders.kind {
@@ -404,7 +410,7 @@ impl Executor {
         let bytes = self.records.read(self.scene.params.pixels() * RECORD_SIZE);
         let recs = bytes.chunks_exact(RECORD_SIZE).map(Record::from_bytes).collect();
         timings.check_ms = t.elapsed().as_secs_f64() * 1e3;
-        Ok(recs)
+        Ok((recs, note))
     }
 }
 
