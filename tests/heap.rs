@@ -83,7 +83,7 @@ fn host_lavapipe_plans_heap_cells_as_unsupported_with_the_reason() {
     assert_eq!(not_implemented, 0, "the device's reason wins over rtprobe's own gaps: {out}");
     assert!(out.lines().filter(|l| l.starts_with("unsupported ")).all(|l| l.contains("VK_EXT_descriptor_heap") || l.contains("descriptorHeap")), "{out}");
     // Every heap access way is planned, none dropped.
-    for way in ["mapped_constant_offset", "mapped_push_index", "mapped_shader_record_index", "direct"] {
+    for way in ["mapped_constant_offset", "mapped_push_index", "mapped_indirect_index", "mapped_shader_record_index", "direct"] {
         assert!(out.contains(&format!(".descriptor_heap.{way} ")), "{way} missing: {out}");
     }
     assert!(out.contains(&format!("{} planned: 0 to run, {unsupported} unsupported, 0 not implemented in rtprobe", unsupported)), "{out}");
@@ -104,7 +104,7 @@ fn sid_plans_every_heap_cell_and_drops_none() {
     assert!(not_implemented > 0);
     assert!(out.lines().filter(|l| l.starts_with("not_implemented ")).all(|l| l.contains(".address_patched.descriptor_heap.direct ") && l.contains("as-to-address")), "{out}");
     assert!(out.contains("compiler: heap_access=direct shaders by glslangValidator 16."), "{out}");
-    for way in ["mapped_constant_offset", "mapped_push_index", "mapped_shader_record_index", "direct"] {
+    for way in ["mapped_constant_offset", "mapped_push_index", "mapped_indirect_index", "mapped_shader_record_index", "direct"] {
         assert!(out.lines().any(|l| l.starts_with("run ") && l.ends_with(&format!(".descriptor_heap.{way}"))), "{way} runs: {out}");
     }
     // Without a heap-capable GLSL compiler the direct way is rtprobe's own gap: planned and
@@ -140,7 +140,7 @@ fn sid_runs_heap_cells_against_the_reference() {
     assert_eq!(report["plan"]["planned"].as_u64().unwrap() as usize, cells.len(), "every planned cell is in the report");
     assert_eq!(report["plan"]["not_implemented"].as_u64().unwrap() as usize, not_impl);
     assert!(not_impl > 0 && cells.iter().filter(|c| outcome(c, "not_implemented")).all(|c| c["id"].as_str().unwrap().ends_with(".direct")));
-    for way in ["mapped_constant_offset", "mapped_push_index", "mapped_shader_record_index"] {
+    for way in ["mapped_constant_offset", "mapped_push_index", "mapped_indirect_index", "mapped_shader_record_index"] {
         let ran: Vec<_> = cells.iter().filter(|c| c["id"].as_str().unwrap().ends_with(way) && c["outcome"] != "unsupported").collect();
         assert!(!ran.is_empty(), "{way} cells ran");
     }

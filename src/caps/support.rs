@@ -161,7 +161,9 @@ pub fn descriptor_model(info: &DeviceInfo, m: DescriptorModel) -> Support {
 /// not the device's).
 pub fn heap_access(info: &DeviceInfo, h: HeapAccess) -> Support {
     match h {
-        HeapAccess::MappedConstantOffset | HeapAccess::MappedPushIndex | HeapAccess::MappedShaderRecordIndex => Support::Supported,
+        HeapAccess::MappedConstantOffset | HeapAccess::MappedPushIndex | HeapAccess::MappedIndirectIndex | HeapAccess::MappedShaderRecordIndex => {
+            Support::Supported
+        }
         HeapAccess::Direct => match Support::require(&[(
             info.features.untyped_pointers.is_some_and(|u| on(u.shader_untyped_pointers)),
             "shaderUntypedPointers (VK_KHR_shader_untyped_pointers)",

@@ -13,11 +13,13 @@
 //! TLAS after it. The sampler heap holds the one probe sampler at offset 0, then its reserved range.
 //! Descriptors are written with vkWriteResourceDescriptorsEXT / vkWriteSamplerDescriptorsEXT, both
 //! heaps bound with vkCmdBind{Resource,Sampler}HeapEXT, and push constants are push data
-//! (vkCmdPushDataEXT): the probes' 48-byte block at offset 0 and the probed array's heap index at
-//! [`PUSH_INDEX_OFFSET`].
+//! (vkCmdPushDataEXT): the probes' 48-byte block at offset 0, the probed array's heap index at
+//! [`PUSH_INDEX_OFFSET`], and at [`PUSH_INDEX_ADDRESS_OFFSET`] the address of a buffer holding the
+//! same index.
 //!
 //! Bindings 0 and 1 are always HEAP_WITH_CONSTANT_OFFSET. Binding 2 follows the cell's
-//! `heap_access`: a constant offset, HEAP_WITH_PUSH_INDEX (the index read from push data) or
+//! `heap_access`: a constant offset, HEAP_WITH_PUSH_INDEX (the index read from push data),
+//! HEAP_WITH_INDIRECT_INDEX (read from the buffer whose address is in push data) or
 //! HEAP_WITH_SHADER_RECORD_INDEX (read from the first 4 bytes of every SBT record's shader record
 //! data). All ways must read the same descriptors.
 use super::bindings::PUSH_CONSTANT_BYTES;
@@ -32,6 +34,8 @@ use std::ffi::c_void;
 
 /// Push-data offset of the probed array's heap index (right after the probes' push block).
 pub const PUSH_INDEX_OFFSET: u32 = PUSH_CONSTANT_BYTES;
+/// Push-data offset of the address of the buffer holding that index (`mapped_indirect_index`).
+pub const PUSH_INDEX_ADDRESS_OFFSET: u32 = PUSH_CONSTANT_BYTES + 8;
 
 fn align(x: u64, a: u64) -> u64 {
     x.div_ceil(a.max(1)) * a.max(1)
@@ -106,6 +110,8 @@ impl HeapLayout {
 pub struct HeapBinding {
     resources: Heap,
     samplers: Heap,
+    /// Holds the probed array's heap index (`mapped_indirect_index` reads it through its address).
+    index: Buffer,
     pub layout: HeapLayout,
 }
 
@@ -189,15 +195,23 @@ impl HeapBinding {
         // SAFETY: one sampler info, one destination range inside `sbytes`.
         let written = unsafe { (f.write_sampler_descriptors)(gpu.device.handle(), 1, sampler, &sdst) }.result().at("vkWriteSamplerDescriptorsEXT");
         let samplers = written.and_then(|_| Heap::create(gpu, &sbytes, p.sampler_heap_alignment.max(p.sampler_descriptor_alignment), p.min_sampler_heap_reserved_range, "sampler heap"));
-        let samplers = match samplers {
-            Ok(s) => s,
+        let index_usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+        let index = samplers.and_then(|s| match Buffer::with_data(gpu, &layout.probe_index().to_le_bytes(), index_usage, "heap index") {
+            Ok(b) => Ok((s, b)),
+            Err(e) => {
+                s.buffer.destroy(gpu);
+                Err(e)
+            }
+        });
+        let (samplers, index) = match index {
+            Ok(x) => x,
             Err(e) => {
                 resources.buffer.destroy(gpu);
                 return Err(e);
             }
         };
         tracing::debug!(?layout, "descriptor heaps written");
-        Ok(HeapBinding { resources, samplers, layout })
+        Ok(HeapBinding { resources, samplers, index, layout })
     }
 
     pub fn bind(&self, gpu: &Gpu, cmd: vk::CommandBuffer) {
@@ -209,11 +223,14 @@ impl HeapBinding {
         }
     }
 
-    /// The probes' push block, then the probed array's heap index, as push data.
+    /// The probes' push block, the probed array's heap index and the address of the buffer
+    /// holding it, as push data.
     pub fn push(&self, gpu: &Gpu, cmd: vk::CommandBuffer, pc: &[u8]) {
         let mut data = pc.to_vec();
         data.resize(PUSH_INDEX_OFFSET as usize, 0);
         data.extend_from_slice(&self.layout.probe_index().to_le_bytes());
+        data.resize(PUSH_INDEX_ADDRESS_OFFSET as usize, 0);
+        data.extend_from_slice(&self.index.address.to_le_bytes());
         let info = h::PushDataInfo {
             s_type: h::STRUCTURE_TYPE_PUSH_DATA_INFO_EXT,
             p_next: std::ptr::null(),
@@ -227,6 +244,7 @@ impl HeapBinding {
     pub fn destroy(&self, gpu: &Gpu) {
         self.resources.buffer.destroy(gpu);
         self.samplers.buffer.destroy(gpu);
+        self.index.destroy(gpu);
     }
 }
 
@@ -259,6 +277,25 @@ impl PipelineMapping {
                         use_combined_image_sampler_index: vk::FALSE,
                         sampler_heap_offset: 0,
                         sampler_push_offset: PUSH_INDEX_OFFSET,
+                        sampler_heap_index_stride: 0,
+                        sampler_heap_array_stride: 0,
+                    },
+                },
+            )),
+            HeapAccess::MappedIndirectIndex => Some((
+                MappingSource::HeapWithIndirectIndex,
+                h::MappingSourceData {
+                    indirect_index: h::MappingIndirectIndex {
+                        heap_offset: 0,
+                        push_offset: PUSH_INDEX_ADDRESS_OFFSET,
+                        address_offset: 0,
+                        heap_index_stride: stride,
+                        heap_array_stride: stride,
+                        p_embedded_sampler: std::ptr::null(),
+                        use_combined_image_sampler_index: vk::FALSE,
+                        sampler_heap_offset: 0,
+                        sampler_push_offset: PUSH_INDEX_ADDRESS_OFFSET,
+                        sampler_address_offset: 0,
                         sampler_heap_index_stride: 0,
                         sampler_heap_array_stride: 0,
                     },
@@ -322,7 +359,7 @@ impl PipelineMapping {
 pub fn shader_record(access: Option<HeapAccess>, l: &HeapLayout) -> Vec<u8> {
     match access {
         Some(HeapAccess::MappedShaderRecordIndex) => l.probe_index().to_le_bytes().to_vec(),
-        Some(HeapAccess::MappedConstantOffset | HeapAccess::MappedPushIndex | HeapAccess::Direct) | None => vec![],
+        Some(HeapAccess::MappedConstantOffset | HeapAccess::MappedPushIndex | HeapAccess::MappedIndirectIndex | HeapAccess::Direct) | None => vec![],
     }
 }
 

@@ -202,7 +202,7 @@ pub fn all_cells() -> (Vec<Cell>, Vec<NotGenerated>) {
                                 vec![None]
                             };
                             for heap_access in heap {
-                                let mapped_index = matches!(heap_access, Some(HeapAccess::MappedPushIndex | HeapAccess::MappedShaderRecordIndex));
+                                let mapped_index = matches!(heap_access, Some(HeapAccess::MappedPushIndex | HeapAccess::MappedIndirectIndex | HeapAccess::MappedShaderRecordIndex));
                                 if heap_access == Some(HeapAccess::MappedShaderRecordIndex) && !stage.is_ray_tracing() {
                                     record_outside_rt += 1;
                                     continue;
@@ -224,7 +224,7 @@ pub fn all_cells() -> (Vec<Cell>, Vec<NotGenerated>) {
         NotGenerated { rule: "nonuniform has no descriptor to qualify with as_access=address".into(), count: nonuniform_address },
         NotGenerated { rule: "heap_access=mapped_shader_record_index needs a shader record (ray tracing pipelines only)".into(), count: record_outside_rt },
         NotGenerated {
-            rule: "heap_access=mapped_push_index|mapped_shader_record_index only move the probed binding, which as_access=address has not".into(),
+            rule: "heap_access=mapped_push_index|mapped_indirect_index|mapped_shader_record_index only move the probed binding, which as_access=address has not".into(),
             count: heap_index_without_binding,
         },
     ];
@@ -284,10 +284,10 @@ mod tests {
         ids.dedup();
         assert_eq!(ids.len(), n, "cell ids are unique");
         // 8 stages x (4 resources x 5 index variants + AS: 5 descriptor + 4 address + 5 patched) x
-        // 2 set-based models, plus the heap model once per heap access way (4 in RT stages, 3 in
+        // 2 set-based models, plus the heap model once per heap access way (5 in RT stages, 4 in
         // fragment/compute; as_access=address only mapped_constant_offset and direct).
         let per_stage_heap = |ways: usize| (4 * 5 + 10) * ways + 4 * 2;
-        assert_eq!(n, 8 * (4 * 5 + 14) * 2 + 6 * per_stage_heap(4) + 2 * per_stage_heap(3));
+        assert_eq!(n, 8 * (4 * 5 + 14) * 2 + 6 * per_stage_heap(5) + 2 * per_stage_heap(4));
         assert!(cells.iter().all(|c| c.heap_access.is_some() == (c.descriptor_model == DescriptorModel::DescriptorHeap)));
         assert!(skipped.iter().all(|s| s.count > 0));
     }

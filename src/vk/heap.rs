@@ -116,6 +116,7 @@ pub const SPIRV_RESOURCE_TYPE_ALL: u32 = 0x7FFF_FFFF;
 pub enum MappingSource {
     HeapWithConstantOffset = 0,
     HeapWithPushIndex = 1,
+    HeapWithIndirectIndex = 2,
     HeapWithShaderRecordIndex = 8,
 }
 
@@ -219,6 +220,25 @@ pub struct MappingPushIndex {
     pub sampler_heap_array_stride: u32,
 }
 
+/// `VkDescriptorMappingSourceIndirectIndexEXT`: the heap index is read from a buffer whose
+/// address is in push data.
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct MappingIndirectIndex {
+    pub heap_offset: u32,
+    pub push_offset: u32,
+    pub address_offset: u32,
+    pub heap_index_stride: u32,
+    pub heap_array_stride: u32,
+    pub p_embedded_sampler: *const vk::SamplerCreateInfo<'static>,
+    pub use_combined_image_sampler_index: vk::Bool32,
+    pub sampler_heap_offset: u32,
+    pub sampler_push_offset: u32,
+    pub sampler_address_offset: u32,
+    pub sampler_heap_index_stride: u32,
+    pub sampler_heap_array_stride: u32,
+}
+
 /// `VkDescriptorMappingSourceShaderRecordIndexEXT`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug)]
@@ -235,13 +255,14 @@ pub struct MappingShaderRecordIndex {
     pub sampler_heap_array_stride: u32,
 }
 
-/// `VkDescriptorMappingSourceDataEXT`. Its largest member (`VkDescriptorMappingSourceIndirectIndexEXT`,
-/// 5 × u32, a pointer, 6 × u32: 56 bytes) is stood in for by `_size` so the union has the C size.
+/// `VkDescriptorMappingSourceDataEXT` (the members rtprobe uses; `_size` keeps the C size, 56 bytes,
+/// that of its largest member, `VkDescriptorMappingSourceIndirectIndexEXT`).
 #[repr(C)]
 #[derive(Clone, Copy)]
 pub union MappingSourceData {
     pub constant_offset: MappingConstantOffset,
     pub push_index: MappingPushIndex,
+    pub indirect_index: MappingIndirectIndex,
     pub shader_record_index: MappingShaderRecordIndex,
     _size: [u64; 7],
 }
@@ -322,6 +343,9 @@ mod tests {
         assert_eq!(size_of::<MappingPushIndex>(), 48);
         assert_eq!(size_of::<MappingShaderRecordIndex>(), 48);
         assert_eq!(size_of::<MappingConstantOffset>(), 24);
+        assert_eq!(size_of::<MappingIndirectIndex>(), 56);
+        assert_eq!(offset_of!(MappingIndirectIndex, p_embedded_sampler), 24);
+        assert_eq!(offset_of!(MappingIndirectIndex, sampler_heap_array_stride), 52);
         assert_eq!(size_of::<MappingSourceData>(), 56);
         assert_eq!(offset_of!(SetAndBindingMapping, source_data), 40);
         assert_eq!(size_of::<SetAndBindingMapping>(), 96);
