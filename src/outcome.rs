@@ -19,13 +19,15 @@ pub enum Outcome {
     Timeout,
     /// The device cannot run the cell (reason from its queried features).
     Unsupported,
+    /// The device could run the cell but rtprobe cannot yet (its own gap, with the reason).
+    NotImplemented,
     /// rtprobe could not run the cell (compile error, Vulkan error other than device loss).
     Error,
 }
 
 impl Outcome {
     pub const ALL: &'static [Outcome] =
-        &[Outcome::Pass, Outcome::Mismatch, Outcome::DeviceLost, Outcome::Crash, Outcome::Timeout, Outcome::Unsupported, Outcome::Error];
+        &[Outcome::Pass, Outcome::Mismatch, Outcome::DeviceLost, Outcome::Crash, Outcome::Timeout, Outcome::Unsupported, Outcome::NotImplemented, Outcome::Error];
 
     pub fn as_str(self) -> &'static str {
         match self {
@@ -35,6 +37,7 @@ impl Outcome {
             Outcome::Crash => "crash",
             Outcome::Timeout => "timeout",
             Outcome::Unsupported => "unsupported",
+            Outcome::NotImplemented => "not_implemented",
             Outcome::Error => "error",
         }
     }
@@ -42,7 +45,7 @@ impl Outcome {
     /// A finding: something the user must look at (run exits 1).
     pub fn is_finding(self) -> bool {
         match self {
-            Outcome::Pass | Outcome::Unsupported => false,
+            Outcome::Pass | Outcome::Unsupported | Outcome::NotImplemented => false,
             Outcome::Mismatch | Outcome::DeviceLost | Outcome::Crash | Outcome::Timeout | Outcome::Error => true,
         }
     }
@@ -51,7 +54,7 @@ impl Outcome {
     pub fn ends_worker(self) -> bool {
         match self {
             Outcome::DeviceLost | Outcome::Crash | Outcome::Timeout => true,
-            Outcome::Pass | Outcome::Mismatch | Outcome::Unsupported | Outcome::Error => false,
+            Outcome::Pass | Outcome::Mismatch | Outcome::Unsupported | Outcome::NotImplemented | Outcome::Error => false,
         }
     }
 
@@ -61,11 +64,12 @@ impl Outcome {
         match self {
             Outcome::Pass => 0,
             Outcome::Unsupported => 1,
-            Outcome::Error => 2,
-            Outcome::Mismatch => 3,
-            Outcome::Timeout => 4,
-            Outcome::Crash => 5,
-            Outcome::DeviceLost => 6,
+            Outcome::NotImplemented => 2,
+            Outcome::Error => 3,
+            Outcome::Mismatch => 4,
+            Outcome::Timeout => 5,
+            Outcome::Crash => 6,
+            Outcome::DeviceLost => 7,
         }
     }
 
@@ -73,7 +77,7 @@ impl Outcome {
     pub fn worth_confirming(self) -> bool {
         match self {
             Outcome::Mismatch | Outcome::DeviceLost | Outcome::Crash | Outcome::Timeout => true,
-            Outcome::Pass | Outcome::Unsupported | Outcome::Error => false,
+            Outcome::Pass | Outcome::Unsupported | Outcome::NotImplemented | Outcome::Error => false,
         }
     }
 }

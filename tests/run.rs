@@ -146,8 +146,15 @@ fn list_says_what_is_planned_skipped_and_not_generated() {
     let out = stdout(&o);
     let to_run = out.lines().filter(|l| l.starts_with("run ")).count();
     let unsupported = out.lines().filter(|l| l.starts_with("unsupported ")).count();
+    let not_implemented = out.lines().filter(|l| l.starts_with("not_implemented ")).count();
     assert!(to_run > 0 && unsupported > 0);
-    assert!(out.contains(&format!("{} planned: {to_run} to run, {unsupported} unsupported", to_run + unsupported)), "{out}");
+    assert!(
+        out.contains(&format!(
+            "{} planned: {to_run} to run, {unsupported} unsupported, {not_implemented} not implemented in rtprobe",
+            to_run + unsupported + not_implemented
+        )),
+        "{out}"
+    );
     assert!(out.contains("not generated: nonuniform only applies to index=dynamic"));
     assert!(out.contains("address_patched"));
     let o = run(&["run", "--list", "--filter", "stage=closest_hit,index=dynamic,descriptor_model=descriptor_indexing"]);

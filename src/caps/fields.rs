@@ -91,6 +91,8 @@ pub fn features(info: &DeviceInfo) -> Map<String, Value> {
     )));
     put(&mut m, "VkPhysicalDeviceDescriptorHeapFeaturesEXT", f.descriptor_heap.map(|s| obj!(s;
         b "descriptorHeap" descriptor_heap, b "descriptorHeapCaptureReplay" descriptor_heap_capture_replay)));
+    put(&mut m, "VkPhysicalDeviceShaderUntypedPointersFeaturesKHR", f.untyped_pointers.map(|s| obj!(s;
+        b "shaderUntypedPointers" shader_untyped_pointers)));
     put(&mut m, "VkPhysicalDeviceRobustness2FeaturesEXT", f.robustness2.map(|s| obj!(s;
         b "robustBufferAccess2" robust_buffer_access2, b "robustImageAccess2" robust_image_access2, b "nullDescriptor" null_descriptor)));
     put(&mut m, "VkPhysicalDeviceFaultFeaturesEXT", f.fault.map(|s| obj!(s;
@@ -242,6 +244,12 @@ pub fn properties(info: &DeviceInfo) -> Map<String, Value> {
         n "samplerHeapAlignment" sampler_heap_alignment, n "resourceHeapAlignment" resource_heap_alignment,
         n "maxSamplerHeapSize" max_sampler_heap_size, n "maxResourceHeapSize" max_resource_heap_size,
         n "imageDescriptorSize" image_descriptor_size, n "bufferDescriptorSize" buffer_descriptor_size,
+        n "samplerDescriptorSize" sampler_descriptor_size,
+        n "samplerDescriptorAlignment" sampler_descriptor_alignment, n "imageDescriptorAlignment" image_descriptor_alignment,
+        n "bufferDescriptorAlignment" buffer_descriptor_alignment,
+        n "minSamplerHeapReservedRange" min_sampler_heap_reserved_range,
+        n "minSamplerHeapReservedRangeWithEmbedded" min_sampler_heap_reserved_range_with_embedded,
+        n "minResourceHeapReservedRange" min_resource_heap_reserved_range,
         n "maxPushDataSize" max_push_data_size,
     )));
     put(&mut m, "VkPhysicalDeviceRobustness2PropertiesEXT", p.robustness2.map(|s| obj!(s;

@@ -1,7 +1,7 @@
 //! What the matrix can run on a device, per axis value, decided from the queried features only.
 //! `Unsupported` is said only when the device's features or extensions say so; `NotImplemented`
 //! marks what rtprobe itself cannot do yet, which is never blamed on the device.
-use crate::matrix::{AsAccess, DescriptorModel, IndexSource, Reorder, Resource, Stage};
+use crate::matrix::{AsAccess, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource, Stage};
 use crate::vk::{heap, DeviceInfo};
 use ash::{ext, khr, nv, vk};
 use serde::Serialize;
@@ -154,16 +154,12 @@ pub fn descriptor_model(info: &DeviceInfo, m: DescriptorModel) -> Support {
             if !info.has_extension(heap::NAME) {
                 return Support::Unsupported { reason: "driver does not expose VK_EXT_descriptor_heap".into() };
             }
-            match Support::require(&[
+            // rtprobe's instance is Vulkan 1.3, so maintenance5 (which heaps need) must be listed.
+            Support::require(&[
                 (info.features.descriptor_heap.is_some_and(|d| on(d.descriptor_heap)), "descriptorHeap"),
-                (info.has_extension(khr::maintenance5::NAME) || info.api_version() >= vk::make_api_version(0, 1, 4, 0), "VK_KHR_maintenance5"),
-            ]) {
-                // The device could; rtprobe's heap binding path does not exist yet.
-                Support::Supported => Support::NotImplemented {
-                    reason: "the device supports VK_EXT_descriptor_heap, but rtprobe cannot bind descriptors through heaps yet".into(),
-                },
-                other => other,
-            }
+                (info.has_extension(khr::maintenance5::NAME), "VK_KHR_maintenance5"),
+                (on(v12.buffer_device_address), "bufferDeviceAddress"),
+            ])
         }
     }
 }
@@ -183,5 +179,24 @@ pub fn reorder(info: &DeviceInfo, r: Reorder) -> Support {
                 "rayTracingInvocationReorder (VK_NV_ray_tracing_invocation_reorder)",
             )])
         }
+    }
+}
+
+/// How a heap cell's shaders reach the heap. The mapped ways need nothing beyond the heap
+/// itself; `direct` (GLSL with `layout(descriptor_heap)`) needs untyped pointers on the device and
+/// a GLSL compiler with GL_EXT_descriptor_heap on this machine (its absence is rtprobe's gap here,
+/// not the device's).
+pub fn heap_access(info: &DeviceInfo, h: HeapAccess) -> Support {
+    match h {
+        HeapAccess::MappedConstantOffset | HeapAccess::MappedPushIndex | HeapAccess::MappedIndirectIndex | HeapAccess::MappedShaderRecordIndex => {
+            Support::Supported
+        }
+        HeapAccess::Direct => match Support::require(&[(
+            info.features.untyped_pointers.is_some_and(|u| on(u.shader_untyped_pointers)),
+            "shaderUntypedPointers (VK_KHR_shader_untyped_pointers)",
+        )]) {
+            Support::Supported if crate::shadergen::glslang::find().is_none() => Support::NotImplemented { reason: crate::shadergen::glslang::missing_reason() },
+            other => other,
+        },
     }
 }

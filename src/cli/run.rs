@@ -75,15 +75,28 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             match &pc.status {
                 PlanStatus::Run => println!("run          {}", pc.cell.id()),
                 PlanStatus::Unsupported { reason } => println!("unsupported  {}  ({reason})", pc.cell.id()),
+                PlanStatus::NotImplemented { reason } => println!("not_implemented  {}  ({reason})", pc.cell.id()),
             }
         }
         let to_run = the_plan.to_run().count();
-        println!("{} planned: {} to run, {} unsupported; {} filtered out", the_plan.cells.len(), to_run, the_plan.unsupported_count(), the_plan.filtered_out);
+        println!(
+            "{} planned: {} to run, {} unsupported, {} not implemented in rtprobe; {} filtered out",
+            the_plan.cells.len(),
+            to_run,
+            the_plan.unsupported_count(),
+            the_plan.not_implemented_count(),
+            the_plan.filtered_out
+        );
         if let Some(s) = shard {
             println!("shard {}: {sharded_out} cells left to the other shards", s.label());
         }
         for ng in &the_plan.not_generated {
             println!("not generated: {} ({} combinations)", ng.rule, ng.count);
+        }
+        if the_plan.to_run().any(|c| c.heap_access == Some(crate::matrix::HeapAccess::Direct)) {
+            if let Some(g) = crate::shadergen::glslang::find() {
+                println!("compiler: heap_access=direct shaders by {} {}; all others by shaderc", g.path.display(), g.version);
+            }
         }
         return Ok(exit::OK);
     }
@@ -124,6 +137,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             planned: the_plan.cells.len(),
             to_run: the_plan.to_run().count(),
             unsupported: the_plan.unsupported_count(),
+            not_implemented: the_plan.not_implemented_count(),
             not_generated: the_plan.not_generated.clone(),
             sharded_out,
         },
@@ -314,7 +328,7 @@ mod tests {
             matrix_support: json!({}),
             scene: SceneSummary { params: SceneParams::default(), instances: 16, blas: 4, triangles: 0, ambiguous_pixels: 0 },
             options: json!({}),
-            plan: PlanSummary { generated: 0, filtered_out: 0, planned: cells.len(), to_run: cells.len(), unsupported: 0, not_generated: vec![], sharded_out: 0 },
+            plan: PlanSummary { generated: 0, filtered_out: 0, planned: cells.len(), to_run: cells.len(), unsupported: 0, not_implemented: 0, not_generated: vec![], sharded_out: 0 },
             summary: Default::default(),
             tally: Default::default(),
             timing: TimingSummary::default(),

@@ -1,9 +1,9 @@
 //! Binding the cell's descriptors under each descriptor model: `descriptor_indexing` (a descriptor
 //! set with a runtime-sized, partially bound, update-after-bind array where the device allows) and
 //! `descriptor_buffer` (VK_EXT_descriptor_buffer: descriptors written with vkGetDescriptorEXT into
-//! a buffer). Binding 0 is the records SSBO, 1 the scene TLAS, 2 the probed array. The
-//! `descriptor_heap` model never reaches here: the plan marks it unsupported where the driver lacks
-//! VK_EXT_descriptor_heap, and not implemented where it has it.
+//! a buffer) and `descriptor_heap` (VK_EXT_descriptor_heap, in [`super::heap`]). Binding 0 is the
+//! records SSBO, 1 the scene TLAS, 2 the probed array.
+use super::heap::HeapBinding;
 use super::resources::{descriptor_type, Target};
 use crate::matrix::{DescriptorModel, Resource};
 use crate::vk::memory::{Buffer, Location};
@@ -20,12 +20,16 @@ pub struct LayoutKey {
     pub model: DescriptorModel,
     pub scene_tlas: bool,
     pub probe: Option<Resource>,
+    /// Heap model, `heap_access=direct`: the probed array first in the heap.
+    pub heap_direct: bool,
 }
 
 enum Bound {
     Set { pool: vk::DescriptorPool, set: vk::DescriptorSet },
     /// `usage`: the descriptor-buffer usage the layout needs (SAMPLER only with samplers).
     Buffer { buffer: Buffer, usage: vk::BufferUsageFlags },
+    /// Resource and sampler heaps; no set layout, no pipeline layout (both null).
+    Heap(HeapBinding),
 }
 
 pub struct Binding {
@@ -62,6 +66,11 @@ impl Binding {
     /// their kind, in the order of the layout's bindings.
     pub fn create(gpu: &Gpu, key: LayoutKey, targets: &[(u32, Resource, Vec<Target>)]) -> Result<Binding, VkError> {
         let d = &gpu.device;
+        if key.model == DescriptorModel::DescriptorHeap {
+            let typed: Vec<(u32, vk::DescriptorType, Vec<Target>)> = targets.iter().map(|(b, kind, t)| (*b, descriptor_type(*kind), t.clone())).collect();
+            let heap = HeapBinding::create(gpu, &typed, &super::resources::sampler_info(), key.heap_direct)?;
+            return Ok(Binding { set_layout: vk::DescriptorSetLayout::null(), pipeline_layout: vk::PipelineLayout::null(), bound: Bound::Heap(heap) });
+        }
         let mut bindings = Vec::new();
         let mut flags = Vec::new();
         let mut uab = false;
@@ -89,7 +98,7 @@ impl Binding {
                 ci = ci.push_next(&mut flags_info);
             }
             DescriptorModel::DescriptorBuffer => ci = ci.flags(vk::DescriptorSetLayoutCreateFlags::DESCRIPTOR_BUFFER_EXT),
-            DescriptorModel::DescriptorHeap => unreachable!("the plan never runs descriptor_heap cells"),
+            DescriptorModel::DescriptorHeap => unreachable!("heap bindings returned above"),
         }
         let set_layout = unsafe { d.create_descriptor_set_layout(&ci, None) }.at("vkCreateDescriptorSetLayout")?;
         let ranges = [vk::PushConstantRange { stage_flags: key.stages, offset: 0, size: PUSH_CONSTANT_BYTES }];
@@ -123,7 +132,7 @@ impl Binding {
             for t in ts {
                 match *t {
                     Target::Buffer { raw, range, .. } => buffer_infos.push(vk::DescriptorBufferInfo { buffer: raw, offset: 0, range }),
-                    Target::Image { view, sampler } => image_infos.push(vk::DescriptorImageInfo { sampler, image_view: view, image_layout: vk::ImageLayout::GENERAL }),
+                    Target::Image { view, sampler, .. } => image_infos.push(vk::DescriptorImageInfo { sampler, image_view: view, image_layout: vk::ImageLayout::GENERAL }),
                     Target::Accel { raw, .. } => accels.push(raw),
                 }
             }
@@ -169,7 +178,7 @@ impl Binding {
                         };
                         unsafe { db.get_descriptor(&vk::DescriptorGetInfoEXT::default().ty(*ty).data(data), dst) };
                     }
-                    Target::Image { view, sampler } => {
+                    Target::Image { view, sampler, .. } => {
                         let info = vk::DescriptorImageInfo { sampler, image_view: view, image_layout: vk::ImageLayout::GENERAL };
                         let data = if *ty == vk::DescriptorType::COMBINED_IMAGE_SAMPLER {
                             vk::DescriptorDataEXT { p_combined_image_sampler: &info }
@@ -200,6 +209,23 @@ impl Binding {
                     db.cmd_set_descriptor_buffer_offsets(cmd, point, self.pipeline_layout, 0, &[0], &[0]);
                 }
             }
+            Bound::Heap(h) => h.bind(gpu, cmd),
+        }
+    }
+
+    /// The probes' push block: push constants, or push data under the heap model.
+    pub fn push(&self, gpu: &Gpu, cmd: vk::CommandBuffer, stages: vk::ShaderStageFlags, pc: &[u8]) {
+        match &self.bound {
+            Bound::Set { .. } | Bound::Buffer { .. } => unsafe { gpu.device.cmd_push_constants(cmd, self.pipeline_layout, stages, 0, pc) },
+            Bound::Heap(h) => h.push(gpu, cmd, pc),
+        }
+    }
+
+    /// Where the descriptors sit in the resource heap (heap model only).
+    pub fn heap_layout(&self) -> Option<super::heap::HeapLayout> {
+        match &self.bound {
+            Bound::Heap(h) => Some(h.layout),
+            Bound::Set { .. } | Bound::Buffer { .. } => None,
         }
     }
 
@@ -208,6 +234,7 @@ impl Binding {
             match &self.bound {
                 Bound::Set { pool, .. } => gpu.device.destroy_descriptor_pool(*pool, None),
                 Bound::Buffer { buffer, .. } => buffer.destroy(gpu),
+                Bound::Heap(h) => h.destroy(gpu),
             }
             gpu.device.destroy_pipeline_layout(self.pipeline_layout, None);
             gpu.device.destroy_descriptor_set_layout(self.set_layout, None);

@@ -5,6 +5,7 @@
 //! reads the records back and compares them with the CPU reference, telling its caller each
 //! [`Phase`] it enters. Everything that can go wrong becomes an [`Outcome`].
 pub mod bindings;
+pub mod heap;
 pub mod pipeline;
 pub mod resources;
 
@@ -61,6 +62,9 @@ pub enum CellError {
     Io(String),
     #[error("as-to-address patch: {0}")]
     Patch(#[from] crate::patches::PatchError),
+    /// rtprobe's own gap (outcome `not_implemented`).
+    #[error("not implemented in rtprobe: {0}")]
+    NotImplemented(String),
 }
 
 impl CellError {
@@ -71,6 +75,7 @@ impl CellError {
             CellError::Vk(e) | CellError::Build(BuildError::Vk(e)) => vk_outcome(e),
             CellError::Timeout(_) | CellError::Build(BuildError::TimedOut(_)) => Outcome::Timeout,
             CellError::Compile(_) | CellError::Io(_) | CellError::Patch(_) => Outcome::Error,
+            CellError::NotImplemented(_) => Outcome::NotImplemented,
         }
     }
 }
@@ -168,13 +173,17 @@ impl Executor {
         let validation_before = crate::vk::instance::validation_error_count();
         let mut timings = Timings::default();
         let injected = crate::matrix::inject::roll(&self.opts.inject, cell, self.opts.inject_seed);
-        let result = self.try_run(cell, injected.as_ref(), &mut timings, on_phase).and_then(|records| on_phase(Phase::Check).map(|()| records).map_err(CellError::from));
+        let result = self.try_run(cell, injected.as_ref(), &mut timings, on_phase).and_then(|done| on_phase(Phase::Check).map(|()| done).map_err(CellError::from));
         let mut out = match result {
-            Ok(records) => {
+            Ok((records, note)) => {
                 let t = Instant::now();
                 let r = self.check(cell, &records);
                 timings.check_ms += t.elapsed().as_secs_f64() * 1e3;
-                CellResult { timings: timings.clone(), ..r }
+                let detail = match (r.detail.clone(), note) {
+                    (Some(d), Some(n)) => Some(format!("{d}; {n}")),
+                    (d, n) => d.or(n),
+                };
+                CellResult { timings: timings.clone(), detail, ..r }
             }
             Err(e) => {
                 let outcome = e.outcome();
@@ -274,8 +283,12 @@ impl Executor {
         Ok(())
     }
 
-    fn try_run(&mut self, cell: &Cell, injected: Option<&InjectedFault>, timings: &mut Timings, on_phase: PhaseHook) -> Result<Vec<Record>, CellError> {
+    /// The cell's records, and a note on what the compiler did to the cell's shape (if anything).
+    fn try_run(&mut self, cell: &Cell, injected: Option<&InjectedFault>, timings: &mut Timings, on_phase: PhaseHook) -> Result<(Vec<Record>, Option<String>), CellError> {
         on_phase(Phase::Compile)?;
+        if cell.heap_access == Some(crate::matrix::HeapAccess::Direct) && shadergen::glslang::find().is_none() {
+            return Err(CellError::NotImplemented(shadergen::glslang::missing_reason()));
+        }
         let shaders = shadergen::generate_with(&shadergen::source_cell(cell), injected.map(|i| i.fault));
         // SPIR-V
         let mut spirv = Vec::new();
@@ -311,6 +324,7 @@ impl Executor {
         if let Some(dir) = &self.opts.dump {
             dump(dir, cell, &shaders, &spirv).map_err(CellError::Io)?;
         }
+        let note = heap::dropped_nonuniform(cell, &spirv);
         // resources (built by `prepare`), bindings, pipeline
         on_phase(Phase::Pipeline)?;
         let t = Instant::now();
@@ -335,6 +349,7 @@ impl Executor {
             model: cell.descriptor_model,
             scene_tlas: shaders.uses_scene_tlas,
             probe: shaders.uses_probe_binding.then_some(cell.resource),
+            heap_direct: cell.heap_access == Some(crate::matrix::HeapAccess::Direct),
         };
         if !self.bindings.contains_key(&key) {
             let targets = self.targets(key)?;
@@ -363,14 +378,19 @@ impl Executor {
                 s.hash(&mut hs);
             }
             cell.descriptor_model.hash(&mut hs);
+            cell.heap_access.hash(&mut hs);
             key.hash(&mut hs);
             shaders.recursion_depth.hash(&mut hs);
             hs.finish()
         };
         if !self.pipelines.contains_key(&pkey) {
             let t = Instant::now();
-            let layout = self.bindings[&key].pipeline_layout;
-            let p = pipeline::create(&self.gpu, self.cache, &shaders, &spirv, layout, cell.descriptor_model)?;
+            let binding = &self.bindings[&key];
+            let layout = binding.heap_layout();
+            let mapping = cell.heap_access.zip(layout.as_ref()).map(|(access, l)| heap::PipelineMapping::new(access, l));
+            let record = layout.map(|l| heap::shader_record(cell.heap_access, &l)).unwrap_or_default();
+            let heap_pipeline = mapping.as_ref().map(|m| pipeline::HeapPipeline { mapping: m, shader_record: &record });
+            let p = pipeline::create(&self.gpu, self.cache, &shaders, &spirv, binding.pipeline_layout, cell.descriptor_model, heap_pipeline.as_ref())?;
             timings.pipeline_ms = t.elapsed().as_secs_f64() * 1e3;
             self.pipelines.insert(pkey, p);
         }
@@ -404,7 +424,7 @@ impl Executor {
                     let point = vk::PipelineBindPoint::RAY_TRACING_KHR;
                     binding.bind(gpu, cmd, point);
                     d.cmd_bind_pipeline(cmd, point, pipe.raw);
-                    d.cmd_push_constants(cmd, binding.pipeline_layout, key.stages, 0, &pc);
+                    binding.push(gpu, cmd, key.stages, &pc);
                     let sbt = pipe.sbt.as_ref().expect("RT pipelines have an SBT");
                     gpu.rt.as_ref().expect("RT enabled").cmd_trace_rays(cmd, &sbt.raygen, &sbt.miss, &sbt.hit, &sbt.callable, w, h, 1);
                 }
@@ -412,7 +432,7 @@ impl Executor {
                     let point = vk::PipelineBindPoint::COMPUTE;
                     binding.bind(gpu, cmd, point);
                     d.cmd_bind_pipeline(cmd, point, pipe.raw);
-                    d.cmd_push_constants(cmd, binding.pipeline_layout, key.stages, 0, &pc);
+                    binding.push(gpu, cmd, key.stages, &pc);
                     d.cmd_dispatch(cmd, w.div_ceil(8), h.div_ceil(8), 1);
                 }
                 PipelineKind::Graphics => {
@@ -430,7 +450,7 @@ impl Executor {
                     let point = vk::PipelineBindPoint::GRAPHICS;
                     binding.bind(gpu, cmd, point);
                     d.cmd_bind_pipeline(cmd, point, pipe.raw);
-                    d.cmd_push_constants(cmd, binding.pipeline_layout, key.stages, 0, &pc);
+                    binding.push(gpu, cmd, key.stages, &pc);
                     d.cmd_set_viewport(cmd, 0, &[vk::Viewport { x: 0.0, y: 0.0, width: w as f32, height: h as f32, min_depth: 0.0, max_depth: 1.0 }]);
                     d.cmd_set_scissor(cmd, 0, &[area]);
                     d.cmd_draw(cmd, 6, (w / probe::TILE) * (h / probe::TILE), 0, 0);
@@ -452,7 +472,7 @@ impl Executor {
         let bytes = self.records.read(self.scene.params.pixels() * RECORD_SIZE);
         let recs = bytes.chunks_exact(RECORD_SIZE).map(Record::from_bytes).collect();
         timings.check_ms = t.elapsed().as_secs_f64() * 1e3;
-        Ok(recs)
+        Ok((recs, note))
     }
 }
 

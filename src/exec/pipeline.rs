@@ -1,7 +1,10 @@
 //! Pipelines of a cell: ray tracing (with its shader binding table), graphics (fragment probes,
 //! dynamic rendering, one quad per tile) or compute. The group layout of every RT pipeline is
 //! fixed: raygen; miss 0 (primary), miss 1 (AS probe ray); hit group 0 triangles, hit group 1
-//! procedural (intersection); callable 0 when the callable stage is probed.
+//! procedural (intersection); callable 0 when the callable stage is probed. Heap pipelines (see
+//! [`super::heap`]) have no layout, the descriptor-heap create flag, the set/binding mapping on
+//! every stage, and shader record data after each SBT handle where their mapping reads it.
+use super::heap::PipelineMapping;
 use crate::matrix::DescriptorModel;
 use crate::probe;
 use crate::shadergen::{CellShaders, PipelineKind, Role};
@@ -46,8 +49,15 @@ fn stage_flag(role: Role) -> vk::ShaderStageFlags {
     }
 }
 
+/// How a heap pipeline reaches its heaps: the mapping chained to each stage, and the shader record
+/// data written after every SBT handle.
+pub struct HeapPipeline<'a> {
+    pub mapping: &'a PipelineMapping,
+    pub shader_record: &'a [u8],
+}
+
 /// Create the pipeline for `shaders` (SPIR-V in `spirv`, same order), specializing constant 0 to
-/// `probe::SPEC_SLOT` in every stage.
+/// `probe::SPEC_SLOT` in every stage. `heap` is `Some` exactly for the descriptor_heap model.
 pub fn create(
     gpu: &Gpu,
     cache: vk::PipelineCache,
@@ -55,6 +65,7 @@ pub fn create(
     spirv: &[std::sync::Arc<Vec<u32>>],
     layout: vk::PipelineLayout,
     model: DescriptorModel,
+    heap: Option<&HeapPipeline>,
 ) -> Result<Pipeline, VkError> {
     let d = &gpu.device;
     let mut modules = Vec::new();
@@ -76,18 +87,31 @@ pub fn create(
         .shaders
         .iter()
         .zip(&modules)
-        .map(|(s, m)| vk::PipelineShaderStageCreateInfo::default().stage(stage_flag(s.role)).module(*m).name(MAIN).specialization_info(&spec))
+        .map(|(s, m)| {
+            let mut st = vk::PipelineShaderStageCreateInfo::default().stage(stage_flag(s.role)).module(*m).name(MAIN).specialization_info(&spec);
+            if let Some(h) = heap {
+                st.p_next = h.mapping.stage_next();
+            }
+            st
+        })
         .collect();
     let flags = if model == DescriptorModel::DescriptorBuffer { vk::PipelineCreateFlags::DESCRIPTOR_BUFFER_EXT } else { vk::PipelineCreateFlags::empty() };
+    // Heap pipelines: VK_PIPELINE_CREATE_2_DESCRIPTOR_HEAP_BIT_EXT, which only the flags2 struct carries.
+    let mut flags2 = vk::PipelineCreateFlags2CreateInfoKHR::default().flags(crate::vk::heap::PIPELINE_CREATE_2_DESCRIPTOR_HEAP);
+    let flags2 = heap.is_some().then_some(&mut flags2);
+    let record = heap.map(|h| h.shader_record).unwrap_or_default();
     let result = match shaders.kind {
-        PipelineKind::RayTracing => create_rt(gpu, cache, shaders, &stages, layout, flags),
+        PipelineKind::RayTracing => create_rt(gpu, cache, shaders, &stages, layout, flags, flags2, record),
         PipelineKind::Compute => {
-            let ci = vk::ComputePipelineCreateInfo::default().stage(stages[0]).layout(layout).flags(flags);
+            let mut ci = vk::ComputePipelineCreateInfo::default().stage(stages[0]).layout(layout).flags(flags);
+            if let Some(f2) = flags2 {
+                ci = ci.push_next(f2);
+            }
             unsafe { d.create_compute_pipelines(cache, &[ci], None) }
                 .map_err(|(_, e)| VkError::from_result("vkCreateComputePipelines", e))
                 .map(|p| Pipeline { raw: p[0], kind: PipelineKind::Compute, sbt: None })
         }
-        PipelineKind::Graphics => create_graphics(gpu, cache, &stages, layout, flags),
+        PipelineKind::Graphics => create_graphics(gpu, cache, &stages, layout, flags, flags2),
     };
     for m in &modules {
         unsafe { d.destroy_shader_module(*m, None) };
@@ -101,6 +125,7 @@ fn create_graphics(
     stages: &[vk::PipelineShaderStageCreateInfo],
     layout: vk::PipelineLayout,
     flags: vk::PipelineCreateFlags,
+    flags2: Option<&mut vk::PipelineCreateFlags2CreateInfoKHR>,
 ) -> Result<Pipeline, VkError> {
     let formats = [COLOR_FORMAT];
     let mut rendering = vk::PipelineRenderingCreateInfo::default().color_attachment_formats(&formats);
@@ -113,7 +138,7 @@ fn create_graphics(
     let cb = vk::PipelineColorBlendStateCreateInfo::default().attachments(&att);
     let dyn_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
     let ds = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dyn_states);
-    let ci = vk::GraphicsPipelineCreateInfo::default()
+    let mut ci = vk::GraphicsPipelineCreateInfo::default()
         .flags(flags)
         .stages(stages)
         .vertex_input_state(&vi)
@@ -125,6 +150,9 @@ fn create_graphics(
         .dynamic_state(&ds)
         .layout(layout)
         .push_next(&mut rendering);
+    if let Some(f2) = flags2 {
+        ci = ci.push_next(f2);
+    }
     unsafe { gpu.device.create_graphics_pipelines(cache, &[ci], None) }
         .map_err(|(_, e)| VkError::from_result("vkCreateGraphicsPipelines", e))
         .map(|p| Pipeline { raw: p[0], kind: PipelineKind::Graphics, sbt: None })
@@ -137,6 +165,8 @@ fn create_rt(
     stages: &[vk::PipelineShaderStageCreateInfo],
     layout: vk::PipelineLayout,
     flags: vk::PipelineCreateFlags,
+    flags2: Option<&mut vk::PipelineCreateFlags2CreateInfoKHR>,
+    record: &[u8],
 ) -> Result<Pipeline, VkError> {
     let rt = gpu.rt.as_ref().expect("ray tracing pipeline enabled");
     let idx = |r: Role| shaders.shaders.iter().position(|s| s.role == r).map(|i| i as u32).unwrap_or(vk::SHADER_UNUSED_KHR);
@@ -169,12 +199,15 @@ fn create_rt(
     if has_callable {
         groups.push(general(Role::Callable));
     }
-    let ci = vk::RayTracingPipelineCreateInfoKHR::default()
+    let mut ci = vk::RayTracingPipelineCreateInfoKHR::default()
         .flags(flags)
         .stages(stages)
         .groups(&groups)
         .max_pipeline_ray_recursion_depth(shaders.recursion_depth)
         .layout(layout);
+    if let Some(f2) = flags2 {
+        ci = ci.push_next(f2);
+    }
     let raw = unsafe { rt.create_ray_tracing_pipelines(vk::DeferredOperationKHR::null(), cache, &[ci], None) }
         .map_err(|(_, e)| VkError::from_result("vkCreateRayTracingPipelinesKHR", e))?[0];
 
@@ -190,8 +223,10 @@ fn create_rt(
             return Err(VkError::from_result("vkGetRayTracingShaderGroupHandlesKHR", e));
         }
     };
-    let stride = align(h, ha);
-    let rg_size = align(h, ba);
+    // Each record: the group handle, then `record` (shader record data).
+    let rec = h + record.len() as u64;
+    let stride = align(rec, ha);
+    let rg_size = align(rec, ba);
     let miss_off = align(rg_size, ba);
     let hit_off = align(miss_off + 2 * stride, ba);
     let call_off = align(hit_off + 2 * stride, ba);
@@ -206,7 +241,10 @@ fn create_rt(
     let base = align(buffer.address, ba);
     let shift = (base - buffer.address) as usize;
     let handle = |g: usize| &handles[g * h as usize..(g + 1) * h as usize];
-    let put = |off: u64, g: usize| buffer.write(shift + off as usize, handle(g));
+    let put = |off: u64, g: usize| {
+        buffer.write(shift + off as usize, handle(g));
+        buffer.write(shift + (off + h) as usize, record);
+    };
     put(0, 0);
     put(miss_off, 1);
     put(miss_off + stride, 2);

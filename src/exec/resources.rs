@@ -16,7 +16,8 @@ use std::time::Duration;
 #[derive(Clone, Copy, Debug)]
 pub enum Target {
     Buffer { raw: vk::Buffer, address: u64, range: u64 },
-    Image { view: vk::ImageView, sampler: vk::Sampler },
+    /// `image`: for heap descriptors, which are made from a view description, not a view.
+    Image { image: vk::Image, view: vk::ImageView, sampler: vk::Sampler },
     Accel { raw: vk::AccelerationStructureKHR, address: u64 },
 }
 
@@ -78,7 +79,7 @@ impl ResourceArray {
         if !self.buffers.is_empty() {
             return self.buffers.iter().map(|b| Target::Buffer { raw: b.raw, address: b.address, range: 16 * probe::ELEMENTS as u64 }).collect();
         }
-        self.images.iter().map(|i| Target::Image { view: i.view, sampler }).collect()
+        self.images.iter().map(|i| Target::Image { image: i.raw, view: i.view, sampler }).collect()
     }
 
     pub fn destroy(&self, gpu: &Gpu) {
@@ -92,15 +93,19 @@ impl ResourceArray {
 }
 
 pub fn create_sampler(gpu: &Gpu) -> Result<vk::Sampler, VkError> {
-    let ci = vk::SamplerCreateInfo::default()
+    unsafe { gpu.device.create_sampler(&sampler_info(), None) }.at("vkCreateSampler")
+}
+
+/// The probes' sampler (also written into the sampler heap of heap cells).
+pub fn sampler_info() -> vk::SamplerCreateInfo<'static> {
+    vk::SamplerCreateInfo::default()
         .mag_filter(vk::Filter::NEAREST)
         .min_filter(vk::Filter::NEAREST)
         .mipmap_mode(vk::SamplerMipmapMode::NEAREST)
         .address_mode_u(vk::SamplerAddressMode::CLAMP_TO_EDGE)
         .address_mode_v(vk::SamplerAddressMode::CLAMP_TO_EDGE)
         .address_mode_w(vk::SamplerAddressMode::CLAMP_TO_EDGE)
-        .max_lod(0.0);
-    unsafe { gpu.device.create_sampler(&ci, None) }.at("vkCreateSampler")
+        .max_lod(0.0)
 }
 
 pub fn descriptor_type(kind: Resource) -> vk::DescriptorType {

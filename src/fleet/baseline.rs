@@ -93,7 +93,7 @@ pub enum BaselineError {
 
 fn deqp_status(o: Outcome) -> Option<&'static str> {
     match o {
-        Outcome::Pass | Outcome::Unsupported => None,
+        Outcome::Pass | Outcome::Unsupported | Outcome::NotImplemented => None,
         Outcome::Mismatch | Outcome::Error => Some("Fail"),
         Outcome::Crash | Outcome::DeviceLost => Some("Crash"),
         Outcome::Timeout => Some("Timeout"),

@@ -73,6 +73,19 @@ axis!(
     }
 );
 
+axis!(
+    /// How a `descriptor_heap` cell's shaders reach the heap (only for that model). `mapped_*`:
+    /// the unchanged set/binding shaders through VkShaderDescriptorSetAndBindingMappingInfoEXT,
+    /// the probed array's heap position from a constant offset, an index in push data, an index
+    /// loaded from a buffer whose address is in push data, or an index in the SBT shader record;
+    /// `direct`: `layout(descriptor_heap)` GLSL.
+    HeapAccess, "heap_access" {
+        MappedConstantOffset = "mapped_constant_offset", MappedPushIndex = "mapped_push_index",
+        MappedIndirectIndex = "mapped_indirect_index", MappedShaderRecordIndex = "mapped_shader_record_index",
+        Direct = "direct",
+    }
+);
+
 impl Stage {
     /// Stages of a ray tracing pipeline (the rest are graphics / compute).
     pub fn is_ray_tracing(self) -> bool {

@@ -1,7 +1,7 @@
 //! One cell of the matrix and its stable id, built from the axes (never from run order):
-//! `stage.resource.index[.nonuniform][.as_access].descriptor_model[.reorder][.patch-<name>]`, or
-//! `canary.<name>`.
-use super::axes::{AsAccess, DescriptorModel, IndexSource, Reorder, Resource, Stage};
+//! `stage.resource.index[.nonuniform][.as_access].descriptor_model[.heap_access][.reorder][.patch-<name>]`,
+//! or `canary.<name>`.
+use super::axes::{AsAccess, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource, Stage};
 use serde::{Deserialize, Serialize};
 
 /// Deliberately faulting cells that prove fault detection works on the device at hand.
@@ -60,6 +60,9 @@ pub struct Cell {
     /// Only for `resource=acceleration_structure`.
     pub as_access: Option<AsAccess>,
     pub descriptor_model: DescriptorModel,
+    /// How the shaders reach the heap; only (and always) for `descriptor_model=descriptor_heap`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub heap_access: Option<HeapAccess>,
     /// A canary cell (the other axes are then the canary's carrier shape).
     pub canary: Option<Canary>,
     /// The SPIR-V workaround applied (`patch` axis; none for plain cells).
@@ -80,6 +83,7 @@ impl Cell {
             nonuniform: false,
             as_access: None,
             descriptor_model: DescriptorModel::DescriptorIndexing,
+            heap_access: None,
             canary: Some(c),
             patch: None,
             reorder: None,
@@ -100,7 +104,8 @@ impl Cell {
 
     /// The workarounds that apply to this cell's shaders.
     pub fn applicable_patches(&self) -> Vec<Workaround> {
-        if self.canary.is_some() || self.patch.is_some() {
+        // Direct heap reads are untyped access chains, which no workaround rewrites.
+        if self.canary.is_some() || self.patch.is_some() || self.heap_access == Some(HeapAccess::Direct) {
             return vec![];
         }
         // After as-to-address (written or patched) there is no descriptor array left to decorate or pin.
@@ -133,6 +138,9 @@ impl Cell {
             parts.push(a.as_str());
         }
         parts.push(self.descriptor_model.as_str());
+        if let Some(h) = self.heap_access {
+            parts.push(h.as_str());
+        }
         if let Some(r) = self.reorder {
             parts.push(r.as_str());
         }
@@ -153,6 +161,7 @@ impl Cell {
             "nonuniform" => self.nonuniform.to_string(),
             "as_access" => self.as_access.map(|a| a.as_str()).unwrap_or("none").into(),
             "descriptor_model" => self.descriptor_model.as_str().into(),
+            "heap_access" => self.heap_access.map(|h| h.as_str()).unwrap_or("none").into(),
             "canary" => self.canary.map(|c| c.as_str()).unwrap_or("none").into(),
             "patch" => self.patch.map(|p| p.as_str()).unwrap_or("none").into(),
             "reorder" => self.reorder.map(|r| r.as_str()).unwrap_or("none").into(),
@@ -161,7 +170,7 @@ impl Cell {
     }
 }
 
-pub const AXIS_NAMES: &[&str] = &["stage", "resource", "index", "nonuniform", "as_access", "descriptor_model", "canary", "patch", "reorder"];
+pub const AXIS_NAMES: &[&str] = &["stage", "resource", "index", "nonuniform", "as_access", "descriptor_model", "heap_access", "canary", "patch", "reorder"];
 
 #[cfg(test)]
 mod tests {
@@ -176,6 +185,7 @@ mod tests {
             nonuniform: true,
             as_access: None,
             descriptor_model: DescriptorModel::DescriptorIndexing,
+            heap_access: None,
             canary: None,
             patch: None,
             reorder: None,
@@ -191,5 +201,8 @@ mod tests {
         let a = Cell { resource: Resource::AccelerationStructure, as_access: Some(AsAccess::Address), nonuniform: false, ..c };
         assert_eq!(a.id(), "closest_hit.acceleration_structure.dynamic.address.descriptor_indexing");
         assert_eq!(Cell::canary(Canary::InfiniteLoop).id(), "canary.infinite_loop");
+        let h = Cell { descriptor_model: DescriptorModel::DescriptorHeap, heap_access: Some(HeapAccess::MappedPushIndex), ..c };
+        assert_eq!(h.id(), "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_heap.mapped_push_index");
+        assert_eq!(h.axis_value("heap_access").as_deref(), Some("mapped_push_index"));
     }
 }

@@ -1,7 +1,7 @@
 //! From options and a device to a [`RunPlan`], before any GPU work: which cells exist, which the
 //! filter keeps, which the device cannot run (and why, from its queried features), and which
 //! combinations are never generated because an axis value cannot matter there.
-use super::axes::{AsAccess, DescriptorModel, IndexSource, Reorder, Resource, Stage};
+use super::axes::{AsAccess, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource, Stage};
 use super::cell::{Canary, Cell, AXIS_NAMES};
 use crate::caps::support::{self, Support};
 use crate::vk::DeviceInfo;
@@ -26,6 +26,11 @@ fn valid_values(axis: &str) -> Vec<String> {
             v
         }
         "descriptor_model" => DescriptorModel::names(),
+        "heap_access" => {
+            let mut v = HeapAccess::names();
+            v.push("none");
+            v
+        }
         "canary" => Canary::ALL.iter().map(|c| c.as_str()).chain(["none"]).collect(),
         "patch" => super::cell::Workaround::ALL.iter().map(|w| w.as_str()).chain(["none"]).collect(),
         "reorder" => {
@@ -73,6 +78,8 @@ pub enum PlanStatus {
     Run,
     /// The device's features say it cannot run the cell.
     Unsupported { reason: String },
+    /// The device could run the cell; rtprobe cannot yet (never blamed on the device).
+    NotImplemented { reason: String },
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -103,8 +110,14 @@ impl RunPlan {
         self.cells.iter().filter(|c| c.status == PlanStatus::Run).map(|c| &c.cell)
     }
 
+    /// Cells the device cannot run (its features say so).
     pub fn unsupported_count(&self) -> usize {
-        self.cells.iter().filter(|c| c.status != PlanStatus::Run).count()
+        self.cells.iter().filter(|c| matches!(c.status, PlanStatus::Unsupported { .. })).count()
+    }
+
+    /// Cells rtprobe itself cannot run yet: planned and reported, never dropped.
+    pub fn not_implemented_count(&self) -> usize {
+        self.cells.iter().filter(|c| matches!(c.status, PlanStatus::NotImplemented { .. })).count()
     }
 }
 
@@ -135,6 +148,15 @@ pub fn device_support(info: &DeviceInfo, cell: &Cell) -> Support {
         support::resource(info, cell.resource),
         support::descriptor_model(info, cell.descriptor_model),
     ];
+    if let Some(h) = cell.heap_access {
+        checks.push(support::heap_access(info, h));
+        if h == HeapAccess::Direct && cell.as_access == Some(AsAccess::AddressPatched) {
+            // After the device's reasons: rtprobe's gap is never reported over them.
+            checks.push(Support::NotImplemented {
+                reason: "as-to-address cannot rewrite heap_access=direct SPIR-V (rspirv 0.13 predates SPV_KHR_untyped_pointers)".into(),
+            });
+        }
+    }
     if cell.index == IndexSource::Dynamic {
         checks.push(support::dynamic_index(info, cell.resource, cell.nonuniform));
     }
@@ -167,6 +189,8 @@ pub fn all_cells() -> (Vec<Cell>, Vec<NotGenerated>) {
     let mut nonuniform_static = 0;
     let mut nonuniform_address = 0;
     let mut reorder_elsewhere = 0;
+    let mut record_outside_rt = 0;
+    let mut heap_index_without_binding = 0;
     for &stage in Stage::ALL {
         for &resource in Resource::ALL {
             let accesses: Vec<Option<AsAccess>> =
@@ -183,12 +207,28 @@ pub fn all_cells() -> (Vec<Cell>, Vec<NotGenerated>) {
                                 nonuniform_address += 1;
                                 continue;
                             }
-                            let cell = Cell { stage, resource, index, nonuniform, as_access, descriptor_model, canary: None, patch: None, reorder: None };
-                            cells.push(cell);
-                            if cell.reorder_applies() {
-                                cells.extend(Reorder::ALL.iter().map(|r| Cell { reorder: Some(*r), ..cell }));
+                            let heap: Vec<Option<HeapAccess>> = if descriptor_model == DescriptorModel::DescriptorHeap {
+                                HeapAccess::ALL.iter().map(|h| Some(*h)).collect()
                             } else {
-                                reorder_elsewhere += Reorder::ALL.len();
+                                vec![None]
+                            };
+                            for heap_access in heap {
+                                let mapped_index = matches!(heap_access, Some(HeapAccess::MappedPushIndex | HeapAccess::MappedIndirectIndex | HeapAccess::MappedShaderRecordIndex));
+                                if heap_access == Some(HeapAccess::MappedShaderRecordIndex) && !stage.is_ray_tracing() {
+                                    record_outside_rt += 1;
+                                    continue;
+                                }
+                                if mapped_index && as_access == Some(AsAccess::Address) {
+                                    heap_index_without_binding += 1;
+                                    continue;
+                                }
+                                let cell = Cell { stage, resource, index, nonuniform, as_access, descriptor_model, heap_access, canary: None, patch: None, reorder: None };
+                                cells.push(cell);
+                                if cell.reorder_applies() {
+                                    cells.extend(Reorder::ALL.iter().map(|r| Cell { reorder: Some(*r), ..cell }));
+                                } else {
+                                    reorder_elsewhere += Reorder::ALL.len();
+                                }
                             }
                         }
                     }
@@ -200,6 +240,11 @@ pub fn all_cells() -> (Vec<Cell>, Vec<NotGenerated>) {
         NotGenerated { rule: "nonuniform only applies to index=dynamic".into(), count: nonuniform_static },
         NotGenerated { rule: "nonuniform has no descriptor to qualify with as_access=address".into(), count: nonuniform_address },
         NotGenerated { rule: "reorder only applies to stage=closest_hit with index=dynamic".into(), count: reorder_elsewhere },
+        NotGenerated { rule: "heap_access=mapped_shader_record_index needs a shader record (ray tracing pipelines only)".into(), count: record_outside_rt },
+        NotGenerated {
+            rule: "heap_access=mapped_push_index|mapped_indirect_index|mapped_shader_record_index only move the probed binding, which as_access=address has not".into(),
+            count: heap_index_without_binding,
+        },
     ];
     (cells, not_generated)
 }
@@ -207,13 +252,11 @@ pub fn all_cells() -> (Vec<Cell>, Vec<NotGenerated>) {
 pub fn plan(info: &DeviceInfo, opts: &PlanOptions) -> RunPlan {
     let (all, not_generated) = all_cells();
     let generated = all.len();
-    let mut not_generated = not_generated;
     let mut cells = Vec::new();
     let mut filtered_out = 0;
-    // What rtprobe itself cannot run yet is not a cell (never `unsupported`): it is listed with
-    // the rules that kept combinations out.
-    let mut not_implemented: std::collections::BTreeMap<String, usize> = Default::default();
-    let mut push = |cell: Cell, cells: &mut Vec<PlannedCell>| {
+    // Every planned cell stays in the plan: what the device cannot run is `unsupported`, what
+    // rtprobe itself cannot run yet is `not_implemented`, both with their reason.
+    let push = |cell: Cell, cells: &mut Vec<PlannedCell>| {
         let mut support = device_support(info, &cell);
         if super::inject::for_cell(&opts.inject, &cell).is_some_and(|i| i.fault.reads_bad_address()) {
             support = Support::all(vec![support, support::device_address_loads(info)]);
@@ -221,10 +264,7 @@ pub fn plan(info: &DeviceInfo, opts: &PlanOptions) -> RunPlan {
         let status = match support {
             Support::Supported => PlanStatus::Run,
             Support::Unsupported { reason } => PlanStatus::Unsupported { reason },
-            Support::NotImplemented { reason } => {
-                *not_implemented.entry(reason).or_default() += 1;
-                return;
-            }
+            Support::NotImplemented { reason } => PlanStatus::NotImplemented { reason },
         };
         cells.push(PlannedCell { cell, status });
     };
@@ -248,7 +288,6 @@ pub fn plan(info: &DeviceInfo, opts: &PlanOptions) -> RunPlan {
             push(Cell::canary(c), &mut cells);
         }
     }
-    not_generated.extend(not_implemented.into_iter().map(|(rule, count)| NotGenerated { rule: format!("not implemented in rtprobe: {rule}"), count }));
     RunPlan { generated, cells, not_generated, filtered_out }
 }
 
@@ -266,9 +305,12 @@ mod tests {
         ids.sort();
         ids.dedup();
         assert_eq!(ids.len(), n, "cell ids are unique");
-        // 8 stages x (4 resources x 5 index variants + AS: 5 descriptor + 4 address + 5 patched) x 3 models,
-        // plus the dynamic closest-hit cells (4 x 2 + AS 2 + 1 + 2, x 3 models) with each reorder value
-        assert_eq!(n, 8 * (4 * 5 + 14) * 3 + (4 * 2 + 5) * 3 * 2);
+        // 8 stages x (4 resources x 5 index variants + AS: 5 descriptor + 4 address + 5 patched) x
+        // 2 set-based models, plus the heap model once per heap access way (5 in RT stages, 4 in
+        // fragment/compute; as_access=address only mapped_constant_offset and direct).
+        let per_stage_heap = |ways: usize| (4 * 5 + 10) * ways + 4 * 2;
+        assert_eq!(n, 8 * (4 * 5 + 14) * 2 + 6 * per_stage_heap(5) + 2 * per_stage_heap(4));
+        assert!(cells.iter().all(|c| c.heap_access.is_some() == (c.descriptor_model == DescriptorModel::DescriptorHeap)));
         assert!(cells.iter().all(|c| c.reorder.is_none() || c.reorder_applies()));
         assert!(skipped.iter().all(|s| s.count > 0));
     }

@@ -443,7 +443,7 @@ mod tests {
     use std::sync::OnceLock;
 
     fn cell(stage: Stage, index: IndexSource) -> Cell {
-        Cell { stage, resource: Resource::StorageBuffer, index, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, canary: None, patch: None, reorder: None }
+        Cell { stage, resource: Resource::StorageBuffer, index, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, canary: None, heap_access: None, patch: None, reorder: None }
     }
 
     fn world() -> &'static (Scene, SceneReference) {

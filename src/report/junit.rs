@@ -40,7 +40,7 @@ fn expected_by_baseline<'a>(r: &'a RunReport, c: &super::run_report::CellReport)
 
 pub fn render(r: &RunReport) -> String {
     let failures = r.cells.iter().filter(|c| fails(r, c)).count();
-    let skipped = r.cells.iter().filter(|c| c.outcome == Outcome::Unsupported).count();
+    let skipped = r.cells.iter().filter(|c| matches!(c.outcome, Outcome::Unsupported | Outcome::NotImplemented)).count();
     let mut s = format!(
         "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuites>\n<testsuite name=\"rtprobe\" tests=\"{}\" failures=\"{failures}\" skipped=\"{skipped}\">\n",
         r.cells.len()
@@ -76,7 +76,7 @@ pub fn render(r: &RunReport) -> String {
         } else {
             match c.outcome {
                 Outcome::Pass => {}
-                Outcome::Unsupported => s += &format!("<skipped message=\"{reason}\"/>"),
+                Outcome::Unsupported | Outcome::NotImplemented => s += &format!("<skipped message=\"{reason}\"/>"),
                 Outcome::Mismatch | Outcome::DeviceLost | Outcome::Crash | Outcome::Timeout | Outcome::Error => {
                     let kind = if c.flaky { format!("{} (flaky)", c.outcome.as_str()) } else { c.outcome.as_str().to_string() };
                     s += &format!("<failure type=\"{}\" message=\"{reason}\"/>", esc(&kind))

@@ -181,6 +181,9 @@ pub struct PlanSummary {
     pub planned: usize,
     pub to_run: usize,
     pub unsupported: usize,
+    /// Planned cells rtprobe cannot run yet (outcome `not_implemented`, with the reason).
+    #[serde(default)]
+    pub not_implemented: usize,
     pub not_generated: Vec<NotGenerated>,
     /// Cells left to the other shards (`--shard I/N`).
     #[serde(default, skip_serializing_if = "is_zero")]
@@ -329,9 +332,14 @@ impl ReportWriter {
     pub fn new(path: PathBuf, mut report: RunReport, plan: &RunPlan) -> Self {
         let order = plan.cells.iter().enumerate().map(|(i, c)| (c.cell.id(), i)).collect();
         for pc in &plan.cells {
-            if let PlanStatus::Unsupported { reason } = &pc.status {
+            let not_run = match &pc.status {
+                PlanStatus::Run => None,
+                PlanStatus::Unsupported { reason } => Some((Outcome::Unsupported, reason)),
+                PlanStatus::NotImplemented { reason } => Some((Outcome::NotImplemented, reason)),
+            };
+            if let Some((outcome, reason)) = not_run {
                 if !report.cells.iter().any(|c| c.id == pc.cell.id()) {
-                    report.cells.push(CellReport::unrun(&pc.cell, Outcome::Unsupported, reason.clone()));
+                    report.cells.push(CellReport::unrun(&pc.cell, outcome, reason.clone()));
                 }
             }
         }
@@ -402,7 +410,7 @@ mod tests {
     use crate::matrix::{DescriptorModel, IndexSource, Resource, Stage};
 
     fn cell() -> Cell {
-        Cell { stage: Stage::ClosestHit, resource: Resource::StorageBuffer, index: IndexSource::Dynamic, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, canary: None, patch: None, reorder: None }
+        Cell { stage: Stage::ClosestHit, resource: Resource::StorageBuffer, index: IndexSource::Dynamic, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None, reorder: None }
     }
 
     fn attempt(outcome: Outcome, isolated: bool) -> Attempt {

@@ -7,6 +7,7 @@ fn mark(o: Outcome) -> &'static str {
     match o {
         Outcome::Pass => "✅",
         Outcome::Unsupported => "➖",
+        Outcome::NotImplemented => "🚧",
         Outcome::Mismatch => "❌",
         Outcome::DeviceLost => "💥",
         Outcome::Crash => "💥",
@@ -20,8 +21,8 @@ pub fn render(r: &RunReport) -> String {
     let _ = writeln!(s, "rtprobe run on {} ({} {})", r.device["name"].as_str().unwrap_or("?"), r.device["driver_name"].as_str().unwrap_or("?"), r.device["driver_version"]["decoded"].as_str().unwrap_or("?"));
     let _ = writeln!(
         s,
-        "plan: {} generated, {} filtered out, {} planned ({} to run, {} unsupported)",
-        r.plan.generated, r.plan.filtered_out, r.plan.planned, r.plan.to_run, r.plan.unsupported
+        "plan: {} generated, {} filtered out, {} planned ({} to run, {} unsupported, {} not implemented in rtprobe)",
+        r.plan.generated, r.plan.filtered_out, r.plan.planned, r.plan.to_run, r.plan.unsupported, r.plan.not_implemented
     );
     let _ = write!(s, "outcomes:");
     for o in Outcome::ALL {
@@ -68,7 +69,14 @@ pub fn render(r: &RunReport) -> String {
         let _ = writeln!(s, "validation errors in {} cells (rtprobe misused the API there; their outcomes prove nothing): first {}", vcells.len(), vcells[0].id);
     }
     let findings: Vec<_> = r.findings().collect();
-    if findings.is_empty() {
+    let not_run = r.plan.unsupported + r.plan.not_implemented;
+    if findings.is_empty() && not_run > 0 {
+        let _ = writeln!(
+            s,
+            "no faults or mismatches in the {} cells that ran; {} planned cells did not run ({} unsupported by the device, {} not implemented in rtprobe)",
+            r.plan.to_run, not_run, r.plan.unsupported, r.plan.not_implemented
+        );
+    } else if findings.is_empty() {
         let _ = writeln!(s, "no faults or mismatches");
     } else {
         let flaky = findings.iter().filter(|c| c.flaky).count();

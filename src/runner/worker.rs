@@ -27,6 +27,8 @@ pub fn requirements(info: &crate::vk::DeviceInfo, cells: &[Cell]) -> Requirement
         buffer_device_address: true,
         descriptor_indexing: true,
         descriptor_buffer: any(&|c| c.descriptor_model == DescriptorModel::DescriptorBuffer),
+        descriptor_heap: any(&|c| c.descriptor_model == DescriptorModel::DescriptorHeap),
+        untyped_pointers: any(&|c| c.heap_access == Some(crate::matrix::HeapAccess::Direct)),
         device_fault: info.features.fault.is_some_and(|f| f.device_fault == ash::vk::TRUE),
         int64: any(&|c| {
             matches!(c.as_access, Some(AsAccess::Address | AsAccess::AddressPatched))

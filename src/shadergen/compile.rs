@@ -1,6 +1,8 @@
 //! GLSL → SPIR-V with shaderc (Vulkan 1.2 / SPIR-V 1.5, no optimization: the driver must see
-//! the shape the cell asks for). Each distinct source is compiled once per process. User GLSL
-//! (`patch --glsl`) may pick another target and use `#include` ([`super::include`]) and defines.
+//! the shape the cell asks for); sources with GL_EXT_descriptor_heap, which shaderc's glslang
+//! predates, go to an external glslangValidator ([`super::glslang`]). Each distinct source is
+//! compiled once per process. User GLSL (`patch --glsl`) may pick another target and use
+//! `#include` ([`super::include`]) and defines.
 use super::include::Includes;
 use super::Role;
 use std::path::PathBuf;
@@ -41,7 +43,8 @@ impl Compiler {
             return Ok((s.clone(), 0.0));
         }
         let t = Instant::now();
-        let words = Arc::new(self.compile_glsl(role.kind(), role.file_name(), glsl)?);
+        let heap = glsl.contains(&format!("#extension {} ", super::glslang::HEAP_EXTENSION));
+        let words = Arc::new(if heap { super::glslang::compile(role, glsl)? } else { self.compile_glsl(role.kind(), role.file_name(), glsl)? });
         self.cache.insert(key, words.clone());
         Ok((words, t.elapsed().as_secs_f64() * 1e3))
     }

@@ -3,6 +3,7 @@
 //! trivial. Shared declarations come from `probes/common.glsl`. [`compile`] turns sources into
 //! SPIR-V with shaderc, caching by source.
 pub mod compile;
+pub mod glslang;
 pub mod include;
 mod inject;
 mod probe_code;
@@ -375,7 +376,7 @@ mod tests {
 
     fn reorder_cell(r: Option<Reorder>, resource: Resource) -> Cell {
         let as_access = (resource == Resource::AccelerationStructure).then_some(AsAccess::Descriptor);
-        Cell { stage: Stage::ClosestHit, resource, index: IndexSource::Dynamic, nonuniform: true, as_access, descriptor_model: DescriptorModel::DescriptorIndexing, canary: None, patch: None, reorder: r }
+        Cell { stage: Stage::ClosestHit, resource, index: IndexSource::Dynamic, nonuniform: true, as_access, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None, reorder: r }
     }
 
     /// Lavapipe has no SER, so these shaders never reach a driver in the test suite: they are

@@ -5,8 +5,10 @@
 //! committed hit's custom index, which names the probe TLAS variant. The index expression is written
 //! straight into the access, so the SPIR-V keeps its shape: a literal stays an `OpConstant`, a
 //! spec constant an `OpSpecConstant`, a push constant a load from the push block, a dynamic index
-//! the stage's runtime value (with `nonuniformEXT` when the cell says so).
-use crate::matrix::{AsAccess, Cell, IndexSource, Resource, Stage};
+//! the stage's runtime value (with `nonuniformEXT` when the cell says so). `heap_access=direct`
+//! cells declare the array `layout(descriptor_heap)` instead of at binding 2 (the shader's index
+//! is then the heap index; see `exec::heap`), sampled images as a texture heap and a sampler heap.
+use crate::matrix::{AsAccess, Cell, HeapAccess, IndexSource, Resource, Stage};
 use crate::probe;
 
 pub struct ProbeCode {
@@ -59,6 +61,12 @@ impl ProbeCode {
         let idx = index_expr(cell);
         let sub = if cell.nonuniform { format!("nonuniformEXT({idx})") } else { idx.clone() };
         let mut extensions = vec!["GL_EXT_nonuniform_qualifier"];
+        let heap = cell.heap_access == Some(HeapAccess::Direct);
+        if heap {
+            extensions.push(super::glslang::HEAP_EXTENSION);
+        }
+        // The probed array's declaration: at binding 2, or read straight from the heap.
+        let array = |binding: &str, direct: &str| if heap { direct.to_string() } else { binding.to_string() };
         let mut decls = String::new();
         if cell.index == IndexSource::SpecConstant {
             decls += "layout(constant_id = 0) const uint SPEC_SLOT = 0u;\n";
@@ -69,19 +77,34 @@ impl ProbeCode {
         let (mut traces, mut ray_query, mut uses_binding) = (false, false, true);
         let read = match cell.resource {
             Resource::StorageBuffer => {
-                decls += "layout(set = 0, binding = 2, std430) readonly buffer ProbeBuffer { vec4 v[]; } probeBuf[];\n";
+                decls += &array(
+                    "layout(set = 0, binding = 2, std430) readonly buffer ProbeBuffer { vec4 v[]; } probeBuf[];\n",
+                    "layout(descriptor_heap, std430) readonly buffer ProbeBuffer { vec4 v[]; } probeBuf[];\n",
+                );
                 format!("probeBuf[{sub}].v[probeElement]")
             }
             Resource::UniformBuffer => {
-                decls += "layout(set = 0, binding = 2, std140) uniform ProbeUniform { vec4 v[ELEMENTS]; } probeUbo[];\n";
+                decls += &array(
+                    "layout(set = 0, binding = 2, std140) uniform ProbeUniform { vec4 v[ELEMENTS]; } probeUbo[];\n",
+                    "layout(descriptor_heap, std140) uniform ProbeUniform { vec4 v[ELEMENTS]; } probeUbo[];\n",
+                );
                 format!("probeUbo[{sub}].v[probeElement]")
             }
             Resource::SampledImage => {
-                decls += "layout(set = 0, binding = 2) uniform sampler2D probeTex[];\n";
-                format!("textureLod(probeTex[{sub}], (vec2(uvec2(probeElement & 1u, probeElement >> 1u)) + 0.5) * 0.5, 0.0)")
+                let at = "(vec2(uvec2(probeElement & 1u, probeElement >> 1u)) + 0.5) * 0.5";
+                if heap {
+                    decls += "layout(descriptor_heap) uniform texture2D probeTex[];\nlayout(descriptor_heap) uniform sampler probeSampler[];\n";
+                    format!("textureLod(sampler2D(probeTex[{sub}], probeSampler[0]), {at}, 0.0)")
+                } else {
+                    decls += "layout(set = 0, binding = 2) uniform sampler2D probeTex[];\n";
+                    format!("textureLod(probeTex[{sub}], {at}, 0.0)")
+                }
             }
             Resource::StorageImage => {
-                decls += "layout(set = 0, binding = 2, rgba32f) uniform readonly image2D probeImg[];\n";
+                decls += &array(
+                    "layout(set = 0, binding = 2, rgba32f) uniform readonly image2D probeImg[];\n",
+                    "layout(descriptor_heap, rgba32f) uniform readonly image2D probeImg[];\n",
+                );
                 format!("imageLoad(probeImg[{sub}], ivec2(probeElement & 1u, probeElement >> 1u))")
             }
             Resource::AccelerationStructure => {
@@ -91,7 +114,10 @@ impl ProbeCode {
                     decls += "layout(buffer_reference, std430, buffer_reference_align = 8) readonly buffer AsTable { uint64_t a[]; };\n";
                     format!("accelerationStructureEXT(AsTable(packUint2x32(pc.asTable)).a[{idx}])")
                 } else {
-                    decls += "layout(set = 0, binding = 2) uniform accelerationStructureEXT probeAs[];\n";
+                    decls += &array(
+                        "layout(set = 0, binding = 2) uniform accelerationStructureEXT probeAs[];\n",
+                        "layout(descriptor_heap) uniform accelerationStructureEXT probeAs[];\n",
+                    );
                     format!("probeAs[{sub}]")
                 };
                 if cell.stage.can_trace_ray() {

@@ -22,6 +22,10 @@ pub struct Requirements {
     pub descriptor_indexing: bool,
     /// VK_EXT_descriptor_buffer.
     pub descriptor_buffer: bool,
+    /// VK_EXT_descriptor_heap (with VK_KHR_maintenance5, which it requires).
+    pub descriptor_heap: bool,
+    /// VK_KHR_shader_untyped_pointers (SPIR-V of `layout(descriptor_heap)` GLSL).
+    pub untyped_pointers: bool,
     /// VK_EXT_device_fault (queried after a device loss).
     pub device_fault: bool,
     /// shaderInt64 (64-bit addresses in shaders).
@@ -54,6 +58,12 @@ impl Requirements {
         }
         if self.descriptor_buffer && !f.descriptor_buffer.is_some_and(|x| x.descriptor_buffer == vk::TRUE) {
             m.push("descriptorBuffer (VK_EXT_descriptor_buffer)".into());
+        }
+        if self.descriptor_heap && !(f.descriptor_heap.is_some_and(|x| x.descriptor_heap == vk::TRUE) && info.has_extension(khr::maintenance5::NAME)) {
+            m.push("descriptorHeap (VK_EXT_descriptor_heap) + VK_KHR_maintenance5".into());
+        }
+        if self.untyped_pointers && !f.untyped_pointers.is_some_and(|x| x.shader_untyped_pointers == vk::TRUE) {
+            m.push("shaderUntypedPointers (VK_KHR_shader_untyped_pointers)".into());
         }
         if self.device_fault && !f.fault.is_some_and(|x| x.device_fault == vk::TRUE) {
             m.push("deviceFault (VK_EXT_device_fault)".into());
@@ -88,6 +98,7 @@ pub struct Gpu {
     pub rt: Option<khr::ray_tracing_pipeline::Device>,
     pub accel: Option<khr::acceleration_structure::Device>,
     pub descriptor_buffer: Option<ext::descriptor_buffer::Device>,
+    pub heap: Option<super::heap::HeapFns>,
     pub fault: Option<ext::device_fault::Device>,
 }
 
@@ -114,9 +125,12 @@ impl Gpu {
         let mut db = vk::PhysicalDeviceDescriptorBufferFeaturesEXT::default();
         let mut fault = vk::PhysicalDeviceFaultFeaturesEXT::default();
         let mut reorder = vk::PhysicalDeviceRayTracingInvocationReorderFeaturesNV::default();
+        let mut dh = super::heap::PhysicalDeviceDescriptorHeapFeaturesEXT { descriptor_heap: vk::TRUE, ..Default::default() };
+        let mut m5 = vk::PhysicalDeviceMaintenance5FeaturesKHR::default().maintenance5(true);
+        let mut up = super::heap::PhysicalDeviceShaderUntypedPointersFeaturesKHR { shader_untyped_pointers: vk::TRUE, ..Default::default() };
         let mut v13 = vk::PhysicalDeviceVulkan13Features::default().dynamic_rendering(req.dynamic_rendering);
 
-        let bda = req.buffer_device_address || req.rt_pipeline || req.ray_query || req.descriptor_buffer;
+        let bda = req.buffer_device_address || req.rt_pipeline || req.ray_query || req.descriptor_buffer || req.descriptor_heap;
         if req.rt_pipeline || req.ray_query {
             exts.extend([khr::acceleration_structure::NAME, khr::deferred_host_operations::NAME]);
             accel.acceleration_structure = vk::TRUE;
@@ -157,6 +171,12 @@ impl Gpu {
             exts.push(ext::descriptor_buffer::NAME);
             db.descriptor_buffer = vk::TRUE;
         }
+        if req.descriptor_heap {
+            exts.extend([super::heap::NAME, khr::maintenance5::NAME]);
+        }
+        if req.untyped_pointers {
+            exts.push(super::heap::UNTYPED_POINTERS_NAME);
+        }
         if req.device_fault {
             exts.push(ext::device_fault::NAME);
             fault.device_fault = vk::TRUE;
@@ -188,6 +208,12 @@ impl Gpu {
         }
         if req.descriptor_buffer {
             f2 = f2.push_next(&mut db);
+        }
+        if req.descriptor_heap {
+            f2 = f2.push_next(&mut dh).push_next(&mut m5);
+        }
+        if req.untyped_pointers {
+            f2 = f2.push_next(&mut up);
         }
         if req.device_fault {
             f2 = f2.push_next(&mut fault);
@@ -235,7 +261,15 @@ impl Gpu {
         );
         let queue = unsafe { device.get_device_queue(queue_family, 0) };
         let inst = &instance.raw;
+        let heap = match req.descriptor_heap.then(|| super::heap::HeapFns::load(&instance.entry, inst, &device)).transpose() {
+            Ok(h) => h,
+            Err(missing) => {
+                unsafe { device.destroy_device(None) };
+                return Err(VkError::Call { call: missing, result: vk::Result::ERROR_EXTENSION_NOT_PRESENT });
+            }
+        };
         let gpu = Gpu {
+            heap,
             rt: req.rt_pipeline.then(|| khr::ray_tracing_pipeline::Device::new(inst, &device)),
             accel: (req.rt_pipeline || req.ray_query).then(|| khr::acceleration_structure::Device::new(inst, &device)),
             descriptor_buffer: req.descriptor_buffer.then(|| ext::descriptor_buffer::Device::new(inst, &device)),

@@ -54,6 +54,7 @@ pub const TRACKED_EXTENSIONS: &[Tracked] = &[
     t("descriptors and memory", ext::descriptor_indexing::NAME),
     t("descriptors and memory", ext::descriptor_buffer::NAME),
     t("descriptors and memory", heap::NAME),
+    t("descriptors and memory", heap::UNTYPED_POINTERS_NAME),
     t("robustness and faults", ext::robustness2::NAME),
     t("robustness and faults", ext::device_fault::NAME),
     t("maintenance", khr::maintenance4::NAME),
@@ -77,6 +78,7 @@ pub struct Features {
     pub position_fetch: Option<vk::PhysicalDeviceRayTracingPositionFetchFeaturesKHR<'static>>,
     pub descriptor_buffer: Option<vk::PhysicalDeviceDescriptorBufferFeaturesEXT<'static>>,
     pub descriptor_heap: Option<heap::PhysicalDeviceDescriptorHeapFeaturesEXT>,
+    pub untyped_pointers: Option<heap::PhysicalDeviceShaderUntypedPointersFeaturesKHR>,
     pub robustness2: Option<vk::PhysicalDeviceRobustness2FeaturesEXT<'static>>,
     pub fault: Option<vk::PhysicalDeviceFaultFeaturesEXT<'static>>,
     pub maintenance5: Option<vk::PhysicalDeviceMaintenance5FeaturesKHR<'static>>,
@@ -185,6 +187,7 @@ impl DeviceInfo {
             position_fetch: has(khr::ray_tracing_position_fetch::NAME).then(Default::default),
             descriptor_buffer: has(ext::descriptor_buffer::NAME).then(Default::default),
             descriptor_heap: has(heap::NAME).then(Default::default),
+            untyped_pointers: has(heap::UNTYPED_POINTERS_NAME).then(Default::default),
             robustness2: has(ext::robustness2::NAME).then(Default::default),
             fault: has(ext::device_fault::NAME).then(Default::default),
             maintenance5: has(khr::maintenance5::NAME).then(Default::default),
@@ -228,7 +231,7 @@ impl DeviceInfo {
         // then its pNext is cleared so the stored copies hold no dangling pointers. Each list of
         // chained members is written once (`feature_structs!` / `property_structs!`).
         macro_rules! feature_structs { ($m:ident) => { $m!(f; v11, v12, v13, rt_pipeline, accel, ray_query, rt_maintenance1,
-            position_fetch, descriptor_buffer, descriptor_heap, robustness2, fault, maintenance5, maintenance6,
+            position_fetch, descriptor_buffer, descriptor_heap, untyped_pointers, robustness2, fault, maintenance5, maintenance6,
             pipeline_library_group_handles, rt_validation, invocation_reorder_nv, invocation_reorder_ext, cluster_accel,
             partitioned_accel, dense_geometry_format, motion_blur, linear_swept_spheres, opacity_micromap,
             opacity_micromap_khr, pipeline_opacity_micromap, displacement_micromap) } }

@@ -1,0 +1,428 @@
+//! The `descriptor_heap` binding path (VK_EXT_descriptor_heap). The cell's set/binding shaders
+//! reach a resource heap and a sampler heap through VkShaderDescriptorSetAndBindingMappingInfoEXT
+//! chained to every shader stage ("mapped"); `direct` cells read the probed array straight from
+//! the heap (`layout(descriptor_heap)`), with only the records and scene TLAS mapped.
+//!
+//! The resource heap is a buffer with the descriptor-heap usage ([`HeapLayout`]): the records SSBO
+//! (binding 0) and the scene TLAS (binding 1) in `slot`-byte slots (the largest buffer / image
+//! descriptor, aligned), and the probed array (binding 2) with the stride of its own descriptor
+//! type — the stride `layout(descriptor_heap)` arrays index with (OpConstantSizeOfEXT) — then the
+//! driver's reserved range. Mapped cells: records at 0, TLAS at `slot`, the array at
+//! an index of its stride past them. Direct cells: the array at 0 (so the shader's own index is the
+//! heap index, as in the original engine's `heap[base + gl_InstanceCustomIndexEXT]`), records and
+//! TLAS after it. The sampler heap holds the one probe sampler at offset 0, then its reserved range.
+//! Descriptors are written with vkWriteResourceDescriptorsEXT / vkWriteSamplerDescriptorsEXT, both
+//! heaps bound with vkCmdBind{Resource,Sampler}HeapEXT, and push constants are push data
+//! (vkCmdPushDataEXT): the probes' 48-byte block at offset 0, the probed array's heap index at
+//! [`PUSH_INDEX_OFFSET`], and at [`PUSH_INDEX_ADDRESS_OFFSET`] the address of a buffer holding the
+//! same index.
+//!
+//! Bindings 0 and 1 are always HEAP_WITH_CONSTANT_OFFSET. Binding 2 follows the cell's
+//! `heap_access`: a constant offset, HEAP_WITH_PUSH_INDEX (the index read from push data),
+//! HEAP_WITH_INDIRECT_INDEX (read from the buffer whose address is in push data) or
+//! HEAP_WITH_SHADER_RECORD_INDEX (read from the first 4 bytes of every SBT record's shader record
+//! data). All ways must read the same descriptors.
+use super::bindings::PUSH_CONSTANT_BYTES;
+use super::resources::Target;
+use crate::matrix::HeapAccess;
+use crate::vk::features::PROBE_IMAGE_FORMAT;
+use crate::vk::heap::{self as h, MappingSource};
+use crate::vk::memory::{Buffer, Location};
+use crate::vk::{Gpu, VkError, VkResultExt};
+use ash::vk;
+use std::ffi::c_void;
+
+/// Push-data offset of the probed array's heap index (right after the probes' push block).
+pub const PUSH_INDEX_OFFSET: u32 = PUSH_CONSTANT_BYTES;
+/// Push-data offset of the address of the buffer holding that index (`mapped_indirect_index`).
+pub const PUSH_INDEX_ADDRESS_OFFSET: u32 = PUSH_CONSTANT_BYTES + 8;
+
+fn align(x: u64, a: u64) -> u64 {
+    x.div_ceil(a.max(1)) * a.max(1)
+}
+
+/// One bound heap: its buffer and what vkCmdBind*HeapEXT takes.
+struct Heap {
+    buffer: Buffer,
+    bind: h::BindHeapInfo,
+}
+
+impl Heap {
+    /// A heap buffer of `used` bytes plus the driver's reserved range, its address aligned to
+    /// `alignment`; `bytes` (the descriptors) are written at the start.
+    fn create(gpu: &Gpu, bytes: &[u8], alignment: u64, reserved: u64, what: &'static str) -> Result<Heap, VkError> {
+        let reserved_offset = align(bytes.len() as u64, alignment.max(1));
+        let size = reserved_offset + reserved;
+        let usage = h::BUFFER_USAGE_DESCRIPTOR_HEAP | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+        let buffer = Buffer::new(gpu, size + alignment, usage, Location::Host, what)?;
+        let base = align(buffer.address, alignment);
+        buffer.write((base - buffer.address) as usize, bytes);
+        let bind = h::BindHeapInfo {
+            s_type: h::STRUCTURE_TYPE_BIND_HEAP_INFO_EXT,
+            p_next: std::ptr::null(),
+            heap_range: h::DeviceAddressRange { address: base, size },
+            reserved_range_offset: reserved_offset,
+            reserved_range_size: reserved,
+        };
+        Ok(Heap { buffer, bind })
+    }
+}
+
+/// Where the descriptors sit in the resource heap (bytes).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct HeapLayout {
+    pub records: u32,
+    pub tlas: u32,
+    /// The probed array's element 0, and its stride (the descriptor size of its type).
+    pub probe: u32,
+    pub probe_stride: u32,
+}
+
+impl HeapLayout {
+    /// `slot`: bytes per records / TLAS slot; `probe_stride`: the probed type's descriptor size;
+    /// `probe_count`: elements of the probed array; `direct`: the array first (see the module doc).
+    pub fn new(slot: u32, probe_stride: u32, probe_count: u32, direct: bool) -> HeapLayout {
+        if direct {
+            let records = align((probe_count * probe_stride) as u64, slot as u64) as u32;
+            HeapLayout { records, tlas: records + slot, probe: 0, probe_stride }
+        } else {
+            // After records and TLAS, one unused descriptor, so an index off by one reads zeros.
+            let index = (2 * slot).div_ceil(probe_stride.max(1)) + 1;
+            HeapLayout { records: 0, tlas: slot, probe: index * probe_stride, probe_stride }
+        }
+    }
+
+    /// The heap index of the probed array's element 0 in units of its stride (what push data or
+    /// the shader record holds for the index-sourced mappings).
+    pub fn probe_index(&self) -> u32 {
+        self.probe / self.probe_stride.max(1)
+    }
+
+    fn offset(&self, binding: u32, element: usize) -> usize {
+        match binding {
+            0 => self.records as usize,
+            1 => self.tlas as usize,
+            _ => self.probe as usize + element * self.probe_stride as usize,
+        }
+    }
+}
+
+pub struct HeapBinding {
+    resources: Heap,
+    samplers: Heap,
+    /// Holds the probed array's heap index (`mapped_indirect_index` reads it through its address).
+    index: Buffer,
+    pub layout: HeapLayout,
+}
+
+fn props(gpu: &Gpu) -> h::PhysicalDeviceDescriptorHeapPropertiesEXT {
+    gpu.info.properties.descriptor_heap.unwrap_or_default()
+}
+
+fn fns(gpu: &Gpu) -> &h::HeapFns {
+    gpu.heap.as_ref().expect("descriptor heap enabled for heap cells (worker::requirements)")
+}
+
+impl HeapBinding {
+    /// Write `targets[b]` (binding b's descriptors) into a new resource heap laid out for a
+    /// `direct` or mapped cell, and `sampler` into a new sampler heap.
+    pub fn create(gpu: &Gpu, targets: &[(u32, vk::DescriptorType, Vec<Target>)], sampler: &vk::SamplerCreateInfo, direct: bool) -> Result<HeapBinding, VkError> {
+        let p = props(gpu);
+        let f = fns(gpu);
+        // Heaps have no combined descriptors: a sampled image's image goes to the resource heap,
+        // its sampler to the sampler heap.
+        let heap_type = |ty: vk::DescriptorType| if ty == vk::DescriptorType::COMBINED_IMAGE_SAMPLER { vk::DescriptorType::SAMPLED_IMAGE } else { ty };
+        let size_of = |ty: vk::DescriptorType| unsafe { (f.get_descriptor_size)(gpu.info.raw, heap_type(ty)) } as u32;
+        let slot = align(p.buffer_descriptor_size.max(p.image_descriptor_size), p.buffer_descriptor_alignment.max(p.image_descriptor_alignment)) as u32;
+        let (probe_ty, probe_count) = targets.iter().find(|(b, _, _)| *b == 2).map(|(_, ty, t)| (*ty, t.len() as u32)).unwrap_or((vk::DescriptorType::STORAGE_BUFFER, 0));
+        let layout = HeapLayout::new(slot, size_of(probe_ty).max(1), probe_count, direct);
+
+        // Everything the infos point at lives until the write call below.
+        let mut ranges = Vec::new();
+        let mut views = Vec::new();
+        let mut kinds = Vec::new();
+        let mut at = Vec::new();
+        for (b, ty, ts) in targets {
+            for (i, t) in ts.iter().enumerate() {
+                at.push((layout.offset(*b, i), size_of(*ty) as usize));
+                match *t {
+                    Target::Buffer { address, range, .. } => {
+                        ranges.push(h::DeviceAddressRange { address, size: range });
+                        kinds.push((heap_type(*ty), false, ranges.len() - 1));
+                    }
+                    // The range of an AS descriptor is unused and may be 0 (VkResourceDescriptorInfoEXT).
+                    Target::Accel { address, .. } => {
+                        ranges.push(h::DeviceAddressRange { address, size: 0 });
+                        kinds.push((heap_type(*ty), false, ranges.len() - 1));
+                    }
+                    Target::Image { image, .. } => {
+                        views.push(
+                            vk::ImageViewCreateInfo::default()
+                                .image(image)
+                                .view_type(vk::ImageViewType::TYPE_2D)
+                                .format(PROBE_IMAGE_FORMAT)
+                                .subresource_range(vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 }),
+                        );
+                        kinds.push((heap_type(*ty), true, views.len() - 1));
+                    }
+                }
+            }
+        }
+        let end = at.iter().map(|(o, n)| o + n).max().unwrap_or(0);
+        let mut bytes = vec![0u8; end];
+        let images: Vec<h::ImageDescriptorInfo> = views
+            .iter()
+            .map(|v| h::ImageDescriptorInfo { s_type: h::STRUCTURE_TYPE_IMAGE_DESCRIPTOR_INFO_EXT, p_next: std::ptr::null(), p_view: v as *const _ as *const _, layout: vk::ImageLayout::GENERAL })
+            .collect();
+        let infos: Vec<h::ResourceDescriptorInfo> = kinds
+            .iter()
+            .map(|&(ty, image, i)| h::ResourceDescriptorInfo {
+                s_type: h::STRUCTURE_TYPE_RESOURCE_DESCRIPTOR_INFO_EXT,
+                p_next: std::ptr::null(),
+                ty,
+                data: if image { h::ResourceDescriptorData { p_image: &images[i] } } else { h::ResourceDescriptorData { p_address_range: &ranges[i] } },
+            })
+            .collect();
+        let base = bytes.as_mut_ptr();
+        // SAFETY: every range lies inside `bytes` (its length is the largest end).
+        let dst: Vec<h::HostAddressRange> = at.iter().map(|&(o, n)| h::HostAddressRange { address: unsafe { base.add(o) } as *mut c_void, size: n }).collect();
+        // SAFETY: infos, their pointees and dst are alive and sized as declared.
+        unsafe { (f.write_resource_descriptors)(gpu.device.handle(), infos.len() as u32, infos.as_ptr(), dst.as_ptr()) }.result().at("vkWriteResourceDescriptorsEXT")?;
+        let resources = Heap::create(gpu, &bytes, p.resource_heap_alignment, p.min_resource_heap_reserved_range, "resource heap")?;
+
+        let mut sbytes = vec![0u8; p.sampler_descriptor_size.max(1) as usize];
+        let sdst = h::HostAddressRange { address: sbytes.as_mut_ptr() as *mut c_void, size: sbytes.len() };
+        // SAFETY: one sampler info, one destination range inside `sbytes`.
+        let written = unsafe { (f.write_sampler_descriptors)(gpu.device.handle(), 1, sampler, &sdst) }.result().at("vkWriteSamplerDescriptorsEXT");
+        let samplers = written.and_then(|_| Heap::create(gpu, &sbytes, p.sampler_heap_alignment.max(p.sampler_descriptor_alignment), p.min_sampler_heap_reserved_range, "sampler heap"));
+        let index_usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+        let index = samplers.and_then(|s| match Buffer::with_data(gpu, &layout.probe_index().to_le_bytes(), index_usage, "heap index") {
+            Ok(b) => Ok((s, b)),
+            Err(e) => {
+                s.buffer.destroy(gpu);
+                Err(e)
+            }
+        });
+        let (samplers, index) = match index {
+            Ok(x) => x,
+            Err(e) => {
+                resources.buffer.destroy(gpu);
+                return Err(e);
+            }
+        };
+        tracing::debug!(?layout, "descriptor heaps written");
+        Ok(HeapBinding { resources, samplers, index, layout })
+    }
+
+    pub fn bind(&self, gpu: &Gpu, cmd: vk::CommandBuffer) {
+        let f = fns(gpu);
+        // SAFETY: valid command buffer in the recording state; the infos are plain values.
+        unsafe {
+            (f.cmd_bind_resource_heap)(cmd, &self.resources.bind);
+            (f.cmd_bind_sampler_heap)(cmd, &self.samplers.bind);
+        }
+    }
+
+    /// The probes' push block, the probed array's heap index and the address of the buffer
+    /// holding it, as push data.
+    pub fn push(&self, gpu: &Gpu, cmd: vk::CommandBuffer, pc: &[u8]) {
+        let mut data = pc.to_vec();
+        data.resize(PUSH_INDEX_OFFSET as usize, 0);
+        data.extend_from_slice(&self.layout.probe_index().to_le_bytes());
+        data.resize(PUSH_INDEX_ADDRESS_OFFSET as usize, 0);
+        data.extend_from_slice(&self.index.address.to_le_bytes());
+        let info = h::PushDataInfo {
+            s_type: h::STRUCTURE_TYPE_PUSH_DATA_INFO_EXT,
+            p_next: std::ptr::null(),
+            offset: 0,
+            data: h::HostAddressRangeConst { address: data.as_ptr() as *const c_void, size: data.len() },
+        };
+        // SAFETY: `data` outlives the call, which copies it into the command buffer.
+        unsafe { (fns(gpu).cmd_push_data)(cmd, &info) };
+    }
+
+    pub fn destroy(&self, gpu: &Gpu) {
+        self.resources.buffer.destroy(gpu);
+        self.samplers.buffer.destroy(gpu);
+        self.index.destroy(gpu);
+    }
+}
+
+/// The set/binding → heap mapping every stage of a heap pipeline gets (boxed: the info points at
+/// the mappings).
+pub struct PipelineMapping {
+    mappings: Vec<h::SetAndBindingMapping>,
+    info: h::ShaderSetAndBindingMappingInfo,
+}
+
+impl PipelineMapping {
+    /// The mapping of a cell reaching the heap `access`-wise, for a heap laid out as `l`. Direct
+    /// cells map only the records and TLAS (the probe reads the heap itself).
+    pub fn new(access: HeapAccess, l: &HeapLayout) -> Box<PipelineMapping> {
+        let constant = |heap_offset: u32, stride: u32| h::MappingSourceData {
+            constant_offset: h::MappingConstantOffset { heap_offset, heap_array_stride: stride, p_embedded_sampler: std::ptr::null(), sampler_heap_offset: 0, sampler_heap_array_stride: 0 },
+        };
+        let stride = l.probe_stride;
+        let probe = match access {
+            HeapAccess::MappedConstantOffset => Some((MappingSource::HeapWithConstantOffset, constant(l.probe, stride))),
+            HeapAccess::MappedPushIndex => Some((
+                MappingSource::HeapWithPushIndex,
+                h::MappingSourceData {
+                    push_index: h::MappingPushIndex {
+                        heap_offset: 0,
+                        push_offset: PUSH_INDEX_OFFSET,
+                        heap_index_stride: stride,
+                        heap_array_stride: stride,
+                        p_embedded_sampler: std::ptr::null(),
+                        use_combined_image_sampler_index: vk::FALSE,
+                        sampler_heap_offset: 0,
+                        sampler_push_offset: PUSH_INDEX_OFFSET,
+                        sampler_heap_index_stride: 0,
+                        sampler_heap_array_stride: 0,
+                    },
+                },
+            )),
+            HeapAccess::MappedIndirectIndex => Some((
+                MappingSource::HeapWithIndirectIndex,
+                h::MappingSourceData {
+                    indirect_index: h::MappingIndirectIndex {
+                        heap_offset: 0,
+                        push_offset: PUSH_INDEX_ADDRESS_OFFSET,
+                        address_offset: 0,
+                        heap_index_stride: stride,
+                        heap_array_stride: stride,
+                        p_embedded_sampler: std::ptr::null(),
+                        use_combined_image_sampler_index: vk::FALSE,
+                        sampler_heap_offset: 0,
+                        sampler_push_offset: PUSH_INDEX_ADDRESS_OFFSET,
+                        sampler_address_offset: 0,
+                        sampler_heap_index_stride: 0,
+                        sampler_heap_array_stride: 0,
+                    },
+                },
+            )),
+            HeapAccess::MappedShaderRecordIndex => Some((
+                MappingSource::HeapWithShaderRecordIndex,
+                h::MappingSourceData {
+                    shader_record_index: h::MappingShaderRecordIndex {
+                        heap_offset: 0,
+                        shader_record_offset: 0,
+                        heap_index_stride: stride,
+                        heap_array_stride: stride,
+                        p_embedded_sampler: std::ptr::null(),
+                        use_combined_image_sampler_index: vk::FALSE,
+                        sampler_heap_offset: 0,
+                        sampler_shader_record_offset: 0,
+                        sampler_heap_index_stride: 0,
+                        sampler_heap_array_stride: 0,
+                    },
+                },
+            )),
+            HeapAccess::Direct => None,
+        };
+        let mapping = |binding: u32, (source, source_data): (MappingSource, h::MappingSourceData)| h::SetAndBindingMapping {
+            s_type: h::STRUCTURE_TYPE_DESCRIPTOR_SET_AND_BINDING_MAPPING_EXT,
+            p_next: std::ptr::null(),
+            descriptor_set: 0,
+            first_binding: binding,
+            binding_count: 1,
+            resource_mask: h::SPIRV_RESOURCE_TYPE_ALL,
+            source,
+            source_data,
+        };
+        let mut mappings = vec![
+            mapping(0, (MappingSource::HeapWithConstantOffset, constant(l.records, 0))),
+            mapping(1, (MappingSource::HeapWithConstantOffset, constant(l.tlas, 0))),
+        ];
+        mappings.extend(probe.map(|p| mapping(2, p)));
+        let mut b = Box::new(PipelineMapping {
+            info: h::ShaderSetAndBindingMappingInfo {
+                s_type: h::STRUCTURE_TYPE_SHADER_DESCRIPTOR_SET_AND_BINDING_MAPPING_INFO_EXT,
+                p_next: std::ptr::null(),
+                mapping_count: mappings.len() as u32,
+                p_mappings: std::ptr::null(),
+            },
+            mappings,
+        });
+        b.info.p_mappings = b.mappings.as_ptr();
+        b
+    }
+
+    /// What to chain to each VkPipelineShaderStageCreateInfo.
+    pub fn stage_next(&self) -> *const c_void {
+        &self.info as *const _ as *const c_void
+    }
+}
+
+/// The shader record data after every SBT handle of a heap pipeline: the probed array's heap
+/// index for `mapped_shader_record_index`, nothing otherwise.
+pub fn shader_record(access: Option<HeapAccess>, l: &HeapLayout) -> Vec<u8> {
+    match access {
+        Some(HeapAccess::MappedShaderRecordIndex) => l.probe_index().to_le_bytes().to_vec(),
+        Some(HeapAccess::MappedConstantOffset | HeapAccess::MappedPushIndex | HeapAccess::MappedIndirectIndex | HeapAccess::Direct) | None => vec![],
+    }
+}
+
+/// SPIR-V `OpDecorate` and the `NonUniform` decoration.
+const OP_DECORATE: u32 = 71;
+const DECORATION_NON_UNIFORM: u32 = 5300;
+
+/// Whether a module decorates anything `NonUniform` (what `nonuniformEXT` must produce on the
+/// descriptor access; SPIR-V 2.16.2: the decoration goes on the index or the access chain).
+pub fn has_nonuniform(words: &[u32]) -> bool {
+    let mut i = 5; // after the header
+    while i < words.len() {
+        let (count, op) = ((words[i] >> 16) as usize, words[i] & 0xffff);
+        if op == OP_DECORATE && count >= 3 && words.get(i + 2) == Some(&DECORATION_NON_UNIFORM) {
+            return true;
+        }
+        i += count.max(1);
+    }
+    false
+}
+
+/// For a `direct` heap cell with `nonuniformEXT`: a note when no compiled module carries a
+/// `NonUniform` decoration, i.e. the compiler dropped the qualifier and the driver saw a uniform
+/// index (glslang 16.6 does so on `layout(descriptor_heap)` arrays; reports/lavapipe-26/FINDINGS.md).
+pub fn dropped_nonuniform(cell: &crate::matrix::Cell, spirv: &[std::sync::Arc<Vec<u32>>]) -> Option<String> {
+    let direct = cell.heap_access == Some(HeapAccess::Direct);
+    (direct && cell.nonuniform && !spirv.iter().any(|w| has_nonuniform(w)))
+        .then(|| "the GLSL compiler dropped nonuniformEXT: no NonUniform decoration reached the driver".to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nonuniform_decorations_are_found_and_their_absence_too() {
+        let header = [0x0723_0203, 0x0001_0600, 0, 10, 0];
+        // OpCapability Shader; OpDecorate %5 NonUniform
+        let with: Vec<u32> = header.iter().copied().chain([(2 << 16) | 17, 1, (3 << 16) | OP_DECORATE, 5, DECORATION_NON_UNIFORM]).collect();
+        // OpCapability Shader; OpDecorate %5 Binding 2 (a NonUniform-valued operand must not count)
+        let without: Vec<u32> = header.iter().copied().chain([(2 << 16) | 17, 1, (4 << 16) | OP_DECORATE, 5, 33, DECORATION_NON_UNIFORM]).collect();
+        assert!(has_nonuniform(&with));
+        assert!(!has_nonuniform(&without));
+        assert!(!has_nonuniform(&header));
+        // a zero word count ends nowhere near an infinite loop
+        assert!(!has_nonuniform(&[0, 0, 0, 0, 0, 0, 0]));
+    }
+
+    #[test]
+    fn layouts_keep_descriptors_apart_and_index_sources_agree() {
+        for direct in [false, true] {
+            for (slot, stride) in [(64, 16), (64, 64), (64, 32), (256, 48)] {
+                let l = HeapLayout::new(slot, stride, 17, direct);
+                let probe_end = l.probe + 17 * stride;
+                // records, TLAS and the probed array do not overlap
+                assert!(l.records + slot <= l.tlas || l.tlas + slot <= l.records);
+                for start in [l.records, l.tlas] {
+                    assert!(start + slot <= l.probe || probe_end <= start, "{l:?}");
+                }
+                // an index-sourced mapping (index × stride) lands exactly on the array
+                assert_eq!(l.probe_index() * stride, l.probe, "{l:?}");
+                assert_eq!(direct, l.probe == 0);
+            }
+        }
+    }
+}

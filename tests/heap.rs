@@ -1,0 +1,190 @@
+//! Descriptor heap cells. On the host's lavapipe (Mesa 25, no VK_EXT_descriptor_heap) they are
+//! planned and `unsupported` with the device's reason. In the Debian sid root made by
+//! scripts/setup-sid (lavapipe from Mesa 26 with VK_EXT_descriptor_heap), run through
+//! scripts/in-sid with this build's binary, they run and are checked against the CPU reference;
+//! those tests skip when the root is missing, unless RTPROBE_REQUIRE_SID=1 (as .ci/run sets).
+mod common;
+use common::*;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn repo() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn sid_root() -> PathBuf {
+    std::env::var_os("RTPROBE_SID_ROOT").map(PathBuf::from).unwrap_or_else(|| PathBuf::from("/var/lib/rtprobe/sid-root"))
+}
+
+/// Whether the sid root exists and scripts/in-sid may enter it (root, or sudo without a
+/// password); panics when it must (RTPROBE_REQUIRE_SID=1).
+fn have_sid() -> bool {
+    let can_chroot = unsafe { libc::geteuid() } == 0 || Command::new("sudo").args(["-n", "true"]).output().is_ok_and(|o| o.status.success());
+    let ok = sid_root().join("etc/rtprobe-sid.stamp").exists() && can_chroot;
+    if !ok && std::env::var("RTPROBE_REQUIRE_SID").is_ok_and(|v| v == "1") {
+        panic!("RTPROBE_REQUIRE_SID=1 but there is no sid root at {} (make it with scripts/setup-sid), or no root rights to enter it", sid_root().display());
+    }
+    if !ok {
+        eprintln!("skipped: no sid root at {} (scripts/setup-sid makes it), or no root rights to enter it", sid_root().display());
+    }
+    ok
+}
+
+/// This build's rtprobe, inside the sid root.
+fn in_sid(args: &[&str]) -> Output {
+    in_sid_env(args, &[])
+}
+
+fn in_sid_env(args: &[&str], env: &[(&str, &str)]) -> Output {
+    let mut c = Command::new(repo().join("scripts/in-sid"));
+    c.arg(env!("CARGO_BIN_EXE_rtprobe")).args(args).env_remove("RUST_LOG").env_remove("RTPROBE_VALIDATE").env_remove("RTPROBE_GLSLANG");
+    for (k, v) in env {
+        c.env(k, v);
+    }
+    c.output().expect("spawn scripts/in-sid")
+}
+
+/// A report path under target/ (bind-mounted into the root at the same path).
+fn report_path(name: &str) -> PathBuf {
+    let dir = repo().join("target/heap-tests");
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join(format!("{name}-{}.json", std::process::id()));
+    let _ = std::fs::remove_file(&p);
+    p
+}
+
+/// `rtprobe run --filter FILTER` of heap cells in the root (no confirmation, no workarounds, plus
+/// `extra` arguments), and its report.
+fn run_in_sid(name: &str, filter: &str, extra: &[&str], env: &[(&str, &str)]) -> (Output, serde_json::Value) {
+    let path = report_path(name);
+    let mut args = vec!["run", "--filter", filter, "--no-confirm", "--patches", "none", "-o", path.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    let o = in_sid_env(&args, env);
+    let report = serde_json::from_slice(&std::fs::read(&path).unwrap_or_else(|e| panic!("no report ({e}): {}", stderr(&o)))).unwrap();
+    (o, report)
+}
+
+fn list_counts(out: &str) -> (usize, usize, usize) {
+    let n = |p: &str| out.lines().filter(|l| l.starts_with(p)).count();
+    (n("run "), n("unsupported "), n("not_implemented "))
+}
+
+#[test]
+fn host_lavapipe_plans_heap_cells_as_unsupported_with_the_reason() {
+    let o = run(&["run", "--list", "--filter", "descriptor_model=descriptor_heap"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    let (to_run, unsupported, not_implemented) = list_counts(&out);
+    if to_run > 0 {
+        eprintln!("skipped: this host's driver has VK_EXT_descriptor_heap");
+        return;
+    }
+    assert!(unsupported > 0, "{out}");
+    assert_eq!(not_implemented, 0, "the device's reason wins over rtprobe's own gaps: {out}");
+    assert!(out.lines().filter(|l| l.starts_with("unsupported ")).all(|l| l.contains("VK_EXT_descriptor_heap") || l.contains("descriptorHeap")), "{out}");
+    // Every heap access way is planned, none dropped.
+    for way in ["mapped_constant_offset", "mapped_push_index", "mapped_indirect_index", "mapped_shader_record_index", "direct"] {
+        assert!(out.contains(&format!(".descriptor_heap.{way} ")), "{way} missing: {out}");
+    }
+    assert!(out.contains(&format!("{} planned: 0 to run, {unsupported} unsupported, 0 not implemented in rtprobe", unsupported)), "{out}");
+}
+
+#[test]
+fn sid_plans_every_heap_cell_and_drops_none() {
+    if !have_sid() {
+        return;
+    }
+    let o = in_sid(&["run", "--list", "--filter", "descriptor_model=descriptor_heap"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    let (to_run, _, not_implemented) = list_counts(&out);
+    assert!(to_run > 0, "lavapipe 26 has VK_EXT_descriptor_heap: {out}");
+    // The root's glslang 16.6 compiles the direct way; only the as-to-address rewrite of its
+    // untyped-pointer SPIR-V is rtprobe's gap there.
+    assert!(not_implemented > 0);
+    assert!(out.lines().filter(|l| l.starts_with("not_implemented ")).all(|l| l.contains(".address_patched.descriptor_heap.direct ") && l.contains("as-to-address")), "{out}");
+    assert!(out.contains("compiler: heap_access=direct shaders by glslangValidator 16."), "{out}");
+    for way in ["mapped_constant_offset", "mapped_push_index", "mapped_indirect_index", "mapped_shader_record_index", "direct"] {
+        assert!(out.lines().any(|l| l.starts_with("run ") && l.ends_with(&format!(".descriptor_heap.{way}"))), "{way} runs: {out}");
+    }
+    // Without a heap-capable GLSL compiler the direct way is rtprobe's own gap: planned and
+    // counted as not_implemented with the reason, never dropped or blamed on the device.
+    let o = in_sid_env(&["run", "--list", "--filter", "descriptor_model=descriptor_heap"], &[("RTPROBE_GLSLANG", "/nonexistent/glslangValidator")]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    let (to_run, unsupported, not_implemented) = list_counts(&out);
+    assert!(not_implemented > 0, "{out}");
+    assert!(out.lines().filter(|l| l.starts_with("not_implemented ")).all(|l| l.contains(".direct ") && l.contains("GL_EXT_descriptor_heap")), "{out}");
+    assert!(out.lines().filter(|l| l.starts_with("run ")).all(|l| l.contains(".mapped_")), "{out}");
+    assert!(
+        out.contains(&format!("{} planned: {to_run} to run, {unsupported} unsupported, {not_implemented} not implemented in rtprobe; ", to_run + unsupported + not_implemented)),
+        "{out}"
+    );
+    assert!(!out.contains("not implemented in rtprobe:"), "nothing is moved to the not-generated list: {out}");
+}
+
+#[test]
+fn sid_runs_heap_cells_against_the_reference() {
+    if !have_sid() {
+        return;
+    }
+    // Every stage and resource kind, every heap access way, dynamic indices (the original
+    // fault's shape, with and without nonuniformEXT). Without a compiler for the direct way
+    // (forced here) its cells come out not_implemented, counted in the report and the summary.
+    let (o, report) = run_in_sid("heap-run", "descriptor_model=descriptor_heap,index=dynamic", &[], &[("RTPROBE_GLSLANG", "/nonexistent/glslangValidator")]);
+    let cells = report["cells"].as_array().unwrap();
+    let count = |f: &dyn Fn(&serde_json::Value) -> bool| cells.iter().filter(|c| f(c)).count();
+    let outcome = |c: &serde_json::Value, o: &str| c["outcome"] == o;
+    let pass = count(&|c| outcome(c, "pass"));
+    let not_impl = count(&|c| outcome(c, "not_implemented"));
+    assert_eq!(report["plan"]["planned"].as_u64().unwrap() as usize, cells.len(), "every planned cell is in the report");
+    assert_eq!(report["plan"]["not_implemented"].as_u64().unwrap() as usize, not_impl);
+    assert!(not_impl > 0 && cells.iter().filter(|c| outcome(c, "not_implemented")).all(|c| c["id"].as_str().unwrap().ends_with(".direct")));
+    for way in ["mapped_constant_offset", "mapped_push_index", "mapped_indirect_index", "mapped_shader_record_index"] {
+        let ran: Vec<_> = cells.iter().filter(|c| c["id"].as_str().unwrap().ends_with(way) && c["outcome"] != "unsupported").collect();
+        assert!(!ran.is_empty(), "{way} cells ran");
+    }
+    for r in ["storage_buffer", "uniform_buffer", "sampled_image", "storage_image", "acceleration_structure"] {
+        assert!(cells.iter().any(|c| c["resource"] == r && outcome(c, "pass")), "a {r} heap cell passes");
+    }
+    // Whatever did not pass is a finding with its reason (lavapipe's heap bugs; see
+    // reports/lavapipe-26/FINDINGS.md), never a silent gap: the exit code says so.
+    let findings = count(&|c| !["pass", "not_implemented", "unsupported"].contains(&c["outcome"].as_str().unwrap()));
+    assert!(pass > 0);
+    assert_eq!(o.status.code(), Some(if findings > 0 { 1 } else { 0 }), "{}", stderr(&o));
+    let summary = stdout(&o);
+    assert!(!summary.contains("no faults or mismatches\n"), "the summary says cells did not run: {summary}");
+    assert!(summary.contains("not implemented in rtprobe"), "{summary}");
+}
+
+#[test]
+fn sid_runs_direct_heap_cells_compiled_by_the_roots_glslang() {
+    if !have_sid() {
+        return;
+    }
+    // (Acceleration structures read straight from the heap are a lavapipe 26 finding: not here.)
+    let filter = "descriptor_model=descriptor_heap,heap_access=direct,stage=closest_hit|compute,index=dynamic,resource=storage_buffer|uniform_buffer|sampled_image|storage_image";
+    let (o, report) = run_in_sid("heap-direct", filter, &[], &[]);
+    let cells = report["cells"].as_array().unwrap();
+    assert_eq!(cells.len(), 16, "2 stages x 4 resources x nonuniform or not");
+    assert!(cells.iter().all(|c| c["outcome"] == "pass"), "{}", stdout(&o));
+    // A compiler that drops nonuniformEXT (glslang 16.6 on heap arrays) is said so, and only
+    // where the cell asked for nonuniformEXT.
+    let noted = |c: &serde_json::Value| c["attempts"][0]["result"]["detail"].as_str().is_some_and(|d| d.contains("dropped nonuniformEXT"));
+    assert!(cells.iter().filter(|c| noted(c)).all(|c| c["nonuniform"] == true), "{}", stdout(&o));
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+}
+
+#[test]
+fn sid_heap_cells_are_checked_corrupted_expectations_mismatch() {
+    if !have_sid() {
+        return;
+    }
+    // The twin of the run above: with expected values perturbed, a passing heap cell must mismatch.
+    let filter = "descriptor_model=descriptor_heap,stage=closest_hit,resource=storage_buffer,index=dynamic,nonuniform=true,heap_access=mapped_push_index";
+    let (o, report) = run_in_sid("heap-corrupt", filter, &["--corrupt-expected"], &[]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let cells = report["cells"].as_array().unwrap();
+    assert_eq!(cells.len(), 1);
+    assert_eq!(cells[0]["outcome"], "mismatch", "{}", cells[0]);
+}
