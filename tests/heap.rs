@@ -180,9 +180,11 @@ fn sid_heap_cells_are_checked_corrupted_expectations_mismatch() {
     if !have_sid() {
         return;
     }
-    // The twin of the run above: with expected values perturbed, a passing heap cell must mismatch.
+    // The twin of the run above: with a wrong value injected at the probed read, a passing heap
+    // cell must mismatch.
     let filter = "descriptor_model=descriptor_heap,stage=closest_hit,resource=storage_buffer,index=dynamic,nonuniform=true,heap_access=mapped_push_index";
-    let (o, report) = run_in_sid("heap-corrupt", filter, &["--corrupt-expected"], &[]);
+    let inject = format!("{filter}@value");
+    let (o, report) = run_in_sid("heap-corrupt", filter, &["--inject-fault", &inject], &[]);
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     let cells = report["cells"].as_array().unwrap();
     assert_eq!(cells.len(), 1);

@@ -14,7 +14,8 @@ pub const VULKAN_ERROR: u8 = 7;
 pub const DEVICE_LOST: u8 = 8;
 pub const BAD_INPUT: u8 = 9;
 pub const INTERNAL: u8 = 10;
-/// `run`: no finding, but a canary's fault was not detected: classification is unproven.
+/// `run`: no finding, but a canary's fault, or an `--inject-fault`, was not detected:
+/// classification is unproven.
 pub const CANARY_UNDETECTED: u8 = 11;
 
 pub const HELP: &str = "\
@@ -31,7 +32,8 @@ Exit codes:
   8  the device was lost outside a supervised cell
   9  bad input file or unwritable output
   10 internal error
-  11 run: no finding, but a --canaries fault was not detected (fault classification unproven)";
+  11 run: no finding, but a --canaries or --inject-fault fault was not detected (fault
+     classification unproven)";
 
 /// An error that carries its own exit code (bad input, unwritable output, ...).
 #[derive(Debug, thiserror::Error)]

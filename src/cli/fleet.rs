@@ -44,7 +44,7 @@ pub fn merge_cmd(a: &MergeArgs) -> Result<u8> {
     let m = merge::merge(reports, a.force).map_err(|e| coded(exit::BAD_INPUT, e))?;
     let bytes = serde_json::to_vec_pretty(&m).context("serializing the merged report")?;
     write_atomic(&a.out, &bytes).with_context(|| "writing the merged report")?;
-    println!("merged {n} reports: {} cells, {} findings → {}", m.cells.len(), m.tally.findings, a.out.display());
+    println!("merged {n} reports: {} cells, {} findings, {} worker faults outside cells → {}", m.cells.len(), m.tally.findings, m.tally.worker_faults, a.out.display());
     Ok(exit::OK)
 }
 

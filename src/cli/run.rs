@@ -151,7 +151,8 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     let base = match &a.resume {
         Some(r) => {
             let old = RunReport::load(r).map_err(|e| coded(exit::BAD_INPUT, e))?;
-            merge::same_run(&old, &fresh, &["patches", "inject", "filters", "canaries", "validate", "shard", "binding_stages"])
+            let options: Vec<&str> = merge::RESULT_OPTIONS.iter().copied().filter(|k| *k != "repeat").chain(["shard"]).collect();
+            merge::same_run(&old, &fresh, &options)
                 .map_err(|why| coded(exit::BAD_INPUT, format!("cannot resume {}: {why}; start a new run instead", r.display())))?;
             RunReport { command_line: fresh.command_line.clone(), complete: false, finished: None, ..old }
         }
@@ -268,7 +269,7 @@ fn exit_code(r: &RunReport, allow_improvements: bool) -> u8 {
         };
     if findings {
         exit::FINDINGS
-    } else if r.undetected_canaries().next().is_some() {
+    } else if r.undetected_canaries().next().is_some() || r.tally.injections_undetected > 0 {
         exit::CANARY_UNDETECTED
     } else {
         exit::OK
@@ -317,31 +318,11 @@ mod tests {
     use crate::runner::supervisor::Attempt;
 
     fn report(cells: Vec<CellReport>) -> RunReport {
-        let mut r = RunReport {
-            schema: SCHEMA.into(),
-            tool: json!({}),
-            command_line: vec![],
-            started: String::new(),
-            finished: None,
-            complete: true,
-            device: json!({}),
-            matrix_support: json!({}),
-            scene: SceneSummary { params: SceneParams::default(), instances: 16, blas: 4, triangles: 0, ambiguous_pixels: 0 },
-            options: json!({}),
-            plan: PlanSummary { generated: 0, filtered_out: 0, planned: cells.len(), to_run: cells.len(), unsupported: 0, not_implemented: 0, not_generated: vec![], sharded_out: 0 },
-            summary: Default::default(),
-            tally: Default::default(),
-            timing: TimingSummary::default(),
-            baseline: None,
-            workers: vec![],
-            cells,
-        };
-        r.recount();
-        r
+        RunReport::for_tests(cells)
     }
 
     fn ran(cell: Cell, outcome: Outcome) -> CellReport {
-        CellReport::new(&cell, Attempt { outcome, isolated: false, detail: None, result: None, worker_exit: None, injected: None, wall_ms: 0.0, phase: None, worker: 0, device_features: vec![] })
+        CellReport::new(&cell, Attempt::for_tests(outcome, false))
     }
 
     #[test]

@@ -23,7 +23,7 @@ pub struct Expectation {
     pub cell: String,
     /// The expected verdict (never `pass`: passing cells are not listed).
     pub outcome: Outcome,
-    /// A known flake: any of `also` (or a pass) is tolerated besides `outcome`.
+    /// A known flake: a pass, `outcome` and any of `also` (each by deqp class) are tolerated.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub flake: bool,
     /// Other outcomes a flaky cell has shown.
@@ -111,6 +111,9 @@ fn from_deqp(status: &str) -> Option<(Outcome, bool)> {
     })
 }
 
+/// A deqp-runner `Flake` line says only that the test is unreliable: any failure is tolerated.
+const DEQP_FLAKE_ALSO: &[Outcome] = &[Outcome::Mismatch, Outcome::Timeout, Outcome::DeviceLost];
+
 impl Baseline {
     /// The expectations of a finished run: every finding (flaky ones as flakes with their rate),
     /// with performance bounds for `perf` phases (`factor`× the run's mean plus `slack_ms`).
@@ -175,7 +178,8 @@ impl Baseline {
             let err = |message: String| BaselineError::Line { file: file.into(), line: n + 1, message };
             let (cell, status) = line.split_once(',').ok_or_else(|| err(format!("{line:?} is not `cell,Status`")))?;
             let (outcome, flake) = from_deqp(status.trim()).ok_or_else(|| err(format!("unknown status {:?} (Fail, Crash, Timeout, Flake)", status.trim())))?;
-            b.expected.push(Expectation { cell: cell.trim().into(), outcome, flake, also: vec![], rate: None, bug: None });
+            let also = if flake { DEQP_FLAKE_ALSO.to_vec() } else { vec![] };
+            b.expected.push(Expectation { cell: cell.trim().into(), outcome, flake, also, rate: None, bug: None });
         }
         Ok(b)
     }
@@ -252,10 +256,12 @@ fn classify(c: &CellReport, e: Option<&Expectation>) -> (Status, Outcome) {
     match e {
         None => (if actual.is_finding() { Status::Regression } else { Status::Expected }, Outcome::Pass),
         Some(e) if e.flake => {
-            let seen = |o: Outcome| o == e.outcome || e.also.contains(&o) || o == Outcome::Pass;
-            let all_known = c.attempts.iter().all(|a| seen(a.outcome)) && seen(actual);
-            // A flake tolerates its outcomes in any mix; a worse fault is still a regression.
-            (if all_known || actual.severity() <= e.outcome.severity() { Status::KnownFlake } else { Status::Regression }, e.outcome)
+            // A flake tolerates, in any mix, a pass and the outcomes it was seen with (by deqp
+            // class: crash and device loss are one fault); any other outcome is a regression.
+            let class = |o: Outcome| deqp_status(o).unwrap_or("Pass");
+            let known = |o: Outcome| o == Outcome::Pass || std::iter::once(e.outcome).chain(e.also.iter().copied()).any(|k| class(k) == class(o));
+            let all_known = c.attempts.iter().filter(|a| !a.not_run()).all(|a| known(a.outcome)) && known(actual);
+            (if all_known { Status::KnownFlake } else { Status::Regression }, e.outcome)
         }
         Some(e) => {
             // Outcomes of one deqp class (crash / device loss; mismatch / error) are the same fault.
@@ -336,6 +342,7 @@ pub fn render(c: &BaselineCheck, allow_improvements: bool) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::report::run_report::RunReport;
 
     #[test]
     fn deqp_form_round_trips_and_bad_lines_name_the_line() {
@@ -354,6 +361,49 @@ mod tests {
         // The JSON form round-trips too.
         let j = Baseline::parse("b.json", &b.to_json()).unwrap();
         assert_eq!(j, Baseline { source: "x.csv".into(), ..b });
+    }
+
+    fn cell(index: crate::matrix::IndexSource) -> crate::matrix::Cell {
+        use crate::matrix::{DescriptorModel, Resource, Stage};
+        crate::matrix::Cell { stage: Stage::ClosestHit, resource: Resource::StorageBuffer, index, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None, reorder: None }
+    }
+
+    fn cell_with(index: crate::matrix::IndexSource, outcomes: &[Outcome]) -> CellReport {
+        use crate::runner::supervisor::Attempt;
+        let mut c = CellReport::new(&cell(index), Attempt::for_tests(outcomes[0], false));
+        for o in &outcomes[1..] {
+            c.attempts.push(Attempt::for_tests(*o, true));
+        }
+        c.refresh();
+        c
+    }
+
+    #[test]
+    fn a_baseline_made_from_a_run_expects_that_run_in_both_forms() {
+        use crate::matrix::IndexSource as I;
+        // A flaky device loss, a steady crash, a mismatch: the run's own baseline, written as
+        // JSON or as deqp-runner lines and read back, finds nothing unexpected in it.
+        let r = RunReport::for_tests(vec![
+            cell_with(I::Dynamic, &[Outcome::DeviceLost, Outcome::Pass]),
+            cell_with(I::Literal, &[Outcome::Crash, Outcome::Crash]),
+            cell_with(I::SpecConstant, &[Outcome::Mismatch]),
+            cell_with(I::PushConstant, &[Outcome::Pass]),
+        ]);
+        let b = Baseline::from_report(&r, "r.json", &[], 2.0, 1.0).unwrap();
+        for text in [b.to_json(), b.to_deqp()] {
+            let back = Baseline::parse("b", &text).unwrap();
+            let c = check(&r, &back, "b");
+            assert!(c.ok(false), "{text}\n{c:?}");
+            assert_eq!(c.known_flakes, 1);
+        }
+        // A flake tolerates what it was seen with, not a mismatch it never showed.
+        let wrong = RunReport::for_tests(vec![cell_with(I::Dynamic, &[Outcome::Mismatch, Outcome::Pass])]);
+        let c = check(&wrong, &b, "b");
+        assert_eq!(c.regressions().count(), 1, "{c:?}");
+        // A steady expected fault that now passes is an improvement; another fault a regression.
+        let fixed = RunReport::for_tests(vec![cell_with(I::Literal, &[Outcome::Pass]), cell_with(I::SpecConstant, &[Outcome::Timeout])]);
+        let c = check(&fixed, &b, "b");
+        assert_eq!((c.improvements().count(), c.regressions().count()), (1, 1), "{c:?}");
     }
 
     #[test]

@@ -51,13 +51,26 @@ pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport
     let mut it = reports.into_iter();
     let (first_name, mut out) = it.next().ok_or("merge needs at least one report")?;
     let mut names = vec![Value::String(first_name.clone())];
+    let mut started = vec![out.started.clone()];
+    // Baseline checks describe one report's cells; the merged report is checked anew.
+    out.baseline = None;
     let mut by_id: HashMap<String, usize> = out.cells.iter().enumerate().map(|(i, c)| (c.id.clone(), i)).collect();
     for (name, r) in it {
         if !force {
             same_run(&out, &r, RESULT_OPTIONS).map_err(|why| format!("{name} does not belong with {first_name}: {why} (--force merges anyway)"))?;
         }
+        if started.contains(&r.started) {
+            return Err(format!("{name} is a run already merged (started {}): merging it twice would double its attempts", r.started));
+        }
+        started.push(r.started.clone());
         names.push(Value::String(name));
         out.complete &= r.complete;
+        // Worker numbers restart in every report: keep them apart.
+        let offset = out.workers.iter().map(|w| w.worker).max().unwrap_or(0);
+        out.workers.extend(r.workers.iter().cloned().map(|mut w| {
+            w.worker += offset;
+            w
+        }));
         let t = &mut out.timing;
         let workers = t.workers_started + r.timing.workers_started;
         if workers > 0 {
@@ -72,7 +85,10 @@ pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport
         t.check_ms += r.timing.check_ms;
         t.overhead_ms += r.timing.overhead_ms;
         t.cells_timed += r.timing.cells_timed;
-        for c in r.cells {
+        for mut c in r.cells {
+            for a in c.attempts.iter_mut() {
+                a.worker += offset;
+            }
             match by_id.get(&c.id) {
                 Some(&i) => join(&mut out.cells[i], c),
                 None => {

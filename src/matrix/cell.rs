@@ -92,9 +92,11 @@ impl Cell {
 
     /// Reordering before the probed read can only be observed by a closest-hit probe (the hit
     /// object's shader runs after the reorder; any-hit and intersection run during traversal,
-    /// before it) whose index differs between invocations.
+    /// before it) whose index differs between invocations. Set-based descriptor models only: no
+    /// driver offers both SER and descriptor heaps yet (the H100's 580 has SER, no heap; lavapipe
+    /// 26 the heap, no SER), so heap × reorder cells could run nowhere.
     pub fn reorder_applies(&self) -> bool {
-        self.canary.is_none() && self.stage == Stage::ClosestHit && self.index == IndexSource::Dynamic
+        self.canary.is_none() && self.stage == Stage::ClosestHit && self.index == IndexSource::Dynamic && self.descriptor_model != DescriptorModel::DescriptorHeap
     }
 
     /// The cell without its workaround.

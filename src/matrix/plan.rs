@@ -308,10 +308,10 @@ mod tests {
         // 8 stages x (4 resources x 5 index variants + AS: 5 descriptor + 4 address + 5 patched) x
         // 2 set-based models, plus the heap model once per heap access way (5 in RT stages, 4 in
         // fragment/compute; as_access=address only mapped_constant_offset and direct).
-        // Each closest-hit cell with a dynamic index (per set-based model 4 x 2 + AS 2 + 1 + 2; per
-        // heap way the same, as_access=address only in 2 ways) again with each reorder value.
+        // Each closest-hit cell with a dynamic index of a set-based model (4 x 2 + AS 2 + 1 + 2, x 2
+        // models) again with each reorder value.
         let per_stage_heap = |ways: usize| (4 * 5 + 10) * ways + 4 * 2;
-        let dynamic_closest_hit = (4 * 2 + 5) * 2 + (4 * 2 + 4) * 5 + 2;
+        let dynamic_closest_hit = (4 * 2 + 5) * 2;
         assert_eq!(n, 8 * (4 * 5 + 14) * 2 + 6 * per_stage_heap(5) + 2 * per_stage_heap(4) + dynamic_closest_hit * 2);
         assert!(cells.iter().all(|c| c.heap_access.is_some() == (c.descriptor_model == DescriptorModel::DescriptorHeap)));
         assert!(cells.iter().all(|c| c.reorder.is_none() || c.reorder_applies()));

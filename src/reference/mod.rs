@@ -125,7 +125,7 @@ fn buffer_value_discriminates(resource: Resource, slots: u32, slot: u32, element
 /// `NonUniform` ([`NO_NONUNIFORM_VUID`]): not after the nonuniform / pin-index patches, and not
 /// where no descriptor is indexed any more (an address table, written so or patched), since a
 /// non-uniform index into memory is well defined.
-fn undefined_descriptor_read(cell: &Cell) -> bool {
+pub fn undefined_descriptor_read(cell: &Cell) -> bool {
     let descriptor_indexed = match cell.as_access {
         None | Some(AsAccess::Descriptor) => true,
         Some(AsAccess::Address | AsAccess::AddressPatched) => false,

@@ -23,8 +23,23 @@ fn esc(s: &str) -> String {
 fn fails(r: &RunReport, c: &super::run_report::CellReport) -> bool {
     match &c.canary_check {
         Some(chk) => !chk.detected,
-        None => c.outcome.is_finding() && expected_by_baseline(r, c).is_none(),
+        None => (c.outcome.is_finding() && expected_by_baseline(r, c).is_none()) || (c.injection_undetected && c.outcome == Outcome::Pass),
     }
+}
+
+/// What fails the run outside the cells: worker faults (setups, between cells, teardowns) and
+/// phases over a baseline's time bound, as (name, failure type, message).
+fn run_level_failures(r: &RunReport) -> Vec<(String, String, String)> {
+    let mut v: Vec<(String, String, String)> = r
+        .workers
+        .iter()
+        .filter(|w| w.outcome.is_finding())
+        .map(|w| (format!("worker-{}.{}", w.worker, w.phase), w.outcome.as_str().to_string(), w.detail.clone().unwrap_or_default()))
+        .collect();
+    if let Some(b) = &r.baseline {
+        v.extend(b.performance.iter().map(|p| (format!("performance.{}", p.split(':').next().unwrap_or("phase")), "performance_regression".to_string(), p.clone())));
+    }
+    v
 }
 
 /// With `--baseline`: the finding is expected there (an expected fault or a known flake).
@@ -39,12 +54,16 @@ fn expected_by_baseline<'a>(r: &'a RunReport, c: &super::run_report::CellReport)
 }
 
 pub fn render(r: &RunReport) -> String {
-    let failures = r.cells.iter().filter(|c| fails(r, c)).count();
+    let run_level = run_level_failures(r);
+    let failures = r.cells.iter().filter(|c| fails(r, c)).count() + run_level.len();
     let skipped = r.cells.iter().filter(|c| matches!(c.outcome, Outcome::Unsupported | Outcome::NotImplemented)).count();
     let mut s = format!(
         "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuites>\n<testsuite name=\"rtprobe\" tests=\"{}\" failures=\"{failures}\" skipped=\"{skipped}\">\n",
-        r.cells.len()
+        r.cells.len() + run_level.len()
     );
+    for (name, kind, message) in &run_level {
+        s += &format!("  <testcase classname=\"rtprobe.run\" name=\"{}\" time=\"0\"><failure type=\"{}\" message=\"{}\"/></testcase>\n", esc(name), esc(kind), esc(message));
+    }
     for c in &r.cells {
         let class = format!("{}.{}", c.cell.stage, c.cell.resource);
         let secs = c.attempts.last().map(|a| a.wall_ms / 1e3).unwrap_or(0.0);
@@ -75,6 +94,9 @@ pub fn render(r: &RunReport) -> String {
             s += &format!("<system-out>{}: {} ({why})</system-out>", esc(&c.outcome.as_str()), reason);
         } else {
             match c.outcome {
+                Outcome::Pass if c.injection_undetected => {
+                    s += &format!("<failure type=\"injection_undetected\" message=\"{} ran and the cell passed\"/>", esc(c.injected.as_deref().unwrap_or("")))
+                }
                 Outcome::Pass => {}
                 Outcome::Unsupported | Outcome::NotImplemented => s += &format!("<skipped message=\"{reason}\"/>"),
                 Outcome::Mismatch | Outcome::DeviceLost | Outcome::Crash | Outcome::Timeout | Outcome::Error => {

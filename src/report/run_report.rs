@@ -54,6 +54,11 @@ pub struct CellReport {
     /// `comparison.element_reads`.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub outside_spec: Option<String>,
+    /// An attempt ran with its injected fault and still passed: `--inject-fault` could not make
+    /// this cell misbehave, so detection on this driver is unproven (the run exits 11 when
+    /// nothing else is wrong).
+    #[serde(skip_serializing_if = "std::ops::Not::not", default)]
+    pub injection_undetected: bool,
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub canary_check: Option<CanaryCheck>,
     /// For a cell with a finding: each workaround tried and its outcome.
@@ -127,6 +132,7 @@ impl CellReport {
             flaky: false,
             injected: None,
             outside_spec: None,
+            injection_undetected: false,
             canary_check: None,
             workarounds: vec![],
             attempts: vec![],
@@ -135,15 +141,24 @@ impl CellReport {
 
     /// Recompute the verdict from every attempt: the worst outcome, its incidence, whether the
     /// attempts disagree, and (for a canary) whether the fault was detected.
+    ///
+    /// Attempts that never ran the cell (its worker's setup failed: `Attempt::not_run`) decide
+    /// the verdict only while the cell has no other attempt: the setup's fault is then the cell's
+    /// outcome (the worker's own record carries it too), but it never counts towards a rate.
     pub fn refresh(&mut self) {
-        let Some(worst) = self.attempts.iter().max_by_key(|a| a.outcome.severity()) else { return };
+        let ran: Vec<&Attempt> = self.attempts.iter().filter(|a| !a.not_run()).collect();
+        let counted: Vec<&Attempt> = if ran.is_empty() { self.attempts.iter().collect() } else { ran };
+        let Some(worst) = counted.iter().max_by_key(|a| a.outcome.severity()) else { return };
         let (outcome, detail) = (worst.outcome, worst.detail.clone());
-        let n = self.attempts.len() as u32;
-        let k = self.attempts.iter().filter(|a| a.outcome.is_finding()).count() as u32;
-        let alone: Vec<&Attempt> = self.attempts.iter().skip(1).filter(|a| a.isolated).collect();
+        let n = counted.len() as u32;
+        let k = counted.iter().filter(|a| a.outcome.is_finding()).count() as u32;
+        let alone: Vec<&&Attempt> = counted.iter().skip(1).filter(|a| a.isolated).collect();
         self.outcome = outcome;
-        self.flaky = self.attempts.iter().any(|a| a.outcome != outcome);
-        self.confirmed = (n > 1).then(|| self.attempts.iter().filter(|a| a.outcome == outcome).count() > 1);
+        self.flaky = counted.iter().any(|a| a.outcome != outcome);
+        self.confirmed = (n > 1).then(|| counted.iter().filter(|a| a.outcome == outcome).count() > 1);
+        // An injected fault that an attempt ran with (armed, for flaky) and that still passed:
+        // detection is unproven there, as with an undetected canary.
+        self.injection_undetected = self.attempts.iter().any(|a| a.outcome == Outcome::Pass && a.injected.as_ref().is_some_and(|i| i.armed != Some(false)));
         self.incidence = outcome.is_finding().then(|| Incidence {
             faulted: k,
             attempts: n,
@@ -151,8 +166,8 @@ impl CellReport {
             miss_probability: miss_probability(k as f64 / n as f64, n),
         });
         self.injected = self.attempts.iter().find_map(|a| a.injected.as_ref()).map(|i| i.spec.clone());
-        let rule = self.element_reads().next().map(|e| e.outside_spec.clone());
-        self.outside_spec = rule;
+        // Labelled from the cell's shape, so a cell that crashed (no comparison) carries it too.
+        self.outside_spec = crate::reference::undefined_descriptor_read(&self.cell).then(|| crate::reference::NO_NONUNIFORM_VUID.to_string());
         self.reason = match (&self.incidence, detail) {
             (Some(inc), d) if n > 1 => Some(format!("{} ({})", d.unwrap_or_else(|| outcome.as_str().into()), inc.label())),
             (_, d) => d,
@@ -213,6 +228,12 @@ pub struct Tally {
     pub flaky: usize,
     pub canaries_detected: usize,
     pub canaries_undetected: usize,
+    /// Cells whose `--inject-fault` ran and still passed.
+    #[serde(default)]
+    pub injections_undetected: usize,
+    /// Worker faults outside any cell (failed setups, crashes between cells, hung teardowns).
+    #[serde(default)]
+    pub worker_faults: usize,
 }
 
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
@@ -261,6 +282,32 @@ pub struct RunReport {
 }
 
 impl RunReport {
+    /// A minimal complete report holding `cells` (unit tests of reporters and fleet tools).
+    #[cfg(test)]
+    pub fn for_tests(cells: Vec<CellReport>) -> RunReport {
+        let mut r = RunReport {
+            schema: SCHEMA.into(),
+            tool: serde_json::json!({ "name": "rtprobe", "version": "test" }),
+            command_line: vec![],
+            started: String::new(),
+            finished: None,
+            complete: true,
+            device: serde_json::json!({ "name": "test device" }),
+            matrix_support: serde_json::json!({}),
+            scene: SceneSummary { params: SceneParams::default(), instances: 16, blas: 4, triangles: 0, ambiguous_pixels: 0 },
+            options: serde_json::json!({}),
+            plan: PlanSummary { generated: 0, filtered_out: 0, planned: cells.len(), to_run: cells.len(), unsupported: 0, not_implemented: 0, not_generated: vec![], sharded_out: 0 },
+            summary: Default::default(),
+            tally: Default::default(),
+            timing: TimingSummary::default(),
+            baseline: None,
+            workers: vec![],
+            cells,
+        };
+        r.recount();
+        r
+    }
+
     /// The outcome counts, every outcome present.
     /// The outcome counts of the probe cells (every outcome present; canaries are tallied apart,
     /// since their expected outcome is a fault), and the tally of findings, flaky cells and
@@ -279,6 +326,8 @@ impl RunReport {
             }
         }
         t.findings = self.findings().count();
+        t.injections_undetected = self.cells.iter().filter(|c| c.injection_undetected).count();
+        t.worker_faults = self.workers.iter().filter(|w| w.outcome.is_finding()).count();
         t.flaky = self.findings().filter(|c| c.flaky).count();
         self.summary = m;
         self.tally = t;
@@ -360,10 +409,11 @@ impl ReportWriter {
         self.report.recount();
     }
 
-    /// Cells already run (for --resume): every cell with an attempt. Follow-ups (confirmation,
-    /// repeats, workarounds) are chosen from the report's state, so a resumed run finishes them.
+    /// Cells already run (for --resume): every cell with an attempt that ran it (not only failed
+    /// setups). Follow-ups (confirmation, repeats, workarounds) are chosen from the report's
+    /// state, so a resumed run finishes them.
     pub fn done(&self) -> std::collections::HashSet<String> {
-        self.report.cells.iter().filter(|c| !c.attempts.is_empty()).map(|c| c.id.clone()).collect()
+        self.report.cells.iter().filter(|c| c.attempts.iter().any(|a| !a.not_run())).map(|c| c.id.clone()).collect()
     }
 
     pub fn record(&mut self, cell: &Cell, attempt: Attempt) {
@@ -414,7 +464,7 @@ mod tests {
     }
 
     fn attempt(outcome: Outcome, isolated: bool) -> Attempt {
-        Attempt { outcome, isolated, detail: Some(format!("{} happened", outcome.as_str())), result: None, worker_exit: None, injected: None, wall_ms: 1.0, phase: None, worker: 0, device_features: vec![] }
+        Attempt::for_tests(outcome, isolated)
     }
 
     #[test]

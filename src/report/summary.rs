@@ -68,9 +68,22 @@ pub fn render(r: &RunReport) -> String {
     if !vcells.is_empty() {
         let _ = writeln!(s, "validation errors in {} cells (rtprobe misused the API there; their outcomes prove nothing): first {}", vcells.len(), vcells[0].id);
     }
+    let undetected: Vec<_> = r.cells.iter().filter(|c| c.injection_undetected).collect();
+    if let Some(first) = undetected.first() {
+        let _ = writeln!(
+            s,
+            "❌ injected faults NOT detected in {} cells (the injection ran and the cell passed: detection unproven here), first {} ({})",
+            undetected.len(),
+            first.id,
+            first.injected.as_deref().unwrap_or("")
+        );
+    }
     let findings: Vec<_> = r.findings().collect();
     let not_run = r.plan.unsupported + r.plan.not_implemented;
-    if findings.is_empty() && not_run > 0 {
+    let worker_faults = r.workers.iter().filter(|w| w.outcome.is_finding()).count();
+    if findings.is_empty() && worker_faults > 0 {
+        let _ = writeln!(s, "no cell faulted or mismatched, but {worker_faults} worker faults outside cells (above) fail the run");
+    } else if findings.is_empty() && not_run > 0 {
         let _ = writeln!(
             s,
             "no faults or mismatches in the {} cells that ran; {} planned cells did not run ({} unsupported by the device, {} not implemented in rtprobe)",

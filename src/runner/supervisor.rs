@@ -101,6 +101,12 @@ pub struct Attempt {
 }
 
 impl Attempt {
+    /// An attempt with only an outcome (unit tests of reporters and fleet tools).
+    #[cfg(test)]
+    pub fn for_tests(outcome: Outcome, isolated: bool) -> Attempt {
+        Attempt { outcome, isolated, detail: Some(format!("{} happened", outcome.as_str())), result: None, worker_exit: None, injected: None, wall_ms: 1.0, phase: None, worker: 0, device_features: vec![] }
+    }
+
     /// The cell never ran: its worker's setup failed.
     pub fn not_run(&self) -> bool {
         self.phase == Some(Phase::Setup)
