@@ -15,3 +15,4 @@ pub mod outcome;
 pub mod exec;
 pub mod runner;
 pub mod patches;
+pub mod bisect;
