@@ -315,8 +315,15 @@ impl<'o> Bisector<'o> {
 
     /// Drop the terms that do not restrict the scope, then every term ddmin can.
     fn reduce(&mut self, f: Filter) -> Filter {
-        let terms: Vec<(String, Vec<String>)> = f.terms.into_iter().filter(|(a, v)| self.scope_values(a).iter().any(|x| !v.contains(x))).collect();
-        let kept = ddmin::ddmin(&terms, &mut |sub| self.holds(&Filter { terms: sub.to_vec() }));
+        // Reversed, so that among equivalent results ddmin keeps the primary axes (as_access=none
+        // says resource≠acceleration_structure; nonuniform=true says index=dynamic).
+        let terms: Vec<(String, Vec<String>)> = f.terms.into_iter().rev().filter(|(a, v)| self.scope_values(a).iter().any(|x| !v.contains(x))).collect();
+        let mut kept = ddmin::ddmin(&terms, &mut |sub| {
+            let mut t = sub.to_vec();
+            t.reverse();
+            self.holds(&Filter { terms: t })
+        });
+        kept.reverse();
         Filter { terms: kept }
     }
 

@@ -64,7 +64,7 @@ const SCOPE: &str = "descriptor_model=descriptor_indexing,resource=storage_buffe
 
 #[test]
 fn single_axis_two_axis_and_value_sets_are_recovered_exactly() {
-    for truth in ["index=dynamic", "stage=closest_hit,index=dynamic", "stage=raygen|miss,resource=uniform_buffer", "resource=acceleration_structure,as_access=address|address_patched"] {
+    for truth in ["index=dynamic", "stage=closest_hit,index=dynamic", "stage=raygen|miss,resource=uniform_buffer", "resource=storage_buffer|uniform_buffer,index=push_constant|dynamic"] {
         let (r, runs) = bisect(&[truth], 1.0, SCOPE, SCOPE);
         assert!(r.separable, "{truth}");
         assert_eq!(r.minimal, truth);
@@ -76,6 +76,17 @@ fn single_axis_two_axis_and_value_sets_are_recovered_exactly() {
         assert!(r.isolation[0].faults());
         assert!(r.isolation.iter().skip(1).any(|l| !l.faults()), "{truth}: a passing sibling");
     }
+}
+
+#[test]
+fn a_redundant_predicate_comes_back_as_an_equivalent_set() {
+    // as_access=address|address_patched already implies resource=acceleration_structure.
+    let truth = "resource=acceleration_structure,as_access=address|address_patched";
+    let (r, _) = bisect(&[truth], 1.0, SCOPE, SCOPE);
+    let (t, m) = (Filter::parse(truth).unwrap(), Filter::parse(&r.minimal).unwrap());
+    let sc = scope(SCOPE);
+    assert!(sc.iter().all(|c| t.matches(c) == m.matches(c)), "{} is not equivalent to {truth}", r.minimal);
+    assert!(m.terms.len() <= 2);
 }
 
 #[test]
