@@ -45,6 +45,9 @@ pub struct IsolationLine {
     /// For a pass: the chance that a fault of the observed rate missed all its attempts.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub miss_probability: Option<f64>,
+    /// The verdict's reason, for an `error` (rtprobe could not run the cell).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub reason: Option<String>,
     /// The `--inject-fault` argument that applied to the cell, if any.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub injected: Option<String>,
@@ -61,7 +64,9 @@ impl IsolationLine {
 /// probability (`None`: no estimate).
 pub fn line(cell: &Cell, varied: Option<&str>, verdicts: &Verdicts, rate: Option<f64>) -> IsolationLine {
     let description = describe(cell);
-    let (verdict, agreeing, attempts, miss, injected) = match verdicts.get(cell).filter(|r| !r.attempts.is_empty()) {
+    let report = verdicts.get(cell).filter(|r| !r.attempts.is_empty());
+    let reason = report.filter(|r| r.outcome == crate::outcome::Outcome::Error).and_then(|r| r.reason.clone());
+    let (verdict, agreeing, attempts, miss, injected) = match report {
         None => ("not_run".to_string(), 0, 0, None, None),
         Some(r) => {
             let n = r.attempts.len() as u32;
@@ -78,10 +83,11 @@ pub fn line(cell: &Cell, varied: Option<&str>, verdicts: &Verdicts, rate: Option
         ("not_run", _) => "❔ not run".to_string(),
         ("pass", Some(m)) if m > 0.0 => format!("✅ passes ({agreeing}/{attempts}; miss probability {})", percent(m)),
         ("pass", _) => format!("✅ passes ({agreeing}/{attempts})"),
+        ("error", _) => format!("⚠ error ({agreeing}/{attempts}): {}", reason.as_deref().unwrap_or("no detail")),
         (v, _) => format!("❌ {v} ({agreeing}/{attempts})"),
     };
     let line = format!("{description}: {evidence}");
-    IsolationLine { cell: cell.id(), varied: varied.map(String::from), description, verdict, agreeing, attempts, miss_probability: miss, injected, line }
+    IsolationLine { cell: cell.id(), varied: varied.map(String::from), description, verdict, agreeing, attempts, miss_probability: miss, reason, injected, line }
 }
 
 /// A probability as a short percentage (`0.78%`, `< 0.01%`).

@@ -31,7 +31,9 @@
 //! injects into patched cells too (the injected load survives every SPIR-V patch), so no
 //! workaround passes. The workaround lines say when the verdict is decided by the injection.
 pub mod ddmin;
+pub mod file;
 pub mod isolation;
+pub mod scope;
 
 use crate::matrix::inject::{for_cell, Injection};
 use crate::matrix::{Cell, Filter};
@@ -435,6 +437,7 @@ impl<'o> Bisector<'o> {
         let (inj_rep, inj_patched) = (for_cell(&self.inject, rep), for_cell(&self.inject, patched));
         let note = match (inj_rep, inj_patched, l.verdict.as_str()) {
             (_, _, "not_run") => "",
+            (_, _, "error") => " — rtprobe could not run the patched cell: no evidence either way",
             (Some(_), None, _) => " — not a workaround: the injection predicate excludes patched cells (patch=none), so the fault is simply not injected",
             (Some(_), Some(_), _) => " — the injected fault survives the SPIR-V patch; this says nothing about a driver",
             (None, _, "pass") => " — verified workaround",

@@ -1,9 +1,12 @@
 //! The command line: clap definitions ([`args`]), exit codes ([`exit`]), and dispatch. Nothing
 //! below this module knows about clap.
 pub mod args;
+pub mod bisect;
 pub mod commands;
 pub mod exit;
 pub mod patch;
+pub mod repro;
+pub mod report;
 pub mod run;
 
 use args::{Cli, Command};
@@ -37,6 +40,9 @@ pub fn main_entry() -> u8 {
         Command::Caps(a) => commands::caps_cmd(&g, a),
         Command::Run(a) => run::run(&g, a),
         Command::Patch(a) => patch::patch(a),
+        Command::Bisect(a) => bisect::bisect(&g, a),
+        Command::Report(a) => report::report(a),
+        Command::Repro(a) => repro::repro(&g, a),
         Command::Worker { job } => return crate::runner::worker::main(job),
     };
     match result {

@@ -2,7 +2,9 @@
 //! terminal summary.
 pub mod atomic;
 pub mod junit;
+pub mod issue;
 pub mod run_report;
+pub mod shaders;
 pub mod summary;
 pub mod time;
 
