@@ -162,3 +162,19 @@ fn workarounds_say_when_the_injection_decides_them() {
         assert!(w.line.contains("not a workaround"), "{}", w.line);
     }
 }
+
+#[test]
+fn with_every_patched_variant_in_scope_a_patch_none_predicate_comes_back() {
+    // A `--patches all` report: the patch axis is sampled, and `patch=none` is a real term.
+    let sc: Vec<Cell> = scope("descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit")
+        .into_iter()
+        .flat_map(|c| std::iter::once(c).chain(c.applicable_patches().into_iter().map(move |p| Cell { patch: Some(p), ..c })))
+        .collect();
+    let truth = "stage=closest_hit,index=dynamic,patch=none";
+    let mut sim = Sim::new(&[truth], 1.0);
+    let v = report(&mut sim, &sc);
+    let mut b = Bisector::new(sc, v, &mut sim, Settings::default(), vec![]);
+    let r = b.bisect(None, &|_| true).unwrap();
+    assert_eq!(r.minimal, truth);
+    assert!(!r.not_varied.contains(&"patch".to_string()));
+}

@@ -244,7 +244,7 @@ pub fn build(report: &RunReport, report_path: &str, b: &BisectFile, inject: &[In
 fn actual_text(rep: Option<&CellReport>, outcome: Outcome) -> String {
     let Some(c) = rep else { return format!("{} (the cell ran during bisection; see the bisection file)", outcome.as_str()) };
     let worst = c.attempts.iter().max_by_key(|a| a.outcome.severity());
-    let mut t = format!("{}: {}", outcome.as_str(), c.reason.clone().unwrap_or_else(|| outcome.as_str().into()));
+    let mut t = format!("{} (in the run report): {}", outcome.as_str(), c.reason.clone().unwrap_or_else(|| outcome.as_str().into()));
     if let Some(a) = worst {
         if let Some(cmp) = a.result.as_ref().and_then(|r| r.comparison.as_ref()).filter(|c| !c.passed()) {
             let fields: Vec<String> = cmp.by_field.iter().filter(|(_, n)| **n > 0).map(|(f, n)| format!("{f} {n}")).collect();
