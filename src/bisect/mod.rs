@@ -22,7 +22,9 @@
 //!    it can: a wider conjunction is kept when no cell of the scope in it passes. Cells in it
 //!    without a verdict are run (in small batches, stopping at the first pass); when that turns
 //!    up a faulting cell outside the conjunction, bisection starts over with it.
-//! 5. The isolation list: the minimal failing cell and, per axis, its closest siblings in the
+//! 5. Cells rtprobe could not run (`error`) are evidence of nothing: neither faulting nor
+//!    passing; they are listed.
+//! 6. The isolation list: the minimal failing cell and, per axis, its closest siblings in the
 //!    scope (run if unknown); then each workaround patch that applies to it (verified by runs).
 //!
 //! Injection and the patch axis: `--inject-fault` predicates match the `patch` axis like any
@@ -37,6 +39,7 @@ pub mod scope;
 
 use crate::matrix::inject::{for_cell, Injection};
 use crate::matrix::{Cell, Filter};
+use crate::outcome::Outcome;
 use crate::report::run_report::{CellReport, RunReport};
 use crate::runner::supervisor::Attempt;
 use isolation::IsolationLine;
@@ -57,6 +60,9 @@ pub const MIN_RATE_ATTEMPTS: u32 = 8;
 pub enum State {
     Fault,
     Pass,
+    /// rtprobe could not run it (`error`): no evidence about the driver either way, so it is
+    /// neither a faulting cell nor a passing one, and is not run again.
+    Error,
     /// Never ran (or unsupported).
     Unknown,
 }
@@ -99,10 +105,11 @@ impl Verdicts {
     pub fn state(&self, c: &Cell) -> State {
         match self.get(c).filter(|r| !r.attempts.is_empty()) {
             None => State::Unknown,
-            Some(r) if r.outcome.is_finding() => State::Fault,
             Some(r) => match r.outcome {
-                crate::outcome::Outcome::Unsupported => State::Unknown,
-                _ => State::Pass,
+                Outcome::Error => State::Error,
+                Outcome::Mismatch | Outcome::DeviceLost | Outcome::Crash | Outcome::Timeout => State::Fault,
+                Outcome::Pass => State::Pass,
+                Outcome::Unsupported => State::Unknown,
             },
         }
     }
@@ -175,6 +182,9 @@ pub struct Bisection {
     pub scope_cells: usize,
     /// Cells of the scope with no verdict (never needed, or offline).
     pub not_run: usize,
+    /// Cells of the scope rtprobe could not run (`error`): used neither as faults nor as passes.
+    #[serde(default)]
+    pub errored: Vec<String>,
     /// Attempts bisection ran itself.
     pub runs: usize,
     /// Axes with a single value in the scope: the conjunction says nothing about them.
@@ -402,6 +412,7 @@ impl<'o> Bisector<'o> {
             faulting_cells: faulting.len(),
             scope_cells: self.scope.len(),
             not_run: self.scope.iter().filter(|c| self.verdicts.state(c) == State::Unknown).count(),
+            errored: self.scope.iter().filter(|c| self.verdicts.state(c) == State::Error).map(|c| c.id()).collect(),
             runs: self.verdicts.runs,
             not_varied: AXES.iter().filter(|a| self.scope_values(a).len() < 2).map(|a| a.to_string()).collect(),
         })
@@ -488,6 +499,9 @@ pub fn render(b: &Bisection, full_matrix: usize) -> String {
     }
     if !b.unsettled.is_empty() {
         s += &format!("WARNING: {} passing cell(s) below the threshold (attempt cap or offline): {}\n", b.unsettled.len(), b.unsettled.join(", "));
+    }
+    if !b.errored.is_empty() {
+        s += &format!("not evidence (rtprobe could not run them, `error`): {}\n", b.errored.join(", "));
     }
     if !b.not_varied.is_empty() {
         s += &format!("not varied in this scope (the result says nothing about them): {}\n", b.not_varied.join(", "));

@@ -178,3 +178,32 @@ fn with_every_patched_variant_in_scope_a_patch_none_predicate_comes_back() {
     assert_eq!(r.minimal, truth);
     assert!(!r.not_varied.contains(&"patch".to_string()));
 }
+
+#[test]
+fn cells_rtprobe_could_not_run_count_neither_way() {
+    // An `error` inside the fault's region neither blocks the conjunction nor joins it.
+    struct WithError(Sim, String);
+    impl Oracle for WithError {
+        fn run(&mut self, cells: &[Cell], isolated: bool, verdicts: &mut Verdicts) {
+            for c in cells {
+                if c.id() == self.1 {
+                    verdicts.record(c, Attempt { outcome: Outcome::Error, isolated, detail: Some("could not".into()), result: None, worker_exit: None, injected: None, wall_ms: 0.0 });
+                } else {
+                    self.0.run(std::slice::from_ref(c), isolated, verdicts);
+                }
+            }
+        }
+        fn can_run(&self) -> bool {
+            true
+        }
+    }
+    let sc = scope("descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit");
+    let mut o = WithError(Sim::new(&["index=dynamic"], 1.0), "raygen.storage_buffer.dynamic.descriptor_indexing".into());
+    let mut v = Verdicts::default();
+    o.run(&sc, false, &mut v);
+    let mut b = Bisector::new(sc, v, &mut o, Settings::default(), vec![]);
+    let r = b.bisect(None, &|_| true).unwrap();
+    assert_eq!(r.minimal, "index=dynamic");
+    assert_eq!(r.errored, vec!["raygen.storage_buffer.dynamic.descriptor_indexing".to_string()]);
+    assert_eq!(r.faulting_cells, 3);
+}

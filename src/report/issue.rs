@@ -312,6 +312,9 @@ fn not_tested(report: &RunReport, b: &BisectFile) -> Vec<String> {
     if bi.not_run > 0 {
         v.push(format!("{} cells of the scope never ran (bisection did not need them).", bi.not_run));
     }
+    if !bi.errored.is_empty() {
+        v.push(format!("{} cells of the scope could not be run by rtprobe (`error`), so they count neither way: {}.", bi.errored.len(), bi.errored.join(", ")));
+    }
     if !bi.unsettled.is_empty() {
         v.push(format!("{} passing cells have fewer attempts than a miss probability below {} needs: {}.", bi.unsettled.len(), percent(bi.max_miss), bi.unsettled.join(", ")));
     }
