@@ -49,7 +49,12 @@ struct SupervisorOracle {
 
 impl Oracle for SupervisorOracle {
     fn run(&mut self, cells: &[Cell], isolated: bool, verdicts: &mut Verdicts) {
-        tracing::info!("bisect: running {} cell(s){}", cells.len(), if isolated { ", each alone" } else { "" });
+        let msg = format!("bisect: running {} cell(s){} ({} run so far)", cells.len(), if isolated { ", each alone" } else { "" }, verdicts.runs);
+        if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+            eprintln!("{msg}");
+        } else {
+            tracing::info!("{msg}");
+        }
         self.sup.run(cells, isolated, &mut |ev| {
             if let Event::Attempt { cell, attempt } = ev {
                 verdicts.record(cell, attempt);

@@ -74,7 +74,29 @@ impl CellSpec {
 }
 
 fn write(dir: &Path, name: &str, bytes: &[u8]) -> Result<()> {
-    write_atomic(&dir.join(name), bytes).with_context(|| format!("writing the repro bundle in {}", dir.display()))
+    write_atomic(&dir.join(name), bytes).context("writing the repro bundle")
+}
+
+/// Move the bundle built in `tmp` to `out`: one rename when `out` does not exist, else file by
+/// file (the files it holds are replaced; others are left). A failure before this leaves `out`
+/// as it was.
+fn publish(tmp: &Path, out: &Path) -> Result<()> {
+    let ctx = || format!("writing the repro bundle in {}", out.display());
+    if !out.exists() {
+        return std::fs::rename(tmp, out).with_context(ctx);
+    }
+    for sub in ["", "shaders"] {
+        let from = tmp.join(sub);
+        let Ok(entries) = std::fs::read_dir(&from) else { continue };
+        std::fs::create_dir_all(out.join(sub)).with_context(ctx)?;
+        for e in entries.flatten() {
+            if e.path().is_file() {
+                std::fs::rename(e.path(), out.join(sub).join(e.file_name())).with_context(ctx)?;
+            }
+        }
+    }
+    let _ = std::fs::remove_dir_all(tmp);
+    Ok(())
 }
 
 pub fn repro(g: &Globals, a: &ReproArgs) -> Result<u8> {
@@ -84,10 +106,35 @@ pub fn repro(g: &Globals, a: &ReproArgs) -> Result<u8> {
     let entry = report.cells.iter().find(|c| c.id == a.cell);
     let inject: Vec<&Injection> = for_cell(&ro.inject, &cell).into_iter().collect();
     let shaders = cell_shaders(&cell, inject.first().map(|i| i.fault)).map_err(|e| coded(exit::INTERNAL, format!("{}: {e}", cell.id())))?;
-    let dir = &a.out;
+    let name = a.out.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "repro".into());
+    let tmp = a.out.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
+    if let Some(parent) = a.out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent).map_err(|e| coded(exit::BAD_INPUT, format!("cannot create {}: {e}", parent.display())))?;
+    }
+    let built = build(g, a, &report, &ro, cell, entry, &inject, &shaders, &tmp);
+    let result = built.and_then(|()| publish(&tmp, &a.out));
+    let _ = std::fs::remove_dir_all(&tmp);
+    result?;
+    println!("repro bundle: {} ({} shaders); re-run: rtprobe run --cell-spec {}/cell.json", a.out.display(), shaders.len(), a.out.display());
+    Ok(exit::OK)
+}
+
+/// Write the bundle into `dir` (a temporary directory).
+#[allow(clippy::too_many_arguments)]
+fn build(
+    g: &Globals,
+    a: &ReproArgs,
+    report: &crate::report::run_report::RunReport,
+    ro: &ReportOptions,
+    cell: Cell,
+    entry: Option<&crate::report::run_report::CellReport>,
+    inject: &[&Injection],
+    shaders: &[crate::report::shaders::Shader],
+    dir: &Path,
+) -> Result<()> {
     let mut listing = Vec::new();
     let mut disassembled = true;
-    for s in &shaders {
+    for s in shaders {
         let f = s.role.file_name();
         write(dir, &format!("shaders/{f}.glsl"), s.glsl.as_bytes())?;
         write(dir, &format!("shaders/{f}.spv"), &spirv_bytes(&s.spirv))?;
@@ -115,7 +162,7 @@ pub fn repro(g: &Globals, a: &ReproArgs) -> Result<u8> {
     };
     write(dir, "cell.json", &(serde_json::to_vec_pretty(&spec)? ))?;
     // The caps of the report's device, when it is on this machine.
-    let caps_note = match report_device(g, &report) {
+    let caps_note = match report_device(g, report) {
         Ok((inst, info)) => {
             let caps = crate::caps::caps_json(&info, inst.loader_version, None);
             write(dir, "caps.json", &serde_json::to_vec_pretty(&caps)?)?;
@@ -130,12 +177,10 @@ pub fn repro(g: &Globals, a: &ReproArgs) -> Result<u8> {
         entry.map(|c| c.outcome.as_str()).unwrap_or("not in the report"),
         entry.and_then(|c| c.reason.clone()).unwrap_or_default(),
         if spec.inject.is_empty() { "nothing".into() } else { spec.inject.join("; ") },
-        dir.display(),
+        a.out.display(),
         listing.join(", "),
         if disassembled { ", .spvasm from spirv-dis" } else { "; spirv-dis is not installed, so no .spvasm" },
         caps_note
     );
-    write(dir, "README.txt", readme.as_bytes())?;
-    println!("repro bundle: {} ({} shaders); re-run: rtprobe run --cell-spec {}/cell.json", dir.display(), shaders.len(), dir.display());
-    Ok(exit::OK)
+    write(dir, "README.txt", readme.as_bytes())
 }
