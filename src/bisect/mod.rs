@@ -251,7 +251,9 @@ impl<'o> Bisector<'o> {
         if !unknown.is_empty() {
             self.oracle.run(&unknown, false, &mut self.verdicts);
         }
-        loop {
+        let mut last = usize::MAX;
+        // Each round adds attempts; one that adds none (the oracle gave up) ends it.
+        while std::mem::replace(&mut last, self.verdicts.runs) != self.verdicts.runs {
             let (rate, evidence) = self.fault_rate();
             if evidence < MIN_RATE_ATTEMPTS {
                 let mut f: Vec<Cell> = self.faulting().into_iter().filter(|c| self.verdicts.attempts(c) < self.settings.max_attempts).collect();
@@ -364,19 +366,27 @@ impl<'o> Bisector<'o> {
     /// Find the minimal description, then build the isolation list around `cell` (or the first
     /// faulting cell) and try its workarounds (`patch_supported` says which the device can run).
     pub fn bisect(&mut self, cell: Option<&str>, patch_supported: &dyn Fn(&Cell) -> bool) -> Result<Bisection, BisectError> {
-        let known: Vec<Cell> = self.scope.iter().filter(|c| self.verdicts.state(c) != State::Unknown).copied().collect();
-        self.settle(&known);
         let (separable, conjunctions) = loop {
+            let start = self.verdicts.runs;
+            let known: Vec<Cell> = self.scope.iter().filter(|c| self.verdicts.state(c) != State::Unknown).copied().collect();
+            self.settle(&known);
             let faulting = self.faulting();
             if faulting.is_empty() {
                 return Err(BisectError::NoFault);
             }
             let tight = self.tight(&faulting);
             let (separable, cs) = if self.holds(&tight) { (true, vec![self.reduce(tight)]) } else { (false, self.disjunction(&faulting)) };
-            // Runs made on the way may have found faulting cells outside: start over with them.
-            if self.faulting().iter().all(|f| cs.iter().any(|c| c.matches(f))) {
+            // Runs made on the way may have found faulting cells outside, or lowered the fault
+            // rate so that earlier passes need more attempts: then start over (a "holds" stays
+            // true, since a fault is never reversed; a pass may still turn into a fault).
+            let covered = self.faulting().iter().all(|f| cs.iter().any(|c| c.matches(f)));
+            let need = self.attempts_needed(self.fault_rate().0);
+            let settled = !self.oracle.can_run() || self.scope.iter().all(|c| self.verdicts.state(c) != State::Pass || self.verdicts.attempts(c) >= need);
+            // (A round that ran nothing cannot change anything: the oracle gave up.)
+            if (covered && settled) || self.verdicts.runs == start {
                 break (separable, cs);
             }
+            self.memo.retain(|_, holds| *holds);
         };
         let faulting = self.faulting();
         let rep = match cell {

@@ -207,3 +207,21 @@ fn cells_rtprobe_could_not_run_count_neither_way() {
     assert_eq!(r.errored, vec!["raygen.storage_buffer.dynamic.descriptor_indexing".to_string()]);
     assert_eq!(r.faulting_cells, 3);
 }
+
+#[test]
+fn an_oracle_that_adds_nothing_ends_the_bisection() {
+    // Runs that come back with no attempt (a supervisor that could not run them) must not loop.
+    struct Deaf;
+    impl Oracle for Deaf {
+        fn run(&mut self, _: &[Cell], _: bool, _: &mut Verdicts) {}
+        fn can_run(&self) -> bool {
+            true
+        }
+    }
+    let sc = scope("descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit");
+    let mut sim = Sim::new(&["index=dynamic"], 1.0);
+    let v = report(&mut sim, &sc[..6]);
+    let mut deaf = Deaf;
+    let r = Bisector::new(sc, v, &mut deaf, Settings::default(), vec![]).bisect(None, &|_| true).unwrap();
+    assert!(!r.unsettled.is_empty() || r.fault_rate.is_none());
+}

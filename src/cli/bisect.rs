@@ -11,7 +11,7 @@ use crate::matrix::plan::{self, PatchMode, PlanOptions};
 use crate::matrix::Cell;
 use crate::report::run_report::RunReport;
 use crate::report::write_atomic;
-use crate::runner::supervisor::{Event, Supervisor};
+use crate::runner::supervisor::{Event, Supervisor, SupervisorOptions};
 use crate::vk::{features, DeviceInfo, Instance};
 use anyhow::{Context, Result};
 use std::path::Path;
@@ -42,9 +42,11 @@ pub(crate) fn report_device(g: &Globals, r: &RunReport) -> Result<(Arc<Instance>
     Ok((inst, info))
 }
 
-/// Runs cells through the supervisor with the report's scene and injections.
+/// Runs cells through the supervisor with the report's scene and injections. A fresh
+/// `Supervisor` per batch: a message a killed worker of an earlier batch sent late must not
+/// reach a later batch (the supervisor indexes its slots by the sender's slot number).
 struct SupervisorOracle {
-    sup: Supervisor,
+    opts: SupervisorOptions,
 }
 
 impl Oracle for SupervisorOracle {
@@ -55,7 +57,7 @@ impl Oracle for SupervisorOracle {
         } else {
             tracing::info!("{msg}");
         }
-        self.sup.run(cells, isolated, &mut |ev| {
+        Supervisor::new(self.opts.clone()).run(cells, isolated, &mut |ev| {
             if let Event::Attempt { cell, attempt } = ev {
                 verdicts.record(cell, attempt);
             }
@@ -106,7 +108,7 @@ pub fn bisect(g: &Globals, a: &BisectArgs) -> Result<u8> {
         let jobs = a.jobs.or(ro.jobs).unwrap_or_else(|| super::run::default_jobs(&info));
         let opts = super::run::supervisor_options(info.index, report.scene.params, jobs, ro.isolation, ro.timeout_s, ro.validate || g.validate, ro.inject.clone());
         let job_dir = opts.job_dir.clone();
-        let mut oracle = SupervisorOracle { sup: Supervisor::new(opts) };
+        let mut oracle = SupervisorOracle { opts };
         let supported = |c: &Cell| plan::device_support(&info, c).is_supported();
         let settings = Settings { batch: 2 * jobs, ..settings };
         let r = Bisector::new(scope, verdicts, &mut oracle, settings, ro.inject.clone()).bisect(a.cell.as_deref(), &supported);

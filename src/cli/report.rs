@@ -29,7 +29,7 @@ pub fn report(a: &ReportArgs) -> Result<u8> {
             BisectFile::new(&a.report, &r, &filters, &ro.inject, true, bi)
         }
     };
-    let issue = issue::build(&r, &a.report.display().to_string(), &b, &ro.inject);
+    let issue = issue::build(&r, &a.report.display().to_string(), &b, &ro.inject).map_err(|e| coded(exit::BAD_INPUT, e))?;
     let text = match a.format {
         Format::Md => issue.markdown(),
         Format::Json => serde_json::to_string_pretty(&issue)? + "\n",

@@ -126,7 +126,7 @@ pub fn exact_filter(c: &Cell) -> String {
 }
 
 /// Build the issue for `report` and its bisection.
-pub fn build(report: &RunReport, report_path: &str, b: &BisectFile, inject: &[Injection]) -> Issue {
+pub fn build(report: &RunReport, report_path: &str, b: &BisectFile, inject: &[Injection]) -> Result<Issue, String> {
     let bi = &b.bisection;
     let d = &report.device;
     let (os, kernel) = os_and_kernel();
@@ -142,7 +142,7 @@ pub fn build(report: &RunReport, report_path: &str, b: &BisectFile, inject: &[In
         kernel,
         rtprobe: s(&report.tool["version"]),
     };
-    let rep = cell_by_id(&bi.representative).expect("bisection names a matrix cell");
+    let rep = cell_by_id(&bi.representative).ok_or_else(|| format!("the bisection's minimal failing cell {:?} is not a cell id", bi.representative))?;
     let rep_line = bi.isolation.first();
     let rep_report: Option<&CellReport> = report.cells.iter().find(|c| c.id == bi.representative);
     let outcome = rep_report.map(|c| c.outcome).or_else(|| rep_line.and_then(|l| Outcome::ALL.iter().copied().find(|o| o.as_str() == l.verdict))).unwrap_or(Outcome::Error);
@@ -219,7 +219,7 @@ pub fn build(report: &RunReport, report_path: &str, b: &BisectFile, inject: &[In
     let reproduce = reproduce_commands(report, report_path, &rep, injection);
     let workarounds = if bi.workarounds.is_empty() { vec!["No workaround patch applies to this cell.".into()] } else { bi.workarounds.iter().map(|w| w.line.clone()).collect() };
     let not_tested = not_tested(report, b);
-    Issue {
+    Ok(Issue {
         schema: SCHEMA.into(),
         title,
         injected,
@@ -238,7 +238,7 @@ pub fn build(report: &RunReport, report_path: &str, b: &BisectFile, inject: &[In
         reproduce,
         workarounds,
         not_tested,
-    }
+    })
 }
 
 fn actual_text(rep: Option<&CellReport>, outcome: Outcome) -> String {
