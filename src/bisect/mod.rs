@@ -47,7 +47,9 @@ use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 
 /// The axes bisection reduces over: every axis of a cell except `canary`.
-pub const AXES: &[&str] = &["stage", "resource", "index", "nonuniform", "as_access", "descriptor_model", "patch"];
+pub fn axes() -> impl Iterator<Item = &'static str> {
+    crate::matrix::cell::AXIS_NAMES.iter().copied().filter(|a| *a != "canary")
+}
 /// Default: a pass may hide a fault of the observed rate with at most this probability.
 pub const DEFAULT_MAX_MISS: f64 = 0.01;
 /// Default cap on the attempts of one cell.
@@ -302,7 +304,7 @@ impl<'o> Bisector<'o> {
     /// Per axis, the values `cells` have (in scope order).
     fn tight(&self, cells: &[Cell]) -> Filter {
         let mut terms = Vec::new();
-        for axis in AXES {
+        for axis in axes() {
             let mut vals: Vec<String> = Vec::new();
             for c in &self.scope {
                 let v = c.axis_value(axis).expect("known axis");
@@ -424,7 +426,7 @@ impl<'o> Bisector<'o> {
             not_run: self.scope.iter().filter(|c| self.verdicts.state(c) == State::Unknown).count(),
             errored: self.scope.iter().filter(|c| self.verdicts.state(c) == State::Error).map(|c| c.id()).collect(),
             runs: self.verdicts.runs,
-            not_varied: AXES.iter().filter(|a| self.scope_values(a).len() < 2).map(|a| a.to_string()).collect(),
+            not_varied: axes().filter(|a| self.scope_values(a).len() < 2).map(String::from).collect(),
         })
     }
 
@@ -432,7 +434,7 @@ impl<'o> Bisector<'o> {
     /// most one more: `index` drags `nonuniform` along, `resource` drags `as_access`).
     fn siblings(&self, rep: &Cell) -> Vec<(String, Cell)> {
         let mut out = Vec::new();
-        for axis in AXES {
+        for axis in axes() {
             let mine = rep.axis_value(axis);
             for v in self.scope_values(axis) {
                 if Some(&v) == mine.as_ref() {
@@ -442,7 +444,7 @@ impl<'o> Bisector<'o> {
                     .scope
                     .iter()
                     .filter(|c| c.axis_value(axis).as_ref() == Some(&v))
-                    .map(|c| (AXES.iter().filter(|a| **a != *axis && c.axis_value(a) != rep.axis_value(a)).count(), c))
+                    .map(|c| (axes().filter(|a| *a != axis && c.axis_value(a) != rep.axis_value(a)).count(), c))
                     .filter(|(d, _)| *d <= 1)
                     .min_by_key(|(d, _)| *d);
                 if let Some((_, c)) = best {
