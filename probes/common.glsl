@@ -1,29 +1,7 @@
-// rtprobe probe contract, included in every generated probe shader (see src/probe.rs for the
-// CPU side: record layout, flags, slots, values). Edit both sides together.
-
-struct Record {
-    uint flags;     // 1 = primary ray hit, 2 = the probed stage ran
-    uint instance;  // gl_InstanceCustomIndexEXT of the committed hit
-    uint primitive; // gl_PrimitiveID
-    float t;        // gl_HitTEXT
-    vec2 bary;      // triangle barycentrics (weights of v1, v2)
-    uint slot;      // descriptor slot the probe read
-    uint pad;
-    vec4 value;     // what the probe read
-};
-
-layout(set = 0, binding = 0, std430) buffer Records { Record records[]; };
-
-layout(push_constant, std430) uniform PushConstants {
-    uint width;
-    uint height;
-    uint pushSlot;    // index=push_constant
-    uint dynBase;     // runtime base of index=dynamic in hit stages
-    uint slotCount;   // size of the probed descriptor array
-    uint loopForever; // canary.infinite_loop
-    uvec2 asTable;    // device address of the TLAS address table (as_access=address)
-    uvec2 badAddress; // canary.invalid_address
-} pc;
+// rtprobe probe contract, included in every generated probe shader after the declarations that
+// src/probe.rs generates (struct Record, the Records buffer, the push constants, ELEMENTS,
+// PROBE_DIR, emptyRecord(), probeRecord()). The functions here mirror functions of src/probe.rs
+// and src/scene (named in each comment); edit both sides together.
 
 const float VIEW_HALF = 6.0;
 const float RAY_Z = -10.0;
@@ -36,6 +14,21 @@ vec3 primaryOrigin(uvec2 p) {
     float sx = (2.0 * VIEW_HALF) / float(pc.width);
     float sy = (2.0 * VIEW_HALF) / float(pc.height);
     return vec3(-VIEW_HALF + (float(p.x) + 0.5) * sx, VIEW_HALF - (float(p.y) + 0.5) * sy, RAY_Z);
+}
+
+// The element a probe reads outside hit stages, as probe::element.
+uint pixelElement(uvec2 p) {
+    return ((p.x >> 1u) ^ p.y) & (ELEMENTS - 1u);
+}
+
+// The element a probe reads in hit stages, as probe::element.
+uint hitElement(uint instanceId, uint geometry, uint primitive) {
+    return (primitive + geometry + instanceId) & (ELEMENTS - 1u);
+}
+
+// The AS probe's value, as probe::as_value.
+vec4 asProbeValue(bool hit, uint custom) {
+    return vec4(hit ? float(custom + 1u) : 0.0, 0.0, 0.0, 1.0);
 }
 
 // The procedural sphere in object space, as reference::intersect::sphere.

@@ -16,3 +16,4 @@ pub mod exec;
 pub mod runner;
 pub mod patches;
 pub mod bisect;
+pub mod fleet;

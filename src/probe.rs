@@ -1,47 +1,182 @@
 //! The probe contract shared by the GPU side (`shadergen`) and the CPU side (`reference`): the
-//! record every probe writes per pixel, its flags, which slot each index source selects, and the
-//! value each resource slot holds. Change one side only through this file.
+//! record every probe writes per pixel, the push constants, its flags, which slot and element each
+//! index source selects, the value each resource slot holds, and the TLAS variants the
+//! acceleration-structure slots refer to.
+//!
+//! One source of truth: the GLSL `struct Record`, the `Records` buffer and the push-constant block
+//! are generated from the Rust structs here ([`glsl_declarations`]); member offsets come from
+//! `offset_of!`, and a unit test checks them against the std430 rules GLSL applies.
+//! `probes/common.glsl` holds only functions and constants that mirror functions here.
 use crate::matrix::{Resource, Stage};
+use std::mem::offset_of;
 
-/// One record per pixel (std430, 48 bytes): what the ray hit and what the probed stage read.
+/// One record per pixel (std430, 64 bytes): what the ray hit and what the probed stage read.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Record {
     pub flags: u32,
     /// `gl_InstanceCustomIndexEXT` of the committed hit.
-    pub instance: u32,
+    pub custom: u32,
+    /// `gl_InstanceID` of the committed hit (its index in the TLAS).
+    pub instance_id: u32,
+    /// `gl_GeometryIndexEXT` of the committed hit.
+    pub geometry: u32,
+    /// `gl_PrimitiveID` (within its geometry).
     pub primitive: u32,
     pub t: f32,
     pub bary: [f32; 2],
-    /// The descriptor slot the probe read.
+    /// The descriptor slot the probe computed.
     pub slot: u32,
+    /// The element of the slot's resource the probe read (per-primitive or per-pixel offset).
+    pub element: u32,
     pub pad: u32,
+    pub pad2: u32,
     pub value: [f32; 4],
 }
 
-pub const RECORD_SIZE: usize = 48;
-const _: () = assert!(std::mem::size_of::<Record>() == RECORD_SIZE);
+/// GLSL name and type of a member of a Rust struct shared with the shaders, at its Rust offset.
+#[derive(Clone, Copy, Debug)]
+pub struct Field {
+    pub glsl_name: &'static str,
+    pub glsl_type: &'static str,
+    pub offset: usize,
+}
+
+macro_rules! fields {
+    ($ty:ty { $($field:ident : $name:literal $glsl:literal),* $(,)? }) => {
+        &[$(Field { glsl_name: $name, glsl_type: $glsl, offset: offset_of!($ty, $field) }),*]
+    };
+}
+
+/// The record's members, in order, as GLSL declares them.
+pub const RECORD_FIELDS: &[Field] = fields!(Record {
+    flags: "flags" "uint",
+    custom: "custom" "uint",
+    instance_id: "instanceId" "uint",
+    geometry: "geometry" "uint",
+    primitive: "primitive" "uint",
+    t: "t" "float",
+    bary: "bary" "vec2",
+    slot: "slot" "uint",
+    element: "element" "uint",
+    pad: "pad" "uint",
+    pad2: "pad2" "uint",
+    value: "value" "vec4",
+});
+
+pub const RECORD_SIZE: usize = std::mem::size_of::<Record>();
+const _: () = assert!(RECORD_SIZE == 64);
 
 impl Record {
-    pub fn from_bytes(b: &[u8]) -> Record {
-        let u = |i: usize| u32::from_le_bytes(b[i * 4..i * 4 + 4].try_into().expect("4 bytes"));
-        let f = |i: usize| f32::from_bits(u(i));
-        Record {
-            flags: u(0),
-            instance: u(1),
-            primitive: u(2),
-            t: f(3),
-            bary: [f(4), f(5)],
-            slot: u(6),
-            pad: u(7),
-            value: [f(8), f(9), f(10), f(11)],
+    /// The bytes the GPU writes for this record (tests build garbage records from them).
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut b = vec![0u8; RECORD_SIZE];
+        let mut put = |o: usize, v: u32| b[o..o + 4].copy_from_slice(&v.to_le_bytes());
+        put(offset_of!(Record, flags), self.flags);
+        put(offset_of!(Record, custom), self.custom);
+        put(offset_of!(Record, instance_id), self.instance_id);
+        put(offset_of!(Record, geometry), self.geometry);
+        put(offset_of!(Record, primitive), self.primitive);
+        put(offset_of!(Record, t), self.t.to_bits());
+        put(offset_of!(Record, bary), self.bary[0].to_bits());
+        put(offset_of!(Record, bary) + 4, self.bary[1].to_bits());
+        put(offset_of!(Record, slot), self.slot);
+        put(offset_of!(Record, element), self.element);
+        put(offset_of!(Record, pad), self.pad);
+        put(offset_of!(Record, pad2), self.pad2);
+        for k in 0..4 {
+            put(offset_of!(Record, value) + 4 * k, self.value[k].to_bits());
         }
+        b
+    }
+
+    pub fn from_bytes(b: &[u8]) -> Record {
+        let u = |o: usize| u32::from_le_bytes(b[o..o + 4].try_into().expect("4 bytes"));
+        let f = |o: usize| f32::from_bits(u(o));
+        Record {
+            flags: u(offset_of!(Record, flags)),
+            custom: u(offset_of!(Record, custom)),
+            instance_id: u(offset_of!(Record, instance_id)),
+            geometry: u(offset_of!(Record, geometry)),
+            primitive: u(offset_of!(Record, primitive)),
+            t: f(offset_of!(Record, t)),
+            bary: [f(offset_of!(Record, bary)), f(offset_of!(Record, bary) + 4)],
+            slot: u(offset_of!(Record, slot)),
+            element: u(offset_of!(Record, element)),
+            pad: u(offset_of!(Record, pad)),
+            pad2: u(offset_of!(Record, pad2)),
+            value: [0, 1, 2, 3].map(|k| f(offset_of!(Record, value) + 4 * k)),
+        }
+    }
+}
+
+/// The probes' push constants. 64-bit addresses are `uvec2` in GLSL (no int64 needed to pass them).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PushConstants {
+    pub width: u32,
+    pub height: u32,
+    /// Slot read with `index=push_constant`.
+    pub push_slot: u32,
+    /// Runtime base of `index=dynamic` in hit stages.
+    pub dyn_base: u32,
+    /// Size of the probed descriptor array.
+    pub slot_count: u32,
+    /// canary.infinite_loop
+    pub loop_forever: u32,
+    /// Mask applied to `gl_InstanceCustomIndexEXT` by `index=dynamic` in hit stages.
+    pub dyn_mask: u32,
+    pub pad: u32,
+    /// Device address of the TLAS address table (as_access=address).
+    pub as_table: u64,
+    /// canary.invalid_address
+    pub bad_address: u64,
+}
+
+pub const PUSH_FIELDS: &[Field] = fields!(PushConstants {
+    width: "width" "uint",
+    height: "height" "uint",
+    push_slot: "pushSlot" "uint",
+    dyn_base: "dynBase" "uint",
+    slot_count: "slotCount" "uint",
+    loop_forever: "loopForever" "uint",
+    dyn_mask: "dynMask" "uint",
+    pad: "pushPad" "uint",
+    as_table: "asTable" "uvec2",
+    bad_address: "badAddress" "uvec2",
+});
+
+/// Bytes of the probes' own push-constant block.
+pub const PUSH_BLOCK_BYTES: u32 = std::mem::size_of::<PushConstants>() as u32;
+/// Push-constant offset of the table address the address patches append (the block's end).
+pub const PATCHED_TABLE_OFFSET: u32 = PUSH_BLOCK_BYTES;
+/// The whole push-constant range: the probes' block plus the patches' 8-byte table address.
+pub const PUSH_CONSTANT_BYTES: u32 = PATCHED_TABLE_OFFSET + 8;
+const _: () = assert!(PUSH_BLOCK_BYTES % 8 == 0);
+
+impl PushConstants {
+    /// The bytes pushed at offset 0: the block, then the patched-table address.
+    pub fn to_bytes(&self, patched_table: u64) -> Vec<u8> {
+        let mut b = vec![0u8; PUSH_CONSTANT_BYTES as usize];
+        let mut put = |o: usize, bytes: &[u8]| b[o..o + bytes.len()].copy_from_slice(bytes);
+        put(offset_of!(PushConstants, width), &self.width.to_le_bytes());
+        put(offset_of!(PushConstants, height), &self.height.to_le_bytes());
+        put(offset_of!(PushConstants, push_slot), &self.push_slot.to_le_bytes());
+        put(offset_of!(PushConstants, dyn_base), &self.dyn_base.to_le_bytes());
+        put(offset_of!(PushConstants, slot_count), &self.slot_count.to_le_bytes());
+        put(offset_of!(PushConstants, loop_forever), &self.loop_forever.to_le_bytes());
+        put(offset_of!(PushConstants, dyn_mask), &self.dyn_mask.to_le_bytes());
+        put(offset_of!(PushConstants, pad), &self.pad.to_le_bytes());
+        put(offset_of!(PushConstants, as_table), &self.as_table.to_le_bytes());
+        put(offset_of!(PushConstants, bad_address), &self.bad_address.to_le_bytes());
+        put(PATCHED_TABLE_OFFSET as usize, &patched_table.to_le_bytes());
+        b
     }
 }
 
 /// The primary ray hit something.
 pub const FLAG_HIT: u32 = 1;
-/// The probed stage ran for this pixel and wrote `slot` and `value`.
+/// The probed stage ran for this pixel and wrote `slot`, `element` and `value`.
 pub const FLAG_PROBE: u32 = 2;
 
 /// Slot read with `index=literal` (a literal in the GLSL).
@@ -50,58 +185,252 @@ pub const LITERAL_SLOT: u32 = 3;
 pub const SPEC_SLOT: u32 = 5;
 /// Slot read with `index=push_constant`.
 pub const PUSH_SLOT: u32 = 7;
-/// The runtime base added to `gl_InstanceCustomIndexEXT` with `index=dynamic` in hit stages.
-pub const DYNAMIC_BASE: u32 = 1;
+/// The runtime base added to the masked `gl_InstanceCustomIndexEXT` with `index=dynamic` in hit
+/// stages (not 1, so that a driver dropping or mis-scaling it reads another slot).
+pub const DYNAMIC_BASE: u32 = 3;
 /// Fragment probes draw one quad per TILE×TILE pixels; its flat varying is the tile number.
 pub const TILE: u32 = 8;
+/// Elements per slot: every probed buffer holds `vec4 v[ELEMENTS]`, every image 2×2 texels.
+pub const ELEMENTS: u32 = 4;
+/// The largest `dyn_mask` of an AS probe array: AS arrays stay small (one TLAS variant per slot)
+/// whatever the scene's size.
+pub const AS_DYN_MASK_MAX: u32 = 31;
+/// Probe TLAS variants at most: one per slot of the largest AS array.
+pub const MAX_AS_VARIANTS: u32 = DYNAMIC_BASE + AS_DYN_MASK_MAX + 1;
+/// Probe TLAS custom indices: `variant * AS_CUSTOM_STRIDE + instance` (the floor is instance
+/// `instances`), so that every variant answers differently wherever the probe ray hits.
+pub const AS_CUSTOM_STRIDE: u32 = 8192;
+/// Direction of the AS probe ray (from the pixel's primary origin), unlike the primary ray's +z.
+pub const PROBE_DIR: [f32; 3] = [0.25, -0.125, 1.0];
 
-/// Number of descriptors in the probed array (and of addresses in the AS address table).
-pub fn slot_count(instances: u32) -> u32 {
-    DYNAMIC_BASE + instances
+/// The bits of a custom index that tell instances apart (custom indices keep a permutation of
+/// the instance indices there).
+pub fn instance_mask(instances: u32) -> u32 {
+    instances.next_power_of_two() - 1
 }
 
-/// The value a buffer or image slot holds (exact in f32), distinct per resource kind and slot.
-pub fn resource_value(resource: Resource, slot: u32) -> [f32; 4] {
+/// The mask `index=dynamic` applies to the custom index in hit stages for an array of `resource`.
+pub fn dyn_mask(resource: Resource, instances: u32) -> u32 {
+    match resource {
+        Resource::StorageBuffer | Resource::UniformBuffer | Resource::SampledImage | Resource::StorageImage => instance_mask(instances),
+        Resource::AccelerationStructure => instance_mask(instances).min(AS_DYN_MASK_MAX),
+    }
+}
+
+/// Number of descriptors in the probed array of `resource` (and of addresses in the AS address
+/// table): the base, then one slot per value of the masked custom index.
+pub fn slot_count(resource: Resource, instances: u32) -> u32 {
+    DYNAMIC_BASE + dyn_mask(resource, instances) + 1
+}
+
+/// The push constants of a probe cell reading `resource` (the canary fields and table address
+/// set by the caller).
+pub fn push_constants(width: u32, height: u32, instances: u32, resource: Resource) -> PushConstants {
+    PushConstants {
+        width,
+        height,
+        push_slot: PUSH_SLOT,
+        dyn_base: DYNAMIC_BASE,
+        slot_count: slot_count(resource, instances),
+        dyn_mask: dyn_mask(resource, instances),
+        ..Default::default()
+    }
+}
+
+/// The value element `element` of a buffer or image slot holds (exact in f32), distinct per
+/// resource kind, slot and element.
+pub fn resource_value(resource: Resource, slot: u32, element: u32) -> [f32; 4] {
     let r = Resource::ALL.iter().position(|x| *x == resource).unwrap_or(0) as f32;
-    [slot as f32 + 1.0, r * 16.0 + 1.0, 1000.0 + slot as f32, 0.25]
+    [slot as f32 + 1.0, r * 16.0 + 1.0, 1000.0 + (slot * ELEMENTS + element) as f32, 0.25 + element as f32]
 }
 
-/// Which TLAS an acceleration-structure slot refers to: 0 = the whole scene, 1 = the instances
-/// with an even custom index.
+/// Number of probe TLAS variants: one per slot of the AS array, so that every slot answers
+/// differently.
+pub fn as_variants(instances: u32) -> u32 {
+    slot_count(Resource::AccelerationStructure, instances)
+}
+
+/// Which probe TLAS variant an acceleration-structure slot refers to (its own).
 pub fn as_slot_tlas(slot: u32) -> usize {
-    (slot % 2) as usize
+    slot as usize
+}
+
+/// Whether probe TLAS `variant` holds scene instance `k` (the floor is in every variant).
+pub fn as_variant_has(variant: u32, k: u32) -> bool {
+    k % 3 != variant % 3
+}
+
+/// The custom index instance `k` carries in probe TLAS `variant` (`k = instances`: the floor).
+pub fn as_custom(variant: u32, k: u32) -> u32 {
+    variant * AS_CUSTOM_STRIDE + k
+}
+
+/// The AS probe's value: the probe ray's committed custom index + 1, or 0 on a miss.
+pub fn as_value(hit_custom: Option<u32>) -> [f32; 4] {
+    [hit_custom.map(|c| c as f32 + 1.0).unwrap_or(0.0), 0.0, 0.0, 1.0]
 }
 
 /// The slot `index=dynamic` selects in `stage` for pixel (x, y).
-pub fn dynamic_slot(stage: Stage, x: u32, y: u32, width: u32, hit_instance: u32, slots: u32) -> u32 {
+pub fn dynamic_slot(stage: Stage, x: u32, y: u32, width: u32, hit_custom: u32, slots: u32) -> u32 {
     match stage {
-        Stage::ClosestHit | Stage::AnyHit | Stage::Intersection => DYNAMIC_BASE + hit_instance,
+        Stage::ClosestHit | Stage::AnyHit | Stage::Intersection => DYNAMIC_BASE + (hit_custom & (slots - DYNAMIC_BASE - 1)),
         Stage::Raygen | Stage::Miss | Stage::Callable | Stage::Compute => (x + y * width) % slots,
         Stage::Fragment => ((y / TILE) * (width / TILE) + x / TILE) % slots,
     }
+}
+
+/// What a hit stage knows about its hit, for the element offset.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct HitIds {
+    pub instance_id: u32,
+    pub geometry: u32,
+    pub primitive: u32,
+}
+
+/// The element a buffer/image probe reads in `stage` (GLSL: `hitElement` / `pixelElement` in
+/// `probes/common.glsl`): per primitive in hit stages, per pixel elsewhere.
+pub fn element(stage: Stage, x: u32, y: u32, hit: HitIds) -> u32 {
+    match stage {
+        Stage::ClosestHit | Stage::AnyHit | Stage::Intersection => hit.primitive.wrapping_add(hit.geometry).wrapping_add(hit.instance_id) & (ELEMENTS - 1),
+        Stage::Raygen | Stage::Miss | Stage::Callable | Stage::Compute | Stage::Fragment => ((x >> 1) ^ y) & (ELEMENTS - 1),
+    }
+}
+
+fn glsl_zero(ty: &str) -> &'static str {
+    match ty {
+        "uint" => "0u",
+        "float" => "0.0",
+        "vec2" => "vec2(0.0)",
+        "uvec2" => "uvec2(0u)",
+        "vec4" => "vec4(0.0)",
+        other => panic!("no zero for GLSL type {other}"),
+    }
+}
+
+/// The GLSL twin of [`Record`] and [`PushConstants`], the records buffer, the contract's
+/// constants, and `emptyRecord()` / `probeRecord(slot, element, value)` constructors, generated so
+/// that no shader spells the member order.
+pub fn glsl_declarations() -> String {
+    let mut s = String::from("// Generated from src/probe.rs (Record, PushConstants): do not edit by hand.\nstruct Record {\n");
+    for f in RECORD_FIELDS {
+        s += &format!("    {} {}; // offset {}\n", f.glsl_type, f.glsl_name, f.offset);
+    }
+    s += "};\n\nlayout(set = 0, binding = 0, std430) buffer Records { Record records[]; };\n\n";
+    s += "layout(push_constant, std430) uniform PushConstants {\n";
+    for f in PUSH_FIELDS {
+        s += &format!("    layout(offset = {}) {} {};\n", f.offset, f.glsl_type, f.glsl_name);
+    }
+    s += "} pc;\n\n";
+    s += &format!("const uint FLAG_HIT = {FLAG_HIT}u;\nconst uint FLAG_PROBE = {FLAG_PROBE}u;\nconst uint ELEMENTS = {ELEMENTS}u;\n");
+    s += &format!("const vec3 PROBE_DIR = vec3({:?}, {:?}, {:?});\n", PROBE_DIR[0], PROBE_DIR[1], PROBE_DIR[2]);
+    let zeros: Vec<&str> = RECORD_FIELDS.iter().map(|f| glsl_zero(f.glsl_type)).collect();
+    s += &format!("\nRecord emptyRecord() {{\n    return Record({});\n}}\n", zeros.join(", "));
+    let args: Vec<String> = RECORD_FIELDS
+        .iter()
+        .map(|f| match f.glsl_name {
+            "flags" => "FLAG_PROBE".into(),
+            "slot" | "element" | "value" => f.glsl_name.into(),
+            _ => glsl_zero(f.glsl_type).into(),
+        })
+        .collect();
+    s += &format!("\n// A record of a stage that traced no ray (fragment, compute).\nRecord probeRecord(uint slot, uint element, vec4 value) {{\n    return Record({});\n}}\n", args.join(", "));
+    s
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    #[test]
-    fn record_round_trips_through_bytes() {
-        let r = Record { flags: 3, instance: 7, primitive: 9, t: 1.5, bary: [0.25, 0.5], slot: 4, pad: 0, value: [1.0, 2.0, 3.0, 0.25] };
-        let bytes: Vec<u8> = [r.flags, r.instance, r.primitive, r.t.to_bits(), r.bary[0].to_bits(), r.bary[1].to_bits(), r.slot, r.pad]
+    /// std430 alignment and size of the GLSL types the contract uses.
+    fn std430(ty: &str) -> (usize, usize) {
+        match ty {
+            "uint" | "float" => (4, 4),
+            "vec2" | "uvec2" => (8, 8),
+            "vec4" => (16, 16),
+            other => panic!("unknown type {other}"),
+        }
+    }
+
+    /// The offsets GLSL gives the members in declaration order (std430 struct rules).
+    fn glsl_offsets(fields: &[Field]) -> (Vec<usize>, usize) {
+        let mut at = 0usize;
+        let mut align_max = 1usize;
+        let offs = fields
             .iter()
-            .chain(r.value.iter().map(|v| v.to_bits()).collect::<Vec<_>>().iter())
-            .flat_map(|u| u.to_le_bytes())
+            .map(|f| {
+                let (a, s) = std430(f.glsl_type);
+                align_max = align_max.max(a);
+                at = at.div_ceil(a) * a;
+                let o = at;
+                at += s;
+                o
+            })
             .collect();
-        assert_eq!(Record::from_bytes(&bytes), r);
+        (offs, at.div_ceil(align_max) * align_max)
     }
 
     #[test]
-    fn slots_fit_the_array() {
-        let n = slot_count(16);
-        assert!(LITERAL_SLOT < n && SPEC_SLOT < n && PUSH_SLOT < n);
-        assert_eq!(dynamic_slot(Stage::ClosestHit, 0, 0, 64, 15, n), 16);
+    fn glsl_record_layout_is_the_rust_layout() {
+        let (offs, size) = glsl_offsets(RECORD_FIELDS);
+        assert_eq!(offs, RECORD_FIELDS.iter().map(|f| f.offset).collect::<Vec<_>>());
+        assert_eq!(size, RECORD_SIZE);
+        // every byte of the Rust struct is covered by a member GLSL declares
+        let covered: usize = RECORD_FIELDS.iter().map(|f| std430(f.glsl_type).1).sum();
+        assert_eq!(covered, RECORD_SIZE);
+        let (poffs, psize) = glsl_offsets(PUSH_FIELDS);
+        assert_eq!(poffs, PUSH_FIELDS.iter().map(|f| f.offset).collect::<Vec<_>>());
+        assert_eq!(psize as u32, PUSH_BLOCK_BYTES);
+        let g = glsl_declarations();
+        assert!(g.contains("layout(offset = 32) uvec2 asTable;"), "{g}");
+        assert!(g.contains("vec4 value; // offset 48"), "{g}");
+    }
+
+    #[test]
+    fn record_round_trips_through_bytes() {
+        let r = Record {
+            flags: 3, custom: 0xfffff3, instance_id: 7, geometry: 2, primitive: 9, t: 1.5, bary: [0.25, 0.5], slot: 4, element: 3, pad: 0, pad2: 11,
+            value: [1.0, 2.0, 3.0, 0.25],
+        };
+        let bytes = r.to_bytes();
+        assert_eq!(Record::from_bytes(&bytes), r);
+        // the bytes sit where GLSL's std430 layout puts them
+        let word = |o: usize| u32::from_le_bytes(bytes[o..o + 4].try_into().unwrap());
+        let at = |name: &str| RECORD_FIELDS.iter().find(|f| f.glsl_name == name).unwrap().offset;
+        assert_eq!(word(at("custom")), 0xfffff3);
+        assert_eq!(word(at("element")), 3);
+        assert_eq!(f32::from_bits(word(at("value") + 12)), 0.25);
+    }
+
+    #[test]
+    fn push_constants_bytes_follow_the_offsets() {
+        let p = PushConstants { as_table: 0x1122_3344_5566_7788, bad_address: 9, ..push_constants(64, 32, 16, Resource::StorageBuffer) };
+        let b = p.to_bytes(0xabcd);
+        assert_eq!(b.len() as u32, PUSH_CONSTANT_BYTES);
+        let u64_at = |o: usize| u64::from_le_bytes(b[o..o + 8].try_into().unwrap());
+        assert_eq!(u64_at(offset_of!(PushConstants, as_table)), 0x1122_3344_5566_7788);
+        assert_eq!(u64_at(PATCHED_TABLE_OFFSET as usize), 0xabcd);
+        assert_eq!(u32::from_le_bytes(b[12..16].try_into().unwrap()), DYNAMIC_BASE);
+    }
+
+    #[test]
+    fn slots_fit_the_array_and_values_are_distinct() {
+        let n = slot_count(Resource::StorageBuffer, 16);
+        assert_eq!(n, DYNAMIC_BASE + 16);
+        assert_eq!(slot_count(Resource::AccelerationStructure, 16), n);
+        assert_eq!(slot_count(Resource::StorageBuffer, 4096), DYNAMIC_BASE + 4096);
+        assert_eq!(as_variants(4096), MAX_AS_VARIANTS);
+        assert!([LITERAL_SLOT, SPEC_SLOT, PUSH_SLOT].iter().all(|s| *s < n));
+        assert_eq!(dynamic_slot(Stage::ClosestHit, 0, 0, 64, 0xfffff5, n), DYNAMIC_BASE + 5);
         assert!(dynamic_slot(Stage::Fragment, 63, 63, 64, 0, n) < n);
-        assert_ne!(resource_value(Resource::StorageBuffer, 1), resource_value(Resource::UniformBuffer, 1));
+        let mut seen = std::collections::HashSet::new();
+        for r in Resource::ALL {
+            for s in 0..n {
+                for e in 0..ELEMENTS {
+                    assert!(seen.insert(resource_value(*r, s, e).map(f32::to_bits)), "{r:?} {s} {e}");
+                }
+            }
+        }
+        assert_eq!(as_variants(16), n);
+        assert_ne!(as_value(Some(as_custom(1, 3))), as_value(Some(as_custom(2, 3))));
     }
 }

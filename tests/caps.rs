@@ -57,6 +57,65 @@ fn caps_json_describes_lavapipe_and_agrees_with_vulkaninfo() {
     assert_eq!(v["device_creation"]["ok"], true, "{}", v["device_creation"]);
 }
 
+/// `name → revision` of every device extension in `vulkaninfo`'s full output.
+fn vulkaninfo_device_extensions() -> std::collections::BTreeMap<String, u64> {
+    let o = std::process::Command::new("vulkaninfo").output().expect("vulkaninfo (apt-get install vulkan-tools)");
+    let text = String::from_utf8_lossy(&o.stdout).into_owned();
+    let mut lines = text.lines().skip_while(|l| !l.starts_with("Device Extensions:"));
+    lines.next();
+    lines
+        .take_while(|l| !l.trim().is_empty())
+        .filter_map(|l| {
+            let (name, rev) = l.split_once(':')?;
+            Some((name.trim().to_string(), rev.trim().trim_start_matches("extension revision").trim().parse().ok()?))
+        })
+        .collect()
+}
+
+#[test]
+fn every_rt_extension_is_listed_and_agrees_with_vulkaninfo() {
+    let v = json(&run(&["caps", "--json"]));
+    let exts = v["extensions"].as_object().unwrap();
+    let vi = vulkaninfo_device_extensions();
+    assert!(vi.contains_key("VK_KHR_ray_tracing_pipeline"), "vulkaninfo's extension list parsed: {vi:?}");
+    for name in [
+        "VK_NV_ray_tracing_invocation_reorder", "VK_EXT_ray_tracing_invocation_reorder", "VK_EXT_opacity_micromap",
+        "VK_KHR_opacity_micromap", "VK_NV_displacement_micromap", "VK_NV_cluster_acceleration_structure",
+        "VK_NV_partitioned_acceleration_structure", "VK_NV_ray_tracing_motion_blur", "VK_NV_ray_tracing_linear_swept_spheres",
+        "VK_KHR_ray_tracing_position_fetch", "VK_KHR_pipeline_library", "VK_KHR_ray_query", "VK_KHR_ray_tracing_maintenance1",
+        "VK_NV_ray_tracing", "VK_EXT_pipeline_library_group_handles",
+    ] {
+        assert!(exts.contains_key(name), "{name} not listed");
+    }
+    // Present exactly when vulkaninfo lists it, with its revision; a group for the text output.
+    for (name, e) in exts {
+        assert_eq!(e["present"].as_bool(), Some(vi.contains_key(name)), "{name}: {e}");
+        if let Some(rev) = vi.get(name) {
+            assert_eq!(e["spec_version"].as_u64(), Some(*rev), "{name}");
+        }
+        assert!(e["group"].as_str().is_some(), "{name}");
+    }
+    // Feature structs exist exactly for present extensions: lavapipe has the pipeline library
+    // group handles, no invocation reorder.
+    let f = &v["features"];
+    assert_eq!(f["VkPhysicalDevicePipelineLibraryGroupHandlesFeaturesEXT"].is_object(), vi.contains_key("VK_EXT_pipeline_library_group_handles"));
+    assert_eq!(f["VkPhysicalDeviceRayTracingInvocationReorderFeaturesNV"].is_object(), vi.contains_key("VK_NV_ray_tracing_invocation_reorder"));
+    assert_eq!(f["VkPhysicalDeviceClusterAccelerationStructureFeaturesNV"].is_object(), vi.contains_key("VK_NV_cluster_acceleration_structure"));
+    assert_eq!(v["limits"]["VkPhysicalDeviceRayTracingPropertiesNV"].is_object(), vi.contains_key("VK_NV_ray_tracing"));
+    // The text output groups them; the profile export carries present ones and their structs.
+    let dir = tempfile::tempdir().unwrap();
+    let prof = dir.path().join("p.json");
+    let o = run(&["caps", "--profile", prof.to_str().unwrap()]);
+    let text = stdout(&o);
+    assert!(text.contains("invocation reorder") && text.contains("micromaps") && text.contains("VK_NV_cluster_acceleration_structure"), "{text}");
+    let p: serde_json::Value = serde_json::from_slice(&std::fs::read(&prof).unwrap()).unwrap();
+    let pc = &p["capabilities"]["rtprobe_caps"];
+    for (name, e) in exts {
+        assert_eq!(pc["extensions"].get(name).is_some(), e["present"] == true, "{name} in the profile");
+    }
+    assert_eq!(pc["features"], v["features"]);
+}
+
 #[test]
 fn caps_runs_clean_under_validation() {
     let o = run_env(&["caps", "--json"], &[("RTPROBE_VALIDATE", "1")]);
@@ -146,4 +205,29 @@ fn bad_arguments_exit_2_without_panic() {
 fn unwritable_output_is_one_line_exit_9() {
     let o = run(&["caps", "-o", "/proc/nope/caps.json"]);
     assert_one_line_error(&o, 9, "/proc/nope/caps.json");
+}
+
+#[test]
+fn reorder_cells_are_unsupported_on_lavapipe_with_the_reason() {
+    let v = json(&run(&["caps", "--json"]));
+    let has_ser = v["extensions"]["VK_NV_ray_tracing_invocation_reorder"]["present"] == true;
+    for r in ["reorder", "reorder_hint"] {
+        let s = &v["matrix"]["reorder"][r];
+        assert_eq!(s["status"], if has_ser { "supported" } else { "unsupported" }, "{r}: {s}");
+    }
+    assert!(!has_ser, "lavapipe grew SER: the cells below would now run");
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("r.json");
+    let o = run(&["run", "--filter", "reorder=reorder|reorder_hint,descriptor_model=descriptor_indexing", "-o", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
+    let cells = r["cells"].as_array().unwrap();
+    // closest_hit x dynamic: 4 resources x (nonuniform or not) + AS (2 descriptor, 1 address, 2 patched), x 2 values
+    assert_eq!(cells.len(), (4 * 2 + 5) * 2);
+    for c in cells {
+        assert_eq!(c["outcome"], "unsupported", "{}", c["id"]);
+        assert!(c["reason"].as_str().unwrap().contains("VK_NV_ray_tracing_invocation_reorder"), "{c}");
+        assert!(c["id"].as_str().unwrap().contains(".reorder"), "{}", c["id"]);
+        assert_eq!(c["stage"], "closest_hit");
+    }
 }

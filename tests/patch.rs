@@ -122,6 +122,29 @@ fn engine_shaders_are_patched_from_glsl() {
 }
 
 #[test]
+fn as_to_address_sizes_an_engine_camera_push_block() {
+    // Matrices (column- and row-major), 8/16/64-bit members and a struct array in the push block:
+    // the table address goes right after it without --option offset, and an offset inside it is
+    // refused.
+    let d = tempfile::tempdir().unwrap();
+    let rgen = shaders().join("engine_camera.rgen");
+    let out = d.path().join("camera_addr.spv");
+    let o = run(&["patch", rgen.to_str().unwrap(), "--glsl", "--stage", "rgen", "--apply", "as-to-address", "-o", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("address at push-constant offset 200"), "{}", stdout(&o));
+    let text = dis(&out);
+    assert!(text.contains(" Offset 200"), "{text}");
+    val(&out);
+    let outs = d.path().join("overlap.spv");
+    assert_one_line_error(
+        &run(&["patch", rgen.to_str().unwrap(), "--glsl", "--stage", "rgen", "--apply", "as-to-address", "--option", "offset=184", "-o", outs.to_str().unwrap()]),
+        9,
+        "overlaps",
+    );
+    assert!(!outs.exists());
+}
+
+#[test]
 fn ssbo_to_address_turns_the_mesh_array_into_address_loads() {
     let d = tempfile::tempdir().unwrap();
     let chit = shaders().join("engine_closest_hit.rchit");
@@ -204,4 +227,89 @@ fn random_and_truncated_modules_never_panic() {
         assert!(!err.contains("panicked"), "case {i}: {err}");
         assert!(matches!(o.status.code(), Some(0) | Some(9)), "case {i}: {:?} {err}", o.status);
     }
+}
+
+/// `--glsl` on a shader tree: `#include <...>` through `-I`, `#include "..."` next to the
+/// including file and through the search path, `-D` with and without a value, `--target-env`.
+#[test]
+fn glsl_shader_tree_with_includes_and_defines_is_patched() {
+    let d = tempfile::tempdir().unwrap();
+    let tree = shaders().join("tree");
+    let chit = tree.join("shaders/gbuffer.rchit");
+    let inc = tree.join("engine/include");
+    let compile = |extra: &[&str], out: &Path| {
+        let mut args = vec!["patch", chit.to_str().unwrap(), "--glsl", "--stage", "rchit", "-I", inc.to_str().unwrap(), "--apply", "nonuniform", "-o", out.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        run(&args)
+    };
+    let out8 = d.path().join("m8.spv");
+    let o = compile(&["-D", "MAX_MATERIALS=8"], &out8);
+    assert!(o.status.success(), "{}", stderr(&o));
+    val(&out8);
+    let text = dis(&out8);
+    assert!(text.contains("OpCapability StorageBufferArrayNonUniformIndexing"), "{text}");
+    assert!(text.contains("OpCapability SampledImageArrayNonUniformIndexing"), "{text}");
+    // The define reaches the included header: the material table is 8 long.
+    assert!(text.lines().any(|l| l.contains("OpTypeArray") ) && text.lines().any(|l| l.contains("OpConstant") && l.ends_with(" 8")), "{text}");
+    // A value-less define switches the local helper's branch: no texture read is left.
+    let dbg = d.path().join("dbg.spv");
+    let o = compile(&["-D", "MAX_MATERIALS=4", "-D", "DEBUG_UV"], &dbg);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!dis(&dbg).contains("OpImageSampleExplicitLod"), "DEBUG_UV not applied");
+    assert!(text.contains("OpImageSampleExplicitLod"));
+    // Target environments: SPIR-V 1.5 for vulkan1.2 (default), 1.6 for vulkan1.3 and vulkan1.4.
+    let version = |p: &Path| {
+        let b = std::fs::read(p).unwrap();
+        u32::from_le_bytes([b[4], b[5], b[6], b[7]])
+    };
+    assert_eq!(version(&out8), 0x0001_0500);
+    for env in ["vulkan1.3", "vulkan1.4"] {
+        let p = d.path().join(format!("{env}.spv"));
+        let o = compile(&["-D", "MAX_MATERIALS=8", "--target-env", env], &p);
+        assert!(o.status.success(), "{env}: {}", stderr(&o));
+        assert_eq!(version(&p), 0x0001_0600, "{env}");
+    }
+}
+
+#[test]
+fn glsl_include_errors_are_one_line_naming_the_file_and_chain() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("out.spv");
+    let tree = shaders().join("tree");
+    let chit = tree.join("shaders/gbuffer.rchit");
+    let inc = tree.join("engine/include");
+    let patch = |input: &Path, stage: &str, extra: &[&str]| {
+        let mut args = vec!["patch", input.to_str().unwrap(), "--glsl", "--stage", stage, "--apply", "nonuniform", "-o", out.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        run(&args)
+    };
+    // A header includes a file that does not exist: the missing name, the header and its line.
+    let o = patch(&tree.join("broken/main.rgen"), "rgen", &[]);
+    assert_one_line_error(&o, 9, "missing/constants.glsl");
+    let err = stderr(&o);
+    assert!(err.contains("helpers.glsl:3"), "{err}");
+    assert!(err.contains("broken/main.rgen:5"), "the chain names the root's include line: {err}");
+    // A compile error inside an included file: that file and line, then who included it.
+    let o = patch(&tree.join("broken/typo.rgen"), "rgen", &[]);
+    assert_one_line_error(&o, 9, "typo.glsl:3");
+    let err = stderr(&o);
+    assert!(err.contains("undeclaredThing") && err.contains("(included from") && err.contains("typo.rgen:4"), "{err}");
+    // Without -I the engine header is not found; the message says where it looked.
+    let o = patch(&chit, "rchit", &["-D", "MAX_MATERIALS=8"]);
+    assert_one_line_error(&o, 9, "render/bindings.glsl");
+    assert!(stderr(&o).contains("searched"), "{}", stderr(&o));
+    // An #error in a nested header (define forgotten) names the header and the chain.
+    let o = patch(&chit, "rchit", &["-I", inc.to_str().unwrap()]);
+    assert_one_line_error(&o, 9, "MAX_MATERIALS must be defined");
+    assert!(stderr(&o).contains("render/bindings.glsl:"), "{}", stderr(&o));
+    // An include cycle ends with one line instead of a hang.
+    std::fs::write(d.path().join("cycle.comp"), "#version 460\n#extension GL_GOOGLE_include_directive : require\n#include \"a.glsl\"\nlayout(local_size_x = 1) in;\nvoid main() {}\n").unwrap();
+    std::fs::write(d.path().join("a.glsl"), "#include \"b.glsl\"\n").unwrap();
+    std::fs::write(d.path().join("b.glsl"), "#include \"a.glsl\"\n").unwrap();
+    let o = patch(&d.path().join("cycle.comp"), "comp", &[]);
+    assert_one_line_error(&o, 9, "include cycle");
+    // Bad flags are usage errors.
+    assert_one_line_error(&patch(&chit, "rchit", &["-D", "1BAD=2"]), 2, "GLSL identifier");
+    assert_one_line_error(&patch(&chit, "rchit", &["-I", "/nonexistent/dir"]), 2, "not a directory");
+    assert!(!out.exists(), "nothing written");
 }

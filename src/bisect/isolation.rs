@@ -22,6 +22,9 @@ pub fn describe(c: &Cell) -> String {
         };
     }
     s += &format!(", {}", c.descriptor_model);
+    if let Some(r) = c.reorder {
+        s += &format!(", raygen reordering with {r}");
+    }
     if let Some(p) = c.patch {
         s += &format!(", patched with {}", p.as_str());
     }
@@ -106,7 +109,7 @@ mod tests {
 
     #[test]
     fn cells_read_as_sentences() {
-        let c = Cell { stage: Stage::ClosestHit, resource: Resource::StorageBuffer, index: IndexSource::SpecConstant, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, canary: None, patch: None };
+        let c = Cell { stage: Stage::ClosestHit, resource: Resource::StorageBuffer, index: IndexSource::SpecConstant, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, canary: None, patch: None, reorder: None };
         assert_eq!(describe(&c), "closest_hit reading storage_buffer with spec_constant index, descriptor_indexing");
         let d = Cell { index: IndexSource::Dynamic, nonuniform: true, patch: Some(crate::matrix::cell::Workaround::SsboToAddress), ..c };
         assert_eq!(describe(&d), "closest_hit reading storage_buffer with dynamic index (nonuniformEXT), descriptor_indexing, patched with ssbo-to-address");

@@ -15,6 +15,8 @@ pub struct ReportOptions {
     pub jobs: Option<usize>,
     pub isolation: Isolation,
     pub timeout_s: f64,
+    /// The run's worker setup deadline, when the report records it.
+    pub setup_timeout_s: Option<f64>,
     pub validate: bool,
 }
 
@@ -32,6 +34,7 @@ impl ReportOptions {
             jobs: o["jobs"].as_u64().map(|j| j as usize),
             isolation,
             timeout_s: o["timeout_s"].as_f64().unwrap_or(20.0),
+            setup_timeout_s: o["setup_timeout_s"].as_f64(),
             validate: o["validate"].as_bool().unwrap_or(false),
         })
     }

@@ -2,7 +2,7 @@
 //! structure name and member names (`"VkPhysicalDeviceRayTracingPipelineFeaturesKHR":
 //! {"rayTracingPipeline": true}`) — the layout the Vulkan Profiles JSON format uses, so the caps
 //! report and the profile export share one representation. A struct the device lacks is absent.
-use crate::vk::DeviceInfo;
+use crate::vk::{rt_ext, DeviceInfo};
 use ash::vk;
 use serde_json::{json, Map, Value};
 
@@ -15,6 +15,7 @@ macro_rules! obj {
     }};
     (@v b $e:expr) => { Value::Bool($e == vk::TRUE) };
     (@v n $e:expr) => { json!($e) };
+    (@v reorder $e:expr) => { json!(rt_ext::reorder_mode_name($e)) };
 }
 
 fn put(m: &mut Map<String, Value>, key: &str, v: Option<Value>) {
@@ -96,7 +97,72 @@ pub fn features(info: &DeviceInfo) -> Map<String, Value> {
         b "deviceFault" device_fault, b "deviceFaultVendorBinary" device_fault_vendor_binary)));
     put(&mut m, "VkPhysicalDeviceMaintenance5FeaturesKHR", f.maintenance5.map(|s| obj!(s; b "maintenance5" maintenance5)));
     put(&mut m, "VkPhysicalDeviceMaintenance6FeaturesKHR", f.maintenance6.map(|s| obj!(s; b "maintenance6" maintenance6)));
+    rt_extension_features(info, &mut m);
     m
+}
+
+/// The ray tracing extensions beyond what rtprobe's matrix uses (pipeline libraries, invocation
+/// reorder, cluster / partitioned AS, geometry kinds, micromaps).
+fn rt_extension_features(info: &DeviceInfo, m: &mut Map<String, Value>) {
+    let f = &info.features;
+    put(m, "VkPhysicalDevicePipelineLibraryGroupHandlesFeaturesEXT", f.pipeline_library_group_handles.map(|s| obj!(s;
+        b "pipelineLibraryGroupHandles" pipeline_library_group_handles)));
+    put(m, "VkPhysicalDeviceRayTracingValidationFeaturesNV", f.rt_validation.map(|s| obj!(s; b "rayTracingValidation" ray_tracing_validation)));
+    put(m, "VkPhysicalDeviceRayTracingInvocationReorderFeaturesNV", f.invocation_reorder_nv.map(|s| obj!(s;
+        b "rayTracingInvocationReorder" ray_tracing_invocation_reorder)));
+    put(m, "VkPhysicalDeviceRayTracingInvocationReorderFeaturesEXT", f.invocation_reorder_ext.map(|s| obj!(s;
+        b "rayTracingInvocationReorder" ray_tracing_invocation_reorder)));
+    put(m, "VkPhysicalDeviceClusterAccelerationStructureFeaturesNV", f.cluster_accel.map(|s| obj!(s;
+        b "clusterAccelerationStructure" cluster_acceleration_structure)));
+    put(m, "VkPhysicalDevicePartitionedAccelerationStructureFeaturesNV", f.partitioned_accel.map(|s| obj!(s;
+        b "partitionedAccelerationStructure" partitioned_acceleration_structure)));
+    put(m, "VkPhysicalDeviceDenseGeometryFormatFeaturesAMDX", f.dense_geometry_format.map(|s| obj!(s; b "denseGeometryFormat" dense_geometry_format)));
+    put(m, "VkPhysicalDeviceRayTracingMotionBlurFeaturesNV", f.motion_blur.map(|s| obj!(s;
+        b "rayTracingMotionBlur" ray_tracing_motion_blur,
+        b "rayTracingMotionBlurPipelineTraceRaysIndirect" ray_tracing_motion_blur_pipeline_trace_rays_indirect)));
+    put(m, "VkPhysicalDeviceRayTracingLinearSweptSpheresFeaturesNV", f.linear_swept_spheres.map(|s| obj!(s;
+        b "spheres" spheres, b "linearSweptSpheres" linear_swept_spheres)));
+    put(m, "VkPhysicalDeviceOpacityMicromapFeaturesEXT", f.opacity_micromap.map(|s| obj!(s;
+        b "micromap" micromap, b "micromapCaptureReplay" micromap_capture_replay, b "micromapHostCommands" micromap_host_commands)));
+    put(m, "VkPhysicalDeviceOpacityMicromapFeaturesKHR", f.opacity_micromap_khr.map(|s| obj!(s; b "micromap" micromap)));
+    put(m, "VkPhysicalDevicePipelineOpacityMicromapFeaturesARM", f.pipeline_opacity_micromap.map(|s| obj!(s;
+        b "pipelineOpacityMicromap" pipeline_opacity_micromap)));
+    put(m, "VkPhysicalDeviceDisplacementMicromapFeaturesNV", f.displacement_micromap.map(|s| obj!(s; b "displacementMicromap" displacement_micromap)));
+}
+
+/// Properties of the ray tracing extensions listed in [`rt_extension_features`], and of the
+/// legacy VK_NV_ray_tracing.
+fn rt_extension_properties(info: &DeviceInfo, m: &mut Map<String, Value>) {
+    let p = &info.properties;
+    put(m, "VkPhysicalDeviceRayTracingPropertiesNV", p.rt_nv.map(|s| obj!(s;
+        n "shaderGroupHandleSize" shader_group_handle_size, n "maxRecursionDepth" max_recursion_depth,
+        n "maxShaderGroupStride" max_shader_group_stride, n "shaderGroupBaseAlignment" shader_group_base_alignment,
+        n "maxGeometryCount" max_geometry_count, n "maxInstanceCount" max_instance_count, n "maxTriangleCount" max_triangle_count,
+        n "maxDescriptorSetAccelerationStructures" max_descriptor_set_acceleration_structures)));
+    put(m, "VkPhysicalDeviceRayTracingInvocationReorderPropertiesNV", p.invocation_reorder_nv.map(|s| obj!(s;
+        reorder "rayTracingInvocationReorderReorderingHint" ray_tracing_invocation_reorder_reordering_hint)));
+    put(m, "VkPhysicalDeviceRayTracingInvocationReorderPropertiesEXT", p.invocation_reorder_ext.map(|s| obj!(s;
+        reorder "rayTracingInvocationReorderReorderingHint" ray_tracing_invocation_reorder_reordering_hint,
+        n "maxShaderBindingTableRecordIndex" max_shader_binding_table_record_index)));
+    put(m, "VkPhysicalDeviceClusterAccelerationStructurePropertiesNV", p.cluster_accel.map(|s| obj!(s;
+        n "maxVerticesPerCluster" max_vertices_per_cluster, n "maxTrianglesPerCluster" max_triangles_per_cluster,
+        n "clusterScratchByteAlignment" cluster_scratch_byte_alignment, n "clusterByteAlignment" cluster_byte_alignment,
+        n "clusterTemplateByteAlignment" cluster_template_byte_alignment,
+        n "clusterBottomLevelByteAlignment" cluster_bottom_level_byte_alignment,
+        n "clusterTemplateBoundsByteAlignment" cluster_template_bounds_byte_alignment,
+        n "maxClusterGeometryIndex" max_cluster_geometry_index)));
+    put(m, "VkPhysicalDevicePartitionedAccelerationStructurePropertiesNV", p.partitioned_accel.map(|s| obj!(s;
+        n "maxPartitionCount" max_partition_count)));
+    put(m, "VkPhysicalDeviceOpacityMicromapPropertiesEXT", p.opacity_micromap.map(|s| obj!(s;
+        n "maxOpacity2StateSubdivisionLevel" max_opacity2_state_subdivision_level,
+        n "maxOpacity4StateSubdivisionLevel" max_opacity4_state_subdivision_level)));
+    put(m, "VkPhysicalDeviceOpacityMicromapPropertiesKHR", p.opacity_micromap_khr.map(|s| obj!(s;
+        n "maxOpacity2StateSubdivisionLevel" max_opacity2_state_subdivision_level,
+        n "maxOpacity4StateSubdivisionLevel" max_opacity4_state_subdivision_level,
+        n "maxOpacityLossy4StateSubdivisionLevel" max_opacity_lossy4_state_subdivision_level,
+        n "maxMicromapTriangles" max_micromap_triangles)));
+    put(m, "VkPhysicalDeviceDisplacementMicromapPropertiesNV", p.displacement_micromap.map(|s| obj!(s;
+        n "maxDisplacementMicromapSubdivisionLevel" max_displacement_micromap_subdivision_level)));
 }
 
 /// Properties and limits, one object per Vulkan struct the device has.
@@ -182,5 +248,6 @@ pub fn properties(info: &DeviceInfo) -> Map<String, Value> {
         n "robustStorageBufferAccessSizeAlignment" robust_storage_buffer_access_size_alignment,
         n "robustUniformBufferAccessSizeAlignment" robust_uniform_buffer_access_size_alignment,
     )));
+    rt_extension_properties(info, &mut m);
     m
 }

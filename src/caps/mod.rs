@@ -6,9 +6,10 @@ pub mod profile;
 pub mod support;
 pub mod text;
 
-use crate::matrix::{AsAccess, DescriptorModel, IndexSource, Resource, Stage};
+use crate::matrix::{AsAccess, DescriptorModel, IndexSource, Reorder, Resource, Stage};
 use crate::vk::{driver_version, features::TRACKED_EXTENSIONS, DeviceInfo};
 use serde_json::{json, Map, Value};
+use std::collections::BTreeMap;
 use support::Support;
 
 pub const SCHEMA: &str = "rtprobe.caps/1";
@@ -60,17 +61,23 @@ pub fn matrix_json(info: &DeviceInfo) -> Value {
         "nonuniform_by_resource": nonuniform,
         "as_access": support_map(AsAccess::ALL, AsAccess::as_str, |a| support::as_access(info, a)),
         "descriptor_model": support_map(DescriptorModel::ALL, DescriptorModel::as_str, |m| support::descriptor_model(info, m)),
+        "reorder": support_map(Reorder::ALL, Reorder::as_str, |r| support::reorder(info, r)),
     })
 }
 
-/// Tracked extensions: present or not, with the spec version when present.
+/// Tracked extensions: present or not, with the spec version when present and the group the
+/// text rendering lists them under.
 pub fn extensions_json(info: &DeviceInfo) -> Value {
+    extensions_json_of(&info.extensions)
+}
+
+fn extensions_json_of(present: &BTreeMap<String, u32>) -> Value {
     let mut m = Map::new();
     for e in TRACKED_EXTENSIONS {
-        let name = e.to_string_lossy().into_owned();
-        let v = match info.extensions.get(&name) {
-            Some(spec) => json!({ "present": true, "spec_version": spec }),
-            None => json!({ "present": false }),
+        let name = e.name.to_string_lossy().into_owned();
+        let v = match present.get(&name) {
+            Some(spec) => json!({ "present": true, "spec_version": spec, "group": e.group }),
+            None => json!({ "present": false, "group": e.group }),
         };
         m.insert(name, v);
     }
@@ -112,5 +119,33 @@ mod tests {
         assert_eq!(v, json!({"status": "unsupported", "reason": "x"}));
         let v = serde_json::to_value(Support::Supported).unwrap();
         assert_eq!(v, json!({"status": "supported"}));
+    }
+
+    /// Every ray tracing extension the Vulkan headers (1.4.359) define is listed, present or
+    /// not. The names are spelled out here, not taken from `TRACKED_EXTENSIONS`, so dropping one
+    /// from the list fails this test.
+    const EVERY_RT_EXTENSION: &[&str] = &[
+        "VK_KHR_ray_tracing_pipeline", "VK_KHR_acceleration_structure", "VK_KHR_ray_query",
+        "VK_KHR_deferred_host_operations", "VK_KHR_ray_tracing_maintenance1", "VK_KHR_ray_tracing_position_fetch",
+        "VK_KHR_pipeline_library", "VK_EXT_pipeline_library_group_handles", "VK_NV_ray_tracing",
+        "VK_NV_ray_tracing_validation", "VK_NV_ray_tracing_invocation_reorder", "VK_EXT_ray_tracing_invocation_reorder",
+        "VK_NV_cluster_acceleration_structure", "VK_NV_partitioned_acceleration_structure", "VK_AMDX_dense_geometry_format",
+        "VK_NV_ray_tracing_motion_blur", "VK_NV_ray_tracing_linear_swept_spheres", "VK_EXT_opacity_micromap",
+        "VK_KHR_opacity_micromap", "VK_ARM_pipeline_opacity_micromap", "VK_NV_displacement_micromap",
+    ];
+
+    #[test]
+    fn every_rt_extension_is_listed_present_or_not() {
+        let present: BTreeMap<String, u32> =
+            [("VK_NV_ray_tracing_invocation_reorder".to_string(), 1), ("VK_KHR_ray_query".to_string(), 1)].into();
+        let v = extensions_json_of(&present);
+        for name in EVERY_RT_EXTENSION {
+            let e = &v[*name];
+            let want = present.contains_key(*name);
+            assert_eq!(e["present"], json!(want), "{name}: {e}");
+            assert_eq!(e["spec_version"].is_u64(), want, "{name}: {e}");
+            assert!(e["group"].as_str().is_some_and(|g| !g.is_empty()), "{name}: {e}");
+        }
+        assert_eq!(v["VK_NV_ray_tracing_invocation_reorder"]["group"], "invocation reorder");
     }
 }

@@ -1,9 +1,9 @@
 //! What the matrix can run on a device, per axis value, decided from the queried features only.
 //! `Unsupported` is said only when the device's features or extensions say so; `NotImplemented`
 //! marks what rtprobe itself cannot do yet, which is never blamed on the device.
-use crate::matrix::{AsAccess, DescriptorModel, IndexSource, Resource, Stage};
+use crate::matrix::{AsAccess, DescriptorModel, IndexSource, Reorder, Resource, Stage};
 use crate::vk::{heap, DeviceInfo};
-use ash::{ext, khr, vk};
+use ash::{ext, khr, nv, vk};
 use serde::Serialize;
 
 #[derive(Clone, Debug, PartialEq, Eq, Serialize)]
@@ -39,20 +39,22 @@ fn on(b: vk::Bool32) -> bool {
 }
 
 pub fn stage(info: &DeviceInfo, s: Stage) -> Support {
-    if s.is_ray_tracing() {
-        let missing = info.rt_pipeline_missing();
-        if !missing.is_empty() {
-            return Support::Unsupported { reason: format!("device lacks {}", missing.join(", ")) };
-        }
-        return Support::Supported;
-    }
     match s {
+        Stage::Raygen | Stage::ClosestHit | Stage::AnyHit | Stage::Miss | Stage::Intersection | Stage::Callable => {
+            let missing = info.rt_pipeline_missing();
+            if missing.is_empty() {
+                Support::Supported
+            } else {
+                Support::Unsupported { reason: format!("device lacks {}", missing.join(", ")) }
+            }
+        }
         Stage::Fragment => Support::require(&[
             (info.universal_queue_family().is_some(), "a graphics queue"),
             (on(info.features.core.fragment_stores_and_atomics), "fragmentStoresAndAtomics"),
             (info.features.v13.is_some_and(|v| on(v.dynamic_rendering)), "dynamicRendering"),
         ]),
-        _ => Support::Supported,
+        // Compute shaders and storage buffers are core Vulkan 1.0.
+        Stage::Compute => Support::Supported,
     }
 }
 
@@ -162,6 +164,24 @@ pub fn descriptor_model(info: &DeviceInfo, m: DescriptorModel) -> Support {
                 },
                 other => other,
             }
+        }
+    }
+}
+
+/// Shader execution reordering in raygen: GL_NV_shader_invocation_reorder needs
+/// VK_NV_ray_tracing_invocation_reorder with `rayTracingInvocationReorder`. Both values of the
+/// axis need the same; a driver whose hint is `NONE` still runs them (reordering is then a no-op,
+/// which the spec allows).
+pub fn reorder(info: &DeviceInfo, r: Reorder) -> Support {
+    match r {
+        Reorder::Reorder | Reorder::ReorderHint => {
+            if !info.has_extension(nv::ray_tracing_invocation_reorder::NAME) {
+                return Support::Unsupported { reason: "driver does not expose VK_NV_ray_tracing_invocation_reorder".into() };
+            }
+            Support::require(&[(
+                info.features.invocation_reorder_nv.is_some_and(|f| on(f.ray_tracing_invocation_reorder)),
+                "rayTracingInvocationReorder (VK_NV_ray_tracing_invocation_reorder)",
+            )])
         }
     }
 }

@@ -15,6 +15,68 @@ fn flag(v: &Value, path: &[&str]) -> &'static str {
     }
 }
 
+/// The feature that says whether a present extension is usable: (struct, member).
+fn headline_feature(ext: &str) -> Option<(&'static str, &'static str)> {
+    Some(match ext {
+        "VK_KHR_ray_tracing_pipeline" => ("VkPhysicalDeviceRayTracingPipelineFeaturesKHR", "rayTracingPipeline"),
+        "VK_KHR_acceleration_structure" => ("VkPhysicalDeviceAccelerationStructureFeaturesKHR", "accelerationStructure"),
+        "VK_KHR_ray_query" => ("VkPhysicalDeviceRayQueryFeaturesKHR", "rayQuery"),
+        "VK_KHR_ray_tracing_maintenance1" => ("VkPhysicalDeviceRayTracingMaintenance1FeaturesKHR", "rayTracingMaintenance1"),
+        "VK_KHR_ray_tracing_position_fetch" => ("VkPhysicalDeviceRayTracingPositionFetchFeaturesKHR", "rayTracingPositionFetch"),
+        "VK_EXT_pipeline_library_group_handles" => ("VkPhysicalDevicePipelineLibraryGroupHandlesFeaturesEXT", "pipelineLibraryGroupHandles"),
+        "VK_NV_ray_tracing_validation" => ("VkPhysicalDeviceRayTracingValidationFeaturesNV", "rayTracingValidation"),
+        "VK_NV_ray_tracing_invocation_reorder" => ("VkPhysicalDeviceRayTracingInvocationReorderFeaturesNV", "rayTracingInvocationReorder"),
+        "VK_EXT_ray_tracing_invocation_reorder" => ("VkPhysicalDeviceRayTracingInvocationReorderFeaturesEXT", "rayTracingInvocationReorder"),
+        "VK_NV_cluster_acceleration_structure" => ("VkPhysicalDeviceClusterAccelerationStructureFeaturesNV", "clusterAccelerationStructure"),
+        "VK_NV_partitioned_acceleration_structure" => ("VkPhysicalDevicePartitionedAccelerationStructureFeaturesNV", "partitionedAccelerationStructure"),
+        "VK_AMDX_dense_geometry_format" => ("VkPhysicalDeviceDenseGeometryFormatFeaturesAMDX", "denseGeometryFormat"),
+        "VK_NV_ray_tracing_motion_blur" => ("VkPhysicalDeviceRayTracingMotionBlurFeaturesNV", "rayTracingMotionBlur"),
+        "VK_NV_ray_tracing_linear_swept_spheres" => ("VkPhysicalDeviceRayTracingLinearSweptSpheresFeaturesNV", "linearSweptSpheres"),
+        "VK_EXT_opacity_micromap" => ("VkPhysicalDeviceOpacityMicromapFeaturesEXT", "micromap"),
+        "VK_KHR_opacity_micromap" => ("VkPhysicalDeviceOpacityMicromapFeaturesKHR", "micromap"),
+        "VK_ARM_pipeline_opacity_micromap" => ("VkPhysicalDevicePipelineOpacityMicromapFeaturesARM", "pipelineOpacityMicromap"),
+        "VK_NV_displacement_micromap" => ("VkPhysicalDeviceDisplacementMicromapFeaturesNV", "displacementMicromap"),
+        "VK_EXT_descriptor_buffer" => ("VkPhysicalDeviceDescriptorBufferFeaturesEXT", "descriptorBuffer"),
+        "VK_EXT_descriptor_heap" => ("VkPhysicalDeviceDescriptorHeapFeaturesEXT", "descriptorHeap"),
+        _ => return None,
+    })
+}
+
+/// The tracked extensions by group: present ones with their spec version (and headline feature
+/// when it is off), absent ones on a line of their own.
+fn render_extensions(caps: &Value, s: &mut String) {
+    let Some(exts) = caps["extensions"].as_object() else { return };
+    let mut groups: Vec<(&str, Vec<String>, Vec<&str>)> = Vec::new();
+    for (name, e) in exts {
+        let group = e["group"].as_str().unwrap_or("other");
+        let i = match groups.iter().position(|g| g.0 == group) {
+            Some(i) => i,
+            None => {
+                groups.push((group, Vec::new(), Vec::new()));
+                groups.len() - 1
+            }
+        };
+        if e["present"].as_bool() == Some(true) {
+            let mut item = format!("{name} v{}", e["spec_version"]);
+            if let Some((st, member)) = headline_feature(name) {
+                if flag(&caps["features"], &[st, member]) != "yes" {
+                    item.push_str(&format!(" ({member} {})", flag(&caps["features"], &[st, member])));
+                }
+            }
+            groups[i].1.push(item);
+        } else {
+            groups[i].2.push(name);
+        }
+    }
+    let _ = writeln!(s, "extensions:");
+    for (group, present, absent) in groups {
+        let _ = writeln!(s, "  {group:<24} {}", if present.is_empty() { "-".to_string() } else { present.join(", ") });
+        if !absent.is_empty() {
+            let _ = writeln!(s, "  {:<24} ✗ {}", "", absent.join(", "));
+        }
+    }
+}
+
 pub fn render(caps: &Value) -> String {
     let d = &caps["device"];
     let f = &caps["features"];
@@ -35,6 +97,8 @@ pub fn render(caps: &Value) -> String {
         ("accel struct", &["VkPhysicalDeviceAccelerationStructureFeaturesKHR", "accelerationStructure"]),
         ("ray query", &["VkPhysicalDeviceRayQueryFeaturesKHR", "rayQuery"]),
         ("position fetch", &["VkPhysicalDeviceRayTracingPositionFetchFeaturesKHR", "rayTracingPositionFetch"]),
+        ("reorder (NV)", &["VkPhysicalDeviceRayTracingInvocationReorderFeaturesNV", "rayTracingInvocationReorder"]),
+        ("reorder (EXT)", &["VkPhysicalDeviceRayTracingInvocationReorderFeaturesEXT", "rayTracingInvocationReorder"]),
         ("buffer address", &["VkPhysicalDeviceVulkan12Features", "bufferDeviceAddress"]),
         ("desc indexing", &["VkPhysicalDeviceVulkan12Features", "descriptorIndexing"]),
         ("desc buffer", &["VkPhysicalDeviceDescriptorBufferFeaturesEXT", "descriptorBuffer"]),
@@ -46,6 +110,7 @@ pub fn render(caps: &Value) -> String {
     for (name, path) in rows {
         let _ = writeln!(s, "  {:<15} {}", name, flag(f, path));
     }
+    render_extensions(caps, &mut s);
     let _ = writeln!(s, "matrix (what `rtprobe run` can do here):");
     if let Some(m) = caps["matrix"].as_object() {
         for (axis, values) in m {

@@ -43,6 +43,13 @@ pub enum Command {
     Report(ReportArgs),
     /// Write a repro bundle for one cell: shaders (GLSL, SPIR-V, disassembly), cell.json, caps
     Repro(ReproArgs),
+    /// Write the expectations (baseline) of a finished run, for `run --baseline`
+    Baseline(BaselineArgs),
+    /// Join the reports of shards (`run --shard I/N`) or re-runs into one report
+    Merge(MergeArgs),
+    /// What changed between two run reports: per cell (fixed, regressed, new, gone) and time per
+    /// phase; text or Markdown (exit 1 when an outcome changed)
+    Diff(DiffArgs),
     /// Internal: run cells for the supervisor (`rtprobe run`); not for direct use
     #[command(name = "__worker", hide = true)]
     Worker {
@@ -79,7 +86,8 @@ pub struct RunArgs {
     #[arg(long, value_name = "FILE")]
     pub junit: Option<PathBuf>,
 
-    /// Write each cell's generated GLSL and SPIR-V under DIR/<cell id>/
+    /// Write each cell's generated GLSL and SPIR-V under DIR/<cell id>/, and for a cell whose
+    /// records mismatch, pictures of them there: expected.png, actual.png, diff.png
     #[arg(long, value_name = "DIR")]
     pub dump: Option<PathBuf>,
 
@@ -96,6 +104,11 @@ pub struct RunArgs {
     /// Deadline for one cell, in seconds (a cell past it is a `timeout`)
     #[arg(long, default_value_t = 20.0, value_name = "SECONDS")]
     pub timeout: f64,
+
+    /// Deadline for a worker's setup (instance, device, scene acceleration structures,
+    /// resources), in seconds; a failed setup is retried once in a fresh worker
+    #[arg(long, default_value_t = 120.0, value_name = "SECONDS")]
+    pub setup_timeout: f64,
 
     /// Do not re-run faulting cells alone in a fresh worker
     #[arg(long)]
@@ -132,6 +145,21 @@ pub struct RunArgs {
     /// Repeatable; RTPROBE_INJECT_FAULT takes a `;`-separated list. Proves detection on your driver.
     #[arg(long = "inject-fault", value_name = "PREDICATE[@KIND]", env = "RTPROBE_INJECT_FAULT", value_delimiter = ';')]
     pub inject_fault: Vec<String>,
+
+    /// Hold the run to these expectations (from `rtprobe baseline`, or deqp-runner `test,Status`
+    /// lines): exit 1 only on regressions, on improvements (unless --allow-improvements) and on
+    /// phases slower than the baseline's bounds
+    #[arg(long, value_name = "FILE")]
+    pub baseline: Option<PathBuf>,
+
+    /// With --baseline: cells better than expected are reported but do not fail the run
+    #[arg(long)]
+    pub allow_improvements: bool,
+
+    /// Run only shard I of N (1-based): a deterministic, balanced split of the planned cells by
+    /// cell id, for a CI system's parallel jobs; join the reports with `rtprobe merge`
+    #[arg(long, value_name = "I/N")]
+    pub shard: Option<String>,
 
     /// Run each faulting cell until it has N attempts (each alone in a fresh worker) and report
     /// k of N with the chance that a fault of the observed rate would have been missed
@@ -266,9 +294,22 @@ pub struct PatchArgs {
     #[arg(long)]
     pub list: bool,
 
-    /// The input is GLSL: compile it with shaderc (Vulkan 1.2, SPIR-V 1.5) first
+    /// The input is GLSL: compile it with shaderc first (see --target-env, -I, -D)
     #[arg(long)]
     pub glsl: bool,
+
+    /// GLSL include directory (repeatable, searched in order after the input's own directory);
+    /// `#include "x"` also looks next to the including file first
+    #[arg(short = 'I', long = "include-dir", value_name = "DIR", requires = "glsl")]
+    pub include_dirs: Vec<PathBuf>,
+
+    /// GLSL macro NAME or NAME=VALUE (repeatable)
+    #[arg(short = 'D', long = "define", value_name = "NAME[=VALUE]", requires = "glsl")]
+    pub defines: Vec<String>,
+
+    /// Vulkan environment of GLSL input: vulkan1.2 (SPIR-V 1.5), vulkan1.3 or vulkan1.4 (SPIR-V 1.6)
+    #[arg(long, value_enum, default_value = "vulkan1.2", value_name = "ENV")]
+    pub target_env: crate::shadergen::compile::TargetEnv,
 
     /// Stage of GLSL input: rgen, rchit, rahit, rmiss, rint, rcall, vert, frag, comp
     #[arg(long, value_name = "STAGE")]
@@ -277,4 +318,84 @@ pub struct PatchArgs {
     /// Print the diff of the disassembly before and after
     #[arg(long)]
     pub disassemble: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct BaselineArgs {
+    /// A finished run report
+    pub report: PathBuf,
+
+    /// Output file
+    #[arg(long, short = 'o', value_name = "FILE")]
+    pub out: PathBuf,
+
+    /// `json` (rtprobe's own, with flake details and performance bounds) or `deqp`
+    /// (deqp-runner's `test,Status` lines)
+    #[arg(long, value_enum, default_value = "json")]
+    pub format: BaselineFormat,
+
+    /// Also bound the mean time per cell of these phases (compile, pipeline, setup, trace, check)
+    #[arg(long, value_delimiter = ',', value_name = "PHASE,...")]
+    pub perf: Vec<String>,
+
+    /// A bounded phase fails a later run above FACTOR × this run's mean + --perf-slack-ms
+    #[arg(long, default_value_t = 2.0, value_name = "FACTOR")]
+    pub perf_factor: f64,
+
+    /// Absolute slack added to each performance bound, in milliseconds per cell
+    #[arg(long, default_value_t = 1.0, value_name = "MS")]
+    pub perf_slack_ms: f64,
+
+    /// A bug link recorded with every expected failure
+    #[arg(long, value_name = "URL")]
+    pub bug: Option<String>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum BaselineFormat {
+    Json,
+    Deqp,
+}
+
+#[derive(Args, Debug)]
+pub struct MergeArgs {
+    /// Run reports (shards of one run, or re-runs of parts of it)
+    #[arg(required = true, num_args = 1..)]
+    pub reports: Vec<PathBuf>,
+
+    /// Output report
+    #[arg(long, short = 'o', value_name = "FILE")]
+    pub out: PathBuf,
+
+    /// Merge even reports of different devices, scenes, options or rtprobe versions
+    #[arg(long)]
+    pub force: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct DiffArgs {
+    pub old: PathBuf,
+    pub new: PathBuf,
+
+    /// `text` (a table) or `md` (Markdown for a PR comment)
+    #[arg(long, value_enum, default_value = "text")]
+    pub format: DiffFormat,
+
+    /// Also write the diff to FILE (in --format)
+    #[arg(long, short = 'o', value_name = "FILE")]
+    pub out: Option<PathBuf>,
+
+    /// Report a phase's time per cell only when it changed by more than this factor (0.5 = ±50%)
+    #[arg(long, default_value_t = 0.5)]
+    pub noise: f64,
+
+    /// ... and by more than this many milliseconds per cell
+    #[arg(long, default_value_t = 0.5, value_name = "MS")]
+    pub noise_floor_ms: f64,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum DiffFormat {
+    Text,
+    Md,
 }

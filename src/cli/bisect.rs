@@ -106,7 +106,10 @@ pub fn bisect(g: &Globals, a: &BisectArgs) -> Result<u8> {
         let the_plan = plan::plan(&info, &PlanOptions { filters: filters.clone(), canaries: false, patches, inject: ro.inject.clone() });
         let scope: Vec<Cell> = the_plan.to_run().copied().collect();
         let jobs = a.jobs.or(ro.jobs).unwrap_or_else(|| super::run::default_jobs(&info));
-        let opts = super::run::supervisor_options(info.index, report.scene.params, jobs, ro.isolation, ro.timeout_s, ro.validate || g.validate, ro.inject.clone());
+        let mut opts = super::run::supervisor_options(info.index, report.scene.params, jobs, ro.isolation, ro.timeout_s, ro.validate || g.validate, ro.inject.clone());
+        if let Some(s) = ro.setup_timeout_s.filter(|s| *s > 0.0 && *s <= 3600.0) {
+            opts.setup_timeout = std::time::Duration::from_secs_f64(s);
+        }
         let job_dir = opts.job_dir.clone();
         let mut oracle = SupervisorOracle { opts };
         let supported = |c: &Cell| plan::device_support(&info, c).is_supported();

@@ -2,7 +2,7 @@
 use crate::vk::VkError;
 
 pub const OK: u8 = 0;
-/// `run`: at least one cell faulted or mismatched.
+/// `run`: at least one cell faulted or mismatched, or a worker faulted outside a cell.
 pub const FINDINGS: u8 = 1;
 /// Bad command-line arguments (clap's own code).
 pub const USAGE: u8 = 2;
@@ -20,7 +20,8 @@ pub const CANARY_UNDETECTED: u8 = 11;
 pub const HELP: &str = "\
 Exit codes:
   0  success (run: every cell passed or was unsupported)
-  1  run: at least one cell faulted (device_lost, crash, timeout, error) or mismatched
+  1  run: at least one cell faulted (device_lost, crash, timeout, error) or mismatched,
+     or a worker faulted outside a cell (between cells, in teardown)
   2  bad command-line arguments
   3  no Vulkan loader (libvulkan.so.1), or one older than Vulkan 1.2
   4  no Vulkan driver / physical device

@@ -4,6 +4,7 @@ pub mod args;
 pub mod bisect;
 pub mod commands;
 pub mod exit;
+pub mod fleet;
 pub mod patch;
 pub mod repro;
 pub mod report;
@@ -43,6 +44,9 @@ pub fn main_entry() -> u8 {
         Command::Bisect(a) => bisect::bisect(&g, a),
         Command::Report(a) => report::report(a),
         Command::Repro(a) => repro::repro(&g, a),
+        Command::Baseline(a) => fleet::baseline(a),
+        Command::Merge(a) => fleet::merge_cmd(a),
+        Command::Diff(a) => fleet::diff_cmd(a),
         Command::Worker { job } => return crate::runner::worker::main(job),
     };
     match result {

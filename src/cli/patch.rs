@@ -4,6 +4,7 @@ use super::args::PatchArgs;
 use super::exit::{self, coded};
 use crate::patches::{self, PatchName, Validation};
 use crate::report::write_atomic;
+use crate::shadergen::compile::GlslOptions;
 use anyhow::{Context, Result};
 use std::collections::BTreeMap;
 
@@ -21,6 +22,30 @@ fn kind(stage: &str) -> Option<shaderc::ShaderKind> {
         "comp" => K::Compute,
         _ => return None,
     })
+}
+
+/// `-I`, `-D` and `--target-env` as compile options; a bad `-D` or a missing `-I` directory is a
+/// usage error.
+fn glsl_options(a: &PatchArgs, input: &std::path::Path) -> Result<GlslOptions> {
+    for d in &a.include_dirs {
+        if !d.is_dir() {
+            return Err(coded(exit::USAGE, format!("-I {}: not a directory", d.display())));
+        }
+    }
+    let mut defines = Vec::new();
+    for d in &a.defines {
+        let (name, value) = match d.split_once('=') {
+            Some((n, v)) => (n.trim(), Some(v.to_string())),
+            None => (d.trim(), None),
+        };
+        let ident = name.chars().next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+            && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+        if !ident {
+            return Err(coded(exit::USAGE, format!("-D {d:?}: NAME must be a GLSL identifier")));
+        }
+        defines.push((name.to_string(), value));
+    }
+    Ok(GlslOptions { input: Some(input.to_path_buf()), include_dirs: a.include_dirs.clone(), defines, target: a.target_env })
 }
 
 pub fn patch(a: &PatchArgs) -> Result<u8> {
@@ -46,9 +71,10 @@ pub fn patch(a: &PatchArgs) -> Result<u8> {
         let stage = a.stage.as_deref().ok_or_else(|| coded(exit::USAGE, "--glsl needs --stage (rgen, rchit, rahit, rmiss, rint, rcall, vert, frag, comp)"))?;
         let k = kind(stage).ok_or_else(|| coded(exit::USAGE, format!("--stage {stage:?}: use rgen, rchit, rahit, rmiss, rint, rcall, vert, frag or comp")))?;
         let src = String::from_utf8(bytes).map_err(|_| coded(exit::BAD_INPUT, format!("{} is not UTF-8 GLSL", input.display())))?;
+        let opts = glsl_options(a, input)?;
         let mut c = crate::shadergen::compile::Compiler::new().map_err(|e| coded(exit::INTERNAL, e.to_string()))?;
-        let name = input.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-        let words = c.compile_glsl(k, &name, &src).map_err(|e| coded(exit::BAD_INPUT, e.to_string()))?;
+        let name = crate::shadergen::include::display(input);
+        let words = c.compile_user_glsl(k, &name, &src, &opts).map_err(|e| coded(exit::BAD_INPUT, e.to_string()))?;
         words.iter().flat_map(|w| w.to_le_bytes()).collect()
     } else {
         bytes

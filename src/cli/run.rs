@@ -4,6 +4,7 @@ use super::args::RunArgs;
 use super::commands::{open_instance, Globals};
 use super::exit::{self, coded};
 use crate::caps;
+use crate::fleet::{merge, shard::Shard};
 use crate::matrix::inject::Injection;
 use crate::matrix::plan::{self, Filter, PatchMode, PlanOptions, PlanStatus};
 use crate::reference::SceneReference;
@@ -54,6 +55,8 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     if a.repeat.is_some_and(|n| n == 0 || n > 1000) {
         return Err(coded(exit::USAGE, "--repeat must be 1..=1000"));
     }
+    let shard = a.shard.as_deref().map(Shard::parse).transpose().map_err(|e| coded(exit::USAGE, e))?;
+    let baseline = a.baseline.as_deref().map(super::fleet::load_baseline).transpose()?;
     let params = scene_params(a)?;
     if a.jobs.is_some_and(|j| j == 0 || j > 64) {
         return Err(coded(exit::USAGE, "--jobs must be 1..=64"));
@@ -61,12 +64,16 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     if !(a.timeout > 0.0 && a.timeout <= 3600.0) {
         return Err(coded(exit::USAGE, "--timeout must be in (0, 3600] seconds"));
     }
+    if !(a.setup_timeout > 0.0 && a.setup_timeout <= 3600.0) {
+        return Err(coded(exit::USAGE, "--setup-timeout must be in (0, 3600] seconds"));
+    }
     let inst = open_instance(g)?;
     let all = features::query_all(&inst)?;
     let info = features::select(&all, a.device.as_deref())?.clone();
     drop(all);
     let jobs = a.jobs.unwrap_or_else(|| default_jobs(&info));
-    let the_plan = plan::plan(&info, &PlanOptions { filters: filters.clone(), canaries: a.canaries, patches: a.patches, inject: inject.clone() });
+    let mut the_plan = plan::plan(&info, &PlanOptions { filters: filters.clone(), canaries: a.canaries, patches: a.patches, inject: inject.clone() });
+    let sharded_out = shard.map(|s| s.apply(&mut the_plan)).unwrap_or(0);
 
     if a.list {
         for pc in &the_plan.cells {
@@ -77,6 +84,9 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         }
         let to_run = the_plan.to_run().count();
         println!("{} planned: {} to run, {} unsupported; {} filtered out", the_plan.cells.len(), to_run, the_plan.unsupported_count(), the_plan.filtered_out);
+        if let Some(s) = shard {
+            println!("shard {}: {sharded_out} cells left to the other shards", s.label());
+        }
         for ng in &the_plan.not_generated {
             println!("not generated: {} ({} combinations)", ng.rule, ng.count);
         }
@@ -108,9 +118,10 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             ambiguous_pixels: sref.ambiguous_pixels(),
         },
         options: json!({
-            "jobs": jobs, "isolation": a.isolation, "timeout_s": a.timeout, "confirm": !a.no_confirm,
+            "jobs": jobs, "isolation": a.isolation, "timeout_s": a.timeout, "setup_timeout_s": a.setup_timeout, "confirm": !a.no_confirm,
             "canaries": a.canaries, "filters": a.filter, "patches": a.patches, "validate": g.validate,
             "inject": inject.iter().map(|i| i.spec.clone()).collect::<Vec<_>>(), "repeat": a.repeat,
+            "shard": shard.map(|s| s.label()), "binding_stages": std::env::var("RTPROBE_BINDING_STAGES").ok(),
         }),
         plan: PlanSummary {
             generated: the_plan.generated,
@@ -119,16 +130,20 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             to_run: the_plan.to_run().count(),
             unsupported: the_plan.unsupported_count(),
             not_generated: the_plan.not_generated.clone(),
+            sharded_out,
         },
         summary: Default::default(),
         tally: Default::default(),
         timing: TimingSummary::default(),
+        baseline: None,
+        workers: vec![],
         cells: vec![],
     };
     let base = match &a.resume {
         Some(r) => {
             let old = RunReport::load(r).map_err(|e| coded(exit::BAD_INPUT, e))?;
-            resumable(&old, &fresh).map_err(|why| coded(exit::BAD_INPUT, format!("cannot resume {}: {why}; start a new run instead", r.display())))?;
+            merge::same_run(&old, &fresh, &["patches", "inject", "filters", "canaries", "validate", "shard", "binding_stages"])
+                .map_err(|why| coded(exit::BAD_INPUT, format!("cannot resume {}: {why}; start a new run instead", r.display())))?;
             RunReport { command_line: fresh.command_line.clone(), complete: false, finished: None, ..old }
         }
         None => fresh,
@@ -140,7 +155,11 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     let (canaries, cells): (Vec<_>, Vec<_>) = pending.into_iter().partition(|c| c.canary.is_some());
     writer.save(false).with_context(|| "writing the report")?;
 
-    let opts = SupervisorOptions { dump: a.dump.clone(), ..supervisor_options(info.index, params, jobs, a.isolation, a.timeout, g.validate, inject.clone()) };
+    let opts = SupervisorOptions {
+        dump: a.dump.clone(),
+        setup_timeout: Duration::from_secs_f64(a.setup_timeout),
+        ..supervisor_options(info.index, params, jobs, a.isolation, a.timeout, g.validate, inject.clone())
+    };
     let job_dir = opts.job_dir.clone();
     let mut sup = Supervisor::new(opts);
     let bar = indicatif::ProgressBar::new((cells.len() + canaries.len()) as u64);
@@ -154,7 +173,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             .report
             .cells
             .iter()
-            .filter(|c| c.cell.canary.is_none() && c.attempts.len() == 1 && c.outcome.worth_confirming())
+            .filter(|c| c.cell.canary.is_none() && c.attempts.len() == 1 && !c.attempts[0].not_run() && c.outcome.worth_confirming())
             .map(|c| c.cell)
             .collect();
         if !again.is_empty() {
@@ -205,13 +224,19 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     let now = time::now_unix();
     r.finished = Some(format!("{} ({now})", time::stamp(now)));
     r.complete = true;
+    if let (Some(b), Some(p)) = (&baseline, &a.baseline) {
+        r.baseline = Some(crate::fleet::baseline::check(r, b, &p.display().to_string()));
+    }
     writer.save(true).with_context(|| "writing the report")?;
     if let Some(j) = &a.junit {
         write_atomic(j, junit::render(&writer.report).as_bytes()).with_context(|| "writing the JUnit file")?;
     }
     print!("{}", summary::render(&writer.report));
+    if let Some(c) = &writer.report.baseline {
+        print!("{}", crate::fleet::baseline::render(c, a.allow_improvements));
+    }
     println!("report: {}", out.display());
-    Ok(exit_code(&writer.report))
+    Ok(exit_code(&writer.report, a.allow_improvements))
 }
 
 /// The supervisor options of a run (also used by `bisect` and the `--cell-spec` re-run): no
@@ -225,6 +250,7 @@ pub(crate) fn supervisor_options(device_index: usize, scene: SceneParams, jobs: 
         timeout: Duration::from_secs_f64(timeout_s),
         setup_timeout: Duration::from_secs(120),
         grace: Duration::from_millis(500),
+        kill_wait: Duration::from_secs(5),
         validate,
         inject,
         dump: None,
@@ -232,9 +258,17 @@ pub(crate) fn supervisor_options(device_index: usize, scene: SceneParams, jobs: 
     }
 }
 
-/// Findings first (exit 1), then canaries whose fault went undetected (exit 11).
-fn exit_code(r: &RunReport) -> u8 {
-    if r.findings().next().is_some() {
+/// Without a baseline: findings first (exit 1), then canaries whose fault went undetected (exit
+/// 11). With one, only what the baseline did not expect is a finding. A worker fault outside any
+/// cell (a crash between cells, a hung teardown) is always a finding.
+fn exit_code(r: &RunReport, allow_improvements: bool) -> u8 {
+    let worker_faults = r.workers.iter().any(|w| w.outcome.is_finding());
+    let findings = worker_faults
+        || match &r.baseline {
+            Some(c) => !c.ok(allow_improvements),
+            None => r.findings().next().is_some(),
+        };
+    if findings {
         exit::FINDINGS
     } else if r.undetected_canaries().next().is_some() {
         exit::CANARY_UNDETECTED
@@ -243,24 +277,6 @@ fn exit_code(r: &RunReport) -> u8 {
     }
 }
 
-/// Whether `old` can be continued by a run that would write `fresh`: same device identity and
-/// the same options that change results. Says what differs.
-fn resumable(old: &RunReport, fresh: &RunReport) -> Result<(), String> {
-    for key in ["name", "driver_version", "api_version", "driver_uuid", "device_uuid"] {
-        if old.device[key] != fresh.device[key] {
-            return Err(format!("it was made on another device ({key} {} here {})", old.device[key], fresh.device[key]));
-        }
-    }
-    if old.scene.params != fresh.scene.params {
-        return Err(format!("its scene differs (size, seed, instances or mesh detail: {:?} here {:?})", old.scene.params, fresh.scene.params));
-    }
-    for key in ["patches", "inject", "filters", "canaries", "validate"] {
-        if old.options[key] != fresh.options[key] {
-            return Err(format!("its --{} differs ({} here {})", key.replace('_', "-"), old.options[key], fresh.options[key]));
-        }
-    }
-    Ok(())
-}
 
 struct RunState {
     writer: ReportWriter,
@@ -275,6 +291,12 @@ impl RunState {
             Event::WorkerReady { device_ms, .. } => {
                 self.writer.report.timing.workers_started += 1;
                 self.device_ms_sum += device_ms;
+            }
+            Event::Worker(w) => {
+                self.writer.record_worker(w);
+                if let Err(e) = self.writer.save(false) {
+                    self.save_error.get_or_insert(e);
+                }
             }
             Event::Attempt { cell, attempt } => {
                 self.bar.inc(1);
@@ -308,10 +330,12 @@ mod tests {
             matrix_support: json!({}),
             scene: SceneSummary { params: SceneParams::default(), instances: 16, blas: 4, triangles: 0, ambiguous_pixels: 0 },
             options: json!({}),
-            plan: PlanSummary { generated: 0, filtered_out: 0, planned: cells.len(), to_run: cells.len(), unsupported: 0, not_generated: vec![] },
+            plan: PlanSummary { generated: 0, filtered_out: 0, planned: cells.len(), to_run: cells.len(), unsupported: 0, not_generated: vec![], sharded_out: 0 },
             summary: Default::default(),
             tally: Default::default(),
             timing: TimingSummary::default(),
+            baseline: None,
+            workers: vec![],
             cells,
         };
         r.recount();
@@ -319,20 +343,20 @@ mod tests {
     }
 
     fn ran(cell: Cell, outcome: Outcome) -> CellReport {
-        CellReport::new(&cell, Attempt { outcome, isolated: false, detail: None, result: None, worker_exit: None, injected: None, wall_ms: 0.0 })
+        CellReport::new(&cell, Attempt { outcome, isolated: false, detail: None, result: None, worker_exit: None, injected: None, wall_ms: 0.0, phase: None, worker: 0, device_features: vec![] })
     }
 
     #[test]
     fn an_undetected_canary_fails_the_run_and_a_detected_one_does_not() {
         let detected = report(vec![ran(Cell::canary(Canary::InvalidAddress), Outcome::Crash), ran(Cell::canary(Canary::InfiniteLoop), Outcome::Timeout)]);
-        assert_eq!(exit_code(&detected), exit::OK);
+        assert_eq!(exit_code(&detected, false), exit::OK);
         assert_eq!(detected.tally.canaries_detected, 2);
         assert_eq!(detected.summary["crash"], 0, "a detected canary is not a crash finding");
         let junit = crate::report::junit::render(&detected);
         assert!(junit.contains("failures=\"0\""), "{junit}");
         // A driver on which the invalid read ran to completion: classification unproven.
         let undetected = report(vec![ran(Cell::canary(Canary::InvalidAddress), Outcome::Pass)]);
-        assert_eq!(exit_code(&undetected), exit::CANARY_UNDETECTED);
+        assert_eq!(exit_code(&undetected, false), exit::CANARY_UNDETECTED);
         assert_eq!(undetected.tally.canaries_undetected, 1);
         let junit = crate::report::junit::render(&undetected);
         assert!(junit.contains("failures=\"1\"") && junit.contains("canary_undetected"), "{junit}");

@@ -4,14 +4,14 @@
 //! a buffer). Binding 0 is the records SSBO, 1 the scene TLAS, 2 the probed array. The
 //! `descriptor_heap` model never reaches here: the plan marks it unsupported where the driver lacks
 //! VK_EXT_descriptor_heap, and not implemented where it has it.
-use super::resources::Target;
+use super::resources::{descriptor_type, Target};
 use crate::matrix::{DescriptorModel, Resource};
 use crate::vk::memory::{Buffer, Location};
 use crate::vk::{Gpu, VkError, VkResultExt};
 use ash::vk;
 
-/// The probes' 40-byte block plus the 8-byte AS table address the as-to-address patch appends.
-pub const PUSH_CONSTANT_BYTES: u32 = 48;
+/// The probes' block plus the 8-byte table address the address patches append.
+pub const PUSH_CONSTANT_BYTES: u32 = crate::probe::PUSH_CONSTANT_BYTES;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct LayoutKey {
@@ -34,34 +34,42 @@ pub struct Binding {
     bound: Bound,
 }
 
-fn update_after_bind_supported(gpu: &Gpu, ty: vk::DescriptorType) -> bool {
+fn update_after_bind_supported(gpu: &Gpu, kind: Resource) -> bool {
     let v12 = gpu.info.features.v12.unwrap_or_default();
     let on = |b: vk::Bool32| b == vk::TRUE;
-    match ty {
-        vk::DescriptorType::STORAGE_BUFFER => on(v12.descriptor_binding_storage_buffer_update_after_bind),
-        vk::DescriptorType::UNIFORM_BUFFER => on(v12.descriptor_binding_uniform_buffer_update_after_bind),
-        vk::DescriptorType::COMBINED_IMAGE_SAMPLER => on(v12.descriptor_binding_sampled_image_update_after_bind),
-        vk::DescriptorType::STORAGE_IMAGE => on(v12.descriptor_binding_storage_image_update_after_bind),
-        vk::DescriptorType::ACCELERATION_STRUCTURE_KHR => {
-            gpu.info.features.accel.is_some_and(|a| on(a.descriptor_binding_acceleration_structure_update_after_bind))
-        }
-        _ => false,
+    match kind {
+        Resource::StorageBuffer => on(v12.descriptor_binding_storage_buffer_update_after_bind),
+        Resource::UniformBuffer => on(v12.descriptor_binding_uniform_buffer_update_after_bind),
+        Resource::SampledImage => on(v12.descriptor_binding_sampled_image_update_after_bind),
+        Resource::StorageImage => on(v12.descriptor_binding_storage_image_update_after_bind),
+        Resource::AccelerationStructure => gpu.info.features.accel.is_some_and(|a| on(a.descriptor_binding_acceleration_structure_update_after_bind)),
+    }
+}
+
+/// Bytes of one descriptor of `kind` in a descriptor buffer.
+fn descriptor_size(props: &vk::PhysicalDeviceDescriptorBufferPropertiesEXT, kind: Resource) -> usize {
+    match kind {
+        Resource::StorageBuffer => props.storage_buffer_descriptor_size,
+        Resource::UniformBuffer => props.uniform_buffer_descriptor_size,
+        Resource::SampledImage => props.combined_image_sampler_descriptor_size,
+        Resource::StorageImage => props.storage_image_descriptor_size,
+        Resource::AccelerationStructure => props.acceleration_structure_descriptor_size,
     }
 }
 
 impl Binding {
-    /// `targets[b]` are the descriptors of binding `b` (records, scene TLAS, probe array), in the
-    /// order of the layout's bindings.
-    pub fn create(gpu: &Gpu, key: LayoutKey, targets: &[(u32, vk::DescriptorType, Vec<Target>)]) -> Result<Binding, VkError> {
+    /// `targets[b]` are the descriptors of binding `b` (records, scene TLAS, probe array) and
+    /// their kind, in the order of the layout's bindings.
+    pub fn create(gpu: &Gpu, key: LayoutKey, targets: &[(u32, Resource, Vec<Target>)]) -> Result<Binding, VkError> {
         let d = &gpu.device;
         let mut bindings = Vec::new();
         let mut flags = Vec::new();
         let mut uab = false;
-        for (b, ty, t) in targets {
-            bindings.push(vk::DescriptorSetLayoutBinding::default().binding(*b).descriptor_type(*ty).descriptor_count(t.len() as u32).stage_flags(key.stages));
+        for (b, kind, t) in targets {
+            bindings.push(vk::DescriptorSetLayoutBinding::default().binding(*b).descriptor_type(descriptor_type(*kind)).descriptor_count(t.len() as u32).stage_flags(key.stages));
             let f = if *b == 2 && key.model == DescriptorModel::DescriptorIndexing {
                 let mut f = vk::DescriptorBindingFlags::PARTIALLY_BOUND;
-                if update_after_bind_supported(gpu, *ty) {
+                if update_after_bind_supported(gpu, *kind) {
                     f |= vk::DescriptorBindingFlags::UPDATE_AFTER_BIND;
                     uab = true;
                 }
@@ -90,14 +98,15 @@ impl Binding {
             .at("vkCreatePipelineLayout")?;
         let bound = match key.model {
             DescriptorModel::DescriptorIndexing => Self::write_set(gpu, set_layout, uab, targets)?,
-            _ => Self::write_buffer(gpu, set_layout, targets)?,
+            DescriptorModel::DescriptorBuffer => Self::write_buffer(gpu, set_layout, targets)?,
+            DescriptorModel::DescriptorHeap => unreachable!("the plan never runs descriptor_heap cells"),
         };
         Ok(Binding { set_layout, pipeline_layout, bound })
     }
 
-    fn write_set(gpu: &Gpu, layout: vk::DescriptorSetLayout, uab: bool, targets: &[(u32, vk::DescriptorType, Vec<Target>)]) -> Result<Bound, VkError> {
+    fn write_set(gpu: &Gpu, layout: vk::DescriptorSetLayout, uab: bool, targets: &[(u32, Resource, Vec<Target>)]) -> Result<Bound, VkError> {
         let d = &gpu.device;
-        let sizes: Vec<vk::DescriptorPoolSize> = targets.iter().map(|(_, ty, t)| vk::DescriptorPoolSize { ty: *ty, descriptor_count: t.len() as u32 }).collect();
+        let sizes: Vec<vk::DescriptorPoolSize> = targets.iter().map(|(_, kind, t)| vk::DescriptorPoolSize { ty: descriptor_type(*kind), descriptor_count: t.len() as u32 }).collect();
         let mut pci = vk::DescriptorPoolCreateInfo::default().max_sets(1).pool_sizes(&sizes);
         if uab {
             pci = pci.flags(vk::DescriptorPoolCreateFlags::UPDATE_AFTER_BIND);
@@ -106,7 +115,8 @@ impl Binding {
         let layouts = [layout];
         let set = unsafe { d.allocate_descriptor_sets(&vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&layouts)) }
             .at("vkAllocateDescriptorSets")?[0];
-        for (b, ty, ts) in targets {
+        for (b, kind, ts) in targets {
+            let ty = &descriptor_type(*kind);
             let mut buffer_infos = Vec::new();
             let mut image_infos = Vec::new();
             let mut accels = Vec::new();
@@ -132,25 +142,20 @@ impl Binding {
         Ok(Bound::Set { pool, set })
     }
 
-    fn write_buffer(gpu: &Gpu, layout: vk::DescriptorSetLayout, targets: &[(u32, vk::DescriptorType, Vec<Target>)]) -> Result<Bound, VkError> {
+    fn write_buffer(gpu: &Gpu, layout: vk::DescriptorSetLayout, targets: &[(u32, Resource, Vec<Target>)]) -> Result<Bound, VkError> {
         let db = gpu.descriptor_buffer.as_ref().expect("descriptor buffer enabled");
         let props = gpu.info.properties.descriptor_buffer.expect("descriptor buffer properties");
         let size = unsafe { db.get_descriptor_set_layout_size(layout) };
         let mut usage = vk::BufferUsageFlags::RESOURCE_DESCRIPTOR_BUFFER_EXT;
-        if targets.iter().any(|(_, ty, _)| *ty == vk::DescriptorType::COMBINED_IMAGE_SAMPLER) {
+        if targets.iter().any(|(_, kind, _)| *kind == Resource::SampledImage) {
             usage |= vk::BufferUsageFlags::SAMPLER_DESCRIPTOR_BUFFER_EXT;
         }
         let buffer = Buffer::new(gpu, size, usage | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS, Location::Host, "descriptor buffer")?;
         let mut bytes = vec![0u8; size as usize];
-        for (b, ty, ts) in targets {
+        for (b, kind, ts) in targets {
+            let ty = &descriptor_type(*kind);
             let offset = unsafe { db.get_descriptor_set_layout_binding_offset(layout, *b) } as usize;
-            let stride = match *ty {
-                vk::DescriptorType::STORAGE_BUFFER => props.storage_buffer_descriptor_size,
-                vk::DescriptorType::UNIFORM_BUFFER => props.uniform_buffer_descriptor_size,
-                vk::DescriptorType::COMBINED_IMAGE_SAMPLER => props.combined_image_sampler_descriptor_size,
-                vk::DescriptorType::STORAGE_IMAGE => props.storage_image_descriptor_size,
-                _ => props.acceleration_structure_descriptor_size,
-            };
+            let stride = descriptor_size(&props, *kind);
             for (i, t) in ts.iter().enumerate() {
                 let at = offset + i * stride;
                 let dst = &mut bytes[at..at + stride];

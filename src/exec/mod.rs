@@ -1,7 +1,9 @@
-//! Runs cells on one device: builds the scene's acceleration structures, the probed resources,
-//! descriptor bindings and pipelines the first time a cell needs them (and reuses them after),
-//! records and submits the trace / draw / dispatch with a deadline, reads the records back and
-//! compares them with the CPU reference. Everything that can go wrong becomes an [`Outcome`].
+//! Runs cells on one device: [`Executor::prepare`] builds the scene's acceleration structures,
+//! the probed resources and address tables that a worker's cells need before the first cell runs
+//! (so a fault there is the worker's setup, not a cell's); per cell it creates descriptor bindings
+//! and pipelines (reused after), records and submits the trace / draw / dispatch with a deadline,
+//! reads the records back and compares them with the CPU reference, telling its caller each
+//! [`Phase`] it enters. Everything that can go wrong becomes an [`Outcome`].
 pub mod bindings;
 pub mod pipeline;
 pub mod resources;
@@ -11,6 +13,7 @@ use crate::matrix::inject::InjectedFault;
 use crate::outcome::{CellResult, Outcome, Timings};
 use crate::probe::{self, Record, RECORD_SIZE};
 use crate::reference::{self, SceneReference};
+use crate::runner::phase::Phase;
 use crate::scene::gpu::{BuildError, SceneGpu};
 use crate::scene::{Scene, SceneParams};
 use crate::shadergen::{self, compile::Compiler, compile::CompileError, PipelineKind};
@@ -36,12 +39,16 @@ pub struct ExecOptions {
     pub inject: Vec<crate::matrix::inject::Injection>,
     /// Seed of this worker's flaky-injection dice (recorded in each injected result).
     pub inject_seed: u64,
-    /// Write each cell's GLSL and SPIR-V under this folder.
+    /// Write each cell's GLSL and SPIR-V under this folder, and pictures of each mismatch.
     pub dump: Option<PathBuf>,
 }
 
+/// Told each phase a cell (or the setup) enters; an error ends the cell there (the worker's
+/// fault injection uses it to stand in for a device loss).
+pub type PhaseHook<'a> = &'a mut dyn FnMut(Phase) -> Result<(), VkError>;
+
 #[derive(Debug, thiserror::Error)]
-enum CellError {
+pub enum CellError {
     #[error(transparent)]
     Vk(#[from] VkError),
     #[error(transparent)]
@@ -54,6 +61,26 @@ enum CellError {
     Io(String),
     #[error("as-to-address patch: {0}")]
     Patch(#[from] crate::patches::PatchError),
+}
+
+impl CellError {
+    /// The outcome this error means: a lost device is `device_lost` wherever it surfaced (AS
+    /// build, upload, submit), a fence wait past the deadline is `timeout`, anything else `error`.
+    pub fn outcome(&self) -> Outcome {
+        match self {
+            CellError::Vk(e) | CellError::Build(BuildError::Vk(e)) => vk_outcome(e),
+            CellError::Timeout(_) | CellError::Build(BuildError::TimedOut(_)) => Outcome::Timeout,
+            CellError::Compile(_) | CellError::Io(_) | CellError::Patch(_) => Outcome::Error,
+        }
+    }
+}
+
+fn vk_outcome(e: &VkError) -> Outcome {
+    match e {
+        VkError::DeviceLost { .. } => Outcome::DeviceLost,
+        VkError::Call { result, .. } if *result == vk::Result::TIMEOUT => Outcome::Timeout,
+        _ => Outcome::Error,
+    }
 }
 
 pub struct Executor {
@@ -117,13 +144,31 @@ impl Executor {
         })
     }
 
+    /// Build everything `cells` need before any of them runs: the scene's acceleration
+    /// structures, resource arrays, address tables, the color target. A device loss or a fence
+    /// timeout here is the worker's setup fault (no cell ran on this device). A plain creation
+    /// error (say, a format the driver refuses) is left to the cells that need that resource:
+    /// they retry it and report it as their own `error`.
+    pub fn prepare(&mut self, cells: &[Cell]) -> Result<(), CellError> {
+        for cell in cells {
+            let shaders = shadergen::generate(&shadergen::source_cell(cell));
+            if let Err(e) = self.ensure_resources(cell, &shaders) {
+                if e.outcome() != Outcome::Error {
+                    return Err(e);
+                }
+                tracing::warn!("setup for {}: {e}; left to the cell", cell.id());
+            }
+        }
+        Ok(())
+    }
+
     /// Run one cell. Never panics on driver misbehaviour; every failure is an outcome.
-    pub fn run(&mut self, cell: &Cell) -> CellResult {
+    pub fn run(&mut self, cell: &Cell, on_phase: PhaseHook) -> CellResult {
         let start = Instant::now();
         let validation_before = crate::vk::instance::validation_error_count();
         let mut timings = Timings::default();
         let injected = crate::matrix::inject::roll(&self.opts.inject, cell, self.opts.inject_seed);
-        let result = self.try_run(cell, injected.as_ref(), &mut timings);
+        let result = self.try_run(cell, injected.as_ref(), &mut timings, on_phase).and_then(|records| on_phase(Phase::Check).map(|()| records).map_err(CellError::from));
         let mut out = match result {
             Ok(records) => {
                 let t = Instant::now();
@@ -131,25 +176,12 @@ impl Executor {
                 timings.check_ms += t.elapsed().as_secs_f64() * 1e3;
                 CellResult { timings: timings.clone(), ..r }
             }
-            Err(CellError::Vk(e)) if e.is_device_lost() => CellResult {
-                outcome: Outcome::DeviceLost,
-                detail: Some(e.to_string()),
-                timings: timings.clone(),
-                comparison: None,
-                fault: fault::query(&self.gpu),
-                validation_errors: 0,
-            },
-            Err(CellError::Timeout(_)) | Err(CellError::Build(BuildError::TimedOut(_))) => {
-                CellResult {
-                    outcome: Outcome::Timeout,
-                    detail: Some(format!("fence wait exceeded {:?}", self.opts.timeout)),
-                    timings: timings.clone(),
-                    comparison: None,
-                    fault: None,
-                    validation_errors: 0,
-                }
+            Err(e) => {
+                let outcome = e.outcome();
+                let detail = if outcome == Outcome::Timeout { format!("{e} (fence wait limit {:?})", self.opts.timeout) } else { e.to_string() };
+                let fault = if outcome == Outcome::DeviceLost { fault::query(&self.gpu) } else { None };
+                CellResult { outcome, detail: Some(detail), timings: timings.clone(), comparison: None, fault, validation_errors: 0 }
             }
-            Err(e) => CellResult { outcome: Outcome::Error, detail: Some(e.to_string()), timings: timings.clone(), comparison: None, fault: None, validation_errors: 0 },
         };
         out.timings.total_ms = start.elapsed().as_secs_f64() * 1e3;
         out.validation_errors = crate::vk::instance::validation_error_count() - validation_before;
@@ -161,10 +193,17 @@ impl Executor {
         if let Some(c) = cell.canary {
             return none(Outcome::Pass, &format!("canary {} ran to completion: this driver did not fault on it", c.as_str()));
         }
-        let expected = reference::expected(cell, &self.scene, &self.sref, false);
-        let cmp = reference::compare(&expected, records, self.scene.params.width);
+        let expected = reference::expected(cell, &self.scene, &self.sref);
+        let (w, h) = (self.scene.params.width, self.scene.params.height);
+        let mut cmp = reference::compare(&expected, records, w);
         let outcome = if cmp.passed() { Outcome::Pass } else { Outcome::Mismatch };
-        let detail = (!cmp.passed()).then(|| format!("{} of {} compared pixels differ ({:?})", cmp.mismatched_pixels, cmp.compared, cmp.by_field));
+        let mut detail = (!cmp.passed()).then(|| format!("{} of {} compared pixels differ ({:?})", cmp.mismatched_pixels, cmp.compared, cmp.by_field));
+        if let (Some(dir), Some(d)) = (self.opts.dump.as_ref().filter(|_| !cmp.passed()), detail.as_mut()) {
+            match crate::report::pictures::write(&dir.join(cell.id()), &expected, records, w, h) {
+                Ok(paths) => cmp.pictures = paths,
+                Err(e) => d.push_str(&format!("; pictures not written: {e}")),
+            }
+        }
         CellResult { outcome, detail, timings: Timings::default(), comparison: Some(cmp), fault: None, validation_errors: 0 }
     }
 
@@ -175,35 +214,68 @@ impl Executor {
         Ok(self.scene_gpu.as_ref().expect("built above"))
     }
 
-    fn slots(&self) -> u32 {
-        probe::slot_count(self.scene.params.instances)
+    fn slots(&self, r: Resource) -> u32 {
+        probe::slot_count(r, self.scene.params.instances)
     }
 
     /// Targets of bindings 0..=2 for `key`, creating what is missing.
-    fn targets(&mut self, key: LayoutKey) -> Result<Vec<(u32, vk::DescriptorType, Vec<Target>)>, CellError> {
-        let mut t = vec![(0, vk::DescriptorType::STORAGE_BUFFER, vec![Target::Buffer { raw: self.records.raw, address: self.records.address, range: self.records.size }])];
+    fn targets(&mut self, key: LayoutKey) -> Result<Vec<(u32, Resource, Vec<Target>)>, CellError> {
+        let mut t = vec![(0, Resource::StorageBuffer, vec![Target::Buffer { raw: self.records.raw, address: self.records.address, range: self.records.size }])];
         if key.scene_tlas {
             let s = self.ensure_scene()?;
-            t.push((1, vk::DescriptorType::ACCELERATION_STRUCTURE_KHR, vec![Target::Accel { raw: s.tlas[0].raw, address: s.tlas[0].address }]));
+            t.push((1, Resource::AccelerationStructure, vec![Target::Accel { raw: s.scene_tlas.raw, address: s.scene_tlas.address }]));
         }
         if let Some(r) = key.probe {
-            let slots = self.slots();
+            let slots = self.slots(r);
             let targets = if r == Resource::AccelerationStructure {
                 let s = self.ensure_scene()?;
-                (0..slots).map(|k| { let a = &s.tlas[probe::as_slot_tlas(k)]; Target::Accel { raw: a.raw, address: a.address } }).collect()
+                (0..slots).map(|k| { let a = &s.probe_tlas[probe::as_slot_tlas(k)]; Target::Accel { raw: a.raw, address: a.address } }).collect()
             } else {
-                if !self.arrays.contains_key(&r) {
-                    let a = ResourceArray::create(&self.gpu, r, slots, &self.submitter, self.opts.timeout)?;
-                    self.arrays.insert(r, a);
-                }
+                self.ensure_array(r)?;
                 self.arrays[&r].targets(self.sampler)
             };
-            t.push((2, resources::descriptor_type(r), targets));
+            t.push((2, r, targets));
         }
         Ok(t)
     }
 
-    fn try_run(&mut self, cell: &Cell, injected: Option<&InjectedFault>, timings: &mut Timings) -> Result<Vec<Record>, CellError> {
+    /// The scene, resource arrays, address tables and color target `cell` needs (built once,
+    /// normally by [`Executor::prepare`]).
+    fn ensure_resources(&mut self, cell: &Cell, shaders: &shadergen::CellShaders) -> Result<(), CellError> {
+        if shaders.kind == PipelineKind::RayTracing || shaders.uses_scene_tlas || cell.resource == Resource::AccelerationStructure {
+            self.ensure_scene()?;
+        }
+        if shaders.uses_probe_binding && cell.resource != Resource::AccelerationStructure {
+            self.ensure_array(cell.resource)?;
+        }
+        if cell.patch == Some(crate::matrix::cell::Workaround::SsboToAddress) && self.ssbo_table.is_none() {
+            self.ensure_array(Resource::StorageBuffer)?;
+            let addrs: Vec<u64> = self.arrays[&Resource::StorageBuffer].buffers.iter().map(|b| b.address).collect();
+            self.ssbo_table = Some(resources::address_table(&self.gpu, &addrs, "SSBO address table")?);
+        }
+        if shadergen::as_by_address(cell) && self.as_table.is_none() {
+            let s = self.ensure_scene()?;
+            let addrs: Vec<u64> = s.probe_tlas.iter().map(|t| t.address).collect();
+            let slots = self.slots(Resource::AccelerationStructure);
+            self.as_table = Some(resources::as_table(&self.gpu, &addrs, slots)?);
+        }
+        if shaders.kind == PipelineKind::Graphics && self.color.is_none() {
+            let (w, h) = (self.scene.params.width, self.scene.params.height);
+            self.color = Some(Image::new(&self.gpu, vk::Extent2D { width: w, height: h }, pipeline::COLOR_FORMAT, vk::ImageUsageFlags::COLOR_ATTACHMENT)?);
+        }
+        Ok(())
+    }
+
+    fn ensure_array(&mut self, r: Resource) -> Result<(), CellError> {
+        if !self.arrays.contains_key(&r) {
+            let a = ResourceArray::create(&self.gpu, r, self.slots(r), &self.submitter, self.opts.timeout)?;
+            self.arrays.insert(r, a);
+        }
+        Ok(())
+    }
+
+    fn try_run(&mut self, cell: &Cell, injected: Option<&InjectedFault>, timings: &mut Timings, on_phase: PhaseHook) -> Result<Vec<Record>, CellError> {
+        on_phase(Phase::Compile)?;
         let shaders = shadergen::generate_with(&shadergen::source_cell(cell), injected.map(|i| i.fault));
         // SPIR-V
         let mut spirv = Vec::new();
@@ -239,8 +311,10 @@ impl Executor {
         if let Some(dir) = &self.opts.dump {
             dump(dir, cell, &shaders, &spirv).map_err(CellError::Io)?;
         }
-        // scene, resources, bindings
+        // resources (built by `prepare`), bindings, pipeline
+        on_phase(Phase::Pipeline)?;
         let t = Instant::now();
+        self.ensure_resources(cell, &shaders)?;
         let stages = match shaders.kind {
             PipelineKind::RayTracing => {
                 vk::ShaderStageFlags::RAYGEN_KHR
@@ -262,43 +336,23 @@ impl Executor {
             scene_tlas: shaders.uses_scene_tlas,
             probe: shaders.uses_probe_binding.then_some(cell.resource),
         };
-        if shaders.kind == PipelineKind::RayTracing || cell.resource == Resource::AccelerationStructure {
-            self.ensure_scene()?;
-        }
         if !self.bindings.contains_key(&key) {
             let targets = self.targets(key)?;
             let b = Binding::create(&self.gpu, key, &targets)?;
             self.bindings.insert(key, b);
         }
-        // The table the address patches read at push-constant offset 40 (as_table_address at 24
-        // is the hand-written address variant's).
+        // The table the address patches read at push-constant offset probe::PATCHED_TABLE_OFFSET
+        // (PushConstants::as_table is the hand-written address variant's).
         let mut patched_table_address = 0;
         if cell.patch == Some(crate::matrix::cell::Workaround::SsboToAddress) {
-            if self.ssbo_table.is_none() {
-                let slots = self.slots();
-                if !self.arrays.contains_key(&Resource::StorageBuffer) {
-                    let a = ResourceArray::create(&self.gpu, Resource::StorageBuffer, slots, &self.submitter, self.opts.timeout)?;
-                    self.arrays.insert(Resource::StorageBuffer, a);
-                }
-                let addrs: Vec<u64> = self.arrays[&Resource::StorageBuffer].buffers.iter().map(|b| b.address).collect();
-                self.ssbo_table = Some(resources::address_table(&self.gpu, &addrs, "SSBO address table")?);
-            }
             patched_table_address = self.ssbo_table.as_ref().map(|b| b.address).unwrap_or(0);
         }
         let mut as_table_address = 0;
         if shadergen::as_by_address(cell) {
-            if self.as_table.is_none() {
-                let s = self.ensure_scene()?;
-                let addrs = [s.tlas[0].address, s.tlas[1].address];
-                self.as_table = Some(resources::as_table(&self.gpu, addrs, self.slots())?);
-            }
             as_table_address = self.as_table.as_ref().map(|b| b.address).unwrap_or(0);
             patched_table_address = as_table_address;
         }
         let (w, h) = (self.scene.params.width, self.scene.params.height);
-        if shaders.kind == PipelineKind::Graphics && self.color.is_none() {
-            self.color = Some(Image::new(&self.gpu, vk::Extent2D { width: w, height: h }, pipeline::COLOR_FORMAT, vk::ImageUsageFlags::COLOR_ATTACHMENT)?);
-        }
         timings.setup_ms = t.elapsed().as_secs_f64() * 1e3;
 
         // pipeline (reused for identical SPIR-V and model)
@@ -321,19 +375,17 @@ impl Executor {
             self.pipelines.insert(pkey, p);
         }
 
-        // push constants
-        let mut pc = Vec::with_capacity(40);
+        // push constants (layout: probe::PushConstants, then the patches' table address)
+        on_phase(Phase::Record)?;
         let fault = injected.map(|i| i.fault);
-        let loop_forever = cell.canary == Some(Canary::InfiniteLoop) || fault == Some(crate::matrix::inject::FaultKind::Hang);
-        for v in [w, h, probe::PUSH_SLOT, probe::DYNAMIC_BASE, self.slots(), u32::from(loop_forever)] {
-            pc.extend_from_slice(&v.to_le_bytes());
-        }
-        pc.extend_from_slice(&as_table_address.to_le_bytes());
         let injected_bad = injected.is_some_and(|i| i.fault.reads_bad_address() && i.armed != Some(false));
-        let bad = if cell.canary == Some(Canary::InvalidAddress) || injected_bad { CANARY_BAD_ADDRESS } else { 0 };
-        pc.extend_from_slice(&bad.to_le_bytes());
-        // offset 40: the table address of modules rewritten by the address patches
-        pc.extend_from_slice(&patched_table_address.to_le_bytes());
+        let pc = probe::PushConstants {
+            loop_forever: u32::from(cell.canary == Some(Canary::InfiniteLoop) || fault == Some(crate::matrix::inject::FaultKind::Hang)),
+            as_table: as_table_address,
+            bad_address: if cell.canary == Some(Canary::InvalidAddress) || injected_bad { CANARY_BAD_ADDRESS } else { 0 },
+            ..probe::push_constants(w, h, self.scene.params.instances, cell.resource)
+        }
+        .to_bytes(patched_table_address);
 
         let gpu = &self.gpu;
         let pipe = &self.pipelines[&pkey];
@@ -344,6 +396,7 @@ impl Executor {
         // (the buffer is mapped): a vkCmdFillBuffer is an internal compute dispatch on some
         // drivers and must not disturb the state this cell binds.
         records.write(0, &vec![0xffu8; self.scene.params.pixels() * RECORD_SIZE]);
+        let mut entered_trace = Ok(());
         let waited = self.submitter.run(gpu, self.opts.timeout, |cmd| unsafe {
             let d = &gpu.device;
             match pipe.kind {
@@ -386,11 +439,15 @@ impl Executor {
             }
             let to_host = [vk::MemoryBarrier::default().src_access_mask(vk::AccessFlags::MEMORY_WRITE).dst_access_mask(vk::AccessFlags::HOST_READ)];
             d.cmd_pipeline_barrier(cmd, vk::PipelineStageFlags::ALL_COMMANDS, vk::PipelineStageFlags::HOST, vk::DependencyFlags::empty(), &to_host, &[], &[]);
+            // Recorded: what follows is the submission and the fence wait.
+            entered_trace = on_phase(Phase::Trace);
         })?;
+        entered_trace?;
         match waited {
             Waited::TimedOut => return Err(CellError::Timeout("the cell's submission")),
             Waited::Done(d) => timings.trace_ms = d.as_secs_f64() * 1e3,
         }
+        on_phase(Phase::Readback)?;
         let t = Instant::now();
         let bytes = self.records.read(self.scene.params.pixels() * RECORD_SIZE);
         let recs = bytes.chunks_exact(RECORD_SIZE).map(Record::from_bytes).collect();

@@ -1,6 +1,8 @@
 //! The probed resources, one array per kind, created the first time a cell needs that kind: one
 //! buffer or image per slot (as an engine keeps one SSBO per mesh and one texture per material),
-//! each holding `probe::resource_value(kind, slot)`; plus the TLAS address table.
+//! each holding `probe::ELEMENTS` elements `probe::resource_value(kind, slot, element)` (a
+//! buffer's `vec4 v[ELEMENTS]`, an image's 2×2 texels, element e at texel (e & 1, e >> 1)); plus the
+//! TLAS address table.
 use crate::matrix::Resource;
 use crate::probe;
 use crate::vk::features::PROBE_IMAGE_FORMAT;
@@ -27,7 +29,10 @@ impl ResourceArray {
     pub fn create(gpu: &Gpu, kind: Resource, slots: u32, submitter: &Submitter, timeout: Duration) -> Result<Self, VkError> {
         let mut buffers = Vec::new();
         let mut images = Vec::new();
-        let value_bytes = |slot: u32| -> Vec<u8> { probe::resource_value(kind, slot).iter().flat_map(|f| f.to_le_bytes()).collect() };
+        // Every element of a slot, in element order (texels row by row for a 2×2 image).
+        let value_bytes = |slot: u32| -> Vec<u8> {
+            (0..probe::ELEMENTS).flat_map(|e| probe::resource_value(kind, slot, e)).flat_map(|f| f.to_le_bytes()).collect()
+        };
         match kind {
             Resource::StorageBuffer | Resource::UniformBuffer => {
                 let usage = if kind == Resource::StorageBuffer { vk::BufferUsageFlags::STORAGE_BUFFER } else { vk::BufferUsageFlags::UNIFORM_BUFFER };
@@ -42,9 +47,7 @@ impl ResourceArray {
                 let mut staging = Vec::new();
                 for s in 0..slots {
                     images.push(Image::new(gpu, extent, PROBE_IMAGE_FORMAT, usage)?);
-                    let texel = value_bytes(s);
-                    let data: Vec<u8> = (0..4).flat_map(|_| texel.clone()).collect();
-                    staging.push(Buffer::with_data(gpu, &data, vk::BufferUsageFlags::TRANSFER_SRC, "staging")?);
+                    staging.push(Buffer::with_data(gpu, &value_bytes(s), vk::BufferUsageFlags::TRANSFER_SRC, "staging")?);
                 }
                 let waited = submitter.run(gpu, timeout, |cmd| unsafe {
                     for (img, st) in images.iter().zip(&staging) {
@@ -73,7 +76,7 @@ impl ResourceArray {
 
     pub fn targets(&self, sampler: vk::Sampler) -> Vec<Target> {
         if !self.buffers.is_empty() {
-            return self.buffers.iter().map(|b| Target::Buffer { raw: b.raw, address: b.address, range: 16 }).collect();
+            return self.buffers.iter().map(|b| Target::Buffer { raw: b.raw, address: b.address, range: 16 * probe::ELEMENTS as u64 }).collect();
         }
         self.images.iter().map(|i| Target::Image { view: i.view, sampler }).collect()
     }
@@ -110,9 +113,9 @@ pub fn descriptor_type(kind: Resource) -> vk::DescriptorType {
     }
 }
 
-/// A buffer of `slots` device addresses: slot k → TLAS `probe::as_slot_tlas(k)`.
-pub fn as_table(gpu: &Gpu, tlas_addresses: [u64; 2], slots: u32) -> Result<Buffer, VkError> {
-    let addrs: Vec<u64> = (0..slots).map(|k| tlas_addresses[probe::as_slot_tlas(k)]).collect();
+/// A buffer of `slots` device addresses: slot k → probe TLAS variant `probe::as_slot_tlas(k)`.
+pub fn as_table(gpu: &Gpu, variant_addresses: &[u64], slots: u32) -> Result<Buffer, VkError> {
+    let addrs: Vec<u64> = (0..slots).map(|k| variant_addresses[probe::as_slot_tlas(k)]).collect();
     address_table(gpu, &addrs, "AS address table")
 }
 

@@ -60,6 +60,19 @@ axis!(
     }
 );
 
+axis!(
+    /// Shader execution reordering (GL_NV_shader_invocation_reorder) in raygen before the probed
+    /// closest-hit read: the primary ray is traced into a hit object, the invocations are
+    /// reordered, then the hit object's shader runs. Only on cells that have it (`Cell::reorder`).
+    Reorder, "reorder" {
+        /// `reorderThreadNV(hitObject)`.
+        Reorder = "reorder",
+        /// `reorderThreadNV(hitObject, hint, 16)` with the hit instance's custom index as the
+        /// coherence hint.
+        ReorderHint = "reorder_hint",
+    }
+);
+
 impl Stage {
     /// Stages of a ray tracing pipeline (the rest are graphics / compute).
     pub fn is_ray_tracing(self) -> bool {

@@ -1,6 +1,7 @@
 //! One cell of the matrix and its stable id, built from the axes (never from run order):
-//! `stage.resource.index[.nonuniform][.as_access].descriptor_model`, or `canary.<name>`.
-use super::axes::{AsAccess, DescriptorModel, IndexSource, Resource, Stage};
+//! `stage.resource.index[.nonuniform][.as_access].descriptor_model[.reorder][.patch-<name>]`, or
+//! `canary.<name>`.
+use super::axes::{AsAccess, DescriptorModel, IndexSource, Reorder, Resource, Stage};
 use serde::{Deserialize, Serialize};
 
 /// Deliberately faulting cells that prove fault detection works on the device at hand.
@@ -64,6 +65,10 @@ pub struct Cell {
     /// The SPIR-V workaround applied (`patch` axis; none for plain cells).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub patch: Option<Workaround>,
+    /// Shader execution reordering in raygen (`reorder` axis; only closest-hit cells with a
+    /// dynamic index have it, see [`Cell::reorder_applies`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reorder: Option<Reorder>,
 }
 
 impl Cell {
@@ -77,7 +82,15 @@ impl Cell {
             descriptor_model: DescriptorModel::DescriptorIndexing,
             canary: Some(c),
             patch: None,
+            reorder: None,
         }
+    }
+
+    /// Reordering before the probed read can only be observed by a closest-hit probe (the hit
+    /// object's shader runs after the reorder; any-hit and intersection run during traversal,
+    /// before it) whose index differs between invocations.
+    pub fn reorder_applies(&self) -> bool {
+        self.canary.is_none() && self.stage == Stage::ClosestHit && self.index == IndexSource::Dynamic
     }
 
     /// The cell without its workaround.
@@ -120,6 +133,9 @@ impl Cell {
             parts.push(a.as_str());
         }
         parts.push(self.descriptor_model.as_str());
+        if let Some(r) = self.reorder {
+            parts.push(r.as_str());
+        }
         let mut id = parts.join(".");
         if let Some(p) = self.patch {
             id.push_str(".patch-");
@@ -139,12 +155,13 @@ impl Cell {
             "descriptor_model" => self.descriptor_model.as_str().into(),
             "canary" => self.canary.map(|c| c.as_str()).unwrap_or("none").into(),
             "patch" => self.patch.map(|p| p.as_str()).unwrap_or("none").into(),
+            "reorder" => self.reorder.map(|r| r.as_str()).unwrap_or("none").into(),
             _ => return None,
         })
     }
 }
 
-pub const AXIS_NAMES: &[&str] = &["stage", "resource", "index", "nonuniform", "as_access", "descriptor_model", "canary", "patch"];
+pub const AXIS_NAMES: &[&str] = &["stage", "resource", "index", "nonuniform", "as_access", "descriptor_model", "canary", "patch", "reorder"];
 
 #[cfg(test)]
 mod tests {
@@ -161,8 +178,13 @@ mod tests {
             descriptor_model: DescriptorModel::DescriptorIndexing,
             canary: None,
             patch: None,
+            reorder: None,
         };
         assert_eq!(c.id(), "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_indexing");
+        let r = Cell { reorder: Some(Reorder::ReorderHint), patch: Some(Workaround::PinIndex), ..c };
+        assert_eq!(r.id(), "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_indexing.reorder_hint.patch-pin-index");
+        assert_eq!(r.axis_value("reorder").as_deref(), Some("reorder_hint"));
+        assert!(c.reorder_applies() && !Cell { index: IndexSource::Literal, ..c }.reorder_applies());
         let p = Cell { nonuniform: false, patch: Some(Workaround::Nonuniform), ..c };
         assert_eq!(p.id(), "closest_hit.storage_buffer.dynamic.descriptor_indexing.patch-nonuniform");
         assert_eq!(p.base().applicable_patches(), vec![Workaround::Nonuniform, Workaround::PinIndex, Workaround::SsboToAddress]);

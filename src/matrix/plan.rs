@@ -1,7 +1,7 @@
 //! From options and a device to a [`RunPlan`], before any GPU work: which cells exist, which the
 //! filter keeps, which the device cannot run (and why, from its queried features), and which
 //! combinations are never generated because an axis value cannot matter there.
-use super::axes::{AsAccess, DescriptorModel, IndexSource, Resource, Stage};
+use super::axes::{AsAccess, DescriptorModel, IndexSource, Reorder, Resource, Stage};
 use super::cell::{Canary, Cell, AXIS_NAMES};
 use crate::caps::support::{self, Support};
 use crate::vk::DeviceInfo;
@@ -26,8 +26,13 @@ fn valid_values(axis: &str) -> Vec<String> {
             v
         }
         "descriptor_model" => DescriptorModel::names(),
-        "canary" => vec!["invalid_address", "infinite_loop", "none"],
-        "patch" => vec!["nonuniform", "pin-index", "as-to-address", "ssbo-to-address", "none"],
+        "canary" => Canary::ALL.iter().map(|c| c.as_str()).chain(["none"]).collect(),
+        "patch" => super::cell::Workaround::ALL.iter().map(|w| w.as_str()).chain(["none"]).collect(),
+        "reorder" => {
+            let mut v = Reorder::names();
+            v.push("none");
+            v
+        }
         _ => vec![],
     };
     v.into_iter().map(String::from).collect()
@@ -136,6 +141,9 @@ pub fn device_support(info: &DeviceInfo, cell: &Cell) -> Support {
     if let Some(a) = cell.as_access {
         checks.push(support::as_access(info, a));
     }
+    if let Some(r) = cell.reorder {
+        checks.push(support::reorder(info, r));
+    }
     if matches!(cell.patch, Some(super::cell::Workaround::AsToAddress | super::cell::Workaround::SsboToAddress)) {
         checks.push(support::as_access(info, AsAccess::Address));
     }
@@ -158,6 +166,7 @@ pub fn all_cells() -> (Vec<Cell>, Vec<NotGenerated>) {
     let mut cells = Vec::new();
     let mut nonuniform_static = 0;
     let mut nonuniform_address = 0;
+    let mut reorder_elsewhere = 0;
     for &stage in Stage::ALL {
         for &resource in Resource::ALL {
             let accesses: Vec<Option<AsAccess>> =
@@ -174,7 +183,13 @@ pub fn all_cells() -> (Vec<Cell>, Vec<NotGenerated>) {
                                 nonuniform_address += 1;
                                 continue;
                             }
-                            cells.push(Cell { stage, resource, index, nonuniform, as_access, descriptor_model, canary: None, patch: None });
+                            let cell = Cell { stage, resource, index, nonuniform, as_access, descriptor_model, canary: None, patch: None, reorder: None };
+                            cells.push(cell);
+                            if cell.reorder_applies() {
+                                cells.extend(Reorder::ALL.iter().map(|r| Cell { reorder: Some(*r), ..cell }));
+                            } else {
+                                reorder_elsewhere += Reorder::ALL.len();
+                            }
                         }
                     }
                 }
@@ -184,6 +199,7 @@ pub fn all_cells() -> (Vec<Cell>, Vec<NotGenerated>) {
     let not_generated = vec![
         NotGenerated { rule: "nonuniform only applies to index=dynamic".into(), count: nonuniform_static },
         NotGenerated { rule: "nonuniform has no descriptor to qualify with as_access=address".into(), count: nonuniform_address },
+        NotGenerated { rule: "reorder only applies to stage=closest_hit with index=dynamic".into(), count: reorder_elsewhere },
     ];
     (cells, not_generated)
 }
@@ -250,8 +266,10 @@ mod tests {
         ids.sort();
         ids.dedup();
         assert_eq!(ids.len(), n, "cell ids are unique");
-        // 8 stages x (4 resources x 5 index variants + AS: 5 descriptor + 4 address + 5 patched) x 3 models
-        assert_eq!(n, 8 * (4 * 5 + 14) * 3);
+        // 8 stages x (4 resources x 5 index variants + AS: 5 descriptor + 4 address + 5 patched) x 3 models,
+        // plus the dynamic closest-hit cells (4 x 2 + AS 2 + 1 + 2, x 3 models) with each reorder value
+        assert_eq!(n, 8 * (4 * 5 + 14) * 3 + (4 * 2 + 5) * 3 * 2);
+        assert!(cells.iter().all(|c| c.reorder.is_none() || c.reorder_applies()));
         assert!(skipped.iter().all(|s| s.count > 0));
     }
 

@@ -57,36 +57,6 @@ struct Site {
     index: Option<Word>,
 }
 
-/// Byte size of simple member types (scalars, vectors), for finding the end of a push block.
-fn simple_size(m: &Module, ty: Word) -> Option<u32> {
-    let d = edit::def(m, ty)?;
-    match d.class.opcode {
-        Op::TypeInt | Op::TypeFloat => match d.operands.first() {
-            Some(Operand::LiteralBit32(w)) => Some(w / 8),
-            _ => None,
-        },
-        Op::TypeVector => {
-            let comp = simple_size(m, id_operand(d, 0)?)?;
-            match d.operands.get(1) {
-                Some(Operand::LiteralBit32(n)) => Some(comp * n),
-                _ => None,
-            }
-        }
-        _ => None,
-    }
-}
-
-fn member_offsets(m: &Module, st: Word) -> Vec<(u32, u32)> {
-    m.annotations
-        .iter()
-        .filter(|a| a.class.opcode == Op::MemberDecorate && id_operand(a, 0) == Some(st))
-        .filter_map(|a| match (a.operands.get(1), a.operands.get(2), a.operands.get(3)) {
-            (Some(Operand::LiteralBit32(idx)), Some(Operand::Decoration(Decoration::Offset)), Some(Operand::LiteralBit32(off))) => Some((*idx, *off)),
-            _ => None,
-        })
-        .collect()
-}
-
 pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
     const NAME: &str = "as-to-address";
     let as_types: HashSet<Word> = m.types_global_values.iter().filter(|i| i.class.opcode == Op::TypeAccelerationStructureKHR).filter_map(|i| i.result_id).collect();
@@ -222,13 +192,17 @@ pub(super) fn push_constant_u64(m: &mut Module, offset: Option<u32>, patch: &'st
             let (_, st) = edit::pointer_info(m, ptr).ok_or(PatchError::Unsupported { patch, id: var, what: "push-constant variable without pointer type".into() })?;
             let st_def = edit::def(m, st).cloned().ok_or(PatchError::Unsupported { patch, id: st, what: "push-constant block type not found".into() })?;
             let members: Vec<Word> = st_def.operands.iter().filter_map(|o| if let Operand::IdRef(w) = o { Some(*w) } else { None }).collect();
-            let offs = member_offsets(m, st);
-            let end = offs.iter().map(|(i, o)| members.get(*i as usize).and_then(|t| simple_size(m, *t)).map(|s| o + s)).collect::<Option<Vec<_>>>().map(|v| v.into_iter().max().unwrap_or(0));
-            let offset = match (offset, end) {
-                (Some(o), Some(e)) if o < e => return Err(PatchError::BadOption { patch, what: format!("offset={o} overlaps the push-constant block, which ends at {e}") }),
-                (Some(o), _) => o,
-                (None, Some(e)) => e.div_ceil(8) * 8,
-                (None, None) => return Err(PatchError::BadOption { patch, what: "cannot size the existing push-constant block; pass --option offset=N".into() }),
+            // Sized from its Offset / ArrayStride / MatrixStride decorations; a block without them
+            // is not a valid Vulkan push-constant block.
+            let end = edit::explicit_extent(m, st, None).ok_or(PatchError::Unsupported {
+                patch,
+                id: st,
+                what: "the push-constant block lacks the Offset / ArrayStride / MatrixStride decorations that give its size".into(),
+            })?;
+            let offset = match offset {
+                Some(o) if o < end => return Err(PatchError::BadOption { patch, what: format!("offset={o} overlaps the push-constant block, which ends at {end}") }),
+                Some(o) => o,
+                None => end.div_ceil(8) * 8,
             };
             if offset % 8 != 0 {
                 return Err(PatchError::BadOption { patch, what: format!("offset={offset} is not 8-byte aligned") });
@@ -267,4 +241,63 @@ pub(super) fn push_constant_u64(m: &mut Module, offset: Option<u32>, patch: &'st
         }
     };
     Ok(found)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn module(glsl: &str) -> Module {
+        let mut c = crate::shadergen::compile::Compiler::new().expect("shaderc");
+        let words = c.compile_glsl(shaderc::ShaderKind::RayGeneration, "t.rgen", glsl).expect("compiles");
+        let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+        crate::patches::load(&bytes).expect("loads")
+    }
+
+    const CAMERA: &str = include_str!("../../tests/shaders/engine_camera.rgen");
+
+    #[test]
+    fn push_blocks_with_matrices_arrays_and_small_types_are_sized_from_their_decorations() {
+        // engine_camera.rgen (std430): mat4 0..64; row-major mat3x4 = 4 rows of 3 floats, stride
+        // 16: 64..124; vec3 128..140; u16 140..142; u64 144..152; Light[2] at 160, stride 16,
+        // Light 15 bytes: 160..191; u8 frame 192..193 -> first free 8-aligned offset 200.
+        let mut m = module(CAMERA);
+        let r = apply(&mut m, &Options::default()).expect("sized without --option offset");
+        assert_eq!(r.offset, 200);
+        let v = crate::patches::validate(&crate::patches::assemble(&m));
+        assert_eq!(v, crate::patches::Validation::Valid);
+        // an offset inside the block is refused, one past it accepted
+        let err = apply(&mut module(CAMERA), &Options { offset: Some(192), ..Default::default() }).unwrap_err();
+        assert!(err.to_string().contains("overlaps") && err.to_string().contains("193"), "{err}");
+        assert_eq!(apply(&mut module(CAMERA), &Options { offset: Some(200), ..Default::default() }).unwrap().offset, 200);
+    }
+
+    #[test]
+    fn material_block_with_nested_structs_and_column_major_matrices() {
+        let glsl = r#"#version 460
+#extension GL_EXT_ray_tracing : require
+#extension GL_EXT_shader_explicit_arithmetic_types : require
+struct Tex { uint index; float16_t scale; };
+struct Material { mat2x3 uvTransform; Tex tex[3]; double roughness; };
+layout(set = 0, binding = 0) uniform accelerationStructureEXT tlas;
+layout(push_constant, std430) uniform Push { Material mat; int8_t flags; } pc;
+layout(location = 0) rayPayloadEXT vec4 color;
+void main() {
+    color = vec4(pc.mat.uvTransform[1], float(pc.mat.roughness) + float(pc.mat.tex[2].scale) + float(pc.flags));
+    traceRayEXT(tlas, gl_RayFlagsOpaqueEXT, 0xFF, 0, 0, 0, vec3(0.0), 0.001, vec3(0.0, 0.0, 1.0), 100.0, 0);
+}
+"#;
+        // Material: mat2x3 column-major (2 columns of vec3, stride 16) 0..28; Tex[3] at 32, stride 8
+        // (uint + f16 padded to 4-byte alignment) -> 32..54; double at 56..64; Material size 64;
+        // flags at 64..65 -> 72.
+        let mut m = module(glsl);
+        let st = m
+            .types_global_values
+            .iter()
+            .find(|i| i.class.opcode == Op::TypeStruct && edit::has_decoration(&m, i.result_id.unwrap(), Decoration::Block))
+            .and_then(|i| i.result_id)
+            .unwrap();
+        assert_eq!(edit::explicit_extent(&m, st, None), Some(65));
+        assert_eq!(apply(&mut m, &Options::default()).unwrap().offset, 72);
+    }
 }

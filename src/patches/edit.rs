@@ -175,6 +175,78 @@ pub fn users(m: &Module, id: Word) -> Vec<Word> {
         .collect()
 }
 
+/// A member decoration of struct `st`'s member `member`: `Some(literal)` when present (`Some(0)`
+/// for decorations without a literal).
+pub fn member_decoration(m: &Module, st: Word, member: u32, d: Decoration) -> Option<u32> {
+    m.annotations.iter().find_map(|a| {
+        let hit = a.class.opcode == Op::MemberDecorate
+            && id_operand(a, 0) == Some(st)
+            && a.operands.get(1) == Some(&Operand::LiteralBit32(member))
+            && matches!(a.operands.get(2), Some(Operand::Decoration(x)) if *x == d);
+        hit.then(|| match a.operands.get(3) {
+            Some(Operand::LiteralBit32(v)) => *v,
+            _ => 0,
+        })
+    })
+}
+
+fn literal(i: &Instruction, n: usize) -> Option<u32> {
+    match i.operands.get(n) {
+        Some(Operand::LiteralBit32(v)) => Some(*v),
+        _ => None,
+    }
+}
+
+/// Bytes a value of type `ty` spans in an explicitly laid-out block (push constants, UBO, SSBO):
+/// scalars of 8/16/32/64 bits, vectors, matrices (from the enclosing member's `MatrixStride` and
+/// `RowMajor`, passed as `matrix`), arrays (`ArrayStride` × length), structs (the largest member
+/// `Offset` + extent), physical-storage-buffer pointers (8). `None` for what has no fixed extent
+/// (runtime arrays, spec-constant lengths, missing decorations).
+///
+/// SPIR-V rules relied on (Vulkan "Offset and Stride Assignment"): every member of a block struct
+/// has an `Offset`; arrays have an `ArrayStride`; matrix members (or arrays of them) have a
+/// `MatrixStride` and are `ColMajor` unless `RowMajor`; vector components are tightly packed.
+pub fn explicit_extent(m: &Module, ty: Word, matrix: Option<(u32, bool)>) -> Option<u32> {
+    let d = def(m, ty)?;
+    match d.class.opcode {
+        Op::TypeInt | Op::TypeFloat => literal(d, 0).map(|bits| bits / 8),
+        Op::TypeVector => Some(explicit_extent(m, id_operand(d, 0)?, None)? * literal(d, 1)?),
+        Op::TypeMatrix => {
+            let column = def(m, id_operand(d, 0)?)?;
+            let (cols, rows) = (literal(d, 1)?, literal(column, 1)?);
+            let comp = explicit_extent(m, id_operand(column, 0)?, None)?;
+            let (stride, row_major) = matrix?;
+            // stride separates columns (column-major) or rows (row-major)
+            Some(if row_major { (rows - 1) * stride + cols * comp } else { (cols - 1) * stride + rows * comp })
+        }
+        Op::TypeArray => {
+            let len_def = def(m, id_operand(d, 1)?)?;
+            if len_def.class.opcode != Op::Constant {
+                return None;
+            }
+            let len = literal(len_def, 0)?;
+            let stride = decoration_literal(m, ty, Decoration::ArrayStride)?;
+            Some(len.checked_sub(1)? * stride + explicit_extent(m, id_operand(d, 0)?, matrix)?)
+        }
+        Op::TypeStruct => {
+            let mut end = 0;
+            for (k, o) in d.operands.iter().enumerate() {
+                let Operand::IdRef(member_ty) = o else { return None };
+                let k = k as u32;
+                let offset = member_decoration(m, ty, k, Decoration::Offset)?;
+                let matrix = member_decoration(m, ty, k, Decoration::MatrixStride).map(|s| (s, member_decoration(m, ty, k, Decoration::RowMajor).is_some()));
+                end = end.max(offset + explicit_extent(m, *member_ty, matrix)?);
+            }
+            Some(end)
+        }
+        Op::TypePointer => match d.operands.first() {
+            Some(Operand::StorageClass(StorageClass::PhysicalStorageBuffer)) => Some(8),
+            _ => None,
+        },
+        _ => None,
+    }
+}
+
 /// Ids the address-table loads need (see [`table_entry`]).
 pub struct TableTypes {
     pub pc_var: Word,

@@ -190,7 +190,9 @@ pub fn validate(words: &[u32]) -> Validation {
     if std::fs::write(&dir, bytes).is_err() {
         return Validation::Unavailable;
     }
-    let out = std::process::Command::new("spirv-val").args(["--target-env", "vulkan1.2"]).arg(&dir).output();
+    // SPIR-V 1.6 (from `patch --glsl --target-env vulkan1.3/1.4`) needs a Vulkan 1.3 environment.
+    let env = if words.get(1).is_some_and(|v| *v >= 0x0001_0600) { "vulkan1.3" } else { "vulkan1.2" };
+    let out = std::process::Command::new("spirv-val").args(["--target-env", env]).arg(&dir).output();
     let _ = std::fs::remove_file(&dir);
     match out {
         Err(_) => Validation::Unavailable,

@@ -2,6 +2,8 @@
 //! procedural geometry, instance transforms inverted in f64. Hits within a margin of an edge, of
 //! the sphere's silhouette, or of another hit's distance are flagged `ambiguous`: there f32 GPU
 //! traversal may legitimately pick the other surface, so those pixels are not compared.
+//! [`candidates`] collects every instance's hits of one ray once; [`resolve`] picks the closest
+//! among the instances a TLAS holds, so the AS probe's TLAS variants cost one traversal.
 use crate::scene::{Geometry, Instance, Scene, RAY_TMAX, RAY_TMIN, SPHERE_RADIUS};
 use glam::{DMat3, DVec3};
 
@@ -12,7 +14,12 @@ pub const EPS_T: f64 = 1e-4;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
+    /// The instance's custom index in the scene TLAS.
     pub instance: u32,
+    /// The instance's position in `Scene::instances` (`Scene::instances.len()`: the floor).
+    pub instance_id: u32,
+    pub geometry: u32,
+    /// Within its geometry.
     pub primitive: u32,
     pub t: f64,
     /// (weight of v1, weight of v2), as `hitAttributeEXT vec2` holds them; (0, 0) for spheres.
@@ -26,8 +33,9 @@ pub struct TraceRef {
     pub ambiguous: bool,
 }
 
-struct Candidate {
-    hit: Hit,
+#[derive(Clone, Copy, Debug)]
+pub struct Candidate {
+    pub hit: Hit,
     marginal: bool,
 }
 
@@ -43,20 +51,24 @@ fn object_ray(inst: &Instance, o: DVec3, d: DVec3) -> (DVec3, DVec3) {
     (inv * (o - t), inv * d)
 }
 
-/// World-space xy bounds of an instance's object-space box, for a quick reject of the
-/// axis-aligned (+z) primary rays.
-fn world_xy_bounds(inst: &Instance, lo: [f64; 3], hi: [f64; 3]) -> [f64; 4] {
-    let m = inst.transform;
-    let mut b = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
-    for c in 0..8 {
-        let p = [if c & 1 == 0 { lo[0] } else { hi[0] }, if c & 2 == 0 { lo[1] } else { hi[1] }, if c & 4 == 0 { lo[2] } else { hi[2] }];
-        for (axis, row) in m.iter().take(2).enumerate() {
-            let w = row[0] as f64 * p[0] + row[1] as f64 * p[1] + row[2] as f64 * p[2] + row[3] as f64;
-            b[axis] = b[axis].min(w);
-            b[axis + 2] = b[axis + 2].max(w);
+/// Whether the object-space ray can come within a margin of the object-space box `lo..hi`
+/// inside the ray's t range (a conservative quick reject).
+fn may_hit_box(o: DVec3, d: DVec3, lo: [f64; 3], hi: [f64; 3]) -> bool {
+    let (mut t0, mut t1) = (RAY_TMIN as f64 * 0.5, RAY_TMAX as f64 * 1.01);
+    for a in 0..3 {
+        let m = 1e-3 * (hi[a] - lo[a]).max(1.0);
+        let (l, h) = (lo[a] - m, hi[a] + m);
+        if d[a] == 0.0 {
+            if o[a] < l || o[a] > h {
+                return false;
+            }
+            continue;
         }
+        let (ta, tb) = ((l - o[a]) / d[a], (h - o[a]) / d[a]);
+        t0 = t0.max(ta.min(tb));
+        t1 = t1.min(ta.max(tb));
     }
-    b
+    t0 <= t1 * (1.0 + 1e-6) + 1e-6
 }
 
 fn triangle(o: DVec3, d: DVec3, v0: DVec3, v1: DVec3, v2: DVec3) -> Option<(f64, f64, f64, bool)> {
@@ -100,60 +112,78 @@ fn sphere(o: DVec3, d: DVec3) -> Option<(f64, bool)> {
     Some((t, marginal))
 }
 
-/// Closest hit of the ray among the instances `include` accepts.
-pub fn trace(scene: &Scene, origin: [f32; 3], dir: [f32; 3], include: impl Fn(&Instance) -> bool) -> TraceRef {
+/// Every hit of the ray with `instances` (each with its instance id), marginal ones included.
+pub fn candidates<'a>(scene: &Scene, origin: [f32; 3], dir: [f32; 3], instances: impl Iterator<Item = (u32, &'a Instance)>) -> Vec<Candidate> {
     let o = DVec3::new(origin[0] as f64, origin[1] as f64, origin[2] as f64);
     let d = DVec3::new(dir[0] as f64, dir[1] as f64, dir[2] as f64);
-    let margin = 1e-3;
     let mut cands: Vec<Candidate> = Vec::new();
-    for inst in scene.instances.iter().filter(|i| include(i)) {
-        let (lo, hi) = match inst.geometry {
-            Geometry::Mesh(_) => ([-1.0, -1.0, -0.25], [1.0, 1.0, 0.25]),
-            Geometry::Sphere => ([-0.5; 3], [0.5; 3]),
-        };
-        if d.x == 0.0 && d.y == 0.0 {
-            let b = world_xy_bounds(inst, lo, hi);
-            if o.x < b[0] - margin || o.x > b[2] + margin || o.y < b[1] - margin || o.y > b[3] + margin {
-                continue;
+    let bounds: Vec<([f64; 3], [f64; 3])> = scene
+        .meshes
+        .iter()
+        .map(|mesh| {
+            let (mut lo, mut hi) = ([f64::MAX; 3], [f64::MIN; 3]);
+            for v in &mesh.positions {
+                for a in 0..3 {
+                    lo[a] = lo[a].min(v[a] as f64);
+                    hi[a] = hi[a].max(v[a] as f64);
+                }
             }
-        }
+            (lo, hi)
+        })
+        .collect();
+    for (id, inst) in instances {
         let (oo, od) = object_ray(inst, o, d);
         match inst.geometry {
             Geometry::Mesh(m) => {
                 let mesh = &scene.meshes[m];
+                if !may_hit_box(oo, od, bounds[m].0, bounds[m].1) {
+                    continue;
+                }
                 let p = |i: u32| {
                     let v = mesh.positions[i as usize];
                     DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64)
                 };
-                for (prim, tri) in mesh.indices.iter().enumerate() {
+                for (tri_index, tri) in mesh.indices.iter().enumerate() {
                     if let Some((t, u, v, marginal)) = triangle(oo, od, p(tri[0]), p(tri[1]), p(tri[2])) {
-                        let hit = Hit { instance: inst.custom_index, primitive: prim as u32, t, bary: [u, v], sphere: false };
+                        let (geometry, primitive) = mesh.geometry_of(tri_index as u32);
+                        let hit = Hit { instance: inst.custom_index, instance_id: id, geometry, primitive, t, bary: [u, v], sphere: false };
                         cands.push(Candidate { hit, marginal });
                     }
                 }
             }
             Geometry::Sphere => {
                 if let Some((t, marginal)) = sphere(oo, od) {
-                    let hit = Hit { instance: inst.custom_index, primitive: 0, t, bary: [0.0, 0.0], sphere: true };
+                    let hit = Hit { instance: inst.custom_index, instance_id: id, geometry: 0, primitive: 0, t, bary: [0.0, 0.0], sphere: true };
                     cands.push(Candidate { hit, marginal });
                 }
             }
         }
     }
+    cands
+}
+
+/// The closest of the `cands` that `include` accepts, and whether the GPU may pick another.
+pub fn resolve(cands: &[Candidate], include: impl Fn(&Hit) -> bool) -> TraceRef {
+    let kept: Vec<&Candidate> = cands.iter().filter(|c| include(&c.hit)).collect();
     // The GPU commits the closest certain-or-marginal hit it finds; a marginal candidate may or
     // may not be found, so it only makes the pixel ambiguous when it could be the closest.
-    let best = cands.iter().filter(|c| !c.marginal).min_by(|a, b| a.hit.t.total_cmp(&b.hit.t));
+    let best = kept.iter().filter(|c| !c.marginal).min_by(|a, b| a.hit.t.total_cmp(&b.hit.t));
     let ambiguous_near = |t: f64| t * (1.0 + EPS_T) + EPS_T;
+    let key = |h: &Hit| (h.instance_id, h.geometry, h.primitive);
     match best {
-        None => TraceRef { hit: None, ambiguous: !cands.is_empty() },
+        None => TraceRef { hit: None, ambiguous: !kept.is_empty() },
         Some(b) => {
             let bound = ambiguous_near(b.hit.t);
-            let ambiguous = cands.iter().any(|c| {
-                !std::ptr::eq(c, b) && c.hit.t <= bound && (c.marginal || (c.hit.instance, c.hit.primitive) != (b.hit.instance, b.hit.primitive))
-            });
+            let ambiguous = kept.iter().any(|c| !std::ptr::eq(*c, *b) && c.hit.t <= bound && (c.marginal || key(&c.hit) != key(&b.hit)));
             TraceRef { hit: Some(b.hit), ambiguous }
         }
     }
+}
+
+/// Closest hit of the ray among the scene instances `include` accepts.
+pub fn trace(scene: &Scene, origin: [f32; 3], dir: [f32; 3], include: impl Fn(&Instance) -> bool) -> TraceRef {
+    let insts = scene.instances.iter().enumerate().map(|(k, i)| (k as u32, i)).filter(|&(_, i)| include(i));
+    resolve(&candidates(scene, origin, dir, insts), |_| true)
 }
 
 #[cfg(test)]

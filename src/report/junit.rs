@@ -1,6 +1,7 @@
 //! JUnit XML for CI systems: one testcase per cell; findings are failures, unsupported cells
 //! skipped.
 use super::run_report::RunReport;
+use crate::fleet::baseline::Status;
 use crate::outcome::Outcome;
 
 fn esc(s: &str) -> String {
@@ -19,15 +20,26 @@ fn esc(s: &str) -> String {
 
 /// Whether the JUnit testcase fails: a finding of a probe cell (flaky ones too), or a canary
 /// whose fault was not detected. A detected canary is a success.
-fn fails(c: &super::run_report::CellReport) -> bool {
+fn fails(r: &RunReport, c: &super::run_report::CellReport) -> bool {
     match &c.canary_check {
         Some(chk) => !chk.detected,
-        None => c.outcome.is_finding(),
+        None => c.outcome.is_finding() && expected_by_baseline(r, c).is_none(),
+    }
+}
+
+/// With `--baseline`: the finding is expected there (an expected fault or a known flake).
+fn expected_by_baseline<'a>(r: &'a RunReport, c: &super::run_report::CellReport) -> Option<&'a str> {
+    let b = r.baseline.as_ref()?;
+    match b.cells.iter().find(|x| x.cell == c.id).map(|x| x.status) {
+        Some(Status::KnownFlake) => Some("known flake in the baseline"),
+        Some(Status::Regression | Status::Improvement) => None,
+        // Not listed among the surprises: the baseline expected exactly this.
+        Some(Status::Expected) | None => Some("expected by the baseline"),
     }
 }
 
 pub fn render(r: &RunReport) -> String {
-    let failures = r.cells.iter().filter(|c| fails(c)).count();
+    let failures = r.cells.iter().filter(|c| fails(r, c)).count();
     let skipped = r.cells.iter().filter(|c| c.outcome == Outcome::Unsupported).count();
     let mut s = format!(
         "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuites>\n<testsuite name=\"rtprobe\" tests=\"{}\" failures=\"{failures}\" skipped=\"{skipped}\">\n",
@@ -38,8 +50,19 @@ pub fn render(r: &RunReport) -> String {
         let secs = c.attempts.last().map(|a| a.wall_ms / 1e3).unwrap_or(0.0);
         s += &format!("  <testcase classname=\"{}\" name=\"{}\" time=\"{secs:.3}\">", esc(&class), esc(&c.id));
         let reason = esc(c.reason.as_deref().unwrap_or(""));
+        let mut props = vec![];
         if let Some(inc) = c.incidence.as_ref().filter(|_| c.flaky) {
-            s += &format!("<properties><property name=\"flaky\" value=\"{}\"/></properties>", esc(&inc.label()));
+            props.push(("flaky", inc.label()));
+        }
+        if let Some(rule) = &c.outside_spec {
+            props.push(("outside_spec", rule.clone()));
+        }
+        if !props.is_empty() {
+            s += "<properties>";
+            for (k, v) in props {
+                s += &format!("<property name=\"{k}\" value=\"{}\"/>", esc(&v));
+            }
+            s += "</properties>";
         }
         if let Some(chk) = &c.canary_check {
             let expected: Vec<&str> = chk.expected.iter().map(|o| o.as_str()).collect();
@@ -48,6 +71,8 @@ pub fn render(r: &RunReport) -> String {
             } else {
                 format!("<failure type=\"canary_undetected\" message=\"expected {}, got {}: {reason}\"/>", expected.join(" or "), c.outcome.as_str())
             };
+        } else if let Some(why) = expected_by_baseline(r, c).filter(|_| c.outcome.is_finding()) {
+            s += &format!("<system-out>{}: {} ({why})</system-out>", esc(&c.outcome.as_str()), reason);
         } else {
             match c.outcome {
                 Outcome::Pass => {}

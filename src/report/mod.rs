@@ -1,8 +1,9 @@
-//! Reports: atomic writes, timestamps, the run report schema and its writer, JUnit and the
-//! terminal summary.
+//! Reports: atomic writes, timestamps, the run report schema and its writer, JUnit, mismatch
+//! pictures and the terminal summary.
 pub mod atomic;
 pub mod junit;
 pub mod issue;
+pub mod pictures;
 pub mod run_report;
 pub mod shaders;
 pub mod summary;

@@ -5,7 +5,7 @@
 use crate::matrix::plan::{NotGenerated, PlanStatus, RunPlan};
 use crate::matrix::{Canary, Cell};
 use crate::outcome::Outcome;
-use crate::runner::supervisor::Attempt;
+use crate::runner::supervisor::{Attempt, WorkerEvent};
 use crate::scene::SceneParams;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
@@ -49,6 +49,11 @@ pub struct CellReport {
     /// The `--inject-fault` argument that made this cell misbehave on purpose.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub injected: Option<String>,
+    /// A dynamic descriptor index without `nonuniformEXT`: the rule it breaks (the spec
+    /// guarantees nothing about which element it reads); the reads are counted per attempt in
+    /// `comparison.element_reads`.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub outside_spec: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub canary_check: Option<CanaryCheck>,
     /// For a cell with a finding: each workaround tried and its outcome.
@@ -96,6 +101,12 @@ pub fn miss_probability(p: f64, n: u32) -> f64 {
 }
 
 impl CellReport {
+    /// The own/other/neither element reads of each attempt that compared (cells without
+    /// `nonuniformEXT` on a dynamic descriptor index).
+    pub fn element_reads(&self) -> impl Iterator<Item = &crate::reference::ElementReads> {
+        self.attempts.iter().filter_map(|a| a.result.as_ref()?.comparison.as_ref()?.element_reads.as_ref())
+    }
+
     /// A cell with its first attempt.
     pub fn new(cell: &Cell, attempt: Attempt) -> Self {
         let mut c = CellReport {
@@ -107,6 +118,7 @@ impl CellReport {
             incidence: None,
             flaky: false,
             injected: None,
+            outside_spec: None,
             canary_check: None,
             workarounds: vec![],
             attempts: vec![attempt],
@@ -133,6 +145,8 @@ impl CellReport {
             miss_probability: miss_probability(k as f64 / n as f64, n),
         });
         self.injected = self.attempts.iter().find_map(|a| a.injected.as_ref()).map(|i| i.spec.clone());
+        let rule = self.element_reads().next().map(|e| e.outside_spec.clone());
+        self.outside_spec = rule;
         self.reason = match (&self.incidence, detail) {
             (Some(inc), d) if n > 1 => Some(format!("{} ({})", d.unwrap_or_else(|| outcome.as_str().into()), inc.label())),
             (_, d) => d,
@@ -162,6 +176,13 @@ pub struct PlanSummary {
     pub to_run: usize,
     pub unsupported: usize,
     pub not_generated: Vec<NotGenerated>,
+    /// Cells left to the other shards (`--shard I/N`).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub sharded_out: usize,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -221,6 +242,12 @@ pub struct RunReport {
     #[serde(default)]
     pub tally: Tally,
     pub timing: TimingSummary,
+    /// With `--baseline`: how the run compared with its expectations.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub baseline: Option<crate::fleet::baseline::BaselineCheck>,
+    /// Each worker's setup (`pass` once ready) and its faults outside any cell.
+    #[serde(default)]
+    pub workers: Vec<WorkerEvent>,
     pub cells: Vec<CellReport>,
 }
 
@@ -307,6 +334,7 @@ impl ReportWriter {
                         incidence: None,
                         flaky: false,
                         injected: None,
+                        outside_spec: None,
                         canary_check: None,
                         workarounds: vec![],
                         attempts: vec![],
@@ -364,6 +392,10 @@ impl ReportWriter {
         self.sort();
     }
 
+    pub fn record_worker(&mut self, event: WorkerEvent) {
+        self.report.workers.push(event);
+    }
+
     /// Save (compact while running, pretty when final).
     pub fn save(&self, pretty: bool) -> Result<(), crate::report::atomic::WriteError> {
         let bytes = if pretty { serde_json::to_vec_pretty(&self.report) } else { serde_json::to_vec(&self.report) }.expect("report serializes");
@@ -377,11 +409,11 @@ mod tests {
     use crate::matrix::{DescriptorModel, IndexSource, Resource, Stage};
 
     fn cell() -> Cell {
-        Cell { stage: Stage::ClosestHit, resource: Resource::StorageBuffer, index: IndexSource::Dynamic, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, canary: None, patch: None }
+        Cell { stage: Stage::ClosestHit, resource: Resource::StorageBuffer, index: IndexSource::Dynamic, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, canary: None, patch: None, reorder: None }
     }
 
     fn attempt(outcome: Outcome, isolated: bool) -> Attempt {
-        Attempt { outcome, isolated, detail: Some(format!("{} happened", outcome.as_str())), result: None, worker_exit: None, injected: None, wall_ms: 1.0 }
+        Attempt { outcome, isolated, detail: Some(format!("{} happened", outcome.as_str())), result: None, worker_exit: None, injected: None, wall_ms: 1.0, phase: None, worker: 0, device_features: vec![] }
     }
 
     #[test]

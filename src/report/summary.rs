@@ -45,6 +45,24 @@ pub fn render(r: &RunReport) -> String {
         let injected = r.cells.iter().filter(|c| c.injected.is_some()).count();
         let _ = writeln!(s, "fault injection: {injected} cells misbehave on purpose ({})", r.options["inject"]);
     }
+    // Worker faults outside any cell (failed setups, crashes between cells, hung teardowns).
+    let faults: Vec<_> = r.workers.iter().filter(|w| w.outcome != Outcome::Pass).collect();
+    if !faults.is_empty() {
+        let _ = writeln!(s, "worker faults outside cells ({}):", faults.len());
+        for w in faults.iter().take(10) {
+            let _ = writeln!(s, "  {} worker {} {} in {} — {}", mark(w.outcome), w.worker, w.outcome.as_str(), w.phase, w.detail.as_deref().unwrap_or(""));
+        }
+    }
+    let outside: Vec<_> = r.cells.iter().filter(|c| c.outside_spec.is_some()).collect();
+    if let Some(first) = outside.first() {
+        let other = outside.iter().filter(|c| c.element_reads().any(|e| e.other > 0)).count();
+        let _ = writeln!(
+            s,
+            "outside the spec's guarantees: {} cells index descriptors dynamically without nonuniformEXT ({}); {other} of them read another element of the array on some pixels (allowed there; counts per cell in the report)",
+            outside.len(),
+            first.outside_spec.as_deref().unwrap_or("")
+        );
+    }
     let vcells: Vec<_> = r.cells.iter().filter(|c| c.attempts.iter().any(|a| a.result.as_ref().is_some_and(|x| x.validation_errors > 0))).collect();
     if !vcells.is_empty() {
         let _ = writeln!(s, "validation errors in {} cells (rtprobe misused the API there; their outcomes prove nothing): first {}", vcells.len(), vcells[0].id);
@@ -59,6 +77,9 @@ pub fn render(r: &RunReport) -> String {
             // The reason already carries "k of N attempts"; a flaky cell says so up front.
             let tag = if c.flaky { " [FLAKY]" } else { "" };
             let _ = writeln!(s, "  {} {:<12} {}{} — {}", mark(c.outcome), c.outcome.as_str(), c.id, tag, c.reason.as_deref().unwrap_or(""));
+            if let Some(diff) = c.attempts.iter().rev().find_map(|a| a.result.as_ref()?.comparison.as_ref()?.pictures.last()) {
+                let _ = writeln!(s, "      pictures: {diff} (expected.png and actual.png beside it)");
+            }
             if !c.workarounds.is_empty() {
                 let verified: Vec<&str> = c.workarounds.iter().filter(|w| w.verified).map(|w| w.patch.as_str()).collect();
                 let tried: Vec<String> = c.workarounds.iter().map(|w| format!("{} → {}", w.patch.as_str(), w.outcome.as_str())).collect();

@@ -3,7 +3,8 @@
 //! line on stdout. The worker never decides that it is dead: the supervisor does, from deadlines,
 //! end of output and exit status.
 use crate::matrix::Cell;
-use crate::outcome::CellResult;
+use super::phase::Phase;
+use crate::outcome::{CellResult, Outcome};
 use crate::scene::SceneParams;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -28,10 +29,46 @@ pub struct WorkerJob {
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case")]
 pub enum WorkerMsg {
-    /// Device created and CPU reference computed.
-    Ready { device_ms: f64, reference_ms: f64 },
+    /// Setup finished: device created, scene acceleration structures and resources built, CPU
+    /// reference computed. `device_features`: what the device was created with (extensions, then
+    /// feature bits), copied into each attempt.
+    Ready {
+        device_ms: f64,
+        reference_ms: f64,
+        #[serde(default)]
+        device_features: Vec<String>,
+    },
+    /// The worker enters `phase` (`step` names the call, e.g. `vkCreateDevice`, in setup). The
+    /// supervisor keeps the last one: a timeout or crash is attributed to it.
+    Phase {
+        phase: Phase,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        step: Option<String>,
+    },
     Start { cell: String },
     Result { cell: String, result: CellResult },
-    /// The worker cannot run at all (e.g. device creation failed).
-    Fatal { message: String },
+    /// Setup failed: the worker cannot run its cells. `outcome` classifies the failure
+    /// (`device_lost`, `timeout` of a fence in an upload or AS build, `error`).
+    Fatal {
+        message: String,
+        #[serde(default = "error_outcome")]
+        outcome: Outcome,
+    },
+}
+
+fn error_outcome() -> Outcome {
+    Outcome::Error
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn messages_are_one_json_object_with_a_type() {
+        let m = WorkerMsg::Phase { phase: Phase::Pipeline, step: None };
+        assert_eq!(serde_json::to_string(&m).unwrap(), r#"{"type":"phase","phase":"pipeline"}"#);
+        let f: WorkerMsg = serde_json::from_str(r#"{"type":"fatal","message":"x"}"#).unwrap();
+        assert!(matches!(f, WorkerMsg::Fatal { outcome: Outcome::Error, .. }));
+    }
 }

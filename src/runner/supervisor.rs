@@ -1,8 +1,17 @@
 //! The supervisor: the only part that decides deadlines and kills. It starts workers (`rtprobe
-//! __worker`, stdin null, stdout/stderr piped, each in its own process group), reads their
-//! messages, and turns silence past a deadline into `timeout`, a worker that dies mid-cell into
-//! `crash` (with signal and stderr tail), then starts a fresh worker for the remaining cells.
-//! Kills are SIGTERM to the process group, a grace period, then SIGKILL.
+//! __worker`, stdin null, stdout/stderr piped, each in its own process group, dying with the
+//! supervisor: see [`super::groups`]), reads their messages and keeps each worker's state and last
+//! [`Phase`]. Every state has a deadline: setup, a cell, the gap between two cells, teardown after
+//! the last cell. Deadlines are checked before every wait, so a worker that keeps printing cannot
+//! hold one off. Silence past a deadline is `timeout` (the process group is killed), a worker that
+//! dies mid-cell is `crash` (with signal and stderr tail), both with the phase they happened in.
+//! A failed setup (device, scene AS, resources) is its own record and is retried once in a fresh
+//! worker; then the cells it would have run are recorded as not run, with the setup's outcome. A
+//! fault between cells or in teardown is recorded for the worker, not blamed on a cell. Kills
+//! are SIGTERM to the group, a grace period, SIGKILL, and a bounded wait: a process that will not
+//! die (uninterruptible sleep in the driver) is reported and abandoned.
+use super::groups;
+use super::phase::Phase;
 use super::protocol::{WorkerJob, WorkerMsg};
 use crate::matrix::Cell;
 use crate::outcome::{CellResult, Outcome};
@@ -10,9 +19,9 @@ use crate::scene::SceneParams;
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
 use std::io::{BufRead, BufReader, Read};
-use std::os::unix::process::{CommandExt, ExitStatusExt};
+use std::os::unix::process::ExitStatusExt;
 use std::path::PathBuf;
-use std::process::{Child, Command, Stdio};
+use std::process::{Child, Command, ExitStatus, Stdio};
 use std::sync::mpsc::{channel, Receiver, RecvTimeoutError, Sender};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -32,11 +41,14 @@ pub struct SupervisorOptions {
     pub scene: SceneParams,
     pub jobs: usize,
     pub isolation: Isolation,
-    /// Hard deadline for one cell.
+    /// Hard deadline for one cell; also for the gap between two cells and for teardown.
     pub timeout: Duration,
-    /// Hard deadline for a worker to create its device and reference.
+    /// Hard deadline for a worker's setup (device, scene AS, resources, reference).
     pub setup_timeout: Duration,
+    /// Between SIGTERM and SIGKILL.
     pub grace: Duration,
+    /// How long to wait for a SIGKILLed worker to be reaped before abandoning it.
+    pub kill_wait: Duration,
     pub validate: bool,
     /// `--inject-fault`, passed to every worker.
     pub inject: Vec<crate::matrix::inject::Injection>,
@@ -52,6 +64,10 @@ pub struct WorkerExit {
     pub signal: Option<i32>,
     #[serde(skip_serializing_if = "String::is_empty", default)]
     pub stderr_tail: String,
+    /// Set when the process did not die after SIGKILL within the bound (stuck in the kernel,
+    /// e.g. uninterruptible sleep in the driver): it was left behind, and this says so.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub abandoned: Option<String>,
 }
 
 /// One run of one cell.
@@ -72,11 +88,48 @@ pub struct Attempt {
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub injected: Option<crate::matrix::inject::InjectedFault>,
     pub wall_ms: f64,
+    /// The worker's last phase when the attempt ended (`setup`: the cell never ran because its
+    /// worker's setup failed).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub phase: Option<Phase>,
+    /// The worker that ran it (`worker` of the report's `workers` entries; 0 in older reports).
+    #[serde(default)]
+    pub worker: u64,
+    /// What the worker's device was created with (extensions, then feature bits).
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub device_features: Vec<String>,
+}
+
+impl Attempt {
+    /// The cell never ran: its worker's setup failed.
+    pub fn not_run(&self) -> bool {
+        self.phase == Some(Phase::Setup)
+    }
+}
+
+/// A worker's own record: its setup (`pass` once it is ready) or a fault outside any cell
+/// (between two cells, in teardown).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct WorkerEvent {
+    pub worker: u64,
+    pub phase: Phase,
+    pub outcome: Outcome,
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub detail: Option<String>,
+    /// Cells the worker was given.
+    pub cells: usize,
+    pub wall_ms: f64,
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub device_features: Vec<String>,
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub worker_exit: Option<WorkerExit>,
 }
 
 /// Events for the report writer and progress display.
 pub enum Event<'a> {
     WorkerReady { device_ms: f64, reference_ms: f64 },
+    /// A worker's setup finished or failed, or it faulted outside a cell.
+    Worker(WorkerEvent),
     Attempt { cell: &'a Cell, attempt: Attempt },
 }
 
@@ -86,48 +139,124 @@ enum Line {
     Eof,
 }
 
+enum State {
+    Setup,
+    Cell { cell: Cell, since: Instant },
+    /// After `ready` or a result, before the next `start`.
+    Between { since: Instant },
+    /// After its last result: it must exit.
+    Teardown { since: Instant },
+}
+
 struct Worker {
     child: Child,
     pid: i32,
-    generation: u64,
+    id: u64,
     stderr: Arc<Mutex<String>>,
-    ready: bool,
-    /// The cell it is running, since when.
-    current: Option<(Cell, Instant)>,
     spawned: Instant,
+    state: State,
+    phase: Phase,
+    step: Option<String>,
+    device_features: Vec<String>,
+    /// Cells of its job without a result yet.
+    batch_left: usize,
+    /// Cells it was given.
+    batch: usize,
+    /// It produced at least one attempt.
+    progressed: bool,
+    /// Lines that were not protocol messages (logged up to a limit: a worker can flood them).
+    garbage: u64,
+}
+
+impl Worker {
+    fn deadline(&self, o: &SupervisorOptions) -> Instant {
+        match self.state {
+            State::Setup => self.spawned + o.setup_timeout,
+            State::Cell { since, .. } | State::Between { since } | State::Teardown { since } => since + o.timeout,
+        }
+    }
+
+    fn where_(&self) -> String {
+        match &self.step {
+            Some(s) => format!("{} ({s})", self.phase),
+            None => self.phase.to_string(),
+        }
+    }
 }
 
 struct Slot {
     queue: VecDeque<Cell>,
     worker: Option<Worker>,
-    setup_failures: u32,
+    /// Workers in a row that ended without producing an attempt (failed setups, deaths before
+    /// the first cell): two of them give up on the slot's cells.
+    fruitless: u32,
 }
 
 const STDERR_TAIL: usize = 4000;
+const GARBAGE_LOGGED: u64 = 20;
 
-fn kill_group(w: &mut Worker, grace: Duration) -> WorkerExit {
-    unsafe { libc::kill(-w.pid, libc::SIGTERM) };
-    let until = Instant::now() + grace;
-    let mut status = None;
-    while Instant::now() < until {
-        if let Ok(Some(s)) = w.child.try_wait() {
-            status = Some(s);
-            break;
+fn poll_exit(child: &mut Child, bound: Duration) -> Option<ExitStatus> {
+    let until = Instant::now() + bound;
+    loop {
+        if let Ok(Some(s)) = child.try_wait() {
+            return Some(s);
         }
-        std::thread::sleep(Duration::from_millis(10));
+        if Instant::now() >= until {
+            return None;
+        }
+        std::thread::sleep(Duration::from_millis(5));
     }
+}
+
+/// The process state letter and name from /proc (e.g. `D (disk sleep)`).
+fn proc_state(pid: i32) -> String {
+    std::fs::read_to_string(format!("/proc/{pid}/stat"))
+        .ok()
+        .and_then(|s| s.rsplit_once(')').map(|(_, rest)| rest.split_whitespace().next().unwrap_or("?").to_string()))
+        .map(|c| match c.as_str() {
+            "D" => "D (uninterruptible sleep)".to_string(),
+            "Z" => "Z (zombie)".to_string(),
+            other => other.to_string(),
+        })
+        .unwrap_or_else(|| "unknown".into())
+}
+
+/// SIGTERM the group, wait `grace`, SIGKILL, wait at most `kill_wait`; a process still there is
+/// abandoned (reported, never waited on again).
+fn kill_group(w: &mut Worker, grace: Duration, kill_wait: Duration) -> WorkerExit {
+    unsafe { libc::kill(-w.pid, libc::SIGTERM) };
+    let mut status = poll_exit(&mut w.child, grace);
     if status.is_none() {
         unsafe { libc::kill(-w.pid, libc::SIGKILL) };
-        status = w.child.wait().ok();
+        status = poll_exit(&mut w.child, kill_wait);
     }
     // Anything else left in the group.
     unsafe { libc::kill(-w.pid, libc::SIGKILL) };
-    exit_of(status, &w.stderr)
+    let mut exit = exit_of(status, &w.stderr);
+    if status.is_none() {
+        let state = proc_state(w.pid);
+        tracing::warn!("worker {} (pid {}) did not die after SIGKILL; state {state}; abandoned", w.id, w.pid);
+        exit.abandoned = Some(format!("pid {} still alive {:?} after SIGKILL, state {state}; abandoned", w.pid, kill_wait));
+    } else {
+        groups::unregister(w.pid);
+    }
+    exit
 }
 
-fn exit_of(status: Option<std::process::ExitStatus>, stderr: &Arc<Mutex<String>>) -> WorkerExit {
+fn exit_of(status: Option<ExitStatus>, stderr: &Arc<Mutex<String>>) -> WorkerExit {
+    // Give the stderr reader a moment to drain.
+    std::thread::sleep(Duration::from_millis(20));
     let tail = stderr.lock().map(|s| s.clone()).unwrap_or_default();
-    WorkerExit { code: status.and_then(|s| s.code()), signal: status.and_then(|s| s.signal()), stderr_tail: tail }
+    WorkerExit { code: status.and_then(|s| s.code()), signal: status.and_then(|s| s.signal()), stderr_tail: tail, abandoned: None }
+}
+
+fn died(exit: &WorkerExit) -> (Outcome, String) {
+    match (exit.signal, exit.code) {
+        (Some(s), _) => (Outcome::Crash, format!("worker killed by signal {s} ({})", signal_name(s))),
+        (None, Some(c)) if c != 0 => (Outcome::Crash, format!("worker exited with code {c}")),
+        (None, Some(_)) => (Outcome::Error, "worker exited (code 0) early".into()),
+        (None, None) => (Outcome::Error, "worker vanished".into()),
+    }
 }
 
 pub struct Supervisor {
@@ -141,14 +270,16 @@ pub struct Supervisor {
 
 impl Supervisor {
     pub fn new(opts: SupervisorOptions) -> Self {
+        groups::install_handlers();
         let (tx, rx) = channel();
         Supervisor { opts, tx, rx, generation: 0, seeds: Default::default() }
     }
 
     fn spawn(&mut self, slot: usize, cells: Vec<Cell>) -> std::io::Result<Worker> {
         self.generation += 1;
-        let gen = self.generation;
-        let seed = inject_seed(gen);
+        let id = self.generation;
+        let batch = cells.len();
+        let seed = inject_seed(id);
         for c in &cells {
             self.seeds.borrow_mut().insert(c.id(), seed);
         }
@@ -163,18 +294,15 @@ impl Supervisor {
             cells,
         };
         std::fs::create_dir_all(&self.opts.job_dir)?;
-        let path = self.opts.job_dir.join(format!("job-{}-{gen}.json", std::process::id()));
+        let path = self.opts.job_dir.join(format!("job-{}-{id}.json", std::process::id()));
         std::fs::write(&path, serde_json::to_vec(&job).map_err(std::io::Error::other)?)?;
         let exe = std::env::current_exe()?;
-        let mut child = Command::new(exe)
-            .arg("__worker")
-            .arg(&path)
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .process_group(0)
-            .spawn()?;
+        let mut cmd = Command::new(exe);
+        cmd.arg("__worker").arg(&path).stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped());
+        groups::harden(&mut cmd);
+        let mut child = cmd.spawn()?;
         let pid = child.id() as i32;
+        groups::register(pid);
         let stdout = child.stdout.take().expect("piped stdout");
         let tx = self.tx.clone();
         std::thread::spawn(move || {
@@ -184,11 +312,11 @@ impl Supervisor {
                     Ok(m) => Line::Msg(m),
                     Err(_) => Line::Garbage(line),
                 };
-                if tx.send((slot, gen, msg)).is_err() {
+                if tx.send((slot, id, msg)).is_err() {
                     return;
                 }
             }
-            let _ = tx.send((slot, gen, Line::Eof));
+            let _ = tx.send((slot, id, Line::Eof));
         });
         let stderr = Arc::new(Mutex::new(String::new()));
         let mut err_pipe = child.stderr.take().expect("piped stderr");
@@ -209,7 +337,21 @@ impl Supervisor {
                 }
             }
         });
-        Ok(Worker { child, pid, generation: gen, stderr, ready: false, current: None, spawned: Instant::now() })
+        Ok(Worker {
+            child,
+            pid,
+            id,
+            stderr,
+            spawned: Instant::now(),
+            state: State::Setup,
+            phase: Phase::Setup,
+            step: None,
+            device_features: vec![],
+            batch_left: batch,
+            batch,
+            progressed: false,
+            garbage: 0,
+        })
     }
 
     /// Run `cells`, calling `on` for each attempt as it finishes. `isolated` forces one fresh
@@ -231,49 +373,47 @@ impl Supervisor {
         let per_cell = isolated || self.opts.isolation == Isolation::ProcessPerCell;
         let jobs = self.opts.jobs.max(1).min(cells.len().max(1));
         let chunk = cells.len().div_ceil(jobs).max(1);
-        let mut slots: Vec<Slot> = cells.chunks(chunk).map(|c| Slot { queue: c.iter().copied().collect(), worker: None, setup_failures: 0 }).collect();
+        let mut slots: Vec<Slot> = cells.chunks(chunk).map(|c| Slot { queue: c.iter().copied().collect(), worker: None, fruitless: 0 }).collect();
         loop {
-            // Start workers where cells wait.
-            for i in 0..slots.len() {
-                if slots[i].worker.is_none() && !slots[i].queue.is_empty() {
-                    let batch: Vec<Cell> = if per_cell { vec![slots[i].queue[0]] } else { slots[i].queue.iter().copied().collect() };
-                    match self.spawn(i, batch) {
-                        Ok(w) => slots[i].worker = Some(w),
-                        Err(e) => {
-                            let msg = format!("cannot start a worker: {e}");
-                            for c in slots[i].queue.drain(..) {
-                                on(Event::Attempt { cell: &c, attempt: Attempt { outcome: Outcome::Error, isolated: per_cell, detail: Some(msg.clone()), result: None, worker_exit: None, injected: None, wall_ms: 0.0 } });
-                            }
-                        }
-                    }
-                }
-            }
+            self.start_workers(&mut slots, per_cell, on);
             if slots.iter().all(|s| s.worker.is_none() && s.queue.is_empty()) {
                 break;
             }
-            // Nearest deadline.
+            // Deadlines first, before every wait: a worker that keeps printing cannot hold one off.
+            if self.expire(&mut slots, per_cell, on) {
+                continue;
+            }
             let now = Instant::now();
-            let deadline = slots
-                .iter()
-                .filter_map(|s| s.worker.as_ref())
-                .map(|w| match &w.current {
-                    Some((_, since)) => *since + self.opts.timeout,
-                    None if !w.ready => w.spawned + self.opts.setup_timeout,
-                    None => now + Duration::from_secs(3600),
-                })
-                .min()
-                .unwrap_or(now + Duration::from_millis(50));
-            let wait = deadline.saturating_duration_since(now);
-            match self.rx.recv_timeout(wait) {
-                Ok((i, gen, line)) => {
-                    let Some(w) = slots[i].worker.as_mut() else { continue };
-                    if w.generation != gen {
-                        continue;
+            let deadline = slots.iter().filter_map(|s| s.worker.as_ref()).map(|w| w.deadline(&self.opts)).min().unwrap_or(now + Duration::from_millis(50));
+            match self.rx.recv_timeout(deadline.saturating_duration_since(now)) {
+                Ok((i, id, line)) => {
+                    // Worker ids are unique per supervisor; a late line from a worker of an
+                    // earlier `run` (more slots, or a slot since reused) matches no worker here.
+                    if let Some(slot) = slots.get_mut(i).filter(|s| s.worker.as_ref().is_some_and(|w| w.id == id)) {
+                        self.handle(slot, line, per_cell, on);
                     }
-                    self.handle(&mut slots[i], line, per_cell, on);
                 }
-                Err(RecvTimeoutError::Timeout) => self.expire(&mut slots, per_cell, on),
+                Err(RecvTimeoutError::Timeout) => {}
                 Err(RecvTimeoutError::Disconnected) => break,
+            }
+        }
+    }
+
+    fn start_workers(&mut self, slots: &mut [Slot], per_cell: bool, on: &mut dyn FnMut(Event)) {
+        for i in 0..slots.len() {
+            if slots[i].worker.is_some() || slots[i].queue.is_empty() {
+                continue;
+            }
+            let batch: Vec<Cell> = if per_cell { vec![slots[i].queue[0]] } else { slots[i].queue.iter().copied().collect() };
+            match self.spawn(i, batch) {
+                Ok(w) => slots[i].worker = Some(w),
+                Err(e) => {
+                    let msg = format!("cannot start a worker: {e}");
+                    for c in slots[i].queue.drain(..) {
+                        let attempt = Attempt { outcome: Outcome::Error, isolated: per_cell, detail: Some(msg.clone()), result: None, worker_exit: None, injected: None, wall_ms: 0.0, phase: Some(Phase::Setup), worker: 0, device_features: vec![] };
+                        on(Event::Attempt { cell: &c, attempt });
+                    }
+                }
             }
         }
     }
@@ -281,118 +421,216 @@ impl Supervisor {
     fn handle(&mut self, slot: &mut Slot, line: Line, per_cell: bool, on: &mut dyn FnMut(Event)) {
         let w = slot.worker.as_mut().expect("checked by caller");
         match line {
-            Line::Msg(WorkerMsg::Ready { device_ms, reference_ms }) => {
-                w.ready = true;
-                slot.setup_failures = 0;
+            Line::Msg(WorkerMsg::Ready { .. }) if !matches!(w.state, State::Setup) => {
+                // Only once, at the end of setup: it must not restart any clock.
+                tracing::debug!("worker {} sent ready again; ignored", w.id);
+            }
+            Line::Msg(WorkerMsg::Ready { device_ms, reference_ms, device_features }) => {
+                w.state = State::Between { since: Instant::now() };
+                w.phase = Phase::BetweenCells;
+                w.step = None;
+                w.device_features = device_features;
                 on(Event::WorkerReady { device_ms, reference_ms });
+                on(Event::Worker(WorkerEvent {
+                    worker: w.id,
+                    phase: Phase::Setup,
+                    outcome: Outcome::Pass,
+                    detail: None,
+                    cells: w.batch,
+                    wall_ms: ms(w.spawned),
+                    device_features: w.device_features.clone(),
+                    worker_exit: None,
+                }));
+            }
+            Line::Msg(WorkerMsg::Phase { phase, step }) => {
+                w.phase = phase;
+                w.step = step;
             }
             Line::Msg(WorkerMsg::Start { cell }) => {
-                if let Some(c) = slot.queue.iter().find(|c| c.id() == cell) {
-                    w.current = Some((*c, Instant::now()));
+                // Only between cells: a repeated `start` must not restart the running cell's clock.
+                if !matches!(w.state, State::Between { .. }) {
+                    tracing::debug!("worker {} sent start {cell} while not between cells; ignored", w.id);
+                } else if let Some(c) = slot.queue.iter().find(|c| c.id() == cell) {
+                    w.state = State::Cell { cell: *c, since: Instant::now() };
+                    w.phase = Phase::Compile;
+                    w.step = None;
                 }
             }
             Line::Msg(WorkerMsg::Result { cell, result }) => {
-                let since = w.current.take().map(|(_, t)| t).unwrap_or_else(Instant::now);
-                if let Some(pos) = slot.queue.iter().position(|c| c.id() == cell) {
-                    let c = slot.queue.remove(pos).expect("position is valid");
-                    let ends = result.outcome.ends_worker();
-                    let attempt = Attempt {
-                        outcome: result.outcome,
-                        isolated: per_cell,
-                        detail: result.detail.clone(),
-                        result: Some(result),
-                        worker_exit: None,
-                        injected: None,
-                        wall_ms: since.elapsed().as_secs_f64() * 1e3,
-                    };
-                    on(Event::Attempt { cell: &c, attempt });
-                    if ends || per_cell {
-                        // The worker exits by itself; make sure of it.
-                        let mut w = slot.worker.take().expect("present");
-                        let grace = if per_cell && !ends { Duration::from_secs(10) } else { self.opts.grace };
-                        wait_or_kill(&mut w, grace);
-                    }
+                let since = match w.state {
+                    State::Cell { since, .. } => since,
+                    _ => Instant::now(),
+                };
+                let Some(pos) = slot.queue.iter().position(|c| c.id() == cell) else { return };
+                let c = slot.queue.remove(pos).expect("position is valid");
+                let ends = result.outcome.ends_worker();
+                let attempt = Attempt {
+                    outcome: result.outcome,
+                    isolated: per_cell,
+                    detail: result.detail.clone(),
+                    result: Some(result),
+                    worker_exit: None, injected: None,
+                    wall_ms: ms(since),
+                    phase: Some(w.phase),
+                    worker: w.id,
+                    device_features: w.device_features.clone(),
+                };
+                w.batch_left = w.batch_left.saturating_sub(1);
+                w.progressed = true;
+                slot.fruitless = 0;
+                let now = Instant::now();
+                // After a fault the worker exits by itself; after its last cell it tears down.
+                if ends || w.batch_left == 0 {
+                    w.state = State::Teardown { since: now };
+                    w.phase = Phase::Teardown;
+                } else {
+                    w.state = State::Between { since: now };
+                    w.phase = Phase::BetweenCells;
                 }
+                w.step = None;
+                on(Event::Attempt { cell: &c, attempt });
             }
-            Line::Msg(WorkerMsg::Fatal { message }) => {
+            Line::Msg(WorkerMsg::Fatal { message, outcome }) => {
                 let mut w = slot.worker.take().expect("present");
-                let exit = kill_group(&mut w, self.opts.grace);
-                for c in slot.queue.drain(..) {
-                    on(Event::Attempt {
-                        cell: &c,
-                        attempt: Attempt { outcome: Outcome::Error, isolated: per_cell, detail: Some(format!("worker could not start: {message}")), result: None, worker_exit: Some(exit.clone()), injected: None, wall_ms: 0.0 },
-                    });
+                let exit = kill_group(&mut w, self.opts.grace, self.opts.kill_wait);
+                let detail = format!("worker setup failed in {}: {message}", w.where_());
+                self.worker_failed(slot, &w, outcome, detail, exit, per_cell, on);
+            }
+            Line::Garbage(text) => {
+                w.garbage += 1;
+                if w.garbage <= GARBAGE_LOGGED {
+                    tracing::debug!("worker {} said: {text}", w.id);
+                } else if w.garbage == GARBAGE_LOGGED + 1 {
+                    tracing::debug!("worker {} keeps printing; further lines not logged", w.id);
                 }
             }
-            Line::Garbage(text) => tracing::debug!("worker said: {text}"),
             Line::Eof => {
                 let mut w = slot.worker.take().expect("present");
-                let status = w.child.wait().ok();
-                // Give the stderr reader a moment to drain.
-                std::thread::sleep(Duration::from_millis(20));
-                let exit = exit_of(status, &w.stderr);
-                if let Some((cell, since)) = w.current.take() {
-                    if let Some(pos) = slot.queue.iter().position(|c| *c == cell) {
-                        slot.queue.remove(pos);
+                let exit = match poll_exit(&mut w.child, self.opts.grace) {
+                    Some(status) => {
+                        groups::unregister(w.pid);
+                        exit_of(Some(status), &w.stderr)
                     }
-                    let outcome = if exit.signal.is_some() || exit.code.is_some_and(|c| c != 0) { Outcome::Crash } else { Outcome::Error };
-                    let detail = match (exit.signal, exit.code) {
-                        (Some(s), _) => format!("worker killed by signal {s} ({})", signal_name(s)),
-                        (None, Some(c)) => format!("worker exited with code {c} mid-cell"),
-                        (None, None) => "worker vanished mid-cell".into(),
-                    };
-                    on(Event::Attempt { cell: &cell, attempt: Attempt { outcome, isolated: per_cell, detail: Some(detail), result: None, worker_exit: Some(exit), injected: None, wall_ms: since.elapsed().as_secs_f64() * 1e3 } });
-                } else if !w.ready {
-                    slot.setup_failures += 1;
-                    if slot.setup_failures >= 2 {
-                        let detail = format!("worker died during setup twice (exit {:?}, signal {:?})", exit.code, exit.signal);
-                        for c in slot.queue.drain(..) {
-                            on(Event::Attempt { cell: &c, attempt: Attempt { outcome: Outcome::Error, isolated: per_cell, detail: Some(detail.clone()), result: None, worker_exit: Some(exit.clone()), injected: None, wall_ms: 0.0 } });
+                    // Closed its output but does not exit: treat as hung.
+                    None => kill_group(&mut w, Duration::ZERO, self.opts.kill_wait),
+                };
+                let (outcome, what) = died(&exit);
+                match w.state {
+                    State::Cell { cell, since } => {
+                        if let Some(pos) = slot.queue.iter().position(|c| *c == cell) {
+                            slot.queue.remove(pos);
                         }
+                        let detail = format!("{what} mid-cell, in {}", w.where_());
+                        self.cell_ended(slot, &w, &cell, outcome, detail, exit, since, per_cell, on);
+                    }
+                    State::Teardown { .. } if exit.code == Some(0) => {} // exited cleanly
+                    State::Setup | State::Between { .. } | State::Teardown { .. } => {
+                        let detail = format!("{what} in {}", w.where_());
+                        self.worker_failed(slot, &w, outcome, detail, exit, per_cell, on);
                     }
                 }
             }
         }
     }
 
-    fn expire(&mut self, slots: &mut [Slot], per_cell: bool, on: &mut dyn FnMut(Event)) {
+    /// Kill every worker past its deadline; true when one was.
+    fn expire(&mut self, slots: &mut [Slot], per_cell: bool, on: &mut dyn FnMut(Event)) -> bool {
         let now = Instant::now();
+        let mut any = false;
         for slot in slots.iter_mut() {
-            let Some(w) = slot.worker.as_mut() else { continue };
-            match &w.current {
-                Some((cell, since)) if now >= *since + self.opts.timeout => {
-                    let (cell, since) = (*cell, *since);
-                    let mut w = slot.worker.take().expect("present");
-                    let exit = kill_group(&mut w, self.opts.grace);
+            if !slot.worker.as_ref().is_some_and(|w| now >= w.deadline(&self.opts)) {
+                continue;
+            }
+            any = true;
+            let mut w = slot.worker.take().expect("present");
+            let exit = kill_group(&mut w, self.opts.grace, self.opts.kill_wait);
+            match w.state {
+                State::Cell { cell, since } => {
                     if let Some(pos) = slot.queue.iter().position(|c| *c == cell) {
                         slot.queue.remove(pos);
                     }
-                    let detail = format!("no result within {:?}; worker process group killed", self.opts.timeout);
-                    on(Event::Attempt { cell: &cell, attempt: Attempt { outcome: Outcome::Timeout, isolated: per_cell, detail: Some(detail), result: None, worker_exit: Some(exit), injected: None, wall_ms: since.elapsed().as_secs_f64() * 1e3 } });
+                    let detail = format!("no result within {:?}, in {}; worker process group killed", self.opts.timeout, w.where_());
+                    self.cell_ended(slot, &w, &cell, Outcome::Timeout, detail, exit, since, per_cell, on);
                 }
-                None if !w.ready && now >= w.spawned + self.opts.setup_timeout => {
-                    let mut w = slot.worker.take().expect("present");
-                    let exit = kill_group(&mut w, self.opts.grace);
-                    let detail = format!("worker setup took longer than {:?}", self.opts.setup_timeout);
-                    for c in slot.queue.drain(..) {
-                        on(Event::Attempt { cell: &c, attempt: Attempt { outcome: Outcome::Error, isolated: per_cell, detail: Some(detail.clone()), result: None, worker_exit: Some(exit.clone()), injected: None, wall_ms: 0.0 } });
-                    }
+                State::Setup => {
+                    let detail = format!("worker setup took longer than {:?}, in {}; killed", self.opts.setup_timeout, w.where_());
+                    self.worker_failed(slot, &w, Outcome::Timeout, detail, exit, per_cell, on);
                 }
-                _ => {}
+                State::Between { .. } => {
+                    let detail = format!("no next cell within {:?} after the last result; killed", self.opts.timeout);
+                    self.worker_failed(slot, &w, Outcome::Timeout, detail, exit, per_cell, on);
+                }
+                State::Teardown { .. } => {
+                    let detail = format!("did not exit within {:?} after its last cell, in {}; killed", self.opts.timeout, w.where_());
+                    self.worker_failed(slot, &w, Outcome::Timeout, detail, exit, per_cell, on);
+                }
             }
+        }
+        any
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn cell_ended(&self, slot: &mut Slot, w: &Worker, cell: &Cell, outcome: Outcome, detail: String, exit: WorkerExit, since: Instant, per_cell: bool, on: &mut dyn FnMut(Event)) {
+        slot.fruitless = 0;
+        let attempt = Attempt {
+            outcome,
+            isolated: per_cell,
+            detail: Some(detail),
+            result: None,
+            worker_exit: Some(exit), injected: None,
+            wall_ms: ms(since),
+            phase: Some(w.phase),
+            worker: w.id,
+            device_features: w.device_features.clone(),
+        };
+        on(Event::Attempt { cell, attempt });
+    }
+
+    /// A worker failed outside any cell: in setup, between cells or in teardown. Recorded as its
+    /// own event; when two workers in a row fail without running a cell, the cells of the last
+    /// one's job are recorded as not run, with its outcome.
+    #[allow(clippy::too_many_arguments)]
+    fn worker_failed(&self, slot: &mut Slot, w: &Worker, outcome: Outcome, detail: String, exit: WorkerExit, per_cell: bool, on: &mut dyn FnMut(Event)) {
+        on(Event::Worker(WorkerEvent {
+            worker: w.id,
+            phase: w.phase,
+            outcome,
+            detail: Some(detail.clone()),
+            cells: w.batch,
+            wall_ms: ms(w.spawned),
+            device_features: w.device_features.clone(),
+            worker_exit: Some(exit.clone()),
+        }));
+        if w.progressed {
+            return;
+        }
+        slot.fruitless += 1;
+        if slot.fruitless < 2 {
+            return;
+        }
+        slot.fruitless = 0;
+        let why = format!("not run: two workers in a row failed before running a cell; the last: {} in {}: {detail}", outcome.as_str(), w.phase);
+        // Its job is a prefix of the queue (all of it, or one cell in process-per-cell).
+        let n = w.batch.min(slot.queue.len());
+        for c in slot.queue.drain(..n) {
+            let attempt = Attempt {
+                outcome,
+                isolated: per_cell,
+                detail: Some(why.clone()),
+                result: None,
+                worker_exit: Some(exit.clone()), injected: None,
+                wall_ms: 0.0,
+                phase: Some(w.phase),
+                worker: w.id,
+                device_features: w.device_features.clone(),
+            };
+            on(Event::Attempt { cell: &c, attempt });
         }
     }
 }
 
-fn wait_or_kill(w: &mut Worker, grace: Duration) {
-    let until = Instant::now() + grace;
-    while Instant::now() < until {
-        if let Ok(Some(_)) = w.child.try_wait() {
-            return;
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    kill_group(w, Duration::from_millis(200));
+fn ms(since: Instant) -> f64 {
+    since.elapsed().as_secs_f64() * 1e3
 }
 
 /// A fresh seed for each worker's flaky-injection dice (recorded in every injected result).
@@ -411,5 +649,39 @@ pub fn signal_name(sig: i32) -> &'static str {
         libc::SIGKILL => "SIGKILL",
         libc::SIGTERM => "SIGTERM",
         _ => "signal",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_process_that_will_not_exit_is_not_waited_on_forever() {
+        // A child that ignores SIGTERM stands in for one stuck in the kernel: poll_exit must
+        // return within its bound rather than block.
+        let mut child = Command::new("sh").args(["-c", "trap '' TERM; sleep 30"]).spawn().unwrap();
+        let t = Instant::now();
+        assert!(poll_exit(&mut child, Duration::from_millis(200)).is_none());
+        assert!(t.elapsed() < Duration::from_secs(2));
+        child.kill().unwrap();
+        assert!(poll_exit(&mut child, Duration::from_secs(5)).is_some());
+    }
+
+    #[test]
+    fn a_death_is_a_crash_unless_the_exit_was_clean() {
+        let exit = |code, signal| WorkerExit { code, signal, ..Default::default() };
+        assert_eq!(died(&exit(None, Some(libc::SIGSEGV))).0, Outcome::Crash);
+        assert!(died(&exit(None, Some(libc::SIGSEGV))).1.contains("SIGSEGV"));
+        assert_eq!(died(&exit(Some(3), None)).0, Outcome::Crash);
+        assert_eq!(died(&exit(Some(0), None)).0, Outcome::Error);
+        assert_eq!(died(&exit(None, None)).0, Outcome::Error);
+    }
+
+    #[test]
+    fn proc_state_reads_the_state_letter() {
+        let s = proc_state(std::process::id() as i32);
+        assert!(s == "R" || s == "S", "{s}");
+        assert_eq!(proc_state(-1), "unknown");
     }
 }

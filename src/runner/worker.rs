@@ -1,12 +1,18 @@
-//! The worker: `rtprobe __worker JOB.json`. Creates one device with exactly what its cells need,
-//! runs the cells in order and reports each on stdout. After a device loss, a timeout or a crash
-//! the device is unusable, so it reports and exits at once (`_exit`, skipping destructors that
-//! could block on a hung queue).
+//! The worker: `rtprobe __worker JOB.json`. Setup first: one device with exactly what its cells
+//! need, then the scene's acceleration structures and every resource the cells use, before it
+//! says `ready` (a fault there is the setup's, never a cell's). Then it runs the cells in order,
+//! telling the supervisor each phase it enters, and reports each cell on stdout. After a device
+//! loss, a timeout or a crash the device is unusable, so it reports and exits at once (`_exit`,
+//! skipping destructors that could block on a hung queue). The supervisor kills it if the
+//! supervisor dies (PR_SET_PDEATHSIG, set at spawn).
+use super::misbehave::{Misbehave, SetupStep};
+use super::phase::Phase;
 use super::protocol::{WorkerJob, WorkerMsg};
-use crate::exec::{ExecOptions, Executor};
+use crate::exec::{CellError, ExecOptions, Executor};
+use crate::outcome::Outcome;
 use crate::matrix::cell::Workaround;
 use crate::matrix::{AsAccess, Canary, Cell, DescriptorModel, Resource, Stage};
-use crate::vk::{features, Gpu, Instance, InstanceOptions, Requirements};
+use crate::vk::{features, Gpu, Instance, InstanceOptions, Requirements, VkError};
 use std::io::Write;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -29,6 +35,7 @@ pub fn requirements(info: &crate::vk::DeviceInfo, cells: &[Cell]) -> Requirement
         }),
         fragment_stores: fragment,
         dynamic_rendering: fragment,
+        invocation_reorder: any(&|c| c.reorder.is_some()),
     }
 }
 
@@ -39,45 +46,104 @@ fn send(msg: &WorkerMsg) {
     let _ = out.flush();
 }
 
+/// Tells the supervisor each phase, then runs the test hook (if any) for it.
+struct Phases {
+    hook: Option<Misbehave>,
+}
+
+impl Phases {
+    fn enter(&self, phase: Phase, step: Option<(SetupStep, &str)>) -> Result<(), VkError> {
+        send(&WorkerMsg::Phase { phase, step: step.map(|(_, s)| s.to_string()) });
+        match &self.hook {
+            Some(h) => h.at(phase, step.map(|(s, _)| s)),
+            None => Ok(()),
+        }
+    }
+}
+
+/// A setup that failed, classified.
+struct SetupFailure {
+    outcome: Outcome,
+    message: String,
+}
+
+impl From<CellError> for SetupFailure {
+    fn from(e: CellError) -> Self {
+        SetupFailure { outcome: e.outcome(), message: e.to_string() }
+    }
+}
+
+impl From<VkError> for SetupFailure {
+    fn from(e: VkError) -> Self {
+        CellError::Vk(e).into()
+    }
+}
+
+fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
+    phases.enter(Phase::Setup, Some((SetupStep::CreateInstance, "vkCreateInstance")))?;
+    let inst = Arc::new(Instance::new(&InstanceOptions { validate: job.validate })?);
+    let all = features::query_all(&inst)?;
+    let info = all
+        .get(job.device_index)
+        .ok_or_else(|| SetupFailure { outcome: Outcome::Error, message: format!("device {} vanished", job.device_index) })?
+        .clone();
+    let mut req = requirements(&info, &job.cells);
+    // Injected invalid-address loads need 64-bit integers, as the address probes do.
+    req.int64 |= job.cells.iter().any(|c| crate::matrix::inject::for_cell(&job.inject, c).is_some_and(|i| i.fault.reads_bad_address()));
+    phases.enter(Phase::Setup, Some((SetupStep::CreateDevice, "vkCreateDevice")))?;
+    let gpu = Gpu::new(inst, info, req)?;
+    let opts = ExecOptions { timeout: Duration::from_millis(job.fence_timeout_ms), inject: job.inject.clone(), inject_seed: job.inject_seed, dump: job.dump.clone() };
+    let mut exec = Executor::new(gpu, &job.scene, opts)?;
+    phases.enter(Phase::Setup, Some((SetupStep::Scene, "acceleration structures and resources")))?;
+    exec.prepare(&job.cells)?;
+    Ok(exec)
+}
+
 /// Runs the job; returns the process exit code (the process may also `_exit` early).
 pub fn main(job_path: &std::path::Path) -> u8 {
-    let job: WorkerJob = match std::fs::read(job_path).map_err(|e| e.to_string()).and_then(|b| serde_json::from_slice(&b).map_err(|e| e.to_string())) {
-        Ok(j) => j,
-        Err(e) => {
-            send(&WorkerMsg::Fatal { message: format!("cannot read job {}: {e}", job_path.display()) });
+    let hook = match Misbehave::from_env() {
+        Ok(h) => h,
+        Err(message) => {
+            send(&WorkerMsg::Fatal { message, outcome: Outcome::Error });
             return 2;
         }
     };
+    let phases = Phases { hook };
+    let job: WorkerJob = match std::fs::read(job_path).map_err(|e| e.to_string()).and_then(|b| serde_json::from_slice(&b).map_err(|e| e.to_string())) {
+        Ok(j) => j,
+        Err(e) => {
+            send(&WorkerMsg::Fatal { message: format!("cannot read job {}: {e}", job_path.display()), outcome: Outcome::Error });
+            return 2;
+        }
+    };
+    // Read: the supervisor keeps no use for it, and an interrupted run leaves nothing behind.
+    let _ = std::fs::remove_file(job_path);
     let t = Instant::now();
-    let setup = (|| -> Result<Executor, String> {
-        let inst = Arc::new(Instance::new(&InstanceOptions { validate: job.validate }).map_err(|e| e.to_string())?);
-        let all = features::query_all(&inst).map_err(|e| e.to_string())?;
-        let info = all.get(job.device_index).ok_or_else(|| format!("device {} vanished", job.device_index))?.clone();
-        let mut req = requirements(&info, &job.cells);
-        // Injected invalid-address loads need 64-bit integers, as the address probes do.
-        req.int64 |= job.cells.iter().any(|c| crate::matrix::inject::for_cell(&job.inject, c).is_some_and(|i| i.fault.reads_bad_address()));
-        let gpu = Gpu::new(inst, info, req).map_err(|e| e.to_string())?;
-        let opts = ExecOptions { timeout: Duration::from_millis(job.fence_timeout_ms), inject: job.inject.clone(), inject_seed: job.inject_seed, dump: job.dump.clone() };
-        Executor::new(gpu, &job.scene, opts).map_err(|e| e.to_string())
-    })();
-    let mut exec = match setup {
+    let mut exec = match setup(&job, &phases) {
         Ok(e) => e,
-        Err(message) => {
-            send(&WorkerMsg::Fatal { message });
+        Err(SetupFailure { outcome, message }) => {
+            send(&WorkerMsg::Fatal { message, outcome });
             return 3;
         }
     };
-    send(&WorkerMsg::Ready { device_ms: t.elapsed().as_secs_f64() * 1e3 - exec.reference_ms, reference_ms: exec.reference_ms });
-    for cell in &job.cells {
+    send(&WorkerMsg::Ready {
+        device_ms: t.elapsed().as_secs_f64() * 1e3 - exec.reference_ms,
+        reference_ms: exec.reference_ms,
+        device_features: exec.gpu.enabled_names.clone(),
+    });
+    for (i, cell) in job.cells.iter().enumerate() {
         let id = cell.id();
         send(&WorkerMsg::Start { cell: id.clone() });
-        let result = exec.run(cell);
+        let result = exec.run(cell, &mut |p| phases.enter(p, None));
         let ends = result.outcome.ends_worker();
         send(&WorkerMsg::Result { cell: id, result });
         if ends {
             // The device is lost or hung: do not run destructors that may wait on it.
             unsafe { libc::_exit(0) };
         }
+        let next = if i + 1 < job.cells.len() { Phase::BetweenCells } else { Phase::Teardown };
+        // A loss injected here has nothing to fail; hang, crash and spam act by themselves.
+        let _ = phases.enter(next, None);
     }
     drop(exec);
     0

@@ -1,7 +1,10 @@
-//! The scene on the GPU: vertex/index/AABB buffers, one BLAS per mesh plus one for the procedural
-//! sphere, and the two TLASes the probes use (TLAS 0: every instance; TLAS 1: the instances with
-//! an even custom index). Built once per worker, only when a cell needs it.
-use super::{Geometry, Scene, SPHERE_AABB};
+//! The scene on the GPU: vertex/index/AABB buffers, one BLAS per mesh (one geometry per range of
+//! `Mesh::geometries`) plus one for the procedural sphere, the scene TLAS (every instance, as
+//! `Scene::instances` lists them) and the AS probe's TLAS variants (`probe::as_variant_has`
+//! instances plus the floor, custom indices `probe::as_custom`). Built once per worker, only when
+//! a cell needs it.
+use super::{Geometry, Instance, Scene, SPHERE_AABB};
+use crate::probe;
 use crate::vk::memory::{full_barrier, Buffer, Location};
 use crate::vk::submit::{Submitter, Waited};
 use crate::vk::{Gpu, VkError, VkResultExt};
@@ -16,8 +19,10 @@ pub struct AccelStruct {
 
 pub struct SceneGpu {
     pub blas: Vec<AccelStruct>,
-    /// [whole scene, even custom indices]
-    pub tlas: [AccelStruct; 2],
+    /// Every scene instance (binding 1, the primary rays).
+    pub scene_tlas: AccelStruct,
+    /// The AS probe's TLAS variants (`probe::as_variants` of them).
+    pub probe_tlas: Vec<AccelStruct>,
     inputs: Vec<Buffer>,
     pub build_ms: f64,
 }
@@ -40,10 +45,12 @@ fn bytes_of<T: Copy>(v: &[T]) -> &[u8] {
 }
 
 struct Pending {
-    geometry: vk::AccelerationStructureGeometryKHR<'static>,
-    range: vk::AccelerationStructureBuildRangeInfoKHR,
+    geometries: Vec<vk::AccelerationStructureGeometryKHR<'static>>,
+    ranges: Vec<vk::AccelerationStructureBuildRangeInfoKHR>,
     ty: vk::AccelerationStructureTypeKHR,
 }
+
+type Build<'a> = (vk::AccelerationStructureBuildGeometryInfoKHR<'a>, &'a [vk::AccelerationStructureBuildRangeInfoKHR]);
 
 impl SceneGpu {
     pub fn build(gpu: &Gpu, scene: &Scene, submitter: &Submitter, timeout: Duration) -> Result<SceneGpu, BuildError> {
@@ -65,8 +72,13 @@ impl SceneGpu {
                 .geometry_type(vk::GeometryTypeKHR::TRIANGLES)
                 .geometry(vk::AccelerationStructureGeometryDataKHR { triangles: tri })
                 .flags(vk::GeometryFlagsKHR::OPAQUE);
-            let range = vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(mesh.indices.len() as u32);
-            blas_pending.push(Pending { geometry, range, ty: vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL });
+            // One geometry per range: same buffers, the range's first triangle as primitive offset.
+            let ranges: Vec<_> = mesh
+                .geometries
+                .iter()
+                .map(|r| vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(r.end - r.start).primitive_offset(r.start * 12))
+                .collect();
+            blas_pending.push(Pending { geometries: vec![geometry; ranges.len()], ranges, ty: vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL });
             inputs.extend([vb, ib]);
         }
         let aabb = vk::AabbPositionsKHR {
@@ -78,11 +90,11 @@ impl SceneGpu {
             .data(vk::DeviceOrHostAddressConstKHR { device_address: ab.address })
             .stride(std::mem::size_of::<vk::AabbPositionsKHR>() as u64);
         blas_pending.push(Pending {
-            geometry: vk::AccelerationStructureGeometryKHR::default()
+            geometries: vec![vk::AccelerationStructureGeometryKHR::default()
                 .geometry_type(vk::GeometryTypeKHR::AABBS)
                 .geometry(vk::AccelerationStructureGeometryDataKHR { aabbs })
-                .flags(vk::GeometryFlagsKHR::OPAQUE),
-            range: vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(1),
+                .flags(vk::GeometryFlagsKHR::OPAQUE)],
+            ranges: vec![vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(1)],
             ty: vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL,
         });
         inputs.push(ab);
@@ -90,33 +102,35 @@ impl SceneGpu {
         let mut all_scratch = Vec::new();
         let (blas, blas_builds) = Self::prepare_all(gpu, &blas_pending, &mut all_scratch)?;
 
-        // Instances: TLAS 0 all, TLAS 1 the even custom indices.
+        // Instances: the scene TLAS, then the probe variants.
         let blas_index = |g: Geometry| match g {
             Geometry::Mesh(m) => m,
             Geometry::Sphere => scene.meshes.len(),
         };
+        let instance = |i: &Instance, custom: u32| vk::AccelerationStructureInstanceKHR {
+            transform: vk::TransformMatrixKHR { matrix: bytemuck_transform(&i.transform) },
+            instance_custom_index_and_mask: vk::Packed24_8::new(custom, 0xff),
+            instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(i.sbt_offset(), 0),
+            acceleration_structure_reference: vk::AccelerationStructureReferenceKHR { device_handle: blas[blas_index(i.geometry)].address },
+        };
+        let n = scene.instances.len() as u32;
+        let mut lists = vec![scene.instances.iter().map(|i| instance(i, i.custom_index)).collect::<Vec<_>>()];
+        for v in 0..probe::as_variants(n) {
+            let mut l: Vec<_> = (0..n).filter(|k| probe::as_variant_has(v, *k)).map(|k| instance(&scene.instances[k as usize], probe::as_custom(v, k))).collect();
+            l.push(instance(&scene.floor, probe::as_custom(v, n)));
+            lists.push(l);
+        }
         let mut tlas_pending = Vec::new();
-        for filter in [None, Some(0u32)] {
-            let instances: Vec<vk::AccelerationStructureInstanceKHR> = scene
-                .instances
-                .iter()
-                .filter(|i| filter.is_none_or(|r| i.custom_index % 2 == r))
-                .map(|i| vk::AccelerationStructureInstanceKHR {
-                    transform: vk::TransformMatrixKHR { matrix: bytemuck_transform(&i.transform) },
-                    instance_custom_index_and_mask: vk::Packed24_8::new(i.custom_index, 0xff),
-                    instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(i.sbt_offset(), 0),
-                    acceleration_structure_reference: vk::AccelerationStructureReferenceKHR { device_handle: blas[blas_index(i.geometry)].address },
-                })
-                .collect();
+        for instances in lists {
             let ib = Buffer::with_data(gpu, bytes_of(&instances), INPUT_USAGE, "instance buffer")?;
             let data = vk::AccelerationStructureGeometryInstancesDataKHR::default()
                 .array_of_pointers(false)
                 .data(vk::DeviceOrHostAddressConstKHR { device_address: ib.address });
             tlas_pending.push(Pending {
-                geometry: vk::AccelerationStructureGeometryKHR::default()
+                geometries: vec![vk::AccelerationStructureGeometryKHR::default()
                     .geometry_type(vk::GeometryTypeKHR::INSTANCES)
-                    .geometry(vk::AccelerationStructureGeometryDataKHR { instances: data }),
-                range: vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(instances.len() as u32),
+                    .geometry(vk::AccelerationStructureGeometryDataKHR { instances: data })],
+                ranges: vec![vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(instances.len() as u32)],
                 ty: vk::AccelerationStructureTypeKHR::TOP_LEVEL,
             });
             inputs.push(ib);
@@ -124,12 +138,12 @@ impl SceneGpu {
         let (mut tlas, tlas_builds) = Self::prepare_all(gpu, &tlas_pending, &mut all_scratch)?;
 
         let waited = submitter.run(gpu, timeout, |cmd| unsafe {
-            for (info, range) in &blas_builds {
-                accel.cmd_build_acceleration_structures(cmd, std::slice::from_ref(info), &[std::slice::from_ref(range)]);
+            for (info, ranges) in &blas_builds {
+                accel.cmd_build_acceleration_structures(cmd, std::slice::from_ref(info), &[*ranges]);
             }
             full_barrier(gpu, cmd);
-            for (info, range) in &tlas_builds {
-                accel.cmd_build_acceleration_structures(cmd, std::slice::from_ref(info), &[std::slice::from_ref(range)]);
+            for (info, ranges) in &tlas_builds {
+                accel.cmd_build_acceleration_structures(cmd, std::slice::from_ref(info), &[*ranges]);
             }
             full_barrier(gpu, cmd);
         })?;
@@ -141,23 +155,18 @@ impl SceneGpu {
         if waited == Waited::TimedOut {
             return Err(BuildError::TimedOut(timeout));
         }
-        let t1 = tlas.pop().expect("two TLAS");
-        let t0 = tlas.pop().expect("two TLAS");
-        Ok(SceneGpu { blas, tlas: [t0, t1], inputs, build_ms: start.elapsed().as_secs_f64() * 1e3 })
+        let probe_tlas = tlas.split_off(1);
+        let scene_tlas = tlas.pop().expect("the scene TLAS");
+        Ok(SceneGpu { blas, scene_tlas, probe_tlas, inputs, build_ms: start.elapsed().as_secs_f64() * 1e3 })
     }
 
     /// [`Self::prepare`] for each of `pending`; scratch buffers go to `scratch` (freed after the build).
-    #[allow(clippy::type_complexity)]
-    fn prepare_all<'a>(
-        gpu: &Gpu,
-        pending: &'a [Pending],
-        scratch: &mut Vec<Buffer>,
-    ) -> Result<(Vec<AccelStruct>, Vec<(vk::AccelerationStructureBuildGeometryInfoKHR<'a>, vk::AccelerationStructureBuildRangeInfoKHR)>), VkError> {
+    fn prepare_all<'a>(gpu: &Gpu, pending: &'a [Pending], scratch: &mut Vec<Buffer>) -> Result<(Vec<AccelStruct>, Vec<Build<'a>>), VkError> {
         let mut out = Vec::new();
         let mut builds = Vec::new();
         for p in pending {
             let (a, s, info) = Self::prepare(gpu, p)?;
-            builds.push((info, p.range));
+            builds.push((info, p.ranges.as_slice()));
             scratch.push(s);
             out.push(a);
         }
@@ -171,11 +180,10 @@ impl SceneGpu {
             .ty(p.ty)
             .flags(vk::BuildAccelerationStructureFlagsKHR::PREFER_FAST_TRACE)
             .mode(vk::BuildAccelerationStructureModeKHR::BUILD)
-            .geometries(std::slice::from_ref(&p.geometry));
+            .geometries(&p.geometries);
+        let counts: Vec<u32> = p.ranges.iter().map(|r| r.primitive_count).collect();
         let mut sizes = vk::AccelerationStructureBuildSizesInfoKHR::default();
-        unsafe {
-            accel.get_acceleration_structure_build_sizes(vk::AccelerationStructureBuildTypeKHR::DEVICE, &info, &[p.range.primitive_count], &mut sizes)
-        };
+        unsafe { accel.get_acceleration_structure_build_sizes(vk::AccelerationStructureBuildTypeKHR::DEVICE, &info, &counts, &mut sizes) };
         let buffer = Buffer::new(
             gpu,
             sizes.acceleration_structure_size,
@@ -203,7 +211,7 @@ impl SceneGpu {
 
     pub fn destroy(&self, gpu: &Gpu) {
         let accel = gpu.accel.as_ref().expect("acceleration structures enabled");
-        for a in self.blas.iter().chain(self.tlas.iter()) {
+        for a in self.blas.iter().chain(std::iter::once(&self.scene_tlas)).chain(self.probe_tlas.iter()) {
             unsafe { accel.destroy_acceleration_structure(a.raw, None) };
             a.buffer.destroy(gpu);
         }

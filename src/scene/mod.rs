@@ -1,8 +1,12 @@
 //! Procedural, seeded ray tracing scenes on the CPU: triangle meshes of different sizes (height
-//! fields), one procedural (AABB + sphere) geometry, and a TLAS-like instance list with rotation
-//! and scale, each instance carrying its own `instanceCustomIndex` that selects its resources, as
-//! an engine does. The camera is orthographic with exactly representable ray origins, so the GPU
-//! and the CPU reference trace bit-identical rays. `gpu` uploads it and builds BLAS/TLAS.
+//! fields, each split into several BLAS geometries so `gl_GeometryIndexEXT` varies), one procedural
+//! (AABB + sphere) geometry, and a TLAS-like instance list with rotation and scale, each instance
+//! carrying its own `instanceCustomIndex` that selects its resources, as an engine does. Custom
+//! indices are unlike instance indices: their low bits are a permutation with no fixed point of
+//! the instance indices, their high bits sparse (some near 2^24−1). A floor quad behind everything
+//! exists only in the AS probe's TLASes. The camera is orthographic with exactly representable ray
+//! origins, so the GPU and the CPU reference trace bit-identical rays. `gpu` uploads it and builds
+//! BLAS/TLAS.
 pub mod gpu;
 mod rng;
 
@@ -51,7 +55,20 @@ impl SceneParams {
 pub struct Mesh {
     pub positions: Vec<[f32; 3]>,
     pub indices: Vec<[u32; 3]>,
+    /// The BLAS geometries: ranges of `indices` (geometry g holds triangles `geometries[g]`).
+    pub geometries: Vec<std::ops::Range<u32>>,
 }
+
+impl Mesh {
+    /// (geometry index, primitive index within it) of triangle `tri` of `indices`.
+    pub fn geometry_of(&self, tri: u32) -> (u32, u32) {
+        let g = self.geometries.iter().position(|r| r.contains(&tri)).expect("geometries cover the mesh");
+        (g as u32, tri - self.geometries[g].start)
+    }
+}
+
+/// Height-field meshes are split into this many BLAS geometries.
+pub const GEOMETRIES_PER_MESH: u32 = 3;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Geometry {
@@ -87,10 +104,55 @@ pub const RAY_Z: f32 = -10.0;
 pub const RAY_TMIN: f32 = 0.001;
 pub const RAY_TMAX: f32 = 100.0;
 
+/// z of the floor quad of the AS probe's TLASes (behind every scene instance).
+pub const FLOOR_Z: f32 = 6.0;
+/// Half extent of the floor quad (covers every probe ray of the view).
+pub const FLOOR_HALF: f32 = 16.0;
+
 pub struct Scene {
     pub params: SceneParams,
+    /// Height fields, then the floor quad (last).
     pub meshes: Vec<Mesh>,
     pub instances: Vec<Instance>,
+    /// The floor: only in the AS probe's TLASes, as instance number `instances.len()`.
+    pub floor: Instance,
+}
+
+/// Split `n` triangles into `parts` contiguous geometries.
+fn split(n: u32, parts: u32) -> Vec<std::ops::Range<u32>> {
+    (0..parts).map(|g| g * n / parts..(g + 1) * n / parts).collect()
+}
+
+fn floor_quad() -> Mesh {
+    let positions = vec![[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [-1.0, 1.0, 0.0], [1.0, 1.0, 0.0]];
+    // Two geometries of one triangle each.
+    Mesh { positions, indices: vec![[0, 1, 2], [1, 3, 2]], geometries: split(2, 2) }
+}
+
+/// Custom indices of `n` instances: low bits (under `probe::instance_mask`) a seeded permutation of
+/// 0..n without fixed points (so custom & mask != instance index), high bits sparse, every fourth
+/// instance's all ones (custom near 2^24−1).
+fn custom_indices(n: u32, seed: u64) -> Vec<u32> {
+    let mut rng = Rng::new(seed ^ 0x6375_7374_6f6d);
+    let mut perm: Vec<u32> = (0..n).collect();
+    for i in (1..n as usize).rev() {
+        let j = (rng.next_u64() % (i as u64 + 1)) as usize;
+        perm.swap(i, j);
+    }
+    for i in 0..n as usize {
+        if perm[i] == i as u32 {
+            perm.swap(i, (i + 1) % n as usize);
+        }
+    }
+    let bits = crate::probe::instance_mask(n).count_ones();
+    let high_max = ((1u32 << 24) - 1) >> bits;
+    perm.iter()
+        .enumerate()
+        .map(|(k, low)| {
+            let high = if k % 4 == 1 { high_max } else { (rng.next_u64() % (high_max as u64 + 1)) as u32 };
+            (high << bits) | low
+        })
+        .collect()
 }
 
 fn height_field(n: u32, rng: &mut Rng) -> Mesh {
@@ -111,14 +173,15 @@ fn height_field(n: u32, rng: &mut Rng) -> Mesh {
             indices.push([a + 1, a + row + 1, a + row]);
         }
     }
-    Mesh { positions, indices }
+    let geometries = split(indices.len() as u32, GEOMETRIES_PER_MESH);
+    Mesh { positions, indices, geometries }
 }
 
 impl Scene {
     pub fn build(params: &SceneParams) -> Scene {
         let mut rng = Rng::new(params.seed);
         let d = params.mesh_detail;
-        let meshes = vec![height_field(d / 4, &mut rng), height_field(d / 2, &mut rng), height_field(d, &mut rng)];
+        let mut meshes = vec![height_field(d / 4, &mut rng), height_field(d / 2, &mut rng), height_field(d, &mut rng)];
         let n = params.instances;
         let cols = (n as f32).sqrt().ceil() as u32;
         let spacing = 2.0 * VIEW_HALF / cols as f32;
@@ -144,9 +207,18 @@ impl Scene {
                 [c[0][1], c[1][1], c[2][1], centre.y],
                 [c[0][2], c[1][2], c[2][2], centre.z],
             ];
-            instances.push(Instance { transform, custom_index: k, geometry });
+            instances.push(Instance { transform, custom_index: 0, geometry });
         }
-        Scene { params: *params, meshes, instances }
+        for (i, c) in instances.iter_mut().zip(custom_indices(n, params.seed)) {
+            i.custom_index = c;
+        }
+        let floor = Instance {
+            transform: [[FLOOR_HALF, 0.0, 0.0, 0.0], [0.0, FLOOR_HALF, 0.0, 0.0], [0.0, 0.0, 1.0, FLOOR_Z]],
+            custom_index: 0,
+            geometry: Geometry::Mesh(meshes.len()),
+        };
+        meshes.push(floor_quad());
+        Scene { params: *params, meshes, instances, floor }
     }
 
     /// The primary ray of pixel (x, y): origin and direction, exactly as the shaders compute them.
@@ -179,15 +251,22 @@ mod tests {
         let a = Scene::build(&p);
         let b = Scene::build(&p);
         assert_eq!(a.instances.len(), 16);
-        assert_eq!(a.meshes.iter().map(|m| m.indices.len()).collect::<Vec<_>>(), vec![32, 128, 512]);
+        assert_eq!(a.meshes.iter().map(|m| m.indices.len()).collect::<Vec<_>>(), vec![32, 128, 512, 2]);
+        assert!(a.meshes.iter().all(|m| m.geometries.len() > 1 && m.geometries.last().unwrap().end == m.indices.len() as u32));
+        assert_eq!(a.meshes[0].geometry_of(31), (2, 31 - 21));
         assert!(a.instances.iter().any(|i| i.geometry == Geometry::Sphere));
         for (x, y) in a.instances.iter().zip(&b.instances) {
             assert_eq!(x.transform, y.transform);
         }
         let c = Scene::build(&SceneParams { seed: 2, ..p });
         assert_ne!(a.instances[0].transform, c.instances[0].transform);
-        // custom indices are distinct
+        // custom indices are distinct, 24-bit, unlike the instance index (also under the mask),
+        // and some are near 2^24-1
+        let mask = crate::probe::instance_mask(16);
         let mut ids: Vec<u32> = a.instances.iter().map(|i| i.custom_index).collect();
+        assert!(ids.iter().enumerate().all(|(k, c)| *c < 1 << 24 && c & mask != k as u32), "{ids:?}");
+        assert!(ids.iter().filter(|c| **c >= (1 << 24) - 16).count() >= 4, "{ids:?}");
+        ids.sort();
         ids.dedup();
         assert_eq!(ids.len(), 16);
     }

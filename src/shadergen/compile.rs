@@ -1,6 +1,9 @@
 //! GLSL → SPIR-V with shaderc (Vulkan 1.2 / SPIR-V 1.5, no optimization: the driver must see
-//! the shape the cell asks for). Each distinct source is compiled once per process.
+//! the shape the cell asks for). Each distinct source is compiled once per process. User GLSL
+//! (`patch --glsl`) may pick another target and use `#include` ([`super::include`]) and defines.
+use super::include::Includes;
 use super::Role;
+use std::path::PathBuf;
 use std::collections::HashMap;
 use std::hash::{Hash, Hasher};
 use std::sync::Arc;
@@ -43,15 +46,69 @@ impl Compiler {
         Ok((words, t.elapsed().as_secs_f64() * 1e3))
     }
 
-    /// Compile one GLSL source (uncached).
+    /// Compile one generated GLSL source (uncached; Vulkan 1.2, no includes or defines).
     pub fn compile_glsl(&mut self, kind: shaderc::ShaderKind, file: &str, glsl: &str) -> Result<Vec<u32>, CompileError> {
+        self.compile_user_glsl(kind, file, glsl, &GlslOptions::default())
+    }
+
+    /// Compile GLSL with `#include` resolution, macro definitions and a target environment
+    /// (`rtprobe patch --glsl`). Errors are one line, each naming its file, line and include chain.
+    pub fn compile_user_glsl(&mut self, kind: shaderc::ShaderKind, file: &str, glsl: &str, o: &GlslOptions) -> Result<Vec<u32>, CompileError> {
+        let includes = o.input.as_ref().map(|input| Includes::new(input, file, glsl, &o.include_dirs));
         let mut opts = shaderc::CompileOptions::new().map_err(|_| CompileError::Init)?;
-        opts.set_target_env(shaderc::TargetEnv::Vulkan, shaderc::EnvVersion::Vulkan1_2 as u32);
-        opts.set_target_spirv(shaderc::SpirvVersion::V1_5);
-        let out = self
-            .inner
-            .compile_into_spirv(glsl, kind, file, "main", Some(&opts))
-            .map_err(|e| CompileError::Glsl { file: file.to_string(), message: e.to_string().replace('\n', " | ") })?;
+        let (env, spirv) = o.target.versions();
+        opts.set_target_env(shaderc::TargetEnv::Vulkan, env as u32);
+        opts.set_target_spirv(spirv);
+        for (name, value) in &o.defines {
+            opts.add_macro_definition(name, value.as_deref());
+        }
+        if let Some(inc) = &includes {
+            opts.set_include_callback(move |req, ty, from, depth| inc.resolve(req, ty, from, depth));
+        }
+        let out = self.inner.compile_into_spirv(glsl, kind, file, "main", Some(&opts)).map_err(|e| {
+            let message = e.to_string();
+            let message = match &includes {
+                Some(inc) => inc.annotate(&message),
+                None => message.replace('\n', " | "),
+            };
+            CompileError::Glsl { file: file.to_string(), message }
+        })?;
         Ok(out.as_binary().to_vec())
     }
+}
+
+/// The Vulkan environment GLSL is compiled for.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum TargetEnv {
+    /// Vulkan 1.2, SPIR-V 1.5 (what rtprobe's own shaders use)
+    #[default]
+    #[value(name = "vulkan1.2")]
+    Vulkan1_2,
+    /// Vulkan 1.3, SPIR-V 1.6
+    #[value(name = "vulkan1.3")]
+    Vulkan1_3,
+    /// Vulkan 1.4, SPIR-V 1.6
+    #[value(name = "vulkan1.4")]
+    Vulkan1_4,
+}
+
+impl TargetEnv {
+    fn versions(self) -> (shaderc::EnvVersion, shaderc::SpirvVersion) {
+        match self {
+            TargetEnv::Vulkan1_2 => (shaderc::EnvVersion::Vulkan1_2, shaderc::SpirvVersion::V1_5),
+            TargetEnv::Vulkan1_3 => (shaderc::EnvVersion::Vulkan1_3, shaderc::SpirvVersion::V1_6),
+            TargetEnv::Vulkan1_4 => (shaderc::EnvVersion::Vulkan1_4, shaderc::SpirvVersion::V1_6),
+        }
+    }
+}
+
+/// How user GLSL is compiled.
+#[derive(Clone, Debug, Default)]
+pub struct GlslOptions {
+    /// The input file: with it, `#include` is resolved from its directory, then `include_dirs`.
+    pub input: Option<PathBuf>,
+    pub include_dirs: Vec<PathBuf>,
+    /// `-D NAME[=VALUE]`.
+    pub defines: Vec<(String, Option<String>)>,
+    pub target: TargetEnv,
 }

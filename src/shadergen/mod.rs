@@ -3,10 +3,11 @@
 //! trivial. Shared declarations come from `probes/common.glsl`. [`compile`] turns sources into
 //! SPIR-V with shaderc, caching by source.
 pub mod compile;
+pub mod include;
 mod inject;
 mod probe_code;
 
-use crate::matrix::{AsAccess, Canary, Cell, Resource, Stage};
+use crate::matrix::{AsAccess, Canary, Cell, Reorder, Resource, Stage};
 use probe_code::ProbeCode;
 
 const COMMON: &str = include_str!("../../probes/common.glsl");
@@ -109,6 +110,7 @@ fn header(rt: bool, probe: Option<&ProbeCode>, extra_ext: &[&str]) -> String {
     for e in exts {
         s += &format!("#extension {e} : require\n");
     }
+    s += &crate::probe::glsl_declarations();
     s += COMMON;
     if let Some(p) = probe {
         s += "\n// ---- probe declarations ----\n";
@@ -116,8 +118,6 @@ fn header(rt: bool, probe: Option<&ProbeCode>, extra_ext: &[&str]) -> String {
     }
     s
 }
-
-const RECORD_ZERO: &str = "Record(0u, 0u, 0u, 0.0, vec2(0.0), 0u, 0u, vec4(0.0))";
 
 /// Generate all shaders of `cell`.
 pub fn generate(cell: &Cell) -> CellShaders {
@@ -146,7 +146,7 @@ gl_Position = vec4(corner / vec2(float(pc.width), float(pc.height)) * 2.0 - 1.0,
             );
             let frag = format!(
                 "{}\nlayout(location = 0) flat in uint inSlot;\nlayout(location = 0) out vec4 color;\nvoid main() {{\n    uvec2 px = uvec2(gl_FragCoord.xy);\n    uint i = px.x + px.y * pc.width;\n{}    \
-records[i] = Record(2u, 0u, 0u, 0.0, vec2(0.0), probeSlot, 0u, probeValue);\n    color = vec4(0.0);\n}}\n",
+records[i] = probeRecord(probeSlot, probeElement, probeValue);\n    color = vec4(0.0);\n}}\n",
                 header(false, Some(&probe), &[]),
                 probe.body
             );
@@ -162,7 +162,7 @@ records[i] = Record(2u, 0u, 0u, 0.0, vec2(0.0), probeSlot, 0u, probeValue);\n   
         Stage::Compute => {
             let comp = format!(
                 "{}\nlayout(local_size_x = 8, local_size_y = 8) in;\nvoid main() {{\n    uvec2 px = gl_GlobalInvocationID.xy;\n    if (px.x >= pc.width || px.y >= pc.height) return;\n    uint i = px.x + px.y * pc.width;\n{}    \
-records[i] = Record(2u, 0u, 0u, 0.0, vec2(0.0), probeSlot, 0u, probeValue);\n}}\n",
+records[i] = probeRecord(probeSlot, probeElement, probeValue);\n}}\n",
                 header(false, Some(&probe), &[]),
                 probe.body
             );
@@ -175,7 +175,7 @@ records[i] = Record(2u, 0u, 0u, 0.0, vec2(0.0), probeSlot, 0u, probeValue);\n}}\
                 uses_ray_query: probe.ray_query,
             }
         }
-        _ => ray_tracing(cell, &probe, here),
+        Stage::Raygen | Stage::ClosestHit | Stage::AnyHit | Stage::Miss | Stage::Intersection | Stage::Callable => ray_tracing(cell, &probe, here),
     }
 }
 
@@ -187,29 +187,43 @@ fn ray_flags(cell: &Cell) -> &'static str {
     }
 }
 
+/// The raygen's primary ray: `traceRayEXT`, or with a `reorder` value, the same ray traced into a
+/// hit object, the invocations reordered (with the hit instance's custom index as coherence hint
+/// for `reorder_hint`; misses get a hint of their own), then the hit object's closest-hit or miss
+/// shader run — the same records, with invocations regrouped before the probed closest-hit read.
+fn primary_trace(cell: &Cell) -> String {
+    let args = format!("sceneTlas, {}, 0xFF, 0, 0, 0, primaryOrigin(px), TMIN, vec3(0.0, 0.0, 1.0), TMAX, 0", ray_flags(cell));
+    let reorder = match cell.reorder {
+        None => return format!("    traceRayEXT({args});\n"),
+        Some(Reorder::Reorder) => "    reorderThreadNV(hitObj);\n".to_string(),
+        Some(Reorder::ReorderHint) => "    uint hint = hitObjectIsHitNV(hitObj) ? uint(hitObjectGetInstanceCustomIndexNV(hitObj)) : 0xFFFFu;\n    \
+reorderThreadNV(hitObj, hint, 16);\n"
+            .to_string(),
+    };
+    format!("    hitObjectNV hitObj;\n    hitObjectTraceRayNV(hitObj, {args});\n{reorder}    hitObjectExecuteShaderNV(hitObj, 0);\n")
+}
+
 fn ray_tracing<'a>(cell: &Cell, probe: &'a ProbeCode, here: impl Fn(Stage) -> Option<&'a ProbeCode>) -> CellShaders {
-    let store = "    pl.flags |= 2u;\n    pl.slot = probeSlot;\n    pl.value = probeValue;\n";
+    let store = "    pl.flags |= FLAG_PROBE;\n    pl.slot = probeSlot;\n    pl.element = probeElement;\n    pl.value = probeValue;\n";
     let mut shaders = Vec::new();
-    let call_data = "struct CallData { uint slot; uint p0; uint p1; uint p2; vec4 value; };\n";
+    let call_data = "struct CallData { uint slot; uint element; uint p1; uint p2; vec4 value; };\n";
 
     // raygen
-    let mut rgen = header(true, here(Stage::Raygen), &[]);
+    let reorder_ext: &[&str] = if cell.reorder.is_some() { &["GL_NV_shader_invocation_reorder"] } else { &[] };
+    let mut rgen = header(true, here(Stage::Raygen), reorder_ext);
     rgen += "layout(set = 0, binding = 1) uniform accelerationStructureEXT sceneTlas;\nlayout(location = 0) rayPayloadEXT Record pl;\n";
     if cell.stage == Stage::Callable {
         rgen += call_data;
         rgen += "layout(location = 2) callableDataEXT CallData cd;\n";
     }
-    rgen += &format!(
-        "void main() {{\n    uvec2 px = gl_LaunchIDEXT.xy;\n    uint i = px.x + px.y * pc.width;\n    pl = {RECORD_ZERO};\n    \
-traceRayEXT(sceneTlas, {}, 0xFF, 0, 0, 0, primaryOrigin(px), TMIN, vec3(0.0, 0.0, 1.0), TMAX, 0);\n",
-        ray_flags(cell)
-    );
+    rgen += &format!("void main() {{\n    uvec2 px = gl_LaunchIDEXT.xy;\n    uint i = px.x + px.y * pc.width;\n    pl = emptyRecord();\n");
+    rgen += &primary_trace(cell);
     if here(Stage::Raygen).is_some() {
         rgen += &probe.body;
         rgen += store;
     }
     if cell.stage == Stage::Callable {
-        rgen += "    executeCallableEXT(0, 2);\n    pl.flags |= 2u;\n    pl.slot = cd.slot;\n    pl.value = cd.value;\n";
+        rgen += "    executeCallableEXT(0, 2);\n    pl.flags |= FLAG_PROBE;\n    pl.slot = cd.slot;\n    pl.element = cd.element;\n    pl.value = cd.value;\n";
     }
     rgen += "    records[i] = pl;\n}\n";
     shaders.push(ShaderSource { role: Role::Raygen, glsl: rgen });
@@ -225,16 +239,23 @@ traceRayEXT(sceneTlas, {}, 0xFF, 0, 0, 0, primaryOrigin(px), TMIN, vec3(0.0, 0.0
     miss += "}\n";
     shaders.push(ShaderSource { role: Role::Miss, glsl: miss });
 
-    // miss 1: the AS probe ray's miss
-    let pmiss = format!("{}layout(location = 1) rayPayloadInEXT uint probeHit;\nvoid main() {{\n    probeHit = 0u;\n}}\n", header(true, None, &[]));
+    // miss 1: the AS probe ray's miss (its payload stays an empty record)
+    let pmiss = format!("{}layout(location = 1) rayPayloadInEXT Record probePl;\nvoid main() {{\n    probePl.flags = 0u;\n}}\n", header(true, None, &[]));
     shaders.push(ShaderSource { role: Role::ProbeMiss, glsl: pmiss });
 
     // closest hits
     let chit_probe = here(Stage::ClosestHit);
-    let chit_common = "    pl.flags |= 1u;\n    pl.instance = uint(gl_InstanceCustomIndexEXT);\n    pl.primitive = uint(gl_PrimitiveID);\n    pl.t = gl_HitTEXT;\n";
+    // An AS probe ray (see probe_code::PROBE_RAY_FLAG) only wants the committed custom index.
+    let probe_ray = if probe.traces {
+        format!("    if ((gl_IncomingRayFlagsEXT & {}) != 0u) {{\n        pl.flags = FLAG_HIT;\n        pl.custom = uint(gl_InstanceCustomIndexEXT);\n        return;\n    }}\n", probe_code::PROBE_RAY_FLAG)
+    } else {
+        String::new()
+    };
+    let chit_common = "    pl.flags |= FLAG_HIT;\n    pl.custom = uint(gl_InstanceCustomIndexEXT);\n    pl.instanceId = uint(gl_InstanceID);\n    pl.geometry = uint(gl_GeometryIndexEXT);\n    pl.primitive = uint(gl_PrimitiveID);\n    pl.t = gl_HitTEXT;\n";
     let chit_body = |extra: &str| {
         let mut b = String::new();
         b += "void main() {\n";
+        b += &probe_ray;
         b += chit_common;
         b += extra;
         if chit_probe.is_some() {
@@ -250,12 +271,12 @@ traceRayEXT(sceneTlas, {}, 0xFF, 0, 0, 0, primaryOrigin(px), TMIN, vec3(0.0, 0.0
     tri += &chit_body("    pl.bary = bary;\n");
     shaders.push(ShaderSource { role: Role::ClosestHitTriangles, glsl: tri });
 
-    let attr = "struct ProbeAttr { vec4 value; uint slot; };\nhitAttributeEXT ProbeAttr attr;\n";
+    let attr = "struct ProbeAttr { vec4 value; uint slot; uint element; };\nhitAttributeEXT ProbeAttr attr;\n";
     let mut proc_ = header(true, chit_probe, &[]);
     proc_ += "layout(location = 0) rayPayloadInEXT Record pl;\n";
     proc_ += attr;
     let from_attr = if cell.stage == Stage::Intersection {
-        "    pl.bary = vec2(0.0);\n    pl.flags |= 2u;\n    pl.slot = attr.slot;\n    pl.value = attr.value;\n"
+        "    pl.bary = vec2(0.0);\n    pl.flags |= FLAG_PROBE;\n    pl.slot = attr.slot;\n    pl.element = attr.element;\n    pl.value = attr.value;\n"
     } else {
         "    pl.bary = vec2(0.0);\n"
     };
@@ -269,9 +290,9 @@ traceRayEXT(sceneTlas, {}, 0xFF, 0, 0, 0, primaryOrigin(px), TMIN, vec3(0.0, 0.0
     if here(Stage::Intersection).is_some() {
         rint += "    uvec2 px = gl_LaunchIDEXT.xy;\n";
         rint += &probe.body;
-        rint += "        attr.slot = probeSlot;\n        attr.value = probeValue;\n";
+        rint += "        attr.slot = probeSlot;\n        attr.element = probeElement;\n        attr.value = probeValue;\n";
     } else {
-        rint += "        attr.slot = 0u;\n        attr.value = vec4(0.0);\n";
+        rint += "        attr.slot = 0u;\n        attr.element = 0u;\n        attr.value = vec4(0.0);\n";
     }
     rint += "        reportIntersectionEXT(t, 0u);\n    }\n}\n";
     shaders.push(ShaderSource { role: Role::Intersection, glsl: rint });
@@ -289,7 +310,7 @@ traceRayEXT(sceneTlas, {}, 0xFF, 0, 0, 0, primaryOrigin(px), TMIN, vec3(0.0, 0.0
         call += call_data;
         call += "layout(location = 2) callableDataInEXT CallData cd;\nvoid main() {\n    uvec2 px = gl_LaunchIDEXT.xy;\n";
         call += &probe.body;
-        call += "    cd.slot = probeSlot;\n    cd.value = probeValue;\n}\n";
+        call += "    cd.slot = probeSlot;\n    cd.element = probeElement;\n    cd.value = probeValue;\n}\n";
         shaders.push(ShaderSource { role: Role::Callable, glsl: call });
     }
     let traces_from_hit_or_miss = probe.traces && matches!(cell.stage, Stage::ClosestHit | Stage::Miss);
@@ -315,10 +336,10 @@ fn canary(c: Canary) -> CellShaders {
     let body = match c {
         Canary::InvalidAddress => {
             rgen += "layout(buffer_reference, std430) readonly buffer Bad { vec4 v[]; };\n";
-            "    Bad bad = Bad(packUint2x32(pc.badAddress));\n    vec4 v = bad.v[i * 4096u];\n    records[i] = Record(2u, 0u, 0u, 0.0, vec2(0.0), 0u, 0u, v);\n"
+            "    Bad bad = Bad(packUint2x32(pc.badAddress));\n    vec4 v = bad.v[i * 4096u];\n    records[i] = probeRecord(0u, 0u, v);\n"
         }
         Canary::InfiniteLoop => {
-            "    uint n = 0u;\n    while (pc.loopForever != 0u) {\n        n += 1u;\n        records[i].pad = n;\n    }\n    records[i] = Record(2u, 0u, 0u, 0.0, vec2(0.0), 0u, n, vec4(0.0));\n"
+            "    uint n = 0u;\n    while (pc.loopForever != 0u) {\n        n += 1u;\n        records[i].pad = n;\n    }\n    Record r = probeRecord(0u, 0u, vec4(0.0));\n    r.pad = n;\n    records[i] = r;\n"
         }
     };
     rgen += &format!("void main() {{\n    uvec2 px = gl_LaunchIDEXT.xy;\n    uint i = px.x + px.y * pc.width;\n{body}}}\n");
@@ -343,6 +364,46 @@ pub fn source_cell(cell: &Cell) -> Cell {
     }
 }
 
-/// Push-constant offset of the AS table address the as-to-address patch adds (the end of the
-/// probes' own 40-byte block).
-pub const PATCHED_TABLE_OFFSET: u32 = 40;
+/// Push-constant offset of the table address the address patches add (the end of the probes'
+/// own block, `probe::PushConstants`).
+pub const PATCHED_TABLE_OFFSET: u32 = crate::probe::PATCHED_TABLE_OFFSET;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::matrix::{DescriptorModel, IndexSource};
+
+    fn reorder_cell(r: Option<Reorder>, resource: Resource) -> Cell {
+        let as_access = (resource == Resource::AccelerationStructure).then_some(AsAccess::Descriptor);
+        Cell { stage: Stage::ClosestHit, resource, index: IndexSource::Dynamic, nonuniform: true, as_access, descriptor_model: DescriptorModel::DescriptorIndexing, canary: None, patch: None, reorder: r }
+    }
+
+    /// Lavapipe has no SER, so these shaders never reach a driver in the test suite: they are
+    /// compiled here and checked with spirv-val (when installed) instead.
+    #[test]
+    fn reorder_cells_trace_into_a_hit_object_and_compile_to_valid_spirv() {
+        let mut c = compile::Compiler::new().unwrap();
+        for resource in [Resource::StorageBuffer, Resource::AccelerationStructure] {
+            for r in Reorder::ALL {
+                let shaders = generate(&reorder_cell(Some(*r), resource));
+                let rgen = &shaders.get(Role::Raygen).unwrap().glsl;
+                assert!(rgen.contains("hitObjectTraceRayNV(hitObj, sceneTlas") && rgen.contains("hitObjectExecuteShaderNV(hitObj, 0)"), "{rgen}");
+                assert!(!rgen.contains("traceRayEXT("), "{rgen}");
+                assert_eq!(rgen.contains("hitObjectGetInstanceCustomIndexNV"), *r == Reorder::ReorderHint, "{rgen}");
+                for s in &shaders.shaders {
+                    let (words, _) = c.compile(s.role, &s.glsl).unwrap_or_else(|e| panic!("{r:?} {:?}: {e}\n{}", s.role, s.glsl));
+                    match crate::patches::validate(&words) {
+                        crate::patches::Validation::Invalid(m) => panic!("{r:?} {:?}: {m}", s.role),
+                        crate::patches::Validation::Valid | crate::patches::Validation::Unavailable => {}
+                    }
+                }
+                // Every shader but the raygen is the plain cell's.
+                let plain = generate(&reorder_cell(None, resource));
+                for s in plain.shaders.iter().filter(|s| s.role != Role::Raygen) {
+                    assert_eq!(shaders.get(s.role).map(|x| &x.glsl), Some(&s.glsl), "{:?}", s.role);
+                }
+                assert!(plain.get(Role::Raygen).unwrap().glsl.contains("traceRayEXT(sceneTlas"));
+            }
+        }
+    }
+}

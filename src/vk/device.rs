@@ -4,7 +4,7 @@
 use super::error::{VkError, VkResultExt};
 use super::features::DeviceInfo;
 use super::instance::Instance;
-use ash::{ext, khr, vk};
+use ash::{ext, khr, nv, vk};
 use std::ffi::CStr;
 use std::sync::Arc;
 
@@ -30,6 +30,8 @@ pub struct Requirements {
     pub fragment_stores: bool,
     /// dynamicRendering (Vulkan 1.3; fragment probes render without a render pass object).
     pub dynamic_rendering: bool,
+    /// VK_NV_ray_tracing_invocation_reorder (hit objects and reorderThreadNV in raygen).
+    pub invocation_reorder: bool,
 }
 
 impl Requirements {
@@ -65,6 +67,9 @@ impl Requirements {
         if self.dynamic_rendering && !f.v13.is_some_and(|x| x.dynamic_rendering == vk::TRUE) {
             m.push("dynamicRendering (Vulkan 1.3)".into());
         }
+        if self.invocation_reorder && !f.invocation_reorder_nv.is_some_and(|x| x.ray_tracing_invocation_reorder == vk::TRUE) {
+            m.push("rayTracingInvocationReorder (VK_NV_ray_tracing_invocation_reorder)".into());
+        }
         m
     }
 }
@@ -77,6 +82,9 @@ pub struct Gpu {
     pub queue: vk::Queue,
     pub queue_family: u32,
     pub enabled: Requirements,
+    /// What `vkCreateDevice` was given: extension names, then each feature bit set to true
+    /// (Vulkan spelling). Recorded per attempt: it varies with the worker's cells.
+    pub enabled_names: Vec<String>,
     pub rt: Option<khr::ray_tracing_pipeline::Device>,
     pub accel: Option<khr::acceleration_structure::Device>,
     pub descriptor_buffer: Option<ext::descriptor_buffer::Device>,
@@ -105,6 +113,7 @@ impl Gpu {
         let mut rq = vk::PhysicalDeviceRayQueryFeaturesKHR::default();
         let mut db = vk::PhysicalDeviceDescriptorBufferFeaturesEXT::default();
         let mut fault = vk::PhysicalDeviceFaultFeaturesEXT::default();
+        let mut reorder = vk::PhysicalDeviceRayTracingInvocationReorderFeaturesNV::default();
         let mut v13 = vk::PhysicalDeviceVulkan13Features::default().dynamic_rendering(req.dynamic_rendering);
 
         let bda = req.buffer_device_address || req.rt_pipeline || req.ray_query || req.descriptor_buffer;
@@ -153,6 +162,10 @@ impl Gpu {
             fault.device_fault = vk::TRUE;
             fault.device_fault_vendor_binary = sup.fault.map(|f| f.device_fault_vendor_binary).unwrap_or(vk::FALSE);
         }
+        if req.invocation_reorder {
+            exts.push(nv::ray_tracing_invocation_reorder::NAME);
+            reorder.ray_tracing_invocation_reorder = vk::TRUE;
+        }
         core.shader_int64 = if req.int64 || bda { sup.core.shader_int64 } else { vk::FALSE };
         core.fragment_stores_and_atomics = if req.fragment_stores { vk::TRUE } else { vk::FALSE };
         core.vertex_pipeline_stores_and_atomics = vk::FALSE;
@@ -179,8 +192,47 @@ impl Gpu {
         if req.device_fault {
             f2 = f2.push_next(&mut fault);
         }
+        if req.invocation_reorder {
+            f2 = f2.push_next(&mut reorder);
+        }
         let ci = vk::DeviceCreateInfo::default().queue_create_infos(&qci).enabled_extension_names(&ext_ptrs).push_next(&mut f2);
         let device = unsafe { instance.raw.create_device(info.raw, &ci, None) }.at("vkCreateDevice")?;
+        let mut enabled_names: Vec<String> = exts.iter().map(|e| e.to_string_lossy().into_owned()).collect();
+        let on = |name: &str, bit: vk::Bool32, chained: bool| (chained && bit == vk::TRUE).then(|| name.to_string());
+        let rtq = req.rt_pipeline || req.ray_query;
+        enabled_names.extend(
+            [
+                on("shaderInt64", core.shader_int64, true),
+                on("fragmentStoresAndAtomics", core.fragment_stores_and_atomics, true),
+                on("shaderStorageBufferArrayDynamicIndexing", core.shader_storage_buffer_array_dynamic_indexing, true),
+                on("shaderUniformBufferArrayDynamicIndexing", core.shader_uniform_buffer_array_dynamic_indexing, true),
+                on("shaderSampledImageArrayDynamicIndexing", core.shader_sampled_image_array_dynamic_indexing, true),
+                on("shaderStorageImageArrayDynamicIndexing", core.shader_storage_image_array_dynamic_indexing, true),
+                on("bufferDeviceAddress", v12.buffer_device_address, true),
+                on("descriptorIndexing", v12.descriptor_indexing, true),
+                on("runtimeDescriptorArray", v12.runtime_descriptor_array, true),
+                on("descriptorBindingPartiallyBound", v12.descriptor_binding_partially_bound, true),
+                on("descriptorBindingVariableDescriptorCount", v12.descriptor_binding_variable_descriptor_count, true),
+                on("shaderStorageBufferArrayNonUniformIndexing", v12.shader_storage_buffer_array_non_uniform_indexing, true),
+                on("shaderUniformBufferArrayNonUniformIndexing", v12.shader_uniform_buffer_array_non_uniform_indexing, true),
+                on("shaderSampledImageArrayNonUniformIndexing", v12.shader_sampled_image_array_non_uniform_indexing, true),
+                on("shaderStorageImageArrayNonUniformIndexing", v12.shader_storage_image_array_non_uniform_indexing, true),
+                on("descriptorBindingStorageBufferUpdateAfterBind", v12.descriptor_binding_storage_buffer_update_after_bind, true),
+                on("descriptorBindingUniformBufferUpdateAfterBind", v12.descriptor_binding_uniform_buffer_update_after_bind, true),
+                on("descriptorBindingSampledImageUpdateAfterBind", v12.descriptor_binding_sampled_image_update_after_bind, true),
+                on("descriptorBindingStorageImageUpdateAfterBind", v12.descriptor_binding_storage_image_update_after_bind, true),
+                on("dynamicRendering", v13.dynamic_rendering, req.dynamic_rendering),
+                on("accelerationStructure", accel.acceleration_structure, rtq),
+                on("descriptorBindingAccelerationStructureUpdateAfterBind", accel.descriptor_binding_acceleration_structure_update_after_bind, rtq),
+                on("rayTracingPipeline", rt.ray_tracing_pipeline, req.rt_pipeline),
+                on("rayQuery", rq.ray_query, req.ray_query),
+                on("descriptorBuffer", db.descriptor_buffer, req.descriptor_buffer),
+                on("deviceFault", fault.device_fault, req.device_fault),
+                on("deviceFaultVendorBinary", fault.device_fault_vendor_binary, req.device_fault),
+            ]
+            .into_iter()
+            .flatten(),
+        );
         let queue = unsafe { device.get_device_queue(queue_family, 0) };
         let inst = &instance.raw;
         let gpu = Gpu {
@@ -194,6 +246,7 @@ impl Gpu {
             queue,
             queue_family,
             enabled: req,
+            enabled_names,
         };
         Ok(gpu)
     }

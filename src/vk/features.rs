@@ -6,33 +6,60 @@
 //! extension (or the core version that promoted it), `None` otherwise. The core Vulkan 1.1/1.2/1.3
 //! structs are `Some` when the device's API version has them.
 use super::error::{VkError, VkResultExt};
-use super::heap;
+use super::{heap, rt_ext};
 use super::instance::Instance;
-use ash::{ext, khr, vk};
+use ash::{ext, khr, nv, vk};
 use std::collections::BTreeMap;
 use std::ffi::CStr;
 
-/// Extensions rtprobe looks for (the only place their names are listed; names come from ash).
-pub const TRACKED_EXTENSIONS: &[&CStr] = &[
-    khr::ray_tracing_pipeline::NAME,
-    khr::acceleration_structure::NAME,
-    khr::ray_query::NAME,
-    khr::deferred_host_operations::NAME,
-    khr::ray_tracing_maintenance1::NAME,
-    khr::ray_tracing_position_fetch::NAME,
-    khr::buffer_device_address::NAME,
-    khr::spirv_1_4::NAME,
-    khr::shader_float_controls::NAME,
-    ext::descriptor_indexing::NAME,
-    ext::descriptor_buffer::NAME,
-    heap::NAME,
-    ext::robustness2::NAME,
-    ext::device_fault::NAME,
-    khr::maintenance4::NAME,
-    khr::maintenance5::NAME,
-    khr::maintenance6::NAME,
-    khr::synchronization2::NAME,
-    khr::pipeline_library::NAME,
+/// An extension rtprobe looks for, and the group the caps text lists it under.
+#[derive(Clone, Copy, Debug)]
+pub struct Tracked {
+    pub name: &'static CStr,
+    pub group: &'static str,
+}
+
+const fn t(group: &'static str, name: &'static CStr) -> Tracked {
+    Tracked { name, group }
+}
+
+/// Extensions rtprobe looks for (the only place their names are listed; names come from ash, or
+/// from [`heap`] / [`rt_ext`] where ash 0.38 lacks them): every ray tracing extension the Vulkan
+/// headers define, present or not, then what rtprobe's descriptor models and checks rely on.
+pub const TRACKED_EXTENSIONS: &[Tracked] = &[
+    t("ray tracing pipeline", khr::ray_tracing_pipeline::NAME),
+    t("ray tracing pipeline", khr::ray_tracing_maintenance1::NAME),
+    t("ray tracing pipeline", khr::pipeline_library::NAME),
+    t("ray tracing pipeline", ext::pipeline_library_group_handles::NAME),
+    t("ray tracing pipeline", nv::ray_tracing_validation::NAME),
+    t("ray tracing pipeline", nv::ray_tracing::NAME),
+    t("invocation reorder", nv::ray_tracing_invocation_reorder::NAME),
+    t("invocation reorder", rt_ext::EXT_RAY_TRACING_INVOCATION_REORDER),
+    t("acceleration structures", khr::acceleration_structure::NAME),
+    t("acceleration structures", khr::deferred_host_operations::NAME),
+    t("acceleration structures", rt_ext::NV_CLUSTER_ACCELERATION_STRUCTURE),
+    t("acceleration structures", rt_ext::NV_PARTITIONED_ACCELERATION_STRUCTURE),
+    t("acceleration structures", rt_ext::AMDX_DENSE_GEOMETRY_FORMAT),
+    t("geometry", nv::ray_tracing_motion_blur::NAME),
+    t("geometry", rt_ext::NV_RAY_TRACING_LINEAR_SWEPT_SPHERES),
+    t("geometry", khr::ray_tracing_position_fetch::NAME),
+    t("micromaps", ext::opacity_micromap::NAME),
+    t("micromaps", rt_ext::KHR_OPACITY_MICROMAP),
+    t("micromaps", rt_ext::ARM_PIPELINE_OPACITY_MICROMAP),
+    t("micromaps", nv::displacement_micromap::NAME),
+    t("ray query", khr::ray_query::NAME),
+    t("shaders", khr::spirv_1_4::NAME),
+    t("shaders", khr::shader_float_controls::NAME),
+    t("descriptors and memory", khr::buffer_device_address::NAME),
+    t("descriptors and memory", ext::descriptor_indexing::NAME),
+    t("descriptors and memory", ext::descriptor_buffer::NAME),
+    t("descriptors and memory", heap::NAME),
+    t("robustness and faults", ext::robustness2::NAME),
+    t("robustness and faults", ext::device_fault::NAME),
+    t("maintenance", khr::maintenance4::NAME),
+    t("maintenance", khr::maintenance5::NAME),
+    t("maintenance", khr::maintenance6::NAME),
+    t("maintenance", khr::synchronization2::NAME),
 ];
 
 /// Features of the device. Extension structs are `Some` only when the extension is present.
@@ -54,6 +81,19 @@ pub struct Features {
     pub fault: Option<vk::PhysicalDeviceFaultFeaturesEXT<'static>>,
     pub maintenance5: Option<vk::PhysicalDeviceMaintenance5FeaturesKHR<'static>>,
     pub maintenance6: Option<vk::PhysicalDeviceMaintenance6FeaturesKHR<'static>>,
+    pub pipeline_library_group_handles: Option<vk::PhysicalDevicePipelineLibraryGroupHandlesFeaturesEXT<'static>>,
+    pub rt_validation: Option<vk::PhysicalDeviceRayTracingValidationFeaturesNV<'static>>,
+    pub invocation_reorder_nv: Option<vk::PhysicalDeviceRayTracingInvocationReorderFeaturesNV<'static>>,
+    pub invocation_reorder_ext: Option<rt_ext::PhysicalDeviceRayTracingInvocationReorderFeaturesEXT>,
+    pub cluster_accel: Option<rt_ext::PhysicalDeviceClusterAccelerationStructureFeaturesNV>,
+    pub partitioned_accel: Option<rt_ext::PhysicalDevicePartitionedAccelerationStructureFeaturesNV>,
+    pub dense_geometry_format: Option<rt_ext::PhysicalDeviceDenseGeometryFormatFeaturesAMDX>,
+    pub motion_blur: Option<vk::PhysicalDeviceRayTracingMotionBlurFeaturesNV<'static>>,
+    pub linear_swept_spheres: Option<rt_ext::PhysicalDeviceRayTracingLinearSweptSpheresFeaturesNV>,
+    pub opacity_micromap: Option<vk::PhysicalDeviceOpacityMicromapFeaturesEXT<'static>>,
+    pub opacity_micromap_khr: Option<rt_ext::PhysicalDeviceOpacityMicromapFeaturesKHR>,
+    pub pipeline_opacity_micromap: Option<rt_ext::PhysicalDevicePipelineOpacityMicromapFeaturesARM>,
+    pub displacement_micromap: Option<vk::PhysicalDeviceDisplacementMicromapFeaturesNV<'static>>,
 }
 
 /// Properties and limits of the device, same `Option` rule as [`Features`].
@@ -69,6 +109,15 @@ pub struct Properties {
     pub descriptor_buffer: Option<vk::PhysicalDeviceDescriptorBufferPropertiesEXT<'static>>,
     pub descriptor_heap: Option<heap::PhysicalDeviceDescriptorHeapPropertiesEXT>,
     pub robustness2: Option<vk::PhysicalDeviceRobustness2PropertiesEXT<'static>>,
+    /// VK_NV_ray_tracing (the legacy NV pipeline; it has no feature struct).
+    pub rt_nv: Option<vk::PhysicalDeviceRayTracingPropertiesNV<'static>>,
+    pub invocation_reorder_nv: Option<vk::PhysicalDeviceRayTracingInvocationReorderPropertiesNV<'static>>,
+    pub invocation_reorder_ext: Option<rt_ext::PhysicalDeviceRayTracingInvocationReorderPropertiesEXT>,
+    pub cluster_accel: Option<rt_ext::PhysicalDeviceClusterAccelerationStructurePropertiesNV>,
+    pub partitioned_accel: Option<rt_ext::PhysicalDevicePartitionedAccelerationStructurePropertiesNV>,
+    pub opacity_micromap: Option<vk::PhysicalDeviceOpacityMicromapPropertiesEXT<'static>>,
+    pub opacity_micromap_khr: Option<rt_ext::PhysicalDeviceOpacityMicromapPropertiesKHR>,
+    pub displacement_micromap: Option<vk::PhysicalDeviceDisplacementMicromapPropertiesNV<'static>>,
 }
 
 /// Everything rtprobe knows about one physical device.
@@ -140,6 +189,19 @@ impl DeviceInfo {
             fault: has(ext::device_fault::NAME).then(Default::default),
             maintenance5: has(khr::maintenance5::NAME).then(Default::default),
             maintenance6: has(khr::maintenance6::NAME).then(Default::default),
+            pipeline_library_group_handles: has(ext::pipeline_library_group_handles::NAME).then(Default::default),
+            rt_validation: has(nv::ray_tracing_validation::NAME).then(Default::default),
+            invocation_reorder_nv: has(nv::ray_tracing_invocation_reorder::NAME).then(Default::default),
+            invocation_reorder_ext: has(rt_ext::EXT_RAY_TRACING_INVOCATION_REORDER).then(Default::default),
+            cluster_accel: has(rt_ext::NV_CLUSTER_ACCELERATION_STRUCTURE).then(Default::default),
+            partitioned_accel: has(rt_ext::NV_PARTITIONED_ACCELERATION_STRUCTURE).then(Default::default),
+            dense_geometry_format: has(rt_ext::AMDX_DENSE_GEOMETRY_FORMAT).then(Default::default),
+            motion_blur: has(nv::ray_tracing_motion_blur::NAME).then(Default::default),
+            linear_swept_spheres: has(rt_ext::NV_RAY_TRACING_LINEAR_SWEPT_SPHERES).then(Default::default),
+            opacity_micromap: has(ext::opacity_micromap::NAME).then(Default::default),
+            opacity_micromap_khr: has(rt_ext::KHR_OPACITY_MICROMAP).then(Default::default),
+            pipeline_opacity_micromap: has(rt_ext::ARM_PIPELINE_OPACITY_MICROMAP).then(Default::default),
+            displacement_micromap: has(nv::displacement_micromap::NAME).then(Default::default),
             core: Default::default(),
         };
         let mut p = Properties {
@@ -151,32 +213,46 @@ impl DeviceInfo {
             descriptor_buffer: f.descriptor_buffer.map(|_| Default::default()),
             descriptor_heap: f.descriptor_heap.map(|_| Default::default()),
             robustness2: f.robustness2.map(|_| Default::default()),
+            rt_nv: has(nv::ray_tracing::NAME).then(Default::default),
+            invocation_reorder_nv: f.invocation_reorder_nv.map(|_| Default::default()),
+            invocation_reorder_ext: f.invocation_reorder_ext.map(|_| Default::default()),
+            cluster_accel: f.cluster_accel.map(|_| Default::default()),
+            partitioned_accel: f.partitioned_accel.map(|_| Default::default()),
+            opacity_micromap: f.opacity_micromap.map(|_| Default::default()),
+            opacity_micromap_khr: f.opacity_micromap_khr.map(|_| Default::default()),
+            displacement_micromap: f.displacement_micromap.map(|_| Default::default()),
             core: core_props,
         };
 
         // The one place the pNext chains are built. Each Some(..) struct is chained, queried,
-        // then its pNext is cleared so the stored copies hold no dangling pointers.
+        // then its pNext is cleared so the stored copies hold no dangling pointers. Each list of
+        // chained members is written once (`feature_structs!` / `property_structs!`).
+        macro_rules! feature_structs { ($m:ident) => { $m!(f; v11, v12, v13, rt_pipeline, accel, ray_query, rt_maintenance1,
+            position_fetch, descriptor_buffer, descriptor_heap, robustness2, fault, maintenance5, maintenance6,
+            pipeline_library_group_handles, rt_validation, invocation_reorder_nv, invocation_reorder_ext, cluster_accel,
+            partitioned_accel, dense_geometry_format, motion_blur, linear_swept_spheres, opacity_micromap,
+            opacity_micromap_khr, pipeline_opacity_micromap, displacement_micromap) } }
+        macro_rules! property_structs { ($m:ident) => { $m!(p; v11, v12, v13, rt_pipeline, accel, descriptor_buffer,
+            descriptor_heap, robustness2, rt_nv, invocation_reorder_nv, invocation_reorder_ext, cluster_accel,
+            partitioned_accel, opacity_micromap, opacity_micromap_khr, displacement_micromap) } }
+        macro_rules! chain { ($top:ident, $v:ident; $($s:ident),*) => { $( if let Some(x) = $v.$s.as_mut() { $top = $top.push_next(x); } )* } }
+        macro_rules! clear { ($v:ident; $($s:ident),*) => { $( null_next(&mut $v.$s, |x| x.p_next = std::ptr::null_mut()); )* } }
         {
             let mut f2 = vk::PhysicalDeviceFeatures2::default();
-            macro_rules! chain_f { ($($s:ident),*) => { $( if let Some(x) = f.$s.as_mut() { f2 = f2.push_next(x); } )* } }
-            chain_f!(v11, v12, v13, rt_pipeline, accel, ray_query, rt_maintenance1, position_fetch,
-                descriptor_buffer, descriptor_heap, robustness2, fault, maintenance5, maintenance6);
+            macro_rules! chain_f { ($v:ident; $($s:ident),*) => { chain!(f2, $v; $($s),*) } }
+            feature_structs!(chain_f);
             unsafe { inst.get_physical_device_features2(pd, &mut f2) };
             f.core = f2.features;
         }
-        macro_rules! clear_f { ($($s:ident),*) => { $( null_next(&mut f.$s, |x| x.p_next = std::ptr::null_mut()); )* } }
-        clear_f!(v11, v12, v13, rt_pipeline, accel, ray_query, rt_maintenance1, position_fetch,
-            descriptor_buffer, descriptor_heap, robustness2, fault, maintenance5, maintenance6);
-
+        feature_structs!(clear);
         {
             let mut p2 = vk::PhysicalDeviceProperties2::default();
-            macro_rules! chain_p { ($($s:ident),*) => { $( if let Some(x) = p.$s.as_mut() { p2 = p2.push_next(x); } )* } }
-            chain_p!(v11, v12, v13, rt_pipeline, accel, descriptor_buffer, descriptor_heap, robustness2);
+            macro_rules! chain_p { ($v:ident; $($s:ident),*) => { chain!(p2, $v; $($s),*) } }
+            property_structs!(chain_p);
             unsafe { inst.get_physical_device_properties2(pd, &mut p2) };
             p.core = p2.properties;
         }
-        macro_rules! clear_p { ($($s:ident),*) => { $( null_next(&mut p.$s, |x| x.p_next = std::ptr::null_mut()); )* } }
-        clear_p!(v11, v12, v13, rt_pipeline, accel, descriptor_buffer, descriptor_heap, robustness2);
+        property_structs!(clear);
 
         let queue_families = unsafe { inst.get_physical_device_queue_family_properties(pd) };
         let memory = unsafe { inst.get_physical_device_memory_properties(pd) };

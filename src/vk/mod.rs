@@ -6,6 +6,7 @@ pub mod driver_version;
 pub mod error;
 pub mod features;
 pub mod heap;
+pub mod rt_ext;
 pub mod instance;
 
 pub use device::{Gpu, Requirements};

@@ -1,0 +1,364 @@
+//! Expectations (baselines), as Mesa's CI keeps `<driver>-fails.txt` / `-flakes.txt` and
+//! deqp-runner reads `--baseline`: the non-pass outcomes a device is known to have, per cell id,
+//! optional flake entries with their bug link and failure rate, and optional performance bounds
+//! per phase. A run compared against it fails only on what is *unexpected*: a regression (worse
+//! than expected) or an improvement (better than expected, so the baseline gets updated).
+//!
+//! Two file forms:
+//! - native JSON (`"schema": "rtprobe.baseline/1"`) with a header (device, driver, where it came
+//!   from), `expected` entries and `performance` bounds;
+//! - deqp-runner's `test,Status` lines (`#` comments), statuses `Fail` (mismatch or error),
+//!   `Crash` (crash or device loss), `Timeout`, `Flake`. Read by extension `.csv`/`.txt` or
+//!   content; written with `--format deqp`.
+use crate::outcome::Outcome;
+use crate::report::run_report::{CellReport, RunReport};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+pub const SCHEMA: &str = "rtprobe.baseline/1";
+
+/// What a cell is expected to do.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Expectation {
+    pub cell: String,
+    /// The expected verdict (never `pass`: passing cells are not listed).
+    pub outcome: Outcome,
+    /// A known flake: any of `also` (or a pass) is tolerated besides `outcome`.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub flake: bool,
+    /// Other outcomes a flaky cell has shown.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub also: Vec<Outcome>,
+    /// The failure rate seen when the entry was written, e.g. `3 of 8 attempts`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rate: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bug: Option<String>,
+}
+
+/// Per-cell time bound of one phase: a run fails when its mean exceeds
+/// `mean_ms * factor + slack_ms`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PerfBound {
+    pub mean_ms: f64,
+    pub factor: f64,
+    pub slack_ms: f64,
+}
+
+impl PerfBound {
+    pub fn limit(&self) -> f64 {
+        self.mean_ms * self.factor + self.slack_ms
+    }
+}
+
+/// The phases a baseline can bound (means per timed cell, from the report's timing summary).
+pub const PHASES: &[&str] = &["compile", "pipeline", "setup", "trace", "check"];
+
+pub fn phase_mean(r: &RunReport, phase: &str) -> Option<f64> {
+    let t = &r.timing;
+    let sum = match phase {
+        "compile" => t.compile_ms,
+        "pipeline" => t.pipeline_ms,
+        "setup" => t.setup_ms,
+        "trace" => t.trace_ms,
+        "check" => t.check_ms,
+        _ => return None,
+    };
+    (t.cells_timed > 0).then(|| sum / t.cells_timed as f64)
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Baseline {
+    pub schema: String,
+    /// Header: the device and driver the expectations were taken on.
+    #[serde(default)]
+    pub device: String,
+    #[serde(default)]
+    pub driver_version: String,
+    /// The report it was made from.
+    #[serde(default)]
+    pub source: String,
+    pub expected: Vec<Expectation>,
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub performance: BTreeMap<String, PerfBound>,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum BaselineError {
+    #[error("{file}: line {line}: {message}")]
+    Line { file: String, line: usize, message: String },
+    #[error("{file}: {message}")]
+    File { file: String, message: String },
+}
+
+fn deqp_status(o: Outcome) -> Option<&'static str> {
+    match o {
+        Outcome::Pass | Outcome::Unsupported => None,
+        Outcome::Mismatch | Outcome::Error => Some("Fail"),
+        Outcome::Crash | Outcome::DeviceLost => Some("Crash"),
+        Outcome::Timeout => Some("Timeout"),
+    }
+}
+
+/// The outcomes a deqp-runner status stands for (the first is what the verdict is recorded as).
+fn from_deqp(status: &str) -> Option<(Outcome, bool)> {
+    Some(match status {
+        "Fail" | "ExpectedFail" => (Outcome::Mismatch, false),
+        "Crash" => (Outcome::Crash, false),
+        "Timeout" => (Outcome::Timeout, false),
+        "Flake" | "KnownFlake" => (Outcome::Crash, true),
+        _ => return None,
+    })
+}
+
+impl Baseline {
+    /// The expectations of a finished run: every finding (flaky ones as flakes with their rate),
+    /// with performance bounds for `perf` phases (`factor`× the run's mean plus `slack_ms`).
+    pub fn from_report(r: &RunReport, source: &str, perf: &[String], factor: f64, slack_ms: f64) -> Result<Baseline, String> {
+        let mut expected = Vec::new();
+        for c in r.cells.iter().filter(|c| c.cell.canary.is_none() && c.outcome.is_finding()) {
+            let mut also: Vec<Outcome> = c.attempts.iter().map(|a| a.outcome).filter(|o| *o != c.outcome).collect();
+            also.sort();
+            also.dedup();
+            expected.push(Expectation {
+                cell: c.id.clone(),
+                outcome: c.outcome,
+                flake: c.flaky,
+                also,
+                rate: c.incidence.as_ref().map(|i| format!("{} of {} attempts", i.faulted, i.attempts)),
+                bug: None,
+            });
+        }
+        let mut performance = BTreeMap::new();
+        for p in perf {
+            let mean = phase_mean(r, p).ok_or_else(|| format!("--perf {p}: not a phase ({}) or the report timed no cell", PHASES.join(", ")))?;
+            performance.insert(p.clone(), PerfBound { mean_ms: mean, factor, slack_ms });
+        }
+        Ok(Baseline {
+            schema: SCHEMA.into(),
+            device: r.device["name"].as_str().unwrap_or("?").into(),
+            driver_version: r.device["driver_version"]["decoded"].as_str().unwrap_or("?").into(),
+            source: source.into(),
+            expected,
+            performance,
+        })
+    }
+
+    pub fn parse(file: &str, text: &str) -> Result<Baseline, BaselineError> {
+        if text.trim_start().starts_with('{') {
+            let b: Baseline = serde_json::from_str(text).map_err(|e| BaselineError::File { file: file.into(), message: format!("not an rtprobe baseline: {e}") })?;
+            if b.schema != SCHEMA {
+                return Err(BaselineError::File { file: file.into(), message: format!("schema {:?}, expected {SCHEMA:?}", b.schema) });
+            }
+            return Ok(b);
+        }
+        Self::parse_deqp(file, text)
+    }
+
+    /// deqp-runner's `test,Status` lines; `# device: …` / `# driver: …` comments fill the header.
+    fn parse_deqp(file: &str, text: &str) -> Result<Baseline, BaselineError> {
+        let mut b = Baseline { schema: SCHEMA.into(), device: String::new(), driver_version: String::new(), source: file.into(), expected: vec![], performance: BTreeMap::new() };
+        for (n, raw) in text.lines().enumerate() {
+            let line = raw.trim();
+            if let Some(c) = line.strip_prefix('#') {
+                let c = c.trim();
+                if let Some(v) = c.strip_prefix("device:") {
+                    b.device = v.trim().into();
+                } else if let Some(v) = c.strip_prefix("driver:") {
+                    b.driver_version = v.trim().into();
+                }
+                continue;
+            }
+            if line.is_empty() {
+                continue;
+            }
+            let err = |message: String| BaselineError::Line { file: file.into(), line: n + 1, message };
+            let (cell, status) = line.split_once(',').ok_or_else(|| err(format!("{line:?} is not `cell,Status`")))?;
+            let (outcome, flake) = from_deqp(status.trim()).ok_or_else(|| err(format!("unknown status {:?} (Fail, Crash, Timeout, Flake)", status.trim())))?;
+            b.expected.push(Expectation { cell: cell.trim().into(), outcome, flake, also: vec![], rate: None, bug: None });
+        }
+        Ok(b)
+    }
+
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("baseline serializes") + "\n"
+    }
+
+    /// deqp-runner form (performance bounds and flake details do not fit it and are dropped).
+    pub fn to_deqp(&self) -> String {
+        let mut s = format!("# rtprobe baseline (deqp-runner form)\n# device: {}\n# driver: {}\n", self.device, self.driver_version);
+        for e in &self.expected {
+            let status = if e.flake { "Flake" } else { deqp_status(e.outcome).unwrap_or("Fail") };
+            s += &format!("{},{status}\n", e.cell);
+        }
+        s
+    }
+
+    fn get(&self, id: &str) -> Option<&Expectation> {
+        self.expected.iter().find(|e| e.cell == id)
+    }
+}
+
+/// How one cell compared with its expectation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Status {
+    /// As expected (pass, or the expected fault).
+    Expected,
+    /// A listed flake showed one of its outcomes.
+    KnownFlake,
+    /// Not as expected: a new fault, or another fault than the expected one.
+    Regression,
+    /// Passes where a fault was expected: update the baseline.
+    Improvement,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CellCheck {
+    pub cell: String,
+    pub status: Status,
+    pub expected: Outcome,
+    pub actual: Outcome,
+}
+
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct BaselineCheck {
+    pub source: String,
+    /// Only the cells that were not simply expected.
+    pub cells: Vec<CellCheck>,
+    pub expected: usize,
+    pub known_flakes: usize,
+    /// Baseline entries for cells this run did not plan (another shard, filter or device).
+    pub not_run: usize,
+    /// Phases over their bound: `phase: actual ms/cell > limit`.
+    pub performance: Vec<String>,
+}
+
+impl BaselineCheck {
+    pub fn regressions(&self) -> impl Iterator<Item = &CellCheck> {
+        self.cells.iter().filter(|c| c.status == Status::Regression)
+    }
+    pub fn improvements(&self) -> impl Iterator<Item = &CellCheck> {
+        self.cells.iter().filter(|c| c.status == Status::Improvement)
+    }
+    /// Whether the run is as expected (improvements count unless allowed).
+    pub fn ok(&self, allow_improvements: bool) -> bool {
+        self.regressions().next().is_none() && self.performance.is_empty() && (allow_improvements || self.improvements().next().is_none())
+    }
+}
+
+fn classify(c: &CellReport, e: Option<&Expectation>) -> (Status, Outcome) {
+    let actual = c.outcome;
+    match e {
+        None => (if actual.is_finding() { Status::Regression } else { Status::Expected }, Outcome::Pass),
+        Some(e) if e.flake => {
+            let seen = |o: Outcome| o == e.outcome || e.also.contains(&o) || o == Outcome::Pass;
+            let all_known = c.attempts.iter().all(|a| seen(a.outcome)) && seen(actual);
+            // A flake tolerates its outcomes in any mix; a worse fault is still a regression.
+            (if all_known || actual.severity() <= e.outcome.severity() { Status::KnownFlake } else { Status::Regression }, e.outcome)
+        }
+        Some(e) => {
+            // Outcomes of one deqp class (crash / device loss; mismatch / error) are the same fault.
+            let same = actual == e.outcome || (actual.is_finding() && deqp_status(actual) == deqp_status(e.outcome));
+            // Passing where a fault was expected is better; another fault is not (deqp-runner
+            // fails on any unexpected status too).
+            let status = if same {
+                Status::Expected
+            } else if actual.is_finding() {
+                Status::Regression
+            } else {
+                Status::Improvement
+            };
+            (status, e.outcome)
+        }
+    }
+}
+
+/// Compare a run with a baseline: per cell (canaries and unsupported cells aside) and per phase.
+pub fn check(r: &RunReport, b: &Baseline, source: &str) -> BaselineCheck {
+    let mut out = BaselineCheck { source: source.into(), ..Default::default() };
+    for c in r.cells.iter().filter(|c| c.cell.canary.is_none() && c.outcome != Outcome::Unsupported) {
+        let e = b.get(&c.id);
+        let (status, expected) = classify(c, e);
+        match status {
+            Status::Expected => out.expected += 1,
+            Status::KnownFlake => out.known_flakes += 1,
+            Status::Regression | Status::Improvement => {}
+        }
+        if status != Status::Expected {
+            out.cells.push(CellCheck { cell: c.id.clone(), status, expected, actual: c.outcome });
+        }
+    }
+    out.not_run = b.expected.iter().filter(|e| !r.cells.iter().any(|c| c.id == e.cell && !c.attempts.is_empty())).count();
+    for (phase, bound) in &b.performance {
+        if let Some(mean) = phase_mean(r, phase) {
+            if mean > bound.limit() {
+                out.performance.push(format!(
+                    "{phase}: {mean:.2} ms/cell > {:.2} ms/cell ({}× the baseline's {:.2} + {:.1} ms)",
+                    bound.limit(),
+                    bound.factor,
+                    bound.mean_ms,
+                    bound.slack_ms
+                ));
+            }
+        }
+    }
+    out
+}
+
+/// Lines for the terminal summary.
+pub fn render(c: &BaselineCheck, allow_improvements: bool) -> String {
+    let mut s = format!(
+        "baseline {}: {} as expected, {} known flakes, {} regressions, {} improvements{}\n",
+        c.source,
+        c.expected,
+        c.known_flakes,
+        c.regressions().count(),
+        c.improvements().count(),
+        if c.not_run > 0 { format!(", {} entries not run here", c.not_run) } else { String::new() }
+    );
+    for x in &c.cells {
+        let what = match x.status {
+            Status::Regression => "REGRESSION",
+            Status::Improvement if allow_improvements => "improvement (allowed)",
+            Status::Improvement => "UNEXPECTED IMPROVEMENT (update the baseline, or --allow-improvements)",
+            Status::KnownFlake => "known flake",
+            Status::Expected => "expected",
+        };
+        s += &format!("  {what}: {} expected {} got {}\n", x.cell, x.expected.as_str(), x.actual.as_str());
+    }
+    for p in &c.performance {
+        s += &format!("  PERFORMANCE REGRESSION: {p}\n");
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn deqp_form_round_trips_and_bad_lines_name_the_line() {
+        let text = "# device: llvmpipe\n# driver: 25.0.7\na.b.c,Crash\nd.e.f,Fail\n\ng.h.i,Timeout\nj.k.l,Flake\n";
+        let b = Baseline::parse("x.csv", text).unwrap();
+        assert_eq!(b.device, "llvmpipe");
+        assert_eq!(b.expected.len(), 4);
+        assert!(b.expected[3].flake);
+        let again = Baseline::parse("y.csv", &b.to_deqp()).unwrap();
+        assert_eq!(again.expected, b.expected);
+        assert_eq!(again.to_deqp(), b.to_deqp());
+        let e = Baseline::parse("z.csv", "a.b,Crash\nnonsense\n").unwrap_err().to_string();
+        assert!(e.contains("z.csv: line 2"), "{e}");
+        let e = Baseline::parse("z.csv", "a.b,Exploded\n").unwrap_err().to_string();
+        assert!(e.contains("unknown status"), "{e}");
+        // The JSON form round-trips too.
+        let j = Baseline::parse("b.json", &b.to_json()).unwrap();
+        assert_eq!(j, Baseline { source: "x.csv".into(), ..b });
+    }
+
+    #[test]
+    fn perf_bound_limit() {
+        let p = PerfBound { mean_ms: 2.0, factor: 2.0, slack_ms: 1.0 };
+        assert_eq!(p.limit(), 5.0);
+    }
+}

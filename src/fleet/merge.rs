@@ -1,0 +1,112 @@
+//! `rtprobe merge A.json B.json … -o ALL.json`: join the reports of one matrix run in shards
+//! (or re-runs of parts of it) into one. Refuses reports of different rtprobe versions, device
+//! identities, scenes or result-changing options unless forced; the same cell in two reports
+//! keeps every attempt (its verdict is recomputed from all of them).
+use crate::matrix::plan::all_cells;
+use crate::matrix::Canary;
+use crate::report::run_report::{CellReport, RunReport};
+use serde_json::Value;
+use std::collections::HashMap;
+
+/// Device identity: a report continues, merges with or is compared like-for-like with another
+/// only when all of these agree.
+pub const DEVICE_KEYS: &[&str] = &["name", "driver_version", "api_version", "driver_uuid", "device_uuid"];
+/// Options that change results (not `jobs`, `shard`, output paths).
+pub const RESULT_OPTIONS: &[&str] = &["patches", "inject", "filters", "canaries", "validate", "timeout_s", "confirm", "repeat", "isolation", "binding_stages"];
+
+/// Whether `b` describes the same device, scene and result-changing options as `a`; says what
+/// differs. `options` limits which option keys are compared.
+pub fn same_run(a: &RunReport, b: &RunReport, options: &[&str]) -> Result<(), String> {
+    if a.tool["version"] != b.tool["version"] {
+        return Err(format!("rtprobe versions differ ({} and {})", a.tool["version"], b.tool["version"]));
+    }
+    for key in DEVICE_KEYS {
+        if a.device[key] != b.device[key] {
+            return Err(format!("it was made on another device ({key} {} here {})", a.device[key], b.device[key]));
+        }
+    }
+    if a.scene.params != b.scene.params {
+        return Err(format!("its scene differs (size, seed, instances or mesh detail: {:?} here {:?})", a.scene.params, b.scene.params));
+    }
+    for key in options {
+        if a.options[key] != b.options[key] {
+            return Err(format!("its --{} differs ({} here {})", key.replace('_', "-"), a.options[key], b.options[key]));
+        }
+    }
+    Ok(())
+}
+
+/// Plan order of every cell id the matrix can hold (workaround variants sort after their cell).
+fn order() -> HashMap<String, usize> {
+    let (cells, _) = all_cells();
+    let mut m: HashMap<String, usize> = cells.iter().enumerate().map(|(i, c)| (c.id(), i)).collect();
+    for (k, c) in Canary::ALL.iter().enumerate() {
+        m.insert(crate::matrix::Cell::canary(*c).id(), cells.len() + k);
+    }
+    m
+}
+
+/// Merge `reports` (with their file names for messages). `force` skips the identity checks.
+pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport, String> {
+    let mut it = reports.into_iter();
+    let (first_name, mut out) = it.next().ok_or("merge needs at least one report")?;
+    let mut names = vec![Value::String(first_name.clone())];
+    let mut by_id: HashMap<String, usize> = out.cells.iter().enumerate().map(|(i, c)| (c.id.clone(), i)).collect();
+    for (name, r) in it {
+        if !force {
+            same_run(&out, &r, RESULT_OPTIONS).map_err(|why| format!("{name} does not belong with {first_name}: {why} (--force merges anyway)"))?;
+        }
+        names.push(Value::String(name));
+        out.complete &= r.complete;
+        let t = &mut out.timing;
+        let workers = t.workers_started + r.timing.workers_started;
+        if workers > 0 {
+            t.device_ms_mean = (t.device_ms_mean * t.workers_started as f64 + r.timing.device_ms_mean * r.timing.workers_started as f64) / workers as f64;
+        }
+        t.workers_started = workers;
+        t.wall_ms += r.timing.wall_ms;
+        t.compile_ms += r.timing.compile_ms;
+        t.pipeline_ms += r.timing.pipeline_ms;
+        t.setup_ms += r.timing.setup_ms;
+        t.trace_ms += r.timing.trace_ms;
+        t.check_ms += r.timing.check_ms;
+        t.overhead_ms += r.timing.overhead_ms;
+        t.cells_timed += r.timing.cells_timed;
+        for c in r.cells {
+            match by_id.get(&c.id) {
+                Some(&i) => join(&mut out.cells[i], c),
+                None => {
+                    by_id.insert(c.id.clone(), out.cells.len());
+                    out.cells.push(c);
+                }
+            }
+        }
+    }
+    let order = order();
+    out.cells.sort_by_key(|c| (order.get(&c.cell.base().id()).copied().unwrap_or(usize::MAX), c.cell.patch.map(|p| 1 + p as usize).unwrap_or(0)));
+    // Workaround variants are planned cells only with --patches all (else they are retries).
+    let variants_planned = out.options["patches"] == "all";
+    let planned: Vec<&CellReport> = out.cells.iter().filter(|c| c.cell.patch.is_none() || variants_planned).collect();
+    let unsupported = planned.iter().filter(|c| c.attempts.is_empty()).count();
+    out.plan.planned = planned.len();
+    out.plan.unsupported = unsupported;
+    out.plan.to_run = planned.len() - unsupported;
+    out.plan.sharded_out = 0;
+    if let Value::Object(o) = &mut out.options {
+        o.remove("shard");
+        o.insert("merged_from".into(), Value::Array(names));
+    }
+    out.recount();
+    out.annotate_workarounds();
+    Ok(out)
+}
+
+/// The same cell from two reports: every attempt kept, the verdict recomputed.
+fn join(into: &mut CellReport, other: CellReport) {
+    if into.attempts.is_empty() {
+        *into = other;
+    } else if !other.attempts.is_empty() {
+        into.attempts.extend(other.attempts);
+        into.refresh();
+    }
+}

@@ -1,0 +1,7 @@
+//! Fleets and CI: expectations a run is held to (`baseline`), deterministic shards for a CI
+//! system's parallel jobs (`shard`), joining their reports (`merge`), and what changed between two
+//! runs (`diff`). rtprobe shards and merges; the CI system schedules the machines.
+pub mod baseline;
+pub mod diff;
+pub mod merge;
+pub mod shard;

@@ -1,0 +1,105 @@
+//! Workers never outlive the supervisor. Each worker is spawned in its own process group with
+//! `PR_SET_PDEATHSIG(SIGKILL)` (set between fork and exec, then `getppid` checked, so a supervisor
+//! that died before the `prctl` is noticed too): a killed supervisor takes its workers with it.
+//! The live groups are kept in a fixed table that the supervisor's SIGINT / SIGTERM / SIGHUP
+//! handler reads: it SIGKILLs every group, says so on stderr, and exits (128 + signal). Only
+//! async-signal-safe calls run in the handler; the report on disk stays whole (it is rewritten
+//! atomically after every cell) and `--resume` finishes the run.
+use std::os::unix::process::CommandExt;
+use std::process::Command;
+use std::sync::atomic::{AtomicI32, Ordering};
+use std::sync::Once;
+
+const MAX_GROUPS: usize = 256;
+static GROUPS: [AtomicI32; MAX_GROUPS] = [const { AtomicI32::new(0) }; MAX_GROUPS];
+static INSTALL: Once = Once::new();
+
+/// Make `cmd` start a worker that dies with this process, in its own process group.
+pub fn harden(cmd: &mut Command) {
+    let parent = std::process::id() as libc::pid_t;
+    cmd.process_group(0);
+    // SAFETY: only async-signal-safe syscalls between fork and exec; no allocation.
+    unsafe {
+        cmd.pre_exec(move || {
+            if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL as libc::c_ulong, 0, 0, 0) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            if libc::getppid() != parent {
+                // The supervisor died between fork and prctl.
+                libc::_exit(1);
+            }
+            Ok(())
+        });
+    }
+}
+
+/// Remember a live worker group (for the signal handler).
+pub fn register(pgid: i32) {
+    for g in &GROUPS {
+        if g.compare_exchange(0, pgid, Ordering::SeqCst, Ordering::SeqCst).is_ok() {
+            return;
+        }
+    }
+    tracing::warn!("more than {MAX_GROUPS} live workers; worker {pgid} relies on PR_SET_PDEATHSIG alone");
+}
+
+pub fn unregister(pgid: i32) {
+    for g in &GROUPS {
+        if g.compare_exchange(pgid, 0, Ordering::SeqCst, Ordering::SeqCst).is_ok() {
+            return;
+        }
+    }
+}
+
+/// SIGKILL every live worker group.
+pub fn kill_all() {
+    for g in &GROUPS {
+        let pgid = g.load(Ordering::SeqCst);
+        if pgid > 0 {
+            // SAFETY: kill(2) is async-signal-safe.
+            unsafe { libc::kill(-pgid, libc::SIGKILL) };
+        }
+    }
+}
+
+extern "C" fn on_signal(sig: libc::c_int) {
+    kill_all();
+    let msg: &[u8] = match sig {
+        libc::SIGINT => b"\nrtprobe: interrupted (SIGINT): every worker was killed; the report keeps each finished cell (complete: false); finish it with `rtprobe run --resume REPORT`\n",
+        libc::SIGTERM => b"\nrtprobe: terminated (SIGTERM): every worker was killed; the report keeps each finished cell (complete: false); finish it with `rtprobe run --resume REPORT`\n",
+        _ => b"\nrtprobe: hung up (SIGHUP): every worker was killed; the report keeps each finished cell (complete: false); finish it with `rtprobe run --resume REPORT`\n",
+    };
+    // SAFETY: write(2) and _exit(2) are async-signal-safe.
+    unsafe {
+        libc::write(2, msg.as_ptr().cast(), msg.len());
+        libc::_exit(128 + sig);
+    }
+}
+
+/// Install the supervisor's SIGINT / SIGTERM / SIGHUP handler (once per process).
+pub fn install_handlers() {
+    INSTALL.call_once(|| {
+        for sig in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
+            // SAFETY: a plain handler that only calls async-signal-safe functions.
+            unsafe {
+                let mut sa: libc::sigaction = std::mem::zeroed();
+                sa.sa_sigaction = on_signal as extern "C" fn(libc::c_int) as usize;
+                libc::sigemptyset(&mut sa.sa_mask);
+                libc::sigaction(sig, &sa, std::ptr::null_mut());
+            }
+        }
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn groups_are_registered_and_forgotten() {
+        register(999_999);
+        assert!(GROUPS.iter().any(|g| g.load(Ordering::SeqCst) == 999_999));
+        unregister(999_999);
+        assert!(!GROUPS.iter().any(|g| g.load(Ordering::SeqCst) == 999_999));
+    }
+}

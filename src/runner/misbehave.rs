@@ -1,0 +1,114 @@
+//! The supervisor's own fault injection, for its tests: `RTPROBE_WORKER_FAULT=<phase>:<action>`
+//! makes a worker misbehave when it enters `<phase>` (snake_case [`Phase`] name). The worker is
+//! rtprobe itself, so tests of deadlines, kills and fault attribution need a worker that hangs,
+//! crashes, floods its output or loses its device on demand (as nextest and deqp-runner test
+//! their runners). Read once when the worker starts; without the variable nothing here runs.
+//!
+//! Actions: `hang` (sleeps forever), `crash` (SIGSEGV), `spam` (prints non-protocol lines
+//! without pause, never progresses), `lose` (the phase fails with `VK_ERROR_DEVICE_LOST`).
+//! A `setup` hang, crash or spam happens just before vkCreateDevice (standing in for a hung or
+//! crashing device creation); a `setup` loss happens after it, where the scene's acceleration
+//! structures are built (a loss needs a device).
+use super::phase::Phase;
+use crate::vk::VkError;
+use std::io::Write;
+
+pub const ENV: &str = "RTPROBE_WORKER_FAULT";
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Action {
+    Hang,
+    Crash,
+    Spam,
+    Lose,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Misbehave {
+    pub phase: Phase,
+    pub action: Action,
+}
+
+/// Where in the setup the hook runs (see the module doc).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SetupStep {
+    CreateInstance,
+    CreateDevice,
+    Scene,
+}
+
+impl Misbehave {
+    pub fn parse(spec: &str) -> Result<Misbehave, String> {
+        let (p, a) = spec.split_once(':').ok_or_else(|| format!("{ENV}={spec:?}: expected <phase>:<hang|crash|spam|lose>"))?;
+        let phase = Phase::parse(p).ok_or_else(|| format!("{ENV}: unknown phase {p:?}"))?;
+        let action = match a {
+            "hang" => Action::Hang,
+            "crash" => Action::Crash,
+            "spam" => Action::Spam,
+            "lose" => Action::Lose,
+            other => return Err(format!("{ENV}: unknown action {other:?} (hang, crash, spam, lose)")),
+        };
+        Ok(Misbehave { phase, action })
+    }
+
+    /// The hook of this process, read once from the environment.
+    pub fn from_env() -> Result<Option<Misbehave>, String> {
+        match std::env::var(ENV) {
+            Ok(s) if !s.is_empty() => Misbehave::parse(&s).map(Some),
+            _ => Ok(None),
+        }
+    }
+
+    /// Called as the worker enters `phase` (with the setup step, for `setup`).
+    pub fn at(&self, phase: Phase, step: Option<SetupStep>) -> Result<(), VkError> {
+        if phase != self.phase {
+            return Ok(());
+        }
+        let wanted = if self.action == Action::Lose { SetupStep::Scene } else { SetupStep::CreateDevice };
+        if phase == Phase::Setup && step != Some(wanted) {
+            return Ok(());
+        }
+        match self.action {
+            Action::Hang => loop {
+                std::thread::sleep(std::time::Duration::from_secs(3600));
+            },
+            Action::Crash => unsafe {
+                // Rust's own SIGSEGV handler ignores a raised signal; restore the default first.
+                libc::signal(libc::SIGSEGV, libc::SIG_DFL);
+                libc::raise(libc::SIGSEGV);
+                libc::_exit(139)
+            },
+            Action::Spam => {
+                let mut out = std::io::stdout();
+                loop {
+                    let _ = out.write_all(b"driver debug: still busy (injected spam)\n");
+                }
+            }
+            Action::Lose => Err(VkError::DeviceLost { call: "injected device loss (RTPROBE_WORKER_FAULT)" }),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_phase_and_action() {
+        assert_eq!(Misbehave::parse("pipeline:hang"), Ok(Misbehave { phase: Phase::Pipeline, action: Action::Hang }));
+        assert_eq!(Misbehave::parse("between_cells:crash").unwrap().action, Action::Crash);
+        assert!(Misbehave::parse("pipeline").is_err());
+        assert!(Misbehave::parse("nowhere:hang").is_err());
+        assert!(Misbehave::parse("trace:explode").is_err());
+    }
+
+    #[test]
+    fn loss_fires_only_in_its_phase() {
+        let m = Misbehave { phase: Phase::Trace, action: Action::Lose };
+        assert!(m.at(Phase::Compile, None).is_ok());
+        assert!(m.at(Phase::Trace, None).unwrap_err().is_device_lost());
+        let s = Misbehave { phase: Phase::Setup, action: Action::Lose };
+        assert!(s.at(Phase::Setup, Some(SetupStep::CreateDevice)).is_ok());
+        assert!(s.at(Phase::Setup, Some(SetupStep::Scene)).is_err());
+    }
+}

@@ -1,0 +1,3 @@
+// A helper that includes a file that does not exist.
+
+#include "missing/constants.glsl"

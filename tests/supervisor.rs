@@ -1,0 +1,309 @@
+//! End-to-end tests of the supervisor on lavapipe: faults are classified in the phase where they
+//! happen (setup, pipeline, between cells, teardown), deadlines fire whatever the worker does,
+//! every attempt records the device features its worker enabled, and no worker outlives the
+//! supervisor (SIGINT, SIGKILL). Misbehaving workers come from the supervisor's own test hook,
+//! `RTPROBE_WORKER_FAULT=<phase>:<hang|crash|spam|lose>` (src/runner/misbehave.rs).
+mod common;
+use common::*;
+use serde_json::Value;
+use std::path::Path;
+use std::process::{Output, Stdio};
+use std::time::{Duration, Instant};
+
+/// One raygen cell.
+const ONE: &str = "stage=raygen,resource=storage_buffer,index=literal,descriptor_model=descriptor_indexing";
+/// Two cells (raygen and compute).
+const TWO: &str = "stage=raygen|compute,resource=storage_buffer,index=literal,descriptor_model=descriptor_indexing";
+
+fn report(path: &Path) -> Value {
+    serde_json::from_slice(&std::fs::read(path).expect("report written")).expect("report is JSON")
+}
+
+fn cells(r: &Value) -> Vec<Value> {
+    r["cells"].as_array().expect("cells").iter().filter(|c| c["outcome"] != "unsupported").cloned().collect()
+}
+
+fn workers(r: &Value) -> Vec<Value> {
+    r["workers"].as_array().expect("workers").clone()
+}
+
+/// `rtprobe run` with the worker fault `fault` (if any), killed and failed after `limit`: a
+/// supervisor that hangs fails the test instead of hanging it.
+fn run_bounded(args: &[&str], fault: Option<&str>, limit: Duration) -> (Output, Duration) {
+    let mut c = bin();
+    if let Some(f) = fault {
+        c.env("RTPROBE_WORKER_FAULT", f);
+    }
+    // `-vv` logs can be huge when the supervisor fails to stop a flooding worker: not kept.
+    let err = if args.contains(&"-vv") { Stdio::null() } else { Stdio::piped() };
+    let child = c.args(args).stdout(Stdio::piped()).stderr(err).spawn().expect("spawn rtprobe");
+    let pid = child.id() as i32;
+    let (tx, rx) = std::sync::mpsc::channel();
+    let t = Instant::now();
+    std::thread::spawn(move || {
+        let _ = tx.send(child.wait_with_output());
+    });
+    match rx.recv_timeout(limit) {
+        Ok(o) => (o.expect("wait"), t.elapsed()),
+        Err(_) => {
+            unsafe { libc::kill(pid, libc::SIGKILL) };
+            panic!("rtprobe run {args:?} with {fault:?} did not finish within {limit:?}: the supervisor hangs");
+        }
+    }
+}
+
+fn fault_run(fault: &str, filter: &str, extra: &[&str], limit: Duration) -> (Output, Value, Duration) {
+    fault_run_with(&[], fault, filter, extra, limit)
+}
+
+fn fault_run_with(global: &[&str], fault: &str, filter: &str, extra: &[&str], limit: Duration) -> (Output, Value, Duration) {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("r.json");
+    let mut args = global.to_vec();
+    args.extend_from_slice(&["run", "-j", "1", "--no-confirm", "--patches", "none", "--filter", filter, "-o", out.to_str().unwrap()]);
+    args.extend_from_slice(extra);
+    let (o, took) = run_bounded(&args, Some(fault), limit);
+    let r = report(&out);
+    (o, r, took)
+}
+
+#[test]
+fn device_loss_in_setup_is_the_setups_outcome_and_no_cell_runs() {
+    let (o, r, _) = fault_run("setup:lose", TWO, &[], Duration::from_secs(180));
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let ws = workers(&r);
+    // Retried once in a fresh worker, then given up: two setup records, each a device loss.
+    assert_eq!(ws.len(), 2, "{ws:?}");
+    for w in &ws {
+        assert_eq!(w["phase"], "setup");
+        assert_eq!(w["outcome"], "device_lost");
+        assert!(w["detail"].as_str().unwrap().contains("acceleration structures and resources"), "{w}");
+    }
+    let cs = cells(&r);
+    assert_eq!(cs.len(), 2);
+    for c in &cs {
+        // Every cell is recorded, none blamed: not run, with the setup's outcome.
+        assert_eq!(c["outcome"], "device_lost", "{c}");
+        assert_eq!(c["attempts"][0]["phase"], "setup");
+        assert!(c["attempts"][0]["result"].is_null(), "a cell ran on a lost device: {c}");
+        assert!(c["reason"].as_str().unwrap().starts_with("not run:"), "{c}");
+    }
+}
+
+#[test]
+fn hung_device_creation_makes_the_cells_timeout_in_setup() {
+    let (o, r, took) = fault_run("setup:hang", TWO, &["--setup-timeout", "2"], Duration::from_secs(120));
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(took < Duration::from_secs(60), "took {took:?}");
+    let ws = workers(&r);
+    assert_eq!(ws.len(), 2, "{ws:?}");
+    for w in &ws {
+        assert_eq!((w["phase"].as_str(), w["outcome"].as_str()), (Some("setup"), Some("timeout")), "{w}");
+        assert!(w["detail"].as_str().unwrap().contains("vkCreateDevice"), "{w}");
+    }
+    for c in cells(&r) {
+        assert_eq!(c["outcome"], "timeout", "{c}");
+        assert_eq!(c["attempts"][0]["phase"], "setup");
+    }
+}
+
+#[test]
+fn a_hang_in_pipeline_creation_is_a_timeout_in_pipeline() {
+    let (o, r, _) = fault_run("pipeline:hang", ONE, &["--timeout", "3"], Duration::from_secs(120));
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let cs = cells(&r);
+    assert_eq!(cs.len(), 1);
+    let a = &cs[0]["attempts"][0];
+    assert_eq!(cs[0]["outcome"], "timeout");
+    assert_eq!(a["phase"], "pipeline", "{a}");
+    assert!(a["detail"].as_str().unwrap().contains("in pipeline"), "{a}");
+    // Its worker got ready first: setup is recorded as passed, with what the device enabled.
+    let ws = workers(&r);
+    assert_eq!(ws[0]["phase"], "setup");
+    assert_eq!(ws[0]["outcome"], "pass");
+}
+
+#[test]
+fn a_worker_that_keeps_printing_still_times_out() {
+    // With debug logs on (`-vv`, as when someone investigates a hang) the supervisor handles each
+    // line slower than the worker prints them: its queue never runs dry, and the deadline must
+    // still fire.
+    let (o, r, took) = fault_run_with(&["-vv"], "trace:spam", ONE, &["--timeout", "3"], Duration::from_secs(60));
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(took < Duration::from_secs(60), "took {took:?}");
+    let cs = cells(&r);
+    assert_eq!(cs[0]["outcome"], "timeout", "{}", cs[0]);
+    assert_eq!(cs[0]["attempts"][0]["phase"], "trace");
+}
+
+#[test]
+fn a_crash_between_cells_is_recorded_and_the_rest_still_run() {
+    let (o, r, _) = fault_run("between_cells:crash", TWO, &[], Duration::from_secs(180));
+    // A crash outside any cell is a finding: it is recorded for its worker, never blamed on a cell.
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let cs = cells(&r);
+    assert_eq!(cs.len(), 2);
+    for c in &cs {
+        assert_eq!(c["outcome"], "pass", "{c}");
+        assert_eq!(c["attempts"].as_array().unwrap().len(), 1);
+    }
+    let crashes: Vec<_> = workers(&r).into_iter().filter(|w| w["outcome"] == "crash").collect();
+    assert_eq!(crashes.len(), 1, "{:?}", workers(&r));
+    assert_eq!(crashes[0]["phase"], "between_cells");
+    assert_eq!(crashes[0]["worker_exit"]["signal"], 11);
+    // The replacement worker ran the second cell.
+    assert_ne!(cs[0]["attempts"][0]["worker"], cs[1]["attempts"][0]["worker"]);
+    assert!(stdout(&o).contains("worker faults outside cells (1)"), "{}", stdout(&o));
+}
+
+#[test]
+fn a_hang_between_cells_is_the_workers_and_the_next_cell_still_runs() {
+    let (o, r, took) = fault_run("between_cells:hang", TWO, &["--timeout", "3"], Duration::from_secs(120));
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(took < Duration::from_secs(60), "took {took:?}");
+    assert!(cells(&r).iter().all(|c| c["outcome"] == "pass"), "{:?}", cells(&r));
+    let hung: Vec<_> = workers(&r).into_iter().filter(|w| w["outcome"] == "timeout").collect();
+    assert_eq!(hung.len(), 1, "{:?}", workers(&r));
+    assert_eq!(hung[0]["phase"], "between_cells");
+}
+
+#[test]
+fn a_hang_in_teardown_is_bounded_and_reported() {
+    let (o, r, took) = fault_run("teardown:hang", ONE, &["--timeout", "3"], Duration::from_secs(120));
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(took < Duration::from_secs(60), "took {took:?}");
+    assert_eq!(cells(&r)[0]["outcome"], "pass");
+    let hung: Vec<_> = workers(&r).into_iter().filter(|w| w["phase"] == "teardown").collect();
+    assert_eq!(hung.len(), 1, "{:?}", workers(&r));
+    assert_eq!(hung[0]["outcome"], "timeout");
+}
+
+#[test]
+fn every_attempt_records_the_features_its_worker_enabled() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("r.json");
+    let (o, _) = run_bounded(&["run", "--isolation", "process-per-cell", "--patches", "none", "--filter", TWO, "-o", out.to_str().unwrap()], None, Duration::from_secs(180));
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let r = report(&out);
+    let features = |stage: &str| -> Vec<String> {
+        let c = cells(&r).into_iter().find(|c| c["stage"] == stage).unwrap();
+        c["attempts"][0]["device_features"].as_array().unwrap().iter().map(|v| v.as_str().unwrap().to_string()).collect()
+    };
+    let rt = features("raygen");
+    assert!(rt.iter().any(|f| f == "VK_KHR_ray_tracing_pipeline") && rt.iter().any(|f| f == "rayTracingPipeline"), "{rt:?}");
+    // A compute cell alone needs no ray tracing pipeline: its worker did not enable one.
+    let compute = features("compute");
+    assert!(compute.iter().any(|f| f == "bufferDeviceAddress"), "{compute:?}");
+    assert!(!compute.iter().any(|f| f == "VK_KHR_ray_tracing_pipeline" || f == "rayTracingPipeline"), "{compute:?}");
+    // And the workers' setup records say the same.
+    let ws = workers(&r);
+    assert_eq!(ws.len(), 2);
+    assert!(ws.iter().all(|w| w["phase"] == "setup" && w["outcome"] == "pass"));
+}
+
+// ---- no orphans ----------------------------------------------------------------------------
+
+/// Live (not zombie) `rtprobe __worker` processes whose job file lies in `job_dir`.
+fn live_workers(job_dir: &str) -> Vec<i32> {
+    let mut found = vec![];
+    for e in std::fs::read_dir("/proc").unwrap().flatten() {
+        let Ok(pid) = e.file_name().to_string_lossy().parse::<i32>() else { continue };
+        let Ok(cmd) = std::fs::read(format!("/proc/{pid}/cmdline")) else { continue };
+        let cmd = String::from_utf8_lossy(&cmd).replace('\0', " ");
+        if !cmd.contains("__worker") || !cmd.contains(job_dir) {
+            continue;
+        }
+        let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
+        let state = stat.rsplit_once(')').and_then(|(_, r)| r.split_whitespace().next()).unwrap_or("?").to_string();
+        if state != "Z" && state != "X" {
+            found.push(pid);
+        }
+    }
+    found
+}
+
+/// Start a run (with the worker fault `fault`, if any), wait until a worker runs (and, without a
+/// fault, a cell finished), then `kill` the supervisor with `sig`, and check that no worker of
+/// this run is left. Returns the supervisor's exit and its stderr.
+fn interrupt_mid_run(out: &Path, sig: i32, filter: &str, fault: Option<&str>) -> (std::process::ExitStatus, String) {
+    let mut c = bin();
+    if let Some(f) = fault {
+        c.env("RTPROBE_WORKER_FAULT", f);
+    }
+    let mut child = c
+        .args(["run", "-j", "2", "--timeout", "60", "--patches", "none", "--filter", filter, "-o", out.to_str().unwrap()])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let job_dir = format!("rtprobe-{}/", child.id());
+    let start = Instant::now();
+    loop {
+        let done = std::fs::read(out).ok().and_then(|b| serde_json::from_slice::<Value>(&b).ok()).map(|r| cells(&r).iter().filter(|c| !c["attempts"].as_array().unwrap().is_empty()).count()).unwrap_or(0);
+        if (done >= 1 || fault.is_some()) && !live_workers(&job_dir).is_empty() {
+            break;
+        }
+        assert!(start.elapsed() < Duration::from_secs(120), "run made no progress");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    if fault.is_some() {
+        // Let the worker reach its hang.
+        std::thread::sleep(Duration::from_millis(1500));
+    }
+    unsafe { libc::kill(child.id() as i32, sig) };
+    let status = child.wait().unwrap();
+    let mut err = String::new();
+    use std::io::Read;
+    child.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+    // Nothing of this run may still be running (SIGKILL and reaping take a moment).
+    let start = Instant::now();
+    loop {
+        let left = live_workers(&job_dir);
+        if left.is_empty() {
+            break;
+        }
+        if start.elapsed() > Duration::from_secs(3) {
+            for pid in &left {
+                unsafe { libc::kill(*pid, libc::SIGKILL) };
+            }
+            panic!("workers outlived the supervisor: {left:?}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    (status, err)
+}
+
+const MANY: &str = "descriptor_model=descriptor_indexing,resource=storage_buffer|uniform_buffer,stage=raygen|closest_hit|miss|compute";
+
+#[test]
+fn ctrl_c_kills_every_worker_keeps_the_report_and_resume_finishes() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("r.json");
+    let (status, err) = interrupt_mid_run(&out, libc::SIGINT, MANY, None);
+    assert_eq!(status.code(), Some(130), "{status:?}");
+    assert!(err.contains("interrupted (SIGINT)") && err.contains("--resume"), "{err}");
+    let r = report(&out);
+    assert_eq!(r["complete"], false);
+    let o = run(&["run", "-j", "2", "--patches", "none", "--filter", MANY, "--resume", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let r = report(&out);
+    assert_eq!(r["complete"], true);
+    assert!(cells(&r).iter().all(|c| c["outcome"] == "pass"));
+}
+
+#[test]
+fn sigterm_kills_a_hung_worker_too() {
+    let dir = tempfile::tempdir().unwrap();
+    let (status, err) = interrupt_mid_run(&dir.path().join("r.json"), libc::SIGTERM, ONE, Some("pipeline:hang"));
+    assert_eq!(status.code(), Some(143), "{status:?}");
+    assert!(err.contains("terminated (SIGTERM)"), "{err}");
+}
+
+#[test]
+fn a_killed_supervisor_leaves_no_worker_running() {
+    // The worker hangs in pipeline creation: nothing but the supervisor's death can end it.
+    let dir = tempfile::tempdir().unwrap();
+    let (status, _) = interrupt_mid_run(&dir.path().join("r.json"), libc::SIGKILL, ONE, Some("pipeline:hang"));
+    use std::os::unix::process::ExitStatusExt;
+    assert_eq!(status.signal(), Some(libc::SIGKILL));
+}
