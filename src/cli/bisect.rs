@@ -43,8 +43,8 @@ pub(crate) fn report_device(g: &Globals, r: &RunReport) -> Result<(Arc<Instance>
 }
 
 /// Runs cells through the supervisor with the report's scene and injections. A fresh
-/// `Supervisor` per batch: a message a killed worker of an earlier batch sent late must not
-/// reach a later batch (the supervisor indexes its slots by the sender's slot number).
+/// `Supervisor` per batch, so that nothing a worker of an earlier batch sent late reaches a later
+/// one (bisection runs many small batches).
 struct SupervisorOracle {
     opts: SupervisorOptions,
 }
