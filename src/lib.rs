@@ -15,4 +15,5 @@ pub mod outcome;
 pub mod exec;
 pub mod runner;
 pub mod patches;
+pub mod bisect;
 pub mod fleet;

@@ -36,6 +36,13 @@ pub enum Command {
     Run(RunArgs),
     /// Apply SPIR-V workaround patches to a shader (SPIR-V binary, or GLSL with --glsl)
     Patch(PatchArgs),
+    /// Narrow a run's faults down to the minimal conjunction of axis values (ddmin over the
+    /// report's cells, running only what it needs), with an isolation list and verified workarounds
+    Bisect(BisectArgs),
+    /// Write the vendor issue for a run's fault (Markdown or JSON), from the report and a bisection
+    Report(ReportArgs),
+    /// Write a repro bundle for one cell: shaders (GLSL, SPIR-V, disassembly), cell.json, caps
+    Repro(ReproArgs),
     /// Write the expectations (baseline) of a finished run, for `run --baseline`
     Baseline(BaselineArgs),
     /// Join the reports of shards (`run --shard I/N`) or re-runs into one report
@@ -51,7 +58,7 @@ pub enum Command {
     },
 }
 
-#[derive(Args, Debug)]
+#[derive(Args, Debug, Clone)]
 pub struct RunArgs {
     /// Device index or case-insensitive name substring (default: the first RT-capable device)
     #[arg(long, short = 'd', value_name = "INDEX|NAME")]
@@ -158,6 +165,81 @@ pub struct RunArgs {
     /// k of N with the chance that a fault of the observed rate would have been missed
     #[arg(long, value_name = "N")]
     pub repeat: Option<u32>,
+
+    /// Run exactly the cell described by a repro bundle's cell.json (`rtprobe repro`): it
+    /// replaces the plan, the scene and the injections
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["filter", "inject_fault", "resume", "canaries"])]
+    pub cell_spec: Option<PathBuf>,
+}
+
+#[derive(Args, Debug)]
+pub struct BisectArgs {
+    /// The run report (rtprobe.report/1) with the faults
+    pub report: PathBuf,
+
+    /// Build the isolation list and workarounds around this faulting cell (default: the first
+    /// faulting cell the minimal conjunction holds for)
+    #[arg(long, value_name = "ID")]
+    pub cell: Option<String>,
+
+    /// Also write the result as JSON (schema rtprobe.bisect/1; the predicate under "minimal")
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+
+    /// The scope: cells bisection may use and run, in --filter syntax (repeatable; default: the
+    /// report's own --filter). A wider scope lets bisection test axes the report did not vary
+    #[arg(long, value_name = "FILTER")]
+    pub filter: Vec<String>,
+
+    /// Run nothing: use the report's verdicts alone (on a machine without the report's device)
+    #[arg(long)]
+    pub offline: bool,
+
+    /// A pass counts only when a fault of the observed rate would have missed all its attempts
+    /// with at most this probability (passes are repeated until then)
+    #[arg(long, default_value_t = crate::bisect::DEFAULT_MAX_MISS, value_name = "P")]
+    pub max_miss: f64,
+
+    /// At most this many attempts per cell
+    #[arg(long, default_value_t = crate::bisect::DEFAULT_MAX_ATTEMPTS, value_name = "N")]
+    pub max_attempts: u32,
+
+    /// Worker processes (default: the report's)
+    #[arg(long, short = 'j')]
+    pub jobs: Option<usize>,
+}
+
+#[derive(Args, Debug)]
+pub struct ReportArgs {
+    /// The run report (rtprobe.report/1)
+    pub report: PathBuf,
+
+    /// A bisection of that report (`rtprobe bisect --json FILE`); without it, the report's own
+    /// verdicts are bisected offline
+    #[arg(long, value_name = "FILE")]
+    pub bisect: Option<PathBuf>,
+
+    /// Output file (default: stdout); written atomically
+    #[arg(long, short = 'o', value_name = "FILE")]
+    pub out: Option<PathBuf>,
+
+    /// `md` (the issue text) or `json` (the same content as data)
+    #[arg(long, value_enum, default_value = "md")]
+    pub format: crate::report::issue::Format,
+}
+
+#[derive(Args, Debug)]
+pub struct ReproArgs {
+    /// The cell id (as in the report)
+    pub cell: String,
+
+    /// The run report the cell comes from
+    #[arg(long, value_name = "REPORT")]
+    pub from: PathBuf,
+
+    /// The bundle directory (created; existing files in it are replaced)
+    #[arg(long, short = 'o', value_name = "DIR")]
+    pub out: PathBuf,
 }
 
 #[derive(Args, Debug)]

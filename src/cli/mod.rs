@@ -1,10 +1,13 @@
 //! The command line: clap definitions ([`args`]), exit codes ([`exit`]), and dispatch. Nothing
 //! below this module knows about clap.
 pub mod args;
+pub mod bisect;
 pub mod commands;
 pub mod exit;
 pub mod fleet;
 pub mod patch;
+pub mod repro;
+pub mod report;
 pub mod run;
 
 use args::{Cli, Command};
@@ -38,6 +41,9 @@ pub fn main_entry() -> u8 {
         Command::Caps(a) => commands::caps_cmd(&g, a),
         Command::Run(a) => run::run(&g, a),
         Command::Patch(a) => patch::patch(a),
+        Command::Bisect(a) => bisect::bisect(&g, a),
+        Command::Report(a) => report::report(a),
+        Command::Repro(a) => repro::repro(&g, a),
         Command::Baseline(a) => fleet::baseline(a),
         Command::Merge(a) => fleet::merge_cmd(a),
         Command::Diff(a) => fleet::diff_cmd(a),

@@ -31,7 +31,7 @@ fn scene_params(a: &RunArgs) -> Result<SceneParams> {
 
 /// One worker per core on CPU implementations (lavapipe JITs each pipeline on one thread), one
 /// on GPUs (the driver parallelises; several processes only contend for one device).
-fn default_jobs(info: &crate::vk::DeviceInfo) -> usize {
+pub(crate) fn default_jobs(info: &crate::vk::DeviceInfo) -> usize {
     if info.properties.core.device_type == ash::vk::PhysicalDeviceType::CPU {
         std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1).clamp(1, 8)
     } else {
@@ -45,6 +45,11 @@ fn slug(name: &str) -> String {
 }
 
 pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
+    if let Some(p) = &a.cell_spec {
+        // A repro bundle's cell: exactly that cell, its scene and injections.
+        let spec = super::repro::CellSpec::load(p)?;
+        return run(g, &spec.run_args(a)?);
+    }
     let filters = a.filter.iter().map(|f| Filter::parse(f).map_err(|e| coded(exit::USAGE, e))).collect::<Result<Vec<_>>>()?;
     let inject = a.inject_fault.iter().filter(|s| !s.trim().is_empty()).map(|s| Injection::parse(s).map_err(|e| coded(exit::USAGE, e))).collect::<Result<Vec<_>>>()?;
     if a.repeat.is_some_and(|n| n == 0 || n > 1000) {
@@ -165,21 +170,13 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     let (canaries, cells): (Vec<_>, Vec<_>) = pending.into_iter().partition(|c| c.canary.is_some());
     writer.save(false).with_context(|| "writing the report")?;
 
-    let job_dir = std::env::temp_dir().join(format!("rtprobe-{}", std::process::id()));
-    let mut sup = Supervisor::new(SupervisorOptions {
-        device_index: info.index,
-        scene: params,
-        jobs,
-        isolation: a.isolation,
-        timeout: Duration::from_secs_f64(a.timeout),
-        setup_timeout: Duration::from_secs_f64(a.setup_timeout),
-        grace: Duration::from_millis(500),
-        kill_wait: Duration::from_secs(5),
-        validate: g.validate,
-        inject: inject.clone(),
+    let opts = SupervisorOptions {
         dump: a.dump.clone(),
-        job_dir: job_dir.clone(),
-    });
+        setup_timeout: Duration::from_secs_f64(a.setup_timeout),
+        ..supervisor_options(info.index, params, jobs, a.isolation, a.timeout, g.validate, inject.clone())
+    };
+    let job_dir = opts.job_dir.clone();
+    let mut sup = Supervisor::new(opts);
     let bar = indicatif::ProgressBar::new((cells.len() + canaries.len()) as u64);
     bar.set_style(indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} {msg}").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()));
     let wall = Instant::now();
@@ -255,6 +252,25 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     }
     println!("report: {}", out.display());
     Ok(exit_code(&writer.report, a.allow_improvements))
+}
+
+/// The supervisor options of a run (also used by `bisect` and the `--cell-spec` re-run): no
+/// dump, the job files under the temp dir.
+pub(crate) fn supervisor_options(device_index: usize, scene: SceneParams, jobs: usize, isolation: Isolation, timeout_s: f64, validate: bool, inject: Vec<Injection>) -> SupervisorOptions {
+    SupervisorOptions {
+        device_index,
+        scene,
+        jobs,
+        isolation,
+        timeout: Duration::from_secs_f64(timeout_s),
+        setup_timeout: Duration::from_secs(120),
+        grace: Duration::from_millis(500),
+        kill_wait: Duration::from_secs(5),
+        validate,
+        inject,
+        dump: None,
+        job_dir: std::env::temp_dir().join(format!("rtprobe-{}", std::process::id())),
+    }
 }
 
 /// Without a baseline: findings first (exit 1), then canaries whose fault went undetected (exit

@@ -478,7 +478,7 @@ impl Executor {
 
 /// Apply the workaround `w` to one module, restricted to the probed array (binding 2):
 /// `Some(words)` when the module had something to rewrite, `None` when not.
-fn patch_module(words: &[u32], w: crate::matrix::cell::Workaround) -> Result<Option<Vec<u32>>, crate::patches::PatchError> {
+pub(crate) fn patch_module(words: &[u32], w: crate::matrix::cell::Workaround) -> Result<Option<Vec<u32>>, crate::patches::PatchError> {
     use crate::matrix::cell::Workaround;
     use crate::patches::{self, PatchError, PatchName};
     let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();

@@ -2,8 +2,10 @@
 //! pictures and the terminal summary.
 pub mod atomic;
 pub mod junit;
+pub mod issue;
 pub mod pictures;
 pub mod run_report;
+pub mod shaders;
 pub mod summary;
 pub mod time;
 

@@ -1,0 +1,51 @@
+//! The bisection file (`bisect --json FILE`, schema `rtprobe.bisect/1`) that `report --bisect`
+//! reads: the [`Bisection`] with where it came from.
+use super::Bisection;
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+
+pub const SCHEMA: &str = "rtprobe.bisect/1";
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct BisectFile {
+    pub schema: String,
+    pub report: PathBuf,
+    pub device: Value,
+    /// The scope's filters (empty: the whole matrix).
+    pub scope: Vec<String>,
+    pub full_matrix: usize,
+    pub inject: Vec<String>,
+    pub offline: bool,
+    #[serde(flatten)]
+    pub bisection: Bisection,
+    /// The text `bisect` printed.
+    pub text: String,
+}
+
+impl BisectFile {
+    /// The file for `bisection` of the report at `path` (rendered as `bisect` prints it).
+    pub fn new(path: &Path, report: &crate::report::run_report::RunReport, scope: &[crate::matrix::Filter], inject: &[crate::matrix::inject::Injection], offline: bool, bisection: Bisection) -> Self {
+        let text = super::render(&bisection, report.plan.generated);
+        BisectFile {
+            schema: SCHEMA.into(),
+            report: path.to_path_buf(),
+            device: report.device.clone(),
+            scope: scope.iter().map(super::predicate).collect(),
+            full_matrix: report.plan.generated,
+            inject: inject.iter().map(|i| i.spec.clone()).collect(),
+            offline,
+            bisection,
+            text,
+        }
+    }
+
+    pub fn load(path: &Path) -> Result<BisectFile, String> {
+        let bytes = std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+        let f: BisectFile = serde_json::from_slice(&bytes).map_err(|e| format!("{} is not an rtprobe bisection: {e}", path.display()))?;
+        if f.schema != SCHEMA {
+            return Err(format!("{} has schema {:?}, expected {SCHEMA:?}", path.display(), f.schema));
+        }
+        Ok(f)
+    }
+}

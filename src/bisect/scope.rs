@@ -1,0 +1,83 @@
+//! What bisection takes from a run report: the options its runs must repeat (device, scene,
+//! `--inject-fault`, timeouts) and the scope of cells when no device is at hand.
+use crate::matrix::inject::Injection;
+use crate::matrix::plan::PatchMode;
+use crate::matrix::{Cell, Filter};
+use crate::report::run_report::RunReport;
+use crate::runner::supervisor::Isolation;
+
+/// The report's options that bisection's runs repeat.
+#[derive(Clone, Debug)]
+pub struct ReportOptions {
+    pub filters: Vec<String>,
+    pub patches: PatchMode,
+    pub inject: Vec<Injection>,
+    pub jobs: Option<usize>,
+    pub isolation: Isolation,
+    pub timeout_s: f64,
+    /// The run's worker setup deadline, when the report records it.
+    pub setup_timeout_s: Option<f64>,
+    pub validate: bool,
+}
+
+impl ReportOptions {
+    pub fn of(r: &RunReport) -> Result<Self, String> {
+        let o = &r.options;
+        let strings = |key: &str| -> Vec<String> { o[key].as_array().map(|a| a.iter().filter_map(|v| v.as_str().map(String::from)).collect()).unwrap_or_default() };
+        let inject = strings("inject").iter().map(|s| Injection::parse(s)).collect::<Result<Vec<_>, _>>().map_err(|e| format!("the report's --inject-fault: {e}"))?;
+        let patches = serde_json::from_value(o["patches"].clone()).unwrap_or(PatchMode::Faults);
+        let isolation = serde_json::from_value(o["isolation"].clone()).unwrap_or(Isolation::Worker);
+        Ok(ReportOptions {
+            filters: strings("filters"),
+            patches,
+            inject,
+            jobs: o["jobs"].as_u64().map(|j| j as usize),
+            isolation,
+            timeout_s: o["timeout_s"].as_f64().unwrap_or(20.0),
+            setup_timeout_s: o["setup_timeout_s"].as_f64(),
+            validate: o["validate"].as_bool().unwrap_or(false),
+        })
+    }
+
+    /// The scope filters: `given`, or else the report's own `--filter`s.
+    pub fn scope_filters(&self, given: &[String]) -> Result<Vec<Filter>, String> {
+        let src = if given.is_empty() { &self.filters } else { given };
+        src.iter().map(|f| Filter::parse(f)).collect()
+    }
+}
+
+/// The scope without a device: the report's probe cells that ran and match `filters` (patched
+/// variants only when the report planned them all: in `faults` mode they exist only for
+/// faulting cells and are workaround retries, not a sample of the patch axis).
+pub fn report_scope(r: &RunReport, filters: &[Filter], patches: PatchMode) -> Vec<Cell> {
+    r.cells
+        .iter()
+        .filter(|c| c.cell.canary.is_none() && !c.attempts.is_empty())
+        .filter(|c| c.cell.patch.is_none() || patches == PatchMode::All)
+        .filter(|c| filters.iter().all(|f| f.matches(&c.cell)))
+        .map(|c| c.cell)
+        .collect()
+}
+
+/// The cell with this id: any cell of the full matrix, its workaround variants, or a canary.
+pub fn cell_by_id(id: &str) -> Option<Cell> {
+    use crate::matrix::Canary;
+    let (all, _) = crate::matrix::plan::all_cells();
+    all.into_iter()
+        .flat_map(|c| std::iter::once(c).chain(c.applicable_patches().into_iter().map(move |p| Cell { patch: Some(p), ..c })))
+        .chain(Canary::ALL.iter().map(|k| Cell::canary(*k)))
+        .find(|c| c.id() == id)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_id_finds_its_cell() {
+        for id in ["closest_hit.storage_buffer.dynamic.descriptor_indexing.patch-pin-index", "raygen.acceleration_structure.literal.address_patched.descriptor_buffer", "canary.infinite_loop"] {
+            assert_eq!(cell_by_id(id).unwrap().id(), id);
+        }
+        assert!(cell_by_id("raygen.nope").is_none());
+    }
+}

@@ -1,0 +1,128 @@
+//! `rtprobe bisect REPORT`: load the report, find its device, run the bisection through the
+//! supervisor with the report's scene and injections, print the isolation list and
+//! `minimal: PREDICATE`, and write `--json`.
+use super::args::BisectArgs;
+use super::commands::{open_instance, Globals};
+use super::exit::{self, coded};
+use crate::bisect::scope::{report_scope, ReportOptions};
+use crate::bisect::file::BisectFile;
+use crate::bisect::{self, Bisector, Oracle, Settings, Verdicts};
+use crate::matrix::plan::{self, PatchMode, PlanOptions};
+use crate::matrix::Cell;
+use crate::report::run_report::RunReport;
+use crate::report::write_atomic;
+use crate::runner::supervisor::{Event, Supervisor, SupervisorOptions};
+use crate::vk::{features, DeviceInfo, Instance};
+use anyhow::{Context, Result};
+use std::path::Path;
+use std::sync::Arc;
+
+pub fn load_report(path: &Path) -> Result<RunReport> {
+    RunReport::load(path).map_err(|e| coded(exit::BAD_INPUT, e))
+}
+
+/// The device the report was made on, on this machine (same name, driver version, UUIDs).
+pub(crate) fn report_device(g: &Globals, r: &RunReport) -> Result<(Arc<Instance>, DeviceInfo)> {
+    let inst = open_instance(g)?;
+    let all = features::query_all(&inst)?;
+    let same = |d: &DeviceInfo| {
+        let j = crate::caps::device_json(d);
+        ["name", "driver_version", "driver_uuid", "device_uuid"].iter().all(|k| j[k] == r.device[k])
+    };
+    let info = all.iter().find(|d| same(d)).cloned().ok_or_else(|| {
+        coded(
+            exit::BAD_DEVICE_SELECTION,
+            format!(
+                "the report was made on {} (driver {}), which is not on this machine; `rtprobe bisect --offline` uses the report's verdicts alone",
+                r.device["name"].as_str().unwrap_or("?"),
+                r.device["driver_version"]["decoded"].as_str().unwrap_or("?")
+            ),
+        )
+    })?;
+    Ok((inst, info))
+}
+
+/// Runs cells through the supervisor with the report's scene and injections. A fresh
+/// `Supervisor` per batch, so that nothing a worker of an earlier batch sent late reaches a later
+/// one (bisection runs many small batches).
+struct SupervisorOracle {
+    opts: SupervisorOptions,
+}
+
+impl Oracle for SupervisorOracle {
+    fn run(&mut self, cells: &[Cell], isolated: bool, verdicts: &mut Verdicts) {
+        let msg = format!("bisect: running {} cell(s){} ({} run so far)", cells.len(), if isolated { ", each alone" } else { "" }, verdicts.runs);
+        if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+            eprintln!("{msg}");
+        } else {
+            tracing::info!("{msg}");
+        }
+        Supervisor::new(self.opts.clone()).run(cells, isolated, &mut |ev| {
+            if let Event::Attempt { cell, attempt } = ev {
+                verdicts.record(cell, attempt);
+            }
+        });
+    }
+    fn can_run(&self) -> bool {
+        true
+    }
+}
+
+fn check_args(a: &BisectArgs) -> Result<()> {
+    if !(a.max_miss > 0.0 && a.max_miss < 1.0) {
+        return Err(coded(exit::USAGE, "--max-miss must be in (0, 1)"));
+    }
+    if a.max_attempts == 0 || a.max_attempts > 1000 {
+        return Err(coded(exit::USAGE, "--max-attempts must be 1..=1000"));
+    }
+    if a.jobs.is_some_and(|j| j == 0 || j > 64) {
+        return Err(coded(exit::USAGE, "--jobs must be 1..=64"));
+    }
+    Ok(())
+}
+
+/// Bisect the report's own verdicts, running nothing (`--offline`, and `report` without
+/// `--bisect`).
+pub(crate) fn offline(report: &RunReport, filters: &[crate::matrix::Filter], patches: PatchMode, settings: Settings, inject: &[crate::matrix::inject::Injection], cell: Option<&str>) -> Result<bisect::Bisection, bisect::BisectError> {
+    let scope = report_scope(report, filters, patches);
+    let verdicts = Verdicts::from_report(report);
+    let ran = |c: &Cell| verdicts.get(c).is_some();
+    let mut off = bisect::Offline;
+    Bisector::new(scope, verdicts.clone(), &mut off, settings, inject.to_vec()).bisect(cell, &ran)
+}
+
+pub fn bisect(g: &Globals, a: &BisectArgs) -> Result<u8> {
+    check_args(a)?;
+    let report = load_report(&a.report)?;
+    let ro = ReportOptions::of(&report).map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.report.display())))?;
+    let filters = ro.scope_filters(&a.filter).map_err(|e| coded(exit::USAGE, e))?;
+    let settings = Settings { max_miss: a.max_miss, max_attempts: a.max_attempts, ..Settings::default() };
+    let verdicts = Verdicts::from_report(&report);
+    let patches = if ro.patches == PatchMode::All { PatchMode::All } else { PatchMode::None };
+    let result = if a.offline {
+        offline(&report, &filters, patches, settings, &ro.inject, a.cell.as_deref())
+    } else {
+        let (_inst, info) = report_device(g, &report)?;
+        let the_plan = plan::plan(&info, &PlanOptions { filters: filters.clone(), canaries: false, patches, inject: ro.inject.clone() });
+        let scope: Vec<Cell> = the_plan.to_run().copied().collect();
+        let jobs = a.jobs.or(ro.jobs).unwrap_or_else(|| super::run::default_jobs(&info));
+        let mut opts = super::run::supervisor_options(info.index, report.scene.params, jobs, ro.isolation, ro.timeout_s, ro.validate || g.validate, ro.inject.clone());
+        if let Some(s) = ro.setup_timeout_s.filter(|s| *s > 0.0 && *s <= 3600.0) {
+            opts.setup_timeout = std::time::Duration::from_secs_f64(s);
+        }
+        let job_dir = opts.job_dir.clone();
+        let mut oracle = SupervisorOracle { opts };
+        let supported = |c: &Cell| plan::device_support(&info, c).is_supported();
+        let settings = Settings { batch: 2 * jobs, ..settings };
+        let r = Bisector::new(scope, verdicts, &mut oracle, settings, ro.inject.clone()).bisect(a.cell.as_deref(), &supported);
+        let _ = std::fs::remove_dir_all(&job_dir);
+        r
+    };
+    let b = result.map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.report.display())))?;
+    let file = BisectFile::new(&a.report, &report, &filters, &ro.inject, a.offline, b);
+    if let Some(path) = &a.json {
+        write_atomic(path, &serde_json::to_vec_pretty(&file)?).context("writing the bisection")?;
+    }
+    print!("{}", file.text);
+    Ok(exit::OK)
+}

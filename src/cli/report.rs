@@ -1,0 +1,45 @@
+//! `rtprobe report REPORT [--bisect FILE] -o issue.md [--format md|json]`: the vendor issue for a
+//! run's fault (see `report::issue`), written atomically.
+use super::args::ReportArgs;
+use super::bisect::{load_report, offline};
+use super::exit::{self, coded};
+use crate::bisect::file::BisectFile;
+use crate::bisect::scope::ReportOptions;
+use crate::bisect::Settings;
+use crate::matrix::plan::PatchMode;
+use crate::report::issue::{self, Format};
+use crate::report::write_atomic;
+use anyhow::{Context, Result};
+
+pub fn report(a: &ReportArgs) -> Result<u8> {
+    let r = load_report(&a.report)?;
+    let ro = ReportOptions::of(&r).map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.report.display())))?;
+    let b = match &a.bisect {
+        Some(p) => {
+            let b = BisectFile::load(p).map_err(|e| coded(exit::BAD_INPUT, e))?;
+            if b.device["name"] != r.device["name"] || b.device["driver_uuid"] != r.device["driver_uuid"] {
+                return Err(coded(exit::BAD_INPUT, format!("{} bisects a report of another device ({}), not {}", p.display(), b.device["name"], a.report.display())));
+            }
+            b
+        }
+        None => {
+            let filters = ro.scope_filters(&[]).map_err(|e| coded(exit::BAD_INPUT, e))?;
+            let patches = if ro.patches == PatchMode::All { PatchMode::All } else { PatchMode::None };
+            let bi = offline(&r, &filters, patches, Settings::default(), &ro.inject, None).map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.report.display())))?;
+            BisectFile::new(&a.report, &r, &filters, &ro.inject, true, bi)
+        }
+    };
+    let issue = issue::build(&r, &a.report.display().to_string(), &b, &ro.inject).map_err(|e| coded(exit::BAD_INPUT, e))?;
+    let text = match a.format {
+        Format::Md => issue.markdown(),
+        Format::Json => serde_json::to_string_pretty(&issue)? + "\n",
+    };
+    match &a.out {
+        Some(o) => {
+            write_atomic(o, text.as_bytes()).context("writing the issue")?;
+            println!("issue: {}", o.display());
+        }
+        None => print!("{text}"),
+    }
+    Ok(exit::OK)
+}

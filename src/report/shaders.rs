@@ -1,0 +1,76 @@
+//! A cell's shaders as a reader gets them (issue and repro bundle): the GLSL rtprobe generates
+//! (with the injected fault, when one applies), the SPIR-V the worker runs (compiled by shaderc,
+//! then patched exactly as the worker patches it), and `spirv-dis` disassembly when installed.
+use crate::matrix::cell::Workaround;
+use crate::matrix::inject::FaultKind;
+use crate::matrix::{AsAccess, Cell, Stage};
+use crate::shadergen::{self, compile::Compiler, Role};
+
+#[derive(Debug, thiserror::Error)]
+pub enum ShaderError {
+    #[error("compiling: {0}")]
+    Compile(#[from] crate::shadergen::compile::CompileError),
+    #[error("patching: {0}")]
+    Patch(#[from] crate::patches::PatchError),
+}
+
+pub struct Shader {
+    pub role: Role,
+    pub glsl: String,
+    pub spirv: Vec<u32>,
+}
+
+/// The role of the shader that does the probed read of `stage`.
+pub fn probed_role(stage: Stage) -> Role {
+    match stage {
+        Stage::Raygen => Role::Raygen,
+        Stage::ClosestHit => Role::ClosestHitTriangles,
+        Stage::AnyHit => Role::AnyHit,
+        Stage::Miss => Role::Miss,
+        Stage::Intersection => Role::Intersection,
+        Stage::Callable => Role::Callable,
+        Stage::Fragment => Role::Fragment,
+        Stage::Compute => Role::Compute,
+    }
+}
+
+/// Every shader of `cell` with `fault` injected, as the worker builds them.
+pub fn cell_shaders(cell: &Cell, fault: Option<FaultKind>) -> Result<Vec<Shader>, ShaderError> {
+    let gen = shadergen::generate_with(&shadergen::source_cell(cell), fault);
+    let mut compiler = Compiler::new()?;
+    let mut out = Vec::new();
+    for s in &gen.shaders {
+        let (words, _) = compiler.compile(s.role, &s.glsl)?;
+        out.push(Shader { role: s.role, glsl: s.glsl.clone(), spirv: words.to_vec() });
+    }
+    // The worker's order: address_patched is as-to-address on the descriptor variant, then the
+    // cell's own workaround.
+    let workarounds = (cell.as_access == Some(AsAccess::AddressPatched)).then_some(Workaround::AsToAddress).into_iter().chain(cell.patch);
+    for w in workarounds {
+        for s in out.iter_mut() {
+            if let Some(p) = crate::exec::patch_module(&s.spirv, w)? {
+                s.spirv = p;
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// `spirv-dis` of `words`, or `None` when it is not installed (or fails).
+pub fn spirv_dis(words: &[u32]) -> Option<String> {
+    static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let path = std::env::temp_dir().join(format!("rtprobe-dis-{}-{n}.spv", std::process::id()));
+    let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+    std::fs::write(&path, bytes).ok()?;
+    let out = std::process::Command::new("spirv-dis").arg(&path).output();
+    let _ = std::fs::remove_file(&path);
+    match out {
+        Ok(o) if o.status.success() => Some(String::from_utf8_lossy(&o.stdout).into_owned()),
+        Ok(_) | Err(_) => None,
+    }
+}
+
+pub fn spirv_bytes(words: &[u32]) -> Vec<u8> {
+    words.iter().flat_map(|w| w.to_le_bytes()).collect()
+}

@@ -1,0 +1,194 @@
+//! `bisect`, `report` and `repro` on lavapipe, with injected faults as ground truth: single-axis,
+//! two-axis and value-set predicates come back exactly; a flaky one comes back with repeats and
+//! its miss probability; a fault no conjunction separates is reported as such; the issue has every
+//! section; a repro bundle re-runs its cell with the same verdict.
+mod common;
+use common::*;
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+/// Small scopes: lavapipe runs take seconds, and the machine is shared.
+const SCOPE: &str = "stage=raygen|closest_hit,resource=storage_buffer|uniform_buffer,descriptor_model=descriptor_indexing";
+
+fn json_file(p: &Path) -> Value {
+    serde_json::from_slice(&std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))).expect("JSON")
+}
+
+/// `run` over `filter` with `inject` (each an --inject-fault); the report's path.
+fn run_report(dir: &Path, name: &str, filter: &str, inject: &[&str], extra: &[&str]) -> PathBuf {
+    let out = dir.join(name);
+    let mut args = vec!["run", "--patches", "none", "--timeout", "5", "--filter", filter, "-o", out.to_str().unwrap()];
+    for i in inject {
+        args.push("--inject-fault");
+        args.push(i);
+    }
+    args.extend_from_slice(extra);
+    let o = run(&args);
+    assert!(matches!(o.status.code(), Some(0 | 1)), "run failed: {}\n{}", stdout(&o), stderr(&o));
+    out
+}
+
+/// `bisect REPORT --json FILE extra…`: stdout and the JSON.
+fn bisect(report: &Path, extra: &[&str]) -> (String, Value) {
+    let json = report.with_extension("bisect.json");
+    let mut args = vec!["bisect", report.to_str().unwrap(), "--json", json.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    let o = run(&args);
+    assert_eq!(o.status.code(), Some(0), "bisect failed: {}\n{}", stdout(&o), stderr(&o));
+    (stdout(&o), json_file(&json))
+}
+
+fn last_line(s: &str) -> &str {
+    s.trim_end().lines().last().unwrap_or("")
+}
+
+/// One report shared by the report and repro tests: a two-axis injected predicate.
+fn shared() -> &'static (tempfile::TempDir, PathBuf) {
+    static S: OnceLock<(tempfile::TempDir, PathBuf)> = OnceLock::new();
+    S.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let r = run_report(dir.path(), "two-axis.json", SCOPE, &["stage=closest_hit,index=dynamic"], &[]);
+        (dir, r)
+    })
+}
+
+#[test]
+fn single_axis_two_axis_and_value_set_predicates_come_back_exactly() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        ("index=dynamic", run_report(dir.path(), "one.json", SCOPE, &["index=dynamic"], &[])),
+        ("stage=closest_hit,index=dynamic", shared().1.clone()),
+        ("resource=uniform_buffer,index=literal|spec_constant", run_report(dir.path(), "set.json", SCOPE, &["resource=uniform_buffer,index=literal|spec_constant"], &[])),
+    ];
+    for (p, report) in &cases {
+        let (text, j) = bisect(report, &[]);
+        assert_eq!(last_line(&text), format!("minimal: {p}"), "{text}");
+        assert_eq!(j["minimal"], *p);
+        assert_eq!(j["separable"], true);
+        assert_eq!(j["schema"], "rtprobe.bisect/1");
+        // Runs against the matrix, and the isolation list in plain words with k/N.
+        assert!(text.contains("made by bisect") && text.contains("cells in scope") && text.contains("full matrix "), "{text}");
+        assert!(text.contains(": ❌ crash (") && text.contains(": ✅ passes ("), "{text}");
+        let iso = j["isolation"].as_array().unwrap();
+        assert_eq!(iso[0]["cell"], j["representative"]);
+        assert!(iso[0]["line"].as_str().unwrap().contains(" reading "), "{}", iso[0]["line"]);
+        // Every verdict used carries k of N, and the deterministic fault repeated.
+        for l in iso {
+            assert!(l["attempts"].as_u64().unwrap() >= 1, "{l}");
+        }
+        assert_eq!(j["fault_rate"], 1.0);
+        assert!(j["unsettled"].as_array().unwrap().is_empty());
+    }
+}
+
+#[test]
+fn a_flaky_injection_is_recovered_with_repeats_and_its_miss_probability() {
+    let dir = tempfile::tempdir().unwrap();
+    let scope = "stage=raygen|closest_hit,resource=storage_buffer,index=literal|dynamic,descriptor_model=descriptor_indexing";
+    let report = run_report(dir.path(), "flaky.json", scope, &["stage=raygen,index=dynamic@flaky:0.5"], &["--repeat", "4"]);
+    // An injected cell the run missed (probability 1/2 each) must show up in bisect's repeats:
+    // with --max-miss 0.0001 that fails only where the rate estimate is far too high (~0.2%).
+    let (text, j) = bisect(&report, &["--max-miss", "0.0001"]);
+    assert_eq!(last_line(&text), "minimal: stage=raygen,index=dynamic", "{text}");
+    assert!(text.contains("worst miss probability relied on:"), "{text}");
+    let worst = j["worst_miss_probability"].as_f64().unwrap();
+    assert!(worst < 0.0001, "{worst}");
+    assert!(j["unsettled"].as_array().unwrap().is_empty(), "{}", j["unsettled"]);
+    // Passes were repeated: each pass has the attempts the rate asks for.
+    let need = j["attempts_per_pass"].as_u64().unwrap();
+    for l in j["isolation"].as_array().unwrap().iter().filter(|l| l["verdict"] == "pass") {
+        assert!(l["attempts"].as_u64().unwrap() >= need, "{l}");
+    }
+    if j["fault_rate"].as_f64().unwrap() < 1.0 {
+        assert!(need > 1 && j["runs"].as_u64().unwrap() > 4, "{j}");
+        assert!(text.contains("miss probability"), "{text}");
+    }
+}
+
+#[test]
+fn a_fault_no_conjunction_separates_is_said_so_with_a_disjunction() {
+    let dir = tempfile::tempdir().unwrap();
+    let scope = "stage=raygen|closest_hit,resource=storage_buffer,descriptor_model=descriptor_indexing";
+    let report = run_report(dir.path(), "two.json", scope, &["stage=raygen,index=literal", "stage=closest_hit,index=dynamic"], &[]);
+    let (text, j) = bisect(&report, &[]);
+    assert!(text.contains("NO single conjunction separates"), "{text}");
+    assert_eq!(j["separable"], false);
+    assert_eq!(last_line(&text), "minimal: stage=raygen,index=literal;stage=closest_hit,index=dynamic", "{text}");
+    assert_eq!(j["conjunctions"].as_array().unwrap().len(), 2);
+}
+
+#[test]
+fn the_issue_has_every_section() {
+    let (dir, report) = shared();
+    let (_, j) = bisect(report, &[]);
+    let bis = report.with_extension("bisect.json");
+    let md = dir.path().join("issue.md");
+    let o = run(&["report", report.to_str().unwrap(), "--bisect", bis.to_str().unwrap(), "-o", md.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&md).unwrap();
+    let title = text.lines().next().unwrap();
+    assert!(title.starts_with("# [injected, not a driver bug] Driver crash: closest_hit reading storage_buffer") && title.contains("llvmpipe") && title.contains("Vulkan 1."), "{title}");
+    for section in ["## Environment", "| OS |", "| Kernel |", "| Driver version |", "## Summary", "## Incidence", "## Expected", "## Actual", "## Isolation", "## Minimal failing shader", "```glsl", "```diff", "## VK_EXT_device_fault", "## Validation", "## Reproduce", "## Workarounds", "## Not tested"] {
+        assert!(text.contains(section), "{section} missing:\n{text}");
+    }
+    assert!(text.contains(&format!("Minimal description: `{}`", j["minimal"].as_str().unwrap())), "{text}");
+    assert!(text.contains("of 3 attempts") || text.contains("attempts of the minimal failing cell faulted"), "{text}");
+    assert!(text.contains("rtprobe run --filter 'stage=closest_hit,") && text.contains("--inject-fault 'stage=closest_hit,index=dynamic@device'"), "{text}");
+    assert!(text.contains("rtprobe run --cell-spec"), "{text}");
+    let dis = Path::new("/usr/bin/spirv-dis").exists();
+    assert_eq!(text.contains("; SPIR-V"), dis, "disassembly present iff spirv-dis is installed");
+    // JSON: the same content as data; without --bisect, the report's own verdicts are bisected.
+    let o = run(&["report", report.to_str().unwrap(), "--format", "json"]);
+    let v = json(&o);
+    assert_eq!(v["schema"], "rtprobe.issue/1");
+    assert_eq!(v["minimal"], j["minimal"]);
+    for key in ["title", "environment", "summary", "incidence", "expected", "actual", "isolation", "shader", "device_fault", "validation", "reproduce", "workarounds", "not_tested"] {
+        assert!(!v[key].is_null(), "{key}");
+    }
+    // Bad input and unwritable output: one line, exit 9, no file.
+    assert_one_line_error(&run(&["report", "/nonexistent/r.json"]), 9, "cannot read");
+    let bad = dir.path().join("no/such/dir");
+    std::fs::write(dir.path().join("no"), b"a file").unwrap();
+    assert_one_line_error(&run(&["report", report.to_str().unwrap(), "-o", bad.join("i.md").to_str().unwrap()]), 9, "cannot write");
+    assert_one_line_error(&run(&["report", report.to_str().unwrap(), "--bisect", report.to_str().unwrap()]), 9, "not an rtprobe bisection");
+}
+
+#[test]
+fn a_repro_bundle_reruns_its_cell_with_the_same_verdict() {
+    let (dir, report) = shared();
+    let r = json_file(report);
+    for id in ["closest_hit.uniform_buffer.dynamic.nonuniform.descriptor_indexing", "closest_hit.storage_buffer.literal.descriptor_indexing"] {
+        let want = r["cells"].as_array().unwrap().iter().find(|c| c["id"] == id).unwrap()["outcome"].clone();
+        let b = dir.path().join(format!("repro-{id}"));
+        let o = run(&["repro", id, "--from", report.to_str().unwrap(), "-o", b.to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        for f in ["cell.json", "caps.json", "README.txt", "shaders/closest_hit_triangles.rchit.glsl", "shaders/closest_hit_triangles.rchit.spv", "shaders/raygen.rgen.glsl"] {
+            assert!(b.join(f).exists(), "{id}: {f}");
+        }
+        let spec = json_file(&b.join("cell.json"));
+        assert_eq!(spec["id"], id);
+        assert_eq!(json_file(&b.join("caps.json"))["schema"], "rtprobe.caps/1");
+        let out = b.join("rerun.json");
+        let o = run(&["run", "--cell-spec", b.join("cell.json").to_str().unwrap(), "-o", out.to_str().unwrap()]);
+        let again = json_file(&out);
+        let cells = again["cells"].as_array().unwrap();
+        assert_eq!(cells.len(), 1, "exactly that cell: {cells:?}");
+        assert_eq!(cells[0]["id"], id);
+        assert_eq!(cells[0]["outcome"], want, "{id}: {}", stderr(&o));
+    }
+    assert_one_line_error(&run(&["repro", "raygen.nope", "--from", report.to_str().unwrap(), "-o", "/tmp/x"]), 9, "not a cell id");
+    assert_one_line_error(&run(&["run", "--cell-spec", report.to_str().unwrap()]), 9, "not an rtprobe cell spec");
+    let o = run(&["run", "--cell-spec", "x.json", "--filter", "stage=raygen"]);
+    assert_eq!(o.status.code(), Some(2), "--cell-spec replaces --filter");
+}
+
+#[test]
+fn nothing_to_bisect_and_a_wrong_cell_are_one_line_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let report = run_report(dir.path(), "clean.json", "stage=raygen,resource=storage_buffer,index=literal,descriptor_model=descriptor_indexing", &[], &[]);
+    assert_one_line_error(&run(&["bisect", report.to_str().unwrap()]), 9, "nothing to bisect");
+    let (_, shared_report) = shared();
+    assert_one_line_error(&run(&["bisect", shared_report.to_str().unwrap(), "--offline", "--cell", "raygen.storage_buffer.literal.descriptor_indexing"]), 9, "not a faulting cell");
+    assert_one_line_error(&run(&["bisect", shared_report.to_str().unwrap(), "--max-miss", "2"]), 2, "--max-miss");
+}
