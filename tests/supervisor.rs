@@ -284,7 +284,11 @@ fn ctrl_c_kills_every_worker_keeps_the_report_and_resume_finishes() {
     assert!(err.contains("interrupted (SIGINT)") && err.contains("--resume"), "{err}");
     let r = report(&out);
     assert_eq!(r["complete"], false);
-    let o = run(&["run", "-j", "2", "--patches", "none", "--filter", MANY, "--resume", out.to_str().unwrap()]);
+    // The same result-changing options as the interrupted run (a different --timeout is refused).
+    let o = run(&["run", "-j", "2", "--timeout", "20", "--patches", "none", "--filter", MANY, "--resume", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(9), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--timeout differs"), "{}", stderr(&o));
+    let o = run(&["run", "-j", "2", "--timeout", "60", "--patches", "none", "--filter", MANY, "--resume", out.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let r = report(&out);
     assert_eq!(r["complete"], true);

@@ -141,7 +141,7 @@ fn resume_refuses_another_device_scene_or_injection() {
     let o = run(&["run", "--filter", filter, "--seed", "2", "--resume", out.to_str().unwrap()]);
     assert_one_line_error(&o, 9, "scene differs");
     let o = run(&["run", "--filter", filter, "--inject-fault", "stage=raygen@nan", "--resume", out.to_str().unwrap()]);
-    assert_one_line_error(&o, 9, "--inject differs");
+    assert_one_line_error(&o, 9, "--inject-fault differs");
     let mut r = report(&out);
     r["device"]["driver_uuid"] = Value::String("00".repeat(16));
     std::fs::write(&out, serde_json::to_vec(&r).unwrap()).unwrap();

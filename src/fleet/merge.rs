@@ -30,10 +30,22 @@ pub fn same_run(a: &RunReport, b: &RunReport, options: &[&str]) -> Result<(), St
     }
     for key in options {
         if a.options[key] != b.options[key] {
-            return Err(format!("its --{} differs ({} here {})", key.replace('_', "-"), a.options[key], b.options[key]));
+            return Err(format!("its {} differs ({} here {})", option_flag(key), a.options[key], b.options[key]));
         }
     }
     Ok(())
+}
+
+/// The flag (or variable) a report option comes from, for messages.
+fn option_flag(key: &str) -> String {
+    match key {
+        "timeout_s" => "--timeout".into(),
+        "confirm" => "--no-confirm".into(),
+        "inject" => "--inject-fault".into(),
+        "filters" => "--filter".into(),
+        "binding_stages" => "RTPROBE_BINDING_STAGES".into(),
+        other => format!("--{}", other.replace('_', "-")),
+    }
 }
 
 /// Plan order of every cell id the matrix can hold (workaround variants sort after their cell).
