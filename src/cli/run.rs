@@ -295,12 +295,10 @@ pub(crate) fn supervisor_options(device_index: usize, scene: SceneParams, jobs: 
 /// 11). With one, only what the baseline did not expect is a finding. A worker fault outside any
 /// cell (a crash between cells, a hung teardown) is always a finding.
 fn exit_code(r: &RunReport, allow_improvements: bool) -> u8 {
-    let worker_faults = r.workers.iter().any(|w| w.outcome.is_finding());
-    let findings = worker_faults
-        || match &r.baseline {
-            Some(c) => !c.ok(allow_improvements),
-            None => r.findings().next().is_some(),
-        };
+    let findings = match &r.baseline {
+        Some(c) => !c.ok(allow_improvements),
+        None => r.findings().next().is_some() || r.workers.iter().any(|w| w.outcome.is_finding()),
+    };
     if findings {
         exit::FINDINGS
     } else if r.undetected_canaries().next().is_some() || r.tally.injections_undetected > 0 {

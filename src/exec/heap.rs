@@ -132,10 +132,22 @@ impl HeapBinding {
         // Heaps have no combined descriptors: a sampled image's image goes to the resource heap,
         // its sampler to the sampler heap.
         let heap_type = |ty: vk::DescriptorType| if ty == vk::DescriptorType::COMBINED_IMAGE_SAMPLER { vk::DescriptorType::SAMPLED_IMAGE } else { ty };
+        // How many bytes a descriptor write fills: vkGetPhysicalDeviceDescriptorSizeEXT ("for
+        // tools"; only those bytes are written and read).
         let size_of = |ty: vk::DescriptorType| unsafe { (f.get_descriptor_size)(gpu.info.raw, heap_type(ty)) } as u32;
+        // The stride of a descriptor array in the heap is its class's descriptor size: buffers and
+        // acceleration structures (address ranges) `bufferDescriptorSize`, images
+        // `imageDescriptorSize`. A shader reading the heap directly strides by
+        // `OpConstantSizeOfEXT` of the type, which is that class size, not the exact size above
+        // (on lavapipe 26 an AS descriptor is 8 bytes, the buffer class 16).
+        let class_size = |ty: vk::DescriptorType| match heap_type(ty) {
+            vk::DescriptorType::SAMPLED_IMAGE | vk::DescriptorType::STORAGE_IMAGE => p.image_descriptor_size,
+            vk::DescriptorType::SAMPLER => p.sampler_descriptor_size,
+            _ => p.buffer_descriptor_size,
+        } as u32;
         let slot = align(p.buffer_descriptor_size.max(p.image_descriptor_size), p.buffer_descriptor_alignment.max(p.image_descriptor_alignment)) as u32;
         let (probe_ty, probe_count) = targets.iter().find(|(b, _, _)| *b == 2).map(|(_, ty, t)| (*ty, t.len() as u32)).unwrap_or((vk::DescriptorType::STORAGE_BUFFER, 0));
-        let layout = HeapLayout::new(slot, size_of(probe_ty).max(1), probe_count, direct);
+        let layout = HeapLayout::new(slot, class_size(probe_ty).max(size_of(probe_ty)).max(1), probe_count, direct);
 
         // Everything the infos point at lives until the write call below.
         let mut ranges = Vec::new();

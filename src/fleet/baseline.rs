@@ -79,8 +79,26 @@ pub struct Baseline {
     #[serde(default)]
     pub source: String,
     pub expected: Vec<Expectation>,
+    /// Worker faults outside any cell the run is known to have (a driver that aborts in
+    /// teardown after its faulting cells, say), by phase and outcome.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub worker_faults: Vec<WorkerFault>,
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub performance: BTreeMap<String, PerfBound>,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+pub struct WorkerFault {
+    pub phase: String,
+    pub outcome: Outcome,
+}
+
+fn worker_faults(r: &RunReport) -> Vec<(WorkerFault, String)> {
+    r.workers
+        .iter()
+        .filter(|w| w.outcome.is_finding())
+        .map(|w| (WorkerFault { phase: w.phase.to_string(), outcome: w.outcome }, format!("worker {} {} in {}: {}", w.worker, w.outcome.as_str(), w.phase, w.detail.as_deref().unwrap_or(""))))
+        .collect()
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -137,12 +155,16 @@ impl Baseline {
             let mean = phase_mean(r, p).ok_or_else(|| format!("--perf {p}: not a phase ({}) or the report timed no cell", PHASES.join(", ")))?;
             performance.insert(p.clone(), PerfBound { mean_ms: mean, factor, slack_ms });
         }
+        let mut worker_faults: Vec<WorkerFault> = worker_faults(r).into_iter().map(|(f, _)| f).collect();
+        worker_faults.sort();
+        worker_faults.dedup();
         Ok(Baseline {
             schema: SCHEMA.into(),
             device: r.device["name"].as_str().unwrap_or("?").into(),
             driver_version: r.device["driver_version"]["decoded"].as_str().unwrap_or("?").into(),
             source: source.into(),
             expected,
+            worker_faults,
             performance,
         })
     }
@@ -160,7 +182,7 @@ impl Baseline {
 
     /// deqp-runner's `test,Status` lines; `# device: …` / `# driver: …` comments fill the header.
     fn parse_deqp(file: &str, text: &str) -> Result<Baseline, BaselineError> {
-        let mut b = Baseline { schema: SCHEMA.into(), device: String::new(), driver_version: String::new(), source: file.into(), expected: vec![], performance: BTreeMap::new() };
+        let mut b = Baseline { schema: SCHEMA.into(), device: String::new(), driver_version: String::new(), source: file.into(), expected: vec![], worker_faults: vec![], performance: BTreeMap::new() };
         for (n, raw) in text.lines().enumerate() {
             let line = raw.trim();
             if let Some(c) = line.strip_prefix('#') {
@@ -236,6 +258,12 @@ pub struct BaselineCheck {
     pub not_run: usize,
     /// Phases over their bound: `phase: actual ms/cell > limit`.
     pub performance: Vec<String>,
+    /// Worker faults outside cells the baseline does not list (each fails the run).
+    #[serde(default)]
+    pub worker_faults: Vec<String>,
+    /// Worker faults outside cells the baseline lists.
+    #[serde(default)]
+    pub expected_worker_faults: usize,
 }
 
 impl BaselineCheck {
@@ -247,7 +275,7 @@ impl BaselineCheck {
     }
     /// Whether the run is as expected (improvements count unless allowed).
     pub fn ok(&self, allow_improvements: bool) -> bool {
-        self.regressions().next().is_none() && self.performance.is_empty() && (allow_improvements || self.improvements().next().is_none())
+        self.regressions().next().is_none() && self.performance.is_empty() && self.worker_faults.is_empty() && (allow_improvements || self.improvements().next().is_none())
     }
 }
 
@@ -296,6 +324,13 @@ pub fn check(r: &RunReport, b: &Baseline, source: &str) -> BaselineCheck {
         }
     }
     out.not_run = b.expected.iter().filter(|e| !r.cells.iter().any(|c| c.id == e.cell && !c.attempts.is_empty())).count();
+    for (fault, text) in worker_faults(r) {
+        if b.worker_faults.contains(&fault) {
+            out.expected_worker_faults += 1;
+        } else {
+            out.worker_faults.push(text);
+        }
+    }
     for (phase, bound) in &b.performance {
         if let Some(mean) = phase_mean(r, phase) {
             if mean > bound.limit() {
@@ -335,6 +370,12 @@ pub fn render(c: &BaselineCheck, allow_improvements: bool) -> String {
     }
     for p in &c.performance {
         s += &format!("  PERFORMANCE REGRESSION: {p}\n");
+    }
+    for w in &c.worker_faults {
+        s += &format!("  UNEXPECTED WORKER FAULT: {w}\n");
+    }
+    if c.expected_worker_faults > 0 {
+        s += &format!("  {} worker faults outside cells, as the baseline expects\n", c.expected_worker_faults);
     }
     s
 }

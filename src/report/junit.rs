@@ -30,16 +30,22 @@ fn fails(r: &RunReport, c: &super::run_report::CellReport) -> bool {
 /// What fails the run outside the cells: worker faults (setups, between cells, teardowns) and
 /// phases over a baseline's time bound, as (name, failure type, message).
 fn run_level_failures(r: &RunReport) -> Vec<(String, String, String)> {
-    let mut v: Vec<(String, String, String)> = r
-        .workers
-        .iter()
-        .filter(|w| w.outcome.is_finding())
-        .map(|w| (format!("worker-{}.{}", w.worker, w.phase), w.outcome.as_str().to_string(), w.detail.clone().unwrap_or_default()))
-        .collect();
-    if let Some(b) = &r.baseline {
-        v.extend(b.performance.iter().map(|p| (format!("performance.{}", p.split(':').next().unwrap_or("phase")), "performance_regression".to_string(), p.clone())));
+    match &r.baseline {
+        // With a baseline, only what it did not expect.
+        Some(b) => b
+            .worker_faults
+            .iter()
+            .enumerate()
+            .map(|(k, w)| (format!("worker-fault-{k}"), "unexpected_worker_fault".to_string(), w.clone()))
+            .chain(b.performance.iter().map(|p| (format!("performance.{}", p.split(':').next().unwrap_or("phase")), "performance_regression".to_string(), p.clone())))
+            .collect(),
+        None => r
+            .workers
+            .iter()
+            .filter(|w| w.outcome.is_finding())
+            .map(|w| (format!("worker-{}.{}", w.worker, w.phase), w.outcome.as_str().to_string(), w.detail.clone().unwrap_or_default()))
+            .collect(),
     }
-    v
 }
 
 /// With `--baseline`: the finding is expected there (an expected fault or a known flake).
