@@ -16,3 +16,4 @@ pub mod exec;
 pub mod runner;
 pub mod patches;
 pub mod fleet;
+pub mod stress;

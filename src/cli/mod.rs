@@ -6,6 +6,7 @@ pub mod exit;
 pub mod fleet;
 pub mod patch;
 pub mod run;
+pub mod stress;
 
 use args::{Cli, Command};
 use clap::Parser;
@@ -38,6 +39,7 @@ pub fn main_entry() -> u8 {
         Command::Caps(a) => commands::caps_cmd(&g, a),
         Command::Run(a) => run::run(&g, a),
         Command::Patch(a) => patch::patch(a),
+        Command::Stress(a) => stress::stress(&g, a),
         Command::Baseline(a) => fleet::baseline(a),
         Command::Merge(a) => fleet::merge_cmd(a),
         Command::Diff(a) => fleet::diff_cmd(a),

@@ -13,6 +13,7 @@
 //! the value of *some* element of the array ([`ValueRule::AnyElement`]), which still catches
 //! garbage reads, device losses and crashes; the slot the shader computed is still exact.
 pub mod intersect;
+pub mod watertight;
 
 use crate::matrix::{Cell, IndexSource, Resource, Stage};
 use crate::probe::{self, Record, FLAG_HIT, FLAG_PROBE};

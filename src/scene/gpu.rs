@@ -30,19 +30,19 @@ pub enum BuildError {
     TimedOut(Duration),
 }
 
-const INPUT_USAGE: vk::BufferUsageFlags = vk::BufferUsageFlags::from_raw(
+pub(crate) const INPUT_USAGE: vk::BufferUsageFlags = vk::BufferUsageFlags::from_raw(
     vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR.as_raw() | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS.as_raw(),
 );
 
-fn bytes_of<T: Copy>(v: &[T]) -> &[u8] {
+pub(crate) fn bytes_of<T: Copy>(v: &[T]) -> &[u8] {
     // SAFETY: plain-old-data slices of f32/u32 arrays and Vulkan POD structs.
     unsafe { std::slice::from_raw_parts(v.as_ptr() as *const u8, std::mem::size_of_val(v)) }
 }
 
-struct Pending {
-    geometry: vk::AccelerationStructureGeometryKHR<'static>,
-    range: vk::AccelerationStructureBuildRangeInfoKHR,
-    ty: vk::AccelerationStructureTypeKHR,
+pub(crate) struct Pending {
+    pub(crate) geometry: vk::AccelerationStructureGeometryKHR<'static>,
+    pub(crate) range: vk::AccelerationStructureBuildRangeInfoKHR,
+    pub(crate) ty: vk::AccelerationStructureTypeKHR,
 }
 
 impl SceneGpu {
@@ -148,7 +148,7 @@ impl SceneGpu {
 
     /// [`Self::prepare`] for each of `pending`; scratch buffers go to `scratch` (freed after the build).
     #[allow(clippy::type_complexity)]
-    fn prepare_all<'a>(
+    pub(crate) fn prepare_all<'a>(
         gpu: &Gpu,
         pending: &'a [Pending],
         scratch: &mut Vec<Buffer>,
@@ -213,7 +213,7 @@ impl SceneGpu {
     }
 }
 
-fn bytemuck_transform(t: &[[f32; 4]; 3]) -> [f32; 12] {
+pub(crate) fn bytemuck_transform(t: &[[f32; 4]; 3]) -> [f32; 12] {
     let mut m = [0.0; 12];
     for (r, row) in t.iter().enumerate() {
         m[r * 4..r * 4 + 4].copy_from_slice(row);

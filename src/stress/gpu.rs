@@ -1,0 +1,293 @@
+//! The stress suite on the device: one RT pipeline (raygen, miss, closest hit, any-hit; push
+//! constants only, buffers and the TLAS by device address) and, per part, one BLAS per mesh
+//! (one non-opaque geometry with NO_DUPLICATE_ANY_HIT_INVOCATION) and a TLAS. The raygen traces
+//! each ray twice: first non-opaque, where any-hit counts every candidate and ignores it (so
+//! each intersected primitive is counted once), then with gl_RayFlagsOpaqueEXT for the closest
+//! hit. Runs in the `rtprobe stress` process; every submission has a fence deadline and a lost
+//! device or a timeout ends the case with that verdict.
+use super::layout::{self, glsl_header, LAUNCH_WIDTH, PUSH_SIZE, RESULT_WORDS};
+use super::{Part, TraceError, Traced, Tracer};
+use crate::exec::pipeline::{self, Pipeline};
+use crate::matrix::DescriptorModel;
+use crate::scene::gpu::{bytemuck_transform, bytes_of, AccelStruct, Pending, SceneGpu, INPUT_USAGE};
+use crate::shadergen::compile::Compiler;
+use crate::shadergen::{CellShaders, PipelineKind, Role, ShaderSource};
+use crate::vk::memory::{full_barrier, Buffer, Location};
+use crate::vk::submit::{Submitter, Waited};
+use crate::vk::{Gpu, VkError, VkResultExt};
+use ash::vk;
+use std::time::Duration;
+
+const HEADER: &str = "#version 460\n#extension GL_EXT_ray_tracing : require\n#extension GL_EXT_buffer_reference : require\n\
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require\n";
+
+const COMMON: &str = r#"
+layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer Rays { vec4 v[]; };
+layout(buffer_reference, std430, buffer_reference_align = 4) buffer Results { uint w[]; };
+layout(push_constant, std430) uniform Push { uint64_t rays; uint64_t results; uint64_t tlas; uint count; uint width; } pc;
+uint ray_index() { return gl_LaunchIDEXT.y * pc.width + gl_LaunchIDEXT.x; }
+"#;
+
+const RAYGEN: &str = r#"
+layout(location = 0) rayPayloadEXT uint pass_;
+void main() {
+    uint i = ray_index();
+    if (i >= pc.count) return;
+    Rays r = Rays(pc.rays);
+    vec4 a = r.v[2 * i];
+    vec4 b = r.v[2 * i + 1];
+    pass_ = 1u;
+    traceRayEXT(accelerationStructureEXT(pc.tlas), gl_RayFlagsNoneEXT, 0xff, 0, 0, 0, a.xyz, a.w, b.xyz, b.w, 0);
+    pass_ = 2u;
+    traceRayEXT(accelerationStructureEXT(pc.tlas), gl_RayFlagsOpaqueEXT, 0xff, 0, 0, 0, a.xyz, a.w, b.xyz, b.w, 0);
+}
+"#;
+
+const MISS: &str = r#"
+layout(location = 0) rayPayloadInEXT uint pass_;
+void main() {
+    Results o = Results(pc.results);
+    uint i = ray_index();
+    o.w[i * RESULT_WORDS + W_PASS] = pass_;
+    if (pass_ == 2u) o.w[i * RESULT_WORDS + W_STATUS] = STATUS_MISS;
+}
+"#;
+
+const CLOSEST_HIT: &str = r#"
+layout(location = 0) rayPayloadInEXT uint pass_;
+hitAttributeEXT vec2 bary;
+void main() {
+    Results o = Results(pc.results);
+    uint base = ray_index() * RESULT_WORDS;
+    o.w[base + W_STATUS] = STATUS_HIT;
+    o.w[base + W_T] = floatBitsToUint(gl_HitTEXT);
+    o.w[base + W_U] = floatBitsToUint(bary.x);
+    o.w[base + W_V] = floatBitsToUint(bary.y);
+    o.w[base + W_PRIMITIVE] = uint(gl_PrimitiveID);
+    o.w[base + W_INSTANCE] = uint(gl_InstanceCustomIndexEXT);
+}
+"#;
+
+const ANY_HIT: &str = r#"
+layout(location = 0) rayPayloadInEXT uint pass_;
+void main() {
+    Results o = Results(pc.results);
+    atomicAdd(o.w[ray_index() * RESULT_WORDS + W_CANDIDATES], 1u);
+    ignoreIntersectionEXT;
+}
+"#;
+
+/// The procedural hit group is part of the fixed group layout of `exec::pipeline`; stress scenes
+/// have no AABBs, so it is never invoked.
+const UNUSED_PROCEDURAL: &str = "void main() {}\n";
+const UNUSED_INTERSECTION: &str = "void main() { reportIntersectionEXT(0.0, 0u); }\n";
+const UNUSED_PROBE_MISS: &str = "void main() {}\n";
+
+fn source(role: Role, body: &str) -> ShaderSource {
+    ShaderSource { role, glsl: format!("{HEADER}{}{COMMON}{body}", glsl_header()) }
+}
+
+pub struct GpuTracer {
+    gpu: Gpu,
+    submitter: Submitter,
+    layout: vk::PipelineLayout,
+    pipeline: Pipeline,
+    timeout: Duration,
+    /// Set after a device loss or a timeout: later parts are not traced on this device.
+    broken: Option<String>,
+}
+
+fn vk_err(e: VkError) -> TraceError {
+    if e.is_device_lost() { TraceError::DeviceLost(e.to_string()) } else { TraceError::Failed(e.to_string()) }
+}
+
+impl GpuTracer {
+    pub fn new(gpu: Gpu, timeout: Duration) -> Result<Self, TraceError> {
+        let mut compiler = Compiler::new().map_err(|e| TraceError::Failed(e.to_string()))?;
+        let shaders = CellShaders {
+            kind: PipelineKind::RayTracing,
+            shaders: vec![
+                source(Role::Raygen, RAYGEN),
+                source(Role::Miss, MISS),
+                source(Role::ProbeMiss, UNUSED_PROBE_MISS),
+                source(Role::ClosestHitTriangles, CLOSEST_HIT),
+                source(Role::AnyHit, ANY_HIT),
+                source(Role::ClosestHitProcedural, UNUSED_PROCEDURAL),
+                source(Role::Intersection, UNUSED_INTERSECTION),
+            ],
+            recursion_depth: 1,
+            uses_probe_binding: false,
+            uses_scene_tlas: false,
+            uses_ray_query: false,
+        };
+        let mut spirv = Vec::new();
+        for s in &shaders.shaders {
+            spirv.push(compiler.compile(s.role, &s.glsl).map_err(|e| TraceError::Failed(e.to_string()))?.0);
+        }
+        let submitter = Submitter::new(&gpu).map_err(vk_err)?;
+        let range = [vk::PushConstantRange::default()
+            .stage_flags(vk::ShaderStageFlags::RAYGEN_KHR | vk::ShaderStageFlags::MISS_KHR | vk::ShaderStageFlags::CLOSEST_HIT_KHR | vk::ShaderStageFlags::ANY_HIT_KHR)
+            .size(PUSH_SIZE)];
+        let layout = unsafe { gpu.device.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().push_constant_ranges(&range), None) }
+            .at("vkCreatePipelineLayout")
+            .map_err(vk_err)?;
+        let pipeline = pipeline::create(&gpu, vk::PipelineCache::null(), &shaders, &spirv, layout, DescriptorModel::DescriptorIndexing).map_err(vk_err)?;
+        Ok(GpuTracer { gpu, submitter, layout, pipeline, timeout, broken: None })
+    }
+
+    fn build(&self, part: &Part, keep: &mut Vec<Buffer>) -> Result<(Vec<AccelStruct>, AccelStruct), TraceError> {
+        let gpu = &self.gpu;
+        let mut pending = Vec::new();
+        for mesh in &part.scene.meshes {
+            let vb = Buffer::with_data(gpu, bytes_of(&mesh.positions), INPUT_USAGE, "vertex buffer").map_err(vk_err)?;
+            let ib = Buffer::with_data(gpu, bytes_of(&mesh.indices), INPUT_USAGE, "index buffer").map_err(vk_err)?;
+            let tri = vk::AccelerationStructureGeometryTrianglesDataKHR::default()
+                .vertex_format(vk::Format::R32G32B32_SFLOAT)
+                .vertex_data(vk::DeviceOrHostAddressConstKHR { device_address: vb.address })
+                .vertex_stride(12)
+                .max_vertex(mesh.positions.len() as u32 - 1)
+                .index_type(vk::IndexType::UINT32)
+                .index_data(vk::DeviceOrHostAddressConstKHR { device_address: ib.address });
+            let geometry = vk::AccelerationStructureGeometryKHR::default()
+                .geometry_type(vk::GeometryTypeKHR::TRIANGLES)
+                .geometry(vk::AccelerationStructureGeometryDataKHR { triangles: tri })
+                .flags(vk::GeometryFlagsKHR::NO_DUPLICATE_ANY_HIT_INVOCATION);
+            let range = vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(mesh.indices.len() as u32);
+            pending.push(Pending { geometry, range, ty: vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL });
+            keep.extend([vb, ib]);
+        }
+        let mut scratch = Vec::new();
+        let (blas, blas_builds) = SceneGpu::prepare_all(gpu, &pending, &mut scratch).map_err(vk_err)?;
+        let instances: Vec<vk::AccelerationStructureInstanceKHR> = part
+            .scene
+            .instances
+            .iter()
+            .enumerate()
+            .map(|(k, i)| vk::AccelerationStructureInstanceKHR {
+                transform: vk::TransformMatrixKHR { matrix: bytemuck_transform(&i.transform) },
+                instance_custom_index_and_mask: vk::Packed24_8::new(k as u32, 0xff),
+                instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(0, 0),
+                acceleration_structure_reference: vk::AccelerationStructureReferenceKHR { device_handle: blas[i.mesh].address },
+            })
+            .collect();
+        let ib = Buffer::with_data(gpu, bytes_of(&instances), INPUT_USAGE, "instance buffer").map_err(vk_err)?;
+        let data = vk::AccelerationStructureGeometryInstancesDataKHR::default().data(vk::DeviceOrHostAddressConstKHR { device_address: ib.address });
+        keep.push(ib);
+        let tlas_pending = [Pending {
+            geometry: vk::AccelerationStructureGeometryKHR::default()
+                .geometry_type(vk::GeometryTypeKHR::INSTANCES)
+                .geometry(vk::AccelerationStructureGeometryDataKHR { instances: data }),
+            range: vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(instances.len() as u32),
+            ty: vk::AccelerationStructureTypeKHR::TOP_LEVEL,
+        }];
+        let (mut tlas, tlas_builds) = SceneGpu::prepare_all(gpu, &tlas_pending, &mut scratch).map_err(vk_err)?;
+        let accel = gpu.accel.as_ref().expect("acceleration structures enabled");
+        let waited = self.submitter.run(gpu, self.timeout, |cmd| unsafe {
+            for (info, range) in &blas_builds {
+                accel.cmd_build_acceleration_structures(cmd, std::slice::from_ref(info), &[std::slice::from_ref(range)]);
+            }
+            full_barrier(gpu, cmd);
+            for (info, range) in &tlas_builds {
+                accel.cmd_build_acceleration_structures(cmd, std::slice::from_ref(info), &[std::slice::from_ref(range)]);
+            }
+            full_barrier(gpu, cmd);
+        });
+        for s in &scratch {
+            s.destroy(gpu);
+        }
+        let tlas = tlas.pop().expect("one TLAS");
+        match waited.map_err(vk_err)? {
+            Waited::Done(_) => Ok((blas, tlas)),
+            // The build may still run: its objects are leaked, not destroyed under it.
+            Waited::TimedOut => Err(TraceError::Timeout(self.timeout)),
+        }
+    }
+
+    fn launch(&self, part: &Part, tlas: &AccelStruct, keep: &mut Vec<Buffer>) -> Result<Vec<Traced>, TraceError> {
+        let gpu = &self.gpu;
+        let n = part.rays.len();
+        let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+        let rays = Buffer::with_data(gpu, &layout::ray_bytes(&part.rays), usage, "stress rays").map_err(vk_err)?;
+        let results = Buffer::new(gpu, (n * RESULT_WORDS * 4) as u64, usage, Location::Host, "stress results").map_err(vk_err)?;
+        results.write(0, &vec![0u8; n * RESULT_WORDS * 4]);
+        let mut push = Vec::with_capacity(PUSH_SIZE as usize);
+        push.extend(rays.address.to_le_bytes());
+        push.extend(results.address.to_le_bytes());
+        push.extend(tlas.address.to_le_bytes());
+        push.extend((n as u32).to_le_bytes());
+        push.extend(LAUNCH_WIDTH.to_le_bytes());
+        let rt = gpu.rt.as_ref().expect("ray tracing pipeline enabled");
+        let sbt = self.pipeline.sbt.as_ref().expect("RT pipeline has an SBT");
+        let height = (n as u32).div_ceil(LAUNCH_WIDTH);
+        let stages = vk::ShaderStageFlags::RAYGEN_KHR | vk::ShaderStageFlags::MISS_KHR | vk::ShaderStageFlags::CLOSEST_HIT_KHR | vk::ShaderStageFlags::ANY_HIT_KHR;
+        let waited = self.submitter.run(gpu, self.timeout, |cmd| unsafe {
+            gpu.device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::RAY_TRACING_KHR, self.pipeline.raw);
+            gpu.device.cmd_push_constants(cmd, self.layout, stages, 0, &push);
+            rt.cmd_trace_rays(cmd, &sbt.raygen, &sbt.miss, &sbt.hit, &sbt.callable, LAUNCH_WIDTH, height, 1);
+            full_barrier(gpu, cmd);
+        });
+        let bytes = results.read(n * RESULT_WORDS * 4);
+        keep.extend([rays, results]);
+        match waited.map_err(vk_err)? {
+            Waited::TimedOut => Err(TraceError::Timeout(self.timeout)),
+            Waited::Done(_) => {
+                let decoded = layout::decode(&bytes, n);
+                let lost = decoded.iter().filter(|d| d.is_none()).count();
+                if lost > 0 {
+                    return Err(TraceError::Failed(format!("{lost} of {n} rays ran neither the closest-hit nor the miss shader")));
+                }
+                Ok(decoded.into_iter().map(|d| d.expect("checked above")).collect())
+            }
+        }
+    }
+}
+
+fn destroy_accel<'a>(gpu: &Gpu, all: impl Iterator<Item = &'a AccelStruct>) {
+    let accel = gpu.accel.as_ref().expect("acceleration structures enabled");
+    for a in all {
+        unsafe { accel.destroy_acceleration_structure(a.raw, None) };
+        a.buffer.destroy(gpu);
+    }
+}
+
+impl Tracer for GpuTracer {
+    fn name(&self) -> String {
+        format!("{} ({} {})", self.gpu.info.name(), self.gpu.info.driver_name(), self.gpu.info.driver_version())
+    }
+
+    fn trace(&mut self, part: &Part) -> Result<Vec<Traced>, TraceError> {
+        if let Some(why) = &self.broken {
+            return Err(TraceError::Failed(format!("not traced: {why} in an earlier case")));
+        }
+        let mut keep = Vec::new();
+        let result = self.build(part, &mut keep).and_then(|(blas, tlas)| {
+            let r = self.launch(part, &tlas, &mut keep);
+            if !matches!(r, Err(TraceError::Timeout(_))) {
+                destroy_accel(&self.gpu, blas.iter().chain([&tlas]));
+            }
+            r
+        });
+        match &result {
+            // A hung submission may still use them: leak rather than free under it.
+            Err(e @ (TraceError::Timeout(_) | TraceError::DeviceLost(_))) => self.broken = Some(e.to_string()),
+            _ => {
+                for b in &keep {
+                    b.destroy(&self.gpu);
+                }
+            }
+        }
+        result
+    }
+}
+
+impl Drop for GpuTracer {
+    fn drop(&mut self) {
+        if self.broken.is_some() {
+            return;
+        }
+        unsafe { self.gpu.device.device_wait_idle().ok() };
+        self.pipeline.destroy(&self.gpu);
+        unsafe { self.gpu.device.destroy_pipeline_layout(self.layout, None) };
+        self.submitter.destroy(&self.gpu);
+    }
+}
