@@ -74,6 +74,9 @@ impl Tracer for CpuTracer {
                         if !(t > ray.tmin && t < ray.tmax) {
                             continue;
                         }
+                        if out.candidates < 2 {
+                            out.first_candidates[out.candidates as usize] = ((k as u32) << 24 | p as u32) + 1;
+                        }
                         out.candidates += 1;
                         if out.hit.is_none_or(|h| t < h.t) {
                             out.hit = Some(TracedHit { t, bary: [b1, b2], primitive: p as u32, instance: k as u32 });

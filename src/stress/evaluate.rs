@@ -69,11 +69,19 @@ pub struct Metrics {
     pub disagreements: usize,
     /// Rays that must hit and missed.
     pub leaks: usize,
+    /// Leaks of rays with a subnormal origin or direction component (flush-to-zero territory).
+    pub leaks_subnormal: usize,
     /// Rays that must miss (or hit an inactive primitive) and hit.
     pub false_hits: usize,
     /// Hits on a primitive the ray does not cross, or behind a certain closer hit.
     pub wrong_hits: usize,
     pub double_hits: usize,
+    /// Double hits where any-hit saw the same primitive twice (the geometry has
+    /// NO_DUPLICATE_ANY_HIT_INVOCATION: a violation on its own).
+    pub duplicate_any_hits: usize,
+    /// Double hits of rays that pass exactly (in f64) through a shared edge or vertex: what an
+    /// edge-inclusive watertight test (Woop et al.) reports; off-edge double hits are not that.
+    pub double_hits_on_edge: usize,
     /// Hits whose t and barycentrics were compared.
     pub compared: usize,
     /// Compared hits outside the t or barycentric tolerance.
@@ -84,6 +92,30 @@ pub struct Metrics {
     pub t_rel_err_max: Option<f64>,
     pub bary_err_max: Option<f64>,
 }
+
+/// One ray that failed a check, with what the reference and the tracer said (evidence for a
+/// write-up; at most [`EXAMPLES_PER_KIND`] per kind and case).
+#[derive(Clone, Debug, Serialize)]
+pub struct Example {
+    pub kind: &'static str,
+    pub part: String,
+    pub origin: [f32; 3],
+    pub dir: [f32; 3],
+    pub tmin: f32,
+    pub tmax: f32,
+    /// The same four vectors as f32 bit patterns (exact reproduction).
+    pub bits: [String; 2],
+    /// The reference's closest possible hit: (primitive, t, smallest barycentric).
+    pub reference: Option<(u32, f64, f64)>,
+    /// Distinct crossings the reference counts.
+    pub crossings: u32,
+    pub hit: Option<(u32, f32, [f32; 2])>,
+    pub candidates: u32,
+    /// (instance << 24 | primitive) + 1 of the first two candidates any-hit counted.
+    pub first_candidates: [u32; 2],
+}
+
+pub const EXAMPLES_PER_KIND: usize = 3;
 
 #[derive(Clone, Debug, Serialize)]
 pub struct PartResult {
@@ -102,12 +134,13 @@ pub struct CaseResult {
     pub metrics: Metrics,
     pub ms: f64,
     pub parts: Vec<PartResult>,
+    pub examples: Vec<Example>,
 }
 
 impl CaseResult {
     pub fn not_implemented(kind: CaseKind) -> Self {
         let detail = Some(format!("rtprobe does not implement the {} case yet", kind.as_str()));
-        CaseResult { name: kind.as_str(), verdict: Verdict::NotImplemented, detail, metrics: Metrics::default(), ms: 0.0, parts: vec![] }
+        CaseResult { name: kind.as_str(), verdict: Verdict::NotImplemented, detail, metrics: Metrics::default(), ms: 0.0, parts: vec![], examples: vec![] }
     }
 
     pub fn failed(kind: CaseKind, parts: &[Part], e: &TraceError) -> Self {
@@ -117,7 +150,7 @@ impl CaseResult {
             TraceError::Failed(_) => Verdict::Error,
         };
         let metrics = Metrics { rays: parts.iter().map(|p| p.rays.len()).sum(), ..Metrics::default() };
-        CaseResult { name: kind.as_str(), verdict, detail: Some(e.to_string()), metrics, ms: 0.0, parts: vec![] }
+        CaseResult { name: kind.as_str(), verdict, detail: Some(e.to_string()), metrics, ms: 0.0, parts: vec![], examples: vec![] }
     }
 }
 
@@ -229,9 +262,36 @@ fn crossings(cands: &[Candidate]) -> u32 {
 struct Acc {
     m: Metrics,
     t_ulps: Vec<f64>,
+    examples: Vec<Example>,
+}
+
+fn bits(v: [f32; 4]) -> String {
+    v.iter().map(|x| format!("{:08x}", x.to_bits())).collect::<Vec<_>>().join(" ")
 }
 
 impl Acc {
+    fn example(&mut self, kind: &'static str, part: &Part, i: usize, tr: &Traced, cands: &[Candidate]) {
+        if self.examples.iter().filter(|e| e.kind == kind).count() >= EXAMPLES_PER_KIND {
+            return;
+        }
+        let r = &part.rays[i];
+        let closest = cands.iter().min_by(|a, b| a.hit.t.total_cmp(&b.hit.t)).map(|c| (c.primitive, c.hit.t, c.hit.inside));
+        self.examples.push(Example {
+            kind,
+            part: part.label.clone(),
+            origin: r.origin,
+            dir: r.dir,
+            tmin: r.tmin,
+            tmax: r.tmax,
+            bits: [bits([r.origin[0], r.origin[1], r.origin[2], r.tmin]), bits([r.dir[0], r.dir[1], r.dir[2], r.tmax])],
+            reference: closest,
+            crossings: crossings(cands),
+            hit: tr.hit.map(|h| (h.primitive, h.t, h.bary)),
+            candidates: tr.candidates,
+            first_candidates: tr.first_candidates,
+        });
+    }
+
     fn add(&mut self, part: &Part, i: usize, tr: &Traced) {
         let ray = &part.rays[i];
         let cands = candidates(part, ray);
@@ -240,11 +300,24 @@ impl Acc {
         self.m.rays += 1;
         if tr.candidates > crossings(&cands).max(1) {
             self.m.double_hits += 1;
+            if tr.first_candidates[0] == tr.first_candidates[1] {
+                self.m.duplicate_any_hits += 1;
+            }
+            if cands.iter().any(|c| c.hit.inside == 0.0) {
+                self.m.double_hits_on_edge += 1;
+                self.example("double_hit_on_edge", part, i, tr, &cands);
+            } else {
+                self.example("double_hit", part, i, tr, &cands);
+            }
         }
         let Some(h) = tr.hit else {
             if must_hit {
                 self.m.leaks += 1;
+                if ray.origin.iter().chain(&ray.dir).any(|x| x.is_subnormal()) {
+                    self.m.leaks_subnormal += 1;
+                }
                 self.m.disagreements += 1;
+                self.example("leak", part, i, tr, &cands);
             }
             return;
         };
@@ -258,12 +331,14 @@ impl Acc {
         if !may_hit || inactive == Some(true) {
             self.m.false_hits += 1;
             self.m.disagreements += 1;
+            self.example("false_hit", part, i, tr, &cands);
             return;
         }
         let plane = resolve(part, h.instance, h.primitive, ray).and_then(|r| watertight::plane(r.o, r.d, r.v).map(|p| (r, p)));
         let Some((r, p)) = plane else {
             self.m.wrong_hits += 1;
             self.m.disagreements += 1;
+            self.example("wrong_hit", part, i, tr, &cands);
             return;
         };
         let m = margins(&r, ray, p.t);
@@ -271,6 +346,7 @@ impl Acc {
         if p.inside < -m.edge || closer {
             self.m.wrong_hits += 1;
             self.m.disagreements += 1;
+            self.example("wrong_hit", part, i, tr, &cands);
             return;
         }
         let dt = (h.t as f64 - p.t).abs();
@@ -278,6 +354,7 @@ impl Acc {
         self.m.compared += 1;
         if !(dt <= m.t_tol && db <= m.bary_tol) {
             self.m.over_tolerance += 1;
+            self.example("over_tolerance", part, i, tr, &cands);
         }
         let ulps = dt / ulp_f32(p.t);
         self.t_ulps.push(if ulps.is_nan() { f64::INFINITY } else { ulps });
@@ -305,6 +382,9 @@ impl Acc {
         a.false_hits += b.false_hits;
         a.wrong_hits += b.wrong_hits;
         a.double_hits += b.double_hits;
+        a.duplicate_any_hits += b.duplicate_any_hits;
+        a.double_hits_on_edge += b.double_hits_on_edge;
+        a.leaks_subnormal += b.leaks_subnormal;
         a.compared += b.compared;
         a.over_tolerance += b.over_tolerance;
         let max = |x: Option<f64>, y: Option<f64>| match (x, y) {
@@ -315,6 +395,11 @@ impl Acc {
         a.t_rel_err_max = max(a.t_rel_err_max, b.t_rel_err_max);
         a.bary_err_max = max(a.bary_err_max, b.bary_err_max);
         self.t_ulps.extend_from_slice(&other.t_ulps);
+        for e in &other.examples {
+            if self.examples.iter().filter(|x| x.kind == e.kind).count() < EXAMPLES_PER_KIND {
+                self.examples.push(e.clone());
+            }
+        }
     }
 }
 
@@ -331,16 +416,24 @@ pub fn evaluate(kind: CaseKind, parts: &[Part], traced: &[Vec<Traced>]) -> CaseR
         total.merge(&acc);
         results.push(PartResult { label: part.label.clone(), distance: part.distance, metrics: acc.finish() });
     }
+    let examples = std::mem::take(&mut total.examples);
     let metrics = total.finish();
     let fail = metrics.disagreements > 0 || metrics.double_hits > 0 || metrics.over_tolerance > 0;
     let verdict = if fail { Verdict::Fail } else { Verdict::Pass };
     let detail = fail.then(|| {
         format!(
-            "{} leaks, {} false hits, {} wrong hits, {} double hits, {} of {} hits outside the tolerance",
-            metrics.leaks, metrics.false_hits, metrics.wrong_hits, metrics.double_hits, metrics.over_tolerance, metrics.compared
+            "{} leaks ({} with a subnormal ray component), {} false hits, {} wrong hits, {} double hits ({} exactly on an edge), {} of {} hits outside the tolerance",
+            metrics.leaks,
+            metrics.leaks_subnormal,
+            metrics.false_hits,
+            metrics.wrong_hits,
+            metrics.double_hits,
+            metrics.double_hits_on_edge,
+            metrics.over_tolerance,
+            metrics.compared
         )
     });
-    CaseResult { name: kind.as_str(), verdict, detail, metrics, ms: 0.0, parts: results }
+    CaseResult { name: kind.as_str(), verdict, detail, metrics, ms: 0.0, parts: results, examples }
 }
 
 #[cfg(test)]

@@ -72,7 +72,10 @@ const ANY_HIT: &str = r#"
 layout(location = 0) rayPayloadInEXT uint pass_;
 void main() {
     Results o = Results(pc.results);
-    atomicAdd(o.w[ray_index() * RESULT_WORDS + W_CANDIDATES], 1u);
+    uint base = ray_index() * RESULT_WORDS;
+    uint k = atomicAdd(o.w[base + W_CANDIDATES], 1u);
+    uint id = ((uint(gl_InstanceCustomIndexEXT) << 24) | uint(gl_PrimitiveID)) + 1u;
+    if (k < 2u) o.w[base + W_CAND0 + k] = id;
     ignoreIntersectionEXT;
 }
 "#;

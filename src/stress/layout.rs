@@ -4,7 +4,7 @@
 use super::{Ray, Traced, TracedHit};
 
 /// u32 words of one result record.
-pub const RESULT_WORDS: usize = 8;
+pub const RESULT_WORDS: usize = 10;
 pub const W_STATUS: usize = 0;
 pub const W_T: usize = 1;
 pub const W_U: usize = 2;
@@ -13,6 +13,10 @@ pub const W_PRIMITIVE: usize = 4;
 pub const W_INSTANCE: usize = 5;
 pub const W_CANDIDATES: usize = 6;
 pub const W_PASS: usize = 7;
+/// Primitive of the first and second candidate any-hit counted (which triangles a double hit
+/// reported, and whether one primitive was reported twice).
+pub const W_CAND0: usize = 8;
+pub const W_CAND1: usize = 9;
 /// Status word: the closest-hit shader ran.
 pub const STATUS_HIT: u32 = 1;
 /// Status word: the miss shader ran (in the second, opaque trace).
@@ -27,6 +31,7 @@ pub fn glsl_header() -> String {
     format!(
         "#define RESULT_WORDS {RESULT_WORDS}\n#define W_STATUS {W_STATUS}\n#define W_T {W_T}\n#define W_U {W_U}\n#define W_V {W_V}\n\
 #define W_PRIMITIVE {W_PRIMITIVE}\n#define W_INSTANCE {W_INSTANCE}\n#define W_CANDIDATES {W_CANDIDATES}\n#define W_PASS {W_PASS}\n\
+#define W_CAND0 {W_CAND0}\n#define W_CAND1 {W_CAND1}\n\
 #define STATUS_HIT {STATUS_HIT}u\n#define STATUS_MISS {STATUS_MISS}u\n"
     )
 }
@@ -58,7 +63,9 @@ pub fn decode(bytes: &[u8], n: usize) -> Vec<Option<Traced>> {
                 STATUS_MISS => None,
                 _ => return None,
             };
-            Some(Traced { hit, candidates: w(i, W_CANDIDATES) })
+            let candidates = w(i, W_CANDIDATES);
+            let first = [w(i, W_CAND0), w(i, W_CAND1)];
+            Some(Traced { hit, candidates, first_candidates: first })
         })
         .collect()
 }
@@ -80,7 +87,7 @@ mod tests {
         let d = decode(&bytes, 3);
         let h = d[0].unwrap().hit.unwrap();
         assert_eq!((h.t, h.bary[0], h.primitive, d[0].unwrap().candidates), (2.5, 0.25, 7, 2));
-        assert_eq!(d[1], Some(Traced { hit: None, candidates: 0 }));
+        assert_eq!(d[1], Some(Traced { hit: None, candidates: 0, first_candidates: [0, 0] }));
         assert_eq!(d[2], None, "an unwritten record is a lost ray");
         assert_eq!(ray_bytes(&[Ray { origin: [1.0, 2.0, 3.0], tmin: 0.0, dir: [0.0, 0.0, 1.0], tmax: 9.0 }]).len(), 32);
     }

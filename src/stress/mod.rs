@@ -72,6 +72,8 @@ pub struct Traced {
     /// Candidate triangle hits the any-hit shader counted (every candidate is ignored there,
     /// so each intersected primitive is counted once: NO_DUPLICATE_ANY_HIT_INVOCATION).
     pub candidates: u32,
+    /// (instance << 24 | primitive) + 1 of the first two candidates counted; 0 where none.
+    pub first_candidates: [u32; 2],
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
