@@ -15,6 +15,9 @@ pub struct PlaneHit {
     pub t: f64,
     pub bary: [f64; 2],
     pub inside: f64,
+    /// Sign of the determinant: which side of the triangle the ray comes from. Two triangles of
+    /// a surface crossed at one point share it; at a fold (silhouette) they differ.
+    pub det_positive: bool,
 }
 
 fn axes(d: DVec3) -> (usize, usize, usize) {
@@ -49,7 +52,7 @@ pub fn plane(o: DVec3, d: DVec3, v: [DVec3; 3]) -> Option<PlaneHit> {
     }
     let t = (u * a.2 + vv * b.2 + w * c.2) / det;
     let (b0, b1, b2) = (u / det, vv / det, w / det);
-    Some(PlaneHit { t, bary: [b1, b2], inside: b0.min(b1).min(b2) })
+    Some(PlaneHit { t, bary: [b1, b2], inside: b0.min(b1).min(b2), det_positive: det > 0.0 })
 }
 
 /// The watertight test: the plane crossing when it lies inside the triangle or on its edges.

@@ -296,7 +296,7 @@ fn degenerate(rng: &mut Rng) -> Vec<Part> {
 // ---- tmin --------------------------------------------------------------------------------------
 
 /// ulp offsets of tmin / tmax from the exact hit distance.
-pub const TMIN_OFFSETS: [i32; 7] = [-64, -4, -1, 0, 1, 4, 64];
+pub const TMIN_OFFSETS: [i32; 9] = [-1024, -64, -4, -1, 0, 1, 4, 64, 1024];
 
 fn tmin() -> Vec<Part> {
     let quad = Mesh {

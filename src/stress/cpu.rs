@@ -106,10 +106,50 @@ mod tests {
         assert_eq!(r.metrics.leaks, 0, "{r:?}");
         assert_eq!(r.metrics.disagreements, 0, "{r:?}");
         assert!(r.metrics.rays > 1000);
+        // An edge-inclusive test double-hits on shared edges (and at folds near them), only there.
+        assert!(r.metrics.double_hits_on_edge > 0);
+        assert_eq!(r.metrics.double_hits, r.metrics.double_hits_near_edge);
         for k in [CaseKind::Degenerate, CaseKind::Tmin, CaseKind::Far, CaseKind::Grazing] {
             let r = case(&mut t, k);
             assert_eq!(r.metrics.disagreements, 0, "{k:?}: {r:?}");
             assert_eq!(r.metrics.over_tolerance, 0, "{k:?}: {r:?}");
+        }
+    }
+
+    /// A tracer that runs the reference and then breaks its answers with `f`.
+    struct Broken(CpuTracer, fn(&mut Traced));
+
+    impl Tracer for Broken {
+        fn name(&self) -> String {
+            "broken".into()
+        }
+        fn trace(&mut self, part: &Part) -> Result<Vec<Traced>, TraceError> {
+            let mut v = self.0.trace(part)?;
+            v.iter_mut().for_each(self.1);
+            Ok(v)
+        }
+    }
+
+    fn broken(f: fn(&mut Traced), kind: CaseKind) -> crate::stress::evaluate::CaseResult {
+        let mut t = Broken(CpuTracer { name: "watertight f64", intersect: watertight_f64 }, f);
+        run(&mut t, &StressOptions { cases: vec![kind], seed: 1, full: false }).remove(0)
+    }
+
+    #[test]
+    fn wrong_t_garbage_bits_inactive_hits_and_duplicates_are_caught() {
+        let r = broken(|t| if let Some(h) = t.hit.as_mut() { h.t *= 1.01 }, CaseKind::Far);
+        assert!(r.metrics.over_tolerance > 0, "t off by 1%: {r:?}");
+        let r = broken(|t| if let Some(h) = t.hit.as_mut() { h.bary[0] = f32::from_bits(0x7fc0_0001) }, CaseKind::Grazing);
+        assert_eq!(r.metrics.over_tolerance, r.metrics.compared, "NaN barycentrics");
+        assert!(r.metrics.compared > 0);
+        let r = broken(|t| if let Some(h) = t.hit.as_mut() { h.primitive = 3 }, CaseKind::Degenerate);
+        assert!(r.metrics.false_hits > 0, "hits on the NaN-X triangle: {r:?}");
+        let r = broken(|t| { t.candidates += 1; t.first_candidates[1] = t.first_candidates[0]; }, CaseKind::Tmin);
+        assert!(r.metrics.double_hits > 0 && r.metrics.duplicate_any_hits > 0);
+        let r = broken(|t| t.hit = None, CaseKind::Tmin);
+        assert!(r.metrics.leaks > 0, "certain hits dropped");
+        for r in [broken(|t| t.hit = None, CaseKind::Watertight)] {
+            assert_eq!(r.verdict, crate::stress::evaluate::Verdict::Fail);
         }
     }
 
