@@ -177,6 +177,11 @@ fn watertight(rng: &mut Rng, full: bool) -> Vec<Part> {
 /// Distances `far` moves the scene to (exact in f32, below 2^24 so integer vertices stay exact).
 pub const FAR_DISTANCES: [f64; 8] = [0.0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7];
 
+/// How `far` moves the scene: by the instance transform (rays start 2 units before the hit), by
+/// the vertices themselves (same rays), or by the instance transform with the rays starting near
+/// the world origin (the hit is the distance away).
+pub const FAR_MODES: [&str; 3] = ["instance", "baked", "camera"];
+
 /// An 8×8 height field of unit quads on integer x, y (exact at any distance up to 2^24).
 fn grid(rng: &mut Rng, n: u32) -> Mesh {
     let mut positions = Vec::new();
@@ -207,11 +212,11 @@ fn far(rng: &mut Rng, full: bool) -> Vec<Part> {
         })
         .collect();
     let mut parts = Vec::new();
-    for mode in ["instance", "baked"] {
+    for mode in FAR_MODES {
         for d in FAR_DISTANCES {
             let t = d as f32;
             let scene = match mode {
-                "instance" => Scene {
+                "instance" | "camera" => Scene {
                     meshes: vec![base.clone()],
                     instances: vec![Instance { transform: [[1.0, 0.0, 0.0, t], [0.0, 1.0, 0.0, t], [0.0, 0.0, 1.0, t]], mesh: 0 }],
                 },
@@ -220,7 +225,14 @@ fn far(rng: &mut Rng, full: bool) -> Vec<Part> {
             let mut part = new_part(format!("{mode}-{d:e}"), scene);
             part.distance = Some(d);
             for (p, dir) in &targets {
-                push(&mut part, ray_through(*p + DVec3::splat(d), *dir, 2.0), false);
+                let ray = if mode == "camera" {
+                    // From near the origin along ≈(1, 1, 1): the hit is `d` away.
+                    let dir = [1.0 + dir[0] * 0.1, 1.0 + dir[1] * 0.1, 1.0];
+                    ray_through(*p + DVec3::splat(d), dir, d.max(2.0))
+                } else {
+                    ray_through(*p + DVec3::splat(d), *dir, 2.0)
+                };
+                push(&mut part, ray, false);
             }
             parts.push(part);
         }

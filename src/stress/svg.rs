@@ -1,6 +1,6 @@
 //! A hand-written SVG of the `far` case: maximum relative t error and maximum barycentric error
 //! (log scale) against the distance the scene was moved to (log scale), one line per mode
-//! (instance transform, baked vertices). No plotting dependency.
+//! (instance transform, baked vertices, rays from the origin). No plotting dependency.
 use super::evaluate::CaseResult;
 
 const W: f64 = 640.0;
@@ -15,7 +15,7 @@ type Series = (String, &'static str, &'static str, Vec<(f64, f64)>);
 
 fn series(far: &CaseResult) -> Vec<Series> {
     let mut out: Vec<Series> = Vec::new();
-    for (mode, colour) in [("instance", "#1f77b4"), ("baked", "#d62728")] {
+    for (mode, colour) in super::cases::FAR_MODES.into_iter().zip(["#1f77b4", "#d62728", "#9467bd"]) {
         let pts = |f: &dyn Fn(&super::evaluate::Metrics) -> Option<f64>| -> Vec<(f64, f64)> {
             far.parts
                 .iter()
