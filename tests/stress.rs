@@ -111,6 +111,19 @@ fn lavapipe_figures_stay_within_the_rules() {
     }
 }
 
+/// Secondary rays from the device's own hit points: raw origins self-hit (the reference agrees:
+/// the rounded point lies below the surface), Wächter & Binder's offset removes nearly all.
+#[test]
+fn self_hits_are_counted_and_the_offset_removes_them() {
+    let (_out, doc, _dir) = stress(&["--cases", "self"]);
+    let c = case(&doc, "self");
+    assert_eq!(n(c, "disagreements"), 0, "{c}");
+    let part = |label: &str| c["parts"].as_array().unwrap().iter().find(|p| p["label"] == label).unwrap().clone();
+    let (raw, off) = (part("secondary-raw"), part("secondary-offset"));
+    assert!(n(&raw, "self_hits") > 100, "{raw}");
+    assert!(n(&off, "self_hits") * 10 < n(&raw, "self_hits"), "{off}");
+}
+
 #[test]
 fn stress_bad_input_is_one_line() {
     assert_one_line_error(&run(&["stress", "--cases", "watertight,nope"]), 2, "unknown stress case `nope`");

@@ -1,12 +1,13 @@
 //! The scenes and rays of each stress case. Every coordinate is f32 (what the device gets); the
 //! points rays aim at are computed in f64 and the ray origin rounded, so "a ray at a shared edge"
 //! passes within an ulp of it, and the ulp-nudged copies bracket it. Sizes are CI sizes unless
-//! `full` (CTS sizes). `transform` and `self` are not implemented yet (`None`).
+//! `full` (CTS sizes). `transform` is not implemented yet; `self` is built from the device's hits in `selfhit`.
 use super::{CaseKind, Instance, Mesh, Part, Ray, RayInfo, Scene, StressOptions, IDENTITY};
 use crate::scene::rng::Rng;
 use glam::DVec3;
 
-/// The parts of `kind`, or `None` where rtprobe does not implement the case yet.
+/// The parts of `kind`, or `None` where rtprobe does not implement the case yet (`transform`)
+/// or where the parts depend on the device's answers (`self`: see `selfhit`).
 pub fn build(kind: CaseKind, opts: &StressOptions) -> Option<Vec<Part>> {
     let mut rng = Rng::new(opts.seed ^ kind as u64);
     match kind {

@@ -88,6 +88,8 @@ pub struct Metrics {
     /// Double hits of rays within the ambiguity margin of an edge (includes `double_hits_on_edge`);
     /// a double hit away from every edge reports a surface twice where no rounding explains it.
     pub double_hits_near_edge: usize,
+    /// Hits closer than `selfhit::SELF_T` (the `self` case's false self-intersections).
+    pub self_hits: usize,
     /// Hits whose t and barycentrics were compared.
     pub compared: usize,
     /// Compared hits outside the t or barycentric tolerance.
@@ -339,6 +341,9 @@ impl Acc {
             return;
         };
         self.m.hits += 1;
+        if h.t < super::selfhit::SELF_T {
+            self.m.self_hits += 1;
+        }
         let inactive = part
             .scene
             .instances
@@ -398,6 +403,7 @@ impl Acc {
         let (a, b) = (&mut self.m, &other.m);
         a.rays += b.rays;
         a.hits += b.hits;
+        a.self_hits += b.self_hits;
         a.disagreements += b.disagreements;
         a.leaks += b.leaks;
         a.false_hits += b.false_hits;

@@ -10,6 +10,7 @@ pub mod evaluate;
 pub mod gpu;
 pub mod layout;
 pub mod report;
+pub mod selfhit;
 pub mod svg;
 
 use serde::Serialize;
@@ -152,6 +153,10 @@ pub fn run(tracer: &mut dyn Tracer, opts: &StressOptions) -> Vec<evaluate::CaseR
             let start = std::time::Instant::now();
             let parts = cases::build(kind, opts);
             let mut r = match parts {
+                None if kind == CaseKind::SelfHit => match selfhit::run(tracer, opts) {
+                    Ok((parts, traced)) => evaluate::evaluate(kind, &parts, &traced),
+                    Err((parts, e)) => evaluate::CaseResult::failed(kind, &parts, &e),
+                },
                 None => evaluate::CaseResult::not_implemented(kind),
                 Some(parts) => {
                     let mut traced = Vec::new();

@@ -14,7 +14,7 @@ fn opt(x: Option<f64>) -> String {
 
 fn row(label: &str, m: &Metrics) -> String {
     format!(
-        "  {:<18} {:>6} {:>6} {:>5} {:>5} {:>5} {:>6} {:>6} {:>10} {:>10} {:>10} {:>10}\n",
+        "  {:<18} {:>6} {:>6} {:>5} {:>5} {:>5} {:>6} {:>6} {:>5} {:>10} {:>10} {:>10} {:>10}\n",
         label,
         m.rays,
         m.hits,
@@ -23,6 +23,7 @@ fn row(label: &str, m: &Metrics) -> String {
         m.wrong_hits,
         m.double_hits,
         m.over_tolerance,
+        m.self_hits,
         opt(m.t_err_max_ulps),
         opt(m.t_err_p99),
         opt(m.t_rel_err_max),
@@ -43,8 +44,8 @@ pub fn text(device: &str, cases: &[CaseResult]) -> String {
             continue;
         }
         s.push_str(&format!(
-            "  {:<18} {:>6} {:>6} {:>5} {:>5} {:>5} {:>6} {:>6} {:>10} {:>10} {:>10} {:>10}\n",
-            "part", "rays", "hits", "leak", "false", "wrong", "double", "overtol", "t_ulps_max", "t_ulps_p99", "t_rel_max", "bary_max"
+            "  {:<18} {:>6} {:>6} {:>5} {:>5} {:>5} {:>6} {:>6} {:>5} {:>10} {:>10} {:>10} {:>10}\n",
+            "part", "rays", "hits", "leak", "false", "wrong", "double", "overtol", "self", "t_ulps_max", "t_ulps_p99", "t_rel_max", "bary_max"
         ));
         for p in &c.parts {
             s.push_str(&row(&p.label, &p.metrics));
