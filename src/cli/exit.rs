@@ -20,7 +20,8 @@ pub const CANARY_UNDETECTED: u8 = 11;
 pub const HELP: &str = "\
 Exit codes:
   0  success (run: every cell passed or was unsupported)
-  1  run: at least one cell faulted (device_lost, crash, timeout, error) or mismatched
+  1  run: at least one cell faulted (device_lost, crash, timeout, error) or mismatched;
+     stress: a case did not pass
   2  bad command-line arguments
   3  no Vulkan loader (libvulkan.so.1), or one older than Vulkan 1.2
   4  no Vulkan driver / physical device
