@@ -3,7 +3,7 @@
 //! the sphere's silhouette, or of another hit's distance are flagged `ambiguous`: there f32 GPU
 //! traversal may legitimately pick the other surface, so those pixels are not compared.
 use crate::scene::{Geometry, Instance, Scene, RAY_TMAX, RAY_TMIN, SPHERE_RADIUS};
-use glam::{DMat3, DVec3};
+use glam::DVec3;
 
 /// Barycentric margin inside which a hit is marginal.
 pub const EPS_BARY: f64 = 1e-4;
@@ -32,15 +32,7 @@ struct Candidate {
 }
 
 fn object_ray(inst: &Instance, o: DVec3, d: DVec3) -> (DVec3, DVec3) {
-    let m = inst.transform;
-    let a = DMat3::from_cols(
-        DVec3::new(m[0][0] as f64, m[1][0] as f64, m[2][0] as f64),
-        DVec3::new(m[0][1] as f64, m[1][1] as f64, m[2][1] as f64),
-        DVec3::new(m[0][2] as f64, m[1][2] as f64, m[2][2] as f64),
-    );
-    let t = DVec3::new(m[0][3] as f64, m[1][3] as f64, m[2][3] as f64);
-    let inv = a.inverse();
-    (inv * (o - t), inv * d)
+    super::watertight::object_ray(&inst.transform, o, d)
 }
 
 /// World-space xy bounds of an instance's object-space box, for a quick reject of the

@@ -5,7 +5,7 @@
 //! test is inclusive on edges (U, V, W all ≥ 0 or all ≤ 0). The f32 inputs are exact in f64 and
 //! the shear adds at most a few f64 ulps, 2^-29 below f32 resolution, so this is the reference
 //! the driver's f32 traversal is measured against.
-use glam::DVec3;
+use glam::{DMat3, DVec3};
 
 /// One ray/triangle intersection: distance, the weights of v1 and v2 (as `hitAttributeEXT vec2`
 /// holds them), and how far inside the nearest edge the hit is (smallest barycentric, ≥ 0 when
@@ -58,6 +58,20 @@ pub fn plane(o: DVec3, d: DVec3, v: [DVec3; 3]) -> Option<PlaneHit> {
 /// The watertight test: the plane crossing when it lies inside the triangle or on its edges.
 pub fn intersect(o: DVec3, d: DVec3, v: [DVec3; 3]) -> Option<PlaneHit> {
     plane(o, d, v).filter(|h| h.inside >= 0.0)
+}
+
+/// The ray in an instance's object space: the row-major 3x4 object-to-world `transform`
+/// (`VkTransformMatrixKHR`) inverted in f64.
+pub fn object_ray(transform: &[[f32; 4]; 3], o: DVec3, d: DVec3) -> (DVec3, DVec3) {
+    let m = transform;
+    let a = DMat3::from_cols(
+        DVec3::new(m[0][0] as f64, m[1][0] as f64, m[2][0] as f64),
+        DVec3::new(m[0][1] as f64, m[1][1] as f64, m[2][1] as f64),
+        DVec3::new(m[0][2] as f64, m[1][2] as f64, m[2][2] as f64),
+    );
+    let t = DVec3::new(m[0][3] as f64, m[1][3] as f64, m[2][3] as f64);
+    let inv = a.inverse();
+    (inv * (o - t), inv * d)
 }
 
 /// Vertex of an f32 mesh as f64 (exact).

@@ -45,29 +45,52 @@ pub(crate) struct Pending {
     pub(crate) ty: vk::AccelerationStructureTypeKHR,
 }
 
+/// One BLAS build of one triangle geometry (f32 positions, u32 indices) with `flags`; the vertex
+/// and index buffers go to `inputs` (they must live until the build has run).
+pub(crate) fn triangles(gpu: &Gpu, positions: &[[f32; 3]], indices: &[[u32; 3]], flags: vk::GeometryFlagsKHR, inputs: &mut Vec<Buffer>) -> Result<Pending, VkError> {
+    let vb = Buffer::with_data(gpu, bytes_of(positions), INPUT_USAGE, "vertex buffer")?;
+    let ib = match Buffer::with_data(gpu, bytes_of(indices), INPUT_USAGE, "index buffer") {
+        Ok(b) => b,
+        Err(e) => {
+            inputs.push(vb);
+            return Err(e);
+        }
+    };
+    let tri = vk::AccelerationStructureGeometryTrianglesDataKHR::default()
+        .vertex_format(vk::Format::R32G32B32_SFLOAT)
+        .vertex_data(vk::DeviceOrHostAddressConstKHR { device_address: vb.address })
+        .vertex_stride(12)
+        .max_vertex(positions.len() as u32 - 1)
+        .index_type(vk::IndexType::UINT32)
+        .index_data(vk::DeviceOrHostAddressConstKHR { device_address: ib.address });
+    let geometry = vk::AccelerationStructureGeometryKHR::default()
+        .geometry_type(vk::GeometryTypeKHR::TRIANGLES)
+        .geometry(vk::AccelerationStructureGeometryDataKHR { triangles: tri })
+        .flags(flags);
+    let range = vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(indices.len() as u32);
+    inputs.extend([vb, ib]);
+    Ok(Pending { geometry, range, ty: vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL })
+}
+
+/// Record the builds of each level in order, with a full barrier after each level.
+pub(crate) fn record_builds(gpu: &Gpu, cmd: vk::CommandBuffer, levels: &[&[(vk::AccelerationStructureBuildGeometryInfoKHR, vk::AccelerationStructureBuildRangeInfoKHR)]]) {
+    let accel = gpu.accel.as_ref().expect("acceleration structures enabled");
+    for level in levels {
+        for (info, range) in level.iter() {
+            // SAFETY: the build infos point at live geometry, AS objects and scratch.
+            unsafe { accel.cmd_build_acceleration_structures(cmd, std::slice::from_ref(info), &[std::slice::from_ref(range)]) };
+        }
+        full_barrier(gpu, cmd);
+    }
+}
+
 impl SceneGpu {
     pub fn build(gpu: &Gpu, scene: &Scene, submitter: &Submitter, timeout: Duration) -> Result<SceneGpu, BuildError> {
         let start = Instant::now();
-        let accel = gpu.accel.as_ref().expect("acceleration structures enabled");
         let mut inputs = Vec::new();
         let mut blas_pending = Vec::new();
         for mesh in &scene.meshes {
-            let vb = Buffer::with_data(gpu, bytes_of(&mesh.positions), INPUT_USAGE, "vertex buffer")?;
-            let ib = Buffer::with_data(gpu, bytes_of(&mesh.indices), INPUT_USAGE, "index buffer")?;
-            let tri = vk::AccelerationStructureGeometryTrianglesDataKHR::default()
-                .vertex_format(vk::Format::R32G32B32_SFLOAT)
-                .vertex_data(vk::DeviceOrHostAddressConstKHR { device_address: vb.address })
-                .vertex_stride(12)
-                .max_vertex(mesh.positions.len() as u32 - 1)
-                .index_type(vk::IndexType::UINT32)
-                .index_data(vk::DeviceOrHostAddressConstKHR { device_address: ib.address });
-            let geometry = vk::AccelerationStructureGeometryKHR::default()
-                .geometry_type(vk::GeometryTypeKHR::TRIANGLES)
-                .geometry(vk::AccelerationStructureGeometryDataKHR { triangles: tri })
-                .flags(vk::GeometryFlagsKHR::OPAQUE);
-            let range = vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(mesh.indices.len() as u32);
-            blas_pending.push(Pending { geometry, range, ty: vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL });
-            inputs.extend([vb, ib]);
+            blas_pending.push(triangles(gpu, &mesh.positions, &mesh.indices, vk::GeometryFlagsKHR::OPAQUE, &mut inputs)?);
         }
         let aabb = vk::AabbPositionsKHR {
             min_x: SPHERE_AABB[0], min_y: SPHERE_AABB[1], min_z: SPHERE_AABB[2],
@@ -123,16 +146,7 @@ impl SceneGpu {
         }
         let (mut tlas, tlas_builds) = Self::prepare_all(gpu, &tlas_pending, &mut all_scratch)?;
 
-        let waited = submitter.run(gpu, timeout, |cmd| unsafe {
-            for (info, range) in &blas_builds {
-                accel.cmd_build_acceleration_structures(cmd, std::slice::from_ref(info), &[std::slice::from_ref(range)]);
-            }
-            full_barrier(gpu, cmd);
-            for (info, range) in &tlas_builds {
-                accel.cmd_build_acceleration_structures(cmd, std::slice::from_ref(info), &[std::slice::from_ref(range)]);
-            }
-            full_barrier(gpu, cmd);
-        })?;
+        let waited = submitter.run(gpu, timeout, |cmd| record_builds(gpu, cmd, &[&blas_builds, &tlas_builds]))?;
         for s in &all_scratch {
             s.destroy(gpu);
         }

@@ -4,7 +4,7 @@
 //! must find leaks: the check can fail.
 use super::{Part, TraceError, Traced, TracedHit, Tracer};
 use crate::reference::watertight;
-use glam::{DMat3, DVec3};
+use glam::DVec3;
 
 /// Object-space ray and triangle → (t, weight of v1, weight of v2).
 pub type Intersector = fn([f32; 3], [f32; 3], [[f32; 3]; 3]) -> Option<(f32, f32, f32)>;
@@ -43,15 +43,9 @@ pub fn sloppy_f32(o: [f32; 3], d: [f32; 3], v: [[f32; 3]; 3]) -> Option<(f32, f3
 }
 
 fn object_ray(m: &[[f32; 4]; 3], o: [f32; 3], d: [f32; 3]) -> ([f32; 3], [f32; 3]) {
-    let a = DMat3::from_cols(
-        DVec3::new(m[0][0] as f64, m[1][0] as f64, m[2][0] as f64),
-        DVec3::new(m[0][1] as f64, m[1][1] as f64, m[2][1] as f64),
-        DVec3::new(m[0][2] as f64, m[1][2] as f64, m[2][2] as f64),
-    );
-    let inv = a.inverse();
-    let t = DVec3::new(m[0][3] as f64, m[1][3] as f64, m[2][3] as f64);
+    let (o, d) = watertight::object_ray(m, watertight::to_f64(o), watertight::to_f64(d));
     let f = |v: DVec3| [v.x as f32, v.y as f32, v.z as f32];
-    (f(inv * (watertight::to_f64(o) - t)), f(inv * watertight::to_f64(d)))
+    (f(o), f(d))
 }
 
 impl Tracer for CpuTracer {

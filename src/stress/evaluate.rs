@@ -23,7 +23,7 @@
 //!   is one crossing ("should not double-hit").
 use super::{CaseKind, Part, Ray, TraceError, Traced};
 use crate::reference::watertight::{self, PlaneHit};
-use glam::{DMat3, DVec3};
+use glam::DVec3;
 use serde::Serialize;
 
 /// Barycentric part of the ambiguity margin.
@@ -189,18 +189,9 @@ fn resolve(part: &Part, instance: u32, primitive: u32, ray: &Ray) -> Option<Reso
     let inst = part.scene.instances.get(instance as usize)?;
     let mesh = &part.scene.meshes[inst.mesh];
     let tri = mesh.indices.get(primitive as usize)?;
-    let m = inst.transform;
-    let a = DMat3::from_cols(
-        DVec3::new(m[0][0] as f64, m[1][0] as f64, m[2][0] as f64),
-        DVec3::new(m[0][1] as f64, m[1][1] as f64, m[2][1] as f64),
-        DVec3::new(m[0][2] as f64, m[1][2] as f64, m[2][2] as f64),
-    );
-    let t = DVec3::new(m[0][3] as f64, m[1][3] as f64, m[2][3] as f64);
-    let inv = a.inverse();
-    let o = watertight::to_f64(ray.origin);
-    let d = watertight::to_f64(ray.dir);
+    let (o, d) = watertight::object_ray(&inst.transform, watertight::to_f64(ray.origin), watertight::to_f64(ray.dir));
     let v = tri.map(|i| watertight::to_f64(mesh.positions[i as usize]));
-    Some(Resolved { v, o: inv * (o - t), d: inv * d })
+    Some(Resolved { v, o, d })
 }
 
 /// Smallest altitude of a triangle (∞ for a degenerate one: no barycentric margin applies).

@@ -9,7 +9,7 @@ use super::layout::{self, glsl_header, LAUNCH_WIDTH, PUSH_SIZE, RESULT_WORDS};
 use super::{Part, TraceError, Traced, Tracer};
 use crate::exec::pipeline::{self, Pipeline};
 use crate::matrix::DescriptorModel;
-use crate::scene::gpu::{bytemuck_transform, bytes_of, AccelStruct, Pending, SceneGpu, INPUT_USAGE};
+use crate::scene::gpu::{bytemuck_transform, bytes_of, record_builds, triangles, AccelStruct, Pending, SceneGpu, INPUT_USAGE};
 use crate::shadergen::compile::Compiler;
 use crate::shadergen::{CellShaders, PipelineKind, Role, ShaderSource};
 use crate::vk::memory::{full_barrier, Buffer, Location};
@@ -142,22 +142,7 @@ impl GpuTracer {
         let gpu = &self.gpu;
         let mut pending = Vec::new();
         for mesh in &part.scene.meshes {
-            let vb = Buffer::with_data(gpu, bytes_of(&mesh.positions), INPUT_USAGE, "vertex buffer").map_err(vk_err)?;
-            let ib = Buffer::with_data(gpu, bytes_of(&mesh.indices), INPUT_USAGE, "index buffer").map_err(vk_err)?;
-            let tri = vk::AccelerationStructureGeometryTrianglesDataKHR::default()
-                .vertex_format(vk::Format::R32G32B32_SFLOAT)
-                .vertex_data(vk::DeviceOrHostAddressConstKHR { device_address: vb.address })
-                .vertex_stride(12)
-                .max_vertex(mesh.positions.len() as u32 - 1)
-                .index_type(vk::IndexType::UINT32)
-                .index_data(vk::DeviceOrHostAddressConstKHR { device_address: ib.address });
-            let geometry = vk::AccelerationStructureGeometryKHR::default()
-                .geometry_type(vk::GeometryTypeKHR::TRIANGLES)
-                .geometry(vk::AccelerationStructureGeometryDataKHR { triangles: tri })
-                .flags(vk::GeometryFlagsKHR::NO_DUPLICATE_ANY_HIT_INVOCATION);
-            let range = vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(mesh.indices.len() as u32);
-            pending.push(Pending { geometry, range, ty: vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL });
-            keep.extend([vb, ib]);
+            pending.push(triangles(gpu, &mesh.positions, &mesh.indices, vk::GeometryFlagsKHR::NO_DUPLICATE_ANY_HIT_INVOCATION, keep).map_err(vk_err)?);
         }
         let mut scratch = Vec::new();
         let (blas, blas_builds) = SceneGpu::prepare_all(gpu, &pending, &mut scratch).map_err(vk_err)?;
@@ -184,17 +169,7 @@ impl GpuTracer {
             ty: vk::AccelerationStructureTypeKHR::TOP_LEVEL,
         }];
         let (mut tlas, tlas_builds) = SceneGpu::prepare_all(gpu, &tlas_pending, &mut scratch).map_err(vk_err)?;
-        let accel = gpu.accel.as_ref().expect("acceleration structures enabled");
-        let waited = self.submitter.run(gpu, self.timeout, |cmd| unsafe {
-            for (info, range) in &blas_builds {
-                accel.cmd_build_acceleration_structures(cmd, std::slice::from_ref(info), &[std::slice::from_ref(range)]);
-            }
-            full_barrier(gpu, cmd);
-            for (info, range) in &tlas_builds {
-                accel.cmd_build_acceleration_structures(cmd, std::slice::from_ref(info), &[std::slice::from_ref(range)]);
-            }
-            full_barrier(gpu, cmd);
-        });
+        let waited = self.submitter.run(gpu, self.timeout, |cmd| record_builds(gpu, cmd, &[&blas_builds, &tlas_builds]));
         for s in &scratch {
             s.destroy(gpu);
         }
