@@ -39,8 +39,6 @@ fn stress_report_has_every_case_with_the_contract_fields() {
             assert!(c.get(field).is_some(), "{field} missing in {}", c["name"]);
         }
     }
-    // Gaps are said, not hidden.
-    assert_eq!(case(&doc, "transform")["verdict"], "not_implemented");
     // A failing case makes the exit status 1, and the table says which.
     let failed = doc["cases"].as_array().unwrap().iter().any(|c| c["verdict"] == "fail");
     assert_eq!(out.status.code(), Some(if failed { 1 } else { 0 }), "{}", stdout(&out));
@@ -53,7 +51,7 @@ fn stress_report_has_every_case_with_the_contract_fields() {
 /// hits, a zero-area hit) the deviation must be the one documented in the README.
 #[test]
 fn lavapipe_figures_stay_within_the_rules() {
-    let (_out, doc, _dir) = stress(&["--cases", "watertight,far,grazing,degenerate,tmin"]);
+    let (_out, doc, _dir) = stress(&["--cases", "watertight,far,grazing,degenerate,tmin,transform"]);
     for c in doc["cases"].as_array().unwrap() {
         // Every compared hit within the tolerance; no hit on a primitive the ray misses; any-hit
         // never sees one primitive twice (NO_DUPLICATE_ANY_HIT_INVOCATION).
@@ -69,7 +67,12 @@ fn lavapipe_figures_stay_within_the_rules() {
     let w = case(&doc, "watertight");
     assert!(n(w, "rays") > 10_000 && n(w, "hits") > 10_000);
     assert!(f(w, "bary_err_max") <= 2e-3 && f(w, "t_rel_err_max") < 1e-4);
-    for name in ["grazing", "tmin"] {
+    // transform: facing is a function of the object-space winding (mirrors included), culling
+    // keeps exactly the other facing, object-space built-ins within the CTS's 3.8e-6.
+    let tr = case(&doc, "transform");
+    assert_eq!(n(tr, "facing_errors"), 0, "{tr}");
+    assert!(f(tr, "builtin_err_max") < 4e-6, "{tr}");
+    for name in ["grazing", "tmin", "transform"] {
         let c = case(&doc, name);
         assert_eq!(c["verdict"], "pass", "{c}");
         assert!(f(c, "t_rel_err_max") < 1e-3 && f(c, "bary_err_max") < 1e-3, "{c}");

@@ -1,13 +1,13 @@
 //! The scenes and rays of each stress case. Every coordinate is f32 (what the device gets); the
 //! points rays aim at are computed in f64 and the ray origin rounded, so "a ray at a shared edge"
 //! passes within an ulp of it, and the ulp-nudged copies bracket it. Sizes are CI sizes unless
-//! `full` (CTS sizes). `transform` is not implemented yet; `self` is built from the device's hits in `selfhit`.
+//! `full` (CTS sizes). `transform` is built in `transform`; `self` from the device's hits in `selfhit`.
 use super::{CaseKind, Instance, Mesh, Part, Ray, RayInfo, Scene, StressOptions, IDENTITY};
 use crate::scene::rng::Rng;
 use glam::DVec3;
 
-/// The parts of `kind`, or `None` where rtprobe does not implement the case yet (`transform`)
-/// or where the parts depend on the device's answers (`self`: see `selfhit`).
+/// The parts of `kind`, or `None` where the parts depend on the device's answers (`self`: see
+/// `selfhit`).
 pub fn build(kind: CaseKind, opts: &StressOptions) -> Option<Vec<Part>> {
     let mut rng = Rng::new(opts.seed ^ kind as u64);
     match kind {
@@ -16,7 +16,8 @@ pub fn build(kind: CaseKind, opts: &StressOptions) -> Option<Vec<Part>> {
         CaseKind::Grazing => Some(grazing(&mut rng, opts.full)),
         CaseKind::Degenerate => Some(degenerate(&mut rng)),
         CaseKind::Tmin => Some(tmin()),
-        CaseKind::Transform | CaseKind::SelfHit => None,
+        CaseKind::Transform => Some(super::transform::parts(&mut rng)),
+        CaseKind::SelfHit => None,
     }
 }
 
@@ -60,7 +61,7 @@ fn ray_through(p: DVec3, d: [f32; 3], back: f64) -> Ray {
     Ray { origin: f32v(p - dv(d) * back), tmin: 0.0, dir: d, tmax: FAR_TMAX }
 }
 
-fn one_mesh(mesh: Mesh) -> Scene {
+pub(crate) fn one_mesh(mesh: Mesh) -> Scene {
     Scene { meshes: vec![mesh], instances: vec![Instance { transform: IDENTITY, mesh: 0 }] }
 }
 
@@ -70,7 +71,7 @@ fn push(part: &mut Part, ray: Ray, must_hit: bool) {
 }
 
 fn new_part(label: String, scene: Scene) -> Part {
-    Part { label, distance: None, scene, rays: Vec::new(), info: Vec::new() }
+    Part { label, distance: None, scene, rays: Vec::new(), info: Vec::new(), ray_flags: 0 }
 }
 
 /// Rays at `p` along each direction, and the ulp-nudged copies of each.
@@ -377,7 +378,7 @@ mod tests {
         for k in CaseKind::ALL {
             let parts = build(k, &opts);
             match k {
-                CaseKind::Transform | CaseKind::SelfHit => assert!(parts.is_none()),
+                CaseKind::SelfHit => assert!(parts.is_none()),
                 _ => {
                     let parts = parts.unwrap();
                     assert!(!parts.is_empty());

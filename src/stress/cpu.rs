@@ -73,7 +73,7 @@ impl Tracer for CpuTracer {
                         }
                         out.candidates += 1;
                         if out.hit.is_none_or(|h| t < h.t) {
-                            out.hit = Some(TracedHit { t, bary: [b1, b2], primitive: p as u32, instance: k as u32 });
+                            out.hit = Some(TracedHit { t, bary: [b1, b2], primitive: p as u32, instance: k as u32, hit_kind: 0, object_origin: o, object_dir: d });
                         }
                     }
                 }

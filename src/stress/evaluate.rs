@@ -37,6 +37,8 @@ pub const ON_EDGE_EPS: f64 = 1e-12;
 pub const ULPS_OF_SCALE: f64 = 64.0;
 /// Relative t tolerance (CTS `direction_length`, the matrix's).
 pub const T_REL_TOL: f64 = 1e-3;
+/// Object-space built-ins (CTS `builtin`: ≈3.8e-6).
+pub const BUILTIN_TOL: f64 = 4e-6;
 /// Barycentric tolerance (CTS `barycentric_coordinates`, the matrix's).
 pub const BARY_TOL: f64 = 1e-3;
 
@@ -88,6 +90,13 @@ pub struct Metrics {
     /// Double hits of rays within the ambiguity margin of an edge (includes `double_hits_on_edge`);
     /// a double hit away from every edge reports a surface twice where no rounding explains it.
     pub double_hits_near_edge: usize,
+    /// Largest error of gl_ObjectRayOriginEXT / gl_ObjectRayDirectionEXT against the f64
+    /// inverse transform, relative to max(1, |world origin|, |object value|) (hits over
+    /// [`BUILTIN_TOL`] count in `over_tolerance`).
+    pub builtin_err_max: Option<f64>,
+    /// `transform`: hits whose facing is not the one function of object-space winding, and culled
+    /// traces that keep a culled facing or drop the other.
+    pub facing_errors: usize,
     /// Hits closer than `selfhit::SELF_T` (the `self` case's false self-intersections).
     pub self_hits: usize,
     /// Hits whose t and barycentrics were compared.
@@ -302,7 +311,9 @@ impl Acc {
     fn add(&mut self, part: &Part, i: usize, tr: &Traced) {
         let ray = &part.rays[i];
         let cands = candidates(part, ray);
-        let must_hit = part.info[i].must_hit || cands.iter().any(|c| c.certain);
+        // Culled traces: the reference does not cull; `transform::facing_errors` judges them.
+        let culled = part.ray_flags & (super::transform::CULL_BACK | super::transform::CULL_FRONT) != 0;
+        let must_hit = !culled && (part.info[i].must_hit || cands.iter().any(|c| c.certain));
         let may_hit = !cands.is_empty();
         self.m.rays += 1;
         if tr.candidates > crossings(&cands).max(1) {
@@ -369,7 +380,12 @@ impl Acc {
             .map(|d| if d.is_nan() { f64::INFINITY } else { d.abs() })
             .fold(0.0, f64::max);
         self.m.compared += 1;
-        if !(dt <= m.t_tol && db <= m.bary_tol) {
+        let scale = watertight::to_f64(ray.origin).abs().max_element().max(r.o.abs().max_element()).max(1.0);
+        let obj = |v: [f32; 3]| watertight::to_f64(v);
+        let be = ((obj(h.object_origin) - r.o).abs().max_element() / scale).max((obj(h.object_dir) - r.d).abs().max_element() / r.d.abs().max_element().max(1.0));
+        let be = if be.is_nan() { f64::INFINITY } else { be };
+        self.m.builtin_err_max = Some(self.m.builtin_err_max.unwrap_or(0.0).max(be));
+        if !(dt <= m.t_tol && db <= m.bary_tol && be <= BUILTIN_TOL) {
             self.m.over_tolerance += 1;
             self.example("over_tolerance", part, i, tr, &cands);
         }
@@ -412,6 +428,8 @@ impl Acc {
             (None, y) => y,
         };
         a.t_rel_err_max = max(a.t_rel_err_max, b.t_rel_err_max);
+        a.builtin_err_max = max(a.builtin_err_max, b.builtin_err_max);
+        a.facing_errors += b.facing_errors;
         a.bary_err_max = max(a.bary_err_max, b.bary_err_max);
         self.t_ulps.extend_from_slice(&other.t_ulps);
         for e in &other.examples {
@@ -436,12 +454,15 @@ pub fn evaluate(kind: CaseKind, parts: &[Part], traced: &[Vec<Traced>]) -> CaseR
         results.push(PartResult { label: part.label.clone(), distance: part.distance, metrics: acc.finish() });
     }
     let examples = std::mem::take(&mut total.examples);
-    let metrics = total.finish();
-    let fail = metrics.disagreements > 0 || metrics.double_hits > 0 || metrics.over_tolerance > 0;
+    let mut metrics = total.finish();
+    if kind == CaseKind::Transform {
+        metrics.facing_errors = super::transform::facing_errors(parts, traced);
+    }
+    let fail = metrics.disagreements > 0 || metrics.double_hits > 0 || metrics.over_tolerance > 0 || metrics.facing_errors > 0;
     let verdict = if fail { Verdict::Fail } else { Verdict::Pass };
     let detail = fail.then(|| {
         format!(
-            "{} leaks ({} with a subnormal ray component), {} false hits, {} wrong hits, {} double hits ({} exactly on an edge, {} near one), {} of {} hits outside the tolerance",
+            "{} leaks ({} with a subnormal ray component), {} false hits, {} wrong hits, {} double hits ({} exactly on an edge, {} near one), {} of {} hits outside the tolerance, {} facing errors",
             metrics.leaks,
             metrics.leaks_subnormal,
             metrics.false_hits,
@@ -450,7 +471,8 @@ pub fn evaluate(kind: CaseKind, parts: &[Part], traced: &[Vec<Traced>]) -> CaseR
             metrics.double_hits_on_edge,
             metrics.double_hits_near_edge,
             metrics.over_tolerance,
-            metrics.compared
+            metrics.compared,
+            metrics.facing_errors
         )
     });
     CaseResult { name: kind.as_str(), verdict, detail, metrics, ms: 0.0, parts: results, examples }

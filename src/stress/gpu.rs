@@ -24,7 +24,7 @@ const HEADER: &str = "#version 460\n#extension GL_EXT_ray_tracing : require\n#ex
 const COMMON: &str = r#"
 layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer Rays { vec4 v[]; };
 layout(buffer_reference, std430, buffer_reference_align = 4) buffer Results { uint w[]; };
-layout(push_constant, std430) uniform Push { uint64_t rays; uint64_t results; uint64_t tlas; uint count; uint width; } pc;
+layout(push_constant, std430) uniform Push { uint64_t rays; uint64_t results; uint64_t tlas; uint count; uint width; uint ray_flags; } pc;
 uint ray_index() { return gl_LaunchIDEXT.y * pc.width + gl_LaunchIDEXT.x; }
 "#;
 
@@ -37,9 +37,9 @@ void main() {
     vec4 a = r.v[2 * i];
     vec4 b = r.v[2 * i + 1];
     pass_ = 1u;
-    traceRayEXT(accelerationStructureEXT(pc.tlas), gl_RayFlagsNoneEXT, 0xff, 0, 0, 0, a.xyz, a.w, b.xyz, b.w, 0);
+    traceRayEXT(accelerationStructureEXT(pc.tlas), pc.ray_flags, 0xff, 0, 0, 0, a.xyz, a.w, b.xyz, b.w, 0);
     pass_ = 2u;
-    traceRayEXT(accelerationStructureEXT(pc.tlas), gl_RayFlagsOpaqueEXT, 0xff, 0, 0, 0, a.xyz, a.w, b.xyz, b.w, 0);
+    traceRayEXT(accelerationStructureEXT(pc.tlas), pc.ray_flags | gl_RayFlagsOpaqueEXT, 0xff, 0, 0, 0, a.xyz, a.w, b.xyz, b.w, 0);
 }
 "#;
 
@@ -65,6 +65,11 @@ void main() {
     o.w[base + W_V] = floatBitsToUint(bary.y);
     o.w[base + W_PRIMITIVE] = uint(gl_PrimitiveID);
     o.w[base + W_INSTANCE] = uint(gl_InstanceCustomIndexEXT);
+    o.w[base + W_HIT_KIND] = gl_HitKindEXT;
+    for (int k = 0; k < 3; k++) {
+        o.w[base + W_OBJ_ORIGIN + k] = floatBitsToUint(gl_ObjectRayOriginEXT[k]);
+        o.w[base + W_OBJ_DIR + k] = floatBitsToUint(gl_ObjectRayDirectionEXT[k]);
+    }
 }
 "#;
 
@@ -194,6 +199,7 @@ impl GpuTracer {
         push.extend(tlas.address.to_le_bytes());
         push.extend((n as u32).to_le_bytes());
         push.extend(LAUNCH_WIDTH.to_le_bytes());
+        push.extend(part.ray_flags.to_le_bytes());
         let rt = gpu.rt.as_ref().expect("ray tracing pipeline enabled");
         let sbt = self.pipeline.sbt.as_ref().expect("RT pipeline has an SBT");
         let height = (n as u32).div_ceil(LAUNCH_WIDTH);

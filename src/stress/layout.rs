@@ -4,7 +4,7 @@
 use super::{Ray, Traced, TracedHit};
 
 /// u32 words of one result record.
-pub const RESULT_WORDS: usize = 10;
+pub const RESULT_WORDS: usize = 17;
 pub const W_STATUS: usize = 0;
 pub const W_T: usize = 1;
 pub const W_U: usize = 2;
@@ -17,12 +17,16 @@ pub const W_PASS: usize = 7;
 /// reported, and whether one primitive was reported twice).
 pub const W_CAND0: usize = 8;
 pub const W_CAND1: usize = 9;
+/// gl_HitKindEXT, then gl_ObjectRayOriginEXT.xyz and gl_ObjectRayDirectionEXT.xyz (f32 bits).
+pub const W_HIT_KIND: usize = 10;
+pub const W_OBJ_ORIGIN: usize = 11;
+pub const W_OBJ_DIR: usize = 14;
 /// Status word: the closest-hit shader ran.
 pub const STATUS_HIT: u32 = 1;
 /// Status word: the miss shader ran (in the second, opaque trace).
 pub const STATUS_MISS: u32 = 2;
-/// Push constants: rays address, results address, TLAS address, ray count, launch width.
-pub const PUSH_SIZE: u32 = 32;
+/// Push constants: rays address, results address, TLAS address, ray count, launch width, ray flags.
+pub const PUSH_SIZE: u32 = 36;
 /// Launch width (rays are laid out row by row).
 pub const LAUNCH_WIDTH: u32 = 1024;
 
@@ -31,7 +35,7 @@ pub fn glsl_header() -> String {
     format!(
         "#define RESULT_WORDS {RESULT_WORDS}\n#define W_STATUS {W_STATUS}\n#define W_T {W_T}\n#define W_U {W_U}\n#define W_V {W_V}\n\
 #define W_PRIMITIVE {W_PRIMITIVE}\n#define W_INSTANCE {W_INSTANCE}\n#define W_CANDIDATES {W_CANDIDATES}\n#define W_PASS {W_PASS}\n\
-#define W_CAND0 {W_CAND0}\n#define W_CAND1 {W_CAND1}\n\
+#define W_CAND0 {W_CAND0}\n#define W_CAND1 {W_CAND1}\n#define W_HIT_KIND {W_HIT_KIND}\n#define W_OBJ_ORIGIN {W_OBJ_ORIGIN}\n#define W_OBJ_DIR {W_OBJ_DIR}\n\
 #define STATUS_HIT {STATUS_HIT}u\n#define STATUS_MISS {STATUS_MISS}u\n"
     )
 }
@@ -59,6 +63,9 @@ pub fn decode(bytes: &[u8], n: usize) -> Vec<Option<Traced>> {
                     bary: [f32::from_bits(w(i, W_U)), f32::from_bits(w(i, W_V))],
                     primitive: w(i, W_PRIMITIVE),
                     instance: w(i, W_INSTANCE),
+                    hit_kind: w(i, W_HIT_KIND),
+                    object_origin: std::array::from_fn(|k| f32::from_bits(w(i, W_OBJ_ORIGIN + k))),
+                    object_dir: std::array::from_fn(|k| f32::from_bits(w(i, W_OBJ_DIR + k))),
                 }),
                 STATUS_MISS => None,
                 _ => return None,

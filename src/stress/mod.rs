@@ -2,8 +2,9 @@
 //! watertight reference (`reference::watertight`). Each case (`cases`) builds small scenes and
 //! rays; a [`Tracer`] (the real RT pipeline in `gpu`, or a CPU intersector in `cpu` for tests)
 //! returns, per ray, the committed hit and the number of candidate hits any-hit saw; `evaluate`
-//! turns them into leaks, double hits, disagreements and t / barycentric errors against
-//! tolerances; `report` prints the tables and writes the JSON and the SVG of `far`.
+//! turns them into leaks, double hits, disagreements and t / barycentric / built-in errors
+//! against tolerances (`transform` adds facing and culling, `selfhit` builds the `self` case
+//! from the device's own hits); `report` prints the tables and writes the JSON and the SVG of `far`.
 pub mod cases;
 pub mod cpu;
 pub mod evaluate;
@@ -12,6 +13,7 @@ pub mod layout;
 pub mod report;
 pub mod selfhit;
 pub mod svg;
+pub mod transform;
 
 use serde::Serialize;
 
@@ -64,6 +66,8 @@ pub struct Part {
     pub scene: Scene,
     pub rays: Vec<Ray>,
     pub info: Vec<RayInfo>,
+    /// Ray flags of both traces (culling; the second trace adds gl_RayFlagsOpaqueEXT).
+    pub ray_flags: u32,
 }
 
 /// What a tracer returns for one ray.
@@ -83,6 +87,11 @@ pub struct TracedHit {
     pub bary: [f32; 2],
     pub primitive: u32,
     pub instance: u32,
+    /// gl_HitKindEXT (0xFE front, 0xFF back); 0 from CPU tracers.
+    pub hit_kind: u32,
+    /// gl_ObjectRayOriginEXT and gl_ObjectRayDirectionEXT in the closest-hit shader.
+    pub object_origin: [f32; 3],
+    pub object_dir: [f32; 3],
 }
 
 #[derive(Debug, thiserror::Error)]

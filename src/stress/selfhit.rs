@@ -44,7 +44,7 @@ pub fn offset_ray(p: [f32; 3], n: [f32; 3]) -> [f32; 3] {
 /// Secondary rays (raw origin, offset origin) from the primary hits.
 fn secondaries(primary: &Part, traced: &[Traced]) -> (Part, Part) {
     let mesh = &primary.scene.meshes[0];
-    let mut raw = Part { label: "secondary-raw".into(), distance: None, scene: primary.scene.clone(), rays: vec![], info: vec![] };
+    let mut raw = Part { label: "secondary-raw".into(), ..primary.clone_empty() };
     let mut off = Part { label: "secondary-offset".into(), ..raw.clone_empty() };
     for (ray, tr) in primary.rays.iter().zip(traced) {
         let Some(h) = tr.hit else { continue };
@@ -76,7 +76,7 @@ fn secondaries(primary: &Part, traced: &[Traced]) -> (Part, Part) {
 
 impl Part {
     fn clone_empty(&self) -> Part {
-        Part { label: self.label.clone(), distance: self.distance, scene: self.scene.clone(), rays: vec![], info: vec![] }
+        Part { label: self.label.clone(), distance: self.distance, scene: self.scene.clone(), rays: vec![], info: vec![], ray_flags: self.ray_flags }
     }
 }
 
@@ -85,7 +85,7 @@ impl Part {
 pub fn run(tracer: &mut dyn Tracer, opts: &StressOptions) -> Result<(Vec<Part>, Vec<Vec<Traced>>), (Vec<Part>, TraceError)> {
     let mut rng = Rng::new(opts.seed ^ 0x5e1f);
     let g = if opts.full { 256 } else { 48 };
-    let mut primary = Part { label: "primary".into(), distance: None, scene: scene(&mut rng), rays: vec![], info: vec![] };
+    let mut primary = Part { label: "primary".into(), distance: None, scene: scene(&mut rng), rays: vec![], info: vec![], ray_flags: 0 };
     for j in 0..g {
         for i in 0..g {
             let x = OFFSET + 4.0 * (0.03 + 0.94 * (i as f32 + 0.5) / g as f32);
