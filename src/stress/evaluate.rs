@@ -21,6 +21,7 @@
 //! - double hits: the any-hit count may not exceed the number of distinct surfaces the reference
 //!   crosses (candidates grouped by t within the margin): a shared edge or a fan's centre vertex
 //!   is one crossing ("should not double-hit").
+use super::index::Index;
 use super::{CaseKind, Part, Ray, TraceError, Traced};
 use crate::reference::watertight::{self, PlaneHit};
 use glam::DVec3;
@@ -231,23 +232,17 @@ fn margins(r: &Resolved, ray: &Ray, t: f64) -> Margins {
     Margins { edge: EDGE_EPS + bary_abs, t_amb: T_EPS * t.abs() + abs / dl, t_tol: T_REL_TOL * t.abs() + abs / dl, bary_tol: BARY_TOL + bary_abs }
 }
 
-fn candidates(part: &Part, ray: &Ray) -> Vec<Candidate> {
+fn candidates(part: &Part, index: &Index, ray: &Ray) -> Vec<Candidate> {
     let mut out = Vec::new();
-    for (k, inst) in part.scene.instances.iter().enumerate() {
-        let mesh = &part.scene.meshes[inst.mesh];
-        for p in 0..mesh.indices.len() as u32 {
-            if mesh.inactive[p as usize] {
-                continue;
-            }
-            let Some(r) = resolve(part, k as u32, p, ray) else { continue };
-            let Some(hit) = watertight::plane(r.o, r.d, r.v) else { continue };
-            let m = margins(&r, ray, hit.t);
-            let (tmin, tmax) = (ray.tmin as f64, ray.tmax as f64);
-            let possible = hit.inside >= -m.edge && hit.t >= tmin - m.t_amb && hit.t <= tmax + m.t_amb;
-            if possible {
-                let certain = hit.inside > m.edge && hit.t > tmin + m.t_amb && hit.t < tmax - m.t_amb;
-                out.push(Candidate { instance: k as u32, primitive: p, hit, certain, near_edge: hit.inside <= m.edge });
-            }
+    for (k, p) in index.query(ray) {
+        let Some(r) = resolve(part, k, p, ray) else { continue };
+        let Some(hit) = watertight::plane(r.o, r.d, r.v) else { continue };
+        let m = margins(&r, ray, hit.t);
+        let (tmin, tmax) = (ray.tmin as f64, ray.tmax as f64);
+        let possible = hit.inside >= -m.edge && hit.t >= tmin - m.t_amb && hit.t <= tmax + m.t_amb;
+        if possible {
+            let certain = hit.inside > m.edge && hit.t > tmin + m.t_amb && hit.t < tmax - m.t_amb;
+            out.push(Candidate { instance: k, primitive: p, hit, certain, near_edge: hit.inside <= m.edge });
         }
     }
     out
@@ -308,9 +303,9 @@ impl Acc {
         });
     }
 
-    fn add(&mut self, part: &Part, i: usize, tr: &Traced) {
+    fn add(&mut self, part: &Part, index: &Index, i: usize, tr: &Traced) {
         let ray = &part.rays[i];
-        let cands = candidates(part, ray);
+        let cands = candidates(part, index, ray);
         // Culled traces: the reference does not cull; `transform::facing_errors` judges them.
         let culled = part.ray_flags & (super::transform::CULL_BACK | super::transform::CULL_FRONT) != 0;
         let must_hit = !culled && (part.info[i].must_hit || cands.iter().any(|c| c.certain));
@@ -447,8 +442,9 @@ pub fn evaluate(kind: CaseKind, parts: &[Part], traced: &[Vec<Traced>]) -> CaseR
     let mut results = Vec::new();
     for (part, tr) in parts.iter().zip(traced) {
         let mut acc = Acc::default();
+        let index = Index::build(part);
         for (i, t) in tr.iter().enumerate() {
-            acc.add(part, i, t);
+            acc.add(part, &index, i, t);
         }
         total.merge(&acc);
         results.push(PartResult { label: part.label.clone(), distance: part.distance, metrics: acc.finish() });

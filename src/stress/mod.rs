@@ -9,6 +9,7 @@ pub mod cases;
 pub mod cpu;
 pub mod evaluate;
 pub mod gpu;
+pub mod index;
 pub mod layout;
 pub mod report;
 pub mod selfhit;
