@@ -127,6 +127,19 @@ fn self_hits_are_counted_and_the_offset_removes_them() {
     assert!(n(&off, "self_hits") * 10 < n(&raw, "self_hits"), "{off}");
 }
 
+/// A submission past its deadline is a `timeout` case, the cases after it are counted as not
+/// traced with the reason, the report is still written and the exit status is 1.
+#[test]
+fn a_hang_is_a_timeout_and_later_cases_say_why_they_did_not_run() {
+    let (out, doc, _dir) = stress(&["--cases", "tmin,far", "--timeout", "0.000001"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(case(&doc, "tmin")["verdict"], "timeout");
+    let far = case(&doc, "far");
+    assert_eq!(far["verdict"], "error");
+    assert!(far["detail"].as_str().unwrap().contains("not traced"), "{far}");
+    assert!(n(far, "rays") > 0, "the rays that could not run are counted");
+}
+
 #[test]
 fn stress_bad_input_is_one_line() {
     assert_one_line_error(&run(&["stress", "--cases", "watertight,nope"]), 2, "unknown stress case `nope`");
