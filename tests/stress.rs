@@ -32,6 +32,8 @@ fn stress_report_has_every_case_with_the_contract_fields() {
     let svg_path = svg_dir.path().join("far.svg");
     let (out, doc, _dir) = stress(&["--svg", svg_path.to_str().unwrap()]);
     assert_eq!(doc["schema"], "rtprobe.stress/1");
+    // The stress pipeline itself is valid usage (when the layer is installed, tests enable it).
+    assert_eq!(doc["validation"]["errors"], 0, "{}", stderr(&out));
     let names: Vec<&str> = doc["cases"].as_array().unwrap().iter().map(|c| c["name"].as_str().unwrap()).collect();
     assert_eq!(names, ["watertight", "far", "grazing", "degenerate", "tmin", "transform", "self"]);
     for c in doc["cases"].as_array().unwrap() {

@@ -40,13 +40,15 @@ pub fn stress(g: &Globals, args: &StressArgs) -> Result<u8> {
     if !missing.is_empty() {
         return Err(exit::coded(exit::UNSUPPORTED_DEVICE, format!("{} cannot run the stress pipeline: missing {}", info.name(), missing.join(", "))));
     }
+    let validation_active = inst.validation;
     let gpu = Gpu::new(inst, info, req)?;
     let mut tracer = GpuTracer::new(gpu, Duration::from_secs_f64(args.timeout)).map_err(|e| anyhow::anyhow!("setting up the stress pipeline: {e}"))?;
     let name = tracer.name();
     let results = stress::run(&mut tracer, &opts);
     print!("{}", report::text(&name, &results));
     if let Some(path) = &args.json {
-        let doc = report::json(&device_json, opts.seed, opts.full, &results);
+        let validation = (validation_active, crate::vk::instance::validation_error_count());
+        let doc = report::json(&device_json, opts.seed, opts.full, validation, &results);
         let text = serde_json::to_string_pretty(&doc)? + "\n";
         write_atomic(path, text.as_bytes()).context("writing the stress report")?;
     }

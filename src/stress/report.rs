@@ -62,14 +62,15 @@ pub fn text(device: &str, cases: &[CaseResult]) -> String {
     s
 }
 
-/// The JSON report.
-pub fn json(device: &Value, seed: u64, full: bool, cases: &[CaseResult]) -> Value {
+/// The JSON report; `validation` is (layer active, errors it reported during the run).
+pub fn json(device: &Value, seed: u64, full: bool, validation: (bool, u64), cases: &[CaseResult]) -> Value {
     json!({
         "schema": "rtprobe.stress/1",
         "rtprobe_version": env!("CARGO_PKG_VERSION"),
         "device": device,
         "seed": seed,
         "full": full,
+        "validation": { "active": validation.0, "errors": validation.1 },
         "tolerances": {
             "t_rel": evaluate::T_REL_TOL,
             "bary": evaluate::BARY_TOL,
