@@ -142,6 +142,23 @@ fn a_hang_is_a_timeout_and_later_cases_say_why_they_did_not_run() {
     assert!(n(far, "rays") > 0, "the rays that could not run are counted");
 }
 
+/// Ray queries in a compute shader trace the same rays: on lavapipe (one intersection routine)
+/// every count agrees with the pipeline's, and the report says which tracer ran.
+#[test]
+fn ray_query_traces_the_same_rays() {
+    let cases = "watertight,degenerate,tmin,transform";
+    let (_o1, rt, _d1) = stress(&["--cases", cases]);
+    let (_o2, rq, _d2) = stress(&["--cases", cases, "--ray-query"]);
+    assert_eq!(rt["tracer"], "pipeline");
+    assert_eq!(rq["tracer"], "ray_query");
+    for name in cases.split(',') {
+        let (a, b) = (case(&rt, name), case(&rq, name));
+        for field in ["rays", "hits", "leaks", "false_hits", "wrong_hits", "double_hits", "facing_errors", "over_tolerance"] {
+            assert_eq!(a[field], b[field], "{name}.{field}");
+        }
+    }
+}
+
 #[test]
 fn stress_bad_input_is_one_line() {
     assert_one_line_error(&run(&["stress", "--cases", "watertight,nope"]), 2, "unknown stress case `nope`");

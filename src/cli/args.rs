@@ -219,6 +219,10 @@ pub struct StressArgs {
     /// Deadline for one submission (AS build or trace), in seconds
     #[arg(long, default_value_t = 20.0, value_name = "SECONDS")]
     pub timeout: f64,
+
+    /// Trace with ray queries in a compute shader instead of an RT pipeline (VK_KHR_ray_query)
+    #[arg(long)]
+    pub ray_query: bool,
 }
 
 #[derive(Args, Debug)]

@@ -5,7 +5,8 @@ use super::args::StressArgs;
 use super::commands::{open_instance, Globals};
 use super::exit;
 use crate::report::write_atomic;
-use crate::stress::{self, gpu::GpuTracer, report, CaseKind, StressOptions, Tracer};
+use crate::stress::gpu::{GpuTracer, Mode};
+use crate::stress::{self, report, CaseKind, StressOptions, Tracer};
 use crate::vk::{features, Gpu, Requirements};
 use anyhow::{Context, Result};
 use std::time::Duration;
@@ -35,20 +36,21 @@ pub fn stress(g: &Globals, args: &StressArgs) -> Result<u8> {
     let all = features::query_all(&inst)?;
     let info = features::select(&all, args.device.as_deref())?.clone();
     let device_json = crate::caps::device_json(&info);
-    let req = Requirements { rt_pipeline: true, buffer_device_address: true, int64: true, ..Requirements::default() };
+    let mode = if args.ray_query { Mode::RayQuery } else { Mode::Pipeline };
+    let req = Requirements { rt_pipeline: mode == Mode::Pipeline, ray_query: mode == Mode::RayQuery, buffer_device_address: true, int64: true, ..Requirements::default() };
     let missing = req.missing_on(&info);
     if !missing.is_empty() {
-        return Err(exit::coded(exit::UNSUPPORTED_DEVICE, format!("{} cannot run the stress pipeline: missing {}", info.name(), missing.join(", "))));
+        return Err(exit::coded(exit::UNSUPPORTED_DEVICE, format!("{} cannot run the stress suite with {}: missing {}", info.name(), mode.as_str(), missing.join(", "))));
     }
     let validation_active = inst.validation;
     let gpu = Gpu::new(inst, info, req)?;
-    let mut tracer = GpuTracer::new(gpu, Duration::from_secs_f64(args.timeout)).map_err(|e| anyhow::anyhow!("setting up the stress pipeline: {e}"))?;
+    let mut tracer = GpuTracer::new(gpu, Duration::from_secs_f64(args.timeout), mode).map_err(|e| anyhow::anyhow!("setting up the stress pipeline: {e}"))?;
     let name = tracer.name();
     let results = stress::run(&mut tracer, &opts);
     print!("{}", report::text(&name, &results));
     if let Some(path) = &args.json {
         let validation = (validation_active, crate::vk::instance::validation_error_count());
-        let doc = report::json(&device_json, opts.seed, opts.full, validation, &results);
+        let doc = report::json(&device_json, mode.as_str(), opts.seed, opts.full, validation, &results);
         let text = serde_json::to_string_pretty(&doc)? + "\n";
         write_atomic(path, text.as_bytes()).context("writing the stress report")?;
     }

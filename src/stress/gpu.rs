@@ -1,4 +1,5 @@
-//! The stress suite on the device: one RT pipeline (raygen, miss, closest hit, any-hit; push
+//! The stress suite on the device ([`Mode::Pipeline`]; [`Mode::RayQuery`] traces the same rays
+//! with ray queries in a compute shader): one RT pipeline (raygen, miss, closest hit, any-hit; push
 //! constants only, buffers and the TLAS by device address) and, per part, one BLAS per mesh
 //! (one non-opaque geometry with NO_DUPLICATE_ANY_HIT_INVOCATION) and a TLAS. The raygen traces
 //! each ray twice: first non-opaque, where any-hit counts every candidate and ignores it (so
@@ -25,8 +26,9 @@ const COMMON: &str = r#"
 layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer Rays { vec4 v[]; };
 layout(buffer_reference, std430, buffer_reference_align = 4) buffer Results { uint w[]; };
 layout(push_constant, std430) uniform Push { uint64_t rays; uint64_t results; uint64_t tlas; uint count; uint width; uint ray_flags; } pc;
-uint ray_index() { return gl_LaunchIDEXT.y * pc.width + gl_LaunchIDEXT.x; }
 "#;
+
+const RT_INDEX: &str = "uint ray_index() { return gl_LaunchIDEXT.y * pc.width + gl_LaunchIDEXT.x; }\n";
 
 const RAYGEN: &str = r#"
 layout(location = 0) rayPayloadEXT uint pass_;
@@ -91,8 +93,100 @@ const UNUSED_PROCEDURAL: &str = "void main() {}\n";
 const UNUSED_INTERSECTION: &str = "void main() { reportIntersectionEXT(0.0, 0u); }\n";
 const UNUSED_PROBE_MISS: &str = "void main() {}\n";
 
+/// The same two traces with a ray query in a compute shader: the first query walks every
+/// candidate (none is confirmed: counted like any-hit), the second is opaque and commits the
+/// closest hit. Front face maps to the hit kinds of the pipeline (0xFE front, 0xFF back).
+const RAY_QUERY: &str = r#"
+layout(local_size_x = 64) in;
+void main() {
+    uint i = gl_GlobalInvocationID.x;
+    if (i >= pc.count) return;
+    Rays r = Rays(pc.rays);
+    vec4 a = r.v[2 * i];
+    vec4 b = r.v[2 * i + 1];
+    Results o = Results(pc.results);
+    uint base = i * RESULT_WORDS;
+    rayQueryEXT q;
+    rayQueryInitializeEXT(q, accelerationStructureEXT(pc.tlas), pc.ray_flags, 0xff, a.xyz, a.w, b.xyz, b.w);
+    uint n = 0u;
+    while (rayQueryProceedEXT(q)) {
+        if (rayQueryGetIntersectionTypeEXT(q, false) == gl_RayQueryCandidateIntersectionTriangleEXT) {
+            uint id = ((uint(rayQueryGetIntersectionInstanceCustomIndexEXT(q, false)) << 24) | uint(rayQueryGetIntersectionPrimitiveIndexEXT(q, false))) + 1u;
+            if (n < 2u) o.w[base + W_CAND0 + n] = id;
+            n++;
+        }
+    }
+    o.w[base + W_CANDIDATES] = n;
+    o.w[base + W_PASS] = 2u;
+    rayQueryEXT c;
+    rayQueryInitializeEXT(c, accelerationStructureEXT(pc.tlas), pc.ray_flags | gl_RayFlagsOpaqueEXT, 0xff, a.xyz, a.w, b.xyz, b.w);
+    while (rayQueryProceedEXT(c)) {}
+    if (rayQueryGetIntersectionTypeEXT(c, true) == gl_RayQueryCommittedIntersectionNoneEXT) {
+        o.w[base + W_STATUS] = STATUS_MISS;
+        return;
+    }
+    vec2 bary = rayQueryGetIntersectionBarycentricsEXT(c, true);
+    o.w[base + W_STATUS] = STATUS_HIT;
+    o.w[base + W_T] = floatBitsToUint(rayQueryGetIntersectionTEXT(c, true));
+    o.w[base + W_U] = floatBitsToUint(bary.x);
+    o.w[base + W_V] = floatBitsToUint(bary.y);
+    o.w[base + W_PRIMITIVE] = uint(rayQueryGetIntersectionPrimitiveIndexEXT(c, true));
+    o.w[base + W_INSTANCE] = uint(rayQueryGetIntersectionInstanceCustomIndexEXT(c, true));
+    o.w[base + W_HIT_KIND] = rayQueryGetIntersectionFrontFaceEXT(c, true) ? 0xFEu : 0xFFu;
+    vec3 oo = rayQueryGetIntersectionObjectRayOriginEXT(c, true);
+    vec3 od = rayQueryGetIntersectionObjectRayDirectionEXT(c, true);
+    for (int k = 0; k < 3; k++) {
+        o.w[base + W_OBJ_ORIGIN + k] = floatBitsToUint(oo[k]);
+        o.w[base + W_OBJ_DIR + k] = floatBitsToUint(od[k]);
+    }
+}
+"#;
+
+const RQ_HEADER: &str = "#version 460\n#extension GL_EXT_ray_query : require\n#extension GL_EXT_buffer_reference : require\n\
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require\n";
+
 fn source(role: Role, body: &str) -> ShaderSource {
-    ShaderSource { role, glsl: format!("{HEADER}{}{COMMON}{body}", glsl_header()) }
+    ShaderSource { role, glsl: format!("{HEADER}{}{COMMON}{RT_INDEX}{body}", glsl_header()) }
+}
+
+/// How rays are traced: `traceRayEXT` in an RT pipeline, or `rayQueryEXT` in a compute shader.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    Pipeline,
+    RayQuery,
+}
+
+impl Mode {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Mode::Pipeline => "pipeline",
+            Mode::RayQuery => "ray_query",
+        }
+    }
+
+    fn stages(self) -> vk::ShaderStageFlags {
+        match self {
+            Mode::Pipeline => vk::ShaderStageFlags::RAYGEN_KHR | vk::ShaderStageFlags::MISS_KHR | vk::ShaderStageFlags::CLOSEST_HIT_KHR | vk::ShaderStageFlags::ANY_HIT_KHR,
+            Mode::RayQuery => vk::ShaderStageFlags::COMPUTE,
+        }
+    }
+
+    fn shaders(self) -> CellShaders {
+        let shaders = match self {
+            Mode::Pipeline => vec![
+                source(Role::Raygen, RAYGEN),
+                source(Role::Miss, MISS),
+                source(Role::ProbeMiss, UNUSED_PROBE_MISS),
+                source(Role::ClosestHitTriangles, CLOSEST_HIT),
+                source(Role::AnyHit, ANY_HIT),
+                source(Role::ClosestHitProcedural, UNUSED_PROCEDURAL),
+                source(Role::Intersection, UNUSED_INTERSECTION),
+            ],
+            Mode::RayQuery => vec![ShaderSource { role: Role::Compute, glsl: format!("{RQ_HEADER}{}{COMMON}{RAY_QUERY}", glsl_header()) }],
+        };
+        let kind = if self == Mode::Pipeline { PipelineKind::RayTracing } else { PipelineKind::Compute };
+        CellShaders { kind, shaders, recursion_depth: 1, uses_probe_binding: false, uses_scene_tlas: false, uses_ray_query: self == Mode::RayQuery }
+    }
 }
 
 pub struct GpuTracer {
@@ -103,6 +197,7 @@ pub struct GpuTracer {
     timeout: Duration,
     /// Set after a device loss or a timeout: later parts are not traced on this device.
     broken: Option<String>,
+    mode: Mode,
 }
 
 fn vk_err(e: VkError) -> TraceError {
@@ -110,37 +205,22 @@ fn vk_err(e: VkError) -> TraceError {
 }
 
 impl GpuTracer {
-    pub fn new(gpu: Gpu, timeout: Duration) -> Result<Self, TraceError> {
+    pub fn new(gpu: Gpu, timeout: Duration, mode: Mode) -> Result<Self, TraceError> {
         let mut compiler = Compiler::new().map_err(|e| TraceError::Failed(e.to_string()))?;
-        let shaders = CellShaders {
-            kind: PipelineKind::RayTracing,
-            shaders: vec![
-                source(Role::Raygen, RAYGEN),
-                source(Role::Miss, MISS),
-                source(Role::ProbeMiss, UNUSED_PROBE_MISS),
-                source(Role::ClosestHitTriangles, CLOSEST_HIT),
-                source(Role::AnyHit, ANY_HIT),
-                source(Role::ClosestHitProcedural, UNUSED_PROCEDURAL),
-                source(Role::Intersection, UNUSED_INTERSECTION),
-            ],
-            recursion_depth: 1,
-            uses_probe_binding: false,
-            uses_scene_tlas: false,
-            uses_ray_query: false,
-        };
+        let shaders = mode.shaders();
         let mut spirv = Vec::new();
         for s in &shaders.shaders {
             spirv.push(compiler.compile(s.role, &s.glsl).map_err(|e| TraceError::Failed(e.to_string()))?.0);
         }
         let submitter = Submitter::new(&gpu).map_err(vk_err)?;
         let range = [vk::PushConstantRange::default()
-            .stage_flags(vk::ShaderStageFlags::RAYGEN_KHR | vk::ShaderStageFlags::MISS_KHR | vk::ShaderStageFlags::CLOSEST_HIT_KHR | vk::ShaderStageFlags::ANY_HIT_KHR)
+            .stage_flags(mode.stages())
             .size(PUSH_SIZE)];
         let layout = unsafe { gpu.device.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().push_constant_ranges(&range), None) }
             .at("vkCreatePipelineLayout")
             .map_err(vk_err)?;
         let pipeline = pipeline::create(&gpu, vk::PipelineCache::null(), &shaders, &spirv, layout, DescriptorModel::DescriptorIndexing).map_err(vk_err)?;
-        Ok(GpuTracer { gpu, submitter, layout, pipeline, timeout, broken: None })
+        Ok(GpuTracer { gpu, submitter, layout, pipeline, timeout, broken: None, mode })
     }
 
     fn build(&self, part: &Part, keep: &mut Vec<Buffer>) -> Result<(Vec<AccelStruct>, AccelStruct), TraceError> {
@@ -200,14 +280,22 @@ impl GpuTracer {
         push.extend((n as u32).to_le_bytes());
         push.extend(LAUNCH_WIDTH.to_le_bytes());
         push.extend(part.ray_flags.to_le_bytes());
-        let rt = gpu.rt.as_ref().expect("ray tracing pipeline enabled");
-        let sbt = self.pipeline.sbt.as_ref().expect("RT pipeline has an SBT");
         let height = (n as u32).div_ceil(LAUNCH_WIDTH);
-        let stages = vk::ShaderStageFlags::RAYGEN_KHR | vk::ShaderStageFlags::MISS_KHR | vk::ShaderStageFlags::CLOSEST_HIT_KHR | vk::ShaderStageFlags::ANY_HIT_KHR;
         let waited = self.submitter.run(gpu, self.timeout, |cmd| unsafe {
-            gpu.device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::RAY_TRACING_KHR, self.pipeline.raw);
-            gpu.device.cmd_push_constants(cmd, self.layout, stages, 0, &push);
-            rt.cmd_trace_rays(cmd, &sbt.raygen, &sbt.miss, &sbt.hit, &sbt.callable, LAUNCH_WIDTH, height, 1);
+            match self.mode {
+                Mode::Pipeline => {
+                    let rt = gpu.rt.as_ref().expect("ray tracing pipeline enabled");
+                    let sbt = self.pipeline.sbt.as_ref().expect("RT pipeline has an SBT");
+                    gpu.device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::RAY_TRACING_KHR, self.pipeline.raw);
+                    gpu.device.cmd_push_constants(cmd, self.layout, self.mode.stages(), 0, &push);
+                    rt.cmd_trace_rays(cmd, &sbt.raygen, &sbt.miss, &sbt.hit, &sbt.callable, LAUNCH_WIDTH, height, 1);
+                }
+                Mode::RayQuery => {
+                    gpu.device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, self.pipeline.raw);
+                    gpu.device.cmd_push_constants(cmd, self.layout, self.mode.stages(), 0, &push);
+                    gpu.device.cmd_dispatch(cmd, (n as u32).div_ceil(64), 1, 1);
+                }
+            }
             full_barrier(gpu, cmd);
         });
         let bytes = results.read(n * RESULT_WORDS * 4);
@@ -236,7 +324,7 @@ fn destroy_accel<'a>(gpu: &Gpu, all: impl Iterator<Item = &'a AccelStruct>) {
 
 impl Tracer for GpuTracer {
     fn name(&self) -> String {
-        format!("{} ({} {})", self.gpu.info.name(), self.gpu.info.driver_name(), self.gpu.info.driver_version())
+        format!("{} ({} {}), {}", self.gpu.info.name(), self.gpu.info.driver_name(), self.gpu.info.driver_version(), self.mode.as_str())
     }
 
     fn trace(&mut self, part: &Part) -> Result<Vec<Traced>, TraceError> {

@@ -63,11 +63,12 @@ pub fn text(device: &str, cases: &[CaseResult]) -> String {
 }
 
 /// The JSON report; `validation` is (layer active, errors it reported during the run).
-pub fn json(device: &Value, seed: u64, full: bool, validation: (bool, u64), cases: &[CaseResult]) -> Value {
+pub fn json(device: &Value, tracer: &str, seed: u64, full: bool, validation: (bool, u64), cases: &[CaseResult]) -> Value {
     json!({
         "schema": "rtprobe.stress/1",
         "rtprobe_version": env!("CARGO_PKG_VERSION"),
         "device": device,
+        "tracer": tracer,
         "seed": seed,
         "full": full,
         "validation": { "active": validation.0, "errors": validation.1 },
