@@ -17,3 +17,4 @@ pub mod runner;
 pub mod patches;
 pub mod bisect;
 pub mod fleet;
+pub mod stress;

@@ -50,6 +50,9 @@ pub enum Command {
     /// What changed between two run reports: per cell (fixed, regressed, new, gone) and time per
     /// phase; text or Markdown (exit 1 when an outcome changed)
     Diff(DiffArgs),
+    /// Numerical stability of the driver's ray/triangle traversal against an f64 watertight
+    /// reference: leaks, double hits, t and barycentric error per case (exit 1 when a case fails)
+    Stress(StressArgs),
     /// Internal: run cells for the supervisor (`rtprobe run`); not for direct use
     #[command(name = "__worker", hide = true)]
     Worker {
@@ -271,6 +274,42 @@ pub struct CapsArgs {
     /// Do not create a logical device to check that the features the matrix needs can be enabled
     #[arg(long)]
     pub no_device_check: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct StressArgs {
+    /// Device index or case-insensitive name substring (default: the first RT-capable device)
+    #[arg(long, short = 'd', value_name = "INDEX|NAME")]
+    pub device: Option<String>,
+
+    /// Cases to run, comma-separated (default: all): watertight, far, grazing, degenerate, tmin,
+    /// transform, self
+    #[arg(long, value_delimiter = ',', value_name = "CASE,...")]
+    pub cases: Vec<String>,
+
+    /// Seed of the random scenes and rays
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+
+    /// CTS-sized scenes and ray counts (65,536-triangle square, 256×256 rays; slow on CPU drivers)
+    #[arg(long)]
+    pub full: bool,
+
+    /// Write the JSON report (schema rtprobe.stress/1) to FILE, atomically
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+
+    /// Write the `far` case's error-against-distance plot as SVG to FILE
+    #[arg(long, value_name = "FILE")]
+    pub svg: Option<PathBuf>,
+
+    /// Deadline for one submission (AS build or trace), in seconds
+    #[arg(long, default_value_t = 20.0, value_name = "SECONDS")]
+    pub timeout: f64,
+
+    /// Trace with ray queries in a compute shader instead of an RT pipeline (VK_KHR_ray_query)
+    #[arg(long)]
+    pub ray_query: bool,
 }
 
 #[derive(Args, Debug)]

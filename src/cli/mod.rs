@@ -9,6 +9,7 @@ pub mod patch;
 pub mod repro;
 pub mod report;
 pub mod run;
+pub mod stress;
 
 use args::{Cli, Command};
 use clap::Parser;
@@ -44,6 +45,7 @@ pub fn main_entry() -> u8 {
         Command::Bisect(a) => bisect::bisect(&g, a),
         Command::Report(a) => report::report(a),
         Command::Repro(a) => repro::repro(&g, a),
+        Command::Stress(a) => stress::stress(&g, a),
         Command::Baseline(a) => fleet::baseline(a),
         Command::Merge(a) => fleet::merge_cmd(a),
         Command::Diff(a) => fleet::diff_cmd(a),

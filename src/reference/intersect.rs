@@ -5,7 +5,7 @@
 //! [`candidates`] collects every instance's hits of one ray once; [`resolve`] picks the closest
 //! among the instances a TLAS holds, so the AS probe's TLAS variants cost one traversal.
 use crate::scene::{Geometry, Instance, Scene, RAY_TMAX, RAY_TMIN, SPHERE_RADIUS};
-use glam::{DMat3, DVec3};
+use glam::DVec3;
 
 /// Barycentric margin inside which a hit is marginal.
 pub const EPS_BARY: f64 = 1e-4;
@@ -40,15 +40,7 @@ pub struct Candidate {
 }
 
 fn object_ray(inst: &Instance, o: DVec3, d: DVec3) -> (DVec3, DVec3) {
-    let m = inst.transform;
-    let a = DMat3::from_cols(
-        DVec3::new(m[0][0] as f64, m[1][0] as f64, m[2][0] as f64),
-        DVec3::new(m[0][1] as f64, m[1][1] as f64, m[2][1] as f64),
-        DVec3::new(m[0][2] as f64, m[1][2] as f64, m[2][2] as f64),
-    );
-    let t = DVec3::new(m[0][3] as f64, m[1][3] as f64, m[2][3] as f64);
-    let inv = a.inverse();
-    (inv * (o - t), inv * d)
+    super::watertight::object_ray(&inst.transform, o, d)
 }
 
 /// Whether the object-space ray can come within a margin of the object-space box `lo..hi`

@@ -24,6 +24,7 @@
 //! every other element of the slot holds a different value, i.e. whether reading any wrong
 //! element would have been caught there.
 pub mod intersect;
+pub mod watertight;
 
 use crate::matrix::cell::Workaround;
 use crate::matrix::{AsAccess, Cell, IndexSource, Resource, Stage};

@@ -35,27 +35,65 @@ pub enum BuildError {
     TimedOut(Duration),
 }
 
-const INPUT_USAGE: vk::BufferUsageFlags = vk::BufferUsageFlags::from_raw(
+pub(crate) const INPUT_USAGE: vk::BufferUsageFlags = vk::BufferUsageFlags::from_raw(
     vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR.as_raw() | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS.as_raw(),
 );
 
-fn bytes_of<T: Copy>(v: &[T]) -> &[u8] {
+pub(crate) fn bytes_of<T: Copy>(v: &[T]) -> &[u8] {
     // SAFETY: plain-old-data slices of f32/u32 arrays and Vulkan POD structs.
     unsafe { std::slice::from_raw_parts(v.as_ptr() as *const u8, std::mem::size_of_val(v)) }
 }
 
-struct Pending {
-    geometries: Vec<vk::AccelerationStructureGeometryKHR<'static>>,
-    ranges: Vec<vk::AccelerationStructureBuildRangeInfoKHR>,
-    ty: vk::AccelerationStructureTypeKHR,
+pub(crate) struct Pending {
+    pub(crate) geometries: Vec<vk::AccelerationStructureGeometryKHR<'static>>,
+    pub(crate) ranges: Vec<vk::AccelerationStructureBuildRangeInfoKHR>,
+    pub(crate) ty: vk::AccelerationStructureTypeKHR,
 }
 
-type Build<'a> = (vk::AccelerationStructureBuildGeometryInfoKHR<'a>, &'a [vk::AccelerationStructureBuildRangeInfoKHR]);
+/// One BLAS build of one triangle geometry (f32 positions, u32 indices) with `flags`; the vertex
+/// and index buffers go to `inputs` (they must live until the build has run).
+pub(crate) fn triangles(gpu: &Gpu, positions: &[[f32; 3]], indices: &[[u32; 3]], flags: vk::GeometryFlagsKHR, inputs: &mut Vec<Buffer>) -> Result<Pending, VkError> {
+    let vb = Buffer::with_data(gpu, bytes_of(positions), INPUT_USAGE, "vertex buffer")?;
+    let ib = match Buffer::with_data(gpu, bytes_of(indices), INPUT_USAGE, "index buffer") {
+        Ok(b) => b,
+        Err(e) => {
+            inputs.push(vb);
+            return Err(e);
+        }
+    };
+    let tri = vk::AccelerationStructureGeometryTrianglesDataKHR::default()
+        .vertex_format(vk::Format::R32G32B32_SFLOAT)
+        .vertex_data(vk::DeviceOrHostAddressConstKHR { device_address: vb.address })
+        .vertex_stride(12)
+        .max_vertex(positions.len() as u32 - 1)
+        .index_type(vk::IndexType::UINT32)
+        .index_data(vk::DeviceOrHostAddressConstKHR { device_address: ib.address });
+    let geometry = vk::AccelerationStructureGeometryKHR::default()
+        .geometry_type(vk::GeometryTypeKHR::TRIANGLES)
+        .geometry(vk::AccelerationStructureGeometryDataKHR { triangles: tri })
+        .flags(flags);
+    let range = vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(indices.len() as u32);
+    inputs.extend([vb, ib]);
+    Ok(Pending { geometries: vec![geometry], ranges: vec![range], ty: vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL })
+}
+
+/// Record the builds of each level in order, with a full barrier after each level.
+pub(crate) fn record_builds(gpu: &Gpu, cmd: vk::CommandBuffer, levels: &[&[Build]]) {
+    let accel = gpu.accel.as_ref().expect("acceleration structures enabled");
+    for level in levels {
+        for (info, ranges) in level.iter() {
+            // SAFETY: the build infos point at live geometry, AS objects and scratch.
+            unsafe { accel.cmd_build_acceleration_structures(cmd, std::slice::from_ref(info), &[*ranges]) };
+        }
+        full_barrier(gpu, cmd);
+    }
+}
+
+pub(crate) type Build<'a> = (vk::AccelerationStructureBuildGeometryInfoKHR<'a>, &'a [vk::AccelerationStructureBuildRangeInfoKHR]);
 
 impl SceneGpu {
     pub fn build(gpu: &Gpu, scene: &Scene, submitter: &Submitter, timeout: Duration) -> Result<SceneGpu, BuildError> {
         let start = Instant::now();
-        let accel = gpu.accel.as_ref().expect("acceleration structures enabled");
         let mut inputs = Vec::new();
         let mut blas_pending = Vec::new();
         for mesh in &scene.meshes {
@@ -137,16 +175,7 @@ impl SceneGpu {
         }
         let (mut tlas, tlas_builds) = Self::prepare_all(gpu, &tlas_pending, &mut all_scratch)?;
 
-        let waited = submitter.run(gpu, timeout, |cmd| unsafe {
-            for (info, ranges) in &blas_builds {
-                accel.cmd_build_acceleration_structures(cmd, std::slice::from_ref(info), &[*ranges]);
-            }
-            full_barrier(gpu, cmd);
-            for (info, ranges) in &tlas_builds {
-                accel.cmd_build_acceleration_structures(cmd, std::slice::from_ref(info), &[*ranges]);
-            }
-            full_barrier(gpu, cmd);
-        })?;
+        let waited = submitter.run(gpu, timeout, |cmd| record_builds(gpu, cmd, &[&blas_builds, &tlas_builds]))?;
         for s in &all_scratch {
             s.destroy(gpu);
         }
@@ -161,7 +190,7 @@ impl SceneGpu {
     }
 
     /// [`Self::prepare`] for each of `pending`; scratch buffers go to `scratch` (freed after the build).
-    fn prepare_all<'a>(gpu: &Gpu, pending: &'a [Pending], scratch: &mut Vec<Buffer>) -> Result<(Vec<AccelStruct>, Vec<Build<'a>>), VkError> {
+    pub(crate) fn prepare_all<'a>(gpu: &Gpu, pending: &'a [Pending], scratch: &mut Vec<Buffer>) -> Result<(Vec<AccelStruct>, Vec<Build<'a>>), VkError> {
         let mut out = Vec::new();
         let mut builds = Vec::new();
         for p in pending {
@@ -221,7 +250,7 @@ impl SceneGpu {
     }
 }
 
-fn bytemuck_transform(t: &[[f32; 4]; 3]) -> [f32; 12] {
+pub(crate) fn bytemuck_transform(t: &[[f32; 4]; 3]) -> [f32; 12] {
     let mut m = [0.0; 12];
     for (r, row) in t.iter().enumerate() {
         m[r * 4..r * 4 + 4].copy_from_slice(row);

@@ -8,7 +8,7 @@
 //! origins, so the GPU and the CPU reference trace bit-identical rays. `gpu` uploads it and builds
 //! BLAS/TLAS.
 pub mod gpu;
-mod rng;
+pub mod rng;
 
 use glam::{Mat3, Quat, Vec3};
 use rng::Rng;

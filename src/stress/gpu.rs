@@ -1,0 +1,365 @@
+//! The stress suite on the device ([`Mode::Pipeline`]; [`Mode::RayQuery`] traces the same rays
+//! with ray queries in a compute shader): one RT pipeline (raygen, miss, closest hit, any-hit; push
+//! constants only, buffers and the TLAS by device address) and, per part, one BLAS per mesh
+//! (one non-opaque geometry with NO_DUPLICATE_ANY_HIT_INVOCATION) and a TLAS. The raygen traces
+//! each ray twice: first non-opaque, where any-hit counts every candidate and ignores it (so
+//! each intersected primitive is counted once), then with gl_RayFlagsOpaqueEXT for the closest
+//! hit. Runs in the `rtprobe stress` process; every submission has a fence deadline and a lost
+//! device or a timeout ends the case with that verdict.
+use super::layout::{self, glsl_header, LAUNCH_WIDTH, PUSH_SIZE, RESULT_WORDS};
+use super::{Part, TraceError, Traced, Tracer};
+use crate::exec::pipeline::{self, Pipeline};
+use crate::matrix::DescriptorModel;
+use crate::scene::gpu::{bytemuck_transform, bytes_of, record_builds, triangles, AccelStruct, Pending, SceneGpu, INPUT_USAGE};
+use crate::shadergen::compile::Compiler;
+use crate::shadergen::{CellShaders, PipelineKind, Role, ShaderSource};
+use crate::vk::memory::{full_barrier, Buffer, Location};
+use crate::vk::submit::{Submitter, Waited};
+use crate::vk::{Gpu, VkError, VkResultExt};
+use ash::vk;
+use std::time::Duration;
+
+const HEADER: &str = "#version 460\n#extension GL_EXT_ray_tracing : require\n#extension GL_EXT_buffer_reference : require\n\
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require\n";
+
+const COMMON: &str = r#"
+layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer Rays { vec4 v[]; };
+layout(buffer_reference, std430, buffer_reference_align = 4) buffer Results { uint w[]; };
+layout(push_constant, std430) uniform Push { uint64_t rays; uint64_t results; uint64_t tlas; uint count; uint width; uint ray_flags; } pc;
+"#;
+
+const RT_INDEX: &str = "uint ray_index() { return gl_LaunchIDEXT.y * pc.width + gl_LaunchIDEXT.x; }\n";
+
+const RAYGEN: &str = r#"
+layout(location = 0) rayPayloadEXT uint pass_;
+void main() {
+    uint i = ray_index();
+    if (i >= pc.count) return;
+    Rays r = Rays(pc.rays);
+    vec4 a = r.v[2 * i];
+    vec4 b = r.v[2 * i + 1];
+    pass_ = 1u;
+    traceRayEXT(accelerationStructureEXT(pc.tlas), pc.ray_flags, 0xff, 0, 0, 0, a.xyz, a.w, b.xyz, b.w, 0);
+    pass_ = 2u;
+    traceRayEXT(accelerationStructureEXT(pc.tlas), pc.ray_flags | gl_RayFlagsOpaqueEXT, 0xff, 0, 0, 0, a.xyz, a.w, b.xyz, b.w, 0);
+}
+"#;
+
+const MISS: &str = r#"
+layout(location = 0) rayPayloadInEXT uint pass_;
+void main() {
+    Results o = Results(pc.results);
+    uint i = ray_index();
+    o.w[i * RESULT_WORDS + W_PASS] = pass_;
+    if (pass_ == 2u) o.w[i * RESULT_WORDS + W_STATUS] = STATUS_MISS;
+}
+"#;
+
+const CLOSEST_HIT: &str = r#"
+layout(location = 0) rayPayloadInEXT uint pass_;
+hitAttributeEXT vec2 bary;
+void main() {
+    Results o = Results(pc.results);
+    uint base = ray_index() * RESULT_WORDS;
+    o.w[base + W_STATUS] = STATUS_HIT;
+    o.w[base + W_T] = floatBitsToUint(gl_HitTEXT);
+    o.w[base + W_U] = floatBitsToUint(bary.x);
+    o.w[base + W_V] = floatBitsToUint(bary.y);
+    o.w[base + W_PRIMITIVE] = uint(gl_PrimitiveID);
+    o.w[base + W_INSTANCE] = uint(gl_InstanceCustomIndexEXT);
+    o.w[base + W_HIT_KIND] = gl_HitKindEXT;
+    for (int k = 0; k < 3; k++) {
+        o.w[base + W_OBJ_ORIGIN + k] = floatBitsToUint(gl_ObjectRayOriginEXT[k]);
+        o.w[base + W_OBJ_DIR + k] = floatBitsToUint(gl_ObjectRayDirectionEXT[k]);
+    }
+}
+"#;
+
+const ANY_HIT: &str = r#"
+layout(location = 0) rayPayloadInEXT uint pass_;
+void main() {
+    Results o = Results(pc.results);
+    uint base = ray_index() * RESULT_WORDS;
+    uint k = atomicAdd(o.w[base + W_CANDIDATES], 1u);
+    uint id = ((uint(gl_InstanceCustomIndexEXT) << 24) | uint(gl_PrimitiveID)) + 1u;
+    if (k < 2u) o.w[base + W_CAND0 + k] = id;
+    ignoreIntersectionEXT;
+}
+"#;
+
+/// The procedural hit group is part of the fixed group layout of `exec::pipeline`; stress scenes
+/// have no AABBs, so it is never invoked.
+const UNUSED_PROCEDURAL: &str = "void main() {}\n";
+const UNUSED_INTERSECTION: &str = "void main() { reportIntersectionEXT(0.0, 0u); }\n";
+const UNUSED_PROBE_MISS: &str = "void main() {}\n";
+
+/// The same two traces with a ray query in a compute shader: the first query walks every
+/// candidate (none is confirmed: counted like any-hit), the second is opaque and commits the
+/// closest hit. Front face maps to the hit kinds of the pipeline (0xFE front, 0xFF back).
+const RAY_QUERY: &str = r#"
+layout(local_size_x = 64) in;
+void main() {
+    uint i = gl_GlobalInvocationID.x;
+    if (i >= pc.count) return;
+    Rays r = Rays(pc.rays);
+    vec4 a = r.v[2 * i];
+    vec4 b = r.v[2 * i + 1];
+    Results o = Results(pc.results);
+    uint base = i * RESULT_WORDS;
+    rayQueryEXT q;
+    rayQueryInitializeEXT(q, accelerationStructureEXT(pc.tlas), pc.ray_flags, 0xff, a.xyz, a.w, b.xyz, b.w);
+    uint n = 0u;
+    while (rayQueryProceedEXT(q)) {
+        if (rayQueryGetIntersectionTypeEXT(q, false) == gl_RayQueryCandidateIntersectionTriangleEXT) {
+            uint id = ((uint(rayQueryGetIntersectionInstanceCustomIndexEXT(q, false)) << 24) | uint(rayQueryGetIntersectionPrimitiveIndexEXT(q, false))) + 1u;
+            if (n < 2u) o.w[base + W_CAND0 + n] = id;
+            n++;
+        }
+    }
+    o.w[base + W_CANDIDATES] = n;
+    o.w[base + W_PASS] = 2u;
+    rayQueryEXT c;
+    rayQueryInitializeEXT(c, accelerationStructureEXT(pc.tlas), pc.ray_flags | gl_RayFlagsOpaqueEXT, 0xff, a.xyz, a.w, b.xyz, b.w);
+    while (rayQueryProceedEXT(c)) {}
+    if (rayQueryGetIntersectionTypeEXT(c, true) == gl_RayQueryCommittedIntersectionNoneEXT) {
+        o.w[base + W_STATUS] = STATUS_MISS;
+        return;
+    }
+    vec2 bary = rayQueryGetIntersectionBarycentricsEXT(c, true);
+    o.w[base + W_STATUS] = STATUS_HIT;
+    o.w[base + W_T] = floatBitsToUint(rayQueryGetIntersectionTEXT(c, true));
+    o.w[base + W_U] = floatBitsToUint(bary.x);
+    o.w[base + W_V] = floatBitsToUint(bary.y);
+    o.w[base + W_PRIMITIVE] = uint(rayQueryGetIntersectionPrimitiveIndexEXT(c, true));
+    o.w[base + W_INSTANCE] = uint(rayQueryGetIntersectionInstanceCustomIndexEXT(c, true));
+    o.w[base + W_HIT_KIND] = rayQueryGetIntersectionFrontFaceEXT(c, true) ? 0xFEu : 0xFFu;
+    vec3 oo = rayQueryGetIntersectionObjectRayOriginEXT(c, true);
+    vec3 od = rayQueryGetIntersectionObjectRayDirectionEXT(c, true);
+    for (int k = 0; k < 3; k++) {
+        o.w[base + W_OBJ_ORIGIN + k] = floatBitsToUint(oo[k]);
+        o.w[base + W_OBJ_DIR + k] = floatBitsToUint(od[k]);
+    }
+}
+"#;
+
+const RQ_HEADER: &str = "#version 460\n#extension GL_EXT_ray_query : require\n#extension GL_EXT_buffer_reference : require\n\
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require\n";
+
+fn source(role: Role, body: &str) -> ShaderSource {
+    ShaderSource { role, glsl: format!("{HEADER}{}{COMMON}{RT_INDEX}{body}", glsl_header()) }
+}
+
+/// How rays are traced: `traceRayEXT` in an RT pipeline, or `rayQueryEXT` in a compute shader.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    Pipeline,
+    RayQuery,
+}
+
+impl Mode {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Mode::Pipeline => "pipeline",
+            Mode::RayQuery => "ray_query",
+        }
+    }
+
+    fn stages(self) -> vk::ShaderStageFlags {
+        match self {
+            Mode::Pipeline => vk::ShaderStageFlags::RAYGEN_KHR | vk::ShaderStageFlags::MISS_KHR | vk::ShaderStageFlags::CLOSEST_HIT_KHR | vk::ShaderStageFlags::ANY_HIT_KHR,
+            Mode::RayQuery => vk::ShaderStageFlags::COMPUTE,
+        }
+    }
+
+    fn shaders(self) -> CellShaders {
+        let shaders = match self {
+            Mode::Pipeline => vec![
+                source(Role::Raygen, RAYGEN),
+                source(Role::Miss, MISS),
+                source(Role::ProbeMiss, UNUSED_PROBE_MISS),
+                source(Role::ClosestHitTriangles, CLOSEST_HIT),
+                source(Role::AnyHit, ANY_HIT),
+                source(Role::ClosestHitProcedural, UNUSED_PROCEDURAL),
+                source(Role::Intersection, UNUSED_INTERSECTION),
+            ],
+            Mode::RayQuery => vec![ShaderSource { role: Role::Compute, glsl: format!("{RQ_HEADER}{}{COMMON}{RAY_QUERY}", glsl_header()) }],
+        };
+        let kind = if self == Mode::Pipeline { PipelineKind::RayTracing } else { PipelineKind::Compute };
+        CellShaders { kind, shaders, recursion_depth: 1, uses_probe_binding: false, uses_scene_tlas: false, uses_ray_query: self == Mode::RayQuery }
+    }
+}
+
+pub struct GpuTracer {
+    gpu: Gpu,
+    submitter: Submitter,
+    layout: vk::PipelineLayout,
+    pipeline: Pipeline,
+    timeout: Duration,
+    /// Set after a device loss or a timeout: later parts are not traced on this device.
+    broken: Option<String>,
+    mode: Mode,
+}
+
+fn vk_err(e: VkError) -> TraceError {
+    if e.is_device_lost() { TraceError::DeviceLost(e.to_string()) } else { TraceError::Failed(e.to_string()) }
+}
+
+impl GpuTracer {
+    pub fn new(gpu: Gpu, timeout: Duration, mode: Mode) -> Result<Self, TraceError> {
+        let mut compiler = Compiler::new().map_err(|e| TraceError::Failed(e.to_string()))?;
+        let shaders = mode.shaders();
+        let mut spirv = Vec::new();
+        for s in &shaders.shaders {
+            spirv.push(compiler.compile(s.role, &s.glsl).map_err(|e| TraceError::Failed(e.to_string()))?.0);
+        }
+        let submitter = Submitter::new(&gpu).map_err(vk_err)?;
+        let range = [vk::PushConstantRange::default()
+            .stage_flags(mode.stages())
+            .size(PUSH_SIZE)];
+        let layout = unsafe { gpu.device.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().push_constant_ranges(&range), None) }
+            .at("vkCreatePipelineLayout")
+            .map_err(vk_err)?;
+        let pipeline = pipeline::create(&gpu, vk::PipelineCache::null(), &shaders, &spirv, layout, DescriptorModel::DescriptorIndexing, None).map_err(vk_err)?;
+        Ok(GpuTracer { gpu, submitter, layout, pipeline, timeout, broken: None, mode })
+    }
+
+    fn build(&self, part: &Part, keep: &mut Vec<Buffer>) -> Result<(Vec<AccelStruct>, AccelStruct), TraceError> {
+        let gpu = &self.gpu;
+        let mut pending = Vec::new();
+        for mesh in &part.scene.meshes {
+            pending.push(triangles(gpu, &mesh.positions, &mesh.indices, vk::GeometryFlagsKHR::NO_DUPLICATE_ANY_HIT_INVOCATION, keep).map_err(vk_err)?);
+        }
+        let mut scratch = Vec::new();
+        let (blas, blas_builds) = SceneGpu::prepare_all(gpu, &pending, &mut scratch).map_err(vk_err)?;
+        let instances: Vec<vk::AccelerationStructureInstanceKHR> = part
+            .scene
+            .instances
+            .iter()
+            .enumerate()
+            .map(|(k, i)| vk::AccelerationStructureInstanceKHR {
+                transform: vk::TransformMatrixKHR { matrix: bytemuck_transform(&i.transform) },
+                instance_custom_index_and_mask: vk::Packed24_8::new(k as u32, 0xff),
+                instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(0, 0),
+                acceleration_structure_reference: vk::AccelerationStructureReferenceKHR { device_handle: blas[i.mesh].address },
+            })
+            .collect();
+        let ib = Buffer::with_data(gpu, bytes_of(&instances), INPUT_USAGE, "instance buffer").map_err(vk_err)?;
+        let data = vk::AccelerationStructureGeometryInstancesDataKHR::default().data(vk::DeviceOrHostAddressConstKHR { device_address: ib.address });
+        keep.push(ib);
+        let tlas_pending = [Pending {
+            geometries: vec![vk::AccelerationStructureGeometryKHR::default()
+                .geometry_type(vk::GeometryTypeKHR::INSTANCES)
+                .geometry(vk::AccelerationStructureGeometryDataKHR { instances: data })],
+            ranges: vec![vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(instances.len() as u32)],
+            ty: vk::AccelerationStructureTypeKHR::TOP_LEVEL,
+        }];
+        let (mut tlas, tlas_builds) = SceneGpu::prepare_all(gpu, &tlas_pending, &mut scratch).map_err(vk_err)?;
+        let waited = self.submitter.run(gpu, self.timeout, |cmd| record_builds(gpu, cmd, &[&blas_builds, &tlas_builds]));
+        for s in &scratch {
+            s.destroy(gpu);
+        }
+        let tlas = tlas.pop().expect("one TLAS");
+        match waited.map_err(vk_err)? {
+            Waited::Done(_) => Ok((blas, tlas)),
+            // The build may still run: its objects are leaked, not destroyed under it.
+            Waited::TimedOut => Err(TraceError::Timeout(self.timeout)),
+        }
+    }
+
+    fn launch(&self, part: &Part, tlas: &AccelStruct, keep: &mut Vec<Buffer>) -> Result<Vec<Traced>, TraceError> {
+        let gpu = &self.gpu;
+        let n = part.rays.len();
+        let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+        let rays = Buffer::with_data(gpu, &layout::ray_bytes(&part.rays), usage, "stress rays").map_err(vk_err)?;
+        let results = Buffer::new(gpu, (n * RESULT_WORDS * 4) as u64, usage, Location::Host, "stress results").map_err(vk_err)?;
+        results.write(0, &vec![0u8; n * RESULT_WORDS * 4]);
+        let mut push = Vec::with_capacity(PUSH_SIZE as usize);
+        push.extend(rays.address.to_le_bytes());
+        push.extend(results.address.to_le_bytes());
+        push.extend(tlas.address.to_le_bytes());
+        push.extend((n as u32).to_le_bytes());
+        push.extend(LAUNCH_WIDTH.to_le_bytes());
+        push.extend(part.ray_flags.to_le_bytes());
+        let height = (n as u32).div_ceil(LAUNCH_WIDTH);
+        let waited = self.submitter.run(gpu, self.timeout, |cmd| unsafe {
+            match self.mode {
+                Mode::Pipeline => {
+                    let rt = gpu.rt.as_ref().expect("ray tracing pipeline enabled");
+                    let sbt = self.pipeline.sbt.as_ref().expect("RT pipeline has an SBT");
+                    gpu.device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::RAY_TRACING_KHR, self.pipeline.raw);
+                    gpu.device.cmd_push_constants(cmd, self.layout, self.mode.stages(), 0, &push);
+                    rt.cmd_trace_rays(cmd, &sbt.raygen, &sbt.miss, &sbt.hit, &sbt.callable, LAUNCH_WIDTH, height, 1);
+                }
+                Mode::RayQuery => {
+                    gpu.device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, self.pipeline.raw);
+                    gpu.device.cmd_push_constants(cmd, self.layout, self.mode.stages(), 0, &push);
+                    gpu.device.cmd_dispatch(cmd, (n as u32).div_ceil(64), 1, 1);
+                }
+            }
+            full_barrier(gpu, cmd);
+        });
+        let bytes = results.read(n * RESULT_WORDS * 4);
+        keep.extend([rays, results]);
+        match waited.map_err(vk_err)? {
+            Waited::TimedOut => Err(TraceError::Timeout(self.timeout)),
+            Waited::Done(_) => {
+                let decoded = layout::decode(&bytes, n);
+                let lost = decoded.iter().filter(|d| d.is_none()).count();
+                if lost > 0 {
+                    return Err(TraceError::Failed(format!("{lost} of {n} rays ran neither the closest-hit nor the miss shader")));
+                }
+                Ok(decoded.into_iter().map(|d| d.expect("checked above")).collect())
+            }
+        }
+    }
+}
+
+fn destroy_accel<'a>(gpu: &Gpu, all: impl Iterator<Item = &'a AccelStruct>) {
+    let accel = gpu.accel.as_ref().expect("acceleration structures enabled");
+    for a in all {
+        unsafe { accel.destroy_acceleration_structure(a.raw, None) };
+        a.buffer.destroy(gpu);
+    }
+}
+
+impl Tracer for GpuTracer {
+    fn name(&self) -> String {
+        format!("{} ({} {}), {}", self.gpu.info.name(), self.gpu.info.driver_name(), self.gpu.info.driver_version(), self.mode.as_str())
+    }
+
+    fn trace(&mut self, part: &Part) -> Result<Vec<Traced>, TraceError> {
+        if let Some(why) = &self.broken {
+            return Err(TraceError::Failed(format!("not traced: {why} in an earlier case")));
+        }
+        let mut keep = Vec::new();
+        let result = self.build(part, &mut keep).and_then(|(blas, tlas)| {
+            let r = self.launch(part, &tlas, &mut keep);
+            if !matches!(r, Err(TraceError::Timeout(_))) {
+                destroy_accel(&self.gpu, blas.iter().chain([&tlas]));
+            }
+            r
+        });
+        match &result {
+            // A hung submission may still use them: leak rather than free under it.
+            Err(e @ (TraceError::Timeout(_) | TraceError::DeviceLost(_))) => self.broken = Some(e.to_string()),
+            _ => {
+                for b in &keep {
+                    b.destroy(&self.gpu);
+                }
+            }
+        }
+        result
+    }
+}
+
+impl Drop for GpuTracer {
+    fn drop(&mut self) {
+        if self.broken.is_some() {
+            return;
+        }
+        unsafe { self.gpu.device.device_wait_idle().ok() };
+        self.pipeline.destroy(&self.gpu);
+        unsafe { self.gpu.device.destroy_pipeline_layout(self.layout, None) };
+        self.submitter.destroy(&self.gpu);
+    }
+}

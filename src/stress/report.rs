@@ -1,0 +1,90 @@
+//! The stress report: a table per case on the terminal, and the JSON document
+//! (`"schema": "rtprobe.stress/1"`) with the tolerances it was judged by.
+use super::evaluate::{self, CaseResult, Metrics, Verdict};
+use serde_json::{json, Value};
+
+fn opt(x: Option<f64>) -> String {
+    match x {
+        None => "-".into(),
+        Some(v) if v == 0.0 => "0".into(),
+        Some(v) if (1e-3..1e4).contains(&v.abs()) => format!("{v:.3}"),
+        Some(v) => format!("{v:.2e}"),
+    }
+}
+
+fn row(label: &str, m: &Metrics) -> String {
+    format!(
+        "  {:<18} {:>6} {:>6} {:>5} {:>5} {:>5} {:>6} {:>6} {:>5} {:>10} {:>10} {:>10} {:>10}\n",
+        label,
+        m.rays,
+        m.hits,
+        m.leaks,
+        m.false_hits,
+        m.wrong_hits,
+        m.double_hits,
+        m.over_tolerance,
+        m.self_hits,
+        opt(m.t_err_max_ulps),
+        opt(m.t_err_p99),
+        opt(m.t_rel_err_max),
+        opt(m.bary_err_max)
+    )
+}
+
+/// The terminal tables: one per case, one row per part and a total row.
+pub fn text(device: &str, cases: &[CaseResult]) -> String {
+    let mut s = format!("rtprobe stress on {device}\n");
+    for c in cases {
+        s.push_str(&format!("\n{} — {}", c.name, c.verdict.as_str()));
+        if let Some(d) = &c.detail {
+            s.push_str(&format!(": {d}"));
+        }
+        s.push_str(&format!(" ({:.0} ms)\n", c.ms));
+        if c.parts.is_empty() {
+            continue;
+        }
+        s.push_str(&format!(
+            "  {:<18} {:>6} {:>6} {:>5} {:>5} {:>5} {:>6} {:>6} {:>5} {:>10} {:>10} {:>10} {:>10}\n",
+            "part", "rays", "hits", "leak", "false", "wrong", "double", "overtol", "self", "t_ulps_max", "t_ulps_p99", "t_rel_max", "bary_max"
+        ));
+        for p in &c.parts {
+            s.push_str(&row(&p.label, &p.metrics));
+        }
+        s.push_str(&row("total", &c.metrics));
+    }
+    let failed = cases.iter().filter(|c| c.verdict != Verdict::Pass && c.verdict != Verdict::NotImplemented).count();
+    let missing: Vec<&str> = cases.iter().filter(|c| c.verdict == Verdict::NotImplemented).map(|c| c.name).collect();
+    s.push_str(&format!("\n{} cases, {} not passed", cases.len(), failed));
+    if !missing.is_empty() {
+        s.push_str(&format!(", not implemented: {}", missing.join(", ")));
+    }
+    s.push('\n');
+    s
+}
+
+/// The JSON report; `validation` is (layer active, errors it reported during the run).
+pub fn json(device: &Value, tracer: &str, seed: u64, full: bool, validation: (bool, u64), cases: &[CaseResult]) -> Value {
+    json!({
+        "schema": "rtprobe.stress/1",
+        "rtprobe_version": env!("CARGO_PKG_VERSION"),
+        "device": device,
+        "tracer": tracer,
+        "seed": seed,
+        "full": full,
+        "validation": { "active": validation.0, "errors": validation.1 },
+        "tolerances": {
+            "t_rel": evaluate::T_REL_TOL,
+            "bary": evaluate::BARY_TOL,
+            "ulps_of_scale": evaluate::ULPS_OF_SCALE,
+            "edge_eps": evaluate::EDGE_EPS,
+            "t_eps": evaluate::T_EPS,
+            "rule": "|dt| <= t_rel*t + ulps_of_scale*ulp(S)/|d|, |db| <= bary + ulps_of_scale*ulp(S)/h; S = max |coordinate| of ray origin and hit point, h = smallest altitude of the hit triangle; leaks, false/wrong hits and double hits: none allowed",
+        },
+        "cases": cases,
+    })
+}
+
+/// Exit status of the command: every implemented case passed.
+pub fn all_passed(cases: &[CaseResult]) -> bool {
+    cases.iter().all(|c| matches!(c.verdict, Verdict::Pass | Verdict::NotImplemented))
+}
