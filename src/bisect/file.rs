@@ -11,6 +11,9 @@ pub const SCHEMA: &str = "rtprobe.bisect/1";
 pub struct BisectFile {
     pub schema: String,
     pub report: PathBuf,
+    /// The bisected report's `started` stamp: `report --bisect` refuses another report.
+    #[serde(default)]
+    pub report_started: String,
     pub device: Value,
     /// The scope's filters (empty: the whole matrix).
     pub scope: Vec<String>,
@@ -30,6 +33,7 @@ impl BisectFile {
         BisectFile {
             schema: SCHEMA.into(),
             report: path.to_path_buf(),
+            report_started: report.started.clone(),
             device: report.device.clone(),
             scope: scope.iter().map(super::predicate).collect(),
             full_matrix: report.plan.generated,

@@ -2,7 +2,7 @@
 //! with dynamic index (nonuniformEXT), descriptor_indexing`) and a verdict with its evidence
 //! (`❌ crash (2/2)`, `✅ passes (7/7; miss probability 0.78%)`).
 use super::Verdicts;
-use crate::matrix::{AsAccess, Cell};
+use crate::matrix::{AsAccess, Cell, HeapAccess};
 use serde::{Deserialize, Serialize};
 
 /// One cell as a sentence a driver engineer can read without knowing rtprobe's ids.
@@ -22,6 +22,15 @@ pub fn describe(c: &Cell) -> String {
         };
     }
     s += &format!(", {}", c.descriptor_model);
+    if let Some(h) = c.heap_access {
+        s += match h {
+            HeapAccess::MappedConstantOffset => " (set/binding mapped to the heap at a constant offset)",
+            HeapAccess::MappedPushIndex => " (set/binding mapped to the heap, index in push data: HEAP_WITH_PUSH_INDEX)",
+            HeapAccess::MappedIndirectIndex => " (set/binding mapped to the heap, index loaded from a buffer: HEAP_WITH_INDIRECT_INDEX)",
+            HeapAccess::MappedShaderRecordIndex => " (set/binding mapped to the heap, index in the shader record: HEAP_WITH_SHADER_RECORD_INDEX)",
+            HeapAccess::Direct => " (layout(descriptor_heap) GLSL)",
+        };
+    }
     if let Some(r) = c.reorder {
         s += &format!(", raygen reordering with {r}");
     }

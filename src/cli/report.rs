@@ -20,6 +20,12 @@ pub fn report(a: &ReportArgs) -> Result<u8> {
             if b.device["name"] != r.device["name"] || b.device["driver_uuid"] != r.device["driver_uuid"] {
                 return Err(coded(exit::BAD_INPUT, format!("{} bisects a report of another device ({}), not {}", p.display(), b.device["name"], a.report.display())));
             }
+            // The same run: its start stamp and its injections (an injected fault must never be
+            // written up as a driver bug through another report's issue).
+            let report_inject: Vec<String> = ro.inject.iter().map(|i| i.spec.clone()).collect();
+            if b.report_started != r.started || b.inject != report_inject {
+                return Err(coded(exit::BAD_INPUT, format!("{} bisects another run ({}), not {} ({}); bisect this report first", p.display(), b.report.display(), a.report.display(), r.started)));
+            }
             b
         }
         None => {
