@@ -63,7 +63,9 @@ pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport
     let mut it = reports.into_iter();
     let (first_name, mut out) = it.next().ok_or("merge needs at least one report")?;
     let mut names = vec![Value::String(first_name.clone())];
-    let mut started = vec![out.started.clone()];
+    // A run is known by its start stamp and command line (shards started in the same second
+    // differ in `--shard`).
+    let mut started = vec![(out.started.clone(), out.command_line.clone())];
     // Baseline checks describe one report's cells; the merged report is checked anew.
     out.baseline = None;
     let mut by_id: HashMap<String, usize> = out.cells.iter().enumerate().map(|(i, c)| (c.id.clone(), i)).collect();
@@ -71,10 +73,11 @@ pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport
         if !force {
             same_run(&out, &r, RESULT_OPTIONS).map_err(|why| format!("{name} does not belong with {first_name}: {why} (--force merges anyway)"))?;
         }
-        if started.contains(&r.started) {
-            return Err(format!("{name} is a run already merged (started {}): merging it twice would double its attempts", r.started));
+        let id = (r.started.clone(), r.command_line.clone());
+        if started.contains(&id) {
+            return Err(format!("{name} is a run already merged (started {}, same command line): merging it twice would double its attempts", r.started));
         }
-        started.push(r.started.clone());
+        started.push(id);
         names.push(Value::String(name));
         out.complete &= r.complete;
         // Worker numbers restart in every report: keep them apart.
