@@ -60,6 +60,9 @@ fn shards_merged_equal_the_unsharded_run() {
     let o = run(&["merge", "-o", dir.path().join("x.json").to_str().unwrap(), parts[0].to_str().unwrap(), other.to_str().unwrap()]);
     assert_one_line_error(&o, 9, "does not belong");
     assert!(!dir.path().join("x.json").exists(), "no half-written output");
+    // The same shard twice would double its attempts: refused.
+    let o = run(&["merge", "-o", dir.path().join("x.json").to_str().unwrap(), parts[0].to_str().unwrap(), parts[0].to_str().unwrap()]);
+    assert_one_line_error(&o, 9, "already merged");
 }
 
 #[test]
