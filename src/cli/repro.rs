@@ -31,6 +31,9 @@ pub struct CellSpec {
     /// The `--inject-fault` arguments of the original run that apply to this cell.
     pub inject: Vec<String>,
     pub timeout_s: f64,
+    /// `RTPROBE_BINDING_STAGES` of the original run (it changes results: a re-run sets it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub binding_stages: Option<String>,
     /// The verdict in the original report (for comparison), and its device.
     pub original: serde_json::Value,
 }
@@ -152,6 +155,7 @@ fn build(
         scene: report.scene.params,
         inject: inject.iter().map(|i| i.spec.clone()).collect(),
         timeout_s: ro.timeout_s,
+        binding_stages: report.options["binding_stages"].as_str().map(String::from),
         original: serde_json::json!({
             "report": a.from,
             "device": report.device,

@@ -48,6 +48,11 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     if let Some(p) = &a.cell_spec {
         // A repro bundle's cell: exactly that cell, its scene and injections.
         let spec = super::repro::CellSpec::load(p)?;
+        // The original run's binding-stage switch, for this process and the workers it starts.
+        match &spec.binding_stages {
+            Some(v) => std::env::set_var("RTPROBE_BINDING_STAGES", v),
+            None => std::env::remove_var("RTPROBE_BINDING_STAGES"),
+        }
         return run(g, &spec.run_args(a)?);
     }
     let filters = a.filter.iter().map(|f| Filter::parse(f).map_err(|e| coded(exit::USAGE, e))).collect::<Result<Vec<_>>>()?;

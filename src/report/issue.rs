@@ -293,10 +293,12 @@ fn reproduce_commands(report: &RunReport, report_path: &str, rep: &Cell, injecti
     if let Some(i) = injection {
         run += &format!(" --inject-fault '{}'", i.spec);
     }
+    // A switch of the original run that changes results is part of the command.
+    let env = report.options["binding_stages"].as_str().map(|v| format!("RTPROBE_BINDING_STAGES={v} ")).unwrap_or_default();
     vec![
-        run,
+        format!("{env}{run}"),
         format!("rtprobe repro {} --from {report_path} -o repro && rtprobe run --cell-spec repro/cell.json", rep.id()),
-        format!("rtprobe bisect {report_path}"),
+        format!("{env}rtprobe bisect {report_path}"),
     ]
 }
 
