@@ -96,10 +96,7 @@ pub fn bisect(g: &Globals, a: &BisectArgs) -> Result<u8> {
     let report = load_report(&a.report)?;
     let ro = ReportOptions::of(&report).map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.report.display())))?;
     // The report's binding-stage switch changes results: the cells bisect runs use it too.
-    match report.options["binding_stages"].as_str() {
-        Some(v) => std::env::set_var("RTPROBE_BINDING_STAGES", v),
-        None => std::env::remove_var("RTPROBE_BINDING_STAGES"),
-    }
+    super::run::use_binding_stages(report.options["binding_stages"].as_str());
     let filters = ro.scope_filters(&a.filter).map_err(|e| coded(exit::USAGE, e))?;
     let settings = Settings { max_miss: a.max_miss, max_attempts: a.max_attempts, ..Settings::default() };
     let verdicts = Verdicts::from_report(&report);

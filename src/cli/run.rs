@@ -48,11 +48,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     if let Some(p) = &a.cell_spec {
         // A repro bundle's cell: exactly that cell, its scene and injections.
         let spec = super::repro::CellSpec::load(p)?;
-        // The original run's binding-stage switch, for this process and the workers it starts.
-        match &spec.binding_stages {
-            Some(v) => std::env::set_var("RTPROBE_BINDING_STAGES", v),
-            None => std::env::remove_var("RTPROBE_BINDING_STAGES"),
-        }
+        use_binding_stages(spec.binding_stages.as_deref());
         return run(g, &spec.run_args(a)?);
     }
     let filters = a.filter.iter().map(|f| Filter::parse(f).map_err(|e| coded(exit::USAGE, e))).collect::<Result<Vec<_>>>()?;
@@ -293,6 +289,15 @@ pub(crate) fn supervisor_options(device_index: usize, scene: SceneParams, jobs: 
         inject,
         dump: None,
         job_dir: std::env::temp_dir().join(format!("rtprobe-{}", std::process::id())),
+    }
+}
+
+/// Set `RTPROBE_BINDING_STAGES` as a report's run had it (it changes results), for this process
+/// and the workers it starts: re-runs of a report's cells (`--cell-spec`, `bisect`).
+pub(super) fn use_binding_stages(v: Option<&str>) {
+    match v {
+        Some(v) => std::env::set_var("RTPROBE_BINDING_STAGES", v),
+        None => std::env::remove_var("RTPROBE_BINDING_STAGES"),
     }
 }
 

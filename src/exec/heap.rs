@@ -23,8 +23,8 @@
 //! HEAP_WITH_SHADER_RECORD_INDEX (read from the first 4 bytes of every SBT record's shader record
 //! data). All ways must read the same descriptors.
 use super::bindings::PUSH_CONSTANT_BYTES;
-use super::resources::Target;
-use crate::matrix::HeapAccess;
+use super::resources::{descriptor_type, Target};
+use crate::matrix::{HeapAccess, Resource};
 use crate::vk::features::PROBE_IMAGE_FORMAT;
 use crate::vk::heap::{self as h, MappingSource};
 use crate::vk::memory::{Buffer, Location};
@@ -126,7 +126,7 @@ fn fns(gpu: &Gpu) -> &h::HeapFns {
 impl HeapBinding {
     /// Write `targets[b]` (binding b's descriptors) into a new resource heap laid out for a
     /// `direct` or mapped cell, and `sampler` into a new sampler heap.
-    pub fn create(gpu: &Gpu, targets: &[(u32, vk::DescriptorType, Vec<Target>)], sampler: &vk::SamplerCreateInfo, direct: bool) -> Result<HeapBinding, VkError> {
+    pub fn create(gpu: &Gpu, targets: &[(u32, Resource, Vec<Target>)], sampler: &vk::SamplerCreateInfo, direct: bool) -> Result<HeapBinding, VkError> {
         let p = props(gpu);
         let f = fns(gpu);
         // Heaps have no combined descriptors: a sampled image's image goes to the resource heap,
@@ -146,7 +146,7 @@ impl HeapBinding {
             _ => p.buffer_descriptor_size,
         } as u32;
         let slot = align(p.buffer_descriptor_size.max(p.image_descriptor_size), p.buffer_descriptor_alignment.max(p.image_descriptor_alignment)) as u32;
-        let (probe_ty, probe_count) = targets.iter().find(|(b, _, _)| *b == 2).map(|(_, ty, t)| (*ty, t.len() as u32)).unwrap_or((vk::DescriptorType::STORAGE_BUFFER, 0));
+        let (probe_ty, probe_count) = targets.iter().find(|(b, _, _)| *b == 2).map(|(_, kind, t)| (descriptor_type(*kind), t.len() as u32)).unwrap_or((vk::DescriptorType::STORAGE_BUFFER, 0));
         let layout = HeapLayout::new(slot, class_size(probe_ty).max(size_of(probe_ty)).max(1), probe_count, direct);
 
         // Everything the infos point at lives until the write call below.
@@ -154,7 +154,8 @@ impl HeapBinding {
         let mut views = Vec::new();
         let mut kinds = Vec::new();
         let mut at = Vec::new();
-        for (b, ty, ts) in targets {
+        for (b, kind, ts) in targets {
+            let ty = &descriptor_type(*kind);
             for (i, t) in ts.iter().enumerate() {
                 at.push((layout.offset(*b, i), size_of(*ty) as usize));
                 match *t {
