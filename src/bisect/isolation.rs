@@ -1,6 +1,6 @@
 //! The isolation list in plain words: a cell as a sentence (`closest_hit reading storage_buffer
 //! with dynamic index (nonuniformEXT), descriptor_indexing`) and a verdict with its evidence
-//! (`❌ crash (2/2)`, `✅ passes (7/7; miss probability 0.78%)`).
+//! (`❌ crash (6 of 6, p ≥ 0.61 at 95%)`, `✅ passes (5 of 5; miss ≤ 0.94% for p ≥ 0.61)`).
 use super::Verdicts;
 use crate::matrix::{AsAccess, Cell, HeapAccess};
 use serde::{Deserialize, Serialize};
@@ -54,9 +54,16 @@ pub struct IsolationLine {
     /// Attempts that agree with the verdict (faulted ones for a finding, passed ones for a pass).
     pub agreeing: u32,
     pub attempts: u32,
-    /// For a pass: the chance that a fault of the observed rate missed all its attempts.
+    /// For a finding: its own fault rate bound (Clopper–Pearson, 95%); for a pass: the bound of
+    /// the faulting cell it is held to.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub rate_bound: Option<f64>,
+    /// For a pass: the chance that a fault of rate `rate_bound` missed all its attempts.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub miss_probability: Option<f64>,
+    /// For a pass: its miss probability is below the threshold (false: not concluded on).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub settled: Option<bool>,
     /// The verdict's reason, for an `error` (rtprobe could not run the cell).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub reason: Option<String>,
@@ -70,36 +77,58 @@ impl IsolationLine {
     pub fn faults(&self) -> bool {
         self.verdict != "pass" && self.verdict != "not_run"
     }
+
+    /// A pass whose miss probability is below the threshold.
+    pub fn settled(&self) -> bool {
+        self.settled == Some(true)
+    }
 }
 
-/// The line for `cell` from what `verdicts` know; `rate` is the fault rate used for a pass's miss
-/// probability (`None`: no estimate).
-pub fn line(cell: &Cell, varied: Option<&str>, verdicts: &Verdicts, rate: Option<f64>) -> IsolationLine {
+/// What a line's verdict is held to: the rate bound of the faulting cell a pass is compared
+/// with (None: no faulting cell), and the threshold.
+#[derive(Clone, Copy, Debug)]
+pub struct Evidence {
+    pub against: Option<f64>,
+    pub max_miss: f64,
+}
+
+/// The line for `cell` from what `verdicts` know: a finding with its k of N and rate bound, a
+/// pass with its miss probability against `ev.against`.
+pub fn line(cell: &Cell, varied: Option<&str>, verdicts: &Verdicts, ev: Evidence) -> IsolationLine {
     let description = describe(cell);
     let report = verdicts.get(cell).filter(|r| !r.attempts.is_empty());
     let reason = report.filter(|r| r.outcome == crate::outcome::Outcome::Error).and_then(|r| r.reason.clone());
-    let (verdict, agreeing, attempts, miss, injected) = match report {
-        None => ("not_run".to_string(), 0, 0, None, None),
-        Some(r) => {
-            let n = r.attempts.len() as u32;
-            let faulted = r.attempts.iter().filter(|a| a.outcome.is_finding()).count() as u32;
-            if r.outcome.is_finding() {
-                (r.outcome.as_str().to_string(), faulted, n, None, r.injected.clone())
-            } else {
-                let miss = rate.map(|p| crate::report::run_report::miss_probability(p, n));
-                (r.outcome.as_str().to_string(), n - faulted, n, miss, r.injected.clone())
+    let (k, n) = verdicts.counts(cell);
+    let mut l = IsolationLine { cell: cell.id(), varied: varied.map(String::from), description, verdict: "not_run".into(), agreeing: 0, attempts: n, rate_bound: None, miss_probability: None, settled: None, reason, injected: None, line: String::new() };
+    if let Some(r) = report {
+        l.verdict = r.outcome.as_str().to_string();
+        l.injected = r.injected.clone();
+        if r.outcome.is_finding() {
+            l.agreeing = k;
+            l.rate_bound = Some(super::confidence::rate_bound(k, n));
+        } else {
+            l.agreeing = n - k;
+            if r.outcome == crate::outcome::Outcome::Pass {
+                l.rate_bound = ev.against;
+                l.miss_probability = Some(ev.against.map_or(1.0, |p| super::confidence::miss(p, n)));
+                l.settled = l.miss_probability.map(|m| m < ev.max_miss);
             }
         }
+    }
+    let conf = format!("{:.0}%", 100.0 * super::confidence::CONFIDENCE);
+    let evidence = match (l.verdict.as_str(), l.miss_probability, l.rate_bound) {
+        ("not_run", _, _) => "❔ not run".to_string(),
+        ("pass", Some(m), Some(p)) => {
+            let weak = if l.settled() { "" } else { "; too little evidence, not concluded on" };
+            format!("✅ passes ({} of {n}; miss ≤ {} for p ≥ {p:.2}{weak})", l.agreeing, percent(m))
+        }
+        ("pass", _, _) => format!("✅ passes ({} of {n}; no faulting cell to hold it to)", l.agreeing),
+        ("error", _, _) => format!("⚠ error ({}/{n}): {}", l.agreeing, l.reason.as_deref().unwrap_or("no detail")),
+        (v, _, Some(p)) => format!("❌ {v} ({k} of {n}, p ≥ {p:.2} at {conf})"),
+        (v, _, None) => format!("❌ {v} ({k} of {n})"),
     };
-    let evidence = match (verdict.as_str(), miss) {
-        ("not_run", _) => "❔ not run".to_string(),
-        ("pass", Some(m)) if m > 0.0 => format!("✅ passes ({agreeing}/{attempts}; miss probability {})", percent(m)),
-        ("pass", _) => format!("✅ passes ({agreeing}/{attempts})"),
-        ("error", _) => format!("⚠ error ({agreeing}/{attempts}): {}", reason.as_deref().unwrap_or("no detail")),
-        (v, _) => format!("❌ {v} ({agreeing}/{attempts})"),
-    };
-    let line = format!("{description}: {evidence}");
-    IsolationLine { cell: cell.id(), varied: varied.map(String::from), description, verdict, agreeing, attempts, miss_probability: miss, reason, injected, line }
+    l.line = format!("{}: {evidence}", l.description);
+    l
 }
 
 /// A probability as a short percentage (`0.78%`, `< 0.01%`).

@@ -5,13 +5,17 @@
 //! How ([`Bisector::bisect`]):
 //! 1. Every verdict the report already has is used; a cell's verdict is its worst attempt, with
 //!    "k of N" ([`Verdicts`]).
-//! 2. **Flaky faults.** A pass is only a pass when a fault of the observed rate would have shown
-//!    in its attempts with probability at least `1 - max_miss` (default 1%): passing cells are
-//!    re-run, each alone in a fresh worker, until `(1 - rate)^N < max_miss`. The rate is pooled
-//!    over the faulting cells with each cell's first fault left out (that attempt is why the cell
-//!    is a faulting one, so counting it would inflate the rate); it needs
-//!    [`MIN_RATE_ATTEMPTS`] such attempts, re-running faulting cells to get them. A fault is never
-//!    reversed (the worst attempt wins), so faulting cells need no more than that.
+//! 2. **Flaky faults.** Every verdict is held to a bound, per cell. A faulting cell that faulted
+//!    k of N has fault rate `p >= x` at 95%, `x` its one-sided Clopper–Pearson lower bound
+//!    ([`confidence`]). A pass bisection relies on (the cell that refuses a wider conjunction, a
+//!    sibling in the isolation list, a workaround) is held to one faulting cell — the region's
+//!    best-evidenced one, or the minimal failing cell — and counts only when a fault of rate `x`
+//!    would have missed all its N attempts with probability `(1 - x)^N` below `max_miss`
+//!    (default 1%). Both are repeated, each alone in a fresh worker: the faulting cell until it
+//!    has as many attempts as a pass then needs, the pass until it reaches the threshold or
+//!    faults. A pass still above the threshold at the attempt cap (or offline) is not concluded
+//!    on: it is listed as unsettled and the result says so. A fault is never reversed (the worst
+//!    attempt wins). Passes nothing relies on are not repeated.
 //! 3. The tightest conjunction holding for every faulting cell has, per axis, exactly the values
 //!    the faulting cells have. If it already contains a passing cell, no conjunction separates
 //!    the cells (every conjunction that holds for the faulting cells contains it): bisection says
@@ -32,6 +36,7 @@
 //! — a statement about the predicate, not about a driver; a predicate without a `patch` term
 //! injects into patched cells too (the injected load survives every SPIR-V patch), so no
 //! workaround passes. The workaround lines say when the verdict is decided by the injection.
+pub mod confidence;
 pub mod ddmin;
 pub mod file;
 pub mod isolation;
@@ -50,12 +55,11 @@ use std::collections::HashMap;
 pub fn axes() -> impl Iterator<Item = &'static str> {
     crate::matrix::cell::AXIS_NAMES.iter().copied().filter(|a| *a != "canary")
 }
-/// Default: a pass may hide a fault of the observed rate with at most this probability.
+/// Default: a pass may hide a fault of its faulting cell's rate bound with at most this
+/// probability.
 pub const DEFAULT_MAX_MISS: f64 = 0.01;
 /// Default cap on the attempts of one cell.
 pub const DEFAULT_MAX_ATTEMPTS: u32 = 50;
-/// Attempts (beyond each faulting cell's first fault) the fault rate is estimated from.
-pub const MIN_RATE_ATTEMPTS: u32 = 8;
 
 /// What a cell's verdict says, for bisection.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -102,6 +106,19 @@ impl Verdicts {
 
     pub fn attempts(&self, c: &Cell) -> u32 {
         self.get(c).map(|r| r.attempts.len() as u32).unwrap_or(0)
+    }
+
+    /// Faulted attempts and attempts.
+    pub fn counts(&self, c: &Cell) -> (u32, u32) {
+        let n = self.attempts(c);
+        let k = self.get(c).map(|r| r.attempts.iter().filter(|a| a.outcome.is_finding()).count() as u32).unwrap_or(0);
+        (k, n)
+    }
+
+    /// The cell's fault rate bound: one-sided Clopper–Pearson at [`confidence::CONFIDENCE`].
+    pub fn rate_bound(&self, c: &Cell) -> f64 {
+        let (k, n) = self.counts(c);
+        confidence::rate_bound(k, n)
     }
 
     pub fn state(&self, c: &Cell) -> State {
@@ -172,13 +189,23 @@ pub struct Bisection {
     pub representative: String,
     pub isolation: Vec<IsolationLine>,
     pub workarounds: Vec<IsolationLine>,
-    /// The pooled fault rate (None: no estimate) and the attempts a pass then needs.
-    pub fault_rate: Option<f64>,
+    /// The minimal failing cell's fault rate: the one-sided Clopper–Pearson lower bound at
+    /// `confidence` from its k of N (None: it has no attempt).
+    #[serde(default)]
+    pub fault_rate_bound: Option<f64>,
+    #[serde(default = "default_confidence")]
+    pub confidence: f64,
+    /// Attempts a pass held to that bound needs for a miss probability below `max_miss`.
     pub attempts_per_pass: u32,
     pub max_miss: f64,
     /// The largest miss probability of a pass bisection relied on.
     pub worst_miss_probability: f64,
-    /// Passes that could not reach the threshold (attempt cap, or offline).
+    /// Passes bisection relied on (each the reason a wider conjunction was refused, a sibling in
+    /// the isolation list, or a workaround).
+    #[serde(default)]
+    pub passes_relied_on: usize,
+    /// Passes relied on that could not reach the threshold (attempt cap, or offline): the result
+    /// is not concluded while any is listed.
     pub unsettled: Vec<String>,
     pub faulting_cells: usize,
     pub scope_cells: usize,
@@ -191,6 +218,17 @@ pub struct Bisection {
     pub runs: usize,
     /// Axes with a single value in the scope: the conjunction says nothing about them.
     pub not_varied: Vec<String>,
+}
+
+fn default_confidence() -> f64 {
+    confidence::CONFIDENCE
+}
+
+impl Bisection {
+    /// Every pass relied on reached the threshold.
+    pub fn concluded(&self) -> bool {
+        self.unsettled.is_empty()
+    }
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -209,81 +247,102 @@ pub struct Bisector<'o> {
     settings: Settings,
     inject: Vec<Injection>,
     memo: HashMap<String, bool>,
+    /// Passes a refused conjunction rests on, each with the faulting cell it is held to.
+    relied: Vec<(Cell, Cell)>,
 }
 
 impl<'o> Bisector<'o> {
     pub fn new(scope: Vec<Cell>, verdicts: Verdicts, oracle: &'o mut dyn Oracle, settings: Settings, inject: Vec<Injection>) -> Self {
-        Bisector { scope, verdicts, oracle, settings, inject, memo: HashMap::new() }
+        Bisector { scope, verdicts, oracle, settings, inject, memo: HashMap::new(), relied: Vec::new() }
     }
 
     fn faulting(&self) -> Vec<Cell> {
         self.scope.iter().filter(|c| self.verdicts.state(c) == State::Fault).copied().collect()
     }
 
-    /// The pooled fault rate with each faulting cell's first fault left out, and how many
-    /// attempts it rests on.
-    pub fn fault_rate(&self) -> (Option<f64>, u32) {
-        let (mut k, mut n) = (0u32, 0u32);
-        for c in self.faulting() {
-            let r = self.verdicts.get(&c).expect("faulting cells have attempts");
-            let faulted = r.attempts.iter().filter(|a| a.outcome.is_finding()).count() as u32;
-            k += faulted - 1;
-            n += r.attempts.len() as u32 - 1;
-        }
-        ((n > 0).then(|| k as f64 / n as f64), n)
+    /// Attempts a pass held to faulting cell `fault` needs: `(1 - bound)^N < max_miss`.
+    pub fn attempts_needed(&self, fault: &Cell) -> u32 {
+        confidence::attempts_needed(self.verdicts.rate_bound(fault), self.settings.max_miss, self.settings.max_attempts)
     }
 
-    /// Attempts a pass needs so that a fault of `rate` would have shown with probability at least
-    /// `1 - max_miss`.
-    pub fn attempts_needed(&self, rate: Option<f64>) -> u32 {
-        match rate {
-            Some(p) if p >= 1.0 => 1,
-            Some(p) if p > 0.0 => ((self.settings.max_miss.ln() / (1.0 - p).ln()).ceil() as u32).clamp(1, self.settings.max_attempts),
-            Some(_) | None => self.settings.max_attempts,
+    /// The faulting cell of `region` with the highest rate bound (most attempts on a tie): the
+    /// fault a conjunction over `region` claims, which its passes are held to.
+    fn reference(&self, region: &[Cell]) -> Option<Cell> {
+        let mut best: Option<(f64, u32, Cell)> = None;
+        for c in region.iter().filter(|c| self.verdicts.state(c) == State::Fault) {
+            let (b, n) = (self.verdicts.rate_bound(c), self.verdicts.attempts(c));
+            if best.is_none_or(|(bb, bn, _)| b > bb || (b == bb && n > bn)) {
+                best = Some((b, n, *c));
+            }
         }
+        best.map(|(_, _, c)| c)
     }
 
-    /// Give every cell of `cells` a verdict that a flaky attempt cannot reverse: unknown ones run
-    /// once, the fault rate gets its minimum evidence, passes are repeated to the threshold.
-    fn settle(&mut self, cells: &[Cell]) {
+    /// Run each of `cells` until `done` says it has enough, all of them together per round, each
+    /// alone in a fresh worker; a round that adds no attempt (the oracle gave up) ends it.
+    fn repeat_until(&mut self, cells: &[Cell], done: &dyn Fn(&Self, &Cell) -> bool) {
         if !self.oracle.can_run() {
             return;
         }
-        let unknown: Vec<Cell> = cells.iter().filter(|c| self.verdicts.state(c) == State::Unknown).copied().collect();
-        if !unknown.is_empty() {
-            self.oracle.run(&unknown, false, &mut self.verdicts);
-        }
-        let mut last = usize::MAX;
-        // Each round adds attempts; one that adds none (the oracle gave up) ends it.
-        while std::mem::replace(&mut last, self.verdicts.runs) != self.verdicts.runs {
-            let (rate, evidence) = self.fault_rate();
-            if evidence < MIN_RATE_ATTEMPTS {
-                let mut f: Vec<Cell> = self.faulting().into_iter().filter(|c| self.verdicts.attempts(c) < self.settings.max_attempts).collect();
-                if !f.is_empty() {
-                    f.sort_by_key(|c| self.verdicts.attempts(c));
-                    f.truncate((MIN_RATE_ATTEMPTS - evidence) as usize);
-                    self.oracle.run(&f, true, &mut self.verdicts);
-                    continue;
-                }
-            }
-            let need = self.attempts_needed(rate);
-            let more: Vec<Cell> = cells.iter().filter(|c| self.verdicts.state(c) == State::Pass && self.verdicts.attempts(c) < need).copied().collect();
+        loop {
+            let more: Vec<Cell> = cells.iter().filter(|c| !done(self, c) && self.verdicts.attempts(c) < self.settings.max_attempts).copied().collect();
+            let before = self.verdicts.runs;
             if more.is_empty() {
                 return;
             }
             self.oracle.run(&more, true, &mut self.verdicts);
+            if self.verdicts.runs == before {
+                return;
+            }
         }
     }
 
+    /// Hold each pass of `cells` to faulting cell `fault`: first `fault` is repeated until it has
+    /// as many attempts as a pass held to its bound then needs (cheap evidence: one cell), then
+    /// every pass is repeated until a fault of that rate would have shown with probability above
+    /// `1 - max_miss`, or it faults.
+    fn settle_against(&mut self, cells: &[Cell], fault: Cell) {
+        self.repeat_until(&[fault], &|b, f| b.verdicts.state(f) != State::Fault || b.verdicts.attempts(f) >= b.attempts_needed(f));
+        self.repeat_until(cells, &|b, c| b.verdicts.state(c) != State::Pass || b.verdicts.attempts(c) >= b.attempts_needed(&fault));
+    }
+
+    /// Run the cells of `cells` without a verdict once (together, as a run would).
+    fn run_unknown(&mut self, cells: &[Cell]) {
+        let unknown: Vec<Cell> = cells.iter().filter(|c| self.verdicts.state(c) == State::Unknown).copied().collect();
+        if !unknown.is_empty() && self.oracle.can_run() {
+            self.oracle.run(&unknown, false, &mut self.verdicts);
+        }
+    }
+
+    /// Whether `region` has a pass that stays one when held to the region's fault: its passes,
+    /// most attempts first, are settled until one holds (it is relied on) or every one faults.
+    fn settled_pass(&mut self, region: &[Cell]) -> bool {
+        let mut passes: Vec<Cell> = region.iter().filter(|c| self.verdicts.state(c) == State::Pass).copied().collect();
+        passes.sort_by_key(|c| std::cmp::Reverse(self.verdicts.attempts(c)));
+        for w in passes {
+            let against = self.reference(region);
+            if let Some(f) = against {
+                self.settle_against(&[w], f);
+            }
+            if self.verdicts.state(&w) == State::Pass {
+                if let Some(f) = against.filter(|_| !self.relied.iter().any(|(p, _)| *p == w)) {
+                    self.relied.push((w, f));
+                }
+                return true;
+            }
+        }
+        false
+    }
+
     /// Whether the conjunction contains no passing cell of the scope (running the unknown ones it
-    /// contains, in batches, until one passes).
+    /// contains, in batches, until one passes; every pass found is settled first).
     fn holds(&mut self, f: &Filter) -> bool {
         let key = predicate(f);
         if let Some(v) = self.memo.get(&key) {
             return *v;
         }
         let region: Vec<Cell> = self.scope.iter().filter(|c| f.matches(c)).copied().collect();
-        let mut ok = !region.iter().any(|c| self.verdicts.state(c) == State::Pass);
+        let mut ok = !self.settled_pass(&region);
         if ok {
             let unknown: Vec<Cell> = region.iter().filter(|c| self.verdicts.state(c) == State::Unknown).copied().collect();
             if !unknown.is_empty() && !self.oracle.can_run() {
@@ -293,12 +352,24 @@ impl<'o> Bisector<'o> {
                 if !ok {
                     break;
                 }
-                self.settle(batch);
-                ok = !batch.iter().any(|c| self.verdicts.state(c) == State::Pass);
+                self.run_unknown(batch);
+                ok = !self.settled_pass(&region);
             }
         }
         self.memo.insert(key, ok);
         ok
+    }
+
+    /// Settle every pass relied on again (its fault's bound may have dropped since); whether one
+    /// of them faulted.
+    fn resettle(&mut self) -> bool {
+        let relied = self.relied.clone();
+        for (w, f) in &relied {
+            self.settle_against(&[*w], *f);
+        }
+        let flipped = relied.iter().any(|(w, _)| self.verdicts.state(w) != State::Pass);
+        self.relied.retain(|(w, _)| self.verdicts.state(w) == State::Pass);
+        flipped
     }
 
     /// Per axis, the values `cells` have (in scope order).
@@ -370,22 +441,19 @@ impl<'o> Bisector<'o> {
     pub fn bisect(&mut self, cell: Option<&str>, patch_supported: &dyn Fn(&Cell) -> bool) -> Result<Bisection, BisectError> {
         let (separable, conjunctions) = loop {
             let start = self.verdicts.runs;
-            let known: Vec<Cell> = self.scope.iter().filter(|c| self.verdicts.state(c) != State::Unknown).copied().collect();
-            self.settle(&known);
             let faulting = self.faulting();
             if faulting.is_empty() {
                 return Err(BisectError::NoFault);
             }
             let tight = self.tight(&faulting);
             let (separable, cs) = if self.holds(&tight) { (true, vec![self.reduce(tight)]) } else { (false, self.disjunction(&faulting)) };
-            // Runs made on the way may have found faulting cells outside, or lowered the fault
-            // rate so that earlier passes need more attempts: then start over (a "holds" stays
-            // true, since a fault is never reversed; a pass may still turn into a fault).
+            // Runs made on the way may have found faulting cells outside, or lowered a fault's
+            // bound so that a pass relied on needs more attempts (and then faults): start over (a
+            // "holds" stays true, since a fault is never reversed; a pass may turn into a fault).
+            let flipped = self.resettle();
             let covered = self.faulting().iter().all(|f| cs.iter().any(|c| c.matches(f)));
-            let need = self.attempts_needed(self.fault_rate().0);
-            let settled = !self.oracle.can_run() || self.scope.iter().all(|c| self.verdicts.state(c) != State::Pass || self.verdicts.attempts(c) >= need);
             // (A round that ran nothing cannot change anything: the oracle gave up.)
-            if (covered && settled) || self.verdicts.runs == start {
+            if (covered && !flipped) || self.verdicts.runs == start {
                 break (separable, cs);
             }
             self.memo.retain(|_, holds| *holds);
@@ -397,17 +465,27 @@ impl<'o> Bisector<'o> {
         };
         let siblings = self.siblings(&rep);
         let sib_cells: Vec<Cell> = siblings.iter().map(|(_, c)| *c).collect();
-        self.settle(&sib_cells);
+        self.run_unknown(&sib_cells);
+        self.settle_against(&sib_cells, rep);
         let patched: Vec<Cell> = rep.applicable_patches().into_iter().map(|p| Cell { patch: Some(p), ..rep }).filter(|c| patch_supported(c)).collect();
-        self.settle(&patched);
-        let (rate, _) = self.fault_rate();
-        let mut isolation = vec![isolation::line(&rep, None, &self.verdicts, rate)];
-        isolation.extend(siblings.iter().map(|(axis, c)| isolation::line(c, Some(axis), &self.verdicts, rate)));
-        let workarounds = patched.iter().map(|c| self.workaround_line(&rep, c, rate)).collect();
-        let need = self.attempts_needed(rate);
-        let passes: Vec<&Cell> = self.scope.iter().filter(|c| self.verdicts.state(c) == State::Pass).collect();
-        let worst_miss = passes.iter().map(|c| rate.map(|p| crate::report::run_report::miss_probability(p, self.verdicts.attempts(c))).unwrap_or(1.0)).fold(0.0, f64::max);
-        let unsettled = passes.iter().filter(|c| self.verdicts.attempts(c) < need).map(|c| c.id()).collect();
+        self.run_unknown(&patched);
+        self.settle_against(&patched, rep);
+        let ev = |b: &Self, against: Option<&Cell>| isolation::Evidence { against: against.map(|f| b.verdicts.rate_bound(f)), max_miss: b.settings.max_miss };
+        let mut isolation = vec![isolation::line(&rep, None, &self.verdicts, ev(self, Some(&rep)))];
+        isolation.extend(siblings.iter().map(|(axis, c)| isolation::line(c, Some(axis), &self.verdicts, ev(self, Some(&rep)))));
+        let workarounds: Vec<IsolationLine> = patched.iter().map(|c| self.workaround_line(&rep, c, ev(self, Some(&rep)))).collect();
+        // Every pass relied on, each with the fault it is held to.
+        let mut relied: Vec<(Cell, Cell)> = self.relied.clone();
+        relied.extend(sib_cells.iter().chain(&patched).map(|c| (*c, rep)));
+        relied.retain(|(c, _)| self.verdicts.state(c) == State::Pass);
+        let miss_of = |(c, f): &(Cell, Cell)| confidence::miss(self.verdicts.rate_bound(f), self.verdicts.attempts(c));
+        let worst_miss = relied.iter().map(miss_of).fold(0.0, f64::max);
+        let mut unsettled: Vec<String> = relied.iter().filter(|r| miss_of(r) >= self.settings.max_miss).map(|(c, _)| c.id()).collect();
+        unsettled.sort();
+        unsettled.dedup();
+        let mut relied_ids: Vec<String> = relied.iter().map(|(c, _)| c.id()).collect();
+        relied_ids.sort();
+        relied_ids.dedup();
         let strings: Vec<String> = conjunctions.iter().map(predicate).collect();
         Ok(Bisection {
             separable,
@@ -416,10 +494,12 @@ impl<'o> Bisector<'o> {
             representative: rep.id(),
             isolation,
             workarounds,
-            fault_rate: rate,
-            attempts_per_pass: need,
+            fault_rate_bound: Some(self.verdicts.rate_bound(&rep)),
+            confidence: confidence::CONFIDENCE,
+            attempts_per_pass: self.attempts_needed(&rep),
             max_miss: self.settings.max_miss,
             worst_miss_probability: worst_miss,
+            passes_relied_on: relied_ids.len(),
             unsettled,
             faulting_cells: faulting.len(),
             scope_cells: self.scope.len(),
@@ -455,15 +535,16 @@ impl<'o> Bisector<'o> {
         out
     }
 
-    fn workaround_line(&self, rep: &Cell, patched: &Cell, rate: Option<f64>) -> IsolationLine {
-        let mut l = isolation::line(patched, Some("patch"), &self.verdicts, rate);
+    fn workaround_line(&self, rep: &Cell, patched: &Cell, ev: isolation::Evidence) -> IsolationLine {
+        let mut l = isolation::line(patched, Some("patch"), &self.verdicts, ev);
         let (inj_rep, inj_patched) = (for_cell(&self.inject, rep), for_cell(&self.inject, patched));
         let note = match (inj_rep, inj_patched, l.verdict.as_str()) {
             (_, _, "not_run") => "",
             (_, _, "error") => " — rtprobe could not run the patched cell: no evidence either way",
             (Some(_), None, _) => " — not a workaround: the injection predicate excludes patched cells (patch=none), so the fault is simply not injected",
             (Some(_), Some(_), _) => " — the injected fault survives the SPIR-V patch; this says nothing about a driver",
-            (None, _, "pass") => " — verified workaround",
+            (None, _, "pass") if l.settled() => " — verified workaround",
+            (None, _, "pass") => " — not verified: too few passing attempts",
             (None, _, _) => "",
         };
         l.line += note;
@@ -499,18 +580,24 @@ pub fn render(b: &Bisection, full_matrix: usize) -> String {
         }
     }
     s += "\n";
-    match b.fault_rate {
+    match b.fault_rate_bound {
         Some(p) => s += &format!(
-            "fault rate {:.2} (pooled, each faulting cell's first fault left out); a pass needs {} attempt(s) for a miss probability below {}; worst miss probability relied on: {}\n",
-            p,
+            "evidence: the minimal failing cell's fault rate is p ≥ {p:.2} at {:.0}% (one-sided Clopper–Pearson); a pass held to it needs {} attempt(s) for a miss probability below {}; {} pass(es) relied on, worst miss probability {}\n",
+            100.0 * b.confidence,
             b.attempts_per_pass,
             isolation::percent(b.max_miss),
+            b.passes_relied_on,
             isolation::percent(b.worst_miss_probability)
         ),
-        None => s += "fault rate unknown (no repeated attempt of a faulting cell): passes are not settled\n",
+        None => s += "evidence: the minimal failing cell has no attempt: passes are not settled\n",
     }
     if !b.unsettled.is_empty() {
-        s += &format!("WARNING: {} passing cell(s) below the threshold (attempt cap or offline): {}\n", b.unsettled.len(), b.unsettled.join(", "));
+        s += &format!(
+            "NOT CONCLUDED: {} pass(es) relied on stay at or above a miss probability of {} (attempt cap or offline); the result rests on them: {}\n",
+            b.unsettled.len(),
+            isolation::percent(b.max_miss),
+            b.unsettled.join(", ")
+        );
     }
     if !b.errored.is_empty() {
         s += &format!("not evidence (rtprobe could not run them, `error`): {}\n", b.errored.join(", "));

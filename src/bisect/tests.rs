@@ -64,6 +64,12 @@ fn bisect(truth: &[&str], p: f64, scope_filter: &str, ran_filter: &str) -> (Bise
     (r, sim.runs - before)
 }
 
+/// The attempts a fault that never misses gets: the first N with N >= the attempts a pass held to
+/// `alpha^(1/N)` needs.
+fn deterministic_fault_attempts(max_miss: f64) -> u32 {
+    (1..).find(|&n| n >= confidence::attempts_needed(confidence::rate_bound(n, n), max_miss, DEFAULT_MAX_ATTEMPTS)).unwrap()
+}
+
 const SCOPE: &str = "descriptor_model=descriptor_indexing,resource=storage_buffer|uniform_buffer|acceleration_structure";
 
 #[test]
@@ -73,12 +79,24 @@ fn single_axis_two_axis_and_value_sets_are_recovered_exactly() {
         assert!(r.separable, "{truth}");
         assert_eq!(r.minimal, truth);
         assert!(render(&r, 816).ends_with(&format!("minimal: {truth}\n")));
-        // Deterministic faults: only the runs that estimate the fault rate, and the workarounds.
-        assert!(runs <= MIN_RATE_ATTEMPTS as usize + r.workarounds.len(), "{truth}: {runs} runs");
-        assert!(r.unsettled.is_empty());
+        // Deterministic faults: the minimal failing cell is repeated until it has as many attempts
+        // as a pass held to its bound then needs; every pass relied on gets exactly that many.
+        let n0 = deterministic_fault_attempts(DEFAULT_MAX_MISS);
+        let need = confidence::attempts_needed(confidence::rate_bound(n0, n0), DEFAULT_MAX_MISS, DEFAULT_MAX_ATTEMPTS);
+        assert_eq!(r.attempts_per_pass, need);
+        assert_eq!((r.isolation[0].agreeing, r.isolation[0].attempts), (n0, n0), "{truth}");
+        assert!(r.isolation[0].line.contains(&format!("({n0} of {n0}, p ≥ {:.2} at 95%)", confidence::rate_bound(n0, n0))), "{}", r.isolation[0].line);
+        assert!(runs <= (n0 as usize - 1) + r.passes_relied_on * need as usize, "{truth}: {runs} runs");
+        assert!(r.concluded() && r.unsettled.is_empty());
+        assert!(r.worst_miss_probability < DEFAULT_MAX_MISS);
         assert_eq!(r.isolation[0].cell, r.representative);
         assert!(r.isolation[0].faults());
         assert!(r.isolation.iter().skip(1).any(|l| !l.faults()), "{truth}: a passing sibling");
+        for l in r.isolation.iter().filter(|l| l.verdict == "pass") {
+            assert_eq!(l.attempts, need, "{}", l.line);
+            let m = confidence::miss(confidence::rate_bound(n0, n0), need);
+            assert!(l.line.contains(&format!("miss ≤ {}", isolation::percent(m))), "{}", l.line);
+        }
     }
 }
 
@@ -108,14 +126,22 @@ fn a_flaky_fault_is_recovered_with_repeats_below_the_threshold() {
     let scope_f = "descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit|miss";
     let (r, runs) = bisect(&["stage=raygen|miss,index=dynamic"], 0.5, scope_f, scope_f);
     assert_eq!(r.minimal, "stage=raygen|miss,index=dynamic");
-    assert!(r.unsettled.is_empty());
+    assert!(r.concluded(), "{:?}", r.unsettled);
     assert!(r.worst_miss_probability < DEFAULT_MAX_MISS, "{}", r.worst_miss_probability);
-    let p = r.fault_rate.unwrap();
-    assert!(p > 0.2 && p < 0.8, "rate {p}");
-    assert!(r.attempts_per_pass >= 4, "{}", r.attempts_per_pass);
+    // The bound is the minimal failing cell's own k of N, below the true rate 0.5 (at 95%).
+    let rep = &r.isolation[0];
+    let p = r.fault_rate_bound.unwrap();
+    assert_eq!(p, confidence::rate_bound(rep.agreeing, rep.attempts));
+    assert!(rep.agreeing < rep.attempts, "a rate-0.5 fault missed some attempts: {}", rep.line);
+    assert!(p < 0.5, "bound {p}");
+    // It was repeated until it had the attempts a pass then needs, and every pass those.
+    assert!(rep.attempts >= r.attempts_per_pass, "{}", rep.line);
+    assert_eq!(r.attempts_per_pass, confidence::attempts_needed(p, DEFAULT_MAX_MISS, DEFAULT_MAX_ATTEMPTS));
+    for l in r.isolation.iter().filter(|l| l.verdict == "pass") {
+        assert!(l.attempts >= r.attempts_per_pass && l.settled(), "{}", l.line);
+        assert!(l.line.contains("miss ≤ ") && l.line.contains(&format!("for p ≥ {p:.2}")), "{}", l.line);
+    }
     assert!(runs > 20, "passes were repeated: {runs}");
-    let pass = r.isolation.iter().find(|l| l.verdict == "pass").unwrap();
-    assert!(pass.line.contains("miss probability"), "{}", pass.line);
 }
 
 #[test]
@@ -136,8 +162,11 @@ fn offline_never_widens_over_cells_nobody_ran() {
     let r = b.bisect(None, &|_| true).unwrap();
     assert_eq!(r.minimal, "stage=closest_hit,index=dynamic");
     assert_eq!(r.runs, 0);
-    // No repeats offline: the fault rate rests on nothing.
-    assert!(r.fault_rate.is_none() && !r.unsettled.is_empty());
+    // No repeats offline: one fault of one attempt bounds the rate only by alpha, and the passes
+    // relied on (one attempt each) are not concluded on.
+    assert_eq!(r.fault_rate_bound, Some(1.0 - confidence::CONFIDENCE));
+    assert!(!r.concluded() && !r.unsettled.is_empty());
+    assert!(render(&r, 816).contains("NOT CONCLUDED"));
 }
 
 #[test]
@@ -228,5 +257,34 @@ fn an_oracle_that_adds_nothing_ends_the_bisection() {
     let v = report(&mut sim, &sc[..6]);
     let mut deaf = Deaf;
     let r = Bisector::new(sc, v, &mut deaf, Settings::default(), vec![]).bisect(None, &|_| true).unwrap();
-    assert!(!r.unsettled.is_empty() || r.fault_rate.is_none());
+    assert!(!r.concluded());
+}
+
+#[test]
+fn a_pass_with_too_little_evidence_is_not_concluded_on() {
+    // Three attempts at most: a fault seen 3 of 3 is only p >= alpha^(1/3) at 95%, and a pass of 3
+    // attempts would miss such a fault with probability (1 - alpha^(1/3))^3, above 1%.
+    let sc = scope("descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit");
+    let mut sim = Sim::new(&["stage=closest_hit,index=dynamic"], 1.0);
+    let v = report(&mut sim, &sc);
+    let settings = Settings { max_attempts: 3, ..Settings::default() };
+    let r = Bisector::new(sc, v, &mut sim, settings, vec![]).bisect(None, &|_| true).unwrap();
+    let (bound, miss) = (confidence::rate_bound(3, 3), confidence::miss(confidence::rate_bound(3, 3), 3));
+    assert!(miss >= DEFAULT_MAX_MISS, "{miss}");
+    assert_eq!(r.fault_rate_bound, Some(bound));
+    assert!(!r.concluded());
+    let passes: Vec<_> = r.isolation.iter().filter(|l| l.verdict == "pass").collect();
+    assert!(!passes.is_empty());
+    for l in passes {
+        assert_eq!(l.attempts, 3);
+        assert!(!l.settled() && l.line.contains("not concluded on"), "{}", l.line);
+        assert!((l.miss_probability.unwrap() - miss).abs() < 1e-12);
+        assert!(r.unsettled.contains(&l.cell), "{}", l.cell);
+    }
+    assert!(render(&r, 816).contains("NOT CONCLUDED"));
+    // With the default cap the same fault concludes.
+    let mut sim = Sim::new(&["stage=closest_hit,index=dynamic"], 1.0);
+    let sc = scope("descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit");
+    let v = report(&mut sim, &sc);
+    assert!(Bisector::new(sc, v, &mut sim, Settings::default(), vec![]).bisect(None, &|_| true).unwrap().concluded());
 }

@@ -169,9 +169,13 @@ pub fn build(report: &RunReport, report_path: &str, b: &BisectFile, inject: &[In
         "{agree} of {n} attempts of the minimal failing cell faulted.{alone} {} of {} cells in the bisected scope fault{}.",
         bi.faulting_cells,
         bi.scope_cells,
-        match bi.fault_rate {
-            Some(p) if p < 1.0 => format!("; the pooled fault rate is {p:.2}, and every pass relied on has a miss probability of at most {}", percent(bi.worst_miss_probability)),
-            Some(_) => "; every repeated attempt of a faulting cell faulted again".to_string(),
+        match bi.fault_rate_bound {
+            Some(p) => format!(
+                "; its fault rate is p ≥ {p:.2} at {:.0}% (one-sided Clopper–Pearson), and each of the {} passes relied on would have missed a fault of that rate with probability at most {}",
+                100.0 * bi.confidence,
+                bi.passes_relied_on,
+                percent(bi.worst_miss_probability)
+            ),
             None => String::new(),
         }
     );
@@ -318,7 +322,7 @@ fn not_tested(report: &RunReport, b: &BisectFile) -> Vec<String> {
         v.push(format!("{} cells of the scope could not be run by rtprobe (`error`), so they count neither way: {}.", bi.errored.len(), bi.errored.join(", ")));
     }
     if !bi.unsettled.is_empty() {
-        v.push(format!("{} passing cells have fewer attempts than a miss probability below {} needs: {}.", bi.unsettled.len(), percent(bi.max_miss), bi.unsettled.join(", ")));
+        v.push(format!("Not concluded: {} passing cells relied on have fewer attempts than a miss probability below {} needs: {}.", bi.unsettled.len(), percent(bi.max_miss), bi.unsettled.join(", ")));
     }
     let mut reasons: std::collections::BTreeMap<String, usize> = Default::default();
     for c in report.cells.iter().filter(|c| c.outcome == Outcome::Unsupported) {
