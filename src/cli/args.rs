@@ -173,6 +173,11 @@ pub struct RunArgs {
     /// replaces the plan, the scene and the injections
     #[arg(long, value_name = "FILE", conflicts_with_all = ["filter", "inject_fault", "resume", "canaries"])]
     pub cell_spec: Option<PathBuf>,
+
+    /// Set by `--cell-spec`: the bundle's `shaders/` folder, whose SPIR-V the worker runs instead
+    /// of compiling the GLSL (not a flag).
+    #[arg(skip)]
+    pub spirv_dir: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]
@@ -240,9 +245,13 @@ pub struct ReproArgs {
     #[arg(long, value_name = "REPORT")]
     pub from: PathBuf,
 
-    /// The bundle directory (created; existing files in it are replaced)
+    /// The bundle directory (created; an existing non-empty one needs --force)
     #[arg(long, short = 'o', value_name = "DIR")]
     pub out: PathBuf,
+
+    /// Replace an existing non-empty DIR (its old files are removed, not merged)
+    #[arg(long)]
+    pub force: bool,
 }
 
 #[derive(Args, Debug)]

@@ -36,6 +36,23 @@ pub struct CellSpec {
     pub binding_stages: Option<String>,
     /// The verdict in the original report (for comparison), and its device.
     pub original: serde_json::Value,
+    /// The bundle's SPIR-V modules (`shaders/<file>`), as the worker runs them, and what made
+    /// them: `run --cell-spec` runs these instead of compiling (so another machine's compiler
+    /// does not change the binary). Empty in a cell.json without them: then it compiles.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub modules: Vec<BundleModule>,
+}
+
+/// One SPIR-V module of a bundle.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct BundleModule {
+    /// Under `shaders/`: `<role file>.spv`.
+    pub file: String,
+    /// The compiler and its version (`shaderc-rs 0.10.1 …`, `glslangValidator 16.6.0 …`).
+    pub compiler: String,
+    /// SPIR-V patches applied after compiling, in order.
+    #[serde(default)]
+    pub patched: Vec<String>,
 }
 
 impl CellSpec {
@@ -50,6 +67,21 @@ impl CellSpec {
         }
         s.scene.validate().map_err(|e| coded(exit::BAD_INPUT, format!("{}: scene: {e}", path.display())))?;
         Ok(s)
+    }
+
+    /// The bundle's `shaders/` folder next to `path` when the spec lists modules (each must be
+    /// there), else `None` (compile the GLSL).
+    pub fn spirv_dir(&self, path: &Path) -> Result<Option<std::path::PathBuf>> {
+        if self.modules.is_empty() {
+            return Ok(None);
+        }
+        let dir = path.parent().unwrap_or(Path::new(".")).join("shaders");
+        for m in &self.modules {
+            if m.file.contains('/') || !dir.join(&m.file).is_file() {
+                return Err(coded(exit::BAD_INPUT, format!("{}: the bundle's SPIR-V {} is missing", path.display(), dir.join(&m.file).display())));
+            }
+        }
+        Ok(Some(dir))
     }
 
     /// `a` with the plan, scene and injections replaced by this cell's: an exact filter on every
@@ -71,6 +103,7 @@ impl CellSpec {
             mesh_detail: p.mesh_detail,
             timeout: self.timeout_s,
             cell_spec: None,
+            spirv_dir: None,
             ..a.clone()
         })
     }
@@ -80,25 +113,39 @@ fn write(dir: &Path, name: &str, bytes: &[u8]) -> Result<()> {
     write_atomic(&dir.join(name), bytes).context("writing the repro bundle")
 }
 
-/// Move the bundle built in `tmp` to `out`: one rename when `out` does not exist, else file by
-/// file (the files it holds are replaced; others are left). A failure before this leaves `out`
-/// as it was.
-fn publish(tmp: &Path, out: &Path) -> Result<()> {
+/// Move the bundle built in `tmp` to `out` by renames, so that `out` is either what it was or
+/// the whole new bundle: a missing or empty `out` is replaced; a non-empty one only with
+/// `force` (moved aside first, removed once the new bundle is in place, put back on failure).
+fn publish(tmp: &Path, out: &Path, force: bool) -> Result<()> {
     let ctx = || format!("writing the repro bundle in {}", out.display());
-    if !out.exists() {
-        return std::fs::rename(tmp, out).with_context(ctx);
-    }
-    for sub in ["", "shaders"] {
-        let from = tmp.join(sub);
-        let Ok(entries) = std::fs::read_dir(&from) else { continue };
-        std::fs::create_dir_all(out.join(sub)).with_context(ctx)?;
-        for e in entries.flatten() {
-            if e.path().is_file() {
-                std::fs::rename(e.path(), out.join(sub).join(e.file_name())).with_context(ctx)?;
-            }
+    let old = out.with_file_name(format!(".{}.old-{}", out.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default(), std::process::id()));
+    let empty = match std::fs::read_dir(out) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
+        Err(_) if !out.is_dir() => return Err(coded(exit::BAD_INPUT, format!("{} exists and is not a directory", out.display()))),
+        Err(e) => return Err(coded(exit::BAD_INPUT, format!("cannot read {}: {e}", out.display()))),
+        Ok(mut entries) => Some(entries.next().is_none()),
+    };
+    let aside = match empty {
+        None => false,
+        Some(true) => {
+            std::fs::remove_dir(out).with_context(ctx)?;
+            false
         }
+        Some(false) if !force => return Err(coded(exit::BAD_INPUT, format!("{} exists and is not empty; --force replaces it (its files are removed)", out.display()))),
+        Some(false) => {
+            std::fs::rename(out, &old).with_context(ctx)?;
+            true
+        }
+    };
+    if let Err(e) = std::fs::rename(tmp, out) {
+        if aside {
+            let _ = std::fs::rename(&old, out);
+        }
+        return Err(e).with_context(ctx);
     }
-    let _ = std::fs::remove_dir_all(tmp);
+    if aside {
+        let _ = std::fs::remove_dir_all(&old);
+    }
     Ok(())
 }
 
@@ -109,13 +156,16 @@ pub fn repro(g: &Globals, a: &ReproArgs) -> Result<u8> {
     let entry = report.cells.iter().find(|c| c.id == a.cell);
     let inject: Vec<&Injection> = for_cell(&ro.inject, &cell).into_iter().collect();
     let shaders = cell_shaders(&cell, inject.first().map(|i| i.fault)).map_err(|e| coded(exit::INTERNAL, format!("{}: {e}", cell.id())))?;
+    if !a.force && std::fs::read_dir(&a.out).is_ok_and(|mut d| d.next().is_some()) {
+        return Err(coded(exit::BAD_INPUT, format!("{} exists and is not empty; --force replaces it (its files are removed)", a.out.display())));
+    }
     let name = a.out.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "repro".into());
     let tmp = a.out.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
     if let Some(parent) = a.out.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent).map_err(|e| coded(exit::BAD_INPUT, format!("cannot create {}: {e}", parent.display())))?;
     }
     let built = build(g, a, &report, &ro, cell, entry, &inject, &shaders, &tmp);
-    let result = built.and_then(|()| publish(&tmp, &a.out));
+    let result = built.and_then(|()| publish(&tmp, &a.out, a.force));
     let _ = std::fs::remove_dir_all(&tmp);
     result?;
     println!("repro bundle: {} ({} shaders); re-run: rtprobe run --cell-spec {}/cell.json", a.out.display(), shaders.len(), a.out.display());
@@ -136,9 +186,11 @@ fn build(
     dir: &Path,
 ) -> Result<()> {
     let mut listing = Vec::new();
+    let mut modules = Vec::new();
     let mut disassembled = true;
     for s in shaders {
         let f = s.role.file_name();
+        modules.push(BundleModule { file: format!("{f}.spv"), compiler: s.compiler.clone(), patched: s.patched.iter().map(|p| p.to_string()).collect() });
         write(dir, &format!("shaders/{f}.glsl"), s.glsl.as_bytes())?;
         write(dir, &format!("shaders/{f}.spv"), &spirv_bytes(&s.spirv))?;
         match spirv_dis(&s.spirv) {
@@ -163,6 +215,7 @@ fn build(
             "reason": entry.and_then(|c| c.reason.clone()),
             "incidence": entry.and_then(|c| c.incidence.clone()),
         }),
+        modules,
     };
     write(dir, "cell.json", &(serde_json::to_vec_pretty(&spec)? ))?;
     // The caps of the report's device, when it is on this machine.
@@ -174,8 +227,17 @@ fn build(
         }
         Err(e) => format!("no caps.json: {e:#}"),
     };
+    let origin = format!("from {} (rtprobe {})", a.from.display(), env!("CARGO_PKG_VERSION"));
+    let amber_note = match crate::report::amber::script(&cell, shaders, &report.scene.params, inject.first().copied(), &origin) {
+        Ok(text) => {
+            write(dir, "cell.amber", text.as_bytes())?;
+            "cell.amber      an Amber script of the same cell: its SPIR-V, buffers and expected records (not run by rtprobe; see its header)".to_string()
+        }
+        Err(why) => format!("no cell.amber: {why}"),
+    };
+    let made_by: std::collections::BTreeSet<&str> = shaders.iter().map(|s| s.compiler.as_str()).collect();
     let readme = format!(
-        "rtprobe repro bundle: {}\n{}\n\nOriginal verdict: {} ({})\nInjected: {}\n\nRe-run exactly this cell (same scene, same injection):\n\n    rtprobe run --cell-spec {}/cell.json\n\nFiles:\n  cell.json       the cell, scene parameters, injections, original verdict\n  shaders/        {}: GLSL as generated, SPIR-V as the worker runs it (patched where the cell says){}\n  {}\n\nNo .amber file: rtprobe does not write Amber scripts (see README, \"Repro bundles\").\n",
+        "rtprobe repro bundle: {}\n{}\n\nOriginal verdict: {} ({})\nInjected: {}\n\nRe-run exactly this cell (same scene, same injection, the SPIR-V in shaders/):\n\n    rtprobe run --cell-spec {}/cell.json\n\nFiles:\n  cell.json       the cell, scene parameters, injections, original verdict, the SPIR-V modules and their compiler\n  shaders/        {}: GLSL as generated, SPIR-V as the worker runs it (patched where the cell says){}\n  {}\n  {}\n\nThe SPIR-V was compiled by {}. `run --cell-spec` runs these .spv files, not a fresh compile, so a\nmachine with another compiler runs the same binary.\n",
         spec.id,
         spec.description,
         entry.map(|c| c.outcome.as_str()).unwrap_or("not in the report"),
@@ -184,7 +246,9 @@ fn build(
         a.out.display(),
         listing.join(", "),
         if disassembled { ", .spvasm from spirv-dis" } else { "; spirv-dis is not installed, so no .spvasm" },
-        caps_note
+        caps_note,
+        amber_note,
+        made_by.into_iter().collect::<Vec<_>>().join(" and "),
     );
     write(dir, "README.txt", readme.as_bytes())
 }

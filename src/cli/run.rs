@@ -49,7 +49,13 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         // A repro bundle's cell: exactly that cell, its scene and injections.
         let spec = super::repro::CellSpec::load(p)?;
         use_binding_stages(spec.binding_stages.as_deref());
-        return run(g, &spec.run_args(a)?);
+        let mut args = spec.run_args(a)?;
+        args.spirv_dir = spec.spirv_dir(p)?;
+        if let Some(dir) = &args.spirv_dir {
+            let made_by: std::collections::BTreeSet<&str> = spec.modules.iter().map(|m| m.compiler.as_str()).collect();
+            eprintln!("running the bundle's SPIR-V ({}, made by {}), not recompiling", dir.display(), made_by.into_iter().collect::<Vec<_>>().join(", "));
+        }
+        return run(g, &args);
     }
     let filters = a.filter.iter().map(|f| Filter::parse(f).map_err(|e| coded(exit::USAGE, e))).collect::<Result<Vec<_>>>()?;
     let inject = a.inject_fault.iter().filter(|s| !s.trim().is_empty()).map(|s| Injection::parse(s).map_err(|e| coded(exit::USAGE, e))).collect::<Result<Vec<_>>>()?;
@@ -136,6 +142,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             "canaries": a.canaries, "filters": a.filter, "patches": a.patches, "validate": g.validate,
             "inject": inject.iter().map(|i| i.spec.clone()).collect::<Vec<_>>(), "repeat": a.repeat,
             "shard": shard.map(|s| s.label()), "binding_stages": std::env::var("RTPROBE_BINDING_STAGES").ok(),
+            "spirv_from": a.spirv_dir,
         }),
         plan: PlanSummary {
             generated: the_plan.generated,
@@ -173,6 +180,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
 
     let opts = SupervisorOptions {
         dump: a.dump.clone(),
+        spirv_dir: a.spirv_dir.clone(),
         setup_timeout: Duration::from_secs_f64(a.setup_timeout),
         ..supervisor_options(info.index, params, jobs, a.isolation, a.timeout, g.validate, inject.clone())
     };
@@ -288,6 +296,7 @@ pub(crate) fn supervisor_options(device_index: usize, scene: SceneParams, jobs: 
         validate,
         inject,
         dump: None,
+        spirv_dir: None,
         job_dir: std::env::temp_dir().join(format!("rtprobe-{}", std::process::id())),
     }
 }

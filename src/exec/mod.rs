@@ -42,6 +42,9 @@ pub struct ExecOptions {
     pub inject_seed: u64,
     /// Write each cell's GLSL and SPIR-V under this folder, and pictures of each mismatch.
     pub dump: Option<PathBuf>,
+    /// A repro bundle's `shaders/`: each module is read from `<role file>.spv` there (already
+    /// patched as the cell says) instead of compiled.
+    pub spirv_dir: Option<PathBuf>,
 }
 
 /// Told each phase a cell (or the setup) enters; an error ends the cell there (the worker's
@@ -293,16 +296,22 @@ impl Executor {
         // SPIR-V
         let mut spirv = Vec::new();
         for s in &shaders.shaders {
-            let (words, ms) = self.compiler.compile(s.role, &s.glsl)?;
-            timings.compile_ms += ms;
+            let words = match &self.opts.spirv_dir {
+                Some(dir) => std::sync::Arc::new(bundle_spirv(dir, s.role).map_err(CellError::Io)?),
+                None => {
+                    let (words, ms) = self.compiler.compile(s.role, &s.glsl)?;
+                    timings.compile_ms += ms;
+                    words
+                }
+            };
             spirv.push(words);
         }
         // address_patched cells are as-to-address applied to the descriptor variant; a cell of the
-        // patch axis adds its own workaround (in that order).
-        let workarounds = (cell.as_access == Some(crate::matrix::AsAccess::AddressPatched))
+        // patch axis adds its own workaround (in that order). A bundle's SPIR-V is patched already.
+        let workarounds = (cell.as_access == Some(crate::matrix::AsAccess::AddressPatched) && self.opts.spirv_dir.is_none())
             .then_some(crate::matrix::cell::Workaround::AsToAddress)
             .into_iter()
-            .chain(cell.patch);
+            .chain(cell.patch.filter(|_| self.opts.spirv_dir.is_none()));
         for w in workarounds {
             let t = Instant::now();
             let mut patched_any = false;
@@ -499,6 +508,18 @@ pub(crate) fn patch_module(words: &[u32], w: crate::matrix::cell::Workaround) ->
         Err(PatchError::NothingToPatch { .. }) => Ok(None),
         Err(e) => Err(e),
     }
+}
+
+/// The module of `role` in a repro bundle's `shaders/` (`<role file>.spv`, little-endian words
+/// starting with the SPIR-V magic number).
+fn bundle_spirv(dir: &std::path::Path, role: shadergen::Role) -> Result<Vec<u32>, String> {
+    let path = dir.join(format!("{}.spv", role.file_name()));
+    let bytes = std::fs::read(&path).map_err(|e| format!("repro bundle: cannot read {}: {e}", path.display()))?;
+    let words: Vec<u32> = bytes.chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+    if bytes.len() % 4 != 0 || words.first() != Some(&0x0723_0203) {
+        return Err(format!("repro bundle: {} is not SPIR-V", path.display()));
+    }
+    Ok(words)
 }
 
 fn dump(dir: &std::path::Path, cell: &Cell, shaders: &shadergen::CellShaders, spirv: &[std::sync::Arc<Vec<u32>>]) -> Result<(), String> {

@@ -1,5 +1,6 @@
 //! Reports: atomic writes, timestamps, the run report schema and its writer, JUnit, mismatch
 //! pictures and the terminal summary.
+pub mod amber;
 pub mod atomic;
 pub mod junit;
 pub mod issue;

@@ -18,6 +18,10 @@ pub struct Shader {
     pub role: Role,
     pub glsl: String,
     pub spirv: Vec<u32>,
+    /// What compiled it, with its version ([`crate::shadergen::compile::compiler_for`]).
+    pub compiler: String,
+    /// The SPIR-V patches applied after compiling, in order.
+    pub patched: Vec<&'static str>,
 }
 
 /// The role of the shader that does the probed read of `stage`.
@@ -41,7 +45,7 @@ pub fn cell_shaders(cell: &Cell, fault: Option<FaultKind>) -> Result<Vec<Shader>
     let mut out = Vec::new();
     for s in &gen.shaders {
         let (words, _) = compiler.compile(s.role, &s.glsl)?;
-        out.push(Shader { role: s.role, glsl: s.glsl.clone(), spirv: words.to_vec() });
+        out.push(Shader { role: s.role, glsl: s.glsl.clone(), spirv: words.to_vec(), compiler: crate::shadergen::compile::compiler_for(&s.glsl), patched: vec![] });
     }
     // The worker's order: address_patched is as-to-address on the descriptor variant, then the
     // cell's own workaround.
@@ -50,6 +54,7 @@ pub fn cell_shaders(cell: &Cell, fault: Option<FaultKind>) -> Result<Vec<Shader>
         for s in out.iter_mut() {
             if let Some(p) = crate::exec::patch_module(&s.spirv, w)? {
                 s.spirv = p;
+                s.patched.push(w.as_str());
             }
         }
     }

@@ -23,6 +23,9 @@ pub struct WorkerJob {
     #[serde(default)]
     pub inject_seed: u64,
     pub dump: Option<PathBuf>,
+    /// A repro bundle's `shaders/`: its SPIR-V replaces the compiled (and patched) modules.
+    #[serde(default)]
+    pub spirv_dir: Option<PathBuf>,
     pub cells: Vec<Cell>,
 }
 

@@ -53,6 +53,8 @@ pub struct SupervisorOptions {
     /// `--inject-fault`, passed to every worker.
     pub inject: Vec<crate::matrix::inject::Injection>,
     pub dump: Option<PathBuf>,
+    /// A repro bundle's `shaders/` (`run --cell-spec`): workers run its SPIR-V.
+    pub spirv_dir: Option<PathBuf>,
     pub job_dir: PathBuf,
 }
 
@@ -297,6 +299,7 @@ impl Supervisor {
             inject: self.opts.inject.clone(),
             inject_seed: seed,
             dump: self.opts.dump.clone(),
+            spirv_dir: self.opts.spirv_dir.clone(),
             cells,
         };
         std::fs::create_dir_all(&self.opts.job_dir)?;

@@ -94,7 +94,7 @@ fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
     req.int64 |= job.cells.iter().any(|c| crate::matrix::inject::for_cell(&job.inject, c).is_some_and(|i| i.fault.reads_bad_address()));
     phases.enter(Phase::Setup, Some((SetupStep::CreateDevice, "vkCreateDevice")))?;
     let gpu = Gpu::new(inst, info, req)?;
-    let opts = ExecOptions { timeout: Duration::from_millis(job.fence_timeout_ms), inject: job.inject.clone(), inject_seed: job.inject_seed, dump: job.dump.clone() };
+    let opts = ExecOptions { timeout: Duration::from_millis(job.fence_timeout_ms), inject: job.inject.clone(), inject_seed: job.inject_seed, dump: job.dump.clone(), spirv_dir: job.spirv_dir.clone() };
     let mut exec = Executor::new(gpu, &job.scene, opts)?;
     phases.enter(Phase::Setup, Some((SetupStep::Scene, "acceleration structures and resources")))?;
     exec.prepare(&job.cells)?;

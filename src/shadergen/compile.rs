@@ -24,6 +24,26 @@ pub struct Compiler {
     cache: HashMap<u64, Arc<Vec<u32>>>,
 }
 
+/// The shaderc this binary links (the `shaderc` crate built from source, with the glslang of that
+/// release); a test holds it to Cargo.lock.
+pub const SHADERC: &str = "shaderc-rs 0.10.1 (shaderc built from source)";
+
+/// Whether `glsl` needs the external glslangValidator (it enables GL_EXT_descriptor_heap).
+pub fn uses_heap(glsl: &str) -> bool {
+    glsl.contains(&format!("#extension {} ", super::glslang::HEAP_EXTENSION))
+}
+
+/// The compiler [`Compiler::compile`] uses for `glsl`, with its version.
+pub fn compiler_for(glsl: &str) -> String {
+    if !uses_heap(glsl) {
+        return SHADERC.into();
+    }
+    match super::glslang::find() {
+        Some(g) => format!("glslangValidator {} ({})", g.version, g.path.display()),
+        None => "glslangValidator (not found here)".into(),
+    }
+}
+
 pub fn source_hash(role: Role, glsl: &str) -> u64 {
     let mut h = std::collections::hash_map::DefaultHasher::new();
     role.hash(&mut h);
@@ -43,8 +63,7 @@ impl Compiler {
             return Ok((s.clone(), 0.0));
         }
         let t = Instant::now();
-        let heap = glsl.contains(&format!("#extension {} ", super::glslang::HEAP_EXTENSION));
-        let words = Arc::new(if heap { super::glslang::compile(role, glsl)? } else { self.compile_glsl(role.kind(), role.file_name(), glsl)? });
+        let words = Arc::new(if uses_heap(glsl) { super::glslang::compile(role, glsl)? } else { self.compile_glsl(role.kind(), role.file_name(), glsl)? });
         self.cache.insert(key, words.clone());
         Ok((words, t.elapsed().as_secs_f64() * 1e3))
     }
@@ -114,4 +133,23 @@ pub struct GlslOptions {
     /// `-D NAME[=VALUE]`.
     pub defines: Vec<(String, Option<String>)>,
     pub target: TargetEnv,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_shaderc_named_is_the_one_cargo_locked() {
+        let lock = include_str!("../../Cargo.lock");
+        let at = lock.find("name = \"shaderc\"\nversion = \"").expect("shaderc in Cargo.lock");
+        let version = lock[at..].lines().nth(1).unwrap().trim_start_matches("version = ").trim_matches('"');
+        assert!(SHADERC.contains(&format!(" {version} ")), "{SHADERC} vs Cargo.lock {version}");
+    }
+
+    #[test]
+    fn heap_sources_name_glslang() {
+        assert_eq!(compiler_for("#version 460\nvoid main() {}\n"), SHADERC);
+        assert!(compiler_for("#version 460\n#extension GL_EXT_descriptor_heap : require\n").starts_with("glslangValidator"));
+    }
 }
