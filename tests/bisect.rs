@@ -4,6 +4,7 @@
 //! section; a repro bundle re-runs its cell with the same verdict.
 mod common;
 use common::*;
+use rtprobe::bisect::confidence;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -73,12 +74,27 @@ fn single_axis_two_axis_and_value_set_predicates_come_back_exactly() {
         let iso = j["isolation"].as_array().unwrap();
         assert_eq!(iso[0]["cell"], j["representative"]);
         assert!(iso[0]["line"].as_str().unwrap().contains(" reading "), "{}", iso[0]["line"]);
-        // Every verdict used carries k of N, and the deterministic fault repeated.
+        // Every verdict used carries k of N. The deterministic fault faulted every time, so its
+        // bound is alpha^(1/N); each pass is held to it: (1 - bound)^attempts below 1%.
         for l in iso {
             assert!(l["attempts"].as_u64().unwrap() >= 1, "{l}");
         }
-        assert_eq!(j["fault_rate"], 1.0);
+        let n = iso[0]["attempts"].as_u64().unwrap() as u32;
+        assert_eq!(iso[0]["agreeing"].as_u64().unwrap() as u32, n, "{}", iso[0]);
+        let bound = confidence::rate_bound(n, n);
+        assert!((j["fault_rate_bound"].as_f64().unwrap() - bound).abs() < 1e-12, "{j}");
+        assert!(text.contains(&format!("({n} of {n}, p ≥ {bound:.2} at 95%)")), "{text}");
+        let need = confidence::attempts_needed(bound, 0.01, 50);
+        assert_eq!(j["attempts_per_pass"].as_u64().unwrap() as u32, need);
+        // The fault was repeated until it had as many attempts as a pass then needs.
+        assert!(n >= need, "{n} attempts of the fault, {need} per pass");
+        for l in iso.iter().filter(|l| l["verdict"] == "pass") {
+            assert_eq!(l["attempts"].as_u64().unwrap() as u32, need, "{l}");
+            assert!(l["miss_probability"].as_f64().unwrap() < 0.01 && l["settled"] == true, "{l}");
+            assert!(l["line"].as_str().unwrap().contains(&format!("({need} of {need}; miss ≤ ")), "{l}");
+        }
         assert!(j["unsettled"].as_array().unwrap().is_empty());
+        assert!(!text.contains("NOT CONCLUDED"), "{text}");
     }
 }
 
@@ -87,22 +103,29 @@ fn a_flaky_injection_is_recovered_with_repeats_and_its_miss_probability() {
     let dir = tempfile::tempdir().unwrap();
     let scope = "stage=raygen|closest_hit,resource=storage_buffer,index=literal|dynamic,descriptor_model=descriptor_indexing";
     let report = run_report(dir.path(), "flaky.json", scope, &["stage=raygen,index=dynamic@flaky:0.5"], &["--repeat", "4"]);
-    // An injected cell the run missed (probability 1/2 each) must show up in bisect's repeats:
-    // with --max-miss 0.0001 that fails only where the rate estimate is far too high (~0.2%).
-    let (text, j) = bisect(&report, &["--max-miss", "0.0001"]);
+    // An injected cell the run missed (probability 1/2 each) must show up in bisect's repeats: a
+    // pass is held to the fault's 95% lower bound, so with --max-miss 0.001 it misses a rate-0.5
+    // fault only where that bound overshoots 0.5 (5%) and the shorter run still misses.
+    let (text, j) = bisect(&report, &["--max-miss", "0.001"]);
     assert_eq!(last_line(&text), "minimal: stage=raygen,index=dynamic", "{text}");
-    assert!(text.contains("worst miss probability relied on:"), "{text}");
+    assert!(text.contains("worst miss probability"), "{text}");
     let worst = j["worst_miss_probability"].as_f64().unwrap();
-    assert!(worst < 0.0001, "{worst}");
+    assert!(worst < 0.001, "{worst}");
     assert!(j["unsettled"].as_array().unwrap().is_empty(), "{}", j["unsettled"]);
-    // Passes were repeated: each pass has the attempts the rate asks for.
-    let need = j["attempts_per_pass"].as_u64().unwrap();
+    // The minimal failing cell did not fault every time; its bound is its own k of N.
+    let rep = &j["isolation"][0];
+    let (k, n) = (rep["agreeing"].as_u64().unwrap() as u32, rep["attempts"].as_u64().unwrap() as u32);
+    assert!(k < n, "a rate-0.5 fault missed some of {n} attempts: {rep}");
+    let bound = confidence::rate_bound(k, n);
+    assert!((j["fault_rate_bound"].as_f64().unwrap() - bound).abs() < 1e-12);
+    assert!(rep["line"].as_str().unwrap().contains(&format!("({k} of {n}, p ≥ {bound:.2} at 95%)")), "{rep}");
+    // Passes were repeated to the attempts the bound asks for, and print their miss probability.
+    let need = confidence::attempts_needed(bound, 0.001, 50);
+    assert_eq!(j["attempts_per_pass"].as_u64().unwrap() as u32, need);
+    assert!(n >= need, "the fault was repeated first: {n} < {need}");
     for l in j["isolation"].as_array().unwrap().iter().filter(|l| l["verdict"] == "pass") {
-        assert!(l["attempts"].as_u64().unwrap() >= need, "{l}");
-    }
-    if j["fault_rate"].as_f64().unwrap() < 1.0 {
-        assert!(need > 1 && j["runs"].as_u64().unwrap() > 4, "{j}");
-        assert!(text.contains("miss probability"), "{text}");
+        assert!(l["attempts"].as_u64().unwrap() as u32 >= need, "{l}");
+        assert!(l["line"].as_str().unwrap().contains("; miss ≤ ") && l["line"].as_str().unwrap().contains(&format!("for p ≥ {bound:.2})")), "{l}");
     }
 }
 
@@ -191,4 +214,79 @@ fn nothing_to_bisect_and_a_wrong_cell_are_one_line_errors() {
     let (_, shared_report) = shared();
     assert_one_line_error(&run(&["bisect", shared_report.to_str().unwrap(), "--offline", "--cell", "raygen.storage_buffer.literal.descriptor_indexing"]), 9, "not a faulting cell");
     assert_one_line_error(&run(&["bisect", shared_report.to_str().unwrap(), "--max-miss", "2"]), 2, "--max-miss");
+}
+
+#[test]
+fn passes_below_the_threshold_are_not_concluded_on() {
+    // Two attempts at most: a fault seen 2 of 2 is only p >= 0.05^(1/2) at 95%, and two passing
+    // attempts would miss such a fault with probability (1 - 0.05^(1/2))^2, far above 1%.
+    let (_, report) = shared();
+    let json = report.with_extension("capped.bisect.json");
+    let o = run(&["bisect", report.to_str().unwrap(), "--max-attempts", "2", "--json", json.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let (text, j) = (stdout(&o), json_file(&json));
+    let miss = confidence::miss(confidence::rate_bound(2, 2), 2);
+    assert!(miss >= 0.01);
+    assert!(text.contains("NOT CONCLUDED"), "{text}");
+    let passes: Vec<&Value> = j["isolation"].as_array().unwrap().iter().filter(|l| l["verdict"] == "pass").collect();
+    assert!(!passes.is_empty(), "{text}");
+    for l in passes {
+        assert_eq!(l["settled"], false, "{l}");
+        assert!(l["line"].as_str().unwrap().contains("too little evidence, not concluded on"), "{l}");
+        assert!(j["unsettled"].as_array().unwrap().contains(&l["cell"]), "{l}");
+    }
+}
+
+#[test]
+fn a_bundle_is_replaced_whole_runs_its_own_spirv_and_has_an_amber_script_where_it_fits() {
+    let dir = tempfile::tempdir().unwrap();
+    let filter = "stage=compute|closest_hit,resource=storage_buffer,index=literal|push_constant,descriptor_model=descriptor_indexing";
+    let report = run_report(dir.path(), "mixed.json", filter, &[], &[]);
+    let b = dir.path().join("bundle");
+    let repro = |id: &str, force: bool| {
+        let mut args = vec!["repro", id, "--from", report.to_str().unwrap(), "-o", b.to_str().unwrap()];
+        if force {
+            args.push("--force");
+        }
+        run(&args)
+    };
+    // A compute buffer cell: an Amber script with its SPIR-V, buffers and expected records.
+    let o = repro("compute.storage_buffer.push_constant.descriptor_indexing", false);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let amber = std::fs::read_to_string(b.join("cell.amber")).expect("cell.amber");
+    assert!(amber.starts_with("#!amber\n") && amber.contains("SHADER compute probe SPIRV-HEX\n03 02 23 07 "), "{}", &amber[..600]);
+    assert!(amber.contains("BIND BUFFER_ARRAY slot0 ") && amber.contains("\nRUN probe_pipeline ") && amber.contains("\nEXPECT records IDX 0 EQ "));
+    assert!(amber.contains("Not run by rtprobe"), "says it was not run");
+    let spec = json_file(&b.join("cell.json"));
+    let modules = spec["modules"].as_array().unwrap();
+    assert_eq!(modules.len(), 1);
+    assert!(modules[0]["compiler"].as_str().unwrap().starts_with("shaderc-rs "), "{spec}");
+    let readme = std::fs::read_to_string(b.join("README.txt")).unwrap();
+    assert!(readme.contains("The SPIR-V was compiled by shaderc-rs "), "{readme}");
+    // A second bundle into the same folder: refused without --force, the first one left whole.
+    assert_one_line_error(&repro("closest_hit.storage_buffer.literal.descriptor_indexing", false), 9, "--force");
+    assert!(b.join("cell.amber").exists());
+    // With --force: the old bundle's files are gone (a ray tracing cell has no Amber script) and
+    // nothing is left beside it.
+    let o = repro("closest_hit.storage_buffer.literal.descriptor_indexing", true);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(!b.join("cell.amber").exists(), "stale cell.amber kept");
+    assert!(!b.join("shaders/probe.comp.spv").exists(), "stale shader kept");
+    assert_eq!(json_file(&b.join("cell.json"))["id"], "closest_hit.storage_buffer.literal.descriptor_indexing");
+    let readme = std::fs::read_to_string(b.join("README.txt")).unwrap();
+    assert!(readme.contains("no cell.amber: ray tracing cell"), "{readme}");
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path()).unwrap().flatten().map(|e| e.file_name().to_string_lossy().into_owned()).filter(|n| n.starts_with('.')).collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+    // --cell-spec runs the bundle's SPIR-V: garbage there is what the worker loads.
+    let spv = b.join("shaders/closest_hit_triangles.rchit.spv");
+    std::fs::write(&spv, b"not spir-v").unwrap();
+    let out = b.join("rerun.json");
+    let o = run(&["run", "--cell-spec", b.join("cell.json").to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert!(stderr(&o).contains("running the bundle's SPIR-V"), "{}", stderr(&o));
+    let cell = &json_file(&out)["cells"][0];
+    assert_eq!(cell["outcome"], "error", "{cell}");
+    assert!(cell.to_string().contains("is not SPIR-V"), "{cell}");
+    // A listed module that is missing: one line, before any GPU work.
+    std::fs::remove_file(&spv).unwrap();
+    assert_one_line_error(&run(&["run", "--cell-spec", b.join("cell.json").to_str().unwrap()]), 9, "is missing");
 }
