@@ -2,7 +2,7 @@
 //! with dynamic index (nonuniformEXT), descriptor_indexing`) and a verdict with its evidence
 //! (`❌ crash (6 of 6, p ≥ 0.61 at 95%)`, `✅ passes (5 of 5; miss ≤ 0.94% for p ≥ 0.61)`).
 use super::Verdicts;
-use crate::matrix::{AsAccess, Cell, HeapAccess};
+use crate::matrix::{AsAccess, Cell, HeapAccess, IndexSource};
 use serde::{Deserialize, Serialize};
 
 /// One cell as a sentence a driver engineer can read without knowing rtprobe's ids.
@@ -64,6 +64,11 @@ pub struct IsolationLine {
     /// For a pass: its miss probability is below the threshold (false: not concluded on).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub settled: Option<bool>,
+    /// For a pass without `nonuniformEXT` on its dynamic index whose lanes read other elements
+    /// (allowed: undefined) while a sibling with a defined index faults: that sibling's id. Such
+    /// a pass is not clean evidence (it may hide the sibling's fault).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub suspect: Option<String>,
     /// The verdict's reason, for an `error` (rtprobe could not run the cell).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub reason: Option<String>,
@@ -99,7 +104,7 @@ pub fn line(cell: &Cell, varied: Option<&str>, verdicts: &Verdicts, ev: Evidence
     let report = verdicts.get(cell).filter(|r| !r.attempts.is_empty());
     let reason = report.filter(|r| r.outcome == crate::outcome::Outcome::Error).and_then(|r| r.reason.clone());
     let (k, n) = verdicts.counts(cell);
-    let mut l = IsolationLine { cell: cell.id(), varied: varied.map(String::from), description, verdict: "not_run".into(), agreeing: 0, attempts: n, rate_bound: None, miss_probability: None, settled: None, reason, injected: None, line: String::new() };
+    let mut l = IsolationLine { cell: cell.id(), varied: varied.map(String::from), description, verdict: "not_run".into(), agreeing: 0, attempts: n, rate_bound: None, miss_probability: None, settled: None, suspect: None, reason, injected: None, line: String::new() };
     if let Some(r) = report {
         l.verdict = r.outcome.as_str().to_string();
         l.injected = r.injected.clone();
@@ -112,6 +117,7 @@ pub fn line(cell: &Cell, varied: Option<&str>, verdicts: &Verdicts, ev: Evidence
                 l.rate_bound = ev.against;
                 l.miss_probability = Some(ev.against.map_or(1.0, |p| super::confidence::miss(p, n)));
                 l.settled = l.miss_probability.map(|m| m < ev.max_miss);
+                l.suspect = suspect(cell, verdicts).map(|(sib, _)| sib.id());
             }
         }
     }
@@ -128,7 +134,22 @@ pub fn line(cell: &Cell, varied: Option<&str>, verdicts: &Verdicts, ev: Evidence
         (v, _, None) => format!("❌ {v} ({k} of {n})"),
     };
     l.line = format!("{}: {evidence}", l.description);
+    if let Some((sib, other)) = suspect(cell, verdicts).filter(|_| l.suspect.is_some()) {
+        l.line += &format!(" — suspect: {other} pixel(s) read another element (allowed without nonuniformEXT, undefined which), while {} faults", describe(&sib));
+    }
     l
+}
+
+/// For a cell whose dynamic index lacks `nonuniformEXT` and whose attempts read other elements
+/// (the most in one attempt), a faulting sibling that differs only in a defined index (another
+/// index source, or `nonuniformEXT`): the read of "another element" may be that fault.
+pub fn suspect(cell: &Cell, verdicts: &Verdicts) -> Option<(Cell, usize)> {
+    if !crate::reference::undefined_descriptor_read(cell) {
+        return None;
+    }
+    let other = verdicts.get(cell)?.element_reads().map(|e| e.other).max().filter(|o| *o > 0)?;
+    let defined = IndexSource::ALL.iter().filter(|i| **i != IndexSource::Dynamic).map(|i| Cell { index: *i, nonuniform: false, ..*cell }).chain(std::iter::once(Cell { nonuniform: true, ..*cell }));
+    defined.into_iter().find(|s| verdicts.state(s) == super::State::Fault).map(|s| (s, other))
 }
 
 /// A probability as a short percentage (`0.78%`, `< 0.01%`).

@@ -511,9 +511,10 @@ impl<'o> Bisector<'o> {
     }
 
     /// Per axis, per other value, the scope cell closest to `rep` (fewest other axes changed, at
-    /// most one more: `index` drags `nonuniform` along, `resource` drags `as_access`).
+    /// most one more: `index` drags `nonuniform` along, `resource` drags `as_access`), each cell
+    /// once (with every axis it is the sibling for).
     fn siblings(&self, rep: &Cell) -> Vec<(String, Cell)> {
-        let mut out = Vec::new();
+        let mut out: Vec<(String, Cell)> = Vec::new();
         for axis in axes() {
             let mine = rep.axis_value(axis);
             for v in self.scope_values(axis) {
@@ -527,8 +528,11 @@ impl<'o> Bisector<'o> {
                     .map(|c| (axes().filter(|a| *a != axis && c.axis_value(a) != rep.axis_value(a)).count(), c))
                     .filter(|(d, _)| *d <= 1)
                     .min_by_key(|(d, _)| *d);
-                if let Some((_, c)) = best {
-                    out.push((axis.to_string(), *c));
+                // One line per cell: a sibling that is closest for two axes names both.
+                match (best, best.and_then(|(_, c)| out.iter_mut().find(|(_, o)| o.id() == c.id()))) {
+                    (_, Some(seen)) => seen.0 += &format!(", {axis}"),
+                    (Some((_, c)), None) => out.push((axis.to_string(), *c)),
+                    (None, None) => {}
                 }
             }
         }

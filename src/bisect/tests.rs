@@ -288,3 +288,40 @@ fn a_pass_with_too_little_evidence_is_not_concluded_on() {
     let v = report(&mut sim, &sc);
     assert!(Bisector::new(sc, v, &mut sim, Settings::default(), vec![]).bisect(None, &|_| true).unwrap().concluded());
 }
+
+#[test]
+fn a_lenient_pass_that_read_other_elements_is_suspect_when_a_defined_sibling_faults() {
+    use crate::matrix::IndexSource;
+    use crate::reference::{Comparison, ElementReads};
+    let lenient = scope("stage=closest_hit,resource=sampled_image,index=dynamic,nonuniform=false,descriptor_model=descriptor_indexing")[0];
+    let literal = Cell { index: IndexSource::Literal, ..lenient };
+    let reads = |other: usize| {
+        let comparison = Comparison { element_reads: Some(ElementReads { outside_spec: "x".into(), own: 10, other, neither: 0 }), ..Comparison::default() };
+        let result = crate::outcome::CellResult { outcome: Outcome::Pass, detail: None, timings: Default::default(), comparison: Some(comparison), fault: None, validation_errors: 0 };
+        Attempt { result: Some(result), ..attempt(Outcome::Pass, false) }
+    };
+    let ev = isolation::Evidence { against: Some(0.6), max_miss: DEFAULT_MAX_MISS };
+    // Other elements read, and the literal sibling faults: suspect, naming it.
+    let mut v = Verdicts::default();
+    v.record(&lenient, reads(3));
+    v.record(&literal, attempt(Outcome::Mismatch, false));
+    let l = isolation::line(&lenient, Some("index"), &v, ev);
+    assert_eq!(l.suspect.as_deref(), Some(literal.id().as_str()));
+    assert!(l.line.contains("suspect: 3 pixel(s) read another element") && l.line.contains("with literal index, descriptor_indexing faults"), "{}", l.line);
+    // Twins: every lane read its own element, or no defined sibling faults: clean.
+    let mut own = Verdicts::default();
+    own.record(&lenient, reads(0));
+    own.record(&literal, attempt(Outcome::Mismatch, false));
+    assert!(isolation::line(&lenient, None, &own, ev).suspect.is_none());
+    let mut clean = Verdicts::default();
+    clean.record(&lenient, reads(3));
+    clean.record(&literal, attempt(Outcome::Pass, false));
+    let l = isolation::line(&lenient, None, &clean, ev);
+    assert!(l.suspect.is_none() && !l.line.contains("suspect"), "{}", l.line);
+    // A cell with nonuniformEXT is never suspect: its reads are defined.
+    let nu = Cell { nonuniform: true, ..lenient };
+    let mut v = Verdicts::default();
+    v.record(&nu, reads(3));
+    v.record(&literal, attempt(Outcome::Mismatch, false));
+    assert!(isolation::line(&nu, None, &v, ev).suspect.is_none());
+}
