@@ -9,7 +9,7 @@
 //! into this worker's cache with `vkMergePipelineCaches`, then the whole is written atomically
 //! (a temporary file per process, then rename). Two workers saving at the same instant: the last
 //! rename wins, and the next run merges again.
-use crate::vk::{DeviceInfo, Gpu, VkError, VkResultExt};
+use crate::vk::{Gpu, VkError, VkResultExt};
 use ash::vk;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -24,9 +24,8 @@ pub fn default_dir() -> Option<PathBuf> {
     var("RTPROBE_CACHE_DIR").or_else(|| var("XDG_CACHE_HOME").map(|d| d.join("rtprobe"))).or_else(|| var("HOME").map(|h| h.join(".cache").join("rtprobe")))
 }
 
-/// The cache file of `info`'s device and driver.
-pub fn file_name(info: &DeviceInfo) -> String {
-    let p = &info.properties.core;
+/// The cache file of a device and driver (`p`: its properties).
+pub fn file_name(p: &vk::PhysicalDeviceProperties) -> String {
     let uuid: String = p.pipeline_cache_uuid.iter().map(|b| format!("{b:02x}")).collect();
     format!("pipeline-cache-{:04x}-{:04x}-{:08x}-{uuid}.bin", p.vendor_id, p.device_id, p.driver_version)
 }
@@ -84,7 +83,7 @@ fn create(gpu: &Gpu, data: &[u8]) -> Result<vk::PipelineCache, VkError> {
 /// Never shared with an externally-synchronized flag: the prebuild threads use it at once.
 pub fn open(gpu: &Gpu, dir: Option<&Path>) -> Result<(vk::PipelineCache, Option<Loaded>), VkError> {
     let Some(dir) = dir else { return Ok((create(gpu, &[])?, None)) };
-    let path = dir.join(file_name(&gpu.info));
+    let path = dir.join(file_name(&gpu.info.properties.core));
     let mut status = Loaded { path: path.clone(), ..Default::default() };
     let data = match read_valid(&path, &gpu.info.properties.core) {
         Ok(d) => d.unwrap_or_default(),
@@ -157,8 +156,7 @@ mod tests {
 
     #[test]
     fn the_file_name_names_device_driver_and_uuid() {
-        let mut info = crate::vk::DeviceInfo::default();
-        info.properties.core = vk::PhysicalDeviceProperties { driver_version: 0x1234_5678, ..props() };
-        assert_eq!(file_name(&info), format!("pipeline-cache-10de-2330-12345678-{}.bin", "07".repeat(16)));
+        let p = vk::PhysicalDeviceProperties { driver_version: 0x1234_5678, ..props() };
+        assert_eq!(file_name(&p), format!("pipeline-cache-10de-2330-12345678-{}.bin", "07".repeat(16)));
     }
 }
