@@ -372,7 +372,9 @@ impl RunState {
                         s.workers_loaded += 1;
                         s.loaded_bytes = s.loaded_bytes.max(l.loaded_bytes);
                     }
-                    s.ignored.extend(l.ignored);
+                    if let Some(why) = l.ignored.filter(|w| !s.ignored.contains(w)) {
+                        s.ignored.push(why);
+                    }
                 }
             }
             Event::Prebuilt { wall_ms, pipelines, .. } => {
@@ -386,7 +388,8 @@ impl RunState {
                         s.saves += 1;
                         s.saved_bytes = bytes;
                     }
-                    Err(e) => s.save_errors.push(e),
+                    Err(e) if !s.save_errors.contains(&e) => s.save_errors.push(e),
+                    Err(_) => {}
                 }
             }
             Event::Worker(w) => {

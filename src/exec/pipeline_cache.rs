@@ -109,7 +109,7 @@ pub fn open(gpu: &Gpu, dir: Option<&Path>) -> Result<(vk::PipelineCache, Option<
 }
 
 /// Merge what another worker saved meanwhile into `cache`, then write it to `path` atomically;
-/// the bytes written.
+/// the bytes written. Data that fails the header check itself is not written.
 pub fn save(gpu: &Gpu, cache: vk::PipelineCache, path: &Path) -> Result<u64, String> {
     if let Ok(Some(theirs)) = read_valid(path, &gpu.info.properties.core) {
         if let Ok(src) = create(gpu, &theirs) {
@@ -120,6 +120,11 @@ pub fn save(gpu: &Gpu, cache: vk::PipelineCache, path: &Path) -> Result<u64, Str
         }
     }
     let data = unsafe { gpu.device.get_pipeline_cache_data(cache) }.map_err(|e| format!("vkGetPipelineCacheData: {e}"))?;
+    // A driver whose own data fails the check (lavapipe of Mesa 26.2.6 returns 20 bytes of a
+    // 32-byte header) would only make every later run warn: not written.
+    if let Some(why) = header_mismatch(&data, &gpu.info.properties.core) {
+        return Err(format!("the driver's vkGetPipelineCacheData output is not a valid cache ({why}); not saved"));
+    }
     crate::report::write_atomic(path, &data).map_err(|e| e.to_string())?;
     Ok(data.len() as u64)
 }

@@ -135,7 +135,8 @@ pub fn render(r: &RunReport) -> String {
     if let Some(pc) = &r.pipeline_cache {
         let file = pc.file.as_ref().map(|f| f.display().to_string()).unwrap_or_default();
         let ignored = if pc.ignored.is_empty() { String::new() } else { format!("; ignored: {}", pc.ignored.join("; ")) };
-        let _ = writeln!(s, "pipeline cache: {} bytes loaded ({} workers), {} bytes saved ({file}){ignored}", pc.loaded_bytes, pc.workers_loaded, pc.saved_bytes);
+        let errors = if pc.save_errors.is_empty() { String::new() } else { format!("; {}", pc.save_errors.join("; ")) };
+        let _ = writeln!(s, "pipeline cache: {} bytes loaded ({} workers), {} bytes saved ({file}){ignored}{errors}", pc.loaded_bytes, pc.workers_loaded, pc.saved_bytes);
     }
     s
 }
