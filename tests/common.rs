@@ -9,7 +9,14 @@ pub fn bin() -> Command {
         c.env("RTPROBE_VALIDATE", "1");
     }
     c.env_remove("RUST_LOG");
+    // Never the user's pipeline cache: one folder per test binary.
+    c.env("RTPROBE_CACHE_DIR", cache_dir());
     c
+}
+
+/// The pipeline cache folder of this test binary's runs.
+pub fn cache_dir() -> std::path::PathBuf {
+    std::env::temp_dir().join(format!("rtprobe-test-cache-{}", std::process::id()))
 }
 
 pub fn run(args: &[&str]) -> Output {

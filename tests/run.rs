@@ -169,6 +169,8 @@ fn bad_run_arguments_are_usage_errors() {
     assert_one_line_error(&run(&["run", "--size", "10x10"]), 2, "multiple of 8");
     assert_one_line_error(&run(&["run", "--instances", "3"]), 2, "instances");
     assert_one_line_error(&run(&["run", "--jobs", "0"]), 2, "--jobs");
+    assert_one_line_error(&run(&["run", "--threads", "0"]), 2, "--threads");
+    assert_one_line_error(&run(&["run", "--threads", "65"]), 2, "--threads");
     let dir = tempfile::tempdir().unwrap();
     let bad = dir.path().join("bad.json");
     std::fs::write(&bad, b"{not json").unwrap();
@@ -299,4 +301,84 @@ fn faulting_cells_are_retried_with_each_applicable_workaround() {
     assert_eq!(base["outcome"], "crash", "an invalid-address load kills lavapipe's worker: {}", base["reason"]);
     assert!(base["workarounds"].as_array().unwrap().iter().all(|w| w["verified"] == true && w["outcome"] == "pass"), "{}", base["workarounds"]);
     assert!(stdout(&o).contains("verified workaround: nonuniform, pin-index, ssbo-to-address"), "{}", stdout(&o));
+}
+
+/// Building pipelines on several threads changes nothing but time: every cell's attempts have
+/// the same outcomes, phases and details with `--threads 1` and `--threads 2`, including a
+/// crash in a trace (injected), a pipeline creation error (ssbo-to-address on the injected
+/// shader) and the workers that replace crashed ones.
+#[test]
+fn threads_change_no_verdict() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut seen = vec![];
+    for t in ["1", "2"] {
+        let out = dir.path().join(format!("t{t}.json"));
+        let o = run(&[
+            "run", "-j", "1", "--threads", t, "--patches", "all",
+            "--filter", "stage=closest_hit,resource=storage_buffer,index=dynamic,descriptor_model=descriptor_indexing",
+            "--inject-fault", "stage=closest_hit,resource=storage_buffer,index=dynamic,nonuniform=false",
+            "-o", out.to_str().unwrap(),
+        ]);
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        let r = report(&out);
+        let verdicts: Vec<(String, Vec<(Value, Value, Value)>)> = cells(&r)
+            .iter()
+            .map(|c| (c["id"].as_str().unwrap().to_string(), c["attempts"].as_array().unwrap().iter().map(|a| (a["outcome"].clone(), a["phase"].clone(), a["detail"].clone())).collect()))
+            .collect();
+        assert!(verdicts.iter().any(|(_, a)| a[0].0 == "error" && a[0].1 == "pipeline"), "{verdicts:?}");
+        assert!(verdicts.iter().any(|(_, a)| a[0].0 == "crash"), "{verdicts:?}");
+        if t == "2" {
+            assert!(r["timing"]["prebuilt_pipelines"].as_u64().unwrap() > 0, "{}", r["timing"]);
+        }
+        seen.push(verdicts);
+    }
+    assert_eq!(seen[0], seen[1]);
+}
+
+fn cache_file(dir: &Path) -> std::path::PathBuf {
+    let files: Vec<_> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().path()).filter(|p| p.extension().is_some_and(|e| e == "bin")).collect();
+    assert_eq!(files.len(), 1, "{files:?}");
+    files[0].clone()
+}
+
+/// The persisted pipeline cache: saved after a run, loaded by the next; a corrupt, truncated or
+/// foreign file is ignored with its reason (never a crash) and replaced by a valid one.
+#[test]
+fn a_corrupt_pipeline_cache_is_ignored_and_replaced() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache");
+    let out = dir.path().join("r.json");
+    let one = "stage=raygen,resource=storage_buffer,index=literal,descriptor_model=descriptor_indexing";
+    let go = || {
+        let o = run(&["run", "--filter", one, "--pipeline-cache", cache.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        let r = report(&out);
+        assert!(cells(&r).iter().all(|c| c["outcome"] == "pass" || c["outcome"] == "unsupported"));
+        r
+    };
+    let r = go();
+    assert_eq!(r["pipeline_cache"]["saves"], 1, "{}", r["pipeline_cache"]);
+    let file = cache_file(&cache);
+    let good = std::fs::read(&file).unwrap();
+    assert!(good.len() >= 32 && good[4..8] == [1, 0, 0, 0], "not a VkPipelineCacheHeaderVersionOne: {good:?}");
+    let r = go();
+    assert_eq!(r["pipeline_cache"]["workers_loaded"], 1, "{}", r["pipeline_cache"]);
+    assert!(r["pipeline_cache"]["ignored"].is_null(), "{}", r["pipeline_cache"]);
+    let mut foreign = good.clone();
+    foreign[16] ^= 0xff; // another pipelineCacheUUID
+    for (what, bytes) in [("garbage", b"this is not a pipeline cache, not at all".to_vec()), ("truncated", good[..20].to_vec()), ("foreign", foreign)] {
+        std::fs::write(&file, &bytes).unwrap();
+        let r = go();
+        let pc = &r["pipeline_cache"];
+        assert_eq!(pc["workers_loaded"], 0, "{what}: {pc}");
+        assert!(pc["ignored"].as_array().is_some_and(|a| !a.is_empty()), "{what}: {pc}");
+        let now = std::fs::read(cache_file(&cache)).unwrap();
+        assert_eq!(now[..32], good[..32], "{what}: the file was not replaced by a valid cache");
+    }
+    // Off: nothing recorded, nothing written.
+    let off = dir.path().join("off.json");
+    let o = run_env(&["run", "--filter", one, "--pipeline-cache", "off", "-o", off.to_str().unwrap()], &[("RTPROBE_CACHE_DIR", dir.path().join("unused").to_str().unwrap())]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(report(&off)["pipeline_cache"].is_null());
+    assert!(!dir.path().join("unused").exists());
 }

@@ -311,3 +311,51 @@ fn a_killed_supervisor_leaves_no_worker_running() {
     use std::os::unix::process::ExitStatusExt;
     assert_eq!(status.signal(), Some(libc::SIGKILL));
 }
+
+/// A fault while a worker builds its batch on several threads (`--threads 2`) cannot be blamed on
+/// one cell: it is the worker's record (phase `prebuild`), and the batch runs again in a fresh
+/// worker with each cell building at its turn. No cell is lost, none is blamed.
+#[test]
+fn a_fault_while_prebuilding_is_the_workers_and_the_batch_runs_cell_by_cell() {
+    for (fault, outcome) in [("prebuild:crash", "crash"), ("prebuild:hang", "timeout"), ("prebuild:lose", "device_lost")] {
+        let (o, r, took) = fault_run(fault, TWO, &["--threads", "2", "--timeout", "3"], Duration::from_secs(120));
+        assert_eq!(o.status.code(), Some(1), "{fault}: {}", stderr(&o));
+        assert!(took < Duration::from_secs(60), "{fault} took {took:?}");
+        let ws = workers(&r);
+        let pre: Vec<_> = ws.iter().filter(|w| w["phase"] == "prebuild").collect();
+        assert_eq!(pre.len(), 1, "{fault}: {ws:?}");
+        assert_eq!(pre[0]["outcome"], outcome, "{fault}: {}", pre[0]);
+        assert!(pre[0]["detail"].as_str().unwrap().contains("each cell building at its turn"), "{}", pre[0]);
+        let cs = cells(&r);
+        assert_eq!(cs.len(), 2, "{fault}");
+        for c in &cs {
+            assert_eq!(c["outcome"], "pass", "{fault}: {c}");
+            assert_eq!(c["attempts"].as_array().unwrap().len(), 1, "{fault}: {c}");
+            assert_ne!(c["attempts"][0]["worker"], pre[0]["worker"], "{fault}: the failed prebuild's worker has no attempt: {c}");
+        }
+        assert_eq!(r["options"]["threads"], 2);
+    }
+}
+
+/// Twin: with one thread the worker never prebuilds, so the same hook never fires.
+#[test]
+fn one_thread_never_prebuilds() {
+    let (o, r, _) = fault_run("prebuild:crash", TWO, &["--threads", "1"], Duration::from_secs(120));
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(workers(&r).iter().all(|w| w["phase"] == "setup" && w["outcome"] == "pass"), "{:?}", workers(&r));
+    assert_eq!(r["timing"]["prebuilt_pipelines"], 0);
+    assert!(cells(&r).iter().all(|c| c["outcome"] == "pass"));
+}
+
+/// A crash in pipeline creation at a cell's turn is still that cell's, in `pipeline`, when the
+/// worker prebuilds (the prebuilt cell enters its `pipeline` phase at its turn).
+#[test]
+fn a_crash_in_pipeline_with_threads_is_one_cells_verdict() {
+    let (o, r, _) = fault_run("pipeline:crash", TWO, &["--threads", "2"], Duration::from_secs(180));
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(r["timing"]["prebuilt_pipelines"].as_u64().unwrap() >= 1, "{}", r["timing"]);
+    for c in cells(&r) {
+        assert_eq!(c["outcome"], "crash", "{c}");
+        assert_eq!(c["attempts"][0]["phase"], "pipeline", "{c}");
+    }
+}

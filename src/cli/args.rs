@@ -95,9 +95,25 @@ pub struct RunArgs {
     pub dump: Option<PathBuf>,
 
     /// Worker processes running cells in parallel (default: one per CPU core, at most 8, on CPU
-    /// devices such as lavapipe, whose pipeline compiles are single-threaded; 1 on GPUs)
+    /// devices such as lavapipe, whose pipeline compiles are single-threaded; 1 on GPUs, where
+    /// each worker pays for a device and they contend: use --threads there)
     #[arg(long, short = 'j')]
     pub jobs: Option<usize>,
+
+    /// Threads each worker creates pipelines on, ahead of the cells' turns (1..=64; traces still
+    /// run one cell at a time). Default: the available cores, at most 16, on GPUs (pipeline
+    /// creation is most of a cell's time there); 1 on CPU devices such as lavapipe, whose
+    /// workers already use the cores (and which compile at the first trace). 1 builds each cell
+    /// at its turn. If a worker dies or hangs while building a batch, the batch runs again with
+    /// each cell building at its turn, so a fault is still exactly one cell's verdict
+    #[arg(long, value_name = "N")]
+    pub threads: Option<usize>,
+
+    /// Where the VkPipelineCache is kept between runs, one file per device and driver version
+    /// (default: $RTPROBE_CACHE_DIR, else $XDG_CACHE_HOME/rtprobe, else ~/.cache/rtprobe), or
+    /// `off`. A file of another device or driver, or a corrupt one, is ignored with a warning
+    #[arg(long, value_name = "DIR|off")]
+    pub pipeline_cache: Option<String>,
 
     /// `worker`: a worker runs many cells and is replaced after a fault;
     /// `process-per-cell`: every cell in a fresh process

@@ -39,6 +39,26 @@ pub(crate) fn default_jobs(info: &crate::vk::DeviceInfo) -> usize {
     }
 }
 
+/// Pipeline-creation threads per worker: the cores (at most 16) on GPUs, where creating
+/// pipelines is most of a cell's time; 1 on CPU devices, whose workers already take one core
+/// each and which compile at the first trace (measured on lavapipe: README, Performance).
+pub(crate) fn default_threads(info: &crate::vk::DeviceInfo) -> usize {
+    if info.properties.core.device_type == ash::vk::PhysicalDeviceType::CPU {
+        1
+    } else {
+        std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1).clamp(1, 16)
+    }
+}
+
+/// `--pipeline-cache DIR|off`, else the default folder (`None`: off, or no folder known).
+fn pipeline_cache_dir(arg: Option<&str>) -> Option<PathBuf> {
+    match arg {
+        Some("off") => None,
+        Some(dir) => Some(PathBuf::from(dir)),
+        None => crate::exec::pipeline_cache::default_dir(),
+    }
+}
+
 fn slug(name: &str) -> String {
     let s: String = name.chars().map(|c| if c.is_ascii_alphanumeric() { c.to_ascii_lowercase() } else { '-' }).collect();
     s.split('-').filter(|p| !p.is_empty()).take(4).collect::<Vec<_>>().join("-")
@@ -68,6 +88,12 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     if a.jobs.is_some_and(|j| j == 0 || j > 64) {
         return Err(coded(exit::USAGE, "--jobs must be 1..=64"));
     }
+    if a.threads.is_some_and(|t| t == 0 || t > 64) {
+        return Err(coded(exit::USAGE, "--threads must be 1..=64"));
+    }
+    if a.pipeline_cache.as_deref().is_some_and(|d| d.trim().is_empty()) {
+        return Err(coded(exit::USAGE, "--pipeline-cache needs a folder, or `off`"));
+    }
     if !(a.timeout > 0.0 && a.timeout <= 3600.0) {
         return Err(coded(exit::USAGE, "--timeout must be in (0, 3600] seconds"));
     }
@@ -79,6 +105,8 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     let info = features::select(&all, a.device.as_deref())?.clone();
     drop(all);
     let jobs = a.jobs.unwrap_or_else(|| default_jobs(&info));
+    let threads = a.threads.unwrap_or_else(|| default_threads(&info));
+    let cache_dir = pipeline_cache_dir(a.pipeline_cache.as_deref());
     let mut the_plan = plan::plan(&info, &PlanOptions { filters: filters.clone(), canaries: a.canaries, patches: a.patches, inject: inject.clone() });
     let sharded_out = shard.map(|s| s.apply(&mut the_plan)).unwrap_or(0);
 
@@ -138,7 +166,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             ambiguous_pixels: sref.ambiguous_pixels(),
         },
         options: json!({
-            "jobs": jobs, "isolation": a.isolation, "timeout_s": a.timeout, "setup_timeout_s": a.setup_timeout, "confirm": !a.no_confirm,
+            "jobs": jobs, "threads": threads, "pipeline_cache": cache_dir, "isolation": a.isolation, "timeout_s": a.timeout, "setup_timeout_s": a.setup_timeout, "confirm": !a.no_confirm,
             "canaries": a.canaries, "filters": a.filter, "patches": a.patches, "validate": g.validate,
             "inject": inject.iter().map(|i| i.spec.clone()).collect::<Vec<_>>(), "repeat": a.repeat,
             "shard": shard.map(|s| s.label()), "binding_stages": std::env::var("RTPROBE_BINDING_STAGES").ok(),
@@ -159,6 +187,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         timing: TimingSummary::default(),
         baseline: None,
         workers: vec![],
+        pipeline_cache: None,
         cells: vec![],
     };
     let base = match &a.resume {
@@ -182,6 +211,8 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         dump: a.dump.clone(),
         spirv_dir: a.spirv_dir.clone(),
         setup_timeout: Duration::from_secs_f64(a.setup_timeout),
+        threads,
+        pipeline_cache: cache_dir.clone(),
         ..supervisor_options(info.index, params, jobs, a.isolation, a.timeout, g.validate, inject.clone())
     };
     let job_dir = opts.job_dir.clone();
@@ -298,6 +329,8 @@ pub(crate) fn supervisor_options(device_index: usize, scene: SceneParams, jobs: 
         dump: None,
         spirv_dir: None,
         job_dir: std::env::temp_dir().join(format!("rtprobe-{}", std::process::id())),
+        threads: 1,
+        pipeline_cache: crate::exec::pipeline_cache::default_dir(),
     }
 }
 
@@ -338,9 +371,35 @@ struct RunState {
 impl RunState {
     fn on_event(&mut self, ev: Event) {
         match ev {
-            Event::WorkerReady { device_ms, .. } => {
+            Event::WorkerReady { device_ms, pipeline_cache, .. } => {
                 self.writer.report.timing.workers_started += 1;
                 self.device_ms_sum += device_ms;
+                if let Some(l) = pipeline_cache {
+                    let s = self.writer.report.pipeline_cache.get_or_insert_with(Default::default);
+                    s.file = Some(l.path);
+                    if l.loaded_bytes > 0 {
+                        s.workers_loaded += 1;
+                        s.loaded_bytes = s.loaded_bytes.max(l.loaded_bytes);
+                    }
+                    if let Some(why) = l.ignored.filter(|w| !s.ignored.contains(w)) {
+                        s.ignored.push(why);
+                    }
+                }
+            }
+            Event::Prebuilt { wall_ms, pipelines, .. } => {
+                self.writer.report.timing.prebuild_ms += wall_ms;
+                self.writer.report.timing.prebuilt_pipelines += pipelines;
+            }
+            Event::CacheSaved(saved) => {
+                let s = self.writer.report.pipeline_cache.get_or_insert_with(Default::default);
+                match saved {
+                    Ok(bytes) => {
+                        s.saves += 1;
+                        s.saved_bytes = bytes;
+                    }
+                    Err(e) if !s.save_errors.contains(&e) => s.save_errors.push(e),
+                    Err(_) => {}
+                }
             }
             Event::Worker(w) => {
                 self.writer.record_worker(w);

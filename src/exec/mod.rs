@@ -7,6 +7,8 @@
 pub mod bindings;
 pub mod heap;
 pub mod pipeline;
+pub mod pipeline_cache;
+mod prebuild;
 pub mod resources;
 
 use crate::matrix::{Canary, Cell, Resource};
@@ -20,7 +22,7 @@ use crate::scene::{Scene, SceneParams};
 use crate::shadergen::{self, compile::Compiler, compile::CompileError, PipelineKind};
 use crate::vk::memory::{transition, Buffer, Image, Location, Transition};
 use crate::vk::submit::{Submitter, Waited};
-use crate::vk::{fault, Gpu, VkError, VkResultExt};
+use crate::vk::{fault, Gpu, VkError};
 use ash::vk;
 use bindings::{Binding, LayoutKey};
 use pipeline::Pipeline;
@@ -45,6 +47,50 @@ pub struct ExecOptions {
     /// A repro bundle's `shaders/`: each module is read from `<role file>.spv` there (already
     /// patched as the cell says) instead of compiled.
     pub spirv_dir: Option<PathBuf>,
+    /// Folder of the persisted pipeline caches (`None`: an empty cache, nothing saved).
+    pub pipeline_cache: Option<PathBuf>,
+}
+
+/// A cell's shaders as SPIR-V, workarounds applied (what phase `compile` produces).
+struct Compiled {
+    shaders: shadergen::CellShaders,
+    spirv: Vec<std::sync::Arc<Vec<u32>>>,
+    note: Option<String>,
+}
+
+/// A cell ready to record: its descriptor binding, the key of its (created) pipeline, the
+/// addresses its push constants carry, and the note on what the compiler did to its shape.
+struct Bound {
+    key: LayoutKey,
+    pkey: u64,
+    as_table_address: u64,
+    patched_table_address: u64,
+    note: Option<String>,
+}
+
+/// What [`Executor::prebuild`] made for one cell: its timings, the phase it got to, and either the
+/// cell bound with its pipeline or the error that becomes its result at its turn.
+struct Prebuilt {
+    timings: Timings,
+    phase: Phase,
+    result: Result<Bound, CellError>,
+}
+
+/// What creating one pipeline needs apart from the device and the cache.
+struct PipelineInput<'a> {
+    shaders: &'a shadergen::CellShaders,
+    spirv: &'a [std::sync::Arc<Vec<u32>>],
+    layout: vk::PipelineLayout,
+    model: crate::matrix::DescriptorModel,
+    mapping: Option<Box<heap::PipelineMapping>>,
+    record: Vec<u8>,
+}
+
+impl PipelineInput<'_> {
+    fn create(&self, gpu: &Gpu, cache: vk::PipelineCache) -> Result<Pipeline, VkError> {
+        let heap = self.mapping.as_ref().map(|m| pipeline::HeapPipeline { mapping: m, shader_record: &self.record });
+        pipeline::create(gpu, cache, self.shaders, self.spirv, self.layout, self.model, heap.as_ref())
+    }
 }
 
 /// Told each phase a cell (or the setup) enters; an error ends the cell there (the worker's
@@ -108,6 +154,10 @@ pub struct Executor {
     color: Option<Image>,
     bindings: HashMap<LayoutKey, Binding>,
     pipelines: HashMap<u64, Pipeline>,
+    /// Cells compiled and bound ahead of their turn, with their pipelines, by cell id.
+    prebuilt: HashMap<String, Prebuilt>,
+    /// Where the pipeline cache came from and what was loaded.
+    pub cache_status: Option<pipeline_cache::Loaded>,
     /// Milliseconds the CPU reference took.
     pub reference_ms: f64,
     all_stages: bool,
@@ -129,7 +179,7 @@ impl Executor {
             "records",
         )?;
         let sampler = resources::create_sampler(&gpu)?;
-        let cache = unsafe { gpu.device.create_pipeline_cache(&vk::PipelineCacheCreateInfo::default(), None) }.at("vkCreatePipelineCache")?;
+        let (cache, cache_status) = pipeline_cache::open(&gpu, opts.pipeline_cache.as_deref())?;
         Ok(Executor {
             gpu,
             scene,
@@ -147,6 +197,8 @@ impl Executor {
             color: None,
             bindings: HashMap::new(),
             pipelines: HashMap::new(),
+            prebuilt: HashMap::new(),
+            cache_status,
             reference_ms,
             all_stages: std::env::var("RTPROBE_BINDING_STAGES").is_ok_and(|v| v == "all"),
         })
@@ -168,6 +220,13 @@ impl Executor {
             }
         }
         Ok(())
+    }
+
+    /// Write the pipeline cache back to its file (merged with what is there): the bytes written;
+    /// `None` without a cache folder.
+    pub fn save_pipeline_cache(&self) -> Option<Result<u64, String>> {
+        let path = &self.cache_status.as_ref()?.path;
+        Some(pipeline_cache::save(&self.gpu, self.cache, path))
     }
 
     /// Run one cell. Never panics on driver misbehaviour; every failure is an outcome.
@@ -286,9 +345,8 @@ impl Executor {
         Ok(())
     }
 
-    /// The cell's records, and a note on what the compiler did to the cell's shape (if anything).
-    fn try_run(&mut self, cell: &Cell, injected: Option<&InjectedFault>, timings: &mut Timings, on_phase: PhaseHook) -> Result<(Vec<Record>, Option<String>), CellError> {
-        on_phase(Phase::Compile)?;
+    /// GLSL → SPIR-V (cached per source), the cell's workarounds, `--dump`: phase `compile`.
+    fn compile_cell(&mut self, cell: &Cell, injected: Option<&InjectedFault>, timings: &mut Timings) -> Result<Compiled, CellError> {
         if cell.heap_access == Some(crate::matrix::HeapAccess::Direct) && shadergen::glslang::find().is_none() {
             return Err(CellError::NotImplemented(shadergen::glslang::missing_reason()));
         }
@@ -334,11 +392,15 @@ impl Executor {
             dump(dir, cell, &shaders, &spirv).map_err(CellError::Io)?;
         }
         let note = heap::dropped_nonuniform(cell, &spirv);
-        // resources (built by `prepare`), bindings, pipeline
-        on_phase(Phase::Pipeline)?;
+        Ok(Compiled { shaders, spirv, note })
+    }
+
+    /// Resources (built by `prepare`), descriptor bindings (cached per layout) and the key of the
+    /// cell's pipeline: the first half of phase `pipeline`.
+    fn bind_cell(&mut self, cell: &Cell, c: &Compiled, timings: &mut Timings) -> Result<Bound, CellError> {
         let t = Instant::now();
-        self.ensure_resources(cell, &shaders)?;
-        let stages = match shaders.kind {
+        self.ensure_resources(cell, &c.shaders)?;
+        let stages = match c.shaders.kind {
             PipelineKind::RayTracing => {
                 vk::ShaderStageFlags::RAYGEN_KHR
                     | vk::ShaderStageFlags::MISS_KHR
@@ -356,8 +418,8 @@ impl Executor {
         let key = LayoutKey {
             stages,
             model: cell.descriptor_model,
-            scene_tlas: shaders.uses_scene_tlas,
-            probe: shaders.uses_probe_binding.then_some(cell.resource),
+            scene_tlas: c.shaders.uses_scene_tlas,
+            probe: c.shaders.uses_probe_binding.then_some(cell.resource),
             heap_direct: cell.heap_access == Some(crate::matrix::HeapAccess::Direct),
         };
         if !self.bindings.contains_key(&key) {
@@ -376,33 +438,70 @@ impl Executor {
             as_table_address = self.as_table.as_ref().map(|b| b.address).unwrap_or(0);
             patched_table_address = as_table_address;
         }
-        let (w, h) = (self.scene.params.width, self.scene.params.height);
         timings.setup_ms = t.elapsed().as_secs_f64() * 1e3;
-
         // pipeline (reused for identical SPIR-V and model)
         let pkey = {
             use std::hash::{Hash, Hasher};
             let mut hs = std::collections::hash_map::DefaultHasher::new();
-            for s in &spirv {
+            for s in &c.spirv {
                 s.hash(&mut hs);
             }
             cell.descriptor_model.hash(&mut hs);
             cell.heap_access.hash(&mut hs);
             key.hash(&mut hs);
-            shaders.recursion_depth.hash(&mut hs);
+            c.shaders.recursion_depth.hash(&mut hs);
             hs.finish()
         };
-        if !self.pipelines.contains_key(&pkey) {
+        Ok(Bound { key, pkey, as_table_address, patched_table_address, note: c.note.clone() })
+    }
+
+    /// What creating the cell's pipeline needs, apart from the device and cache.
+    fn pipeline_input<'a>(&self, cell: &Cell, c: &'a Compiled, b: &Bound) -> PipelineInput<'a> {
+        let binding = &self.bindings[&b.key];
+        let layout = binding.heap_layout();
+        let mapping = cell.heap_access.zip(layout.as_ref()).map(|(access, l)| heap::PipelineMapping::new(access, l));
+        let record = layout.map(|l| heap::shader_record(cell.heap_access, &l)).unwrap_or_default();
+        PipelineInput { shaders: &c.shaders, spirv: &c.spirv, layout: binding.pipeline_layout, model: cell.descriptor_model, mapping, record }
+    }
+
+    /// The cell's pipeline, created unless an identical one exists: the second half of `pipeline`.
+    fn ensure_pipeline(&mut self, cell: &Cell, c: &Compiled, b: &Bound, timings: &mut Timings) -> Result<(), CellError> {
+        if !self.pipelines.contains_key(&b.pkey) {
+            let input = self.pipeline_input(cell, c, b);
             let t = Instant::now();
-            let binding = &self.bindings[&key];
-            let layout = binding.heap_layout();
-            let mapping = cell.heap_access.zip(layout.as_ref()).map(|(access, l)| heap::PipelineMapping::new(access, l));
-            let record = layout.map(|l| heap::shader_record(cell.heap_access, &l)).unwrap_or_default();
-            let heap_pipeline = mapping.as_ref().map(|m| pipeline::HeapPipeline { mapping: m, shader_record: &record });
-            let p = pipeline::create(&self.gpu, self.cache, &shaders, &spirv, binding.pipeline_layout, cell.descriptor_model, heap_pipeline.as_ref())?;
+            let p = input.create(&self.gpu, self.cache)?;
             timings.pipeline_ms = t.elapsed().as_secs_f64() * 1e3;
-            self.pipelines.insert(pkey, p);
+            self.pipelines.insert(b.pkey, p);
         }
+        Ok(())
+    }
+
+    /// Compile, bind and create the pipeline of `cell` (sequentially, phase by phase), or take
+    /// what [`Executor::prebuild`] made for it.
+    fn build(&mut self, cell: &Cell, injected: Option<&InjectedFault>, timings: &mut Timings, on_phase: PhaseHook) -> Result<Bound, CellError> {
+        on_phase(Phase::Compile)?;
+        match self.prebuilt.remove(&cell.id()) {
+            Some(p) => {
+                *timings = p.timings;
+                if p.phase == Phase::Pipeline {
+                    on_phase(Phase::Pipeline)?;
+                }
+                p.result
+            }
+            None => {
+                let c = self.compile_cell(cell, injected, timings)?;
+                on_phase(Phase::Pipeline)?;
+                let b = self.bind_cell(cell, &c, timings)?;
+                self.ensure_pipeline(cell, &c, &b, timings)?;
+                Ok(b)
+            }
+        }
+    }
+
+    /// The cell's records, and a note on what the compiler did to the cell's shape (if anything).
+    fn try_run(&mut self, cell: &Cell, injected: Option<&InjectedFault>, timings: &mut Timings, on_phase: PhaseHook) -> Result<(Vec<Record>, Option<String>), CellError> {
+        let Bound { key, pkey, as_table_address, patched_table_address, note } = self.build(cell, injected, timings, on_phase)?;
+        let (w, h) = (self.scene.params.width, self.scene.params.height);
 
         // push constants (layout: probe::PushConstants, then the patches' table address)
         on_phase(Phase::Record)?;

@@ -100,6 +100,8 @@ pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport
         t.check_ms += r.timing.check_ms;
         t.overhead_ms += r.timing.overhead_ms;
         t.cells_timed += r.timing.cells_timed;
+        t.prebuild_ms += r.timing.prebuild_ms;
+        t.prebuilt_pipelines += r.timing.prebuilt_pipelines;
         for mut c in r.cells {
             for a in c.attempts.iter_mut() {
                 a.worker += offset;

@@ -252,6 +252,31 @@ pub struct TimingSummary {
     /// protocol and bookkeeping overhead.
     pub overhead_ms: f64,
     pub cells_timed: usize,
+    /// Wall time of the workers' prebuilds (pipelines created on `--threads` threads ahead of
+    /// the cells' turns), summed over workers; the cells' `pipeline_ms` is each pipeline's time
+    /// on its thread.
+    #[serde(default)]
+    pub prebuild_ms: f64,
+    /// Pipelines those prebuilds created.
+    #[serde(default)]
+    pub prebuilt_pipelines: usize,
+}
+
+/// The persisted pipeline cache of a run (`--pipeline-cache`): what the workers loaded and saved.
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+pub struct PipelineCacheSummary {
+    pub file: Option<std::path::PathBuf>,
+    /// Workers that started from stored bytes, and the most bytes one of them loaded.
+    pub workers_loaded: usize,
+    pub loaded_bytes: u64,
+    /// Why stored files were ignored (corrupt, truncated, another device or driver).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub ignored: Vec<String>,
+    /// Saves made, and the bytes of the last one.
+    pub saves: usize,
+    pub saved_bytes: u64,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub save_errors: Vec<String>,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -278,6 +303,9 @@ pub struct RunReport {
     /// Each worker's setup (`pass` once ready) and its faults outside any cell.
     #[serde(default)]
     pub workers: Vec<WorkerEvent>,
+    /// The persisted pipeline cache (absent: `--pipeline-cache off`, or an older report).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pipeline_cache: Option<PipelineCacheSummary>,
     pub cells: Vec<CellReport>,
 }
 
@@ -302,6 +330,7 @@ impl RunReport {
             timing: TimingSummary::default(),
             baseline: None,
             workers: vec![],
+            pipeline_cache: None,
             cells,
         };
         r.recount();

@@ -129,5 +129,14 @@ pub fn render(r: &RunReport) -> String {
         t.check_ms / n,
         t.overhead_ms / n
     );
+    if t.prebuilt_pipelines > 0 {
+        let _ = writeln!(s, "prebuild: {} pipelines created on --threads threads ahead of their cells, {:.1} s wall (their per-cell time above is each one's time on its thread)", t.prebuilt_pipelines, t.prebuild_ms / 1e3);
+    }
+    if let Some(pc) = &r.pipeline_cache {
+        let file = pc.file.as_ref().map(|f| f.display().to_string()).unwrap_or_default();
+        let ignored = if pc.ignored.is_empty() { String::new() } else { format!("; ignored: {}", pc.ignored.join("; ")) };
+        let errors = if pc.save_errors.is_empty() { String::new() } else { format!("; {}", pc.save_errors.join("; ")) };
+        let _ = writeln!(s, "pipeline cache: {} bytes loaded ({} workers), {} bytes saved ({file}){ignored}{errors}", pc.loaded_bytes, pc.workers_loaded, pc.saved_bytes);
+    }
     s
 }

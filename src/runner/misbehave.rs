@@ -8,7 +8,8 @@
 //! without pause, never progresses), `lose` (the phase fails with `VK_ERROR_DEVICE_LOST`).
 //! A `setup` hang, crash or spam happens just before vkCreateDevice (standing in for a hung or
 //! crashing device creation); a `setup` loss happens after it, where the scene's acceleration
-//! structures are built (a loss needs a device).
+//! structures are built (a loss needs a device). A `prebuild` action happens as the worker starts
+//! building a batch ahead of the cells' turns (only where it prebuilds: `--threads` above 1).
 use super::phase::Phase;
 use crate::vk::VkError;
 use std::io::Write;

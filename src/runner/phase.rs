@@ -9,6 +9,10 @@ pub enum Phase {
     /// Instance, device, scene acceleration structures, resource arrays and address tables:
     /// everything the worker's cells need, built before it reports `ready`.
     Setup,
+    /// Building a batch of cells ahead of their turns: their GLSL → SPIR-V and bindings, then
+    /// their pipelines on several threads. A fault here is no one cell's: the batch is run again
+    /// without prebuilding.
+    Prebuild,
     /// GLSL → SPIR-V and SPIR-V workarounds.
     Compile,
     /// Descriptor layouts and sets, pipeline (and SBT) creation.
@@ -30,6 +34,7 @@ pub enum Phase {
 impl Phase {
     pub const ALL: &'static [Phase] = &[
         Phase::Setup,
+        Phase::Prebuild,
         Phase::Compile,
         Phase::Pipeline,
         Phase::Record,
@@ -43,6 +48,7 @@ impl Phase {
     pub fn as_str(self) -> &'static str {
         match self {
             Phase::Setup => "setup",
+            Phase::Prebuild => "prebuild",
             Phase::Compile => "compile",
             Phase::Pipeline => "pipeline",
             Phase::Record => "record",

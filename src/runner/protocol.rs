@@ -27,6 +27,21 @@ pub struct WorkerJob {
     #[serde(default)]
     pub spirv_dir: Option<PathBuf>,
     pub cells: Vec<Cell>,
+    /// Threads creating pipelines ahead of the cells' turns (`--threads`; 1: each cell builds
+    /// its own at its turn, the sequential path).
+    #[serde(default = "one")]
+    pub threads: usize,
+    /// Cells never prebuilt (an earlier worker died or hung prebuilding them): they build at
+    /// their turn, so a fault in their pipeline creation is theirs alone.
+    #[serde(default)]
+    pub serial: Vec<String>,
+    /// Folder of the persisted pipeline caches (`--pipeline-cache`; `None`: off).
+    #[serde(default)]
+    pub pipeline_cache: Option<PathBuf>,
+}
+
+fn one() -> usize {
+    1
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -40,6 +55,22 @@ pub enum WorkerMsg {
         reference_ms: f64,
         #[serde(default)]
         device_features: Vec<String>,
+        /// The pipeline cache file and what was loaded from it (absent: `--pipeline-cache off`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        pipeline_cache: Option<crate::exec::pipeline_cache::Loaded>,
+    },
+    /// The worker builds these cells ahead of their turns (phase `prebuild`): compile and
+    /// bindings in order, pipelines on `threads` threads. Progress comes as `phase` messages
+    /// (`prebuild`, step `pipelines k/n`); a death or hang now is blamed on no cell.
+    Prebuild { cells: Vec<String>, threads: usize },
+    /// The prebuild finished; each cell's result (or error) waits for its turn.
+    Prebuilt { wall_ms: f64, pipelines: usize, threads: usize },
+    /// After the last cell: the pipeline cache was written (`bytes`) or not (`error`).
+    CacheSaved {
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        bytes: Option<u64>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        error: Option<String>,
     },
     /// The worker enters `phase` (`step` names the call, e.g. `vkCreateDevice`, in setup). The
     /// supervisor keeps the last one: a timeout or crash is attributed to it.
@@ -50,7 +81,8 @@ pub enum WorkerMsg {
     },
     Start { cell: String },
     Result { cell: String, result: CellResult },
-    /// Setup failed: the worker cannot run its cells. `outcome` classifies the failure
+    /// Setup failed: the worker cannot run its cells (or, during a prebuild, the device was lost
+    /// while creating pipelines). `outcome` classifies the failure
     /// (`device_lost`, `timeout` of a fence in an upload or AS build, `error`).
     Fatal {
         message: String,

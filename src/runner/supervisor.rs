@@ -56,6 +56,10 @@ pub struct SupervisorOptions {
     /// A repro bundle's `shaders/` (`run --cell-spec`): workers run its SPIR-V.
     pub spirv_dir: Option<PathBuf>,
     pub job_dir: PathBuf,
+    /// Threads a worker creates pipelines on, ahead of the cells' turns (1: no prebuild).
+    pub threads: usize,
+    /// Folder of the persisted pipeline caches (`None`: off).
+    pub pipeline_cache: Option<PathBuf>,
 }
 
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -135,7 +139,11 @@ pub struct WorkerEvent {
 
 /// Events for the report writer and progress display.
 pub enum Event<'a> {
-    WorkerReady { device_ms: f64, reference_ms: f64 },
+    WorkerReady { device_ms: f64, reference_ms: f64, pipeline_cache: Option<crate::exec::pipeline_cache::Loaded> },
+    /// A worker built a batch of cells ahead of their turns.
+    Prebuilt { wall_ms: f64, pipelines: usize, threads: usize },
+    /// A worker wrote the pipeline cache back (`Err`: why not).
+    CacheSaved(Result<u64, String>),
     /// A worker's setup finished or failed, or it faulted outside a cell.
     Worker(WorkerEvent),
     Attempt { cell: &'a Cell, attempt: Attempt },
@@ -152,6 +160,8 @@ enum State {
     Cell { cell: Cell, since: Instant },
     /// After `ready` or a result, before the next `start`.
     Between { since: Instant },
+    /// Building `cells` ahead of their turns; `since` restarts at each pipeline finished.
+    Prebuild { cells: Vec<String>, since: Instant },
     /// After its last result: it must exit.
     Teardown { since: Instant },
 }
@@ -180,7 +190,7 @@ impl Worker {
     fn deadline(&self, o: &SupervisorOptions) -> Instant {
         match self.state {
             State::Setup => self.spawned + o.setup_timeout,
-            State::Cell { since, .. } | State::Between { since } | State::Teardown { since } => since + o.timeout,
+            State::Cell { since, .. } | State::Between { since } | State::Prebuild { since, .. } | State::Teardown { since } => since + o.timeout,
         }
     }
 
@@ -198,6 +208,8 @@ struct Slot {
     /// Workers in a row that ended without producing an attempt (failed setups, deaths before
     /// the first cell): two of them give up on the slot's cells.
     fruitless: u32,
+    /// Cells a worker died or hung prebuilding: later workers build them at their turn only.
+    serial: std::collections::HashSet<String>,
 }
 
 const STDERR_TAIL: usize = 4000;
@@ -283,7 +295,7 @@ impl Supervisor {
         Supervisor { opts, tx, rx, generation: 0, seeds: Default::default() }
     }
 
-    fn spawn(&mut self, slot: usize, cells: Vec<Cell>) -> std::io::Result<Worker> {
+    fn spawn(&mut self, slot: usize, cells: Vec<Cell>, serial: &std::collections::HashSet<String>) -> std::io::Result<Worker> {
         self.generation += 1;
         let id = self.generation;
         let batch = cells.len();
@@ -300,7 +312,10 @@ impl Supervisor {
             inject_seed: seed,
             dump: self.opts.dump.clone(),
             spirv_dir: self.opts.spirv_dir.clone(),
+            serial: cells.iter().map(Cell::id).filter(|id| serial.contains(id)).collect(),
             cells,
+            threads: self.opts.threads.max(1),
+            pipeline_cache: self.opts.pipeline_cache.clone(),
         };
         std::fs::create_dir_all(&self.opts.job_dir)?;
         let path = self.opts.job_dir.join(format!("job-{}-{id}.json", std::process::id()));
@@ -382,7 +397,7 @@ impl Supervisor {
         let per_cell = isolated || self.opts.isolation == Isolation::ProcessPerCell;
         let jobs = self.opts.jobs.max(1).min(cells.len().max(1));
         let chunk = cells.len().div_ceil(jobs).max(1);
-        let mut slots: Vec<Slot> = cells.chunks(chunk).map(|c| Slot { queue: c.iter().copied().collect(), worker: None, fruitless: 0 }).collect();
+        let mut slots: Vec<Slot> = cells.chunks(chunk).map(|c| Slot { queue: c.iter().copied().collect(), worker: None, fruitless: 0, serial: Default::default() }).collect();
         loop {
             self.start_workers(&mut slots, per_cell, on);
             if slots.iter().all(|s| s.worker.is_none() && s.queue.is_empty()) {
@@ -414,7 +429,7 @@ impl Supervisor {
                 continue;
             }
             let batch: Vec<Cell> = if per_cell { vec![slots[i].queue[0]] } else { slots[i].queue.iter().copied().collect() };
-            match self.spawn(i, batch) {
+            match self.spawn(i, batch, &slots[i].serial) {
                 Ok(w) => slots[i].worker = Some(w),
                 Err(e) => {
                     let msg = format!("cannot start a worker: {e}");
@@ -434,12 +449,12 @@ impl Supervisor {
                 // Only once, at the end of setup: it must not restart any clock.
                 tracing::debug!("worker {} sent ready again; ignored", w.id);
             }
-            Line::Msg(WorkerMsg::Ready { device_ms, reference_ms, device_features }) => {
+            Line::Msg(WorkerMsg::Ready { device_ms, reference_ms, device_features, pipeline_cache }) => {
                 w.state = State::Between { since: Instant::now() };
                 w.phase = Phase::BetweenCells;
                 w.step = None;
                 w.device_features = device_features;
-                on(Event::WorkerReady { device_ms, reference_ms });
+                on(Event::WorkerReady { device_ms, reference_ms, pipeline_cache });
                 on(Event::Worker(WorkerEvent {
                     worker: w.id,
                     phase: Phase::Setup,
@@ -452,8 +467,33 @@ impl Supervisor {
                 }));
             }
             Line::Msg(WorkerMsg::Phase { phase, step }) => {
+                // A pipeline of the prebuild finished: progress restarts its clock.
+                if let (Phase::Prebuild, State::Prebuild { since, .. }) = (phase, &mut w.state) {
+                    *since = Instant::now();
+                }
                 w.phase = phase;
                 w.step = step;
+            }
+            Line::Msg(WorkerMsg::Prebuild { cells, threads }) => {
+                if matches!(w.state, State::Between { .. }) {
+                    tracing::debug!("worker {} prebuilds {} cells on {threads} threads", w.id, cells.len());
+                    w.state = State::Prebuild { cells, since: Instant::now() };
+                    w.phase = Phase::Prebuild;
+                    w.step = None;
+                } else {
+                    tracing::debug!("worker {} sent prebuild while not between cells; ignored", w.id);
+                }
+            }
+            Line::Msg(WorkerMsg::Prebuilt { wall_ms, pipelines, threads }) => {
+                if matches!(w.state, State::Prebuild { .. }) {
+                    w.state = State::Between { since: Instant::now() };
+                    w.phase = Phase::BetweenCells;
+                    w.step = None;
+                    on(Event::Prebuilt { wall_ms, pipelines, threads });
+                }
+            }
+            Line::Msg(WorkerMsg::CacheSaved { bytes, error }) => {
+                on(Event::CacheSaved(bytes.ok_or_else(|| error.unwrap_or_else(|| "not saved".into()))));
             }
             Line::Msg(WorkerMsg::Start { cell }) => {
                 // Only between cells: a repeated `start` must not restart the running cell's clock.
@@ -502,8 +542,13 @@ impl Supervisor {
             Line::Msg(WorkerMsg::Fatal { message, outcome }) => {
                 let mut w = slot.worker.take().expect("present");
                 let exit = kill_group(&mut w, self.opts.grace, self.opts.kill_wait);
-                let detail = format!("worker setup failed in {}: {message}", w.where_());
-                self.worker_failed(slot, &w, outcome, detail, exit, per_cell, on);
+                if matches!(w.state, State::Prebuild { .. }) {
+                    let detail = format!("worker failed in {}: {message}", w.where_());
+                    self.prebuild_failed(slot, &w, outcome, detail, exit, on);
+                } else {
+                    let detail = format!("worker setup failed in {}: {message}", w.where_());
+                    self.worker_failed(slot, &w, outcome, detail, exit, per_cell, on);
+                }
             }
             Line::Garbage(text) => {
                 w.garbage += 1;
@@ -533,6 +578,10 @@ impl Supervisor {
                         self.cell_ended(slot, &w, &cell, outcome, detail, exit, since, per_cell, on);
                     }
                     State::Teardown { .. } if exit.code == Some(0) => {} // exited cleanly
+                    State::Prebuild { .. } => {
+                        let detail = format!("{what} in {}", w.where_());
+                        self.prebuild_failed(slot, &w, outcome, detail, exit, on);
+                    }
                     State::Setup | State::Between { .. } | State::Teardown { .. } => {
                         let detail = format!("{what} in {}", w.where_());
                         self.worker_failed(slot, &w, outcome, detail, exit, per_cell, on);
@@ -565,6 +614,10 @@ impl Supervisor {
                     let detail = format!("worker setup took longer than {:?}, in {}; killed", self.opts.setup_timeout, w.where_());
                     self.worker_failed(slot, &w, Outcome::Timeout, detail, exit, per_cell, on);
                 }
+                State::Prebuild { .. } => {
+                    let detail = format!("no progress within {:?}, in {}; worker process group killed", self.opts.timeout, w.where_());
+                    self.prebuild_failed(slot, &w, Outcome::Timeout, detail, exit, on);
+                }
                 State::Between { .. } => {
                     let detail = format!("no next cell within {:?} after the last result; killed", self.opts.timeout);
                     self.worker_failed(slot, &w, Outcome::Timeout, detail, exit, per_cell, on);
@@ -593,6 +646,25 @@ impl Supervisor {
             device_features: w.device_features.clone(),
         };
         on(Event::Attempt { cell, attempt });
+    }
+
+    /// A worker died, hung or lost its device while prebuilding: no one cell can be blamed, so it
+    /// is the worker's record (phase `prebuild`), and the batch's cells go back to the sequential
+    /// path: later workers build each at its turn, where a fault is exactly one cell's verdict.
+    fn prebuild_failed(&self, slot: &mut Slot, w: &Worker, outcome: Outcome, detail: String, exit: WorkerExit, on: &mut dyn FnMut(Event)) {
+        if let State::Prebuild { cells, .. } = &w.state {
+            slot.serial.extend(cells.iter().cloned());
+        }
+        on(Event::Worker(WorkerEvent {
+            worker: w.id,
+            phase: Phase::Prebuild,
+            outcome,
+            detail: Some(format!("{detail}; its batch runs again, each cell building at its turn")),
+            cells: w.batch,
+            wall_ms: ms(w.spawned),
+            device_features: w.device_features.clone(),
+            worker_exit: Some(exit),
+        }));
     }
 
     /// A worker failed outside any cell: in setup, between cells or in teardown. Recorded as its

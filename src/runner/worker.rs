@@ -13,6 +13,7 @@ use crate::outcome::Outcome;
 use crate::matrix::cell::Workaround;
 use crate::matrix::{AsAccess, Canary, Cell, DescriptorModel, Resource, Stage};
 use crate::vk::{features, Gpu, Instance, InstanceOptions, Requirements, VkError};
+use std::collections::HashSet;
 use std::io::Write;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -94,11 +95,44 @@ fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
     req.int64 |= job.cells.iter().any(|c| crate::matrix::inject::for_cell(&job.inject, c).is_some_and(|i| i.fault.reads_bad_address()));
     phases.enter(Phase::Setup, Some((SetupStep::CreateDevice, "vkCreateDevice")))?;
     let gpu = Gpu::new(inst, info, req)?;
-    let opts = ExecOptions { timeout: Duration::from_millis(job.fence_timeout_ms), inject: job.inject.clone(), inject_seed: job.inject_seed, dump: job.dump.clone(), spirv_dir: job.spirv_dir.clone() };
+    let opts = ExecOptions {
+        timeout: Duration::from_millis(job.fence_timeout_ms),
+        inject: job.inject.clone(),
+        inject_seed: job.inject_seed,
+        dump: job.dump.clone(),
+        pipeline_cache: job.pipeline_cache.clone(),
+        spirv_dir: job.spirv_dir.clone(),
+    };
     let mut exec = Executor::new(gpu, &job.scene, opts)?;
     phases.enter(Phase::Setup, Some((SetupStep::Scene, "acceleration structures and resources")))?;
     exec.prepare(&job.cells)?;
     Ok(exec)
+}
+
+/// Cells prebuilt at once: bounds the batch a fault in the prebuild sends back to the sequential
+/// path, and lets traces start before every pipeline of a large job exists.
+const PREBUILD_CHUNK: usize = 128;
+
+/// Build `chunk`'s cells (but the serial ones) ahead of their turns on `threads` threads. Only
+/// worth it for two cells or more; with one thread each cell builds at its turn. A device loss
+/// here (or the test hook's) is the worker's: it reports it as fatal and exits, and the
+/// supervisor runs these cells again without prebuilding.
+fn prebuild(exec: &mut Executor, chunk: &[Cell], serial: &HashSet<&str>, threads: usize, phases: &Phases) {
+    let cells: Vec<Cell> = chunk.iter().filter(|c| !serial.contains(c.id().as_str())).copied().collect();
+    if threads <= 1 || cells.len() < 2 {
+        return;
+    }
+    send(&WorkerMsg::Prebuild { cells: cells.iter().map(Cell::id).collect(), threads });
+    let t = Instant::now();
+    let progress = |done: usize, n: usize| send(&WorkerMsg::Phase { phase: Phase::Prebuild, step: Some(format!("pipelines {done}/{n}")) });
+    match phases.enter(Phase::Prebuild, None).and_then(|()| exec.prebuild(&cells, threads, &progress)) {
+        Ok(stats) => send(&WorkerMsg::Prebuilt { wall_ms: t.elapsed().as_secs_f64() * 1e3, pipelines: stats.pipelines, threads: stats.threads }),
+        Err(e) => {
+            let outcome = CellError::Vk(e).outcome();
+            send(&WorkerMsg::Fatal { message: "the device was lost while creating pipelines on several threads".into(), outcome });
+            unsafe { libc::_exit(0) };
+        }
+    }
 }
 
 /// Runs the job; returns the process exit code (the process may also `_exit` early).
@@ -132,20 +166,35 @@ pub fn main(job_path: &std::path::Path) -> u8 {
         device_ms: t.elapsed().as_secs_f64() * 1e3 - exec.reference_ms,
         reference_ms: exec.reference_ms,
         device_features: exec.gpu.enabled_names.clone(),
+        pipeline_cache: exec.cache_status.clone(),
     });
-    for (i, cell) in job.cells.iter().enumerate() {
-        let id = cell.id();
-        send(&WorkerMsg::Start { cell: id.clone() });
-        let result = exec.run(cell, &mut |p| phases.enter(p, None));
-        let ends = result.outcome.ends_worker();
-        send(&WorkerMsg::Result { cell: id, result });
-        if ends {
-            // The device is lost or hung: do not run destructors that may wait on it.
-            unsafe { libc::_exit(0) };
+    let serial: HashSet<&str> = job.serial.iter().map(String::as_str).collect();
+    for (k, chunk) in job.cells.chunks(PREBUILD_CHUNK).enumerate() {
+        prebuild(&mut exec, chunk, &serial, job.threads, &phases);
+        for (i, cell) in chunk.iter().enumerate() {
+            let id = cell.id();
+            send(&WorkerMsg::Start { cell: id.clone() });
+            let result = exec.run(cell, &mut |p| phases.enter(p, None));
+            let ends = result.outcome.ends_worker();
+            send(&WorkerMsg::Result { cell: id, result });
+            if ends {
+                // The device is lost or hung: do not run destructors that may wait on it.
+                unsafe { libc::_exit(0) };
+            }
+            let next = if k * PREBUILD_CHUNK + i + 1 < job.cells.len() { Phase::BetweenCells } else { Phase::Teardown };
+            // A loss injected here has nothing to fail; hang, crash and spam act by themselves.
+            let _ = phases.enter(next, None);
         }
-        let next = if i + 1 < job.cells.len() { Phase::BetweenCells } else { Phase::Teardown };
-        // A loss injected here has nothing to fail; hang, crash and spam act by themselves.
-        let _ = phases.enter(next, None);
+    }
+    if let Some(saved) = exec.save_pipeline_cache() {
+        let (bytes, error) = match saved {
+            Ok(b) => (Some(b), None),
+            Err(e) => {
+                tracing::warn!("pipeline cache not saved: {e}");
+                (None, Some(e))
+            }
+        };
+        send(&WorkerMsg::CacheSaved { bytes, error });
     }
     drop(exec);
     0
