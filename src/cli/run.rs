@@ -220,7 +220,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     let bar = indicatif::ProgressBar::new((cells.len() + canaries.len()) as u64);
     bar.set_style(indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} {msg}").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()));
     let wall = Instant::now();
-    let mut st = RunState { writer, bar, device_ms_sum: 0.0, save_error: None };
+    let mut st = RunState { writer, bar, device_ms_sum: 0.0, save_error: None, last_save: Instant::now() };
     sup.run(&cells, false, &mut |ev| st.on_event(ev));
     if !a.no_confirm && a.isolation == Isolation::Worker {
         let again: Vec<_> = st
@@ -285,7 +285,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         sup.run(&canaries, false, &mut |ev| st.on_event(ev));
     }
     st.writer.report.annotate_workarounds();
-    let RunState { mut writer, bar, device_ms_sum, save_error } = st;
+    let RunState { mut writer, bar, device_ms_sum, save_error, .. } = st;
     bar.finish_and_clear();
     let _ = std::fs::remove_dir_all(&job_dir);
     if let Some(e) = save_error {
@@ -366,9 +366,26 @@ struct RunState {
     bar: indicatif::ProgressBar,
     device_ms_sum: f64,
     save_error: Option<crate::report::atomic::WriteError>,
+    /// When the report was last written (passes are written at most every [`SAVE_INTERVAL`]).
+    last_save: Instant,
 }
 
+/// Passes are saved at most this often: the whole report is rewritten on each save (2 MB for the
+/// H100's default matrix), and saving after every pass made the supervisor the bottleneck of a
+/// fast GPU run. Faults, worker events and the end of the run are saved at once.
+const SAVE_INTERVAL: Duration = Duration::from_millis(100);
+
 impl RunState {
+    fn save(&mut self, urgent: bool) {
+        if !urgent && self.last_save.elapsed() < SAVE_INTERVAL {
+            return;
+        }
+        self.last_save = Instant::now();
+        if let Err(e) = self.writer.save(false) {
+            self.save_error.get_or_insert(e);
+        }
+    }
+
     fn on_event(&mut self, ev: Event) {
         match ev {
             Event::WorkerReady { device_ms, pipeline_cache, .. } => {
@@ -403,17 +420,14 @@ impl RunState {
             }
             Event::Worker(w) => {
                 self.writer.record_worker(w);
-                if let Err(e) = self.writer.save(false) {
-                    self.save_error.get_or_insert(e);
-                }
+                self.save(true);
             }
             Event::Attempt { cell, attempt } => {
                 self.bar.inc(1);
                 self.bar.set_message(format!("{} {}", attempt.outcome.as_str(), cell.id()));
+                let urgent = attempt.outcome != crate::outcome::Outcome::Pass;
                 self.writer.record(cell, attempt);
-                if let Err(e) = self.writer.save(false) {
-                    self.save_error.get_or_insert(e);
-                }
+                self.save(urgent);
             }
         }
     }

@@ -1,6 +1,6 @@
-//! Building a batch of cells ahead of their turn: GLSL → SPIR-V, workarounds and descriptor
-//! bindings in cell order on the calling thread (cheap, and the compiler's per-source cache keeps
-//! working), then every distinct pipeline the batch needs on a pool of threads.
+//! Building a batch of cells ahead of their turn: the batch's GLSL compiled on a pool of threads
+//! into the compiler's per-source cache, then workarounds and descriptor bindings in cell order
+//! on the calling thread (cheap), then every distinct pipeline the batch needs on the pool.
 //! `vkCreateRayTracingPipelinesKHR`, `vkCreateGraphicsPipelines` and `vkCreateComputePipelines`
 //! may be called from several threads at once (Vulkan spec, "Threading Behavior": only the
 //! pipeline cache, when created with `EXTERNALLY_SYNCHRONIZED`, needs external synchronization;
@@ -48,6 +48,18 @@ impl Executor {
     /// result for [`Executor::run`]. `progress(done, total)` is called as pipelines finish. A
     /// device loss during pipeline creation is returned: no cell of the batch can be blamed.
     pub fn prebuild(&mut self, cells: &[Cell], threads: usize, progress: &(dyn Fn(usize, usize) + Sync)) -> Result<PrebuildStats, VkError> {
+        // The batch's GLSL compiled on the threads first (into the compiler's per-source cache).
+        if self.opts.spirv_dir.is_none() {
+            let generated: Vec<_> = cells
+                .iter()
+                .map(|c| {
+                    let injected = crate::matrix::inject::roll(&self.opts.inject, c, self.opts.inject_seed);
+                    crate::shadergen::generate_with(&crate::shadergen::source_cell(c), injected.map(|i| i.fault))
+                })
+                .collect();
+            let sources: Vec<_> = generated.iter().flat_map(|g| g.shaders.iter().map(|s| (s.role, s.glsl.as_str()))).collect();
+            self.compiler.precompile(&sources, threads);
+        }
         let mut staged: Vec<(Cell, Timings, Compiled, Bound)> = Vec::new();
         for cell in cells {
             let mut timings = Timings::default();

@@ -130,7 +130,8 @@ pub fn render(r: &RunReport) -> String {
         t.overhead_ms / n
     );
     if t.prebuilt_pipelines > 0 {
-        let _ = writeln!(s, "prebuild: {} pipelines created on --threads threads ahead of their cells, {:.1} s wall (their per-cell time above is each one's time on its thread)", t.prebuilt_pipelines, t.prebuild_ms / 1e3);
+        let threads = r.options.get("threads").and_then(|v| v.as_u64()).map(|n| n.to_string()).unwrap_or_else(|| "--threads".into());
+        let _ = writeln!(s, "prebuild: {} pipelines created on {threads} threads ahead of their cells, {:.1} s wall (their per-cell time above is each one's time on its thread)", t.prebuilt_pipelines, t.prebuild_ms / 1e3);
     }
     if let Some(pc) = &r.pipeline_cache {
         let file = pc.file.as_ref().map(|f| f.display().to_string()).unwrap_or_default();

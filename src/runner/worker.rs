@@ -111,7 +111,7 @@ fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
 
 /// Cells prebuilt at once: bounds the batch a fault in the prebuild sends back to the sequential
 /// path, and lets traces start before every pipeline of a large job exists.
-const PREBUILD_CHUNK: usize = 128;
+const PREBUILD_CHUNK: usize = 512;
 
 /// Build `chunk`'s cells (but the serial ones) ahead of their turns on `threads` threads. Only
 /// worth it for two cells or more; with one thread each cell builds at its turn. A device loss

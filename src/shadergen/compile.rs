@@ -22,6 +22,9 @@ pub enum CompileError {
 pub struct Compiler {
     inner: shaderc::Compiler,
     cache: HashMap<u64, Arc<Vec<u32>>>,
+    /// Milliseconds [`Compiler::precompile`] spent on a cached source, handed to the first
+    /// [`Compiler::compile`] that takes it (so that cell's timings still show its compile).
+    precompiled_ms: HashMap<u64, f64>,
 }
 
 /// The shaderc this binary links (the `shaderc` crate built from source, with the glslang of that
@@ -53,14 +56,52 @@ pub fn source_hash(role: Role, glsl: &str) -> u64 {
 
 impl Compiler {
     pub fn new() -> Result<Self, CompileError> {
-        Ok(Self { inner: shaderc::Compiler::new().map_err(|_| CompileError::Init)?, cache: HashMap::new() })
+        Ok(Self { inner: shaderc::Compiler::new().map_err(|_| CompileError::Init)?, cache: HashMap::new(), precompiled_ms: HashMap::new() })
+    }
+
+    /// Compile the uncached shaderc sources among `sources` on `threads` threads (one shaderc
+    /// compiler each: a compiler is not shared between threads) into the cache. A source that
+    /// fails is left out: [`Compiler::compile`] meets the same error at the cell's turn and
+    /// reports it there. Sources for the external glslangValidator are left to `compile`.
+    pub fn precompile(&mut self, sources: &[(Role, &str)], threads: usize) {
+        let mut seen = std::collections::HashSet::new();
+        let todo: Vec<(u64, Role, &str)> = sources
+            .iter()
+            .map(|&(role, glsl)| (source_hash(role, glsl), role, glsl))
+            .filter(|&(key, _, glsl)| !uses_heap(glsl) && !self.cache.contains_key(&key) && seen.insert(key))
+            .collect();
+        if todo.is_empty() {
+            return;
+        }
+        let next = std::sync::atomic::AtomicUsize::new(0);
+        let done = std::sync::Mutex::new(Vec::new());
+        std::thread::scope(|s| {
+            for _ in 0..threads.clamp(1, todo.len()) {
+                s.spawn(|| {
+                    let Ok(mut c) = Compiler::new() else { return };
+                    loop {
+                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        let Some(&(key, role, glsl)) = todo.get(i) else { break };
+                        let t = Instant::now();
+                        if let Ok(words) = c.compile_glsl(role.kind(), role.file_name(), glsl) {
+                            let ms = t.elapsed().as_secs_f64() * 1e3;
+                            done.lock().unwrap_or_else(|p| p.into_inner()).push((key, words, ms));
+                        }
+                    }
+                });
+            }
+        });
+        for (key, words, ms) in done.into_inner().unwrap_or_else(|p| p.into_inner()) {
+            self.cache.insert(key, Arc::new(words));
+            self.precompiled_ms.insert(key, ms);
+        }
     }
 
     /// SPIR-V words for `glsl`, and the milliseconds spent compiling (0 when cached).
     pub fn compile(&mut self, role: Role, glsl: &str) -> Result<(Arc<Vec<u32>>, f64), CompileError> {
         let key = source_hash(role, glsl);
         if let Some(s) = self.cache.get(&key) {
-            return Ok((s.clone(), 0.0));
+            return Ok((s.clone(), self.precompiled_ms.remove(&key).unwrap_or(0.0)));
         }
         let t = Instant::now();
         let words = Arc::new(if uses_heap(glsl) { super::glslang::compile(role, glsl)? } else { self.compile_glsl(role.kind(), role.file_name(), glsl)? });
