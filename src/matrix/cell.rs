@@ -99,6 +99,24 @@ impl Cell {
         self.canary.is_none() && self.stage == Stage::ClosestHit && self.index == IndexSource::Dynamic && self.descriptor_model != DescriptorModel::DescriptorHeap
     }
 
+    /// `index=dynamic_element` exists for the engines' two recommended shapes only: geometry (an
+    /// SSBO) and materials (a sampled image array texture).
+    pub fn dynamic_element_applies(resource: Resource) -> bool {
+        match resource {
+            Resource::StorageBuffer | Resource::SampledImage => true,
+            Resource::UniformBuffer | Resource::StorageImage | Resource::AccelerationStructure => false,
+        }
+    }
+
+    /// The engines' recommended pattern nearest to this cell (same stage, model, heap access):
+    /// the `index=dynamic_element` cell of its resource, for a cell with a dynamic descriptor index
+    /// whose resource has one. What a finding's report says "works instead" is that cell's verdict.
+    pub fn recommended_pattern(&self) -> Option<Cell> {
+        let dynamic = self.canary.is_none() && self.index == IndexSource::Dynamic && self.as_access.is_none();
+        (dynamic && Self::dynamic_element_applies(self.resource))
+            .then_some(Cell { index: IndexSource::DynamicElement, nonuniform: false, patch: None, reorder: None, ..*self })
+    }
+
     /// The cell without its workaround.
     pub fn base(&self) -> Cell {
         Cell { patch: None, ..*self }
