@@ -57,7 +57,7 @@ fn default_matrix_passes_on_lavapipe_and_canaries_are_classified() {
     for (axis, values) in [
         ("stage", vec!["raygen", "closest_hit", "any_hit", "miss", "intersection", "callable", "fragment", "compute"]),
         ("resource", vec!["storage_buffer", "uniform_buffer", "sampled_image", "storage_image", "acceleration_structure"]),
-        ("index", vec!["literal", "spec_constant", "push_constant", "dynamic"]),
+        ("index", vec!["literal", "spec_constant", "push_constant", "dynamic", "dynamic_element"]),
     ] {
         for v in values {
             assert!(cs.iter().any(|c| c[axis] == v && c["outcome"] == "pass"), "no passing cell with {axis}={v}");
@@ -273,6 +273,38 @@ fn patched_variants_render_like_the_originals() {
     let patched_as = cs.iter().filter(|c| c["as_access"] == "address_patched" && c["outcome"] == "pass").count();
     let address = cs.iter().filter(|c| c["as_access"] == "address" && c["outcome"] == "pass").count();
     assert!(patched_as > 0 && address > 0);
+}
+
+/// Issue 9's question per finding: does the engines' recommended pattern (one descriptor at a
+/// spec-constant slot, the dynamic value inside it) work where the dynamic index faults? The
+/// pattern cells are outside the filter: the run schedules them, as often as their findings ran.
+#[test]
+fn findings_say_whether_the_recommended_pattern_works() {
+    let dir = tempfile::tempdir().unwrap();
+    let filter = "stage=closest_hit,resource=storage_buffer|sampled_image,index=dynamic,nonuniform=true,descriptor_model=descriptor_indexing,reorder=none";
+    let out = dir.path().join("r.json");
+    let o = run(&["run", "--inject-fault", "index=dynamic@value", "--no-confirm", "--repeat", "2", "--filter", filter, "-o", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let r = report(&out);
+    for (resource, pattern) in [("storage_buffer", "geometry"), ("sampled_image", "materials")] {
+        let base = cells(&r).iter().find(|c| c["id"] == format!("closest_hit.{resource}.dynamic.nonuniform.descriptor_indexing")).unwrap();
+        assert_eq!(base["outcome"], "mismatch");
+        let p = &base["recommended"];
+        let id = format!("closest_hit.{resource}.dynamic_element.descriptor_indexing");
+        assert_eq!((p["pattern"].as_str(), p["cell"].as_str(), p["status"].as_str()), (Some(pattern), Some(id.as_str()), Some("passes")), "{p}");
+        assert_eq!((p["passed"].as_u64(), p["attempts"].as_u64()), (Some(2), Some(2)), "run as often as the finding: {p}");
+        let pc = cells(&r).iter().find(|c| c["id"] == id).expect("scheduled");
+        assert_eq!(pc["attempts"].as_array().unwrap().len(), 2);
+        assert!(stdout(&o).contains(&format!("recommended pattern {pattern} (")) && stdout(&o).contains(&format!("{id}): passes (2/2)")), "{}", stdout(&o));
+    }
+    // Twin: the same fault in the pattern's shape too: the pattern fails, never "passes".
+    let out2 = dir.path().join("r2.json");
+    let o = run(&["run", "--inject-fault", "index=dynamic|dynamic_element@value", "--no-confirm", "--filter", filter, "-o", out2.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let r = report(&out2);
+    let base = cells(&r).iter().find(|c| c["id"] == "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_indexing").unwrap();
+    assert_eq!((base["recommended"]["status"].as_str(), base["recommended"]["outcome"].as_str()), (Some("fails"), Some("mismatch")), "{}", base["recommended"]);
+    assert!(stdout(&o).contains("closest_hit.storage_buffer.dynamic_element.descriptor_indexing): fails: mismatch (1 of 1 attempts)"), "{}", stdout(&o));
 }
 
 #[test]

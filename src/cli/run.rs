@@ -223,18 +223,27 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             st.bar.inc_length(retries.len() as u64);
             sup.run(&retries, false, &mut |ev| st.on_event(ev));
         }
+        // The recommended pattern nearest each finding (report::recommended), where the plan
+        // did not hold it and the device can run it.
+        let patterns: Vec<_> = crate::report::recommended::missing(&st.writer.report).into_iter().filter(|c| plan::device_support(&info, c).is_supported()).collect();
+        if !patterns.is_empty() {
+            st.bar.inc_length(patterns.len() as u64);
+            sup.run(&patterns, false, &mut |ev| st.on_event(ev));
+        }
         // A workaround is verified only by as many passing runs as its cell had attempts: one
         // pass against an intermittent fault proves nothing. Variants that still pass are run
         // again (alone) until they match their cell's count; one fault ends that.
         loop {
             let report = &st.writer.report;
-            let more: Vec<_> = report
+            let mut more: Vec<_> = report
                 .cells
                 .iter()
                 .filter(|v| v.cell.patch.is_some() && v.outcome == crate::outcome::Outcome::Pass)
                 .filter(|v| report.cells.iter().find(|b| b.cell == v.cell.base()).is_some_and(|b| b.outcome.is_finding() && v.attempts.len() < b.attempts.len()))
                 .map(|v| v.cell)
                 .collect();
+            // Recommended patterns likewise, against the findings they stand for.
+            more.extend(crate::report::recommended::retries(report));
             if more.is_empty() {
                 break;
             }
@@ -246,6 +255,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         sup.run(&canaries, false, &mut |ev| st.on_event(ev));
     }
     st.writer.report.annotate_workarounds();
+    crate::report::recommended::annotate(&mut st.writer.report);
     let RunState { mut writer, bar, device_ms_sum, save_error } = st;
     bar.finish_and_clear();
     let _ = std::fs::remove_dir_all(&job_dir);

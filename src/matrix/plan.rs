@@ -324,7 +324,7 @@ mod tests {
         assert!(cells.iter().filter(|c| c.index == IndexSource::DynamicElement).all(|c| Cell::dynamic_element_applies(c.resource) && !c.nonuniform && c.applicable_patches().is_empty()));
         // Every dynamic storage-buffer / sampled-image cell has its recommended pattern in the matrix.
         for c in cells.iter().filter(|c| c.index == IndexSource::Dynamic && Cell::dynamic_element_applies(c.resource)) {
-            let r = c.recommended_pattern().unwrap();
+            let (_, r) = c.recommended_pattern().unwrap();
             assert!(cells.contains(&r), "{} -> {}", c.id(), r.id());
         }
         assert!(cells.iter().all(|c| c.heap_access.is_some() == (c.descriptor_model == DescriptorModel::DescriptorHeap)));

@@ -4,6 +4,7 @@ pub mod atomic;
 pub mod junit;
 pub mod issue;
 pub mod pictures;
+pub mod recommended;
 pub mod run_report;
 pub mod shaders;
 pub mod summary;
