@@ -190,3 +190,57 @@ fn sid_heap_cells_are_checked_corrupted_expectations_mismatch() {
     assert_eq!(cells.len(), 1);
     assert_eq!(cells[0]["outcome"], "mismatch", "{}", cells[0]);
 }
+
+#[test]
+fn sid_recommended_patterns_read_the_exact_element_and_layer_in_every_heap_way() {
+    if !have_sid() {
+        return;
+    }
+    // Issue 9's recommended patterns (index=dynamic_element: one SSBO at a spec-constant slot
+    // read at a dynamic element offset; one texture2DArray sampled at a dynamic layer), in every
+    // heap access way, checked exactly against the reference.
+    let filter = "descriptor_model=descriptor_heap,index=dynamic_element,stage=closest_hit|compute";
+    let (o, report) = run_in_sid("heap-patterns", filter, &[], &[]);
+    let cells = report["cells"].as_array().unwrap();
+    assert_eq!(cells.len(), 2 * (5 + 4), "2 resources x (5 ways in closest-hit, 4 in compute)");
+    for c in cells {
+        let id = c["id"].as_str().unwrap();
+        assert!(c["outcome"] != "unsupported" && c["outcome"] != "not_implemented", "{id}: {}", c["reason"]);
+        if c["outcome"] == "pass" {
+            let d = c["attempts"][0]["result"]["comparison"]["discrimination"].as_f64().unwrap();
+            assert!(d >= 0.99, "{id}: every pixel would catch another element or layer ({d})");
+        }
+    }
+    // The geometry pattern passes in every way, and both patterns read straight from the heap.
+    let pass = |id: &str| cells.iter().find(|c| c["id"] == id).unwrap_or_else(|| panic!("{id} planned"))["outcome"] == "pass";
+    assert!(cells.iter().filter(|c| c["resource"] == "storage_buffer").all(|c| c["outcome"] == "pass"), "{}", stdout(&o));
+    assert!(pass("closest_hit.sampled_image.dynamic_element.descriptor_heap.direct"), "{}", stdout(&o));
+    // Twin: a wrong value at the pattern's read must mismatch.
+    let direct = "descriptor_model=descriptor_heap,heap_access=direct,index=dynamic_element,stage=closest_hit";
+    let (o, report) = run_in_sid("heap-patterns-corrupt", direct, &["--inject-fault", &format!("{direct}@value")], &[]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(report["cells"].as_array().unwrap().iter().all(|c| c["outcome"] == "mismatch"), "{}", stdout(&o));
+}
+
+#[test]
+fn sid_a_direct_heap_fault_says_whether_the_recommended_pattern_works() {
+    if !have_sid() {
+        return;
+    }
+    // The issue's shape faulting (an injected invalid-address load at the dynamic heap read, as
+    // on the NVIDIA driver), with workarounds on: the run schedules each finding's recommended
+    // pattern (outside the filter) and says per finding whether it works.
+    let filter = "descriptor_model=descriptor_heap,heap_access=direct,stage=closest_hit,index=dynamic,nonuniform=false,resource=storage_buffer|sampled_image";
+    let path = report_path("heap-pattern-finding");
+    let o = in_sid(&["run", "--filter", filter, "--no-confirm", "--inject-fault", &format!("{filter}@device"), "-o", path.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    let cells = report["cells"].as_array().unwrap();
+    for (resource, pattern) in [("storage_buffer", "geometry"), ("sampled_image", "materials")] {
+        let f = cells.iter().find(|c| c["id"] == format!("closest_hit.{resource}.dynamic.descriptor_heap.direct")).unwrap();
+        assert_eq!(f["outcome"], "crash", "{}", f["reason"]);
+        let p = &f["recommended"];
+        assert_eq!((p["pattern"].as_str(), p["status"].as_str()), (Some(pattern), Some("passes")), "{p}");
+        assert!(stdout(&o).contains(&format!("recommended pattern {pattern} (")), "{}", stdout(&o));
+    }
+}
