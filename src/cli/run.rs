@@ -296,6 +296,7 @@ pub(crate) fn supervisor_options(device_index: usize, scene: SceneParams, jobs: 
         grace: Duration::from_millis(500),
         kill_wait: Duration::from_secs(5),
         validate,
+        gpu_av: false,
         inject,
         dump: None,
         job_dir: std::env::temp_dir().join(format!("rtprobe-{}", std::process::id())),
