@@ -244,3 +244,32 @@ fn sid_a_direct_heap_fault_says_whether_the_recommended_pattern_works() {
         assert!(stdout(&o).contains(&format!("recommended pattern {pattern} (")), "{}", stdout(&o));
     }
 }
+
+#[test]
+fn sid_gpu_av_reruns_heap_findings_with_a_control() {
+    if !have_sid() {
+        return;
+    }
+    // The root's layers (1.4.363) know VK_EXT_descriptor_heap: heap findings run under GPU-AV with
+    // their literal-index control. Whatever GPU-AV does is recorded (reports/lavapipe-26/FINDINGS.md
+    // #4: it crashes closest-hit heap pipelines), never hidden and never mixed into the cell's verdict.
+    let filter = "descriptor_model=descriptor_heap,heap_access=direct,stage=closest_hit|compute,resource=storage_buffer,index=dynamic|literal,nonuniform=false";
+    let path = report_path("heap-gpu-av");
+    let o = in_sid(&["run", "--validate=gpu-av", "--filter", filter, "--no-confirm", "--patches", "none", "--inject-fault", "index=dynamic@device", "-o", path.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    let cells = report["cells"].as_array().unwrap();
+    for stage in ["closest_hit", "compute"] {
+        let f = cells.iter().find(|c| c["id"] == format!("{stage}.storage_buffer.dynamic.descriptor_heap.direct")).unwrap();
+        assert_eq!(f["attempts"].as_array().unwrap().len(), 1);
+        let v = &f["gpu_av"];
+        let control = v["control"].as_array().unwrap_or_else(|| panic!("{stage}: a control ran: {v}"));
+        let control_faulted = !["pass", "unsupported", "not_implemented"].contains(&control[1].as_str().unwrap());
+        let verdict = v["verdict"].as_str().unwrap();
+        assert!(["masked", "still_faults", "gpu_av_failed"].contains(&verdict), "{stage}: {v}");
+        if verdict != "masked" {
+            assert_eq!(verdict == "gpu_av_failed", control_faulted, "{stage}: {v}");
+        }
+        assert!(stdout(&o).contains("GPU-AV: "), "{}", stdout(&o));
+    }
+}

@@ -307,6 +307,38 @@ fn findings_say_whether_the_recommended_pattern_works() {
     assert!(stdout(&o).contains("closest_hit.storage_buffer.dynamic_element.descriptor_indexing): fails: mismatch (1 of 1 attempts)"), "{}", stdout(&o));
 }
 
+/// `--validate=gpu-av`: each finding again under GPU-Assisted Validation, next to its control (the
+/// literal-index sibling that passed), recorded apart from the cell's own attempts.
+#[test]
+fn gpu_av_reruns_each_finding_and_says_whether_it_masks_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("r.json");
+    let filter = "stage=closest_hit,resource=storage_buffer,index=dynamic|literal,nonuniform=false,descriptor_model=descriptor_indexing,reorder=none";
+    let o = run(&["run", "--validate=gpu-av", "--inject-fault", "index=dynamic@value", "--no-confirm", "--patches", "none", "--filter", filter, "-o", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let r = report(&out);
+    assert_eq!(r["options"]["gpu_av"], true);
+    let f = cells(&r).iter().find(|c| c["id"] == "closest_hit.storage_buffer.dynamic.descriptor_indexing").unwrap();
+    assert_eq!(f["outcome"], "mismatch");
+    assert_eq!(f["attempts"].as_array().unwrap().len(), 1, "GPU-AV attempts never join the cell's own");
+    let v = &f["gpu_av"];
+    let layer = Path::new("/usr/share/vulkan/explicit_layer.d/VkLayer_khronos_validation.json").exists();
+    if layer {
+        // The injected wrong value is in the shader: GPU-AV cannot hide it, and the control passes.
+        assert_eq!((v["verdict"].as_str(), v["outcome"].as_str()), (Some("still_faults"), Some("mismatch")), "{v}");
+        assert_eq!(v["control"], serde_json::json!(["closest_hit.storage_buffer.literal.descriptor_indexing", "pass"]), "{v}");
+        assert!(stdout(&o).contains("GPU-AV: still faults (mismatch)"), "{}", stdout(&o));
+    } else {
+        assert_eq!(v["verdict"], "not_run", "{v}");
+    }
+    let control = cells(&r).iter().find(|c| c["id"] == "closest_hit.storage_buffer.literal.descriptor_indexing").unwrap();
+    assert!(control["gpu_av"].is_null() && control["outcome"] == "pass");
+    // Not a validation mode: one line, usage exit.
+    let o = run(&["run", "--validate=sometimes", "--list"]);
+    assert_ne!(o.status.code(), Some(0));
+    assert!(stderr(&o).contains("not a validation mode"), "{}", stderr(&o));
+}
+
 #[test]
 fn faulting_cells_are_retried_with_each_applicable_workaround() {
     let dir = tempfile::tempdir().unwrap();

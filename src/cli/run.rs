@@ -133,7 +133,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         },
         options: json!({
             "jobs": jobs, "isolation": a.isolation, "timeout_s": a.timeout, "setup_timeout_s": a.setup_timeout, "confirm": !a.no_confirm,
-            "canaries": a.canaries, "filters": a.filter, "patches": a.patches, "validate": g.validate,
+            "canaries": a.canaries, "filters": a.filter, "patches": a.patches, "validate": g.validate, "gpu_av": g.gpu_av,
             "inject": inject.iter().map(|i| i.spec.clone()).collect::<Vec<_>>(), "repeat": a.repeat,
             "shard": shard.map(|s| s.label()), "binding_stages": std::env::var("RTPROBE_BINDING_STAGES").ok(),
         }),
@@ -177,6 +177,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         ..supervisor_options(info.index, params, jobs, a.isolation, a.timeout, g.validate, inject.clone())
     };
     let job_dir = opts.job_dir.clone();
+    let gpu_av_opts = opts.clone();
     let mut sup = Supervisor::new(opts);
     let bar = indicatif::ProgressBar::new((cells.len() + canaries.len()) as u64);
     bar.set_style(indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} {msg}").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()));
@@ -250,6 +251,25 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             st.bar.inc_length(more.len() as u64);
             sup.run(&more, true, &mut |ev| st.on_event(ev));
         }
+    }
+    if g.gpu_av {
+        // Each finding again, alone, under GPU-AV, next to its control (report::gpu_av); kept
+        // apart from the cells' own attempts.
+        let layer = inst.validation_layer_version();
+        let (again, skipped) = crate::report::gpu_av::schedule(&st.writer.report, layer);
+        let mut got = Vec::new();
+        if !again.is_empty() {
+            st.bar.inc_length(again.len() as u64);
+            let mut av = Supervisor::new(SupervisorOptions { validate: true, gpu_av: true, job_dir: job_dir.join("gpu-av"), ..gpu_av_opts });
+            let bar = &st.bar;
+            av.run(&again, true, &mut |ev| {
+                if let crate::runner::supervisor::Event::Attempt { cell, attempt } = ev {
+                    bar.inc(1);
+                    got.push((*cell, attempt));
+                }
+            });
+        }
+        crate::report::gpu_av::annotate(&mut st.writer.report, &got, &skipped);
     }
     if !canaries.is_empty() {
         sup.run(&canaries, false, &mut |ev| st.on_event(ev));

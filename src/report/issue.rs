@@ -280,7 +280,10 @@ fn validation_text(report: &RunReport, rep: Option<&CellReport>) -> String {
     } else {
         format!("Clean under VK_LAYER_KHRONOS_validation: no validation error in the {ran_to_end} attempt(s) that reported back (an attempt whose process died reports nothing).")
     };
-    t += " GPU-assisted validation (GPU-AV) was not run: whether it masks or reports the fault is untested.";
+    match rep.and_then(|c| c.gpu_av.as_ref()) {
+        Some(v) => t += &format!(" Re-run alone under GPU-assisted validation (`--validate=gpu-av`): {}.", v.line()),
+        None => t += " GPU-assisted validation (GPU-AV) was not run (`rtprobe run --validate=gpu-av`): whether it masks or reports the fault is untested.",
+    }
     t
 }
 

@@ -68,6 +68,10 @@ pub struct CellReport {
     /// (`report::recommended`).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub recommended: Option<crate::report::recommended::PatternResult>,
+    /// For a cell with a finding, with `--validate=gpu-av`: whether GPU-AV masks it
+    /// (`report::gpu_av`; those attempts are not among `attempts`).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub gpu_av: Option<crate::report::gpu_av::GpuAvResult>,
     #[serde(default)]
     pub attempts: Vec<Attempt>,
 }
@@ -140,6 +144,7 @@ impl CellReport {
             canary_check: None,
             workarounds: vec![],
             recommended: None,
+            gpu_av: None,
             attempts: vec![],
         }
     }

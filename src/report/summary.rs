@@ -113,6 +113,9 @@ pub fn render(r: &RunReport) -> String {
             if let Some(p) = &c.recommended {
                 let _ = writeln!(s, "      {}", p.line());
             }
+            if let Some(v) = &c.gpu_av {
+                let _ = writeln!(s, "      {}", v.line());
+            }
         }
         if findings.len() > 40 {
             let _ = writeln!(s, "  … and {} more (see the report)", findings.len() - 40);
