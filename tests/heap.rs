@@ -56,10 +56,17 @@ fn report_path(name: &str) -> PathBuf {
 /// `rtprobe run --filter FILTER` of heap cells in the root (no confirmation, no workarounds, plus
 /// `extra` arguments), and its report.
 fn run_in_sid(name: &str, filter: &str, extra: &[&str], env: &[(&str, &str)]) -> (Output, serde_json::Value) {
-    let path = report_path(name);
-    let mut args = vec!["run", "--filter", filter, "--no-confirm", "--patches", "none", "-o", path.to_str().unwrap()];
+    let mut args = vec!["--filter", filter, "--no-confirm", "--patches", "none"];
     args.extend_from_slice(extra);
-    let o = in_sid_env(&args, env);
+    sid_report(name, &args, env)
+}
+
+/// `rtprobe run ARGS -o REPORT` in the root, and its report.
+fn sid_report(name: &str, args: &[&str], env: &[(&str, &str)]) -> (Output, serde_json::Value) {
+    let path = report_path(name);
+    let mut all = vec!["run", "-o", path.to_str().unwrap()];
+    all.extend_from_slice(args);
+    let o = in_sid_env(&all, env);
     let report = serde_json::from_slice(&std::fs::read(&path).unwrap_or_else(|e| panic!("no report ({e}): {}", stderr(&o)))).unwrap();
     (o, report)
 }
@@ -231,10 +238,8 @@ fn sid_a_direct_heap_fault_says_whether_the_recommended_pattern_works() {
     // on the NVIDIA driver), with workarounds on: the run schedules each finding's recommended
     // pattern (outside the filter) and says per finding whether it works.
     let filter = "descriptor_model=descriptor_heap,heap_access=direct,stage=closest_hit,index=dynamic,nonuniform=false,resource=storage_buffer|sampled_image";
-    let path = report_path("heap-pattern-finding");
-    let o = in_sid(&["run", "--filter", filter, "--no-confirm", "--inject-fault", &format!("{filter}@device"), "-o", path.to_str().unwrap()]);
+    let (o, report) = sid_report("heap-pattern-finding", &["--filter", filter, "--no-confirm", "--inject-fault", &format!("{filter}@device")], &[]);
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
-    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
     let cells = report["cells"].as_array().unwrap();
     for (resource, pattern) in [("storage_buffer", "geometry"), ("sampled_image", "materials")] {
         let f = cells.iter().find(|c| c["id"] == format!("closest_hit.{resource}.dynamic.descriptor_heap.direct")).unwrap();
@@ -254,10 +259,8 @@ fn sid_gpu_av_reruns_heap_findings_with_a_control() {
     // their literal-index control. Whatever GPU-AV does is recorded (reports/lavapipe-26/FINDINGS.md
     // #4: it crashes closest-hit heap pipelines), never hidden and never mixed into the cell's verdict.
     let filter = "descriptor_model=descriptor_heap,heap_access=direct,stage=closest_hit|compute,resource=storage_buffer,index=dynamic|literal,nonuniform=false";
-    let path = report_path("heap-gpu-av");
-    let o = in_sid(&["run", "--validate=gpu-av", "--filter", filter, "--no-confirm", "--patches", "none", "--inject-fault", "index=dynamic@device", "-o", path.to_str().unwrap()]);
+    let (o, report) = run_in_sid("heap-gpu-av", filter, &["--validate=gpu-av", "--inject-fault", "index=dynamic@device"], &[]);
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
-    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
     let cells = report["cells"].as_array().unwrap();
     for stage in ["closest_hit", "compute"] {
         let f = cells.iter().find(|c| c["id"] == format!("{stage}.storage_buffer.dynamic.descriptor_heap.direct")).unwrap();
