@@ -529,13 +529,18 @@ mod tests {
                 assert!(e.iter().zip(&d).all(|(a, b)| a.record == b.record && a.rule == ValueRule::Exact && a.discriminating == b.discriminating));
                 assert!(compare(&e, &records(&e), 64).passed());
                 let slots = probe::slot_count(resource, scene.params.instances);
-                let wrong: [(&str, Box<dyn Fn(&Record) -> [f32; 4]>); 3] = [
-                    ("element", Box::new(|a: &Record| probe::resource_value(resource, a.slot, (a.element + 1) % probe::ELEMENTS))),
-                    ("layer", Box::new(|a: &Record| probe::resource_value(resource, (a.slot + 1) % slots, a.element))),
-                    ("own slot", Box::new(|a: &Record| probe::resource_value(resource, probe::PACKED_SLOT, a.element))),
+                // (slot, element) a faulty driver reads instead: the wrong element, the wrong layer
+                // (the neighbouring slot's block), the spec-constant slot's own resource.
+                let wrong: [(&str, fn(u32, u32, u32) -> (u32, u32)); 3] = [
+                    ("element", |s, e, _| (s, (e + 1) % probe::ELEMENTS)),
+                    ("layer", |s, e, n| ((s + 1) % n, e)),
+                    ("own slot", |_, e, _| (probe::PACKED_SLOT, e)),
                 ];
-                for (what, read) in &wrong {
-                    let actual = reading(&e, read);
+                for (what, at) in &wrong {
+                    let actual = reading(&e, |a: &Record| {
+                        let (s, el) = at(a.slot, a.element, slots);
+                        probe::resource_value(resource, s, el)
+                    });
                     let cmp = compare(&e, &actual, 64);
                     let moved = e.iter().zip(&actual).filter(|(x, a)| !x.ambiguous && x.record.value != a.value).count();
                     assert!(!cmp.passed() && cmp.mismatched_pixels >= moved && moved > 0, "{} wrong {what}: {cmp:?}", c.id());

@@ -197,17 +197,6 @@ impl Instance {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn layers_before_descriptor_heaps_are_told_apart_by_their_version() {
-        assert_eq!(gpu_av_heap_gap(vk::make_api_version(0, 1, 3, 239)).as_deref(), Some("validation layers 1.3.239 predate VK_EXT_descriptor_heap"));
-        assert_eq!(gpu_av_heap_gap(vk::make_api_version(0, 1, 4, 363)), None);
-    }
-}
-
 impl Drop for Instance {
     fn drop(&mut self) {
         unsafe {
@@ -216,5 +205,16 @@ impl Drop for Instance {
             }
             self.raw.destroy_instance(None);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn layers_before_descriptor_heaps_are_told_apart_by_their_version() {
+        assert_eq!(gpu_av_heap_gap(vk::make_api_version(0, 1, 3, 239)).as_deref(), Some("validation layers 1.3.239 predate VK_EXT_descriptor_heap"));
+        assert_eq!(gpu_av_heap_gap(vk::make_api_version(0, 1, 4, 363)), None);
     }
 }
