@@ -8,6 +8,9 @@
 //! the stage's runtime value (with `nonuniformEXT` when the cell says so). `heap_access=direct`
 //! cells declare the array `layout(descriptor_heap)` instead of at binding 2 (the shader's index
 //! is then the heap index; see `exec::heap`), sampled images as a texture heap and a sampler heap.
+//! `index=dynamic_element` (the recommended patterns) indexes the array with the spec constant and
+//! puts the dynamic value inside the one descriptor: `v[packedElement(probeSlot, probeElement)]`
+//! of a buffer, or the layer of a `sampler2DArray` / `texture2DArray`.
 use crate::matrix::{AsAccess, Cell, HeapAccess, IndexSource, Resource, Stage};
 use crate::probe;
 
