@@ -86,7 +86,7 @@ fn injected_wrong_values_are_reported_as_confirmed_mismatches() {
     assert_eq!(o.status.code(), Some(1), "findings exit 1; stderr {}", stderr(&o));
     let r = report(&out);
     let cs = cells(&r);
-    assert_eq!(cs.len(), 10);
+    assert_eq!(cs.len(), 12, "2 stages x 5 index variants, and dynamic_element");
     for c in cs {
         assert_eq!(c["outcome"], "mismatch", "{}", c["id"]);
         assert_eq!(c["confirmed"], true, "re-run alone gives the same outcome");
@@ -97,7 +97,7 @@ fn injected_wrong_values_are_reported_as_confirmed_mismatches() {
         assert!(cmp["worst_value"].as_f64().unwrap() >= 0.5);
         assert!(!cmp["examples"].as_array().unwrap().is_empty());
     }
-    assert!(stdout(&o).contains("findings (10)"));
+    assert!(stdout(&o).contains("findings (12)"));
 }
 
 #[test]
