@@ -159,6 +159,8 @@ fn the_issue_has_every_section() {
     assert!(text.contains("of 3 attempts") || text.contains("attempts of the minimal failing cell faulted"), "{text}");
     assert!(text.contains("rtprobe run --filter 'stage=closest_hit,") && text.contains("--inject-fault 'stage=closest_hit,index=dynamic@device'"), "{text}");
     assert!(text.contains("rtprobe run --cell-spec"), "{text}");
+    // Issue 9: whether the engines' recommended pattern nearest the finding works on this driver.
+    assert!(text.contains("- recommended pattern geometry (one storage buffer at a spec-constant slot, dynamic element offset; closest_hit.storage_buffer.dynamic_element."), "{text}");
     let dis = Path::new("/usr/bin/spirv-dis").exists();
     assert_eq!(text.contains("; SPIR-V"), dis, "disassembly present iff spirv-dis is installed");
     // JSON: the same content as data; without --bisect, the report's own verdicts are bisected.
@@ -166,7 +168,7 @@ fn the_issue_has_every_section() {
     let v = json(&o);
     assert_eq!(v["schema"], "rtprobe.issue/1");
     assert_eq!(v["minimal"], j["minimal"]);
-    for key in ["title", "environment", "summary", "incidence", "expected", "actual", "isolation", "shader", "device_fault", "validation", "reproduce", "workarounds", "not_tested"] {
+    for key in ["title", "environment", "summary", "incidence", "expected", "actual", "isolation", "shader", "device_fault", "validation", "reproduce", "workarounds", "recommended_pattern", "not_tested"] {
         assert!(!v[key].is_null(), "{key}");
     }
     // Bad input and unwritable output: one line, exit 9, no file.

@@ -56,10 +56,17 @@ fn report_path(name: &str) -> PathBuf {
 /// `rtprobe run --filter FILTER` of heap cells in the root (no confirmation, no workarounds, plus
 /// `extra` arguments), and its report.
 fn run_in_sid(name: &str, filter: &str, extra: &[&str], env: &[(&str, &str)]) -> (Output, serde_json::Value) {
-    let path = report_path(name);
-    let mut args = vec!["run", "--filter", filter, "--no-confirm", "--patches", "none", "-o", path.to_str().unwrap()];
+    let mut args = vec!["--filter", filter, "--no-confirm", "--patches", "none"];
     args.extend_from_slice(extra);
-    let o = in_sid_env(&args, env);
+    sid_report(name, &args, env)
+}
+
+/// `rtprobe run ARGS -o REPORT` in the root, and its report.
+fn sid_report(name: &str, args: &[&str], env: &[(&str, &str)]) -> (Output, serde_json::Value) {
+    let path = report_path(name);
+    let mut all = vec!["run", "-o", path.to_str().unwrap()];
+    all.extend_from_slice(args);
+    let o = in_sid_env(&all, env);
     let report = serde_json::from_slice(&std::fs::read(&path).unwrap_or_else(|e| panic!("no report ({e}): {}", stderr(&o)))).unwrap();
     (o, report)
 }
@@ -189,4 +196,83 @@ fn sid_heap_cells_are_checked_corrupted_expectations_mismatch() {
     let cells = report["cells"].as_array().unwrap();
     assert_eq!(cells.len(), 1);
     assert_eq!(cells[0]["outcome"], "mismatch", "{}", cells[0]);
+}
+
+#[test]
+fn sid_recommended_patterns_read_the_exact_element_and_layer_in_every_heap_way() {
+    if !have_sid() {
+        return;
+    }
+    // Issue 9's recommended patterns (index=dynamic_element: one SSBO at a spec-constant slot
+    // read at a dynamic element offset; one texture2DArray sampled at a dynamic layer), in every
+    // heap access way, checked exactly against the reference.
+    let filter = "descriptor_model=descriptor_heap,index=dynamic_element,stage=closest_hit|compute";
+    let (o, report) = run_in_sid("heap-patterns", filter, &[], &[]);
+    let cells = report["cells"].as_array().unwrap();
+    assert_eq!(cells.len(), 2 * (5 + 4), "2 resources x (5 ways in closest-hit, 4 in compute)");
+    for c in cells {
+        let id = c["id"].as_str().unwrap();
+        assert!(c["outcome"] != "unsupported" && c["outcome"] != "not_implemented", "{id}: {}", c["reason"]);
+        if c["outcome"] == "pass" {
+            let d = c["attempts"][0]["result"]["comparison"]["discrimination"].as_f64().unwrap();
+            assert!(d >= 0.99, "{id}: every pixel would catch another element or layer ({d})");
+        }
+    }
+    // The geometry pattern passes in every way, and both patterns read straight from the heap.
+    let pass = |id: &str| cells.iter().find(|c| c["id"] == id).unwrap_or_else(|| panic!("{id} planned"))["outcome"] == "pass";
+    assert!(cells.iter().filter(|c| c["resource"] == "storage_buffer").all(|c| c["outcome"] == "pass"), "{}", stdout(&o));
+    assert!(pass("closest_hit.sampled_image.dynamic_element.descriptor_heap.direct"), "{}", stdout(&o));
+    // Twin: a wrong value at the pattern's read must mismatch.
+    let direct = "descriptor_model=descriptor_heap,heap_access=direct,index=dynamic_element,stage=closest_hit";
+    let (o, report) = run_in_sid("heap-patterns-corrupt", direct, &["--inject-fault", &format!("{direct}@value")], &[]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(report["cells"].as_array().unwrap().iter().all(|c| c["outcome"] == "mismatch"), "{}", stdout(&o));
+}
+
+#[test]
+fn sid_a_direct_heap_fault_says_whether_the_recommended_pattern_works() {
+    if !have_sid() {
+        return;
+    }
+    // The issue's shape faulting (an injected invalid-address load at the dynamic heap read, as
+    // on the NVIDIA driver), with workarounds on: the run schedules each finding's recommended
+    // pattern (outside the filter) and says per finding whether it works.
+    let filter = "descriptor_model=descriptor_heap,heap_access=direct,stage=closest_hit,index=dynamic,nonuniform=false,resource=storage_buffer|sampled_image";
+    let (o, report) = sid_report("heap-pattern-finding", &["--filter", filter, "--no-confirm", "--inject-fault", &format!("{filter}@device")], &[]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let cells = report["cells"].as_array().unwrap();
+    for (resource, pattern) in [("storage_buffer", "geometry"), ("sampled_image", "materials")] {
+        let f = cells.iter().find(|c| c["id"] == format!("closest_hit.{resource}.dynamic.descriptor_heap.direct")).unwrap();
+        assert_eq!(f["outcome"], "crash", "{}", f["reason"]);
+        let p = &f["recommended"];
+        assert_eq!((p["pattern"].as_str(), p["status"].as_str()), (Some(pattern), Some("passes")), "{p}");
+        assert!(stdout(&o).contains(&format!("recommended pattern {pattern} (")), "{}", stdout(&o));
+    }
+}
+
+#[test]
+fn sid_gpu_av_reruns_heap_findings_with_a_control() {
+    if !have_sid() {
+        return;
+    }
+    // The root's layers (1.4.363) know VK_EXT_descriptor_heap: heap findings run under GPU-AV with
+    // their literal-index control. Whatever GPU-AV does is recorded (reports/lavapipe-26/FINDINGS.md
+    // #4: it crashes closest-hit heap pipelines), never hidden and never mixed into the cell's verdict.
+    let filter = "descriptor_model=descriptor_heap,heap_access=direct,stage=closest_hit|compute,resource=storage_buffer,index=dynamic|literal,nonuniform=false";
+    let (o, report) = run_in_sid("heap-gpu-av", filter, &["--validate=gpu-av", "--inject-fault", "index=dynamic@device"], &[]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let cells = report["cells"].as_array().unwrap();
+    for stage in ["closest_hit", "compute"] {
+        let f = cells.iter().find(|c| c["id"] == format!("{stage}.storage_buffer.dynamic.descriptor_heap.direct")).unwrap();
+        assert_eq!(f["attempts"].as_array().unwrap().len(), 1);
+        let v = &f["gpu_av"];
+        let control = v["control"].as_array().unwrap_or_else(|| panic!("{stage}: a control ran: {v}"));
+        let control_faulted = !["pass", "unsupported", "not_implemented"].contains(&control[1].as_str().unwrap());
+        let verdict = v["verdict"].as_str().unwrap();
+        assert!(["masked", "still_faults", "gpu_av_failed"].contains(&verdict), "{stage}: {v}");
+        if verdict != "masked" {
+            assert_eq!(verdict == "gpu_av_failed", control_faulted, "{stage}: {v}");
+        }
+        assert!(stdout(&o).contains("GPU-AV: "), "{}", stdout(&o));
+    }
 }

@@ -57,7 +57,7 @@ fn default_matrix_passes_on_lavapipe_and_canaries_are_classified() {
     for (axis, values) in [
         ("stage", vec!["raygen", "closest_hit", "any_hit", "miss", "intersection", "callable", "fragment", "compute"]),
         ("resource", vec!["storage_buffer", "uniform_buffer", "sampled_image", "storage_image", "acceleration_structure"]),
-        ("index", vec!["literal", "spec_constant", "push_constant", "dynamic"]),
+        ("index", vec!["literal", "spec_constant", "push_constant", "dynamic", "dynamic_element"]),
     ] {
         for v in values {
             assert!(cs.iter().any(|c| c[axis] == v && c["outcome"] == "pass"), "no passing cell with {axis}={v}");
@@ -86,7 +86,7 @@ fn injected_wrong_values_are_reported_as_confirmed_mismatches() {
     assert_eq!(o.status.code(), Some(1), "findings exit 1; stderr {}", stderr(&o));
     let r = report(&out);
     let cs = cells(&r);
-    assert_eq!(cs.len(), 10);
+    assert_eq!(cs.len(), 12, "2 stages x 5 index variants, and dynamic_element");
     for c in cs {
         assert_eq!(c["outcome"], "mismatch", "{}", c["id"]);
         assert_eq!(c["confirmed"], true, "re-run alone gives the same outcome");
@@ -97,7 +97,7 @@ fn injected_wrong_values_are_reported_as_confirmed_mismatches() {
         assert!(cmp["worst_value"].as_f64().unwrap() >= 0.5);
         assert!(!cmp["examples"].as_array().unwrap().is_empty());
     }
-    assert!(stdout(&o).contains("findings (10)"));
+    assert!(stdout(&o).contains("findings (12)"));
 }
 
 #[test]
@@ -275,6 +275,70 @@ fn patched_variants_render_like_the_originals() {
     let patched_as = cs.iter().filter(|c| c["as_access"] == "address_patched" && c["outcome"] == "pass").count();
     let address = cs.iter().filter(|c| c["as_access"] == "address" && c["outcome"] == "pass").count();
     assert!(patched_as > 0 && address > 0);
+}
+
+/// Issue 9's question per finding: does the engines' recommended pattern (one descriptor at a
+/// spec-constant slot, the dynamic value inside it) work where the dynamic index faults? The
+/// pattern cells are outside the filter: the run schedules them, as often as their findings ran.
+#[test]
+fn findings_say_whether_the_recommended_pattern_works() {
+    let dir = tempfile::tempdir().unwrap();
+    let filter = "stage=closest_hit,resource=storage_buffer|sampled_image,index=dynamic,nonuniform=true,descriptor_model=descriptor_indexing,reorder=none";
+    let out = dir.path().join("r.json");
+    let o = run(&["run", "--inject-fault", "index=dynamic@value", "--no-confirm", "--repeat", "2", "--filter", filter, "-o", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let r = report(&out);
+    for (resource, pattern) in [("storage_buffer", "geometry"), ("sampled_image", "materials")] {
+        let base = cells(&r).iter().find(|c| c["id"] == format!("closest_hit.{resource}.dynamic.nonuniform.descriptor_indexing")).unwrap();
+        assert_eq!(base["outcome"], "mismatch");
+        let p = &base["recommended"];
+        let id = format!("closest_hit.{resource}.dynamic_element.descriptor_indexing");
+        assert_eq!((p["pattern"].as_str(), p["cell"].as_str(), p["status"].as_str()), (Some(pattern), Some(id.as_str()), Some("passes")), "{p}");
+        assert_eq!((p["passed"].as_u64(), p["attempts"].as_u64()), (Some(2), Some(2)), "run as often as the finding: {p}");
+        let pc = cells(&r).iter().find(|c| c["id"] == id).expect("scheduled");
+        assert_eq!(pc["attempts"].as_array().unwrap().len(), 2);
+        assert!(stdout(&o).contains(&format!("recommended pattern {pattern} (")) && stdout(&o).contains(&format!("{id}): passes (2/2)")), "{}", stdout(&o));
+    }
+    // Twin: the same fault in the pattern's shape too: the pattern fails, never "passes".
+    let out2 = dir.path().join("r2.json");
+    let o = run(&["run", "--inject-fault", "index=dynamic|dynamic_element@value", "--no-confirm", "--filter", filter, "-o", out2.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let r = report(&out2);
+    let base = cells(&r).iter().find(|c| c["id"] == "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_indexing").unwrap();
+    assert_eq!((base["recommended"]["status"].as_str(), base["recommended"]["outcome"].as_str()), (Some("fails"), Some("mismatch")), "{}", base["recommended"]);
+    assert!(stdout(&o).contains("closest_hit.storage_buffer.dynamic_element.descriptor_indexing): fails: mismatch (1 of 1 attempts)"), "{}", stdout(&o));
+}
+
+/// `--validate=gpu-av`: each finding again under GPU-Assisted Validation, next to its control (the
+/// literal-index sibling that passed), recorded apart from the cell's own attempts.
+#[test]
+fn gpu_av_reruns_each_finding_and_says_whether_it_masks_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("r.json");
+    let filter = "stage=closest_hit,resource=storage_buffer,index=dynamic|literal,nonuniform=false,descriptor_model=descriptor_indexing,reorder=none";
+    let o = run(&["run", "--validate=gpu-av", "--inject-fault", "index=dynamic@value", "--no-confirm", "--patches", "none", "--filter", filter, "-o", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let r = report(&out);
+    assert_eq!(r["options"]["gpu_av"], true);
+    let f = cells(&r).iter().find(|c| c["id"] == "closest_hit.storage_buffer.dynamic.descriptor_indexing").unwrap();
+    assert_eq!(f["outcome"], "mismatch");
+    assert_eq!(f["attempts"].as_array().unwrap().len(), 1, "GPU-AV attempts never join the cell's own");
+    let v = &f["gpu_av"];
+    let layer = Path::new("/usr/share/vulkan/explicit_layer.d/VkLayer_khronos_validation.json").exists();
+    if layer {
+        // The injected wrong value is in the shader: GPU-AV cannot hide it, and the control passes.
+        assert_eq!((v["verdict"].as_str(), v["outcome"].as_str()), (Some("still_faults"), Some("mismatch")), "{v}");
+        assert_eq!(v["control"], serde_json::json!(["closest_hit.storage_buffer.literal.descriptor_indexing", "pass"]), "{v}");
+        assert!(stdout(&o).contains("GPU-AV: still faults (mismatch)"), "{}", stdout(&o));
+    } else {
+        assert_eq!(v["verdict"], "not_run", "{v}");
+    }
+    let control = cells(&r).iter().find(|c| c["id"] == "closest_hit.storage_buffer.literal.descriptor_indexing").unwrap();
+    assert!(control["gpu_av"].is_null() && control["outcome"] == "pass");
+    // Not a validation mode: one line, usage exit.
+    let o = run(&["run", "--validate=sometimes", "--list"]);
+    assert_ne!(o.status.code(), Some(0));
+    assert!(stderr(&o).contains("not a validation mode"), "{}", stderr(&o));
 }
 
 #[test]

@@ -54,7 +54,7 @@ fn each_fault_kind_lands_on_exactly_its_cells_with_the_expected_outcome() {
     assert_eq!(o.status.code(), Some(1), "findings exit 1\n{}\n{}", stdout(&o), stderr(&o));
     let r = report(&out);
     let cs = cells(&r);
-    assert_eq!(cs.len(), 20, "2 stages x 2 resources x 5 index variants");
+    assert_eq!(cs.len(), 22, "2 stages x 2 resources x 5 index variants, and the 2 storage-buffer dynamic_element cells");
     let mut injected = 0;
     for c in cs {
         let id = c["id"].as_str().unwrap();

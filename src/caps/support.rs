@@ -101,7 +101,8 @@ pub fn dynamic_index(info: &DeviceInfo, r: Resource, nonuniform: bool) -> Suppor
 
 pub fn index(info: &DeviceInfo, i: IndexSource) -> Support {
     match i {
-        IndexSource::Literal | IndexSource::SpecConstant | IndexSource::PushConstant => Support::Supported,
+        // dynamic_element indexes the descriptor array with a spec constant: no dynamic indexing.
+        IndexSource::Literal | IndexSource::SpecConstant | IndexSource::PushConstant | IndexSource::DynamicElement => Support::Supported,
         IndexSource::Dynamic => {
             // Supported as an axis value when at least one resource kind can be indexed dynamically.
             let any = Resource::ALL.iter().any(|r| dynamic_index(info, *r, false).is_supported());

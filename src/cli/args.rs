@@ -16,13 +16,34 @@ pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
 
-    /// Enable VK_LAYER_KHRONOS_validation when installed (also RTPROBE_VALIDATE=1)
-    #[arg(long, global = true, env = "RTPROBE_VALIDATE", action = clap::ArgAction::SetTrue, value_parser = clap::builder::BoolishValueParser::new())]
-    pub validate: bool,
+    /// Enable VK_LAYER_KHRONOS_validation when installed (also RTPROBE_VALIDATE=1);
+    /// `--validate=gpu-av` (RTPROBE_VALIDATE=gpu-av): also re-run each finding of `run` under
+    /// GPU-Assisted Validation, and say whether GPU-AV masks it
+    #[arg(long, global = true, env = "RTPROBE_VALIDATE", num_args = 0..=1, require_equals = true, default_missing_value = "core", value_parser = parse_validate)]
+    pub validate: Option<ValidateMode>,
 
     /// More log output on stderr (-v info, -vv debug); RUST_LOG overrides
     #[arg(short, long, global = true, action = clap::ArgAction::Count)]
     pub verbose: u8,
+}
+
+/// `--validate[=MODE]`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ValidateMode {
+    Off,
+    /// The validation layer on.
+    Core,
+    /// The layer on, and every finding of `run` re-run under GPU-Assisted Validation.
+    GpuAv,
+}
+
+fn parse_validate(s: &str) -> Result<ValidateMode, String> {
+    match s.trim().to_ascii_lowercase().as_str() {
+        "" | "0" | "false" | "no" | "off" => Ok(ValidateMode::Off),
+        "1" | "true" | "yes" | "on" | "core" => Ok(ValidateMode::Core),
+        "gpu-av" | "gpuav" => Ok(ValidateMode::GpuAv),
+        other => Err(format!("{other:?} is not a validation mode (core, gpu-av, or a boolean)")),
+    }
 }
 
 #[derive(Subcommand, Debug)]

@@ -12,10 +12,12 @@ use std::time::Instant;
 
 pub struct Globals {
     pub validate: bool,
+    /// `--validate=gpu-av`: `run` re-runs each finding under GPU-Assisted Validation.
+    pub gpu_av: bool,
 }
 
 pub fn open_instance(g: &Globals) -> Result<Arc<Instance>> {
-    Ok(Arc::new(Instance::new(&InstanceOptions { validate: g.validate })?))
+    Ok(Arc::new(Instance::new(&InstanceOptions { validate: g.validate, gpu_av: false })?))
 }
 
 pub fn devices(g: &Globals, args: &DevicesArgs) -> Result<u8> {

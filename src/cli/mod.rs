@@ -36,7 +36,8 @@ pub fn main_entry() -> u8 {
         }
     };
     init_tracing(cli.verbose);
-    let g = commands::Globals { validate: cli.validate };
+    let mode = cli.validate.unwrap_or(args::ValidateMode::Off);
+    let g = commands::Globals { validate: mode != args::ValidateMode::Off, gpu_av: mode == args::ValidateMode::GpuAv };
     let result = match &cli.command {
         Command::Devices(a) => commands::devices(&g, a),
         Command::Caps(a) => commands::caps_cmd(&g, a),

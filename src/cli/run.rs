@@ -167,7 +167,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         },
         options: json!({
             "jobs": jobs, "threads": threads, "pipeline_cache": cache_dir, "isolation": a.isolation, "timeout_s": a.timeout, "setup_timeout_s": a.setup_timeout, "confirm": !a.no_confirm,
-            "canaries": a.canaries, "filters": a.filter, "patches": a.patches, "validate": g.validate,
+            "canaries": a.canaries, "filters": a.filter, "patches": a.patches, "validate": g.validate, "gpu_av": g.gpu_av,
             "inject": inject.iter().map(|i| i.spec.clone()).collect::<Vec<_>>(), "repeat": a.repeat,
             "shard": shard.map(|s| s.label()), "binding_stages": std::env::var("RTPROBE_BINDING_STAGES").ok(),
             "spirv_from": a.spirv_dir,
@@ -216,6 +216,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         ..supervisor_options(info.index, params, jobs, a.isolation, a.timeout, g.validate, inject.clone())
     };
     let job_dir = opts.job_dir.clone();
+    let gpu_av_opts = opts.clone();
     let mut sup = Supervisor::new(opts);
     let bar = indicatif::ProgressBar::new((cells.len() + canaries.len()) as u64);
     bar.set_style(indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} {msg}").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()));
@@ -262,18 +263,27 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             st.bar.inc_length(retries.len() as u64);
             sup.run(&retries, false, &mut |ev| st.on_event(ev));
         }
+        // The recommended pattern nearest each finding (report::recommended), where the plan
+        // did not hold it and the device can run it.
+        let patterns: Vec<_> = crate::report::recommended::missing(&st.writer.report).into_iter().filter(|c| plan::device_support(&info, c).is_supported()).collect();
+        if !patterns.is_empty() {
+            st.bar.inc_length(patterns.len() as u64);
+            sup.run(&patterns, false, &mut |ev| st.on_event(ev));
+        }
         // A workaround is verified only by as many passing runs as its cell had attempts: one
         // pass against an intermittent fault proves nothing. Variants that still pass are run
         // again (alone) until they match their cell's count; one fault ends that.
         loop {
             let report = &st.writer.report;
-            let more: Vec<_> = report
+            let mut more: Vec<_> = report
                 .cells
                 .iter()
                 .filter(|v| v.cell.patch.is_some() && v.outcome == crate::outcome::Outcome::Pass)
                 .filter(|v| report.cells.iter().find(|b| b.cell == v.cell.base()).is_some_and(|b| b.outcome.is_finding() && v.attempts.len() < b.attempts.len()))
                 .map(|v| v.cell)
                 .collect();
+            // Recommended patterns likewise, against the findings they stand for.
+            more.extend(crate::report::recommended::retries(report));
             if more.is_empty() {
                 break;
             }
@@ -281,10 +291,30 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             sup.run(&more, true, &mut |ev| st.on_event(ev));
         }
     }
+    if g.gpu_av {
+        // Each finding again, alone, under GPU-AV, next to its control (report::gpu_av); kept
+        // apart from the cells' own attempts.
+        let layer = inst.validation_layer_version();
+        let (again, skipped) = crate::report::gpu_av::schedule(&st.writer.report, layer);
+        let mut got = Vec::new();
+        if !again.is_empty() {
+            st.bar.inc_length(again.len() as u64);
+            let mut av = Supervisor::new(SupervisorOptions { validate: true, gpu_av: true, job_dir: job_dir.join("gpu-av"), ..gpu_av_opts });
+            let bar = &st.bar;
+            av.run(&again, true, &mut |ev| {
+                if let crate::runner::supervisor::Event::Attempt { cell, attempt } = ev {
+                    bar.inc(1);
+                    got.push((*cell, attempt));
+                }
+            });
+        }
+        crate::report::gpu_av::annotate(&mut st.writer.report, &got, &skipped);
+    }
     if !canaries.is_empty() {
         sup.run(&canaries, false, &mut |ev| st.on_event(ev));
     }
     st.writer.report.annotate_workarounds();
+    crate::report::recommended::annotate(&mut st.writer.report);
     let RunState { mut writer, bar, device_ms_sum, save_error, .. } = st;
     bar.finish_and_clear();
     let _ = std::fs::remove_dir_all(&job_dir);
@@ -325,6 +355,7 @@ pub(crate) fn supervisor_options(device_index: usize, scene: SceneParams, jobs: 
         grace: Duration::from_millis(500),
         kill_wait: Duration::from_secs(5),
         validate,
+        gpu_av: false,
         inject,
         dump: None,
         spirv_dir: None,

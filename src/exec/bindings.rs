@@ -22,6 +22,9 @@ pub struct LayoutKey {
     pub probe: Option<Resource>,
     /// Heap model, `heap_access=direct`: the probed array first in the heap.
     pub heap_direct: bool,
+    /// `index=dynamic_element`: the packed resource at `probe::PACKED_SLOT`
+    /// (`resources::ResourceArray::targets`).
+    pub packed: bool,
 }
 
 enum Bound {

@@ -168,13 +168,13 @@ impl HeapBinding {
                         ranges.push(h::DeviceAddressRange { address, size: 0 });
                         kinds.push((heap_type(*ty), false, ranges.len() - 1));
                     }
-                    Target::Image { image, .. } => {
+                    Target::Image { image, layers, .. } => {
                         views.push(
                             vk::ImageViewCreateInfo::default()
                                 .image(image)
-                                .view_type(vk::ImageViewType::TYPE_2D)
+                                .view_type(crate::vk::memory::view_type(layers))
                                 .format(PROBE_IMAGE_FORMAT)
-                                .subresource_range(vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 }),
+                                .subresource_range(crate::vk::memory::layer_range(layers)),
                         );
                         kinds.push((heap_type(*ty), true, views.len() - 1));
                     }

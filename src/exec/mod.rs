@@ -114,6 +114,9 @@ pub enum CellError {
     /// rtprobe's own gap (outcome `not_implemented`).
     #[error("not implemented in rtprobe: {0}")]
     NotImplemented(String),
+    /// A queried limit of the device rules the cell out at this scene size (outcome `unsupported`).
+    #[error("{0}")]
+    Unsupported(String),
 }
 
 impl CellError {
@@ -125,6 +128,7 @@ impl CellError {
             CellError::Timeout(_) | CellError::Build(BuildError::TimedOut(_)) => Outcome::Timeout,
             CellError::Compile(_) | CellError::Io(_) | CellError::Patch(_) => Outcome::Error,
             CellError::NotImplemented(_) => Outcome::NotImplemented,
+            CellError::Unsupported(_) => Outcome::Unsupported,
         }
     }
 }
@@ -303,7 +307,10 @@ impl Executor {
                 (0..slots).map(|k| { let a = &s.probe_tlas[probe::as_slot_tlas(k)]; Target::Accel { raw: a.raw, address: a.address } }).collect()
             } else {
                 self.ensure_array(r)?;
-                self.arrays[&r].targets(self.sampler)
+                self.arrays[&r].targets(self.sampler, r, key.packed).map_err(|e| match e {
+                    resources::PackedError::TooManyLayers { .. } => CellError::Unsupported(e.to_string()),
+                    resources::PackedError::NoPacked(_) => CellError::NotImplemented(e.to_string()),
+                })?
             };
             t.push((2, r, targets));
         }
@@ -421,6 +428,7 @@ impl Executor {
             scene_tlas: c.shaders.uses_scene_tlas,
             probe: c.shaders.uses_probe_binding.then_some(cell.resource),
             heap_direct: cell.heap_access == Some(crate::matrix::HeapAccess::Direct),
+            packed: cell.index == crate::matrix::IndexSource::DynamicElement,
         };
         if !self.bindings.contains_key(&key) {
             let targets = self.targets(key)?;

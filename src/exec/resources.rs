@@ -2,7 +2,11 @@
 //! buffer or image per slot (as an engine keeps one SSBO per mesh and one texture per material),
 //! each holding `probe::ELEMENTS` elements `probe::resource_value(kind, slot, element)` (a
 //! buffer's `vec4 v[ELEMENTS]`, an image's 2×2 texels, element e at texel (e & 1, e >> 1)); plus the
-//! TLAS address table.
+//! TLAS address table. Storage buffers and sampled images also get the packed resource of
+//! `index=dynamic_element` (`probe::PACKED_SLOT`): one buffer with every slot's elements
+//! (`probe::packed_bytes`), or one array image whose layer d holds slot d's texels, and (images)
+//! a one-layer 2D-array view of every slot's own image, so that the whole probed array has the
+//! shader's `sampler2DArray` type.
 use crate::matrix::Resource;
 use crate::probe;
 use crate::vk::features::PROBE_IMAGE_FORMAT;
@@ -16,20 +20,44 @@ use std::time::Duration;
 #[derive(Clone, Copy, Debug)]
 pub enum Target {
     Buffer { raw: vk::Buffer, address: u64, range: u64 },
-    /// `image`: for heap descriptors, which are made from a view description, not a view.
-    Image { image: vk::Image, view: vk::ImageView, sampler: vk::Sampler },
+    /// `image`: for heap descriptors, which are made from a view description, not a view;
+    /// `layers`: the view's (`None` 2D, `Some(n)` 2D array of n layers, `vk::memory::create_view`).
+    Image { image: vk::Image, view: vk::ImageView, sampler: vk::Sampler, layers: Option<u32> },
     Accel { raw: vk::AccelerationStructureKHR, address: u64 },
 }
 
 pub struct ResourceArray {
     pub buffers: Vec<Buffer>,
     pub images: Vec<Image>,
+    /// The packed buffer or array image of `index=dynamic_element` (storage buffers and sampled
+    /// images; `None` for images where the device's maxImageArrayLayers is below the slot count).
+    packed: Option<Packed>,
+    /// One-layer 2D-array views of `images` (sampled images).
+    array_views: Vec<vk::ImageView>,
+    /// The device's maxImageArrayLayers (why an image array has no packed image).
+    max_layers: u32,
+}
+
+enum Packed {
+    Buffer(Buffer),
+    Image(Image, u32),
+}
+
+/// Why a cell cannot have its packed resource.
+#[derive(Debug, thiserror::Error)]
+pub enum PackedError {
+    #[error("index=dynamic_element packs {slots} slots into one array texture; the device's maxImageArrayLayers is {max}")]
+    TooManyLayers { slots: u32, max: u32 },
+    #[error("rtprobe has no packed resource for {0} (index=dynamic_element)")]
+    NoPacked(Resource),
 }
 
 impl ResourceArray {
     pub fn create(gpu: &Gpu, kind: Resource, slots: u32, submitter: &Submitter, timeout: Duration) -> Result<Self, VkError> {
         let mut buffers = Vec::new();
         let mut images = Vec::new();
+        let mut packed = None;
+        let mut array_views = Vec::new();
         // Every element of a slot, in element order (texels row by row for a 2×2 image).
         let value_bytes = |slot: u32| -> Vec<u8> {
             (0..probe::ELEMENTS).flat_map(|e| probe::resource_value(kind, slot, e)).flat_map(|f| f.to_le_bytes()).collect()
@@ -39,6 +67,9 @@ impl ResourceArray {
                 let usage = if kind == Resource::StorageBuffer { vk::BufferUsageFlags::STORAGE_BUFFER } else { vk::BufferUsageFlags::UNIFORM_BUFFER };
                 for s in 0..slots {
                     buffers.push(Buffer::with_data(gpu, &value_bytes(s), usage | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS, "probe buffer")?);
+                }
+                if kind == Resource::StorageBuffer {
+                    packed = Some(Packed::Buffer(Buffer::with_data(gpu, &probe::packed_bytes(kind, slots), usage | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS, "packed probe buffer")?));
                 }
             }
             Resource::SampledImage | Resource::StorageImage => {
@@ -50,13 +81,28 @@ impl ResourceArray {
                     images.push(Image::new(gpu, extent, PROBE_IMAGE_FORMAT, usage)?);
                     staging.push(Buffer::with_data(gpu, &value_bytes(s), vk::BufferUsageFlags::TRANSFER_SRC, "staging")?);
                 }
+                if kind == Resource::SampledImage {
+                    for i in &images {
+                        array_views.push(crate::vk::memory::create_view(gpu, i.raw, PROBE_IMAGE_FORMAT, Some(1))?);
+                    }
+                    if slots <= gpu.info.properties.core.limits.max_image_array_layers {
+                        let img = Image::with_layers(gpu, extent, PROBE_IMAGE_FORMAT, usage, Some(slots))?;
+                        staging.push(Buffer::with_data(gpu, &probe::packed_bytes(kind, slots), vk::BufferUsageFlags::TRANSFER_SRC, "staging")?);
+                        packed = Some(Packed::Image(img, slots));
+                    }
+                }
+                let packed_image = match &packed {
+                    Some(Packed::Image(img, n)) => Some((img, *n)),
+                    Some(Packed::Buffer(_)) | None => None,
+                };
+                let uploads: Vec<(&Image, u32)> = images.iter().map(|i| (i, 1)).chain(packed_image).collect();
                 let waited = submitter.run(gpu, timeout, |cmd| unsafe {
-                    for (img, st) in images.iter().zip(&staging) {
+                    for ((img, layers), st) in uploads.iter().zip(&staging) {
                         let dst = (vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::AccessFlags::TRANSFER_WRITE, vk::PipelineStageFlags::TRANSFER);
                         let top = (vk::ImageLayout::UNDEFINED, vk::AccessFlags::empty(), vk::PipelineStageFlags::TOP_OF_PIPE);
                         transition(gpu, cmd, img.raw, Transition { from: top, to: dst });
                         let region = vk::BufferImageCopy::default()
-                            .image_subresource(vk::ImageSubresourceLayers { aspect_mask: vk::ImageAspectFlags::COLOR, mip_level: 0, base_array_layer: 0, layer_count: 1 })
+                            .image_subresource(vk::ImageSubresourceLayers { aspect_mask: vk::ImageAspectFlags::COLOR, mip_level: 0, base_array_layer: 0, layer_count: *layers })
                             .image_extent(vk::Extent3D { width: 2, height: 2, depth: 1 });
                         gpu.device.cmd_copy_buffer_to_image(cmd, st.raw, img.raw, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &[region]);
                         let general = (vk::ImageLayout::GENERAL, vk::AccessFlags::SHADER_READ, vk::PipelineStageFlags::ALL_COMMANDS);
@@ -72,14 +118,29 @@ impl ResourceArray {
             }
             Resource::AccelerationStructure => {}
         }
-        Ok(ResourceArray { buffers, images })
+        Ok(ResourceArray { buffers, images, packed, array_views, max_layers: gpu.info.properties.core.limits.max_image_array_layers })
     }
 
-    pub fn targets(&self, sampler: vk::Sampler) -> Vec<Target> {
-        if !self.buffers.is_empty() {
-            return self.buffers.iter().map(|b| Target::Buffer { raw: b.raw, address: b.address, range: 16 * probe::ELEMENTS as u64 }).collect();
+    /// The descriptors of the probed array; `packed` (`index=dynamic_element`): the packed
+    /// resource at `probe::PACKED_SLOT` and, for images, every slot's 2D-array view.
+    pub fn targets(&self, sampler: vk::Sampler, kind: Resource, packed: bool) -> Result<Vec<Target>, PackedError> {
+        let mut t: Vec<Target> = if !self.buffers.is_empty() {
+            self.buffers.iter().map(|b| Target::Buffer { raw: b.raw, address: b.address, range: 16 * probe::ELEMENTS as u64 }).collect()
+        } else if packed {
+            self.images.iter().zip(&self.array_views).map(|(i, v)| Target::Image { image: i.raw, view: *v, sampler, layers: Some(1) }).collect()
+        } else {
+            self.images.iter().map(|i| Target::Image { image: i.raw, view: i.view, sampler, layers: None }).collect()
+        };
+        if packed {
+            let slot = probe::PACKED_SLOT as usize;
+            t[slot] = match &self.packed {
+                Some(Packed::Buffer(b)) => Target::Buffer { raw: b.raw, address: b.address, range: b.size },
+                Some(Packed::Image(i, n)) => Target::Image { image: i.raw, view: i.view, sampler, layers: Some(*n) },
+                None if kind == Resource::SampledImage => return Err(PackedError::TooManyLayers { slots: t.len() as u32, max: self.max_layers }),
+                None => return Err(PackedError::NoPacked(kind)),
+            };
         }
-        self.images.iter().map(|i| Target::Image { image: i.raw, view: i.view, sampler }).collect()
+        Ok(t)
     }
 
     pub fn destroy(&self, gpu: &Gpu) {
@@ -88,6 +149,14 @@ impl ResourceArray {
         }
         for i in &self.images {
             i.destroy(gpu);
+        }
+        for v in &self.array_views {
+            unsafe { gpu.device.destroy_image_view(*v, None) };
+        }
+        match &self.packed {
+            Some(Packed::Buffer(b)) => b.destroy(gpu),
+            Some(Packed::Image(i, _)) => i.destroy(gpu),
+            None => {}
         }
     }
 }

@@ -131,6 +131,7 @@ pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport
     }
     out.recount();
     out.annotate_workarounds();
+    crate::report::recommended::annotate(&mut out);
     Ok(out)
 }
 

@@ -40,9 +40,15 @@ axis!(
 );
 
 axis!(
-    /// How the array element / descriptor slot is chosen.
+    /// How the array element / descriptor slot is chosen. `dynamic_element` is the pattern engines
+    /// are told to use instead of a dynamic descriptor index: one descriptor at the spec-constant
+    /// slot ([`crate::probe::PACKED_SLOT`]) holding every slot's elements, and the dynamic value
+    /// (as `dynamic` computes it) selecting the element inside it — an SSBO read at
+    /// `v[packedElement(dyn, e)]` (geometry), a `texture2DArray` sampled at layer `dyn`
+    /// (materials). Only for those two resources (`Cell::dynamic_element_applies`).
     IndexSource, "index" {
         Literal = "literal", SpecConstant = "spec_constant", PushConstant = "push_constant", Dynamic = "dynamic",
+        DynamicElement = "dynamic_element",
     }
 );
 

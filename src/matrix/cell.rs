@@ -51,6 +51,32 @@ impl Workaround {
     }
 }
 
+/// The engines' recommended replacements for a dynamic descriptor index (`index=dynamic_element`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Pattern {
+    /// One storage buffer at a spec-constant slot, read at a dynamic element offset.
+    Geometry,
+    /// One array texture (`texture2DArray`) at a spec-constant slot, sampled at a dynamic layer.
+    Materials,
+}
+
+impl Pattern {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Pattern::Geometry => "geometry",
+            Pattern::Materials => "materials",
+        }
+    }
+
+    pub fn description(self) -> &'static str {
+        match self {
+            Pattern::Geometry => "one storage buffer at a spec-constant slot, dynamic element offset",
+            Pattern::Materials => "one texture2DArray at a spec-constant slot, dynamic layer",
+        }
+    }
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
 pub struct Cell {
     pub stage: Stage,
@@ -97,6 +123,35 @@ impl Cell {
     /// 26 the heap, no SER), so heap × reorder cells could run nowhere.
     pub fn reorder_applies(&self) -> bool {
         self.canary.is_none() && self.stage == Stage::ClosestHit && self.index == IndexSource::Dynamic && self.descriptor_model != DescriptorModel::DescriptorHeap
+    }
+
+    /// `index=dynamic_element` exists for the engines' two recommended shapes only: geometry (an
+    /// SSBO) and materials (a sampled image array texture).
+    pub fn dynamic_element_applies(resource: Resource) -> bool {
+        match resource {
+            Resource::StorageBuffer | Resource::SampledImage => true,
+            Resource::UniformBuffer | Resource::StorageImage | Resource::AccelerationStructure => false,
+        }
+    }
+
+    /// The engines' recommended pattern nearest to this cell (same stage, model, heap access):
+    /// the `index=dynamic_element` cell of its resource, or why there is none. What a finding's
+    /// report says "works instead" is that cell's verdict (`report::recommended`).
+    pub fn recommended_pattern(&self) -> Result<(Pattern, Cell), String> {
+        if self.canary.is_some() {
+            return Err("canaries have no recommended pattern".into());
+        }
+        let pattern = match self.resource {
+            Resource::StorageBuffer => Pattern::Geometry,
+            Resource::SampledImage => Pattern::Materials,
+            Resource::UniformBuffer | Resource::StorageImage | Resource::AccelerationStructure => {
+                return Err(format!("rtprobe has no recommended single-descriptor pattern for {} (only storage buffers: geometry, sampled images: materials)", self.resource));
+            }
+        };
+        if self.index == IndexSource::DynamicElement && self.patch.is_none() {
+            return Err(format!("this cell is the recommended pattern ({})", pattern.as_str()));
+        }
+        Ok((pattern, Cell { index: IndexSource::DynamicElement, nonuniform: false, patch: None, reorder: None, ..*self }))
     }
 
     /// The cell without its workaround.

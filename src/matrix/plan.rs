@@ -191,6 +191,7 @@ pub fn all_cells() -> (Vec<Cell>, Vec<NotGenerated>) {
     let mut reorder_elsewhere = 0;
     let mut record_outside_rt = 0;
     let mut heap_index_without_binding = 0;
+    let mut packed_elsewhere = 0;
     for &stage in Stage::ALL {
         for &resource in Resource::ALL {
             let accesses: Vec<Option<AsAccess>> =
@@ -205,6 +206,10 @@ pub fn all_cells() -> (Vec<Cell>, Vec<NotGenerated>) {
                             }
                             if nonuniform && as_access == Some(AsAccess::Address) {
                                 nonuniform_address += 1;
+                                continue;
+                            }
+                            if index == IndexSource::DynamicElement && !Cell::dynamic_element_applies(resource) {
+                                packed_elsewhere += 1;
                                 continue;
                             }
                             let heap: Vec<Option<HeapAccess>> = if descriptor_model == DescriptorModel::DescriptorHeap {
@@ -239,6 +244,7 @@ pub fn all_cells() -> (Vec<Cell>, Vec<NotGenerated>) {
     let not_generated = vec![
         NotGenerated { rule: "nonuniform only applies to index=dynamic".into(), count: nonuniform_static },
         NotGenerated { rule: "nonuniform has no descriptor to qualify with as_access=address".into(), count: nonuniform_address },
+        NotGenerated { rule: "index=dynamic_element is the recommended pattern of storage buffers (geometry) and sampled images (materials) only".into(), count: packed_elsewhere },
         NotGenerated { rule: "reorder only applies to stage=closest_hit with index=dynamic".into(), count: reorder_elsewhere },
         NotGenerated { rule: "heap_access=mapped_shader_record_index needs a shader record (ray tracing pipelines only)".into(), count: record_outside_rt },
         NotGenerated {
@@ -312,7 +318,15 @@ mod tests {
         // models) again with each reorder value.
         let per_stage_heap = |ways: usize| (4 * 5 + 10) * ways + 4 * 2;
         let dynamic_closest_hit = (4 * 2 + 5) * 2;
-        assert_eq!(n, 8 * (4 * 5 + 14) * 2 + 6 * per_stage_heap(5) + 2 * per_stage_heap(4) + dynamic_closest_hit * 2);
+        // index=dynamic_element: storage buffers and sampled images, per model and heap access way.
+        let packed = |ways: usize| 2 * (2 + ways);
+        assert_eq!(n, 8 * (4 * 5 + 14) * 2 + 6 * per_stage_heap(5) + 2 * per_stage_heap(4) + dynamic_closest_hit * 2 + 6 * packed(5) + 2 * packed(4));
+        assert!(cells.iter().filter(|c| c.index == IndexSource::DynamicElement).all(|c| Cell::dynamic_element_applies(c.resource) && !c.nonuniform && c.applicable_patches().is_empty()));
+        // Every dynamic storage-buffer / sampled-image cell has its recommended pattern in the matrix.
+        for c in cells.iter().filter(|c| c.index == IndexSource::Dynamic && Cell::dynamic_element_applies(c.resource)) {
+            let (_, r) = c.recommended_pattern().unwrap();
+            assert!(cells.contains(&r), "{} -> {}", c.id(), r.id());
+        }
         assert!(cells.iter().all(|c| c.heap_access.is_some() == (c.descriptor_model == DescriptorModel::DescriptorHeap)));
         assert!(cells.iter().all(|c| c.reorder.is_none() || c.reorder_applies()));
         assert!(skipped.iter().all(|s| s.count > 0));

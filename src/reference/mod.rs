@@ -179,7 +179,9 @@ pub fn expected(cell: &Cell, scene: &Scene, sref: &SceneReference) -> Vec<Expect
                     IndexSource::Literal => probe::LITERAL_SLOT,
                     IndexSource::SpecConstant => probe::SPEC_SLOT,
                     IndexSource::PushConstant => probe::PUSH_SLOT,
-                    IndexSource::Dynamic => probe::dynamic_slot(cell.stage, x, y, w, hit.map(|h| h.instance).unwrap_or(0), slots),
+                    // dynamic_element records the dynamic value as its slot and reads that slot's
+                    // element from the packed resource (probe::packed_element): the same record.
+                    IndexSource::Dynamic | IndexSource::DynamicElement => probe::dynamic_slot(cell.stage, x, y, w, hit.map(|h| h.instance).unwrap_or(0), slots),
                 };
                 rec.flags |= FLAG_PROBE;
                 rec.slot = slot;
@@ -509,6 +511,43 @@ mod tests {
         assert!(!cmp.passed());
         assert_eq!(cmp.by_field.keys().collect::<Vec<_>>(), vec!["value"]);
         assert!(cmp.worst_value >= 1.0);
+    }
+
+    /// `index=dynamic_element` (the recommended pattern): the reference knows the value of every
+    /// element of the packed buffer / every layer of the array texture, and a driver that reads
+    /// the wrong element, the wrong layer (the neighbouring slot's block) or the spec-constant
+    /// slot's own resource instead of the packed one is caught on every probed pixel.
+    #[test]
+    fn dynamic_element_reads_must_be_the_exact_packed_element_and_layer() {
+        let (scene, r) = world();
+        for resource in [Resource::StorageBuffer, Resource::SampledImage] {
+            for stage in [Stage::ClosestHit, Stage::Raygen, Stage::Compute] {
+                let c = Cell { resource, ..cell(stage, IndexSource::DynamicElement) };
+                let e = expected(&c, scene, r);
+                // Same records as the dynamic cell (with nonuniformEXT: exact, no any-element rule).
+                let d = expected(&Cell { index: IndexSource::Dynamic, nonuniform: true, ..c }, scene, r);
+                assert!(e.iter().zip(&d).all(|(a, b)| a.record == b.record && a.rule == ValueRule::Exact && a.discriminating == b.discriminating));
+                assert!(compare(&e, &records(&e), 64).passed());
+                let slots = probe::slot_count(resource, scene.params.instances);
+                // (slot, element) a faulty driver reads instead: the wrong element, the wrong layer
+                // (the neighbouring slot's block), the spec-constant slot's own resource.
+                let wrong: [(&str, fn(u32, u32, u32) -> (u32, u32)); 3] = [
+                    ("element", |s, e, _| (s, (e + 1) % probe::ELEMENTS)),
+                    ("layer", |s, e, n| ((s + 1) % n, e)),
+                    ("own slot", |_, e, _| (probe::PACKED_SLOT, e)),
+                ];
+                for (what, at) in &wrong {
+                    let actual = reading(&e, |a: &Record| {
+                        let (s, el) = at(a.slot, a.element, slots);
+                        probe::resource_value(resource, s, el)
+                    });
+                    let cmp = compare(&e, &actual, 64);
+                    let moved = e.iter().zip(&actual).filter(|(x, a)| !x.ambiguous && x.record.value != a.value).count();
+                    assert!(!cmp.passed() && cmp.mismatched_pixels >= moved && moved > 0, "{} wrong {what}: {cmp:?}", c.id());
+                }
+                assert!(compare(&e, &records(&e), 64).discrimination.is_some_and(|x| x >= 0.99), "{}", c.id());
+            }
+        }
     }
 
     /// Bit patterns no correct probe writes where the reference has an ordinary value.

@@ -71,6 +71,10 @@ pub struct Issue {
     pub validation: String,
     pub reproduce: Vec<String>,
     pub workarounds: Vec<String>,
+    /// Whether the engines' recommended pattern nearest the minimal failing cell works on this
+    /// driver (`report::recommended`): "recommended pattern X (…): passes (k/N)" / fails / not run.
+    #[serde(default)]
+    pub recommended_pattern: String,
     pub not_tested: Vec<String>,
 }
 
@@ -223,6 +227,7 @@ pub fn build(report: &RunReport, report_path: &str, b: &BisectFile, inject: &[In
     let reproduce = reproduce_commands(report, report_path, &rep, injection);
     let workarounds = if bi.workarounds.is_empty() { vec!["No workaround patch applies to this cell.".into()] } else { bi.workarounds.iter().map(|w| w.line.clone()).collect() };
     let not_tested = not_tested(report, b);
+    let recommended_pattern = crate::report::recommended::result(report, &rep).line();
     Ok(Issue {
         schema: SCHEMA.into(),
         title,
@@ -241,6 +246,7 @@ pub fn build(report: &RunReport, report_path: &str, b: &BisectFile, inject: &[In
         validation,
         reproduce,
         workarounds,
+        recommended_pattern,
         not_tested,
     })
 }
@@ -278,7 +284,10 @@ fn validation_text(report: &RunReport, rep: Option<&CellReport>) -> String {
     } else {
         format!("Clean under VK_LAYER_KHRONOS_validation: no validation error in the {ran_to_end} attempt(s) that reported back (an attempt whose process died reports nothing).")
     };
-    t += " GPU-assisted validation (GPU-AV) was not run: whether it masks or reports the fault is untested.";
+    match rep.and_then(|c| c.gpu_av.as_ref()) {
+        Some(v) => t += &format!(" Re-run alone under GPU-assisted validation (`--validate=gpu-av`): {}.", v.line()),
+        None => t += " GPU-assisted validation (GPU-AV) was not run (`rtprobe run --validate=gpu-av`): whether it masks or reports the fault is untested.",
+    }
     t
 }
 
@@ -426,6 +435,7 @@ impl Issue {
         for w in &self.workarounds {
             m += &format!("- {w}\n");
         }
+        m += &format!("- {}\n", self.recommended_pattern);
         m += "\n## Not tested\n\n";
         for n in &self.not_tested {
             m += &format!("- {n}\n");

@@ -2,9 +2,11 @@
 //! pictures and the terminal summary.
 pub mod amber;
 pub mod atomic;
+pub mod gpu_av;
 pub mod junit;
 pub mod issue;
 pub mod pictures;
+pub mod recommended;
 pub mod run_report;
 pub mod shaders;
 pub mod summary;

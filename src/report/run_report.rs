@@ -64,6 +64,14 @@ pub struct CellReport {
     /// For a cell with a finding: each workaround tried and its outcome.
     #[serde(skip_serializing_if = "Vec::is_empty", default)]
     pub workarounds: Vec<WorkaroundResult>,
+    /// For a cell with a finding: whether the engines' recommended pattern nearest to it works
+    /// (`report::recommended`).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub recommended: Option<crate::report::recommended::PatternResult>,
+    /// For a cell with a finding, with `--validate=gpu-av`: whether GPU-AV masks it
+    /// (`report::gpu_av`; those attempts are not among `attempts`).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub gpu_av: Option<crate::report::gpu_av::GpuAvResult>,
     #[serde(default)]
     pub attempts: Vec<Attempt>,
 }
@@ -135,6 +143,8 @@ impl CellReport {
             injection_undetected: false,
             canary_check: None,
             workarounds: vec![],
+            recommended: None,
+            gpu_av: None,
             attempts: vec![],
         }
     }

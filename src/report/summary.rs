@@ -110,6 +110,12 @@ pub fn render(r: &RunReport) -> String {
                     let _ = writeln!(s, "      verified workaround: {} ({})", verified.join(", "), tried.join(", "));
                 }
             }
+            if let Some(p) = &c.recommended {
+                let _ = writeln!(s, "      {}", p.line());
+            }
+            if let Some(v) = &c.gpu_av {
+                let _ = writeln!(s, "      {}", v.line());
+            }
         }
         if findings.len() > 40 {
             let _ = writeln!(s, "  … and {} more (see the report)", findings.len() - 40);

@@ -16,6 +16,9 @@ pub struct WorkerJob {
     /// Fence deadline inside the worker (shorter than the supervisor's hard deadline).
     pub fence_timeout_ms: u64,
     pub validate: bool,
+    /// GPU-Assisted Validation on (`--validate=gpu-av`'s re-runs of findings).
+    #[serde(default)]
+    pub gpu_av: bool,
     /// `--inject-fault` injections (the worker applies the first that matches each cell).
     #[serde(default)]
     pub inject: Vec<crate::matrix::inject::Injection>,

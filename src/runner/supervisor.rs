@@ -50,6 +50,8 @@ pub struct SupervisorOptions {
     /// How long to wait for a SIGKILLed worker to be reaped before abandoning it.
     pub kill_wait: Duration,
     pub validate: bool,
+    /// Workers turn GPU-Assisted Validation on (`report::gpu_av`).
+    pub gpu_av: bool,
     /// `--inject-fault`, passed to every worker.
     pub inject: Vec<crate::matrix::inject::Injection>,
     pub dump: Option<PathBuf>,
@@ -308,6 +310,7 @@ impl Supervisor {
             scene: self.opts.scene,
             fence_timeout_ms: (self.opts.timeout.as_millis() as u64 * 8 / 10).max(100),
             validate: self.opts.validate,
+            gpu_av: self.opts.gpu_av,
             inject: self.opts.inject.clone(),
             inject_seed: seed,
             dump: self.opts.dump.clone(),

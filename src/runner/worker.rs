@@ -84,7 +84,7 @@ impl From<VkError> for SetupFailure {
 
 fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
     phases.enter(Phase::Setup, Some((SetupStep::CreateInstance, "vkCreateInstance")))?;
-    let inst = Arc::new(Instance::new(&InstanceOptions { validate: job.validate })?);
+    let inst = Arc::new(Instance::new(&InstanceOptions { validate: job.validate, gpu_av: job.gpu_av })?);
     let all = features::query_all(&inst)?;
     let info = all
         .get(job.device_index)

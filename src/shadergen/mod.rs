@@ -379,6 +379,31 @@ mod tests {
         Cell { stage: Stage::ClosestHit, resource, index: IndexSource::Dynamic, nonuniform: true, as_access, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None, reorder: r }
     }
 
+    /// The recommended patterns: the descriptor index is the spec constant, the dynamic value sits
+    /// inside the descriptor (element of the buffer, layer of the array texture); valid SPIR-V.
+    #[test]
+    fn dynamic_element_cells_index_the_spec_slot_and_move_the_dynamic_value_inside() {
+        let mut c = compile::Compiler::new().unwrap();
+        for (resource, read) in [
+            (Resource::StorageBuffer, "probeBuf[SPEC_SLOT].v[packedElement(probeSlot, probeElement)]"),
+            (Resource::SampledImage, "textureLod(probeTex[SPEC_SLOT], vec3((vec2(uvec2(probeElement & 1u, probeElement >> 1u)) + 0.5) * 0.5, float(probeSlot)), 0.0)"),
+        ] {
+            for stage in [Stage::ClosestHit, Stage::Compute] {
+                let cell = Cell { stage, resource, index: IndexSource::DynamicElement, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None, reorder: None };
+                let shaders = generate(&cell);
+                let probed = shaders.shaders.iter().find(|s| s.glsl.contains("uint probeSlot")).unwrap();
+                assert!(probed.glsl.contains(read) && probed.glsl.contains("layout(constant_id = 0) const uint SPEC_SLOT"), "{}", probed.glsl);
+                assert!(probed.glsl.contains("uint probeSlot = (pc.dynBase + (uint(gl_InstanceCustomIndexEXT) & pc.dynMask))") == (stage == Stage::ClosestHit), "{}", probed.glsl);
+                for s in &shaders.shaders {
+                    let (words, _) = c.compile(s.role, &s.glsl).unwrap_or_else(|e| panic!("{:?}: {e}\n{}", s.role, s.glsl));
+                    if let crate::patches::Validation::Invalid(m) = crate::patches::validate(&words) {
+                        panic!("{:?}: {m}", s.role);
+                    }
+                }
+            }
+        }
+    }
+
     /// Lavapipe has no SER, so these shaders never reach a driver in the test suite: they are
     /// compiled here and checked with spirv-val (when installed) instead.
     #[test]

@@ -8,6 +8,9 @@
 //! the stage's runtime value (with `nonuniformEXT` when the cell says so). `heap_access=direct`
 //! cells declare the array `layout(descriptor_heap)` instead of at binding 2 (the shader's index
 //! is then the heap index; see `exec::heap`), sampled images as a texture heap and a sampler heap.
+//! `index=dynamic_element` (the recommended patterns) indexes the array with the spec constant and
+//! puts the dynamic value inside the one descriptor: `v[packedElement(probeSlot, probeElement)]`
+//! of a buffer, or the layer of a `sampler2DArray` / `texture2DArray`.
 use crate::matrix::{AsAccess, Cell, HeapAccess, IndexSource, Resource, Stage};
 use crate::probe;
 
@@ -37,17 +40,32 @@ fn element_expr(stage: Stage) -> &'static str {
     }
 }
 
+/// The stage's runtime slot value (`probe::dynamic_slot`).
+fn dynamic_expr(stage: Stage) -> &'static str {
+    match stage {
+        Stage::ClosestHit | Stage::AnyHit | Stage::Intersection => "(pc.dynBase + (uint(gl_InstanceCustomIndexEXT) & pc.dynMask))",
+        Stage::Raygen | Stage::Miss | Stage::Callable => "((gl_LaunchIDEXT.x + gl_LaunchIDEXT.y * pc.width) % pc.slotCount)",
+        Stage::Fragment => "inSlot",
+        Stage::Compute => "((gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * pc.width) % pc.slotCount)",
+    }
+}
+
+/// The slot the probe records (`probeSlot`).
 fn index_expr(cell: &Cell) -> String {
     match cell.index {
         IndexSource::Literal => format!("{}u", probe::LITERAL_SLOT),
         IndexSource::SpecConstant => "SPEC_SLOT".into(),
         IndexSource::PushConstant => "pc.pushSlot".into(),
-        IndexSource::Dynamic => match cell.stage {
-            Stage::ClosestHit | Stage::AnyHit | Stage::Intersection => "(pc.dynBase + (uint(gl_InstanceCustomIndexEXT) & pc.dynMask))".into(),
-            Stage::Raygen | Stage::Miss | Stage::Callable => "((gl_LaunchIDEXT.x + gl_LaunchIDEXT.y * pc.width) % pc.slotCount)".into(),
-            Stage::Fragment => "inSlot".into(),
-            Stage::Compute => "((gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * pc.width) % pc.slotCount)".into(),
-        },
+        IndexSource::Dynamic | IndexSource::DynamicElement => dynamic_expr(cell.stage).into(),
+    }
+}
+
+/// The descriptor array index: the recorded slot, except with `dynamic_element`, where the
+/// descriptor is the packed one at the spec-constant slot and the slot selects inside it.
+fn descriptor_expr(cell: &Cell, idx: &str) -> String {
+    match cell.index {
+        IndexSource::DynamicElement => "SPEC_SLOT".into(),
+        IndexSource::Literal | IndexSource::SpecConstant | IndexSource::PushConstant | IndexSource::Dynamic => idx.into(),
     }
 }
 
@@ -59,7 +77,9 @@ impl ProbeCode {
 
     pub fn new(cell: &Cell) -> Self {
         let idx = index_expr(cell);
-        let sub = if cell.nonuniform { format!("nonuniformEXT({idx})") } else { idx.clone() };
+        let desc = descriptor_expr(cell, &idx);
+        let sub = if cell.nonuniform { format!("nonuniformEXT({desc})") } else { desc };
+        let packed = cell.index == IndexSource::DynamicElement;
         let mut extensions = vec!["GL_EXT_nonuniform_qualifier"];
         let heap = cell.heap_access == Some(HeapAccess::Direct);
         if heap {
@@ -68,7 +88,7 @@ impl ProbeCode {
         // The probed array's declaration: at binding 2, or read straight from the heap.
         let array = |binding: &str, direct: &str| if heap { direct.to_string() } else { binding.to_string() };
         let mut decls = String::new();
-        if cell.index == IndexSource::SpecConstant {
+        if matches!(cell.index, IndexSource::SpecConstant | IndexSource::DynamicElement) {
             decls += "layout(constant_id = 0) const uint SPEC_SLOT = 0u;\n";
         }
         let mut body = format!("    uint probeSlot = {idx};\n");
@@ -81,7 +101,8 @@ impl ProbeCode {
                     "layout(set = 0, binding = 2, std430) readonly buffer ProbeBuffer { vec4 v[]; } probeBuf[];\n",
                     "layout(descriptor_heap, std430) readonly buffer ProbeBuffer { vec4 v[]; } probeBuf[];\n",
                 );
-                format!("probeBuf[{sub}].v[probeElement]")
+                let at = if packed { "packedElement(probeSlot, probeElement)" } else { "probeElement" };
+                format!("probeBuf[{sub}].v[{at}]")
             }
             Resource::UniformBuffer => {
                 decls += &array(
@@ -91,12 +112,14 @@ impl ProbeCode {
                 format!("probeUbo[{sub}].v[probeElement]")
             }
             Resource::SampledImage => {
-                let at = "(vec2(uvec2(probeElement & 1u, probeElement >> 1u)) + 0.5) * 0.5";
+                let xy = "(vec2(uvec2(probeElement & 1u, probeElement >> 1u)) + 0.5) * 0.5";
+                // dynamic_element: an array texture, the slot its layer.
+                let (dim, at) = if packed { ("2DArray", format!("vec3({xy}, float(probeSlot))")) } else { ("2D", xy.to_string()) };
                 if heap {
-                    decls += "layout(descriptor_heap) uniform texture2D probeTex[];\nlayout(descriptor_heap) uniform sampler probeSampler[];\n";
-                    format!("textureLod(sampler2D(probeTex[{sub}], probeSampler[0]), {at}, 0.0)")
+                    decls += &format!("layout(descriptor_heap) uniform texture{dim} probeTex[];\nlayout(descriptor_heap) uniform sampler probeSampler[];\n");
+                    format!("textureLod(sampler{dim}(probeTex[{sub}], probeSampler[0]), {at}, 0.0)")
                 } else {
-                    decls += "layout(set = 0, binding = 2) uniform sampler2D probeTex[];\n";
+                    decls += &format!("layout(set = 0, binding = 2) uniform sampler{dim} probeTex[];\n");
                     format!("textureLod(probeTex[{sub}], {at}, 0.0)")
                 }
             }

@@ -1,5 +1,8 @@
 //! The Vulkan instance: loading the loader, the optional validation layer with a debug messenger
-//! that counts validation errors, and enumerating physical devices.
+//! that counts validation errors (and, asked for, GPU-Assisted Validation: the `gpuav_enable`
+//! layer setting through VK_EXT_layer_settings where the layer offers that extension, else
+//! VkValidationFeaturesEXT's GPU_ASSISTED enable, which is how layers before VK_EXT_layer_settings
+//! such as Debian bookworm's 1.3.239 turn it on), and enumerating physical devices.
 use super::error::{VkError, VkResultExt};
 use ash::{ext, vk};
 use std::ffi::{c_void, CStr};
@@ -18,6 +21,27 @@ pub fn validation_error_count() -> u64 {
 pub struct InstanceOptions {
     /// Enable VK_LAYER_KHRONOS_validation when it is installed.
     pub validate: bool,
+    /// With `validate`: GPU-Assisted Validation on too.
+    pub gpu_av: bool,
+}
+
+/// How GPU-AV was turned on (the layer decides which it understands).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GpuAvHow {
+    /// VK_EXT_layer_settings, setting `gpuav_enable` = true.
+    LayerSettings,
+    /// VkValidationFeaturesEXT with VK_VALIDATION_FEATURE_ENABLE_GPU_ASSISTED_EXT.
+    ValidationFeatures,
+}
+
+/// The first Vulkan headers of the 1.4 line (December 2024); VK_EXT_descriptor_heap was published
+/// after them (2026), so a validation layer built from older headers cannot know the extension
+/// and its GPU-AV cannot instrument heap shaders.
+pub const HEAP_LAYER_MIN: u32 = vk::make_api_version(0, 1, 4, 303);
+
+/// Why GPU-AV cannot check descriptor heap cells with a layer of `spec_version`, or `None`.
+pub fn gpu_av_heap_gap(spec_version: u32) -> Option<String> {
+    (spec_version < HEAP_LAYER_MIN).then(|| format!("validation layers {} predate VK_EXT_descriptor_heap", super::driver_version::format_api_version(spec_version)))
 }
 
 pub struct Instance {
@@ -27,6 +51,10 @@ pub struct Instance {
     pub loader_version: u32,
     /// Whether the validation layer is active.
     pub validation: bool,
+    /// The validation layer's specVersion (the Vulkan headers it was built from), when active.
+    pub validation_version: Option<u32>,
+    /// How GPU-AV was turned on, when asked for and the layer is active.
+    pub gpu_av: Option<GpuAvHow>,
     debug: Option<(ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
 }
 
@@ -73,13 +101,27 @@ impl Instance {
         let mut layers = Vec::new();
         let mut extensions = Vec::new();
         let mut validation = false;
-        if opts.validate {
+        let mut validation_version = None;
+        let mut gpu_av = None;
+        if opts.validate || opts.gpu_av {
             let available = unsafe { entry.enumerate_instance_layer_properties() }
                 .at("vkEnumerateInstanceLayerProperties")?;
-            if available.iter().any(|l| l.layer_name_as_c_str() == Ok(VALIDATION_LAYER)) {
+            if let Some(l) = available.iter().find(|l| l.layer_name_as_c_str() == Ok(VALIDATION_LAYER)) {
                 layers.push(VALIDATION_LAYER.as_ptr());
                 extensions.push(ext::debug_utils::NAME.as_ptr());
                 validation = true;
+                validation_version = Some(l.spec_version);
+                if opts.gpu_av {
+                    let layer_exts = unsafe { entry.enumerate_instance_extension_properties(Some(VALIDATION_LAYER)) }
+                        .at("vkEnumerateInstanceExtensionProperties")?;
+                    if layer_exts.iter().any(|e| e.extension_name_as_c_str() == Ok(ext::layer_settings::NAME)) {
+                        extensions.push(ext::layer_settings::NAME.as_ptr());
+                        gpu_av = Some(GpuAvHow::LayerSettings);
+                    } else {
+                        extensions.push(ext::validation_features::NAME.as_ptr());
+                        gpu_av = Some(GpuAvHow::ValidationFeatures);
+                    }
+                }
             } else {
                 tracing::warn!("--validate: VK_LAYER_KHRONOS_validation is not installed (apt-get install vulkan-validationlayers); running without it");
             }
@@ -90,10 +132,20 @@ impl Instance {
             .application_version(vk::make_api_version(0, 0, 1, 0))
             .engine_name(c"rtprobe")
             .api_version(vk::API_VERSION_1_3.min(loader_version));
-        let info = vk::InstanceCreateInfo::default()
+        let mut info = vk::InstanceCreateInfo::default()
             .application_info(&app)
             .enabled_layer_names(&layers)
             .enabled_extension_names(&extensions);
+        let on: [u8; 4] = vk::TRUE.to_ne_bytes();
+        let settings = [vk::LayerSettingEXT::default().layer_name(VALIDATION_LAYER).setting_name(c"gpuav_enable").ty(vk::LayerSettingTypeEXT::BOOL32).values(&on)];
+        let mut layer_settings = vk::LayerSettingsCreateInfoEXT::default().settings(&settings);
+        let enables = [vk::ValidationFeatureEnableEXT::GPU_ASSISTED];
+        let mut features = vk::ValidationFeaturesEXT::default().enabled_validation_features(&enables);
+        match gpu_av {
+            Some(GpuAvHow::LayerSettings) => info = info.push_next(&mut layer_settings),
+            Some(GpuAvHow::ValidationFeatures) => info = info.push_next(&mut features),
+            None => {}
+        }
         let raw = match unsafe { entry.create_instance(&info, None) } {
             Ok(i) => i,
             Err(vk::Result::ERROR_INCOMPATIBLE_DRIVER) => {
@@ -122,7 +174,13 @@ impl Instance {
         } else {
             None
         };
-        Ok(Self { entry, raw, loader_version, validation, debug })
+        Ok(Self { entry, raw, loader_version, validation, validation_version, gpu_av, debug })
+    }
+
+    /// The installed validation layer's specVersion (enabled or not), `None` without one.
+    pub fn validation_layer_version(&self) -> Option<u32> {
+        let layers = unsafe { self.entry.enumerate_instance_layer_properties() }.ok()?;
+        layers.iter().find(|l| l.layer_name_as_c_str() == Ok(VALIDATION_LAYER)).map(|l| l.spec_version)
     }
 
     /// All physical devices, in the loader's order (that order is what `--device INDEX` means).
@@ -147,5 +205,16 @@ impl Drop for Instance {
             }
             self.raw.destroy_instance(None);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn layers_before_descriptor_heaps_are_told_apart_by_their_version() {
+        assert_eq!(gpu_av_heap_gap(vk::make_api_version(0, 1, 3, 239)).as_deref(), Some("validation layers 1.3.239 predate VK_EXT_descriptor_heap"));
+        assert_eq!(gpu_av_heap_gap(vk::make_api_version(0, 1, 4, 363)), None);
     }
 }

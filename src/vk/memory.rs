@@ -104,13 +104,19 @@ pub struct Image {
 
 impl Image {
     pub fn new(gpu: &Gpu, extent: vk::Extent2D, format: vk::Format, usage: vk::ImageUsageFlags) -> Result<Image, VkError> {
+        Self::with_layers(gpu, extent, format, usage, None)
+    }
+
+    /// `layers`: `None` a 2D image with a 2D view; `Some(n)` an array image of `n` layers with a
+    /// 2D-array view of all of them.
+    pub fn with_layers(gpu: &Gpu, extent: vk::Extent2D, format: vk::Format, usage: vk::ImageUsageFlags, layers: Option<u32>) -> Result<Image, VkError> {
         let d = &gpu.device;
         let ci = vk::ImageCreateInfo::default()
             .image_type(vk::ImageType::TYPE_2D)
             .format(format)
             .extent(vk::Extent3D { width: extent.width, height: extent.height, depth: 1 })
             .mip_levels(1)
-            .array_layers(1)
+            .array_layers(layers.unwrap_or(1))
             .samples(vk::SampleCountFlags::TYPE_1)
             .tiling(vk::ImageTiling::OPTIMAL)
             .usage(usage)
@@ -119,12 +125,7 @@ impl Image {
         let req = unsafe { d.get_image_memory_requirements(raw) };
         let memory = allocate(gpu, req, Location::Device, false, "image")?;
         unsafe { d.bind_image_memory(raw, memory, 0) }.at("vkBindImageMemory")?;
-        let vci = vk::ImageViewCreateInfo::default()
-            .image(raw)
-            .view_type(vk::ImageViewType::TYPE_2D)
-            .format(format)
-            .subresource_range(color_range());
-        let view = unsafe { d.create_image_view(&vci, None) }.at("vkCreateImageView")?;
+        let view = create_view(gpu, raw, format, layers)?;
         Ok(Image { raw, view, memory, extent })
     }
 
@@ -135,6 +136,26 @@ impl Image {
             gpu.device.free_memory(self.memory, None);
         }
     }
+}
+
+/// A view of `image`: 2D (`layers` `None`), or 2D array over its first `n` layers.
+pub fn create_view(gpu: &Gpu, image: vk::Image, format: vk::Format, layers: Option<u32>) -> Result<vk::ImageView, VkError> {
+    let vci = vk::ImageViewCreateInfo::default().image(image).view_type(view_type(layers)).format(format).subresource_range(layer_range(layers));
+    unsafe { gpu.device.create_image_view(&vci, None) }.at("vkCreateImageView")
+}
+
+/// The view type of a view over `layers` (see [`create_view`]).
+pub fn view_type(layers: Option<u32>) -> vk::ImageViewType {
+    if layers.is_some() {
+        vk::ImageViewType::TYPE_2D_ARRAY
+    } else {
+        vk::ImageViewType::TYPE_2D
+    }
+}
+
+/// The colour subresource range over `layers` (one layer for `None`).
+pub fn layer_range(layers: Option<u32>) -> vk::ImageSubresourceRange {
+    vk::ImageSubresourceRange { layer_count: layers.unwrap_or(1), ..color_range() }
 }
 
 pub fn color_range() -> vk::ImageSubresourceRange {
@@ -161,7 +182,7 @@ pub struct Transition {
 pub fn transition(gpu: &Gpu, cmd: vk::CommandBuffer, image: vk::Image, t: Transition) {
     let b = vk::ImageMemoryBarrier::default()
         .image(image)
-        .subresource_range(color_range())
+        .subresource_range(vk::ImageSubresourceRange { layer_count: vk::REMAINING_ARRAY_LAYERS, ..color_range() })
         .old_layout(t.from.0)
         .new_layout(t.to.0)
         .src_access_mask(t.from.1)
