@@ -1,6 +1,7 @@
 //! Reports: atomic writes, timestamps, the run report schema and its writer, JUnit, mismatch
 //! pictures and the terminal summary.
 pub mod atomic;
+pub mod chart;
 pub mod junit;
 pub mod issue;
 pub mod pictures;
