@@ -157,9 +157,7 @@ impl<'a> Bench<'a> {
         let code = o.status.code().unwrap_or(-1);
         // 0: all passed; 1: findings (the injected ones); 11: an injection went undetected.
         if ![0, 1, 11].contains(&code) {
-            let stderr = String::from_utf8_lossy(&o.stderr);
-            let last = stderr.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("").trim().to_string();
-            return Err(BenchError::RunFailed { cmd: command, code, stderr: last });
+            return Err(BenchError::RunFailed { cmd: command, code, stderr: last_line(&o.stderr) });
         }
         let report = RunReport::load(&out).map_err(|why| BenchError::Report { cmd: command.clone(), why })?;
         let _ = std::fs::remove_file(&out);
@@ -174,8 +172,7 @@ impl<'a> Bench<'a> {
         let cmd = format!("rtprobe {}", full.join(" "));
         let o = Command::new(&self.opts.exe).args(&full).stdin(Stdio::null()).output().map_err(|source| BenchError::Spawn { cmd: cmd.clone(), source })?;
         if !o.status.success() {
-            let stderr = String::from_utf8_lossy(&o.stderr).trim().to_string();
-            return Err(BenchError::RunFailed { cmd, code: o.status.code().unwrap_or(-1), stderr });
+            return Err(BenchError::RunFailed { cmd, code: o.status.code().unwrap_or(-1), stderr: last_line(&o.stderr) });
         }
         Ok(String::from_utf8_lossy(&o.stdout).lines().filter(|l| l.starts_with("run ")).count())
     }
@@ -213,8 +210,9 @@ impl<'a> Bench<'a> {
                 "base_args": BASE_ARGS,
                 "n": "records a wrong value can be caught on, per cell: comparison.probe_checked (non-ambiguous pixels where the probed stage must run)",
                 "prediction": "1 - (1 - f)^n per cell, averaged over a point's cells; flaky: 1 - (1 - P)^r",
+                "flaky_measured": "measured: share of all windows of r consecutive attempts (every cell, every start) with a fault; measured_first: share of cells with a fault in their first r attempts (fewer samples)",
                 "phases": "spawn_reference: worker process start to ready minus device (includes the CPU reference); device: instance, device, scene AS and resources; compile, pipeline, setup (per-cell resources), trace, check (readback and compare); overhead: supervisor-observed time beyond the worker's split",
-                "sampling": "with sample_large, a size of p pixels runs `--shard 1/k` of the cells (k = p / default pixels for time, p / (2·default)² for detection); estimated times scale the shard's up to the full cell count",
+                "sampling": "with sample_large, a size of p pixels runs `--shard 1/k` of the cells (k = p / default pixels for time, p / (2·default)² for detection, where only the first seed runs); estimated: per-cell phases scaled to the full cell count, per-worker phases (spawn_reference, device) kept, wall + the added per-cell time / jobs",
             },
             "default": default,
             "size_time": size_time,
@@ -237,9 +235,10 @@ impl<'a> Bench<'a> {
             if k > 1 {
                 args.extend(["--shard".into(), format!("1/{k}")]);
             }
-            // Warm the caches once (the pipelines do not depend on the size), and again for a
-            // sample, whose workers enable other feature sets.
-            let warmup = if self.opts.warmup && (i == 0 || k > 1) { Some(self.run(&args)?.wall_s) } else { None };
+            // Warm the caches once: the pipelines do not depend on the size. (A sample's workers
+            // may enable other feature sets and JIT a few pipelines cold: small beside the
+            // trace and check of a large image.)
+            let warmup = if self.opts.warmup && i == 0 { Some(self.run(&args)?.wall_s) } else { None };
             let r = self.run(&args)?;
             if device.is_null() {
                 *device = r.report.device.clone();
@@ -247,13 +246,14 @@ impl<'a> Bench<'a> {
             let ph = phases(&r.report);
             let ran = r.report.cells.iter().filter(|c| !c.attempts.is_empty()).count();
             let scale = if ran > 0 { full_cells as f64 / ran as f64 } else { 0.0 };
-            (self.progress)(&format!("time {}: {ran} cells, {:.1} s{}", size_arg(s), r.wall_s, if k > 1 { format!(" (shard 1/{k}, ×{scale:.1} estimated {:.1} s)", r.wall_s * scale) } else { String::new() }));
+            let (est_wall, est_ph) = estimate(&r, &ph, scale);
+            (self.progress)(&format!("time {}: {ran} cells, {:.1} s{}", size_arg(s), r.wall_s, if k > 1 { format!(" (shard 1/{k}; all {full_cells} cells estimated {est_wall:.1} s)") } else { String::new() }));
             points.push(json!({
                 "size": s, "pixels": px, "command": r.command, "shard": (k > 1).then(|| format!("1/{k}")),
                 "cells_run": ran, "full_cells": full_cells, "scale": scale,
                 "wall_s": r.wall_s, "warmup_wall_s": warmup, "report_wall_ms": r.report.timing.wall_ms,
                 "phases_ms": ph, "workers": r.report.timing.workers_started,
-                "estimated": { "wall_s": r.wall_s * scale, "phases_ms": scale_map(&ph, scale) },
+                "estimated": { "wall_s": est_wall, "phases_ms": est_ph },
                 "findings": r.report.tally.findings, "outcomes": r.report.summary,
             }));
         }
@@ -268,9 +268,12 @@ impl<'a> Bench<'a> {
         for &s in &self.opts.sizes {
             let px = u64::from(s).pow(2);
             let k = if self.opts.sample_large { shard_for(px, dpx) } else { 1 };
+            // Above twice the default size every cell is caught at any f of interest (n in the
+            // tens of thousands) and a run costs most: one seed there.
+            let seeds = if px > dpx { &self.opts.seeds[..1.min(self.opts.seeds.len())] } else { &self.opts.seeds[..] };
             for &f in &self.opts.fractions {
                 let mut all: Vec<Trial> = vec![];
-                for &seed in &self.opts.seeds {
+                for &seed in seeds {
                     let mut args = vec!["--size".into(), size_arg(s), "--filter".into(), filter.clone(), "--inject-fault".into(), format!("{filter}@value:{f}:{seed}")];
                     if k > 1 {
                         args.extend(["--shard".into(), format!("1/{k}")]);
@@ -318,15 +321,16 @@ impl<'a> Bench<'a> {
                 }
             }
             let faulted: Vec<Vec<bool>> = per_cell.values().cloned().collect();
-            let measured = stats::first_fault_curve(&faulted, rounds as usize);
+            let first = stats::first_fault_curve(&faulted, rounds as usize);
+            let measured = stats::window_curve(&faulted, rounds as usize);
             let predicted: Vec<f64> = (1..=rounds).map(|r| stats::detect_probability(p, r as u64)).collect();
             let rate = if attempts > 0 { faulted.iter().flatten().filter(|f| **f).count() as f64 / attempts as f64 } else { 0.0 };
-            let needed = |c: f64| json!({ "predicted": stats::repeats_needed(p, c), "measured": stats::first_reaching(&measured, c), "from_measured_rate": stats::repeats_needed(rate, c) });
+            let needed = |c: f64| json!({ "predicted": stats::repeats_needed(p, c), "measured": stats::first_reaching(&measured, c), "measured_first": stats::first_reaching(&first, c), "from_measured_rate": stats::repeats_needed(rate, c) });
             (self.progress)(&format!("flaky:{p}: {rounds} rounds × {} cells, rate {rate:.3}, {:.1} s", faulted.len(), wall));
             out.push(json!({
                 "probability": p, "rounds": rounds, "cells": faulted.len(), "command": command,
                 "attempts": attempts, "armed": armed, "armed_detected": armed_caught, "faulted_unarmed": unarmed_faulted,
-                "measured_rate": rate, "measured": measured, "predicted": predicted,
+                "measured_rate": rate, "measured": measured, "measured_first": first, "predicted": predicted,
                 "repeats_needed": { "0.95": needed(0.95), "0.99": needed(0.99) },
                 "wall_s": wall, "wall_per_round_s": wall / rounds as f64,
                 "attempt_wall_ms_mean": if attempts > 0 { attempt_ms / attempts as f64 } else { 0.0 },
@@ -365,6 +369,13 @@ impl<'a> Bench<'a> {
         }
         Ok(json!({ "filter": self.opts.sweep_filter, "size": self.opts.sweep_size, "entries": entries }))
     }
+}
+
+/// A child's last stderr line, without its own `rtprobe: error: ` prefix.
+fn last_line(stderr: &[u8]) -> String {
+    let text = String::from_utf8_lossy(stderr);
+    let last = text.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("").trim();
+    last.strip_prefix("rtprobe: error: ").unwrap_or(last).to_string()
 }
 
 /// Why a sweep entry cannot run on this binary/machine: a flag `run` does not know, or more
@@ -406,8 +417,17 @@ pub fn phases(r: &RunReport) -> serde_json::Map<String, Value> {
 
 pub const PHASES: [&str; 8] = ["spawn_reference", "device", "compile", "pipeline", "setup", "trace", "check", "overhead"];
 
-fn scale_map(m: &serde_json::Map<String, Value>, s: f64) -> serde_json::Map<String, Value> {
-    m.iter().map(|(k, v)| (k.clone(), json!(v.as_f64().unwrap_or(0.0) * s))).collect()
+/// Phases paid per worker, not per cell: a sample keeps them as they are.
+const PER_WORKER: [&str; 2] = ["spawn_reference", "device"];
+
+/// The full cell set's time from a sample's: per-cell phases scaled by `scale`, per-worker
+/// phases kept; the wall time grows by the added per-cell time spread over the run's workers.
+fn estimate(r: &Ran, ph: &serde_json::Map<String, Value>, scale: f64) -> (f64, serde_json::Map<String, Value>) {
+    let per_cell: f64 = ph.iter().filter(|(k, _)| !PER_WORKER.contains(&k.as_str())).map(|(_, v)| v.as_f64().unwrap_or(0.0)).sum();
+    let jobs = r.report.options["jobs"].as_f64().unwrap_or(1.0).max(1.0);
+    let wall = r.wall_s + (scale - 1.0).max(0.0) * per_cell / 1e3 / jobs;
+    let m = ph.iter().map(|(k, v)| (k.clone(), json!(v.as_f64().unwrap_or(0.0) * if PER_WORKER.contains(&k.as_str()) { 1.0 } else { scale }))).collect();
+    (wall, m)
 }
 
 /// The injected cells of a detection run: those compared are trials; the others (a crash, an

@@ -100,6 +100,24 @@ pub fn first_fault_curve(faulted: &[Vec<bool>], rounds: usize) -> Vec<f64> {
         .collect()
 }
 
+/// For each r in 1..=rounds: the share of all windows of r consecutive attempts (every cell,
+/// every start) holding at least one fault. Attempts are independent, so every window estimates
+/// the same probability as the first r attempts, from many more (overlapping) samples.
+pub fn window_curve(faulted: &[Vec<bool>], rounds: usize) -> Vec<f64> {
+    (1..=rounds)
+        .map(|r| {
+            let (mut hit, mut all) = (0usize, 0usize);
+            for a in faulted.iter().filter(|a| a.len() >= r) {
+                for w in a.windows(r) {
+                    all += 1;
+                    hit += usize::from(w.iter().any(|f| *f));
+                }
+            }
+            if all == 0 { 0.0 } else { hit as f64 / all as f64 }
+        })
+        .collect()
+}
+
 /// The first r (1-based) at which `curve` reaches `confidence`.
 pub fn first_reaching(curve: &[f64], confidence: f64) -> Option<u32> {
     curve.iter().position(|v| *v >= confidence).map(|i| i as u32 + 1)
@@ -174,5 +192,10 @@ mod tests {
         assert_eq!(first_reaching(&c, 0.5), Some(2));
         assert_eq!(first_reaching(&c, 0.95), None);
         assert!(first_fault_curve(&[], 2).iter().all(|v| *v == 0.0));
+        // Windows: r=1 is the fault rate (4 of 12), r=3 the whole sequences (3 of 4).
+        let w = window_curve(&f, 3);
+        assert!((w[0] - 4.0 / 12.0).abs() < 1e-12 && (w[2] - 0.75).abs() < 1e-12, "{w:?}");
+        // r=2: windows [t,f] [f,f] | [f,f] [f,t] | [f,f] [f,f] | [f,t] [t,t] → 4 of 8.
+        assert!((w[1] - 0.5).abs() < 1e-12, "{w:?}");
     }
 }

@@ -148,7 +148,8 @@ pub struct RunArgs {
     pub mesh_detail: u32,
 
     /// Make cells misbehave on purpose: `PREDICATE[@KIND]`, PREDICATE in --filter syntax; KIND
-    /// device (default: a load through an invalid address), hang, value[:FRACTION], nan, flaky:P.
+    /// device (default: a load through an invalid address), hang, value[:FRACTION[:SEED]] (SEED: each
+    /// cell draws its own pixels), nan, flaky:P.
     /// Repeatable; RTPROBE_INJECT_FAULT takes a `;`-separated list. Proves detection on your driver.
     #[arg(long = "inject-fault", value_name = "PREDICATE[@KIND]", env = "RTPROBE_INJECT_FAULT", value_delimiter = ';')]
     pub inject_fault: Vec<String>,
@@ -503,8 +504,9 @@ pub struct BenchArgs {
 
     /// Run configurations to compare (each one quoted string of extra run arguments, e.g.
     /// '-j 1' '-j 2' '--isolation process-per-cell'); entries with flags this rtprobe's run does
-    /// not know are skipped (default: the built-in list, bench::DEFAULT_SWEEP)
-    #[arg(long, num_args = 1.., value_name = "ARGS")]
+    /// not know are skipped (default: the built-in list, bench::DEFAULT_SWEEP). Takes every
+    /// following argument: put it last
+    #[arg(long, num_args = 1.., allow_hyphen_values = true, value_name = "ARGS")]
     pub sweep_args: Vec<String>,
 
     /// Cells of the sweep (repeatable, --filter syntax; default
