@@ -6,29 +6,7 @@ mod common;
 use common::*;
 use serde_json::Value;
 
-/// Balanced tags, `<svg` … `</svg>` (the same rule as `report::chart::check_well_formed`).
-fn well_formed(doc: &str) -> Result<(), String> {
-    let doc = doc.trim();
-    if !doc.starts_with("<svg") || !doc.ends_with("</svg>") {
-        return Err("not <svg>…</svg>".into());
-    }
-    let mut stack: Vec<String> = vec![];
-    let mut rest = doc;
-    while let Some(i) = rest.find('<') {
-        let after = &rest[i + 1..];
-        let j = after.find('>').ok_or("unterminated tag")?;
-        let tag = &after[..j];
-        rest = &after[j + 1..];
-        if let Some(name) = tag.strip_prefix('/') {
-            if stack.pop().as_deref() != Some(name.trim()) {
-                return Err(format!("unbalanced </{name}>"));
-            }
-        } else if !tag.ends_with('/') {
-            stack.push(tag.split_whitespace().next().unwrap_or("").to_string());
-        }
-    }
-    if stack.is_empty() { Ok(()) } else { Err(format!("unclosed {stack:?}")) }
-}
+use rtprobe::report::chart::check_well_formed as well_formed;
 
 fn points<'a>(v: &'a Value, section: &str) -> &'a Vec<Value> {
     v[section]["points"].as_array().unwrap_or_else(|| panic!("{section}.points missing"))
