@@ -73,6 +73,7 @@ fn quick_bench_writes_its_contract_and_detection_follows_the_injection() {
     let sw = b["sweep"]["entries"].as_array().unwrap();
     assert_eq!(sw.len(), 2);
     assert!(sw[0]["skipped"].is_null() && sw[0]["wall_ratio"] == 1.0);
+    assert_eq!(sw[0]["phase_ratio"]["trace"], 1.0);
     assert!(sw[1]["skipped"].as_str().unwrap().contains("--no-such-flag"), "{}", sw[1]);
 
     for (name, needles) in [

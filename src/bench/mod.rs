@@ -346,7 +346,7 @@ impl<'a> Bench<'a> {
         let mut filters: Vec<String> = self.opts.sweep_filter.iter().flat_map(|f| ["--filter".to_string(), f.clone()]).collect();
         filters.extend(["--size".into(), size_arg(self.opts.sweep_size)]);
         let mut entries = vec![];
-        let mut first_wall: Option<f64> = None;
+        let mut first: Option<(f64, serde_json::Map<String, Value>)> = None;
         for entry in &self.opts.sweep {
             let extra: Vec<String> = entry.split_whitespace().map(|s| s.to_string()).collect();
             if let Some(why) = skip_reason(&extra, &known, cores) {
@@ -359,12 +359,16 @@ impl<'a> Bench<'a> {
             let warmup = if self.opts.warmup { Some(self.run(&args)?.wall_s) } else { None };
             let r = self.run(&args)?;
             let ph = phases(&r.report);
-            let base = *first_wall.get_or_insert(r.wall_s);
+            let (base, base_ph) = first.get_or_insert_with(|| (r.wall_s, ph.clone())).clone();
+            let ratios: serde_json::Map<String, Value> = ph.iter().map(|(k, v)| {
+                let b = base_ph[k].as_f64().unwrap_or(0.0);
+                (k.clone(), if b > 0.0 { json!(v.as_f64().unwrap_or(0.0) / b) } else { Value::Null })
+            }).collect();
             (self.progress)(&format!("sweep '{entry}': {:.2} s (×{:.2} of the first entry)", r.wall_s, r.wall_s / base));
             entries.push(json!({
                 "args": entry, "command": r.command, "wall_s": r.wall_s, "warmup_wall_s": warmup,
                 "wall_ratio": r.wall_s / base, "cells": r.report.timing.cells_timed, "workers": r.report.timing.workers_started,
-                "phases_ms": ph, "findings": r.report.tally.findings,
+                "phases_ms": ph, "phase_ratio": ratios, "findings": r.report.tally.findings,
             }));
         }
         Ok(json!({ "filter": self.opts.sweep_filter, "size": self.opts.sweep_size, "entries": entries }))
