@@ -7,7 +7,7 @@ const H: f64 = 420.0;
 const L: f64 = 72.0;
 const R: f64 = 210.0;
 const T: f64 = 34.0;
-const B: f64 = 52.0;
+const B: f64 = 62.0;
 const PALETTE: [&str; 10] = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf"];
 
 /// The colour of palette entry `k` (wraps).
@@ -151,7 +151,7 @@ fn header(title: &str) -> String {
 
 fn axis_labels(s: &mut String, x: &str, y: &str) {
     let (cx, cy) = ((L + W - R) / 2.0, (T + H - B) / 2.0);
-    s.push_str(&format!("<text x=\"{cx:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{}</text>\n", H - 12.0, xml(x)));
+    s.push_str(&format!("<text x=\"{cx:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{}</text>\n", H - 8.0, xml(x)));
     s.push_str(&format!("<text x=\"16\" y=\"{cy:.1}\" transform=\"rotate(-90 16 {cy:.1})\" text-anchor=\"middle\">{}</text>\n", xml(y)));
     s.push_str(&format!("<rect x=\"{L}\" y=\"{T}\" width=\"{:.1}\" height=\"{:.1}\" fill=\"none\" stroke=\"#444\"/>\n", W - L - R, H - T - B));
 }
@@ -255,7 +255,9 @@ impl StackedBars {
                 s += &format!("<rect x=\"{x0:.1}\" y=\"{top:.1}\" width=\"{bw:.1}\" height=\"{:.1}\" fill=\"{}\"><title>{}: {}</title></rect>\n", (bottom - top).max(0.0), colour(k), xml(name), fmt_num((v * 1000.0).round() / 1000.0));
             }
             s += &format!("<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{}</text>\n", x0 + bw / 2.0, ys.at(acc) - 4.0, fmt_num((acc * 100.0).round() / 100.0));
-            s += &format!("<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\" font-size=\"9\">{}</text>\n", x0 + bw / 2.0, H - B + 14.0, xml(cat));
+            for (k, line) in wrap(cat, ((slot / 5.5) as usize).max(8)).iter().enumerate() {
+                s += &format!("<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\" font-size=\"9\">{}</text>\n", x0 + bw / 2.0, H - B + 12.0 + 10.0 * k as f64, xml(line));
+            }
         }
         for (k, (name, _)) in self.layers.iter().enumerate() {
             let ly = T + 10.0 + 16.0 * k as f64;
@@ -264,6 +266,21 @@ impl StackedBars {
         }
         s + "</svg>\n"
     }
+}
+
+/// `text` broken at spaces into lines of at most `width` characters (a longer word stays whole).
+fn wrap(text: &str, width: usize) -> Vec<String> {
+    let mut lines: Vec<String> = vec![];
+    for word in text.split_whitespace() {
+        match lines.last_mut() {
+            Some(l) if l.chars().count() + 1 + word.chars().count() <= width => {
+                l.push(' ');
+                l.push_str(word);
+            }
+            _ => lines.push(word.to_string()),
+        }
+    }
+    lines
 }
 
 /// A structural check of an SVG document for tests: it starts with `<svg`, ends with `</svg>`,
@@ -335,6 +352,7 @@ mod tests {
         let svg = b.svg();
         check_well_formed(&svg).unwrap();
         assert!(svg.contains(">1.5<") && svg.contains(">0.75<") && svg.contains("-j 2") && svg.contains("trace"));
+        assert_eq!(wrap("-j 1 --isolation process-per-cell (29.1 s)", 18), vec!["-j 1 --isolation", "process-per-cell", "(29.1 s)"]);
     }
 
     #[test]
