@@ -117,4 +117,7 @@ fn bench_bad_input_is_one_line_and_writes_nothing() {
     // A run that fails (no such device) stops the bench: its exit code, one line, no files.
     assert_one_line_error(&run(&["bench", "--quick", "--device", "no-such-gpu", "-o", o_arg]), 6, "rtprobe run");
     assert_eq!(std::fs::read_dir(&out).unwrap().count(), 0, "no half-written output");
+    // Filters that parse but select no cell: the first timed point says so, nothing written.
+    assert_one_line_error(&run(&["bench", "--quick", "-o", o_arg, "--matrix-filter", "stage=raygen", "--matrix-filter", "stage=miss"]), 2, "ran no timed cell");
+    assert_eq!(std::fs::read_dir(&out).unwrap().count(), 0, "no half-written output");
 }

@@ -50,6 +50,8 @@ pub enum BenchError {
     RunFailed { cmd: String, code: i32, stderr: String },
     #[error("`{cmd}`: {why}")]
     Report { cmd: String, why: String },
+    #[error("`{cmd}` ran no {what} cell: check the filter")]
+    Empty { cmd: String, what: &'static str },
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -245,6 +247,9 @@ impl<'a> Bench<'a> {
             }
             let ph = phases(&r.report);
             let ran = r.report.cells.iter().filter(|c| !c.attempts.is_empty()).count();
+            if ran == 0 {
+                return Err(BenchError::Empty { cmd: r.command, what: "timed" });
+            }
             let scale = if ran > 0 { full_cells as f64 / ran as f64 } else { 0.0 };
             let (est_wall, est_ph) = estimate(&r, &ph, scale);
             (self.progress)(&format!("time {}: {ran} cells, {:.1} s{}", size_arg(s), r.wall_s, if k > 1 { format!(" (shard 1/{k}; all {full_cells} cells estimated {est_wall:.1} s)") } else { String::new() }));
@@ -280,6 +285,9 @@ impl<'a> Bench<'a> {
                     }
                     let r = self.run(&args)?;
                     let (trials, not_compared) = trials_of(&r.report);
+                    if trials.is_empty() && not_compared.is_empty() {
+                        return Err(BenchError::Empty { cmd: r.command, what: "injected" });
+                    }
                     let d = stats::aggregate(f, &trials);
                     (self.progress)(&format!("detection {} f={f} seed {seed}: {} of {} cells caught (predicted {:.3}), {:.1} s", size_arg(s), d.detected, d.trials, d.predicted, r.wall_s));
                     points.push(json!({ "size": s, "fraction": f, "seed": seed, "command": r.command, "wall_s": r.wall_s, "shard": (k > 1).then(|| format!("1/{k}")), "detection": d, "not_compared": not_compared, "trials": trials }));
@@ -319,6 +327,9 @@ impl<'a> Bench<'a> {
                     unarmed_faulted += usize::from(!fired && faulted);
                     per_cell.entry(c.id.clone()).or_default().push(faulted);
                 }
+            }
+            if per_cell.is_empty() {
+                return Err(BenchError::Empty { cmd: command, what: "flaky-injected" });
             }
             let faulted: Vec<Vec<bool>> = per_cell.values().cloned().collect();
             let first = stats::first_fault_curve(&faulted, rounds as usize);

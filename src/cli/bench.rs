@@ -108,7 +108,8 @@ pub fn bench(g: &Globals, a: &BenchArgs) -> Result<u8> {
     let _ = std::fs::remove_dir_all(&opts.work_dir);
     let value = result.map_err(|e| match &e {
         // A run's own usage or device error keeps its exit code.
-        BenchError::RunFailed { code, .. } if (1..=11).contains(code) && *code != 1 && *code != 11 => coded(*code as u8, e.to_string()),
+        BenchError::RunFailed { code, .. } if (2..=10).contains(code) => coded(*code as u8, e.to_string()),
+        BenchError::Empty { .. } => coded(exit::USAGE, e.to_string()),
         BenchError::RunFailed { .. } | BenchError::Spawn { .. } | BenchError::Report { .. } => coded(exit::INTERNAL, e.to_string()),
     })?;
     let json = serde_json::to_vec_pretty(&value).expect("bench value serializes");
