@@ -18,3 +18,4 @@ pub mod patches;
 pub mod bisect;
 pub mod fleet;
 pub mod stress;
+pub mod bench;

@@ -126,7 +126,8 @@ pub struct PushConstants {
     pub loop_forever: u32,
     /// Mask applied to `gl_InstanceCustomIndexEXT` by `index=dynamic` in hit stages.
     pub dyn_mask: u32,
-    pub pad: u32,
+    /// Salt of the `value:F:SEED` injection's pixel hash (`matrix::inject::value_salt`; 0 otherwise).
+    pub inject_salt: u32,
     /// Device address of the TLAS address table (as_access=address).
     pub as_table: u64,
     /// canary.invalid_address
@@ -141,7 +142,7 @@ pub const PUSH_FIELDS: &[Field] = fields!(PushConstants {
     slot_count: "slotCount" "uint",
     loop_forever: "loopForever" "uint",
     dyn_mask: "dynMask" "uint",
-    pad: "pushPad" "uint",
+    inject_salt: "injectSalt" "uint",
     as_table: "asTable" "uvec2",
     bad_address: "badAddress" "uvec2",
 });
@@ -166,7 +167,7 @@ impl PushConstants {
         put(offset_of!(PushConstants, slot_count), &self.slot_count.to_le_bytes());
         put(offset_of!(PushConstants, loop_forever), &self.loop_forever.to_le_bytes());
         put(offset_of!(PushConstants, dyn_mask), &self.dyn_mask.to_le_bytes());
-        put(offset_of!(PushConstants, pad), &self.pad.to_le_bytes());
+        put(offset_of!(PushConstants, inject_salt), &self.inject_salt.to_le_bytes());
         put(offset_of!(PushConstants, as_table), &self.as_table.to_le_bytes());
         put(offset_of!(PushConstants, bad_address), &self.bad_address.to_le_bytes());
         put(PATCHED_TABLE_OFFSET as usize, &patched_table.to_le_bytes());

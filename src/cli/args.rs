@@ -74,6 +74,10 @@ pub enum Command {
     /// Numerical stability of the driver's ray/triangle traversal against an f64 watertight
     /// reference: leaks, double hits, t and barycentric error per case (exit 1 when a case fails)
     Stress(StressArgs),
+    /// Run time against error, measured by running rtprobe itself: matrix time and detection of
+    /// wrong values against image size, detection of flaky faults against repeats, time per phase
+    /// per run configuration; writes DIR/bench.json (rtprobe.bench/1) and SVG plots
+    Bench(BenchArgs),
     /// Internal: run cells for the supervisor (`rtprobe run`); not for direct use
     #[command(name = "__worker", hide = true)]
     Worker {
@@ -181,7 +185,8 @@ pub struct RunArgs {
     pub mesh_detail: u32,
 
     /// Make cells misbehave on purpose: `PREDICATE[@KIND]`, PREDICATE in --filter syntax; KIND
-    /// device (default: a load through an invalid address), hang, value[:FRACTION], nan, flaky:P.
+    /// device (default: a load through an invalid address), hang, value[:FRACTION[:SEED]] (SEED: each
+    /// cell draws its own pixels), nan, flaky:P.
     /// Repeatable; RTPROBE_INJECT_FAULT takes a `;`-separated list. Proves detection on your driver.
     #[arg(long = "inject-fault", value_name = "PREDICATE[@KIND]", env = "RTPROBE_INJECT_FAULT", value_delimiter = ';')]
     pub inject_fault: Vec<String>,
@@ -483,4 +488,84 @@ pub struct DiffArgs {
 pub enum DiffFormat {
     Text,
     Md,
+}
+
+#[derive(Args, Debug)]
+pub struct BenchArgs {
+    /// Device index or case-insensitive name substring (passed to every run)
+    #[arg(long, short = 'd', value_name = "INDEX|NAME")]
+    pub device: Option<String>,
+
+    /// Output directory for bench.json and the SVG plots (default: reports/bench-<timestamp>)
+    #[arg(long, short = 'o', value_name = "DIR")]
+    pub out: Option<PathBuf>,
+
+    /// A small bench for tests and CI: sizes 8 and 16, a few cells, f 0.001 and 1, one flaky
+    /// probability, no warm-up (every other flag still overrides)
+    #[arg(long)]
+    pub quick: bool,
+
+    /// Square image sizes (`N` or `NxN`, N a multiple of 8, 8..=2048; default 8,16,32,64,128,256,512)
+    #[arg(long, value_delimiter = ',', value_name = "N,...")]
+    pub sizes: Vec<String>,
+
+    /// Fractions f of wrong records, each in (0, 1] (default 0.001,0.01,0.1)
+    #[arg(long, value_delimiter = ',', value_name = "F,...")]
+    pub fractions: Vec<f64>,
+
+    /// Seeds of the `value:f:SEED` injection; each seed is one run per size and f (default 1,2)
+    #[arg(long, value_delimiter = ',', value_name = "SEED,...")]
+    pub seeds: Vec<u64>,
+
+    /// The cells injected with wrong values (--filter syntax; default
+    /// descriptor_model=descriptor_indexing,resource=storage_buffer)
+    #[arg(long, value_name = "FILTER")]
+    pub inject_filter: Option<String>,
+
+    /// Restrict the timed matrix (repeatable, --filter syntax; default: the default matrix)
+    #[arg(long, value_name = "FILTER")]
+    pub matrix_filter: Vec<String>,
+
+    /// Flaky fault probabilities P, each in (0, 1) (default 0.1,0.3,0.5)
+    #[arg(long, value_delimiter = ',', value_name = "P,...")]
+    pub flaky: Vec<f64>,
+
+    /// The cells injected with flaky faults (default
+    /// descriptor_model=descriptor_indexing,resource=storage_buffer,index=literal)
+    #[arg(long, value_name = "FILTER")]
+    pub flaky_filter: Option<String>,
+
+    /// Image size of the flaky rounds (default 16)
+    #[arg(long, value_name = "N")]
+    pub flaky_size: Option<String>,
+
+    /// At most this many rounds (attempts per cell) per flaky probability (default 30)
+    #[arg(long, value_name = "R")]
+    pub max_rounds: Option<u32>,
+
+    /// --timeout of the flaky rounds, in seconds (an injected device fault hangs on some drivers,
+    /// e.g. NVIDIA; default: run's own)
+    #[arg(long, value_name = "SECONDS")]
+    pub flaky_timeout: Option<f64>,
+
+    /// Run configurations to compare (each one quoted string of extra run arguments, e.g.
+    /// '-j 1' '-j 2' '--isolation process-per-cell'); entries with flags this rtprobe's run does
+    /// not know are skipped (default: the built-in list, bench::DEFAULT_SWEEP). Takes every
+    /// following argument: put it last
+    #[arg(long, num_args = 1.., allow_hyphen_values = true, value_name = "ARGS")]
+    pub sweep_args: Vec<String>,
+
+    /// Cells of the sweep (repeatable, --filter syntax; default
+    /// descriptor_model=descriptor_indexing,resource=storage_buffer)
+    #[arg(long, value_name = "FILTER")]
+    pub sweep_filter: Vec<String>,
+
+    /// Do not run each timed point once before measuring it (caches stay as they are)
+    #[arg(long)]
+    pub no_warmup: bool,
+
+    /// Run every size on all its cells (default: sizes above 64×64 run a `--shard 1/k` sample,
+    /// scaled up)
+    #[arg(long)]
+    pub no_sample: bool,
 }

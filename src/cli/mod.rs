@@ -1,6 +1,7 @@
 //! The command line: clap definitions ([`args`]), exit codes ([`exit`]), and dispatch. Nothing
 //! below this module knows about clap.
 pub mod args;
+pub mod bench;
 pub mod bisect;
 pub mod commands;
 pub mod exit;
@@ -47,6 +48,7 @@ pub fn main_entry() -> u8 {
         Command::Report(a) => report::report(a),
         Command::Repro(a) => repro::repro(&g, a),
         Command::Stress(a) => stress::stress(&g, a),
+        Command::Bench(a) => bench::bench(&g, a),
         Command::Baseline(a) => fleet::baseline(a),
         Command::Merge(a) => fleet::merge_cmd(a),
         Command::Diff(a) => fleet::diff_cmd(a),

@@ -519,6 +519,7 @@ impl Executor {
             loop_forever: u32::from(cell.canary == Some(Canary::InfiniteLoop) || fault == Some(crate::matrix::inject::FaultKind::Hang)),
             as_table: as_table_address,
             bad_address: if cell.canary == Some(Canary::InvalidAddress) || injected_bad { CANARY_BAD_ADDRESS } else { 0 },
+            inject_salt: fault.map(|f| crate::matrix::inject::value_salt(f, &cell.id())).unwrap_or(0),
             ..probe::push_constants(w, h, self.scene.params.instances, cell.resource)
         }
         .to_bytes(patched_table_address);

@@ -6,7 +6,11 @@
 //! - `device` (default): a load through an invalid device address, a real fault for the driver
 //!   to report (`device_lost`, or `crash` on CPU drivers, or a hang where the driver spins);
 //! - `hang`: an endless loop (the supervisor's deadline must fire);
-//! - `value[:F]`: a wrong value on a fraction F of the probed pixels (default 1);
+//! - `value[:F[:SEED]]`: a wrong value on a fraction F of the probed pixels (default 1). The
+//!   pixels are those whose hash (of the pixel and a salt) falls below F·2³²; without SEED the
+//!   salt is 0 (the same pixels for every cell), with SEED each cell gets its own salt
+//!   ([`value_salt`]: SEED and the cell id), so the cells of one run are independent draws
+//!   (`rtprobe bench` measures detection against the binomial prediction with it);
 //! - `nan`: the probed value's first component becomes a quiet NaN;
 //! - `flaky:P`: the `device` fault, armed with probability P per attempt (the worker rolls a
 //!   seeded die and arms the load through push constants; the roll is recorded).
@@ -20,7 +24,12 @@ use serde::{Deserialize, Serialize};
 pub enum FaultKind {
     Device,
     Hang,
-    Value { fraction: f64 },
+    Value {
+        fraction: f64,
+        /// Salts the pixel hash per cell (`value:F:SEED`); `None`: salt 0.
+        #[serde(skip_serializing_if = "Option::is_none", default)]
+        seed: Option<u64>,
+    },
     Nan,
     Flaky { probability: f64 },
 }
@@ -47,7 +56,14 @@ impl FaultKind {
             "device" => no_arg(FaultKind::Device),
             "hang" => no_arg(FaultKind::Hang),
             "nan" => no_arg(FaultKind::Nan),
-            "value" => Ok(FaultKind::Value { fraction: match arg { Some(a) => fraction("value fraction", a, false)?, None => 1.0 } }),
+            "value" => {
+                let (f, seed) = match arg.map(|a| a.split_once(':').map(|(f, s)| (f.trim(), Some(s.trim()))).unwrap_or((a, None))) {
+                    Some((f, seed)) => (fraction("value fraction", f, false)?, seed),
+                    None => (1.0, None),
+                };
+                let seed = seed.map(|s| s.parse::<u64>().map_err(|_| format!("value seed {s:?} is not a whole number (value:F:SEED)"))).transpose()?;
+                Ok(FaultKind::Value { fraction: f, seed })
+            }
             "flaky" => match arg {
                 Some(a) => Ok(FaultKind::Flaky { probability: fraction("flaky probability", a, true)? }),
                 None => Err("flaky needs a probability: flaky:P with P in (0, 1)".into()),
@@ -60,7 +76,8 @@ impl FaultKind {
         match self {
             FaultKind::Device => "device".into(),
             FaultKind::Hang => "hang".into(),
-            FaultKind::Value { fraction } => format!("value:{fraction}"),
+            FaultKind::Value { fraction, seed: None } => format!("value:{fraction}"),
+            FaultKind::Value { fraction, seed: Some(s) } => format!("value:{fraction}:{s}"),
             FaultKind::Nan => "nan".into(),
             FaultKind::Flaky { probability } => format!("flaky:{probability}"),
         }
@@ -132,15 +149,28 @@ pub fn for_cell<'a>(injections: &'a [Injection], cell: &Cell) -> Option<&'a Inje
 /// Whether a flaky injection fires for this attempt: a die rolled from `seed` (the worker's,
 /// recorded in the result) and the cell id, so a reported attempt can be replayed.
 pub fn flaky_fires(probability: f64, seed: u64, cell_id: &str) -> bool {
+    ((mix(seed, cell_id) >> 11) as f64 / (1u64 << 53) as f64) < probability
+}
+
+/// The pixel-hash salt of a `value:F` injection in `cell_id` (pushed as `pc.injectSalt`): 0
+/// without a seed (every cell corrupts the same pixels), else a hash of the seed and the cell id
+/// (never 0), so each cell of a run draws its own pixels.
+pub fn value_salt(fault: FaultKind, cell_id: &str) -> u32 {
+    match fault {
+        FaultKind::Value { seed: Some(s), .. } => ((mix(s, cell_id) >> 32) as u32).max(1),
+        FaultKind::Value { seed: None, .. } | FaultKind::Device | FaultKind::Hang | FaultKind::Nan | FaultKind::Flaky { .. } => 0,
+    }
+}
+
+/// FNV-1a of the cell id over the seed, then the splitmix64 finaliser.
+fn mix(seed: u64, cell_id: &str) -> u64 {
     let mut h: u64 = seed ^ 0x9e37_79b9_7f4a_7c15;
     for b in cell_id.bytes() {
         h = (h ^ b as u64).wrapping_mul(0x0100_0000_01b3);
     }
-    // splitmix64 finaliser
     h = (h ^ (h >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
     h = (h ^ (h >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    h ^= h >> 31;
-    ((h >> 11) as f64 / (1u64 << 53) as f64) < probability
+    h ^ (h >> 31)
 }
 
 #[cfg(test)]
@@ -158,11 +188,13 @@ mod tests {
         assert_eq!(i.fault, FaultKind::Device);
         assert_eq!(i.spec, "stage=closest_hit|any_hit,index=dynamic@device");
         assert_eq!(Injection::parse("stage=raygen@hang").unwrap().fault, FaultKind::Hang);
-        assert_eq!(Injection::parse("stage=raygen@value:0.01").unwrap().fault, FaultKind::Value { fraction: 0.01 });
-        assert_eq!(Injection::parse("stage=raygen@value").unwrap().fault, FaultKind::Value { fraction: 1.0 });
+        assert_eq!(Injection::parse("stage=raygen@value:0.01").unwrap().fault, FaultKind::Value { fraction: 0.01, seed: None });
+        assert_eq!(Injection::parse("stage=raygen@value").unwrap().fault, FaultKind::Value { fraction: 1.0, seed: None });
+        let seeded = Injection::parse("stage=raygen@value:0.01:7").unwrap();
+        assert_eq!((seeded.fault, seeded.spec.as_str()), (FaultKind::Value { fraction: 0.01, seed: Some(7) }, "stage=raygen@value:0.01:7"));
         assert_eq!(Injection::parse("stage=raygen@nan").unwrap().fault, FaultKind::Nan);
         assert_eq!(Injection::parse("stage=raygen@flaky:0.5").unwrap().fault, FaultKind::Flaky { probability: 0.5 });
-        for bad in ["stage=raygen@flaky", "stage=raygen@flaky:1", "stage=raygen@value:0", "stage=raygen@value:x", "stage=raygen@boom", "stage=nope@hang", "@hang", "stage=raygen@hang:3"] {
+        for bad in ["stage=raygen@flaky", "stage=raygen@flaky:1", "stage=raygen@value:0", "stage=raygen@value:x", "stage=raygen@value:0.5:x", "stage=raygen@value:0.5:-1", "stage=raygen@boom", "stage=nope@hang", "@hang", "stage=raygen@hang:3"] {
             assert!(Injection::parse(bad).is_err(), "{bad} should not parse");
         }
     }
@@ -188,5 +220,17 @@ mod tests {
         assert!((rate - 0.3).abs() < 0.02, "rate {rate}");
         // Deterministic for the same seed and cell.
         assert_eq!(flaky_fires(0.5, 7, "a"), flaky_fires(0.5, 7, "a"));
+    }
+
+    #[test]
+    fn value_salt_is_zero_without_a_seed_and_differs_per_cell_with_one() {
+        let plain = FaultKind::Value { fraction: 0.1, seed: None };
+        assert_eq!(value_salt(plain, "a"), 0);
+        let seeded = FaultKind::Value { fraction: 0.1, seed: Some(3) };
+        assert_ne!(value_salt(seeded, "a"), 0);
+        assert_ne!(value_salt(seeded, "a"), value_salt(seeded, "b"));
+        assert_ne!(value_salt(seeded, "a"), value_salt(FaultKind::Value { fraction: 0.1, seed: Some(4) }, "a"));
+        assert_eq!(value_salt(seeded, "a"), value_salt(seeded, "a"));
+        assert_eq!(value_salt(FaultKind::Nan, "a"), 0);
     }
 }

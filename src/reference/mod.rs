@@ -275,6 +275,10 @@ pub struct Comparison {
     pub compared: usize,
     pub ambiguous: usize,
     pub mismatched_pixels: usize,
+    /// Compared pixels on which the probed stage must run and its value is checked: the records an
+    /// injected wrong value (`value:F`) can be caught on (`rtprobe bench`'s n).
+    #[serde(default)]
+    pub probe_checked: usize,
     /// Mismatch counts per field (stable order).
     pub by_field: std::collections::BTreeMap<String, usize>,
     /// Largest relative `t` error and absolute barycentric / value error seen on compared pixels
@@ -392,6 +396,9 @@ pub fn compare(expected: &[Expected], actual: &[Record], width: u32) -> Comparis
         }
         c.compared += 1;
         let r = &e.record;
+        if r.flags & FLAG_PROBE != 0 {
+            c.probe_checked += 1;
+        }
         let mut bad: Bad = Vec::new();
         if r.flags != a.flags {
             bad.push(("flags", r.flags.to_string(), a.flags.to_string()));
@@ -511,6 +518,13 @@ mod tests {
         assert!(!cmp.passed());
         assert_eq!(cmp.by_field.keys().collect::<Vec<_>>(), vec!["value"]);
         assert!(cmp.worst_value >= 1.0);
+        // Every checked probe pixel is caught, and only those: the n a `value:F` injection can
+        // be caught on (closest-hit: the hit pixels only).
+        assert_eq!(cmp.mismatched_pixels, cmp.probe_checked);
+        assert!(cmp.probe_checked > 0 && cmp.probe_checked < cmp.compared, "{} of {}", cmp.probe_checked, cmp.compared);
+        let raygen = expected(&cell(Stage::Raygen, IndexSource::Literal), scene, r);
+        let cmp = compare(&raygen, &records(&raygen), 64);
+        assert_eq!(cmp.probe_checked, cmp.compared);
     }
 
     /// `index=dynamic_element` (the recommended pattern): the reference knows the value of every

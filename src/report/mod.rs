@@ -2,6 +2,7 @@
 //! pictures and the terminal summary.
 pub mod amber;
 pub mod atomic;
+pub mod chart;
 pub mod gpu_av;
 pub mod junit;
 pub mod issue;

@@ -5,8 +5,9 @@
 use super::probe_code::ProbeCode;
 use crate::matrix::inject::FaultKind;
 
-/// A small integer hash of the pixel (lowbias32), the same on every driver.
-const HASH: &str = "uint injectHash(uvec2 p) {\n    uint h = p.x * 0x8da6b343u ^ p.y * 0xd8163841u ^ 0x9e3779b9u;\n    \
+/// A small integer hash of the pixel and the push-constant salt (lowbias32), the same on every
+/// driver; salt 0 (`value:F` without a seed) gives the hash of the pixel alone.
+const HASH: &str = "uint injectHash(uvec2 p) {\n    uint h = p.x * 0x8da6b343u ^ p.y * 0xd8163841u ^ 0x9e3779b9u ^ pc.injectSalt * 0x27d4eb2du;\n    \
 h ^= h >> 16; h *= 0x7feb352du; h ^= h >> 15; h *= 0x846ca68bu; h ^= h >> 16;\n    return h;\n}\n";
 
 /// Append `fault` to `probe` (its body must define `probeValue` and see `px`).
@@ -22,7 +23,7 @@ probeValue += InjectBad(packUint2x32(pc.badAddress)).v[(px.x + px.y * pc.width) 
             probe.body += "    {\n        uint injectN = 0u;\n        while (pc.loopForever != 0u) {\n            injectN += 1u;\n            \
 records[px.x + px.y * pc.width].pad = injectN;\n        }\n        probeValue.w += float(injectN);\n    }\n";
         }
-        FaultKind::Value { fraction } => {
+        FaultKind::Value { fraction, .. } => {
             // +0.5 makes the first component a non-integer: never any element's value.
             if fraction >= 1.0 {
                 probe.body += "    probeValue.x += 0.5;\n";
