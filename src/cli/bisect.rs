@@ -21,15 +21,19 @@ pub fn load_report(path: &Path) -> Result<RunReport> {
     RunReport::load(path).map_err(|e| coded(exit::BAD_INPUT, e))
 }
 
-/// The device the report was made on, on this machine (same name, driver version, UUIDs).
+/// The device the report was made on, on this machine: the same card (device UUID) if it is here,
+/// else a card of the same name and driver build (name, driver version, driver UUID) — another
+/// machine of a fleet, or the same model leased again, reproduces a driver's fault as well.
 pub(crate) fn report_device(g: &Globals, r: &RunReport) -> Result<(Arc<Instance>, DeviceInfo)> {
     let inst = open_instance(g)?;
     let all = features::query_all(&inst)?;
-    let same = |d: &DeviceInfo| {
+    let same = |d: &DeviceInfo, keys: &[&str]| {
         let j = crate::caps::device_json(d);
-        ["name", "driver_version", "driver_uuid", "device_uuid"].iter().all(|k| j[k] == r.device[k])
+        keys.iter().all(|k| j[*k] == r.device[*k])
     };
-    let info = all.iter().find(|d| same(d)).cloned().ok_or_else(|| {
+    const DRIVER: [&str; 3] = ["name", "driver_version", "driver_uuid"];
+    let card = all.iter().find(|d| same(d, &DRIVER) && same(d, &["device_uuid"]));
+    let info = card.or_else(|| all.iter().find(|d| same(d, &DRIVER))).cloned().ok_or_else(|| {
         coded(
             exit::BAD_DEVICE_SELECTION,
             format!(
