@@ -33,10 +33,20 @@ pub const SCHEMA: &str = "rtprobe.bench/1";
 
 /// The run-argument sweep of part 3, in one place: each entry is one run configuration (extra
 /// `rtprobe run` arguments, split on whitespace). Entries with a flag the binary's `run` does not
-/// know are skipped (recorded with the reason), so entries for flags of other branches
-/// (`--threads`) can sit here before they land. `-j K` entries above the machine's cores are
-/// skipped too.
-pub const DEFAULT_SWEEP: &[&str] = &["-j 1", "-j 2", "-j 4", "-j 8", "-j 1 --isolation process-per-cell", "-j 1 --threads 2", "-j 1 --threads 4"];
+/// know are skipped (recorded with the reason). `-j K` and `--threads K` entries above the
+/// machine's cores are skipped too. Each entry names both `-j` and `--threads`, so the sweep does
+/// not depend on the device's defaults.
+pub const DEFAULT_SWEEP: &[&str] = &[
+    "-j 1 --threads 1",
+    "-j 1 --threads 2",
+    "-j 1 --threads 4",
+    "-j 1 --threads 8",
+    "-j 1 --threads 16",
+    "-j 2 --threads 1",
+    "-j 4 --threads 1",
+    "-j 8 --threads 1",
+    "-j 1 --threads 1 --isolation process-per-cell",
+];
 
 /// Arguments every point's run gets: one attempt per cell, no workaround retries (bench measures
 /// the matrix and its detection, not the follow-ups).
@@ -394,7 +404,7 @@ fn last_line(stderr: &[u8]) -> String {
 }
 
 /// Why a sweep entry cannot run on this binary/machine: a flag `run` does not know, or more
-/// `-j` workers than cores.
+/// `-j` workers or `--threads` than cores.
 pub fn skip_reason(args: &[String], known: &[String], cores: usize) -> Option<String> {
     for a in args.iter().filter(|a| a.starts_with('-')) {
         let flag = a.split('=').next().unwrap_or(a);
@@ -402,11 +412,11 @@ pub fn skip_reason(args: &[String], known: &[String], cores: usize) -> Option<St
             return Some(format!("this rtprobe's run does not know {flag}"));
         }
     }
-    let jobs = args.windows(2).find(|w| w[0] == "-j" || w[0] == "--jobs").and_then(|w| w[1].parse::<usize>().ok());
-    match jobs {
-        Some(j) if j > cores.max(2) => Some(format!("-j {j} is more workers than this machine's {cores} cores")),
-        Some(_) | None => None,
+    let value = |names: &[&str]| args.windows(2).find(|w| names.contains(&w[0].as_str())).and_then(|w| w[1].parse::<usize>().ok());
+    if let Some(j) = value(&["-j", "--jobs"]).filter(|&j| j > cores.max(2)) {
+        return Some(format!("-j {j} is more workers than this machine's {cores} cores"));
     }
+    value(&["--threads"]).filter(|&t| t > cores.max(2)).map(|t| format!("--threads {t} is more threads than this machine's {cores} cores"))
 }
 
 /// The per-phase sums of a report, in milliseconds (see `method.phases` in bench.json).
@@ -495,6 +505,10 @@ mod tests {
         assert!(skip_reason(&a("-j 8"), &known, 2).unwrap().contains("cores"));
         assert_eq!(skip_reason(&a("-j 2"), &known, 1), None, "two workers always run");
         assert_eq!(skip_reason(&a("--isolation=worker"), &known, 2), None);
+        let known: Vec<String> = ["-j", "--threads"].iter().map(|s| s.to_string()).collect();
+        assert_eq!(skip_reason(&a("-j 1 --threads 2"), &known, 2), None);
+        assert!(skip_reason(&a("-j 1 --threads 16"), &known, 2).unwrap().contains("--threads 16"));
+        assert_eq!(skip_reason(&a("-j 1 --threads 16"), &known, 16), None);
     }
 
     #[test]
