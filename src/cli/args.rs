@@ -548,6 +548,11 @@ pub struct BenchArgs {
     #[arg(long, value_name = "SECONDS")]
     pub flaky_timeout: Option<f64>,
 
+    /// Skip part 2 (flaky faults). Its injected fault reads an invalid address, which hangs some
+    /// GPUs (NVIDIA 580) for every later process on the machine; the part runs last for that reason
+    #[arg(long)]
+    pub no_flaky: bool,
+
     /// Run configurations to compare (each one quoted string of extra run arguments, e.g.
     /// '-j 1' '-j 2' '--isolation process-per-cell'); entries with flags this rtprobe's run does
     /// not know are skipped (default: the built-in list, bench::DEFAULT_SWEEP). Takes every

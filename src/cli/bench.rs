@@ -42,7 +42,7 @@ fn options(g: &Globals, a: &BenchArgs) -> Result<BenchOptions> {
     if let Some(f) = fractions.iter().find(|f| !(**f > 0.0 && **f <= 1.0)) {
         return Err(coded(exit::USAGE, format!("--fractions: {f} is outside (0, 1]")));
     }
-    let flaky = if a.flaky.is_empty() { if q { vec![0.5] } else { vec![0.1, 0.3, 0.5] } } else { a.flaky.clone() };
+    let flaky = if a.no_flaky { vec![] } else if a.flaky.is_empty() { if q { vec![0.5] } else { vec![0.1, 0.3, 0.5] } } else { a.flaky.clone() };
     if let Some(p) = flaky.iter().find(|p| !(**p > 0.0 && **p < 1.0)) {
         return Err(coded(exit::USAGE, format!("--flaky: {p} is outside (0, 1)")));
     }
