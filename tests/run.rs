@@ -369,6 +369,14 @@ fn faulting_cells_are_retried_with_each_applicable_workaround() {
     assert_eq!(base["outcome"], "crash", "an invalid-address load kills lavapipe's worker: {}", base["reason"]);
     assert!(base["workarounds"].as_array().unwrap().iter().all(|w| w["verified"] == true && w["outcome"] == "pass"), "{}", base["workarounds"]);
     assert!(stdout(&o).contains("verified workaround: nonuniform, pin-index, ssbo-to-address"), "{}", stdout(&o));
+    // Each pass carries the chance it would have missed a fault as frequent as the finding's.
+    let inc = |k: &str| base["incidence"][k].as_u64().unwrap() as u32;
+    for w in base["workarounds"].as_array().unwrap() {
+        let n = w["attempts"].as_u64().unwrap() as u32;
+        let m = rtprobe::bisect::confidence::pass_miss(inc("faulted"), inc("attempts"), n);
+        assert!(n > 0 && (w["miss_probability"].as_f64().unwrap() - m).abs() < 1e-9, "{w}");
+        assert!(stdout(&o).contains(&format!("{} → passes ({n}/{n}; a fault as frequent as this finding's would be missed with p ≤ {m:.2})", w["patch"].as_str().unwrap())), "{}", stdout(&o));
+    }
 }
 
 /// Building pipelines on several threads changes nothing but time: every cell's attempts have
