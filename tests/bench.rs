@@ -97,7 +97,8 @@ fn bench_bad_input_is_one_line_and_writes_nothing() {
     let out = dir.path().join("b");
     let o_arg = out.to_str().unwrap();
     for (args, needle) in [
-        (vec!["--sizes", "63"], "unknown size"),
+        (vec!["--sizes", "63"], "--sizes: unknown size"),
+        (vec!["--flaky-size", "12"], "--flaky-size: unknown size"),
         (vec!["--sizes", "64x32"], "not square"),
         (vec!["--fractions", "0"], "outside (0, 1]"),
         (vec!["--fractions", "1.5"], "outside (0, 1]"),

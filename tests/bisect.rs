@@ -117,6 +117,10 @@ fn a_flaky_injection_is_recovered_with_repeats_and_its_miss_probability() {
     assert!(text.contains("worst miss probability"), "{text}");
     let worst = j["worst_miss_probability"].as_f64().unwrap();
     assert!(worst < 0.001, "{worst}");
+    // The family-wise figure: the sum over passes, at least the worst one, at most 1.
+    let union = j["union_miss_probability"].as_f64().unwrap();
+    assert!(union >= worst && union <= 1.0, "{union} vs {worst}");
+    assert!(text.contains("that any of them missed (union bound)"), "{text}");
     assert!(j["unsettled"].as_array().unwrap().is_empty(), "{}", j["unsettled"]);
     // The minimal failing cell did not fault every time; its bound is its own k of N.
     let rep = &j["isolation"][0];
@@ -300,14 +304,58 @@ fn a_bundle_is_replaced_whole_runs_its_own_spirv_and_has_an_amber_script_where_i
 }
 
 #[test]
+fn force_replaces_only_a_bundle_and_never_the_folder_of_the_report_or_the_current_directory() {
+    let (_, report) = shared();
+    let dir = tempfile::tempdir().unwrap();
+    let cell = "raygen.storage_buffer.literal.descriptor_indexing";
+    let repro = |out: &Path, from: &Path| run(&["repro", cell, "--from", from.to_str().unwrap(), "-o", out.to_str().unwrap(), "--force"]);
+    // A folder that is not a bundle: refused, every file left.
+    let plain = dir.path().join("plain");
+    std::fs::create_dir(&plain).unwrap();
+    std::fs::write(plain.join("notes.txt"), b"mine").unwrap();
+    assert_one_line_error(&repro(&plain, report), 9, "is not a repro bundle (no cell.json)");
+    assert_eq!(std::fs::read(plain.join("notes.txt")).unwrap(), b"mine");
+    // A bundle-looking folder that holds the --from report: refused, the report left.
+    let holder = dir.path().join("holder");
+    std::fs::create_dir(&holder).unwrap();
+    std::fs::write(holder.join("cell.json"), b"{}").unwrap();
+    let inner = holder.join("r.json");
+    std::fs::copy(report, &inner).unwrap();
+    assert_one_line_error(&repro(&holder, &inner), 9, "holds the --from report");
+    assert!(inner.exists());
+    // The current directory (and `/`, `.`): refused before anything is created.
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_rtprobe")).args(["repro", cell, "--from", inner.to_str().unwrap(), "-o", holder.to_str().unwrap(), "--force"]).current_dir(&holder).output().unwrap();
+    assert_one_line_error(&o, 9, "holds the current directory");
+    assert_one_line_error(&repro(Path::new("/"), report), 9, "does not name a folder");
+    let names = |d: &Path| std::fs::read_dir(d).unwrap().flatten().map(|e| e.file_name()).collect::<Vec<_>>();
+    assert_eq!(names(&holder).len(), 2, "{:?}", names(&holder));
+    assert!(names(dir.path()).iter().all(|n| !n.to_string_lossy().starts_with('.')), "{:?}", names(dir.path()));
+}
+
+#[test]
 fn another_card_of_the_same_driver_bisects_and_another_driver_build_is_refused() {
     let (dir, shared_report) = shared();
     let mut r = json_file(shared_report);
     r["device"]["device_uuid"] = Value::from("00000000000000000000000000000000");
     let other_card = dir.path().join("other-card.json");
     std::fs::write(&other_card, serde_json::to_vec(&r).unwrap()).unwrap();
-    let o = run(&["bisect", other_card.to_str().unwrap(), "--max-attempts", "2"]);
+    let json = dir.path().join("other-card.bisect.json");
+    let o = run(&["bisect", other_card.to_str().unwrap(), "--max-attempts", "2", "--json", json.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(0), "{}\n{}", stdout(&o), stderr(&o));
+    // Said, not silent: a warning on stderr, the card in the bisection file and in the issue.
+    let warning = stderr(&o);
+    assert!(warning.contains("the report's card (UUID 00000000000000000000000000000000) is not here; re-running on "), "{warning}");
+    assert!(warning.contains("of the same driver build"), "{warning}");
+    let here = json_file(&json)["device_uuid_rerun"].as_str().expect("device_uuid_rerun").to_string();
+    assert!(warning.contains(&format!("UUID {here} of the same driver build")), "{warning}");
+    let issue = run(&["report", other_card.to_str().unwrap(), "--bisect", json.to_str().unwrap()]);
+    assert!(stdout(&issue).contains(&format!("re-ran cells on another card of the same driver build, UUID {here}")), "{}\n{}", stdout(&issue), stderr(&issue));
+    // Twin: the report's own card gives no warning and no device_uuid_rerun.
+    let same_json = dir.path().join("same-card.bisect.json");
+    let o = run(&["bisect", shared_report.to_str().unwrap(), "--max-attempts", "2", "--json", same_json.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("is not here"), "{}", stderr(&o));
+    assert!(json_file(&same_json).get("device_uuid_rerun").is_none());
     // Twin: a different driver build is not the device the fault was seen on.
     r["device"]["driver_uuid"] = Value::from("00000000000000000000000000000000");
     let other_driver = dir.path().join("other-driver.json");

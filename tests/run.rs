@@ -297,7 +297,10 @@ fn findings_say_whether_the_recommended_pattern_works() {
         assert_eq!((p["passed"].as_u64(), p["attempts"].as_u64()), (Some(2), Some(2)), "run as often as the finding: {p}");
         let pc = cells(&r).iter().find(|c| c["id"] == id).expect("scheduled");
         assert_eq!(pc["attempts"].as_array().unwrap().len(), 2);
-        assert!(stdout(&o).contains(&format!("recommended pattern {pattern} (")) && stdout(&o).contains(&format!("{id}): passes (2/2)")), "{}", stdout(&o));
+        assert!(stdout(&o).contains(&format!("recommended pattern {pattern} (")) && stdout(&o).contains(&format!("{id}): passes (2/2; a fault as frequent as this finding's would be missed with p ≤ ")), "{}", stdout(&o));
+        let m = p["miss_probability"].as_f64().expect("miss_probability");
+        let inc = |k: &str| base["incidence"][k].as_u64().unwrap() as u32;
+        assert!((m - rtprobe::bisect::confidence::pass_miss(inc("faulted"), inc("attempts"), 2)).abs() < 1e-9, "{p}");
     }
     // Twin: the same fault in the pattern's shape too: the pattern fails, never "passes".
     let out2 = dir.path().join("r2.json");
@@ -329,7 +332,8 @@ fn gpu_av_reruns_each_finding_and_says_whether_it_masks_it() {
         // The injected wrong value is in the shader: GPU-AV cannot hide it, and the control passes.
         assert_eq!((v["verdict"].as_str(), v["outcome"].as_str()), (Some("still_faults"), Some("mismatch")), "{v}");
         assert_eq!(v["control"], serde_json::json!(["closest_hit.storage_buffer.literal.descriptor_indexing", "pass"]), "{v}");
-        assert!(stdout(&o).contains("GPU-AV: still faults (mismatch)"), "{}", stdout(&o));
+        assert!(stdout(&o).contains("GPU-AV: still faults (mismatch, 1 of 1 attempts under GPU-AV; its control closest_hit.storage_buffer.literal.descriptor_indexing is pass under GPU-AV"), "{}", stdout(&o));
+        assert_eq!((v["attempts"].as_u64(), v["passed"].as_u64()), (Some(1), Some(0)), "a fault ends the repeats: {v}");
     } else {
         assert_eq!(v["verdict"], "not_run", "{v}");
     }
@@ -365,6 +369,14 @@ fn faulting_cells_are_retried_with_each_applicable_workaround() {
     assert_eq!(base["outcome"], "crash", "an invalid-address load kills lavapipe's worker: {}", base["reason"]);
     assert!(base["workarounds"].as_array().unwrap().iter().all(|w| w["verified"] == true && w["outcome"] == "pass"), "{}", base["workarounds"]);
     assert!(stdout(&o).contains("verified workaround: nonuniform, pin-index, ssbo-to-address"), "{}", stdout(&o));
+    // Each pass carries the chance it would have missed a fault as frequent as the finding's.
+    let inc = |k: &str| base["incidence"][k].as_u64().unwrap() as u32;
+    for w in base["workarounds"].as_array().unwrap() {
+        let n = w["attempts"].as_u64().unwrap() as u32;
+        let m = rtprobe::bisect::confidence::pass_miss(inc("faulted"), inc("attempts"), n);
+        assert!(n > 0 && (w["miss_probability"].as_f64().unwrap() - m).abs() < 1e-9, "{w}");
+        assert!(stdout(&o).contains(&format!("{} → passes ({n}/{n}; a fault as frequent as this finding's would be missed with p ≤ {m:.2})", w["patch"].as_str().unwrap())), "{}", stdout(&o));
+    }
 }
 
 /// Building pipelines on several threads changes nothing but time: every cell's attempts have

@@ -76,6 +76,21 @@ pub fn miss(p: f64, n: u32) -> f64 {
     crate::report::run_report::miss_probability(p, n)
 }
 
+/// The chance that `passes` passing attempts would all have missed a fault as frequent as a
+/// finding that faulted `faulted` of `attempts` times: `(1 - bound)^passes`, `bound` the
+/// finding's Clopper–Pearson lower rate bound ([`rate_bound`]).
+pub fn pass_miss(faulted: u32, attempts: u32, passes: u32) -> f64 {
+    miss(rate_bound(faulted, attempts), passes)
+}
+
+/// `passes (2/2; a fault as frequent as this finding's would be missed with p ≤ 0.49)`.
+pub fn passes_text(passed: u32, attempts: u32, miss_probability: Option<f64>) -> String {
+    match miss_probability {
+        Some(m) => format!("passes ({passed}/{attempts}; a fault as frequent as this finding's would be missed with p ≤ {m:.2})"),
+        None => format!("passes ({passed}/{attempts})"),
+    }
+}
+
 /// Attempts a pass needs so that a fault of rate at least `p` would have shown with probability
 /// above `1 - max_miss` (`(1 - p)^n < max_miss`), capped at `cap`; `cap` when `p` is 0.
 pub fn attempts_needed(p: f64, max_miss: f64, cap: u32) -> u32 {
@@ -96,6 +111,17 @@ pub fn attempts_needed(p: f64, max_miss: f64, cap: u32) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_pass_against_a_flaky_finding_carries_its_miss_probability() {
+        // 3 of 10: bound ≈ 0.087, so 2 passes miss it with p ≈ 0.83 — the text says so.
+        let m = pass_miss(3, 10, 2);
+        assert!((m - (1.0 - rate_bound(3, 10)).powi(2)).abs() < 1e-12 && m > 0.5, "{m}");
+        assert!(passes_text(2, 2, Some(m)).starts_with("passes (2/2; a fault as frequent as this finding's would be missed with p ≤ 0.8"), "{}", passes_text(2, 2, Some(m)));
+        // More passes, smaller miss; a finding that always faulted needs fewer.
+        assert!(pass_miss(3, 10, 40) < 0.05 && pass_miss(10, 10, 2) < m);
+        assert_eq!(passes_text(2, 2, None), "passes (2/2)");
+    }
 
     fn close(a: f64, b: f64, tol: f64) -> bool {
         (a - b).abs() <= tol

@@ -20,6 +20,10 @@ pub struct BisectFile {
     pub full_matrix: usize,
     pub inject: Vec<String>,
     pub offline: bool,
+    /// The device UUID of the card the bisection re-ran cells on when the report's card was not
+    /// on the machine (another card of the same name and driver build); absent on the same card.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub device_uuid_rerun: Option<String>,
     #[serde(flatten)]
     pub bisection: Bisection,
     /// The text `bisect` printed.
@@ -39,6 +43,7 @@ impl BisectFile {
             full_matrix: report.plan.generated,
             inject: inject.iter().map(|i| i.spec.clone()).collect(),
             offline,
+            device_uuid_rerun: None,
             bisection,
             text,
         }

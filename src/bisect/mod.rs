@@ -198,8 +198,13 @@ pub struct Bisection {
     /// Attempts a pass held to that bound needs for a miss probability below `max_miss`.
     pub attempts_per_pass: u32,
     pub max_miss: f64,
-    /// The largest miss probability of a pass bisection relied on.
+    /// The largest miss probability of a pass bisection relied on (per pass, not for the result
+    /// as a whole).
     pub worst_miss_probability: f64,
+    /// The union (Bonferroni) bound on the chance that any pass relied on missed its fault: the
+    /// sum of the per-pass miss probabilities, capped at 1.
+    #[serde(default)]
+    pub union_miss_probability: f64,
     /// Passes bisection relied on (each the reason a wider conjunction was refused, a sibling in
     /// the isolation list, or a workaround).
     #[serde(default)]
@@ -479,7 +484,10 @@ impl<'o> Bisector<'o> {
         relied.extend(sib_cells.iter().chain(&patched).map(|c| (*c, rep)));
         relied.retain(|(c, _)| self.verdicts.state(c) == State::Pass);
         let miss_of = |(c, f): &(Cell, Cell)| confidence::miss(self.verdicts.rate_bound(f), self.verdicts.attempts(c));
+        relied.sort_by_key(|(c, f)| (c.id(), f.id()));
+        relied.dedup();
         let worst_miss = relied.iter().map(miss_of).fold(0.0, f64::max);
+        let union_miss = relied.iter().map(miss_of).sum::<f64>().min(1.0);
         let mut unsettled: Vec<String> = relied.iter().filter(|r| miss_of(r) >= self.settings.max_miss).map(|(c, _)| c.id()).collect();
         unsettled.sort();
         unsettled.dedup();
@@ -499,6 +507,7 @@ impl<'o> Bisector<'o> {
             attempts_per_pass: self.attempts_needed(&rep),
             max_miss: self.settings.max_miss,
             worst_miss_probability: worst_miss,
+            union_miss_probability: union_miss,
             passes_relied_on: relied_ids.len(),
             unsettled,
             faulting_cells: faulting.len(),
@@ -586,12 +595,13 @@ pub fn render(b: &Bisection, full_matrix: usize) -> String {
     s += "\n";
     match b.fault_rate_bound {
         Some(p) => s += &format!(
-            "evidence: the minimal failing cell's fault rate is p ≥ {p:.2} at {:.0}% (one-sided Clopper–Pearson); a pass held to it needs {} attempt(s) for a miss probability below {}; {} pass(es) relied on, worst miss probability {}\n",
+            "evidence: the minimal failing cell's fault rate is p ≥ {p:.2} at {:.0}% (one-sided Clopper–Pearson); a pass held to it needs {} attempt(s) for a miss probability below {}; {} pass(es) relied on, worst miss probability {} per pass, at most {} that any of them missed (union bound)\n",
             100.0 * b.confidence,
             b.attempts_per_pass,
             isolation::percent(b.max_miss),
             b.passes_relied_on,
-            isolation::percent(b.worst_miss_probability)
+            isolation::percent(b.worst_miss_probability),
+            isolation::percent(b.union_miss_probability)
         ),
         None => s += "evidence: the minimal failing cell has no attempt: passes are not settled\n",
     }

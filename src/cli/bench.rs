@@ -17,17 +17,17 @@ const FLAKY_FILTER: &str = "descriptor_model=descriptor_indexing,resource=storag
 const QUICK_FILTER: &str = "descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit,index=literal|dynamic";
 const QUICK_FLAKY_FILTER: &str = "descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit,index=literal";
 
-/// `N` or `NxN`: a square size, N a multiple of 8 in 8..=2048.
-fn parse_size(s: &str) -> Result<u32> {
+/// `N` or `NxN`: a square size, N a multiple of 8 in 8..=2048; errors name `flag`.
+fn parse_size(flag: &str, s: &str) -> Result<u32> {
     let t = s.trim();
     let n = match t.split_once(['x', 'X']) {
         Some((w, h)) if w.trim() == h.trim() => w.trim(),
-        Some(_) => return Err(coded(exit::USAGE, format!("--sizes: {s:?} is not square (bench sizes are N or NxN)"))),
+        Some(_) => return Err(coded(exit::USAGE, format!("{flag}: {s:?} is not square (bench sizes are N or NxN)"))),
         None => t,
     };
     match n.parse::<u32>() {
         Ok(n) if (8..=2048).contains(&n) && n % 8 == 0 => Ok(n),
-        _ => Err(coded(exit::USAGE, format!("--sizes: unknown size {s:?} (N or NxN with N a multiple of 8 in 8..=2048)"))),
+        _ => Err(coded(exit::USAGE, format!("{flag}: unknown size {s:?} (N or NxN with N a multiple of 8 in 8..=2048)"))),
     }
 }
 
@@ -37,7 +37,7 @@ fn check_filter(flag: &str, f: &str) -> Result<()> {
 
 fn options(g: &Globals, a: &BenchArgs) -> Result<BenchOptions> {
     let q = a.quick;
-    let sizes = if a.sizes.is_empty() { if q { vec![8, 16] } else { FULL_SIZES.to_vec() } } else { a.sizes.iter().map(|s| parse_size(s)).collect::<Result<_>>()? };
+    let sizes = if a.sizes.is_empty() { if q { vec![8, 16] } else { FULL_SIZES.to_vec() } } else { a.sizes.iter().map(|s| parse_size("--sizes", s)).collect::<Result<_>>()? };
     let fractions = if a.fractions.is_empty() { if q { vec![0.001, 1.0] } else { vec![0.001, 0.01, 0.1] } } else { a.fractions.clone() };
     if let Some(f) = fractions.iter().find(|f| !(**f > 0.0 && **f <= 1.0)) {
         return Err(coded(exit::USAGE, format!("--fractions: {f} is outside (0, 1]")));
@@ -86,7 +86,7 @@ fn options(g: &Globals, a: &BenchArgs) -> Result<BenchOptions> {
         seeds: if a.seeds.is_empty() { if q { vec![1] } else { vec![1, 2] } } else { a.seeds.clone() },
         flaky,
         flaky_filter,
-        flaky_size: a.flaky_size.as_deref().map(parse_size).transpose()?.unwrap_or(16),
+        flaky_size: a.flaky_size.as_deref().map(|s| parse_size("--flaky-size", s)).transpose()?.unwrap_or(16),
         max_rounds: a.max_rounds.unwrap_or(if q { 3 } else { 30 }),
         flaky_timeout: a.flaky_timeout,
         sweep,
@@ -145,10 +145,13 @@ mod tests {
 
     #[test]
     fn sizes_parse_square_multiples_of_eight_only() {
-        assert_eq!(parse_size("64").unwrap(), 64);
-        assert_eq!(parse_size("512x512").unwrap(), 512);
+        assert_eq!(parse_size("--sizes", "64").unwrap(), 64);
+        assert_eq!(parse_size("--sizes", "512x512").unwrap(), 512);
         for bad in ["63", "0", "4096", "64x32", "abc", "", "-8"] {
-            assert!(parse_size(bad).is_err(), "{bad}");
+            assert!(parse_size("--sizes", bad).is_err(), "{bad}");
         }
+        // The error names the flag the size came from.
+        let e = parse_size("--flaky-size", "12").unwrap_err().to_string();
+        assert!(e.starts_with("--flaky-size: unknown size \"12\""), "{e}");
     }
 }

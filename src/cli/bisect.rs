@@ -23,8 +23,10 @@ pub fn load_report(path: &Path) -> Result<RunReport> {
 
 /// The device the report was made on, on this machine: the same card (device UUID) if it is here,
 /// else a card of the same name and driver build (name, driver version, driver UUID) — another
-/// machine of a fleet, or the same model leased again, reproduces a driver's fault as well.
-pub(crate) fn report_device(g: &Globals, r: &RunReport) -> Result<(Arc<Instance>, DeviceInfo)> {
+/// machine of a fleet, or the same model leased again, reproduces a driver's fault as well. The
+/// third value is the device UUID of the card used when it is not the report's (a one-line
+/// warning says so on stderr; bisect records it as `device_uuid_rerun`).
+pub(crate) fn report_device(g: &Globals, r: &RunReport) -> Result<(Arc<Instance>, DeviceInfo, Option<String>)> {
     let inst = open_instance(g)?;
     let all = features::query_all(&inst)?;
     let same = |d: &DeviceInfo, keys: &[&str]| {
@@ -33,6 +35,7 @@ pub(crate) fn report_device(g: &Globals, r: &RunReport) -> Result<(Arc<Instance>
     };
     const DRIVER: [&str; 3] = ["name", "driver_version", "driver_uuid"];
     let card = all.iter().find(|d| same(d, &DRIVER) && same(d, &["device_uuid"]));
+    let other = card.is_none();
     let info = card.or_else(|| all.iter().find(|d| same(d, &DRIVER))).cloned().ok_or_else(|| {
         coded(
             exit::BAD_DEVICE_SELECTION,
@@ -43,7 +46,17 @@ pub(crate) fn report_device(g: &Globals, r: &RunReport) -> Result<(Arc<Instance>
             ),
         )
     })?;
-    Ok((inst, info))
+    let rerun = other.then(|| {
+        let j = crate::caps::device_json(&info);
+        let uuid = j["device_uuid"].as_str().unwrap_or("?").to_string();
+        eprintln!(
+            "rtprobe: warning: the report's card (UUID {}) is not here; re-running on {} UUID {uuid} of the same driver build",
+            r.device["device_uuid"].as_str().unwrap_or("?"),
+            j["name"].as_str().unwrap_or("?")
+        );
+        uuid
+    });
+    Ok((inst, info, rerun))
 }
 
 /// Runs cells through the supervisor with the report's scene and injections. A fresh
@@ -105,10 +118,12 @@ pub fn bisect(g: &Globals, a: &BisectArgs) -> Result<u8> {
     let settings = Settings { max_miss: a.max_miss, max_attempts: a.max_attempts, ..Settings::default() };
     let verdicts = Verdicts::from_report(&report);
     let patches = if ro.patches == PatchMode::All { PatchMode::All } else { PatchMode::None };
+    let mut device_uuid_rerun = None;
     let result = if a.offline {
         offline(&report, &filters, patches, settings, &ro.inject, a.cell.as_deref())
     } else {
-        let (_inst, info) = report_device(g, &report)?;
+        let (_inst, info, rerun) = report_device(g, &report)?;
+        device_uuid_rerun = rerun;
         let the_plan = plan::plan(&info, &PlanOptions { filters: filters.clone(), canaries: false, patches, inject: ro.inject.clone() });
         let scope: Vec<Cell> = the_plan.to_run().copied().collect();
         let jobs = a.jobs.or(ro.jobs).unwrap_or_else(|| super::run::default_jobs(&info));
@@ -125,7 +140,11 @@ pub fn bisect(g: &Globals, a: &BisectArgs) -> Result<u8> {
         r
     };
     let b = result.map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.report.display())))?;
-    let file = BisectFile::new(&a.report, &report, &filters, &ro.inject, a.offline, b);
+    let mut file = BisectFile::new(&a.report, &report, &filters, &ro.inject, a.offline, b);
+    if let Some(uuid) = device_uuid_rerun {
+        file.text.push_str(&format!("re-run on another card of the same driver build (UUID {uuid}), not the report's\n"));
+        file.device_uuid_rerun = Some(uuid);
+    }
     if let Some(path) = &a.json {
         write_atomic(path, &serde_json::to_vec_pretty(&file)?).context("writing the bisection")?;
     }

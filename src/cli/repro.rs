@@ -149,6 +149,36 @@ fn publish(tmp: &Path, out: &Path, force: bool) -> Result<()> {
     Ok(())
 }
 
+/// Refuse `out` before anything is written: it must name a folder (not `/`, `.` or `..`); a
+/// non-empty one is replaced only with `force`, and only when it is a repro bundle (has
+/// `cell.json`) that holds neither the `--from` report nor the current directory.
+fn check_out(out: &Path, from: &Path, force: bool) -> Result<()> {
+    let refuse = |what: String| Err(coded(exit::BAD_INPUT, what));
+    if out.file_name().is_none() {
+        return refuse(format!("-o {} does not name a folder; give a new folder such as -o repro", out.display()));
+    }
+    let Ok(mut entries) = std::fs::read_dir(out) else { return Ok(()) };
+    let canon = |p: &Path| std::fs::canonicalize(p).ok();
+    let dir = canon(out);
+    let inside = |p: Option<std::path::PathBuf>| matches!((&dir, p), (Some(d), Some(p)) if p.starts_with(d));
+    if inside(std::env::current_dir().ok().and_then(|c| canon(&c))) {
+        return refuse(format!("{} holds the current directory; give -o a new folder", out.display()));
+    }
+    if entries.next().is_none() {
+        return Ok(());
+    }
+    if !force {
+        return refuse(format!("{} exists and is not empty; --force replaces it if it is a repro bundle (its files are removed)", out.display()));
+    }
+    if !out.join("cell.json").is_file() {
+        return refuse(format!("{} is not a repro bundle (no cell.json); --force replaces only a bundle: give -o a new folder or remove it yourself", out.display()));
+    }
+    if inside(canon(from)) {
+        return refuse(format!("{} holds the --from report {}; give -o another folder", out.display(), from.display()));
+    }
+    Ok(())
+}
+
 pub fn repro(g: &Globals, a: &ReproArgs) -> Result<u8> {
     let report = load_report(&a.from)?;
     let ro = ReportOptions::of(&report).map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.from.display())))?;
@@ -156,9 +186,7 @@ pub fn repro(g: &Globals, a: &ReproArgs) -> Result<u8> {
     let entry = report.cells.iter().find(|c| c.id == a.cell);
     let inject: Vec<&Injection> = for_cell(&ro.inject, &cell).into_iter().collect();
     let shaders = cell_shaders(&cell, inject.first().map(|i| i.fault)).map_err(|e| coded(exit::INTERNAL, format!("{}: {e}", cell.id())))?;
-    if !a.force && std::fs::read_dir(&a.out).is_ok_and(|mut d| d.next().is_some()) {
-        return Err(coded(exit::BAD_INPUT, format!("{} exists and is not empty; --force replaces it (its files are removed)", a.out.display())));
-    }
+    check_out(&a.out, &a.from, a.force)?;
     let name = a.out.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "repro".into());
     let tmp = a.out.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
     if let Some(parent) = a.out.parent().filter(|p| !p.as_os_str().is_empty()) {
@@ -220,7 +248,7 @@ fn build(
     write(dir, "cell.json", &(serde_json::to_vec_pretty(&spec)? ))?;
     // The caps of the report's device, when it is on this machine.
     let caps_note = match report_device(g, report) {
-        Ok((inst, info)) => {
+        Ok((inst, info, _)) => {
             let caps = crate::caps::caps_json(&info, inst.loader_version, None);
             write(dir, "caps.json", &serde_json::to_vec_pretty(&caps)?)?;
             "caps.json: `rtprobe caps --json` of the device (without the device-creation check)".to_string()

@@ -293,20 +293,25 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     }
     if g.gpu_av {
         // Each finding again, alone, under GPU-AV, next to its control (report::gpu_av); kept
-        // apart from the cells' own attempts.
+        // apart from the cells' own attempts. A finding that passes runs again until it has the
+        // passes its own incidence needs (gpu_av::more); at most CAP rounds.
         let layer = inst.validation_layer_version();
-        let (again, skipped) = crate::report::gpu_av::schedule(&st.writer.report, layer);
+        let (mut again, skipped) = crate::report::gpu_av::schedule(&st.writer.report, layer);
         let mut got = Vec::new();
-        if !again.is_empty() {
+        let av_opts = SupervisorOptions { validate: true, gpu_av: true, job_dir: job_dir.join("gpu-av"), ..gpu_av_opts };
+        for _ in 0..crate::report::gpu_av::CAP {
+            if again.is_empty() {
+                break;
+            }
             st.bar.inc_length(again.len() as u64);
-            let mut av = Supervisor::new(SupervisorOptions { validate: true, gpu_av: true, job_dir: job_dir.join("gpu-av"), ..gpu_av_opts });
             let bar = &st.bar;
-            av.run(&again, true, &mut |ev| {
+            Supervisor::new(av_opts.clone()).run(&again, true, &mut |ev| {
                 if let crate::runner::supervisor::Event::Attempt { cell, attempt } = ev {
                     bar.inc(1);
                     got.push((*cell, attempt));
                 }
             });
+            again = crate::report::gpu_av::more(&st.writer.report, &got);
         }
         crate::report::gpu_av::annotate(&mut st.writer.report, &got, &skipped);
     }

@@ -1,12 +1,18 @@
 //! Does GPU-Assisted Validation mask a finding? (`run --validate=gpu-av`; issue 9 saw GPU-AV hide
 //! the heap fault.) After the run, each finding is re-run alone under the validation layer with
 //! GPU-AV on, next to a control: the same cell with a literal index, which passed without GPU-AV.
-//! The verdict per finding: `masked` (it passes under GPU-AV), `still_faults`, `gpu_av_failed`
+//! A finding that passes under GPU-AV is run again until it has [`passes_needed`] passes (enough
+//! that a fault as frequent as the finding's own Clopper–Pearson bound would show with
+//! probability above 1 - [`MAX_MISS`], at most [`CAP`]); the first fault ends its repeats.
+//! The verdict per finding: `masked` (every attempt under GPU-AV passed; the line gives k/N and
+//! the miss probability), `still_faults` (the line says whether its control passed under GPU-AV
+//! or no control ran, in which case GPU-AV breaking the pipeline is not ruled out), `gpu_av_failed`
 //! (the control, which passes without GPU-AV, faults with it: GPU-AV itself breaks the pipeline,
 //! as on lavapipe 26's closest-hit heap pipelines), or `not_run` with the reason (no validation
 //! layer; a layer built before VK_EXT_descriptor_heap for a heap cell; the cell's own
 //! `unsupported` / `not_implemented`). These attempts are kept apart from the cell's own: GPU-AV
 //! changes the pipeline, so they never decide the cell's verdict.
+use crate::bisect::confidence;
 use crate::matrix::{Cell, DescriptorModel, IndexSource};
 use crate::outcome::Outcome;
 use crate::report::run_report::RunReport;
@@ -35,19 +41,57 @@ pub struct GpuAvResult {
     /// The control cell and its outcome under GPU-AV, when one ran.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub control: Option<(String, Outcome)>,
+    /// Attempts under GPU-AV and how many of them passed.
+    #[serde(default)]
+    pub attempts: u32,
+    #[serde(default)]
+    pub passed: u32,
+    /// For `masked`: the chance that these passes would all have missed a fault as frequent as
+    /// the finding's ([`confidence::pass_miss`]).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub miss_probability: Option<f64>,
+}
+
+/// The miss probability a finding's GPU-AV passes aim below, and the most attempts it gets.
+pub const MAX_MISS: f64 = 0.01;
+pub const CAP: u32 = 20;
+
+/// Passes under GPU-AV that `finding` needs before `masked` (its own k of n, see the module doc).
+pub fn passes_needed(finding: &crate::report::run_report::CellReport) -> u32 {
+    let (k, n) = finding.incidence.as_ref().map(|i| (i.faulted, i.attempts)).unwrap_or((0, 0));
+    confidence::attempts_needed(confidence::rate_bound(k, n), MAX_MISS, CAP)
+}
+
+/// The findings to run under GPU-AV again: every attempt so far (`got`) passed, fewer than
+/// [`passes_needed`].
+pub fn more(report: &RunReport, got: &[(Cell, Attempt)]) -> Vec<Cell> {
+    report
+        .findings()
+        .filter(|f| {
+            let mine: Vec<&Attempt> = got.iter().filter(|(c, _)| *c == f.cell).map(|(_, a)| a).collect();
+            !mine.is_empty() && mine.iter().all(|a| a.outcome == Outcome::Pass) && (mine.len() as u32) < passes_needed(f)
+        })
+        .map(|f| f.cell)
+        .collect()
 }
 
 impl GpuAvResult {
     fn not_run(outcome: Outcome, reason: String) -> Self {
-        GpuAvResult { verdict: GpuAvVerdict::NotRun, outcome, detail: Some(reason), validation_errors: 0, control: None }
+        GpuAvResult { verdict: GpuAvVerdict::NotRun, outcome, detail: Some(reason), validation_errors: 0, control: None, attempts: 0, passed: 0, miss_probability: None }
     }
 
     /// `GPU-AV: masked (passes under GPU-AV; 0 validation errors)`
     pub fn line(&self) -> String {
         let errors = if self.validation_errors > 0 { format!("; GPU-AV reported {} validation errors", self.validation_errors) } else { String::new() };
         match self.verdict {
-            GpuAvVerdict::Masked => format!("GPU-AV: masked (passes under GPU-AV{errors})"),
-            GpuAvVerdict::StillFaults => format!("GPU-AV: still faults ({}{errors})", self.outcome.as_str()),
+            GpuAvVerdict::Masked => format!("GPU-AV: masked ({} under GPU-AV{errors})", confidence::passes_text(self.passed, self.attempts, self.miss_probability)),
+            GpuAvVerdict::StillFaults => {
+                let control = match &self.control {
+                    Some((c, o)) => format!("its control {c} is {} under GPU-AV", o.as_str()),
+                    None => "no control ran, so GPU-AV itself breaking the pipeline is not ruled out".into(),
+                };
+                format!("GPU-AV: still faults ({}, {} of {} attempts under GPU-AV; {control}{errors})", self.outcome.as_str(), self.attempts - self.passed, self.attempts)
+            }
             GpuAvVerdict::GpuAvFailed => {
                 let control = match &self.control {
                     Some((c, o)) => format!("its control {c} passes without GPU-AV and is {} with it", o.as_str()),
@@ -103,9 +147,14 @@ pub fn annotate(report: &mut RunReport, got: &[(Cell, Attempt)], skipped: &[(Cel
             results.push((f.cell, r.clone()));
             continue;
         }
-        let Some(a) = under(&f.cell) else { continue };
+        let mine: Vec<&Attempt> = got.iter().filter(|(x, _)| *x == f.cell).map(|(_, a)| a).collect();
+        // The verdict follows the first fault under GPU-AV, else the last attempt.
+        let Some(a) = mine.iter().find(|a| a.outcome.is_finding()).or(mine.last()).copied() else { continue };
         let ctl = control(report, &f.cell).and_then(|c| under(&c).map(|ca| (c.id(), ca.outcome)));
-        let validation_errors = a.result.as_ref().map(|r| r.validation_errors).unwrap_or(0);
+        let validation_errors = mine.iter().filter_map(|a| a.result.as_ref()).map(|r| r.validation_errors).sum();
+        let attempts = mine.len() as u32;
+        let passed = mine.iter().filter(|a| a.outcome == Outcome::Pass).count() as u32;
+        let miss_probability = (passed == attempts).then(|| f.incidence.as_ref().map(|i| confidence::pass_miss(i.faulted, i.attempts, passed))).flatten();
         let verdict = match a.outcome {
             Outcome::Pass => GpuAvVerdict::Masked,
             Outcome::Unsupported | Outcome::NotImplemented => GpuAvVerdict::NotRun,
@@ -117,7 +166,7 @@ pub fn annotate(report: &mut RunReport, got: &[(Cell, Attempt)], skipped: &[(Cel
                 }
             }
         };
-        results.push((f.cell, GpuAvResult { verdict, outcome: a.outcome, detail: a.detail.clone(), validation_errors, control: ctl }));
+        results.push((f.cell, GpuAvResult { verdict, outcome: a.outcome, detail: a.detail.clone(), validation_errors, control: ctl, attempts, passed, miss_probability }));
     }
     for c in report.cells.iter_mut() {
         c.gpu_av = results.iter().find(|(x, _)| *x == c.cell).map(|(_, r)| r.clone());
@@ -164,8 +213,24 @@ mod tests {
         // Masked: passes under GPU-AV. Still faults: faults with a control that passes.
         let (h, d) = verdict(vec![(heap, Outcome::Pass), (heap_ctl, Outcome::Pass), (di, Outcome::Crash), (di_ctl, Outcome::Pass)]);
         assert_eq!((h.verdict, d.verdict), (GpuAvVerdict::Masked, GpuAvVerdict::StillFaults));
-        assert_eq!(h.line(), "GPU-AV: masked (passes under GPU-AV)");
-        assert_eq!(d.line(), "GPU-AV: still faults (crash)");
+        let m = confidence::pass_miss(1, 1, 1);
+        assert_eq!(h.line(), format!("GPU-AV: masked (passes (1/1; a fault as frequent as this finding's would be missed with p ≤ {m:.2}) under GPU-AV)"));
+        assert_eq!((h.attempts, h.passed, h.miss_probability), (1, 1, Some(m)));
+        assert_eq!(d.line(), "GPU-AV: still faults (crash, 1 of 1 attempts under GPU-AV; its control closest_hit.storage_buffer.literal.descriptor_indexing is pass under GPU-AV)");
+        // One pass against a finding seen once is far from enough: it runs again, up to CAP; a
+        // finding that faulted under GPU-AV does not.
+        let one: Vec<(Cell, Attempt)> = vec![(heap, Attempt::for_tests(Outcome::Pass, true)), (di, Attempt::for_tests(Outcome::Crash, true))];
+        assert_eq!(passes_needed(&report.cells[0]), CAP);
+        assert_eq!(more(&report, &one), vec![heap]);
+        let enough: Vec<(Cell, Attempt)> = (0..CAP).map(|_| (heap, Attempt::for_tests(Outcome::Pass, true))).collect();
+        assert!(more(&report, &enough).is_empty());
+        // A pass after passes, then a fault: the fault decides (never masked on the passes).
+        let (h, _) = verdict(vec![(heap, Outcome::Pass), (heap, Outcome::Pass), (heap, Outcome::DeviceLost), (heap_ctl, Outcome::Pass), (di, Outcome::Crash)]);
+        assert_eq!((h.verdict, h.attempts, h.passed, h.miss_probability), (GpuAvVerdict::StillFaults, 3, 2, None));
+        // No control ran: the fault is not pinned on the driver.
+        let (_, d) = verdict(vec![(heap, Outcome::Pass), (di, Outcome::Crash)]);
+        assert_eq!(d.verdict, GpuAvVerdict::StillFaults);
+        assert!(d.line().contains("no control ran, so GPU-AV itself breaking the pipeline is not ruled out"), "{}", d.line());
         // GPU-AV itself failed: the control crashes under GPU-AV too (lavapipe 26's closest-hit heap pipelines).
         let (h, _) = verdict(vec![(heap, Outcome::Crash), (heap_ctl, Outcome::Crash), (di, Outcome::Crash), (di_ctl, Outcome::Pass)]);
         assert_eq!(h.verdict, GpuAvVerdict::GpuAvFailed);

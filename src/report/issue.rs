@@ -135,7 +135,10 @@ pub fn build(report: &RunReport, report_path: &str, b: &BisectFile, inject: &[In
     let d = &report.device;
     let (os, kernel) = os_and_kernel();
     let environment = Environment {
-        gpu: s(&d["name"]),
+        gpu: match &b.device_uuid_rerun {
+            Some(uuid) => format!("{} (the bisection re-ran cells on another card of the same driver build, UUID {uuid}, not the report's UUID {})", s(&d["name"]), s(&d["device_uuid"])),
+            None => s(&d["name"]),
+        },
         vendor: format!("{} ({:#06x})", s(&d["vendor"]), d["vendor_id"].as_u64().unwrap_or(0)),
         device_id: format!("{:#06x}", d["device_id"].as_u64().unwrap_or(0)),
         driver: format!("{} ({})", s(&d["driver_name"]), s(&d["driver_info"])),
@@ -175,10 +178,11 @@ pub fn build(report: &RunReport, report_path: &str, b: &BisectFile, inject: &[In
         bi.scope_cells,
         match bi.fault_rate_bound {
             Some(p) => format!(
-                "; its fault rate is p ≥ {p:.2} at {:.0}% (one-sided Clopper–Pearson), and each of the {} passes relied on would have missed a fault of that rate with probability at most {}",
+                "; its fault rate is p ≥ {p:.2} at {:.0}% (one-sided Clopper–Pearson), and each of the {} passes relied on would have missed a fault of that rate with probability at most {} (at most {} that any of them did, by the union bound)",
                 100.0 * bi.confidence,
                 bi.passes_relied_on,
-                percent(bi.worst_miss_probability)
+                percent(bi.worst_miss_probability),
+                percent(bi.union_miss_probability)
             ),
             None => String::new(),
         }

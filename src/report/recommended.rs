@@ -29,7 +29,14 @@ pub struct PatternResult {
 #[serde(tag = "status", rename_all = "snake_case")]
 pub enum PatternStatus {
     /// Every attempt of the pattern's cell passed.
-    Passes { passed: u32, attempts: u32 },
+    /// `miss_probability`: the chance these passes would all have missed a fault as frequent as
+    /// the finding's ([`confidence::pass_miss`](crate::bisect::confidence::pass_miss)).
+    Passes {
+        passed: u32,
+        attempts: u32,
+        #[serde(skip_serializing_if = "Option::is_none", default)]
+        miss_probability: Option<f64>,
+    },
     /// The pattern's cell has a finding too (its verdict and how often).
     Fails { outcome: Outcome, faulted: u32, attempts: u32 },
     /// The pattern's cell did not run (unsupported, not implemented, not planned), with why.
@@ -42,7 +49,7 @@ impl PatternResult {
     /// `recommended pattern geometry (one storage buffer …; cell): passes (3/3)`
     pub fn line(&self) -> String {
         let status = match &self.status {
-            PatternStatus::Passes { passed, attempts } => format!("passes ({passed}/{attempts})"),
+            PatternStatus::Passes { passed, attempts, miss_probability } => crate::bisect::confidence::passes_text(*passed, *attempts, *miss_probability),
             PatternStatus::Fails { outcome, faulted, attempts } => format!("fails: {} ({faulted} of {attempts} attempts)", outcome.as_str()),
             PatternStatus::NotRun { reason } => format!("not run ({reason})"),
             PatternStatus::NotApplicable { reason } => return format!("recommended pattern: none ({reason})"),
@@ -65,16 +72,16 @@ pub fn result(report: &RunReport, finding: &Cell) -> PatternResult {
         None => PatternStatus::NotRun {
             reason: format!("not in this run: `rtprobe run --filter '{}'`, or `--patches faults` schedules it", crate::report::issue::exact_filter(&cell)),
         },
-        Some(c) => status_of(c),
+        Some(c) => status_of(c, report.cells.iter().find(|x| x.cell == *finding).and_then(|f| f.incidence.as_ref())),
     };
     PatternResult { pattern: Some(pattern), cell: Some(id), status }
 }
 
-fn status_of(c: &CellReport) -> PatternStatus {
+fn status_of(c: &CellReport, finding: Option<&crate::report::run_report::Incidence>) -> PatternStatus {
     let ran: Vec<_> = c.attempts.iter().filter(|a| !a.not_run()).collect();
     let attempts = ran.len() as u32;
     match c.outcome {
-        Outcome::Pass => PatternStatus::Passes { passed: attempts, attempts },
+        Outcome::Pass => PatternStatus::Passes { passed: attempts, attempts, miss_probability: finding.map(|i| crate::bisect::confidence::pass_miss(i.faulted, i.attempts, attempts)) },
         Outcome::Unsupported | Outcome::NotImplemented => {
             PatternStatus::NotRun { reason: format!("{}: {}", c.outcome.as_str(), c.reason.as_deref().unwrap_or("no reason recorded")) }
         }
@@ -183,8 +190,11 @@ mod tests {
         let line = |c: &Cell| r.cells.iter().find(|x| x.cell == *c).unwrap().recommended.as_ref().map(|p| p.line());
         assert_eq!(
             line(&ssbo).unwrap(),
-            "recommended pattern geometry (one storage buffer at a spec-constant slot, dynamic element offset; closest_hit.storage_buffer.dynamic_element.descriptor_heap.direct): passes (1/1)"
+            "recommended pattern geometry (one storage buffer at a spec-constant slot, dynamic element offset; closest_hit.storage_buffer.dynamic_element.descriptor_heap.direct): passes (1/1; a fault as frequent as this finding's would be missed with p ≤ 0.63)"
         );
+        // 1 pass against 3 of 3: (1 - 0.05^(1/3))^1 ≈ 0.63, in the JSON too.
+        let geo = r.cells.iter().find(|x| x.cell == ssbo).unwrap().recommended.clone().unwrap();
+        assert!(matches!(geo.status, PatternStatus::Passes { miss_probability: Some(m), .. } if (m - crate::bisect::confidence::pass_miss(3, 3, 1)).abs() < 1e-12));
         assert!(line(&tex).unwrap().contains("materials") && line(&tex).unwrap().contains("not run (not in this run"), "{:?}", line(&tex));
         assert!(line(&ubo).unwrap().starts_with("recommended pattern: none (rtprobe has no recommended"), "{:?}", line(&ubo));
         assert_eq!(line(&geometry), None, "a passing cell carries no pattern result");

@@ -196,6 +196,23 @@ pub struct WorkaroundResult {
     pub outcome: Outcome,
     /// The patched cell passed where the plain one did not: a verified workaround.
     pub verified: bool,
+    /// Attempts of the patched cell that ran, and (when it passed against a finding) the chance
+    /// they would all have missed a fault as frequent as the finding's
+    /// (`bisect::confidence::pass_miss`).
+    #[serde(default)]
+    pub attempts: u32,
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub miss_probability: Option<f64>,
+}
+
+impl WorkaroundResult {
+    /// `interleave → passes (2/2; … p ≤ 0.49)` / `interleave → crash`.
+    pub fn tried(&self) -> String {
+        match self.outcome {
+            Outcome::Pass => format!("{} → {}", self.patch.as_str(), crate::bisect::confidence::passes_text(self.attempts, self.attempts, self.miss_probability)),
+            o => format!("{} → {}", self.patch.as_str(), o.as_str()),
+        }
+    }
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -384,16 +401,20 @@ impl RunReport {
 
     /// Attach to each finding the outcome of its workaround variants present in the report.
     pub fn annotate_workarounds(&mut self) {
-        let variants: Vec<(Cell, String, Outcome)> = self.cells.iter().filter(|c| c.cell.patch.is_some()).map(|c| (c.cell, c.id.clone(), c.outcome)).collect();
+        let variants: Vec<(Cell, String, Outcome, u32)> =
+            self.cells.iter().filter(|c| c.cell.patch.is_some()).map(|c| (c.cell, c.id.clone(), c.outcome, c.attempts.iter().filter(|a| !a.not_run()).count() as u32)).collect();
         for c in self.cells.iter_mut().filter(|c| c.cell.patch.is_none() && c.cell.canary.is_none()) {
+            let incidence = c.incidence.clone();
             c.workarounds = variants
                 .iter()
-                .filter(|(v, _, _)| v.base() == c.cell)
-                .map(|(v, id, o)| WorkaroundResult {
+                .filter(|(v, _, _, _)| v.base() == c.cell)
+                .map(|(v, id, o, n)| WorkaroundResult {
                     patch: v.patch.expect("filtered"),
                     cell: id.clone(),
                     outcome: *o,
                     verified: c.outcome.is_finding() && *o == Outcome::Pass,
+                    attempts: *n,
+                    miss_probability: incidence.as_ref().filter(|_| *o == Outcome::Pass).map(|i| crate::bisect::confidence::pass_miss(i.faulted, i.attempts, *n)),
                 })
                 .collect();
         }

@@ -103,7 +103,7 @@ pub fn render(r: &RunReport) -> String {
             }
             if !c.workarounds.is_empty() {
                 let verified: Vec<&str> = c.workarounds.iter().filter(|w| w.verified).map(|w| w.patch.as_str()).collect();
-                let tried: Vec<String> = c.workarounds.iter().map(|w| format!("{} → {}", w.patch.as_str(), w.outcome.as_str())).collect();
+                let tried: Vec<String> = c.workarounds.iter().map(|w| w.tried()).collect();
                 if verified.is_empty() {
                     let _ = writeln!(s, "      no verified workaround ({})", tried.join(", "));
                 } else {
