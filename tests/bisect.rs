@@ -211,6 +211,9 @@ fn a_repro_bundle_reruns_its_cell_with_the_same_verdict() {
         assert_eq!(cells.len(), 1, "exactly that cell: {cells:?}");
         assert_eq!(cells[0]["id"], id);
         assert_eq!(cells[0]["outcome"], want, "{id}: {}", stderr(&o));
+        // The cell's own compile: the persisted pipeline cache is never loaded by a repro.
+        assert!(again["options"]["pipeline_cache"].is_null(), "{}", again["options"]);
+        assert!(again["pipeline_cache"].is_null(), "{}", again["pipeline_cache"]);
     }
     assert_one_line_error(&run(&["repro", "raygen.nope", "--from", report.to_str().unwrap(), "-o", "/tmp/x"]), 9, "not a cell id");
     assert_one_line_error(&run(&["run", "--cell-spec", report.to_str().unwrap()]), 9, "not an rtprobe cell spec");

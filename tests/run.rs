@@ -345,6 +345,54 @@ fn gpu_av_reruns_each_finding_and_says_whether_it_masks_it() {
     assert!(stderr(&o).contains("not a validation mode"), "{}", stderr(&o));
 }
 
+/// Under `--validate` a cell's validation errors are counted around its own work, so no pipeline
+/// is built ahead on another thread: `--threads 4` runs with 1, and the report says so. Twin:
+/// the same run without validation prebuilds on 4.
+#[test]
+fn validate_runs_with_one_thread() {
+    let dir = tempfile::tempdir().unwrap();
+    let filter = "stage=raygen|closest_hit,resource=storage_buffer,index=literal,descriptor_model=descriptor_indexing,reorder=none";
+    let go = |extra: &[&str], name: &str| {
+        let out = dir.path().join(name);
+        let mut args = vec!["run", "-j", "1", "--threads", "4", "--patches", "none", "--filter", filter, "-o", out.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        let o = run(&args);
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        (report(&out), stderr(&o))
+    };
+    let (r, err) = go(&["--validate"], "v.json");
+    assert_eq!(r["options"]["threads"], 1, "{}", r["options"]);
+    assert_eq!(r["timing"]["prebuilt_pipelines"], 0, "{}", r["timing"]);
+    assert!(err.contains("--validate runs with --threads 1"), "{err}");
+    let (r, _) = go(&["--validate=off"], "plain.json");
+    assert_eq!(r["options"]["threads"], 4, "{}", r["options"]);
+    assert!(r["timing"]["prebuilt_pipelines"].as_u64().unwrap() > 0, "{}", r["timing"]);
+}
+
+/// Re-runs start from a cold pipeline cache: the first pass loads the persisted file, the
+/// `--confirm` re-run of its finding does not, so a cached binary cannot stand in for the cell's
+/// own compile.
+#[test]
+fn confirmations_run_without_the_persisted_pipeline_cache() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache");
+    let out = dir.path().join("r.json");
+    let one = "stage=raygen,resource=storage_buffer,index=literal,descriptor_model=descriptor_indexing";
+    let go = || {
+        let o = run(&["run", "-j", "1", "--patches", "none", "--inject-fault", &format!("{one}@value"), "--filter", one, "--pipeline-cache", cache.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        report(&out)
+    };
+    go(); // writes the cache file
+    let r = go();
+    let c = &cells(&r)[0];
+    assert_eq!(c["attempts"].as_array().unwrap().len(), 2, "the finding was confirmed: {c}");
+    assert_eq!(r["timing"]["workers_started"], 2, "{}", r["timing"]);
+    assert_eq!(r["pipeline_cache"]["workers_loaded"], 1, "only the first pass loads the cache: {}", r["pipeline_cache"]);
+    assert_eq!(r["options"]["pipeline_cache"], cache.to_str().unwrap());
+    assert!(r["options"]["rerun_pipeline_cache"].is_null(), "{}", r["options"]);
+}
+
 #[test]
 fn faulting_cells_are_retried_with_each_applicable_workaround() {
     let dir = tempfile::tempdir().unwrap();
@@ -390,7 +438,8 @@ fn threads_change_no_verdict() {
     for t in ["1", "2"] {
         let out = dir.path().join(format!("t{t}.json"));
         let o = run(&[
-            "run", "-j", "1", "--threads", t, "--patches", "all",
+            // Validation off: under --validate a worker never prebuilds (one thread).
+            "--validate=off", "run", "-j", "1", "--threads", t, "--patches", "all",
             "--filter", "stage=closest_hit,resource=storage_buffer,index=dynamic,descriptor_model=descriptor_indexing",
             "--inject-fault", "stage=closest_hit,resource=storage_buffer,index=dynamic,nonuniform=false",
             "-o", out.to_str().unwrap(),

@@ -318,7 +318,8 @@ fn a_killed_supervisor_leaves_no_worker_running() {
 #[test]
 fn a_fault_while_prebuilding_is_the_workers_and_the_batch_runs_cell_by_cell() {
     for (fault, outcome) in [("prebuild:crash", "crash"), ("prebuild:hang", "timeout"), ("prebuild:lose", "device_lost")] {
-        let (o, r, took) = fault_run(fault, TWO, &["--threads", "2", "--timeout", "3"], Duration::from_secs(120));
+        // Validation off: under --validate a worker never prebuilds (one thread).
+        let (o, r, took) = fault_run_with(&["--validate=off"], fault, TWO, &["--threads", "2", "--timeout", "3"], Duration::from_secs(120));
         assert_eq!(o.status.code(), Some(1), "{fault}: {}", stderr(&o));
         assert!(took < Duration::from_secs(60), "{fault} took {took:?}");
         let ws = workers(&r);
@@ -351,7 +352,7 @@ fn one_thread_never_prebuilds() {
 /// worker prebuilds (the prebuilt cell enters its `pipeline` phase at its turn).
 #[test]
 fn a_crash_in_pipeline_with_threads_is_one_cells_verdict() {
-    let (o, r, _) = fault_run("pipeline:crash", TWO, &["--threads", "2"], Duration::from_secs(180));
+    let (o, r, _) = fault_run_with(&["--validate=off"], "pipeline:crash", TWO, &["--threads", "2"], Duration::from_secs(180));
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(r["timing"]["prebuilt_pipelines"].as_u64().unwrap() >= 1, "{}", r["timing"]);
     for c in cells(&r) {

@@ -130,13 +130,16 @@ pub struct RunArgs {
     /// creation is most of a cell's time there); 1 on CPU devices such as lavapipe, whose
     /// workers already use the cores (and which compile at the first trace). 1 builds each cell
     /// at its turn. If a worker dies or hangs while building a batch, the batch runs again with
-    /// each cell building at its turn, so a fault is still exactly one cell's verdict
+    /// each cell building at its turn, so a fault is still exactly one cell's verdict. With
+    /// --validate (any mode) always 1, so that each validation error is counted for its own cell
     #[arg(long, value_name = "N")]
     pub threads: Option<usize>,
 
     /// Where the VkPipelineCache is kept between runs, one file per device and driver version
     /// (default: $RTPROBE_CACHE_DIR, else $XDG_CACHE_HOME/rtprobe, else ~/.cache/rtprobe), or
-    /// `off`. A file of another device or driver, or a corrupt one, is ignored with a warning
+    /// `off`. A file of another device or driver, or a corrupt one, is ignored with a warning.
+    /// Re-runs (--confirm, --repeat, workaround checks, --validate=gpu-av, bisect, --cell-spec)
+    /// never load it: they start cold, so that a cached binary cannot stand in for a compile
     #[arg(long, value_name = "DIR|off")]
     pub pipeline_cache: Option<String>,
 

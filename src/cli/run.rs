@@ -71,6 +71,8 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         use_binding_stages(spec.binding_stages.as_deref());
         let mut args = spec.run_args(a)?;
         args.spirv_dir = spec.spirv_dir(p)?;
+        // The cell's own compile, not a binary a cache kept from another run (README, Performance).
+        args.pipeline_cache = Some("off".into());
         if let Some(dir) = &args.spirv_dir {
             let made_by: std::collections::BTreeSet<&str> = spec.modules.iter().map(|m| m.compiler.as_str()).collect();
             eprintln!("running the bundle's SPIR-V ({}, made by {}), not recompiling", dir.display(), made_by.into_iter().collect::<Vec<_>>().join(", "));
@@ -105,7 +107,13 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     let info = features::select(&all, a.device.as_deref())?.clone();
     drop(all);
     let jobs = a.jobs.unwrap_or_else(|| default_jobs(&info));
-    let threads = a.threads.unwrap_or_else(|| default_threads(&info));
+    // Under validation a cell's `validation_errors` is the global counter's difference around its
+    // own work, so its pipelines must be created at its turn: VUIDs raised on prebuild threads
+    // would fall outside every cell's window. `--validate` (any mode) runs with one thread.
+    let threads = if g.validate { 1 } else { a.threads.unwrap_or_else(|| default_threads(&info)) };
+    if g.validate && a.threads.is_some_and(|t| t > 1) {
+        eprintln!("rtprobe: note: --validate runs with --threads 1, so that each validation error is counted for the cell that raised it");
+    }
     let cache_dir = pipeline_cache_dir(a.pipeline_cache.as_deref());
     let mut the_plan = plan::plan(&info, &PlanOptions { filters: filters.clone(), canaries: a.canaries, patches: a.patches, inject: inject.clone() });
     let sharded_out = shard.map(|s| s.apply(&mut the_plan)).unwrap_or(0);
@@ -166,7 +174,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             ambiguous_pixels: sref.ambiguous_pixels(),
         },
         options: json!({
-            "jobs": jobs, "threads": threads, "pipeline_cache": cache_dir, "isolation": a.isolation, "timeout_s": a.timeout, "setup_timeout_s": a.setup_timeout, "confirm": !a.no_confirm,
+            "jobs": jobs, "threads": threads, "pipeline_cache": cache_dir, "rerun_pipeline_cache": None::<PathBuf>, "isolation": a.isolation, "timeout_s": a.timeout, "setup_timeout_s": a.setup_timeout, "confirm": !a.no_confirm,
             "canaries": a.canaries, "filters": a.filter, "patches": a.patches, "validate": g.validate, "gpu_av": g.gpu_av,
             "inject": inject.iter().map(|i| i.spec.clone()).collect::<Vec<_>>(), "repeat": a.repeat,
             "shard": shard.map(|s| s.label()), "binding_stages": std::env::var("RTPROBE_BINDING_STAGES").ok(),
@@ -298,7 +306,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         let layer = inst.validation_layer_version();
         let (mut again, skipped) = crate::report::gpu_av::schedule(&st.writer.report, layer);
         let mut got = Vec::new();
-        let av_opts = SupervisorOptions { validate: true, gpu_av: true, job_dir: job_dir.join("gpu-av"), ..gpu_av_opts };
+        let av_opts = SupervisorOptions { validate: true, gpu_av: true, threads: 1, pipeline_cache: None, job_dir: job_dir.join("gpu-av"), ..gpu_av_opts };
         for _ in 0..crate::report::gpu_av::CAP {
             if again.is_empty() {
                 break;
@@ -347,8 +355,9 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     Ok(exit_code(&writer.report, a.allow_improvements))
 }
 
-/// The supervisor options of a run (also used by `bisect` and the `--cell-spec` re-run): no
-/// dump, the job files under the temp dir.
+/// The supervisor options of a run (also used by `bisect`): no dump, the job files under the temp
+/// dir, one thread, and no persisted pipeline cache: a re-run of a report's cells starts cold, so
+/// that a cached binary cannot stand in for the cell's own compile (`run` sets its own folder).
 pub(crate) fn supervisor_options(device_index: usize, scene: SceneParams, jobs: usize, isolation: Isolation, timeout_s: f64, validate: bool, inject: Vec<Injection>) -> SupervisorOptions {
     SupervisorOptions {
         device_index,
@@ -366,7 +375,7 @@ pub(crate) fn supervisor_options(device_index: usize, scene: SceneParams, jobs: 
         spirv_dir: None,
         job_dir: std::env::temp_dir().join(format!("rtprobe-{}", std::process::id())),
         threads: 1,
-        pipeline_cache: crate::exec::pipeline_cache::default_dir(),
+        pipeline_cache: None,
     }
 }
 

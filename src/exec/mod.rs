@@ -8,7 +8,7 @@ pub mod bindings;
 pub mod heap;
 pub mod pipeline;
 pub mod pipeline_cache;
-mod prebuild;
+pub mod prebuild;
 pub mod resources;
 
 use crate::matrix::{Canary, Cell, Resource};

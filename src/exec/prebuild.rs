@@ -5,7 +5,11 @@
 //! may be called from several threads at once (Vulkan spec, "Threading Behavior": only the
 //! pipeline cache, when created with `EXTERNALLY_SYNCHRONIZED`, needs external synchronization;
 //! ours is not). Every error is kept for its cell, with its phase, and becomes the cell's result
-//! at its turn, exactly as if the cell had been built then. Traces still run one cell at a time.
+//! at its turn, exactly as if the cell had been built then, except one whose outcome ends the
+//! worker (a lost device, a fence past its deadline): that aborts the prebuild, since the device
+//! is unusable and no cell of the batch can be blamed. Each unit of work (the threaded GLSL, each
+//! cell's compile and bindings, each pipeline) is reported as a [`Step`], so the supervisor's
+//! deadline measures silence, not the batch's size. Traces still run one cell at a time.
 use super::{Bound, CellError, Compiled, Executor, Pipeline, PipelineInput, Prebuilt};
 use crate::matrix::Cell;
 use crate::outcome::Timings;
@@ -16,6 +20,39 @@ use std::collections::{HashMap, HashSet};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 use std::time::Instant;
+
+/// A unit of prebuild progress, reported as it happens (the worker sends it as the step of phase
+/// `prebuild`; each restarts the supervisor's deadline).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Step {
+    /// GLSL sources compiled on the threads (k of n).
+    Glsl(usize, usize),
+    /// Cells compiled and bound, in order on the calling thread (k of n).
+    Compiled(usize, usize),
+    /// Pipelines created on the threads (k of n).
+    Pipelines(usize, usize),
+}
+
+impl std::fmt::Display for Step {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        match self {
+            Step::Glsl(k, n) => write!(f, "glsl {k}/{n}"),
+            Step::Compiled(k, n) => write!(f, "compiled {k}/{n}"),
+            Step::Pipelines(k, n) => write!(f, "pipelines {k}/{n}"),
+        }
+    }
+}
+
+/// An error met while prebuilding: kept for its cell's turn (`Ok`), or returned to abort the
+/// prebuild (`Err`) when its outcome ends the worker: after a device loss or a hung fence no
+/// later work on the device means anything, and the batch must be re-run cell by cell.
+fn keep(e: CellError) -> Result<CellError, CellError> {
+    if e.outcome().ends_worker() {
+        Err(e)
+    } else {
+        Ok(e)
+    }
+}
 
 /// What a prebuild did.
 #[derive(Clone, Copy, Debug, Default)]
@@ -45,9 +82,10 @@ unsafe impl Send for Made {}
 
 impl Executor {
     /// Build `cells` (compile, bind, create pipelines on `threads` threads), keeping each cell's
-    /// result for [`Executor::run`]. `progress(done, total)` is called as pipelines finish. A
-    /// device loss during pipeline creation is returned: no cell of the batch can be blamed.
-    pub fn prebuild(&mut self, cells: &[Cell], threads: usize, progress: &(dyn Fn(usize, usize) + Sync)) -> Result<PrebuildStats, VkError> {
+    /// result for [`Executor::run`]. `progress` is called after every unit of work ([`Step`]).
+    /// An error whose outcome ends the worker is returned ([`keep`]): no cell of the batch can be
+    /// blamed.
+    pub fn prebuild(&mut self, cells: &[Cell], threads: usize, progress: &(dyn Fn(Step) + Sync)) -> Result<PrebuildStats, CellError> {
         // The batch's GLSL compiled on the threads first (into the compiler's per-source cache).
         if self.opts.spirv_dir.is_none() {
             let generated: Vec<_> = cells
@@ -58,28 +96,14 @@ impl Executor {
                 })
                 .collect();
             let sources: Vec<_> = generated.iter().flat_map(|g| g.shaders.iter().map(|s| (s.role, s.glsl.as_str()))).collect();
-            self.compiler.precompile(&sources, threads);
+            self.compiler.precompile(&sources, threads, &|k, n| progress(Step::Glsl(k, n)));
         }
         let mut staged: Vec<(Cell, Timings, Compiled, Bound)> = Vec::new();
-        for cell in cells {
-            let mut timings = Timings::default();
-            let injected = crate::matrix::inject::roll(&self.opts.inject, cell, self.opts.inject_seed);
-            let compiled = match self.compile_cell(cell, injected.as_ref(), &mut timings) {
-                Ok(c) => c,
-                Err(e) => {
-                    self.prebuilt.insert(cell.id(), Prebuilt { timings, phase: Phase::Compile, result: Err(e) });
-                    continue;
-                }
-            };
-            match self.bind_cell(cell, &compiled, &mut timings) {
-                Ok(b) => staged.push((*cell, timings, compiled, b)),
-                Err(e) => {
-                    if let CellError::Vk(VkError::DeviceLost { .. }) = e {
-                        return Err(VkError::DeviceLost { call: "descriptor setup during prebuild" });
-                    }
-                    self.prebuilt.insert(cell.id(), Prebuilt { timings, phase: Phase::Pipeline, result: Err(e) });
-                }
+        for (k, cell) in cells.iter().enumerate() {
+            if let Some(s) = self.stage(cell)? {
+                staged.push(s);
             }
+            progress(Step::Compiled(k + 1, cells.len()));
         }
         // The first cell of each pipeline not created yet makes it (its timings get the time).
         let mut seen = HashSet::new();
@@ -90,7 +114,7 @@ impl Executor {
                 cache: self.cache,
                 inputs: makers.iter().map(|&i| self.pipeline_input(&staged[i].0, &staged[i].2, &staged[i].3)).collect(),
             };
-            create_all(&shared, threads, progress)
+            create_all(&shared, threads, &|k, n| progress(Step::Pipelines(k, n)))
         };
         let mut failed: HashMap<u64, usize> = HashMap::new();
         for (&i, Made(result, ms)) in makers.iter().zip(made) {
@@ -99,11 +123,11 @@ impl Executor {
                 Ok(p) => {
                     self.pipelines.insert(staged[i].3.pkey, p);
                 }
-                Err(e) if e.is_device_lost() => return Err(e),
                 Err(e) => {
+                    let e = keep(e.into())?;
                     failed.insert(staged[i].3.pkey, i);
                     let (cell, timings) = (staged[i].0, staged[i].1.clone());
-                    self.prebuilt.insert(cell.id(), Prebuilt { timings, phase: Phase::Pipeline, result: Err(e.into()) });
+                    self.prebuilt.insert(cell.id(), Prebuilt { timings, phase: Phase::Pipeline, result: Err(e) });
                 }
             }
         }
@@ -119,6 +143,23 @@ impl Executor {
             }
         }
         Ok(PrebuildStats { pipelines: makers.len(), threads: threads.clamp(1, makers.len().max(1)) })
+    }
+
+    /// Compile and bind one cell on the calling thread: `Some` when it is ready for its pipeline;
+    /// `None` when its error is kept for its turn; `Err` when the error ends the worker.
+    fn stage(&mut self, cell: &Cell) -> Result<Option<(Cell, Timings, Compiled, Bound)>, CellError> {
+        let mut timings = Timings::default();
+        let injected = crate::matrix::inject::roll(&self.opts.inject, cell, self.opts.inject_seed);
+        let (phase, e) = match self.compile_cell(cell, injected.as_ref(), &mut timings) {
+            Err(e) => (Phase::Compile, e),
+            Ok(compiled) => match self.bind_cell(cell, &compiled, &mut timings) {
+                Ok(b) => return Ok(Some((*cell, timings, compiled, b))),
+                Err(e) => (Phase::Pipeline, e),
+            },
+        };
+        let e = keep(e)?;
+        self.prebuilt.insert(cell.id(), Prebuilt { timings, phase, result: Err(e) });
+        Ok(None)
     }
 }
 
@@ -144,4 +185,44 @@ fn create_all(shared: &Shared, threads: usize, progress: &(dyn Fn(usize, usize) 
         }
     });
     out.into_iter().map(|m| m.into_inner().unwrap_or_else(|p| p.into_inner()).expect("every index was taken by a thread")).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::gpu::BuildError;
+    use std::time::Duration;
+
+    #[test]
+    fn an_error_that_ends_the_worker_aborts_the_prebuild_and_others_are_kept() {
+        let lost = || VkError::DeviceLost { call: "vkCreateDescriptorPool" };
+        let aborts = [
+            CellError::Vk(lost()),
+            CellError::Build(BuildError::Vk(lost())),
+            CellError::Build(BuildError::TimedOut(Duration::from_secs(1))),
+            CellError::Timeout("upload"),
+            CellError::Vk(VkError::Call { call: "vkWaitForFences", result: vk::Result::TIMEOUT }),
+        ];
+        for e in aborts {
+            let what = e.to_string();
+            assert!(keep(e).is_err(), "{what} must abort the prebuild");
+        }
+        let kept = [
+            CellError::Vk(VkError::Call { call: "vkCreateRayTracingPipelinesKHR", result: vk::Result::ERROR_OUT_OF_HOST_MEMORY }),
+            CellError::Io("x".into()),
+            CellError::NotImplemented("x".into()),
+            CellError::Unsupported("x".into()),
+        ];
+        for e in kept {
+            let what = e.to_string();
+            assert!(keep(e).is_ok(), "{what} is the cell's own result");
+        }
+    }
+
+    #[test]
+    fn steps_name_the_work_and_count_it() {
+        assert_eq!(Step::Compiled(3, 512).to_string(), "compiled 3/512");
+        assert_eq!(Step::Pipelines(1, 2).to_string(), "pipelines 1/2");
+        assert_eq!(Step::Glsl(4, 9).to_string(), "glsl 4/9");
+    }
 }

@@ -1,7 +1,7 @@
 //! The run report (`"schema": "rtprobe.report/1"`): what ran, on what, with which scene, and per
 //! cell its axes, outcome, attempts (timings, mismatch and fault details, worker exit). Cells are
-//! kept in plan order, so reports of the same plan diff cleanly. Written after every cell,
-//! atomically; `--resume` reads it back.
+//! kept in plan order, so reports of the same plan diff cleanly. Written atomically as the run
+//! goes (`cli::run`: at once after a fault, passes at most every 100 ms); `--resume` reads it back.
 use crate::matrix::plan::{NotGenerated, PlanStatus, RunPlan};
 use crate::matrix::{Canary, Cell};
 use crate::outcome::Outcome;

@@ -3,8 +3,9 @@
 //! that died before the `prctl` is noticed too): a killed supervisor takes its workers with it.
 //! The live groups are kept in a fixed table that the supervisor's SIGINT / SIGTERM / SIGHUP
 //! handler reads: it SIGKILLs every group, says so on stderr, and exits (128 + signal). Only
-//! async-signal-safe calls run in the handler; the report on disk stays whole (it is rewritten
-//! atomically after every cell) and `--resume` finishes the run.
+//! async-signal-safe calls run in the handler; the report on disk stays whole (rewritten
+//! atomically: at once after a fault, after passes at most every 100 ms) and `--resume` finishes
+//! the run, running again the passes of the last 0.1 s that were not saved.
 use std::os::unix::process::CommandExt;
 use std::process::Command;
 use std::sync::atomic::{AtomicI32, Ordering};
@@ -65,9 +66,9 @@ pub fn kill_all() {
 extern "C" fn on_signal(sig: libc::c_int) {
     kill_all();
     let msg: &[u8] = match sig {
-        libc::SIGINT => b"\nrtprobe: interrupted (SIGINT): every worker was killed; the report keeps each finished cell (complete: false); finish it with `rtprobe run --resume REPORT`\n",
-        libc::SIGTERM => b"\nrtprobe: terminated (SIGTERM): every worker was killed; the report keeps each finished cell (complete: false); finish it with `rtprobe run --resume REPORT`\n",
-        _ => b"\nrtprobe: hung up (SIGHUP): every worker was killed; the report keeps each finished cell (complete: false); finish it with `rtprobe run --resume REPORT`\n",
+        libc::SIGINT => b"\nrtprobe: interrupted (SIGINT): every worker was killed; the report keeps every fault and all passes but those of the last 0.1 s (complete: false); finish it with `rtprobe run --resume REPORT`\n",
+        libc::SIGTERM => b"\nrtprobe: terminated (SIGTERM): every worker was killed; the report keeps every fault and all passes but those of the last 0.1 s (complete: false); finish it with `rtprobe run --resume REPORT`\n",
+        _ => b"\nrtprobe: hung up (SIGHUP): every worker was killed; the report keeps every fault and all passes but those of the last 0.1 s (complete: false); finish it with `rtprobe run --resume REPORT`\n",
     };
     // SAFETY: write(2) and _exit(2) are async-signal-safe.
     unsafe {

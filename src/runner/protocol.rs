@@ -64,7 +64,8 @@ pub enum WorkerMsg {
     },
     /// The worker builds these cells ahead of their turns (phase `prebuild`): compile and
     /// bindings in order, pipelines on `threads` threads. Progress comes as `phase` messages
-    /// (`prebuild`, step `pipelines k/n`); a death or hang now is blamed on no cell.
+    /// (`prebuild`, step `glsl k/n`, `compiled k/n` or `pipelines k/n`), each restarting the
+    /// supervisor's deadline; a death or hang now is blamed on no cell.
     Prebuild { cells: Vec<String>, threads: usize },
     /// The prebuild finished; each cell's result (or error) waits for its turn.
     Prebuilt { wall_ms: f64, pipelines: usize, threads: usize },
@@ -84,8 +85,8 @@ pub enum WorkerMsg {
     },
     Start { cell: String },
     Result { cell: String, result: CellResult },
-    /// Setup failed: the worker cannot run its cells (or, during a prebuild, the device was lost
-    /// while creating pipelines). `outcome` classifies the failure
+    /// Setup failed: the worker cannot run its cells (or, during a prebuild, an error that ends
+    /// the worker: a device loss or a hung fence). `outcome` classifies the failure
     /// (`device_lost`, `timeout` of a fence in an upload or AS build, `error`).
     Fatal {
         message: String,

@@ -60,7 +60,9 @@ pub struct SupervisorOptions {
     pub job_dir: PathBuf,
     /// Threads a worker creates pipelines on, ahead of the cells' turns (1: no prebuild).
     pub threads: usize,
-    /// Folder of the persisted pipeline caches (`None`: off).
+    /// Folder of the persisted pipeline caches (`None`: off). Used only by workers of a
+    /// non-isolated [`Supervisor::run`]: re-runs alone (`--confirm`, `--repeat`, verifying a
+    /// workaround) start cold, so that a cached binary cannot stand in for the cell's own compile.
     pub pipeline_cache: Option<PathBuf>,
 }
 
@@ -162,7 +164,7 @@ enum State {
     Cell { cell: Cell, since: Instant },
     /// After `ready` or a result, before the next `start`.
     Between { since: Instant },
-    /// Building `cells` ahead of their turns; `since` restarts at each pipeline finished.
+    /// Building `cells` ahead of their turns; `since` restarts at each step of progress.
     Prebuild { cells: Vec<String>, since: Instant },
     /// After its last result: it must exit.
     Teardown { since: Instant },
@@ -288,13 +290,15 @@ pub struct Supervisor {
     tx: Sender<(usize, u64, Line)>,
     rx: Receiver<(usize, u64, Line)>,
     generation: u64,
+    /// The current `run` re-runs cells alone: its workers load no persisted pipeline cache.
+    rerun: bool,
 }
 
 impl Supervisor {
     pub fn new(opts: SupervisorOptions) -> Self {
         groups::install_handlers();
         let (tx, rx) = channel();
-        Supervisor { opts, tx, rx, generation: 0, seeds: Default::default() }
+        Supervisor { opts, tx, rx, generation: 0, seeds: Default::default(), rerun: false }
     }
 
     fn spawn(&mut self, slot: usize, cells: Vec<Cell>, serial: &std::collections::HashSet<String>) -> std::io::Result<Worker> {
@@ -318,7 +322,7 @@ impl Supervisor {
             serial: cells.iter().map(Cell::id).filter(|id| serial.contains(id)).collect(),
             cells,
             threads: self.opts.threads.max(1),
-            pipeline_cache: self.opts.pipeline_cache.clone(),
+            pipeline_cache: self.opts.pipeline_cache.clone().filter(|_| !self.rerun),
         };
         std::fs::create_dir_all(&self.opts.job_dir)?;
         let path = self.opts.job_dir.join(format!("job-{}-{id}.json", std::process::id()));
@@ -382,8 +386,9 @@ impl Supervisor {
     }
 
     /// Run `cells`, calling `on` for each attempt as it finishes. `isolated` forces one fresh
-    /// worker per cell.
+    /// worker per cell, without the persisted pipeline cache (a re-run).
     pub fn run(&mut self, cells: &[Cell], isolated: bool, on: &mut dyn FnMut(Event)) {
+        self.rerun = isolated;
         // Every attempt records what was injected into it, worked out as the worker did.
         let inject = self.opts.inject.clone();
         let seeds = self.seeds.clone();
@@ -470,7 +475,7 @@ impl Supervisor {
                 }));
             }
             Line::Msg(WorkerMsg::Phase { phase, step }) => {
-                // A pipeline of the prebuild finished: progress restarts its clock.
+                // Prebuild progress (GLSL, a cell compiled and bound, a pipeline) restarts its clock.
                 if let (Phase::Prebuild, State::Prebuild { since, .. }) = (phase, &mut w.state) {
                     *since = Instant::now();
                 }

@@ -8,6 +8,7 @@
 use super::misbehave::{Misbehave, SetupStep};
 use super::phase::Phase;
 use super::protocol::{WorkerJob, WorkerMsg};
+use crate::exec::prebuild::Step;
 use crate::exec::{CellError, ExecOptions, Executor};
 use crate::outcome::Outcome;
 use crate::matrix::cell::Workaround;
@@ -114,8 +115,10 @@ fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
 const PREBUILD_CHUNK: usize = 512;
 
 /// Build `chunk`'s cells (but the serial ones) ahead of their turns on `threads` threads. Only
-/// worth it for two cells or more; with one thread each cell builds at its turn. A device loss
-/// here (or the test hook's) is the worker's: it reports it as fatal and exits, and the
+/// worth it for two cells or more; with one thread each cell builds at its turn. Every unit of
+/// work is sent as a `phase prebuild` step (`glsl k/n`, `compiled k/n`, `pipelines k/n`): each
+/// restarts the supervisor's deadline. An error that ends the worker (a device loss, a hung
+/// fence, or the test hook's) is the worker's: it reports it as fatal and exits, and the
 /// supervisor runs these cells again without prebuilding.
 fn prebuild(exec: &mut Executor, chunk: &[Cell], serial: &HashSet<&str>, threads: usize, phases: &Phases) {
     let cells: Vec<Cell> = chunk.iter().filter(|c| !serial.contains(c.id().as_str())).copied().collect();
@@ -124,12 +127,11 @@ fn prebuild(exec: &mut Executor, chunk: &[Cell], serial: &HashSet<&str>, threads
     }
     send(&WorkerMsg::Prebuild { cells: cells.iter().map(Cell::id).collect(), threads });
     let t = Instant::now();
-    let progress = |done: usize, n: usize| send(&WorkerMsg::Phase { phase: Phase::Prebuild, step: Some(format!("pipelines {done}/{n}")) });
-    match phases.enter(Phase::Prebuild, None).and_then(|()| exec.prebuild(&cells, threads, &progress)) {
+    let progress = |step: Step| send(&WorkerMsg::Phase { phase: Phase::Prebuild, step: Some(step.to_string()) });
+    match phases.enter(Phase::Prebuild, None).map_err(CellError::from).and_then(|()| exec.prebuild(&cells, threads, &progress)) {
         Ok(stats) => send(&WorkerMsg::Prebuilt { wall_ms: t.elapsed().as_secs_f64() * 1e3, pipelines: stats.pipelines, threads: stats.threads }),
         Err(e) => {
-            let outcome = CellError::Vk(e).outcome();
-            send(&WorkerMsg::Fatal { message: "the device was lost while creating pipelines on several threads".into(), outcome });
+            send(&WorkerMsg::Fatal { message: format!("building a batch of cells on {threads} threads: {e}"), outcome: e.outcome() });
             unsafe { libc::_exit(0) };
         }
     }

@@ -63,7 +63,8 @@ impl Compiler {
     /// compiler each: a compiler is not shared between threads) into the cache. A source that
     /// fails is left out: [`Compiler::compile`] meets the same error at the cell's turn and
     /// reports it there. Sources for the external glslangValidator are left to `compile`.
-    pub fn precompile(&mut self, sources: &[(Role, &str)], threads: usize) {
+    /// `progress(k, n)` is called as each source is done.
+    pub fn precompile(&mut self, sources: &[(Role, &str)], threads: usize, progress: &(dyn Fn(usize, usize) + Sync)) {
         let mut seen = std::collections::HashSet::new();
         let todo: Vec<(u64, Role, &str)> = sources
             .iter()
@@ -74,6 +75,7 @@ impl Compiler {
             return;
         }
         let next = std::sync::atomic::AtomicUsize::new(0);
+        let finished = std::sync::atomic::AtomicUsize::new(0);
         let done = std::sync::Mutex::new(Vec::new());
         std::thread::scope(|s| {
             for _ in 0..threads.clamp(1, todo.len()) {
@@ -87,6 +89,7 @@ impl Compiler {
                             let ms = t.elapsed().as_secs_f64() * 1e3;
                             done.lock().unwrap_or_else(|p| p.into_inner()).push((key, words, ms));
                         }
+                        progress(finished.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1, todo.len());
                     }
                 });
             }
