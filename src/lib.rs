@@ -19,3 +19,4 @@ pub mod bisect;
 pub mod fleet;
 pub mod stress;
 pub mod bench;
+pub mod pool;

@@ -353,11 +353,10 @@ impl Executor {
     }
 
     /// GLSL → SPIR-V (cached per source), the cell's workarounds, `--dump`: phase `compile`.
-    fn compile_cell(&mut self, cell: &Cell, injected: Option<&InjectedFault>, timings: &mut Timings) -> Result<Compiled, CellError> {
+    fn compile_cell(&mut self, cell: &Cell, shaders: shadergen::CellShaders, timings: &mut Timings) -> Result<Compiled, CellError> {
         if cell.heap_access == Some(crate::matrix::HeapAccess::Direct) && shadergen::glslang::find().is_none() {
             return Err(CellError::NotImplemented(shadergen::glslang::missing_reason()));
         }
-        let shaders = shadergen::generate_with(&shadergen::source_cell(cell), injected.map(|i| i.fault));
         // SPIR-V
         let mut spirv = Vec::new();
         for s in &shaders.shaders {
@@ -497,7 +496,7 @@ impl Executor {
                 p.result
             }
             None => {
-                let c = self.compile_cell(cell, injected, timings)?;
+                let c = self.compile_cell(cell, cell_shaders(cell, injected), timings)?;
                 on_phase(Phase::Pipeline)?;
                 let b = self.bind_cell(cell, &c, timings)?;
                 self.ensure_pipeline(cell, &c, &b, timings)?;
@@ -591,6 +590,11 @@ impl Executor {
         timings.check_ms = t.elapsed().as_secs_f64() * 1e3;
         Ok((recs, note))
     }
+}
+
+/// The GLSL of every shader `cell` needs, with its injected fault (if any) appended.
+fn cell_shaders(cell: &Cell, injected: Option<&InjectedFault>) -> shadergen::CellShaders {
+    shadergen::generate_with(&shadergen::source_cell(cell), injected.map(|i| i.fault))
 }
 
 /// Apply the workaround `w` to one module, restricted to the probed array (binding 2):

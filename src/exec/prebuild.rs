@@ -17,8 +17,6 @@ use crate::runner::phase::Phase;
 use crate::vk::{Gpu, VkError};
 use ash::vk;
 use std::collections::{HashMap, HashSet};
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Mutex;
 use std::time::Instant;
 
 /// A unit of prebuild progress, reported as it happens (the worker sends it as the step of phase
@@ -86,21 +84,19 @@ impl Executor {
     /// An error whose outcome ends the worker is returned ([`keep`]): no cell of the batch can be
     /// blamed.
     pub fn prebuild(&mut self, cells: &[Cell], threads: usize, progress: &(dyn Fn(Step) + Sync)) -> Result<PrebuildStats, CellError> {
-        // The batch's GLSL compiled on the threads first (into the compiler's per-source cache).
+        // Each cell's GLSL, generated once; compiled on the threads first (into the compiler's
+        // per-source cache), then taken by each cell's compile in order.
+        let generated: Vec<_> = cells
+            .iter()
+            .map(|c| super::cell_shaders(c, crate::matrix::inject::roll(&self.opts.inject, c, self.opts.inject_seed).as_ref()))
+            .collect();
         if self.opts.spirv_dir.is_none() {
-            let generated: Vec<_> = cells
-                .iter()
-                .map(|c| {
-                    let injected = crate::matrix::inject::roll(&self.opts.inject, c, self.opts.inject_seed);
-                    crate::shadergen::generate_with(&crate::shadergen::source_cell(c), injected.map(|i| i.fault))
-                })
-                .collect();
             let sources: Vec<_> = generated.iter().flat_map(|g| g.shaders.iter().map(|s| (s.role, s.glsl.as_str()))).collect();
             self.compiler.precompile(&sources, threads, &|k, n| progress(Step::Glsl(k, n)));
         }
         let mut staged: Vec<(Cell, Timings, Compiled, Bound)> = Vec::new();
-        for (k, cell) in cells.iter().enumerate() {
-            if let Some(s) = self.stage(cell)? {
+        for (k, (cell, shaders)) in cells.iter().zip(generated).enumerate() {
+            if let Some(s) = self.stage(cell, shaders)? {
                 staged.push(s);
             }
             progress(Step::Compiled(k + 1, cells.len()));
@@ -147,10 +143,9 @@ impl Executor {
 
     /// Compile and bind one cell on the calling thread: `Some` when it is ready for its pipeline;
     /// `None` when its error is kept for its turn; `Err` when the error ends the worker.
-    fn stage(&mut self, cell: &Cell) -> Result<Option<(Cell, Timings, Compiled, Bound)>, CellError> {
+    fn stage(&mut self, cell: &Cell, shaders: crate::shadergen::CellShaders) -> Result<Option<(Cell, Timings, Compiled, Bound)>, CellError> {
         let mut timings = Timings::default();
-        let injected = crate::matrix::inject::roll(&self.opts.inject, cell, self.opts.inject_seed);
-        let (phase, e) = match self.compile_cell(cell, injected.as_ref(), &mut timings) {
+        let (phase, e) = match self.compile_cell(cell, shaders, &mut timings) {
             Err(e) => (Phase::Compile, e),
             Ok(compiled) => match self.bind_cell(cell, &compiled, &mut timings) {
                 Ok(b) => return Ok(Some((*cell, timings, compiled, b))),
@@ -165,26 +160,18 @@ impl Executor {
 
 /// Create every input's pipeline on `threads` threads, in the inputs' order.
 fn create_all(shared: &Shared, threads: usize, progress: &(dyn Fn(usize, usize) + Sync)) -> Vec<Made> {
-    let n = shared.inputs.len();
-    let next = AtomicUsize::new(0);
-    let done = AtomicUsize::new(0);
-    let out: Vec<Mutex<Option<Made>>> = (0..n).map(|_| Mutex::new(None)).collect();
-    std::thread::scope(|s| {
-        for _ in 0..threads.clamp(1, n.max(1)) {
-            s.spawn(|| loop {
-                let i = next.fetch_add(1, Ordering::Relaxed);
-                if i >= n {
-                    break;
-                }
-                let t = Instant::now();
-                let r = shared.inputs[i].create(shared.gpu, shared.cache);
-                let made = Made(r, t.elapsed().as_secs_f64() * 1e3);
-                *out[i].lock().unwrap_or_else(|p| p.into_inner()) = Some(made);
-                progress(done.fetch_add(1, Ordering::Relaxed) + 1, n);
-            });
-        }
-    });
-    out.into_iter().map(|m| m.into_inner().unwrap_or_else(|p| p.into_inner()).expect("every index was taken by a thread")).collect()
+    let made = crate::pool::map(
+        shared.inputs.len(),
+        threads,
+        || Some(()),
+        |(), i| {
+            let t = Instant::now();
+            let r = shared.inputs[i].create(shared.gpu, shared.cache);
+            Made(r, t.elapsed().as_secs_f64() * 1e3)
+        },
+        progress,
+    );
+    made.into_iter().map(|m| m.expect("every thread takes items (its init cannot fail)")).collect()
 }
 
 #[cfg(test)]

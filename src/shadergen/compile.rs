@@ -74,27 +74,18 @@ impl Compiler {
         if todo.is_empty() {
             return;
         }
-        let next = std::sync::atomic::AtomicUsize::new(0);
-        let finished = std::sync::atomic::AtomicUsize::new(0);
-        let done = std::sync::Mutex::new(Vec::new());
-        std::thread::scope(|s| {
-            for _ in 0..threads.clamp(1, todo.len()) {
-                s.spawn(|| {
-                    let Ok(mut c) = Compiler::new() else { return };
-                    loop {
-                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        let Some(&(key, role, glsl)) = todo.get(i) else { break };
-                        let t = Instant::now();
-                        if let Ok(words) = c.compile_glsl(role.kind(), role.file_name(), glsl) {
-                            let ms = t.elapsed().as_secs_f64() * 1e3;
-                            done.lock().unwrap_or_else(|p| p.into_inner()).push((key, words, ms));
-                        }
-                        progress(finished.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1, todo.len());
-                    }
-                });
-            }
-        });
-        for (key, words, ms) in done.into_inner().unwrap_or_else(|p| p.into_inner()) {
+        let compiled = crate::pool::map(
+            todo.len(),
+            threads,
+            || Compiler::new().ok(),
+            |c, i| {
+                let (_, role, glsl) = todo[i];
+                let t = Instant::now();
+                c.compile_glsl(role.kind(), role.file_name(), glsl).ok().map(|words| (words, t.elapsed().as_secs_f64() * 1e3))
+            },
+            progress,
+        );
+        for (&(key, _, _), (words, ms)) in todo.iter().zip(compiled).filter_map(|(t, c)| Some(t).zip(c.flatten())) {
             self.cache.insert(key, Arc::new(words));
             self.precompiled_ms.insert(key, ms);
         }
