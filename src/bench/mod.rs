@@ -392,6 +392,8 @@ impl<'a> Bench<'a> {
                 "args": entry, "command": r.command, "wall_s": r.wall_s, "warmup_wall_s": warmup,
                 "wall_ratio": r.wall_s / base, "cells": r.report.timing.cells_timed, "workers": r.report.timing.workers_started,
                 "phases_ms": ph, "phase_ratio": ratios, "findings": r.report.tally.findings,
+                // What the run used (under --validate, threads are 1 whatever the entry asked).
+                "jobs_used": r.report.options["jobs"], "threads_used": r.report.options["threads"],
             }));
         }
         Ok(json!({ "filter": self.opts.sweep_filter, "size": self.opts.sweep_size, "entries": entries }))

@@ -138,8 +138,9 @@ pub struct RunArgs {
     /// Where the VkPipelineCache is kept between runs, one file per device and driver version
     /// (default: $RTPROBE_CACHE_DIR, else $XDG_CACHE_HOME/rtprobe, else ~/.cache/rtprobe), or
     /// `off`. A file of another device or driver, or a corrupt one, is ignored with a warning.
-    /// Re-runs (--confirm, --repeat, workaround checks, --validate=gpu-av, bisect, --cell-spec)
-    /// never load it: they start cold, so that a cached binary cannot stand in for a compile
+    /// Re-runs of a cell alone (--confirm, --repeat, workaround and pattern re-runs,
+    /// --validate=gpu-av, bisect, --cell-spec) never load it: they start cold, so that a cached
+    /// binary cannot stand in for a compile
     #[arg(long, value_name = "DIR|off")]
     pub pipeline_cache: Option<String>,
 
@@ -553,7 +554,7 @@ pub struct BenchArgs {
 
     /// Skip part 2 (flaky faults). Its injected fault reads an invalid address, which hangs some
     /// GPUs (NVIDIA 580) for every later process on the machine; the part runs last for that reason
-    #[arg(long)]
+    #[arg(long, conflicts_with = "flaky")]
     pub no_flaky: bool,
 
     /// Run configurations to compare (each one quoted string of extra run arguments, e.g.

@@ -65,7 +65,7 @@ fn options(g: &Globals, a: &BenchArgs) -> Result<BenchOptions> {
     let sweep = if !a.sweep_args.is_empty() {
         a.sweep_args.clone()
     } else if q {
-        vec!["-j 1".into(), "-j 2".into(), "-j 1 --threads 2".into()]
+        vec!["-j 1 --threads 1".into(), "-j 2 --threads 1".into(), "-j 1 --threads 2".into()]
     } else {
         bench::DEFAULT_SWEEP.iter().map(|s| s.to_string()).collect()
     };
