@@ -185,7 +185,11 @@ pub enum Validation {
 
 /// Run `spirv-val --target-env vulkan1.2` on `words`, if it is installed.
 pub fn validate(words: &[u32]) -> Validation {
-    let dir = std::env::temp_dir().join(format!("rtprobe-val-{}-{}", std::process::id(), words.len()));
+    // A name no other call in this process uses at the same time (tests validate on several
+    // threads; a name from the module's length alone let two calls overwrite each other's file).
+    static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = std::env::temp_dir().join(format!("rtprobe-val-{}-{n}", std::process::id()));
     let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
     if std::fs::write(&dir, bytes).is_err() {
         return Validation::Unavailable;
