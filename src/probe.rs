@@ -132,6 +132,8 @@ pub struct PushConstants {
     pub as_table: u64,
     /// canary.invalid_address
     pub bad_address: u64,
+    /// Device address of the per-instance bases (`base=buffer`; [`base_buffer`]).
+    pub base_address: u64,
 }
 
 pub const PUSH_FIELDS: &[Field] = fields!(PushConstants {
@@ -145,6 +147,7 @@ pub const PUSH_FIELDS: &[Field] = fields!(PushConstants {
     inject_salt: "injectSalt" "uint",
     as_table: "asTable" "uvec2",
     bad_address: "badAddress" "uvec2",
+    base_address: "baseAddress" "uvec2",
 });
 
 /// Bytes of the probes' own push-constant block.
@@ -170,6 +173,7 @@ impl PushConstants {
         put(offset_of!(PushConstants, inject_salt), &self.inject_salt.to_le_bytes());
         put(offset_of!(PushConstants, as_table), &self.as_table.to_le_bytes());
         put(offset_of!(PushConstants, bad_address), &self.bad_address.to_le_bytes());
+        put(offset_of!(PushConstants, base_address), &self.base_address.to_le_bytes());
         put(PATCHED_TABLE_OFFSET as usize, &patched_table.to_le_bytes());
         b
     }
@@ -242,6 +246,84 @@ pub fn push_constants(width: u32, height: u32, instances: u32, resource: Resourc
         dyn_mask: dyn_mask(resource, instances),
         ..Default::default()
     }
+}
+
+/// The shader record data after every SBT handle (std430; GLSL `shaderRecordEXT` block generated
+/// by [`glsl_shader_record`]): the probed array's heap index (what HEAP_WITH_SHADER_RECORD_INDEX
+/// reads at offset 0 for `heap_access=mapped_shader_record_index`), and the runtime base a
+/// closest-hit probe reads with `base=shader_record`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ShaderRecordData {
+    pub heap_index: u32,
+    pub dyn_base: u32,
+}
+
+pub const SHADER_RECORD_FIELDS: &[Field] = fields!(ShaderRecordData {
+    heap_index: "heapIndex" "uint",
+    dyn_base: "dynBase" "uint",
+});
+
+impl ShaderRecordData {
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut b = vec![0u8; std::mem::size_of::<ShaderRecordData>()];
+        b[offset_of!(ShaderRecordData, heap_index)..][..4].copy_from_slice(&self.heap_index.to_le_bytes());
+        b[offset_of!(ShaderRecordData, dyn_base)..][..4].copy_from_slice(&self.dyn_base.to_le_bytes());
+        b
+    }
+}
+
+/// The per-instance bases `base=buffer` reads at `gl_InstanceID` (every entry [`DYNAMIC_BASE`]:
+/// the value is the push-data base's, only the way the shader gets it differs).
+pub fn base_buffer(instances: u32) -> Vec<u8> {
+    (0..instances.max(1)).flat_map(|_| DYNAMIC_BASE.to_le_bytes()).collect()
+}
+
+/// A sampler's address mode (the Vulkan modes the sampler heap's samplers use).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AddressMode {
+    ClampToEdge,
+    Repeat,
+    MirroredRepeat,
+}
+
+/// The sampler heap's samplers, by index: all nearest-filtered, differing in address mode (u, v
+/// and w alike). Sampler 0 is the one mapped (combined image sampler) cells use.
+pub const SAMPLER_MODES: [AddressMode; 3] = [AddressMode::ClampToEdge, AddressMode::Repeat, AddressMode::MirroredRepeat];
+/// The sampler a `sampler=constant` probe uses: not 0, so that a driver ignoring the sampler
+/// index reads another texel.
+pub const SAMPLER_LITERAL: u32 = 2;
+/// Separate-sampler probes sample at the element's texel centre shifted by this (normalized
+/// coordinates, u and v), outside [0, 1], so that the address mode picks the texel.
+pub const SAMPLER_SHIFT: [f32; 2] = [1.0, -1.0];
+
+/// The sampler a `sampler=dynamic` probe uses for the stage's runtime value `dynamic` (the value
+/// `index=dynamic` would use as its slot).
+pub fn sampler_slot(dynamic: u32) -> u32 {
+    dynamic % SAMPLER_MODES.len() as u32
+}
+
+/// Vulkan's texel wrapping of integer coordinate `i` in a dimension of `size` texels (spec,
+/// "Texel Coordinate Systems": wrapping operation), nearest filtering.
+fn wrap(mode: AddressMode, i: i64, size: i64) -> i64 {
+    let mirror = |a: i64| if a >= 0 { a } else { -(1 + a) };
+    match mode {
+        AddressMode::ClampToEdge => i.clamp(0, size - 1),
+        AddressMode::Repeat => i.rem_euclid(size),
+        AddressMode::MirroredRepeat => (size - 1) - mirror(i.rem_euclid(2 * size) - size),
+    }
+}
+
+/// The element (texel `(e & 1, e >> 1)` of a 2×2 image) a separate-sampler probe reads when it
+/// samples element `element`'s texel centre shifted by [`SAMPLER_SHIFT`] with sampler `sampler`.
+pub fn sampled_element(sampler: u32, element: u32) -> u32 {
+    let mode = SAMPLER_MODES[sampler as usize % SAMPLER_MODES.len()];
+    let texel = |t: u32, shift: f32| {
+        // Unnormalized coordinate of the shifted centre, then nearest: floor.
+        let u = (f64::from(t) + 0.5) / 2.0 + f64::from(shift);
+        wrap(mode, (u * 2.0).floor() as i64, 2) as u32
+    };
+    texel(element & 1, SAMPLER_SHIFT[0]) + 2 * texel(element >> 1, SAMPLER_SHIFT[1])
 }
 
 /// The value element `element` of a buffer or image slot holds (exact in f32), distinct per
@@ -365,6 +447,16 @@ pub fn glsl_declarations() -> String {
     s
 }
 
+/// The `shaderRecordEXT` block of a probe reading [`ShaderRecordData`] (instance `shaderRecord`).
+pub fn glsl_shader_record() -> String {
+    let mut s = String::from("// Generated from src/probe.rs (ShaderRecordData).\nlayout(shaderRecordEXT, std430) buffer ShaderRecordData {\n");
+    for f in SHADER_RECORD_FIELDS {
+        s += &format!("    {} {}; // offset {}\n", f.glsl_type, f.glsl_name, f.offset);
+    }
+    s += "} shaderRecord;\n";
+    s
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -411,6 +503,37 @@ mod tests {
         let g = glsl_declarations();
         assert!(g.contains("layout(offset = 32) uvec2 asTable;"), "{g}");
         assert!(g.contains("vec4 value; // offset 48"), "{g}");
+    }
+
+    #[test]
+    fn shader_record_layout_is_the_rust_layout() {
+        let (offs, size) = glsl_offsets(SHADER_RECORD_FIELDS);
+        assert_eq!(offs, SHADER_RECORD_FIELDS.iter().map(|f| f.offset).collect::<Vec<_>>());
+        assert_eq!(size, std::mem::size_of::<ShaderRecordData>());
+        let b = ShaderRecordData { heap_index: 9, dyn_base: DYNAMIC_BASE }.to_bytes();
+        assert_eq!(b, [9u32.to_le_bytes(), DYNAMIC_BASE.to_le_bytes()].concat());
+        assert!(glsl_shader_record().contains("uint dynBase; // offset 4"));
+    }
+
+    #[test]
+    fn samplers_pick_the_texels_their_address_modes_say() {
+        // Shifted one image to the right and one up: clamp-to-edge reads the right column of the
+        // first row, repeat the element itself, mirrored repeat the point-mirrored element.
+        for e in 0..ELEMENTS {
+            assert_eq!(sampled_element(0, e), 1, "clamp, element {e}");
+            assert_eq!(sampled_element(1, e), e, "repeat, element {e}");
+            assert_eq!(sampled_element(2, e), 3 - e, "mirrored repeat, element {e}");
+        }
+        // The spec's wrapping on negative and far coordinates.
+        assert_eq!(wrap(AddressMode::Repeat, -1, 2), 1);
+        assert_eq!(wrap(AddressMode::MirroredRepeat, -1, 2), 0);
+        assert_eq!(wrap(AddressMode::MirroredRepeat, 2, 2), 1);
+        assert_eq!(wrap(AddressMode::MirroredRepeat, 4, 2), 0);
+        assert_eq!(wrap(AddressMode::ClampToEdge, 7, 2), 1);
+        // The constant sampler differs from sampler 0 on most elements, and a dynamic index covers
+        // every sampler.
+        assert!((0..ELEMENTS).filter(|e| sampled_element(SAMPLER_LITERAL, *e) != sampled_element(0, *e)).count() >= 3);
+        assert_eq!((0..6).map(sampler_slot).collect::<Vec<_>>(), [0, 1, 2, 0, 1, 2]);
     }
 
     #[test]

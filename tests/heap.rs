@@ -121,7 +121,7 @@ fn sid_plans_every_heap_cell_and_drops_none() {
     let out = stdout(&o);
     let (to_run, unsupported, not_implemented) = list_counts(&out);
     assert!(not_implemented > 0, "{out}");
-    assert!(out.lines().filter(|l| l.starts_with("not_implemented ")).all(|l| l.contains(".direct ") && l.contains("GL_EXT_descriptor_heap")), "{out}");
+    assert!(out.lines().filter(|l| l.starts_with("not_implemented ")).all(|l| l.contains(".descriptor_heap.direct") && l.contains("GL_EXT_descriptor_heap")), "{out}");
     assert!(out.lines().filter(|l| l.starts_with("run ")).all(|l| l.contains(".mapped_")), "{out}");
     assert!(
         out.contains(&format!("{} planned: {to_run} to run, {unsupported} unsupported, {not_implemented} not implemented in rtprobe; ", to_run + unsupported + not_implemented)),
@@ -138,7 +138,7 @@ fn sid_runs_heap_cells_against_the_reference() {
     // Every stage and resource kind, every heap access way, dynamic indices (the original
     // fault's shape, with and without nonuniformEXT). Without a compiler for the direct way
     // (forced here) its cells come out not_implemented, counted in the report and the summary.
-    let (o, report) = run_in_sid("heap-run", "descriptor_model=descriptor_heap,index=dynamic", &[], &[("RTPROBE_GLSLANG", "/nonexistent/glslangValidator")]);
+    let (o, report) = run_in_sid("heap-run", "descriptor_model=descriptor_heap,index=dynamic,base=push_data|none", &[], &[("RTPROBE_GLSLANG", "/nonexistent/glslangValidator")]);
     let cells = report["cells"].as_array().unwrap();
     let count = |f: &dyn Fn(&serde_json::Value) -> bool| cells.iter().filter(|c| f(c)).count();
     let outcome = |c: &serde_json::Value, o: &str| c["outcome"] == o;
@@ -146,7 +146,7 @@ fn sid_runs_heap_cells_against_the_reference() {
     let not_impl = count(&|c| outcome(c, "not_implemented"));
     assert_eq!(report["plan"]["planned"].as_u64().unwrap() as usize, cells.len(), "every planned cell is in the report");
     assert_eq!(report["plan"]["not_implemented"].as_u64().unwrap() as usize, not_impl);
-    assert!(not_impl > 0 && cells.iter().filter(|c| outcome(c, "not_implemented")).all(|c| c["id"].as_str().unwrap().ends_with(".direct")));
+    assert!(not_impl > 0 && cells.iter().filter(|c| outcome(c, "not_implemented")).all(|c| c["id"].as_str().unwrap().contains(".descriptor_heap.direct")));
     for way in ["mapped_constant_offset", "mapped_push_index", "mapped_indirect_index", "mapped_shader_record_index"] {
         let ran: Vec<_> = cells.iter().filter(|c| c["id"].as_str().unwrap().ends_with(way) && c["outcome"] != "unsupported").collect();
         assert!(!ran.is_empty(), "{way} cells ran");
@@ -170,16 +170,46 @@ fn sid_runs_direct_heap_cells_compiled_by_the_roots_glslang() {
         return;
     }
     // (Acceleration structures read straight from the heap are a lavapipe 26 finding: not here.)
-    let filter = "descriptor_model=descriptor_heap,heap_access=direct,stage=closest_hit|compute,index=dynamic,resource=storage_buffer|uniform_buffer|sampled_image|storage_image";
+    let filter = "descriptor_model=descriptor_heap,heap_access=direct,stage=closest_hit|compute,index=dynamic,resource=storage_buffer|uniform_buffer|sampled_image|storage_image,base=push_data|none";
     let (o, report) = run_in_sid("heap-direct", filter, &[], &[]);
     let cells = report["cells"].as_array().unwrap();
-    assert_eq!(cells.len(), 16, "2 stages x 4 resources x nonuniform or not");
+    assert_eq!(cells.len(), 20, "2 stages x (3 resources + sampled images with a constant and a dynamic sampler) x nonuniform or not");
     assert!(cells.iter().all(|c| c["outcome"] == "pass"), "{}", stdout(&o));
     // A compiler that drops nonuniformEXT (glslang 16.6 on heap arrays) is said so, and only
     // where the cell asked for nonuniformEXT.
     let noted = |c: &serde_json::Value| c["attempts"][0]["result"]["detail"].as_str().is_some_and(|d| d.contains("dropped nonuniformEXT"));
     assert!(cells.iter().filter(|c| noted(c)).all(|c| c["nonuniform"] == true), "{}", stdout(&o));
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+}
+
+#[test]
+fn sid_runs_the_original_engines_base_sources_and_sampler_indices() {
+    if !have_sid() {
+        return;
+    }
+    // Issue 9's variables: the base of `base + gl_InstanceCustomIndexEXT` from push data, the SBT
+    // shader record or a per-instance buffer, and a constant or dynamic index into the separate
+    // sampler heap, read straight from the heap and through the push-index mapping.
+    let filter = "descriptor_model=descriptor_heap,heap_access=direct|mapped_push_index,stage=closest_hit,index=dynamic,nonuniform=true,resource=storage_buffer|sampled_image";
+    let (o, report) = run_in_sid("heap-base-sampler", filter, &[], &[]);
+    let cells = report["cells"].as_array().unwrap();
+    // 3 bases x (direct: SSBO + sampled image with 2 samplers; mapped: SSBO + sampled image)
+    assert_eq!(cells.len(), 3 * (3 + 2), "{}", stdout(&o));
+    for base in ["shader_record", "buffer"] {
+        assert!(cells.iter().any(|c| c["base"] == base), "base={base} planned");
+    }
+    for sampler in ["constant", "dynamic"] {
+        assert!(cells.iter().any(|c| c["sampler"] == sampler), "sampler={sampler} planned");
+    }
+    assert!(cells.iter().all(|c| c["outcome"] == "pass"), "{}", stdout(&o));
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    // Twin: a wrong value at the probed read of those cells mismatches.
+    let (o, report) = run_in_sid("heap-base-sampler-corrupt", filter, &["--inject-fault", &format!("{filter},base=shader_record|buffer@value")], &[]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    for c in report["cells"].as_array().unwrap() {
+        let want = if c["base"].is_string() { "mismatch" } else { "pass" };
+        assert_eq!(c["outcome"], want, "{}", c["id"]);
+    }
 }
 
 #[test]
@@ -206,10 +236,10 @@ fn sid_recommended_patterns_read_the_exact_element_and_layer_in_every_heap_way()
     // Issue 9's recommended patterns (index=dynamic_element: one SSBO at a spec-constant slot
     // read at a dynamic element offset; one texture2DArray sampled at a dynamic layer), in every
     // heap access way, checked exactly against the reference.
-    let filter = "descriptor_model=descriptor_heap,index=dynamic_element,stage=closest_hit|compute";
+    let filter = "descriptor_model=descriptor_heap,index=dynamic_element,stage=closest_hit|compute,base=push_data|none";
     let (o, report) = run_in_sid("heap-patterns", filter, &[], &[]);
     let cells = report["cells"].as_array().unwrap();
-    assert_eq!(cells.len(), 2 * (5 + 4), "2 resources x (5 ways in closest-hit, 4 in compute)");
+    assert_eq!(cells.len(), 2 * (5 + 4) + 2, "2 resources x (5 ways in closest-hit, 4 in compute), direct materials with both samplers");
     for c in cells {
         let id = c["id"].as_str().unwrap();
         assert!(c["outcome"] != "unsupported" && c["outcome"] != "not_implemented", "{id}: {}", c["reason"]);
@@ -221,9 +251,10 @@ fn sid_recommended_patterns_read_the_exact_element_and_layer_in_every_heap_way()
     // The geometry pattern passes in every way, and both patterns read straight from the heap.
     let pass = |id: &str| cells.iter().find(|c| c["id"] == id).unwrap_or_else(|| panic!("{id} planned"))["outcome"] == "pass";
     assert!(cells.iter().filter(|c| c["resource"] == "storage_buffer").all(|c| c["outcome"] == "pass"), "{}", stdout(&o));
-    assert!(pass("closest_hit.sampled_image.dynamic_element.descriptor_heap.direct"), "{}", stdout(&o));
+    assert!(pass("closest_hit.sampled_image.dynamic_element.descriptor_heap.direct.sampler_constant"), "{}", stdout(&o));
+    assert!(pass("closest_hit.sampled_image.dynamic_element.descriptor_heap.direct.sampler_dynamic"), "{}", stdout(&o));
     // Twin: a wrong value at the pattern's read must mismatch.
-    let direct = "descriptor_model=descriptor_heap,heap_access=direct,index=dynamic_element,stage=closest_hit";
+    let direct = "descriptor_model=descriptor_heap,heap_access=direct,index=dynamic_element,stage=closest_hit,base=push_data";
     let (o, report) = run_in_sid("heap-patterns-corrupt", direct, &["--inject-fault", &format!("{direct}@value")], &[]);
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(report["cells"].as_array().unwrap().iter().all(|c| c["outcome"] == "mismatch"), "{}", stdout(&o));
@@ -237,12 +268,12 @@ fn sid_a_direct_heap_fault_says_whether_the_recommended_pattern_works() {
     // The issue's shape faulting (an injected invalid-address load at the dynamic heap read, as
     // on the NVIDIA driver), with workarounds on: the run schedules each finding's recommended
     // pattern (outside the filter) and says per finding whether it works.
-    let filter = "descriptor_model=descriptor_heap,heap_access=direct,stage=closest_hit,index=dynamic,nonuniform=false,resource=storage_buffer|sampled_image";
+    let filter = "descriptor_model=descriptor_heap,heap_access=direct,stage=closest_hit,index=dynamic,nonuniform=false,resource=storage_buffer|sampled_image,base=push_data,sampler=dynamic|none";
     let (o, report) = sid_report("heap-pattern-finding", &["--filter", filter, "--no-confirm", "--inject-fault", &format!("{filter}@device")], &[]);
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     let cells = report["cells"].as_array().unwrap();
-    for (resource, pattern) in [("storage_buffer", "geometry"), ("sampled_image", "materials")] {
-        let f = cells.iter().find(|c| c["id"] == format!("closest_hit.{resource}.dynamic.descriptor_heap.direct")).unwrap();
+    for (id, pattern) in [("closest_hit.storage_buffer.dynamic.descriptor_heap.direct", "geometry"), ("closest_hit.sampled_image.dynamic.descriptor_heap.direct.sampler_dynamic", "materials")] {
+        let f = cells.iter().find(|c| c["id"] == id).unwrap();
         assert_eq!(f["outcome"], "crash", "{}", f["reason"]);
         let p = &f["recommended"];
         assert_eq!((p["pattern"].as_str(), p["status"].as_str()), (Some(pattern), Some("passes")), "{p}");

@@ -2,7 +2,7 @@
 //! with dynamic index (nonuniformEXT), descriptor_indexing`) and a verdict with its evidence
 //! (`❌ crash (6 of 6, p ≥ 0.61 at 95%)`, `✅ passes (5 of 5; miss ≤ 0.94% for p ≥ 0.61)`).
 use super::Verdicts;
-use crate::matrix::{AsAccess, Cell, HeapAccess, IndexSource};
+use crate::matrix::{AsAccess, BaseSource, Cell, HeapAccess, IndexSource, SamplerIndex};
 use serde::{Deserialize, Serialize};
 
 /// One cell as a sentence a driver engineer can read without knowing rtprobe's ids.
@@ -33,6 +33,18 @@ pub fn describe(c: &Cell) -> String {
     }
     if let Some(r) = c.reorder {
         s += &format!(", raygen reordering with {r}");
+    }
+    if let Some(b) = c.base {
+        s += match b {
+            BaseSource::ShaderRecord => ", base from the SBT shader record",
+            BaseSource::Buffer => ", base loaded from a per-instance buffer (device address)",
+        };
+    }
+    if let Some(k) = c.sampler {
+        s += match k {
+            SamplerIndex::Constant => ", separate sampler heap, constant sampler index",
+            SamplerIndex::Dynamic => ", separate sampler heap, dynamic sampler index",
+        };
     }
     if let Some(p) = c.patch {
         s += &format!(", patched with {}", p.as_str());
@@ -168,7 +180,7 @@ mod tests {
 
     #[test]
     fn cells_read_as_sentences() {
-        let c = Cell { stage: Stage::ClosestHit, resource: Resource::StorageBuffer, index: IndexSource::SpecConstant, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None, reorder: None };
+        let c = Cell { stage: Stage::ClosestHit, resource: Resource::StorageBuffer, index: IndexSource::SpecConstant, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None, reorder: None, base: None, sampler: None };
         assert_eq!(describe(&c), "closest_hit reading storage_buffer with spec_constant index, descriptor_indexing");
         let d = Cell { index: IndexSource::Dynamic, nonuniform: true, patch: Some(crate::matrix::cell::Workaround::SsboToAddress), ..c };
         assert_eq!(describe(&d), "closest_hit reading storage_buffer with dynamic index (nonuniformEXT), descriptor_indexing, patched with ssbo-to-address");

@@ -441,10 +441,11 @@ impl<'o> Bisector<'o> {
         out
     }
 
-    /// Find the minimal description, then build the isolation list around `cell` (or the first
-    /// faulting cell) and try its workarounds (`patch_supported` says which the device can run).
-    pub fn bisect(&mut self, cell: Option<&str>, patch_supported: &dyn Fn(&Cell) -> bool) -> Result<Bisection, BisectError> {
-        let (separable, conjunctions) = loop {
+    /// The minimal description of the faulting cells: one conjunction when one separates them
+    /// from every pass (`true`), else a small disjunction; repeated until the runs made on the way
+    /// change nothing.
+    fn describe_faults(&mut self) -> Result<(bool, Vec<Filter>), BisectError> {
+        loop {
             let start = self.verdicts.runs;
             let faulting = self.faulting();
             if faulting.is_empty() {
@@ -459,19 +460,37 @@ impl<'o> Bisector<'o> {
             let covered = self.faulting().iter().all(|f| cs.iter().any(|c| c.matches(f)));
             // (A round that ran nothing cannot change anything: the oracle gave up.)
             if (covered && !flipped) || self.verdicts.runs == start {
-                break (separable, cs);
+                return Ok((separable, cs));
+            }
+            self.memo.retain(|_, holds| *holds);
+        }
+    }
+
+    /// Find the minimal description, then build the isolation list around `cell` (or the first
+    /// faulting cell) and try its workarounds (`patch_supported` says which the device can run).
+    pub fn bisect(&mut self, cell: Option<&str>, patch_supported: &dyn Fn(&Cell) -> bool) -> Result<Bisection, BisectError> {
+        // Settling the isolation list's siblings repeats them; one that faults there is a fault
+        // the description must cover too: then the search starts over (faults are never reversed,
+        // so this ends).
+        let (separable, conjunctions, rep, siblings) = loop {
+            let (separable, conjunctions) = self.describe_faults()?;
+            let faulting = self.faulting();
+            let rep = match cell {
+                Some(id) => *faulting.iter().find(|c| c.id() == id).ok_or_else(|| BisectError::NotFaulting(id.to_string()))?,
+                None => *faulting.iter().find(|c| conjunctions[0].matches(c)).expect("the first conjunction holds for a faulting cell"),
+            };
+            let siblings = self.siblings(&rep);
+            let sib_cells: Vec<Cell> = siblings.iter().map(|(_, c)| *c).collect();
+            let start = self.verdicts.runs;
+            self.run_unknown(&sib_cells);
+            self.settle_against(&sib_cells, rep);
+            let covered = self.faulting().iter().all(|f| conjunctions.iter().any(|c| c.matches(f)));
+            if covered || self.verdicts.runs == start {
+                break (separable, conjunctions, rep, siblings);
             }
             self.memo.retain(|_, holds| *holds);
         };
-        let faulting = self.faulting();
-        let rep = match cell {
-            Some(id) => *faulting.iter().find(|c| c.id() == id).ok_or_else(|| BisectError::NotFaulting(id.to_string()))?,
-            None => *faulting.iter().find(|c| conjunctions[0].matches(c)).expect("the first conjunction holds for a faulting cell"),
-        };
-        let siblings = self.siblings(&rep);
         let sib_cells: Vec<Cell> = siblings.iter().map(|(_, c)| *c).collect();
-        self.run_unknown(&sib_cells);
-        self.settle_against(&sib_cells, rep);
         let patched: Vec<Cell> = rep.applicable_patches().into_iter().map(|p| Cell { patch: Some(p), ..rep }).filter(|c| patch_supported(c)).collect();
         self.run_unknown(&patched);
         self.settle_against(&patched, rep);
@@ -510,7 +529,7 @@ impl<'o> Bisector<'o> {
             union_miss_probability: union_miss,
             passes_relied_on: relied_ids.len(),
             unsettled,
-            faulting_cells: faulting.len(),
+            faulting_cells: self.faulting().len(),
             scope_cells: self.scope.len(),
             not_run: self.scope.iter().filter(|c| self.verdicts.state(c) == State::Unknown).count(),
             errored: self.scope.iter().filter(|c| self.verdicts.state(c) == State::Error).map(|c| c.id()).collect(),

@@ -325,3 +325,46 @@ fn a_lenient_pass_that_read_other_elements_is_suspect_when_a_defined_sibling_fau
     v.record(&literal, attempt(Outcome::Mismatch, false));
     assert!(isolation::line(&nu, None, &v, ev).suspect.is_none());
 }
+
+#[test]
+fn a_sibling_that_faults_while_the_isolation_list_is_settled_is_covered() {
+    // The raygen dynamic cell with nonuniformEXT faults every time; its sibling without the
+    // qualifier passes its first attempts and faults from its fourth on (a rare fault). The search
+    // first finds `nonuniform=true`; settling the isolation list then repeats the sibling until
+    // it faults, and the description must cover it: no isolation line may show a fault the
+    // minimal description excludes.
+    struct Late {
+        sim: Sim,
+        late: String,
+        seen: u32,
+    }
+    impl Oracle for Late {
+        fn run(&mut self, cells: &[Cell], isolated: bool, verdicts: &mut Verdicts) {
+            for c in cells {
+                if c.id() == self.late {
+                    self.seen += 1;
+                    verdicts.record(c, attempt(if self.seen >= 4 { Outcome::Crash } else { Outcome::Pass }, isolated));
+                } else {
+                    self.sim.run(std::slice::from_ref(c), isolated, verdicts);
+                }
+            }
+        }
+        fn can_run(&self) -> bool {
+            true
+        }
+    }
+    let sc = scope("descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit,index=literal|dynamic,base=push_data|none,reorder=none");
+    let mut o = Late { sim: Sim::new(&["stage=raygen,index=dynamic,nonuniform=true"], 1.0), late: "raygen.storage_buffer.dynamic.descriptor_indexing".into(), seen: 0 };
+    let mut v = Verdicts::default();
+    o.run(&sc, false, &mut v);
+    v.runs = 0;
+    let r = Bisector::new(sc.clone(), v, &mut o, Settings::default(), vec![]).bisect(None, &|_| true).unwrap();
+    assert!(o.seen >= 4, "the late sibling was repeated into its fault ({} attempts)", o.seen);
+    assert_eq!(r.minimal, "stage=raygen,index=dynamic", "{r:?}");
+    assert_eq!(r.faulting_cells, 2);
+    let minimal = Filter::parse(&r.minimal).unwrap();
+    for l in r.isolation.iter().filter(|l| l.verdict != "pass") {
+        let c = sc.iter().find(|c| c.id() == l.cell).unwrap();
+        assert!(minimal.matches(c), "{} faults outside {}", l.cell, r.minimal);
+    }
+}

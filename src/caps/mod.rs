@@ -6,7 +6,7 @@ pub mod profile;
 pub mod support;
 pub mod text;
 
-use crate::matrix::{AsAccess, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource, Stage};
+use crate::matrix::{AsAccess, BaseSource, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource, Stage};
 use crate::vk::{driver_version, features::TRACKED_EXTENSIONS, DeviceInfo};
 use serde_json::{json, Map, Value};
 use std::collections::BTreeMap;
@@ -62,6 +62,7 @@ pub fn matrix_json(info: &DeviceInfo) -> Value {
         "as_access": support_map(AsAccess::ALL, AsAccess::as_str, |a| support::as_access(info, a)),
         "descriptor_model": support_map(DescriptorModel::ALL, DescriptorModel::as_str, |m| support::descriptor_model(info, m)),
         "reorder": support_map(Reorder::ALL, Reorder::as_str, |r| support::reorder(info, r)),
+        "base": support_map(BaseSource::ALL, BaseSource::as_str, |b| support::base(info, b)),
         "heap_access": support_map(HeapAccess::ALL, HeapAccess::as_str, |h| Support::all([support::descriptor_model(info, DescriptorModel::DescriptorHeap), support::heap_access(info, h)])),
     })
 }

@@ -1,7 +1,7 @@
 //! What the matrix can run on a device, per axis value, decided from the queried features only.
 //! `Unsupported` is said only when the device's features or extensions say so; `NotImplemented`
 //! marks what rtprobe itself cannot do yet, which is never blamed on the device.
-use crate::matrix::{AsAccess, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource, Stage};
+use crate::matrix::{AsAccess, BaseSource, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource, Stage};
 use crate::vk::{heap, DeviceInfo};
 use ash::{ext, khr, nv, vk};
 use serde::Serialize;
@@ -180,6 +180,16 @@ pub fn reorder(info: &DeviceInfo, r: Reorder) -> Support {
                 "rayTracingInvocationReorder (VK_NV_ray_tracing_invocation_reorder)",
             )])
         }
+    }
+}
+
+/// Where a closest-hit dynamic index's base comes from. The shader record needs nothing beyond the
+/// ray tracing pipeline; the buffer is read through a device address (`GL_EXT_buffer_reference`
+/// with a `uvec2` address, so no 64-bit integers).
+pub fn base(info: &DeviceInfo, b: BaseSource) -> Support {
+    match b {
+        BaseSource::ShaderRecord => Support::Supported,
+        BaseSource::Buffer => Support::require(&[(on(info.features.v12.unwrap_or_default().buffer_device_address), "bufferDeviceAddress")]),
     }
 }
 

@@ -70,7 +70,7 @@ impl Binding {
     pub fn create(gpu: &Gpu, key: LayoutKey, targets: &[(u32, Resource, Vec<Target>)]) -> Result<Binding, VkError> {
         let d = &gpu.device;
         if key.model == DescriptorModel::DescriptorHeap {
-            let heap = HeapBinding::create(gpu, targets, &super::resources::sampler_info(), key.heap_direct)?;
+            let heap = HeapBinding::create(gpu, targets, &super::resources::heap_sampler_infos(), key.heap_direct)?;
             return Ok(Binding { set_layout: vk::DescriptorSetLayout::null(), pipeline_layout: vk::PipelineLayout::null(), bound: Bound::Heap(heap) });
         }
         let mut bindings = Vec::new();

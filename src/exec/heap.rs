@@ -10,7 +10,9 @@
 //! driver's reserved range. Mapped cells: records at 0, TLAS at `slot`, the array at
 //! an index of its stride past them. Direct cells: the array at 0 (so the shader's own index is the
 //! heap index, as in the original engine's `heap[base + gl_InstanceCustomIndexEXT]`), records and
-//! TLAS after it. The sampler heap holds the one probe sampler at offset 0, then its reserved range.
+//! TLAS after it. The sampler heap holds the probes' samplers (`probe::SAMPLER_MODES`; sampler 0
+//! at offset 0 is the one mapped combined image samplers use, direct probes index them with the
+//! sampler class's descriptor size as stride), then its reserved range.
 //! Descriptors are written with vkWriteResourceDescriptorsEXT / vkWriteSamplerDescriptorsEXT, both
 //! heaps bound with vkCmdBind{Resource,Sampler}HeapEXT, and push constants are push data
 //! (vkCmdPushDataEXT): the probes' 48-byte block at offset 0, the probed array's heap index at
@@ -125,8 +127,9 @@ fn fns(gpu: &Gpu) -> &h::HeapFns {
 
 impl HeapBinding {
     /// Write `targets[b]` (binding b's descriptors) into a new resource heap laid out for a
-    /// `direct` or mapped cell, and `sampler` into a new sampler heap.
-    pub fn create(gpu: &Gpu, targets: &[(u32, Resource, Vec<Target>)], sampler: &vk::SamplerCreateInfo, direct: bool) -> Result<HeapBinding, VkError> {
+    /// `direct` or mapped cell, and `samplers` into a new sampler heap (in order, at the sampler
+    /// stride).
+    pub fn create(gpu: &Gpu, targets: &[(u32, Resource, Vec<Target>)], samplers: &[vk::SamplerCreateInfo], direct: bool) -> Result<HeapBinding, VkError> {
         let p = props(gpu);
         let f = fns(gpu);
         // Heaps have no combined descriptors: a sampled image's image goes to the resource heap,
@@ -203,10 +206,16 @@ impl HeapBinding {
         unsafe { (f.write_resource_descriptors)(gpu.device.handle(), infos.len() as u32, infos.as_ptr(), dst.as_ptr()) }.result().at("vkWriteResourceDescriptorsEXT")?;
         let resources = Heap::create(gpu, &bytes, p.resource_heap_alignment, p.min_resource_heap_reserved_range, "resource heap")?;
 
-        let mut sbytes = vec![0u8; p.sampler_descriptor_size.max(1) as usize];
-        let sdst = h::HostAddressRange { address: sbytes.as_mut_ptr() as *mut c_void, size: sbytes.len() };
-        // SAFETY: one sampler info, one destination range inside `sbytes`.
-        let written = unsafe { (f.write_sampler_descriptors)(gpu.device.handle(), 1, sampler, &sdst) }.result().at("vkWriteSamplerDescriptorsEXT");
+        // A `sampler probeSampler[]` heap array strides by its class's descriptor size.
+        let sampler_size = size_of(vk::DescriptorType::SAMPLER).max(1) as usize;
+        let sampler_stride = align(class_size(vk::DescriptorType::SAMPLER).max(sampler_size as u32) as u64, p.sampler_descriptor_alignment) as usize;
+        let mut sbytes = vec![0u8; sampler_stride * (samplers.len().max(1) - 1) + sampler_size];
+        let sbase = sbytes.as_mut_ptr();
+        // SAFETY: sampler k's range [k * stride, k * stride + size) lies inside `sbytes`.
+        let sdst: Vec<h::HostAddressRange> =
+            (0..samplers.len()).map(|k| h::HostAddressRange { address: unsafe { sbase.add(k * sampler_stride) } as *mut c_void, size: sampler_size }).collect();
+        // SAFETY: one destination range per sampler info, all alive for the call.
+        let written = unsafe { (f.write_sampler_descriptors)(gpu.device.handle(), samplers.len() as u32, samplers.as_ptr(), sdst.as_ptr()) }.result().at("vkWriteSamplerDescriptorsEXT");
         let samplers = written.and_then(|_| Heap::create(gpu, &sbytes, p.sampler_heap_alignment.max(p.sampler_descriptor_alignment), p.min_sampler_heap_reserved_range, "sampler heap"));
         let index_usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
         let index = samplers.and_then(|s| match Buffer::with_data(gpu, &layout.probe_index().to_le_bytes(), index_usage, "heap index") {
@@ -364,15 +373,6 @@ impl PipelineMapping {
     /// What to chain to each VkPipelineShaderStageCreateInfo.
     pub fn stage_next(&self) -> *const c_void {
         &self.info as *const _ as *const c_void
-    }
-}
-
-/// The shader record data after every SBT handle of a heap pipeline: the probed array's heap
-/// index for `mapped_shader_record_index`, nothing otherwise.
-pub fn shader_record(access: Option<HeapAccess>, l: &HeapLayout) -> Vec<u8> {
-    match access {
-        Some(HeapAccess::MappedShaderRecordIndex) => l.probe_index().to_le_bytes().to_vec(),
-        Some(HeapAccess::MappedConstantOffset | HeapAccess::MappedPushIndex | HeapAccess::MappedIndirectIndex | HeapAccess::Direct) | None => vec![],
     }
 }
 

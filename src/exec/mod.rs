@@ -65,6 +65,8 @@ struct Bound {
     pkey: u64,
     as_table_address: u64,
     patched_table_address: u64,
+    /// The per-instance bases' address (`base=buffer`; 0 otherwise).
+    base_address: u64,
     note: Option<String>,
 }
 
@@ -88,8 +90,7 @@ struct PipelineInput<'a> {
 
 impl PipelineInput<'_> {
     fn create(&self, gpu: &Gpu, cache: vk::PipelineCache) -> Result<Pipeline, VkError> {
-        let heap = self.mapping.as_ref().map(|m| pipeline::HeapPipeline { mapping: m, shader_record: &self.record });
-        pipeline::create(gpu, cache, self.shaders, self.spirv, self.layout, self.model, heap.as_ref())
+        pipeline::create(gpu, cache, self.shaders, self.spirv, self.layout, self.model, self.mapping.as_deref(), &self.record)
     }
 }
 
@@ -155,6 +156,8 @@ pub struct Executor {
     arrays: HashMap<Resource, ResourceArray>,
     as_table: Option<Buffer>,
     ssbo_table: Option<Buffer>,
+    /// `base=buffer`: one base per scene instance (`probe::base_buffer`).
+    bases: Option<Buffer>,
     color: Option<Image>,
     bindings: HashMap<LayoutKey, Binding>,
     pipelines: HashMap<u64, Pipeline>,
@@ -198,6 +201,7 @@ impl Executor {
             arrays: HashMap::new(),
             as_table: None,
             ssbo_table: None,
+            bases: None,
             color: None,
             bindings: HashMap::new(),
             pipelines: HashMap::new(),
@@ -337,6 +341,11 @@ impl Executor {
             let slots = self.slots(Resource::AccelerationStructure);
             self.as_table = Some(resources::as_table(&self.gpu, &addrs, slots)?);
         }
+        if cell.base == Some(crate::matrix::BaseSource::Buffer) && self.bases.is_none() {
+            let bytes = probe::base_buffer(self.scene.params.instances);
+            let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+            self.bases = Some(Buffer::with_data(&self.gpu, &bytes, usage, "per-instance bases")?);
+        }
         if shaders.kind == PipelineKind::Graphics && self.color.is_none() {
             let (w, h) = (self.scene.params.width, self.scene.params.height);
             self.color = Some(Image::new(&self.gpu, vk::Extent2D { width: w, height: h }, pipeline::COLOR_FORMAT, vk::ImageUsageFlags::COLOR_ATTACHMENT)?);
@@ -445,6 +454,7 @@ impl Executor {
             as_table_address = self.as_table.as_ref().map(|b| b.address).unwrap_or(0);
             patched_table_address = as_table_address;
         }
+        let base_address = if cell.base == Some(crate::matrix::BaseSource::Buffer) { self.bases.as_ref().map(|b| b.address).unwrap_or(0) } else { 0 };
         timings.setup_ms = t.elapsed().as_secs_f64() * 1e3;
         // pipeline (reused for identical SPIR-V and model)
         let pkey = {
@@ -459,7 +469,7 @@ impl Executor {
             c.shaders.recursion_depth.hash(&mut hs);
             hs.finish()
         };
-        Ok(Bound { key, pkey, as_table_address, patched_table_address, note: c.note.clone() })
+        Ok(Bound { key, pkey, as_table_address, patched_table_address, base_address, note: c.note.clone() })
     }
 
     /// What creating the cell's pipeline needs, apart from the device and cache.
@@ -467,7 +477,7 @@ impl Executor {
         let binding = &self.bindings[&b.key];
         let layout = binding.heap_layout();
         let mapping = cell.heap_access.zip(layout.as_ref()).map(|(access, l)| heap::PipelineMapping::new(access, l));
-        let record = layout.map(|l| heap::shader_record(cell.heap_access, &l)).unwrap_or_default();
+        let record = pipeline::shader_record(cell, layout.as_ref());
         PipelineInput { shaders: &c.shaders, spirv: &c.spirv, layout: binding.pipeline_layout, model: cell.descriptor_model, mapping, record }
     }
 
@@ -507,7 +517,7 @@ impl Executor {
 
     /// The cell's records, and a note on what the compiler did to the cell's shape (if anything).
     fn try_run(&mut self, cell: &Cell, injected: Option<&InjectedFault>, timings: &mut Timings, on_phase: PhaseHook) -> Result<(Vec<Record>, Option<String>), CellError> {
-        let Bound { key, pkey, as_table_address, patched_table_address, note } = self.build(cell, injected, timings, on_phase)?;
+        let Bound { key, pkey, as_table_address, patched_table_address, base_address, note } = self.build(cell, injected, timings, on_phase)?;
         let (w, h) = (self.scene.params.width, self.scene.params.height);
 
         // push constants (layout: probe::PushConstants, then the patches' table address)
@@ -517,6 +527,7 @@ impl Executor {
         let pc = probe::PushConstants {
             loop_forever: u32::from(cell.canary == Some(Canary::InfiniteLoop) || fault == Some(crate::matrix::inject::FaultKind::Hang)),
             as_table: as_table_address,
+            base_address,
             bad_address: if cell.canary == Some(Canary::InvalidAddress) || injected_bad { CANARY_BAD_ADDRESS } else { 0 },
             inject_salt: fault.map(|f| crate::matrix::inject::value_salt(f, &cell.id())).unwrap_or(0),
             ..probe::push_constants(w, h, self.scene.params.instances, cell.resource)

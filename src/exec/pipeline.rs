@@ -49,15 +49,25 @@ fn stage_flag(role: Role) -> vk::ShaderStageFlags {
     }
 }
 
-/// How a heap pipeline reaches its heaps: the mapping chained to each stage, and the shader record
-/// data written after every SBT handle.
-pub struct HeapPipeline<'a> {
-    pub mapping: &'a PipelineMapping,
-    pub shader_record: &'a [u8],
+/// The shader record data written after every SBT handle of `cell`'s ray tracing pipeline
+/// ([`probe::ShaderRecordData`]): the probed array's heap index where the heap mapping reads it
+/// (`heap_access=mapped_shader_record_index`, `heap` laid out so) and the runtime base where the
+/// probe reads it (`base=shader_record`); no data when neither does.
+pub fn shader_record(cell: &crate::matrix::Cell, heap: Option<&super::heap::HeapLayout>) -> Vec<u8> {
+    let mapped = cell.heap_access == Some(crate::matrix::HeapAccess::MappedShaderRecordIndex);
+    let base = cell.base == Some(crate::matrix::BaseSource::ShaderRecord);
+    if !mapped && !base {
+        return vec![];
+    }
+    let heap_index = if mapped { heap.map(|l| l.probe_index()).unwrap_or(0) } else { 0 };
+    probe::ShaderRecordData { heap_index, dyn_base: probe::DYNAMIC_BASE }.to_bytes()
 }
 
 /// Create the pipeline for `shaders` (SPIR-V in `spirv`, same order), specializing constant 0 to
-/// `probe::SPEC_SLOT` in every stage. `heap` is `Some` exactly for the descriptor_heap model.
+/// `probe::SPEC_SLOT` in every stage. `heap` (the set/binding → heap mapping chained to each
+/// stage) is `Some` exactly for the descriptor_heap model; `record` is the shader record data
+/// written after every SBT handle (ray tracing pipelines).
+#[allow(clippy::too_many_arguments)]
 pub fn create(
     gpu: &Gpu,
     cache: vk::PipelineCache,
@@ -65,7 +75,8 @@ pub fn create(
     spirv: &[std::sync::Arc<Vec<u32>>],
     layout: vk::PipelineLayout,
     model: DescriptorModel,
-    heap: Option<&HeapPipeline>,
+    heap: Option<&PipelineMapping>,
+    record: &[u8],
 ) -> Result<Pipeline, VkError> {
     let d = &gpu.device;
     let mut modules = Vec::new();
@@ -90,7 +101,7 @@ pub fn create(
         .map(|(s, m)| {
             let mut st = vk::PipelineShaderStageCreateInfo::default().stage(stage_flag(s.role)).module(*m).name(MAIN).specialization_info(&spec);
             if let Some(h) = heap {
-                st.p_next = h.mapping.stage_next();
+                st.p_next = h.stage_next();
             }
             st
         })
@@ -99,7 +110,6 @@ pub fn create(
     // Heap pipelines: VK_PIPELINE_CREATE_2_DESCRIPTOR_HEAP_BIT_EXT, which only the flags2 struct carries.
     let mut flags2 = vk::PipelineCreateFlags2CreateInfoKHR::default().flags(crate::vk::heap::PIPELINE_CREATE_2_DESCRIPTOR_HEAP);
     let flags2 = heap.is_some().then_some(&mut flags2);
-    let record = heap.map(|h| h.shader_record).unwrap_or_default();
     let result = match shaders.kind {
         PipelineKind::RayTracing => create_rt(gpu, cache, shaders, &stages, layout, flags, flags2, record),
         PipelineKind::Compute => {

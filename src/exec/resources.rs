@@ -165,16 +165,33 @@ pub fn create_sampler(gpu: &Gpu) -> Result<vk::Sampler, VkError> {
     unsafe { gpu.device.create_sampler(&sampler_info(), None) }.at("vkCreateSampler")
 }
 
-/// The probes' sampler (also written into the sampler heap of heap cells).
+/// The probes' sampler: sampler 0 of the sampler heap (`probe::SAMPLER_MODES[0]`, clamp to edge),
+/// the one combined image samplers use.
 pub fn sampler_info() -> vk::SamplerCreateInfo<'static> {
+    sampler_info_for(crate::probe::SAMPLER_MODES[0])
+}
+
+/// A nearest-filtered sampler with `mode` in u, v and w.
+fn sampler_info_for(mode: crate::probe::AddressMode) -> vk::SamplerCreateInfo<'static> {
+    use crate::probe::AddressMode;
+    let mode = match mode {
+        AddressMode::ClampToEdge => vk::SamplerAddressMode::CLAMP_TO_EDGE,
+        AddressMode::Repeat => vk::SamplerAddressMode::REPEAT,
+        AddressMode::MirroredRepeat => vk::SamplerAddressMode::MIRRORED_REPEAT,
+    };
     vk::SamplerCreateInfo::default()
         .mag_filter(vk::Filter::NEAREST)
         .min_filter(vk::Filter::NEAREST)
         .mipmap_mode(vk::SamplerMipmapMode::NEAREST)
-        .address_mode_u(vk::SamplerAddressMode::CLAMP_TO_EDGE)
-        .address_mode_v(vk::SamplerAddressMode::CLAMP_TO_EDGE)
-        .address_mode_w(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+        .address_mode_u(mode)
+        .address_mode_v(mode)
+        .address_mode_w(mode)
         .max_lod(0.0)
+}
+
+/// The sampler heap's samplers, in heap order (`probe::SAMPLER_MODES`).
+pub fn heap_sampler_infos() -> Vec<vk::SamplerCreateInfo<'static>> {
+    crate::probe::SAMPLER_MODES.iter().map(|m| sampler_info_for(*m)).collect()
 }
 
 pub fn descriptor_type(kind: Resource) -> vk::DescriptorType {

@@ -406,7 +406,7 @@ mod tests {
 
     fn cell(index: crate::matrix::IndexSource) -> crate::matrix::Cell {
         use crate::matrix::{DescriptorModel, Resource, Stage};
-        crate::matrix::Cell { stage: Stage::ClosestHit, resource: Resource::StorageBuffer, index, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None, reorder: None }
+        crate::matrix::Cell { stage: Stage::ClosestHit, resource: Resource::StorageBuffer, index, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None, reorder: None, base: None, sampler: None }
     }
 
     fn cell_with(index: crate::matrix::IndexSource, outcomes: &[Outcome]) -> CellReport {

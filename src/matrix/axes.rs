@@ -92,6 +92,28 @@ axis!(
     }
 );
 
+axis!(
+    /// Where a closest-hit probe's runtime `base` (the `base` of `base + gl_InstanceCustomIndexEXT`)
+    /// comes from when it is not push data (the default, no axis value in the id): the SBT shader
+    /// record of the hit group (`probe::ShaderRecordData::dyn_base`), or a buffer of per-instance
+    /// bases read through a device address at `gl_InstanceID`. Only on cells that have it
+    /// (`Cell::base_applies`).
+    BaseSource, "base" {
+        ShaderRecord = "shader_record", Buffer = "buffer",
+    }
+);
+
+axis!(
+    /// How a `heap_access=direct` sampled-image probe picks its sampler from the sampler heap
+    /// (`sampler probeSampler[]`, separate from the texture heap as in the original engine): a
+    /// constant index ([`crate::probe::SAMPLER_LITERAL`]) or a dynamic one (the stage's runtime
+    /// value modulo the heap's samplers). The samplers differ in address mode and the probe samples
+    /// outside [0, 1], so the sampler chosen shows in the texel read (`probe::sampled_element`).
+    SamplerIndex, "sampler" {
+        Constant = "constant", Dynamic = "dynamic",
+    }
+);
+
 impl Stage {
     /// Stages of a ray tracing pipeline (the rest are graphics / compute).
     pub fn is_ray_tracing(self) -> bool {

@@ -1,7 +1,7 @@
 //! One cell of the matrix and its stable id, built from the axes (never from run order):
-//! `stage.resource.index[.nonuniform][.as_access].descriptor_model[.heap_access][.reorder][.patch-<name>]`,
+//! `stage.resource.index[.nonuniform][.as_access].descriptor_model[.heap_access][.reorder][.base_<base>][.sampler_<sampler>][.patch-<name>]`,
 //! or `canary.<name>`.
-use super::axes::{AsAccess, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource, Stage};
+use super::axes::{AsAccess, BaseSource, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource, SamplerIndex, Stage};
 use serde::{Deserialize, Serialize};
 
 /// Deliberately faulting cells that prove fault detection works on the device at hand.
@@ -98,6 +98,14 @@ pub struct Cell {
     /// dynamic index have it, see [`Cell::reorder_applies`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub reorder: Option<Reorder>,
+    /// Where a closest-hit dynamic index's base comes from (`base` axis; `None`: push data). Only
+    /// where [`Cell::base_applies`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub base: Option<BaseSource>,
+    /// The sampler index of a separate-sampler probe (`sampler` axis): always set on
+    /// `heap_access=direct` sampled-image cells, never elsewhere ([`Cell::sampler_applies`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sampler: Option<SamplerIndex>,
 }
 
 impl Cell {
@@ -113,6 +121,8 @@ impl Cell {
             canary: Some(c),
             patch: None,
             reorder: None,
+            base: None,
+            sampler: None,
         }
     }
 
@@ -122,7 +132,32 @@ impl Cell {
     /// driver offers both SER and descriptor heaps yet (the H100's 580 has SER, no heap; lavapipe
     /// 26 the heap, no SER), so heap × reorder cells could run nowhere.
     pub fn reorder_applies(&self) -> bool {
-        self.canary.is_none() && self.stage == Stage::ClosestHit && self.index == IndexSource::Dynamic && self.descriptor_model != DescriptorModel::DescriptorHeap
+        self.canary.is_none()
+            && self.stage == Stage::ClosestHit
+            && self.index == IndexSource::Dynamic
+            && self.descriptor_model != DescriptorModel::DescriptorHeap
+            && self.base.is_none()
+    }
+
+    /// The `base` axis: the original fault's shape is a closest-hit shader indexing with `base +
+    /// gl_InstanceCustomIndexEXT`, so where the base comes from varies on closest-hit cells with a
+    /// dynamic index (or the recommended pattern's dynamic element) into buffers and images.
+    /// Other hit stages keep the push-data base (their index has the same shape; the axis would
+    /// triple their cells), and AS arrays are small and reached by their own access axis.
+    pub fn base_applies(&self) -> bool {
+        self.canary.is_none()
+            && self.stage == Stage::ClosestHit
+            && matches!(self.index, IndexSource::Dynamic | IndexSource::DynamicElement)
+            && self.resource != Resource::AccelerationStructure
+            && self.reorder.is_none()
+    }
+
+    /// The `sampler` axis: `layout(descriptor_heap)` GLSL has no combined image samplers, so a
+    /// direct sampled-image probe always samples `sampler2D(probeTex[i], probeSampler[s])` with a
+    /// separate sampler index. Set/binding shaders (every other model and mapped heap access)
+    /// sample combined image samplers and have no sampler index of their own.
+    pub fn sampler_applies(&self) -> bool {
+        self.canary.is_none() && self.resource == Resource::SampledImage && self.heap_access == Some(HeapAccess::Direct)
     }
 
     /// `index=dynamic_element` exists for the engines' two recommended shapes only: geometry (an
@@ -151,6 +186,7 @@ impl Cell {
         if self.index == IndexSource::DynamicElement && self.patch.is_none() {
             return Err(format!("this cell is the recommended pattern ({})", pattern.as_str()));
         }
+        // Same base and sampler: the pattern reads its dynamic value the way the finding did.
         Ok((pattern, Cell { index: IndexSource::DynamicElement, nonuniform: false, patch: None, reorder: None, ..*self }))
     }
 
@@ -202,6 +238,14 @@ impl Cell {
             parts.push(r.as_str());
         }
         let mut id = parts.join(".");
+        if let Some(b) = self.base {
+            id.push_str(".base_");
+            id.push_str(b.as_str());
+        }
+        if let Some(s) = self.sampler {
+            id.push_str(".sampler_");
+            id.push_str(s.as_str());
+        }
         if let Some(p) = self.patch {
             id.push_str(".patch-");
             id.push_str(p.as_str());
@@ -222,12 +266,18 @@ impl Cell {
             "canary" => self.canary.map(|c| c.as_str()).unwrap_or("none").into(),
             "patch" => self.patch.map(|p| p.as_str()).unwrap_or("none").into(),
             "reorder" => self.reorder.map(|r| r.as_str()).unwrap_or("none").into(),
+            "base" => match self.base {
+                Some(b) => b.as_str().into(),
+                None if self.base_applies() => "push_data".into(),
+                None => "none".into(),
+            },
+            "sampler" => self.sampler.map(|s| s.as_str()).unwrap_or("none").into(),
             _ => return None,
         })
     }
 }
 
-pub const AXIS_NAMES: &[&str] = &["stage", "resource", "index", "nonuniform", "as_access", "descriptor_model", "heap_access", "canary", "patch", "reorder"];
+pub const AXIS_NAMES: &[&str] = &["stage", "resource", "index", "nonuniform", "as_access", "descriptor_model", "heap_access", "canary", "patch", "reorder", "base", "sampler"];
 
 #[cfg(test)]
 mod tests {
@@ -246,8 +296,18 @@ mod tests {
             canary: None,
             patch: None,
             reorder: None,
+            base: None,
+            sampler: None,
         };
         assert_eq!(c.id(), "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_indexing");
+        assert_eq!(c.axis_value("base").as_deref(), Some("push_data"));
+        let b = Cell { base: Some(BaseSource::ShaderRecord), ..c };
+        assert_eq!(b.id(), "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_indexing.base_shader_record");
+        assert!(!b.reorder_applies() && b.base_applies());
+        assert_eq!(Cell { stage: Stage::AnyHit, ..c }.axis_value("base").as_deref(), Some("none"));
+        let d = Cell { resource: Resource::SampledImage, descriptor_model: DescriptorModel::DescriptorHeap, heap_access: Some(HeapAccess::Direct), sampler: Some(SamplerIndex::Dynamic), ..c };
+        assert_eq!(d.id(), "closest_hit.sampled_image.dynamic.nonuniform.descriptor_heap.direct.sampler_dynamic");
+        assert!(d.sampler_applies() && !Cell { heap_access: Some(HeapAccess::MappedPushIndex), ..d }.sampler_applies());
         let r = Cell { reorder: Some(Reorder::ReorderHint), patch: Some(Workaround::PinIndex), ..c };
         assert_eq!(r.id(), "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_indexing.reorder_hint.patch-pin-index");
         assert_eq!(r.axis_value("reorder").as_deref(), Some("reorder_hint"));

@@ -179,7 +179,7 @@ mod tests {
     use crate::matrix::{Canary, DescriptorModel, IndexSource, Resource, Stage};
 
     fn cell(stage: Stage, index: IndexSource) -> Cell {
-        Cell { stage, resource: Resource::StorageBuffer, index, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None, reorder: None }
+        Cell { stage, resource: Resource::StorageBuffer, index, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None, reorder: None, base: None, sampler: None }
     }
 
     #[test]

@@ -5,6 +5,6 @@ pub mod cell;
 pub mod inject;
 pub mod plan;
 
-pub use axes::{AsAccess, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource, Stage};
+pub use axes::{AsAccess, BaseSource, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource, SamplerIndex, Stage};
 pub use cell::{Canary, Cell};
 pub use plan::{Filter, PlanOptions, RunPlan};

@@ -1,7 +1,7 @@
 //! From options and a device to a [`RunPlan`], before any GPU work: which cells exist, which the
 //! filter keeps, which the device cannot run (and why, from its queried features), and which
 //! combinations are never generated because an axis value cannot matter there.
-use super::axes::{AsAccess, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource, Stage};
+use super::axes::{AsAccess, BaseSource, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource, SamplerIndex, Stage};
 use super::cell::{Canary, Cell, AXIS_NAMES};
 use crate::caps::support::{self, Support};
 use crate::vk::DeviceInfo;
@@ -38,6 +38,9 @@ fn valid_values(axis: &str) -> Vec<String> {
             v.push("none");
             v
         }
+        // push_data: the default base of cells that have one (not stored in the cell).
+        "base" => BaseSource::names().into_iter().chain(["push_data", "none"]).collect(),
+        "sampler" => SamplerIndex::names().into_iter().chain(["none"]).collect(),
         _ => vec![],
     };
     v.into_iter().map(String::from).collect()
@@ -166,6 +169,9 @@ pub fn device_support(info: &DeviceInfo, cell: &Cell) -> Support {
     if let Some(r) = cell.reorder {
         checks.push(support::reorder(info, r));
     }
+    if let Some(b) = cell.base {
+        checks.push(support::base(info, b));
+    }
     if matches!(cell.patch, Some(super::cell::Workaround::AsToAddress | super::cell::Workaround::SsboToAddress)) {
         checks.push(support::as_access(info, AsAccess::Address));
     }
@@ -192,6 +198,8 @@ pub fn all_cells() -> (Vec<Cell>, Vec<NotGenerated>) {
     let mut record_outside_rt = 0;
     let mut heap_index_without_binding = 0;
     let mut packed_elsewhere = 0;
+    let mut base_elsewhere = 0;
+    let mut sampler_elsewhere = 0;
     for &stage in Stage::ALL {
         for &resource in Resource::ALL {
             let accesses: Vec<Option<AsAccess>> =
@@ -227,12 +235,26 @@ pub fn all_cells() -> (Vec<Cell>, Vec<NotGenerated>) {
                                     heap_index_without_binding += 1;
                                     continue;
                                 }
-                                let cell = Cell { stage, resource, index, nonuniform, as_access, descriptor_model, heap_access, canary: None, patch: None, reorder: None };
-                                cells.push(cell);
-                                if cell.reorder_applies() {
-                                    cells.extend(Reorder::ALL.iter().map(|r| Cell { reorder: Some(*r), ..cell }));
+                                let cell = Cell { stage, resource, index, nonuniform, as_access, descriptor_model, heap_access, canary: None, patch: None, reorder: None, base: None, sampler: None };
+                                let samplers: Vec<Option<SamplerIndex>> = if cell.sampler_applies() {
+                                    SamplerIndex::ALL.iter().map(|s| Some(*s)).collect()
                                 } else {
-                                    reorder_elsewhere += Reorder::ALL.len();
+                                    sampler_elsewhere += SamplerIndex::ALL.len();
+                                    vec![None]
+                                };
+                                for sampler in samplers {
+                                    let cell = Cell { sampler, ..cell };
+                                    cells.push(cell);
+                                    if cell.reorder_applies() {
+                                        cells.extend(Reorder::ALL.iter().map(|r| Cell { reorder: Some(*r), ..cell }));
+                                    } else {
+                                        reorder_elsewhere += Reorder::ALL.len();
+                                    }
+                                    if cell.base_applies() {
+                                        cells.extend(BaseSource::ALL.iter().map(|b| Cell { base: Some(*b), ..cell }));
+                                    } else {
+                                        base_elsewhere += BaseSource::ALL.len();
+                                    }
                                 }
                             }
                         }
@@ -245,7 +267,15 @@ pub fn all_cells() -> (Vec<Cell>, Vec<NotGenerated>) {
         NotGenerated { rule: "nonuniform only applies to index=dynamic".into(), count: nonuniform_static },
         NotGenerated { rule: "nonuniform has no descriptor to qualify with as_access=address".into(), count: nonuniform_address },
         NotGenerated { rule: "index=dynamic_element is the recommended pattern of storage buffers (geometry) and sampled images (materials) only".into(), count: packed_elsewhere },
-        NotGenerated { rule: "reorder only applies to stage=closest_hit with index=dynamic".into(), count: reorder_elsewhere },
+        NotGenerated { rule: "reorder only applies to stage=closest_hit with index=dynamic (push-data base, set-based models)".into(), count: reorder_elsewhere },
+        NotGenerated {
+            rule: "base=shader_record|buffer only applies to stage=closest_hit with index=dynamic|dynamic_element into buffers and images (the original fault's shape)".into(),
+            count: base_elsewhere,
+        },
+        NotGenerated {
+            rule: "sampler=constant|dynamic only applies to heap_access=direct sampled images (set/binding shaders sample combined image samplers)".into(),
+            count: sampler_elsewhere,
+        },
         NotGenerated { rule: "heap_access=mapped_shader_record_index needs a shader record (ray tracing pipelines only)".into(), count: record_outside_rt },
         NotGenerated {
             rule: "heap_access=mapped_push_index|mapped_indirect_index|mapped_shader_record_index only move the probed binding, which as_access=address has not".into(),
@@ -320,7 +350,25 @@ mod tests {
         let dynamic_closest_hit = (4 * 2 + 5) * 2;
         // index=dynamic_element: storage buffers and sampled images, per model and heap access way.
         let packed = |ways: usize| 2 * (2 + ways);
-        assert_eq!(n, 8 * (4 * 5 + 14) * 2 + 6 * per_stage_heap(5) + 2 * per_stage_heap(4) + dynamic_closest_hit * 2 + 6 * packed(5) + 2 * packed(4));
+        // sampler: every direct sampled-image cell (5 index variants + dynamic_element per stage)
+        // twice, constant and dynamic.
+        let sampler_extra = 8 * 6;
+        // base: closest-hit dynamic (x nonuniform) and dynamic_element cells of buffers and images
+        // (4 x 2 + 2) in 2 set-based models and 5 heap ways, plus the direct sampled ones' second
+        // sampler value (3), again with each of the 2 non-default bases.
+        let base_extra = 2 * ((4 * 2 + 2) * 7 + 3);
+        assert_eq!(
+            n,
+            8 * (4 * 5 + 14) * 2 + 6 * per_stage_heap(5) + 2 * per_stage_heap(4) + dynamic_closest_hit * 2 + 6 * packed(5) + 2 * packed(4) + sampler_extra + base_extra
+        );
+        assert!(cells.iter().all(|c| c.sampler.is_some() == c.sampler_applies()));
+        assert!(cells.iter().all(|c| c.base.is_none() || c.base_applies()));
+        // Every base_applies cell has both other bases; reorder never combines with a base.
+        for c in cells.iter().filter(|c| c.base.is_none() && c.base_applies()) {
+            for b in BaseSource::ALL {
+                assert!(cells.contains(&Cell { base: Some(*b), ..*c }), "{} without base {b}", c.id());
+            }
+        }
         assert!(cells.iter().filter(|c| c.index == IndexSource::DynamicElement).all(|c| Cell::dynamic_element_applies(c.resource) && !c.nonuniform && c.applicable_patches().is_empty()));
         // Every dynamic storage-buffer / sampled-image cell has its recommended pattern in the matrix.
         for c in cells.iter().filter(|c| c.index == IndexSource::Dynamic && Cell::dynamic_element_applies(c.resource)) {

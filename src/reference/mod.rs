@@ -20,6 +20,12 @@
 //! any more (`as_access=address|address_patched`, the `as-to-address` / `ssbo-to-address`
 //! patches) a non-uniform index reads memory, which is well defined: those cells are exact.
 //!
+//! Separate-sampler probes (`sampler` axis, direct heap sampled images) sample a shifted coordinate,
+//! so their value is the texel their sampler's address mode picks ([`probe::sampled_element`]):
+//! reading with another sampler reads another texel on most pixels, and that is a mismatch. A
+//! dynamic sampler index without `nonuniformEXT` (only in cells whose dynamic descriptor index
+//! goes without it) falls under the any-element rule with the rest of the read.
+//!
 //! Discrimination: on each exactly checked probe pixel, whether every other slot of the array and
 //! every other element of the slot holds a different value, i.e. whether reading any wrong
 //! element would have been caught there.
@@ -27,7 +33,7 @@ pub mod intersect;
 pub mod watertight;
 
 use crate::matrix::cell::Workaround;
-use crate::matrix::{AsAccess, Cell, IndexSource, Resource, Stage};
+use crate::matrix::{AsAccess, Cell, IndexSource, Resource, SamplerIndex, Stage};
 use crate::probe::{self, HitIds, Record, FLAG_HIT, FLAG_PROBE, MAX_AS_VARIANTS};
 use crate::scene::Scene;
 use intersect::TraceRef;
@@ -195,9 +201,18 @@ pub fn expected(cell: &Cell, scene: &Scene, sref: &SceneReference) -> Vec<Expect
                 } else {
                     let ids = hit.map(|h| HitIds { instance_id: h.instance_id, geometry: h.geometry, primitive: h.primitive }).unwrap_or_default();
                     rec.element = probe::element(cell.stage, x, y, ids);
-                    rec.value = probe::resource_value(cell.resource, read, rec.element);
-                    let k = (read * probe::ELEMENTS + rec.element) as usize;
-                    discriminating = *buffer_disc[k].get_or_insert_with(|| buffer_value_discriminates(cell.resource, slots, read, rec.element));
+                    // A separate-sampler probe reads the texel its sampler's address mode picks.
+                    let texel = match cell.sampler {
+                        None => rec.element,
+                        Some(SamplerIndex::Constant) => probe::sampled_element(probe::SAMPLER_LITERAL, rec.element),
+                        Some(SamplerIndex::Dynamic) => {
+                            let dynamic = probe::dynamic_slot(cell.stage, x, y, w, hit.map(|h| h.instance).unwrap_or(0), slots);
+                            probe::sampled_element(probe::sampler_slot(dynamic), rec.element)
+                        }
+                    };
+                    rec.value = probe::resource_value(cell.resource, read, texel);
+                    let k = (read * probe::ELEMENTS + texel) as usize;
+                    discriminating = *buffer_disc[k].get_or_insert_with(|| buffer_value_discriminates(cell.resource, slots, read, texel));
                 }
                 if undefined_descriptor_read(cell) {
                     let mut as_values = [0.0; MAX_AS_VARIANTS as usize];
@@ -453,7 +468,7 @@ mod tests {
     use std::sync::OnceLock;
 
     fn cell(stage: Stage, index: IndexSource) -> Cell {
-        Cell { stage, resource: Resource::StorageBuffer, index, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, canary: None, heap_access: None, patch: None, reorder: None }
+        Cell { stage, resource: Resource::StorageBuffer, index, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, canary: None, heap_access: None, patch: None, reorder: None, base: None, sampler: None }
     }
 
     fn world() -> &'static (Scene, SceneReference) {
@@ -525,6 +540,46 @@ mod tests {
         let raygen = expected(&cell(Stage::Raygen, IndexSource::Literal), scene, r);
         let cmp = compare(&raygen, &records(&raygen), 64);
         assert_eq!(cmp.probe_checked, cmp.compared);
+    }
+
+    /// Direct heap sampled images with a separate sampler index: the value is the texel the
+    /// cell's sampler picks, so a driver that samples with sampler 0 (ignoring the index), or with
+    /// the constant sampler where the index is dynamic, is caught on most probe pixels; the right
+    /// sampler passes.
+    #[test]
+    fn a_wrong_sampler_reads_another_texel_and_is_caught() {
+        let (scene, r) = world();
+        let direct = |stage, index, nonuniform, sampler| Cell {
+            resource: Resource::SampledImage,
+            nonuniform,
+            descriptor_model: DescriptorModel::DescriptorHeap,
+            heap_access: Some(crate::matrix::HeapAccess::Direct),
+            sampler: Some(sampler),
+            ..cell(stage, index)
+        };
+        for stage in [Stage::ClosestHit, Stage::Raygen, Stage::Fragment] {
+            for (index, nonuniform) in [(IndexSource::Literal, false), (IndexSource::Dynamic, true), (IndexSource::DynamicElement, false)] {
+                for sampler in [SamplerIndex::Constant, SamplerIndex::Dynamic] {
+                    let c = direct(stage, index, nonuniform, sampler);
+                    let e = expected(&c, scene, r);
+                    assert!(compare(&e, &records(&e), 64).passed(), "{}", c.id());
+                    // The same read with sampler 0 (clamp to edge): element 1 of the slot read.
+                    let slot_read = |a: &Record| if index == IndexSource::DynamicElement || index == IndexSource::Dynamic { a.slot } else { probe::LITERAL_SLOT };
+                    let wrong = reading(&e, |a| probe::resource_value(Resource::SampledImage, slot_read(a), probe::sampled_element(0, a.element)));
+                    let cmp = compare(&e, &wrong, 64);
+                    // Constant: sampler 2 against 0 differs on 3 elements of 4. Dynamic: a third
+                    // of the pixels use sampler 0 itself, the others differ on 3 elements of 4.
+                    let share = if sampler == SamplerIndex::Constant { 0.7 } else { 0.4 };
+                    assert!(cmp.mismatched_pixels as f64 > share * cmp.probe_checked as f64, "{}: sampler 0 caught on {} of {}", c.id(), cmp.mismatched_pixels, cmp.probe_checked);
+                    if sampler == SamplerIndex::Dynamic {
+                        // The constant sampler instead of the dynamic one.
+                        let wrong = reading(&e, |a| probe::resource_value(Resource::SampledImage, slot_read(a), probe::sampled_element(probe::SAMPLER_LITERAL, a.element)));
+                        let cmp = compare(&e, &wrong, 64);
+                        assert!(cmp.mismatched_pixels * 3 > cmp.probe_checked, "{}: constant sampler caught on {} of {}", c.id(), cmp.mismatched_pixels, cmp.probe_checked);
+                    }
+                }
+            }
+        }
     }
 
     /// `index=dynamic_element` (the recommended pattern): the reference knows the value of every

@@ -152,7 +152,7 @@ mod tests {
     use crate::report::shaders::cell_shaders;
 
     fn compute(resource: Resource, index: IndexSource) -> Cell {
-        Cell { stage: Stage::Compute, resource, index, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None, reorder: None }
+        Cell { stage: Stage::Compute, resource, index, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None, reorder: None, base: None, sampler: None }
     }
 
     fn small() -> SceneParams {

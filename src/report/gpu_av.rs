@@ -107,7 +107,7 @@ impl GpuAvResult {
 /// The control of `finding`: the same cell with a literal index (no dynamic descriptor access),
 /// when the report has it passing without GPU-AV.
 pub fn control(report: &RunReport, finding: &Cell) -> Option<Cell> {
-    let c = Cell { index: IndexSource::Literal, nonuniform: false, patch: None, reorder: None, ..*finding };
+    let c = Cell { index: IndexSource::Literal, nonuniform: false, patch: None, reorder: None, base: None, ..*finding };
     (c != *finding && report.cells.iter().any(|x| x.cell == c && x.outcome == Outcome::Pass)).then_some(c)
 }
 
@@ -182,7 +182,7 @@ mod tests {
 
     fn cell(model: DescriptorModel, index: IndexSource) -> Cell {
         let heap_access = (model == DescriptorModel::DescriptorHeap).then_some(HeapAccess::Direct);
-        Cell { stage: Stage::ClosestHit, resource: Resource::StorageBuffer, index, nonuniform: false, as_access: None, descriptor_model: model, heap_access, canary: None, patch: None, reorder: None }
+        Cell { stage: Stage::ClosestHit, resource: Resource::StorageBuffer, index, nonuniform: false, as_access: None, descriptor_model: model, heap_access, canary: None, patch: None, reorder: None, base: None, sampler: None }
     }
 
     fn ran(c: Cell, o: Outcome) -> CellReport {

@@ -158,6 +158,8 @@ mod tests {
             canary: None,
             patch: None,
             reorder: None,
+            base: None,
+            sampler: (resource == Resource::SampledImage).then_some(crate::matrix::axes::SamplerIndex::Dynamic),
         }
     }
 

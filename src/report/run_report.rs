@@ -520,7 +520,7 @@ mod tests {
     use crate::matrix::{DescriptorModel, IndexSource, Resource, Stage};
 
     fn cell() -> Cell {
-        Cell { stage: Stage::ClosestHit, resource: Resource::StorageBuffer, index: IndexSource::Dynamic, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None, reorder: None }
+        Cell { stage: Stage::ClosestHit, resource: Resource::StorageBuffer, index: IndexSource::Dynamic, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None, reorder: None, base: None, sampler: None }
     }
 
     fn attempt(outcome: Outcome, isolated: bool) -> Attempt {

@@ -376,7 +376,7 @@ mod tests {
 
     fn reorder_cell(r: Option<Reorder>, resource: Resource) -> Cell {
         let as_access = (resource == Resource::AccelerationStructure).then_some(AsAccess::Descriptor);
-        Cell { stage: Stage::ClosestHit, resource, index: IndexSource::Dynamic, nonuniform: true, as_access, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None, reorder: r }
+        Cell { stage: Stage::ClosestHit, resource, index: IndexSource::Dynamic, nonuniform: true, as_access, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None, reorder: r, base: None, sampler: None }
     }
 
     /// The recommended patterns: the descriptor index is the spec constant, the dynamic value sits
@@ -389,7 +389,7 @@ mod tests {
             (Resource::SampledImage, "textureLod(probeTex[SPEC_SLOT], vec3((vec2(uvec2(probeElement & 1u, probeElement >> 1u)) + 0.5) * 0.5, float(probeSlot)), 0.0)"),
         ] {
             for stage in [Stage::ClosestHit, Stage::Compute] {
-                let cell = Cell { stage, resource, index: IndexSource::DynamicElement, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None, reorder: None };
+                let cell = Cell { stage, resource, index: IndexSource::DynamicElement, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None, reorder: None, base: None, sampler: None };
                 let shaders = generate(&cell);
                 let probed = shaders.shaders.iter().find(|s| s.glsl.contains("uint probeSlot")).unwrap();
                 assert!(probed.glsl.contains(read) && probed.glsl.contains("layout(constant_id = 0) const uint SPEC_SLOT"), "{}", probed.glsl);
@@ -398,6 +398,36 @@ mod tests {
                     let (words, _) = c.compile(s.role, &s.glsl).unwrap_or_else(|e| panic!("{:?}: {e}\n{}", s.role, s.glsl));
                     if let crate::patches::Validation::Invalid(m) = crate::patches::validate(&words) {
                         panic!("{:?}: {m}", s.role);
+                    }
+                }
+            }
+        }
+    }
+
+    /// `base=shader_record|buffer`: the closest-hit probe's base comes from the generated shader
+    /// record block or the per-instance buffer, never from push data, and the shaders compile to
+    /// valid SPIR-V (shaderc; the heap cells' direct GLSL is compiled by the root's glslang in the
+    /// heap tests).
+    #[test]
+    fn base_cells_read_their_base_where_the_axis_says() {
+        use crate::matrix::BaseSource;
+        let mut c = compile::Compiler::new().unwrap();
+        for resource in [Resource::StorageBuffer, Resource::SampledImage] {
+            for base in [None, Some(BaseSource::ShaderRecord), Some(BaseSource::Buffer)] {
+                let cell = Cell { base, ..reorder_cell(None, resource) };
+                let shaders = generate(&cell);
+                let chit = &shaders.get(Role::ClosestHitTriangles).unwrap().glsl;
+                let want = match base {
+                    None => "uint probeSlot = (pc.dynBase + (uint(gl_InstanceCustomIndexEXT) & pc.dynMask))",
+                    Some(BaseSource::ShaderRecord) => "uint probeSlot = (shaderRecord.dynBase + (uint(gl_InstanceCustomIndexEXT) & pc.dynMask))",
+                    Some(BaseSource::Buffer) => "uint probeSlot = (ProbeBases(pc.baseAddress).base[gl_InstanceID] + (uint(gl_InstanceCustomIndexEXT) & pc.dynMask))",
+                };
+                assert!(chit.contains(want), "{chit}");
+                assert_eq!(chit.contains("layout(shaderRecordEXT, std430) buffer ShaderRecordData"), base == Some(BaseSource::ShaderRecord), "{chit}");
+                for s in &shaders.shaders {
+                    let (words, _) = c.compile(s.role, &s.glsl).unwrap_or_else(|e| panic!("{base:?} {:?}: {e}\n{}", s.role, s.glsl));
+                    if let crate::patches::Validation::Invalid(m) = crate::patches::validate(&words) {
+                        panic!("{base:?} {:?}: {m}", s.role);
                     }
                 }
             }

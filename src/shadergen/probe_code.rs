@@ -11,7 +11,12 @@
 //! `index=dynamic_element` (the recommended patterns) indexes the array with the spec constant and
 //! puts the dynamic value inside the one descriptor: `v[packedElement(probeSlot, probeElement)]`
 //! of a buffer, or the layer of a `sampler2DArray` / `texture2DArray`.
-use crate::matrix::{AsAccess, Cell, HeapAccess, IndexSource, Resource, Stage};
+//! `base=shader_record|buffer` closest-hit cells read the dynamic index's base from the SBT shader
+//! record (`probe::ShaderRecordData`) or from a per-instance buffer at `gl_InstanceID` through a
+//! device address, instead of push data. Direct sampled-image cells sample with sampler
+//! `probeSampler[s]` of the sampler heap at a shifted coordinate (`probe::SAMPLER_SHIFT`), `s` a
+//! literal (`sampler=constant`) or the stage's runtime value modulo the samplers (`dynamic`).
+use crate::matrix::{AsAccess, BaseSource, Cell, HeapAccess, IndexSource, Resource, SamplerIndex, Stage};
 use crate::probe;
 
 pub struct ProbeCode {
@@ -40,13 +45,51 @@ fn element_expr(stage: Stage) -> &'static str {
     }
 }
 
+/// Where a hit stage's dynamic index takes its base from (`base` axis; push data by default).
+fn base_expr(base: Option<BaseSource>) -> &'static str {
+    match base {
+        None => "pc.dynBase",
+        Some(BaseSource::ShaderRecord) => "shaderRecord.dynBase",
+        Some(BaseSource::Buffer) => "ProbeBases(pc.baseAddress).base[gl_InstanceID]",
+    }
+}
+
 /// The stage's runtime slot value (`probe::dynamic_slot`).
-fn dynamic_expr(stage: Stage) -> &'static str {
-    match stage {
-        Stage::ClosestHit | Stage::AnyHit | Stage::Intersection => "(pc.dynBase + (uint(gl_InstanceCustomIndexEXT) & pc.dynMask))",
-        Stage::Raygen | Stage::Miss | Stage::Callable => "((gl_LaunchIDEXT.x + gl_LaunchIDEXT.y * pc.width) % pc.slotCount)",
-        Stage::Fragment => "inSlot",
-        Stage::Compute => "((gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * pc.width) % pc.slotCount)",
+fn dynamic_expr(cell: &Cell) -> String {
+    match cell.stage {
+        Stage::ClosestHit | Stage::AnyHit | Stage::Intersection => format!("({} + (uint(gl_InstanceCustomIndexEXT) & pc.dynMask))", base_expr(cell.base)),
+        Stage::Raygen | Stage::Miss | Stage::Callable => "((gl_LaunchIDEXT.x + gl_LaunchIDEXT.y * pc.width) % pc.slotCount)".into(),
+        Stage::Fragment => "inSlot".into(),
+        Stage::Compute => "((gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * pc.width) % pc.slotCount)".into(),
+    }
+}
+
+/// The declarations and extensions the cell's base needs.
+fn base_decls(base: Option<BaseSource>, extensions: &mut Vec<&'static str>, decls: &mut String) {
+    match base {
+        None => {}
+        Some(BaseSource::ShaderRecord) => *decls += &probe::glsl_shader_record(),
+        Some(BaseSource::Buffer) => {
+            extensions.extend(["GL_EXT_buffer_reference", "GL_EXT_buffer_reference_uvec2"]);
+            *decls += "layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer ProbeBases { uint base[]; };\n";
+        }
+    }
+}
+
+/// The sampler heap index of a direct sampled-image probe (`sampler` axis). A dynamic one is
+/// qualified `nonuniformEXT` except in a cell whose own dynamic index goes without it (the
+/// original shape, unqualified throughout; checked as any element, see `reference`).
+fn sampler_expr(cell: &Cell) -> String {
+    match cell.sampler {
+        None | Some(SamplerIndex::Constant) => format!("{}u", probe::SAMPLER_LITERAL),
+        Some(SamplerIndex::Dynamic) => {
+            let s = format!("({} % {}u)", dynamic_expr(cell), probe::SAMPLER_MODES.len());
+            if cell.index == IndexSource::Dynamic && !cell.nonuniform {
+                s
+            } else {
+                format!("nonuniformEXT({s})")
+            }
+        }
     }
 }
 
@@ -56,7 +99,7 @@ fn index_expr(cell: &Cell) -> String {
         IndexSource::Literal => format!("{}u", probe::LITERAL_SLOT),
         IndexSource::SpecConstant => "SPEC_SLOT".into(),
         IndexSource::PushConstant => "pc.pushSlot".into(),
-        IndexSource::Dynamic | IndexSource::DynamicElement => dynamic_expr(cell.stage).into(),
+        IndexSource::Dynamic | IndexSource::DynamicElement => dynamic_expr(cell),
     }
 }
 
@@ -91,6 +134,7 @@ impl ProbeCode {
         if matches!(cell.index, IndexSource::SpecConstant | IndexSource::DynamicElement) {
             decls += "layout(constant_id = 0) const uint SPEC_SLOT = 0u;\n";
         }
+        base_decls(cell.base, &mut extensions, &mut decls);
         let mut body = format!("    uint probeSlot = {idx};\n");
         let element = if cell.resource == Resource::AccelerationStructure { "0u" } else { element_expr(cell.stage) };
         body += &format!("    uint probeElement = {element};\n");
@@ -116,8 +160,13 @@ impl ProbeCode {
                 // dynamic_element: an array texture, the slot its layer.
                 let (dim, at) = if packed { ("2DArray", format!("vec3({xy}, float(probeSlot))")) } else { ("2D", xy.to_string()) };
                 if heap {
+                    // Separate texture and sampler heaps; the sampled coordinate shifted so that
+                    // the sampler's address mode picks the texel (probe::sampled_element).
+                    let [du, dv] = probe::SAMPLER_SHIFT;
+                    let xy = format!("({xy} + vec2({du:?}, {dv:?}))");
+                    let at = if packed { format!("vec3({xy}, float(probeSlot))") } else { xy };
                     decls += &format!("layout(descriptor_heap) uniform texture{dim} probeTex[];\nlayout(descriptor_heap) uniform sampler probeSampler[];\n");
-                    format!("textureLod(sampler{dim}(probeTex[{sub}], probeSampler[0]), {at}, 0.0)")
+                    format!("textureLod(sampler{dim}(probeTex[{sub}], probeSampler[{}]), {at}, 0.0)", sampler_expr(cell))
                 } else {
                     decls += &format!("layout(set = 0, binding = 2) uniform sampler{dim} probeTex[];\n");
                     format!("textureLod(probeTex[{sub}], {at}, 0.0)")
