@@ -274,9 +274,11 @@ impl ShaderRecordData {
 }
 
 /// The per-instance bases `base=buffer` reads at `gl_InstanceID` (every entry [`DYNAMIC_BASE`]:
-/// the value is the push-data base's, only the way the shader gets it differs).
+/// the value is the push-data base's, only the way the shader gets it differs). One entry per
+/// scene instance and one for the AS probe's floor instance (`gl_InstanceID == instances` in the
+/// probe TLAS), so no hit reads past the end.
 pub fn base_buffer(instances: u32) -> Vec<u8> {
-    (0..instances.max(1)).flat_map(|_| DYNAMIC_BASE.to_le_bytes()).collect()
+    (0..=instances).flat_map(|_| DYNAMIC_BASE.to_le_bytes()).collect()
 }
 
 /// A sampler's address mode (the Vulkan modes the sampler heap's samplers use).

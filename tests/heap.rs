@@ -219,7 +219,7 @@ fn sid_heap_cells_are_checked_corrupted_expectations_mismatch() {
     }
     // The twin of the run above: with a wrong value injected at the probed read, a passing heap
     // cell must mismatch.
-    let filter = "descriptor_model=descriptor_heap,stage=closest_hit,resource=storage_buffer,index=dynamic,nonuniform=true,heap_access=mapped_push_index";
+    let filter = "descriptor_model=descriptor_heap,stage=closest_hit,resource=storage_buffer,index=dynamic,nonuniform=true,heap_access=mapped_push_index,base=push_data";
     let inject = format!("{filter}@value");
     let (o, report) = run_in_sid("heap-corrupt", filter, &["--inject-fault", &inject], &[]);
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
