@@ -273,12 +273,41 @@ impl ShaderRecordData {
     }
 }
 
-/// The per-instance bases `base=buffer` reads at `gl_InstanceID` (every entry [`DYNAMIC_BASE`]:
-/// the value is the push-data base's, only the way the shader gets it differs). One entry per
-/// scene instance and one for the AS probe's floor instance (`gl_InstanceID == instances` in the
-/// probe TLAS), so no hit reads past the end.
+/// `base=shader_record`: the `dyn_base` in the triangle hit group's record, the procedural (sphere)
+/// hit group's, and every other group's (raygen, miss, callable). They differ from each other and
+/// from push data's [`DYNAMIC_BASE`], so a hit shader that reads another group's record (or the
+/// push constant) computes another slot. All are below [`DYNAMIC_BASE`], so the slot stays inside
+/// the array ([`slot_count`]).
+pub const RECORD_BASE_TRIANGLES: u32 = DYNAMIC_BASE - 1;
+pub const RECORD_BASE_PROCEDURAL: u32 = DYNAMIC_BASE - 2;
+pub const RECORD_BASE_OTHER: u32 = 0;
+
+/// `base=buffer`: the base stored for instance `instance_id` (0, 1, 2, 0, …: neighbours differ,
+/// and none is push data's [`DYNAMIC_BASE`], so reading another instance's entry, one lane's entry
+/// for the whole wave, or the push constant computes another slot on many pixels; below
+/// [`DYNAMIC_BASE`], so the slot stays inside the array).
+pub fn instance_base(instance_id: u32) -> u32 {
+    instance_id % DYNAMIC_BASE
+}
+
+/// The per-instance bases `base=buffer` reads at `gl_InstanceID` ([`instance_base`]): one entry
+/// per scene instance and one for the AS probe's floor instance (`gl_InstanceID == instances` in
+/// the probe TLAS), so no hit reads past the end.
 pub fn base_buffer(instances: u32) -> Vec<u8> {
-    (0..=instances).flat_map(|_| DYNAMIC_BASE.to_le_bytes()).collect()
+    (0..=instances).flat_map(|i| instance_base(i).to_le_bytes()).collect()
+}
+
+/// The base a hit shader adds to the masked custom index, for a hit on instance `instance_id`
+/// (`sphere`: the procedural hit group): push data's [`DYNAMIC_BASE`], the hit group's record
+/// base, or the instance's entry of the bases buffer.
+pub fn hit_base(base: Option<crate::matrix::BaseSource>, instance_id: u32, sphere: bool) -> u32 {
+    use crate::matrix::BaseSource;
+    match base {
+        None => DYNAMIC_BASE,
+        Some(BaseSource::ShaderRecord) if sphere => RECORD_BASE_PROCEDURAL,
+        Some(BaseSource::ShaderRecord) => RECORD_BASE_TRIANGLES,
+        Some(BaseSource::Buffer) => instance_base(instance_id),
+    }
 }
 
 /// A sampler's address mode (the Vulkan modes the sampler heap's samplers use).
@@ -361,10 +390,11 @@ pub fn as_value(hit_custom: Option<u32>) -> [f32; 4] {
     [hit_custom.map(|c| c as f32 + 1.0).unwrap_or(0.0), 0.0, 0.0, 1.0]
 }
 
-/// The slot `index=dynamic` selects in `stage` for pixel (x, y).
-pub fn dynamic_slot(stage: Stage, x: u32, y: u32, width: u32, hit_custom: u32, slots: u32) -> u32 {
+/// The slot `index=dynamic` selects in `stage` for pixel (x, y); in hit stages `base` ([`hit_base`])
+/// plus the masked custom index of the hit.
+pub fn dynamic_slot(stage: Stage, x: u32, y: u32, width: u32, hit_custom: u32, base: u32, slots: u32) -> u32 {
     match stage {
-        Stage::ClosestHit | Stage::AnyHit | Stage::Intersection => DYNAMIC_BASE + (hit_custom & (slots - DYNAMIC_BASE - 1)),
+        Stage::ClosestHit | Stage::AnyHit | Stage::Intersection => base + (hit_custom & (slots - DYNAMIC_BASE - 1)),
         Stage::Raygen | Stage::Miss | Stage::Callable | Stage::Compute => (x + y * width) % slots,
         Stage::Fragment => ((y / TILE) * (width / TILE) + x / TILE) % slots,
     }
@@ -573,8 +603,8 @@ mod tests {
         assert_eq!(slot_count(Resource::StorageBuffer, 4096), DYNAMIC_BASE + 4096);
         assert_eq!(as_variants(4096), MAX_AS_VARIANTS);
         assert!([LITERAL_SLOT, SPEC_SLOT, PUSH_SLOT].iter().all(|s| *s < n));
-        assert_eq!(dynamic_slot(Stage::ClosestHit, 0, 0, 64, 0xfffff5, n), DYNAMIC_BASE + 5);
-        assert!(dynamic_slot(Stage::Fragment, 63, 63, 64, 0, n) < n);
+        assert_eq!(dynamic_slot(Stage::ClosestHit, 0, 0, 64, 0xfffff5, DYNAMIC_BASE, n), DYNAMIC_BASE + 5);
+        assert!(dynamic_slot(Stage::Fragment, 63, 63, 64, 0, DYNAMIC_BASE, n) < n);
         let mut seen = std::collections::HashSet::new();
         for r in Resource::ALL {
             for s in 0..n {

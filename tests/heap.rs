@@ -203,6 +203,15 @@ fn sid_runs_the_original_engines_base_sources_and_sampler_indices() {
     }
     assert!(cells.iter().all(|c| c["outcome"] == "pass"), "{}", stdout(&o));
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    // Where the compiler dropped nonuniformEXT from a heap index (glslang 16.6 does), the cell
+    // says so and is judged as undefined (any element): the note and the lenient judgment come
+    // together, and only on direct cells.
+    for c in cells {
+        let r = &c["attempts"][0]["result"];
+        let noted = r["detail"].as_str().is_some_and(|d| d.contains("dropped nonuniformEXT"));
+        assert_eq!(noted, r["comparison"]["element_reads"].is_object(), "{}: {}", c["id"], r);
+        assert!(!noted || c["heap_access"] == "direct", "{}", c["id"]);
+    }
     // Twin: a wrong value at the probed read of those cells mismatches.
     let (o, report) = run_in_sid("heap-base-sampler-corrupt", filter, &["--inject-fault", &format!("{filter},base=shader_record|buffer@value")], &[]);
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
@@ -243,8 +252,13 @@ fn sid_recommended_patterns_read_the_exact_element_and_layer_in_every_heap_way()
     for c in cells {
         let id = c["id"].as_str().unwrap();
         assert!(c["outcome"] != "unsupported" && c["outcome"] != "not_implemented", "{id}: {}", c["reason"]);
-        if c["outcome"] == "pass" {
-            let d = c["attempts"][0]["result"]["comparison"]["discrimination"].as_f64().unwrap();
+        let r = &c["attempts"][0]["result"];
+        // (A dynamic sampler index whose nonuniformEXT the compiler dropped is judged as
+        // undefined, any element: said in the cell, no exact discrimination then.)
+        let dropped = r["detail"].as_str().is_some_and(|d| d.contains("dropped nonuniformEXT on the sampler heap index"));
+        assert!(!dropped || c["sampler"] == "dynamic", "{id}");
+        if c["outcome"] == "pass" && !dropped {
+            let d = r["comparison"]["discrimination"].as_f64().unwrap();
             assert!(d >= 0.99, "{id}: every pixel would catch another element or layer ({d})");
         }
     }

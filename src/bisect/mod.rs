@@ -51,6 +51,9 @@ use isolation::IsolationLine;
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 
+/// Axes that exist only on some cells, whose `none` / default values stand for other axes' values.
+const SECONDARY_AXES: &[&str] = &["base", "sampler"];
+
 /// The axes bisection reduces over: every axis of a cell except `canary`.
 pub fn axes() -> impl Iterator<Item = &'static str> {
     crate::matrix::cell::AXIS_NAMES.iter().copied().filter(|a| *a != "canary")
@@ -409,7 +412,14 @@ impl<'o> Bisector<'o> {
     fn reduce(&mut self, f: Filter) -> Filter {
         // Reversed, so that among equivalent results ddmin keeps the primary axes (as_access=none
         // says resource≠acceleration_structure; nonuniform=true says index=dynamic).
-        let terms: Vec<(String, Vec<String>)> = f.terms.into_iter().rev().filter(|(a, v)| self.scope_values(a).iter().any(|x| !v.contains(x))).collect();
+        let mut terms: Vec<(String, Vec<String>)> = f.terms.into_iter().rev().filter(|(a, v)| self.scope_values(a).iter().any(|x| !v.contains(x))).collect();
+        // The optional axes' stand-in values (`base=none`: not a closest-hit dynamic buffer/image
+        // cell; `sampler=none`: not a direct sampled image) restate other axes: described without
+        // them when that still holds.
+        let primary: Vec<(String, Vec<String>)> = terms.iter().filter(|(a, _)| !SECONDARY_AXES.contains(&a.as_str())).cloned().collect();
+        if primary.len() < terms.len() && self.holds(&Filter { terms: primary.iter().rev().cloned().collect() }) {
+            terms = primary;
+        }
         let mut kept = ddmin::ddmin(&terms, &mut |sub| {
             let mut t = sub.to_vec();
             t.reverse();
@@ -469,10 +479,10 @@ impl<'o> Bisector<'o> {
     /// Find the minimal description, then build the isolation list around `cell` (or the first
     /// faulting cell) and try its workarounds (`patch_supported` says which the device can run).
     pub fn bisect(&mut self, cell: Option<&str>, patch_supported: &dyn Fn(&Cell) -> bool) -> Result<Bisection, BisectError> {
-        // Settling the isolation list's siblings repeats them; one that faults there is a fault
-        // the description must cover too: then the search starts over (faults are never reversed,
-        // so this ends).
-        let (separable, conjunctions, rep, siblings) = loop {
+        // Settling the isolation list's siblings and the workarounds repeats them; one in the
+        // scope that faults there is a fault the description must cover too: then the search
+        // starts over (faults are never reversed, so this ends).
+        let (separable, conjunctions, rep, siblings, patched) = loop {
             let (separable, conjunctions) = self.describe_faults()?;
             let faulting = self.faulting();
             let rep = match cell {
@@ -481,19 +491,20 @@ impl<'o> Bisector<'o> {
             };
             let siblings = self.siblings(&rep);
             let sib_cells: Vec<Cell> = siblings.iter().map(|(_, c)| *c).collect();
+            let patched: Vec<Cell> = rep.applicable_patches().into_iter().map(|p| Cell { patch: Some(p), ..rep }).filter(|c| patch_supported(c)).collect();
             let start = self.verdicts.runs;
             self.run_unknown(&sib_cells);
             self.settle_against(&sib_cells, rep);
+            // (Patched variants are in the scope when the report planned them: they count too.)
+            self.run_unknown(&patched);
+            self.settle_against(&patched, rep);
             let covered = self.faulting().iter().all(|f| conjunctions.iter().any(|c| c.matches(f)));
             if covered || self.verdicts.runs == start {
-                break (separable, conjunctions, rep, siblings);
+                break (separable, conjunctions, rep, siblings, patched);
             }
             self.memo.retain(|_, holds| *holds);
         };
         let sib_cells: Vec<Cell> = siblings.iter().map(|(_, c)| *c).collect();
-        let patched: Vec<Cell> = rep.applicable_patches().into_iter().map(|p| Cell { patch: Some(p), ..rep }).filter(|c| patch_supported(c)).collect();
-        self.run_unknown(&patched);
-        self.settle_against(&patched, rep);
         let ev = |b: &Self, against: Option<&Cell>| isolation::Evidence { against: against.map(|f| b.verdicts.rate_bound(f)), max_miss: b.settings.max_miss };
         let mut isolation = vec![isolation::line(&rep, None, &self.verdicts, ev(self, Some(&rep)))];
         isolation.extend(siblings.iter().map(|(axis, c)| isolation::line(c, Some(axis), &self.verdicts, ev(self, Some(&rep)))));

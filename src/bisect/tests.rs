@@ -368,3 +368,16 @@ fn a_sibling_that_faults_while_the_isolation_list_is_settled_is_covered() {
         assert!(minimal.matches(c), "{} faults outside {}", l.cell, r.minimal);
     }
 }
+
+#[test]
+fn descriptions_prefer_primary_axes_over_the_optional_axes_stand_in_values() {
+    // In a scope with closest-hit base variants, `base=none` (not a closest-hit dynamic cell)
+    // separates raygen from closest-hit as well as `stage=raygen` does: the description names
+    // the stage. A fault that needs the base keeps it.
+    let sc = "descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit,index=literal|dynamic,reorder=none";
+    let (r, _) = bisect(&["stage=raygen,nonuniform=true"], 1.0, sc, sc);
+    assert!(!r.minimal.contains("base=") && !r.minimal.contains("sampler="), "{}", r.minimal);
+    assert_eq!(Filter::parse(&r.minimal).unwrap().terms.len(), 2, "{}", r.minimal);
+    let (r, _) = bisect(&["base=buffer"], 1.0, sc, sc);
+    assert_eq!(r.minimal, "base=buffer");
+}

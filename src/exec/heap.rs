@@ -15,7 +15,7 @@
 //! sampler class's descriptor size as stride), then its reserved range.
 //! Descriptors are written with vkWriteResourceDescriptorsEXT / vkWriteSamplerDescriptorsEXT, both
 //! heaps bound with vkCmdBind{Resource,Sampler}HeapEXT, and push constants are push data
-//! (vkCmdPushDataEXT): the probes' 48-byte block at offset 0, the probed array's heap index at
+//! (vkCmdPushDataEXT): the probes' block (`probe::PushConstants`) at offset 0, the probed array's heap index at
 //! [`PUSH_INDEX_OFFSET`], and at [`PUSH_INDEX_ADDRESS_OFFSET`] the address of a buffer holding the
 //! same index.
 //!
@@ -206,9 +206,11 @@ impl HeapBinding {
         unsafe { (f.write_resource_descriptors)(gpu.device.handle(), infos.len() as u32, infos.as_ptr(), dst.as_ptr()) }.result().at("vkWriteResourceDescriptorsEXT")?;
         let resources = Heap::create(gpu, &bytes, p.resource_heap_alignment, p.min_resource_heap_reserved_range, "resource heap")?;
 
-        // A `sampler probeSampler[]` heap array strides by its class's descriptor size.
+        // A `sampler probeSampler[]` heap array strides by OpConstantSizeOfEXT of the sampler
+        // type, its class's descriptor size (`samplerDescriptorSize`), like the resource arrays
+        // above; never less than what a write fills.
         let sampler_size = size_of(vk::DescriptorType::SAMPLER).max(1) as usize;
-        let sampler_stride = align(class_size(vk::DescriptorType::SAMPLER).max(sampler_size as u32) as u64, p.sampler_descriptor_alignment) as usize;
+        let sampler_stride = class_size(vk::DescriptorType::SAMPLER).max(sampler_size as u32) as usize;
         let mut sbytes = vec![0u8; sampler_stride * (samplers.len().max(1) - 1) + sampler_size];
         let sbase = sbytes.as_mut_ptr();
         // SAFETY: sampler k's range [k * stride, k * stride + size) lies inside `sbytes`.
@@ -376,31 +378,112 @@ impl PipelineMapping {
     }
 }
 
-/// SPIR-V `OpDecorate` and the `NonUniform` decoration.
+/// SPIR-V opcodes and enumerants the NonUniform check reads (SPIR-V 1.6 unified spec;
+/// SPV_KHR_untyped_pointers; SPV_EXT_descriptor_heap).
 const OP_DECORATE: u32 = 71;
+const OP_UNTYPED_ACCESS_CHAIN: u32 = 4419;
+const DECORATION_BUILTIN: u32 = 11;
 const DECORATION_NON_UNIFORM: u32 = 5300;
+const BUILTIN_SAMPLER_HEAP: u32 = 5122;
+const BUILTIN_RESOURCE_HEAP: u32 = 5123;
+
+/// The module's instructions as (opcode, operands), stopping at a malformed word count.
+fn instructions(words: &[u32]) -> impl Iterator<Item = (u32, &[u32])> {
+    let mut i = 5; // after the header
+    std::iter::from_fn(move || {
+        let first = *words.get(i)?;
+        let (count, op) = ((first >> 16) as usize, first & 0xffff);
+        let operands = words.get(i + 1..i + count.max(1))?;
+        i += count.max(1);
+        Some((op, operands))
+    })
+}
 
 /// Whether a module decorates anything `NonUniform` (what `nonuniformEXT` must produce on the
 /// descriptor access; SPIR-V 2.16.2: the decoration goes on the index or the access chain).
 pub fn has_nonuniform(words: &[u32]) -> bool {
-    let mut i = 5; // after the header
-    while i < words.len() {
-        let (count, op) = ((words[i] >> 16) as usize, words[i] & 0xffff);
-        if op == OP_DECORATE && count >= 3 && words.get(i + 2) == Some(&DECORATION_NON_UNIFORM) {
-            return true;
-        }
-        i += count.max(1);
-    }
-    false
+    instructions(words).any(|(op, o)| op == OP_DECORATE && o.len() >= 2 && o[1] == DECORATION_NON_UNIFORM)
 }
 
-/// For a `direct` heap cell with `nonuniformEXT`: a note when no compiled module carries a
-/// `NonUniform` decoration, i.e. the compiler dropped the qualifier and the driver saw a uniform
-/// index (glslang 16.6 does so on `layout(descriptor_heap)` arrays; reports/lavapipe-26/FINDINGS.md).
-pub fn dropped_nonuniform(cell: &crate::matrix::Cell, spirv: &[std::sync::Arc<Vec<u32>>]) -> Option<String> {
-    let direct = cell.heap_access == Some(HeapAccess::Direct);
-    (direct && cell.nonuniform && !spirv.iter().any(|w| has_nonuniform(w)))
-        .then(|| "the GLSL compiler dropped nonuniformEXT: no NonUniform decoration reached the driver".to_string())
+/// How a module's accesses into one descriptor heap (`layout(descriptor_heap)` arrays:
+/// `OpUntypedAccessChainKHR` on the variable decorated `BuiltIn ResourceHeapEXT` /
+/// `SamplerHeapEXT`) are decorated: `None` without such an access, `Some(true)` when every one
+/// has `NonUniform` on its index or on itself (SPIR-V 2.16.2), `Some(false)` when one has not.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct HeapNonUniform {
+    pub resource: Option<bool>,
+    pub sampler: Option<bool>,
+}
+
+pub fn heap_nonuniform(words: &[u32]) -> HeapNonUniform {
+    let mut nonuniform = std::collections::HashSet::new();
+    let (mut resource_heap, mut sampler_heap) = (None, None);
+    for (op, o) in instructions(words) {
+        match (op, o) {
+            (OP_DECORATE, [id, d, ..]) if *d == DECORATION_NON_UNIFORM => {
+                nonuniform.insert(*id);
+            }
+            (OP_DECORATE, [id, d, b, ..]) if *d == DECORATION_BUILTIN && *b == BUILTIN_RESOURCE_HEAP => resource_heap = Some(*id),
+            (OP_DECORATE, [id, d, b, ..]) if *d == DECORATION_BUILTIN && *b == BUILTIN_SAMPLER_HEAP => sampler_heap = Some(*id),
+            _ => {}
+        }
+    }
+    let mut out = HeapNonUniform::default();
+    for (op, o) in instructions(words) {
+        // OpUntypedAccessChainKHR: result type, result, base type, base, indexes...
+        if let (OP_UNTYPED_ACCESS_CHAIN, [_, result, _, base, first, ..]) = (op, o) {
+            let decorated = nonuniform.contains(result) || nonuniform.contains(first);
+            let slot = if Some(*base) == resource_heap {
+                &mut out.resource
+            } else if Some(*base) == sampler_heap {
+                &mut out.sampler
+            } else {
+                continue;
+            };
+            *slot = Some(slot.unwrap_or(true) && decorated);
+        }
+    }
+    out
+}
+
+/// The heaps of a `direct` cell whose non-uniform index reached the driver without `NonUniform`
+/// although the GLSL asked for it: the compiler dropped `nonuniformEXT` (glslang 16.6 does on
+/// `layout(descriptor_heap)` arrays; reports/lavapipe-26/FINDINGS.md #3). The driver then saw an
+/// undecorated non-uniform descriptor index, which the spec leaves undefined, so the cell is
+/// judged as one without the qualifier (any element of the array; `reference::ValueRule`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DroppedNonUniform {
+    pub resource: bool,
+    pub sampler: bool,
+}
+
+impl DroppedNonUniform {
+    pub fn note(&self) -> String {
+        let which = match (self.resource, self.sampler) {
+            (true, true) => "the resource and the sampler heap index",
+            (true, false) => "the resource heap index",
+            (false, _) => "the sampler heap index",
+        };
+        format!(
+            "the GLSL compiler dropped nonuniformEXT on {which}: no NonUniform decoration reached the driver, so the read is judged as undefined (any element of the array; {})",
+            crate::reference::NO_NONUNIFORM_VUID
+        )
+    }
+}
+
+/// For a `direct` heap cell: which heap accesses lost the `nonuniformEXT` the GLSL gave them
+/// (`probe_code`: the descriptor index with `nonuniform`, a dynamic sampler index except where the
+/// cell's own dynamic index goes without the qualifier).
+pub fn dropped_nonuniform(cell: &crate::matrix::Cell, spirv: &[std::sync::Arc<Vec<u32>>]) -> Option<DroppedNonUniform> {
+    use crate::matrix::{IndexSource, SamplerIndex};
+    if cell.heap_access != Some(HeapAccess::Direct) {
+        return None;
+    }
+    let wants_resource = cell.nonuniform;
+    let wants_sampler = cell.sampler == Some(SamplerIndex::Dynamic) && !(cell.index == IndexSource::Dynamic && !cell.nonuniform);
+    let lost = |get: fn(&HeapNonUniform) -> Option<bool>| spirv.iter().any(|w| get(&heap_nonuniform(w)) == Some(false));
+    let d = DroppedNonUniform { resource: wants_resource && lost(|h| h.resource), sampler: wants_sampler && lost(|h| h.sampler) };
+    (d.resource || d.sampler).then_some(d)
 }
 
 #[cfg(test)]
@@ -419,6 +502,31 @@ mod tests {
         assert!(!has_nonuniform(&header));
         // a zero word count ends nowhere near an infinite loop
         assert!(!has_nonuniform(&[0, 0, 0, 0, 0, 0, 0]));
+    }
+
+    /// Per heap: an untyped access chain into the sampler heap whose index is decorated, one into
+    /// the resource heap whose index is not (what glslang 16.6 emits when it keeps one qualifier
+    /// and drops the other), and a module with no heap access at all.
+    #[test]
+    fn heap_accesses_are_judged_per_heap_by_their_own_decoration() {
+        let header = [0x0723_0203, 0x0001_0600, 0, 40, 0];
+        let decorate = |id: u32, d: u32, extra: &[u32]| -> Vec<u32> { [vec![((3 + extra.len() as u32) << 16) | OP_DECORATE, id, d], extra.to_vec()].concat() };
+        let chain = |result: u32, base: u32, index: u32| vec![(6 << 16) | OP_UNTYPED_ACCESS_CHAIN, 1, result, 2, base, index];
+        let module = |parts: Vec<Vec<u32>>| -> Vec<u32> { header.iter().copied().chain(parts.into_iter().flatten()).collect() };
+        // %10 resource heap, %11 sampler heap; %20 / %21 indices; %30 / %31 chains.
+        let builtins = vec![decorate(10, DECORATION_BUILTIN, &[BUILTIN_RESOURCE_HEAP]), decorate(11, DECORATION_BUILTIN, &[BUILTIN_SAMPLER_HEAP])];
+        let m = module([builtins.clone(), vec![decorate(21, DECORATION_NON_UNIFORM, &[])], vec![chain(30, 10, 20), chain(31, 11, 21)]].concat());
+        assert_eq!(heap_nonuniform(&m), HeapNonUniform { resource: Some(false), sampler: Some(true) });
+        // decorated on the chain's result instead of the index counts too
+        let m = module([builtins.clone(), vec![decorate(30, DECORATION_NON_UNIFORM, &[])], vec![chain(30, 10, 20)]].concat());
+        assert_eq!(heap_nonuniform(&m), HeapNonUniform { resource: Some(true), sampler: None });
+        // a NonUniform elsewhere does not vouch for an undecorated heap access
+        let m = module([builtins, vec![decorate(99, DECORATION_NON_UNIFORM, &[])], vec![chain(31, 11, 21)]].concat());
+        assert!(has_nonuniform(&m));
+        assert_eq!(heap_nonuniform(&m), HeapNonUniform { resource: None, sampler: Some(false) });
+        assert_eq!(heap_nonuniform(&header), HeapNonUniform::default());
+        // truncated: no panic
+        assert_eq!(heap_nonuniform(&[0x0723_0203, 0, 0, 0, 0, (9 << 16) | OP_UNTYPED_ACCESS_CHAIN, 1]), HeapNonUniform::default());
     }
 
     #[test]

@@ -55,7 +55,8 @@ pub struct ExecOptions {
 struct Compiled {
     shaders: shadergen::CellShaders,
     spirv: Vec<std::sync::Arc<Vec<u32>>>,
-    note: Option<String>,
+    /// The `nonuniformEXT` the compiler dropped (direct heap cells).
+    dropped: Option<heap::DroppedNonUniform>,
 }
 
 /// A cell ready to record: its descriptor binding, the key of its (created) pipeline, the
@@ -67,7 +68,7 @@ struct Bound {
     patched_table_address: u64,
     /// The per-instance bases' address (`base=buffer`; 0 otherwise).
     base_address: u64,
-    note: Option<String>,
+    dropped: Option<heap::DroppedNonUniform>,
 }
 
 /// What [`Executor::prebuild`] made for one cell: its timings, the phase it got to, and either the
@@ -85,12 +86,12 @@ struct PipelineInput<'a> {
     layout: vk::PipelineLayout,
     model: crate::matrix::DescriptorModel,
     mapping: Option<Box<heap::PipelineMapping>>,
-    record: Vec<u8>,
+    records: pipeline::ShaderRecords,
 }
 
 impl PipelineInput<'_> {
     fn create(&self, gpu: &Gpu, cache: vk::PipelineCache) -> Result<Pipeline, VkError> {
-        pipeline::create(gpu, cache, self.shaders, self.spirv, self.layout, self.model, self.mapping.as_deref(), &self.record)
+        pipeline::create(gpu, cache, self.shaders, self.spirv, self.layout, self.model, self.mapping.as_deref(), &self.records)
     }
 }
 
@@ -245,9 +246,10 @@ impl Executor {
         let injected = crate::matrix::inject::roll(&self.opts.inject, cell, self.opts.inject_seed);
         let result = self.try_run(cell, injected.as_ref(), &mut timings, on_phase).and_then(|done| on_phase(Phase::Check).map(|()| done).map_err(CellError::from));
         let mut out = match result {
-            Ok((records, note)) => {
+            Ok((records, dropped)) => {
                 let t = Instant::now();
-                let r = self.check(cell, &records);
+                let r = self.check(cell, &records, dropped.is_some());
+                let note = dropped.map(|d| d.note());
                 timings.check_ms += t.elapsed().as_secs_f64() * 1e3;
                 let detail = match (r.detail.clone(), note) {
                     (Some(d), Some(n)) => Some(format!("{d}; {n}")),
@@ -267,12 +269,14 @@ impl Executor {
         out
     }
 
-    fn check(&self, cell: &Cell, records: &[Record]) -> CellResult {
+    /// Compare `records` with the reference; `undecorated`: the driver saw the cell's non-uniform
+    /// index without `NonUniform` (the compiler dropped it), so the read is judged as undefined.
+    fn check(&self, cell: &Cell, records: &[Record], undecorated: bool) -> CellResult {
         let none = |outcome, detail: &str| CellResult { outcome, detail: Some(detail.into()), timings: Timings::default(), comparison: None, fault: None, validation_errors: 0 };
         if let Some(c) = cell.canary {
             return none(Outcome::Pass, &format!("canary {} ran to completion: this driver did not fault on it", c.as_str()));
         }
-        let expected = reference::expected(cell, &self.scene, &self.sref);
+        let expected = reference::expected_with(cell, &self.scene, &self.sref, reference::undefined_descriptor_read(cell) || undecorated);
         let (w, h) = (self.scene.params.width, self.scene.params.height);
         let mut cmp = reference::compare(&expected, records, w);
         let outcome = if cmp.passed() { Outcome::Pass } else { Outcome::Mismatch };
@@ -406,8 +410,8 @@ impl Executor {
         if let Some(dir) = &self.opts.dump {
             dump(dir, cell, &shaders, &spirv).map_err(CellError::Io)?;
         }
-        let note = heap::dropped_nonuniform(cell, &spirv);
-        Ok(Compiled { shaders, spirv, note })
+        let dropped = heap::dropped_nonuniform(cell, &spirv);
+        Ok(Compiled { shaders, spirv, dropped })
     }
 
     /// Resources (built by `prepare`), descriptor bindings (cached per layout) and the key of the
@@ -469,7 +473,7 @@ impl Executor {
             c.shaders.recursion_depth.hash(&mut hs);
             hs.finish()
         };
-        Ok(Bound { key, pkey, as_table_address, patched_table_address, base_address, note: c.note.clone() })
+        Ok(Bound { key, pkey, as_table_address, patched_table_address, base_address, dropped: c.dropped })
     }
 
     /// What creating the cell's pipeline needs, apart from the device and cache.
@@ -477,8 +481,8 @@ impl Executor {
         let binding = &self.bindings[&b.key];
         let layout = binding.heap_layout();
         let mapping = cell.heap_access.zip(layout.as_ref()).map(|(access, l)| heap::PipelineMapping::new(access, l));
-        let record = pipeline::shader_record(cell, layout.as_ref());
-        PipelineInput { shaders: &c.shaders, spirv: &c.spirv, layout: binding.pipeline_layout, model: cell.descriptor_model, mapping, record }
+        let records = pipeline::shader_records(cell, layout.as_ref());
+        PipelineInput { shaders: &c.shaders, spirv: &c.spirv, layout: binding.pipeline_layout, model: cell.descriptor_model, mapping, records }
     }
 
     /// The cell's pipeline, created unless an identical one exists: the second half of `pipeline`.
@@ -515,9 +519,9 @@ impl Executor {
         }
     }
 
-    /// The cell's records, and a note on what the compiler did to the cell's shape (if anything).
-    fn try_run(&mut self, cell: &Cell, injected: Option<&InjectedFault>, timings: &mut Timings, on_phase: PhaseHook) -> Result<(Vec<Record>, Option<String>), CellError> {
-        let Bound { key, pkey, as_table_address, patched_table_address, base_address, note } = self.build(cell, injected, timings, on_phase)?;
+    /// The cell's records, and the `nonuniformEXT` the compiler dropped from the cell's shape (if any).
+    fn try_run(&mut self, cell: &Cell, injected: Option<&InjectedFault>, timings: &mut Timings, on_phase: PhaseHook) -> Result<(Vec<Record>, Option<heap::DroppedNonUniform>), CellError> {
+        let Bound { key, pkey, as_table_address, patched_table_address, base_address, dropped } = self.build(cell, injected, timings, on_phase)?;
         let (w, h) = (self.scene.params.width, self.scene.params.height);
 
         // push constants (layout: probe::PushConstants, then the patches' table address)
@@ -599,7 +603,7 @@ impl Executor {
         let bytes = self.records.read(self.scene.params.pixels() * RECORD_SIZE);
         let recs = bytes.chunks_exact(RECORD_SIZE).map(Record::from_bytes).collect();
         timings.check_ms = t.elapsed().as_secs_f64() * 1e3;
-        Ok((recs, note))
+        Ok((recs, dropped))
     }
 }
 
@@ -673,7 +677,7 @@ impl Drop for Executor {
         for a in self.arrays.values() {
             a.destroy(gpu);
         }
-        for t in self.as_table.iter().chain(self.ssbo_table.iter()) {
+        for t in self.as_table.iter().chain(self.ssbo_table.iter()).chain(self.bases.iter()) {
             t.destroy(gpu);
         }
         if let Some(c) = &self.color {

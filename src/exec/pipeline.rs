@@ -49,24 +49,49 @@ fn stage_flag(role: Role) -> vk::ShaderStageFlags {
     }
 }
 
-/// The shader record data written after every SBT handle of `cell`'s ray tracing pipeline
-/// ([`probe::ShaderRecordData`]): the probed array's heap index where the heap mapping reads it
-/// (`heap_access=mapped_shader_record_index`, `heap` laid out so) and the runtime base where the
-/// probe reads it (`base=shader_record`); no data when neither does.
-pub fn shader_record(cell: &crate::matrix::Cell, heap: Option<&super::heap::HeapLayout>) -> Vec<u8> {
+/// The shader record data after each SBT group's handle (every group's the same length, or all
+/// empty).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ShaderRecords {
+    pub raygen: Vec<u8>,
+    pub miss: Vec<u8>,
+    pub hit_triangles: Vec<u8>,
+    pub hit_procedural: Vec<u8>,
+    pub callable: Vec<u8>,
+}
+
+impl ShaderRecords {
+    fn len(&self) -> usize {
+        [&self.raygen, &self.miss, &self.hit_triangles, &self.hit_procedural, &self.callable].iter().map(|r| r.len()).max().unwrap_or(0)
+    }
+}
+
+/// The shader record data of `cell`'s ray tracing pipeline ([`probe::ShaderRecordData`] after
+/// every handle): the probed array's heap index where the heap mapping reads it
+/// (`heap_access=mapped_shader_record_index`, `heap` laid out so; the same in every record) and
+/// the runtime base where the probe reads it (`base=shader_record`; the hit groups' bases differ
+/// from each other and from the other groups', `probe::RECORD_BASE_*`); no data when neither does.
+pub fn shader_records(cell: &crate::matrix::Cell, heap: Option<&super::heap::HeapLayout>) -> ShaderRecords {
     let mapped = cell.heap_access == Some(crate::matrix::HeapAccess::MappedShaderRecordIndex);
     let base = cell.base == Some(crate::matrix::BaseSource::ShaderRecord);
     if !mapped && !base {
-        return vec![];
+        return ShaderRecords::default();
     }
     let heap_index = if mapped { heap.map(|l| l.probe_index()).unwrap_or(0) } else { 0 };
-    probe::ShaderRecordData { heap_index, dyn_base: probe::DYNAMIC_BASE }.to_bytes()
+    let record = |dyn_base: u32| probe::ShaderRecordData { heap_index, dyn_base }.to_bytes();
+    ShaderRecords {
+        raygen: record(probe::RECORD_BASE_OTHER),
+        miss: record(probe::RECORD_BASE_OTHER),
+        hit_triangles: record(probe::RECORD_BASE_TRIANGLES),
+        hit_procedural: record(probe::RECORD_BASE_PROCEDURAL),
+        callable: record(probe::RECORD_BASE_OTHER),
+    }
 }
 
 /// Create the pipeline for `shaders` (SPIR-V in `spirv`, same order), specializing constant 0 to
 /// `probe::SPEC_SLOT` in every stage. `heap` (the set/binding → heap mapping chained to each
-/// stage) is `Some` exactly for the descriptor_heap model; `record` is the shader record data
-/// written after every SBT handle (ray tracing pipelines).
+/// stage) is `Some` exactly for the descriptor_heap model; `records` is the shader record data
+/// written after each SBT handle (ray tracing pipelines).
 #[allow(clippy::too_many_arguments)]
 pub fn create(
     gpu: &Gpu,
@@ -76,7 +101,7 @@ pub fn create(
     layout: vk::PipelineLayout,
     model: DescriptorModel,
     heap: Option<&PipelineMapping>,
-    record: &[u8],
+    records: &ShaderRecords,
 ) -> Result<Pipeline, VkError> {
     let d = &gpu.device;
     let mut modules = Vec::new();
@@ -111,7 +136,7 @@ pub fn create(
     let mut flags2 = vk::PipelineCreateFlags2CreateInfoKHR::default().flags(crate::vk::heap::PIPELINE_CREATE_2_DESCRIPTOR_HEAP);
     let flags2 = heap.is_some().then_some(&mut flags2);
     let result = match shaders.kind {
-        PipelineKind::RayTracing => create_rt(gpu, cache, shaders, &stages, layout, flags, flags2, record),
+        PipelineKind::RayTracing => create_rt(gpu, cache, shaders, &stages, layout, flags, flags2, records),
         PipelineKind::Compute => {
             let mut ci = vk::ComputePipelineCreateInfo::default().stage(stages[0]).layout(layout).flags(flags);
             if let Some(f2) = flags2 {
@@ -176,7 +201,7 @@ fn create_rt(
     layout: vk::PipelineLayout,
     flags: vk::PipelineCreateFlags,
     flags2: Option<&mut vk::PipelineCreateFlags2CreateInfoKHR>,
-    record: &[u8],
+    records: &ShaderRecords,
 ) -> Result<Pipeline, VkError> {
     let rt = gpu.rt.as_ref().expect("ray tracing pipeline enabled");
     let idx = |r: Role| shaders.shaders.iter().position(|s| s.role == r).map(|i| i as u32).unwrap_or(vk::SHADER_UNUSED_KHR);
@@ -233,8 +258,8 @@ fn create_rt(
             return Err(VkError::from_result("vkGetRayTracingShaderGroupHandlesKHR", e));
         }
     };
-    // Each record: the group handle, then `record` (shader record data).
-    let rec = h + record.len() as u64;
+    // Each record: the group handle, then its shader record data.
+    let rec = h + records.len() as u64;
     let stride = align(rec, ha);
     let rg_size = align(rec, ba);
     let miss_off = align(rg_size, ba);
@@ -251,17 +276,17 @@ fn create_rt(
     let base = align(buffer.address, ba);
     let shift = (base - buffer.address) as usize;
     let handle = |g: usize| &handles[g * h as usize..(g + 1) * h as usize];
-    let put = |off: u64, g: usize| {
+    let put = |off: u64, g: usize, data: &[u8]| {
         buffer.write(shift + off as usize, handle(g));
-        buffer.write(shift + (off + h) as usize, record);
+        buffer.write(shift + (off + h) as usize, data);
     };
-    put(0, 0);
-    put(miss_off, 1);
-    put(miss_off + stride, 2);
-    put(hit_off, 3);
-    put(hit_off + stride, 4);
+    put(0, 0, &records.raygen);
+    put(miss_off, 1, &records.miss);
+    put(miss_off + stride, 2, &records.miss);
+    put(hit_off, 3, &records.hit_triangles);
+    put(hit_off + stride, 4, &records.hit_procedural);
     if has_callable {
-        put(call_off, 5);
+        put(call_off, 5, &records.callable);
     }
     let region = |off: u64, stride: u64, size: u64| vk::StridedDeviceAddressRegionKHR { device_address: base + off, stride, size };
     let sbt = Sbt {

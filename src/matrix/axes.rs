@@ -95,8 +95,9 @@ axis!(
 axis!(
     /// Where a closest-hit probe's runtime `base` (the `base` of `base + gl_InstanceCustomIndexEXT`)
     /// comes from when it is not push data (the default, no axis value in the id): the SBT shader
-    /// record of the hit group (`probe::ShaderRecordData::dyn_base`), or a buffer of per-instance
-    /// bases read through a device address at `gl_InstanceID`. Only on cells that have it
+    /// record of the hit group (`probe::ShaderRecordData::dyn_base`, different per hit group), or
+    /// a buffer of per-instance bases (different for neighbouring instances) read through a device
+    /// address at `gl_InstanceID` (`probe::hit_base`). Only on cells that have it
     /// (`Cell::base_applies`).
     BaseSource, "base" {
         ShaderRecord = "shader_record", Buffer = "buffer",

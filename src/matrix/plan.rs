@@ -269,7 +269,7 @@ pub fn all_cells() -> (Vec<Cell>, Vec<NotGenerated>) {
         NotGenerated { rule: "index=dynamic_element is the recommended pattern of storage buffers (geometry) and sampled images (materials) only".into(), count: packed_elsewhere },
         NotGenerated { rule: "reorder only applies to stage=closest_hit with index=dynamic (push-data base, set-based models)".into(), count: reorder_elsewhere },
         NotGenerated {
-            rule: "base=shader_record|buffer only applies to stage=closest_hit with index=dynamic|dynamic_element into buffers and images (the original fault's shape)".into(),
+            rule: "base=shader_record|buffer only applies to stage=closest_hit with index=dynamic|dynamic_element into buffers and images, without reorder (the original fault's shape)".into(),
             count: base_elsewhere,
         },
         NotGenerated {

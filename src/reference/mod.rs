@@ -147,6 +147,14 @@ pub fn undefined_descriptor_read(cell: &Cell) -> bool {
 /// What `cell` must write for every pixel. (A test that needs a wrong result injects one:
 /// `run --inject-fault`, `matrix::inject`.)
 pub fn expected(cell: &Cell, scene: &Scene, sref: &SceneReference) -> Vec<Expected> {
+    expected_with(cell, scene, sref, undefined_descriptor_read(cell))
+}
+
+/// [`expected`] with the any-element rule decided by the caller: `undefined` when the driver saw
+/// a non-uniform descriptor index without `NonUniform` — the cell's shape
+/// ([`undefined_descriptor_read`]) or a compiler that dropped the qualifier
+/// (`exec::heap::dropped_nonuniform`).
+pub fn expected_with(cell: &Cell, scene: &Scene, sref: &SceneReference, undefined: bool) -> Vec<Expected> {
     let (w, h) = (scene.params.width, scene.params.height);
     let slots = probe::slot_count(cell.resource, scene.params.instances);
     let variants = probe::as_variants(scene.params.instances);
@@ -181,13 +189,16 @@ pub fn expected(cell: &Cell, scene: &Scene, sref: &SceneReference) -> Vec<Expect
                 Stage::Miss => hit.is_none(),
             };
             if probe_runs {
+                // The stage's runtime value (`index=dynamic`'s slot, the dynamic sampler's source).
+                let base = hit.map(|h| probe::hit_base(cell.base, h.instance_id, h.sphere)).unwrap_or(probe::DYNAMIC_BASE);
+                let dynamic = probe::dynamic_slot(cell.stage, x, y, w, hit.map(|h| h.instance).unwrap_or(0), base, slots);
                 let slot = match cell.index {
                     IndexSource::Literal => probe::LITERAL_SLOT,
                     IndexSource::SpecConstant => probe::SPEC_SLOT,
                     IndexSource::PushConstant => probe::PUSH_SLOT,
                     // dynamic_element records the dynamic value as its slot and reads that slot's
                     // element from the packed resource (probe::packed_element): the same record.
-                    IndexSource::Dynamic | IndexSource::DynamicElement => probe::dynamic_slot(cell.stage, x, y, w, hit.map(|h| h.instance).unwrap_or(0), slots),
+                    IndexSource::Dynamic | IndexSource::DynamicElement => dynamic,
                 };
                 rec.flags |= FLAG_PROBE;
                 rec.slot = slot;
@@ -205,16 +216,13 @@ pub fn expected(cell: &Cell, scene: &Scene, sref: &SceneReference) -> Vec<Expect
                     let texel = match cell.sampler {
                         None => rec.element,
                         Some(SamplerIndex::Constant) => probe::sampled_element(probe::SAMPLER_LITERAL, rec.element),
-                        Some(SamplerIndex::Dynamic) => {
-                            let dynamic = probe::dynamic_slot(cell.stage, x, y, w, hit.map(|h| h.instance).unwrap_or(0), slots);
-                            probe::sampled_element(probe::sampler_slot(dynamic), rec.element)
-                        }
+                        Some(SamplerIndex::Dynamic) => probe::sampled_element(probe::sampler_slot(dynamic), rec.element),
                     };
                     rec.value = probe::resource_value(cell.resource, read, texel);
                     let k = (read * probe::ELEMENTS + texel) as usize;
                     discriminating = *buffer_disc[k].get_or_insert_with(|| buffer_value_discriminates(cell.resource, slots, read, texel));
                 }
-                if undefined_descriptor_read(cell) {
+                if undefined {
                     let mut as_values = [0.0; MAX_AS_VARIANTS as usize];
                     if cell.resource == Resource::AccelerationStructure {
                         for v in 0..variants {
@@ -542,6 +550,45 @@ mod tests {
         assert_eq!(cmp.probe_checked, cmp.compared);
     }
 
+    /// `base=shader_record|buffer`: the bases differ per hit group and per instance (and from push
+    /// data's), so a driver that reads the push-data base, another group's record, entry 0 of the
+    /// bases buffer or one lane's entry for every lane records another slot (and reads another
+    /// element) on many hit pixels; the right base passes.
+    #[test]
+    fn a_wrong_base_source_is_caught() {
+        use crate::matrix::BaseSource;
+        let (scene, r) = world();
+        let slots = probe::slot_count(Resource::StorageBuffer, scene.params.instances);
+        type Wrong = fn(u32, bool) -> u32;
+        let cases: [(BaseSource, &str, Wrong); 6] = [
+            (BaseSource::ShaderRecord, "push data's", |_, _| probe::DYNAMIC_BASE),
+            (BaseSource::ShaderRecord, "the raygen record's", |_, _| probe::RECORD_BASE_OTHER),
+            (BaseSource::ShaderRecord, "the other hit group's", |_, sphere| if sphere { probe::RECORD_BASE_TRIANGLES } else { probe::RECORD_BASE_PROCEDURAL }),
+            (BaseSource::Buffer, "push data's", |_, _| probe::DYNAMIC_BASE),
+            (BaseSource::Buffer, "entry 0", |_, _| probe::instance_base(0)),
+            (BaseSource::Buffer, "the next instance's", |i, _| probe::instance_base(i + 1)),
+        ];
+        for (base, what, wrong) in cases {
+            let c = Cell { nonuniform: true, base: Some(base), ..cell(Stage::ClosestHit, IndexSource::Dynamic) };
+            let e = expected(&c, scene, r);
+            assert!(compare(&e, &records(&e), 64).passed());
+            let actual: Vec<Record> = e
+                .iter()
+                .zip(&r.full)
+                .map(|(x, t)| {
+                    let mut a = x.record;
+                    if let (true, Some(h)) = (a.flags & FLAG_PROBE != 0, t.hit) {
+                        a.slot = wrong(h.instance_id, h.sphere) + (a.custom & (slots - probe::DYNAMIC_BASE - 1));
+                        a.value = probe::resource_value(Resource::StorageBuffer, a.slot, a.element);
+                    }
+                    a
+                })
+                .collect();
+            let cmp = compare(&e, &actual, 64);
+            assert!(cmp.mismatched_pixels * 2 > cmp.probe_checked, "{base:?}: reading {what} base caught on {} of {}", cmp.mismatched_pixels, cmp.probe_checked);
+        }
+    }
+
     /// Direct heap sampled images with a separate sampler index: the value is the texel the
     /// cell's sampler picks, so a driver that samples with sampler 0 (ignoring the index), or with
     /// the constant sampler where the index is dynamic, is caught on most probe pixels; the right
@@ -698,7 +745,7 @@ mod tests {
                     let mut a = x.record;
                     if a.flags & FLAG_HIT != 0 {
                         a.custom = a.instance_id;
-                        a.slot = crate::probe::dynamic_slot(Stage::ClosestHit, 0, 0, 64, a.instance_id, slots);
+                        a.slot = crate::probe::dynamic_slot(Stage::ClosestHit, 0, 0, 64, a.instance_id, probe::DYNAMIC_BASE, slots);
                         a.value = if resource == Resource::AccelerationStructure { r.as_value(a.slot, p).0 } else { crate::probe::resource_value(resource, a.slot, a.element) };
                     }
                     a

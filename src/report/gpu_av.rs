@@ -104,10 +104,12 @@ impl GpuAvResult {
     }
 }
 
-/// The control of `finding`: the same cell with a literal index (no dynamic descriptor access),
-/// when the report has it passing without GPU-AV.
+/// The control of `finding`: the same cell with a literal index and, for a direct sampled image,
+/// a constant sampler index (no dynamic descriptor access), when the report has it passing
+/// without GPU-AV.
 pub fn control(report: &RunReport, finding: &Cell) -> Option<Cell> {
-    let c = Cell { index: IndexSource::Literal, nonuniform: false, patch: None, reorder: None, base: None, ..*finding };
+    let sampler = finding.sampler.map(|_| crate::matrix::SamplerIndex::Constant);
+    let c = Cell { index: IndexSource::Literal, nonuniform: false, patch: None, reorder: None, base: None, sampler, ..*finding };
     (c != *finding && report.cells.iter().any(|x| x.cell == c && x.outcome == Outcome::Pass)).then_some(c)
 }
 
@@ -235,6 +237,12 @@ mod tests {
         let (h, _) = verdict(vec![(heap, Outcome::Crash), (heap_ctl, Outcome::Crash), (di, Outcome::Crash), (di_ctl, Outcome::Pass)]);
         assert_eq!(h.verdict, GpuAvVerdict::GpuAvFailed);
         assert!(h.line().contains("its control closest_hit.storage_buffer.literal.descriptor_heap.direct passes without GPU-AV and is crash with it"), "{}", h.line());
+        // A direct sampled image with a dynamic sampler index: its control indexes both heaps
+        // with constants (literal texture, constant sampler), not the dynamic sampler.
+        let img = Cell { resource: Resource::SampledImage, sampler: Some(crate::matrix::SamplerIndex::Dynamic), ..heap };
+        let img_ctl = Cell { index: IndexSource::Literal, sampler: Some(crate::matrix::SamplerIndex::Constant), ..img };
+        let r = RunReport::for_tests(vec![ran(img, Outcome::Crash), ran(img_ctl, Outcome::Pass), ran(Cell { index: IndexSource::Literal, ..img }, Outcome::Pass)]);
+        assert_eq!(control(&r, &img).map(|c| c.id()).as_deref(), Some("closest_hit.sampled_image.literal.descriptor_heap.direct.sampler_constant"));
         // No layer at all.
         let (run, skipped) = schedule(&report, None);
         assert!(run.is_empty() && skipped.iter().all(|(_, r)| r.line().contains("VK_LAYER_KHRONOS_validation is not installed")));

@@ -219,7 +219,7 @@ impl GpuTracer {
         let layout = unsafe { gpu.device.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().push_constant_ranges(&range), None) }
             .at("vkCreatePipelineLayout")
             .map_err(vk_err)?;
-        let pipeline = pipeline::create(&gpu, vk::PipelineCache::null(), &shaders, &spirv, layout, DescriptorModel::DescriptorIndexing, None, &[]).map_err(vk_err)?;
+        let pipeline = pipeline::create(&gpu, vk::PipelineCache::null(), &shaders, &spirv, layout, DescriptorModel::DescriptorIndexing, None, &Default::default()).map_err(vk_err)?;
         Ok(GpuTracer { gpu, submitter, layout, pipeline, timeout, broken: None, mode })
     }
 
