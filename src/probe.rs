@@ -275,19 +275,19 @@ impl ShaderRecordData {
 
 /// `base=shader_record`: the `dyn_base` in the triangle hit group's record, the procedural (sphere)
 /// hit group's, and every other group's (raygen, miss, callable). They differ from each other and
-/// from push data's [`DYNAMIC_BASE`], so a hit shader that reads another group's record (or the
-/// push constant) computes another slot. All are below [`DYNAMIC_BASE`], so the slot stays inside
-/// the array ([`slot_count`]).
+/// from push data's [`DYNAMIC_BASE`], and the hit groups' are not 0, so a hit shader that reads
+/// another group's record, the push constant, or drops the base computes another slot. All are
+/// below [`DYNAMIC_BASE`], so the slot stays inside the array ([`slot_count`]).
 pub const RECORD_BASE_TRIANGLES: u32 = DYNAMIC_BASE - 1;
 pub const RECORD_BASE_PROCEDURAL: u32 = DYNAMIC_BASE - 2;
 pub const RECORD_BASE_OTHER: u32 = 0;
 
-/// `base=buffer`: the base stored for instance `instance_id` (0, 1, 2, 0, …: neighbours differ,
-/// and none is push data's [`DYNAMIC_BASE`], so reading another instance's entry, one lane's entry
-/// for the whole wave, or the push constant computes another slot on many pixels; below
-/// [`DYNAMIC_BASE`], so the slot stays inside the array).
+/// `base=buffer`: the base stored for instance `instance_id` (1, 2, 1, 2, …: neighbours differ,
+/// none is 0 or push data's [`DYNAMIC_BASE`], so reading another instance's entry, one lane's
+/// entry for the whole wave, the push constant, or dropping the base computes another slot on
+/// many pixels; below [`DYNAMIC_BASE`], so the slot stays inside the array).
 pub fn instance_base(instance_id: u32) -> u32 {
-    instance_id % DYNAMIC_BASE
+    1 + instance_id % 2
 }
 
 /// The per-instance bases `base=buffer` reads at `gl_InstanceID` ([`instance_base`]): one entry

@@ -152,16 +152,14 @@ pub fn line(cell: &Cell, varied: Option<&str>, verdicts: &Verdicts, ev: Evidence
     l
 }
 
-/// For a cell whose dynamic index lacks `nonuniformEXT` and whose attempts read other elements
-/// (the most in one attempt), a faulting sibling that differs only in a defined index (another
-/// index source, or `nonuniformEXT`): the read of "another element" may be that fault.
+/// For a cell judged leniently (its dynamic index lacks `nonuniformEXT`, or the compiler dropped
+/// it) whose attempts read other elements (the most in one attempt), a faulting sibling that
+/// differs only in a defined index (another index source, or `nonuniformEXT`): the read of
+/// "another element" may be that fault.
 pub fn suspect(cell: &Cell, verdicts: &Verdicts) -> Option<(Cell, usize)> {
-    if !crate::reference::undefined_descriptor_read(cell) {
-        return None;
-    }
     let other = verdicts.get(cell)?.element_reads().map(|e| e.other).max().filter(|o| *o > 0)?;
     let defined = IndexSource::ALL.iter().filter(|i| **i != IndexSource::Dynamic).map(|i| Cell { index: *i, nonuniform: false, ..*cell }).chain(std::iter::once(Cell { nonuniform: true, ..*cell }));
-    defined.into_iter().find(|s| verdicts.state(s) == super::State::Fault).map(|s| (s, other))
+    defined.into_iter().filter(|s| s != cell).find(|s| verdicts.state(s) == super::State::Fault).map(|s| (s, other))
 }
 
 /// A probability as a short percentage (`0.78%`, `< 0.01%`).

@@ -380,21 +380,28 @@ impl PipelineMapping {
 
 /// SPIR-V opcodes and enumerants the NonUniform check reads (SPIR-V 1.6 unified spec;
 /// SPV_KHR_untyped_pointers; SPV_EXT_descriptor_heap).
+const OP_LOAD: u32 = 61;
 const OP_DECORATE: u32 = 71;
+const OP_SAMPLED_IMAGE: u32 = 86;
 const OP_UNTYPED_ACCESS_CHAIN: u32 = 4419;
+const OP_UNTYPED_IN_BOUNDS_ACCESS_CHAIN: u32 = 4420;
 const DECORATION_BUILTIN: u32 = 11;
 const DECORATION_NON_UNIFORM: u32 = 5300;
 const BUILTIN_SAMPLER_HEAP: u32 = 5122;
 const BUILTIN_RESOURCE_HEAP: u32 = 5123;
 
-/// The module's instructions as (opcode, operands), stopping at a malformed word count.
+/// The module's instructions as (opcode, operands), stopping at a malformed word count (0, or
+/// past the end).
 fn instructions(words: &[u32]) -> impl Iterator<Item = (u32, &[u32])> {
     let mut i = 5; // after the header
     std::iter::from_fn(move || {
         let first = *words.get(i)?;
         let (count, op) = ((first >> 16) as usize, first & 0xffff);
-        let operands = words.get(i + 1..i + count.max(1))?;
-        i += count.max(1);
+        if count == 0 {
+            return None;
+        }
+        let operands = words.get(i + 1..i + count)?;
+        i += count;
         Some((op, operands))
     })
 }
@@ -406,9 +413,11 @@ pub fn has_nonuniform(words: &[u32]) -> bool {
 }
 
 /// How a module's accesses into one descriptor heap (`layout(descriptor_heap)` arrays:
-/// `OpUntypedAccessChainKHR` on the variable decorated `BuiltIn ResourceHeapEXT` /
-/// `SamplerHeapEXT`) are decorated: `None` without such an access, `Some(true)` when every one
-/// has `NonUniform` on its index or on itself (SPIR-V 2.16.2), `Some(false)` when one has not.
+/// `OpUntypedAccessChainKHR` / `OpUntypedInBoundsAccessChainKHR` on the variable decorated
+/// `BuiltIn ResourceHeapEXT` / `SamplerHeapEXT`) are decorated: `None` without such an access,
+/// `Some(true)` when every one has `NonUniform` on its index, on itself, on the descriptor loaded
+/// through it or on the sampled image made from that (where SPIR-V 2.16.2 and
+/// VUID-RuntimeSpirv-NonUniform-06274 accept it), `Some(false)` when one has none of these.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct HeapNonUniform {
     pub resource: Option<bool>,
@@ -428,11 +437,26 @@ pub fn heap_nonuniform(words: &[u32]) -> HeapNonUniform {
             _ => {}
         }
     }
+    // What is made from an id: loads through a pointer, sampled images from an image or sampler.
+    let mut made_from: std::collections::HashMap<u32, Vec<u32>> = std::collections::HashMap::new();
+    for (op, o) in instructions(words) {
+        match (op, o) {
+            (OP_LOAD, [_, result, pointer, ..]) => made_from.entry(*pointer).or_default().push(*result),
+            (OP_SAMPLED_IMAGE, [_, result, image, sampler]) => {
+                made_from.entry(*image).or_default().push(*result);
+                made_from.entry(*sampler).or_default().push(*result);
+            }
+            _ => {}
+        }
+    }
+    let uses = |id: &u32| made_from.get(id).into_iter().flatten().copied().collect::<Vec<u32>>();
     let mut out = HeapNonUniform::default();
     for (op, o) in instructions(words) {
-        // OpUntypedAccessChainKHR: result type, result, base type, base, indexes...
-        if let (OP_UNTYPED_ACCESS_CHAIN, [_, result, _, base, first, ..]) = (op, o) {
-            let decorated = nonuniform.contains(result) || nonuniform.contains(first);
+        // OpUntyped(InBounds)AccessChainKHR: result type, result, base type, base, indexes...
+        if let (OP_UNTYPED_ACCESS_CHAIN | OP_UNTYPED_IN_BOUNDS_ACCESS_CHAIN, [_, result, _, base, first, ..]) = (op, o) {
+            let loads = uses(result);
+            let sampled: Vec<u32> = loads.iter().flat_map(&uses).collect();
+            let decorated = [*result, *first].iter().chain(&loads).chain(&sampled).any(|id| nonuniform.contains(id));
             let slot = if Some(*base) == resource_heap {
                 &mut out.resource
             } else if Some(*base) == sampler_heap {
@@ -449,8 +473,9 @@ pub fn heap_nonuniform(words: &[u32]) -> HeapNonUniform {
 /// The heaps of a `direct` cell whose non-uniform index reached the driver without `NonUniform`
 /// although the GLSL asked for it: the compiler dropped `nonuniformEXT` (glslang 16.6 does on
 /// `layout(descriptor_heap)` arrays; reports/lavapipe-26/FINDINGS.md #3). The driver then saw an
-/// undecorated non-uniform descriptor index, which the spec leaves undefined, so the cell is
-/// judged as one without the qualifier (any element of the array; `reference::ValueRule`).
+/// undecorated non-uniform index, which the spec leaves undefined, so that part of the read is
+/// judged as undefined (`reference::Undefined`: a descriptor index any element of the array, a
+/// sampler index any of the heap's samplers).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct DroppedNonUniform {
     pub resource: bool,
@@ -465,7 +490,8 @@ impl DroppedNonUniform {
             (false, _) => "the sampler heap index",
         };
         format!(
-            "the GLSL compiler dropped nonuniformEXT on {which}: no NonUniform decoration reached the driver, so the read is judged as undefined (any element of the array; {})",
+            "the GLSL compiler dropped nonuniformEXT on {which}: no NonUniform decoration reached the driver, so that index is judged as undefined ({}; {})",
+            if self.resource { "any element of the array" } else { "any of the heap's samplers, slot and element exact" },
             crate::reference::NO_NONUNIFORM_VUID
         )
     }
@@ -525,8 +551,18 @@ mod tests {
         assert!(has_nonuniform(&m));
         assert_eq!(heap_nonuniform(&m), HeapNonUniform { resource: None, sampler: Some(false) });
         assert_eq!(heap_nonuniform(&header), HeapNonUniform::default());
-        // truncated: no panic
+        // decorated on the sampled image made from the loaded sampler (where the VUID wants it)
+        let m = module(vec![
+            decorate(11, DECORATION_BUILTIN, &[BUILTIN_SAMPLER_HEAP]),
+            decorate(41, DECORATION_NON_UNIFORM, &[]),
+            chain(31, 11, 21),
+            vec![(4 << 16) | OP_LOAD, 3, 40, 31],
+            vec![(5 << 16) | OP_SAMPLED_IMAGE, 4, 41, 39, 40],
+        ]);
+        assert_eq!(heap_nonuniform(&m), HeapNonUniform { resource: None, sampler: Some(true) });
+        // truncated or zero word counts: no panic, no loop
         assert_eq!(heap_nonuniform(&[0x0723_0203, 0, 0, 0, 0, (9 << 16) | OP_UNTYPED_ACCESS_CHAIN, 1]), HeapNonUniform::default());
+        assert_eq!(heap_nonuniform(&[0x0723_0203, 0, 0, 0, 0, 0, 0, 0]), HeapNonUniform::default());
     }
 
     #[test]

@@ -248,7 +248,7 @@ impl Executor {
         let mut out = match result {
             Ok((records, dropped)) => {
                 let t = Instant::now();
-                let r = self.check(cell, &records, dropped.is_some());
+                let r = self.check(cell, &records, dropped);
                 let note = dropped.map(|d| d.note());
                 timings.check_ms += t.elapsed().as_secs_f64() * 1e3;
                 let detail = match (r.detail.clone(), note) {
@@ -269,14 +269,19 @@ impl Executor {
         out
     }
 
-    /// Compare `records` with the reference; `undecorated`: the driver saw the cell's non-uniform
-    /// index without `NonUniform` (the compiler dropped it), so the read is judged as undefined.
-    fn check(&self, cell: &Cell, records: &[Record], undecorated: bool) -> CellResult {
+    /// Compare `records` with the reference; `dropped`: the driver saw the cell's non-uniform
+    /// descriptor or sampler index without `NonUniform` (the compiler dropped it), so that part of
+    /// the read is judged as undefined.
+    fn check(&self, cell: &Cell, records: &[Record], dropped: Option<heap::DroppedNonUniform>) -> CellResult {
         let none = |outcome, detail: &str| CellResult { outcome, detail: Some(detail.into()), timings: Timings::default(), comparison: None, fault: None, validation_errors: 0 };
         if let Some(c) = cell.canary {
             return none(Outcome::Pass, &format!("canary {} ran to completion: this driver did not fault on it", c.as_str()));
         }
-        let expected = reference::expected_with(cell, &self.scene, &self.sref, reference::undefined_descriptor_read(cell) || undecorated);
+        let undefined = reference::Undefined {
+            descriptor: reference::undefined_descriptor_read(cell) || dropped.is_some_and(|d| d.resource),
+            sampler: dropped.is_some_and(|d| d.sampler),
+        };
+        let expected = reference::expected_with(cell, &self.scene, &self.sref, undefined);
         let (w, h) = (self.scene.params.width, self.scene.params.height);
         let mut cmp = reference::compare(&expected, records, w);
         let outcome = if cmp.passed() { Outcome::Pass } else { Outcome::Mismatch };

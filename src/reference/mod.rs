@@ -94,6 +94,18 @@ pub enum ValueRule {
     /// Any element of the probed array is allowed (non-uniform index without NonUniform); for AS
     /// arrays, the first component of any probe TLAS variant's value (`as_values[..variants]`).
     AnyElement { resource: Resource, slots: u32, as_values: [f32; MAX_AS_VARIANTS as usize], variants: u32 },
+    /// Only the sampler index is undefined (a dynamic sampler index whose `NonUniform` the
+    /// compiler dropped; the texture index is defined): the read slot's element through any of the
+    /// sampler heap's samplers (`values[s]` through sampler `s`). Slot and element stay exact.
+    AnySampler { values: [[f32; 4]; probe::SAMPLER_MODES.len()] },
+}
+
+/// What the driver saw undefined in a cell's probed read: the descriptor index (a non-uniform
+/// index without `NonUniform`: any element of the array), or only the sampler index.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Undefined {
+    pub descriptor: bool,
+    pub sampler: bool,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -113,6 +125,7 @@ impl ValueRule {
             ValueRule::AnyElement { resource: Resource::AccelerationStructure, as_values, variants, .. } => {
                 v[1..] == [0.0, 0.0, 1.0] && as_values[..variants as usize].contains(&v[0])
             }
+            ValueRule::AnySampler { values } => values.contains(&v),
             ValueRule::AnyElement { resource, slots, .. } => {
                 let (s, e) = (v[0] - 1.0, v[3] - 0.25);
                 let whole = |x: f32, n: u32| x >= 0.0 && x.fract() == 0.0 && (x as u32) < n;
@@ -147,14 +160,14 @@ pub fn undefined_descriptor_read(cell: &Cell) -> bool {
 /// What `cell` must write for every pixel. (A test that needs a wrong result injects one:
 /// `run --inject-fault`, `matrix::inject`.)
 pub fn expected(cell: &Cell, scene: &Scene, sref: &SceneReference) -> Vec<Expected> {
-    expected_with(cell, scene, sref, undefined_descriptor_read(cell))
+    expected_with(cell, scene, sref, Undefined { descriptor: undefined_descriptor_read(cell), sampler: false })
 }
 
-/// [`expected`] with the any-element rule decided by the caller: `undefined` when the driver saw
-/// a non-uniform descriptor index without `NonUniform` — the cell's shape
+/// [`expected`] with what is undefined decided by the caller: the driver saw a non-uniform
+/// descriptor or sampler index without `NonUniform` — the cell's shape
 /// ([`undefined_descriptor_read`]) or a compiler that dropped the qualifier
 /// (`exec::heap::dropped_nonuniform`).
-pub fn expected_with(cell: &Cell, scene: &Scene, sref: &SceneReference, undefined: bool) -> Vec<Expected> {
+pub fn expected_with(cell: &Cell, scene: &Scene, sref: &SceneReference, undefined: Undefined) -> Vec<Expected> {
     let (w, h) = (scene.params.width, scene.params.height);
     let slots = probe::slot_count(cell.resource, scene.params.instances);
     let variants = probe::as_variants(scene.params.instances);
@@ -221,8 +234,13 @@ pub fn expected_with(cell: &Cell, scene: &Scene, sref: &SceneReference, undefine
                     rec.value = probe::resource_value(cell.resource, read, texel);
                     let k = (read * probe::ELEMENTS + texel) as usize;
                     discriminating = *buffer_disc[k].get_or_insert_with(|| buffer_value_discriminates(cell.resource, slots, read, texel));
+                    if undefined.sampler && cell.sampler.is_some() {
+                        let values = std::array::from_fn(|s| probe::resource_value(cell.resource, read, probe::sampled_element(s as u32, rec.element)));
+                        rule = ValueRule::AnySampler { values };
+                        discriminating = false;
+                    }
                 }
-                if undefined {
+                if undefined.descriptor {
                     let mut as_values = [0.0; MAX_AS_VARIANTS as usize];
                     if cell.resource == Resource::AccelerationStructure {
                         for v in 0..variants {
@@ -394,7 +412,7 @@ fn compare_probe(c: &mut Comparison, bad: &mut Bad, e: &Expected, a: &Record) {
                 c.discrimination.get_or_insert(0.0);
             }
         }
-        ValueRule::AnyElement { .. } => {
+        ValueRule::AnyElement { .. } | ValueRule::AnySampler { .. } => {
             c.any_element_values += 1;
             let reads = c.element_reads.get_or_insert_with(|| ElementReads { outside_spec: NO_NONUNIFORM_VUID.into(), ..Default::default() });
             match (own, allowed) {
@@ -560,12 +578,14 @@ mod tests {
         let (scene, r) = world();
         let slots = probe::slot_count(Resource::StorageBuffer, scene.params.instances);
         type Wrong = fn(u32, bool) -> u32;
-        let cases: [(BaseSource, &str, Wrong); 6] = [
+        let cases: [(BaseSource, &str, Wrong); 8] = [
             (BaseSource::ShaderRecord, "push data's", |_, _| probe::DYNAMIC_BASE),
             (BaseSource::ShaderRecord, "the raygen record's", |_, _| probe::RECORD_BASE_OTHER),
             (BaseSource::ShaderRecord, "the other hit group's", |_, sphere| if sphere { probe::RECORD_BASE_TRIANGLES } else { probe::RECORD_BASE_PROCEDURAL }),
             (BaseSource::Buffer, "push data's", |_, _| probe::DYNAMIC_BASE),
             (BaseSource::Buffer, "entry 0", |_, _| probe::instance_base(0)),
+            (BaseSource::Buffer, "no (a dropped)", |_, _| 0),
+            (BaseSource::ShaderRecord, "no (a dropped)", |_, _| 0),
             (BaseSource::Buffer, "the next instance's", |i, _| probe::instance_base(i + 1)),
         ];
         for (base, what, wrong) in cases {
@@ -618,6 +638,18 @@ mod tests {
                     // of the pixels use sampler 0 itself, the others differ on 3 elements of 4.
                     let share = if sampler == SamplerIndex::Constant { 0.7 } else { 0.4 };
                     assert!(cmp.mismatched_pixels as f64 > share * cmp.probe_checked as f64, "{}: sampler 0 caught on {} of {}", c.id(), cmp.mismatched_pixels, cmp.probe_checked);
+                    // The compiler dropped the sampler index's NonUniform (and only that): any
+                    // sampler's texel of the right slot passes, counted as another element; a
+                    // wrong slot still mismatches everywhere.
+                    if sampler == SamplerIndex::Dynamic && !(index == IndexSource::Dynamic && !nonuniform) {
+                        let e = expected_with(&c, scene, r, Undefined { descriptor: false, sampler: true });
+                        let cmp = compare(&e, &wrong, 64);
+                        assert!(cmp.passed() && cmp.element_reads.as_ref().is_some_and(|x| x.other > 0), "{}: {:?}", c.id(), cmp.element_reads);
+                        let slots = probe::slot_count(Resource::SampledImage, scene.params.instances);
+                        let off = reading(&e, |a| probe::resource_value(Resource::SampledImage, (slot_read(a) + 1) % slots, probe::sampled_element(0, a.element)));
+                        let cmp = compare(&e, &off, 64);
+                        assert_eq!(cmp.mismatched_pixels, cmp.probe_checked, "{}: another slot through any sampler", c.id());
+                    }
                     if sampler == SamplerIndex::Dynamic {
                         // The constant sampler instead of the dynamic one.
                         let wrong = reading(&e, |a| probe::resource_value(Resource::SampledImage, slot_read(a), probe::sampled_element(probe::SAMPLER_LITERAL, a.element)));

@@ -176,8 +176,10 @@ impl CellReport {
             miss_probability: miss_probability(k as f64 / n as f64, n),
         });
         self.injected = self.attempts.iter().find_map(|a| a.injected.as_ref()).map(|i| i.spec.clone());
-        // Labelled from the cell's shape, so a cell that crashed (no comparison) carries it too.
-        self.outside_spec = crate::reference::undefined_descriptor_read(&self.cell).then(|| crate::reference::NO_NONUNIFORM_VUID.to_string());
+        // Labelled from the cell's shape, so a cell that crashed (no comparison) carries it too,
+        // or from a comparison judged so (the compiler dropped a nonuniformEXT: `exec::heap`).
+        let judged_undefined = self.attempts.iter().any(|a| a.result.as_ref().and_then(|r| r.comparison.as_ref()).is_some_and(|c| c.element_reads.is_some()));
+        self.outside_spec = (crate::reference::undefined_descriptor_read(&self.cell) || judged_undefined).then(|| crate::reference::NO_NONUNIFORM_VUID.to_string());
         self.reason = match (&self.incidence, detail) {
             (Some(inc), d) if n > 1 => Some(format!("{} ({})", d.unwrap_or_else(|| outcome.as_str().into()), inc.label())),
             (_, d) => d,

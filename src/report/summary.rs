@@ -59,7 +59,7 @@ pub fn render(r: &RunReport) -> String {
         let other = outside.iter().filter(|c| c.element_reads().any(|e| e.other > 0)).count();
         let _ = writeln!(
             s,
-            "outside the spec's guarantees: {} cells index descriptors dynamically without nonuniformEXT ({}); {other} of them read another element of the array on some pixels (allowed there; counts per cell in the report)",
+            "outside the spec's guarantees: {} cells index descriptors dynamically without nonuniformEXT, or with one their compiler dropped ({}); {other} of them read another element of the array on some pixels (allowed there; counts per cell in the report)",
             outside.len(),
             first.outside_spec.as_deref().unwrap_or("")
         );
