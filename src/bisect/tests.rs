@@ -318,12 +318,19 @@ fn a_lenient_pass_that_read_other_elements_is_suspect_when_a_defined_sibling_fau
     clean.record(&literal, attempt(Outcome::Pass, false));
     let l = isolation::line(&lenient, None, &clean, ev);
     assert!(l.suspect.is_none() && !l.line.contains("suspect"), "{}", l.line);
-    // A cell with nonuniformEXT is never suspect: its reads are defined.
+    // A cell with nonuniformEXT judged exactly (no element reads: the qualifier reached the
+    // driver) is never suspect; one judged leniently because its compiler dropped the qualifier
+    // (its comparison has element reads, `exec::heap::dropped_nonuniform`) is, like the cell
+    // without it.
     let nu = Cell { nonuniform: true, ..lenient };
+    let mut v = Verdicts::default();
+    v.record(&nu, attempt(Outcome::Pass, false));
+    v.record(&literal, attempt(Outcome::Mismatch, false));
+    assert!(isolation::line(&nu, None, &v, ev).suspect.is_none());
     let mut v = Verdicts::default();
     v.record(&nu, reads(3));
     v.record(&literal, attempt(Outcome::Mismatch, false));
-    assert!(isolation::line(&nu, None, &v, ev).suspect.is_none());
+    assert_eq!(isolation::line(&nu, None, &v, ev).suspect.as_deref(), Some(literal.id().as_str()));
 }
 
 #[test]
@@ -380,4 +387,53 @@ fn descriptions_prefer_primary_axes_over_the_optional_axes_stand_in_values() {
     assert_eq!(Filter::parse(&r.minimal).unwrap().terms.len(), 2, "{}", r.minimal);
     let (r, _) = bisect(&["base=buffer"], 1.0, sc, sc);
     assert_eq!(r.minimal, "base=buffer");
+}
+
+#[test]
+fn a_workaround_in_scope_that_faults_while_settled_is_covered() {
+    // A scope planned with `--patches all` holds the patched variants. The raygen dynamic cell
+    // with nonuniformEXT faults every time; its ssbo-to-address variant passes its first attempt
+    // and faults from the second on. Whichever phase repeats it into its fault (the search's
+    // settling, or the workarounds' settling that now runs inside the coverage loop), the
+    // description must cover it: no `patch=` restriction may exclude it.
+    struct Late {
+        sim: Sim,
+        late: String,
+        seen: u32,
+    }
+    impl Oracle for Late {
+        fn run(&mut self, cells: &[Cell], isolated: bool, verdicts: &mut Verdicts) {
+            for c in cells {
+                if c.id() == self.late {
+                    self.seen += 1;
+                    verdicts.record(c, attempt(if self.seen >= 2 { Outcome::Crash } else { Outcome::Pass }, isolated));
+                } else {
+                    self.sim.run(std::slice::from_ref(c), isolated, verdicts);
+                }
+            }
+        }
+        fn can_run(&self) -> bool {
+            true
+        }
+    }
+    let mut sc = scope("descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit,index=literal|dynamic,base=push_data|none,reorder=none");
+    let patched: Vec<Cell> = sc.iter().flat_map(|c| c.applicable_patches().into_iter().map(move |p| Cell { patch: Some(p), ..*c })).collect();
+    sc.extend(patched);
+    let late = "raygen.storage_buffer.dynamic.nonuniform.descriptor_indexing.patch-ssbo-to-address";
+    assert!(sc.iter().any(|c| c.id() == late));
+    let mut o = Late { sim: Sim::new(&["stage=raygen,index=dynamic,nonuniform=true,patch=none"], 1.0), late: late.into(), seen: 0 };
+    // The report ran the plain cells; the patched ones are run by the bisection.
+    let mut v = Verdicts::default();
+    let plain: Vec<Cell> = sc.iter().filter(|c| c.patch.is_none()).copied().collect();
+    o.run(&plain, false, &mut v);
+    v.runs = 0;
+    let r = Bisector::new(sc.clone(), v, &mut o, Settings::default(), vec![]).bisect(None, &|_| true).unwrap();
+    assert!(o.seen >= 2, "the late workaround was repeated into its fault ({} attempts)", o.seen);
+    let minimal = Filter::parse(&r.minimal).unwrap();
+    let late_cell = sc.iter().find(|c| c.id() == late).unwrap();
+    assert!(minimal.matches(late_cell), "{} excludes the faulting {late}", r.minimal);
+    for l in r.workarounds.iter().chain(&r.isolation).filter(|l| l.verdict != "pass" && l.verdict != "not_run") {
+        let c = sc.iter().find(|c| c.id() == l.cell).unwrap();
+        assert!(minimal.matches(c), "{} faults outside {}", l.cell, r.minimal);
+    }
 }
