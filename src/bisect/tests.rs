@@ -36,6 +36,31 @@ impl Oracle for Sim {
     }
 }
 
+/// `sim`, except that cell `late` passes until its attempt `from` and faults from then on (a rare
+/// fault that only repeats find).
+struct Late {
+    sim: Sim,
+    late: String,
+    from: u32,
+    seen: u32,
+}
+
+impl Oracle for Late {
+    fn run(&mut self, cells: &[Cell], isolated: bool, verdicts: &mut Verdicts) {
+        for c in cells {
+            if c.id() == self.late {
+                self.seen += 1;
+                verdicts.record(c, attempt(if self.seen >= self.from { Outcome::Crash } else { Outcome::Pass }, isolated));
+            } else {
+                self.sim.run(std::slice::from_ref(c), isolated, verdicts);
+            }
+        }
+    }
+    fn can_run(&self) -> bool {
+        true
+    }
+}
+
 fn attempt(outcome: Outcome, isolated: bool) -> Attempt {
     Attempt { outcome, isolated, detail: None, result: None, worker_exit: None, injected: None, wall_ms: 0.0, phase: None, worker: 0, device_features: vec![] }
 }
@@ -340,28 +365,8 @@ fn a_sibling_that_faults_while_the_isolation_list_is_settled_is_covered() {
     // first finds `nonuniform=true`; settling the isolation list then repeats the sibling until
     // it faults, and the description must cover it: no isolation line may show a fault the
     // minimal description excludes.
-    struct Late {
-        sim: Sim,
-        late: String,
-        seen: u32,
-    }
-    impl Oracle for Late {
-        fn run(&mut self, cells: &[Cell], isolated: bool, verdicts: &mut Verdicts) {
-            for c in cells {
-                if c.id() == self.late {
-                    self.seen += 1;
-                    verdicts.record(c, attempt(if self.seen >= 4 { Outcome::Crash } else { Outcome::Pass }, isolated));
-                } else {
-                    self.sim.run(std::slice::from_ref(c), isolated, verdicts);
-                }
-            }
-        }
-        fn can_run(&self) -> bool {
-            true
-        }
-    }
     let sc = scope("descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit,index=literal|dynamic,base=push_data|none,reorder=none");
-    let mut o = Late { sim: Sim::new(&["stage=raygen,index=dynamic,nonuniform=true"], 1.0), late: "raygen.storage_buffer.dynamic.descriptor_indexing".into(), seen: 0 };
+    let mut o = Late { sim: Sim::new(&["stage=raygen,index=dynamic,nonuniform=true"], 1.0), late: "raygen.storage_buffer.dynamic.descriptor_indexing".into(), from: 4, seen: 0 };
     let mut v = Verdicts::default();
     o.run(&sc, false, &mut v);
     v.runs = 0;
@@ -396,32 +401,12 @@ fn a_workaround_in_scope_that_faults_while_settled_is_covered() {
     // and faults from the second on. Whichever phase repeats it into its fault (the search's
     // settling, or the workarounds' settling that now runs inside the coverage loop), the
     // description must cover it: no `patch=` restriction may exclude it.
-    struct Late {
-        sim: Sim,
-        late: String,
-        seen: u32,
-    }
-    impl Oracle for Late {
-        fn run(&mut self, cells: &[Cell], isolated: bool, verdicts: &mut Verdicts) {
-            for c in cells {
-                if c.id() == self.late {
-                    self.seen += 1;
-                    verdicts.record(c, attempt(if self.seen >= 2 { Outcome::Crash } else { Outcome::Pass }, isolated));
-                } else {
-                    self.sim.run(std::slice::from_ref(c), isolated, verdicts);
-                }
-            }
-        }
-        fn can_run(&self) -> bool {
-            true
-        }
-    }
     let mut sc = scope("descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit,index=literal|dynamic,base=push_data|none,reorder=none");
     let patched: Vec<Cell> = sc.iter().flat_map(|c| c.applicable_patches().into_iter().map(move |p| Cell { patch: Some(p), ..*c })).collect();
     sc.extend(patched);
     let late = "raygen.storage_buffer.dynamic.nonuniform.descriptor_indexing.patch-ssbo-to-address";
     assert!(sc.iter().any(|c| c.id() == late));
-    let mut o = Late { sim: Sim::new(&["stage=raygen,index=dynamic,nonuniform=true,patch=none"], 1.0), late: late.into(), seen: 0 };
+    let mut o = Late { sim: Sim::new(&["stage=raygen,index=dynamic,nonuniform=true,patch=none"], 1.0), late: late.into(), from: 2, seen: 0 };
     // The report ran the plain cells; the patched ones are run by the bisection.
     let mut v = Verdicts::default();
     let plain: Vec<Cell> = sc.iter().filter(|c| c.patch.is_none()).copied().collect();
