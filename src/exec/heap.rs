@@ -406,12 +406,6 @@ fn instructions(words: &[u32]) -> impl Iterator<Item = (u32, &[u32])> {
     })
 }
 
-/// Whether a module decorates anything `NonUniform` (what `nonuniformEXT` must produce on the
-/// descriptor access; SPIR-V 2.16.2: the decoration goes on the index or the access chain).
-pub fn has_nonuniform(words: &[u32]) -> bool {
-    instructions(words).any(|(op, o)| op == OP_DECORATE && o.len() >= 2 && o[1] == DECORATION_NON_UNIFORM)
-}
-
 /// How a module's accesses into one descriptor heap (`layout(descriptor_heap)` arrays:
 /// `OpUntypedAccessChainKHR` / `OpUntypedInBoundsAccessChainKHR` on the variable decorated
 /// `BuiltIn ResourceHeapEXT` / `SamplerHeapEXT`) are decorated: `None` without such an access,
@@ -507,7 +501,8 @@ pub fn dropped_nonuniform(cell: &crate::matrix::Cell, spirv: &[std::sync::Arc<Ve
     }
     let wants_resource = cell.nonuniform;
     let wants_sampler = cell.sampler == Some(SamplerIndex::Dynamic) && !(cell.index == IndexSource::Dynamic && !cell.nonuniform);
-    let lost = |get: fn(&HeapNonUniform) -> Option<bool>| spirv.iter().any(|w| get(&heap_nonuniform(w)) == Some(false));
+    let scans: Vec<HeapNonUniform> = spirv.iter().map(|w| heap_nonuniform(w)).collect();
+    let lost = |get: fn(&HeapNonUniform) -> Option<bool>| scans.iter().any(|h| get(h) == Some(false));
     let d = DroppedNonUniform { resource: wants_resource && lost(|h| h.resource), sampler: wants_sampler && lost(|h| h.sampler) };
     (d.resource || d.sampler).then_some(d)
 }
@@ -518,16 +513,20 @@ mod tests {
 
     #[test]
     fn nonuniform_decorations_are_found_and_their_absence_too() {
-        let header = [0x0723_0203, 0x0001_0600, 0, 10, 0];
-        // OpCapability Shader; OpDecorate %5 NonUniform
-        let with: Vec<u32> = header.iter().copied().chain([(2 << 16) | 17, 1, (3 << 16) | OP_DECORATE, 5, DECORATION_NON_UNIFORM]).collect();
-        // OpCapability Shader; OpDecorate %5 Binding 2 (a NonUniform-valued operand must not count)
-        let without: Vec<u32> = header.iter().copied().chain([(2 << 16) | 17, 1, (4 << 16) | OP_DECORATE, 5, 33, DECORATION_NON_UNIFORM]).collect();
-        assert!(has_nonuniform(&with));
-        assert!(!has_nonuniform(&without));
-        assert!(!has_nonuniform(&header));
+        // OpCapability Shader; %10 the resource heap; %30 = an access chain into it at index %20.
+        let header = [0x0723_0203, 0x0001_0600, 0, 40, 0];
+        let module = |decoration: &[u32]| -> Vec<u32> {
+            let base = [(2 << 16) | 17, 1, (4 << 16) | OP_DECORATE, 10, DECORATION_BUILTIN, BUILTIN_RESOURCE_HEAP];
+            header.iter().chain(&base).chain(decoration).chain(&[(6 << 16) | OP_UNTYPED_ACCESS_CHAIN, 1, 30, 2, 10, 20]).copied().collect()
+        };
+        // OpDecorate %20 NonUniform
+        assert_eq!(heap_nonuniform(&module(&[(3 << 16) | OP_DECORATE, 20, DECORATION_NON_UNIFORM])).resource, Some(true));
+        // OpDecorate %20 Binding 2... with a NonUniform-valued operand: must not count
+        assert_eq!(heap_nonuniform(&module(&[(4 << 16) | OP_DECORATE, 20, 33, DECORATION_NON_UNIFORM])).resource, Some(false));
+        assert_eq!(heap_nonuniform(&module(&[])).resource, Some(false));
+        assert_eq!(heap_nonuniform(&header), HeapNonUniform::default());
         // a zero word count ends nowhere near an infinite loop
-        assert!(!has_nonuniform(&[0, 0, 0, 0, 0, 0, 0]));
+        assert_eq!(heap_nonuniform(&[0, 0, 0, 0, 0, 0, 0]), HeapNonUniform::default());
     }
 
     /// Per heap: an untyped access chain into the sampler heap whose index is decorated, one into
@@ -548,7 +547,7 @@ mod tests {
         assert_eq!(heap_nonuniform(&m), HeapNonUniform { resource: Some(true), sampler: None });
         // a NonUniform elsewhere does not vouch for an undecorated heap access
         let m = module([builtins, vec![decorate(99, DECORATION_NON_UNIFORM, &[])], vec![chain(31, 11, 21)]].concat());
-        assert!(has_nonuniform(&m));
+        assert!(instructions(&m).any(|(op, o)| op == OP_DECORATE && o[1] == DECORATION_NON_UNIFORM));
         assert_eq!(heap_nonuniform(&m), HeapNonUniform { resource: None, sampler: Some(false) });
         assert_eq!(heap_nonuniform(&header), HeapNonUniform::default());
         // decorated on the sampled image made from the loaded sampler (where the VUID wants it)
