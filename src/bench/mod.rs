@@ -147,6 +147,17 @@ impl<'a> Bench<'a> {
         a
     }
 
+    /// This executable with `args` (stdin closed, stderr captured; stdout as `stdout` says).
+    fn spawn(&self, args: &[String], cmd: &str, stdout: Stdio) -> Result<std::process::Output, BenchError> {
+        Command::new(&self.opts.exe)
+            .args(args)
+            .stdin(Stdio::null())
+            .stdout(stdout)
+            .stderr(Stdio::piped())
+            .output()
+            .map_err(|source| BenchError::Spawn { cmd: cmd.to_string(), source })
+    }
+
     /// `rtprobe run ARGS` (plus the base arguments), its report read back and deleted.
     fn run(&mut self, args: &[String]) -> Result<Ran, BenchError> {
         self.counter += 1;
@@ -155,16 +166,9 @@ impl<'a> Bench<'a> {
         full.extend(self.base());
         full.extend(args.iter().cloned());
         let command = std::iter::once("rtprobe".to_string()).chain(full.iter().map(|a| shell_quote(a))).collect::<Vec<_>>().join(" ");
+        full.extend(["-o".to_string(), out.to_string_lossy().into_owned()]);
         let t = Instant::now();
-        let o = Command::new(&self.opts.exe)
-            .args(&full)
-            .arg("-o")
-            .arg(&out)
-            .stdin(Stdio::null())
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped())
-            .output()
-            .map_err(|source| BenchError::Spawn { cmd: command.clone(), source })?;
+        let o = self.spawn(&full, &command, Stdio::null())?;
         let wall_s = t.elapsed().as_secs_f64();
         let code = o.status.code().unwrap_or(-1);
         // 0: all passed; 1: findings (the injected ones); 11: an injection went undetected.
@@ -182,7 +186,7 @@ impl<'a> Bench<'a> {
         full.extend(self.base());
         full.extend(args.iter().cloned());
         let cmd = format!("rtprobe {}", full.join(" "));
-        let o = Command::new(&self.opts.exe).args(&full).stdin(Stdio::null()).output().map_err(|source| BenchError::Spawn { cmd: cmd.clone(), source })?;
+        let o = self.spawn(&full, &cmd, Stdio::piped())?;
         if !o.status.success() {
             return Err(BenchError::RunFailed { cmd, code: o.status.code().unwrap_or(-1), stderr: last_line(&o.stderr) });
         }
@@ -191,8 +195,7 @@ impl<'a> Bench<'a> {
 
     /// The long and short flags `rtprobe run --help` lists.
     fn known_flags(&self) -> Result<Vec<String>, BenchError> {
-        let cmd = "rtprobe run --help".to_string();
-        let o = Command::new(&self.opts.exe).args(["run", "--help"]).stdin(Stdio::null()).output().map_err(|source| BenchError::Spawn { cmd: cmd.clone(), source })?;
+        let o = self.spawn(&["run".into(), "--help".into()], "rtprobe run --help", Stdio::piped())?;
         let text = String::from_utf8_lossy(&o.stdout);
         Ok(text.split(|c: char| c.is_whitespace() || c == ',' || c == '[' || c == ']' || c == '=').filter(|w| w.starts_with('-') && w.len() > 1).map(|w| w.to_string()).collect())
     }
@@ -262,7 +265,7 @@ impl<'a> Bench<'a> {
             if ran == 0 {
                 return Err(BenchError::Empty { cmd: r.command, what: "timed" });
             }
-            let scale = if ran > 0 { full_cells as f64 / ran as f64 } else { 0.0 };
+            let scale = full_cells as f64 / ran as f64;
             let (est_wall, est_ph) = estimate(&r, &ph, scale);
             (self.progress)(&format!("time {}: {ran} cells, {:.1} s{}", size_arg(s), r.wall_s, if k > 1 { format!(" (shard 1/{k}; all {full_cells} cells estimated {est_wall:.1} s)") } else { String::new() }));
             points.push(json!({
@@ -317,7 +320,7 @@ impl<'a> Bench<'a> {
         for &p in &self.opts.flaky {
             let rounds = stats::repeats_needed(p, 0.99).map(|r| ((r as f64 * 1.2).ceil() as u32).min(self.opts.max_rounds)).unwrap_or(1).max(1);
             let mut per_cell: std::collections::BTreeMap<String, Vec<bool>> = Default::default();
-            let (mut armed, mut armed_caught, mut unarmed_faulted, mut attempts) = (0usize, 0usize, 0usize, 0usize);
+            let (mut armed, mut armed_caught, mut unarmed_faulted) = (0usize, 0usize, 0usize);
             let (mut wall, mut attempt_ms) = (0.0, 0.0);
             let mut command = String::new();
             for _ in 0..rounds {
@@ -332,7 +335,6 @@ impl<'a> Bench<'a> {
                     let Some(a) = c.attempts.first() else { continue };
                     let fired = a.injected.as_ref().and_then(|i| i.armed) == Some(true);
                     let faulted = a.outcome.is_finding();
-                    attempts += 1;
                     attempt_ms += a.wall_ms;
                     armed += usize::from(fired);
                     armed_caught += usize::from(fired && faulted);
@@ -344,6 +346,7 @@ impl<'a> Bench<'a> {
                 return Err(BenchError::Empty { cmd: command, what: "flaky-injected" });
             }
             let faulted: Vec<Vec<bool>> = per_cell.values().cloned().collect();
+            let attempts = faulted.iter().map(Vec::len).sum::<usize>();
             let first = stats::first_fault_curve(&faulted, rounds as usize);
             let measured = stats::window_curve(&faulted, rounds as usize);
             let predicted: Vec<f64> = (1..=rounds).map(|r| stats::detect_probability(p, r as u64)).collect();
@@ -428,20 +431,9 @@ pub fn phases(r: &RunReport) -> serde_json::Map<String, Value> {
     let t = &r.timing;
     let device = t.device_ms_mean * t.workers_started as f64;
     let ready: f64 = r.workers.iter().filter(|w| w.phase == crate::runner::phase::Phase::Setup && w.outcome == crate::outcome::Outcome::Pass).map(|w| w.wall_ms).sum();
-    let mut m = serde_json::Map::new();
-    for (k, v) in [
-        ("spawn_reference", (ready - device).max(0.0)),
-        ("device", device),
-        ("compile", t.compile_ms),
-        ("pipeline", t.pipeline_ms),
-        ("setup", t.setup_ms),
-        ("trace", t.trace_ms),
-        ("check", t.check_ms),
-        ("overhead", t.overhead_ms),
-    ] {
-        m.insert(k.into(), json!(v));
-    }
-    m
+    // In PHASES order.
+    let values = [(ready - device).max(0.0), device, t.compile_ms, t.pipeline_ms, t.setup_ms, t.trace_ms, t.check_ms, t.overhead_ms];
+    PHASES.iter().zip(values).map(|(k, v)| (k.to_string(), json!(v))).collect()
 }
 
 pub const PHASES: [&str; 8] = ["spawn_reference", "device", "compile", "pipeline", "setup", "trace", "check", "overhead"];

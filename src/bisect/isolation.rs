@@ -117,6 +117,8 @@ pub fn line(cell: &Cell, varied: Option<&str>, verdicts: &Verdicts, ev: Evidence
     let reason = report.filter(|r| r.outcome == crate::outcome::Outcome::Error).and_then(|r| r.reason.clone());
     let (k, n) = verdicts.counts(cell);
     let mut l = IsolationLine { cell: cell.id(), varied: varied.map(String::from), description, verdict: "not_run".into(), agreeing: 0, attempts: n, rate_bound: None, miss_probability: None, settled: None, suspect: None, reason, injected: None, line: String::new() };
+    // A pass's faulting sibling that its lenient reads may hide (`suspect`).
+    let mut sus = None;
     if let Some(r) = report {
         l.verdict = r.outcome.as_str().to_string();
         l.injected = r.injected.clone();
@@ -129,7 +131,8 @@ pub fn line(cell: &Cell, varied: Option<&str>, verdicts: &Verdicts, ev: Evidence
                 l.rate_bound = ev.against;
                 l.miss_probability = Some(ev.against.map_or(1.0, |p| super::confidence::miss(p, n)));
                 l.settled = l.miss_probability.map(|m| m < ev.max_miss);
-                l.suspect = suspect(cell, verdicts).map(|(sib, _)| sib.id());
+                sus = suspect(cell, verdicts);
+                l.suspect = sus.map(|(sib, _)| sib.id());
             }
         }
     }
@@ -146,7 +149,7 @@ pub fn line(cell: &Cell, varied: Option<&str>, verdicts: &Verdicts, ev: Evidence
         (v, _, None) => format!("❌ {v} ({k} of {n})"),
     };
     l.line = format!("{}: {evidence}", l.description);
-    if let Some((sib, other)) = suspect(cell, verdicts).filter(|_| l.suspect.is_some()) {
+    if let Some((sib, other)) = sus {
         l.line += &format!(" — suspect: {other} pixel(s) read another element (allowed without nonuniformEXT, undefined which), while {} faults", describe(&sib));
     }
     l

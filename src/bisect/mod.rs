@@ -451,6 +451,11 @@ impl<'o> Bisector<'o> {
         out
     }
 
+    /// Whether every faulting cell of the scope matches one of `cs`.
+    fn covers(&self, cs: &[Filter]) -> bool {
+        self.faulting().iter().all(|f| cs.iter().any(|c| c.matches(f)))
+    }
+
     /// The minimal description of the faulting cells: one conjunction when one separates them
     /// from every pass (`true`), else a small disjunction; repeated until the runs made on the way
     /// change nothing.
@@ -467,7 +472,7 @@ impl<'o> Bisector<'o> {
             // bound so that a pass relied on needs more attempts (and then faults): start over (a
             // "holds" stays true, since a fault is never reversed; a pass may turn into a fault).
             let flipped = self.resettle();
-            let covered = self.faulting().iter().all(|f| cs.iter().any(|c| c.matches(f)));
+            let covered = self.covers(&cs);
             // (A round that ran nothing cannot change anything: the oracle gave up.)
             if (covered && !flipped) || self.verdicts.runs == start {
                 return Ok((separable, cs));
@@ -482,7 +487,7 @@ impl<'o> Bisector<'o> {
         // Settling the isolation list's siblings and the workarounds repeats them; one in the
         // scope that faults there is a fault the description must cover too: then the search
         // starts over (faults are never reversed, so this ends).
-        let (separable, conjunctions, rep, siblings, patched) = loop {
+        let (separable, conjunctions, rep, siblings, sib_cells, patched) = loop {
             let (separable, conjunctions) = self.describe_faults()?;
             let faulting = self.faulting();
             let rep = match cell {
@@ -498,13 +503,11 @@ impl<'o> Bisector<'o> {
             // (Patched variants are in the scope when the report planned them: they count too.)
             self.run_unknown(&patched);
             self.settle_against(&patched, rep);
-            let covered = self.faulting().iter().all(|f| conjunctions.iter().any(|c| c.matches(f)));
-            if covered || self.verdicts.runs == start {
-                break (separable, conjunctions, rep, siblings, patched);
+            if self.covers(&conjunctions) || self.verdicts.runs == start {
+                break (separable, conjunctions, rep, siblings, sib_cells, patched);
             }
             self.memo.retain(|_, holds| *holds);
         };
-        let sib_cells: Vec<Cell> = siblings.iter().map(|(_, c)| *c).collect();
         let ev = |b: &Self, against: Option<&Cell>| isolation::Evidence { against: against.map(|f| b.verdicts.rate_bound(f)), max_miss: b.settings.max_miss };
         let mut isolation = vec![isolation::line(&rep, None, &self.verdicts, ev(self, Some(&rep)))];
         isolation.extend(siblings.iter().map(|(axis, c)| isolation::line(c, Some(axis), &self.verdicts, ev(self, Some(&rep)))));

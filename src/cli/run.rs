@@ -326,8 +326,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     if !canaries.is_empty() {
         sup.run(&canaries, false, &mut |ev| st.on_event(ev));
     }
-    st.writer.report.annotate_workarounds();
-    crate::report::recommended::annotate(&mut st.writer.report);
+    st.writer.report.annotate_findings();
     let RunState { mut writer, bar, device_ms_sum, save_error, .. } = st;
     bar.finish_and_clear();
     let _ = std::fs::remove_dir_all(&job_dir);

@@ -495,12 +495,11 @@ impl DroppedNonUniform {
 /// (`probe_code`: the descriptor index with `nonuniform`, a dynamic sampler index except where the
 /// cell's own dynamic index goes without the qualifier).
 pub fn dropped_nonuniform(cell: &crate::matrix::Cell, spirv: &[std::sync::Arc<Vec<u32>>]) -> Option<DroppedNonUniform> {
-    use crate::matrix::{IndexSource, SamplerIndex};
     if cell.heap_access != Some(HeapAccess::Direct) {
         return None;
     }
     let wants_resource = cell.nonuniform;
-    let wants_sampler = cell.sampler == Some(SamplerIndex::Dynamic) && !(cell.index == IndexSource::Dynamic && !cell.nonuniform);
+    let wants_sampler = cell.sampler_nonuniform();
     let scans: Vec<HeapNonUniform> = spirv.iter().map(|w| heap_nonuniform(w)).collect();
     let lost = |get: fn(&HeapNonUniform) -> Option<bool>| scans.iter().any(|h| get(h) == Some(false));
     let d = DroppedNonUniform { resource: wants_resource && lost(|h| h.resource), sampler: wants_sampler && lost(|h| h.sampler) };

@@ -49,21 +49,13 @@ fn stage_flag(role: Role) -> vk::ShaderStageFlags {
     }
 }
 
-/// The shader record data after each SBT group's handle (every group's the same length, or all
-/// empty).
+/// The shader record data after each SBT group's handle: the two hit groups', and the one every
+/// other group (raygen, miss, callable) carries. All the same length, or all empty.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ShaderRecords {
-    pub raygen: Vec<u8>,
-    pub miss: Vec<u8>,
+    pub other: Vec<u8>,
     pub hit_triangles: Vec<u8>,
     pub hit_procedural: Vec<u8>,
-    pub callable: Vec<u8>,
-}
-
-impl ShaderRecords {
-    fn len(&self) -> usize {
-        [&self.raygen, &self.miss, &self.hit_triangles, &self.hit_procedural, &self.callable].iter().map(|r| r.len()).max().unwrap_or(0)
-    }
 }
 
 /// The shader record data of `cell`'s ray tracing pipeline ([`probe::ShaderRecordData`] after
@@ -80,11 +72,9 @@ pub fn shader_records(cell: &crate::matrix::Cell, heap: Option<&super::heap::Hea
     let heap_index = if mapped { heap.map(|l| l.probe_index()).unwrap_or(0) } else { 0 };
     let record = |dyn_base: u32| probe::ShaderRecordData { heap_index, dyn_base }.to_bytes();
     ShaderRecords {
-        raygen: record(probe::RECORD_BASE_OTHER),
-        miss: record(probe::RECORD_BASE_OTHER),
+        other: record(probe::RECORD_BASE_OTHER),
         hit_triangles: record(probe::RECORD_BASE_TRIANGLES),
         hit_procedural: record(probe::RECORD_BASE_PROCEDURAL),
-        callable: record(probe::RECORD_BASE_OTHER),
     }
 }
 
@@ -259,7 +249,7 @@ fn create_rt(
         }
     };
     // Each record: the group handle, then its shader record data.
-    let rec = h + records.len() as u64;
+    let rec = h + records.other.len() as u64;
     let stride = align(rec, ha);
     let rg_size = align(rec, ba);
     let miss_off = align(rg_size, ba);
@@ -280,13 +270,13 @@ fn create_rt(
         buffer.write(shift + off as usize, handle(g));
         buffer.write(shift + (off + h) as usize, data);
     };
-    put(0, 0, &records.raygen);
-    put(miss_off, 1, &records.miss);
-    put(miss_off + stride, 2, &records.miss);
+    put(0, 0, &records.other);
+    put(miss_off, 1, &records.other);
+    put(miss_off + stride, 2, &records.other);
     put(hit_off, 3, &records.hit_triangles);
     put(hit_off + stride, 4, &records.hit_procedural);
     if has_callable {
-        put(call_off, 5, &records.callable);
+        put(call_off, 5, &records.other);
     }
     let region = |off: u64, stride: u64, size: u64| vk::StridedDeviceAddressRegionKHR { device_address: base + off, stride, size };
     let sbt = Sbt {

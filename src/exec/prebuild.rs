@@ -16,7 +16,7 @@ use crate::outcome::Timings;
 use crate::runner::phase::Phase;
 use crate::vk::{Gpu, VkError};
 use ash::vk;
-use std::collections::{HashMap, HashSet};
+use std::collections::HashSet;
 use std::time::Instant;
 
 /// A unit of prebuild progress, reported as it happens (the worker sends it as the step of phase
@@ -112,7 +112,7 @@ impl Executor {
             };
             create_all(&shared, threads, &|k, n| progress(Step::Pipelines(k, n)))
         };
-        let mut failed: HashMap<u64, usize> = HashMap::new();
+        let mut failed: HashSet<u64> = HashSet::new();
         for (&i, Made(result, ms)) in makers.iter().zip(made) {
             staged[i].1.pipeline_ms = ms;
             match result {
@@ -121,21 +121,17 @@ impl Executor {
                 }
                 Err(e) => {
                     let e = keep(e.into())?;
-                    failed.insert(staged[i].3.pkey, i);
+                    failed.insert(staged[i].3.pkey);
                     let (cell, timings) = (staged[i].0, staged[i].1.clone());
                     self.prebuilt.insert(cell.id(), Prebuilt { timings, phase: Phase::Pipeline, result: Err(e) });
                 }
             }
         }
-        for (i, (cell, timings, _, bound)) in staged.into_iter().enumerate() {
-            match failed.get(&bound.pkey) {
-                Some(&maker) if maker == i => {} // its error is kept above
-                // Another cell's creation of this pipeline failed: this one tries again at its
-                // turn, as it would have without the prebuild.
-                Some(_) => {}
-                None => {
-                    self.prebuilt.insert(cell.id(), Prebuilt { timings, phase: Phase::Pipeline, result: Ok(bound) });
-                }
+        // A failed pipeline's maker keeps its error (above); the other cells of that pipeline try
+        // again at their turn, as they would have without the prebuild.
+        for (cell, timings, _, bound) in staged {
+            if !failed.contains(&bound.pkey) {
+                self.prebuilt.insert(cell.id(), Prebuilt { timings, phase: Phase::Pipeline, result: Ok(bound) });
             }
         }
         Ok(PrebuildStats { pipelines: makers.len(), threads: threads.clamp(1, makers.len().max(1)) })

@@ -130,8 +130,7 @@ pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport
         o.insert("merged_from".into(), Value::Array(names));
     }
     out.recount();
-    out.annotate_workarounds();
-    crate::report::recommended::annotate(&mut out);
+    out.annotate_findings();
     Ok(out)
 }
 

@@ -62,6 +62,16 @@ pub enum Pattern {
 }
 
 impl Pattern {
+    /// The pattern of `resource`'s kind: geometry for storage buffers, materials for sampled
+    /// images; none for the others.
+    pub fn of(resource: Resource) -> Option<Pattern> {
+        match resource {
+            Resource::StorageBuffer => Some(Pattern::Geometry),
+            Resource::SampledImage => Some(Pattern::Materials),
+            Resource::UniformBuffer | Resource::StorageImage | Resource::AccelerationStructure => None,
+        }
+    }
+
     pub fn as_str(self) -> &'static str {
         match self {
             Pattern::Geometry => "geometry",
@@ -152,6 +162,13 @@ impl Cell {
             && self.reorder.is_none()
     }
 
+    /// Whether a `sampler=dynamic` cell's sampler index carries `nonuniformEXT`: always, except in
+    /// a cell whose own dynamic descriptor index goes without it (the original shape, unqualified
+    /// throughout; judged as any element).
+    pub fn sampler_nonuniform(&self) -> bool {
+        self.sampler == Some(SamplerIndex::Dynamic) && !(self.index == IndexSource::Dynamic && !self.nonuniform)
+    }
+
     /// The `sampler` axis: `layout(descriptor_heap)` GLSL has no combined image samplers, so a
     /// direct sampled-image probe always samples `sampler2D(probeTex[i], probeSampler[s])` with a
     /// separate sampler index. Set/binding shaders (every other model and mapped heap access)
@@ -163,10 +180,7 @@ impl Cell {
     /// `index=dynamic_element` exists for the engines' two recommended shapes only: geometry (an
     /// SSBO) and materials (a sampled image array texture).
     pub fn dynamic_element_applies(resource: Resource) -> bool {
-        match resource {
-            Resource::StorageBuffer | Resource::SampledImage => true,
-            Resource::UniformBuffer | Resource::StorageImage | Resource::AccelerationStructure => false,
-        }
+        Pattern::of(resource).is_some()
     }
 
     /// The engines' recommended pattern nearest to this cell (same stage, model, heap access):
@@ -176,13 +190,8 @@ impl Cell {
         if self.canary.is_some() {
             return Err("canaries have no recommended pattern".into());
         }
-        let pattern = match self.resource {
-            Resource::StorageBuffer => Pattern::Geometry,
-            Resource::SampledImage => Pattern::Materials,
-            Resource::UniformBuffer | Resource::StorageImage | Resource::AccelerationStructure => {
-                return Err(format!("rtprobe has no recommended single-descriptor pattern for {} (only storage buffers: geometry, sampled images: materials)", self.resource));
-            }
-        };
+        let pattern = Pattern::of(self.resource)
+            .ok_or_else(|| format!("rtprobe has no recommended single-descriptor pattern for {} (only storage buffers: geometry, sampled images: materials)", self.resource))?;
         if self.index == IndexSource::DynamicElement && self.patch.is_none() {
             return Err(format!("this cell is the recommended pattern ({})", pattern.as_str()));
         }

@@ -641,7 +641,7 @@ mod tests {
                     // The compiler dropped the sampler index's NonUniform (and only that): any
                     // sampler's texel of the right slot passes, counted as another element; a
                     // wrong slot still mismatches everywhere.
-                    if sampler == SamplerIndex::Dynamic && !(index == IndexSource::Dynamic && !nonuniform) {
+                    if c.sampler_nonuniform() {
                         let e = expected_with(&c, scene, r, Undefined { descriptor: false, sampler: true });
                         let cmp = compare(&e, &wrong, 64);
                         assert!(cmp.passed() && cmp.element_reads.as_ref().is_some_and(|x| x.other > 0), "{}: {:?}", c.id(), cmp.element_reads);

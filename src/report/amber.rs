@@ -12,7 +12,7 @@
 //! or image arrays in AmberScript.
 use crate::matrix::inject::Injection;
 use crate::matrix::{Cell, DescriptorModel, IndexSource, Resource, Stage};
-use crate::probe::{self, Record, RECORD_SIZE};
+use crate::probe::{self, RECORD_SIZE};
 use crate::report::shaders::Shader;
 use crate::scene::{Scene, SceneParams};
 
@@ -86,8 +86,8 @@ fn write(cell: &Cell, shader: &Shader, scene: &SceneParams, origin: &str) -> Str
         s += &format!("#   {l}\n");
     }
     s += "SHADER compute probe SPIRV-HEX\n";
-    for chunk in shader.spirv.chunks(8) {
-        let line: Vec<String> = chunk.iter().flat_map(|w| w.to_le_bytes()).map(|b| format!("{b:02x}")).collect();
+    for chunk in super::shaders::spirv_bytes(&shader.spirv).chunks(32) {
+        let line: Vec<String> = chunk.iter().map(|b| format!("{b:02x}")).collect();
         s += &line.join(" ");
         s += "\n";
     }
@@ -99,8 +99,9 @@ fn write(cell: &Cell, shader: &Shader, scene: &SceneParams, origin: &str) -> Str
     s += &format!("# Records: {w}x{h} of {RECORD_SIZE} bytes, unwritten ones read flags 0xffffffff.\n");
     s += &format!("BUFFER records DATA_TYPE uint32 SIZE {words} FILL 4294967295\n");
     let pc = probe::push_constants(w, h, scene.instances, cell.resource);
-    let pc_words: Vec<String> = pc.to_bytes(0)[..probe::PUSH_BLOCK_BYTES as usize].chunks(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]).to_string()).collect();
-    s += "# Push constants (width height pushSlot dynBase slotCount loopForever dynMask pad asTable.xy badAddress.xy).\n";
+    let pc_words = u32_words(&pc.to_bytes(0)[..probe::PUSH_BLOCK_BYTES as usize]);
+    let names: Vec<String> = probe::PUSH_FIELDS.iter().map(|f| if f.glsl_type == "uvec2" { format!("{}.xy", f.glsl_name) } else { f.glsl_name.to_string() }).collect();
+    s += &format!("# Push constants ({}).\n", names.join(" "));
     s += &format!("BUFFER pc DATA_TYPE uint32 DATA {} END\n", pc_words.join(" "));
     let layout = if cell.resource == Resource::UniformBuffer { "STD140" } else { "STD430" };
     s += &format!("# The probed array: {slots} {kind} buffers of {} vec4, slot s element e = (s+1, kind*16+1, 1000+4s+e, 0.25+e).\n", probe::ELEMENTS);
@@ -131,13 +132,14 @@ fn expectations(cell: &Cell, params: &SceneParams) -> String {
     let expected = crate::reference::expected(cell, &scene, &sref);
     let mut s = String::from("# Record of pixel (x, y) at byte 64*(x + y*width): flags custom instanceId geometry primitive\n# t bary.x bary.y slot element pad pad2 value.x value.y value.z value.w, as uint32 (floats as bits).\n");
     for (p, e) in expected.iter().enumerate() {
-        s += &format!("EXPECT records IDX {} EQ {}\n", p * RECORD_SIZE, record_words(&e.record).join(" "));
+        s += &format!("EXPECT records IDX {} EQ {}\n", p * RECORD_SIZE, u32_words(&e.record.to_bytes()).join(" "));
     }
     s
 }
 
-fn record_words(r: &Record) -> Vec<String> {
-    r.to_bytes().chunks(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]).to_string()).collect()
+/// Little-endian bytes as AmberScript uint32 values.
+fn u32_words(bytes: &[u8]) -> Vec<String> {
+    bytes.chunks(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]).to_string()).collect()
 }
 
 /// An f32 as AmberScript reads it back exactly (the shortest round-trip form).

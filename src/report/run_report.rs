@@ -401,8 +401,15 @@ impl RunReport {
         self.cells.iter().filter(|c| c.cell.canary.is_none() && c.cell.patch.is_none() && c.outcome.is_finding())
     }
 
+    /// Attach to each finding what the report holds about it beyond its own attempts: its
+    /// workaround variants and its recommended pattern (`report::recommended`).
+    pub fn annotate_findings(&mut self) {
+        self.annotate_workarounds();
+        crate::report::recommended::annotate(self);
+    }
+
     /// Attach to each finding the outcome of its workaround variants present in the report.
-    pub fn annotate_workarounds(&mut self) {
+    fn annotate_workarounds(&mut self) {
         let variants: Vec<(Cell, String, Outcome, u32)> =
             self.cells.iter().filter(|c| c.cell.patch.is_some()).map(|c| (c.cell, c.id.clone(), c.outcome, c.attempts.iter().filter(|a| !a.not_run()).count() as u32)).collect();
         for c in self.cells.iter_mut().filter(|c| c.cell.patch.is_none() && c.cell.canary.is_none()) {

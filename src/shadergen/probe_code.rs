@@ -76,18 +76,18 @@ fn base_decls(base: Option<BaseSource>, extensions: &mut Vec<&'static str>, decl
     }
 }
 
-/// The sampler heap index of a direct sampled-image probe (`sampler` axis). A dynamic one is
-/// qualified `nonuniformEXT` except in a cell whose own dynamic index goes without it (the
-/// original shape, unqualified throughout; checked as any element, see `reference`).
+/// The sampler heap index of a direct sampled-image probe (`sampler` axis), a dynamic one
+/// qualified `nonuniformEXT` where [`Cell::sampler_nonuniform`] says so (checked as any element
+/// otherwise, see `reference`).
 fn sampler_expr(cell: &Cell) -> String {
     match cell.sampler {
         None | Some(SamplerIndex::Constant) => format!("{}u", probe::SAMPLER_LITERAL),
         Some(SamplerIndex::Dynamic) => {
             let s = format!("({} % {}u)", dynamic_expr(cell), probe::SAMPLER_MODES.len());
-            if cell.index == IndexSource::Dynamic && !cell.nonuniform {
-                s
-            } else {
+            if cell.sampler_nonuniform() {
                 format!("nonuniformEXT({s})")
+            } else {
+                s
             }
         }
     }
