@@ -29,7 +29,7 @@ fn quick_bench_writes_its_contract_and_detection_follows_the_injection() {
     assert_eq!(st.len(), 2);
     for p in st {
         let cmd = p["command"].as_str().unwrap();
-        assert!(cmd.starts_with("rtprobe run --no-confirm --patches none") && cmd.contains("--size 8x8") || cmd.contains("--size 16x16"), "{cmd}");
+        assert!(cmd.starts_with("rtprobe run --no-confirm --patches none") && (cmd.contains("--size 8x8") || cmd.contains("--size 16x16")), "{cmd}");
         assert!(p["cells_run"].as_u64().unwrap() > 0 && p["findings"] == 0, "{p}");
         for ph in ["spawn_reference", "device", "compile", "pipeline", "setup", "trace", "check", "overhead"] {
             assert!(p["phases_ms"][ph].as_f64().unwrap() >= 0.0, "{ph}");

@@ -107,15 +107,25 @@ impl Verdicts {
         self.cells.get(&c.id())
     }
 
+    /// Every attempt made, evidence or not (what caps the repeats of a cell).
     pub fn attempts(&self, c: &Cell) -> u32 {
         self.get(c).map(|r| r.attempts.len() as u32).unwrap_or(0)
     }
 
-    /// Faulted attempts and attempts.
+    /// The evidence: (faulted, attempts) over the attempts whose cell ran and that the driver
+    /// decided — not a worker that never got its device up (`Attempt::not_run`), not an `error`
+    /// (rtprobe could not run the cell). Rate bounds and miss probabilities rest on these.
     pub fn counts(&self, c: &Cell) -> (u32, u32) {
-        let n = self.attempts(c);
-        let k = self.get(c).map(|r| r.attempts.iter().filter(|a| a.outcome.is_finding()).count() as u32).unwrap_or(0);
+        let evidence = |a: &&Attempt| !a.not_run() && a.outcome != Outcome::Error;
+        let Some(r) = self.get(c) else { return (0, 0) };
+        let n = r.attempts.iter().filter(evidence).count() as u32;
+        let k = r.attempts.iter().filter(evidence).filter(|a| a.outcome.is_finding()).count() as u32;
         (k, n)
+    }
+
+    /// Attempts that count as evidence (see [`Verdicts::counts`]).
+    pub fn evidence(&self, c: &Cell) -> u32 {
+        self.counts(c).1
     }
 
     /// The cell's fault rate bound: one-sided Clopper–Pearson at [`confidence::CONFIDENCE`].
@@ -278,7 +288,7 @@ impl<'o> Bisector<'o> {
     fn reference(&self, region: &[Cell]) -> Option<Cell> {
         let mut best: Option<(f64, u32, Cell)> = None;
         for c in region.iter().filter(|c| self.verdicts.state(c) == State::Fault) {
-            let (b, n) = (self.verdicts.rate_bound(c), self.verdicts.attempts(c));
+            let (b, n) = (self.verdicts.rate_bound(c), self.verdicts.evidence(c));
             if best.is_none_or(|(bb, bn, _)| b > bb || (b == bb && n > bn)) {
                 best = Some((b, n, *c));
             }
@@ -310,8 +320,8 @@ impl<'o> Bisector<'o> {
     /// every pass is repeated until a fault of that rate would have shown with probability above
     /// `1 - max_miss`, or it faults.
     fn settle_against(&mut self, cells: &[Cell], fault: Cell) {
-        self.repeat_until(&[fault], &|b, f| b.verdicts.state(f) != State::Fault || b.verdicts.attempts(f) >= b.attempts_needed(f));
-        self.repeat_until(cells, &|b, c| b.verdicts.state(c) != State::Pass || b.verdicts.attempts(c) >= b.attempts_needed(&fault));
+        self.repeat_until(&[fault], &|b, f| b.verdicts.state(f) != State::Fault || b.verdicts.evidence(f) >= b.attempts_needed(f));
+        self.repeat_until(cells, &|b, c| b.verdicts.state(c) != State::Pass || b.verdicts.evidence(c) >= b.attempts_needed(&fault));
     }
 
     /// Run the cells of `cells` without a verdict once (together, as a run would).
@@ -326,7 +336,7 @@ impl<'o> Bisector<'o> {
     /// most attempts first, are settled until one holds (it is relied on) or every one faults.
     fn settled_pass(&mut self, region: &[Cell]) -> bool {
         let mut passes: Vec<Cell> = region.iter().filter(|c| self.verdicts.state(c) == State::Pass).copied().collect();
-        passes.sort_by_key(|c| std::cmp::Reverse(self.verdicts.attempts(c)));
+        passes.sort_by_key(|c| std::cmp::Reverse(self.verdicts.evidence(c)));
         for w in passes {
             let against = self.reference(region);
             if let Some(f) = against {
@@ -516,7 +526,7 @@ impl<'o> Bisector<'o> {
         let mut relied: Vec<(Cell, Cell)> = self.relied.clone();
         relied.extend(sib_cells.iter().chain(&patched).map(|c| (*c, rep)));
         relied.retain(|(c, _)| self.verdicts.state(c) == State::Pass);
-        let miss_of = |(c, f): &(Cell, Cell)| confidence::miss(self.verdicts.rate_bound(f), self.verdicts.attempts(c));
+        let miss_of = |(c, f): &(Cell, Cell)| confidence::miss(self.verdicts.rate_bound(f), self.verdicts.evidence(c));
         relied.sort_by_key(|(c, f)| (c.id(), f.id()));
         relied.dedup();
         let worst_miss = relied.iter().map(miss_of).fold(0.0, f64::max);
@@ -628,13 +638,14 @@ pub fn render(b: &Bisection, full_matrix: usize) -> String {
     s += "\n";
     match b.fault_rate_bound {
         Some(p) => s += &format!(
-            "evidence: the minimal failing cell's fault rate is p ≥ {p:.2} at {:.0}% (one-sided Clopper–Pearson); a pass held to it needs {} attempt(s) for a miss probability below {}; {} pass(es) relied on, worst miss probability {} per pass, at most {} that any of them missed (union bound)\n",
+            "evidence: the minimal failing cell's fault rate is p ≥ {p:.2} at {:.0}% (one-sided Clopper–Pearson); a pass held to it needs {} attempt(s) for a miss probability below {}; {} pass(es) relied on, worst miss probability {} per pass, at most {} that any of them missed (union bound), given that the rate bound holds ({:.0}% confidence)\n",
             100.0 * b.confidence,
             b.attempts_per_pass,
             isolation::percent(b.max_miss),
             b.passes_relied_on,
             isolation::percent(b.worst_miss_probability),
-            isolation::percent(b.union_miss_probability)
+            isolation::percent(b.union_miss_probability),
+            100.0 * b.confidence
         ),
         None => s += "evidence: the minimal failing cell has no attempt: passes are not settled\n",
     }

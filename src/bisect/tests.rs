@@ -422,3 +422,28 @@ fn a_workaround_in_scope_that_faults_while_settled_is_covered() {
         assert!(minimal.matches(c), "{} faults outside {}", l.cell, r.minimal);
     }
 }
+
+#[test]
+fn evidence_counts_only_attempts_the_driver_decided() {
+    // A worker whose setup failed never ran the cell (`not_run`), and an `error` is rtprobe's:
+    // neither is evidence. Counted, they would raise a finding's rate bound (so passes held to it
+    // need fewer attempts) and lengthen a pass's record.
+    let c = scope("descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen,index=literal")[0];
+    let never_ran = |o: Outcome| Attempt { phase: Some(crate::runner::phase::Phase::Setup), ..attempt(o, false) };
+    let mut v = Verdicts::default();
+    v.record(&c, attempt(Outcome::Mismatch, false));
+    v.record(&c, never_ran(Outcome::Timeout));
+    v.record(&c, attempt(Outcome::Error, false));
+    assert_eq!(v.counts(&c), (1, 1));
+    assert_eq!(v.attempts(&c), 3, "every attempt still caps the repeats");
+    assert!((v.rate_bound(&c) - confidence::rate_bound(1, 1)).abs() < 1e-12);
+    let p = scope("descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen,index=spec_constant")[0];
+    let mut v = Verdicts::default();
+    v.record(&p, attempt(Outcome::Pass, false));
+    for _ in 0..5 {
+        v.record(&p, never_ran(Outcome::Crash));
+    }
+    assert_eq!(v.counts(&p), (0, 1));
+    let l = isolation::line(&p, None, &v, isolation::Evidence { against: Some(0.6), max_miss: DEFAULT_MAX_MISS });
+    assert!(l.line.contains("passes (1 of 1;"), "{}", l.line);
+}

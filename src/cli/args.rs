@@ -138,9 +138,10 @@ pub struct RunArgs {
     /// Where the VkPipelineCache is kept between runs, one file per device and driver version
     /// (default: $RTPROBE_CACHE_DIR, else $XDG_CACHE_HOME/rtprobe, else ~/.cache/rtprobe), or
     /// `off`. A file of another device or driver, or a corrupt one, is ignored with a warning.
-    /// Re-runs of a cell alone (--confirm, --repeat, workaround and pattern re-runs,
+    /// Re-runs of a cell alone (--confirm, --repeat, the repeats of workaround and pattern cells,
     /// --validate=gpu-av, bisect, --cell-spec) never load it: they start cold, so that a cached
-    /// binary cannot stand in for a compile
+    /// binary cannot stand in for a compile. (A workaround or pattern cell's first run goes with
+    /// the run's workers and loads it.)
     #[arg(long, value_name = "DIR|off")]
     pub pipeline_cache: Option<String>,
 

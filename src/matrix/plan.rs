@@ -163,6 +163,11 @@ pub fn device_support(info: &DeviceInfo, cell: &Cell) -> Support {
     if cell.index == IndexSource::Dynamic {
         checks.push(support::dynamic_index(info, cell.resource, cell.nonuniform));
     }
+    // A dynamic sampler index is a dynamic index into an array of samplers (the sampled-image
+    // array features cover sampler arrays).
+    if cell.sampler == Some(SamplerIndex::Dynamic) {
+        checks.push(support::dynamic_index(info, Resource::SampledImage, cell.sampler_nonuniform()));
+    }
     if let Some(a) = cell.as_access {
         checks.push(support::as_access(info, a));
     }

@@ -178,7 +178,7 @@ pub fn build(report: &RunReport, report_path: &str, b: &BisectFile, inject: &[In
         bi.scope_cells,
         match bi.fault_rate_bound {
             Some(p) => format!(
-                "; its fault rate is p ≥ {p:.2} at {:.0}% (one-sided Clopper–Pearson), and each of the {} passes relied on would have missed a fault of that rate with probability at most {} (at most {} that any of them did, by the union bound)",
+                "; its fault rate is p ≥ {p:.2} at {:.0}% (one-sided Clopper–Pearson), and each of the {} passes relied on would have missed a fault of that rate with probability at most {} (at most {} that any of them did, by the union bound, if that rate bound holds)",
                 100.0 * bi.confidence,
                 bi.passes_relied_on,
                 percent(bi.worst_miss_probability),
@@ -187,7 +187,7 @@ pub fn build(report: &RunReport, report_path: &str, b: &BisectFile, inject: &[In
             None => String::new(),
         }
     );
-    let verified: Vec<&IsolationLine> = bi.workarounds.iter().filter(|w| w.verdict == "pass" && injection.is_none()).collect();
+    let verified: Vec<&IsolationLine> = bi.workarounds.iter().filter(|w| w.verdict == "pass" && w.settled() && injection.is_none()).collect();
     let summary = format!(
         "On {} with {} {} (Vulkan {}), a {} {} ({}). Bisecting {} cells of rtprobe's shader matrix ({} extra runs beyond the report) narrows the failing configurations down to `{}`{}. {}",
         environment.gpu,

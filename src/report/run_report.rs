@@ -196,7 +196,10 @@ pub struct WorkaroundResult {
     pub patch: crate::matrix::cell::Workaround,
     pub cell: String,
     pub outcome: Outcome,
-    /// The patched cell passed where the plain one did not: a verified workaround.
+    /// The patched cell passed where the plain one did not, on enough attempts that a fault as
+    /// frequent as the finding's would have shown (`miss_probability` below
+    /// `bisect::DEFAULT_MAX_MISS`): a verified workaround. Fewer passes are reported as passes,
+    /// not as verified.
     pub verified: bool,
     /// Attempts of the patched cell that ran, and (when it passed against a finding) the chance
     /// they would all have missed a fault as frequent as the finding's
@@ -414,16 +417,20 @@ impl RunReport {
             self.cells.iter().filter(|c| c.cell.patch.is_some()).map(|c| (c.cell, c.id.clone(), c.outcome, c.attempts.iter().filter(|a| !a.not_run()).count() as u32)).collect();
         for c in self.cells.iter_mut().filter(|c| c.cell.patch.is_none() && c.cell.canary.is_none()) {
             let incidence = c.incidence.clone();
+            let finding = c.outcome.is_finding();
             c.workarounds = variants
                 .iter()
                 .filter(|(v, _, _, _)| v.base() == c.cell)
-                .map(|(v, id, o, n)| WorkaroundResult {
-                    patch: v.patch.expect("filtered"),
-                    cell: id.clone(),
-                    outcome: *o,
-                    verified: c.outcome.is_finding() && *o == Outcome::Pass,
-                    attempts: *n,
-                    miss_probability: incidence.as_ref().filter(|_| *o == Outcome::Pass).map(|i| crate::bisect::confidence::pass_miss(i.faulted, i.attempts, *n)),
+                .map(|(v, id, o, n)| {
+                    let miss_probability = incidence.as_ref().filter(|_| *o == Outcome::Pass).map(|i| crate::bisect::confidence::pass_miss(i.faulted, i.attempts, *n));
+                    WorkaroundResult {
+                        patch: v.patch.expect("filtered"),
+                        cell: id.clone(),
+                        outcome: *o,
+                        verified: finding && miss_probability.is_some_and(|m| m < crate::bisect::DEFAULT_MAX_MISS),
+                        attempts: *n,
+                        miss_probability,
+                    }
                 })
                 .collect();
         }

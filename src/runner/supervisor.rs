@@ -61,8 +61,9 @@ pub struct SupervisorOptions {
     /// Threads a worker creates pipelines on, ahead of the cells' turns (1: no prebuild).
     pub threads: usize,
     /// Folder of the persisted pipeline caches (`None`: off). Used only by workers of a
-    /// non-isolated [`Supervisor::run`]: re-runs alone (`--confirm`, `--repeat`, verifying a
-    /// workaround) start cold, so that a cached binary cannot stand in for the cell's own compile.
+    /// non-isolated [`Supervisor::run`] (the matrix, and the first run of workaround and pattern
+    /// cells): re-runs alone (`--confirm`, `--repeat`, the repeats that verify a workaround) start
+    /// cold, so that a cached binary cannot stand in for the cell's own compile.
     pub pipeline_cache: Option<PathBuf>,
 }
 
