@@ -27,7 +27,7 @@ pub struct InstanceOptions {
 
 /// How GPU-AV was turned on (the layer decides which it understands).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum GpuAvHow {
+enum GpuAvHow {
     /// VK_EXT_layer_settings, setting `gpuav_enable` = true.
     LayerSettings,
     /// VkValidationFeaturesEXT with VK_VALIDATION_FEATURE_ENABLE_GPU_ASSISTED_EXT.
@@ -51,10 +51,6 @@ pub struct Instance {
     pub loader_version: u32,
     /// Whether the validation layer is active.
     pub validation: bool,
-    /// The validation layer's specVersion (the Vulkan headers it was built from), when active.
-    pub validation_version: Option<u32>,
-    /// How GPU-AV was turned on, when asked for and the layer is active.
-    pub gpu_av: Option<GpuAvHow>,
     debug: Option<(ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
 }
 
@@ -80,6 +76,12 @@ unsafe extern "system" fn debug_callback(
     vk::FALSE
 }
 
+/// The installed Khronos validation layer's properties, `None` without one.
+fn validation_layer(entry: &ash::Entry) -> Result<Option<vk::LayerProperties>, VkError> {
+    let available = unsafe { entry.enumerate_instance_layer_properties() }.at("vkEnumerateInstanceLayerProperties")?;
+    Ok(available.into_iter().find(|l| l.layer_name_as_c_str() == Ok(VALIDATION_LAYER)))
+}
+
 impl Instance {
     pub fn new(opts: &InstanceOptions) -> Result<Self, VkError> {
         // SAFETY: loading the system loader library; ash keeps it alive with the Entry.
@@ -101,16 +103,13 @@ impl Instance {
         let mut layers = Vec::new();
         let mut extensions = Vec::new();
         let mut validation = false;
-        let mut validation_version = None;
+        // How GPU-AV is turned on, when asked for and the layer is active.
         let mut gpu_av = None;
         if opts.validate || opts.gpu_av {
-            let available = unsafe { entry.enumerate_instance_layer_properties() }
-                .at("vkEnumerateInstanceLayerProperties")?;
-            if let Some(l) = available.iter().find(|l| l.layer_name_as_c_str() == Ok(VALIDATION_LAYER)) {
+            if validation_layer(&entry)?.is_some() {
                 layers.push(VALIDATION_LAYER.as_ptr());
                 extensions.push(ext::debug_utils::NAME.as_ptr());
                 validation = true;
-                validation_version = Some(l.spec_version);
                 if opts.gpu_av {
                     let layer_exts = unsafe { entry.enumerate_instance_extension_properties(Some(VALIDATION_LAYER)) }
                         .at("vkEnumerateInstanceExtensionProperties")?;
@@ -174,13 +173,12 @@ impl Instance {
         } else {
             None
         };
-        Ok(Self { entry, raw, loader_version, validation, validation_version, gpu_av, debug })
+        Ok(Self { entry, raw, loader_version, validation, debug })
     }
 
     /// The installed validation layer's specVersion (enabled or not), `None` without one.
     pub fn validation_layer_version(&self) -> Option<u32> {
-        let layers = unsafe { self.entry.enumerate_instance_layer_properties() }.ok()?;
-        layers.iter().find(|l| l.layer_name_as_c_str() == Ok(VALIDATION_LAYER)).map(|l| l.spec_version)
+        validation_layer(&self.entry).ok()?.map(|l| l.spec_version)
     }
 
     /// All physical devices, in the loader's order (that order is what `--device INDEX` means).
