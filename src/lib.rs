@@ -2,6 +2,7 @@
 //!
 //! The flow (see ARCHITECTURE.md): CLI → plan → supervisor → workers (device, scene, shaders,
 //! trace) → CPU reference → outcome → report.
+pub mod model;
 pub mod caps;
 pub mod cli;
 pub mod matrix;
@@ -11,7 +12,6 @@ pub mod probe;
 pub mod reference;
 pub mod scene;
 pub mod shadergen;
-pub mod outcome;
 pub mod exec;
 pub mod runner;
 pub mod patches;
@@ -20,3 +20,4 @@ pub mod fleet;
 pub mod stress;
 pub mod bench;
 pub mod pool;
+pub mod atomic;

@@ -4,7 +4,7 @@
 //! section; a repro bundle re-runs its cell with the same verdict.
 mod common;
 use common::*;
-use rtprobe::bisect::confidence;
+use rtprobe::model::stats;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -81,10 +81,10 @@ fn single_axis_two_axis_and_value_set_predicates_come_back_exactly() {
         }
         let n = iso[0]["attempts"].as_u64().unwrap() as u32;
         assert_eq!(iso[0]["agreeing"].as_u64().unwrap() as u32, n, "{}", iso[0]);
-        let bound = confidence::rate_bound(n, n);
+        let bound = stats::rate_bound(n, n);
         assert!((j["fault_rate_bound"].as_f64().unwrap() - bound).abs() < 1e-12, "{j}");
         assert!(text.contains(&format!("({n} of {n}, p ≥ {bound:.2} at 95%)")), "{text}");
-        let need = confidence::attempts_needed(bound, 0.01, 50);
+        let need = stats::attempts_needed(bound, 0.01, 50);
         assert_eq!(j["attempts_per_pass"].as_u64().unwrap() as u32, need);
         // The fault was repeated until it had as many attempts as a pass then needs.
         assert!(n >= need, "{n} attempts of the fault, {need} per pass");
@@ -130,11 +130,11 @@ fn a_flaky_injection_is_recovered_with_repeats_and_its_miss_probability() {
     let rep = &j["isolation"][0];
     let (k, n) = (rep["agreeing"].as_u64().unwrap() as u32, rep["attempts"].as_u64().unwrap() as u32);
     assert!(k < n, "a rate-0.5 fault missed some of {n} attempts: {rep}");
-    let bound = confidence::rate_bound(k, n);
+    let bound = stats::rate_bound(k, n);
     assert!((j["fault_rate_bound"].as_f64().unwrap() - bound).abs() < 1e-12);
     assert!(rep["line"].as_str().unwrap().contains(&format!("({k} of {n}, p ≥ {bound:.2} at 95%)")), "{rep}");
     // Passes were repeated to the attempts the bound asks for, and print their miss probability.
-    let need = confidence::attempts_needed(bound, 0.001, 50);
+    let need = stats::attempts_needed(bound, 0.001, 50);
     assert_eq!(j["attempts_per_pass"].as_u64().unwrap() as u32, need);
     assert!(n >= need, "the fault was repeated first: {n} < {need}");
     for l in j["isolation"].as_array().unwrap().iter().filter(|l| l["verdict"] == "pass") {
@@ -244,7 +244,7 @@ fn passes_below_the_threshold_are_not_concluded_on() {
     let o = run(&["bisect", report.to_str().unwrap(), "--max-attempts", "2", "--json", json.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let (text, j) = (stdout(&o), json_file(&json));
-    let miss = confidence::miss(confidence::rate_bound(2, 2), 2);
+    let miss = stats::miss(stats::rate_bound(2, 2), 2);
     assert!(miss >= 0.01);
     assert!(text.contains("NOT CONCLUDED"), "{text}");
     let passes: Vec<&Value> = j["isolation"].as_array().unwrap().iter().filter(|l| l["verdict"] == "pass").collect();

@@ -57,6 +57,25 @@ fn caps_json_describes_lavapipe_and_agrees_with_vulkaninfo() {
     assert_eq!(v["device_creation"]["ok"], true, "{}", v["device_creation"]);
 }
 
+#[test]
+fn caps_matrix_lists_exactly_the_axes_and_values_filter_accepts() {
+    let v = json(&run(&["caps", "--json"]));
+    let matrix = v["matrix"].as_object().unwrap();
+    let axes: Vec<&str> = rtprobe::model::registry::names().collect();
+    assert_eq!(matrix.keys().map(String::as_str).collect::<Vec<_>>(), axes);
+    for a in rtprobe::model::registry::AXES {
+        let listed: Vec<&str> = matrix[a.name].as_object().unwrap().keys().map(String::as_str).collect();
+        assert_eq!(listed, a.filter_values().collect::<Vec<_>>(), "{}", a.name);
+        for value in listed {
+            // What caps lists, --filter takes.
+            rtprobe::model::Filter::parse(&format!("{}={value}", a.name)).unwrap();
+        }
+    }
+    // lavapipe has no SER: the reorder values say why.
+    assert_eq!(matrix["reorder"]["reorder"]["status"], "unsupported");
+    assert_eq!(matrix["base"]["push_data"]["status"], "supported");
+}
+
 /// `name → revision` of every device extension in `vulkaninfo`'s full output.
 fn vulkaninfo_device_extensions() -> std::collections::BTreeMap<String, u64> {
     let o = std::process::Command::new("vulkaninfo").output().expect("vulkaninfo (apt-get install vulkan-tools)");

@@ -666,3 +666,31 @@ fn planted_cycle_is_found() {
         describe(&a, "file", &a.file_cycles(), shown_module)
     );
 }
+
+/// The bottom layer's modules: they may use each other and nothing else of the crate.
+const BOTTOM: &[&str] = &["model", "atomic", "pool"];
+
+/// References from a bottom-layer module to a module above it.
+fn above_the_bottom(a: &Analysis) -> Vec<String> {
+    let bottom = |m: &str| BOTTOM.contains(&top(m).as_str());
+    a.edges
+        .iter()
+        .filter(|e| bottom(&e.from) && !bottom(&e.to))
+        .map(|e| format!("  src/{}:{}  {}", a.files[&e.from], e.line, e.text))
+        .collect()
+}
+
+#[test]
+fn the_data_layer_imports_nothing_above_it() {
+    let root = Path::new(option_env!("CARGO_MANIFEST_DIR").unwrap_or("."));
+    let a = analyze(&root.join("src"));
+    let up = above_the_bottom(&a);
+    println!("module_cycles: {} references from {BOTTOM:?} to modules above them", up.len());
+    assert!(up.is_empty(), "the data layer reaches up:\n{}", up.join("\n"));
+    // Twin: an edge from `model` up to `report` is listed.
+    let planted = Analysis {
+        files: [("model::x".to_string(), "model/x.rs".to_string()), ("report".to_string(), "report.rs".to_string())].into(),
+        edges: vec![Edge { from: "model::x".into(), to: "report".into(), line: 3, text: "crate::report::f".into() }],
+    };
+    assert_eq!(above_the_bottom(&planted), ["  src/model/x.rs:3  crate::report::f"]);
+}

@@ -300,7 +300,7 @@ fn findings_say_whether_the_recommended_pattern_works() {
         assert!(stdout(&o).contains(&format!("recommended pattern {pattern} (")) && stdout(&o).contains(&format!("{id}): passes (2/2; a fault as frequent as this finding's would be missed with p ≤ ")), "{}", stdout(&o));
         let m = p["miss_probability"].as_f64().expect("miss_probability");
         let inc = |k: &str| base["incidence"][k].as_u64().unwrap() as u32;
-        assert!((m - rtprobe::bisect::confidence::pass_miss(inc("faulted"), inc("attempts"), 2)).abs() < 1e-9, "{p}");
+        assert!((m - rtprobe::model::stats::pass_miss(inc("faulted"), inc("attempts"), 2)).abs() < 1e-9, "{p}");
     }
     // Twin: the same fault in the pattern's shape too: the pattern fails, never "passes".
     let out2 = dir.path().join("r2.json");
@@ -431,7 +431,7 @@ fn faulting_cells_are_retried_with_each_applicable_workaround() {
     let inc = |k: &str| base["incidence"][k].as_u64().unwrap() as u32;
     for w in base["workarounds"].as_array().unwrap() {
         let n = w["attempts"].as_u64().unwrap() as u32;
-        let m = rtprobe::bisect::confidence::pass_miss(inc("faulted"), inc("attempts"), n);
+        let m = rtprobe::model::stats::pass_miss(inc("faulted"), inc("attempts"), n);
         assert!(n > 0 && (w["miss_probability"].as_f64().unwrap() - m).abs() < 1e-9, "{w}");
         assert!(stdout(&o).contains(&format!("{} → passes ({n}/{n}; a fault as frequent as this finding's would be missed with p ≤ {m:.2})", w["patch"].as_str().unwrap())), "{}", stdout(&o));
     }

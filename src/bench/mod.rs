@@ -21,7 +21,7 @@
 pub mod plots;
 pub mod stats;
 
-use crate::report::run_report::RunReport;
+use crate::model::RunReport;
 use serde::Serialize;
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
@@ -396,7 +396,7 @@ impl<'a> Bench<'a> {
                 "wall_ratio": r.wall_s / base, "cells": r.report.timing.cells_timed, "workers": r.report.timing.workers_started,
                 "phases_ms": ph, "phase_ratio": ratios, "findings": r.report.tally.findings,
                 // What the run used (under --validate, threads are 1 whatever the entry asked).
-                "jobs_used": r.report.options["jobs"], "threads_used": r.report.options["threads"],
+                "jobs_used": r.report.options.jobs, "threads_used": r.report.options.threads,
             }));
         }
         Ok(json!({ "filter": self.opts.sweep_filter, "size": self.opts.sweep_size, "entries": entries }))
@@ -430,7 +430,7 @@ pub fn skip_reason(args: &[String], known: &[String], cores: usize) -> Option<St
 pub fn phases(r: &RunReport) -> serde_json::Map<String, Value> {
     let t = &r.timing;
     let device = t.device_ms_mean * t.workers_started as f64;
-    let ready: f64 = r.workers.iter().filter(|w| w.phase == crate::runner::phase::Phase::Setup && w.outcome == crate::outcome::Outcome::Pass).map(|w| w.wall_ms).sum();
+    let ready: f64 = r.workers.iter().filter(|w| w.phase == crate::model::phase::Phase::Setup && w.outcome == crate::model::outcome::Outcome::Pass).map(|w| w.wall_ms).sum();
     // In PHASES order.
     let values = [(ready - device).max(0.0), device, t.compile_ms, t.pipeline_ms, t.setup_ms, t.trace_ms, t.check_ms, t.overhead_ms];
     PHASES.iter().zip(values).map(|(k, v)| (k.to_string(), json!(v))).collect()
@@ -445,7 +445,7 @@ const PER_WORKER: [&str; 2] = ["spawn_reference", "device"];
 /// phases kept; the wall time grows by the added per-cell time spread over the run's workers.
 fn estimate(r: &Ran, ph: &serde_json::Map<String, Value>, scale: f64) -> (f64, serde_json::Map<String, Value>) {
     let per_cell: f64 = ph.iter().filter(|(k, _)| !PER_WORKER.contains(&k.as_str())).map(|(_, v)| v.as_f64().unwrap_or(0.0)).sum();
-    let jobs = r.report.options["jobs"].as_f64().unwrap_or(1.0).max(1.0);
+    let jobs = (r.report.options.jobs as f64).max(1.0);
     let wall = r.wall_s + (scale - 1.0).max(0.0) * per_cell / 1e3 / jobs;
     let m = ph.iter().map(|(k, v)| (k.clone(), json!(v.as_f64().unwrap_or(0.0) * if PER_WORKER.contains(&k.as_str()) { 1.0 } else { scale }))).collect();
     (wall, m)

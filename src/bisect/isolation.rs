@@ -2,92 +2,12 @@
 //! with dynamic index (nonuniformEXT), descriptor_indexing`) and a verdict with its evidence
 //! (`❌ crash (6 of 6, p ≥ 0.61 at 95%)`, `✅ passes (5 of 5; miss ≤ 0.94% for p ≥ 0.61)`).
 use super::Verdicts;
-use crate::matrix::{AsAccess, BaseSource, Cell, HeapAccess, IndexSource, SamplerIndex};
-use serde::{Deserialize, Serialize};
+use crate::model::{Cell, IndexSource};
+use crate::model::IsolationLine;
 
 /// One cell as a sentence a driver engineer can read without knowing rtprobe's ids.
 pub fn describe(c: &Cell) -> String {
-    if let Some(k) = c.canary {
-        return format!("canary {}", k.as_str());
-    }
-    let mut s = format!("{} reading {} with {} index", c.stage, c.resource, c.index);
-    if c.nonuniform {
-        s += " (nonuniformEXT)";
-    }
-    if let Some(a) = c.as_access {
-        s += match a {
-            AsAccess::Descriptor => " through a descriptor",
-            AsAccess::Address => " through a device address",
-            AsAccess::AddressPatched => " through a device address (as-to-address applied to the descriptor variant)",
-        };
-    }
-    s += &format!(", {}", c.descriptor_model);
-    if let Some(h) = c.heap_access {
-        s += match h {
-            HeapAccess::MappedConstantOffset => " (set/binding mapped to the heap at a constant offset)",
-            HeapAccess::MappedPushIndex => " (set/binding mapped to the heap, index in push data: HEAP_WITH_PUSH_INDEX)",
-            HeapAccess::MappedIndirectIndex => " (set/binding mapped to the heap, index loaded from a buffer: HEAP_WITH_INDIRECT_INDEX)",
-            HeapAccess::MappedShaderRecordIndex => " (set/binding mapped to the heap, index in the shader record: HEAP_WITH_SHADER_RECORD_INDEX)",
-            HeapAccess::Direct => " (layout(descriptor_heap) GLSL)",
-        };
-    }
-    if let Some(r) = c.reorder {
-        s += &format!(", raygen reordering with {r}");
-    }
-    if let Some(b) = c.base {
-        s += match b {
-            BaseSource::ShaderRecord => ", base from the SBT shader record",
-            BaseSource::Buffer => ", base loaded from a per-instance buffer (device address)",
-        };
-    }
-    if let Some(k) = c.sampler {
-        s += match k {
-            SamplerIndex::Constant => ", separate sampler heap, constant sampler index",
-            SamplerIndex::Dynamic => ", separate sampler heap, dynamic sampler index",
-        };
-    }
-    if let Some(p) = c.patch {
-        s += &format!(", patched with {}", p.as_str());
-    }
-    s
-}
-
-/// One line of an isolation list: a cell, what was varied, and its verdict with evidence.
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-pub struct IsolationLine {
-    pub cell: String,
-    /// The axis varied from the minimal failing cell (`None` for that cell itself; `patch` for a
-    /// workaround).
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub varied: Option<String>,
-    pub description: String,
-    /// `pass`, a finding's outcome, or `not_run`.
-    pub verdict: String,
-    /// Attempts that agree with the verdict (faulted ones for a finding, passed ones for a pass).
-    pub agreeing: u32,
-    pub attempts: u32,
-    /// For a finding: its own fault rate bound (Clopper–Pearson, 95%); for a pass: the bound of
-    /// the faulting cell it is held to.
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub rate_bound: Option<f64>,
-    /// For a pass: the chance that a fault of rate `rate_bound` missed all its attempts.
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub miss_probability: Option<f64>,
-    /// For a pass: its miss probability is below the threshold (false: not concluded on).
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub settled: Option<bool>,
-    /// For a pass without `nonuniformEXT` on its dynamic index whose lanes read other elements
-    /// (allowed: undefined) while a sibling with a defined index faults: that sibling's id. Such
-    /// a pass is not clean evidence (it may hide the sibling's fault).
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub suspect: Option<String>,
-    /// The verdict's reason, for an `error` (rtprobe could not run the cell).
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub reason: Option<String>,
-    /// The `--inject-fault` argument that applied to the cell, if any.
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub injected: Option<String>,
-    pub line: String,
+    crate::model::registry::describe(c)
 }
 
 impl IsolationLine {
@@ -114,7 +34,7 @@ pub struct Evidence {
 pub fn line(cell: &Cell, varied: Option<&str>, verdicts: &Verdicts, ev: Evidence) -> IsolationLine {
     let description = describe(cell);
     let report = verdicts.get(cell).filter(|r| !r.attempts.is_empty());
-    let reason = report.filter(|r| r.outcome == crate::outcome::Outcome::Error).and_then(|r| r.reason.clone());
+    let reason = report.filter(|r| r.outcome == crate::model::outcome::Outcome::Error).and_then(|r| r.reason.clone());
     let (k, n) = verdicts.counts(cell);
     let mut l = IsolationLine { cell: cell.id(), varied: varied.map(String::from), description, verdict: "not_run".into(), agreeing: 0, attempts: n, rate_bound: None, miss_probability: None, settled: None, suspect: None, reason, injected: None, line: String::new() };
     // A pass's faulting sibling that its lenient reads may hide (`suspect`).
@@ -124,19 +44,19 @@ pub fn line(cell: &Cell, varied: Option<&str>, verdicts: &Verdicts, ev: Evidence
         l.injected = r.injected.clone();
         if r.outcome.is_finding() {
             l.agreeing = k;
-            l.rate_bound = Some(super::confidence::rate_bound(k, n));
+            l.rate_bound = Some(crate::model::stats::rate_bound(k, n));
         } else {
             l.agreeing = n - k;
-            if r.outcome == crate::outcome::Outcome::Pass {
+            if r.outcome == crate::model::outcome::Outcome::Pass {
                 l.rate_bound = ev.against;
-                l.miss_probability = Some(ev.against.map_or(1.0, |p| super::confidence::miss(p, n)));
+                l.miss_probability = Some(ev.against.map_or(1.0, |p| crate::model::stats::miss(p, n)));
                 l.settled = l.miss_probability.map(|m| m < ev.max_miss);
                 sus = suspect(cell, verdicts);
                 l.suspect = sus.map(|(sib, _)| sib.id());
             }
         }
     }
-    let conf = format!("{:.0}%", 100.0 * super::confidence::CONFIDENCE);
+    let conf = format!("{:.0}%", 100.0 * crate::model::stats::CONFIDENCE);
     let evidence = match (l.verdict.as_str(), l.miss_probability, l.rate_bound) {
         ("not_run", _, _) => "❔ not run".to_string(),
         ("pass", Some(m), Some(p)) => {
@@ -177,13 +97,13 @@ pub fn percent(p: f64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::matrix::{DescriptorModel, IndexSource, Resource, Stage};
+    use crate::model::{DescriptorModel, IndexSource, Resource, Stage};
 
     #[test]
     fn cells_read_as_sentences() {
-        let c = Cell { stage: Stage::ClosestHit, resource: Resource::StorageBuffer, index: IndexSource::SpecConstant, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None, reorder: None, base: None, sampler: None };
+        let c = Cell::new(Stage::ClosestHit, Resource::StorageBuffer, IndexSource::SpecConstant, DescriptorModel::DescriptorIndexing);
         assert_eq!(describe(&c), "closest_hit reading storage_buffer with spec_constant index, descriptor_indexing");
-        let d = Cell { index: IndexSource::Dynamic, nonuniform: true, patch: Some(crate::matrix::cell::Workaround::SsboToAddress), ..c };
+        let d = Cell { index: IndexSource::Dynamic, nonuniform: true, patch: Some(crate::model::cell::Workaround::SsboToAddress), ..c };
         assert_eq!(describe(&d), "closest_hit reading storage_buffer with dynamic index (nonuniformEXT), descriptor_indexing, patched with ssbo-to-address");
         assert_eq!(percent(0.0078125), "0.78%");
         assert_eq!(percent(1e-9), "< 0.01%");

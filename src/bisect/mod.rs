@@ -36,31 +36,30 @@
 //! — a statement about the predicate, not about a driver; a predicate without a `patch` term
 //! injects into patched cells too (the injected load survives every SPIR-V patch), so no
 //! workaround passes. The workaround lines say when the verdict is decided by the injection.
-pub mod confidence;
 pub mod ddmin;
-pub mod file;
 pub mod isolation;
+mod render;
 pub mod scope;
 
-use crate::matrix::inject::{for_cell, Injection};
-use crate::matrix::{Cell, Filter};
-use crate::outcome::Outcome;
-use crate::report::run_report::{CellReport, RunReport};
-use crate::runner::supervisor::Attempt;
-use isolation::IsolationLine;
-use serde::{Deserialize, Serialize};
+use crate::model::inject::for_cell;
+use crate::model::Injection;
+use crate::model::registry;
+use crate::model::{Cell, Filter};
+use crate::model::Outcome;
+use crate::model::{CellReport, RunReport};
+use crate::model::Attempt;
+use crate::model::IsolationLine;
 use std::collections::HashMap;
 
 /// Axes that exist only on some cells, whose `none` / default values stand for other axes' values.
-const SECONDARY_AXES: &[&str] = &["base", "sampler"];
 
 /// The axes bisection reduces over: every axis of a cell except `canary`.
 pub fn axes() -> impl Iterator<Item = &'static str> {
-    crate::matrix::cell::AXIS_NAMES.iter().copied().filter(|a| *a != "canary")
+    registry::AXES.iter().filter(|a| a.id != registry::AxisId::Canary).map(|a| a.name)
 }
 /// Default: a pass may hide a fault of its faulting cell's rate bound with at most this
 /// probability.
-pub const DEFAULT_MAX_MISS: f64 = 0.01;
+pub use crate::model::stats::DEFAULT_MAX_MISS;
 /// Default cap on the attempts of one cell.
 pub const DEFAULT_MAX_ATTEMPTS: u32 = 50;
 
@@ -128,10 +127,10 @@ impl Verdicts {
         self.counts(c).1
     }
 
-    /// The cell's fault rate bound: one-sided Clopper–Pearson at [`confidence::CONFIDENCE`].
+    /// The cell's fault rate bound: one-sided Clopper–Pearson at [`crate::model::stats::CONFIDENCE`].
     pub fn rate_bound(&self, c: &Cell) -> f64 {
         let (k, n) = self.counts(c);
-        confidence::rate_bound(k, n)
+        crate::model::stats::rate_bound(k, n)
     }
 
     pub fn state(&self, c: &Cell) -> State {
@@ -189,66 +188,6 @@ pub fn predicate(f: &Filter) -> String {
     f.terms.iter().map(|(a, v)| format!("{a}={}", v.join("|"))).collect::<Vec<_>>().join(",")
 }
 
-/// What bisection found.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct Bisection {
-    /// One conjunction separates the faulting cells from the passing ones.
-    pub separable: bool,
-    /// The minimal conjunction (one), or the disjunction's conjunctions.
-    pub conjunctions: Vec<String>,
-    /// `minimal: …` as printed: the conjunctions joined by `;` (RTPROBE_INJECT_FAULT's list).
-    pub minimal: String,
-    /// The minimal failing cell the isolation list is built around.
-    pub representative: String,
-    pub isolation: Vec<IsolationLine>,
-    pub workarounds: Vec<IsolationLine>,
-    /// The minimal failing cell's fault rate: the one-sided Clopper–Pearson lower bound at
-    /// `confidence` from its k of N (None: it has no attempt).
-    #[serde(default)]
-    pub fault_rate_bound: Option<f64>,
-    #[serde(default = "default_confidence")]
-    pub confidence: f64,
-    /// Attempts a pass held to that bound needs for a miss probability below `max_miss`.
-    pub attempts_per_pass: u32,
-    pub max_miss: f64,
-    /// The largest miss probability of a pass bisection relied on (per pass, not for the result
-    /// as a whole).
-    pub worst_miss_probability: f64,
-    /// The union (Bonferroni) bound on the chance that any pass relied on missed its fault: the
-    /// sum of the per-pass miss probabilities, capped at 1.
-    #[serde(default)]
-    pub union_miss_probability: f64,
-    /// Passes bisection relied on (each the reason a wider conjunction was refused, a sibling in
-    /// the isolation list, or a workaround).
-    #[serde(default)]
-    pub passes_relied_on: usize,
-    /// Passes relied on that could not reach the threshold (attempt cap, or offline): the result
-    /// is not concluded while any is listed.
-    pub unsettled: Vec<String>,
-    pub faulting_cells: usize,
-    pub scope_cells: usize,
-    /// Cells of the scope with no verdict (never needed, or offline).
-    pub not_run: usize,
-    /// Cells of the scope rtprobe could not run (`error`): used neither as faults nor as passes.
-    #[serde(default)]
-    pub errored: Vec<String>,
-    /// Attempts bisection ran itself.
-    pub runs: usize,
-    /// Axes with a single value in the scope: the conjunction says nothing about them.
-    pub not_varied: Vec<String>,
-}
-
-fn default_confidence() -> f64 {
-    confidence::CONFIDENCE
-}
-
-impl Bisection {
-    /// Every pass relied on reached the threshold.
-    pub fn concluded(&self) -> bool {
-        self.unsettled.is_empty()
-    }
-}
-
 #[derive(Debug, thiserror::Error)]
 pub enum BisectError {
     #[error("no cell of the scope has a finding: nothing to bisect")]
@@ -280,7 +219,7 @@ impl<'o> Bisector<'o> {
 
     /// Attempts a pass held to faulting cell `fault` needs: `(1 - bound)^N < max_miss`.
     pub fn attempts_needed(&self, fault: &Cell) -> u32 {
-        confidence::attempts_needed(self.verdicts.rate_bound(fault), self.settings.max_miss, self.settings.max_attempts)
+        crate::model::stats::attempts_needed(self.verdicts.rate_bound(fault), self.settings.max_miss, self.settings.max_attempts)
     }
 
     /// The faulting cell of `region` with the highest rate bound (most attempts on a tie): the
@@ -426,7 +365,7 @@ impl<'o> Bisector<'o> {
         // The optional axes' stand-in values (`base=none`: not a closest-hit dynamic buffer/image
         // cell; `sampler=none`: not a direct sampled image) restate other axes: described without
         // them when that still holds.
-        let primary: Vec<(String, Vec<String>)> = terms.iter().filter(|(a, _)| !SECONDARY_AXES.contains(&a.as_str())).cloned().collect();
+        let primary: Vec<(String, Vec<String>)> = terms.iter().filter(|(a, _)| registry::axis(a).is_some_and(|d| d.rank == registry::Rank::Primary)).cloned().collect();
         if primary.len() < terms.len() && self.holds(&Filter { terms: primary.iter().rev().cloned().collect() }) {
             terms = primary;
         }
@@ -526,7 +465,7 @@ impl<'o> Bisector<'o> {
         let mut relied: Vec<(Cell, Cell)> = self.relied.clone();
         relied.extend(sib_cells.iter().chain(&patched).map(|c| (*c, rep)));
         relied.retain(|(c, _)| self.verdicts.state(c) == State::Pass);
-        let miss_of = |(c, f): &(Cell, Cell)| confidence::miss(self.verdicts.rate_bound(f), self.verdicts.evidence(c));
+        let miss_of = |(c, f): &(Cell, Cell)| crate::model::stats::miss(self.verdicts.rate_bound(f), self.verdicts.evidence(c));
         relied.sort_by_key(|(c, f)| (c.id(), f.id()));
         relied.dedup();
         let worst_miss = relied.iter().map(miss_of).fold(0.0, f64::max);
@@ -546,7 +485,7 @@ impl<'o> Bisector<'o> {
             isolation,
             workarounds,
             fault_rate_bound: Some(self.verdicts.rate_bound(&rep)),
-            confidence: confidence::CONFIDENCE,
+            confidence: crate::model::stats::CONFIDENCE,
             attempts_per_pass: self.attempts_needed(&rep),
             max_miss: self.settings.max_miss,
             worst_miss_probability: worst_miss,
@@ -608,68 +547,8 @@ impl<'o> Bisector<'o> {
     }
 }
 
-/// The bisection as text: the isolation list, the workarounds, the evidence, and as the last line
-/// `minimal: PREDICATE`.
-pub fn render(b: &Bisection, full_matrix: usize) -> String {
-    let mut s = String::new();
-    if b.separable {
-        s += &format!("{} faulting of {} cells in scope; one conjunction separates them.\n", b.faulting_cells, b.scope_cells);
-    } else {
-        s += &format!(
-            "{} faulting of {} cells in scope; NO single conjunction separates them from the passing cells (the tightest one holding for every faulting cell contains a passing cell). Smallest disjunction found ({} conjunctions, greedy cover):\n",
-            b.faulting_cells,
-            b.scope_cells,
-            b.conjunctions.len()
-        );
-        for c in &b.conjunctions {
-            s += &format!("  {c}\n");
-        }
-    }
-    s += &format!("\nisolation (around {}):\n", b.representative);
-    for l in &b.isolation {
-        s += &format!("  {}\n", l.line);
-    }
-    if !b.workarounds.is_empty() {
-        s += "\nworkarounds for the minimal failing cell:\n";
-        for l in &b.workarounds {
-            s += &format!("  {}\n", l.line);
-        }
-    }
-    s += "\n";
-    match b.fault_rate_bound {
-        Some(p) => s += &format!(
-            "evidence: the minimal failing cell's fault rate is p ≥ {p:.2} at {:.0}% (one-sided Clopper–Pearson); a pass held to it needs {} attempt(s) for a miss probability below {}; {} pass(es) relied on, worst miss probability {} per pass, at most {} that any of them missed (union bound), given that the rate bound holds ({:.0}% confidence)\n",
-            100.0 * b.confidence,
-            b.attempts_per_pass,
-            isolation::percent(b.max_miss),
-            b.passes_relied_on,
-            isolation::percent(b.worst_miss_probability),
-            isolation::percent(b.union_miss_probability),
-            100.0 * b.confidence
-        ),
-        None => s += "evidence: the minimal failing cell has no attempt: passes are not settled\n",
-    }
-    if !b.unsettled.is_empty() {
-        s += &format!(
-            "NOT CONCLUDED: {} pass(es) relied on stay at or above a miss probability of {} (attempt cap or offline); the result rests on them: {}\n",
-            b.unsettled.len(),
-            isolation::percent(b.max_miss),
-            b.unsettled.join(", ")
-        );
-    }
-    if !b.errored.is_empty() {
-        s += &format!("not evidence (rtprobe could not run them, `error`): {}\n", b.errored.join(", "));
-    }
-    if !b.not_varied.is_empty() {
-        s += &format!("not varied in this scope (the result says nothing about them): {}\n", b.not_varied.join(", "));
-    }
-    s += &format!(
-        "runs: {} made by bisect; {} cells in scope ({} never run), full matrix {} cells\n",
-        b.runs, b.scope_cells, b.not_run, full_matrix
-    );
-    s += &format!("minimal: {}\n", b.minimal);
-    s
-}
+pub use render::render;
+use crate::model::Bisection;
 
 #[cfg(test)]
 mod tests;

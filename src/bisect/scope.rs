@@ -1,10 +1,10 @@
 //! What bisection takes from a run report: the options its runs must repeat (device, scene,
 //! `--inject-fault`, timeouts) and the scope of cells when no device is at hand.
-use crate::matrix::inject::Injection;
-use crate::matrix::plan::PatchMode;
-use crate::matrix::{Cell, Filter};
-use crate::report::run_report::RunReport;
-use crate::runner::supervisor::Isolation;
+use crate::model::Injection;
+use crate::model::PatchMode;
+use crate::model::{Cell, Filter};
+use crate::model::RunReport;
+use crate::model::Isolation;
 
 /// The report's options that bisection's runs repeat.
 #[derive(Clone, Debug)]
@@ -23,19 +23,16 @@ pub struct ReportOptions {
 impl ReportOptions {
     pub fn of(r: &RunReport) -> Result<Self, String> {
         let o = &r.options;
-        let strings = |key: &str| -> Vec<String> { o[key].as_array().map(|a| a.iter().filter_map(|v| v.as_str().map(String::from)).collect()).unwrap_or_default() };
-        let inject = strings("inject").iter().map(|s| Injection::parse(s)).collect::<Result<Vec<_>, _>>().map_err(|e| format!("the report's --inject-fault: {e}"))?;
-        let patches = serde_json::from_value(o["patches"].clone()).unwrap_or(PatchMode::Faults);
-        let isolation = serde_json::from_value(o["isolation"].clone()).unwrap_or(Isolation::Worker);
+        let inject = o.inject.iter().map(|s| Injection::parse(s)).collect::<Result<Vec<_>, _>>().map_err(|e| format!("the report's --inject-fault: {e}"))?;
         Ok(ReportOptions {
-            filters: strings("filters"),
-            patches,
+            filters: o.filters.clone(),
+            patches: o.patches,
             inject,
-            jobs: o["jobs"].as_u64().map(|j| j as usize),
-            isolation,
-            timeout_s: o["timeout_s"].as_f64().unwrap_or(20.0),
-            setup_timeout_s: o["setup_timeout_s"].as_f64(),
-            validate: o["validate"].as_bool().unwrap_or(false),
+            jobs: Some(o.jobs),
+            isolation: o.isolation,
+            timeout_s: o.timeout_s,
+            setup_timeout_s: o.setup_timeout_s,
+            validate: o.validate,
         })
     }
 
@@ -61,7 +58,7 @@ pub fn report_scope(r: &RunReport, filters: &[Filter], patches: PatchMode) -> Ve
 
 /// The cell with this id: any cell of the full matrix, its workaround variants, or a canary.
 pub fn cell_by_id(id: &str) -> Option<Cell> {
-    use crate::matrix::Canary;
+    use crate::model::Canary;
     let (all, _) = crate::matrix::plan::all_cells();
     all.into_iter()
         .flat_map(|c| std::iter::once(c).chain(c.applicable_patches().into_iter().map(move |p| Cell { patch: Some(p), ..c })))

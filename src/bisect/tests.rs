@@ -2,7 +2,7 @@
 //! run counted.
 use super::*;
 use crate::matrix::plan::all_cells;
-use crate::outcome::Outcome;
+use crate::model::Outcome;
 
 /// Faults on the cells of any of `truth`, each attempt with probability `p` (a seeded LCG).
 struct Sim {
@@ -92,7 +92,7 @@ fn bisect(truth: &[&str], p: f64, scope_filter: &str, ran_filter: &str) -> (Bise
 /// The attempts a fault that never misses gets: the first N with N >= the attempts a pass held to
 /// `alpha^(1/N)` needs.
 fn deterministic_fault_attempts(max_miss: f64) -> u32 {
-    (1..).find(|&n| n >= confidence::attempts_needed(confidence::rate_bound(n, n), max_miss, DEFAULT_MAX_ATTEMPTS)).unwrap()
+    (1..).find(|&n| n >= crate::model::stats::attempts_needed(crate::model::stats::rate_bound(n, n), max_miss, DEFAULT_MAX_ATTEMPTS)).unwrap()
 }
 
 const SCOPE: &str = "descriptor_model=descriptor_indexing,resource=storage_buffer|uniform_buffer|acceleration_structure";
@@ -107,10 +107,10 @@ fn single_axis_two_axis_and_value_sets_are_recovered_exactly() {
         // Deterministic faults: the minimal failing cell is repeated until it has as many attempts
         // as a pass held to its bound then needs; every pass relied on gets exactly that many.
         let n0 = deterministic_fault_attempts(DEFAULT_MAX_MISS);
-        let need = confidence::attempts_needed(confidence::rate_bound(n0, n0), DEFAULT_MAX_MISS, DEFAULT_MAX_ATTEMPTS);
+        let need = crate::model::stats::attempts_needed(crate::model::stats::rate_bound(n0, n0), DEFAULT_MAX_MISS, DEFAULT_MAX_ATTEMPTS);
         assert_eq!(r.attempts_per_pass, need);
         assert_eq!((r.isolation[0].agreeing, r.isolation[0].attempts), (n0, n0), "{truth}");
-        assert!(r.isolation[0].line.contains(&format!("({n0} of {n0}, p ≥ {:.2} at 95%)", confidence::rate_bound(n0, n0))), "{}", r.isolation[0].line);
+        assert!(r.isolation[0].line.contains(&format!("({n0} of {n0}, p ≥ {:.2} at 95%)", crate::model::stats::rate_bound(n0, n0))), "{}", r.isolation[0].line);
         assert!(runs <= (n0 as usize - 1) + r.passes_relied_on * need as usize, "{truth}: {runs} runs");
         assert!(r.concluded() && r.unsettled.is_empty());
         assert!(r.worst_miss_probability < DEFAULT_MAX_MISS);
@@ -119,7 +119,7 @@ fn single_axis_two_axis_and_value_sets_are_recovered_exactly() {
         assert!(r.isolation.iter().skip(1).any(|l| !l.faults()), "{truth}: a passing sibling");
         for l in r.isolation.iter().filter(|l| l.verdict == "pass") {
             assert_eq!(l.attempts, need, "{}", l.line);
-            let m = confidence::miss(confidence::rate_bound(n0, n0), need);
+            let m = crate::model::stats::miss(crate::model::stats::rate_bound(n0, n0), need);
             assert!(l.line.contains(&format!("miss ≤ {}", isolation::percent(m))), "{}", l.line);
         }
     }
@@ -156,12 +156,12 @@ fn a_flaky_fault_is_recovered_with_repeats_below_the_threshold() {
     // The bound is the minimal failing cell's own k of N, below the true rate 0.5 (at 95%).
     let rep = &r.isolation[0];
     let p = r.fault_rate_bound.unwrap();
-    assert_eq!(p, confidence::rate_bound(rep.agreeing, rep.attempts));
+    assert_eq!(p, crate::model::stats::rate_bound(rep.agreeing, rep.attempts));
     assert!(rep.agreeing < rep.attempts, "a rate-0.5 fault missed some attempts: {}", rep.line);
     assert!(p < 0.5, "bound {p}");
     // It was repeated until it had the attempts a pass then needs, and every pass those.
     assert!(rep.attempts >= r.attempts_per_pass, "{}", rep.line);
-    assert_eq!(r.attempts_per_pass, confidence::attempts_needed(p, DEFAULT_MAX_MISS, DEFAULT_MAX_ATTEMPTS));
+    assert_eq!(r.attempts_per_pass, crate::model::stats::attempts_needed(p, DEFAULT_MAX_MISS, DEFAULT_MAX_ATTEMPTS));
     for l in r.isolation.iter().filter(|l| l.verdict == "pass") {
         assert!(l.attempts >= r.attempts_per_pass && l.settled(), "{}", l.line);
         assert!(l.line.contains("miss ≤ ") && l.line.contains(&format!("for p ≥ {p:.2}")), "{}", l.line);
@@ -189,7 +189,7 @@ fn offline_never_widens_over_cells_nobody_ran() {
     assert_eq!(r.runs, 0);
     // No repeats offline: one fault of one attempt bounds the rate only by alpha, and the passes
     // relied on (one attempt each) are not concluded on.
-    assert_eq!(r.fault_rate_bound, Some(1.0 - confidence::CONFIDENCE));
+    assert_eq!(r.fault_rate_bound, Some(1.0 - crate::model::stats::CONFIDENCE));
     assert!(!r.concluded() && !r.unsettled.is_empty());
     assert!(render(&r, 816).contains("NOT CONCLUDED"));
 }
@@ -259,7 +259,7 @@ fn cells_rtprobe_could_not_run_count_neither_way() {
     let mut o = WithError(Sim::new(&["index=dynamic"], 1.0), "raygen.storage_buffer.dynamic.descriptor_indexing".into());
     let mut v = Verdicts::default();
     o.run(&sc, false, &mut v);
-    let dynamic = sc.iter().filter(|c| c.index == crate::matrix::IndexSource::Dynamic).count();
+    let dynamic = sc.iter().filter(|c| c.index == crate::model::IndexSource::Dynamic).count();
     let mut b = Bisector::new(sc, v, &mut o, Settings::default(), vec![]);
     let r = b.bisect(None, &|_| true).unwrap();
     assert_eq!(r.minimal, "index=dynamic");
@@ -294,7 +294,7 @@ fn a_pass_with_too_little_evidence_is_not_concluded_on() {
     let v = report(&mut sim, &sc);
     let settings = Settings { max_attempts: 3, ..Settings::default() };
     let r = Bisector::new(sc, v, &mut sim, settings, vec![]).bisect(None, &|_| true).unwrap();
-    let (bound, miss) = (confidence::rate_bound(3, 3), confidence::miss(confidence::rate_bound(3, 3), 3));
+    let (bound, miss) = (crate::model::stats::rate_bound(3, 3), crate::model::stats::miss(crate::model::stats::rate_bound(3, 3), 3));
     assert!(miss >= DEFAULT_MAX_MISS, "{miss}");
     assert_eq!(r.fault_rate_bound, Some(bound));
     assert!(!r.concluded());
@@ -316,13 +316,13 @@ fn a_pass_with_too_little_evidence_is_not_concluded_on() {
 
 #[test]
 fn a_lenient_pass_that_read_other_elements_is_suspect_when_a_defined_sibling_faults() {
-    use crate::matrix::IndexSource;
-    use crate::reference::{Comparison, ElementReads};
+    use crate::model::IndexSource;
+    use crate::model::{Comparison, ElementReads};
     let lenient = scope("stage=closest_hit,resource=sampled_image,index=dynamic,nonuniform=false,descriptor_model=descriptor_indexing")[0];
     let literal = Cell { index: IndexSource::Literal, ..lenient };
     let reads = |other: usize| {
         let comparison = Comparison { element_reads: Some(ElementReads { outside_spec: "x".into(), own: 10, other, neither: 0 }), ..Comparison::default() };
-        let result = crate::outcome::CellResult { outcome: Outcome::Pass, detail: None, timings: Default::default(), comparison: Some(comparison), fault: None, validation_errors: 0 };
+        let result = crate::model::CellResult { outcome: Outcome::Pass, detail: None, timings: Default::default(), comparison: Some(comparison), fault: None, validation_errors: 0 };
         Attempt { result: Some(result), ..attempt(Outcome::Pass, false) }
     };
     let ev = isolation::Evidence { against: Some(0.6), max_miss: DEFAULT_MAX_MISS };
@@ -429,14 +429,14 @@ fn evidence_counts_only_attempts_the_driver_decided() {
     // neither is evidence. Counted, they would raise a finding's rate bound (so passes held to it
     // need fewer attempts) and lengthen a pass's record.
     let c = scope("descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen,index=literal")[0];
-    let never_ran = |o: Outcome| Attempt { phase: Some(crate::runner::phase::Phase::Setup), ..attempt(o, false) };
+    let never_ran = |o: Outcome| Attempt { phase: Some(crate::model::phase::Phase::Setup), ..attempt(o, false) };
     let mut v = Verdicts::default();
     v.record(&c, attempt(Outcome::Mismatch, false));
     v.record(&c, never_ran(Outcome::Timeout));
     v.record(&c, attempt(Outcome::Error, false));
     assert_eq!(v.counts(&c), (1, 1));
     assert_eq!(v.attempts(&c), 3, "every attempt still caps the repeats");
-    assert!((v.rate_bound(&c) - confidence::rate_bound(1, 1)).abs() < 1e-12);
+    assert!((v.rate_bound(&c) - crate::model::stats::rate_bound(1, 1)).abs() < 1e-12);
     let p = scope("descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen,index=spec_constant")[0];
     let mut v = Verdicts::default();
     v.record(&p, attempt(Outcome::Pass, false));

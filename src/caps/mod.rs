@@ -6,11 +6,10 @@ pub mod profile;
 pub mod support;
 pub mod text;
 
-use crate::matrix::{AsAccess, BaseSource, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource, Stage};
+use crate::model::registry;
 use crate::vk::{driver_version, features::TRACKED_EXTENSIONS, DeviceInfo};
 use serde_json::{json, Map, Value};
 use std::collections::BTreeMap;
-use support::Support;
 
 pub const SCHEMA: &str = "rtprobe.caps/1";
 
@@ -43,28 +42,15 @@ fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
-fn support_map<T: Copy>(all: &[T], name: impl Fn(T) -> &'static str, f: impl Fn(T) -> Support) -> Value {
+/// Per axis value: supported, unsupported (with the device's reason) or not implemented; every
+/// axis and value `--filter` accepts (the registry's), stand-ins included.
+pub fn matrix_json(info: &DeviceInfo) -> Value {
     let mut m = Map::new();
-    for v in all {
-        m.insert(name(*v).into(), serde_json::to_value(f(*v)).expect("Support serializes"));
+    for axis in registry::AXES {
+        let values: Map<String, Value> = axis.filter_values().map(|v| (v.to_string(), serde_json::to_value(support::value(info, axis.id, v)).expect("Support serializes"))).collect();
+        m.insert(axis.name.into(), Value::Object(values));
     }
     Value::Object(m)
-}
-
-/// Per axis value: supported, unsupported (with the device's reason) or not implemented.
-pub fn matrix_json(info: &DeviceInfo) -> Value {
-    let nonuniform = support_map(Resource::ALL, Resource::as_str, |r| support::dynamic_index(info, r, true));
-    json!({
-        "stage": support_map(Stage::ALL, Stage::as_str, |s| support::stage(info, s)),
-        "resource": support_map(Resource::ALL, Resource::as_str, |r| support::resource(info, r)),
-        "index": support_map(IndexSource::ALL, IndexSource::as_str, |i| support::index(info, i)),
-        "nonuniform_by_resource": nonuniform,
-        "as_access": support_map(AsAccess::ALL, AsAccess::as_str, |a| support::as_access(info, a)),
-        "descriptor_model": support_map(DescriptorModel::ALL, DescriptorModel::as_str, |m| support::descriptor_model(info, m)),
-        "reorder": support_map(Reorder::ALL, Reorder::as_str, |r| support::reorder(info, r)),
-        "base": support_map(BaseSource::ALL, BaseSource::as_str, |b| support::base(info, b)),
-        "heap_access": support_map(HeapAccess::ALL, HeapAccess::as_str, |h| Support::all([support::descriptor_model(info, DescriptorModel::DescriptorHeap), support::heap_access(info, h)])),
-    })
 }
 
 /// Tracked extensions: present or not, with the spec version when present and the group the
@@ -114,6 +100,7 @@ pub fn caps_json(info: &DeviceInfo, loader_version: u32, check: Option<&DeviceCr
 #[cfg(test)]
 mod tests {
     use super::*;
+    use support::Support;
 
     #[test]
     fn support_serializes_with_status_and_reason() {

@@ -1,7 +1,8 @@
 //! What the matrix can run on a device, per axis value, decided from the queried features only.
 //! `Unsupported` is said only when the device's features or extensions say so; `NotImplemented`
 //! marks what rtprobe itself cannot do yet, which is never blamed on the device.
-use crate::matrix::{AsAccess, BaseSource, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource, Stage};
+use crate::model::registry::AxisId;
+use crate::model::{AsAccess, BaseSource, Canary, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource, SamplerIndex, Stage, Workaround};
 use crate::vk::{heap, DeviceInfo};
 use ash::{ext, khr, nv, vk};
 use serde::Serialize;
@@ -208,6 +209,42 @@ pub fn heap_access(info: &DeviceInfo, h: HeapAccess) -> Support {
         )]) {
             Support::Supported if crate::shadergen::glslang::find().is_none() => Support::NotImplemented { reason: crate::shadergen::glslang::missing_reason() },
             other => other,
+        },
+    }
+}
+
+/// The support of one value of one registry axis (`caps`'s matrix): the device's reasons for the
+/// axes whose values need something of it, `Supported` for stand-ins and values that need
+/// nothing. A dynamic value (`nonuniform=true`, `sampler=dynamic`) needs dynamic indexing of
+/// every resource kind it can index; a cell's own support (`matrix::plan::device_support`) is
+/// decided per cell.
+pub fn value(info: &DeviceInfo, axis: AxisId, v: &str) -> Support {
+    let of = |s: Option<Support>| s.unwrap_or(Support::Supported);
+    match axis {
+        AxisId::Stage => of(Stage::parse(v).map(|s| stage(info, s))),
+        AxisId::Resource => of(Resource::parse(v).map(|r| resource(info, r))),
+        AxisId::Index => of(IndexSource::parse(v).map(|i| index(info, i))),
+        AxisId::Nonuniform => match v {
+            "true" => Support::all(Resource::ALL.iter().map(|r| dynamic_index(info, *r, true)).collect::<Vec<_>>()),
+            _ => Support::Supported,
+        },
+        AxisId::AsAccess => of(AsAccess::parse(v).map(|a| as_access(info, a))),
+        AxisId::DescriptorModel => of(DescriptorModel::parse(v).map(|m| descriptor_model(info, m))),
+        AxisId::HeapAccess => of(HeapAccess::parse(v).map(|h| Support::all([descriptor_model(info, DescriptorModel::DescriptorHeap), heap_access(info, h)]))),
+        AxisId::Canary => match Canary::parse(v) {
+            Some(Canary::InvalidAddress) => device_address_loads(info),
+            Some(Canary::InfiniteLoop) | None => Support::Supported,
+        },
+        AxisId::Reorder => of(Reorder::parse(v).map(|r| reorder(info, r))),
+        AxisId::Base => of(BaseSource::parse(v).map(|b| base(info, b))),
+        AxisId::Sampler => match SamplerIndex::parse(v) {
+            Some(SamplerIndex::Constant) => heap_access(info, HeapAccess::Direct),
+            Some(SamplerIndex::Dynamic) => Support::all([heap_access(info, HeapAccess::Direct), dynamic_index(info, Resource::SampledImage, true)]),
+            None => Support::Supported,
+        },
+        AxisId::Patch => match Workaround::parse(v) {
+            Some(Workaround::AsToAddress | Workaround::SsboToAddress) => as_access(info, AsAccess::Address),
+            Some(Workaround::Nonuniform | Workaround::PinIndex) | None => Support::Supported,
         },
     }
 }

@@ -92,9 +92,7 @@ pub struct RunArgs {
     #[arg(long, short = 'd', value_name = "INDEX|NAME")]
     pub device: Option<String>,
 
-    /// Select cells: `axis=value[|value],...`, every term must match; repeat for more filters
-    /// (all must match). Axes: stage, resource, index, nonuniform, as_access, descriptor_model
-    #[arg(long, value_name = "FILTER")]
+    #[arg(long, value_name = "FILTER", help = crate::model::registry::filter_help_short(), long_help = crate::model::registry::filter_help())]
     pub filter: Vec<String>,
 
     /// Print the planned cells (unsupported ones with the reason) and the rules that kept
@@ -148,7 +146,7 @@ pub struct RunArgs {
     /// `worker`: a worker runs many cells and is replaced after a fault;
     /// `process-per-cell`: every cell in a fresh process
     #[arg(long, value_enum, default_value = "worker")]
-    pub isolation: crate::runner::supervisor::Isolation,
+    pub isolation: crate::model::Isolation,
 
     /// Deadline for one cell, in seconds (a cell past it is a `timeout`)
     #[arg(long, default_value_t = 20.0, value_name = "SECONDS")]
@@ -171,7 +169,7 @@ pub struct RunArgs {
     /// The `patch` axis: `faults` retries every faulting cell with each SPIR-V workaround that
     /// applies (the report names the verified ones); `all` plans every cell with each; `none`
     #[arg(long, value_enum, default_value = "faults")]
-    pub patches: crate::matrix::plan::PatchMode,
+    pub patches: crate::model::PatchMode,
 
     /// Scene seed
     #[arg(long, default_value_t = 1)]

@@ -5,8 +5,9 @@ use super::args::BenchArgs;
 use super::commands::Globals;
 use super::exit::{self, coded};
 use crate::bench::{self, Bench, BenchError, BenchOptions};
-use crate::matrix::plan::Filter;
-use crate::report::{time, write_atomic};
+use crate::model::Filter;
+use crate::atomic::write_atomic;
+use crate::report::time;
 use anyhow::{Context, Result};
 use std::path::PathBuf;
 

@@ -2,62 +2,19 @@
 //! supervisor with the report's scene and injections, print the isolation list and
 //! `minimal: PREDICATE`, and write `--json`.
 use super::args::BisectArgs;
-use super::commands::{open_instance, Globals};
+use super::commands::Globals;
 use super::exit::{self, coded};
+use super::shared::{load_report, report_device};
 use crate::bisect::scope::{report_scope, ReportOptions};
-use crate::bisect::file::BisectFile;
+use crate::model::BisectFile;
 use crate::bisect::{self, Bisector, Oracle, Settings, Verdicts};
-use crate::matrix::plan::{self, PatchMode, PlanOptions};
-use crate::matrix::Cell;
-use crate::report::run_report::RunReport;
-use crate::report::write_atomic;
+use crate::matrix::plan::{self, PlanOptions};
+use crate::model::PatchMode;
+use crate::model::Cell;
+use crate::model::RunReport;
+use crate::atomic::write_atomic;
 use crate::runner::supervisor::{Event, Supervisor, SupervisorOptions};
-use crate::vk::{features, DeviceInfo, Instance};
 use anyhow::{Context, Result};
-use std::path::Path;
-use std::sync::Arc;
-
-pub fn load_report(path: &Path) -> Result<RunReport> {
-    RunReport::load(path).map_err(|e| coded(exit::BAD_INPUT, e))
-}
-
-/// The device the report was made on, on this machine: the same card (device UUID) if it is here,
-/// else a card of the same name and driver build (name, driver version, driver UUID) — another
-/// machine of a fleet, or the same model leased again, reproduces a driver's fault as well. The
-/// third value is the device UUID of the card used when it is not the report's (a one-line
-/// warning says so on stderr; bisect records it as `device_uuid_rerun`).
-pub(crate) fn report_device(g: &Globals, r: &RunReport) -> Result<(Arc<Instance>, DeviceInfo, Option<String>)> {
-    let inst = open_instance(g)?;
-    let all = features::query_all(&inst)?;
-    let same = |d: &DeviceInfo, keys: &[&str]| {
-        let j = crate::caps::device_json(d);
-        keys.iter().all(|k| j[*k] == r.device[*k])
-    };
-    const DRIVER: [&str; 3] = ["name", "driver_version", "driver_uuid"];
-    let card = all.iter().find(|d| same(d, &DRIVER) && same(d, &["device_uuid"]));
-    let other = card.is_none();
-    let info = card.or_else(|| all.iter().find(|d| same(d, &DRIVER))).cloned().ok_or_else(|| {
-        coded(
-            exit::BAD_DEVICE_SELECTION,
-            format!(
-                "the report was made on {} (driver {}), which is not on this machine; `rtprobe bisect --offline` uses the report's verdicts alone",
-                r.device["name"].as_str().unwrap_or("?"),
-                r.device["driver_version"]["decoded"].as_str().unwrap_or("?")
-            ),
-        )
-    })?;
-    let rerun = other.then(|| {
-        let j = crate::caps::device_json(&info);
-        let uuid = j["device_uuid"].as_str().unwrap_or("?").to_string();
-        eprintln!(
-            "rtprobe: warning: the report's card (UUID {}) is not here; re-running on {} UUID {uuid} of the same driver build",
-            r.device["device_uuid"].as_str().unwrap_or("?"),
-            j["name"].as_str().unwrap_or("?")
-        );
-        uuid
-    });
-    Ok((inst, info, rerun))
-}
 
 /// Runs cells through the supervisor with the report's scene and injections. A fresh
 /// `Supervisor` per batch, so that nothing a worker of an earlier batch sent late reaches a later
@@ -100,7 +57,7 @@ fn check_args(a: &BisectArgs) -> Result<()> {
 
 /// Bisect the report's own verdicts, running nothing (`--offline`, and `report` without
 /// `--bisect`).
-pub(crate) fn offline(report: &RunReport, filters: &[crate::matrix::Filter], patches: PatchMode, settings: Settings, inject: &[crate::matrix::inject::Injection], cell: Option<&str>) -> Result<bisect::Bisection, bisect::BisectError> {
+pub(crate) fn offline(report: &RunReport, filters: &[crate::model::Filter], patches: PatchMode, settings: Settings, inject: &[crate::model::Injection], cell: Option<&str>) -> Result<crate::model::Bisection, bisect::BisectError> {
     let scope = report_scope(report, filters, patches);
     let verdicts = Verdicts::from_report(report);
     let ran = |c: &Cell| verdicts.get(c).is_some();
@@ -113,7 +70,7 @@ pub fn bisect(g: &Globals, a: &BisectArgs) -> Result<u8> {
     let report = load_report(&a.report)?;
     let ro = ReportOptions::of(&report).map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.report.display())))?;
     // The report's binding-stage switch changes results: the cells bisect runs use it too.
-    super::run::use_binding_stages(report.options["binding_stages"].as_str());
+    super::shared::use_binding_stages(report.options.binding_stages.as_deref());
     let filters = ro.scope_filters(&a.filter).map_err(|e| coded(exit::USAGE, e))?;
     let settings = Settings { max_miss: a.max_miss, max_attempts: a.max_attempts, ..Settings::default() };
     let verdicts = Verdicts::from_report(&report);
@@ -126,8 +83,8 @@ pub fn bisect(g: &Globals, a: &BisectArgs) -> Result<u8> {
         device_uuid_rerun = rerun;
         let the_plan = plan::plan(&info, &PlanOptions { filters: filters.clone(), canaries: false, patches, inject: ro.inject.clone() });
         let scope: Vec<Cell> = the_plan.to_run().copied().collect();
-        let jobs = a.jobs.or(ro.jobs).unwrap_or_else(|| super::run::default_jobs(&info));
-        let mut opts = super::run::supervisor_options(info.index, report.scene.params, jobs, ro.isolation, ro.timeout_s, ro.validate || g.validate, ro.inject.clone());
+        let jobs = a.jobs.or(ro.jobs).unwrap_or_else(|| super::shared::default_jobs(&info));
+        let mut opts = super::shared::supervisor_options(info.index, report.scene.params, jobs, ro.isolation, ro.timeout_s, ro.validate || g.validate, ro.inject.clone());
         if let Some(s) = ro.setup_timeout_s.filter(|s| *s > 0.0 && *s <= 3600.0) {
             opts.setup_timeout = std::time::Duration::from_secs_f64(s);
         }

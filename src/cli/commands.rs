@@ -2,8 +2,9 @@
 use super::args::{CapsArgs, DevicesArgs};
 use super::exit;
 use crate::caps::{self, DeviceCreationCheck};
-use crate::matrix::plan::{self, PatchMode, PlanOptions};
-use crate::report::write_atomic;
+use crate::matrix::plan::{self, PlanOptions};
+use crate::model::PatchMode;
+use crate::atomic::write_atomic;
 use crate::vk::{driver_version::format_api_version, features, DeviceInfo, Gpu, Instance, InstanceOptions, Requirements, VkError};
 use anyhow::{Context, Result};
 use serde_json::json;

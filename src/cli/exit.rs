@@ -62,7 +62,7 @@ pub fn code_for(err: &anyhow::Error) -> u8 {
                 VkError::Call { .. } | VkError::NoMemoryType { .. } => VULKAN_ERROR,
             };
         }
-        if cause.downcast_ref::<crate::report::atomic::WriteError>().is_some() || cause.downcast_ref::<std::io::Error>().is_some() {
+        if cause.downcast_ref::<crate::atomic::WriteError>().is_some() || cause.downcast_ref::<std::io::Error>().is_some() {
             return BAD_INPUT;
         }
     }

@@ -2,9 +2,10 @@
 //! read reports and write files (atomically); no GPU work.
 use super::args::{BaselineArgs, BaselineFormat, DiffArgs, DiffFormat, MergeArgs};
 use super::exit::{self, coded};
-use crate::fleet::{baseline::Baseline, diff, merge};
-use crate::report::run_report::RunReport;
-use crate::report::write_atomic;
+use crate::fleet::{diff, merge};
+use crate::model::Baseline;
+use crate::model::RunReport;
+use crate::atomic::write_atomic;
 use anyhow::{Context, Result};
 use std::path::Path;
 

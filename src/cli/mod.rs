@@ -10,7 +10,9 @@ pub mod patch;
 pub mod repro;
 pub mod report;
 pub mod run;
+pub mod shared;
 pub mod stress;
+pub mod values;
 
 use args::{Cli, Command};
 use clap::Parser;

@@ -3,7 +3,7 @@
 use super::args::PatchArgs;
 use super::exit::{self, coded};
 use crate::patches::{self, PatchName, Validation};
-use crate::report::write_atomic;
+use crate::atomic::write_atomic;
 use crate::shadergen::compile::GlslOptions;
 use anyhow::{Context, Result};
 use std::collections::BTreeMap;

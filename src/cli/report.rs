@@ -1,14 +1,15 @@
 //! `rtprobe report REPORT [--bisect FILE] -o issue.md [--format md|json]`: the vendor issue for a
 //! run's fault (see `report::issue`), written atomically.
 use super::args::ReportArgs;
-use super::bisect::{load_report, offline};
+use super::bisect::offline;
+use super::shared::load_report;
 use super::exit::{self, coded};
-use crate::bisect::file::BisectFile;
+use crate::model::BisectFile;
 use crate::bisect::scope::ReportOptions;
 use crate::bisect::Settings;
-use crate::matrix::plan::PatchMode;
+use crate::model::PatchMode;
 use crate::report::issue::{self, Format};
-use crate::report::write_atomic;
+use crate::atomic::write_atomic;
 use anyhow::{Context, Result};
 
 pub fn report(a: &ReportArgs) -> Result<u8> {

@@ -3,57 +3,20 @@
 //! cell, scene, injections and the verdict it had), the device's caps JSON, and a README with
 //! `rtprobe run --cell-spec DIR/cell.json`, which re-runs exactly that cell.
 use super::args::ReproArgs;
-use super::bisect::{load_report, report_device};
+use super::shared::{load_report, report_device};
 use super::commands::Globals;
 use super::exit::{self, coded};
 use crate::bisect::isolation::describe;
 use crate::bisect::scope::{cell_by_id, ReportOptions};
-use crate::matrix::inject::{for_cell, Injection};
-use crate::matrix::plan::PatchMode;
-use crate::matrix::Cell;
+use crate::model::inject::for_cell;
+use crate::model::Injection;
+use crate::model::PatchMode;
+use crate::model::Cell;
 use crate::report::shaders::{cell_shaders, spirv_bytes, spirv_dis};
-use crate::report::write_atomic;
-use crate::scene::SceneParams;
+use crate::atomic::write_atomic;
+use crate::model::bundle::{BundleModule, CellSpec, SCHEMA};
 use anyhow::{Context, Result};
-use serde::{Deserialize, Serialize};
 use std::path::Path;
-
-pub const SCHEMA: &str = "rtprobe.cell/1";
-
-/// `cell.json`: what `run --cell-spec` needs to run exactly this cell again.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct CellSpec {
-    pub schema: String,
-    pub id: String,
-    pub description: String,
-    pub cell: Cell,
-    pub scene: SceneParams,
-    /// The `--inject-fault` arguments of the original run that apply to this cell.
-    pub inject: Vec<String>,
-    pub timeout_s: f64,
-    /// `RTPROBE_BINDING_STAGES` of the original run (it changes results: a re-run sets it).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub binding_stages: Option<String>,
-    /// The verdict in the original report (for comparison), and its device.
-    pub original: serde_json::Value,
-    /// The bundle's SPIR-V modules (`shaders/<file>`), as the worker runs them, and what made
-    /// them: `run --cell-spec` runs these instead of compiling (so another machine's compiler
-    /// does not change the binary). Empty in a cell.json without them: then it compiles.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub modules: Vec<BundleModule>,
-}
-
-/// One SPIR-V module of a bundle.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct BundleModule {
-    /// Under `shaders/`: `<role file>.spv`.
-    pub file: String,
-    /// The compiler and its version (`shaderc-rs 0.10.1 …`, `glslangValidator 16.6.0 …`).
-    pub compiler: String,
-    /// SPIR-V patches applied after compiling, in order.
-    #[serde(default)]
-    pub patched: Vec<String>,
-}
 
 impl CellSpec {
     pub fn load(path: &Path) -> Result<CellSpec> {
@@ -93,7 +56,7 @@ impl CellSpec {
         }
         let p = &self.scene;
         Ok(super::args::RunArgs {
-            filter: vec![crate::report::issue::exact_filter(&self.cell)],
+            filter: vec![crate::model::registry::exact_filter(&self.cell)],
             inject_fault: self.inject.clone(),
             patches: if self.cell.patch.is_some() { PatchMode::All } else { PatchMode::None },
             canaries: self.cell.canary.is_some(),
@@ -205,10 +168,10 @@ pub fn repro(g: &Globals, a: &ReproArgs) -> Result<u8> {
 fn build(
     g: &Globals,
     a: &ReproArgs,
-    report: &crate::report::run_report::RunReport,
+    report: &crate::model::RunReport,
     ro: &ReportOptions,
     cell: Cell,
-    entry: Option<&crate::report::run_report::CellReport>,
+    entry: Option<&crate::model::CellReport>,
     inject: &[&Injection],
     shaders: &[crate::report::shaders::Shader],
     dir: &Path,
@@ -235,7 +198,7 @@ fn build(
         scene: report.scene.params,
         inject: inject.iter().map(|i| i.spec.clone()).collect(),
         timeout_s: ro.timeout_s,
-        binding_stages: report.options["binding_stages"].as_str().map(String::from),
+        binding_stages: report.options.binding_stages.clone(),
         original: serde_json::json!({
             "report": a.from,
             "device": report.device,

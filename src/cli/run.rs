@@ -3,15 +3,22 @@
 use super::args::RunArgs;
 use super::commands::{open_instance, Globals};
 use super::exit::{self, coded};
+use super::shared::{default_jobs, default_threads, supervisor_options, use_binding_stages};
 use crate::caps;
 use crate::fleet::{merge, shard::Shard};
-use crate::matrix::inject::Injection;
-use crate::matrix::plan::{self, Filter, PatchMode, PlanOptions, PlanStatus};
+use crate::model::Injection;
+use crate::matrix::plan::{self, PlanOptions};
+use crate::model::{Filter, PatchMode, PlanStatus};
 use crate::reference::SceneReference;
-use crate::report::run_report::{PlanSummary, ReportWriter, RunReport, SceneSummary, TimingSummary, SCHEMA};
-use crate::report::{junit, summary, time, write_atomic};
-use crate::runner::supervisor::{Event, Isolation, Supervisor, SupervisorOptions};
-use crate::scene::{Scene, SceneParams};
+use crate::model::report::{PlanSummary, ResultOption, RunOptions, SceneSummary, TimingSummary, SCHEMA};
+use crate::report::writer::ReportWriter;
+use crate::model::RunReport;
+use crate::atomic::write_atomic;
+use crate::report::{junit, summary, time};
+use crate::runner::supervisor::{Event, Supervisor, SupervisorOptions};
+use crate::model::Isolation;
+use crate::scene::Scene;
+use crate::model::SceneParams;
 use crate::vk::features;
 use anyhow::{Context, Result};
 use serde_json::json;
@@ -27,27 +34,6 @@ fn scene_params(a: &RunArgs) -> Result<SceneParams> {
     let p = SceneParams { seed: a.seed, width: w, height: h, instances: a.instances, mesh_detail: a.mesh_detail };
     p.validate().map_err(|e| coded(exit::USAGE, format!("scene: {e}")))?;
     Ok(p)
-}
-
-/// One worker per core on CPU implementations (lavapipe JITs each pipeline on one thread), one
-/// on GPUs (the driver parallelises; several processes only contend for one device).
-pub(crate) fn default_jobs(info: &crate::vk::DeviceInfo) -> usize {
-    if info.properties.core.device_type == ash::vk::PhysicalDeviceType::CPU {
-        std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1).clamp(1, 8)
-    } else {
-        1
-    }
-}
-
-/// Pipeline-creation threads per worker: the cores (at most 16) on GPUs, where creating
-/// pipelines is most of a cell's time; 1 on CPU devices, whose workers already take one core
-/// each and which compile at the first trace (measured on lavapipe: README, Performance).
-pub(crate) fn default_threads(info: &crate::vk::DeviceInfo) -> usize {
-    if info.properties.core.device_type == ash::vk::PhysicalDeviceType::CPU {
-        1
-    } else {
-        std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1).clamp(1, 16)
-    }
 }
 
 /// `--pipeline-cache DIR|off`, else the default folder (`None`: off, or no folder known).
@@ -67,7 +53,7 @@ fn slug(name: &str) -> String {
 pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     if let Some(p) = &a.cell_spec {
         // A repro bundle's cell: exactly that cell, its scene and injections.
-        let spec = super::repro::CellSpec::load(p)?;
+        let spec = crate::model::bundle::CellSpec::load(p)?;
         use_binding_stages(spec.binding_stages.as_deref());
         let mut args = spec.run_args(a)?;
         args.spirv_dir = spec.spirv_dir(p)?;
@@ -141,7 +127,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         for ng in &the_plan.not_generated {
             println!("not generated: {} ({} combinations)", ng.rule, ng.count);
         }
-        if the_plan.to_run().any(|c| c.heap_access == Some(crate::matrix::HeapAccess::Direct)) {
+        if the_plan.to_run().any(|c| c.heap_access == Some(crate::model::HeapAccess::Direct)) {
             if let Some(g) = crate::shadergen::glslang::find() {
                 println!("compiler: heap_access=direct shaders by {} {}; all others by shaderc", g.path.display(), g.version);
             }
@@ -173,13 +159,27 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             triangles: scene.triangle_count(),
             ambiguous_pixels: sref.ambiguous_pixels(),
         },
-        options: json!({
-            "jobs": jobs, "threads": threads, "pipeline_cache": cache_dir, "rerun_pipeline_cache": None::<PathBuf>, "isolation": a.isolation, "timeout_s": a.timeout, "setup_timeout_s": a.setup_timeout, "confirm": !a.no_confirm,
-            "canaries": a.canaries, "filters": a.filter, "patches": a.patches, "validate": g.validate, "gpu_av": g.gpu_av,
-            "inject": inject.iter().map(|i| i.spec.clone()).collect::<Vec<_>>(), "repeat": a.repeat,
-            "shard": shard.map(|s| s.label()), "binding_stages": std::env::var("RTPROBE_BINDING_STAGES").ok(),
-            "spirv_from": a.spirv_dir,
-        }),
+        options: RunOptions {
+            jobs,
+            threads: Some(threads),
+            pipeline_cache: cache_dir.clone(),
+            rerun_pipeline_cache: None,
+            isolation: a.isolation,
+            timeout_s: a.timeout,
+            setup_timeout_s: Some(a.setup_timeout),
+            confirm: !a.no_confirm,
+            canaries: a.canaries,
+            filters: a.filter.clone(),
+            patches: a.patches,
+            validate: g.validate,
+            gpu_av: g.gpu_av,
+            inject: inject.iter().map(|i| i.spec.clone()).collect(),
+            repeat: a.repeat,
+            shard: shard.map(|s| s.label()),
+            binding_stages: std::env::var("RTPROBE_BINDING_STAGES").ok(),
+            spirv_from: a.spirv_dir.clone(),
+            merged_from: vec![],
+        },
         plan: PlanSummary {
             generated: the_plan.generated,
             filtered_out: the_plan.filtered_out,
@@ -201,7 +201,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     let base = match &a.resume {
         Some(r) => {
             let old = RunReport::load(r).map_err(|e| coded(exit::BAD_INPUT, e))?;
-            let options: Vec<&str> = merge::RESULT_OPTIONS.iter().copied().filter(|k| *k != "repeat").chain(["shard"]).collect();
+            let options: Vec<ResultOption> = ResultOption::MERGED.iter().copied().filter(|k| *k != ResultOption::Repeat).chain([ResultOption::Shard]).collect();
             merge::same_run(&old, &fresh, &options)
                 .map_err(|why| coded(exit::BAD_INPUT, format!("cannot resume {}: {why}; start a new run instead", r.display())))?;
             RunReport { command_line: fresh.command_line.clone(), complete: false, finished: None, ..old }
@@ -264,7 +264,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             .writer
             .report
             .findings()
-            .flat_map(|c| c.cell.applicable_patches().into_iter().map(move |p| crate::matrix::Cell { patch: Some(p), ..c.cell }))
+            .flat_map(|c| c.cell.applicable_patches().into_iter().map(move |p| crate::model::Cell { patch: Some(p), ..c.cell }))
             .filter(|c| plan::device_support(&info, c).is_supported() && !done.contains(&c.id()))
             .collect();
         if !retries.is_empty() {
@@ -286,7 +286,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             let mut more: Vec<_> = report
                 .cells
                 .iter()
-                .filter(|v| v.cell.patch.is_some() && v.outcome == crate::outcome::Outcome::Pass)
+                .filter(|v| v.cell.patch.is_some() && v.outcome == crate::model::outcome::Outcome::Pass)
                 .filter(|v| report.cells.iter().find(|b| b.cell == v.cell.base()).is_some_and(|b| b.outcome.is_finding() && v.attempts.len() < b.attempts.len()))
                 .map(|v| v.cell)
                 .collect();
@@ -326,7 +326,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     if !canaries.is_empty() {
         sup.run(&canaries, false, &mut |ev| st.on_event(ev));
     }
-    st.writer.report.annotate_findings();
+    crate::report::writer::annotate_findings(&mut st.writer.report);
     let RunState { mut writer, bar, device_ms_sum, save_error, .. } = st;
     bar.finish_and_clear();
     let _ = std::fs::remove_dir_all(&job_dir);
@@ -354,39 +354,6 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     Ok(exit_code(&writer.report, a.allow_improvements))
 }
 
-/// The supervisor options of a run (also used by `bisect`): no dump, the job files under the temp
-/// dir, one thread, and no persisted pipeline cache: a re-run of a report's cells starts cold, so
-/// that a cached binary cannot stand in for the cell's own compile (`run` sets its own folder).
-pub(crate) fn supervisor_options(device_index: usize, scene: SceneParams, jobs: usize, isolation: Isolation, timeout_s: f64, validate: bool, inject: Vec<Injection>) -> SupervisorOptions {
-    SupervisorOptions {
-        device_index,
-        scene,
-        jobs,
-        isolation,
-        timeout: Duration::from_secs_f64(timeout_s),
-        setup_timeout: Duration::from_secs(120),
-        grace: Duration::from_millis(500),
-        kill_wait: Duration::from_secs(5),
-        validate,
-        gpu_av: false,
-        inject,
-        dump: None,
-        spirv_dir: None,
-        job_dir: std::env::temp_dir().join(format!("rtprobe-{}", std::process::id())),
-        threads: 1,
-        pipeline_cache: None,
-    }
-}
-
-/// Set `RTPROBE_BINDING_STAGES` as a report's run had it (it changes results), for this process
-/// and the workers it starts: re-runs of a report's cells (`--cell-spec`, `bisect`).
-pub(super) fn use_binding_stages(v: Option<&str>) {
-    match v {
-        Some(v) => std::env::set_var("RTPROBE_BINDING_STAGES", v),
-        None => std::env::remove_var("RTPROBE_BINDING_STAGES"),
-    }
-}
-
 /// Without a baseline: findings first (exit 1), then canaries whose fault went undetected (exit
 /// 11). With one, only what the baseline did not expect is a finding. A worker fault outside any
 /// cell (a crash between cells, a hung teardown) is always a finding.
@@ -409,7 +376,7 @@ struct RunState {
     writer: ReportWriter,
     bar: indicatif::ProgressBar,
     device_ms_sum: f64,
-    save_error: Option<crate::report::atomic::WriteError>,
+    save_error: Option<crate::atomic::WriteError>,
     /// When the report was last written (passes are written at most every [`SAVE_INTERVAL`]).
     last_save: Instant,
 }
@@ -469,7 +436,7 @@ impl RunState {
             Event::Attempt { cell, attempt } => {
                 self.bar.inc(1);
                 self.bar.set_message(format!("{} {}", attempt.outcome.as_str(), cell.id()));
-                let urgent = attempt.outcome != crate::outcome::Outcome::Pass;
+                let urgent = attempt.outcome != crate::model::outcome::Outcome::Pass;
                 self.writer.record(cell, attempt);
                 self.save(urgent);
             }
@@ -480,10 +447,10 @@ impl RunState {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::matrix::{Canary, Cell};
-    use crate::outcome::Outcome;
-    use crate::report::run_report::CellReport;
-    use crate::runner::supervisor::Attempt;
+    use crate::model::{Canary, Cell};
+    use crate::model::Outcome;
+    use crate::model::CellReport;
+    use crate::model::Attempt;
 
     fn report(cells: Vec<CellReport>) -> RunReport {
         RunReport::for_tests(cells)

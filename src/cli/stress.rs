@@ -4,7 +4,7 @@
 use super::args::StressArgs;
 use super::commands::{open_instance, Globals};
 use super::exit;
-use crate::report::write_atomic;
+use crate::atomic::write_atomic;
 use crate::stress::gpu::{GpuTracer, Mode};
 use crate::stress::{self, report, CaseKind, StressOptions, Tracer};
 use crate::vk::{features, Gpu, Requirements};

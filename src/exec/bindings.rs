@@ -5,7 +5,7 @@
 //! records SSBO, 1 the scene TLAS, 2 the probed array.
 use super::heap::HeapBinding;
 use super::resources::{descriptor_type, Target};
-use crate::matrix::{DescriptorModel, Resource};
+use crate::model::{DescriptorModel, Resource};
 use crate::vk::memory::{Buffer, Location};
 use crate::vk::{Gpu, VkError, VkResultExt};
 use ash::vk;

@@ -24,9 +24,9 @@
 //! HEAP_WITH_INDIRECT_INDEX (read from the buffer whose address is in push data) or
 //! HEAP_WITH_SHADER_RECORD_INDEX (read from the first 4 bytes of every SBT record's shader record
 //! data). All ways must read the same descriptors.
-use super::bindings::PUSH_CONSTANT_BYTES;
+use crate::probe::PUSH_CONSTANT_BYTES;
 use super::resources::{descriptor_type, Target};
-use crate::matrix::{HeapAccess, Resource};
+use crate::model::{HeapAccess, Resource};
 use crate::vk::features::PROBE_IMAGE_FORMAT;
 use crate::vk::heap::{self as h, MappingSource};
 use crate::vk::memory::{Buffer, Location};
@@ -486,7 +486,7 @@ impl DroppedNonUniform {
         format!(
             "the GLSL compiler dropped nonuniformEXT on {which}: no NonUniform decoration reached the driver, so that index is judged as undefined ({}; {})",
             if self.resource { "any element of the array" } else { "any of the heap's samplers, slot and element exact" },
-            crate::reference::NO_NONUNIFORM_VUID
+            crate::model::NO_NONUNIFORM_VUID
         )
     }
 }
@@ -494,7 +494,7 @@ impl DroppedNonUniform {
 /// For a `direct` heap cell: which heap accesses lost the `nonuniformEXT` the GLSL gave them
 /// (`probe_code`: the descriptor index with `nonuniform`, a dynamic sampler index except where the
 /// cell's own dynamic index goes without the qualifier).
-pub fn dropped_nonuniform(cell: &crate::matrix::Cell, spirv: &[std::sync::Arc<Vec<u32>>]) -> Option<DroppedNonUniform> {
+pub fn dropped_nonuniform(cell: &crate::model::Cell, spirv: &[std::sync::Arc<Vec<u32>>]) -> Option<DroppedNonUniform> {
     if cell.heap_access != Some(HeapAccess::Direct) {
         return None;
     }

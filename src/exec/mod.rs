@@ -7,18 +7,20 @@
 pub mod bindings;
 pub mod heap;
 pub mod pipeline;
+pub mod pictures;
 pub mod pipeline_cache;
 pub mod prebuild;
 pub mod resources;
 
-use crate::matrix::{Canary, Cell, Resource};
-use crate::matrix::inject::InjectedFault;
-use crate::outcome::{CellResult, Outcome, Timings};
+use crate::model::{Canary, Cell, Resource};
+use crate::model::InjectedFault;
+use crate::model::{CellResult, Outcome, Timings};
 use crate::probe::{self, Record, RECORD_SIZE};
 use crate::reference::{self, SceneReference};
-use crate::runner::phase::Phase;
+use crate::model::Phase;
 use crate::scene::gpu::{BuildError, SceneGpu};
-use crate::scene::{Scene, SceneParams};
+use crate::scene::Scene;
+use crate::model::SceneParams;
 use crate::shadergen::{self, compile::Compiler, compile::CompileError, PipelineKind};
 use crate::vk::memory::{transition, Buffer, Image, Location, Transition};
 use crate::vk::submit::{Submitter, Waited};
@@ -39,7 +41,7 @@ pub struct ExecOptions {
     /// Fence deadline per submission.
     pub timeout: Duration,
     /// `--inject-fault`: cells matching one of these misbehave at the probed read.
-    pub inject: Vec<crate::matrix::inject::Injection>,
+    pub inject: Vec<crate::model::Injection>,
     /// Seed of this worker's flaky-injection dice (recorded in each injected result).
     pub inject_seed: u64,
     /// Write each cell's GLSL and SPIR-V under this folder, and pictures of each mismatch.
@@ -84,7 +86,7 @@ struct PipelineInput<'a> {
     shaders: &'a shadergen::CellShaders,
     spirv: &'a [std::sync::Arc<Vec<u32>>],
     layout: vk::PipelineLayout,
-    model: crate::matrix::DescriptorModel,
+    model: crate::model::DescriptorModel,
     mapping: Option<Box<heap::PipelineMapping>>,
     records: pipeline::ShaderRecords,
 }
@@ -243,7 +245,7 @@ impl Executor {
         let start = Instant::now();
         let validation_before = crate::vk::instance::validation_error_count();
         let mut timings = Timings::default();
-        let injected = crate::matrix::inject::roll(&self.opts.inject, cell, self.opts.inject_seed);
+        let injected = crate::model::inject::roll(&self.opts.inject, cell, self.opts.inject_seed);
         let result = self.try_run(cell, injected.as_ref(), &mut timings, on_phase).and_then(|done| on_phase(Phase::Check).map(|()| done).map_err(CellError::from));
         let mut out = match result {
             Ok((records, dropped)) => {
@@ -278,7 +280,7 @@ impl Executor {
             return none(Outcome::Pass, &format!("canary {} ran to completion: this driver did not fault on it", c.as_str()));
         }
         let undefined = reference::Undefined {
-            descriptor: reference::undefined_descriptor_read(cell) || dropped.is_some_and(|d| d.resource),
+            descriptor: crate::model::undefined_descriptor_read(cell) || dropped.is_some_and(|d| d.resource),
             sampler: dropped.is_some_and(|d| d.sampler),
         };
         let expected = reference::expected_with(cell, &self.scene, &self.sref, undefined);
@@ -287,7 +289,7 @@ impl Executor {
         let outcome = if cmp.passed() { Outcome::Pass } else { Outcome::Mismatch };
         let mut detail = (!cmp.passed()).then(|| format!("{} of {} compared pixels differ ({:?})", cmp.mismatched_pixels, cmp.compared, cmp.by_field));
         if let (Some(dir), Some(d)) = (self.opts.dump.as_ref().filter(|_| !cmp.passed()), detail.as_mut()) {
-            match crate::report::pictures::write(&dir.join(cell.id()), &expected, records, w, h) {
+            match crate::exec::pictures::write(&dir.join(cell.id()), &expected, records, w, h) {
                 Ok(paths) => cmp.pictures = paths,
                 Err(e) => d.push_str(&format!("; pictures not written: {e}")),
             }
@@ -339,7 +341,7 @@ impl Executor {
         if shaders.uses_probe_binding && cell.resource != Resource::AccelerationStructure {
             self.ensure_array(cell.resource)?;
         }
-        if cell.patch == Some(crate::matrix::cell::Workaround::SsboToAddress) && self.ssbo_table.is_none() {
+        if cell.patch == Some(crate::model::cell::Workaround::SsboToAddress) && self.ssbo_table.is_none() {
             self.ensure_array(Resource::StorageBuffer)?;
             let addrs: Vec<u64> = self.arrays[&Resource::StorageBuffer].buffers.iter().map(|b| b.address).collect();
             self.ssbo_table = Some(resources::address_table(&self.gpu, &addrs, "SSBO address table")?);
@@ -350,7 +352,7 @@ impl Executor {
             let slots = self.slots(Resource::AccelerationStructure);
             self.as_table = Some(resources::as_table(&self.gpu, &addrs, slots)?);
         }
-        if cell.base == Some(crate::matrix::BaseSource::Buffer) && self.bases.is_none() {
+        if cell.base == Some(crate::model::BaseSource::Buffer) && self.bases.is_none() {
             let bytes = probe::base_buffer(self.scene.params.instances);
             let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
             self.bases = Some(Buffer::with_data(&self.gpu, &bytes, usage, "per-instance bases")?);
@@ -372,7 +374,7 @@ impl Executor {
 
     /// GLSL → SPIR-V (cached per source), the cell's workarounds, `--dump`: phase `compile`.
     fn compile_cell(&mut self, cell: &Cell, shaders: shadergen::CellShaders, timings: &mut Timings) -> Result<Compiled, CellError> {
-        if cell.heap_access == Some(crate::matrix::HeapAccess::Direct) && shadergen::glslang::find().is_none() {
+        if cell.heap_access == Some(crate::model::HeapAccess::Direct) && shadergen::glslang::find().is_none() {
             return Err(CellError::NotImplemented(shadergen::glslang::missing_reason()));
         }
         // SPIR-V
@@ -390,15 +392,12 @@ impl Executor {
         }
         // address_patched cells are as-to-address applied to the descriptor variant; a cell of the
         // patch axis adds its own workaround (in that order). A bundle's SPIR-V is patched already.
-        let workarounds = (cell.as_access == Some(crate::matrix::AsAccess::AddressPatched) && self.opts.spirv_dir.is_none())
-            .then_some(crate::matrix::cell::Workaround::AsToAddress)
-            .into_iter()
-            .chain(cell.patch.filter(|_| self.opts.spirv_dir.is_none()));
+        let workarounds = if self.opts.spirv_dir.is_none() { crate::patches::workaround::of_cell(cell) } else { vec![] };
         for w in workarounds {
             let t = Instant::now();
             let mut patched_any = false;
             for words in spirv.iter_mut() {
-                match patch_module(words, w) {
+                match crate::patches::workaround::patch_module(words, w) {
                     Ok(Some(p)) => {
                         *words = std::sync::Arc::new(p);
                         patched_any = true;
@@ -444,8 +443,8 @@ impl Executor {
             model: cell.descriptor_model,
             scene_tlas: c.shaders.uses_scene_tlas,
             probe: c.shaders.uses_probe_binding.then_some(cell.resource),
-            heap_direct: cell.heap_access == Some(crate::matrix::HeapAccess::Direct),
-            packed: cell.index == crate::matrix::IndexSource::DynamicElement,
+            heap_direct: cell.heap_access == Some(crate::model::HeapAccess::Direct),
+            packed: cell.index == crate::model::IndexSource::DynamicElement,
         };
         if !self.bindings.contains_key(&key) {
             let targets = self.targets(key)?;
@@ -455,7 +454,7 @@ impl Executor {
         // The table the address patches read at push-constant offset probe::PATCHED_TABLE_OFFSET
         // (PushConstants::as_table is the hand-written address variant's).
         let mut patched_table_address = 0;
-        if cell.patch == Some(crate::matrix::cell::Workaround::SsboToAddress) {
+        if cell.patch == Some(crate::model::cell::Workaround::SsboToAddress) {
             patched_table_address = self.ssbo_table.as_ref().map(|b| b.address).unwrap_or(0);
         }
         let mut as_table_address = 0;
@@ -463,7 +462,7 @@ impl Executor {
             as_table_address = self.as_table.as_ref().map(|b| b.address).unwrap_or(0);
             patched_table_address = as_table_address;
         }
-        let base_address = if cell.base == Some(crate::matrix::BaseSource::Buffer) { self.bases.as_ref().map(|b| b.address).unwrap_or(0) } else { 0 };
+        let base_address = if cell.base == Some(crate::model::BaseSource::Buffer) { self.bases.as_ref().map(|b| b.address).unwrap_or(0) } else { 0 };
         timings.setup_ms = t.elapsed().as_secs_f64() * 1e3;
         // pipeline (reused for identical SPIR-V and model)
         let pkey = {
@@ -534,11 +533,11 @@ impl Executor {
         let fault = injected.map(|i| i.fault);
         let injected_bad = injected.is_some_and(|i| i.fault.reads_bad_address() && i.armed != Some(false));
         let pc = probe::PushConstants {
-            loop_forever: u32::from(cell.canary == Some(Canary::InfiniteLoop) || fault == Some(crate::matrix::inject::FaultKind::Hang)),
+            loop_forever: u32::from(cell.canary == Some(Canary::InfiniteLoop) || fault == Some(crate::model::inject::FaultKind::Hang)),
             as_table: as_table_address,
             base_address,
             bad_address: if cell.canary == Some(Canary::InvalidAddress) || injected_bad { CANARY_BAD_ADDRESS } else { 0 },
-            inject_salt: fault.map(|f| crate::matrix::inject::value_salt(f, &cell.id())).unwrap_or(0),
+            inject_salt: fault.map(|f| crate::model::inject::value_salt(f, &cell.id())).unwrap_or(0),
             ..probe::push_constants(w, h, self.scene.params.instances, cell.resource)
         }
         .to_bytes(patched_table_address);
@@ -615,31 +614,6 @@ impl Executor {
 /// The GLSL of every shader `cell` needs, with its injected fault (if any) appended.
 fn cell_shaders(cell: &Cell, injected: Option<&InjectedFault>) -> shadergen::CellShaders {
     shadergen::generate_with(&shadergen::source_cell(cell), injected.map(|i| i.fault))
-}
-
-/// Apply the workaround `w` to one module, restricted to the probed array (binding 2):
-/// `Some(words)` when the module had something to rewrite, `None` when not.
-pub(crate) fn patch_module(words: &[u32], w: crate::matrix::cell::Workaround) -> Result<Option<Vec<u32>>, crate::patches::PatchError> {
-    use crate::matrix::cell::Workaround;
-    use crate::patches::{self, PatchError, PatchName};
-    let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
-    let mut m = patches::load(&bytes)?;
-    let kv = |pairs: &[(&str, String)]| pairs.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
-    let (name, opts) = match w {
-        Workaround::AsToAddress => (
-            PatchName::AsToAddress,
-            kv(&[("binding", "2".into()), ("offset", shadergen::PATCHED_TABLE_OFFSET.to_string()), ("mode", "table".into())]),
-        ),
-        Workaround::Nonuniform => (PatchName::Nonuniform, kv(&[])),
-        // SpecId 0 is what every pipeline specializes to probe::SPEC_SLOT.
-        Workaround::PinIndex => (PatchName::PinIndex, kv(&[("binding", "2".into()), ("spec-id", "0".into()), ("value", probe::SPEC_SLOT.to_string())])),
-        Workaround::SsboToAddress => (PatchName::SsboToAddress, kv(&[("binding", "2".into()), ("offset", shadergen::PATCHED_TABLE_OFFSET.to_string())])),
-    };
-    match patches::apply(&mut m, &[name], &opts) {
-        Ok(_) => Ok(Some(patches::assemble(&m))),
-        Err(PatchError::NothingToPatch { .. }) => Ok(None),
-        Err(e) => Err(e),
-    }
 }
 
 /// The module of `role` in a repro bundle's `shaders/` (`<role file>.spv`, little-endian words

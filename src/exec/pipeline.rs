@@ -5,7 +5,7 @@
 //! [`super::heap`]) have no layout, the descriptor-heap create flag, the set/binding mapping on
 //! every stage, and shader record data after each SBT handle where their mapping reads it.
 use super::heap::PipelineMapping;
-use crate::matrix::DescriptorModel;
+use crate::model::DescriptorModel;
 use crate::probe;
 use crate::shadergen::{CellShaders, PipelineKind, Role};
 use crate::vk::memory::{Buffer, Location};
@@ -63,9 +63,9 @@ pub struct ShaderRecords {
 /// (`heap_access=mapped_shader_record_index`, `heap` laid out so; the same in every record) and
 /// the runtime base where the probe reads it (`base=shader_record`; the hit groups' bases differ
 /// from each other and from the other groups', `probe::RECORD_BASE_*`); no data when neither does.
-pub fn shader_records(cell: &crate::matrix::Cell, heap: Option<&super::heap::HeapLayout>) -> ShaderRecords {
-    let mapped = cell.heap_access == Some(crate::matrix::HeapAccess::MappedShaderRecordIndex);
-    let base = cell.base == Some(crate::matrix::BaseSource::ShaderRecord);
+pub fn shader_records(cell: &crate::model::Cell, heap: Option<&super::heap::HeapLayout>) -> ShaderRecords {
+    let mapped = cell.heap_access == Some(crate::model::HeapAccess::MappedShaderRecordIndex);
+    let base = cell.base == Some(crate::model::BaseSource::ShaderRecord);
     if !mapped && !base {
         return ShaderRecords::default();
     }

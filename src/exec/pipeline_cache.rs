@@ -125,7 +125,7 @@ pub fn save(gpu: &Gpu, cache: vk::PipelineCache, path: &Path) -> Result<u64, Str
     if let Some(why) = header_mismatch(&data, &gpu.info.properties.core) {
         return Err(format!("the driver's vkGetPipelineCacheData output is not a valid cache ({why}); not saved"));
     }
-    crate::report::write_atomic(path, &data).map_err(|e| e.to_string())?;
+    crate::atomic::write_atomic(path, &data).map_err(|e| e.to_string())?;
     Ok(data.len() as u64)
 }
 

@@ -11,9 +11,9 @@
 //! cell's compile and bindings, each pipeline) is reported as a [`Step`], so the supervisor's
 //! deadline measures silence, not the batch's size. Traces still run one cell at a time.
 use super::{Bound, CellError, Compiled, Executor, Pipeline, PipelineInput, Prebuilt};
-use crate::matrix::Cell;
-use crate::outcome::Timings;
-use crate::runner::phase::Phase;
+use crate::model::Cell;
+use crate::model::Timings;
+use crate::model::Phase;
 use crate::vk::{Gpu, VkError};
 use ash::vk;
 use std::collections::HashSet;
@@ -88,7 +88,7 @@ impl Executor {
         // per-source cache), then taken by each cell's compile in order.
         let generated: Vec<_> = cells
             .iter()
-            .map(|c| super::cell_shaders(c, crate::matrix::inject::roll(&self.opts.inject, c, self.opts.inject_seed).as_ref()))
+            .map(|c| super::cell_shaders(c, crate::model::inject::roll(&self.opts.inject, c, self.opts.inject_seed).as_ref()))
             .collect();
         if self.opts.spirv_dir.is_none() {
             let sources: Vec<_> = generated.iter().flat_map(|g| g.shaders.iter().map(|s| (s.role, s.glsl.as_str()))).collect();

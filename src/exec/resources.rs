@@ -7,7 +7,7 @@
 //! (`probe::packed_bytes`), or one array image whose layer d holds slot d's texels, and (images)
 //! a one-layer 2D-array view of every slot's own image, so that the whole probed array has the
 //! shader's `sampler2DArray` type.
-use crate::matrix::Resource;
+use crate::model::Resource;
 use crate::probe;
 use crate::vk::features::PROBE_IMAGE_FORMAT;
 use crate::vk::memory::{transition, Buffer, Image, Transition};

@@ -10,46 +10,11 @@
 //! - deqp-runner's `test,Status` lines (`#` comments), statuses `Fail` (mismatch or error),
 //!   `Crash` (crash or device loss), `Timeout`, `Flake`. Read by extension `.csv`/`.txt` or
 //!   content; written with `--format deqp`.
-use crate::outcome::Outcome;
-use crate::report::run_report::{CellReport, RunReport};
-use serde::{Deserialize, Serialize};
+use crate::model::Outcome;
+use crate::model::{CellReport, RunReport};
 use std::collections::BTreeMap;
-
-pub const SCHEMA: &str = "rtprobe.baseline/1";
-
-/// What a cell is expected to do.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Expectation {
-    pub cell: String,
-    /// The expected verdict (never `pass`: passing cells are not listed).
-    pub outcome: Outcome,
-    /// A known flake: a pass, `outcome` and any of `also` (each by deqp class) are tolerated.
-    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
-    pub flake: bool,
-    /// Other outcomes a flaky cell has shown.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub also: Vec<Outcome>,
-    /// The failure rate seen when the entry was written, e.g. `3 of 8 attempts`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub rate: Option<String>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub bug: Option<String>,
-}
-
-/// Per-cell time bound of one phase: a run fails when its mean exceeds
-/// `mean_ms * factor + slack_ms`.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct PerfBound {
-    pub mean_ms: f64,
-    pub factor: f64,
-    pub slack_ms: f64,
-}
-
-impl PerfBound {
-    pub fn limit(&self) -> f64 {
-        self.mean_ms * self.factor + self.slack_ms
-    }
-}
+use crate::model::baseline::SCHEMA;
+use crate::model::{Baseline, BaselineCheck, CellCheck, Expectation, PerfBound, Status, WorkerFault};
 
 /// The phases a baseline can bound (means per timed cell, from the report's timing summary).
 pub const PHASES: &[&str] = &["compile", "pipeline", "setup", "trace", "check"];
@@ -65,32 +30,6 @@ pub fn phase_mean(r: &RunReport, phase: &str) -> Option<f64> {
         _ => return None,
     };
     (t.cells_timed > 0).then(|| sum / t.cells_timed as f64)
-}
-
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Baseline {
-    pub schema: String,
-    /// Header: the device and driver the expectations were taken on.
-    #[serde(default)]
-    pub device: String,
-    #[serde(default)]
-    pub driver_version: String,
-    /// The report it was made from.
-    #[serde(default)]
-    pub source: String,
-    pub expected: Vec<Expectation>,
-    /// Worker faults outside any cell the run is known to have (a driver that aborts in
-    /// teardown after its faulting cells, say), by phase and outcome.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub worker_faults: Vec<WorkerFault>,
-    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
-    pub performance: BTreeMap<String, PerfBound>,
-}
-
-#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
-pub struct WorkerFault {
-    pub phase: String,
-    pub outcome: Outcome,
 }
 
 fn worker_faults(r: &RunReport) -> Vec<(WorkerFault, String)> {
@@ -225,60 +164,6 @@ impl Baseline {
     }
 }
 
-/// How one cell compared with its expectation.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Status {
-    /// As expected (pass, or the expected fault).
-    Expected,
-    /// A listed flake showed one of its outcomes.
-    KnownFlake,
-    /// Not as expected: a new fault, or another fault than the expected one.
-    Regression,
-    /// Passes where a fault was expected: update the baseline.
-    Improvement,
-}
-
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct CellCheck {
-    pub cell: String,
-    pub status: Status,
-    pub expected: Outcome,
-    pub actual: Outcome,
-}
-
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct BaselineCheck {
-    pub source: String,
-    /// Only the cells that were not simply expected.
-    pub cells: Vec<CellCheck>,
-    pub expected: usize,
-    pub known_flakes: usize,
-    /// Baseline entries for cells this run did not plan (another shard, filter or device).
-    pub not_run: usize,
-    /// Phases over their bound: `phase: actual ms/cell > limit`.
-    pub performance: Vec<String>,
-    /// Worker faults outside cells the baseline does not list (each fails the run).
-    #[serde(default)]
-    pub worker_faults: Vec<String>,
-    /// Worker faults outside cells the baseline lists.
-    #[serde(default)]
-    pub expected_worker_faults: usize,
-}
-
-impl BaselineCheck {
-    pub fn regressions(&self) -> impl Iterator<Item = &CellCheck> {
-        self.cells.iter().filter(|c| c.status == Status::Regression)
-    }
-    pub fn improvements(&self) -> impl Iterator<Item = &CellCheck> {
-        self.cells.iter().filter(|c| c.status == Status::Improvement)
-    }
-    /// Whether the run is as expected (improvements count unless allowed).
-    pub fn ok(&self, allow_improvements: bool) -> bool {
-        self.regressions().next().is_none() && self.performance.is_empty() && self.worker_faults.is_empty() && (allow_improvements || self.improvements().next().is_none())
-    }
-}
-
 fn classify(c: &CellReport, e: Option<&Expectation>) -> (Status, Outcome) {
     let actual = c.outcome;
     match e {
@@ -383,7 +268,7 @@ pub fn render(c: &BaselineCheck, allow_improvements: bool) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::report::run_report::RunReport;
+    use crate::model::RunReport;
 
     #[test]
     fn deqp_form_round_trips_and_bad_lines_name_the_line() {
@@ -404,13 +289,13 @@ mod tests {
         assert_eq!(j, Baseline { source: "x.csv".into(), ..b });
     }
 
-    fn cell(index: crate::matrix::IndexSource) -> crate::matrix::Cell {
-        use crate::matrix::{DescriptorModel, Resource, Stage};
-        crate::matrix::Cell { stage: Stage::ClosestHit, resource: Resource::StorageBuffer, index, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None, reorder: None, base: None, sampler: None }
+    fn cell(index: crate::model::IndexSource) -> crate::model::Cell {
+        use crate::model::{DescriptorModel, Resource, Stage};
+        crate::model::Cell::new(Stage::ClosestHit, Resource::StorageBuffer, index, DescriptorModel::DescriptorIndexing)
     }
 
-    fn cell_with(index: crate::matrix::IndexSource, outcomes: &[Outcome]) -> CellReport {
-        use crate::runner::supervisor::Attempt;
+    fn cell_with(index: crate::model::IndexSource, outcomes: &[Outcome]) -> CellReport {
+        use crate::model::Attempt;
         let mut c = CellReport::new(&cell(index), Attempt::for_tests(outcomes[0], false));
         for o in &outcomes[1..] {
             c.attempts.push(Attempt::for_tests(*o, true));
@@ -421,7 +306,7 @@ mod tests {
 
     #[test]
     fn a_baseline_made_from_a_run_expects_that_run_in_both_forms() {
-        use crate::matrix::IndexSource as I;
+        use crate::model::IndexSource as I;
         // A flaky device loss, a steady crash, a mismatch: the run's own baseline, written as
         // JSON or as deqp-runner lines and read back, finds nothing unexpected in it.
         let r = RunReport::for_tests(vec![

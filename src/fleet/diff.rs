@@ -2,8 +2,8 @@
 //! GPU, a new rtprobe — per cell (fixed, regressed, changed, new, gone) and per phase of the time
 //! per cell beyond a noise threshold. As a table, or as Markdown for a PR comment.
 use super::baseline::{phase_mean, PHASES};
-use crate::outcome::Outcome;
-use crate::report::run_report::{CellReport, RunReport};
+use crate::model::Outcome;
+use crate::model::{CellReport, RunReport};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::fmt::Write;

@@ -3,20 +3,18 @@
 //! identities, scenes or result-changing options unless forced; the same cell in two reports
 //! keeps every attempt (its verdict is recomputed from all of them).
 use crate::matrix::plan::all_cells;
-use crate::matrix::Canary;
-use crate::report::run_report::{CellReport, RunReport};
-use serde_json::Value;
+use crate::model::Canary;
+use crate::model::report::ResultOption;
+use crate::model::{CellReport, PatchMode, RunReport};
 use std::collections::HashMap;
 
 /// Device identity: a report continues, merges with or is compared like-for-like with another
 /// only when all of these agree.
 pub const DEVICE_KEYS: &[&str] = &["name", "driver_version", "api_version", "driver_uuid", "device_uuid"];
-/// Options that change results (not `jobs`, `shard`, output paths).
-pub const RESULT_OPTIONS: &[&str] = &["patches", "inject", "filters", "canaries", "validate", "timeout_s", "confirm", "repeat", "isolation", "binding_stages"];
 
 /// Whether `b` describes the same device, scene and result-changing options as `a`; says what
 /// differs. `options` limits which option keys are compared.
-pub fn same_run(a: &RunReport, b: &RunReport, options: &[&str]) -> Result<(), String> {
+pub fn same_run(a: &RunReport, b: &RunReport, options: &[ResultOption]) -> Result<(), String> {
     if a.tool["version"] != b.tool["version"] {
         return Err(format!("rtprobe versions differ ({} and {})", a.tool["version"], b.tool["version"]));
     }
@@ -29,23 +27,12 @@ pub fn same_run(a: &RunReport, b: &RunReport, options: &[&str]) -> Result<(), St
         return Err(format!("its scene differs (size, seed, instances or mesh detail: {:?} here {:?})", a.scene.params, b.scene.params));
     }
     for key in options {
-        if a.options[key] != b.options[key] {
-            return Err(format!("its {} differs ({} here {})", option_flag(key), a.options[key], b.options[key]));
+        let (va, vb) = (key.value(&a.options), key.value(&b.options));
+        if va != vb {
+            return Err(format!("its {} differs ({va} here {vb})", key.flag()));
         }
     }
     Ok(())
-}
-
-/// The flag (or variable) a report option comes from, for messages.
-fn option_flag(key: &str) -> String {
-    match key {
-        "timeout_s" => "--timeout".into(),
-        "confirm" => "--no-confirm".into(),
-        "inject" => "--inject-fault".into(),
-        "filters" => "--filter".into(),
-        "binding_stages" => "RTPROBE_BINDING_STAGES".into(),
-        other => format!("--{}", other.replace('_', "-")),
-    }
 }
 
 /// Plan order of every cell id the matrix can hold (workaround variants sort after their cell).
@@ -53,7 +40,7 @@ fn order() -> HashMap<String, usize> {
     let (cells, _) = all_cells();
     let mut m: HashMap<String, usize> = cells.iter().enumerate().map(|(i, c)| (c.id(), i)).collect();
     for (k, c) in Canary::ALL.iter().enumerate() {
-        m.insert(crate::matrix::Cell::canary(*c).id(), cells.len() + k);
+        m.insert(crate::model::Cell::canary(*c).id(), cells.len() + k);
     }
     m
 }
@@ -62,7 +49,7 @@ fn order() -> HashMap<String, usize> {
 pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport, String> {
     let mut it = reports.into_iter();
     let (first_name, mut out) = it.next().ok_or("merge needs at least one report")?;
-    let mut names = vec![Value::String(first_name.clone())];
+    let mut names = vec![first_name.clone()];
     // A run is known by its start stamp and command line (shards started in the same second
     // differ in `--shard`).
     let mut started = vec![(out.started.clone(), out.command_line.clone())];
@@ -71,14 +58,14 @@ pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport
     let mut by_id: HashMap<String, usize> = out.cells.iter().enumerate().map(|(i, c)| (c.id.clone(), i)).collect();
     for (name, r) in it {
         if !force {
-            same_run(&out, &r, RESULT_OPTIONS).map_err(|why| format!("{name} does not belong with {first_name}: {why} (--force merges anyway)"))?;
+            same_run(&out, &r, ResultOption::MERGED).map_err(|why| format!("{name} does not belong with {first_name}: {why} (--force merges anyway)"))?;
         }
         let id = (r.started.clone(), r.command_line.clone());
         if started.contains(&id) {
             return Err(format!("{name} is a run already merged (started {}, same command line): merging it twice would double its attempts", r.started));
         }
         started.push(id);
-        names.push(Value::String(name));
+        names.push(name);
         out.complete &= r.complete;
         // Worker numbers restart in every report: keep them apart.
         let offset = out.workers.iter().map(|w| w.worker).max().unwrap_or(0);
@@ -118,19 +105,17 @@ pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport
     let order = order();
     out.cells.sort_by_key(|c| (order.get(&c.cell.base().id()).copied().unwrap_or(usize::MAX), c.cell.patch.map(|p| 1 + p as usize).unwrap_or(0)));
     // Workaround variants are planned cells only with --patches all (else they are retries).
-    let variants_planned = out.options["patches"] == "all";
+    let variants_planned = out.options.patches == PatchMode::All;
     let planned: Vec<&CellReport> = out.cells.iter().filter(|c| c.cell.patch.is_none() || variants_planned).collect();
     let unsupported = planned.iter().filter(|c| c.attempts.is_empty()).count();
     out.plan.planned = planned.len();
     out.plan.unsupported = unsupported;
     out.plan.to_run = planned.len() - unsupported;
     out.plan.sharded_out = 0;
-    if let Value::Object(o) = &mut out.options {
-        o.remove("shard");
-        o.insert("merged_from".into(), Value::Array(names));
-    }
+    out.options.shard = None;
+    out.options.merged_from = names;
     out.recount();
-    out.annotate_findings();
+    crate::report::writer::annotate_findings(&mut out);
     Ok(out)
 }
 

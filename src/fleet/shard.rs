@@ -2,7 +2,7 @@
 //! jobs (GitLab `parallel:`, a GitHub matrix). Cells are ordered by id (never by run order) and
 //! dealt round-robin, so shard sizes differ by at most one and the same plan splits the same way
 //! on every machine; workaround retries and confirmations follow their cell.
-use crate::matrix::plan::RunPlan;
+use crate::model::RunPlan;
 use serde::{Deserialize, Serialize};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -42,7 +42,8 @@ impl Shard {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::matrix::plan::{all_cells, PlanStatus, PlannedCell};
+    use crate::matrix::plan::all_cells;
+use crate::model::{PlanStatus, PlannedCell};
 
     fn full() -> RunPlan {
         let (cells, not_generated) = all_cells();

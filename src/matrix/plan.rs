@@ -1,147 +1,17 @@
 //! From options and a device to a [`RunPlan`], before any GPU work: which cells exist, which the
 //! filter keeps, which the device cannot run (and why, from its queried features), and which
 //! combinations are never generated because an axis value cannot matter there.
-use super::axes::{AsAccess, BaseSource, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource, SamplerIndex, Stage};
-use super::cell::{Canary, Cell, AXIS_NAMES};
+use crate::model::{AsAccess, BaseSource, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource, SamplerIndex, Stage};
+use crate::model::{Canary, Cell, Filter, NotGenerated, PatchMode, PlanStatus, PlannedCell, RunPlan};
 use crate::caps::support::{self, Support};
 use crate::vk::DeviceInfo;
-use serde::{Deserialize, Serialize};
-
-/// `--filter axis=value[|value],axis=value`: every term must match (values within a term are
-/// alternatives). Several filters must all match.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct Filter {
-    pub terms: Vec<(String, Vec<String>)>,
-}
-
-fn valid_values(axis: &str) -> Vec<String> {
-    let v: Vec<&str> = match axis {
-        "stage" => Stage::names(),
-        "resource" => Resource::names(),
-        "index" => IndexSource::names(),
-        "nonuniform" => vec!["true", "false"],
-        "as_access" => {
-            let mut v = AsAccess::names();
-            v.push("none");
-            v
-        }
-        "descriptor_model" => DescriptorModel::names(),
-        "heap_access" => {
-            let mut v = HeapAccess::names();
-            v.push("none");
-            v
-        }
-        "canary" => Canary::ALL.iter().map(|c| c.as_str()).chain(["none"]).collect(),
-        "patch" => super::cell::Workaround::ALL.iter().map(|w| w.as_str()).chain(["none"]).collect(),
-        "reorder" => {
-            let mut v = Reorder::names();
-            v.push("none");
-            v
-        }
-        // push_data: the default base of cells that have one (not stored in the cell).
-        "base" => BaseSource::names().into_iter().chain(["push_data", "none"]).collect(),
-        "sampler" => SamplerIndex::names().into_iter().chain(["none"]).collect(),
-        _ => vec![],
-    };
-    v.into_iter().map(String::from).collect()
-}
-
-impl Filter {
-    pub fn parse(s: &str) -> Result<Filter, String> {
-        let mut terms = Vec::new();
-        for term in s.split(',').map(str::trim).filter(|t| !t.is_empty()) {
-            let (axis, values) = term.split_once('=').ok_or_else(|| format!("filter term {term:?} is not axis=value"))?;
-            let axis = axis.trim();
-            if !AXIS_NAMES.contains(&axis) {
-                return Err(format!("unknown axis {axis:?} in --filter; axes: {}", AXIS_NAMES.join(", ")));
-            }
-            let allowed = valid_values(axis);
-            let values: Vec<String> = values.split('|').map(|v| v.trim().to_string()).collect();
-            for v in &values {
-                if !allowed.contains(v) {
-                    return Err(format!("unknown value {v:?} for {axis} in --filter; values: {}", allowed.join(", ")));
-                }
-            }
-            terms.push((axis.to_string(), values));
-        }
-        if terms.is_empty() {
-            return Err("empty --filter".into());
-        }
-        Ok(Filter { terms })
-    }
-
-    pub fn matches(&self, cell: &Cell) -> bool {
-        self.terms.iter().all(|(axis, values)| cell.axis_value(axis).is_some_and(|v| values.contains(&v)))
-    }
-}
-
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "status", rename_all = "snake_case")]
-pub enum PlanStatus {
-    Run,
-    /// The device's features say it cannot run the cell.
-    Unsupported { reason: String },
-    /// The device could run the cell; rtprobe cannot yet (never blamed on the device).
-    NotImplemented { reason: String },
-}
-
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct PlannedCell {
-    pub cell: Cell,
-    #[serde(flatten)]
-    pub status: PlanStatus,
-}
-
-/// A rule that kept some axis combinations from being generated, and how many.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct NotGenerated {
-    pub rule: String,
-    pub count: usize,
-}
-
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct RunPlan {
-    /// Cells of the full matrix (before filters, support checks and workaround variants).
-    pub generated: usize,
-    pub cells: Vec<PlannedCell>,
-    pub not_generated: Vec<NotGenerated>,
-    pub filtered_out: usize,
-}
-
-impl RunPlan {
-    pub fn to_run(&self) -> impl Iterator<Item = &Cell> {
-        self.cells.iter().filter(|c| c.status == PlanStatus::Run).map(|c| &c.cell)
-    }
-
-    /// Cells the device cannot run (its features say so).
-    pub fn unsupported_count(&self) -> usize {
-        self.cells.iter().filter(|c| matches!(c.status, PlanStatus::Unsupported { .. })).count()
-    }
-
-    /// Cells rtprobe itself cannot run yet: planned and reported, never dropped.
-    pub fn not_implemented_count(&self) -> usize {
-        self.cells.iter().filter(|c| matches!(c.status, PlanStatus::NotImplemented { .. })).count()
-    }
-}
-
-/// Which cells of the `patch` axis run.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "snake_case")]
-pub enum PatchMode {
-    /// No patched cells.
-    None,
-    /// After the run, retry each faulting cell with every workaround that applies to it.
-    Faults,
-    /// Plan every cell with every workaround that applies to it.
-    All,
-}
 
 pub struct PlanOptions {
     pub filters: Vec<Filter>,
     pub canaries: bool,
     pub patches: PatchMode,
     /// `--inject-fault`: an injected invalid-address load needs what address probes need.
-    pub inject: Vec<super::inject::Injection>,
+    pub inject: Vec<crate::model::inject::Injection>,
 }
 
 /// Why the device cannot run `cell`, from its queried features; `None` when it can.
@@ -177,7 +47,7 @@ pub fn device_support(info: &DeviceInfo, cell: &Cell) -> Support {
     if let Some(b) = cell.base {
         checks.push(support::base(info, b));
     }
-    if matches!(cell.patch, Some(super::cell::Workaround::AsToAddress | super::cell::Workaround::SsboToAddress)) {
+    if matches!(cell.patch, Some(crate::model::Workaround::AsToAddress | crate::model::Workaround::SsboToAddress)) {
         checks.push(support::as_access(info, AsAccess::Address));
     }
     if cell.resource == Resource::AccelerationStructure {
@@ -240,7 +110,7 @@ pub fn all_cells() -> (Vec<Cell>, Vec<NotGenerated>) {
                                     heap_index_without_binding += 1;
                                     continue;
                                 }
-                                let cell = Cell { stage, resource, index, nonuniform, as_access, descriptor_model, heap_access, canary: None, patch: None, reorder: None, base: None, sampler: None };
+                                let cell = Cell { nonuniform, as_access, heap_access, ..Cell::new(stage, resource, index, descriptor_model) };
                                 let samplers: Vec<Option<SamplerIndex>> = if cell.sampler_applies() {
                                     SamplerIndex::ALL.iter().map(|s| Some(*s)).collect()
                                 } else {
@@ -299,7 +169,7 @@ pub fn plan(info: &DeviceInfo, opts: &PlanOptions) -> RunPlan {
     // rtprobe itself cannot run yet is `not_implemented`, both with their reason.
     let push = |cell: Cell, cells: &mut Vec<PlannedCell>| {
         let mut support = device_support(info, &cell);
-        if super::inject::for_cell(&opts.inject, &cell).is_some_and(|i| i.fault.reads_bad_address()) {
+        if crate::model::inject::for_cell(&opts.inject, &cell).is_some_and(|i| i.fault.reads_bad_address()) {
             support = Support::all(vec![support, support::device_address_loads(info)]);
         }
         let status = match support {
@@ -395,5 +265,58 @@ mod tests {
         assert!(Filter::parse("stage=nope").unwrap_err().contains("closest_hit"));
         assert!(Filter::parse("colour=red").unwrap_err().contains("unknown axis"));
         assert!(Filter::parse("stage").is_err());
+    }
+
+    /// Every planned cell, its workaround variants and the canaries.
+    fn every_cell() -> Vec<Cell> {
+        let (cells, _) = all_cells();
+        let variants = cells.iter().flat_map(|c| c.applicable_patches().into_iter().map(move |p| Cell { patch: Some(p), ..*c }));
+        let canaries = Canary::ALL.iter().map(|k| Cell::canary(*k));
+        cells.iter().copied().chain(variants).chain(canaries).collect()
+    }
+
+    #[test]
+    fn the_plan_filters_ids_and_sentences_cover_every_registry_value() {
+        use crate::model::registry::{self, AXES};
+        let all = every_cell();
+        let known: std::collections::HashSet<Cell> = all.iter().copied().collect();
+        assert_eq!(uncovered(&all), Vec::<String>::new());
+        for c in &all {
+            assert_eq!(Cell::parse_id(&c.id()).as_ref(), Ok(c), "{}", c.id());
+            // A cell that differs in one axis reads differently in an isolation line.
+            for a in AXES {
+                for v in a.values {
+                    let mut d = *c;
+                    if (a.set)(&mut d, v) && d != *c && known.contains(&d) {
+                        assert_ne!(registry::describe(c), registry::describe(&d), "{} vs {}", c.id(), d.id());
+                    }
+                }
+            }
+        }
+        // The report's cell fields are the registry's axes.
+        let keys: std::collections::BTreeSet<String> = all.iter().flat_map(|c| serde_json::to_value(c).unwrap().as_object().unwrap().keys().cloned().collect::<Vec<_>>()).collect();
+        assert_eq!(keys, registry::names().map(String::from).collect());
+    }
+
+    /// `axis=value` of every registry value no cell holds, or that its filter does not select
+    /// exactly.
+    fn uncovered(all: &[Cell]) -> Vec<String> {
+        let mut out = Vec::new();
+        for a in crate::model::registry::AXES {
+            for v in a.filter_values() {
+                let f = Filter::parse(&format!("{}={v}", a.name)).expect("a registry value filters");
+                let selected: Vec<&Cell> = all.iter().filter(|c| f.matches(c)).collect();
+                if selected.is_empty() || selected.iter().any(|c| (a.get)(c) != v) {
+                    out.push(format!("{}={v}", a.name));
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn a_value_the_plan_never_makes_is_caught() {
+        let all: Vec<Cell> = every_cell().into_iter().filter(|c| c.sampler != Some(SamplerIndex::Dynamic) && c.patch != Some(crate::model::Workaround::PinIndex)).collect();
+        assert_eq!(uncovered(&all), ["sampler=dynamic", "patch=pin-index"]);
     }
 }

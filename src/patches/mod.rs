@@ -8,6 +8,7 @@ pub mod edit;
 pub mod nonuniform;
 pub mod pin_index;
 pub mod ssbo_to_address;
+pub mod workaround;
 
 use rspirv::binary::{Assemble, Disassemble};
 use rspirv::dr::Module;

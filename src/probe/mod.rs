@@ -7,7 +7,7 @@
 //! are generated from the Rust structs here ([`glsl_declarations`]); member offsets come from
 //! `offset_of!`, and a unit test checks them against the std430 rules GLSL applies.
 //! `probes/common.glsl` holds only functions and constants that mirror functions here.
-use crate::matrix::{Resource, Stage};
+use crate::model::{Resource, Stage};
 use std::mem::offset_of;
 
 /// One record per pixel (std430, 64 bytes): what the ray hit and what the probed stage read.
@@ -300,8 +300,8 @@ pub fn base_buffer(instances: u32) -> Vec<u8> {
 /// The base a hit shader adds to the masked custom index, for a hit on instance `instance_id`
 /// (`sphere`: the procedural hit group): push data's [`DYNAMIC_BASE`], the hit group's record
 /// base, or the instance's entry of the bases buffer.
-pub fn hit_base(base: Option<crate::matrix::BaseSource>, instance_id: u32, sphere: bool) -> u32 {
-    use crate::matrix::BaseSource;
+pub fn hit_base(base: Option<crate::model::BaseSource>, instance_id: u32, sphere: bool) -> u32 {
+    use crate::model::BaseSource;
     match base {
         None => DYNAMIC_BASE,
         Some(BaseSource::ShaderRecord) if sphere => RECORD_BASE_PROCEDURAL,

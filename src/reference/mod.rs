@@ -32,17 +32,15 @@
 pub mod intersect;
 pub mod watertight;
 
-use crate::matrix::cell::Workaround;
-use crate::matrix::{AsAccess, Cell, IndexSource, Resource, SamplerIndex, Stage};
+use crate::model::Workaround;
+use crate::model::{Cell, IndexSource, Resource, SamplerIndex, Stage};
 use crate::probe::{self, HitIds, Record, FLAG_HIT, FLAG_PROBE, MAX_AS_VARIANTS};
 use crate::scene::Scene;
 use intersect::TraceRef;
-use serde::{Deserialize, Serialize};
+use crate::model::{Comparison, ElementReads, Mismatch, NO_NONUNIFORM_VUID, undefined_descriptor_read};
 
 pub const T_REL_TOL: f64 = 1e-3;
 pub const BARY_TOL: f64 = 1e-3;
-/// The rule a dynamic descriptor index without `nonuniformEXT` breaks.
-pub const NO_NONUNIFORM_VUID: &str = "VUID-RuntimeSpirv-NonUniform-06274";
 
 /// Primary rays of every pixel through the scene TLAS, and AS probe rays through every probe TLAS
 /// variant.
@@ -139,22 +137,6 @@ impl ValueRule {
 fn buffer_value_discriminates(resource: Resource, slots: u32, slot: u32, element: u32) -> bool {
     let value = probe::resource_value(resource, slot, element);
     (0..slots).all(|s| (0..probe::ELEMENTS).all(|e| (s, e) == (slot, element) || probe::resource_value(resource, s, e) != value))
-}
-
-/// Whether `cell` indexes a descriptor array with a non-uniform value that carries no
-/// `NonUniform` ([`NO_NONUNIFORM_VUID`]): not after the nonuniform / pin-index patches, and not
-/// where no descriptor is indexed any more (an address table, written so or patched), since a
-/// non-uniform index into memory is well defined.
-pub fn undefined_descriptor_read(cell: &Cell) -> bool {
-    let descriptor_indexed = match cell.as_access {
-        None | Some(AsAccess::Descriptor) => true,
-        Some(AsAccess::Address | AsAccess::AddressPatched) => false,
-    };
-    let patch_keeps_it = match cell.patch {
-        None => true,
-        Some(Workaround::Nonuniform | Workaround::PinIndex | Workaround::AsToAddress | Workaround::SsboToAddress) => false,
-    };
-    cell.index == IndexSource::Dynamic && !cell.nonuniform && descriptor_indexed && patch_keeps_it
 }
 
 /// What `cell` must write for every pixel. (A test that needs a wrong result injects one:
@@ -257,100 +239,6 @@ pub fn expected_with(cell: &Cell, scene: &Scene, sref: &SceneReference, undefine
         }
     }
     out
-}
-
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Mismatch {
-    pub pixel: [u32; 2],
-    pub field: String,
-    pub expected: String,
-    pub actual: String,
-}
-
-/// Pixels of a cell without `nonuniformEXT` on its dynamic index (outside the spec's guarantees,
-/// see [`NO_NONUNIFORM_VUID`]), by what they read.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct ElementReads {
-    /// The rule these cells break: the spec guarantees nothing about which element they read.
-    pub outside_spec: String,
-    /// Read their own element (as with `nonuniformEXT`).
-    pub own: usize,
-    /// Read another element of the array (allowed: which one is undefined).
-    pub other: usize,
-    /// Read neither: a mismatch.
-    pub neither: usize,
-}
-
-/// f64 figures that may be NaN or ∞: a number in JSON when finite, else "NaN" / "inf" / "-inf".
-mod float_or_string {
-    use serde::{Deserialize, Deserializer, Serialize, Serializer};
-
-    pub fn serialize<S: Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
-        if v.is_finite() {
-            v.serialize(s)
-        } else {
-            v.to_string().serialize(s)
-        }
-    }
-
-    #[derive(Deserialize)]
-    #[serde(untagged)]
-    enum Either {
-        Num(f64),
-        Text(String),
-        Null(()),
-    }
-
-    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
-        Ok(match Either::deserialize(d)? {
-            Either::Num(v) => v,
-            Either::Text(t) => t.parse().map_err(serde::de::Error::custom)?,
-            Either::Null(()) => f64::NAN,
-        })
-    }
-}
-
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct Comparison {
-    pub pixels: usize,
-    pub compared: usize,
-    pub ambiguous: usize,
-    pub mismatched_pixels: usize,
-    /// Compared pixels on which the probed stage must run and its value is checked: the records an
-    /// injected wrong value (`value:F`) can be caught on (`rtprobe bench`'s n).
-    #[serde(default)]
-    pub probe_checked: usize,
-    /// Mismatch counts per field (stable order).
-    pub by_field: std::collections::BTreeMap<String, usize>,
-    /// Largest relative `t` error and absolute barycentric / value error seen on compared pixels
-    /// (NaN when any compared value was NaN).
-    #[serde(with = "float_or_string")]
-    pub worst_t_rel: f64,
-    #[serde(with = "float_or_string")]
-    pub worst_bary: f64,
-    #[serde(with = "float_or_string")]
-    pub worst_value: f64,
-    /// Pixels whose value was checked against every element of the array (see [`ValueRule`]).
-    #[serde(default)]
-    pub any_element_values: usize,
-    /// Share of exactly checked probe pixels on which reading any other slot or element would
-    /// have been caught; `None` when no probe pixel was checked exactly.
-    #[serde(default)]
-    pub discrimination: Option<f64>,
-    /// Cells without `nonuniformEXT` on a dynamic index: what their pixels read.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub element_reads: Option<ElementReads>,
-    /// The first few mismatches, for the report.
-    pub examples: Vec<Mismatch>,
-    /// Pictures of a mismatching comparison (expected, actual, diff PNGs; `run --dump`).
-    #[serde(skip_serializing_if = "Vec::is_empty", default)]
-    pub pictures: Vec<String>,
-}
-
-impl Comparison {
-    pub fn passed(&self) -> bool {
-        self.mismatched_pixels == 0
-    }
 }
 
 /// The larger error, NaN when either is NaN (`f64::max` would drop it).
@@ -489,12 +377,12 @@ pub fn compare(expected: &[Expected], actual: &[Record], width: u32) -> Comparis
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::matrix::{AsAccess, DescriptorModel, Resource};
-    use crate::scene::SceneParams;
+    use crate::model::{AsAccess, DescriptorModel, Resource};
+    use crate::model::SceneParams;
     use std::sync::OnceLock;
 
     fn cell(stage: Stage, index: IndexSource) -> Cell {
-        Cell { stage, resource: Resource::StorageBuffer, index, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, canary: None, heap_access: None, patch: None, reorder: None, base: None, sampler: None }
+        Cell::new(stage, Resource::StorageBuffer, index, DescriptorModel::DescriptorIndexing)
     }
 
     fn world() -> &'static (Scene, SceneReference) {
@@ -574,7 +462,7 @@ mod tests {
     /// element) on many hit pixels; the right base passes.
     #[test]
     fn a_wrong_base_source_is_caught() {
-        use crate::matrix::BaseSource;
+        use crate::model::BaseSource;
         let (scene, r) = world();
         let slots = probe::slot_count(Resource::StorageBuffer, scene.params.instances);
         type Wrong = fn(u32, bool) -> u32;
@@ -620,7 +508,7 @@ mod tests {
             resource: Resource::SampledImage,
             nonuniform,
             descriptor_model: DescriptorModel::DescriptorHeap,
-            heap_access: Some(crate::matrix::HeapAccess::Direct),
+            heap_access: Some(crate::model::HeapAccess::Direct),
             sampler: Some(sampler),
             ..cell(stage, index)
         };

@@ -10,11 +10,12 @@
 //! acceleration structures, but not VK_EXT_descriptor_buffer, VK_EXT_descriptor_heap, device
 //! addresses in push constants, or a per-attempt die; rtprobe does not (yet) write its scene, SBT
 //! or image arrays in AmberScript.
-use crate::matrix::inject::Injection;
-use crate::matrix::{Cell, DescriptorModel, IndexSource, Resource, Stage};
+use crate::model::Injection;
+use crate::model::{Cell, DescriptorModel, IndexSource, Resource, Stage};
 use crate::probe::{self, RECORD_SIZE};
 use crate::report::shaders::Shader;
-use crate::scene::{Scene, SceneParams};
+use crate::scene::Scene;
+use crate::model::SceneParams;
 
 /// Set and binding of the records buffer and of the probed array (`shadergen::probe_code`; a
 /// test holds the generated GLSL to them).
@@ -58,8 +59,8 @@ fn fits(cell: &Cell, inject: Option<&Injection>) -> Result<(), String> {
         Resource::AccelerationStructure => return Err("acceleration-structure cells need rtprobe's probe TLAS variants (and device addresses for as_access=address), not written in AmberScript".into()),
     }
     match cell.patch {
-        None | Some(crate::matrix::cell::Workaround::Nonuniform | crate::matrix::cell::Workaround::PinIndex | crate::matrix::cell::Workaround::AsToAddress) => Ok(()),
-        Some(crate::matrix::cell::Workaround::SsboToAddress) => Err("the ssbo-to-address patch reads buffers through device addresses in push constants, which AmberScript cannot provide".into()),
+        None | Some(crate::model::cell::Workaround::Nonuniform | crate::model::cell::Workaround::PinIndex | crate::model::cell::Workaround::AsToAddress) => Ok(()),
+        Some(crate::model::cell::Workaround::SsboToAddress) => Err("the ssbo-to-address patch reads buffers through device addresses in push constants, which AmberScript cannot provide".into()),
     }
 }
 
@@ -68,7 +69,7 @@ fn write(cell: &Cell, shader: &Shader, scene: &SceneParams, origin: &str) -> Str
     s += &format!("# rtprobe repro: {}\n# {}\n# {origin}\n", cell.id(), crate::bisect::isolation::describe(cell));
     s += "# Not run by rtprobe: no Amber was available where this was written.\n";
     s += "# The probed array is a runtime descriptor array (SPIR-V RuntimeDescriptorArray";
-    if cell.nonuniform || cell.patch == Some(crate::matrix::cell::Workaround::Nonuniform) {
+    if cell.nonuniform || cell.patch == Some(crate::model::cell::Workaround::Nonuniform) {
         s += ", NonUniform indexing";
     }
     s += "): the device must enable VkPhysicalDeviceDescriptorIndexingFeatures for it, which\n# AmberScript's DEVICE_FEATURE list does not name (run with an Amber whose device enables them).\n";
@@ -124,7 +125,7 @@ fn write(cell: &Cell, shader: &Shader, scene: &SceneParams, origin: &str) -> Str
 
 /// The expected records as EXPECT lines, or why there are none.
 fn expectations(cell: &Cell, params: &SceneParams) -> String {
-    if crate::reference::undefined_descriptor_read(cell) {
+    if crate::model::undefined_descriptor_read(cell) {
         return "# No EXPECT: the index is dynamic without nonuniformEXT, so which element a lane reads is\n# undefined (VUID-RuntimeSpirv-NonUniform-06274); rtprobe accepts any element of the array there.\n".into();
     }
     let scene = Scene::build(params);
@@ -150,11 +151,11 @@ fn fmt_f32(v: f32) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::matrix::AsAccess;
+    use crate::model::AsAccess;
     use crate::report::shaders::cell_shaders;
 
     fn compute(resource: Resource, index: IndexSource) -> Cell {
-        Cell { stage: Stage::Compute, resource, index, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None, reorder: None, base: None, sampler: None }
+        Cell::new(Stage::Compute, resource, index, DescriptorModel::DescriptorIndexing)
     }
 
     fn small() -> SceneParams {
@@ -211,7 +212,7 @@ mod tests {
     #[test]
     fn cells_that_do_not_fit_say_why() {
         let c = compute(Resource::StorageBuffer, IndexSource::Literal);
-        let heap = Cell { descriptor_model: DescriptorModel::DescriptorHeap, heap_access: Some(crate::matrix::HeapAccess::MappedConstantOffset), ..c };
+        let heap = Cell { descriptor_model: DescriptorModel::DescriptorHeap, heap_access: Some(crate::model::HeapAccess::MappedConstantOffset), ..c };
         assert_eq!(fits(&heap, None).unwrap_err(), "Amber has no VK_EXT_descriptor_heap");
         let buf = Cell { descriptor_model: DescriptorModel::DescriptorBuffer, ..c };
         assert_eq!(fits(&buf, None).unwrap_err(), "Amber has no VK_EXT_descriptor_buffer");

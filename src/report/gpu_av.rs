@@ -12,54 +12,20 @@
 //! layer; a layer built before VK_EXT_descriptor_heap for a heap cell; the cell's own
 //! `unsupported` / `not_implemented`). These attempts are kept apart from the cell's own: GPU-AV
 //! changes the pipeline, so they never decide the cell's verdict.
-use crate::bisect::confidence;
-use crate::matrix::{Cell, DescriptorModel, IndexSource};
-use crate::outcome::Outcome;
-use crate::report::run_report::RunReport;
-use crate::runner::supervisor::Attempt;
-use serde::{Deserialize, Serialize};
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum GpuAvVerdict {
-    Masked,
-    StillFaults,
-    GpuAvFailed,
-    NotRun,
-}
-
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct GpuAvResult {
-    pub verdict: GpuAvVerdict,
-    /// The outcome under GPU-AV (`unsupported` / `not_implemented` when it did not run).
-    pub outcome: Outcome,
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub detail: Option<String>,
-    /// Validation errors the layer reported during the attempt.
-    #[serde(default)]
-    pub validation_errors: u64,
-    /// The control cell and its outcome under GPU-AV, when one ran.
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub control: Option<(String, Outcome)>,
-    /// Attempts under GPU-AV and how many of them passed.
-    #[serde(default)]
-    pub attempts: u32,
-    #[serde(default)]
-    pub passed: u32,
-    /// For `masked`: the chance that these passes would all have missed a fault as frequent as
-    /// the finding's ([`confidence::pass_miss`]).
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub miss_probability: Option<f64>,
-}
+use crate::model::{Cell, DescriptorModel, IndexSource};
+use crate::model::Outcome;
+use crate::model::RunReport;
+use crate::model::Attempt;
+use crate::model::{GpuAvResult, GpuAvVerdict};
 
 /// The miss probability a finding's GPU-AV passes aim below, and the most attempts it gets.
 pub const MAX_MISS: f64 = 0.01;
 pub const CAP: u32 = 20;
 
 /// Passes under GPU-AV that `finding` needs before `masked` (its own k of n, see the module doc).
-pub fn passes_needed(finding: &crate::report::run_report::CellReport) -> u32 {
+pub fn passes_needed(finding: &crate::model::CellReport) -> u32 {
     let (k, n) = finding.incidence.as_ref().map(|i| (i.faulted, i.attempts)).unwrap_or((0, 0));
-    confidence::attempts_needed(confidence::rate_bound(k, n), MAX_MISS, CAP)
+    crate::model::stats::attempts_needed(crate::model::stats::rate_bound(k, n), MAX_MISS, CAP)
 }
 
 /// The findings to run under GPU-AV again: every attempt so far (`got`) passed, fewer than
@@ -75,40 +41,11 @@ pub fn more(report: &RunReport, got: &[(Cell, Attempt)]) -> Vec<Cell> {
         .collect()
 }
 
-impl GpuAvResult {
-    fn not_run(outcome: Outcome, reason: String) -> Self {
-        GpuAvResult { verdict: GpuAvVerdict::NotRun, outcome, detail: Some(reason), validation_errors: 0, control: None, attempts: 0, passed: 0, miss_probability: None }
-    }
-
-    /// `GPU-AV: masked (passes under GPU-AV; 0 validation errors)`
-    pub fn line(&self) -> String {
-        let errors = if self.validation_errors > 0 { format!("; GPU-AV reported {} validation errors", self.validation_errors) } else { String::new() };
-        match self.verdict {
-            GpuAvVerdict::Masked => format!("GPU-AV: masked ({} under GPU-AV{errors})", confidence::passes_text(self.passed, self.attempts, self.miss_probability)),
-            GpuAvVerdict::StillFaults => {
-                let control = match &self.control {
-                    Some((c, o)) => format!("its control {c} is {} under GPU-AV", o.as_str()),
-                    None => "no control ran, so GPU-AV itself breaking the pipeline is not ruled out".into(),
-                };
-                format!("GPU-AV: still faults ({}, {} of {} attempts under GPU-AV; {control}{errors})", self.outcome.as_str(), self.attempts - self.passed, self.attempts)
-            }
-            GpuAvVerdict::GpuAvFailed => {
-                let control = match &self.control {
-                    Some((c, o)) => format!("its control {c} passes without GPU-AV and is {} with it", o.as_str()),
-                    None => "no control".into(),
-                };
-                format!("GPU-AV: GPU-AV itself failed ({} under GPU-AV; {control}{errors})", self.outcome.as_str())
-            }
-            GpuAvVerdict::NotRun => format!("GPU-AV: not run ({}: {})", self.outcome.as_str(), self.detail.as_deref().unwrap_or("no reason")),
-        }
-    }
-}
-
 /// The control of `finding`: the same cell with a literal index and, for a direct sampled image,
 /// a constant sampler index (no dynamic descriptor access), when the report has it passing
 /// without GPU-AV.
 pub fn control(report: &RunReport, finding: &Cell) -> Option<Cell> {
-    let sampler = finding.sampler.map(|_| crate::matrix::SamplerIndex::Constant);
+    let sampler = finding.sampler.map(|_| crate::model::SamplerIndex::Constant);
     let c = Cell { index: IndexSource::Literal, nonuniform: false, patch: None, reorder: None, base: None, sampler, ..*finding };
     (c != *finding && report.cells.iter().any(|x| x.cell == c && x.outcome == Outcome::Pass)).then_some(c)
 }
@@ -156,7 +93,7 @@ pub fn annotate(report: &mut RunReport, got: &[(Cell, Attempt)], skipped: &[(Cel
         let validation_errors = mine.iter().filter_map(|a| a.result.as_ref()).map(|r| r.validation_errors).sum();
         let attempts = mine.len() as u32;
         let passed = mine.iter().filter(|a| a.outcome == Outcome::Pass).count() as u32;
-        let miss_probability = (passed == attempts).then(|| f.incidence.as_ref().map(|i| confidence::pass_miss(i.faulted, i.attempts, passed))).flatten();
+        let miss_probability = (passed == attempts).then(|| f.incidence.as_ref().map(|i| crate::model::stats::pass_miss(i.faulted, i.attempts, passed))).flatten();
         let verdict = match a.outcome {
             Outcome::Pass => GpuAvVerdict::Masked,
             Outcome::Unsupported | Outcome::NotImplemented => GpuAvVerdict::NotRun,
@@ -178,13 +115,13 @@ pub fn annotate(report: &mut RunReport, got: &[(Cell, Attempt)], skipped: &[(Cel
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::matrix::{HeapAccess, Resource, Stage};
-    use crate::report::run_report::CellReport;
+    use crate::model::{HeapAccess, Resource, Stage};
+    use crate::model::CellReport;
     use ash::vk;
 
     fn cell(model: DescriptorModel, index: IndexSource) -> Cell {
         let heap_access = (model == DescriptorModel::DescriptorHeap).then_some(HeapAccess::Direct);
-        Cell { stage: Stage::ClosestHit, resource: Resource::StorageBuffer, index, nonuniform: false, as_access: None, descriptor_model: model, heap_access, canary: None, patch: None, reorder: None, base: None, sampler: None }
+        Cell { heap_access, ..Cell::new(Stage::ClosestHit, Resource::StorageBuffer, index, model) }
     }
 
     fn ran(c: Cell, o: Outcome) -> CellReport {
@@ -215,7 +152,7 @@ mod tests {
         // Masked: passes under GPU-AV. Still faults: faults with a control that passes.
         let (h, d) = verdict(vec![(heap, Outcome::Pass), (heap_ctl, Outcome::Pass), (di, Outcome::Crash), (di_ctl, Outcome::Pass)]);
         assert_eq!((h.verdict, d.verdict), (GpuAvVerdict::Masked, GpuAvVerdict::StillFaults));
-        let m = confidence::pass_miss(1, 1, 1);
+        let m = crate::model::stats::pass_miss(1, 1, 1);
         assert_eq!(h.line(), format!("GPU-AV: masked (passes (1/1; a fault as frequent as this finding's would be missed with p ≤ {m:.2}) under GPU-AV)"));
         assert_eq!((h.attempts, h.passed, h.miss_probability), (1, 1, Some(m)));
         assert_eq!(d.line(), "GPU-AV: still faults (crash, 1 of 1 attempts under GPU-AV; its control closest_hit.storage_buffer.literal.descriptor_indexing is pass under GPU-AV)");
@@ -239,8 +176,8 @@ mod tests {
         assert!(h.line().contains("its control closest_hit.storage_buffer.literal.descriptor_heap.direct passes without GPU-AV and is crash with it"), "{}", h.line());
         // A direct sampled image with a dynamic sampler index: its control indexes both heaps
         // with constants (literal texture, constant sampler), not the dynamic sampler.
-        let img = Cell { resource: Resource::SampledImage, sampler: Some(crate::matrix::SamplerIndex::Dynamic), ..heap };
-        let img_ctl = Cell { index: IndexSource::Literal, sampler: Some(crate::matrix::SamplerIndex::Constant), ..img };
+        let img = Cell { resource: Resource::SampledImage, sampler: Some(crate::model::SamplerIndex::Dynamic), ..heap };
+        let img_ctl = Cell { index: IndexSource::Literal, sampler: Some(crate::model::SamplerIndex::Constant), ..img };
         let r = RunReport::for_tests(vec![ran(img, Outcome::Crash), ran(img_ctl, Outcome::Pass), ran(Cell { index: IndexSource::Literal, ..img }, Outcome::Pass)]);
         assert_eq!(control(&r, &img).map(|c| c.id()).as_deref(), Some("closest_hit.sampled_image.literal.descriptor_heap.direct.sampler_constant"));
         // No layer at all.

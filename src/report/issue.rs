@@ -5,13 +5,15 @@
 //! VK_EXT_device_fault details; validation status; the exact reproduce command; verified
 //! workarounds; what was not tested. [`Issue`] is the data (`--format json`), [`Issue::markdown`]
 //! the text.
-use crate::bisect::file::BisectFile;
-use crate::bisect::isolation::{describe, percent, IsolationLine};
+use crate::model::BisectFile;
+use crate::bisect::isolation::{describe, percent};
+use crate::model::IsolationLine;
 use crate::bisect::scope::cell_by_id;
-use crate::matrix::inject::{for_cell, Injection};
-use crate::matrix::Cell;
-use crate::outcome::Outcome;
-use crate::report::run_report::{CellReport, RunReport};
+use crate::model::inject::for_cell;
+use crate::model::Injection;
+use crate::model::Cell;
+use crate::model::Outcome;
+use crate::model::{CellReport, RunReport};
 use crate::report::shaders::{cell_shaders, probed_role, spirv_dis};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
@@ -122,11 +124,6 @@ fn what_happens(o: Outcome) -> &'static str {
         Outcome::Error => "fails with a Vulkan error",
         Outcome::Pass | Outcome::Unsupported | Outcome::NotImplemented => "works",
     }
-}
-
-/// Every axis of `c` as an exact `--filter`.
-pub fn exact_filter(c: &Cell) -> String {
-    crate::matrix::cell::AXIS_NAMES.iter().filter_map(|a| c.axis_value(a).map(|v| format!("{a}={v}"))).collect::<Vec<_>>().join(",")
 }
 
 /// Build the issue for `report` and its bisection.
@@ -266,7 +263,7 @@ fn actual_text(rep: Option<&CellReport>, outcome: Outcome) -> String {
         }
         if let Some(x) = &a.worker_exit {
             if let Some(sig) = x.signal.filter(|_| !t.contains("signal")) {
-                t += &format!(" The process was killed by signal {sig} ({}).", crate::runner::supervisor::signal_name(sig));
+                t += &format!(" The process was killed by signal {sig} ({}).", crate::model::signal_name(sig));
             }
             if !x.stderr_tail.trim().is_empty() {
                 let tail: Vec<&str> = x.stderr_tail.trim().lines().rev().take(3).collect::<Vec<_>>().into_iter().rev().collect();
@@ -278,7 +275,7 @@ fn actual_text(rep: Option<&CellReport>, outcome: Outcome) -> String {
 }
 
 fn validation_text(report: &RunReport, rep: Option<&CellReport>) -> String {
-    let on = report.options["validate"].as_bool().unwrap_or(false);
+    let on = report.options.validate;
     let errors: u64 = rep.map(|c| c.attempts.iter().filter_map(|a| a.result.as_ref()).map(|r| r.validation_errors).sum()).unwrap_or(0);
     let ran_to_end = rep.map(|c| c.attempts.iter().filter(|a| a.result.is_some()).count()).unwrap_or(0);
     let mut t = if !on {
@@ -300,7 +297,7 @@ fn reproduce_commands(report: &RunReport, report_path: &str, rep: &Cell, injecti
     let patches = if rep.patch.is_some() { "all" } else { "none" };
     let mut run = format!(
         "rtprobe run --filter '{}' --patches {patches} --seed {} --size {}x{} --instances {} --mesh-detail {} --repeat 5",
-        exact_filter(rep),
+        crate::model::registry::exact_filter(rep),
         p.seed,
         p.width,
         p.height,
@@ -311,7 +308,7 @@ fn reproduce_commands(report: &RunReport, report_path: &str, rep: &Cell, injecti
         run += &format!(" --inject-fault '{}'", i.spec);
     }
     // A switch of the original run that changes results is part of the command.
-    let env = report.options["binding_stages"].as_str().map(|v| format!("RTPROBE_BINDING_STAGES={v} ")).unwrap_or_default();
+    let env = report.options.binding_stages.as_deref().map(|v| format!("RTPROBE_BINDING_STAGES={v} ")).unwrap_or_default();
     vec![
         format!("{env}{run}"),
         format!("rtprobe repro {} --from {report_path} -o repro && rtprobe run --cell-spec repro/cell.json", rep.id()),
@@ -355,7 +352,7 @@ fn not_tested(report: &RunReport, b: &BisectFile) -> Vec<String> {
 
 /// The probed shader of the failing cell and of its closest passing sibling (preferring a
 /// sibling that differs in the index, then the resource, then other axes).
-fn shader_comparison(rep: &Cell, bi: &crate::bisect::Bisection, inject: &[Injection]) -> Result<ShaderComparison, String> {
+fn shader_comparison(rep: &Cell, bi: &crate::model::Bisection, inject: &[Injection]) -> Result<ShaderComparison, String> {
     let order = ["index", "nonuniform", "resource", "as_access", "descriptor_model", "patch", "stage"];
     let sibling = order.iter().find_map(|ax| bi.isolation.iter().find(|l| l.varied.as_deref() == Some(*ax) && l.verdict == "pass")).and_then(|l| cell_by_id(&l.cell));
     let role = probed_role(rep.stage);

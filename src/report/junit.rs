@@ -1,8 +1,8 @@
 //! JUnit XML for CI systems: one testcase per cell; findings are failures, unsupported cells
 //! skipped.
-use super::run_report::RunReport;
-use crate::fleet::baseline::Status;
-use crate::outcome::Outcome;
+use crate::model::RunReport;
+use crate::model::Status;
+use crate::model::Outcome;
 
 fn esc(s: &str) -> String {
     s.chars()
@@ -20,7 +20,7 @@ fn esc(s: &str) -> String {
 
 /// Whether the JUnit testcase fails: a finding of a probe cell (flaky ones too), or a canary
 /// whose fault was not detected. A detected canary is a success.
-fn fails(r: &RunReport, c: &super::run_report::CellReport) -> bool {
+fn fails(r: &RunReport, c: &crate::model::CellReport) -> bool {
     match &c.canary_check {
         Some(chk) => !chk.detected,
         None => (c.outcome.is_finding() && expected_by_baseline(r, c).is_none()) || (c.injection_undetected && c.outcome == Outcome::Pass),
@@ -49,7 +49,7 @@ fn run_level_failures(r: &RunReport) -> Vec<(String, String, String)> {
 }
 
 /// With `--baseline`: the finding is expected there (an expected fault or a known flake).
-fn expected_by_baseline<'a>(r: &'a RunReport, c: &super::run_report::CellReport) -> Option<&'a str> {
+fn expected_by_baseline<'a>(r: &'a RunReport, c: &crate::model::CellReport) -> Option<&'a str> {
     let b = r.baseline.as_ref()?;
     match b.cells.iter().find(|x| x.cell == c.id).map(|x| x.status) {
         Some(Status::KnownFlake) => Some("known flake in the baseline"),

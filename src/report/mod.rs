@@ -1,16 +1,13 @@
-//! Reports: atomic writes, timestamps, the run report schema and its writer, JUnit, mismatch
-//! pictures and the terminal summary.
+//! Renderers over the data layer: the run report's writer, timestamps, JUnit, the terminal
+//! summary, the vendor issue, the recommended-pattern and GPU-AV rounds' scheduling and verdicts,
+//! a cell's shaders as a reader gets them, the repro bundle's Amber script, and SVG charts.
 pub mod amber;
-pub mod atomic;
 pub mod chart;
 pub mod gpu_av;
-pub mod junit;
 pub mod issue;
-pub mod pictures;
+pub mod junit;
 pub mod recommended;
-pub mod run_report;
 pub mod shaders;
 pub mod summary;
 pub mod time;
-
-pub use atomic::write_atomic;
+pub mod writer;

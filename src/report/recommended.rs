@@ -6,60 +6,10 @@
 //! looked up among the report's cells; `rtprobe run --patches faults` schedules it when the plan
 //! did not hold it ([`missing`]) and runs it as often as the findings it stands for ([`retries`]),
 //! as it does for workarounds.
-use crate::matrix::cell::Pattern;
-use crate::matrix::Cell;
-use crate::outcome::Outcome;
-use crate::report::run_report::{CellReport, RunReport};
-use serde::{Deserialize, Serialize};
-
-/// What the report says about a finding's recommended pattern.
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-pub struct PatternResult {
-    /// `geometry` / `materials`; `None` where no pattern applies.
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub pattern: Option<Pattern>,
-    /// The pattern's cell id.
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub cell: Option<String>,
-    #[serde(flatten)]
-    pub status: PatternStatus,
-}
-
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-#[serde(tag = "status", rename_all = "snake_case")]
-pub enum PatternStatus {
-    /// Every attempt of the pattern's cell passed.
-    /// `miss_probability`: the chance these passes would all have missed a fault as frequent as
-    /// the finding's ([`confidence::pass_miss`](crate::bisect::confidence::pass_miss)).
-    Passes {
-        passed: u32,
-        attempts: u32,
-        #[serde(skip_serializing_if = "Option::is_none", default)]
-        miss_probability: Option<f64>,
-    },
-    /// The pattern's cell has a finding too (its verdict and how often).
-    Fails { outcome: Outcome, faulted: u32, attempts: u32 },
-    /// The pattern's cell did not run (unsupported, not implemented, not planned), with why.
-    NotRun { reason: String },
-    /// No recommended pattern applies to the finding, with why.
-    NotApplicable { reason: String },
-}
-
-impl PatternResult {
-    /// `recommended pattern geometry (one storage buffer …; cell): passes (3/3)`
-    pub fn line(&self) -> String {
-        let status = match &self.status {
-            PatternStatus::Passes { passed, attempts, miss_probability } => crate::bisect::confidence::passes_text(*passed, *attempts, *miss_probability),
-            PatternStatus::Fails { outcome, faulted, attempts } => format!("fails: {} ({faulted} of {attempts} attempts)", outcome.as_str()),
-            PatternStatus::NotRun { reason } => format!("not run ({reason})"),
-            PatternStatus::NotApplicable { reason } => return format!("recommended pattern: none ({reason})"),
-        };
-        match (self.pattern, &self.cell) {
-            (Some(p), Some(c)) => format!("recommended pattern {} ({}; {c}): {status}", p.as_str(), p.description()),
-            _ => format!("recommended pattern: {status}"),
-        }
-    }
-}
+use crate::model::Cell;
+use crate::model::Outcome;
+use crate::model::{CellReport, RunReport};
+use crate::model::{PatternResult, PatternStatus};
 
 /// The pattern result of `finding` from the cells of `report`.
 pub fn result(report: &RunReport, finding: &Cell) -> PatternResult {
@@ -70,18 +20,18 @@ pub fn result(report: &RunReport, finding: &Cell) -> PatternResult {
     let id = cell.id();
     let status = match report.cells.iter().find(|c| c.id == id) {
         None => PatternStatus::NotRun {
-            reason: format!("not in this run: `rtprobe run --filter '{}'`, or `--patches faults` schedules it", crate::report::issue::exact_filter(&cell)),
+            reason: format!("not in this run: `rtprobe run --filter '{}'`, or `--patches faults` schedules it", crate::model::registry::exact_filter(&cell)),
         },
         Some(c) => status_of(c, report.cells.iter().find(|x| x.cell == *finding).and_then(|f| f.incidence.as_ref())),
     };
     PatternResult { pattern: Some(pattern), cell: Some(id), status }
 }
 
-fn status_of(c: &CellReport, finding: Option<&crate::report::run_report::Incidence>) -> PatternStatus {
+fn status_of(c: &CellReport, finding: Option<&crate::model::Incidence>) -> PatternStatus {
     let ran: Vec<_> = c.attempts.iter().filter(|a| !a.not_run()).collect();
     let attempts = ran.len() as u32;
     match c.outcome {
-        Outcome::Pass => PatternStatus::Passes { passed: attempts, attempts, miss_probability: finding.map(|i| crate::bisect::confidence::pass_miss(i.faulted, i.attempts, attempts)) },
+        Outcome::Pass => PatternStatus::Passes { passed: attempts, attempts, miss_probability: finding.map(|i| crate::model::stats::pass_miss(i.faulted, i.attempts, attempts)) },
         Outcome::Unsupported | Outcome::NotImplemented => {
             PatternStatus::NotRun { reason: format!("{}: {}", c.outcome.as_str(), c.reason.as_deref().unwrap_or("no reason recorded")) }
         }
@@ -143,8 +93,8 @@ pub fn retries(report: &RunReport) -> Vec<Cell> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::matrix::{DescriptorModel, HeapAccess, IndexSource, Resource, Stage};
-    use crate::runner::supervisor::Attempt;
+    use crate::model::{DescriptorModel, HeapAccess, IndexSource, Resource, Stage};
+    use crate::model::Attempt;
 
     fn heap(resource: Resource, index: IndexSource) -> Cell {
         Cell {
@@ -159,7 +109,7 @@ mod tests {
             patch: None,
             reorder: None,
             base: None,
-            sampler: (resource == Resource::SampledImage).then_some(crate::matrix::axes::SamplerIndex::Dynamic),
+            sampler: (resource == Resource::SampledImage).then_some(crate::model::axes::SamplerIndex::Dynamic),
         }
     }
 
@@ -196,7 +146,7 @@ mod tests {
         );
         // 1 pass against 3 of 3: (1 - 0.05^(1/3))^1 ≈ 0.63, in the JSON too.
         let geo = r.cells.iter().find(|x| x.cell == ssbo).unwrap().recommended.clone().unwrap();
-        assert!(matches!(geo.status, PatternStatus::Passes { miss_probability: Some(m), .. } if (m - crate::bisect::confidence::pass_miss(3, 3, 1)).abs() < 1e-12));
+        assert!(matches!(geo.status, PatternStatus::Passes { miss_probability: Some(m), .. } if (m - crate::model::stats::pass_miss(3, 3, 1)).abs() < 1e-12));
         assert!(line(&tex).unwrap().contains("materials") && line(&tex).unwrap().contains("not run (not in this run"), "{:?}", line(&tex));
         assert!(line(&ubo).unwrap().starts_with("recommended pattern: none (rtprobe has no recommended"), "{:?}", line(&ubo));
         assert_eq!(line(&geometry), None, "a passing cell carries no pattern result");

@@ -1,9 +1,8 @@
 //! A cell's shaders as a reader gets them (issue and repro bundle): the GLSL rtprobe generates
 //! (with the injected fault, when one applies), the SPIR-V the worker runs (compiled by shaderc,
 //! then patched exactly as the worker patches it), and `spirv-dis` disassembly when installed.
-use crate::matrix::cell::Workaround;
-use crate::matrix::inject::FaultKind;
-use crate::matrix::{AsAccess, Cell, Stage};
+use crate::model::FaultKind;
+use crate::model::{Cell, Stage};
 use crate::shadergen::{self, compile::Compiler, Role};
 
 #[derive(Debug, thiserror::Error)]
@@ -49,10 +48,9 @@ pub fn cell_shaders(cell: &Cell, fault: Option<FaultKind>) -> Result<Vec<Shader>
     }
     // The worker's order: address_patched is as-to-address on the descriptor variant, then the
     // cell's own workaround.
-    let workarounds = (cell.as_access == Some(AsAccess::AddressPatched)).then_some(Workaround::AsToAddress).into_iter().chain(cell.patch);
-    for w in workarounds {
+    for w in crate::patches::workaround::of_cell(cell) {
         for s in out.iter_mut() {
-            if let Some(p) = crate::exec::patch_module(&s.spirv, w)? {
+            if let Some(p) = crate::patches::workaround::patch_module(&s.spirv, w)? {
                 s.spirv = p;
                 s.patched.push(w.as_str());
             }

@@ -1,6 +1,6 @@
 //! The terminal summary printed at the end of `rtprobe run`.
-use super::run_report::RunReport;
-use crate::outcome::Outcome;
+use crate::model::RunReport;
+use crate::model::Outcome;
 use std::fmt::Write;
 
 fn mark(o: Outcome) -> &'static str {
@@ -42,9 +42,9 @@ pub fn render(r: &RunReport) -> String {
             if chk.detected { "detected as expected" } else { "NOT detected: fault classification unproven on this driver; the run fails" }
         );
     }
-    if !r.options["inject"].as_array().is_none_or(|a| a.is_empty()) {
+    if !r.options.inject.is_empty() {
         let injected = r.cells.iter().filter(|c| c.injected.is_some()).count();
-        let _ = writeln!(s, "fault injection: {injected} cells misbehave on purpose ({})", r.options["inject"]);
+        let _ = writeln!(s, "fault injection: {injected} cells misbehave on purpose ({})", serde_json::Value::from(r.options.inject.clone()));
     }
     // Worker faults outside any cell (failed setups, crashes between cells, hung teardowns).
     let faults: Vec<_> = r.workers.iter().filter(|w| w.outcome != Outcome::Pass).collect();
@@ -136,7 +136,7 @@ pub fn render(r: &RunReport) -> String {
         t.overhead_ms / n
     );
     if t.prebuilt_pipelines > 0 {
-        let threads = r.options.get("threads").and_then(|v| v.as_u64()).map(|n| n.to_string()).unwrap_or_else(|| "--threads".into());
+        let threads = r.options.threads.map(|n| n.to_string()).unwrap_or_else(|| "--threads".into());
         let _ = writeln!(s, "prebuild: {} pipelines created on {threads} threads ahead of their cells, {:.1} s wall (their per-cell time above is each one's time on its thread)", t.prebuilt_pipelines, t.prebuild_ms / 1e3);
     }
     if let Some(pc) = &r.pipeline_cache {

@@ -10,7 +10,7 @@
 //! crashing device creation); a `setup` loss happens after it, where the scene's acceleration
 //! structures are built (a loss needs a device). A `prebuild` action happens as the worker starts
 //! building a batch ahead of the cells' turns (only where it prebuilds: `--threads` above 1).
-use super::phase::Phase;
+use crate::model::Phase;
 use crate::vk::VkError;
 use std::io::Write;
 

@@ -3,7 +3,7 @@
 //! own fault injection for its tests.
 pub mod groups;
 pub mod misbehave;
-pub mod phase;
+pub mod process;
 pub mod protocol;
 pub mod supervisor;
 pub mod worker;

@@ -2,10 +2,10 @@
 //! `rtprobe __worker FILE` with stdin closed; the worker answers with one JSON [`WorkerMsg`] per
 //! line on stdout. The worker never decides that it is dead: the supervisor does, from deadlines,
 //! end of output and exit status.
-use crate::matrix::Cell;
-use super::phase::Phase;
-use crate::outcome::{CellResult, Outcome};
-use crate::scene::SceneParams;
+use crate::model::Cell;
+use crate::model::Phase;
+use crate::model::{CellResult, Outcome};
+use crate::model::SceneParams;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
@@ -21,7 +21,7 @@ pub struct WorkerJob {
     pub gpu_av: bool,
     /// `--inject-fault` injections (the worker applies the first that matches each cell).
     #[serde(default)]
-    pub inject: Vec<crate::matrix::inject::Injection>,
+    pub inject: Vec<crate::model::Injection>,
     /// Seed of the flaky-injection dice.
     #[serde(default)]
     pub inject_seed: u64,

@@ -11,29 +11,20 @@
 //! are SIGTERM to the group, a grace period, SIGKILL, and a bounded wait: a process that will not
 //! die (uninterruptible sleep in the driver) is reported and abandoned.
 use super::groups;
-use super::phase::Phase;
+use super::process::{died, exit_of, kill_group, poll_exit};
+use crate::model::Phase;
 use super::protocol::{WorkerJob, WorkerMsg};
-use crate::matrix::Cell;
-use crate::outcome::{CellResult, Outcome};
-use crate::scene::SceneParams;
-use serde::{Deserialize, Serialize};
+use crate::model::Cell;
+use crate::model::Outcome;
+use crate::model::SceneParams;
 use std::collections::VecDeque;
 use std::io::{BufRead, BufReader, Read};
-use std::os::unix::process::ExitStatusExt;
 use std::path::PathBuf;
-use std::process::{Child, Command, ExitStatus, Stdio};
+use std::process::{Child, Command, Stdio};
 use std::sync::mpsc::{channel, Receiver, RecvTimeoutError, Sender};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "kebab-case")]
-pub enum Isolation {
-    /// One worker runs many cells and is replaced after a fault.
-    Worker,
-    /// Every cell runs in a fresh worker process.
-    ProcessPerCell,
-}
+use crate::model::{Attempt, Isolation, WorkerEvent, WorkerExit};
 
 #[derive(Clone, Debug)]
 pub struct SupervisorOptions {
@@ -53,7 +44,7 @@ pub struct SupervisorOptions {
     /// Workers turn GPU-Assisted Validation on (`report::gpu_av`).
     pub gpu_av: bool,
     /// `--inject-fault`, passed to every worker.
-    pub inject: Vec<crate::matrix::inject::Injection>,
+    pub inject: Vec<crate::model::Injection>,
     pub dump: Option<PathBuf>,
     /// A repro bundle's `shaders/` (`run --cell-spec`): workers run its SPIR-V.
     pub spirv_dir: Option<PathBuf>,
@@ -65,81 +56,6 @@ pub struct SupervisorOptions {
     /// cells): re-runs alone (`--confirm`, `--repeat`, the repeats that verify a workaround) start
     /// cold, so that a cached binary cannot stand in for the cell's own compile.
     pub pipeline_cache: Option<PathBuf>,
-}
-
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct WorkerExit {
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub code: Option<i32>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub signal: Option<i32>,
-    #[serde(skip_serializing_if = "String::is_empty", default)]
-    pub stderr_tail: String,
-    /// Set when the process did not die after SIGKILL within the bound (stuck in the kernel,
-    /// e.g. uninterruptible sleep in the driver): it was left behind, and this says so.
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub abandoned: Option<String>,
-}
-
-/// One run of one cell.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Attempt {
-    pub outcome: Outcome,
-    /// Ran alone in a fresh worker (a `--confirm` re-run, or process-per-cell isolation).
-    pub isolated: bool,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub detail: Option<String>,
-    /// The worker's own report (absent when the worker died or hung).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub result: Option<CellResult>,
-    /// How the worker ended, when it ended during this cell.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub worker_exit: Option<WorkerExit>,
-    /// The fault `--inject-fault` put into this attempt (recorded even when the worker died).
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub injected: Option<crate::matrix::inject::InjectedFault>,
-    pub wall_ms: f64,
-    /// The worker's last phase when the attempt ended (`setup`: the cell never ran because its
-    /// worker's setup failed).
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub phase: Option<Phase>,
-    /// The worker that ran it (`worker` of the report's `workers` entries; 0 in older reports).
-    #[serde(default)]
-    pub worker: u64,
-    /// What the worker's device was created with (extensions, then feature bits).
-    #[serde(skip_serializing_if = "Vec::is_empty", default)]
-    pub device_features: Vec<String>,
-}
-
-impl Attempt {
-    /// An attempt with only an outcome (unit tests of reporters and fleet tools).
-    #[cfg(test)]
-    pub fn for_tests(outcome: Outcome, isolated: bool) -> Attempt {
-        Attempt { outcome, isolated, detail: Some(format!("{} happened", outcome.as_str())), result: None, worker_exit: None, injected: None, wall_ms: 1.0, phase: None, worker: 0, device_features: vec![] }
-    }
-
-    /// The cell never ran: its worker's setup failed.
-    pub fn not_run(&self) -> bool {
-        self.phase == Some(Phase::Setup)
-    }
-}
-
-/// A worker's own record: its setup (`pass` once it is ready) or a fault outside any cell
-/// (between two cells, in teardown).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct WorkerEvent {
-    pub worker: u64,
-    pub phase: Phase,
-    pub outcome: Outcome,
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub detail: Option<String>,
-    /// Cells the worker was given.
-    pub cells: usize,
-    pub wall_ms: f64,
-    #[serde(skip_serializing_if = "Vec::is_empty", default)]
-    pub device_features: Vec<String>,
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub worker_exit: Option<WorkerExit>,
 }
 
 /// Events for the report writer and progress display.
@@ -219,70 +135,6 @@ struct Slot {
 
 const STDERR_TAIL: usize = 4000;
 const GARBAGE_LOGGED: u64 = 20;
-
-fn poll_exit(child: &mut Child, bound: Duration) -> Option<ExitStatus> {
-    let until = Instant::now() + bound;
-    loop {
-        if let Ok(Some(s)) = child.try_wait() {
-            return Some(s);
-        }
-        if Instant::now() >= until {
-            return None;
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    }
-}
-
-/// The process state letter and name from /proc (e.g. `D (disk sleep)`).
-fn proc_state(pid: i32) -> String {
-    std::fs::read_to_string(format!("/proc/{pid}/stat"))
-        .ok()
-        .and_then(|s| s.rsplit_once(')').map(|(_, rest)| rest.split_whitespace().next().unwrap_or("?").to_string()))
-        .map(|c| match c.as_str() {
-            "D" => "D (uninterruptible sleep)".to_string(),
-            "Z" => "Z (zombie)".to_string(),
-            other => other.to_string(),
-        })
-        .unwrap_or_else(|| "unknown".into())
-}
-
-/// SIGTERM the group, wait `grace`, SIGKILL, wait at most `kill_wait`; a process still there is
-/// abandoned (reported, never waited on again).
-fn kill_group(w: &mut Worker, grace: Duration, kill_wait: Duration) -> WorkerExit {
-    unsafe { libc::kill(-w.pid, libc::SIGTERM) };
-    let mut status = poll_exit(&mut w.child, grace);
-    if status.is_none() {
-        unsafe { libc::kill(-w.pid, libc::SIGKILL) };
-        status = poll_exit(&mut w.child, kill_wait);
-    }
-    // Anything else left in the group.
-    unsafe { libc::kill(-w.pid, libc::SIGKILL) };
-    let mut exit = exit_of(status, &w.stderr);
-    if status.is_none() {
-        let state = proc_state(w.pid);
-        tracing::warn!("worker {} (pid {}) did not die after SIGKILL; state {state}; abandoned", w.id, w.pid);
-        exit.abandoned = Some(format!("pid {} still alive {:?} after SIGKILL, state {state}; abandoned", w.pid, kill_wait));
-    } else {
-        groups::unregister(w.pid);
-    }
-    exit
-}
-
-fn exit_of(status: Option<ExitStatus>, stderr: &Arc<Mutex<String>>) -> WorkerExit {
-    // Give the stderr reader a moment to drain.
-    std::thread::sleep(Duration::from_millis(20));
-    let tail = stderr.lock().map(|s| s.clone()).unwrap_or_default();
-    WorkerExit { code: status.and_then(|s| s.code()), signal: status.and_then(|s| s.signal()), stderr_tail: tail, abandoned: None }
-}
-
-fn died(exit: &WorkerExit) -> (Outcome, String) {
-    match (exit.signal, exit.code) {
-        (Some(s), _) => (Outcome::Crash, format!("worker killed by signal {s} ({})", signal_name(s))),
-        (None, Some(c)) if c != 0 => (Outcome::Crash, format!("worker exited with code {c}")),
-        (None, Some(_)) => (Outcome::Error, "worker exited (code 0) early".into()),
-        (None, None) => (Outcome::Error, "worker vanished".into()),
-    }
-}
 
 pub struct Supervisor {
     opts: SupervisorOptions,
@@ -396,7 +248,7 @@ impl Supervisor {
         let mut tagged = |ev: Event| match ev {
             Event::Attempt { cell, mut attempt } => {
                 if let Some(seed) = seeds.borrow().get(&cell.id()).copied() {
-                    attempt.injected = crate::matrix::inject::roll(&inject, cell, seed);
+                    attempt.injected = crate::model::inject::roll(&inject, cell, seed);
                 }
                 on(Event::Attempt { cell, attempt })
             }
@@ -550,7 +402,7 @@ impl Supervisor {
             }
             Line::Msg(WorkerMsg::Fatal { message, outcome }) => {
                 let mut w = slot.worker.take().expect("present");
-                let exit = kill_group(&mut w, self.opts.grace, self.opts.kill_wait);
+                let exit = kill_group(&mut w.child, w.pid, w.id, &w.stderr, self.opts.grace, self.opts.kill_wait);
                 if matches!(w.state, State::Prebuild { .. }) {
                     let detail = format!("worker failed in {}: {message}", w.where_());
                     self.prebuild_failed(slot, &w, outcome, detail, exit, on);
@@ -575,7 +427,7 @@ impl Supervisor {
                         exit_of(Some(status), &w.stderr)
                     }
                     // Closed its output but does not exit: treat as hung.
-                    None => kill_group(&mut w, Duration::ZERO, self.opts.kill_wait),
+                    None => kill_group(&mut w.child, w.pid, w.id, &w.stderr, Duration::ZERO, self.opts.kill_wait),
                 };
                 let (outcome, what) = died(&exit);
                 match w.state {
@@ -610,7 +462,7 @@ impl Supervisor {
             }
             any = true;
             let mut w = slot.worker.take().expect("present");
-            let exit = kill_group(&mut w, self.opts.grace, self.opts.kill_wait);
+            let exit = kill_group(&mut w.child, w.pid, w.id, &w.stderr, self.opts.grace, self.opts.kill_wait);
             match w.state {
                 State::Cell { cell, since } => {
                     if let Some(pos) = slot.queue.iter().position(|c| *c == cell) {
@@ -727,51 +579,4 @@ fn ms(since: Instant) -> f64 {
 fn inject_seed(generation: u64) -> u64 {
     let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_nanos() as u64).unwrap_or(0);
     nanos ^ (u64::from(std::process::id()) << 32) ^ generation.wrapping_mul(0x9e37_79b9_7f4a_7c15)
-}
-
-pub fn signal_name(sig: i32) -> &'static str {
-    match sig {
-        libc::SIGSEGV => "SIGSEGV",
-        libc::SIGBUS => "SIGBUS",
-        libc::SIGABRT => "SIGABRT",
-        libc::SIGILL => "SIGILL",
-        libc::SIGFPE => "SIGFPE",
-        libc::SIGKILL => "SIGKILL",
-        libc::SIGTERM => "SIGTERM",
-        _ => "signal",
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_process_that_will_not_exit_is_not_waited_on_forever() {
-        // A child that ignores SIGTERM stands in for one stuck in the kernel: poll_exit must
-        // return within its bound rather than block.
-        let mut child = Command::new("sh").args(["-c", "trap '' TERM; sleep 30"]).spawn().unwrap();
-        let t = Instant::now();
-        assert!(poll_exit(&mut child, Duration::from_millis(200)).is_none());
-        assert!(t.elapsed() < Duration::from_secs(2));
-        child.kill().unwrap();
-        assert!(poll_exit(&mut child, Duration::from_secs(5)).is_some());
-    }
-
-    #[test]
-    fn a_death_is_a_crash_unless_the_exit_was_clean() {
-        let exit = |code, signal| WorkerExit { code, signal, ..Default::default() };
-        assert_eq!(died(&exit(None, Some(libc::SIGSEGV))).0, Outcome::Crash);
-        assert!(died(&exit(None, Some(libc::SIGSEGV))).1.contains("SIGSEGV"));
-        assert_eq!(died(&exit(Some(3), None)).0, Outcome::Crash);
-        assert_eq!(died(&exit(Some(0), None)).0, Outcome::Error);
-        assert_eq!(died(&exit(None, None)).0, Outcome::Error);
-    }
-
-    #[test]
-    fn proc_state_reads_the_state_letter() {
-        let s = proc_state(std::process::id() as i32);
-        assert!(s == "R" || s == "S", "{s}");
-        assert_eq!(proc_state(-1), "unknown");
-    }
 }

@@ -6,13 +6,13 @@
 //! skipping destructors that could block on a hung queue). The supervisor kills it if the
 //! supervisor dies (PR_SET_PDEATHSIG, set at spawn).
 use super::misbehave::{Misbehave, SetupStep};
-use super::phase::Phase;
+use crate::model::Phase;
 use super::protocol::{WorkerJob, WorkerMsg};
 use crate::exec::prebuild::Step;
 use crate::exec::{CellError, ExecOptions, Executor};
-use crate::outcome::Outcome;
-use crate::matrix::cell::Workaround;
-use crate::matrix::{AsAccess, Canary, Cell, DescriptorModel, Resource, Stage};
+use crate::model::Outcome;
+use crate::model::Workaround;
+use crate::model::{AsAccess, Canary, Cell, DescriptorModel, Resource, Stage};
 use crate::vk::{features, Gpu, Instance, InstanceOptions, Requirements, VkError};
 use std::collections::HashSet;
 use std::io::Write;
@@ -30,7 +30,7 @@ pub fn requirements(info: &crate::vk::DeviceInfo, cells: &[Cell]) -> Requirement
         descriptor_indexing: true,
         descriptor_buffer: any(&|c| c.descriptor_model == DescriptorModel::DescriptorBuffer),
         descriptor_heap: any(&|c| c.descriptor_model == DescriptorModel::DescriptorHeap),
-        untyped_pointers: any(&|c| c.heap_access == Some(crate::matrix::HeapAccess::Direct)),
+        untyped_pointers: any(&|c| c.heap_access == Some(crate::model::HeapAccess::Direct)),
         device_fault: info.features.fault.is_some_and(|f| f.device_fault == ash::vk::TRUE),
         int64: any(&|c| {
             matches!(c.as_access, Some(AsAccess::Address | AsAccess::AddressPatched))
@@ -93,7 +93,7 @@ fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
         .clone();
     let mut req = requirements(&info, &job.cells);
     // Injected invalid-address loads need 64-bit integers, as the address probes do.
-    req.int64 |= job.cells.iter().any(|c| crate::matrix::inject::for_cell(&job.inject, c).is_some_and(|i| i.fault.reads_bad_address()));
+    req.int64 |= job.cells.iter().any(|c| crate::model::inject::for_cell(&job.inject, c).is_some_and(|i| i.fault.reads_bad_address()));
     phases.enter(Phase::Setup, Some((SetupStep::CreateDevice, "vkCreateDevice")))?;
     let gpu = Gpu::new(inst, info, req)?;
     let opts = ExecOptions {

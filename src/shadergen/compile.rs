@@ -11,13 +11,7 @@ use std::hash::{Hash, Hasher};
 use std::sync::Arc;
 use std::time::Instant;
 
-#[derive(Debug, thiserror::Error)]
-pub enum CompileError {
-    #[error("shaderc could not be initialised")]
-    Init,
-    #[error("{file}: {message}")]
-    Glsl { file: String, message: String },
-}
+pub use super::error::CompileError;
 
 pub struct Compiler {
     inner: shaderc::Compiler,

@@ -2,7 +2,7 @@
 //! GLSL with `GL_EXT_descriptor_heap` (`layout(descriptor_heap)`, glslang >= 16.2). Found on PATH
 //! (`RTPROBE_GLSLANG` overrides) and accepted by the version it prints; used only for sources
 //! that enable that extension, compiled for Vulkan 1.3 / SPIR-V 1.6 without optimization.
-use super::compile::CompileError;
+use super::error::CompileError;
 use super::Role;
 use std::path::PathBuf;
 use std::process::{Command, Stdio};

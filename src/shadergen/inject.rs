@@ -1,9 +1,9 @@
-//! The GLSL of an injected fault ([`crate::matrix::inject`]), appended to the probe body right
+//! The GLSL of an injected fault ([`crate::model::inject`]), appended to the probe body right
 //! after `probeValue` is read, so the fault happens at the probed read in the probed stage and
 //! nowhere else. Every kind keeps its effect observable (the compiler cannot fold it away): the
 //! endless loop and the invalid load are guarded by push constants the worker sets at run time.
 use super::probe_code::ProbeCode;
-use crate::matrix::inject::FaultKind;
+use crate::model::FaultKind;
 
 /// A small integer hash of the pixel and the push-constant salt (lowbias32), the same on every
 /// driver; salt 0 (`value:F` without a seed) gives the hash of the pixel alone.

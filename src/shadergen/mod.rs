@@ -3,12 +3,13 @@
 //! trivial. Shared declarations come from `probes/common.glsl`. [`compile`] turns sources into
 //! SPIR-V with shaderc, caching by source.
 pub mod compile;
+pub mod error;
 pub mod glslang;
 pub mod include;
 mod inject;
 mod probe_code;
 
-use crate::matrix::{AsAccess, Canary, Cell, Reorder, Resource, Stage};
+use crate::model::{AsAccess, Canary, Cell, Reorder, Resource, Stage};
 use probe_code::ProbeCode;
 
 const COMMON: &str = include_str!("../../probes/common.glsl");
@@ -126,7 +127,7 @@ pub fn generate(cell: &Cell) -> CellShaders {
 }
 
 /// Generate all shaders of `cell`, with `fault` injected at the probed read.
-pub fn generate_with(cell: &Cell, fault: Option<crate::matrix::inject::FaultKind>) -> CellShaders {
+pub fn generate_with(cell: &Cell, fault: Option<crate::model::FaultKind>) -> CellShaders {
     if let Some(c) = cell.canary {
         return canary(c);
     }
@@ -351,7 +352,7 @@ fn canary(c: Canary) -> CellShaders {
 /// Whether this cell's AS probe reaches the AS through an address (written so, or patched).
 pub fn as_by_address(cell: &Cell) -> bool {
     cell.resource == Resource::AccelerationStructure
-        && (matches!(cell.as_access, Some(AsAccess::Address | AsAccess::AddressPatched)) || cell.patch == Some(crate::matrix::cell::Workaround::AsToAddress))
+        && (matches!(cell.as_access, Some(AsAccess::Address | AsAccess::AddressPatched)) || cell.patch == Some(crate::model::cell::Workaround::AsToAddress))
 }
 
 /// `as_access=address_patched` runs the `descriptor` variant's shaders rewritten by the
@@ -372,11 +373,11 @@ pub const PATCHED_TABLE_OFFSET: u32 = crate::probe::PATCHED_TABLE_OFFSET;
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::matrix::{DescriptorModel, IndexSource};
+    use crate::model::{DescriptorModel, IndexSource};
 
     fn reorder_cell(r: Option<Reorder>, resource: Resource) -> Cell {
         let as_access = (resource == Resource::AccelerationStructure).then_some(AsAccess::Descriptor);
-        Cell { stage: Stage::ClosestHit, resource, index: IndexSource::Dynamic, nonuniform: true, as_access, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None, reorder: r, base: None, sampler: None }
+        Cell { nonuniform: true, as_access, reorder: r, ..Cell::new(Stage::ClosestHit, resource, IndexSource::Dynamic, DescriptorModel::DescriptorIndexing) }
     }
 
     /// The recommended patterns: the descriptor index is the spec constant, the dynamic value sits
@@ -389,7 +390,7 @@ mod tests {
             (Resource::SampledImage, "textureLod(probeTex[SPEC_SLOT], vec3((vec2(uvec2(probeElement & 1u, probeElement >> 1u)) + 0.5) * 0.5, float(probeSlot)), 0.0)"),
         ] {
             for stage in [Stage::ClosestHit, Stage::Compute] {
-                let cell = Cell { stage, resource, index: IndexSource::DynamicElement, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None, reorder: None, base: None, sampler: None };
+                let cell = Cell::new(stage, resource, IndexSource::DynamicElement, DescriptorModel::DescriptorIndexing);
                 let shaders = generate(&cell);
                 let probed = shaders.shaders.iter().find(|s| s.glsl.contains("uint probeSlot")).unwrap();
                 assert!(probed.glsl.contains(read) && probed.glsl.contains("layout(constant_id = 0) const uint SPEC_SLOT"), "{}", probed.glsl);
@@ -410,7 +411,7 @@ mod tests {
     /// heap tests).
     #[test]
     fn base_cells_read_their_base_where_the_axis_says() {
-        use crate::matrix::BaseSource;
+        use crate::model::BaseSource;
         let mut c = compile::Compiler::new().unwrap();
         for resource in [Resource::StorageBuffer, Resource::SampledImage] {
             for base in [None, Some(BaseSource::ShaderRecord), Some(BaseSource::Buffer)] {

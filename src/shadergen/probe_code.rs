@@ -16,7 +16,7 @@
 //! device address, instead of push data. Direct sampled-image cells sample with sampler
 //! `probeSampler[s]` of the sampler heap at a shifted coordinate (`probe::SAMPLER_SHIFT`), `s` a
 //! literal (`sampler=constant`) or the stage's runtime value modulo the samplers (`dynamic`).
-use crate::matrix::{AsAccess, BaseSource, Cell, HeapAccess, IndexSource, Resource, SamplerIndex, Stage};
+use crate::model::{AsAccess, BaseSource, Cell, HeapAccess, IndexSource, Resource, SamplerIndex, Stage};
 use crate::probe;
 
 pub struct ProbeCode {

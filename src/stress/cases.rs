@@ -2,7 +2,7 @@
 //! points rays aim at are computed in f64 and the ray origin rounded, so "a ray at a shared edge"
 //! passes within an ulp of it, and the ulp-nudged copies bracket it. Sizes are CI sizes unless
 //! `full` (CTS sizes). `transform` is built in `transform`; `self` from the device's hits in `selfhit`.
-use super::{CaseKind, Instance, Mesh, Part, Ray, RayInfo, Scene, StressOptions, IDENTITY};
+use super::{one_mesh, CaseKind, Instance, Mesh, Part, Ray, RayInfo, Scene, StressOptions};
 use crate::scene::rng::Rng;
 use glam::DVec3;
 
@@ -59,10 +59,6 @@ fn next_up(x: f32) -> f32 {
 /// The ray along `d` through `p`, starting `back` direction lengths before it.
 fn ray_through(p: DVec3, d: [f32; 3], back: f64) -> Ray {
     Ray { origin: f32v(p - dv(d) * back), tmin: 0.0, dir: d, tmax: FAR_TMAX }
-}
-
-pub(crate) fn one_mesh(mesh: Mesh) -> Scene {
-    Scene { meshes: vec![mesh], instances: vec![Instance { transform: IDENTITY, mesh: 0 }] }
 }
 
 fn push(part: &mut Part, ray: Ray, must_hit: bool) {

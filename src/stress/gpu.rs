@@ -9,7 +9,7 @@
 use super::layout::{self, glsl_header, LAUNCH_WIDTH, PUSH_SIZE, RESULT_WORDS};
 use super::{Part, TraceError, Traced, Tracer};
 use crate::exec::pipeline::{self, Pipeline};
-use crate::matrix::DescriptorModel;
+use crate::model::DescriptorModel;
 use crate::scene::gpu::{bytemuck_transform, bytes_of, record_builds, triangles, AccelStruct, Pending, SceneGpu, INPUT_USAGE};
 use crate::shadergen::compile::Compiler;
 use crate::shadergen::{CellShaders, PipelineKind, Role, ShaderSource};

@@ -191,3 +191,8 @@ pub fn run(tracer: &mut dyn Tracer, opts: &StressOptions) -> Vec<evaluate::CaseR
         })
         .collect()
 }
+
+/// A scene of one mesh at the identity transform.
+pub(crate) fn one_mesh(mesh: Mesh) -> Scene {
+    Scene { meshes: vec![mesh], instances: vec![Instance { transform: IDENTITY, mesh: 0 }] }
+}

@@ -6,7 +6,7 @@
 //! does that), the facing (gl_HitKindEXT) is one fixed function of the object-space winding for
 //! every transform, mirrored or not — the spec determines facing in object space — and culling
 //! keeps exactly the hits of the other facing.
-use super::cases::one_mesh;
+use super::one_mesh;
 use super::{Instance, Mesh, Part, Ray, RayInfo, Traced};
 use crate::reference::watertight;
 use crate::scene::rng::Rng;

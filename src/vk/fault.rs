@@ -2,29 +2,7 @@
 //! addresses, vendor codes) so the report can carry it.
 use super::Gpu;
 use ash::vk;
-use serde::{Deserialize, Serialize};
-
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct FaultAddress {
-    pub kind: String,
-    pub address: String,
-    pub precision: u64,
-}
-
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct FaultVendorInfo {
-    pub description: String,
-    pub code: u64,
-    pub data: u64,
-}
-
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct FaultInfo {
-    pub description: String,
-    pub addresses: Vec<FaultAddress>,
-    pub vendor: Vec<FaultVendorInfo>,
-    pub vendor_binary_bytes: u64,
-}
+use crate::model::{FaultAddress, FaultInfo, FaultVendorInfo};
 
 fn cstr(bytes: &[std::ffi::c_char]) -> String {
     let b: Vec<u8> = bytes.iter().take_while(|c| **c != 0).map(|c| *c as u8).collect();

@@ -1,21 +1,21 @@
-//! The matrix axes and their values. The snake_case names here are the user's contract: cell ids,
+//! The matrix axes' value types. The snake_case names here are the user's contract: cell ids,
 //! `--filter`, reports and baselines all use them. Each axis lists its values in one `ALL` array,
-//! in the order cells are planned.
+//! in the order cells are planned; the axes themselves are declared in `model::registry`.
 use serde::{Deserialize, Serialize};
 use std::fmt;
 
 macro_rules! axis {
-    ($(#[$m:meta])* $name:ident, $axis:literal { $($(#[$vm:meta])* $v:ident = $s:literal),* $(,)? }) => {
+    ($(#[$m:meta])* $name:ident { $($(#[$vm:meta])* $v:ident = $s:literal),* $(,)? }) => {
         $(#[$m])*
         #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
         #[serde(rename_all = "snake_case")]
         pub enum $name { $($(#[$vm])* $v),* }
         impl $name {
-            pub const AXIS: &'static str = $axis;
             pub const ALL: &'static [$name] = &[$($name::$v),*];
+            /// The values' names, in the order of `ALL`.
+            pub const NAMES: &'static [&'static str] = &[$($s),*];
             pub fn as_str(self) -> &'static str { match self { $($name::$v => $s),* } }
             pub fn parse(s: &str) -> Option<Self> { match s { $($s => Some($name::$v),)* _ => None } }
-            pub fn names() -> Vec<&'static str> { Self::ALL.iter().map(|v| v.as_str()).collect() }
         }
         impl fmt::Display for $name {
             fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result { f.write_str(self.as_str()) }
@@ -25,7 +25,7 @@ macro_rules! axis {
 
 axis!(
     /// The shader stage that performs the probed read.
-    Stage, "stage" {
+    Stage {
         Raygen = "raygen", ClosestHit = "closest_hit", AnyHit = "any_hit", Miss = "miss",
         Intersection = "intersection", Callable = "callable", Fragment = "fragment", Compute = "compute",
     }
@@ -33,7 +33,7 @@ axis!(
 
 axis!(
     /// The kind of descriptor the probed stage reads.
-    Resource, "resource" {
+    Resource {
         StorageBuffer = "storage_buffer", UniformBuffer = "uniform_buffer", SampledImage = "sampled_image",
         StorageImage = "storage_image", AccelerationStructure = "acceleration_structure",
     }
@@ -46,7 +46,7 @@ axis!(
     /// (as `dynamic` computes it) selecting the element inside it — an SSBO read at
     /// `v[packedElement(dyn, e)]` (geometry), a `texture2DArray` sampled at layer `dyn`
     /// (materials). Only for those two resources (`Cell::dynamic_element_applies`).
-    IndexSource, "index" {
+    IndexSource {
         Literal = "literal", SpecConstant = "spec_constant", PushConstant = "push_constant", Dynamic = "dynamic",
         DynamicElement = "dynamic_element",
     }
@@ -54,14 +54,14 @@ axis!(
 
 axis!(
     /// How an acceleration structure is reached (only for `resource=acceleration_structure`).
-    AsAccess, "as_access" {
+    AsAccess {
         Descriptor = "descriptor", Address = "address", AddressPatched = "address_patched",
     }
 );
 
 axis!(
     /// How descriptors are bound.
-    DescriptorModel, "descriptor_model" {
+    DescriptorModel {
         DescriptorIndexing = "descriptor_indexing", DescriptorBuffer = "descriptor_buffer", DescriptorHeap = "descriptor_heap",
     }
 );
@@ -70,7 +70,7 @@ axis!(
     /// Shader execution reordering (GL_NV_shader_invocation_reorder) in raygen before the probed
     /// closest-hit read: the primary ray is traced into a hit object, the invocations are
     /// reordered, then the hit object's shader runs. Only on cells that have it (`Cell::reorder`).
-    Reorder, "reorder" {
+    Reorder {
         /// `reorderThreadNV(hitObject)`.
         Reorder = "reorder",
         /// `reorderThreadNV(hitObject, hint, 16)` with the hit instance's custom index as the
@@ -85,7 +85,7 @@ axis!(
     /// the probed array's heap position from a constant offset, an index in push data, an index
     /// loaded from a buffer whose address is in push data, or an index in the SBT shader record;
     /// `direct`: `layout(descriptor_heap)` GLSL.
-    HeapAccess, "heap_access" {
+    HeapAccess {
         MappedConstantOffset = "mapped_constant_offset", MappedPushIndex = "mapped_push_index",
         MappedIndirectIndex = "mapped_indirect_index", MappedShaderRecordIndex = "mapped_shader_record_index",
         Direct = "direct",
@@ -99,7 +99,7 @@ axis!(
     /// a buffer of per-instance bases (different for neighbouring instances) read through a device
     /// address at `gl_InstanceID` (`probe::hit_base`). Only on cells that have it
     /// (`Cell::base_applies`).
-    BaseSource, "base" {
+    BaseSource {
         ShaderRecord = "shader_record", Buffer = "buffer",
     }
 );
@@ -110,7 +110,7 @@ axis!(
     /// constant index ([`crate::probe::SAMPLER_LITERAL`]) or a dynamic one (the stage's runtime
     /// value modulo the heap's samplers). The samplers differ in address mode and the probe samples
     /// outside [0, 1], so the sampler chosen shows in the texel read (`probe::sampled_element`).
-    SamplerIndex, "sampler" {
+    SamplerIndex {
         Constant = "constant", Dynamic = "dynamic",
     }
 );

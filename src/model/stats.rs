@@ -1,4 +1,5 @@
-//! How sure bisection is of a verdict: the one-sided Clopper–Pearson lower bound on a faulting
+//! The statistics every verdict is judged by (bisection, workaround passes, GPU-AV, a cell's
+//! incidence). How sure bisection is of a verdict: the one-sided Clopper–Pearson lower bound on a faulting
 //! cell's fault rate, and the chance that a passing cell's attempts all missed a fault of at least
 //! that rate.
 //!
@@ -12,6 +13,10 @@
 
 /// The confidence of every bound bisection prints (`p >= x at 95%`).
 pub const CONFIDENCE: f64 = 0.95;
+
+/// The miss probability below which a pass counts (bisection's default `--max-miss`, a
+/// verified workaround).
+pub const DEFAULT_MAX_MISS: f64 = 0.01;
 
 /// `P(X >= k)` for `X ~ Binomial(n, p)`.
 pub fn binomial_tail(k: u32, n: u32, p: f64) -> f64 {
@@ -71,9 +76,10 @@ pub fn rate_bound(k: u32, n: u32) -> f64 {
     cp_lower(k, n, 1.0 - CONFIDENCE)
 }
 
-/// The chance that `n` attempts all miss a fault of rate `p`: `(1 - p)^n`.
+/// The chance that `n` independent attempts all miss (pass) a fault of rate `p`: `(1 - p)^n`
+/// (binomial, independent attempts; `p` clamped to [0, 1]).
 pub fn miss(p: f64, n: u32) -> f64 {
-    crate::report::run_report::miss_probability(p, n)
+    (1.0 - p.clamp(0.0, 1.0)).powi(n as i32)
 }
 
 /// The chance that `passes` passing attempts would all have missed a fault as frequent as a

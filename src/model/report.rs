@@ -2,11 +2,11 @@
 //! cell its axes, outcome, attempts (timings, mismatch and fault details, worker exit). Cells are
 //! kept in plan order, so reports of the same plan diff cleanly. Written atomically as the run
 //! goes (`cli::run`: at once after a fault, passes at most every 100 ms); `--resume` reads it back.
-use crate::matrix::plan::{NotGenerated, PlanStatus, RunPlan};
-use crate::matrix::{Canary, Cell};
-use crate::outcome::Outcome;
-use crate::runner::supervisor::{Attempt, WorkerEvent};
-use crate::scene::SceneParams;
+use crate::model::NotGenerated;
+use crate::model::{Canary, Cell};
+use crate::model::Outcome;
+use crate::model::{Attempt, Isolation, PatchMode, WorkerEvent};
+use crate::model::SceneParams;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use std::collections::BTreeMap;
@@ -67,11 +67,11 @@ pub struct CellReport {
     /// For a cell with a finding: whether the engines' recommended pattern nearest to it works
     /// (`report::recommended`).
     #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub recommended: Option<crate::report::recommended::PatternResult>,
+    pub recommended: Option<crate::model::PatternResult>,
     /// For a cell with a finding, with `--validate=gpu-av`: whether GPU-AV masks it
     /// (`report::gpu_av`; those attempts are not among `attempts`).
     #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub gpu_av: Option<crate::report::gpu_av::GpuAvResult>,
+    pub gpu_av: Option<crate::model::GpuAvResult>,
     #[serde(default)]
     pub attempts: Vec<Attempt>,
 }
@@ -108,15 +108,10 @@ impl Incidence {
     }
 }
 
-/// The chance that `n` independent attempts all pass when each faults with probability `p`.
-pub fn miss_probability(p: f64, n: u32) -> f64 {
-    (1.0 - p.clamp(0.0, 1.0)).powi(n as i32)
-}
-
 impl CellReport {
     /// The own/other/neither element reads of each attempt that compared (cells without
     /// `nonuniformEXT` on a dynamic descriptor index).
-    pub fn element_reads(&self) -> impl Iterator<Item = &crate::reference::ElementReads> {
+    pub fn element_reads(&self) -> impl Iterator<Item = &crate::model::ElementReads> {
         self.attempts.iter().filter_map(|a| a.result.as_ref()?.comparison.as_ref()?.element_reads.as_ref())
     }
 
@@ -173,13 +168,13 @@ impl CellReport {
             faulted: k,
             attempts: n,
             reproduced_alone: (!alone.is_empty()).then(|| alone.iter().any(|a| a.outcome.is_finding())),
-            miss_probability: miss_probability(k as f64 / n as f64, n),
+            miss_probability: crate::model::stats::miss(k as f64 / n as f64, n),
         });
         self.injected = self.attempts.iter().find_map(|a| a.injected.as_ref()).map(|i| i.spec.clone());
         // Labelled from the cell's shape, so a cell that crashed (no comparison) carries it too,
         // or from a comparison judged so (the compiler dropped a nonuniformEXT: `exec::heap`).
         let judged_undefined = self.attempts.iter().any(|a| a.result.as_ref().and_then(|r| r.comparison.as_ref()).is_some_and(|c| c.element_reads.is_some()));
-        self.outside_spec = (crate::reference::undefined_descriptor_read(&self.cell) || judged_undefined).then(|| crate::reference::NO_NONUNIFORM_VUID.to_string());
+        self.outside_spec = (crate::model::undefined_descriptor_read(&self.cell) || judged_undefined).then(|| crate::model::NO_NONUNIFORM_VUID.to_string());
         self.reason = match (&self.incidence, detail) {
             (Some(inc), d) if n > 1 => Some(format!("{} ({})", d.unwrap_or_else(|| outcome.as_str().into()), inc.label())),
             (_, d) => d,
@@ -193,7 +188,7 @@ impl CellReport {
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct WorkaroundResult {
-    pub patch: crate::matrix::cell::Workaround,
+    pub patch: crate::model::Workaround,
     pub cell: String,
     pub outcome: Outcome,
     /// The patched cell passed where the plain one did not, on enough attempts that a fault as
@@ -203,7 +198,7 @@ pub struct WorkaroundResult {
     pub verified: bool,
     /// Attempts of the patched cell that ran, and (when it passed against a finding) the chance
     /// they would all have missed a fault as frequent as the finding's
-    /// (`bisect::confidence::pass_miss`).
+    /// (`model::stats::pass_miss`).
     #[serde(default)]
     pub attempts: u32,
     #[serde(skip_serializing_if = "Option::is_none", default)]
@@ -214,7 +209,7 @@ impl WorkaroundResult {
     /// `interleave → passes (2/2; … p ≤ 0.49)` / `interleave → crash`.
     pub fn tried(&self) -> String {
         match self.outcome {
-            Outcome::Pass => format!("{} → {}", self.patch.as_str(), crate::bisect::confidence::passes_text(self.attempts, self.attempts, self.miss_probability)),
+            Outcome::Pass => format!("{} → {}", self.patch.as_str(), crate::model::stats::passes_text(self.attempts, self.attempts, self.miss_probability)),
             o => format!("{} → {}", self.patch.as_str(), o.as_str()),
         }
     }
@@ -311,6 +306,145 @@ pub struct PipelineCacheSummary {
     pub save_errors: Vec<String>,
 }
 
+/// The options a run was made with (the report's `options`): what `--resume`, `merge`, `bisect`,
+/// `repro` and the renderers read back. Fields newer than the first reports default when absent.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct RunOptions {
+    pub jobs: usize,
+    /// Threads a worker creates pipelines on (absent in reports before the prebuild).
+    #[serde(default)]
+    pub threads: Option<usize>,
+    /// The persisted pipeline cache folder (`None`: off).
+    #[serde(default)]
+    pub pipeline_cache: Option<PathBuf>,
+    /// The cache re-runs load (always `None`: re-runs start cold).
+    #[serde(default)]
+    pub rerun_pipeline_cache: Option<PathBuf>,
+    pub isolation: Isolation,
+    pub timeout_s: f64,
+    /// The worker setup deadline (absent in the first reports).
+    #[serde(default)]
+    pub setup_timeout_s: Option<f64>,
+    pub confirm: bool,
+    pub canaries: bool,
+    /// `--filter` arguments as given.
+    pub filters: Vec<String>,
+    pub patches: PatchMode,
+    pub validate: bool,
+    #[serde(default)]
+    pub gpu_av: bool,
+    /// `--inject-fault` arguments as given.
+    pub inject: Vec<String>,
+    pub repeat: Option<u32>,
+    /// `--shard I/N` as given.
+    pub shard: Option<String>,
+    /// `RTPROBE_BINDING_STAGES` as set for the run.
+    pub binding_stages: Option<String>,
+    /// A repro bundle's `shaders/` the workers ran (`run --cell-spec`).
+    #[serde(default)]
+    pub spirv_from: Option<PathBuf>,
+    /// The reports `merge` joined into this one.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub merged_from: Vec<String>,
+}
+
+impl RunOptions {
+    /// The options of a plain `rtprobe run` (unit tests of reporters and fleet tools).
+    #[cfg(test)]
+    pub fn for_tests() -> RunOptions {
+        RunOptions {
+            jobs: 1,
+            threads: Some(1),
+            pipeline_cache: None,
+            rerun_pipeline_cache: None,
+            isolation: Isolation::Worker,
+            timeout_s: 20.0,
+            setup_timeout_s: Some(120.0),
+            confirm: true,
+            canaries: false,
+            filters: vec![],
+            patches: PatchMode::Faults,
+            validate: false,
+            gpu_av: false,
+            inject: vec![],
+            repeat: None,
+            shard: None,
+            binding_stages: None,
+            spirv_from: None,
+            merged_from: vec![],
+        }
+    }
+}
+
+/// The options that change results: runs that differ in one of them are not continued
+/// (`--resume`), merged or compared like-for-like. `jobs`, `threads`, `shard` and paths do not.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ResultOption {
+    Patches,
+    Inject,
+    Filters,
+    Canaries,
+    Validate,
+    Timeout,
+    Confirm,
+    Repeat,
+    Isolation,
+    BindingStages,
+    /// Not result-changing for `merge` (shards are what it joins), but `--resume` keeps it.
+    Shard,
+}
+
+impl ResultOption {
+    /// Every option `merge` compares.
+    pub const MERGED: &'static [ResultOption] = &[
+        ResultOption::Patches,
+        ResultOption::Inject,
+        ResultOption::Filters,
+        ResultOption::Canaries,
+        ResultOption::Validate,
+        ResultOption::Timeout,
+        ResultOption::Confirm,
+        ResultOption::Repeat,
+        ResultOption::Isolation,
+        ResultOption::BindingStages,
+    ];
+
+    /// The flag (or variable) the option comes from, for messages.
+    pub fn flag(self) -> &'static str {
+        match self {
+            ResultOption::Patches => "--patches",
+            ResultOption::Inject => "--inject-fault",
+            ResultOption::Filters => "--filter",
+            ResultOption::Canaries => "--canaries",
+            ResultOption::Validate => "--validate",
+            ResultOption::Timeout => "--timeout",
+            ResultOption::Confirm => "--no-confirm",
+            ResultOption::Repeat => "--repeat",
+            ResultOption::Isolation => "--isolation",
+            ResultOption::BindingStages => "RTPROBE_BINDING_STAGES",
+            ResultOption::Shard => "--shard",
+        }
+    }
+
+    /// The option's value in `o`, as the report writes it.
+    pub fn value(self, o: &RunOptions) -> Value {
+        let v = match self {
+            ResultOption::Patches => serde_json::to_value(o.patches),
+            ResultOption::Inject => serde_json::to_value(&o.inject),
+            ResultOption::Filters => serde_json::to_value(&o.filters),
+            ResultOption::Canaries => serde_json::to_value(o.canaries),
+            ResultOption::Validate => serde_json::to_value(o.validate),
+            ResultOption::Timeout => serde_json::to_value(o.timeout_s),
+            ResultOption::Confirm => serde_json::to_value(o.confirm),
+            ResultOption::Repeat => serde_json::to_value(o.repeat),
+            ResultOption::Isolation => serde_json::to_value(o.isolation),
+            ResultOption::BindingStages => serde_json::to_value(&o.binding_stages),
+            ResultOption::Shard => serde_json::to_value(&o.shard),
+        };
+        v.unwrap_or(Value::Null)
+    }
+}
+
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct RunReport {
     pub schema: String,
@@ -323,7 +457,7 @@ pub struct RunReport {
     pub device: Value,
     pub matrix_support: Value,
     pub scene: SceneSummary,
-    pub options: Value,
+    pub options: RunOptions,
     pub plan: PlanSummary,
     pub summary: BTreeMap<String, usize>,
     #[serde(default)]
@@ -331,7 +465,7 @@ pub struct RunReport {
     pub timing: TimingSummary,
     /// With `--baseline`: how the run compared with its expectations.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub baseline: Option<crate::fleet::baseline::BaselineCheck>,
+    pub baseline: Option<crate::model::BaselineCheck>,
     /// Each worker's setup (`pass` once ready) and its faults outside any cell.
     #[serde(default)]
     pub workers: Vec<WorkerEvent>,
@@ -355,7 +489,7 @@ impl RunReport {
             device: serde_json::json!({ "name": "test device" }),
             matrix_support: serde_json::json!({}),
             scene: SceneSummary { params: SceneParams::default(), instances: 16, blas: 4, triangles: 0, ambiguous_pixels: 0 },
-            options: serde_json::json!({}),
+            options: RunOptions::for_tests(),
             plan: PlanSummary { generated: 0, filtered_out: 0, planned: cells.len(), to_run: cells.len(), unsupported: 0, not_implemented: 0, not_generated: vec![], sharded_out: 0 },
             summary: Default::default(),
             tally: Default::default(),
@@ -404,15 +538,8 @@ impl RunReport {
         self.cells.iter().filter(|c| c.cell.canary.is_none() && c.cell.patch.is_none() && c.outcome.is_finding())
     }
 
-    /// Attach to each finding what the report holds about it beyond its own attempts: its
-    /// workaround variants and its recommended pattern (`report::recommended`).
-    pub fn annotate_findings(&mut self) {
-        self.annotate_workarounds();
-        crate::report::recommended::annotate(self);
-    }
-
     /// Attach to each finding the outcome of its workaround variants present in the report.
-    fn annotate_workarounds(&mut self) {
+    pub fn annotate_workarounds(&mut self) {
         let variants: Vec<(Cell, String, Outcome, u32)> =
             self.cells.iter().filter(|c| c.cell.patch.is_some()).map(|c| (c.cell, c.id.clone(), c.outcome, c.attempts.iter().filter(|a| !a.not_run()).count() as u32)).collect();
         for c in self.cells.iter_mut().filter(|c| c.cell.patch.is_none() && c.cell.canary.is_none()) {
@@ -422,12 +549,12 @@ impl RunReport {
                 .iter()
                 .filter(|(v, _, _, _)| v.base() == c.cell)
                 .map(|(v, id, o, n)| {
-                    let miss_probability = incidence.as_ref().filter(|_| *o == Outcome::Pass).map(|i| crate::bisect::confidence::pass_miss(i.faulted, i.attempts, *n));
+                    let miss_probability = incidence.as_ref().filter(|_| *o == Outcome::Pass).map(|i| crate::model::stats::pass_miss(i.faulted, i.attempts, *n));
                     WorkaroundResult {
                         patch: v.patch.expect("filtered"),
                         cell: id.clone(),
                         outcome: *o,
-                        verified: finding && miss_probability.is_some_and(|m| m < crate::bisect::DEFAULT_MAX_MISS),
+                        verified: finding && miss_probability.is_some_and(|m| m < crate::model::stats::DEFAULT_MAX_MISS),
                         attempts: *n,
                         miss_probability,
                     }
@@ -446,97 +573,13 @@ impl RunReport {
     }
 }
 
-/// Builds the cell entries as attempts arrive, keeps them in plan order, and saves the report.
-pub struct ReportWriter {
-    pub path: PathBuf,
-    pub report: RunReport,
-    order: BTreeMap<String, usize>,
-}
-
-impl ReportWriter {
-    pub fn new(path: PathBuf, mut report: RunReport, plan: &RunPlan) -> Self {
-        let order = plan.cells.iter().enumerate().map(|(i, c)| (c.cell.id(), i)).collect();
-        for pc in &plan.cells {
-            let not_run = match &pc.status {
-                PlanStatus::Run => None,
-                PlanStatus::Unsupported { reason } => Some((Outcome::Unsupported, reason)),
-                PlanStatus::NotImplemented { reason } => Some((Outcome::NotImplemented, reason)),
-            };
-            if let Some((outcome, reason)) = not_run {
-                if !report.cells.iter().any(|c| c.id == pc.cell.id()) {
-                    report.cells.push(CellReport::unrun(&pc.cell, outcome, reason.clone()));
-                }
-            }
-        }
-        let mut w = ReportWriter { path, report, order };
-        w.sort();
-        w
-    }
-
-    fn sort(&mut self) {
-        let order = &self.order;
-        // Workaround variants sit right after their plain cell.
-        let key = |c: &CellReport| {
-            let base = c.cell.base().id();
-            let patch = c.cell.patch.map(|p| 1 + p as usize).unwrap_or(0);
-            (order.get(&c.id).or_else(|| order.get(&base)).copied().unwrap_or(usize::MAX), patch)
-        };
-        self.report.cells.sort_by_key(key);
-        self.report.recount();
-    }
-
-    /// Cells already run (for --resume): every cell with an attempt that ran it (not only failed
-    /// setups). Follow-ups (confirmation, repeats, workarounds) are chosen from the report's
-    /// state, so a resumed run finishes them.
-    pub fn done(&self) -> std::collections::HashSet<String> {
-        self.report.cells.iter().filter(|c| c.attempts.iter().any(|a| !a.not_run())).map(|c| c.id.clone()).collect()
-    }
-
-    pub fn record(&mut self, cell: &Cell, attempt: Attempt) {
-        let id = cell.id();
-        let t = &mut self.report.timing;
-        // Timing statistics only from cells that ran to completion (a hung fence wait or a crash
-        // says nothing about per-cell cost).
-        if let Some(r) = attempt.result.as_ref().filter(|r| matches!(r.outcome, Outcome::Pass | Outcome::Mismatch)) {
-            let tm = &r.timings;
-            t.compile_ms += tm.compile_ms;
-            t.pipeline_ms += tm.pipeline_ms;
-            t.setup_ms += tm.setup_ms;
-            t.trace_ms += tm.trace_ms;
-            t.check_ms += tm.check_ms;
-            t.overhead_ms += (attempt.wall_ms - tm.total_ms).max(0.0) + (tm.total_ms - tm.compile_ms - tm.pipeline_ms - tm.setup_ms - tm.trace_ms - tm.check_ms).max(0.0);
-            t.cells_timed += 1;
-        }
-        match self.report.cells.iter_mut().find(|c| c.id == id) {
-            // An unsupported entry of an older plan (resume) is replaced by what ran.
-            Some(existing) if existing.attempts.is_empty() => *existing = CellReport::new(cell, attempt),
-            Some(existing) => {
-                existing.attempts.push(attempt);
-                existing.refresh();
-            }
-            None => self.report.cells.push(CellReport::new(cell, attempt)),
-        }
-        self.sort();
-    }
-
-    pub fn record_worker(&mut self, event: WorkerEvent) {
-        self.report.workers.push(event);
-    }
-
-    /// Save (compact while running, pretty when final).
-    pub fn save(&self, pretty: bool) -> Result<(), crate::report::atomic::WriteError> {
-        let bytes = if pretty { serde_json::to_vec_pretty(&self.report) } else { serde_json::to_vec(&self.report) }.expect("report serializes");
-        crate::report::atomic::write_atomic_with(&self.path, &bytes, pretty)
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::matrix::{DescriptorModel, IndexSource, Resource, Stage};
+    use crate::model::{DescriptorModel, IndexSource, Resource, Stage};
 
     fn cell() -> Cell {
-        Cell { stage: Stage::ClosestHit, resource: Resource::StorageBuffer, index: IndexSource::Dynamic, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None, reorder: None, base: None, sampler: None }
+        Cell::new(Stage::ClosestHit, Resource::StorageBuffer, IndexSource::Dynamic, DescriptorModel::DescriptorIndexing)
     }
 
     fn attempt(outcome: Outcome, isolated: bool) -> Attempt {
@@ -578,8 +621,8 @@ mod tests {
 
     #[test]
     fn miss_probability_is_binomial() {
-        assert!((miss_probability(0.5, 8) - 1.0 / 256.0).abs() < 1e-15);
-        assert_eq!(miss_probability(1.0, 3), 0.0);
-        assert_eq!(miss_probability(0.0, 3), 1.0);
+        assert!((crate::model::stats::miss(0.5, 8) - 1.0 / 256.0).abs() < 1e-15);
+        assert_eq!(crate::model::stats::miss(1.0, 3), 0.0);
+        assert_eq!(crate::model::stats::miss(0.0, 3), 1.0);
     }
 }

@@ -1,7 +1,7 @@
 //! The closed set of cell outcomes and what a worker reports for one cell. Every reporter
 //! matches [`Outcome`] exhaustively (no wildcard arms), so a new outcome cannot be forgotten.
-use crate::reference::Comparison;
-use crate::vk::fault::FaultInfo;
+use crate::model::Comparison;
+use crate::model::FaultInfo;
 use serde::{Deserialize, Serialize};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]

@@ -1,4 +1,5 @@
-//! One cell of the matrix and its stable id, built from the axes (never from run order):
+//! One cell of the matrix: its axis values, where each optional axis applies, and its stable id,
+//! built from the axes by the registry (never from run order):
 //! `stage.resource.index[.nonuniform][.as_access].descriptor_model[.heap_access][.reorder][.base_<base>][.sampler_<sampler>][.patch-<name>]`,
 //! or `canary.<name>`.
 use super::axes::{AsAccess, BaseSource, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource, SamplerIndex, Stage};
@@ -17,6 +18,10 @@ pub enum Canary {
 
 impl Canary {
     pub const ALL: &'static [Canary] = &[Canary::InvalidAddress, Canary::InfiniteLoop];
+    pub const NAMES: &'static [&'static str] = &["invalid_address", "infinite_loop"];
+    pub fn parse(s: &str) -> Option<Canary> {
+        Canary::ALL.iter().copied().find(|c| c.as_str() == s)
+    }
     pub fn as_str(self) -> &'static str {
         match self {
             Canary::InvalidAddress => "invalid_address",
@@ -41,6 +46,10 @@ pub enum Workaround {
 
 impl Workaround {
     pub const ALL: &'static [Workaround] = &[Workaround::Nonuniform, Workaround::PinIndex, Workaround::AsToAddress, Workaround::SsboToAddress];
+    pub const NAMES: &'static [&'static str] = &["nonuniform", "pin-index", "as-to-address", "ssbo-to-address"];
+    pub fn parse(s: &str) -> Option<Workaround> {
+        Workaround::ALL.iter().copied().find(|w| w.as_str() == s)
+    }
     pub fn as_str(self) -> &'static str {
         match self {
             Workaround::Nonuniform => "nonuniform",
@@ -119,21 +128,15 @@ pub struct Cell {
 }
 
 impl Cell {
+    /// A probe cell with these four axes and every optional axis unset: the builder of tests and
+    /// of the plan (`Cell { base: Some(b), ..Cell::new(…) }`), so a new optional axis touches
+    /// neither.
+    pub fn new(stage: Stage, resource: Resource, index: IndexSource, descriptor_model: DescriptorModel) -> Cell {
+        Cell { stage, resource, index, nonuniform: false, as_access: None, descriptor_model, heap_access: None, canary: None, patch: None, reorder: None, base: None, sampler: None }
+    }
+
     pub fn canary(c: Canary) -> Cell {
-        Cell {
-            stage: Stage::Raygen,
-            resource: Resource::StorageBuffer,
-            index: IndexSource::Literal,
-            nonuniform: false,
-            as_access: None,
-            descriptor_model: DescriptorModel::DescriptorIndexing,
-            heap_access: None,
-            canary: Some(c),
-            patch: None,
-            reorder: None,
-            base: None,
-            sampler: None,
-        }
+        Cell { canary: Some(c), ..Cell::new(Stage::Raygen, Resource::StorageBuffer, IndexSource::Literal, DescriptorModel::DescriptorIndexing) }
     }
 
     /// Reordering before the probed read can only be observed by a closest-hit probe (the hit
@@ -227,66 +230,7 @@ impl Cell {
         }
         v
     }
-
-    pub fn id(&self) -> String {
-        if let Some(c) = self.canary {
-            return format!("canary.{}", c.as_str());
-        }
-        let mut parts = vec![self.stage.as_str(), self.resource.as_str(), self.index.as_str()];
-        if self.nonuniform {
-            parts.push("nonuniform");
-        }
-        if let Some(a) = self.as_access {
-            parts.push(a.as_str());
-        }
-        parts.push(self.descriptor_model.as_str());
-        if let Some(h) = self.heap_access {
-            parts.push(h.as_str());
-        }
-        if let Some(r) = self.reorder {
-            parts.push(r.as_str());
-        }
-        let mut id = parts.join(".");
-        if let Some(b) = self.base {
-            id.push_str(".base_");
-            id.push_str(b.as_str());
-        }
-        if let Some(s) = self.sampler {
-            id.push_str(".sampler_");
-            id.push_str(s.as_str());
-        }
-        if let Some(p) = self.patch {
-            id.push_str(".patch-");
-            id.push_str(p.as_str());
-        }
-        id
-    }
-
-    /// The value of an axis by its name, for filters.
-    pub fn axis_value(&self, axis: &str) -> Option<String> {
-        Some(match axis {
-            "stage" => self.stage.as_str().into(),
-            "resource" => self.resource.as_str().into(),
-            "index" => self.index.as_str().into(),
-            "nonuniform" => self.nonuniform.to_string(),
-            "as_access" => self.as_access.map(|a| a.as_str()).unwrap_or("none").into(),
-            "descriptor_model" => self.descriptor_model.as_str().into(),
-            "heap_access" => self.heap_access.map(|h| h.as_str()).unwrap_or("none").into(),
-            "canary" => self.canary.map(|c| c.as_str()).unwrap_or("none").into(),
-            "patch" => self.patch.map(|p| p.as_str()).unwrap_or("none").into(),
-            "reorder" => self.reorder.map(|r| r.as_str()).unwrap_or("none").into(),
-            "base" => match self.base {
-                Some(b) => b.as_str().into(),
-                None if self.base_applies() => "push_data".into(),
-                None => "none".into(),
-            },
-            "sampler" => self.sampler.map(|s| s.as_str()).unwrap_or("none").into(),
-            _ => return None,
-        })
-    }
 }
-
-pub const AXIS_NAMES: &[&str] = &["stage", "resource", "index", "nonuniform", "as_access", "descriptor_model", "heap_access", "canary", "patch", "reorder", "base", "sampler"];
 
 #[cfg(test)]
 mod tests {
@@ -294,20 +238,7 @@ mod tests {
 
     #[test]
     fn ids_are_readable_and_stable() {
-        let c = Cell {
-            stage: Stage::ClosestHit,
-            resource: Resource::StorageBuffer,
-            index: IndexSource::Dynamic,
-            nonuniform: true,
-            as_access: None,
-            descriptor_model: DescriptorModel::DescriptorIndexing,
-            heap_access: None,
-            canary: None,
-            patch: None,
-            reorder: None,
-            base: None,
-            sampler: None,
-        };
+        let c = Cell { nonuniform: true, ..Cell::new(Stage::ClosestHit, Resource::StorageBuffer, IndexSource::Dynamic, DescriptorModel::DescriptorIndexing) };
         assert_eq!(c.id(), "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_indexing");
         assert_eq!(c.axis_value("base").as_deref(), Some("push_data"));
         let b = Cell { base: Some(BaseSource::ShaderRecord), ..c };
@@ -331,4 +262,23 @@ mod tests {
         assert_eq!(h.id(), "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_heap.mapped_push_index");
         assert_eq!(h.axis_value("heap_access").as_deref(), Some("mapped_push_index"));
     }
+}
+
+/// The rule a dynamic descriptor index without `nonuniformEXT` breaks.
+pub const NO_NONUNIFORM_VUID: &str = "VUID-RuntimeSpirv-NonUniform-06274";
+
+/// Whether `cell` indexes a descriptor array with a non-uniform value that carries no
+/// `NonUniform` ([`NO_NONUNIFORM_VUID`]): not after the nonuniform / pin-index patches, and not
+/// where no descriptor is indexed any more (an address table, written so or patched), since a
+/// non-uniform index into memory is well defined.
+pub fn undefined_descriptor_read(cell: &Cell) -> bool {
+    let descriptor_indexed = match cell.as_access {
+        None | Some(AsAccess::Descriptor) => true,
+        Some(AsAccess::Address | AsAccess::AddressPatched) => false,
+    };
+    let patch_keeps_it = match cell.patch {
+        None => true,
+        Some(Workaround::Nonuniform | Workaround::PinIndex | Workaround::AsToAddress | Workaround::SsboToAddress) => false,
+    };
+    cell.index == IndexSource::Dynamic && !cell.nonuniform && descriptor_indexed && patch_keeps_it
 }

@@ -27,7 +27,7 @@ pub enum PictureError {
     #[error("{path}: {source}")]
     Io { path: PathBuf, source: std::io::Error },
     #[error(transparent)]
-    Write(#[from] crate::report::atomic::WriteError),
+    Write(#[from] crate::atomic::WriteError),
     #[error("{path}: {source}")]
     Encode { path: PathBuf, source: png::EncodingError },
     #[error("{expected} expected records for {actual} actual ones")]
@@ -104,7 +104,7 @@ fn write_png(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<(), Pic
         w.write_image_data(rgb).map_err(encode)?;
         w.finish().map_err(encode)?;
     }
-    Ok(crate::report::atomic::write_atomic_with(path, &bytes, false)?)
+    Ok(crate::atomic::write_atomic_with(path, &bytes, false)?)
 }
 
 /// Write `expected.png`, `actual.png` and `diff.png` into `dir`; returns their paths in that order.

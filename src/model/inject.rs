@@ -176,10 +176,10 @@ fn mix(seed: u64, cell_id: &str) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::matrix::{Canary, DescriptorModel, IndexSource, Resource, Stage};
+    use crate::model::{Canary, DescriptorModel, IndexSource, Resource, Stage};
 
     fn cell(stage: Stage, index: IndexSource) -> Cell {
-        Cell { stage, resource: Resource::StorageBuffer, index, nonuniform: false, as_access: None, descriptor_model: DescriptorModel::DescriptorIndexing, heap_access: None, canary: None, patch: None, reorder: None, base: None, sampler: None }
+        Cell::new(stage, Resource::StorageBuffer, index, DescriptorModel::DescriptorIndexing)
     }
 
     #[test]

@@ -1,0 +1,108 @@
+//! What the commands that run or re-run cells share: the report they start from and its device,
+//! workers and threads per device type, the supervisor options of a re-run, and the
+//! result-changing `RTPROBE_BINDING_STAGES` a report was made with.
+use super::commands::{open_instance, Globals};
+use super::exit::{self, coded};
+use crate::model::{Injection, Isolation, RunReport, SceneParams};
+use crate::runner::supervisor::SupervisorOptions;
+use crate::vk::{features, DeviceInfo, Instance};
+use anyhow::Result;
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Duration;
+
+pub fn load_report(path: &Path) -> Result<RunReport> {
+    RunReport::load(path).map_err(|e| coded(exit::BAD_INPUT, e))
+}
+
+/// The device the report was made on, on this machine: the same card (device UUID) if it is here,
+/// else a card of the same name and driver build (name, driver version, driver UUID) — another
+/// machine of a fleet, or the same model leased again, reproduces a driver's fault as well. The
+/// third value is the device UUID of the card used when it is not the report's (a one-line
+/// warning says so on stderr; bisect records it as `device_uuid_rerun`).
+pub(crate) fn report_device(g: &Globals, r: &RunReport) -> Result<(Arc<Instance>, DeviceInfo, Option<String>)> {
+    let inst = open_instance(g)?;
+    let all = features::query_all(&inst)?;
+    let same = |d: &DeviceInfo, keys: &[&str]| {
+        let j = crate::caps::device_json(d);
+        keys.iter().all(|k| j[*k] == r.device[*k])
+    };
+    const DRIVER: [&str; 3] = ["name", "driver_version", "driver_uuid"];
+    let card = all.iter().find(|d| same(d, &DRIVER) && same(d, &["device_uuid"]));
+    let other = card.is_none();
+    let info = card.or_else(|| all.iter().find(|d| same(d, &DRIVER))).cloned().ok_or_else(|| {
+        coded(
+            exit::BAD_DEVICE_SELECTION,
+            format!(
+                "the report was made on {} (driver {}), which is not on this machine; `rtprobe bisect --offline` uses the report's verdicts alone",
+                r.device["name"].as_str().unwrap_or("?"),
+                r.device["driver_version"]["decoded"].as_str().unwrap_or("?")
+            ),
+        )
+    })?;
+    let rerun = other.then(|| {
+        let j = crate::caps::device_json(&info);
+        let uuid = j["device_uuid"].as_str().unwrap_or("?").to_string();
+        eprintln!(
+            "rtprobe: warning: the report's card (UUID {}) is not here; re-running on {} UUID {uuid} of the same driver build",
+            r.device["device_uuid"].as_str().unwrap_or("?"),
+            j["name"].as_str().unwrap_or("?")
+        );
+        uuid
+    });
+    Ok((inst, info, rerun))
+}
+
+/// One worker per core on CPU implementations (lavapipe JITs each pipeline on one thread), one
+/// on GPUs (the driver parallelises; several processes only contend for one device).
+pub(crate) fn default_jobs(info: &crate::vk::DeviceInfo) -> usize {
+    if info.properties.core.device_type == ash::vk::PhysicalDeviceType::CPU {
+        std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1).clamp(1, 8)
+    } else {
+        1
+    }
+}
+
+/// Pipeline-creation threads per worker: the cores (at most 16) on GPUs, where creating
+/// pipelines is most of a cell's time; 1 on CPU devices, whose workers already take one core
+/// each and which compile at the first trace (measured on lavapipe: README, Performance).
+pub(crate) fn default_threads(info: &crate::vk::DeviceInfo) -> usize {
+    if info.properties.core.device_type == ash::vk::PhysicalDeviceType::CPU {
+        1
+    } else {
+        std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1).clamp(1, 16)
+    }
+}
+
+/// The supervisor options of a run (also used by `bisect`): no dump, the job files under the temp
+/// dir, one thread, and no persisted pipeline cache: a re-run of a report's cells starts cold, so
+/// that a cached binary cannot stand in for the cell's own compile (`run` sets its own folder).
+pub(crate) fn supervisor_options(device_index: usize, scene: SceneParams, jobs: usize, isolation: Isolation, timeout_s: f64, validate: bool, inject: Vec<Injection>) -> SupervisorOptions {
+    SupervisorOptions {
+        device_index,
+        scene,
+        jobs,
+        isolation,
+        timeout: Duration::from_secs_f64(timeout_s),
+        setup_timeout: Duration::from_secs(120),
+        grace: Duration::from_millis(500),
+        kill_wait: Duration::from_secs(5),
+        validate,
+        gpu_av: false,
+        inject,
+        dump: None,
+        spirv_dir: None,
+        job_dir: std::env::temp_dir().join(format!("rtprobe-{}", std::process::id())),
+        threads: 1,
+        pipeline_cache: None,
+    }
+}
+
+/// Set `RTPROBE_BINDING_STAGES` as a report's run had it (it changes results), for this process
+/// and the workers it starts: re-runs of a report's cells (`--cell-spec`, `bisect`).
+pub(crate) fn use_binding_stages(v: Option<&str>) {
+    match v {
+        Some(v) => std::env::set_var("RTPROBE_BINDING_STAGES", v),
+        None => std::env::remove_var("RTPROBE_BINDING_STAGES"),
+    }
+}

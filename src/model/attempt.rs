@@ -1,0 +1,101 @@
+//! One run of one cell (`Attempt`), how a worker ended, its own records, and how cells are
+//! isolated: what the supervisor records and every report keeps.
+use serde::{Deserialize, Serialize};
+use crate::model::{CellResult, Outcome, Phase};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Isolation {
+    /// One worker runs many cells and is replaced after a fault.
+    Worker,
+    /// Every cell runs in a fresh worker process.
+    ProcessPerCell,
+}
+
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct WorkerExit {
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub code: Option<i32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub signal: Option<i32>,
+    #[serde(skip_serializing_if = "String::is_empty", default)]
+    pub stderr_tail: String,
+    /// Set when the process did not die after SIGKILL within the bound (stuck in the kernel,
+    /// e.g. uninterruptible sleep in the driver): it was left behind, and this says so.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub abandoned: Option<String>,
+}
+
+/// One run of one cell.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Attempt {
+    pub outcome: Outcome,
+    /// Ran alone in a fresh worker (a `--confirm` re-run, or process-per-cell isolation).
+    pub isolated: bool,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub detail: Option<String>,
+    /// The worker's own report (absent when the worker died or hung).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub result: Option<CellResult>,
+    /// How the worker ended, when it ended during this cell.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub worker_exit: Option<WorkerExit>,
+    /// The fault `--inject-fault` put into this attempt (recorded even when the worker died).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub injected: Option<crate::model::InjectedFault>,
+    pub wall_ms: f64,
+    /// The worker's last phase when the attempt ended (`setup`: the cell never ran because its
+    /// worker's setup failed).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub phase: Option<Phase>,
+    /// The worker that ran it (`worker` of the report's `workers` entries; 0 in older reports).
+    #[serde(default)]
+    pub worker: u64,
+    /// What the worker's device was created with (extensions, then feature bits).
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub device_features: Vec<String>,
+}
+
+impl Attempt {
+    /// An attempt with only an outcome (unit tests of reporters and fleet tools).
+    #[cfg(test)]
+    pub fn for_tests(outcome: Outcome, isolated: bool) -> Attempt {
+        Attempt { outcome, isolated, detail: Some(format!("{} happened", outcome.as_str())), result: None, worker_exit: None, injected: None, wall_ms: 1.0, phase: None, worker: 0, device_features: vec![] }
+    }
+
+    /// The cell never ran: its worker's setup failed.
+    pub fn not_run(&self) -> bool {
+        self.phase == Some(Phase::Setup)
+    }
+}
+
+/// A worker's own record: its setup (`pass` once it is ready) or a fault outside any cell
+/// (between two cells, in teardown).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct WorkerEvent {
+    pub worker: u64,
+    pub phase: Phase,
+    pub outcome: Outcome,
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub detail: Option<String>,
+    /// Cells the worker was given.
+    pub cells: usize,
+    pub wall_ms: f64,
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub device_features: Vec<String>,
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub worker_exit: Option<WorkerExit>,
+}
+
+pub fn signal_name(sig: i32) -> &'static str {
+    match sig {
+        libc::SIGSEGV => "SIGSEGV",
+        libc::SIGBUS => "SIGBUS",
+        libc::SIGABRT => "SIGABRT",
+        libc::SIGILL => "SIGILL",
+        libc::SIGFPE => "SIGFPE",
+        libc::SIGKILL => "SIGKILL",
+        libc::SIGTERM => "SIGTERM",
+        _ => "signal",
+    }
+}

@@ -1,0 +1,96 @@
+//! Comparison of a cell's records with the CPU reference: counts, worst errors, examples.
+use serde::{Deserialize, Serialize};
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Mismatch {
+    pub pixel: [u32; 2],
+    pub field: String,
+    pub expected: String,
+    pub actual: String,
+}
+
+/// Pixels of a cell without `nonuniformEXT` on its dynamic index (outside the spec's guarantees,
+/// see [`NO_NONUNIFORM_VUID`]), by what they read.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ElementReads {
+    /// The rule these cells break: the spec guarantees nothing about which element they read.
+    pub outside_spec: String,
+    /// Read their own element (as with `nonuniformEXT`).
+    pub own: usize,
+    /// Read another element of the array (allowed: which one is undefined).
+    pub other: usize,
+    /// Read neither: a mismatch.
+    pub neither: usize,
+}
+
+/// f64 figures that may be NaN or ∞: a number in JSON when finite, else "NaN" / "inf" / "-inf".
+mod float_or_string {
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    pub fn serialize<S: Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
+        if v.is_finite() {
+            v.serialize(s)
+        } else {
+            v.to_string().serialize(s)
+        }
+    }
+
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum Either {
+        Num(f64),
+        Text(String),
+        Null(()),
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        Ok(match Either::deserialize(d)? {
+            Either::Num(v) => v,
+            Either::Text(t) => t.parse().map_err(serde::de::Error::custom)?,
+            Either::Null(()) => f64::NAN,
+        })
+    }
+}
+
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Comparison {
+    pub pixels: usize,
+    pub compared: usize,
+    pub ambiguous: usize,
+    pub mismatched_pixels: usize,
+    /// Compared pixels on which the probed stage must run and its value is checked: the records an
+    /// injected wrong value (`value:F`) can be caught on (`rtprobe bench`'s n).
+    #[serde(default)]
+    pub probe_checked: usize,
+    /// Mismatch counts per field (stable order).
+    pub by_field: std::collections::BTreeMap<String, usize>,
+    /// Largest relative `t` error and absolute barycentric / value error seen on compared pixels
+    /// (NaN when any compared value was NaN).
+    #[serde(with = "float_or_string")]
+    pub worst_t_rel: f64,
+    #[serde(with = "float_or_string")]
+    pub worst_bary: f64,
+    #[serde(with = "float_or_string")]
+    pub worst_value: f64,
+    /// Pixels whose value was checked against every element of the array (see [`ValueRule`]).
+    #[serde(default)]
+    pub any_element_values: usize,
+    /// Share of exactly checked probe pixels on which reading any other slot or element would
+    /// have been caught; `None` when no probe pixel was checked exactly.
+    #[serde(default)]
+    pub discrimination: Option<f64>,
+    /// Cells without `nonuniformEXT` on a dynamic index: what their pixels read.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub element_reads: Option<ElementReads>,
+    /// The first few mismatches, for the report.
+    pub examples: Vec<Mismatch>,
+    /// Pictures of a mismatching comparison (expected, actual, diff PNGs; `run --dump`).
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub pictures: Vec<String>,
+}
+
+impl Comparison {
+    pub fn passed(&self) -> bool {
+        self.mismatched_pixels == 0
+    }
+}

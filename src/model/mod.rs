@@ -1,0 +1,39 @@
+//! The data layer: everything rtprobe writes down or reads back — axes and cells, outcomes,
+//! comparisons, attempts, plans, run reports with their typed options, baselines, bisections —
+//! and the statistics they are judged by. Serde types and pure functions only: this module
+//! imports nothing else of the crate, and everything above reads and writes through it (as
+//! nextest keeps its schema below its runner).
+pub mod attempt;
+pub mod bundle;
+pub mod axes;
+pub mod baseline;
+pub mod bisection;
+pub mod cell;
+pub mod comparison;
+pub mod fault;
+pub mod filter;
+pub mod findings;
+pub mod inject;
+pub mod outcome;
+pub mod phase;
+pub mod plan;
+pub mod registry;
+pub mod report;
+pub mod scene;
+pub mod stats;
+
+pub use attempt::{signal_name, Attempt, Isolation, WorkerEvent, WorkerExit};
+pub use axes::{AsAccess, BaseSource, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource, SamplerIndex, Stage};
+pub use baseline::{Baseline, BaselineCheck, CellCheck, Expectation, PerfBound, Status, WorkerFault};
+pub use bisection::{BisectFile, Bisection, IsolationLine};
+pub use cell::{undefined_descriptor_read, Canary, Cell, Pattern, Workaround, NO_NONUNIFORM_VUID};
+pub use comparison::{Comparison, ElementReads, Mismatch};
+pub use fault::{FaultAddress, FaultInfo, FaultVendorInfo};
+pub use filter::Filter;
+pub use findings::{GpuAvResult, GpuAvVerdict, PatternResult, PatternStatus};
+pub use inject::{FaultKind, InjectedFault, Injection};
+pub use outcome::{CellResult, Outcome, Timings};
+pub use phase::Phase;
+pub use plan::{NotGenerated, PatchMode, PlanStatus, PlannedCell, RunPlan};
+pub use report::{CellReport, Incidence, RunReport, WorkaroundResult};
+pub use scene::SceneParams;
