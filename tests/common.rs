@@ -4,7 +4,7 @@ use std::process::{Command, Output};
 
 pub fn bin() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_rtprobe"));
-    // Validation on by default in tests when the layer is installed (see README).
+    // Validation on by default in tests when the layer is installed (see docs/environment.md).
     if std::path::Path::new("/usr/share/vulkan/explicit_layer.d/VkLayer_khronos_validation.json").exists() {
         c.env("RTPROBE_VALIDATE", "1");
     }

@@ -50,7 +50,7 @@ fn stress_report_has_every_case_with_the_contract_fields() {
 }
 
 /// What lavapipe does must stay within what the rules allow; where it deviates (leaks, double
-/// hits, a zero-area hit) the deviation must be the one documented in the README.
+/// hits, a zero-area hit) the deviation must be the one documented in docs/stress.md.
 #[test]
 fn lavapipe_figures_stay_within_the_rules() {
     let (_out, doc, _dir) = stress(&["--cases", "watertight,far,grazing,degenerate,tmin,transform"]);
@@ -109,7 +109,7 @@ fn lavapipe_figures_stay_within_the_rules() {
         }
     }
     // degenerate: NaN-X and coincident vertices never hit; the one false hit lavapipe shows is the
-    // collinear triangle (primitive 1), written up in the README.
+    // collinear triangle (primitive 1), written up in docs/stress.md.
     let d = case(&doc, "degenerate");
     for e in d["examples"].as_array().unwrap().iter().filter(|e| e["kind"] == "false_hit") {
         assert_eq!(e["hit"][0], 1, "{e}");

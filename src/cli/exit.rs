@@ -1,4 +1,4 @@
-//! Process exit codes (documented in `--help` and the README) and the mapping from errors to them.
+//! Process exit codes (documented in `--help` and docs/exit-codes.md) and the mapping from errors to them.
 use crate::vk::VkError;
 
 pub const OK: u8 = 0;

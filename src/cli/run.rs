@@ -57,7 +57,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         use_binding_stages(spec.binding_stages.as_deref());
         let mut args = spec.run_args(a)?;
         args.spirv_dir = spec.spirv_dir(p)?;
-        // The cell's own compile, not a binary a cache kept from another run (README, Performance).
+        // The cell's own compile, not a binary a cache kept from another run (docs/performance.md).
         args.pipeline_cache = Some("off".into());
         if let Some(dir) = &args.spirv_dir {
             let made_by: std::collections::BTreeSet<&str> = spec.modules.iter().map(|m| m.compiler.as_str()).collect();

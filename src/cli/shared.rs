@@ -65,7 +65,7 @@ pub(crate) fn default_jobs(info: &crate::vk::DeviceInfo) -> usize {
 
 /// Pipeline-creation threads per worker: the cores (at most 16) on GPUs, where creating
 /// pipelines is most of a cell's time; 1 on CPU devices, whose workers already take one core
-/// each and which compile at the first trace (measured on lavapipe: README, Performance).
+/// each and which compile at the first trace (measured on lavapipe: docs/performance.md).
 pub(crate) fn default_threads(info: &crate::vk::DeviceInfo) -> usize {
     if info.properties.core.device_type == ash::vk::PhysicalDeviceType::CPU {
         1
