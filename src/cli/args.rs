@@ -371,7 +371,8 @@ pub struct PatchArgs {
     /// Input: a SPIR-V binary (or GLSL source with --glsl)
     pub input: Option<PathBuf>,
 
-    /// Patches to apply, in order: as-to-address, nonuniform, pin-index (comma-separated)
+    /// Patches to apply, in order (comma-separated): as-to-address, nonuniform, pin-index,
+    /// ssbo-to-address (`rtprobe patch --list` describes each)
     #[arg(long, short = 'a', value_delimiter = ',', value_name = "PATCH,...")]
     pub apply: Vec<String>,
 
