@@ -1,12 +1,15 @@
 //! The probe contract shared by the GPU side (`shadergen`) and the CPU side (`reference`): the
 //! record every probe writes per pixel, the push constants, its flags, which slot and element each
 //! index source selects, the value each resource slot holds, and the TLAS variants the
-//! acceleration-structure slots refer to.
+//! acceleration-structure slots refer to. What a cell's axis values mean for its probe is
+//! resolved once, in [`spec`] ([`spec::ProbeSpec::of`]).
 //!
 //! One source of truth: the GLSL `struct Record`, the `Records` buffer and the push-constant block
 //! are generated from the Rust structs here ([`glsl_declarations`]); member offsets come from
 //! `offset_of!`, and a unit test checks them against the std430 rules GLSL applies.
 //! `probes/common.glsl` holds only functions and constants that mirror functions here.
+pub mod spec;
+
 use crate::model::{Resource, Stage};
 use std::mem::offset_of;
 
