@@ -302,14 +302,14 @@ pub fn base_buffer(instances: u32) -> Vec<u8> {
 
 /// The base a hit shader adds to the masked custom index, for a hit on instance `instance_id`
 /// (`sphere`: the procedural hit group): push data's [`DYNAMIC_BASE`], the hit group's record
-/// base, or the instance's entry of the bases buffer.
-pub fn hit_base(base: Option<crate::model::BaseSource>, instance_id: u32, sphere: bool) -> u32 {
-    use crate::model::BaseSource;
+/// base, or the instance's entry of the bases buffer (`spec::Base::None`, where no dynamic value
+/// is computed: push data's, never read).
+pub fn hit_base(base: spec::Base, instance_id: u32, sphere: bool) -> u32 {
     match base {
-        None => DYNAMIC_BASE,
-        Some(BaseSource::ShaderRecord) if sphere => RECORD_BASE_PROCEDURAL,
-        Some(BaseSource::ShaderRecord) => RECORD_BASE_TRIANGLES,
-        Some(BaseSource::Buffer) => instance_base(instance_id),
+        spec::Base::None | spec::Base::PushData => DYNAMIC_BASE,
+        spec::Base::ShaderRecord if sphere => RECORD_BASE_PROCEDURAL,
+        spec::Base::ShaderRecord => RECORD_BASE_TRIANGLES,
+        spec::Base::InstanceBuffer => instance_base(instance_id),
     }
 }
 
