@@ -12,7 +12,7 @@ pub mod include;
 mod inject;
 mod probe_code;
 
-use crate::model::{AsAccess, Canary, Cell, Reorder, Resource, Stage};
+use crate::model::{Canary, Cell, Reorder, Stage};
 use crate::probe::spec::ProbeSpec;
 use probe_code::ProbeCode;
 
@@ -355,23 +355,6 @@ fn canary(c: Canary) -> CellShaders {
     CellShaders { kind: PipelineKind::RayTracing, shaders, recursion_depth: 1, uses_probe_binding: false, uses_scene_tlas: true, uses_ray_query: false }
 }
 
-/// Whether this cell's AS probe reaches the AS through an address (written so, or patched).
-pub fn as_by_address(cell: &Cell) -> bool {
-    cell.resource == Resource::AccelerationStructure
-        && (matches!(cell.as_access, Some(AsAccess::Address | AsAccess::AddressPatched)) || cell.patch == Some(crate::model::cell::Workaround::AsToAddress))
-}
-
-/// `as_access=address_patched` runs the `descriptor` variant's shaders rewritten by the
-/// as-to-address patch: this is the cell whose GLSL is generated.
-pub fn source_cell(cell: &Cell) -> Cell {
-    let c = Cell { patch: None, ..*cell };
-    if cell.as_access == Some(AsAccess::AddressPatched) {
-        Cell { as_access: Some(AsAccess::Descriptor), ..c }
-    } else {
-        c
-    }
-}
-
 /// Push-constant offset of the table address the address patches add (the end of the probes'
 /// own block, `probe::PushConstants`).
 pub const PATCHED_TABLE_OFFSET: u32 = crate::probe::PATCHED_TABLE_OFFSET;
@@ -379,7 +362,7 @@ pub const PATCHED_TABLE_OFFSET: u32 = crate::probe::PATCHED_TABLE_OFFSET;
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::{DescriptorModel, IndexSource};
+    use crate::model::{AsAccess, DescriptorModel, IndexSource, Resource};
 
     fn reorder_cell(r: Option<Reorder>, resource: Resource) -> Cell {
         let as_access = (resource == Resource::AccelerationStructure).then_some(AsAccess::Descriptor);
