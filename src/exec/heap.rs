@@ -27,6 +27,7 @@
 use crate::probe::PUSH_CONSTANT_BYTES;
 use super::resources::{descriptor_type, Target};
 use crate::model::{HeapAccess, Resource};
+use crate::probe::spec::{Access, ArrayAt, ProbeSpec, Sampler};
 use crate::vk::features::PROBE_IMAGE_FORMAT;
 use crate::vk::heap::{self as h, MappingSource};
 use crate::vk::memory::{Buffer, Location};
@@ -492,14 +493,13 @@ impl DroppedNonUniform {
 }
 
 /// For a `direct` heap cell: which heap accesses lost the `nonuniformEXT` the GLSL gave them
-/// (`probe_code`: the descriptor index with `nonuniform`, a dynamic sampler index except where the
-/// cell's own dynamic index goes without the qualifier).
-pub fn dropped_nonuniform(cell: &crate::model::Cell, spirv: &[std::sync::Arc<Vec<u32>>]) -> Option<DroppedNonUniform> {
-    if cell.heap_access != Some(HeapAccess::Direct) {
+/// (where the spec qualifies them: the descriptor index, the dynamic sampler index).
+pub fn dropped_nonuniform(spec: &ProbeSpec, spirv: &[std::sync::Arc<Vec<u32>>]) -> Option<DroppedNonUniform> {
+    if spec.array != ArrayAt::Heap {
         return None;
     }
-    let wants_resource = cell.nonuniform;
-    let wants_sampler = cell.sampler_nonuniform();
+    let wants_resource = spec.access == (Access::Slot { nonuniform: true });
+    let wants_sampler = spec.sampler == (Sampler::Dynamic { nonuniform: true });
     let scans: Vec<HeapNonUniform> = spirv.iter().map(|w| heap_nonuniform(w)).collect();
     let lost = |get: fn(&HeapNonUniform) -> Option<bool>| scans.iter().any(|h| get(h) == Some(false));
     let d = DroppedNonUniform { resource: wants_resource && lost(|h| h.resource), sampler: wants_sampler && lost(|h| h.sampler) };

@@ -15,6 +15,7 @@ pub mod resources;
 use crate::model::{Canary, Cell, Resource};
 use crate::model::InjectedFault;
 use crate::model::{CellResult, Outcome, Timings};
+use crate::probe::spec::{ArrayAt, ProbeSpec, ReadIndex};
 use crate::probe::{self, Record, RECORD_SIZE};
 use crate::reference::{self, SceneReference};
 use crate::model::Phase;
@@ -222,7 +223,7 @@ impl Executor {
     /// they retry it and report it as their own `error`.
     pub fn prepare(&mut self, cells: &[Cell]) -> Result<(), CellError> {
         for cell in cells {
-            let shaders = shadergen::generate(&shadergen::source_cell(cell));
+            let shaders = shadergen::generate(cell);
             if let Err(e) = self.ensure_resources(cell, &shaders) {
                 if e.outcome() != Outcome::Error {
                     return Err(e);
@@ -280,7 +281,7 @@ impl Executor {
             return none(Outcome::Pass, &format!("canary {} ran to completion: this driver did not fault on it", c.as_str()));
         }
         let undefined = reference::Undefined {
-            descriptor: crate::model::undefined_descriptor_read(cell) || dropped.is_some_and(|d| d.resource),
+            descriptor: ProbeSpec::of(cell).read == ReadIndex::Undefined || dropped.is_some_and(|d| d.resource),
             sampler: dropped.is_some_and(|d| d.sampler),
         };
         let expected = reference::expected_with(cell, &self.scene, &self.sref, undefined);
@@ -335,24 +336,25 @@ impl Executor {
     /// The scene, resource arrays, address tables and color target `cell` needs (built once,
     /// normally by [`Executor::prepare`]).
     fn ensure_resources(&mut self, cell: &Cell, shaders: &shadergen::CellShaders) -> Result<(), CellError> {
-        if shaders.kind == PipelineKind::RayTracing || shaders.uses_scene_tlas || cell.resource == Resource::AccelerationStructure {
+        let spec = ProbeSpec::of(cell);
+        if shaders.kind == PipelineKind::RayTracing || shaders.uses_scene_tlas || spec.resource == Resource::AccelerationStructure {
             self.ensure_scene()?;
         }
-        if shaders.uses_probe_binding && cell.resource != Resource::AccelerationStructure {
-            self.ensure_array(cell.resource)?;
+        if shaders.uses_probe_binding && spec.resource != Resource::AccelerationStructure {
+            self.ensure_array(spec.resource)?;
         }
-        if cell.patch == Some(crate::model::cell::Workaround::SsboToAddress) && self.ssbo_table.is_none() {
+        if spec.addresses.ssbo_table && self.ssbo_table.is_none() {
             self.ensure_array(Resource::StorageBuffer)?;
             let addrs: Vec<u64> = self.arrays[&Resource::StorageBuffer].buffers.iter().map(|b| b.address).collect();
             self.ssbo_table = Some(resources::address_table(&self.gpu, &addrs, "SSBO address table")?);
         }
-        if shadergen::as_by_address(cell) && self.as_table.is_none() {
+        if spec.addresses.as_table && self.as_table.is_none() {
             let s = self.ensure_scene()?;
             let addrs: Vec<u64> = s.probe_tlas.iter().map(|t| t.address).collect();
             let slots = self.slots(Resource::AccelerationStructure);
             self.as_table = Some(resources::as_table(&self.gpu, &addrs, slots)?);
         }
-        if cell.base == Some(crate::model::BaseSource::Buffer) && self.bases.is_none() {
+        if spec.instance_bases() && self.bases.is_none() {
             let bytes = probe::base_buffer(self.scene.params.instances);
             let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
             self.bases = Some(Buffer::with_data(&self.gpu, &bytes, usage, "per-instance bases")?);
@@ -374,7 +376,8 @@ impl Executor {
 
     /// GLSL → SPIR-V (cached per source), the cell's workarounds, `--dump`: phase `compile`.
     fn compile_cell(&mut self, cell: &Cell, shaders: shadergen::CellShaders, timings: &mut Timings) -> Result<Compiled, CellError> {
-        if cell.heap_access == Some(crate::model::HeapAccess::Direct) && shadergen::glslang::find().is_none() {
+        let spec = ProbeSpec::of(cell);
+        if spec.array == ArrayAt::Heap && shadergen::glslang::find().is_none() {
             return Err(CellError::NotImplemented(shadergen::glslang::missing_reason()));
         }
         // SPIR-V
@@ -390,9 +393,9 @@ impl Executor {
             };
             spirv.push(words);
         }
-        // address_patched cells are as-to-address applied to the descriptor variant; a cell of the
-        // patch axis adds its own workaround (in that order). A bundle's SPIR-V is patched already.
-        let workarounds = if self.opts.spirv_dir.is_none() { crate::patches::workaround::of_cell(cell) } else { vec![] };
+        // The spec's workarounds: as-to-address for address_patched cells, then the cell's own
+        // patch. A bundle's SPIR-V is patched already.
+        let workarounds = spec.workarounds().filter(|_| self.opts.spirv_dir.is_none());
         for w in workarounds {
             let t = Instant::now();
             let mut patched_any = false;
@@ -414,7 +417,7 @@ impl Executor {
         if let Some(dir) = &self.opts.dump {
             dump(dir, cell, &shaders, &spirv).map_err(CellError::Io)?;
         }
-        let dropped = heap::dropped_nonuniform(cell, &spirv);
+        let dropped = heap::dropped_nonuniform(&spec, &spirv);
         Ok(Compiled { shaders, spirv, dropped })
     }
 
@@ -422,6 +425,7 @@ impl Executor {
     /// cell's pipeline: the first half of phase `pipeline`.
     fn bind_cell(&mut self, cell: &Cell, c: &Compiled, timings: &mut Timings) -> Result<Bound, CellError> {
         let t = Instant::now();
+        let spec = ProbeSpec::of(cell);
         self.ensure_resources(cell, &c.shaders)?;
         let stages = match c.shaders.kind {
             PipelineKind::RayTracing => {
@@ -440,11 +444,11 @@ impl Executor {
         let stages = if self.all_stages { vk::ShaderStageFlags::ALL } else { stages };
         let key = LayoutKey {
             stages,
-            model: cell.descriptor_model,
+            model: spec.model,
             scene_tlas: c.shaders.uses_scene_tlas,
-            probe: c.shaders.uses_probe_binding.then_some(cell.resource),
-            heap_direct: cell.heap_access == Some(crate::model::HeapAccess::Direct),
-            packed: cell.index == crate::model::IndexSource::DynamicElement,
+            probe: c.shaders.uses_probe_binding.then_some(spec.resource),
+            heap_direct: spec.array == ArrayAt::Heap,
+            packed: spec.packed(),
         };
         if !self.bindings.contains_key(&key) {
             let targets = self.targets(key)?;
@@ -454,15 +458,15 @@ impl Executor {
         // The table the address patches read at push-constant offset probe::PATCHED_TABLE_OFFSET
         // (PushConstants::as_table is the hand-written address variant's).
         let mut patched_table_address = 0;
-        if cell.patch == Some(crate::model::cell::Workaround::SsboToAddress) {
+        if spec.addresses.ssbo_table {
             patched_table_address = self.ssbo_table.as_ref().map(|b| b.address).unwrap_or(0);
         }
         let mut as_table_address = 0;
-        if shadergen::as_by_address(cell) {
+        if spec.addresses.as_table {
             as_table_address = self.as_table.as_ref().map(|b| b.address).unwrap_or(0);
             patched_table_address = as_table_address;
         }
-        let base_address = if cell.base == Some(crate::model::BaseSource::Buffer) { self.bases.as_ref().map(|b| b.address).unwrap_or(0) } else { 0 };
+        let base_address = if spec.instance_bases() { self.bases.as_ref().map(|b| b.address).unwrap_or(0) } else { 0 };
         timings.setup_ms = t.elapsed().as_secs_f64() * 1e3;
         // pipeline (reused for identical SPIR-V and model)
         let pkey = {
@@ -471,8 +475,8 @@ impl Executor {
             for s in &c.spirv {
                 s.hash(&mut hs);
             }
-            cell.descriptor_model.hash(&mut hs);
-            cell.heap_access.hash(&mut hs);
+            spec.model.hash(&mut hs);
+            spec.heap.hash(&mut hs);
             key.hash(&mut hs);
             c.shaders.recursion_depth.hash(&mut hs);
             hs.finish()
@@ -482,11 +486,12 @@ impl Executor {
 
     /// What creating the cell's pipeline needs, apart from the device and cache.
     fn pipeline_input<'a>(&self, cell: &Cell, c: &'a Compiled, b: &Bound) -> PipelineInput<'a> {
+        let spec = ProbeSpec::of(cell);
         let binding = &self.bindings[&b.key];
         let layout = binding.heap_layout();
-        let mapping = cell.heap_access.zip(layout.as_ref()).map(|(access, l)| heap::PipelineMapping::new(access, l));
-        let records = pipeline::shader_records(cell, layout.as_ref());
-        PipelineInput { shaders: &c.shaders, spirv: &c.spirv, layout: binding.pipeline_layout, model: cell.descriptor_model, mapping, records }
+        let mapping = spec.heap.zip(layout.as_ref()).map(|(access, l)| heap::PipelineMapping::new(access, l));
+        let records = pipeline::shader_records(&spec, layout.as_ref());
+        PipelineInput { shaders: &c.shaders, spirv: &c.spirv, layout: binding.pipeline_layout, model: spec.model, mapping, records }
     }
 
     /// The cell's pipeline, created unless an identical one exists: the second half of `pipeline`.
@@ -530,15 +535,16 @@ impl Executor {
 
         // push constants (layout: probe::PushConstants, then the patches' table address)
         on_phase(Phase::Record)?;
+        let spec = ProbeSpec::of(cell);
         let fault = injected.map(|i| i.fault);
         let injected_bad = injected.is_some_and(|i| i.fault.reads_bad_address() && i.armed != Some(false));
         let pc = probe::PushConstants {
-            loop_forever: u32::from(cell.canary == Some(Canary::InfiniteLoop) || fault == Some(crate::model::inject::FaultKind::Hang)),
+            loop_forever: u32::from(spec.canary == Some(Canary::InfiniteLoop) || fault == Some(crate::model::inject::FaultKind::Hang)),
             as_table: as_table_address,
             base_address,
-            bad_address: if cell.canary == Some(Canary::InvalidAddress) || injected_bad { CANARY_BAD_ADDRESS } else { 0 },
+            bad_address: if spec.canary == Some(Canary::InvalidAddress) || injected_bad { CANARY_BAD_ADDRESS } else { 0 },
             inject_salt: fault.map(|f| crate::model::inject::value_salt(f, &cell.id())).unwrap_or(0),
-            ..probe::push_constants(w, h, self.scene.params.instances, cell.resource)
+            ..probe::push_constants(w, h, self.scene.params.instances, spec.resource)
         }
         .to_bytes(patched_table_address);
 
@@ -613,7 +619,7 @@ impl Executor {
 
 /// The GLSL of every shader `cell` needs, with its injected fault (if any) appended.
 fn cell_shaders(cell: &Cell, injected: Option<&InjectedFault>) -> shadergen::CellShaders {
-    shadergen::generate_with(&shadergen::source_cell(cell), injected.map(|i| i.fault))
+    shadergen::generate_with(cell, injected.map(|i| i.fault))
 }
 
 /// The module of `role` in a repro bundle's `shaders/` (`<role file>.spv`, little-endian words

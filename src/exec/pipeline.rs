@@ -63,9 +63,9 @@ pub struct ShaderRecords {
 /// (`heap_access=mapped_shader_record_index`, `heap` laid out so; the same in every record) and
 /// the runtime base where the probe reads it (`base=shader_record`; the hit groups' bases differ
 /// from each other and from the other groups', `probe::RECORD_BASE_*`); no data when neither does.
-pub fn shader_records(cell: &crate::model::Cell, heap: Option<&super::heap::HeapLayout>) -> ShaderRecords {
-    let mapped = cell.heap_access == Some(crate::model::HeapAccess::MappedShaderRecordIndex);
-    let base = cell.base == Some(crate::model::BaseSource::ShaderRecord);
+pub fn shader_records(spec: &crate::probe::spec::ProbeSpec, heap: Option<&super::heap::HeapLayout>) -> ShaderRecords {
+    let mapped = spec.heap == Some(crate::model::HeapAccess::MappedShaderRecordIndex);
+    let base = spec.base == crate::probe::spec::Base::ShaderRecord;
     if !mapped && !base {
         return ShaderRecords::default();
     }

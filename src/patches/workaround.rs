@@ -3,11 +3,12 @@
 //! and each one's pass with the options rtprobe's probe needs (the probed array at binding 2).
 //! The worker (`exec`) and a reader's copy of the shaders (`report::shaders`) both patch here.
 use super::{PatchError, PatchName};
-use crate::model::{AsAccess, Cell, Workaround};
+use crate::model::{Cell, Workaround};
 
-/// The workarounds the worker applies to `cell`'s generated modules, in order.
+/// The workarounds the worker applies to `cell`'s generated modules, in order (its probe spec's,
+/// `probe::spec::ProbeSpec::workarounds`).
 pub fn of_cell(cell: &Cell) -> Vec<Workaround> {
-    (cell.as_access == Some(AsAccess::AddressPatched)).then_some(Workaround::AsToAddress).into_iter().chain(cell.patch).collect()
+    crate::probe::spec::ProbeSpec::of(cell).workarounds().collect()
 }
 
 /// Apply the workaround `w` to one module, restricted to the probed array (binding 2):

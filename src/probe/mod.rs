@@ -1,12 +1,15 @@
 //! The probe contract shared by the GPU side (`shadergen`) and the CPU side (`reference`): the
 //! record every probe writes per pixel, the push constants, its flags, which slot and element each
 //! index source selects, the value each resource slot holds, and the TLAS variants the
-//! acceleration-structure slots refer to.
+//! acceleration-structure slots refer to. What a cell's axis values mean for its probe is
+//! resolved once, in [`spec`] ([`spec::ProbeSpec::of`]).
 //!
 //! One source of truth: the GLSL `struct Record`, the `Records` buffer and the push-constant block
 //! are generated from the Rust structs here ([`glsl_declarations`]); member offsets come from
 //! `offset_of!`, and a unit test checks them against the std430 rules GLSL applies.
 //! `probes/common.glsl` holds only functions and constants that mirror functions here.
+pub mod spec;
+
 use crate::model::{Resource, Stage};
 use std::mem::offset_of;
 
@@ -299,14 +302,14 @@ pub fn base_buffer(instances: u32) -> Vec<u8> {
 
 /// The base a hit shader adds to the masked custom index, for a hit on instance `instance_id`
 /// (`sphere`: the procedural hit group): push data's [`DYNAMIC_BASE`], the hit group's record
-/// base, or the instance's entry of the bases buffer.
-pub fn hit_base(base: Option<crate::model::BaseSource>, instance_id: u32, sphere: bool) -> u32 {
-    use crate::model::BaseSource;
+/// base, or the instance's entry of the bases buffer (`spec::Base::None`, where no dynamic value
+/// is computed: push data's, never read).
+pub fn hit_base(base: spec::Base, instance_id: u32, sphere: bool) -> u32 {
     match base {
-        None => DYNAMIC_BASE,
-        Some(BaseSource::ShaderRecord) if sphere => RECORD_BASE_PROCEDURAL,
-        Some(BaseSource::ShaderRecord) => RECORD_BASE_TRIANGLES,
-        Some(BaseSource::Buffer) => instance_base(instance_id),
+        spec::Base::None | spec::Base::PushData => DYNAMIC_BASE,
+        spec::Base::ShaderRecord if sphere => RECORD_BASE_PROCEDURAL,
+        spec::Base::ShaderRecord => RECORD_BASE_TRIANGLES,
+        spec::Base::InstanceBuffer => instance_base(instance_id),
     }
 }
 

@@ -1,5 +1,6 @@
 //! The CPU reference: the scene traced in f64 ([`intersect`]), the record every cell should
-//! produce per pixel ([`expected`]), and the comparison with documented tolerances ([`compare`]).
+//! produce per pixel ([`expected`], from the cell's probe spec, `probe::spec::ProbeSpec`, as the
+//! generated GLSL is), and the comparison with documented tolerances ([`compare`]).
 //!
 //! Tolerances: every integer field (flags, custom index, instance id, geometry, primitive, slot,
 //! element) must match exactly; probe values exactly (small integers and quarters, exact in f32);
@@ -32,12 +33,12 @@
 pub mod intersect;
 pub mod watertight;
 
-use crate::model::Workaround;
-use crate::model::{Cell, IndexSource, Resource, SamplerIndex, Stage};
+use crate::model::{Cell, Resource, Stage};
+use crate::probe::spec::{ElementMap, ProbeSpec, ReadIndex, Sampler};
 use crate::probe::{self, HitIds, Record, FLAG_HIT, FLAG_PROBE, MAX_AS_VARIANTS};
 use crate::scene::Scene;
 use intersect::TraceRef;
-use crate::model::{Comparison, ElementReads, Mismatch, NO_NONUNIFORM_VUID, undefined_descriptor_read};
+use crate::model::{Comparison, ElementReads, Mismatch, NO_NONUNIFORM_VUID};
 
 pub const T_REL_TOL: f64 = 1e-3;
 pub const BARY_TOL: f64 = 1e-3;
@@ -142,30 +143,101 @@ fn buffer_value_discriminates(resource: Resource, slots: u32, slot: u32, element
 /// What `cell` must write for every pixel. (A test that needs a wrong result injects one:
 /// `run --inject-fault`, `matrix::inject`.)
 pub fn expected(cell: &Cell, scene: &Scene, sref: &SceneReference) -> Vec<Expected> {
-    expected_with(cell, scene, sref, Undefined { descriptor: undefined_descriptor_read(cell), sampler: false })
+    expected_with(cell, scene, sref, Undefined { descriptor: ProbeSpec::of(cell).read == ReadIndex::Undefined, sampler: false })
+}
+
+/// What every probed pixel of one cell shares: its spec, the array's size, what is undefined, and
+/// the buffer/image discrimination, which depends only on (slot, element): computed once each.
+struct Probed<'a> {
+    spec: ProbeSpec,
+    sref: &'a SceneReference,
+    width: u32,
+    slots: u32,
+    variants: u32,
+    undefined: Undefined,
+    buffer_disc: Vec<Option<bool>>,
+}
+
+impl Probed<'_> {
+    /// Fill in what the probe writes at pixel (x, y) (index `p`), whose primary ray got `hit`.
+    fn probe(&mut self, e: &mut Expected, (x, y, p): (u32, u32, usize), hit: Option<intersect::Hit>) {
+        let spec = self.spec;
+        let (rec, slots) = (&mut e.record, self.slots);
+        // The stage's runtime value (the dynamic slot, the dynamic sampler's source).
+        let base = hit.map(|h| probe::hit_base(spec.base, h.instance_id, h.sphere)).unwrap_or(probe::DYNAMIC_BASE);
+        let dynamic = probe::dynamic_slot(spec.stage, x, y, self.width, hit.map(|h| h.instance).unwrap_or(0), base, slots);
+        // dynamic_element records the dynamic value as its slot and reads that slot's element
+        // from the packed resource (probe::packed_element): the same record.
+        let slot = spec.slot.fixed().unwrap_or(dynamic);
+        rec.flags |= FLAG_PROBE;
+        rec.slot = slot;
+        // pin-index: the shader still records its computed slot, but reads the pinned one.
+        let read = match spec.read {
+            ReadIndex::Pinned => probe::SPEC_SLOT,
+            ReadIndex::Defined | ReadIndex::Undefined => slot,
+        };
+        match spec.element {
+            ElementMap::None => {
+                let (value, amb) = self.sref.as_value(read, p);
+                e.ambiguous |= amb;
+                rec.value = value;
+                e.discriminating = (0..slots).all(|s| s == read || self.sref.as_value(s, p).0 != value);
+            }
+            ElementMap::Own | ElementMap::Packed | ElementMap::Layer => {
+                let ids = hit.map(|h| HitIds { instance_id: h.instance_id, geometry: h.geometry, primitive: h.primitive }).unwrap_or_default();
+                rec.element = probe::element(spec.stage, x, y, ids);
+                // A separate-sampler probe reads the texel its sampler's address mode picks.
+                let texel = match spec.sampler {
+                    Sampler::None => rec.element,
+                    Sampler::Constant => probe::sampled_element(probe::SAMPLER_LITERAL, rec.element),
+                    Sampler::Dynamic { .. } => probe::sampled_element(probe::sampler_slot(dynamic), rec.element),
+                };
+                rec.value = probe::resource_value(spec.resource, read, texel);
+                let k = (read * probe::ELEMENTS + texel) as usize;
+                e.discriminating = *self.buffer_disc[k].get_or_insert_with(|| buffer_value_discriminates(spec.resource, slots, read, texel));
+                if self.undefined.sampler && spec.sampler != Sampler::None {
+                    let values = std::array::from_fn(|s| probe::resource_value(spec.resource, read, probe::sampled_element(s as u32, rec.element)));
+                    e.rule = ValueRule::AnySampler { values };
+                    e.discriminating = false;
+                }
+            }
+        }
+        if self.undefined.descriptor {
+            let mut as_values = [0.0; MAX_AS_VARIANTS as usize];
+            if spec.element == ElementMap::None {
+                for v in 0..self.variants {
+                    let (value, amb) = self.sref.as_value(v, p);
+                    as_values[v as usize] = value[0];
+                    e.ambiguous |= amb;
+                }
+            }
+            e.rule = ValueRule::AnyElement { resource: spec.resource, slots, as_values, variants: self.variants };
+            e.discriminating = false;
+        }
+    }
 }
 
 /// [`expected`] with what is undefined decided by the caller: the driver saw a non-uniform
-/// descriptor or sampler index without `NonUniform` — the cell's shape
-/// ([`undefined_descriptor_read`]) or a compiler that dropped the qualifier
+/// descriptor or sampler index without `NonUniform` — the cell's shape (its spec's
+/// [`ReadIndex::Undefined`]) or a compiler that dropped the qualifier
 /// (`exec::heap::dropped_nonuniform`).
 pub fn expected_with(cell: &Cell, scene: &Scene, sref: &SceneReference, undefined: Undefined) -> Vec<Expected> {
+    let spec = ProbeSpec::of(cell);
     let (w, h) = (scene.params.width, scene.params.height);
-    let slots = probe::slot_count(cell.resource, scene.params.instances);
+    let slots = probe::slot_count(spec.resource, scene.params.instances);
     let variants = probe::as_variants(scene.params.instances);
-    // buffer/image discrimination depends only on (slot, element): computed once each
-    let mut buffer_disc: Vec<Option<bool>> = vec![None; (slots * probe::ELEMENTS) as usize];
+    let buffer_disc = vec![None; (slots * probe::ELEMENTS) as usize];
+    let mut probed = Probed { spec, sref, width: w, slots, variants, undefined, buffer_disc };
     let mut out = Vec::with_capacity(scene.params.pixels());
     for y in 0..h {
         for x in 0..w {
             let p = (y * w + x) as usize;
-            let mut rec = Record::default();
-            let mut ambiguous = false;
-            let mut discriminating = false;
+            let mut e = Expected { record: Record::default(), ambiguous: false, rule: ValueRule::Exact, discriminating: false };
             let primary = sref.full[p];
-            if cell.stage.is_ray_tracing() {
-                ambiguous = primary.ambiguous;
+            if spec.stage.is_ray_tracing() {
+                e.ambiguous = primary.ambiguous;
                 if let Some(hit) = primary.hit {
+                    let rec = &mut e.record;
                     rec.flags |= FLAG_HIT;
                     rec.custom = hit.instance;
                     rec.instance_id = hit.instance_id;
@@ -176,66 +248,16 @@ pub fn expected_with(cell: &Cell, scene: &Scene, sref: &SceneReference, undefine
                 }
             }
             let hit = primary.hit;
-            let mut rule = ValueRule::Exact;
-            let probe_runs = match cell.stage {
+            let probe_runs = match spec.stage {
                 Stage::Raygen | Stage::Callable | Stage::Fragment | Stage::Compute => true,
                 Stage::ClosestHit | Stage::AnyHit => hit.is_some(),
                 Stage::Intersection => hit.is_some_and(|h| h.sphere),
                 Stage::Miss => hit.is_none(),
             };
             if probe_runs {
-                // The stage's runtime value (`index=dynamic`'s slot, the dynamic sampler's source).
-                let base = hit.map(|h| probe::hit_base(cell.base, h.instance_id, h.sphere)).unwrap_or(probe::DYNAMIC_BASE);
-                let dynamic = probe::dynamic_slot(cell.stage, x, y, w, hit.map(|h| h.instance).unwrap_or(0), base, slots);
-                let slot = match cell.index {
-                    IndexSource::Literal => probe::LITERAL_SLOT,
-                    IndexSource::SpecConstant => probe::SPEC_SLOT,
-                    IndexSource::PushConstant => probe::PUSH_SLOT,
-                    // dynamic_element records the dynamic value as its slot and reads that slot's
-                    // element from the packed resource (probe::packed_element): the same record.
-                    IndexSource::Dynamic | IndexSource::DynamicElement => dynamic,
-                };
-                rec.flags |= FLAG_PROBE;
-                rec.slot = slot;
-                // pin-index: the shader still records its computed slot, but reads the pinned one.
-                let read = if cell.patch == Some(Workaround::PinIndex) { probe::SPEC_SLOT } else { slot };
-                if cell.resource == Resource::AccelerationStructure {
-                    let (value, amb) = sref.as_value(read, p);
-                    ambiguous |= amb;
-                    rec.value = value;
-                    discriminating = (0..slots).all(|s| s == read || sref.as_value(s, p).0 != value);
-                } else {
-                    let ids = hit.map(|h| HitIds { instance_id: h.instance_id, geometry: h.geometry, primitive: h.primitive }).unwrap_or_default();
-                    rec.element = probe::element(cell.stage, x, y, ids);
-                    // A separate-sampler probe reads the texel its sampler's address mode picks.
-                    let texel = match cell.sampler {
-                        None => rec.element,
-                        Some(SamplerIndex::Constant) => probe::sampled_element(probe::SAMPLER_LITERAL, rec.element),
-                        Some(SamplerIndex::Dynamic) => probe::sampled_element(probe::sampler_slot(dynamic), rec.element),
-                    };
-                    rec.value = probe::resource_value(cell.resource, read, texel);
-                    let k = (read * probe::ELEMENTS + texel) as usize;
-                    discriminating = *buffer_disc[k].get_or_insert_with(|| buffer_value_discriminates(cell.resource, slots, read, texel));
-                    if undefined.sampler && cell.sampler.is_some() {
-                        let values = std::array::from_fn(|s| probe::resource_value(cell.resource, read, probe::sampled_element(s as u32, rec.element)));
-                        rule = ValueRule::AnySampler { values };
-                        discriminating = false;
-                    }
-                }
-                if undefined.descriptor {
-                    let mut as_values = [0.0; MAX_AS_VARIANTS as usize];
-                    if cell.resource == Resource::AccelerationStructure {
-                        for v in 0..variants {
-                            let (value, amb) = sref.as_value(v, p);
-                            as_values[v as usize] = value[0];
-                            ambiguous |= amb;
-                        }
-                    }
-                    rule = ValueRule::AnyElement { resource: cell.resource, slots, as_values, variants };
-                    discriminating = false;
-                }
+                probed.probe(&mut e, (x, y, p), hit);
             }
-            out.push(Expected { record: rec, ambiguous, rule, discriminating });
+            out.push(e);
         }
     }
     out
@@ -377,8 +399,8 @@ pub fn compare(expected: &[Expected], actual: &[Record], width: u32) -> Comparis
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::{AsAccess, DescriptorModel, Resource};
     use crate::model::SceneParams;
+    use crate::model::{AsAccess, DescriptorModel, IndexSource, Resource, SamplerIndex, Workaround};
     use std::sync::OnceLock;
 
     fn cell(stage: Stage, index: IndexSource) -> Cell {

@@ -4,14 +4,18 @@
 //! expected records as `EXPECT` lines. Written only where the cell fits AmberScript; otherwise
 //! [`script`] says why, for the bundle's README.
 //!
-//! What fits: compute cells of `descriptor_model=descriptor_indexing` reading storage or uniform
-//! buffers (every index source; the nonuniform and pin-index patches are in the SPIR-V), with no
-//! injected fault. AmberScript has compute, graphics and (since 2024) ray tracing pipelines with
-//! acceleration structures, but not VK_EXT_descriptor_buffer, VK_EXT_descriptor_heap, device
-//! addresses in push constants, or a per-attempt die; rtprobe does not (yet) write its scene, SBT
-//! or image arrays in AmberScript.
+//! What fits, judged on the cell's probe spec (`probe::spec::ProbeSpec`; what it needs and this
+//! writer cannot express is refused with that reason): compute cells of
+//! `descriptor_model=descriptor_indexing` reading storage or uniform buffers (every index source:
+//! the spec constant specialized wherever the GLSL declares it, `index=dynamic_element`'s packed
+//! buffer bound at the spec-constant slot; the nonuniform and pin-index patches are in the
+//! SPIR-V), with no device address in push constants and no injected fault. AmberScript has
+//! compute, graphics and (since 2024) ray tracing pipelines with acceleration structures, but not
+//! VK_EXT_descriptor_buffer, VK_EXT_descriptor_heap, device addresses in push constants, or a
+//! per-attempt die; rtprobe does not (yet) write its scene, SBT or image arrays in AmberScript.
 use crate::model::Injection;
-use crate::model::{Cell, DescriptorModel, IndexSource, Resource, Stage};
+use crate::model::{Cell, DescriptorModel, Resource, Stage, Workaround};
+use crate::probe::spec::{Access, Base, ElementMap, ProbeSpec, ReadIndex, Sampler};
 use crate::probe::{self, RECORD_SIZE};
 use crate::report::shaders::Shader;
 use crate::scene::Scene;
@@ -33,47 +37,64 @@ pub fn script(cell: &Cell, shaders: &[Shader], scene: &SceneParams, inject: Opti
     Ok(write(cell, shader, scene, origin))
 }
 
-/// Why `cell` does not fit, checked axis by axis.
+/// Why `cell` does not fit, checked on its probe spec: what the spec needs that this writer
+/// cannot express is refused with that reason.
 fn fits(cell: &Cell, inject: Option<&Injection>) -> Result<(), String> {
-    if cell.canary.is_some() {
+    let spec = ProbeSpec::of(cell);
+    if spec.canary.is_some() {
         return Err("canaries are not probe cells (they hang or fault on purpose)".into());
     }
     if let Some(i) = inject {
         return Err(format!("the cell has an injected fault ({}): Amber cannot reproduce rtprobe's injection (a load through a device address in push constants, per-attempt dice)", i.spec));
     }
-    match cell.descriptor_model {
+    match spec.model {
         DescriptorModel::DescriptorIndexing => {}
         DescriptorModel::DescriptorBuffer => return Err("Amber has no VK_EXT_descriptor_buffer".into()),
         DescriptorModel::DescriptorHeap => return Err("Amber has no VK_EXT_descriptor_heap".into()),
     }
-    match cell.stage {
+    match spec.stage {
         Stage::Compute => {}
         Stage::Raygen | Stage::ClosestHit | Stage::AnyHit | Stage::Miss | Stage::Intersection | Stage::Callable => {
             return Err("ray tracing cell: Amber has ray tracing pipelines and acceleration structures, but rtprobe does not write its scene (16+ transformed instances, multi-geometry BLAS, the procedural AABB, its SBT layout) in AmberScript yet (not implemented)".into())
         }
         Stage::Fragment => return Err("graphics cell: rtprobe writes Amber scripts for compute cells only (not implemented)".into()),
     }
-    match cell.resource {
+    match spec.resource {
         Resource::StorageBuffer | Resource::UniformBuffer => {}
         Resource::SampledImage | Resource::StorageImage => return Err("image arrays: rtprobe does not write its probe images in AmberScript yet (not implemented)".into()),
         Resource::AccelerationStructure => return Err("acceleration-structure cells need rtprobe's probe TLAS variants (and device addresses for as_access=address), not written in AmberScript".into()),
     }
-    match cell.patch {
-        None | Some(crate::model::cell::Workaround::Nonuniform | crate::model::cell::Workaround::PinIndex | crate::model::cell::Workaround::AsToAddress) => Ok(()),
-        Some(crate::model::cell::Workaround::SsboToAddress) => Err("the ssbo-to-address patch reads buffers through device addresses in push constants, which AmberScript cannot provide".into()),
+    let addresses = spec.push_addresses();
+    if !addresses.is_empty() {
+        return Err(format!("the probe reads device addresses from push constants ({}), which AmberScript cannot provide", addresses.join(", ")));
+    }
+    match spec.base {
+        // The bases buffer's address was refused above.
+        Base::None | Base::PushData | Base::InstanceBuffer => {}
+        Base::ShaderRecord => return Err("the dynamic value's base is in an SBT shader record, which a compute pipeline has not".into()),
+    }
+    match spec.sampler {
+        Sampler::None => {}
+        Sampler::Constant | Sampler::Dynamic { .. } => return Err("separate samplers from a sampler heap: Amber has no VK_EXT_descriptor_heap".into()),
+    }
+    match (spec.access, spec.element) {
+        (Access::Slot { .. }, ElementMap::None | ElementMap::Own | ElementMap::Packed | ElementMap::Layer) | (Access::Packed, ElementMap::Packed) => Ok(()),
+        (Access::Packed, ElementMap::None | ElementMap::Own | ElementMap::Layer) => Err(format!("rtprobe has no packed {} buffer to bind at the spec-constant slot (index=dynamic_element)", spec.resource)),
+        (Access::AddressTable, ElementMap::None | ElementMap::Own | ElementMap::Packed | ElementMap::Layer) => Err("the probe reads an address table, not a descriptor: AmberScript cannot provide device addresses".into()),
     }
 }
 
 fn write(cell: &Cell, shader: &Shader, scene: &SceneParams, origin: &str) -> String {
+    let spec = ProbeSpec::of(cell);
     let mut s = String::from("#!amber\n");
     s += &format!("# rtprobe repro: {}\n# {}\n# {origin}\n", cell.id(), crate::bisect::isolation::describe(cell));
     s += "# Not run by rtprobe: no Amber was available where this was written.\n";
     s += "# The probed array is a runtime descriptor array (SPIR-V RuntimeDescriptorArray";
-    if cell.nonuniform || cell.patch == Some(crate::model::cell::Workaround::Nonuniform) {
+    if spec.access == (Access::Slot { nonuniform: true }) || spec.workarounds().any(|w| w == Workaround::Nonuniform) {
         s += ", NonUniform indexing";
     }
     s += "): the device must enable VkPhysicalDeviceDescriptorIndexingFeatures for it, which\n# AmberScript's DEVICE_FEATURE list does not name (run with an Amber whose device enables them).\n";
-    let (kind, dyn_feature) = match cell.resource {
+    let (kind, dyn_feature) = match spec.resource {
         Resource::UniformBuffer => ("uniform", "shaderUniformBufferArrayDynamicIndexing"),
         _ => ("storage", "shaderStorageBufferArrayDynamicIndexing"),
     };
@@ -95,37 +116,59 @@ fn write(cell: &Cell, shader: &Shader, scene: &SceneParams, origin: &str) -> Str
     s += "END\n\n";
 
     let (w, h) = (scene.width, scene.height);
-    let slots = probe::slot_count(cell.resource, scene.instances);
     let words = scene.pixels() * RECORD_SIZE / 4;
     s += &format!("# Records: {w}x{h} of {RECORD_SIZE} bytes, unwritten ones read flags 0xffffffff.\n");
     s += &format!("BUFFER records DATA_TYPE uint32 SIZE {words} FILL 4294967295\n");
-    let pc = probe::push_constants(w, h, scene.instances, cell.resource);
+    let pc = probe::push_constants(w, h, scene.instances, spec.resource);
     let pc_words = u32_words(&pc.to_bytes(0)[..probe::PUSH_BLOCK_BYTES as usize]);
     let names: Vec<String> = probe::PUSH_FIELDS.iter().map(|f| if f.glsl_type == "uvec2" { format!("{}.xy", f.glsl_name) } else { f.glsl_name.to_string() }).collect();
     s += &format!("# Push constants ({}).\n", names.join(" "));
     s += &format!("BUFFER pc DATA_TYPE uint32 DATA {} END\n", pc_words.join(" "));
-    let layout = if cell.resource == Resource::UniformBuffer { "STD140" } else { "STD430" };
-    s += &format!("# The probed array: {slots} {kind} buffers of {} vec4, slot s element e = (s+1, kind*16+1, 1000+4s+e, 0.25+e).\n", probe::ELEMENTS);
-    for slot in 0..slots {
-        let vals: Vec<String> = (0..probe::ELEMENTS).flat_map(|e| probe::resource_value(cell.resource, slot, e)).map(fmt_f32).collect();
-        s += &format!("BUFFER slot{slot} DATA_TYPE vec4<float> {layout} DATA {} END\n", vals.join(" "));
-    }
+    let (buffers, array) = probed_array(&spec, scene.instances, kind);
+    s += &buffers;
     s += "\nPIPELINE compute probe_pipeline\n  ATTACH probe";
-    if cell.index == IndexSource::SpecConstant {
+    if spec.spec_constant() {
         s += &format!(" SPECIALIZE 0 AS uint32 {}", probe::SPEC_SLOT);
     }
     s += &format!("\n  BIND BUFFER records AS storage DESCRIPTOR_SET 0 BINDING {RECORDS_BINDING}\n");
-    let names: Vec<String> = (0..slots).map(|k| format!("slot{k}")).collect();
-    s += &format!("  BIND BUFFER_ARRAY {} AS {kind} DESCRIPTOR_SET 0 BINDING {PROBE_BINDING}\n", names.join(" "));
+    s += &format!("  BIND BUFFER_ARRAY {} AS {kind} DESCRIPTOR_SET 0 BINDING {PROBE_BINDING}\n", array.join(" "));
     s += "  BIND BUFFER pc AS push_constant\nEND\n\n";
     s += &format!("RUN probe_pipeline {} {} 1\n\n", w.div_ceil(GROUP), h.div_ceil(GROUP));
     s += &expectations(cell, scene);
     s
 }
 
+/// The probed array's buffers (one per slot; with the packed descriptor, the packed buffer too)
+/// and the names bound at the array's elements, in slot order: the packed buffer at
+/// `probe::PACKED_SLOT` where the spec reads it, as the worker binds it.
+fn probed_array(spec: &ProbeSpec, instances: u32, kind: &str) -> (String, Vec<String>) {
+    let slots = probe::slot_count(spec.resource, instances);
+    let layout = if spec.resource == Resource::UniformBuffer { "STD140" } else { "STD430" };
+    let mut s = format!("# The probed array: {slots} {kind} buffers of {} vec4, slot s element e = (s+1, kind*16+1, 1000+4s+e, 0.25+e).\n", probe::ELEMENTS);
+    for slot in 0..slots {
+        if spec.packed() && slot == probe::PACKED_SLOT {
+            continue;
+        }
+        let vals: Vec<String> = (0..probe::ELEMENTS).flat_map(|e| probe::resource_value(spec.resource, slot, e)).map(fmt_f32).collect();
+        s += &format!("BUFFER slot{slot} DATA_TYPE vec4<float> {layout} DATA {} END\n", vals.join(" "));
+    }
+    let mut names: Vec<String> = (0..slots).map(|k| format!("slot{k}")).collect();
+    if spec.packed() {
+        let vals: Vec<String> = probe::packed_bytes(spec.resource, slots).chunks(4).map(|b| fmt_f32(f32::from_le_bytes([b[0], b[1], b[2], b[3]]))).collect();
+        s += &format!(
+            "# index=dynamic_element: the packed buffer, bound at the spec-constant slot {} in place of that slot's own, holds every\n# slot's elements (slot s element e at v[{}*s+e]); the dynamic value selects inside it.\n",
+            probe::PACKED_SLOT,
+            probe::ELEMENTS
+        );
+        s += &format!("BUFFER packed DATA_TYPE vec4<float> {layout} DATA {} END\n", vals.join(" "));
+        names[probe::PACKED_SLOT as usize] = "packed".into();
+    }
+    (s, names)
+}
+
 /// The expected records as EXPECT lines, or why there are none.
 fn expectations(cell: &Cell, params: &SceneParams) -> String {
-    if crate::model::undefined_descriptor_read(cell) {
+    if ProbeSpec::of(cell).read == ReadIndex::Undefined {
         return "# No EXPECT: the index is dynamic without nonuniformEXT, so which element a lane reads is\n# undefined (VUID-RuntimeSpirv-NonUniform-06274); rtprobe accepts any element of the array there.\n".into();
     }
     let scene = Scene::build(params);
@@ -151,7 +194,7 @@ fn fmt_f32(v: f32) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::AsAccess;
+    use crate::model::{AsAccess, IndexSource};
     use crate::report::shaders::cell_shaders;
 
     fn compute(resource: Resource, index: IndexSource) -> Cell {
@@ -201,6 +244,41 @@ mod tests {
         assert!(text.contains("DEVICE_FEATURE shaderUniformBufferArrayDynamicIndexing"));
     }
 
+    /// The twin of a bug `ProbeSpec` fixed: `dynamic_element` reads the packed buffer at the
+    /// spec-constant slot, but the script specialized only `index=spec_constant` cells and bound
+    /// every slot's own buffer, so on a correct driver every pixel whose slot was not 0 failed.
+    /// Now the script specializes the slot and binds the packed buffer there, and what the script
+    /// binds, read where the shader reads it, is what its EXPECT lines say.
+    #[test]
+    fn a_dynamic_element_cell_specializes_the_slot_and_binds_the_packed_buffer() {
+        let cell = compute(Resource::StorageBuffer, IndexSource::DynamicElement);
+        assert_eq!(cell.id(), "compute.storage_buffer.dynamic_element.descriptor_indexing");
+        let text = script(&cell, &cell_shaders(&cell, None).unwrap(), &small(), None, "test").unwrap();
+        assert!(text.contains(&format!("ATTACH probe SPECIALIZE 0 AS uint32 {}\n", probe::PACKED_SLOT)), "no SPECIALIZE");
+        let slots = probe::slot_count(cell.resource, small().instances);
+        let names: Vec<String> = (0..slots).map(|k| if k == probe::PACKED_SLOT { "packed".into() } else { format!("slot{k}") }).collect();
+        assert!(text.contains(&format!("  BIND BUFFER_ARRAY {} AS storage DESCRIPTOR_SET 0 BINDING 2\n", names.join(" "))), "the packed buffer is not bound at the spec slot");
+        let packed: Vec<f32> = text
+            .lines()
+            .find_map(|l| l.strip_prefix("BUFFER packed DATA_TYPE vec4<float> STD430 DATA "))
+            .expect("the packed buffer")
+            .trim_end_matches(" END")
+            .split(' ')
+            .map(|v| v.parse().unwrap())
+            .collect();
+        let want: Vec<f32> = probe::packed_bytes(cell.resource, slots).chunks(4).map(|b| f32::from_le_bytes(b.try_into().unwrap())).collect();
+        assert_eq!(packed, want);
+        assert!(!text.contains(&format!("BUFFER slot{} ", probe::PACKED_SLOT)) && text.contains(&format!("BUFFER slot{} ", slots - 1)));
+        // Every pixel is expected exactly, and reads its record's (slot, element) in the packed buffer.
+        let expects: Vec<Vec<u32>> = text.lines().filter(|l| l.starts_with("EXPECT records IDX ")).map(|l| l.split_whitespace().skip(5).map(|w| w.parse().unwrap()).collect()).collect();
+        assert_eq!(expects.len(), small().pixels());
+        for words in &expects {
+            let at = probe::packed_element(words[8], words[9]) as usize * 4;
+            assert_eq!(words[12..16], packed[at..at + 4].iter().map(|v| v.to_bits()).collect::<Vec<_>>());
+        }
+        assert!(expects.iter().any(|w| w[8] != 0 && w[8] != probe::PACKED_SLOT));
+    }
+
     #[test]
     fn a_lenient_dynamic_cell_has_no_expectations_and_says_why() {
         let cell = compute(Resource::StorageBuffer, IndexSource::Dynamic);
@@ -218,6 +296,12 @@ mod tests {
         assert_eq!(fits(&buf, None).unwrap_err(), "Amber has no VK_EXT_descriptor_buffer");
         assert!(fits(&Cell { stage: Stage::ClosestHit, ..c }, None).unwrap_err().starts_with("ray tracing cell"));
         assert!(fits(&Cell { resource: Resource::AccelerationStructure, as_access: Some(AsAccess::Address), ..c }, None).is_err());
+        // Refusals come from what the spec needs.
+        let ssbo = Cell { index: IndexSource::Dynamic, patch: Some(Workaround::SsboToAddress), ..c };
+        assert_eq!(fits(&ssbo, None).unwrap_err(), "the probe reads device addresses from push constants (patchedTable), which AmberScript cannot provide");
+        let ubo_packed = compute(Resource::UniformBuffer, IndexSource::DynamicElement);
+        assert!(fits(&ubo_packed, None).unwrap_err().starts_with("rtprobe has no packed uniform_buffer buffer"));
+        assert!(fits(&Cell { patch: Some(Workaround::PinIndex), ..ssbo }, None).is_ok());
         let inj = Injection::parse("stage=compute").unwrap();
         assert!(fits(&c, Some(&inj)).unwrap_err().contains("injected fault"));
         assert!(fits(&c, None).is_ok());

@@ -39,7 +39,7 @@ pub fn probed_role(stage: Stage) -> Role {
 
 /// Every shader of `cell` with `fault` injected, as the worker builds them.
 pub fn cell_shaders(cell: &Cell, fault: Option<FaultKind>) -> Result<Vec<Shader>, ShaderError> {
-    let gen = shadergen::generate_with(&shadergen::source_cell(cell), fault);
+    let gen = shadergen::generate_with(cell, fault);
     let mut compiler = Compiler::new()?;
     let mut out = Vec::new();
     for s in &gen.shaders {

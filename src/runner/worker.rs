@@ -11,35 +11,32 @@ use super::protocol::{WorkerJob, WorkerMsg};
 use crate::exec::prebuild::Step;
 use crate::exec::{CellError, ExecOptions, Executor};
 use crate::model::Outcome;
-use crate::model::Workaround;
-use crate::model::{AsAccess, Canary, Cell, DescriptorModel, Resource, Stage};
+use crate::model::{Cell, DescriptorModel, Resource, Stage};
+use crate::probe::spec::{ArrayAt, ProbeSpec};
 use crate::vk::{features, Gpu, Instance, InstanceOptions, Requirements, VkError};
 use std::collections::HashSet;
 use std::io::Write;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-/// What the device must enable for `cells`.
+/// What the device must enable for `cells` (as their probe specs say).
 pub fn requirements(info: &crate::vk::DeviceInfo, cells: &[Cell]) -> Requirements {
-    let any = |f: &dyn Fn(&Cell) -> bool| cells.iter().any(f);
-    let fragment = any(&|c| c.stage == Stage::Fragment);
+    let specs: Vec<ProbeSpec> = cells.iter().map(ProbeSpec::of).collect();
+    let any = |f: &dyn Fn(&ProbeSpec) -> bool| specs.iter().any(f);
+    let fragment = any(&|s| s.stage == Stage::Fragment);
     Requirements {
-        rt_pipeline: any(&|c| c.stage.is_ray_tracing()),
-        ray_query: any(&|c| c.resource == Resource::AccelerationStructure && !c.stage.can_trace_ray()),
+        rt_pipeline: any(&|s| s.stage.is_ray_tracing()),
+        ray_query: any(&|s| s.resource == Resource::AccelerationStructure && !s.stage.can_trace_ray()),
         buffer_device_address: true,
         descriptor_indexing: true,
-        descriptor_buffer: any(&|c| c.descriptor_model == DescriptorModel::DescriptorBuffer),
-        descriptor_heap: any(&|c| c.descriptor_model == DescriptorModel::DescriptorHeap),
-        untyped_pointers: any(&|c| c.heap_access == Some(crate::model::HeapAccess::Direct)),
+        descriptor_buffer: any(&|s| s.model == DescriptorModel::DescriptorBuffer),
+        descriptor_heap: any(&|s| s.model == DescriptorModel::DescriptorHeap),
+        untyped_pointers: any(&|s| s.array == ArrayAt::Heap),
         device_fault: info.features.fault.is_some_and(|f| f.device_fault == ash::vk::TRUE),
-        int64: any(&|c| {
-            matches!(c.as_access, Some(AsAccess::Address | AsAccess::AddressPatched))
-                || matches!(c.patch, Some(Workaround::AsToAddress | Workaround::SsboToAddress))
-                || c.canary == Some(Canary::InvalidAddress)
-        }),
+        int64: any(&ProbeSpec::int64),
         fragment_stores: fragment,
         dynamic_rendering: fragment,
-        invocation_reorder: any(&|c| c.reorder.is_some()),
+        invocation_reorder: any(&|s| s.reorder.is_some()),
     }
 }
 

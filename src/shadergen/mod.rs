@@ -1,7 +1,10 @@
-//! Generates the GLSL of every shader a cell needs: the probed stage reads the cell's resource
-//! with the cell's index source (and `nonuniformEXT`, and AS access path); every other stage stays
-//! trivial. Shared declarations come from `probes/common.glsl`. [`compile`] turns sources into
-//! SPIR-V with shaderc, caching by source.
+//! Generates the GLSL of every shader a cell needs, from the cell's probe spec
+//! (`probe::spec::ProbeSpec`): the probed stage reads the resource the way the spec says (slot,
+//! descriptor or address table, element, base, sampler); every other stage stays trivial. The GLSL
+//! is what is written before any SPIR-V workaround (`as_access=address_patched` is the descriptor
+//! variant's, a `patch` cell its base cell's; the worker patches the SPIR-V after). Shared
+//! declarations come from `probes/common.glsl`. [`compile`] turns sources into SPIR-V with
+//! shaderc, caching by source.
 pub mod compile;
 pub mod error;
 pub mod glslang;
@@ -9,7 +12,8 @@ pub mod include;
 mod inject;
 mod probe_code;
 
-use crate::model::{AsAccess, Canary, Cell, Reorder, Resource, Stage};
+use crate::model::{Canary, Cell, Reorder, Stage};
+use crate::probe::spec::ProbeSpec;
 use probe_code::ProbeCode;
 
 const COMMON: &str = include_str!("../../probes/common.glsl");
@@ -126,18 +130,20 @@ pub fn generate(cell: &Cell) -> CellShaders {
     generate_with(cell, None)
 }
 
-/// Generate all shaders of `cell`, with `fault` injected at the probed read.
+/// Generate all shaders of `cell` (as its probe spec says), with `fault` injected at the probed
+/// read.
 pub fn generate_with(cell: &Cell, fault: Option<crate::model::FaultKind>) -> CellShaders {
-    if let Some(c) = cell.canary {
+    let spec = ProbeSpec::of(cell);
+    if let Some(c) = spec.canary {
         return canary(c);
     }
-    let mut probe = ProbeCode::new(cell);
+    let mut probe = ProbeCode::new(&spec);
     if let Some(f) = fault {
         inject::apply(&mut probe, f);
     }
     let probe = probe;
-    let here = |s: Stage| (cell.stage == s).then_some(&probe);
-    match cell.stage {
+    let here = |s: Stage| (spec.stage == s).then_some(&probe);
+    match spec.stage {
         Stage::Fragment => {
             let vert = format!(
                 "{}\nlayout(location = 0) flat out uint outSlot;\nconst vec2 corners[6] = vec2[](vec2(0, 0), vec2(1, 0), vec2(0, 1), vec2(1, 0), vec2(1, 1), vec2(0, 1));\n\
@@ -177,12 +183,12 @@ records[i] = probeRecord(probeSlot, probeElement, probeValue);\n}}\n",
                 uses_ray_query: probe.ray_query,
             }
         }
-        Stage::Raygen | Stage::ClosestHit | Stage::AnyHit | Stage::Miss | Stage::Intersection | Stage::Callable => ray_tracing(cell, &probe, here),
+        Stage::Raygen | Stage::ClosestHit | Stage::AnyHit | Stage::Miss | Stage::Intersection | Stage::Callable => ray_tracing(&spec, &probe, here),
     }
 }
 
-fn ray_flags(cell: &Cell) -> &'static str {
-    if cell.stage == Stage::AnyHit {
+fn ray_flags(spec: &ProbeSpec) -> &'static str {
+    if spec.stage == Stage::AnyHit {
         "gl_RayFlagsNoOpaqueEXT"
     } else {
         "gl_RayFlagsOpaqueEXT"
@@ -193,9 +199,9 @@ fn ray_flags(cell: &Cell) -> &'static str {
 /// hit object, the invocations reordered (with the hit instance's custom index as coherence hint
 /// for `reorder_hint`; misses get a hint of their own), then the hit object's closest-hit or miss
 /// shader run — the same records, with invocations regrouped before the probed closest-hit read.
-fn primary_trace(cell: &Cell) -> String {
-    let args = format!("sceneTlas, {}, 0xFF, 0, 0, 0, primaryOrigin(px), TMIN, vec3(0.0, 0.0, 1.0), TMAX, 0", ray_flags(cell));
-    let reorder = match cell.reorder {
+fn primary_trace(spec: &ProbeSpec) -> String {
+    let args = format!("sceneTlas, {}, 0xFF, 0, 0, 0, primaryOrigin(px), TMIN, vec3(0.0, 0.0, 1.0), TMAX, 0", ray_flags(spec));
+    let reorder = match spec.reorder {
         None => return format!("    traceRayEXT({args});\n"),
         Some(Reorder::Reorder) => "    reorderThreadNV(hitObj);\n".to_string(),
         Some(Reorder::ReorderHint) => "    uint hint = hitObjectIsHitNV(hitObj) ? uint(hitObjectGetInstanceCustomIndexNV(hitObj)) : 0xFFFFu;\n    \
@@ -205,26 +211,26 @@ reorderThreadNV(hitObj, hint, 16);\n"
     format!("    hitObjectNV hitObj;\n    hitObjectTraceRayNV(hitObj, {args});\n{reorder}    hitObjectExecuteShaderNV(hitObj, 0);\n")
 }
 
-fn ray_tracing<'a>(cell: &Cell, probe: &'a ProbeCode, here: impl Fn(Stage) -> Option<&'a ProbeCode>) -> CellShaders {
+fn ray_tracing<'a>(spec: &ProbeSpec, probe: &'a ProbeCode, here: impl Fn(Stage) -> Option<&'a ProbeCode>) -> CellShaders {
     let store = "    pl.flags |= FLAG_PROBE;\n    pl.slot = probeSlot;\n    pl.element = probeElement;\n    pl.value = probeValue;\n";
     let mut shaders = Vec::new();
     let call_data = "struct CallData { uint slot; uint element; uint p1; uint p2; vec4 value; };\n";
 
     // raygen
-    let reorder_ext: &[&str] = if cell.reorder.is_some() { &["GL_NV_shader_invocation_reorder"] } else { &[] };
+    let reorder_ext: &[&str] = if spec.reorder.is_some() { &["GL_NV_shader_invocation_reorder"] } else { &[] };
     let mut rgen = header(true, here(Stage::Raygen), reorder_ext);
     rgen += "layout(set = 0, binding = 1) uniform accelerationStructureEXT sceneTlas;\nlayout(location = 0) rayPayloadEXT Record pl;\n";
-    if cell.stage == Stage::Callable {
+    if spec.stage == Stage::Callable {
         rgen += call_data;
         rgen += "layout(location = 2) callableDataEXT CallData cd;\n";
     }
     rgen += &format!("void main() {{\n    uvec2 px = gl_LaunchIDEXT.xy;\n    uint i = px.x + px.y * pc.width;\n    pl = emptyRecord();\n");
-    rgen += &primary_trace(cell);
+    rgen += &primary_trace(spec);
     if here(Stage::Raygen).is_some() {
         rgen += &probe.body;
         rgen += store;
     }
-    if cell.stage == Stage::Callable {
+    if spec.stage == Stage::Callable {
         rgen += "    executeCallableEXT(0, 2);\n    pl.flags |= FLAG_PROBE;\n    pl.slot = cd.slot;\n    pl.element = cd.element;\n    pl.value = cd.value;\n";
     }
     rgen += "    records[i] = pl;\n}\n";
@@ -277,7 +283,7 @@ fn ray_tracing<'a>(cell: &Cell, probe: &'a ProbeCode, here: impl Fn(Stage) -> Op
     let mut proc_ = header(true, chit_probe, &[]);
     proc_ += "layout(location = 0) rayPayloadInEXT Record pl;\n";
     proc_ += attr;
-    let from_attr = if cell.stage == Stage::Intersection {
+    let from_attr = if spec.stage == Stage::Intersection {
         "    pl.bary = vec2(0.0);\n    pl.flags |= FLAG_PROBE;\n    pl.slot = attr.slot;\n    pl.element = attr.element;\n    pl.value = attr.value;\n"
     } else {
         "    pl.bary = vec2(0.0);\n"
@@ -299,7 +305,7 @@ fn ray_tracing<'a>(cell: &Cell, probe: &'a ProbeCode, here: impl Fn(Stage) -> Op
     rint += "        reportIntersectionEXT(t, 0u);\n    }\n}\n";
     shaders.push(ShaderSource { role: Role::Intersection, glsl: rint });
 
-    if cell.stage == Stage::AnyHit {
+    if spec.stage == Stage::AnyHit {
         let mut ahit = header(true, Some(probe), &[]);
         ahit += "layout(location = 0) rayPayloadInEXT Record pl;\nvoid main() {\n    uvec2 px = gl_LaunchIDEXT.xy;\n";
         ahit += &probe.body;
@@ -307,7 +313,7 @@ fn ray_tracing<'a>(cell: &Cell, probe: &'a ProbeCode, here: impl Fn(Stage) -> Op
         ahit += "}\n";
         shaders.push(ShaderSource { role: Role::AnyHit, glsl: ahit });
     }
-    if cell.stage == Stage::Callable {
+    if spec.stage == Stage::Callable {
         let mut call = header(true, Some(probe), &[]);
         call += call_data;
         call += "layout(location = 2) callableDataInEXT CallData cd;\nvoid main() {\n    uvec2 px = gl_LaunchIDEXT.xy;\n";
@@ -315,7 +321,7 @@ fn ray_tracing<'a>(cell: &Cell, probe: &'a ProbeCode, here: impl Fn(Stage) -> Op
         call += "    cd.slot = probeSlot;\n    cd.element = probeElement;\n    cd.value = probeValue;\n}\n";
         shaders.push(ShaderSource { role: Role::Callable, glsl: call });
     }
-    let traces_from_hit_or_miss = probe.traces && matches!(cell.stage, Stage::ClosestHit | Stage::Miss);
+    let traces_from_hit_or_miss = probe.traces && matches!(spec.stage, Stage::ClosestHit | Stage::Miss);
     CellShaders {
         kind: PipelineKind::RayTracing,
         shaders,
@@ -327,8 +333,8 @@ fn ray_tracing<'a>(cell: &Cell, probe: &'a ProbeCode, here: impl Fn(Stage) -> Op
 }
 
 fn canary(c: Canary) -> CellShaders {
-    let cell = Cell::canary(c);
-    let mut shaders = ray_tracing(&cell, &ProbeCode::none(), |_| None).shaders;
+    let carrier = ProbeSpec::of(&Cell::canary(c));
+    let mut shaders = ray_tracing(&carrier, &ProbeCode::none(), |_| None).shaders;
     let exts: &[&str] = match c {
         Canary::InvalidAddress => &["GL_EXT_buffer_reference", "GL_EXT_shader_explicit_arithmetic_types_int64"],
         Canary::InfiniteLoop => &[],
@@ -349,23 +355,6 @@ fn canary(c: Canary) -> CellShaders {
     CellShaders { kind: PipelineKind::RayTracing, shaders, recursion_depth: 1, uses_probe_binding: false, uses_scene_tlas: true, uses_ray_query: false }
 }
 
-/// Whether this cell's AS probe reaches the AS through an address (written so, or patched).
-pub fn as_by_address(cell: &Cell) -> bool {
-    cell.resource == Resource::AccelerationStructure
-        && (matches!(cell.as_access, Some(AsAccess::Address | AsAccess::AddressPatched)) || cell.patch == Some(crate::model::cell::Workaround::AsToAddress))
-}
-
-/// `as_access=address_patched` runs the `descriptor` variant's shaders rewritten by the
-/// as-to-address patch: this is the cell whose GLSL is generated.
-pub fn source_cell(cell: &Cell) -> Cell {
-    let c = Cell { patch: None, ..*cell };
-    if cell.as_access == Some(AsAccess::AddressPatched) {
-        Cell { as_access: Some(AsAccess::Descriptor), ..c }
-    } else {
-        c
-    }
-}
-
 /// Push-constant offset of the table address the address patches add (the end of the probes'
 /// own block, `probe::PushConstants`).
 pub const PATCHED_TABLE_OFFSET: u32 = crate::probe::PATCHED_TABLE_OFFSET;
@@ -373,7 +362,7 @@ pub const PATCHED_TABLE_OFFSET: u32 = crate::probe::PATCHED_TABLE_OFFSET;
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::{DescriptorModel, IndexSource};
+    use crate::model::{AsAccess, DescriptorModel, IndexSource, Resource};
 
     fn reorder_cell(r: Option<Reorder>, resource: Resource) -> Cell {
         let as_access = (resource == Resource::AccelerationStructure).then_some(AsAccess::Descriptor);
@@ -433,6 +422,22 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The GLSL is what is written before any SPIR-V workaround: `as_access=address_patched` is
+    /// the descriptor variant's, a `patch` cell its base cell's (the worker patches after).
+    #[test]
+    fn patched_cells_generate_the_glsl_they_patch() {
+        use crate::model::Workaround;
+        let glsl = |c: &Cell| generate(c).shaders.into_iter().map(|s| s.glsl).collect::<Vec<_>>();
+        let d = Cell { nonuniform: false, ..reorder_cell(None, Resource::AccelerationStructure) };
+        let patched = Cell { as_access: Some(AsAccess::AddressPatched), patch: Some(Workaround::PinIndex), ..d };
+        assert_eq!(glsl(&patched), glsl(&d));
+        let written = glsl(&Cell { as_access: Some(AsAccess::Address), ..d });
+        assert_ne!(written, glsl(&d));
+        assert!(written.iter().any(|g| g.contains("accelerationStructureEXT(AsTable(packUint2x32(pc.asTable)).a[")));
+        let ssbo = reorder_cell(None, Resource::StorageBuffer);
+        assert_eq!(glsl(&Cell { patch: Some(Workaround::SsboToAddress), ..ssbo }), glsl(&ssbo));
     }
 
     /// Lavapipe has no SER, so these shaders never reach a driver in the test suite: they are

@@ -1,5 +1,6 @@
-//! The probed read itself: declarations of the probed descriptor array (binding 2) or AS address
-//! table, and a body that defines `probeSlot`, `probeElement` and `probeValue`. Buffers and images
+//! The probed read itself, written from the cell's probe spec (`probe::spec::ProbeSpec`):
+//! declarations of the probed descriptor array (binding 2) or AS address table, and a body that
+//! defines `probeSlot`, `probeElement` and `probeValue`. Buffers and images
 //! are read at element `probeElement` (per primitive in hit stages, per pixel elsewhere), not
 //! always at 0. The AS probe traces a ray unlike the primary one (`PROBE_DIR`) and reads the
 //! committed hit's custom index, which names the probe TLAS variant. The index expression is written
@@ -16,8 +17,9 @@
 //! device address, instead of push data. Direct sampled-image cells sample with sampler
 //! `probeSampler[s]` of the sampler heap at a shifted coordinate (`probe::SAMPLER_SHIFT`), `s` a
 //! literal (`sampler=constant`) or the stage's runtime value modulo the samplers (`dynamic`).
-use crate::model::{AsAccess, BaseSource, Cell, HeapAccess, IndexSource, Resource, SamplerIndex, Stage};
+use crate::model::{Resource, Stage};
 use crate::probe;
+use crate::probe::spec::{Access, ArrayAt, Base, ElementMap, ProbeSpec, Sampler, SlotSource};
 
 pub struct ProbeCode {
     pub extensions: Vec<&'static str>,
@@ -45,46 +47,46 @@ fn element_expr(stage: Stage) -> &'static str {
     }
 }
 
-/// Where a hit stage's dynamic index takes its base from (`base` axis; push data by default).
-fn base_expr(base: Option<BaseSource>) -> &'static str {
+/// Where a hit stage's dynamic value takes its base from (push data unless the spec says
+/// otherwise).
+fn base_expr(base: Base) -> &'static str {
     match base {
-        None => "pc.dynBase",
-        Some(BaseSource::ShaderRecord) => "shaderRecord.dynBase",
-        Some(BaseSource::Buffer) => "ProbeBases(pc.baseAddress).base[gl_InstanceID]",
+        Base::None | Base::PushData => "pc.dynBase",
+        Base::ShaderRecord => "shaderRecord.dynBase",
+        Base::InstanceBuffer => "ProbeBases(pc.baseAddress).base[gl_InstanceID]",
     }
 }
 
 /// The stage's runtime slot value (`probe::dynamic_slot`).
-fn dynamic_expr(cell: &Cell) -> String {
-    match cell.stage {
-        Stage::ClosestHit | Stage::AnyHit | Stage::Intersection => format!("({} + (uint(gl_InstanceCustomIndexEXT) & pc.dynMask))", base_expr(cell.base)),
+fn dynamic_expr(spec: &ProbeSpec) -> String {
+    match spec.stage {
+        Stage::ClosestHit | Stage::AnyHit | Stage::Intersection => format!("({} + (uint(gl_InstanceCustomIndexEXT) & pc.dynMask))", base_expr(spec.base)),
         Stage::Raygen | Stage::Miss | Stage::Callable => "((gl_LaunchIDEXT.x + gl_LaunchIDEXT.y * pc.width) % pc.slotCount)".into(),
         Stage::Fragment => "inSlot".into(),
         Stage::Compute => "((gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * pc.width) % pc.slotCount)".into(),
     }
 }
 
-/// The declarations and extensions the cell's base needs.
-fn base_decls(base: Option<BaseSource>, extensions: &mut Vec<&'static str>, decls: &mut String) {
+/// The declarations and extensions the spec's base needs.
+fn base_decls(base: Base, extensions: &mut Vec<&'static str>, decls: &mut String) {
     match base {
-        None => {}
-        Some(BaseSource::ShaderRecord) => *decls += &probe::glsl_shader_record(),
-        Some(BaseSource::Buffer) => {
+        Base::None | Base::PushData => {}
+        Base::ShaderRecord => *decls += &probe::glsl_shader_record(),
+        Base::InstanceBuffer => {
             extensions.extend(["GL_EXT_buffer_reference", "GL_EXT_buffer_reference_uvec2"]);
             *decls += "layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer ProbeBases { uint base[]; };\n";
         }
     }
 }
 
-/// The sampler heap index of a direct sampled-image probe (`sampler` axis), a dynamic one
-/// qualified `nonuniformEXT` where [`Cell::sampler_nonuniform`] says so (checked as any element
-/// otherwise, see `reference`).
-fn sampler_expr(cell: &Cell) -> String {
-    match cell.sampler {
-        None | Some(SamplerIndex::Constant) => format!("{}u", probe::SAMPLER_LITERAL),
-        Some(SamplerIndex::Dynamic) => {
-            let s = format!("({} % {}u)", dynamic_expr(cell), probe::SAMPLER_MODES.len());
-            if cell.sampler_nonuniform() {
+/// The sampler heap index of a direct sampled-image probe, a dynamic one qualified
+/// `nonuniformEXT` where the spec says so (checked as any element otherwise, see `reference`).
+fn sampler_expr(spec: &ProbeSpec) -> String {
+    match spec.sampler {
+        Sampler::None | Sampler::Constant => format!("{}u", probe::SAMPLER_LITERAL),
+        Sampler::Dynamic { nonuniform } => {
+            let s = format!("({} % {}u)", dynamic_expr(spec), probe::SAMPLER_MODES.len());
+            if nonuniform {
                 format!("nonuniformEXT({s})")
             } else {
                 s
@@ -94,21 +96,51 @@ fn sampler_expr(cell: &Cell) -> String {
 }
 
 /// The slot the probe records (`probeSlot`).
-fn index_expr(cell: &Cell) -> String {
-    match cell.index {
-        IndexSource::Literal => format!("{}u", probe::LITERAL_SLOT),
-        IndexSource::SpecConstant => "SPEC_SLOT".into(),
-        IndexSource::PushConstant => "pc.pushSlot".into(),
-        IndexSource::Dynamic | IndexSource::DynamicElement => dynamic_expr(cell),
+fn index_expr(spec: &ProbeSpec) -> String {
+    match spec.slot {
+        SlotSource::Literal => format!("{}u", probe::LITERAL_SLOT),
+        SlotSource::SpecConstant => "SPEC_SLOT".into(),
+        SlotSource::PushConstant => "pc.pushSlot".into(),
+        SlotSource::Dynamic => dynamic_expr(spec),
     }
 }
 
-/// The descriptor array index: the recorded slot, except with `dynamic_element`, where the
-/// descriptor is the packed one at the spec-constant slot and the slot selects inside it.
-fn descriptor_expr(cell: &Cell, idx: &str) -> String {
-    match cell.index {
-        IndexSource::DynamicElement => "SPEC_SLOT".into(),
-        IndexSource::Literal | IndexSource::SpecConstant | IndexSource::PushConstant | IndexSource::Dynamic => idx.into(),
+/// The descriptor array index: the recorded slot (qualified `nonuniformEXT` where the spec says
+/// so), or the packed descriptor's spec-constant slot, the slot selecting inside it. An address
+/// table has no descriptor index (the AS probe indexes the table with `idx`).
+fn descriptor_expr(spec: &ProbeSpec, idx: &str) -> String {
+    match spec.access {
+        Access::Slot { nonuniform: true } => format!("nonuniformEXT({idx})"),
+        Access::Slot { nonuniform: false } | Access::AddressTable => idx.into(),
+        Access::Packed => "SPEC_SLOT".into(),
+    }
+}
+
+/// The probed array's declaration: at binding 2, or read straight from the heap.
+fn array_decl(array: ArrayAt, binding: &str, direct: &str) -> String {
+    match array {
+        ArrayAt::Binding => binding.to_string(),
+        ArrayAt::Heap => direct.to_string(),
+    }
+}
+
+/// The declaration and the read of a sampled-image probe: a 2D texture, or with the packed
+/// descriptor an array texture whose layer is the slot; a combined image sampler at binding 2, or
+/// from the heap a texture and a separate sampler, the coordinate shifted so that the sampler's
+/// address mode picks the texel (`probe::sampled_element`).
+fn sampled_image(spec: &ProbeSpec, sub: &str) -> (String, String) {
+    let xy = "(vec2(uvec2(probeElement & 1u, probeElement >> 1u)) + 0.5) * 0.5";
+    let layer = spec.element == ElementMap::Layer;
+    let dim = if layer { "2DArray" } else { "2D" };
+    let at = |xy: String| if layer { format!("vec3({xy}, float(probeSlot))") } else { xy };
+    match spec.array {
+        ArrayAt::Binding => (format!("layout(set = 0, binding = 2) uniform sampler{dim} probeTex[];\n"), format!("textureLod(probeTex[{sub}], {}, 0.0)", at(xy.to_string()))),
+        ArrayAt::Heap => {
+            let [du, dv] = probe::SAMPLER_SHIFT;
+            let decl = format!("layout(descriptor_heap) uniform texture{dim} probeTex[];\nlayout(descriptor_heap) uniform sampler probeSampler[];\n");
+            let read = format!("textureLod(sampler{dim}(probeTex[{sub}], probeSampler[{}]), {}, 0.0)", sampler_expr(spec), at(format!("({xy} + vec2({du:?}, {dv:?}))")));
+            (decl, read)
+        }
     }
 }
 
@@ -118,103 +150,100 @@ impl ProbeCode {
         ProbeCode { extensions: vec![], decls: String::new(), body: String::new(), uses_binding: false, traces: false, ray_query: false }
     }
 
-    pub fn new(cell: &Cell) -> Self {
-        let idx = index_expr(cell);
-        let desc = descriptor_expr(cell, &idx);
-        let sub = if cell.nonuniform { format!("nonuniformEXT({desc})") } else { desc };
-        let packed = cell.index == IndexSource::DynamicElement;
+    /// The probe `spec` describes.
+    pub fn new(spec: &ProbeSpec) -> Self {
+        let idx = index_expr(spec);
+        let sub = descriptor_expr(spec, &idx);
         let mut extensions = vec!["GL_EXT_nonuniform_qualifier"];
-        let heap = cell.heap_access == Some(HeapAccess::Direct);
-        if heap {
+        if spec.array == ArrayAt::Heap {
             extensions.push(super::glslang::HEAP_EXTENSION);
         }
-        // The probed array's declaration: at binding 2, or read straight from the heap.
-        let array = |binding: &str, direct: &str| if heap { direct.to_string() } else { binding.to_string() };
         let mut decls = String::new();
-        if matches!(cell.index, IndexSource::SpecConstant | IndexSource::DynamicElement) {
+        if spec.spec_constant() {
             decls += "layout(constant_id = 0) const uint SPEC_SLOT = 0u;\n";
         }
-        base_decls(cell.base, &mut extensions, &mut decls);
-        let mut body = format!("    uint probeSlot = {idx};\n");
-        let element = if cell.resource == Resource::AccelerationStructure { "0u" } else { element_expr(cell.stage) };
-        body += &format!("    uint probeElement = {element};\n");
-        let (mut traces, mut ray_query, mut uses_binding) = (false, false, true);
-        let read = match cell.resource {
+        base_decls(spec.base, &mut extensions, &mut decls);
+        let element = match spec.element {
+            ElementMap::None => "0u",
+            ElementMap::Own | ElementMap::Packed | ElementMap::Layer => element_expr(spec.stage),
+        };
+        let body = format!("    uint probeSlot = {idx};\n    uint probeElement = {element};\n");
+        let mut p = ProbeCode { extensions, decls, body, uses_binding: true, traces: false, ray_query: false };
+        let array = |binding: &str, direct: &str| array_decl(spec.array, binding, direct);
+        match spec.resource {
             Resource::StorageBuffer => {
-                decls += &array(
+                let at = match spec.element {
+                    ElementMap::Packed => "packedElement(probeSlot, probeElement)",
+                    ElementMap::None | ElementMap::Own | ElementMap::Layer => "probeElement",
+                };
+                let decl = array(
                     "layout(set = 0, binding = 2, std430) readonly buffer ProbeBuffer { vec4 v[]; } probeBuf[];\n",
                     "layout(descriptor_heap, std430) readonly buffer ProbeBuffer { vec4 v[]; } probeBuf[];\n",
                 );
-                let at = if packed { "packedElement(probeSlot, probeElement)" } else { "probeElement" };
-                format!("probeBuf[{sub}].v[{at}]")
+                p.read(decl, format!("probeBuf[{sub}].v[{at}]"));
             }
             Resource::UniformBuffer => {
-                decls += &array(
+                let decl = array(
                     "layout(set = 0, binding = 2, std140) uniform ProbeUniform { vec4 v[ELEMENTS]; } probeUbo[];\n",
                     "layout(descriptor_heap, std140) uniform ProbeUniform { vec4 v[ELEMENTS]; } probeUbo[];\n",
                 );
-                format!("probeUbo[{sub}].v[probeElement]")
+                p.read(decl, format!("probeUbo[{sub}].v[probeElement]"));
             }
             Resource::SampledImage => {
-                let xy = "(vec2(uvec2(probeElement & 1u, probeElement >> 1u)) + 0.5) * 0.5";
-                // dynamic_element: an array texture, the slot its layer.
-                let (dim, at) = if packed { ("2DArray", format!("vec3({xy}, float(probeSlot))")) } else { ("2D", xy.to_string()) };
-                if heap {
-                    // Separate texture and sampler heaps; the sampled coordinate shifted so that
-                    // the sampler's address mode picks the texel (probe::sampled_element).
-                    let [du, dv] = probe::SAMPLER_SHIFT;
-                    let xy = format!("({xy} + vec2({du:?}, {dv:?}))");
-                    let at = if packed { format!("vec3({xy}, float(probeSlot))") } else { xy };
-                    decls += &format!("layout(descriptor_heap) uniform texture{dim} probeTex[];\nlayout(descriptor_heap) uniform sampler probeSampler[];\n");
-                    format!("textureLod(sampler{dim}(probeTex[{sub}], probeSampler[{}]), {at}, 0.0)", sampler_expr(cell))
-                } else {
-                    decls += &format!("layout(set = 0, binding = 2) uniform sampler{dim} probeTex[];\n");
-                    format!("textureLod(probeTex[{sub}], {at}, 0.0)")
-                }
+                let (decl, read) = sampled_image(spec, &sub);
+                p.read(decl, read);
             }
             Resource::StorageImage => {
-                decls += &array(
+                let decl = array(
                     "layout(set = 0, binding = 2, rgba32f) uniform readonly image2D probeImg[];\n",
                     "layout(descriptor_heap, rgba32f) uniform readonly image2D probeImg[];\n",
                 );
-                format!("imageLoad(probeImg[{sub}], ivec2(probeElement & 1u, probeElement >> 1u))")
+                p.read(decl, format!("imageLoad(probeImg[{sub}], ivec2(probeElement & 1u, probeElement >> 1u))"));
             }
-            Resource::AccelerationStructure => {
-                let as_expr = if cell.as_access == Some(AsAccess::Address) {
-                    uses_binding = false;
-                    extensions.extend(["GL_EXT_buffer_reference", "GL_EXT_shader_explicit_arithmetic_types_int64"]);
-                    decls += "layout(buffer_reference, std430, buffer_reference_align = 8) readonly buffer AsTable { uint64_t a[]; };\n";
-                    format!("accelerationStructureEXT(AsTable(packUint2x32(pc.asTable)).a[{idx}])")
-                } else {
-                    decls += &array(
-                        "layout(set = 0, binding = 2) uniform accelerationStructureEXT probeAs[];\n",
-                        "layout(descriptor_heap) uniform accelerationStructureEXT probeAs[];\n",
-                    );
-                    format!("probeAs[{sub}]")
-                };
-                if cell.stage.can_trace_ray() {
-                    traces = true;
-                    decls += "layout(location = 1) rayPayloadEXT Record probePl;\n";
-                    body += &format!(
-                        "    probePl = emptyRecord();\n    traceRayEXT({as_expr}, {PROBE_RAY_FLAG}, 0xFF, 0, 0, 1, primaryOrigin(px), TMIN, PROBE_DIR, TMAX, 1);\n    \
+            Resource::AccelerationStructure => p.trace_as(spec, &idx, &sub),
+        }
+        p
+    }
+
+    /// Declare the probed array (`decl`) and read `probeValue` as `value`.
+    fn read(&mut self, decl: String, value: String) {
+        self.decls += &decl;
+        self.body += &format!("    vec4 probeValue = {value};\n");
+    }
+
+    /// The AS probe: the acceleration structure from the array or the address table, traced from
+    /// the pixel's primary origin with traceRayEXT where the stage may, with a ray query elsewhere.
+    fn trace_as(&mut self, spec: &ProbeSpec, idx: &str, sub: &str) {
+        let as_expr = match spec.access {
+            Access::AddressTable => {
+                self.uses_binding = false;
+                self.extensions.extend(["GL_EXT_buffer_reference", "GL_EXT_shader_explicit_arithmetic_types_int64"]);
+                self.decls += "layout(buffer_reference, std430, buffer_reference_align = 8) readonly buffer AsTable { uint64_t a[]; };\n";
+                format!("accelerationStructureEXT(AsTable(packUint2x32(pc.asTable)).a[{idx}])")
+            }
+            Access::Slot { .. } | Access::Packed => {
+                self.decls += &array_decl(spec.array, "layout(set = 0, binding = 2) uniform accelerationStructureEXT probeAs[];\n", "layout(descriptor_heap) uniform accelerationStructureEXT probeAs[];\n");
+                format!("probeAs[{sub}]")
+            }
+        };
+        if spec.stage.can_trace_ray() {
+            self.traces = true;
+            self.decls += "layout(location = 1) rayPayloadEXT Record probePl;\n";
+            self.body += &format!(
+                "    probePl = emptyRecord();\n    traceRayEXT({as_expr}, {PROBE_RAY_FLAG}, 0xFF, 0, 0, 1, primaryOrigin(px), TMIN, PROBE_DIR, TMAX, 1);\n    \
 vec4 probeValue = asProbeValue(probePl.flags != 0u, probePl.custom);\n"
-                    );
-                } else {
-                    ray_query = true;
-                    extensions.push("GL_EXT_ray_query");
-                    body += &format!(
-                        "    rayQueryEXT rq;\n    rayQueryInitializeEXT(rq, {as_expr}, gl_RayFlagsOpaqueEXT, 0xFF, primaryOrigin(px), TMIN, PROBE_DIR, TMAX);\n    \
+            );
+        } else {
+            self.ray_query = true;
+            self.extensions.push("GL_EXT_ray_query");
+            self.body += &format!(
+                "    rayQueryEXT rq;\n    rayQueryInitializeEXT(rq, {as_expr}, gl_RayFlagsOpaqueEXT, 0xFF, primaryOrigin(px), TMIN, PROBE_DIR, TMAX);\n    \
 while (rayQueryProceedEXT(rq)) {{\n        if (rayQueryGetIntersectionTypeEXT(rq, false) == gl_RayQueryCandidateIntersectionAABBEXT) {{\n            \
 float tmax = rayQueryGetIntersectionTypeEXT(rq, true) != gl_RayQueryCommittedIntersectionNoneEXT ? rayQueryGetIntersectionTEXT(rq, true) : TMAX;\n            float st;\n            \
 if (sphereHit(rayQueryGetIntersectionObjectRayOriginEXT(rq, false), rayQueryGetIntersectionObjectRayDirectionEXT(rq, false), TMIN, tmax, st))\n                rayQueryGenerateIntersectionEXT(rq, st);\n        }}\n    }}\n    \
 bool probeHit = rayQueryGetIntersectionTypeEXT(rq, true) != gl_RayQueryCommittedIntersectionNoneEXT;\n    \
 vec4 probeValue = asProbeValue(probeHit, probeHit ? uint(rayQueryGetIntersectionInstanceCustomIndexEXT(rq, true)) : 0u);\n"
-                    );
-                }
-                return ProbeCode { extensions, decls, body, uses_binding, traces, ray_query };
-            }
-        };
-        body += &format!("    vec4 probeValue = {read};\n");
-        ProbeCode { extensions, decls, body, uses_binding, traces, ray_query }
+            );
+        }
     }
 }
