@@ -5,12 +5,16 @@
 //! reads the records back and compares them with the CPU reference, telling its caller each
 //! [`Phase`] it enters. Everything that can go wrong becomes an [`Outcome`].
 pub mod bindings;
+pub mod error;
+mod files;
 pub mod heap;
 pub mod pipeline;
 pub mod pictures;
 pub mod pipeline_cache;
 pub mod prebuild;
 pub mod resources;
+
+pub use error::CellError;
 
 use crate::model::{Canary, Cell, Resource};
 use crate::model::InjectedFault;
@@ -19,10 +23,10 @@ use crate::probe::spec::{ArrayAt, ProbeSpec, ReadIndex};
 use crate::probe::{self, Record, RECORD_SIZE};
 use crate::reference::{self, SceneReference};
 use crate::model::Phase;
-use crate::scene::gpu::{BuildError, SceneGpu};
+use crate::scene::gpu::SceneGpu;
 use crate::scene::Scene;
 use crate::model::SceneParams;
-use crate::shadergen::{self, compile::Compiler, compile::CompileError, PipelineKind};
+use crate::shadergen::{self, compile::Compiler, PipelineKind};
 use crate::vk::memory::{transition, Buffer, Image, Location, Transition};
 use crate::vk::submit::{Submitter, Waited};
 use crate::vk::{fault, Gpu, VkError};
@@ -101,50 +105,6 @@ impl PipelineInput<'_> {
 /// Told each phase a cell (or the setup) enters; an error ends the cell there (the worker's
 /// fault injection uses it to stand in for a device loss).
 pub type PhaseHook<'a> = &'a mut dyn FnMut(Phase) -> Result<(), VkError>;
-
-#[derive(Debug, thiserror::Error)]
-pub enum CellError {
-    #[error(transparent)]
-    Vk(#[from] VkError),
-    #[error(transparent)]
-    Compile(#[from] CompileError),
-    #[error(transparent)]
-    Build(#[from] BuildError),
-    #[error("{0} did not finish within the deadline")]
-    Timeout(&'static str),
-    #[error("{0}")]
-    Io(String),
-    #[error("as-to-address patch: {0}")]
-    Patch(#[from] crate::patches::PatchError),
-    /// rtprobe's own gap (outcome `not_implemented`).
-    #[error("not implemented in rtprobe: {0}")]
-    NotImplemented(String),
-    /// A queried limit of the device rules the cell out at this scene size (outcome `unsupported`).
-    #[error("{0}")]
-    Unsupported(String),
-}
-
-impl CellError {
-    /// The outcome this error means: a lost device is `device_lost` wherever it surfaced (AS
-    /// build, upload, submit), a fence wait past the deadline is `timeout`, anything else `error`.
-    pub fn outcome(&self) -> Outcome {
-        match self {
-            CellError::Vk(e) | CellError::Build(BuildError::Vk(e)) => vk_outcome(e),
-            CellError::Timeout(_) | CellError::Build(BuildError::TimedOut(_)) => Outcome::Timeout,
-            CellError::Compile(_) | CellError::Io(_) | CellError::Patch(_) => Outcome::Error,
-            CellError::NotImplemented(_) => Outcome::NotImplemented,
-            CellError::Unsupported(_) => Outcome::Unsupported,
-        }
-    }
-}
-
-fn vk_outcome(e: &VkError) -> Outcome {
-    match e {
-        VkError::DeviceLost { .. } => Outcome::DeviceLost,
-        VkError::Call { result, .. } if *result == vk::Result::TIMEOUT => Outcome::Timeout,
-        _ => Outcome::Error,
-    }
-}
 
 pub struct Executor {
     pub gpu: Gpu,
@@ -384,7 +344,7 @@ impl Executor {
         let mut spirv = Vec::new();
         for s in &shaders.shaders {
             let words = match &self.opts.spirv_dir {
-                Some(dir) => std::sync::Arc::new(bundle_spirv(dir, s.role).map_err(CellError::Io)?),
+                Some(dir) => std::sync::Arc::new(files::bundle_spirv(dir, s.role).map_err(CellError::Io)?),
                 None => {
                     let (words, ms) = self.compiler.compile(s.role, &s.glsl)?;
                     timings.compile_ms += ms;
@@ -415,7 +375,7 @@ impl Executor {
             }
         }
         if let Some(dir) = &self.opts.dump {
-            dump(dir, cell, &shaders, &spirv).map_err(CellError::Io)?;
+            files::dump(dir, cell, &shaders, &spirv).map_err(CellError::Io)?;
         }
         let dropped = heap::dropped_nonuniform(&spec, &spirv);
         Ok(Compiled { shaders, spirv, dropped })
@@ -620,31 +580,6 @@ impl Executor {
 /// The GLSL of every shader `cell` needs, with its injected fault (if any) appended.
 fn cell_shaders(cell: &Cell, injected: Option<&InjectedFault>) -> shadergen::CellShaders {
     shadergen::generate_with(cell, injected.map(|i| i.fault))
-}
-
-/// The module of `role` in a repro bundle's `shaders/` (`<role file>.spv`, little-endian words
-/// starting with the SPIR-V magic number).
-fn bundle_spirv(dir: &std::path::Path, role: shadergen::Role) -> Result<Vec<u32>, String> {
-    let path = dir.join(format!("{}.spv", role.file_name()));
-    let bytes = std::fs::read(&path).map_err(|e| format!("repro bundle: cannot read {}: {e}", path.display()))?;
-    let words: Vec<u32> = bytes.chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
-    if bytes.len() % 4 != 0 || words.first() != Some(&0x0723_0203) {
-        return Err(format!("repro bundle: {} is not SPIR-V", path.display()));
-    }
-    Ok(words)
-}
-
-fn dump(dir: &std::path::Path, cell: &Cell, shaders: &shadergen::CellShaders, spirv: &[std::sync::Arc<Vec<u32>>]) -> Result<(), String> {
-    let d = dir.join(cell.id());
-    std::fs::create_dir_all(&d).map_err(|e| format!("--dump {}: {e}", d.display()))?;
-    for (s, words) in shaders.shaders.iter().zip(spirv) {
-        let glsl = d.join(format!("{}.glsl", s.role.file_name()));
-        std::fs::write(&glsl, &s.glsl).map_err(|e| format!("--dump {}: {e}", glsl.display()))?;
-        let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
-        let spv = d.join(format!("{}.spv", s.role.file_name()));
-        std::fs::write(&spv, bytes).map_err(|e| format!("--dump {}: {e}", spv.display()))?;
-    }
-    Ok(())
 }
 
 impl Drop for Executor {

@@ -14,6 +14,7 @@ pub mod fault;
 pub mod filter;
 pub mod findings;
 pub mod inject;
+pub mod options;
 pub mod outcome;
 pub mod phase;
 pub mod plan;

@@ -5,12 +5,13 @@
 use crate::model::NotGenerated;
 use crate::model::{Canary, Cell};
 use crate::model::Outcome;
-use crate::model::{Attempt, Isolation, PatchMode, WorkerEvent};
+use crate::model::{Attempt, WorkerEvent};
+pub use super::options::{ResultOption, RunOptions};
 use crate::model::SceneParams;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 pub const SCHEMA: &str = "rtprobe.report/1";
 
@@ -304,145 +305,6 @@ pub struct PipelineCacheSummary {
     pub saved_bytes: u64,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub save_errors: Vec<String>,
-}
-
-/// The options a run was made with (the report's `options`): what `--resume`, `merge`, `bisect`,
-/// `repro` and the renderers read back. Fields newer than the first reports default when absent.
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-pub struct RunOptions {
-    pub jobs: usize,
-    /// Threads a worker creates pipelines on (absent in reports before the prebuild).
-    #[serde(default)]
-    pub threads: Option<usize>,
-    /// The persisted pipeline cache folder (`None`: off).
-    #[serde(default)]
-    pub pipeline_cache: Option<PathBuf>,
-    /// The cache re-runs load (always `None`: re-runs start cold).
-    #[serde(default)]
-    pub rerun_pipeline_cache: Option<PathBuf>,
-    pub isolation: Isolation,
-    pub timeout_s: f64,
-    /// The worker setup deadline (absent in the first reports).
-    #[serde(default)]
-    pub setup_timeout_s: Option<f64>,
-    pub confirm: bool,
-    pub canaries: bool,
-    /// `--filter` arguments as given.
-    pub filters: Vec<String>,
-    pub patches: PatchMode,
-    pub validate: bool,
-    #[serde(default)]
-    pub gpu_av: bool,
-    /// `--inject-fault` arguments as given.
-    pub inject: Vec<String>,
-    pub repeat: Option<u32>,
-    /// `--shard I/N` as given.
-    pub shard: Option<String>,
-    /// `RTPROBE_BINDING_STAGES` as set for the run.
-    pub binding_stages: Option<String>,
-    /// A repro bundle's `shaders/` the workers ran (`run --cell-spec`).
-    #[serde(default)]
-    pub spirv_from: Option<PathBuf>,
-    /// The reports `merge` joined into this one.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub merged_from: Vec<String>,
-}
-
-impl RunOptions {
-    /// The options of a plain `rtprobe run` (unit tests of reporters and fleet tools).
-    #[cfg(test)]
-    pub fn for_tests() -> RunOptions {
-        RunOptions {
-            jobs: 1,
-            threads: Some(1),
-            pipeline_cache: None,
-            rerun_pipeline_cache: None,
-            isolation: Isolation::Worker,
-            timeout_s: 20.0,
-            setup_timeout_s: Some(120.0),
-            confirm: true,
-            canaries: false,
-            filters: vec![],
-            patches: PatchMode::Faults,
-            validate: false,
-            gpu_av: false,
-            inject: vec![],
-            repeat: None,
-            shard: None,
-            binding_stages: None,
-            spirv_from: None,
-            merged_from: vec![],
-        }
-    }
-}
-
-/// The options that change results: runs that differ in one of them are not continued
-/// (`--resume`), merged or compared like-for-like. `jobs`, `threads`, `shard` and paths do not.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ResultOption {
-    Patches,
-    Inject,
-    Filters,
-    Canaries,
-    Validate,
-    Timeout,
-    Confirm,
-    Repeat,
-    Isolation,
-    BindingStages,
-    /// Not result-changing for `merge` (shards are what it joins), but `--resume` keeps it.
-    Shard,
-}
-
-impl ResultOption {
-    /// Every option `merge` compares.
-    pub const MERGED: &'static [ResultOption] = &[
-        ResultOption::Patches,
-        ResultOption::Inject,
-        ResultOption::Filters,
-        ResultOption::Canaries,
-        ResultOption::Validate,
-        ResultOption::Timeout,
-        ResultOption::Confirm,
-        ResultOption::Repeat,
-        ResultOption::Isolation,
-        ResultOption::BindingStages,
-    ];
-
-    /// The flag (or variable) the option comes from, for messages.
-    pub fn flag(self) -> &'static str {
-        match self {
-            ResultOption::Patches => "--patches",
-            ResultOption::Inject => "--inject-fault",
-            ResultOption::Filters => "--filter",
-            ResultOption::Canaries => "--canaries",
-            ResultOption::Validate => "--validate",
-            ResultOption::Timeout => "--timeout",
-            ResultOption::Confirm => "--no-confirm",
-            ResultOption::Repeat => "--repeat",
-            ResultOption::Isolation => "--isolation",
-            ResultOption::BindingStages => "RTPROBE_BINDING_STAGES",
-            ResultOption::Shard => "--shard",
-        }
-    }
-
-    /// The option's value in `o`, as the report writes it.
-    pub fn value(self, o: &RunOptions) -> Value {
-        let v = match self {
-            ResultOption::Patches => serde_json::to_value(o.patches),
-            ResultOption::Inject => serde_json::to_value(&o.inject),
-            ResultOption::Filters => serde_json::to_value(&o.filters),
-            ResultOption::Canaries => serde_json::to_value(o.canaries),
-            ResultOption::Validate => serde_json::to_value(o.validate),
-            ResultOption::Timeout => serde_json::to_value(o.timeout_s),
-            ResultOption::Confirm => serde_json::to_value(o.confirm),
-            ResultOption::Repeat => serde_json::to_value(o.repeat),
-            ResultOption::Isolation => serde_json::to_value(o.isolation),
-            ResultOption::BindingStages => serde_json::to_value(&o.binding_stages),
-            ResultOption::Shard => serde_json::to_value(&o.shard),
-        };
-        v.unwrap_or(Value::Null)
-    }
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]

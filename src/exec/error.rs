@@ -1,0 +1,51 @@
+//! What running one cell can fail with, and the outcome each failure means (error → outcome
+//! is decided here once: a lost device is `device_lost` wherever it surfaced).
+use crate::model::Outcome;
+use crate::scene::gpu::BuildError;
+use crate::shadergen::compile::CompileError;
+use crate::vk::VkError;
+use ash::vk;
+
+#[derive(Debug, thiserror::Error)]
+pub enum CellError {
+    #[error(transparent)]
+    Vk(#[from] VkError),
+    #[error(transparent)]
+    Compile(#[from] CompileError),
+    #[error(transparent)]
+    Build(#[from] BuildError),
+    #[error("{0} did not finish within the deadline")]
+    Timeout(&'static str),
+    #[error("{0}")]
+    Io(String),
+    #[error("as-to-address patch: {0}")]
+    Patch(#[from] crate::patches::PatchError),
+    /// rtprobe's own gap (outcome `not_implemented`).
+    #[error("not implemented in rtprobe: {0}")]
+    NotImplemented(String),
+    /// A queried limit of the device rules the cell out at this scene size (outcome `unsupported`).
+    #[error("{0}")]
+    Unsupported(String),
+}
+
+impl CellError {
+    /// The outcome this error means: a lost device is `device_lost` wherever it surfaced (AS
+    /// build, upload, submit), a fence wait past the deadline is `timeout`, anything else `error`.
+    pub fn outcome(&self) -> Outcome {
+        match self {
+            CellError::Vk(e) | CellError::Build(BuildError::Vk(e)) => vk_outcome(e),
+            CellError::Timeout(_) | CellError::Build(BuildError::TimedOut(_)) => Outcome::Timeout,
+            CellError::Compile(_) | CellError::Io(_) | CellError::Patch(_) => Outcome::Error,
+            CellError::NotImplemented(_) => Outcome::NotImplemented,
+            CellError::Unsupported(_) => Outcome::Unsupported,
+        }
+    }
+}
+
+fn vk_outcome(e: &VkError) -> Outcome {
+    match e {
+        VkError::DeviceLost { .. } => Outcome::DeviceLost,
+        VkError::Call { result, .. } if *result == vk::Result::TIMEOUT => Outcome::Timeout,
+        _ => Outcome::Error,
+    }
+}
