@@ -1,9 +1,14 @@
 //! Running cells in isolation: the worker (`rtprobe __worker`), the supervisor that owns
 //! deadlines and kills, their line protocol, the phases a worker reports, and the supervisor's
-//! own fault injection for its tests.
+//! own fault injection for its tests. The supervisor's parts: a worker's lines as a pure state
+//! machine (`machine`), which worker runs which cells (`schedule`), the faults injected into each
+//! attempt (`injection`) and the processes themselves (`process`).
 pub mod groups;
+mod injection;
+mod machine;
 pub mod misbehave;
 pub mod process;
 pub mod protocol;
+mod schedule;
 pub mod supervisor;
 pub mod worker;

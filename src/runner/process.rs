@@ -1,13 +1,102 @@
-//! Worker processes as the supervisor controls them: waiting with a bound, the kernel state of
+//! Worker processes as the supervisor controls them: starting one (`rtprobe __worker JOB`, stdin
+//! null, in its own process group, dying with the supervisor) with a thread that turns its stdout
+//! into [`Input`]s and one that keeps its stderr's tail, waiting with a bound, the kernel state of
 //! one that will not die, killing its process group, and how it ended.
 use super::groups;
-use crate::model::{signal_name, Outcome, WorkerExit};
+use super::machine::Input;
+use super::protocol::WorkerMsg;
+use crate::model::WorkerExit;
+use std::io::{BufRead, BufReader, Read};
 use std::os::unix::process::ExitStatusExt;
-use std::process::{Child, ExitStatus};
+use std::path::Path;
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::sync::mpsc::Sender;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-pub(super) fn poll_exit(child: &mut Child, bound: Duration) -> Option<ExitStatus> {
+/// The stderr kept of each worker (its last bytes).
+const STDERR_TAIL: usize = 4000;
+
+/// What a worker's output becomes: its slot, its id and one input.
+pub(super) type Line = (usize, u64, Input);
+
+/// A running worker process.
+pub(super) struct Proc {
+    child: Child,
+    pid: i32,
+    /// The worker's id (in log lines).
+    worker: u64,
+    stderr: Arc<Mutex<String>>,
+}
+
+impl Proc {
+    /// Starts this executable as worker `worker` of slot `slot` on `job`; its lines go to `tx`,
+    /// ending with [`Input::Eof`].
+    pub fn start(job: &Path, slot: usize, worker: u64, tx: Sender<Line>) -> std::io::Result<Proc> {
+        let mut cmd = Command::new(std::env::current_exe()?);
+        cmd.arg("__worker").arg(job).stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped());
+        groups::harden(&mut cmd);
+        let mut child = cmd.spawn()?;
+        let pid = child.id() as i32;
+        groups::register(pid);
+        let stdout = child.stdout.take().expect("piped stdout");
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines() {
+                let Ok(line) = line else { break };
+                let input = match serde_json::from_str::<WorkerMsg>(&line) {
+                    Ok(m) => Input::Msg(m),
+                    Err(_) => Input::Garbage(line),
+                };
+                if tx.send((slot, worker, input)).is_err() {
+                    return;
+                }
+            }
+            let _ = tx.send((slot, worker, Input::Eof));
+        });
+        let stderr = Arc::new(Mutex::new(String::new()));
+        keep_tail(child.stderr.take().expect("piped stderr"), stderr.clone());
+        Ok(Proc { child, pid, worker, stderr })
+    }
+
+    /// Kills its group (see [`kill_group`]).
+    pub fn kill(&mut self, grace: Duration, kill_wait: Duration) -> WorkerExit {
+        kill_group(&mut self.child, self.pid, self.worker, &self.stderr, grace, kill_wait)
+    }
+
+    /// Its output ended: waits at most `grace` for the exit; one that closed its output but does
+    /// not exit is treated as hung and killed.
+    pub fn reap(&mut self, grace: Duration, kill_wait: Duration) -> WorkerExit {
+        match poll_exit(&mut self.child, grace) {
+            Some(status) => {
+                groups::unregister(self.pid);
+                exit_of(Some(status), &self.stderr)
+            }
+            None => self.kill(Duration::ZERO, kill_wait),
+        }
+    }
+}
+
+/// Keeps the last [`STDERR_TAIL`] bytes (or so) of `pipe` in `sink`, on a thread of its own.
+fn keep_tail(mut pipe: impl Read + Send + 'static, sink: Arc<Mutex<String>>) {
+    std::thread::spawn(move || {
+        let mut buf = [0u8; 4096];
+        while let Ok(n) = pipe.read(&mut buf) {
+            if n == 0 {
+                break;
+            }
+            if let Ok(mut s) = sink.lock() {
+                s.push_str(&String::from_utf8_lossy(&buf[..n]));
+                if s.len() > 2 * STDERR_TAIL {
+                    let cut = s.len() - STDERR_TAIL;
+                    let cut = (cut..s.len()).find(|i| s.is_char_boundary(*i)).unwrap_or(cut);
+                    s.drain(..cut);
+                }
+            }
+        }
+    });
+}
+
+fn poll_exit(child: &mut Child, bound: Duration) -> Option<ExitStatus> {
     let until = Instant::now() + bound;
     loop {
         if let Ok(Some(s)) = child.try_wait() {
@@ -35,7 +124,7 @@ pub(super) fn proc_state(pid: i32) -> String {
 
 /// SIGTERM the group, wait `grace`, SIGKILL, wait at most `kill_wait`; a process still there is
 /// abandoned (reported, never waited on again).
-pub(super) fn kill_group(child: &mut Child, pid: i32, worker: u64, stderr: &Arc<Mutex<String>>, grace: Duration, kill_wait: Duration) -> WorkerExit {
+fn kill_group(child: &mut Child, pid: i32, worker: u64, stderr: &Arc<Mutex<String>>, grace: Duration, kill_wait: Duration) -> WorkerExit {
     unsafe { libc::kill(-pid, libc::SIGTERM) };
     let mut status = poll_exit(child, grace);
     if status.is_none() {
@@ -55,20 +144,11 @@ pub(super) fn kill_group(child: &mut Child, pid: i32, worker: u64, stderr: &Arc<
     exit
 }
 
-pub(super) fn exit_of(status: Option<ExitStatus>, stderr: &Arc<Mutex<String>>) -> WorkerExit {
+fn exit_of(status: Option<ExitStatus>, stderr: &Arc<Mutex<String>>) -> WorkerExit {
     // Give the stderr reader a moment to drain.
     std::thread::sleep(Duration::from_millis(20));
     let tail = stderr.lock().map(|s| s.clone()).unwrap_or_default();
     WorkerExit { code: status.and_then(|s| s.code()), signal: status.and_then(|s| s.signal()), stderr_tail: tail, abandoned: None }
-}
-
-pub(super) fn died(exit: &WorkerExit) -> (Outcome, String) {
-    match (exit.signal, exit.code) {
-        (Some(s), _) => (Outcome::Crash, format!("worker killed by signal {s} ({})", signal_name(s))),
-        (None, Some(c)) if c != 0 => (Outcome::Crash, format!("worker exited with code {c}")),
-        (None, Some(_)) => (Outcome::Error, "worker exited (code 0) early".into()),
-        (None, None) => (Outcome::Error, "worker vanished".into()),
-    }
 }
 
 #[cfg(test)]
@@ -86,16 +166,6 @@ mod tests {
         assert!(t.elapsed() < Duration::from_secs(2));
         child.kill().unwrap();
         assert!(poll_exit(&mut child, Duration::from_secs(5)).is_some());
-    }
-
-    #[test]
-    fn a_death_is_a_crash_unless_the_exit_was_clean() {
-        let exit = |code, signal| WorkerExit { code, signal, ..Default::default() };
-        assert_eq!(died(&exit(None, Some(libc::SIGSEGV))).0, Outcome::Crash);
-        assert!(died(&exit(None, Some(libc::SIGSEGV))).1.contains("SIGSEGV"));
-        assert_eq!(died(&exit(Some(3), None)).0, Outcome::Crash);
-        assert_eq!(died(&exit(Some(0), None)).0, Outcome::Error);
-        assert_eq!(died(&exit(None, None)).0, Outcome::Error);
     }
 
     #[test]
