@@ -207,7 +207,7 @@ fn a_repro_bundle_reruns_its_cell_with_the_same_verdict() {
         }
         let spec = json_file(&b.join("cell.json"));
         assert_eq!(spec["id"], id);
-        assert_eq!(json_file(&b.join("caps.json"))["schema"], "rtprobe.caps/1");
+        assert_eq!(json_file(&b.join("caps.json"))["schema"], "rtprobe.caps/2");
         let out = b.join("rerun.json");
         let o = run(&["run", "--cell-spec", b.join("cell.json").to_str().unwrap(), "-o", out.to_str().unwrap()]);
         let again = json_file(&out);

@@ -19,7 +19,7 @@ fn summary_value(summary: &str, key: &str) -> Option<String> {
 #[test]
 fn caps_json_describes_lavapipe_and_agrees_with_vulkaninfo() {
     let v = json(&run(&["caps", "--json"]));
-    assert_eq!(v["schema"], "rtprobe.caps/1");
+    assert_eq!(v["schema"], "rtprobe.caps/2");
     assert_eq!(v["ray_tracing_pipeline"]["supported"], true, "{}", v["ray_tracing_pipeline"]);
     let name = v["device"]["name"].as_str().unwrap();
     assert!(name.contains("llvmpipe"), "tests expect lavapipe, got {name}");
@@ -61,15 +61,22 @@ fn caps_json_describes_lavapipe_and_agrees_with_vulkaninfo() {
 fn caps_matrix_lists_exactly_the_axes_and_values_filter_accepts() {
     let v = json(&run(&["caps", "--json"]));
     let matrix = v["matrix"].as_object().unwrap();
-    let axes: Vec<&str> = rtprobe::model::registry::names().collect();
+    // The axes `run --filter` names when it refuses one.
+    let o = run(&["run", "--list", "--filter", "no_such_axis=x"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let said = stderr(&o);
+    let axes: Vec<&str> = said.rsplit_once("axes: ").expect("the error lists the axes").1.trim().split(", ").collect();
     assert_eq!(matrix.keys().map(String::as_str).collect::<Vec<_>>(), axes);
-    for a in rtprobe::model::registry::AXES {
-        let listed: Vec<&str> = matrix[a.name].as_object().unwrap().keys().map(String::as_str).collect();
-        assert_eq!(listed, a.filter_values().collect::<Vec<_>>(), "{}", a.name);
-        for value in listed {
-            // What caps lists, --filter takes.
-            rtprobe::model::Filter::parse(&format!("{}={value}", a.name)).unwrap();
-        }
+    for (axis, values) in matrix {
+        // Every value caps lists, `run --filter` takes (one term with all of them), and a value
+        // caps does not list it refuses, naming the values it takes: the same list.
+        let listed: Vec<&str> = values.as_object().unwrap().keys().map(String::as_str).collect();
+        let o = run(&["run", "--list", "--filter", &format!("{axis}={}", listed.join("|"))]);
+        assert_eq!(o.status.code(), Some(0), "{axis}: {}", stderr(&o));
+        let o = run(&["run", "--list", "--filter", &format!("{axis}=no_such_value")]);
+        assert_eq!(o.status.code(), Some(2), "{axis}: {}", stderr(&o));
+        let taken = stderr(&o).rsplit_once("values: ").expect("the error lists the values").1.trim().to_string();
+        assert_eq!(taken, listed.join(", "), "{axis}");
     }
     // lavapipe has no SER: the reorder values say why.
     assert_eq!(matrix["reorder"]["reorder"]["status"], "unsupported");
@@ -159,7 +166,7 @@ fn caps_text_and_profile_export() {
     assert!(caps["extensions"]["VK_KHR_ray_tracing_pipeline"].as_u64().is_some());
     assert_eq!(caps["features"]["VkPhysicalDeviceRayTracingPipelineFeaturesKHR"]["rayTracingPipeline"], true);
     let saved: serde_json::Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
-    assert_eq!(saved["schema"], "rtprobe.caps/1");
+    assert_eq!(saved["schema"], "rtprobe.caps/2");
 }
 
 #[test]

@@ -391,9 +391,22 @@ fn is_path_start(toks: &[Token], i: usize) -> bool {
         && (i == 0 || toks[i - 1].text != "::")
 }
 
+/// Whether a bare path starts at token `i` whose first segment is a child module of `base`
+/// (`use child::Item;` or `child::f()` in a `mod.rs`).
+fn is_child_path(toks: &[Token], i: usize, base: &[String], modules: &BTreeSet<String>) -> bool {
+    is_ident(&toks[i].text)
+        && toks.get(i + 1).is_some_and(|t| t.text == "::")
+        && (i == 0 || toks[i - 1].text != "::")
+        && modules.contains(&[base, std::slice::from_ref(&toks[i].text)].concat().join("::"))
+}
+
 /// Every path in a file of module `module`: (line, path as written, absolute path). Inline
 /// `mod name { ... }` blocks move `self` and `super` one level down while inside them.
-fn paths_in(toks: &[Token], module: &str) -> Vec<(usize, String, Vec<String>)> {
+fn paths_in(
+    toks: &[Token],
+    module: &str,
+    modules: &BTreeSet<String>,
+) -> Vec<(usize, String, Vec<String>)> {
     let file_base: Vec<String> = module
         .split("::")
         .filter(|s| !s.is_empty())
@@ -416,15 +429,19 @@ fn paths_in(toks: &[Token], module: &str) -> Vec<(usize, String, Vec<String>)> {
             }
             _ => {}
         }
-        if !is_path_start(toks, i) {
+        let mut base = file_base.clone();
+        base.extend(inline.iter().map(|(name, _)| name.clone()));
+        let bare = is_child_path(toks, i, &base, modules);
+        if !is_path_start(toks, i) && !bare {
             i += 1;
             continue;
         }
-        let mut base = file_base.clone();
-        base.extend(inline.iter().map(|(name, _)| name.clone()));
         let mut found = Vec::new();
         i = parse_tree(toks, i, Vec::new(), &mut found);
-        for (segs, line) in found {
+        for (mut segs, line) in found {
+            if bare {
+                segs.insert(0, "self".into());
+            }
             if let Some(abs) = absolute(&base, &segs) {
                 // A group's `self` (`use crate::a::{self, B}`) names the module itself.
                 let shown = segs.strip_suffix(&["self".to_string()]).unwrap_or(&segs);
@@ -442,6 +459,56 @@ fn owner(files: &BTreeMap<String, String>, abs: &[String]) -> String {
         .map(|n| abs[..n].join("::"))
         .find(|m| files.contains_key(m))
         .unwrap_or_default()
+}
+
+/// Per module, the names its `pub use` items re-export and the absolute path each stands for.
+type Reexports = BTreeMap<String, BTreeMap<String, Vec<String>>>;
+
+fn reexports(
+    parsed: &BTreeMap<String, (String, Vec<Token>)>,
+    paths: &BTreeMap<&String, Vec<(usize, String, Vec<String>)>>,
+) -> Reexports {
+    let mut out = Reexports::new();
+    for (module, (_, toks)) in parsed {
+        // The lines of `pub use` / `pub(crate) use` items, whose paths are the re-exports.
+        let lines: BTreeSet<usize> = toks
+            .windows(2)
+            .enumerate()
+            .filter(|(k, w)| {
+                w[1].text == "use" && (w[0].text == "pub" || (*k >= 3 && toks[k - 3].text == "pub"))
+            })
+            .map(|(_, w)| w[1].line)
+            .collect();
+        for (line, _, abs) in &paths[module] {
+            if let Some(name) = abs.last().filter(|_| lines.contains(line)) {
+                out.entry(module.clone()).or_default().insert(name.clone(), abs.clone());
+            }
+        }
+    }
+    out
+}
+
+/// `abs` with every re-exported name replaced by what it stands for (`crate::model::Cell` is
+/// `crate::model::cell::Cell` when `model` says `pub use cell::Cell`): a facade is no
+/// dependency of its users on its other children.
+fn through_reexports(
+    files: &BTreeMap<String, String>,
+    reexports: &Reexports,
+    mut abs: Vec<String>,
+) -> Vec<String> {
+    for _ in 0..8 {
+        let module = owner(files, &abs);
+        let depth = module.split("::").filter(|s| !s.is_empty()).count();
+        let target = abs
+            .get(depth)
+            .and_then(|name| reexports.get(&module)?.get(name))
+            .filter(|t| **t != abs[..=depth]);
+        match target {
+            Some(t) => abs = [t.as_slice(), &abs[depth + 1..]].concat(),
+            None => break,
+        }
+    }
+    abs
 }
 
 /// Reads every `.rs` file under `src` into files and the references between them.
@@ -476,10 +543,14 @@ fn analyze(src: &Path) -> Analysis {
         .iter()
         .map(|(m, (rel, _))| (m.clone(), rel.clone()))
         .collect();
+    let modules: BTreeSet<String> = files.keys().cloned().collect();
+    let paths: BTreeMap<&String, _> =
+        parsed.iter().map(|(m, (_, toks))| (m, paths_in(toks, m, &modules))).collect();
+    let reexports = reexports(&parsed, &paths);
     let mut edges = Vec::new();
-    for (from, (_, toks)) in &parsed {
-        for (line, text, abs) in paths_in(toks, from) {
-            let to = owner(&files, &abs);
+    for (from, found) in paths {
+        for (line, text, abs) in found {
+            let to = owner(&files, &through_reexports(&files, &reexports, abs));
             if to != *from {
                 edges.push(Edge {
                     from: from.clone(),
@@ -631,9 +702,13 @@ fn planted_cycle_is_found() {
     let names = |v: &[&str]| v.iter().map(ToString::to_string).collect::<Vec<_>>();
     // `c::tests` is declared under `#[cfg(test)]`: not a file of the graph.
     let files: Vec<&str> = a.files.keys().map(String::as_str).collect();
-    assert_eq!(files, ["", "a", "a::x", "a::y", "b", "c"]);
+    assert_eq!(files, ["", "a", "a::x", "a::y", "b", "c", "d", "d::e", "f", "f::g", "h"]);
     assert_eq!(a.module_cycles(), vec![names(&["a", "b"])]);
-    assert_eq!(a.file_cycles(), vec![names(&["a::x", "b"])]);
+    // `d` and its child reach each other by a bare child path and `super::`; `f` is a facade
+    // only, so `h`'s `crate::f::G` is an edge to `f::g`, and no cycle.
+    assert_eq!(a.file_cycles(), vec![names(&["a::x", "b"]), names(&["d", "d::e"])]);
+    assert!(a.edges.iter().any(|e| e.from == "h" && e.to == "f::g"), "{:#?}", a.edges);
+    assert!(!a.edges.iter().any(|e| e.from == "h" && e.to == "f"), "{:#?}", a.edges);
     let has = |from: &str, to: &str, text: &str| {
         a.edges
             .iter()

@@ -1,5 +1,5 @@
 //! The capability probe: what a device can do for ray tracing ([`caps_json`], schema
-//! `rtprobe.caps/1`), a text rendering of it, a Vulkan Profiles export, and — in [`support`] —
+//! `rtprobe.caps/2`), a text rendering of it, a Vulkan Profiles export, and — in [`support`] —
 //! which matrix axis values the device can run, with reasons.
 pub mod fields;
 pub mod profile;
@@ -11,7 +11,9 @@ use crate::vk::{driver_version, features::TRACKED_EXTENSIONS, DeviceInfo};
 use serde_json::{json, Map, Value};
 use std::collections::BTreeMap;
 
-pub const SCHEMA: &str = "rtprobe.caps/1";
+/// `/2`: `matrix` lists every axis and value `--filter` takes (the registry's); `/1` had
+/// `nonuniform_by_resource` and lacked `sampler`, `patch`, `canary` and `base=push_data`.
+pub const SCHEMA: &str = "rtprobe.caps/2";
 
 /// The `device` object shared by caps and run reports.
 pub fn device_json(info: &DeviceInfo) -> Value {

@@ -215,8 +215,9 @@ pub fn heap_access(info: &DeviceInfo, h: HeapAccess) -> Support {
 
 /// The support of one value of one registry axis (`caps`'s matrix): the device's reasons for the
 /// axes whose values need something of it, `Supported` for stand-ins and values that need
-/// nothing. A dynamic value (`nonuniform=true`, `sampler=dynamic`) needs dynamic indexing of
-/// every resource kind it can index; a cell's own support (`matrix::plan::device_support`) is
+/// nothing. `nonuniform=true` is supported when some resource kind can be indexed with it (as
+/// `index=dynamic`); `sampler=*` needs what `heap_access=direct` needs, `sampler=dynamic` also
+/// dynamic indexing of sampled images. A cell's own support (`matrix::plan::device_support`) is
 /// decided per cell.
 pub fn value(info: &DeviceInfo, axis: AxisId, v: &str) -> Support {
     let of = |s: Option<Support>| s.unwrap_or(Support::Supported);
@@ -224,8 +225,10 @@ pub fn value(info: &DeviceInfo, axis: AxisId, v: &str) -> Support {
         AxisId::Stage => of(Stage::parse(v).map(|s| stage(info, s))),
         AxisId::Resource => of(Resource::parse(v).map(|r| resource(info, r))),
         AxisId::Index => of(IndexSource::parse(v).map(|i| index(info, i))),
+        // As `index=dynamic`: supported as a value when some resource kind can be indexed with
+        // it (each cell's own support is decided per cell).
         AxisId::Nonuniform => match v {
-            "true" => Support::all(Resource::ALL.iter().map(|r| dynamic_index(info, *r, true)).collect::<Vec<_>>()),
+            "true" => Resource::ALL.iter().map(|r| dynamic_index(info, *r, true)).find(Support::is_supported).unwrap_or_else(|| dynamic_index(info, Resource::StorageBuffer, true)),
             _ => Support::Supported,
         },
         AxisId::AsAccess => of(AsAccess::parse(v).map(|a| as_access(info, a))),
@@ -237,11 +240,16 @@ pub fn value(info: &DeviceInfo, axis: AxisId, v: &str) -> Support {
         },
         AxisId::Reorder => of(Reorder::parse(v).map(|r| reorder(info, r))),
         AxisId::Base => of(BaseSource::parse(v).map(|b| base(info, b))),
-        AxisId::Sampler => match SamplerIndex::parse(v) {
-            Some(SamplerIndex::Constant) => heap_access(info, HeapAccess::Direct),
-            Some(SamplerIndex::Dynamic) => Support::all([heap_access(info, HeapAccess::Direct), dynamic_index(info, Resource::SampledImage, true)]),
-            None => Support::Supported,
-        },
+        // Sampler indices exist only on direct heap cells: the heap_access=direct row's reasons
+        // first.
+        AxisId::Sampler => {
+            let direct = value(info, AxisId::HeapAccess, HeapAccess::Direct.as_str());
+            match SamplerIndex::parse(v) {
+                Some(SamplerIndex::Constant) => direct,
+                Some(SamplerIndex::Dynamic) => Support::all([direct, dynamic_index(info, Resource::SampledImage, true)]),
+                None => Support::Supported,
+            }
+        }
         AxisId::Patch => match Workaround::parse(v) {
             Some(Workaround::AsToAddress | Workaround::SsboToAddress) => as_access(info, AsAccess::Address),
             Some(Workaround::Nonuniform | Workaround::PinIndex) | None => Support::Supported,

@@ -313,7 +313,7 @@ pub struct CapsArgs {
     #[arg(long, short = 'd', value_name = "INDEX|NAME")]
     pub device: Option<String>,
 
-    /// Print one JSON object (schema rtprobe.caps/1) instead of text
+    /// Print one JSON object (schema rtprobe.caps/2) instead of text
     #[arg(long)]
     pub json: bool,
 

@@ -179,6 +179,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             binding_stages: std::env::var("RTPROBE_BINDING_STAGES").ok(),
             spirv_from: a.spirv_dir.clone(),
             merged_from: vec![],
+            extra: Default::default(),
         },
         plan: PlanSummary {
             generated: the_plan.generated,

@@ -97,7 +97,7 @@ axis!(
     /// comes from when it is not push data (the default, no axis value in the id): the SBT shader
     /// record of the hit group (`probe::ShaderRecordData::dyn_base`, different per hit group), or
     /// a buffer of per-instance bases (different for neighbouring instances) read through a device
-    /// address at `gl_InstanceID` (`probe::hit_base`). Only on cells that have it
+    /// address at `gl_InstanceID` (`probe::spec::Base::value`). Only on cells that have it
     /// (`Cell::base_applies`).
     BaseSource {
         ShaderRecord = "shader_record", Buffer = "buffer",

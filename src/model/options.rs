@@ -6,8 +6,12 @@ use serde_json::Value;
 use std::path::PathBuf;
 
 /// The options a run was made with (the report's `options`): what `--resume`, `merge`, `bisect`,
-/// `repro` and the renderers read back. Fields newer than the first reports default when absent.
+/// `repro` and the renderers read back. Any field a report lacks takes the default an untyped
+/// read gave it before (`Default`: 1 job, worker isolation, 20 s, confirm, `--patches faults`),
+/// and keys this release does not know are kept (`extra`), so rewriting a report (merge,
+/// `--resume`) loses nothing.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(default)]
 pub struct RunOptions {
     pub jobs: usize,
     /// Threads a worker creates pipelines on (absent in reports before the prebuild).
@@ -45,20 +49,21 @@ pub struct RunOptions {
     /// The reports `merge` joined into this one.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub merged_from: Vec<String>,
+    /// Options of another release this one does not read, kept as they were.
+    #[serde(flatten)]
+    pub extra: serde_json::Map<String, Value>,
 }
 
-impl RunOptions {
-    /// The options of a plain `rtprobe run` (unit tests of reporters and fleet tools).
-    #[cfg(test)]
-    pub fn for_tests() -> RunOptions {
+impl Default for RunOptions {
+    fn default() -> RunOptions {
         RunOptions {
             jobs: 1,
-            threads: Some(1),
+            threads: None,
             pipeline_cache: None,
             rerun_pipeline_cache: None,
             isolation: Isolation::Worker,
             timeout_s: 20.0,
-            setup_timeout_s: Some(120.0),
+            setup_timeout_s: None,
             confirm: true,
             canaries: false,
             filters: vec![],
@@ -71,7 +76,16 @@ impl RunOptions {
             binding_stages: None,
             spirv_from: None,
             merged_from: vec![],
+            extra: serde_json::Map::new(),
         }
+    }
+}
+
+impl RunOptions {
+    /// The options of a plain `rtprobe run` (unit tests of reporters and fleet tools).
+    #[cfg(test)]
+    pub fn for_tests() -> RunOptions {
+        RunOptions { threads: Some(1), setup_timeout_s: Some(120.0), ..RunOptions::default() }
     }
 }
 

@@ -45,6 +45,9 @@ pub enum Segment {
     Flag(&'static str),
     /// `.prefix` + value; stand-ins are left out.
     Prefixed(&'static str),
+    /// `.prefix` + value after every other segment (the workaround applied to the cell); stand-ins
+    /// are left out.
+    Last(&'static str),
     /// The whole id is `canary.<value>` (the other axes are the canary's carrier).
     Whole,
 }
@@ -85,7 +88,8 @@ fn set_req<T>(slot: &mut T, parse: fn(&str) -> Option<T>, v: &str) -> bool {
     parse(v).map(|x| *slot = x).is_some()
 }
 
-/// Every axis, in id order.
+/// Every axis, in the order filters, bisection and exact filters list them (the order of the
+/// first releases' reports); cell ids follow it too, with [`Segment::Last`] segments at the end.
 pub const AXES: &[Axis] = &[
     Axis {
         id: AxisId::Stage,
@@ -199,6 +203,18 @@ pub const AXES: &[Axis] = &[
         phrase: |c| c.canary.map(|k| format!("canary {}", k.as_str())).unwrap_or_default(),
     },
     Axis {
+        id: AxisId::Patch,
+        name: "patch",
+        help: "the SPIR-V workaround applied to the cell's shaders",
+        values: Workaround::NAMES,
+        stand_ins: &["none"],
+        rank: Rank::Primary,
+        segment: Segment::Last("patch-"),
+        get: |c| c.patch.map(Workaround::as_str).unwrap_or("none"),
+        set: |c, v| set_opt(&mut c.patch, Workaround::parse, v),
+        phrase: |c| c.patch.map(|p| format!(", patched with {}", p.as_str())).unwrap_or_default(),
+    },
+    Axis {
         id: AxisId::Reorder,
         name: "reorder",
         help: "shader execution reordering in raygen before a closest-hit read",
@@ -252,18 +268,6 @@ pub const AXES: &[Axis] = &[
             .into()
         },
     },
-    Axis {
-        id: AxisId::Patch,
-        name: "patch",
-        help: "the SPIR-V workaround applied to the cell's shaders",
-        values: Workaround::NAMES,
-        stand_ins: &["none"],
-        rank: Rank::Primary,
-        segment: Segment::Prefixed("patch-"),
-        get: |c| c.patch.map(Workaround::as_str).unwrap_or("none"),
-        set: |c, v| set_opt(&mut c.patch, Workaround::parse, v),
-        phrase: |c| c.patch.map(|p| format!(", patched with {}", p.as_str())).unwrap_or_default(),
-    },
 ];
 
 /// The axis called `name`.
@@ -295,13 +299,20 @@ pub fn exact_filter(c: &Cell) -> String {
     AXES.iter().map(|a| format!("{}={}", a.name, (a.get)(c))).collect::<Vec<_>>().join(",")
 }
 
+/// The axes in the order a cell's id and its sentence list them: registry order, the
+/// [`Segment::Last`] ones at the end.
+fn in_id_order() -> impl Iterator<Item = &'static Axis> {
+    let last = |a: &&Axis| matches!(a.segment, Segment::Last(_));
+    AXES.iter().filter(move |a| !last(a)).chain(AXES.iter().filter(last))
+}
+
 /// A cell's id: its axis values in registry order (see [`Segment`]).
 pub fn id(c: &Cell) -> String {
     if let Some(k) = c.canary {
         return format!("canary.{}", k.as_str());
     }
     let mut parts: Vec<String> = Vec::new();
-    for a in AXES {
+    for a in in_id_order() {
         let v = (a.get)(c);
         if a.stand_ins.contains(&v) {
             continue;
@@ -309,7 +320,7 @@ pub fn id(c: &Cell) -> String {
         match a.segment {
             Segment::Value => parts.push(v.into()),
             Segment::Flag(word) => parts.push(word.into()),
-            Segment::Prefixed(p) => parts.push(format!("{p}{v}")),
+            Segment::Prefixed(p) | Segment::Last(p) => parts.push(format!("{p}{v}")),
             Segment::Whole => {}
         }
     }
@@ -325,12 +336,12 @@ pub fn parse_id(s: &str) -> Result<Cell, String> {
     }
     let mut c = Cell::new(Stage::Raygen, Resource::StorageBuffer, IndexSource::Literal, DescriptorModel::DescriptorIndexing);
     let mut parts = s.split('.').peekable();
-    for a in AXES {
+    for a in in_id_order() {
         let Some(&next) = parts.peek() else { break };
         let taken = match a.segment {
             Segment::Value => (a.set)(&mut c, next),
             Segment::Flag(word) => next == word && (a.set)(&mut c, "true"),
-            Segment::Prefixed(p) => next.strip_prefix(p).is_some_and(|v| (a.set)(&mut c, v)),
+            Segment::Prefixed(p) | Segment::Last(p) => next.strip_prefix(p).is_some_and(|v| (a.set)(&mut c, v)),
             Segment::Whole => false,
         };
         if taken {
@@ -354,7 +365,7 @@ pub fn describe(c: &Cell) -> String {
         let canary = AXES.iter().find(|a| a.segment == Segment::Whole).expect("the canary axis");
         return (canary.phrase)(c);
     }
-    AXES.iter().map(|a| (a.phrase)(c)).collect()
+    in_id_order().map(|a| (a.phrase)(c)).collect()
 }
 
 /// A cell's id, its parse and its axis values come from the registry.
@@ -382,6 +393,7 @@ mod tests {
     #[test]
     fn every_axis_is_declared_once_with_distinct_values() {
         let mut ids: Vec<AxisId> = AXES.iter().map(|a| a.id).collect();
+        ids.sort();
         ids.dedup();
         assert_eq!(ids.len(), AXES.len());
         let mut n: Vec<&str> = names().collect();
@@ -395,6 +407,22 @@ mod tests {
             v.dedup();
             assert_eq!(v.len(), len, "{}: a value twice", a.name);
         }
+    }
+
+    #[test]
+    fn filters_and_bisection_list_the_axes_as_the_first_reports_did() {
+        // `--filter`s written into reports (repro bundles' exact filters, merge and --resume
+        // compare them) and bisection's term order are the order of the first releases.
+        assert_eq!(
+            names().collect::<Vec<_>>(),
+            ["stage", "resource", "index", "nonuniform", "as_access", "descriptor_model", "heap_access", "canary", "patch", "reorder", "base", "sampler"]
+        );
+        let c = Cell { nonuniform: true, patch: Some(Workaround::PinIndex), ..Cell::new(Stage::ClosestHit, Resource::StorageBuffer, IndexSource::Dynamic, DescriptorModel::DescriptorIndexing) };
+        assert_eq!(
+            exact_filter(&c),
+            "stage=closest_hit,resource=storage_buffer,index=dynamic,nonuniform=true,as_access=none,descriptor_model=descriptor_indexing,heap_access=none,canary=none,patch=pin-index,reorder=none,base=push_data,sampler=none"
+        );
+        assert_eq!(describe(&c), "closest_hit reading storage_buffer with dynamic index (nonuniformEXT), descriptor_indexing, patched with pin-index");
     }
 
     #[test]

@@ -300,19 +300,6 @@ pub fn base_buffer(instances: u32) -> Vec<u8> {
     (0..=instances).flat_map(|i| instance_base(i).to_le_bytes()).collect()
 }
 
-/// The base a hit shader adds to the masked custom index, for a hit on instance `instance_id`
-/// (`sphere`: the procedural hit group): push data's [`DYNAMIC_BASE`], the hit group's record
-/// base, or the instance's entry of the bases buffer (`spec::Base::None`, where no dynamic value
-/// is computed: push data's, never read).
-pub fn hit_base(base: spec::Base, instance_id: u32, sphere: bool) -> u32 {
-    match base {
-        spec::Base::None | spec::Base::PushData => DYNAMIC_BASE,
-        spec::Base::ShaderRecord if sphere => RECORD_BASE_PROCEDURAL,
-        spec::Base::ShaderRecord => RECORD_BASE_TRIANGLES,
-        spec::Base::InstanceBuffer => instance_base(instance_id),
-    }
-}
-
 /// A sampler's address mode (the Vulkan modes the sampler heap's samplers use).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum AddressMode {
@@ -393,7 +380,7 @@ pub fn as_value(hit_custom: Option<u32>) -> [f32; 4] {
     [hit_custom.map(|c| c as f32 + 1.0).unwrap_or(0.0), 0.0, 0.0, 1.0]
 }
 
-/// The slot `index=dynamic` selects in `stage` for pixel (x, y); in hit stages `base` ([`hit_base`])
+/// The slot `index=dynamic` selects in `stage` for pixel (x, y); in hit stages `base` ([`spec::Base::value`])
 /// plus the masked custom index of the hit.
 pub fn dynamic_slot(stage: Stage, x: u32, y: u32, width: u32, hit_custom: u32, base: u32, slots: u32) -> u32 {
     match stage {

@@ -97,6 +97,21 @@ pub enum Base {
     InstanceBuffer,
 }
 
+impl Base {
+    /// The base a hit shader adds to the masked custom index, for a hit on instance
+    /// `instance_id` (`sphere`: the procedural hit group): push data's [`super::DYNAMIC_BASE`],
+    /// the hit group's record base, or the instance's entry of the bases buffer (`Base::None`,
+    /// where no dynamic value is computed: push data's, never read).
+    pub fn value(self, instance_id: u32, sphere: bool) -> u32 {
+        match self {
+            Base::None | Base::PushData => super::DYNAMIC_BASE,
+            Base::ShaderRecord if sphere => super::RECORD_BASE_PROCEDURAL,
+            Base::ShaderRecord => super::RECORD_BASE_TRIANGLES,
+            Base::InstanceBuffer => super::instance_base(instance_id),
+        }
+    }
+}
+
 /// The sampler a sampled-image probe samples with.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
 #[serde(rename_all = "snake_case")]

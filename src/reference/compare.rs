@@ -1,7 +1,7 @@
 //! A cell's records against the reference's: per pixel the hit fields within their tolerances
 //! (`T_REL_TOL`, `BARY_TOL`) and the probed value by its rule, with counts, worst errors, the
 //! own/other/neither reads of an undefined index, and the first mismatches as examples.
-use super::{Expected, ValueRule, BARY_TOL, T_REL_TOL};
+use super::rules::{Expected, ValueRule, BARY_TOL, T_REL_TOL};
 use crate::model::{Comparison, ElementReads, Mismatch, NO_NONUNIFORM_VUID};
 use crate::probe::{Record, FLAG_HIT, FLAG_PROBE};
 

@@ -31,6 +31,7 @@
 //! every other element of the slot holds a different value, i.e. whether reading any wrong
 //! element would have been caught there.
 mod compare;
+mod rules;
 pub mod intersect;
 pub mod watertight;
 
@@ -39,10 +40,8 @@ use crate::probe::spec::{ElementMap, ProbeSpec, ReadIndex, Sampler};
 use crate::probe::{self, HitIds, Record, FLAG_HIT, FLAG_PROBE, MAX_AS_VARIANTS};
 use crate::scene::Scene;
 pub use compare::compare;
+pub use rules::{Expected, Undefined, ValueRule, BARY_TOL, T_REL_TOL};
 use intersect::TraceRef;
-
-pub const T_REL_TOL: f64 = 1e-3;
-pub const BARY_TOL: f64 = 1e-3;
 
 /// Primary rays of every pixel through the scene TLAS, and AS probe rays through every probe TLAS
 /// variant.
@@ -87,54 +86,6 @@ impl SceneReference {
     }
 }
 
-/// How the probed value is checked.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum ValueRule {
-    Exact,
-    /// Any element of the probed array is allowed (non-uniform index without NonUniform); for AS
-    /// arrays, the first component of any probe TLAS variant's value (`as_values[..variants]`).
-    AnyElement { resource: Resource, slots: u32, as_values: [f32; MAX_AS_VARIANTS as usize], variants: u32 },
-    /// Only the sampler index is undefined (a dynamic sampler index whose `NonUniform` the
-    /// compiler dropped; the texture index is defined): the read slot's element through any of the
-    /// sampler heap's samplers (`values[s]` through sampler `s`). Slot and element stay exact.
-    AnySampler { values: [[f32; 4]; probe::SAMPLER_MODES.len()] },
-}
-
-/// What the driver saw undefined in a cell's probed read: the descriptor index (a non-uniform
-/// index without `NonUniform`: any element of the array), or only the sampler index.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Undefined {
-    pub descriptor: bool,
-    pub sampler: bool,
-}
-
-#[derive(Clone, Copy, Debug)]
-pub struct Expected {
-    pub record: Record,
-    pub ambiguous: bool,
-    pub rule: ValueRule,
-    /// Every other slot / element would have given another value here (exact rule only).
-    pub discriminating: bool,
-}
-
-impl ValueRule {
-    /// Whether `v` is the value of some element of the array.
-    fn allows(&self, v: [f32; 4]) -> bool {
-        match *self {
-            ValueRule::Exact => false,
-            ValueRule::AnyElement { resource: Resource::AccelerationStructure, as_values, variants, .. } => {
-                v[1..] == [0.0, 0.0, 1.0] && as_values[..variants as usize].contains(&v[0])
-            }
-            ValueRule::AnySampler { values } => values.contains(&v),
-            ValueRule::AnyElement { resource, slots, .. } => {
-                let (s, e) = (v[0] - 1.0, v[3] - 0.25);
-                let whole = |x: f32, n: u32| x >= 0.0 && x.fract() == 0.0 && (x as u32) < n;
-                whole(s, slots) && whole(e, probe::ELEMENTS) && probe::resource_value(resource, s as u32, e as u32) == v
-            }
-        }
-    }
-}
-
 /// Whether every other (slot, element) of a buffer/image array holds a value unlike `value`.
 fn buffer_value_discriminates(resource: Resource, slots: u32, slot: u32, element: u32) -> bool {
     let value = probe::resource_value(resource, slot, element);
@@ -165,7 +116,7 @@ impl Probed<'_> {
         let spec = self.spec;
         let (rec, slots) = (&mut e.record, self.slots);
         // The stage's runtime value (the dynamic slot, the dynamic sampler's source).
-        let base = hit.map(|h| probe::hit_base(spec.base, h.instance_id, h.sphere)).unwrap_or(probe::DYNAMIC_BASE);
+        let base = hit.map(|h| spec.base.value(h.instance_id, h.sphere)).unwrap_or(probe::DYNAMIC_BASE);
         let dynamic = probe::dynamic_slot(spec.stage, x, y, self.width, hit.map(|h| h.instance).unwrap_or(0), base, slots);
         // dynamic_element records the dynamic value as its slot and reads that slot's element
         // from the packed resource (probe::packed_element): the same record.
