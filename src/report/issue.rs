@@ -18,7 +18,8 @@ use crate::report::shaders::{cell_shaders, probed_role, spirv_dis};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+/// What `rtprobe report` writes (`--format`'s names are in `cli::values`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Format {
     Md,
     Json,
