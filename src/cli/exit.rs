@@ -43,8 +43,9 @@ pub struct CodedError {
     pub message: String,
 }
 
-pub fn coded(code: u8, message: impl Into<String>) -> anyhow::Error {
-    CodedError { code, message: message.into() }.into()
+/// `message` (a `String`, or a library error whose text is the message) with exit code `code`.
+pub fn coded(code: u8, message: impl std::fmt::Display) -> anyhow::Error {
+    CodedError { code, message: message.to_string() }.into()
 }
 
 pub fn code_for(err: &anyhow::Error) -> u8 {
