@@ -195,10 +195,11 @@ impl Executor {
     }
 
     /// Write the pipeline cache back to its file (merged with what is there): the bytes written;
-    /// `None` without a cache folder.
+    /// `None` without a cache folder. The error is text: the worker sends it as it is
+    /// (`WorkerMsg::CacheSaved`).
     pub fn save_pipeline_cache(&self) -> Option<Result<u64, String>> {
         let path = &self.cache_status.as_ref()?.path;
-        Some(pipeline_cache::save(&self.gpu, self.cache, path))
+        Some(pipeline_cache::save(&self.gpu, self.cache, path).map_err(|e| e.to_string()))
     }
 
     /// Run one cell. Never panics on driver misbehaviour; every failure is an outcome.

@@ -14,7 +14,7 @@ use crate::model::Injection;
 use crate::model::Cell;
 use crate::model::Outcome;
 use crate::model::{CellReport, RunReport};
-use crate::report::shaders::{cell_shaders, probed_role, spirv_dis};
+use crate::report::shaders::{cell_shaders, probed_role, spirv_dis, ShaderError};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
@@ -26,6 +26,20 @@ pub enum Format {
 }
 
 pub const SCHEMA: &str = "rtprobe.issue/1";
+
+/// What writing the issue, or its shader comparison, fails with.
+#[derive(Debug, thiserror::Error)]
+pub enum IssueError {
+    /// The bisection's representative cell id does not parse.
+    #[error("the bisection's minimal failing cell {0:?} is not a cell id")]
+    NotACell(String),
+    /// A compared cell's shaders could not be made (`cell`: its id).
+    #[error("{cell}: {err}")]
+    Shaders { cell: String, err: ShaderError },
+    /// The cell's shaders lack the one that does the probed read (`cell`: its id).
+    #[error("{cell}: no probed shader")]
+    NoProbedShader { cell: String },
+}
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Environment {
@@ -128,7 +142,7 @@ fn what_happens(o: Outcome) -> &'static str {
 }
 
 /// Build the issue for `report` and its bisection.
-pub fn build(report: &RunReport, report_path: &str, b: &BisectFile, inject: &[Injection]) -> Result<Issue, String> {
+pub fn build(report: &RunReport, report_path: &str, b: &BisectFile, inject: &[Injection]) -> Result<Issue, IssueError> {
     let bi = &b.bisection;
     let d = &report.device;
     let (os, kernel) = os_and_kernel();
@@ -147,7 +161,7 @@ pub fn build(report: &RunReport, report_path: &str, b: &BisectFile, inject: &[In
         kernel,
         rtprobe: s(&report.tool["version"]),
     };
-    let rep = cell_by_id(&bi.representative).ok_or_else(|| format!("the bisection's minimal failing cell {:?} is not a cell id", bi.representative))?;
+    let rep = cell_by_id(&bi.representative).ok_or_else(|| IssueError::NotACell(bi.representative.clone()))?;
     let rep_line = bi.isolation.first();
     let rep_report: Option<&CellReport> = report.cells.iter().find(|c| c.id == bi.representative);
     let outcome = rep_report.map(|c| c.outcome).or_else(|| rep_line.and_then(|l| Outcome::ALL.iter().copied().find(|o| o.as_str() == l.verdict))).unwrap_or(Outcome::Error);
@@ -209,7 +223,7 @@ pub fn build(report: &RunReport, report_path: &str, b: &BisectFile, inject: &[In
     let shader = shader_comparison(&rep, bi, inject);
     let (shader, shader_error) = match shader {
         Ok(sc) => (Some(sc), None),
-        Err(e) => (None, Some(e)),
+        Err(e) => (None, Some(e.to_string())),
     };
     let faults: Vec<_> = rep_report.map(|c| c.attempts.iter().filter_map(|a| a.result.as_ref().and_then(|r| r.fault.clone())).collect()).unwrap_or_default();
     let device_fault = match faults.first() {
@@ -353,14 +367,14 @@ fn not_tested(report: &RunReport, b: &BisectFile) -> Vec<String> {
 
 /// The probed shader of the failing cell and of its closest passing sibling (preferring a
 /// sibling that differs in the index, then the resource, then other axes).
-fn shader_comparison(rep: &Cell, bi: &crate::model::Bisection, inject: &[Injection]) -> Result<ShaderComparison, String> {
+fn shader_comparison(rep: &Cell, bi: &crate::model::Bisection, inject: &[Injection]) -> Result<ShaderComparison, IssueError> {
     let order = ["index", "nonuniform", "resource", "as_access", "descriptor_model", "patch", "stage"];
     let sibling = order.iter().find_map(|ax| bi.isolation.iter().find(|l| l.varied.as_deref() == Some(*ax) && l.verdict == "pass")).and_then(|l| cell_by_id(&l.cell));
     let role = probed_role(rep.stage);
-    let pick = |c: &Cell| -> Result<(String, Vec<u32>), String> {
+    let pick = |c: &Cell| -> Result<(String, Vec<u32>), IssueError> {
         let fault = for_cell(inject, c).map(|i| i.fault);
-        let shaders = cell_shaders(c, fault).map_err(|e| format!("{}: {e}", c.id()))?;
-        let sh = shaders.into_iter().find(|s| s.role == probed_role(c.stage)).ok_or_else(|| format!("{}: no probed shader", c.id()))?;
+        let shaders = cell_shaders(c, fault).map_err(|err| IssueError::Shaders { cell: c.id(), err })?;
+        let sh = shaders.into_iter().find(|s| s.role == probed_role(c.stage)).ok_or_else(|| IssueError::NoProbedShader { cell: c.id() })?;
         Ok((sh.glsl, sh.spirv))
     };
     let (glsl, spirv) = pick(rep)?;
