@@ -135,12 +135,14 @@ pub struct Executor {
 }
 
 impl Executor {
-    pub fn new(gpu: Gpu, params: &SceneParams, opts: ExecOptions) -> Result<Self, VkError> {
+    /// The shader compiler failing to start is `CellError::Compile(CompileError::Init)`, not a
+    /// Vulkan error: the worker's setup reports it as such.
+    pub fn new(gpu: Gpu, params: &SceneParams, opts: ExecOptions) -> Result<Self, CellError> {
         let scene = Scene::build(params);
         let t = Instant::now();
         let sref = SceneReference::compute(&scene);
         let reference_ms = t.elapsed().as_secs_f64() * 1e3;
-        let compiler = Compiler::new().map_err(|_| VkError::Call { call: "shaderc init", result: vk::Result::ERROR_INITIALIZATION_FAILED })?;
+        let compiler = Compiler::new()?;
         let submitter = Submitter::new(&gpu)?;
         let records = Buffer::new(
             &gpu,

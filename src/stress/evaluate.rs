@@ -165,7 +165,7 @@ impl CaseResult {
         let verdict = match e {
             TraceError::DeviceLost(_) => Verdict::DeviceLost,
             TraceError::Timeout(_) => Verdict::Timeout,
-            TraceError::Failed(_) => Verdict::Error,
+            TraceError::Failed(_) | TraceError::Compile(_) => Verdict::Error,
         };
         let metrics = Metrics { rays: parts.iter().map(|p| p.rays.len()).sum(), ..Metrics::default() };
         CaseResult { name: kind.as_str(), verdict, detail: Some(e.to_string()), metrics, ms: 0.0, parts: vec![], examples: vec![] }
