@@ -59,9 +59,18 @@ pub enum BenchError {
     #[error("`{cmd}` exited with code {code}: {stderr}")]
     RunFailed { cmd: String, code: i32, stderr: String },
     #[error("`{cmd}`: {why}")]
-    Report { cmd: String, why: String },
+    Report { cmd: String, why: crate::model::LoadError },
     #[error("`{cmd}` ran no {what} cell: check the filter")]
     Empty { cmd: String, what: &'static str },
+}
+
+/// The output folder cannot take bench's files ([`check_out_dir`]).
+#[derive(Debug, thiserror::Error)]
+pub enum OutDirError {
+    #[error("cannot create {}: {err}", .dir.display())]
+    Create { dir: PathBuf, err: std::io::Error },
+    #[error("cannot write in {}: {err}", .dir.display())]
+    NotWritable { dir: PathBuf, err: std::io::Error },
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -479,10 +488,10 @@ fn default_statement(o: &BenchOptions, size_time: &Value, detection: &Value) -> 
 
 /// Check that `dir` can take the output (created if missing) before any run: a probe file is
 /// written and removed.
-pub fn check_out_dir(dir: &Path) -> Result<(), String> {
-    std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+pub fn check_out_dir(dir: &Path) -> Result<(), OutDirError> {
+    std::fs::create_dir_all(dir).map_err(|err| OutDirError::Create { dir: dir.into(), err })?;
     let probe = dir.join(format!(".rtprobe-bench-{}", std::process::id()));
-    std::fs::write(&probe, b"").map_err(|e| format!("cannot write in {}: {e}", dir.display()))?;
+    std::fs::write(&probe, b"").map_err(|err| OutDirError::NotWritable { dir: dir.into(), err })?;
     let _ = std::fs::remove_file(&probe);
     Ok(())
 }

@@ -1,10 +1,20 @@
 //! What bisection takes from a run report: the options its runs must repeat (device, scene,
 //! `--inject-fault`, timeouts) and the scope of cells when no device is at hand.
-use crate::model::Injection;
+use crate::model::{InjectError, Injection};
 use crate::model::PatchMode;
-use crate::model::{Cell, Filter};
+use crate::model::{Cell, Filter, FilterError};
 use crate::model::RunReport;
 use crate::model::Isolation;
+
+/// What the report's options or the scope's filters fail with.
+#[derive(Debug, thiserror::Error)]
+pub enum ScopeError {
+    /// The report's recorded `--inject-fault` does not parse (any more).
+    #[error("the report's --inject-fault: {0}")]
+    Injection(InjectError),
+    #[error(transparent)]
+    Filter(FilterError),
+}
 
 /// The report's options that bisection's runs repeat.
 #[derive(Clone, Debug)]
@@ -21,9 +31,9 @@ pub struct ReportOptions {
 }
 
 impl ReportOptions {
-    pub fn of(r: &RunReport) -> Result<Self, String> {
+    pub fn of(r: &RunReport) -> Result<Self, ScopeError> {
         let o = &r.options;
-        let inject = o.inject.iter().map(|s| Injection::parse(s)).collect::<Result<Vec<_>, _>>().map_err(|e| format!("the report's --inject-fault: {e}"))?;
+        let inject = o.inject.iter().map(|s| Injection::parse(s)).collect::<Result<Vec<_>, _>>().map_err(ScopeError::Injection)?;
         Ok(ReportOptions {
             filters: o.filters.clone(),
             patches: o.patches,
@@ -37,9 +47,9 @@ impl ReportOptions {
     }
 
     /// The scope filters: `given`, or else the report's own `--filter`s.
-    pub fn scope_filters(&self, given: &[String]) -> Result<Vec<Filter>, String> {
+    pub fn scope_filters(&self, given: &[String]) -> Result<Vec<Filter>, ScopeError> {
         let src = if given.is_empty() { &self.filters } else { given };
-        src.iter().map(|f| Filter::parse(f)).collect()
+        src.iter().map(|f| Filter::parse(f)).collect::<Result<_, _>>().map_err(ScopeError::Filter)
     }
 }
 

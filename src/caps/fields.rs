@@ -2,6 +2,7 @@
 //! structure name and member names (`"VkPhysicalDeviceRayTracingPipelineFeaturesKHR":
 //! {"rayTracingPipeline": true}`) — the layout the Vulkan Profiles JSON format uses, so the caps
 //! report and the profile export share one representation. A struct the device lacks is absent.
+use crate::vk::features::Properties;
 use crate::vk::{rt_ext, DeviceInfo};
 use ash::vk;
 use serde_json::{json, Map, Value};
@@ -171,6 +172,15 @@ fn rt_extension_properties(info: &DeviceInfo, m: &mut Map<String, Value>) {
 pub fn properties(info: &DeviceInfo) -> Map<String, Value> {
     let p = &info.properties;
     let mut m = Map::new();
+    core_properties(p, &mut m);
+    pipeline_and_accel_properties(p, &mut m);
+    descriptor_properties(p, &mut m);
+    rt_extension_properties(info, &mut m);
+    m
+}
+
+/// The core limits rtprobe relies on, and Vulkan 1.2's descriptor-indexing properties.
+fn core_properties(p: &Properties, m: &mut Map<String, Value>) {
     let limits = obj!(p.core.limits;
         n "maxBoundDescriptorSets" max_bound_descriptor_sets, n "maxPushConstantsSize" max_push_constants_size,
         n "maxPerStageDescriptorStorageBuffers" max_per_stage_descriptor_storage_buffers,
@@ -189,7 +199,7 @@ pub fn properties(info: &DeviceInfo) -> Map<String, Value> {
         n "nonCoherentAtomSize" non_coherent_atom_size, n "timestampPeriod" timestamp_period,
     );
     m.insert("VkPhysicalDeviceProperties".into(), json!({ "limits": limits }));
-    put(&mut m, "VkPhysicalDeviceVulkan12Properties", p.v12.map(|s| obj!(s;
+    put(m, "VkPhysicalDeviceVulkan12Properties", p.v12.map(|s| obj!(s;
         n "maxUpdateAfterBindDescriptorsInAllPools" max_update_after_bind_descriptors_in_all_pools,
         b "shaderUniformBufferArrayNonUniformIndexingNative" shader_uniform_buffer_array_non_uniform_indexing_native,
         b "shaderSampledImageArrayNonUniformIndexingNative" shader_sampled_image_array_non_uniform_indexing_native,
@@ -206,14 +216,18 @@ pub fn properties(info: &DeviceInfo) -> Map<String, Value> {
         n "maxDescriptorSetUpdateAfterBindSampledImages" max_descriptor_set_update_after_bind_sampled_images,
         n "maxDescriptorSetUpdateAfterBindStorageImages" max_descriptor_set_update_after_bind_storage_images,
     )));
-    put(&mut m, "VkPhysicalDeviceRayTracingPipelinePropertiesKHR", p.rt_pipeline.map(|s| obj!(s;
+}
+
+/// The ray tracing pipeline's and acceleration structures' properties.
+fn pipeline_and_accel_properties(p: &Properties, m: &mut Map<String, Value>) {
+    put(m, "VkPhysicalDeviceRayTracingPipelinePropertiesKHR", p.rt_pipeline.map(|s| obj!(s;
         n "shaderGroupHandleSize" shader_group_handle_size, n "maxRayRecursionDepth" max_ray_recursion_depth,
         n "maxShaderGroupStride" max_shader_group_stride, n "shaderGroupBaseAlignment" shader_group_base_alignment,
         n "shaderGroupHandleCaptureReplaySize" shader_group_handle_capture_replay_size,
         n "maxRayDispatchInvocationCount" max_ray_dispatch_invocation_count,
         n "shaderGroupHandleAlignment" shader_group_handle_alignment, n "maxRayHitAttributeSize" max_ray_hit_attribute_size,
     )));
-    put(&mut m, "VkPhysicalDeviceAccelerationStructurePropertiesKHR", p.accel.map(|s| obj!(s;
+    put(m, "VkPhysicalDeviceAccelerationStructurePropertiesKHR", p.accel.map(|s| obj!(s;
         n "maxGeometryCount" max_geometry_count, n "maxInstanceCount" max_instance_count,
         n "maxPrimitiveCount" max_primitive_count,
         n "maxPerStageDescriptorAccelerationStructures" max_per_stage_descriptor_acceleration_structures,
@@ -222,7 +236,11 @@ pub fn properties(info: &DeviceInfo) -> Map<String, Value> {
         n "maxDescriptorSetUpdateAfterBindAccelerationStructures" max_descriptor_set_update_after_bind_acceleration_structures,
         n "minAccelerationStructureScratchOffsetAlignment" min_acceleration_structure_scratch_offset_alignment,
     )));
-    put(&mut m, "VkPhysicalDeviceDescriptorBufferPropertiesEXT", p.descriptor_buffer.map(|s| obj!(s;
+}
+
+/// Descriptor buffer, descriptor heap and robustness2 properties.
+fn descriptor_properties(p: &Properties, m: &mut Map<String, Value>) {
+    put(m, "VkPhysicalDeviceDescriptorBufferPropertiesEXT", p.descriptor_buffer.map(|s| obj!(s;
         b "combinedImageSamplerDescriptorSingleArray" combined_image_sampler_descriptor_single_array,
         b "bufferlessPushDescriptors" bufferless_push_descriptors,
         n "descriptorBufferOffsetAlignment" descriptor_buffer_offset_alignment,
@@ -240,7 +258,7 @@ pub fn properties(info: &DeviceInfo) -> Map<String, Value> {
         n "resourceDescriptorBufferAddressSpaceSize" resource_descriptor_buffer_address_space_size,
         n "descriptorBufferAddressSpaceSize" descriptor_buffer_address_space_size,
     )));
-    put(&mut m, "VkPhysicalDeviceDescriptorHeapPropertiesEXT", p.descriptor_heap.map(|s| obj!(s;
+    put(m, "VkPhysicalDeviceDescriptorHeapPropertiesEXT", p.descriptor_heap.map(|s| obj!(s;
         n "samplerHeapAlignment" sampler_heap_alignment, n "resourceHeapAlignment" resource_heap_alignment,
         n "maxSamplerHeapSize" max_sampler_heap_size, n "maxResourceHeapSize" max_resource_heap_size,
         n "imageDescriptorSize" image_descriptor_size, n "bufferDescriptorSize" buffer_descriptor_size,
@@ -252,10 +270,8 @@ pub fn properties(info: &DeviceInfo) -> Map<String, Value> {
         n "minResourceHeapReservedRange" min_resource_heap_reserved_range,
         n "maxPushDataSize" max_push_data_size,
     )));
-    put(&mut m, "VkPhysicalDeviceRobustness2PropertiesEXT", p.robustness2.map(|s| obj!(s;
+    put(m, "VkPhysicalDeviceRobustness2PropertiesEXT", p.robustness2.map(|s| obj!(s;
         n "robustStorageBufferAccessSizeAlignment" robust_storage_buffer_access_size_alignment,
         n "robustUniformBufferAccessSizeAlignment" robust_uniform_buffer_access_size_alignment,
     )));
-    rt_extension_properties(info, &mut m);
-    m
 }

@@ -1,4 +1,5 @@
 //! Process exit codes (documented in `--help` and docs/exit-codes.md) and the mapping from errors to them.
+use crate::shadergen::compile::CompileError;
 use crate::vk::VkError;
 
 pub const OK: u8 = 0;
@@ -17,6 +18,8 @@ pub const INTERNAL: u8 = 10;
 /// `run`: no finding, but a canary's fault, or an `--inject-fault`, was not detected:
 /// classification is unproven.
 pub const CANARY_UNDETECTED: u8 = 11;
+/// The shader compiler (shaderc, linked in) could not be started: nothing can be compiled.
+pub const NO_SHADER_COMPILER: u8 = 12;
 
 pub const HELP: &str = "\
 Exit codes:
@@ -33,7 +36,8 @@ Exit codes:
   9  bad input file or unwritable output
   10 internal error
   11 run: no finding, but a --canaries or --inject-fault fault was not detected (fault
-     classification unproven)";
+     classification unproven)
+  12 the shader compiler (shaderc) could not be started";
 
 /// An error that carries its own exit code (bad input, unwritable output, ...).
 #[derive(Debug, thiserror::Error)]
@@ -43,14 +47,36 @@ pub struct CodedError {
     pub message: String,
 }
 
-pub fn coded(code: u8, message: impl Into<String>) -> anyhow::Error {
-    CodedError { code, message: message.into() }.into()
+/// `message` (a `String`, or a library error whose text is the message) with exit code `code`.
+pub fn coded(code: u8, message: impl std::fmt::Display) -> anyhow::Error {
+    CodedError { code, message: message.to_string() }.into()
+}
+
+/// The code of a library error the CLI reports as text ([`coded`]): [`NO_SHADER_COMPILER`] when
+/// `e`, or an error it wraps (its `source()` chain), is the shader compiler failing to start;
+/// else `otherwise`.
+pub fn compiler_or(e: &(dyn std::error::Error + 'static), otherwise: u8) -> u8 {
+    let mut cause = Some(e);
+    while let Some(c) = cause {
+        if is_no_compiler(c) {
+            return NO_SHADER_COMPILER;
+        }
+        cause = c.source();
+    }
+    otherwise
+}
+
+fn is_no_compiler(e: &(dyn std::error::Error + 'static)) -> bool {
+    matches!(e.downcast_ref::<CompileError>(), Some(CompileError::Init))
 }
 
 pub fn code_for(err: &anyhow::Error) -> u8 {
     for cause in err.chain() {
         if let Some(c) = cause.downcast_ref::<CodedError>() {
             return c.code;
+        }
+        if is_no_compiler(cause) {
+            return NO_SHADER_COMPILER;
         }
         if let Some(v) = cause.downcast_ref::<VkError>() {
             return match v {
@@ -81,5 +107,22 @@ mod tests {
         assert_eq!(code_for(&e), DEVICE_LOST);
         assert_eq!(code_for(&coded(BAD_INPUT, "bad json")), BAD_INPUT);
         assert_eq!(code_for(&anyhow::anyhow!("??")), INTERNAL);
+    }
+
+    #[test]
+    fn the_shader_compiler_not_starting_has_its_own_code() {
+        // Not a Vulkan call failure (7), nor an internal error (10).
+        let e = anyhow::Error::from(CompileError::Init).context("compiling the probe");
+        assert_eq!(code_for(&e), NO_SHADER_COMPILER);
+        let shaders = crate::report::shaders::ShaderError::Compile(CompileError::Init);
+        assert_eq!(compiler_or(&shaders, INTERNAL), NO_SHADER_COMPILER);
+        let stress = crate::stress::TraceError::Compile(CompileError::Init);
+        assert_eq!(compiler_or(&stress, INTERNAL), NO_SHADER_COMPILER);
+        assert_eq!(code_for(&coded(compiler_or(&stress, INTERNAL), &stress)), NO_SHADER_COMPILER);
+        // A GLSL error is the input's, and keeps the caller's code.
+        let glsl = CompileError::Glsl { file: "x.rgen".into(), message: "syntax".into() };
+        assert_eq!(compiler_or(&glsl, BAD_INPUT), BAD_INPUT);
+        assert_eq!(code_for(&anyhow::Error::from(glsl)), INTERNAL);
+        assert!(HELP.contains("\n  12 the shader compiler (shaderc) could not be started"));
     }
 }

@@ -72,7 +72,7 @@ pub fn patch(a: &PatchArgs) -> Result<u8> {
         let k = kind(stage).ok_or_else(|| coded(exit::USAGE, format!("--stage {stage:?}: use rgen, rchit, rahit, rmiss, rint, rcall, vert, frag or comp")))?;
         let src = String::from_utf8(bytes).map_err(|_| coded(exit::BAD_INPUT, format!("{} is not UTF-8 GLSL", input.display())))?;
         let opts = glsl_options(a, input)?;
-        let mut c = crate::shadergen::compile::Compiler::new().map_err(|e| coded(exit::INTERNAL, e.to_string()))?;
+        let mut c = crate::shadergen::compile::Compiler::new().map_err(|e| coded(exit::NO_SHADER_COMPILER, e))?;
         let name = crate::shadergen::include::display(input);
         let words = c.compile_user_glsl(k, &name, &src, &opts).map_err(|e| coded(exit::BAD_INPUT, e.to_string()))?;
         words.iter().flat_map(|w| w.to_le_bytes()).collect()

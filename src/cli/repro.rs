@@ -148,7 +148,7 @@ pub fn repro(g: &Globals, a: &ReproArgs) -> Result<u8> {
     let cell = cell_by_id(&a.cell).ok_or_else(|| coded(exit::BAD_INPUT, format!("{:?} is not a cell id (see `rtprobe run --list`)", a.cell)))?;
     let entry = report.cells.iter().find(|c| c.id == a.cell);
     let inject: Vec<&Injection> = for_cell(&ro.inject, &cell).into_iter().collect();
-    let shaders = cell_shaders(&cell, inject.first().map(|i| i.fault)).map_err(|e| coded(exit::INTERNAL, format!("{}: {e}", cell.id())))?;
+    let shaders = cell_shaders(&cell, inject.first().map(|i| i.fault)).map_err(|e| coded(exit::compiler_or(&e, exit::INTERNAL), format!("{}: {e}", cell.id())))?;
     check_out(&a.out, &a.from, a.force)?;
     let name = a.out.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "repro".into());
     let tmp = a.out.with_file_name(format!(".{name}.tmp-{}", std::process::id()));

@@ -44,7 +44,7 @@ pub fn stress(g: &Globals, args: &StressArgs) -> Result<u8> {
     }
     let validation_active = inst.validation;
     let gpu = Gpu::new(inst, info, req)?;
-    let mut tracer = GpuTracer::new(gpu, Duration::from_secs_f64(args.timeout), mode).map_err(|e| anyhow::anyhow!("setting up the stress pipeline: {e}"))?;
+    let mut tracer = GpuTracer::new(gpu, Duration::from_secs_f64(args.timeout), mode).map_err(|e| exit::coded(exit::compiler_or(&e, exit::INTERNAL), format!("setting up the stress pipeline: {e}")))?;
     let name = tracer.name();
     let results = stress::run(&mut tracer, &opts);
     print!("{}", report::text(&name, &results));

@@ -1,17 +1,19 @@
-//! Command-line values of the data layer's enums: `clap::ValueEnum` written here, so that nothing
-//! below the CLI knows clap. The names are the ones the report writes (serde's).
+//! Command-line values of enums below the CLI: `clap::ValueEnum` written here, so that nothing
+//! below the CLI knows clap. The data layer's names are the ones the report writes (serde's).
 use crate::model::{Isolation, PatchMode};
+use crate::report::issue::Format;
+use crate::shadergen::compile::TargetEnv;
 use clap::builder::PossibleValue;
 
 macro_rules! value_enum {
-    ($t:ty { $($v:path => $name:literal : $help:literal),* $(,)? }) => {
+    ($t:ty { $($v:path => $name:literal $(: $help:literal)?),* $(,)? }) => {
         impl clap::ValueEnum for $t {
             fn value_variants<'a>() -> &'a [Self] {
                 &[$($v),*]
             }
             fn to_possible_value(&self) -> Option<PossibleValue> {
                 Some(match self {
-                    $($v => PossibleValue::new($name).help($help)),*
+                    $($v => PossibleValue::new($name)$(.help($help))?),*
                 })
             }
         }
@@ -29,6 +31,17 @@ value_enum!(PatchMode {
     PatchMode::All => "all": "Plan every cell with every workaround that applies to it",
 });
 
+value_enum!(TargetEnv {
+    TargetEnv::Vulkan1_2 => "vulkan1.2": "Vulkan 1.2, SPIR-V 1.5 (what rtprobe's own shaders use)",
+    TargetEnv::Vulkan1_3 => "vulkan1.3": "Vulkan 1.3, SPIR-V 1.6",
+    TargetEnv::Vulkan1_4 => "vulkan1.4": "Vulkan 1.4, SPIR-V 1.6",
+});
+
+value_enum!(Format {
+    Format::Md => "md",
+    Format::Json => "json",
+});
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -42,5 +55,13 @@ mod tests {
         for v in PatchMode::value_variants() {
             assert_eq!(serde_json::to_value(v).unwrap(), v.to_possible_value().unwrap().get_name());
         }
+    }
+
+    #[test]
+    fn target_env_default_is_the_flags_default() {
+        // `patch --target-env` defaults to "vulkan1.2"; `GlslOptions` defaults to this.
+        assert_eq!(TargetEnv::default().to_possible_value().unwrap().get_name(), "vulkan1.2");
+        assert_eq!(TargetEnv::from_str("vulkan1.4", false), Ok(TargetEnv::Vulkan1_4));
+        assert_eq!(Format::from_str("json", false), Ok(Format::Json));
     }
 }

@@ -16,8 +16,9 @@ pub enum CellError {
     Build(#[from] BuildError),
     #[error("{0} did not finish within the deadline")]
     Timeout(&'static str),
-    #[error("{0}")]
-    Io(String),
+    /// A bundle's SPIR-V or a `--dump` file.
+    #[error(transparent)]
+    Io(#[from] super::files::FileError),
     #[error("as-to-address patch: {0}")]
     Patch(#[from] crate::patches::PatchError),
     /// rtprobe's own gap (outcome `not_implemented`).

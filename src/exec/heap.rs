@@ -126,100 +126,143 @@ fn fns(gpu: &Gpu) -> &h::HeapFns {
     gpu.heap.as_ref().expect("descriptor heap enabled for heap cells (worker::requirements)")
 }
 
-impl HeapBinding {
-    /// Write `targets[b]` (binding b's descriptors) into a new resource heap laid out for a
-    /// `direct` or mapped cell, and `samplers` into a new sampler heap (in order, at the sampler
-    /// stride).
-    pub fn create(gpu: &Gpu, targets: &[(u32, Resource, Vec<Target>)], samplers: &[vk::SamplerCreateInfo], direct: bool) -> Result<HeapBinding, VkError> {
-        let p = props(gpu);
-        let f = fns(gpu);
-        // Heaps have no combined descriptors: a sampled image's image goes to the resource heap,
-        // its sampler to the sampler heap.
-        let heap_type = |ty: vk::DescriptorType| if ty == vk::DescriptorType::COMBINED_IMAGE_SAMPLER { vk::DescriptorType::SAMPLED_IMAGE } else { ty };
-        // How many bytes a descriptor write fills: vkGetPhysicalDeviceDescriptorSizeEXT ("for
-        // tools"; only those bytes are written and read).
-        let size_of = |ty: vk::DescriptorType| unsafe { (f.get_descriptor_size)(gpu.info.raw, heap_type(ty)) } as u32;
-        // The stride of a descriptor array in the heap is its class's descriptor size: buffers and
-        // acceleration structures (address ranges) `bufferDescriptorSize`, images
-        // `imageDescriptorSize`. A shader reading the heap directly strides by
-        // `OpConstantSizeOfEXT` of the type, which is that class size, not the exact size above
-        // (on lavapipe 26 an AS descriptor is 8 bytes, the buffer class 16).
-        let class_size = |ty: vk::DescriptorType| match heap_type(ty) {
+/// A descriptor type as the heaps hold it: heaps have no combined descriptors, a sampled image's
+/// image goes to the resource heap, its sampler to the sampler heap.
+fn heap_type(ty: vk::DescriptorType) -> vk::DescriptorType {
+    if ty == vk::DescriptorType::COMBINED_IMAGE_SAMPLER { vk::DescriptorType::SAMPLED_IMAGE } else { ty }
+}
+
+/// The device's descriptor sizes, and the commands that write descriptors.
+struct Sizes<'a> {
+    gpu: &'a Gpu,
+    p: h::PhysicalDeviceDescriptorHeapPropertiesEXT,
+    f: &'a h::HeapFns,
+}
+
+impl Sizes<'_> {
+    /// How many bytes a descriptor write fills: vkGetPhysicalDeviceDescriptorSizeEXT ("for
+    /// tools"; only those bytes are written and read).
+    fn written(&self, ty: vk::DescriptorType) -> u32 {
+        unsafe { (self.f.get_descriptor_size)(self.gpu.info.raw, heap_type(ty)) as u32 }
+    }
+
+    /// The stride of a descriptor array in the heap is its class's descriptor size: buffers and
+    /// acceleration structures (address ranges) `bufferDescriptorSize`, images
+    /// `imageDescriptorSize`. A shader reading the heap directly strides by
+    /// `OpConstantSizeOfEXT` of the type, which is that class size, not the exact size above
+    /// (on lavapipe 26 an AS descriptor is 8 bytes, the buffer class 16).
+    fn class(&self, ty: vk::DescriptorType) -> u32 {
+        let p = &self.p;
+        (match heap_type(ty) {
             vk::DescriptorType::SAMPLED_IMAGE | vk::DescriptorType::STORAGE_IMAGE => p.image_descriptor_size,
             vk::DescriptorType::SAMPLER => p.sampler_descriptor_size,
             _ => p.buffer_descriptor_size,
-        } as u32;
-        let slot = align(p.buffer_descriptor_size.max(p.image_descriptor_size), p.buffer_descriptor_alignment.max(p.image_descriptor_alignment)) as u32;
-        let (probe_ty, probe_count) = targets.iter().find(|(b, _, _)| *b == 2).map(|(_, kind, t)| (descriptor_type(*kind), t.len() as u32)).unwrap_or((vk::DescriptorType::STORAGE_BUFFER, 0));
-        let layout = HeapLayout::new(slot, class_size(probe_ty).max(size_of(probe_ty)).max(1), probe_count, direct);
+        }) as u32
+    }
+}
 
-        // Everything the infos point at lives until the write call below.
-        let mut ranges = Vec::new();
-        let mut views = Vec::new();
-        let mut kinds = Vec::new();
-        let mut at = Vec::new();
+/// The resource descriptors to write: what each describes (`kinds`: type, image or not, index
+/// into `views` or `ranges`) and where it goes (`at`: offset and size). The write infos point
+/// into these, so they live until the write call.
+#[derive(Default)]
+struct ResourceWrites {
+    ranges: Vec<h::DeviceAddressRange>,
+    views: Vec<vk::ImageViewCreateInfo<'static>>,
+    kinds: Vec<(vk::DescriptorType, bool, usize)>,
+    at: Vec<(usize, usize)>,
+}
+
+impl ResourceWrites {
+    fn of(sizes: &Sizes, targets: &[(u32, Resource, Vec<Target>)], layout: &HeapLayout) -> ResourceWrites {
+        let mut w = ResourceWrites::default();
         for (b, kind, ts) in targets {
             let ty = &descriptor_type(*kind);
             for (i, t) in ts.iter().enumerate() {
-                at.push((layout.offset(*b, i), size_of(*ty) as usize));
+                w.at.push((layout.offset(*b, i), sizes.written(*ty) as usize));
                 match *t {
                     Target::Buffer { address, range, .. } => {
-                        ranges.push(h::DeviceAddressRange { address, size: range });
-                        kinds.push((heap_type(*ty), false, ranges.len() - 1));
+                        w.ranges.push(h::DeviceAddressRange { address, size: range });
+                        w.kinds.push((heap_type(*ty), false, w.ranges.len() - 1));
                     }
                     // The range of an AS descriptor is unused and may be 0 (VkResourceDescriptorInfoEXT).
                     Target::Accel { address, .. } => {
-                        ranges.push(h::DeviceAddressRange { address, size: 0 });
-                        kinds.push((heap_type(*ty), false, ranges.len() - 1));
+                        w.ranges.push(h::DeviceAddressRange { address, size: 0 });
+                        w.kinds.push((heap_type(*ty), false, w.ranges.len() - 1));
                     }
                     Target::Image { image, layers, .. } => {
-                        views.push(
+                        w.views.push(
                             vk::ImageViewCreateInfo::default()
                                 .image(image)
                                 .view_type(crate::vk::memory::view_type(layers))
                                 .format(PROBE_IMAGE_FORMAT)
                                 .subresource_range(crate::vk::memory::layer_range(layers)),
                         );
-                        kinds.push((heap_type(*ty), true, views.len() - 1));
+                        w.kinds.push((heap_type(*ty), true, w.views.len() - 1));
                     }
                 }
             }
         }
-        let end = at.iter().map(|(o, n)| o + n).max().unwrap_or(0);
+        w
+    }
+
+    /// The resource heap's bytes: every descriptor written at its place.
+    fn write(&self, sizes: &Sizes) -> Result<Vec<u8>, VkError> {
+        let end = self.at.iter().map(|(o, n)| o + n).max().unwrap_or(0);
         let mut bytes = vec![0u8; end];
-        let images: Vec<h::ImageDescriptorInfo> = views
+        let images: Vec<h::ImageDescriptorInfo> = self
+            .views
             .iter()
             .map(|v| h::ImageDescriptorInfo { s_type: h::STRUCTURE_TYPE_IMAGE_DESCRIPTOR_INFO_EXT, p_next: std::ptr::null(), p_view: v as *const _ as *const _, layout: vk::ImageLayout::GENERAL })
             .collect();
-        let infos: Vec<h::ResourceDescriptorInfo> = kinds
+        let infos: Vec<h::ResourceDescriptorInfo> = self
+            .kinds
             .iter()
             .map(|&(ty, image, i)| h::ResourceDescriptorInfo {
                 s_type: h::STRUCTURE_TYPE_RESOURCE_DESCRIPTOR_INFO_EXT,
                 p_next: std::ptr::null(),
                 ty,
-                data: if image { h::ResourceDescriptorData { p_image: &images[i] } } else { h::ResourceDescriptorData { p_address_range: &ranges[i] } },
+                data: if image { h::ResourceDescriptorData { p_image: &images[i] } } else { h::ResourceDescriptorData { p_address_range: &self.ranges[i] } },
             })
             .collect();
         let base = bytes.as_mut_ptr();
         // SAFETY: every range lies inside `bytes` (its length is the largest end).
-        let dst: Vec<h::HostAddressRange> = at.iter().map(|&(o, n)| h::HostAddressRange { address: unsafe { base.add(o) } as *mut c_void, size: n }).collect();
+        let dst: Vec<h::HostAddressRange> = self.at.iter().map(|&(o, n)| h::HostAddressRange { address: unsafe { base.add(o) } as *mut c_void, size: n }).collect();
         // SAFETY: infos, their pointees and dst are alive and sized as declared.
-        unsafe { (f.write_resource_descriptors)(gpu.device.handle(), infos.len() as u32, infos.as_ptr(), dst.as_ptr()) }.result().at("vkWriteResourceDescriptorsEXT")?;
-        let resources = Heap::create(gpu, &bytes, p.resource_heap_alignment, p.min_resource_heap_reserved_range, "resource heap")?;
+        unsafe { (sizes.f.write_resource_descriptors)(sizes.gpu.device.handle(), infos.len() as u32, infos.as_ptr(), dst.as_ptr()) }.result().at("vkWriteResourceDescriptorsEXT")?;
+        Ok(bytes)
+    }
+}
 
-        // A `sampler probeSampler[]` heap array strides by OpConstantSizeOfEXT of the sampler
-        // type, its class's descriptor size (`samplerDescriptorSize`), like the resource arrays
-        // above; never less than what a write fills.
-        let sampler_size = size_of(vk::DescriptorType::SAMPLER).max(1) as usize;
-        let sampler_stride = class_size(vk::DescriptorType::SAMPLER).max(sampler_size as u32) as usize;
-        let mut sbytes = vec![0u8; sampler_stride * (samplers.len().max(1) - 1) + sampler_size];
-        let sbase = sbytes.as_mut_ptr();
-        // SAFETY: sampler k's range [k * stride, k * stride + size) lies inside `sbytes`.
-        let sdst: Vec<h::HostAddressRange> =
-            (0..samplers.len()).map(|k| h::HostAddressRange { address: unsafe { sbase.add(k * sampler_stride) } as *mut c_void, size: sampler_size }).collect();
-        // SAFETY: one destination range per sampler info, all alive for the call.
-        let written = unsafe { (f.write_sampler_descriptors)(gpu.device.handle(), samplers.len() as u32, samplers.as_ptr(), sdst.as_ptr()) }.result().at("vkWriteSamplerDescriptorsEXT");
-        let samplers = written.and_then(|_| Heap::create(gpu, &sbytes, p.sampler_heap_alignment.max(p.sampler_descriptor_alignment), p.min_sampler_heap_reserved_range, "sampler heap"));
+/// The sampler heap's bytes: `samplers` in order. A `sampler probeSampler[]` heap array strides
+/// by OpConstantSizeOfEXT of the sampler type, its class's descriptor size
+/// (`samplerDescriptorSize`), like the resource arrays; never less than what a write fills.
+fn write_samplers(sizes: &Sizes, samplers: &[vk::SamplerCreateInfo]) -> Result<Vec<u8>, VkError> {
+    let sampler_size = sizes.written(vk::DescriptorType::SAMPLER).max(1) as usize;
+    let sampler_stride = sizes.class(vk::DescriptorType::SAMPLER).max(sampler_size as u32) as usize;
+    let mut sbytes = vec![0u8; sampler_stride * (samplers.len().max(1) - 1) + sampler_size];
+    let sbase = sbytes.as_mut_ptr();
+    // SAFETY: sampler k's range [k * stride, k * stride + size) lies inside `sbytes`.
+    let sdst: Vec<h::HostAddressRange> =
+        (0..samplers.len()).map(|k| h::HostAddressRange { address: unsafe { sbase.add(k * sampler_stride) } as *mut c_void, size: sampler_size }).collect();
+    // SAFETY: one destination range per sampler info, all alive for the call.
+    unsafe { (sizes.f.write_sampler_descriptors)(sizes.gpu.device.handle(), samplers.len() as u32, samplers.as_ptr(), sdst.as_ptr()) }.result().at("vkWriteSamplerDescriptorsEXT")?;
+    Ok(sbytes)
+}
+
+impl HeapBinding {
+    /// Write `targets[b]` (binding b's descriptors) into a new resource heap laid out for a
+    /// `direct` or mapped cell, and `samplers` into a new sampler heap (in order, at the sampler
+    /// stride).
+    pub fn create(gpu: &Gpu, targets: &[(u32, Resource, Vec<Target>)], samplers: &[vk::SamplerCreateInfo], direct: bool) -> Result<HeapBinding, VkError> {
+        let sizes = Sizes { gpu, p: props(gpu), f: fns(gpu) };
+        let p = &sizes.p;
+        let slot = align(p.buffer_descriptor_size.max(p.image_descriptor_size), p.buffer_descriptor_alignment.max(p.image_descriptor_alignment)) as u32;
+        let (probe_ty, probe_count) = targets.iter().find(|(b, _, _)| *b == 2).map(|(_, kind, t)| (descriptor_type(*kind), t.len() as u32)).unwrap_or((vk::DescriptorType::STORAGE_BUFFER, 0));
+        let layout = HeapLayout::new(slot, sizes.class(probe_ty).max(sizes.written(probe_ty)).max(1), probe_count, direct);
+
+        let bytes = ResourceWrites::of(&sizes, targets, &layout).write(&sizes)?;
+        let resources = Heap::create(gpu, &bytes, p.resource_heap_alignment, p.min_resource_heap_reserved_range, "resource heap")?;
+        let samplers = write_samplers(&sizes, samplers).and_then(|sbytes| Heap::create(gpu, &sbytes, p.sampler_heap_alignment.max(p.sampler_descriptor_alignment), p.min_sampler_heap_reserved_range, "sampler heap"));
         let index_usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
         let index = samplers.and_then(|s| match Buffer::with_data(gpu, &layout.probe_index().to_le_bytes(), index_usage, "heap index") {
             Ok(b) => Ok((s, b)),
@@ -273,6 +316,76 @@ impl HeapBinding {
     }
 }
 
+/// A constant-offset mapping source: `heap_offset`, arrays at `stride`.
+fn constant(heap_offset: u32, stride: u32) -> h::MappingSourceData {
+    h::MappingSourceData {
+        constant_offset: h::MappingConstantOffset { heap_offset, heap_array_stride: stride, p_embedded_sampler: std::ptr::null(), sampler_heap_offset: 0, sampler_heap_array_stride: 0 },
+    }
+}
+
+/// Where binding 2 (the probed array) comes from for a cell reaching the heap `access`-wise, for
+/// a heap laid out as `l`; `None` for direct cells (the probe reads the heap itself).
+fn probe_source(access: HeapAccess, l: &HeapLayout) -> Option<(MappingSource, h::MappingSourceData)> {
+    let stride = l.probe_stride;
+    match access {
+        HeapAccess::MappedConstantOffset => Some((MappingSource::HeapWithConstantOffset, constant(l.probe, stride))),
+        HeapAccess::MappedPushIndex => Some((
+            MappingSource::HeapWithPushIndex,
+            h::MappingSourceData {
+                push_index: h::MappingPushIndex {
+                    heap_offset: 0,
+                    push_offset: PUSH_INDEX_OFFSET,
+                    heap_index_stride: stride,
+                    heap_array_stride: stride,
+                    p_embedded_sampler: std::ptr::null(),
+                    use_combined_image_sampler_index: vk::FALSE,
+                    sampler_heap_offset: 0,
+                    sampler_push_offset: PUSH_INDEX_OFFSET,
+                    sampler_heap_index_stride: 0,
+                    sampler_heap_array_stride: 0,
+                },
+            },
+        )),
+        HeapAccess::MappedIndirectIndex => Some((
+            MappingSource::HeapWithIndirectIndex,
+            h::MappingSourceData {
+                indirect_index: h::MappingIndirectIndex {
+                    heap_offset: 0,
+                    push_offset: PUSH_INDEX_ADDRESS_OFFSET,
+                    address_offset: 0,
+                    heap_index_stride: stride,
+                    heap_array_stride: stride,
+                    p_embedded_sampler: std::ptr::null(),
+                    use_combined_image_sampler_index: vk::FALSE,
+                    sampler_heap_offset: 0,
+                    sampler_push_offset: PUSH_INDEX_ADDRESS_OFFSET,
+                    sampler_address_offset: 0,
+                    sampler_heap_index_stride: 0,
+                    sampler_heap_array_stride: 0,
+                },
+            },
+        )),
+        HeapAccess::MappedShaderRecordIndex => Some((
+            MappingSource::HeapWithShaderRecordIndex,
+            h::MappingSourceData {
+                shader_record_index: h::MappingShaderRecordIndex {
+                    heap_offset: 0,
+                    shader_record_offset: 0,
+                    heap_index_stride: stride,
+                    heap_array_stride: stride,
+                    p_embedded_sampler: std::ptr::null(),
+                    use_combined_image_sampler_index: vk::FALSE,
+                    sampler_heap_offset: 0,
+                    sampler_shader_record_offset: 0,
+                    sampler_heap_index_stride: 0,
+                    sampler_heap_array_stride: 0,
+                },
+            },
+        )),
+        HeapAccess::Direct => None,
+    }
+}
+
 /// The set/binding → heap mapping every stage of a heap pipeline gets (boxed: the info points at
 /// the mappings).
 pub struct PipelineMapping {
@@ -284,67 +397,7 @@ impl PipelineMapping {
     /// The mapping of a cell reaching the heap `access`-wise, for a heap laid out as `l`. Direct
     /// cells map only the records and TLAS (the probe reads the heap itself).
     pub fn new(access: HeapAccess, l: &HeapLayout) -> Box<PipelineMapping> {
-        let constant = |heap_offset: u32, stride: u32| h::MappingSourceData {
-            constant_offset: h::MappingConstantOffset { heap_offset, heap_array_stride: stride, p_embedded_sampler: std::ptr::null(), sampler_heap_offset: 0, sampler_heap_array_stride: 0 },
-        };
-        let stride = l.probe_stride;
-        let probe = match access {
-            HeapAccess::MappedConstantOffset => Some((MappingSource::HeapWithConstantOffset, constant(l.probe, stride))),
-            HeapAccess::MappedPushIndex => Some((
-                MappingSource::HeapWithPushIndex,
-                h::MappingSourceData {
-                    push_index: h::MappingPushIndex {
-                        heap_offset: 0,
-                        push_offset: PUSH_INDEX_OFFSET,
-                        heap_index_stride: stride,
-                        heap_array_stride: stride,
-                        p_embedded_sampler: std::ptr::null(),
-                        use_combined_image_sampler_index: vk::FALSE,
-                        sampler_heap_offset: 0,
-                        sampler_push_offset: PUSH_INDEX_OFFSET,
-                        sampler_heap_index_stride: 0,
-                        sampler_heap_array_stride: 0,
-                    },
-                },
-            )),
-            HeapAccess::MappedIndirectIndex => Some((
-                MappingSource::HeapWithIndirectIndex,
-                h::MappingSourceData {
-                    indirect_index: h::MappingIndirectIndex {
-                        heap_offset: 0,
-                        push_offset: PUSH_INDEX_ADDRESS_OFFSET,
-                        address_offset: 0,
-                        heap_index_stride: stride,
-                        heap_array_stride: stride,
-                        p_embedded_sampler: std::ptr::null(),
-                        use_combined_image_sampler_index: vk::FALSE,
-                        sampler_heap_offset: 0,
-                        sampler_push_offset: PUSH_INDEX_ADDRESS_OFFSET,
-                        sampler_address_offset: 0,
-                        sampler_heap_index_stride: 0,
-                        sampler_heap_array_stride: 0,
-                    },
-                },
-            )),
-            HeapAccess::MappedShaderRecordIndex => Some((
-                MappingSource::HeapWithShaderRecordIndex,
-                h::MappingSourceData {
-                    shader_record_index: h::MappingShaderRecordIndex {
-                        heap_offset: 0,
-                        shader_record_offset: 0,
-                        heap_index_stride: stride,
-                        heap_array_stride: stride,
-                        p_embedded_sampler: std::ptr::null(),
-                        use_combined_image_sampler_index: vk::FALSE,
-                        sampler_heap_offset: 0,
-                        sampler_shader_record_offset: 0,
-                        sampler_heap_index_stride: 0,
-                        sampler_heap_array_stride: 0,
-                    },
-                },
-            )),
-            HeapAccess::Direct => None,
-        };
+        let probe = probe_source(access, l);
         let mapping = |binding: u32, (source, source_data): (MappingSource, h::MappingSourceData)| h::SetAndBindingMapping {
             s_type: h::STRUCTURE_TYPE_DESCRIPTOR_SET_AND_BINDING_MAPPING_EXT,
             p_next: std::ptr::null(),

@@ -135,12 +135,14 @@ pub struct Executor {
 }
 
 impl Executor {
-    pub fn new(gpu: Gpu, params: &SceneParams, opts: ExecOptions) -> Result<Self, VkError> {
+    /// The shader compiler failing to start is `CellError::Compile(CompileError::Init)`, not a
+    /// Vulkan error: the worker's setup reports it as such.
+    pub fn new(gpu: Gpu, params: &SceneParams, opts: ExecOptions) -> Result<Self, CellError> {
         let scene = Scene::build(params);
         let t = Instant::now();
         let sref = SceneReference::compute(&scene);
         let reference_ms = t.elapsed().as_secs_f64() * 1e3;
-        let compiler = Compiler::new().map_err(|_| VkError::Call { call: "shaderc init", result: vk::Result::ERROR_INITIALIZATION_FAILED })?;
+        let compiler = Compiler::new()?;
         let submitter = Submitter::new(&gpu)?;
         let records = Buffer::new(
             &gpu,
@@ -195,10 +197,11 @@ impl Executor {
     }
 
     /// Write the pipeline cache back to its file (merged with what is there): the bytes written;
-    /// `None` without a cache folder.
+    /// `None` without a cache folder. The error is text: the worker sends it as it is
+    /// (`WorkerMsg::CacheSaved`).
     pub fn save_pipeline_cache(&self) -> Option<Result<u64, String>> {
         let path = &self.cache_status.as_ref()?.path;
-        Some(pipeline_cache::save(&self.gpu, self.cache, path))
+        Some(pipeline_cache::save(&self.gpu, self.cache, path).map_err(|e| e.to_string()))
     }
 
     /// Run one cell. Never panics on driver misbehaviour; every failure is an outcome.
@@ -488,78 +491,39 @@ impl Executor {
         }
     }
 
-    /// The cell's records, and the `nonuniformEXT` the compiler dropped from the cell's shape (if any).
-    fn try_run(&mut self, cell: &Cell, injected: Option<&InjectedFault>, timings: &mut Timings, on_phase: PhaseHook) -> Result<(Vec<Record>, Option<heap::DroppedNonUniform>), CellError> {
-        let Bound { key, pkey, as_table_address, patched_table_address, base_address, dropped } = self.build(cell, injected, timings, on_phase)?;
+    /// The cell's push constants (layout: probe::PushConstants, then the patches' table address).
+    fn push_constants(&self, cell: &Cell, injected: Option<&InjectedFault>, b: &Bound) -> Vec<u8> {
         let (w, h) = (self.scene.params.width, self.scene.params.height);
-
-        // push constants (layout: probe::PushConstants, then the patches' table address)
-        on_phase(Phase::Record)?;
         let spec = ProbeSpec::of(cell);
         let fault = injected.map(|i| i.fault);
         let injected_bad = injected.is_some_and(|i| i.fault.reads_bad_address() && i.armed != Some(false));
-        let pc = probe::PushConstants {
+        probe::PushConstants {
             loop_forever: u32::from(spec.canary == Some(Canary::InfiniteLoop) || fault == Some(crate::model::inject::FaultKind::Hang)),
-            as_table: as_table_address,
-            base_address,
+            as_table: b.as_table_address,
+            base_address: b.base_address,
             bad_address: if spec.canary == Some(Canary::InvalidAddress) || injected_bad { CANARY_BAD_ADDRESS } else { 0 },
             inject_salt: fault.map(|f| crate::model::inject::value_salt(f, &cell.id())).unwrap_or(0),
             ..probe::push_constants(w, h, self.scene.params.instances, spec.resource)
         }
-        .to_bytes(patched_table_address);
+        .to_bytes(b.patched_table_address)
+    }
 
+    /// The cell's records, and the `nonuniformEXT` the compiler dropped from the cell's shape (if any).
+    fn try_run(&mut self, cell: &Cell, injected: Option<&InjectedFault>, timings: &mut Timings, on_phase: PhaseHook) -> Result<(Vec<Record>, Option<heap::DroppedNonUniform>), CellError> {
+        let bound = self.build(cell, injected, timings, on_phase)?;
+        on_phase(Phase::Record)?;
+        let pc = self.push_constants(cell, injected, &bound);
         let gpu = &self.gpu;
-        let pipe = &self.pipelines[&pkey];
-        let binding = &self.bindings[&key];
-        let records = &self.records;
-        let color = self.color.as_ref();
+        let work = Work { pipe: &self.pipelines[&bound.pkey], binding: &self.bindings[&bound.key], stages: bound.key.stages, pc: &pc, color: self.color.as_ref(), size: (self.scene.params.width, self.scene.params.height) };
         // Sentinel: a record no probe wrote reads as flags 0xffffffff. Written from the host
         // (the buffer is mapped): a vkCmdFillBuffer is an internal compute dispatch on some
         // drivers and must not disturb the state this cell binds.
-        records.write(0, &vec![0xffu8; self.scene.params.pixels() * RECORD_SIZE]);
+        self.records.write(0, &vec![0xffu8; self.scene.params.pixels() * RECORD_SIZE]);
         let mut entered_trace = Ok(());
         let waited = self.submitter.run(gpu, self.opts.timeout, |cmd| unsafe {
-            let d = &gpu.device;
-            match pipe.kind {
-                PipelineKind::RayTracing => {
-                    let point = vk::PipelineBindPoint::RAY_TRACING_KHR;
-                    binding.bind(gpu, cmd, point);
-                    d.cmd_bind_pipeline(cmd, point, pipe.raw);
-                    binding.push(gpu, cmd, key.stages, &pc);
-                    let sbt = pipe.sbt.as_ref().expect("RT pipelines have an SBT");
-                    gpu.rt.as_ref().expect("RT enabled").cmd_trace_rays(cmd, &sbt.raygen, &sbt.miss, &sbt.hit, &sbt.callable, w, h, 1);
-                }
-                PipelineKind::Compute => {
-                    let point = vk::PipelineBindPoint::COMPUTE;
-                    binding.bind(gpu, cmd, point);
-                    d.cmd_bind_pipeline(cmd, point, pipe.raw);
-                    binding.push(gpu, cmd, key.stages, &pc);
-                    d.cmd_dispatch(cmd, w.div_ceil(8), h.div_ceil(8), 1);
-                }
-                PipelineKind::Graphics => {
-                    let img = color.expect("color target created");
-                    let top = (vk::ImageLayout::UNDEFINED, vk::AccessFlags::empty(), vk::PipelineStageFlags::TOP_OF_PIPE);
-                    let att = (vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, vk::AccessFlags::COLOR_ATTACHMENT_WRITE, vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT);
-                    transition(gpu, cmd, img.raw, Transition { from: top, to: att });
-                    let att = [vk::RenderingAttachmentInfo::default()
-                        .image_view(img.view)
-                        .image_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
-                        .load_op(vk::AttachmentLoadOp::CLEAR)
-                        .store_op(vk::AttachmentStoreOp::STORE)];
-                    let area = vk::Rect2D { offset: vk::Offset2D::default(), extent: vk::Extent2D { width: w, height: h } };
-                    d.cmd_begin_rendering(cmd, &vk::RenderingInfo::default().render_area(area).layer_count(1).color_attachments(&att));
-                    let point = vk::PipelineBindPoint::GRAPHICS;
-                    binding.bind(gpu, cmd, point);
-                    d.cmd_bind_pipeline(cmd, point, pipe.raw);
-                    binding.push(gpu, cmd, key.stages, &pc);
-                    d.cmd_set_viewport(cmd, 0, &[vk::Viewport { x: 0.0, y: 0.0, width: w as f32, height: h as f32, min_depth: 0.0, max_depth: 1.0 }]);
-                    d.cmd_set_scissor(cmd, 0, &[area]);
-                    d.cmd_draw(cmd, 6, (w / probe::TILE) * (h / probe::TILE), 0, 0);
-                    d.cmd_end_rendering(cmd);
-                }
-            }
+            work.record(gpu, cmd);
             let to_host = [vk::MemoryBarrier::default().src_access_mask(vk::AccessFlags::MEMORY_WRITE).dst_access_mask(vk::AccessFlags::HOST_READ)];
-            d.cmd_pipeline_barrier(cmd, vk::PipelineStageFlags::ALL_COMMANDS, vk::PipelineStageFlags::HOST, vk::DependencyFlags::empty(), &to_host, &[], &[]);
+            gpu.device.cmd_pipeline_barrier(cmd, vk::PipelineStageFlags::ALL_COMMANDS, vk::PipelineStageFlags::HOST, vk::DependencyFlags::empty(), &to_host, &[], &[]);
             // Recorded: what follows is the submission and the fence wait.
             entered_trace = on_phase(Phase::Trace);
         })?;
@@ -573,7 +537,64 @@ impl Executor {
         let bytes = self.records.read(self.scene.params.pixels() * RECORD_SIZE);
         let recs = bytes.chunks_exact(RECORD_SIZE).map(Record::from_bytes).collect();
         timings.check_ms = t.elapsed().as_secs_f64() * 1e3;
-        Ok((recs, dropped))
+        Ok((recs, bound.dropped))
+    }
+}
+
+/// One cell's GPU work: its pipeline, bindings and push constants over a `size` (w, h) launch.
+struct Work<'a> {
+    pipe: &'a Pipeline,
+    binding: &'a Binding,
+    stages: vk::ShaderStageFlags,
+    pc: &'a [u8],
+    color: Option<&'a Image>,
+    size: (u32, u32),
+}
+
+impl Work<'_> {
+    /// Record the trace, dispatch or draw into `cmd` (in the recording state).
+    unsafe fn record(&self, gpu: &Gpu, cmd: vk::CommandBuffer) {
+        let (d, (w, h), pipe, binding) = (&gpu.device, self.size, self.pipe, self.binding);
+        let point = match pipe.kind {
+            PipelineKind::RayTracing => vk::PipelineBindPoint::RAY_TRACING_KHR,
+            PipelineKind::Compute => vk::PipelineBindPoint::COMPUTE,
+            PipelineKind::Graphics => vk::PipelineBindPoint::GRAPHICS,
+        };
+        match pipe.kind {
+            PipelineKind::RayTracing => {
+                binding.bind(gpu, cmd, point);
+                d.cmd_bind_pipeline(cmd, point, pipe.raw);
+                binding.push(gpu, cmd, self.stages, self.pc);
+                let sbt = pipe.sbt.as_ref().expect("RT pipelines have an SBT");
+                gpu.rt.as_ref().expect("RT enabled").cmd_trace_rays(cmd, &sbt.raygen, &sbt.miss, &sbt.hit, &sbt.callable, w, h, 1);
+            }
+            PipelineKind::Compute => {
+                binding.bind(gpu, cmd, point);
+                d.cmd_bind_pipeline(cmd, point, pipe.raw);
+                binding.push(gpu, cmd, self.stages, self.pc);
+                d.cmd_dispatch(cmd, w.div_ceil(8), h.div_ceil(8), 1);
+            }
+            PipelineKind::Graphics => {
+                let img = self.color.expect("color target created");
+                let top = (vk::ImageLayout::UNDEFINED, vk::AccessFlags::empty(), vk::PipelineStageFlags::TOP_OF_PIPE);
+                let att = (vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, vk::AccessFlags::COLOR_ATTACHMENT_WRITE, vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT);
+                transition(gpu, cmd, img.raw, Transition { from: top, to: att });
+                let att = [vk::RenderingAttachmentInfo::default()
+                    .image_view(img.view)
+                    .image_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
+                    .load_op(vk::AttachmentLoadOp::CLEAR)
+                    .store_op(vk::AttachmentStoreOp::STORE)];
+                let area = vk::Rect2D { offset: vk::Offset2D::default(), extent: vk::Extent2D { width: w, height: h } };
+                d.cmd_begin_rendering(cmd, &vk::RenderingInfo::default().render_area(area).layer_count(1).color_attachments(&att));
+                binding.bind(gpu, cmd, point);
+                d.cmd_bind_pipeline(cmd, point, pipe.raw);
+                binding.push(gpu, cmd, self.stages, self.pc);
+                d.cmd_set_viewport(cmd, 0, &[vk::Viewport { x: 0.0, y: 0.0, width: w as f32, height: h as f32, min_depth: 0.0, max_depth: 1.0 }]);
+                d.cmd_set_scissor(cmd, 0, &[area]);
+                d.cmd_draw(cmd, 6, (w / probe::TILE) * (h / probe::TILE), 0, 0);
+                d.cmd_end_rendering(cmd);
+            }
+        }
     }
 }
 

@@ -183,17 +183,9 @@ fn create_graphics(
         .map(|p| Pipeline { raw: p[0], kind: PipelineKind::Graphics, sbt: None })
 }
 
-fn create_rt(
-    gpu: &Gpu,
-    cache: vk::PipelineCache,
-    shaders: &CellShaders,
-    stages: &[vk::PipelineShaderStageCreateInfo],
-    layout: vk::PipelineLayout,
-    flags: vk::PipelineCreateFlags,
-    flags2: Option<&mut vk::PipelineCreateFlags2CreateInfoKHR>,
-    records: &ShaderRecords,
-) -> Result<Pipeline, VkError> {
-    let rt = gpu.rt.as_ref().expect("ray tracing pipeline enabled");
+/// The shader groups in SBT order: raygen, miss, probe miss, the triangle and procedural hit
+/// groups, then the callable (when the cell has one).
+fn rt_groups(shaders: &CellShaders) -> Vec<vk::RayTracingShaderGroupCreateInfoKHR<'static>> {
     let idx = |r: Role| shaders.shaders.iter().position(|s| s.role == r).map(|i| i as u32).unwrap_or(vk::SHADER_UNUSED_KHR);
     let general = |r: Role| {
         vk::RayTracingShaderGroupCreateInfoKHR::default()
@@ -220,10 +212,24 @@ fn create_rt(
             .any_hit_shader(idx(Role::AnyHit))
             .intersection_shader(idx(Role::Intersection)),
     ];
-    let has_callable = shaders.get(Role::Callable).is_some();
-    if has_callable {
+    if shaders.get(Role::Callable).is_some() {
         groups.push(general(Role::Callable));
     }
+    groups
+}
+
+fn create_rt(
+    gpu: &Gpu,
+    cache: vk::PipelineCache,
+    shaders: &CellShaders,
+    stages: &[vk::PipelineShaderStageCreateInfo],
+    layout: vk::PipelineLayout,
+    flags: vk::PipelineCreateFlags,
+    flags2: Option<&mut vk::PipelineCreateFlags2CreateInfoKHR>,
+    records: &ShaderRecords,
+) -> Result<Pipeline, VkError> {
+    let rt = gpu.rt.as_ref().expect("ray tracing pipeline enabled");
+    let groups = rt_groups(shaders);
     let mut ci = vk::RayTracingPipelineCreateInfoKHR::default()
         .flags(flags)
         .stages(stages)
@@ -235,12 +241,20 @@ fn create_rt(
     }
     let raw = unsafe { rt.create_ray_tracing_pipelines(vk::DeferredOperationKHR::null(), cache, &[ci], None) }
         .map_err(|(_, e)| VkError::from_result("vkCreateRayTracingPipelinesKHR", e))?[0];
+    let has_callable = shaders.get(Role::Callable).is_some();
+    let sbt = shader_binding_table(gpu, raw, groups.len() as u32, has_callable, records)?;
+    Ok(Pipeline { raw, kind: PipelineKind::RayTracing, sbt: Some(sbt) })
+}
 
+/// The SBT of pipeline `raw` with `n` groups (in [`rt_groups`]' order, the callable's last when
+/// `has_callable`): each record the group's handle, then its shader record data. The pipeline is
+/// destroyed when its handles cannot be read.
+fn shader_binding_table(gpu: &Gpu, raw: vk::Pipeline, n: u32, has_callable: bool, records: &ShaderRecords) -> Result<Sbt, VkError> {
+    let rt = gpu.rt.as_ref().expect("ray tracing pipeline enabled");
     let props = gpu.info.properties.rt_pipeline.expect("RT pipeline properties");
     let h = props.shader_group_handle_size as u64;
     let ha = props.shader_group_handle_alignment as u64;
     let ba = props.shader_group_base_alignment as u64;
-    let n = groups.len() as u32;
     let handles = match unsafe { rt.get_ray_tracing_shader_group_handles(raw, 0, n, (n as u64 * h) as usize) } {
         Ok(h) => h,
         Err(e) => {
@@ -279,14 +293,13 @@ fn create_rt(
         put(call_off, 5, &records.other);
     }
     let region = |off: u64, stride: u64, size: u64| vk::StridedDeviceAddressRegionKHR { device_address: base + off, stride, size };
-    let sbt = Sbt {
+    Ok(Sbt {
         raygen: region(0, rg_size, rg_size),
         miss: region(miss_off, stride, 2 * stride),
         hit: region(hit_off, stride, 2 * stride),
         callable: if has_callable { region(call_off, stride, stride) } else { vk::StridedDeviceAddressRegionKHR::default() },
         buffer,
-    };
-    Ok(Pipeline { raw, kind: PipelineKind::RayTracing, sbt: Some(sbt) })
+    })
 }
 
 impl Pipeline {

@@ -14,6 +14,24 @@ use ash::vk;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
+/// Why a stored cache is not used, or this worker's is not saved.
+#[derive(Debug, thiserror::Error)]
+pub enum CacheError {
+    /// The file exists but cannot be read.
+    #[error("{0}")]
+    Unreadable(std::io::Error),
+    /// The stored header is not this device's ([`header_mismatch`]'s reason).
+    #[error("{0}")]
+    Header(String),
+    #[error("vkGetPipelineCacheData: {0}")]
+    GetData(vk::Result),
+    /// The driver's own data fails the header check (the reason).
+    #[error("the driver's vkGetPipelineCacheData output is not a valid cache ({0}); not saved")]
+    DriverData(String),
+    #[error(transparent)]
+    Write(#[from] crate::atomic::WriteError),
+}
+
 /// `sizeof(VkPipelineCacheHeaderVersionOne)`.
 const HEADER_LEN: usize = 32;
 
@@ -64,14 +82,14 @@ pub struct Loaded {
 }
 
 /// The stored bytes for this device if they are usable; `Err`: why they were ignored.
-fn read_valid(path: &Path, props: &vk::PhysicalDeviceProperties) -> Result<Option<Vec<u8>>, String> {
+fn read_valid(path: &Path, props: &vk::PhysicalDeviceProperties) -> Result<Option<Vec<u8>>, CacheError> {
     match std::fs::read(path) {
         Ok(b) => match header_mismatch(&b, props) {
             None => Ok(Some(b)),
-            Some(why) => Err(why),
+            Some(why) => Err(CacheError::Header(why)),
         },
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
-        Err(e) => Err(e.to_string()),
+        Err(e) => Err(CacheError::Unreadable(e)),
     }
 }
 
@@ -89,7 +107,7 @@ pub fn open(gpu: &Gpu, dir: Option<&Path>) -> Result<(vk::PipelineCache, Option<
         Ok(d) => d.unwrap_or_default(),
         Err(why) => {
             tracing::warn!("pipeline cache {} ignored: {why}", path.display());
-            status.ignored = Some(why);
+            status.ignored = Some(why.to_string());
             vec![]
         }
     };
@@ -110,7 +128,7 @@ pub fn open(gpu: &Gpu, dir: Option<&Path>) -> Result<(vk::PipelineCache, Option<
 
 /// Merge what another worker saved meanwhile into `cache`, then write it to `path` atomically;
 /// the bytes written. Data that fails the header check itself is not written.
-pub fn save(gpu: &Gpu, cache: vk::PipelineCache, path: &Path) -> Result<u64, String> {
+pub fn save(gpu: &Gpu, cache: vk::PipelineCache, path: &Path) -> Result<u64, CacheError> {
     if let Ok(Some(theirs)) = read_valid(path, &gpu.info.properties.core) {
         if let Ok(src) = create(gpu, &theirs) {
             if let Err(e) = unsafe { gpu.device.merge_pipeline_caches(cache, &[src]) } {
@@ -119,13 +137,13 @@ pub fn save(gpu: &Gpu, cache: vk::PipelineCache, path: &Path) -> Result<u64, Str
             unsafe { gpu.device.destroy_pipeline_cache(src, None) };
         }
     }
-    let data = unsafe { gpu.device.get_pipeline_cache_data(cache) }.map_err(|e| format!("vkGetPipelineCacheData: {e}"))?;
+    let data = unsafe { gpu.device.get_pipeline_cache_data(cache) }.map_err(CacheError::GetData)?;
     // A driver whose own data fails the check (lavapipe of Mesa 26.2.6 returns 20 bytes of a
     // 32-byte header) would only make every later run warn: not written.
     if let Some(why) = header_mismatch(&data, &gpu.info.properties.core) {
-        return Err(format!("the driver's vkGetPipelineCacheData output is not a valid cache ({why}); not saved"));
+        return Err(CacheError::DriverData(why));
     }
-    crate::atomic::write_atomic(path, &data).map_err(|e| e.to_string())?;
+    crate::atomic::write_atomic(path, &data)?;
     Ok(data.len() as u64)
 }
 

@@ -192,7 +192,7 @@ mod tests {
         }
         let kept = [
             CellError::Vk(VkError::Call { call: "vkCreateRayTracingPipelinesKHR", result: vk::Result::ERROR_OUT_OF_HOST_MEMORY }),
-            CellError::Io("x".into()),
+            CellError::Io(crate::exec::files::FileError::NotSpirv("x".into())),
             CellError::NotImplemented("x".into()),
             CellError::Unsupported("x".into()),
         ];

@@ -46,6 +46,9 @@ pub enum BaselineError {
     Line { file: String, line: usize, message: String },
     #[error("{file}: {message}")]
     File { file: String, message: String },
+    /// `--perf PHASE` names no phase of [`PHASES`], or the report timed no cell in it.
+    #[error("--perf {phase}: not a phase ({}) or the report timed no cell", PHASES.join(", "))]
+    NoPhaseMean { phase: String },
 }
 
 fn deqp_status(o: Outcome) -> Option<&'static str> {
@@ -74,7 +77,7 @@ const DEQP_FLAKE_ALSO: &[Outcome] = &[Outcome::Mismatch, Outcome::Timeout, Outco
 impl Baseline {
     /// The expectations of a finished run: every finding (flaky ones as flakes with their rate),
     /// with performance bounds for `perf` phases (`factor`× the run's mean plus `slack_ms`).
-    pub fn from_report(r: &RunReport, source: &str, perf: &[String], factor: f64, slack_ms: f64) -> Result<Baseline, String> {
+    pub fn from_report(r: &RunReport, source: &str, perf: &[String], factor: f64, slack_ms: f64) -> Result<Baseline, BaselineError> {
         let mut expected = Vec::new();
         for c in r.cells.iter().filter(|c| c.cell.canary.is_none() && c.outcome.is_finding()) {
             let mut also: Vec<Outcome> = c.attempts.iter().map(|a| a.outcome).filter(|o| *o != c.outcome).collect();
@@ -91,7 +94,7 @@ impl Baseline {
         }
         let mut performance = BTreeMap::new();
         for p in perf {
-            let mean = phase_mean(r, p).ok_or_else(|| format!("--perf {p}: not a phase ({}) or the report timed no cell", PHASES.join(", ")))?;
+            let mean = phase_mean(r, p).ok_or_else(|| BaselineError::NoPhaseMean { phase: p.clone() })?;
             performance.insert(p.clone(), PerfBound { mean_ms: mean, factor, slack_ms });
         }
         let mut worker_faults: Vec<WorkerFault> = worker_faults(r).into_iter().map(|(f, _)| f).collect();

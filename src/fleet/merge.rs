@@ -5,8 +5,36 @@
 use crate::matrix::plan::all_cells;
 use crate::model::Canary;
 use crate::model::report::ResultOption;
-use crate::model::{CellReport, PatchMode, RunReport};
+use crate::model::{CellReport, PatchMode, RunReport, SceneParams};
+use serde_json::Value;
 use std::collections::HashMap;
+
+/// How two reports are not of the same run ([`same_run`]).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum NotSameRun {
+    #[error("rtprobe versions differ ({0} and {1})")]
+    Version(Value, Value),
+    /// `key`: the [`DEVICE_KEYS`] entry that differs.
+    #[error("it was made on another device ({key} {here} here {there})")]
+    Device { key: &'static str, here: Value, there: Value },
+    #[error("its scene differs (size, seed, instances or mesh detail: {0:?} here {1:?})")]
+    Scene(SceneParams, SceneParams),
+    /// `flag`: the option's command-line flag.
+    #[error("its {flag} differs ({here} here {there})")]
+    Option { flag: &'static str, here: Value, there: Value },
+}
+
+/// Why reports do not merge.
+#[derive(Debug, thiserror::Error)]
+pub enum MergeError {
+    #[error("merge needs at least one report")]
+    NoReports,
+    #[error("{name} does not belong with {first}: {why} (--force merges anyway)")]
+    NotSameRun { name: String, first: String, why: NotSameRun },
+    /// The same run (start stamp and command line) given twice.
+    #[error("{name} is a run already merged (started {started}, same command line): merging it twice would double its attempts")]
+    MergedTwice { name: String, started: String },
+}
 
 /// Device identity: a report continues, merges with or is compared like-for-like with another
 /// only when all of these agree.
@@ -14,22 +42,22 @@ pub const DEVICE_KEYS: &[&str] = &["name", "driver_version", "api_version", "dri
 
 /// Whether `b` describes the same device, scene and result-changing options as `a`; says what
 /// differs. `options` limits which option keys are compared.
-pub fn same_run(a: &RunReport, b: &RunReport, options: &[ResultOption]) -> Result<(), String> {
+pub fn same_run(a: &RunReport, b: &RunReport, options: &[ResultOption]) -> Result<(), NotSameRun> {
     if a.tool["version"] != b.tool["version"] {
-        return Err(format!("rtprobe versions differ ({} and {})", a.tool["version"], b.tool["version"]));
+        return Err(NotSameRun::Version(a.tool["version"].clone(), b.tool["version"].clone()));
     }
     for key in DEVICE_KEYS {
         if a.device[key] != b.device[key] {
-            return Err(format!("it was made on another device ({key} {} here {})", a.device[key], b.device[key]));
+            return Err(NotSameRun::Device { key: *key, here: a.device[key].clone(), there: b.device[key].clone() });
         }
     }
     if a.scene.params != b.scene.params {
-        return Err(format!("its scene differs (size, seed, instances or mesh detail: {:?} here {:?})", a.scene.params, b.scene.params));
+        return Err(NotSameRun::Scene(a.scene.params, b.scene.params));
     }
     for key in options {
         let (va, vb) = (key.value(&a.options), key.value(&b.options));
         if va != vb {
-            return Err(format!("its {} differs ({va} here {vb})", key.flag()));
+            return Err(NotSameRun::Option { flag: key.flag(), here: va, there: vb });
         }
     }
     Ok(())
@@ -46,9 +74,9 @@ fn order() -> HashMap<String, usize> {
 }
 
 /// Merge `reports` (with their file names for messages). `force` skips the identity checks.
-pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport, String> {
+pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport, MergeError> {
     let mut it = reports.into_iter();
-    let (first_name, mut out) = it.next().ok_or("merge needs at least one report")?;
+    let (first_name, mut out) = it.next().ok_or(MergeError::NoReports)?;
     let mut names = vec![first_name.clone()];
     // A run is known by its start stamp and command line (shards started in the same second
     // differ in `--shard`).
@@ -58,11 +86,11 @@ pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport
     let mut by_id: HashMap<String, usize> = out.cells.iter().enumerate().map(|(i, c)| (c.id.clone(), i)).collect();
     for (name, r) in it {
         if !force {
-            same_run(&out, &r, ResultOption::MERGED).map_err(|why| format!("{name} does not belong with {first_name}: {why} (--force merges anyway)"))?;
+            same_run(&out, &r, ResultOption::MERGED).map_err(|why| MergeError::NotSameRun { name: name.clone(), first: first_name.clone(), why })?;
         }
         let id = (r.started.clone(), r.command_line.clone());
         if started.contains(&id) {
-            return Err(format!("{name} is a run already merged (started {}, same command line): merging it twice would double its attempts", r.started));
+            return Err(MergeError::MergedTwice { name, started: r.started });
         }
         started.push(id);
         names.push(name);

@@ -12,9 +12,14 @@ pub struct Shard {
     pub count: u32,
 }
 
+/// A `--shard` that is not `I/N` with 1 <= I <= N.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("--shard {0:?} is not I/N with 1 <= I <= N (e.g. 2/3)")]
+pub struct ShardError(pub String);
+
 impl Shard {
-    pub fn parse(s: &str) -> Result<Shard, String> {
-        let bad = || format!("--shard {s:?} is not I/N with 1 <= I <= N (e.g. 2/3)");
+    pub fn parse(s: &str) -> Result<Shard, ShardError> {
+        let bad = || ShardError(s.into());
         let (i, n) = s.split_once('/').ok_or_else(bad)?;
         let (index, count): (u32, u32) = (i.trim().parse().map_err(|_| bad())?, n.trim().parse().map_err(|_| bad())?);
         if count == 0 || index == 0 || index > count {

@@ -30,12 +30,9 @@ pub struct BisectFile {
 }
 
 impl BisectFile {
-    pub fn load(path: &Path) -> Result<BisectFile, String> {
-        let bytes = std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-        let f: BisectFile = serde_json::from_slice(&bytes).map_err(|e| format!("{} is not an rtprobe bisection: {e}", path.display()))?;
-        if f.schema != SCHEMA {
-            return Err(format!("{} has schema {:?}, expected {SCHEMA:?}", path.display(), f.schema));
-        }
+    pub fn load(path: &Path) -> Result<BisectFile, super::LoadError> {
+        let f: BisectFile = super::load::read_json(path, "bisection")?;
+        super::load::check_schema(path, &f.schema, SCHEMA)?;
         Ok(f)
     }
 }

@@ -188,7 +188,8 @@ impl Cell {
 
     /// The engines' recommended pattern nearest to this cell (same stage, model, heap access):
     /// the `index=dynamic_element` cell of its resource, or why there is none. What a finding's
-    /// report says "works instead" is that cell's verdict (`report::recommended`).
+    /// report says "works instead" is that cell's verdict (`report::recommended`). The `Err` is no
+    /// failure but the reason the report records (`PatternStatus::NotApplicable`), so it is text.
     pub fn recommended_pattern(&self) -> Result<(Pattern, Cell), String> {
         if self.canary.is_some() {
             return Err("canaries have no recommended pattern".into());

@@ -16,7 +16,7 @@
 //!   seeded die and arms the load through push constants; the roll is recorded).
 //!
 //! Injections never apply to canaries; the first matching injection wins.
-use super::{Cell, Filter};
+use super::{Cell, Filter, FilterError};
 use serde::{Deserialize, Serialize};
 
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -34,23 +34,45 @@ pub enum FaultKind {
     Flaky { probability: f64 },
 }
 
+/// An `--inject-fault` that does not parse.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum InjectError {
+    /// `what`: the argument ("value fraction", "flaky probability").
+    #[error("{what} {arg:?} is not a number")]
+    NotANumber { what: &'static str, arg: String },
+    /// `close`: the interval's closing bracket, `)` or `]`.
+    #[error("{what} must be in (0, 1{close}, got {arg}")]
+    OutOfRange { what: &'static str, close: &'static str, arg: String },
+    #[error("fault kind {kind:?} takes no argument (got {arg:?})")]
+    TakesNoArgument { kind: String, arg: String },
+    #[error("value seed {0:?} is not a whole number (value:F:SEED)")]
+    Seed(String),
+    #[error("flaky needs a probability: flaky:P with P in (0, 1)")]
+    FlakyWithoutProbability,
+    #[error("unknown fault kind {0:?}; kinds: device, hang, value[:F], nan, flaky:P")]
+    UnknownKind(String),
+    /// The cells' predicate (before `@`) is no filter.
+    #[error("--inject-fault {spec:?}: {}", .filter.to_string().replace("--filter", "the predicate"))]
+    Predicate { spec: String, filter: FilterError },
+}
+
 impl FaultKind {
-    pub fn parse(s: &str) -> Result<FaultKind, String> {
+    pub fn parse(s: &str) -> Result<FaultKind, InjectError> {
         let (name, arg) = match s.split_once(':') {
             Some((n, a)) => (n.trim(), Some(a.trim())),
             None => (s.trim(), None),
         };
-        let fraction = |what: &str, a: &str, open_top: bool| -> Result<f64, String> {
-            let v: f64 = a.parse().map_err(|_| format!("{what} {a:?} is not a number"))?;
+        let fraction = |what: &'static str, a: &str, open_top: bool| -> Result<f64, InjectError> {
+            let v: f64 = a.parse().map_err(|_| InjectError::NotANumber { what, arg: a.into() })?;
             let ok = v > 0.0 && if open_top { v < 1.0 } else { v <= 1.0 };
             if !ok {
-                return Err(format!("{what} must be in (0, 1{}, got {a}", if open_top { ")" } else { "]" }));
+                return Err(InjectError::OutOfRange { what, close: if open_top { ")" } else { "]" }, arg: a.into() });
             }
             Ok(v)
         };
         let no_arg = |k: FaultKind| match arg {
             None => Ok(k),
-            Some(a) => Err(format!("fault kind {name:?} takes no argument (got {a:?})")),
+            Some(a) => Err(InjectError::TakesNoArgument { kind: name.into(), arg: a.into() }),
         };
         match name {
             "device" => no_arg(FaultKind::Device),
@@ -61,14 +83,14 @@ impl FaultKind {
                     Some((f, seed)) => (fraction("value fraction", f, false)?, seed),
                     None => (1.0, None),
                 };
-                let seed = seed.map(|s| s.parse::<u64>().map_err(|_| format!("value seed {s:?} is not a whole number (value:F:SEED)"))).transpose()?;
+                let seed = seed.map(|s| s.parse::<u64>().map_err(|_| InjectError::Seed(s.into()))).transpose()?;
                 Ok(FaultKind::Value { fraction: f, seed })
             }
             "flaky" => match arg {
                 Some(a) => Ok(FaultKind::Flaky { probability: fraction("flaky probability", a, true)? }),
-                None => Err("flaky needs a probability: flaky:P with P in (0, 1)".into()),
+                None => Err(InjectError::FlakyWithoutProbability),
             },
-            other => Err(format!("unknown fault kind {other:?}; kinds: device, hang, value[:F], nan, flaky:P")),
+            other => Err(InjectError::UnknownKind(other.into())),
         }
     }
 
@@ -102,13 +124,13 @@ pub struct Injection {
 }
 
 impl Injection {
-    pub fn parse(s: &str) -> Result<Injection, String> {
+    pub fn parse(s: &str) -> Result<Injection, InjectError> {
         let s = s.trim();
         let (pred, kind) = match s.rsplit_once('@') {
             Some((p, k)) => (p, FaultKind::parse(k)?),
             None => (s, FaultKind::Device),
         };
-        let predicate = Filter::parse(pred).map_err(|e| format!("--inject-fault {s:?}: {}", e.replace("--filter", "the predicate")))?;
+        let predicate = Filter::parse(pred).map_err(|filter| InjectError::Predicate { spec: s.into(), filter })?;
         Ok(Injection { spec: format!("{}@{}", pred.trim(), kind.label()), predicate, fault: kind })
     }
 
@@ -197,6 +219,18 @@ mod tests {
         for bad in ["stage=raygen@flaky", "stage=raygen@flaky:1", "stage=raygen@value:0", "stage=raygen@value:x", "stage=raygen@value:0.5:x", "stage=raygen@value:0.5:-1", "stage=raygen@boom", "stage=nope@hang", "@hang", "stage=raygen@hang:3"] {
             assert!(Injection::parse(bad).is_err(), "{bad} should not parse");
         }
+    }
+
+    #[test]
+    fn errors_say_what_is_wrong() {
+        let msg = |s: &str| Injection::parse(s).unwrap_err().to_string();
+        assert_eq!(msg("stage=raygen@flaky:1"), "flaky probability must be in (0, 1), got 1");
+        assert_eq!(msg("stage=raygen@value:2"), "value fraction must be in (0, 1], got 2");
+        assert_eq!(msg("stage=raygen@value:x"), "value fraction \"x\" is not a number");
+        assert_eq!(msg("stage=raygen@hang:3"), "fault kind \"hang\" takes no argument (got \"3\")");
+        assert_eq!(msg("stage=raygen@value:0.5:x"), "value seed \"x\" is not a whole number (value:F:SEED)");
+        assert_eq!(msg("stage"), "--inject-fault \"stage\": filter term \"stage\" is not axis=value");
+        assert!(msg("colour=red@hang").contains("in the predicate; axes: "), "{}", msg("colour=red@hang"));
     }
 
     #[test]

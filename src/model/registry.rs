@@ -327,12 +327,27 @@ pub fn id(c: &Cell) -> String {
     parts.join(".")
 }
 
+/// A string that is no cell id, with why (`id`: the string).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum IdError {
+    /// `canaries`: every canary's name, for the message.
+    #[error("{id:?} is not a cell id (canaries: {canaries})")]
+    NoSuchCanary { id: String, canaries: String },
+    /// An axis without stand-in has no value at its place (`values`: the axis's values).
+    #[error("{id:?} is not a cell id ({axis} must be one of {values})")]
+    MissingValue { id: String, axis: &'static str, values: String },
+    #[error("{id:?} is not a cell id ({rest:?} is no axis value at its place)")]
+    Misplaced { id: String, rest: String },
+    /// It parses, but [`id`] writes the cell another way.
+    #[error("{id:?} is not a cell id (it reads back as {reads})")]
+    NotCanonical { id: String, reads: String },
+}
+
 /// The cell a well-formed id names: the segments read in registry order, each axis absent from
 /// the id taking its stand-in. Refuses what [`id`] would not write back the same.
-pub fn parse_id(s: &str) -> Result<Cell, String> {
-    let bad = |why: &str| format!("{s:?} is not a cell id ({why})");
+pub fn parse_id(s: &str) -> Result<Cell, IdError> {
     if let Some(name) = s.strip_prefix("canary.") {
-        return Canary::parse(name).map(Cell::canary).ok_or_else(|| bad(&format!("canaries: {}", Canary::NAMES.join(", "))));
+        return Canary::parse(name).map(Cell::canary).ok_or_else(|| IdError::NoSuchCanary { id: s.into(), canaries: Canary::NAMES.join(", ") });
     }
     let mut c = Cell::new(Stage::Raygen, Resource::StorageBuffer, IndexSource::Literal, DescriptorModel::DescriptorIndexing);
     let mut parts = s.split('.').peekable();
@@ -347,14 +362,14 @@ pub fn parse_id(s: &str) -> Result<Cell, String> {
         if taken {
             parts.next();
         } else if a.stand_ins.is_empty() {
-            return Err(bad(&format!("{} must be one of {}", a.name, a.values.join(", "))));
+            return Err(IdError::MissingValue { id: s.into(), axis: a.name, values: a.values.join(", ") });
         }
     }
     if let Some(rest) = parts.next() {
-        return Err(bad(&format!("{rest:?} is no axis value at its place")));
+        return Err(IdError::Misplaced { id: s.into(), rest: rest.into() });
     }
     if id(&c) != s {
-        return Err(bad(&format!("it reads back as {}", id(&c))));
+        return Err(IdError::NotCanonical { id: s.into(), reads: id(&c) });
     }
     Ok(c)
 }
@@ -376,7 +391,7 @@ impl Cell {
     }
 
     /// The cell an id names ([`parse_id`]).
-    pub fn parse_id(id: &str) -> Result<Cell, String> {
+    pub fn parse_id(id: &str) -> Result<Cell, IdError> {
         parse_id(id)
     }
 

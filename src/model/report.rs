@@ -8,6 +8,7 @@ use crate::model::Outcome;
 use crate::model::{Attempt, WorkerEvent};
 pub use super::options::{ResultOption, RunOptions};
 use crate::model::SceneParams;
+use super::load::LoadError;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use std::collections::BTreeMap;
@@ -425,12 +426,9 @@ impl RunReport {
         }
     }
 
-    pub fn load(path: &Path) -> Result<RunReport, String> {
-        let bytes = std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-        let r: RunReport = serde_json::from_slice(&bytes).map_err(|e| format!("{} is not an rtprobe run report: {e}", path.display()))?;
-        if r.schema != SCHEMA {
-            return Err(format!("{} has schema {:?}, expected {SCHEMA:?}", path.display(), r.schema));
-        }
+    pub fn load(path: &Path) -> Result<RunReport, LoadError> {
+        let r: RunReport = super::load::read_json(path, "run report")?;
+        super::load::check_schema(path, &r.schema, SCHEMA)?;
         Ok(r)
     }
 }

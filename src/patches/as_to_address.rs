@@ -57,8 +57,10 @@ struct Site {
     index: Option<Word>,
 }
 
-pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
-    const NAME: &str = "as-to-address";
+const NAME: &str = "as-to-address";
+
+/// The AS descriptor variables `opts` selects: (variable, is an array, AS type).
+fn as_variables(m: &Module, opts: &Options) -> Result<Vec<(Word, bool, Word)>, PatchError> {
     let as_types: HashSet<Word> = m.types_global_values.iter().filter(|i| i.class.opcode == Op::TypeAccelerationStructureKHR).filter_map(|i| i.result_id).collect();
     if as_types.is_empty() {
         return Err(PatchError::NothingToPatch { patch: NAME, what: "the module declares no acceleration structure type".into() });
@@ -88,9 +90,12 @@ pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
         };
         return Err(PatchError::NothingToPatch { patch: NAME, what });
     }
-    let var_ids: HashSet<Word> = vars.iter().map(|v| v.0).collect();
+    Ok(vars)
+}
 
-    // Find the load sites; refuse shapes we do not handle.
+/// Every load of the variables `var_ids` (directly or through a one-index access chain), and the
+/// ids to remove with them (the variables and their chains); shapes not handled are refused.
+fn load_sites(m: &Module, var_ids: &HashSet<Word>) -> Result<(Vec<Site>, HashSet<Word>), PatchError> {
     let mut chains: std::collections::HashMap<Word, Word> = Default::default(); // chain id -> index id
     let mut sites = Vec::new();
     let mut removed: HashSet<Word> = var_ids.clone();
@@ -128,6 +133,13 @@ pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
     if sites.is_empty() {
         return Err(PatchError::NothingToPatch { patch: NAME, what: "acceleration-structure descriptors are declared but never loaded".into() });
     }
+    Ok((sites, removed))
+}
+
+pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
+    let vars = as_variables(m, opts)?;
+    let var_ids: HashSet<Word> = vars.iter().map(|v| v.0).collect();
+    let (sites, removed) = load_sites(m, &var_ids)?;
     let any_array = vars.iter().any(|v| v.1);
     let mode = opts.mode.unwrap_or(if any_array { Mode::Table } else { Mode::Direct });
     if mode == Mode::Direct && any_array && sites.iter().any(|s| s.index.is_some()) {
@@ -153,12 +165,20 @@ pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
     } else {
         None
     };
-
-    // Rewrite every site, last first so indices stay valid.
     let n_sites = sites.len();
+    rewrite_loads(m, sites, table.as_ref(), (pc_var, member_c, ptr_pc_u64, u64_t));
+    edit::remove_ids(m, &removed);
+    Ok(Report { rewritten_loads: n_sites, removed_variables: var_ids.len(), offset, mode })
+}
+
+/// Each site's `OpLoad` becomes `OpConvertUToAccelerationStructureKHR` of its address: the table's
+/// entry (`table`), else the push-constant member itself (`direct`: the block variable, member
+/// constant, pointer type and u64 type). Last site first, so indices stay valid.
+fn rewrite_loads(m: &mut Module, mut sites: Vec<Site>, table: Option<&edit::TableTypes>, direct: (Word, Word, Word, Word)) {
+    let (pc_var, member_c, ptr_pc_u64, u64_t) = direct;
     sites.sort_by_key(|s| std::cmp::Reverse((s.func, s.block, s.inst)));
     for s in sites {
-        let (new, addr) = match &table {
+        let (new, addr) = match table {
             Some(t) => edit::table_entry(m, t, s.index),
             None => {
                 let (pm, base) = (edit::next_id(m), edit::next_id(m));
@@ -176,8 +196,6 @@ pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
             block.instructions.insert(s.inst + k, i);
         }
     }
-    edit::remove_ids(m, &removed);
-    Ok(Report { rewritten_loads: n_sites, removed_variables: var_ids.len(), offset, mode })
 }
 
 /// Append a 64-bit member to the module's push-constant block at `offset` (default: the block's

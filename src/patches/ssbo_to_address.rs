@@ -39,8 +39,8 @@ pub struct Report {
 
 const NAME: &str = "ssbo-to-address";
 
-pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
-    // SSBO array variables: var -> block struct
+/// The storage-buffer descriptor arrays `opts` selects: variable -> its `Block` struct.
+fn ssbo_arrays(m: &Module, opts: &Options) -> Result<HashMap<Word, Word>, PatchError> {
     let mut vars: HashMap<Word, Word> = HashMap::new();
     for v in m.types_global_values.iter().filter(|i| i.class.opcode == Op::Variable) {
         let (Some(id), Some(ptr)) = (v.result_id, v.result_type) else { continue };
@@ -61,15 +61,25 @@ pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
     if vars.is_empty() {
         return Err(PatchError::NothingToPatch { patch: NAME, what: "no storage-buffer descriptor array".into() });
     }
-    // Collect chains into the vars and their loads; refuse other shapes.
-    struct Chain {
-        func: usize,
-        block: usize,
-        inst: usize,
-        id: Word,
-        var: Word,
-        index: Word,
-    }
+    Ok(vars)
+}
+
+/// An access chain into an SSBO array (at function `func`, block `block`, instruction `inst`).
+struct Chain {
+    func: usize,
+    block: usize,
+    inst: usize,
+    id: Word,
+    var: Word,
+    index: Word,
+}
+
+/// The SSBO arrays' reads: the access chains into `vars`, their ids, and the loads through them
+/// (function, block, instruction); other shapes are refused.
+type Reads = (Vec<Chain>, HashSet<Word>, Vec<(usize, usize, usize)>);
+
+/// Collect chains into the vars and their loads; refuse other shapes.
+fn reads(m: &Module, vars: &HashMap<Word, Word>) -> Result<Reads, PatchError> {
     let mut chains: Vec<Chain> = Vec::new();
     let mut chain_ids: HashSet<Word> = HashSet::new();
     let mut loads: Vec<(usize, usize, usize)> = Vec::new();
@@ -102,7 +112,11 @@ pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
     if chains.is_empty() {
         return Err(PatchError::NothingToPatch { patch: NAME, what: "the storage-buffer arrays are never read".into() });
     }
-    // Push-constant table address.
+    Ok((chains, chain_ids, loads))
+}
+
+/// The address table's types, its address a new push-constant member; with the member's offset.
+fn address_table(m: &mut Module, opts: &Options) -> Result<(edit::TableTypes, u32), PatchError> {
     let (pc_var, member, offset) = super::as_to_address::push_constant_u64(m, opts.offset, NAME)?;
     let u32_t = edit::type_int(m, 32, false);
     let u64_t = edit::type_int(m, 64, false);
@@ -115,15 +129,13 @@ pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
         ptr_psb_u64: edit::type_pointer(m, StorageClass::PhysicalStorageBuffer, u64_t),
         eight: edit::constant(m, u64_t, 8, true),
     };
-    // Re-point every chain's result type to PhysicalStorageBuffer.
-    let mut psb_of: HashMap<Word, Word> = HashMap::new();
-    for c in &chains {
-        let ty = m.functions[c.func].blocks[c.block].instructions[c.inst].result_type.expect("typed");
-        let (_, pointee) = edit::pointer_info(m, ty).ok_or(PatchError::Unsupported { patch: NAME, id: c.id, what: "chain without pointer type".into() })?;
-        let psb = edit::type_pointer(m, StorageClass::PhysicalStorageBuffer, pointee);
-        psb_of.insert(c.id, psb);
-    }
-    let block_ptrs: HashMap<Word, Word> = vars.iter().map(|(v, blk)| (*v, edit::type_pointer(m, StorageClass::PhysicalStorageBuffer, *blk))).collect();
+    Ok((table, offset))
+}
+
+pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
+    let vars = ssbo_arrays(m, opts)?;
+    let (chains, chain_ids, loads) = reads(m, &vars)?;
+    let (table, offset) = address_table(m, opts)?;
     // Loads through rewritten chains need an Aligned operand.
     for (fi, bi, ii) in &loads {
         let l = &mut m.functions[*fi].blocks[*bi].instructions[*ii];
@@ -131,12 +143,31 @@ pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
         l.operands.push(Operand::MemoryAccess(MemoryAccess::ALIGNED));
         l.operands.push(Operand::LiteralBit32(4));
     }
-    // Rewrite the chains, last first.
-    let n = loads.len();
+    rewrite_chains(m, &chains, &vars, &table)?;
+    // NonUniform on the chains is meaningless now (no descriptor); drop it there.
+    m.annotations.retain(|a| !(a.class.opcode == Op::Decorate && id_operand(a, 0).is_some_and(|t| chain_ids.contains(&t))
+        && matches!(a.operands.get(1), Some(Operand::Decoration(Decoration::NonUniform)))));
+    let removed: HashSet<Word> = vars.keys().copied().collect();
+    edit::remove_ids(m, &removed);
+    Ok(Report { rewritten_loads: loads.len(), offset })
+}
+
+/// Each chain starts from the buffer's address (`OpConvertUToPtr` of its table entry) and yields
+/// a `PhysicalStorageBuffer` pointer of the same pointee; last chain first.
+fn rewrite_chains(m: &mut Module, chains: &[Chain], vars: &HashMap<Word, Word>, table: &edit::TableTypes) -> Result<(), PatchError> {
+    // Re-point every chain's result type to PhysicalStorageBuffer.
+    let mut psb_of: HashMap<Word, Word> = HashMap::new();
+    for c in chains {
+        let ty = m.functions[c.func].blocks[c.block].instructions[c.inst].result_type.expect("typed");
+        let (_, pointee) = edit::pointer_info(m, ty).ok_or(PatchError::Unsupported { patch: NAME, id: c.id, what: "chain without pointer type".into() })?;
+        let psb = edit::type_pointer(m, StorageClass::PhysicalStorageBuffer, pointee);
+        psb_of.insert(c.id, psb);
+    }
+    let block_ptrs: HashMap<Word, Word> = vars.iter().map(|(v, blk)| (*v, edit::type_pointer(m, StorageClass::PhysicalStorageBuffer, *blk))).collect();
     let mut order: Vec<&Chain> = chains.iter().collect();
     order.sort_by_key(|c| std::cmp::Reverse((c.func, c.block, c.inst)));
     for c in order {
-        let (mut new, addr) = edit::table_entry(m, &table, Some(c.index));
+        let (mut new, addr) = edit::table_entry(m, table, Some(c.index));
         let blk = edit::next_id(m);
         new.push(Instruction::new(Op::ConvertUToPtr, Some(block_ptrs[&c.var]), Some(blk), vec![Operand::IdRef(addr)]));
         let block = &mut m.functions[c.func].blocks[c.block];
@@ -147,10 +178,5 @@ pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
             block.instructions.insert(c.inst + k, i);
         }
     }
-    // NonUniform on the chains is meaningless now (no descriptor); drop it there.
-    m.annotations.retain(|a| !(a.class.opcode == Op::Decorate && id_operand(a, 0).is_some_and(|t| chain_ids.contains(&t))
-        && matches!(a.operands.get(1), Some(Operand::Decoration(Decoration::NonUniform)))));
-    let removed: HashSet<Word> = vars.keys().copied().collect();
-    edit::remove_ids(m, &removed);
-    Ok(Report { rewritten_loads: n, offset })
+    Ok(())
 }

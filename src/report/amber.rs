@@ -28,59 +28,95 @@ pub const PROBE_BINDING: u32 = 2;
 /// The compute probe's workgroup (`local_size_x/y`).
 const GROUP: u32 = 8;
 
+/// Why a cell gets no Amber script (a sentence for the bundle's README).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum Unfit {
+    #[error("canaries are not probe cells (they hang or fault on purpose)")]
+    Canary,
+    /// The injection's spec.
+    #[error("the cell has an injected fault ({0}): Amber cannot reproduce rtprobe's injection (a load through a device address in push constants, per-attempt dice)")]
+    Injected(String),
+    #[error("Amber has no VK_EXT_descriptor_buffer")]
+    DescriptorBuffer,
+    #[error("Amber has no VK_EXT_descriptor_heap")]
+    DescriptorHeap,
+    #[error("ray tracing cell: Amber has ray tracing pipelines and acceleration structures, but rtprobe does not write its scene (16+ transformed instances, multi-geometry BLAS, the procedural AABB, its SBT layout) in AmberScript yet (not implemented)")]
+    RayTracing,
+    #[error("graphics cell: rtprobe writes Amber scripts for compute cells only (not implemented)")]
+    Graphics,
+    #[error("image arrays: rtprobe does not write its probe images in AmberScript yet (not implemented)")]
+    ImageArrays,
+    #[error("acceleration-structure cells need rtprobe's probe TLAS variants (and device addresses for as_access=address), not written in AmberScript")]
+    AccelerationStructure,
+    /// The push-constant addresses the probe reads.
+    #[error("the probe reads device addresses from push constants ({0}), which AmberScript cannot provide")]
+    PushAddresses(String),
+    #[error("the dynamic value's base is in an SBT shader record, which a compute pipeline has not")]
+    ShaderRecordBase,
+    #[error("separate samplers from a sampler heap: Amber has no VK_EXT_descriptor_heap")]
+    SamplerHeap,
+    #[error("rtprobe has no packed {0} buffer to bind at the spec-constant slot (index=dynamic_element)")]
+    NoPackedBuffer(Resource),
+    #[error("the probe reads an address table, not a descriptor: AmberScript cannot provide device addresses")]
+    AddressTable,
+    /// The number of shaders of a cell taken for a compute cell.
+    #[error("the cell has {0} shaders; a compute cell has one")]
+    ShaderCount(usize),
+}
+
 /// The script for `cell`, or why none is written (a sentence for the README).
-pub fn script(cell: &Cell, shaders: &[Shader], scene: &SceneParams, inject: Option<&Injection>, origin: &str) -> Result<String, String> {
+pub fn script(cell: &Cell, shaders: &[Shader], scene: &SceneParams, inject: Option<&Injection>, origin: &str) -> Result<String, Unfit> {
     fits(cell, inject)?;
     let [shader] = shaders else {
-        return Err(format!("the cell has {} shaders; a compute cell has one", shaders.len()));
+        return Err(Unfit::ShaderCount(shaders.len()));
     };
     Ok(write(cell, shader, scene, origin))
 }
 
 /// Why `cell` does not fit, checked on its probe spec: what the spec needs that this writer
 /// cannot express is refused with that reason.
-fn fits(cell: &Cell, inject: Option<&Injection>) -> Result<(), String> {
+fn fits(cell: &Cell, inject: Option<&Injection>) -> Result<(), Unfit> {
     let spec = ProbeSpec::of(cell);
     if spec.canary.is_some() {
-        return Err("canaries are not probe cells (they hang or fault on purpose)".into());
+        return Err(Unfit::Canary);
     }
     if let Some(i) = inject {
-        return Err(format!("the cell has an injected fault ({}): Amber cannot reproduce rtprobe's injection (a load through a device address in push constants, per-attempt dice)", i.spec));
+        return Err(Unfit::Injected(i.spec.clone()));
     }
     match spec.model {
         DescriptorModel::DescriptorIndexing => {}
-        DescriptorModel::DescriptorBuffer => return Err("Amber has no VK_EXT_descriptor_buffer".into()),
-        DescriptorModel::DescriptorHeap => return Err("Amber has no VK_EXT_descriptor_heap".into()),
+        DescriptorModel::DescriptorBuffer => return Err(Unfit::DescriptorBuffer),
+        DescriptorModel::DescriptorHeap => return Err(Unfit::DescriptorHeap),
     }
     match spec.stage {
         Stage::Compute => {}
         Stage::Raygen | Stage::ClosestHit | Stage::AnyHit | Stage::Miss | Stage::Intersection | Stage::Callable => {
-            return Err("ray tracing cell: Amber has ray tracing pipelines and acceleration structures, but rtprobe does not write its scene (16+ transformed instances, multi-geometry BLAS, the procedural AABB, its SBT layout) in AmberScript yet (not implemented)".into())
+            return Err(Unfit::RayTracing)
         }
-        Stage::Fragment => return Err("graphics cell: rtprobe writes Amber scripts for compute cells only (not implemented)".into()),
+        Stage::Fragment => return Err(Unfit::Graphics),
     }
     match spec.resource {
         Resource::StorageBuffer | Resource::UniformBuffer => {}
-        Resource::SampledImage | Resource::StorageImage => return Err("image arrays: rtprobe does not write its probe images in AmberScript yet (not implemented)".into()),
-        Resource::AccelerationStructure => return Err("acceleration-structure cells need rtprobe's probe TLAS variants (and device addresses for as_access=address), not written in AmberScript".into()),
+        Resource::SampledImage | Resource::StorageImage => return Err(Unfit::ImageArrays),
+        Resource::AccelerationStructure => return Err(Unfit::AccelerationStructure),
     }
     let addresses = spec.push_addresses();
     if !addresses.is_empty() {
-        return Err(format!("the probe reads device addresses from push constants ({}), which AmberScript cannot provide", addresses.join(", ")));
+        return Err(Unfit::PushAddresses(addresses.join(", ")));
     }
     match spec.base {
         // The bases buffer's address was refused above.
         Base::None | Base::PushData | Base::InstanceBuffer => {}
-        Base::ShaderRecord => return Err("the dynamic value's base is in an SBT shader record, which a compute pipeline has not".into()),
+        Base::ShaderRecord => return Err(Unfit::ShaderRecordBase),
     }
     match spec.sampler {
         Sampler::None => {}
-        Sampler::Constant | Sampler::Dynamic { .. } => return Err("separate samplers from a sampler heap: Amber has no VK_EXT_descriptor_heap".into()),
+        Sampler::Constant | Sampler::Dynamic { .. } => return Err(Unfit::SamplerHeap),
     }
     match (spec.access, spec.element) {
         (Access::Slot { .. }, ElementMap::None | ElementMap::Own | ElementMap::Packed | ElementMap::Layer) | (Access::Packed, ElementMap::Packed) => Ok(()),
-        (Access::Packed, ElementMap::None | ElementMap::Own | ElementMap::Layer) => Err(format!("rtprobe has no packed {} buffer to bind at the spec-constant slot (index=dynamic_element)", spec.resource)),
-        (Access::AddressTable, ElementMap::None | ElementMap::Own | ElementMap::Packed | ElementMap::Layer) => Err("the probe reads an address table, not a descriptor: AmberScript cannot provide device addresses".into()),
+        (Access::Packed, ElementMap::None | ElementMap::Own | ElementMap::Layer) => Err(Unfit::NoPackedBuffer(spec.resource)),
+        (Access::AddressTable, ElementMap::None | ElementMap::Own | ElementMap::Packed | ElementMap::Layer) => Err(Unfit::AddressTable),
     }
 }
 
@@ -291,19 +327,19 @@ mod tests {
     fn cells_that_do_not_fit_say_why() {
         let c = compute(Resource::StorageBuffer, IndexSource::Literal);
         let heap = Cell { descriptor_model: DescriptorModel::DescriptorHeap, heap_access: Some(crate::model::HeapAccess::MappedConstantOffset), ..c };
-        assert_eq!(fits(&heap, None).unwrap_err(), "Amber has no VK_EXT_descriptor_heap");
+        assert_eq!(fits(&heap, None).unwrap_err().to_string(), "Amber has no VK_EXT_descriptor_heap");
         let buf = Cell { descriptor_model: DescriptorModel::DescriptorBuffer, ..c };
-        assert_eq!(fits(&buf, None).unwrap_err(), "Amber has no VK_EXT_descriptor_buffer");
-        assert!(fits(&Cell { stage: Stage::ClosestHit, ..c }, None).unwrap_err().starts_with("ray tracing cell"));
+        assert_eq!(fits(&buf, None).unwrap_err().to_string(), "Amber has no VK_EXT_descriptor_buffer");
+        assert!(fits(&Cell { stage: Stage::ClosestHit, ..c }, None).unwrap_err().to_string().starts_with("ray tracing cell"));
         assert!(fits(&Cell { resource: Resource::AccelerationStructure, as_access: Some(AsAccess::Address), ..c }, None).is_err());
         // Refusals come from what the spec needs.
         let ssbo = Cell { index: IndexSource::Dynamic, patch: Some(Workaround::SsboToAddress), ..c };
-        assert_eq!(fits(&ssbo, None).unwrap_err(), "the probe reads device addresses from push constants (patchedTable), which AmberScript cannot provide");
+        assert_eq!(fits(&ssbo, None).unwrap_err().to_string(), "the probe reads device addresses from push constants (patchedTable), which AmberScript cannot provide");
         let ubo_packed = compute(Resource::UniformBuffer, IndexSource::DynamicElement);
-        assert!(fits(&ubo_packed, None).unwrap_err().starts_with("rtprobe has no packed uniform_buffer buffer"));
+        assert!(fits(&ubo_packed, None).unwrap_err().to_string().starts_with("rtprobe has no packed uniform_buffer buffer"));
         assert!(fits(&Cell { patch: Some(Workaround::PinIndex), ..ssbo }, None).is_ok());
         let inj = Injection::parse("stage=compute").unwrap();
-        assert!(fits(&c, Some(&inj)).unwrap_err().contains("injected fault"));
+        assert!(fits(&c, Some(&inj)).unwrap_err().to_string().contains("injected fault"));
         assert!(fits(&c, None).is_ok());
     }
 

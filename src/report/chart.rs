@@ -283,30 +283,45 @@ fn wrap(text: &str, width: usize) -> Vec<String> {
     lines
 }
 
+/// What is wrong with an SVG document ([`check_well_formed`]).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum SvgError {
+    #[error("not an <svg> … </svg> document")]
+    NotSvg,
+    #[error("unterminated tag")]
+    UnterminatedTag,
+    /// A closing tag that does not close the element open there (`open`: that element, if any).
+    #[error("</{name}> closes {open:?}")]
+    Misnested { name: String, open: Option<String> },
+    /// The elements left open, outermost first.
+    #[error("unclosed: {0:?}")]
+    Unclosed(Vec<String>),
+}
+
 /// A structural check of an SVG document for tests: it starts with `<svg`, ends with `</svg>`,
 /// and every element opened is closed in order. Returns the first problem.
-pub fn check_well_formed(doc: &str) -> Result<(), String> {
+pub fn check_well_formed(doc: &str) -> Result<(), SvgError> {
     let doc = doc.trim();
     if !doc.starts_with("<svg") || !doc.ends_with("</svg>") {
-        return Err("not an <svg> … </svg> document".into());
+        return Err(SvgError::NotSvg);
     }
     let mut stack: Vec<String> = Vec::new();
     let mut rest = doc;
     while let Some(i) = rest.find('<') {
         let after = &rest[i + 1..];
-        let j = after.find('>').ok_or("unterminated tag")?;
+        let j = after.find('>').ok_or(SvgError::UnterminatedTag)?;
         let tag = &after[..j];
         rest = &after[j + 1..];
         if let Some(name) = tag.strip_prefix('/') {
             match stack.pop() {
                 Some(open) if open == name.trim() => {}
-                other => return Err(format!("</{}> closes {:?}", name.trim(), other)),
+                open => return Err(SvgError::Misnested { name: name.trim().into(), open }),
             }
         } else if !tag.ends_with('/') && !tag.starts_with('?') && !tag.starts_with('!') {
             stack.push(tag.split_whitespace().next().unwrap_or("").to_string());
         }
     }
-    if stack.is_empty() { Ok(()) } else { Err(format!("unclosed: {stack:?}")) }
+    if stack.is_empty() { Ok(()) } else { Err(SvgError::Unclosed(stack)) }
 }
 
 #[cfg(test)]

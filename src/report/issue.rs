@@ -14,17 +14,32 @@ use crate::model::Injection;
 use crate::model::Cell;
 use crate::model::Outcome;
 use crate::model::{CellReport, RunReport};
-use crate::report::shaders::{cell_shaders, probed_role, spirv_dis};
+use crate::report::shaders::{cell_shaders, probed_role, spirv_dis, ShaderError};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+/// What `rtprobe report` writes (`--format`'s names are in `cli::values`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Format {
     Md,
     Json,
 }
 
 pub const SCHEMA: &str = "rtprobe.issue/1";
+
+/// What writing the issue, or its shader comparison, fails with.
+#[derive(Debug, thiserror::Error)]
+pub enum IssueError {
+    /// The bisection's representative cell id does not parse.
+    #[error("the bisection's minimal failing cell {0:?} is not a cell id")]
+    NotACell(String),
+    /// A compared cell's shaders could not be made (`cell`: its id).
+    #[error("{cell}: {err}")]
+    Shaders { cell: String, err: ShaderError },
+    /// The cell's shaders lack the one that does the probed read (`cell`: its id).
+    #[error("{cell}: no probed shader")]
+    NoProbedShader { cell: String },
+}
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Environment {
@@ -127,26 +142,11 @@ fn what_happens(o: Outcome) -> &'static str {
 }
 
 /// Build the issue for `report` and its bisection.
-pub fn build(report: &RunReport, report_path: &str, b: &BisectFile, inject: &[Injection]) -> Result<Issue, String> {
+pub fn build(report: &RunReport, report_path: &str, b: &BisectFile, inject: &[Injection]) -> Result<Issue, IssueError> {
     let bi = &b.bisection;
     let d = &report.device;
-    let (os, kernel) = os_and_kernel();
-    let environment = Environment {
-        gpu: match &b.device_uuid_rerun {
-            Some(uuid) => format!("{} (the bisection re-ran cells on another card of the same driver build, UUID {uuid}, not the report's UUID {})", s(&d["name"]), s(&d["device_uuid"])),
-            None => s(&d["name"]),
-        },
-        vendor: format!("{} ({:#06x})", s(&d["vendor"]), d["vendor_id"].as_u64().unwrap_or(0)),
-        device_id: format!("{:#06x}", d["device_id"].as_u64().unwrap_or(0)),
-        driver: format!("{} ({})", s(&d["driver_name"]), s(&d["driver_info"])),
-        driver_version: s(&d["driver_version"]["decoded"]),
-        api_version: s(&d["api_version"]),
-        conformance_version: s(&d["conformance_version"]),
-        os: format!("{os} (of the machine that wrote this issue; the run report does not record it)"),
-        kernel,
-        rtprobe: s(&report.tool["version"]),
-    };
-    let rep = cell_by_id(&bi.representative).ok_or_else(|| format!("the bisection's minimal failing cell {:?} is not a cell id", bi.representative))?;
+    let environment = environment(report, b);
+    let rep = cell_by_id(&bi.representative).ok_or_else(|| IssueError::NotACell(bi.representative.clone()))?;
     let rep_line = bi.isolation.first();
     let rep_report: Option<&CellReport> = report.cells.iter().find(|c| c.id == bi.representative);
     let outcome = rep_report.map(|c| c.outcome).or_else(|| rep_line.and_then(|l| Outcome::ALL.iter().copied().find(|o| o.as_str() == l.verdict))).unwrap_or(Outcome::Error);
@@ -162,68 +162,18 @@ pub fn build(report: &RunReport, report_path: &str, b: &BisectFile, inject: &[In
         environment.driver_version,
         environment.api_version
     );
-    let (agree, n) = rep_line.map(|l| (l.agreeing, l.attempts)).unwrap_or((0, 0));
     // The bisection's count includes the report's attempts and its own.
-    let alone = match rep_report.and_then(|c| c.incidence.as_ref()).and_then(|i| i.reproduced_alone) {
-        Some(true) => " It also faulted when run alone in a fresh process.",
-        Some(false) => " It did NOT fault when run alone in a fresh process.",
-        None => "",
-    };
-    let incidence = format!(
-        "{agree} of {n} attempts of the minimal failing cell faulted.{alone} {} of {} cells in the bisected scope fault{}.",
-        bi.faulting_cells,
-        bi.scope_cells,
-        match bi.fault_rate_bound {
-            Some(p) => format!(
-                "; its fault rate is p ≥ {p:.2} at {:.0}% (one-sided Clopper–Pearson), and each of the {} passes relied on would have missed a fault of that rate with probability at most {} (at most {} that any of them did, by the union bound, if that rate bound holds)",
-                100.0 * bi.confidence,
-                bi.passes_relied_on,
-                percent(bi.worst_miss_probability),
-                percent(bi.union_miss_probability)
-            ),
-            None => String::new(),
-        }
-    );
-    let verified: Vec<&IsolationLine> = bi.workarounds.iter().filter(|w| w.verdict == "pass" && w.settled() && injection.is_none()).collect();
-    let summary = format!(
-        "On {} with {} {} (Vulkan {}), a {} {} ({}). Bisecting {} cells of rtprobe's shader matrix ({} extra runs beyond the report) narrows the failing configurations down to `{}`{}. {}",
-        environment.gpu,
-        s(&d["driver_name"]),
-        environment.driver_version,
-        environment.api_version,
-        describe(&rep).replacen(" reading ", " shader reading ", 1),
-        what_happens(outcome),
-        if n > 0 { format!("{agree} of {n} attempts") } else { "attempts unknown".into() },
-        bi.scope_cells,
-        bi.runs,
-        bi.minimal,
-        if bi.separable { ": every cell matching it faults and every other one passes" } else { " (a disjunction: no single conjunction of axis values separates the failing cells from the passing ones)" },
-        match verified.len() {
-            0 => "No workaround patch was verified to avoid it.".to_string(),
-            _ => format!("Verified workaround(s): {}.", verified.iter().map(|w| w.cell.rsplit("patch-").next().unwrap_or(&w.cell).to_string()).collect::<Vec<_>>().join(", ")),
-        }
-    );
+    let (agree, n) = rep_line.map(|l| (l.agreeing, l.attempts)).unwrap_or((0, 0));
+    let incidence = incidence_text(bi, rep_report, agree, n);
+    let summary = summary_text(&environment, &s(&d["driver_name"]), &rep, outcome, (agree, n), bi, injection.is_none());
     let expected = "The trace completes and every pixel's record matches rtprobe's CPU reference (f64): hit kind, instance custom index, primitive id and probed slot exactly, t within 1e-3 relative, barycentrics within 1e-3, and the value read from the probed resource exactly (for a dynamic index without nonuniformEXT, some element of the array).".to_string();
     let actual = actual_text(rep_report, outcome);
     let shader = shader_comparison(&rep, bi, inject);
     let (shader, shader_error) = match shader {
         Ok(sc) => (Some(sc), None),
-        Err(e) => (None, Some(e)),
+        Err(e) => (None, Some(e.to_string())),
     };
-    let faults: Vec<_> = rep_report.map(|c| c.attempts.iter().filter_map(|a| a.result.as_ref().and_then(|r| r.fault.clone())).collect()).unwrap_or_default();
-    let device_fault = match faults.first() {
-        Some(f) => format!(
-            "{}; addresses: {}; vendor info: {}; vendor binary: {} bytes",
-            f.description,
-            if f.addresses.is_empty() { "none".into() } else { f.addresses.iter().map(|a| format!("{} {} (±{})", a.kind, a.address, a.precision)).collect::<Vec<_>>().join(", ") },
-            if f.vendor.is_empty() { "none".into() } else { f.vendor.iter().map(|v| format!("{} (code {:#x}, data {:#x})", v.description, v.code, v.data)).collect::<Vec<_>>().join(", ") },
-            f.vendor_binary_bytes
-        ),
-        None => match outcome {
-            Outcome::DeviceLost => "The device was lost but no VK_EXT_device_fault report was obtained (the driver does not expose the extension, or the query failed).".into(),
-            _ => format!("Not applicable: the outcome is {} (VK_EXT_device_fault is queried after a device loss).", outcome.as_str()),
-        },
-    };
+    let device_fault = device_fault_text(rep_report, outcome);
     let validation = validation_text(report, rep_report);
     let reproduce = reproduce_commands(report, report_path, &rep, injection);
     let workarounds = if bi.workarounds.is_empty() { vec!["No workaround patch applies to this cell.".into()] } else { bi.workarounds.iter().map(|w| w.line.clone()).collect() };
@@ -250,6 +200,94 @@ pub fn build(report: &RunReport, report_path: &str, b: &BisectFile, inject: &[In
         recommended_pattern,
         not_tested,
     })
+}
+
+/// The device, driver and machine the issue is about.
+fn environment(report: &RunReport, b: &BisectFile) -> Environment {
+    let d = &report.device;
+    let (os, kernel) = os_and_kernel();
+    Environment {
+        gpu: match &b.device_uuid_rerun {
+            Some(uuid) => format!("{} (the bisection re-ran cells on another card of the same driver build, UUID {uuid}, not the report's UUID {})", s(&d["name"]), s(&d["device_uuid"])),
+            None => s(&d["name"]),
+        },
+        vendor: format!("{} ({:#06x})", s(&d["vendor"]), d["vendor_id"].as_u64().unwrap_or(0)),
+        device_id: format!("{:#06x}", d["device_id"].as_u64().unwrap_or(0)),
+        driver: format!("{} ({})", s(&d["driver_name"]), s(&d["driver_info"])),
+        driver_version: s(&d["driver_version"]["decoded"]),
+        api_version: s(&d["api_version"]),
+        conformance_version: s(&d["conformance_version"]),
+        os: format!("{os} (of the machine that wrote this issue; the run report does not record it)"),
+        kernel,
+        rtprobe: s(&report.tool["version"]),
+    }
+}
+
+/// How often the minimal failing cell faulted (`agree` of `n` attempts), alone too, and the
+/// bisection's fault-rate bound.
+fn incidence_text(bi: &crate::model::Bisection, rep_report: Option<&CellReport>, agree: u32, n: u32) -> String {
+    let alone = match rep_report.and_then(|c| c.incidence.as_ref()).and_then(|i| i.reproduced_alone) {
+        Some(true) => " It also faulted when run alone in a fresh process.",
+        Some(false) => " It did NOT fault when run alone in a fresh process.",
+        None => "",
+    };
+    format!(
+        "{agree} of {n} attempts of the minimal failing cell faulted.{alone} {} of {} cells in the bisected scope fault{}.",
+        bi.faulting_cells,
+        bi.scope_cells,
+        match bi.fault_rate_bound {
+            Some(p) => format!(
+                "; its fault rate is p ≥ {p:.2} at {:.0}% (one-sided Clopper–Pearson), and each of the {} passes relied on would have missed a fault of that rate with probability at most {} (at most {} that any of them did, by the union bound, if that rate bound holds)",
+                100.0 * bi.confidence,
+                bi.passes_relied_on,
+                percent(bi.worst_miss_probability),
+                percent(bi.union_miss_probability)
+            ),
+            None => String::new(),
+        }
+    )
+}
+
+/// The issue's summary paragraph; `(agree, n)`: attempts of the minimal failing cell that
+/// faulted; `real`: not an injected fault (only then do verified workarounds count).
+fn summary_text(env: &Environment, driver_name: &str, rep: &Cell, outcome: Outcome, (agree, n): (u32, u32), bi: &crate::model::Bisection, real: bool) -> String {
+    let verified: Vec<&IsolationLine> = bi.workarounds.iter().filter(|w| w.verdict == "pass" && w.settled() && real).collect();
+    format!(
+        "On {} with {} {} (Vulkan {}), a {} {} ({}). Bisecting {} cells of rtprobe's shader matrix ({} extra runs beyond the report) narrows the failing configurations down to `{}`{}. {}",
+        env.gpu,
+        driver_name,
+        env.driver_version,
+        env.api_version,
+        describe(rep).replacen(" reading ", " shader reading ", 1),
+        what_happens(outcome),
+        if n > 0 { format!("{agree} of {n} attempts") } else { "attempts unknown".into() },
+        bi.scope_cells,
+        bi.runs,
+        bi.minimal,
+        if bi.separable { ": every cell matching it faults and every other one passes" } else { " (a disjunction: no single conjunction of axis values separates the failing cells from the passing ones)" },
+        match verified.len() {
+            0 => "No workaround patch was verified to avoid it.".to_string(),
+            _ => format!("Verified workaround(s): {}.", verified.iter().map(|w| w.cell.rsplit("patch-").next().unwrap_or(&w.cell).to_string()).collect::<Vec<_>>().join(", ")),
+        }
+    )
+}
+
+/// The first VK_EXT_device_fault report of the cell's attempts, or why there is none.
+fn device_fault_text(rep_report: Option<&CellReport>, outcome: Outcome) -> String {
+    let faults: Vec<_> = rep_report.map(|c| c.attempts.iter().filter_map(|a| a.result.as_ref().and_then(|r| r.fault.clone())).collect()).unwrap_or_default();
+    match faults.first() {
+        Some(f) => format!(
+            "{}; addresses: {}; vendor info: {}; vendor binary: {} bytes",
+            f.description,
+            if f.addresses.is_empty() { "none".into() } else { f.addresses.iter().map(|a| format!("{} {} (±{})", a.kind, a.address, a.precision)).collect::<Vec<_>>().join(", ") },
+            if f.vendor.is_empty() { "none".into() } else { f.vendor.iter().map(|v| format!("{} (code {:#x}, data {:#x})", v.description, v.code, v.data)).collect::<Vec<_>>().join(", ") },
+            f.vendor_binary_bytes
+        ),
+        None => match outcome {
+            Outcome::DeviceLost => "The device was lost but no VK_EXT_device_fault report was obtained (the driver does not expose the extension, or the query failed).".into(),
+            _ => format!("Not applicable: the outcome is {} (VK_EXT_device_fault is queried after a device loss).", outcome.as_str()),
+        },
+    }
 }
 
 fn actual_text(rep: Option<&CellReport>, outcome: Outcome) -> String {
@@ -352,14 +390,14 @@ fn not_tested(report: &RunReport, b: &BisectFile) -> Vec<String> {
 
 /// The probed shader of the failing cell and of its closest passing sibling (preferring a
 /// sibling that differs in the index, then the resource, then other axes).
-fn shader_comparison(rep: &Cell, bi: &crate::model::Bisection, inject: &[Injection]) -> Result<ShaderComparison, String> {
+fn shader_comparison(rep: &Cell, bi: &crate::model::Bisection, inject: &[Injection]) -> Result<ShaderComparison, IssueError> {
     let order = ["index", "nonuniform", "resource", "as_access", "descriptor_model", "patch", "stage"];
     let sibling = order.iter().find_map(|ax| bi.isolation.iter().find(|l| l.varied.as_deref() == Some(*ax) && l.verdict == "pass")).and_then(|l| cell_by_id(&l.cell));
     let role = probed_role(rep.stage);
-    let pick = |c: &Cell| -> Result<(String, Vec<u32>), String> {
+    let pick = |c: &Cell| -> Result<(String, Vec<u32>), IssueError> {
         let fault = for_cell(inject, c).map(|i| i.fault);
-        let shaders = cell_shaders(c, fault).map_err(|e| format!("{}: {e}", c.id()))?;
-        let sh = shaders.into_iter().find(|s| s.role == probed_role(c.stage)).ok_or_else(|| format!("{}: no probed shader", c.id()))?;
+        let shaders = cell_shaders(c, fault).map_err(|err| IssueError::Shaders { cell: c.id(), err })?;
+        let sh = shaders.into_iter().find(|s| s.role == probed_role(c.stage)).ok_or_else(|| IssueError::NoProbedShader { cell: c.id() })?;
         Ok((sh.glsl, sh.spirv))
     };
     let (glsl, spirv) = pick(rep)?;

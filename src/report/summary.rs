@@ -18,6 +18,16 @@ fn mark(o: Outcome) -> &'static str {
 
 pub fn render(r: &RunReport) -> String {
     let mut s = String::new();
+    header(&mut s, r);
+    worker_and_canary_notes(&mut s, r);
+    spec_and_injection_notes(&mut s, r);
+    findings(&mut s, r);
+    timing(&mut s, r);
+    s
+}
+
+/// The device, the plan and the outcome counts.
+fn header(s: &mut String, r: &RunReport) {
     let _ = writeln!(s, "rtprobe run on {} ({} {})", r.device["name"].as_str().unwrap_or("?"), r.device["driver_name"].as_str().unwrap_or("?"), r.device["driver_version"]["decoded"].as_str().unwrap_or("?"));
     let _ = writeln!(
         s,
@@ -30,6 +40,10 @@ pub fn render(r: &RunReport) -> String {
         let _ = write!(s, "  {} {} {n}", mark(*o), o.as_str());
     }
     let _ = writeln!(s);
+}
+
+/// Canaries, fault injection, and worker faults outside any cell.
+fn worker_and_canary_notes(s: &mut String, r: &RunReport) {
     let canaries: Vec<_> = r.cells.iter().filter(|c| c.canary_check.is_some()).collect();
     for c in &canaries {
         let chk = c.canary_check.as_ref().expect("filtered");
@@ -54,6 +68,10 @@ pub fn render(r: &RunReport) -> String {
             let _ = writeln!(s, "  {} worker {} {} in {} — {}", mark(w.outcome), w.worker, w.outcome.as_str(), w.phase, w.detail.as_deref().unwrap_or(""));
         }
     }
+}
+
+/// Reads outside the spec's guarantees, validation errors, undetected injections.
+fn spec_and_injection_notes(s: &mut String, r: &RunReport) {
     let outside: Vec<_> = r.cells.iter().filter(|c| c.outside_spec.is_some()).collect();
     if let Some(first) = outside.first() {
         let other = outside.iter().filter(|c| c.element_reads().any(|e| e.other > 0)).count();
@@ -78,6 +96,10 @@ pub fn render(r: &RunReport) -> String {
             first.injected.as_deref().unwrap_or("")
         );
     }
+}
+
+/// The verdict: each finding (at most 40), or why there is none.
+fn findings(s: &mut String, r: &RunReport) {
     let findings: Vec<_> = r.findings().collect();
     let not_run = r.plan.unsupported + r.plan.not_implemented;
     let worker_faults = r.workers.iter().filter(|w| w.outcome.is_finding()).count();
@@ -95,32 +117,41 @@ pub fn render(r: &RunReport) -> String {
         let flaky = findings.iter().filter(|c| c.flaky).count();
         let _ = writeln!(s, "findings ({}{}):", findings.len(), if flaky > 0 { format!(", {flaky} flaky") } else { String::new() });
         for c in findings.iter().take(40) {
-            // The reason already carries "k of N attempts"; a flaky cell says so up front.
-            let tag = if c.flaky { " [FLAKY]" } else { "" };
-            let _ = writeln!(s, "  {} {:<12} {}{} — {}", mark(c.outcome), c.outcome.as_str(), c.id, tag, c.reason.as_deref().unwrap_or(""));
-            if let Some(diff) = c.attempts.iter().rev().find_map(|a| a.result.as_ref()?.comparison.as_ref()?.pictures.last()) {
-                let _ = writeln!(s, "      pictures: {diff} (expected.png and actual.png beside it)");
-            }
-            if !c.workarounds.is_empty() {
-                let verified: Vec<&str> = c.workarounds.iter().filter(|w| w.verified).map(|w| w.patch.as_str()).collect();
-                let tried: Vec<String> = c.workarounds.iter().map(|w| w.tried()).collect();
-                if verified.is_empty() {
-                    let _ = writeln!(s, "      no verified workaround ({})", tried.join(", "));
-                } else {
-                    let _ = writeln!(s, "      verified workaround: {} ({})", verified.join(", "), tried.join(", "));
-                }
-            }
-            if let Some(p) = &c.recommended {
-                let _ = writeln!(s, "      {}", p.line());
-            }
-            if let Some(v) = &c.gpu_av {
-                let _ = writeln!(s, "      {}", v.line());
-            }
+            finding(s, c);
         }
         if findings.len() > 40 {
             let _ = writeln!(s, "  … and {} more (see the report)", findings.len() - 40);
         }
     }
+}
+
+/// One finding with its pictures, workarounds, recommended pattern and GPU-AV result.
+fn finding(s: &mut String, c: &crate::model::CellReport) {
+    // The reason already carries "k of N attempts"; a flaky cell says so up front.
+    let tag = if c.flaky { " [FLAKY]" } else { "" };
+    let _ = writeln!(s, "  {} {:<12} {}{} — {}", mark(c.outcome), c.outcome.as_str(), c.id, tag, c.reason.as_deref().unwrap_or(""));
+    if let Some(diff) = c.attempts.iter().rev().find_map(|a| a.result.as_ref()?.comparison.as_ref()?.pictures.last()) {
+        let _ = writeln!(s, "      pictures: {diff} (expected.png and actual.png beside it)");
+    }
+    if !c.workarounds.is_empty() {
+        let verified: Vec<&str> = c.workarounds.iter().filter(|w| w.verified).map(|w| w.patch.as_str()).collect();
+        let tried: Vec<String> = c.workarounds.iter().map(|w| w.tried()).collect();
+        if verified.is_empty() {
+            let _ = writeln!(s, "      no verified workaround ({})", tried.join(", "));
+        } else {
+            let _ = writeln!(s, "      verified workaround: {} ({})", verified.join(", "), tried.join(", "));
+        }
+    }
+    if let Some(p) = &c.recommended {
+        let _ = writeln!(s, "      {}", p.line());
+    }
+    if let Some(v) = &c.gpu_av {
+        let _ = writeln!(s, "      {}", v.line());
+    }
+}
+
+/// Time per phase, the prebuild and the pipeline cache.
+fn timing(s: &mut String, r: &RunReport) {
     let t = &r.timing;
     let n = t.cells_timed.max(1) as f64;
     let _ = writeln!(
@@ -145,5 +176,4 @@ pub fn render(r: &RunReport) -> String {
         let errors = if pc.save_errors.is_empty() { String::new() } else { format!("; {}", pc.save_errors.join("; ")) };
         let _ = writeln!(s, "pipeline cache: {} bytes loaded ({} workers), {} bytes saved ({file}){ignored}{errors}", pc.loaded_bytes, pc.workers_loaded, pc.saved_bytes);
     }
-    s
 }

@@ -91,88 +91,104 @@ pub(crate) fn record_builds(gpu: &Gpu, cmd: vk::CommandBuffer, levels: &[&[Build
 
 pub(crate) type Build<'a> = (vk::AccelerationStructureBuildGeometryInfoKHR<'a>, &'a [vk::AccelerationStructureBuildRangeInfoKHR]);
 
+/// The BLAS builds: one per mesh (one geometry per range of its triangles), then the sphere's
+/// AABB; their vertex, index and AABB buffers go to `inputs`.
+fn pending_blas(gpu: &Gpu, scene: &Scene, inputs: &mut Vec<Buffer>) -> Result<Vec<Pending>, BuildError> {
+    let mut blas_pending = Vec::new();
+    for mesh in &scene.meshes {
+        let vb = Buffer::with_data(gpu, bytes_of(&mesh.positions), INPUT_USAGE, "vertex buffer")?;
+        let ib = Buffer::with_data(gpu, bytes_of(&mesh.indices), INPUT_USAGE, "index buffer")?;
+        let tri = vk::AccelerationStructureGeometryTrianglesDataKHR::default()
+            .vertex_format(vk::Format::R32G32B32_SFLOAT)
+            .vertex_data(vk::DeviceOrHostAddressConstKHR { device_address: vb.address })
+            .vertex_stride(12)
+            .max_vertex(mesh.positions.len() as u32 - 1)
+            .index_type(vk::IndexType::UINT32)
+            .index_data(vk::DeviceOrHostAddressConstKHR { device_address: ib.address });
+        let geometry = vk::AccelerationStructureGeometryKHR::default()
+            .geometry_type(vk::GeometryTypeKHR::TRIANGLES)
+            .geometry(vk::AccelerationStructureGeometryDataKHR { triangles: tri })
+            .flags(vk::GeometryFlagsKHR::OPAQUE);
+        // One geometry per range: same buffers, the range's first triangle as primitive offset.
+        let ranges: Vec<_> = mesh
+            .geometries
+            .iter()
+            .map(|r| vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(r.end - r.start).primitive_offset(r.start * 12))
+            .collect();
+        blas_pending.push(Pending { geometries: vec![geometry; ranges.len()], ranges, ty: vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL });
+        inputs.extend([vb, ib]);
+    }
+    let aabb = vk::AabbPositionsKHR {
+        min_x: SPHERE_AABB[0], min_y: SPHERE_AABB[1], min_z: SPHERE_AABB[2],
+        max_x: SPHERE_AABB[3], max_y: SPHERE_AABB[4], max_z: SPHERE_AABB[5],
+    };
+    let ab = Buffer::with_data(gpu, bytes_of(&[aabb]), INPUT_USAGE, "AABB buffer")?;
+    let aabbs = vk::AccelerationStructureGeometryAabbsDataKHR::default()
+        .data(vk::DeviceOrHostAddressConstKHR { device_address: ab.address })
+        .stride(std::mem::size_of::<vk::AabbPositionsKHR>() as u64);
+    blas_pending.push(Pending {
+        geometries: vec![vk::AccelerationStructureGeometryKHR::default()
+            .geometry_type(vk::GeometryTypeKHR::AABBS)
+            .geometry(vk::AccelerationStructureGeometryDataKHR { aabbs })
+            .flags(vk::GeometryFlagsKHR::OPAQUE)],
+        ranges: vec![vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(1)],
+        ty: vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL,
+    });
+    inputs.push(ab);
+    Ok(blas_pending)
+}
+
+/// The TLAS instance lists: the scene TLAS, then the probe variants (`blas`: the BLAS of each
+/// mesh, then the sphere's).
+fn instance_lists(scene: &Scene, blas: &[AccelStruct]) -> Vec<Vec<vk::AccelerationStructureInstanceKHR>> {
+    let blas_index = |g: Geometry| match g {
+        Geometry::Mesh(m) => m,
+        Geometry::Sphere => scene.meshes.len(),
+    };
+    let instance = |i: &Instance, custom: u32| vk::AccelerationStructureInstanceKHR {
+        transform: vk::TransformMatrixKHR { matrix: bytemuck_transform(&i.transform) },
+        instance_custom_index_and_mask: vk::Packed24_8::new(custom, 0xff),
+        instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(i.sbt_offset(), 0),
+        acceleration_structure_reference: vk::AccelerationStructureReferenceKHR { device_handle: blas[blas_index(i.geometry)].address },
+    };
+    let n = scene.instances.len() as u32;
+    let mut lists = vec![scene.instances.iter().map(|i| instance(i, i.custom_index)).collect::<Vec<_>>()];
+    for v in 0..probe::as_variants(n) {
+        let mut l: Vec<_> = (0..n).filter(|k| probe::as_variant_has(v, *k)).map(|k| instance(&scene.instances[k as usize], probe::as_custom(v, k))).collect();
+        l.push(instance(&scene.floor, probe::as_custom(v, n)));
+        lists.push(l);
+    }
+    lists
+}
+
+/// One TLAS build per instance list; the instance buffers go to `inputs`.
+fn pending_tlas(gpu: &Gpu, lists: Vec<Vec<vk::AccelerationStructureInstanceKHR>>, inputs: &mut Vec<Buffer>) -> Result<Vec<Pending>, BuildError> {
+    let mut tlas_pending = Vec::new();
+    for instances in lists {
+        let ib = Buffer::with_data(gpu, bytes_of(&instances), INPUT_USAGE, "instance buffer")?;
+        let data = vk::AccelerationStructureGeometryInstancesDataKHR::default()
+            .array_of_pointers(false)
+            .data(vk::DeviceOrHostAddressConstKHR { device_address: ib.address });
+        tlas_pending.push(Pending {
+            geometries: vec![vk::AccelerationStructureGeometryKHR::default()
+                .geometry_type(vk::GeometryTypeKHR::INSTANCES)
+                .geometry(vk::AccelerationStructureGeometryDataKHR { instances: data })],
+            ranges: vec![vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(instances.len() as u32)],
+            ty: vk::AccelerationStructureTypeKHR::TOP_LEVEL,
+        });
+        inputs.push(ib);
+    }
+    Ok(tlas_pending)
+}
+
 impl SceneGpu {
     pub fn build(gpu: &Gpu, scene: &Scene, submitter: &Submitter, timeout: Duration) -> Result<SceneGpu, BuildError> {
         let start = Instant::now();
         let mut inputs = Vec::new();
-        let mut blas_pending = Vec::new();
-        for mesh in &scene.meshes {
-            let vb = Buffer::with_data(gpu, bytes_of(&mesh.positions), INPUT_USAGE, "vertex buffer")?;
-            let ib = Buffer::with_data(gpu, bytes_of(&mesh.indices), INPUT_USAGE, "index buffer")?;
-            let tri = vk::AccelerationStructureGeometryTrianglesDataKHR::default()
-                .vertex_format(vk::Format::R32G32B32_SFLOAT)
-                .vertex_data(vk::DeviceOrHostAddressConstKHR { device_address: vb.address })
-                .vertex_stride(12)
-                .max_vertex(mesh.positions.len() as u32 - 1)
-                .index_type(vk::IndexType::UINT32)
-                .index_data(vk::DeviceOrHostAddressConstKHR { device_address: ib.address });
-            let geometry = vk::AccelerationStructureGeometryKHR::default()
-                .geometry_type(vk::GeometryTypeKHR::TRIANGLES)
-                .geometry(vk::AccelerationStructureGeometryDataKHR { triangles: tri })
-                .flags(vk::GeometryFlagsKHR::OPAQUE);
-            // One geometry per range: same buffers, the range's first triangle as primitive offset.
-            let ranges: Vec<_> = mesh
-                .geometries
-                .iter()
-                .map(|r| vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(r.end - r.start).primitive_offset(r.start * 12))
-                .collect();
-            blas_pending.push(Pending { geometries: vec![geometry; ranges.len()], ranges, ty: vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL });
-            inputs.extend([vb, ib]);
-        }
-        let aabb = vk::AabbPositionsKHR {
-            min_x: SPHERE_AABB[0], min_y: SPHERE_AABB[1], min_z: SPHERE_AABB[2],
-            max_x: SPHERE_AABB[3], max_y: SPHERE_AABB[4], max_z: SPHERE_AABB[5],
-        };
-        let ab = Buffer::with_data(gpu, bytes_of(&[aabb]), INPUT_USAGE, "AABB buffer")?;
-        let aabbs = vk::AccelerationStructureGeometryAabbsDataKHR::default()
-            .data(vk::DeviceOrHostAddressConstKHR { device_address: ab.address })
-            .stride(std::mem::size_of::<vk::AabbPositionsKHR>() as u64);
-        blas_pending.push(Pending {
-            geometries: vec![vk::AccelerationStructureGeometryKHR::default()
-                .geometry_type(vk::GeometryTypeKHR::AABBS)
-                .geometry(vk::AccelerationStructureGeometryDataKHR { aabbs })
-                .flags(vk::GeometryFlagsKHR::OPAQUE)],
-            ranges: vec![vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(1)],
-            ty: vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL,
-        });
-        inputs.push(ab);
-
+        let blas_pending = pending_blas(gpu, scene, &mut inputs)?;
         let mut all_scratch = Vec::new();
         let (blas, blas_builds) = Self::prepare_all(gpu, &blas_pending, &mut all_scratch)?;
-
-        // Instances: the scene TLAS, then the probe variants.
-        let blas_index = |g: Geometry| match g {
-            Geometry::Mesh(m) => m,
-            Geometry::Sphere => scene.meshes.len(),
-        };
-        let instance = |i: &Instance, custom: u32| vk::AccelerationStructureInstanceKHR {
-            transform: vk::TransformMatrixKHR { matrix: bytemuck_transform(&i.transform) },
-            instance_custom_index_and_mask: vk::Packed24_8::new(custom, 0xff),
-            instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(i.sbt_offset(), 0),
-            acceleration_structure_reference: vk::AccelerationStructureReferenceKHR { device_handle: blas[blas_index(i.geometry)].address },
-        };
-        let n = scene.instances.len() as u32;
-        let mut lists = vec![scene.instances.iter().map(|i| instance(i, i.custom_index)).collect::<Vec<_>>()];
-        for v in 0..probe::as_variants(n) {
-            let mut l: Vec<_> = (0..n).filter(|k| probe::as_variant_has(v, *k)).map(|k| instance(&scene.instances[k as usize], probe::as_custom(v, k))).collect();
-            l.push(instance(&scene.floor, probe::as_custom(v, n)));
-            lists.push(l);
-        }
-        let mut tlas_pending = Vec::new();
-        for instances in lists {
-            let ib = Buffer::with_data(gpu, bytes_of(&instances), INPUT_USAGE, "instance buffer")?;
-            let data = vk::AccelerationStructureGeometryInstancesDataKHR::default()
-                .array_of_pointers(false)
-                .data(vk::DeviceOrHostAddressConstKHR { device_address: ib.address });
-            tlas_pending.push(Pending {
-                geometries: vec![vk::AccelerationStructureGeometryKHR::default()
-                    .geometry_type(vk::GeometryTypeKHR::INSTANCES)
-                    .geometry(vk::AccelerationStructureGeometryDataKHR { instances: data })],
-                ranges: vec![vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(instances.len() as u32)],
-                ty: vk::AccelerationStructureTypeKHR::TOP_LEVEL,
-            });
-            inputs.push(ib);
-        }
+        let tlas_pending = pending_tlas(gpu, instance_lists(scene, &blas), &mut inputs)?;
         let (mut tlas, tlas_builds) = Self::prepare_all(gpu, &tlas_pending, &mut all_scratch)?;
 
         let waited = submitter.run(gpu, timeout, |cmd| record_builds(gpu, cmd, &[&blas_builds, &tlas_builds]))?;

@@ -128,18 +128,16 @@ impl Compiler {
     }
 }
 
-/// The Vulkan environment GLSL is compiled for.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+/// The Vulkan environment GLSL is compiled for (`--target-env`'s names and help are in
+/// `cli::values`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum TargetEnv {
-    /// Vulkan 1.2, SPIR-V 1.5 (what rtprobe's own shaders use)
+    /// Vulkan 1.2, SPIR-V 1.5 (what rtprobe's own shaders use).
     #[default]
-    #[value(name = "vulkan1.2")]
     Vulkan1_2,
-    /// Vulkan 1.3, SPIR-V 1.6
-    #[value(name = "vulkan1.3")]
+    /// Vulkan 1.3, SPIR-V 1.6.
     Vulkan1_3,
-    /// Vulkan 1.4, SPIR-V 1.6
-    #[value(name = "vulkan1.4")]
+    /// Vulkan 1.4, SPIR-V 1.6.
     Vulkan1_4,
 }
 

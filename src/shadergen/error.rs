@@ -3,7 +3,9 @@
 
 #[derive(Debug, thiserror::Error)]
 pub enum CompileError {
-    #[error("shaderc could not be initialised")]
+    /// `shaderc::Compiler::new` failed: no GLSL can be compiled in this process (exit code 12
+    /// where the CLI meets it, `cli::exit::NO_SHADER_COMPILER`).
+    #[error("the shader compiler (shaderc) could not be started")]
     Init,
     #[error("{file}: {message}")]
     Glsl { file: String, message: String },

@@ -211,48 +211,91 @@ reorderThreadNV(hitObj, hint, 16);\n"
     format!("    hitObjectNV hitObj;\n    hitObjectTraceRayNV(hitObj, {args});\n{reorder}    hitObjectExecuteShaderNV(hitObj, 0);\n")
 }
 
-fn ray_tracing<'a>(spec: &ProbeSpec, probe: &'a ProbeCode, here: impl Fn(Stage) -> Option<&'a ProbeCode>) -> CellShaders {
-    let store = "    pl.flags |= FLAG_PROBE;\n    pl.slot = probeSlot;\n    pl.element = probeElement;\n    pl.value = probeValue;\n";
-    let mut shaders = Vec::new();
-    let call_data = "struct CallData { uint slot; uint element; uint p1; uint p2; vec4 value; };\n";
+/// The probe's result copied into the payload (raygen, miss, closest-hit and any-hit probes).
+const STORE: &str = "    pl.flags |= FLAG_PROBE;\n    pl.slot = probeSlot;\n    pl.element = probeElement;\n    pl.value = probeValue;\n";
+/// What a callable probe hands back to raygen.
+const CALL_DATA: &str = "struct CallData { uint slot; uint element; uint p1; uint p2; vec4 value; };\n";
+/// What an intersection probe hands to the procedural closest-hit shader.
+const PROBE_ATTR: &str = "struct ProbeAttr { vec4 value; uint slot; uint element; };\nhitAttributeEXT ProbeAttr attr;\n";
 
-    // raygen
+fn ray_tracing<'a>(spec: &ProbeSpec, probe: &'a ProbeCode, here: impl Fn(Stage) -> Option<&'a ProbeCode>) -> CellShaders {
+    let mut shaders = vec![
+        ShaderSource { role: Role::Raygen, glsl: raygen(spec, probe, here(Stage::Raygen)) },
+        ShaderSource { role: Role::Miss, glsl: miss(probe, here(Stage::Miss)) },
+    ];
+    // miss 1: the AS probe ray's miss (its payload stays an empty record)
+    let pmiss = format!("{}layout(location = 1) rayPayloadInEXT Record probePl;\nvoid main() {{\n    probePl.flags = 0u;\n}}\n", header(true, None, &[]));
+    shaders.push(ShaderSource { role: Role::ProbeMiss, glsl: pmiss });
+    let (tri, proc_) = closest_hits(spec, probe, here(Stage::ClosestHit));
+    shaders.push(ShaderSource { role: Role::ClosestHitTriangles, glsl: tri });
+    shaders.push(ShaderSource { role: Role::ClosestHitProcedural, glsl: proc_ });
+    shaders.push(ShaderSource { role: Role::Intersection, glsl: intersection(probe, here(Stage::Intersection)) });
+    if spec.stage == Stage::AnyHit {
+        let mut ahit = header(true, Some(probe), &[]);
+        ahit += "layout(location = 0) rayPayloadInEXT Record pl;\nvoid main() {\n    uvec2 px = gl_LaunchIDEXT.xy;\n";
+        ahit += &probe.body;
+        ahit += STORE;
+        ahit += "}\n";
+        shaders.push(ShaderSource { role: Role::AnyHit, glsl: ahit });
+    }
+    if spec.stage == Stage::Callable {
+        let mut call = header(true, Some(probe), &[]);
+        call += CALL_DATA;
+        call += "layout(location = 2) callableDataInEXT CallData cd;\nvoid main() {\n    uvec2 px = gl_LaunchIDEXT.xy;\n";
+        call += &probe.body;
+        call += "    cd.slot = probeSlot;\n    cd.element = probeElement;\n    cd.value = probeValue;\n}\n";
+        shaders.push(ShaderSource { role: Role::Callable, glsl: call });
+    }
+    let traces_from_hit_or_miss = probe.traces && matches!(spec.stage, Stage::ClosestHit | Stage::Miss);
+    CellShaders {
+        kind: PipelineKind::RayTracing,
+        shaders,
+        recursion_depth: if traces_from_hit_or_miss { 2 } else { 1 },
+        uses_probe_binding: probe.uses_binding,
+        uses_scene_tlas: true,
+        uses_ray_query: probe.ray_query,
+    }
+}
+
+/// The raygen shader: the primary trace, then the probe when it runs here (`here`), or the
+/// callable's, into the record of its pixel.
+fn raygen(spec: &ProbeSpec, probe: &ProbeCode, here: Option<&ProbeCode>) -> String {
     let reorder_ext: &[&str] = if spec.reorder.is_some() { &["GL_NV_shader_invocation_reorder"] } else { &[] };
-    let mut rgen = header(true, here(Stage::Raygen), reorder_ext);
+    let mut rgen = header(true, here, reorder_ext);
     rgen += "layout(set = 0, binding = 1) uniform accelerationStructureEXT sceneTlas;\nlayout(location = 0) rayPayloadEXT Record pl;\n";
     if spec.stage == Stage::Callable {
-        rgen += call_data;
+        rgen += CALL_DATA;
         rgen += "layout(location = 2) callableDataEXT CallData cd;\n";
     }
     rgen += &format!("void main() {{\n    uvec2 px = gl_LaunchIDEXT.xy;\n    uint i = px.x + px.y * pc.width;\n    pl = emptyRecord();\n");
     rgen += &primary_trace(spec);
-    if here(Stage::Raygen).is_some() {
+    if here.is_some() {
         rgen += &probe.body;
-        rgen += store;
+        rgen += STORE;
     }
     if spec.stage == Stage::Callable {
         rgen += "    executeCallableEXT(0, 2);\n    pl.flags |= FLAG_PROBE;\n    pl.slot = cd.slot;\n    pl.element = cd.element;\n    pl.value = cd.value;\n";
     }
     rgen += "    records[i] = pl;\n}\n";
-    shaders.push(ShaderSource { role: Role::Raygen, glsl: rgen });
+    rgen
+}
 
-    // miss 0
-    let mut miss = header(true, here(Stage::Miss), &[]);
+/// Miss shader 0 (the primary ray's), with the probe when it runs here.
+fn miss(probe: &ProbeCode, here: Option<&ProbeCode>) -> String {
+    let mut miss = header(true, here, &[]);
     miss += "layout(location = 0) rayPayloadInEXT Record pl;\nvoid main() {\n";
-    if here(Stage::Miss).is_some() {
+    if here.is_some() {
         miss += "    uvec2 px = gl_LaunchIDEXT.xy;\n";
         miss += &probe.body;
-        miss += store;
+        miss += STORE;
     }
     miss += "}\n";
-    shaders.push(ShaderSource { role: Role::Miss, glsl: miss });
+    miss
+}
 
-    // miss 1: the AS probe ray's miss (its payload stays an empty record)
-    let pmiss = format!("{}layout(location = 1) rayPayloadInEXT Record probePl;\nvoid main() {{\n    probePl.flags = 0u;\n}}\n", header(true, None, &[]));
-    shaders.push(ShaderSource { role: Role::ProbeMiss, glsl: pmiss });
-
-    // closest hits
-    let chit_probe = here(Stage::ClosestHit);
+/// The triangle and procedural closest-hit shaders: the hit's record, then the probe when it runs
+/// here (`chit_probe`); the procedural one takes an intersection probe's result from its attributes.
+fn closest_hits(spec: &ProbeSpec, probe: &ProbeCode, chit_probe: Option<&ProbeCode>) -> (String, String) {
     // An AS probe ray (see probe_code::PROBE_RAY_FLAG) only wants the committed custom index.
     let probe_ray = if probe.traces {
         format!("    if ((gl_IncomingRayFlagsEXT & {}) != 0u) {{\n        pl.flags = FLAG_HIT;\n        pl.custom = uint(gl_InstanceCustomIndexEXT);\n        return;\n    }}\n", probe_code::PROBE_RAY_FLAG)
@@ -269,7 +312,7 @@ fn ray_tracing<'a>(spec: &ProbeSpec, probe: &'a ProbeCode, here: impl Fn(Stage) 
         if chit_probe.is_some() {
             b += "    uvec2 px = gl_LaunchIDEXT.xy;\n";
             b += &probe.body;
-            b += store;
+            b += STORE;
         }
         b += "}\n";
         b
@@ -277,25 +320,26 @@ fn ray_tracing<'a>(spec: &ProbeSpec, probe: &'a ProbeCode, here: impl Fn(Stage) 
     let mut tri = header(true, chit_probe, &[]);
     tri += "layout(location = 0) rayPayloadInEXT Record pl;\nhitAttributeEXT vec2 bary;\n";
     tri += &chit_body("    pl.bary = bary;\n");
-    shaders.push(ShaderSource { role: Role::ClosestHitTriangles, glsl: tri });
 
-    let attr = "struct ProbeAttr { vec4 value; uint slot; uint element; };\nhitAttributeEXT ProbeAttr attr;\n";
     let mut proc_ = header(true, chit_probe, &[]);
     proc_ += "layout(location = 0) rayPayloadInEXT Record pl;\n";
-    proc_ += attr;
+    proc_ += PROBE_ATTR;
     let from_attr = if spec.stage == Stage::Intersection {
         "    pl.bary = vec2(0.0);\n    pl.flags |= FLAG_PROBE;\n    pl.slot = attr.slot;\n    pl.element = attr.element;\n    pl.value = attr.value;\n"
     } else {
         "    pl.bary = vec2(0.0);\n"
     };
     proc_ += &chit_body(from_attr);
-    shaders.push(ShaderSource { role: Role::ClosestHitProcedural, glsl: proc_ });
+    (tri, proc_)
+}
 
-    // intersection
-    let mut rint = header(true, here(Stage::Intersection), &[]);
-    rint += attr;
+/// The sphere's intersection shader, with the probe when it runs here (its result goes to the
+/// hit attributes).
+fn intersection(probe: &ProbeCode, here: Option<&ProbeCode>) -> String {
+    let mut rint = header(true, here, &[]);
+    rint += PROBE_ATTR;
     rint += "void main() {\n    float t;\n    if (sphereHit(gl_ObjectRayOriginEXT, gl_ObjectRayDirectionEXT, gl_RayTminEXT, gl_RayTmaxEXT, t)) {\n";
-    if here(Stage::Intersection).is_some() {
+    if here.is_some() {
         rint += "    uvec2 px = gl_LaunchIDEXT.xy;\n";
         rint += &probe.body;
         rint += "        attr.slot = probeSlot;\n        attr.element = probeElement;\n        attr.value = probeValue;\n";
@@ -303,33 +347,7 @@ fn ray_tracing<'a>(spec: &ProbeSpec, probe: &'a ProbeCode, here: impl Fn(Stage) 
         rint += "        attr.slot = 0u;\n        attr.element = 0u;\n        attr.value = vec4(0.0);\n";
     }
     rint += "        reportIntersectionEXT(t, 0u);\n    }\n}\n";
-    shaders.push(ShaderSource { role: Role::Intersection, glsl: rint });
-
-    if spec.stage == Stage::AnyHit {
-        let mut ahit = header(true, Some(probe), &[]);
-        ahit += "layout(location = 0) rayPayloadInEXT Record pl;\nvoid main() {\n    uvec2 px = gl_LaunchIDEXT.xy;\n";
-        ahit += &probe.body;
-        ahit += store;
-        ahit += "}\n";
-        shaders.push(ShaderSource { role: Role::AnyHit, glsl: ahit });
-    }
-    if spec.stage == Stage::Callable {
-        let mut call = header(true, Some(probe), &[]);
-        call += call_data;
-        call += "layout(location = 2) callableDataInEXT CallData cd;\nvoid main() {\n    uvec2 px = gl_LaunchIDEXT.xy;\n";
-        call += &probe.body;
-        call += "    cd.slot = probeSlot;\n    cd.element = probeElement;\n    cd.value = probeValue;\n}\n";
-        shaders.push(ShaderSource { role: Role::Callable, glsl: call });
-    }
-    let traces_from_hit_or_miss = probe.traces && matches!(spec.stage, Stage::ClosestHit | Stage::Miss);
-    CellShaders {
-        kind: PipelineKind::RayTracing,
-        shaders,
-        recursion_depth: if traces_from_hit_or_miss { 2 } else { 1 },
-        uses_probe_binding: probe.uses_binding,
-        uses_scene_tlas: true,
-        uses_ray_query: probe.ray_query,
-    }
+    rint
 }
 
 fn canary(c: Canary) -> CellShaders {

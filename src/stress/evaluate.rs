@@ -165,7 +165,7 @@ impl CaseResult {
         let verdict = match e {
             TraceError::DeviceLost(_) => Verdict::DeviceLost,
             TraceError::Timeout(_) => Verdict::Timeout,
-            TraceError::Failed(_) => Verdict::Error,
+            TraceError::Failed(_) | TraceError::Compile(_) => Verdict::Error,
         };
         let metrics = Metrics { rays: parts.iter().map(|p| p.rays.len()).sum(), ..Metrics::default() };
         CaseResult { name: kind.as_str(), verdict, detail: Some(e.to_string()), metrics, ms: 0.0, parts: vec![], examples: vec![] }
@@ -312,19 +312,7 @@ impl Acc {
         let may_hit = !cands.is_empty();
         self.m.rays += 1;
         if tr.candidates > crossings(&cands).max(1) {
-            self.m.double_hits += 1;
-            if tr.first_candidates[0] == tr.first_candidates[1] {
-                self.m.duplicate_any_hits += 1;
-            }
-            if cands.iter().any(|c| c.near_edge) {
-                self.m.double_hits_near_edge += 1;
-            }
-            if cands.iter().any(|c| c.hit.inside.abs() <= ON_EDGE_EPS) {
-                self.m.double_hits_on_edge += 1;
-                self.example("double_hit_on_edge", part, i, tr, &cands);
-            } else {
-                self.example("double_hit", part, i, tr, &cands);
-            }
+            self.double_hit(part, i, tr, &cands);
         }
         let Some(h) = tr.hit else {
             if must_hit {
@@ -368,6 +356,31 @@ impl Acc {
             self.example("wrong_hit", part, i, tr, &cands);
             return;
         }
+        self.errors(part, i, tr, &cands, &r, &p, &m);
+    }
+
+    /// The ray reported more hits (any-hit calls) than it has crossings.
+    fn double_hit(&mut self, part: &Part, i: usize, tr: &Traced, cands: &[Candidate]) {
+        self.m.double_hits += 1;
+        if tr.first_candidates[0] == tr.first_candidates[1] {
+            self.m.duplicate_any_hits += 1;
+        }
+        if cands.iter().any(|c| c.near_edge) {
+            self.m.double_hits_near_edge += 1;
+        }
+        if cands.iter().any(|c| c.hit.inside.abs() <= ON_EDGE_EPS) {
+            self.m.double_hits_on_edge += 1;
+            self.example("double_hit_on_edge", part, i, tr, cands);
+        } else {
+            self.example("double_hit", part, i, tr, cands);
+        }
+    }
+
+    /// A right hit's errors against the reference: t (ulps and relative), barycentrics and the
+    /// object-space built-ins (`r`: the hit triangle, `p`: the f64 hit, `m`: the margins).
+    #[allow(clippy::too_many_arguments)]
+    fn errors(&mut self, part: &Part, i: usize, tr: &Traced, cands: &[Candidate], r: &Resolved, p: &PlaneHit, m: &Margins) {
+        let (ray, h) = (&part.rays[i], tr.hit.expect("a hit"));
         let dt = (h.t as f64 - p.t).abs();
         // f64::max drops a NaN operand: a NaN barycentric must count as an infinite error.
         let db = [h.bary[0] as f64 - p.bary[0], h.bary[1] as f64 - p.bary[1]]
@@ -382,7 +395,7 @@ impl Acc {
         self.m.builtin_err_max = Some(self.m.builtin_err_max.unwrap_or(0.0).max(be));
         if !(dt <= m.t_tol && db <= m.bary_tol && be <= BUILTIN_TOL) {
             self.m.over_tolerance += 1;
-            self.example("over_tolerance", part, i, tr, &cands);
+            self.example("over_tolerance", part, i, tr, cands);
         }
         let ulps = dt / ulp_f32(p.t);
         self.t_ulps.push(if ulps.is_nan() { f64::INFINITY } else { ulps });

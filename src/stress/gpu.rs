@@ -206,11 +206,11 @@ fn vk_err(e: VkError) -> TraceError {
 
 impl GpuTracer {
     pub fn new(gpu: Gpu, timeout: Duration, mode: Mode) -> Result<Self, TraceError> {
-        let mut compiler = Compiler::new().map_err(|e| TraceError::Failed(e.to_string()))?;
+        let mut compiler = Compiler::new().map_err(TraceError::Compile)?;
         let shaders = mode.shaders();
         let mut spirv = Vec::new();
         for s in &shaders.shaders {
-            spirv.push(compiler.compile(s.role, &s.glsl).map_err(|e| TraceError::Failed(e.to_string()))?.0);
+            spirv.push(compiler.compile(s.role, &s.glsl).map_err(TraceError::Compile)?.0);
         }
         let submitter = Submitter::new(&gpu).map_err(vk_err)?;
         let range = [vk::PushConstantRange::default()

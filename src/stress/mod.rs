@@ -103,6 +103,9 @@ pub enum TraceError {
     Timeout(std::time::Duration),
     #[error("{0}")]
     Failed(String),
+    /// The shader compiler could not start, or refused the stress shaders.
+    #[error("{0}")]
+    Compile(#[source] crate::shadergen::compile::CompileError),
 }
 
 /// Traces every ray of a part: the device, or a CPU intersector.

@@ -102,131 +102,166 @@ pub struct Gpu {
     pub fault: Option<ext::device_fault::Device>,
 }
 
-impl Gpu {
-    pub fn new(instance: Arc<Instance>, info: DeviceInfo, req: Requirements) -> Result<Self, VkError> {
-        let missing = req.missing_on(&info);
-        if !missing.is_empty() {
-            return Err(VkError::Unsupported { index: info.index, name: info.name(), missing: missing.join(", ") });
-        }
-        let queue_family = info.universal_queue_family().ok_or_else(|| VkError::Unsupported {
-            index: info.index,
-            name: info.name(),
-            missing: "a graphics+compute queue".into(),
-        })?;
-        let sup = &info.features;
-        let sup12 = sup.v12.unwrap_or_default();
+/// What `vkCreateDevice` is given: the extensions, and each feature struct with exactly the bits
+/// the requirements ask for (a struct is chained only when its extension or version is asked for:
+/// [`Chosen::create_device`]).
+struct Chosen {
+    exts: Vec<&'static CStr>,
+    core: vk::PhysicalDeviceFeatures,
+    v12: vk::PhysicalDeviceVulkan12Features<'static>,
+    v13: vk::PhysicalDeviceVulkan13Features<'static>,
+    rt: vk::PhysicalDeviceRayTracingPipelineFeaturesKHR<'static>,
+    accel: vk::PhysicalDeviceAccelerationStructureFeaturesKHR<'static>,
+    rq: vk::PhysicalDeviceRayQueryFeaturesKHR<'static>,
+    db: vk::PhysicalDeviceDescriptorBufferFeaturesEXT<'static>,
+    fault: vk::PhysicalDeviceFaultFeaturesEXT<'static>,
+    reorder: vk::PhysicalDeviceRayTracingInvocationReorderFeaturesNV<'static>,
+    dh: super::heap::PhysicalDeviceDescriptorHeapFeaturesEXT,
+    m5: vk::PhysicalDeviceMaintenance5FeaturesKHR<'static>,
+    up: super::heap::PhysicalDeviceShaderUntypedPointersFeaturesKHR,
+}
 
-        let mut exts: Vec<&CStr> = Vec::new();
-        let mut core = vk::PhysicalDeviceFeatures::default();
-        let mut v12 = vk::PhysicalDeviceVulkan12Features::default();
-        let mut rt = vk::PhysicalDeviceRayTracingPipelineFeaturesKHR::default();
-        let mut accel = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default();
-        let mut rq = vk::PhysicalDeviceRayQueryFeaturesKHR::default();
-        let mut db = vk::PhysicalDeviceDescriptorBufferFeaturesEXT::default();
-        let mut fault = vk::PhysicalDeviceFaultFeaturesEXT::default();
-        let mut reorder = vk::PhysicalDeviceRayTracingInvocationReorderFeaturesNV::default();
-        let mut dh = super::heap::PhysicalDeviceDescriptorHeapFeaturesEXT { descriptor_heap: vk::TRUE, ..Default::default() };
-        let mut m5 = vk::PhysicalDeviceMaintenance5FeaturesKHR::default().maintenance5(true);
-        let mut up = super::heap::PhysicalDeviceShaderUntypedPointersFeaturesKHR { shader_untyped_pointers: vk::TRUE, ..Default::default() };
-        let mut v13 = vk::PhysicalDeviceVulkan13Features::default().dynamic_rendering(req.dynamic_rendering);
-
+impl Chosen {
+    /// The extensions and feature bits `req` needs on a device that supports `sup`.
+    fn of(req: &Requirements, sup: &super::features::Features) -> Chosen {
+        let mut c = Chosen {
+            exts: Vec::new(),
+            core: vk::PhysicalDeviceFeatures::default(),
+            v12: vk::PhysicalDeviceVulkan12Features::default(),
+            v13: vk::PhysicalDeviceVulkan13Features::default().dynamic_rendering(req.dynamic_rendering),
+            rt: Default::default(),
+            accel: Default::default(),
+            rq: Default::default(),
+            db: Default::default(),
+            fault: Default::default(),
+            reorder: Default::default(),
+            dh: super::heap::PhysicalDeviceDescriptorHeapFeaturesEXT { descriptor_heap: vk::TRUE, ..Default::default() },
+            m5: vk::PhysicalDeviceMaintenance5FeaturesKHR::default().maintenance5(true),
+            up: super::heap::PhysicalDeviceShaderUntypedPointersFeaturesKHR { shader_untyped_pointers: vk::TRUE, ..Default::default() },
+        };
         let bda = req.buffer_device_address || req.rt_pipeline || req.ray_query || req.descriptor_buffer || req.descriptor_heap;
-        if req.rt_pipeline || req.ray_query {
-            exts.extend([khr::acceleration_structure::NAME, khr::deferred_host_operations::NAME]);
-            accel.acceleration_structure = vk::TRUE;
-        }
-        if req.rt_pipeline {
-            exts.push(khr::ray_tracing_pipeline::NAME);
-            rt.ray_tracing_pipeline = vk::TRUE;
-        }
-        if req.ray_query {
-            exts.push(khr::ray_query::NAME);
-            rq.ray_query = vk::TRUE;
-        }
+        c.ray_tracing(req);
         if bda {
-            v12.buffer_device_address = vk::TRUE;
+            c.v12.buffer_device_address = vk::TRUE;
         }
         if req.descriptor_indexing {
-            let c = &sup.core;
-            core.shader_storage_buffer_array_dynamic_indexing = c.shader_storage_buffer_array_dynamic_indexing;
-            core.shader_uniform_buffer_array_dynamic_indexing = c.shader_uniform_buffer_array_dynamic_indexing;
-            core.shader_sampled_image_array_dynamic_indexing = c.shader_sampled_image_array_dynamic_indexing;
-            core.shader_storage_image_array_dynamic_indexing = c.shader_storage_image_array_dynamic_indexing;
-            v12.descriptor_indexing = sup12.descriptor_indexing;
-            v12.runtime_descriptor_array = sup12.runtime_descriptor_array;
-            v12.descriptor_binding_partially_bound = sup12.descriptor_binding_partially_bound;
-            v12.descriptor_binding_variable_descriptor_count = sup12.descriptor_binding_variable_descriptor_count;
-            v12.shader_storage_buffer_array_non_uniform_indexing = sup12.shader_storage_buffer_array_non_uniform_indexing;
-            v12.shader_uniform_buffer_array_non_uniform_indexing = sup12.shader_uniform_buffer_array_non_uniform_indexing;
-            v12.shader_sampled_image_array_non_uniform_indexing = sup12.shader_sampled_image_array_non_uniform_indexing;
-            v12.shader_storage_image_array_non_uniform_indexing = sup12.shader_storage_image_array_non_uniform_indexing;
-            v12.descriptor_binding_storage_buffer_update_after_bind = sup12.descriptor_binding_storage_buffer_update_after_bind;
-            v12.descriptor_binding_uniform_buffer_update_after_bind = sup12.descriptor_binding_uniform_buffer_update_after_bind;
-            v12.descriptor_binding_sampled_image_update_after_bind = sup12.descriptor_binding_sampled_image_update_after_bind;
-            v12.descriptor_binding_storage_image_update_after_bind = sup12.descriptor_binding_storage_image_update_after_bind;
-            accel.descriptor_binding_acceleration_structure_update_after_bind =
-                sup.accel.map(|a| a.descriptor_binding_acceleration_structure_update_after_bind).unwrap_or(vk::FALSE);
+            c.descriptor_indexing(sup);
         }
-        if req.descriptor_buffer {
-            exts.push(ext::descriptor_buffer::NAME);
-            db.descriptor_buffer = vk::TRUE;
-        }
-        if req.descriptor_heap {
-            exts.extend([super::heap::NAME, khr::maintenance5::NAME]);
-        }
-        if req.untyped_pointers {
-            exts.push(super::heap::UNTYPED_POINTERS_NAME);
-        }
+        c.descriptor_models(req);
         if req.device_fault {
-            exts.push(ext::device_fault::NAME);
-            fault.device_fault = vk::TRUE;
-            fault.device_fault_vendor_binary = sup.fault.map(|f| f.device_fault_vendor_binary).unwrap_or(vk::FALSE);
+            c.exts.push(ext::device_fault::NAME);
+            c.fault.device_fault = vk::TRUE;
+            c.fault.device_fault_vendor_binary = sup.fault.map(|f| f.device_fault_vendor_binary).unwrap_or(vk::FALSE);
         }
         if req.invocation_reorder {
-            exts.push(nv::ray_tracing_invocation_reorder::NAME);
-            reorder.ray_tracing_invocation_reorder = vk::TRUE;
+            c.exts.push(nv::ray_tracing_invocation_reorder::NAME);
+            c.reorder.ray_tracing_invocation_reorder = vk::TRUE;
         }
-        core.shader_int64 = if req.int64 || bda { sup.core.shader_int64 } else { vk::FALSE };
-        core.fragment_stores_and_atomics = if req.fragment_stores { vk::TRUE } else { vk::FALSE };
-        core.vertex_pipeline_stores_and_atomics = vk::FALSE;
+        c.core.shader_int64 = if req.int64 || bda { sup.core.shader_int64 } else { vk::FALSE };
+        c.core.fragment_stores_and_atomics = if req.fragment_stores { vk::TRUE } else { vk::FALSE };
+        c.core.vertex_pipeline_stores_and_atomics = vk::FALSE;
+        c
+    }
 
-        let prio = [1.0f32];
-        let qci = [vk::DeviceQueueCreateInfo::default().queue_family_index(queue_family).queue_priorities(&prio)];
-        let ext_ptrs: Vec<*const i8> = exts.iter().map(|e| e.as_ptr()).collect();
-        let mut f2 = vk::PhysicalDeviceFeatures2::default().features(core).push_next(&mut v12);
-        if req.dynamic_rendering {
-            f2 = f2.push_next(&mut v13);
-        }
+    /// Acceleration structures, the RT pipeline and ray queries.
+    fn ray_tracing(&mut self, req: &Requirements) {
         if req.rt_pipeline || req.ray_query {
-            f2 = f2.push_next(&mut accel);
+            self.exts.extend([khr::acceleration_structure::NAME, khr::deferred_host_operations::NAME]);
+            self.accel.acceleration_structure = vk::TRUE;
         }
         if req.rt_pipeline {
-            f2 = f2.push_next(&mut rt);
+            self.exts.push(khr::ray_tracing_pipeline::NAME);
+            self.rt.ray_tracing_pipeline = vk::TRUE;
         }
         if req.ray_query {
-            f2 = f2.push_next(&mut rq);
+            self.exts.push(khr::ray_query::NAME);
+            self.rq.ray_query = vk::TRUE;
         }
+    }
+
+    /// Every descriptor-indexing bit the device supports (runtime arrays, partially bound,
+    /// variable count, update-after-bind, non-uniform indexing).
+    fn descriptor_indexing(&mut self, sup: &super::features::Features) {
+        let (c, sup12, core, v12) = (&sup.core, sup.v12.unwrap_or_default(), &mut self.core, &mut self.v12);
+        core.shader_storage_buffer_array_dynamic_indexing = c.shader_storage_buffer_array_dynamic_indexing;
+        core.shader_uniform_buffer_array_dynamic_indexing = c.shader_uniform_buffer_array_dynamic_indexing;
+        core.shader_sampled_image_array_dynamic_indexing = c.shader_sampled_image_array_dynamic_indexing;
+        core.shader_storage_image_array_dynamic_indexing = c.shader_storage_image_array_dynamic_indexing;
+        v12.descriptor_indexing = sup12.descriptor_indexing;
+        v12.runtime_descriptor_array = sup12.runtime_descriptor_array;
+        v12.descriptor_binding_partially_bound = sup12.descriptor_binding_partially_bound;
+        v12.descriptor_binding_variable_descriptor_count = sup12.descriptor_binding_variable_descriptor_count;
+        v12.shader_storage_buffer_array_non_uniform_indexing = sup12.shader_storage_buffer_array_non_uniform_indexing;
+        v12.shader_uniform_buffer_array_non_uniform_indexing = sup12.shader_uniform_buffer_array_non_uniform_indexing;
+        v12.shader_sampled_image_array_non_uniform_indexing = sup12.shader_sampled_image_array_non_uniform_indexing;
+        v12.shader_storage_image_array_non_uniform_indexing = sup12.shader_storage_image_array_non_uniform_indexing;
+        v12.descriptor_binding_storage_buffer_update_after_bind = sup12.descriptor_binding_storage_buffer_update_after_bind;
+        v12.descriptor_binding_uniform_buffer_update_after_bind = sup12.descriptor_binding_uniform_buffer_update_after_bind;
+        v12.descriptor_binding_sampled_image_update_after_bind = sup12.descriptor_binding_sampled_image_update_after_bind;
+        v12.descriptor_binding_storage_image_update_after_bind = sup12.descriptor_binding_storage_image_update_after_bind;
+        self.accel.descriptor_binding_acceleration_structure_update_after_bind =
+            sup.accel.map(|a| a.descriptor_binding_acceleration_structure_update_after_bind).unwrap_or(vk::FALSE);
+    }
+
+    /// Descriptor buffers, descriptor heaps (with maintenance5) and untyped pointers.
+    fn descriptor_models(&mut self, req: &Requirements) {
         if req.descriptor_buffer {
-            f2 = f2.push_next(&mut db);
+            self.exts.push(ext::descriptor_buffer::NAME);
+            self.db.descriptor_buffer = vk::TRUE;
         }
         if req.descriptor_heap {
-            f2 = f2.push_next(&mut dh).push_next(&mut m5);
+            self.exts.extend([super::heap::NAME, khr::maintenance5::NAME]);
         }
         if req.untyped_pointers {
-            f2 = f2.push_next(&mut up);
+            self.exts.push(super::heap::UNTYPED_POINTERS_NAME);
+        }
+    }
+
+    /// `vkCreateDevice` with one queue of `queue_family`, the extensions, and the feature structs
+    /// `req` asks for chained after `VkPhysicalDeviceFeatures2`.
+    fn create_device(&mut self, instance: &Instance, info: &DeviceInfo, queue_family: u32, req: &Requirements) -> Result<ash::Device, VkError> {
+        let prio = [1.0f32];
+        let qci = [vk::DeviceQueueCreateInfo::default().queue_family_index(queue_family).queue_priorities(&prio)];
+        let ext_ptrs: Vec<*const i8> = self.exts.iter().map(|e| e.as_ptr()).collect();
+        let mut f2 = vk::PhysicalDeviceFeatures2::default().features(self.core).push_next(&mut self.v12);
+        if req.dynamic_rendering {
+            f2 = f2.push_next(&mut self.v13);
+        }
+        if req.rt_pipeline || req.ray_query {
+            f2 = f2.push_next(&mut self.accel);
+        }
+        if req.rt_pipeline {
+            f2 = f2.push_next(&mut self.rt);
+        }
+        if req.ray_query {
+            f2 = f2.push_next(&mut self.rq);
+        }
+        if req.descriptor_buffer {
+            f2 = f2.push_next(&mut self.db);
+        }
+        if req.descriptor_heap {
+            f2 = f2.push_next(&mut self.dh).push_next(&mut self.m5);
+        }
+        if req.untyped_pointers {
+            f2 = f2.push_next(&mut self.up);
         }
         if req.device_fault {
-            f2 = f2.push_next(&mut fault);
+            f2 = f2.push_next(&mut self.fault);
         }
         if req.invocation_reorder {
-            f2 = f2.push_next(&mut reorder);
+            f2 = f2.push_next(&mut self.reorder);
         }
         let ci = vk::DeviceCreateInfo::default().queue_create_infos(&qci).enabled_extension_names(&ext_ptrs).push_next(&mut f2);
-        let device = unsafe { instance.raw.create_device(info.raw, &ci, None) }.at("vkCreateDevice")?;
-        let mut enabled_names: Vec<String> = exts.iter().map(|e| e.to_string_lossy().into_owned()).collect();
+        unsafe { instance.raw.create_device(info.raw, &ci, None) }.at("vkCreateDevice")
+    }
+
+    /// The extension names, then each feature bit given as true (Vulkan spelling).
+    fn names(&self, req: &Requirements) -> Vec<String> {
+        let (core, v12) = (&self.core, &self.v12);
+        let mut names: Vec<String> = self.exts.iter().map(|e| e.to_string_lossy().into_owned()).collect();
         let on = |name: &str, bit: vk::Bool32, chained: bool| (chained && bit == vk::TRUE).then(|| name.to_string());
         let rtq = req.rt_pipeline || req.ray_query;
-        enabled_names.extend(
+        names.extend(
             [
                 on("shaderInt64", core.shader_int64, true),
                 on("fragmentStoresAndAtomics", core.fragment_stores_and_atomics, true),
@@ -247,18 +282,36 @@ impl Gpu {
                 on("descriptorBindingUniformBufferUpdateAfterBind", v12.descriptor_binding_uniform_buffer_update_after_bind, true),
                 on("descriptorBindingSampledImageUpdateAfterBind", v12.descriptor_binding_sampled_image_update_after_bind, true),
                 on("descriptorBindingStorageImageUpdateAfterBind", v12.descriptor_binding_storage_image_update_after_bind, true),
-                on("dynamicRendering", v13.dynamic_rendering, req.dynamic_rendering),
-                on("accelerationStructure", accel.acceleration_structure, rtq),
-                on("descriptorBindingAccelerationStructureUpdateAfterBind", accel.descriptor_binding_acceleration_structure_update_after_bind, rtq),
-                on("rayTracingPipeline", rt.ray_tracing_pipeline, req.rt_pipeline),
-                on("rayQuery", rq.ray_query, req.ray_query),
-                on("descriptorBuffer", db.descriptor_buffer, req.descriptor_buffer),
-                on("deviceFault", fault.device_fault, req.device_fault),
-                on("deviceFaultVendorBinary", fault.device_fault_vendor_binary, req.device_fault),
+                on("dynamicRendering", self.v13.dynamic_rendering, req.dynamic_rendering),
+                on("accelerationStructure", self.accel.acceleration_structure, rtq),
+                on("descriptorBindingAccelerationStructureUpdateAfterBind", self.accel.descriptor_binding_acceleration_structure_update_after_bind, rtq),
+                on("rayTracingPipeline", self.rt.ray_tracing_pipeline, req.rt_pipeline),
+                on("rayQuery", self.rq.ray_query, req.ray_query),
+                on("descriptorBuffer", self.db.descriptor_buffer, req.descriptor_buffer),
+                on("deviceFault", self.fault.device_fault, req.device_fault),
+                on("deviceFaultVendorBinary", self.fault.device_fault_vendor_binary, req.device_fault),
             ]
             .into_iter()
             .flatten(),
         );
+        names
+    }
+}
+
+impl Gpu {
+    pub fn new(instance: Arc<Instance>, info: DeviceInfo, req: Requirements) -> Result<Self, VkError> {
+        let missing = req.missing_on(&info);
+        if !missing.is_empty() {
+            return Err(VkError::Unsupported { index: info.index, name: info.name(), missing: missing.join(", ") });
+        }
+        let queue_family = info.universal_queue_family().ok_or_else(|| VkError::Unsupported {
+            index: info.index,
+            name: info.name(),
+            missing: "a graphics+compute queue".into(),
+        })?;
+        let mut chosen = Chosen::of(&req, &info.features);
+        let device = chosen.create_device(&instance, &info, queue_family, &req)?;
+        let enabled_names = chosen.names(&req);
         let queue = unsafe { device.get_device_queue(queue_family, 0) };
         let inst = &instance.raw;
         let heap = match req.descriptor_heap.then(|| super::heap::HeapFns::load(&instance.entry, inst, &device)).transpose() {

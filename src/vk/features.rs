@@ -147,36 +147,36 @@ fn null_next<T>(s: &mut Option<T>, f: impl Fn(&mut T)) {
     }
 }
 
-impl DeviceInfo {
-    pub fn query(instance: &Instance, index: usize, pd: vk::PhysicalDevice) -> Result<Self, VkError> {
-        let inst = &instance.raw;
-        let core_props = unsafe { inst.get_physical_device_properties(pd) };
-        let api = core_props.api_version;
-        let extensions: BTreeMap<String, u32> =
-            unsafe { inst.enumerate_device_extension_properties(pd) }
-                .at("vkEnumerateDeviceExtensionProperties")?
-                .iter()
-                .filter_map(|e| {
-                    e.extension_name_as_c_str()
-                        .ok()
-                        .map(|n| (n.to_string_lossy().into_owned(), e.spec_version))
-                })
-                .collect();
-        let mut extensions = extensions;
-        // What-if switch: hide extensions (comma-separated names) as if the driver lacked them;
-        // their feature structs are then never chained. Used to preview plans for older drivers.
-        if let Ok(hide) = std::env::var("RTPROBE_HIDE_EXTENSIONS") {
-            for name in hide.split(',').map(str::trim).filter(|n| !n.is_empty()) {
-                if extensions.remove(name).is_some() {
-                    tracing::info!("RTPROBE_HIDE_EXTENSIONS: hiding {name}");
-                }
+/// The device's extensions with their spec versions, less those `RTPROBE_HIDE_EXTENSIONS` hides.
+fn extensions(inst: &ash::Instance, pd: vk::PhysicalDevice) -> Result<BTreeMap<String, u32>, VkError> {
+    let extensions: BTreeMap<String, u32> =
+        unsafe { inst.enumerate_device_extension_properties(pd) }
+            .at("vkEnumerateDeviceExtensionProperties")?
+            .iter()
+            .filter_map(|e| {
+                e.extension_name_as_c_str()
+                    .ok()
+                    .map(|n| (n.to_string_lossy().into_owned(), e.spec_version))
+            })
+            .collect();
+    let mut extensions = extensions;
+    // What-if switch: hide extensions (comma-separated names) as if the driver lacked them;
+    // their feature structs are then never chained. Used to preview plans for older drivers.
+    if let Ok(hide) = std::env::var("RTPROBE_HIDE_EXTENSIONS") {
+        for name in hide.split(',').map(str::trim).filter(|n| !n.is_empty()) {
+            if extensions.remove(name).is_some() {
+                tracing::info!("RTPROBE_HIDE_EXTENSIONS: hiding {name}");
             }
         }
-        let has = |n: &CStr| extensions.contains_key(n.to_str().unwrap_or_default());
-        let v12 = api >= vk::API_VERSION_1_2;
-        let v13 = api >= vk::API_VERSION_1_3;
+    }
+    Ok(extensions)
+}
 
-        let mut f = Features {
+impl Features {
+    /// A default struct for each feature struct the device has (its Vulkan version, or its
+    /// extension `has`), to be queried.
+    fn present(has: &dyn Fn(&CStr) -> bool, v12: bool, v13: bool) -> Features {
+        Features {
             v11: v12.then(Default::default),
             v12: v12.then(Default::default),
             v13: v13.then(Default::default),
@@ -206,8 +206,14 @@ impl DeviceInfo {
             pipeline_opacity_micromap: has(rt_ext::ARM_PIPELINE_OPACITY_MICROMAP).then(Default::default),
             displacement_micromap: has(nv::displacement_micromap::NAME).then(Default::default),
             core: Default::default(),
-        };
-        let mut p = Properties {
+        }
+    }
+}
+
+impl Properties {
+    /// A default struct for each property struct the device has (as [`Features::present`]).
+    fn present(f: &Features, has: &dyn Fn(&CStr) -> bool, v12: bool, v13: bool, core_props: vk::PhysicalDeviceProperties) -> Properties {
+        Properties {
             v11: v12.then(Default::default),
             v12: v12.then(Default::default),
             v13: v13.then(Default::default),
@@ -225,38 +231,54 @@ impl DeviceInfo {
             opacity_micromap_khr: f.opacity_micromap_khr.map(|_| Default::default()),
             displacement_micromap: f.displacement_micromap.map(|_| Default::default()),
             core: core_props,
-        };
-
-        // The one place the pNext chains are built. Each Some(..) struct is chained, queried,
-        // then its pNext is cleared so the stored copies hold no dangling pointers. Each list of
-        // chained members is written once (`feature_structs!` / `property_structs!`).
-        macro_rules! feature_structs { ($m:ident) => { $m!(f; v11, v12, v13, rt_pipeline, accel, ray_query, rt_maintenance1,
-            position_fetch, descriptor_buffer, descriptor_heap, untyped_pointers, robustness2, fault, maintenance5, maintenance6,
-            pipeline_library_group_handles, rt_validation, invocation_reorder_nv, invocation_reorder_ext, cluster_accel,
-            partitioned_accel, dense_geometry_format, motion_blur, linear_swept_spheres, opacity_micromap,
-            opacity_micromap_khr, pipeline_opacity_micromap, displacement_micromap) } }
-        macro_rules! property_structs { ($m:ident) => { $m!(p; v11, v12, v13, rt_pipeline, accel, descriptor_buffer,
-            descriptor_heap, robustness2, rt_nv, invocation_reorder_nv, invocation_reorder_ext, cluster_accel,
-            partitioned_accel, opacity_micromap, opacity_micromap_khr, displacement_micromap) } }
-        macro_rules! chain { ($top:ident, $v:ident; $($s:ident),*) => { $( if let Some(x) = $v.$s.as_mut() { $top = $top.push_next(x); } )* } }
-        macro_rules! clear { ($v:ident; $($s:ident),*) => { $( null_next(&mut $v.$s, |x| x.p_next = std::ptr::null_mut()); )* } }
-        {
-            let mut f2 = vk::PhysicalDeviceFeatures2::default();
-            macro_rules! chain_f { ($v:ident; $($s:ident),*) => { chain!(f2, $v; $($s),*) } }
-            feature_structs!(chain_f);
-            unsafe { inst.get_physical_device_features2(pd, &mut f2) };
-            f.core = f2.features;
         }
-        feature_structs!(clear);
-        {
-            let mut p2 = vk::PhysicalDeviceProperties2::default();
-            macro_rules! chain_p { ($v:ident; $($s:ident),*) => { chain!(p2, $v; $($s),*) } }
-            property_structs!(chain_p);
-            unsafe { inst.get_physical_device_properties2(pd, &mut p2) };
-            p.core = p2.properties;
-        }
-        property_structs!(clear);
+    }
+}
 
+/// Query every present struct of `f` and `p` through one `pNext` chain each.
+fn query_chains(inst: &ash::Instance, pd: vk::PhysicalDevice, f: &mut Features, p: &mut Properties) {
+    // The one place the pNext chains are built. Each Some(..) struct is chained, queried,
+    // then its pNext is cleared so the stored copies hold no dangling pointers. Each list of
+    // chained members is written once (`feature_structs!` / `property_structs!`).
+    macro_rules! feature_structs { ($m:ident) => { $m!(f; v11, v12, v13, rt_pipeline, accel, ray_query, rt_maintenance1,
+        position_fetch, descriptor_buffer, descriptor_heap, untyped_pointers, robustness2, fault, maintenance5, maintenance6,
+        pipeline_library_group_handles, rt_validation, invocation_reorder_nv, invocation_reorder_ext, cluster_accel,
+        partitioned_accel, dense_geometry_format, motion_blur, linear_swept_spheres, opacity_micromap,
+        opacity_micromap_khr, pipeline_opacity_micromap, displacement_micromap) } }
+    macro_rules! property_structs { ($m:ident) => { $m!(p; v11, v12, v13, rt_pipeline, accel, descriptor_buffer,
+        descriptor_heap, robustness2, rt_nv, invocation_reorder_nv, invocation_reorder_ext, cluster_accel,
+        partitioned_accel, opacity_micromap, opacity_micromap_khr, displacement_micromap) } }
+    macro_rules! chain { ($top:ident, $v:ident; $($s:ident),*) => { $( if let Some(x) = $v.$s.as_mut() { $top = $top.push_next(x); } )* } }
+    macro_rules! clear { ($v:ident; $($s:ident),*) => { $( null_next(&mut $v.$s, |x| x.p_next = std::ptr::null_mut()); )* } }
+    {
+        let mut f2 = vk::PhysicalDeviceFeatures2::default();
+        macro_rules! chain_f { ($v:ident; $($s:ident),*) => { chain!(f2, $v; $($s),*) } }
+        feature_structs!(chain_f);
+        unsafe { inst.get_physical_device_features2(pd, &mut f2) };
+        f.core = f2.features;
+    }
+    feature_structs!(clear);
+    {
+        let mut p2 = vk::PhysicalDeviceProperties2::default();
+        macro_rules! chain_p { ($v:ident; $($s:ident),*) => { chain!(p2, $v; $($s),*) } }
+        property_structs!(chain_p);
+        unsafe { inst.get_physical_device_properties2(pd, &mut p2) };
+        p.core = p2.properties;
+    }
+    property_structs!(clear);
+}
+
+impl DeviceInfo {
+    pub fn query(instance: &Instance, index: usize, pd: vk::PhysicalDevice) -> Result<Self, VkError> {
+        let inst = &instance.raw;
+        let core_props = unsafe { inst.get_physical_device_properties(pd) };
+        let api = core_props.api_version;
+        let extensions = extensions(inst, pd)?;
+        let has = |n: &CStr| extensions.contains_key(n.to_str().unwrap_or_default());
+        let (v12, v13) = (api >= vk::API_VERSION_1_2, api >= vk::API_VERSION_1_3);
+        let mut f = Features::present(&has, v12, v13);
+        let mut p = Properties::present(&f, &has, v12, v13, core_props);
+        query_chains(inst, pd, &mut f, &mut p);
         let queue_families = unsafe { inst.get_physical_device_queue_family_properties(pd) };
         let memory = unsafe { inst.get_physical_device_memory_properties(pd) };
         let probe_image_format = unsafe { inst.get_physical_device_format_properties(pd, PROBE_IMAGE_FORMAT) };

@@ -82,50 +82,69 @@ fn validation_layer(entry: &ash::Entry) -> Result<Option<vk::LayerProperties>, V
     Ok(available.into_iter().find(|l| l.layer_name_as_c_str() == Ok(VALIDATION_LAYER)))
 }
 
-impl Instance {
-    pub fn new(opts: &InstanceOptions) -> Result<Self, VkError> {
-        // SAFETY: loading the system loader library; ash keeps it alive with the Entry.
-        let entry = match std::env::var_os("RTPROBE_VULKAN_LIB") {
-            Some(path) => unsafe { ash::Entry::load_from(&path) },
-            None => unsafe { ash::Entry::load() },
-        }
-        .map_err(|e| VkError::LoaderMissing { detail: e.to_string() })?;
+/// The loader (`RTPROBE_VULKAN_LIB`, else the system's) and the instance version it supports,
+/// refused below Vulkan 1.2.
+fn load_entry() -> Result<(ash::Entry, u32), VkError> {
+    // SAFETY: loading the system loader library; ash keeps it alive with the Entry.
+    let entry = match std::env::var_os("RTPROBE_VULKAN_LIB") {
+        Some(path) => unsafe { ash::Entry::load_from(&path) },
+        None => unsafe { ash::Entry::load() },
+    }
+    .map_err(|e| VkError::LoaderMissing { detail: e.to_string() })?;
 
-        let loader_version = unsafe { entry.try_enumerate_instance_version() }
-            .at("vkEnumerateInstanceVersion")?
-            .unwrap_or(vk::API_VERSION_1_0);
-        if loader_version < vk::API_VERSION_1_2 {
-            return Err(VkError::LoaderTooOld {
-                found: super::driver_version::format_api_version(loader_version),
-            });
-        }
+    let loader_version = unsafe { entry.try_enumerate_instance_version() }
+        .at("vkEnumerateInstanceVersion")?
+        .unwrap_or(vk::API_VERSION_1_0);
+    if loader_version < vk::API_VERSION_1_2 {
+        return Err(VkError::LoaderTooOld {
+            found: super::driver_version::format_api_version(loader_version),
+        });
+    }
+    Ok((entry, loader_version))
+}
 
-        let mut layers = Vec::new();
-        let mut extensions = Vec::new();
-        let mut validation = false;
-        // How GPU-AV is turned on, when asked for and the layer is active.
-        let mut gpu_av = None;
-        if opts.validate || opts.gpu_av {
-            if validation_layer(&entry)?.is_some() {
-                layers.push(VALIDATION_LAYER.as_ptr());
-                extensions.push(ext::debug_utils::NAME.as_ptr());
-                validation = true;
-                if opts.gpu_av {
-                    let layer_exts = unsafe { entry.enumerate_instance_extension_properties(Some(VALIDATION_LAYER)) }
-                        .at("vkEnumerateInstanceExtensionProperties")?;
-                    if layer_exts.iter().any(|e| e.extension_name_as_c_str() == Ok(ext::layer_settings::NAME)) {
-                        extensions.push(ext::layer_settings::NAME.as_ptr());
-                        gpu_av = Some(GpuAvHow::LayerSettings);
-                    } else {
-                        extensions.push(ext::validation_features::NAME.as_ptr());
-                        gpu_av = Some(GpuAvHow::ValidationFeatures);
-                    }
-                }
+/// The layers and instance extensions asked for, and how GPU-AV is turned on.
+#[derive(Default)]
+struct Layers {
+    layers: Vec<*const i8>,
+    extensions: Vec<*const i8>,
+    /// Whether the validation layer is active.
+    validation: bool,
+    /// How GPU-AV is turned on, when asked for and the layer is active.
+    gpu_av: Option<GpuAvHow>,
+}
+
+impl Layers {
+    /// The validation layer (and GPU-AV) when `opts` asks for it and it is installed.
+    fn of(entry: &ash::Entry, opts: &InstanceOptions) -> Result<Layers, VkError> {
+        let mut l = Layers::default();
+        if !(opts.validate || opts.gpu_av) {
+            return Ok(l);
+        }
+        if validation_layer(entry)?.is_none() {
+            tracing::warn!("--validate: VK_LAYER_KHRONOS_validation is not installed (apt-get install vulkan-validationlayers); running without it");
+            return Ok(l);
+        }
+        l.layers.push(VALIDATION_LAYER.as_ptr());
+        l.extensions.push(ext::debug_utils::NAME.as_ptr());
+        l.validation = true;
+        if opts.gpu_av {
+            let layer_exts = unsafe { entry.enumerate_instance_extension_properties(Some(VALIDATION_LAYER)) }
+                .at("vkEnumerateInstanceExtensionProperties")?;
+            if layer_exts.iter().any(|e| e.extension_name_as_c_str() == Ok(ext::layer_settings::NAME)) {
+                l.extensions.push(ext::layer_settings::NAME.as_ptr());
+                l.gpu_av = Some(GpuAvHow::LayerSettings);
             } else {
-                tracing::warn!("--validate: VK_LAYER_KHRONOS_validation is not installed (apt-get install vulkan-validationlayers); running without it");
+                l.extensions.push(ext::validation_features::NAME.as_ptr());
+                l.gpu_av = Some(GpuAvHow::ValidationFeatures);
             }
         }
+        Ok(l)
+    }
 
+    /// `vkCreateInstance` with these layers and extensions (GPU-AV's setting chained as the layer
+    /// understands it).
+    fn create_instance(&self, entry: &ash::Entry, loader_version: u32) -> Result<ash::Instance, VkError> {
         let app = vk::ApplicationInfo::default()
             .application_name(c"rtprobe")
             .application_version(vk::make_api_version(0, 0, 1, 0))
@@ -133,47 +152,53 @@ impl Instance {
             .api_version(vk::API_VERSION_1_3.min(loader_version));
         let mut info = vk::InstanceCreateInfo::default()
             .application_info(&app)
-            .enabled_layer_names(&layers)
-            .enabled_extension_names(&extensions);
+            .enabled_layer_names(&self.layers)
+            .enabled_extension_names(&self.extensions);
         let on: [u8; 4] = vk::TRUE.to_ne_bytes();
         let settings = [vk::LayerSettingEXT::default().layer_name(VALIDATION_LAYER).setting_name(c"gpuav_enable").ty(vk::LayerSettingTypeEXT::BOOL32).values(&on)];
         let mut layer_settings = vk::LayerSettingsCreateInfoEXT::default().settings(&settings);
         let enables = [vk::ValidationFeatureEnableEXT::GPU_ASSISTED];
         let mut features = vk::ValidationFeaturesEXT::default().enabled_validation_features(&enables);
-        match gpu_av {
+        match self.gpu_av {
             Some(GpuAvHow::LayerSettings) => info = info.push_next(&mut layer_settings),
             Some(GpuAvHow::ValidationFeatures) => info = info.push_next(&mut features),
             None => {}
         }
-        let raw = match unsafe { entry.create_instance(&info, None) } {
-            Ok(i) => i,
-            Err(vk::Result::ERROR_INCOMPATIBLE_DRIVER) => {
-                return Err(VkError::NoDriver {
-                    detail: "vkCreateInstance: VK_ERROR_INCOMPATIBLE_DRIVER".into(),
-                })
-            }
-            Err(e) => return Err(VkError::from_result("vkCreateInstance", e)),
-        };
+        match unsafe { entry.create_instance(&info, None) } {
+            Ok(i) => Ok(i),
+            Err(vk::Result::ERROR_INCOMPATIBLE_DRIVER) => Err(VkError::NoDriver {
+                detail: "vkCreateInstance: VK_ERROR_INCOMPATIBLE_DRIVER".into(),
+            }),
+            Err(e) => Err(VkError::from_result("vkCreateInstance", e)),
+        }
+    }
+}
 
-        let debug = if validation {
-            let du = ext::debug_utils::Instance::new(&entry, &raw);
-            let ci = vk::DebugUtilsMessengerCreateInfoEXT::default()
-                .message_severity(
-                    vk::DebugUtilsMessageSeverityFlagsEXT::ERROR
-                        | vk::DebugUtilsMessageSeverityFlagsEXT::WARNING,
-                )
-                .message_type(
-                    vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
-                        | vk::DebugUtilsMessageTypeFlagsEXT::GENERAL,
-                )
-                .pfn_user_callback(Some(debug_callback));
-            let m = unsafe { du.create_debug_utils_messenger(&ci, None) }
-                .at("vkCreateDebugUtilsMessengerEXT")?;
-            Some((du, m))
-        } else {
-            None
-        };
-        Ok(Self { entry, raw, loader_version, validation, debug })
+/// The debug messenger that counts validation errors and logs warnings ([`debug_callback`]).
+fn messenger(entry: &ash::Entry, raw: &ash::Instance) -> Result<(ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT), VkError> {
+    let du = ext::debug_utils::Instance::new(entry, raw);
+    let ci = vk::DebugUtilsMessengerCreateInfoEXT::default()
+        .message_severity(
+            vk::DebugUtilsMessageSeverityFlagsEXT::ERROR
+                | vk::DebugUtilsMessageSeverityFlagsEXT::WARNING,
+        )
+        .message_type(
+            vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
+                | vk::DebugUtilsMessageTypeFlagsEXT::GENERAL,
+        )
+        .pfn_user_callback(Some(debug_callback));
+    let m = unsafe { du.create_debug_utils_messenger(&ci, None) }
+        .at("vkCreateDebugUtilsMessengerEXT")?;
+    Ok((du, m))
+}
+
+impl Instance {
+    pub fn new(opts: &InstanceOptions) -> Result<Self, VkError> {
+        let (entry, loader_version) = load_entry()?;
+        let layers = Layers::of(&entry, opts)?;
+        let raw = layers.create_instance(&entry, loader_version)?;
+        let debug = if layers.validation { Some(messenger(&entry, &raw)?) } else { None };
+        Ok(Self { entry, raw, loader_version, validation: layers.validation, debug })
     }
 
     /// The installed validation layer's specVersion (enabled or not), `None` without one.
