@@ -56,8 +56,8 @@ fn round_trip<T: DeserializeOwned + Serialize>(v: &Value) -> Result<(), String> 
 /// the schema, and for a bundle the id, the scene and that its SPIR-V is there).
 fn load(path: &Path, schema: &str) -> Result<(), String> {
     match schema {
-        s if s == rtprobe::model::report::SCHEMA => RunReport::load(path).map(|_| ()),
-        s if s == rtprobe::model::bisection::SCHEMA => BisectFile::load(path).map(|_| ()),
+        s if s == rtprobe::model::report::SCHEMA => RunReport::load(path).map(|_| ()).map_err(|e| e.to_string()),
+        s if s == rtprobe::model::bisection::SCHEMA => BisectFile::load(path).map(|_| ()).map_err(|e| e.to_string()),
         s if s == rtprobe::model::baseline::SCHEMA => {
             Baseline::parse(&path.display().to_string(), &std::fs::read_to_string(path).unwrap()).map(|_| ()).map_err(|e| e.to_string())
         }
