@@ -40,18 +40,17 @@ pub mod ddmin;
 pub mod isolation;
 mod render;
 pub mod scope;
+mod verdicts;
+
+pub use render::predicate;
+pub use verdicts::{State, Verdicts};
 
 use crate::model::inject::for_cell;
 use crate::model::Injection;
 use crate::model::registry;
 use crate::model::{Cell, Filter};
-use crate::model::Outcome;
-use crate::model::{CellReport, RunReport};
-use crate::model::Attempt;
 use crate::model::IsolationLine;
 use std::collections::HashMap;
-
-/// Axes that exist only on some cells, whose `none` / default values stand for other axes' values.
 
 /// The axes bisection reduces over: every axis of a cell except `canary`.
 pub fn axes() -> impl Iterator<Item = &'static str> {
@@ -62,89 +61,6 @@ pub fn axes() -> impl Iterator<Item = &'static str> {
 pub use crate::model::stats::DEFAULT_MAX_MISS;
 /// Default cap on the attempts of one cell.
 pub const DEFAULT_MAX_ATTEMPTS: u32 = 50;
-
-/// What a cell's verdict says, for bisection.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum State {
-    Fault,
-    Pass,
-    /// rtprobe could not run it (`error`): no evidence about the driver either way, so it is
-    /// neither a faulting cell nor a passing one, and is not run again.
-    Error,
-    /// Never ran (or unsupported).
-    Unknown,
-}
-
-/// Every cell's attempts, keyed by id: the report's, then bisection's own.
-#[derive(Clone, Debug, Default)]
-pub struct Verdicts {
-    cells: HashMap<String, CellReport>,
-    /// Attempts bisection added.
-    pub runs: usize,
-}
-
-impl Verdicts {
-    pub fn from_report(r: &RunReport) -> Self {
-        let cells = r.cells.iter().filter(|c| !c.attempts.is_empty()).map(|c| (c.id.clone(), c.clone())).collect();
-        Verdicts { cells, runs: 0 }
-    }
-
-    pub fn record(&mut self, cell: &Cell, attempt: Attempt) {
-        self.runs += 1;
-        match self.cells.get_mut(&cell.id()) {
-            Some(c) => {
-                c.attempts.push(attempt);
-                c.refresh();
-            }
-            None => {
-                self.cells.insert(cell.id(), CellReport::new(cell, attempt));
-            }
-        }
-    }
-
-    pub fn get(&self, c: &Cell) -> Option<&CellReport> {
-        self.cells.get(&c.id())
-    }
-
-    /// Every attempt made, evidence or not (what caps the repeats of a cell).
-    pub fn attempts(&self, c: &Cell) -> u32 {
-        self.get(c).map(|r| r.attempts.len() as u32).unwrap_or(0)
-    }
-
-    /// The evidence: (faulted, attempts) over the attempts whose cell ran and that the driver
-    /// decided — not a worker that never got its device up (`Attempt::not_run`), not an `error`
-    /// (rtprobe could not run the cell). Rate bounds and miss probabilities rest on these.
-    pub fn counts(&self, c: &Cell) -> (u32, u32) {
-        let evidence = |a: &&Attempt| !a.not_run() && a.outcome != Outcome::Error;
-        let Some(r) = self.get(c) else { return (0, 0) };
-        let n = r.attempts.iter().filter(evidence).count() as u32;
-        let k = r.attempts.iter().filter(evidence).filter(|a| a.outcome.is_finding()).count() as u32;
-        (k, n)
-    }
-
-    /// Attempts that count as evidence (see [`Verdicts::counts`]).
-    pub fn evidence(&self, c: &Cell) -> u32 {
-        self.counts(c).1
-    }
-
-    /// The cell's fault rate bound: one-sided Clopper–Pearson at [`crate::model::stats::CONFIDENCE`].
-    pub fn rate_bound(&self, c: &Cell) -> f64 {
-        let (k, n) = self.counts(c);
-        crate::model::stats::rate_bound(k, n)
-    }
-
-    pub fn state(&self, c: &Cell) -> State {
-        match self.get(c).filter(|r| !r.attempts.is_empty()) {
-            None => State::Unknown,
-            Some(r) => match r.outcome {
-                Outcome::Error => State::Error,
-                Outcome::Mismatch | Outcome::DeviceLost | Outcome::Crash | Outcome::Timeout => State::Fault,
-                Outcome::Pass => State::Pass,
-                Outcome::Unsupported | Outcome::NotImplemented => State::Unknown,
-            },
-        }
-    }
-}
 
 /// Runs cells for bisection. The CLI's runs them through the supervisor; an offline one (for
 /// `report`, or `bisect --offline`) runs nothing.
@@ -177,15 +93,6 @@ impl Default for Settings {
     fn default() -> Self {
         Settings { max_miss: DEFAULT_MAX_MISS, max_attempts: DEFAULT_MAX_ATTEMPTS, batch: 4 }
     }
-}
-
-/// A conjunction as an `--inject-fault` / `--filter` predicate (`canary=none` when it has no
-/// term: every probe cell).
-pub fn predicate(f: &Filter) -> String {
-    if f.terms.is_empty() {
-        return "canary=none".into();
-    }
-    f.terms.iter().map(|(a, v)| format!("{a}={}", v.join("|"))).collect::<Vec<_>>().join(",")
 }
 
 #[derive(Debug, thiserror::Error)]

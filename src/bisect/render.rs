@@ -1,6 +1,5 @@
 //! The bisection as people read it (`bisect`'s output, saved as the bisection file's `text`),
 //! and the bisection file made from it.
-use super::predicate;
 use crate::model::{BisectFile, Bisection, Filter, Injection, RunReport};
 use std::path::Path;
 
@@ -85,4 +84,13 @@ impl BisectFile {
             text,
         }
     }
+}
+
+/// A conjunction as an `--inject-fault` / `--filter` predicate (`canary=none` when it has no
+/// term: every probe cell).
+pub fn predicate(f: &Filter) -> String {
+    if f.terms.is_empty() {
+        return "canary=none".into();
+    }
+    f.terms.iter().map(|(a, v)| format!("{a}={}", v.join("|"))).collect::<Vec<_>>().join(",")
 }

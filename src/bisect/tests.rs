@@ -1,6 +1,7 @@
 //! Bisection against a simulated device: ground-truth predicates (deterministic or flaky), every
 //! run counted.
 use super::*;
+use crate::model::Attempt;
 use crate::matrix::plan::all_cells;
 use crate::model::Outcome;
 

@@ -5,6 +5,7 @@
 pub mod as_to_address;
 mod dynamic_access;
 pub mod edit;
+mod error;
 pub mod nonuniform;
 pub mod pin_index;
 pub mod ssbo_to_address;
@@ -14,23 +15,7 @@ use rspirv::binary::{Assemble, Disassemble};
 use rspirv::dr::Module;
 use std::collections::BTreeMap;
 
-#[derive(Debug, thiserror::Error, PartialEq)]
-pub enum PatchError {
-    #[error("not a SPIR-V module: {0}")]
-    NotSpirv(String),
-    #[error("{patch}: nothing to patch: {what}")]
-    NothingToPatch { patch: &'static str, what: String },
-    #[error("{patch}: cannot rewrite %{id}: {what}")]
-    Unsupported { patch: &'static str, id: u32, what: String },
-    #[error("{patch}: {what}")]
-    BadOption { patch: &'static str, what: String },
-    #[error("unknown patch {0:?}; `rtprobe patch --list` shows them")]
-    Unknown(String),
-    #[error("option {0:?} belongs to none of the applied patches")]
-    UnknownOption(String),
-    #[error("internal error while patching ({0}); please report it with the input module")]
-    Internal(String),
-}
+pub use error::PatchError;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PatchName {
