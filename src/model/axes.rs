@@ -42,7 +42,7 @@ axis!(
 axis!(
     /// How the array element / descriptor slot is chosen. `dynamic_element` is the pattern engines
     /// are told to use instead of a dynamic descriptor index: one descriptor at the spec-constant
-    /// slot ([`crate::probe::PACKED_SLOT`]) holding every slot's elements, and the dynamic value
+    /// slot (`probe::PACKED_SLOT`) holding every slot's elements, and the dynamic value
     /// (as `dynamic` computes it) selecting the element inside it — an SSBO read at
     /// `v[packedElement(dyn, e)]` (geometry), a `texture2DArray` sampled at layer `dyn`
     /// (materials). Only for those two resources (`Cell::dynamic_element_applies`).
@@ -107,7 +107,7 @@ axis!(
 axis!(
     /// How a `heap_access=direct` sampled-image probe picks its sampler from the sampler heap
     /// (`sampler probeSampler[]`, separate from the texture heap as in the original engine): a
-    /// constant index ([`crate::probe::SAMPLER_LITERAL`]) or a dynamic one (the stage's runtime
+    /// constant index (`probe::SAMPLER_LITERAL`) or a dynamic one (the stage's runtime
     /// value modulo the heap's samplers). The samplers differ in address mode and the probe samples
     /// outside [0, 1], so the sampler chosen shows in the texel read (`probe::sampled_element`).
     SamplerIndex {

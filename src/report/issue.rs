@@ -389,9 +389,10 @@ fn not_tested(report: &RunReport, b: &BisectFile) -> Vec<String> {
 }
 
 /// The probed shader of the failing cell and of its closest passing sibling (preferring a
-/// sibling that differs in the index, then the resource, then other axes).
+/// sibling that differs in the index, then the resource, then the other axes in registry order).
 fn shader_comparison(rep: &Cell, bi: &crate::model::Bisection, inject: &[Injection]) -> Result<ShaderComparison, IssueError> {
-    let order = ["index", "nonuniform", "resource", "as_access", "descriptor_model", "patch", "stage"];
+    const FIRST: [&str; 3] = ["index", "nonuniform", "resource"];
+    let order: Vec<&str> = FIRST.into_iter().chain(crate::model::registry::names().filter(|a| !FIRST.contains(a))).collect();
     let sibling = order.iter().find_map(|ax| bi.isolation.iter().find(|l| l.varied.as_deref() == Some(*ax) && l.verdict == "pass")).and_then(|l| cell_by_id(&l.cell));
     let role = probed_role(rep.stage);
     let pick = |c: &Cell| -> Result<(String, Vec<u32>), IssueError> {
