@@ -88,6 +88,7 @@ pub fn bisect(g: &Globals, a: &BisectArgs) -> Result<u8> {
         if let Some(s) = ro.setup_timeout_s.filter(|s| *s > 0.0 && *s <= 3600.0) {
             opts.setup_timeout = std::time::Duration::from_secs_f64(s);
         }
+        opts.binding_stages = report.options.binding_stages.clone();
         let job_dir = opts.job_dir.clone();
         let mut oracle = SupervisorOracle { opts };
         let supported = |c: &Cell| plan::device_support(&info, c).is_supported();

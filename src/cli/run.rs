@@ -221,6 +221,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         setup_timeout: Duration::from_secs_f64(a.setup_timeout),
         threads,
         pipeline_cache: cache_dir.clone(),
+        binding_stages: std::env::var("RTPROBE_BINDING_STAGES").ok(),
         ..supervisor_options(info.index, params, jobs, a.isolation, a.timeout, g.validate, inject.clone())
     };
     let job_dir = opts.job_dir.clone();

@@ -76,7 +76,8 @@ pub(crate) fn default_threads(info: &crate::vk::DeviceInfo) -> usize {
 
 /// The supervisor options of a run (also used by `bisect`): no dump, the job files under the temp
 /// dir, one thread, and no persisted pipeline cache: a re-run of a report's cells starts cold, so
-/// that a cached binary cannot stand in for the cell's own compile (`run` sets its own folder).
+/// that a cached binary cannot stand in for the cell's own compile (`run` sets its own folder),
+/// and no binding stages: a caller re-running a report's cells sets the report's.
 pub(crate) fn supervisor_options(device_index: usize, scene: SceneParams, jobs: usize, isolation: Isolation, timeout_s: f64, validate: bool, inject: Vec<Injection>) -> SupervisorOptions {
     SupervisorOptions {
         device_index,
@@ -95,6 +96,7 @@ pub(crate) fn supervisor_options(device_index: usize, scene: SceneParams, jobs: 
         job_dir: std::env::temp_dir().join(format!("rtprobe-{}", std::process::id())),
         threads: 1,
         pipeline_cache: None,
+        binding_stages: None,
     }
 }
 
