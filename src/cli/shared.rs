@@ -102,15 +102,6 @@ pub(crate) fn supervisor_options(device_index: usize, scene: SceneParams, jobs: 
     }
 }
 
-/// Set `RTPROBE_BINDING_STAGES` as a report's run had it (it changes results), for this process
-/// and the workers it starts: re-runs of a report's cells (`--cell-spec`).
-pub(crate) fn use_binding_stages(v: Option<&str>) {
-    match v {
-        Some(v) => std::env::set_var("RTPROBE_BINDING_STAGES", v),
-        None => std::env::remove_var("RTPROBE_BINDING_STAGES"),
-    }
-}
-
 /// The supervisor-backed [`Oracle`] of `run` and `bisect`. Under GPU-AV (`run
 /// --validate=gpu-av`'s findings) each batch gets a fresh supervisor with validation and GPU-AV
 /// on, one thread, no pipeline cache and its own job folder.
@@ -127,6 +118,10 @@ pub(crate) struct SupervisorOracle {
 }
 
 impl SupervisorOracle {
+    pub(crate) fn for_run(opts: SupervisorOptions) -> Self {
+        SupervisorOracle { shared: Some(Supervisor::new(opts.clone())), opts, announce: false, attempts: 0 }
+    }
+
     pub(crate) fn for_bisect(opts: SupervisorOptions) -> Self {
         SupervisorOracle { opts, shared: None, announce: true, attempts: 0 }
     }
