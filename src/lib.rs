@@ -16,6 +16,7 @@ pub mod exec;
 pub mod runner;
 pub mod patches;
 pub mod bisect;
+pub mod campaign;
 pub mod fleet;
 pub mod stress;
 pub mod bench;

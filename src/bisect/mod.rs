@@ -62,20 +62,15 @@ pub use crate::model::stats::DEFAULT_MAX_MISS;
 /// Default cap on the attempts of one cell.
 pub const DEFAULT_MAX_ATTEMPTS: u32 = 50;
 
-/// Runs cells for bisection. The CLI's runs them through the supervisor; an offline one (for
-/// `report`, or `bisect --offline`) runs nothing.
-pub trait Oracle {
-    /// Run each of `cells` once more (each alone in a fresh worker when `isolated`), recording
-    /// every attempt in `verdicts`.
-    fn run(&mut self, cells: &[Cell], isolated: bool, verdicts: &mut Verdicts);
-    fn can_run(&self) -> bool;
-}
+/// Runs cells for bisection, as for the run's rounds (`runner::oracle`). The CLI's runs them
+/// through the supervisor; an offline one (for `report`, or `bisect --offline`) runs nothing.
+pub use crate::runner::oracle::{Event, Mode, Oracle};
 
 /// Runs nothing: bisection uses the report's verdicts alone.
 pub struct Offline;
 
 impl Oracle for Offline {
-    fn run(&mut self, _: &[Cell], _: bool, _: &mut Verdicts) {}
+    fn run(&mut self, _: &[Cell], _: Mode, _: &mut dyn FnMut(Event)) {}
     fn can_run(&self) -> bool {
         false
     }
@@ -154,7 +149,8 @@ impl<'o> Bisector<'o> {
             if more.is_empty() {
                 return;
             }
-            self.oracle.run(&more, true, &mut self.verdicts);
+            let verdicts = &mut self.verdicts;
+            self.oracle.run(&more, Mode::Alone, &mut |ev| verdicts.on_event(ev));
             if self.verdicts.runs == before {
                 return;
             }
@@ -174,7 +170,8 @@ impl<'o> Bisector<'o> {
     fn run_unknown(&mut self, cells: &[Cell]) {
         let unknown: Vec<Cell> = cells.iter().filter(|c| self.verdicts.state(c) == State::Unknown).copied().collect();
         if !unknown.is_empty() && self.oracle.can_run() {
-            self.oracle.run(&unknown, false, &mut self.verdicts);
+            let verdicts = &mut self.verdicts;
+            self.oracle.run(&unknown, Mode::Shared, &mut |ev| verdicts.on_event(ev));
         }
     }
 

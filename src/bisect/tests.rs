@@ -24,12 +24,12 @@ impl Sim {
 }
 
 impl Oracle for Sim {
-    fn run(&mut self, cells: &[Cell], isolated: bool, verdicts: &mut Verdicts) {
+    fn run(&mut self, cells: &[Cell], mode: Mode, on: &mut dyn FnMut(Event)) {
         for c in cells {
             self.runs += 1;
             let fault = self.truth.iter().any(|t| t.matches(c)) && self.roll() < self.p;
             let outcome = if fault { Outcome::Crash } else { Outcome::Pass };
-            verdicts.record(c, attempt(outcome, isolated));
+            on(Event::Attempt { cell: c, attempt: attempt(outcome, mode != Mode::Shared) });
         }
     }
     fn can_run(&self) -> bool {
@@ -47,13 +47,13 @@ struct Late {
 }
 
 impl Oracle for Late {
-    fn run(&mut self, cells: &[Cell], isolated: bool, verdicts: &mut Verdicts) {
+    fn run(&mut self, cells: &[Cell], mode: Mode, on: &mut dyn FnMut(Event)) {
         for c in cells {
             if c.id() == self.late {
                 self.seen += 1;
-                verdicts.record(c, attempt(if self.seen >= self.from { Outcome::Crash } else { Outcome::Pass }, isolated));
+                on(Event::Attempt { cell: c, attempt: attempt(if self.seen >= self.from { Outcome::Crash } else { Outcome::Pass }, mode != Mode::Shared) });
             } else {
-                self.sim.run(std::slice::from_ref(c), isolated, verdicts);
+                self.sim.run(std::slice::from_ref(c), mode, on);
             }
         }
     }
@@ -74,7 +74,7 @@ fn scope(filter: &str) -> Vec<Cell> {
 /// A "report": every cell of `ran` run once by `sim`.
 fn report(sim: &mut Sim, ran: &[Cell]) -> Verdicts {
     let mut v = Verdicts::default();
-    sim.run(ran, false, &mut v);
+    sim.run(ran, Mode::Shared, &mut |ev| v.on_event(ev));
     v.runs = 0;
     v
 }
@@ -243,12 +243,12 @@ fn cells_rtprobe_could_not_run_count_neither_way() {
     // An `error` inside the fault's region neither blocks the conjunction nor joins it.
     struct WithError(Sim, String);
     impl Oracle for WithError {
-        fn run(&mut self, cells: &[Cell], isolated: bool, verdicts: &mut Verdicts) {
+        fn run(&mut self, cells: &[Cell], mode: Mode, on: &mut dyn FnMut(Event)) {
             for c in cells {
                 if c.id() == self.1 {
-                    verdicts.record(c, Attempt { detail: Some("could not".into()), ..attempt(Outcome::Error, isolated) });
+                    on(Event::Attempt { cell: c, attempt: Attempt { detail: Some("could not".into()), ..attempt(Outcome::Error, mode != Mode::Shared) } });
                 } else {
-                    self.0.run(std::slice::from_ref(c), isolated, verdicts);
+                    self.0.run(std::slice::from_ref(c), mode, on);
                 }
             }
         }
@@ -259,7 +259,7 @@ fn cells_rtprobe_could_not_run_count_neither_way() {
     let sc = scope("descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit");
     let mut o = WithError(Sim::new(&["index=dynamic"], 1.0), "raygen.storage_buffer.dynamic.descriptor_indexing".into());
     let mut v = Verdicts::default();
-    o.run(&sc, false, &mut v);
+    o.run(&sc, Mode::Shared, &mut |ev| v.on_event(ev));
     let dynamic = sc.iter().filter(|c| c.index == crate::model::IndexSource::Dynamic).count();
     let mut b = Bisector::new(sc, v, &mut o, Settings::default(), vec![]);
     let r = b.bisect(None, &|_| true).unwrap();
@@ -273,7 +273,7 @@ fn an_oracle_that_adds_nothing_ends_the_bisection() {
     // Runs that come back with no attempt (a supervisor that could not run them) must not loop.
     struct Deaf;
     impl Oracle for Deaf {
-        fn run(&mut self, _: &[Cell], _: bool, _: &mut Verdicts) {}
+        fn run(&mut self, _: &[Cell], _: Mode, _: &mut dyn FnMut(Event)) {}
         fn can_run(&self) -> bool {
             true
         }
@@ -369,7 +369,7 @@ fn a_sibling_that_faults_while_the_isolation_list_is_settled_is_covered() {
     let sc = scope("descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit,index=literal|dynamic,base=push_data|none,reorder=none");
     let mut o = Late { sim: Sim::new(&["stage=raygen,index=dynamic,nonuniform=true"], 1.0), late: "raygen.storage_buffer.dynamic.descriptor_indexing".into(), from: 4, seen: 0 };
     let mut v = Verdicts::default();
-    o.run(&sc, false, &mut v);
+    o.run(&sc, Mode::Shared, &mut |ev| v.on_event(ev));
     v.runs = 0;
     let r = Bisector::new(sc.clone(), v, &mut o, Settings::default(), vec![]).bisect(None, &|_| true).unwrap();
     assert!(o.seen >= 4, "the late sibling was repeated into its fault ({} attempts)", o.seen);
@@ -411,7 +411,7 @@ fn a_workaround_in_scope_that_faults_while_settled_is_covered() {
     // The report ran the plain cells; the patched ones are run by the bisection.
     let mut v = Verdicts::default();
     let plain: Vec<Cell> = sc.iter().filter(|c| c.patch.is_none()).copied().collect();
-    o.run(&plain, false, &mut v);
+    o.run(&plain, Mode::Shared, &mut |ev| v.on_event(ev));
     v.runs = 0;
     let r = Bisector::new(sc.clone(), v, &mut o, Settings::default(), vec![]).bisect(None, &|_| true).unwrap();
     assert!(o.seen >= 2, "the late workaround was repeated into its fault ({} attempts)", o.seen);

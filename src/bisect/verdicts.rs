@@ -1,6 +1,7 @@
 //! Every cell's attempts as bisection sees them: the report's, then its own, and what each
 //! cell's verdict says (fault, pass, error, unknown).
 use crate::model::{Attempt, Cell, CellReport, Outcome, RunReport};
+use crate::runner::oracle::Event;
 use std::collections::HashMap;
 
 
@@ -40,6 +41,13 @@ impl Verdicts {
             None => {
                 self.cells.insert(cell.id(), CellReport::new(cell, attempt));
             }
+        }
+    }
+
+    /// Record an oracle's attempt (its other events say nothing about a cell).
+    pub fn on_event(&mut self, ev: Event) {
+        if let Event::Attempt { cell, attempt } = ev {
+            self.record(cell, attempt);
         }
     }
 

@@ -4,43 +4,16 @@
 use super::args::BisectArgs;
 use super::commands::Globals;
 use super::exit::{self, coded};
-use super::shared::{load_report, report_device};
+use super::shared::{load_report, report_device, SupervisorOracle};
 use crate::bisect::scope::{report_scope, ReportOptions};
 use crate::model::BisectFile;
-use crate::bisect::{self, Bisector, Oracle, Settings, Verdicts};
+use crate::bisect::{self, Bisector, Settings, Verdicts};
 use crate::matrix::plan::{self, PlanOptions};
 use crate::model::PatchMode;
 use crate::model::Cell;
 use crate::model::RunReport;
 use crate::atomic::write_atomic;
-use crate::runner::supervisor::{Event, Supervisor, SupervisorOptions};
 use anyhow::{Context, Result};
-
-/// Runs cells through the supervisor with the report's scene and injections. A fresh
-/// `Supervisor` per batch, so that nothing a worker of an earlier batch sent late reaches a later
-/// one (bisection runs many small batches).
-struct SupervisorOracle {
-    opts: SupervisorOptions,
-}
-
-impl Oracle for SupervisorOracle {
-    fn run(&mut self, cells: &[Cell], isolated: bool, verdicts: &mut Verdicts) {
-        let msg = format!("bisect: running {} cell(s){} ({} run so far)", cells.len(), if isolated { ", each alone" } else { "" }, verdicts.runs);
-        if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
-            eprintln!("{msg}");
-        } else {
-            tracing::info!("{msg}");
-        }
-        Supervisor::new(self.opts.clone()).run(cells, isolated, &mut |ev| {
-            if let Event::Attempt { cell, attempt } = ev {
-                verdicts.record(cell, attempt);
-            }
-        });
-    }
-    fn can_run(&self) -> bool {
-        true
-    }
-}
 
 fn check_args(a: &BisectArgs) -> Result<()> {
     if !(a.max_miss > 0.0 && a.max_miss < 1.0) {
@@ -69,8 +42,6 @@ pub fn bisect(g: &Globals, a: &BisectArgs) -> Result<u8> {
     check_args(a)?;
     let report = load_report(&a.report)?;
     let ro = ReportOptions::of(&report).map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.report.display())))?;
-    // The report's binding-stage switch changes results: the cells bisect runs use it too.
-    super::shared::use_binding_stages(report.options.binding_stages.as_deref());
     let filters = ro.scope_filters(&a.filter).map_err(|e| coded(exit::USAGE, e))?;
     let settings = Settings { max_miss: a.max_miss, max_attempts: a.max_attempts, ..Settings::default() };
     let verdicts = Verdicts::from_report(&report);
@@ -88,8 +59,10 @@ pub fn bisect(g: &Globals, a: &BisectArgs) -> Result<u8> {
         if let Some(s) = ro.setup_timeout_s.filter(|s| *s > 0.0 && *s <= 3600.0) {
             opts.setup_timeout = std::time::Duration::from_secs_f64(s);
         }
+        // The report's binding stages change results: the cells bisect runs use them too.
+        opts.binding_stages = report.options.binding_stages.clone();
         let job_dir = opts.job_dir.clone();
-        let mut oracle = SupervisorOracle { opts };
+        let mut oracle = SupervisorOracle::for_bisect(opts);
         let supported = |c: &Cell| plan::device_support(&info, c).is_supported();
         let settings = Settings { batch: 2 * jobs, ..settings };
         let r = Bisector::new(scope, verdicts, &mut oracle, settings, ro.inject.clone()).bisect(a.cell.as_deref(), &supported);

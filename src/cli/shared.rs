@@ -1,10 +1,12 @@
 //! What the commands that run or re-run cells share: the report they start from and its device,
 //! workers and threads per device type, the supervisor options of a re-run, and the
-//! result-changing `RTPROBE_BINDING_STAGES` a report was made with.
+//! supervisor-backed oracle that `run`'s rounds and `bisect` run cells through.
 use super::commands::{open_instance, Globals};
 use super::exit::{self, coded};
 use crate::model::{Injection, Isolation, RunReport, SceneParams};
-use crate::runner::supervisor::SupervisorOptions;
+use crate::runner::oracle::{Event, Mode, Oracle};
+use crate::model::Cell;
+use crate::runner::supervisor::{Supervisor, SupervisorOptions};
 use crate::vk::{features, DeviceInfo, Instance};
 use anyhow::Result;
 use std::path::Path;
@@ -76,7 +78,8 @@ pub(crate) fn default_threads(info: &crate::vk::DeviceInfo) -> usize {
 
 /// The supervisor options of a run (also used by `bisect`): no dump, the job files under the temp
 /// dir, one thread, and no persisted pipeline cache: a re-run of a report's cells starts cold, so
-/// that a cached binary cannot stand in for the cell's own compile (`run` sets its own folder).
+/// that a cached binary cannot stand in for the cell's own compile (`run` sets its own folder),
+/// and no binding stages: a caller re-running a report's cells sets the report's.
 pub(crate) fn supervisor_options(device_index: usize, scene: SceneParams, jobs: usize, isolation: Isolation, timeout_s: f64, validate: bool, inject: Vec<Injection>) -> SupervisorOptions {
     SupervisorOptions {
         device_index,
@@ -95,14 +98,62 @@ pub(crate) fn supervisor_options(device_index: usize, scene: SceneParams, jobs: 
         job_dir: std::env::temp_dir().join(format!("rtprobe-{}", std::process::id())),
         threads: 1,
         pipeline_cache: None,
+        binding_stages: None,
     }
 }
 
-/// Set `RTPROBE_BINDING_STAGES` as a report's run had it (it changes results), for this process
-/// and the workers it starts: re-runs of a report's cells (`--cell-spec`, `bisect`).
-pub(crate) fn use_binding_stages(v: Option<&str>) {
-    match v {
-        Some(v) => std::env::set_var("RTPROBE_BINDING_STAGES", v),
-        None => std::env::remove_var("RTPROBE_BINDING_STAGES"),
+/// The supervisor-backed [`Oracle`] of `run` and `bisect`. Under GPU-AV (`run
+/// --validate=gpu-av`'s findings) each batch gets a fresh supervisor with validation and GPU-AV
+/// on, one thread, no pipeline cache and its own job folder.
+pub(crate) struct SupervisorOracle {
+    opts: SupervisorOptions,
+    /// `run`'s one supervisor for all its other batches; `None` (`bisect`): a fresh one per batch,
+    /// so that nothing a worker of an earlier batch sent late reaches a later one (bisection runs
+    /// many small batches).
+    shared: Option<Supervisor>,
+    /// `bisect`: say each batch on stderr (through tracing when stderr is not a terminal).
+    announce: bool,
+    /// Attempts so far (what the announcements count).
+    attempts: usize,
+}
+
+impl SupervisorOracle {
+    pub(crate) fn for_run(opts: SupervisorOptions) -> Self {
+        SupervisorOracle { shared: Some(Supervisor::new(opts.clone())), opts, announce: false, attempts: 0 }
+    }
+
+    pub(crate) fn for_bisect(opts: SupervisorOptions) -> Self {
+        SupervisorOracle { opts, shared: None, announce: true, attempts: 0 }
+    }
+
+    fn say(&self, cells: usize, mode: Mode) {
+        let msg = format!("bisect: running {cells} cell(s){} ({} run so far)", if mode == Mode::Shared { "" } else { ", each alone" }, self.attempts);
+        if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+            eprintln!("{msg}");
+        } else {
+            tracing::info!("{msg}");
+        }
+    }
+}
+
+impl Oracle for SupervisorOracle {
+    fn run(&mut self, cells: &[Cell], mode: Mode, on: &mut dyn FnMut(Event)) {
+        if self.announce {
+            self.say(cells.len(), mode);
+        }
+        let attempts = &mut self.attempts;
+        let on = &mut |ev: Event| {
+            *attempts += matches!(ev, Event::Attempt { .. }) as usize;
+            on(ev)
+        };
+        let isolated = mode != Mode::Shared;
+        match (mode, &mut self.shared) {
+            (Mode::GpuAv, _) => {
+                let o = SupervisorOptions { validate: true, gpu_av: true, threads: 1, pipeline_cache: None, job_dir: self.opts.job_dir.join("gpu-av"), ..self.opts.clone() };
+                Supervisor::new(o).run(cells, true, on)
+            }
+            (_, Some(sup)) => sup.run(cells, isolated, on),
+            (_, None) => Supervisor::new(self.opts.clone()).run(cells, isolated, on),
+        }
     }
 }

@@ -56,6 +56,8 @@ pub struct ExecOptions {
     pub spirv_dir: Option<PathBuf>,
     /// Folder of the persisted pipeline caches (`None`: an empty cache, nothing saved).
     pub pipeline_cache: Option<PathBuf>,
+    /// `RTPROBE_BINDING_STAGES=all` of the run (the job file's `binding_stages`).
+    pub all_stages: bool,
 }
 
 /// A cell's shaders as SPIR-V, workarounds applied (what phase `compile` produces).
@@ -131,7 +133,6 @@ pub struct Executor {
     pub cache_status: Option<pipeline_cache::Loaded>,
     /// Milliseconds the CPU reference took.
     pub reference_ms: f64,
-    all_stages: bool,
 }
 
 impl Executor {
@@ -174,7 +175,6 @@ impl Executor {
             prebuilt: HashMap::new(),
             cache_status,
             reference_ms,
-            all_stages: std::env::var("RTPROBE_BINDING_STAGES").is_ok_and(|v| v == "all"),
         })
     }
 
@@ -404,7 +404,7 @@ impl Executor {
         };
         // RTPROBE_BINDING_STAGES=all: declare bindings and push constants for VK_SHADER_STAGE_ALL
         // instead of the pipeline's stages (reproduces reports/lavapipe/FINDINGS.md).
-        let stages = if self.all_stages { vk::ShaderStageFlags::ALL } else { stages };
+        let stages = if self.opts.all_stages { vk::ShaderStageFlags::ALL } else { stages };
         let key = LayoutKey {
             stages,
             model: spec.model,

@@ -1,12 +1,14 @@
 //! Running cells in isolation: the worker (`rtprobe __worker`), the supervisor that owns
-//! deadlines and kills, their line protocol, the phases a worker reports, and the supervisor's
-//! own fault injection for its tests. The supervisor's parts: a worker's lines as a pure state
-//! machine (`machine`), which worker runs which cells (`schedule`), the faults injected into each
-//! attempt (`injection`) and the processes themselves (`process`).
+//! deadlines and kills, their line protocol, the phases a worker reports, the supervisor's own
+//! fault injection for its tests, and the oracle trait the rounds above run cells through. The
+//! supervisor's parts: a worker's lines as a pure state machine (`machine`), which worker runs
+//! which cells (`schedule`), the faults injected into each attempt (`injection`) and the
+//! processes themselves (`process`).
 pub mod groups;
 mod injection;
 mod machine;
 pub mod misbehave;
+pub mod oracle;
 pub mod process;
 pub mod protocol;
 mod schedule;

@@ -41,6 +41,10 @@ pub struct WorkerJob {
     /// Folder of the persisted pipeline caches (`--pipeline-cache`; `None`: off).
     #[serde(default)]
     pub pipeline_cache: Option<PathBuf>,
+    /// `RTPROBE_BINDING_STAGES` of the run (`all`: bindings and push constants for every stage).
+    /// It changes results, so it travels in the job, not through the worker's environment.
+    #[serde(default)]
+    pub binding_stages: Option<String>,
 }
 
 fn one() -> usize {
@@ -109,5 +113,29 @@ mod tests {
         assert_eq!(serde_json::to_string(&m).unwrap(), r#"{"type":"phase","phase":"pipeline"}"#);
         let f: WorkerMsg = serde_json::from_str(r#"{"type":"fatal","message":"x"}"#).unwrap();
         assert!(matches!(f, WorkerMsg::Fatal { outcome: Outcome::Error, .. }));
+    }
+
+    #[test]
+    fn the_binding_stages_travel_in_the_job_and_older_jobs_have_none() {
+        let job = WorkerJob {
+            device_index: 0,
+            scene: SceneParams::default(),
+            fence_timeout_ms: 100,
+            validate: false,
+            gpu_av: false,
+            inject: vec![],
+            inject_seed: 0,
+            dump: None,
+            spirv_dir: None,
+            cells: vec![],
+            threads: 1,
+            serial: vec![],
+            pipeline_cache: None,
+            binding_stages: Some("all".into()),
+        };
+        let mut v = serde_json::to_value(&job).unwrap();
+        assert_eq!(serde_json::from_value::<WorkerJob>(v.clone()).unwrap().binding_stages.as_deref(), Some("all"));
+        v.as_object_mut().unwrap().remove("binding_stages");
+        assert_eq!(serde_json::from_value::<WorkerJob>(v).unwrap().binding_stages, None);
     }
 }

@@ -59,6 +59,8 @@ pub struct SupervisorOptions {
     /// cells): re-runs alone (`--confirm`, `--repeat`, the repeats that verify a workaround) start
     /// cold, so that a cached binary cannot stand in for the cell's own compile.
     pub pipeline_cache: Option<PathBuf>,
+    /// `RTPROBE_BINDING_STAGES` of the run, written into each worker's job file.
+    pub binding_stages: Option<String>,
 }
 
 /// Events for the report writer and progress display.
@@ -170,6 +172,7 @@ impl Supervisor {
             cells: job.cells,
             threads: self.opts.threads.max(1),
             pipeline_cache: self.opts.pipeline_cache.clone().filter(|_| !self.rerun),
+            binding_stages: self.opts.binding_stages.clone(),
         };
         std::fs::create_dir_all(&self.opts.job_dir)?;
         let path = self.opts.job_dir.join(format!("job-{}-{id}.json", std::process::id()));

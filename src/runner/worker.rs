@@ -100,6 +100,7 @@ fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
         dump: job.dump.clone(),
         pipeline_cache: job.pipeline_cache.clone(),
         spirv_dir: job.spirv_dir.clone(),
+        all_stages: job.binding_stages.as_deref() == Some("all"),
     };
     let mut exec = Executor::new(gpu, &job.scene, opts)?;
     phases.enter(Phase::Setup, Some((SetupStep::Scene, "acceleration structures and resources")))?;

@@ -1,0 +1,147 @@
+//! Each round of a run: which cells it runs again (a pure function of the report so far, where
+//! the round has a policy of its own) and how (together or alone), recording what comes back.
+//! Rounds that repeat until their cells have enough attempts stop when a batch adds none (an
+//! oracle that could not run them), so that they never loop.
+use super::{Event, Mode};
+use super::Campaign;
+use crate::model::{Cell, Outcome, RunReport};
+use crate::report::{gpu_av, recommended};
+use std::collections::HashSet;
+
+/// The cells to confirm: probe cells whose one attempt ran and faulted (`worth_confirming`).
+pub fn confirm_cells(report: &RunReport) -> Vec<Cell> {
+    report
+        .cells
+        .iter()
+        .filter(|c| c.cell.canary.is_none() && c.attempts.len() == 1 && !c.attempts[0].not_run() && c.outcome.worth_confirming())
+        .map(|c| c.cell)
+        .collect()
+}
+
+/// The faulting cells with fewer than `n` attempts.
+pub fn repeat_cells(report: &RunReport, n: u32) -> Vec<Cell> {
+    report.findings().filter(|c| (c.attempts.len() as u32) < n).map(|c| c.cell).collect()
+}
+
+/// Every finding with each workaround that applies to it, where the device can run the variant
+/// and it has not run yet (`done`: not again after a resume).
+pub fn workaround_cells(report: &RunReport, done: &HashSet<String>, supported: &dyn Fn(&Cell) -> bool) -> Vec<Cell> {
+    report
+        .findings()
+        .flat_map(|c| c.cell.applicable_patches().into_iter().map(move |p| Cell { patch: Some(p), ..c.cell }))
+        .filter(|c| supported(c) && !done.contains(&c.id()))
+        .collect()
+}
+
+/// Workaround variants and recommended patterns that pass with fewer attempts than the finding
+/// they stand for: one pass against an intermittent fault proves nothing, so they run again
+/// until they match its count; one fault ends that.
+pub fn verify_cells(report: &RunReport) -> Vec<Cell> {
+    let mut more: Vec<Cell> = report
+        .cells
+        .iter()
+        .filter(|v| v.cell.patch.is_some() && v.outcome == Outcome::Pass)
+        .filter(|v| report.cells.iter().find(|b| b.cell == v.cell.base()).is_some_and(|b| b.outcome.is_finding() && v.attempts.len() < b.attempts.len()))
+        .map(|v| v.cell)
+        .collect();
+    more.extend(recommended::retries(report));
+    more
+}
+
+impl Campaign<'_> {
+    /// Run `cells` as `mode` says, recording every event; the attempts that came back.
+    pub(super) fn batch(&mut self, cells: &[Cell], mode: Mode) -> usize {
+        let rec = &mut *self.rec;
+        let mut attempts = 0;
+        self.oracle.run(cells, mode, &mut |ev| {
+            attempts += matches!(ev, Event::Attempt { .. }) as usize;
+            rec.on_event(ev)
+        });
+        attempts
+    }
+
+    /// A round's batch: the progress learns of it first; nothing to run is no batch.
+    pub(super) fn round(&mut self, cells: &[Cell], mode: Mode) -> usize {
+        if cells.is_empty() {
+            return 0;
+        }
+        self.rec.progress.scheduled(cells.len() as u64);
+        self.batch(cells, mode)
+    }
+
+    /// Run `next(report)` alone until it is empty (or a batch adds nothing).
+    fn until_done(&mut self, next: &dyn Fn(&RunReport) -> Vec<Cell>) {
+        loop {
+            let more = next(&self.rec.writer.report);
+            if more.is_empty() || self.round(&more, Mode::Alone) == 0 {
+                break;
+            }
+        }
+    }
+
+    /// The plan's cells, together (the progress already counts them).
+    pub fn matrix(&mut self, cells: &[Cell]) {
+        self.batch(cells, Mode::Shared);
+    }
+
+    /// Each fault again, alone in a fresh worker.
+    pub fn confirm(&mut self) {
+        let again = confirm_cells(&self.rec.writer.report);
+        self.round(&again, Mode::Alone);
+    }
+
+    /// Every faulting cell until it has `n` attempts in all, each alone in a fresh worker.
+    pub fn repeat(&mut self, n: u32) {
+        self.until_done(&|r| repeat_cells(r, n));
+    }
+
+    /// The findings' workaround variants the device can run, once, together.
+    pub fn workarounds(&mut self) {
+        let retries = workaround_cells(&self.rec.writer.report, &self.rec.writer.done(), self.supported);
+        self.round(&retries, Mode::Shared);
+    }
+
+    /// The recommended pattern nearest each finding (`report::recommended`), where the report
+    /// lacks it and the device can run it, once, together.
+    pub fn patterns(&mut self) {
+        let supported = self.supported;
+        let patterns: Vec<Cell> = recommended::missing(&self.rec.writer.report).into_iter().filter(|c| supported(c)).collect();
+        self.round(&patterns, Mode::Shared);
+    }
+
+    /// Passing variants and patterns again, alone, until they have their finding's attempts.
+    pub fn verify(&mut self) {
+        self.until_done(&verify_cells);
+    }
+
+    /// Each finding again, alone, under GPU-AV, next to its control (`report::gpu_av`), kept
+    /// apart from the cells' own attempts. A finding that passes runs again until it has the
+    /// passes its own incidence needs (`gpu_av::more`); at most `gpu_av::CAP` rounds. `layer`:
+    /// the validation layer's spec version.
+    pub fn gpu_av(&mut self, layer: Option<u32>) {
+        let (mut again, skipped) = gpu_av::schedule(&self.rec.writer.report, layer);
+        let mut got: Vec<(Cell, crate::model::Attempt)> = Vec::new();
+        for _ in 0..gpu_av::CAP {
+            if again.is_empty() {
+                break;
+            }
+            let progress = &*self.rec.progress;
+            progress.scheduled(again.len() as u64);
+            self.oracle.run(&again, Mode::GpuAv, &mut |ev| {
+                if let Event::Attempt { cell, attempt } = ev {
+                    progress.ended(cell, None);
+                    got.push((*cell, attempt));
+                }
+            });
+            again = gpu_av::more(&self.rec.writer.report, &got);
+        }
+        gpu_av::annotate(&mut self.rec.writer.report, &got, &skipped);
+    }
+
+    /// The canaries, together, after everything else (the progress already counts them).
+    pub fn canaries(&mut self, canaries: &[Cell]) {
+        if !canaries.is_empty() {
+            self.batch(canaries, Mode::Shared);
+        }
+    }
+}
