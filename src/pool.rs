@@ -34,7 +34,9 @@ pub fn map<S, T: Send>(
             });
         }
     });
-    out.into_iter().map(|m| m.into_inner().unwrap_or_else(|p| p.into_inner())).collect()
+    out.into_iter()
+        .map(|m| m.into_inner().unwrap_or_else(|p| p.into_inner()))
+        .collect()
 }
 
 #[cfg(test)]
@@ -44,7 +46,19 @@ mod tests {
     #[test]
     fn every_item_once_in_order_with_progress() {
         let calls = AtomicUsize::new(0);
-        let r = map(100, 4, || Some(0u32), |seen, i| { *seen += 1; i * 2 }, &|_, n| { assert_eq!(n, 100); calls.fetch_add(1, Ordering::Relaxed); });
+        let r = map(
+            100,
+            4,
+            || Some(0u32),
+            |seen, i| {
+                *seen += 1;
+                i * 2
+            },
+            &|_, n| {
+                assert_eq!(n, 100);
+                calls.fetch_add(1, Ordering::Relaxed);
+            },
+        );
         assert_eq!(r, (0..100).map(|i| Some(i * 2)).collect::<Vec<_>>());
         assert_eq!(calls.into_inner(), 100);
     }

@@ -9,29 +9,63 @@ use serde_json::Value;
 use rtprobe::report::chart::check_well_formed as well_formed;
 
 fn points<'a>(v: &'a Value, section: &str) -> &'a Vec<Value> {
-    v[section]["points"].as_array().unwrap_or_else(|| panic!("{section}.points missing"))
+    v[section]["points"]
+        .as_array()
+        .unwrap_or_else(|| panic!("{section}.points missing"))
 }
 
 #[test]
 fn quick_bench_writes_its_contract_and_detection_follows_the_injection() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("b");
-    let o = run(&["bench", "--quick", "--sizes", "8,16", "--fractions", "0.001,1", "--seeds", "1", "-o", out.to_str().unwrap(), "--sweep-args", "-j 1", "-j 1 --no-such-flag 3"]);
+    let o = run(&[
+        "bench",
+        "--quick",
+        "--sizes",
+        "8,16",
+        "--fractions",
+        "0.001,1",
+        "--seeds",
+        "1",
+        "-o",
+        out.to_str().unwrap(),
+        "--sweep-args",
+        "-j 1",
+        "-j 1 --no-such-flag 3",
+    ]);
     assert!(o.status.success(), "bench failed: {}", stderr(&o));
     let b: Value = serde_json::from_slice(&std::fs::read(out.join("bench.json")).unwrap()).unwrap();
     assert_eq!(b["schema"], "rtprobe.bench/1");
     assert_eq!(b["tool"]["version"], env!("CARGO_PKG_VERSION"));
     assert!(b["device"]["name"].as_str().unwrap().contains("llvmpipe"));
-    assert!(b["driver"]["version"].is_string() && b["options"]["sizes"] == serde_json::json!([8, 16]));
+    assert!(
+        b["driver"]["version"].is_string() && b["options"]["sizes"] == serde_json::json!([8, 16])
+    );
 
     // Time against size: every size, every phase, the exact command.
     let st = points(&b, "size_time");
     assert_eq!(st.len(), 2);
     for p in st {
         let cmd = p["command"].as_str().unwrap();
-        assert!(cmd.starts_with("rtprobe run --no-confirm --patches none") && (cmd.contains("--size 8x8") || cmd.contains("--size 16x16")), "{cmd}");
-        assert!(p["cells_run"].as_u64().unwrap() > 0 && p["findings"] == 0, "{p}");
-        for ph in ["spawn_reference", "device", "compile", "pipeline", "setup", "trace", "check", "overhead"] {
+        assert!(
+            cmd.starts_with("rtprobe run --no-confirm --patches none")
+                && (cmd.contains("--size 8x8") || cmd.contains("--size 16x16")),
+            "{cmd}"
+        );
+        assert!(
+            p["cells_run"].as_u64().unwrap() > 0 && p["findings"] == 0,
+            "{p}"
+        );
+        for ph in [
+            "spawn_reference",
+            "device",
+            "compile",
+            "pipeline",
+            "setup",
+            "trace",
+            "check",
+            "overhead",
+        ] {
             assert!(p["phases_ms"][ph].as_f64().unwrap() >= 0.0, "{ph}");
         }
     }
@@ -41,21 +75,40 @@ fn quick_bench_writes_its_contract_and_detection_follows_the_injection() {
     assert_eq!(det.len(), 4, "2 sizes × 2 fractions × 1 seed");
     for p in det {
         let d = &p["detection"];
-        assert!(p["command"].as_str().unwrap().contains("@value:"), "{}", p["command"]);
-        assert!(d["trials"].as_u64().unwrap() >= 4 && p["not_compared"].as_array().unwrap().is_empty(), "{p}");
+        assert!(
+            p["command"].as_str().unwrap().contains("@value:"),
+            "{}",
+            p["command"]
+        );
+        assert!(
+            d["trials"].as_u64().unwrap() >= 4 && p["not_compared"].as_array().unwrap().is_empty(),
+            "{p}"
+        );
         assert!(d["n_min"].as_u64().unwrap() > 0);
         for t in p["trials"].as_array().unwrap() {
-            assert!(t["n"].as_u64().unwrap() <= (p["size"].as_u64().unwrap().pow(2)), "n is at most the pixels: {t}");
+            assert!(
+                t["n"].as_u64().unwrap() <= (p["size"].as_u64().unwrap().pow(2)),
+                "n is at most the pixels: {t}"
+            );
         }
         if p["fraction"] == 1.0 {
             assert_eq!(d["measured"], 1.0, "f=1 must catch every cell: {p}");
             assert_eq!(d["predicted"], 1.0);
-            assert_eq!(d["corrupted_share"], 1.0, "every checked record is wrong at f=1");
+            assert_eq!(
+                d["corrupted_share"], 1.0,
+                "every checked record is wrong at f=1"
+            );
         }
     }
     // The twin: a wrong value on 0.1% of 64 rays is mostly missed (deterministic for seed 1).
-    let tiny = det.iter().find(|p| p["size"] == 8 && p["fraction"] == 0.001).unwrap();
-    assert!(tiny["detection"]["measured"].as_f64().unwrap() < 1.0, "{tiny}");
+    let tiny = det
+        .iter()
+        .find(|p| p["size"] == 8 && p["fraction"] == 0.001)
+        .unwrap();
+    assert!(
+        tiny["detection"]["measured"].as_f64().unwrap() < 1.0,
+        "{tiny}"
+    );
     assert!(tiny["detection"]["predicted"].as_f64().unwrap() < 0.1);
 
     // Flaky: an attempt faults exactly when its die armed the fault (lavapipe: a crash).
@@ -74,12 +127,29 @@ fn quick_bench_writes_its_contract_and_detection_follows_the_injection() {
     assert_eq!(sw.len(), 2);
     assert!(sw[0]["skipped"].is_null() && sw[0]["wall_ratio"] == 1.0);
     assert_eq!(sw[0]["phase_ratio"]["trace"], 1.0);
-    assert!(sw[1]["skipped"].as_str().unwrap().contains("--no-such-flag"), "{}", sw[1]);
+    assert!(
+        sw[1]["skipped"]
+            .as_str()
+            .unwrap()
+            .contains("--no-such-flag"),
+        "{}",
+        sw[1]
+    );
 
     for (name, needles) in [
-        ("detection-vs-size.svg", &["measured f=0.001", "1-(1-f)^n, f=1", "share of injected cells caught"][..]),
+        (
+            "detection-vs-size.svg",
+            &[
+                "measured f=0.001",
+                "1-(1-f)^n, f=1",
+                "share of injected cells caught",
+            ][..],
+        ),
         ("time-vs-size.svg", &["wall", "trace", "time (s"][..]),
-        ("flaky-repeats.svg", &["measured P=0.5", "1-(1-P)^r, P=0.5", "attempts r"][..]),
+        (
+            "flaky-repeats.svg",
+            &["measured P=0.5", "1-(1-P)^r, P=0.5", "attempts r"][..],
+        ),
         ("sweep-phases.svg", &["-j 1", "trace", "device"][..]),
     ] {
         let svg = std::fs::read_to_string(out.join(name)).unwrap();
@@ -88,7 +158,9 @@ fn quick_bench_writes_its_contract_and_detection_follows_the_injection() {
             assert!(svg.contains(n), "{name} lacks {n:?}");
         }
     }
-    assert!(!std::fs::read_to_string(out.join("sweep-phases.svg")).unwrap().contains("no-such-flag"));
+    assert!(!std::fs::read_to_string(out.join("sweep-phases.svg"))
+        .unwrap()
+        .contains("no-such-flag"));
 }
 
 #[test]
@@ -114,11 +186,40 @@ fn bench_bad_input_is_one_line_and_writes_nothing() {
     // An output directory that cannot be made (below a file).
     let file = dir.path().join("file");
     std::fs::write(&file, b"x").unwrap();
-    assert_one_line_error(&run(&["bench", "--quick", "-o", file.join("sub").to_str().unwrap()]), 9, "cannot create");
+    assert_one_line_error(
+        &run(&["bench", "--quick", "-o", file.join("sub").to_str().unwrap()]),
+        9,
+        "cannot create",
+    );
     // A run that fails (no such device) stops the bench: its exit code, one line, no files.
-    assert_one_line_error(&run(&["bench", "--quick", "--device", "no-such-gpu", "-o", o_arg]), 6, "rtprobe run");
-    assert_eq!(std::fs::read_dir(&out).unwrap().count(), 0, "no half-written output");
+    assert_one_line_error(
+        &run(&["bench", "--quick", "--device", "no-such-gpu", "-o", o_arg]),
+        6,
+        "rtprobe run",
+    );
+    assert_eq!(
+        std::fs::read_dir(&out).unwrap().count(),
+        0,
+        "no half-written output"
+    );
     // Filters that parse but select no cell: the first timed point says so, nothing written.
-    assert_one_line_error(&run(&["bench", "--quick", "-o", o_arg, "--matrix-filter", "stage=raygen", "--matrix-filter", "stage=miss"]), 2, "ran no timed cell");
-    assert_eq!(std::fs::read_dir(&out).unwrap().count(), 0, "no half-written output");
+    assert_one_line_error(
+        &run(&[
+            "bench",
+            "--quick",
+            "-o",
+            o_arg,
+            "--matrix-filter",
+            "stage=raygen",
+            "--matrix-filter",
+            "stage=miss",
+        ]),
+        2,
+        "ran no timed cell",
+    );
+    assert_eq!(
+        std::fs::read_dir(&out).unwrap().count(),
+        0,
+        "no half-written output"
+    );
 }

@@ -7,7 +7,8 @@ use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-const FILTER: &str = "stage=raygen|miss,resource=storage_buffer|uniform_buffer,descriptor_model=descriptor_indexing";
+const FILTER: &str =
+    "stage=raygen|miss,resource=storage_buffer|uniform_buffer,descriptor_model=descriptor_indexing";
 const KNOWN: &str = "stage=miss,index=literal@value";
 
 fn report(path: &Path) -> Value {
@@ -15,12 +16,30 @@ fn report(path: &Path) -> Value {
 }
 
 fn verdicts(r: &Value) -> BTreeMap<String, String> {
-    r["cells"].as_array().unwrap().iter().map(|c| (c["id"].as_str().unwrap().to_string(), c["outcome"].as_str().unwrap().to_string())).collect()
+    r["cells"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| {
+            (
+                c["id"].as_str().unwrap().to_string(),
+                c["outcome"].as_str().unwrap().to_string(),
+            )
+        })
+        .collect()
 }
 
 fn run_to(dir: &Path, name: &str, extra: &[&str]) -> (PathBuf, std::process::Output) {
     let out = dir.join(name);
-    let mut args = vec!["run", "--patches", "none", "--filter", FILTER, "-o", out.to_str().unwrap()];
+    let mut args = vec![
+        "run",
+        "--patches",
+        "none",
+        "--filter",
+        FILTER,
+        "-o",
+        out.to_str().unwrap(),
+    ];
     args.extend_from_slice(extra);
     let o = run(&args);
     (out, o)
@@ -34,13 +53,24 @@ fn shards_merged_equal_the_unsharded_run() {
     let mut parts = vec![];
     let mut sizes = vec![];
     for i in 1..=3 {
-        let (p, o) = run_to(dir.path(), &format!("s{i}.json"), &["--inject-fault", KNOWN, "--shard", &format!("{i}/3")]);
+        let (p, o) = run_to(
+            dir.path(),
+            &format!("s{i}.json"),
+            &["--inject-fault", KNOWN, "--shard", &format!("{i}/3")],
+        );
         assert!(matches!(o.status.code(), Some(0 | 1)), "{}", stderr(&o));
         sizes.push(report(&p)["cells"].as_array().unwrap().len());
         parts.push(p);
     }
-    assert_eq!(sizes.iter().sum::<usize>(), 22, "20 cells, and the 2 storage-buffer dynamic_element ones");
-    assert!(sizes.iter().max().unwrap() - sizes.iter().min().unwrap() <= 1, "balanced: {sizes:?}");
+    assert_eq!(
+        sizes.iter().sum::<usize>(),
+        22,
+        "20 cells, and the 2 storage-buffer dynamic_element ones"
+    );
+    assert!(
+        sizes.iter().max().unwrap() - sizes.iter().min().unwrap() <= 1,
+        "balanced: {sizes:?}"
+    );
     let merged = dir.path().join("merged.json");
     let mut args = vec!["merge", "-o", merged.to_str().unwrap()];
     args.extend(parts.iter().map(|p| p.to_str().unwrap()));
@@ -52,16 +82,37 @@ fn shards_merged_equal_the_unsharded_run() {
     assert_eq!(a["summary"], m["summary"]);
     assert_eq!(m["options"]["merged_from"].as_array().unwrap().len(), 3);
     // The merged report is a run report like any other: diff against the unsharded run is empty.
-    let o = run(&["diff", all.to_str().unwrap(), merged.to_str().unwrap(), "--noise", "1000"]);
+    let o = run(&[
+        "diff",
+        all.to_str().unwrap(),
+        merged.to_str().unwrap(),
+        "--noise",
+        "1000",
+    ]);
     assert_eq!(o.status.code(), Some(0), "{}", stdout(&o));
     assert!(stdout(&o).contains("no outcome changes"));
     // Reports of another scene do not merge.
     let (other, _) = run_to(dir.path(), "seed2.json", &["--seed", "2", "--shard", "1/3"]);
-    let o = run(&["merge", "-o", dir.path().join("x.json").to_str().unwrap(), parts[0].to_str().unwrap(), other.to_str().unwrap()]);
+    let o = run(&[
+        "merge",
+        "-o",
+        dir.path().join("x.json").to_str().unwrap(),
+        parts[0].to_str().unwrap(),
+        other.to_str().unwrap(),
+    ]);
     assert_one_line_error(&o, 9, "does not belong");
-    assert!(!dir.path().join("x.json").exists(), "no half-written output");
+    assert!(
+        !dir.path().join("x.json").exists(),
+        "no half-written output"
+    );
     // The same shard twice would double its attempts: refused.
-    let o = run(&["merge", "-o", dir.path().join("x.json").to_str().unwrap(), parts[0].to_str().unwrap(), parts[0].to_str().unwrap()]);
+    let o = run(&[
+        "merge",
+        "-o",
+        dir.path().join("x.json").to_str().unwrap(),
+        parts[0].to_str().unwrap(),
+        parts[0].to_str().unwrap(),
+    ]);
     assert_one_line_error(&o, 9, "already merged");
 }
 
@@ -70,42 +121,116 @@ fn a_baseline_expects_known_faults_and_names_new_ones() {
     let dir = tempfile::tempdir().unwrap();
     let (first, _) = run_to(dir.path(), "first.json", &["--inject-fault", KNOWN]);
     let base = dir.path().join("base.json");
-    let o = run(&["baseline", first.to_str().unwrap(), "-o", base.to_str().unwrap(), "--bug", "https://example.invalid/1"]);
+    let o = run(&[
+        "baseline",
+        first.to_str().unwrap(),
+        "-o",
+        base.to_str().unwrap(),
+        "--bug",
+        "https://example.invalid/1",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let b: Value = serde_json::from_slice(&std::fs::read(&base).unwrap()).unwrap();
     assert_eq!(b["schema"], "rtprobe.baseline/1");
-    assert_eq!(b["expected"].as_array().unwrap().len(), 2, "miss x 2 resources, literal: {b}");
+    assert_eq!(
+        b["expected"].as_array().unwrap().len(),
+        2,
+        "miss x 2 resources, literal: {b}"
+    );
     // The same faults again: the run passes.
-    let (_, o) = run_to(dir.path(), "again.json", &["--inject-fault", KNOWN, "--baseline", base.to_str().unwrap()]);
+    let (_, o) = run_to(
+        dir.path(),
+        "again.json",
+        &[
+            "--inject-fault",
+            KNOWN,
+            "--baseline",
+            base.to_str().unwrap(),
+        ],
+    );
     assert_eq!(o.status.code(), Some(0), "{}", stdout(&o));
-    assert!(stdout(&o).contains("0 regressions, 0 improvements"), "{}", stdout(&o));
+    assert!(
+        stdout(&o).contains("0 regressions, 0 improvements"),
+        "{}",
+        stdout(&o)
+    );
     // A new fault fails it, naming the cell.
-    let (r, o) = run_to(dir.path(), "new.json", &["--inject-fault", KNOWN, "--inject-fault", "stage=raygen,index=spec_constant,resource=uniform_buffer@value", "--baseline", base.to_str().unwrap()]);
+    let (r, o) = run_to(
+        dir.path(),
+        "new.json",
+        &[
+            "--inject-fault",
+            KNOWN,
+            "--inject-fault",
+            "stage=raygen,index=spec_constant,resource=uniform_buffer@value",
+            "--baseline",
+            base.to_str().unwrap(),
+        ],
+    );
     assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
     assert!(stdout(&o).contains("REGRESSION: raygen.uniform_buffer.spec_constant.descriptor_indexing expected pass got mismatch"), "{}", stdout(&o));
     assert_eq!(report(&r)["baseline"]["cells"].as_array().unwrap().len(), 1);
     // The known faults gone: an improvement, failing unless allowed.
-    let (_, o) = run_to(dir.path(), "fixed.json", &["--baseline", base.to_str().unwrap()]);
+    let (_, o) = run_to(
+        dir.path(),
+        "fixed.json",
+        &["--baseline", base.to_str().unwrap()],
+    );
     assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
-    assert!(stdout(&o).contains("UNEXPECTED IMPROVEMENT"), "{}", stdout(&o));
-    let (_, o) = run_to(dir.path(), "fixed2.json", &["--baseline", base.to_str().unwrap(), "--allow-improvements"]);
+    assert!(
+        stdout(&o).contains("UNEXPECTED IMPROVEMENT"),
+        "{}",
+        stdout(&o)
+    );
+    let (_, o) = run_to(
+        dir.path(),
+        "fixed2.json",
+        &["--baseline", base.to_str().unwrap(), "--allow-improvements"],
+    );
     assert_eq!(o.status.code(), Some(0), "{}", stdout(&o));
     // In deqp-runner's form the same expectations hold.
     let csv = dir.path().join("fails.csv");
-    let o = run(&["baseline", first.to_str().unwrap(), "-o", csv.to_str().unwrap(), "--format", "deqp"]);
+    let o = run(&[
+        "baseline",
+        first.to_str().unwrap(),
+        "-o",
+        csv.to_str().unwrap(),
+        "--format",
+        "deqp",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let text = std::fs::read_to_string(&csv).unwrap();
-    assert!(text.contains("miss.storage_buffer.literal.descriptor_indexing,Fail"), "{text}");
-    let (_, o) = run_to(dir.path(), "csv.json", &["--inject-fault", KNOWN, "--baseline", csv.to_str().unwrap()]);
+    assert!(
+        text.contains("miss.storage_buffer.literal.descriptor_indexing,Fail"),
+        "{text}"
+    );
+    let (_, o) = run_to(
+        dir.path(),
+        "csv.json",
+        &["--inject-fault", KNOWN, "--baseline", csv.to_str().unwrap()],
+    );
     assert_eq!(o.status.code(), Some(0), "{}", stdout(&o));
     // A known flake tolerates its flake, whichever way the die falls.
     let flakes = dir.path().join("flakes.csv");
     std::fs::write(&flakes, "# flake: bug https://example.invalid/2, 1 of 2 attempts\nraygen.storage_buffer.literal.descriptor_indexing,Flake\n").unwrap();
-    let (_, o) = run_to(dir.path(), "flaky.json", &["--inject-fault", "stage=raygen,index=literal,resource=storage_buffer@flaky:0.5", "--baseline", flakes.to_str().unwrap()]);
+    let (_, o) = run_to(
+        dir.path(),
+        "flaky.json",
+        &[
+            "--inject-fault",
+            "stage=raygen,index=literal,resource=storage_buffer@flaky:0.5",
+            "--baseline",
+            flakes.to_str().unwrap(),
+        ],
+    );
     assert_eq!(o.status.code(), Some(0), "{}", stdout(&o));
     // A bad baseline is one error line.
     std::fs::write(&flakes, "a.b,Exploded\n").unwrap();
-    let (_, o) = run_to(dir.path(), "bad.json", &["--baseline", flakes.to_str().unwrap()]);
+    let (_, o) = run_to(
+        dir.path(),
+        "bad.json",
+        &["--baseline", flakes.to_str().unwrap()],
+    );
     assert_one_line_error(&o, 9, "unknown status");
 }
 
@@ -114,18 +239,58 @@ fn a_phase_slower_than_its_bound_fails_the_run() {
     let dir = tempfile::tempdir().unwrap();
     let (first, _) = run_to(dir.path(), "first.json", &[]);
     let base = dir.path().join("base.json");
-    let o = run(&["baseline", first.to_str().unwrap(), "-o", base.to_str().unwrap(), "--perf", "pipeline,check", "--perf-factor", "1000", "--perf-slack-ms", "100"]);
+    let o = run(&[
+        "baseline",
+        first.to_str().unwrap(),
+        "-o",
+        base.to_str().unwrap(),
+        "--perf",
+        "pipeline,check",
+        "--perf-factor",
+        "1000",
+        "--perf-slack-ms",
+        "100",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let (_, o) = run_to(dir.path(), "ok.json", &["--baseline", base.to_str().unwrap()]);
-    assert_eq!(o.status.code(), Some(0), "generous bounds hold: {}", stdout(&o));
+    let (_, o) = run_to(
+        dir.path(),
+        "ok.json",
+        &["--baseline", base.to_str().unwrap()],
+    );
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "generous bounds hold: {}",
+        stdout(&o)
+    );
     // The same run against a bound it cannot meet (as if the driver got 1000x slower).
     let mut b: Value = serde_json::from_slice(&std::fs::read(&base).unwrap()).unwrap();
-    b["performance"]["pipeline"] = serde_json::json!({ "mean_ms": 0.0, "factor": 1.0, "slack_ms": 0.0 });
+    b["performance"]["pipeline"] =
+        serde_json::json!({ "mean_ms": 0.0, "factor": 1.0, "slack_ms": 0.0 });
     std::fs::write(&base, serde_json::to_vec(&b).unwrap()).unwrap();
-    let (_, o) = run_to(dir.path(), "slow.json", &["--baseline", base.to_str().unwrap()]);
+    let (_, o) = run_to(
+        dir.path(),
+        "slow.json",
+        &["--baseline", base.to_str().unwrap()],
+    );
     assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
-    assert!(stdout(&o).contains("PERFORMANCE REGRESSION: pipeline"), "{}", stdout(&o));
-    assert_one_line_error(&run(&["baseline", first.to_str().unwrap(), "-o", base.to_str().unwrap(), "--perf", "warp"]), 2, "not a phase");
+    assert!(
+        stdout(&o).contains("PERFORMANCE REGRESSION: pipeline"),
+        "{}",
+        stdout(&o)
+    );
+    assert_one_line_error(
+        &run(&[
+            "baseline",
+            first.to_str().unwrap(),
+            "-o",
+            base.to_str().unwrap(),
+            "--perf",
+            "warp",
+        ]),
+        2,
+        "not a phase",
+    );
 }
 
 #[test]
@@ -134,7 +299,11 @@ fn diff_of_a_report_with_itself_is_empty_and_with_an_edit_shows_the_edit() {
     let (r, _) = run_to(dir.path(), "r.json", &[]);
     let o = run(&["diff", r.to_str().unwrap(), r.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(0), "{}", stdout(&o));
-    assert!(stdout(&o).contains("no outcome changes (22 unchanged)"), "{}", stdout(&o));
+    assert!(
+        stdout(&o).contains("no outcome changes (22 unchanged)"),
+        "{}",
+        stdout(&o)
+    );
     assert!(stdout(&o).contains("no phase changed"), "{}", stdout(&o));
     let mut edited = report(&r);
     let cells = edited["cells"].as_array_mut().unwrap();
@@ -144,11 +313,29 @@ fn diff_of_a_report_with_itself_is_empty_and_with_an_edit_shows_the_edit() {
     let e = dir.path().join("e.json");
     std::fs::write(&e, serde_json::to_vec(&edited).unwrap()).unwrap();
     let md = dir.path().join("d.md");
-    let o = run(&["diff", r.to_str().unwrap(), e.to_str().unwrap(), "--format", "md", "-o", md.to_str().unwrap()]);
+    let o = run(&[
+        "diff",
+        r.to_str().unwrap(),
+        e.to_str().unwrap(),
+        "--format",
+        "md",
+        "-o",
+        md.to_str().unwrap(),
+    ]);
     assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
     let text = std::fs::read_to_string(&md).unwrap();
     assert!(text.contains("1 regressed, 1 gone"), "{text}");
-    assert!(text.contains(&format!("| ❌ regressed | `{id}` | pass | device_lost |")), "{text}");
-    assert!(text.contains(&format!("| ➖ gone | `{gone}` | pass | — |")), "{text}");
-    assert_eq!(text.lines().filter(|l| l.contains("` |")).count(), 2, "exactly the two edited cells: {text}");
+    assert!(
+        text.contains(&format!("| ❌ regressed | `{id}` | pass | device_lost |")),
+        "{text}"
+    );
+    assert!(
+        text.contains(&format!("| ➖ gone | `{gone}` | pass | — |")),
+        "{text}"
+    );
+    assert_eq!(
+        text.lines().filter(|l| l.contains("` |")).count(),
+        2,
+        "exactly the two edited cells: {text}"
+    );
 }

@@ -13,13 +13,19 @@ fn repo() -> &'static Path {
 }
 
 fn sid_root() -> PathBuf {
-    std::env::var_os("RTPROBE_SID_ROOT").map(PathBuf::from).unwrap_or_else(|| PathBuf::from("/var/lib/rtprobe/sid-root"))
+    std::env::var_os("RTPROBE_SID_ROOT")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from("/var/lib/rtprobe/sid-root"))
 }
 
 /// Whether the sid root exists and scripts/in-sid may enter it (root, or sudo without a
 /// password); panics when it must (RTPROBE_REQUIRE_SID=1).
 fn have_sid() -> bool {
-    let can_chroot = unsafe { libc::geteuid() } == 0 || Command::new("sudo").args(["-n", "true"]).output().is_ok_and(|o| o.status.success());
+    let can_chroot = unsafe { libc::geteuid() } == 0
+        || Command::new("sudo")
+            .args(["-n", "true"])
+            .output()
+            .is_ok_and(|o| o.status.success());
     let ok = sid_root().join("etc/rtprobe-sid.stamp").exists() && can_chroot;
     if !ok && std::env::var("RTPROBE_REQUIRE_SID").is_ok_and(|v| v == "1") {
         panic!("RTPROBE_REQUIRE_SID=1 but there is no sid root at {} (make it with scripts/setup-sid), or no root rights to enter it", sid_root().display());
@@ -37,7 +43,11 @@ fn in_sid(args: &[&str]) -> Output {
 
 fn in_sid_env(args: &[&str], env: &[(&str, &str)]) -> Output {
     let mut c = Command::new(repo().join("scripts/in-sid"));
-    c.arg(env!("CARGO_BIN_EXE_rtprobe")).args(args).env_remove("RUST_LOG").env_remove("RTPROBE_VALIDATE").env_remove("RTPROBE_GLSLANG");
+    c.arg(env!("CARGO_BIN_EXE_rtprobe"))
+        .args(args)
+        .env_remove("RUST_LOG")
+        .env_remove("RTPROBE_VALIDATE")
+        .env_remove("RTPROBE_GLSLANG");
     for (k, v) in env {
         c.env(k, v);
     }
@@ -55,7 +65,12 @@ fn report_path(name: &str) -> PathBuf {
 
 /// `rtprobe run --filter FILTER` of heap cells in the root (no confirmation, no workarounds, plus
 /// `extra` arguments), and its report.
-fn run_in_sid(name: &str, filter: &str, extra: &[&str], env: &[(&str, &str)]) -> (Output, serde_json::Value) {
+fn run_in_sid(
+    name: &str,
+    filter: &str,
+    extra: &[&str],
+    env: &[(&str, &str)],
+) -> (Output, serde_json::Value) {
     let mut args = vec!["--filter", filter, "--no-confirm", "--patches", "none"];
     args.extend_from_slice(extra);
     sid_report(name, &args, env)
@@ -67,7 +82,10 @@ fn sid_report(name: &str, args: &[&str], env: &[(&str, &str)]) -> (Output, serde
     let mut all = vec!["run", "-o", path.to_str().unwrap()];
     all.extend_from_slice(args);
     let o = in_sid_env(&all, env);
-    let report = serde_json::from_slice(&std::fs::read(&path).unwrap_or_else(|e| panic!("no report ({e}): {}", stderr(&o)))).unwrap();
+    let report = serde_json::from_slice(
+        &std::fs::read(&path).unwrap_or_else(|e| panic!("no report ({e}): {}", stderr(&o))),
+    )
+    .unwrap();
     (o, report)
 }
 
@@ -78,7 +96,12 @@ fn list_counts(out: &str) -> (usize, usize, usize) {
 
 #[test]
 fn host_lavapipe_plans_heap_cells_as_unsupported_with_the_reason() {
-    let o = run(&["run", "--list", "--filter", "descriptor_model=descriptor_heap"]);
+    let o = run(&[
+        "run",
+        "--list",
+        "--filter",
+        "descriptor_model=descriptor_heap",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let out = stdout(&o);
     let (to_run, unsupported, not_implemented) = list_counts(&out);
@@ -87,13 +110,36 @@ fn host_lavapipe_plans_heap_cells_as_unsupported_with_the_reason() {
         return;
     }
     assert!(unsupported > 0, "{out}");
-    assert_eq!(not_implemented, 0, "the device's reason wins over rtprobe's own gaps: {out}");
-    assert!(out.lines().filter(|l| l.starts_with("unsupported ")).all(|l| l.contains("VK_EXT_descriptor_heap") || l.contains("descriptorHeap")), "{out}");
+    assert_eq!(
+        not_implemented, 0,
+        "the device's reason wins over rtprobe's own gaps: {out}"
+    );
+    assert!(
+        out.lines()
+            .filter(|l| l.starts_with("unsupported "))
+            .all(|l| l.contains("VK_EXT_descriptor_heap") || l.contains("descriptorHeap")),
+        "{out}"
+    );
     // Every heap access way is planned, none dropped.
-    for way in ["mapped_constant_offset", "mapped_push_index", "mapped_indirect_index", "mapped_shader_record_index", "direct"] {
-        assert!(out.contains(&format!(".descriptor_heap.{way} ")), "{way} missing: {out}");
+    for way in [
+        "mapped_constant_offset",
+        "mapped_push_index",
+        "mapped_indirect_index",
+        "mapped_shader_record_index",
+        "direct",
+    ] {
+        assert!(
+            out.contains(&format!(".descriptor_heap.{way} ")),
+            "{way} missing: {out}"
+        );
     }
-    assert!(out.contains(&format!("{} planned: 0 to run, {unsupported} unsupported, 0 not implemented in rtprobe", unsupported)), "{out}");
+    assert!(
+        out.contains(&format!(
+            "{} planned: 0 to run, {unsupported} unsupported, 0 not implemented in rtprobe",
+            unsupported
+        )),
+        "{out}"
+    );
 }
 
 #[test]
@@ -101,7 +147,12 @@ fn sid_plans_every_heap_cell_and_drops_none() {
     if !have_sid() {
         return;
     }
-    let o = in_sid(&["run", "--list", "--filter", "descriptor_model=descriptor_heap"]);
+    let o = in_sid(&[
+        "run",
+        "--list",
+        "--filter",
+        "descriptor_model=descriptor_heap",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let out = stdout(&o);
     let (to_run, _, not_implemented) = list_counts(&out);
@@ -109,25 +160,65 @@ fn sid_plans_every_heap_cell_and_drops_none() {
     // The root's glslang 16.6 compiles the direct way; only the as-to-address rewrite of its
     // untyped-pointer SPIR-V is rtprobe's gap there.
     assert!(not_implemented > 0);
-    assert!(out.lines().filter(|l| l.starts_with("not_implemented ")).all(|l| l.contains(".address_patched.descriptor_heap.direct ") && l.contains("as-to-address")), "{out}");
-    assert!(out.contains("compiler: heap_access=direct shaders by glslangValidator 16."), "{out}");
-    for way in ["mapped_constant_offset", "mapped_push_index", "mapped_indirect_index", "mapped_shader_record_index", "direct"] {
-        assert!(out.lines().any(|l| l.starts_with("run ") && l.ends_with(&format!(".descriptor_heap.{way}"))), "{way} runs: {out}");
+    assert!(
+        out.lines()
+            .filter(|l| l.starts_with("not_implemented "))
+            .all(|l| l.contains(".address_patched.descriptor_heap.direct ")
+                && l.contains("as-to-address")),
+        "{out}"
+    );
+    assert!(
+        out.contains("compiler: heap_access=direct shaders by glslangValidator 16."),
+        "{out}"
+    );
+    for way in [
+        "mapped_constant_offset",
+        "mapped_push_index",
+        "mapped_indirect_index",
+        "mapped_shader_record_index",
+        "direct",
+    ] {
+        assert!(
+            out.lines()
+                .any(|l| l.starts_with("run ") && l.ends_with(&format!(".descriptor_heap.{way}"))),
+            "{way} runs: {out}"
+        );
     }
     // Without a heap-capable GLSL compiler the direct way is rtprobe's own gap: planned and
     // counted as not_implemented with the reason, never dropped or blamed on the device.
-    let o = in_sid_env(&["run", "--list", "--filter", "descriptor_model=descriptor_heap"], &[("RTPROBE_GLSLANG", "/nonexistent/glslangValidator")]);
+    let o = in_sid_env(
+        &[
+            "run",
+            "--list",
+            "--filter",
+            "descriptor_model=descriptor_heap",
+        ],
+        &[("RTPROBE_GLSLANG", "/nonexistent/glslangValidator")],
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     let out = stdout(&o);
     let (to_run, unsupported, not_implemented) = list_counts(&out);
     assert!(not_implemented > 0, "{out}");
-    assert!(out.lines().filter(|l| l.starts_with("not_implemented ")).all(|l| l.contains(".descriptor_heap.direct") && l.contains("GL_EXT_descriptor_heap")), "{out}");
-    assert!(out.lines().filter(|l| l.starts_with("run ")).all(|l| l.contains(".mapped_")), "{out}");
+    assert!(
+        out.lines()
+            .filter(|l| l.starts_with("not_implemented "))
+            .all(|l| l.contains(".descriptor_heap.direct") && l.contains("GL_EXT_descriptor_heap")),
+        "{out}"
+    );
+    assert!(
+        out.lines()
+            .filter(|l| l.starts_with("run "))
+            .all(|l| l.contains(".mapped_")),
+        "{out}"
+    );
     assert!(
         out.contains(&format!("{} planned: {to_run} to run, {unsupported} unsupported, {not_implemented} not implemented in rtprobe; ", to_run + unsupported + not_implemented)),
         "{out}"
     );
-    assert!(!out.contains("not implemented in rtprobe:"), "nothing is moved to the not-generated list: {out}");
+    assert!(
+        !out.contains("not implemented in rtprobe:"),
+        "nothing is moved to the not-generated list: {out}"
+    );
 }
 
 #[test]
@@ -138,29 +229,79 @@ fn sid_runs_heap_cells_against_the_reference() {
     // Every stage and resource kind, every heap access way, dynamic indices (the original
     // fault's shape, with and without nonuniformEXT). Without a compiler for the direct way
     // (forced here) its cells come out not_implemented, counted in the report and the summary.
-    let (o, report) = run_in_sid("heap-run", "descriptor_model=descriptor_heap,index=dynamic,base=push_data|none", &[], &[("RTPROBE_GLSLANG", "/nonexistent/glslangValidator")]);
+    let (o, report) = run_in_sid(
+        "heap-run",
+        "descriptor_model=descriptor_heap,index=dynamic,base=push_data|none",
+        &[],
+        &[("RTPROBE_GLSLANG", "/nonexistent/glslangValidator")],
+    );
     let cells = report["cells"].as_array().unwrap();
     let count = |f: &dyn Fn(&serde_json::Value) -> bool| cells.iter().filter(|c| f(c)).count();
     let outcome = |c: &serde_json::Value, o: &str| c["outcome"] == o;
     let pass = count(&|c| outcome(c, "pass"));
     let not_impl = count(&|c| outcome(c, "not_implemented"));
-    assert_eq!(report["plan"]["planned"].as_u64().unwrap() as usize, cells.len(), "every planned cell is in the report");
-    assert_eq!(report["plan"]["not_implemented"].as_u64().unwrap() as usize, not_impl);
-    assert!(not_impl > 0 && cells.iter().filter(|c| outcome(c, "not_implemented")).all(|c| c["id"].as_str().unwrap().contains(".descriptor_heap.direct")));
-    for way in ["mapped_constant_offset", "mapped_push_index", "mapped_indirect_index", "mapped_shader_record_index"] {
-        let ran: Vec<_> = cells.iter().filter(|c| c["id"].as_str().unwrap().ends_with(way) && c["outcome"] != "unsupported").collect();
+    assert_eq!(
+        report["plan"]["planned"].as_u64().unwrap() as usize,
+        cells.len(),
+        "every planned cell is in the report"
+    );
+    assert_eq!(
+        report["plan"]["not_implemented"].as_u64().unwrap() as usize,
+        not_impl
+    );
+    assert!(
+        not_impl > 0
+            && cells
+                .iter()
+                .filter(|c| outcome(c, "not_implemented"))
+                .all(|c| c["id"]
+                    .as_str()
+                    .unwrap()
+                    .contains(".descriptor_heap.direct"))
+    );
+    for way in [
+        "mapped_constant_offset",
+        "mapped_push_index",
+        "mapped_indirect_index",
+        "mapped_shader_record_index",
+    ] {
+        let ran: Vec<_> = cells
+            .iter()
+            .filter(|c| c["id"].as_str().unwrap().ends_with(way) && c["outcome"] != "unsupported")
+            .collect();
         assert!(!ran.is_empty(), "{way} cells ran");
     }
-    for r in ["storage_buffer", "uniform_buffer", "sampled_image", "storage_image", "acceleration_structure"] {
-        assert!(cells.iter().any(|c| c["resource"] == r && outcome(c, "pass")), "a {r} heap cell passes");
+    for r in [
+        "storage_buffer",
+        "uniform_buffer",
+        "sampled_image",
+        "storage_image",
+        "acceleration_structure",
+    ] {
+        assert!(
+            cells
+                .iter()
+                .any(|c| c["resource"] == r && outcome(c, "pass")),
+            "a {r} heap cell passes"
+        );
     }
     // Whatever did not pass is a finding with its reason (lavapipe's heap bugs; see
     // reports/lavapipe-26/FINDINGS.md), never a silent gap: the exit code says so.
-    let findings = count(&|c| !["pass", "not_implemented", "unsupported"].contains(&c["outcome"].as_str().unwrap()));
+    let findings = count(&|c| {
+        !["pass", "not_implemented", "unsupported"].contains(&c["outcome"].as_str().unwrap())
+    });
     assert!(pass > 0);
-    assert_eq!(o.status.code(), Some(if findings > 0 { 1 } else { 0 }), "{}", stderr(&o));
+    assert_eq!(
+        o.status.code(),
+        Some(if findings > 0 { 1 } else { 0 }),
+        "{}",
+        stderr(&o)
+    );
     let summary = stdout(&o);
-    assert!(!summary.contains("no faults or mismatches\n"), "the summary says cells did not run: {summary}");
+    assert!(
+        !summary.contains("no faults or mismatches\n"),
+        "the summary says cells did not run: {summary}"
+    );
     assert!(summary.contains("not implemented in rtprobe"), "{summary}");
 }
 
@@ -174,11 +315,26 @@ fn sid_runs_direct_heap_cells_compiled_by_the_roots_glslang() {
     let (o, report) = run_in_sid("heap-direct", filter, &[], &[]);
     let cells = report["cells"].as_array().unwrap();
     assert_eq!(cells.len(), 20, "2 stages x (3 resources + sampled images with a constant and a dynamic sampler) x nonuniform or not");
-    assert!(cells.iter().all(|c| c["outcome"] == "pass"), "{}", stdout(&o));
+    assert!(
+        cells.iter().all(|c| c["outcome"] == "pass"),
+        "{}",
+        stdout(&o)
+    );
     // A compiler that drops nonuniformEXT (glslang 16.6 on heap arrays) is said so, and only
     // where the cell asked for nonuniformEXT.
-    let noted = |c: &serde_json::Value| c["attempts"][0]["result"]["detail"].as_str().is_some_and(|d| d.contains("dropped nonuniformEXT"));
-    assert!(cells.iter().filter(|c| noted(c)).all(|c| c["nonuniform"] == true), "{}", stdout(&o));
+    let noted = |c: &serde_json::Value| {
+        c["attempts"][0]["result"]["detail"]
+            .as_str()
+            .is_some_and(|d| d.contains("dropped nonuniformEXT"))
+    };
+    assert!(
+        cells
+            .iter()
+            .filter(|c| noted(c))
+            .all(|c| c["nonuniform"] == true),
+        "{}",
+        stdout(&o)
+    );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
 }
 
@@ -196,27 +352,57 @@ fn sid_runs_the_original_engines_base_sources_and_sampler_indices() {
     // 3 bases x (direct: SSBO + sampled image with 2 samplers; mapped: SSBO + sampled image)
     assert_eq!(cells.len(), 3 * (3 + 2), "{}", stdout(&o));
     for base in ["shader_record", "buffer"] {
-        assert!(cells.iter().any(|c| c["base"] == base), "base={base} planned");
+        assert!(
+            cells.iter().any(|c| c["base"] == base),
+            "base={base} planned"
+        );
     }
     for sampler in ["constant", "dynamic"] {
-        assert!(cells.iter().any(|c| c["sampler"] == sampler), "sampler={sampler} planned");
+        assert!(
+            cells.iter().any(|c| c["sampler"] == sampler),
+            "sampler={sampler} planned"
+        );
     }
-    assert!(cells.iter().all(|c| c["outcome"] == "pass"), "{}", stdout(&o));
+    assert!(
+        cells.iter().all(|c| c["outcome"] == "pass"),
+        "{}",
+        stdout(&o)
+    );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     // Where the compiler dropped nonuniformEXT from a heap index (glslang 16.6 does), the cell
     // says so and is judged as undefined (any element): the note and the lenient judgment come
     // together, and only on direct cells.
     for c in cells {
         let r = &c["attempts"][0]["result"];
-        let noted = r["detail"].as_str().is_some_and(|d| d.contains("dropped nonuniformEXT"));
-        assert_eq!(noted, r["comparison"]["element_reads"].is_object(), "{}: {}", c["id"], r);
+        let noted = r["detail"]
+            .as_str()
+            .is_some_and(|d| d.contains("dropped nonuniformEXT"));
+        assert_eq!(
+            noted,
+            r["comparison"]["element_reads"].is_object(),
+            "{}: {}",
+            c["id"],
+            r
+        );
         assert!(!noted || c["heap_access"] == "direct", "{}", c["id"]);
     }
     // Twin: a wrong value at the probed read of those cells mismatches.
-    let (o, report) = run_in_sid("heap-base-sampler-corrupt", filter, &["--inject-fault", &format!("{filter},base=shader_record|buffer@value")], &[]);
+    let (o, report) = run_in_sid(
+        "heap-base-sampler-corrupt",
+        filter,
+        &[
+            "--inject-fault",
+            &format!("{filter},base=shader_record|buffer@value"),
+        ],
+        &[],
+    );
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     for c in report["cells"].as_array().unwrap() {
-        let want = if c["base"].is_string() { "mismatch" } else { "pass" };
+        let want = if c["base"].is_string() {
+            "mismatch"
+        } else {
+            "pass"
+        };
         assert_eq!(c["outcome"], want, "{}", c["id"]);
     }
 }
@@ -248,30 +434,77 @@ fn sid_recommended_patterns_read_the_exact_element_and_layer_in_every_heap_way()
     let filter = "descriptor_model=descriptor_heap,index=dynamic_element,stage=closest_hit|compute,base=push_data|none";
     let (o, report) = run_in_sid("heap-patterns", filter, &[], &[]);
     let cells = report["cells"].as_array().unwrap();
-    assert_eq!(cells.len(), 2 * (5 + 4) + 2, "2 resources x (5 ways in closest-hit, 4 in compute), direct materials with both samplers");
+    assert_eq!(
+        cells.len(),
+        2 * (5 + 4) + 2,
+        "2 resources x (5 ways in closest-hit, 4 in compute), direct materials with both samplers"
+    );
     for c in cells {
         let id = c["id"].as_str().unwrap();
-        assert!(c["outcome"] != "unsupported" && c["outcome"] != "not_implemented", "{id}: {}", c["reason"]);
+        assert!(
+            c["outcome"] != "unsupported" && c["outcome"] != "not_implemented",
+            "{id}: {}",
+            c["reason"]
+        );
         let r = &c["attempts"][0]["result"];
         // (A dynamic sampler index whose nonuniformEXT the compiler dropped is judged as
         // undefined, any element: said in the cell, no exact discrimination then.)
-        let dropped = r["detail"].as_str().is_some_and(|d| d.contains("dropped nonuniformEXT on the sampler heap index"));
+        let dropped = r["detail"]
+            .as_str()
+            .is_some_and(|d| d.contains("dropped nonuniformEXT on the sampler heap index"));
         assert!(!dropped || c["sampler"] == "dynamic", "{id}");
         if c["outcome"] == "pass" && !dropped {
             let d = r["comparison"]["discrimination"].as_f64().unwrap();
-            assert!(d >= 0.99, "{id}: every pixel would catch another element or layer ({d})");
+            assert!(
+                d >= 0.99,
+                "{id}: every pixel would catch another element or layer ({d})"
+            );
         }
     }
     // The geometry pattern passes in every way, and both patterns read straight from the heap.
-    let pass = |id: &str| cells.iter().find(|c| c["id"] == id).unwrap_or_else(|| panic!("{id} planned"))["outcome"] == "pass";
-    assert!(cells.iter().filter(|c| c["resource"] == "storage_buffer").all(|c| c["outcome"] == "pass"), "{}", stdout(&o));
-    assert!(pass("closest_hit.sampled_image.dynamic_element.descriptor_heap.direct.sampler_constant"), "{}", stdout(&o));
-    assert!(pass("closest_hit.sampled_image.dynamic_element.descriptor_heap.direct.sampler_dynamic"), "{}", stdout(&o));
+    let pass = |id: &str| {
+        cells
+            .iter()
+            .find(|c| c["id"] == id)
+            .unwrap_or_else(|| panic!("{id} planned"))["outcome"]
+            == "pass"
+    };
+    assert!(
+        cells
+            .iter()
+            .filter(|c| c["resource"] == "storage_buffer")
+            .all(|c| c["outcome"] == "pass"),
+        "{}",
+        stdout(&o)
+    );
+    assert!(
+        pass("closest_hit.sampled_image.dynamic_element.descriptor_heap.direct.sampler_constant"),
+        "{}",
+        stdout(&o)
+    );
+    assert!(
+        pass("closest_hit.sampled_image.dynamic_element.descriptor_heap.direct.sampler_dynamic"),
+        "{}",
+        stdout(&o)
+    );
     // Twin: a wrong value at the pattern's read must mismatch.
     let direct = "descriptor_model=descriptor_heap,heap_access=direct,index=dynamic_element,stage=closest_hit,base=push_data";
-    let (o, report) = run_in_sid("heap-patterns-corrupt", direct, &["--inject-fault", &format!("{direct}@value")], &[]);
+    let (o, report) = run_in_sid(
+        "heap-patterns-corrupt",
+        direct,
+        &["--inject-fault", &format!("{direct}@value")],
+        &[],
+    );
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
-    assert!(report["cells"].as_array().unwrap().iter().all(|c| c["outcome"] == "mismatch"), "{}", stdout(&o));
+    assert!(
+        report["cells"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|c| c["outcome"] == "mismatch"),
+        "{}",
+        stdout(&o)
+    );
 }
 
 #[test]
@@ -283,15 +516,42 @@ fn sid_a_direct_heap_fault_says_whether_the_recommended_pattern_works() {
     // on the NVIDIA driver), with workarounds on: the run schedules each finding's recommended
     // pattern (outside the filter) and says per finding whether it works.
     let filter = "descriptor_model=descriptor_heap,heap_access=direct,stage=closest_hit,index=dynamic,nonuniform=false,resource=storage_buffer|sampled_image,base=push_data,sampler=dynamic|none";
-    let (o, report) = sid_report("heap-pattern-finding", &["--filter", filter, "--no-confirm", "--inject-fault", &format!("{filter}@device")], &[]);
+    let (o, report) = sid_report(
+        "heap-pattern-finding",
+        &[
+            "--filter",
+            filter,
+            "--no-confirm",
+            "--inject-fault",
+            &format!("{filter}@device"),
+        ],
+        &[],
+    );
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     let cells = report["cells"].as_array().unwrap();
-    for (id, pattern) in [("closest_hit.storage_buffer.dynamic.descriptor_heap.direct", "geometry"), ("closest_hit.sampled_image.dynamic.descriptor_heap.direct.sampler_dynamic", "materials")] {
+    for (id, pattern) in [
+        (
+            "closest_hit.storage_buffer.dynamic.descriptor_heap.direct",
+            "geometry",
+        ),
+        (
+            "closest_hit.sampled_image.dynamic.descriptor_heap.direct.sampler_dynamic",
+            "materials",
+        ),
+    ] {
         let f = cells.iter().find(|c| c["id"] == id).unwrap();
         assert_eq!(f["outcome"], "crash", "{}", f["reason"]);
         let p = &f["recommended"];
-        assert_eq!((p["pattern"].as_str(), p["status"].as_str()), (Some(pattern), Some("passes")), "{p}");
-        assert!(stdout(&o).contains(&format!("recommended pattern {pattern} (")), "{}", stdout(&o));
+        assert_eq!(
+            (p["pattern"].as_str(), p["status"].as_str()),
+            (Some(pattern), Some("passes")),
+            "{p}"
+        );
+        assert!(
+            stdout(&o).contains(&format!("recommended pattern {pattern} (")),
+            "{}",
+            stdout(&o)
+        );
     }
 }
 
@@ -304,17 +564,35 @@ fn sid_gpu_av_reruns_heap_findings_with_a_control() {
     // their literal-index control. Whatever GPU-AV does is recorded (reports/lavapipe-26/FINDINGS.md
     // #4: it crashes closest-hit heap pipelines), never hidden and never mixed into the cell's verdict.
     let filter = "descriptor_model=descriptor_heap,heap_access=direct,stage=closest_hit|compute,resource=storage_buffer,index=dynamic|literal,nonuniform=false";
-    let (o, report) = run_in_sid("heap-gpu-av", filter, &["--validate=gpu-av", "--inject-fault", "index=dynamic@device"], &[]);
+    let (o, report) = run_in_sid(
+        "heap-gpu-av",
+        filter,
+        &[
+            "--validate=gpu-av",
+            "--inject-fault",
+            "index=dynamic@device",
+        ],
+        &[],
+    );
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     let cells = report["cells"].as_array().unwrap();
     for stage in ["closest_hit", "compute"] {
-        let f = cells.iter().find(|c| c["id"] == format!("{stage}.storage_buffer.dynamic.descriptor_heap.direct")).unwrap();
+        let f = cells
+            .iter()
+            .find(|c| c["id"] == format!("{stage}.storage_buffer.dynamic.descriptor_heap.direct"))
+            .unwrap();
         assert_eq!(f["attempts"].as_array().unwrap().len(), 1);
         let v = &f["gpu_av"];
-        let control = v["control"].as_array().unwrap_or_else(|| panic!("{stage}: a control ran: {v}"));
-        let control_faulted = !["pass", "unsupported", "not_implemented"].contains(&control[1].as_str().unwrap());
+        let control = v["control"]
+            .as_array()
+            .unwrap_or_else(|| panic!("{stage}: a control ran: {v}"));
+        let control_faulted =
+            !["pass", "unsupported", "not_implemented"].contains(&control[1].as_str().unwrap());
         let verdict = v["verdict"].as_str().unwrap();
-        assert!(["masked", "still_faults", "gpu_av_failed"].contains(&verdict), "{stage}: {v}");
+        assert!(
+            ["masked", "still_faults", "gpu_av_failed"].contains(&verdict),
+            "{stage}: {v}"
+        );
         if verdict != "masked" {
             assert_eq!(verdict == "gpu_av_failed", control_faulted, "{stage}: {v}");
         }

@@ -397,7 +397,11 @@ fn is_child_path(toks: &[Token], i: usize, base: &[String], modules: &BTreeSet<S
     is_ident(&toks[i].text)
         && toks.get(i + 1).is_some_and(|t| t.text == "::")
         && (i == 0 || toks[i - 1].text != "::")
-        && modules.contains(&[base, std::slice::from_ref(&toks[i].text)].concat().join("::"))
+        && modules.contains(
+            &[base, std::slice::from_ref(&toks[i].text)]
+                .concat()
+                .join("::"),
+        )
 }
 
 /// Every path in a file of module `module`: (line, path as written, absolute path). Inline
@@ -481,7 +485,9 @@ fn reexports(
             .collect();
         for (line, _, abs) in &paths[module] {
             if let Some(name) = abs.last().filter(|_| lines.contains(line)) {
-                out.entry(module.clone()).or_default().insert(name.clone(), abs.clone());
+                out.entry(module.clone())
+                    .or_default()
+                    .insert(name.clone(), abs.clone());
             }
         }
     }
@@ -544,8 +550,10 @@ fn analyze(src: &Path) -> Analysis {
         .map(|(m, (rel, _))| (m.clone(), rel.clone()))
         .collect();
     let modules: BTreeSet<String> = files.keys().cloned().collect();
-    let paths: BTreeMap<&String, _> =
-        parsed.iter().map(|(m, (_, toks))| (m, paths_in(toks, m, &modules))).collect();
+    let paths: BTreeMap<&String, _> = parsed
+        .iter()
+        .map(|(m, (_, toks))| (m, paths_in(toks, m, &modules)))
+        .collect();
     let reexports = reexports(&parsed, &paths);
     let mut edges = Vec::new();
     for (from, found) in paths {
@@ -702,13 +710,27 @@ fn planted_cycle_is_found() {
     let names = |v: &[&str]| v.iter().map(ToString::to_string).collect::<Vec<_>>();
     // `c::tests` is declared under `#[cfg(test)]`: not a file of the graph.
     let files: Vec<&str> = a.files.keys().map(String::as_str).collect();
-    assert_eq!(files, ["", "a", "a::x", "a::y", "b", "c", "d", "d::e", "f", "f::g", "h"]);
+    assert_eq!(
+        files,
+        ["", "a", "a::x", "a::y", "b", "c", "d", "d::e", "f", "f::g", "h"]
+    );
     assert_eq!(a.module_cycles(), vec![names(&["a", "b"])]);
     // `d` and its child reach each other by a bare child path and `super::`; `f` is a facade
     // only, so `h`'s `crate::f::G` is an edge to `f::g`, and no cycle.
-    assert_eq!(a.file_cycles(), vec![names(&["a::x", "b"]), names(&["d", "d::e"])]);
-    assert!(a.edges.iter().any(|e| e.from == "h" && e.to == "f::g"), "{:#?}", a.edges);
-    assert!(!a.edges.iter().any(|e| e.from == "h" && e.to == "f"), "{:#?}", a.edges);
+    assert_eq!(
+        a.file_cycles(),
+        vec![names(&["a::x", "b"]), names(&["d", "d::e"])]
+    );
+    assert!(
+        a.edges.iter().any(|e| e.from == "h" && e.to == "f::g"),
+        "{:#?}",
+        a.edges
+    );
+    assert!(
+        !a.edges.iter().any(|e| e.from == "h" && e.to == "f"),
+        "{:#?}",
+        a.edges
+    );
     let has = |from: &str, to: &str, text: &str| {
         a.edges
             .iter()
@@ -760,12 +782,31 @@ fn the_data_layer_imports_nothing_above_it() {
     let root = Path::new(option_env!("CARGO_MANIFEST_DIR").unwrap_or("."));
     let a = analyze(&root.join("src"));
     let up = above_the_bottom(&a);
-    println!("module_cycles: {} references from {BOTTOM:?} to modules above them", up.len());
-    assert!(up.is_empty(), "the data layer reaches up:\n{}", up.join("\n"));
+    println!(
+        "module_cycles: {} references from {BOTTOM:?} to modules above them",
+        up.len()
+    );
+    assert!(
+        up.is_empty(),
+        "the data layer reaches up:\n{}",
+        up.join("\n")
+    );
     // Twin: an edge from `model` up to `report` is listed.
     let planted = Analysis {
-        files: [("model::x".to_string(), "model/x.rs".to_string()), ("report".to_string(), "report.rs".to_string())].into(),
-        edges: vec![Edge { from: "model::x".into(), to: "report".into(), line: 3, text: "crate::report::f".into() }],
+        files: [
+            ("model::x".to_string(), "model/x.rs".to_string()),
+            ("report".to_string(), "report.rs".to_string()),
+        ]
+        .into(),
+        edges: vec![Edge {
+            from: "model::x".into(),
+            to: "report".into(),
+            line: 3,
+            text: "crate::report::f".into(),
+        }],
     };
-    assert_eq!(above_the_bottom(&planted), ["  src/model/x.rs:3  crate::report::f"]);
+    assert_eq!(
+        above_the_bottom(&planted),
+        ["  src/model/x.rs:3  crate::report::f"]
+    );
 }

@@ -7,12 +7,28 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn tool(name: &str, args: &[&str]) -> std::process::Output {
-    Command::new(name).args(args).output().unwrap_or_else(|e| panic!("{name}: {e} (apt-get install spirv-tools)"))
+    Command::new(name)
+        .args(args)
+        .output()
+        .unwrap_or_else(|e| panic!("{name}: {e} (apt-get install spirv-tools)"))
 }
 
 fn assemble(src: &Path, out: &Path) {
-    let o = tool("spirv-as", &["--target-env", "vulkan1.2", src.to_str().unwrap(), "-o", out.to_str().unwrap()]);
-    assert!(o.status.success(), "spirv-as: {}", String::from_utf8_lossy(&o.stderr));
+    let o = tool(
+        "spirv-as",
+        &[
+            "--target-env",
+            "vulkan1.2",
+            src.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ],
+    );
+    assert!(
+        o.status.success(),
+        "spirv-as: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
 }
 
 fn dis(p: &Path) -> String {
@@ -22,8 +38,16 @@ fn dis(p: &Path) -> String {
 }
 
 fn val(p: &Path) {
-    let o = tool("spirv-val", &["--target-env", "vulkan1.2", p.to_str().unwrap()]);
-    assert!(o.status.success(), "spirv-val {}: {}", p.display(), String::from_utf8_lossy(&o.stderr));
+    let o = tool(
+        "spirv-val",
+        &["--target-env", "vulkan1.2", p.to_str().unwrap()],
+    );
+    assert!(
+        o.status.success(),
+        "spirv-val {}: {}",
+        p.display(),
+        String::from_utf8_lossy(&o.stderr)
+    );
 }
 
 fn shaders() -> PathBuf {
@@ -37,23 +61,54 @@ fn as_to_address_rewrites_hand_written_spirv() {
     let out = d.path().join("out.spv");
     assemble(&shaders().join("as_array.spvasm"), &input);
     val(&input);
-    let o = run(&["patch", input.to_str().unwrap(), "--apply", "as-to-address", "-o", out.to_str().unwrap(), "--disassemble"]);
+    let o = run(&[
+        "patch",
+        input.to_str().unwrap(),
+        "--apply",
+        "as-to-address",
+        "-o",
+        out.to_str().unwrap(),
+        "--disassemble",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     val(&out);
     let text = dis(&out);
     // The descriptor array is gone; the handle comes from an address in a table whose address is
     // appended to the existing push-constant block at the first free 8-aligned offset (8).
-    assert!(!text.lines().any(|l| l.contains("OpVariable") && l.contains("UniformConstant")), "{text}");
+    assert!(
+        !text
+            .lines()
+            .any(|l| l.contains("OpVariable") && l.contains("UniformConstant")),
+        "{text}"
+    );
     assert!(!text.contains("DescriptorSet"), "{text}");
-    assert!(text.contains("OpMemoryModel PhysicalStorageBuffer64 GLSL450"), "{text}");
-    assert!(text.contains("OpMemberDecorate %") && text.contains(" 1 Offset 8"), "{text}");
+    assert!(
+        text.contains("OpMemoryModel PhysicalStorageBuffer64 GLSL450"),
+        "{text}"
+    );
+    assert!(
+        text.contains("OpMemberDecorate %") && text.contains(" 1 Offset 8"),
+        "{text}"
+    );
     assert!(text.contains("OpConvertUToPtr"), "{text}");
     assert!(text.contains("Aligned 8"), "{text}");
-    assert!(text.contains("OpConvertUToAccelerationStructureKHR"), "{text}");
+    assert!(
+        text.contains("OpConvertUToAccelerationStructureKHR"),
+        "{text}"
+    );
     // The diff printed on request shows the load being replaced.
     let diff = stdout(&o);
-    assert!(diff.lines().any(|l| l.starts_with("- ") && l.contains("OpLoad") && l.contains("%chain") || l.starts_with("- ") && l.contains("OpAccessChain")), "{diff}");
-    assert!(diff.contains("+ ") && diff.contains("OpConvertUToAccelerationStructureKHR"), "{diff}");
+    assert!(
+        diff.lines().any(
+            |l| l.starts_with("- ") && l.contains("OpLoad") && l.contains("%chain")
+                || l.starts_with("- ") && l.contains("OpAccessChain")
+        ),
+        "{diff}"
+    );
+    assert!(
+        diff.contains("+ ") && diff.contains("OpConvertUToAccelerationStructureKHR"),
+        "{diff}"
+    );
 }
 
 #[test]
@@ -63,25 +118,78 @@ fn nonuniform_and_pin_index_rewrite_hand_written_spirv() {
     assemble(&shaders().join("as_array.spvasm"), &input);
     // nonuniform: the push-constant index, the chain into the AS array and the loaded handle.
     let nu = d.path().join("nu.spv");
-    let o = run(&["patch", input.to_str().unwrap(), "--apply", "nonuniform", "-o", nu.to_str().unwrap(), "--disassemble"]);
+    let o = run(&[
+        "patch",
+        input.to_str().unwrap(),
+        "--apply",
+        "nonuniform",
+        "-o",
+        nu.to_str().unwrap(),
+        "--disassemble",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(stdout(&o).contains("3 objects decorated NonUniform"), "{}", stdout(&o));
+    assert!(
+        stdout(&o).contains("3 objects decorated NonUniform"),
+        "{}",
+        stdout(&o)
+    );
     let diff = stdout(&o);
-    assert_eq!(diff.lines().filter(|l| l.starts_with("+ ") && l.ends_with(" NonUniform")).count(), 3, "{diff}");
+    assert_eq!(
+        diff.lines()
+            .filter(|l| l.starts_with("+ ") && l.ends_with(" NonUniform"))
+            .count(),
+        3,
+        "{diff}"
+    );
     assert!(diff.contains("+ OpCapability ShaderNonUniform"), "{diff}");
     val(&nu);
     // pin-index: the chain indexes with a new spec constant (SpecId 0, default 2).
     let pin = d.path().join("pin.spv");
-    let o = run(&["patch", input.to_str().unwrap(), "--apply", "pin-index", "--option", "value=2", "-o", pin.to_str().unwrap(), "--disassemble"]);
+    let o = run(&[
+        "patch",
+        input.to_str().unwrap(),
+        "--apply",
+        "pin-index",
+        "--option",
+        "value=2",
+        "-o",
+        pin.to_str().unwrap(),
+        "--disassemble",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let diff = stdout(&o);
-    assert!(diff.lines().any(|l| l.starts_with("+ ") && l.contains("OpSpecConstant") && l.ends_with(" 2")), "{diff}");
-    assert!(diff.lines().any(|l| l.starts_with("+ ") && l.contains("SpecId 0")), "{diff}");
-    assert!(diff.lines().any(|l| l.starts_with("- ") && l.contains("OpAccessChain")), "{diff}");
+    assert!(
+        diff.lines()
+            .any(|l| l.starts_with("+ ") && l.contains("OpSpecConstant") && l.ends_with(" 2")),
+        "{diff}"
+    );
+    assert!(
+        diff.lines()
+            .any(|l| l.starts_with("+ ") && l.contains("SpecId 0")),
+        "{diff}"
+    );
+    assert!(
+        diff.lines()
+            .any(|l| l.starts_with("- ") && l.contains("OpAccessChain")),
+        "{diff}"
+    );
     val(&pin);
     // the spec id is refused when already used
     let again = d.path().join("again.spv");
-    assert_one_line_error(&run(&["patch", pin.to_str().unwrap(), "--apply", "pin-index", "--option", "spec-id=0", "-o", again.to_str().unwrap()]), 9, "");
+    assert_one_line_error(
+        &run(&[
+            "patch",
+            pin.to_str().unwrap(),
+            "--apply",
+            "pin-index",
+            "--option",
+            "spec-id=0",
+            "-o",
+            again.to_str().unwrap(),
+        ]),
+        9,
+        "",
+    );
 }
 
 #[test]
@@ -91,7 +199,17 @@ fn engine_shaders_are_patched_from_glsl() {
     let rgen = shaders().join("engine_raygen.rgen");
     // nonuniform: the mesh and material indices become NonUniform (the engine forgot nonuniformEXT).
     let out = d.path().join("chit_nu.spv");
-    let o = run(&["patch", chit.to_str().unwrap(), "--glsl", "--stage", "rchit", "--apply", "nonuniform", "-o", out.to_str().unwrap()]);
+    let o = run(&[
+        "patch",
+        chit.to_str().unwrap(),
+        "--glsl",
+        "--stage",
+        "rchit",
+        "--apply",
+        "nonuniform",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let text = dis(&out);
     assert!(text.contains("OpCapability ShaderNonUniform"));
@@ -101,23 +219,69 @@ fn engine_shaders_are_patched_from_glsl() {
     val(&out);
     // then strip it again
     let back = d.path().join("chit_strip.spv");
-    let o = run(&["patch", out.to_str().unwrap(), "--apply", "nonuniform", "--option", "strip=true", "-o", back.to_str().unwrap()]);
+    let o = run(&[
+        "patch",
+        out.to_str().unwrap(),
+        "--apply",
+        "nonuniform",
+        "--option",
+        "strip=true",
+        "-o",
+        back.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(!dis(&back).contains("OpDecorate %") || !dis(&back).contains(" NonUniform\n"));
     // pin-index: the material texture index (binding 1 of set 1) becomes a spec constant.
     let pinned = d.path().join("chit_pin.spv");
-    let o = run(&["patch", chit.to_str().unwrap(), "--glsl", "--stage", "rchit", "--apply", "pin-index", "--option", "binding=1", "--option", "value=3", "-o", pinned.to_str().unwrap()]);
+    let o = run(&[
+        "patch",
+        chit.to_str().unwrap(),
+        "--glsl",
+        "--stage",
+        "rchit",
+        "--apply",
+        "pin-index",
+        "--option",
+        "binding=1",
+        "--option",
+        "value=3",
+        "-o",
+        pinned.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let text = dis(&pinned);
-    assert!(text.contains("SpecId 0") && text.lines().any(|l| l.contains("OpSpecConstant") && l.ends_with(" 3")), "{text}");
+    assert!(
+        text.contains("SpecId 0")
+            && text
+                .lines()
+                .any(|l| l.contains("OpSpecConstant") && l.ends_with(" 3")),
+        "{text}"
+    );
     val(&pinned);
     // as-to-address on the raygen: its TLAS array is reached through an address table.
     let raddr = d.path().join("rgen_addr.spv");
-    let o = run(&["patch", rgen.to_str().unwrap(), "--glsl", "--stage", "rgen", "--apply", "as-to-address", "-o", raddr.to_str().unwrap()]);
+    let o = run(&[
+        "patch",
+        rgen.to_str().unwrap(),
+        "--glsl",
+        "--stage",
+        "rgen",
+        "--apply",
+        "as-to-address",
+        "-o",
+        raddr.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(stdout(&o).contains("address at push-constant offset 8"), "{}", stdout(&o));
+    assert!(
+        stdout(&o).contains("address at push-constant offset 8"),
+        "{}",
+        stdout(&o)
+    );
     let text = dis(&raddr);
-    assert!(text.contains("OpConvertUToAccelerationStructureKHR") && !text.contains("%tlas"), "{text}");
+    assert!(
+        text.contains("OpConvertUToAccelerationStructureKHR") && !text.contains("%tlas"),
+        "{text}"
+    );
     val(&raddr);
 }
 
@@ -129,15 +293,41 @@ fn as_to_address_sizes_an_engine_camera_push_block() {
     let d = tempfile::tempdir().unwrap();
     let rgen = shaders().join("engine_camera.rgen");
     let out = d.path().join("camera_addr.spv");
-    let o = run(&["patch", rgen.to_str().unwrap(), "--glsl", "--stage", "rgen", "--apply", "as-to-address", "-o", out.to_str().unwrap()]);
+    let o = run(&[
+        "patch",
+        rgen.to_str().unwrap(),
+        "--glsl",
+        "--stage",
+        "rgen",
+        "--apply",
+        "as-to-address",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(stdout(&o).contains("address at push-constant offset 200"), "{}", stdout(&o));
+    assert!(
+        stdout(&o).contains("address at push-constant offset 200"),
+        "{}",
+        stdout(&o)
+    );
     let text = dis(&out);
     assert!(text.contains(" Offset 200"), "{text}");
     val(&out);
     let outs = d.path().join("overlap.spv");
     assert_one_line_error(
-        &run(&["patch", rgen.to_str().unwrap(), "--glsl", "--stage", "rgen", "--apply", "as-to-address", "--option", "offset=184", "-o", outs.to_str().unwrap()]),
+        &run(&[
+            "patch",
+            rgen.to_str().unwrap(),
+            "--glsl",
+            "--stage",
+            "rgen",
+            "--apply",
+            "as-to-address",
+            "--option",
+            "offset=184",
+            "-o",
+            outs.to_str().unwrap(),
+        ]),
         9,
         "overlaps",
     );
@@ -149,12 +339,29 @@ fn ssbo_to_address_turns_the_mesh_array_into_address_loads() {
     let d = tempfile::tempdir().unwrap();
     let chit = shaders().join("engine_closest_hit.rchit");
     let out = d.path().join("chit_addr.spv");
-    let o = run(&["patch", chit.to_str().unwrap(), "--glsl", "--stage", "rchit", "--apply", "ssbo-to-address", "-o", out.to_str().unwrap()]);
+    let o = run(&[
+        "patch",
+        chit.to_str().unwrap(),
+        "--glsl",
+        "--stage",
+        "rchit",
+        "--apply",
+        "ssbo-to-address",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(stdout(&o).contains("3 loads now read through buffer addresses"), "{}", stdout(&o));
+    assert!(
+        stdout(&o).contains("3 loads now read through buffer addresses"),
+        "{}",
+        stdout(&o)
+    );
     val(&out);
     let text = dis(&out);
-    assert!(text.contains("OpMemoryModel PhysicalStorageBuffer64"), "{text}");
+    assert!(
+        text.contains("OpMemoryModel PhysicalStorageBuffer64"),
+        "{text}"
+    );
     // the per-mesh array is gone; the single material buffer (not an array) is untouched
     assert!(!text.contains("\"meshVertices\""), "{text}");
     assert!(text.contains("\"materials\""), "{text}");
@@ -162,7 +369,17 @@ fn ssbo_to_address_turns_the_mesh_array_into_address_loads() {
     // A store into an SSBO array is a shape the patch refuses, naming the instruction.
     let w = d.path().join("w.comp");
     std::fs::write(&w, "#version 460\n#extension GL_EXT_nonuniform_qualifier : require\nlayout(local_size_x = 1) in;\nlayout(set = 0, binding = 0) buffer B { uint v[]; } bufs[];\nlayout(push_constant) uniform P { uint i; } p;\nvoid main() { bufs[p.i].v[0] = 1u; }\n").unwrap();
-    let o = run(&["patch", w.to_str().unwrap(), "--glsl", "--stage", "comp", "--apply", "ssbo-to-address", "-o", d.path().join("w.spv").to_str().unwrap()]);
+    let o = run(&[
+        "patch",
+        w.to_str().unwrap(),
+        "--glsl",
+        "--stage",
+        "comp",
+        "--apply",
+        "ssbo-to-address",
+        "-o",
+        d.path().join("w.spv").to_str().unwrap(),
+    ]);
     assert_one_line_error(&o, 9, "only loads are rewritten");
 }
 
@@ -173,23 +390,125 @@ fn bad_input_is_refused_with_one_line_and_no_output() {
     let outs = out.to_str().unwrap();
     let junk = d.path().join("junk.spv");
     std::fs::write(&junk, b"this is not spir-v at all!!").unwrap();
-    assert_one_line_error(&run(&["patch", junk.to_str().unwrap(), "-a", "nonuniform", "-o", outs]), 9, "not a SPIR-V module");
+    assert_one_line_error(
+        &run(&[
+            "patch",
+            junk.to_str().unwrap(),
+            "-a",
+            "nonuniform",
+            "-o",
+            outs,
+        ]),
+        9,
+        "not a SPIR-V module",
+    );
     // truncated valid module
     let good = d.path().join("good.spv");
     assemble(&shaders().join("as_array.spvasm"), &good);
     let bytes = std::fs::read(&good).unwrap();
     let trunc = d.path().join("trunc.spv");
     std::fs::write(&trunc, &bytes[..bytes.len() / 2 / 4 * 4]).unwrap();
-    assert_one_line_error(&run(&["patch", trunc.to_str().unwrap(), "-a", "as-to-address", "-o", outs]), 9, "not a SPIR-V module");
+    assert_one_line_error(
+        &run(&[
+            "patch",
+            trunc.to_str().unwrap(),
+            "-a",
+            "as-to-address",
+            "-o",
+            outs,
+        ]),
+        9,
+        "not a SPIR-V module",
+    );
     // a patch that changes nothing: no acceleration structure in a closest-hit shader
     let chit = shaders().join("engine_closest_hit.rchit");
-    assert_one_line_error(&run(&["patch", chit.to_str().unwrap(), "--glsl", "--stage", "rchit", "-a", "as-to-address", "-o", outs]), 9, "nothing to patch");
-    assert_one_line_error(&run(&["patch", chit.to_str().unwrap(), "--glsl", "--stage", "rchit", "-a", "pin-index", "--option", "binding=7", "-o", outs]), 9, "binding 7");
-    assert_one_line_error(&run(&["patch", good.to_str().unwrap(), "-a", "nonuniform", "--option", "strip=true", "-o", outs]), 9, "nothing to patch");
+    assert_one_line_error(
+        &run(&[
+            "patch",
+            chit.to_str().unwrap(),
+            "--glsl",
+            "--stage",
+            "rchit",
+            "-a",
+            "as-to-address",
+            "-o",
+            outs,
+        ]),
+        9,
+        "nothing to patch",
+    );
+    assert_one_line_error(
+        &run(&[
+            "patch",
+            chit.to_str().unwrap(),
+            "--glsl",
+            "--stage",
+            "rchit",
+            "-a",
+            "pin-index",
+            "--option",
+            "binding=7",
+            "-o",
+            outs,
+        ]),
+        9,
+        "binding 7",
+    );
+    assert_one_line_error(
+        &run(&[
+            "patch",
+            good.to_str().unwrap(),
+            "-a",
+            "nonuniform",
+            "--option",
+            "strip=true",
+            "-o",
+            outs,
+        ]),
+        9,
+        "nothing to patch",
+    );
     // options that belong to no applied patch, unknown patches, overlapping offsets
-    assert_one_line_error(&run(&["patch", good.to_str().unwrap(), "-a", "nonuniform", "--option", "offset=8", "-o", outs]), 9, "offset");
-    assert_one_line_error(&run(&["patch", good.to_str().unwrap(), "-a", "make-it-fast", "-o", outs]), 2, "unknown patch");
-    assert_one_line_error(&run(&["patch", good.to_str().unwrap(), "-a", "as-to-address", "--option", "offset=0", "-o", outs]), 9, "overlaps");
+    assert_one_line_error(
+        &run(&[
+            "patch",
+            good.to_str().unwrap(),
+            "-a",
+            "nonuniform",
+            "--option",
+            "offset=8",
+            "-o",
+            outs,
+        ]),
+        9,
+        "offset",
+    );
+    assert_one_line_error(
+        &run(&[
+            "patch",
+            good.to_str().unwrap(),
+            "-a",
+            "make-it-fast",
+            "-o",
+            outs,
+        ]),
+        2,
+        "unknown patch",
+    );
+    assert_one_line_error(
+        &run(&[
+            "patch",
+            good.to_str().unwrap(),
+            "-a",
+            "as-to-address",
+            "--option",
+            "offset=0",
+            "-o",
+            outs,
+        ]),
+        9,
+        "overlaps",
+    );
     assert!(!out.exists(), "no output file after a refusal");
     let o = run(&["patch", "--list"]);
     assert!(stdout(&o).contains("as-to-address") && stdout(&o).contains("pin-index"));
@@ -222,10 +541,21 @@ fn random_and_truncated_modules_never_panic() {
         }
         let p = d.path().join(format!("case{i}.spv"));
         std::fs::write(&p, &b).unwrap();
-        let o = run(&["patch", p.to_str().unwrap(), "-a", "as-to-address,nonuniform", "-o", out.to_str().unwrap()]);
+        let o = run(&[
+            "patch",
+            p.to_str().unwrap(),
+            "-a",
+            "as-to-address,nonuniform",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
         let err = stderr(&o);
         assert!(!err.contains("panicked"), "case {i}: {err}");
-        assert!(matches!(o.status.code(), Some(0) | Some(9)), "case {i}: {:?} {err}", o.status);
+        assert!(
+            matches!(o.status.code(), Some(0) | Some(9)),
+            "case {i}: {:?} {err}",
+            o.status
+        );
     }
 }
 
@@ -238,7 +568,19 @@ fn glsl_shader_tree_with_includes_and_defines_is_patched() {
     let chit = tree.join("shaders/gbuffer.rchit");
     let inc = tree.join("engine/include");
     let compile = |extra: &[&str], out: &Path| {
-        let mut args = vec!["patch", chit.to_str().unwrap(), "--glsl", "--stage", "rchit", "-I", inc.to_str().unwrap(), "--apply", "nonuniform", "-o", out.to_str().unwrap()];
+        let mut args = vec![
+            "patch",
+            chit.to_str().unwrap(),
+            "--glsl",
+            "--stage",
+            "rchit",
+            "-I",
+            inc.to_str().unwrap(),
+            "--apply",
+            "nonuniform",
+            "-o",
+            out.to_str().unwrap(),
+        ];
         args.extend_from_slice(extra);
         run(&args)
     };
@@ -247,15 +589,30 @@ fn glsl_shader_tree_with_includes_and_defines_is_patched() {
     assert!(o.status.success(), "{}", stderr(&o));
     val(&out8);
     let text = dis(&out8);
-    assert!(text.contains("OpCapability StorageBufferArrayNonUniformIndexing"), "{text}");
-    assert!(text.contains("OpCapability SampledImageArrayNonUniformIndexing"), "{text}");
+    assert!(
+        text.contains("OpCapability StorageBufferArrayNonUniformIndexing"),
+        "{text}"
+    );
+    assert!(
+        text.contains("OpCapability SampledImageArrayNonUniformIndexing"),
+        "{text}"
+    );
     // The define reaches the included header: the material table is 8 long.
-    assert!(text.lines().any(|l| l.contains("OpTypeArray") ) && text.lines().any(|l| l.contains("OpConstant") && l.ends_with(" 8")), "{text}");
+    assert!(
+        text.lines().any(|l| l.contains("OpTypeArray"))
+            && text
+                .lines()
+                .any(|l| l.contains("OpConstant") && l.ends_with(" 8")),
+        "{text}"
+    );
     // A value-less define switches the local helper's branch: no texture read is left.
     let dbg = d.path().join("dbg.spv");
     let o = compile(&["-D", "MAX_MATERIALS=4", "-D", "DEBUG_UV"], &dbg);
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(!dis(&dbg).contains("OpImageSampleExplicitLod"), "DEBUG_UV not applied");
+    assert!(
+        !dis(&dbg).contains("OpImageSampleExplicitLod"),
+        "DEBUG_UV not applied"
+    );
     assert!(text.contains("OpImageSampleExplicitLod"));
     // Target environments: SPIR-V 1.5 for vulkan1.2 (default), 1.6 for vulkan1.3 and vulkan1.4.
     let version = |p: &Path| {
@@ -279,7 +636,17 @@ fn glsl_include_errors_are_one_line_naming_the_file_and_chain() {
     let chit = tree.join("shaders/gbuffer.rchit");
     let inc = tree.join("engine/include");
     let patch = |input: &Path, stage: &str, extra: &[&str]| {
-        let mut args = vec!["patch", input.to_str().unwrap(), "--glsl", "--stage", stage, "--apply", "nonuniform", "-o", out.to_str().unwrap()];
+        let mut args = vec![
+            "patch",
+            input.to_str().unwrap(),
+            "--glsl",
+            "--stage",
+            stage,
+            "--apply",
+            "nonuniform",
+            "-o",
+            out.to_str().unwrap(),
+        ];
         args.extend_from_slice(extra);
         run(&args)
     };
@@ -288,12 +655,20 @@ fn glsl_include_errors_are_one_line_naming_the_file_and_chain() {
     assert_one_line_error(&o, 9, "missing/constants.glsl");
     let err = stderr(&o);
     assert!(err.contains("helpers.glsl:3"), "{err}");
-    assert!(err.contains("broken/main.rgen:5"), "the chain names the root's include line: {err}");
+    assert!(
+        err.contains("broken/main.rgen:5"),
+        "the chain names the root's include line: {err}"
+    );
     // A compile error inside an included file: that file and line, then who included it.
     let o = patch(&tree.join("broken/typo.rgen"), "rgen", &[]);
     assert_one_line_error(&o, 9, "typo.glsl:3");
     let err = stderr(&o);
-    assert!(err.contains("undeclaredThing") && err.contains("(included from") && err.contains("typo.rgen:4"), "{err}");
+    assert!(
+        err.contains("undeclaredThing")
+            && err.contains("(included from")
+            && err.contains("typo.rgen:4"),
+        "{err}"
+    );
     // Without -I the engine header is not found; the message says where it looked.
     let o = patch(&chit, "rchit", &["-D", "MAX_MATERIALS=8"]);
     assert_one_line_error(&o, 9, "render/bindings.glsl");
@@ -301,7 +676,11 @@ fn glsl_include_errors_are_one_line_naming_the_file_and_chain() {
     // An #error in a nested header (define forgotten) names the header and the chain.
     let o = patch(&chit, "rchit", &["-I", inc.to_str().unwrap()]);
     assert_one_line_error(&o, 9, "MAX_MATERIALS must be defined");
-    assert!(stderr(&o).contains("render/bindings.glsl:"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("render/bindings.glsl:"),
+        "{}",
+        stderr(&o)
+    );
     // An include cycle ends with one line instead of a hang.
     std::fs::write(d.path().join("cycle.comp"), "#version 460\n#extension GL_GOOGLE_include_directive : require\n#include \"a.glsl\"\nlayout(local_size_x = 1) in;\nvoid main() {}\n").unwrap();
     std::fs::write(d.path().join("a.glsl"), "#include \"b.glsl\"\n").unwrap();
@@ -309,7 +688,15 @@ fn glsl_include_errors_are_one_line_naming_the_file_and_chain() {
     let o = patch(&d.path().join("cycle.comp"), "comp", &[]);
     assert_one_line_error(&o, 9, "include cycle");
     // Bad flags are usage errors.
-    assert_one_line_error(&patch(&chit, "rchit", &["-D", "1BAD=2"]), 2, "GLSL identifier");
-    assert_one_line_error(&patch(&chit, "rchit", &["-I", "/nonexistent/dir"]), 2, "not a directory");
+    assert_one_line_error(
+        &patch(&chit, "rchit", &["-D", "1BAD=2"]),
+        2,
+        "GLSL identifier",
+    );
+    assert_one_line_error(
+        &patch(&chit, "rchit", &["-I", "/nonexistent/dir"]),
+        2,
+        "not a directory",
+    );
     assert!(!out.exists(), "nothing written");
 }

@@ -11,7 +11,8 @@ use std::process::{Output, Stdio};
 use std::time::{Duration, Instant};
 
 /// One raygen cell.
-const ONE: &str = "stage=raygen,resource=storage_buffer,index=literal,descriptor_model=descriptor_indexing";
+const ONE: &str =
+    "stage=raygen,resource=storage_buffer,index=literal,descriptor_model=descriptor_indexing";
 /// Two cells (raygen and compute).
 const TWO: &str = "stage=raygen|compute,resource=storage_buffer,index=literal,descriptor_model=descriptor_indexing";
 
@@ -20,7 +21,13 @@ fn report(path: &Path) -> Value {
 }
 
 fn cells(r: &Value) -> Vec<Value> {
-    r["cells"].as_array().expect("cells").iter().filter(|c| c["outcome"] != "unsupported").cloned().collect()
+    r["cells"]
+        .as_array()
+        .expect("cells")
+        .iter()
+        .filter(|c| c["outcome"] != "unsupported")
+        .cloned()
+        .collect()
 }
 
 fn workers(r: &Value) -> Vec<Value> {
@@ -35,8 +42,17 @@ fn run_bounded(args: &[&str], fault: Option<&str>, limit: Duration) -> (Output, 
         c.env("RTPROBE_WORKER_FAULT", f);
     }
     // `-vv` logs can be huge when the supervisor fails to stop a flooding worker: not kept.
-    let err = if args.contains(&"-vv") { Stdio::null() } else { Stdio::piped() };
-    let child = c.args(args).stdout(Stdio::piped()).stderr(err).spawn().expect("spawn rtprobe");
+    let err = if args.contains(&"-vv") {
+        Stdio::null()
+    } else {
+        Stdio::piped()
+    };
+    let child = c
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(err)
+        .spawn()
+        .expect("spawn rtprobe");
     let pid = child.id() as i32;
     let (tx, rx) = std::sync::mpsc::channel();
     let t = Instant::now();
@@ -52,15 +68,37 @@ fn run_bounded(args: &[&str], fault: Option<&str>, limit: Duration) -> (Output, 
     }
 }
 
-fn fault_run(fault: &str, filter: &str, extra: &[&str], limit: Duration) -> (Output, Value, Duration) {
+fn fault_run(
+    fault: &str,
+    filter: &str,
+    extra: &[&str],
+    limit: Duration,
+) -> (Output, Value, Duration) {
     fault_run_with(&[], fault, filter, extra, limit)
 }
 
-fn fault_run_with(global: &[&str], fault: &str, filter: &str, extra: &[&str], limit: Duration) -> (Output, Value, Duration) {
+fn fault_run_with(
+    global: &[&str],
+    fault: &str,
+    filter: &str,
+    extra: &[&str],
+    limit: Duration,
+) -> (Output, Value, Duration) {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("r.json");
     let mut args = global.to_vec();
-    args.extend_from_slice(&["run", "-j", "1", "--no-confirm", "--patches", "none", "--filter", filter, "-o", out.to_str().unwrap()]);
+    args.extend_from_slice(&[
+        "run",
+        "-j",
+        "1",
+        "--no-confirm",
+        "--patches",
+        "none",
+        "--filter",
+        filter,
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     args.extend_from_slice(extra);
     let (o, took) = run_bounded(&args, Some(fault), limit);
     let r = report(&out);
@@ -77,7 +115,13 @@ fn device_loss_in_setup_is_the_setups_outcome_and_no_cell_runs() {
     for w in &ws {
         assert_eq!(w["phase"], "setup");
         assert_eq!(w["outcome"], "device_lost");
-        assert!(w["detail"].as_str().unwrap().contains("acceleration structures and resources"), "{w}");
+        assert!(
+            w["detail"]
+                .as_str()
+                .unwrap()
+                .contains("acceleration structures and resources"),
+            "{w}"
+        );
     }
     let cs = cells(&r);
     assert_eq!(cs.len(), 2);
@@ -85,21 +129,36 @@ fn device_loss_in_setup_is_the_setups_outcome_and_no_cell_runs() {
         // Every cell is recorded, none blamed: not run, with the setup's outcome.
         assert_eq!(c["outcome"], "device_lost", "{c}");
         assert_eq!(c["attempts"][0]["phase"], "setup");
-        assert!(c["attempts"][0]["result"].is_null(), "a cell ran on a lost device: {c}");
+        assert!(
+            c["attempts"][0]["result"].is_null(),
+            "a cell ran on a lost device: {c}"
+        );
         assert!(c["reason"].as_str().unwrap().starts_with("not run:"), "{c}");
     }
 }
 
 #[test]
 fn hung_device_creation_makes_the_cells_timeout_in_setup() {
-    let (o, r, took) = fault_run("setup:hang", TWO, &["--setup-timeout", "2"], Duration::from_secs(120));
+    let (o, r, took) = fault_run(
+        "setup:hang",
+        TWO,
+        &["--setup-timeout", "2"],
+        Duration::from_secs(120),
+    );
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(took < Duration::from_secs(60), "took {took:?}");
     let ws = workers(&r);
     assert_eq!(ws.len(), 2, "{ws:?}");
     for w in &ws {
-        assert_eq!((w["phase"].as_str(), w["outcome"].as_str()), (Some("setup"), Some("timeout")), "{w}");
-        assert!(w["detail"].as_str().unwrap().contains("vkCreateDevice"), "{w}");
+        assert_eq!(
+            (w["phase"].as_str(), w["outcome"].as_str()),
+            (Some("setup"), Some("timeout")),
+            "{w}"
+        );
+        assert!(
+            w["detail"].as_str().unwrap().contains("vkCreateDevice"),
+            "{w}"
+        );
     }
     for c in cells(&r) {
         assert_eq!(c["outcome"], "timeout", "{c}");
@@ -109,7 +168,12 @@ fn hung_device_creation_makes_the_cells_timeout_in_setup() {
 
 #[test]
 fn a_hang_in_pipeline_creation_is_a_timeout_in_pipeline() {
-    let (o, r, _) = fault_run("pipeline:hang", ONE, &["--timeout", "3"], Duration::from_secs(120));
+    let (o, r, _) = fault_run(
+        "pipeline:hang",
+        ONE,
+        &["--timeout", "3"],
+        Duration::from_secs(120),
+    );
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     let cs = cells(&r);
     assert_eq!(cs.len(), 1);
@@ -128,7 +192,13 @@ fn a_worker_that_keeps_printing_still_times_out() {
     // With debug logs on (`-vv`, as when someone investigates a hang) the supervisor handles each
     // line slower than the worker prints them: its queue never runs dry, and the deadline must
     // still fire.
-    let (o, r, took) = fault_run_with(&["-vv"], "trace:spam", ONE, &["--timeout", "3"], Duration::from_secs(60));
+    let (o, r, took) = fault_run_with(
+        &["-vv"],
+        "trace:spam",
+        ONE,
+        &["--timeout", "3"],
+        Duration::from_secs(60),
+    );
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(took < Duration::from_secs(60), "took {took:?}");
     let cs = cells(&r);
@@ -147,33 +217,63 @@ fn a_crash_between_cells_is_recorded_and_the_rest_still_run() {
         assert_eq!(c["outcome"], "pass", "{c}");
         assert_eq!(c["attempts"].as_array().unwrap().len(), 1);
     }
-    let crashes: Vec<_> = workers(&r).into_iter().filter(|w| w["outcome"] == "crash").collect();
+    let crashes: Vec<_> = workers(&r)
+        .into_iter()
+        .filter(|w| w["outcome"] == "crash")
+        .collect();
     assert_eq!(crashes.len(), 1, "{:?}", workers(&r));
     assert_eq!(crashes[0]["phase"], "between_cells");
     assert_eq!(crashes[0]["worker_exit"]["signal"], 11);
     // The replacement worker ran the second cell.
-    assert_ne!(cs[0]["attempts"][0]["worker"], cs[1]["attempts"][0]["worker"]);
-    assert!(stdout(&o).contains("worker faults outside cells (1)"), "{}", stdout(&o));
+    assert_ne!(
+        cs[0]["attempts"][0]["worker"],
+        cs[1]["attempts"][0]["worker"]
+    );
+    assert!(
+        stdout(&o).contains("worker faults outside cells (1)"),
+        "{}",
+        stdout(&o)
+    );
 }
 
 #[test]
 fn a_hang_between_cells_is_the_workers_and_the_next_cell_still_runs() {
-    let (o, r, took) = fault_run("between_cells:hang", TWO, &["--timeout", "3"], Duration::from_secs(120));
+    let (o, r, took) = fault_run(
+        "between_cells:hang",
+        TWO,
+        &["--timeout", "3"],
+        Duration::from_secs(120),
+    );
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(took < Duration::from_secs(60), "took {took:?}");
-    assert!(cells(&r).iter().all(|c| c["outcome"] == "pass"), "{:?}", cells(&r));
-    let hung: Vec<_> = workers(&r).into_iter().filter(|w| w["outcome"] == "timeout").collect();
+    assert!(
+        cells(&r).iter().all(|c| c["outcome"] == "pass"),
+        "{:?}",
+        cells(&r)
+    );
+    let hung: Vec<_> = workers(&r)
+        .into_iter()
+        .filter(|w| w["outcome"] == "timeout")
+        .collect();
     assert_eq!(hung.len(), 1, "{:?}", workers(&r));
     assert_eq!(hung[0]["phase"], "between_cells");
 }
 
 #[test]
 fn a_hang_in_teardown_is_bounded_and_reported() {
-    let (o, r, took) = fault_run("teardown:hang", ONE, &["--timeout", "3"], Duration::from_secs(120));
+    let (o, r, took) = fault_run(
+        "teardown:hang",
+        ONE,
+        &["--timeout", "3"],
+        Duration::from_secs(120),
+    );
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(took < Duration::from_secs(60), "took {took:?}");
     assert_eq!(cells(&r)[0]["outcome"], "pass");
-    let hung: Vec<_> = workers(&r).into_iter().filter(|w| w["phase"] == "teardown").collect();
+    let hung: Vec<_> = workers(&r)
+        .into_iter()
+        .filter(|w| w["phase"] == "teardown")
+        .collect();
     assert_eq!(hung.len(), 1, "{:?}", workers(&r));
     assert_eq!(hung[0]["outcome"], "timeout");
 }
@@ -182,23 +282,56 @@ fn a_hang_in_teardown_is_bounded_and_reported() {
 fn every_attempt_records_the_features_its_worker_enabled() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("r.json");
-    let (o, _) = run_bounded(&["run", "--isolation", "process-per-cell", "--patches", "none", "--filter", TWO, "-o", out.to_str().unwrap()], None, Duration::from_secs(180));
+    let (o, _) = run_bounded(
+        &[
+            "run",
+            "--isolation",
+            "process-per-cell",
+            "--patches",
+            "none",
+            "--filter",
+            TWO,
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        None,
+        Duration::from_secs(180),
+    );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let r = report(&out);
     let features = |stage: &str| -> Vec<String> {
         let c = cells(&r).into_iter().find(|c| c["stage"] == stage).unwrap();
-        c["attempts"][0]["device_features"].as_array().unwrap().iter().map(|v| v.as_str().unwrap().to_string()).collect()
+        c["attempts"][0]["device_features"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_str().unwrap().to_string())
+            .collect()
     };
     let rt = features("raygen");
-    assert!(rt.iter().any(|f| f == "VK_KHR_ray_tracing_pipeline") && rt.iter().any(|f| f == "rayTracingPipeline"), "{rt:?}");
+    assert!(
+        rt.iter().any(|f| f == "VK_KHR_ray_tracing_pipeline")
+            && rt.iter().any(|f| f == "rayTracingPipeline"),
+        "{rt:?}"
+    );
     // A compute cell alone needs no ray tracing pipeline: its worker did not enable one.
     let compute = features("compute");
-    assert!(compute.iter().any(|f| f == "bufferDeviceAddress"), "{compute:?}");
-    assert!(!compute.iter().any(|f| f == "VK_KHR_ray_tracing_pipeline" || f == "rayTracingPipeline"), "{compute:?}");
+    assert!(
+        compute.iter().any(|f| f == "bufferDeviceAddress"),
+        "{compute:?}"
+    );
+    assert!(
+        !compute
+            .iter()
+            .any(|f| f == "VK_KHR_ray_tracing_pipeline" || f == "rayTracingPipeline"),
+        "{compute:?}"
+    );
     // And the workers' setup records say the same.
     let ws = workers(&r);
     assert_eq!(ws.len(), 2);
-    assert!(ws.iter().all(|w| w["phase"] == "setup" && w["outcome"] == "pass"));
+    assert!(ws
+        .iter()
+        .all(|w| w["phase"] == "setup" && w["outcome"] == "pass"));
 }
 
 // ---- no orphans ----------------------------------------------------------------------------
@@ -207,14 +340,22 @@ fn every_attempt_records_the_features_its_worker_enabled() {
 fn live_workers(job_dir: &str) -> Vec<i32> {
     let mut found = vec![];
     for e in std::fs::read_dir("/proc").unwrap().flatten() {
-        let Ok(pid) = e.file_name().to_string_lossy().parse::<i32>() else { continue };
-        let Ok(cmd) = std::fs::read(format!("/proc/{pid}/cmdline")) else { continue };
+        let Ok(pid) = e.file_name().to_string_lossy().parse::<i32>() else {
+            continue;
+        };
+        let Ok(cmd) = std::fs::read(format!("/proc/{pid}/cmdline")) else {
+            continue;
+        };
         let cmd = String::from_utf8_lossy(&cmd).replace('\0', " ");
         if !cmd.contains("__worker") || !cmd.contains(job_dir) {
             continue;
         }
         let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
-        let state = stat.rsplit_once(')').and_then(|(_, r)| r.split_whitespace().next()).unwrap_or("?").to_string();
+        let state = stat
+            .rsplit_once(')')
+            .and_then(|(_, r)| r.split_whitespace().next())
+            .unwrap_or("?")
+            .to_string();
         if state != "Z" && state != "X" {
             found.push(pid);
         }
@@ -225,13 +366,30 @@ fn live_workers(job_dir: &str) -> Vec<i32> {
 /// Start a run (with the worker fault `fault`, if any), wait until a worker runs (and, without a
 /// fault, a cell finished), then `kill` the supervisor with `sig`, and check that no worker of
 /// this run is left. Returns the supervisor's exit and its stderr.
-fn interrupt_mid_run(out: &Path, sig: i32, filter: &str, fault: Option<&str>) -> (std::process::ExitStatus, String) {
+fn interrupt_mid_run(
+    out: &Path,
+    sig: i32,
+    filter: &str,
+    fault: Option<&str>,
+) -> (std::process::ExitStatus, String) {
     let mut c = bin();
     if let Some(f) = fault {
         c.env("RTPROBE_WORKER_FAULT", f);
     }
     let mut child = c
-        .args(["run", "-j", "2", "--timeout", "60", "--patches", "none", "--filter", filter, "-o", out.to_str().unwrap()])
+        .args([
+            "run",
+            "-j",
+            "2",
+            "--timeout",
+            "60",
+            "--patches",
+            "none",
+            "--filter",
+            filter,
+            "-o",
+            out.to_str().unwrap(),
+        ])
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()
@@ -239,11 +397,23 @@ fn interrupt_mid_run(out: &Path, sig: i32, filter: &str, fault: Option<&str>) ->
     let job_dir = format!("rtprobe-{}/", child.id());
     let start = Instant::now();
     loop {
-        let done = std::fs::read(out).ok().and_then(|b| serde_json::from_slice::<Value>(&b).ok()).map(|r| cells(&r).iter().filter(|c| !c["attempts"].as_array().unwrap().is_empty()).count()).unwrap_or(0);
+        let done = std::fs::read(out)
+            .ok()
+            .and_then(|b| serde_json::from_slice::<Value>(&b).ok())
+            .map(|r| {
+                cells(&r)
+                    .iter()
+                    .filter(|c| !c["attempts"].as_array().unwrap().is_empty())
+                    .count()
+            })
+            .unwrap_or(0);
         if (done >= 1 || fault.is_some()) && !live_workers(&job_dir).is_empty() {
             break;
         }
-        assert!(start.elapsed() < Duration::from_secs(120), "run made no progress");
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "run made no progress"
+        );
         std::thread::sleep(Duration::from_millis(20));
     }
     if fault.is_some() {
@@ -254,7 +424,12 @@ fn interrupt_mid_run(out: &Path, sig: i32, filter: &str, fault: Option<&str>) ->
     let status = child.wait().unwrap();
     let mut err = String::new();
     use std::io::Read;
-    child.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+    child
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut err)
+        .unwrap();
     // Nothing of this run may still be running (SIGKILL and reaping take a moment).
     let start = Instant::now();
     loop {
@@ -281,14 +456,41 @@ fn ctrl_c_kills_every_worker_keeps_the_report_and_resume_finishes() {
     let out = dir.path().join("r.json");
     let (status, err) = interrupt_mid_run(&out, libc::SIGINT, MANY, None);
     assert_eq!(status.code(), Some(130), "{status:?}");
-    assert!(err.contains("interrupted (SIGINT)") && err.contains("--resume"), "{err}");
+    assert!(
+        err.contains("interrupted (SIGINT)") && err.contains("--resume"),
+        "{err}"
+    );
     let r = report(&out);
     assert_eq!(r["complete"], false);
     // The same result-changing options as the interrupted run (a different --timeout is refused).
-    let o = run(&["run", "-j", "2", "--timeout", "20", "--patches", "none", "--filter", MANY, "--resume", out.to_str().unwrap()]);
+    let o = run(&[
+        "run",
+        "-j",
+        "2",
+        "--timeout",
+        "20",
+        "--patches",
+        "none",
+        "--filter",
+        MANY,
+        "--resume",
+        out.to_str().unwrap(),
+    ]);
     assert_eq!(o.status.code(), Some(9), "{}", stderr(&o));
     assert!(stderr(&o).contains("--timeout differs"), "{}", stderr(&o));
-    let o = run(&["run", "-j", "2", "--timeout", "60", "--patches", "none", "--filter", MANY, "--resume", out.to_str().unwrap()]);
+    let o = run(&[
+        "run",
+        "-j",
+        "2",
+        "--timeout",
+        "60",
+        "--patches",
+        "none",
+        "--filter",
+        MANY,
+        "--resume",
+        out.to_str().unwrap(),
+    ]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let r = report(&out);
     assert_eq!(r["complete"], true);
@@ -298,7 +500,12 @@ fn ctrl_c_kills_every_worker_keeps_the_report_and_resume_finishes() {
 #[test]
 fn sigterm_kills_a_hung_worker_too() {
     let dir = tempfile::tempdir().unwrap();
-    let (status, err) = interrupt_mid_run(&dir.path().join("r.json"), libc::SIGTERM, ONE, Some("pipeline:hang"));
+    let (status, err) = interrupt_mid_run(
+        &dir.path().join("r.json"),
+        libc::SIGTERM,
+        ONE,
+        Some("pipeline:hang"),
+    );
     assert_eq!(status.code(), Some(143), "{status:?}");
     assert!(err.contains("terminated (SIGTERM)"), "{err}");
 }
@@ -307,7 +514,12 @@ fn sigterm_kills_a_hung_worker_too() {
 fn a_killed_supervisor_leaves_no_worker_running() {
     // The worker hangs in pipeline creation: nothing but the supervisor's death can end it.
     let dir = tempfile::tempdir().unwrap();
-    let (status, _) = interrupt_mid_run(&dir.path().join("r.json"), libc::SIGKILL, ONE, Some("pipeline:hang"));
+    let (status, _) = interrupt_mid_run(
+        &dir.path().join("r.json"),
+        libc::SIGKILL,
+        ONE,
+        Some("pipeline:hang"),
+    );
     use std::os::unix::process::ExitStatusExt;
     assert_eq!(status.signal(), Some(libc::SIGKILL));
 }
@@ -317,22 +529,42 @@ fn a_killed_supervisor_leaves_no_worker_running() {
 /// worker with each cell building at its turn. No cell is lost, none is blamed.
 #[test]
 fn a_fault_while_prebuilding_is_the_workers_and_the_batch_runs_cell_by_cell() {
-    for (fault, outcome) in [("prebuild:crash", "crash"), ("prebuild:hang", "timeout"), ("prebuild:lose", "device_lost")] {
+    for (fault, outcome) in [
+        ("prebuild:crash", "crash"),
+        ("prebuild:hang", "timeout"),
+        ("prebuild:lose", "device_lost"),
+    ] {
         // Validation off: under --validate a worker never prebuilds (one thread).
-        let (o, r, took) = fault_run_with(&["--validate=off"], fault, TWO, &["--threads", "2", "--timeout", "3"], Duration::from_secs(120));
+        let (o, r, took) = fault_run_with(
+            &["--validate=off"],
+            fault,
+            TWO,
+            &["--threads", "2", "--timeout", "3"],
+            Duration::from_secs(120),
+        );
         assert_eq!(o.status.code(), Some(1), "{fault}: {}", stderr(&o));
         assert!(took < Duration::from_secs(60), "{fault} took {took:?}");
         let ws = workers(&r);
         let pre: Vec<_> = ws.iter().filter(|w| w["phase"] == "prebuild").collect();
         assert_eq!(pre.len(), 1, "{fault}: {ws:?}");
         assert_eq!(pre[0]["outcome"], outcome, "{fault}: {}", pre[0]);
-        assert!(pre[0]["detail"].as_str().unwrap().contains("each cell building at its turn"), "{}", pre[0]);
+        assert!(
+            pre[0]["detail"]
+                .as_str()
+                .unwrap()
+                .contains("each cell building at its turn"),
+            "{}",
+            pre[0]
+        );
         let cs = cells(&r);
         assert_eq!(cs.len(), 2, "{fault}");
         for c in &cs {
             assert_eq!(c["outcome"], "pass", "{fault}: {c}");
             assert_eq!(c["attempts"].as_array().unwrap().len(), 1, "{fault}: {c}");
-            assert_ne!(c["attempts"][0]["worker"], pre[0]["worker"], "{fault}: the failed prebuild's worker has no attempt: {c}");
+            assert_ne!(
+                c["attempts"][0]["worker"], pre[0]["worker"],
+                "{fault}: the failed prebuild's worker has no attempt: {c}"
+            );
         }
         assert_eq!(r["options"]["threads"], 2);
     }
@@ -341,9 +573,20 @@ fn a_fault_while_prebuilding_is_the_workers_and_the_batch_runs_cell_by_cell() {
 /// Twin: with one thread the worker never prebuilds, so the same hook never fires.
 #[test]
 fn one_thread_never_prebuilds() {
-    let (o, r, _) = fault_run("prebuild:crash", TWO, &["--threads", "1"], Duration::from_secs(120));
+    let (o, r, _) = fault_run(
+        "prebuild:crash",
+        TWO,
+        &["--threads", "1"],
+        Duration::from_secs(120),
+    );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    assert!(workers(&r).iter().all(|w| w["phase"] == "setup" && w["outcome"] == "pass"), "{:?}", workers(&r));
+    assert!(
+        workers(&r)
+            .iter()
+            .all(|w| w["phase"] == "setup" && w["outcome"] == "pass"),
+        "{:?}",
+        workers(&r)
+    );
     assert_eq!(r["timing"]["prebuilt_pipelines"], 0);
     assert!(cells(&r).iter().all(|c| c["outcome"] == "pass"));
 }
@@ -352,9 +595,19 @@ fn one_thread_never_prebuilds() {
 /// worker prebuilds (the prebuilt cell enters its `pipeline` phase at its turn).
 #[test]
 fn a_crash_in_pipeline_with_threads_is_one_cells_verdict() {
-    let (o, r, _) = fault_run_with(&["--validate=off"], "pipeline:crash", TWO, &["--threads", "2"], Duration::from_secs(180));
+    let (o, r, _) = fault_run_with(
+        &["--validate=off"],
+        "pipeline:crash",
+        TWO,
+        &["--threads", "2"],
+        Duration::from_secs(180),
+    );
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
-    assert!(r["timing"]["prebuilt_pipelines"].as_u64().unwrap() >= 1, "{}", r["timing"]);
+    assert!(
+        r["timing"]["prebuilt_pipelines"].as_u64().unwrap() >= 1,
+        "{}",
+        r["timing"]
+    );
     for c in cells(&r) {
         assert_eq!(c["outcome"], "crash", "{c}");
         assert_eq!(c["attempts"][0]["phase"], "pipeline", "{c}");

@@ -24,10 +24,10 @@ pub mod stats;
 use crate::model::RunReport;
 use serde::Serialize;
 use serde_json::{json, Value};
+use stats::Trial;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Instant;
-use stats::Trial;
 
 pub const SCHEMA: &str = "rtprobe.bench/1";
 
@@ -57,9 +57,16 @@ pub enum BenchError {
     #[error("cannot start `{cmd}`: {source}")]
     Spawn { cmd: String, source: std::io::Error },
     #[error("`{cmd}` exited with code {code}: {stderr}")]
-    RunFailed { cmd: String, code: i32, stderr: String },
+    RunFailed {
+        cmd: String,
+        code: i32,
+        stderr: String,
+    },
     #[error("`{cmd}`: {why}")]
-    Report { cmd: String, why: crate::model::LoadError },
+    Report {
+        cmd: String,
+        why: crate::model::LoadError,
+    },
     #[error("`{cmd}` ran no {what} cell: check the filter")]
     Empty { cmd: String, what: &'static str },
 }
@@ -128,7 +135,9 @@ fn size_arg(s: u32) -> String {
 }
 
 fn shell_quote(a: &str) -> String {
-    if a.chars().all(|c| c.is_ascii_alphanumeric() || "-_./=:,".contains(c)) {
+    if a.chars()
+        .all(|c| c.is_ascii_alphanumeric() || "-_./=:,".contains(c))
+    {
         a.to_string()
     } else {
         format!("'{}'", a.replace('\'', "'\\''"))
@@ -142,7 +151,11 @@ fn shard_for(pixels: u64, reference: u64) -> u64 {
 
 impl<'a> Bench<'a> {
     pub fn new(opts: &'a BenchOptions, progress: &'a mut dyn FnMut(&str)) -> Self {
-        Bench { opts, counter: 0, progress }
+        Bench {
+            opts,
+            counter: 0,
+            progress,
+        }
     }
 
     fn base(&self) -> Vec<String> {
@@ -157,24 +170,38 @@ impl<'a> Bench<'a> {
     }
 
     /// This executable with `args` (stdin closed, stderr captured; stdout as `stdout` says).
-    fn spawn(&self, args: &[String], cmd: &str, stdout: Stdio) -> Result<std::process::Output, BenchError> {
+    fn spawn(
+        &self,
+        args: &[String],
+        cmd: &str,
+        stdout: Stdio,
+    ) -> Result<std::process::Output, BenchError> {
         Command::new(&self.opts.exe)
             .args(args)
             .stdin(Stdio::null())
             .stdout(stdout)
             .stderr(Stdio::piped())
             .output()
-            .map_err(|source| BenchError::Spawn { cmd: cmd.to_string(), source })
+            .map_err(|source| BenchError::Spawn {
+                cmd: cmd.to_string(),
+                source,
+            })
     }
 
     /// `rtprobe run ARGS` (plus the base arguments), its report read back and deleted.
     fn run(&mut self, args: &[String]) -> Result<Ran, BenchError> {
         self.counter += 1;
-        let out = self.opts.work_dir.join(format!("point-{}.json", self.counter));
+        let out = self
+            .opts
+            .work_dir
+            .join(format!("point-{}.json", self.counter));
         let mut full = vec!["run".to_string()];
         full.extend(self.base());
         full.extend(args.iter().cloned());
-        let command = std::iter::once("rtprobe".to_string()).chain(full.iter().map(|a| shell_quote(a))).collect::<Vec<_>>().join(" ");
+        let command = std::iter::once("rtprobe".to_string())
+            .chain(full.iter().map(|a| shell_quote(a)))
+            .collect::<Vec<_>>()
+            .join(" ");
         full.extend(["-o".to_string(), out.to_string_lossy().into_owned()]);
         let t = Instant::now();
         let o = self.spawn(&full, &command, Stdio::null())?;
@@ -182,11 +209,22 @@ impl<'a> Bench<'a> {
         let code = o.status.code().unwrap_or(-1);
         // 0: all passed; 1: findings (the injected ones); 11: an injection went undetected.
         if ![0, 1, 11].contains(&code) {
-            return Err(BenchError::RunFailed { cmd: command, code, stderr: last_line(&o.stderr) });
+            return Err(BenchError::RunFailed {
+                cmd: command,
+                code,
+                stderr: last_line(&o.stderr),
+            });
         }
-        let report = RunReport::load(&out).map_err(|why| BenchError::Report { cmd: command.clone(), why })?;
+        let report = RunReport::load(&out).map_err(|why| BenchError::Report {
+            cmd: command.clone(),
+            why,
+        })?;
         let _ = std::fs::remove_file(&out);
-        Ok(Ran { command, wall_s, report })
+        Ok(Ran {
+            command,
+            wall_s,
+            report,
+        })
     }
 
     /// How many cells `run --list ARGS` would run.
@@ -197,16 +235,31 @@ impl<'a> Bench<'a> {
         let cmd = format!("rtprobe {}", full.join(" "));
         let o = self.spawn(&full, &cmd, Stdio::piped())?;
         if !o.status.success() {
-            return Err(BenchError::RunFailed { cmd, code: o.status.code().unwrap_or(-1), stderr: last_line(&o.stderr) });
+            return Err(BenchError::RunFailed {
+                cmd,
+                code: o.status.code().unwrap_or(-1),
+                stderr: last_line(&o.stderr),
+            });
         }
-        Ok(String::from_utf8_lossy(&o.stdout).lines().filter(|l| l.starts_with("run ")).count())
+        Ok(String::from_utf8_lossy(&o.stdout)
+            .lines()
+            .filter(|l| l.starts_with("run "))
+            .count())
     }
 
     /// The long and short flags `rtprobe run --help` lists.
     fn known_flags(&self) -> Result<Vec<String>, BenchError> {
-        let o = self.spawn(&["run".into(), "--help".into()], "rtprobe run --help", Stdio::piped())?;
+        let o = self.spawn(
+            &["run".into(), "--help".into()],
+            "rtprobe run --help",
+            Stdio::piped(),
+        )?;
         let text = String::from_utf8_lossy(&o.stdout);
-        Ok(text.split(|c: char| c.is_whitespace() || c == ',' || c == '[' || c == ']' || c == '=').filter(|w| w.starts_with('-') && w.len() > 1).map(|w| w.to_string()).collect())
+        Ok(text
+            .split(|c: char| c.is_whitespace() || c == ',' || c == '[' || c == ']' || c == '=')
+            .filter(|w| w.starts_with('-') && w.len() > 1)
+            .map(|w| w.to_string())
+            .collect())
     }
 
     pub fn run_all(&mut self) -> Result<Value, BenchError> {
@@ -249,13 +302,22 @@ impl<'a> Bench<'a> {
     }
 
     fn size_time(&mut self, device: &mut Value) -> Result<Value, BenchError> {
-        let filters: Vec<String> = self.opts.matrix_filter.iter().flat_map(|f| ["--filter".to_string(), f.clone()]).collect();
+        let filters: Vec<String> = self
+            .opts
+            .matrix_filter
+            .iter()
+            .flat_map(|f| ["--filter".to_string(), f.clone()])
+            .collect();
         let full_cells = self.to_run(&filters)?;
         let dpx = u64::from(self.opts.default_size).pow(2);
         let mut points = vec![];
         for (i, &s) in self.opts.sizes.iter().enumerate() {
             let px = u64::from(s).pow(2);
-            let k = if self.opts.sample_large { shard_for(px, dpx) } else { 1 };
+            let k = if self.opts.sample_large {
+                shard_for(px, dpx)
+            } else {
+                1
+            };
             let mut args = vec!["--size".to_string(), size_arg(s)];
             args.extend(filters.iter().cloned());
             if k > 1 {
@@ -264,19 +326,40 @@ impl<'a> Bench<'a> {
             // Warm the caches once: the pipelines do not depend on the size. (A sample's workers
             // may enable other feature sets and JIT a few pipelines cold: small beside the
             // trace and check of a large image.)
-            let warmup = if self.opts.warmup && i == 0 { Some(self.run(&args)?.wall_s) } else { None };
+            let warmup = if self.opts.warmup && i == 0 {
+                Some(self.run(&args)?.wall_s)
+            } else {
+                None
+            };
             let r = self.run(&args)?;
             if device.is_null() {
                 *device = r.report.device.clone();
             }
             let ph = phases(&r.report);
-            let ran = r.report.cells.iter().filter(|c| !c.attempts.is_empty()).count();
+            let ran = r
+                .report
+                .cells
+                .iter()
+                .filter(|c| !c.attempts.is_empty())
+                .count();
             if ran == 0 {
-                return Err(BenchError::Empty { cmd: r.command, what: "timed" });
+                return Err(BenchError::Empty {
+                    cmd: r.command,
+                    what: "timed",
+                });
             }
             let scale = full_cells as f64 / ran as f64;
             let (est_wall, est_ph) = estimate(&r, &ph, scale);
-            (self.progress)(&format!("time {}: {ran} cells, {:.1} s{}", size_arg(s), r.wall_s, if k > 1 { format!(" (shard 1/{k}; all {full_cells} cells estimated {est_wall:.1} s)") } else { String::new() }));
+            (self.progress)(&format!(
+                "time {}: {ran} cells, {:.1} s{}",
+                size_arg(s),
+                r.wall_s,
+                if k > 1 {
+                    format!(" (shard 1/{k}; all {full_cells} cells estimated {est_wall:.1} s)")
+                } else {
+                    String::new()
+                }
+            ));
             points.push(json!({
                 "size": s, "pixels": px, "command": r.command, "shard": (k > 1).then(|| format!("1/{k}")),
                 "cells_run": ran, "full_cells": full_cells, "scale": scale,
@@ -296,21 +379,39 @@ impl<'a> Bench<'a> {
         let mut pooled = vec![];
         for &s in &self.opts.sizes {
             let px = u64::from(s).pow(2);
-            let k = if self.opts.sample_large { shard_for(px, dpx) } else { 1 };
+            let k = if self.opts.sample_large {
+                shard_for(px, dpx)
+            } else {
+                1
+            };
             // Above twice the default size every cell is caught at any f of interest (n in the
             // tens of thousands) and a run costs most: one seed there.
-            let seeds = if px > dpx { &self.opts.seeds[..1.min(self.opts.seeds.len())] } else { &self.opts.seeds[..] };
+            let seeds = if px > dpx {
+                &self.opts.seeds[..1.min(self.opts.seeds.len())]
+            } else {
+                &self.opts.seeds[..]
+            };
             for &f in &self.opts.fractions {
                 let mut all: Vec<Trial> = vec![];
                 for &seed in seeds {
-                    let mut args = vec!["--size".into(), size_arg(s), "--filter".into(), filter.clone(), "--inject-fault".into(), format!("{filter}@value:{f}:{seed}")];
+                    let mut args = vec![
+                        "--size".into(),
+                        size_arg(s),
+                        "--filter".into(),
+                        filter.clone(),
+                        "--inject-fault".into(),
+                        format!("{filter}@value:{f}:{seed}"),
+                    ];
                     if k > 1 {
                         args.extend(["--shard".into(), format!("1/{k}")]);
                     }
                     let r = self.run(&args)?;
                     let (trials, not_compared) = trials_of(&r.report);
                     if trials.is_empty() && not_compared.is_empty() {
-                        return Err(BenchError::Empty { cmd: r.command, what: "injected" });
+                        return Err(BenchError::Empty {
+                            cmd: r.command,
+                            what: "injected",
+                        });
                     }
                     let d = stats::aggregate(f, &trials);
                     (self.progress)(&format!("detection {} f={f} seed {seed}: {} of {} cells caught (predicted {:.3}), {:.1} s", size_arg(s), d.detected, d.trials, d.predicted, r.wall_s));
@@ -320,20 +421,32 @@ impl<'a> Bench<'a> {
                 pooled.push(json!({ "size": s, "pixels": px, "fraction": f, "detection": stats::aggregate(f, &all) }));
             }
         }
-        Ok(json!({ "filter": filter, "fractions": self.opts.fractions, "seeds": self.opts.seeds, "points": points, "pooled": pooled }))
+        Ok(
+            json!({ "filter": filter, "fractions": self.opts.fractions, "seeds": self.opts.seeds, "points": points, "pooled": pooled }),
+        )
     }
 
     fn flaky(&mut self) -> Result<Value, BenchError> {
         let filter = self.opts.flaky_filter.clone();
         let mut out = vec![];
         for &p in &self.opts.flaky {
-            let rounds = stats::repeats_needed(p, 0.99).map(|r| ((r as f64 * 1.2).ceil() as u32).min(self.opts.max_rounds)).unwrap_or(1).max(1);
+            let rounds = stats::repeats_needed(p, 0.99)
+                .map(|r| ((r as f64 * 1.2).ceil() as u32).min(self.opts.max_rounds))
+                .unwrap_or(1)
+                .max(1);
             let mut per_cell: std::collections::BTreeMap<String, Vec<bool>> = Default::default();
             let (mut armed, mut armed_caught, mut unarmed_faulted) = (0usize, 0usize, 0usize);
             let (mut wall, mut attempt_ms) = (0.0, 0.0);
             let mut command = String::new();
             for _ in 0..rounds {
-                let mut args = vec!["--size".into(), size_arg(self.opts.flaky_size), "--filter".into(), filter.clone(), "--inject-fault".into(), format!("{filter}@flaky:{p}")];
+                let mut args = vec![
+                    "--size".into(),
+                    size_arg(self.opts.flaky_size),
+                    "--filter".into(),
+                    filter.clone(),
+                    "--inject-fault".into(),
+                    format!("{filter}@flaky:{p}"),
+                ];
                 if let Some(t) = self.opts.flaky_timeout {
                     args.extend(["--timeout".into(), t.to_string()]);
                 }
@@ -341,7 +454,9 @@ impl<'a> Bench<'a> {
                 command = r.command.clone();
                 wall += r.wall_s;
                 for c in r.report.cells.iter().filter(|c| c.injected.is_some()) {
-                    let Some(a) = c.attempts.first() else { continue };
+                    let Some(a) = c.attempts.first() else {
+                        continue;
+                    };
                     let fired = a.injected.as_ref().and_then(|i| i.armed) == Some(true);
                     let faulted = a.outcome.is_finding();
                     attempt_ms += a.wall_ms;
@@ -352,16 +467,29 @@ impl<'a> Bench<'a> {
                 }
             }
             if per_cell.is_empty() {
-                return Err(BenchError::Empty { cmd: command, what: "flaky-injected" });
+                return Err(BenchError::Empty {
+                    cmd: command,
+                    what: "flaky-injected",
+                });
             }
             let faulted: Vec<Vec<bool>> = per_cell.values().cloned().collect();
             let attempts = faulted.iter().map(Vec::len).sum::<usize>();
             let first = stats::first_fault_curve(&faulted, rounds as usize);
             let measured = stats::window_curve(&faulted, rounds as usize);
-            let predicted: Vec<f64> = (1..=rounds).map(|r| stats::detect_probability(p, r as u64)).collect();
-            let rate = if attempts > 0 { faulted.iter().flatten().filter(|f| **f).count() as f64 / attempts as f64 } else { 0.0 };
+            let predicted: Vec<f64> = (1..=rounds)
+                .map(|r| stats::detect_probability(p, r as u64))
+                .collect();
+            let rate = if attempts > 0 {
+                faulted.iter().flatten().filter(|f| **f).count() as f64 / attempts as f64
+            } else {
+                0.0
+            };
             let needed = |c: f64| json!({ "predicted": stats::repeats_needed(p, c), "measured": stats::first_reaching(&measured, c), "measured_first": stats::first_reaching(&first, c), "from_measured_rate": stats::repeats_needed(rate, c) });
-            (self.progress)(&format!("flaky:{p}: {rounds} rounds × {} cells, rate {rate:.3}, {:.1} s", faulted.len(), wall));
+            (self.progress)(&format!(
+                "flaky:{p}: {rounds} rounds × {} cells, rate {rate:.3}, {:.1} s",
+                faulted.len(),
+                wall
+            ));
             out.push(json!({
                 "probability": p, "rounds": rounds, "cells": faulted.len(), "command": command,
                 "attempts": attempts, "armed": armed, "armed_detected": armed_caught, "faulted_unarmed": unarmed_faulted,
@@ -372,13 +500,22 @@ impl<'a> Bench<'a> {
                 "per_cell": per_cell,
             }));
         }
-        Ok(json!({ "filter": filter, "size": self.opts.flaky_size, "timeout_s": self.opts.flaky_timeout, "points": out }))
+        Ok(
+            json!({ "filter": filter, "size": self.opts.flaky_size, "timeout_s": self.opts.flaky_timeout, "points": out }),
+        )
     }
 
     fn sweep(&mut self) -> Result<Value, BenchError> {
         let known = self.known_flags()?;
-        let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
-        let mut filters: Vec<String> = self.opts.sweep_filter.iter().flat_map(|f| ["--filter".to_string(), f.clone()]).collect();
+        let cores = std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1);
+        let mut filters: Vec<String> = self
+            .opts
+            .sweep_filter
+            .iter()
+            .flat_map(|f| ["--filter".to_string(), f.clone()])
+            .collect();
         filters.extend(["--size".into(), size_arg(self.opts.sweep_size)]);
         let mut entries = vec![];
         let mut first: Option<(f64, serde_json::Map<String, Value>)> = None;
@@ -391,15 +528,33 @@ impl<'a> Bench<'a> {
             }
             let mut args = filters.clone();
             args.extend(extra);
-            let warmup = if self.opts.warmup { Some(self.run(&args)?.wall_s) } else { None };
+            let warmup = if self.opts.warmup {
+                Some(self.run(&args)?.wall_s)
+            } else {
+                None
+            };
             let r = self.run(&args)?;
             let ph = phases(&r.report);
             let (base, base_ph) = first.get_or_insert_with(|| (r.wall_s, ph.clone())).clone();
-            let ratios: serde_json::Map<String, Value> = ph.iter().map(|(k, v)| {
-                let b = base_ph[k].as_f64().unwrap_or(0.0);
-                (k.clone(), if b > 0.0 { json!(v.as_f64().unwrap_or(0.0) / b) } else { Value::Null })
-            }).collect();
-            (self.progress)(&format!("sweep '{entry}': {:.2} s (×{:.2} of the first entry)", r.wall_s, r.wall_s / base));
+            let ratios: serde_json::Map<String, Value> = ph
+                .iter()
+                .map(|(k, v)| {
+                    let b = base_ph[k].as_f64().unwrap_or(0.0);
+                    (
+                        k.clone(),
+                        if b > 0.0 {
+                            json!(v.as_f64().unwrap_or(0.0) / b)
+                        } else {
+                            Value::Null
+                        },
+                    )
+                })
+                .collect();
+            (self.progress)(&format!(
+                "sweep '{entry}': {:.2} s (×{:.2} of the first entry)",
+                r.wall_s,
+                r.wall_s / base
+            ));
             entries.push(json!({
                 "args": entry, "command": r.command, "wall_s": r.wall_s, "warmup_wall_s": warmup,
                 "wall_ratio": r.wall_s / base, "cells": r.report.timing.cells_timed, "workers": r.report.timing.workers_started,
@@ -408,15 +563,24 @@ impl<'a> Bench<'a> {
                 "jobs_used": r.report.options.jobs, "threads_used": r.report.options.threads,
             }));
         }
-        Ok(json!({ "filter": self.opts.sweep_filter, "size": self.opts.sweep_size, "entries": entries }))
+        Ok(
+            json!({ "filter": self.opts.sweep_filter, "size": self.opts.sweep_size, "entries": entries }),
+        )
     }
 }
 
 /// A child's last stderr line, without its own `rtprobe: error: ` prefix.
 fn last_line(stderr: &[u8]) -> String {
     let text = String::from_utf8_lossy(stderr);
-    let last = text.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("").trim();
-    last.strip_prefix("rtprobe: error: ").unwrap_or(last).to_string()
+    let last = text
+        .lines()
+        .rev()
+        .find(|l| !l.trim().is_empty())
+        .unwrap_or("")
+        .trim();
+    last.strip_prefix("rtprobe: error: ")
+        .unwrap_or(last)
+        .to_string()
 }
 
 /// Why a sweep entry cannot run on this binary/machine: a flag `run` does not know, or more
@@ -428,35 +592,96 @@ pub fn skip_reason(args: &[String], known: &[String], cores: usize) -> Option<St
             return Some(format!("this rtprobe's run does not know {flag}"));
         }
     }
-    let value = |names: &[&str]| args.windows(2).find(|w| names.contains(&w[0].as_str())).and_then(|w| w[1].parse::<usize>().ok());
+    let value = |names: &[&str]| {
+        args.windows(2)
+            .find(|w| names.contains(&w[0].as_str()))
+            .and_then(|w| w[1].parse::<usize>().ok())
+    };
     if let Some(j) = value(&["-j", "--jobs"]).filter(|&j| j > cores.max(2)) {
-        return Some(format!("-j {j} is more workers than this machine's {cores} cores"));
+        return Some(format!(
+            "-j {j} is more workers than this machine's {cores} cores"
+        ));
     }
-    value(&["--threads"]).filter(|&t| t > cores.max(2)).map(|t| format!("--threads {t} is more threads than this machine's {cores} cores"))
+    value(&["--threads"])
+        .filter(|&t| t > cores.max(2))
+        .map(|t| format!("--threads {t} is more threads than this machine's {cores} cores"))
 }
 
 /// The per-phase sums of a report, in milliseconds (see `method.phases` in bench.json).
 pub fn phases(r: &RunReport) -> serde_json::Map<String, Value> {
     let t = &r.timing;
     let device = t.device_ms_mean * t.workers_started as f64;
-    let ready: f64 = r.workers.iter().filter(|w| w.phase == crate::model::phase::Phase::Setup && w.outcome == crate::model::outcome::Outcome::Pass).map(|w| w.wall_ms).sum();
+    let ready: f64 = r
+        .workers
+        .iter()
+        .filter(|w| {
+            w.phase == crate::model::phase::Phase::Setup
+                && w.outcome == crate::model::outcome::Outcome::Pass
+        })
+        .map(|w| w.wall_ms)
+        .sum();
     // In PHASES order.
-    let values = [(ready - device).max(0.0), device, t.compile_ms, t.pipeline_ms, t.setup_ms, t.trace_ms, t.check_ms, t.overhead_ms];
-    PHASES.iter().zip(values).map(|(k, v)| (k.to_string(), json!(v))).collect()
+    let values = [
+        (ready - device).max(0.0),
+        device,
+        t.compile_ms,
+        t.pipeline_ms,
+        t.setup_ms,
+        t.trace_ms,
+        t.check_ms,
+        t.overhead_ms,
+    ];
+    PHASES
+        .iter()
+        .zip(values)
+        .map(|(k, v)| (k.to_string(), json!(v)))
+        .collect()
 }
 
-pub const PHASES: [&str; 8] = ["spawn_reference", "device", "compile", "pipeline", "setup", "trace", "check", "overhead"];
+pub const PHASES: [&str; 8] = [
+    "spawn_reference",
+    "device",
+    "compile",
+    "pipeline",
+    "setup",
+    "trace",
+    "check",
+    "overhead",
+];
 
 /// Phases paid per worker, not per cell: a sample keeps them as they are.
 const PER_WORKER: [&str; 2] = ["spawn_reference", "device"];
 
 /// The full cell set's time from a sample's: per-cell phases scaled by `scale`, per-worker
 /// phases kept; the wall time grows by the added per-cell time spread over the run's workers.
-fn estimate(r: &Ran, ph: &serde_json::Map<String, Value>, scale: f64) -> (f64, serde_json::Map<String, Value>) {
-    let per_cell: f64 = ph.iter().filter(|(k, _)| !PER_WORKER.contains(&k.as_str())).map(|(_, v)| v.as_f64().unwrap_or(0.0)).sum();
+fn estimate(
+    r: &Ran,
+    ph: &serde_json::Map<String, Value>,
+    scale: f64,
+) -> (f64, serde_json::Map<String, Value>) {
+    let per_cell: f64 = ph
+        .iter()
+        .filter(|(k, _)| !PER_WORKER.contains(&k.as_str()))
+        .map(|(_, v)| v.as_f64().unwrap_or(0.0))
+        .sum();
     let jobs = (r.report.options.jobs as f64).max(1.0);
     let wall = r.wall_s + (scale - 1.0).max(0.0) * per_cell / 1e3 / jobs;
-    let m = ph.iter().map(|(k, v)| (k.clone(), json!(v.as_f64().unwrap_or(0.0) * if PER_WORKER.contains(&k.as_str()) { 1.0 } else { scale }))).collect();
+    let m = ph
+        .iter()
+        .map(|(k, v)| {
+            (
+                k.clone(),
+                json!(
+                    v.as_f64().unwrap_or(0.0)
+                        * if PER_WORKER.contains(&k.as_str()) {
+                            1.0
+                        } else {
+                            scale
+                        }
+                ),
+            )
+        })
+        .collect();
     (wall, m)
 }
 
@@ -466,10 +691,18 @@ pub fn trials_of(r: &RunReport) -> (Vec<Trial>, Vec<Value>) {
     let mut trials = vec![];
     let mut other = vec![];
     for c in r.cells.iter().filter(|c| c.injected.is_some()) {
-        let Some(a) = c.attempts.first() else { continue };
+        let Some(a) = c.attempts.first() else {
+            continue;
+        };
         match a.result.as_ref().and_then(|res| res.comparison.as_ref()) {
-            Some(cmp) => trials.push(Trial { cell: c.id.clone(), n: cmp.probe_checked as u64, detected: a.outcome.is_finding(), mismatched: cmp.mismatched_pixels as u64 }),
-            None => other.push(json!({ "cell": c.id, "outcome": a.outcome.as_str(), "detail": a.detail })),
+            Some(cmp) => trials.push(Trial {
+                cell: c.id.clone(),
+                n: cmp.probe_checked as u64,
+                detected: a.outcome.is_finding(),
+                mismatched: cmp.mismatched_pixels as u64,
+            }),
+            None => other
+                .push(json!({ "cell": c.id, "outcome": a.outcome.as_str(), "detail": a.detail })),
         }
     }
     (trials, other)
@@ -478,7 +711,10 @@ pub fn trials_of(r: &RunReport) -> (Vec<Trial>, Vec<Value>) {
 /// Where the default size sits: its time and its pooled detection per fraction.
 fn default_statement(o: &BenchOptions, size_time: &Value, detection: &Value) -> Value {
     let s = o.default_size;
-    let time = size_time["points"].as_array().and_then(|p| p.iter().find(|x| x["size"] == s)).map(|x| x["estimated"]["wall_s"].clone());
+    let time = size_time["points"]
+        .as_array()
+        .and_then(|p| p.iter().find(|x| x["size"] == s))
+        .map(|x| x["estimated"]["wall_s"].clone());
     let det: Vec<Value> = detection["pooled"]
         .as_array()
         .map(|p| p.iter().filter(|x| x["size"] == s).map(|x| json!({ "fraction": x["fraction"], "measured": x["detection"]["measured"], "predicted": x["detection"]["predicted"], "n_mean": x["detection"]["n_mean"] })).collect())
@@ -489,9 +725,15 @@ fn default_statement(o: &BenchOptions, size_time: &Value, detection: &Value) -> 
 /// Check that `dir` can take the output (created if missing) before any run: a probe file is
 /// written and removed.
 pub fn check_out_dir(dir: &Path) -> Result<(), OutDirError> {
-    std::fs::create_dir_all(dir).map_err(|err| OutDirError::Create { dir: dir.into(), err })?;
+    std::fs::create_dir_all(dir).map_err(|err| OutDirError::Create {
+        dir: dir.into(),
+        err,
+    })?;
     let probe = dir.join(format!(".rtprobe-bench-{}", std::process::id()));
-    std::fs::write(&probe, b"").map_err(|err| OutDirError::NotWritable { dir: dir.into(), err })?;
+    std::fs::write(&probe, b"").map_err(|err| OutDirError::NotWritable {
+        dir: dir.into(),
+        err,
+    })?;
     let _ = std::fs::remove_file(&probe);
     Ok(())
 }
@@ -502,17 +744,33 @@ mod tests {
 
     #[test]
     fn sweep_entries_with_unknown_flags_or_too_many_jobs_are_skipped() {
-        let known: Vec<String> = ["-j", "--jobs", "--isolation", "--size"].iter().map(|s| s.to_string()).collect();
+        let known: Vec<String> = ["-j", "--jobs", "--isolation", "--size"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
         let a = |s: &str| s.split_whitespace().map(String::from).collect::<Vec<_>>();
         assert_eq!(skip_reason(&a("-j 1"), &known, 2), None);
-        assert_eq!(skip_reason(&a("-j 1 --isolation process-per-cell"), &known, 2), None);
-        assert!(skip_reason(&a("-j 1 --threads 2"), &known, 2).unwrap().contains("--threads"));
-        assert!(skip_reason(&a("-j 8"), &known, 2).unwrap().contains("cores"));
-        assert_eq!(skip_reason(&a("-j 2"), &known, 1), None, "two workers always run");
+        assert_eq!(
+            skip_reason(&a("-j 1 --isolation process-per-cell"), &known, 2),
+            None
+        );
+        assert!(skip_reason(&a("-j 1 --threads 2"), &known, 2)
+            .unwrap()
+            .contains("--threads"));
+        assert!(skip_reason(&a("-j 8"), &known, 2)
+            .unwrap()
+            .contains("cores"));
+        assert_eq!(
+            skip_reason(&a("-j 2"), &known, 1),
+            None,
+            "two workers always run"
+        );
         assert_eq!(skip_reason(&a("--isolation=worker"), &known, 2), None);
         let known: Vec<String> = ["-j", "--threads"].iter().map(|s| s.to_string()).collect();
         assert_eq!(skip_reason(&a("-j 1 --threads 2"), &known, 2), None);
-        assert!(skip_reason(&a("-j 1 --threads 16"), &known, 2).unwrap().contains("--threads 16"));
+        assert!(skip_reason(&a("-j 1 --threads 16"), &known, 2)
+            .unwrap()
+            .contains("--threads 16"));
         assert_eq!(skip_reason(&a("-j 1 --threads 16"), &known, 16), None);
     }
 
@@ -526,7 +784,10 @@ mod tests {
 
     #[test]
     fn quoting_keeps_predicates_one_word() {
-        assert_eq!(shell_quote("stage=raygen|miss@value:0.1:1"), "'stage=raygen|miss@value:0.1:1'");
+        assert_eq!(
+            shell_quote("stage=raygen|miss@value:0.1:1"),
+            "'stage=raygen|miss@value:0.1:1'"
+        );
         assert_eq!(shell_quote("64x64"), "64x64");
     }
 }

@@ -17,7 +17,10 @@ pub fn all(bench: &Value) -> Vec<(String, String)> {
     let device = bench["device"]["name"].as_str().unwrap_or("device");
     let default_px = bench["default"]["size"].as_f64().map(|s| s * s);
     vec![
-        ("detection-vs-size.svg".into(), detection(bench, device, default_px)),
+        (
+            "detection-vs-size.svg".into(),
+            detection(bench, device, default_px),
+        ),
         ("time-vs-size.svg".into(), time(bench, device, default_px)),
         ("flaky-repeats.svg".into(), flaky(bench, device)),
         ("sweep-phases.svg".into(), sweep(bench, device)),
@@ -25,21 +28,46 @@ pub fn all(bench: &Value) -> Vec<(String, String)> {
 }
 
 fn default_line(px: Option<f64>) -> Vec<(f64, String)> {
-    px.map(|p| vec![(p, format!("default {}×{}", p.sqrt(), p.sqrt()))]).unwrap_or_default()
+    px.map(|p| vec![(p, format!("default {}×{}", p.sqrt(), p.sqrt()))])
+        .unwrap_or_default()
 }
 
 fn detection(b: &Value, device: &str, default_px: Option<f64>) -> String {
     let pooled = arr(&b["detection"]["pooled"]);
     let mut series = vec![];
     for (k, fr) in arr(&b["detection"]["fractions"]).iter().enumerate() {
-        let pts = |key: &str| pooled.iter().filter(|p| p["fraction"] == *fr).map(|p| (f(&p["pixels"]), f(&p["detection"][key]))).collect::<Vec<_>>();
-        series.push(Series { name: format!("measured f={fr}"), points: pts("measured"), style: Style::Points, colour: k });
-        series.push(Series { name: format!("1-(1-f)^n, f={fr}"), points: pts("predicted"), style: Style::Dashed, colour: k });
+        let pts = |key: &str| {
+            pooled
+                .iter()
+                .filter(|p| p["fraction"] == *fr)
+                .map(|p| (f(&p["pixels"]), f(&p["detection"][key])))
+                .collect::<Vec<_>>()
+        };
+        series.push(Series {
+            name: format!("measured f={fr}"),
+            points: pts("measured"),
+            style: Style::Points,
+            colour: k,
+        });
+        series.push(Series {
+            name: format!("1-(1-f)^n, f={fr}"),
+            points: pts("predicted"),
+            style: Style::Dashed,
+            colour: k,
+        });
     }
     LineChart {
         title: format!("Detection of a wrong value on a fraction f of records — {device}"),
-        x: Axis { label: "image size (pixels = rays per cell, log)".into(), log: true, range: None },
-        y: Axis { label: "share of injected cells caught".into(), log: false, range: Some((0.0, 1.0)) },
+        x: Axis {
+            label: "image size (pixels = rays per cell, log)".into(),
+            log: true,
+            range: None,
+        },
+        y: Axis {
+            label: "share of injected cells caught".into(),
+            log: false,
+            range: Some((0.0, 1.0)),
+        },
         series,
         hlines: vec![],
         vlines: default_line(default_px),
@@ -49,16 +77,39 @@ fn detection(b: &Value, device: &str, default_px: Option<f64>) -> String {
 
 fn time(b: &Value, device: &str, default_px: Option<f64>) -> String {
     let pts = arr(&b["size_time"]["points"]);
-    let line = |name: &str, get: &dyn Fn(&Value) -> f64, k: usize, style: Style| Series { name: name.into(), points: pts.iter().map(|p| (f(&p["pixels"]), get(p))).collect(), style, colour: k };
+    let line = |name: &str, get: &dyn Fn(&Value) -> f64, k: usize, style: Style| Series {
+        name: name.into(),
+        points: pts.iter().map(|p| (f(&p["pixels"]), get(p))).collect(),
+        style,
+        colour: k,
+    };
     let phase = |name: &'static str| move |p: &Value| f(&p["estimated"]["phases_ms"][name]) / 1e3;
     LineChart {
         title: format!("Matrix time against image size — {device}"),
-        x: Axis { label: "image size (pixels, log)".into(), log: true, range: None },
-        y: Axis { label: "time (s, log; sums over cells for phases)".into(), log: true, range: None },
+        x: Axis {
+            label: "image size (pixels, log)".into(),
+            log: true,
+            range: None,
+        },
+        y: Axis {
+            label: "time (s, log; sums over cells for phases)".into(),
+            log: true,
+            range: None,
+        },
         series: vec![
-            line("wall (estimated for samples)", &|p| f(&p["estimated"]["wall_s"]), 0, Style::Line),
+            line(
+                "wall (estimated for samples)",
+                &|p| f(&p["estimated"]["wall_s"]),
+                0,
+                Style::Line,
+            ),
             line("trace", &phase("trace"), 1, Style::Dashed),
-            line("check (readback + compare)", &phase("check"), 2, Style::Dashed),
+            line(
+                "check (readback + compare)",
+                &phase("check"),
+                2,
+                Style::Dashed,
+            ),
             line("pipeline", &phase("pipeline"), 3, Style::Dashed),
             line("compile", &phase("compile"), 4, Style::Dashed),
         ],
@@ -71,14 +122,38 @@ fn time(b: &Value, device: &str, default_px: Option<f64>) -> String {
 fn flaky(b: &Value, device: &str) -> String {
     let mut series = vec![];
     for (k, p) in arr(&b["flaky"]["points"]).iter().enumerate() {
-        let curve = |key: &str| arr(&p[key]).iter().enumerate().map(|(i, v)| ((i + 1) as f64, f(v))).collect::<Vec<_>>();
-        series.push(Series { name: format!("measured P={}", p["probability"]), points: curve("measured"), style: Style::Line, colour: k });
-        series.push(Series { name: format!("1-(1-P)^r, P={}", p["probability"]), points: curve("predicted"), style: Style::Dashed, colour: k });
+        let curve = |key: &str| {
+            arr(&p[key])
+                .iter()
+                .enumerate()
+                .map(|(i, v)| ((i + 1) as f64, f(v)))
+                .collect::<Vec<_>>()
+        };
+        series.push(Series {
+            name: format!("measured P={}", p["probability"]),
+            points: curve("measured"),
+            style: Style::Line,
+            colour: k,
+        });
+        series.push(Series {
+            name: format!("1-(1-P)^r, P={}", p["probability"]),
+            points: curve("predicted"),
+            style: Style::Dashed,
+            colour: k,
+        });
     }
     LineChart {
         title: format!("Flaky faults: detection against attempts — {device}"),
-        x: Axis { label: "attempts r (repeats)".into(), log: false, range: None },
-        y: Axis { label: "share of cells that faulted within r attempts".into(), log: false, range: Some((0.0, 1.0)) },
+        x: Axis {
+            label: "attempts r (repeats)".into(),
+            log: false,
+            range: None,
+        },
+        y: Axis {
+            label: "share of cells that faulted within r attempts".into(),
+            log: false,
+            range: Some((0.0, 1.0)),
+        },
         series,
         hlines: vec![(0.95, "95%".into()), (0.99, "99%".into())],
         vlines: vec![],
@@ -87,13 +162,33 @@ fn flaky(b: &Value, device: &str) -> String {
 }
 
 fn sweep(b: &Value, device: &str) -> String {
-    let ran: Vec<&Value> = arr(&b["sweep"]["entries"]).iter().filter(|e| e["skipped"].is_null()).collect();
+    let ran: Vec<&Value> = arr(&b["sweep"]["entries"])
+        .iter()
+        .filter(|e| e["skipped"].is_null())
+        .collect();
     StackedBars {
         title: format!("Where the time goes, per run configuration — {device}"),
         y_label: "time summed over cells and workers (s)".into(),
         x_label: "extra run arguments (wall time)".into(),
-        categories: ran.iter().map(|e| format!("{} ({:.1} s)", e["args"].as_str().unwrap_or(""), f(&e["wall_s"]))).collect(),
-        layers: super::PHASES.iter().map(|ph| (ph.to_string(), ran.iter().map(|e| f(&e["phases_ms"][*ph]) / 1e3).collect())).collect(),
+        categories: ran
+            .iter()
+            .map(|e| {
+                format!(
+                    "{} ({:.1} s)",
+                    e["args"].as_str().unwrap_or(""),
+                    f(&e["wall_s"])
+                )
+            })
+            .collect(),
+        layers: super::PHASES
+            .iter()
+            .map(|ph| {
+                (
+                    ph.to_string(),
+                    ran.iter().map(|e| f(&e["phases_ms"][*ph]) / 1e3).collect(),
+                )
+            })
+            .collect(),
     }
     .svg()
 }
@@ -123,8 +218,15 @@ mod tests {
             check_well_formed(svg).unwrap_or_else(|e| panic!("{name}: {e}"));
             assert!(svg.contains("llvmpipe"), "{name}");
         }
-        assert!(plots[0].1.contains("measured f=0.01") && plots[0].1.contains("1-(1-f)^n, f=1.0") && plots[0].1.contains("default 64×64"));
+        assert!(
+            plots[0].1.contains("measured f=0.01")
+                && plots[0].1.contains("1-(1-f)^n, f=1.0")
+                && plots[0].1.contains("default 64×64")
+        );
         assert!(plots[2].1.contains("measured P=0.5") && plots[2].1.contains("99%"));
-        assert!(plots[3].1.contains("-j 1 (2.0 s)") && !plots[3].1.contains("--threads"), "skipped entries are not drawn");
+        assert!(
+            plots[3].1.contains("-j 1 (2.0 s)") && !plots[3].1.contains("--threads"),
+            "skipped entries are not drawn"
+        );
     }
 }

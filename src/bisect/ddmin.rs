@@ -21,7 +21,14 @@ pub fn ddmin<T: Clone>(items: &[T], test: &mut dyn FnMut(&[T]) -> bool) -> Vec<T
             continue;
         }
         // Reduce to a complement.
-        let complement = |i: usize| -> Vec<T> { chunks.iter().enumerate().filter(|(j, _)| *j != i).flat_map(|(_, ch)| ch.iter().cloned()).collect() };
+        let complement = |i: usize| -> Vec<T> {
+            chunks
+                .iter()
+                .enumerate()
+                .filter(|(j, _)| *j != i)
+                .flat_map(|(_, ch)| ch.iter().cloned())
+                .collect()
+        };
         if chunks.len() > 2 {
             if let Some(co) = (0..chunks.len()).map(complement).find(|co| test(co)) {
                 c = co;
@@ -68,7 +75,10 @@ mod tests {
         // Nothing needed: the empty list.
         assert!(ddmin(&items, &mut |_| true).is_empty());
         // Everything needed.
-        assert_eq!(ddmin(&[1, 2, 3], &mut |s: &[i32]| s.len() == 3), vec![1, 2, 3]);
+        assert_eq!(
+            ddmin(&[1, 2, 3], &mut |s: &[i32]| s.len() == 3),
+            vec![1, 2, 3]
+        );
     }
 
     #[test]

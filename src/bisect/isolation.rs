@@ -2,8 +2,8 @@
 //! with dynamic index (nonuniformEXT), descriptor_indexing`) and a verdict with its evidence
 //! (`❌ crash (6 of 6, p ≥ 0.61 at 95%)`, `✅ passes (5 of 5; miss ≤ 0.94% for p ≥ 0.61)`).
 use super::Verdicts;
-use crate::model::{Cell, IndexSource};
 use crate::model::IsolationLine;
+use crate::model::{Cell, IndexSource};
 
 /// One cell as a sentence a driver engineer can read without knowing rtprobe's ids.
 pub fn describe(c: &Cell) -> String {
@@ -34,9 +34,25 @@ pub struct Evidence {
 pub fn line(cell: &Cell, varied: Option<&str>, verdicts: &Verdicts, ev: Evidence) -> IsolationLine {
     let description = describe(cell);
     let report = verdicts.get(cell).filter(|r| !r.attempts.is_empty());
-    let reason = report.filter(|r| r.outcome == crate::model::outcome::Outcome::Error).and_then(|r| r.reason.clone());
+    let reason = report
+        .filter(|r| r.outcome == crate::model::outcome::Outcome::Error)
+        .and_then(|r| r.reason.clone());
     let (k, n) = verdicts.counts(cell);
-    let mut l = IsolationLine { cell: cell.id(), varied: varied.map(String::from), description, verdict: "not_run".into(), agreeing: 0, attempts: n, rate_bound: None, miss_probability: None, settled: None, suspect: None, reason, injected: None, line: String::new() };
+    let mut l = IsolationLine {
+        cell: cell.id(),
+        varied: varied.map(String::from),
+        description,
+        verdict: "not_run".into(),
+        agreeing: 0,
+        attempts: n,
+        rate_bound: None,
+        miss_probability: None,
+        settled: None,
+        suspect: None,
+        reason,
+        injected: None,
+        line: String::new(),
+    };
     // A pass's faulting sibling that its lenient reads may hide (`suspect`).
     let mut sus = None;
     if let Some(r) = report {
@@ -49,7 +65,8 @@ pub fn line(cell: &Cell, varied: Option<&str>, verdicts: &Verdicts, ev: Evidence
             l.agreeing = n - k;
             if r.outcome == crate::model::outcome::Outcome::Pass {
                 l.rate_bound = ev.against;
-                l.miss_probability = Some(ev.against.map_or(1.0, |p| crate::model::stats::miss(p, n)));
+                l.miss_probability =
+                    Some(ev.against.map_or(1.0, |p| crate::model::stats::miss(p, n)));
                 l.settled = l.miss_probability.map(|m| m < ev.max_miss);
                 sus = suspect(cell, verdicts);
                 l.suspect = sus.map(|(sib, _)| sib.id());
@@ -60,11 +77,26 @@ pub fn line(cell: &Cell, varied: Option<&str>, verdicts: &Verdicts, ev: Evidence
     let evidence = match (l.verdict.as_str(), l.miss_probability, l.rate_bound) {
         ("not_run", _, _) => "❔ not run".to_string(),
         ("pass", Some(m), Some(p)) => {
-            let weak = if l.settled() { "" } else { "; too little evidence, not concluded on" };
-            format!("✅ passes ({} of {n}; miss ≤ {} for p ≥ {p:.2}{weak})", l.agreeing, percent(m))
+            let weak = if l.settled() {
+                ""
+            } else {
+                "; too little evidence, not concluded on"
+            };
+            format!(
+                "✅ passes ({} of {n}; miss ≤ {} for p ≥ {p:.2}{weak})",
+                l.agreeing,
+                percent(m)
+            )
         }
-        ("pass", _, _) => format!("✅ passes ({} of {n}; no faulting cell to hold it to)", l.agreeing),
-        ("error", _, _) => format!("⚠ error ({}/{n}): {}", l.agreeing, l.reason.as_deref().unwrap_or("no detail")),
+        ("pass", _, _) => format!(
+            "✅ passes ({} of {n}; no faulting cell to hold it to)",
+            l.agreeing
+        ),
+        ("error", _, _) => format!(
+            "⚠ error ({}/{n}): {}",
+            l.agreeing,
+            l.reason.as_deref().unwrap_or("no detail")
+        ),
         (v, _, Some(p)) => format!("❌ {v} ({k} of {n}, p ≥ {p:.2} at {conf})"),
         (v, _, None) => format!("❌ {v} ({k} of {n})"),
     };
@@ -80,9 +112,29 @@ pub fn line(cell: &Cell, varied: Option<&str>, verdicts: &Verdicts, ev: Evidence
 /// differs only in a defined index (another index source, or `nonuniformEXT`): the read of
 /// "another element" may be that fault.
 pub fn suspect(cell: &Cell, verdicts: &Verdicts) -> Option<(Cell, usize)> {
-    let other = verdicts.get(cell)?.element_reads().map(|e| e.other).max().filter(|o| *o > 0)?;
-    let defined = IndexSource::ALL.iter().filter(|i| **i != IndexSource::Dynamic).map(|i| Cell { index: *i, nonuniform: false, ..*cell }).chain(std::iter::once(Cell { nonuniform: true, ..*cell }));
-    defined.into_iter().filter(|s| s != cell).find(|s| verdicts.state(s) == super::State::Fault).map(|s| (s, other))
+    let other = verdicts
+        .get(cell)?
+        .element_reads()
+        .map(|e| e.other)
+        .max()
+        .filter(|o| *o > 0)?;
+    let defined = IndexSource::ALL
+        .iter()
+        .filter(|i| **i != IndexSource::Dynamic)
+        .map(|i| Cell {
+            index: *i,
+            nonuniform: false,
+            ..*cell
+        })
+        .chain(std::iter::once(Cell {
+            nonuniform: true,
+            ..*cell
+        }));
+    defined
+        .into_iter()
+        .filter(|s| s != cell)
+        .find(|s| verdicts.state(s) == super::State::Fault)
+        .map(|s| (s, other))
 }
 
 /// A probability as a short percentage (`0.78%`, `< 0.01%`).
@@ -101,9 +153,22 @@ mod tests {
 
     #[test]
     fn cells_read_as_sentences() {
-        let c = Cell::new(Stage::ClosestHit, Resource::StorageBuffer, IndexSource::SpecConstant, DescriptorModel::DescriptorIndexing);
-        assert_eq!(describe(&c), "closest_hit reading storage_buffer with spec_constant index, descriptor_indexing");
-        let d = Cell { index: IndexSource::Dynamic, nonuniform: true, patch: Some(crate::model::cell::Workaround::SsboToAddress), ..c };
+        let c = Cell::new(
+            Stage::ClosestHit,
+            Resource::StorageBuffer,
+            IndexSource::SpecConstant,
+            DescriptorModel::DescriptorIndexing,
+        );
+        assert_eq!(
+            describe(&c),
+            "closest_hit reading storage_buffer with spec_constant index, descriptor_indexing"
+        );
+        let d = Cell {
+            index: IndexSource::Dynamic,
+            nonuniform: true,
+            patch: Some(crate::model::cell::Workaround::SsboToAddress),
+            ..c
+        };
         assert_eq!(describe(&d), "closest_hit reading storage_buffer with dynamic index (nonuniformEXT), descriptor_indexing, patched with ssbo-to-address");
         assert_eq!(percent(0.0078125), "0.78%");
         assert_eq!(percent(1e-9), "< 0.01%");

@@ -46,15 +46,18 @@ pub use render::predicate;
 pub use verdicts::{State, Verdicts};
 
 use crate::model::inject::for_cell;
-use crate::model::Injection;
 use crate::model::registry;
-use crate::model::{Cell, Filter};
+use crate::model::Injection;
 use crate::model::IsolationLine;
+use crate::model::{Cell, Filter};
 use std::collections::HashMap;
 
 /// The axes bisection reduces over: every axis of a cell except `canary`.
 pub fn axes() -> impl Iterator<Item = &'static str> {
-    registry::AXES.iter().filter(|a| a.id != registry::AxisId::Canary).map(|a| a.name)
+    registry::AXES
+        .iter()
+        .filter(|a| a.id != registry::AxisId::Canary)
+        .map(|a| a.name)
 }
 /// Default: a pass may hide a fault of its faulting cell's rate bound with at most this
 /// probability.
@@ -86,7 +89,11 @@ pub struct Settings {
 
 impl Default for Settings {
     fn default() -> Self {
-        Settings { max_miss: DEFAULT_MAX_MISS, max_attempts: DEFAULT_MAX_ATTEMPTS, batch: 4 }
+        Settings {
+            max_miss: DEFAULT_MAX_MISS,
+            max_attempts: DEFAULT_MAX_ATTEMPTS,
+            batch: 4,
+        }
     }
 }
 
@@ -111,24 +118,49 @@ pub struct Bisector<'o> {
 }
 
 impl<'o> Bisector<'o> {
-    pub fn new(scope: Vec<Cell>, verdicts: Verdicts, oracle: &'o mut dyn Oracle, settings: Settings, inject: Vec<Injection>) -> Self {
-        Bisector { scope, verdicts, oracle, settings, inject, memo: HashMap::new(), relied: Vec::new() }
+    pub fn new(
+        scope: Vec<Cell>,
+        verdicts: Verdicts,
+        oracle: &'o mut dyn Oracle,
+        settings: Settings,
+        inject: Vec<Injection>,
+    ) -> Self {
+        Bisector {
+            scope,
+            verdicts,
+            oracle,
+            settings,
+            inject,
+            memo: HashMap::new(),
+            relied: Vec::new(),
+        }
     }
 
     fn faulting(&self) -> Vec<Cell> {
-        self.scope.iter().filter(|c| self.verdicts.state(c) == State::Fault).copied().collect()
+        self.scope
+            .iter()
+            .filter(|c| self.verdicts.state(c) == State::Fault)
+            .copied()
+            .collect()
     }
 
     /// Attempts a pass held to faulting cell `fault` needs: `(1 - bound)^N < max_miss`.
     pub fn attempts_needed(&self, fault: &Cell) -> u32 {
-        crate::model::stats::attempts_needed(self.verdicts.rate_bound(fault), self.settings.max_miss, self.settings.max_attempts)
+        crate::model::stats::attempts_needed(
+            self.verdicts.rate_bound(fault),
+            self.settings.max_miss,
+            self.settings.max_attempts,
+        )
     }
 
     /// The faulting cell of `region` with the highest rate bound (most attempts on a tie): the
     /// fault a conjunction over `region` claims, which its passes are held to.
     fn reference(&self, region: &[Cell]) -> Option<Cell> {
         let mut best: Option<(f64, u32, Cell)> = None;
-        for c in region.iter().filter(|c| self.verdicts.state(c) == State::Fault) {
+        for c in region
+            .iter()
+            .filter(|c| self.verdicts.state(c) == State::Fault)
+        {
             let (b, n) = (self.verdicts.rate_bound(c), self.verdicts.evidence(c));
             if best.is_none_or(|(bb, bn, _)| b > bb || (b == bb && n > bn)) {
                 best = Some((b, n, *c));
@@ -144,13 +176,20 @@ impl<'o> Bisector<'o> {
             return;
         }
         loop {
-            let more: Vec<Cell> = cells.iter().filter(|c| !done(self, c) && self.verdicts.attempts(c) < self.settings.max_attempts).copied().collect();
+            let more: Vec<Cell> = cells
+                .iter()
+                .filter(|c| {
+                    !done(self, c) && self.verdicts.attempts(c) < self.settings.max_attempts
+                })
+                .copied()
+                .collect();
             let before = self.verdicts.runs;
             if more.is_empty() {
                 return;
             }
             let verdicts = &mut self.verdicts;
-            self.oracle.run(&more, Mode::Alone, &mut |ev| verdicts.on_event(ev));
+            self.oracle
+                .run(&more, Mode::Alone, &mut |ev| verdicts.on_event(ev));
             if self.verdicts.runs == before {
                 return;
             }
@@ -162,23 +201,37 @@ impl<'o> Bisector<'o> {
     /// every pass is repeated until a fault of that rate would have shown with probability above
     /// `1 - max_miss`, or it faults.
     fn settle_against(&mut self, cells: &[Cell], fault: Cell) {
-        self.repeat_until(&[fault], &|b, f| b.verdicts.state(f) != State::Fault || b.verdicts.evidence(f) >= b.attempts_needed(f));
-        self.repeat_until(cells, &|b, c| b.verdicts.state(c) != State::Pass || b.verdicts.evidence(c) >= b.attempts_needed(&fault));
+        self.repeat_until(&[fault], &|b, f| {
+            b.verdicts.state(f) != State::Fault || b.verdicts.evidence(f) >= b.attempts_needed(f)
+        });
+        self.repeat_until(cells, &|b, c| {
+            b.verdicts.state(c) != State::Pass
+                || b.verdicts.evidence(c) >= b.attempts_needed(&fault)
+        });
     }
 
     /// Run the cells of `cells` without a verdict once (together, as a run would).
     fn run_unknown(&mut self, cells: &[Cell]) {
-        let unknown: Vec<Cell> = cells.iter().filter(|c| self.verdicts.state(c) == State::Unknown).copied().collect();
+        let unknown: Vec<Cell> = cells
+            .iter()
+            .filter(|c| self.verdicts.state(c) == State::Unknown)
+            .copied()
+            .collect();
         if !unknown.is_empty() && self.oracle.can_run() {
             let verdicts = &mut self.verdicts;
-            self.oracle.run(&unknown, Mode::Shared, &mut |ev| verdicts.on_event(ev));
+            self.oracle
+                .run(&unknown, Mode::Shared, &mut |ev| verdicts.on_event(ev));
         }
     }
 
     /// Whether `region` has a pass that stays one when held to the region's fault: its passes,
     /// most attempts first, are settled until one holds (it is relied on) or every one faults.
     fn settled_pass(&mut self, region: &[Cell]) -> bool {
-        let mut passes: Vec<Cell> = region.iter().filter(|c| self.verdicts.state(c) == State::Pass).copied().collect();
+        let mut passes: Vec<Cell> = region
+            .iter()
+            .filter(|c| self.verdicts.state(c) == State::Pass)
+            .copied()
+            .collect();
         passes.sort_by_key(|c| std::cmp::Reverse(self.verdicts.evidence(c)));
         for w in passes {
             let against = self.reference(region);
@@ -202,10 +255,19 @@ impl<'o> Bisector<'o> {
         if let Some(v) = self.memo.get(&key) {
             return *v;
         }
-        let region: Vec<Cell> = self.scope.iter().filter(|c| f.matches(c)).copied().collect();
+        let region: Vec<Cell> = self
+            .scope
+            .iter()
+            .filter(|c| f.matches(c))
+            .copied()
+            .collect();
         let mut ok = !self.settled_pass(&region);
         if ok {
-            let unknown: Vec<Cell> = region.iter().filter(|c| self.verdicts.state(c) == State::Unknown).copied().collect();
+            let unknown: Vec<Cell> = region
+                .iter()
+                .filter(|c| self.verdicts.state(c) == State::Unknown)
+                .copied()
+                .collect();
             if !unknown.is_empty() && !self.oracle.can_run() {
                 ok = false; // offline: a conjunction is not widened over cells nobody ran
             }
@@ -228,8 +290,11 @@ impl<'o> Bisector<'o> {
         for (w, f) in &relied {
             self.settle_against(&[*w], *f);
         }
-        let flipped = relied.iter().any(|(w, _)| self.verdicts.state(w) != State::Pass);
-        self.relied.retain(|(w, _)| self.verdicts.state(w) == State::Pass);
+        let flipped = relied
+            .iter()
+            .any(|(w, _)| self.verdicts.state(w) != State::Pass);
+        self.relied
+            .retain(|(w, _)| self.verdicts.state(w) == State::Pass);
         flipped
     }
 
@@ -240,7 +305,11 @@ impl<'o> Bisector<'o> {
             let mut vals: Vec<String> = Vec::new();
             for c in &self.scope {
                 let v = c.axis_value(axis).expect("known axis");
-                if !vals.contains(&v) && cells.iter().any(|f| f.axis_value(axis).as_deref() == Some(v.as_str())) {
+                if !vals.contains(&v)
+                    && cells
+                        .iter()
+                        .any(|f| f.axis_value(axis).as_deref() == Some(v.as_str()))
+                {
                     vals.push(v);
                 }
             }
@@ -265,12 +334,25 @@ impl<'o> Bisector<'o> {
     fn reduce(&mut self, f: Filter) -> Filter {
         // Reversed, so that among equivalent results ddmin keeps the primary axes (as_access=none
         // says resource≠acceleration_structure; nonuniform=true says index=dynamic).
-        let mut terms: Vec<(String, Vec<String>)> = f.terms.into_iter().rev().filter(|(a, v)| self.scope_values(a).iter().any(|x| !v.contains(x))).collect();
+        let mut terms: Vec<(String, Vec<String>)> = f
+            .terms
+            .into_iter()
+            .rev()
+            .filter(|(a, v)| self.scope_values(a).iter().any(|x| !v.contains(x)))
+            .collect();
         // The optional axes' stand-in values (`base=none`: not a closest-hit dynamic buffer/image
         // cell; `sampler=none`: not a direct sampled image) restate other axes: described without
         // them when that still holds.
-        let primary: Vec<(String, Vec<String>)> = terms.iter().filter(|(a, _)| registry::axis(a).is_some_and(|d| d.rank == registry::Rank::Primary)).cloned().collect();
-        if primary.len() < terms.len() && self.holds(&Filter { terms: primary.iter().rev().cloned().collect() }) {
+        let primary: Vec<(String, Vec<String>)> = terms
+            .iter()
+            .filter(|(a, _)| registry::axis(a).is_some_and(|d| d.rank == registry::Rank::Primary))
+            .cloned()
+            .collect();
+        if primary.len() < terms.len()
+            && self.holds(&Filter {
+                terms: primary.iter().rev().cloned().collect(),
+            })
+        {
             terms = primary;
         }
         let mut kept = ddmin::ddmin(&terms, &mut |sub| {
@@ -306,7 +388,9 @@ impl<'o> Bisector<'o> {
 
     /// Whether every faulting cell of the scope matches one of `cs`.
     fn covers(&self, cs: &[Filter]) -> bool {
-        self.faulting().iter().all(|f| cs.iter().any(|c| c.matches(f)))
+        self.faulting()
+            .iter()
+            .all(|f| cs.iter().any(|c| c.matches(f)))
     }
 
     /// The minimal description of the faulting cells: one conjunction when one separates them
@@ -320,7 +404,11 @@ impl<'o> Bisector<'o> {
                 return Err(BisectError::NoFault);
             }
             let tight = self.tight(&faulting);
-            let (separable, cs) = if self.holds(&tight) { (true, vec![self.reduce(tight)]) } else { (false, self.disjunction(&faulting)) };
+            let (separable, cs) = if self.holds(&tight) {
+                (true, vec![self.reduce(tight)])
+            } else {
+                (false, self.disjunction(&faulting))
+            };
             // Runs made on the way may have found faulting cells outside, or lowered a fault's
             // bound so that a pass relied on needs more attempts (and then faults): start over (a
             // "holds" stays true, since a fault is never reversed; a pass may turn into a fault).
@@ -336,7 +424,11 @@ impl<'o> Bisector<'o> {
 
     /// Find the minimal description, then build the isolation list around `cell` (or the first
     /// faulting cell) and try its workarounds (`patch_supported` says which the device can run).
-    pub fn bisect(&mut self, cell: Option<&str>, patch_supported: &dyn Fn(&Cell) -> bool) -> Result<Bisection, BisectError> {
+    pub fn bisect(
+        &mut self,
+        cell: Option<&str>,
+        patch_supported: &dyn Fn(&Cell) -> bool,
+    ) -> Result<Bisection, BisectError> {
         // Settling the isolation list's siblings and the workarounds repeats them; one in the
         // scope that faults there is a fault the description must cover too: then the search
         // starts over (faults are never reversed, so this ends).
@@ -344,12 +436,26 @@ impl<'o> Bisector<'o> {
             let (separable, conjunctions) = self.describe_faults()?;
             let faulting = self.faulting();
             let rep = match cell {
-                Some(id) => *faulting.iter().find(|c| c.id() == id).ok_or_else(|| BisectError::NotFaulting(id.to_string()))?,
-                None => *faulting.iter().find(|c| conjunctions[0].matches(c)).expect("the first conjunction holds for a faulting cell"),
+                Some(id) => *faulting
+                    .iter()
+                    .find(|c| c.id() == id)
+                    .ok_or_else(|| BisectError::NotFaulting(id.to_string()))?,
+                None => *faulting
+                    .iter()
+                    .find(|c| conjunctions[0].matches(c))
+                    .expect("the first conjunction holds for a faulting cell"),
             };
             let siblings = self.siblings(&rep);
             let sib_cells: Vec<Cell> = siblings.iter().map(|(_, c)| *c).collect();
-            let patched: Vec<Cell> = rep.applicable_patches().into_iter().map(|p| Cell { patch: Some(p), ..rep }).filter(|c| patch_supported(c)).collect();
+            let patched: Vec<Cell> = rep
+                .applicable_patches()
+                .into_iter()
+                .map(|p| Cell {
+                    patch: Some(p),
+                    ..rep
+                })
+                .filter(|c| patch_supported(c))
+                .collect();
             let start = self.verdicts.runs;
             self.run_unknown(&sib_cells);
             self.settle_against(&sib_cells, rep);
@@ -361,20 +467,41 @@ impl<'o> Bisector<'o> {
             }
             self.memo.retain(|_, holds| *holds);
         };
-        let ev = |b: &Self, against: Option<&Cell>| isolation::Evidence { against: against.map(|f| b.verdicts.rate_bound(f)), max_miss: b.settings.max_miss };
-        let mut isolation = vec![isolation::line(&rep, None, &self.verdicts, ev(self, Some(&rep)))];
-        isolation.extend(siblings.iter().map(|(axis, c)| isolation::line(c, Some(axis), &self.verdicts, ev(self, Some(&rep)))));
-        let workarounds: Vec<IsolationLine> = patched.iter().map(|c| self.workaround_line(&rep, c, ev(self, Some(&rep)))).collect();
+        let ev = |b: &Self, against: Option<&Cell>| isolation::Evidence {
+            against: against.map(|f| b.verdicts.rate_bound(f)),
+            max_miss: b.settings.max_miss,
+        };
+        let mut isolation = vec![isolation::line(
+            &rep,
+            None,
+            &self.verdicts,
+            ev(self, Some(&rep)),
+        )];
+        isolation.extend(
+            siblings.iter().map(|(axis, c)| {
+                isolation::line(c, Some(axis), &self.verdicts, ev(self, Some(&rep)))
+            }),
+        );
+        let workarounds: Vec<IsolationLine> = patched
+            .iter()
+            .map(|c| self.workaround_line(&rep, c, ev(self, Some(&rep))))
+            .collect();
         // Every pass relied on, each with the fault it is held to.
         let mut relied: Vec<(Cell, Cell)> = self.relied.clone();
         relied.extend(sib_cells.iter().chain(&patched).map(|c| (*c, rep)));
         relied.retain(|(c, _)| self.verdicts.state(c) == State::Pass);
-        let miss_of = |(c, f): &(Cell, Cell)| crate::model::stats::miss(self.verdicts.rate_bound(f), self.verdicts.evidence(c));
+        let miss_of = |(c, f): &(Cell, Cell)| {
+            crate::model::stats::miss(self.verdicts.rate_bound(f), self.verdicts.evidence(c))
+        };
         relied.sort_by_key(|(c, f)| (c.id(), f.id()));
         relied.dedup();
         let worst_miss = relied.iter().map(miss_of).fold(0.0, f64::max);
         let union_miss = relied.iter().map(miss_of).sum::<f64>().min(1.0);
-        let mut unsettled: Vec<String> = relied.iter().filter(|r| miss_of(r) >= self.settings.max_miss).map(|(c, _)| c.id()).collect();
+        let mut unsettled: Vec<String> = relied
+            .iter()
+            .filter(|r| miss_of(r) >= self.settings.max_miss)
+            .map(|(c, _)| c.id())
+            .collect();
         unsettled.sort();
         unsettled.dedup();
         let mut relied_ids: Vec<String> = relied.iter().map(|(c, _)| c.id()).collect();
@@ -398,10 +525,22 @@ impl<'o> Bisector<'o> {
             unsettled,
             faulting_cells: self.faulting().len(),
             scope_cells: self.scope.len(),
-            not_run: self.scope.iter().filter(|c| self.verdicts.state(c) == State::Unknown).count(),
-            errored: self.scope.iter().filter(|c| self.verdicts.state(c) == State::Error).map(|c| c.id()).collect(),
+            not_run: self
+                .scope
+                .iter()
+                .filter(|c| self.verdicts.state(c) == State::Unknown)
+                .count(),
+            errored: self
+                .scope
+                .iter()
+                .filter(|c| self.verdicts.state(c) == State::Error)
+                .map(|c| c.id())
+                .collect(),
             runs: self.verdicts.runs,
-            not_varied: axes().filter(|a| self.scope_values(a).len() < 2).map(String::from).collect(),
+            not_varied: axes()
+                .filter(|a| self.scope_values(a).len() < 2)
+                .map(String::from)
+                .collect(),
         })
     }
 
@@ -420,11 +559,21 @@ impl<'o> Bisector<'o> {
                     .scope
                     .iter()
                     .filter(|c| c.axis_value(axis).as_ref() == Some(&v))
-                    .map(|c| (axes().filter(|a| *a != axis && c.axis_value(a) != rep.axis_value(a)).count(), c))
+                    .map(|c| {
+                        (
+                            axes()
+                                .filter(|a| *a != axis && c.axis_value(a) != rep.axis_value(a))
+                                .count(),
+                            c,
+                        )
+                    })
                     .filter(|(d, _)| *d <= 1)
                     .min_by_key(|(d, _)| *d);
                 // One line per cell: a sibling that is closest for two axes names both.
-                match (best, best.and_then(|(_, c)| out.iter_mut().find(|(_, o)| o.id() == c.id()))) {
+                match (
+                    best,
+                    best.and_then(|(_, c)| out.iter_mut().find(|(_, o)| o.id() == c.id())),
+                ) {
                     (_, Some(seen)) => seen.0 += &format!(", {axis}"),
                     (Some((_, c)), None) => out.push((axis.to_string(), *c)),
                     (None, None) => {}
@@ -434,7 +583,12 @@ impl<'o> Bisector<'o> {
         out
     }
 
-    fn workaround_line(&self, rep: &Cell, patched: &Cell, ev: isolation::Evidence) -> IsolationLine {
+    fn workaround_line(
+        &self,
+        rep: &Cell,
+        patched: &Cell,
+        ev: isolation::Evidence,
+    ) -> IsolationLine {
         let mut l = isolation::line(patched, Some("patch"), &self.verdicts, ev);
         let (inj_rep, inj_patched) = (for_cell(&self.inject, rep), for_cell(&self.inject, patched));
         let note = match (inj_rep, inj_patched, l.verdict.as_str()) {
@@ -451,8 +605,8 @@ impl<'o> Bisector<'o> {
     }
 }
 
-pub use render::render;
 use crate::model::Bisection;
+pub use render::render;
 
 #[cfg(test)]
 mod tests;

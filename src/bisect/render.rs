@@ -8,7 +8,10 @@ use std::path::Path;
 pub fn render(b: &Bisection, full_matrix: usize) -> String {
     let mut s = String::new();
     if b.separable {
-        s += &format!("{} faulting of {} cells in scope; one conjunction separates them.\n", b.faulting_cells, b.scope_cells);
+        s += &format!(
+            "{} faulting of {} cells in scope; one conjunction separates them.\n",
+            b.faulting_cells, b.scope_cells
+        );
     } else {
         s += &format!(
             "{} faulting of {} cells in scope; NO single conjunction separates them from the passing cells (the tightest one holding for every faulting cell contains a passing cell). Smallest disjunction found ({} conjunctions, greedy cover):\n",
@@ -53,10 +56,16 @@ pub fn render(b: &Bisection, full_matrix: usize) -> String {
         );
     }
     if !b.errored.is_empty() {
-        s += &format!("not evidence (rtprobe could not run them, `error`): {}\n", b.errored.join(", "));
+        s += &format!(
+            "not evidence (rtprobe could not run them, `error`): {}\n",
+            b.errored.join(", ")
+        );
     }
     if !b.not_varied.is_empty() {
-        s += &format!("not varied in this scope (the result says nothing about them): {}\n", b.not_varied.join(", "));
+        s += &format!(
+            "not varied in this scope (the result says nothing about them): {}\n",
+            b.not_varied.join(", ")
+        );
     }
     s += &format!(
         "runs: {} made by bisect; {} cells in scope ({} never run), full matrix {} cells\n",
@@ -68,7 +77,14 @@ pub fn render(b: &Bisection, full_matrix: usize) -> String {
 
 impl BisectFile {
     /// The file for `bisection` of the report at `path` (rendered as `bisect` prints it).
-    pub fn new(path: &Path, report: &RunReport, scope: &[Filter], inject: &[Injection], offline: bool, bisection: Bisection) -> Self {
+    pub fn new(
+        path: &Path,
+        report: &RunReport,
+        scope: &[Filter],
+        inject: &[Injection],
+        offline: bool,
+        bisection: Bisection,
+    ) -> Self {
         let text = render(&bisection, report.plan.generated);
         BisectFile {
             schema: crate::model::bisection::SCHEMA.into(),
@@ -92,5 +108,9 @@ pub fn predicate(f: &Filter) -> String {
     if f.terms.is_empty() {
         return "canary=none".into();
     }
-    f.terms.iter().map(|(a, v)| format!("{a}={}", v.join("|"))).collect::<Vec<_>>().join(",")
+    f.terms
+        .iter()
+        .map(|(a, v)| format!("{a}={}", v.join("|")))
+        .collect::<Vec<_>>()
+        .join(",")
 }

@@ -1,10 +1,10 @@
 //! What bisection takes from a run report: the options its runs must repeat (device, scene,
 //! `--inject-fault`, timeouts) and the scope of cells when no device is at hand.
-use crate::model::{InjectError, Injection};
-use crate::model::PatchMode;
-use crate::model::{Cell, Filter, FilterError};
-use crate::model::RunReport;
 use crate::model::Isolation;
+use crate::model::PatchMode;
+use crate::model::RunReport;
+use crate::model::{Cell, Filter, FilterError};
+use crate::model::{InjectError, Injection};
 
 /// What the report's options or the scope's filters fail with.
 #[derive(Debug, thiserror::Error)]
@@ -33,7 +33,12 @@ pub struct ReportOptions {
 impl ReportOptions {
     pub fn of(r: &RunReport) -> Result<Self, ScopeError> {
         let o = &r.options;
-        let inject = o.inject.iter().map(|s| Injection::parse(s)).collect::<Result<Vec<_>, _>>().map_err(ScopeError::Injection)?;
+        let inject = o
+            .inject
+            .iter()
+            .map(|s| Injection::parse(s))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(ScopeError::Injection)?;
         Ok(ReportOptions {
             filters: o.filters.clone(),
             patches: o.patches,
@@ -48,8 +53,15 @@ impl ReportOptions {
 
     /// The scope filters: `given`, or else the report's own `--filter`s.
     pub fn scope_filters(&self, given: &[String]) -> Result<Vec<Filter>, ScopeError> {
-        let src = if given.is_empty() { &self.filters } else { given };
-        src.iter().map(|f| Filter::parse(f)).collect::<Result<_, _>>().map_err(ScopeError::Filter)
+        let src = if given.is_empty() {
+            &self.filters
+        } else {
+            given
+        };
+        src.iter()
+            .map(|f| Filter::parse(f))
+            .collect::<Result<_, _>>()
+            .map_err(ScopeError::Filter)
     }
 }
 
@@ -71,7 +83,12 @@ pub fn cell_by_id(id: &str) -> Option<Cell> {
     use crate::model::Canary;
     let (all, _) = crate::matrix::plan::all_cells();
     all.into_iter()
-        .flat_map(|c| std::iter::once(c).chain(c.applicable_patches().into_iter().map(move |p| Cell { patch: Some(p), ..c })))
+        .flat_map(|c| {
+            std::iter::once(c).chain(c.applicable_patches().into_iter().map(move |p| Cell {
+                patch: Some(p),
+                ..c
+            }))
+        })
         .chain(Canary::ALL.iter().map(|k| Cell::canary(*k)))
         .find(|c| c.id() == id)
 }
@@ -82,7 +99,11 @@ mod tests {
 
     #[test]
     fn every_id_finds_its_cell() {
-        for id in ["closest_hit.storage_buffer.dynamic.descriptor_indexing.patch-pin-index", "raygen.acceleration_structure.literal.address_patched.descriptor_buffer", "canary.infinite_loop"] {
+        for id in [
+            "closest_hit.storage_buffer.dynamic.descriptor_indexing.patch-pin-index",
+            "raygen.acceleration_structure.literal.address_patched.descriptor_buffer",
+            "canary.infinite_loop",
+        ] {
             assert_eq!(cell_by_id(id).unwrap().id(), id);
         }
         assert!(cell_by_id("raygen.nope").is_none());

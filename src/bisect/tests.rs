@@ -1,8 +1,8 @@
 //! Bisection against a simulated device: ground-truth predicates (deterministic or flaky), every
 //! run counted.
 use super::*;
-use crate::model::Attempt;
 use crate::matrix::plan::all_cells;
+use crate::model::Attempt;
 use crate::model::Outcome;
 
 /// Faults on the cells of any of `truth`, each attempt with probability `p` (a seeded LCG).
@@ -15,10 +15,18 @@ struct Sim {
 
 impl Sim {
     fn new(truth: &[&str], p: f64) -> Self {
-        Sim { truth: truth.iter().map(|t| Filter::parse(t).unwrap()).collect(), p, rng: 0x1234_5678, runs: 0 }
+        Sim {
+            truth: truth.iter().map(|t| Filter::parse(t).unwrap()).collect(),
+            p,
+            rng: 0x1234_5678,
+            runs: 0,
+        }
     }
     fn roll(&mut self) -> f64 {
-        self.rng = self.rng.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        self.rng = self
+            .rng
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         (self.rng >> 11) as f64 / (1u64 << 53) as f64
     }
 }
@@ -29,7 +37,10 @@ impl Oracle for Sim {
             self.runs += 1;
             let fault = self.truth.iter().any(|t| t.matches(c)) && self.roll() < self.p;
             let outcome = if fault { Outcome::Crash } else { Outcome::Pass };
-            on(Event::Attempt { cell: c, attempt: attempt(outcome, mode != Mode::Shared) });
+            on(Event::Attempt {
+                cell: c,
+                attempt: attempt(outcome, mode != Mode::Shared),
+            });
         }
     }
     fn can_run(&self) -> bool {
@@ -51,7 +62,17 @@ impl Oracle for Late {
         for c in cells {
             if c.id() == self.late {
                 self.seen += 1;
-                on(Event::Attempt { cell: c, attempt: attempt(if self.seen >= self.from { Outcome::Crash } else { Outcome::Pass }, mode != Mode::Shared) });
+                on(Event::Attempt {
+                    cell: c,
+                    attempt: attempt(
+                        if self.seen >= self.from {
+                            Outcome::Crash
+                        } else {
+                            Outcome::Pass
+                        },
+                        mode != Mode::Shared,
+                    ),
+                });
             } else {
                 self.sim.run(std::slice::from_ref(c), mode, on);
             }
@@ -63,7 +84,18 @@ impl Oracle for Late {
 }
 
 fn attempt(outcome: Outcome, isolated: bool) -> Attempt {
-    Attempt { outcome, isolated, detail: None, result: None, worker_exit: None, injected: None, wall_ms: 0.0, phase: None, worker: 0, device_features: vec![] }
+    Attempt {
+        outcome,
+        isolated,
+        detail: None,
+        result: None,
+        worker_exit: None,
+        injected: None,
+        wall_ms: 0.0,
+        phase: None,
+        worker: 0,
+        device_features: vec![],
+    }
 }
 
 fn scope(filter: &str) -> Vec<Cell> {
@@ -93,14 +125,27 @@ fn bisect(truth: &[&str], p: f64, scope_filter: &str, ran_filter: &str) -> (Bise
 /// The attempts a fault that never misses gets: the first N with N >= the attempts a pass held to
 /// `alpha^(1/N)` needs.
 fn deterministic_fault_attempts(max_miss: f64) -> u32 {
-    (1..).find(|&n| n >= crate::model::stats::attempts_needed(crate::model::stats::rate_bound(n, n), max_miss, DEFAULT_MAX_ATTEMPTS)).unwrap()
+    (1..)
+        .find(|&n| {
+            n >= crate::model::stats::attempts_needed(
+                crate::model::stats::rate_bound(n, n),
+                max_miss,
+                DEFAULT_MAX_ATTEMPTS,
+            )
+        })
+        .unwrap()
 }
 
 const SCOPE: &str = "descriptor_model=descriptor_indexing,resource=storage_buffer|uniform_buffer|acceleration_structure";
 
 #[test]
 fn single_axis_two_axis_and_value_sets_are_recovered_exactly() {
-    for truth in ["index=dynamic", "stage=closest_hit,index=dynamic", "stage=raygen|miss,resource=uniform_buffer", "resource=storage_buffer|uniform_buffer,index=push_constant|dynamic"] {
+    for truth in [
+        "index=dynamic",
+        "stage=closest_hit,index=dynamic",
+        "stage=raygen|miss,resource=uniform_buffer",
+        "resource=storage_buffer|uniform_buffer,index=push_constant|dynamic",
+    ] {
         let (r, runs) = bisect(&[truth], 1.0, SCOPE, SCOPE);
         assert!(r.separable, "{truth}");
         assert_eq!(r.minimal, truth);
@@ -108,20 +153,46 @@ fn single_axis_two_axis_and_value_sets_are_recovered_exactly() {
         // Deterministic faults: the minimal failing cell is repeated until it has as many attempts
         // as a pass held to its bound then needs; every pass relied on gets exactly that many.
         let n0 = deterministic_fault_attempts(DEFAULT_MAX_MISS);
-        let need = crate::model::stats::attempts_needed(crate::model::stats::rate_bound(n0, n0), DEFAULT_MAX_MISS, DEFAULT_MAX_ATTEMPTS);
+        let need = crate::model::stats::attempts_needed(
+            crate::model::stats::rate_bound(n0, n0),
+            DEFAULT_MAX_MISS,
+            DEFAULT_MAX_ATTEMPTS,
+        );
         assert_eq!(r.attempts_per_pass, need);
-        assert_eq!((r.isolation[0].agreeing, r.isolation[0].attempts), (n0, n0), "{truth}");
-        assert!(r.isolation[0].line.contains(&format!("({n0} of {n0}, p ≥ {:.2} at 95%)", crate::model::stats::rate_bound(n0, n0))), "{}", r.isolation[0].line);
-        assert!(runs <= (n0 as usize - 1) + r.passes_relied_on * need as usize, "{truth}: {runs} runs");
+        assert_eq!(
+            (r.isolation[0].agreeing, r.isolation[0].attempts),
+            (n0, n0),
+            "{truth}"
+        );
+        assert!(
+            r.isolation[0].line.contains(&format!(
+                "({n0} of {n0}, p ≥ {:.2} at 95%)",
+                crate::model::stats::rate_bound(n0, n0)
+            )),
+            "{}",
+            r.isolation[0].line
+        );
+        assert!(
+            runs <= (n0 as usize - 1) + r.passes_relied_on * need as usize,
+            "{truth}: {runs} runs"
+        );
         assert!(r.concluded() && r.unsettled.is_empty());
         assert!(r.worst_miss_probability < DEFAULT_MAX_MISS);
         assert_eq!(r.isolation[0].cell, r.representative);
         assert!(r.isolation[0].faults());
-        assert!(r.isolation.iter().skip(1).any(|l| !l.faults()), "{truth}: a passing sibling");
+        assert!(
+            r.isolation.iter().skip(1).any(|l| !l.faults()),
+            "{truth}: a passing sibling"
+        );
         for l in r.isolation.iter().filter(|l| l.verdict == "pass") {
             assert_eq!(l.attempts, need, "{}", l.line);
             let m = crate::model::stats::miss(crate::model::stats::rate_bound(n0, n0), need);
-            assert!(l.line.contains(&format!("miss ≤ {}", isolation::percent(m))), "{}", l.line);
+            assert!(
+                l.line
+                    .contains(&format!("miss ≤ {}", isolation::percent(m))),
+                "{}",
+                l.line
+            );
         }
     }
 }
@@ -131,15 +202,25 @@ fn a_redundant_predicate_comes_back_as_an_equivalent_set() {
     // as_access=address|address_patched already implies resource=acceleration_structure.
     let truth = "resource=acceleration_structure,as_access=address|address_patched";
     let (r, _) = bisect(&[truth], 1.0, SCOPE, SCOPE);
-    let (t, m) = (Filter::parse(truth).unwrap(), Filter::parse(&r.minimal).unwrap());
+    let (t, m) = (
+        Filter::parse(truth).unwrap(),
+        Filter::parse(&r.minimal).unwrap(),
+    );
     let sc = scope(SCOPE);
-    assert!(sc.iter().all(|c| t.matches(c) == m.matches(c)), "{} is not equivalent to {truth}", r.minimal);
+    assert!(
+        sc.iter().all(|c| t.matches(c) == m.matches(c)),
+        "{} is not equivalent to {truth}",
+        r.minimal
+    );
     assert!(m.terms.len() <= 2);
 }
 
 #[test]
 fn a_fault_no_conjunction_separates_gives_a_disjunction() {
-    let truth = ["stage=raygen,index=literal", "stage=closest_hit,index=dynamic"];
+    let truth = [
+        "stage=raygen,index=literal",
+        "stage=closest_hit,index=dynamic",
+    ];
     let (r, _) = bisect(&truth, 1.0, SCOPE, SCOPE);
     assert!(!r.separable);
     assert_eq!(r.conjunctions, truth);
@@ -153,19 +234,41 @@ fn a_flaky_fault_is_recovered_with_repeats_below_the_threshold() {
     let (r, runs) = bisect(&["stage=raygen|miss,index=dynamic"], 0.5, scope_f, scope_f);
     assert_eq!(r.minimal, "stage=raygen|miss,index=dynamic");
     assert!(r.concluded(), "{:?}", r.unsettled);
-    assert!(r.worst_miss_probability < DEFAULT_MAX_MISS, "{}", r.worst_miss_probability);
+    assert!(
+        r.worst_miss_probability < DEFAULT_MAX_MISS,
+        "{}",
+        r.worst_miss_probability
+    );
     // The bound is the minimal failing cell's own k of N, below the true rate 0.5 (at 95%).
     let rep = &r.isolation[0];
     let p = r.fault_rate_bound.unwrap();
-    assert_eq!(p, crate::model::stats::rate_bound(rep.agreeing, rep.attempts));
-    assert!(rep.agreeing < rep.attempts, "a rate-0.5 fault missed some attempts: {}", rep.line);
+    assert_eq!(
+        p,
+        crate::model::stats::rate_bound(rep.agreeing, rep.attempts)
+    );
+    assert!(
+        rep.agreeing < rep.attempts,
+        "a rate-0.5 fault missed some attempts: {}",
+        rep.line
+    );
     assert!(p < 0.5, "bound {p}");
     // It was repeated until it had the attempts a pass then needs, and every pass those.
     assert!(rep.attempts >= r.attempts_per_pass, "{}", rep.line);
-    assert_eq!(r.attempts_per_pass, crate::model::stats::attempts_needed(p, DEFAULT_MAX_MISS, DEFAULT_MAX_ATTEMPTS));
+    assert_eq!(
+        r.attempts_per_pass,
+        crate::model::stats::attempts_needed(p, DEFAULT_MAX_MISS, DEFAULT_MAX_ATTEMPTS)
+    );
     for l in r.isolation.iter().filter(|l| l.verdict == "pass") {
-        assert!(l.attempts >= r.attempts_per_pass && l.settled(), "{}", l.line);
-        assert!(l.line.contains("miss ≤ ") && l.line.contains(&format!("for p ≥ {p:.2}")), "{}", l.line);
+        assert!(
+            l.attempts >= r.attempts_per_pass && l.settled(),
+            "{}",
+            l.line
+        );
+        assert!(
+            l.line.contains("miss ≤ ") && l.line.contains(&format!("for p ≥ {p:.2}")),
+            "{}",
+            l.line
+        );
     }
     assert!(runs > 20, "passes were repeated: {runs}");
 }
@@ -173,24 +276,45 @@ fn a_flaky_fault_is_recovered_with_repeats_below_the_threshold() {
 #[test]
 fn cells_outside_the_report_are_run_only_where_needed() {
     // The report ran closest_hit only; the fault is on every stage's dynamic index.
-    let (r, runs) = bisect(&["index=dynamic"], 1.0, "descriptor_model=descriptor_indexing", "descriptor_model=descriptor_indexing,stage=closest_hit");
+    let (r, runs) = bisect(
+        &["index=dynamic"],
+        1.0,
+        "descriptor_model=descriptor_indexing",
+        "descriptor_model=descriptor_indexing,stage=closest_hit",
+    );
     assert_eq!(r.minimal, "index=dynamic");
-    assert!(runs < r.scope_cells / 2, "{runs} runs for {} cells", r.scope_cells);
+    assert!(
+        runs < r.scope_cells / 2,
+        "{runs} runs for {} cells",
+        r.scope_cells
+    );
     assert!(r.not_run > 0);
 }
 
 #[test]
 fn offline_never_widens_over_cells_nobody_ran() {
     let mut sim = Sim::new(&["index=dynamic"], 1.0);
-    let v = report(&mut sim, &scope("descriptor_model=descriptor_indexing,stage=closest_hit"));
+    let v = report(
+        &mut sim,
+        &scope("descriptor_model=descriptor_indexing,stage=closest_hit"),
+    );
     let mut off = Offline;
-    let mut b = Bisector::new(scope("descriptor_model=descriptor_indexing"), v, &mut off, Settings::default(), vec![]);
+    let mut b = Bisector::new(
+        scope("descriptor_model=descriptor_indexing"),
+        v,
+        &mut off,
+        Settings::default(),
+        vec![],
+    );
     let r = b.bisect(None, &|_| true).unwrap();
     assert_eq!(r.minimal, "stage=closest_hit,index=dynamic");
     assert_eq!(r.runs, 0);
     // No repeats offline: one fault of one attempt bounds the rate only by alpha, and the passes
     // relied on (one attempt each) are not concluded on.
-    assert_eq!(r.fault_rate_bound, Some(1.0 - crate::model::stats::CONFIDENCE));
+    assert_eq!(
+        r.fault_rate_bound,
+        Some(1.0 - crate::model::stats::CONFIDENCE)
+    );
     assert!(!r.concluded() && !r.unsettled.is_empty());
     assert!(render(&r, 816).contains("NOT CONCLUDED"));
 }
@@ -201,15 +325,31 @@ fn no_fault_and_a_wrong_cell_are_errors() {
     let sc = scope("descriptor_model=descriptor_indexing,stage=closest_hit");
     let v = report(&mut sim, &sc);
     let mut b = Bisector::new(sc.clone(), v.clone(), &mut sim, Settings::default(), vec![]);
-    assert!(matches!(b.bisect(None, &|_| true), Err(BisectError::NoFault)));
+    assert!(matches!(
+        b.bisect(None, &|_| true),
+        Err(BisectError::NoFault)
+    ));
     let mut sim = Sim::new(&["index=dynamic"], 1.0);
-    let mut b = Bisector::new(sc.clone(), report(&mut sim, &sc), &mut sim, Settings::default(), vec![]);
-    assert!(matches!(b.bisect(Some("closest_hit.storage_buffer.literal.descriptor_indexing"), &|_| true), Err(BisectError::NotFaulting(_))));
+    let mut b = Bisector::new(
+        sc.clone(),
+        report(&mut sim, &sc),
+        &mut sim,
+        Settings::default(),
+        vec![],
+    );
+    assert!(matches!(
+        b.bisect(
+            Some("closest_hit.storage_buffer.literal.descriptor_indexing"),
+            &|_| true
+        ),
+        Err(BisectError::NotFaulting(_))
+    ));
 }
 
 #[test]
 fn workarounds_say_when_the_injection_decides_them() {
-    let sc = scope("descriptor_model=descriptor_indexing,stage=closest_hit,resource=storage_buffer");
+    let sc =
+        scope("descriptor_model=descriptor_indexing,stage=closest_hit,resource=storage_buffer");
     let inj = vec![Injection::parse("stage=closest_hit,index=dynamic,patch=none").unwrap()];
     let mut sim = Sim::new(&["stage=closest_hit,index=dynamic,patch=none"], 1.0);
     let v = report(&mut sim, &sc);
@@ -225,10 +365,17 @@ fn workarounds_say_when_the_injection_decides_them() {
 #[test]
 fn with_every_patched_variant_in_scope_a_patch_none_predicate_comes_back() {
     // A `--patches all` report: the patch axis is sampled, and `patch=none` is a real term.
-    let sc: Vec<Cell> = scope("descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit")
-        .into_iter()
-        .flat_map(|c| std::iter::once(c).chain(c.applicable_patches().into_iter().map(move |p| Cell { patch: Some(p), ..c })))
-        .collect();
+    let sc: Vec<Cell> = scope(
+        "descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit",
+    )
+    .into_iter()
+    .flat_map(|c| {
+        std::iter::once(c).chain(c.applicable_patches().into_iter().map(move |p| Cell {
+            patch: Some(p),
+            ..c
+        }))
+    })
+    .collect();
     let truth = "stage=closest_hit,index=dynamic,patch=none";
     let mut sim = Sim::new(&[truth], 1.0);
     let v = report(&mut sim, &sc);
@@ -246,7 +393,13 @@ fn cells_rtprobe_could_not_run_count_neither_way() {
         fn run(&mut self, cells: &[Cell], mode: Mode, on: &mut dyn FnMut(Event)) {
             for c in cells {
                 if c.id() == self.1 {
-                    on(Event::Attempt { cell: c, attempt: Attempt { detail: Some("could not".into()), ..attempt(Outcome::Error, mode != Mode::Shared) } });
+                    on(Event::Attempt {
+                        cell: c,
+                        attempt: Attempt {
+                            detail: Some("could not".into()),
+                            ..attempt(Outcome::Error, mode != Mode::Shared)
+                        },
+                    });
                 } else {
                     self.0.run(std::slice::from_ref(c), mode, on);
                 }
@@ -256,15 +409,26 @@ fn cells_rtprobe_could_not_run_count_neither_way() {
             true
         }
     }
-    let sc = scope("descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit");
-    let mut o = WithError(Sim::new(&["index=dynamic"], 1.0), "raygen.storage_buffer.dynamic.descriptor_indexing".into());
+    let sc = scope(
+        "descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit",
+    );
+    let mut o = WithError(
+        Sim::new(&["index=dynamic"], 1.0),
+        "raygen.storage_buffer.dynamic.descriptor_indexing".into(),
+    );
     let mut v = Verdicts::default();
     o.run(&sc, Mode::Shared, &mut |ev| v.on_event(ev));
-    let dynamic = sc.iter().filter(|c| c.index == crate::model::IndexSource::Dynamic).count();
+    let dynamic = sc
+        .iter()
+        .filter(|c| c.index == crate::model::IndexSource::Dynamic)
+        .count();
     let mut b = Bisector::new(sc, v, &mut o, Settings::default(), vec![]);
     let r = b.bisect(None, &|_| true).unwrap();
     assert_eq!(r.minimal, "index=dynamic");
-    assert_eq!(r.errored, vec!["raygen.storage_buffer.dynamic.descriptor_indexing".to_string()]);
+    assert_eq!(
+        r.errored,
+        vec!["raygen.storage_buffer.dynamic.descriptor_indexing".to_string()]
+    );
     assert_eq!(r.faulting_cells, dynamic - 1);
 }
 
@@ -278,11 +442,15 @@ fn an_oracle_that_adds_nothing_ends_the_bisection() {
             true
         }
     }
-    let sc = scope("descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit");
+    let sc = scope(
+        "descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit",
+    );
     let mut sim = Sim::new(&["index=dynamic"], 1.0);
     let v = report(&mut sim, &sc[..6]);
     let mut deaf = Deaf;
-    let r = Bisector::new(sc, v, &mut deaf, Settings::default(), vec![]).bisect(None, &|_| true).unwrap();
+    let r = Bisector::new(sc, v, &mut deaf, Settings::default(), vec![])
+        .bisect(None, &|_| true)
+        .unwrap();
     assert!(!r.concluded());
 }
 
@@ -290,12 +458,22 @@ fn an_oracle_that_adds_nothing_ends_the_bisection() {
 fn a_pass_with_too_little_evidence_is_not_concluded_on() {
     // Three attempts at most: a fault seen 3 of 3 is only p >= alpha^(1/3) at 95%, and a pass of 3
     // attempts would miss such a fault with probability (1 - alpha^(1/3))^3, above 1%.
-    let sc = scope("descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit");
+    let sc = scope(
+        "descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit",
+    );
     let mut sim = Sim::new(&["stage=closest_hit,index=dynamic"], 1.0);
     let v = report(&mut sim, &sc);
-    let settings = Settings { max_attempts: 3, ..Settings::default() };
-    let r = Bisector::new(sc, v, &mut sim, settings, vec![]).bisect(None, &|_| true).unwrap();
-    let (bound, miss) = (crate::model::stats::rate_bound(3, 3), crate::model::stats::miss(crate::model::stats::rate_bound(3, 3), 3));
+    let settings = Settings {
+        max_attempts: 3,
+        ..Settings::default()
+    };
+    let r = Bisector::new(sc, v, &mut sim, settings, vec![])
+        .bisect(None, &|_| true)
+        .unwrap();
+    let (bound, miss) = (
+        crate::model::stats::rate_bound(3, 3),
+        crate::model::stats::miss(crate::model::stats::rate_bound(3, 3), 3),
+    );
     assert!(miss >= DEFAULT_MAX_MISS, "{miss}");
     assert_eq!(r.fault_rate_bound, Some(bound));
     assert!(!r.concluded());
@@ -303,16 +481,25 @@ fn a_pass_with_too_little_evidence_is_not_concluded_on() {
     assert!(!passes.is_empty());
     for l in passes {
         assert_eq!(l.attempts, 3);
-        assert!(!l.settled() && l.line.contains("not concluded on"), "{}", l.line);
+        assert!(
+            !l.settled() && l.line.contains("not concluded on"),
+            "{}",
+            l.line
+        );
         assert!((l.miss_probability.unwrap() - miss).abs() < 1e-12);
         assert!(r.unsettled.contains(&l.cell), "{}", l.cell);
     }
     assert!(render(&r, 816).contains("NOT CONCLUDED"));
     // With the default cap the same fault concludes.
     let mut sim = Sim::new(&["stage=closest_hit,index=dynamic"], 1.0);
-    let sc = scope("descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit");
+    let sc = scope(
+        "descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit",
+    );
     let v = report(&mut sim, &sc);
-    assert!(Bisector::new(sc, v, &mut sim, Settings::default(), vec![]).bisect(None, &|_| true).unwrap().concluded());
+    assert!(Bisector::new(sc, v, &mut sim, Settings::default(), vec![])
+        .bisect(None, &|_| true)
+        .unwrap()
+        .concluded());
 }
 
 #[test]
@@ -320,20 +507,50 @@ fn a_lenient_pass_that_read_other_elements_is_suspect_when_a_defined_sibling_fau
     use crate::model::IndexSource;
     use crate::model::{Comparison, ElementReads};
     let lenient = scope("stage=closest_hit,resource=sampled_image,index=dynamic,nonuniform=false,descriptor_model=descriptor_indexing")[0];
-    let literal = Cell { index: IndexSource::Literal, ..lenient };
-    let reads = |other: usize| {
-        let comparison = Comparison { element_reads: Some(ElementReads { outside_spec: "x".into(), own: 10, other, neither: 0 }), ..Comparison::default() };
-        let result = crate::model::CellResult { outcome: Outcome::Pass, detail: None, timings: Default::default(), comparison: Some(comparison), fault: None, validation_errors: 0 };
-        Attempt { result: Some(result), ..attempt(Outcome::Pass, false) }
+    let literal = Cell {
+        index: IndexSource::Literal,
+        ..lenient
     };
-    let ev = isolation::Evidence { against: Some(0.6), max_miss: DEFAULT_MAX_MISS };
+    let reads = |other: usize| {
+        let comparison = Comparison {
+            element_reads: Some(ElementReads {
+                outside_spec: "x".into(),
+                own: 10,
+                other,
+                neither: 0,
+            }),
+            ..Comparison::default()
+        };
+        let result = crate::model::CellResult {
+            outcome: Outcome::Pass,
+            detail: None,
+            timings: Default::default(),
+            comparison: Some(comparison),
+            fault: None,
+            validation_errors: 0,
+        };
+        Attempt {
+            result: Some(result),
+            ..attempt(Outcome::Pass, false)
+        }
+    };
+    let ev = isolation::Evidence {
+        against: Some(0.6),
+        max_miss: DEFAULT_MAX_MISS,
+    };
     // Other elements read, and the literal sibling faults: suspect, naming it.
     let mut v = Verdicts::default();
     v.record(&lenient, reads(3));
     v.record(&literal, attempt(Outcome::Mismatch, false));
     let l = isolation::line(&lenient, Some("index"), &v, ev);
     assert_eq!(l.suspect.as_deref(), Some(literal.id().as_str()));
-    assert!(l.line.contains("suspect: 3 pixel(s) read another element") && l.line.contains("with literal index, descriptor_indexing faults"), "{}", l.line);
+    assert!(
+        l.line.contains("suspect: 3 pixel(s) read another element")
+            && l.line
+                .contains("with literal index, descriptor_indexing faults"),
+        "{}",
+        l.line
+    );
     // Twins: every lane read its own element, or no defined sibling faults: clean.
     let mut own = Verdicts::default();
     own.record(&lenient, reads(0));
@@ -343,12 +560,19 @@ fn a_lenient_pass_that_read_other_elements_is_suspect_when_a_defined_sibling_fau
     clean.record(&lenient, reads(3));
     clean.record(&literal, attempt(Outcome::Pass, false));
     let l = isolation::line(&lenient, None, &clean, ev);
-    assert!(l.suspect.is_none() && !l.line.contains("suspect"), "{}", l.line);
+    assert!(
+        l.suspect.is_none() && !l.line.contains("suspect"),
+        "{}",
+        l.line
+    );
     // A cell with nonuniformEXT judged exactly (no element reads: the qualifier reached the
     // driver) is never suspect; one judged leniently because its compiler dropped the qualifier
     // (its comparison has element reads, `exec::heap::dropped_nonuniform`) is, like the cell
     // without it.
-    let nu = Cell { nonuniform: true, ..lenient };
+    let nu = Cell {
+        nonuniform: true,
+        ..lenient
+    };
     let mut v = Verdicts::default();
     v.record(&nu, attempt(Outcome::Pass, false));
     v.record(&literal, attempt(Outcome::Mismatch, false));
@@ -356,7 +580,10 @@ fn a_lenient_pass_that_read_other_elements_is_suspect_when_a_defined_sibling_fau
     let mut v = Verdicts::default();
     v.record(&nu, reads(3));
     v.record(&literal, attempt(Outcome::Mismatch, false));
-    assert_eq!(isolation::line(&nu, None, &v, ev).suspect.as_deref(), Some(literal.id().as_str()));
+    assert_eq!(
+        isolation::line(&nu, None, &v, ev).suspect.as_deref(),
+        Some(literal.id().as_str())
+    );
 }
 
 #[test]
@@ -367,18 +594,34 @@ fn a_sibling_that_faults_while_the_isolation_list_is_settled_is_covered() {
     // it faults, and the description must cover it: no isolation line may show a fault the
     // minimal description excludes.
     let sc = scope("descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit,index=literal|dynamic,base=push_data|none,reorder=none");
-    let mut o = Late { sim: Sim::new(&["stage=raygen,index=dynamic,nonuniform=true"], 1.0), late: "raygen.storage_buffer.dynamic.descriptor_indexing".into(), from: 4, seen: 0 };
+    let mut o = Late {
+        sim: Sim::new(&["stage=raygen,index=dynamic,nonuniform=true"], 1.0),
+        late: "raygen.storage_buffer.dynamic.descriptor_indexing".into(),
+        from: 4,
+        seen: 0,
+    };
     let mut v = Verdicts::default();
     o.run(&sc, Mode::Shared, &mut |ev| v.on_event(ev));
     v.runs = 0;
-    let r = Bisector::new(sc.clone(), v, &mut o, Settings::default(), vec![]).bisect(None, &|_| true).unwrap();
-    assert!(o.seen >= 4, "the late sibling was repeated into its fault ({} attempts)", o.seen);
+    let r = Bisector::new(sc.clone(), v, &mut o, Settings::default(), vec![])
+        .bisect(None, &|_| true)
+        .unwrap();
+    assert!(
+        o.seen >= 4,
+        "the late sibling was repeated into its fault ({} attempts)",
+        o.seen
+    );
     assert_eq!(r.minimal, "stage=raygen,index=dynamic", "{r:?}");
     assert_eq!(r.faulting_cells, 2);
     let minimal = Filter::parse(&r.minimal).unwrap();
     for l in r.isolation.iter().filter(|l| l.verdict != "pass") {
         let c = sc.iter().find(|c| c.id() == l.cell).unwrap();
-        assert!(minimal.matches(c), "{} faults outside {}", l.cell, r.minimal);
+        assert!(
+            minimal.matches(c),
+            "{} faults outside {}",
+            l.cell,
+            r.minimal
+        );
     }
 }
 
@@ -389,8 +632,17 @@ fn descriptions_prefer_primary_axes_over_the_optional_axes_stand_in_values() {
     // the stage. A fault that needs the base keeps it.
     let sc = "descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit,index=literal|dynamic,reorder=none";
     let (r, _) = bisect(&["stage=raygen,nonuniform=true"], 1.0, sc, sc);
-    assert!(!r.minimal.contains("base=") && !r.minimal.contains("sampler="), "{}", r.minimal);
-    assert_eq!(Filter::parse(&r.minimal).unwrap().terms.len(), 2, "{}", r.minimal);
+    assert!(
+        !r.minimal.contains("base=") && !r.minimal.contains("sampler="),
+        "{}",
+        r.minimal
+    );
+    assert_eq!(
+        Filter::parse(&r.minimal).unwrap().terms.len(),
+        2,
+        "{}",
+        r.minimal
+    );
     let (r, _) = bisect(&["base=buffer"], 1.0, sc, sc);
     assert_eq!(r.minimal, "base=buffer");
 }
@@ -403,24 +655,60 @@ fn a_workaround_in_scope_that_faults_while_settled_is_covered() {
     // settling, or the workarounds' settling that now runs inside the coverage loop), the
     // description must cover it: no `patch=` restriction may exclude it.
     let mut sc = scope("descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit,index=literal|dynamic,base=push_data|none,reorder=none");
-    let patched: Vec<Cell> = sc.iter().flat_map(|c| c.applicable_patches().into_iter().map(move |p| Cell { patch: Some(p), ..*c })).collect();
+    let patched: Vec<Cell> = sc
+        .iter()
+        .flat_map(|c| {
+            c.applicable_patches().into_iter().map(move |p| Cell {
+                patch: Some(p),
+                ..*c
+            })
+        })
+        .collect();
     sc.extend(patched);
     let late = "raygen.storage_buffer.dynamic.nonuniform.descriptor_indexing.patch-ssbo-to-address";
     assert!(sc.iter().any(|c| c.id() == late));
-    let mut o = Late { sim: Sim::new(&["stage=raygen,index=dynamic,nonuniform=true,patch=none"], 1.0), late: late.into(), from: 2, seen: 0 };
+    let mut o = Late {
+        sim: Sim::new(
+            &["stage=raygen,index=dynamic,nonuniform=true,patch=none"],
+            1.0,
+        ),
+        late: late.into(),
+        from: 2,
+        seen: 0,
+    };
     // The report ran the plain cells; the patched ones are run by the bisection.
     let mut v = Verdicts::default();
     let plain: Vec<Cell> = sc.iter().filter(|c| c.patch.is_none()).copied().collect();
     o.run(&plain, Mode::Shared, &mut |ev| v.on_event(ev));
     v.runs = 0;
-    let r = Bisector::new(sc.clone(), v, &mut o, Settings::default(), vec![]).bisect(None, &|_| true).unwrap();
-    assert!(o.seen >= 2, "the late workaround was repeated into its fault ({} attempts)", o.seen);
+    let r = Bisector::new(sc.clone(), v, &mut o, Settings::default(), vec![])
+        .bisect(None, &|_| true)
+        .unwrap();
+    assert!(
+        o.seen >= 2,
+        "the late workaround was repeated into its fault ({} attempts)",
+        o.seen
+    );
     let minimal = Filter::parse(&r.minimal).unwrap();
     let late_cell = sc.iter().find(|c| c.id() == late).unwrap();
-    assert!(minimal.matches(late_cell), "{} excludes the faulting {late}", r.minimal);
-    for l in r.workarounds.iter().chain(&r.isolation).filter(|l| l.verdict != "pass" && l.verdict != "not_run") {
+    assert!(
+        minimal.matches(late_cell),
+        "{} excludes the faulting {late}",
+        r.minimal
+    );
+    for l in r
+        .workarounds
+        .iter()
+        .chain(&r.isolation)
+        .filter(|l| l.verdict != "pass" && l.verdict != "not_run")
+    {
         let c = sc.iter().find(|c| c.id() == l.cell).unwrap();
-        assert!(minimal.matches(c), "{} faults outside {}", l.cell, r.minimal);
+        assert!(
+            minimal.matches(c),
+            "{} faults outside {}",
+            l.cell,
+            r.minimal
+        );
     }
 }
 
@@ -429,8 +717,13 @@ fn evidence_counts_only_attempts_the_driver_decided() {
     // A worker whose setup failed never ran the cell (`not_run`), and an `error` is rtprobe's:
     // neither is evidence. Counted, they would raise a finding's rate bound (so passes held to it
     // need fewer attempts) and lengthen a pass's record.
-    let c = scope("descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen,index=literal")[0];
-    let never_ran = |o: Outcome| Attempt { phase: Some(crate::model::phase::Phase::Setup), ..attempt(o, false) };
+    let c = scope(
+        "descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen,index=literal",
+    )[0];
+    let never_ran = |o: Outcome| Attempt {
+        phase: Some(crate::model::phase::Phase::Setup),
+        ..attempt(o, false)
+    };
     let mut v = Verdicts::default();
     v.record(&c, attempt(Outcome::Mismatch, false));
     v.record(&c, never_ran(Outcome::Timeout));
@@ -445,6 +738,14 @@ fn evidence_counts_only_attempts_the_driver_decided() {
         v.record(&p, never_ran(Outcome::Crash));
     }
     assert_eq!(v.counts(&p), (0, 1));
-    let l = isolation::line(&p, None, &v, isolation::Evidence { against: Some(0.6), max_miss: DEFAULT_MAX_MISS });
+    let l = isolation::line(
+        &p,
+        None,
+        &v,
+        isolation::Evidence {
+            against: Some(0.6),
+            max_miss: DEFAULT_MAX_MISS,
+        },
+    );
     assert!(l.line.contains("passes (1 of 1;"), "{}", l.line);
 }

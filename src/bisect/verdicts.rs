@@ -4,7 +4,6 @@ use crate::model::{Attempt, Cell, CellReport, Outcome, RunReport};
 use crate::runner::oracle::Event;
 use std::collections::HashMap;
 
-
 /// What a cell's verdict says, for bisection.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum State {
@@ -27,7 +26,12 @@ pub struct Verdicts {
 
 impl Verdicts {
     pub fn from_report(r: &RunReport) -> Self {
-        let cells = r.cells.iter().filter(|c| !c.attempts.is_empty()).map(|c| (c.id.clone(), c.clone())).collect();
+        let cells = r
+            .cells
+            .iter()
+            .filter(|c| !c.attempts.is_empty())
+            .map(|c| (c.id.clone(), c.clone()))
+            .collect();
         Verdicts { cells, runs: 0 }
     }
 
@@ -67,7 +71,12 @@ impl Verdicts {
         let evidence = |a: &&Attempt| !a.not_run() && a.outcome != Outcome::Error;
         let Some(r) = self.get(c) else { return (0, 0) };
         let n = r.attempts.iter().filter(evidence).count() as u32;
-        let k = r.attempts.iter().filter(evidence).filter(|a| a.outcome.is_finding()).count() as u32;
+        let k = r
+            .attempts
+            .iter()
+            .filter(evidence)
+            .filter(|a| a.outcome.is_finding())
+            .count() as u32;
         (k, n)
     }
 
@@ -87,7 +96,9 @@ impl Verdicts {
             None => State::Unknown,
             Some(r) => match r.outcome {
                 Outcome::Error => State::Error,
-                Outcome::Mismatch | Outcome::DeviceLost | Outcome::Crash | Outcome::Timeout => State::Fault,
+                Outcome::Mismatch | Outcome::DeviceLost | Outcome::Crash | Outcome::Timeout => {
+                    State::Fault
+                }
                 Outcome::Pass => State::Pass,
                 Outcome::Unsupported | Outcome::NotImplemented => State::Unknown,
             },

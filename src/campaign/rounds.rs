@@ -2,8 +2,8 @@
 //! the round has a policy of its own) and how (together or alone), recording what comes back.
 //! Rounds that repeat until their cells have enough attempts stop when a batch adds none (an
 //! oracle that could not run them), so that they never loop.
-use super::{Event, Mode};
 use super::Campaign;
+use super::{Event, Mode};
 use crate::model::{Cell, Outcome, RunReport};
 use crate::report::{gpu_av, recommended};
 use std::collections::HashSet;
@@ -13,22 +13,40 @@ pub fn confirm_cells(report: &RunReport) -> Vec<Cell> {
     report
         .cells
         .iter()
-        .filter(|c| c.cell.canary.is_none() && c.attempts.len() == 1 && !c.attempts[0].not_run() && c.outcome.worth_confirming())
+        .filter(|c| {
+            c.cell.canary.is_none()
+                && c.attempts.len() == 1
+                && !c.attempts[0].not_run()
+                && c.outcome.worth_confirming()
+        })
         .map(|c| c.cell)
         .collect()
 }
 
 /// The faulting cells with fewer than `n` attempts.
 pub fn repeat_cells(report: &RunReport, n: u32) -> Vec<Cell> {
-    report.findings().filter(|c| (c.attempts.len() as u32) < n).map(|c| c.cell).collect()
+    report
+        .findings()
+        .filter(|c| (c.attempts.len() as u32) < n)
+        .map(|c| c.cell)
+        .collect()
 }
 
 /// Every finding with each workaround that applies to it, where the device can run the variant
 /// and it has not run yet (`done`: not again after a resume).
-pub fn workaround_cells(report: &RunReport, done: &HashSet<String>, supported: &dyn Fn(&Cell) -> bool) -> Vec<Cell> {
+pub fn workaround_cells(
+    report: &RunReport,
+    done: &HashSet<String>,
+    supported: &dyn Fn(&Cell) -> bool,
+) -> Vec<Cell> {
     report
         .findings()
-        .flat_map(|c| c.cell.applicable_patches().into_iter().map(move |p| Cell { patch: Some(p), ..c.cell }))
+        .flat_map(|c| {
+            c.cell.applicable_patches().into_iter().map(move |p| Cell {
+                patch: Some(p),
+                ..c.cell
+            })
+        })
         .filter(|c| supported(c) && !done.contains(&c.id()))
         .collect()
 }
@@ -41,7 +59,13 @@ pub fn verify_cells(report: &RunReport) -> Vec<Cell> {
         .cells
         .iter()
         .filter(|v| v.cell.patch.is_some() && v.outcome == Outcome::Pass)
-        .filter(|v| report.cells.iter().find(|b| b.cell == v.cell.base()).is_some_and(|b| b.outcome.is_finding() && v.attempts.len() < b.attempts.len()))
+        .filter(|v| {
+            report
+                .cells
+                .iter()
+                .find(|b| b.cell == v.cell.base())
+                .is_some_and(|b| b.outcome.is_finding() && v.attempts.len() < b.attempts.len())
+        })
         .map(|v| v.cell)
         .collect();
     more.extend(recommended::retries(report));
@@ -97,7 +121,11 @@ impl Campaign<'_> {
 
     /// The findings' workaround variants the device can run, once, together.
     pub fn workarounds(&mut self) {
-        let retries = workaround_cells(&self.rec.writer.report, &self.rec.writer.done(), self.supported);
+        let retries = workaround_cells(
+            &self.rec.writer.report,
+            &self.rec.writer.done(),
+            self.supported,
+        );
         self.round(&retries, Mode::Shared);
     }
 
@@ -105,7 +133,10 @@ impl Campaign<'_> {
     /// lacks it and the device can run it, once, together.
     pub fn patterns(&mut self) {
         let supported = self.supported;
-        let patterns: Vec<Cell> = recommended::missing(&self.rec.writer.report).into_iter().filter(|c| supported(c)).collect();
+        let patterns: Vec<Cell> = recommended::missing(&self.rec.writer.report)
+            .into_iter()
+            .filter(|c| supported(c))
+            .collect();
         self.round(&patterns, Mode::Shared);
     }
 

@@ -2,8 +2,8 @@
 //! held to the same run — the cells still to run, and how the report ends (timing, completion,
 //! the baseline check).
 use super::Recorder;
-use crate::model::report::{PlanSummary, ResultOption, SceneSummary, TimingSummary, SCHEMA};
 use crate::model::report::RunOptions;
+use crate::model::report::{PlanSummary, ResultOption, SceneSummary, TimingSummary, SCHEMA};
 use crate::model::{Baseline, Cell, RunPlan, RunReport, SceneParams};
 use crate::reference::SceneReference;
 use crate::report::time;
@@ -22,7 +22,15 @@ pub struct NotSameRun {
 }
 
 /// The report of a run that has not run a cell yet. `started`: seconds since the epoch.
-pub fn fresh(info: &DeviceInfo, params: SceneParams, plan: &RunPlan, sharded_out: usize, options: RunOptions, command_line: Vec<String>, started: u64) -> RunReport {
+pub fn fresh(
+    info: &DeviceInfo,
+    params: SceneParams,
+    plan: &RunPlan,
+    sharded_out: usize,
+    options: RunOptions,
+    command_line: Vec<String>,
+    started: u64,
+) -> RunReport {
     let scene = Scene::build(&params);
     let sref = SceneReference::compute(&scene);
     RunReport {
@@ -65,16 +73,35 @@ pub fn fresh(info: &DeviceInfo, params: SceneParams, plan: &RunPlan, sharded_out
 /// `old` continued by the run whose fresh report is `fresh`: the same run in every
 /// result-changing option but `--repeat` (a resumed run may ask for more), and the same shard.
 pub fn resume(old: RunReport, fresh: &RunReport) -> Result<RunReport, NotSameRun> {
-    let options: Vec<ResultOption> = ResultOption::MERGED.iter().copied().filter(|k| *k != ResultOption::Repeat).chain([ResultOption::Shard]).collect();
-    crate::fleet::merge::same_run(&old, fresh, &options).map_err(|why| NotSameRun { why: why.to_string() })?;
-    Ok(RunReport { command_line: fresh.command_line.clone(), complete: false, finished: None, ..old })
+    let options: Vec<ResultOption> = ResultOption::MERGED
+        .iter()
+        .copied()
+        .filter(|k| *k != ResultOption::Repeat)
+        .chain([ResultOption::Shard])
+        .collect();
+    crate::fleet::merge::same_run(&old, fresh, &options).map_err(|why| NotSameRun {
+        why: why.to_string(),
+    })?;
+    Ok(RunReport {
+        command_line: fresh.command_line.clone(),
+        complete: false,
+        finished: None,
+        ..old
+    })
 }
 
 /// The plan's cells still to run — all, or after a resume those without an attempt that ran —
 /// as (probe cells, canaries): canaries run after every probe cell and its confirmation.
 pub fn pending(writer: &ReportWriter, plan: &RunPlan, resumed: bool) -> (Vec<Cell>, Vec<Cell>) {
-    let done = if resumed { writer.done() } else { Default::default() };
-    plan.to_run().filter(|c| !done.contains(&c.id())).copied().partition(|c| c.canary.is_none())
+    let done = if resumed {
+        writer.done()
+    } else {
+        Default::default()
+    };
+    plan.to_run()
+        .filter(|c| !done.contains(&c.id()))
+        .copied()
+        .partition(|c| c.canary.is_none())
 }
 
 /// End the report: wall time (added to a resumed run's), the workers' mean device setup time,
@@ -83,7 +110,11 @@ pub fn pending(writer: &ReportWriter, plan: &RunPlan, resumed: bool) -> (Vec<Cel
 pub fn finish(rec: &mut Recorder, wall: Duration, baseline: Option<(&Baseline, &str)>) {
     let r = &mut rec.writer.report;
     r.timing.wall_ms += wall.as_secs_f64() * 1e3;
-    r.timing.device_ms_mean = if r.timing.workers_started > 0 { rec.device_ms_sum / r.timing.workers_started as f64 } else { 0.0 };
+    r.timing.device_ms_mean = if r.timing.workers_started > 0 {
+        rec.device_ms_sum / r.timing.workers_started as f64
+    } else {
+        0.0
+    };
     let now = time::now_unix();
     r.finished = Some(format!("{} ({now})", time::stamp(now)));
     r.complete = true;

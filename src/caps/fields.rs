@@ -29,15 +29,19 @@ fn put(m: &mut Map<String, Value>, key: &str, v: Option<Value>) {
 pub fn features(info: &DeviceInfo) -> Map<String, Value> {
     let f = &info.features;
     let mut m = Map::new();
-    put(&mut m, "VkPhysicalDeviceFeatures", Some(obj!(f.core;
-        b "robustBufferAccess" robust_buffer_access, b "shaderInt64" shader_int64, b "shaderInt16" shader_int16,
-        b "shaderFloat64" shader_float64, b "fragmentStoresAndAtomics" fragment_stores_and_atomics,
-        b "vertexPipelineStoresAndAtomics" vertex_pipeline_stores_and_atomics,
-        b "shaderUniformBufferArrayDynamicIndexing" shader_uniform_buffer_array_dynamic_indexing,
-        b "shaderSampledImageArrayDynamicIndexing" shader_sampled_image_array_dynamic_indexing,
-        b "shaderStorageBufferArrayDynamicIndexing" shader_storage_buffer_array_dynamic_indexing,
-        b "shaderStorageImageArrayDynamicIndexing" shader_storage_image_array_dynamic_indexing,
-    )));
+    put(
+        &mut m,
+        "VkPhysicalDeviceFeatures",
+        Some(obj!(f.core;
+            b "robustBufferAccess" robust_buffer_access, b "shaderInt64" shader_int64, b "shaderInt16" shader_int16,
+            b "shaderFloat64" shader_float64, b "fragmentStoresAndAtomics" fragment_stores_and_atomics,
+            b "vertexPipelineStoresAndAtomics" vertex_pipeline_stores_and_atomics,
+            b "shaderUniformBufferArrayDynamicIndexing" shader_uniform_buffer_array_dynamic_indexing,
+            b "shaderSampledImageArrayDynamicIndexing" shader_sampled_image_array_dynamic_indexing,
+            b "shaderStorageBufferArrayDynamicIndexing" shader_storage_buffer_array_dynamic_indexing,
+            b "shaderStorageImageArrayDynamicIndexing" shader_storage_image_array_dynamic_indexing,
+        )),
+    );
     put(&mut m, "VkPhysicalDeviceVulkan11Features", f.v11.map(|s| obj!(s;
         b "storageBuffer16BitAccess" storage_buffer16_bit_access, b "variablePointersStorageBuffer" variable_pointers_storage_buffer,
         b "variablePointers" variable_pointers, b "shaderDrawParameters" shader_draw_parameters,
@@ -78,13 +82,29 @@ pub fn features(info: &DeviceInfo) -> Map<String, Value> {
         b "accelerationStructureHostCommands" acceleration_structure_host_commands,
         b "descriptorBindingAccelerationStructureUpdateAfterBind" descriptor_binding_acceleration_structure_update_after_bind,
     )));
-    put(&mut m, "VkPhysicalDeviceRayQueryFeaturesKHR", f.ray_query.map(|s| obj!(s; b "rayQuery" ray_query)));
-    put(&mut m, "VkPhysicalDeviceRayTracingMaintenance1FeaturesKHR", f.rt_maintenance1.map(|s| obj!(s;
-        b "rayTracingMaintenance1" ray_tracing_maintenance1,
-        b "rayTracingPipelineTraceRaysIndirect2" ray_tracing_pipeline_trace_rays_indirect2,
-    )));
-    put(&mut m, "VkPhysicalDeviceRayTracingPositionFetchFeaturesKHR", f.position_fetch.map(|s| obj!(s;
-        b "rayTracingPositionFetch" ray_tracing_position_fetch)));
+    put(
+        &mut m,
+        "VkPhysicalDeviceRayQueryFeaturesKHR",
+        f.ray_query.map(|s| obj!(s; b "rayQuery" ray_query)),
+    );
+    put(
+        &mut m,
+        "VkPhysicalDeviceRayTracingMaintenance1FeaturesKHR",
+        f.rt_maintenance1.map(|s| {
+            obj!(s;
+                b "rayTracingMaintenance1" ray_tracing_maintenance1,
+                b "rayTracingPipelineTraceRaysIndirect2" ray_tracing_pipeline_trace_rays_indirect2,
+            )
+        }),
+    );
+    put(
+        &mut m,
+        "VkPhysicalDeviceRayTracingPositionFetchFeaturesKHR",
+        f.position_fetch.map(|s| {
+            obj!(s;
+        b "rayTracingPositionFetch" ray_tracing_position_fetch)
+        }),
+    );
     put(&mut m, "VkPhysicalDeviceDescriptorBufferFeaturesEXT", f.descriptor_buffer.map(|s| obj!(s;
         b "descriptorBuffer" descriptor_buffer, b "descriptorBufferCaptureReplay" descriptor_buffer_capture_replay,
         b "descriptorBufferImageLayoutIgnored" descriptor_buffer_image_layout_ignored,
@@ -92,14 +112,36 @@ pub fn features(info: &DeviceInfo) -> Map<String, Value> {
     )));
     put(&mut m, "VkPhysicalDeviceDescriptorHeapFeaturesEXT", f.descriptor_heap.map(|s| obj!(s;
         b "descriptorHeap" descriptor_heap, b "descriptorHeapCaptureReplay" descriptor_heap_capture_replay)));
-    put(&mut m, "VkPhysicalDeviceShaderUntypedPointersFeaturesKHR", f.untyped_pointers.map(|s| obj!(s;
-        b "shaderUntypedPointers" shader_untyped_pointers)));
+    put(
+        &mut m,
+        "VkPhysicalDeviceShaderUntypedPointersFeaturesKHR",
+        f.untyped_pointers.map(|s| {
+            obj!(s;
+        b "shaderUntypedPointers" shader_untyped_pointers)
+        }),
+    );
     put(&mut m, "VkPhysicalDeviceRobustness2FeaturesEXT", f.robustness2.map(|s| obj!(s;
         b "robustBufferAccess2" robust_buffer_access2, b "robustImageAccess2" robust_image_access2, b "nullDescriptor" null_descriptor)));
-    put(&mut m, "VkPhysicalDeviceFaultFeaturesEXT", f.fault.map(|s| obj!(s;
-        b "deviceFault" device_fault, b "deviceFaultVendorBinary" device_fault_vendor_binary)));
-    put(&mut m, "VkPhysicalDeviceMaintenance5FeaturesKHR", f.maintenance5.map(|s| obj!(s; b "maintenance5" maintenance5)));
-    put(&mut m, "VkPhysicalDeviceMaintenance6FeaturesKHR", f.maintenance6.map(|s| obj!(s; b "maintenance6" maintenance6)));
+    put(
+        &mut m,
+        "VkPhysicalDeviceFaultFeaturesEXT",
+        f.fault.map(|s| {
+            obj!(s;
+        b "deviceFault" device_fault, b "deviceFaultVendorBinary" device_fault_vendor_binary)
+        }),
+    );
+    put(
+        &mut m,
+        "VkPhysicalDeviceMaintenance5FeaturesKHR",
+        f.maintenance5
+            .map(|s| obj!(s; b "maintenance5" maintenance5)),
+    );
+    put(
+        &mut m,
+        "VkPhysicalDeviceMaintenance6FeaturesKHR",
+        f.maintenance6
+            .map(|s| obj!(s; b "maintenance6" maintenance6)),
+    );
     rt_extension_features(info, &mut m);
     m
 }
@@ -108,29 +150,91 @@ pub fn features(info: &DeviceInfo) -> Map<String, Value> {
 /// reorder, cluster / partitioned AS, geometry kinds, micromaps).
 fn rt_extension_features(info: &DeviceInfo, m: &mut Map<String, Value>) {
     let f = &info.features;
-    put(m, "VkPhysicalDevicePipelineLibraryGroupHandlesFeaturesEXT", f.pipeline_library_group_handles.map(|s| obj!(s;
-        b "pipelineLibraryGroupHandles" pipeline_library_group_handles)));
-    put(m, "VkPhysicalDeviceRayTracingValidationFeaturesNV", f.rt_validation.map(|s| obj!(s; b "rayTracingValidation" ray_tracing_validation)));
-    put(m, "VkPhysicalDeviceRayTracingInvocationReorderFeaturesNV", f.invocation_reorder_nv.map(|s| obj!(s;
-        b "rayTracingInvocationReorder" ray_tracing_invocation_reorder)));
-    put(m, "VkPhysicalDeviceRayTracingInvocationReorderFeaturesEXT", f.invocation_reorder_ext.map(|s| obj!(s;
-        b "rayTracingInvocationReorder" ray_tracing_invocation_reorder)));
-    put(m, "VkPhysicalDeviceClusterAccelerationStructureFeaturesNV", f.cluster_accel.map(|s| obj!(s;
-        b "clusterAccelerationStructure" cluster_acceleration_structure)));
-    put(m, "VkPhysicalDevicePartitionedAccelerationStructureFeaturesNV", f.partitioned_accel.map(|s| obj!(s;
-        b "partitionedAccelerationStructure" partitioned_acceleration_structure)));
-    put(m, "VkPhysicalDeviceDenseGeometryFormatFeaturesAMDX", f.dense_geometry_format.map(|s| obj!(s; b "denseGeometryFormat" dense_geometry_format)));
+    put(
+        m,
+        "VkPhysicalDevicePipelineLibraryGroupHandlesFeaturesEXT",
+        f.pipeline_library_group_handles.map(|s| {
+            obj!(s;
+        b "pipelineLibraryGroupHandles" pipeline_library_group_handles)
+        }),
+    );
+    put(
+        m,
+        "VkPhysicalDeviceRayTracingValidationFeaturesNV",
+        f.rt_validation
+            .map(|s| obj!(s; b "rayTracingValidation" ray_tracing_validation)),
+    );
+    put(
+        m,
+        "VkPhysicalDeviceRayTracingInvocationReorderFeaturesNV",
+        f.invocation_reorder_nv.map(|s| {
+            obj!(s;
+        b "rayTracingInvocationReorder" ray_tracing_invocation_reorder)
+        }),
+    );
+    put(
+        m,
+        "VkPhysicalDeviceRayTracingInvocationReorderFeaturesEXT",
+        f.invocation_reorder_ext.map(|s| {
+            obj!(s;
+        b "rayTracingInvocationReorder" ray_tracing_invocation_reorder)
+        }),
+    );
+    put(
+        m,
+        "VkPhysicalDeviceClusterAccelerationStructureFeaturesNV",
+        f.cluster_accel.map(|s| {
+            obj!(s;
+        b "clusterAccelerationStructure" cluster_acceleration_structure)
+        }),
+    );
+    put(
+        m,
+        "VkPhysicalDevicePartitionedAccelerationStructureFeaturesNV",
+        f.partitioned_accel.map(|s| {
+            obj!(s;
+        b "partitionedAccelerationStructure" partitioned_acceleration_structure)
+        }),
+    );
+    put(
+        m,
+        "VkPhysicalDeviceDenseGeometryFormatFeaturesAMDX",
+        f.dense_geometry_format
+            .map(|s| obj!(s; b "denseGeometryFormat" dense_geometry_format)),
+    );
     put(m, "VkPhysicalDeviceRayTracingMotionBlurFeaturesNV", f.motion_blur.map(|s| obj!(s;
         b "rayTracingMotionBlur" ray_tracing_motion_blur,
         b "rayTracingMotionBlurPipelineTraceRaysIndirect" ray_tracing_motion_blur_pipeline_trace_rays_indirect)));
-    put(m, "VkPhysicalDeviceRayTracingLinearSweptSpheresFeaturesNV", f.linear_swept_spheres.map(|s| obj!(s;
-        b "spheres" spheres, b "linearSweptSpheres" linear_swept_spheres)));
+    put(
+        m,
+        "VkPhysicalDeviceRayTracingLinearSweptSpheresFeaturesNV",
+        f.linear_swept_spheres.map(|s| {
+            obj!(s;
+        b "spheres" spheres, b "linearSweptSpheres" linear_swept_spheres)
+        }),
+    );
     put(m, "VkPhysicalDeviceOpacityMicromapFeaturesEXT", f.opacity_micromap.map(|s| obj!(s;
         b "micromap" micromap, b "micromapCaptureReplay" micromap_capture_replay, b "micromapHostCommands" micromap_host_commands)));
-    put(m, "VkPhysicalDeviceOpacityMicromapFeaturesKHR", f.opacity_micromap_khr.map(|s| obj!(s; b "micromap" micromap)));
-    put(m, "VkPhysicalDevicePipelineOpacityMicromapFeaturesARM", f.pipeline_opacity_micromap.map(|s| obj!(s;
-        b "pipelineOpacityMicromap" pipeline_opacity_micromap)));
-    put(m, "VkPhysicalDeviceDisplacementMicromapFeaturesNV", f.displacement_micromap.map(|s| obj!(s; b "displacementMicromap" displacement_micromap)));
+    put(
+        m,
+        "VkPhysicalDeviceOpacityMicromapFeaturesKHR",
+        f.opacity_micromap_khr
+            .map(|s| obj!(s; b "micromap" micromap)),
+    );
+    put(
+        m,
+        "VkPhysicalDevicePipelineOpacityMicromapFeaturesARM",
+        f.pipeline_opacity_micromap.map(|s| {
+            obj!(s;
+        b "pipelineOpacityMicromap" pipeline_opacity_micromap)
+        }),
+    );
+    put(
+        m,
+        "VkPhysicalDeviceDisplacementMicromapFeaturesNV",
+        f.displacement_micromap
+            .map(|s| obj!(s; b "displacementMicromap" displacement_micromap)),
+    );
 }
 
 /// Properties of the ray tracing extensions listed in [`rt_extension_features`], and of the
@@ -154,18 +258,42 @@ fn rt_extension_properties(info: &DeviceInfo, m: &mut Map<String, Value>) {
         n "clusterBottomLevelByteAlignment" cluster_bottom_level_byte_alignment,
         n "clusterTemplateBoundsByteAlignment" cluster_template_bounds_byte_alignment,
         n "maxClusterGeometryIndex" max_cluster_geometry_index)));
-    put(m, "VkPhysicalDevicePartitionedAccelerationStructurePropertiesNV", p.partitioned_accel.map(|s| obj!(s;
-        n "maxPartitionCount" max_partition_count)));
-    put(m, "VkPhysicalDeviceOpacityMicromapPropertiesEXT", p.opacity_micromap.map(|s| obj!(s;
+    put(
+        m,
+        "VkPhysicalDevicePartitionedAccelerationStructurePropertiesNV",
+        p.partitioned_accel.map(|s| {
+            obj!(s;
+        n "maxPartitionCount" max_partition_count)
+        }),
+    );
+    put(
+        m,
+        "VkPhysicalDeviceOpacityMicromapPropertiesEXT",
+        p.opacity_micromap.map(|s| {
+            obj!(s;
         n "maxOpacity2StateSubdivisionLevel" max_opacity2_state_subdivision_level,
-        n "maxOpacity4StateSubdivisionLevel" max_opacity4_state_subdivision_level)));
-    put(m, "VkPhysicalDeviceOpacityMicromapPropertiesKHR", p.opacity_micromap_khr.map(|s| obj!(s;
+        n "maxOpacity4StateSubdivisionLevel" max_opacity4_state_subdivision_level)
+        }),
+    );
+    put(
+        m,
+        "VkPhysicalDeviceOpacityMicromapPropertiesKHR",
+        p.opacity_micromap_khr.map(|s| {
+            obj!(s;
         n "maxOpacity2StateSubdivisionLevel" max_opacity2_state_subdivision_level,
         n "maxOpacity4StateSubdivisionLevel" max_opacity4_state_subdivision_level,
         n "maxOpacityLossy4StateSubdivisionLevel" max_opacity_lossy4_state_subdivision_level,
-        n "maxMicromapTriangles" max_micromap_triangles)));
-    put(m, "VkPhysicalDeviceDisplacementMicromapPropertiesNV", p.displacement_micromap.map(|s| obj!(s;
-        n "maxDisplacementMicromapSubdivisionLevel" max_displacement_micromap_subdivision_level)));
+        n "maxMicromapTriangles" max_micromap_triangles)
+        }),
+    );
+    put(
+        m,
+        "VkPhysicalDeviceDisplacementMicromapPropertiesNV",
+        p.displacement_micromap.map(|s| {
+            obj!(s;
+        n "maxDisplacementMicromapSubdivisionLevel" max_displacement_micromap_subdivision_level)
+        }),
+    );
 }
 
 /// Properties and limits, one object per Vulkan struct the device has.
@@ -198,7 +326,10 @@ fn core_properties(p: &Properties, m: &mut Map<String, Value>) {
         n "minUniformBufferOffsetAlignment" min_uniform_buffer_offset_alignment,
         n "nonCoherentAtomSize" non_coherent_atom_size, n "timestampPeriod" timestamp_period,
     );
-    m.insert("VkPhysicalDeviceProperties".into(), json!({ "limits": limits }));
+    m.insert(
+        "VkPhysicalDeviceProperties".into(),
+        json!({ "limits": limits }),
+    );
     put(m, "VkPhysicalDeviceVulkan12Properties", p.v12.map(|s| obj!(s;
         n "maxUpdateAfterBindDescriptorsInAllPools" max_update_after_bind_descriptors_in_all_pools,
         b "shaderUniformBufferArrayNonUniformIndexingNative" shader_uniform_buffer_array_non_uniform_indexing_native,

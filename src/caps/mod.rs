@@ -49,7 +49,16 @@ fn hex(bytes: &[u8]) -> String {
 pub fn matrix_json(info: &DeviceInfo) -> Value {
     let mut m = Map::new();
     for axis in registry::AXES {
-        let values: Map<String, Value> = axis.filter_values().map(|v| (v.to_string(), serde_json::to_value(support::value(info, axis.id, v)).expect("Support serializes"))).collect();
+        let values: Map<String, Value> = axis
+            .filter_values()
+            .map(|v| {
+                (
+                    v.to_string(),
+                    serde_json::to_value(support::value(info, axis.id, v))
+                        .expect("Support serializes"),
+                )
+            })
+            .collect();
         m.insert(axis.name.into(), Value::Object(values));
     }
     Value::Object(m)
@@ -83,7 +92,11 @@ pub struct DeviceCreationCheck {
 }
 
 /// The full caps report of one device.
-pub fn caps_json(info: &DeviceInfo, loader_version: u32, check: Option<&DeviceCreationCheck>) -> Value {
+pub fn caps_json(
+    info: &DeviceInfo,
+    loader_version: u32,
+    check: Option<&DeviceCreationCheck>,
+) -> Value {
     let missing = info.rt_pipeline_missing();
     json!({
         "schema": SCHEMA,
@@ -116,27 +129,50 @@ mod tests {
     /// not. The names are spelled out here, not taken from `TRACKED_EXTENSIONS`, so dropping one
     /// from the list fails this test.
     const EVERY_RT_EXTENSION: &[&str] = &[
-        "VK_KHR_ray_tracing_pipeline", "VK_KHR_acceleration_structure", "VK_KHR_ray_query",
-        "VK_KHR_deferred_host_operations", "VK_KHR_ray_tracing_maintenance1", "VK_KHR_ray_tracing_position_fetch",
-        "VK_KHR_pipeline_library", "VK_EXT_pipeline_library_group_handles", "VK_NV_ray_tracing",
-        "VK_NV_ray_tracing_validation", "VK_NV_ray_tracing_invocation_reorder", "VK_EXT_ray_tracing_invocation_reorder",
-        "VK_NV_cluster_acceleration_structure", "VK_NV_partitioned_acceleration_structure", "VK_AMDX_dense_geometry_format",
-        "VK_NV_ray_tracing_motion_blur", "VK_NV_ray_tracing_linear_swept_spheres", "VK_EXT_opacity_micromap",
-        "VK_KHR_opacity_micromap", "VK_ARM_pipeline_opacity_micromap", "VK_NV_displacement_micromap",
+        "VK_KHR_ray_tracing_pipeline",
+        "VK_KHR_acceleration_structure",
+        "VK_KHR_ray_query",
+        "VK_KHR_deferred_host_operations",
+        "VK_KHR_ray_tracing_maintenance1",
+        "VK_KHR_ray_tracing_position_fetch",
+        "VK_KHR_pipeline_library",
+        "VK_EXT_pipeline_library_group_handles",
+        "VK_NV_ray_tracing",
+        "VK_NV_ray_tracing_validation",
+        "VK_NV_ray_tracing_invocation_reorder",
+        "VK_EXT_ray_tracing_invocation_reorder",
+        "VK_NV_cluster_acceleration_structure",
+        "VK_NV_partitioned_acceleration_structure",
+        "VK_AMDX_dense_geometry_format",
+        "VK_NV_ray_tracing_motion_blur",
+        "VK_NV_ray_tracing_linear_swept_spheres",
+        "VK_EXT_opacity_micromap",
+        "VK_KHR_opacity_micromap",
+        "VK_ARM_pipeline_opacity_micromap",
+        "VK_NV_displacement_micromap",
     ];
 
     #[test]
     fn every_rt_extension_is_listed_present_or_not() {
-        let present: BTreeMap<String, u32> =
-            [("VK_NV_ray_tracing_invocation_reorder".to_string(), 1), ("VK_KHR_ray_query".to_string(), 1)].into();
+        let present: BTreeMap<String, u32> = [
+            ("VK_NV_ray_tracing_invocation_reorder".to_string(), 1),
+            ("VK_KHR_ray_query".to_string(), 1),
+        ]
+        .into();
         let v = extensions_json_of(&present);
         for name in EVERY_RT_EXTENSION {
             let e = &v[*name];
             let want = present.contains_key(*name);
             assert_eq!(e["present"], json!(want), "{name}: {e}");
             assert_eq!(e["spec_version"].is_u64(), want, "{name}: {e}");
-            assert!(e["group"].as_str().is_some_and(|g| !g.is_empty()), "{name}: {e}");
+            assert!(
+                e["group"].as_str().is_some_and(|g| !g.is_empty()),
+                "{name}: {e}"
+            );
         }
-        assert_eq!(v["VK_NV_ray_tracing_invocation_reorder"]["group"], "invocation reorder");
+        assert_eq!(
+            v["VK_NV_ray_tracing_invocation_reorder"]["group"],
+            "invocation reorder"
+        );
     }
 }

@@ -2,7 +2,10 @@
 //! `Unsupported` is said only when the device's features or extensions say so; `NotImplemented`
 //! marks what rtprobe itself cannot do yet, which is never blamed on the device.
 use crate::model::registry::AxisId;
-use crate::model::{AsAccess, BaseSource, Canary, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource, SamplerIndex, Stage, Workaround};
+use crate::model::{
+    AsAccess, BaseSource, Canary, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource,
+    SamplerIndex, Stage, Workaround,
+};
 use crate::vk::{heap, DeviceInfo};
 use ash::{ext, khr, nv, vk};
 use serde::Serialize;
@@ -21,17 +24,26 @@ impl Support {
     }
 
     fn require(checks: &[(bool, &str)]) -> Support {
-        let missing: Vec<&str> = checks.iter().filter(|(ok, _)| !ok).map(|(_, what)| *what).collect();
+        let missing: Vec<&str> = checks
+            .iter()
+            .filter(|(ok, _)| !ok)
+            .map(|(_, what)| *what)
+            .collect();
         if missing.is_empty() {
             Support::Supported
         } else {
-            Support::Unsupported { reason: format!("device lacks {}", missing.join(", ")) }
+            Support::Unsupported {
+                reason: format!("device lacks {}", missing.join(", ")),
+            }
         }
     }
 
     /// The first non-supported of several, or `Supported`.
     pub fn all(items: impl IntoIterator<Item = Support>) -> Support {
-        items.into_iter().find(|s| !s.is_supported()).unwrap_or(Support::Supported)
+        items
+            .into_iter()
+            .find(|s| !s.is_supported())
+            .unwrap_or(Support::Supported)
     }
 }
 
@@ -41,18 +53,31 @@ fn on(b: vk::Bool32) -> bool {
 
 pub fn stage(info: &DeviceInfo, s: Stage) -> Support {
     match s {
-        Stage::Raygen | Stage::ClosestHit | Stage::AnyHit | Stage::Miss | Stage::Intersection | Stage::Callable => {
+        Stage::Raygen
+        | Stage::ClosestHit
+        | Stage::AnyHit
+        | Stage::Miss
+        | Stage::Intersection
+        | Stage::Callable => {
             let missing = info.rt_pipeline_missing();
             if missing.is_empty() {
                 Support::Supported
             } else {
-                Support::Unsupported { reason: format!("device lacks {}", missing.join(", ")) }
+                Support::Unsupported {
+                    reason: format!("device lacks {}", missing.join(", ")),
+                }
             }
         }
         Stage::Fragment => Support::require(&[
             (info.universal_queue_family().is_some(), "a graphics queue"),
-            (on(info.features.core.fragment_stores_and_atomics), "fragmentStoresAndAtomics"),
-            (info.features.v13.is_some_and(|v| on(v.dynamic_rendering)), "dynamicRendering"),
+            (
+                on(info.features.core.fragment_stores_and_atomics),
+                "fragmentStoresAndAtomics",
+            ),
+            (
+                info.features.v13.is_some_and(|v| on(v.dynamic_rendering)),
+                "dynamicRendering",
+            ),
         ]),
         // Compute shaders and storage buffers are core Vulkan 1.0.
         Stage::Compute => Support::Supported,
@@ -72,7 +97,9 @@ pub fn resource(info: &DeviceInfo, r: Resource) -> Support {
             "storage R32G32B32A32_SFLOAT images",
         )]),
         Resource::AccelerationStructure => Support::require(&[(
-            info.features.accel.is_some_and(|a| on(a.acceleration_structure)),
+            info.features
+                .accel
+                .is_some_and(|a| on(a.acceleration_structure)),
             "accelerationStructure (VK_KHR_acceleration_structure)",
         )]),
     }
@@ -83,17 +110,36 @@ pub fn dynamic_index(info: &DeviceInfo, r: Resource, nonuniform: bool) -> Suppor
     let c = &info.features.core;
     let v12 = info.features.v12.unwrap_or_default();
     let (dynamic, nu, name) = match r {
-        Resource::StorageBuffer => (c.shader_storage_buffer_array_dynamic_indexing, v12.shader_storage_buffer_array_non_uniform_indexing, "StorageBuffer"),
-        Resource::UniformBuffer => (c.shader_uniform_buffer_array_dynamic_indexing, v12.shader_uniform_buffer_array_non_uniform_indexing, "UniformBuffer"),
-        Resource::SampledImage => (c.shader_sampled_image_array_dynamic_indexing, v12.shader_sampled_image_array_non_uniform_indexing, "SampledImage"),
-        Resource::StorageImage => (c.shader_storage_image_array_dynamic_indexing, v12.shader_storage_image_array_non_uniform_indexing, "StorageImage"),
+        Resource::StorageBuffer => (
+            c.shader_storage_buffer_array_dynamic_indexing,
+            v12.shader_storage_buffer_array_non_uniform_indexing,
+            "StorageBuffer",
+        ),
+        Resource::UniformBuffer => (
+            c.shader_uniform_buffer_array_dynamic_indexing,
+            v12.shader_uniform_buffer_array_non_uniform_indexing,
+            "UniformBuffer",
+        ),
+        Resource::SampledImage => (
+            c.shader_sampled_image_array_dynamic_indexing,
+            v12.shader_sampled_image_array_non_uniform_indexing,
+            "SampledImage",
+        ),
+        Resource::StorageImage => (
+            c.shader_storage_image_array_dynamic_indexing,
+            v12.shader_storage_image_array_non_uniform_indexing,
+            "StorageImage",
+        ),
         // Arrays of acceleration structures: dynamic indexing is always allowed; non-uniform
         // indexing has no feature bit of its own in VK_KHR_acceleration_structure.
         Resource::AccelerationStructure => (vk::TRUE, vk::TRUE, "AccelerationStructure"),
     };
     let dyn_name = format!("shader{name}ArrayDynamicIndexing");
     let nu_name = format!("shader{name}ArrayNonUniformIndexing");
-    let mut checks = vec![(on(v12.runtime_descriptor_array), "runtimeDescriptorArray"), (on(dynamic), dyn_name.as_str())];
+    let mut checks = vec![
+        (on(v12.runtime_descriptor_array), "runtimeDescriptorArray"),
+        (on(dynamic), dyn_name.as_str()),
+    ];
     if nonuniform {
         checks.push((on(nu), nu_name.as_str()));
     }
@@ -103,10 +149,15 @@ pub fn dynamic_index(info: &DeviceInfo, r: Resource, nonuniform: bool) -> Suppor
 pub fn index(info: &DeviceInfo, i: IndexSource) -> Support {
     match i {
         // dynamic_element indexes the descriptor array with a spec constant: no dynamic indexing.
-        IndexSource::Literal | IndexSource::SpecConstant | IndexSource::PushConstant | IndexSource::DynamicElement => Support::Supported,
+        IndexSource::Literal
+        | IndexSource::SpecConstant
+        | IndexSource::PushConstant
+        | IndexSource::DynamicElement => Support::Supported,
         IndexSource::Dynamic => {
             // Supported as an axis value when at least one resource kind can be indexed dynamically.
-            let any = Resource::ALL.iter().any(|r| dynamic_index(info, *r, false).is_supported());
+            let any = Resource::ALL
+                .iter()
+                .any(|r| dynamic_index(info, *r, false).is_supported());
             if any {
                 Support::Supported
             } else {
@@ -120,11 +171,17 @@ pub fn index(info: &DeviceInfo, i: IndexSource) -> Support {
 /// shaderInt64.
 pub fn device_address_loads(info: &DeviceInfo) -> Support {
     let v12 = info.features.v12.unwrap_or_default();
-    Support::require(&[(on(v12.buffer_device_address), "bufferDeviceAddress"), (on(info.features.core.shader_int64), "shaderInt64")])
+    Support::require(&[
+        (on(v12.buffer_device_address), "bufferDeviceAddress"),
+        (on(info.features.core.shader_int64), "shaderInt64"),
+    ])
 }
 
 pub fn as_access(info: &DeviceInfo, a: AsAccess) -> Support {
-    let accel = info.features.accel.is_some_and(|x| on(x.acceleration_structure));
+    let accel = info
+        .features
+        .accel
+        .is_some_and(|x| on(x.acceleration_structure));
     let v12 = info.features.v12.unwrap_or_default();
     match a {
         AsAccess::Descriptor => Support::require(&[(accel, "accelerationStructure")]),
@@ -141,25 +198,45 @@ pub fn descriptor_model(info: &DeviceInfo, m: DescriptorModel) -> Support {
     match m {
         DescriptorModel::DescriptorIndexing => Support::require(&[
             (on(v12.runtime_descriptor_array), "runtimeDescriptorArray"),
-            (on(v12.descriptor_binding_partially_bound), "descriptorBindingPartiallyBound"),
+            (
+                on(v12.descriptor_binding_partially_bound),
+                "descriptorBindingPartiallyBound",
+            ),
         ]),
         DescriptorModel::DescriptorBuffer => {
             if !info.has_extension(ext::descriptor_buffer::NAME) {
-                return Support::Unsupported { reason: "driver does not expose VK_EXT_descriptor_buffer".into() };
+                return Support::Unsupported {
+                    reason: "driver does not expose VK_EXT_descriptor_buffer".into(),
+                };
             }
             Support::require(&[
-                (info.features.descriptor_buffer.is_some_and(|d| on(d.descriptor_buffer)), "descriptorBuffer"),
+                (
+                    info.features
+                        .descriptor_buffer
+                        .is_some_and(|d| on(d.descriptor_buffer)),
+                    "descriptorBuffer",
+                ),
                 (on(v12.buffer_device_address), "bufferDeviceAddress"),
             ])
         }
         DescriptorModel::DescriptorHeap => {
             if !info.has_extension(heap::NAME) {
-                return Support::Unsupported { reason: "driver does not expose VK_EXT_descriptor_heap".into() };
+                return Support::Unsupported {
+                    reason: "driver does not expose VK_EXT_descriptor_heap".into(),
+                };
             }
             // rtprobe's instance is Vulkan 1.3, so maintenance5 (which heaps need) must be listed.
             Support::require(&[
-                (info.features.descriptor_heap.is_some_and(|d| on(d.descriptor_heap)), "descriptorHeap"),
-                (info.has_extension(khr::maintenance5::NAME), "VK_KHR_maintenance5"),
+                (
+                    info.features
+                        .descriptor_heap
+                        .is_some_and(|d| on(d.descriptor_heap)),
+                    "descriptorHeap",
+                ),
+                (
+                    info.has_extension(khr::maintenance5::NAME),
+                    "VK_KHR_maintenance5",
+                ),
                 (on(v12.buffer_device_address), "bufferDeviceAddress"),
             ])
         }
@@ -174,10 +251,14 @@ pub fn reorder(info: &DeviceInfo, r: Reorder) -> Support {
     match r {
         Reorder::Reorder | Reorder::ReorderHint => {
             if !info.has_extension(nv::ray_tracing_invocation_reorder::NAME) {
-                return Support::Unsupported { reason: "driver does not expose VK_NV_ray_tracing_invocation_reorder".into() };
+                return Support::Unsupported {
+                    reason: "driver does not expose VK_NV_ray_tracing_invocation_reorder".into(),
+                };
             }
             Support::require(&[(
-                info.features.invocation_reorder_nv.is_some_and(|f| on(f.ray_tracing_invocation_reorder)),
+                info.features
+                    .invocation_reorder_nv
+                    .is_some_and(|f| on(f.ray_tracing_invocation_reorder)),
                 "rayTracingInvocationReorder (VK_NV_ray_tracing_invocation_reorder)",
             )])
         }
@@ -190,7 +271,10 @@ pub fn reorder(info: &DeviceInfo, r: Reorder) -> Support {
 pub fn base(info: &DeviceInfo, b: BaseSource) -> Support {
     match b {
         BaseSource::ShaderRecord => Support::Supported,
-        BaseSource::Buffer => Support::require(&[(on(info.features.v12.unwrap_or_default().buffer_device_address), "bufferDeviceAddress")]),
+        BaseSource::Buffer => Support::require(&[(
+            on(info.features.v12.unwrap_or_default().buffer_device_address),
+            "bufferDeviceAddress",
+        )]),
     }
 }
 
@@ -200,14 +284,21 @@ pub fn base(info: &DeviceInfo, b: BaseSource) -> Support {
 /// not the device's).
 pub fn heap_access(info: &DeviceInfo, h: HeapAccess) -> Support {
     match h {
-        HeapAccess::MappedConstantOffset | HeapAccess::MappedPushIndex | HeapAccess::MappedIndirectIndex | HeapAccess::MappedShaderRecordIndex => {
-            Support::Supported
-        }
+        HeapAccess::MappedConstantOffset
+        | HeapAccess::MappedPushIndex
+        | HeapAccess::MappedIndirectIndex
+        | HeapAccess::MappedShaderRecordIndex => Support::Supported,
         HeapAccess::Direct => match Support::require(&[(
-            info.features.untyped_pointers.is_some_and(|u| on(u.shader_untyped_pointers)),
+            info.features
+                .untyped_pointers
+                .is_some_and(|u| on(u.shader_untyped_pointers)),
             "shaderUntypedPointers (VK_KHR_shader_untyped_pointers)",
         )]) {
-            Support::Supported if crate::shadergen::glslang::find().is_none() => Support::NotImplemented { reason: crate::shadergen::glslang::missing_reason() },
+            Support::Supported if crate::shadergen::glslang::find().is_none() => {
+                Support::NotImplemented {
+                    reason: crate::shadergen::glslang::missing_reason(),
+                }
+            }
             other => other,
         },
     }
@@ -228,12 +319,21 @@ pub fn value(info: &DeviceInfo, axis: AxisId, v: &str) -> Support {
         // As `index=dynamic`: supported as a value when some resource kind can be indexed with
         // it (each cell's own support is decided per cell).
         AxisId::Nonuniform => match v {
-            "true" => Resource::ALL.iter().map(|r| dynamic_index(info, *r, true)).find(Support::is_supported).unwrap_or_else(|| dynamic_index(info, Resource::StorageBuffer, true)),
+            "true" => Resource::ALL
+                .iter()
+                .map(|r| dynamic_index(info, *r, true))
+                .find(Support::is_supported)
+                .unwrap_or_else(|| dynamic_index(info, Resource::StorageBuffer, true)),
             _ => Support::Supported,
         },
         AxisId::AsAccess => of(AsAccess::parse(v).map(|a| as_access(info, a))),
         AxisId::DescriptorModel => of(DescriptorModel::parse(v).map(|m| descriptor_model(info, m))),
-        AxisId::HeapAccess => of(HeapAccess::parse(v).map(|h| Support::all([descriptor_model(info, DescriptorModel::DescriptorHeap), heap_access(info, h)]))),
+        AxisId::HeapAccess => of(HeapAccess::parse(v).map(|h| {
+            Support::all([
+                descriptor_model(info, DescriptorModel::DescriptorHeap),
+                heap_access(info, h),
+            ])
+        })),
         AxisId::Canary => match Canary::parse(v) {
             Some(Canary::InvalidAddress) => device_address_loads(info),
             Some(Canary::InfiniteLoop) | None => Support::Supported,
@@ -246,12 +346,16 @@ pub fn value(info: &DeviceInfo, axis: AxisId, v: &str) -> Support {
             let direct = value(info, AxisId::HeapAccess, HeapAccess::Direct.as_str());
             match SamplerIndex::parse(v) {
                 Some(SamplerIndex::Constant) => direct,
-                Some(SamplerIndex::Dynamic) => Support::all([direct, dynamic_index(info, Resource::SampledImage, true)]),
+                Some(SamplerIndex::Dynamic) => {
+                    Support::all([direct, dynamic_index(info, Resource::SampledImage, true)])
+                }
                 None => Support::Supported,
             }
         }
         AxisId::Patch => match Workaround::parse(v) {
-            Some(Workaround::AsToAddress | Workaround::SsboToAddress) => as_access(info, AsAccess::Address),
+            Some(Workaround::AsToAddress | Workaround::SsboToAddress) => {
+                as_access(info, AsAccess::Address)
+            }
             Some(Workaround::Nonuniform | Workaround::PinIndex) | None => Support::Supported,
         },
     }

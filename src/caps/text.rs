@@ -18,26 +18,77 @@ fn flag(v: &Value, path: &[&str]) -> &'static str {
 /// The feature that says whether a present extension is usable: (struct, member).
 fn headline_feature(ext: &str) -> Option<(&'static str, &'static str)> {
     Some(match ext {
-        "VK_KHR_ray_tracing_pipeline" => ("VkPhysicalDeviceRayTracingPipelineFeaturesKHR", "rayTracingPipeline"),
-        "VK_KHR_acceleration_structure" => ("VkPhysicalDeviceAccelerationStructureFeaturesKHR", "accelerationStructure"),
+        "VK_KHR_ray_tracing_pipeline" => (
+            "VkPhysicalDeviceRayTracingPipelineFeaturesKHR",
+            "rayTracingPipeline",
+        ),
+        "VK_KHR_acceleration_structure" => (
+            "VkPhysicalDeviceAccelerationStructureFeaturesKHR",
+            "accelerationStructure",
+        ),
         "VK_KHR_ray_query" => ("VkPhysicalDeviceRayQueryFeaturesKHR", "rayQuery"),
-        "VK_KHR_ray_tracing_maintenance1" => ("VkPhysicalDeviceRayTracingMaintenance1FeaturesKHR", "rayTracingMaintenance1"),
-        "VK_KHR_ray_tracing_position_fetch" => ("VkPhysicalDeviceRayTracingPositionFetchFeaturesKHR", "rayTracingPositionFetch"),
-        "VK_EXT_pipeline_library_group_handles" => ("VkPhysicalDevicePipelineLibraryGroupHandlesFeaturesEXT", "pipelineLibraryGroupHandles"),
-        "VK_NV_ray_tracing_validation" => ("VkPhysicalDeviceRayTracingValidationFeaturesNV", "rayTracingValidation"),
-        "VK_NV_ray_tracing_invocation_reorder" => ("VkPhysicalDeviceRayTracingInvocationReorderFeaturesNV", "rayTracingInvocationReorder"),
-        "VK_EXT_ray_tracing_invocation_reorder" => ("VkPhysicalDeviceRayTracingInvocationReorderFeaturesEXT", "rayTracingInvocationReorder"),
-        "VK_NV_cluster_acceleration_structure" => ("VkPhysicalDeviceClusterAccelerationStructureFeaturesNV", "clusterAccelerationStructure"),
-        "VK_NV_partitioned_acceleration_structure" => ("VkPhysicalDevicePartitionedAccelerationStructureFeaturesNV", "partitionedAccelerationStructure"),
-        "VK_AMDX_dense_geometry_format" => ("VkPhysicalDeviceDenseGeometryFormatFeaturesAMDX", "denseGeometryFormat"),
-        "VK_NV_ray_tracing_motion_blur" => ("VkPhysicalDeviceRayTracingMotionBlurFeaturesNV", "rayTracingMotionBlur"),
-        "VK_NV_ray_tracing_linear_swept_spheres" => ("VkPhysicalDeviceRayTracingLinearSweptSpheresFeaturesNV", "linearSweptSpheres"),
+        "VK_KHR_ray_tracing_maintenance1" => (
+            "VkPhysicalDeviceRayTracingMaintenance1FeaturesKHR",
+            "rayTracingMaintenance1",
+        ),
+        "VK_KHR_ray_tracing_position_fetch" => (
+            "VkPhysicalDeviceRayTracingPositionFetchFeaturesKHR",
+            "rayTracingPositionFetch",
+        ),
+        "VK_EXT_pipeline_library_group_handles" => (
+            "VkPhysicalDevicePipelineLibraryGroupHandlesFeaturesEXT",
+            "pipelineLibraryGroupHandles",
+        ),
+        "VK_NV_ray_tracing_validation" => (
+            "VkPhysicalDeviceRayTracingValidationFeaturesNV",
+            "rayTracingValidation",
+        ),
+        "VK_NV_ray_tracing_invocation_reorder" => (
+            "VkPhysicalDeviceRayTracingInvocationReorderFeaturesNV",
+            "rayTracingInvocationReorder",
+        ),
+        "VK_EXT_ray_tracing_invocation_reorder" => (
+            "VkPhysicalDeviceRayTracingInvocationReorderFeaturesEXT",
+            "rayTracingInvocationReorder",
+        ),
+        "VK_NV_cluster_acceleration_structure" => (
+            "VkPhysicalDeviceClusterAccelerationStructureFeaturesNV",
+            "clusterAccelerationStructure",
+        ),
+        "VK_NV_partitioned_acceleration_structure" => (
+            "VkPhysicalDevicePartitionedAccelerationStructureFeaturesNV",
+            "partitionedAccelerationStructure",
+        ),
+        "VK_AMDX_dense_geometry_format" => (
+            "VkPhysicalDeviceDenseGeometryFormatFeaturesAMDX",
+            "denseGeometryFormat",
+        ),
+        "VK_NV_ray_tracing_motion_blur" => (
+            "VkPhysicalDeviceRayTracingMotionBlurFeaturesNV",
+            "rayTracingMotionBlur",
+        ),
+        "VK_NV_ray_tracing_linear_swept_spheres" => (
+            "VkPhysicalDeviceRayTracingLinearSweptSpheresFeaturesNV",
+            "linearSweptSpheres",
+        ),
         "VK_EXT_opacity_micromap" => ("VkPhysicalDeviceOpacityMicromapFeaturesEXT", "micromap"),
         "VK_KHR_opacity_micromap" => ("VkPhysicalDeviceOpacityMicromapFeaturesKHR", "micromap"),
-        "VK_ARM_pipeline_opacity_micromap" => ("VkPhysicalDevicePipelineOpacityMicromapFeaturesARM", "pipelineOpacityMicromap"),
-        "VK_NV_displacement_micromap" => ("VkPhysicalDeviceDisplacementMicromapFeaturesNV", "displacementMicromap"),
-        "VK_EXT_descriptor_buffer" => ("VkPhysicalDeviceDescriptorBufferFeaturesEXT", "descriptorBuffer"),
-        "VK_EXT_descriptor_heap" => ("VkPhysicalDeviceDescriptorHeapFeaturesEXT", "descriptorHeap"),
+        "VK_ARM_pipeline_opacity_micromap" => (
+            "VkPhysicalDevicePipelineOpacityMicromapFeaturesARM",
+            "pipelineOpacityMicromap",
+        ),
+        "VK_NV_displacement_micromap" => (
+            "VkPhysicalDeviceDisplacementMicromapFeaturesNV",
+            "displacementMicromap",
+        ),
+        "VK_EXT_descriptor_buffer" => (
+            "VkPhysicalDeviceDescriptorBufferFeaturesEXT",
+            "descriptorBuffer",
+        ),
+        "VK_EXT_descriptor_heap" => (
+            "VkPhysicalDeviceDescriptorHeapFeaturesEXT",
+            "descriptorHeap",
+        ),
         _ => return None,
     })
 }
@@ -45,7 +96,9 @@ fn headline_feature(ext: &str) -> Option<(&'static str, &'static str)> {
 /// The tracked extensions by group: present ones with their spec version (and headline feature
 /// when it is off), absent ones on a line of their own.
 fn render_extensions(caps: &Value, s: &mut String) {
-    let Some(exts) = caps["extensions"].as_object() else { return };
+    let Some(exts) = caps["extensions"].as_object() else {
+        return;
+    };
     let mut groups: Vec<(&str, Vec<String>, Vec<&str>)> = Vec::new();
     for (name, e) in exts {
         let group = e["group"].as_str().unwrap_or("other");
@@ -60,7 +113,10 @@ fn render_extensions(caps: &Value, s: &mut String) {
             let mut item = format!("{name} v{}", e["spec_version"]);
             if let Some((st, member)) = headline_feature(name) {
                 if flag(&caps["features"], &[st, member]) != "yes" {
-                    item.push_str(&format!(" ({member} {})", flag(&caps["features"], &[st, member])));
+                    item.push_str(&format!(
+                        " ({member} {})",
+                        flag(&caps["features"], &[st, member])
+                    ));
                 }
             }
             groups[i].1.push(item);
@@ -70,7 +126,15 @@ fn render_extensions(caps: &Value, s: &mut String) {
     }
     let _ = writeln!(s, "extensions:");
     for (group, present, absent) in groups {
-        let _ = writeln!(s, "  {group:<24} {}", if present.is_empty() { "-".to_string() } else { present.join(", ") });
+        let _ = writeln!(
+            s,
+            "  {group:<24} {}",
+            if present.is_empty() {
+                "-".to_string()
+            } else {
+                present.join(", ")
+            }
+        );
         if !absent.is_empty() {
             let _ = writeln!(s, "  {:<24} ✗ {}", "", absent.join(", "));
         }
@@ -82,29 +146,114 @@ pub fn render(caps: &Value) -> String {
     let f = &caps["features"];
     let l = &caps["limits"];
     let mut s = String::new();
-    let _ = writeln!(s, "{} [device {}, {}, {} {:#06x}:{:#06x}]", d["name"].as_str().unwrap_or("?"), d["index"], d["device_type"].as_str().unwrap_or("?"),
-        d["vendor"].as_str().unwrap_or("?"), d["vendor_id"].as_u64().unwrap_or(0), d["device_id"].as_u64().unwrap_or(0));
-    let _ = writeln!(s, "  driver      {} {} ({}), Vulkan {}", d["driver_name"].as_str().unwrap_or("?"), d["driver_version"]["decoded"].as_str().unwrap_or("?"),
-        d["driver_info"].as_str().unwrap_or(""), d["api_version"].as_str().unwrap_or("?"));
+    let _ = writeln!(
+        s,
+        "{} [device {}, {}, {} {:#06x}:{:#06x}]",
+        d["name"].as_str().unwrap_or("?"),
+        d["index"],
+        d["device_type"].as_str().unwrap_or("?"),
+        d["vendor"].as_str().unwrap_or("?"),
+        d["vendor_id"].as_u64().unwrap_or(0),
+        d["device_id"].as_u64().unwrap_or(0)
+    );
+    let _ = writeln!(
+        s,
+        "  driver      {} {} ({}), Vulkan {}",
+        d["driver_name"].as_str().unwrap_or("?"),
+        d["driver_version"]["decoded"].as_str().unwrap_or("?"),
+        d["driver_info"].as_str().unwrap_or(""),
+        d["api_version"].as_str().unwrap_or("?")
+    );
     let rt = &caps["ray_tracing_pipeline"];
     if rt["supported"].as_bool() == Some(true) {
         let p = &l["VkPhysicalDeviceRayTracingPipelinePropertiesKHR"];
-        let _ = writeln!(s, "  RT pipeline yes (handle {} B, recursion {}, dispatch {})", p["shaderGroupHandleSize"], p["maxRayRecursionDepth"], p["maxRayDispatchInvocationCount"]);
+        let _ = writeln!(
+            s,
+            "  RT pipeline yes (handle {} B, recursion {}, dispatch {})",
+            p["shaderGroupHandleSize"],
+            p["maxRayRecursionDepth"],
+            p["maxRayDispatchInvocationCount"]
+        );
     } else {
-        let _ = writeln!(s, "  RT pipeline no: missing {}", rt["missing"].as_array().map(|a| a.iter().filter_map(|x| x.as_str()).collect::<Vec<_>>().join(", ")).unwrap_or_default());
+        let _ = writeln!(
+            s,
+            "  RT pipeline no: missing {}",
+            rt["missing"]
+                .as_array()
+                .map(|a| a
+                    .iter()
+                    .filter_map(|x| x.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", "))
+                .unwrap_or_default()
+        );
     }
     let rows: &[(&str, &[&str])] = &[
-        ("accel struct", &["VkPhysicalDeviceAccelerationStructureFeaturesKHR", "accelerationStructure"]),
-        ("ray query", &["VkPhysicalDeviceRayQueryFeaturesKHR", "rayQuery"]),
-        ("position fetch", &["VkPhysicalDeviceRayTracingPositionFetchFeaturesKHR", "rayTracingPositionFetch"]),
-        ("reorder (NV)", &["VkPhysicalDeviceRayTracingInvocationReorderFeaturesNV", "rayTracingInvocationReorder"]),
-        ("reorder (EXT)", &["VkPhysicalDeviceRayTracingInvocationReorderFeaturesEXT", "rayTracingInvocationReorder"]),
-        ("buffer address", &["VkPhysicalDeviceVulkan12Features", "bufferDeviceAddress"]),
-        ("desc indexing", &["VkPhysicalDeviceVulkan12Features", "descriptorIndexing"]),
-        ("desc buffer", &["VkPhysicalDeviceDescriptorBufferFeaturesEXT", "descriptorBuffer"]),
-        ("desc heap", &["VkPhysicalDeviceDescriptorHeapFeaturesEXT", "descriptorHeap"]),
-        ("robustness2", &["VkPhysicalDeviceRobustness2FeaturesEXT", "robustBufferAccess2"]),
-        ("device fault", &["VkPhysicalDeviceFaultFeaturesEXT", "deviceFault"]),
+        (
+            "accel struct",
+            &[
+                "VkPhysicalDeviceAccelerationStructureFeaturesKHR",
+                "accelerationStructure",
+            ],
+        ),
+        (
+            "ray query",
+            &["VkPhysicalDeviceRayQueryFeaturesKHR", "rayQuery"],
+        ),
+        (
+            "position fetch",
+            &[
+                "VkPhysicalDeviceRayTracingPositionFetchFeaturesKHR",
+                "rayTracingPositionFetch",
+            ],
+        ),
+        (
+            "reorder (NV)",
+            &[
+                "VkPhysicalDeviceRayTracingInvocationReorderFeaturesNV",
+                "rayTracingInvocationReorder",
+            ],
+        ),
+        (
+            "reorder (EXT)",
+            &[
+                "VkPhysicalDeviceRayTracingInvocationReorderFeaturesEXT",
+                "rayTracingInvocationReorder",
+            ],
+        ),
+        (
+            "buffer address",
+            &["VkPhysicalDeviceVulkan12Features", "bufferDeviceAddress"],
+        ),
+        (
+            "desc indexing",
+            &["VkPhysicalDeviceVulkan12Features", "descriptorIndexing"],
+        ),
+        (
+            "desc buffer",
+            &[
+                "VkPhysicalDeviceDescriptorBufferFeaturesEXT",
+                "descriptorBuffer",
+            ],
+        ),
+        (
+            "desc heap",
+            &[
+                "VkPhysicalDeviceDescriptorHeapFeaturesEXT",
+                "descriptorHeap",
+            ],
+        ),
+        (
+            "robustness2",
+            &[
+                "VkPhysicalDeviceRobustness2FeaturesEXT",
+                "robustBufferAccess2",
+            ],
+        ),
+        (
+            "device fault",
+            &["VkPhysicalDeviceFaultFeaturesEXT", "deviceFault"],
+        ),
         ("shaderInt64", &["VkPhysicalDeviceFeatures", "shaderInt64"]),
     ];
     for (name, path) in rows {
@@ -114,13 +263,19 @@ pub fn render(caps: &Value) -> String {
     let _ = writeln!(s, "matrix (what `rtprobe run` can do here):");
     if let Some(m) = caps["matrix"].as_object() {
         for (axis, values) in m {
-            let Some(values) = values.as_object() else { continue };
+            let Some(values) = values.as_object() else {
+                continue;
+            };
             let mut ok = Vec::new();
             let mut not = Vec::new();
             for (v, sup) in values {
                 match sup["status"].as_str() {
                     Some("supported") => ok.push(v.clone()),
-                    Some(st) => not.push(format!("{v} ({}: {})", st.replace('_', " "), sup["reason"].as_str().unwrap_or(""))),
+                    Some(st) => not.push(format!(
+                        "{v} ({}: {})",
+                        st.replace('_', " "),
+                        sup["reason"].as_str().unwrap_or("")
+                    )),
                     None => {}
                 }
             }
@@ -131,7 +286,16 @@ pub fn render(caps: &Value) -> String {
         }
     }
     if let Some(c) = caps["device_creation"].as_object() {
-        let _ = writeln!(s, "device creation: {} in {} ms", if c["ok"].as_bool() == Some(true) { "ok" } else { "FAILED" }, c["ms"]);
+        let _ = writeln!(
+            s,
+            "device creation: {} in {} ms",
+            if c["ok"].as_bool() == Some(true) {
+                "ok"
+            } else {
+                "FAILED"
+            },
+            c["ms"]
+        );
     }
     s
 }

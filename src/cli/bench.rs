@@ -4,9 +4,9 @@
 use super::args::BenchArgs;
 use super::commands::Globals;
 use super::exit::{self, coded};
+use crate::atomic::write_atomic;
 use crate::bench::{self, Bench, BenchError, BenchOptions};
 use crate::model::Filter;
-use crate::atomic::write_atomic;
 use crate::report::time;
 use anyhow::{Context, Result};
 use std::path::PathBuf;
@@ -14,7 +14,8 @@ use std::path::PathBuf;
 const FULL_SIZES: [u32; 7] = [8, 16, 32, 64, 128, 256, 512];
 const DEFAULT_SIZE: u32 = 64;
 const INJECT_FILTER: &str = "descriptor_model=descriptor_indexing,resource=storage_buffer";
-const FLAKY_FILTER: &str = "descriptor_model=descriptor_indexing,resource=storage_buffer,index=literal";
+const FLAKY_FILTER: &str =
+    "descriptor_model=descriptor_indexing,resource=storage_buffer,index=literal";
 const QUICK_FILTER: &str = "descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit,index=literal|dynamic";
 const QUICK_FLAKY_FILTER: &str = "descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit,index=literal";
 
@@ -23,41 +24,100 @@ fn parse_size(flag: &str, s: &str) -> Result<u32> {
     let t = s.trim();
     let n = match t.split_once(['x', 'X']) {
         Some((w, h)) if w.trim() == h.trim() => w.trim(),
-        Some(_) => return Err(coded(exit::USAGE, format!("{flag}: {s:?} is not square (bench sizes are N or NxN)"))),
+        Some(_) => {
+            return Err(coded(
+                exit::USAGE,
+                format!("{flag}: {s:?} is not square (bench sizes are N or NxN)"),
+            ))
+        }
         None => t,
     };
     match n.parse::<u32>() {
         Ok(n) if (8..=2048).contains(&n) && n % 8 == 0 => Ok(n),
-        _ => Err(coded(exit::USAGE, format!("{flag}: unknown size {s:?} (N or NxN with N a multiple of 8 in 8..=2048)"))),
+        _ => Err(coded(
+            exit::USAGE,
+            format!("{flag}: unknown size {s:?} (N or NxN with N a multiple of 8 in 8..=2048)"),
+        )),
     }
 }
 
 fn check_filter(flag: &str, f: &str) -> Result<()> {
-    Filter::parse(f).map(|_| ()).map_err(|e| coded(exit::USAGE, format!("{flag}: {e}")))
+    Filter::parse(f)
+        .map(|_| ())
+        .map_err(|e| coded(exit::USAGE, format!("{flag}: {e}")))
 }
 
 fn options(g: &Globals, a: &BenchArgs) -> Result<BenchOptions> {
     let q = a.quick;
-    let sizes = if a.sizes.is_empty() { if q { vec![8, 16] } else { FULL_SIZES.to_vec() } } else { a.sizes.iter().map(|s| parse_size("--sizes", s)).collect::<Result<_>>()? };
-    let fractions = if a.fractions.is_empty() { if q { vec![0.001, 1.0] } else { vec![0.001, 0.01, 0.1] } } else { a.fractions.clone() };
+    let sizes = if a.sizes.is_empty() {
+        if q {
+            vec![8, 16]
+        } else {
+            FULL_SIZES.to_vec()
+        }
+    } else {
+        a.sizes
+            .iter()
+            .map(|s| parse_size("--sizes", s))
+            .collect::<Result<_>>()?
+    };
+    let fractions = if a.fractions.is_empty() {
+        if q {
+            vec![0.001, 1.0]
+        } else {
+            vec![0.001, 0.01, 0.1]
+        }
+    } else {
+        a.fractions.clone()
+    };
     if let Some(f) = fractions.iter().find(|f| !(**f > 0.0 && **f <= 1.0)) {
-        return Err(coded(exit::USAGE, format!("--fractions: {f} is outside (0, 1]")));
+        return Err(coded(
+            exit::USAGE,
+            format!("--fractions: {f} is outside (0, 1]"),
+        ));
     }
-    let flaky = if a.no_flaky { vec![] } else if a.flaky.is_empty() { if q { vec![0.5] } else { vec![0.1, 0.3, 0.5] } } else { a.flaky.clone() };
+    let flaky = if a.no_flaky {
+        vec![]
+    } else if a.flaky.is_empty() {
+        if q {
+            vec![0.5]
+        } else {
+            vec![0.1, 0.3, 0.5]
+        }
+    } else {
+        a.flaky.clone()
+    };
     if let Some(p) = flaky.iter().find(|p| !(**p > 0.0 && **p < 1.0)) {
-        return Err(coded(exit::USAGE, format!("--flaky: {p} is outside (0, 1)")));
+        return Err(coded(
+            exit::USAGE,
+            format!("--flaky: {p} is outside (0, 1)"),
+        ));
     }
     if let Some(t) = a.flaky_timeout.filter(|t| !(*t > 0.0 && *t <= 3600.0)) {
-        return Err(coded(exit::USAGE, format!("--flaky-timeout: {t} is outside (0, 3600] seconds")));
+        return Err(coded(
+            exit::USAGE,
+            format!("--flaky-timeout: {t} is outside (0, 3600] seconds"),
+        ));
     }
     if a.max_rounds == Some(0) || a.max_rounds.is_some_and(|r| r > 1000) {
         return Err(coded(exit::USAGE, "--max-rounds must be 1..=1000"));
     }
     let small = if q { QUICK_FILTER } else { INJECT_FILTER };
     let inject_filter = a.inject_filter.clone().unwrap_or_else(|| small.into());
-    let flaky_filter = a.flaky_filter.clone().unwrap_or_else(|| if q { QUICK_FLAKY_FILTER } else { FLAKY_FILTER }.into());
-    let matrix_filter = if a.matrix_filter.is_empty() && q { vec![QUICK_FILTER.to_string()] } else { a.matrix_filter.clone() };
-    let sweep_filter = if a.sweep_filter.is_empty() { vec![small.to_string()] } else { a.sweep_filter.clone() };
+    let flaky_filter = a
+        .flaky_filter
+        .clone()
+        .unwrap_or_else(|| if q { QUICK_FLAKY_FILTER } else { FLAKY_FILTER }.into());
+    let matrix_filter = if a.matrix_filter.is_empty() && q {
+        vec![QUICK_FILTER.to_string()]
+    } else {
+        a.matrix_filter.clone()
+    };
+    let sweep_filter = if a.sweep_filter.is_empty() {
+        vec![small.to_string()]
+    } else {
+        a.sweep_filter.clone()
+    };
     check_filter("--inject-filter", &inject_filter)?;
     check_filter("--flaky-filter", &flaky_filter)?;
     for f in matrix_filter.iter().chain(&sweep_filter) {
@@ -66,14 +126,26 @@ fn options(g: &Globals, a: &BenchArgs) -> Result<BenchOptions> {
     let sweep = if !a.sweep_args.is_empty() {
         a.sweep_args.clone()
     } else if q {
-        vec!["-j 1 --threads 1".into(), "-j 2 --threads 1".into(), "-j 1 --threads 2".into()]
+        vec![
+            "-j 1 --threads 1".into(),
+            "-j 2 --threads 1".into(),
+            "-j 1 --threads 2".into(),
+        ]
     } else {
         bench::DEFAULT_SWEEP.iter().map(|s| s.to_string()).collect()
     };
-    if let Some(e) = sweep.iter().find(|e| e.split_whitespace().any(|w| matches!(w, "-o" | "--out" | "--resume" | "--list" | "--cell-spec"))) {
+    if let Some(e) = sweep.iter().find(|e| {
+        e.split_whitespace()
+            .any(|w| matches!(w, "-o" | "--out" | "--resume" | "--list" | "--cell-spec"))
+    }) {
         return Err(coded(exit::USAGE, format!("--sweep-args {e:?}: bench chooses -o itself; --resume, --list and --cell-spec cannot be swept")));
     }
-    let exe = std::env::current_exe().map_err(|e| coded(exit::INTERNAL, format!("cannot find the rtprobe executable: {e}")))?;
+    let exe = std::env::current_exe().map_err(|e| {
+        coded(
+            exit::INTERNAL,
+            format!("cannot find the rtprobe executable: {e}"),
+        )
+    })?;
     Ok(BenchOptions {
         exe,
         work_dir: std::env::temp_dir().join(format!("rtprobe-bench-{}", std::process::id())),
@@ -84,10 +156,23 @@ fn options(g: &Globals, a: &BenchArgs) -> Result<BenchOptions> {
         matrix_filter,
         inject_filter,
         fractions,
-        seeds: if a.seeds.is_empty() { if q { vec![1] } else { vec![1, 2] } } else { a.seeds.clone() },
+        seeds: if a.seeds.is_empty() {
+            if q {
+                vec![1]
+            } else {
+                vec![1, 2]
+            }
+        } else {
+            a.seeds.clone()
+        },
         flaky,
         flaky_filter,
-        flaky_size: a.flaky_size.as_deref().map(|s| parse_size("--flaky-size", s)).transpose()?.unwrap_or(16),
+        flaky_size: a
+            .flaky_size
+            .as_deref()
+            .map(|s| parse_size("--flaky-size", s))
+            .transpose()?
+            .unwrap_or(16),
         max_rounds: a.max_rounds.unwrap_or(if q { 3 } else { 30 }),
         flaky_timeout: a.flaky_timeout,
         sweep,
@@ -101,17 +186,28 @@ fn options(g: &Globals, a: &BenchArgs) -> Result<BenchOptions> {
 
 pub fn bench(g: &Globals, a: &BenchArgs) -> Result<u8> {
     let opts = options(g, a)?;
-    let out = a.out.clone().unwrap_or_else(|| PathBuf::from("reports").join(format!("bench-{}", time::stamp(time::now_unix()))));
+    let out = a.out.clone().unwrap_or_else(|| {
+        PathBuf::from("reports").join(format!("bench-{}", time::stamp(time::now_unix())))
+    });
     bench::check_out_dir(&out).map_err(|e| coded(exit::BAD_INPUT, format!("-o: {e}")))?;
-    std::fs::create_dir_all(&opts.work_dir).map_err(|e| coded(exit::BAD_INPUT, format!("cannot create {}: {e}", opts.work_dir.display())))?;
+    std::fs::create_dir_all(&opts.work_dir).map_err(|e| {
+        coded(
+            exit::BAD_INPUT,
+            format!("cannot create {}: {e}", opts.work_dir.display()),
+        )
+    })?;
     let mut progress = |line: &str| eprintln!("bench: {line}");
     let result = Bench::new(&opts, &mut progress).run_all();
     let _ = std::fs::remove_dir_all(&opts.work_dir);
     let value = result.map_err(|e| match &e {
         // A run's own usage or device error keeps its exit code.
-        BenchError::RunFailed { code, .. } if (2..=10).contains(code) => coded(*code as u8, e.to_string()),
+        BenchError::RunFailed { code, .. } if (2..=10).contains(code) => {
+            coded(*code as u8, e.to_string())
+        }
         BenchError::Empty { .. } => coded(exit::USAGE, e.to_string()),
-        BenchError::RunFailed { .. } | BenchError::Spawn { .. } | BenchError::Report { .. } => coded(exit::INTERNAL, e.to_string()),
+        BenchError::RunFailed { .. } | BenchError::Spawn { .. } | BenchError::Report { .. } => {
+            coded(exit::INTERNAL, e.to_string())
+        }
     })?;
     let json = serde_json::to_vec_pretty(&value).expect("bench value serializes");
     let plots = bench::plots::all(&value);
@@ -121,7 +217,11 @@ pub fn bench(g: &Globals, a: &BenchArgs) -> Result<u8> {
     // bench.json last: its presence says every plot beside it is complete.
     write_atomic(&out.join("bench.json"), &json).with_context(|| "writing bench.json")?;
     print_summary(&value);
-    println!("bench: {} ({} plots)", out.join("bench.json").display(), plots.len());
+    println!(
+        "bench: {} ({} plots)",
+        out.join("bench.json").display(),
+        plots.len()
+    );
     Ok(exit::OK)
 }
 
@@ -132,11 +232,25 @@ fn print_summary(v: &serde_json::Value) {
         None => println!("default size {0}×{0}: not among --sizes", d["size"]),
     }
     for x in d["detection"].as_array().into_iter().flatten() {
-        println!("  f={}: caught {:.3} (predicted {:.3}, n mean {:.0})", x["fraction"], x["measured"].as_f64().unwrap_or(f64::NAN), x["predicted"].as_f64().unwrap_or(f64::NAN), x["n_mean"].as_f64().unwrap_or(0.0));
+        println!(
+            "  f={}: caught {:.3} (predicted {:.3}, n mean {:.0})",
+            x["fraction"],
+            x["measured"].as_f64().unwrap_or(f64::NAN),
+            x["predicted"].as_f64().unwrap_or(f64::NAN),
+            x["n_mean"].as_f64().unwrap_or(0.0)
+        );
     }
     for p in v["flaky"]["points"].as_array().into_iter().flatten() {
         let n = &p["repeats_needed"];
-        println!("flaky:{}: rate {:.3}; repeats for 95%: {} predicted, {} measured; 99%: {} / {}", p["probability"], p["measured_rate"].as_f64().unwrap_or(0.0), n["0.95"]["predicted"], n["0.95"]["measured"], n["0.99"]["predicted"], n["0.99"]["measured"]);
+        println!(
+            "flaky:{}: rate {:.3}; repeats for 95%: {} predicted, {} measured; 99%: {} / {}",
+            p["probability"],
+            p["measured_rate"].as_f64().unwrap_or(0.0),
+            n["0.95"]["predicted"],
+            n["0.95"]["measured"],
+            n["0.99"]["predicted"],
+            n["0.99"]["measured"]
+        );
     }
 }
 

@@ -5,14 +5,14 @@ use super::args::BisectArgs;
 use super::commands::Globals;
 use super::exit::{self, coded};
 use super::shared::{load_report, report_device, SupervisorOracle};
+use crate::atomic::write_atomic;
 use crate::bisect::scope::{report_scope, ReportOptions};
-use crate::model::BisectFile;
 use crate::bisect::{self, Bisector, Settings, Verdicts};
 use crate::matrix::plan::{self, PlanOptions};
-use crate::model::PatchMode;
+use crate::model::BisectFile;
 use crate::model::Cell;
+use crate::model::PatchMode;
 use crate::model::RunReport;
-use crate::atomic::write_atomic;
 use anyhow::{Context, Result};
 
 fn check_args(a: &BisectArgs) -> Result<()> {
@@ -30,7 +30,14 @@ fn check_args(a: &BisectArgs) -> Result<()> {
 
 /// Bisect the report's own verdicts, running nothing (`--offline`, and `report` without
 /// `--bisect`).
-pub(crate) fn offline(report: &RunReport, filters: &[crate::model::Filter], patches: PatchMode, settings: Settings, inject: &[crate::model::Injection], cell: Option<&str>) -> Result<crate::model::Bisection, bisect::BisectError> {
+pub(crate) fn offline(
+    report: &RunReport,
+    filters: &[crate::model::Filter],
+    patches: PatchMode,
+    settings: Settings,
+    inject: &[crate::model::Injection],
+    cell: Option<&str>,
+) -> Result<crate::model::Bisection, bisect::BisectError> {
     let scope = report_scope(report, filters, patches);
     let verdicts = Verdicts::from_report(report);
     let ran = |c: &Cell| verdicts.get(c).is_some();
@@ -41,21 +48,58 @@ pub(crate) fn offline(report: &RunReport, filters: &[crate::model::Filter], patc
 pub fn bisect(g: &Globals, a: &BisectArgs) -> Result<u8> {
     check_args(a)?;
     let report = load_report(&a.report)?;
-    let ro = ReportOptions::of(&report).map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.report.display())))?;
-    let filters = ro.scope_filters(&a.filter).map_err(|e| coded(exit::USAGE, e))?;
-    let settings = Settings { max_miss: a.max_miss, max_attempts: a.max_attempts, ..Settings::default() };
+    let ro = ReportOptions::of(&report)
+        .map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.report.display())))?;
+    let filters = ro
+        .scope_filters(&a.filter)
+        .map_err(|e| coded(exit::USAGE, e))?;
+    let settings = Settings {
+        max_miss: a.max_miss,
+        max_attempts: a.max_attempts,
+        ..Settings::default()
+    };
     let verdicts = Verdicts::from_report(&report);
-    let patches = if ro.patches == PatchMode::All { PatchMode::All } else { PatchMode::None };
+    let patches = if ro.patches == PatchMode::All {
+        PatchMode::All
+    } else {
+        PatchMode::None
+    };
     let mut device_uuid_rerun = None;
     let result = if a.offline {
-        offline(&report, &filters, patches, settings, &ro.inject, a.cell.as_deref())
+        offline(
+            &report,
+            &filters,
+            patches,
+            settings,
+            &ro.inject,
+            a.cell.as_deref(),
+        )
     } else {
         let (_inst, info, rerun) = report_device(g, &report)?;
         device_uuid_rerun = rerun;
-        let the_plan = plan::plan(&info, &PlanOptions { filters: filters.clone(), canaries: false, patches, inject: ro.inject.clone() });
+        let the_plan = plan::plan(
+            &info,
+            &PlanOptions {
+                filters: filters.clone(),
+                canaries: false,
+                patches,
+                inject: ro.inject.clone(),
+            },
+        );
         let scope: Vec<Cell> = the_plan.to_run().copied().collect();
-        let jobs = a.jobs.or(ro.jobs).unwrap_or_else(|| super::shared::default_jobs(&info));
-        let mut opts = super::shared::supervisor_options(info.index, report.scene.params, jobs, ro.isolation, ro.timeout_s, ro.validate || g.validate, ro.inject.clone());
+        let jobs = a
+            .jobs
+            .or(ro.jobs)
+            .unwrap_or_else(|| super::shared::default_jobs(&info));
+        let mut opts = super::shared::supervisor_options(
+            info.index,
+            report.scene.params,
+            jobs,
+            ro.isolation,
+            ro.timeout_s,
+            ro.validate || g.validate,
+            ro.inject.clone(),
+        );
         if let Some(s) = ro.setup_timeout_s.filter(|s| *s > 0.0 && *s <= 3600.0) {
             opts.setup_timeout = std::time::Duration::from_secs_f64(s);
         }
@@ -64,15 +108,21 @@ pub fn bisect(g: &Globals, a: &BisectArgs) -> Result<u8> {
         let job_dir = opts.job_dir.clone();
         let mut oracle = SupervisorOracle::for_bisect(opts);
         let supported = |c: &Cell| plan::device_support(&info, c).is_supported();
-        let settings = Settings { batch: 2 * jobs, ..settings };
-        let r = Bisector::new(scope, verdicts, &mut oracle, settings, ro.inject.clone()).bisect(a.cell.as_deref(), &supported);
+        let settings = Settings {
+            batch: 2 * jobs,
+            ..settings
+        };
+        let r = Bisector::new(scope, verdicts, &mut oracle, settings, ro.inject.clone())
+            .bisect(a.cell.as_deref(), &supported);
         let _ = std::fs::remove_dir_all(&job_dir);
         r
     };
     let b = result.map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.report.display())))?;
     let mut file = BisectFile::new(&a.report, &report, &filters, &ro.inject, a.offline, b);
     if let Some(uuid) = device_uuid_rerun {
-        file.text.push_str(&format!("re-run on another card of the same driver build (UUID {uuid}), not the report's\n"));
+        file.text.push_str(&format!(
+            "re-run on another card of the same driver build (UUID {uuid}), not the report's\n"
+        ));
         file.device_uuid_rerun = Some(uuid);
     }
     if let Some(path) = &a.json {

@@ -1,11 +1,14 @@
 //! The `devices` and `caps` commands: glue between parsed arguments and the library modules.
 use super::args::{CapsArgs, DevicesArgs};
 use super::exit;
+use crate::atomic::write_atomic;
 use crate::caps::{self, DeviceCreationCheck};
 use crate::matrix::plan::{self, PlanOptions};
 use crate::model::PatchMode;
-use crate::atomic::write_atomic;
-use crate::vk::{driver_version::format_api_version, features, DeviceInfo, Gpu, Instance, InstanceOptions, Requirements, VkError};
+use crate::vk::{
+    driver_version::format_api_version, features, DeviceInfo, Gpu, Instance, InstanceOptions,
+    Requirements, VkError,
+};
 use anyhow::{Context, Result};
 use serde_json::json;
 use std::sync::Arc;
@@ -18,7 +21,10 @@ pub struct Globals {
 }
 
 pub fn open_instance(g: &Globals) -> Result<Arc<Instance>> {
-    Ok(Arc::new(Instance::new(&InstanceOptions { validate: g.validate, gpu_av: false })?))
+    Ok(Arc::new(Instance::new(&InstanceOptions {
+        validate: g.validate,
+        gpu_av: false,
+    })?))
 }
 
 pub fn devices(g: &Globals, args: &DevicesArgs) -> Result<u8> {
@@ -37,7 +43,11 @@ pub fn devices(g: &Globals, args: &DevicesArgs) -> Result<u8> {
     }
     for d in &all {
         let missing = d.rt_pipeline_missing();
-        let rt = if missing.is_empty() { "yes".to_string() } else { format!("no (missing {})", missing.join(", ")) };
+        let rt = if missing.is_empty() {
+            "yes".to_string()
+        } else {
+            format!("no (missing {})", missing.join(", "))
+        };
         let p = &d.properties.core;
         println!(
             "{}  {}  vendor {} ({:#06x})  driver {} {}  Vulkan {}  rt-pipeline: {}",
@@ -57,7 +67,12 @@ pub fn devices(g: &Globals, args: &DevicesArgs) -> Result<u8> {
 /// What the whole matrix (every workaround, canaries) needs of `info`, as far as `info` can run it:
 /// the same rule a worker uses for its own cells.
 pub fn full_requirements(info: &DeviceInfo) -> Requirements {
-    let opts = PlanOptions { filters: vec![], canaries: true, patches: PatchMode::All, inject: vec![] };
+    let opts = PlanOptions {
+        filters: vec![],
+        canaries: true,
+        patches: PatchMode::All,
+        inject: vec![],
+    };
     let cells: Vec<_> = plan::plan(info, &opts).to_run().copied().collect();
     crate::runner::worker::requirements(info, &cells)
 }
@@ -69,9 +84,17 @@ fn check_device_creation(inst: &Arc<Instance>, info: &DeviceInfo) -> DeviceCreat
     match r {
         Ok(gpu) => {
             drop(gpu);
-            DeviceCreationCheck { ok: true, ms, error: None }
+            DeviceCreationCheck {
+                ok: true,
+                ms,
+                error: None,
+            }
         }
-        Err(e) => DeviceCreationCheck { ok: false, ms, error: Some(e.to_string()) },
+        Err(e) => DeviceCreationCheck {
+            ok: false,
+            ms,
+            error: Some(e.to_string()),
+        },
     }
 }
 
@@ -105,6 +128,9 @@ pub fn caps_cmd(g: &Globals, args: &CapsArgs) -> Result<u8> {
 
 /// Today's date (UTC) as YYYY-MM-DD, from the system clock.
 pub fn today() -> String {
-    let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0);
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs())
+        .unwrap_or(0);
     crate::report::time::civil_date(secs)
 }

@@ -49,7 +49,11 @@ pub struct CodedError {
 
 /// `message` (a `String`, or a library error whose text is the message) with exit code `code`.
 pub fn coded(code: u8, message: impl std::fmt::Display) -> anyhow::Error {
-    CodedError { code, message: message.to_string() }.into()
+    CodedError {
+        code,
+        message: message.to_string(),
+    }
+    .into()
 }
 
 /// The code of a library error the CLI reports as text ([`coded`]): [`NO_SHADER_COMPILER`] when
@@ -82,13 +86,19 @@ pub fn code_for(err: &anyhow::Error) -> u8 {
             return match v {
                 VkError::LoaderMissing { .. } | VkError::LoaderTooOld { .. } => NO_LOADER,
                 VkError::NoDriver { .. } => NO_DRIVER,
-                VkError::NotRtCapable { .. } | VkError::NoRtDevice { .. } | VkError::Unsupported { .. } => UNSUPPORTED_DEVICE,
-                VkError::NoSuchDevice { .. } | VkError::AmbiguousDevice { .. } => BAD_DEVICE_SELECTION,
+                VkError::NotRtCapable { .. }
+                | VkError::NoRtDevice { .. }
+                | VkError::Unsupported { .. } => UNSUPPORTED_DEVICE,
+                VkError::NoSuchDevice { .. } | VkError::AmbiguousDevice { .. } => {
+                    BAD_DEVICE_SELECTION
+                }
                 VkError::DeviceLost { .. } => DEVICE_LOST,
                 VkError::Call { .. } | VkError::NoMemoryType { .. } => VULKAN_ERROR,
             };
         }
-        if cause.downcast_ref::<crate::atomic::WriteError>().is_some() || cause.downcast_ref::<std::io::Error>().is_some() {
+        if cause.downcast_ref::<crate::atomic::WriteError>().is_some()
+            || cause.downcast_ref::<std::io::Error>().is_some()
+        {
             return BAD_INPUT;
         }
     }
@@ -101,9 +111,15 @@ mod tests {
 
     #[test]
     fn maps_vk_errors_through_context() {
-        let e = anyhow::Error::from(VkError::NoSuchDevice { spec: "9".into(), available: "0: x".into() }).context("selecting");
+        let e = anyhow::Error::from(VkError::NoSuchDevice {
+            spec: "9".into(),
+            available: "0: x".into(),
+        })
+        .context("selecting");
         assert_eq!(code_for(&e), BAD_DEVICE_SELECTION);
-        let e = anyhow::Error::from(VkError::DeviceLost { call: "vkQueueSubmit" });
+        let e = anyhow::Error::from(VkError::DeviceLost {
+            call: "vkQueueSubmit",
+        });
         assert_eq!(code_for(&e), DEVICE_LOST);
         assert_eq!(code_for(&coded(BAD_INPUT, "bad json")), BAD_INPUT);
         assert_eq!(code_for(&anyhow::anyhow!("??")), INTERNAL);
@@ -118,9 +134,15 @@ mod tests {
         assert_eq!(compiler_or(&shaders, INTERNAL), NO_SHADER_COMPILER);
         let stress = crate::stress::TraceError::Compile(CompileError::Init);
         assert_eq!(compiler_or(&stress, INTERNAL), NO_SHADER_COMPILER);
-        assert_eq!(code_for(&coded(compiler_or(&stress, INTERNAL), &stress)), NO_SHADER_COMPILER);
+        assert_eq!(
+            code_for(&coded(compiler_or(&stress, INTERNAL), &stress)),
+            NO_SHADER_COMPILER
+        );
         // A GLSL error is the input's, and keeps the caller's code.
-        let glsl = CompileError::Glsl { file: "x.rgen".into(), message: "syntax".into() };
+        let glsl = CompileError::Glsl {
+            file: "x.rgen".into(),
+            message: "syntax".into(),
+        };
         assert_eq!(compiler_or(&glsl, BAD_INPUT), BAD_INPUT);
         assert_eq!(code_for(&anyhow::Error::from(glsl)), INTERNAL);
         assert!(HELP.contains("\n  12 the shader compiler (shaderc) could not be started"));

@@ -7,8 +7,8 @@ pub mod commands;
 pub mod exit;
 pub mod fleet;
 pub mod patch;
-pub mod repro;
 pub mod report;
+pub mod repro;
 pub mod run;
 pub mod shared;
 pub mod stress;
@@ -25,7 +25,11 @@ fn init_tracing(verbose: u8) {
         _ => "debug",
     };
     let filter = EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new(default));
-    let _ = tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).with_target(false).try_init();
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .try_init();
 }
 
 /// Parse the command line, run the command, and return the process exit code. Errors are printed
@@ -35,12 +39,19 @@ pub fn main_entry() -> u8 {
         Ok(c) => c,
         Err(e) => {
             let _ = e.print();
-            return if e.use_stderr() { exit::USAGE } else { exit::OK };
+            return if e.use_stderr() {
+                exit::USAGE
+            } else {
+                exit::OK
+            };
         }
     };
     init_tracing(cli.verbose);
     let mode = cli.validate.unwrap_or(args::ValidateMode::Off);
-    let g = commands::Globals { validate: mode != args::ValidateMode::Off, gpu_av: mode == args::ValidateMode::GpuAv };
+    let g = commands::Globals {
+        validate: mode != args::ValidateMode::Off,
+        gpu_av: mode == args::ValidateMode::GpuAv,
+    };
     let result = match &cli.command {
         Command::Devices(a) => commands::devices(&g, a),
         Command::Caps(a) => commands::caps_cmd(&g, a),

@@ -2,41 +2,69 @@
 //! run's fault (see `report::issue`), written atomically.
 use super::args::ReportArgs;
 use super::bisect::offline;
-use super::shared::load_report;
 use super::exit::{self, coded};
-use crate::model::BisectFile;
+use super::shared::load_report;
+use crate::atomic::write_atomic;
 use crate::bisect::scope::ReportOptions;
 use crate::bisect::Settings;
+use crate::model::BisectFile;
 use crate::model::PatchMode;
 use crate::report::issue::{self, Format};
-use crate::atomic::write_atomic;
 use anyhow::{Context, Result};
 
 pub fn report(a: &ReportArgs) -> Result<u8> {
     let r = load_report(&a.report)?;
-    let ro = ReportOptions::of(&r).map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.report.display())))?;
+    let ro = ReportOptions::of(&r)
+        .map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.report.display())))?;
     let b = match &a.bisect {
         Some(p) => {
             let b = BisectFile::load(p).map_err(|e| coded(exit::BAD_INPUT, e))?;
-            if b.device["name"] != r.device["name"] || b.device["driver_uuid"] != r.device["driver_uuid"] {
-                return Err(coded(exit::BAD_INPUT, format!("{} bisects a report of another device ({}), not {}", p.display(), b.device["name"], a.report.display())));
+            if b.device["name"] != r.device["name"]
+                || b.device["driver_uuid"] != r.device["driver_uuid"]
+            {
+                return Err(coded(
+                    exit::BAD_INPUT,
+                    format!(
+                        "{} bisects a report of another device ({}), not {}",
+                        p.display(),
+                        b.device["name"],
+                        a.report.display()
+                    ),
+                ));
             }
             // The same run: its start stamp and its injections (an injected fault must never be
             // written up as a driver bug through another report's issue).
             let report_inject: Vec<String> = ro.inject.iter().map(|i| i.spec.clone()).collect();
             if b.report_started != r.started || b.inject != report_inject {
-                return Err(coded(exit::BAD_INPUT, format!("{} bisects another run ({}), not {} ({}); bisect this report first", p.display(), b.report.display(), a.report.display(), r.started)));
+                return Err(coded(
+                    exit::BAD_INPUT,
+                    format!(
+                        "{} bisects another run ({}), not {} ({}); bisect this report first",
+                        p.display(),
+                        b.report.display(),
+                        a.report.display(),
+                        r.started
+                    ),
+                ));
             }
             b
         }
         None => {
-            let filters = ro.scope_filters(&[]).map_err(|e| coded(exit::BAD_INPUT, e))?;
-            let patches = if ro.patches == PatchMode::All { PatchMode::All } else { PatchMode::None };
-            let bi = offline(&r, &filters, patches, Settings::default(), &ro.inject, None).map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.report.display())))?;
+            let filters = ro
+                .scope_filters(&[])
+                .map_err(|e| coded(exit::BAD_INPUT, e))?;
+            let patches = if ro.patches == PatchMode::All {
+                PatchMode::All
+            } else {
+                PatchMode::None
+            };
+            let bi = offline(&r, &filters, patches, Settings::default(), &ro.inject, None)
+                .map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.report.display())))?;
             BisectFile::new(&a.report, &r, &filters, &ro.inject, true, bi)
         }
     };
-    let issue = issue::build(&r, &a.report.display().to_string(), &b, &ro.inject).map_err(|e| coded(exit::BAD_INPUT, e))?;
+    let issue = issue::build(&r, &a.report.display().to_string(), &b, &ro.inject)
+        .map_err(|e| coded(exit::BAD_INPUT, e))?;
     let text = match a.format {
         Format::Md => issue.markdown(),
         Format::Json => serde_json::to_string_pretty(&issue)? + "\n",

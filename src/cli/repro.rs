@@ -3,32 +3,59 @@
 //! cell, scene, injections and the verdict it had), the device's caps JSON, and a README with
 //! `rtprobe run --cell-spec DIR/cell.json`, which re-runs exactly that cell.
 use super::args::ReproArgs;
-use super::shared::{load_report, report_device};
 use super::commands::Globals;
 use super::exit::{self, coded};
+use super::shared::{load_report, report_device};
+use crate::atomic::write_atomic;
 use crate::bisect::isolation::describe;
 use crate::bisect::scope::{cell_by_id, ReportOptions};
+use crate::model::bundle::{BundleModule, CellSpec, SCHEMA};
 use crate::model::inject::for_cell;
+use crate::model::Cell;
 use crate::model::Injection;
 use crate::model::PatchMode;
-use crate::model::Cell;
 use crate::report::shaders::{cell_shaders, spirv_bytes, spirv_dis};
-use crate::atomic::write_atomic;
-use crate::model::bundle::{BundleModule, CellSpec, SCHEMA};
 use anyhow::{Context, Result};
 use std::path::Path;
 
 impl CellSpec {
     pub fn load(path: &Path) -> Result<CellSpec> {
-        let bytes = std::fs::read(path).map_err(|e| coded(exit::BAD_INPUT, format!("cannot read {}: {e}", path.display())))?;
-        let s: CellSpec = serde_json::from_slice(&bytes).map_err(|e| coded(exit::BAD_INPUT, format!("{} is not an rtprobe cell spec: {e}", path.display())))?;
+        let bytes = std::fs::read(path).map_err(|e| {
+            coded(
+                exit::BAD_INPUT,
+                format!("cannot read {}: {e}", path.display()),
+            )
+        })?;
+        let s: CellSpec = serde_json::from_slice(&bytes).map_err(|e| {
+            coded(
+                exit::BAD_INPUT,
+                format!("{} is not an rtprobe cell spec: {e}", path.display()),
+            )
+        })?;
         if s.schema != SCHEMA {
-            return Err(coded(exit::BAD_INPUT, format!("{} has schema {:?}, expected {SCHEMA:?}", path.display(), s.schema)));
+            return Err(coded(
+                exit::BAD_INPUT,
+                format!(
+                    "{} has schema {:?}, expected {SCHEMA:?}",
+                    path.display(),
+                    s.schema
+                ),
+            ));
         }
         if s.cell.id() != s.id {
-            return Err(coded(exit::BAD_INPUT, format!("{}: id {:?} does not match its cell ({})", path.display(), s.id, s.cell.id())));
+            return Err(coded(
+                exit::BAD_INPUT,
+                format!(
+                    "{}: id {:?} does not match its cell ({})",
+                    path.display(),
+                    s.id,
+                    s.cell.id()
+                ),
+            ));
         }
-        s.scene.validate().map_err(|e| coded(exit::BAD_INPUT, format!("{}: scene: {e}", path.display())))?;
+        s.scene
+            .validate()
+            .map_err(|e| coded(exit::BAD_INPUT, format!("{}: scene: {e}", path.display())))?;
         Ok(s)
     }
 
@@ -41,7 +68,14 @@ impl CellSpec {
         let dir = path.parent().unwrap_or(Path::new(".")).join("shaders");
         for m in &self.modules {
             if m.file.contains('/') || !dir.join(&m.file).is_file() {
-                return Err(coded(exit::BAD_INPUT, format!("{}: the bundle's SPIR-V {} is missing", path.display(), dir.join(&m.file).display())));
+                return Err(coded(
+                    exit::BAD_INPUT,
+                    format!(
+                        "{}: the bundle's SPIR-V {} is missing",
+                        path.display(),
+                        dir.join(&m.file).display()
+                    ),
+                ));
             }
         }
         Ok(Some(dir))
@@ -58,7 +92,11 @@ impl CellSpec {
         Ok(super::args::RunArgs {
             filter: vec![crate::model::registry::exact_filter(&self.cell)],
             inject_fault: self.inject.clone(),
-            patches: if self.cell.patch.is_some() { PatchMode::All } else { PatchMode::None },
+            patches: if self.cell.patch.is_some() {
+                PatchMode::All
+            } else {
+                PatchMode::None
+            },
             canaries: self.cell.canary.is_some(),
             seed: p.seed,
             size: format!("{}x{}", p.width, p.height),
@@ -81,11 +119,27 @@ fn write(dir: &Path, name: &str, bytes: &[u8]) -> Result<()> {
 /// `force` (moved aside first, removed once the new bundle is in place, put back on failure).
 fn publish(tmp: &Path, out: &Path, force: bool) -> Result<()> {
     let ctx = || format!("writing the repro bundle in {}", out.display());
-    let old = out.with_file_name(format!(".{}.old-{}", out.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default(), std::process::id()));
+    let old = out.with_file_name(format!(
+        ".{}.old-{}",
+        out.file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default(),
+        std::process::id()
+    ));
     let empty = match std::fs::read_dir(out) {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
-        Err(_) if !out.is_dir() => return Err(coded(exit::BAD_INPUT, format!("{} exists and is not a directory", out.display()))),
-        Err(e) => return Err(coded(exit::BAD_INPUT, format!("cannot read {}: {e}", out.display()))),
+        Err(_) if !out.is_dir() => {
+            return Err(coded(
+                exit::BAD_INPUT,
+                format!("{} exists and is not a directory", out.display()),
+            ))
+        }
+        Err(e) => {
+            return Err(coded(
+                exit::BAD_INPUT,
+                format!("cannot read {}: {e}", out.display()),
+            ))
+        }
         Ok(mut entries) => Some(entries.next().is_none()),
     };
     let aside = match empty {
@@ -94,7 +148,15 @@ fn publish(tmp: &Path, out: &Path, force: bool) -> Result<()> {
             std::fs::remove_dir(out).with_context(ctx)?;
             false
         }
-        Some(false) if !force => return Err(coded(exit::BAD_INPUT, format!("{} exists and is not empty; --force replaces it (its files are removed)", out.display()))),
+        Some(false) if !force => {
+            return Err(coded(
+                exit::BAD_INPUT,
+                format!(
+                    "{} exists and is not empty; --force replaces it (its files are removed)",
+                    out.display()
+                ),
+            ))
+        }
         Some(false) => {
             std::fs::rename(out, &old).with_context(ctx)?;
             true
@@ -118,14 +180,23 @@ fn publish(tmp: &Path, out: &Path, force: bool) -> Result<()> {
 fn check_out(out: &Path, from: &Path, force: bool) -> Result<()> {
     let refuse = |what: String| Err(coded(exit::BAD_INPUT, what));
     if out.file_name().is_none() {
-        return refuse(format!("-o {} does not name a folder; give a new folder such as -o repro", out.display()));
+        return refuse(format!(
+            "-o {} does not name a folder; give a new folder such as -o repro",
+            out.display()
+        ));
     }
-    let Ok(mut entries) = std::fs::read_dir(out) else { return Ok(()) };
+    let Ok(mut entries) = std::fs::read_dir(out) else {
+        return Ok(());
+    };
     let canon = |p: &Path| std::fs::canonicalize(p).ok();
     let dir = canon(out);
-    let inside = |p: Option<std::path::PathBuf>| matches!((&dir, p), (Some(d), Some(p)) if p.starts_with(d));
+    let inside =
+        |p: Option<std::path::PathBuf>| matches!((&dir, p), (Some(d), Some(p)) if p.starts_with(d));
     if inside(std::env::current_dir().ok().and_then(|c| canon(&c))) {
-        return refuse(format!("{} holds the current directory; give -o a new folder", out.display()));
+        return refuse(format!(
+            "{} holds the current directory; give -o a new folder",
+            out.display()
+        ));
     }
     if entries.next().is_none() {
         return Ok(());
@@ -137,29 +208,60 @@ fn check_out(out: &Path, from: &Path, force: bool) -> Result<()> {
         return refuse(format!("{} is not a repro bundle (no cell.json); --force replaces only a bundle: give -o a new folder or remove it yourself", out.display()));
     }
     if inside(canon(from)) {
-        return refuse(format!("{} holds the --from report {}; give -o another folder", out.display(), from.display()));
+        return refuse(format!(
+            "{} holds the --from report {}; give -o another folder",
+            out.display(),
+            from.display()
+        ));
     }
     Ok(())
 }
 
 pub fn repro(g: &Globals, a: &ReproArgs) -> Result<u8> {
     let report = load_report(&a.from)?;
-    let ro = ReportOptions::of(&report).map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.from.display())))?;
-    let cell = cell_by_id(&a.cell).ok_or_else(|| coded(exit::BAD_INPUT, format!("{:?} is not a cell id (see `rtprobe run --list`)", a.cell)))?;
+    let ro = ReportOptions::of(&report)
+        .map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.from.display())))?;
+    let cell = cell_by_id(&a.cell).ok_or_else(|| {
+        coded(
+            exit::BAD_INPUT,
+            format!("{:?} is not a cell id (see `rtprobe run --list`)", a.cell),
+        )
+    })?;
     let entry = report.cells.iter().find(|c| c.id == a.cell);
     let inject: Vec<&Injection> = for_cell(&ro.inject, &cell).into_iter().collect();
-    let shaders = cell_shaders(&cell, inject.first().map(|i| i.fault)).map_err(|e| coded(exit::compiler_or(&e, exit::INTERNAL), format!("{}: {e}", cell.id())))?;
+    let shaders = cell_shaders(&cell, inject.first().map(|i| i.fault)).map_err(|e| {
+        coded(
+            exit::compiler_or(&e, exit::INTERNAL),
+            format!("{}: {e}", cell.id()),
+        )
+    })?;
     check_out(&a.out, &a.from, a.force)?;
-    let name = a.out.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "repro".into());
-    let tmp = a.out.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
+    let name = a
+        .out
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "repro".into());
+    let tmp = a
+        .out
+        .with_file_name(format!(".{name}.tmp-{}", std::process::id()));
     if let Some(parent) = a.out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(parent).map_err(|e| coded(exit::BAD_INPUT, format!("cannot create {}: {e}", parent.display())))?;
+        std::fs::create_dir_all(parent).map_err(|e| {
+            coded(
+                exit::BAD_INPUT,
+                format!("cannot create {}: {e}", parent.display()),
+            )
+        })?;
     }
     let built = build(g, a, &report, &ro, cell, entry, &inject, &shaders, &tmp);
     let result = built.and_then(|()| publish(&tmp, &a.out, a.force));
     let _ = std::fs::remove_dir_all(&tmp);
     result?;
-    println!("repro bundle: {} ({} shaders); re-run: rtprobe run --cell-spec {}/cell.json", a.out.display(), shaders.len(), a.out.display());
+    println!(
+        "repro bundle: {} ({} shaders); re-run: rtprobe run --cell-spec {}/cell.json",
+        a.out.display(),
+        shaders.len(),
+        a.out.display()
+    );
     Ok(exit::OK)
 }
 
@@ -181,7 +283,11 @@ fn build(
     let mut disassembled = true;
     for s in shaders {
         let f = s.role.file_name();
-        modules.push(BundleModule { file: format!("{f}.spv"), compiler: s.compiler.clone(), patched: s.patched.iter().map(|p| p.to_string()).collect() });
+        modules.push(BundleModule {
+            file: format!("{f}.spv"),
+            compiler: s.compiler.clone(),
+            patched: s.patched.iter().map(|p| p.to_string()).collect(),
+        });
         write(dir, &format!("shaders/{f}.glsl"), s.glsl.as_bytes())?;
         write(dir, &format!("shaders/{f}.spv"), &spirv_bytes(&s.spirv))?;
         match spirv_dis(&s.spirv) {
@@ -208,25 +314,37 @@ fn build(
         }),
         modules,
     };
-    write(dir, "cell.json", &(serde_json::to_vec_pretty(&spec)? ))?;
+    write(dir, "cell.json", &(serde_json::to_vec_pretty(&spec)?))?;
     // The caps of the report's device, when it is on this machine.
     let caps_note = match report_device(g, report) {
         Ok((inst, info, _)) => {
             let caps = crate::caps::caps_json(&info, inst.loader_version, None);
             write(dir, "caps.json", &serde_json::to_vec_pretty(&caps)?)?;
-            "caps.json: `rtprobe caps --json` of the device (without the device-creation check)".to_string()
+            "caps.json: `rtprobe caps --json` of the device (without the device-creation check)"
+                .to_string()
         }
         Err(e) => format!("no caps.json: {e:#}"),
     };
-    let origin = format!("from {} (rtprobe {})", a.from.display(), env!("CARGO_PKG_VERSION"));
-    let amber_note = match crate::report::amber::script(&cell, shaders, &report.scene.params, inject.first().copied(), &origin) {
+    let origin = format!(
+        "from {} (rtprobe {})",
+        a.from.display(),
+        env!("CARGO_PKG_VERSION")
+    );
+    let amber_note = match crate::report::amber::script(
+        &cell,
+        shaders,
+        &report.scene.params,
+        inject.first().copied(),
+        &origin,
+    ) {
         Ok(text) => {
             write(dir, "cell.amber", text.as_bytes())?;
             "cell.amber      an Amber script of the same cell: its SPIR-V, buffers and expected records (not run by rtprobe; see its header)".to_string()
         }
         Err(why) => format!("no cell.amber: {why}"),
     };
-    let made_by: std::collections::BTreeSet<&str> = shaders.iter().map(|s| s.compiler.as_str()).collect();
+    let made_by: std::collections::BTreeSet<&str> =
+        shaders.iter().map(|s| s.compiler.as_str()).collect();
     let readme = format!(
         "rtprobe repro bundle: {}\n{}\n\nOriginal verdict: {} ({})\nInjected: {}\n\nRe-run exactly this cell (same scene, same injection, the SPIR-V in shaders/):\n\n    rtprobe run --cell-spec {}/cell.json\n\nFiles:\n  cell.json       the cell, scene parameters, injections, original verdict, the SPIR-V modules and their compiler\n  shaders/        {}: GLSL as generated, SPIR-V as the worker runs it (patched where the cell says){}\n  {}\n  {}\n\nThe SPIR-V was compiled by {}. `run --cell-spec` runs these .spv files, not a fresh compile, so a\nmachine with another compiler runs the same binary.\n",
         spec.id,

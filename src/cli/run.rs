@@ -10,7 +10,9 @@ use crate::campaign::{start, Campaign, Policy, Progress, Recorder};
 use crate::fleet::shard::Shard;
 use crate::matrix::plan::{self, PlanOptions};
 use crate::model::report::RunOptions;
-use crate::model::{Baseline, Cell, Filter, Injection, Outcome, PlanStatus, RunPlan, RunReport, SceneParams};
+use crate::model::{
+    Baseline, Cell, Filter, Injection, Outcome, PlanStatus, RunPlan, RunReport, SceneParams,
+};
 use crate::report::writer::ReportWriter;
 use crate::report::{junit, summary, time};
 use crate::runner::supervisor::SupervisorOptions;
@@ -24,9 +26,21 @@ fn scene_params(a: &RunArgs) -> Result<SceneParams> {
         .size
         .split_once(['x', 'X'])
         .and_then(|(w, h)| Some((w.trim().parse::<u32>().ok()?, h.trim().parse::<u32>().ok()?)))
-        .ok_or_else(|| coded(exit::USAGE, format!("--size {:?} is not WIDTHxHEIGHT (e.g. 64x64)", a.size)))?;
-    let p = SceneParams { seed: a.seed, width: w, height: h, instances: a.instances, mesh_detail: a.mesh_detail };
-    p.validate().map_err(|e| coded(exit::USAGE, format!("scene: {e}")))?;
+        .ok_or_else(|| {
+            coded(
+                exit::USAGE,
+                format!("--size {:?} is not WIDTHxHEIGHT (e.g. 64x64)", a.size),
+            )
+        })?;
+    let p = SceneParams {
+        seed: a.seed,
+        width: w,
+        height: h,
+        instances: a.instances,
+        mesh_detail: a.mesh_detail,
+    };
+    p.validate()
+        .map_err(|e| coded(exit::USAGE, format!("scene: {e}")))?;
     Ok(p)
 }
 
@@ -40,8 +54,21 @@ fn pipeline_cache_dir(arg: Option<&str>) -> Option<PathBuf> {
 }
 
 fn slug(name: &str) -> String {
-    let s: String = name.chars().map(|c| if c.is_ascii_alphanumeric() { c.to_ascii_lowercase() } else { '-' }).collect();
-    s.split('-').filter(|p| !p.is_empty()).take(4).collect::<Vec<_>>().join("-")
+    let s: String = name
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() {
+                c.to_ascii_lowercase()
+            } else {
+                '-'
+            }
+        })
+        .collect();
+    s.split('-')
+        .filter(|p| !p.is_empty())
+        .take(4)
+        .collect::<Vec<_>>()
+        .join("-")
 }
 
 pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
@@ -56,7 +83,15 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     let inst = open_instance(g)?;
     let info = select_device(&inst, a)?;
     let options = run_options(g, a, &c, &info, binding_stages);
-    let mut the_plan = plan::plan(&info, &PlanOptions { filters: c.filters.clone(), canaries: a.canaries, patches: a.patches, inject: c.inject.clone() });
+    let mut the_plan = plan::plan(
+        &info,
+        &PlanOptions {
+            filters: c.filters.clone(),
+            canaries: a.canaries,
+            patches: a.patches,
+            inject: c.inject.clone(),
+        },
+    );
     let sharded_out = c.shard.map(|s| s.apply(&mut the_plan)).unwrap_or(0);
     if a.list {
         print_list(&the_plan, c.shard, sharded_out);
@@ -64,7 +99,15 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     }
     let started = time::now_unix();
     let out = out_path(a, started, &info);
-    let fresh = start::fresh(&info, c.params, &the_plan, sharded_out, options.clone(), std::env::args().collect(), started);
+    let fresh = start::fresh(
+        &info,
+        c.params,
+        &the_plan,
+        sharded_out,
+        options.clone(),
+        std::env::args().collect(),
+        started,
+    );
     let writer = ReportWriter::new(out.clone(), base_report(a, fresh)?, &the_plan);
     let (cells, canaries) = start::pending(&writer, &the_plan, a.resume.is_some());
     writer.save(false).with_context(|| "writing the report")?;
@@ -76,14 +119,23 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     let wall = Instant::now();
     let supported = |cell: &Cell| plan::device_support(&info, cell).is_supported();
     let policy = Policy::of(&options, || inst.validation_layer_version());
-    Campaign { oracle: &mut oracle, rec: &mut rec, supported: &supported }.run(&policy, &cells, &canaries);
+    Campaign {
+        oracle: &mut oracle,
+        rec: &mut rec,
+        supported: &supported,
+    }
+    .run(&policy, &cells, &canaries);
     bar.finish_and_clear();
     let _ = std::fs::remove_dir_all(&job_dir);
     if let Some(e) = rec.save_error.take() {
         return Err(anyhow::Error::from(e).context("writing the report"));
     }
     let source = a.baseline.as_ref().map(|p| p.display().to_string());
-    start::finish(&mut rec, wall.elapsed(), c.baseline.as_ref().zip(source.as_deref()));
+    start::finish(
+        &mut rec,
+        wall.elapsed(),
+        c.baseline.as_ref().zip(source.as_deref()),
+    );
     print_end(a, &rec.writer, &out)
 }
 
@@ -96,8 +148,13 @@ fn cell_spec_args(a: &RunArgs, p: &Path) -> Result<(RunArgs, Option<String>)> {
     // The cell's own compile, not a binary a cache kept from another run (docs/performance.md).
     args.pipeline_cache = Some("off".into());
     if let Some(dir) = &args.spirv_dir {
-        let made_by: std::collections::BTreeSet<&str> = spec.modules.iter().map(|m| m.compiler.as_str()).collect();
-        eprintln!("running the bundle's SPIR-V ({}, made by {}), not recompiling", dir.display(), made_by.into_iter().collect::<Vec<_>>().join(", "));
+        let made_by: std::collections::BTreeSet<&str> =
+            spec.modules.iter().map(|m| m.compiler.as_str()).collect();
+        eprintln!(
+            "running the bundle's SPIR-V ({}, made by {}), not recompiling",
+            dir.display(),
+            made_by.into_iter().collect::<Vec<_>>().join(", ")
+        );
     }
     Ok((args, spec.binding_stages.clone()))
 }
@@ -112,13 +169,31 @@ struct Checked {
 }
 
 fn check(a: &RunArgs) -> Result<Checked> {
-    let filters = a.filter.iter().map(|f| Filter::parse(f).map_err(|e| coded(exit::USAGE, e))).collect::<Result<Vec<_>>>()?;
-    let inject = a.inject_fault.iter().filter(|s| !s.trim().is_empty()).map(|s| Injection::parse(s).map_err(|e| coded(exit::USAGE, e))).collect::<Result<Vec<_>>>()?;
+    let filters = a
+        .filter
+        .iter()
+        .map(|f| Filter::parse(f).map_err(|e| coded(exit::USAGE, e)))
+        .collect::<Result<Vec<_>>>()?;
+    let inject = a
+        .inject_fault
+        .iter()
+        .filter(|s| !s.trim().is_empty())
+        .map(|s| Injection::parse(s).map_err(|e| coded(exit::USAGE, e)))
+        .collect::<Result<Vec<_>>>()?;
     if a.repeat.is_some_and(|n| n == 0 || n > 1000) {
         return Err(coded(exit::USAGE, "--repeat must be 1..=1000"));
     }
-    let shard = a.shard.as_deref().map(Shard::parse).transpose().map_err(|e| coded(exit::USAGE, e))?;
-    let baseline = a.baseline.as_deref().map(super::fleet::load_baseline).transpose()?;
+    let shard = a
+        .shard
+        .as_deref()
+        .map(Shard::parse)
+        .transpose()
+        .map_err(|e| coded(exit::USAGE, e))?;
+    let baseline = a
+        .baseline
+        .as_deref()
+        .map(super::fleet::load_baseline)
+        .transpose()?;
     let params = scene_params(a)?;
     if a.jobs.is_some_and(|j| j == 0 || j > 64) {
         return Err(coded(exit::USAGE, "--jobs must be 1..=64"));
@@ -126,16 +201,31 @@ fn check(a: &RunArgs) -> Result<Checked> {
     if a.threads.is_some_and(|t| t == 0 || t > 64) {
         return Err(coded(exit::USAGE, "--threads must be 1..=64"));
     }
-    if a.pipeline_cache.as_deref().is_some_and(|d| d.trim().is_empty()) {
-        return Err(coded(exit::USAGE, "--pipeline-cache needs a folder, or `off`"));
+    if a.pipeline_cache
+        .as_deref()
+        .is_some_and(|d| d.trim().is_empty())
+    {
+        return Err(coded(
+            exit::USAGE,
+            "--pipeline-cache needs a folder, or `off`",
+        ));
     }
     if !(a.timeout > 0.0 && a.timeout <= 3600.0) {
         return Err(coded(exit::USAGE, "--timeout must be in (0, 3600] seconds"));
     }
     if !(a.setup_timeout > 0.0 && a.setup_timeout <= 3600.0) {
-        return Err(coded(exit::USAGE, "--setup-timeout must be in (0, 3600] seconds"));
+        return Err(coded(
+            exit::USAGE,
+            "--setup-timeout must be in (0, 3600] seconds",
+        ));
     }
-    Ok(Checked { filters, inject, shard, baseline, params })
+    Ok(Checked {
+        filters,
+        inject,
+        shard,
+        baseline,
+        params,
+    })
 }
 
 fn select_device(inst: &crate::vk::Instance, a: &RunArgs) -> Result<DeviceInfo> {
@@ -145,11 +235,21 @@ fn select_device(inst: &crate::vk::Instance, a: &RunArgs) -> Result<DeviceInfo> 
 
 /// The run's options as its report records them: jobs and threads (defaults per device type),
 /// the pipeline cache folder, and every result-changing option.
-fn run_options(g: &Globals, a: &RunArgs, c: &Checked, info: &DeviceInfo, binding_stages: Option<String>) -> RunOptions {
+fn run_options(
+    g: &Globals,
+    a: &RunArgs,
+    c: &Checked,
+    info: &DeviceInfo,
+    binding_stages: Option<String>,
+) -> RunOptions {
     // Under validation a cell's `validation_errors` is the global counter's difference around its
     // own work, so its pipelines must be created at its turn: VUIDs raised on prebuild threads
     // would fall outside every cell's window. `--validate` (any mode) runs with one thread.
-    let threads = if g.validate { 1 } else { a.threads.unwrap_or_else(|| default_threads(info)) };
+    let threads = if g.validate {
+        1
+    } else {
+        a.threads.unwrap_or_else(|| default_threads(info))
+    };
     if g.validate && a.threads.is_some_and(|t| t > 1) {
         eprintln!("rtprobe: note: --validate runs with --threads 1, so that each validation error is counted for the cell that raised it");
     }
@@ -186,7 +286,15 @@ fn supervisor(a: &RunArgs, o: &RunOptions, info: &DeviceInfo, c: &Checked) -> Su
         threads: o.threads.unwrap_or(1),
         pipeline_cache: o.pipeline_cache.clone(),
         binding_stages: o.binding_stages.clone(),
-        ..supervisor_options(info.index, c.params, o.jobs, o.isolation, o.timeout_s, o.validate, c.inject.clone())
+        ..supervisor_options(
+            info.index,
+            c.params,
+            o.jobs,
+            o.isolation,
+            o.timeout_s,
+            o.validate,
+            c.inject.clone(),
+        )
     }
 }
 
@@ -195,8 +303,12 @@ fn print_list(the_plan: &RunPlan, shard: Option<Shard>, sharded_out: usize) {
     for pc in &the_plan.cells {
         match &pc.status {
             PlanStatus::Run => println!("run          {}", pc.cell.id()),
-            PlanStatus::Unsupported { reason } => println!("unsupported  {}  ({reason})", pc.cell.id()),
-            PlanStatus::NotImplemented { reason } => println!("not_implemented  {}  ({reason})", pc.cell.id()),
+            PlanStatus::Unsupported { reason } => {
+                println!("unsupported  {}  ({reason})", pc.cell.id())
+            }
+            PlanStatus::NotImplemented { reason } => {
+                println!("not_implemented  {}  ({reason})", pc.cell.id())
+            }
         }
     }
     let to_run = the_plan.to_run().count();
@@ -209,14 +321,24 @@ fn print_list(the_plan: &RunPlan, shard: Option<Shard>, sharded_out: usize) {
         the_plan.filtered_out
     );
     if let Some(s) = shard {
-        println!("shard {}: {sharded_out} cells left to the other shards", s.label());
+        println!(
+            "shard {}: {sharded_out} cells left to the other shards",
+            s.label()
+        );
     }
     for ng in &the_plan.not_generated {
         println!("not generated: {} ({} combinations)", ng.rule, ng.count);
     }
-    if the_plan.to_run().any(|c| c.heap_access == Some(crate::model::HeapAccess::Direct)) {
+    if the_plan
+        .to_run()
+        .any(|c| c.heap_access == Some(crate::model::HeapAccess::Direct))
+    {
         if let Some(g) = crate::shadergen::glslang::find() {
-            println!("compiler: heap_access=direct shaders by {} {}; all others by shaderc", g.path.display(), g.version);
+            println!(
+                "compiler: heap_access=direct shaders by {} {}; all others by shaderc",
+                g.path.display(),
+                g.version
+            );
         }
     }
 }
@@ -226,7 +348,11 @@ fn out_path(a: &RunArgs, started: u64, info: &DeviceInfo) -> PathBuf {
     match (&a.out, &a.resume) {
         (Some(o), _) => o.clone(),
         (None, Some(r)) => r.clone(),
-        (None, None) => PathBuf::from("reports").join(format!("run-{}-{}.json", time::stamp(started), slug(&info.name()))),
+        (None, None) => PathBuf::from("reports").join(format!(
+            "run-{}-{}.json",
+            time::stamp(started),
+            slug(&info.name())
+        )),
     }
 }
 
@@ -234,13 +360,24 @@ fn out_path(a: &RunArgs, started: u64, info: &DeviceInfo) -> PathBuf {
 fn base_report(a: &RunArgs, fresh: RunReport) -> Result<RunReport> {
     let Some(r) = &a.resume else { return Ok(fresh) };
     let old = RunReport::load(r).map_err(|e| coded(exit::BAD_INPUT, e))?;
-    start::resume(old, &fresh).map_err(|why| coded(exit::BAD_INPUT, format!("cannot resume {}: {why}; start a new run instead", r.display())))
+    start::resume(old, &fresh).map_err(|why| {
+        coded(
+            exit::BAD_INPUT,
+            format!(
+                "cannot resume {}: {why}; start a new run instead",
+                r.display()
+            ),
+        )
+    })
 }
 
 /// The progress bar: attempts scheduled against attempts ended, the last one's outcome and cell.
 fn progress_bar() -> indicatif::ProgressBar {
     let bar = indicatif::ProgressBar::new(0);
-    bar.set_style(indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} {msg}").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()));
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} {msg}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
     bar
 }
 
@@ -263,11 +400,15 @@ impl Progress for Bar {
 fn print_end(a: &RunArgs, writer: &ReportWriter, out: &Path) -> Result<u8> {
     writer.save(true).with_context(|| "writing the report")?;
     if let Some(j) = &a.junit {
-        write_atomic(j, junit::render(&writer.report).as_bytes()).with_context(|| "writing the JUnit file")?;
+        write_atomic(j, junit::render(&writer.report).as_bytes())
+            .with_context(|| "writing the JUnit file")?;
     }
     print!("{}", summary::render(&writer.report));
     if let Some(c) = &writer.report.baseline {
-        print!("{}", crate::fleet::baseline::render(c, a.allow_improvements));
+        print!(
+            "{}",
+            crate::fleet::baseline::render(c, a.allow_improvements)
+        );
     }
     println!("report: {}", out.display());
     Ok(exit_code(&writer.report, a.allow_improvements))
@@ -293,9 +434,9 @@ fn exit_code(r: &RunReport, allow_improvements: bool) -> u8 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::Attempt;
     use crate::model::Canary;
     use crate::model::CellReport;
-    use crate::model::Attempt;
 
     fn report(cells: Vec<CellReport>) -> RunReport {
         RunReport::for_tests(cells)
@@ -307,18 +448,30 @@ mod tests {
 
     #[test]
     fn an_undetected_canary_fails_the_run_and_a_detected_one_does_not() {
-        let detected = report(vec![ran(Cell::canary(Canary::InvalidAddress), Outcome::Crash), ran(Cell::canary(Canary::InfiniteLoop), Outcome::Timeout)]);
+        let detected = report(vec![
+            ran(Cell::canary(Canary::InvalidAddress), Outcome::Crash),
+            ran(Cell::canary(Canary::InfiniteLoop), Outcome::Timeout),
+        ]);
         assert_eq!(exit_code(&detected, false), exit::OK);
         assert_eq!(detected.tally.canaries_detected, 2);
-        assert_eq!(detected.summary["crash"], 0, "a detected canary is not a crash finding");
+        assert_eq!(
+            detected.summary["crash"], 0,
+            "a detected canary is not a crash finding"
+        );
         let junit = crate::report::junit::render(&detected);
         assert!(junit.contains("failures=\"0\""), "{junit}");
         // A driver on which the invalid read ran to completion: classification unproven.
-        let undetected = report(vec![ran(Cell::canary(Canary::InvalidAddress), Outcome::Pass)]);
+        let undetected = report(vec![ran(
+            Cell::canary(Canary::InvalidAddress),
+            Outcome::Pass,
+        )]);
         assert_eq!(exit_code(&undetected, false), exit::CANARY_UNDETECTED);
         assert_eq!(undetected.tally.canaries_undetected, 1);
         let junit = crate::report::junit::render(&undetected);
-        assert!(junit.contains("failures=\"1\"") && junit.contains("canary_undetected"), "{junit}");
+        assert!(
+            junit.contains("failures=\"1\"") && junit.contains("canary_undetected"),
+            "{junit}"
+        );
         assert!(crate::report::summary::render(&undetected).contains("NOT detected"));
     }
 }

@@ -3,9 +3,9 @@
 //! supervisor-backed oracle that `run`'s rounds and `bisect` run cells through.
 use super::commands::{open_instance, Globals};
 use super::exit::{self, coded};
+use crate::model::Cell;
 use crate::model::{Injection, Isolation, RunReport, SceneParams};
 use crate::runner::oracle::{Event, Mode, Oracle};
-use crate::model::Cell;
 use crate::runner::supervisor::{Supervisor, SupervisorOptions};
 use crate::vk::{features, DeviceInfo, Instance};
 use anyhow::Result;
@@ -22,7 +22,10 @@ pub fn load_report(path: &Path) -> Result<RunReport> {
 /// machine of a fleet, or the same model leased again, reproduces a driver's fault as well. The
 /// third value is the device UUID of the card used when it is not the report's (a one-line
 /// warning says so on stderr; bisect records it as `device_uuid_rerun`).
-pub(crate) fn report_device(g: &Globals, r: &RunReport) -> Result<(Arc<Instance>, DeviceInfo, Option<String>)> {
+pub(crate) fn report_device(
+    g: &Globals,
+    r: &RunReport,
+) -> Result<(Arc<Instance>, DeviceInfo, Option<String>)> {
     let inst = open_instance(g)?;
     let all = features::query_all(&inst)?;
     let same = |d: &DeviceInfo, keys: &[&str]| {
@@ -30,7 +33,9 @@ pub(crate) fn report_device(g: &Globals, r: &RunReport) -> Result<(Arc<Instance>
         keys.iter().all(|k| j[*k] == r.device[*k])
     };
     const DRIVER: [&str; 3] = ["name", "driver_version", "driver_uuid"];
-    let card = all.iter().find(|d| same(d, &DRIVER) && same(d, &["device_uuid"]));
+    let card = all
+        .iter()
+        .find(|d| same(d, &DRIVER) && same(d, &["device_uuid"]));
     let other = card.is_none();
     let info = card.or_else(|| all.iter().find(|d| same(d, &DRIVER))).cloned().ok_or_else(|| {
         coded(
@@ -59,7 +64,10 @@ pub(crate) fn report_device(g: &Globals, r: &RunReport) -> Result<(Arc<Instance>
 /// on GPUs (the driver parallelises; several processes only contend for one device).
 pub(crate) fn default_jobs(info: &crate::vk::DeviceInfo) -> usize {
     if info.properties.core.device_type == ash::vk::PhysicalDeviceType::CPU {
-        std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1).clamp(1, 8)
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)
+            .clamp(1, 8)
     } else {
         1
     }
@@ -72,7 +80,10 @@ pub(crate) fn default_threads(info: &crate::vk::DeviceInfo) -> usize {
     if info.properties.core.device_type == ash::vk::PhysicalDeviceType::CPU {
         1
     } else {
-        std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1).clamp(1, 16)
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)
+            .clamp(1, 16)
     }
 }
 
@@ -80,7 +91,15 @@ pub(crate) fn default_threads(info: &crate::vk::DeviceInfo) -> usize {
 /// dir, one thread, and no persisted pipeline cache: a re-run of a report's cells starts cold, so
 /// that a cached binary cannot stand in for the cell's own compile (`run` sets its own folder),
 /// and no binding stages: a caller re-running a report's cells sets the report's.
-pub(crate) fn supervisor_options(device_index: usize, scene: SceneParams, jobs: usize, isolation: Isolation, timeout_s: f64, validate: bool, inject: Vec<Injection>) -> SupervisorOptions {
+pub(crate) fn supervisor_options(
+    device_index: usize,
+    scene: SceneParams,
+    jobs: usize,
+    isolation: Isolation,
+    timeout_s: f64,
+    validate: bool,
+    inject: Vec<Injection>,
+) -> SupervisorOptions {
     SupervisorOptions {
         device_index,
         scene,
@@ -119,15 +138,33 @@ pub(crate) struct SupervisorOracle {
 
 impl SupervisorOracle {
     pub(crate) fn for_run(opts: SupervisorOptions) -> Self {
-        SupervisorOracle { shared: Some(Supervisor::new(opts.clone())), opts, announce: false, attempts: 0 }
+        SupervisorOracle {
+            shared: Some(Supervisor::new(opts.clone())),
+            opts,
+            announce: false,
+            attempts: 0,
+        }
     }
 
     pub(crate) fn for_bisect(opts: SupervisorOptions) -> Self {
-        SupervisorOracle { opts, shared: None, announce: true, attempts: 0 }
+        SupervisorOracle {
+            opts,
+            shared: None,
+            announce: true,
+            attempts: 0,
+        }
     }
 
     fn say(&self, cells: usize, mode: Mode) {
-        let msg = format!("bisect: running {cells} cell(s){} ({} run so far)", if mode == Mode::Shared { "" } else { ", each alone" }, self.attempts);
+        let msg = format!(
+            "bisect: running {cells} cell(s){} ({} run so far)",
+            if mode == Mode::Shared {
+                ""
+            } else {
+                ", each alone"
+            },
+            self.attempts
+        );
         if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
             eprintln!("{msg}");
         } else {
@@ -149,7 +186,14 @@ impl Oracle for SupervisorOracle {
         let isolated = mode != Mode::Shared;
         match (mode, &mut self.shared) {
             (Mode::GpuAv, _) => {
-                let o = SupervisorOptions { validate: true, gpu_av: true, threads: 1, pipeline_cache: None, job_dir: self.opts.job_dir.join("gpu-av"), ..self.opts.clone() };
+                let o = SupervisorOptions {
+                    validate: true,
+                    gpu_av: true,
+                    threads: 1,
+                    pipeline_cache: None,
+                    job_dir: self.opts.job_dir.join("gpu-av"),
+                    ..self.opts.clone()
+                };
                 Supervisor::new(o).run(cells, true, on)
             }
             (_, Some(sup)) => sup.run(cells, isolated, on),

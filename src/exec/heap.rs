@@ -24,10 +24,10 @@
 //! HEAP_WITH_INDIRECT_INDEX (read from the buffer whose address is in push data) or
 //! HEAP_WITH_SHADER_RECORD_INDEX (read from the first 4 bytes of every SBT record's shader record
 //! data). All ways must read the same descriptors.
-use crate::probe::PUSH_CONSTANT_BYTES;
 use super::resources::{descriptor_type, Target};
 use crate::model::{HeapAccess, Resource};
 use crate::probe::spec::{Access, ArrayAt, ProbeSpec, Sampler};
+use crate::probe::PUSH_CONSTANT_BYTES;
 use crate::vk::features::PROBE_IMAGE_FORMAT;
 use crate::vk::heap::{self as h, MappingSource};
 use crate::vk::memory::{Buffer, Location};
@@ -53,7 +53,13 @@ struct Heap {
 impl Heap {
     /// A heap buffer of `used` bytes plus the driver's reserved range, its address aligned to
     /// `alignment`; `bytes` (the descriptors) are written at the start.
-    fn create(gpu: &Gpu, bytes: &[u8], alignment: u64, reserved: u64, what: &'static str) -> Result<Heap, VkError> {
+    fn create(
+        gpu: &Gpu,
+        bytes: &[u8],
+        alignment: u64,
+        reserved: u64,
+        what: &'static str,
+    ) -> Result<Heap, VkError> {
         let reserved_offset = align(bytes.len() as u64, alignment.max(1));
         let size = reserved_offset + reserved;
         let usage = h::BUFFER_USAGE_DESCRIPTOR_HEAP | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
@@ -63,7 +69,10 @@ impl Heap {
         let bind = h::BindHeapInfo {
             s_type: h::STRUCTURE_TYPE_BIND_HEAP_INFO_EXT,
             p_next: std::ptr::null(),
-            heap_range: h::DeviceAddressRange { address: base, size },
+            heap_range: h::DeviceAddressRange {
+                address: base,
+                size,
+            },
             reserved_range_offset: reserved_offset,
             reserved_range_size: reserved,
         };
@@ -87,11 +96,21 @@ impl HeapLayout {
     pub fn new(slot: u32, probe_stride: u32, probe_count: u32, direct: bool) -> HeapLayout {
         if direct {
             let records = align((probe_count * probe_stride) as u64, slot as u64) as u32;
-            HeapLayout { records, tlas: records + slot, probe: 0, probe_stride }
+            HeapLayout {
+                records,
+                tlas: records + slot,
+                probe: 0,
+                probe_stride,
+            }
         } else {
             // After records and TLAS, one unused descriptor, so an index off by one reads zeros.
             let index = (2 * slot).div_ceil(probe_stride.max(1)) + 1;
-            HeapLayout { records: 0, tlas: slot, probe: index * probe_stride, probe_stride }
+            HeapLayout {
+                records: 0,
+                tlas: slot,
+                probe: index * probe_stride,
+                probe_stride,
+            }
         }
     }
 
@@ -123,13 +142,19 @@ fn props(gpu: &Gpu) -> h::PhysicalDeviceDescriptorHeapPropertiesEXT {
 }
 
 fn fns(gpu: &Gpu) -> &h::HeapFns {
-    gpu.heap.as_ref().expect("descriptor heap enabled for heap cells (worker::requirements)")
+    gpu.heap
+        .as_ref()
+        .expect("descriptor heap enabled for heap cells (worker::requirements)")
 }
 
 /// A descriptor type as the heaps hold it: heaps have no combined descriptors, a sampled image's
 /// image goes to the resource heap, its sampler to the sampler heap.
 fn heap_type(ty: vk::DescriptorType) -> vk::DescriptorType {
-    if ty == vk::DescriptorType::COMBINED_IMAGE_SAMPLER { vk::DescriptorType::SAMPLED_IMAGE } else { ty }
+    if ty == vk::DescriptorType::COMBINED_IMAGE_SAMPLER {
+        vk::DescriptorType::SAMPLED_IMAGE
+    } else {
+        ty
+    }
 }
 
 /// The device's descriptor sizes, and the commands that write descriptors.
@@ -154,7 +179,9 @@ impl Sizes<'_> {
     fn class(&self, ty: vk::DescriptorType) -> u32 {
         let p = &self.p;
         (match heap_type(ty) {
-            vk::DescriptorType::SAMPLED_IMAGE | vk::DescriptorType::STORAGE_IMAGE => p.image_descriptor_size,
+            vk::DescriptorType::SAMPLED_IMAGE | vk::DescriptorType::STORAGE_IMAGE => {
+                p.image_descriptor_size
+            }
             vk::DescriptorType::SAMPLER => p.sampler_descriptor_size,
             _ => p.buffer_descriptor_size,
         }) as u32
@@ -173,7 +200,11 @@ struct ResourceWrites {
 }
 
 impl ResourceWrites {
-    fn of(sizes: &Sizes, targets: &[(u32, Resource, Vec<Target>)], layout: &HeapLayout) -> ResourceWrites {
+    fn of(
+        sizes: &Sizes,
+        targets: &[(u32, Resource, Vec<Target>)],
+        layout: &HeapLayout,
+    ) -> ResourceWrites {
         let mut w = ResourceWrites::default();
         for (b, kind, ts) in targets {
             let ty = &descriptor_type(*kind);
@@ -181,7 +212,10 @@ impl ResourceWrites {
                 w.at.push((layout.offset(*b, i), sizes.written(*ty) as usize));
                 match *t {
                     Target::Buffer { address, range, .. } => {
-                        w.ranges.push(h::DeviceAddressRange { address, size: range });
+                        w.ranges.push(h::DeviceAddressRange {
+                            address,
+                            size: range,
+                        });
                         w.kinds.push((heap_type(*ty), false, w.ranges.len() - 1));
                     }
                     // The range of an AS descriptor is unused and may be 0 (VkResourceDescriptorInfoEXT).
@@ -212,7 +246,12 @@ impl ResourceWrites {
         let images: Vec<h::ImageDescriptorInfo> = self
             .views
             .iter()
-            .map(|v| h::ImageDescriptorInfo { s_type: h::STRUCTURE_TYPE_IMAGE_DESCRIPTOR_INFO_EXT, p_next: std::ptr::null(), p_view: v as *const _ as *const _, layout: vk::ImageLayout::GENERAL })
+            .map(|v| h::ImageDescriptorInfo {
+                s_type: h::STRUCTURE_TYPE_IMAGE_DESCRIPTOR_INFO_EXT,
+                p_next: std::ptr::null(),
+                p_view: v as *const _ as *const _,
+                layout: vk::ImageLayout::GENERAL,
+            })
             .collect();
         let infos: Vec<h::ResourceDescriptorInfo> = self
             .kinds
@@ -221,14 +260,38 @@ impl ResourceWrites {
                 s_type: h::STRUCTURE_TYPE_RESOURCE_DESCRIPTOR_INFO_EXT,
                 p_next: std::ptr::null(),
                 ty,
-                data: if image { h::ResourceDescriptorData { p_image: &images[i] } } else { h::ResourceDescriptorData { p_address_range: &self.ranges[i] } },
+                data: if image {
+                    h::ResourceDescriptorData {
+                        p_image: &images[i],
+                    }
+                } else {
+                    h::ResourceDescriptorData {
+                        p_address_range: &self.ranges[i],
+                    }
+                },
             })
             .collect();
         let base = bytes.as_mut_ptr();
         // SAFETY: every range lies inside `bytes` (its length is the largest end).
-        let dst: Vec<h::HostAddressRange> = self.at.iter().map(|&(o, n)| h::HostAddressRange { address: unsafe { base.add(o) } as *mut c_void, size: n }).collect();
+        let dst: Vec<h::HostAddressRange> = self
+            .at
+            .iter()
+            .map(|&(o, n)| h::HostAddressRange {
+                address: unsafe { base.add(o) } as *mut c_void,
+                size: n,
+            })
+            .collect();
         // SAFETY: infos, their pointees and dst are alive and sized as declared.
-        unsafe { (sizes.f.write_resource_descriptors)(sizes.gpu.device.handle(), infos.len() as u32, infos.as_ptr(), dst.as_ptr()) }.result().at("vkWriteResourceDescriptorsEXT")?;
+        unsafe {
+            (sizes.f.write_resource_descriptors)(
+                sizes.gpu.device.handle(),
+                infos.len() as u32,
+                infos.as_ptr(),
+                dst.as_ptr(),
+            )
+        }
+        .result()
+        .at("vkWriteResourceDescriptorsEXT")?;
         Ok(bytes)
     }
 }
@@ -238,14 +301,29 @@ impl ResourceWrites {
 /// (`samplerDescriptorSize`), like the resource arrays; never less than what a write fills.
 fn write_samplers(sizes: &Sizes, samplers: &[vk::SamplerCreateInfo]) -> Result<Vec<u8>, VkError> {
     let sampler_size = sizes.written(vk::DescriptorType::SAMPLER).max(1) as usize;
-    let sampler_stride = sizes.class(vk::DescriptorType::SAMPLER).max(sampler_size as u32) as usize;
+    let sampler_stride = sizes
+        .class(vk::DescriptorType::SAMPLER)
+        .max(sampler_size as u32) as usize;
     let mut sbytes = vec![0u8; sampler_stride * (samplers.len().max(1) - 1) + sampler_size];
     let sbase = sbytes.as_mut_ptr();
     // SAFETY: sampler k's range [k * stride, k * stride + size) lies inside `sbytes`.
-    let sdst: Vec<h::HostAddressRange> =
-        (0..samplers.len()).map(|k| h::HostAddressRange { address: unsafe { sbase.add(k * sampler_stride) } as *mut c_void, size: sampler_size }).collect();
+    let sdst: Vec<h::HostAddressRange> = (0..samplers.len())
+        .map(|k| h::HostAddressRange {
+            address: unsafe { sbase.add(k * sampler_stride) } as *mut c_void,
+            size: sampler_size,
+        })
+        .collect();
     // SAFETY: one destination range per sampler info, all alive for the call.
-    unsafe { (sizes.f.write_sampler_descriptors)(sizes.gpu.device.handle(), samplers.len() as u32, samplers.as_ptr(), sdst.as_ptr()) }.result().at("vkWriteSamplerDescriptorsEXT")?;
+    unsafe {
+        (sizes.f.write_sampler_descriptors)(
+            sizes.gpu.device.handle(),
+            samplers.len() as u32,
+            samplers.as_ptr(),
+            sdst.as_ptr(),
+        )
+    }
+    .result()
+    .at("vkWriteSamplerDescriptorsEXT")?;
     Ok(sbytes)
 }
 
@@ -253,22 +331,66 @@ impl HeapBinding {
     /// Write `targets[b]` (binding b's descriptors) into a new resource heap laid out for a
     /// `direct` or mapped cell, and `samplers` into a new sampler heap (in order, at the sampler
     /// stride).
-    pub fn create(gpu: &Gpu, targets: &[(u32, Resource, Vec<Target>)], samplers: &[vk::SamplerCreateInfo], direct: bool) -> Result<HeapBinding, VkError> {
-        let sizes = Sizes { gpu, p: props(gpu), f: fns(gpu) };
+    pub fn create(
+        gpu: &Gpu,
+        targets: &[(u32, Resource, Vec<Target>)],
+        samplers: &[vk::SamplerCreateInfo],
+        direct: bool,
+    ) -> Result<HeapBinding, VkError> {
+        let sizes = Sizes {
+            gpu,
+            p: props(gpu),
+            f: fns(gpu),
+        };
         let p = &sizes.p;
-        let slot = align(p.buffer_descriptor_size.max(p.image_descriptor_size), p.buffer_descriptor_alignment.max(p.image_descriptor_alignment)) as u32;
-        let (probe_ty, probe_count) = targets.iter().find(|(b, _, _)| *b == 2).map(|(_, kind, t)| (descriptor_type(*kind), t.len() as u32)).unwrap_or((vk::DescriptorType::STORAGE_BUFFER, 0));
-        let layout = HeapLayout::new(slot, sizes.class(probe_ty).max(sizes.written(probe_ty)).max(1), probe_count, direct);
+        let slot = align(
+            p.buffer_descriptor_size.max(p.image_descriptor_size),
+            p.buffer_descriptor_alignment
+                .max(p.image_descriptor_alignment),
+        ) as u32;
+        let (probe_ty, probe_count) = targets
+            .iter()
+            .find(|(b, _, _)| *b == 2)
+            .map(|(_, kind, t)| (descriptor_type(*kind), t.len() as u32))
+            .unwrap_or((vk::DescriptorType::STORAGE_BUFFER, 0));
+        let layout = HeapLayout::new(
+            slot,
+            sizes.class(probe_ty).max(sizes.written(probe_ty)).max(1),
+            probe_count,
+            direct,
+        );
 
         let bytes = ResourceWrites::of(&sizes, targets, &layout).write(&sizes)?;
-        let resources = Heap::create(gpu, &bytes, p.resource_heap_alignment, p.min_resource_heap_reserved_range, "resource heap")?;
-        let samplers = write_samplers(&sizes, samplers).and_then(|sbytes| Heap::create(gpu, &sbytes, p.sampler_heap_alignment.max(p.sampler_descriptor_alignment), p.min_sampler_heap_reserved_range, "sampler heap"));
-        let index_usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
-        let index = samplers.and_then(|s| match Buffer::with_data(gpu, &layout.probe_index().to_le_bytes(), index_usage, "heap index") {
-            Ok(b) => Ok((s, b)),
-            Err(e) => {
-                s.buffer.destroy(gpu);
-                Err(e)
+        let resources = Heap::create(
+            gpu,
+            &bytes,
+            p.resource_heap_alignment,
+            p.min_resource_heap_reserved_range,
+            "resource heap",
+        )?;
+        let samplers = write_samplers(&sizes, samplers).and_then(|sbytes| {
+            Heap::create(
+                gpu,
+                &sbytes,
+                p.sampler_heap_alignment.max(p.sampler_descriptor_alignment),
+                p.min_sampler_heap_reserved_range,
+                "sampler heap",
+            )
+        });
+        let index_usage =
+            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+        let index = samplers.and_then(|s| {
+            match Buffer::with_data(
+                gpu,
+                &layout.probe_index().to_le_bytes(),
+                index_usage,
+                "heap index",
+            ) {
+                Ok(b) => Ok((s, b)),
+                Err(e) => {
+                    s.buffer.destroy(gpu);
+                    Err(e)
+                }
             }
         });
         let (samplers, index) = match index {
@@ -279,7 +401,12 @@ impl HeapBinding {
             }
         };
         tracing::debug!(?layout, "descriptor heaps written");
-        Ok(HeapBinding { resources, samplers, index, layout })
+        Ok(HeapBinding {
+            resources,
+            samplers,
+            index,
+            layout,
+        })
     }
 
     pub fn bind(&self, gpu: &Gpu, cmd: vk::CommandBuffer) {
@@ -303,7 +430,10 @@ impl HeapBinding {
             s_type: h::STRUCTURE_TYPE_PUSH_DATA_INFO_EXT,
             p_next: std::ptr::null(),
             offset: 0,
-            data: h::HostAddressRangeConst { address: data.as_ptr() as *const c_void, size: data.len() },
+            data: h::HostAddressRangeConst {
+                address: data.as_ptr() as *const c_void,
+                size: data.len(),
+            },
         };
         // SAFETY: `data` outlives the call, which copies it into the command buffer.
         unsafe { (fns(gpu).cmd_push_data)(cmd, &info) };
@@ -319,16 +449,28 @@ impl HeapBinding {
 /// A constant-offset mapping source: `heap_offset`, arrays at `stride`.
 fn constant(heap_offset: u32, stride: u32) -> h::MappingSourceData {
     h::MappingSourceData {
-        constant_offset: h::MappingConstantOffset { heap_offset, heap_array_stride: stride, p_embedded_sampler: std::ptr::null(), sampler_heap_offset: 0, sampler_heap_array_stride: 0 },
+        constant_offset: h::MappingConstantOffset {
+            heap_offset,
+            heap_array_stride: stride,
+            p_embedded_sampler: std::ptr::null(),
+            sampler_heap_offset: 0,
+            sampler_heap_array_stride: 0,
+        },
     }
 }
 
 /// Where binding 2 (the probed array) comes from for a cell reaching the heap `access`-wise, for
 /// a heap laid out as `l`; `None` for direct cells (the probe reads the heap itself).
-fn probe_source(access: HeapAccess, l: &HeapLayout) -> Option<(MappingSource, h::MappingSourceData)> {
+fn probe_source(
+    access: HeapAccess,
+    l: &HeapLayout,
+) -> Option<(MappingSource, h::MappingSourceData)> {
     let stride = l.probe_stride;
     match access {
-        HeapAccess::MappedConstantOffset => Some((MappingSource::HeapWithConstantOffset, constant(l.probe, stride))),
+        HeapAccess::MappedConstantOffset => Some((
+            MappingSource::HeapWithConstantOffset,
+            constant(l.probe, stride),
+        )),
         HeapAccess::MappedPushIndex => Some((
             MappingSource::HeapWithPushIndex,
             h::MappingSourceData {
@@ -398,19 +540,31 @@ impl PipelineMapping {
     /// cells map only the records and TLAS (the probe reads the heap itself).
     pub fn new(access: HeapAccess, l: &HeapLayout) -> Box<PipelineMapping> {
         let probe = probe_source(access, l);
-        let mapping = |binding: u32, (source, source_data): (MappingSource, h::MappingSourceData)| h::SetAndBindingMapping {
-            s_type: h::STRUCTURE_TYPE_DESCRIPTOR_SET_AND_BINDING_MAPPING_EXT,
-            p_next: std::ptr::null(),
-            descriptor_set: 0,
-            first_binding: binding,
-            binding_count: 1,
-            resource_mask: h::SPIRV_RESOURCE_TYPE_ALL,
-            source,
-            source_data,
-        };
+        let mapping =
+            |binding: u32, (source, source_data): (MappingSource, h::MappingSourceData)| {
+                h::SetAndBindingMapping {
+                    s_type: h::STRUCTURE_TYPE_DESCRIPTOR_SET_AND_BINDING_MAPPING_EXT,
+                    p_next: std::ptr::null(),
+                    descriptor_set: 0,
+                    first_binding: binding,
+                    binding_count: 1,
+                    resource_mask: h::SPIRV_RESOURCE_TYPE_ALL,
+                    source,
+                    source_data,
+                }
+            };
         let mut mappings = vec![
-            mapping(0, (MappingSource::HeapWithConstantOffset, constant(l.records, 0))),
-            mapping(1, (MappingSource::HeapWithConstantOffset, constant(l.tlas, 0))),
+            mapping(
+                0,
+                (
+                    MappingSource::HeapWithConstantOffset,
+                    constant(l.records, 0),
+                ),
+            ),
+            mapping(
+                1,
+                (MappingSource::HeapWithConstantOffset, constant(l.tlas, 0)),
+            ),
         ];
         mappings.extend(probe.map(|p| mapping(2, p)));
         let mut b = Box::new(PipelineMapping {
@@ -480,8 +634,16 @@ pub fn heap_nonuniform(words: &[u32]) -> HeapNonUniform {
             (OP_DECORATE, [id, d, ..]) if *d == DECORATION_NON_UNIFORM => {
                 nonuniform.insert(*id);
             }
-            (OP_DECORATE, [id, d, b, ..]) if *d == DECORATION_BUILTIN && *b == BUILTIN_RESOURCE_HEAP => resource_heap = Some(*id),
-            (OP_DECORATE, [id, d, b, ..]) if *d == DECORATION_BUILTIN && *b == BUILTIN_SAMPLER_HEAP => sampler_heap = Some(*id),
+            (OP_DECORATE, [id, d, b, ..])
+                if *d == DECORATION_BUILTIN && *b == BUILTIN_RESOURCE_HEAP =>
+            {
+                resource_heap = Some(*id)
+            }
+            (OP_DECORATE, [id, d, b, ..])
+                if *d == DECORATION_BUILTIN && *b == BUILTIN_SAMPLER_HEAP =>
+            {
+                sampler_heap = Some(*id)
+            }
             _ => {}
         }
     }
@@ -489,7 +651,9 @@ pub fn heap_nonuniform(words: &[u32]) -> HeapNonUniform {
     let mut made_from: std::collections::HashMap<u32, Vec<u32>> = std::collections::HashMap::new();
     for (op, o) in instructions(words) {
         match (op, o) {
-            (OP_LOAD, [_, result, pointer, ..]) => made_from.entry(*pointer).or_default().push(*result),
+            (OP_LOAD, [_, result, pointer, ..]) => {
+                made_from.entry(*pointer).or_default().push(*result)
+            }
             (OP_SAMPLED_IMAGE, [_, result, image, sampler]) => {
                 made_from.entry(*image).or_default().push(*result);
                 made_from.entry(*sampler).or_default().push(*result);
@@ -497,14 +661,29 @@ pub fn heap_nonuniform(words: &[u32]) -> HeapNonUniform {
             _ => {}
         }
     }
-    let uses = |id: &u32| made_from.get(id).into_iter().flatten().copied().collect::<Vec<u32>>();
+    let uses = |id: &u32| {
+        made_from
+            .get(id)
+            .into_iter()
+            .flatten()
+            .copied()
+            .collect::<Vec<u32>>()
+    };
     let mut out = HeapNonUniform::default();
     for (op, o) in instructions(words) {
         // OpUntyped(InBounds)AccessChainKHR: result type, result, base type, base, indexes...
-        if let (OP_UNTYPED_ACCESS_CHAIN | OP_UNTYPED_IN_BOUNDS_ACCESS_CHAIN, [_, result, _, base, first, ..]) = (op, o) {
+        if let (
+            OP_UNTYPED_ACCESS_CHAIN | OP_UNTYPED_IN_BOUNDS_ACCESS_CHAIN,
+            [_, result, _, base, first, ..],
+        ) = (op, o)
+        {
             let loads = uses(result);
             let sampled: Vec<u32> = loads.iter().flat_map(&uses).collect();
-            let decorated = [*result, *first].iter().chain(&loads).chain(&sampled).any(|id| nonuniform.contains(id));
+            let decorated = [*result, *first]
+                .iter()
+                .chain(&loads)
+                .chain(&sampled)
+                .any(|id| nonuniform.contains(id));
             let slot = if Some(*base) == resource_heap {
                 &mut out.resource
             } else if Some(*base) == sampler_heap {
@@ -547,15 +726,22 @@ impl DroppedNonUniform {
 
 /// For a `direct` heap cell: which heap accesses lost the `nonuniformEXT` the GLSL gave them
 /// (where the spec qualifies them: the descriptor index, the dynamic sampler index).
-pub fn dropped_nonuniform(spec: &ProbeSpec, spirv: &[std::sync::Arc<Vec<u32>>]) -> Option<DroppedNonUniform> {
+pub fn dropped_nonuniform(
+    spec: &ProbeSpec,
+    spirv: &[std::sync::Arc<Vec<u32>>],
+) -> Option<DroppedNonUniform> {
     if spec.array != ArrayAt::Heap {
         return None;
     }
     let wants_resource = spec.access == (Access::Slot { nonuniform: true });
     let wants_sampler = spec.sampler == (Sampler::Dynamic { nonuniform: true });
     let scans: Vec<HeapNonUniform> = spirv.iter().map(|w| heap_nonuniform(w)).collect();
-    let lost = |get: fn(&HeapNonUniform) -> Option<bool>| scans.iter().any(|h| get(h) == Some(false));
-    let d = DroppedNonUniform { resource: wants_resource && lost(|h| h.resource), sampler: wants_sampler && lost(|h| h.sampler) };
+    let lost =
+        |get: fn(&HeapNonUniform) -> Option<bool>| scans.iter().any(|h| get(h) == Some(false));
+    let d = DroppedNonUniform {
+        resource: wants_resource && lost(|h| h.resource),
+        sampler: wants_sampler && lost(|h| h.sampler),
+    };
     (d.resource || d.sampler).then_some(d)
 }
 
@@ -568,17 +754,50 @@ mod tests {
         // OpCapability Shader; %10 the resource heap; %30 = an access chain into it at index %20.
         let header = [0x0723_0203, 0x0001_0600, 0, 40, 0];
         let module = |decoration: &[u32]| -> Vec<u32> {
-            let base = [(2 << 16) | 17, 1, (4 << 16) | OP_DECORATE, 10, DECORATION_BUILTIN, BUILTIN_RESOURCE_HEAP];
-            header.iter().chain(&base).chain(decoration).chain(&[(6 << 16) | OP_UNTYPED_ACCESS_CHAIN, 1, 30, 2, 10, 20]).copied().collect()
+            let base = [
+                (2 << 16) | 17,
+                1,
+                (4 << 16) | OP_DECORATE,
+                10,
+                DECORATION_BUILTIN,
+                BUILTIN_RESOURCE_HEAP,
+            ];
+            header
+                .iter()
+                .chain(&base)
+                .chain(decoration)
+                .chain(&[(6 << 16) | OP_UNTYPED_ACCESS_CHAIN, 1, 30, 2, 10, 20])
+                .copied()
+                .collect()
         };
         // OpDecorate %20 NonUniform
-        assert_eq!(heap_nonuniform(&module(&[(3 << 16) | OP_DECORATE, 20, DECORATION_NON_UNIFORM])).resource, Some(true));
+        assert_eq!(
+            heap_nonuniform(&module(&[
+                (3 << 16) | OP_DECORATE,
+                20,
+                DECORATION_NON_UNIFORM
+            ]))
+            .resource,
+            Some(true)
+        );
         // OpDecorate %20 Binding 2... with a NonUniform-valued operand: must not count
-        assert_eq!(heap_nonuniform(&module(&[(4 << 16) | OP_DECORATE, 20, 33, DECORATION_NON_UNIFORM])).resource, Some(false));
+        assert_eq!(
+            heap_nonuniform(&module(&[
+                (4 << 16) | OP_DECORATE,
+                20,
+                33,
+                DECORATION_NON_UNIFORM
+            ]))
+            .resource,
+            Some(false)
+        );
         assert_eq!(heap_nonuniform(&module(&[])).resource, Some(false));
         assert_eq!(heap_nonuniform(&header), HeapNonUniform::default());
         // a zero word count ends nowhere near an infinite loop
-        assert_eq!(heap_nonuniform(&[0, 0, 0, 0, 0, 0, 0]), HeapNonUniform::default());
+        assert_eq!(
+            heap_nonuniform(&[0, 0, 0, 0, 0, 0, 0]),
+            HeapNonUniform::default()
+        );
     }
 
     /// Per heap: an untyped access chain into the sampler heap whose index is decorated, one into
@@ -587,20 +806,83 @@ mod tests {
     #[test]
     fn heap_accesses_are_judged_per_heap_by_their_own_decoration() {
         let header = [0x0723_0203, 0x0001_0600, 0, 40, 0];
-        let decorate = |id: u32, d: u32, extra: &[u32]| -> Vec<u32> { [vec![((3 + extra.len() as u32) << 16) | OP_DECORATE, id, d], extra.to_vec()].concat() };
-        let chain = |result: u32, base: u32, index: u32| vec![(6 << 16) | OP_UNTYPED_ACCESS_CHAIN, 1, result, 2, base, index];
-        let module = |parts: Vec<Vec<u32>>| -> Vec<u32> { header.iter().copied().chain(parts.into_iter().flatten()).collect() };
+        let decorate = |id: u32, d: u32, extra: &[u32]| -> Vec<u32> {
+            [
+                vec![((3 + extra.len() as u32) << 16) | OP_DECORATE, id, d],
+                extra.to_vec(),
+            ]
+            .concat()
+        };
+        let chain = |result: u32, base: u32, index: u32| {
+            vec![
+                (6 << 16) | OP_UNTYPED_ACCESS_CHAIN,
+                1,
+                result,
+                2,
+                base,
+                index,
+            ]
+        };
+        let module = |parts: Vec<Vec<u32>>| -> Vec<u32> {
+            header
+                .iter()
+                .copied()
+                .chain(parts.into_iter().flatten())
+                .collect()
+        };
         // %10 resource heap, %11 sampler heap; %20 / %21 indices; %30 / %31 chains.
-        let builtins = vec![decorate(10, DECORATION_BUILTIN, &[BUILTIN_RESOURCE_HEAP]), decorate(11, DECORATION_BUILTIN, &[BUILTIN_SAMPLER_HEAP])];
-        let m = module([builtins.clone(), vec![decorate(21, DECORATION_NON_UNIFORM, &[])], vec![chain(30, 10, 20), chain(31, 11, 21)]].concat());
-        assert_eq!(heap_nonuniform(&m), HeapNonUniform { resource: Some(false), sampler: Some(true) });
+        let builtins = vec![
+            decorate(10, DECORATION_BUILTIN, &[BUILTIN_RESOURCE_HEAP]),
+            decorate(11, DECORATION_BUILTIN, &[BUILTIN_SAMPLER_HEAP]),
+        ];
+        let m = module(
+            [
+                builtins.clone(),
+                vec![decorate(21, DECORATION_NON_UNIFORM, &[])],
+                vec![chain(30, 10, 20), chain(31, 11, 21)],
+            ]
+            .concat(),
+        );
+        assert_eq!(
+            heap_nonuniform(&m),
+            HeapNonUniform {
+                resource: Some(false),
+                sampler: Some(true)
+            }
+        );
         // decorated on the chain's result instead of the index counts too
-        let m = module([builtins.clone(), vec![decorate(30, DECORATION_NON_UNIFORM, &[])], vec![chain(30, 10, 20)]].concat());
-        assert_eq!(heap_nonuniform(&m), HeapNonUniform { resource: Some(true), sampler: None });
+        let m = module(
+            [
+                builtins.clone(),
+                vec![decorate(30, DECORATION_NON_UNIFORM, &[])],
+                vec![chain(30, 10, 20)],
+            ]
+            .concat(),
+        );
+        assert_eq!(
+            heap_nonuniform(&m),
+            HeapNonUniform {
+                resource: Some(true),
+                sampler: None
+            }
+        );
         // a NonUniform elsewhere does not vouch for an undecorated heap access
-        let m = module([builtins, vec![decorate(99, DECORATION_NON_UNIFORM, &[])], vec![chain(31, 11, 21)]].concat());
+        let m = module(
+            [
+                builtins,
+                vec![decorate(99, DECORATION_NON_UNIFORM, &[])],
+                vec![chain(31, 11, 21)],
+            ]
+            .concat(),
+        );
         assert!(instructions(&m).any(|(op, o)| op == OP_DECORATE && o[1] == DECORATION_NON_UNIFORM));
-        assert_eq!(heap_nonuniform(&m), HeapNonUniform { resource: None, sampler: Some(false) });
+        assert_eq!(
+            heap_nonuniform(&m),
+            HeapNonUniform {
+                resource: None,
+                sampler: Some(false)
+            }
+        );
         assert_eq!(heap_nonuniform(&header), HeapNonUniform::default());
         // decorated on the sampled image made from the loaded sampler (where the VUID wants it)
         let m = module(vec![
@@ -610,10 +892,30 @@ mod tests {
             vec![(4 << 16) | OP_LOAD, 3, 40, 31],
             vec![(5 << 16) | OP_SAMPLED_IMAGE, 4, 41, 39, 40],
         ]);
-        assert_eq!(heap_nonuniform(&m), HeapNonUniform { resource: None, sampler: Some(true) });
+        assert_eq!(
+            heap_nonuniform(&m),
+            HeapNonUniform {
+                resource: None,
+                sampler: Some(true)
+            }
+        );
         // truncated or zero word counts: no panic, no loop
-        assert_eq!(heap_nonuniform(&[0x0723_0203, 0, 0, 0, 0, (9 << 16) | OP_UNTYPED_ACCESS_CHAIN, 1]), HeapNonUniform::default());
-        assert_eq!(heap_nonuniform(&[0x0723_0203, 0, 0, 0, 0, 0, 0, 0]), HeapNonUniform::default());
+        assert_eq!(
+            heap_nonuniform(&[
+                0x0723_0203,
+                0,
+                0,
+                0,
+                0,
+                (9 << 16) | OP_UNTYPED_ACCESS_CHAIN,
+                1
+            ]),
+            HeapNonUniform::default()
+        );
+        assert_eq!(
+            heap_nonuniform(&[0x0723_0203, 0, 0, 0, 0, 0, 0, 0]),
+            HeapNonUniform::default()
+        );
     }
 
     #[test]

@@ -8,24 +8,24 @@ pub mod bindings;
 pub mod error;
 mod files;
 pub mod heap;
-pub mod pipeline;
 pub mod pictures;
+pub mod pipeline;
 pub mod pipeline_cache;
 pub mod prebuild;
 pub mod resources;
 
 pub use error::CellError;
 
-use crate::model::{Canary, Cell, Resource};
 use crate::model::InjectedFault;
+use crate::model::Phase;
+use crate::model::SceneParams;
+use crate::model::{Canary, Cell, Resource};
 use crate::model::{CellResult, Outcome, Timings};
 use crate::probe::spec::{ArrayAt, ProbeSpec, ReadIndex};
 use crate::probe::{self, Record, RECORD_SIZE};
 use crate::reference::{self, SceneReference};
-use crate::model::Phase;
 use crate::scene::gpu::SceneGpu;
 use crate::scene::Scene;
-use crate::model::SceneParams;
 use crate::shadergen::{self, compile::Compiler, PipelineKind};
 use crate::vk::memory::{transition, Buffer, Image, Location, Transition};
 use crate::vk::submit::{Submitter, Waited};
@@ -100,7 +100,16 @@ struct PipelineInput<'a> {
 
 impl PipelineInput<'_> {
     fn create(&self, gpu: &Gpu, cache: vk::PipelineCache) -> Result<Pipeline, VkError> {
-        pipeline::create(gpu, cache, self.shaders, self.spirv, self.layout, self.model, self.mapping.as_deref(), &self.records)
+        pipeline::create(
+            gpu,
+            cache,
+            self.shaders,
+            self.spirv,
+            self.layout,
+            self.model,
+            self.mapping.as_deref(),
+            &self.records,
+        )
     }
 }
 
@@ -148,7 +157,9 @@ impl Executor {
         let records = Buffer::new(
             &gpu,
             (params.pixels() * RECORD_SIZE) as u64,
-            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+            vk::BufferUsageFlags::STORAGE_BUFFER
+                | vk::BufferUsageFlags::TRANSFER_DST
+                | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
             Location::Host,
             "records",
         )?;
@@ -210,7 +221,13 @@ impl Executor {
         let validation_before = crate::vk::instance::validation_error_count();
         let mut timings = Timings::default();
         let injected = crate::model::inject::roll(&self.opts.inject, cell, self.opts.inject_seed);
-        let result = self.try_run(cell, injected.as_ref(), &mut timings, on_phase).and_then(|done| on_phase(Phase::Check).map(|()| done).map_err(CellError::from));
+        let result = self
+            .try_run(cell, injected.as_ref(), &mut timings, on_phase)
+            .and_then(|done| {
+                on_phase(Phase::Check)
+                    .map(|()| done)
+                    .map_err(CellError::from)
+            });
         let mut out = match result {
             Ok((records, dropped)) => {
                 let t = Instant::now();
@@ -221,13 +238,32 @@ impl Executor {
                     (Some(d), Some(n)) => Some(format!("{d}; {n}")),
                     (d, n) => d.or(n),
                 };
-                CellResult { timings: timings.clone(), detail, ..r }
+                CellResult {
+                    timings: timings.clone(),
+                    detail,
+                    ..r
+                }
             }
             Err(e) => {
                 let outcome = e.outcome();
-                let detail = if outcome == Outcome::Timeout { format!("{e} (fence wait limit {:?})", self.opts.timeout) } else { e.to_string() };
-                let fault = if outcome == Outcome::DeviceLost { fault::query(&self.gpu) } else { None };
-                CellResult { outcome, detail: Some(detail), timings: timings.clone(), comparison: None, fault, validation_errors: 0 }
+                let detail = if outcome == Outcome::Timeout {
+                    format!("{e} (fence wait limit {:?})", self.opts.timeout)
+                } else {
+                    e.to_string()
+                };
+                let fault = if outcome == Outcome::DeviceLost {
+                    fault::query(&self.gpu)
+                } else {
+                    None
+                };
+                CellResult {
+                    outcome,
+                    detail: Some(detail),
+                    timings: timings.clone(),
+                    comparison: None,
+                    fault,
+                    validation_errors: 0,
+                }
             }
         };
         out.timings.total_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -238,32 +274,75 @@ impl Executor {
     /// Compare `records` with the reference; `dropped`: the driver saw the cell's non-uniform
     /// descriptor or sampler index without `NonUniform` (the compiler dropped it), so that part of
     /// the read is judged as undefined.
-    fn check(&self, cell: &Cell, records: &[Record], dropped: Option<heap::DroppedNonUniform>) -> CellResult {
-        let none = |outcome, detail: &str| CellResult { outcome, detail: Some(detail.into()), timings: Timings::default(), comparison: None, fault: None, validation_errors: 0 };
+    fn check(
+        &self,
+        cell: &Cell,
+        records: &[Record],
+        dropped: Option<heap::DroppedNonUniform>,
+    ) -> CellResult {
+        let none = |outcome, detail: &str| CellResult {
+            outcome,
+            detail: Some(detail.into()),
+            timings: Timings::default(),
+            comparison: None,
+            fault: None,
+            validation_errors: 0,
+        };
         if let Some(c) = cell.canary {
-            return none(Outcome::Pass, &format!("canary {} ran to completion: this driver did not fault on it", c.as_str()));
+            return none(
+                Outcome::Pass,
+                &format!(
+                    "canary {} ran to completion: this driver did not fault on it",
+                    c.as_str()
+                ),
+            );
         }
         let undefined = reference::Undefined {
-            descriptor: ProbeSpec::of(cell).read == ReadIndex::Undefined || dropped.is_some_and(|d| d.resource),
+            descriptor: ProbeSpec::of(cell).read == ReadIndex::Undefined
+                || dropped.is_some_and(|d| d.resource),
             sampler: dropped.is_some_and(|d| d.sampler),
         };
         let expected = reference::expected_with(cell, &self.scene, &self.sref, undefined);
         let (w, h) = (self.scene.params.width, self.scene.params.height);
         let mut cmp = reference::compare(&expected, records, w);
-        let outcome = if cmp.passed() { Outcome::Pass } else { Outcome::Mismatch };
-        let mut detail = (!cmp.passed()).then(|| format!("{} of {} compared pixels differ ({:?})", cmp.mismatched_pixels, cmp.compared, cmp.by_field));
-        if let (Some(dir), Some(d)) = (self.opts.dump.as_ref().filter(|_| !cmp.passed()), detail.as_mut()) {
+        let outcome = if cmp.passed() {
+            Outcome::Pass
+        } else {
+            Outcome::Mismatch
+        };
+        let mut detail = (!cmp.passed()).then(|| {
+            format!(
+                "{} of {} compared pixels differ ({:?})",
+                cmp.mismatched_pixels, cmp.compared, cmp.by_field
+            )
+        });
+        if let (Some(dir), Some(d)) = (
+            self.opts.dump.as_ref().filter(|_| !cmp.passed()),
+            detail.as_mut(),
+        ) {
             match crate::exec::pictures::write(&dir.join(cell.id()), &expected, records, w, h) {
                 Ok(paths) => cmp.pictures = paths,
                 Err(e) => d.push_str(&format!("; pictures not written: {e}")),
             }
         }
-        CellResult { outcome, detail, timings: Timings::default(), comparison: Some(cmp), fault: None, validation_errors: 0 }
+        CellResult {
+            outcome,
+            detail,
+            timings: Timings::default(),
+            comparison: Some(cmp),
+            fault: None,
+            validation_errors: 0,
+        }
     }
 
     fn ensure_scene(&mut self) -> Result<&SceneGpu, CellError> {
         if self.scene_gpu.is_none() {
-            self.scene_gpu = Some(SceneGpu::build(&self.gpu, &self.scene, &self.submitter, self.opts.timeout)?);
+            self.scene_gpu = Some(SceneGpu::build(
+                &self.gpu,
+                &self.scene,
+                &self.submitter,
+                self.opts.timeout,
+            )?);
         }
         Ok(self.scene_gpu.as_ref().expect("built above"))
     }
@@ -274,22 +353,51 @@ impl Executor {
 
     /// Targets of bindings 0..=2 for `key`, creating what is missing.
     fn targets(&mut self, key: LayoutKey) -> Result<Vec<(u32, Resource, Vec<Target>)>, CellError> {
-        let mut t = vec![(0, Resource::StorageBuffer, vec![Target::Buffer { raw: self.records.raw, address: self.records.address, range: self.records.size }])];
+        let mut t = vec![(
+            0,
+            Resource::StorageBuffer,
+            vec![Target::Buffer {
+                raw: self.records.raw,
+                address: self.records.address,
+                range: self.records.size,
+            }],
+        )];
         if key.scene_tlas {
             let s = self.ensure_scene()?;
-            t.push((1, Resource::AccelerationStructure, vec![Target::Accel { raw: s.scene_tlas.raw, address: s.scene_tlas.address }]));
+            t.push((
+                1,
+                Resource::AccelerationStructure,
+                vec![Target::Accel {
+                    raw: s.scene_tlas.raw,
+                    address: s.scene_tlas.address,
+                }],
+            ));
         }
         if let Some(r) = key.probe {
             let slots = self.slots(r);
             let targets = if r == Resource::AccelerationStructure {
                 let s = self.ensure_scene()?;
-                (0..slots).map(|k| { let a = &s.probe_tlas[probe::as_slot_tlas(k)]; Target::Accel { raw: a.raw, address: a.address } }).collect()
+                (0..slots)
+                    .map(|k| {
+                        let a = &s.probe_tlas[probe::as_slot_tlas(k)];
+                        Target::Accel {
+                            raw: a.raw,
+                            address: a.address,
+                        }
+                    })
+                    .collect()
             } else {
                 self.ensure_array(r)?;
-                self.arrays[&r].targets(self.sampler, r, key.packed).map_err(|e| match e {
-                    resources::PackedError::TooManyLayers { .. } => CellError::Unsupported(e.to_string()),
-                    resources::PackedError::NoPacked(_) => CellError::NotImplemented(e.to_string()),
-                })?
+                self.arrays[&r]
+                    .targets(self.sampler, r, key.packed)
+                    .map_err(|e| match e {
+                        resources::PackedError::TooManyLayers { .. } => {
+                            CellError::Unsupported(e.to_string())
+                        }
+                        resources::PackedError::NoPacked(_) => {
+                            CellError::NotImplemented(e.to_string())
+                        }
+                    })?
             };
             t.push((2, r, targets));
         }
@@ -298,9 +406,16 @@ impl Executor {
 
     /// The scene, resource arrays, address tables and color target `cell` needs (built once,
     /// normally by [`Executor::prepare`]).
-    fn ensure_resources(&mut self, cell: &Cell, shaders: &shadergen::CellShaders) -> Result<(), CellError> {
+    fn ensure_resources(
+        &mut self,
+        cell: &Cell,
+        shaders: &shadergen::CellShaders,
+    ) -> Result<(), CellError> {
         let spec = ProbeSpec::of(cell);
-        if shaders.kind == PipelineKind::RayTracing || shaders.uses_scene_tlas || spec.resource == Resource::AccelerationStructure {
+        if shaders.kind == PipelineKind::RayTracing
+            || shaders.uses_scene_tlas
+            || spec.resource == Resource::AccelerationStructure
+        {
             self.ensure_scene()?;
         }
         if shaders.uses_probe_binding && spec.resource != Resource::AccelerationStructure {
@@ -308,8 +423,16 @@ impl Executor {
         }
         if spec.addresses.ssbo_table && self.ssbo_table.is_none() {
             self.ensure_array(Resource::StorageBuffer)?;
-            let addrs: Vec<u64> = self.arrays[&Resource::StorageBuffer].buffers.iter().map(|b| b.address).collect();
-            self.ssbo_table = Some(resources::address_table(&self.gpu, &addrs, "SSBO address table")?);
+            let addrs: Vec<u64> = self.arrays[&Resource::StorageBuffer]
+                .buffers
+                .iter()
+                .map(|b| b.address)
+                .collect();
+            self.ssbo_table = Some(resources::address_table(
+                &self.gpu,
+                &addrs,
+                "SSBO address table",
+            )?);
         }
         if spec.addresses.as_table && self.as_table.is_none() {
             let s = self.ensure_scene()?;
@@ -319,35 +442,64 @@ impl Executor {
         }
         if spec.instance_bases() && self.bases.is_none() {
             let bytes = probe::base_buffer(self.scene.params.instances);
-            let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
-            self.bases = Some(Buffer::with_data(&self.gpu, &bytes, usage, "per-instance bases")?);
+            let usage =
+                vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+            self.bases = Some(Buffer::with_data(
+                &self.gpu,
+                &bytes,
+                usage,
+                "per-instance bases",
+            )?);
         }
         if shaders.kind == PipelineKind::Graphics && self.color.is_none() {
             let (w, h) = (self.scene.params.width, self.scene.params.height);
-            self.color = Some(Image::new(&self.gpu, vk::Extent2D { width: w, height: h }, pipeline::COLOR_FORMAT, vk::ImageUsageFlags::COLOR_ATTACHMENT)?);
+            self.color = Some(Image::new(
+                &self.gpu,
+                vk::Extent2D {
+                    width: w,
+                    height: h,
+                },
+                pipeline::COLOR_FORMAT,
+                vk::ImageUsageFlags::COLOR_ATTACHMENT,
+            )?);
         }
         Ok(())
     }
 
     fn ensure_array(&mut self, r: Resource) -> Result<(), CellError> {
         if !self.arrays.contains_key(&r) {
-            let a = ResourceArray::create(&self.gpu, r, self.slots(r), &self.submitter, self.opts.timeout)?;
+            let a = ResourceArray::create(
+                &self.gpu,
+                r,
+                self.slots(r),
+                &self.submitter,
+                self.opts.timeout,
+            )?;
             self.arrays.insert(r, a);
         }
         Ok(())
     }
 
     /// GLSL → SPIR-V (cached per source), the cell's workarounds, `--dump`: phase `compile`.
-    fn compile_cell(&mut self, cell: &Cell, shaders: shadergen::CellShaders, timings: &mut Timings) -> Result<Compiled, CellError> {
+    fn compile_cell(
+        &mut self,
+        cell: &Cell,
+        shaders: shadergen::CellShaders,
+        timings: &mut Timings,
+    ) -> Result<Compiled, CellError> {
         let spec = ProbeSpec::of(cell);
         if spec.array == ArrayAt::Heap && shadergen::glslang::find().is_none() {
-            return Err(CellError::NotImplemented(shadergen::glslang::missing_reason()));
+            return Err(CellError::NotImplemented(
+                shadergen::glslang::missing_reason(),
+            ));
         }
         // SPIR-V
         let mut spirv = Vec::new();
         for s in &shaders.shaders {
             let words = match &self.opts.spirv_dir {
-                Some(dir) => std::sync::Arc::new(files::bundle_spirv(dir, s.role).map_err(CellError::Io)?),
+                Some(dir) => {
+                    std::sync::Arc::new(files::bundle_spirv(dir, s.role).map_err(CellError::Io)?)
+                }
                 None => {
                     let (words, ms) = self.compiler.compile(s.role, &s.glsl)?;
                     timings.compile_ms += ms;
@@ -374,19 +526,32 @@ impl Executor {
             }
             timings.compile_ms += t.elapsed().as_secs_f64() * 1e3;
             if !patched_any {
-                return Err(crate::patches::PatchError::NothingToPatch { patch: w.as_str(), what: "no module of the cell has the access this workaround rewrites".into() }.into());
+                return Err(crate::patches::PatchError::NothingToPatch {
+                    patch: w.as_str(),
+                    what: "no module of the cell has the access this workaround rewrites".into(),
+                }
+                .into());
             }
         }
         if let Some(dir) = &self.opts.dump {
             files::dump(dir, cell, &shaders, &spirv).map_err(CellError::Io)?;
         }
         let dropped = heap::dropped_nonuniform(&spec, &spirv);
-        Ok(Compiled { shaders, spirv, dropped })
+        Ok(Compiled {
+            shaders,
+            spirv,
+            dropped,
+        })
     }
 
     /// Resources (built by `prepare`), descriptor bindings (cached per layout) and the key of the
     /// cell's pipeline: the first half of phase `pipeline`.
-    fn bind_cell(&mut self, cell: &Cell, c: &Compiled, timings: &mut Timings) -> Result<Bound, CellError> {
+    fn bind_cell(
+        &mut self,
+        cell: &Cell,
+        c: &Compiled,
+        timings: &mut Timings,
+    ) -> Result<Bound, CellError> {
         let t = Instant::now();
         let spec = ProbeSpec::of(cell);
         self.ensure_resources(cell, &c.shaders)?;
@@ -404,7 +569,11 @@ impl Executor {
         };
         // RTPROBE_BINDING_STAGES=all: declare bindings and push constants for VK_SHADER_STAGE_ALL
         // instead of the pipeline's stages (reproduces reports/lavapipe/FINDINGS.md).
-        let stages = if self.opts.all_stages { vk::ShaderStageFlags::ALL } else { stages };
+        let stages = if self.opts.all_stages {
+            vk::ShaderStageFlags::ALL
+        } else {
+            stages
+        };
         let key = LayoutKey {
             stages,
             model: spec.model,
@@ -429,7 +598,11 @@ impl Executor {
             as_table_address = self.as_table.as_ref().map(|b| b.address).unwrap_or(0);
             patched_table_address = as_table_address;
         }
-        let base_address = if spec.instance_bases() { self.bases.as_ref().map(|b| b.address).unwrap_or(0) } else { 0 };
+        let base_address = if spec.instance_bases() {
+            self.bases.as_ref().map(|b| b.address).unwrap_or(0)
+        } else {
+            0
+        };
         timings.setup_ms = t.elapsed().as_secs_f64() * 1e3;
         // pipeline (reused for identical SPIR-V and model)
         let pkey = {
@@ -444,7 +617,14 @@ impl Executor {
             c.shaders.recursion_depth.hash(&mut hs);
             hs.finish()
         };
-        Ok(Bound { key, pkey, as_table_address, patched_table_address, base_address, dropped: c.dropped })
+        Ok(Bound {
+            key,
+            pkey,
+            as_table_address,
+            patched_table_address,
+            base_address,
+            dropped: c.dropped,
+        })
     }
 
     /// What creating the cell's pipeline needs, apart from the device and cache.
@@ -452,13 +632,29 @@ impl Executor {
         let spec = ProbeSpec::of(cell);
         let binding = &self.bindings[&b.key];
         let layout = binding.heap_layout();
-        let mapping = spec.heap.zip(layout.as_ref()).map(|(access, l)| heap::PipelineMapping::new(access, l));
+        let mapping = spec
+            .heap
+            .zip(layout.as_ref())
+            .map(|(access, l)| heap::PipelineMapping::new(access, l));
         let records = pipeline::shader_records(&spec, layout.as_ref());
-        PipelineInput { shaders: &c.shaders, spirv: &c.spirv, layout: binding.pipeline_layout, model: spec.model, mapping, records }
+        PipelineInput {
+            shaders: &c.shaders,
+            spirv: &c.spirv,
+            layout: binding.pipeline_layout,
+            model: spec.model,
+            mapping,
+            records,
+        }
     }
 
     /// The cell's pipeline, created unless an identical one exists: the second half of `pipeline`.
-    fn ensure_pipeline(&mut self, cell: &Cell, c: &Compiled, b: &Bound, timings: &mut Timings) -> Result<(), CellError> {
+    fn ensure_pipeline(
+        &mut self,
+        cell: &Cell,
+        c: &Compiled,
+        b: &Bound,
+        timings: &mut Timings,
+    ) -> Result<(), CellError> {
         if !self.pipelines.contains_key(&b.pkey) {
             let input = self.pipeline_input(cell, c, b);
             let t = Instant::now();
@@ -471,7 +667,13 @@ impl Executor {
 
     /// Compile, bind and create the pipeline of `cell` (sequentially, phase by phase), or take
     /// what [`Executor::prebuild`] made for it.
-    fn build(&mut self, cell: &Cell, injected: Option<&InjectedFault>, timings: &mut Timings, on_phase: PhaseHook) -> Result<Bound, CellError> {
+    fn build(
+        &mut self,
+        cell: &Cell,
+        injected: Option<&InjectedFault>,
+        timings: &mut Timings,
+        on_phase: PhaseHook,
+    ) -> Result<Bound, CellError> {
         on_phase(Phase::Compile)?;
         match self.prebuilt.remove(&cell.id()) {
             Some(p) => {
@@ -496,34 +698,68 @@ impl Executor {
         let (w, h) = (self.scene.params.width, self.scene.params.height);
         let spec = ProbeSpec::of(cell);
         let fault = injected.map(|i| i.fault);
-        let injected_bad = injected.is_some_and(|i| i.fault.reads_bad_address() && i.armed != Some(false));
+        let injected_bad =
+            injected.is_some_and(|i| i.fault.reads_bad_address() && i.armed != Some(false));
         probe::PushConstants {
-            loop_forever: u32::from(spec.canary == Some(Canary::InfiniteLoop) || fault == Some(crate::model::inject::FaultKind::Hang)),
+            loop_forever: u32::from(
+                spec.canary == Some(Canary::InfiniteLoop)
+                    || fault == Some(crate::model::inject::FaultKind::Hang),
+            ),
             as_table: b.as_table_address,
             base_address: b.base_address,
-            bad_address: if spec.canary == Some(Canary::InvalidAddress) || injected_bad { CANARY_BAD_ADDRESS } else { 0 },
-            inject_salt: fault.map(|f| crate::model::inject::value_salt(f, &cell.id())).unwrap_or(0),
+            bad_address: if spec.canary == Some(Canary::InvalidAddress) || injected_bad {
+                CANARY_BAD_ADDRESS
+            } else {
+                0
+            },
+            inject_salt: fault
+                .map(|f| crate::model::inject::value_salt(f, &cell.id()))
+                .unwrap_or(0),
             ..probe::push_constants(w, h, self.scene.params.instances, spec.resource)
         }
         .to_bytes(b.patched_table_address)
     }
 
     /// The cell's records, and the `nonuniformEXT` the compiler dropped from the cell's shape (if any).
-    fn try_run(&mut self, cell: &Cell, injected: Option<&InjectedFault>, timings: &mut Timings, on_phase: PhaseHook) -> Result<(Vec<Record>, Option<heap::DroppedNonUniform>), CellError> {
+    fn try_run(
+        &mut self,
+        cell: &Cell,
+        injected: Option<&InjectedFault>,
+        timings: &mut Timings,
+        on_phase: PhaseHook,
+    ) -> Result<(Vec<Record>, Option<heap::DroppedNonUniform>), CellError> {
         let bound = self.build(cell, injected, timings, on_phase)?;
         on_phase(Phase::Record)?;
         let pc = self.push_constants(cell, injected, &bound);
         let gpu = &self.gpu;
-        let work = Work { pipe: &self.pipelines[&bound.pkey], binding: &self.bindings[&bound.key], stages: bound.key.stages, pc: &pc, color: self.color.as_ref(), size: (self.scene.params.width, self.scene.params.height) };
+        let work = Work {
+            pipe: &self.pipelines[&bound.pkey],
+            binding: &self.bindings[&bound.key],
+            stages: bound.key.stages,
+            pc: &pc,
+            color: self.color.as_ref(),
+            size: (self.scene.params.width, self.scene.params.height),
+        };
         // Sentinel: a record no probe wrote reads as flags 0xffffffff. Written from the host
         // (the buffer is mapped): a vkCmdFillBuffer is an internal compute dispatch on some
         // drivers and must not disturb the state this cell binds.
-        self.records.write(0, &vec![0xffu8; self.scene.params.pixels() * RECORD_SIZE]);
+        self.records
+            .write(0, &vec![0xffu8; self.scene.params.pixels() * RECORD_SIZE]);
         let mut entered_trace = Ok(());
         let waited = self.submitter.run(gpu, self.opts.timeout, |cmd| unsafe {
             work.record(gpu, cmd);
-            let to_host = [vk::MemoryBarrier::default().src_access_mask(vk::AccessFlags::MEMORY_WRITE).dst_access_mask(vk::AccessFlags::HOST_READ)];
-            gpu.device.cmd_pipeline_barrier(cmd, vk::PipelineStageFlags::ALL_COMMANDS, vk::PipelineStageFlags::HOST, vk::DependencyFlags::empty(), &to_host, &[], &[]);
+            let to_host = [vk::MemoryBarrier::default()
+                .src_access_mask(vk::AccessFlags::MEMORY_WRITE)
+                .dst_access_mask(vk::AccessFlags::HOST_READ)];
+            gpu.device.cmd_pipeline_barrier(
+                cmd,
+                vk::PipelineStageFlags::ALL_COMMANDS,
+                vk::PipelineStageFlags::HOST,
+                vk::DependencyFlags::empty(),
+                &to_host,
+                &[],
+                &[],
+            );
             // Recorded: what follows is the submission and the fence wait.
             entered_trace = on_phase(Phase::Trace);
         })?;
@@ -535,7 +771,10 @@ impl Executor {
         on_phase(Phase::Readback)?;
         let t = Instant::now();
         let bytes = self.records.read(self.scene.params.pixels() * RECORD_SIZE);
-        let recs = bytes.chunks_exact(RECORD_SIZE).map(Record::from_bytes).collect();
+        let recs = bytes
+            .chunks_exact(RECORD_SIZE)
+            .map(Record::from_bytes)
+            .collect();
         timings.check_ms = t.elapsed().as_secs_f64() * 1e3;
         Ok((recs, bound.dropped))
     }
@@ -566,7 +805,16 @@ impl Work<'_> {
                 d.cmd_bind_pipeline(cmd, point, pipe.raw);
                 binding.push(gpu, cmd, self.stages, self.pc);
                 let sbt = pipe.sbt.as_ref().expect("RT pipelines have an SBT");
-                gpu.rt.as_ref().expect("RT enabled").cmd_trace_rays(cmd, &sbt.raygen, &sbt.miss, &sbt.hit, &sbt.callable, w, h, 1);
+                gpu.rt.as_ref().expect("RT enabled").cmd_trace_rays(
+                    cmd,
+                    &sbt.raygen,
+                    &sbt.miss,
+                    &sbt.hit,
+                    &sbt.callable,
+                    w,
+                    h,
+                    1,
+                );
             }
             PipelineKind::Compute => {
                 binding.bind(gpu, cmd, point);
@@ -576,20 +824,51 @@ impl Work<'_> {
             }
             PipelineKind::Graphics => {
                 let img = self.color.expect("color target created");
-                let top = (vk::ImageLayout::UNDEFINED, vk::AccessFlags::empty(), vk::PipelineStageFlags::TOP_OF_PIPE);
-                let att = (vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, vk::AccessFlags::COLOR_ATTACHMENT_WRITE, vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT);
+                let top = (
+                    vk::ImageLayout::UNDEFINED,
+                    vk::AccessFlags::empty(),
+                    vk::PipelineStageFlags::TOP_OF_PIPE,
+                );
+                let att = (
+                    vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
+                    vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
+                    vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT,
+                );
                 transition(gpu, cmd, img.raw, Transition { from: top, to: att });
                 let att = [vk::RenderingAttachmentInfo::default()
                     .image_view(img.view)
                     .image_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
                     .load_op(vk::AttachmentLoadOp::CLEAR)
                     .store_op(vk::AttachmentStoreOp::STORE)];
-                let area = vk::Rect2D { offset: vk::Offset2D::default(), extent: vk::Extent2D { width: w, height: h } };
-                d.cmd_begin_rendering(cmd, &vk::RenderingInfo::default().render_area(area).layer_count(1).color_attachments(&att));
+                let area = vk::Rect2D {
+                    offset: vk::Offset2D::default(),
+                    extent: vk::Extent2D {
+                        width: w,
+                        height: h,
+                    },
+                };
+                d.cmd_begin_rendering(
+                    cmd,
+                    &vk::RenderingInfo::default()
+                        .render_area(area)
+                        .layer_count(1)
+                        .color_attachments(&att),
+                );
                 binding.bind(gpu, cmd, point);
                 d.cmd_bind_pipeline(cmd, point, pipe.raw);
                 binding.push(gpu, cmd, self.stages, self.pc);
-                d.cmd_set_viewport(cmd, 0, &[vk::Viewport { x: 0.0, y: 0.0, width: w as f32, height: h as f32, min_depth: 0.0, max_depth: 1.0 }]);
+                d.cmd_set_viewport(
+                    cmd,
+                    0,
+                    &[vk::Viewport {
+                        x: 0.0,
+                        y: 0.0,
+                        width: w as f32,
+                        height: h as f32,
+                        min_depth: 0.0,
+                        max_depth: 1.0,
+                    }],
+                );
                 d.cmd_set_scissor(cmd, 0, &[area]);
                 d.cmd_draw(cmd, 6, (w / probe::TILE) * (h / probe::TILE), 0, 0);
                 d.cmd_end_rendering(cmd);
@@ -618,7 +897,12 @@ impl Drop for Executor {
         for a in self.arrays.values() {
             a.destroy(gpu);
         }
-        for t in self.as_table.iter().chain(self.ssbo_table.iter()).chain(self.bases.iter()) {
+        for t in self
+            .as_table
+            .iter()
+            .chain(self.ssbo_table.iter())
+            .chain(self.bases.iter())
+        {
             t.destroy(gpu);
         }
         if let Some(c) = &self.color {

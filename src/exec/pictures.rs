@@ -25,11 +25,17 @@ const BLACK: [u8; 3] = [0, 0, 0];
 #[derive(Debug, thiserror::Error)]
 pub enum PictureError {
     #[error("{path}: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     #[error(transparent)]
     Write(#[from] crate::atomic::WriteError),
     #[error("{path}: {source}")]
-    Encode { path: PathBuf, source: png::EncodingError },
+    Encode {
+        path: PathBuf,
+        source: png::EncodingError,
+    },
     #[error("{expected} expected records for {actual} actual ones")]
     Length { expected: usize, actual: usize },
 }
@@ -53,7 +59,10 @@ pub fn field_colour(r: &Record, panel: usize) -> [u8; 3] {
         1 if hit => false_colour(r.custom as u64),
         2 if hit => false_colour((1 << 40) | r.primitive as u64),
         3 if probed => {
-            let bits = r.value.iter().fold(0u64, |a, v| a.rotate_left(16) ^ v.to_bits() as u64);
+            let bits = r
+                .value
+                .iter()
+                .fold(0u64, |a, v| a.rotate_left(16) ^ v.to_bits() as u64);
             false_colour((2 << 40) ^ bits)
         }
         _ => BLACK,
@@ -99,7 +108,10 @@ fn write_png(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<(), Pic
         let mut enc = png::Encoder::new(&mut bytes, width, height);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
-        let encode = |e| PictureError::Encode { path: path.to_path_buf(), source: e };
+        let encode = |e| PictureError::Encode {
+            path: path.to_path_buf(),
+            source: e,
+        };
         let mut w = enc.write_header().map_err(encode)?;
         w.write_image_data(rgb).map_err(encode)?;
         w.finish().map_err(encode)?;
@@ -108,15 +120,39 @@ fn write_png(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<(), Pic
 }
 
 /// Write `expected.png`, `actual.png` and `diff.png` into `dir`; returns their paths in that order.
-pub fn write(dir: &Path, expected: &[Expected], actual: &[Record], width: u32, height: u32) -> Result<Vec<String>, PictureError> {
+pub fn write(
+    dir: &Path,
+    expected: &[Expected],
+    actual: &[Record],
+    width: u32,
+    height: u32,
+) -> Result<Vec<String>, PictureError> {
     let n = (width * height) as usize;
     if expected.len() != n || actual.len() != n {
-        return Err(PictureError::Length { expected: expected.len(), actual: actual.len() });
+        return Err(PictureError::Length {
+            expected: expected.len(),
+            actual: actual.len(),
+        });
     }
-    std::fs::create_dir_all(dir).map_err(|e| PictureError::Io { path: dir.to_path_buf(), source: e })?;
+    std::fs::create_dir_all(dir).map_err(|e| PictureError::Io {
+        path: dir.to_path_buf(),
+        source: e,
+    })?;
     let exp: Vec<Record> = expected.iter().map(|e| e.record).collect();
     let diff: Vec<u8> = classify(expected, actual, width).concat();
-    let files = [("expected.png", PANELS.len() as u32 * width, strip(&exp, width, height)), ("actual.png", PANELS.len() as u32 * width, strip(actual, width, height)), ("diff.png", width, diff)];
+    let files = [
+        (
+            "expected.png",
+            PANELS.len() as u32 * width,
+            strip(&exp, width, height),
+        ),
+        (
+            "actual.png",
+            PANELS.len() as u32 * width,
+            strip(actual, width, height),
+        ),
+        ("diff.png", width, diff),
+    ];
     let mut paths = Vec::new();
     for (name, w, rgb) in files {
         let p = dir.join(name);
@@ -132,7 +168,13 @@ mod tests {
     use crate::reference::ValueRule;
 
     fn rec(flags: u32, instance: u32, value: f32) -> Record {
-        Record { flags, custom: instance, primitive: 2, value: [value, 1.0, 2.0, 0.25], ..Default::default() }
+        Record {
+            flags,
+            custom: instance,
+            primitive: 2,
+            value: [value, 1.0, 2.0, 0.25],
+            ..Default::default()
+        }
     }
 
     fn decode(p: &str) -> (u32, u32, Vec<u8>) {
@@ -147,20 +189,40 @@ mod tests {
     #[test]
     fn diff_marks_mismatches_red_and_ambiguous_grey_and_panels_show_fields() {
         // 2x2: a match, a value mismatch, an ambiguous pixel (differs, but skipped), a miss.
-        let e = |r: Record, ambiguous| Expected { record: r, ambiguous, rule: ValueRule::Exact, discriminating: false };
-        let expected = vec![e(rec(3, 4, 5.0), false), e(rec(3, 4, 5.0), false), e(rec(3, 4, 5.0), true), e(rec(0, 0, 0.0), false)];
-        let actual = vec![rec(3, 4, 5.0), rec(3, 4, 6.0), rec(3, 9, 5.0), rec(0, 0, 0.0)];
+        let e = |r: Record, ambiguous| Expected {
+            record: r,
+            ambiguous,
+            rule: ValueRule::Exact,
+            discriminating: false,
+        };
+        let expected = vec![
+            e(rec(3, 4, 5.0), false),
+            e(rec(3, 4, 5.0), false),
+            e(rec(3, 4, 5.0), true),
+            e(rec(0, 0, 0.0), false),
+        ];
+        let actual = vec![
+            rec(3, 4, 5.0),
+            rec(3, 4, 6.0),
+            rec(3, 9, 5.0),
+            rec(0, 0, 0.0),
+        ];
         let d = tempfile::tempdir().unwrap();
         let paths = write(d.path(), &expected, &actual, 2, 2).unwrap();
         assert_eq!(paths.len(), 3);
         let (w, h, diff) = decode(&paths[2]);
         assert_eq!((w, h), (2, 2));
         let px: Vec<&[u8]> = diff.chunks(3).collect();
-        assert_eq!(px, vec![&MATCH[..], &MISMATCH[..], &AMBIGUOUS[..], &MATCH[..]]);
+        assert_eq!(
+            px,
+            vec![&MATCH[..], &MISMATCH[..], &AMBIGUOUS[..], &MATCH[..]]
+        );
         let (w, _, exp) = decode(&paths[0]);
         let (_, _, act) = decode(&paths[1]);
         assert_eq!(w, 8, "four panels of width 2");
-        let at = |img: &[u8], panel: usize, x: usize, y: usize| img[(y * 8 + panel * 2 + x) * 3..][..3].to_vec();
+        let at = |img: &[u8], panel: usize, x: usize, y: usize| {
+            img[(y * 8 + panel * 2 + x) * 3..][..3].to_vec()
+        };
         // value panel differs exactly at the mismatching pixel; the hit panel is green+blue on hits.
         assert_ne!(at(&exp, 3, 1, 0), at(&act, 3, 1, 0));
         assert_eq!(at(&exp, 3, 0, 0), at(&act, 3, 0, 0));
@@ -173,6 +235,9 @@ mod tests {
     #[test]
     fn wrong_lengths_are_an_error_not_a_panic() {
         let d = tempfile::tempdir().unwrap();
-        assert!(matches!(write(d.path(), &[], &[Record::default()], 1, 1), Err(PictureError::Length { .. })));
+        assert!(matches!(
+            write(d.path(), &[], &[Record::default()], 1, 1),
+            Err(PictureError::Length { .. })
+        ));
     }
 }

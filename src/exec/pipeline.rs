@@ -39,7 +39,9 @@ fn stage_flag(role: Role) -> vk::ShaderStageFlags {
     match role {
         Role::Raygen => vk::ShaderStageFlags::RAYGEN_KHR,
         Role::Miss | Role::ProbeMiss => vk::ShaderStageFlags::MISS_KHR,
-        Role::ClosestHitTriangles | Role::ClosestHitProcedural => vk::ShaderStageFlags::CLOSEST_HIT_KHR,
+        Role::ClosestHitTriangles | Role::ClosestHitProcedural => {
+            vk::ShaderStageFlags::CLOSEST_HIT_KHR
+        }
         Role::Intersection => vk::ShaderStageFlags::INTERSECTION_KHR,
         Role::AnyHit => vk::ShaderStageFlags::ANY_HIT_KHR,
         Role::Callable => vk::ShaderStageFlags::CALLABLE_KHR,
@@ -63,14 +65,27 @@ pub struct ShaderRecords {
 /// (`heap_access=mapped_shader_record_index`, `heap` laid out so; the same in every record) and
 /// the runtime base where the probe reads it (`base=shader_record`; the hit groups' bases differ
 /// from each other and from the other groups', `probe::RECORD_BASE_*`); no data when neither does.
-pub fn shader_records(spec: &crate::probe::spec::ProbeSpec, heap: Option<&super::heap::HeapLayout>) -> ShaderRecords {
+pub fn shader_records(
+    spec: &crate::probe::spec::ProbeSpec,
+    heap: Option<&super::heap::HeapLayout>,
+) -> ShaderRecords {
     let mapped = spec.heap == Some(crate::model::HeapAccess::MappedShaderRecordIndex);
     let base = spec.base == crate::probe::spec::Base::ShaderRecord;
     if !mapped && !base {
         return ShaderRecords::default();
     }
-    let heap_index = if mapped { heap.map(|l| l.probe_index()).unwrap_or(0) } else { 0 };
-    let record = |dyn_base: u32| probe::ShaderRecordData { heap_index, dyn_base }.to_bytes();
+    let heap_index = if mapped {
+        heap.map(|l| l.probe_index()).unwrap_or(0)
+    } else {
+        0
+    };
+    let record = |dyn_base: u32| {
+        probe::ShaderRecordData {
+            heap_index,
+            dyn_base,
+        }
+        .to_bytes()
+    };
     ShaderRecords {
         other: record(probe::RECORD_BASE_OTHER),
         hit_triangles: record(probe::RECORD_BASE_TRIANGLES),
@@ -96,7 +111,9 @@ pub fn create(
     let d = &gpu.device;
     let mut modules = Vec::new();
     for words in spirv {
-        match unsafe { d.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(words), None) } {
+        match unsafe {
+            d.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(words), None)
+        } {
             Ok(m) => modules.push(m),
             Err(e) => {
                 for m in &modules {
@@ -107,34 +124,58 @@ pub fn create(
         }
     }
     let spec_data = probe::SPEC_SLOT.to_le_bytes();
-    let spec_entries = [vk::SpecializationMapEntry { constant_id: 0, offset: 0, size: 4 }];
-    let spec = vk::SpecializationInfo::default().map_entries(&spec_entries).data(&spec_data);
+    let spec_entries = [vk::SpecializationMapEntry {
+        constant_id: 0,
+        offset: 0,
+        size: 4,
+    }];
+    let spec = vk::SpecializationInfo::default()
+        .map_entries(&spec_entries)
+        .data(&spec_data);
     let stages: Vec<vk::PipelineShaderStageCreateInfo> = shaders
         .shaders
         .iter()
         .zip(&modules)
         .map(|(s, m)| {
-            let mut st = vk::PipelineShaderStageCreateInfo::default().stage(stage_flag(s.role)).module(*m).name(MAIN).specialization_info(&spec);
+            let mut st = vk::PipelineShaderStageCreateInfo::default()
+                .stage(stage_flag(s.role))
+                .module(*m)
+                .name(MAIN)
+                .specialization_info(&spec);
             if let Some(h) = heap {
                 st.p_next = h.stage_next();
             }
             st
         })
         .collect();
-    let flags = if model == DescriptorModel::DescriptorBuffer { vk::PipelineCreateFlags::DESCRIPTOR_BUFFER_EXT } else { vk::PipelineCreateFlags::empty() };
+    let flags = if model == DescriptorModel::DescriptorBuffer {
+        vk::PipelineCreateFlags::DESCRIPTOR_BUFFER_EXT
+    } else {
+        vk::PipelineCreateFlags::empty()
+    };
     // Heap pipelines: VK_PIPELINE_CREATE_2_DESCRIPTOR_HEAP_BIT_EXT, which only the flags2 struct carries.
-    let mut flags2 = vk::PipelineCreateFlags2CreateInfoKHR::default().flags(crate::vk::heap::PIPELINE_CREATE_2_DESCRIPTOR_HEAP);
+    let mut flags2 = vk::PipelineCreateFlags2CreateInfoKHR::default()
+        .flags(crate::vk::heap::PIPELINE_CREATE_2_DESCRIPTOR_HEAP);
     let flags2 = heap.is_some().then_some(&mut flags2);
     let result = match shaders.kind {
-        PipelineKind::RayTracing => create_rt(gpu, cache, shaders, &stages, layout, flags, flags2, records),
+        PipelineKind::RayTracing => {
+            create_rt(gpu, cache, shaders, &stages, layout, flags, flags2, records)
+        }
         PipelineKind::Compute => {
-            let mut ci = vk::ComputePipelineCreateInfo::default().stage(stages[0]).layout(layout).flags(flags);
+            let mut ci = vk::ComputePipelineCreateInfo::default()
+                .stage(stages[0])
+                .layout(layout)
+                .flags(flags);
             if let Some(f2) = flags2 {
                 ci = ci.push_next(f2);
             }
             unsafe { d.create_compute_pipelines(cache, &[ci], None) }
                 .map_err(|(_, e)| VkError::from_result("vkCreateComputePipelines", e))
-                .map(|p| Pipeline { raw: p[0], kind: PipelineKind::Compute, sbt: None })
+                .map(|p| Pipeline {
+                    raw: p[0],
+                    kind: PipelineKind::Compute,
+                    sbt: None,
+                })
         }
         PipelineKind::Graphics => create_graphics(gpu, cache, &stages, layout, flags, flags2),
     };
@@ -153,13 +194,22 @@ fn create_graphics(
     flags2: Option<&mut vk::PipelineCreateFlags2CreateInfoKHR>,
 ) -> Result<Pipeline, VkError> {
     let formats = [COLOR_FORMAT];
-    let mut rendering = vk::PipelineRenderingCreateInfo::default().color_attachment_formats(&formats);
+    let mut rendering =
+        vk::PipelineRenderingCreateInfo::default().color_attachment_formats(&formats);
     let vi = vk::PipelineVertexInputStateCreateInfo::default();
-    let ia = vk::PipelineInputAssemblyStateCreateInfo::default().topology(vk::PrimitiveTopology::TRIANGLE_LIST);
-    let vp = vk::PipelineViewportStateCreateInfo::default().viewport_count(1).scissor_count(1);
-    let rs = vk::PipelineRasterizationStateCreateInfo::default().polygon_mode(vk::PolygonMode::FILL).cull_mode(vk::CullModeFlags::NONE).line_width(1.0);
-    let ms = vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(vk::SampleCountFlags::TYPE_1);
-    let att = [vk::PipelineColorBlendAttachmentState::default().color_write_mask(vk::ColorComponentFlags::RGBA)];
+    let ia = vk::PipelineInputAssemblyStateCreateInfo::default()
+        .topology(vk::PrimitiveTopology::TRIANGLE_LIST);
+    let vp = vk::PipelineViewportStateCreateInfo::default()
+        .viewport_count(1)
+        .scissor_count(1);
+    let rs = vk::PipelineRasterizationStateCreateInfo::default()
+        .polygon_mode(vk::PolygonMode::FILL)
+        .cull_mode(vk::CullModeFlags::NONE)
+        .line_width(1.0);
+    let ms = vk::PipelineMultisampleStateCreateInfo::default()
+        .rasterization_samples(vk::SampleCountFlags::TYPE_1);
+    let att = [vk::PipelineColorBlendAttachmentState::default()
+        .color_write_mask(vk::ColorComponentFlags::RGBA)];
     let cb = vk::PipelineColorBlendStateCreateInfo::default().attachments(&att);
     let dyn_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
     let ds = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dyn_states);
@@ -180,13 +230,24 @@ fn create_graphics(
     }
     unsafe { gpu.device.create_graphics_pipelines(cache, &[ci], None) }
         .map_err(|(_, e)| VkError::from_result("vkCreateGraphicsPipelines", e))
-        .map(|p| Pipeline { raw: p[0], kind: PipelineKind::Graphics, sbt: None })
+        .map(|p| Pipeline {
+            raw: p[0],
+            kind: PipelineKind::Graphics,
+            sbt: None,
+        })
 }
 
 /// The shader groups in SBT order: raygen, miss, probe miss, the triangle and procedural hit
 /// groups, then the callable (when the cell has one).
 fn rt_groups(shaders: &CellShaders) -> Vec<vk::RayTracingShaderGroupCreateInfoKHR<'static>> {
-    let idx = |r: Role| shaders.shaders.iter().position(|s| s.role == r).map(|i| i as u32).unwrap_or(vk::SHADER_UNUSED_KHR);
+    let idx = |r: Role| {
+        shaders
+            .shaders
+            .iter()
+            .position(|s| s.role == r)
+            .map(|i| i as u32)
+            .unwrap_or(vk::SHADER_UNUSED_KHR)
+    };
     let general = |r: Role| {
         vk::RayTracingShaderGroupCreateInfoKHR::default()
             .ty(vk::RayTracingShaderGroupTypeKHR::GENERAL)
@@ -239,27 +300,48 @@ fn create_rt(
     if let Some(f2) = flags2 {
         ci = ci.push_next(f2);
     }
-    let raw = unsafe { rt.create_ray_tracing_pipelines(vk::DeferredOperationKHR::null(), cache, &[ci], None) }
-        .map_err(|(_, e)| VkError::from_result("vkCreateRayTracingPipelinesKHR", e))?[0];
+    let raw = unsafe {
+        rt.create_ray_tracing_pipelines(vk::DeferredOperationKHR::null(), cache, &[ci], None)
+    }
+    .map_err(|(_, e)| VkError::from_result("vkCreateRayTracingPipelinesKHR", e))?[0];
     let has_callable = shaders.get(Role::Callable).is_some();
     let sbt = shader_binding_table(gpu, raw, groups.len() as u32, has_callable, records)?;
-    Ok(Pipeline { raw, kind: PipelineKind::RayTracing, sbt: Some(sbt) })
+    Ok(Pipeline {
+        raw,
+        kind: PipelineKind::RayTracing,
+        sbt: Some(sbt),
+    })
 }
 
 /// The SBT of pipeline `raw` with `n` groups (in [`rt_groups`]' order, the callable's last when
 /// `has_callable`): each record the group's handle, then its shader record data. The pipeline is
 /// destroyed when its handles cannot be read.
-fn shader_binding_table(gpu: &Gpu, raw: vk::Pipeline, n: u32, has_callable: bool, records: &ShaderRecords) -> Result<Sbt, VkError> {
+fn shader_binding_table(
+    gpu: &Gpu,
+    raw: vk::Pipeline,
+    n: u32,
+    has_callable: bool,
+    records: &ShaderRecords,
+) -> Result<Sbt, VkError> {
     let rt = gpu.rt.as_ref().expect("ray tracing pipeline enabled");
-    let props = gpu.info.properties.rt_pipeline.expect("RT pipeline properties");
+    let props = gpu
+        .info
+        .properties
+        .rt_pipeline
+        .expect("RT pipeline properties");
     let h = props.shader_group_handle_size as u64;
     let ha = props.shader_group_handle_alignment as u64;
     let ba = props.shader_group_base_alignment as u64;
-    let handles = match unsafe { rt.get_ray_tracing_shader_group_handles(raw, 0, n, (n as u64 * h) as usize) } {
+    let handles = match unsafe {
+        rt.get_ray_tracing_shader_group_handles(raw, 0, n, (n as u64 * h) as usize)
+    } {
         Ok(h) => h,
         Err(e) => {
             unsafe { gpu.device.destroy_pipeline(raw, None) };
-            return Err(VkError::from_result("vkGetRayTracingShaderGroupHandlesKHR", e));
+            return Err(VkError::from_result(
+                "vkGetRayTracingShaderGroupHandlesKHR",
+                e,
+            ));
         }
     };
     // Each record: the group handle, then its shader record data.
@@ -273,7 +355,8 @@ fn shader_binding_table(gpu: &Gpu, raw: vk::Pipeline, n: u32, has_callable: bool
     let buffer = Buffer::new(
         gpu,
         total,
-        vk::BufferUsageFlags::SHADER_BINDING_TABLE_KHR | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+        vk::BufferUsageFlags::SHADER_BINDING_TABLE_KHR
+            | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
         Location::Host,
         "shader binding table",
     )?;
@@ -292,12 +375,20 @@ fn shader_binding_table(gpu: &Gpu, raw: vk::Pipeline, n: u32, has_callable: bool
     if has_callable {
         put(call_off, 5, &records.other);
     }
-    let region = |off: u64, stride: u64, size: u64| vk::StridedDeviceAddressRegionKHR { device_address: base + off, stride, size };
+    let region = |off: u64, stride: u64, size: u64| vk::StridedDeviceAddressRegionKHR {
+        device_address: base + off,
+        stride,
+        size,
+    };
     Ok(Sbt {
         raygen: region(0, rg_size, rg_size),
         miss: region(miss_off, stride, 2 * stride),
         hit: region(hit_off, stride, 2 * stride),
-        callable: if has_callable { region(call_off, stride, stride) } else { vk::StridedDeviceAddressRegionKHR::default() },
+        callable: if has_callable {
+            region(call_off, stride, stride)
+        } else {
+            vk::StridedDeviceAddressRegionKHR::default()
+        },
         buffer,
     })
 }

@@ -38,20 +38,36 @@ const HEADER_LEN: usize = 32;
 /// The cache folder: `$RTPROBE_CACHE_DIR`, else `$XDG_CACHE_HOME/rtprobe`, else
 /// `~/.cache/rtprobe`; `None` when none of them is set.
 pub fn default_dir() -> Option<PathBuf> {
-    let var = |k: &str| std::env::var_os(k).filter(|v| !v.is_empty()).map(PathBuf::from);
-    var("RTPROBE_CACHE_DIR").or_else(|| var("XDG_CACHE_HOME").map(|d| d.join("rtprobe"))).or_else(|| var("HOME").map(|h| h.join(".cache").join("rtprobe")))
+    let var = |k: &str| {
+        std::env::var_os(k)
+            .filter(|v| !v.is_empty())
+            .map(PathBuf::from)
+    };
+    var("RTPROBE_CACHE_DIR")
+        .or_else(|| var("XDG_CACHE_HOME").map(|d| d.join("rtprobe")))
+        .or_else(|| var("HOME").map(|h| h.join(".cache").join("rtprobe")))
 }
 
 /// The cache file of a device and driver (`p`: its properties).
 pub fn file_name(p: &vk::PhysicalDeviceProperties) -> String {
-    let uuid: String = p.pipeline_cache_uuid.iter().map(|b| format!("{b:02x}")).collect();
-    format!("pipeline-cache-{:04x}-{:04x}-{:08x}-{uuid}.bin", p.vendor_id, p.device_id, p.driver_version)
+    let uuid: String = p
+        .pipeline_cache_uuid
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect();
+    format!(
+        "pipeline-cache-{:04x}-{:04x}-{:08x}-{uuid}.bin",
+        p.vendor_id, p.device_id, p.driver_version
+    )
 }
 
 /// Why `bytes` cannot be this device's pipeline cache data (`None`: the header matches).
 pub fn header_mismatch(bytes: &[u8], props: &vk::PhysicalDeviceProperties) -> Option<String> {
     if bytes.len() < HEADER_LEN {
-        return Some(format!("{} bytes, shorter than the {HEADER_LEN}-byte header", bytes.len()));
+        return Some(format!(
+            "{} bytes, shorter than the {HEADER_LEN}-byte header",
+            bytes.len()
+        ));
     }
     let u32_at = |o: usize| u32::from_le_bytes(bytes[o..o + 4].try_into().expect("4 bytes"));
     let (size, version, vendor, device) = (u32_at(0), u32_at(4), u32_at(8), u32_at(12));
@@ -62,7 +78,10 @@ pub fn header_mismatch(bytes: &[u8], props: &vk::PhysicalDeviceProperties) -> Op
         return Some(format!("header version {version}, not 1"));
     }
     if (vendor, device) != (props.vendor_id, props.device_id) {
-        return Some(format!("vendor/device {vendor:#x}/{device:#x}, this device is {:#x}/{:#x}", props.vendor_id, props.device_id));
+        return Some(format!(
+            "vendor/device {vendor:#x}/{device:#x}, this device is {:#x}/{:#x}",
+            props.vendor_id, props.device_id
+        ));
     }
     if bytes[16..32] != props.pipeline_cache_uuid {
         return Some("pipelineCacheUUID differs from this driver's".into());
@@ -82,7 +101,10 @@ pub struct Loaded {
 }
 
 /// The stored bytes for this device if they are usable; `Err`: why they were ignored.
-fn read_valid(path: &Path, props: &vk::PhysicalDeviceProperties) -> Result<Option<Vec<u8>>, CacheError> {
+fn read_valid(
+    path: &Path,
+    props: &vk::PhysicalDeviceProperties,
+) -> Result<Option<Vec<u8>>, CacheError> {
     match std::fs::read(path) {
         Ok(b) => match header_mismatch(&b, props) {
             None => Ok(Some(b)),
@@ -94,15 +116,26 @@ fn read_valid(path: &Path, props: &vk::PhysicalDeviceProperties) -> Result<Optio
 }
 
 fn create(gpu: &Gpu, data: &[u8]) -> Result<vk::PipelineCache, VkError> {
-    unsafe { gpu.device.create_pipeline_cache(&vk::PipelineCacheCreateInfo::default().initial_data(data), None) }.at("vkCreatePipelineCache")
+    unsafe {
+        gpu.device.create_pipeline_cache(
+            &vk::PipelineCacheCreateInfo::default().initial_data(data),
+            None,
+        )
+    }
+    .at("vkCreatePipelineCache")
 }
 
 /// This worker's pipeline cache: from the device's file under `dir` when it is valid, else empty.
 /// Never shared with an externally-synchronized flag: the prebuild threads use it at once.
 pub fn open(gpu: &Gpu, dir: Option<&Path>) -> Result<(vk::PipelineCache, Option<Loaded>), VkError> {
-    let Some(dir) = dir else { return Ok((create(gpu, &[])?, None)) };
+    let Some(dir) = dir else {
+        return Ok((create(gpu, &[])?, None));
+    };
     let path = dir.join(file_name(&gpu.info.properties.core));
-    let mut status = Loaded { path: path.clone(), ..Default::default() };
+    let mut status = Loaded {
+        path: path.clone(),
+        ..Default::default()
+    };
     let data = match read_valid(&path, &gpu.info.properties.core) {
         Ok(d) => d.unwrap_or_default(),
         Err(why) => {
@@ -117,7 +150,10 @@ pub fn open(gpu: &Gpu, dir: Option<&Path>) -> Result<(vk::PipelineCache, Option<
             c
         }
         Err(e) if !data.is_empty() => {
-            tracing::warn!("pipeline cache {} refused by the driver ({e}); starting empty", path.display());
+            tracing::warn!(
+                "pipeline cache {} refused by the driver ({e}); starting empty",
+                path.display()
+            );
             status.ignored = Some(format!("refused by the driver: {e}"));
             create(gpu, &[])?
         }
@@ -152,11 +188,19 @@ mod tests {
     use super::*;
 
     fn props() -> vk::PhysicalDeviceProperties {
-        vk::PhysicalDeviceProperties { vendor_id: 0x10de, device_id: 0x2330, pipeline_cache_uuid: [7; 16], ..Default::default() }
+        vk::PhysicalDeviceProperties {
+            vendor_id: 0x10de,
+            device_id: 0x2330,
+            pipeline_cache_uuid: [7; 16],
+            ..Default::default()
+        }
     }
 
     fn header(size: u32, version: u32, vendor: u32, device: u32, uuid: [u8; 16]) -> Vec<u8> {
-        let mut b: Vec<u8> = [size, version, vendor, device].iter().flat_map(|v| v.to_le_bytes()).collect();
+        let mut b: Vec<u8> = [size, version, vendor, device]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
         b.extend_from_slice(&uuid);
         b.extend_from_slice(b"driver payload");
         b
@@ -165,21 +209,48 @@ mod tests {
     #[test]
     fn only_this_devices_header_is_accepted() {
         let p = props();
-        assert_eq!(header_mismatch(&header(32, 1, 0x10de, 0x2330, [7; 16]), &p), None);
-        assert!(header_mismatch(&header(32, 1, 0x10de, 0x2330, [8; 16]), &p).unwrap().contains("UUID"));
-        assert!(header_mismatch(&header(32, 1, 0x1002, 0x2330, [7; 16]), &p).unwrap().contains("vendor"));
-        assert!(header_mismatch(&header(32, 1, 0x10de, 0x2331, [7; 16]), &p).unwrap().contains("vendor/device"));
-        assert!(header_mismatch(&header(32, 2, 0x10de, 0x2330, [7; 16]), &p).unwrap().contains("version"));
-        assert!(header_mismatch(&header(16, 1, 0x10de, 0x2330, [7; 16]), &p).unwrap().contains("header size"));
-        assert!(header_mismatch(&header(4096, 1, 0x10de, 0x2330, [7; 16]), &p).unwrap().contains("header size"));
+        assert_eq!(
+            header_mismatch(&header(32, 1, 0x10de, 0x2330, [7; 16]), &p),
+            None
+        );
+        assert!(header_mismatch(&header(32, 1, 0x10de, 0x2330, [8; 16]), &p)
+            .unwrap()
+            .contains("UUID"));
+        assert!(header_mismatch(&header(32, 1, 0x1002, 0x2330, [7; 16]), &p)
+            .unwrap()
+            .contains("vendor"));
+        assert!(header_mismatch(&header(32, 1, 0x10de, 0x2331, [7; 16]), &p)
+            .unwrap()
+            .contains("vendor/device"));
+        assert!(header_mismatch(&header(32, 2, 0x10de, 0x2330, [7; 16]), &p)
+            .unwrap()
+            .contains("version"));
+        assert!(header_mismatch(&header(16, 1, 0x10de, 0x2330, [7; 16]), &p)
+            .unwrap()
+            .contains("header size"));
+        assert!(
+            header_mismatch(&header(4096, 1, 0x10de, 0x2330, [7; 16]), &p)
+                .unwrap()
+                .contains("header size")
+        );
         // Truncated inside the header, and empty.
-        assert!(header_mismatch(&header(32, 1, 0x10de, 0x2330, [7; 16])[..20], &p).unwrap().contains("shorter"));
+        assert!(
+            header_mismatch(&header(32, 1, 0x10de, 0x2330, [7; 16])[..20], &p)
+                .unwrap()
+                .contains("shorter")
+        );
         assert!(header_mismatch(&[], &p).is_some());
     }
 
     #[test]
     fn the_file_name_names_device_driver_and_uuid() {
-        let p = vk::PhysicalDeviceProperties { driver_version: 0x1234_5678, ..props() };
-        assert_eq!(file_name(&p), format!("pipeline-cache-10de-2330-12345678-{}.bin", "07".repeat(16)));
+        let p = vk::PhysicalDeviceProperties {
+            driver_version: 0x1234_5678,
+            ..props()
+        };
+        assert_eq!(
+            file_name(&p),
+            format!("pipeline-cache-10de-2330-12345678-{}.bin", "07".repeat(16))
+        );
     }
 }

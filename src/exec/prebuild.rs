@@ -12,8 +12,8 @@
 //! deadline measures silence, not the batch's size. Traces still run one cell at a time.
 use super::{Bound, CellError, Compiled, Executor, Pipeline, PipelineInput, Prebuilt};
 use crate::model::Cell;
-use crate::model::Timings;
 use crate::model::Phase;
+use crate::model::Timings;
 use crate::vk::{Gpu, VkError};
 use ash::vk;
 use std::collections::HashSet;
@@ -83,16 +83,31 @@ impl Executor {
     /// result for [`Executor::run`]. `progress` is called after every unit of work ([`Step`]).
     /// An error whose outcome ends the worker is returned ([`keep`]): no cell of the batch can be
     /// blamed.
-    pub fn prebuild(&mut self, cells: &[Cell], threads: usize, progress: &(dyn Fn(Step) + Sync)) -> Result<PrebuildStats, CellError> {
+    pub fn prebuild(
+        &mut self,
+        cells: &[Cell],
+        threads: usize,
+        progress: &(dyn Fn(Step) + Sync),
+    ) -> Result<PrebuildStats, CellError> {
         // Each cell's GLSL, generated once; compiled on the threads first (into the compiler's
         // per-source cache), then taken by each cell's compile in order.
         let generated: Vec<_> = cells
             .iter()
-            .map(|c| super::cell_shaders(c, crate::model::inject::roll(&self.opts.inject, c, self.opts.inject_seed).as_ref()))
+            .map(|c| {
+                super::cell_shaders(
+                    c,
+                    crate::model::inject::roll(&self.opts.inject, c, self.opts.inject_seed)
+                        .as_ref(),
+                )
+            })
             .collect();
         if self.opts.spirv_dir.is_none() {
-            let sources: Vec<_> = generated.iter().flat_map(|g| g.shaders.iter().map(|s| (s.role, s.glsl.as_str()))).collect();
-            self.compiler.precompile(&sources, threads, &|k, n| progress(Step::Glsl(k, n)));
+            let sources: Vec<_> = generated
+                .iter()
+                .flat_map(|g| g.shaders.iter().map(|s| (s.role, s.glsl.as_str())))
+                .collect();
+            self.compiler
+                .precompile(&sources, threads, &|k, n| progress(Step::Glsl(k, n)));
         }
         let mut staged: Vec<(Cell, Timings, Compiled, Bound)> = Vec::new();
         for (k, (cell, shaders)) in cells.iter().zip(generated).enumerate() {
@@ -103,12 +118,19 @@ impl Executor {
         }
         // The first cell of each pipeline not created yet makes it (its timings get the time).
         let mut seen = HashSet::new();
-        let makers: Vec<usize> = (0..staged.len()).filter(|&i| !self.pipelines.contains_key(&staged[i].3.pkey) && seen.insert(staged[i].3.pkey)).collect();
+        let makers: Vec<usize> = (0..staged.len())
+            .filter(|&i| {
+                !self.pipelines.contains_key(&staged[i].3.pkey) && seen.insert(staged[i].3.pkey)
+            })
+            .collect();
         let made = {
             let shared = Shared {
                 gpu: &self.gpu,
                 cache: self.cache,
-                inputs: makers.iter().map(|&i| self.pipeline_input(&staged[i].0, &staged[i].2, &staged[i].3)).collect(),
+                inputs: makers
+                    .iter()
+                    .map(|&i| self.pipeline_input(&staged[i].0, &staged[i].2, &staged[i].3))
+                    .collect(),
             };
             create_all(&shared, threads, &|k, n| progress(Step::Pipelines(k, n)))
         };
@@ -123,7 +145,14 @@ impl Executor {
                     let e = keep(e.into())?;
                     failed.insert(staged[i].3.pkey);
                     let (cell, timings) = (staged[i].0, staged[i].1.clone());
-                    self.prebuilt.insert(cell.id(), Prebuilt { timings, phase: Phase::Pipeline, result: Err(e) });
+                    self.prebuilt.insert(
+                        cell.id(),
+                        Prebuilt {
+                            timings,
+                            phase: Phase::Pipeline,
+                            result: Err(e),
+                        },
+                    );
                 }
             }
         }
@@ -131,15 +160,29 @@ impl Executor {
         // again at their turn, as they would have without the prebuild.
         for (cell, timings, _, bound) in staged {
             if !failed.contains(&bound.pkey) {
-                self.prebuilt.insert(cell.id(), Prebuilt { timings, phase: Phase::Pipeline, result: Ok(bound) });
+                self.prebuilt.insert(
+                    cell.id(),
+                    Prebuilt {
+                        timings,
+                        phase: Phase::Pipeline,
+                        result: Ok(bound),
+                    },
+                );
             }
         }
-        Ok(PrebuildStats { pipelines: makers.len(), threads: threads.clamp(1, makers.len().max(1)) })
+        Ok(PrebuildStats {
+            pipelines: makers.len(),
+            threads: threads.clamp(1, makers.len().max(1)),
+        })
     }
 
     /// Compile and bind one cell on the calling thread: `Some` when it is ready for its pipeline;
     /// `None` when its error is kept for its turn; `Err` when the error ends the worker.
-    fn stage(&mut self, cell: &Cell, shaders: crate::shadergen::CellShaders) -> Result<Option<(Cell, Timings, Compiled, Bound)>, CellError> {
+    fn stage(
+        &mut self,
+        cell: &Cell,
+        shaders: crate::shadergen::CellShaders,
+    ) -> Result<Option<(Cell, Timings, Compiled, Bound)>, CellError> {
         let mut timings = Timings::default();
         let (phase, e) = match self.compile_cell(cell, shaders, &mut timings) {
             Err(e) => (Phase::Compile, e),
@@ -149,13 +192,24 @@ impl Executor {
             },
         };
         let e = keep(e)?;
-        self.prebuilt.insert(cell.id(), Prebuilt { timings, phase, result: Err(e) });
+        self.prebuilt.insert(
+            cell.id(),
+            Prebuilt {
+                timings,
+                phase,
+                result: Err(e),
+            },
+        );
         Ok(None)
     }
 }
 
 /// Create every input's pipeline on `threads` threads, in the inputs' order.
-fn create_all(shared: &Shared, threads: usize, progress: &(dyn Fn(usize, usize) + Sync)) -> Vec<Made> {
+fn create_all(
+    shared: &Shared,
+    threads: usize,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Vec<Made> {
     let made = crate::pool::map(
         shared.inputs.len(),
         threads,
@@ -167,7 +221,9 @@ fn create_all(shared: &Shared, threads: usize, progress: &(dyn Fn(usize, usize) 
         },
         progress,
     );
-    made.into_iter().map(|m| m.expect("every thread takes items (its init cannot fail)")).collect()
+    made.into_iter()
+        .map(|m| m.expect("every thread takes items (its init cannot fail)"))
+        .collect()
 }
 
 #[cfg(test)]
@@ -178,20 +234,28 @@ mod tests {
 
     #[test]
     fn an_error_that_ends_the_worker_aborts_the_prebuild_and_others_are_kept() {
-        let lost = || VkError::DeviceLost { call: "vkCreateDescriptorPool" };
+        let lost = || VkError::DeviceLost {
+            call: "vkCreateDescriptorPool",
+        };
         let aborts = [
             CellError::Vk(lost()),
             CellError::Build(BuildError::Vk(lost())),
             CellError::Build(BuildError::TimedOut(Duration::from_secs(1))),
             CellError::Timeout("upload"),
-            CellError::Vk(VkError::Call { call: "vkWaitForFences", result: vk::Result::TIMEOUT }),
+            CellError::Vk(VkError::Call {
+                call: "vkWaitForFences",
+                result: vk::Result::TIMEOUT,
+            }),
         ];
         for e in aborts {
             let what = e.to_string();
             assert!(keep(e).is_err(), "{what} must abort the prebuild");
         }
         let kept = [
-            CellError::Vk(VkError::Call { call: "vkCreateRayTracingPipelinesKHR", result: vk::Result::ERROR_OUT_OF_HOST_MEMORY }),
+            CellError::Vk(VkError::Call {
+                call: "vkCreateRayTracingPipelinesKHR",
+                result: vk::Result::ERROR_OUT_OF_HOST_MEMORY,
+            }),
             CellError::Io(crate::exec::files::FileError::NotSpirv("x".into())),
             CellError::NotImplemented("x".into()),
             CellError::Unsupported("x".into()),

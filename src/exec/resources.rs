@@ -19,11 +19,23 @@ use std::time::Duration;
 /// What one descriptor points at.
 #[derive(Clone, Copy, Debug)]
 pub enum Target {
-    Buffer { raw: vk::Buffer, address: u64, range: u64 },
+    Buffer {
+        raw: vk::Buffer,
+        address: u64,
+        range: u64,
+    },
     /// `image`: for heap descriptors, which are made from a view description, not a view;
     /// `layers`: the view's (`None` 2D, `Some(n)` 2D array of n layers, `vk::memory::create_view`).
-    Image { image: vk::Image, view: vk::ImageView, sampler: vk::Sampler, layers: Option<u32> },
-    Accel { raw: vk::AccelerationStructureKHR, address: u64 },
+    Image {
+        image: vk::Image,
+        view: vk::ImageView,
+        sampler: vk::Sampler,
+        layers: Option<u32>,
+    },
+    Accel {
+        raw: vk::AccelerationStructureKHR,
+        address: u64,
+    },
 }
 
 pub struct ResourceArray {
@@ -53,41 +65,92 @@ pub enum PackedError {
 }
 
 impl ResourceArray {
-    pub fn create(gpu: &Gpu, kind: Resource, slots: u32, submitter: &Submitter, timeout: Duration) -> Result<Self, VkError> {
+    pub fn create(
+        gpu: &Gpu,
+        kind: Resource,
+        slots: u32,
+        submitter: &Submitter,
+        timeout: Duration,
+    ) -> Result<Self, VkError> {
         let mut buffers = Vec::new();
         let mut images = Vec::new();
         let mut packed = None;
         let mut array_views = Vec::new();
         // Every element of a slot, in element order (texels row by row for a 2×2 image).
         let value_bytes = |slot: u32| -> Vec<u8> {
-            (0..probe::ELEMENTS).flat_map(|e| probe::resource_value(kind, slot, e)).flat_map(|f| f.to_le_bytes()).collect()
+            (0..probe::ELEMENTS)
+                .flat_map(|e| probe::resource_value(kind, slot, e))
+                .flat_map(|f| f.to_le_bytes())
+                .collect()
         };
         match kind {
             Resource::StorageBuffer | Resource::UniformBuffer => {
-                let usage = if kind == Resource::StorageBuffer { vk::BufferUsageFlags::STORAGE_BUFFER } else { vk::BufferUsageFlags::UNIFORM_BUFFER };
+                let usage = if kind == Resource::StorageBuffer {
+                    vk::BufferUsageFlags::STORAGE_BUFFER
+                } else {
+                    vk::BufferUsageFlags::UNIFORM_BUFFER
+                };
                 for s in 0..slots {
-                    buffers.push(Buffer::with_data(gpu, &value_bytes(s), usage | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS, "probe buffer")?);
+                    buffers.push(Buffer::with_data(
+                        gpu,
+                        &value_bytes(s),
+                        usage | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+                        "probe buffer",
+                    )?);
                 }
                 if kind == Resource::StorageBuffer {
-                    packed = Some(Packed::Buffer(Buffer::with_data(gpu, &probe::packed_bytes(kind, slots), usage | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS, "packed probe buffer")?));
+                    packed = Some(Packed::Buffer(Buffer::with_data(
+                        gpu,
+                        &probe::packed_bytes(kind, slots),
+                        usage | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+                        "packed probe buffer",
+                    )?));
                 }
             }
             Resource::SampledImage | Resource::StorageImage => {
                 let usage = vk::ImageUsageFlags::TRANSFER_DST
-                    | if kind == Resource::SampledImage { vk::ImageUsageFlags::SAMPLED } else { vk::ImageUsageFlags::STORAGE };
-                let extent = vk::Extent2D { width: 2, height: 2 };
+                    | if kind == Resource::SampledImage {
+                        vk::ImageUsageFlags::SAMPLED
+                    } else {
+                        vk::ImageUsageFlags::STORAGE
+                    };
+                let extent = vk::Extent2D {
+                    width: 2,
+                    height: 2,
+                };
                 let mut staging = Vec::new();
                 for s in 0..slots {
                     images.push(Image::new(gpu, extent, PROBE_IMAGE_FORMAT, usage)?);
-                    staging.push(Buffer::with_data(gpu, &value_bytes(s), vk::BufferUsageFlags::TRANSFER_SRC, "staging")?);
+                    staging.push(Buffer::with_data(
+                        gpu,
+                        &value_bytes(s),
+                        vk::BufferUsageFlags::TRANSFER_SRC,
+                        "staging",
+                    )?);
                 }
                 if kind == Resource::SampledImage {
                     for i in &images {
-                        array_views.push(crate::vk::memory::create_view(gpu, i.raw, PROBE_IMAGE_FORMAT, Some(1))?);
+                        array_views.push(crate::vk::memory::create_view(
+                            gpu,
+                            i.raw,
+                            PROBE_IMAGE_FORMAT,
+                            Some(1),
+                        )?);
                     }
                     if slots <= gpu.info.properties.core.limits.max_image_array_layers {
-                        let img = Image::with_layers(gpu, extent, PROBE_IMAGE_FORMAT, usage, Some(slots))?;
-                        staging.push(Buffer::with_data(gpu, &probe::packed_bytes(kind, slots), vk::BufferUsageFlags::TRANSFER_SRC, "staging")?);
+                        let img = Image::with_layers(
+                            gpu,
+                            extent,
+                            PROBE_IMAGE_FORMAT,
+                            usage,
+                            Some(slots),
+                        )?;
+                        staging.push(Buffer::with_data(
+                            gpu,
+                            &probe::packed_bytes(kind, slots),
+                            vk::BufferUsageFlags::TRANSFER_SRC,
+                            "staging",
+                        )?);
                         packed = Some(Packed::Image(img, slots));
                     }
                 }
@@ -95,48 +158,136 @@ impl ResourceArray {
                     Some(Packed::Image(img, n)) => Some((img, *n)),
                     Some(Packed::Buffer(_)) | None => None,
                 };
-                let uploads: Vec<(&Image, u32)> = images.iter().map(|i| (i, 1)).chain(packed_image).collect();
+                let uploads: Vec<(&Image, u32)> =
+                    images.iter().map(|i| (i, 1)).chain(packed_image).collect();
                 let waited = submitter.run(gpu, timeout, |cmd| unsafe {
                     for ((img, layers), st) in uploads.iter().zip(&staging) {
-                        let dst = (vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::AccessFlags::TRANSFER_WRITE, vk::PipelineStageFlags::TRANSFER);
-                        let top = (vk::ImageLayout::UNDEFINED, vk::AccessFlags::empty(), vk::PipelineStageFlags::TOP_OF_PIPE);
+                        let dst = (
+                            vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                            vk::AccessFlags::TRANSFER_WRITE,
+                            vk::PipelineStageFlags::TRANSFER,
+                        );
+                        let top = (
+                            vk::ImageLayout::UNDEFINED,
+                            vk::AccessFlags::empty(),
+                            vk::PipelineStageFlags::TOP_OF_PIPE,
+                        );
                         transition(gpu, cmd, img.raw, Transition { from: top, to: dst });
                         let region = vk::BufferImageCopy::default()
-                            .image_subresource(vk::ImageSubresourceLayers { aspect_mask: vk::ImageAspectFlags::COLOR, mip_level: 0, base_array_layer: 0, layer_count: *layers })
-                            .image_extent(vk::Extent3D { width: 2, height: 2, depth: 1 });
-                        gpu.device.cmd_copy_buffer_to_image(cmd, st.raw, img.raw, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &[region]);
-                        let general = (vk::ImageLayout::GENERAL, vk::AccessFlags::SHADER_READ, vk::PipelineStageFlags::ALL_COMMANDS);
-                        transition(gpu, cmd, img.raw, Transition { from: dst, to: general });
+                            .image_subresource(vk::ImageSubresourceLayers {
+                                aspect_mask: vk::ImageAspectFlags::COLOR,
+                                mip_level: 0,
+                                base_array_layer: 0,
+                                layer_count: *layers,
+                            })
+                            .image_extent(vk::Extent3D {
+                                width: 2,
+                                height: 2,
+                                depth: 1,
+                            });
+                        gpu.device.cmd_copy_buffer_to_image(
+                            cmd,
+                            st.raw,
+                            img.raw,
+                            vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                            &[region],
+                        );
+                        let general = (
+                            vk::ImageLayout::GENERAL,
+                            vk::AccessFlags::SHADER_READ,
+                            vk::PipelineStageFlags::ALL_COMMANDS,
+                        );
+                        transition(
+                            gpu,
+                            cmd,
+                            img.raw,
+                            Transition {
+                                from: dst,
+                                to: general,
+                            },
+                        );
                     }
                 });
                 for st in &staging {
                     st.destroy(gpu);
                 }
                 if waited? == Waited::TimedOut {
-                    return Err(VkError::Call { call: "image upload (fence wait)", result: vk::Result::TIMEOUT });
+                    return Err(VkError::Call {
+                        call: "image upload (fence wait)",
+                        result: vk::Result::TIMEOUT,
+                    });
                 }
             }
             Resource::AccelerationStructure => {}
         }
-        Ok(ResourceArray { buffers, images, packed, array_views, max_layers: gpu.info.properties.core.limits.max_image_array_layers })
+        Ok(ResourceArray {
+            buffers,
+            images,
+            packed,
+            array_views,
+            max_layers: gpu.info.properties.core.limits.max_image_array_layers,
+        })
     }
 
     /// The descriptors of the probed array; `packed` (`index=dynamic_element`): the packed
     /// resource at `probe::PACKED_SLOT` and, for images, every slot's 2D-array view.
-    pub fn targets(&self, sampler: vk::Sampler, kind: Resource, packed: bool) -> Result<Vec<Target>, PackedError> {
+    pub fn targets(
+        &self,
+        sampler: vk::Sampler,
+        kind: Resource,
+        packed: bool,
+    ) -> Result<Vec<Target>, PackedError> {
         let mut t: Vec<Target> = if !self.buffers.is_empty() {
-            self.buffers.iter().map(|b| Target::Buffer { raw: b.raw, address: b.address, range: 16 * probe::ELEMENTS as u64 }).collect()
+            self.buffers
+                .iter()
+                .map(|b| Target::Buffer {
+                    raw: b.raw,
+                    address: b.address,
+                    range: 16 * probe::ELEMENTS as u64,
+                })
+                .collect()
         } else if packed {
-            self.images.iter().zip(&self.array_views).map(|(i, v)| Target::Image { image: i.raw, view: *v, sampler, layers: Some(1) }).collect()
+            self.images
+                .iter()
+                .zip(&self.array_views)
+                .map(|(i, v)| Target::Image {
+                    image: i.raw,
+                    view: *v,
+                    sampler,
+                    layers: Some(1),
+                })
+                .collect()
         } else {
-            self.images.iter().map(|i| Target::Image { image: i.raw, view: i.view, sampler, layers: None }).collect()
+            self.images
+                .iter()
+                .map(|i| Target::Image {
+                    image: i.raw,
+                    view: i.view,
+                    sampler,
+                    layers: None,
+                })
+                .collect()
         };
         if packed {
             let slot = probe::PACKED_SLOT as usize;
             t[slot] = match &self.packed {
-                Some(Packed::Buffer(b)) => Target::Buffer { raw: b.raw, address: b.address, range: b.size },
-                Some(Packed::Image(i, n)) => Target::Image { image: i.raw, view: i.view, sampler, layers: Some(*n) },
-                None if kind == Resource::SampledImage => return Err(PackedError::TooManyLayers { slots: t.len() as u32, max: self.max_layers }),
+                Some(Packed::Buffer(b)) => Target::Buffer {
+                    raw: b.raw,
+                    address: b.address,
+                    range: b.size,
+                },
+                Some(Packed::Image(i, n)) => Target::Image {
+                    image: i.raw,
+                    view: i.view,
+                    sampler,
+                    layers: Some(*n),
+                },
+                None if kind == Resource::SampledImage => {
+                    return Err(PackedError::TooManyLayers {
+                        slots: t.len() as u32,
+                        max: self.max_layers,
+                    })
+                }
                 None => return Err(PackedError::NoPacked(kind)),
             };
         }
@@ -191,7 +342,10 @@ fn sampler_info_for(mode: crate::probe::AddressMode) -> vk::SamplerCreateInfo<'s
 
 /// The sampler heap's samplers, in heap order (`probe::SAMPLER_MODES`).
 pub fn heap_sampler_infos() -> Vec<vk::SamplerCreateInfo<'static>> {
-    crate::probe::SAMPLER_MODES.iter().map(|m| sampler_info_for(*m)).collect()
+    crate::probe::SAMPLER_MODES
+        .iter()
+        .map(|m| sampler_info_for(*m))
+        .collect()
 }
 
 pub fn descriptor_type(kind: Resource) -> vk::DescriptorType {
@@ -206,12 +360,19 @@ pub fn descriptor_type(kind: Resource) -> vk::DescriptorType {
 
 /// A buffer of `slots` device addresses: slot k → probe TLAS variant `probe::as_slot_tlas(k)`.
 pub fn as_table(gpu: &Gpu, variant_addresses: &[u64], slots: u32) -> Result<Buffer, VkError> {
-    let addrs: Vec<u64> = (0..slots).map(|k| variant_addresses[probe::as_slot_tlas(k)]).collect();
+    let addrs: Vec<u64> = (0..slots)
+        .map(|k| variant_addresses[probe::as_slot_tlas(k)])
+        .collect();
     address_table(gpu, &addrs, "AS address table")
 }
 
 /// A host-visible buffer holding `addresses` as 64-bit values, itself reachable by address.
 pub fn address_table(gpu: &Gpu, addresses: &[u64], what: &'static str) -> Result<Buffer, VkError> {
     let bytes: Vec<u8> = addresses.iter().flat_map(|a| a.to_le_bytes()).collect();
-    Buffer::with_data(gpu, &bytes, vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS, what)
+    Buffer::with_data(
+        gpu,
+        &bytes,
+        vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+        what,
+    )
 }

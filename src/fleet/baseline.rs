@@ -10,11 +10,13 @@
 //! - deqp-runner's `test,Status` lines (`#` comments), statuses `Fail` (mismatch or error),
 //!   `Crash` (crash or device loss), `Timeout`, `Flake`. Read by extension `.csv`/`.txt` or
 //!   content; written with `--format deqp`.
+use crate::model::baseline::SCHEMA;
 use crate::model::Outcome;
+use crate::model::{
+    Baseline, BaselineCheck, CellCheck, Expectation, PerfBound, Status, WorkerFault,
+};
 use crate::model::{CellReport, RunReport};
 use std::collections::BTreeMap;
-use crate::model::baseline::SCHEMA;
-use crate::model::{Baseline, BaselineCheck, CellCheck, Expectation, PerfBound, Status, WorkerFault};
 
 /// The phases a baseline can bound (means per timed cell, from the report's timing summary).
 pub const PHASES: &[&str] = &["compile", "pipeline", "setup", "trace", "check"];
@@ -36,14 +38,32 @@ fn worker_faults(r: &RunReport) -> Vec<(WorkerFault, String)> {
     r.workers
         .iter()
         .filter(|w| w.outcome.is_finding())
-        .map(|w| (WorkerFault { phase: w.phase.to_string(), outcome: w.outcome }, format!("worker {} {} in {}: {}", w.worker, w.outcome.as_str(), w.phase, w.detail.as_deref().unwrap_or(""))))
+        .map(|w| {
+            (
+                WorkerFault {
+                    phase: w.phase.to_string(),
+                    outcome: w.outcome,
+                },
+                format!(
+                    "worker {} {} in {}: {}",
+                    w.worker,
+                    w.outcome.as_str(),
+                    w.phase,
+                    w.detail.as_deref().unwrap_or("")
+                ),
+            )
+        })
         .collect()
 }
 
 #[derive(Debug, thiserror::Error)]
 pub enum BaselineError {
     #[error("{file}: line {line}: {message}")]
-    Line { file: String, line: usize, message: String },
+    Line {
+        file: String,
+        line: usize,
+        message: String,
+    },
     #[error("{file}: {message}")]
     File { file: String, message: String },
     /// `--perf PHASE` names no phase of [`PHASES`], or the report timed no cell in it.
@@ -77,10 +97,25 @@ const DEQP_FLAKE_ALSO: &[Outcome] = &[Outcome::Mismatch, Outcome::Timeout, Outco
 impl Baseline {
     /// The expectations of a finished run: every finding (flaky ones as flakes with their rate),
     /// with performance bounds for `perf` phases (`factor`× the run's mean plus `slack_ms`).
-    pub fn from_report(r: &RunReport, source: &str, perf: &[String], factor: f64, slack_ms: f64) -> Result<Baseline, BaselineError> {
+    pub fn from_report(
+        r: &RunReport,
+        source: &str,
+        perf: &[String],
+        factor: f64,
+        slack_ms: f64,
+    ) -> Result<Baseline, BaselineError> {
         let mut expected = Vec::new();
-        for c in r.cells.iter().filter(|c| c.cell.canary.is_none() && c.outcome.is_finding()) {
-            let mut also: Vec<Outcome> = c.attempts.iter().map(|a| a.outcome).filter(|o| *o != c.outcome).collect();
+        for c in r
+            .cells
+            .iter()
+            .filter(|c| c.cell.canary.is_none() && c.outcome.is_finding())
+        {
+            let mut also: Vec<Outcome> = c
+                .attempts
+                .iter()
+                .map(|a| a.outcome)
+                .filter(|o| *o != c.outcome)
+                .collect();
             also.sort();
             also.dedup();
             expected.push(Expectation {
@@ -88,22 +123,37 @@ impl Baseline {
                 outcome: c.outcome,
                 flake: c.flaky,
                 also,
-                rate: c.incidence.as_ref().map(|i| format!("{} of {} attempts", i.faulted, i.attempts)),
+                rate: c
+                    .incidence
+                    .as_ref()
+                    .map(|i| format!("{} of {} attempts", i.faulted, i.attempts)),
                 bug: None,
             });
         }
         let mut performance = BTreeMap::new();
         for p in perf {
-            let mean = phase_mean(r, p).ok_or_else(|| BaselineError::NoPhaseMean { phase: p.clone() })?;
-            performance.insert(p.clone(), PerfBound { mean_ms: mean, factor, slack_ms });
+            let mean =
+                phase_mean(r, p).ok_or_else(|| BaselineError::NoPhaseMean { phase: p.clone() })?;
+            performance.insert(
+                p.clone(),
+                PerfBound {
+                    mean_ms: mean,
+                    factor,
+                    slack_ms,
+                },
+            );
         }
-        let mut worker_faults: Vec<WorkerFault> = worker_faults(r).into_iter().map(|(f, _)| f).collect();
+        let mut worker_faults: Vec<WorkerFault> =
+            worker_faults(r).into_iter().map(|(f, _)| f).collect();
         worker_faults.sort();
         worker_faults.dedup();
         Ok(Baseline {
             schema: SCHEMA.into(),
             device: r.device["name"].as_str().unwrap_or("?").into(),
-            driver_version: r.device["driver_version"]["decoded"].as_str().unwrap_or("?").into(),
+            driver_version: r.device["driver_version"]["decoded"]
+                .as_str()
+                .unwrap_or("?")
+                .into(),
             source: source.into(),
             expected,
             worker_faults,
@@ -113,9 +163,15 @@ impl Baseline {
 
     pub fn parse(file: &str, text: &str) -> Result<Baseline, BaselineError> {
         if text.trim_start().starts_with('{') {
-            let b: Baseline = serde_json::from_str(text).map_err(|e| BaselineError::File { file: file.into(), message: format!("not an rtprobe baseline: {e}") })?;
+            let b: Baseline = serde_json::from_str(text).map_err(|e| BaselineError::File {
+                file: file.into(),
+                message: format!("not an rtprobe baseline: {e}"),
+            })?;
             if b.schema != SCHEMA {
-                return Err(BaselineError::File { file: file.into(), message: format!("schema {:?}, expected {SCHEMA:?}", b.schema) });
+                return Err(BaselineError::File {
+                    file: file.into(),
+                    message: format!("schema {:?}, expected {SCHEMA:?}", b.schema),
+                });
             }
             return Ok(b);
         }
@@ -124,7 +180,15 @@ impl Baseline {
 
     /// deqp-runner's `test,Status` lines; `# device: …` / `# driver: …` comments fill the header.
     fn parse_deqp(file: &str, text: &str) -> Result<Baseline, BaselineError> {
-        let mut b = Baseline { schema: SCHEMA.into(), device: String::new(), driver_version: String::new(), source: file.into(), expected: vec![], worker_faults: vec![], performance: BTreeMap::new() };
+        let mut b = Baseline {
+            schema: SCHEMA.into(),
+            device: String::new(),
+            driver_version: String::new(),
+            source: file.into(),
+            expected: vec![],
+            worker_faults: vec![],
+            performance: BTreeMap::new(),
+        };
         for (n, raw) in text.lines().enumerate() {
             let line = raw.trim();
             if let Some(c) = line.strip_prefix('#') {
@@ -139,11 +203,33 @@ impl Baseline {
             if line.is_empty() {
                 continue;
             }
-            let err = |message: String| BaselineError::Line { file: file.into(), line: n + 1, message };
-            let (cell, status) = line.split_once(',').ok_or_else(|| err(format!("{line:?} is not `cell,Status`")))?;
-            let (outcome, flake) = from_deqp(status.trim()).ok_or_else(|| err(format!("unknown status {:?} (Fail, Crash, Timeout, Flake)", status.trim())))?;
-            let also = if flake { DEQP_FLAKE_ALSO.to_vec() } else { vec![] };
-            b.expected.push(Expectation { cell: cell.trim().into(), outcome, flake, also, rate: None, bug: None });
+            let err = |message: String| BaselineError::Line {
+                file: file.into(),
+                line: n + 1,
+                message,
+            };
+            let (cell, status) = line
+                .split_once(',')
+                .ok_or_else(|| err(format!("{line:?} is not `cell,Status`")))?;
+            let (outcome, flake) = from_deqp(status.trim()).ok_or_else(|| {
+                err(format!(
+                    "unknown status {:?} (Fail, Crash, Timeout, Flake)",
+                    status.trim()
+                ))
+            })?;
+            let also = if flake {
+                DEQP_FLAKE_ALSO.to_vec()
+            } else {
+                vec![]
+            };
+            b.expected.push(Expectation {
+                cell: cell.trim().into(),
+                outcome,
+                flake,
+                also,
+                rate: None,
+                bug: None,
+            });
         }
         Ok(b)
     }
@@ -154,9 +240,16 @@ impl Baseline {
 
     /// deqp-runner form (performance bounds and flake details do not fit it and are dropped).
     pub fn to_deqp(&self) -> String {
-        let mut s = format!("# rtprobe baseline (deqp-runner form)\n# device: {}\n# driver: {}\n", self.device, self.driver_version);
+        let mut s = format!(
+            "# rtprobe baseline (deqp-runner form)\n# device: {}\n# driver: {}\n",
+            self.device, self.driver_version
+        );
         for e in &self.expected {
-            let status = if e.flake { "Flake" } else { deqp_status(e.outcome).unwrap_or("Fail") };
+            let status = if e.flake {
+                "Flake"
+            } else {
+                deqp_status(e.outcome).unwrap_or("Fail")
+            };
             s += &format!("{},{status}\n", e.cell);
         }
         s
@@ -170,18 +263,43 @@ impl Baseline {
 fn classify(c: &CellReport, e: Option<&Expectation>) -> (Status, Outcome) {
     let actual = c.outcome;
     match e {
-        None => (if actual.is_finding() { Status::Regression } else { Status::Expected }, Outcome::Pass),
+        None => (
+            if actual.is_finding() {
+                Status::Regression
+            } else {
+                Status::Expected
+            },
+            Outcome::Pass,
+        ),
         Some(e) if e.flake => {
             // A flake tolerates, in any mix, a pass and the outcomes it was seen with (by deqp
             // class: crash and device loss are one fault); any other outcome is a regression.
             let class = |o: Outcome| deqp_status(o).unwrap_or("Pass");
-            let known = |o: Outcome| o == Outcome::Pass || std::iter::once(e.outcome).chain(e.also.iter().copied()).any(|k| class(k) == class(o));
-            let all_known = c.attempts.iter().filter(|a| !a.not_run()).all(|a| known(a.outcome)) && known(actual);
-            (if all_known { Status::KnownFlake } else { Status::Regression }, e.outcome)
+            let known = |o: Outcome| {
+                o == Outcome::Pass
+                    || std::iter::once(e.outcome)
+                        .chain(e.also.iter().copied())
+                        .any(|k| class(k) == class(o))
+            };
+            let all_known = c
+                .attempts
+                .iter()
+                .filter(|a| !a.not_run())
+                .all(|a| known(a.outcome))
+                && known(actual);
+            (
+                if all_known {
+                    Status::KnownFlake
+                } else {
+                    Status::Regression
+                },
+                e.outcome,
+            )
         }
         Some(e) => {
             // Outcomes of one deqp class (crash / device loss; mismatch / error) are the same fault.
-            let same = actual == e.outcome || (actual.is_finding() && deqp_status(actual) == deqp_status(e.outcome));
+            let same = actual == e.outcome
+                || (actual.is_finding() && deqp_status(actual) == deqp_status(e.outcome));
             // Passing where a fault was expected is better; another fault is not (deqp-runner
             // fails on any unexpected status too).
             let status = if same {
@@ -198,8 +316,15 @@ fn classify(c: &CellReport, e: Option<&Expectation>) -> (Status, Outcome) {
 
 /// Compare a run with a baseline: per cell (canaries and unsupported cells aside) and per phase.
 pub fn check(r: &RunReport, b: &Baseline, source: &str) -> BaselineCheck {
-    let mut out = BaselineCheck { source: source.into(), ..Default::default() };
-    for c in r.cells.iter().filter(|c| c.cell.canary.is_none() && c.outcome != Outcome::Unsupported) {
+    let mut out = BaselineCheck {
+        source: source.into(),
+        ..Default::default()
+    };
+    for c in r
+        .cells
+        .iter()
+        .filter(|c| c.cell.canary.is_none() && c.outcome != Outcome::Unsupported)
+    {
         let e = b.get(&c.id);
         let (status, expected) = classify(c, e);
         match status {
@@ -208,10 +333,23 @@ pub fn check(r: &RunReport, b: &Baseline, source: &str) -> BaselineCheck {
             Status::Regression | Status::Improvement => {}
         }
         if status != Status::Expected {
-            out.cells.push(CellCheck { cell: c.id.clone(), status, expected, actual: c.outcome });
+            out.cells.push(CellCheck {
+                cell: c.id.clone(),
+                status,
+                expected,
+                actual: c.outcome,
+            });
         }
     }
-    out.not_run = b.expected.iter().filter(|e| !r.cells.iter().any(|c| c.id == e.cell && !c.attempts.is_empty())).count();
+    out.not_run = b
+        .expected
+        .iter()
+        .filter(|e| {
+            !r.cells
+                .iter()
+                .any(|c| c.id == e.cell && !c.attempts.is_empty())
+        })
+        .count();
     for (fault, text) in worker_faults(r) {
         if b.worker_faults.contains(&fault) {
             out.expected_worker_faults += 1;
@@ -244,17 +382,28 @@ pub fn render(c: &BaselineCheck, allow_improvements: bool) -> String {
         c.known_flakes,
         c.regressions().count(),
         c.improvements().count(),
-        if c.not_run > 0 { format!(", {} entries not run here", c.not_run) } else { String::new() }
+        if c.not_run > 0 {
+            format!(", {} entries not run here", c.not_run)
+        } else {
+            String::new()
+        }
     );
     for x in &c.cells {
         let what = match x.status {
             Status::Regression => "REGRESSION",
             Status::Improvement if allow_improvements => "improvement (allowed)",
-            Status::Improvement => "UNEXPECTED IMPROVEMENT (update the baseline, or --allow-improvements)",
+            Status::Improvement => {
+                "UNEXPECTED IMPROVEMENT (update the baseline, or --allow-improvements)"
+            }
             Status::KnownFlake => "known flake",
             Status::Expected => "expected",
         };
-        s += &format!("  {what}: {} expected {} got {}\n", x.cell, x.expected.as_str(), x.actual.as_str());
+        s += &format!(
+            "  {what}: {} expected {} got {}\n",
+            x.cell,
+            x.expected.as_str(),
+            x.actual.as_str()
+        );
     }
     for p in &c.performance {
         s += &format!("  PERFORMANCE REGRESSION: {p}\n");
@@ -263,7 +412,10 @@ pub fn render(c: &BaselineCheck, allow_improvements: bool) -> String {
         s += &format!("  UNEXPECTED WORKER FAULT: {w}\n");
     }
     if c.expected_worker_faults > 0 {
-        s += &format!("  {} worker faults outside cells, as the baseline expects\n", c.expected_worker_faults);
+        s += &format!(
+            "  {} worker faults outside cells, as the baseline expects\n",
+            c.expected_worker_faults
+        );
     }
     s
 }
@@ -283,18 +435,33 @@ mod tests {
         let again = Baseline::parse("y.csv", &b.to_deqp()).unwrap();
         assert_eq!(again.expected, b.expected);
         assert_eq!(again.to_deqp(), b.to_deqp());
-        let e = Baseline::parse("z.csv", "a.b,Crash\nnonsense\n").unwrap_err().to_string();
+        let e = Baseline::parse("z.csv", "a.b,Crash\nnonsense\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("z.csv: line 2"), "{e}");
-        let e = Baseline::parse("z.csv", "a.b,Exploded\n").unwrap_err().to_string();
+        let e = Baseline::parse("z.csv", "a.b,Exploded\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("unknown status"), "{e}");
         // The JSON form round-trips too.
         let j = Baseline::parse("b.json", &b.to_json()).unwrap();
-        assert_eq!(j, Baseline { source: "x.csv".into(), ..b });
+        assert_eq!(
+            j,
+            Baseline {
+                source: "x.csv".into(),
+                ..b
+            }
+        );
     }
 
     fn cell(index: crate::model::IndexSource) -> crate::model::Cell {
         use crate::model::{DescriptorModel, Resource, Stage};
-        crate::model::Cell::new(Stage::ClosestHit, Resource::StorageBuffer, index, DescriptorModel::DescriptorIndexing)
+        crate::model::Cell::new(
+            Stage::ClosestHit,
+            Resource::StorageBuffer,
+            index,
+            DescriptorModel::DescriptorIndexing,
+        )
     }
 
     fn cell_with(index: crate::model::IndexSource, outcomes: &[Outcome]) -> CellReport {
@@ -326,18 +493,32 @@ mod tests {
             assert_eq!(c.known_flakes, 1);
         }
         // A flake tolerates what it was seen with, not a mismatch it never showed.
-        let wrong = RunReport::for_tests(vec![cell_with(I::Dynamic, &[Outcome::Mismatch, Outcome::Pass])]);
+        let wrong = RunReport::for_tests(vec![cell_with(
+            I::Dynamic,
+            &[Outcome::Mismatch, Outcome::Pass],
+        )]);
         let c = check(&wrong, &b, "b");
         assert_eq!(c.regressions().count(), 1, "{c:?}");
         // A steady expected fault that now passes is an improvement; another fault a regression.
-        let fixed = RunReport::for_tests(vec![cell_with(I::Literal, &[Outcome::Pass]), cell_with(I::SpecConstant, &[Outcome::Timeout])]);
+        let fixed = RunReport::for_tests(vec![
+            cell_with(I::Literal, &[Outcome::Pass]),
+            cell_with(I::SpecConstant, &[Outcome::Timeout]),
+        ]);
         let c = check(&fixed, &b, "b");
-        assert_eq!((c.improvements().count(), c.regressions().count()), (1, 1), "{c:?}");
+        assert_eq!(
+            (c.improvements().count(), c.regressions().count()),
+            (1, 1),
+            "{c:?}"
+        );
     }
 
     #[test]
     fn perf_bound_limit() {
-        let p = PerfBound { mean_ms: 2.0, factor: 2.0, slack_ms: 1.0 };
+        let p = PerfBound {
+            mean_ms: 2.0,
+            factor: 2.0,
+            slack_ms: 1.0,
+        };
         assert_eq!(p.limit(), 5.0);
     }
 }

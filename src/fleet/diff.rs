@@ -93,28 +93,65 @@ fn change(old: &CellReport, new: &CellReport) -> Option<Change> {
 /// Compare two reports. `noise`: a phase's time per cell must change by more than this factor
 /// (0.5 = ±50%) and by more than `floor_ms` to be reported.
 pub fn diff(old: &RunReport, new: &RunReport, noise: f64, floor_ms: f64) -> ReportDiff {
-    let name = |r: &RunReport| format!("{} ({})", r.device["name"].as_str().unwrap_or("?"), r.device["driver_version"]["decoded"].as_str().unwrap_or("?"));
-    let mut d = ReportDiff { old_device: name(old), new_device: name(new), ..Default::default() };
+    let name = |r: &RunReport| {
+        format!(
+            "{} ({})",
+            r.device["name"].as_str().unwrap_or("?"),
+            r.device["driver_version"]["decoded"]
+                .as_str()
+                .unwrap_or("?")
+        )
+    };
+    let mut d = ReportDiff {
+        old_device: name(old),
+        new_device: name(new),
+        ..Default::default()
+    };
     let olds: BTreeMap<&str, &CellReport> = old.cells.iter().map(|c| (c.id.as_str(), c)).collect();
     let news: BTreeMap<&str, &CellReport> = new.cells.iter().map(|c| (c.id.as_str(), c)).collect();
     for c in &new.cells {
         match olds.get(c.id.as_str()) {
-            None => d.cells.push(CellDiff { cell: c.id.clone(), change: Change::New, old: None, new: Some(verdict(c)) }),
+            None => d.cells.push(CellDiff {
+                cell: c.id.clone(),
+                change: Change::New,
+                old: None,
+                new: Some(verdict(c)),
+            }),
             Some(o) => match change(o, c) {
-                Some(ch) => d.cells.push(CellDiff { cell: c.id.clone(), change: ch, old: Some(verdict(o)), new: Some(verdict(c)) }),
+                Some(ch) => d.cells.push(CellDiff {
+                    cell: c.id.clone(),
+                    change: ch,
+                    old: Some(verdict(o)),
+                    new: Some(verdict(c)),
+                }),
                 None => d.unchanged += 1,
             },
         }
     }
-    for c in old.cells.iter().filter(|c| !news.contains_key(c.id.as_str())) {
-        d.cells.push(CellDiff { cell: c.id.clone(), change: Change::Gone, old: Some(verdict(c)), new: None });
+    for c in old
+        .cells
+        .iter()
+        .filter(|c| !news.contains_key(c.id.as_str()))
+    {
+        d.cells.push(CellDiff {
+            cell: c.id.clone(),
+            change: Change::Gone,
+            old: Some(verdict(c)),
+            new: None,
+        });
     }
-    d.cells.sort_by(|a, b| (a.change, &a.cell).cmp(&(b.change, &b.cell)));
+    d.cells
+        .sort_by(|a, b| (a.change, &a.cell).cmp(&(b.change, &b.cell)));
     for p in PHASES {
         if let (Some(a), Some(b)) = (phase_mean(old, p), phase_mean(new, p)) {
             let ratio = if a > 0.0 { b / a } else { f64::INFINITY };
             if (b - a).abs() > floor_ms && (ratio > 1.0 + noise || ratio < 1.0 / (1.0 + noise)) {
-                d.timing.push(PhaseDiff { phase: p.to_string(), old_ms: a, new_ms: b, ratio });
+                d.timing.push(PhaseDiff {
+                    phase: p.to_string(),
+                    old_ms: a,
+                    new_ms: b,
+                    ratio,
+                });
             }
         }
     }
@@ -123,7 +160,13 @@ pub fn diff(old: &RunReport, new: &RunReport, noise: f64, floor_ms: f64) -> Repo
 
 fn counts(d: &ReportDiff) -> String {
     let mut parts = vec![];
-    for ch in [Change::Fixed, Change::Regressed, Change::Changed, Change::New, Change::Gone] {
+    for ch in [
+        Change::Fixed,
+        Change::Regressed,
+        Change::Changed,
+        Change::New,
+        Change::Gone,
+    ] {
         let n = d.cells.iter().filter(|c| c.change == ch).count();
         if n > 0 {
             parts.push(format!("{n} {}", ch.as_str()));
@@ -141,13 +184,27 @@ pub fn render_text(d: &ReportDiff) -> String {
     let _ = writeln!(s, "diff: {} → {}", d.old_device, d.new_device);
     let _ = writeln!(s, "cells: {} ({} unchanged)", counts(d), d.unchanged);
     for c in &d.cells {
-        let _ = writeln!(s, "  {:<10} {}  {} → {}", c.change.as_str(), c.cell, c.old.as_deref().unwrap_or("—"), c.new.as_deref().unwrap_or("—"));
+        let _ = writeln!(
+            s,
+            "  {:<10} {}  {} → {}",
+            c.change.as_str(),
+            c.cell,
+            c.old.as_deref().unwrap_or("—"),
+            c.new.as_deref().unwrap_or("—")
+        );
     }
     if d.timing.is_empty() {
-        let _ = writeln!(s, "time per cell: no phase changed beyond the noise threshold");
+        let _ = writeln!(
+            s,
+            "time per cell: no phase changed beyond the noise threshold"
+        );
     }
     for t in &d.timing {
-        let _ = writeln!(s, "  time  {:<9} {:.2} → {:.2} ms/cell ({:.2}×)", t.phase, t.old_ms, t.new_ms, t.ratio);
+        let _ = writeln!(
+            s,
+            "  time  {:<9} {:.2} → {:.2} ms/cell ({:.2}×)",
+            t.phase, t.old_ms, t.new_ms, t.ratio
+        );
     }
     s
 }
@@ -166,14 +223,27 @@ pub fn render_markdown(d: &ReportDiff) -> String {
                 Change::New => "🆕 new",
                 Change::Gone => "➖ gone",
             };
-            let _ = writeln!(s, "| {icon} | `{}` | {} | {} |", c.cell, c.old.as_deref().unwrap_or("—"), c.new.as_deref().unwrap_or("—"));
+            let _ = writeln!(
+                s,
+                "| {icon} | `{}` | {} | {} |",
+                c.cell,
+                c.old.as_deref().unwrap_or("—"),
+                c.new.as_deref().unwrap_or("—")
+            );
         }
         s += "\n";
     }
     if !d.timing.is_empty() {
-        let _ = writeln!(s, "| phase | before (ms/cell) | after (ms/cell) | ratio |\n|---|---|---|---|");
+        let _ = writeln!(
+            s,
+            "| phase | before (ms/cell) | after (ms/cell) | ratio |\n|---|---|---|---|"
+        );
         for t in &d.timing {
-            let _ = writeln!(s, "| {} | {:.2} | {:.2} | {:.2}× |", t.phase, t.old_ms, t.new_ms, t.ratio);
+            let _ = writeln!(
+                s,
+                "| {} | {:.2} | {:.2} | {:.2}× |",
+                t.phase, t.old_ms, t.new_ms, t.ratio
+            );
         }
     }
     s

@@ -3,8 +3,8 @@
 //! identities, scenes or result-changing options unless forced; the same cell in two reports
 //! keeps every attempt (its verdict is recomputed from all of them).
 use crate::matrix::plan::all_cells;
-use crate::model::Canary;
 use crate::model::report::ResultOption;
+use crate::model::Canary;
 use crate::model::{CellReport, PatchMode, RunReport, SceneParams};
 use serde_json::Value;
 use std::collections::HashMap;
@@ -16,12 +16,20 @@ pub enum NotSameRun {
     Version(Value, Value),
     /// `key`: the [`DEVICE_KEYS`] entry that differs.
     #[error("it was made on another device ({key} {here} here {there})")]
-    Device { key: &'static str, here: Value, there: Value },
+    Device {
+        key: &'static str,
+        here: Value,
+        there: Value,
+    },
     #[error("its scene differs (size, seed, instances or mesh detail: {0:?} here {1:?})")]
     Scene(SceneParams, SceneParams),
     /// `flag`: the option's command-line flag.
     #[error("its {flag} differs ({here} here {there})")]
-    Option { flag: &'static str, here: Value, there: Value },
+    Option {
+        flag: &'static str,
+        here: Value,
+        there: Value,
+    },
 }
 
 /// Why reports do not merge.
@@ -30,7 +38,11 @@ pub enum MergeError {
     #[error("merge needs at least one report")]
     NoReports,
     #[error("{name} does not belong with {first}: {why} (--force merges anyway)")]
-    NotSameRun { name: String, first: String, why: NotSameRun },
+    NotSameRun {
+        name: String,
+        first: String,
+        why: NotSameRun,
+    },
     /// The same run (start stamp and command line) given twice.
     #[error("{name} is a run already merged (started {started}, same command line): merging it twice would double its attempts")]
     MergedTwice { name: String, started: String },
@@ -38,17 +50,30 @@ pub enum MergeError {
 
 /// Device identity: a report continues, merges with or is compared like-for-like with another
 /// only when all of these agree.
-pub const DEVICE_KEYS: &[&str] = &["name", "driver_version", "api_version", "driver_uuid", "device_uuid"];
+pub const DEVICE_KEYS: &[&str] = &[
+    "name",
+    "driver_version",
+    "api_version",
+    "driver_uuid",
+    "device_uuid",
+];
 
 /// Whether `b` describes the same device, scene and result-changing options as `a`; says what
 /// differs. `options` limits which option keys are compared.
 pub fn same_run(a: &RunReport, b: &RunReport, options: &[ResultOption]) -> Result<(), NotSameRun> {
     if a.tool["version"] != b.tool["version"] {
-        return Err(NotSameRun::Version(a.tool["version"].clone(), b.tool["version"].clone()));
+        return Err(NotSameRun::Version(
+            a.tool["version"].clone(),
+            b.tool["version"].clone(),
+        ));
     }
     for key in DEVICE_KEYS {
         if a.device[key] != b.device[key] {
-            return Err(NotSameRun::Device { key: *key, here: a.device[key].clone(), there: b.device[key].clone() });
+            return Err(NotSameRun::Device {
+                key: *key,
+                here: a.device[key].clone(),
+                there: b.device[key].clone(),
+            });
         }
     }
     if a.scene.params != b.scene.params {
@@ -57,7 +82,11 @@ pub fn same_run(a: &RunReport, b: &RunReport, options: &[ResultOption]) -> Resul
     for key in options {
         let (va, vb) = (key.value(&a.options), key.value(&b.options));
         if va != vb {
-            return Err(NotSameRun::Option { flag: key.flag(), here: va, there: vb });
+            return Err(NotSameRun::Option {
+                flag: key.flag(),
+                here: va,
+                there: vb,
+            });
         }
     }
     Ok(())
@@ -66,7 +95,8 @@ pub fn same_run(a: &RunReport, b: &RunReport, options: &[ResultOption]) -> Resul
 /// Plan order of every cell id the matrix can hold (workaround variants sort after their cell).
 fn order() -> HashMap<String, usize> {
     let (cells, _) = all_cells();
-    let mut m: HashMap<String, usize> = cells.iter().enumerate().map(|(i, c)| (c.id(), i)).collect();
+    let mut m: HashMap<String, usize> =
+        cells.iter().enumerate().map(|(i, c)| (c.id(), i)).collect();
     for (k, c) in Canary::ALL.iter().enumerate() {
         m.insert(crate::model::Cell::canary(*c).id(), cells.len() + k);
     }
@@ -83,14 +113,26 @@ pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport
     let mut started = vec![(out.started.clone(), out.command_line.clone())];
     // Baseline checks describe one report's cells; the merged report is checked anew.
     out.baseline = None;
-    let mut by_id: HashMap<String, usize> = out.cells.iter().enumerate().map(|(i, c)| (c.id.clone(), i)).collect();
+    let mut by_id: HashMap<String, usize> = out
+        .cells
+        .iter()
+        .enumerate()
+        .map(|(i, c)| (c.id.clone(), i))
+        .collect();
     for (name, r) in it {
         if !force {
-            same_run(&out, &r, ResultOption::MERGED).map_err(|why| MergeError::NotSameRun { name: name.clone(), first: first_name.clone(), why })?;
+            same_run(&out, &r, ResultOption::MERGED).map_err(|why| MergeError::NotSameRun {
+                name: name.clone(),
+                first: first_name.clone(),
+                why,
+            })?;
         }
         let id = (r.started.clone(), r.command_line.clone());
         if started.contains(&id) {
-            return Err(MergeError::MergedTwice { name, started: r.started });
+            return Err(MergeError::MergedTwice {
+                name,
+                started: r.started,
+            });
         }
         started.push(id);
         names.push(name);
@@ -104,7 +146,9 @@ pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport
         let t = &mut out.timing;
         let workers = t.workers_started + r.timing.workers_started;
         if workers > 0 {
-            t.device_ms_mean = (t.device_ms_mean * t.workers_started as f64 + r.timing.device_ms_mean * r.timing.workers_started as f64) / workers as f64;
+            t.device_ms_mean = (t.device_ms_mean * t.workers_started as f64
+                + r.timing.device_ms_mean * r.timing.workers_started as f64)
+                / workers as f64;
         }
         t.workers_started = workers;
         t.wall_ms += r.timing.wall_ms;
@@ -131,10 +175,22 @@ pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport
         }
     }
     let order = order();
-    out.cells.sort_by_key(|c| (order.get(&c.cell.base().id()).copied().unwrap_or(usize::MAX), c.cell.patch.map(|p| 1 + p as usize).unwrap_or(0)));
+    out.cells.sort_by_key(|c| {
+        (
+            order
+                .get(&c.cell.base().id())
+                .copied()
+                .unwrap_or(usize::MAX),
+            c.cell.patch.map(|p| 1 + p as usize).unwrap_or(0),
+        )
+    });
     // Workaround variants are planned cells only with --patches all (else they are retries).
     let variants_planned = out.options.patches == PatchMode::All;
-    let planned: Vec<&CellReport> = out.cells.iter().filter(|c| c.cell.patch.is_none() || variants_planned).collect();
+    let planned: Vec<&CellReport> = out
+        .cells
+        .iter()
+        .filter(|c| c.cell.patch.is_none() || variants_planned)
+        .collect();
     let unsupported = planned.iter().filter(|c| c.attempts.is_empty()).count();
     out.plan.planned = planned.len();
     out.plan.unsupported = unsupported;

@@ -21,7 +21,10 @@ impl Shard {
     pub fn parse(s: &str) -> Result<Shard, ShardError> {
         let bad = || ShardError(s.into());
         let (i, n) = s.split_once('/').ok_or_else(bad)?;
-        let (index, count): (u32, u32) = (i.trim().parse().map_err(|_| bad())?, n.trim().parse().map_err(|_| bad())?);
+        let (index, count): (u32, u32) = (
+            i.trim().parse().map_err(|_| bad())?,
+            n.trim().parse().map_err(|_| bad())?,
+        );
         if count == 0 || index == 0 || index > count {
             return Err(bad());
         }
@@ -36,8 +39,12 @@ impl Shard {
     pub fn apply(&self, plan: &mut RunPlan) -> usize {
         let mut ids: Vec<String> = plan.cells.iter().map(|c| c.cell.id()).collect();
         ids.sort();
-        let mine: std::collections::HashSet<String> =
-            ids.into_iter().enumerate().filter(|(k, _)| *k as u32 % self.count == self.index - 1).map(|(_, id)| id).collect();
+        let mine: std::collections::HashSet<String> = ids
+            .into_iter()
+            .enumerate()
+            .filter(|(k, _)| *k as u32 % self.count == self.index - 1)
+            .map(|(_, id)| id)
+            .collect();
         let before = plan.cells.len();
         plan.cells.retain(|c| mine.contains(&c.cell.id()));
         before - plan.cells.len()
@@ -48,11 +55,22 @@ impl Shard {
 mod tests {
     use super::*;
     use crate::matrix::plan::all_cells;
-use crate::model::{PlanStatus, PlannedCell};
+    use crate::model::{PlanStatus, PlannedCell};
 
     fn full() -> RunPlan {
         let (cells, not_generated) = all_cells();
-        RunPlan { generated: cells.len(), cells: cells.into_iter().map(|cell| PlannedCell { cell, status: PlanStatus::Run }).collect(), not_generated, filtered_out: 0 }
+        RunPlan {
+            generated: cells.len(),
+            cells: cells
+                .into_iter()
+                .map(|cell| PlannedCell {
+                    cell,
+                    status: PlanStatus::Run,
+                })
+                .collect(),
+            not_generated,
+            filtered_out: 0,
+        }
     }
 
     #[test]
@@ -70,7 +88,10 @@ use crate::model::{PlanStatus, PlannedCell};
             }
         }
         assert_eq!(seen.len(), total);
-        assert!(sizes.iter().max().unwrap() - sizes.iter().min().unwrap() <= 1, "{sizes:?}");
+        assert!(
+            sizes.iter().max().unwrap() - sizes.iter().min().unwrap() <= 1,
+            "{sizes:?}"
+        );
         // Plan order inside a shard is kept (canaries stay last).
         let mut p = full();
         Shard { index: 2, count: 3 }.apply(&mut p);

@@ -1,9 +1,14 @@
 //! From options and a device to a [`RunPlan`], before any GPU work: which cells exist, which the
 //! filter keeps, which the device cannot run (and why, from its queried features), and which
 //! combinations are never generated because an axis value cannot matter there.
-use crate::model::{AsAccess, BaseSource, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource, SamplerIndex, Stage};
-use crate::model::{Canary, Cell, Filter, NotGenerated, PatchMode, PlanStatus, PlannedCell, RunPlan};
 use crate::caps::support::{self, Support};
+use crate::model::{
+    AsAccess, BaseSource, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource,
+    SamplerIndex, Stage,
+};
+use crate::model::{
+    Canary, Cell, Filter, NotGenerated, PatchMode, PlanStatus, PlannedCell, RunPlan,
+};
 use crate::vk::DeviceInfo;
 
 pub struct PlanOptions {
@@ -36,7 +41,11 @@ pub fn device_support(info: &DeviceInfo, cell: &Cell) -> Support {
     // A dynamic sampler index is a dynamic index into an array of samplers (the sampled-image
     // array features cover sampler arrays).
     if cell.sampler == Some(SamplerIndex::Dynamic) {
-        checks.push(support::dynamic_index(info, Resource::SampledImage, cell.sampler_nonuniform()));
+        checks.push(support::dynamic_index(
+            info,
+            Resource::SampledImage,
+            cell.sampler_nonuniform(),
+        ));
     }
     if let Some(a) = cell.as_access {
         checks.push(support::as_access(info, a));
@@ -47,18 +56,38 @@ pub fn device_support(info: &DeviceInfo, cell: &Cell) -> Support {
     if let Some(b) = cell.base {
         checks.push(support::base(info, b));
     }
-    if matches!(cell.patch, Some(crate::model::Workaround::AsToAddress | crate::model::Workaround::SsboToAddress)) {
+    if matches!(
+        cell.patch,
+        Some(crate::model::Workaround::AsToAddress | crate::model::Workaround::SsboToAddress)
+    ) {
         checks.push(support::as_access(info, AsAccess::Address));
     }
     if cell.resource == Resource::AccelerationStructure {
-        if !cell.stage.can_trace_ray() && !info.features.ray_query.is_some_and(|r| r.ray_query == ash::vk::TRUE) {
+        if !cell.stage.can_trace_ray()
+            && !info
+                .features
+                .ray_query
+                .is_some_and(|r| r.ray_query == ash::vk::TRUE)
+        {
             checks.push(Support::Unsupported {
-                reason: format!("device lacks rayQuery (VK_KHR_ray_query), which a {} shader needs to trace", cell.stage),
+                reason: format!(
+                    "device lacks rayQuery (VK_KHR_ray_query), which a {} shader needs to trace",
+                    cell.stage
+                ),
             });
         }
-        let depth = info.properties.rt_pipeline.map(|p| p.max_ray_recursion_depth).unwrap_or(0);
+        let depth = info
+            .properties
+            .rt_pipeline
+            .map(|p| p.max_ray_recursion_depth)
+            .unwrap_or(0);
         if matches!(cell.stage, Stage::ClosestHit | Stage::Miss) && depth < 2 {
-            checks.push(Support::Unsupported { reason: format!("maxRayRecursionDepth is {depth}; tracing from {} needs 2", cell.stage) });
+            checks.push(Support::Unsupported {
+                reason: format!(
+                    "maxRayRecursionDepth is {depth}; tracing from {} needs 2",
+                    cell.stage
+                ),
+            });
         }
     }
     Support::all(checks)
@@ -107,8 +136,11 @@ pub fn all_cells() -> (Vec<Cell>, Vec<NotGenerated>) {
     let mut skipped = Skipped::default();
     for &stage in Stage::ALL {
         for &resource in Resource::ALL {
-            let accesses: Vec<Option<AsAccess>> =
-                if resource == Resource::AccelerationStructure { AsAccess::ALL.iter().map(|a| Some(*a)).collect() } else { vec![None] };
+            let accesses: Vec<Option<AsAccess>> = if resource == Resource::AccelerationStructure {
+                AsAccess::ALL.iter().map(|a| Some(*a)).collect()
+            } else {
+                vec![None]
+            };
             for &index in IndexSource::ALL {
                 for nonuniform in [false, true] {
                     for &as_access in &accesses {
@@ -121,11 +153,17 @@ pub fn all_cells() -> (Vec<Cell>, Vec<NotGenerated>) {
                                 skipped.nonuniform_address += 1;
                                 continue;
                             }
-                            if index == IndexSource::DynamicElement && !Cell::dynamic_element_applies(resource) {
+                            if index == IndexSource::DynamicElement
+                                && !Cell::dynamic_element_applies(resource)
+                            {
                                 skipped.packed_elsewhere += 1;
                                 continue;
                             }
-                            let base = Cell { nonuniform, as_access, ..Cell::new(stage, resource, index, descriptor_model) };
+                            let base = Cell {
+                                nonuniform,
+                                as_access,
+                                ..Cell::new(stage, resource, index, descriptor_model)
+                            };
                             heap_cells(base, &mut cells, &mut skipped);
                         }
                     }
@@ -139,14 +177,23 @@ pub fn all_cells() -> (Vec<Cell>, Vec<NotGenerated>) {
 /// The cells of `base` (its stage, resource, index, nonuniform, AS access and descriptor model
 /// set): one per heap access its model has, each with its samplers, reorders and bases.
 fn heap_cells(base: Cell, cells: &mut Vec<Cell>, skipped: &mut Skipped) {
-    let heap: Vec<Option<HeapAccess>> = if base.descriptor_model == DescriptorModel::DescriptorHeap {
+    let heap: Vec<Option<HeapAccess>> = if base.descriptor_model == DescriptorModel::DescriptorHeap
+    {
         HeapAccess::ALL.iter().map(|h| Some(*h)).collect()
     } else {
         vec![None]
     };
     for heap_access in heap {
-        let mapped_index = matches!(heap_access, Some(HeapAccess::MappedPushIndex | HeapAccess::MappedIndirectIndex | HeapAccess::MappedShaderRecordIndex));
-        if heap_access == Some(HeapAccess::MappedShaderRecordIndex) && !base.stage.is_ray_tracing() {
+        let mapped_index = matches!(
+            heap_access,
+            Some(
+                HeapAccess::MappedPushIndex
+                    | HeapAccess::MappedIndirectIndex
+                    | HeapAccess::MappedShaderRecordIndex
+            )
+        );
+        if heap_access == Some(HeapAccess::MappedShaderRecordIndex) && !base.stage.is_ray_tracing()
+        {
             skipped.record_outside_rt += 1;
             continue;
         }
@@ -154,7 +201,10 @@ fn heap_cells(base: Cell, cells: &mut Vec<Cell>, skipped: &mut Skipped) {
             skipped.heap_index_without_binding += 1;
             continue;
         }
-        let cell = Cell { heap_access, ..base };
+        let cell = Cell {
+            heap_access,
+            ..base
+        };
         let samplers: Vec<Option<SamplerIndex>> = if cell.sampler_applies() {
             SamplerIndex::ALL.iter().map(|s| Some(*s)).collect()
         } else {
@@ -165,12 +215,18 @@ fn heap_cells(base: Cell, cells: &mut Vec<Cell>, skipped: &mut Skipped) {
             let cell = Cell { sampler, ..cell };
             cells.push(cell);
             if cell.reorder_applies() {
-                cells.extend(Reorder::ALL.iter().map(|r| Cell { reorder: Some(*r), ..cell }));
+                cells.extend(Reorder::ALL.iter().map(|r| Cell {
+                    reorder: Some(*r),
+                    ..cell
+                }));
             } else {
                 skipped.reorder_elsewhere += Reorder::ALL.len();
             }
             if cell.base_applies() {
-                cells.extend(BaseSource::ALL.iter().map(|b| Cell { base: Some(*b), ..cell }));
+                cells.extend(BaseSource::ALL.iter().map(|b| Cell {
+                    base: Some(*b),
+                    ..cell
+                }));
             } else {
                 skipped.base_elsewhere += BaseSource::ALL.len();
             }
@@ -187,7 +243,9 @@ pub fn plan(info: &DeviceInfo, opts: &PlanOptions) -> RunPlan {
     // rtprobe itself cannot run yet is `not_implemented`, both with their reason.
     let push = |cell: Cell, cells: &mut Vec<PlannedCell>| {
         let mut support = device_support(info, &cell);
-        if crate::model::inject::for_cell(&opts.inject, &cell).is_some_and(|i| i.fault.reads_bad_address()) {
+        if crate::model::inject::for_cell(&opts.inject, &cell)
+            .is_some_and(|i| i.fault.reads_bad_address())
+        {
             support = Support::all(vec![support, support::device_address_loads(info)]);
         }
         let status = match support {
@@ -199,7 +257,14 @@ pub fn plan(info: &DeviceInfo, opts: &PlanOptions) -> RunPlan {
     };
     for cell in all {
         let variants = std::iter::once(cell).chain(
-            (opts.patches == PatchMode::All).then(|| cell.applicable_patches()).unwrap_or_default().into_iter().map(move |p| Cell { patch: Some(p), ..cell }),
+            (opts.patches == PatchMode::All)
+                .then(|| cell.applicable_patches())
+                .unwrap_or_default()
+                .into_iter()
+                .map(move |p| Cell {
+                    patch: Some(p),
+                    ..cell
+                }),
         );
         for cell in variants {
             if opts.filters.iter().all(|f| f.matches(&cell)) {
@@ -217,7 +282,12 @@ pub fn plan(info: &DeviceInfo, opts: &PlanOptions) -> RunPlan {
             push(Cell::canary(c), &mut cells);
         }
     }
-    RunPlan { generated, cells, not_generated, filtered_out }
+    RunPlan {
+        generated,
+        cells,
+        not_generated,
+        filtered_out,
+    }
 }
 
 #[cfg(test)]
@@ -227,8 +297,12 @@ mod tests {
     #[test]
     fn matrix_has_no_meaningless_cells_and_unique_ids() {
         let (cells, skipped) = all_cells();
-        assert!(cells.iter().all(|c| !c.nonuniform || c.index == IndexSource::Dynamic));
-        assert!(cells.iter().all(|c| c.as_access.is_some() == (c.resource == Resource::AccelerationStructure)));
+        assert!(cells
+            .iter()
+            .all(|c| !c.nonuniform || c.index == IndexSource::Dynamic));
+        assert!(cells
+            .iter()
+            .all(|c| c.as_access.is_some() == (c.resource == Resource::AccelerationStructure)));
         let mut ids: Vec<String> = cells.iter().map(|c| c.id()).collect();
         let n = ids.len();
         ids.sort();
@@ -252,24 +326,55 @@ mod tests {
         let base_extra = 2 * ((4 * 2 + 2) * 7 + 3);
         assert_eq!(
             n,
-            8 * (4 * 5 + 14) * 2 + 6 * per_stage_heap(5) + 2 * per_stage_heap(4) + dynamic_closest_hit * 2 + 6 * packed(5) + 2 * packed(4) + sampler_extra + base_extra
+            8 * (4 * 5 + 14) * 2
+                + 6 * per_stage_heap(5)
+                + 2 * per_stage_heap(4)
+                + dynamic_closest_hit * 2
+                + 6 * packed(5)
+                + 2 * packed(4)
+                + sampler_extra
+                + base_extra
         );
-        assert!(cells.iter().all(|c| c.sampler.is_some() == c.sampler_applies()));
+        assert!(cells
+            .iter()
+            .all(|c| c.sampler.is_some() == c.sampler_applies()));
         assert!(cells.iter().all(|c| c.base.is_none() || c.base_applies()));
         // Every base_applies cell has both other bases; reorder never combines with a base.
-        for c in cells.iter().filter(|c| c.base.is_none() && c.base_applies()) {
+        for c in cells
+            .iter()
+            .filter(|c| c.base.is_none() && c.base_applies())
+        {
             for b in BaseSource::ALL {
-                assert!(cells.contains(&Cell { base: Some(*b), ..*c }), "{} without base {b}", c.id());
+                assert!(
+                    cells.contains(&Cell {
+                        base: Some(*b),
+                        ..*c
+                    }),
+                    "{} without base {b}",
+                    c.id()
+                );
             }
         }
-        assert!(cells.iter().filter(|c| c.index == IndexSource::DynamicElement).all(|c| Cell::dynamic_element_applies(c.resource) && !c.nonuniform && c.applicable_patches().is_empty()));
+        assert!(cells
+            .iter()
+            .filter(|c| c.index == IndexSource::DynamicElement)
+            .all(|c| Cell::dynamic_element_applies(c.resource)
+                && !c.nonuniform
+                && c.applicable_patches().is_empty()));
         // Every dynamic storage-buffer / sampled-image cell has its recommended pattern in the matrix.
-        for c in cells.iter().filter(|c| c.index == IndexSource::Dynamic && Cell::dynamic_element_applies(c.resource)) {
+        for c in cells.iter().filter(|c| {
+            c.index == IndexSource::Dynamic && Cell::dynamic_element_applies(c.resource)
+        }) {
             let (_, r) = c.recommended_pattern().unwrap();
             assert!(cells.contains(&r), "{} -> {}", c.id(), r.id());
         }
-        assert!(cells.iter().all(|c| c.heap_access.is_some() == (c.descriptor_model == DescriptorModel::DescriptorHeap)));
-        assert!(cells.iter().all(|c| c.reorder.is_none() || c.reorder_applies()));
+        assert!(cells
+            .iter()
+            .all(|c| c.heap_access.is_some()
+                == (c.descriptor_model == DescriptorModel::DescriptorHeap)));
+        assert!(cells
+            .iter()
+            .all(|c| c.reorder.is_none() || c.reorder_applies()));
         assert!(skipped.iter().all(|s| s.count > 0));
     }
 
@@ -279,18 +384,37 @@ mod tests {
         let (cells, _) = all_cells();
         let kept: Vec<_> = cells.iter().filter(|c| f.matches(c)).collect();
         assert!(!kept.is_empty());
-        assert!(kept.iter().all(|c| matches!(c.stage, Stage::ClosestHit | Stage::Raygen) && c.index == IndexSource::Dynamic));
-        assert!(Filter::parse("stage=nope").unwrap_err().to_string().contains("closest_hit"));
-        assert!(Filter::parse("colour=red").unwrap_err().to_string().contains("unknown axis"));
+        assert!(kept
+            .iter()
+            .all(|c| matches!(c.stage, Stage::ClosestHit | Stage::Raygen)
+                && c.index == IndexSource::Dynamic));
+        assert!(Filter::parse("stage=nope")
+            .unwrap_err()
+            .to_string()
+            .contains("closest_hit"));
+        assert!(Filter::parse("colour=red")
+            .unwrap_err()
+            .to_string()
+            .contains("unknown axis"));
         assert!(Filter::parse("stage").is_err());
     }
 
     /// Every planned cell, its workaround variants and the canaries.
     fn every_cell() -> Vec<Cell> {
         let (cells, _) = all_cells();
-        let variants = cells.iter().flat_map(|c| c.applicable_patches().into_iter().map(move |p| Cell { patch: Some(p), ..*c }));
+        let variants = cells.iter().flat_map(|c| {
+            c.applicable_patches().into_iter().map(move |p| Cell {
+                patch: Some(p),
+                ..*c
+            })
+        });
         let canaries = Canary::ALL.iter().map(|k| Cell::canary(*k));
-        cells.iter().copied().chain(variants).chain(canaries).collect()
+        cells
+            .iter()
+            .copied()
+            .chain(variants)
+            .chain(canaries)
+            .collect()
     }
 
     #[test]
@@ -306,13 +430,30 @@ mod tests {
                 for v in a.values {
                     let mut d = *c;
                     if (a.set)(&mut d, v) && d != *c && known.contains(&d) {
-                        assert_ne!(registry::describe(c), registry::describe(&d), "{} vs {}", c.id(), d.id());
+                        assert_ne!(
+                            registry::describe(c),
+                            registry::describe(&d),
+                            "{} vs {}",
+                            c.id(),
+                            d.id()
+                        );
                     }
                 }
             }
         }
         // The report's cell fields are the registry's axes.
-        let keys: std::collections::BTreeSet<String> = all.iter().flat_map(|c| serde_json::to_value(c).unwrap().as_object().unwrap().keys().cloned().collect::<Vec<_>>()).collect();
+        let keys: std::collections::BTreeSet<String> = all
+            .iter()
+            .flat_map(|c| {
+                serde_json::to_value(c)
+                    .unwrap()
+                    .as_object()
+                    .unwrap()
+                    .keys()
+                    .cloned()
+                    .collect::<Vec<_>>()
+            })
+            .collect();
         assert_eq!(keys, registry::names().map(String::from).collect());
     }
 
@@ -321,7 +462,8 @@ mod tests {
         let mut out = Vec::new();
         for a in crate::model::registry::AXES {
             for v in a.filter_values() {
-                let f = Filter::parse(&format!("{}={v}", a.name)).expect("a registry value filters");
+                let f =
+                    Filter::parse(&format!("{}={v}", a.name)).expect("a registry value filters");
                 if !all.iter().any(|c| f.matches(c)) {
                     out.push(format!("{}={v}", a.name));
                 }
@@ -332,7 +474,13 @@ mod tests {
 
     #[test]
     fn a_value_the_plan_never_makes_is_caught() {
-        let all: Vec<Cell> = every_cell().into_iter().filter(|c| c.sampler != Some(SamplerIndex::Dynamic) && c.patch != Some(crate::model::Workaround::PinIndex)).collect();
+        let all: Vec<Cell> = every_cell()
+            .into_iter()
+            .filter(|c| {
+                c.sampler != Some(SamplerIndex::Dynamic)
+                    && c.patch != Some(crate::model::Workaround::PinIndex)
+            })
+            .collect();
         assert_eq!(uncovered(&all), ["patch=pin-index", "sampler=dynamic"]);
     }
 }

@@ -1,7 +1,7 @@
 //! One run of one cell (`Attempt`), how a worker ended, its own records, and how cells are
 //! isolated: what the supervisor records and every report keeps.
-use serde::{Deserialize, Serialize};
 use crate::model::{CellResult, Outcome, Phase};
+use serde::{Deserialize, Serialize};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -61,25 +61,51 @@ impl Attempt {
     /// `with_*` methods add what the recorder knows (the worker and its phase, the worker's own
     /// result, how the worker ended, the detail, the time).
     pub fn new(outcome: Outcome, isolated: bool) -> Attempt {
-        Attempt { outcome, isolated, detail: None, result: None, worker_exit: None, injected: None, wall_ms: 0.0, phase: None, worker: 0, device_features: vec![] }
+        Attempt {
+            outcome,
+            isolated,
+            detail: None,
+            result: None,
+            worker_exit: None,
+            injected: None,
+            wall_ms: 0.0,
+            phase: None,
+            worker: 0,
+            device_features: vec![],
+        }
     }
 
     /// Who ran it: the worker (0: none started), its last phase and what its device enabled.
     pub fn with_worker(self, worker: u64, phase: Phase, device_features: Vec<String>) -> Attempt {
-        Attempt { worker, phase: Some(phase), device_features, ..self }
+        Attempt {
+            worker,
+            phase: Some(phase),
+            device_features,
+            ..self
+        }
     }
 
     pub fn with_detail(self, detail: impl Into<String>) -> Attempt {
-        Attempt { detail: Some(detail.into()), ..self }
+        Attempt {
+            detail: Some(detail.into()),
+            ..self
+        }
     }
 
     /// The worker's own report; its detail becomes the attempt's.
     pub fn with_result(self, result: CellResult) -> Attempt {
-        Attempt { detail: result.detail.clone(), result: Some(result), ..self }
+        Attempt {
+            detail: result.detail.clone(),
+            result: Some(result),
+            ..self
+        }
     }
 
     pub fn with_exit(self, exit: WorkerExit) -> Attempt {
-        Attempt { worker_exit: Some(exit), ..self }
+        Attempt {
+            worker_exit: Some(exit),
+            ..self
+        }
     }
 
     pub fn with_wall_ms(self, wall_ms: f64) -> Attempt {
@@ -89,7 +115,9 @@ impl Attempt {
     /// An attempt with only an outcome (unit tests of reporters and fleet tools).
     #[cfg(test)]
     pub fn for_tests(outcome: Outcome, isolated: bool) -> Attempt {
-        Attempt::new(outcome, isolated).with_detail(format!("{} happened", outcome.as_str())).with_wall_ms(1.0)
+        Attempt::new(outcome, isolated)
+            .with_detail(format!("{} happened", outcome.as_str()))
+            .with_wall_ms(1.0)
     }
 
     /// The cell never ran: its worker's setup failed.

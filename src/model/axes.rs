@@ -136,9 +136,15 @@ mod tests {
     fn names_round_trip() {
         for s in Stage::ALL {
             assert_eq!(Stage::parse(s.as_str()), Some(*s));
-            assert_eq!(serde_json::to_value(s).unwrap(), serde_json::Value::String(s.as_str().into()));
+            assert_eq!(
+                serde_json::to_value(s).unwrap(),
+                serde_json::Value::String(s.as_str().into())
+            );
         }
-        assert_eq!(DescriptorModel::parse("descriptor_heap"), Some(DescriptorModel::DescriptorHeap));
+        assert_eq!(
+            DescriptorModel::parse("descriptor_heap"),
+            Some(DescriptorModel::DescriptorHeap)
+        );
         assert_eq!(IndexSource::parse("nope"), None);
     }
 }

@@ -1,7 +1,7 @@
 //! Baselines (what a run is expected to give) and a run checked against one (the data;
 //! `fleet::baseline` reads the formats and checks).
-use serde::{Deserialize, Serialize};
 use crate::model::Outcome;
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 pub const SCHEMA: &str = "rtprobe.baseline/1";
@@ -112,10 +112,15 @@ impl BaselineCheck {
         self.cells.iter().filter(|c| c.status == Status::Regression)
     }
     pub fn improvements(&self) -> impl Iterator<Item = &CellCheck> {
-        self.cells.iter().filter(|c| c.status == Status::Improvement)
+        self.cells
+            .iter()
+            .filter(|c| c.status == Status::Improvement)
     }
     /// Whether the run is as expected (improvements count unless allowed).
     pub fn ok(&self, allow_improvements: bool) -> bool {
-        self.regressions().next().is_none() && self.performance.is_empty() && self.worker_faults.is_empty() && (allow_improvements || self.improvements().next().is_none())
+        self.regressions().next().is_none()
+            && self.performance.is_empty()
+            && self.worker_faults.is_empty()
+            && (allow_improvements || self.improvements().next().is_none())
     }
 }

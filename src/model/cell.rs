@@ -2,7 +2,10 @@
 //! built from the axes by the registry (never from run order):
 //! `stage.resource.index[.nonuniform][.as_access].descriptor_model[.heap_access][.reorder][.base_<base>][.sampler_<sampler>][.patch-<name>]`,
 //! or `canary.<name>`.
-use super::axes::{AsAccess, BaseSource, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource, SamplerIndex, Stage};
+use super::axes::{
+    AsAccess, BaseSource, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource,
+    SamplerIndex, Stage,
+};
 use serde::{Deserialize, Serialize};
 
 /// Deliberately faulting cells that prove fault detection works on the device at hand.
@@ -45,8 +48,18 @@ pub enum Workaround {
 }
 
 impl Workaround {
-    pub const ALL: &'static [Workaround] = &[Workaround::Nonuniform, Workaround::PinIndex, Workaround::AsToAddress, Workaround::SsboToAddress];
-    pub const NAMES: &'static [&'static str] = &["nonuniform", "pin-index", "as-to-address", "ssbo-to-address"];
+    pub const ALL: &'static [Workaround] = &[
+        Workaround::Nonuniform,
+        Workaround::PinIndex,
+        Workaround::AsToAddress,
+        Workaround::SsboToAddress,
+    ];
+    pub const NAMES: &'static [&'static str] = &[
+        "nonuniform",
+        "pin-index",
+        "as-to-address",
+        "ssbo-to-address",
+    ];
     pub fn parse(s: &str) -> Option<Workaround> {
         Workaround::ALL.iter().copied().find(|w| w.as_str() == s)
     }
@@ -77,7 +90,9 @@ impl Pattern {
         match resource {
             Resource::StorageBuffer => Some(Pattern::Geometry),
             Resource::SampledImage => Some(Pattern::Materials),
-            Resource::UniformBuffer | Resource::StorageImage | Resource::AccelerationStructure => None,
+            Resource::UniformBuffer | Resource::StorageImage | Resource::AccelerationStructure => {
+                None
+            }
         }
     }
 
@@ -90,7 +105,9 @@ impl Pattern {
 
     pub fn description(self) -> &'static str {
         match self {
-            Pattern::Geometry => "one storage buffer at a spec-constant slot, dynamic element offset",
+            Pattern::Geometry => {
+                "one storage buffer at a spec-constant slot, dynamic element offset"
+            }
             Pattern::Materials => "one texture2DArray at a spec-constant slot, dynamic layer",
         }
     }
@@ -131,12 +148,38 @@ impl Cell {
     /// A probe cell with these four axes and every optional axis unset: the builder of tests and
     /// of the plan (`Cell { base: Some(b), ..Cell::new(…) }`), so a new optional axis touches
     /// neither.
-    pub fn new(stage: Stage, resource: Resource, index: IndexSource, descriptor_model: DescriptorModel) -> Cell {
-        Cell { stage, resource, index, nonuniform: false, as_access: None, descriptor_model, heap_access: None, canary: None, patch: None, reorder: None, base: None, sampler: None }
+    pub fn new(
+        stage: Stage,
+        resource: Resource,
+        index: IndexSource,
+        descriptor_model: DescriptorModel,
+    ) -> Cell {
+        Cell {
+            stage,
+            resource,
+            index,
+            nonuniform: false,
+            as_access: None,
+            descriptor_model,
+            heap_access: None,
+            canary: None,
+            patch: None,
+            reorder: None,
+            base: None,
+            sampler: None,
+        }
     }
 
     pub fn canary(c: Canary) -> Cell {
-        Cell { canary: Some(c), ..Cell::new(Stage::Raygen, Resource::StorageBuffer, IndexSource::Literal, DescriptorModel::DescriptorIndexing) }
+        Cell {
+            canary: Some(c),
+            ..Cell::new(
+                Stage::Raygen,
+                Resource::StorageBuffer,
+                IndexSource::Literal,
+                DescriptorModel::DescriptorIndexing,
+            )
+        }
     }
 
     /// Reordering before the probed read can only be observed by a closest-hit probe (the hit
@@ -160,7 +203,10 @@ impl Cell {
     pub fn base_applies(&self) -> bool {
         self.canary.is_none()
             && self.stage == Stage::ClosestHit
-            && matches!(self.index, IndexSource::Dynamic | IndexSource::DynamicElement)
+            && matches!(
+                self.index,
+                IndexSource::Dynamic | IndexSource::DynamicElement
+            )
             && self.resource != Resource::AccelerationStructure
             && self.reorder.is_none()
     }
@@ -169,7 +215,8 @@ impl Cell {
     /// a cell whose own dynamic descriptor index goes without it (the original shape, unqualified
     /// throughout; judged as any element).
     pub fn sampler_nonuniform(&self) -> bool {
-        self.sampler == Some(SamplerIndex::Dynamic) && !(self.index == IndexSource::Dynamic && !self.nonuniform)
+        self.sampler == Some(SamplerIndex::Dynamic)
+            && !(self.index == IndexSource::Dynamic && !self.nonuniform)
     }
 
     /// The `sampler` axis: `layout(descriptor_heap)` GLSL has no combined image samplers, so a
@@ -177,7 +224,9 @@ impl Cell {
     /// separate sampler index. Set/binding shaders (every other model and mapped heap access)
     /// sample combined image samplers and have no sampler index of their own.
     pub fn sampler_applies(&self) -> bool {
-        self.canary.is_none() && self.resource == Resource::SampledImage && self.heap_access == Some(HeapAccess::Direct)
+        self.canary.is_none()
+            && self.resource == Resource::SampledImage
+            && self.heap_access == Some(HeapAccess::Direct)
     }
 
     /// `index=dynamic_element` exists for the engines' two recommended shapes only: geometry (an
@@ -197,25 +246,44 @@ impl Cell {
         let pattern = Pattern::of(self.resource)
             .ok_or_else(|| format!("rtprobe has no recommended single-descriptor pattern for {} (only storage buffers: geometry, sampled images: materials)", self.resource))?;
         if self.index == IndexSource::DynamicElement && self.patch.is_none() {
-            return Err(format!("this cell is the recommended pattern ({})", pattern.as_str()));
+            return Err(format!(
+                "this cell is the recommended pattern ({})",
+                pattern.as_str()
+            ));
         }
         // Same base and sampler: the pattern reads its dynamic value the way the finding did.
-        Ok((pattern, Cell { index: IndexSource::DynamicElement, nonuniform: false, patch: None, reorder: None, ..*self }))
+        Ok((
+            pattern,
+            Cell {
+                index: IndexSource::DynamicElement,
+                nonuniform: false,
+                patch: None,
+                reorder: None,
+                ..*self
+            },
+        ))
     }
 
     /// The cell without its workaround.
     pub fn base(&self) -> Cell {
-        Cell { patch: None, ..*self }
+        Cell {
+            patch: None,
+            ..*self
+        }
     }
 
     /// The workarounds that apply to this cell's shaders.
     pub fn applicable_patches(&self) -> Vec<Workaround> {
         // Direct heap reads are untyped access chains, which no workaround rewrites.
-        if self.canary.is_some() || self.patch.is_some() || self.heap_access == Some(HeapAccess::Direct) {
+        if self.canary.is_some()
+            || self.patch.is_some()
+            || self.heap_access == Some(HeapAccess::Direct)
+        {
             return vec![];
         }
         // After as-to-address (written or patched) there is no descriptor array left to decorate or pin.
-        let descriptor_array = self.resource != Resource::AccelerationStructure || self.as_access == Some(AsAccess::Descriptor);
+        let descriptor_array = self.resource != Resource::AccelerationStructure
+            || self.as_access == Some(AsAccess::Descriptor);
         let mut v = Vec::new();
         if self.index == IndexSource::Dynamic && !self.nonuniform && descriptor_array {
             v.push(Workaround::Nonuniform);
@@ -223,7 +291,9 @@ impl Cell {
         if self.index == IndexSource::Dynamic && descriptor_array {
             v.push(Workaround::PinIndex);
         }
-        if self.resource == Resource::AccelerationStructure && self.as_access == Some(AsAccess::Descriptor) {
+        if self.resource == Resource::AccelerationStructure
+            && self.as_access == Some(AsAccess::Descriptor)
+        {
             v.push(Workaround::AsToAddress);
         }
         if self.resource == Resource::StorageBuffer && self.index == IndexSource::Dynamic {
@@ -239,29 +309,116 @@ mod tests {
 
     #[test]
     fn ids_are_readable_and_stable() {
-        let c = Cell { nonuniform: true, ..Cell::new(Stage::ClosestHit, Resource::StorageBuffer, IndexSource::Dynamic, DescriptorModel::DescriptorIndexing) };
-        assert_eq!(c.id(), "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_indexing");
+        let c = Cell {
+            nonuniform: true,
+            ..Cell::new(
+                Stage::ClosestHit,
+                Resource::StorageBuffer,
+                IndexSource::Dynamic,
+                DescriptorModel::DescriptorIndexing,
+            )
+        };
+        assert_eq!(
+            c.id(),
+            "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_indexing"
+        );
         assert_eq!(c.axis_value("base").as_deref(), Some("push_data"));
-        let b = Cell { base: Some(BaseSource::ShaderRecord), ..c };
-        assert_eq!(b.id(), "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_indexing.base_shader_record");
+        let b = Cell {
+            base: Some(BaseSource::ShaderRecord),
+            ..c
+        };
+        assert_eq!(
+            b.id(),
+            "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_indexing.base_shader_record"
+        );
         assert!(!b.reorder_applies() && b.base_applies());
-        assert_eq!(Cell { stage: Stage::AnyHit, ..c }.axis_value("base").as_deref(), Some("none"));
-        let d = Cell { resource: Resource::SampledImage, descriptor_model: DescriptorModel::DescriptorHeap, heap_access: Some(HeapAccess::Direct), sampler: Some(SamplerIndex::Dynamic), ..c };
-        assert_eq!(d.id(), "closest_hit.sampled_image.dynamic.nonuniform.descriptor_heap.direct.sampler_dynamic");
-        assert!(d.sampler_applies() && !Cell { heap_access: Some(HeapAccess::MappedPushIndex), ..d }.sampler_applies());
-        let r = Cell { reorder: Some(Reorder::ReorderHint), patch: Some(Workaround::PinIndex), ..c };
+        assert_eq!(
+            Cell {
+                stage: Stage::AnyHit,
+                ..c
+            }
+            .axis_value("base")
+            .as_deref(),
+            Some("none")
+        );
+        let d = Cell {
+            resource: Resource::SampledImage,
+            descriptor_model: DescriptorModel::DescriptorHeap,
+            heap_access: Some(HeapAccess::Direct),
+            sampler: Some(SamplerIndex::Dynamic),
+            ..c
+        };
+        assert_eq!(
+            d.id(),
+            "closest_hit.sampled_image.dynamic.nonuniform.descriptor_heap.direct.sampler_dynamic"
+        );
+        assert!(
+            d.sampler_applies()
+                && !Cell {
+                    heap_access: Some(HeapAccess::MappedPushIndex),
+                    ..d
+                }
+                .sampler_applies()
+        );
+        let r = Cell {
+            reorder: Some(Reorder::ReorderHint),
+            patch: Some(Workaround::PinIndex),
+            ..c
+        };
         assert_eq!(r.id(), "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_indexing.reorder_hint.patch-pin-index");
         assert_eq!(r.axis_value("reorder").as_deref(), Some("reorder_hint"));
-        assert!(c.reorder_applies() && !Cell { index: IndexSource::Literal, ..c }.reorder_applies());
-        let p = Cell { nonuniform: false, patch: Some(Workaround::Nonuniform), ..c };
-        assert_eq!(p.id(), "closest_hit.storage_buffer.dynamic.descriptor_indexing.patch-nonuniform");
-        assert_eq!(p.base().applicable_patches(), vec![Workaround::Nonuniform, Workaround::PinIndex, Workaround::SsboToAddress]);
-        let a = Cell { resource: Resource::AccelerationStructure, as_access: Some(AsAccess::Address), nonuniform: false, ..c };
-        assert_eq!(a.id(), "closest_hit.acceleration_structure.dynamic.address.descriptor_indexing");
-        assert_eq!(Cell::canary(Canary::InfiniteLoop).id(), "canary.infinite_loop");
-        let h = Cell { descriptor_model: DescriptorModel::DescriptorHeap, heap_access: Some(HeapAccess::MappedPushIndex), ..c };
-        assert_eq!(h.id(), "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_heap.mapped_push_index");
-        assert_eq!(h.axis_value("heap_access").as_deref(), Some("mapped_push_index"));
+        assert!(
+            c.reorder_applies()
+                && !Cell {
+                    index: IndexSource::Literal,
+                    ..c
+                }
+                .reorder_applies()
+        );
+        let p = Cell {
+            nonuniform: false,
+            patch: Some(Workaround::Nonuniform),
+            ..c
+        };
+        assert_eq!(
+            p.id(),
+            "closest_hit.storage_buffer.dynamic.descriptor_indexing.patch-nonuniform"
+        );
+        assert_eq!(
+            p.base().applicable_patches(),
+            vec![
+                Workaround::Nonuniform,
+                Workaround::PinIndex,
+                Workaround::SsboToAddress
+            ]
+        );
+        let a = Cell {
+            resource: Resource::AccelerationStructure,
+            as_access: Some(AsAccess::Address),
+            nonuniform: false,
+            ..c
+        };
+        assert_eq!(
+            a.id(),
+            "closest_hit.acceleration_structure.dynamic.address.descriptor_indexing"
+        );
+        assert_eq!(
+            Cell::canary(Canary::InfiniteLoop).id(),
+            "canary.infinite_loop"
+        );
+        let h = Cell {
+            descriptor_model: DescriptorModel::DescriptorHeap,
+            heap_access: Some(HeapAccess::MappedPushIndex),
+            ..c
+        };
+        assert_eq!(
+            h.id(),
+            "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_heap.mapped_push_index"
+        );
+        assert_eq!(
+            h.axis_value("heap_access").as_deref(),
+            Some("mapped_push_index")
+        );
     }
 }
 
@@ -279,7 +436,12 @@ pub fn undefined_descriptor_read(cell: &Cell) -> bool {
     };
     let patch_keeps_it = match cell.patch {
         None => true,
-        Some(Workaround::Nonuniform | Workaround::PinIndex | Workaround::AsToAddress | Workaround::SsboToAddress) => false,
+        Some(
+            Workaround::Nonuniform
+            | Workaround::PinIndex
+            | Workaround::AsToAddress
+            | Workaround::SsboToAddress,
+        ) => false,
     };
     cell.index == IndexSource::Dynamic && !cell.nonuniform && descriptor_indexed && patch_keeps_it
 }

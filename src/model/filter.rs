@@ -20,7 +20,11 @@ pub enum FilterError {
     UnknownAxis { axis: String, axes: String },
     /// `values`: the axis's values, for the message.
     #[error("unknown value {value:?} for {axis} in --filter; values: {values}")]
-    UnknownValue { value: String, axis: String, values: String },
+    UnknownValue {
+        value: String,
+        axis: String,
+        values: String,
+    },
     #[error("empty --filter")]
     Empty,
 }
@@ -29,16 +33,25 @@ impl Filter {
     pub fn parse(s: &str) -> Result<Filter, FilterError> {
         let mut terms = Vec::new();
         for term in s.split(',').map(str::trim).filter(|t| !t.is_empty()) {
-            let (axis, values) = term.split_once('=').ok_or_else(|| FilterError::NotAxisValue { term: term.into() })?;
+            let (axis, values) = term
+                .split_once('=')
+                .ok_or_else(|| FilterError::NotAxisValue { term: term.into() })?;
             let axis = axis.trim();
             let Some(def) = registry::axis(axis) else {
-                return Err(FilterError::UnknownAxis { axis: axis.into(), axes: registry::names().collect::<Vec<_>>().join(", ") });
+                return Err(FilterError::UnknownAxis {
+                    axis: axis.into(),
+                    axes: registry::names().collect::<Vec<_>>().join(", "),
+                });
             };
             let allowed: Vec<&str> = def.filter_values().collect();
             let values: Vec<String> = values.split('|').map(|v| v.trim().to_string()).collect();
             for v in &values {
                 if !allowed.contains(&v.as_str()) {
-                    return Err(FilterError::UnknownValue { value: v.clone(), axis: axis.into(), values: allowed.join(", ") });
+                    return Err(FilterError::UnknownValue {
+                        value: v.clone(),
+                        axis: axis.into(),
+                        values: allowed.join(", "),
+                    });
                 }
             }
             terms.push((axis.to_string(), values));
@@ -50,6 +63,8 @@ impl Filter {
     }
 
     pub fn matches(&self, cell: &Cell) -> bool {
-        self.terms.iter().all(|(axis, values)| cell.axis_value(axis).is_some_and(|v| values.contains(&v)))
+        self.terms
+            .iter()
+            .all(|(axis, values)| cell.axis_value(axis).is_some_and(|v| values.contains(&v)))
     }
 }

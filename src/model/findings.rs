@@ -1,8 +1,8 @@
 //! What a finding's report says beside its attempts: whether the recommended pattern works
 //! and whether GPU-Assisted Validation masks it (the data; `report::recommended` and
 //! `report::gpu_av` schedule and judge).
-use serde::{Deserialize, Serialize};
 use crate::model::{Outcome, Pattern};
+use serde::{Deserialize, Serialize};
 
 /// What the report says about a finding's recommended pattern.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -30,7 +30,11 @@ pub enum PatternStatus {
         miss_probability: Option<f64>,
     },
     /// The pattern's cell has a finding too (its verdict and how often).
-    Fails { outcome: Outcome, faulted: u32, attempts: u32 },
+    Fails {
+        outcome: Outcome,
+        faulted: u32,
+        attempts: u32,
+    },
     /// The pattern's cell did not run (unsupported, not implemented, not planned), with why.
     NotRun { reason: String },
     /// No recommended pattern applies to the finding, with why.
@@ -41,13 +45,30 @@ impl PatternResult {
     /// `recommended pattern geometry (one storage buffer …; cell): passes (3/3)`
     pub fn line(&self) -> String {
         let status = match &self.status {
-            PatternStatus::Passes { passed, attempts, miss_probability } => crate::model::stats::passes_text(*passed, *attempts, *miss_probability),
-            PatternStatus::Fails { outcome, faulted, attempts } => format!("fails: {} ({faulted} of {attempts} attempts)", outcome.as_str()),
+            PatternStatus::Passes {
+                passed,
+                attempts,
+                miss_probability,
+            } => crate::model::stats::passes_text(*passed, *attempts, *miss_probability),
+            PatternStatus::Fails {
+                outcome,
+                faulted,
+                attempts,
+            } => format!(
+                "fails: {} ({faulted} of {attempts} attempts)",
+                outcome.as_str()
+            ),
             PatternStatus::NotRun { reason } => format!("not run ({reason})"),
-            PatternStatus::NotApplicable { reason } => return format!("recommended pattern: none ({reason})"),
+            PatternStatus::NotApplicable { reason } => {
+                return format!("recommended pattern: none ({reason})")
+            }
         };
         match (self.pattern, &self.cell) {
-            (Some(p), Some(c)) => format!("recommended pattern {} ({}; {c}): {status}", p.as_str(), p.description()),
+            (Some(p), Some(c)) => format!(
+                "recommended pattern {} ({}; {c}): {status}",
+                p.as_str(),
+                p.description()
+            ),
             _ => format!("recommended pattern: {status}"),
         }
     }
@@ -88,29 +109,66 @@ pub struct GpuAvResult {
 
 impl GpuAvResult {
     pub fn not_run(outcome: Outcome, reason: String) -> Self {
-        GpuAvResult { verdict: GpuAvVerdict::NotRun, outcome, detail: Some(reason), validation_errors: 0, control: None, attempts: 0, passed: 0, miss_probability: None }
+        GpuAvResult {
+            verdict: GpuAvVerdict::NotRun,
+            outcome,
+            detail: Some(reason),
+            validation_errors: 0,
+            control: None,
+            attempts: 0,
+            passed: 0,
+            miss_probability: None,
+        }
     }
 
     /// `GPU-AV: masked (passes under GPU-AV; 0 validation errors)`
     pub fn line(&self) -> String {
-        let errors = if self.validation_errors > 0 { format!("; GPU-AV reported {} validation errors", self.validation_errors) } else { String::new() };
+        let errors = if self.validation_errors > 0 {
+            format!(
+                "; GPU-AV reported {} validation errors",
+                self.validation_errors
+            )
+        } else {
+            String::new()
+        };
         match self.verdict {
-            GpuAvVerdict::Masked => format!("GPU-AV: masked ({} under GPU-AV{errors})", super::stats::passes_text(self.passed, self.attempts, self.miss_probability)),
+            GpuAvVerdict::Masked => format!(
+                "GPU-AV: masked ({} under GPU-AV{errors})",
+                super::stats::passes_text(self.passed, self.attempts, self.miss_probability)
+            ),
             GpuAvVerdict::StillFaults => {
                 let control = match &self.control {
                     Some((c, o)) => format!("its control {c} is {} under GPU-AV", o.as_str()),
-                    None => "no control ran, so GPU-AV itself breaking the pipeline is not ruled out".into(),
+                    None => {
+                        "no control ran, so GPU-AV itself breaking the pipeline is not ruled out"
+                            .into()
+                    }
                 };
-                format!("GPU-AV: still faults ({}, {} of {} attempts under GPU-AV; {control}{errors})", self.outcome.as_str(), self.attempts - self.passed, self.attempts)
+                format!(
+                    "GPU-AV: still faults ({}, {} of {} attempts under GPU-AV; {control}{errors})",
+                    self.outcome.as_str(),
+                    self.attempts - self.passed,
+                    self.attempts
+                )
             }
             GpuAvVerdict::GpuAvFailed => {
                 let control = match &self.control {
-                    Some((c, o)) => format!("its control {c} passes without GPU-AV and is {} with it", o.as_str()),
+                    Some((c, o)) => format!(
+                        "its control {c} passes without GPU-AV and is {} with it",
+                        o.as_str()
+                    ),
                     None => "no control".into(),
                 };
-                format!("GPU-AV: GPU-AV itself failed ({} under GPU-AV; {control}{errors})", self.outcome.as_str())
+                format!(
+                    "GPU-AV: GPU-AV itself failed ({} under GPU-AV; {control}{errors})",
+                    self.outcome.as_str()
+                )
             }
-            GpuAvVerdict::NotRun => format!("GPU-AV: not run ({}: {})", self.outcome.as_str(), self.detail.as_deref().unwrap_or("no reason")),
+            GpuAvVerdict::NotRun => format!(
+                "GPU-AV: not run ({}: {})",
+                self.outcome.as_str(),
+                self.detail.as_deref().unwrap_or("no reason")
+            ),
         }
     }
 }

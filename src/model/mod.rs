@@ -4,10 +4,10 @@
 //! imports nothing else of the crate, and everything above reads and writes through it (as
 //! nextest keeps its schema below its runner).
 pub mod attempt;
-pub mod bundle;
 pub mod axes;
 pub mod baseline;
 pub mod bisection;
+pub mod bundle;
 pub mod cell;
 pub mod comparison;
 pub mod fault;
@@ -25,8 +25,13 @@ pub mod scene;
 pub mod stats;
 
 pub use attempt::{signal_name, Attempt, Isolation, WorkerEvent, WorkerExit};
-pub use axes::{AsAccess, BaseSource, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource, SamplerIndex, Stage};
-pub use baseline::{Baseline, BaselineCheck, CellCheck, Expectation, PerfBound, Status, WorkerFault};
+pub use axes::{
+    AsAccess, BaseSource, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource,
+    SamplerIndex, Stage,
+};
+pub use baseline::{
+    Baseline, BaselineCheck, CellCheck, Expectation, PerfBound, Status, WorkerFault,
+};
 pub use bisection::{BisectFile, Bisection, IsolationLine};
 pub use cell::{undefined_descriptor_read, Canary, Cell, Pattern, Workaround, NO_NONUNIFORM_VUID};
 pub use comparison::{Comparison, ElementReads, Mismatch};

@@ -26,8 +26,16 @@ pub enum Outcome {
 }
 
 impl Outcome {
-    pub const ALL: &'static [Outcome] =
-        &[Outcome::Pass, Outcome::Mismatch, Outcome::DeviceLost, Outcome::Crash, Outcome::Timeout, Outcome::Unsupported, Outcome::NotImplemented, Outcome::Error];
+    pub const ALL: &'static [Outcome] = &[
+        Outcome::Pass,
+        Outcome::Mismatch,
+        Outcome::DeviceLost,
+        Outcome::Crash,
+        Outcome::Timeout,
+        Outcome::Unsupported,
+        Outcome::NotImplemented,
+        Outcome::Error,
+    ];
 
     pub fn as_str(self) -> &'static str {
         match self {
@@ -46,7 +54,11 @@ impl Outcome {
     pub fn is_finding(self) -> bool {
         match self {
             Outcome::Pass | Outcome::Unsupported | Outcome::NotImplemented => false,
-            Outcome::Mismatch | Outcome::DeviceLost | Outcome::Crash | Outcome::Timeout | Outcome::Error => true,
+            Outcome::Mismatch
+            | Outcome::DeviceLost
+            | Outcome::Crash
+            | Outcome::Timeout
+            | Outcome::Error => true,
         }
     }
 
@@ -54,7 +66,11 @@ impl Outcome {
     pub fn ends_worker(self) -> bool {
         match self {
             Outcome::DeviceLost | Outcome::Crash | Outcome::Timeout => true,
-            Outcome::Pass | Outcome::Mismatch | Outcome::Unsupported | Outcome::NotImplemented | Outcome::Error => false,
+            Outcome::Pass
+            | Outcome::Mismatch
+            | Outcome::Unsupported
+            | Outcome::NotImplemented
+            | Outcome::Error => false,
         }
     }
 
@@ -77,7 +93,9 @@ impl Outcome {
     pub fn worth_confirming(self) -> bool {
         match self {
             Outcome::Mismatch | Outcome::DeviceLost | Outcome::Crash | Outcome::Timeout => true,
-            Outcome::Pass | Outcome::Unsupported | Outcome::NotImplemented | Outcome::Error => false,
+            Outcome::Pass | Outcome::Unsupported | Outcome::NotImplemented | Outcome::Error => {
+                false
+            }
         }
     }
 }
@@ -125,7 +143,10 @@ mod tests {
     #[test]
     fn names_match_serde() {
         for o in Outcome::ALL {
-            assert_eq!(serde_json::to_value(o).unwrap(), serde_json::Value::String(o.as_str().into()));
+            assert_eq!(
+                serde_json::to_value(o).unwrap(),
+                serde_json::Value::String(o.as_str().into())
+            );
         }
         assert!(!Outcome::Unsupported.is_finding());
         assert!(Outcome::Crash.ends_worker() && !Outcome::Mismatch.ends_worker());

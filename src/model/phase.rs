@@ -78,7 +78,10 @@ mod tests {
     #[test]
     fn names_match_serde_and_parse() {
         for p in Phase::ALL {
-            assert_eq!(serde_json::to_value(p).unwrap(), serde_json::Value::String(p.as_str().into()));
+            assert_eq!(
+                serde_json::to_value(p).unwrap(),
+                serde_json::Value::String(p.as_str().into())
+            );
             assert_eq!(Phase::parse(p.as_str()), Some(*p));
         }
         assert_eq!(Phase::parse("nope"), None);

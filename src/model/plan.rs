@@ -1,16 +1,20 @@
 //! The plan's data: planned cells with their status, the rules that kept combinations out,
 //! and which workaround cells are planned.
-use serde::{Deserialize, Serialize};
 use crate::model::Cell;
+use serde::{Deserialize, Serialize};
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "status", rename_all = "snake_case")]
 pub enum PlanStatus {
     Run,
     /// The device's features say it cannot run the cell.
-    Unsupported { reason: String },
+    Unsupported {
+        reason: String,
+    },
     /// The device could run the cell; rtprobe cannot yet (never blamed on the device).
-    NotImplemented { reason: String },
+    NotImplemented {
+        reason: String,
+    },
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -38,17 +42,26 @@ pub struct RunPlan {
 
 impl RunPlan {
     pub fn to_run(&self) -> impl Iterator<Item = &Cell> {
-        self.cells.iter().filter(|c| c.status == PlanStatus::Run).map(|c| &c.cell)
+        self.cells
+            .iter()
+            .filter(|c| c.status == PlanStatus::Run)
+            .map(|c| &c.cell)
     }
 
     /// Cells the device cannot run (its features say so).
     pub fn unsupported_count(&self) -> usize {
-        self.cells.iter().filter(|c| matches!(c.status, PlanStatus::Unsupported { .. })).count()
+        self.cells
+            .iter()
+            .filter(|c| matches!(c.status, PlanStatus::Unsupported { .. }))
+            .count()
     }
 
     /// Cells rtprobe itself cannot run yet: planned and reported, never dropped.
     pub fn not_implemented_count(&self) -> usize {
-        self.cells.iter().filter(|c| matches!(c.status, PlanStatus::NotImplemented { .. })).count()
+        self.cells
+            .iter()
+            .filter(|c| matches!(c.status, PlanStatus::NotImplemented { .. }))
+            .count()
     }
 }
 

@@ -8,7 +8,10 @@
 //! Adding an axis: a variant of [`AxisId`], an entry here, a field of [`Cell`]; the compiler then
 //! lists the exhaustive matches that must say what it means, and `tests` below check that every
 //! consumer covers every value.
-use super::axes::{AsAccess, BaseSource, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource, SamplerIndex, Stage};
+use super::axes::{
+    AsAccess, BaseSource, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource,
+    SamplerIndex, Stage,
+};
 use super::cell::{Canary, Cell, Workaround};
 
 /// The axes, closed: a consumer that must say something about each one matches this exhaustively.
@@ -137,7 +140,13 @@ pub const AXES: &[Axis] = &[
         segment: Segment::Flag("nonuniform"),
         get: |c| if c.nonuniform { "true" } else { "false" },
         set: |c, v| (v == "true").then(|| c.nonuniform = true).is_some(),
-        phrase: |c| if c.nonuniform { " (nonuniformEXT)".into() } else { String::new() },
+        phrase: |c| {
+            if c.nonuniform {
+                " (nonuniformEXT)".into()
+            } else {
+                String::new()
+            }
+        },
     },
     Axis {
         id: AxisId::AsAccess,
@@ -153,7 +162,9 @@ pub const AXES: &[Axis] = &[
             None => String::new(),
             Some(AsAccess::Descriptor) => " through a descriptor".into(),
             Some(AsAccess::Address) => " through a device address".into(),
-            Some(AsAccess::AddressPatched) => " through a device address (as-to-address applied to the descriptor variant)".into(),
+            Some(AsAccess::AddressPatched) => {
+                " through a device address (as-to-address applied to the descriptor variant)".into()
+            }
         },
     },
     Axis {
@@ -200,7 +211,11 @@ pub const AXES: &[Axis] = &[
         segment: Segment::Whole,
         get: |c| c.canary.map(Canary::as_str).unwrap_or("none"),
         set: |c, v| set_opt(&mut c.canary, Canary::parse, v),
-        phrase: |c| c.canary.map(|k| format!("canary {}", k.as_str())).unwrap_or_default(),
+        phrase: |c| {
+            c.canary
+                .map(|k| format!("canary {}", k.as_str()))
+                .unwrap_or_default()
+        },
     },
     Axis {
         id: AxisId::Patch,
@@ -212,7 +227,11 @@ pub const AXES: &[Axis] = &[
         segment: Segment::Last("patch-"),
         get: |c| c.patch.map(Workaround::as_str).unwrap_or("none"),
         set: |c, v| set_opt(&mut c.patch, Workaround::parse, v),
-        phrase: |c| c.patch.map(|p| format!(", patched with {}", p.as_str())).unwrap_or_default(),
+        phrase: |c| {
+            c.patch
+                .map(|p| format!(", patched with {}", p.as_str()))
+                .unwrap_or_default()
+        },
     },
     Axis {
         id: AxisId::Reorder,
@@ -224,7 +243,11 @@ pub const AXES: &[Axis] = &[
         segment: Segment::Value,
         get: |c| c.reorder.map(Reorder::as_str).unwrap_or("none"),
         set: |c, v| set_opt(&mut c.reorder, Reorder::parse, v),
-        phrase: |c| c.reorder.map(|r| format!(", raygen reordering with {r}")).unwrap_or_default(),
+        phrase: |c| {
+            c.reorder
+                .map(|r| format!(", raygen reordering with {r}"))
+                .unwrap_or_default()
+        },
     },
     Axis {
         id: AxisId::Base,
@@ -244,7 +267,9 @@ pub const AXES: &[Axis] = &[
             match c.base {
                 None => "",
                 Some(BaseSource::ShaderRecord) => ", base from the SBT shader record",
-                Some(BaseSource::Buffer) => ", base loaded from a per-instance buffer (device address)",
+                Some(BaseSource::Buffer) => {
+                    ", base loaded from a per-instance buffer (device address)"
+                }
             }
             .into()
         },
@@ -289,21 +314,31 @@ pub fn filter_help_short() -> String {
 pub fn filter_help() -> String {
     let mut s = String::from("Select cells: `axis=value[|value],…`; every term must match (values within a term are alternatives); repeat --filter for more filters, all must match. Axes:");
     for a in AXES {
-        s += &format!("\n  {}: {} ({})", a.name, a.help, a.filter_values().collect::<Vec<_>>().join(", "));
+        s += &format!(
+            "\n  {}: {} ({})",
+            a.name,
+            a.help,
+            a.filter_values().collect::<Vec<_>>().join(", ")
+        );
     }
     s
 }
 
 /// Every axis of `c` as an exact `--filter` (stand-ins included).
 pub fn exact_filter(c: &Cell) -> String {
-    AXES.iter().map(|a| format!("{}={}", a.name, (a.get)(c))).collect::<Vec<_>>().join(",")
+    AXES.iter()
+        .map(|a| format!("{}={}", a.name, (a.get)(c)))
+        .collect::<Vec<_>>()
+        .join(",")
 }
 
 /// The axes in the order a cell's id and its sentence list them: registry order, the
 /// [`Segment::Last`] ones at the end.
 fn in_id_order() -> impl Iterator<Item = &'static Axis> {
     let last = |a: &&Axis| matches!(a.segment, Segment::Last(_));
-    AXES.iter().filter(move |a| !last(a)).chain(AXES.iter().filter(last))
+    AXES.iter()
+        .filter(move |a| !last(a))
+        .chain(AXES.iter().filter(last))
 }
 
 /// A cell's id: its axis values in registry order (see [`Segment`]).
@@ -335,7 +370,11 @@ pub enum IdError {
     NoSuchCanary { id: String, canaries: String },
     /// An axis without stand-in has no value at its place (`values`: the axis's values).
     #[error("{id:?} is not a cell id ({axis} must be one of {values})")]
-    MissingValue { id: String, axis: &'static str, values: String },
+    MissingValue {
+        id: String,
+        axis: &'static str,
+        values: String,
+    },
     #[error("{id:?} is not a cell id ({rest:?} is no axis value at its place)")]
     Misplaced { id: String, rest: String },
     /// It parses, but [`id`] writes the cell another way.
@@ -347,29 +386,51 @@ pub enum IdError {
 /// the id taking its stand-in. Refuses what [`id`] would not write back the same.
 pub fn parse_id(s: &str) -> Result<Cell, IdError> {
     if let Some(name) = s.strip_prefix("canary.") {
-        return Canary::parse(name).map(Cell::canary).ok_or_else(|| IdError::NoSuchCanary { id: s.into(), canaries: Canary::NAMES.join(", ") });
+        return Canary::parse(name)
+            .map(Cell::canary)
+            .ok_or_else(|| IdError::NoSuchCanary {
+                id: s.into(),
+                canaries: Canary::NAMES.join(", "),
+            });
     }
-    let mut c = Cell::new(Stage::Raygen, Resource::StorageBuffer, IndexSource::Literal, DescriptorModel::DescriptorIndexing);
+    let mut c = Cell::new(
+        Stage::Raygen,
+        Resource::StorageBuffer,
+        IndexSource::Literal,
+        DescriptorModel::DescriptorIndexing,
+    );
     let mut parts = s.split('.').peekable();
     for a in in_id_order() {
         let Some(&next) = parts.peek() else { break };
         let taken = match a.segment {
             Segment::Value => (a.set)(&mut c, next),
             Segment::Flag(word) => next == word && (a.set)(&mut c, "true"),
-            Segment::Prefixed(p) | Segment::Last(p) => next.strip_prefix(p).is_some_and(|v| (a.set)(&mut c, v)),
+            Segment::Prefixed(p) | Segment::Last(p) => {
+                next.strip_prefix(p).is_some_and(|v| (a.set)(&mut c, v))
+            }
             Segment::Whole => false,
         };
         if taken {
             parts.next();
         } else if a.stand_ins.is_empty() {
-            return Err(IdError::MissingValue { id: s.into(), axis: a.name, values: a.values.join(", ") });
+            return Err(IdError::MissingValue {
+                id: s.into(),
+                axis: a.name,
+                values: a.values.join(", "),
+            });
         }
     }
     if let Some(rest) = parts.next() {
-        return Err(IdError::Misplaced { id: s.into(), rest: rest.into() });
+        return Err(IdError::Misplaced {
+            id: s.into(),
+            rest: rest.into(),
+        });
     }
     if id(&c) != s {
-        return Err(IdError::NotCanonical { id: s.into(), reads: id(&c) });
+        return Err(IdError::NotCanonical {
+            id: s.into(),
+            reads: id(&c),
+        });
     }
     Ok(c)
 }
@@ -377,7 +438,10 @@ pub fn parse_id(s: &str) -> Result<Cell, IdError> {
 /// One cell as a sentence a driver engineer can read without knowing rtprobe's ids.
 pub fn describe(c: &Cell) -> String {
     if c.canary.is_some() {
-        let canary = AXES.iter().find(|a| a.segment == Segment::Whole).expect("the canary axis");
+        let canary = AXES
+            .iter()
+            .find(|a| a.segment == Segment::Whole)
+            .expect("the canary axis");
         return (canary.phrase)(c);
     }
     in_id_order().map(|a| (a.phrase)(c)).collect()
@@ -430,9 +494,31 @@ mod tests {
         // compare them) and bisection's term order are the order of the first releases.
         assert_eq!(
             names().collect::<Vec<_>>(),
-            ["stage", "resource", "index", "nonuniform", "as_access", "descriptor_model", "heap_access", "canary", "patch", "reorder", "base", "sampler"]
+            [
+                "stage",
+                "resource",
+                "index",
+                "nonuniform",
+                "as_access",
+                "descriptor_model",
+                "heap_access",
+                "canary",
+                "patch",
+                "reorder",
+                "base",
+                "sampler"
+            ]
         );
-        let c = Cell { nonuniform: true, patch: Some(Workaround::PinIndex), ..Cell::new(Stage::ClosestHit, Resource::StorageBuffer, IndexSource::Dynamic, DescriptorModel::DescriptorIndexing) };
+        let c = Cell {
+            nonuniform: true,
+            patch: Some(Workaround::PinIndex),
+            ..Cell::new(
+                Stage::ClosestHit,
+                Resource::StorageBuffer,
+                IndexSource::Dynamic,
+                DescriptorModel::DescriptorIndexing,
+            )
+        };
         assert_eq!(
             exact_filter(&c),
             "stage=closest_hit,resource=storage_buffer,index=dynamic,nonuniform=true,as_access=none,descriptor_model=descriptor_indexing,heap_access=none,canary=none,patch=pin-index,reorder=none,base=push_data,sampler=none"
@@ -442,11 +528,31 @@ mod tests {
 
     #[test]
     fn ids_round_trip_and_bad_ids_are_refused() {
-        let c = Cell { nonuniform: true, base: Some(BaseSource::Buffer), patch: Some(Workaround::PinIndex), ..Cell::new(Stage::ClosestHit, Resource::StorageBuffer, IndexSource::Dynamic, DescriptorModel::DescriptorBuffer) };
+        let c = Cell {
+            nonuniform: true,
+            base: Some(BaseSource::Buffer),
+            patch: Some(Workaround::PinIndex),
+            ..Cell::new(
+                Stage::ClosestHit,
+                Resource::StorageBuffer,
+                IndexSource::Dynamic,
+                DescriptorModel::DescriptorBuffer,
+            )
+        };
         assert_eq!(id(&c), "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_buffer.base_buffer.patch-pin-index");
         assert_eq!(parse_id(&id(&c)), Ok(c));
-        assert_eq!(parse_id("canary.infinite_loop"), Ok(Cell::canary(Canary::InfiniteLoop)));
-        for bad in ["", "closest_hit", "closest_hit.storage_buffer.dynamic", "closest_hit.storage_buffer.dynamic.descriptor_buffer.extra", "canary.nope", "closest_hit.storage_buffer.dynamic.descriptor_buffer.base_push_data"] {
+        assert_eq!(
+            parse_id("canary.infinite_loop"),
+            Ok(Cell::canary(Canary::InfiniteLoop))
+        );
+        for bad in [
+            "",
+            "closest_hit",
+            "closest_hit.storage_buffer.dynamic",
+            "closest_hit.storage_buffer.dynamic.descriptor_buffer.extra",
+            "canary.nope",
+            "closest_hit.storage_buffer.dynamic.descriptor_buffer.base_push_data",
+        ] {
             assert!(parse_id(bad).is_err(), "{bad}");
         }
     }

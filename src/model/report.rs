@@ -2,13 +2,13 @@
 //! cell its axes, outcome, attempts (timings, mismatch and fault details, worker exit). Cells are
 //! kept in plan order, so reports of the same plan diff cleanly. Written atomically as the run
 //! goes (`cli::run`: at once after a fault, passes at most every 100 ms); `--resume` reads it back.
-use crate::model::NotGenerated;
-use crate::model::{Canary, Cell};
-use crate::model::Outcome;
-use crate::model::{Attempt, WorkerEvent};
-pub use super::options::{ResultOption, RunOptions};
-use crate::model::SceneParams;
 use super::load::LoadError;
+pub use super::options::{ResultOption, RunOptions};
+use crate::model::NotGenerated;
+use crate::model::Outcome;
+use crate::model::SceneParams;
+use crate::model::{Attempt, WorkerEvent};
+use crate::model::{Canary, Cell};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use std::collections::BTreeMap;
@@ -104,7 +104,11 @@ impl Incidence {
             Some(true) | None => {}
         }
         if self.faulted < self.attempts {
-            s += &format!("; {:.2}% chance that {} attempts miss a fault of this rate", 100.0 * self.miss_probability, self.attempts);
+            s += &format!(
+                "; {:.2}% chance that {} attempts miss a fault of this rate",
+                100.0 * self.miss_probability,
+                self.attempts
+            );
         }
         s
     }
@@ -114,7 +118,14 @@ impl CellReport {
     /// The own/other/neither element reads of each attempt that compared (cells without
     /// `nonuniformEXT` on a dynamic descriptor index).
     pub fn element_reads(&self) -> impl Iterator<Item = &crate::model::ElementReads> {
-        self.attempts.iter().filter_map(|a| a.result.as_ref()?.comparison.as_ref()?.element_reads.as_ref())
+        self.attempts.iter().filter_map(|a| {
+            a.result
+                .as_ref()?
+                .comparison
+                .as_ref()?
+                .element_reads
+                .as_ref()
+        })
     }
 
     /// A cell with its first attempt.
@@ -154,36 +165,65 @@ impl CellReport {
     /// outcome (the worker's own record carries it too), but it never counts towards a rate.
     pub fn refresh(&mut self) {
         let ran: Vec<&Attempt> = self.attempts.iter().filter(|a| !a.not_run()).collect();
-        let counted: Vec<&Attempt> = if ran.is_empty() { self.attempts.iter().collect() } else { ran };
-        let Some(worst) = counted.iter().max_by_key(|a| a.outcome.severity()) else { return };
+        let counted: Vec<&Attempt> = if ran.is_empty() {
+            self.attempts.iter().collect()
+        } else {
+            ran
+        };
+        let Some(worst) = counted.iter().max_by_key(|a| a.outcome.severity()) else {
+            return;
+        };
         let (outcome, detail) = (worst.outcome, worst.detail.clone());
         let n = counted.len() as u32;
         let k = counted.iter().filter(|a| a.outcome.is_finding()).count() as u32;
         let alone: Vec<&&Attempt> = counted.iter().skip(1).filter(|a| a.isolated).collect();
         self.outcome = outcome;
         self.flaky = counted.iter().any(|a| a.outcome != outcome);
-        self.confirmed = (n > 1).then(|| counted.iter().filter(|a| a.outcome == outcome).count() > 1);
+        self.confirmed =
+            (n > 1).then(|| counted.iter().filter(|a| a.outcome == outcome).count() > 1);
         // An injected fault that an attempt ran with (armed, for flaky) and that still passed:
         // detection is unproven there, as with an undetected canary.
-        self.injection_undetected = self.attempts.iter().any(|a| a.outcome == Outcome::Pass && a.injected.as_ref().is_some_and(|i| i.armed != Some(false)));
+        self.injection_undetected = self.attempts.iter().any(|a| {
+            a.outcome == Outcome::Pass
+                && a.injected.as_ref().is_some_and(|i| i.armed != Some(false))
+        });
         self.incidence = outcome.is_finding().then(|| Incidence {
             faulted: k,
             attempts: n,
-            reproduced_alone: (!alone.is_empty()).then(|| alone.iter().any(|a| a.outcome.is_finding())),
+            reproduced_alone: (!alone.is_empty())
+                .then(|| alone.iter().any(|a| a.outcome.is_finding())),
             miss_probability: crate::model::stats::miss(k as f64 / n as f64, n),
         });
-        self.injected = self.attempts.iter().find_map(|a| a.injected.as_ref()).map(|i| i.spec.clone());
+        self.injected = self
+            .attempts
+            .iter()
+            .find_map(|a| a.injected.as_ref())
+            .map(|i| i.spec.clone());
         // Labelled from the cell's shape, so a cell that crashed (no comparison) carries it too,
         // or from a comparison judged so (the compiler dropped a nonuniformEXT: `exec::heap`).
-        let judged_undefined = self.attempts.iter().any(|a| a.result.as_ref().and_then(|r| r.comparison.as_ref()).is_some_and(|c| c.element_reads.is_some()));
-        self.outside_spec = (crate::model::undefined_descriptor_read(&self.cell) || judged_undefined).then(|| crate::model::NO_NONUNIFORM_VUID.to_string());
+        let judged_undefined = self.attempts.iter().any(|a| {
+            a.result
+                .as_ref()
+                .and_then(|r| r.comparison.as_ref())
+                .is_some_and(|c| c.element_reads.is_some())
+        });
+        self.outside_spec = (crate::model::undefined_descriptor_read(&self.cell)
+            || judged_undefined)
+            .then(|| crate::model::NO_NONUNIFORM_VUID.to_string());
         self.reason = match (&self.incidence, detail) {
-            (Some(inc), d) if n > 1 => Some(format!("{} ({})", d.unwrap_or_else(|| outcome.as_str().into()), inc.label())),
+            (Some(inc), d) if n > 1 => Some(format!(
+                "{} ({})",
+                d.unwrap_or_else(|| outcome.as_str().into()),
+                inc.label()
+            )),
             (_, d) => d,
         };
         self.canary_check = self.cell.canary.map(|c| {
             let expected = canary_expectation(c);
-            CanaryCheck { detected: expected.contains(&outcome), expected }
+            CanaryCheck {
+                detected: expected.contains(&outcome),
+                expected,
+            }
         });
     }
 }
@@ -211,7 +251,15 @@ impl WorkaroundResult {
     /// `interleave → passes (2/2; … p ≤ 0.49)` / `interleave → crash`.
     pub fn tried(&self) -> String {
         match self.outcome {
-            Outcome::Pass => format!("{} → {}", self.patch.as_str(), crate::model::stats::passes_text(self.attempts, self.attempts, self.miss_probability)),
+            Outcome::Pass => format!(
+                "{} → {}",
+                self.patch.as_str(),
+                crate::model::stats::passes_text(
+                    self.attempts,
+                    self.attempts,
+                    self.miss_probability
+                )
+            ),
             o => format!("{} → {}", self.patch.as_str(), o.as_str()),
         }
     }
@@ -351,9 +399,24 @@ impl RunReport {
             complete: true,
             device: serde_json::json!({ "name": "test device" }),
             matrix_support: serde_json::json!({}),
-            scene: SceneSummary { params: SceneParams::default(), instances: 16, blas: 4, triangles: 0, ambiguous_pixels: 0 },
+            scene: SceneSummary {
+                params: SceneParams::default(),
+                instances: 16,
+                blas: 4,
+                triangles: 0,
+                ambiguous_pixels: 0,
+            },
             options: RunOptions::for_tests(),
-            plan: PlanSummary { generated: 0, filtered_out: 0, planned: cells.len(), to_run: cells.len(), unsupported: 0, not_implemented: 0, not_generated: vec![], sharded_out: 0 },
+            plan: PlanSummary {
+                generated: 0,
+                filtered_out: 0,
+                planned: cells.len(),
+                to_run: cells.len(),
+                unsupported: 0,
+                not_implemented: 0,
+                not_generated: vec![],
+                sharded_out: 0,
+            },
             summary: Default::default(),
             tally: Default::default(),
             timing: TimingSummary::default(),
@@ -385,7 +448,11 @@ impl RunReport {
         }
         t.findings = self.findings().count();
         t.injections_undetected = self.cells.iter().filter(|c| c.injection_undetected).count();
-        t.worker_faults = self.workers.iter().filter(|w| w.outcome.is_finding()).count();
+        t.worker_faults = self
+            .workers
+            .iter()
+            .filter(|w| w.outcome.is_finding())
+            .count();
         t.flaky = self.findings().filter(|c| c.flaky).count();
         self.summary = m;
         self.tally = t;
@@ -393,31 +460,55 @@ impl RunReport {
 
     /// Canaries whose fault rtprobe did not classify as expected: detection is unproven.
     pub fn undetected_canaries(&self) -> impl Iterator<Item = &CellReport> {
-        self.cells.iter().filter(|c| c.canary_check.as_ref().is_some_and(|k| !k.detected))
+        self.cells
+            .iter()
+            .filter(|c| c.canary_check.as_ref().is_some_and(|k| !k.detected))
     }
 
     /// Cells with a finding (canaries and workaround variants excluded).
     pub fn findings(&self) -> impl Iterator<Item = &CellReport> {
-        self.cells.iter().filter(|c| c.cell.canary.is_none() && c.cell.patch.is_none() && c.outcome.is_finding())
+        self.cells
+            .iter()
+            .filter(|c| c.cell.canary.is_none() && c.cell.patch.is_none() && c.outcome.is_finding())
     }
 
     /// Attach to each finding the outcome of its workaround variants present in the report.
     pub fn annotate_workarounds(&mut self) {
-        let variants: Vec<(Cell, String, Outcome, u32)> =
-            self.cells.iter().filter(|c| c.cell.patch.is_some()).map(|c| (c.cell, c.id.clone(), c.outcome, c.attempts.iter().filter(|a| !a.not_run()).count() as u32)).collect();
-        for c in self.cells.iter_mut().filter(|c| c.cell.patch.is_none() && c.cell.canary.is_none()) {
+        let variants: Vec<(Cell, String, Outcome, u32)> = self
+            .cells
+            .iter()
+            .filter(|c| c.cell.patch.is_some())
+            .map(|c| {
+                (
+                    c.cell,
+                    c.id.clone(),
+                    c.outcome,
+                    c.attempts.iter().filter(|a| !a.not_run()).count() as u32,
+                )
+            })
+            .collect();
+        for c in self
+            .cells
+            .iter_mut()
+            .filter(|c| c.cell.patch.is_none() && c.cell.canary.is_none())
+        {
             let incidence = c.incidence.clone();
             let finding = c.outcome.is_finding();
             c.workarounds = variants
                 .iter()
                 .filter(|(v, _, _, _)| v.base() == c.cell)
                 .map(|(v, id, o, n)| {
-                    let miss_probability = incidence.as_ref().filter(|_| *o == Outcome::Pass).map(|i| crate::model::stats::pass_miss(i.faulted, i.attempts, *n));
+                    let miss_probability = incidence
+                        .as_ref()
+                        .filter(|_| *o == Outcome::Pass)
+                        .map(|i| crate::model::stats::pass_miss(i.faulted, i.attempts, *n));
                     WorkaroundResult {
                         patch: v.patch.expect("filtered"),
                         cell: id.clone(),
                         outcome: *o,
-                        verified: finding && miss_probability.is_some_and(|m| m < crate::model::stats::DEFAULT_MAX_MISS),
+                        verified: finding
+                            && miss_probability
+                                .is_some_and(|m| m < crate::model::stats::DEFAULT_MAX_MISS),
                         attempts: *n,
                         miss_probability,
                     }
@@ -439,7 +530,12 @@ mod tests {
     use crate::model::{DescriptorModel, IndexSource, Resource, Stage};
 
     fn cell() -> Cell {
-        Cell::new(Stage::ClosestHit, Resource::StorageBuffer, IndexSource::Dynamic, DescriptorModel::DescriptorIndexing)
+        Cell::new(
+            Stage::ClosestHit,
+            Resource::StorageBuffer,
+            IndexSource::Dynamic,
+            DescriptorModel::DescriptorIndexing,
+        )
     }
 
     fn attempt(outcome: Outcome, isolated: bool) -> Attempt {
@@ -455,14 +551,27 @@ mod tests {
         assert!(c.flaky);
         assert_eq!(c.confirmed, Some(false));
         let inc = c.incidence.clone().unwrap();
-        assert_eq!((inc.faulted, inc.attempts, inc.reproduced_alone), (1, 2, Some(false)));
+        assert_eq!(
+            (inc.faulted, inc.attempts, inc.reproduced_alone),
+            (1, 2, Some(false))
+        );
         assert!((inc.miss_probability - 0.25).abs() < 1e-12);
-        assert!(c.reason.as_deref().unwrap().contains("1 of 2 attempts; not reproduced alone"), "{:?}", c.reason);
+        assert!(
+            c.reason
+                .as_deref()
+                .unwrap()
+                .contains("1 of 2 attempts; not reproduced alone"),
+            "{:?}",
+            c.reason
+        );
     }
 
     #[test]
     fn the_worst_attempt_wins_in_any_order_and_repeats_confirm() {
-        for order in [[Outcome::Pass, Outcome::Mismatch], [Outcome::Mismatch, Outcome::Pass]] {
+        for order in [
+            [Outcome::Pass, Outcome::Mismatch],
+            [Outcome::Mismatch, Outcome::Pass],
+        ] {
             let mut c = CellReport::new(&cell(), attempt(order[0], false));
             c.attempts.push(attempt(order[1], true));
             c.refresh();
@@ -472,7 +581,10 @@ mod tests {
         let mut c = CellReport::new(&cell(), attempt(Outcome::Crash, false));
         c.attempts.push(attempt(Outcome::Crash, true));
         c.refresh();
-        assert_eq!((c.outcome, c.flaky, c.confirmed), (Outcome::Crash, false, Some(true)));
+        assert_eq!(
+            (c.outcome, c.flaky, c.confirmed),
+            (Outcome::Crash, false, Some(true))
+        );
         assert_eq!(c.incidence.as_ref().unwrap().miss_probability, 0.0);
         assert_eq!(c.incidence.as_ref().unwrap().reproduced_alone, Some(true));
         let pass = CellReport::new(&cell(), attempt(Outcome::Pass, false));

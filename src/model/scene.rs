@@ -27,7 +27,13 @@ pub enum SceneError {
 
 impl Default for SceneParams {
     fn default() -> Self {
-        Self { seed: 1, width: 64, height: 64, instances: 16, mesh_detail: 16 }
+        Self {
+            seed: 1,
+            width: 64,
+            height: 64,
+            instances: 16,
+            mesh_detail: 16,
+        }
     }
 }
 
@@ -36,8 +42,17 @@ impl SceneParams {
         if self.instances < 16 || self.instances > 4096 {
             return Err(SceneError::Instances(self.instances));
         }
-        if self.width < 8 || self.height < 8 || self.width % 8 != 0 || self.height % 8 != 0 || self.width > 4096 || self.height > 4096 {
-            return Err(SceneError::ImageSize { width: self.width, height: self.height });
+        if self.width < 8
+            || self.height < 8
+            || self.width % 8 != 0
+            || self.height % 8 != 0
+            || self.width > 4096
+            || self.height > 4096
+        {
+            return Err(SceneError::ImageSize {
+                width: self.width,
+                height: self.height,
+            });
         }
         if self.mesh_detail < 4 || self.mesh_detail > 256 || self.mesh_detail % 4 != 0 {
             return Err(SceneError::MeshDetail(self.mesh_detail));

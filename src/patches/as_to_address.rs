@@ -61,15 +61,31 @@ const NAME: &str = "as-to-address";
 
 /// The AS descriptor variables `opts` selects: (variable, is an array, AS type).
 fn as_variables(m: &Module, opts: &Options) -> Result<Vec<(Word, bool, Word)>, PatchError> {
-    let as_types: HashSet<Word> = m.types_global_values.iter().filter(|i| i.class.opcode == Op::TypeAccelerationStructureKHR).filter_map(|i| i.result_id).collect();
+    let as_types: HashSet<Word> = m
+        .types_global_values
+        .iter()
+        .filter(|i| i.class.opcode == Op::TypeAccelerationStructureKHR)
+        .filter_map(|i| i.result_id)
+        .collect();
     if as_types.is_empty() {
-        return Err(PatchError::NothingToPatch { patch: NAME, what: "the module declares no acceleration structure type".into() });
+        return Err(PatchError::NothingToPatch {
+            patch: NAME,
+            what: "the module declares no acceleration structure type".into(),
+        });
     }
     // AS descriptor variables: var id -> (is array, AS type)
     let mut vars: Vec<(Word, bool, Word)> = Vec::new();
-    for v in m.types_global_values.iter().filter(|i| i.class.opcode == Op::Variable) {
-        let (Some(id), Some(ptr)) = (v.result_id, v.result_type) else { continue };
-        let Some((StorageClass::UniformConstant, pointee)) = edit::pointer_info(m, ptr) else { continue };
+    for v in m
+        .types_global_values
+        .iter()
+        .filter(|i| i.class.opcode == Op::Variable)
+    {
+        let (Some(id), Some(ptr)) = (v.result_id, v.result_type) else {
+            continue;
+        };
+        let Some((StorageClass::UniformConstant, pointee)) = edit::pointer_info(m, ptr) else {
+            continue;
+        };
         if as_types.contains(&pointee) {
             vars.push((id, false, pointee));
         } else if let Some(d) = edit::def(m, pointee) {
@@ -95,15 +111,24 @@ fn as_variables(m: &Module, opts: &Options) -> Result<Vec<(Word, bool, Word)>, P
 
 /// Every load of the variables `var_ids` (directly or through a one-index access chain), and the
 /// ids to remove with them (the variables and their chains); shapes not handled are refused.
-fn load_sites(m: &Module, var_ids: &HashSet<Word>) -> Result<(Vec<Site>, HashSet<Word>), PatchError> {
+fn load_sites(
+    m: &Module,
+    var_ids: &HashSet<Word>,
+) -> Result<(Vec<Site>, HashSet<Word>), PatchError> {
     let mut chains: std::collections::HashMap<Word, Word> = Default::default(); // chain id -> index id
     let mut sites = Vec::new();
     let mut removed: HashSet<Word> = var_ids.clone();
     for (fi, f) in m.functions.iter().enumerate() {
         for (bi, b) in f.blocks.iter().enumerate() {
             for (ii, i) in b.instructions.iter().enumerate() {
-                let uses_var = i.operands.iter().any(|o| matches!(o, Operand::IdRef(w) if var_ids.contains(w)));
-                let uses_chain = i.operands.iter().any(|o| matches!(o, Operand::IdRef(w) if chains.contains_key(w)));
+                let uses_var = i
+                    .operands
+                    .iter()
+                    .any(|o| matches!(o, Operand::IdRef(w) if var_ids.contains(w)));
+                let uses_chain = i
+                    .operands
+                    .iter()
+                    .any(|o| matches!(o, Operand::IdRef(w) if chains.contains_key(w)));
                 match i.class.opcode {
                     Op::AccessChain | Op::InBoundsAccessChain if uses_var => {
                         if i.operands.len() != 2 {
@@ -131,7 +156,10 @@ fn load_sites(m: &Module, var_ids: &HashSet<Word>) -> Result<(Vec<Site>, HashSet
         }
     }
     if sites.is_empty() {
-        return Err(PatchError::NothingToPatch { patch: NAME, what: "acceleration-structure descriptors are declared but never loaded".into() });
+        return Err(PatchError::NothingToPatch {
+            patch: NAME,
+            what: "acceleration-structure descriptors are declared but never loaded".into(),
+        });
     }
     Ok((sites, removed))
 }
@@ -141,9 +169,14 @@ pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
     let var_ids: HashSet<Word> = vars.iter().map(|v| v.0).collect();
     let (sites, removed) = load_sites(m, &var_ids)?;
     let any_array = vars.iter().any(|v| v.1);
-    let mode = opts.mode.unwrap_or(if any_array { Mode::Table } else { Mode::Direct });
+    let mode = opts
+        .mode
+        .unwrap_or(if any_array { Mode::Table } else { Mode::Direct });
     if mode == Mode::Direct && any_array && sites.iter().any(|s| s.index.is_some()) {
-        return Err(PatchError::BadOption { patch: NAME, what: "mode=direct cannot address the elements of an AS array; use mode=table".into() });
+        return Err(PatchError::BadOption {
+            patch: NAME,
+            what: "mode=direct cannot address the elements of an AS array; use mode=table".into(),
+        });
     }
 
     // Types and the push-constant member.
@@ -166,15 +199,30 @@ pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
         None
     };
     let n_sites = sites.len();
-    rewrite_loads(m, sites, table.as_ref(), (pc_var, member_c, ptr_pc_u64, u64_t));
+    rewrite_loads(
+        m,
+        sites,
+        table.as_ref(),
+        (pc_var, member_c, ptr_pc_u64, u64_t),
+    );
     edit::remove_ids(m, &removed);
-    Ok(Report { rewritten_loads: n_sites, removed_variables: var_ids.len(), offset, mode })
+    Ok(Report {
+        rewritten_loads: n_sites,
+        removed_variables: var_ids.len(),
+        offset,
+        mode,
+    })
 }
 
 /// Each site's `OpLoad` becomes `OpConvertUToAccelerationStructureKHR` of its address: the table's
 /// entry (`table`), else the push-constant member itself (`direct`: the block variable, member
 /// constant, pointer type and u64 type). Last site first, so indices stay valid.
-fn rewrite_loads(m: &mut Module, mut sites: Vec<Site>, table: Option<&edit::TableTypes>, direct: (Word, Word, Word, Word)) {
+fn rewrite_loads(
+    m: &mut Module,
+    mut sites: Vec<Site>,
+    table: Option<&edit::TableTypes>,
+    direct: (Word, Word, Word, Word),
+) {
     let (pc_var, member_c, ptr_pc_u64, u64_t) = direct;
     sites.sort_by_key(|s| std::cmp::Reverse((s.func, s.block, s.inst)));
     for s in sites {
@@ -183,7 +231,12 @@ fn rewrite_loads(m: &mut Module, mut sites: Vec<Site>, table: Option<&edit::Tabl
             None => {
                 let (pm, base) = (edit::next_id(m), edit::next_id(m));
                 let new = vec![
-                    Instruction::new(Op::AccessChain, Some(ptr_pc_u64), Some(pm), vec![Operand::IdRef(pc_var), Operand::IdRef(member_c)]),
+                    Instruction::new(
+                        Op::AccessChain,
+                        Some(ptr_pc_u64),
+                        Some(pm),
+                        vec![Operand::IdRef(pc_var), Operand::IdRef(member_c)],
+                    ),
                     Instruction::new(Op::Load, Some(u64_t), Some(base), vec![Operand::IdRef(pm)]),
                 ];
                 (new, base)
@@ -191,7 +244,12 @@ fn rewrite_loads(m: &mut Module, mut sites: Vec<Site>, table: Option<&edit::Tabl
         };
         let block = &mut m.functions[s.func].blocks[s.block];
         let load = &mut block.instructions[s.inst];
-        *load = Instruction::new(Op::ConvertUToAccelerationStructureKHR, load.result_type, load.result_id, vec![Operand::IdRef(addr)]);
+        *load = Instruction::new(
+            Op::ConvertUToAccelerationStructureKHR,
+            load.result_type,
+            load.result_id,
+            vec![Operand::IdRef(addr)],
+        );
         for (k, i) in new.into_iter().enumerate() {
             block.instructions.insert(s.inst + k, i);
         }
@@ -200,16 +258,39 @@ fn rewrite_loads(m: &mut Module, mut sites: Vec<Site>, table: Option<&edit::Tabl
 
 /// Append a 64-bit member to the module's push-constant block at `offset` (default: the block's
 /// end, 8-aligned), creating the block if there is none. Returns (variable, member index, offset).
-pub(super) fn push_constant_u64(m: &mut Module, offset: Option<u32>, patch: &'static str) -> Result<(Word, u32, u32), PatchError> {
+pub(super) fn push_constant_u64(
+    m: &mut Module,
+    offset: Option<u32>,
+    patch: &'static str,
+) -> Result<(Word, u32, u32), PatchError> {
     let u64_t = edit::type_int(m, 64, false);
     let pc_var = m.types_global_values.iter().find(|i| {
-        i.class.opcode == Op::Variable && i.operands.first() == Some(&Operand::StorageClass(StorageClass::PushConstant))
+        i.class.opcode == Op::Variable
+            && i.operands.first() == Some(&Operand::StorageClass(StorageClass::PushConstant))
     });
     let found = match pc_var.and_then(|v| Some((v.result_id?, v.result_type?))) {
         Some((var, ptr)) => {
-            let (_, st) = edit::pointer_info(m, ptr).ok_or(PatchError::Unsupported { patch, id: var, what: "push-constant variable without pointer type".into() })?;
-            let st_def = edit::def(m, st).cloned().ok_or(PatchError::Unsupported { patch, id: st, what: "push-constant block type not found".into() })?;
-            let members: Vec<Word> = st_def.operands.iter().filter_map(|o| if let Operand::IdRef(w) = o { Some(*w) } else { None }).collect();
+            let (_, st) = edit::pointer_info(m, ptr).ok_or(PatchError::Unsupported {
+                patch,
+                id: var,
+                what: "push-constant variable without pointer type".into(),
+            })?;
+            let st_def = edit::def(m, st).cloned().ok_or(PatchError::Unsupported {
+                patch,
+                id: st,
+                what: "push-constant block type not found".into(),
+            })?;
+            let members: Vec<Word> = st_def
+                .operands
+                .iter()
+                .filter_map(|o| {
+                    if let Operand::IdRef(w) = o {
+                        Some(*w)
+                    } else {
+                        None
+                    }
+                })
+                .collect();
             // Sized from its Offset / ArrayStride / MatrixStride decorations; a block without them
             // is not a valid Vulkan push-constant block.
             let end = edit::explicit_extent(m, st, None).ok_or(PatchError::Unsupported {
@@ -218,42 +299,79 @@ pub(super) fn push_constant_u64(m: &mut Module, offset: Option<u32>, patch: &'st
                 what: "the push-constant block lacks the Offset / ArrayStride / MatrixStride decorations that give its size".into(),
             })?;
             let offset = match offset {
-                Some(o) if o < end => return Err(PatchError::BadOption { patch, what: format!("offset={o} overlaps the push-constant block, which ends at {end}") }),
+                Some(o) if o < end => {
+                    return Err(PatchError::BadOption {
+                        patch,
+                        what: format!(
+                            "offset={o} overlaps the push-constant block, which ends at {end}"
+                        ),
+                    })
+                }
                 Some(o) => o,
                 None => end.div_ceil(8) * 8,
             };
             if offset % 8 != 0 {
-                return Err(PatchError::BadOption { patch, what: format!("offset={offset} is not 8-byte aligned") });
+                return Err(PatchError::BadOption {
+                    patch,
+                    what: format!("offset={offset} is not 8-byte aligned"),
+                });
             }
             let k = members.len() as u32;
-            if let Some(s) = m.types_global_values.iter_mut().find(|i| i.result_id == Some(st)) {
+            if let Some(s) = m
+                .types_global_values
+                .iter_mut()
+                .find(|i| i.result_id == Some(st))
+            {
                 s.operands.push(Operand::IdRef(u64_t));
             }
             m.annotations.push(Instruction::new(
                 Op::MemberDecorate,
                 None,
                 None,
-                vec![Operand::IdRef(st), Operand::LiteralBit32(k), Operand::Decoration(Decoration::Offset), Operand::LiteralBit32(offset)],
+                vec![
+                    Operand::IdRef(st),
+                    Operand::LiteralBit32(k),
+                    Operand::Decoration(Decoration::Offset),
+                    Operand::LiteralBit32(offset),
+                ],
             ));
             (var, k, offset)
         }
         None => {
             let offset = offset.unwrap_or(0);
             if offset % 8 != 0 {
-                return Err(PatchError::BadOption { patch, what: format!("offset={offset} is not 8-byte aligned") });
+                return Err(PatchError::BadOption {
+                    patch,
+                    what: format!("offset={offset} is not 8-byte aligned"),
+                });
             }
             let st = edit::next_id(m);
-            m.types_global_values.push(Instruction::new(Op::TypeStruct, None, Some(st), vec![Operand::IdRef(u64_t)]));
+            m.types_global_values.push(Instruction::new(
+                Op::TypeStruct,
+                None,
+                Some(st),
+                vec![Operand::IdRef(u64_t)],
+            ));
             edit::decorate(m, st, Decoration::Block, &[]);
             m.annotations.push(Instruction::new(
                 Op::MemberDecorate,
                 None,
                 None,
-                vec![Operand::IdRef(st), Operand::LiteralBit32(0), Operand::Decoration(Decoration::Offset), Operand::LiteralBit32(offset)],
+                vec![
+                    Operand::IdRef(st),
+                    Operand::LiteralBit32(0),
+                    Operand::Decoration(Decoration::Offset),
+                    Operand::LiteralBit32(offset),
+                ],
             ));
             let ptr = edit::type_pointer(m, StorageClass::PushConstant, st);
             let var = edit::next_id(m);
-            m.types_global_values.push(Instruction::new(Op::Variable, Some(ptr), Some(var), vec![Operand::StorageClass(StorageClass::PushConstant)]));
+            m.types_global_values.push(Instruction::new(
+                Op::Variable,
+                Some(ptr),
+                Some(var),
+                vec![Operand::StorageClass(StorageClass::PushConstant)],
+            ));
             edit::add_to_interfaces(m, var);
             (var, 0, offset)
         }
@@ -267,7 +385,9 @@ mod tests {
 
     fn module(glsl: &str) -> Module {
         let mut c = crate::shadergen::compile::Compiler::new().expect("shaderc");
-        let words = c.compile_glsl(shaderc::ShaderKind::RayGeneration, "t.rgen", glsl).expect("compiles");
+        let words = c
+            .compile_glsl(shaderc::ShaderKind::RayGeneration, "t.rgen", glsl)
+            .expect("compiles");
         let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
         crate::patches::load(&bytes).expect("loads")
     }
@@ -285,9 +405,30 @@ mod tests {
         let v = crate::patches::validate(&crate::patches::assemble(&m));
         assert_eq!(v, crate::patches::Validation::Valid);
         // an offset inside the block is refused, one past it accepted
-        let err = apply(&mut module(CAMERA), &Options { offset: Some(192), ..Default::default() }).unwrap_err();
-        assert!(err.to_string().contains("overlaps") && err.to_string().contains("193"), "{err}");
-        assert_eq!(apply(&mut module(CAMERA), &Options { offset: Some(200), ..Default::default() }).unwrap().offset, 200);
+        let err = apply(
+            &mut module(CAMERA),
+            &Options {
+                offset: Some(192),
+                ..Default::default()
+            },
+        )
+        .unwrap_err();
+        assert!(
+            err.to_string().contains("overlaps") && err.to_string().contains("193"),
+            "{err}"
+        );
+        assert_eq!(
+            apply(
+                &mut module(CAMERA),
+                &Options {
+                    offset: Some(200),
+                    ..Default::default()
+                }
+            )
+            .unwrap()
+            .offset,
+            200
+        );
     }
 
     #[test]
@@ -312,7 +453,10 @@ void main() {
         let st = m
             .types_global_values
             .iter()
-            .find(|i| i.class.opcode == Op::TypeStruct && edit::has_decoration(&m, i.result_id.unwrap(), Decoration::Block))
+            .find(|i| {
+                i.class.opcode == Op::TypeStruct
+                    && edit::has_decoration(&m, i.result_id.unwrap(), Decoration::Block)
+            })
             .and_then(|i| i.result_id)
             .unwrap();
         assert_eq!(edit::explicit_extent(&m, st, None), Some(65));

@@ -26,18 +26,39 @@ pub fn find(m: &Module) -> Vec<Access> {
                 if !matches!(i.class.opcode, Op::AccessChain | Op::InBoundsAccessChain) {
                     continue;
                 }
-                let (Some(base), Some(index), Some(chain)) = (id_operand(i, 0), id_operand(i, 1), i.result_id) else { continue };
+                let (Some(base), Some(index), Some(chain)) =
+                    (id_operand(i, 0), id_operand(i, 1), i.result_id)
+                else {
+                    continue;
+                };
                 if !vars.contains(&base) || edit::is_constant(m, index) {
                     continue;
                 }
-                let Some(var) = edit::def(m, base) else { continue };
-                let Some((storage, pointee)) = var.result_type.and_then(|t| edit::pointer_info(m, t)) else { continue };
-                let Some(arr) = edit::def(m, pointee) else { continue };
+                let Some(var) = edit::def(m, base) else {
+                    continue;
+                };
+                let Some((storage, pointee)) =
+                    var.result_type.and_then(|t| edit::pointer_info(m, t))
+                else {
+                    continue;
+                };
+                let Some(arr) = edit::def(m, pointee) else {
+                    continue;
+                };
                 if !matches!(arr.class.opcode, Op::TypeArray | Op::TypeRuntimeArray) {
                     continue;
                 }
                 let element = id_operand(arr, 0).unwrap_or(0);
-                out.push(Access { func: fi, block: bi, inst: ii, chain, var: base, index, storage, element });
+                out.push(Access {
+                    func: fi,
+                    block: bi,
+                    inst: ii,
+                    chain,
+                    var: base,
+                    index,
+                    storage,
+                    element,
+                });
             }
         }
     }

@@ -15,7 +15,11 @@ pub fn next_id(m: &mut Module) -> Word {
 pub fn def(m: &Module, id: Word) -> Option<&Instruction> {
     m.types_global_values
         .iter()
-        .chain(m.functions.iter().flat_map(|f| f.parameters.iter().chain(f.blocks.iter().flat_map(|b| b.instructions.iter()))))
+        .chain(m.functions.iter().flat_map(|f| {
+            f.parameters
+                .iter()
+                .chain(f.blocks.iter().flat_map(|b| b.instructions.iter()))
+        }))
         .find(|i| i.result_id == Some(id))
 }
 
@@ -28,13 +32,17 @@ pub fn id_operand(i: &Instruction, n: usize) -> Option<Word> {
 
 pub fn has_decoration(m: &Module, id: Word, d: Decoration) -> bool {
     m.annotations.iter().any(|a| {
-        a.class.opcode == Op::Decorate && id_operand(a, 0) == Some(id) && matches!(a.operands.get(1), Some(Operand::Decoration(x)) if *x == d)
+        a.class.opcode == Op::Decorate
+            && id_operand(a, 0) == Some(id)
+            && matches!(a.operands.get(1), Some(Operand::Decoration(x)) if *x == d)
     })
 }
 
 pub fn decoration_literal(m: &Module, id: Word, d: Decoration) -> Option<u32> {
     m.annotations.iter().find_map(|a| {
-        let ok = a.class.opcode == Op::Decorate && id_operand(a, 0) == Some(id) && matches!(a.operands.get(1), Some(Operand::Decoration(x)) if *x == d);
+        let ok = a.class.opcode == Op::Decorate
+            && id_operand(a, 0) == Some(id)
+            && matches!(a.operands.get(1), Some(Operand::Decoration(x)) if *x == d);
         match (ok, a.operands.get(2)) {
             (true, Some(Operand::LiteralBit32(v))) => Some(*v),
             _ => None,
@@ -45,30 +53,62 @@ pub fn decoration_literal(m: &Module, id: Word, d: Decoration) -> Option<u32> {
 pub fn decorate(m: &mut Module, id: Word, d: Decoration, extra: &[Operand]) {
     let mut ops = vec![Operand::IdRef(id), Operand::Decoration(d)];
     ops.extend_from_slice(extra);
-    m.annotations.push(Instruction::new(Op::Decorate, None, None, ops));
+    m.annotations
+        .push(Instruction::new(Op::Decorate, None, None, ops));
 }
 
 pub fn add_capability(m: &mut Module, c: Capability) {
-    if !m.capabilities.iter().any(|i| matches!(i.operands.first(), Some(Operand::Capability(x)) if *x == c)) {
-        m.capabilities.push(Instruction::new(Op::Capability, None, None, vec![Operand::Capability(c)]));
+    if !m
+        .capabilities
+        .iter()
+        .any(|i| matches!(i.operands.first(), Some(Operand::Capability(x)) if *x == c))
+    {
+        m.capabilities.push(Instruction::new(
+            Op::Capability,
+            None,
+            None,
+            vec![Operand::Capability(c)],
+        ));
     }
 }
 
 pub fn add_extension(m: &mut Module, name: &str) {
-    if !m.extensions.iter().any(|i| matches!(i.operands.first(), Some(Operand::LiteralString(x)) if x == name)) {
-        m.extensions.push(Instruction::new(Op::Extension, None, None, vec![Operand::LiteralString(name.into())]));
+    if !m
+        .extensions
+        .iter()
+        .any(|i| matches!(i.operands.first(), Some(Operand::LiteralString(x)) if x == name))
+    {
+        m.extensions.push(Instruction::new(
+            Op::Extension,
+            None,
+            None,
+            vec![Operand::LiteralString(name.into())],
+        ));
     }
 }
 
 /// SPIR-V version of the module as (major, minor).
 pub fn version(m: &Module) -> (u8, u8) {
-    m.header.as_ref().map(|h| (((h.version >> 16) & 0xff) as u8, ((h.version >> 8) & 0xff) as u8)).unwrap_or((1, 0))
+    m.header
+        .as_ref()
+        .map(|h| {
+            (
+                ((h.version >> 16) & 0xff) as u8,
+                ((h.version >> 8) & 0xff) as u8,
+            )
+        })
+        .unwrap_or((1, 0))
 }
 
 /// `OpTypeInt width signedness`, added at the front of the globals (it depends on nothing).
 pub fn type_int(m: &mut Module, width: u32, signed: bool) -> Word {
     let found = m.types_global_values.iter().find(|i| {
-        i.class.opcode == Op::TypeInt && i.operands == [Operand::LiteralBit32(width), Operand::LiteralBit32(signed as u32)]
+        i.class.opcode == Op::TypeInt
+            && i.operands
+                == [
+                    Operand::LiteralBit32(width),
+                    Operand::LiteralBit32(signed as u32),
+                ]
     });
     if let Some(i) = found {
         return i.result_id.expect("types have ids");
@@ -77,45 +117,83 @@ pub fn type_int(m: &mut Module, width: u32, signed: bool) -> Word {
         add_capability(m, Capability::Int64);
     }
     let id = next_id(m);
-    m.types_global_values.insert(0, Instruction::new(Op::TypeInt, None, Some(id), vec![Operand::LiteralBit32(width), Operand::LiteralBit32(signed as u32)]));
+    m.types_global_values.insert(
+        0,
+        Instruction::new(
+            Op::TypeInt,
+            None,
+            Some(id),
+            vec![
+                Operand::LiteralBit32(width),
+                Operand::LiteralBit32(signed as u32),
+            ],
+        ),
+    );
     id
 }
 
 /// `OpTypePointer sc pointee`, found or appended.
 pub fn type_pointer(m: &mut Module, sc: StorageClass, pointee: Word) -> Word {
     let found = m.types_global_values.iter().find(|i| {
-        i.class.opcode == Op::TypePointer && i.operands == [Operand::StorageClass(sc), Operand::IdRef(pointee)]
+        i.class.opcode == Op::TypePointer
+            && i.operands == [Operand::StorageClass(sc), Operand::IdRef(pointee)]
     });
     if let Some(i) = found {
         return i.result_id.expect("types have ids");
     }
     let id = next_id(m);
-    m.types_global_values.push(Instruction::new(Op::TypePointer, None, Some(id), vec![Operand::StorageClass(sc), Operand::IdRef(pointee)]));
+    m.types_global_values.push(Instruction::new(
+        Op::TypePointer,
+        None,
+        Some(id),
+        vec![Operand::StorageClass(sc), Operand::IdRef(pointee)],
+    ));
     id
 }
 
 /// `OpConstant ty value` (32- or 64-bit literal by `wide`), found or appended.
 pub fn constant(m: &mut Module, ty: Word, value: u64, wide: bool) -> Word {
-    let lit = if wide { Operand::LiteralBit64(value) } else { Operand::LiteralBit32(value as u32) };
-    let found = m.types_global_values.iter().find(|i| i.class.opcode == Op::Constant && i.result_type == Some(ty) && i.operands == [lit.clone()]);
+    let lit = if wide {
+        Operand::LiteralBit64(value)
+    } else {
+        Operand::LiteralBit32(value as u32)
+    };
+    let found = m.types_global_values.iter().find(|i| {
+        i.class.opcode == Op::Constant && i.result_type == Some(ty) && i.operands == [lit.clone()]
+    });
     if let Some(i) = found {
         return i.result_id.expect("constants have ids");
     }
     let id = next_id(m);
-    m.types_global_values.push(Instruction::new(Op::Constant, Some(ty), Some(id), vec![lit]));
+    m.types_global_values.push(Instruction::new(
+        Op::Constant,
+        Some(ty),
+        Some(id),
+        vec![lit],
+    ));
     id
 }
 
 pub fn is_constant(m: &Module, id: Word) -> bool {
     def(m, id).is_some_and(|d| {
-        matches!(d.class.opcode, Op::Constant | Op::ConstantComposite | Op::ConstantNull | Op::SpecConstant | Op::SpecConstantOp | Op::ConstantTrue | Op::ConstantFalse)
+        matches!(
+            d.class.opcode,
+            Op::Constant
+                | Op::ConstantComposite
+                | Op::ConstantNull
+                | Op::SpecConstant
+                | Op::SpecConstantOp
+                | Op::ConstantTrue
+                | Op::ConstantFalse
+        )
     })
 }
 
 /// Remove the global definitions of `ids` and every annotation, name and entry-point interface
 /// entry that names them.
 pub fn remove_ids(m: &mut Module, ids: &HashSet<Word>) {
-    m.types_global_values.retain(|i| !i.result_id.is_some_and(|r| ids.contains(&r)));
+    m.types_global_values
+        .retain(|i| !i.result_id.is_some_and(|r| ids.contains(&r)));
     let names = |i: &Instruction| id_operand(i, 0).is_some_and(|t| ids.contains(&t));
     m.annotations.retain(|i| !names(i));
     m.debug_names.retain(|i| !names(i));
@@ -123,12 +201,17 @@ pub fn remove_ids(m: &mut Module, ids: &HashSet<Word>) {
         // OpEntryPoint: model, function id, name, interface ids...
         let head = 3.min(ep.operands.len());
         let (fixed, iface) = ep.operands.split_at(head);
-        let kept: Vec<Operand> = iface.iter().filter(|o| !matches!(o, Operand::IdRef(w) if ids.contains(w))).cloned().collect();
+        let kept: Vec<Operand> = iface
+            .iter()
+            .filter(|o| !matches!(o, Operand::IdRef(w) if ids.contains(w)))
+            .cloned()
+            .collect();
         ep.operands = fixed.iter().cloned().chain(kept).collect();
     }
     for f in &mut m.functions {
         for b in &mut f.blocks {
-            b.instructions.retain(|i| !i.result_id.is_some_and(|r| ids.contains(&r)));
+            b.instructions
+                .retain(|i| !i.result_id.is_some_and(|r| ids.contains(&r)));
         }
     }
 }
@@ -140,7 +223,12 @@ pub fn add_to_interfaces(m: &mut Module, var: Word) {
         return;
     }
     for ep in &mut m.entry_points {
-        if !ep.operands.iter().skip(3).any(|o| *o == Operand::IdRef(var)) {
+        if !ep
+            .operands
+            .iter()
+            .skip(3)
+            .any(|o| *o == Operand::IdRef(var))
+        {
             ep.operands.push(Operand::IdRef(var));
         }
     }
@@ -150,7 +238,9 @@ pub fn add_to_interfaces(m: &mut Module, var: Word) {
 pub fn pointer_info(m: &Module, ptr_ty: Word) -> Option<(StorageClass, Word)> {
     let d = def(m, ptr_ty)?;
     match (d.class.opcode, d.operands.first(), d.operands.get(1)) {
-        (Op::TypePointer, Some(Operand::StorageClass(sc)), Some(Operand::IdRef(p))) => Some((*sc, *p)),
+        (Op::TypePointer, Some(Operand::StorageClass(sc)), Some(Operand::IdRef(p))) => {
+            Some((*sc, *p))
+        }
         _ => None,
     }
 }
@@ -217,7 +307,11 @@ pub fn explicit_extent(m: &Module, ty: Word, matrix: Option<(u32, bool)>) -> Opt
             let comp = explicit_extent(m, id_operand(column, 0)?, None)?;
             let (stride, row_major) = matrix?;
             // stride separates columns (column-major) or rows (row-major)
-            Some(if row_major { (rows - 1) * stride + cols * comp } else { (cols - 1) * stride + rows * comp })
+            Some(if row_major {
+                (rows - 1) * stride + cols * comp
+            } else {
+                (cols - 1) * stride + rows * comp
+            })
         }
         Op::TypeArray => {
             let len_def = def(m, id_operand(d, 1)?)?;
@@ -231,10 +325,17 @@ pub fn explicit_extent(m: &Module, ty: Word, matrix: Option<(u32, bool)>) -> Opt
         Op::TypeStruct => {
             let mut end = 0;
             for (k, o) in d.operands.iter().enumerate() {
-                let Operand::IdRef(member_ty) = o else { return None };
+                let Operand::IdRef(member_ty) = o else {
+                    return None;
+                };
                 let k = k as u32;
                 let offset = member_decoration(m, ty, k, Decoration::Offset)?;
-                let matrix = member_decoration(m, ty, k, Decoration::MatrixStride).map(|s| (s, member_decoration(m, ty, k, Decoration::RowMajor).is_some()));
+                let matrix = member_decoration(m, ty, k, Decoration::MatrixStride).map(|s| {
+                    (
+                        s,
+                        member_decoration(m, ty, k, Decoration::RowMajor).is_some(),
+                    )
+                });
                 end = end.max(offset + explicit_extent(m, *member_ty, matrix)?);
             }
             Some(end)
@@ -261,26 +362,69 @@ pub struct TableTypes {
 /// address is push-constant member `member`: `OpAccessChain`/`OpLoad` of the member, then
 /// `index * 8` added, `OpConvertUToPtr` to a PhysicalStorageBuffer pointer, `OpLoad ... Aligned 8`.
 /// Returns the instructions and the id of the loaded address.
-pub fn table_entry(m: &mut Module, t: &TableTypes, index: Option<Word>) -> (Vec<Instruction>, Word) {
+pub fn table_entry(
+    m: &mut Module,
+    t: &TableTypes,
+    index: Option<Word>,
+) -> (Vec<Instruction>, Word) {
     use rspirv::spirv::MemoryAccess;
     let mut out = Vec::new();
     let pm = next_id(m);
-    out.push(Instruction::new(Op::AccessChain, Some(t.ptr_pc_u64), Some(pm), vec![Operand::IdRef(t.pc_var), Operand::IdRef(t.member)]));
+    out.push(Instruction::new(
+        Op::AccessChain,
+        Some(t.ptr_pc_u64),
+        Some(pm),
+        vec![Operand::IdRef(t.pc_var), Operand::IdRef(t.member)],
+    ));
     let base = next_id(m);
-    out.push(Instruction::new(Op::Load, Some(t.u64_t), Some(base), vec![Operand::IdRef(pm)]));
+    out.push(Instruction::new(
+        Op::Load,
+        Some(t.u64_t),
+        Some(base),
+        vec![Operand::IdRef(pm)],
+    ));
     let at = match index {
         Some(idx) => {
             let (idx64, off, sum) = (next_id(m), next_id(m), next_id(m));
-            out.push(Instruction::new(Op::UConvert, Some(t.u64_t), Some(idx64), vec![Operand::IdRef(idx)]));
-            out.push(Instruction::new(Op::IMul, Some(t.u64_t), Some(off), vec![Operand::IdRef(idx64), Operand::IdRef(t.eight)]));
-            out.push(Instruction::new(Op::IAdd, Some(t.u64_t), Some(sum), vec![Operand::IdRef(base), Operand::IdRef(off)]));
+            out.push(Instruction::new(
+                Op::UConvert,
+                Some(t.u64_t),
+                Some(idx64),
+                vec![Operand::IdRef(idx)],
+            ));
+            out.push(Instruction::new(
+                Op::IMul,
+                Some(t.u64_t),
+                Some(off),
+                vec![Operand::IdRef(idx64), Operand::IdRef(t.eight)],
+            ));
+            out.push(Instruction::new(
+                Op::IAdd,
+                Some(t.u64_t),
+                Some(sum),
+                vec![Operand::IdRef(base), Operand::IdRef(off)],
+            ));
             sum
         }
         None => base,
     };
     let (p, a) = (next_id(m), next_id(m));
-    out.push(Instruction::new(Op::ConvertUToPtr, Some(t.ptr_psb_u64), Some(p), vec![Operand::IdRef(at)]));
-    out.push(Instruction::new(Op::Load, Some(t.u64_t), Some(a), vec![Operand::IdRef(p), Operand::MemoryAccess(MemoryAccess::ALIGNED), Operand::LiteralBit32(8)]));
+    out.push(Instruction::new(
+        Op::ConvertUToPtr,
+        Some(t.ptr_psb_u64),
+        Some(p),
+        vec![Operand::IdRef(at)],
+    ));
+    out.push(Instruction::new(
+        Op::Load,
+        Some(t.u64_t),
+        Some(a),
+        vec![
+            Operand::IdRef(p),
+            Operand::MemoryAccess(MemoryAccess::ALIGNED),
+            Operand::LiteralBit32(8),
+        ],
+    ));
     (out, a)
 }
 

@@ -74,14 +74,25 @@ fn quietly<T>(f: impl FnOnce() -> T + std::panic::UnwindSafe) -> Result<T, Panic
     std::panic::set_hook(Box::new(|_| {}));
     let r = std::panic::catch_unwind(f);
     std::panic::set_hook(hook);
-    r.map_err(|e| Panicked(e.downcast_ref::<&str>().map(|s| s.to_string()).or_else(|| e.downcast_ref::<String>().cloned()).unwrap_or_else(|| "panic".into())))
+    r.map_err(|e| {
+        Panicked(
+            e.downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| e.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "panic".into()),
+        )
+    })
 }
 
 /// Run `f` on a copy of `m`, catching panics; `m` takes the copy only when `f` succeeds, so a
 /// failed patch leaves the module as it was.
-fn on_copy<R>(m: &mut Module, f: impl FnOnce(&mut Module) -> Result<R, PatchError>) -> Result<R, PatchError> {
+fn on_copy<R>(
+    m: &mut Module,
+    f: impl FnOnce(&mut Module) -> Result<R, PatchError>,
+) -> Result<R, PatchError> {
     let mut work = m.clone();
-    let r = quietly(std::panic::AssertUnwindSafe(|| f(&mut work))).map_err(|p| PatchError::Internal(p.0))??;
+    let r = quietly(std::panic::AssertUnwindSafe(|| f(&mut work)))
+        .map_err(|p| PatchError::Internal(p.0))??;
     *m = work;
     Ok(r)
 }
@@ -89,16 +100,32 @@ fn on_copy<R>(m: &mut Module, f: impl FnOnce(&mut Module) -> Result<R, PatchErro
 /// Parse a SPIR-V binary (either endianness). Never panics.
 pub fn load(bytes: &[u8]) -> Result<Module, PatchError> {
     if bytes.len() < 20 {
-        return Err(PatchError::NotSpirv(format!("{} bytes is shorter than a SPIR-V header", bytes.len())));
+        return Err(PatchError::NotSpirv(format!(
+            "{} bytes is shorter than a SPIR-V header",
+            bytes.len()
+        )));
     }
     if bytes.len() % 4 != 0 {
-        return Err(PatchError::NotSpirv(format!("{} bytes is not a whole number of 32-bit words", bytes.len())));
+        return Err(PatchError::NotSpirv(format!(
+            "{} bytes is not a whole number of 32-bit words",
+            bytes.len()
+        )));
     }
     let magic = u32::from_le_bytes([bytes[0], bytes[1], bytes[2], bytes[3]]);
     let words: Vec<u32> = match magic {
-        0x0723_0203 => bytes.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect(),
-        0x0302_2307 => bytes.chunks_exact(4).map(|c| u32::from_be_bytes([c[0], c[1], c[2], c[3]])).collect(),
-        _ => return Err(PatchError::NotSpirv(format!("bad magic number {magic:#010x}"))),
+        0x0723_0203 => bytes
+            .chunks_exact(4)
+            .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect(),
+        0x0302_2307 => bytes
+            .chunks_exact(4)
+            .map(|c| u32::from_be_bytes([c[0], c[1], c[2], c[3]]))
+            .collect(),
+        _ => {
+            return Err(PatchError::NotSpirv(format!(
+                "bad magic number {magic:#010x}"
+            )))
+        }
     };
     match quietly(move || rspirv::dr::load_words(&words)) {
         Ok(Ok(m)) if m.header.is_some() => Ok(m),
@@ -110,14 +137,26 @@ pub fn load(bytes: &[u8]) -> Result<Module, PatchError> {
 
 /// Apply `patches` in order with `options` (`key=value`, each key belonging to one of them).
 /// Returns one line per patch saying what it did.
-pub fn apply(m: &mut Module, patches: &[PatchName], options: &BTreeMap<String, String>) -> Result<Vec<String>, PatchError> {
+pub fn apply(
+    m: &mut Module,
+    patches: &[PatchName],
+    options: &BTreeMap<String, String>,
+) -> Result<Vec<String>, PatchError> {
     for k in options.keys() {
         if !patches.iter().any(|p| p.keys().contains(&k.as_str())) {
             return Err(PatchError::UnknownOption(k.clone()));
         }
     }
     let num = |p: PatchName, k: &str| -> Result<Option<u32>, PatchError> {
-        options.get(k).map(|v| v.parse::<u32>().map_err(|_| PatchError::BadOption { patch: p.as_str(), what: format!("{k}={v:?} is not a number") })).transpose()
+        options
+            .get(k)
+            .map(|v| {
+                v.parse::<u32>().map_err(|_| PatchError::BadOption {
+                    patch: p.as_str(),
+                    what: format!("{k}={v:?} is not a number"),
+                })
+            })
+            .transpose()
     };
     let mut lines = Vec::new();
     for &p in patches {
@@ -127,9 +166,18 @@ pub fn apply(m: &mut Module, patches: &[PatchName], options: &BTreeMap<String, S
                     None => None,
                     Some("direct") => Some(as_to_address::Mode::Direct),
                     Some("table") => Some(as_to_address::Mode::Table),
-                    Some(o) => return Err(PatchError::BadOption { patch: p.as_str(), what: format!("mode={o:?}: use direct or table") }),
+                    Some(o) => {
+                        return Err(PatchError::BadOption {
+                            patch: p.as_str(),
+                            what: format!("mode={o:?}: use direct or table"),
+                        })
+                    }
                 };
-                let opts = as_to_address::Options { offset: num(p, "offset")?, mode, binding: num(p, "binding")? };
+                let opts = as_to_address::Options {
+                    offset: num(p, "offset")?,
+                    mode,
+                    binding: num(p, "binding")?,
+                };
                 let r = on_copy(m, |w| as_to_address::apply(w, &opts))?;
                 format!("as-to-address: {} loads rewritten, {} descriptor variables removed, address at push-constant offset {} ({:?} mode)", r.rewritten_loads, r.removed_variables, r.offset, r.mode)
             }
@@ -137,18 +185,37 @@ pub fn apply(m: &mut Module, patches: &[PatchName], options: &BTreeMap<String, S
                 let strip = match options.get("strip").map(String::as_str) {
                     None | Some("false") => false,
                     Some("true") => true,
-                    Some(o) => return Err(PatchError::BadOption { patch: p.as_str(), what: format!("strip={o:?}: use true or false") }),
+                    Some(o) => {
+                        return Err(PatchError::BadOption {
+                            patch: p.as_str(),
+                            what: format!("strip={o:?}: use true or false"),
+                        })
+                    }
                 };
                 let r = on_copy(m, |w| nonuniform::apply(w, strip))?;
-                if strip { format!("nonuniform: {} NonUniform decorations stripped", r.stripped) } else { format!("nonuniform: {} objects decorated NonUniform", r.decorated) }
+                if strip {
+                    format!("nonuniform: {} NonUniform decorations stripped", r.stripped)
+                } else {
+                    format!("nonuniform: {} objects decorated NonUniform", r.decorated)
+                }
             }
             PatchName::PinIndex => {
-                let opts = pin_index::Options { binding: num(p, "binding")?, value: num(p, "value")?.unwrap_or(0), spec_id: num(p, "spec-id")? };
+                let opts = pin_index::Options {
+                    binding: num(p, "binding")?,
+                    value: num(p, "value")?.unwrap_or(0),
+                    spec_id: num(p, "spec-id")?,
+                };
                 let r = on_copy(m, |w| pin_index::apply(w, &opts))?;
-                format!("pin-index: {} accesses now index with SpecId {} (default {})", r.pinned, r.spec_id, opts.value)
+                format!(
+                    "pin-index: {} accesses now index with SpecId {} (default {})",
+                    r.pinned, r.spec_id, opts.value
+                )
             }
             PatchName::SsboToAddress => {
-                let opts = ssbo_to_address::Options { offset: num(p, "offset")?, binding: num(p, "binding")? };
+                let opts = ssbo_to_address::Options {
+                    offset: num(p, "offset")?,
+                    binding: num(p, "binding")?,
+                };
                 let r = on_copy(m, |w| ssbo_to_address::apply(w, &opts))?;
                 format!("ssbo-to-address: {} loads now read through buffer addresses (table address at push-constant offset {})", r.rewritten_loads, r.offset)
             }
@@ -187,13 +254,24 @@ pub fn validate(words: &[u32]) -> Validation {
         return Validation::Unavailable;
     }
     // SPIR-V 1.6 (from `patch --glsl --target-env vulkan1.3/1.4`) needs a Vulkan 1.3 environment.
-    let env = if words.get(1).is_some_and(|v| *v >= 0x0001_0600) { "vulkan1.3" } else { "vulkan1.2" };
-    let out = std::process::Command::new("spirv-val").args(["--target-env", env]).arg(&dir).output();
+    let env = if words.get(1).is_some_and(|v| *v >= 0x0001_0600) {
+        "vulkan1.3"
+    } else {
+        "vulkan1.2"
+    };
+    let out = std::process::Command::new("spirv-val")
+        .args(["--target-env", env])
+        .arg(&dir)
+        .output();
     let _ = std::fs::remove_file(&dir);
     match out {
         Err(_) => Validation::Unavailable,
         Ok(o) if o.status.success() => Validation::Valid,
-        Ok(o) => Validation::Invalid(String::from_utf8_lossy(&o.stderr).trim().replace('\n', " | ")),
+        Ok(o) => Validation::Invalid(
+            String::from_utf8_lossy(&o.stderr)
+                .trim()
+                .replace('\n', " | "),
+        ),
     }
 }
 
@@ -205,7 +283,11 @@ pub fn diff(before: &str, after: &str) -> String {
     let mut lcs = vec![vec![0u32; m + 1]; n + 1];
     for i in (0..n).rev() {
         for j in (0..m).rev() {
-            lcs[i][j] = if a[i] == b[j] { lcs[i + 1][j + 1] + 1 } else { lcs[i + 1][j].max(lcs[i][j + 1]) };
+            lcs[i][j] = if a[i] == b[j] {
+                lcs[i + 1][j + 1] + 1
+            } else {
+                lcs[i + 1][j].max(lcs[i][j + 1])
+            };
         }
     }
     let (mut i, mut j, mut out) = (0, 0, String::new());

@@ -23,13 +23,17 @@ pub struct Report {
 
 fn capability_for(m: &Module, storage: StorageClass, element: Word) -> Option<Capability> {
     match storage {
-        StorageClass::StorageBuffer => return Some(Capability::StorageBufferArrayNonUniformIndexing),
+        StorageClass::StorageBuffer => {
+            return Some(Capability::StorageBufferArrayNonUniformIndexing)
+        }
         StorageClass::Uniform => {
-            return Some(if edit::has_decoration(m, element, Decoration::BufferBlock) {
-                Capability::StorageBufferArrayNonUniformIndexing
-            } else {
-                Capability::UniformBufferArrayNonUniformIndexing
-            })
+            return Some(
+                if edit::has_decoration(m, element, Decoration::BufferBlock) {
+                    Capability::StorageBufferArrayNonUniformIndexing
+                } else {
+                    Capability::UniformBufferArrayNonUniformIndexing
+                },
+            )
         }
         _ => {}
     }
@@ -48,16 +52,31 @@ pub fn apply(m: &mut Module, strip: bool) -> Result<Report, PatchError> {
     const NAME: &str = "nonuniform";
     if strip {
         let before = m.annotations.len();
-        m.annotations.retain(|a| !(a.class.opcode == Op::Decorate && matches!(a.operands.get(1), Some(Operand::Decoration(Decoration::NonUniform)))));
+        m.annotations.retain(|a| {
+            !(a.class.opcode == Op::Decorate
+                && matches!(
+                    a.operands.get(1),
+                    Some(Operand::Decoration(Decoration::NonUniform))
+                ))
+        });
         let stripped = before - m.annotations.len();
         if stripped == 0 {
-            return Err(PatchError::NothingToPatch { patch: NAME, what: "no NonUniform decoration to strip".into() });
+            return Err(PatchError::NothingToPatch {
+                patch: NAME,
+                what: "no NonUniform decoration to strip".into(),
+            });
         }
-        return Ok(Report { decorated: 0, stripped });
+        return Ok(Report {
+            decorated: 0,
+            stripped,
+        });
     }
     let accesses = dynamic_access::find(m);
     if accesses.is_empty() {
-        return Err(PatchError::NothingToPatch { patch: NAME, what: "no dynamically indexed descriptor array".into() });
+        return Err(PatchError::NothingToPatch {
+            patch: NAME,
+            what: "no dynamically indexed descriptor array".into(),
+        });
     }
     let mut targets: HashSet<Word> = HashSet::new();
     let mut caps = Vec::new();
@@ -71,7 +90,17 @@ pub fn apply(m: &mut Module, strip: bool) -> Result<Report, PatchError> {
             for id in frontier {
                 for u in edit::users(m, id) {
                     let op = edit::def(m, u).map(|d| d.class.opcode);
-                    if matches!(op, Some(Op::Load | Op::AccessChain | Op::InBoundsAccessChain | Op::SampledImage | Op::Image)) && targets.insert(u) {
+                    if matches!(
+                        op,
+                        Some(
+                            Op::Load
+                                | Op::AccessChain
+                                | Op::InBoundsAccessChain
+                                | Op::SampledImage
+                                | Op::Image
+                        )
+                    ) && targets.insert(u)
+                    {
                         next.push(u);
                     }
                 }
@@ -82,9 +111,15 @@ pub fn apply(m: &mut Module, strip: bool) -> Result<Report, PatchError> {
             caps.push(c);
         }
     }
-    let new: Vec<Word> = targets.into_iter().filter(|t| !edit::has_decoration(m, *t, Decoration::NonUniform)).collect();
+    let new: Vec<Word> = targets
+        .into_iter()
+        .filter(|t| !edit::has_decoration(m, *t, Decoration::NonUniform))
+        .collect();
     if new.is_empty() {
-        return Err(PatchError::NothingToPatch { patch: NAME, what: "every dynamic descriptor access is already NonUniform".into() });
+        return Err(PatchError::NothingToPatch {
+            patch: NAME,
+            what: "every dynamic descriptor access is already NonUniform".into(),
+        });
     }
     let mut new = new;
     new.sort_unstable();
@@ -98,5 +133,8 @@ pub fn apply(m: &mut Module, strip: bool) -> Result<Report, PatchError> {
     for id in &new {
         edit::decorate(m, *id, Decoration::NonUniform, &[]);
     }
-    Ok(Report { decorated: new.len(), stripped: 0 })
+    Ok(Report {
+        decorated: new.len(),
+        stripped: 0,
+    })
 }

@@ -10,7 +10,10 @@
 //! what an axis value means; a writer that cannot express a spec refuses it with a reason drawn
 //! from the spec. Cells outside the plan's rules (`matrix::plan::all_cells`) still get a spec:
 //! what their generated GLSL does, which the reference then checks.
-use crate::model::{AsAccess, BaseSource, Canary, Cell, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource, SamplerIndex, Stage, Workaround};
+use crate::model::{
+    AsAccess, BaseSource, Canary, Cell, DescriptorModel, HeapAccess, IndexSource, Reorder,
+    Resource, SamplerIndex, Stage, Workaround,
+};
 use serde::Serialize;
 
 /// What the probe records as its slot (`probeSlot`).
@@ -195,7 +198,20 @@ fn loads_address(w: Workaround) -> bool {
 impl ProbeSpec {
     /// The spec of `cell`: the one place an axis value is given its meaning.
     pub fn of(cell: &Cell) -> ProbeSpec {
-        let Cell { stage, resource, index, nonuniform, as_access, descriptor_model, heap_access, canary, patch, reorder, base, sampler } = *cell;
+        let Cell {
+            stage,
+            resource,
+            index,
+            nonuniform,
+            as_access,
+            descriptor_model,
+            heap_access,
+            canary,
+            patch,
+            reorder,
+            base,
+            sampler,
+        } = *cell;
         let slot = match index {
             IndexSource::Literal => SlotSource::Literal,
             IndexSource::SpecConstant => SlotSource::SpecConstant,
@@ -213,18 +229,30 @@ impl ProbeSpec {
         } else {
             match index {
                 IndexSource::DynamicElement => Access::Packed,
-                IndexSource::Literal | IndexSource::SpecConstant | IndexSource::PushConstant | IndexSource::Dynamic => Access::Slot { nonuniform },
+                IndexSource::Literal
+                | IndexSource::SpecConstant
+                | IndexSource::PushConstant
+                | IndexSource::Dynamic => Access::Slot { nonuniform },
             }
         };
         let array = match heap_access {
             Some(HeapAccess::Direct) => ArrayAt::Heap,
-            None | Some(HeapAccess::MappedConstantOffset | HeapAccess::MappedPushIndex | HeapAccess::MappedIndirectIndex | HeapAccess::MappedShaderRecordIndex) => ArrayAt::Binding,
+            None
+            | Some(
+                HeapAccess::MappedConstantOffset
+                | HeapAccess::MappedPushIndex
+                | HeapAccess::MappedIndirectIndex
+                | HeapAccess::MappedShaderRecordIndex,
+            ) => ArrayAt::Binding,
         };
         let element = match resource {
             Resource::AccelerationStructure => ElementMap::None,
             Resource::StorageBuffer if access == Access::Packed => ElementMap::Packed,
             Resource::SampledImage if access == Access::Packed => ElementMap::Layer,
-            Resource::StorageBuffer | Resource::UniformBuffer | Resource::SampledImage | Resource::StorageImage => ElementMap::Own,
+            Resource::StorageBuffer
+            | Resource::UniformBuffer
+            | Resource::SampledImage
+            | Resource::StorageImage => ElementMap::Own,
         };
         // Only direct heap GLSL samples with a separate sampler (set/binding shaders sample
         // combined image samplers); without a sampler value it samples with the constant one.
@@ -232,9 +260,12 @@ impl ProbeSpec {
         let sampler = match (separate, sampler) {
             (false, None | Some(SamplerIndex::Constant | SamplerIndex::Dynamic)) => Sampler::None,
             (true, None | Some(SamplerIndex::Constant)) => Sampler::Constant,
-            (true, Some(SamplerIndex::Dynamic)) => Sampler::Dynamic { nonuniform: cell.sampler_nonuniform() },
+            (true, Some(SamplerIndex::Dynamic)) => Sampler::Dynamic {
+                nonuniform: cell.sampler_nonuniform(),
+            },
         };
-        let hit_dynamic = hit_stage(stage) && (slot == SlotSource::Dynamic || matches!(sampler, Sampler::Dynamic { .. }));
+        let hit_dynamic = hit_stage(stage)
+            && (slot == SlotSource::Dynamic || matches!(sampler, Sampler::Dynamic { .. }));
         let base = match (hit_dynamic, base) {
             (false, None | Some(BaseSource::ShaderRecord | BaseSource::Buffer)) => Base::None,
             (true, None) => Base::PushData,
@@ -243,18 +274,42 @@ impl ProbeSpec {
         };
         let read = match patch {
             Some(Workaround::PinIndex) => ReadIndex::Pinned,
-            Some(Workaround::Nonuniform | Workaround::AsToAddress | Workaround::SsboToAddress) => ReadIndex::Defined,
+            Some(Workaround::Nonuniform | Workaround::AsToAddress | Workaround::SsboToAddress) => {
+                ReadIndex::Defined
+            }
             // Once as-to-address rewrote it, a non-uniform index reads memory: well defined.
-            None if slot == SlotSource::Dynamic && access == (Access::Slot { nonuniform: false }) && patched_to_address.is_none() => ReadIndex::Undefined,
+            None if slot == SlotSource::Dynamic
+                && access == (Access::Slot { nonuniform: false })
+                && patched_to_address.is_none() =>
+            {
+                ReadIndex::Undefined
+            }
             None => ReadIndex::Defined,
         };
         let workarounds = [patched_to_address, patch];
         let patched = |w: Workaround| workarounds.contains(&Some(w));
         let addresses = AddressTables {
-            as_table: resource == Resource::AccelerationStructure && (access == Access::AddressTable || patched(Workaround::AsToAddress)),
+            as_table: resource == Resource::AccelerationStructure
+                && (access == Access::AddressTable || patched(Workaround::AsToAddress)),
             ssbo_table: patched(Workaround::SsboToAddress),
         };
-        ProbeSpec { stage, resource, model: descriptor_model, heap: heap_access, canary, reorder, slot, access, array, element, base, sampler, workarounds, read, addresses }
+        ProbeSpec {
+            stage,
+            resource,
+            model: descriptor_model,
+            heap: heap_access,
+            canary,
+            reorder,
+            slot,
+            access,
+            array,
+            element,
+            base,
+            sampler,
+            workarounds,
+            read,
+            addresses,
+        }
     }
 
     /// The SPIR-V workarounds applied to the compiled GLSL, in order: as-to-address for
@@ -282,7 +337,9 @@ impl ProbeSpec {
     /// The shaders use 64-bit integers: an address table (written or patched in) or the
     /// invalid-address canary's load.
     pub fn int64(&self) -> bool {
-        self.access == Access::AddressTable || self.workarounds().any(loads_address) || self.canary == Some(Canary::InvalidAddress)
+        self.access == Access::AddressTable
+            || self.workarounds().any(loads_address)
+            || self.canary == Some(Canary::InvalidAddress)
     }
 
     /// The push-constant fields holding a device address the probe reads (GLSL names; the
@@ -307,54 +364,173 @@ mod tests {
     use super::*;
 
     fn cell(stage: Stage, resource: Resource, index: IndexSource) -> Cell {
-        let as_access = (resource == Resource::AccelerationStructure).then_some(AsAccess::Descriptor);
-        Cell { as_access, ..Cell::new(stage, resource, index, DescriptorModel::DescriptorIndexing) }
+        let as_access =
+            (resource == Resource::AccelerationStructure).then_some(AsAccess::Descriptor);
+        Cell {
+            as_access,
+            ..Cell::new(stage, resource, index, DescriptorModel::DescriptorIndexing)
+        }
     }
 
     #[test]
     fn fixed_index_sources_read_their_constant_slots() {
-        let s = ProbeSpec::of(&cell(Stage::Raygen, Resource::StorageBuffer, IndexSource::Literal));
-        assert_eq!((s.slot, s.access, s.element, s.base, s.sampler, s.read), (SlotSource::Literal, Access::Slot { nonuniform: false }, ElementMap::Own, Base::None, Sampler::None, ReadIndex::Defined));
+        let s = ProbeSpec::of(&cell(
+            Stage::Raygen,
+            Resource::StorageBuffer,
+            IndexSource::Literal,
+        ));
+        assert_eq!(
+            (s.slot, s.access, s.element, s.base, s.sampler, s.read),
+            (
+                SlotSource::Literal,
+                Access::Slot { nonuniform: false },
+                ElementMap::Own,
+                Base::None,
+                Sampler::None,
+                ReadIndex::Defined
+            )
+        );
         assert_eq!(s.slot.fixed(), Some(crate::probe::LITERAL_SLOT));
-        let s = ProbeSpec::of(&cell(Stage::Compute, Resource::UniformBuffer, IndexSource::SpecConstant));
+        let s = ProbeSpec::of(&cell(
+            Stage::Compute,
+            Resource::UniformBuffer,
+            IndexSource::SpecConstant,
+        ));
         assert!(s.spec_constant() && !s.packed() && s.push_addresses().is_empty() && !s.int64());
-        assert_eq!(ProbeSpec::of(&cell(Stage::Miss, Resource::StorageImage, IndexSource::PushConstant)).slot.fixed(), Some(crate::probe::PUSH_SLOT));
+        assert_eq!(
+            ProbeSpec::of(&cell(
+                Stage::Miss,
+                Resource::StorageImage,
+                IndexSource::PushConstant
+            ))
+            .slot
+            .fixed(),
+            Some(crate::probe::PUSH_SLOT)
+        );
     }
 
     #[test]
     fn dynamic_element_reads_the_packed_descriptor_at_the_spec_slot() {
-        let s = ProbeSpec::of(&cell(Stage::Compute, Resource::StorageBuffer, IndexSource::DynamicElement));
-        assert_eq!((s.slot, s.access, s.element, s.read), (SlotSource::Dynamic, Access::Packed, ElementMap::Packed, ReadIndex::Defined));
+        let s = ProbeSpec::of(&cell(
+            Stage::Compute,
+            Resource::StorageBuffer,
+            IndexSource::DynamicElement,
+        ));
+        assert_eq!(
+            (s.slot, s.access, s.element, s.read),
+            (
+                SlotSource::Dynamic,
+                Access::Packed,
+                ElementMap::Packed,
+                ReadIndex::Defined
+            )
+        );
         assert!(s.spec_constant() && s.packed());
-        let closest = Cell { base: Some(BaseSource::Buffer), ..cell(Stage::ClosestHit, Resource::SampledImage, IndexSource::DynamicElement) };
+        let closest = Cell {
+            base: Some(BaseSource::Buffer),
+            ..cell(
+                Stage::ClosestHit,
+                Resource::SampledImage,
+                IndexSource::DynamicElement,
+            )
+        };
         let s = ProbeSpec::of(&closest);
-        assert_eq!((s.element, s.base, s.sampler), (ElementMap::Layer, Base::InstanceBuffer, Sampler::None));
+        assert_eq!(
+            (s.element, s.base, s.sampler),
+            (ElementMap::Layer, Base::InstanceBuffer, Sampler::None)
+        );
         assert_eq!(s.push_addresses(), ["baseAddress"]);
     }
 
     #[test]
     fn dynamic_indices_without_nonuniform_are_undefined_until_a_workaround_defines_them() {
-        let plain = cell(Stage::ClosestHit, Resource::StorageBuffer, IndexSource::Dynamic);
+        let plain = cell(
+            Stage::ClosestHit,
+            Resource::StorageBuffer,
+            IndexSource::Dynamic,
+        );
         let s = ProbeSpec::of(&plain);
         assert_eq!((s.base, s.read), (Base::PushData, ReadIndex::Undefined));
-        assert_eq!(ProbeSpec::of(&Cell { nonuniform: true, ..plain }).read, ReadIndex::Defined);
-        assert_eq!(ProbeSpec::of(&Cell { patch: Some(Workaround::PinIndex), ..plain }).read, ReadIndex::Pinned);
-        let ssbo = ProbeSpec::of(&Cell { patch: Some(Workaround::SsboToAddress), ..plain });
-        assert_eq!((ssbo.read, ssbo.addresses, ssbo.int64()), (ReadIndex::Defined, AddressTables { as_table: false, ssbo_table: true }, true));
-        assert_eq!(ssbo.workarounds().collect::<Vec<_>>(), [Workaround::SsboToAddress]);
+        assert_eq!(
+            ProbeSpec::of(&Cell {
+                nonuniform: true,
+                ..plain
+            })
+            .read,
+            ReadIndex::Defined
+        );
+        assert_eq!(
+            ProbeSpec::of(&Cell {
+                patch: Some(Workaround::PinIndex),
+                ..plain
+            })
+            .read,
+            ReadIndex::Pinned
+        );
+        let ssbo = ProbeSpec::of(&Cell {
+            patch: Some(Workaround::SsboToAddress),
+            ..plain
+        });
+        assert_eq!(
+            (ssbo.read, ssbo.addresses, ssbo.int64()),
+            (
+                ReadIndex::Defined,
+                AddressTables {
+                    as_table: false,
+                    ssbo_table: true
+                },
+                true
+            )
+        );
+        assert_eq!(
+            ssbo.workarounds().collect::<Vec<_>>(),
+            [Workaround::SsboToAddress]
+        );
     }
 
     #[test]
     fn as_cells_reach_the_table_written_or_patched() {
-        let d = cell(Stage::Raygen, Resource::AccelerationStructure, IndexSource::Dynamic);
+        let d = cell(
+            Stage::Raygen,
+            Resource::AccelerationStructure,
+            IndexSource::Dynamic,
+        );
         let s = ProbeSpec::of(&d);
-        assert_eq!((s.access, s.element, s.read, s.addresses.as_table), (Access::Slot { nonuniform: false }, ElementMap::None, ReadIndex::Undefined, false));
-        let a = ProbeSpec::of(&Cell { as_access: Some(AsAccess::Address), ..d });
-        assert_eq!((a.access, a.read, a.addresses.as_table, a.push_addresses()), (Access::AddressTable, ReadIndex::Defined, true, vec!["asTable"]));
+        assert_eq!(
+            (s.access, s.element, s.read, s.addresses.as_table),
+            (
+                Access::Slot { nonuniform: false },
+                ElementMap::None,
+                ReadIndex::Undefined,
+                false
+            )
+        );
+        let a = ProbeSpec::of(&Cell {
+            as_access: Some(AsAccess::Address),
+            ..d
+        });
+        assert_eq!(
+            (a.access, a.read, a.addresses.as_table, a.push_addresses()),
+            (
+                Access::AddressTable,
+                ReadIndex::Defined,
+                true,
+                vec!["asTable"]
+            )
+        );
         // address_patched: the descriptor variant's GLSL, then as-to-address.
-        let p = ProbeSpec::of(&Cell { as_access: Some(AsAccess::AddressPatched), ..d });
-        assert_eq!((p.access, p.read, p.addresses.as_table), (s.access, ReadIndex::Defined, true));
-        assert_eq!(p.workarounds().collect::<Vec<_>>(), [Workaround::AsToAddress]);
+        let p = ProbeSpec::of(&Cell {
+            as_access: Some(AsAccess::AddressPatched),
+            ..d
+        });
+        assert_eq!(
+            (p.access, p.read, p.addresses.as_table),
+            (s.access, ReadIndex::Defined, true)
+        );
+        assert_eq!(
+            p.workarounds().collect::<Vec<_>>(),
+            [Workaround::AsToAddress]
+        );
         assert!(p.int64() && !s.int64());
     }
 
@@ -365,16 +541,57 @@ mod tests {
     fn planned_cells_resolve_to_specs_their_consumers_can_run() {
         let (cells, _) = crate::matrix::plan::all_cells();
         for base in cells {
-            for c in std::iter::once(base).chain(base.applicable_patches().into_iter().map(|p| Cell { patch: Some(p), ..base })) {
+            for c in
+                std::iter::once(base).chain(base.applicable_patches().into_iter().map(|p| Cell {
+                    patch: Some(p),
+                    ..base
+                }))
+            {
                 let s = ProbeSpec::of(&c);
-                assert_eq!(s.sampler != Sampler::None, c.sampler.is_some(), "{}", c.id());
-                assert_eq!(matches!(s.base, Base::ShaderRecord | Base::InstanceBuffer), c.base.is_some(), "{}", c.id());
-                assert_eq!(s.packed(), c.index == IndexSource::DynamicElement, "{}", c.id());
-                assert_eq!(s.packed(), matches!(s.element, ElementMap::Packed | ElementMap::Layer), "{}", c.id());
-                assert_eq!(s.element == ElementMap::None, c.resource == Resource::AccelerationStructure, "{}", c.id());
-                assert_eq!(s.workarounds().count(), usize::from(c.as_access == Some(AsAccess::AddressPatched)) + usize::from(c.patch.is_some()), "{}", c.id());
+                assert_eq!(
+                    s.sampler != Sampler::None,
+                    c.sampler.is_some(),
+                    "{}",
+                    c.id()
+                );
+                assert_eq!(
+                    matches!(s.base, Base::ShaderRecord | Base::InstanceBuffer),
+                    c.base.is_some(),
+                    "{}",
+                    c.id()
+                );
+                assert_eq!(
+                    s.packed(),
+                    c.index == IndexSource::DynamicElement,
+                    "{}",
+                    c.id()
+                );
+                assert_eq!(
+                    s.packed(),
+                    matches!(s.element, ElementMap::Packed | ElementMap::Layer),
+                    "{}",
+                    c.id()
+                );
+                assert_eq!(
+                    s.element == ElementMap::None,
+                    c.resource == Resource::AccelerationStructure,
+                    "{}",
+                    c.id()
+                );
+                assert_eq!(
+                    s.workarounds().count(),
+                    usize::from(c.as_access == Some(AsAccess::AddressPatched))
+                        + usize::from(c.patch.is_some()),
+                    "{}",
+                    c.id()
+                );
                 // The data layer's copy of the rule (the report's outside-the-spec note) agrees.
-                assert_eq!(s.read == ReadIndex::Undefined, crate::model::undefined_descriptor_read(&c), "{}", c.id());
+                assert_eq!(
+                    s.read == ReadIndex::Undefined,
+                    crate::model::undefined_descriptor_read(&c),
+                    "{}",
+                    c.id()
+                );
             }
         }
         let canary = ProbeSpec::of(&Cell::canary(Canary::InvalidAddress));
@@ -391,11 +608,36 @@ mod tests {
         };
         let s = ProbeSpec::of(&c);
         // The literal descriptor index leaves the dynamic sampler index qualified; its base is push data.
-        assert_eq!((s.array, s.sampler, s.base), (ArrayAt::Heap, Sampler::Dynamic { nonuniform: true }, Base::PushData));
-        let unqualified = ProbeSpec::of(&Cell { index: IndexSource::Dynamic, ..c });
+        assert_eq!(
+            (s.array, s.sampler, s.base),
+            (
+                ArrayAt::Heap,
+                Sampler::Dynamic { nonuniform: true },
+                Base::PushData
+            )
+        );
+        let unqualified = ProbeSpec::of(&Cell {
+            index: IndexSource::Dynamic,
+            ..c
+        });
         assert_eq!(unqualified.sampler, Sampler::Dynamic { nonuniform: false });
-        assert_eq!(ProbeSpec::of(&Cell { sampler: Some(SamplerIndex::Constant), ..c }).base, Base::None);
+        assert_eq!(
+            ProbeSpec::of(&Cell {
+                sampler: Some(SamplerIndex::Constant),
+                ..c
+            })
+            .base,
+            Base::None
+        );
         // Mapped heap access samples a combined image sampler.
-        assert_eq!(ProbeSpec::of(&Cell { heap_access: Some(HeapAccess::MappedPushIndex), sampler: None, ..c }).sampler, Sampler::None);
+        assert_eq!(
+            ProbeSpec::of(&Cell {
+                heap_access: Some(HeapAccess::MappedPushIndex),
+                sampler: None,
+                ..c
+            })
+            .sampler,
+            Sampler::None
+        );
     }
 }

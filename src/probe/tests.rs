@@ -32,13 +32,19 @@ fn glsl_offsets(fields: &[Field]) -> (Vec<usize>, usize) {
 #[test]
 fn glsl_record_layout_is_the_rust_layout() {
     let (offs, size) = glsl_offsets(RECORD_FIELDS);
-    assert_eq!(offs, RECORD_FIELDS.iter().map(|f| f.offset).collect::<Vec<_>>());
+    assert_eq!(
+        offs,
+        RECORD_FIELDS.iter().map(|f| f.offset).collect::<Vec<_>>()
+    );
     assert_eq!(size, RECORD_SIZE);
     // every byte of the Rust struct is covered by a member GLSL declares
     let covered: usize = RECORD_FIELDS.iter().map(|f| std430(f.glsl_type).1).sum();
     assert_eq!(covered, RECORD_SIZE);
     let (poffs, psize) = glsl_offsets(PUSH_FIELDS);
-    assert_eq!(poffs, PUSH_FIELDS.iter().map(|f| f.offset).collect::<Vec<_>>());
+    assert_eq!(
+        poffs,
+        PUSH_FIELDS.iter().map(|f| f.offset).collect::<Vec<_>>()
+    );
     assert_eq!(psize as u32, PUSH_BLOCK_BYTES);
     let g = glsl_declarations();
     assert!(g.contains("layout(offset = 32) uvec2 asTable;"), "{g}");
@@ -48,9 +54,19 @@ fn glsl_record_layout_is_the_rust_layout() {
 #[test]
 fn shader_record_layout_is_the_rust_layout() {
     let (offs, size) = glsl_offsets(SHADER_RECORD_FIELDS);
-    assert_eq!(offs, SHADER_RECORD_FIELDS.iter().map(|f| f.offset).collect::<Vec<_>>());
+    assert_eq!(
+        offs,
+        SHADER_RECORD_FIELDS
+            .iter()
+            .map(|f| f.offset)
+            .collect::<Vec<_>>()
+    );
     assert_eq!(size, std::mem::size_of::<ShaderRecordData>());
-    let b = ShaderRecordData { heap_index: 9, dyn_base: DYNAMIC_BASE }.to_bytes();
+    let b = ShaderRecordData {
+        heap_index: 9,
+        dyn_base: DYNAMIC_BASE,
+    }
+    .to_bytes();
     assert_eq!(b, [9u32.to_le_bytes(), DYNAMIC_BASE.to_le_bytes()].concat());
     assert!(glsl_shader_record().contains("uint dynBase; // offset 4"));
 }
@@ -72,21 +88,45 @@ fn samplers_pick_the_texels_their_address_modes_say() {
     assert_eq!(wrap(AddressMode::ClampToEdge, 7, 2), 1);
     // The constant sampler differs from sampler 0 on most elements, and a dynamic index covers
     // every sampler.
-    assert!((0..ELEMENTS).filter(|e| sampled_element(SAMPLER_LITERAL, *e) != sampled_element(0, *e)).count() >= 3);
-    assert_eq!((0..6).map(sampler_slot).collect::<Vec<_>>(), [0, 1, 2, 0, 1, 2]);
+    assert!(
+        (0..ELEMENTS)
+            .filter(|e| sampled_element(SAMPLER_LITERAL, *e) != sampled_element(0, *e))
+            .count()
+            >= 3
+    );
+    assert_eq!(
+        (0..6).map(sampler_slot).collect::<Vec<_>>(),
+        [0, 1, 2, 0, 1, 2]
+    );
 }
 
 #[test]
 fn record_round_trips_through_bytes() {
     let r = Record {
-        flags: 3, custom: 0xfffff3, instance_id: 7, geometry: 2, primitive: 9, t: 1.5, bary: [0.25, 0.5], slot: 4, element: 3, pad: 0, pad2: 11,
+        flags: 3,
+        custom: 0xfffff3,
+        instance_id: 7,
+        geometry: 2,
+        primitive: 9,
+        t: 1.5,
+        bary: [0.25, 0.5],
+        slot: 4,
+        element: 3,
+        pad: 0,
+        pad2: 11,
         value: [1.0, 2.0, 3.0, 0.25],
     };
     let bytes = r.to_bytes();
     assert_eq!(Record::from_bytes(&bytes), r);
     // the bytes sit where GLSL's std430 layout puts them
     let word = |o: usize| u32::from_le_bytes(bytes[o..o + 4].try_into().unwrap());
-    let at = |name: &str| RECORD_FIELDS.iter().find(|f| f.glsl_name == name).unwrap().offset;
+    let at = |name: &str| {
+        RECORD_FIELDS
+            .iter()
+            .find(|f| f.glsl_name == name)
+            .unwrap()
+            .offset
+    };
     assert_eq!(word(at("custom")), 0xfffff3);
     assert_eq!(word(at("element")), 3);
     assert_eq!(f32::from_bits(word(at("value") + 12)), 0.25);
@@ -94,13 +134,23 @@ fn record_round_trips_through_bytes() {
 
 #[test]
 fn push_constants_bytes_follow_the_offsets() {
-    let p = PushConstants { as_table: 0x1122_3344_5566_7788, bad_address: 9, ..push_constants(64, 32, 16, Resource::StorageBuffer) };
+    let p = PushConstants {
+        as_table: 0x1122_3344_5566_7788,
+        bad_address: 9,
+        ..push_constants(64, 32, 16, Resource::StorageBuffer)
+    };
     let b = p.to_bytes(0xabcd);
     assert_eq!(b.len() as u32, PUSH_CONSTANT_BYTES);
     let u64_at = |o: usize| u64::from_le_bytes(b[o..o + 8].try_into().unwrap());
-    assert_eq!(u64_at(offset_of!(PushConstants, as_table)), 0x1122_3344_5566_7788);
+    assert_eq!(
+        u64_at(offset_of!(PushConstants, as_table)),
+        0x1122_3344_5566_7788
+    );
     assert_eq!(u64_at(PATCHED_TABLE_OFFSET as usize), 0xabcd);
-    assert_eq!(u32::from_le_bytes(b[12..16].try_into().unwrap()), DYNAMIC_BASE);
+    assert_eq!(
+        u32::from_le_bytes(b[12..16].try_into().unwrap()),
+        DYNAMIC_BASE
+    );
 }
 
 #[test]
@@ -108,16 +158,25 @@ fn slots_fit_the_array_and_values_are_distinct() {
     let n = slot_count(Resource::StorageBuffer, 16);
     assert_eq!(n, DYNAMIC_BASE + 16);
     assert_eq!(slot_count(Resource::AccelerationStructure, 16), n);
-    assert_eq!(slot_count(Resource::StorageBuffer, 4096), DYNAMIC_BASE + 4096);
+    assert_eq!(
+        slot_count(Resource::StorageBuffer, 4096),
+        DYNAMIC_BASE + 4096
+    );
     assert_eq!(as_variants(4096), MAX_AS_VARIANTS);
     assert!([LITERAL_SLOT, SPEC_SLOT, PUSH_SLOT].iter().all(|s| *s < n));
-    assert_eq!(dynamic_slot(Stage::ClosestHit, 0, 0, 64, 0xfffff5, DYNAMIC_BASE, n), DYNAMIC_BASE + 5);
+    assert_eq!(
+        dynamic_slot(Stage::ClosestHit, 0, 0, 64, 0xfffff5, DYNAMIC_BASE, n),
+        DYNAMIC_BASE + 5
+    );
     assert!(dynamic_slot(Stage::Fragment, 63, 63, 64, 0, DYNAMIC_BASE, n) < n);
     let mut seen = std::collections::HashSet::new();
     for r in Resource::ALL {
         for s in 0..n {
             for e in 0..ELEMENTS {
-                assert!(seen.insert(resource_value(*r, s, e).map(f32::to_bits)), "{r:?} {s} {e}");
+                assert!(
+                    seen.insert(resource_value(*r, s, e).map(f32::to_bits)),
+                    "{r:?} {s} {e}"
+                );
             }
         }
     }
@@ -125,10 +184,22 @@ fn slots_fit_the_array_and_values_are_distinct() {
     // The packed buffer holds every (slot, element) once, at the index the GLSL computes.
     let packed = packed_bytes(Resource::StorageBuffer, n);
     assert_eq!(packed.len(), (n * ELEMENTS * 16) as usize);
-    let at = |d: u32, e: u32| -> [f32; 4] { let o = packed_element(d, e) as usize * 16; [0, 1, 2, 3].map(|k| f32::from_le_bytes(packed[o + 4 * k..o + 4 * k + 4].try_into().unwrap())) };
-    assert_eq!(at(DYNAMIC_BASE + 5, 3), resource_value(Resource::StorageBuffer, DYNAMIC_BASE + 5, 3));
+    let at = |d: u32, e: u32| -> [f32; 4] {
+        let o = packed_element(d, e) as usize * 16;
+        [0, 1, 2, 3]
+            .map(|k| f32::from_le_bytes(packed[o + 4 * k..o + 4 * k + 4].try_into().unwrap()))
+    };
+    assert_eq!(
+        at(DYNAMIC_BASE + 5, 3),
+        resource_value(Resource::StorageBuffer, DYNAMIC_BASE + 5, 3)
+    );
     assert_ne!(at(DYNAMIC_BASE + 5, 3), at(DYNAMIC_BASE + 5, 2));
-    assert!(glsl_declarations().contains("uint packedElement(uint slot, uint element) { return slot * ELEMENTS + element; }"));
+    assert!(glsl_declarations().contains(
+        "uint packedElement(uint slot, uint element) { return slot * ELEMENTS + element; }"
+    ));
     assert!(PACKED_SLOT < n);
-    assert_ne!(as_value(Some(as_custom(1, 3))), as_value(Some(as_custom(2, 3))));
+    assert_ne!(
+        as_value(Some(as_custom(1, 3))),
+        as_value(Some(as_custom(2, 3)))
+    );
 }

@@ -26,7 +26,12 @@ fn unset_fields_differ(bad: &mut Bad, fields: &[(&'static str, u32, u32)]) {
 }
 
 fn compare_hit(c: &mut Comparison, bad: &mut Bad, r: &Record, a: &Record) {
-    for (name, e, g) in [("custom", r.custom, a.custom), ("instance_id", r.instance_id, a.instance_id), ("geometry", r.geometry, a.geometry), ("primitive", r.primitive, a.primitive)] {
+    for (name, e, g) in [
+        ("custom", r.custom, a.custom),
+        ("instance_id", r.instance_id, a.instance_id),
+        ("geometry", r.geometry, a.geometry),
+        ("primitive", r.primitive, a.primitive),
+    ] {
         if e != g {
             bad.push((name, e.to_string(), g.to_string()));
         }
@@ -36,7 +41,9 @@ fn compare_hit(c: &mut Comparison, bad: &mut Bad, r: &Record, a: &Record) {
     if te.is_nan() || te > T_REL_TOL {
         bad.push(("t", r.t.to_string(), a.t.to_string()));
     }
-    let be = (0..2).map(|k| (a.bary[k] as f64 - r.bary[k] as f64).abs()).fold(0.0, worst);
+    let be = (0..2)
+        .map(|k| (a.bary[k] as f64 - r.bary[k] as f64).abs())
+        .fold(0.0, worst);
     c.worst_bary = worst(c.worst_bary, be);
     if be.is_nan() || be > BARY_TOL {
         bad.push(("bary", format!("{:?}", r.bary), format!("{:?}", a.bary)));
@@ -53,7 +60,12 @@ fn compare_probe(c: &mut Comparison, bad: &mut Bad, e: &Expected, a: &Record) {
     let own = r.value == a.value;
     let allowed = !own && e.rule.allows(a.value);
     if !allowed {
-        let ve = r.value.iter().zip(a.value).map(|(x, y)| (*x as f64 - y as f64).abs()).fold(0.0, worst);
+        let ve = r
+            .value
+            .iter()
+            .zip(a.value)
+            .map(|(x, y)| (*x as f64 - y as f64).abs())
+            .fold(0.0, worst);
         c.worst_value = worst(c.worst_value, ve);
     }
     match e.rule {
@@ -66,7 +78,10 @@ fn compare_probe(c: &mut Comparison, bad: &mut Bad, e: &Expected, a: &Record) {
         }
         ValueRule::AnyElement { .. } | ValueRule::AnySampler { .. } => {
             c.any_element_values += 1;
-            let reads = c.element_reads.get_or_insert_with(|| ElementReads { outside_spec: NO_NONUNIFORM_VUID.into(), ..Default::default() });
+            let reads = c.element_reads.get_or_insert_with(|| ElementReads {
+                outside_spec: NO_NONUNIFORM_VUID.into(),
+                ..Default::default()
+            });
             match (own, allowed) {
                 (true, _) => reads.own += 1,
                 (false, true) => reads.other += 1,
@@ -80,7 +95,10 @@ fn compare_probe(c: &mut Comparison, bad: &mut Bad, e: &Expected, a: &Record) {
 }
 
 pub fn compare(expected: &[Expected], actual: &[Record], width: u32) -> Comparison {
-    let mut c = Comparison { pixels: expected.len(), ..Default::default() };
+    let mut c = Comparison {
+        pixels: expected.len(),
+        ..Default::default()
+    };
     let mut exact_probe_pixels = 0usize;
     for (i, (e, a)) in expected.iter().zip(actual).enumerate() {
         if e.ambiguous {
@@ -99,15 +117,18 @@ pub fn compare(expected: &[Expected], actual: &[Record], width: u32) -> Comparis
             if r.flags & FLAG_HIT != 0 {
                 compare_hit(&mut c, &mut bad, r, a);
             } else {
-                unset_fields_differ(&mut bad, &[
-                    ("custom", r.custom, a.custom),
-                    ("instance_id", r.instance_id, a.instance_id),
-                    ("geometry", r.geometry, a.geometry),
-                    ("primitive", r.primitive, a.primitive),
-                    ("t", r.t.to_bits(), a.t.to_bits()),
-                    ("bary", r.bary[0].to_bits(), a.bary[0].to_bits()),
-                    ("bary", r.bary[1].to_bits(), a.bary[1].to_bits()),
-                ]);
+                unset_fields_differ(
+                    &mut bad,
+                    &[
+                        ("custom", r.custom, a.custom),
+                        ("instance_id", r.instance_id, a.instance_id),
+                        ("geometry", r.geometry, a.geometry),
+                        ("primitive", r.primitive, a.primitive),
+                        ("t", r.t.to_bits(), a.t.to_bits()),
+                        ("bary", r.bary[0].to_bits(), a.bary[0].to_bits()),
+                        ("bary", r.bary[1].to_bits(), a.bary[1].to_bits()),
+                    ],
+                );
             }
             if r.flags & FLAG_PROBE != 0 {
                 if e.rule == ValueRule::Exact {
@@ -116,7 +137,8 @@ pub fn compare(expected: &[Expected], actual: &[Record], width: u32) -> Comparis
                 compare_probe(&mut c, &mut bad, e, a);
             } else {
                 let mut fields = vec![("slot", r.slot, a.slot), ("element", r.element, a.element)];
-                fields.extend((0..4).map(|k| ("value", r.value[k].to_bits(), a.value[k].to_bits())));
+                fields
+                    .extend((0..4).map(|k| ("value", r.value[k].to_bits(), a.value[k].to_bits())));
                 unset_fields_differ(&mut bad, &fields);
             }
         }
@@ -127,7 +149,12 @@ pub fn compare(expected: &[Expected], actual: &[Record], width: u32) -> Comparis
                 *c.by_field.entry(field.to_string()).or_default() += 1;
                 if c.examples.len() < 8 {
                     let pixel = [i as u32 % width, i as u32 / width];
-                    c.examples.push(Mismatch { pixel, field: field.into(), expected: exp, actual: act });
+                    c.examples.push(Mismatch {
+                        pixel,
+                        field: field.into(),
+                        expected: exp,
+                        actual: act,
+                    });
                 }
             }
         }
@@ -137,4 +164,3 @@ pub fn compare(expected: &[Expected], actual: &[Record], width: u32) -> Comparis
     }
     c
 }
-

@@ -100,12 +100,23 @@ fn sphere(o: DVec3, d: DVec3) -> Option<(f64, bool)> {
     let t0 = (-b - sq) / (2.0 * a);
     let t1 = (-b + sq) / (2.0 * a);
     let (tmin, tmax) = (RAY_TMIN as f64, RAY_TMAX as f64);
-    let t = if t0 >= tmin && t0 <= tmax { t0 } else if t1 >= tmin && t1 <= tmax { t1 } else { return None };
+    let t = if t0 >= tmin && t0 <= tmax {
+        t0
+    } else if t1 >= tmin && t1 <= tmax {
+        t1
+    } else {
+        return None;
+    };
     Some((t, marginal))
 }
 
 /// Every hit of the ray with `instances` (each with its instance id), marginal ones included.
-pub fn candidates<'a>(scene: &Scene, origin: [f32; 3], dir: [f32; 3], instances: impl Iterator<Item = (u32, &'a Instance)>) -> Vec<Candidate> {
+pub fn candidates<'a>(
+    scene: &Scene,
+    origin: [f32; 3],
+    dir: [f32; 3],
+    instances: impl Iterator<Item = (u32, &'a Instance)>,
+) -> Vec<Candidate> {
     let o = DVec3::new(origin[0] as f64, origin[1] as f64, origin[2] as f64);
     let d = DVec3::new(dir[0] as f64, dir[1] as f64, dir[2] as f64);
     let mut cands: Vec<Candidate> = Vec::new();
@@ -136,16 +147,34 @@ pub fn candidates<'a>(scene: &Scene, origin: [f32; 3], dir: [f32; 3], instances:
                     DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64)
                 };
                 for (tri_index, tri) in mesh.indices.iter().enumerate() {
-                    if let Some((t, u, v, marginal)) = triangle(oo, od, p(tri[0]), p(tri[1]), p(tri[2])) {
+                    if let Some((t, u, v, marginal)) =
+                        triangle(oo, od, p(tri[0]), p(tri[1]), p(tri[2]))
+                    {
                         let (geometry, primitive) = mesh.geometry_of(tri_index as u32);
-                        let hit = Hit { instance: inst.custom_index, instance_id: id, geometry, primitive, t, bary: [u, v], sphere: false };
+                        let hit = Hit {
+                            instance: inst.custom_index,
+                            instance_id: id,
+                            geometry,
+                            primitive,
+                            t,
+                            bary: [u, v],
+                            sphere: false,
+                        };
                         cands.push(Candidate { hit, marginal });
                     }
                 }
             }
             Geometry::Sphere => {
                 if let Some((t, marginal)) = sphere(oo, od) {
-                    let hit = Hit { instance: inst.custom_index, instance_id: id, geometry: 0, primitive: 0, t, bary: [0.0, 0.0], sphere: true };
+                    let hit = Hit {
+                        instance: inst.custom_index,
+                        instance_id: id,
+                        geometry: 0,
+                        primitive: 0,
+                        t,
+                        bary: [0.0, 0.0],
+                        sphere: true,
+                    };
                     cands.push(Candidate { hit, marginal });
                 }
             }
@@ -159,22 +188,45 @@ pub fn resolve(cands: &[Candidate], include: impl Fn(&Hit) -> bool) -> TraceRef 
     let kept: Vec<&Candidate> = cands.iter().filter(|c| include(&c.hit)).collect();
     // The GPU commits the closest certain-or-marginal hit it finds; a marginal candidate may or
     // may not be found, so it only makes the pixel ambiguous when it could be the closest.
-    let best = kept.iter().filter(|c| !c.marginal).min_by(|a, b| a.hit.t.total_cmp(&b.hit.t));
+    let best = kept
+        .iter()
+        .filter(|c| !c.marginal)
+        .min_by(|a, b| a.hit.t.total_cmp(&b.hit.t));
     let ambiguous_near = |t: f64| t * (1.0 + EPS_T) + EPS_T;
     let key = |h: &Hit| (h.instance_id, h.geometry, h.primitive);
     match best {
-        None => TraceRef { hit: None, ambiguous: !kept.is_empty() },
+        None => TraceRef {
+            hit: None,
+            ambiguous: !kept.is_empty(),
+        },
         Some(b) => {
             let bound = ambiguous_near(b.hit.t);
-            let ambiguous = kept.iter().any(|c| !std::ptr::eq(*c, *b) && c.hit.t <= bound && (c.marginal || key(&c.hit) != key(&b.hit)));
-            TraceRef { hit: Some(b.hit), ambiguous }
+            let ambiguous = kept.iter().any(|c| {
+                !std::ptr::eq(*c, *b)
+                    && c.hit.t <= bound
+                    && (c.marginal || key(&c.hit) != key(&b.hit))
+            });
+            TraceRef {
+                hit: Some(b.hit),
+                ambiguous,
+            }
         }
     }
 }
 
 /// Closest hit of the ray among the scene instances `include` accepts.
-pub fn trace(scene: &Scene, origin: [f32; 3], dir: [f32; 3], include: impl Fn(&Instance) -> bool) -> TraceRef {
-    let insts = scene.instances.iter().enumerate().map(|(k, i)| (k as u32, i)).filter(|&(_, i)| include(i));
+pub fn trace(
+    scene: &Scene,
+    origin: [f32; 3],
+    dir: [f32; 3],
+    include: impl Fn(&Instance) -> bool,
+) -> TraceRef {
+    let insts = scene
+        .instances
+        .iter()
+        .enumerate()
+        .map(|(k, i)| (k as u32, i))
+        .filter(|&(_, i)| include(i));
     resolve(&candidates(scene, origin, dir, insts), |_| true)
 }
 
@@ -188,7 +240,12 @@ mod tests {
         let d = DVec3::Z;
         let (v0, v1, v2) = (DVec3::ZERO, DVec3::X, DVec3::Y);
         let (t, u, v, marginal) = triangle(o, d, v0, v1, v2).unwrap();
-        assert!((t - 1.0).abs() < 1e-12 && (u - 0.25).abs() < 1e-12 && (v - 0.25).abs() < 1e-12 && !marginal);
+        assert!(
+            (t - 1.0).abs() < 1e-12
+                && (u - 0.25).abs() < 1e-12
+                && (v - 0.25).abs() < 1e-12
+                && !marginal
+        );
         let edge = triangle(DVec3::new(0.5, 0.5 - 1e-6, -1.0), d, v0, v1, v2).unwrap();
         assert!(edge.3, "near the hypotenuse is marginal");
         assert!(triangle(DVec3::new(0.9, 0.9, -1.0), d, v0, v1, v2).is_none());

@@ -31,8 +31,8 @@
 //! every other element of the slot holds a different value, i.e. whether reading any wrong
 //! element would have been caught there.
 mod compare;
-mod rules;
 pub mod intersect;
+mod rules;
 pub mod watertight;
 
 use crate::model::{Cell, Resource, Stage};
@@ -40,8 +40,8 @@ use crate::probe::spec::{ElementMap, ProbeSpec, ReadIndex, Sampler};
 use crate::probe::{self, HitIds, Record, FLAG_HIT, FLAG_PROBE, MAX_AS_VARIANTS};
 use crate::scene::Scene;
 pub use compare::compare;
-pub use rules::{Expected, Undefined, ValueRule, BARY_TOL, T_REL_TOL};
 use intersect::TraceRef;
+pub use rules::{Expected, Undefined, ValueRule, BARY_TOL, T_REL_TOL};
 
 /// Primary rays of every pixel through the scene TLAS, and AS probe rays through every probe TLAS
 /// variant.
@@ -58,20 +58,33 @@ impl SceneReference {
         let n = scene.instances.len() as u32;
         let variants = probe::as_variants(scene.params.instances);
         let mut full = Vec::with_capacity(scene.params.pixels());
-        let mut probe_rays: Vec<Vec<TraceRef>> = (0..variants).map(|_| Vec::with_capacity(scene.params.pixels())).collect();
-        let with_floor: Vec<(u32, &crate::scene::Instance)> =
-            scene.instances.iter().enumerate().map(|(k, i)| (k as u32, i)).chain(std::iter::once((n, &scene.floor))).collect();
+        let mut probe_rays: Vec<Vec<TraceRef>> = (0..variants)
+            .map(|_| Vec::with_capacity(scene.params.pixels()))
+            .collect();
+        let with_floor: Vec<(u32, &crate::scene::Instance)> = scene
+            .instances
+            .iter()
+            .enumerate()
+            .map(|(k, i)| (k as u32, i))
+            .chain(std::iter::once((n, &scene.floor)))
+            .collect();
         for y in 0..h {
             for x in 0..w {
                 let (o, d) = scene.primary_ray(x, y);
                 full.push(intersect::trace(scene, o, d, |_| true));
-                let cands = intersect::candidates(scene, o, probe::PROBE_DIR, with_floor.iter().copied());
+                let cands =
+                    intersect::candidates(scene, o, probe::PROBE_DIR, with_floor.iter().copied());
                 for (v, rays) in probe_rays.iter_mut().enumerate() {
-                    rays.push(intersect::resolve(&cands, |h| h.instance_id == n || probe::as_variant_has(v as u32, h.instance_id)));
+                    rays.push(intersect::resolve(&cands, |h| {
+                        h.instance_id == n || probe::as_variant_has(v as u32, h.instance_id)
+                    }));
                 }
             }
         }
-        Self { full, probe: probe_rays }
+        Self {
+            full,
+            probe: probe_rays,
+        }
     }
 
     pub fn ambiguous_pixels(&self) -> usize {
@@ -82,20 +95,34 @@ impl SceneReference {
     pub fn as_value(&self, slot: u32, p: usize) -> ([f32; 4], bool) {
         let v = probe::as_slot_tlas(slot);
         let t = self.probe[v][p];
-        (probe::as_value(t.hit.map(|h| probe::as_custom(v as u32, h.instance_id))), t.ambiguous)
+        (
+            probe::as_value(t.hit.map(|h| probe::as_custom(v as u32, h.instance_id))),
+            t.ambiguous,
+        )
     }
 }
 
 /// Whether every other (slot, element) of a buffer/image array holds a value unlike `value`.
 fn buffer_value_discriminates(resource: Resource, slots: u32, slot: u32, element: u32) -> bool {
     let value = probe::resource_value(resource, slot, element);
-    (0..slots).all(|s| (0..probe::ELEMENTS).all(|e| (s, e) == (slot, element) || probe::resource_value(resource, s, e) != value))
+    (0..slots).all(|s| {
+        (0..probe::ELEMENTS)
+            .all(|e| (s, e) == (slot, element) || probe::resource_value(resource, s, e) != value)
+    })
 }
 
 /// What `cell` must write for every pixel. (A test that needs a wrong result injects one:
 /// `run --inject-fault`, `matrix::inject`.)
 pub fn expected(cell: &Cell, scene: &Scene, sref: &SceneReference) -> Vec<Expected> {
-    expected_with(cell, scene, sref, Undefined { descriptor: ProbeSpec::of(cell).read == ReadIndex::Undefined, sampler: false })
+    expected_with(
+        cell,
+        scene,
+        sref,
+        Undefined {
+            descriptor: ProbeSpec::of(cell).read == ReadIndex::Undefined,
+            sampler: false,
+        },
+    )
 }
 
 /// What every probed pixel of one cell shares: its spec, the array's size, what is undefined, and
@@ -112,12 +139,27 @@ struct Probed<'a> {
 
 impl Probed<'_> {
     /// Fill in what the probe writes at pixel (x, y) (index `p`), whose primary ray got `hit`.
-    fn probe(&mut self, e: &mut Expected, (x, y, p): (u32, u32, usize), hit: Option<intersect::Hit>) {
+    fn probe(
+        &mut self,
+        e: &mut Expected,
+        (x, y, p): (u32, u32, usize),
+        hit: Option<intersect::Hit>,
+    ) {
         let spec = self.spec;
         let (rec, slots) = (&mut e.record, self.slots);
         // The stage's runtime value (the dynamic slot, the dynamic sampler's source).
-        let base = hit.map(|h| spec.base.value(h.instance_id, h.sphere)).unwrap_or(probe::DYNAMIC_BASE);
-        let dynamic = probe::dynamic_slot(spec.stage, x, y, self.width, hit.map(|h| h.instance).unwrap_or(0), base, slots);
+        let base = hit
+            .map(|h| spec.base.value(h.instance_id, h.sphere))
+            .unwrap_or(probe::DYNAMIC_BASE);
+        let dynamic = probe::dynamic_slot(
+            spec.stage,
+            x,
+            y,
+            self.width,
+            hit.map(|h| h.instance).unwrap_or(0),
+            base,
+            slots,
+        );
         // dynamic_element records the dynamic value as its slot and reads that slot's element
         // from the packed resource (probe::packed_element): the same record.
         let slot = spec.slot.fixed().unwrap_or(dynamic);
@@ -133,22 +175,41 @@ impl Probed<'_> {
                 let (value, amb) = self.sref.as_value(read, p);
                 e.ambiguous |= amb;
                 rec.value = value;
-                e.discriminating = (0..slots).all(|s| s == read || self.sref.as_value(s, p).0 != value);
+                e.discriminating =
+                    (0..slots).all(|s| s == read || self.sref.as_value(s, p).0 != value);
             }
             ElementMap::Own | ElementMap::Packed | ElementMap::Layer => {
-                let ids = hit.map(|h| HitIds { instance_id: h.instance_id, geometry: h.geometry, primitive: h.primitive }).unwrap_or_default();
+                let ids = hit
+                    .map(|h| HitIds {
+                        instance_id: h.instance_id,
+                        geometry: h.geometry,
+                        primitive: h.primitive,
+                    })
+                    .unwrap_or_default();
                 rec.element = probe::element(spec.stage, x, y, ids);
                 // A separate-sampler probe reads the texel its sampler's address mode picks.
                 let texel = match spec.sampler {
                     Sampler::None => rec.element,
-                    Sampler::Constant => probe::sampled_element(probe::SAMPLER_LITERAL, rec.element),
-                    Sampler::Dynamic { .. } => probe::sampled_element(probe::sampler_slot(dynamic), rec.element),
+                    Sampler::Constant => {
+                        probe::sampled_element(probe::SAMPLER_LITERAL, rec.element)
+                    }
+                    Sampler::Dynamic { .. } => {
+                        probe::sampled_element(probe::sampler_slot(dynamic), rec.element)
+                    }
                 };
                 rec.value = probe::resource_value(spec.resource, read, texel);
                 let k = (read * probe::ELEMENTS + texel) as usize;
-                e.discriminating = *self.buffer_disc[k].get_or_insert_with(|| buffer_value_discriminates(spec.resource, slots, read, texel));
+                e.discriminating = *self.buffer_disc[k].get_or_insert_with(|| {
+                    buffer_value_discriminates(spec.resource, slots, read, texel)
+                });
                 if self.undefined.sampler && spec.sampler != Sampler::None {
-                    let values = std::array::from_fn(|s| probe::resource_value(spec.resource, read, probe::sampled_element(s as u32, rec.element)));
+                    let values = std::array::from_fn(|s| {
+                        probe::resource_value(
+                            spec.resource,
+                            read,
+                            probe::sampled_element(s as u32, rec.element),
+                        )
+                    });
                     e.rule = ValueRule::AnySampler { values };
                     e.discriminating = false;
                 }
@@ -163,7 +224,12 @@ impl Probed<'_> {
                     e.ambiguous |= amb;
                 }
             }
-            e.rule = ValueRule::AnyElement { resource: spec.resource, slots, as_values, variants: self.variants };
+            e.rule = ValueRule::AnyElement {
+                resource: spec.resource,
+                slots,
+                as_values,
+                variants: self.variants,
+            };
             e.discriminating = false;
         }
     }
@@ -173,18 +239,36 @@ impl Probed<'_> {
 /// descriptor or sampler index without `NonUniform` — the cell's shape (its spec's
 /// [`ReadIndex::Undefined`]) or a compiler that dropped the qualifier
 /// (`exec::heap::dropped_nonuniform`).
-pub fn expected_with(cell: &Cell, scene: &Scene, sref: &SceneReference, undefined: Undefined) -> Vec<Expected> {
+pub fn expected_with(
+    cell: &Cell,
+    scene: &Scene,
+    sref: &SceneReference,
+    undefined: Undefined,
+) -> Vec<Expected> {
     let spec = ProbeSpec::of(cell);
     let (w, h) = (scene.params.width, scene.params.height);
     let slots = probe::slot_count(spec.resource, scene.params.instances);
     let variants = probe::as_variants(scene.params.instances);
     let buffer_disc = vec![None; (slots * probe::ELEMENTS) as usize];
-    let mut probed = Probed { spec, sref, width: w, slots, variants, undefined, buffer_disc };
+    let mut probed = Probed {
+        spec,
+        sref,
+        width: w,
+        slots,
+        variants,
+        undefined,
+        buffer_disc,
+    };
     let mut out = Vec::with_capacity(scene.params.pixels());
     for y in 0..h {
         for x in 0..w {
             let p = (y * w + x) as usize;
-            let mut e = Expected { record: Record::default(), ambiguous: false, rule: ValueRule::Exact, discriminating: false };
+            let mut e = Expected {
+                record: Record::default(),
+                ambiguous: false,
+                rule: ValueRule::Exact,
+                discriminating: false,
+            };
             let primary = sref.full[p];
             if spec.stage.is_ray_tracing() {
                 e.ambiguous = primary.ambiguous;

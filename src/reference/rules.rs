@@ -14,11 +14,18 @@ pub enum ValueRule {
     Exact,
     /// Any element of the probed array is allowed (non-uniform index without NonUniform); for AS
     /// arrays, the first component of any probe TLAS variant's value (`as_values[..variants]`).
-    AnyElement { resource: Resource, slots: u32, as_values: [f32; MAX_AS_VARIANTS as usize], variants: u32 },
+    AnyElement {
+        resource: Resource,
+        slots: u32,
+        as_values: [f32; MAX_AS_VARIANTS as usize],
+        variants: u32,
+    },
     /// Only the sampler index is undefined (a dynamic sampler index whose `NonUniform` the
     /// compiler dropped; the texture index is defined): the read slot's element through any of the
     /// sampler heap's samplers (`values[s]` through sampler `s`). Slot and element stay exact.
-    AnySampler { values: [[f32; 4]; probe::SAMPLER_MODES.len()] },
+    AnySampler {
+        values: [[f32; 4]; probe::SAMPLER_MODES.len()],
+    },
 }
 
 /// What the driver saw undefined in a cell's probed read: the descriptor index (a non-uniform
@@ -43,14 +50,21 @@ impl ValueRule {
     pub(super) fn allows(&self, v: [f32; 4]) -> bool {
         match *self {
             ValueRule::Exact => false,
-            ValueRule::AnyElement { resource: Resource::AccelerationStructure, as_values, variants, .. } => {
-                v[1..] == [0.0, 0.0, 1.0] && as_values[..variants as usize].contains(&v[0])
-            }
+            ValueRule::AnyElement {
+                resource: Resource::AccelerationStructure,
+                as_values,
+                variants,
+                ..
+            } => v[1..] == [0.0, 0.0, 1.0] && as_values[..variants as usize].contains(&v[0]),
             ValueRule::AnySampler { values } => values.contains(&v),
-            ValueRule::AnyElement { resource, slots, .. } => {
+            ValueRule::AnyElement {
+                resource, slots, ..
+            } => {
                 let (s, e) = (v[0] - 1.0, v[3] - 0.25);
                 let whole = |x: f32, n: u32| x >= 0.0 && x.fract() == 0.0 && (x as u32) < n;
-                whole(s, slots) && whole(e, probe::ELEMENTS) && probe::resource_value(resource, s as u32, e as u32) == v
+                whole(s, slots)
+                    && whole(e, probe::ELEMENTS)
+                    && probe::resource_value(resource, s as u32, e as u32) == v
             }
         }
     }

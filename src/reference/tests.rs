@@ -1,13 +1,18 @@
 //! Unit tests of the reference: expected records per cell, value rules, comparison and its
 //! tolerances, and the twins that make each check fail.
 use super::*;
-use crate::model::{Comparison, NO_NONUNIFORM_VUID};
 use crate::model::SceneParams;
 use crate::model::{AsAccess, DescriptorModel, IndexSource, Resource, SamplerIndex, Workaround};
+use crate::model::{Comparison, NO_NONUNIFORM_VUID};
 use std::sync::OnceLock;
 
 fn cell(stage: Stage, index: IndexSource) -> Cell {
-    Cell::new(stage, Resource::StorageBuffer, index, DescriptorModel::DescriptorIndexing)
+    Cell::new(
+        stage,
+        Resource::StorageBuffer,
+        index,
+        DescriptorModel::DescriptorIndexing,
+    )
 }
 
 fn world() -> &'static (Scene, SceneReference) {
@@ -41,19 +46,37 @@ fn reading(e: &[Expected], read: impl Fn(&Record) -> [f32; 4]) -> Vec<Record> {
 fn default_scene_has_hits_misses_spheres_and_few_ambiguous_pixels() {
     let (_, r) = world();
     let hits = r.full.iter().filter(|t| t.hit.is_some()).count();
-    let spheres = r.full.iter().filter(|t| t.hit.is_some_and(|h| h.sphere)).count();
+    let spheres = r
+        .full
+        .iter()
+        .filter(|t| t.hit.is_some_and(|h| h.sphere))
+        .count();
     let n = r.full.len();
     assert!(hits > n / 5 && hits < n, "hits {hits} of {n}");
     assert!(spheres > 50, "spheres {spheres}");
-    assert!(r.ambiguous_pixels() < n / 20, "ambiguous {}", r.ambiguous_pixels());
+    assert!(
+        r.ambiguous_pixels() < n / 20,
+        "ambiguous {}",
+        r.ambiguous_pixels()
+    );
     // several geometries per BLAS are hit
-    let geoms: std::collections::BTreeSet<u32> = r.full.iter().filter_map(|t| t.hit.map(|h| h.geometry)).collect();
+    let geoms: std::collections::BTreeSet<u32> = r
+        .full
+        .iter()
+        .filter_map(|t| t.hit.map(|h| h.geometry))
+        .collect();
     assert!(geoms.len() >= 3, "{geoms:?}");
     // the probe rays hit in every variant almost everywhere (the floor), with different instance sets
     for v in &r.probe {
         assert!(v.iter().filter(|t| t.hit.is_some()).count() > n * 9 / 10);
     }
-    assert!((0..n).filter(|p| r.probe[0][*p].hit.map(|h| h.instance_id) != r.probe[1][*p].hit.map(|h| h.instance_id)).count() > n / 10);
+    assert!(
+        (0..n)
+            .filter(|p| r.probe[0][*p].hit.map(|h| h.instance_id)
+                != r.probe[1][*p].hit.map(|h| h.instance_id))
+            .count()
+            > n / 10
+    );
 }
 
 #[test]
@@ -75,7 +98,12 @@ fn expected_records_compare_equal_to_themselves_and_corruption_is_caught() {
     // Every checked probe pixel is caught, and only those: the n a `value:F` injection can
     // be caught on (closest-hit: the hit pixels only).
     assert_eq!(cmp.mismatched_pixels, cmp.probe_checked);
-    assert!(cmp.probe_checked > 0 && cmp.probe_checked < cmp.compared, "{} of {}", cmp.probe_checked, cmp.compared);
+    assert!(
+        cmp.probe_checked > 0 && cmp.probe_checked < cmp.compared,
+        "{} of {}",
+        cmp.probe_checked,
+        cmp.compared
+    );
     let raygen = expected(&cell(Stage::Raygen, IndexSource::Literal), scene, r);
     let cmp = compare(&raygen, &records(&raygen), 64);
     assert_eq!(cmp.probe_checked, cmp.compared);
@@ -92,17 +120,41 @@ fn a_wrong_base_source_is_caught() {
     let slots = probe::slot_count(Resource::StorageBuffer, scene.params.instances);
     type Wrong = fn(u32, bool) -> u32;
     let cases: [(BaseSource, &str, Wrong); 8] = [
-        (BaseSource::ShaderRecord, "push data's", |_, _| probe::DYNAMIC_BASE),
-        (BaseSource::ShaderRecord, "the raygen record's", |_, _| probe::RECORD_BASE_OTHER),
-        (BaseSource::ShaderRecord, "the other hit group's", |_, sphere| if sphere { probe::RECORD_BASE_TRIANGLES } else { probe::RECORD_BASE_PROCEDURAL }),
-        (BaseSource::Buffer, "push data's", |_, _| probe::DYNAMIC_BASE),
-        (BaseSource::Buffer, "entry 0", |_, _| probe::instance_base(0)),
+        (BaseSource::ShaderRecord, "push data's", |_, _| {
+            probe::DYNAMIC_BASE
+        }),
+        (BaseSource::ShaderRecord, "the raygen record's", |_, _| {
+            probe::RECORD_BASE_OTHER
+        }),
+        (
+            BaseSource::ShaderRecord,
+            "the other hit group's",
+            |_, sphere| {
+                if sphere {
+                    probe::RECORD_BASE_TRIANGLES
+                } else {
+                    probe::RECORD_BASE_PROCEDURAL
+                }
+            },
+        ),
+        (BaseSource::Buffer, "push data's", |_, _| {
+            probe::DYNAMIC_BASE
+        }),
+        (BaseSource::Buffer, "entry 0", |_, _| {
+            probe::instance_base(0)
+        }),
         (BaseSource::Buffer, "no (a dropped)", |_, _| 0),
         (BaseSource::ShaderRecord, "no (a dropped)", |_, _| 0),
-        (BaseSource::Buffer, "the next instance's", |i, _| probe::instance_base(i + 1)),
+        (BaseSource::Buffer, "the next instance's", |i, _| {
+            probe::instance_base(i + 1)
+        }),
     ];
     for (base, what, wrong) in cases {
-        let c = Cell { nonuniform: true, base: Some(base), ..cell(Stage::ClosestHit, IndexSource::Dynamic) };
+        let c = Cell {
+            nonuniform: true,
+            base: Some(base),
+            ..cell(Stage::ClosestHit, IndexSource::Dynamic)
+        };
         let e = expected(&c, scene, r);
         assert!(compare(&e, &records(&e), 64).passed());
         let actual: Vec<Record> = e
@@ -111,14 +163,20 @@ fn a_wrong_base_source_is_caught() {
             .map(|(x, t)| {
                 let mut a = x.record;
                 if let (true, Some(h)) = (a.flags & FLAG_PROBE != 0, t.hit) {
-                    a.slot = wrong(h.instance_id, h.sphere) + (a.custom & (slots - probe::DYNAMIC_BASE - 1));
+                    a.slot = wrong(h.instance_id, h.sphere)
+                        + (a.custom & (slots - probe::DYNAMIC_BASE - 1));
                     a.value = probe::resource_value(Resource::StorageBuffer, a.slot, a.element);
                 }
                 a
             })
             .collect();
         let cmp = compare(&e, &actual, 64);
-        assert!(cmp.mismatched_pixels * 2 > cmp.probe_checked, "{base:?}: reading {what} base caught on {} of {}", cmp.mismatched_pixels, cmp.probe_checked);
+        assert!(
+            cmp.mismatched_pixels * 2 > cmp.probe_checked,
+            "{base:?}: reading {what} base caught on {} of {}",
+            cmp.mismatched_pixels,
+            cmp.probe_checked
+        );
     }
 }
 
@@ -138,36 +196,98 @@ fn a_wrong_sampler_reads_another_texel_and_is_caught() {
         ..cell(stage, index)
     };
     for stage in [Stage::ClosestHit, Stage::Raygen, Stage::Fragment] {
-        for (index, nonuniform) in [(IndexSource::Literal, false), (IndexSource::Dynamic, true), (IndexSource::DynamicElement, false)] {
+        for (index, nonuniform) in [
+            (IndexSource::Literal, false),
+            (IndexSource::Dynamic, true),
+            (IndexSource::DynamicElement, false),
+        ] {
             for sampler in [SamplerIndex::Constant, SamplerIndex::Dynamic] {
                 let c = direct(stage, index, nonuniform, sampler);
                 let e = expected(&c, scene, r);
                 assert!(compare(&e, &records(&e), 64).passed(), "{}", c.id());
                 // The same read with sampler 0 (clamp to edge): element 1 of the slot read.
-                let slot_read = |a: &Record| if index == IndexSource::DynamicElement || index == IndexSource::Dynamic { a.slot } else { probe::LITERAL_SLOT };
-                let wrong = reading(&e, |a| probe::resource_value(Resource::SampledImage, slot_read(a), probe::sampled_element(0, a.element)));
+                let slot_read = |a: &Record| {
+                    if index == IndexSource::DynamicElement || index == IndexSource::Dynamic {
+                        a.slot
+                    } else {
+                        probe::LITERAL_SLOT
+                    }
+                };
+                let wrong = reading(&e, |a| {
+                    probe::resource_value(
+                        Resource::SampledImage,
+                        slot_read(a),
+                        probe::sampled_element(0, a.element),
+                    )
+                });
                 let cmp = compare(&e, &wrong, 64);
                 // Constant: sampler 2 against 0 differs on 3 elements of 4. Dynamic: a third
                 // of the pixels use sampler 0 itself, the others differ on 3 elements of 4.
-                let share = if sampler == SamplerIndex::Constant { 0.7 } else { 0.4 };
-                assert!(cmp.mismatched_pixels as f64 > share * cmp.probe_checked as f64, "{}: sampler 0 caught on {} of {}", c.id(), cmp.mismatched_pixels, cmp.probe_checked);
+                let share = if sampler == SamplerIndex::Constant {
+                    0.7
+                } else {
+                    0.4
+                };
+                assert!(
+                    cmp.mismatched_pixels as f64 > share * cmp.probe_checked as f64,
+                    "{}: sampler 0 caught on {} of {}",
+                    c.id(),
+                    cmp.mismatched_pixels,
+                    cmp.probe_checked
+                );
                 // The compiler dropped the sampler index's NonUniform (and only that): any
                 // sampler's texel of the right slot passes, counted as another element; a
                 // wrong slot still mismatches everywhere.
                 if c.sampler_nonuniform() {
-                    let e = expected_with(&c, scene, r, Undefined { descriptor: false, sampler: true });
+                    let e = expected_with(
+                        &c,
+                        scene,
+                        r,
+                        Undefined {
+                            descriptor: false,
+                            sampler: true,
+                        },
+                    );
                     let cmp = compare(&e, &wrong, 64);
-                    assert!(cmp.passed() && cmp.element_reads.as_ref().is_some_and(|x| x.other > 0), "{}: {:?}", c.id(), cmp.element_reads);
+                    assert!(
+                        cmp.passed() && cmp.element_reads.as_ref().is_some_and(|x| x.other > 0),
+                        "{}: {:?}",
+                        c.id(),
+                        cmp.element_reads
+                    );
                     let slots = probe::slot_count(Resource::SampledImage, scene.params.instances);
-                    let off = reading(&e, |a| probe::resource_value(Resource::SampledImage, (slot_read(a) + 1) % slots, probe::sampled_element(0, a.element)));
+                    let off = reading(&e, |a| {
+                        probe::resource_value(
+                            Resource::SampledImage,
+                            (slot_read(a) + 1) % slots,
+                            probe::sampled_element(0, a.element),
+                        )
+                    });
                     let cmp = compare(&e, &off, 64);
-                    assert_eq!(cmp.mismatched_pixels, cmp.probe_checked, "{}: another slot through any sampler", c.id());
+                    assert_eq!(
+                        cmp.mismatched_pixels,
+                        cmp.probe_checked,
+                        "{}: another slot through any sampler",
+                        c.id()
+                    );
                 }
                 if sampler == SamplerIndex::Dynamic {
                     // The constant sampler instead of the dynamic one.
-                    let wrong = reading(&e, |a| probe::resource_value(Resource::SampledImage, slot_read(a), probe::sampled_element(probe::SAMPLER_LITERAL, a.element)));
+                    let wrong = reading(&e, |a| {
+                        probe::resource_value(
+                            Resource::SampledImage,
+                            slot_read(a),
+                            probe::sampled_element(probe::SAMPLER_LITERAL, a.element),
+                        )
+                    });
                     let cmp = compare(&e, &wrong, 64);
-                    assert!(cmp.mismatched_pixels * 3 > cmp.probe_checked, "{}: constant sampler caught on {} of {}", c.id(), cmp.mismatched_pixels, cmp.probe_checked);
+                    assert!(
+                        cmp.mismatched_pixels * 3 > cmp.probe_checked,
+                        "{}: constant sampler caught on {} of {}",
+                        c.id(),
+                        cmp.mismatched_pixels,
+                        cmp.probe_checked
+                    );
                 }
             }
         }
@@ -183,11 +303,24 @@ fn dynamic_element_reads_must_be_the_exact_packed_element_and_layer() {
     let (scene, r) = world();
     for resource in [Resource::StorageBuffer, Resource::SampledImage] {
         for stage in [Stage::ClosestHit, Stage::Raygen, Stage::Compute] {
-            let c = Cell { resource, ..cell(stage, IndexSource::DynamicElement) };
+            let c = Cell {
+                resource,
+                ..cell(stage, IndexSource::DynamicElement)
+            };
             let e = expected(&c, scene, r);
             // Same records as the dynamic cell (with nonuniformEXT: exact, no any-element rule).
-            let d = expected(&Cell { index: IndexSource::Dynamic, nonuniform: true, ..c }, scene, r);
-            assert!(e.iter().zip(&d).all(|(a, b)| a.record == b.record && a.rule == ValueRule::Exact && a.discriminating == b.discriminating));
+            let d = expected(
+                &Cell {
+                    index: IndexSource::Dynamic,
+                    nonuniform: true,
+                    ..c
+                },
+                scene,
+                r,
+            );
+            assert!(e.iter().zip(&d).all(|(a, b)| a.record == b.record
+                && a.rule == ValueRule::Exact
+                && a.discriminating == b.discriminating));
             assert!(compare(&e, &records(&e), 64).passed());
             let slots = probe::slot_count(resource, scene.params.instances);
             // (slot, element) a faulty driver reads instead: the wrong element, the wrong layer
@@ -203,16 +336,38 @@ fn dynamic_element_reads_must_be_the_exact_packed_element_and_layer() {
                     probe::resource_value(resource, s, el)
                 });
                 let cmp = compare(&e, &actual, 64);
-                let moved = e.iter().zip(&actual).filter(|(x, a)| !x.ambiguous && x.record.value != a.value).count();
-                assert!(!cmp.passed() && cmp.mismatched_pixels >= moved && moved > 0, "{} wrong {what}: {cmp:?}", c.id());
+                let moved = e
+                    .iter()
+                    .zip(&actual)
+                    .filter(|(x, a)| !x.ambiguous && x.record.value != a.value)
+                    .count();
+                assert!(
+                    !cmp.passed() && cmp.mismatched_pixels >= moved && moved > 0,
+                    "{} wrong {what}: {cmp:?}",
+                    c.id()
+                );
             }
-            assert!(compare(&e, &records(&e), 64).discrimination.is_some_and(|x| x >= 0.99), "{}", c.id());
+            assert!(
+                compare(&e, &records(&e), 64)
+                    .discrimination
+                    .is_some_and(|x| x >= 0.99),
+                "{}",
+                c.id()
+            );
         }
     }
 }
 
 /// Bit patterns no correct probe writes where the reference has an ordinary value.
-const GARBAGE: [u32; 7] = [0x7fc0_0000, 0xffc0_0001, 0x7f80_0000, 0xff80_0000, 0xffff_ffff, 0x0000_0001, 0x807f_ffff];
+const GARBAGE: [u32; 7] = [
+    0x7fc0_0000,
+    0xffc0_0001,
+    0x7f80_0000,
+    0xff80_0000,
+    0xffff_ffff,
+    0x0000_0001,
+    0x807f_ffff,
+];
 
 /// The record with the 32-bit word at byte `offset` replaced by `bits`.
 fn with_word(r: &Record, offset: usize, bits: u32) -> Record {
@@ -229,13 +384,28 @@ fn garbage_in_any_record_field_never_passes() {
     let good = records(&e);
     assert!(compare(&e, &good, 64).passed());
     // A triangle hit with both barycentrics well inside, a miss (hit and probe fields unset).
-    let tri = e.iter().position(|x| !x.ambiguous && x.record.flags == FLAG_HIT | FLAG_PROBE && x.record.bary.iter().all(|b| *b > 0.05) && x.record.t > 1.0).unwrap();
-    let miss = e.iter().position(|x| !x.ambiguous && x.record.flags == 0).unwrap();
+    let tri = e
+        .iter()
+        .position(|x| {
+            !x.ambiguous
+                && x.record.flags == FLAG_HIT | FLAG_PROBE
+                && x.record.bary.iter().all(|b| *b > 0.05)
+                && x.record.t > 1.0
+        })
+        .unwrap();
+    let miss = e
+        .iter()
+        .position(|x| !x.ambiguous && x.record.flags == 0)
+        .unwrap();
     let word_fields: Vec<(&str, usize)> = crate::probe::RECORD_FIELDS
         .iter()
         .filter(|f| !f.glsl_name.starts_with("pad"))
         .flat_map(|f| {
-            let words = match f.glsl_type { "vec2" => 2, "vec4" => 4, _ => 1 };
+            let words = match f.glsl_type {
+                "vec2" => 2,
+                "vec4" => 4,
+                _ => 1,
+            };
             (0..words).map(move |k| (f.glsl_name, f.offset + 4 * k))
         })
         .collect();
@@ -263,7 +433,10 @@ fn garbage_in_any_record_field_never_passes() {
     // the worker sends comparisons to the supervisor as JSON: NaN survives the trip
     let text = serde_json::to_string(&cmp).unwrap();
     assert!(text.contains(r#""worst_bary":"NaN""#), "{text}");
-    assert!(serde_json::from_str::<Comparison>(&text).unwrap().worst_bary.is_nan());
+    assert!(serde_json::from_str::<Comparison>(&text)
+        .unwrap()
+        .worst_bary
+        .is_nan());
     actual[tri].bary[1] = good[tri].bary[1];
     actual[tri].value[2] = f32::INFINITY;
     let cmp = compare(&e, &actual, 64);
@@ -278,8 +451,14 @@ fn garbage_in_any_record_field_never_passes() {
 fn a_driver_returning_instance_id_as_custom_index_is_caught() {
     let (scene, r) = world();
     for resource in [Resource::StorageBuffer, Resource::AccelerationStructure] {
-        let as_access = (resource == Resource::AccelerationStructure).then_some(AsAccess::Descriptor);
-        let c = Cell { resource, as_access, nonuniform: true, ..cell(Stage::ClosestHit, IndexSource::Dynamic) };
+        let as_access =
+            (resource == Resource::AccelerationStructure).then_some(AsAccess::Descriptor);
+        let c = Cell {
+            resource,
+            as_access,
+            nonuniform: true,
+            ..cell(Stage::ClosestHit, IndexSource::Dynamic)
+        };
         let e = expected(&c, scene, r);
         let slots = crate::probe::slot_count(resource, scene.params.instances);
         // What the GPU would write if gl_InstanceCustomIndexEXT returned gl_InstanceID.
@@ -290,42 +469,81 @@ fn a_driver_returning_instance_id_as_custom_index_is_caught() {
                 let mut a = x.record;
                 if a.flags & FLAG_HIT != 0 {
                     a.custom = a.instance_id;
-                    a.slot = crate::probe::dynamic_slot(Stage::ClosestHit, 0, 0, 64, a.instance_id, probe::DYNAMIC_BASE, slots);
-                    a.value = if resource == Resource::AccelerationStructure { r.as_value(a.slot, p).0 } else { crate::probe::resource_value(resource, a.slot, a.element) };
+                    a.slot = crate::probe::dynamic_slot(
+                        Stage::ClosestHit,
+                        0,
+                        0,
+                        64,
+                        a.instance_id,
+                        probe::DYNAMIC_BASE,
+                        slots,
+                    );
+                    a.value = if resource == Resource::AccelerationStructure {
+                        r.as_value(a.slot, p).0
+                    } else {
+                        crate::probe::resource_value(resource, a.slot, a.element)
+                    };
                 }
                 a
             })
             .collect();
         let cmp = compare(&e, &actual, 64);
-        let hits = e.iter().filter(|x| !x.ambiguous && x.record.flags & FLAG_HIT != 0).count();
+        let hits = e
+            .iter()
+            .filter(|x| !x.ambiguous && x.record.flags & FLAG_HIT != 0)
+            .count();
         assert!(hits > 500);
         assert_eq!(cmp.by_field.get("custom"), Some(&hits), "{cmp:?}");
         let wrong_values = cmp.by_field.get("value").copied().unwrap_or(0);
-        assert!(wrong_values * 100 >= hits * 95, "{resource:?}: {wrong_values} of {hits} hit pixels read another value");
+        assert!(
+            wrong_values * 100 >= hits * 95,
+            "{resource:?}: {wrong_values} of {hits} hit pixels read another value"
+        );
     }
 }
 
 #[test]
 fn a_driver_ignoring_base_shows_in_the_element_reads() {
     let (scene, r) = world();
-    let c = Cell { resource: Resource::UniformBuffer, ..cell(Stage::ClosestHit, IndexSource::Dynamic) };
+    let c = Cell {
+        resource: Resource::UniformBuffer,
+        ..cell(Stage::ClosestHit, IndexSource::Dynamic)
+    };
     let e = expected(&c, scene, r);
-    let base_dropped = reading(&e, |a| crate::probe::resource_value(Resource::UniformBuffer, a.slot - crate::probe::DYNAMIC_BASE, a.element));
+    let base_dropped = reading(&e, |a| {
+        crate::probe::resource_value(
+            Resource::UniformBuffer,
+            a.slot - crate::probe::DYNAMIC_BASE,
+            a.element,
+        )
+    });
     let cmp = compare(&e, &base_dropped, 64);
-    let reads = cmp.element_reads.clone().expect("no-nonuniform cells count their reads");
+    let reads = cmp
+        .element_reads
+        .clone()
+        .expect("no-nonuniform cells count their reads");
     assert_eq!(reads.outside_spec, NO_NONUNIFORM_VUID);
     assert_eq!((reads.own, reads.neither), (0, 0), "{reads:?}");
     assert_eq!(reads.other, cmp.any_element_values);
     assert!(reads.other > 100);
-    assert!(cmp.passed(), "which element is read is undefined without nonuniformEXT");
+    assert!(
+        cmp.passed(),
+        "which element is read is undefined without nonuniformEXT"
+    );
     assert_eq!(cmp.discrimination, None);
     // the same reads with nonuniformEXT are mismatches
-    let nu = Cell { nonuniform: true, ..c };
+    let nu = Cell {
+        nonuniform: true,
+        ..c
+    };
     let cmp = compare(&expected(&nu, scene, r), &base_dropped, 64);
     assert_eq!(cmp.by_field.get("value"), Some(&reads.other));
     // and the own reads are counted as own
     let cmp = compare(&e, &records(&e), 64);
-    assert_eq!(cmp.element_reads.map(|x| (x.own, x.other)), Some((reads.other, 0)));
+    assert_eq!(
+        cmp.element_reads.map(|x| (x.own, x.other)),
+        Some((reads.other, 0))
+    );
 }
 
 #[test]
@@ -333,19 +551,31 @@ fn elements_are_read_at_per_primitive_offsets() {
     let (scene, r) = world();
     let c = cell(Stage::ClosestHit, IndexSource::Literal);
     let e = expected(&c, scene, r);
-    let elements: std::collections::BTreeSet<u32> = e.iter().filter(|x| x.record.flags & FLAG_PROBE != 0).map(|x| x.record.element).collect();
+    let elements: std::collections::BTreeSet<u32> = e
+        .iter()
+        .filter(|x| x.record.flags & FLAG_PROBE != 0)
+        .map(|x| x.record.element)
+        .collect();
     assert_eq!(elements.len() as u32, crate::probe::ELEMENTS);
     // a driver that always reads v[0] is caught wherever the element is not 0
-    let v0 = reading(&e, |a| crate::probe::resource_value(Resource::StorageBuffer, a.slot, 0));
+    let v0 = reading(&e, |a| {
+        crate::probe::resource_value(Resource::StorageBuffer, a.slot, 0)
+    });
     let cmp = compare(&e, &v0, 64);
-    let nonzero = e.iter().filter(|x| !x.ambiguous && x.record.flags & FLAG_PROBE != 0 && x.record.element != 0).count();
+    let nonzero = e
+        .iter()
+        .filter(|x| !x.ambiguous && x.record.flags & FLAG_PROBE != 0 && x.record.element != 0)
+        .count();
     assert_eq!(cmp.by_field.get("value"), Some(&nonzero));
 }
 
 #[test]
 fn nonuniform_index_without_qualifier_accepts_any_element_but_not_garbage() {
     let (scene, r) = world();
-    let c = Cell { resource: Resource::UniformBuffer, ..cell(Stage::Raygen, IndexSource::Dynamic) };
+    let c = Cell {
+        resource: Resource::UniformBuffer,
+        ..cell(Stage::Raygen, IndexSource::Dynamic)
+    };
     let e = expected(&c, scene, r);
     let mut actual = records(&e);
     // Another element's value (as a driver reading one lane's descriptor would return): fine.
@@ -360,7 +590,10 @@ fn nonuniform_index_without_qualifier_accepts_any_element_but_not_garbage() {
     assert!(!cmp.passed());
     assert_eq!(cmp.element_reads.map(|x| x.neither), Some(1));
     // With nonuniformEXT the element must be exact.
-    let nu = Cell { nonuniform: true, ..c };
+    let nu = Cell {
+        nonuniform: true,
+        ..c
+    };
     let e = expected(&nu, scene, r);
     assert!(!compare(&e, &actual, 64).passed());
 }
@@ -370,24 +603,56 @@ fn dynamic_indices_into_memory_are_checked_exactly() {
     // Without a descriptor array (an address table, written so or patched) a non-uniform
     // index is well defined: another slot's value is a mismatch, not "some element".
     let (scene, r) = world();
-    let base = Cell { resource: Resource::AccelerationStructure, as_access: Some(AsAccess::Descriptor), ..cell(Stage::Raygen, IndexSource::Dynamic) };
+    let base = Cell {
+        resource: Resource::AccelerationStructure,
+        as_access: Some(AsAccess::Descriptor),
+        ..cell(Stage::Raygen, IndexSource::Dynamic)
+    };
     let cells = [
-        Cell { as_access: Some(AsAccess::Address), ..base },
-        Cell { as_access: Some(AsAccess::AddressPatched), ..base },
-        Cell { patch: Some(Workaround::AsToAddress), ..base },
-        Cell { resource: Resource::StorageBuffer, as_access: None, patch: Some(Workaround::SsboToAddress), ..base },
+        Cell {
+            as_access: Some(AsAccess::Address),
+            ..base
+        },
+        Cell {
+            as_access: Some(AsAccess::AddressPatched),
+            ..base
+        },
+        Cell {
+            patch: Some(Workaround::AsToAddress),
+            ..base
+        },
+        Cell {
+            resource: Resource::StorageBuffer,
+            as_access: None,
+            patch: Some(Workaround::SsboToAddress),
+            ..base
+        },
     ];
     for c in cells {
         let e = expected(&c, scene, r);
         let other_slot = reading(&e, |a| {
             let s = (a.slot + 1) % crate::probe::slot_count(c.resource, scene.params.instances);
-            if c.resource == Resource::AccelerationStructure { crate::probe::as_value(Some(crate::probe::as_custom(s, 0))) } else { crate::probe::resource_value(c.resource, s, a.element) }
+            if c.resource == Resource::AccelerationStructure {
+                crate::probe::as_value(Some(crate::probe::as_custom(s, 0)))
+            } else {
+                crate::probe::resource_value(c.resource, s, a.element)
+            }
         });
         let cmp = compare(&e, &other_slot, 64);
-        assert!(!cmp.passed() && cmp.element_reads.is_none() && cmp.discrimination.is_some(), "{}: {cmp:?}", c.id());
+        assert!(
+            !cmp.passed() && cmp.element_reads.is_none() && cmp.discrimination.is_some(),
+            "{}: {cmp:?}",
+            c.id()
+        );
     }
     // the descriptor variant itself is outside the spec's guarantees
-    assert!(compare(&expected(&base, scene, r), &records(&expected(&base, scene, r)), 64).element_reads.is_some());
+    assert!(compare(
+        &expected(&base, scene, r),
+        &records(&expected(&base, scene, r)),
+        64
+    )
+    .element_reads
+    .is_some());
 }
 
 #[test]
@@ -403,14 +668,37 @@ fn miss_probes_only_run_on_misses() {
 /// instead), so a wrong slot is still caught everywhere.
 #[test]
 fn as_cells_discriminate_in_a_large_scene() {
-    let scene = Scene::build(&SceneParams { instances: 256, width: 32, height: 32, ..SceneParams::default() });
+    let scene = Scene::build(&SceneParams {
+        instances: 256,
+        width: 32,
+        height: 32,
+        ..SceneParams::default()
+    });
     let r = SceneReference::compute(&scene);
-    assert_eq!(r.probe.len() as u32, crate::probe::slot_count(Resource::AccelerationStructure, 256));
-    for stage in [Stage::Raygen, Stage::ClosestHit, Stage::Miss, Stage::Compute] {
-        let c = Cell { resource: Resource::AccelerationStructure, as_access: Some(AsAccess::Descriptor), nonuniform: true, ..cell(stage, IndexSource::Dynamic) };
+    assert_eq!(
+        r.probe.len() as u32,
+        crate::probe::slot_count(Resource::AccelerationStructure, 256)
+    );
+    for stage in [
+        Stage::Raygen,
+        Stage::ClosestHit,
+        Stage::Miss,
+        Stage::Compute,
+    ] {
+        let c = Cell {
+            resource: Resource::AccelerationStructure,
+            as_access: Some(AsAccess::Descriptor),
+            nonuniform: true,
+            ..cell(stage, IndexSource::Dynamic)
+        };
         let e = expected(&c, &scene, &r);
         let cmp = compare(&e, &records(&e), 32);
-        assert!(cmp.discrimination.is_some_and(|d| d >= 0.5), "{}: {:?}", c.id(), cmp.discrimination);
+        assert!(
+            cmp.discrimination.is_some_and(|d| d >= 0.5),
+            "{}: {:?}",
+            c.id(),
+            cmp.discrimination
+        );
     }
 }
 
@@ -424,11 +712,17 @@ fn every_cell_of_the_default_plan_discriminates() {
     let mut weak = Vec::new();
     let mut checked = 0;
     for base in cells {
-        for c in std::iter::once(base).chain(base.applicable_patches().into_iter().map(|p| Cell { patch: Some(p), ..base })) {
+        for c in std::iter::once(base).chain(base.applicable_patches().into_iter().map(|p| Cell {
+            patch: Some(p),
+            ..base
+        })) {
             let e = expected(&c, scene, r);
             let cmp = compare(&e, &records(&e), 64);
             assert!(cmp.passed(), "{}: {cmp:?}", c.id());
-            let probed = e.iter().filter(|x| !x.ambiguous && x.record.flags & FLAG_PROBE != 0).count();
+            let probed = e
+                .iter()
+                .filter(|x| !x.ambiguous && x.record.flags & FLAG_PROBE != 0)
+                .count();
             assert!(probed > 50, "{}: only {probed} probe pixels", c.id());
             match (cmp.discrimination, &cmp.element_reads) {
                 (Some(d), None) => {
@@ -437,7 +731,12 @@ fn every_cell_of_the_default_plan_discriminates() {
                         weak.push(format!("{} {d:.2}", c.id()));
                     }
                 }
-                (None, Some(reads)) => assert_eq!((reads.own, reads.other, reads.neither), (probed, 0, 0), "{}", c.id()),
+                (None, Some(reads)) => assert_eq!(
+                    (reads.own, reads.other, reads.neither),
+                    (probed, 0, 0),
+                    "{}",
+                    c.id()
+                ),
                 other => panic!("{}: {other:?}", c.id()),
             }
         }

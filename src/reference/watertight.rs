@@ -22,7 +22,13 @@ pub struct PlaneHit {
 
 fn axes(d: DVec3) -> (usize, usize, usize) {
     let a = d.abs();
-    let kz = if a.x >= a.y && a.x >= a.z { 0 } else if a.y >= a.z { 1 } else { 2 };
+    let kz = if a.x >= a.y && a.x >= a.z {
+        0
+    } else if a.y >= a.z {
+        1
+    } else {
+        2
+    };
     let (mut kx, mut ky) = ((kz + 1) % 3, (kz + 2) % 3);
     // Keep the winding: swap kx and ky when the dominant direction is negative.
     if d[kz] < 0.0 {
@@ -52,7 +58,12 @@ pub fn plane(o: DVec3, d: DVec3, v: [DVec3; 3]) -> Option<PlaneHit> {
     }
     let t = (u * a.2 + vv * b.2 + w * c.2) / det;
     let (b0, b1, b2) = (u / det, vv / det, w / det);
-    Some(PlaneHit { t, bary: [b1, b2], inside: b0.min(b1).min(b2), det_positive: det > 0.0 })
+    Some(PlaneHit {
+        t,
+        bary: [b1, b2],
+        inside: b0.min(b1).min(b2),
+        det_positive: det > 0.0,
+    })
 }
 
 /// The watertight test: the plane crossing when it lies inside the triangle or on its edges.
@@ -93,7 +104,10 @@ mod tests {
         assert!((h.inside - 0.25).abs() < 1e-15);
         assert!(intersect(DVec3::new(0.75, 0.5, -2.0), DVec3::Z, TRI).is_none());
         let back = intersect(DVec3::new(0.25, 0.25, 2.0), -DVec3::Z, TRI).unwrap();
-        assert_eq!(back.t, 2.0, "both sides are hit (culling is the tracer's business)");
+        assert_eq!(
+            back.t, 2.0,
+            "both sides are hit (culling is the tracer's business)"
+        );
     }
 
     #[test]
@@ -120,7 +134,11 @@ mod tests {
 
     #[test]
     fn oblique_rays_agree_with_the_plane_equation() {
-        let tri = [DVec3::new(0.0, 0.0, 1.0), DVec3::new(2.0, 0.0, 1.5), DVec3::new(0.0, 2.0, 0.5)];
+        let tri = [
+            DVec3::new(0.0, 0.0, 1.0),
+            DVec3::new(2.0, 0.0, 1.5),
+            DVec3::new(0.0, 2.0, 0.5),
+        ];
         let o = DVec3::new(-1.0, -0.5, -3.0);
         let d = DVec3::new(0.3, 0.2, 1.0);
         let h = intersect(o, d, tri).unwrap();

@@ -8,7 +8,10 @@ const L: f64 = 72.0;
 const R: f64 = 210.0;
 const T: f64 = 34.0;
 const B: f64 = 62.0;
-const PALETTE: [&str; 10] = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf"];
+const PALETTE: [&str; 10] = [
+    "#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#7f7f7f",
+    "#bcbd22", "#17becf",
+];
 
 /// The colour of palette entry `k` (wraps).
 pub fn colour(k: usize) -> &'static str {
@@ -66,8 +69,15 @@ struct Scale {
 
 impl Scale {
     fn new(axis: &Axis, values: impl Iterator<Item = f64>, p0: f64, p1: f64) -> Scale {
-        let vals: Vec<f64> = values.filter(|v| v.is_finite() && (!axis.log || *v > 0.0)).collect();
-        let (mut lo, mut hi) = axis.range.unwrap_or_else(|| (vals.iter().cloned().fold(f64::INFINITY, f64::min), vals.iter().cloned().fold(f64::NEG_INFINITY, f64::max)));
+        let vals: Vec<f64> = values
+            .filter(|v| v.is_finite() && (!axis.log || *v > 0.0))
+            .collect();
+        let (mut lo, mut hi) = axis.range.unwrap_or_else(|| {
+            (
+                vals.iter().cloned().fold(f64::INFINITY, f64::min),
+                vals.iter().cloned().fold(f64::NEG_INFINITY, f64::max),
+            )
+        });
         if !lo.is_finite() || !hi.is_finite() {
             (lo, hi) = if axis.log { (1.0, 10.0) } else { (0.0, 1.0) };
         }
@@ -87,7 +97,13 @@ impl Scale {
                 hi = lo + 1.0;
             }
         }
-        Scale { lo, hi, log: axis.log, p0, p1 }
+        Scale {
+            lo,
+            hi,
+            log: axis.log,
+            p0,
+            p1,
+        }
     }
 
     fn at(&self, v: f64) -> f64 {
@@ -100,12 +116,17 @@ impl Scale {
         if self.log {
             let n = (self.hi - self.lo) as i32;
             let every = (n / 8).max(1);
-            (self.lo as i32..=self.hi as i32).step_by(every as usize).map(|e| (10f64.powi(e), format_decade(e))).collect()
+            (self.lo as i32..=self.hi as i32)
+                .step_by(every as usize)
+                .map(|e| (10f64.powi(e), format_decade(e)))
+                .collect()
         } else {
             let step = nice_step(self.hi - self.lo);
             let first = (self.lo / step).ceil() as i64;
             let last = (self.hi / step + 1e-9).floor() as i64;
-            (first..=last).map(|k| (k as f64 * step, fmt_num(k as f64 * step))).collect()
+            (first..=last)
+                .map(|k| (k as f64 * step, fmt_num(k as f64 * step)))
+                .collect()
         }
     }
 }
@@ -125,33 +146,55 @@ fn format_decade(e: i32) -> String {
 
 /// A step of 1, 2 or 5 × 10^k giving 4 to 10 ticks over `span`.
 fn nice_step(span: f64) -> f64 {
-    let span = if span > 0.0 && span.is_finite() { span } else { 1.0 };
+    let span = if span > 0.0 && span.is_finite() {
+        span
+    } else {
+        1.0
+    };
     let raw = span / 6.0;
     let mag = 10f64.powf(raw.log10().floor());
-    [1.0, 2.0, 5.0, 10.0].iter().map(|m| m * mag).find(|s| *s >= raw).unwrap_or(10.0 * mag)
+    [1.0, 2.0, 5.0, 10.0]
+        .iter()
+        .map(|m| m * mag)
+        .find(|s| *s >= raw)
+        .unwrap_or(10.0 * mag)
 }
 
 fn fmt_num(v: f64) -> String {
     let s = format!("{:.6}", v);
     let s = s.trim_end_matches('0').trim_end_matches('.');
-    if s == "-0" { "0".into() } else { s.into() }
+    if s == "-0" {
+        "0".into()
+    } else {
+        s.into()
+    }
 }
 
 pub fn xml(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
 }
 
 fn header(title: &str) -> String {
     let mut s = format!("<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{W}\" height=\"{H}\" viewBox=\"0 0 {W} {H}\" font-family=\"sans-serif\" font-size=\"11\">\n");
     s += &format!("<title>{}</title>\n", xml(title));
     s += &format!("<rect width=\"{W}\" height=\"{H}\" fill=\"white\"/>\n");
-    s += &format!("<text x=\"{L}\" y=\"20\" font-size=\"13\" font-weight=\"bold\">{}</text>\n", xml(title));
+    s += &format!(
+        "<text x=\"{L}\" y=\"20\" font-size=\"13\" font-weight=\"bold\">{}</text>\n",
+        xml(title)
+    );
     s
 }
 
 fn axis_labels(s: &mut String, x: &str, y: &str) {
     let (cx, cy) = ((L + W - R) / 2.0, (T + H - B) / 2.0);
-    s.push_str(&format!("<text x=\"{cx:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{}</text>\n", H - 8.0, xml(x)));
+    s.push_str(&format!(
+        "<text x=\"{cx:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{}</text>\n",
+        H - 8.0,
+        xml(x)
+    ));
     s.push_str(&format!("<text x=\"16\" y=\"{cy:.1}\" transform=\"rotate(-90 16 {cy:.1})\" text-anchor=\"middle\">{}</text>\n", xml(y)));
     s.push_str(&format!("<rect x=\"{L}\" y=\"{T}\" width=\"{:.1}\" height=\"{:.1}\" fill=\"none\" stroke=\"#444\"/>\n", W - L - R, H - T - B));
 }
@@ -162,48 +205,100 @@ fn legend(s: &mut String, k: usize, name: &str, colour: &str, style: Style) {
     let (x0, x1) = (W - R + 10.0, W - R + 34.0);
     match style {
         Style::Line | Style::Dashed => {
-            let dash = if style == Style::Dashed { " stroke-dasharray=\"6,4\"" } else { "" };
+            let dash = if style == Style::Dashed {
+                " stroke-dasharray=\"6,4\""
+            } else {
+                ""
+            };
             s.push_str(&format!("<line x1=\"{x0:.1}\" y1=\"{ly:.1}\" x2=\"{x1:.1}\" y2=\"{ly:.1}\" stroke=\"{colour}\" stroke-width=\"2\"{dash}/>\n"));
         }
         Style::Points => {}
     }
     if style != Style::Dashed {
-        s.push_str(&format!("<circle cx=\"{:.1}\" cy=\"{ly:.1}\" r=\"3\" fill=\"{colour}\"/>\n", (x0 + x1) / 2.0));
+        s.push_str(&format!(
+            "<circle cx=\"{:.1}\" cy=\"{ly:.1}\" r=\"3\" fill=\"{colour}\"/>\n",
+            (x0 + x1) / 2.0
+        ));
     }
-    s.push_str(&format!("<text x=\"{:.1}\" y=\"{:.1}\">{}</text>\n", x1 + 5.0, ly + 4.0, xml(name)));
+    s.push_str(&format!(
+        "<text x=\"{:.1}\" y=\"{:.1}\">{}</text>\n",
+        x1 + 5.0,
+        ly + 4.0,
+        xml(name)
+    ));
 }
 
 impl LineChart {
     pub fn svg(&self) -> String {
         let pts = || self.series.iter().flat_map(|s| s.points.iter());
-        let xs = Scale::new(&self.x, pts().map(|p| p.0).chain(self.vlines.iter().map(|v| v.0)), L, W - R);
-        let ys = Scale::new(&self.y, pts().map(|p| p.1).chain(self.hlines.iter().map(|h| h.0)), H - B, T);
+        let xs = Scale::new(
+            &self.x,
+            pts().map(|p| p.0).chain(self.vlines.iter().map(|v| v.0)),
+            L,
+            W - R,
+        );
+        let ys = Scale::new(
+            &self.y,
+            pts().map(|p| p.1).chain(self.hlines.iter().map(|h| h.0)),
+            H - B,
+            T,
+        );
         let mut s = header(&self.title);
         for (v, label) in xs.ticks() {
             let px = xs.at(v);
             s += &format!("<line x1=\"{px:.1}\" y1=\"{T}\" x2=\"{px:.1}\" y2=\"{:.1}\" stroke=\"#e4e4e4\"/>\n", H - B);
-            s += &format!("<text x=\"{px:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{label}</text>\n", H - B + 15.0);
+            s += &format!(
+                "<text x=\"{px:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{label}</text>\n",
+                H - B + 15.0
+            );
         }
         for (v, label) in ys.ticks() {
             let py = ys.at(v);
             s += &format!("<line x1=\"{L}\" y1=\"{py:.1}\" x2=\"{:.1}\" y2=\"{py:.1}\" stroke=\"#e4e4e4\"/>\n", W - R);
-            s += &format!("<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"end\">{label}</text>\n", L - 5.0, py + 4.0);
+            s += &format!(
+                "<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"end\">{label}</text>\n",
+                L - 5.0,
+                py + 4.0
+            );
         }
         axis_labels(&mut s, &self.x.label, &self.y.label);
         for (v, label) in &self.hlines {
             let py = ys.at(*v);
             s += &format!("<line x1=\"{L}\" y1=\"{py:.1}\" x2=\"{:.1}\" y2=\"{py:.1}\" stroke=\"#555\" stroke-dasharray=\"2,3\"/>\n", W - R);
-            s += &format!("<text x=\"{:.1}\" y=\"{:.1}\" fill=\"#555\" text-anchor=\"end\">{}</text>\n", W - R - 4.0, py - 3.0, xml(label));
+            s += &format!(
+                "<text x=\"{:.1}\" y=\"{:.1}\" fill=\"#555\" text-anchor=\"end\">{}</text>\n",
+                W - R - 4.0,
+                py - 3.0,
+                xml(label)
+            );
         }
         for (v, label) in &self.vlines {
             let px = xs.at(*v);
             s += &format!("<line x1=\"{px:.1}\" y1=\"{T}\" x2=\"{px:.1}\" y2=\"{:.1}\" stroke=\"#555\" stroke-dasharray=\"2,3\"/>\n", H - B);
-            s += &format!("<text x=\"{:.1}\" y=\"{:.1}\" fill=\"#555\">{}</text>\n", px + 3.0, T + 12.0, xml(label));
+            s += &format!(
+                "<text x=\"{:.1}\" y=\"{:.1}\" fill=\"#555\">{}</text>\n",
+                px + 3.0,
+                T + 12.0,
+                xml(label)
+            );
         }
         for (k, se) in self.series.iter().enumerate() {
             let c = colour(se.colour);
-            let visible: Vec<(f64, f64)> = se.points.iter().copied().filter(|&(x, y)| x.is_finite() && y.is_finite() && (!self.x.log || x > 0.0) && (!self.y.log || y > 0.0)).collect();
-            let path: Vec<String> = visible.iter().map(|&(x, y)| format!("{:.1},{:.1}", xs.at(x), ys.at(y))).collect();
+            let visible: Vec<(f64, f64)> = se
+                .points
+                .iter()
+                .copied()
+                .filter(|&(x, y)| {
+                    x.is_finite()
+                        && y.is_finite()
+                        && (!self.x.log || x > 0.0)
+                        && (!self.y.log || y > 0.0)
+                })
+                .collect();
+            let path: Vec<String> = visible
+                .iter()
+                .map(|&(x, y)| format!("{:.1},{:.1}", xs.at(x), ys.at(y)))
+                .collect();
             match se.style {
                 Style::Line => s += &format!("<polyline fill=\"none\" stroke=\"{c}\" stroke-width=\"2\" points=\"{}\"/>\n", path.join(" ")),
                 Style::Dashed => s += &format!("<polyline fill=\"none\" stroke=\"{c}\" stroke-width=\"1.5\" stroke-dasharray=\"6,4\" points=\"{}\"/>\n", path.join(" ")),
@@ -211,7 +306,11 @@ impl LineChart {
             }
             if se.style != Style::Dashed {
                 for &(x, y) in &visible {
-                    s += &format!("<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"3\" fill=\"{c}\"/>\n", xs.at(x), ys.at(y));
+                    s += &format!(
+                        "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"3\" fill=\"{c}\"/>\n",
+                        xs.at(x),
+                        ys.at(y)
+                    );
                 }
             }
             legend(&mut s, k, &se.name, c, se.style);
@@ -234,13 +333,33 @@ pub struct StackedBars {
 impl StackedBars {
     pub fn svg(&self) -> String {
         let n = self.categories.len().max(1);
-        let totals: Vec<f64> = (0..n).map(|i| self.layers.iter().map(|l| l.1.get(i).copied().unwrap_or(0.0).max(0.0)).sum()).collect();
-        let ys = Scale::new(&Axis { label: String::new(), log: false, range: None }, totals.iter().copied(), H - B, T);
+        let totals: Vec<f64> = (0..n)
+            .map(|i| {
+                self.layers
+                    .iter()
+                    .map(|l| l.1.get(i).copied().unwrap_or(0.0).max(0.0))
+                    .sum()
+            })
+            .collect();
+        let ys = Scale::new(
+            &Axis {
+                label: String::new(),
+                log: false,
+                range: None,
+            },
+            totals.iter().copied(),
+            H - B,
+            T,
+        );
         let mut s = header(&self.title);
         for (v, label) in ys.ticks() {
             let py = ys.at(v);
             s += &format!("<line x1=\"{L}\" y1=\"{py:.1}\" x2=\"{:.1}\" y2=\"{py:.1}\" stroke=\"#e4e4e4\"/>\n", W - R);
-            s += &format!("<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"end\">{label}</text>\n", L - 5.0, py + 4.0);
+            s += &format!(
+                "<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"end\">{label}</text>\n",
+                L - 5.0,
+                py + 4.0
+            );
         }
         axis_labels(&mut s, &self.x_label, &self.y_label);
         let slot = (W - L - R) / n as f64;
@@ -254,15 +373,30 @@ impl StackedBars {
                 acc += v;
                 s += &format!("<rect x=\"{x0:.1}\" y=\"{top:.1}\" width=\"{bw:.1}\" height=\"{:.1}\" fill=\"{}\"><title>{}: {}</title></rect>\n", (bottom - top).max(0.0), colour(k), xml(name), fmt_num((v * 1000.0).round() / 1000.0));
             }
-            s += &format!("<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{}</text>\n", x0 + bw / 2.0, ys.at(acc) - 4.0, fmt_num((acc * 100.0).round() / 100.0));
+            s += &format!(
+                "<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{}</text>\n",
+                x0 + bw / 2.0,
+                ys.at(acc) - 4.0,
+                fmt_num((acc * 100.0).round() / 100.0)
+            );
             for (k, line) in wrap(cat, ((slot / 5.5) as usize).max(8)).iter().enumerate() {
                 s += &format!("<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\" font-size=\"9\">{}</text>\n", x0 + bw / 2.0, H - B + 12.0 + 10.0 * k as f64, xml(line));
             }
         }
         for (k, (name, _)) in self.layers.iter().enumerate() {
             let ly = T + 10.0 + 16.0 * k as f64;
-            s += &format!("<rect x=\"{:.1}\" y=\"{:.1}\" width=\"14\" height=\"10\" fill=\"{}\"/>\n", W - R + 10.0, ly - 5.0, colour(k));
-            s += &format!("<text x=\"{:.1}\" y=\"{:.1}\">{}</text>\n", W - R + 30.0, ly + 4.0, xml(name));
+            s += &format!(
+                "<rect x=\"{:.1}\" y=\"{:.1}\" width=\"14\" height=\"10\" fill=\"{}\"/>\n",
+                W - R + 10.0,
+                ly - 5.0,
+                colour(k)
+            );
+            s += &format!(
+                "<text x=\"{:.1}\" y=\"{:.1}\">{}</text>\n",
+                W - R + 30.0,
+                ly + 4.0,
+                xml(name)
+            );
         }
         s + "</svg>\n"
     }
@@ -315,13 +449,22 @@ pub fn check_well_formed(doc: &str) -> Result<(), SvgError> {
         if let Some(name) = tag.strip_prefix('/') {
             match stack.pop() {
                 Some(open) if open == name.trim() => {}
-                open => return Err(SvgError::Misnested { name: name.trim().into(), open }),
+                open => {
+                    return Err(SvgError::Misnested {
+                        name: name.trim().into(),
+                        open,
+                    })
+                }
             }
         } else if !tag.ends_with('/') && !tag.starts_with('?') && !tag.starts_with('!') {
             stack.push(tag.split_whitespace().next().unwrap_or("").to_string());
         }
     }
-    if stack.is_empty() { Ok(()) } else { Err(SvgError::Unclosed(stack)) }
+    if stack.is_empty() {
+        Ok(())
+    } else {
+        Err(SvgError::Unclosed(stack))
+    }
 }
 
 #[cfg(test)]
@@ -331,11 +474,29 @@ mod tests {
     fn chart(log: bool) -> LineChart {
         LineChart {
             title: "detection <vs> size".into(),
-            x: Axis { label: "pixels".into(), log, range: None },
-            y: Axis { label: "P(detect)".into(), log: false, range: Some((0.0, 1.0)) },
+            x: Axis {
+                label: "pixels".into(),
+                log,
+                range: None,
+            },
+            y: Axis {
+                label: "P(detect)".into(),
+                log: false,
+                range: Some((0.0, 1.0)),
+            },
             series: vec![
-                Series { name: "measured f=0.01".into(), points: vec![(64.0, 0.5), (256.0, 0.9), (0.0, 1.0)], style: Style::Line, colour: 0 },
-                Series { name: "predicted f=0.01".into(), points: vec![(64.0, 0.47), (256.0, 0.92)], style: Style::Dashed, colour: 0 },
+                Series {
+                    name: "measured f=0.01".into(),
+                    points: vec![(64.0, 0.5), (256.0, 0.9), (0.0, 1.0)],
+                    style: Style::Line,
+                    colour: 0,
+                },
+                Series {
+                    name: "predicted f=0.01".into(),
+                    points: vec![(64.0, 0.47), (256.0, 0.92)],
+                    style: Style::Dashed,
+                    colour: 0,
+                },
             ],
             hlines: vec![(0.95, "95%".into())],
             vlines: vec![(4096.0, "default".into())],
@@ -347,7 +508,15 @@ mod tests {
         for log in [false, true] {
             let svg = chart(log).svg();
             check_well_formed(&svg).unwrap();
-            for needle in ["measured f=0.01", "predicted f=0.01", "detection &lt;vs&gt; size", "pixels", "P(detect)", "95%", "default"] {
+            for needle in [
+                "measured f=0.01",
+                "predicted f=0.01",
+                "detection &lt;vs&gt; size",
+                "pixels",
+                "P(detect)",
+                "95%",
+                "default",
+            ] {
                 assert!(svg.contains(needle), "{needle} missing");
             }
         }
@@ -362,12 +531,23 @@ mod tests {
             y_label: "time (s)".into(),
             x_label: "run".into(),
             categories: vec!["-j 1".into(), "-j 2".into()],
-            layers: vec![("trace".into(), vec![1.0, 0.5]), ("check".into(), vec![0.5, 0.25])],
+            layers: vec![
+                ("trace".into(), vec![1.0, 0.5]),
+                ("check".into(), vec![0.5, 0.25]),
+            ],
         };
         let svg = b.svg();
         check_well_formed(&svg).unwrap();
-        assert!(svg.contains(">1.5<") && svg.contains(">0.75<") && svg.contains("-j 2") && svg.contains("trace"));
-        assert_eq!(wrap("-j 1 --isolation process-per-cell (29.1 s)", 18), vec!["-j 1 --isolation", "process-per-cell", "(29.1 s)"]);
+        assert!(
+            svg.contains(">1.5<")
+                && svg.contains(">0.75<")
+                && svg.contains("-j 2")
+                && svg.contains("trace")
+        );
+        assert_eq!(
+            wrap("-j 1 --isolation process-per-cell (29.1 s)", 18),
+            vec!["-j 1 --isolation", "process-per-cell", "(29.1 s)"]
+        );
     }
 
     #[test]

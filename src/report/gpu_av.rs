@@ -12,10 +12,10 @@
 //! layer; a layer built before VK_EXT_descriptor_heap for a heap cell; the cell's own
 //! `unsupported` / `not_implemented`). These attempts are kept apart from the cell's own: GPU-AV
 //! changes the pipeline, so they never decide the cell's verdict.
-use crate::model::{Cell, DescriptorModel, IndexSource};
+use crate::model::Attempt;
 use crate::model::Outcome;
 use crate::model::RunReport;
-use crate::model::Attempt;
+use crate::model::{Cell, DescriptorModel, IndexSource};
 use crate::model::{GpuAvResult, GpuAvVerdict};
 
 /// The miss probability a finding's GPU-AV passes aim below, and the most attempts it gets.
@@ -24,7 +24,11 @@ pub const CAP: u32 = 20;
 
 /// Passes under GPU-AV that `finding` needs before `masked` (its own k of n, see the module doc).
 pub fn passes_needed(finding: &crate::model::CellReport) -> u32 {
-    let (k, n) = finding.incidence.as_ref().map(|i| (i.faulted, i.attempts)).unwrap_or((0, 0));
+    let (k, n) = finding
+        .incidence
+        .as_ref()
+        .map(|i| (i.faulted, i.attempts))
+        .unwrap_or((0, 0));
     crate::model::stats::attempts_needed(crate::model::stats::rate_bound(k, n), MAX_MISS, CAP)
 }
 
@@ -34,8 +38,14 @@ pub fn more(report: &RunReport, got: &[(Cell, Attempt)]) -> Vec<Cell> {
     report
         .findings()
         .filter(|f| {
-            let mine: Vec<&Attempt> = got.iter().filter(|(c, _)| *c == f.cell).map(|(_, a)| a).collect();
-            !mine.is_empty() && mine.iter().all(|a| a.outcome == Outcome::Pass) && (mine.len() as u32) < passes_needed(f)
+            let mine: Vec<&Attempt> = got
+                .iter()
+                .filter(|(c, _)| *c == f.cell)
+                .map(|(_, a)| a)
+                .collect();
+            !mine.is_empty()
+                && mine.iter().all(|a| a.outcome == Outcome::Pass)
+                && (mine.len() as u32) < passes_needed(f)
         })
         .map(|f| f.cell)
         .collect()
@@ -45,9 +55,24 @@ pub fn more(report: &RunReport, got: &[(Cell, Attempt)]) -> Vec<Cell> {
 /// a constant sampler index (no dynamic descriptor access), when the report has it passing
 /// without GPU-AV.
 pub fn control(report: &RunReport, finding: &Cell) -> Option<Cell> {
-    let sampler = finding.sampler.map(|_| crate::model::SamplerIndex::Constant);
-    let c = Cell { index: IndexSource::Literal, nonuniform: false, patch: None, reorder: None, base: None, sampler, ..*finding };
-    (c != *finding && report.cells.iter().any(|x| x.cell == c && x.outcome == Outcome::Pass)).then_some(c)
+    let sampler = finding
+        .sampler
+        .map(|_| crate::model::SamplerIndex::Constant);
+    let c = Cell {
+        index: IndexSource::Literal,
+        nonuniform: false,
+        patch: None,
+        reorder: None,
+        base: None,
+        sampler,
+        ..*finding
+    };
+    (c != *finding
+        && report
+            .cells
+            .iter()
+            .any(|x| x.cell == c && x.outcome == Outcome::Pass))
+    .then_some(c)
 }
 
 /// What to run under GPU-AV: the findings GPU-AV can check and their controls; the others with
@@ -57,8 +82,13 @@ pub fn schedule(report: &RunReport, layer: Option<u32>) -> (Vec<Cell>, Vec<(Cell
     let mut skipped = Vec::new();
     for f in report.findings() {
         let gap = match layer {
-            None => Some((Outcome::Unsupported, "VK_LAYER_KHRONOS_validation is not installed".to_string())),
-            Some(v) if f.cell.descriptor_model == DescriptorModel::DescriptorHeap => crate::vk::instance::gpu_av_heap_gap(v).map(|r| (Outcome::Unsupported, r)),
+            None => Some((
+                Outcome::Unsupported,
+                "VK_LAYER_KHRONOS_validation is not installed".to_string(),
+            )),
+            Some(v) if f.cell.descriptor_model == DescriptorModel::DescriptorHeap => {
+                crate::vk::instance::gpu_av_heap_gap(v).map(|r| (Outcome::Unsupported, r))
+            }
             Some(_) => None,
         };
         match gap {
@@ -86,18 +116,43 @@ pub fn annotate(report: &mut RunReport, got: &[(Cell, Attempt)], skipped: &[(Cel
             results.push((f.cell, r.clone()));
             continue;
         }
-        let mine: Vec<&Attempt> = got.iter().filter(|(x, _)| *x == f.cell).map(|(_, a)| a).collect();
+        let mine: Vec<&Attempt> = got
+            .iter()
+            .filter(|(x, _)| *x == f.cell)
+            .map(|(_, a)| a)
+            .collect();
         // The verdict follows the first fault under GPU-AV, else the last attempt.
-        let Some(a) = mine.iter().find(|a| a.outcome.is_finding()).or(mine.last()).copied() else { continue };
+        let Some(a) = mine
+            .iter()
+            .find(|a| a.outcome.is_finding())
+            .or(mine.last())
+            .copied()
+        else {
+            continue;
+        };
         let ctl = control(report, &f.cell).and_then(|c| under(&c).map(|ca| (c.id(), ca.outcome)));
-        let validation_errors = mine.iter().filter_map(|a| a.result.as_ref()).map(|r| r.validation_errors).sum();
+        let validation_errors = mine
+            .iter()
+            .filter_map(|a| a.result.as_ref())
+            .map(|r| r.validation_errors)
+            .sum();
         let attempts = mine.len() as u32;
         let passed = mine.iter().filter(|a| a.outcome == Outcome::Pass).count() as u32;
-        let miss_probability = (passed == attempts).then(|| f.incidence.as_ref().map(|i| crate::model::stats::pass_miss(i.faulted, i.attempts, passed))).flatten();
+        let miss_probability = (passed == attempts)
+            .then(|| {
+                f.incidence
+                    .as_ref()
+                    .map(|i| crate::model::stats::pass_miss(i.faulted, i.attempts, passed))
+            })
+            .flatten();
         let verdict = match a.outcome {
             Outcome::Pass => GpuAvVerdict::Masked,
             Outcome::Unsupported | Outcome::NotImplemented => GpuAvVerdict::NotRun,
-            Outcome::Mismatch | Outcome::DeviceLost | Outcome::Crash | Outcome::Timeout | Outcome::Error => {
+            Outcome::Mismatch
+            | Outcome::DeviceLost
+            | Outcome::Crash
+            | Outcome::Timeout
+            | Outcome::Error => {
                 if ctl.as_ref().is_some_and(|(_, o)| o.is_finding()) {
                     GpuAvVerdict::GpuAvFailed
                 } else {
@@ -105,23 +160,41 @@ pub fn annotate(report: &mut RunReport, got: &[(Cell, Attempt)], skipped: &[(Cel
                 }
             }
         };
-        results.push((f.cell, GpuAvResult { verdict, outcome: a.outcome, detail: a.detail.clone(), validation_errors, control: ctl, attempts, passed, miss_probability }));
+        results.push((
+            f.cell,
+            GpuAvResult {
+                verdict,
+                outcome: a.outcome,
+                detail: a.detail.clone(),
+                validation_errors,
+                control: ctl,
+                attempts,
+                passed,
+                miss_probability,
+            },
+        ));
     }
     for c in report.cells.iter_mut() {
-        c.gpu_av = results.iter().find(|(x, _)| *x == c.cell).map(|(_, r)| r.clone());
+        c.gpu_av = results
+            .iter()
+            .find(|(x, _)| *x == c.cell)
+            .map(|(_, r)| r.clone());
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::{HeapAccess, Resource, Stage};
     use crate::model::CellReport;
+    use crate::model::{HeapAccess, Resource, Stage};
     use ash::vk;
 
     fn cell(model: DescriptorModel, index: IndexSource) -> Cell {
         let heap_access = (model == DescriptorModel::DescriptorHeap).then_some(HeapAccess::Direct);
-        Cell { heap_access, ..Cell::new(Stage::ClosestHit, Resource::StorageBuffer, index, model) }
+        Cell {
+            heap_access,
+            ..Cell::new(Stage::ClosestHit, Resource::StorageBuffer, index, model)
+        }
     }
 
     fn ran(c: Cell, o: Outcome) -> CellReport {
@@ -134,7 +207,12 @@ mod tests {
         let heap_ctl = cell(DescriptorModel::DescriptorHeap, IndexSource::Literal);
         let di = cell(DescriptorModel::DescriptorIndexing, IndexSource::Dynamic);
         let di_ctl = cell(DescriptorModel::DescriptorIndexing, IndexSource::Literal);
-        let report = RunReport::for_tests(vec![ran(heap, Outcome::DeviceLost), ran(heap_ctl, Outcome::Pass), ran(di, Outcome::Crash), ran(di_ctl, Outcome::Pass)]);
+        let report = RunReport::for_tests(vec![
+            ran(heap, Outcome::DeviceLost),
+            ran(heap_ctl, Outcome::Pass),
+            ran(di, Outcome::Crash),
+            ran(di_ctl, Outcome::Pass),
+        ]);
         // Bookworm's layers: heap findings cannot run under GPU-AV, with the layer's version.
         let (run, skipped) = schedule(&report, Some(vk::make_api_version(0, 1, 3, 239)));
         assert_eq!(run, vec![di, di_ctl]);
@@ -145,43 +223,108 @@ mod tests {
         assert_eq!((run.len(), skipped.len()), (4, 0));
         let verdict = |got: Vec<(Cell, Outcome)>| {
             let mut r = report.clone();
-            let got: Vec<(Cell, Attempt)> = got.into_iter().map(|(c, o)| (c, Attempt::for_tests(o, true))).collect();
+            let got: Vec<(Cell, Attempt)> = got
+                .into_iter()
+                .map(|(c, o)| (c, Attempt::for_tests(o, true)))
+                .collect();
             annotate(&mut r, &got, &[]);
-            (r.cells[0].gpu_av.clone().unwrap(), r.cells[2].gpu_av.clone().unwrap())
+            (
+                r.cells[0].gpu_av.clone().unwrap(),
+                r.cells[2].gpu_av.clone().unwrap(),
+            )
         };
         // Masked: passes under GPU-AV. Still faults: faults with a control that passes.
-        let (h, d) = verdict(vec![(heap, Outcome::Pass), (heap_ctl, Outcome::Pass), (di, Outcome::Crash), (di_ctl, Outcome::Pass)]);
-        assert_eq!((h.verdict, d.verdict), (GpuAvVerdict::Masked, GpuAvVerdict::StillFaults));
+        let (h, d) = verdict(vec![
+            (heap, Outcome::Pass),
+            (heap_ctl, Outcome::Pass),
+            (di, Outcome::Crash),
+            (di_ctl, Outcome::Pass),
+        ]);
+        assert_eq!(
+            (h.verdict, d.verdict),
+            (GpuAvVerdict::Masked, GpuAvVerdict::StillFaults)
+        );
         let m = crate::model::stats::pass_miss(1, 1, 1);
         assert_eq!(h.line(), format!("GPU-AV: masked (passes (1/1; a fault as frequent as this finding's would be missed with p ≤ {m:.2}) under GPU-AV)"));
         assert_eq!((h.attempts, h.passed, h.miss_probability), (1, 1, Some(m)));
         assert_eq!(d.line(), "GPU-AV: still faults (crash, 1 of 1 attempts under GPU-AV; its control closest_hit.storage_buffer.literal.descriptor_indexing is pass under GPU-AV)");
         // One pass against a finding seen once is far from enough: it runs again, up to CAP; a
         // finding that faulted under GPU-AV does not.
-        let one: Vec<(Cell, Attempt)> = vec![(heap, Attempt::for_tests(Outcome::Pass, true)), (di, Attempt::for_tests(Outcome::Crash, true))];
+        let one: Vec<(Cell, Attempt)> = vec![
+            (heap, Attempt::for_tests(Outcome::Pass, true)),
+            (di, Attempt::for_tests(Outcome::Crash, true)),
+        ];
         assert_eq!(passes_needed(&report.cells[0]), CAP);
         assert_eq!(more(&report, &one), vec![heap]);
-        let enough: Vec<(Cell, Attempt)> = (0..CAP).map(|_| (heap, Attempt::for_tests(Outcome::Pass, true))).collect();
+        let enough: Vec<(Cell, Attempt)> = (0..CAP)
+            .map(|_| (heap, Attempt::for_tests(Outcome::Pass, true)))
+            .collect();
         assert!(more(&report, &enough).is_empty());
         // A pass after passes, then a fault: the fault decides (never masked on the passes).
-        let (h, _) = verdict(vec![(heap, Outcome::Pass), (heap, Outcome::Pass), (heap, Outcome::DeviceLost), (heap_ctl, Outcome::Pass), (di, Outcome::Crash)]);
-        assert_eq!((h.verdict, h.attempts, h.passed, h.miss_probability), (GpuAvVerdict::StillFaults, 3, 2, None));
+        let (h, _) = verdict(vec![
+            (heap, Outcome::Pass),
+            (heap, Outcome::Pass),
+            (heap, Outcome::DeviceLost),
+            (heap_ctl, Outcome::Pass),
+            (di, Outcome::Crash),
+        ]);
+        assert_eq!(
+            (h.verdict, h.attempts, h.passed, h.miss_probability),
+            (GpuAvVerdict::StillFaults, 3, 2, None)
+        );
         // No control ran: the fault is not pinned on the driver.
         let (_, d) = verdict(vec![(heap, Outcome::Pass), (di, Outcome::Crash)]);
         assert_eq!(d.verdict, GpuAvVerdict::StillFaults);
-        assert!(d.line().contains("no control ran, so GPU-AV itself breaking the pipeline is not ruled out"), "{}", d.line());
+        assert!(
+            d.line().contains(
+                "no control ran, so GPU-AV itself breaking the pipeline is not ruled out"
+            ),
+            "{}",
+            d.line()
+        );
         // GPU-AV itself failed: the control crashes under GPU-AV too (lavapipe 26's closest-hit heap pipelines).
-        let (h, _) = verdict(vec![(heap, Outcome::Crash), (heap_ctl, Outcome::Crash), (di, Outcome::Crash), (di_ctl, Outcome::Pass)]);
+        let (h, _) = verdict(vec![
+            (heap, Outcome::Crash),
+            (heap_ctl, Outcome::Crash),
+            (di, Outcome::Crash),
+            (di_ctl, Outcome::Pass),
+        ]);
         assert_eq!(h.verdict, GpuAvVerdict::GpuAvFailed);
         assert!(h.line().contains("its control closest_hit.storage_buffer.literal.descriptor_heap.direct passes without GPU-AV and is crash with it"), "{}", h.line());
         // A direct sampled image with a dynamic sampler index: its control indexes both heaps
         // with constants (literal texture, constant sampler), not the dynamic sampler.
-        let img = Cell { resource: Resource::SampledImage, sampler: Some(crate::model::SamplerIndex::Dynamic), ..heap };
-        let img_ctl = Cell { index: IndexSource::Literal, sampler: Some(crate::model::SamplerIndex::Constant), ..img };
-        let r = RunReport::for_tests(vec![ran(img, Outcome::Crash), ran(img_ctl, Outcome::Pass), ran(Cell { index: IndexSource::Literal, ..img }, Outcome::Pass)]);
-        assert_eq!(control(&r, &img).map(|c| c.id()).as_deref(), Some("closest_hit.sampled_image.literal.descriptor_heap.direct.sampler_constant"));
+        let img = Cell {
+            resource: Resource::SampledImage,
+            sampler: Some(crate::model::SamplerIndex::Dynamic),
+            ..heap
+        };
+        let img_ctl = Cell {
+            index: IndexSource::Literal,
+            sampler: Some(crate::model::SamplerIndex::Constant),
+            ..img
+        };
+        let r = RunReport::for_tests(vec![
+            ran(img, Outcome::Crash),
+            ran(img_ctl, Outcome::Pass),
+            ran(
+                Cell {
+                    index: IndexSource::Literal,
+                    ..img
+                },
+                Outcome::Pass,
+            ),
+        ]);
+        assert_eq!(
+            control(&r, &img).map(|c| c.id()).as_deref(),
+            Some("closest_hit.sampled_image.literal.descriptor_heap.direct.sampler_constant")
+        );
         // No layer at all.
         let (run, skipped) = schedule(&report, None);
-        assert!(run.is_empty() && skipped.iter().all(|(_, r)| r.line().contains("VK_LAYER_KHRONOS_validation is not installed")));
+        assert!(
+            run.is_empty()
+                && skipped.iter().all(|(_, r)| r
+                    .line()
+                    .contains("VK_LAYER_KHRONOS_validation is not installed"))
+        );
     }
 }

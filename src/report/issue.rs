@@ -5,13 +5,13 @@
 //! VK_EXT_device_fault details; validation status; the exact reproduce command; verified
 //! workarounds; what was not tested. [`Issue`] is the data (`--format json`), [`Issue::markdown`]
 //! the text.
-use crate::model::BisectFile;
 use crate::bisect::isolation::{describe, percent};
-use crate::model::IsolationLine;
 use crate::bisect::scope::cell_by_id;
 use crate::model::inject::for_cell;
-use crate::model::Injection;
+use crate::model::BisectFile;
 use crate::model::Cell;
+use crate::model::Injection;
+use crate::model::IsolationLine;
 use crate::model::Outcome;
 use crate::model::{CellReport, RunReport};
 use crate::report::shaders::{cell_shaders, probed_role, spirv_dis, ShaderError};
@@ -107,12 +107,27 @@ fn s(v: &Value) -> String {
 fn os_and_kernel() -> (String, String) {
     let os = std::fs::read_to_string("/etc/os-release")
         .ok()
-        .and_then(|t| t.lines().find_map(|l| l.strip_prefix("PRETTY_NAME=").map(|v| v.trim_matches('"').to_string())))
+        .and_then(|t| {
+            t.lines().find_map(|l| {
+                l.strip_prefix("PRETTY_NAME=")
+                    .map(|v| v.trim_matches('"').to_string())
+            })
+        })
         .unwrap_or_else(|| "unknown".into());
     let mut u: libc::utsname = unsafe { std::mem::zeroed() };
     let kernel = if unsafe { libc::uname(&mut u) } == 0 {
-        let f = |b: &[std::ffi::c_char]| unsafe { std::ffi::CStr::from_ptr(b.as_ptr()) }.to_string_lossy().into_owned();
-        format!("{} {} {} {}", f(&u.sysname), f(&u.release), f(&u.version), f(&u.machine))
+        let f = |b: &[std::ffi::c_char]| {
+            unsafe { std::ffi::CStr::from_ptr(b.as_ptr()) }
+                .to_string_lossy()
+                .into_owned()
+        };
+        format!(
+            "{} {} {} {}",
+            f(&u.sysname),
+            f(&u.release),
+            f(&u.version),
+            f(&u.machine)
+        )
     } else {
         "unknown".into()
     };
@@ -142,19 +157,39 @@ fn what_happens(o: Outcome) -> &'static str {
 }
 
 /// Build the issue for `report` and its bisection.
-pub fn build(report: &RunReport, report_path: &str, b: &BisectFile, inject: &[Injection]) -> Result<Issue, IssueError> {
+pub fn build(
+    report: &RunReport,
+    report_path: &str,
+    b: &BisectFile,
+    inject: &[Injection],
+) -> Result<Issue, IssueError> {
     let bi = &b.bisection;
     let d = &report.device;
     let environment = environment(report, b);
-    let rep = cell_by_id(&bi.representative).ok_or_else(|| IssueError::NotACell(bi.representative.clone()))?;
+    let rep = cell_by_id(&bi.representative)
+        .ok_or_else(|| IssueError::NotACell(bi.representative.clone()))?;
     let rep_line = bi.isolation.first();
     let rep_report: Option<&CellReport> = report.cells.iter().find(|c| c.id == bi.representative);
-    let outcome = rep_report.map(|c| c.outcome).or_else(|| rep_line.and_then(|l| Outcome::ALL.iter().copied().find(|o| o.as_str() == l.verdict))).unwrap_or(Outcome::Error);
+    let outcome = rep_report
+        .map(|c| c.outcome)
+        .or_else(|| {
+            rep_line.and_then(|l| {
+                Outcome::ALL
+                    .iter()
+                    .copied()
+                    .find(|o| o.as_str() == l.verdict)
+            })
+        })
+        .unwrap_or(Outcome::Error);
     let injection = for_cell(inject, &rep);
     let injected = injection.map(|i| format!("This fault was injected on purpose with `--inject-fault '{}'`: rtprobe made the shader misbehave to prove its own detection. It is not a driver bug; do not file it.", i.spec));
     let title = format!(
         "{}{}: {} on {} ({} {}, Vulkan {})",
-        if injected.is_some() { "[injected, not a driver bug] " } else { "" },
+        if injected.is_some() {
+            "[injected, not a driver bug] "
+        } else {
+            ""
+        },
         symptom(outcome),
         describe(&rep),
         environment.gpu,
@@ -165,7 +200,15 @@ pub fn build(report: &RunReport, report_path: &str, b: &BisectFile, inject: &[In
     // The bisection's count includes the report's attempts and its own.
     let (agree, n) = rep_line.map(|l| (l.agreeing, l.attempts)).unwrap_or((0, 0));
     let incidence = incidence_text(bi, rep_report, agree, n);
-    let summary = summary_text(&environment, &s(&d["driver_name"]), &rep, outcome, (agree, n), bi, injection.is_none());
+    let summary = summary_text(
+        &environment,
+        &s(&d["driver_name"]),
+        &rep,
+        outcome,
+        (agree, n),
+        bi,
+        injection.is_none(),
+    );
     let expected = "The trace completes and every pixel's record matches rtprobe's CPU reference (f64): hit kind, instance custom index, primitive id and probed slot exactly, t within 1e-3 relative, barycentrics within 1e-3, and the value read from the probed resource exactly (for a dynamic index without nonuniformEXT, some element of the array).".to_string();
     let actual = actual_text(rep_report, outcome);
     let shader = shader_comparison(&rep, bi, inject);
@@ -176,7 +219,11 @@ pub fn build(report: &RunReport, report_path: &str, b: &BisectFile, inject: &[In
     let device_fault = device_fault_text(rep_report, outcome);
     let validation = validation_text(report, rep_report);
     let reproduce = reproduce_commands(report, report_path, &rep, injection);
-    let workarounds = if bi.workarounds.is_empty() { vec!["No workaround patch applies to this cell.".into()] } else { bi.workarounds.iter().map(|w| w.line.clone()).collect() };
+    let workarounds = if bi.workarounds.is_empty() {
+        vec!["No workaround patch applies to this cell.".into()]
+    } else {
+        bi.workarounds.iter().map(|w| w.line.clone()).collect()
+    };
     let not_tested = not_tested(report, b);
     let recommended_pattern = crate::report::recommended::result(report, &rep).line();
     Ok(Issue {
@@ -225,8 +272,16 @@ fn environment(report: &RunReport, b: &BisectFile) -> Environment {
 
 /// How often the minimal failing cell faulted (`agree` of `n` attempts), alone too, and the
 /// bisection's fault-rate bound.
-fn incidence_text(bi: &crate::model::Bisection, rep_report: Option<&CellReport>, agree: u32, n: u32) -> String {
-    let alone = match rep_report.and_then(|c| c.incidence.as_ref()).and_then(|i| i.reproduced_alone) {
+fn incidence_text(
+    bi: &crate::model::Bisection,
+    rep_report: Option<&CellReport>,
+    agree: u32,
+    n: u32,
+) -> String {
+    let alone = match rep_report
+        .and_then(|c| c.incidence.as_ref())
+        .and_then(|i| i.reproduced_alone)
+    {
         Some(true) => " It also faulted when run alone in a fresh process.",
         Some(false) => " It did NOT fault when run alone in a fresh process.",
         None => "",
@@ -250,8 +305,20 @@ fn incidence_text(bi: &crate::model::Bisection, rep_report: Option<&CellReport>,
 
 /// The issue's summary paragraph; `(agree, n)`: attempts of the minimal failing cell that
 /// faulted; `real`: not an injected fault (only then do verified workarounds count).
-fn summary_text(env: &Environment, driver_name: &str, rep: &Cell, outcome: Outcome, (agree, n): (u32, u32), bi: &crate::model::Bisection, real: bool) -> String {
-    let verified: Vec<&IsolationLine> = bi.workarounds.iter().filter(|w| w.verdict == "pass" && w.settled() && real).collect();
+fn summary_text(
+    env: &Environment,
+    driver_name: &str,
+    rep: &Cell,
+    outcome: Outcome,
+    (agree, n): (u32, u32),
+    bi: &crate::model::Bisection,
+    real: bool,
+) -> String {
+    let verified: Vec<&IsolationLine> = bi
+        .workarounds
+        .iter()
+        .filter(|w| w.verdict == "pass" && w.settled() && real)
+        .collect();
     format!(
         "On {} with {} {} (Vulkan {}), a {} {} ({}). Bisecting {} cells of rtprobe's shader matrix ({} extra runs beyond the report) narrows the failing configurations down to `{}`{}. {}",
         env.gpu,
@@ -274,7 +341,14 @@ fn summary_text(env: &Environment, driver_name: &str, rep: &Cell, outcome: Outco
 
 /// The first VK_EXT_device_fault report of the cell's attempts, or why there is none.
 fn device_fault_text(rep_report: Option<&CellReport>, outcome: Outcome) -> String {
-    let faults: Vec<_> = rep_report.map(|c| c.attempts.iter().filter_map(|a| a.result.as_ref().and_then(|r| r.fault.clone())).collect()).unwrap_or_default();
+    let faults: Vec<_> = rep_report
+        .map(|c| {
+            c.attempts
+                .iter()
+                .filter_map(|a| a.result.as_ref().and_then(|r| r.fault.clone()))
+                .collect()
+        })
+        .unwrap_or_default();
     match faults.first() {
         Some(f) => format!(
             "{}; addresses: {}; vendor info: {}; vendor binary: {} bytes",
@@ -291,20 +365,56 @@ fn device_fault_text(rep_report: Option<&CellReport>, outcome: Outcome) -> Strin
 }
 
 fn actual_text(rep: Option<&CellReport>, outcome: Outcome) -> String {
-    let Some(c) = rep else { return format!("{} (the cell ran during bisection; see the bisection file)", outcome.as_str()) };
+    let Some(c) = rep else {
+        return format!(
+            "{} (the cell ran during bisection; see the bisection file)",
+            outcome.as_str()
+        );
+    };
     let worst = c.attempts.iter().max_by_key(|a| a.outcome.severity());
-    let mut t = format!("{} (in the run report): {}", outcome.as_str(), c.reason.clone().unwrap_or_else(|| outcome.as_str().into()));
+    let mut t = format!(
+        "{} (in the run report): {}",
+        outcome.as_str(),
+        c.reason.clone().unwrap_or_else(|| outcome.as_str().into())
+    );
     if let Some(a) = worst {
-        if let Some(cmp) = a.result.as_ref().and_then(|r| r.comparison.as_ref()).filter(|c| !c.passed()) {
-            let fields: Vec<String> = cmp.by_field.iter().filter(|(_, n)| **n > 0).map(|(f, n)| format!("{f} {n}")).collect();
-            t += &format!(". {} of {} compared pixels differ (by field: {}).", cmp.mismatched_pixels, cmp.compared, fields.join(", "));
+        if let Some(cmp) = a
+            .result
+            .as_ref()
+            .and_then(|r| r.comparison.as_ref())
+            .filter(|c| !c.passed())
+        {
+            let fields: Vec<String> = cmp
+                .by_field
+                .iter()
+                .filter(|(_, n)| **n > 0)
+                .map(|(f, n)| format!("{f} {n}"))
+                .collect();
+            t += &format!(
+                ". {} of {} compared pixels differ (by field: {}).",
+                cmp.mismatched_pixels,
+                cmp.compared,
+                fields.join(", ")
+            );
         }
         if let Some(x) = &a.worker_exit {
             if let Some(sig) = x.signal.filter(|_| !t.contains("signal")) {
-                t += &format!(" The process was killed by signal {sig} ({}).", crate::model::signal_name(sig));
+                t += &format!(
+                    " The process was killed by signal {sig} ({}).",
+                    crate::model::signal_name(sig)
+                );
             }
             if !x.stderr_tail.trim().is_empty() {
-                let tail: Vec<&str> = x.stderr_tail.trim().lines().rev().take(3).collect::<Vec<_>>().into_iter().rev().collect();
+                let tail: Vec<&str> = x
+                    .stderr_tail
+                    .trim()
+                    .lines()
+                    .rev()
+                    .take(3)
+                    .collect::<Vec<_>>()
+                    .into_iter()
+                    .rev()
+                    .collect();
                 t += &format!(" Last stderr lines: `{}`", tail.join(" | "));
             }
         }
@@ -314,8 +424,18 @@ fn actual_text(rep: Option<&CellReport>, outcome: Outcome) -> String {
 
 fn validation_text(report: &RunReport, rep: Option<&CellReport>) -> String {
     let on = report.options.validate;
-    let errors: u64 = rep.map(|c| c.attempts.iter().filter_map(|a| a.result.as_ref()).map(|r| r.validation_errors).sum()).unwrap_or(0);
-    let ran_to_end = rep.map(|c| c.attempts.iter().filter(|a| a.result.is_some()).count()).unwrap_or(0);
+    let errors: u64 = rep
+        .map(|c| {
+            c.attempts
+                .iter()
+                .filter_map(|a| a.result.as_ref())
+                .map(|r| r.validation_errors)
+                .sum()
+        })
+        .unwrap_or(0);
+    let ran_to_end = rep
+        .map(|c| c.attempts.iter().filter(|a| a.result.is_some()).count())
+        .unwrap_or(0);
     let mut t = if !on {
         "The run did not enable VK_LAYER_KHRONOS_validation (`--validate`): API usage was not checked for this report.".to_string()
     } else if errors > 0 {
@@ -330,7 +450,12 @@ fn validation_text(report: &RunReport, rep: Option<&CellReport>) -> String {
     t
 }
 
-fn reproduce_commands(report: &RunReport, report_path: &str, rep: &Cell, injection: Option<&Injection>) -> Vec<String> {
+fn reproduce_commands(
+    report: &RunReport,
+    report_path: &str,
+    rep: &Cell,
+    injection: Option<&Injection>,
+) -> Vec<String> {
     let p = &report.scene.params;
     let patches = if rep.patch.is_some() { "all" } else { "none" };
     let mut run = format!(
@@ -346,7 +471,12 @@ fn reproduce_commands(report: &RunReport, report_path: &str, rep: &Cell, injecti
         run += &format!(" --inject-fault '{}'", i.spec);
     }
     // A switch of the original run that changes results is part of the command.
-    let env = report.options.binding_stages.as_deref().map(|v| format!("RTPROBE_BINDING_STAGES={v} ")).unwrap_or_default();
+    let env = report
+        .options
+        .binding_stages
+        .as_deref()
+        .map(|v| format!("RTPROBE_BINDING_STAGES={v} "))
+        .unwrap_or_default();
     vec![
         format!("{env}{run}"),
         format!("rtprobe repro {} --from {report_path} -o repro && rtprobe run --cell-spec repro/cell.json", rep.id()),
@@ -358,13 +488,24 @@ fn not_tested(report: &RunReport, b: &BisectFile) -> Vec<String> {
     let bi = &b.bisection;
     let mut v = Vec::new();
     if !b.scope.is_empty() {
-        v.push(format!("Only cells matching `{}` were in the bisected scope ({} cells of a {}-cell matrix).", b.scope.join("` and `"), bi.scope_cells, b.full_matrix));
+        v.push(format!(
+            "Only cells matching `{}` were in the bisected scope ({} cells of a {}-cell matrix).",
+            b.scope.join("` and `"),
+            bi.scope_cells,
+            b.full_matrix
+        ));
     }
     if !bi.not_varied.is_empty() {
-        v.push(format!("Axes with a single value in the scope, so the result says nothing about them: {}.", bi.not_varied.join(", ")));
+        v.push(format!(
+            "Axes with a single value in the scope, so the result says nothing about them: {}.",
+            bi.not_varied.join(", ")
+        ));
     }
     if bi.not_run > 0 {
-        v.push(format!("{} cells of the scope never ran (bisection did not need them).", bi.not_run));
+        v.push(format!(
+            "{} cells of the scope never ran (bisection did not need them).",
+            bi.not_run
+        ));
     }
     if !bi.errored.is_empty() {
         v.push(format!("{} cells of the scope could not be run by rtprobe (`error`), so they count neither way: {}.", bi.errored.len(), bi.errored.join(", ")));
@@ -373,14 +514,23 @@ fn not_tested(report: &RunReport, b: &BisectFile) -> Vec<String> {
         v.push(format!("Not concluded: {} passing cells relied on have fewer attempts than a miss probability below {} needs: {}.", bi.unsettled.len(), percent(bi.max_miss), bi.unsettled.join(", ")));
     }
     let mut reasons: std::collections::BTreeMap<String, usize> = Default::default();
-    for c in report.cells.iter().filter(|c| c.outcome == Outcome::Unsupported) {
-        *reasons.entry(c.reason.clone().unwrap_or_default()).or_default() += 1;
+    for c in report
+        .cells
+        .iter()
+        .filter(|c| c.outcome == Outcome::Unsupported)
+    {
+        *reasons
+            .entry(c.reason.clone().unwrap_or_default())
+            .or_default() += 1;
     }
     for (r, n) in reasons {
         v.push(format!("{n} cells unsupported on this device: {r}."));
     }
     for ng in &report.plan.not_generated {
-        v.push(format!("Not generated ({} combinations): {}.", ng.count, ng.rule));
+        v.push(format!(
+            "Not generated ({} combinations): {}.",
+            ng.count, ng.rule
+        ));
     }
     let p = &report.scene.params;
     v.push(format!("One scene only (seed {}, {}x{}, {} instances, mesh detail {}); other scene sizes were not tried.", p.seed, p.width, p.height, p.instances, p.mesh_detail));
@@ -390,15 +540,33 @@ fn not_tested(report: &RunReport, b: &BisectFile) -> Vec<String> {
 
 /// The probed shader of the failing cell and of its closest passing sibling (preferring a
 /// sibling that differs in the index, then the resource, then the other axes in registry order).
-fn shader_comparison(rep: &Cell, bi: &crate::model::Bisection, inject: &[Injection]) -> Result<ShaderComparison, IssueError> {
+fn shader_comparison(
+    rep: &Cell,
+    bi: &crate::model::Bisection,
+    inject: &[Injection],
+) -> Result<ShaderComparison, IssueError> {
     const FIRST: [&str; 3] = ["index", "nonuniform", "resource"];
-    let order: Vec<&str> = FIRST.into_iter().chain(crate::model::registry::names().filter(|a| !FIRST.contains(a))).collect();
-    let sibling = order.iter().find_map(|ax| bi.isolation.iter().find(|l| l.varied.as_deref() == Some(*ax) && l.verdict == "pass")).and_then(|l| cell_by_id(&l.cell));
+    let order: Vec<&str> = FIRST
+        .into_iter()
+        .chain(crate::model::registry::names().filter(|a| !FIRST.contains(a)))
+        .collect();
+    let sibling = order
+        .iter()
+        .find_map(|ax| {
+            bi.isolation
+                .iter()
+                .find(|l| l.varied.as_deref() == Some(*ax) && l.verdict == "pass")
+        })
+        .and_then(|l| cell_by_id(&l.cell));
     let role = probed_role(rep.stage);
     let pick = |c: &Cell| -> Result<(String, Vec<u32>), IssueError> {
         let fault = for_cell(inject, c).map(|i| i.fault);
-        let shaders = cell_shaders(c, fault).map_err(|err| IssueError::Shaders { cell: c.id(), err })?;
-        let sh = shaders.into_iter().find(|s| s.role == probed_role(c.stage)).ok_or_else(|| IssueError::NoProbedShader { cell: c.id() })?;
+        let shaders =
+            cell_shaders(c, fault).map_err(|err| IssueError::Shaders { cell: c.id(), err })?;
+        let sh = shaders
+            .into_iter()
+            .find(|s| s.role == probed_role(c.stage))
+            .ok_or_else(|| IssueError::NoProbedShader { cell: c.id() })?;
         Ok((sh.glsl, sh.spirv))
     };
     let (glsl, spirv) = pick(rep)?;
@@ -439,27 +607,41 @@ impl Issue {
         );
         m += &format!("## Summary\n\n{}\n\n", self.summary);
         m += &format!("## Incidence\n\n{}\n\n", self.incidence);
-        m += &format!("## Expected\n\n{}\n\n## Actual\n\n{}\n\n", self.expected, self.actual);
+        m += &format!(
+            "## Expected\n\n{}\n\n## Actual\n\n{}\n\n",
+            self.expected, self.actual
+        );
         m += "## Isolation\n\nThe minimal failing cell first, then its closest siblings, one axis changed at a time (k/N: attempts that agree with the verdict, of all attempts):\n\n";
         for l in &self.isolation {
             m += &format!("- {l}\n");
         }
         m += &format!(
             "\nMinimal description{}: `{}`\n\n",
-            if self.separable { "" } else { " (no single conjunction separates the cells; a disjunction, `;`-separated)" },
+            if self.separable {
+                ""
+            } else {
+                " (no single conjunction separates the cells; a disjunction, `;`-separated)"
+            },
             self.minimal
         );
         m += "## Minimal failing shader\n\n";
         match (&self.shader, &self.shader_error) {
             (Some(sc), _) => {
-                m += &format!("`{}` of `{}` (GLSL as rtprobe generates it):\n\n```glsl\n{}```\n\n", sc.file, sc.failing_cell, sc.glsl);
+                m += &format!(
+                    "`{}` of `{}` (GLSL as rtprobe generates it):\n\n```glsl\n{}```\n\n",
+                    sc.file, sc.failing_cell, sc.glsl
+                );
                 match (&sc.passing_cell, &sc.glsl_diff) {
                     (Some(p), Some(d)) => m += &format!("Against its closest passing sibling `{p}` (`-` only in the failing shader, `+` only in the passing one):\n\n```diff\n{d}```\n\n"),
                     _ => m += "No passing sibling was found to compare with.\n\n",
                 }
-                m += &format!("SPIR-V disassembly of the failing shader:\n\n```\n{}```\n\n", sc.spirv);
+                m += &format!(
+                    "SPIR-V disassembly of the failing shader:\n\n```\n{}```\n\n",
+                    sc.spirv
+                );
                 if let Some(d) = &sc.spirv_diff {
-                    m += &format!("SPIR-V diff against the passing sibling:\n\n```diff\n{d}```\n\n");
+                    m +=
+                        &format!("SPIR-V diff against the passing sibling:\n\n```diff\n{d}```\n\n");
                 }
             }
             (None, Some(err)) => m += &format!("The shaders could not be rebuilt: {err}\n\n"),

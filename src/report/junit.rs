@@ -1,8 +1,8 @@
 //! JUnit XML for CI systems: one testcase per cell; findings are failures, unsupported cells
 //! skipped.
+use crate::model::Outcome;
 use crate::model::RunReport;
 use crate::model::Status;
-use crate::model::Outcome;
 
 fn esc(s: &str) -> String {
     s.chars()
@@ -23,7 +23,10 @@ fn esc(s: &str) -> String {
 fn fails(r: &RunReport, c: &crate::model::CellReport) -> bool {
     match &c.canary_check {
         Some(chk) => !chk.detected,
-        None => (c.outcome.is_finding() && expected_by_baseline(r, c).is_none()) || (c.injection_undetected && c.outcome == Outcome::Pass),
+        None => {
+            (c.outcome.is_finding() && expected_by_baseline(r, c).is_none())
+                || (c.injection_undetected && c.outcome == Outcome::Pass)
+        }
     }
 }
 
@@ -36,14 +39,32 @@ fn run_level_failures(r: &RunReport) -> Vec<(String, String, String)> {
             .worker_faults
             .iter()
             .enumerate()
-            .map(|(k, w)| (format!("worker-fault-{k}"), "unexpected_worker_fault".to_string(), w.clone()))
-            .chain(b.performance.iter().map(|p| (format!("performance.{}", p.split(':').next().unwrap_or("phase")), "performance_regression".to_string(), p.clone())))
+            .map(|(k, w)| {
+                (
+                    format!("worker-fault-{k}"),
+                    "unexpected_worker_fault".to_string(),
+                    w.clone(),
+                )
+            })
+            .chain(b.performance.iter().map(|p| {
+                (
+                    format!("performance.{}", p.split(':').next().unwrap_or("phase")),
+                    "performance_regression".to_string(),
+                    p.clone(),
+                )
+            }))
             .collect(),
         None => r
             .workers
             .iter()
             .filter(|w| w.outcome.is_finding())
-            .map(|w| (format!("worker-{}.{}", w.worker, w.phase), w.outcome.as_str().to_string(), w.detail.clone().unwrap_or_default()))
+            .map(|w| {
+                (
+                    format!("worker-{}.{}", w.worker, w.phase),
+                    w.outcome.as_str().to_string(),
+                    w.detail.clone().unwrap_or_default(),
+                )
+            })
             .collect(),
     }
 }
@@ -62,7 +83,11 @@ fn expected_by_baseline<'a>(r: &'a RunReport, c: &crate::model::CellReport) -> O
 pub fn render(r: &RunReport) -> String {
     let run_level = run_level_failures(r);
     let failures = r.cells.iter().filter(|c| fails(r, c)).count() + run_level.len();
-    let skipped = r.cells.iter().filter(|c| matches!(c.outcome, Outcome::Unsupported | Outcome::NotImplemented)).count();
+    let skipped = r
+        .cells
+        .iter()
+        .filter(|c| matches!(c.outcome, Outcome::Unsupported | Outcome::NotImplemented))
+        .count();
     let mut s = format!(
         "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuites>\n<testsuite name=\"rtprobe\" tests=\"{}\" failures=\"{failures}\" skipped=\"{skipped}\">\n",
         r.cells.len() + run_level.len()
@@ -73,7 +98,11 @@ pub fn render(r: &RunReport) -> String {
     for c in &r.cells {
         let class = format!("{}.{}", c.cell.stage, c.cell.resource);
         let secs = c.attempts.last().map(|a| a.wall_ms / 1e3).unwrap_or(0.0);
-        s += &format!("  <testcase classname=\"{}\" name=\"{}\" time=\"{secs:.3}\">", esc(&class), esc(&c.id));
+        s += &format!(
+            "  <testcase classname=\"{}\" name=\"{}\" time=\"{secs:.3}\">",
+            esc(&class),
+            esc(&c.id)
+        );
         let reason = esc(c.reason.as_deref().unwrap_or(""));
         let mut props = vec![];
         if let Some(inc) = c.incidence.as_ref().filter(|_| c.flaky) {
@@ -92,12 +121,20 @@ pub fn render(r: &RunReport) -> String {
         if let Some(chk) = &c.canary_check {
             let expected: Vec<&str> = chk.expected.iter().map(|o| o.as_str()).collect();
             s += &if chk.detected {
-                format!("<system-out>canary detected: {} (expected {})</system-out>", c.outcome.as_str(), expected.join(" or "))
+                format!(
+                    "<system-out>canary detected: {} (expected {})</system-out>",
+                    c.outcome.as_str(),
+                    expected.join(" or ")
+                )
             } else {
                 format!("<failure type=\"canary_undetected\" message=\"expected {}, got {}: {reason}\"/>", expected.join(" or "), c.outcome.as_str())
             };
         } else if let Some(why) = expected_by_baseline(r, c).filter(|_| c.outcome.is_finding()) {
-            s += &format!("<system-out>{}: {} ({why})</system-out>", esc(&c.outcome.as_str()), reason);
+            s += &format!(
+                "<system-out>{}: {} ({why})</system-out>",
+                esc(&c.outcome.as_str()),
+                reason
+            );
         } else {
             match c.outcome {
                 Outcome::Pass if c.injection_undetected => {

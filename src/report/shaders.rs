@@ -44,7 +44,13 @@ pub fn cell_shaders(cell: &Cell, fault: Option<FaultKind>) -> Result<Vec<Shader>
     let mut out = Vec::new();
     for s in &gen.shaders {
         let (words, _) = compiler.compile(s.role, &s.glsl)?;
-        out.push(Shader { role: s.role, glsl: s.glsl.clone(), spirv: words.to_vec(), compiler: crate::shadergen::compile::compiler_for(&s.glsl), patched: vec![] });
+        out.push(Shader {
+            role: s.role,
+            glsl: s.glsl.clone(),
+            spirv: words.to_vec(),
+            compiler: crate::shadergen::compile::compiler_for(&s.glsl),
+            patched: vec![],
+        });
     }
     // The worker's order: address_patched is as-to-address on the descriptor variant, then the
     // cell's own workaround.

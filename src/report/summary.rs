@@ -1,6 +1,6 @@
 //! The terminal summary printed at the end of `rtprobe run`.
-use crate::model::RunReport;
 use crate::model::Outcome;
+use crate::model::RunReport;
 use std::fmt::Write;
 
 fn mark(o: Outcome) -> &'static str {
@@ -28,7 +28,15 @@ pub fn render(r: &RunReport) -> String {
 
 /// The device, the plan and the outcome counts.
 fn header(s: &mut String, r: &RunReport) {
-    let _ = writeln!(s, "rtprobe run on {} ({} {})", r.device["name"].as_str().unwrap_or("?"), r.device["driver_name"].as_str().unwrap_or("?"), r.device["driver_version"]["decoded"].as_str().unwrap_or("?"));
+    let _ = writeln!(
+        s,
+        "rtprobe run on {} ({} {})",
+        r.device["name"].as_str().unwrap_or("?"),
+        r.device["driver_name"].as_str().unwrap_or("?"),
+        r.device["driver_version"]["decoded"]
+            .as_str()
+            .unwrap_or("?")
+    );
     let _ = writeln!(
         s,
         "plan: {} generated, {} filtered out, {} planned ({} to run, {} unsupported, {} not implemented in rtprobe)",
@@ -44,7 +52,11 @@ fn header(s: &mut String, r: &RunReport) {
 
 /// Canaries, fault injection, and worker faults outside any cell.
 fn worker_and_canary_notes(s: &mut String, r: &RunReport) {
-    let canaries: Vec<_> = r.cells.iter().filter(|c| c.canary_check.is_some()).collect();
+    let canaries: Vec<_> = r
+        .cells
+        .iter()
+        .filter(|c| c.canary_check.is_some())
+        .collect();
     for c in &canaries {
         let chk = c.canary_check.as_ref().expect("filtered");
         let _ = writeln!(
@@ -53,28 +65,55 @@ fn worker_and_canary_notes(s: &mut String, r: &RunReport) {
             c.id,
             if chk.detected { "✅" } else { "❌" },
             c.outcome.as_str(),
-            if chk.detected { "detected as expected" } else { "NOT detected: fault classification unproven on this driver; the run fails" }
+            if chk.detected {
+                "detected as expected"
+            } else {
+                "NOT detected: fault classification unproven on this driver; the run fails"
+            }
         );
     }
     if !r.options.inject.is_empty() {
         let injected = r.cells.iter().filter(|c| c.injected.is_some()).count();
-        let _ = writeln!(s, "fault injection: {injected} cells misbehave on purpose ({})", serde_json::Value::from(r.options.inject.clone()));
+        let _ = writeln!(
+            s,
+            "fault injection: {injected} cells misbehave on purpose ({})",
+            serde_json::Value::from(r.options.inject.clone())
+        );
     }
     // Worker faults outside any cell (failed setups, crashes between cells, hung teardowns).
-    let faults: Vec<_> = r.workers.iter().filter(|w| w.outcome != Outcome::Pass).collect();
+    let faults: Vec<_> = r
+        .workers
+        .iter()
+        .filter(|w| w.outcome != Outcome::Pass)
+        .collect();
     if !faults.is_empty() {
         let _ = writeln!(s, "worker faults outside cells ({}):", faults.len());
         for w in faults.iter().take(10) {
-            let _ = writeln!(s, "  {} worker {} {} in {} — {}", mark(w.outcome), w.worker, w.outcome.as_str(), w.phase, w.detail.as_deref().unwrap_or(""));
+            let _ = writeln!(
+                s,
+                "  {} worker {} {} in {} — {}",
+                mark(w.outcome),
+                w.worker,
+                w.outcome.as_str(),
+                w.phase,
+                w.detail.as_deref().unwrap_or("")
+            );
         }
     }
 }
 
 /// Reads outside the spec's guarantees, validation errors, undetected injections.
 fn spec_and_injection_notes(s: &mut String, r: &RunReport) {
-    let outside: Vec<_> = r.cells.iter().filter(|c| c.outside_spec.is_some()).collect();
+    let outside: Vec<_> = r
+        .cells
+        .iter()
+        .filter(|c| c.outside_spec.is_some())
+        .collect();
     if let Some(first) = outside.first() {
-        let other = outside.iter().filter(|c| c.element_reads().any(|e| e.other > 0)).count();
+        let other = outside
+            .iter()
+            .filter(|c| c.element_reads().any(|e| e.other > 0))
+            .count();
         let _ = writeln!(
             s,
             "outside the spec's guarantees: {} cells index descriptors dynamically without nonuniformEXT, or with one their compiler dropped ({}); {other} of them read another element of the array on some pixels (allowed there; counts per cell in the report)",
@@ -82,7 +121,15 @@ fn spec_and_injection_notes(s: &mut String, r: &RunReport) {
             first.outside_spec.as_deref().unwrap_or("")
         );
     }
-    let vcells: Vec<_> = r.cells.iter().filter(|c| c.attempts.iter().any(|a| a.result.as_ref().is_some_and(|x| x.validation_errors > 0))).collect();
+    let vcells: Vec<_> = r
+        .cells
+        .iter()
+        .filter(|c| {
+            c.attempts
+                .iter()
+                .any(|a| a.result.as_ref().is_some_and(|x| x.validation_errors > 0))
+        })
+        .collect();
     if !vcells.is_empty() {
         let _ = writeln!(s, "validation errors in {} cells (rtprobe misused the API there; their outcomes prove nothing): first {}", vcells.len(), vcells[0].id);
     }
@@ -115,7 +162,16 @@ fn findings(s: &mut String, r: &RunReport) {
         let _ = writeln!(s, "no faults or mismatches");
     } else {
         let flaky = findings.iter().filter(|c| c.flaky).count();
-        let _ = writeln!(s, "findings ({}{}):", findings.len(), if flaky > 0 { format!(", {flaky} flaky") } else { String::new() });
+        let _ = writeln!(
+            s,
+            "findings ({}{}):",
+            findings.len(),
+            if flaky > 0 {
+                format!(", {flaky} flaky")
+            } else {
+                String::new()
+            }
+        );
         for c in findings.iter().take(40) {
             finding(s, c);
         }
@@ -129,17 +185,43 @@ fn findings(s: &mut String, r: &RunReport) {
 fn finding(s: &mut String, c: &crate::model::CellReport) {
     // The reason already carries "k of N attempts"; a flaky cell says so up front.
     let tag = if c.flaky { " [FLAKY]" } else { "" };
-    let _ = writeln!(s, "  {} {:<12} {}{} — {}", mark(c.outcome), c.outcome.as_str(), c.id, tag, c.reason.as_deref().unwrap_or(""));
-    if let Some(diff) = c.attempts.iter().rev().find_map(|a| a.result.as_ref()?.comparison.as_ref()?.pictures.last()) {
-        let _ = writeln!(s, "      pictures: {diff} (expected.png and actual.png beside it)");
+    let _ = writeln!(
+        s,
+        "  {} {:<12} {}{} — {}",
+        mark(c.outcome),
+        c.outcome.as_str(),
+        c.id,
+        tag,
+        c.reason.as_deref().unwrap_or("")
+    );
+    if let Some(diff) = c
+        .attempts
+        .iter()
+        .rev()
+        .find_map(|a| a.result.as_ref()?.comparison.as_ref()?.pictures.last())
+    {
+        let _ = writeln!(
+            s,
+            "      pictures: {diff} (expected.png and actual.png beside it)"
+        );
     }
     if !c.workarounds.is_empty() {
-        let verified: Vec<&str> = c.workarounds.iter().filter(|w| w.verified).map(|w| w.patch.as_str()).collect();
+        let verified: Vec<&str> = c
+            .workarounds
+            .iter()
+            .filter(|w| w.verified)
+            .map(|w| w.patch.as_str())
+            .collect();
         let tried: Vec<String> = c.workarounds.iter().map(|w| w.tried()).collect();
         if verified.is_empty() {
             let _ = writeln!(s, "      no verified workaround ({})", tried.join(", "));
         } else {
-            let _ = writeln!(s, "      verified workaround: {} ({})", verified.join(", "), tried.join(", "));
+            let _ = writeln!(
+                s,
+                "      verified workaround: {} ({})",
+                verified.join(", "),
+                tried.join(", ")
+            );
         }
     }
     if let Some(p) = &c.recommended {
@@ -167,13 +249,29 @@ fn timing(s: &mut String, r: &RunReport) {
         t.overhead_ms / n
     );
     if t.prebuilt_pipelines > 0 {
-        let threads = r.options.threads.map(|n| n.to_string()).unwrap_or_else(|| "--threads".into());
+        let threads = r
+            .options
+            .threads
+            .map(|n| n.to_string())
+            .unwrap_or_else(|| "--threads".into());
         let _ = writeln!(s, "prebuild: {} pipelines created on {threads} threads ahead of their cells, {:.1} s wall (their per-cell time above is each one's time on its thread)", t.prebuilt_pipelines, t.prebuild_ms / 1e3);
     }
     if let Some(pc) = &r.pipeline_cache {
-        let file = pc.file.as_ref().map(|f| f.display().to_string()).unwrap_or_default();
-        let ignored = if pc.ignored.is_empty() { String::new() } else { format!("; ignored: {}", pc.ignored.join("; ")) };
-        let errors = if pc.save_errors.is_empty() { String::new() } else { format!("; {}", pc.save_errors.join("; ")) };
+        let file = pc
+            .file
+            .as_ref()
+            .map(|f| f.display().to_string())
+            .unwrap_or_default();
+        let ignored = if pc.ignored.is_empty() {
+            String::new()
+        } else {
+            format!("; ignored: {}", pc.ignored.join("; "))
+        };
+        let errors = if pc.save_errors.is_empty() {
+            String::new()
+        } else {
+            format!("; {}", pc.save_errors.join("; "))
+        };
         let _ = writeln!(s, "pipeline cache: {} bytes loaded ({} workers), {} bytes saved ({file}){ignored}{errors}", pc.loaded_bytes, pc.workers_loaded, pc.saved_bytes);
     }
 }

@@ -1,6 +1,8 @@
 //! The run report's writer: cell entries built as attempts arrive, kept in plan order, saved
 //! atomically (`cli::run`: at once after a fault, passes at most every 100 ms).
-use crate::model::{Attempt, Cell, CellReport, Outcome, PlanStatus, RunPlan, RunReport, WorkerEvent};
+use crate::model::{
+    Attempt, Cell, CellReport, Outcome, PlanStatus, RunPlan, RunReport, WorkerEvent,
+};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
@@ -13,7 +15,12 @@ pub struct ReportWriter {
 
 impl ReportWriter {
     pub fn new(path: PathBuf, mut report: RunReport, plan: &RunPlan) -> Self {
-        let order = plan.cells.iter().enumerate().map(|(i, c)| (c.cell.id(), i)).collect();
+        let order = plan
+            .cells
+            .iter()
+            .enumerate()
+            .map(|(i, c)| (c.cell.id(), i))
+            .collect();
         for pc in &plan.cells {
             let not_run = match &pc.status {
                 PlanStatus::Run => None,
@@ -22,11 +29,17 @@ impl ReportWriter {
             };
             if let Some((outcome, reason)) = not_run {
                 if !report.cells.iter().any(|c| c.id == pc.cell.id()) {
-                    report.cells.push(CellReport::unrun(&pc.cell, outcome, reason.clone()));
+                    report
+                        .cells
+                        .push(CellReport::unrun(&pc.cell, outcome, reason.clone()));
                 }
             }
         }
-        let mut w = ReportWriter { path, report, order };
+        let mut w = ReportWriter {
+            path,
+            report,
+            order,
+        };
         w.sort();
         w
     }
@@ -37,7 +50,14 @@ impl ReportWriter {
         let key = |c: &CellReport| {
             let base = c.cell.base().id();
             let patch = c.cell.patch.map(|p| 1 + p as usize).unwrap_or(0);
-            (order.get(&c.id).or_else(|| order.get(&base)).copied().unwrap_or(usize::MAX), patch)
+            (
+                order
+                    .get(&c.id)
+                    .or_else(|| order.get(&base))
+                    .copied()
+                    .unwrap_or(usize::MAX),
+                patch,
+            )
         };
         self.report.cells.sort_by_key(key);
         self.report.recount();
@@ -47,7 +67,12 @@ impl ReportWriter {
     /// setups). Follow-ups (confirmation, repeats, workarounds) are chosen from the report's
     /// state, so a resumed run finishes them.
     pub fn done(&self) -> std::collections::HashSet<String> {
-        self.report.cells.iter().filter(|c| c.attempts.iter().any(|a| !a.not_run())).map(|c| c.id.clone()).collect()
+        self.report
+            .cells
+            .iter()
+            .filter(|c| c.attempts.iter().any(|a| !a.not_run()))
+            .map(|c| c.id.clone())
+            .collect()
     }
 
     pub fn record(&mut self, cell: &Cell, attempt: Attempt) {
@@ -55,19 +80,32 @@ impl ReportWriter {
         let t = &mut self.report.timing;
         // Timing statistics only from cells that ran to completion (a hung fence wait or a crash
         // says nothing about per-cell cost).
-        if let Some(r) = attempt.result.as_ref().filter(|r| matches!(r.outcome, Outcome::Pass | Outcome::Mismatch)) {
+        if let Some(r) = attempt
+            .result
+            .as_ref()
+            .filter(|r| matches!(r.outcome, Outcome::Pass | Outcome::Mismatch))
+        {
             let tm = &r.timings;
             t.compile_ms += tm.compile_ms;
             t.pipeline_ms += tm.pipeline_ms;
             t.setup_ms += tm.setup_ms;
             t.trace_ms += tm.trace_ms;
             t.check_ms += tm.check_ms;
-            t.overhead_ms += (attempt.wall_ms - tm.total_ms).max(0.0) + (tm.total_ms - tm.compile_ms - tm.pipeline_ms - tm.setup_ms - tm.trace_ms - tm.check_ms).max(0.0);
+            t.overhead_ms += (attempt.wall_ms - tm.total_ms).max(0.0)
+                + (tm.total_ms
+                    - tm.compile_ms
+                    - tm.pipeline_ms
+                    - tm.setup_ms
+                    - tm.trace_ms
+                    - tm.check_ms)
+                    .max(0.0);
             t.cells_timed += 1;
         }
         match self.report.cells.iter_mut().find(|c| c.id == id) {
             // An unsupported entry of an older plan (resume) is replaced by what ran.
-            Some(existing) if existing.attempts.is_empty() => *existing = CellReport::new(cell, attempt),
+            Some(existing) if existing.attempts.is_empty() => {
+                *existing = CellReport::new(cell, attempt)
+            }
             Some(existing) => {
                 existing.attempts.push(attempt);
                 existing.refresh();
@@ -83,7 +121,12 @@ impl ReportWriter {
 
     /// Save (compact while running, pretty when final).
     pub fn save(&self, pretty: bool) -> Result<(), crate::atomic::WriteError> {
-        let bytes = if pretty { serde_json::to_vec_pretty(&self.report) } else { serde_json::to_vec(&self.report) }.expect("report serializes");
+        let bytes = if pretty {
+            serde_json::to_vec_pretty(&self.report)
+        } else {
+            serde_json::to_vec(&self.report)
+        }
+        .expect("report serializes");
         crate::atomic::write_atomic_with(&self.path, &bytes, pretty)
     }
 }

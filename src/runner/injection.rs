@@ -13,7 +13,10 @@ pub(super) struct Injections {
 
 impl Injections {
     pub fn new(inject: Vec<Injection>) -> Self {
-        Injections { inject, seeds: HashMap::new() }
+        Injections {
+            inject,
+            seeds: HashMap::new(),
+        }
     }
 
     /// What every worker is told to inject.
@@ -40,7 +43,10 @@ impl Injections {
 
 /// A fresh seed for each worker's flaky-injection dice (recorded in every injected result).
 fn fresh_seed(worker: u64) -> u64 {
-    let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_nanos() as u64).unwrap_or(0);
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_nanos() as u64)
+        .unwrap_or(0);
     nanos ^ (u64::from(std::process::id()) << 32) ^ worker.wrapping_mul(0x9e37_79b9_7f4a_7c15)
 }
 
@@ -51,16 +57,34 @@ mod tests {
 
     #[test]
     fn an_attempt_records_the_injection_of_its_cells_worker() {
-        let cell = Cell::new(Stage::Raygen, Resource::StorageBuffer, IndexSource::Dynamic, DescriptorModel::DescriptorIndexing);
-        let other = Cell { stage: Stage::Miss, ..cell };
+        let cell = Cell::new(
+            Stage::Raygen,
+            Resource::StorageBuffer,
+            IndexSource::Dynamic,
+            DescriptorModel::DescriptorIndexing,
+        );
+        let other = Cell {
+            stage: Stage::Miss,
+            ..cell
+        };
         let mut inj = Injections::new(vec![Injection::parse("stage=raygen@device").unwrap()]);
         let mut a = Attempt::new(Outcome::Crash, false);
         inj.tag(&cell, &mut a);
-        assert_eq!(a.injected, None, "a cell never sent to a worker has no dice");
+        assert_eq!(
+            a.injected, None,
+            "a cell never sent to a worker has no dice"
+        );
         let seed = inj.deal(1, &[cell, other]);
-        assert_ne!(seed, inj.deal(2, &[other]), "each worker rolls its own dice");
+        assert_ne!(
+            seed,
+            inj.deal(2, &[other]),
+            "each worker rolls its own dice"
+        );
         inj.tag(&cell, &mut a);
-        assert!(a.injected.is_some(), "the fault is recorded even though the worker died");
+        assert!(
+            a.injected.is_some(),
+            "the fault is recorded even though the worker died"
+        );
         let mut b = Attempt::new(Outcome::Pass, false);
         inj.tag(&other, &mut b);
         assert_eq!(b.injected, None, "the filter does not match");

@@ -32,15 +32,28 @@ pub(super) struct Limits {
 #[derive(Clone, Debug, PartialEq)]
 pub(super) enum State {
     Setup,
-    Cell { cell: Cell, since: Instant },
+    Cell {
+        cell: Cell,
+        since: Instant,
+    },
     /// After `ready` or a result, before the next `start`.
-    Between { since: Instant },
+    Between {
+        since: Instant,
+    },
     /// Building `cells` ahead of their turns; `since` restarts at each step of progress.
-    Prebuild { cells: Vec<String>, since: Instant },
+    Prebuild {
+        cells: Vec<String>,
+        since: Instant,
+    },
     /// After its last result, or a result that ends it: it must exit.
-    Teardown { since: Instant },
+    Teardown {
+        since: Instant,
+    },
     /// Being killed or reaped; `was` is the state it was in.
-    Dying { was: Box<State>, cause: Cause },
+    Dying {
+        was: Box<State>,
+        cause: Cause,
+    },
     /// Gone, recorded: the supervisor drops it.
     Ended,
 }
@@ -77,18 +90,32 @@ pub(super) enum Effect {
     /// Its output ended: wait for the exit (bounded; one that does not exit is killed), then feed
     /// `Exited`.
     Reap,
-    Ready { device_ms: f64, reference_ms: f64, pipeline_cache: Option<crate::exec::pipeline_cache::Loaded> },
-    Prebuilt { wall_ms: f64, pipelines: usize, threads: usize },
+    Ready {
+        device_ms: f64,
+        reference_ms: f64,
+        pipeline_cache: Option<crate::exec::pipeline_cache::Loaded>,
+    },
+    Prebuilt {
+        wall_ms: f64,
+        pipelines: usize,
+        threads: usize,
+    },
     CacheSaved(Result<u64, String>),
     /// The worker's own record: its setup, or a fault outside any cell.
     Worker(WorkerEvent),
     /// An attempt of one of its cells: the cell leaves the queue.
-    Attempt { cell: Cell, attempt: Attempt },
+    Attempt {
+        cell: Cell,
+        attempt: Attempt,
+    },
     /// Cells it died or hung prebuilding: later workers build them at their turn only.
     Serial(Vec<String>),
     /// It ended without an attempt; should the slot give up on its `batch` cells, each is
     /// recorded as `not_run`.
-    Fruitless { batch: usize, not_run: Attempt },
+    Fruitless {
+        batch: usize,
+        not_run: Attempt,
+    },
 }
 
 #[derive(Clone, Debug)]
@@ -114,14 +141,29 @@ pub(super) struct Worker {
 
 impl Worker {
     pub fn new(id: u64, cells: Vec<Cell>, isolated: bool, spawned: Instant) -> Worker {
-        Worker { id, state: State::Setup, phase: Phase::Setup, step: None, device_features: vec![], batch: cells.len(), pending: cells, progressed: false, garbage: 0, spawned, isolated }
+        Worker {
+            id,
+            state: State::Setup,
+            phase: Phase::Setup,
+            step: None,
+            device_features: vec![],
+            batch: cells.len(),
+            pending: cells,
+            progressed: false,
+            garbage: 0,
+            spawned,
+            isolated,
+        }
     }
 
     /// When its state's time is up (`None`: dying or ended, nothing to wait for).
     pub fn deadline(&self, limits: &Limits) -> Option<Instant> {
         match self.state {
             State::Setup => Some(self.spawned + limits.setup_timeout),
-            State::Cell { since, .. } | State::Between { since } | State::Prebuild { since, .. } | State::Teardown { since } => Some(since + limits.timeout),
+            State::Cell { since, .. }
+            | State::Between { since }
+            | State::Prebuild { since, .. }
+            | State::Teardown { since } => Some(since + limits.timeout),
             State::Dying { .. } | State::Ended => None,
         }
     }
@@ -145,7 +187,12 @@ impl Worker {
 }
 
 /// One input: the worker's next state and what the supervisor must do.
-pub(super) fn step(mut w: Worker, input: Input, now: Instant, limits: &Limits) -> (Worker, Vec<Effect>) {
+pub(super) fn step(
+    mut w: Worker,
+    input: Input,
+    now: Instant,
+    limits: &Limits,
+) -> (Worker, Vec<Effect>) {
     let mut fx = Vec::new();
     match input {
         Input::Msg(msg) if alive(&w.state) => message(&mut w, msg, now, &mut fx),
@@ -166,13 +213,32 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
     match msg {
         WorkerMsg::Ready { .. } if w.state != State::Setup => {
             // Only once, at the end of setup: it must not restart any clock.
-            fx.push(Effect::Log(format!("worker {} sent ready again; ignored", w.id)));
+            fx.push(Effect::Log(format!(
+                "worker {} sent ready again; ignored",
+                w.id
+            )));
         }
-        WorkerMsg::Ready { device_ms, reference_ms, device_features, pipeline_cache } => {
+        WorkerMsg::Ready {
+            device_ms,
+            reference_ms,
+            device_features,
+            pipeline_cache,
+        } => {
             w.enter(State::Between { since: now }, Phase::BetweenCells);
             w.device_features = device_features;
-            fx.push(Effect::Ready { device_ms, reference_ms, pipeline_cache });
-            fx.push(Effect::Worker(event(w, Phase::Setup, Outcome::Pass, None, None, now)));
+            fx.push(Effect::Ready {
+                device_ms,
+                reference_ms,
+                pipeline_cache,
+            });
+            fx.push(Effect::Worker(event(
+                w,
+                Phase::Setup,
+                Outcome::Pass,
+                None,
+                None,
+                now,
+            )));
         }
         WorkerMsg::Phase { phase, step } => {
             // Prebuild progress (GLSL, a cell compiled and bound, a pipeline) restarts its clock.
@@ -183,17 +249,34 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
             w.step = step;
         }
         WorkerMsg::Prebuild { cells, threads } if matches!(w.state, State::Between { .. }) => {
-            fx.push(Effect::Log(format!("worker {} prebuilds {} cells on {threads} threads", w.id, cells.len())));
+            fx.push(Effect::Log(format!(
+                "worker {} prebuilds {} cells on {threads} threads",
+                w.id,
+                cells.len()
+            )));
             w.enter(State::Prebuild { cells, since: now }, Phase::Prebuild);
         }
-        WorkerMsg::Prebuild { .. } => fx.push(Effect::Log(format!("worker {} sent prebuild while not between cells; ignored", w.id))),
-        WorkerMsg::Prebuilt { wall_ms, pipelines, threads } => {
+        WorkerMsg::Prebuild { .. } => fx.push(Effect::Log(format!(
+            "worker {} sent prebuild while not between cells; ignored",
+            w.id
+        ))),
+        WorkerMsg::Prebuilt {
+            wall_ms,
+            pipelines,
+            threads,
+        } => {
             if matches!(w.state, State::Prebuild { .. }) {
                 w.enter(State::Between { since: now }, Phase::BetweenCells);
-                fx.push(Effect::Prebuilt { wall_ms, pipelines, threads });
+                fx.push(Effect::Prebuilt {
+                    wall_ms,
+                    pipelines,
+                    threads,
+                });
             }
         }
-        WorkerMsg::CacheSaved { bytes, error } => fx.push(Effect::CacheSaved(bytes.ok_or_else(|| error.unwrap_or_else(|| "not saved".into())))),
+        WorkerMsg::CacheSaved { bytes, error } => fx.push(Effect::CacheSaved(
+            bytes.ok_or_else(|| error.unwrap_or_else(|| "not saved".into())),
+        )),
         WorkerMsg::Start { cell } => start(w, cell, now, fx),
         WorkerMsg::Result { cell, result } => finished(w, &cell, result, now, fx),
         WorkerMsg::Fatal { message, outcome } => dying(w, Cause::Fatal { message, outcome }, fx),
@@ -203,23 +286,42 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
 fn start(w: &mut Worker, cell: String, now: Instant, fx: &mut Vec<Effect>) {
     // Only between cells: a repeated `start` must not restart the running cell's clock.
     if !matches!(w.state, State::Between { .. }) {
-        fx.push(Effect::Log(format!("worker {} sent start {cell} while not between cells; ignored", w.id)));
+        fx.push(Effect::Log(format!(
+            "worker {} sent start {cell} while not between cells; ignored",
+            w.id
+        )));
     } else if let Some(c) = w.pending.iter().find(|c| c.id() == cell) {
-        w.enter(State::Cell { cell: *c, since: now }, Phase::Compile);
+        w.enter(
+            State::Cell {
+                cell: *c,
+                since: now,
+            },
+            Phase::Compile,
+        );
     }
 }
 
 /// A cell's result: its attempt; then the next cell, or teardown after the last one or after an
 /// outcome that ends the worker (it exits by itself).
-fn finished(w: &mut Worker, cell: &str, result: crate::model::CellResult, now: Instant, fx: &mut Vec<Effect>) {
+fn finished(
+    w: &mut Worker,
+    cell: &str,
+    result: crate::model::CellResult,
+    now: Instant,
+    fx: &mut Vec<Effect>,
+) {
     let since = match w.state {
         State::Cell { since, .. } => since,
         _ => now,
     };
-    let Some(pos) = w.pending.iter().position(|c| c.id() == cell) else { return };
+    let Some(pos) = w.pending.iter().position(|c| c.id() == cell) else {
+        return;
+    };
     let c = w.pending.remove(pos);
     let ends = result.outcome.ends_worker();
-    let attempt = attempt(w, result.outcome).with_result(result).with_wall_ms(ms(since, now));
+    let attempt = attempt(w, result.outcome)
+        .with_result(result)
+        .with_wall_ms(ms(since, now));
     w.progressed = true;
     if ends || w.pending.is_empty() {
         w.enter(State::Teardown { since: now }, Phase::Teardown);
@@ -234,7 +336,10 @@ fn garbage(w: &mut Worker, text: String, fx: &mut Vec<Effect>) {
     if w.garbage <= GARBAGE_LOGGED {
         fx.push(Effect::Log(format!("worker {} said: {text}", w.id)));
     } else if w.garbage == GARBAGE_LOGGED + 1 {
-        fx.push(Effect::Log(format!("worker {} keeps printing; further lines not logged", w.id)));
+        fx.push(Effect::Log(format!(
+            "worker {} keeps printing; further lines not logged",
+            w.id
+        )));
     }
 }
 
@@ -242,7 +347,11 @@ fn dying(w: &mut Worker, cause: Cause, fx: &mut Vec<Effect>) {
     if !alive(&w.state) {
         return;
     }
-    fx.push(if cause == Cause::Eof { Effect::Reap } else { Effect::Kill });
+    fx.push(if cause == Cause::Eof {
+        Effect::Reap
+    } else {
+        Effect::Kill
+    });
     let was = Box::new(std::mem::replace(&mut w.state, State::Ended));
     w.state = State::Dying { was, cause };
 }
@@ -260,18 +369,55 @@ fn exited(w: &mut Worker, exit: WorkerExit, now: Instant, limits: &Limits, fx: &
     let (outcome, detail) = match (&*was, cause) {
         (State::Teardown { .. }, Cause::Eof) if exit.code == Some(0) => return, // exited cleanly
         (State::Cell { .. }, Cause::Eof) => (died_as, format!("{what} mid-cell, in {at}")),
-        (State::Cell { .. }, Cause::Deadline) => (Outcome::Timeout, format!("no result within {:?}, in {at}; worker process group killed", limits.timeout)),
-        (State::Prebuild { .. }, Cause::Fatal { message, outcome }) => (outcome, format!("worker failed in {at}: {message}")),
-        (_, Cause::Fatal { message, outcome }) => (outcome, format!("worker setup failed in {at}: {message}")),
-        (State::Prebuild { .. }, Cause::Deadline) => (Outcome::Timeout, format!("no progress within {:?}, in {at}; worker process group killed", limits.timeout)),
-        (State::Setup, Cause::Deadline) => (Outcome::Timeout, format!("worker setup took longer than {:?}, in {at}; killed", limits.setup_timeout)),
-        (State::Between { .. }, Cause::Deadline) => (Outcome::Timeout, format!("no next cell within {:?} after the last result; killed", limits.timeout)),
-        (State::Teardown { .. }, Cause::Deadline) => (Outcome::Timeout, format!("did not exit within {:?} after its last cell, in {at}; killed", limits.timeout)),
+        (State::Cell { .. }, Cause::Deadline) => (
+            Outcome::Timeout,
+            format!(
+                "no result within {:?}, in {at}; worker process group killed",
+                limits.timeout
+            ),
+        ),
+        (State::Prebuild { .. }, Cause::Fatal { message, outcome }) => {
+            (outcome, format!("worker failed in {at}: {message}"))
+        }
+        (_, Cause::Fatal { message, outcome }) => {
+            (outcome, format!("worker setup failed in {at}: {message}"))
+        }
+        (State::Prebuild { .. }, Cause::Deadline) => (
+            Outcome::Timeout,
+            format!(
+                "no progress within {:?}, in {at}; worker process group killed",
+                limits.timeout
+            ),
+        ),
+        (State::Setup, Cause::Deadline) => (
+            Outcome::Timeout,
+            format!(
+                "worker setup took longer than {:?}, in {at}; killed",
+                limits.setup_timeout
+            ),
+        ),
+        (State::Between { .. }, Cause::Deadline) => (
+            Outcome::Timeout,
+            format!(
+                "no next cell within {:?} after the last result; killed",
+                limits.timeout
+            ),
+        ),
+        (State::Teardown { .. }, Cause::Deadline) => (
+            Outcome::Timeout,
+            format!(
+                "did not exit within {:?} after its last cell, in {at}; killed",
+                limits.timeout
+            ),
+        ),
         (_, Cause::Eof | Cause::Deadline) => (died_as, format!("{what} in {at}")),
     };
     match *was {
         State::Cell { cell, since } if !fatal => {
-            let attempt = attempt(w, outcome).with_detail(detail).with_exit(exit).with_wall_ms(ms(since, now));
+            let attempt = attempt(w, outcome)
+                .with_detail(detail)
+                .with_exit(exit)
+                .with_wall_ms(ms(since, now));
             fx.push(Effect::Attempt { cell, attempt });
         }
         State::Prebuild { cells, .. } => prebuild_failed(w, cells, outcome, detail, exit, now, fx),
@@ -282,19 +428,55 @@ fn exited(w: &mut Worker, exit: WorkerExit, now: Instant, limits: &Limits, fx: &
 /// A worker died, hung or lost its device while prebuilding: no one cell can be blamed, so it
 /// is the worker's record (phase `prebuild`), and the batch's cells go back to the sequential
 /// path: later workers build each at its turn, where a fault is exactly one cell's verdict.
-fn prebuild_failed(w: &Worker, cells: Vec<String>, outcome: Outcome, detail: String, exit: WorkerExit, now: Instant, fx: &mut Vec<Effect>) {
+fn prebuild_failed(
+    w: &Worker,
+    cells: Vec<String>,
+    outcome: Outcome,
+    detail: String,
+    exit: WorkerExit,
+    now: Instant,
+    fx: &mut Vec<Effect>,
+) {
     fx.push(Effect::Serial(cells));
     let detail = format!("{detail}; its batch runs again, each cell building at its turn");
-    fx.push(Effect::Worker(event(w, Phase::Prebuild, outcome, Some(detail), Some(exit), now)));
+    fx.push(Effect::Worker(event(
+        w,
+        Phase::Prebuild,
+        outcome,
+        Some(detail),
+        Some(exit),
+        now,
+    )));
 }
 
 /// A worker failed outside any cell: in setup, between cells or in teardown. Its own event;
 /// without an attempt it is fruitless too, with what its cells get should the slot give up.
-fn worker_failed(w: &Worker, outcome: Outcome, detail: String, exit: WorkerExit, now: Instant, fx: &mut Vec<Effect>) {
-    let why = format!("not run: two workers in a row failed before running a cell; the last: {} in {}: {detail}", outcome.as_str(), w.phase);
-    fx.push(Effect::Worker(event(w, w.phase, outcome, Some(detail), Some(exit.clone()), now)));
+fn worker_failed(
+    w: &Worker,
+    outcome: Outcome,
+    detail: String,
+    exit: WorkerExit,
+    now: Instant,
+    fx: &mut Vec<Effect>,
+) {
+    let why = format!(
+        "not run: two workers in a row failed before running a cell; the last: {} in {}: {detail}",
+        outcome.as_str(),
+        w.phase
+    );
+    fx.push(Effect::Worker(event(
+        w,
+        w.phase,
+        outcome,
+        Some(detail),
+        Some(exit.clone()),
+        now,
+    )));
     if !w.progressed {
-        fx.push(Effect::Fruitless { batch: w.batch, not_run: attempt(w, outcome).with_detail(why).with_exit(exit) });
+        fx.push(Effect::Fruitless {
+            batch: w.batch,
+            not_run: attempt(w, outcome).with_detail(why).with_exit(exit),
+        });
     }
 }
 
@@ -303,8 +485,24 @@ fn attempt(w: &Worker, outcome: Outcome) -> Attempt {
     Attempt::new(outcome, w.isolated).with_worker(w.id, w.phase, w.device_features.clone())
 }
 
-fn event(w: &Worker, phase: Phase, outcome: Outcome, detail: Option<String>, worker_exit: Option<WorkerExit>, now: Instant) -> WorkerEvent {
-    WorkerEvent { worker: w.id, phase, outcome, detail, cells: w.batch, wall_ms: ms(w.spawned, now), device_features: w.device_features.clone(), worker_exit }
+fn event(
+    w: &Worker,
+    phase: Phase,
+    outcome: Outcome,
+    detail: Option<String>,
+    worker_exit: Option<WorkerExit>,
+    now: Instant,
+) -> WorkerEvent {
+    WorkerEvent {
+        worker: w.id,
+        phase,
+        outcome,
+        detail,
+        cells: w.batch,
+        wall_ms: ms(w.spawned, now),
+        device_features: w.device_features.clone(),
+        worker_exit,
+    }
 }
 
 fn ms(since: Instant, now: Instant) -> f64 {
@@ -314,7 +512,10 @@ fn ms(since: Instant, now: Instant) -> f64 {
 /// How a worker that ended unasked is classified: a signal or a non-zero code is a crash.
 pub(super) fn died(exit: &WorkerExit) -> (Outcome, String) {
     match (exit.signal, exit.code) {
-        (Some(s), _) => (Outcome::Crash, format!("worker killed by signal {s} ({})", signal_name(s))),
+        (Some(s), _) => (
+            Outcome::Crash,
+            format!("worker killed by signal {s} ({})", signal_name(s)),
+        ),
         (None, Some(c)) if c != 0 => (Outcome::Crash, format!("worker exited with code {c}")),
         (None, Some(_)) => (Outcome::Error, "worker exited (code 0) early".into()),
         (None, None) => (Outcome::Error, "worker vanished".into()),

@@ -2,8 +2,8 @@
 //! [`Mode`] and reports what happens as the supervisor's [`Event`]s. `campaign`'s rounds and
 //! `bisect` share it; the CLI's implementation wraps [`super::supervisor::Supervisor`], tests
 //! script outcomes per cell, `bisect --offline`'s runs nothing.
-use crate::model::Cell;
 pub use super::supervisor::Event;
+use crate::model::Cell;
 
 /// How a batch of cells runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -34,7 +34,11 @@ impl Proc {
     /// ending with [`Input::Eof`].
     pub fn start(job: &Path, slot: usize, worker: u64, tx: Sender<Line>) -> std::io::Result<Proc> {
         let mut cmd = Command::new(std::env::current_exe()?);
-        cmd.arg("__worker").arg(job).stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped());
+        cmd.arg("__worker")
+            .arg(job)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped());
         groups::harden(&mut cmd);
         let mut child = cmd.spawn()?;
         let pid = child.id() as i32;
@@ -55,12 +59,24 @@ impl Proc {
         });
         let stderr = Arc::new(Mutex::new(String::new()));
         keep_tail(child.stderr.take().expect("piped stderr"), stderr.clone());
-        Ok(Proc { child, pid, worker, stderr })
+        Ok(Proc {
+            child,
+            pid,
+            worker,
+            stderr,
+        })
     }
 
     /// Kills its group (see [`kill_group`]).
     pub fn kill(&mut self, grace: Duration, kill_wait: Duration) -> WorkerExit {
-        kill_group(&mut self.child, self.pid, self.worker, &self.stderr, grace, kill_wait)
+        kill_group(
+            &mut self.child,
+            self.pid,
+            self.worker,
+            &self.stderr,
+            grace,
+            kill_wait,
+        )
     }
 
     /// Its output ended: waits at most `grace` for the exit; one that closed its output but does
@@ -88,7 +104,9 @@ fn keep_tail(mut pipe: impl Read + Send + 'static, sink: Arc<Mutex<String>>) {
                 s.push_str(&String::from_utf8_lossy(&buf[..n]));
                 if s.len() > 2 * STDERR_TAIL {
                     let cut = s.len() - STDERR_TAIL;
-                    let cut = (cut..s.len()).find(|i| s.is_char_boundary(*i)).unwrap_or(cut);
+                    let cut = (cut..s.len())
+                        .find(|i| s.is_char_boundary(*i))
+                        .unwrap_or(cut);
                     s.drain(..cut);
                 }
             }
@@ -113,7 +131,10 @@ fn poll_exit(child: &mut Child, bound: Duration) -> Option<ExitStatus> {
 pub(super) fn proc_state(pid: i32) -> String {
     std::fs::read_to_string(format!("/proc/{pid}/stat"))
         .ok()
-        .and_then(|s| s.rsplit_once(')').map(|(_, rest)| rest.split_whitespace().next().unwrap_or("?").to_string()))
+        .and_then(|s| {
+            s.rsplit_once(')')
+                .map(|(_, rest)| rest.split_whitespace().next().unwrap_or("?").to_string())
+        })
         .map(|c| match c.as_str() {
             "D" => "D (uninterruptible sleep)".to_string(),
             "Z" => "Z (zombie)".to_string(),
@@ -124,7 +145,14 @@ pub(super) fn proc_state(pid: i32) -> String {
 
 /// SIGTERM the group, wait `grace`, SIGKILL, wait at most `kill_wait`; a process still there is
 /// abandoned (reported, never waited on again).
-fn kill_group(child: &mut Child, pid: i32, worker: u64, stderr: &Arc<Mutex<String>>, grace: Duration, kill_wait: Duration) -> WorkerExit {
+fn kill_group(
+    child: &mut Child,
+    pid: i32,
+    worker: u64,
+    stderr: &Arc<Mutex<String>>,
+    grace: Duration,
+    kill_wait: Duration,
+) -> WorkerExit {
     unsafe { libc::kill(-pid, libc::SIGTERM) };
     let mut status = poll_exit(child, grace);
     if status.is_none() {
@@ -136,8 +164,12 @@ fn kill_group(child: &mut Child, pid: i32, worker: u64, stderr: &Arc<Mutex<Strin
     let mut exit = exit_of(status, stderr);
     if status.is_none() {
         let state = proc_state(pid);
-        tracing::warn!("worker {worker} (pid {pid}) did not die after SIGKILL; state {state}; abandoned");
-        exit.abandoned = Some(format!("pid {pid} still alive {kill_wait:?} after SIGKILL, state {state}; abandoned"));
+        tracing::warn!(
+            "worker {worker} (pid {pid}) did not die after SIGKILL; state {state}; abandoned"
+        );
+        exit.abandoned = Some(format!(
+            "pid {pid} still alive {kill_wait:?} after SIGKILL, state {state}; abandoned"
+        ));
     } else {
         groups::unregister(pid);
     }
@@ -148,7 +180,12 @@ fn exit_of(status: Option<ExitStatus>, stderr: &Arc<Mutex<String>>) -> WorkerExi
     // Give the stderr reader a moment to drain.
     std::thread::sleep(Duration::from_millis(20));
     let tail = stderr.lock().map(|s| s.clone()).unwrap_or_default();
-    WorkerExit { code: status.and_then(|s| s.code()), signal: status.and_then(|s| s.signal()), stderr_tail: tail, abandoned: None }
+    WorkerExit {
+        code: status.and_then(|s| s.code()),
+        signal: status.and_then(|s| s.signal()),
+        stderr_tail: tail,
+        abandoned: None,
+    }
 }
 
 #[cfg(test)]
@@ -160,7 +197,10 @@ mod tests {
     fn a_process_that_will_not_exit_is_not_waited_on_forever() {
         // A child that ignores SIGTERM stands in for one stuck in the kernel: poll_exit must
         // return within its bound rather than block.
-        let mut child = Command::new("sh").args(["-c", "trap '' TERM; sleep 30"]).spawn().unwrap();
+        let mut child = Command::new("sh")
+            .args(["-c", "trap '' TERM; sleep 30"])
+            .spawn()
+            .unwrap();
         let t = Instant::now();
         assert!(poll_exit(&mut child, Duration::from_millis(200)).is_none());
         assert!(t.elapsed() < Duration::from_secs(2));

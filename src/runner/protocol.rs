@@ -4,8 +4,8 @@
 //! end of output and exit status.
 use crate::model::Cell;
 use crate::model::Phase;
-use crate::model::{CellResult, Outcome};
 use crate::model::SceneParams;
+use crate::model::{CellResult, Outcome};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
@@ -70,9 +70,16 @@ pub enum WorkerMsg {
     /// bindings in order, pipelines on `threads` threads. Progress comes as `phase` messages
     /// (`prebuild`, step `glsl k/n`, `compiled k/n` or `pipelines k/n`), each restarting the
     /// supervisor's deadline; a death or hang now is blamed on no cell.
-    Prebuild { cells: Vec<String>, threads: usize },
+    Prebuild {
+        cells: Vec<String>,
+        threads: usize,
+    },
     /// The prebuild finished; each cell's result (or error) waits for its turn.
-    Prebuilt { wall_ms: f64, pipelines: usize, threads: usize },
+    Prebuilt {
+        wall_ms: f64,
+        pipelines: usize,
+        threads: usize,
+    },
     /// After the last cell: the pipeline cache was written (`bytes`) or not (`error`).
     CacheSaved {
         #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -87,8 +94,13 @@ pub enum WorkerMsg {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         step: Option<String>,
     },
-    Start { cell: String },
-    Result { cell: String, result: CellResult },
+    Start {
+        cell: String,
+    },
+    Result {
+        cell: String,
+        result: CellResult,
+    },
     /// Setup failed: the worker cannot run its cells (or, during a prebuild, an error that ends
     /// the worker: a device loss or a hung fence). `outcome` classifies the failure
     /// (`device_lost`, `timeout` of a fence in an upload or AS build, `error`).
@@ -109,10 +121,22 @@ mod tests {
 
     #[test]
     fn messages_are_one_json_object_with_a_type() {
-        let m = WorkerMsg::Phase { phase: Phase::Pipeline, step: None };
-        assert_eq!(serde_json::to_string(&m).unwrap(), r#"{"type":"phase","phase":"pipeline"}"#);
+        let m = WorkerMsg::Phase {
+            phase: Phase::Pipeline,
+            step: None,
+        };
+        assert_eq!(
+            serde_json::to_string(&m).unwrap(),
+            r#"{"type":"phase","phase":"pipeline"}"#
+        );
         let f: WorkerMsg = serde_json::from_str(r#"{"type":"fatal","message":"x"}"#).unwrap();
-        assert!(matches!(f, WorkerMsg::Fatal { outcome: Outcome::Error, .. }));
+        assert!(matches!(
+            f,
+            WorkerMsg::Fatal {
+                outcome: Outcome::Error,
+                ..
+            }
+        ));
     }
 
     #[test]
@@ -134,8 +158,19 @@ mod tests {
             binding_stages: Some("all".into()),
         };
         let mut v = serde_json::to_value(&job).unwrap();
-        assert_eq!(serde_json::from_value::<WorkerJob>(v.clone()).unwrap().binding_stages.as_deref(), Some("all"));
+        assert_eq!(
+            serde_json::from_value::<WorkerJob>(v.clone())
+                .unwrap()
+                .binding_stages
+                .as_deref(),
+            Some("all")
+        );
         v.as_object_mut().unwrap().remove("binding_stages");
-        assert_eq!(serde_json::from_value::<WorkerJob>(v).unwrap().binding_stages, None);
+        assert_eq!(
+            serde_json::from_value::<WorkerJob>(v)
+                .unwrap()
+                .binding_stages,
+            None
+        );
     }
 }

@@ -33,7 +33,15 @@ impl<W> Schedule<W> {
     pub fn new(cells: &[Cell], jobs: usize, per_cell: bool) -> Self {
         let jobs = jobs.max(1).min(cells.len().max(1));
         let chunk = cells.len().div_ceil(jobs).max(1);
-        let slots = cells.chunks(chunk).map(|c| Slot { queue: c.iter().copied().collect(), worker: None, fruitless: 0, serial: HashSet::new() }).collect();
+        let slots = cells
+            .chunks(chunk)
+            .map(|c| Slot {
+                queue: c.iter().copied().collect(),
+                worker: None,
+                fruitless: 0,
+                serial: HashSet::new(),
+            })
+            .collect();
         Schedule { slots, per_cell }
     }
 
@@ -43,19 +51,31 @@ impl<W> Schedule<W> {
 
     /// No cell left and no worker running.
     pub fn finished(&self) -> bool {
-        self.slots.iter().all(|s| s.worker.is_none() && s.queue.is_empty())
+        self.slots
+            .iter()
+            .all(|s| s.worker.is_none() && s.queue.is_empty())
     }
 
     /// Slots with cells left and no worker.
     pub fn idle(&self) -> Vec<usize> {
-        (0..self.slots.len()).filter(|&i| self.slots[i].worker.is_none() && !self.slots[i].queue.is_empty()).collect()
+        (0..self.slots.len())
+            .filter(|&i| self.slots[i].worker.is_none() && !self.slots[i].queue.is_empty())
+            .collect()
     }
 
     /// The job of slot `i`'s next worker: a prefix of its queue.
     pub fn job(&self, i: usize) -> Job {
         let s = &self.slots[i];
-        let cells: Vec<Cell> = if self.per_cell { s.queue.iter().take(1).copied().collect() } else { s.queue.iter().copied().collect() };
-        let serial = cells.iter().map(Cell::id).filter(|id| s.serial.contains(id)).collect();
+        let cells: Vec<Cell> = if self.per_cell {
+            s.queue.iter().take(1).copied().collect()
+        } else {
+            s.queue.iter().copied().collect()
+        };
+        let serial = cells
+            .iter()
+            .map(Cell::id)
+            .filter(|id| s.serial.contains(id))
+            .collect();
         Job { cells, serial }
     }
 
@@ -104,8 +124,27 @@ mod tests {
     use crate::model::{DescriptorModel, IndexSource, Resource, Stage};
 
     fn cells(n: usize) -> Vec<Cell> {
-        let stages = [Stage::Raygen, Stage::ClosestHit, Stage::AnyHit, Stage::Miss, Stage::Intersection, Stage::Callable, Stage::Compute];
-        let out: Vec<Cell> = stages.iter().map(|&s| Cell::new(s, Resource::StorageBuffer, IndexSource::Literal, DescriptorModel::DescriptorIndexing)).take(n).collect();
+        let stages = [
+            Stage::Raygen,
+            Stage::ClosestHit,
+            Stage::AnyHit,
+            Stage::Miss,
+            Stage::Intersection,
+            Stage::Callable,
+            Stage::Compute,
+        ];
+        let out: Vec<Cell> = stages
+            .iter()
+            .map(|&s| {
+                Cell::new(
+                    s,
+                    Resource::StorageBuffer,
+                    IndexSource::Literal,
+                    DescriptorModel::DescriptorIndexing,
+                )
+            })
+            .take(n)
+            .collect();
         assert_eq!(out.len(), n);
         out
     }
@@ -149,9 +188,16 @@ mod tests {
         let c = cells(4);
         let mut s: Schedule<()> = Schedule::new(&c, 1, true);
         assert!(s.fruitless(0, 1).is_empty(), "the first failure is retried");
-        assert_eq!(s.fruitless(0, 1), c[..1], "the second gives up on that worker's job only");
+        assert_eq!(
+            s.fruitless(0, 1),
+            c[..1],
+            "the second gives up on that worker's job only"
+        );
         assert_eq!(s.job(0).cells, c[1..2]);
-        assert!(s.fruitless(0, 1).is_empty(), "the count starts again for the next job");
+        assert!(
+            s.fruitless(0, 1).is_empty(),
+            "the count starts again for the next job"
+        );
     }
 
     #[test]

@@ -24,10 +24,10 @@ use crate::model::Cell;
 use crate::model::Outcome;
 use crate::model::Phase;
 use crate::model::SceneParams;
+use crate::model::{Attempt, Isolation, WorkerEvent};
 use std::path::PathBuf;
 use std::sync::mpsc::{channel, Receiver, RecvTimeoutError, Sender};
 use std::time::{Duration, Instant};
-use crate::model::{Attempt, Isolation, WorkerEvent};
 
 #[derive(Clone, Debug)]
 pub struct SupervisorOptions {
@@ -65,16 +65,26 @@ pub struct SupervisorOptions {
 
 /// Events for the report writer and progress display.
 pub enum Event<'a> {
-    WorkerReady { device_ms: f64, reference_ms: f64, pipeline_cache: Option<crate::exec::pipeline_cache::Loaded> },
+    WorkerReady {
+        device_ms: f64,
+        reference_ms: f64,
+        pipeline_cache: Option<crate::exec::pipeline_cache::Loaded>,
+    },
     /// A worker built a batch of cells ahead of their turns.
-    Prebuilt { wall_ms: f64, pipelines: usize, threads: usize },
+    Prebuilt {
+        wall_ms: f64,
+        pipelines: usize,
+        threads: usize,
+    },
     /// A worker wrote the pipeline cache back (`Err`: why not).
     CacheSaved(Result<u64, String>),
     /// A worker's setup finished or failed, or it faulted outside a cell.
     Worker(WorkerEvent),
-    Attempt { cell: &'a Cell, attempt: Attempt },
+    Attempt {
+        cell: &'a Cell,
+        attempt: Attempt,
+    },
 }
-
 
 /// A worker the supervisor runs: its process, and its state as [`machine`] keeps it.
 struct Running {
@@ -97,11 +107,21 @@ impl Supervisor {
         super::groups::install_handlers();
         let (tx, rx) = channel();
         let injections = Injections::new(opts.inject.clone());
-        Supervisor { opts, injections, tx, rx, generation: 0, rerun: false }
+        Supervisor {
+            opts,
+            injections,
+            tx,
+            rx,
+            generation: 0,
+            rerun: false,
+        }
     }
 
     fn limits(&self) -> Limits {
-        Limits { timeout: self.opts.timeout, setup_timeout: self.opts.setup_timeout }
+        Limits {
+            timeout: self.opts.timeout,
+            setup_timeout: self.opts.setup_timeout,
+        }
     }
 
     /// Run `cells`, calling `on` for each attempt as it finishes. `isolated` forces one fresh
@@ -121,12 +141,24 @@ impl Supervisor {
             }
             let now = Instant::now();
             let limits = self.limits();
-            let deadline = schedule.workers().filter_map(|r| r.worker.deadline(&limits)).min().unwrap_or(now + Duration::from_millis(50));
-            match self.rx.recv_timeout(deadline.saturating_duration_since(now)) {
+            let deadline = schedule
+                .workers()
+                .filter_map(|r| r.worker.deadline(&limits))
+                .min()
+                .unwrap_or(now + Duration::from_millis(50));
+            match self
+                .rx
+                .recv_timeout(deadline.saturating_duration_since(now))
+            {
                 Ok((i, id, input)) => {
                     // Worker ids are unique per supervisor; a late line from a worker of an
                     // earlier `run` (more slots, or a slot since reused) matches no worker here.
-                    if schedule.slots.get(i).and_then(|s| s.worker.as_ref()).is_some_and(|r| r.worker.id == id) {
+                    if schedule
+                        .slots
+                        .get(i)
+                        .and_then(|s| s.worker.as_ref())
+                        .is_some_and(|r| r.worker.id == id)
+                    {
                         self.feed(&mut schedule, i, input, on);
                     }
                 }
@@ -145,7 +177,9 @@ impl Supervisor {
                 Err(e) => {
                     let msg = format!("cannot start a worker: {e}");
                     for c in schedule.abandon(i) {
-                        let attempt = Attempt::new(Outcome::Error, schedule.per_cell()).with_worker(0, Phase::Setup, vec![]).with_detail(msg.clone());
+                        let attempt = Attempt::new(Outcome::Error, schedule.per_cell())
+                            .with_worker(0, Phase::Setup, vec![])
+                            .with_detail(msg.clone());
                         self.record(&c, attempt, on);
                     }
                 }
@@ -175,10 +209,19 @@ impl Supervisor {
             binding_stages: self.opts.binding_stages.clone(),
         };
         std::fs::create_dir_all(&self.opts.job_dir)?;
-        let path = self.opts.job_dir.join(format!("job-{}-{id}.json", std::process::id()));
-        std::fs::write(&path, serde_json::to_vec(&job).map_err(std::io::Error::other)?)?;
+        let path = self
+            .opts
+            .job_dir
+            .join(format!("job-{}-{id}.json", std::process::id()));
+        std::fs::write(
+            &path,
+            serde_json::to_vec(&job).map_err(std::io::Error::other)?,
+        )?;
         let process = Proc::start(&path, slot, id, self.tx.clone())?;
-        Ok(Running { process, worker: machine::Worker::new(id, job.cells, per_cell, Instant::now()) })
+        Ok(Running {
+            process,
+            worker: machine::Worker::new(id, job.cells, per_cell, Instant::now()),
+        })
     }
 
     /// Kill every worker past its deadline; true when one was.
@@ -186,7 +229,13 @@ impl Supervisor {
         let now = Instant::now();
         let limits = self.limits();
         let due: Vec<usize> = (0..schedule.slots.len())
-            .filter(|&i| schedule.slots[i].worker.as_ref().and_then(|r| r.worker.deadline(&limits)).is_some_and(|d| now >= d))
+            .filter(|&i| {
+                schedule.slots[i]
+                    .worker
+                    .as_ref()
+                    .and_then(|r| r.worker.deadline(&limits))
+                    .is_some_and(|d| now >= d)
+            })
             .collect();
         for &i in &due {
             self.feed(schedule, i, Input::Deadline, on);
@@ -196,8 +245,16 @@ impl Supervisor {
 
     /// Steps slot `i`'s worker with `input` and carries out the effects; a kill or reap feeds how
     /// the process ended back in. An ended worker leaves its slot.
-    fn feed(&mut self, schedule: &mut Schedule<Running>, i: usize, input: Input, on: &mut dyn FnMut(Event)) {
-        let Some(mut r) = schedule.slots[i].worker.take() else { return };
+    fn feed(
+        &mut self,
+        schedule: &mut Schedule<Running>,
+        i: usize,
+        input: Input,
+        on: &mut dyn FnMut(Event),
+    ) {
+        let Some(mut r) = schedule.slots[i].worker.take() else {
+            return;
+        };
         let limits = self.limits();
         let mut next = Some(input);
         while let Some(input) = next.take() {
@@ -215,13 +272,44 @@ impl Supervisor {
     }
 
     /// Carries out one effect of slot `i`'s worker; a kill or a reap returns how it ended.
-    fn apply(&self, schedule: &mut Schedule<Running>, i: usize, process: &mut Proc, effect: Effect, on: &mut dyn FnMut(Event)) -> Option<Input> {
+    fn apply(
+        &self,
+        schedule: &mut Schedule<Running>,
+        i: usize,
+        process: &mut Proc,
+        effect: Effect,
+        on: &mut dyn FnMut(Event),
+    ) -> Option<Input> {
         match effect {
             Effect::Log(line) => tracing::debug!("{line}"),
-            Effect::Kill => return Some(Input::Exited(process.kill(self.opts.grace, self.opts.kill_wait))),
-            Effect::Reap => return Some(Input::Exited(process.reap(self.opts.grace, self.opts.kill_wait))),
-            Effect::Ready { device_ms, reference_ms, pipeline_cache } => on(Event::WorkerReady { device_ms, reference_ms, pipeline_cache }),
-            Effect::Prebuilt { wall_ms, pipelines, threads } => on(Event::Prebuilt { wall_ms, pipelines, threads }),
+            Effect::Kill => {
+                return Some(Input::Exited(
+                    process.kill(self.opts.grace, self.opts.kill_wait),
+                ))
+            }
+            Effect::Reap => {
+                return Some(Input::Exited(
+                    process.reap(self.opts.grace, self.opts.kill_wait),
+                ))
+            }
+            Effect::Ready {
+                device_ms,
+                reference_ms,
+                pipeline_cache,
+            } => on(Event::WorkerReady {
+                device_ms,
+                reference_ms,
+                pipeline_cache,
+            }),
+            Effect::Prebuilt {
+                wall_ms,
+                pipelines,
+                threads,
+            } => on(Event::Prebuilt {
+                wall_ms,
+                pipelines,
+                threads,
+            }),
             Effect::CacheSaved(saved) => on(Event::CacheSaved(saved)),
             Effect::Worker(event) => on(Event::Worker(event)),
             Effect::Attempt { cell, attempt } => {

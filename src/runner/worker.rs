@@ -6,11 +6,11 @@
 //! skipping destructors that could block on a hung queue). The supervisor kills it if the
 //! supervisor dies (PR_SET_PDEATHSIG, set at spawn).
 use super::misbehave::{Misbehave, SetupStep};
-use crate::model::Phase;
 use super::protocol::{WorkerJob, WorkerMsg};
 use crate::exec::prebuild::Step;
 use crate::exec::{CellError, ExecOptions, Executor};
 use crate::model::Outcome;
+use crate::model::Phase;
 use crate::model::{Cell, DescriptorModel, Resource, Stage};
 use crate::probe::spec::{ArrayAt, ProbeSpec};
 use crate::vk::{features, Gpu, Instance, InstanceOptions, Requirements, VkError};
@@ -26,13 +26,18 @@ pub fn requirements(info: &crate::vk::DeviceInfo, cells: &[Cell]) -> Requirement
     let fragment = any(&|s| s.stage == Stage::Fragment);
     Requirements {
         rt_pipeline: any(&|s| s.stage.is_ray_tracing()),
-        ray_query: any(&|s| s.resource == Resource::AccelerationStructure && !s.stage.can_trace_ray()),
+        ray_query: any(&|s| {
+            s.resource == Resource::AccelerationStructure && !s.stage.can_trace_ray()
+        }),
         buffer_device_address: true,
         descriptor_indexing: true,
         descriptor_buffer: any(&|s| s.model == DescriptorModel::DescriptorBuffer),
         descriptor_heap: any(&|s| s.model == DescriptorModel::DescriptorHeap),
         untyped_pointers: any(&|s| s.array == ArrayAt::Heap),
-        device_fault: info.features.fault.is_some_and(|f| f.device_fault == ash::vk::TRUE),
+        device_fault: info
+            .features
+            .fault
+            .is_some_and(|f| f.device_fault == ash::vk::TRUE),
         int64: any(&ProbeSpec::int64),
         fragment_stores: fragment,
         dynamic_rendering: fragment,
@@ -54,7 +59,10 @@ struct Phases {
 
 impl Phases {
     fn enter(&self, phase: Phase, step: Option<(SetupStep, &str)>) -> Result<(), VkError> {
-        send(&WorkerMsg::Phase { phase, step: step.map(|(_, s)| s.to_string()) });
+        send(&WorkerMsg::Phase {
+            phase,
+            step: step.map(|(_, s)| s.to_string()),
+        });
         match &self.hook {
             Some(h) => h.at(phase, step.map(|(s, _)| s)),
             None => Ok(()),
@@ -70,7 +78,10 @@ struct SetupFailure {
 
 impl From<CellError> for SetupFailure {
     fn from(e: CellError) -> Self {
-        SetupFailure { outcome: e.outcome(), message: e.to_string() }
+        SetupFailure {
+            outcome: e.outcome(),
+            message: e.to_string(),
+        }
     }
 }
 
@@ -81,17 +92,31 @@ impl From<VkError> for SetupFailure {
 }
 
 fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
-    phases.enter(Phase::Setup, Some((SetupStep::CreateInstance, "vkCreateInstance")))?;
-    let inst = Arc::new(Instance::new(&InstanceOptions { validate: job.validate, gpu_av: job.gpu_av })?);
+    phases.enter(
+        Phase::Setup,
+        Some((SetupStep::CreateInstance, "vkCreateInstance")),
+    )?;
+    let inst = Arc::new(Instance::new(&InstanceOptions {
+        validate: job.validate,
+        gpu_av: job.gpu_av,
+    })?);
     let all = features::query_all(&inst)?;
     let info = all
         .get(job.device_index)
-        .ok_or_else(|| SetupFailure { outcome: Outcome::Error, message: format!("device {} vanished", job.device_index) })?
+        .ok_or_else(|| SetupFailure {
+            outcome: Outcome::Error,
+            message: format!("device {} vanished", job.device_index),
+        })?
         .clone();
     let mut req = requirements(&info, &job.cells);
     // Injected invalid-address loads need 64-bit integers, as the address probes do.
-    req.int64 |= job.cells.iter().any(|c| crate::model::inject::for_cell(&job.inject, c).is_some_and(|i| i.fault.reads_bad_address()));
-    phases.enter(Phase::Setup, Some((SetupStep::CreateDevice, "vkCreateDevice")))?;
+    req.int64 |= job.cells.iter().any(|c| {
+        crate::model::inject::for_cell(&job.inject, c).is_some_and(|i| i.fault.reads_bad_address())
+    });
+    phases.enter(
+        Phase::Setup,
+        Some((SetupStep::CreateDevice, "vkCreateDevice")),
+    )?;
     let gpu = Gpu::new(inst, info, req)?;
     let opts = ExecOptions {
         timeout: Duration::from_millis(job.fence_timeout_ms),
@@ -103,7 +128,10 @@ fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
         all_stages: job.binding_stages.as_deref() == Some("all"),
     };
     let mut exec = Executor::new(gpu, &job.scene, opts)?;
-    phases.enter(Phase::Setup, Some((SetupStep::Scene, "acceleration structures and resources")))?;
+    phases.enter(
+        Phase::Setup,
+        Some((SetupStep::Scene, "acceleration structures and resources")),
+    )?;
     exec.prepare(&job.cells)?;
     Ok(exec)
 }
@@ -118,18 +146,47 @@ const PREBUILD_CHUNK: usize = 512;
 /// restarts the supervisor's deadline. An error that ends the worker (a device loss, a hung
 /// fence, or the test hook's) is the worker's: it reports it as fatal and exits, and the
 /// supervisor runs these cells again without prebuilding.
-fn prebuild(exec: &mut Executor, chunk: &[Cell], serial: &HashSet<&str>, threads: usize, phases: &Phases) {
-    let cells: Vec<Cell> = chunk.iter().filter(|c| !serial.contains(c.id().as_str())).copied().collect();
+fn prebuild(
+    exec: &mut Executor,
+    chunk: &[Cell],
+    serial: &HashSet<&str>,
+    threads: usize,
+    phases: &Phases,
+) {
+    let cells: Vec<Cell> = chunk
+        .iter()
+        .filter(|c| !serial.contains(c.id().as_str()))
+        .copied()
+        .collect();
     if threads <= 1 || cells.len() < 2 {
         return;
     }
-    send(&WorkerMsg::Prebuild { cells: cells.iter().map(Cell::id).collect(), threads });
+    send(&WorkerMsg::Prebuild {
+        cells: cells.iter().map(Cell::id).collect(),
+        threads,
+    });
     let t = Instant::now();
-    let progress = |step: Step| send(&WorkerMsg::Phase { phase: Phase::Prebuild, step: Some(step.to_string()) });
-    match phases.enter(Phase::Prebuild, None).map_err(CellError::from).and_then(|()| exec.prebuild(&cells, threads, &progress)) {
-        Ok(stats) => send(&WorkerMsg::Prebuilt { wall_ms: t.elapsed().as_secs_f64() * 1e3, pipelines: stats.pipelines, threads: stats.threads }),
+    let progress = |step: Step| {
+        send(&WorkerMsg::Phase {
+            phase: Phase::Prebuild,
+            step: Some(step.to_string()),
+        })
+    };
+    match phases
+        .enter(Phase::Prebuild, None)
+        .map_err(CellError::from)
+        .and_then(|()| exec.prebuild(&cells, threads, &progress))
+    {
+        Ok(stats) => send(&WorkerMsg::Prebuilt {
+            wall_ms: t.elapsed().as_secs_f64() * 1e3,
+            pipelines: stats.pipelines,
+            threads: stats.threads,
+        }),
         Err(e) => {
-            send(&WorkerMsg::Fatal { message: format!("building a batch of cells on {threads} threads: {e}"), outcome: e.outcome() });
+            send(&WorkerMsg::Fatal {
+                message: format!("building a batch of cells on {threads} threads: {e}"),
+                outcome: e.outcome(),
+            });
             unsafe { libc::_exit(0) };
         }
     }
@@ -140,15 +197,24 @@ pub fn main(job_path: &std::path::Path) -> u8 {
     let hook = match Misbehave::from_env() {
         Ok(h) => h,
         Err(message) => {
-            send(&WorkerMsg::Fatal { message, outcome: Outcome::Error });
+            send(&WorkerMsg::Fatal {
+                message,
+                outcome: Outcome::Error,
+            });
             return 2;
         }
     };
     let phases = Phases { hook };
-    let job: WorkerJob = match std::fs::read(job_path).map_err(|e| e.to_string()).and_then(|b| serde_json::from_slice(&b).map_err(|e| e.to_string())) {
+    let job: WorkerJob = match std::fs::read(job_path)
+        .map_err(|e| e.to_string())
+        .and_then(|b| serde_json::from_slice(&b).map_err(|e| e.to_string()))
+    {
         Ok(j) => j,
         Err(e) => {
-            send(&WorkerMsg::Fatal { message: format!("cannot read job {}: {e}", job_path.display()), outcome: Outcome::Error });
+            send(&WorkerMsg::Fatal {
+                message: format!("cannot read job {}: {e}", job_path.display()),
+                outcome: Outcome::Error,
+            });
             return 2;
         }
     };
@@ -181,7 +247,11 @@ pub fn main(job_path: &std::path::Path) -> u8 {
                 // The device is lost or hung: do not run destructors that may wait on it.
                 unsafe { libc::_exit(0) };
             }
-            let next = if k * PREBUILD_CHUNK + i + 1 < job.cells.len() { Phase::BetweenCells } else { Phase::Teardown };
+            let next = if k * PREBUILD_CHUNK + i + 1 < job.cells.len() {
+                Phase::BetweenCells
+            } else {
+                Phase::Teardown
+            };
             // A loss injected here has nothing to fail; hang, crash and spam act by themselves.
             let _ = phases.enter(next, None);
         }

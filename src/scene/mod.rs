@@ -10,9 +10,9 @@
 pub mod gpu;
 pub mod rng;
 
+use crate::model::SceneParams;
 use glam::{Mat3, Quat, Vec3};
 use rng::Rng;
-use crate::model::SceneParams;
 
 pub struct Mesh {
     pub positions: Vec<[f32; 3]>,
@@ -24,7 +24,11 @@ pub struct Mesh {
 impl Mesh {
     /// (geometry index, primitive index within it) of triangle `tri` of `indices`.
     pub fn geometry_of(&self, tri: u32) -> (u32, u32) {
-        let g = self.geometries.iter().position(|r| r.contains(&tri)).expect("geometries cover the mesh");
+        let g = self
+            .geometries
+            .iter()
+            .position(|r| r.contains(&tri))
+            .expect("geometries cover the mesh");
         (g as u32, tri - self.geometries[g].start)
     }
 }
@@ -82,13 +86,24 @@ pub struct Scene {
 
 /// Split `n` triangles into `parts` contiguous geometries.
 fn split(n: u32, parts: u32) -> Vec<std::ops::Range<u32>> {
-    (0..parts).map(|g| g * n / parts..(g + 1) * n / parts).collect()
+    (0..parts)
+        .map(|g| g * n / parts..(g + 1) * n / parts)
+        .collect()
 }
 
 fn floor_quad() -> Mesh {
-    let positions = vec![[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [-1.0, 1.0, 0.0], [1.0, 1.0, 0.0]];
+    let positions = vec![
+        [-1.0, -1.0, 0.0],
+        [1.0, -1.0, 0.0],
+        [-1.0, 1.0, 0.0],
+        [1.0, 1.0, 0.0],
+    ];
     // Two geometries of one triangle each.
-    Mesh { positions, indices: vec![[0, 1, 2], [1, 3, 2]], geometries: split(2, 2) }
+    Mesh {
+        positions,
+        indices: vec![[0, 1, 2], [1, 3, 2]],
+        geometries: split(2, 2),
+    }
 }
 
 /// Custom indices of `n` instances: low bits (under `probe::instance_mask`) a seeded permutation of
@@ -111,7 +126,11 @@ fn custom_indices(n: u32, seed: u64) -> Vec<u32> {
     perm.iter()
         .enumerate()
         .map(|(k, low)| {
-            let high = if k % 4 == 1 { high_max } else { (rng.next_u64() % (high_max as u64 + 1)) as u32 };
+            let high = if k % 4 == 1 {
+                high_max
+            } else {
+                (rng.next_u64() % (high_max as u64 + 1)) as u32
+            };
             (high << bits) | low
         })
         .collect()
@@ -136,14 +155,22 @@ fn height_field(n: u32, rng: &mut Rng) -> Mesh {
         }
     }
     let geometries = split(indices.len() as u32, GEOMETRIES_PER_MESH);
-    Mesh { positions, indices, geometries }
+    Mesh {
+        positions,
+        indices,
+        geometries,
+    }
 }
 
 impl Scene {
     pub fn build(params: &SceneParams) -> Scene {
         let mut rng = Rng::new(params.seed);
         let d = params.mesh_detail;
-        let mut meshes = vec![height_field(d / 4, &mut rng), height_field(d / 2, &mut rng), height_field(d, &mut rng)];
+        let mut meshes = vec![
+            height_field(d / 4, &mut rng),
+            height_field(d / 2, &mut rng),
+            height_field(d, &mut rng),
+        ];
         let n = params.instances;
         let cols = (n as f32).sqrt().ceil() as u32;
         let spacing = 2.0 * VIEW_HALF / cols as f32;
@@ -155,9 +182,18 @@ impl Scene {
                 -VIEW_HALF + spacing * (cy as f32 + 0.5) + rng.range(-0.1, 0.1) * spacing,
                 rng.range(0.0, 2.0),
             );
-            let axis = Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(0.2, 1.0)).normalize();
+            let axis = Vec3::new(
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(0.2, 1.0),
+            )
+            .normalize();
             let rot = Quat::from_axis_angle(axis, rng.range(-1.1, 1.1));
-            let geometry = if k % 4 == 3 { Geometry::Sphere } else { Geometry::Mesh((k as usize) % 3) };
+            let geometry = if k % 4 == 3 {
+                Geometry::Sphere
+            } else {
+                Geometry::Mesh((k as usize) % 3)
+            };
             let size = match geometry {
                 Geometry::Sphere => spacing * rng.range(0.7, 1.1),
                 Geometry::Mesh(_) => spacing * rng.range(0.35, 0.55),
@@ -169,18 +205,31 @@ impl Scene {
                 [c[0][1], c[1][1], c[2][1], centre.y],
                 [c[0][2], c[1][2], c[2][2], centre.z],
             ];
-            instances.push(Instance { transform, custom_index: 0, geometry });
+            instances.push(Instance {
+                transform,
+                custom_index: 0,
+                geometry,
+            });
         }
         for (i, c) in instances.iter_mut().zip(custom_indices(n, params.seed)) {
             i.custom_index = c;
         }
         let floor = Instance {
-            transform: [[FLOOR_HALF, 0.0, 0.0, 0.0], [0.0, FLOOR_HALF, 0.0, 0.0], [0.0, 0.0, 1.0, FLOOR_Z]],
+            transform: [
+                [FLOOR_HALF, 0.0, 0.0, 0.0],
+                [0.0, FLOOR_HALF, 0.0, 0.0],
+                [0.0, 0.0, 1.0, FLOOR_Z],
+            ],
             custom_index: 0,
             geometry: Geometry::Mesh(meshes.len()),
         };
         meshes.push(floor_quad());
-        Scene { params: *params, meshes, instances, floor }
+        Scene {
+            params: *params,
+            meshes,
+            instances,
+            floor,
+        }
     }
 
     /// The primary ray of pixel (x, y): origin and direction, exactly as the shaders compute them.
@@ -213,8 +262,12 @@ mod tests {
         let a = Scene::build(&p);
         let b = Scene::build(&p);
         assert_eq!(a.instances.len(), 16);
-        assert_eq!(a.meshes.iter().map(|m| m.indices.len()).collect::<Vec<_>>(), vec![32, 128, 512, 2]);
-        assert!(a.meshes.iter().all(|m| m.geometries.len() > 1 && m.geometries.last().unwrap().end == m.indices.len() as u32));
+        assert_eq!(
+            a.meshes.iter().map(|m| m.indices.len()).collect::<Vec<_>>(),
+            vec![32, 128, 512, 2]
+        );
+        assert!(a.meshes.iter().all(|m| m.geometries.len() > 1
+            && m.geometries.last().unwrap().end == m.indices.len() as u32));
         assert_eq!(a.meshes[0].geometry_of(31), (2, 31 - 21));
         assert!(a.instances.iter().any(|i| i.geometry == Geometry::Sphere));
         for (x, y) in a.instances.iter().zip(&b.instances) {
@@ -226,8 +279,16 @@ mod tests {
         // and some are near 2^24-1
         let mask = crate::probe::instance_mask(16);
         let mut ids: Vec<u32> = a.instances.iter().map(|i| i.custom_index).collect();
-        assert!(ids.iter().enumerate().all(|(k, c)| *c < 1 << 24 && c & mask != k as u32), "{ids:?}");
-        assert!(ids.iter().filter(|c| **c >= (1 << 24) - 16).count() >= 4, "{ids:?}");
+        assert!(
+            ids.iter()
+                .enumerate()
+                .all(|(k, c)| *c < 1 << 24 && c & mask != k as u32),
+            "{ids:?}"
+        );
+        assert!(
+            ids.iter().filter(|c| **c >= (1 << 24) - 16).count() >= 4,
+            "{ids:?}"
+        );
         ids.sort();
         ids.dedup();
         assert_eq!(ids.len(), 16);
@@ -235,8 +296,18 @@ mod tests {
 
     #[test]
     fn params_are_checked() {
-        assert!(SceneParams { instances: 4, ..Default::default() }.validate().is_err());
-        assert!(SceneParams { width: 60, ..Default::default() }.validate().is_err());
+        assert!(SceneParams {
+            instances: 4,
+            ..Default::default()
+        }
+        .validate()
+        .is_err());
+        assert!(SceneParams {
+            width: 60,
+            ..Default::default()
+        }
+        .validate()
+        .is_err());
         assert!(SceneParams::default().validate().is_ok());
     }
 }

@@ -26,10 +26,18 @@ impl Rng {
 mod tests {
     #[test]
     fn deterministic() {
-        let a: Vec<u64> = { let mut r = super::Rng::new(7); (0..4).map(|_| r.next_u64()).collect() };
-        let b: Vec<u64> = { let mut r = super::Rng::new(7); (0..4).map(|_| r.next_u64()).collect() };
+        let a: Vec<u64> = {
+            let mut r = super::Rng::new(7);
+            (0..4).map(|_| r.next_u64()).collect()
+        };
+        let b: Vec<u64> = {
+            let mut r = super::Rng::new(7);
+            (0..4).map(|_| r.next_u64()).collect()
+        };
         assert_eq!(a, b);
         let mut r = super::Rng::new(1);
-        assert!((0..1000).map(|_| r.range(-1.0, 1.0)).all(|x| (-1.0..1.0).contains(&x)));
+        assert!((0..1000)
+            .map(|_| r.range(-1.0, 1.0))
+            .all(|x| (-1.0..1.0).contains(&x)));
     }
 }

@@ -5,9 +5,9 @@
 //! `#include` ([`super::include`]) and defines.
 use super::include::Includes;
 use super::Role;
-use std::path::PathBuf;
 use std::collections::HashMap;
 use std::hash::{Hash, Hasher};
+use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -50,7 +50,11 @@ pub fn source_hash(role: Role, glsl: &str) -> u64 {
 
 impl Compiler {
     pub fn new() -> Result<Self, CompileError> {
-        Ok(Self { inner: shaderc::Compiler::new().map_err(|_| CompileError::Init)?, cache: HashMap::new(), precompiled_ms: HashMap::new() })
+        Ok(Self {
+            inner: shaderc::Compiler::new().map_err(|_| CompileError::Init)?,
+            cache: HashMap::new(),
+            precompiled_ms: HashMap::new(),
+        })
     }
 
     /// Compile the uncached shaderc sources among `sources` on `threads` threads (one shaderc
@@ -58,12 +62,19 @@ impl Compiler {
     /// fails is left out: [`Compiler::compile`] meets the same error at the cell's turn and
     /// reports it there. Sources for the external glslangValidator are left to `compile`.
     /// `progress(k, n)` is called as each source is done.
-    pub fn precompile(&mut self, sources: &[(Role, &str)], threads: usize, progress: &(dyn Fn(usize, usize) + Sync)) {
+    pub fn precompile(
+        &mut self,
+        sources: &[(Role, &str)],
+        threads: usize,
+        progress: &(dyn Fn(usize, usize) + Sync),
+    ) {
         let mut seen = std::collections::HashSet::new();
         let todo: Vec<(u64, Role, &str)> = sources
             .iter()
             .map(|&(role, glsl)| (source_hash(role, glsl), role, glsl))
-            .filter(|&(key, _, glsl)| !uses_heap(glsl) && !self.cache.contains_key(&key) && seen.insert(key))
+            .filter(|&(key, _, glsl)| {
+                !uses_heap(glsl) && !self.cache.contains_key(&key) && seen.insert(key)
+            })
             .collect();
         if todo.is_empty() {
             return;
@@ -75,37 +86,65 @@ impl Compiler {
             |c, i| {
                 let (_, role, glsl) = todo[i];
                 let t = Instant::now();
-                c.compile_glsl(role.kind(), role.file_name(), glsl).ok().map(|words| (words, t.elapsed().as_secs_f64() * 1e3))
+                c.compile_glsl(role.kind(), role.file_name(), glsl)
+                    .ok()
+                    .map(|words| (words, t.elapsed().as_secs_f64() * 1e3))
             },
             progress,
         );
-        for (&(key, _, _), (words, ms)) in todo.iter().zip(compiled).filter_map(|(t, c)| Some(t).zip(c.flatten())) {
+        for (&(key, _, _), (words, ms)) in todo
+            .iter()
+            .zip(compiled)
+            .filter_map(|(t, c)| Some(t).zip(c.flatten()))
+        {
             self.cache.insert(key, Arc::new(words));
             self.precompiled_ms.insert(key, ms);
         }
     }
 
     /// SPIR-V words for `glsl`, and the milliseconds spent compiling (0 when cached).
-    pub fn compile(&mut self, role: Role, glsl: &str) -> Result<(Arc<Vec<u32>>, f64), CompileError> {
+    pub fn compile(
+        &mut self,
+        role: Role,
+        glsl: &str,
+    ) -> Result<(Arc<Vec<u32>>, f64), CompileError> {
         let key = source_hash(role, glsl);
         if let Some(s) = self.cache.get(&key) {
             return Ok((s.clone(), self.precompiled_ms.remove(&key).unwrap_or(0.0)));
         }
         let t = Instant::now();
-        let words = Arc::new(if uses_heap(glsl) { super::glslang::compile(role, glsl)? } else { self.compile_glsl(role.kind(), role.file_name(), glsl)? });
+        let words = Arc::new(if uses_heap(glsl) {
+            super::glslang::compile(role, glsl)?
+        } else {
+            self.compile_glsl(role.kind(), role.file_name(), glsl)?
+        });
         self.cache.insert(key, words.clone());
         Ok((words, t.elapsed().as_secs_f64() * 1e3))
     }
 
     /// Compile one generated GLSL source (uncached; Vulkan 1.2, no includes or defines).
-    pub fn compile_glsl(&mut self, kind: shaderc::ShaderKind, file: &str, glsl: &str) -> Result<Vec<u32>, CompileError> {
+    pub fn compile_glsl(
+        &mut self,
+        kind: shaderc::ShaderKind,
+        file: &str,
+        glsl: &str,
+    ) -> Result<Vec<u32>, CompileError> {
         self.compile_user_glsl(kind, file, glsl, &GlslOptions::default())
     }
 
     /// Compile GLSL with `#include` resolution, macro definitions and a target environment
     /// (`rtprobe patch --glsl`). Errors are one line, each naming its file, line and include chain.
-    pub fn compile_user_glsl(&mut self, kind: shaderc::ShaderKind, file: &str, glsl: &str, o: &GlslOptions) -> Result<Vec<u32>, CompileError> {
-        let includes = o.input.as_ref().map(|input| Includes::new(input, file, glsl, &o.include_dirs));
+    pub fn compile_user_glsl(
+        &mut self,
+        kind: shaderc::ShaderKind,
+        file: &str,
+        glsl: &str,
+        o: &GlslOptions,
+    ) -> Result<Vec<u32>, CompileError> {
+        let includes = o
+            .input
+            .as_ref()
+            .map(|input| Includes::new(input, file, glsl, &o.include_dirs));
         let mut opts = shaderc::CompileOptions::new().map_err(|_| CompileError::Init)?;
         let (env, spirv) = o.target.versions();
         opts.set_target_env(shaderc::TargetEnv::Vulkan, env as u32);
@@ -114,16 +153,24 @@ impl Compiler {
             opts.add_macro_definition(name, value.as_deref());
         }
         if let Some(inc) = &includes {
-            opts.set_include_callback(move |req, ty, from, depth| inc.resolve(req, ty, from, depth));
+            opts.set_include_callback(move |req, ty, from, depth| {
+                inc.resolve(req, ty, from, depth)
+            });
         }
-        let out = self.inner.compile_into_spirv(glsl, kind, file, "main", Some(&opts)).map_err(|e| {
-            let message = e.to_string();
-            let message = match &includes {
-                Some(inc) => inc.annotate(&message),
-                None => message.replace('\n', " | "),
-            };
-            CompileError::Glsl { file: file.to_string(), message }
-        })?;
+        let out = self
+            .inner
+            .compile_into_spirv(glsl, kind, file, "main", Some(&opts))
+            .map_err(|e| {
+                let message = e.to_string();
+                let message = match &includes {
+                    Some(inc) => inc.annotate(&message),
+                    None => message.replace('\n', " | "),
+                };
+                CompileError::Glsl {
+                    file: file.to_string(),
+                    message,
+                }
+            })?;
         Ok(out.as_binary().to_vec())
     }
 }
@@ -169,14 +216,27 @@ mod tests {
     #[test]
     fn the_shaderc_named_is_the_one_cargo_locked() {
         let lock = include_str!("../../Cargo.lock");
-        let at = lock.find("name = \"shaderc\"\nversion = \"").expect("shaderc in Cargo.lock");
-        let version = lock[at..].lines().nth(1).unwrap().trim_start_matches("version = ").trim_matches('"');
-        assert!(SHADERC.contains(&format!(" {version} ")), "{SHADERC} vs Cargo.lock {version}");
+        let at = lock
+            .find("name = \"shaderc\"\nversion = \"")
+            .expect("shaderc in Cargo.lock");
+        let version = lock[at..]
+            .lines()
+            .nth(1)
+            .unwrap()
+            .trim_start_matches("version = ")
+            .trim_matches('"');
+        assert!(
+            SHADERC.contains(&format!(" {version} ")),
+            "{SHADERC} vs Cargo.lock {version}"
+        );
     }
 
     #[test]
     fn heap_sources_name_glslang() {
         assert_eq!(compiler_for("#version 460\nvoid main() {}\n"), SHADERC);
-        assert!(compiler_for("#version 460\n#extension GL_EXT_descriptor_heap : require\n").starts_with("glslangValidator"));
+        assert!(
+            compiler_for("#version 460\n#extension GL_EXT_descriptor_heap : require\n")
+                .starts_with("glslangValidator")
+        );
     }
 }

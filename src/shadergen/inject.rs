@@ -14,8 +14,12 @@ h ^= h >> 16; h *= 0x7feb352du; h ^= h >> 15; h *= 0x846ca68bu; h ^= h >> 16;\n 
 pub fn apply(probe: &mut ProbeCode, fault: FaultKind) {
     match fault {
         FaultKind::Device | FaultKind::Flaky { .. } => {
-            probe.extensions.extend(["GL_EXT_buffer_reference", "GL_EXT_shader_explicit_arithmetic_types_int64"]);
-            probe.decls += "layout(buffer_reference, std430) readonly buffer InjectBad { vec4 v[]; };\n";
+            probe.extensions.extend([
+                "GL_EXT_buffer_reference",
+                "GL_EXT_shader_explicit_arithmetic_types_int64",
+            ]);
+            probe.decls +=
+                "layout(buffer_reference, std430) readonly buffer InjectBad { vec4 v[]; };\n";
             probe.body += "    if (any(notEqual(pc.badAddress, uvec2(0u))))\n        \
 probeValue += InjectBad(packUint2x32(pc.badAddress)).v[(px.x + px.y * pc.width) * 4096u];\n";
         }
@@ -30,7 +34,8 @@ records[px.x + px.y * pc.width].pad = injectN;\n        }\n        probeValue.w 
             } else {
                 let threshold = (fraction * 4294967296.0).round().clamp(1.0, 4294967295.0) as u32;
                 probe.decls += HASH;
-                probe.body += &format!("    if (injectHash(px) < {threshold}u) probeValue.x += 0.5;\n");
+                probe.body +=
+                    &format!("    if (injectHash(px) < {threshold}u) probeValue.x += 0.5;\n");
             }
         }
         FaultKind::Nan => probe.body += "    probeValue.x = uintBitsToFloat(0x7fc00000u);\n",

@@ -9,9 +9,9 @@ pub mod compile;
 pub mod error;
 pub mod glslang;
 pub mod include;
-mod role;
 mod inject;
 mod probe_code;
+mod role;
 
 use crate::model::{Canary, Cell, Reorder, Stage};
 use crate::probe::spec::ProbeSpec;
@@ -113,7 +113,16 @@ records[i] = probeRecord(probeSlot, probeElement, probeValue);\n    color = vec4
             );
             CellShaders {
                 kind: PipelineKind::Graphics,
-                shaders: vec![ShaderSource { role: Role::Vertex, glsl: vert }, ShaderSource { role: Role::Fragment, glsl: frag }],
+                shaders: vec![
+                    ShaderSource {
+                        role: Role::Vertex,
+                        glsl: vert,
+                    },
+                    ShaderSource {
+                        role: Role::Fragment,
+                        glsl: frag,
+                    },
+                ],
                 recursion_depth: 0,
                 uses_probe_binding: probe.uses_binding,
                 uses_scene_tlas: false,
@@ -129,14 +138,22 @@ records[i] = probeRecord(probeSlot, probeElement, probeValue);\n}}\n",
             );
             CellShaders {
                 kind: PipelineKind::Compute,
-                shaders: vec![ShaderSource { role: Role::Compute, glsl: comp }],
+                shaders: vec![ShaderSource {
+                    role: Role::Compute,
+                    glsl: comp,
+                }],
                 recursion_depth: 0,
                 uses_probe_binding: probe.uses_binding,
                 uses_scene_tlas: false,
                 uses_ray_query: probe.ray_query,
             }
         }
-        Stage::Raygen | Stage::ClosestHit | Stage::AnyHit | Stage::Miss | Stage::Intersection | Stage::Callable => ray_tracing(&spec, &probe, here),
+        Stage::Raygen
+        | Stage::ClosestHit
+        | Stage::AnyHit
+        | Stage::Miss
+        | Stage::Intersection
+        | Stage::Callable => ray_tracing(&spec, &probe, here),
     }
 }
 
@@ -153,7 +170,10 @@ fn ray_flags(spec: &ProbeSpec) -> &'static str {
 /// for `reorder_hint`; misses get a hint of their own), then the hit object's closest-hit or miss
 /// shader run — the same records, with invocations regrouped before the probed closest-hit read.
 fn primary_trace(spec: &ProbeSpec) -> String {
-    let args = format!("sceneTlas, {}, 0xFF, 0, 0, 0, primaryOrigin(px), TMIN, vec3(0.0, 0.0, 1.0), TMAX, 0", ray_flags(spec));
+    let args = format!(
+        "sceneTlas, {}, 0xFF, 0, 0, 0, primaryOrigin(px), TMIN, vec3(0.0, 0.0, 1.0), TMAX, 0",
+        ray_flags(spec)
+    );
     let reorder = match spec.reorder {
         None => return format!("    traceRayEXT({args});\n"),
         Some(Reorder::Reorder) => "    reorderThreadNV(hitObj);\n".to_string(),
@@ -167,29 +187,56 @@ reorderThreadNV(hitObj, hint, 16);\n"
 /// The probe's result copied into the payload (raygen, miss, closest-hit and any-hit probes).
 const STORE: &str = "    pl.flags |= FLAG_PROBE;\n    pl.slot = probeSlot;\n    pl.element = probeElement;\n    pl.value = probeValue;\n";
 /// What a callable probe hands back to raygen.
-const CALL_DATA: &str = "struct CallData { uint slot; uint element; uint p1; uint p2; vec4 value; };\n";
+const CALL_DATA: &str =
+    "struct CallData { uint slot; uint element; uint p1; uint p2; vec4 value; };\n";
 /// What an intersection probe hands to the procedural closest-hit shader.
-const PROBE_ATTR: &str = "struct ProbeAttr { vec4 value; uint slot; uint element; };\nhitAttributeEXT ProbeAttr attr;\n";
+const PROBE_ATTR: &str =
+    "struct ProbeAttr { vec4 value; uint slot; uint element; };\nhitAttributeEXT ProbeAttr attr;\n";
 
-fn ray_tracing<'a>(spec: &ProbeSpec, probe: &'a ProbeCode, here: impl Fn(Stage) -> Option<&'a ProbeCode>) -> CellShaders {
+fn ray_tracing<'a>(
+    spec: &ProbeSpec,
+    probe: &'a ProbeCode,
+    here: impl Fn(Stage) -> Option<&'a ProbeCode>,
+) -> CellShaders {
     let mut shaders = vec![
-        ShaderSource { role: Role::Raygen, glsl: raygen(spec, probe, here(Stage::Raygen)) },
-        ShaderSource { role: Role::Miss, glsl: miss(probe, here(Stage::Miss)) },
+        ShaderSource {
+            role: Role::Raygen,
+            glsl: raygen(spec, probe, here(Stage::Raygen)),
+        },
+        ShaderSource {
+            role: Role::Miss,
+            glsl: miss(probe, here(Stage::Miss)),
+        },
     ];
     // miss 1: the AS probe ray's miss (its payload stays an empty record)
     let pmiss = format!("{}layout(location = 1) rayPayloadInEXT Record probePl;\nvoid main() {{\n    probePl.flags = 0u;\n}}\n", header(true, None, &[]));
-    shaders.push(ShaderSource { role: Role::ProbeMiss, glsl: pmiss });
+    shaders.push(ShaderSource {
+        role: Role::ProbeMiss,
+        glsl: pmiss,
+    });
     let (tri, proc_) = closest_hits(spec, probe, here(Stage::ClosestHit));
-    shaders.push(ShaderSource { role: Role::ClosestHitTriangles, glsl: tri });
-    shaders.push(ShaderSource { role: Role::ClosestHitProcedural, glsl: proc_ });
-    shaders.push(ShaderSource { role: Role::Intersection, glsl: intersection(probe, here(Stage::Intersection)) });
+    shaders.push(ShaderSource {
+        role: Role::ClosestHitTriangles,
+        glsl: tri,
+    });
+    shaders.push(ShaderSource {
+        role: Role::ClosestHitProcedural,
+        glsl: proc_,
+    });
+    shaders.push(ShaderSource {
+        role: Role::Intersection,
+        glsl: intersection(probe, here(Stage::Intersection)),
+    });
     if spec.stage == Stage::AnyHit {
         let mut ahit = header(true, Some(probe), &[]);
         ahit += "layout(location = 0) rayPayloadInEXT Record pl;\nvoid main() {\n    uvec2 px = gl_LaunchIDEXT.xy;\n";
         ahit += &probe.body;
         ahit += STORE;
         ahit += "}\n";
-        shaders.push(ShaderSource { role: Role::AnyHit, glsl: ahit });
+        shaders.push(ShaderSource {
+            role: Role::AnyHit,
+            glsl: ahit,
+        });
     }
     if spec.stage == Stage::Callable {
         let mut call = header(true, Some(probe), &[]);
@@ -197,9 +244,13 @@ fn ray_tracing<'a>(spec: &ProbeSpec, probe: &'a ProbeCode, here: impl Fn(Stage) 
         call += "layout(location = 2) callableDataInEXT CallData cd;\nvoid main() {\n    uvec2 px = gl_LaunchIDEXT.xy;\n";
         call += &probe.body;
         call += "    cd.slot = probeSlot;\n    cd.element = probeElement;\n    cd.value = probeValue;\n}\n";
-        shaders.push(ShaderSource { role: Role::Callable, glsl: call });
+        shaders.push(ShaderSource {
+            role: Role::Callable,
+            glsl: call,
+        });
     }
-    let traces_from_hit_or_miss = probe.traces && matches!(spec.stage, Stage::ClosestHit | Stage::Miss);
+    let traces_from_hit_or_miss =
+        probe.traces && matches!(spec.stage, Stage::ClosestHit | Stage::Miss);
     CellShaders {
         kind: PipelineKind::RayTracing,
         shaders,
@@ -213,7 +264,11 @@ fn ray_tracing<'a>(spec: &ProbeSpec, probe: &'a ProbeCode, here: impl Fn(Stage) 
 /// The raygen shader: the primary trace, then the probe when it runs here (`here`), or the
 /// callable's, into the record of its pixel.
 fn raygen(spec: &ProbeSpec, probe: &ProbeCode, here: Option<&ProbeCode>) -> String {
-    let reorder_ext: &[&str] = if spec.reorder.is_some() { &["GL_NV_shader_invocation_reorder"] } else { &[] };
+    let reorder_ext: &[&str] = if spec.reorder.is_some() {
+        &["GL_NV_shader_invocation_reorder"]
+    } else {
+        &[]
+    };
     let mut rgen = header(true, here, reorder_ext);
     rgen += "layout(set = 0, binding = 1) uniform accelerationStructureEXT sceneTlas;\nlayout(location = 0) rayPayloadEXT Record pl;\n";
     if spec.stage == Stage::Callable {
@@ -248,7 +303,11 @@ fn miss(probe: &ProbeCode, here: Option<&ProbeCode>) -> String {
 
 /// The triangle and procedural closest-hit shaders: the hit's record, then the probe when it runs
 /// here (`chit_probe`); the procedural one takes an intersection probe's result from its attributes.
-fn closest_hits(spec: &ProbeSpec, probe: &ProbeCode, chit_probe: Option<&ProbeCode>) -> (String, String) {
+fn closest_hits(
+    spec: &ProbeSpec,
+    probe: &ProbeCode,
+    chit_probe: Option<&ProbeCode>,
+) -> (String, String) {
     // An AS probe ray (see probe_code::PROBE_RAY_FLAG) only wants the committed custom index.
     let probe_ray = if probe.traces {
         format!("    if ((gl_IncomingRayFlagsEXT & {}) != 0u) {{\n        pl.flags = FLAG_HIT;\n        pl.custom = uint(gl_InstanceCustomIndexEXT);\n        return;\n    }}\n", probe_code::PROBE_RAY_FLAG)
@@ -307,7 +366,10 @@ fn canary(c: Canary) -> CellShaders {
     let carrier = ProbeSpec::of(&Cell::canary(c));
     let mut shaders = ray_tracing(&carrier, &ProbeCode::none(), |_| None).shaders;
     let exts: &[&str] = match c {
-        Canary::InvalidAddress => &["GL_EXT_buffer_reference", "GL_EXT_shader_explicit_arithmetic_types_int64"],
+        Canary::InvalidAddress => &[
+            "GL_EXT_buffer_reference",
+            "GL_EXT_shader_explicit_arithmetic_types_int64",
+        ],
         Canary::InfiniteLoop => &[],
     };
     let mut rgen = header(true, None, exts);
@@ -322,8 +384,18 @@ fn canary(c: Canary) -> CellShaders {
         }
     };
     rgen += &format!("void main() {{\n    uvec2 px = gl_LaunchIDEXT.xy;\n    uint i = px.x + px.y * pc.width;\n{body}}}\n");
-    shaders[0] = ShaderSource { role: Role::Raygen, glsl: rgen };
-    CellShaders { kind: PipelineKind::RayTracing, shaders, recursion_depth: 1, uses_probe_binding: false, uses_scene_tlas: true, uses_ray_query: false }
+    shaders[0] = ShaderSource {
+        role: Role::Raygen,
+        glsl: rgen,
+    };
+    CellShaders {
+        kind: PipelineKind::RayTracing,
+        shaders,
+        recursion_depth: 1,
+        uses_probe_binding: false,
+        uses_scene_tlas: true,
+        uses_ray_query: false,
+    }
 }
 
 /// Push-constant offset of the table address the address patches add (the end of the probes'
@@ -336,8 +408,19 @@ mod tests {
     use crate::model::{AsAccess, DescriptorModel, IndexSource, Resource};
 
     fn reorder_cell(r: Option<Reorder>, resource: Resource) -> Cell {
-        let as_access = (resource == Resource::AccelerationStructure).then_some(AsAccess::Descriptor);
-        Cell { nonuniform: true, as_access, reorder: r, ..Cell::new(Stage::ClosestHit, resource, IndexSource::Dynamic, DescriptorModel::DescriptorIndexing) }
+        let as_access =
+            (resource == Resource::AccelerationStructure).then_some(AsAccess::Descriptor);
+        Cell {
+            nonuniform: true,
+            as_access,
+            reorder: r,
+            ..Cell::new(
+                Stage::ClosestHit,
+                resource,
+                IndexSource::Dynamic,
+                DescriptorModel::DescriptorIndexing,
+            )
+        }
     }
 
     /// The recommended patterns: the descriptor index is the spec constant, the dynamic value sits
@@ -374,8 +457,15 @@ mod tests {
         use crate::model::BaseSource;
         let mut c = compile::Compiler::new().unwrap();
         for resource in [Resource::StorageBuffer, Resource::SampledImage] {
-            for base in [None, Some(BaseSource::ShaderRecord), Some(BaseSource::Buffer)] {
-                let cell = Cell { base, ..reorder_cell(None, resource) };
+            for base in [
+                None,
+                Some(BaseSource::ShaderRecord),
+                Some(BaseSource::Buffer),
+            ] {
+                let cell = Cell {
+                    base,
+                    ..reorder_cell(None, resource)
+                };
                 let shaders = generate(&cell);
                 let chit = &shaders.get(Role::ClosestHitTriangles).unwrap().glsl;
                 let want = match base {
@@ -384,10 +474,17 @@ mod tests {
                     Some(BaseSource::Buffer) => "uint probeSlot = (ProbeBases(pc.baseAddress).base[gl_InstanceID] + (uint(gl_InstanceCustomIndexEXT) & pc.dynMask))",
                 };
                 assert!(chit.contains(want), "{chit}");
-                assert_eq!(chit.contains("layout(shaderRecordEXT, std430) buffer ShaderRecordData"), base == Some(BaseSource::ShaderRecord), "{chit}");
+                assert_eq!(
+                    chit.contains("layout(shaderRecordEXT, std430) buffer ShaderRecordData"),
+                    base == Some(BaseSource::ShaderRecord),
+                    "{chit}"
+                );
                 for s in &shaders.shaders {
-                    let (words, _) = c.compile(s.role, &s.glsl).unwrap_or_else(|e| panic!("{base:?} {:?}: {e}\n{}", s.role, s.glsl));
-                    if let crate::patches::Validation::Invalid(m) = crate::patches::validate(&words) {
+                    let (words, _) = c
+                        .compile(s.role, &s.glsl)
+                        .unwrap_or_else(|e| panic!("{base:?} {:?}: {e}\n{}", s.role, s.glsl));
+                    if let crate::patches::Validation::Invalid(m) = crate::patches::validate(&words)
+                    {
                         panic!("{base:?} {:?}: {m}", s.role);
                     }
                 }
@@ -400,15 +497,39 @@ mod tests {
     #[test]
     fn patched_cells_generate_the_glsl_they_patch() {
         use crate::model::Workaround;
-        let glsl = |c: &Cell| generate(c).shaders.into_iter().map(|s| s.glsl).collect::<Vec<_>>();
-        let d = Cell { nonuniform: false, ..reorder_cell(None, Resource::AccelerationStructure) };
-        let patched = Cell { as_access: Some(AsAccess::AddressPatched), patch: Some(Workaround::PinIndex), ..d };
+        let glsl = |c: &Cell| {
+            generate(c)
+                .shaders
+                .into_iter()
+                .map(|s| s.glsl)
+                .collect::<Vec<_>>()
+        };
+        let d = Cell {
+            nonuniform: false,
+            ..reorder_cell(None, Resource::AccelerationStructure)
+        };
+        let patched = Cell {
+            as_access: Some(AsAccess::AddressPatched),
+            patch: Some(Workaround::PinIndex),
+            ..d
+        };
         assert_eq!(glsl(&patched), glsl(&d));
-        let written = glsl(&Cell { as_access: Some(AsAccess::Address), ..d });
+        let written = glsl(&Cell {
+            as_access: Some(AsAccess::Address),
+            ..d
+        });
         assert_ne!(written, glsl(&d));
-        assert!(written.iter().any(|g| g.contains("accelerationStructureEXT(AsTable(packUint2x32(pc.asTable)).a[")));
+        assert!(written
+            .iter()
+            .any(|g| g.contains("accelerationStructureEXT(AsTable(packUint2x32(pc.asTable)).a[")));
         let ssbo = reorder_cell(None, Resource::StorageBuffer);
-        assert_eq!(glsl(&Cell { patch: Some(Workaround::SsboToAddress), ..ssbo }), glsl(&ssbo));
+        assert_eq!(
+            glsl(&Cell {
+                patch: Some(Workaround::SsboToAddress),
+                ..ssbo
+            }),
+            glsl(&ssbo)
+        );
     }
 
     /// Lavapipe has no SER, so these shaders never reach a driver in the test suite: they are
@@ -420,22 +541,42 @@ mod tests {
             for r in Reorder::ALL {
                 let shaders = generate(&reorder_cell(Some(*r), resource));
                 let rgen = &shaders.get(Role::Raygen).unwrap().glsl;
-                assert!(rgen.contains("hitObjectTraceRayNV(hitObj, sceneTlas") && rgen.contains("hitObjectExecuteShaderNV(hitObj, 0)"), "{rgen}");
+                assert!(
+                    rgen.contains("hitObjectTraceRayNV(hitObj, sceneTlas")
+                        && rgen.contains("hitObjectExecuteShaderNV(hitObj, 0)"),
+                    "{rgen}"
+                );
                 assert!(!rgen.contains("traceRayEXT("), "{rgen}");
-                assert_eq!(rgen.contains("hitObjectGetInstanceCustomIndexNV"), *r == Reorder::ReorderHint, "{rgen}");
+                assert_eq!(
+                    rgen.contains("hitObjectGetInstanceCustomIndexNV"),
+                    *r == Reorder::ReorderHint,
+                    "{rgen}"
+                );
                 for s in &shaders.shaders {
-                    let (words, _) = c.compile(s.role, &s.glsl).unwrap_or_else(|e| panic!("{r:?} {:?}: {e}\n{}", s.role, s.glsl));
+                    let (words, _) = c
+                        .compile(s.role, &s.glsl)
+                        .unwrap_or_else(|e| panic!("{r:?} {:?}: {e}\n{}", s.role, s.glsl));
                     match crate::patches::validate(&words) {
                         crate::patches::Validation::Invalid(m) => panic!("{r:?} {:?}: {m}", s.role),
-                        crate::patches::Validation::Valid | crate::patches::Validation::Unavailable => {}
+                        crate::patches::Validation::Valid
+                        | crate::patches::Validation::Unavailable => {}
                     }
                 }
                 // Every shader but the raygen is the plain cell's.
                 let plain = generate(&reorder_cell(None, resource));
                 for s in plain.shaders.iter().filter(|s| s.role != Role::Raygen) {
-                    assert_eq!(shaders.get(s.role).map(|x| &x.glsl), Some(&s.glsl), "{:?}", s.role);
+                    assert_eq!(
+                        shaders.get(s.role).map(|x| &x.glsl),
+                        Some(&s.glsl),
+                        "{:?}",
+                        s.role
+                    );
                 }
-                assert!(plain.get(Role::Raygen).unwrap().glsl.contains("traceRayEXT(sceneTlas"));
+                assert!(plain
+                    .get(Role::Raygen)
+                    .unwrap()
+                    .glsl
+                    .contains("traceRayEXT(sceneTlas"));
             }
         }
     }

@@ -42,8 +42,12 @@ pub const PROBE_RAY_FLAG: &str = "gl_RayFlagsCullNoOpaqueEXT";
 /// The element a buffer/image probe reads (`probe::element`).
 fn element_expr(stage: Stage) -> &'static str {
     match stage {
-        Stage::ClosestHit | Stage::AnyHit | Stage::Intersection => "hitElement(uint(gl_InstanceID), uint(gl_GeometryIndexEXT), uint(gl_PrimitiveID))",
-        Stage::Raygen | Stage::Miss | Stage::Callable | Stage::Fragment | Stage::Compute => "pixelElement(px)",
+        Stage::ClosestHit | Stage::AnyHit | Stage::Intersection => {
+            "hitElement(uint(gl_InstanceID), uint(gl_GeometryIndexEXT), uint(gl_PrimitiveID))"
+        }
+        Stage::Raygen | Stage::Miss | Stage::Callable | Stage::Fragment | Stage::Compute => {
+            "pixelElement(px)"
+        }
     }
 }
 
@@ -60,10 +64,17 @@ fn base_expr(base: Base) -> &'static str {
 /// The stage's runtime slot value (`probe::dynamic_slot`).
 fn dynamic_expr(spec: &ProbeSpec) -> String {
     match spec.stage {
-        Stage::ClosestHit | Stage::AnyHit | Stage::Intersection => format!("({} + (uint(gl_InstanceCustomIndexEXT) & pc.dynMask))", base_expr(spec.base)),
-        Stage::Raygen | Stage::Miss | Stage::Callable => "((gl_LaunchIDEXT.x + gl_LaunchIDEXT.y * pc.width) % pc.slotCount)".into(),
+        Stage::ClosestHit | Stage::AnyHit | Stage::Intersection => format!(
+            "({} + (uint(gl_InstanceCustomIndexEXT) & pc.dynMask))",
+            base_expr(spec.base)
+        ),
+        Stage::Raygen | Stage::Miss | Stage::Callable => {
+            "((gl_LaunchIDEXT.x + gl_LaunchIDEXT.y * pc.width) % pc.slotCount)".into()
+        }
         Stage::Fragment => "inSlot".into(),
-        Stage::Compute => "((gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * pc.width) % pc.slotCount)".into(),
+        Stage::Compute => {
+            "((gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * pc.width) % pc.slotCount)".into()
+        }
     }
 }
 
@@ -132,13 +143,26 @@ fn sampled_image(spec: &ProbeSpec, sub: &str) -> (String, String) {
     let xy = "(vec2(uvec2(probeElement & 1u, probeElement >> 1u)) + 0.5) * 0.5";
     let layer = spec.element == ElementMap::Layer;
     let dim = if layer { "2DArray" } else { "2D" };
-    let at = |xy: String| if layer { format!("vec3({xy}, float(probeSlot))") } else { xy };
+    let at = |xy: String| {
+        if layer {
+            format!("vec3({xy}, float(probeSlot))")
+        } else {
+            xy
+        }
+    };
     match spec.array {
-        ArrayAt::Binding => (format!("layout(set = 0, binding = 2) uniform sampler{dim} probeTex[];\n"), format!("textureLod(probeTex[{sub}], {}, 0.0)", at(xy.to_string()))),
+        ArrayAt::Binding => (
+            format!("layout(set = 0, binding = 2) uniform sampler{dim} probeTex[];\n"),
+            format!("textureLod(probeTex[{sub}], {}, 0.0)", at(xy.to_string())),
+        ),
         ArrayAt::Heap => {
             let [du, dv] = probe::SAMPLER_SHIFT;
             let decl = format!("layout(descriptor_heap) uniform texture{dim} probeTex[];\nlayout(descriptor_heap) uniform sampler probeSampler[];\n");
-            let read = format!("textureLod(sampler{dim}(probeTex[{sub}], probeSampler[{}]), {}, 0.0)", sampler_expr(spec), at(format!("({xy} + vec2({du:?}, {dv:?}))")));
+            let read = format!(
+                "textureLod(sampler{dim}(probeTex[{sub}], probeSampler[{}]), {}, 0.0)",
+                sampler_expr(spec),
+                at(format!("({xy} + vec2({du:?}, {dv:?}))"))
+            );
             (decl, read)
         }
     }
@@ -147,7 +171,14 @@ fn sampled_image(spec: &ProbeSpec, sub: &str) -> (String, String) {
 impl ProbeCode {
     /// No probe (canary carriers).
     pub fn none() -> Self {
-        ProbeCode { extensions: vec![], decls: String::new(), body: String::new(), uses_binding: false, traces: false, ray_query: false }
+        ProbeCode {
+            extensions: vec![],
+            decls: String::new(),
+            body: String::new(),
+            uses_binding: false,
+            traces: false,
+            ray_query: false,
+        }
     }
 
     /// The probe `spec` describes.
@@ -168,7 +199,14 @@ impl ProbeCode {
             ElementMap::Own | ElementMap::Packed | ElementMap::Layer => element_expr(spec.stage),
         };
         let body = format!("    uint probeSlot = {idx};\n    uint probeElement = {element};\n");
-        let mut p = ProbeCode { extensions, decls, body, uses_binding: true, traces: false, ray_query: false };
+        let mut p = ProbeCode {
+            extensions,
+            decls,
+            body,
+            uses_binding: true,
+            traces: false,
+            ray_query: false,
+        };
         let array = |binding: &str, direct: &str| array_decl(spec.array, binding, direct);
         match spec.resource {
             Resource::StorageBuffer => {
@@ -198,7 +236,12 @@ impl ProbeCode {
                     "layout(set = 0, binding = 2, rgba32f) uniform readonly image2D probeImg[];\n",
                     "layout(descriptor_heap, rgba32f) uniform readonly image2D probeImg[];\n",
                 );
-                p.read(decl, format!("imageLoad(probeImg[{sub}], ivec2(probeElement & 1u, probeElement >> 1u))"));
+                p.read(
+                    decl,
+                    format!(
+                        "imageLoad(probeImg[{sub}], ivec2(probeElement & 1u, probeElement >> 1u))"
+                    ),
+                );
             }
             Resource::AccelerationStructure => p.trace_as(spec, &idx, &sub),
         }
@@ -217,12 +260,19 @@ impl ProbeCode {
         let as_expr = match spec.access {
             Access::AddressTable => {
                 self.uses_binding = false;
-                self.extensions.extend(["GL_EXT_buffer_reference", "GL_EXT_shader_explicit_arithmetic_types_int64"]);
+                self.extensions.extend([
+                    "GL_EXT_buffer_reference",
+                    "GL_EXT_shader_explicit_arithmetic_types_int64",
+                ]);
                 self.decls += "layout(buffer_reference, std430, buffer_reference_align = 8) readonly buffer AsTable { uint64_t a[]; };\n";
                 format!("accelerationStructureEXT(AsTable(packUint2x32(pc.asTable)).a[{idx}])")
             }
             Access::Slot { .. } | Access::Packed => {
-                self.decls += &array_decl(spec.array, "layout(set = 0, binding = 2) uniform accelerationStructureEXT probeAs[];\n", "layout(descriptor_heap) uniform accelerationStructureEXT probeAs[];\n");
+                self.decls += &array_decl(
+                    spec.array,
+                    "layout(set = 0, binding = 2) uniform accelerationStructureEXT probeAs[];\n",
+                    "layout(descriptor_heap) uniform accelerationStructureEXT probeAs[];\n",
+                );
                 format!("probeAs[{sub}]")
             }
         };

@@ -1,6 +1,5 @@
 //! The role a shader plays in a cell's pipeline: its shaderc kind and its file name.
 
-
 /// The role a shader plays in a cell's pipeline.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Role {

@@ -16,7 +16,11 @@ pub struct CpuTracer {
 
 /// The reference test itself (inclusive edges, f64), rounded to f32 results.
 pub fn watertight_f64(o: [f32; 3], d: [f32; 3], v: [[f32; 3]; 3]) -> Option<(f32, f32, f32)> {
-    let h = watertight::intersect(watertight::to_f64(o), watertight::to_f64(d), v.map(watertight::to_f64))?;
+    let h = watertight::intersect(
+        watertight::to_f64(o),
+        watertight::to_f64(d),
+        v.map(watertight::to_f64),
+    )?;
     Some((h.t as f32, h.bary[0] as f32, h.bary[1] as f32))
 }
 
@@ -24,7 +28,13 @@ pub fn watertight_f64(o: [f32; 3], d: [f32; 3], v: [[f32; 3]; 3]) -> Option<(f32
 pub fn sloppy_f32(o: [f32; 3], d: [f32; 3], v: [[f32; 3]; 3]) -> Option<(f32, f32, f32)> {
     const EPS: f32 = 1e-5;
     let sub = |a: [f32; 3], b: [f32; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
-    let cross = |a: [f32; 3], b: [f32; 3]| [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+    let cross = |a: [f32; 3], b: [f32; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
     let dot = |a: [f32; 3], b: [f32; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
     let (e1, e2) = (sub(v[1], v[0]), sub(v[2], v[0]));
     let p = cross(d, e2);
@@ -64,16 +74,27 @@ impl Tracer for CpuTracer {
                     let mesh = &part.scene.meshes[inst.mesh];
                     for (p, tri) in mesh.indices.iter().enumerate() {
                         let v = tri.map(|i| mesh.positions[i as usize]);
-                        let Some((t, b1, b2)) = (self.intersect)(o, d, v) else { continue };
+                        let Some((t, b1, b2)) = (self.intersect)(o, d, v) else {
+                            continue;
+                        };
                         if !(t > ray.tmin && t < ray.tmax) {
                             continue;
                         }
                         if out.candidates < 2 {
-                            out.first_candidates[out.candidates as usize] = ((k as u32) << 24 | p as u32) + 1;
+                            out.first_candidates[out.candidates as usize] =
+                                ((k as u32) << 24 | p as u32) + 1;
                         }
                         out.candidates += 1;
                         if out.hit.is_none_or(|h| t < h.t) {
-                            out.hit = Some(TracedHit { t, bary: [b1, b2], primitive: p as u32, instance: k as u32, hit_kind: 0, object_origin: o, object_dir: d });
+                            out.hit = Some(TracedHit {
+                                t,
+                                bary: [b1, b2],
+                                primitive: p as u32,
+                                instance: k as u32,
+                                hit_kind: 0,
+                                object_origin: o,
+                                object_dir: d,
+                            });
                         }
                     }
                 }
@@ -89,13 +110,20 @@ mod tests {
     use crate::stress::{run, CaseKind, StressOptions};
 
     fn case(tracer: &mut CpuTracer, kind: CaseKind) -> crate::stress::evaluate::CaseResult {
-        let opts = StressOptions { cases: vec![kind], seed: 1, full: false };
+        let opts = StressOptions {
+            cases: vec![kind],
+            seed: 1,
+            full: false,
+        };
         run(tracer, &opts).remove(0)
     }
 
     #[test]
     fn the_watertight_reference_as_device_has_no_leaks() {
-        let mut t = CpuTracer { name: "watertight f64", intersect: watertight_f64 };
+        let mut t = CpuTracer {
+            name: "watertight f64",
+            intersect: watertight_f64,
+        };
         let r = case(&mut t, CaseKind::Watertight);
         assert_eq!(r.metrics.leaks, 0, "{r:?}");
         assert_eq!(r.metrics.disagreements, 0, "{r:?}");
@@ -103,7 +131,12 @@ mod tests {
         // An edge-inclusive test double-hits on shared edges (and at folds near them), only there.
         assert!(r.metrics.double_hits_on_edge > 0);
         assert_eq!(r.metrics.double_hits, r.metrics.double_hits_near_edge);
-        for k in [CaseKind::Degenerate, CaseKind::Tmin, CaseKind::Far, CaseKind::Grazing] {
+        for k in [
+            CaseKind::Degenerate,
+            CaseKind::Tmin,
+            CaseKind::Far,
+            CaseKind::Grazing,
+        ] {
             let r = case(&mut t, k);
             assert_eq!(r.metrics.disagreements, 0, "{k:?}: {r:?}");
             assert_eq!(r.metrics.over_tolerance, 0, "{k:?}: {r:?}");
@@ -125,20 +158,67 @@ mod tests {
     }
 
     fn broken(f: fn(&mut Traced), kind: CaseKind) -> crate::stress::evaluate::CaseResult {
-        let mut t = Broken(CpuTracer { name: "watertight f64", intersect: watertight_f64 }, f);
-        run(&mut t, &StressOptions { cases: vec![kind], seed: 1, full: false }).remove(0)
+        let mut t = Broken(
+            CpuTracer {
+                name: "watertight f64",
+                intersect: watertight_f64,
+            },
+            f,
+        );
+        run(
+            &mut t,
+            &StressOptions {
+                cases: vec![kind],
+                seed: 1,
+                full: false,
+            },
+        )
+        .remove(0)
     }
 
     #[test]
     fn wrong_t_garbage_bits_inactive_hits_and_duplicates_are_caught() {
-        let r = broken(|t| if let Some(h) = t.hit.as_mut() { h.t *= 1.01 }, CaseKind::Far);
+        let r = broken(
+            |t| {
+                if let Some(h) = t.hit.as_mut() {
+                    h.t *= 1.01
+                }
+            },
+            CaseKind::Far,
+        );
         assert!(r.metrics.over_tolerance > 0, "t off by 1%: {r:?}");
-        let r = broken(|t| if let Some(h) = t.hit.as_mut() { h.bary[0] = f32::from_bits(0x7fc0_0001) }, CaseKind::Grazing);
-        assert_eq!(r.metrics.over_tolerance, r.metrics.compared, "NaN barycentrics");
+        let r = broken(
+            |t| {
+                if let Some(h) = t.hit.as_mut() {
+                    h.bary[0] = f32::from_bits(0x7fc0_0001)
+                }
+            },
+            CaseKind::Grazing,
+        );
+        assert_eq!(
+            r.metrics.over_tolerance, r.metrics.compared,
+            "NaN barycentrics"
+        );
         assert!(r.metrics.compared > 0);
-        let r = broken(|t| if let Some(h) = t.hit.as_mut() { h.primitive = 3 }, CaseKind::Degenerate);
-        assert!(r.metrics.false_hits > 0, "hits on the NaN-X triangle: {r:?}");
-        let r = broken(|t| { t.candidates += 1; t.first_candidates[1] = t.first_candidates[0]; }, CaseKind::Tmin);
+        let r = broken(
+            |t| {
+                if let Some(h) = t.hit.as_mut() {
+                    h.primitive = 3
+                }
+            },
+            CaseKind::Degenerate,
+        );
+        assert!(
+            r.metrics.false_hits > 0,
+            "hits on the NaN-X triangle: {r:?}"
+        );
+        let r = broken(
+            |t| {
+                t.candidates += 1;
+                t.first_candidates[1] = t.first_candidates[0];
+            },
+            CaseKind::Tmin,
+        );
         assert!(r.metrics.double_hits > 0 && r.metrics.duplicate_any_hits > 0);
         let r = broken(|t| t.hit = None, CaseKind::Tmin);
         assert!(r.metrics.leaks > 0, "certain hits dropped");
@@ -149,7 +229,10 @@ mod tests {
 
     #[test]
     fn a_sloppy_intersector_leaks_and_fails() {
-        let mut t = CpuTracer { name: "sloppy f32 Möller–Trumbore", intersect: sloppy_f32 };
+        let mut t = CpuTracer {
+            name: "sloppy f32 Möller–Trumbore",
+            intersect: sloppy_f32,
+        };
         let r = case(&mut t, CaseKind::Watertight);
         assert!(r.metrics.leaks > 100, "{r:?}");
         assert_eq!(r.verdict, crate::stress::evaluate::Verdict::Fail);

@@ -157,8 +157,19 @@ pub struct CaseResult {
 
 impl CaseResult {
     pub fn not_implemented(kind: CaseKind) -> Self {
-        let detail = Some(format!("rtprobe does not implement the {} case yet", kind.as_str()));
-        CaseResult { name: kind.as_str(), verdict: Verdict::NotImplemented, detail, metrics: Metrics::default(), ms: 0.0, parts: vec![], examples: vec![] }
+        let detail = Some(format!(
+            "rtprobe does not implement the {} case yet",
+            kind.as_str()
+        ));
+        CaseResult {
+            name: kind.as_str(),
+            verdict: Verdict::NotImplemented,
+            detail,
+            metrics: Metrics::default(),
+            ms: 0.0,
+            parts: vec![],
+            examples: vec![],
+        }
     }
 
     pub fn failed(kind: CaseKind, parts: &[Part], e: &TraceError) -> Self {
@@ -167,8 +178,19 @@ impl CaseResult {
             TraceError::Timeout(_) => Verdict::Timeout,
             TraceError::Failed(_) | TraceError::Compile(_) => Verdict::Error,
         };
-        let metrics = Metrics { rays: parts.iter().map(|p| p.rays.len()).sum(), ..Metrics::default() };
-        CaseResult { name: kind.as_str(), verdict, detail: Some(e.to_string()), metrics, ms: 0.0, parts: vec![], examples: vec![] }
+        let metrics = Metrics {
+            rays: parts.iter().map(|p| p.rays.len()).sum(),
+            ..Metrics::default()
+        };
+        CaseResult {
+            name: kind.as_str(),
+            verdict,
+            detail: Some(e.to_string()),
+            metrics,
+            ms: 0.0,
+            parts: vec![],
+            examples: vec![],
+        }
     }
 }
 
@@ -199,7 +221,11 @@ fn resolve(part: &Part, instance: u32, primitive: u32, ray: &Ray) -> Option<Reso
     let inst = part.scene.instances.get(instance as usize)?;
     let mesh = &part.scene.meshes[inst.mesh];
     let tri = mesh.indices.get(primitive as usize)?;
-    let (o, d) = watertight::object_ray(&inst.transform, watertight::to_f64(ray.origin), watertight::to_f64(ray.dir));
+    let (o, d) = watertight::object_ray(
+        &inst.transform,
+        watertight::to_f64(ray.origin),
+        watertight::to_f64(ray.dir),
+    );
     let v = tri.map(|i| watertight::to_f64(mesh.positions[i as usize]));
     Some(Resolved { v, o, d })
 }
@@ -207,8 +233,15 @@ fn resolve(part: &Part, instance: u32, primitive: u32, ray: &Ray) -> Option<Reso
 /// Smallest altitude of a triangle (∞ for a degenerate one: no barycentric margin applies).
 fn min_altitude(v: [DVec3; 3]) -> f64 {
     let area2 = (v[1] - v[0]).cross(v[2] - v[0]).length();
-    let longest = (v[1] - v[0]).length().max((v[2] - v[1]).length()).max((v[0] - v[2]).length());
-    if area2 == 0.0 || longest == 0.0 { f64::INFINITY } else { area2 / longest }
+    let longest = (v[1] - v[0])
+        .length()
+        .max((v[2] - v[1]).length())
+        .max((v[0] - v[2]).length());
+    if area2 == 0.0 || longest == 0.0 {
+        f64::INFINITY
+    } else {
+        area2 / longest
+    }
 }
 
 /// Margins for one ray/triangle pair: (barycentric, t), each for ambiguity and tolerance.
@@ -229,20 +262,35 @@ fn margins(r: &Resolved, ray: &Ray, t: f64) -> Margins {
     let h = min_altitude(r.v) * d.length() / r.d.length().max(f64::MIN_POSITIVE);
     let bary_abs = if h.is_finite() { abs / h } else { 0.0 };
     let dl = d.length().max(f64::MIN_POSITIVE);
-    Margins { edge: EDGE_EPS + bary_abs, t_amb: T_EPS * t.abs() + abs / dl, t_tol: T_REL_TOL * t.abs() + abs / dl, bary_tol: BARY_TOL + bary_abs }
+    Margins {
+        edge: EDGE_EPS + bary_abs,
+        t_amb: T_EPS * t.abs() + abs / dl,
+        t_tol: T_REL_TOL * t.abs() + abs / dl,
+        bary_tol: BARY_TOL + bary_abs,
+    }
 }
 
 fn candidates(part: &Part, index: &Index, ray: &Ray) -> Vec<Candidate> {
     let mut out = Vec::new();
     for (k, p) in index.query(ray) {
-        let Some(r) = resolve(part, k, p, ray) else { continue };
-        let Some(hit) = watertight::plane(r.o, r.d, r.v) else { continue };
+        let Some(r) = resolve(part, k, p, ray) else {
+            continue;
+        };
+        let Some(hit) = watertight::plane(r.o, r.d, r.v) else {
+            continue;
+        };
         let m = margins(&r, ray, hit.t);
         let (tmin, tmax) = (ray.tmin as f64, ray.tmax as f64);
         let possible = hit.inside >= -m.edge && hit.t >= tmin - m.t_amb && hit.t <= tmax + m.t_amb;
         if possible {
             let certain = hit.inside > m.edge && hit.t > tmin + m.t_amb && hit.t < tmax - m.t_amb;
-            out.push(Candidate { instance: k, primitive: p, hit, certain, near_edge: hit.inside <= m.edge });
+            out.push(Candidate {
+                instance: k,
+                primitive: p,
+                hit,
+                certain,
+                near_edge: hit.inside <= m.edge,
+            });
         }
     }
     out
@@ -255,11 +303,18 @@ fn candidates(part: &Part, index: &Index, ray: &Ray) -> Vec<Candidate> {
 fn crossings(cands: &[Candidate]) -> u32 {
     let mut n = 0;
     for side in [false, true] {
-        let mut cs: Vec<&Candidate> = cands.iter().filter(|c| c.hit.det_positive == side).collect();
+        let mut cs: Vec<&Candidate> = cands
+            .iter()
+            .filter(|c| c.hit.det_positive == side)
+            .collect();
         cs.sort_by(|a, b| a.hit.t.total_cmp(&b.hit.t));
         let mut last: Option<&Candidate> = None;
         for c in cs {
-            let same = last.is_some_and(|l| l.near_edge && c.near_edge && c.hit.t - l.hit.t <= T_EPS * c.hit.t.abs().max(1.0) * 8.0);
+            let same = last.is_some_and(|l| {
+                l.near_edge
+                    && c.near_edge
+                    && c.hit.t - l.hit.t <= T_EPS * c.hit.t.abs().max(1.0) * 8.0
+            });
             if !same {
                 n += 1;
             }
@@ -277,16 +332,29 @@ struct Acc {
 }
 
 fn bits(v: [f32; 4]) -> String {
-    v.iter().map(|x| format!("{:08x}", x.to_bits())).collect::<Vec<_>>().join(" ")
+    v.iter()
+        .map(|x| format!("{:08x}", x.to_bits()))
+        .collect::<Vec<_>>()
+        .join(" ")
 }
 
 impl Acc {
-    fn example(&mut self, kind: &'static str, part: &Part, i: usize, tr: &Traced, cands: &[Candidate]) {
+    fn example(
+        &mut self,
+        kind: &'static str,
+        part: &Part,
+        i: usize,
+        tr: &Traced,
+        cands: &[Candidate],
+    ) {
         if self.examples.iter().filter(|e| e.kind == kind).count() >= EXAMPLES_PER_KIND {
             return;
         }
         let r = &part.rays[i];
-        let closest = cands.iter().min_by(|a, b| a.hit.t.total_cmp(&b.hit.t)).map(|c| (c.primitive, c.hit.t, c.hit.inside));
+        let closest = cands
+            .iter()
+            .min_by(|a, b| a.hit.t.total_cmp(&b.hit.t))
+            .map(|c| (c.primitive, c.hit.t, c.hit.inside));
         self.examples.push(Example {
             kind,
             part: part.label.clone(),
@@ -294,7 +362,10 @@ impl Acc {
             dir: r.dir,
             tmin: r.tmin,
             tmax: r.tmax,
-            bits: [bits([r.origin[0], r.origin[1], r.origin[2], r.tmin]), bits([r.dir[0], r.dir[1], r.dir[2], r.tmax])],
+            bits: [
+                bits([r.origin[0], r.origin[1], r.origin[2], r.tmin]),
+                bits([r.dir[0], r.dir[1], r.dir[2], r.tmax]),
+            ],
             reference: closest,
             crossings: crossings(cands),
             hit: tr.hit.map(|h| (h.primitive, h.t, h.bary)),
@@ -307,7 +378,8 @@ impl Acc {
         let ray = &part.rays[i];
         let cands = candidates(part, index, ray);
         // Culled traces: the reference does not cull; `transform::facing_errors` judges them.
-        let culled = part.ray_flags & (super::transform::CULL_BACK | super::transform::CULL_FRONT) != 0;
+        let culled =
+            part.ray_flags & (super::transform::CULL_BACK | super::transform::CULL_FRONT) != 0;
         let must_hit = !culled && (part.info[i].must_hit || cands.iter().any(|c| c.certain));
         let may_hit = !cands.is_empty();
         self.m.rays += 1;
@@ -333,7 +405,11 @@ impl Acc {
             .scene
             .instances
             .get(h.instance as usize)
-            .and_then(|inst| part.scene.meshes[inst.mesh].inactive.get(h.primitive as usize))
+            .and_then(|inst| {
+                part.scene.meshes[inst.mesh]
+                    .inactive
+                    .get(h.primitive as usize)
+            })
             .copied();
         if !may_hit || inactive == Some(true) {
             self.m.false_hits += 1;
@@ -341,7 +417,8 @@ impl Acc {
             self.example("false_hit", part, i, tr, &cands);
             return;
         }
-        let plane = resolve(part, h.instance, h.primitive, ray).and_then(|r| watertight::plane(r.o, r.d, r.v).map(|p| (r, p)));
+        let plane = resolve(part, h.instance, h.primitive, ray)
+            .and_then(|r| watertight::plane(r.o, r.d, r.v).map(|p| (r, p)));
         let Some((r, p)) = plane else {
             self.m.wrong_hits += 1;
             self.m.disagreements += 1;
@@ -349,7 +426,11 @@ impl Acc {
             return;
         };
         let m = margins(&r, ray, p.t);
-        let closer = cands.iter().any(|c| c.certain && c.hit.t < p.t - m.t_amb && (c.instance, c.primitive) != (h.instance, h.primitive));
+        let closer = cands.iter().any(|c| {
+            c.certain
+                && c.hit.t < p.t - m.t_amb
+                && (c.instance, c.primitive) != (h.instance, h.primitive)
+        });
         if p.inside < -m.edge || closer {
             self.m.wrong_hits += 1;
             self.m.disagreements += 1;
@@ -379,7 +460,16 @@ impl Acc {
     /// A right hit's errors against the reference: t (ulps and relative), barycentrics and the
     /// object-space built-ins (`r`: the hit triangle, `p`: the f64 hit, `m`: the margins).
     #[allow(clippy::too_many_arguments)]
-    fn errors(&mut self, part: &Part, i: usize, tr: &Traced, cands: &[Candidate], r: &Resolved, p: &PlaneHit, m: &Margins) {
+    fn errors(
+        &mut self,
+        part: &Part,
+        i: usize,
+        tr: &Traced,
+        cands: &[Candidate],
+        r: &Resolved,
+        p: &PlaneHit,
+        m: &Margins,
+    ) {
         let (ray, h) = (&part.rays[i], tr.hit.expect("a hit"));
         let dt = (h.t as f64 - p.t).abs();
         // f64::max drops a NaN operand: a NaN barycentric must count as an infinite error.
@@ -388,9 +478,14 @@ impl Acc {
             .map(|d| if d.is_nan() { f64::INFINITY } else { d.abs() })
             .fold(0.0, f64::max);
         self.m.compared += 1;
-        let scale = watertight::to_f64(ray.origin).abs().max_element().max(r.o.abs().max_element()).max(1.0);
+        let scale = watertight::to_f64(ray.origin)
+            .abs()
+            .max_element()
+            .max(r.o.abs().max_element())
+            .max(1.0);
         let obj = |v: [f32; 3]| watertight::to_f64(v);
-        let be = ((obj(h.object_origin) - r.o).abs().max_element() / scale).max((obj(h.object_dir) - r.d).abs().max_element() / r.d.abs().max_element().max(1.0));
+        let be = ((obj(h.object_origin) - r.o).abs().max_element() / scale)
+            .max((obj(h.object_dir) - r.d).abs().max_element() / r.d.abs().max_element().max(1.0));
         let be = if be.is_nan() { f64::INFINITY } else { be };
         self.m.builtin_err_max = Some(self.m.builtin_err_max.unwrap_or(0.0).max(be));
         if !(dt <= m.t_tol && db <= m.bary_tol && be <= BUILTIN_TOL) {
@@ -398,17 +493,27 @@ impl Acc {
             self.example("over_tolerance", part, i, tr, cands);
         }
         let ulps = dt / ulp_f32(p.t);
-        self.t_ulps.push(if ulps.is_nan() { f64::INFINITY } else { ulps });
+        self.t_ulps
+            .push(if ulps.is_nan() { f64::INFINITY } else { ulps });
         let rel = if p.t != 0.0 { dt / p.t.abs() } else { dt };
-        self.m.t_rel_err_max = Some(self.m.t_rel_err_max.unwrap_or(0.0).max(if rel.is_nan() { f64::INFINITY } else { rel }));
-        self.m.bary_err_max = Some(self.m.bary_err_max.unwrap_or(0.0).max(if db.is_nan() { f64::INFINITY } else { db }));
+        self.m.t_rel_err_max = Some(self.m.t_rel_err_max.unwrap_or(0.0).max(if rel.is_nan() {
+            f64::INFINITY
+        } else {
+            rel
+        }));
+        self.m.bary_err_max = Some(self.m.bary_err_max.unwrap_or(0.0).max(if db.is_nan() {
+            f64::INFINITY
+        } else {
+            db
+        }));
     }
 
     fn finish(mut self) -> Metrics {
         self.t_ulps.sort_by(f64::total_cmp);
         if let Some(&max) = self.t_ulps.last() {
             self.m.t_err_max_ulps = Some(max);
-            let k = ((self.t_ulps.len() as f64 * 0.99).ceil() as usize).clamp(1, self.t_ulps.len()) - 1;
+            let k =
+                ((self.t_ulps.len() as f64 * 0.99).ceil() as usize).clamp(1, self.t_ulps.len()) - 1;
             self.m.t_err_p99 = Some(self.t_ulps[k]);
         }
         self.m
@@ -460,14 +565,21 @@ pub fn evaluate(kind: CaseKind, parts: &[Part], traced: &[Vec<Traced>]) -> CaseR
             acc.add(part, &index, i, t);
         }
         total.merge(&acc);
-        results.push(PartResult { label: part.label.clone(), distance: part.distance, metrics: acc.finish() });
+        results.push(PartResult {
+            label: part.label.clone(),
+            distance: part.distance,
+            metrics: acc.finish(),
+        });
     }
     let examples = std::mem::take(&mut total.examples);
     let mut metrics = total.finish();
     if kind == CaseKind::Transform {
         metrics.facing_errors = super::transform::facing_errors(parts, traced);
     }
-    let fail = metrics.disagreements > 0 || metrics.double_hits > 0 || metrics.over_tolerance > 0 || metrics.facing_errors > 0;
+    let fail = metrics.disagreements > 0
+        || metrics.double_hits > 0
+        || metrics.over_tolerance > 0
+        || metrics.facing_errors > 0;
     let verdict = if fail { Verdict::Fail } else { Verdict::Pass };
     let detail = fail.then(|| {
         format!(
@@ -484,7 +596,15 @@ pub fn evaluate(kind: CaseKind, parts: &[Part], traced: &[Vec<Traced>]) -> CaseR
             metrics.facing_errors
         )
     });
-    CaseResult { name: kind.as_str(), verdict, detail, metrics, ms: 0.0, parts: results, examples }
+    CaseResult {
+        name: kind.as_str(),
+        verdict,
+        detail,
+        metrics,
+        ms: 0.0,
+        parts: results,
+        examples,
+    }
 }
 
 #[cfg(test)]

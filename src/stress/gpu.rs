@@ -10,7 +10,10 @@ use super::layout::{self, glsl_header, LAUNCH_WIDTH, PUSH_SIZE, RESULT_WORDS};
 use super::{Part, TraceError, Traced, Tracer};
 use crate::exec::pipeline::{self, Pipeline};
 use crate::model::DescriptorModel;
-use crate::scene::gpu::{bytemuck_transform, bytes_of, record_builds, triangles, AccelStruct, Pending, SceneGpu, INPUT_USAGE};
+use crate::scene::gpu::{
+    bytemuck_transform, bytes_of, record_builds, triangles, AccelStruct, Pending, SceneGpu,
+    INPUT_USAGE,
+};
 use crate::shadergen::compile::Compiler;
 use crate::shadergen::{CellShaders, PipelineKind, Role, ShaderSource};
 use crate::vk::memory::{full_barrier, Buffer, Location};
@@ -28,7 +31,8 @@ layout(buffer_reference, std430, buffer_reference_align = 4) buffer Results { ui
 layout(push_constant, std430) uniform Push { uint64_t rays; uint64_t results; uint64_t tlas; uint count; uint width; uint ray_flags; } pc;
 "#;
 
-const RT_INDEX: &str = "uint ray_index() { return gl_LaunchIDEXT.y * pc.width + gl_LaunchIDEXT.x; }\n";
+const RT_INDEX: &str =
+    "uint ray_index() { return gl_LaunchIDEXT.y * pc.width + gl_LaunchIDEXT.x; }\n";
 
 const RAYGEN: &str = r#"
 layout(location = 0) rayPayloadEXT uint pass_;
@@ -146,7 +150,10 @@ const RQ_HEADER: &str = "#version 460\n#extension GL_EXT_ray_query : require\n#e
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require\n";
 
 fn source(role: Role, body: &str) -> ShaderSource {
-    ShaderSource { role, glsl: format!("{HEADER}{}{COMMON}{RT_INDEX}{body}", glsl_header()) }
+    ShaderSource {
+        role,
+        glsl: format!("{HEADER}{}{COMMON}{RT_INDEX}{body}", glsl_header()),
+    }
 }
 
 /// How rays are traced: `traceRayEXT` in an RT pipeline, or `rayQueryEXT` in a compute shader.
@@ -166,7 +173,12 @@ impl Mode {
 
     fn stages(self) -> vk::ShaderStageFlags {
         match self {
-            Mode::Pipeline => vk::ShaderStageFlags::RAYGEN_KHR | vk::ShaderStageFlags::MISS_KHR | vk::ShaderStageFlags::CLOSEST_HIT_KHR | vk::ShaderStageFlags::ANY_HIT_KHR,
+            Mode::Pipeline => {
+                vk::ShaderStageFlags::RAYGEN_KHR
+                    | vk::ShaderStageFlags::MISS_KHR
+                    | vk::ShaderStageFlags::CLOSEST_HIT_KHR
+                    | vk::ShaderStageFlags::ANY_HIT_KHR
+            }
             Mode::RayQuery => vk::ShaderStageFlags::COMPUTE,
         }
     }
@@ -182,10 +194,24 @@ impl Mode {
                 source(Role::ClosestHitProcedural, UNUSED_PROCEDURAL),
                 source(Role::Intersection, UNUSED_INTERSECTION),
             ],
-            Mode::RayQuery => vec![ShaderSource { role: Role::Compute, glsl: format!("{RQ_HEADER}{}{COMMON}{RAY_QUERY}", glsl_header()) }],
+            Mode::RayQuery => vec![ShaderSource {
+                role: Role::Compute,
+                glsl: format!("{RQ_HEADER}{}{COMMON}{RAY_QUERY}", glsl_header()),
+            }],
         };
-        let kind = if self == Mode::Pipeline { PipelineKind::RayTracing } else { PipelineKind::Compute };
-        CellShaders { kind, shaders, recursion_depth: 1, uses_probe_binding: false, uses_scene_tlas: false, uses_ray_query: self == Mode::RayQuery }
+        let kind = if self == Mode::Pipeline {
+            PipelineKind::RayTracing
+        } else {
+            PipelineKind::Compute
+        };
+        CellShaders {
+            kind,
+            shaders,
+            recursion_depth: 1,
+            uses_probe_binding: false,
+            uses_scene_tlas: false,
+            uses_ray_query: self == Mode::RayQuery,
+        }
     }
 }
 
@@ -201,7 +227,11 @@ pub struct GpuTracer {
 }
 
 fn vk_err(e: VkError) -> TraceError {
-    if e.is_device_lost() { TraceError::DeviceLost(e.to_string()) } else { TraceError::Failed(e.to_string()) }
+    if e.is_device_lost() {
+        TraceError::DeviceLost(e.to_string())
+    } else {
+        TraceError::Failed(e.to_string())
+    }
 }
 
 impl GpuTracer {
@@ -210,51 +240,106 @@ impl GpuTracer {
         let shaders = mode.shaders();
         let mut spirv = Vec::new();
         for s in &shaders.shaders {
-            spirv.push(compiler.compile(s.role, &s.glsl).map_err(TraceError::Compile)?.0);
+            spirv.push(
+                compiler
+                    .compile(s.role, &s.glsl)
+                    .map_err(TraceError::Compile)?
+                    .0,
+            );
         }
         let submitter = Submitter::new(&gpu).map_err(vk_err)?;
         let range = [vk::PushConstantRange::default()
             .stage_flags(mode.stages())
             .size(PUSH_SIZE)];
-        let layout = unsafe { gpu.device.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().push_constant_ranges(&range), None) }
-            .at("vkCreatePipelineLayout")
-            .map_err(vk_err)?;
-        let pipeline = pipeline::create(&gpu, vk::PipelineCache::null(), &shaders, &spirv, layout, DescriptorModel::DescriptorIndexing, None, &Default::default()).map_err(vk_err)?;
-        Ok(GpuTracer { gpu, submitter, layout, pipeline, timeout, broken: None, mode })
+        let layout = unsafe {
+            gpu.device.create_pipeline_layout(
+                &vk::PipelineLayoutCreateInfo::default().push_constant_ranges(&range),
+                None,
+            )
+        }
+        .at("vkCreatePipelineLayout")
+        .map_err(vk_err)?;
+        let pipeline = pipeline::create(
+            &gpu,
+            vk::PipelineCache::null(),
+            &shaders,
+            &spirv,
+            layout,
+            DescriptorModel::DescriptorIndexing,
+            None,
+            &Default::default(),
+        )
+        .map_err(vk_err)?;
+        Ok(GpuTracer {
+            gpu,
+            submitter,
+            layout,
+            pipeline,
+            timeout,
+            broken: None,
+            mode,
+        })
     }
 
-    fn build(&self, part: &Part, keep: &mut Vec<Buffer>) -> Result<(Vec<AccelStruct>, AccelStruct), TraceError> {
+    fn build(
+        &self,
+        part: &Part,
+        keep: &mut Vec<Buffer>,
+    ) -> Result<(Vec<AccelStruct>, AccelStruct), TraceError> {
         let gpu = &self.gpu;
         let mut pending = Vec::new();
         for mesh in &part.scene.meshes {
-            pending.push(triangles(gpu, &mesh.positions, &mesh.indices, vk::GeometryFlagsKHR::NO_DUPLICATE_ANY_HIT_INVOCATION, keep).map_err(vk_err)?);
+            pending.push(
+                triangles(
+                    gpu,
+                    &mesh.positions,
+                    &mesh.indices,
+                    vk::GeometryFlagsKHR::NO_DUPLICATE_ANY_HIT_INVOCATION,
+                    keep,
+                )
+                .map_err(vk_err)?,
+            );
         }
         let mut scratch = Vec::new();
-        let (blas, blas_builds) = SceneGpu::prepare_all(gpu, &pending, &mut scratch).map_err(vk_err)?;
+        let (blas, blas_builds) =
+            SceneGpu::prepare_all(gpu, &pending, &mut scratch).map_err(vk_err)?;
         let instances: Vec<vk::AccelerationStructureInstanceKHR> = part
             .scene
             .instances
             .iter()
             .enumerate()
             .map(|(k, i)| vk::AccelerationStructureInstanceKHR {
-                transform: vk::TransformMatrixKHR { matrix: bytemuck_transform(&i.transform) },
+                transform: vk::TransformMatrixKHR {
+                    matrix: bytemuck_transform(&i.transform),
+                },
                 instance_custom_index_and_mask: vk::Packed24_8::new(k as u32, 0xff),
                 instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(0, 0),
-                acceleration_structure_reference: vk::AccelerationStructureReferenceKHR { device_handle: blas[i.mesh].address },
+                acceleration_structure_reference: vk::AccelerationStructureReferenceKHR {
+                    device_handle: blas[i.mesh].address,
+                },
             })
             .collect();
-        let ib = Buffer::with_data(gpu, bytes_of(&instances), INPUT_USAGE, "instance buffer").map_err(vk_err)?;
-        let data = vk::AccelerationStructureGeometryInstancesDataKHR::default().data(vk::DeviceOrHostAddressConstKHR { device_address: ib.address });
+        let ib = Buffer::with_data(gpu, bytes_of(&instances), INPUT_USAGE, "instance buffer")
+            .map_err(vk_err)?;
+        let data = vk::AccelerationStructureGeometryInstancesDataKHR::default().data(
+            vk::DeviceOrHostAddressConstKHR {
+                device_address: ib.address,
+            },
+        );
         keep.push(ib);
         let tlas_pending = [Pending {
             geometries: vec![vk::AccelerationStructureGeometryKHR::default()
                 .geometry_type(vk::GeometryTypeKHR::INSTANCES)
                 .geometry(vk::AccelerationStructureGeometryDataKHR { instances: data })],
-            ranges: vec![vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(instances.len() as u32)],
+            ranges: vec![vk::AccelerationStructureBuildRangeInfoKHR::default()
+                .primitive_count(instances.len() as u32)],
             ty: vk::AccelerationStructureTypeKHR::TOP_LEVEL,
         }];
-        let (mut tlas, tlas_builds) = SceneGpu::prepare_all(gpu, &tlas_pending, &mut scratch).map_err(vk_err)?;
-        let waited = self.submitter.run(gpu, self.timeout, |cmd| record_builds(gpu, cmd, &[&blas_builds, &tlas_builds]));
+        let (mut tlas, tlas_builds) =
+            SceneGpu::prepare_all(gpu, &tlas_pending, &mut scratch).map_err(vk_err)?;
+        let waited = self.submitter.run(gpu, self.timeout, |cmd| {
+            record_builds(gpu, cmd, &[&blas_builds, &tlas_builds])
+        });
         for s in &scratch {
             s.destroy(gpu);
         }
@@ -266,12 +351,26 @@ impl GpuTracer {
         }
     }
 
-    fn launch(&self, part: &Part, tlas: &AccelStruct, keep: &mut Vec<Buffer>) -> Result<Vec<Traced>, TraceError> {
+    fn launch(
+        &self,
+        part: &Part,
+        tlas: &AccelStruct,
+        keep: &mut Vec<Buffer>,
+    ) -> Result<Vec<Traced>, TraceError> {
         let gpu = &self.gpu;
         let n = part.rays.len();
-        let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
-        let rays = Buffer::with_data(gpu, &layout::ray_bytes(&part.rays), usage, "stress rays").map_err(vk_err)?;
-        let results = Buffer::new(gpu, (n * RESULT_WORDS * 4) as u64, usage, Location::Host, "stress results").map_err(vk_err)?;
+        let usage =
+            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+        let rays = Buffer::with_data(gpu, &layout::ray_bytes(&part.rays), usage, "stress rays")
+            .map_err(vk_err)?;
+        let results = Buffer::new(
+            gpu,
+            (n * RESULT_WORDS * 4) as u64,
+            usage,
+            Location::Host,
+            "stress results",
+        )
+        .map_err(vk_err)?;
         results.write(0, &vec![0u8; n * RESULT_WORDS * 4]);
         let mut push = Vec::with_capacity(PUSH_SIZE as usize);
         push.extend(rays.address.to_le_bytes());
@@ -286,13 +385,32 @@ impl GpuTracer {
                 Mode::Pipeline => {
                     let rt = gpu.rt.as_ref().expect("ray tracing pipeline enabled");
                     let sbt = self.pipeline.sbt.as_ref().expect("RT pipeline has an SBT");
-                    gpu.device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::RAY_TRACING_KHR, self.pipeline.raw);
-                    gpu.device.cmd_push_constants(cmd, self.layout, self.mode.stages(), 0, &push);
-                    rt.cmd_trace_rays(cmd, &sbt.raygen, &sbt.miss, &sbt.hit, &sbt.callable, LAUNCH_WIDTH, height, 1);
+                    gpu.device.cmd_bind_pipeline(
+                        cmd,
+                        vk::PipelineBindPoint::RAY_TRACING_KHR,
+                        self.pipeline.raw,
+                    );
+                    gpu.device
+                        .cmd_push_constants(cmd, self.layout, self.mode.stages(), 0, &push);
+                    rt.cmd_trace_rays(
+                        cmd,
+                        &sbt.raygen,
+                        &sbt.miss,
+                        &sbt.hit,
+                        &sbt.callable,
+                        LAUNCH_WIDTH,
+                        height,
+                        1,
+                    );
                 }
                 Mode::RayQuery => {
-                    gpu.device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, self.pipeline.raw);
-                    gpu.device.cmd_push_constants(cmd, self.layout, self.mode.stages(), 0, &push);
+                    gpu.device.cmd_bind_pipeline(
+                        cmd,
+                        vk::PipelineBindPoint::COMPUTE,
+                        self.pipeline.raw,
+                    );
+                    gpu.device
+                        .cmd_push_constants(cmd, self.layout, self.mode.stages(), 0, &push);
                     gpu.device.cmd_dispatch(cmd, (n as u32).div_ceil(64), 1, 1);
                 }
             }
@@ -306,9 +424,14 @@ impl GpuTracer {
                 let decoded = layout::decode(&bytes, n);
                 let lost = decoded.iter().filter(|d| d.is_none()).count();
                 if lost > 0 {
-                    return Err(TraceError::Failed(format!("{lost} of {n} rays ran neither the closest-hit nor the miss shader")));
+                    return Err(TraceError::Failed(format!(
+                        "{lost} of {n} rays ran neither the closest-hit nor the miss shader"
+                    )));
                 }
-                Ok(decoded.into_iter().map(|d| d.expect("checked above")).collect())
+                Ok(decoded
+                    .into_iter()
+                    .map(|d| d.expect("checked above"))
+                    .collect())
             }
         }
     }
@@ -324,12 +447,20 @@ fn destroy_accel<'a>(gpu: &Gpu, all: impl Iterator<Item = &'a AccelStruct>) {
 
 impl Tracer for GpuTracer {
     fn name(&self) -> String {
-        format!("{} ({} {}), {}", self.gpu.info.name(), self.gpu.info.driver_name(), self.gpu.info.driver_version(), self.mode.as_str())
+        format!(
+            "{} ({} {}), {}",
+            self.gpu.info.name(),
+            self.gpu.info.driver_name(),
+            self.gpu.info.driver_version(),
+            self.mode.as_str()
+        )
     }
 
     fn trace(&mut self, part: &Part) -> Result<Vec<Traced>, TraceError> {
         if let Some(why) = &self.broken {
-            return Err(TraceError::Failed(format!("not traced: {why} in an earlier case")));
+            return Err(TraceError::Failed(format!(
+                "not traced: {why} in an earlier case"
+            )));
         }
         let mut keep = Vec::new();
         let result = self.build(part, &mut keep).and_then(|(blas, tlas)| {
@@ -341,7 +472,9 @@ impl Tracer for GpuTracer {
         });
         match &result {
             // A hung submission may still use them: leak rather than free under it.
-            Err(e @ (TraceError::Timeout(_) | TraceError::DeviceLost(_))) => self.broken = Some(e.to_string()),
+            Err(e @ (TraceError::Timeout(_) | TraceError::DeviceLost(_))) => {
+                self.broken = Some(e.to_string())
+            }
             _ => {
                 for b in &keep {
                     b.destroy(&self.gpu);

@@ -39,7 +39,12 @@ impl Index {
             let m = inst.transform;
             let world = |p: [f32; 3]| {
                 let v = watertight::to_f64(p);
-                DVec3::from_array(std::array::from_fn(|r| m[r][0] as f64 * v.x + m[r][1] as f64 * v.y + m[r][2] as f64 * v.z + m[r][3] as f64))
+                DVec3::from_array(std::array::from_fn(|r| {
+                    m[r][0] as f64 * v.x
+                        + m[r][1] as f64 * v.y
+                        + m[r][2] as f64 * v.z
+                        + m[r][3] as f64
+                }))
             };
             for (p, tri) in mesh.indices.iter().enumerate() {
                 if mesh.inactive[p] {
@@ -50,7 +55,8 @@ impl Index {
                 if !(lo.is_finite() && hi.is_finite()) {
                     continue;
                 }
-                let pad = 1e-4 * ((hi - lo).max_element() + lo.abs().max(hi.abs()).max_element()) + 1e-30;
+                let pad =
+                    1e-4 * ((hi - lo).max_element() + lo.abs().max(hi.abs()).max_element()) + 1e-30;
                 all.push((k as u32, p as u32));
                 boxes.push((lo - DVec3::splat(pad), hi + DVec3::splat(pad)));
             }
@@ -61,7 +67,12 @@ impl Index {
         let lo = boxes.iter().fold(DVec3::splat(f64::MAX), |a, b| a.min(b.0));
         let hi = boxes.iter().fold(DVec3::splat(f64::MIN), |a, b| a.max(b.1));
         let n = ((all.len() as f64 / 2.0).sqrt() as usize).clamp(1, 512);
-        let mut grid = Grid { lo, hi, n, cells: vec![Vec::new(); n * n] };
+        let mut grid = Grid {
+            lo,
+            hi,
+            n,
+            cells: vec![Vec::new(); n * n],
+        };
         for (i, (blo, bhi)) in boxes.iter().enumerate() {
             for y in grid.cell(blo.y, 1)..=grid.cell(bhi.y, 1) {
                 for x in grid.cell(blo.x, 0)..=grid.cell(bhi.x, 0) {
@@ -69,12 +80,17 @@ impl Index {
                 }
             }
         }
-        Index { all, grid: Some(grid) }
+        Index {
+            all,
+            grid: Some(grid),
+        }
     }
 
     /// The triangles the ray may reach: (instance, primitive).
     pub fn query(&self, ray: &Ray) -> Vec<(u32, u32)> {
-        let Some(g) = &self.grid else { return self.all.clone() };
+        let Some(g) = &self.grid else {
+            return self.all.clone();
+        };
         let o = watertight::to_f64(ray.origin);
         let d = watertight::to_f64(ray.dir);
         let (mut t0, mut t1) = (ray.tmin as f64, (ray.tmax as f64).min(f64::MAX));
@@ -113,19 +129,35 @@ mod tests {
 
     #[test]
     fn the_grid_finds_every_candidate_brute_force_finds() {
-        let opts = StressOptions { cases: vec![], seed: 2, full: false };
+        let opts = StressOptions {
+            cases: vec![],
+            seed: 2,
+            full: false,
+        };
         let parts = cases::build(CaseKind::Watertight, &opts).unwrap();
-        let big = parts.iter().find(|p| p.scene.meshes[0].indices.len() > BRUTE_FORCE).unwrap();
+        let big = parts
+            .iter()
+            .find(|p| p.scene.meshes[0].indices.len() > BRUTE_FORCE)
+            .unwrap();
         let index = Index::build(big);
         assert!(index.grid.is_some());
-        let brute = Index { all: index.all.clone(), grid: None };
+        let brute = Index {
+            all: index.all.clone(),
+            grid: None,
+        };
         for r in big.rays.iter().step_by(7) {
             let got = index.query(r);
             let hits = |list: &[(u32, u32)]| {
                 list.iter()
                     .filter(|(_, p)| {
-                        let tri = big.scene.meshes[0].indices[*p as usize].map(|i| watertight::to_f64(big.scene.meshes[0].positions[i as usize]));
-                        watertight::plane(watertight::to_f64(r.origin), watertight::to_f64(r.dir), tri).is_some_and(|h| h.inside > -1e-3)
+                        let tri = big.scene.meshes[0].indices[*p as usize]
+                            .map(|i| watertight::to_f64(big.scene.meshes[0].positions[i as usize]));
+                        watertight::plane(
+                            watertight::to_f64(r.origin),
+                            watertight::to_f64(r.dir),
+                            tri,
+                        )
+                        .is_some_and(|h| h.inside > -1e-3)
                     })
                     .copied()
                     .collect::<Vec<_>>()

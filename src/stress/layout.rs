@@ -43,7 +43,18 @@ pub fn glsl_header() -> String {
 /// The ray buffer's bytes.
 pub fn ray_bytes(rays: &[Ray]) -> Vec<u8> {
     rays.iter()
-        .flat_map(|r| [r.origin[0], r.origin[1], r.origin[2], r.tmin, r.dir[0], r.dir[1], r.dir[2], r.tmax])
+        .flat_map(|r| {
+            [
+                r.origin[0],
+                r.origin[1],
+                r.origin[2],
+                r.tmin,
+                r.dir[0],
+                r.dir[1],
+                r.dir[2],
+                r.tmax,
+            ]
+        })
         .flat_map(f32::to_le_bytes)
         .collect()
 }
@@ -72,7 +83,11 @@ pub fn decode(bytes: &[u8], n: usize) -> Vec<Option<Traced>> {
             };
             let candidates = w(i, W_CANDIDATES);
             let first = [w(i, W_CAND0), w(i, W_CAND1)];
-            Some(Traced { hit, candidates, first_candidates: first })
+            Some(Traced {
+                hit,
+                candidates,
+                first_candidates: first,
+            })
         })
         .collect()
 }
@@ -93,9 +108,28 @@ mod tests {
         let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
         let d = decode(&bytes, 3);
         let h = d[0].unwrap().hit.unwrap();
-        assert_eq!((h.t, h.bary[0], h.primitive, d[0].unwrap().candidates), (2.5, 0.25, 7, 2));
-        assert_eq!(d[1], Some(Traced { hit: None, candidates: 0, first_candidates: [0, 0] }));
+        assert_eq!(
+            (h.t, h.bary[0], h.primitive, d[0].unwrap().candidates),
+            (2.5, 0.25, 7, 2)
+        );
+        assert_eq!(
+            d[1],
+            Some(Traced {
+                hit: None,
+                candidates: 0,
+                first_candidates: [0, 0]
+            })
+        );
         assert_eq!(d[2], None, "an unwritten record is a lost ray");
-        assert_eq!(ray_bytes(&[Ray { origin: [1.0, 2.0, 3.0], tmin: 0.0, dir: [0.0, 0.0, 1.0], tmax: 9.0 }]).len(), 32);
+        assert_eq!(
+            ray_bytes(&[Ray {
+                origin: [1.0, 2.0, 3.0],
+                tmin: 0.0,
+                dir: [0.0, 0.0, 1.0],
+                tmax: 9.0
+            }])
+            .len(),
+            32
+        );
     }
 }

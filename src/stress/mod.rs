@@ -17,8 +17,11 @@ pub mod svg;
 pub mod transform;
 mod types;
 
-pub use types::{CaseKind, Instance, Mesh, Part, Ray, RayInfo, Scene, StressOptions, TraceError, Traced, TracedHit, Tracer, IDENTITY};
 pub(crate) use types::one_mesh;
+pub use types::{
+    CaseKind, Instance, Mesh, Part, Ray, RayInfo, Scene, StressOptions, TraceError, Traced,
+    TracedHit, Tracer, IDENTITY,
+};
 
 /// Run `opts.cases` on `tracer`: every case is built, traced and evaluated; a case whose trace
 /// fails is reported with that failure, and the rest still run.

@@ -52,8 +52,15 @@ pub fn text(device: &str, cases: &[CaseResult]) -> String {
         }
         s.push_str(&row("total", &c.metrics));
     }
-    let failed = cases.iter().filter(|c| c.verdict != Verdict::Pass && c.verdict != Verdict::NotImplemented).count();
-    let missing: Vec<&str> = cases.iter().filter(|c| c.verdict == Verdict::NotImplemented).map(|c| c.name).collect();
+    let failed = cases
+        .iter()
+        .filter(|c| c.verdict != Verdict::Pass && c.verdict != Verdict::NotImplemented)
+        .count();
+    let missing: Vec<&str> = cases
+        .iter()
+        .filter(|c| c.verdict == Verdict::NotImplemented)
+        .map(|c| c.name)
+        .collect();
     s.push_str(&format!("\n{} cases, {} not passed", cases.len(), failed));
     if !missing.is_empty() {
         s.push_str(&format!(", not implemented: {}", missing.join(", ")));
@@ -63,7 +70,14 @@ pub fn text(device: &str, cases: &[CaseResult]) -> String {
 }
 
 /// The JSON report; `validation` is (layer active, errors it reported during the run).
-pub fn json(device: &Value, tracer: &str, seed: u64, full: bool, validation: (bool, u64), cases: &[CaseResult]) -> Value {
+pub fn json(
+    device: &Value,
+    tracer: &str,
+    seed: u64,
+    full: bool,
+    validation: (bool, u64),
+    cases: &[CaseResult],
+) -> Value {
     json!({
         "schema": "rtprobe.stress/1",
         "rtprobe_version": env!("CARGO_PKG_VERSION"),
@@ -86,5 +100,7 @@ pub fn json(device: &Value, tracer: &str, seed: u64, full: bool, validation: (bo
 
 /// Exit status of the command: every implemented case passed.
 pub fn all_passed(cases: &[CaseResult]) -> bool {
-    cases.iter().all(|c| matches!(c.verdict, Verdict::Pass | Verdict::NotImplemented))
+    cases
+        .iter()
+        .all(|c| matches!(c.verdict, Verdict::Pass | Verdict::NotImplemented))
 }

@@ -7,7 +7,9 @@
 //! raw point lies below the surface is not the driver's fault; `self_hits` counts secondary hits
 //! closer than [`SELF_T`]: expected for raw origins, none allowed with the offset.
 use super::cases::split_square;
-use super::{Instance, Mesh, Part, Ray, RayInfo, Scene, StressOptions, TraceError, Traced, Tracer, IDENTITY};
+use super::{
+    Instance, Mesh, Part, Ray, RayInfo, Scene, StressOptions, TraceError, Traced, Tracer, IDENTITY,
+};
 use crate::scene::rng::Rng;
 
 /// A secondary hit closer than this is a self-hit.
@@ -16,8 +18,24 @@ const OFFSET: f32 = 1000.0;
 
 fn scene(rng: &mut Rng) -> Scene {
     let m = split_square(rng, 1024, 0.01);
-    let positions = m.positions.iter().map(|p| [p[0] * 4.0 + OFFSET, p[1] * 4.0 + OFFSET, p[2] * 4.0 + OFFSET]).collect();
-    Scene { meshes: vec![Mesh { positions, ..m }], instances: vec![Instance { transform: IDENTITY, mesh: 0 }] }
+    let positions = m
+        .positions
+        .iter()
+        .map(|p| {
+            [
+                p[0] * 4.0 + OFFSET,
+                p[1] * 4.0 + OFFSET,
+                p[2] * 4.0 + OFFSET,
+            ]
+        })
+        .collect();
+    Scene {
+        meshes: vec![Mesh { positions, ..m }],
+        instances: vec![Instance {
+            transform: IDENTITY,
+            mesh: 0,
+        }],
+    }
 }
 
 fn sub(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
@@ -36,22 +54,41 @@ pub fn offset_ray(p: [f32; 3], n: [f32; 3]) -> [f32; 3] {
     const INT_SCALE: f32 = 256.0;
     std::array::from_fn(|k| {
         let of = (INT_SCALE * n[k]) as i32;
-        let pi = f32::from_bits((p[k].to_bits() as i32).wrapping_add(if p[k] < 0.0 { -of } else { of }) as u32);
-        if p[k].abs() < ORIGIN { p[k] + FLOAT_SCALE * n[k] } else { pi }
+        let pi =
+            f32::from_bits(
+                (p[k].to_bits() as i32).wrapping_add(if p[k] < 0.0 { -of } else { of }) as u32,
+            );
+        if p[k].abs() < ORIGIN {
+            p[k] + FLOAT_SCALE * n[k]
+        } else {
+            pi
+        }
     })
 }
 
 /// Secondary rays (raw origin, offset origin) from the primary hits.
 fn secondaries(primary: &Part, traced: &[Traced]) -> (Part, Part) {
     let mesh = &primary.scene.meshes[0];
-    let mut raw = Part { label: "secondary-raw".into(), ..primary.clone_empty() };
-    let mut off = Part { label: "secondary-offset".into(), ..raw.clone_empty() };
+    let mut raw = Part {
+        label: "secondary-raw".into(),
+        ..primary.clone_empty()
+    };
+    let mut off = Part {
+        label: "secondary-offset".into(),
+        ..raw.clone_empty()
+    };
     for (ray, tr) in primary.rays.iter().zip(traced) {
         let Some(h) = tr.hit else { continue };
-        let Some(tri) = mesh.indices.get(h.primitive as usize) else { continue };
+        let Some(tri) = mesh.indices.get(h.primitive as usize) else {
+            continue;
+        };
         let v = tri.map(|i| mesh.positions[i as usize]);
         let (e1, e2) = (sub(v[1], v[0]), sub(v[2], v[0]));
-        let mut n = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
+        let mut n = [
+            e1[1] * e2[2] - e1[2] * e2[1],
+            e1[2] * e2[0] - e1[0] * e2[2],
+            e1[0] * e2[1] - e1[1] * e2[0],
+        ];
         let len = dot(n, n).sqrt();
         if len == 0.0 {
             continue;
@@ -65,7 +102,12 @@ fn secondaries(primary: &Part, traced: &[Traced]) -> (Part, Part) {
         let k = 2.0 * dot(d, n);
         let r = std::array::from_fn(|i| d[i] - k * n[i]);
         let push = |part: &mut Part, origin| {
-            part.rays.push(Ray { origin, tmin: 0.0, dir: r, tmax: 1e30 });
+            part.rays.push(Ray {
+                origin,
+                tmin: 0.0,
+                dir: r,
+                tmax: 1e30,
+            });
             part.info.push(RayInfo { must_hit: false });
         };
         push(&mut raw, p);
@@ -76,22 +118,44 @@ fn secondaries(primary: &Part, traced: &[Traced]) -> (Part, Part) {
 
 impl Part {
     fn clone_empty(&self) -> Part {
-        Part { label: self.label.clone(), distance: self.distance, scene: self.scene.clone(), rays: vec![], info: vec![], ray_flags: self.ray_flags }
+        Part {
+            label: self.label.clone(),
+            distance: self.distance,
+            scene: self.scene.clone(),
+            rays: vec![],
+            info: vec![],
+            ray_flags: self.ray_flags,
+        }
     }
 }
 
 /// Build and trace the three parts (primary, secondary raw, secondary offset). On a trace
 /// failure, the parts built so far and the error.
-pub fn run(tracer: &mut dyn Tracer, opts: &StressOptions) -> Result<(Vec<Part>, Vec<Vec<Traced>>), (Vec<Part>, TraceError)> {
+pub fn run(
+    tracer: &mut dyn Tracer,
+    opts: &StressOptions,
+) -> Result<(Vec<Part>, Vec<Vec<Traced>>), (Vec<Part>, TraceError)> {
     let mut rng = Rng::new(opts.seed ^ 0x5e1f);
     let g = if opts.full { 256 } else { 48 };
-    let mut primary = Part { label: "primary".into(), distance: None, scene: scene(&mut rng), rays: vec![], info: vec![], ray_flags: 0 };
+    let mut primary = Part {
+        label: "primary".into(),
+        distance: None,
+        scene: scene(&mut rng),
+        rays: vec![],
+        info: vec![],
+        ray_flags: 0,
+    };
     for j in 0..g {
         for i in 0..g {
             let x = OFFSET + 4.0 * (0.03 + 0.94 * (i as f32 + 0.5) / g as f32);
             let y = OFFSET + 4.0 * (0.03 + 0.94 * (j as f32 + 0.5) / g as f32);
             let d = [rng.range(-0.3, 0.3), rng.range(-0.3, 0.3), -1.0];
-            primary.rays.push(Ray { origin: [x - 3.0 * d[0], y - 3.0 * d[1], OFFSET + 3.0], tmin: 0.0, dir: d, tmax: 1e30 });
+            primary.rays.push(Ray {
+                origin: [x - 3.0 * d[0], y - 3.0 * d[1], OFFSET + 3.0],
+                tmin: 0.0,
+                dir: d,
+                tmax: 1e30,
+            });
             primary.info.push(RayInfo { must_hit: false });
         }
     }
@@ -125,7 +189,11 @@ mod tests {
         let o = offset_ray(p, [0.0, 0.0, 1.0]);
         assert_eq!(o[0], 1000.0);
         assert_eq!(o[1], -1000.0);
-        assert_eq!(o[2], 0.001 + 1.0 / 65536.0, "near the origin: absolute offset");
+        assert_eq!(
+            o[2],
+            0.001 + 1.0 / 65536.0,
+            "near the origin: absolute offset"
+        );
         let o = offset_ray(p, [1.0, -1.0, 0.0]);
         assert_eq!(o[0].to_bits(), 1000.0f32.to_bits() + 256);
         assert!(o[1] < -1000.0 && o[1].to_bits() == (-1000.0f32).to_bits() + 256);

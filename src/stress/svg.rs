@@ -17,8 +17,18 @@ fn series(far: &CaseResult) -> Vec<Series> {
                 .filter_map(|p| Some((p.distance?.max(1.0), f(&p.metrics)?.max(FLOOR))))
                 .collect()
         };
-        out.push(Series { name: format!("{mode}: t rel."), points: pts(&|m| m.t_rel_err_max), style: Style::Line, colour: k });
-        out.push(Series { name: format!("{mode}: bary"), points: pts(&|m| m.bary_err_max), style: Style::Dashed, colour: k });
+        out.push(Series {
+            name: format!("{mode}: t rel."),
+            points: pts(&|m| m.t_rel_err_max),
+            style: Style::Line,
+            colour: k,
+        });
+        out.push(Series {
+            name: format!("{mode}: bary"),
+            points: pts(&|m| m.bary_err_max),
+            style: Style::Dashed,
+            colour: k,
+        });
     }
     out
 }
@@ -31,8 +41,16 @@ pub fn far_plot(far: &CaseResult, device: &str) -> Option<String> {
     }
     let chart = LineChart {
         title: format!("rtprobe stress far: error vs distance — {device}"),
-        x: Axis { label: "distance of the scene from the origin (distance 0 drawn at 1)".into(), log: true, range: Some((1.0, 1e7)) },
-        y: Axis { label: "max error (relative t, absolute barycentric; log)".into(), log: true, range: None },
+        x: Axis {
+            label: "distance of the scene from the origin (distance 0 drawn at 1)".into(),
+            log: true,
+            range: Some((1.0, 1e7)),
+        },
+        y: Axis {
+            label: "max error (relative t, absolute barycentric; log)".into(),
+            log: true,
+            range: None,
+        },
         series,
         // The matrix tolerance (1e-3, relative t and barycentrics).
         hlines: vec![(1e-3, "tolerance 1e-3".into())],

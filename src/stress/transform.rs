@@ -20,42 +20,93 @@ pub const HIT_KIND_BACK: u32 = 0xFF;
 fn transforms() -> Vec<(&'static str, DMat3, DVec3)> {
     let rot = DMat3::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 0.7);
     vec![
-        ("scale", DMat3::from_diagonal(DVec3::new(3.0, 0.5, 2.0)), DVec3::new(1.0, 2.0, 3.0)),
+        (
+            "scale",
+            DMat3::from_diagonal(DVec3::new(3.0, 0.5, 2.0)),
+            DVec3::new(1.0, 2.0, 3.0),
+        ),
         ("rotate", rot, DVec3::new(-2.0, 0.5, 1.0)),
-        ("mirror", DMat3::from_diagonal(DVec3::new(-1.0, 1.0, 1.0)), DVec3::new(0.0, 0.0, 2.0)),
-        ("mirror-rotate-scale", rot * DMat3::from_diagonal(DVec3::new(-2.0, 1.0, 0.5)), DVec3::new(5.0, 5.0, 5.0)),
+        (
+            "mirror",
+            DMat3::from_diagonal(DVec3::new(-1.0, 1.0, 1.0)),
+            DVec3::new(0.0, 0.0, 2.0),
+        ),
+        (
+            "mirror-rotate-scale",
+            rot * DMat3::from_diagonal(DVec3::new(-2.0, 1.0, 0.5)),
+            DVec3::new(5.0, 5.0, 5.0),
+        ),
     ]
 }
 
 fn row_major(m: DMat3, t: DVec3) -> [[f32; 4]; 3] {
-    std::array::from_fn(|r| [m.row(r).x as f32, m.row(r).y as f32, m.row(r).z as f32, t[r] as f32])
+    std::array::from_fn(|r| {
+        [
+            m.row(r).x as f32,
+            m.row(r).y as f32,
+            m.row(r).z as f32,
+            t[r] as f32,
+        ]
+    })
 }
 
 pub fn parts(rng: &mut Rng) -> Vec<Part> {
     let quad = Mesh {
-        positions: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]],
+        positions: vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ],
         indices: vec![[0, 1, 2], [0, 2, 3]],
         inactive: vec![false, false],
     };
     // Object-space rays from both sides of the quad.
     let object: Vec<(DVec3, DVec3)> = (0..256)
         .map(|k| {
-            let p = DVec3::new(rng.range(0.05, 0.95) as f64, rng.range(0.05, 0.95) as f64, 0.0);
+            let p = DVec3::new(
+                rng.range(0.05, 0.95) as f64,
+                rng.range(0.05, 0.95) as f64,
+                0.0,
+            );
             let side = if k % 2 == 0 { 1.0 } else { -1.0 };
-            let d = DVec3::new(rng.range(-0.5, 0.5) as f64, rng.range(-0.5, 0.5) as f64, side);
+            let d = DVec3::new(
+                rng.range(-0.5, 0.5) as f64,
+                rng.range(-0.5, 0.5) as f64,
+                side,
+            );
             (p - d * 2.0, d)
         })
         .collect();
     let mut out = Vec::new();
     for (name, m, t) in transforms() {
         let transform = row_major(m, t);
-        for (flags, suffix) in [(0, ""), (CULL_BACK, "-cull-back"), (CULL_FRONT, "-cull-front")] {
+        for (flags, suffix) in [
+            (0, ""),
+            (CULL_BACK, "-cull-back"),
+            (CULL_FRONT, "-cull-front"),
+        ] {
             let mut scene = one_mesh(quad.clone());
             scene.instances = vec![Instance { transform, mesh: 0 }];
             let f = |v: DVec3| [v.x as f32, v.y as f32, v.z as f32];
-            let rays = object.iter().map(|&(o, d)| Ray { origin: f(m * o + t), tmin: 0.0, dir: f(m * d), tmax: 1e30 }).collect::<Vec<_>>();
+            let rays = object
+                .iter()
+                .map(|&(o, d)| Ray {
+                    origin: f(m * o + t),
+                    tmin: 0.0,
+                    dir: f(m * d),
+                    tmax: 1e30,
+                })
+                .collect::<Vec<_>>();
             let info = vec![RayInfo { must_hit: false }; rays.len()];
-            out.push(Part { label: format!("{name}{suffix}"), distance: None, scene, rays, info, ray_flags: flags });
+            out.push(Part {
+                label: format!("{name}{suffix}"),
+                distance: None,
+                scene,
+                rays,
+                info,
+                ray_flags: flags,
+            });
         }
     }
     out
@@ -79,8 +130,17 @@ pub fn facing_errors(parts: &[Part], traced: &[Vec<Traced>]) -> usize {
                 let inst = &p.scene.instances[h.instance as usize];
                 let mesh = &p.scene.meshes[inst.mesh];
                 let tri = mesh.indices.get(h.primitive as usize)?;
-                let (o, d) = watertight::object_ray(&inst.transform, watertight::to_f64(r.origin), watertight::to_f64(r.dir));
-                watertight::plane(o, d, tri.map(|i| watertight::to_f64(mesh.positions[i as usize]))).map(|ph| ph.det_positive)
+                let (o, d) = watertight::object_ray(
+                    &inst.transform,
+                    watertight::to_f64(r.origin),
+                    watertight::to_f64(r.dir),
+                );
+                watertight::plane(
+                    o,
+                    d,
+                    tri.map(|i| watertight::to_f64(mesh.positions[i as usize])),
+                )
+                .map(|ph| ph.det_positive)
             })
             .collect();
         if p.ray_flags == 0 {
@@ -95,16 +155,29 @@ pub fn facing_errors(parts: &[Part], traced: &[Vec<Traced>]) -> usize {
     let kind_for = |w: bool| {
         let f = counts.get(&(w, HIT_KIND_FRONT)).copied().unwrap_or(0);
         let b = counts.get(&(w, HIT_KIND_BACK)).copied().unwrap_or(0);
-        if f >= b { HIT_KIND_FRONT } else { HIT_KIND_BACK }
+        if f >= b {
+            HIT_KIND_FRONT
+        } else {
+            HIT_KIND_BACK
+        }
     };
     let (kt, kf) = (kind_for(true), kind_for(false));
     let mut errors = 0;
     for (w, kind) in [(true, kt), (false, kf)] {
-        errors += counts.iter().filter(|((cw, ck), _)| *cw == w && *ck != kind).map(|(_, n)| n).sum::<usize>();
+        errors += counts
+            .iter()
+            .filter(|((cw, ck), _)| *cw == w && *ck != kind)
+            .map(|(_, n)| n)
+            .sum::<usize>();
     }
     if kt == kf {
         // One hit kind for both windings: every hit of the smaller winding is wrong.
-        errors += counts.iter().filter(|((_, k), _)| *k == kt).map(|(_, n)| *n).min().unwrap_or(0);
+        errors += counts
+            .iter()
+            .filter(|((_, k), _)| *k == kt)
+            .map(|(_, n)| *n)
+            .min()
+            .unwrap_or(0);
     }
     // Culling: parts come as (none, cull-back, cull-front) per transform.
     for chunk in (0..parts.len()).collect::<Vec<_>>().chunks(3) {
@@ -140,20 +213,33 @@ mod tests {
             "facing".into()
         }
         fn trace(&mut self, part: &Part) -> Result<Vec<Traced>, TraceError> {
-            let mut v = CpuTracer { name: "f64", intersect: watertight_f64 }.trace(part)?;
+            let mut v = CpuTracer {
+                name: "f64",
+                intersect: watertight_f64,
+            }
+            .trace(part)?;
             let m = part.scene.instances[0].transform;
-            let det = DMat3::from_cols_array_2d(&std::array::from_fn(|c| std::array::from_fn(|r| m[r][c] as f64))).determinant();
+            let det = DMat3::from_cols_array_2d(&std::array::from_fn(|c| {
+                std::array::from_fn(|r| m[r][c] as f64)
+            }))
+            .determinant();
             for (r, t) in part.rays.iter().zip(v.iter_mut()) {
                 let Some(h) = t.hit.as_mut() else { continue };
                 let mesh = &part.scene.meshes[0];
-                let (o, d) = watertight::object_ray(&m, watertight::to_f64(r.origin), watertight::to_f64(r.dir));
-                let tri = mesh.indices[h.primitive as usize].map(|i| watertight::to_f64(mesh.positions[i as usize]));
+                let (o, d) = watertight::object_ray(
+                    &m,
+                    watertight::to_f64(r.origin),
+                    watertight::to_f64(r.dir),
+                );
+                let tri = mesh.indices[h.primitive as usize]
+                    .map(|i| watertight::to_f64(mesh.positions[i as usize]));
                 let mut front = watertight::plane(o, d, tri).unwrap().det_positive;
                 if self.world && det < 0.0 {
                     front = !front;
                 }
                 h.hit_kind = if front { HIT_KIND_FRONT } else { HIT_KIND_BACK };
-                let culled = (part.ray_flags & CULL_BACK != 0 && !front) || (part.ray_flags & CULL_FRONT != 0 && front);
+                let culled = (part.ray_flags & CULL_BACK != 0 && !front)
+                    || (part.ray_flags & CULL_FRONT != 0 && front);
                 if culled {
                     t.hit = None;
                 }
@@ -163,13 +249,23 @@ mod tests {
     }
 
     fn facing(world: bool) -> usize {
-        let opts = crate::stress::StressOptions { cases: vec![crate::stress::CaseKind::Transform], seed: 1, full: false };
-        crate::stress::run(&mut Facing { world }, &opts).remove(0).metrics.facing_errors
+        let opts = crate::stress::StressOptions {
+            cases: vec![crate::stress::CaseKind::Transform],
+            seed: 1,
+            full: false,
+        };
+        crate::stress::run(&mut Facing { world }, &opts)
+            .remove(0)
+            .metrics
+            .facing_errors
     }
 
     #[test]
     fn object_space_facing_passes_and_world_space_facing_is_caught() {
         assert_eq!(facing(false), 0);
-        assert!(facing(true) > 100, "mirrored instances flip a world-space facing");
+        assert!(
+            facing(true) > 100,
+            "mirrored instances flip a world-space facing"
+        );
     }
 }

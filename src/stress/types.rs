@@ -27,7 +27,11 @@ pub struct Instance {
     pub mesh: usize,
 }
 
-pub const IDENTITY: [[f32; 4]; 3] = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]];
+pub const IDENTITY: [[f32; 4]; 3] = [
+    [1.0, 0.0, 0.0, 0.0],
+    [0.0, 1.0, 0.0, 0.0],
+    [0.0, 0.0, 1.0, 0.0],
+];
 
 #[derive(Clone, Debug, Default)]
 pub struct Scene {
@@ -112,8 +116,15 @@ pub enum CaseKind {
 }
 
 impl CaseKind {
-    pub const ALL: [CaseKind; 7] =
-        [CaseKind::Watertight, CaseKind::Far, CaseKind::Grazing, CaseKind::Degenerate, CaseKind::Tmin, CaseKind::Transform, CaseKind::SelfHit];
+    pub const ALL: [CaseKind; 7] = [
+        CaseKind::Watertight,
+        CaseKind::Far,
+        CaseKind::Grazing,
+        CaseKind::Degenerate,
+        CaseKind::Tmin,
+        CaseKind::Transform,
+        CaseKind::SelfHit,
+    ];
 
     pub fn as_str(self) -> &'static str {
         match self {
@@ -143,5 +154,11 @@ pub struct StressOptions {
 
 /// A scene of one mesh at the identity transform.
 pub(crate) fn one_mesh(mesh: Mesh) -> Scene {
-    Scene { meshes: vec![mesh], instances: vec![Instance { transform: IDENTITY, mesh: 0 }] }
+    Scene {
+        meshes: vec![mesh],
+        instances: vec![Instance {
+            transform: IDENTITY,
+            mesh: 0,
+        }],
+    }
 }

@@ -53,16 +53,32 @@ impl Requirements {
         if self.buffer_device_address && v12.buffer_device_address == vk::FALSE {
             m.push("bufferDeviceAddress".into());
         }
-        if self.descriptor_indexing && (v12.runtime_descriptor_array == vk::FALSE || v12.descriptor_binding_partially_bound == vk::FALSE) {
+        if self.descriptor_indexing
+            && (v12.runtime_descriptor_array == vk::FALSE
+                || v12.descriptor_binding_partially_bound == vk::FALSE)
+        {
             m.push("runtimeDescriptorArray + descriptorBindingPartiallyBound".into());
         }
-        if self.descriptor_buffer && !f.descriptor_buffer.is_some_and(|x| x.descriptor_buffer == vk::TRUE) {
+        if self.descriptor_buffer
+            && !f
+                .descriptor_buffer
+                .is_some_and(|x| x.descriptor_buffer == vk::TRUE)
+        {
             m.push("descriptorBuffer (VK_EXT_descriptor_buffer)".into());
         }
-        if self.descriptor_heap && !(f.descriptor_heap.is_some_and(|x| x.descriptor_heap == vk::TRUE) && info.has_extension(khr::maintenance5::NAME)) {
+        if self.descriptor_heap
+            && !(f
+                .descriptor_heap
+                .is_some_and(|x| x.descriptor_heap == vk::TRUE)
+                && info.has_extension(khr::maintenance5::NAME))
+        {
             m.push("descriptorHeap (VK_EXT_descriptor_heap) + VK_KHR_maintenance5".into());
         }
-        if self.untyped_pointers && !f.untyped_pointers.is_some_and(|x| x.shader_untyped_pointers == vk::TRUE) {
+        if self.untyped_pointers
+            && !f
+                .untyped_pointers
+                .is_some_and(|x| x.shader_untyped_pointers == vk::TRUE)
+        {
             m.push("shaderUntypedPointers (VK_KHR_shader_untyped_pointers)".into());
         }
         if self.device_fault && !f.fault.is_some_and(|x| x.device_fault == vk::TRUE) {
@@ -77,7 +93,11 @@ impl Requirements {
         if self.dynamic_rendering && !f.v13.is_some_and(|x| x.dynamic_rendering == vk::TRUE) {
             m.push("dynamicRendering (Vulkan 1.3)".into());
         }
-        if self.invocation_reorder && !f.invocation_reorder_nv.is_some_and(|x| x.ray_tracing_invocation_reorder == vk::TRUE) {
+        if self.invocation_reorder
+            && !f
+                .invocation_reorder_nv
+                .is_some_and(|x| x.ray_tracing_invocation_reorder == vk::TRUE)
+        {
             m.push("rayTracingInvocationReorder (VK_NV_ray_tracing_invocation_reorder)".into());
         }
         m
@@ -128,18 +148,29 @@ impl Chosen {
             exts: Vec::new(),
             core: vk::PhysicalDeviceFeatures::default(),
             v12: vk::PhysicalDeviceVulkan12Features::default(),
-            v13: vk::PhysicalDeviceVulkan13Features::default().dynamic_rendering(req.dynamic_rendering),
+            v13: vk::PhysicalDeviceVulkan13Features::default()
+                .dynamic_rendering(req.dynamic_rendering),
             rt: Default::default(),
             accel: Default::default(),
             rq: Default::default(),
             db: Default::default(),
             fault: Default::default(),
             reorder: Default::default(),
-            dh: super::heap::PhysicalDeviceDescriptorHeapFeaturesEXT { descriptor_heap: vk::TRUE, ..Default::default() },
+            dh: super::heap::PhysicalDeviceDescriptorHeapFeaturesEXT {
+                descriptor_heap: vk::TRUE,
+                ..Default::default()
+            },
             m5: vk::PhysicalDeviceMaintenance5FeaturesKHR::default().maintenance5(true),
-            up: super::heap::PhysicalDeviceShaderUntypedPointersFeaturesKHR { shader_untyped_pointers: vk::TRUE, ..Default::default() },
+            up: super::heap::PhysicalDeviceShaderUntypedPointersFeaturesKHR {
+                shader_untyped_pointers: vk::TRUE,
+                ..Default::default()
+            },
         };
-        let bda = req.buffer_device_address || req.rt_pipeline || req.ray_query || req.descriptor_buffer || req.descriptor_heap;
+        let bda = req.buffer_device_address
+            || req.rt_pipeline
+            || req.ray_query
+            || req.descriptor_buffer
+            || req.descriptor_heap;
         c.ray_tracing(req);
         if bda {
             c.v12.buffer_device_address = vk::TRUE;
@@ -151,14 +182,25 @@ impl Chosen {
         if req.device_fault {
             c.exts.push(ext::device_fault::NAME);
             c.fault.device_fault = vk::TRUE;
-            c.fault.device_fault_vendor_binary = sup.fault.map(|f| f.device_fault_vendor_binary).unwrap_or(vk::FALSE);
+            c.fault.device_fault_vendor_binary = sup
+                .fault
+                .map(|f| f.device_fault_vendor_binary)
+                .unwrap_or(vk::FALSE);
         }
         if req.invocation_reorder {
             c.exts.push(nv::ray_tracing_invocation_reorder::NAME);
             c.reorder.ray_tracing_invocation_reorder = vk::TRUE;
         }
-        c.core.shader_int64 = if req.int64 || bda { sup.core.shader_int64 } else { vk::FALSE };
-        c.core.fragment_stores_and_atomics = if req.fragment_stores { vk::TRUE } else { vk::FALSE };
+        c.core.shader_int64 = if req.int64 || bda {
+            sup.core.shader_int64
+        } else {
+            vk::FALSE
+        };
+        c.core.fragment_stores_and_atomics = if req.fragment_stores {
+            vk::TRUE
+        } else {
+            vk::FALSE
+        };
         c.core.vertex_pipeline_stores_and_atomics = vk::FALSE;
         c
     }
@@ -166,7 +208,10 @@ impl Chosen {
     /// Acceleration structures, the RT pipeline and ray queries.
     fn ray_tracing(&mut self, req: &Requirements) {
         if req.rt_pipeline || req.ray_query {
-            self.exts.extend([khr::acceleration_structure::NAME, khr::deferred_host_operations::NAME]);
+            self.exts.extend([
+                khr::acceleration_structure::NAME,
+                khr::deferred_host_operations::NAME,
+            ]);
             self.accel.acceleration_structure = vk::TRUE;
         }
         if req.rt_pipeline {
@@ -182,25 +227,46 @@ impl Chosen {
     /// Every descriptor-indexing bit the device supports (runtime arrays, partially bound,
     /// variable count, update-after-bind, non-uniform indexing).
     fn descriptor_indexing(&mut self, sup: &super::features::Features) {
-        let (c, sup12, core, v12) = (&sup.core, sup.v12.unwrap_or_default(), &mut self.core, &mut self.v12);
-        core.shader_storage_buffer_array_dynamic_indexing = c.shader_storage_buffer_array_dynamic_indexing;
-        core.shader_uniform_buffer_array_dynamic_indexing = c.shader_uniform_buffer_array_dynamic_indexing;
-        core.shader_sampled_image_array_dynamic_indexing = c.shader_sampled_image_array_dynamic_indexing;
-        core.shader_storage_image_array_dynamic_indexing = c.shader_storage_image_array_dynamic_indexing;
+        let (c, sup12, core, v12) = (
+            &sup.core,
+            sup.v12.unwrap_or_default(),
+            &mut self.core,
+            &mut self.v12,
+        );
+        core.shader_storage_buffer_array_dynamic_indexing =
+            c.shader_storage_buffer_array_dynamic_indexing;
+        core.shader_uniform_buffer_array_dynamic_indexing =
+            c.shader_uniform_buffer_array_dynamic_indexing;
+        core.shader_sampled_image_array_dynamic_indexing =
+            c.shader_sampled_image_array_dynamic_indexing;
+        core.shader_storage_image_array_dynamic_indexing =
+            c.shader_storage_image_array_dynamic_indexing;
         v12.descriptor_indexing = sup12.descriptor_indexing;
         v12.runtime_descriptor_array = sup12.runtime_descriptor_array;
         v12.descriptor_binding_partially_bound = sup12.descriptor_binding_partially_bound;
-        v12.descriptor_binding_variable_descriptor_count = sup12.descriptor_binding_variable_descriptor_count;
-        v12.shader_storage_buffer_array_non_uniform_indexing = sup12.shader_storage_buffer_array_non_uniform_indexing;
-        v12.shader_uniform_buffer_array_non_uniform_indexing = sup12.shader_uniform_buffer_array_non_uniform_indexing;
-        v12.shader_sampled_image_array_non_uniform_indexing = sup12.shader_sampled_image_array_non_uniform_indexing;
-        v12.shader_storage_image_array_non_uniform_indexing = sup12.shader_storage_image_array_non_uniform_indexing;
-        v12.descriptor_binding_storage_buffer_update_after_bind = sup12.descriptor_binding_storage_buffer_update_after_bind;
-        v12.descriptor_binding_uniform_buffer_update_after_bind = sup12.descriptor_binding_uniform_buffer_update_after_bind;
-        v12.descriptor_binding_sampled_image_update_after_bind = sup12.descriptor_binding_sampled_image_update_after_bind;
-        v12.descriptor_binding_storage_image_update_after_bind = sup12.descriptor_binding_storage_image_update_after_bind;
-        self.accel.descriptor_binding_acceleration_structure_update_after_bind =
-            sup.accel.map(|a| a.descriptor_binding_acceleration_structure_update_after_bind).unwrap_or(vk::FALSE);
+        v12.descriptor_binding_variable_descriptor_count =
+            sup12.descriptor_binding_variable_descriptor_count;
+        v12.shader_storage_buffer_array_non_uniform_indexing =
+            sup12.shader_storage_buffer_array_non_uniform_indexing;
+        v12.shader_uniform_buffer_array_non_uniform_indexing =
+            sup12.shader_uniform_buffer_array_non_uniform_indexing;
+        v12.shader_sampled_image_array_non_uniform_indexing =
+            sup12.shader_sampled_image_array_non_uniform_indexing;
+        v12.shader_storage_image_array_non_uniform_indexing =
+            sup12.shader_storage_image_array_non_uniform_indexing;
+        v12.descriptor_binding_storage_buffer_update_after_bind =
+            sup12.descriptor_binding_storage_buffer_update_after_bind;
+        v12.descriptor_binding_uniform_buffer_update_after_bind =
+            sup12.descriptor_binding_uniform_buffer_update_after_bind;
+        v12.descriptor_binding_sampled_image_update_after_bind =
+            sup12.descriptor_binding_sampled_image_update_after_bind;
+        v12.descriptor_binding_storage_image_update_after_bind =
+            sup12.descriptor_binding_storage_image_update_after_bind;
+        self.accel
+            .descriptor_binding_acceleration_structure_update_after_bind = sup
+            .accel
+            .map(|a| a.descriptor_binding_acceleration_structure_update_after_bind)
+            .unwrap_or(vk::FALSE);
     }
 
     /// Descriptor buffers, descriptor heaps (with maintenance5) and untyped pointers.
@@ -210,7 +276,8 @@ impl Chosen {
             self.db.descriptor_buffer = vk::TRUE;
         }
         if req.descriptor_heap {
-            self.exts.extend([super::heap::NAME, khr::maintenance5::NAME]);
+            self.exts
+                .extend([super::heap::NAME, khr::maintenance5::NAME]);
         }
         if req.untyped_pointers {
             self.exts.push(super::heap::UNTYPED_POINTERS_NAME);
@@ -219,11 +286,21 @@ impl Chosen {
 
     /// `vkCreateDevice` with one queue of `queue_family`, the extensions, and the feature structs
     /// `req` asks for chained after `VkPhysicalDeviceFeatures2`.
-    fn create_device(&mut self, instance: &Instance, info: &DeviceInfo, queue_family: u32, req: &Requirements) -> Result<ash::Device, VkError> {
+    fn create_device(
+        &mut self,
+        instance: &Instance,
+        info: &DeviceInfo,
+        queue_family: u32,
+        req: &Requirements,
+    ) -> Result<ash::Device, VkError> {
         let prio = [1.0f32];
-        let qci = [vk::DeviceQueueCreateInfo::default().queue_family_index(queue_family).queue_priorities(&prio)];
+        let qci = [vk::DeviceQueueCreateInfo::default()
+            .queue_family_index(queue_family)
+            .queue_priorities(&prio)];
         let ext_ptrs: Vec<*const i8> = self.exts.iter().map(|e| e.as_ptr()).collect();
-        let mut f2 = vk::PhysicalDeviceFeatures2::default().features(self.core).push_next(&mut self.v12);
+        let mut f2 = vk::PhysicalDeviceFeatures2::default()
+            .features(self.core)
+            .push_next(&mut self.v12);
         if req.dynamic_rendering {
             f2 = f2.push_next(&mut self.v13);
         }
@@ -251,45 +328,139 @@ impl Chosen {
         if req.invocation_reorder {
             f2 = f2.push_next(&mut self.reorder);
         }
-        let ci = vk::DeviceCreateInfo::default().queue_create_infos(&qci).enabled_extension_names(&ext_ptrs).push_next(&mut f2);
+        let ci = vk::DeviceCreateInfo::default()
+            .queue_create_infos(&qci)
+            .enabled_extension_names(&ext_ptrs)
+            .push_next(&mut f2);
         unsafe { instance.raw.create_device(info.raw, &ci, None) }.at("vkCreateDevice")
     }
 
     /// The extension names, then each feature bit given as true (Vulkan spelling).
     fn names(&self, req: &Requirements) -> Vec<String> {
         let (core, v12) = (&self.core, &self.v12);
-        let mut names: Vec<String> = self.exts.iter().map(|e| e.to_string_lossy().into_owned()).collect();
-        let on = |name: &str, bit: vk::Bool32, chained: bool| (chained && bit == vk::TRUE).then(|| name.to_string());
+        let mut names: Vec<String> = self
+            .exts
+            .iter()
+            .map(|e| e.to_string_lossy().into_owned())
+            .collect();
+        let on = |name: &str, bit: vk::Bool32, chained: bool| {
+            (chained && bit == vk::TRUE).then(|| name.to_string())
+        };
         let rtq = req.rt_pipeline || req.ray_query;
         names.extend(
             [
                 on("shaderInt64", core.shader_int64, true),
-                on("fragmentStoresAndAtomics", core.fragment_stores_and_atomics, true),
-                on("shaderStorageBufferArrayDynamicIndexing", core.shader_storage_buffer_array_dynamic_indexing, true),
-                on("shaderUniformBufferArrayDynamicIndexing", core.shader_uniform_buffer_array_dynamic_indexing, true),
-                on("shaderSampledImageArrayDynamicIndexing", core.shader_sampled_image_array_dynamic_indexing, true),
-                on("shaderStorageImageArrayDynamicIndexing", core.shader_storage_image_array_dynamic_indexing, true),
+                on(
+                    "fragmentStoresAndAtomics",
+                    core.fragment_stores_and_atomics,
+                    true,
+                ),
+                on(
+                    "shaderStorageBufferArrayDynamicIndexing",
+                    core.shader_storage_buffer_array_dynamic_indexing,
+                    true,
+                ),
+                on(
+                    "shaderUniformBufferArrayDynamicIndexing",
+                    core.shader_uniform_buffer_array_dynamic_indexing,
+                    true,
+                ),
+                on(
+                    "shaderSampledImageArrayDynamicIndexing",
+                    core.shader_sampled_image_array_dynamic_indexing,
+                    true,
+                ),
+                on(
+                    "shaderStorageImageArrayDynamicIndexing",
+                    core.shader_storage_image_array_dynamic_indexing,
+                    true,
+                ),
                 on("bufferDeviceAddress", v12.buffer_device_address, true),
                 on("descriptorIndexing", v12.descriptor_indexing, true),
                 on("runtimeDescriptorArray", v12.runtime_descriptor_array, true),
-                on("descriptorBindingPartiallyBound", v12.descriptor_binding_partially_bound, true),
-                on("descriptorBindingVariableDescriptorCount", v12.descriptor_binding_variable_descriptor_count, true),
-                on("shaderStorageBufferArrayNonUniformIndexing", v12.shader_storage_buffer_array_non_uniform_indexing, true),
-                on("shaderUniformBufferArrayNonUniformIndexing", v12.shader_uniform_buffer_array_non_uniform_indexing, true),
-                on("shaderSampledImageArrayNonUniformIndexing", v12.shader_sampled_image_array_non_uniform_indexing, true),
-                on("shaderStorageImageArrayNonUniformIndexing", v12.shader_storage_image_array_non_uniform_indexing, true),
-                on("descriptorBindingStorageBufferUpdateAfterBind", v12.descriptor_binding_storage_buffer_update_after_bind, true),
-                on("descriptorBindingUniformBufferUpdateAfterBind", v12.descriptor_binding_uniform_buffer_update_after_bind, true),
-                on("descriptorBindingSampledImageUpdateAfterBind", v12.descriptor_binding_sampled_image_update_after_bind, true),
-                on("descriptorBindingStorageImageUpdateAfterBind", v12.descriptor_binding_storage_image_update_after_bind, true),
-                on("dynamicRendering", self.v13.dynamic_rendering, req.dynamic_rendering),
-                on("accelerationStructure", self.accel.acceleration_structure, rtq),
-                on("descriptorBindingAccelerationStructureUpdateAfterBind", self.accel.descriptor_binding_acceleration_structure_update_after_bind, rtq),
-                on("rayTracingPipeline", self.rt.ray_tracing_pipeline, req.rt_pipeline),
+                on(
+                    "descriptorBindingPartiallyBound",
+                    v12.descriptor_binding_partially_bound,
+                    true,
+                ),
+                on(
+                    "descriptorBindingVariableDescriptorCount",
+                    v12.descriptor_binding_variable_descriptor_count,
+                    true,
+                ),
+                on(
+                    "shaderStorageBufferArrayNonUniformIndexing",
+                    v12.shader_storage_buffer_array_non_uniform_indexing,
+                    true,
+                ),
+                on(
+                    "shaderUniformBufferArrayNonUniformIndexing",
+                    v12.shader_uniform_buffer_array_non_uniform_indexing,
+                    true,
+                ),
+                on(
+                    "shaderSampledImageArrayNonUniformIndexing",
+                    v12.shader_sampled_image_array_non_uniform_indexing,
+                    true,
+                ),
+                on(
+                    "shaderStorageImageArrayNonUniformIndexing",
+                    v12.shader_storage_image_array_non_uniform_indexing,
+                    true,
+                ),
+                on(
+                    "descriptorBindingStorageBufferUpdateAfterBind",
+                    v12.descriptor_binding_storage_buffer_update_after_bind,
+                    true,
+                ),
+                on(
+                    "descriptorBindingUniformBufferUpdateAfterBind",
+                    v12.descriptor_binding_uniform_buffer_update_after_bind,
+                    true,
+                ),
+                on(
+                    "descriptorBindingSampledImageUpdateAfterBind",
+                    v12.descriptor_binding_sampled_image_update_after_bind,
+                    true,
+                ),
+                on(
+                    "descriptorBindingStorageImageUpdateAfterBind",
+                    v12.descriptor_binding_storage_image_update_after_bind,
+                    true,
+                ),
+                on(
+                    "dynamicRendering",
+                    self.v13.dynamic_rendering,
+                    req.dynamic_rendering,
+                ),
+                on(
+                    "accelerationStructure",
+                    self.accel.acceleration_structure,
+                    rtq,
+                ),
+                on(
+                    "descriptorBindingAccelerationStructureUpdateAfterBind",
+                    self.accel
+                        .descriptor_binding_acceleration_structure_update_after_bind,
+                    rtq,
+                ),
+                on(
+                    "rayTracingPipeline",
+                    self.rt.ray_tracing_pipeline,
+                    req.rt_pipeline,
+                ),
                 on("rayQuery", self.rq.ray_query, req.ray_query),
-                on("descriptorBuffer", self.db.descriptor_buffer, req.descriptor_buffer),
+                on(
+                    "descriptorBuffer",
+                    self.db.descriptor_buffer,
+                    req.descriptor_buffer,
+                ),
                 on("deviceFault", self.fault.device_fault, req.device_fault),
-                on("deviceFaultVendorBinary", self.fault.device_fault_vendor_binary, req.device_fault),
+                on(
+                    "deviceFaultVendorBinary",
+                    self.fault.device_fault_vendor_binary,
+                    req.device_fault,
+                ),
             ]
             .into_iter()
             .flatten(),
@@ -299,34 +470,58 @@ impl Chosen {
 }
 
 impl Gpu {
-    pub fn new(instance: Arc<Instance>, info: DeviceInfo, req: Requirements) -> Result<Self, VkError> {
+    pub fn new(
+        instance: Arc<Instance>,
+        info: DeviceInfo,
+        req: Requirements,
+    ) -> Result<Self, VkError> {
         let missing = req.missing_on(&info);
         if !missing.is_empty() {
-            return Err(VkError::Unsupported { index: info.index, name: info.name(), missing: missing.join(", ") });
+            return Err(VkError::Unsupported {
+                index: info.index,
+                name: info.name(),
+                missing: missing.join(", "),
+            });
         }
-        let queue_family = info.universal_queue_family().ok_or_else(|| VkError::Unsupported {
-            index: info.index,
-            name: info.name(),
-            missing: "a graphics+compute queue".into(),
-        })?;
+        let queue_family = info
+            .universal_queue_family()
+            .ok_or_else(|| VkError::Unsupported {
+                index: info.index,
+                name: info.name(),
+                missing: "a graphics+compute queue".into(),
+            })?;
         let mut chosen = Chosen::of(&req, &info.features);
         let device = chosen.create_device(&instance, &info, queue_family, &req)?;
         let enabled_names = chosen.names(&req);
         let queue = unsafe { device.get_device_queue(queue_family, 0) };
         let inst = &instance.raw;
-        let heap = match req.descriptor_heap.then(|| super::heap::HeapFns::load(&instance.entry, inst, &device)).transpose() {
+        let heap = match req
+            .descriptor_heap
+            .then(|| super::heap::HeapFns::load(&instance.entry, inst, &device))
+            .transpose()
+        {
             Ok(h) => h,
             Err(missing) => {
                 unsafe { device.destroy_device(None) };
-                return Err(VkError::Call { call: missing, result: vk::Result::ERROR_EXTENSION_NOT_PRESENT });
+                return Err(VkError::Call {
+                    call: missing,
+                    result: vk::Result::ERROR_EXTENSION_NOT_PRESENT,
+                });
             }
         };
         let gpu = Gpu {
             heap,
-            rt: req.rt_pipeline.then(|| khr::ray_tracing_pipeline::Device::new(inst, &device)),
-            accel: (req.rt_pipeline || req.ray_query).then(|| khr::acceleration_structure::Device::new(inst, &device)),
-            descriptor_buffer: req.descriptor_buffer.then(|| ext::descriptor_buffer::Device::new(inst, &device)),
-            fault: req.device_fault.then(|| ext::device_fault::Device::new(inst, &device)),
+            rt: req
+                .rt_pipeline
+                .then(|| khr::ray_tracing_pipeline::Device::new(inst, &device)),
+            accel: (req.rt_pipeline || req.ray_query)
+                .then(|| khr::acceleration_structure::Device::new(inst, &device)),
+            descriptor_buffer: req
+                .descriptor_buffer
+                .then(|| ext::descriptor_buffer::Device::new(inst, &device)),
+            fault: req
+                .device_fault
+                .then(|| ext::device_fault::Device::new(inst, &device)),
             instance: instance.clone(),
             info,
             device,

@@ -29,7 +29,10 @@ pub fn decode_driver_version(vendor_id: u32, driver_id: vk::DriverId, v: u32) ->
 /// `"25.0.7"` from a Mesa `driverInfo` such as `"Mesa 25.0.7-2~bpo12+1 (LLVM 15.0.6)"`.
 pub fn mesa_version_from_info(info: &str) -> Option<String> {
     let rest = info.strip_prefix("Mesa ")?;
-    let v: String = rest.chars().take_while(|c| c.is_ascii_digit() || *c == '.').collect();
+    let v: String = rest
+        .chars()
+        .take_while(|c| c.is_ascii_digit() || *c == '.')
+        .collect();
     (v.split('.').count() >= 2 && !v.starts_with('.')).then(|| v.trim_end_matches('.').to_string())
 }
 
@@ -64,29 +67,50 @@ mod tests {
     fn nvidia_580() {
         // 580.95.05 packed as 10.8.8.6
         let v = (580 << 22) | (95 << 14) | (5 << 6);
-        assert_eq!(decode_driver_version(VENDOR_NVIDIA, vk::DriverId::NVIDIA_PROPRIETARY, v), "580.95.05");
+        assert_eq!(
+            decode_driver_version(VENDOR_NVIDIA, vk::DriverId::NVIDIA_PROPRIETARY, v),
+            "580.95.05"
+        );
         let v = (580 << 22) | (159 << 14) | (4 << 6);
-        assert_eq!(decode_driver_version(VENDOR_NVIDIA, vk::DriverId::NVIDIA_PROPRIETARY, v), "580.159.04");
+        assert_eq!(
+            decode_driver_version(VENDOR_NVIDIA, vk::DriverId::NVIDIA_PROPRIETARY, v),
+            "580.159.04"
+        );
         let v = (580 << 22) | (82 << 14);
-        assert_eq!(decode_driver_version(VENDOR_NVIDIA, vk::DriverId::NVIDIA_PROPRIETARY, v), "580.82");
+        assert_eq!(
+            decode_driver_version(VENDOR_NVIDIA, vk::DriverId::NVIDIA_PROPRIETARY, v),
+            "580.82"
+        );
     }
 
     #[test]
     fn mesa_uses_make_version() {
         let v = vk::make_api_version(0, 25, 0, 7);
-        assert_eq!(decode_driver_version(0x10005, vk::DriverId::MESA_LLVMPIPE, v), "25.0.7");
+        assert_eq!(
+            decode_driver_version(0x10005, vk::DriverId::MESA_LLVMPIPE, v),
+            "25.0.7"
+        );
     }
 
     #[test]
     fn mesa_version_from_driver_info() {
-        assert_eq!(mesa_version_from_info("Mesa 25.0.7-2~bpo12+1 (LLVM 15.0.6)").as_deref(), Some("25.0.7"));
-        assert_eq!(mesa_version_from_info("Mesa 24.1.0-devel (git-abc)").as_deref(), Some("24.1.0"));
+        assert_eq!(
+            mesa_version_from_info("Mesa 25.0.7-2~bpo12+1 (LLVM 15.0.6)").as_deref(),
+            Some("25.0.7")
+        );
+        assert_eq!(
+            mesa_version_from_info("Mesa 24.1.0-devel (git-abc)").as_deref(),
+            Some("24.1.0")
+        );
         assert_eq!(mesa_version_from_info("580.95.05"), None);
     }
 
     #[test]
     fn intel_windows() {
         let v = (101 << 14) | 4314;
-        assert_eq!(decode_driver_version(VENDOR_INTEL, vk::DriverId::INTEL_PROPRIETARY_WINDOWS, v), "101.4314");
+        assert_eq!(
+            decode_driver_version(VENDOR_INTEL, vk::DriverId::INTEL_PROPRIETARY_WINDOWS, v),
+            "101.4314"
+        );
     }
 }

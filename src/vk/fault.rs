@@ -1,11 +1,15 @@
 //! VK_EXT_device_fault: after a device loss, ask the driver what faulted (description, faulting
 //! addresses, vendor codes) so the report can carry it.
 use super::Gpu;
-use ash::vk;
 use crate::model::{FaultAddress, FaultInfo, FaultVendorInfo};
+use ash::vk;
 
 fn cstr(bytes: &[std::ffi::c_char]) -> String {
-    let b: Vec<u8> = bytes.iter().take_while(|c| **c != 0).map(|c| *c as u8).collect();
+    let b: Vec<u8> = bytes
+        .iter()
+        .take_while(|c| **c != 0)
+        .map(|c| *c as u8)
+        .collect();
     String::from_utf8_lossy(&b).into_owned()
 }
 
@@ -17,19 +21,35 @@ pub fn query(gpu: &Gpu) -> Option<FaultInfo> {
     let mut counts = vk::DeviceFaultCountsEXT::default();
     let r = unsafe { f(gpu.device.handle(), &mut counts, std::ptr::null_mut()) };
     if r != vk::Result::SUCCESS && r != vk::Result::INCOMPLETE {
-        return Some(FaultInfo { description: format!("vkGetDeviceFaultInfoEXT (counts) returned {r}"), ..Default::default() });
+        return Some(FaultInfo {
+            description: format!("vkGetDeviceFaultInfoEXT (counts) returned {r}"),
+            ..Default::default()
+        });
     }
-    let mut addrs = vec![vk::DeviceFaultAddressInfoEXT::default(); counts.address_info_count as usize];
-    let mut vendor = vec![vk::DeviceFaultVendorInfoEXT::default(); counts.vendor_info_count as usize];
+    let mut addrs =
+        vec![vk::DeviceFaultAddressInfoEXT::default(); counts.address_info_count as usize];
+    let mut vendor =
+        vec![vk::DeviceFaultVendorInfoEXT::default(); counts.vendor_info_count as usize];
     let mut info = vk::DeviceFaultInfoEXT::default();
-    info.p_address_infos = if addrs.is_empty() { std::ptr::null_mut() } else { addrs.as_mut_ptr() };
-    info.p_vendor_infos = if vendor.is_empty() { std::ptr::null_mut() } else { vendor.as_mut_ptr() };
+    info.p_address_infos = if addrs.is_empty() {
+        std::ptr::null_mut()
+    } else {
+        addrs.as_mut_ptr()
+    };
+    info.p_vendor_infos = if vendor.is_empty() {
+        std::ptr::null_mut()
+    } else {
+        vendor.as_mut_ptr()
+    };
     info.p_vendor_binary_data = std::ptr::null_mut();
     let vendor_binary_bytes = counts.vendor_binary_size;
     counts.vendor_binary_size = 0;
     let r = unsafe { f(gpu.device.handle(), &mut counts, &mut info) };
     if r != vk::Result::SUCCESS && r != vk::Result::INCOMPLETE {
-        return Some(FaultInfo { description: format!("vkGetDeviceFaultInfoEXT returned {r}"), ..Default::default() });
+        return Some(FaultInfo {
+            description: format!("vkGetDeviceFaultInfoEXT returned {r}"),
+            ..Default::default()
+        });
     }
     Some(FaultInfo {
         description: cstr(&info.description),
@@ -45,7 +65,11 @@ pub fn query(gpu: &Gpu) -> Option<FaultInfo> {
         vendor: vendor
             .iter()
             .take(counts.vendor_info_count as usize)
-            .map(|v| FaultVendorInfo { description: cstr(&v.description), code: v.vendor_fault_code, data: v.vendor_fault_data })
+            .map(|v| FaultVendorInfo {
+                description: cstr(&v.description),
+                code: v.vendor_fault_code,
+                data: v.vendor_fault_data,
+            })
             .collect(),
         vendor_binary_bytes,
     })

@@ -6,8 +6,8 @@
 //! extension (or the core version that promoted it), `None` otherwise. The core Vulkan 1.1/1.2/1.3
 //! structs are `Some` when the device's API version has them.
 use super::error::{VkError, VkResultExt};
-use super::{heap, rt_ext};
 use super::instance::Instance;
+use super::{heap, rt_ext};
 use ash::{ext, khr, nv, vk};
 use std::collections::BTreeMap;
 use std::ffi::CStr;
@@ -30,16 +30,37 @@ pub const TRACKED_EXTENSIONS: &[Tracked] = &[
     t("ray tracing pipeline", khr::ray_tracing_pipeline::NAME),
     t("ray tracing pipeline", khr::ray_tracing_maintenance1::NAME),
     t("ray tracing pipeline", khr::pipeline_library::NAME),
-    t("ray tracing pipeline", ext::pipeline_library_group_handles::NAME),
+    t(
+        "ray tracing pipeline",
+        ext::pipeline_library_group_handles::NAME,
+    ),
     t("ray tracing pipeline", nv::ray_tracing_validation::NAME),
     t("ray tracing pipeline", nv::ray_tracing::NAME),
-    t("invocation reorder", nv::ray_tracing_invocation_reorder::NAME),
-    t("invocation reorder", rt_ext::EXT_RAY_TRACING_INVOCATION_REORDER),
+    t(
+        "invocation reorder",
+        nv::ray_tracing_invocation_reorder::NAME,
+    ),
+    t(
+        "invocation reorder",
+        rt_ext::EXT_RAY_TRACING_INVOCATION_REORDER,
+    ),
     t("acceleration structures", khr::acceleration_structure::NAME),
-    t("acceleration structures", khr::deferred_host_operations::NAME),
-    t("acceleration structures", rt_ext::NV_CLUSTER_ACCELERATION_STRUCTURE),
-    t("acceleration structures", rt_ext::NV_PARTITIONED_ACCELERATION_STRUCTURE),
-    t("acceleration structures", rt_ext::AMDX_DENSE_GEOMETRY_FORMAT),
+    t(
+        "acceleration structures",
+        khr::deferred_host_operations::NAME,
+    ),
+    t(
+        "acceleration structures",
+        rt_ext::NV_CLUSTER_ACCELERATION_STRUCTURE,
+    ),
+    t(
+        "acceleration structures",
+        rt_ext::NV_PARTITIONED_ACCELERATION_STRUCTURE,
+    ),
+    t(
+        "acceleration structures",
+        rt_ext::AMDX_DENSE_GEOMETRY_FORMAT,
+    ),
     t("geometry", nv::ray_tracing_motion_blur::NAME),
     t("geometry", rt_ext::NV_RAY_TRACING_LINEAR_SWEPT_SPHERES),
     t("geometry", khr::ray_tracing_position_fetch::NAME),
@@ -83,10 +104,13 @@ pub struct Features {
     pub fault: Option<vk::PhysicalDeviceFaultFeaturesEXT<'static>>,
     pub maintenance5: Option<vk::PhysicalDeviceMaintenance5FeaturesKHR<'static>>,
     pub maintenance6: Option<vk::PhysicalDeviceMaintenance6FeaturesKHR<'static>>,
-    pub pipeline_library_group_handles: Option<vk::PhysicalDevicePipelineLibraryGroupHandlesFeaturesEXT<'static>>,
+    pub pipeline_library_group_handles:
+        Option<vk::PhysicalDevicePipelineLibraryGroupHandlesFeaturesEXT<'static>>,
     pub rt_validation: Option<vk::PhysicalDeviceRayTracingValidationFeaturesNV<'static>>,
-    pub invocation_reorder_nv: Option<vk::PhysicalDeviceRayTracingInvocationReorderFeaturesNV<'static>>,
-    pub invocation_reorder_ext: Option<rt_ext::PhysicalDeviceRayTracingInvocationReorderFeaturesEXT>,
+    pub invocation_reorder_nv:
+        Option<vk::PhysicalDeviceRayTracingInvocationReorderFeaturesNV<'static>>,
+    pub invocation_reorder_ext:
+        Option<rt_ext::PhysicalDeviceRayTracingInvocationReorderFeaturesEXT>,
     pub cluster_accel: Option<rt_ext::PhysicalDeviceClusterAccelerationStructureFeaturesNV>,
     pub partitioned_accel: Option<rt_ext::PhysicalDevicePartitionedAccelerationStructureFeaturesNV>,
     pub dense_geometry_format: Option<rt_ext::PhysicalDeviceDenseGeometryFormatFeaturesAMDX>,
@@ -113,10 +137,13 @@ pub struct Properties {
     pub robustness2: Option<vk::PhysicalDeviceRobustness2PropertiesEXT<'static>>,
     /// VK_NV_ray_tracing (the legacy NV pipeline; it has no feature struct).
     pub rt_nv: Option<vk::PhysicalDeviceRayTracingPropertiesNV<'static>>,
-    pub invocation_reorder_nv: Option<vk::PhysicalDeviceRayTracingInvocationReorderPropertiesNV<'static>>,
-    pub invocation_reorder_ext: Option<rt_ext::PhysicalDeviceRayTracingInvocationReorderPropertiesEXT>,
+    pub invocation_reorder_nv:
+        Option<vk::PhysicalDeviceRayTracingInvocationReorderPropertiesNV<'static>>,
+    pub invocation_reorder_ext:
+        Option<rt_ext::PhysicalDeviceRayTracingInvocationReorderPropertiesEXT>,
     pub cluster_accel: Option<rt_ext::PhysicalDeviceClusterAccelerationStructurePropertiesNV>,
-    pub partitioned_accel: Option<rt_ext::PhysicalDevicePartitionedAccelerationStructurePropertiesNV>,
+    pub partitioned_accel:
+        Option<rt_ext::PhysicalDevicePartitionedAccelerationStructurePropertiesNV>,
     pub opacity_micromap: Option<vk::PhysicalDeviceOpacityMicromapPropertiesEXT<'static>>,
     pub opacity_micromap_khr: Option<rt_ext::PhysicalDeviceOpacityMicromapPropertiesKHR>,
     pub displacement_micromap: Option<vk::PhysicalDeviceDisplacementMicromapPropertiesNV<'static>>,
@@ -148,7 +175,10 @@ fn null_next<T>(s: &mut Option<T>, f: impl Fn(&mut T)) {
 }
 
 /// The device's extensions with their spec versions, less those `RTPROBE_HIDE_EXTENSIONS` hides.
-fn extensions(inst: &ash::Instance, pd: vk::PhysicalDevice) -> Result<BTreeMap<String, u32>, VkError> {
+fn extensions(
+    inst: &ash::Instance,
+    pd: vk::PhysicalDevice,
+) -> Result<BTreeMap<String, u32>, VkError> {
     let extensions: BTreeMap<String, u32> =
         unsafe { inst.enumerate_device_extension_properties(pd) }
             .at("vkEnumerateDeviceExtensionProperties")?
@@ -192,18 +222,24 @@ impl Features {
             fault: has(ext::device_fault::NAME).then(Default::default),
             maintenance5: has(khr::maintenance5::NAME).then(Default::default),
             maintenance6: has(khr::maintenance6::NAME).then(Default::default),
-            pipeline_library_group_handles: has(ext::pipeline_library_group_handles::NAME).then(Default::default),
+            pipeline_library_group_handles: has(ext::pipeline_library_group_handles::NAME)
+                .then(Default::default),
             rt_validation: has(nv::ray_tracing_validation::NAME).then(Default::default),
-            invocation_reorder_nv: has(nv::ray_tracing_invocation_reorder::NAME).then(Default::default),
-            invocation_reorder_ext: has(rt_ext::EXT_RAY_TRACING_INVOCATION_REORDER).then(Default::default),
+            invocation_reorder_nv: has(nv::ray_tracing_invocation_reorder::NAME)
+                .then(Default::default),
+            invocation_reorder_ext: has(rt_ext::EXT_RAY_TRACING_INVOCATION_REORDER)
+                .then(Default::default),
             cluster_accel: has(rt_ext::NV_CLUSTER_ACCELERATION_STRUCTURE).then(Default::default),
-            partitioned_accel: has(rt_ext::NV_PARTITIONED_ACCELERATION_STRUCTURE).then(Default::default),
+            partitioned_accel: has(rt_ext::NV_PARTITIONED_ACCELERATION_STRUCTURE)
+                .then(Default::default),
             dense_geometry_format: has(rt_ext::AMDX_DENSE_GEOMETRY_FORMAT).then(Default::default),
             motion_blur: has(nv::ray_tracing_motion_blur::NAME).then(Default::default),
-            linear_swept_spheres: has(rt_ext::NV_RAY_TRACING_LINEAR_SWEPT_SPHERES).then(Default::default),
+            linear_swept_spheres: has(rt_ext::NV_RAY_TRACING_LINEAR_SWEPT_SPHERES)
+                .then(Default::default),
             opacity_micromap: has(ext::opacity_micromap::NAME).then(Default::default),
             opacity_micromap_khr: has(rt_ext::KHR_OPACITY_MICROMAP).then(Default::default),
-            pipeline_opacity_micromap: has(rt_ext::ARM_PIPELINE_OPACITY_MICROMAP).then(Default::default),
+            pipeline_opacity_micromap: has(rt_ext::ARM_PIPELINE_OPACITY_MICROMAP)
+                .then(Default::default),
             displacement_micromap: has(nv::displacement_micromap::NAME).then(Default::default),
             core: Default::default(),
         }
@@ -212,7 +248,13 @@ impl Features {
 
 impl Properties {
     /// A default struct for each property struct the device has (as [`Features::present`]).
-    fn present(f: &Features, has: &dyn Fn(&CStr) -> bool, v12: bool, v13: bool, core_props: vk::PhysicalDeviceProperties) -> Properties {
+    fn present(
+        f: &Features,
+        has: &dyn Fn(&CStr) -> bool,
+        v12: bool,
+        v13: bool,
+        core_props: vk::PhysicalDeviceProperties,
+    ) -> Properties {
         Properties {
             v11: v12.then(Default::default),
             v12: v12.then(Default::default),
@@ -236,7 +278,12 @@ impl Properties {
 }
 
 /// Query every present struct of `f` and `p` through one `pNext` chain each.
-fn query_chains(inst: &ash::Instance, pd: vk::PhysicalDevice, f: &mut Features, p: &mut Properties) {
+fn query_chains(
+    inst: &ash::Instance,
+    pd: vk::PhysicalDevice,
+    f: &mut Features,
+    p: &mut Properties,
+) {
     // The one place the pNext chains are built. Each Some(..) struct is chained, queried,
     // then its pNext is cleared so the stored copies hold no dangling pointers. Each list of
     // chained members is written once (`feature_structs!` / `property_structs!`).
@@ -269,7 +316,11 @@ fn query_chains(inst: &ash::Instance, pd: vk::PhysicalDevice, f: &mut Features, 
 }
 
 impl DeviceInfo {
-    pub fn query(instance: &Instance, index: usize, pd: vk::PhysicalDevice) -> Result<Self, VkError> {
+    pub fn query(
+        instance: &Instance,
+        index: usize,
+        pd: vk::PhysicalDevice,
+    ) -> Result<Self, VkError> {
         let inst = &instance.raw;
         let core_props = unsafe { inst.get_physical_device_properties(pd) };
         let api = core_props.api_version;
@@ -281,16 +332,31 @@ impl DeviceInfo {
         query_chains(inst, pd, &mut f, &mut p);
         let queue_families = unsafe { inst.get_physical_device_queue_family_properties(pd) };
         let memory = unsafe { inst.get_physical_device_memory_properties(pd) };
-        let probe_image_format = unsafe { inst.get_physical_device_format_properties(pd, PROBE_IMAGE_FORMAT) };
-        Ok(Self { index, raw: pd, extensions, features: f, properties: p, queue_families, memory, probe_image_format })
+        let probe_image_format =
+            unsafe { inst.get_physical_device_format_properties(pd, PROBE_IMAGE_FORMAT) };
+        Ok(Self {
+            index,
+            raw: pd,
+            extensions,
+            features: f,
+            properties: p,
+            queue_families,
+            memory,
+            probe_image_format,
+        })
     }
 
     pub fn name(&self) -> String {
-        self.properties.core.device_name_as_c_str().map(|c| c.to_string_lossy().into_owned()).unwrap_or_default()
+        self.properties
+            .core
+            .device_name_as_c_str()
+            .map(|c| c.to_string_lossy().into_owned())
+            .unwrap_or_default()
     }
 
     pub fn has_extension(&self, name: &CStr) -> bool {
-        self.extensions.contains_key(name.to_str().unwrap_or_default())
+        self.extensions
+            .contains_key(name.to_str().unwrap_or_default())
     }
 
     pub fn api_version(&self) -> u32 {
@@ -302,11 +368,25 @@ impl DeviceInfo {
     }
 
     pub fn driver_name(&self) -> String {
-        self.properties.v12.and_then(|p| p.driver_name_as_c_str().ok().map(|c| c.to_string_lossy().into_owned())).unwrap_or_default()
+        self.properties
+            .v12
+            .and_then(|p| {
+                p.driver_name_as_c_str()
+                    .ok()
+                    .map(|c| c.to_string_lossy().into_owned())
+            })
+            .unwrap_or_default()
     }
 
     pub fn driver_info(&self) -> String {
-        self.properties.v12.and_then(|p| p.driver_info_as_c_str().ok().map(|c| c.to_string_lossy().into_owned())).unwrap_or_default()
+        self.properties
+            .v12
+            .and_then(|p| {
+                p.driver_info_as_c_str()
+                    .ok()
+                    .map(|c| c.to_string_lossy().into_owned())
+            })
+            .unwrap_or_default()
     }
 
     /// The decoded driver version. Some Mesa drivers (lavapipe) put a placeholder in
@@ -325,25 +405,39 @@ impl DeviceInfo {
     /// A queue family that supports graphics and compute (ray tracing runs on such a queue).
     pub fn universal_queue_family(&self) -> Option<u32> {
         let want = vk::QueueFlags::GRAPHICS | vk::QueueFlags::COMPUTE;
-        self.queue_families.iter().position(|q| q.queue_flags.contains(want)).map(|i| i as u32)
+        self.queue_families
+            .iter()
+            .position(|q| q.queue_flags.contains(want))
+            .map(|i| i as u32)
     }
 
     /// Why this device cannot run rtprobe's ray tracing pipelines; empty when it can.
     pub fn rt_pipeline_missing(&self) -> Vec<String> {
         let mut m = Vec::new();
         if self.api_version() < vk::API_VERSION_1_2 {
-            m.push(format!("Vulkan 1.2 (device has {})", super::driver_version::format_api_version(self.api_version())));
+            m.push(format!(
+                "Vulkan 1.2 (device has {})",
+                super::driver_version::format_api_version(self.api_version())
+            ));
         }
-        for ext in [khr::ray_tracing_pipeline::NAME, khr::acceleration_structure::NAME, khr::deferred_host_operations::NAME] {
+        for ext in [
+            khr::ray_tracing_pipeline::NAME,
+            khr::acceleration_structure::NAME,
+            khr::deferred_host_operations::NAME,
+        ] {
             if !self.has_extension(ext) {
                 m.push(ext.to_string_lossy().into_owned());
             }
         }
         let f = &self.features;
-        if f.rt_pipeline.is_some_and(|x| x.ray_tracing_pipeline == vk::FALSE) {
+        if f.rt_pipeline
+            .is_some_and(|x| x.ray_tracing_pipeline == vk::FALSE)
+        {
             m.push("rayTracingPipeline feature".into());
         }
-        if f.accel.is_some_and(|x| x.acceleration_structure == vk::FALSE) {
+        if f.accel
+            .is_some_and(|x| x.acceleration_structure == vk::FALSE)
+        {
             m.push("accelerationStructure feature".into());
         }
         if f.v12.is_some_and(|x| x.buffer_device_address == vk::FALSE) {
@@ -357,7 +451,10 @@ impl DeviceInfo {
 
     pub fn memory_type_index(&self, type_bits: u32, flags: vk::MemoryPropertyFlags) -> Option<u32> {
         (0..self.memory.memory_type_count).find(|&i| {
-            type_bits & (1 << i) != 0 && self.memory.memory_types[i as usize].property_flags.contains(flags)
+            type_bits & (1 << i) != 0
+                && self.memory.memory_types[i as usize]
+                    .property_flags
+                    .contains(flags)
         })
     }
 }
@@ -374,31 +471,67 @@ pub fn query_all(instance: &Instance) -> Result<Vec<DeviceInfo>, VkError> {
 
 /// Resolve `--device` (an index, or a case-insensitive substring of the name). Without a spec,
 /// the first device that can run RT pipelines, preferring discrete GPUs.
-pub fn select<'a>(devices: &'a [DeviceInfo], spec: Option<&str>) -> Result<&'a DeviceInfo, VkError> {
+pub fn select<'a>(
+    devices: &'a [DeviceInfo],
+    spec: Option<&str>,
+) -> Result<&'a DeviceInfo, VkError> {
     let listing = || {
-        devices.iter().map(|d| format!("{}: {}", d.index, d.name())).collect::<Vec<_>>().join(", ")
+        devices
+            .iter()
+            .map(|d| format!("{}: {}", d.index, d.name()))
+            .collect::<Vec<_>>()
+            .join(", ")
     };
     match spec {
         Some(s) => {
             if let Ok(i) = s.trim().parse::<usize>() {
-                return devices.get(i).ok_or_else(|| VkError::NoSuchDevice { spec: s.into(), available: listing() });
+                return devices.get(i).ok_or_else(|| VkError::NoSuchDevice {
+                    spec: s.into(),
+                    available: listing(),
+                });
             }
             let needle = s.to_lowercase();
-            let hits: Vec<&DeviceInfo> = devices.iter().filter(|d| d.name().to_lowercase().contains(&needle)).collect();
+            let hits: Vec<&DeviceInfo> = devices
+                .iter()
+                .filter(|d| d.name().to_lowercase().contains(&needle))
+                .collect();
             match hits.as_slice() {
-                [] => Err(VkError::NoSuchDevice { spec: s.into(), available: listing() }),
+                [] => Err(VkError::NoSuchDevice {
+                    spec: s.into(),
+                    available: listing(),
+                }),
                 [one] => Ok(one),
                 many => Err(VkError::AmbiguousDevice {
                     spec: s.into(),
-                    matches: many.iter().map(|d| format!("{}: {}", d.index, d.name())).collect::<Vec<_>>().join(", "),
+                    matches: many
+                        .iter()
+                        .map(|d| format!("{}: {}", d.index, d.name()))
+                        .collect::<Vec<_>>()
+                        .join(", "),
                 }),
             }
         }
         None => {
-            let capable = devices.iter().filter(|d| d.rt_pipeline_missing().is_empty());
-            let best = capable.clone().find(|d| d.properties.core.device_type == vk::PhysicalDeviceType::DISCRETE_GPU).or_else(|| capable.clone().next());
+            let capable = devices
+                .iter()
+                .filter(|d| d.rt_pipeline_missing().is_empty());
+            let best = capable
+                .clone()
+                .find(|d| d.properties.core.device_type == vk::PhysicalDeviceType::DISCRETE_GPU)
+                .or_else(|| capable.clone().next());
             best.ok_or_else(|| VkError::NoRtDevice {
-                details: devices.iter().map(|d| format!("{}: {} lacks {}", d.index, d.name(), d.rt_pipeline_missing().join(", "))).collect::<Vec<_>>().join("; "),
+                details: devices
+                    .iter()
+                    .map(|d| {
+                        format!(
+                            "{}: {} lacks {}",
+                            d.index,
+                            d.name(),
+                            d.rt_pipeline_missing().join(", ")
+                        )
+                    })
+                    .collect::<Vec<_>>()
+                    .join("; "),
             })
         }
     }

@@ -10,7 +10,8 @@ use std::ffi::{c_void, CStr};
 pub const NAME: &CStr = c"VK_EXT_descriptor_heap";
 /// VK_KHR_shader_untyped_pointers: the SPIR-V of `layout(descriptor_heap)` GLSL uses untyped pointers.
 pub const UNTYPED_POINTERS_NAME: &CStr = c"VK_KHR_shader_untyped_pointers";
-pub const STRUCTURE_TYPE_PHYSICAL_DEVICE_SHADER_UNTYPED_POINTERS_FEATURES_KHR: vk::StructureType = vk::StructureType::from_raw(1_000_387_000);
+pub const STRUCTURE_TYPE_PHYSICAL_DEVICE_SHADER_UNTYPED_POINTERS_FEATURES_KHR: vk::StructureType =
+    vk::StructureType::from_raw(1_000_387_000);
 
 /// `VkPhysicalDeviceShaderUntypedPointersFeaturesKHR`.
 #[repr(C)]
@@ -23,7 +24,11 @@ pub struct PhysicalDeviceShaderUntypedPointersFeaturesKHR {
 
 impl Default for PhysicalDeviceShaderUntypedPointersFeaturesKHR {
     fn default() -> Self {
-        Self { s_type: STRUCTURE_TYPE_PHYSICAL_DEVICE_SHADER_UNTYPED_POINTERS_FEATURES_KHR, p_next: std::ptr::null_mut(), shader_untyped_pointers: 0 }
+        Self {
+            s_type: STRUCTURE_TYPE_PHYSICAL_DEVICE_SHADER_UNTYPED_POINTERS_FEATURES_KHR,
+            p_next: std::ptr::null_mut(),
+            shader_untyped_pointers: 0,
+        }
     }
 }
 
@@ -96,17 +101,25 @@ unsafe impl vk::ExtendsPhysicalDeviceFeatures2 for PhysicalDeviceDescriptorHeapF
 unsafe impl vk::ExtendsDeviceCreateInfo for PhysicalDeviceDescriptorHeapFeaturesEXT {}
 unsafe impl vk::ExtendsPhysicalDeviceProperties2 for PhysicalDeviceDescriptorHeapPropertiesEXT {}
 
-pub const STRUCTURE_TYPE_IMAGE_DESCRIPTOR_INFO_EXT: vk::StructureType = vk::StructureType::from_raw(1_000_135_001);
-pub const STRUCTURE_TYPE_RESOURCE_DESCRIPTOR_INFO_EXT: vk::StructureType = vk::StructureType::from_raw(1_000_135_002);
-pub const STRUCTURE_TYPE_BIND_HEAP_INFO_EXT: vk::StructureType = vk::StructureType::from_raw(1_000_135_003);
-pub const STRUCTURE_TYPE_PUSH_DATA_INFO_EXT: vk::StructureType = vk::StructureType::from_raw(1_000_135_004);
-pub const STRUCTURE_TYPE_DESCRIPTOR_SET_AND_BINDING_MAPPING_EXT: vk::StructureType = vk::StructureType::from_raw(1_000_135_005);
-pub const STRUCTURE_TYPE_SHADER_DESCRIPTOR_SET_AND_BINDING_MAPPING_INFO_EXT: vk::StructureType = vk::StructureType::from_raw(1_000_135_006);
+pub const STRUCTURE_TYPE_IMAGE_DESCRIPTOR_INFO_EXT: vk::StructureType =
+    vk::StructureType::from_raw(1_000_135_001);
+pub const STRUCTURE_TYPE_RESOURCE_DESCRIPTOR_INFO_EXT: vk::StructureType =
+    vk::StructureType::from_raw(1_000_135_002);
+pub const STRUCTURE_TYPE_BIND_HEAP_INFO_EXT: vk::StructureType =
+    vk::StructureType::from_raw(1_000_135_003);
+pub const STRUCTURE_TYPE_PUSH_DATA_INFO_EXT: vk::StructureType =
+    vk::StructureType::from_raw(1_000_135_004);
+pub const STRUCTURE_TYPE_DESCRIPTOR_SET_AND_BINDING_MAPPING_EXT: vk::StructureType =
+    vk::StructureType::from_raw(1_000_135_005);
+pub const STRUCTURE_TYPE_SHADER_DESCRIPTOR_SET_AND_BINDING_MAPPING_INFO_EXT: vk::StructureType =
+    vk::StructureType::from_raw(1_000_135_006);
 
 /// `VK_BUFFER_USAGE_DESCRIPTOR_HEAP_BIT_EXT`.
-pub const BUFFER_USAGE_DESCRIPTOR_HEAP: vk::BufferUsageFlags = vk::BufferUsageFlags::from_raw(0x1000_0000);
+pub const BUFFER_USAGE_DESCRIPTOR_HEAP: vk::BufferUsageFlags =
+    vk::BufferUsageFlags::from_raw(0x1000_0000);
 /// `VK_PIPELINE_CREATE_2_DESCRIPTOR_HEAP_BIT_EXT` (through VkPipelineCreateFlags2CreateInfo).
-pub const PIPELINE_CREATE_2_DESCRIPTOR_HEAP: vk::PipelineCreateFlags2KHR = vk::PipelineCreateFlags2KHR::from_raw(0x10_0000_0000);
+pub const PIPELINE_CREATE_2_DESCRIPTOR_HEAP: vk::PipelineCreateFlags2KHR =
+    vk::PipelineCreateFlags2KHR::from_raw(0x10_0000_0000);
 /// `VK_SPIRV_RESOURCE_TYPE_ALL_EXT`.
 pub const SPIRV_RESOURCE_TYPE_ALL: u32 = 0x7FFF_FFFF;
 
@@ -294,11 +307,22 @@ pub struct ShaderSetAndBindingMappingInfo {
 // SAFETY: begins with sType/pNext and extends VkPipelineShaderStageCreateInfo per the registry.
 unsafe impl vk::ExtendsPipelineShaderStageCreateInfo for ShaderSetAndBindingMappingInfo {}
 
-type PfnWriteSamplerDescriptors = unsafe extern "system" fn(vk::Device, u32, *const vk::SamplerCreateInfo<'_>, *const HostAddressRange) -> vk::Result;
-type PfnWriteResourceDescriptors = unsafe extern "system" fn(vk::Device, u32, *const ResourceDescriptorInfo, *const HostAddressRange) -> vk::Result;
+type PfnWriteSamplerDescriptors = unsafe extern "system" fn(
+    vk::Device,
+    u32,
+    *const vk::SamplerCreateInfo<'_>,
+    *const HostAddressRange,
+) -> vk::Result;
+type PfnWriteResourceDescriptors = unsafe extern "system" fn(
+    vk::Device,
+    u32,
+    *const ResourceDescriptorInfo,
+    *const HostAddressRange,
+) -> vk::Result;
 type PfnCmdBindHeap = unsafe extern "system" fn(vk::CommandBuffer, *const BindHeapInfo);
 type PfnCmdPushData = unsafe extern "system" fn(vk::CommandBuffer, *const PushDataInfo);
-type PfnGetDescriptorSize = unsafe extern "system" fn(vk::PhysicalDevice, vk::DescriptorType) -> vk::DeviceSize;
+type PfnGetDescriptorSize =
+    unsafe extern "system" fn(vk::PhysicalDevice, vk::DescriptorType) -> vk::DeviceSize;
 
 /// The device commands of VK_EXT_descriptor_heap.
 pub struct HeapFns {
@@ -314,19 +338,50 @@ pub struct HeapFns {
 impl HeapFns {
     /// Load the commands from a device created with VK_EXT_descriptor_heap; `None` names the
     /// first command the driver did not return.
-    pub fn load(entry: &ash::Entry, instance: &ash::Instance, device: &ash::Device) -> Result<HeapFns, &'static str> {
-        let get = |name: &'static CStr| unsafe { (instance.fp_v1_0().get_device_proc_addr)(device.handle(), name.as_ptr()) }.ok_or(name.to_str().unwrap_or("?"));
-        let get_inst = |name: &'static CStr| unsafe { entry.get_instance_proc_addr(instance.handle(), name.as_ptr()) }.ok_or(name.to_str().unwrap_or("?"));
+    pub fn load(
+        entry: &ash::Entry,
+        instance: &ash::Instance,
+        device: &ash::Device,
+    ) -> Result<HeapFns, &'static str> {
+        let get = |name: &'static CStr| {
+            unsafe { (instance.fp_v1_0().get_device_proc_addr)(device.handle(), name.as_ptr()) }
+                .ok_or(name.to_str().unwrap_or("?"))
+        };
+        let get_inst = |name: &'static CStr| {
+            unsafe { entry.get_instance_proc_addr(instance.handle(), name.as_ptr()) }
+                .ok_or(name.to_str().unwrap_or("?"))
+        };
         // SAFETY: each pointer is the driver's entry point of the named command, whose C
         // signature the matching Pfn type reproduces from vulkan_core.h.
         unsafe {
             Ok(HeapFns {
-                write_sampler_descriptors: std::mem::transmute::<unsafe extern "system" fn(), PfnWriteSamplerDescriptors>(get(c"vkWriteSamplerDescriptorsEXT")?),
-                write_resource_descriptors: std::mem::transmute::<unsafe extern "system" fn(), PfnWriteResourceDescriptors>(get(c"vkWriteResourceDescriptorsEXT")?),
-                cmd_bind_sampler_heap: std::mem::transmute::<unsafe extern "system" fn(), PfnCmdBindHeap>(get(c"vkCmdBindSamplerHeapEXT")?),
-                cmd_bind_resource_heap: std::mem::transmute::<unsafe extern "system" fn(), PfnCmdBindHeap>(get(c"vkCmdBindResourceHeapEXT")?),
-                cmd_push_data: std::mem::transmute::<unsafe extern "system" fn(), PfnCmdPushData>(get(c"vkCmdPushDataEXT")?),
-                get_descriptor_size: std::mem::transmute::<unsafe extern "system" fn(), PfnGetDescriptorSize>(get_inst(c"vkGetPhysicalDeviceDescriptorSizeEXT")?),
+                write_sampler_descriptors: std::mem::transmute::<
+                    unsafe extern "system" fn(),
+                    PfnWriteSamplerDescriptors,
+                >(get(c"vkWriteSamplerDescriptorsEXT")?),
+                write_resource_descriptors: std::mem::transmute::<
+                    unsafe extern "system" fn(),
+                    PfnWriteResourceDescriptors,
+                >(get(
+                    c"vkWriteResourceDescriptorsEXT",
+                )?),
+                cmd_bind_sampler_heap: std::mem::transmute::<
+                    unsafe extern "system" fn(),
+                    PfnCmdBindHeap,
+                >(get(c"vkCmdBindSamplerHeapEXT")?),
+                cmd_bind_resource_heap: std::mem::transmute::<
+                    unsafe extern "system" fn(),
+                    PfnCmdBindHeap,
+                >(get(c"vkCmdBindResourceHeapEXT")?),
+                cmd_push_data: std::mem::transmute::<unsafe extern "system" fn(), PfnCmdPushData>(
+                    get(c"vkCmdPushDataEXT")?,
+                ),
+                get_descriptor_size: std::mem::transmute::<
+                    unsafe extern "system" fn(),
+                    PfnGetDescriptorSize,
+                >(get_inst(
+                    c"vkGetPhysicalDeviceDescriptorSizeEXT",
+                )?),
             })
         }
     }
@@ -345,7 +400,10 @@ mod tests {
         assert_eq!(size_of::<MappingConstantOffset>(), 24);
         assert_eq!(size_of::<MappingIndirectIndex>(), 56);
         assert_eq!(offset_of!(MappingIndirectIndex, p_embedded_sampler), 24);
-        assert_eq!(offset_of!(MappingIndirectIndex, sampler_heap_array_stride), 52);
+        assert_eq!(
+            offset_of!(MappingIndirectIndex, sampler_heap_array_stride),
+            52
+        );
         assert_eq!(size_of::<MappingSourceData>(), 56);
         assert_eq!(offset_of!(SetAndBindingMapping, source_data), 40);
         assert_eq!(size_of::<SetAndBindingMapping>(), 96);

@@ -41,7 +41,12 @@ pub const HEAP_LAYER_MIN: u32 = vk::make_api_version(0, 1, 4, 303);
 
 /// Why GPU-AV cannot check descriptor heap cells with a layer of `spec_version`, or `None`.
 pub fn gpu_av_heap_gap(spec_version: u32) -> Option<String> {
-    (spec_version < HEAP_LAYER_MIN).then(|| format!("validation layers {} predate VK_EXT_descriptor_heap", super::driver_version::format_api_version(spec_version)))
+    (spec_version < HEAP_LAYER_MIN).then(|| {
+        format!(
+            "validation layers {} predate VK_EXT_descriptor_heap",
+            super::driver_version::format_api_version(spec_version)
+        )
+    })
 }
 
 pub struct Instance {
@@ -78,8 +83,11 @@ unsafe extern "system" fn debug_callback(
 
 /// The installed Khronos validation layer's properties, `None` without one.
 fn validation_layer(entry: &ash::Entry) -> Result<Option<vk::LayerProperties>, VkError> {
-    let available = unsafe { entry.enumerate_instance_layer_properties() }.at("vkEnumerateInstanceLayerProperties")?;
-    Ok(available.into_iter().find(|l| l.layer_name_as_c_str() == Ok(VALIDATION_LAYER)))
+    let available = unsafe { entry.enumerate_instance_layer_properties() }
+        .at("vkEnumerateInstanceLayerProperties")?;
+    Ok(available
+        .into_iter()
+        .find(|l| l.layer_name_as_c_str() == Ok(VALIDATION_LAYER)))
 }
 
 /// The loader (`RTPROBE_VULKAN_LIB`, else the system's) and the instance version it supports,
@@ -90,7 +98,9 @@ fn load_entry() -> Result<(ash::Entry, u32), VkError> {
         Some(path) => unsafe { ash::Entry::load_from(&path) },
         None => unsafe { ash::Entry::load() },
     }
-    .map_err(|e| VkError::LoaderMissing { detail: e.to_string() })?;
+    .map_err(|e| VkError::LoaderMissing {
+        detail: e.to_string(),
+    })?;
 
     let loader_version = unsafe { entry.try_enumerate_instance_version() }
         .at("vkEnumerateInstanceVersion")?
@@ -129,9 +139,13 @@ impl Layers {
         l.extensions.push(ext::debug_utils::NAME.as_ptr());
         l.validation = true;
         if opts.gpu_av {
-            let layer_exts = unsafe { entry.enumerate_instance_extension_properties(Some(VALIDATION_LAYER)) }
-                .at("vkEnumerateInstanceExtensionProperties")?;
-            if layer_exts.iter().any(|e| e.extension_name_as_c_str() == Ok(ext::layer_settings::NAME)) {
+            let layer_exts =
+                unsafe { entry.enumerate_instance_extension_properties(Some(VALIDATION_LAYER)) }
+                    .at("vkEnumerateInstanceExtensionProperties")?;
+            if layer_exts
+                .iter()
+                .any(|e| e.extension_name_as_c_str() == Ok(ext::layer_settings::NAME))
+            {
                 l.extensions.push(ext::layer_settings::NAME.as_ptr());
                 l.gpu_av = Some(GpuAvHow::LayerSettings);
             } else {
@@ -144,7 +158,11 @@ impl Layers {
 
     /// `vkCreateInstance` with these layers and extensions (GPU-AV's setting chained as the layer
     /// understands it).
-    fn create_instance(&self, entry: &ash::Entry, loader_version: u32) -> Result<ash::Instance, VkError> {
+    fn create_instance(
+        &self,
+        entry: &ash::Entry,
+        loader_version: u32,
+    ) -> Result<ash::Instance, VkError> {
         let app = vk::ApplicationInfo::default()
             .application_name(c"rtprobe")
             .application_version(vk::make_api_version(0, 0, 1, 0))
@@ -155,10 +173,15 @@ impl Layers {
             .enabled_layer_names(&self.layers)
             .enabled_extension_names(&self.extensions);
         let on: [u8; 4] = vk::TRUE.to_ne_bytes();
-        let settings = [vk::LayerSettingEXT::default().layer_name(VALIDATION_LAYER).setting_name(c"gpuav_enable").ty(vk::LayerSettingTypeEXT::BOOL32).values(&on)];
+        let settings = [vk::LayerSettingEXT::default()
+            .layer_name(VALIDATION_LAYER)
+            .setting_name(c"gpuav_enable")
+            .ty(vk::LayerSettingTypeEXT::BOOL32)
+            .values(&on)];
         let mut layer_settings = vk::LayerSettingsCreateInfoEXT::default().settings(&settings);
         let enables = [vk::ValidationFeatureEnableEXT::GPU_ASSISTED];
-        let mut features = vk::ValidationFeaturesEXT::default().enabled_validation_features(&enables);
+        let mut features =
+            vk::ValidationFeaturesEXT::default().enabled_validation_features(&enables);
         match self.gpu_av {
             Some(GpuAvHow::LayerSettings) => info = info.push_next(&mut layer_settings),
             Some(GpuAvHow::ValidationFeatures) => info = info.push_next(&mut features),
@@ -175,7 +198,10 @@ impl Layers {
 }
 
 /// The debug messenger that counts validation errors and logs warnings ([`debug_callback`]).
-fn messenger(entry: &ash::Entry, raw: &ash::Instance) -> Result<(ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT), VkError> {
+fn messenger(
+    entry: &ash::Entry,
+    raw: &ash::Instance,
+) -> Result<(ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT), VkError> {
     let du = ext::debug_utils::Instance::new(entry, raw);
     let ci = vk::DebugUtilsMessengerCreateInfoEXT::default()
         .message_severity(
@@ -197,8 +223,18 @@ impl Instance {
         let (entry, loader_version) = load_entry()?;
         let layers = Layers::of(&entry, opts)?;
         let raw = layers.create_instance(&entry, loader_version)?;
-        let debug = if layers.validation { Some(messenger(&entry, &raw)?) } else { None };
-        Ok(Self { entry, raw, loader_version, validation: layers.validation, debug })
+        let debug = if layers.validation {
+            Some(messenger(&entry, &raw)?)
+        } else {
+            None
+        };
+        Ok(Self {
+            entry,
+            raw,
+            loader_version,
+            validation: layers.validation,
+            debug,
+        })
     }
 
     /// The installed validation layer's specVersion (enabled or not), `None` without one.
@@ -214,7 +250,9 @@ impl Instance {
             Err(e) => return Err(VkError::from_result("vkEnumeratePhysicalDevices", e)),
         };
         if pds.is_empty() {
-            return Err(VkError::NoDriver { detail: "the loader found no physical device".into() });
+            return Err(VkError::NoDriver {
+                detail: "the loader found no physical device".into(),
+            });
         }
         Ok(pds)
     }
@@ -237,7 +275,10 @@ mod tests {
 
     #[test]
     fn layers_before_descriptor_heaps_are_told_apart_by_their_version() {
-        assert_eq!(gpu_av_heap_gap(vk::make_api_version(0, 1, 3, 239)).as_deref(), Some("validation layers 1.3.239 predate VK_EXT_descriptor_heap"));
+        assert_eq!(
+            gpu_av_heap_gap(vk::make_api_version(0, 1, 3, 239)).as_deref(),
+            Some("validation layers 1.3.239 predate VK_EXT_descriptor_heap")
+        );
         assert_eq!(gpu_av_heap_gap(vk::make_api_version(0, 1, 4, 363)), None);
     }
 }

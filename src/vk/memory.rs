@@ -21,18 +21,40 @@ pub struct Buffer {
     mapped: *mut u8,
 }
 
-fn allocate(gpu: &Gpu, req: vk::MemoryRequirements, loc: Location, device_address: bool, what: &'static str) -> Result<vk::DeviceMemory, VkError> {
+fn allocate(
+    gpu: &Gpu,
+    req: vk::MemoryRequirements,
+    loc: Location,
+    device_address: bool,
+    what: &'static str,
+) -> Result<vk::DeviceMemory, VkError> {
     let flags = match loc {
-        Location::Host => vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_COHERENT,
+        Location::Host => {
+            vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_COHERENT
+        }
         Location::Device => vk::MemoryPropertyFlags::DEVICE_LOCAL,
     };
     let type_index = gpu
         .info
         .memory_type_index(req.memory_type_bits, flags)
-        .or_else(|| (loc == Location::Device).then(|| gpu.info.memory_type_index(req.memory_type_bits, vk::MemoryPropertyFlags::empty())).flatten())
-        .ok_or(VkError::NoMemoryType { what, type_bits: req.memory_type_bits, flags })?;
-    let mut flags_info = vk::MemoryAllocateFlagsInfo::default().flags(vk::MemoryAllocateFlags::DEVICE_ADDRESS);
-    let mut info = vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(type_index);
+        .or_else(|| {
+            (loc == Location::Device)
+                .then(|| {
+                    gpu.info
+                        .memory_type_index(req.memory_type_bits, vk::MemoryPropertyFlags::empty())
+                })
+                .flatten()
+        })
+        .ok_or(VkError::NoMemoryType {
+            what,
+            type_bits: req.memory_type_bits,
+            flags,
+        })?;
+    let mut flags_info =
+        vk::MemoryAllocateFlagsInfo::default().flags(vk::MemoryAllocateFlags::DEVICE_ADDRESS);
+    let mut info = vk::MemoryAllocateInfo::default()
+        .allocation_size(req.size)
+        .memory_type_index(type_index);
     if device_address {
         info = info.push_next(&mut flags_info);
     }
@@ -40,10 +62,22 @@ fn allocate(gpu: &Gpu, req: vk::MemoryRequirements, loc: Location, device_addres
 }
 
 impl Buffer {
-    pub fn new(gpu: &Gpu, size: u64, usage: vk::BufferUsageFlags, loc: Location, what: &'static str) -> Result<Buffer, VkError> {
+    pub fn new(
+        gpu: &Gpu,
+        size: u64,
+        usage: vk::BufferUsageFlags,
+        loc: Location,
+        what: &'static str,
+    ) -> Result<Buffer, VkError> {
         let d = &gpu.device;
         let size = size.max(16);
-        let raw = unsafe { d.create_buffer(&vk::BufferCreateInfo::default().size(size).usage(usage), None) }.at("vkCreateBuffer")?;
+        let raw = unsafe {
+            d.create_buffer(
+                &vk::BufferCreateInfo::default().size(size).usage(usage),
+                None,
+            )
+        }
+        .at("vkCreateBuffer")?;
         let req = unsafe { d.get_buffer_memory_requirements(raw) };
         let bda = usage.contains(vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS);
         let memory = match allocate(gpu, req, loc, bda, what) {
@@ -55,16 +89,34 @@ impl Buffer {
         };
         unsafe { d.bind_buffer_memory(raw, memory, 0) }.at("vkBindBufferMemory")?;
         let mapped = if loc == Location::Host {
-            unsafe { d.map_memory(memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty()) }.at("vkMapMemory")? as *mut u8
+            unsafe { d.map_memory(memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty()) }
+                .at("vkMapMemory")? as *mut u8
         } else {
             std::ptr::null_mut()
         };
-        let address = if bda { unsafe { d.get_buffer_device_address(&vk::BufferDeviceAddressInfo::default().buffer(raw)) } } else { 0 };
-        Ok(Buffer { raw, memory, size, address, mapped })
+        let address = if bda {
+            unsafe {
+                d.get_buffer_device_address(&vk::BufferDeviceAddressInfo::default().buffer(raw))
+            }
+        } else {
+            0
+        };
+        Ok(Buffer {
+            raw,
+            memory,
+            size,
+            address,
+            mapped,
+        })
     }
 
     /// A host-visible buffer holding `bytes`.
-    pub fn with_data(gpu: &Gpu, bytes: &[u8], usage: vk::BufferUsageFlags, what: &'static str) -> Result<Buffer, VkError> {
+    pub fn with_data(
+        gpu: &Gpu,
+        bytes: &[u8],
+        usage: vk::BufferUsageFlags,
+        what: &'static str,
+    ) -> Result<Buffer, VkError> {
         let b = Buffer::new(gpu, bytes.len() as u64, usage, Location::Host, what)?;
         b.write(0, bytes);
         Ok(b)
@@ -72,9 +124,14 @@ impl Buffer {
 
     pub fn write(&self, offset: usize, bytes: &[u8]) {
         assert!(!self.mapped.is_null(), "write to a device-local buffer");
-        assert!(offset + bytes.len() <= self.size as usize, "write past the end of a buffer");
+        assert!(
+            offset + bytes.len() <= self.size as usize,
+            "write past the end of a buffer"
+        );
         // SAFETY: mapped for the buffer's whole size; bounds checked above.
-        unsafe { std::ptr::copy_nonoverlapping(bytes.as_ptr(), self.mapped.add(offset), bytes.len()) };
+        unsafe {
+            std::ptr::copy_nonoverlapping(bytes.as_ptr(), self.mapped.add(offset), bytes.len())
+        };
     }
 
     pub fn read(&self, len: usize) -> Vec<u8> {
@@ -103,18 +160,33 @@ pub struct Image {
 }
 
 impl Image {
-    pub fn new(gpu: &Gpu, extent: vk::Extent2D, format: vk::Format, usage: vk::ImageUsageFlags) -> Result<Image, VkError> {
+    pub fn new(
+        gpu: &Gpu,
+        extent: vk::Extent2D,
+        format: vk::Format,
+        usage: vk::ImageUsageFlags,
+    ) -> Result<Image, VkError> {
         Self::with_layers(gpu, extent, format, usage, None)
     }
 
     /// `layers`: `None` a 2D image with a 2D view; `Some(n)` an array image of `n` layers with a
     /// 2D-array view of all of them.
-    pub fn with_layers(gpu: &Gpu, extent: vk::Extent2D, format: vk::Format, usage: vk::ImageUsageFlags, layers: Option<u32>) -> Result<Image, VkError> {
+    pub fn with_layers(
+        gpu: &Gpu,
+        extent: vk::Extent2D,
+        format: vk::Format,
+        usage: vk::ImageUsageFlags,
+        layers: Option<u32>,
+    ) -> Result<Image, VkError> {
         let d = &gpu.device;
         let ci = vk::ImageCreateInfo::default()
             .image_type(vk::ImageType::TYPE_2D)
             .format(format)
-            .extent(vk::Extent3D { width: extent.width, height: extent.height, depth: 1 })
+            .extent(vk::Extent3D {
+                width: extent.width,
+                height: extent.height,
+                depth: 1,
+            })
             .mip_levels(1)
             .array_layers(layers.unwrap_or(1))
             .samples(vk::SampleCountFlags::TYPE_1)
@@ -126,7 +198,12 @@ impl Image {
         let memory = allocate(gpu, req, Location::Device, false, "image")?;
         unsafe { d.bind_image_memory(raw, memory, 0) }.at("vkBindImageMemory")?;
         let view = create_view(gpu, raw, format, layers)?;
-        Ok(Image { raw, view, memory, extent })
+        Ok(Image {
+            raw,
+            view,
+            memory,
+            extent,
+        })
     }
 
     pub fn destroy(&self, gpu: &Gpu) {
@@ -139,8 +216,17 @@ impl Image {
 }
 
 /// A view of `image`: 2D (`layers` `None`), or 2D array over its first `n` layers.
-pub fn create_view(gpu: &Gpu, image: vk::Image, format: vk::Format, layers: Option<u32>) -> Result<vk::ImageView, VkError> {
-    let vci = vk::ImageViewCreateInfo::default().image(image).view_type(view_type(layers)).format(format).subresource_range(layer_range(layers));
+pub fn create_view(
+    gpu: &Gpu,
+    image: vk::Image,
+    format: vk::Format,
+    layers: Option<u32>,
+) -> Result<vk::ImageView, VkError> {
+    let vci = vk::ImageViewCreateInfo::default()
+        .image(image)
+        .view_type(view_type(layers))
+        .format(format)
+        .subresource_range(layer_range(layers));
     unsafe { gpu.device.create_image_view(&vci, None) }.at("vkCreateImageView")
 }
 
@@ -155,11 +241,20 @@ pub fn view_type(layers: Option<u32>) -> vk::ImageViewType {
 
 /// The colour subresource range over `layers` (one layer for `None`).
 pub fn layer_range(layers: Option<u32>) -> vk::ImageSubresourceRange {
-    vk::ImageSubresourceRange { layer_count: layers.unwrap_or(1), ..color_range() }
+    vk::ImageSubresourceRange {
+        layer_count: layers.unwrap_or(1),
+        ..color_range()
+    }
 }
 
 pub fn color_range() -> vk::ImageSubresourceRange {
-    vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 }
+    vk::ImageSubresourceRange {
+        aspect_mask: vk::ImageAspectFlags::COLOR,
+        base_mip_level: 0,
+        level_count: 1,
+        base_array_layer: 0,
+        layer_count: 1,
+    }
 }
 
 /// A full memory barrier between everything before and after (probes are small; precision of
@@ -169,7 +264,15 @@ pub fn full_barrier(gpu: &Gpu, cmd: vk::CommandBuffer) {
         .src_access_mask(vk::AccessFlags::MEMORY_WRITE)
         .dst_access_mask(vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE)];
     unsafe {
-        gpu.device.cmd_pipeline_barrier(cmd, vk::PipelineStageFlags::ALL_COMMANDS, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), &mb, &[], &[])
+        gpu.device.cmd_pipeline_barrier(
+            cmd,
+            vk::PipelineStageFlags::ALL_COMMANDS,
+            vk::PipelineStageFlags::ALL_COMMANDS,
+            vk::DependencyFlags::empty(),
+            &mb,
+            &[],
+            &[],
+        )
     };
 }
 
@@ -182,10 +285,23 @@ pub struct Transition {
 pub fn transition(gpu: &Gpu, cmd: vk::CommandBuffer, image: vk::Image, t: Transition) {
     let b = vk::ImageMemoryBarrier::default()
         .image(image)
-        .subresource_range(vk::ImageSubresourceRange { layer_count: vk::REMAINING_ARRAY_LAYERS, ..color_range() })
+        .subresource_range(vk::ImageSubresourceRange {
+            layer_count: vk::REMAINING_ARRAY_LAYERS,
+            ..color_range()
+        })
         .old_layout(t.from.0)
         .new_layout(t.to.0)
         .src_access_mask(t.from.1)
         .dst_access_mask(t.to.1);
-    unsafe { gpu.device.cmd_pipeline_barrier(cmd, t.from.2, t.to.2, vk::DependencyFlags::empty(), &[], &[], &[b]) };
+    unsafe {
+        gpu.device.cmd_pipeline_barrier(
+            cmd,
+            t.from.2,
+            t.to.2,
+            vk::DependencyFlags::empty(),
+            &[],
+            &[],
+            &[b],
+        )
+    };
 }

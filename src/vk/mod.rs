@@ -6,8 +6,8 @@ pub mod driver_version;
 pub mod error;
 pub mod features;
 pub mod heap;
-pub mod rt_ext;
 pub mod instance;
+pub mod rt_ext;
 
 pub use device::{Gpu, Requirements};
 pub use error::{VkError, VkResultExt};

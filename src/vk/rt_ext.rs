@@ -8,7 +8,8 @@ use ash::vk;
 use std::ffi::{c_void, CStr};
 
 pub const NV_CLUSTER_ACCELERATION_STRUCTURE: &CStr = c"VK_NV_cluster_acceleration_structure";
-pub const NV_PARTITIONED_ACCELERATION_STRUCTURE: &CStr = c"VK_NV_partitioned_acceleration_structure";
+pub const NV_PARTITIONED_ACCELERATION_STRUCTURE: &CStr =
+    c"VK_NV_partitioned_acceleration_structure";
 pub const NV_RAY_TRACING_LINEAR_SWEPT_SPHERES: &CStr = c"VK_NV_ray_tracing_linear_swept_spheres";
 /// The cross-vendor successor of VK_NV_ray_tracing_invocation_reorder.
 pub const EXT_RAY_TRACING_INVOCATION_REORDER: &CStr = c"VK_EXT_ray_tracing_invocation_reorder";
@@ -122,8 +123,12 @@ raw_struct!(
 /// `VkRayTracingInvocationReorderModeEXT` (alias `...NV`) as the registry spells it.
 pub fn reorder_mode_name(m: vk::RayTracingInvocationReorderModeNV) -> String {
     match m {
-        vk::RayTracingInvocationReorderModeNV::NONE => "VK_RAY_TRACING_INVOCATION_REORDER_MODE_NONE_EXT".into(),
-        vk::RayTracingInvocationReorderModeNV::REORDER => "VK_RAY_TRACING_INVOCATION_REORDER_MODE_REORDER_EXT".into(),
+        vk::RayTracingInvocationReorderModeNV::NONE => {
+            "VK_RAY_TRACING_INVOCATION_REORDER_MODE_NONE_EXT".into()
+        }
+        vk::RayTracingInvocationReorderModeNV::REORDER => {
+            "VK_RAY_TRACING_INVOCATION_REORDER_MODE_REORDER_EXT".into()
+        }
         other => format!("{}", other.as_raw()),
     }
 }
@@ -136,15 +141,48 @@ mod tests {
     /// Sizes and offsets a C compiler gives the `vulkan_core.h` definitions on 64-bit targets.
     #[test]
     fn layouts_match_the_c_headers() {
-        assert_eq!(size_of::<PhysicalDeviceClusterAccelerationStructureFeaturesNV>(), 24);
-        assert_eq!(size_of::<PhysicalDeviceClusterAccelerationStructurePropertiesNV>(), 48);
-        assert_eq!(offset_of!(PhysicalDeviceClusterAccelerationStructurePropertiesNV, max_cluster_geometry_index), 44);
-        assert_eq!(size_of::<PhysicalDevicePartitionedAccelerationStructurePropertiesNV>(), 24);
-        assert_eq!(size_of::<PhysicalDeviceRayTracingLinearSweptSpheresFeaturesNV>(), 24);
-        assert_eq!(size_of::<PhysicalDeviceRayTracingInvocationReorderPropertiesEXT>(), 24);
-        assert_eq!(offset_of!(PhysicalDeviceRayTracingInvocationReorderPropertiesEXT, max_shader_binding_table_record_index), 20);
+        assert_eq!(
+            size_of::<PhysicalDeviceClusterAccelerationStructureFeaturesNV>(),
+            24
+        );
+        assert_eq!(
+            size_of::<PhysicalDeviceClusterAccelerationStructurePropertiesNV>(),
+            48
+        );
+        assert_eq!(
+            offset_of!(
+                PhysicalDeviceClusterAccelerationStructurePropertiesNV,
+                max_cluster_geometry_index
+            ),
+            44
+        );
+        assert_eq!(
+            size_of::<PhysicalDevicePartitionedAccelerationStructurePropertiesNV>(),
+            24
+        );
+        assert_eq!(
+            size_of::<PhysicalDeviceRayTracingLinearSweptSpheresFeaturesNV>(),
+            24
+        );
+        assert_eq!(
+            size_of::<PhysicalDeviceRayTracingInvocationReorderPropertiesEXT>(),
+            24
+        );
+        assert_eq!(
+            offset_of!(
+                PhysicalDeviceRayTracingInvocationReorderPropertiesEXT,
+                max_shader_binding_table_record_index
+            ),
+            20
+        );
         // The u64 after three u32s is aligned to 8: offset 32, size 40.
-        assert_eq!(offset_of!(PhysicalDeviceOpacityMicromapPropertiesKHR, max_micromap_triangles), 32);
+        assert_eq!(
+            offset_of!(
+                PhysicalDeviceOpacityMicromapPropertiesKHR,
+                max_micromap_triangles
+            ),
+            32
+        );
         assert_eq!(size_of::<PhysicalDeviceOpacityMicromapPropertiesKHR>(), 40);
     }
 
@@ -154,6 +192,11 @@ mod tests {
         assert_eq!(f.s_type.as_raw(), 1_000_581_000);
         assert!(f.p_next.is_null());
         assert_eq!(f.ray_tracing_invocation_reorder, vk::FALSE);
-        assert_eq!(PhysicalDeviceOpacityMicromapPropertiesKHR::default().s_type.as_raw(), 1_000_623_001);
+        assert_eq!(
+            PhysicalDeviceOpacityMicromapPropertiesKHR::default()
+                .s_type
+                .as_raw(),
+            1_000_623_001
+        );
     }
 }

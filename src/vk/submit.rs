@@ -23,26 +23,44 @@ impl Submitter {
         let d = &gpu.device;
         let pool = unsafe {
             d.create_command_pool(
-                &vk::CommandPoolCreateInfo::default().queue_family_index(gpu.queue_family).flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER),
+                &vk::CommandPoolCreateInfo::default()
+                    .queue_family_index(gpu.queue_family)
+                    .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER),
                 None,
             )
         }
         .at("vkCreateCommandPool")?;
         let cmd = unsafe {
-            d.allocate_command_buffers(&vk::CommandBufferAllocateInfo::default().command_pool(pool).level(vk::CommandBufferLevel::PRIMARY).command_buffer_count(1))
+            d.allocate_command_buffers(
+                &vk::CommandBufferAllocateInfo::default()
+                    .command_pool(pool)
+                    .level(vk::CommandBufferLevel::PRIMARY)
+                    .command_buffer_count(1),
+            )
         }
         .at("vkAllocateCommandBuffers")?[0];
-        let fence = unsafe { d.create_fence(&vk::FenceCreateInfo::default(), None) }.at("vkCreateFence")?;
+        let fence =
+            unsafe { d.create_fence(&vk::FenceCreateInfo::default(), None) }.at("vkCreateFence")?;
         Ok(Self { pool, cmd, fence })
     }
 
     /// Record with `f`, submit, and wait up to `timeout`.
-    pub fn run(&self, gpu: &Gpu, timeout: Duration, f: impl FnOnce(vk::CommandBuffer)) -> Result<Waited, VkError> {
+    pub fn run(
+        &self,
+        gpu: &Gpu,
+        timeout: Duration,
+        f: impl FnOnce(vk::CommandBuffer),
+    ) -> Result<Waited, VkError> {
         let d = &gpu.device;
         unsafe {
-            d.reset_command_buffer(self.cmd, vk::CommandBufferResetFlags::empty()).at("vkResetCommandBuffer")?;
-            d.begin_command_buffer(self.cmd, &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT))
-                .at("vkBeginCommandBuffer")?;
+            d.reset_command_buffer(self.cmd, vk::CommandBufferResetFlags::empty())
+                .at("vkResetCommandBuffer")?;
+            d.begin_command_buffer(
+                self.cmd,
+                &vk::CommandBufferBeginInfo::default()
+                    .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
+            )
+            .at("vkBeginCommandBuffer")?;
         }
         f(self.cmd);
         unsafe { d.end_command_buffer(self.cmd) }.at("vkEndCommandBuffer")?;

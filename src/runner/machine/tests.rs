@@ -5,10 +5,23 @@
 use super::*;
 use crate::model::{CellResult, DescriptorModel, IndexSource, Resource, Stage, Timings};
 
-const LIMITS: Limits = Limits { timeout: Duration::from_secs(10), setup_timeout: Duration::from_secs(60) };
+const LIMITS: Limits = Limits {
+    timeout: Duration::from_secs(10),
+    setup_timeout: Duration::from_secs(60),
+};
 
 fn cells() -> Vec<Cell> {
-    [Stage::Raygen, Stage::ClosestHit, Stage::Miss].iter().map(|&s| Cell::new(s, Resource::StorageBuffer, IndexSource::Dynamic, DescriptorModel::DescriptorIndexing)).collect()
+    [Stage::Raygen, Stage::ClosestHit, Stage::Miss]
+        .iter()
+        .map(|&s| {
+            Cell::new(
+                s,
+                Resource::StorageBuffer,
+                IndexSource::Dynamic,
+                DescriptorModel::DescriptorIndexing,
+            )
+        })
+        .collect()
 }
 
 fn at(t0: Instant, ms: u64) -> Instant {
@@ -24,7 +37,12 @@ fn msg(m: WorkerMsg) -> Input {
 }
 
 fn ready() -> Input {
-    msg(WorkerMsg::Ready { device_ms: 1.0, reference_ms: 2.0, device_features: vec!["VK_KHR_ray_tracing_pipeline".into()], pipeline_cache: None })
+    msg(WorkerMsg::Ready {
+        device_ms: 1.0,
+        reference_ms: 2.0,
+        device_features: vec!["VK_KHR_ray_tracing_pipeline".into()],
+        pipeline_cache: None,
+    })
 }
 
 fn start(c: &Cell) -> Input {
@@ -32,16 +50,33 @@ fn start(c: &Cell) -> Input {
 }
 
 fn phase(p: Phase, step: Option<&str>) -> Input {
-    msg(WorkerMsg::Phase { phase: p, step: step.map(String::from) })
+    msg(WorkerMsg::Phase {
+        phase: p,
+        step: step.map(String::from),
+    })
 }
 
 fn result(c: &Cell, outcome: Outcome) -> Input {
-    let result = CellResult { outcome, detail: Some(format!("{} here", outcome.as_str())), timings: Timings::default(), comparison: None, fault: None, validation_errors: 0 };
-    msg(WorkerMsg::Result { cell: c.id(), result })
+    let result = CellResult {
+        outcome,
+        detail: Some(format!("{} here", outcome.as_str())),
+        timings: Timings::default(),
+        comparison: None,
+        fault: None,
+        validation_errors: 0,
+    };
+    msg(WorkerMsg::Result {
+        cell: c.id(),
+        result,
+    })
 }
 
 fn exit(code: Option<i32>, signal: Option<i32>) -> WorkerExit {
-    WorkerExit { code, signal, ..Default::default() }
+    WorkerExit {
+        code,
+        signal,
+        ..Default::default()
+    }
 }
 
 /// Worker 7 with three cells, ready at t0 + 100 ms.
@@ -59,7 +94,11 @@ fn in_cell(t0: Instant, p: Phase) -> Worker {
 
 /// `ready_worker` after its first cell's result at t0 + 300 ms.
 fn one_done(t0: Instant) -> Worker {
-    let (w, _) = feed(in_cell(t0, Phase::Check), result(&cells()[0], Outcome::Pass), at(t0, 300));
+    let (w, _) = feed(
+        in_cell(t0, Phase::Check),
+        result(&cells()[0], Outcome::Pass),
+        at(t0, 300),
+    );
     w
 }
 
@@ -68,22 +107,48 @@ fn dies(w: Worker, cause: Input, ended: WorkerExit, now: Instant) -> (Effect, Ve
     let (w, mut fx) = feed(w, cause, now);
     assert_eq!(fx.len(), 1, "{fx:?}");
     assert!(matches!(w.state, State::Dying { .. }));
-    assert_eq!(w.deadline(&LIMITS), None, "the supervisor waits for no deadline while it kills");
+    assert_eq!(
+        w.deadline(&LIMITS),
+        None,
+        "the supervisor waits for no deadline while it kills"
+    );
     let (w, recorded) = feed(w, Input::Exited(ended), now);
     assert!(w.ended());
     (fx.remove(0), recorded)
 }
 
 fn attempts(fx: &[Effect]) -> Vec<(Cell, &Attempt)> {
-    fx.iter().filter_map(|e| if let Effect::Attempt { cell, attempt } = e { Some((*cell, attempt)) } else { None }).collect()
+    fx.iter()
+        .filter_map(|e| {
+            if let Effect::Attempt { cell, attempt } = e {
+                Some((*cell, attempt))
+            } else {
+                None
+            }
+        })
+        .collect()
 }
 
 fn events(fx: &[Effect]) -> Vec<&WorkerEvent> {
-    fx.iter().filter_map(|e| if let Effect::Worker(ev) = e { Some(ev) } else { None }).collect()
+    fx.iter()
+        .filter_map(|e| {
+            if let Effect::Worker(ev) = e {
+                Some(ev)
+            } else {
+                None
+            }
+        })
+        .collect()
 }
 
 fn fruitless(fx: &[Effect]) -> Option<(usize, &Attempt)> {
-    fx.iter().find_map(|e| if let Effect::Fruitless { batch, not_run } = e { Some((*batch, not_run)) } else { None })
+    fx.iter().find_map(|e| {
+        if let Effect::Fruitless { batch, not_run } = e {
+            Some((*batch, not_run))
+        } else {
+            None
+        }
+    })
 }
 
 #[test]
@@ -93,7 +158,10 @@ fn ready_records_the_setup_and_starts_the_gap_before_the_first_cell() {
     assert_eq!(w.deadline(&LIMITS), Some(at(t0, 100) + LIMITS.timeout));
     assert!(matches!(fx[0], Effect::Ready { device_ms, .. } if device_ms == 1.0));
     let ev = events(&fx)[0];
-    assert_eq!((ev.worker, ev.phase, ev.outcome, ev.cells, ev.wall_ms), (7, Phase::Setup, Outcome::Pass, 3, 100.0));
+    assert_eq!(
+        (ev.worker, ev.phase, ev.outcome, ev.cells, ev.wall_ms),
+        (7, Phase::Setup, Outcome::Pass, 3, 100.0)
+    );
     assert_eq!(ev.device_features, ["VK_KHR_ray_tracing_pipeline"]);
     assert_eq!(w.phase, Phase::BetweenCells);
 }
@@ -101,24 +169,45 @@ fn ready_records_the_setup_and_starts_the_gap_before_the_first_cell() {
 #[test]
 fn setup_has_its_own_deadline_and_the_others_share_the_timeout() {
     let t0 = Instant::now();
-    assert_eq!(Worker::new(1, cells(), false, t0).deadline(&LIMITS), Some(t0 + LIMITS.setup_timeout));
-    assert_eq!(in_cell(t0, Phase::Trace).deadline(&LIMITS), Some(at(t0, 200) + LIMITS.timeout));
-    assert_eq!(one_done(t0).deadline(&LIMITS), Some(at(t0, 300) + LIMITS.timeout));
+    assert_eq!(
+        Worker::new(1, cells(), false, t0).deadline(&LIMITS),
+        Some(t0 + LIMITS.setup_timeout)
+    );
+    assert_eq!(
+        in_cell(t0, Phase::Trace).deadline(&LIMITS),
+        Some(at(t0, 200) + LIMITS.timeout)
+    );
+    assert_eq!(
+        one_done(t0).deadline(&LIMITS),
+        Some(at(t0, 300) + LIMITS.timeout)
+    );
 }
 
 #[test]
 fn a_result_line_is_the_cells_attempt_with_its_phase_and_time() {
     let t0 = Instant::now();
-    let (w, fx) = feed(in_cell(t0, Phase::Check), result(&cells()[0], Outcome::Mismatch), at(t0, 450));
-    let [(cell, a)] = attempts(&fx)[..] else { panic!("{fx:?}") };
+    let (w, fx) = feed(
+        in_cell(t0, Phase::Check),
+        result(&cells()[0], Outcome::Mismatch),
+        at(t0, 450),
+    );
+    let [(cell, a)] = attempts(&fx)[..] else {
+        panic!("{fx:?}")
+    };
     assert_eq!(cell, cells()[0]);
-    assert_eq!((a.outcome, a.phase, a.worker, a.wall_ms, a.isolated), (Outcome::Mismatch, Some(Phase::Check), 7, 250.0, false));
+    assert_eq!(
+        (a.outcome, a.phase, a.worker, a.wall_ms, a.isolated),
+        (Outcome::Mismatch, Some(Phase::Check), 7, 250.0, false)
+    );
     assert_eq!(a.detail.as_deref(), Some("mismatch here"));
     assert!(a.result.is_some() && a.worker_exit.is_none());
     assert_eq!(a.device_features, ["VK_KHR_ray_tracing_pipeline"]);
     // A mismatch does not end the worker: the next cell's gap starts.
     assert_eq!(w.state, State::Between { since: at(t0, 450) });
-    assert_eq!((w.phase, w.pending.len(), w.progressed), (Phase::BetweenCells, 2, true));
+    assert_eq!(
+        (w.phase, w.pending.len(), w.progressed),
+        (Phase::BetweenCells, 2, true)
+    );
 }
 
 #[test]
@@ -130,7 +219,15 @@ fn the_last_result_moves_to_teardown_and_a_clean_exit_records_nothing() {
         (w, _) = feed(w, start(c), at(t0, t));
         (w, _) = feed(w, result(c, Outcome::Pass), at(t0, t + 10));
     }
-    assert_eq!((&w.state, w.phase), (&State::Teardown { since: at(t0, 3010) }, Phase::Teardown));
+    assert_eq!(
+        (&w.state, w.phase),
+        (
+            &State::Teardown {
+                since: at(t0, 3010)
+            },
+            Phase::Teardown
+        )
+    );
     let (asked, recorded) = dies(w, Input::Eof, exit(Some(0), None), at(t0, 3020));
     assert_eq!(asked, Effect::Reap, "its output ended: reaped, not killed");
     assert!(recorded.is_empty(), "{recorded:?}");
@@ -154,9 +251,17 @@ fn a_crash_in_teardown_is_the_workers_not_a_cells() {
 #[test]
 fn a_device_lost_result_ends_the_worker() {
     let t0 = Instant::now();
-    let (w, fx) = feed(in_cell(t0, Phase::Trace), result(&cells()[0], Outcome::DeviceLost), at(t0, 300));
+    let (w, fx) = feed(
+        in_cell(t0, Phase::Trace),
+        result(&cells()[0], Outcome::DeviceLost),
+        at(t0, 300),
+    );
     assert_eq!(attempts(&fx)[0].1.outcome, Outcome::DeviceLost);
-    assert_eq!(w.state, State::Teardown { since: at(t0, 300) }, "two cells left, yet it must exit");
+    assert_eq!(
+        w.state,
+        State::Teardown { since: at(t0, 300) },
+        "two cells left, yet it must exit"
+    );
     assert_eq!(w.pending.len(), 2);
     // It `_exit(0)`s by itself: nothing more to record; its cells stay queued for the next worker.
     let (_, fx) = dies(w, Input::Eof, exit(Some(0), None), at(t0, 310));
@@ -166,13 +271,29 @@ fn a_device_lost_result_ends_the_worker() {
 #[test]
 fn eof_mid_cell_is_a_crash_in_the_cells_phase() {
     let t0 = Instant::now();
-    let (asked, fx) = dies(in_cell(t0, Phase::Pipeline), Input::Eof, exit(None, Some(libc::SIGSEGV)), at(t0, 700));
+    let (asked, fx) = dies(
+        in_cell(t0, Phase::Pipeline),
+        Input::Eof,
+        exit(None, Some(libc::SIGSEGV)),
+        at(t0, 700),
+    );
     assert_eq!(asked, Effect::Reap);
-    let [(cell, a)] = attempts(&fx)[..] else { panic!("{fx:?}") };
+    let [(cell, a)] = attempts(&fx)[..] else {
+        panic!("{fx:?}")
+    };
     assert_eq!(cell, cells()[0]);
-    assert_eq!((a.outcome, a.phase, a.wall_ms), (Outcome::Crash, Some(Phase::Pipeline), 500.0));
-    assert_eq!(a.detail.as_deref(), Some("worker killed by signal 11 (SIGSEGV) mid-cell, in pipeline"));
-    assert_eq!(a.worker_exit.as_ref().and_then(|e| e.signal), Some(libc::SIGSEGV));
+    assert_eq!(
+        (a.outcome, a.phase, a.wall_ms),
+        (Outcome::Crash, Some(Phase::Pipeline), 500.0)
+    );
+    assert_eq!(
+        a.detail.as_deref(),
+        Some("worker killed by signal 11 (SIGSEGV) mid-cell, in pipeline")
+    );
+    assert_eq!(
+        a.worker_exit.as_ref().and_then(|e| e.signal),
+        Some(libc::SIGSEGV)
+    );
     assert!(events(&fx).is_empty(), "a cell's fault, not the worker's");
 }
 
@@ -180,9 +301,21 @@ fn eof_mid_cell_is_a_crash_in_the_cells_phase() {
 fn eof_mid_cell_is_never_a_pass() {
     // The twin of the crash: however the process ended, a cell without a result did not pass.
     let t0 = Instant::now();
-    for ended in [exit(Some(0), None), exit(Some(1), None), exit(None, None), exit(None, Some(libc::SIGKILL))] {
-        let (_, fx) = dies(in_cell(t0, Phase::Trace), Input::Eof, ended.clone(), at(t0, 300));
-        let [(_, a)] = attempts(&fx)[..] else { panic!("{fx:?}") };
+    for ended in [
+        exit(Some(0), None),
+        exit(Some(1), None),
+        exit(None, None),
+        exit(None, Some(libc::SIGKILL)),
+    ] {
+        let (_, fx) = dies(
+            in_cell(t0, Phase::Trace),
+            Input::Eof,
+            ended.clone(),
+            at(t0, 300),
+        );
+        let [(_, a)] = attempts(&fx)[..] else {
+            panic!("{fx:?}")
+        };
         assert_ne!(a.outcome, Outcome::Pass, "{ended:?}");
         assert!(a.result.is_none());
         assert_eq!(a.phase, Some(Phase::Trace));
@@ -192,71 +325,153 @@ fn eof_mid_cell_is_never_a_pass() {
 #[test]
 fn a_deadline_mid_cell_is_the_cells_timeout() {
     let t0 = Instant::now();
-    let (asked, fx) = dies(in_cell(t0, Phase::Trace), Input::Deadline, exit(None, Some(libc::SIGTERM)), at(t0, 10_200));
+    let (asked, fx) = dies(
+        in_cell(t0, Phase::Trace),
+        Input::Deadline,
+        exit(None, Some(libc::SIGTERM)),
+        at(t0, 10_200),
+    );
     assert_eq!(asked, Effect::Kill);
-    let [(cell, a)] = attempts(&fx)[..] else { panic!("{fx:?}") };
-    assert_eq!((cell, a.outcome, a.phase), (cells()[0], Outcome::Timeout, Some(Phase::Trace)));
-    assert_eq!(a.detail.as_deref(), Some("no result within 10s, in trace; worker process group killed"));
+    let [(cell, a)] = attempts(&fx)[..] else {
+        panic!("{fx:?}")
+    };
+    assert_eq!(
+        (cell, a.outcome, a.phase),
+        (cells()[0], Outcome::Timeout, Some(Phase::Trace))
+    );
+    assert_eq!(
+        a.detail.as_deref(),
+        Some("no result within 10s, in trace; worker process group killed")
+    );
     assert!(events(&fx).is_empty());
 }
 
 #[test]
 fn a_deadline_between_cells_is_never_blamed_on_a_cell() {
     let t0 = Instant::now();
-    let (asked, fx) = dies(one_done(t0), Input::Deadline, exit(None, Some(libc::SIGTERM)), at(t0, 10_300));
+    let (asked, fx) = dies(
+        one_done(t0),
+        Input::Deadline,
+        exit(None, Some(libc::SIGTERM)),
+        at(t0, 10_300),
+    );
     assert_eq!(asked, Effect::Kill);
     assert!(attempts(&fx).is_empty(), "{fx:?}");
     let ev = events(&fx)[0];
-    assert_eq!((ev.phase, ev.outcome), (Phase::BetweenCells, Outcome::Timeout));
-    assert_eq!(ev.detail.as_deref(), Some("no next cell within 10s after the last result; killed"));
+    assert_eq!(
+        (ev.phase, ev.outcome),
+        (Phase::BetweenCells, Outcome::Timeout)
+    );
+    assert_eq!(
+        ev.detail.as_deref(),
+        Some("no next cell within 10s after the last result; killed")
+    );
     assert_eq!(fruitless(&fx), None, "it ran a cell");
 }
 
 #[test]
 fn a_deadline_in_setup_is_a_failed_setup() {
     let t0 = Instant::now();
-    let (w, _) = feed(Worker::new(3, cells(), true, t0), phase(Phase::Setup, Some("vkCreateDevice")), at(t0, 5));
-    let (asked, fx) = dies(w, Input::Deadline, exit(None, Some(libc::SIGKILL)), at(t0, 60_000));
+    let (w, _) = feed(
+        Worker::new(3, cells(), true, t0),
+        phase(Phase::Setup, Some("vkCreateDevice")),
+        at(t0, 5),
+    );
+    let (asked, fx) = dies(
+        w,
+        Input::Deadline,
+        exit(None, Some(libc::SIGKILL)),
+        at(t0, 60_000),
+    );
     assert_eq!(asked, Effect::Kill);
     let ev = events(&fx)[0];
-    assert_eq!((ev.phase, ev.outcome, ev.cells, ev.wall_ms), (Phase::Setup, Outcome::Timeout, 3, 60_000.0));
-    assert_eq!(ev.detail.as_deref(), Some("worker setup took longer than 60s, in setup (vkCreateDevice); killed"));
+    assert_eq!(
+        (ev.phase, ev.outcome, ev.cells, ev.wall_ms),
+        (Phase::Setup, Outcome::Timeout, 3, 60_000.0)
+    );
+    assert_eq!(
+        ev.detail.as_deref(),
+        Some("worker setup took longer than 60s, in setup (vkCreateDevice); killed")
+    );
     let (batch, not_run) = fruitless(&fx).expect("no attempt: fruitless");
-    assert_eq!((batch, not_run.outcome, not_run.isolated, not_run.not_run()), (3, Outcome::Timeout, true, true));
-    assert!(not_run.detail.as_deref().unwrap().starts_with("not run: two workers in a row failed before running a cell; the last: timeout in setup"));
-    assert!(attempts(&fx).is_empty(), "the scheduler decides whether its cells are given up");
+    assert_eq!(
+        (batch, not_run.outcome, not_run.isolated, not_run.not_run()),
+        (3, Outcome::Timeout, true, true)
+    );
+    assert!(not_run.detail.as_deref().unwrap().starts_with(
+        "not run: two workers in a row failed before running a cell; the last: timeout in setup"
+    ));
+    assert!(
+        attempts(&fx).is_empty(),
+        "the scheduler decides whether its cells are given up"
+    );
 }
 
 #[test]
 fn a_deadline_in_teardown_is_the_workers() {
     let t0 = Instant::now();
-    let (w, _) = feed(in_cell(t0, Phase::Trace), result(&cells()[0], Outcome::Crash), at(t0, 300));
-    let (_, fx) = dies(w, Input::Deadline, exit(None, Some(libc::SIGTERM)), at(t0, 10_300));
+    let (w, _) = feed(
+        in_cell(t0, Phase::Trace),
+        result(&cells()[0], Outcome::Crash),
+        at(t0, 300),
+    );
+    let (_, fx) = dies(
+        w,
+        Input::Deadline,
+        exit(None, Some(libc::SIGTERM)),
+        at(t0, 10_300),
+    );
     assert!(attempts(&fx).is_empty());
     let ev = events(&fx)[0];
     assert_eq!((ev.phase, ev.outcome), (Phase::Teardown, Outcome::Timeout));
-    assert!(ev.detail.as_deref().unwrap().starts_with("did not exit within 10s after its last cell"));
+    assert!(ev
+        .detail
+        .as_deref()
+        .unwrap()
+        .starts_with("did not exit within 10s after its last cell"));
 }
 
 #[test]
 fn a_failed_setup_is_a_worker_event_and_fruitless() {
     let t0 = Instant::now();
-    let (w, _) = feed(Worker::new(2, cells(), false, t0), phase(Phase::Setup, Some("acceleration structures and resources")), at(t0, 5));
-    let fatal = msg(WorkerMsg::Fatal { message: "injected device loss".into(), outcome: Outcome::DeviceLost });
+    let (w, _) = feed(
+        Worker::new(2, cells(), false, t0),
+        phase(Phase::Setup, Some("acceleration structures and resources")),
+        at(t0, 5),
+    );
+    let fatal = msg(WorkerMsg::Fatal {
+        message: "injected device loss".into(),
+        outcome: Outcome::DeviceLost,
+    });
     let (asked, fx) = dies(w, fatal, exit(Some(3), None), at(t0, 50));
-    assert_eq!(asked, Effect::Kill, "its group is killed: nothing of it may linger");
+    assert_eq!(
+        asked,
+        Effect::Kill,
+        "its group is killed: nothing of it may linger"
+    );
     let ev = events(&fx)[0];
     assert_eq!((ev.phase, ev.outcome), (Phase::Setup, Outcome::DeviceLost));
     assert_eq!(ev.detail.as_deref(), Some("worker setup failed in setup (acceleration structures and resources): injected device loss"));
     let (_, not_run) = fruitless(&fx).expect("fruitless");
-    assert_eq!((not_run.outcome, not_run.phase, not_run.worker), (Outcome::DeviceLost, Some(Phase::Setup), 2));
+    assert_eq!(
+        (not_run.outcome, not_run.phase, not_run.worker),
+        (Outcome::DeviceLost, Some(Phase::Setup), 2)
+    );
 }
 
 #[test]
 fn a_fatal_mid_cell_is_the_workers_and_the_cell_runs_again() {
     let t0 = Instant::now();
-    let fatal = msg(WorkerMsg::Fatal { message: "gone".into(), outcome: Outcome::Error });
-    let (_, fx) = dies(in_cell(t0, Phase::Record), fatal, exit(Some(2), None), at(t0, 300));
+    let fatal = msg(WorkerMsg::Fatal {
+        message: "gone".into(),
+        outcome: Outcome::Error,
+    });
+    let (_, fx) = dies(
+        in_cell(t0, Phase::Record),
+        fatal,
+        exit(Some(2), None),
+        at(t0, 300),
+    );
     assert!(attempts(&fx).is_empty(), "{fx:?}");
     assert_eq!(events(&fx)[0].phase, Phase::Record);
 }
@@ -265,42 +480,108 @@ fn a_fatal_mid_cell_is_the_workers_and_the_cell_runs_again() {
 fn a_prebuild_step_restarts_the_deadline() {
     let t0 = Instant::now();
     let ids: Vec<String> = cells().iter().map(Cell::id).collect();
-    let (w, _) = feed(ready_worker(t0), msg(WorkerMsg::Prebuild { cells: ids, threads: 4 }), at(t0, 200));
-    assert_eq!((w.phase, w.deadline(&LIMITS)), (Phase::Prebuild, Some(at(t0, 200) + LIMITS.timeout)));
-    let (w, _) = feed(w, phase(Phase::Prebuild, Some("pipelines 1/3")), at(t0, 9_000));
+    let (w, _) = feed(
+        ready_worker(t0),
+        msg(WorkerMsg::Prebuild {
+            cells: ids,
+            threads: 4,
+        }),
+        at(t0, 200),
+    );
+    assert_eq!(
+        (w.phase, w.deadline(&LIMITS)),
+        (Phase::Prebuild, Some(at(t0, 200) + LIMITS.timeout))
+    );
+    let (w, _) = feed(
+        w,
+        phase(Phase::Prebuild, Some("pipelines 1/3")),
+        at(t0, 9_000),
+    );
     assert_eq!(w.deadline(&LIMITS), Some(at(t0, 9_000) + LIMITS.timeout));
     assert_eq!(w.where_(), "prebuild (pipelines 1/3)");
-    let (w, fx) = feed(w, msg(WorkerMsg::Prebuilt { wall_ms: 5.0, pipelines: 3, threads: 4 }), at(t0, 9_500));
-    assert_eq!(fx, [Effect::Prebuilt { wall_ms: 5.0, pipelines: 3, threads: 4 }]);
-    assert_eq!(w.state, State::Between { since: at(t0, 9_500) });
+    let (w, fx) = feed(
+        w,
+        msg(WorkerMsg::Prebuilt {
+            wall_ms: 5.0,
+            pipelines: 3,
+            threads: 4,
+        }),
+        at(t0, 9_500),
+    );
+    assert_eq!(
+        fx,
+        [Effect::Prebuilt {
+            wall_ms: 5.0,
+            pipelines: 3,
+            threads: 4
+        }]
+    );
+    assert_eq!(
+        w.state,
+        State::Between {
+            since: at(t0, 9_500)
+        }
+    );
 }
 
 #[test]
 fn a_phase_or_a_repeated_start_mid_cell_does_not_restart_the_deadline() {
     // The twin: only a prebuild's progress moves a deadline; a cell's clock runs from its start.
     let t0 = Instant::now();
-    let (w, _) = feed(in_cell(t0, Phase::Pipeline), phase(Phase::Trace, None), at(t0, 9_000));
+    let (w, _) = feed(
+        in_cell(t0, Phase::Pipeline),
+        phase(Phase::Trace, None),
+        at(t0, 9_000),
+    );
     let (w, fx) = feed(w, start(&cells()[0]), at(t0, 9_500));
     assert!(matches!(&fx[..], [Effect::Log(l)] if l.contains("ignored")));
-    assert_eq!((w.phase, w.deadline(&LIMITS)), (Phase::Trace, Some(at(t0, 200) + LIMITS.timeout)));
+    assert_eq!(
+        (w.phase, w.deadline(&LIMITS)),
+        (Phase::Trace, Some(at(t0, 200) + LIMITS.timeout))
+    );
 }
 
 #[test]
 fn a_death_while_prebuilding_sends_its_batch_cell_by_cell() {
     let t0 = Instant::now();
     let ids: Vec<String> = cells().iter().map(Cell::id).collect();
-    let (w, _) = feed(ready_worker(t0), msg(WorkerMsg::Prebuild { cells: ids.clone(), threads: 4 }), at(t0, 200));
+    let (w, _) = feed(
+        ready_worker(t0),
+        msg(WorkerMsg::Prebuild {
+            cells: ids.clone(),
+            threads: 4,
+        }),
+        at(t0, 200),
+    );
     for (cause, ended, outcome) in [
-        (Input::Deadline, exit(None, Some(libc::SIGTERM)), Outcome::Timeout),
+        (
+            Input::Deadline,
+            exit(None, Some(libc::SIGTERM)),
+            Outcome::Timeout,
+        ),
         (Input::Eof, exit(None, Some(libc::SIGSEGV)), Outcome::Crash),
-        (msg(WorkerMsg::Fatal { message: "lost".into(), outcome: Outcome::DeviceLost }), exit(Some(0), None), Outcome::DeviceLost),
+        (
+            msg(WorkerMsg::Fatal {
+                message: "lost".into(),
+                outcome: Outcome::DeviceLost,
+            }),
+            exit(Some(0), None),
+            Outcome::DeviceLost,
+        ),
     ] {
         let (_, fx) = dies(w.clone(), cause, ended, at(t0, 300));
         assert_eq!(fx[0], Effect::Serial(ids.clone()));
         let ev = events(&fx)[0];
         assert_eq!((ev.phase, ev.outcome), (Phase::Prebuild, outcome));
-        assert!(ev.detail.as_deref().unwrap().ends_with("; its batch runs again, each cell building at its turn"));
-        assert!(attempts(&fx).is_empty() && fruitless(&fx).is_none(), "blamed on no cell, and no give-up: {fx:?}");
+        assert!(ev
+            .detail
+            .as_deref()
+            .unwrap()
+            .ends_with("; its batch runs again, each cell building at its turn"));
+        assert!(
+            attempts(&fx).is_empty() && fruitless(&fx).is_none(),
+            "blamed on no cell, and no give-up: {fx:?}"
+        );
     }
 }
 
@@ -317,8 +598,15 @@ fn garbage_lines_are_counted_and_logged_up_to_a_limit() {
     assert_eq!(w.garbage, 50);
     assert_eq!(logged.len() as u64, GARBAGE_LOGGED + 1);
     assert_eq!(logged[0], Effect::Log("worker 7 said: noise 0".into()));
-    assert_eq!(logged[GARBAGE_LOGGED as usize], Effect::Log("worker 7 keeps printing; further lines not logged".into()));
-    assert_eq!(w.deadline(&LIMITS), Some(at(t0, 200) + LIMITS.timeout), "noise holds no deadline off");
+    assert_eq!(
+        logged[GARBAGE_LOGGED as usize],
+        Effect::Log("worker 7 keeps printing; further lines not logged".into())
+    );
+    assert_eq!(
+        w.deadline(&LIMITS),
+        Some(at(t0, 200) + LIMITS.timeout),
+        "noise holds no deadline off"
+    );
 }
 
 #[test]
@@ -328,14 +616,38 @@ fn lines_out_of_place_are_ignored() {
     let (w2, fx) = feed(w.clone(), ready(), at(t0, 400));
     assert!(matches!(&fx[..], [Effect::Log(l)] if l.contains("ready again")));
     assert_eq!(w2.state, w.state);
-    let stranger = Cell { nonuniform: true, ..cells()[1] };
+    let stranger = Cell {
+        nonuniform: true,
+        ..cells()[1]
+    };
     let (w2, fx) = feed(w.clone(), start(&stranger), at(t0, 400));
-    assert!(fx.is_empty() && w2.state == w.state, "a cell outside its job does not start");
+    assert!(
+        fx.is_empty() && w2.state == w.state,
+        "a cell outside its job does not start"
+    );
     let (w2, fx) = feed(w.clone(), result(&stranger, Outcome::Pass), at(t0, 400));
     assert!(fx.is_empty() && w2.state == w.state, "nor is it recorded");
-    let (w2, fx) = feed(w.clone(), msg(WorkerMsg::Prebuilt { wall_ms: 1.0, pipelines: 1, threads: 2 }), at(t0, 400));
-    assert!(fx.is_empty() && w2.state == w.state, "prebuilt without a prebuild");
-    let (_, fx) = feed(in_cell(t0, Phase::Trace), msg(WorkerMsg::Prebuild { cells: vec![], threads: 2 }), at(t0, 400));
+    let (w2, fx) = feed(
+        w.clone(),
+        msg(WorkerMsg::Prebuilt {
+            wall_ms: 1.0,
+            pipelines: 1,
+            threads: 2,
+        }),
+        at(t0, 400),
+    );
+    assert!(
+        fx.is_empty() && w2.state == w.state,
+        "prebuilt without a prebuild"
+    );
+    let (_, fx) = feed(
+        in_cell(t0, Phase::Trace),
+        msg(WorkerMsg::Prebuild {
+            cells: vec![],
+            threads: 2,
+        }),
+        at(t0, 400),
+    );
     assert!(matches!(&fx[..], [Effect::Log(l)] if l.contains("not between cells")));
 }
 
@@ -347,13 +659,26 @@ fn a_dying_worker_takes_no_more_lines() {
     assert!(fx.is_empty());
     let (w, fx) = feed(w, Input::Deadline, at(t0, 302));
     assert!(fx.is_empty(), "one kill per death");
-    assert!(matches!(w.state, State::Dying { cause: Cause::Eof, .. }));
+    assert!(matches!(
+        w.state,
+        State::Dying {
+            cause: Cause::Eof,
+            ..
+        }
+    ));
 }
 
 #[test]
 fn cache_saved_is_passed_on_with_its_reason() {
     let t0 = Instant::now();
-    let (_, fx) = feed(one_done(t0), msg(WorkerMsg::CacheSaved { bytes: None, error: None }), at(t0, 400));
+    let (_, fx) = feed(
+        one_done(t0),
+        msg(WorkerMsg::CacheSaved {
+            bytes: None,
+            error: None,
+        }),
+        at(t0, 400),
+    );
     assert_eq!(fx, [Effect::CacheSaved(Err("not saved".into()))]);
 }
 
