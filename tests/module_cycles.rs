@@ -406,11 +406,7 @@ fn is_child_path(toks: &[Token], i: usize, base: &[String], modules: &BTreeSet<S
 
 /// Every path in a file of module `module`: (line, path as written, absolute path). Inline
 /// `mod name { ... }` blocks move `self` and `super` one level down while inside them.
-fn paths_in(
-    toks: &[Token],
-    module: &str,
-    modules: &BTreeSet<String>,
-) -> Vec<(usize, String, Vec<String>)> {
+fn paths_in(toks: &[Token], module: &str, modules: &BTreeSet<String>) -> Paths {
     let file_base: Vec<String> = module
         .split("::")
         .filter(|s| !s.is_empty())
@@ -468,21 +464,29 @@ fn owner(files: &BTreeMap<String, String>, abs: &[String]) -> String {
 /// Per module, the names its `pub use` items re-export and the absolute path each stands for.
 type Reexports = BTreeMap<String, BTreeMap<String, Vec<String>>>;
 
+/// Every path of one file: (line, path as written, absolute path).
+type Paths = Vec<(usize, String, Vec<String>)>;
+
 fn reexports(
     parsed: &BTreeMap<String, (String, Vec<Token>)>,
-    paths: &BTreeMap<&String, Vec<(usize, String, Vec<String>)>>,
+    paths: &BTreeMap<&String, Paths>,
 ) -> Reexports {
     let mut out = Reexports::new();
     for (module, (_, toks)) in parsed {
-        // The lines of `pub use` / `pub(crate) use` items, whose paths are the re-exports.
-        let lines: BTreeSet<usize> = toks
-            .windows(2)
-            .enumerate()
-            .filter(|(k, w)| {
-                w[1].text == "use" && (w[0].text == "pub" || (*k >= 3 && toks[k - 3].text == "pub"))
-            })
-            .map(|(_, w)| w[1].line)
-            .collect();
+        // The lines of `pub use` / `pub(crate) use` items (to their `;`), whose paths are the
+        // re-exports.
+        let mut lines = BTreeSet::new();
+        for (k, t) in toks.iter().enumerate() {
+            let public =
+                k >= 1 && (toks[k - 1].text == "pub" || (k >= 4 && toks[k - 4].text == "pub"));
+            if t.text == "use" && public {
+                let end = toks[k..]
+                    .iter()
+                    .find(|t| t.text == ";")
+                    .map_or(t.line, |e| e.line);
+                lines.extend(t.line..=end);
+            }
+        }
         for (line, _, abs) in &paths[module] {
             if let Some(name) = abs.last().filter(|_| lines.contains(line)) {
                 out.entry(module.clone())

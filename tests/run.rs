@@ -863,7 +863,8 @@ fn threads_change_no_verdict() {
         ]);
         assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
         let r = report(&out);
-        let verdicts: Vec<(String, Vec<(Value, Value, Value)>)> = cells(&r)
+        type Verdicts = Vec<(String, Vec<(Value, Value, Value)>)>;
+        let verdicts: Verdicts = cells(&r)
             .iter()
             .map(|c| {
                 (

@@ -17,6 +17,7 @@ pub fn detect_probability(p: f64, n: u64) -> f64 {
 
 /// The fewest attempts `r` with `1 - (1 - p)^r >= confidence`: `ceil(ln(1 - c) / ln(1 - p))`.
 /// `None` for p = 0 (never) and `Some(1)` for p = 1.
+#[allow(clippy::neg_cmp_op_on_partial_ord)] // `!(p > 0.0)` also turns away NaN
 pub fn repeats_needed(p: f64, confidence: f64) -> Option<u32> {
     if !(p > 0.0) {
         return None;

@@ -279,6 +279,8 @@ fn rt_groups(shaders: &CellShaders) -> Vec<vk::RayTracingShaderGroupCreateInfoKH
     groups
 }
 
+// One RT pipeline's inputs, each a distinct Vulkan object or table.
+#[allow(clippy::too_many_arguments)]
 fn create_rt(
     gpu: &Gpu,
     cache: vk::PipelineCache,

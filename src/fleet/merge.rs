@@ -60,6 +60,8 @@ pub const DEVICE_KEYS: &[&str] = &[
 
 /// Whether `b` describes the same device, scene and result-changing options as `a`; says what
 /// differs. `options` limits which option keys are compared.
+// A refusal is made once per merge and says both sides in full: no need to box it.
+#[allow(clippy::result_large_err)]
 pub fn same_run(a: &RunReport, b: &RunReport, options: &[ResultOption]) -> Result<(), NotSameRun> {
     if a.tool["version"] != b.tool["version"] {
         return Err(NotSameRun::Version(
@@ -70,7 +72,7 @@ pub fn same_run(a: &RunReport, b: &RunReport, options: &[ResultOption]) -> Resul
     for key in DEVICE_KEYS {
         if a.device[key] != b.device[key] {
             return Err(NotSameRun::Device {
-                key: *key,
+                key,
                 here: a.device[key].clone(),
                 there: b.device[key].clone(),
             });
@@ -104,6 +106,7 @@ fn order() -> HashMap<String, usize> {
 }
 
 /// Merge `reports` (with their file names for messages). `force` skips the identity checks.
+#[allow(clippy::result_large_err)] // as same_run
 pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport, MergeError> {
     let mut it = reports.into_iter();
     let (first_name, mut out) = it.next().ok_or(MergeError::NoReports)?;

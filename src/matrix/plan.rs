@@ -64,10 +64,10 @@ pub fn device_support(info: &DeviceInfo, cell: &Cell) -> Support {
     }
     if cell.resource == Resource::AccelerationStructure {
         if !cell.stage.can_trace_ray()
-            && !info
+            && info
                 .features
                 .ray_query
-                .is_some_and(|r| r.ray_query == ash::vk::TRUE)
+                .is_none_or(|r| r.ray_query != ash::vk::TRUE)
         {
             checks.push(Support::Unsupported {
                 reason: format!(
@@ -257,14 +257,16 @@ pub fn plan(info: &DeviceInfo, opts: &PlanOptions) -> RunPlan {
     };
     for cell in all {
         let variants = std::iter::once(cell).chain(
-            (opts.patches == PatchMode::All)
-                .then(|| cell.applicable_patches())
-                .unwrap_or_default()
-                .into_iter()
-                .map(move |p| Cell {
-                    patch: Some(p),
-                    ..cell
-                }),
+            if opts.patches == PatchMode::All {
+                cell.applicable_patches()
+            } else {
+                Default::default()
+            }
+            .into_iter()
+            .map(move |p| Cell {
+                patch: Some(p),
+                ..cell
+            }),
         );
         for cell in variants {
             if opts.filters.iter().all(|f| f.matches(&cell)) {

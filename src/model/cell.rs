@@ -216,7 +216,7 @@ impl Cell {
     /// throughout; judged as any element).
     pub fn sampler_nonuniform(&self) -> bool {
         self.sampler == Some(SamplerIndex::Dynamic)
-            && !(self.index == IndexSource::Dynamic && !self.nonuniform)
+            && (self.index != IndexSource::Dynamic || self.nonuniform)
     }
 
     /// The `sampler` axis: `layout(descriptor_heap)` GLSL has no combined image samplers, so a
@@ -301,6 +301,30 @@ impl Cell {
         }
         v
     }
+}
+
+/// The rule a dynamic descriptor index without `nonuniformEXT` breaks.
+pub const NO_NONUNIFORM_VUID: &str = "VUID-RuntimeSpirv-NonUniform-06274";
+
+/// Whether `cell` indexes a descriptor array with a non-uniform value that carries no
+/// `NonUniform` ([`NO_NONUNIFORM_VUID`]): not after the nonuniform / pin-index patches, and not
+/// where no descriptor is indexed any more (an address table, written so or patched), since a
+/// non-uniform index into memory is well defined.
+pub fn undefined_descriptor_read(cell: &Cell) -> bool {
+    let descriptor_indexed = match cell.as_access {
+        None | Some(AsAccess::Descriptor) => true,
+        Some(AsAccess::Address | AsAccess::AddressPatched) => false,
+    };
+    let patch_keeps_it = match cell.patch {
+        None => true,
+        Some(
+            Workaround::Nonuniform
+            | Workaround::PinIndex
+            | Workaround::AsToAddress
+            | Workaround::SsboToAddress,
+        ) => false,
+    };
+    cell.index == IndexSource::Dynamic && !cell.nonuniform && descriptor_indexed && patch_keeps_it
 }
 
 #[cfg(test)]
@@ -420,28 +444,4 @@ mod tests {
             Some("mapped_push_index")
         );
     }
-}
-
-/// The rule a dynamic descriptor index without `nonuniformEXT` breaks.
-pub const NO_NONUNIFORM_VUID: &str = "VUID-RuntimeSpirv-NonUniform-06274";
-
-/// Whether `cell` indexes a descriptor array with a non-uniform value that carries no
-/// `NonUniform` ([`NO_NONUNIFORM_VUID`]): not after the nonuniform / pin-index patches, and not
-/// where no descriptor is indexed any more (an address table, written so or patched), since a
-/// non-uniform index into memory is well defined.
-pub fn undefined_descriptor_read(cell: &Cell) -> bool {
-    let descriptor_indexed = match cell.as_access {
-        None | Some(AsAccess::Descriptor) => true,
-        Some(AsAccess::Address | AsAccess::AddressPatched) => false,
-    };
-    let patch_keeps_it = match cell.patch {
-        None => true,
-        Some(
-            Workaround::Nonuniform
-            | Workaround::PinIndex
-            | Workaround::AsToAddress
-            | Workaround::SsboToAddress,
-        ) => false,
-    };
-    cell.index == IndexSource::Dynamic && !cell.nonuniform && descriptor_indexed && patch_keeps_it
 }

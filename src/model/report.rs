@@ -99,9 +99,8 @@ impl Incidence {
     /// `1 of 2 attempts; not reproduced alone`
     pub fn label(&self) -> String {
         let mut s = format!("{} of {} attempts", self.faulted, self.attempts);
-        match self.reproduced_alone {
-            Some(false) => s += "; not reproduced alone",
-            Some(true) | None => {}
+        if let Some(false) = self.reproduced_alone {
+            s += "; not reproduced alone"
         }
         if self.faulted < self.attempts {
             s += &format!(

@@ -260,7 +260,7 @@ pub fn users(m: &Module, id: Word) -> Vec<Word> {
     m.functions
         .iter()
         .flat_map(|f| f.blocks.iter().flat_map(|b| b.instructions.iter()))
-        .filter(|i| i.operands.iter().any(|o| *o == Operand::IdRef(id)))
+        .filter(|i| i.operands.contains(&Operand::IdRef(id)))
         .filter_map(|i| i.result_id)
         .collect()
 }

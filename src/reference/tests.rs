@@ -325,7 +325,8 @@ fn dynamic_element_reads_must_be_the_exact_packed_element_and_layer() {
             let slots = probe::slot_count(resource, scene.params.instances);
             // (slot, element) a faulty driver reads instead: the wrong element, the wrong layer
             // (the neighbouring slot's block), the spec-constant slot's own resource.
-            let wrong: [(&str, fn(u32, u32, u32) -> (u32, u32)); 3] = [
+            type WrongRead = (&'static str, fn(u32, u32, u32) -> (u32, u32));
+            let wrong: [WrongRead; 3] = [
                 ("element", |s, e, _| (s, (e + 1) % probe::ELEMENTS)),
                 ("layer", |s, e, n| ((s + 1) % n, e)),
                 ("own slot", |_, e, _| (probe::PACKED_SLOT, e)),

@@ -132,7 +132,7 @@ pub fn render(r: &RunReport) -> String {
         } else if let Some(why) = expected_by_baseline(r, c).filter(|_| c.outcome.is_finding()) {
             s += &format!(
                 "<system-out>{}: {} ({why})</system-out>",
-                esc(&c.outcome.as_str()),
+                esc(c.outcome.as_str()),
                 reason
             );
         } else {

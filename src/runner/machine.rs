@@ -69,6 +69,8 @@ pub(super) enum Cause {
     Fatal { message: String, outcome: Outcome },
 }
 
+// One message per line, moved once: boxing the large variant would buy nothing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug)]
 pub(super) enum Input {
     Msg(WorkerMsg),

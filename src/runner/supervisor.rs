@@ -64,6 +64,8 @@ pub struct SupervisorOptions {
 }
 
 /// Events for the report writer and progress display.
+// One message per line, moved once: boxing the large variant would buy nothing.
+#[allow(clippy::large_enum_variant)]
 pub enum Event<'a> {
     WorkerReady {
         device_ms: f64,

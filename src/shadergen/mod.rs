@@ -275,7 +275,7 @@ fn raygen(spec: &ProbeSpec, probe: &ProbeCode, here: Option<&ProbeCode>) -> Stri
         rgen += CALL_DATA;
         rgen += "layout(location = 2) callableDataEXT CallData cd;\n";
     }
-    rgen += &format!("void main() {{\n    uvec2 px = gl_LaunchIDEXT.xy;\n    uint i = px.x + px.y * pc.width;\n    pl = emptyRecord();\n");
+    rgen += "void main() {\n    uvec2 px = gl_LaunchIDEXT.xy;\n    uint i = px.x + px.y * pc.width;\n    pl = emptyRecord();\n";
     rgen += &primary_trace(spec);
     if here.is_some() {
         rgen += &probe.body;

@@ -222,7 +222,8 @@ mod tests {
         assert!(r.metrics.double_hits > 0 && r.metrics.duplicate_any_hits > 0);
         let r = broken(|t| t.hit = None, CaseKind::Tmin);
         assert!(r.metrics.leaks > 0, "certain hits dropped");
-        for r in [broken(|t| t.hit = None, CaseKind::Watertight)] {
+        {
+            let r = broken(|t| t.hit = None, CaseKind::Watertight);
             assert_eq!(r.verdict, crate::stress::evaluate::Verdict::Fail);
         }
     }

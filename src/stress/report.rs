@@ -6,7 +6,7 @@ use serde_json::{json, Value};
 fn opt(x: Option<f64>) -> String {
     match x {
         None => "-".into(),
-        Some(v) if v == 0.0 => "0".into(),
+        Some(0.0) => "0".into(),
         Some(v) if (1e-3..1e4).contains(&v.abs()) => format!("{v:.3}"),
         Some(v) => format!("{v:.2e}"),
     }

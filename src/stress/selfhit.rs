@@ -131,10 +131,10 @@ impl Part {
 
 /// Build and trace the three parts (primary, secondary raw, secondary offset). On a trace
 /// failure, the parts built so far and the error.
-pub fn run(
-    tracer: &mut dyn Tracer,
-    opts: &StressOptions,
-) -> Result<(Vec<Part>, Vec<Vec<Traced>>), (Vec<Part>, TraceError)> {
+/// The self case's parts with what the tracer returned for each, or the parts and the failure.
+pub type SelfHitRun = Result<(Vec<Part>, Vec<Vec<Traced>>), (Vec<Part>, TraceError)>;
+
+pub fn run(tracer: &mut dyn Tracer, opts: &StressOptions) -> SelfHitRun {
     let mut rng = Rng::new(opts.seed ^ 0x5e1f);
     let g = if opts.full { 256 } else { 48 };
     let mut primary = Part {

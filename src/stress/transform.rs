@@ -182,6 +182,8 @@ pub fn facing_errors(parts: &[Part], traced: &[Vec<Traced>]) -> usize {
     // Culling: parts come as (none, cull-back, cull-front) per transform.
     for chunk in (0..parts.len()).collect::<Vec<_>>().chunks(3) {
         let [none, back, front] = [chunk[0], chunk[1], chunk[2]];
+        // Three parts traced with the same rays: ray i of each, side by side.
+        #[allow(clippy::needless_range_loop)]
         for i in 0..parts[none].rays.len() {
             let base = traced[none][i].hit;
             let keep = |culled: u32| base.is_some_and(|h| h.hit_kind != culled);

@@ -47,7 +47,7 @@ impl Requirements {
             m.extend(info.rt_pipeline_missing());
         }
         let v12 = f.v12.unwrap_or_default();
-        if self.ray_query && !f.ray_query.is_some_and(|x| x.ray_query == vk::TRUE) {
+        if self.ray_query && f.ray_query.is_none_or(|x| x.ray_query != vk::TRUE) {
             m.push("rayQuery (VK_KHR_ray_query)".into());
         }
         if self.buffer_device_address && v12.buffer_device_address == vk::FALSE {
@@ -60,9 +60,8 @@ impl Requirements {
             m.push("runtimeDescriptorArray + descriptorBindingPartiallyBound".into());
         }
         if self.descriptor_buffer
-            && !f
-                .descriptor_buffer
-                .is_some_and(|x| x.descriptor_buffer == vk::TRUE)
+            && f.descriptor_buffer
+                .is_none_or(|x| x.descriptor_buffer != vk::TRUE)
         {
             m.push("descriptorBuffer (VK_EXT_descriptor_buffer)".into());
         }
@@ -75,13 +74,12 @@ impl Requirements {
             m.push("descriptorHeap (VK_EXT_descriptor_heap) + VK_KHR_maintenance5".into());
         }
         if self.untyped_pointers
-            && !f
-                .untyped_pointers
-                .is_some_and(|x| x.shader_untyped_pointers == vk::TRUE)
+            && f.untyped_pointers
+                .is_none_or(|x| x.shader_untyped_pointers != vk::TRUE)
         {
             m.push("shaderUntypedPointers (VK_KHR_shader_untyped_pointers)".into());
         }
-        if self.device_fault && !f.fault.is_some_and(|x| x.device_fault == vk::TRUE) {
+        if self.device_fault && f.fault.is_none_or(|x| x.device_fault != vk::TRUE) {
             m.push("deviceFault (VK_EXT_device_fault)".into());
         }
         if self.int64 && f.core.shader_int64 == vk::FALSE {
@@ -90,13 +88,12 @@ impl Requirements {
         if self.fragment_stores && f.core.fragment_stores_and_atomics == vk::FALSE {
             m.push("fragmentStoresAndAtomics".into());
         }
-        if self.dynamic_rendering && !f.v13.is_some_and(|x| x.dynamic_rendering == vk::TRUE) {
+        if self.dynamic_rendering && f.v13.is_none_or(|x| x.dynamic_rendering != vk::TRUE) {
             m.push("dynamicRendering (Vulkan 1.3)".into());
         }
         if self.invocation_reorder
-            && !f
-                .invocation_reorder_nv
-                .is_some_and(|x| x.ray_tracing_invocation_reorder == vk::TRUE)
+            && f.invocation_reorder_nv
+                .is_none_or(|x| x.ray_tracing_invocation_reorder != vk::TRUE)
         {
             m.push("rayTracingInvocationReorder (VK_NV_ray_tracing_invocation_reorder)".into());
         }

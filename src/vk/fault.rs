@@ -15,6 +15,8 @@ fn cstr(bytes: &[std::ffi::c_char]) -> String {
 
 /// The driver's fault report, or `None` where VK_EXT_device_fault is not enabled, or the query
 /// itself fails (then the reason is returned as the description).
+// The raw pointers into the vectors are set one by one after the struct is made.
+#[allow(clippy::field_reassign_with_default)]
 pub fn query(gpu: &Gpu) -> Option<FaultInfo> {
     let ext = gpu.fault.as_ref()?;
     let f = ext.fp().get_device_fault_info_ext;
