@@ -34,9 +34,7 @@ pub fn map<S, T: Send>(
             });
         }
     });
-    out.into_iter()
-        .map(|m| m.into_inner().unwrap_or_else(|p| p.into_inner()))
-        .collect()
+    out.into_iter().map(|m| m.into_inner().unwrap_or_else(|p| p.into_inner())).collect()
 }
 
 #[cfg(test)]

@@ -9,9 +9,7 @@ use serde_json::Value;
 use rtprobe::report::chart::check_well_formed as well_formed;
 
 fn points<'a>(v: &'a Value, section: &str) -> &'a Vec<Value> {
-    v[section]["points"]
-        .as_array()
-        .unwrap_or_else(|| panic!("{section}.points missing"))
+    v[section]["points"].as_array().unwrap_or_else(|| panic!("{section}.points missing"))
 }
 
 #[test]
@@ -52,10 +50,7 @@ fn quick_bench_writes_its_contract_and_detection_follows_the_injection() {
                 && (cmd.contains("--size 8x8") || cmd.contains("--size 16x16")),
             "{cmd}"
         );
-        assert!(
-            p["cells_run"].as_u64().unwrap() > 0 && p["findings"] == 0,
-            "{p}"
-        );
+        assert!(p["cells_run"].as_u64().unwrap() > 0 && p["findings"] == 0, "{p}");
         for ph in [
             "spawn_reference",
             "device",
@@ -75,11 +70,7 @@ fn quick_bench_writes_its_contract_and_detection_follows_the_injection() {
     assert_eq!(det.len(), 4, "2 sizes × 2 fractions × 1 seed");
     for p in det {
         let d = &p["detection"];
-        assert!(
-            p["command"].as_str().unwrap().contains("@value:"),
-            "{}",
-            p["command"]
-        );
+        assert!(p["command"].as_str().unwrap().contains("@value:"), "{}", p["command"]);
         assert!(
             d["trials"].as_u64().unwrap() >= 4 && p["not_compared"].as_array().unwrap().is_empty(),
             "{p}"
@@ -94,21 +85,12 @@ fn quick_bench_writes_its_contract_and_detection_follows_the_injection() {
         if p["fraction"] == 1.0 {
             assert_eq!(d["measured"], 1.0, "f=1 must catch every cell: {p}");
             assert_eq!(d["predicted"], 1.0);
-            assert_eq!(
-                d["corrupted_share"], 1.0,
-                "every checked record is wrong at f=1"
-            );
+            assert_eq!(d["corrupted_share"], 1.0, "every checked record is wrong at f=1");
         }
     }
     // The twin: a wrong value on 0.1% of 64 rays is mostly missed (deterministic for seed 1).
-    let tiny = det
-        .iter()
-        .find(|p| p["size"] == 8 && p["fraction"] == 0.001)
-        .unwrap();
-    assert!(
-        tiny["detection"]["measured"].as_f64().unwrap() < 1.0,
-        "{tiny}"
-    );
+    let tiny = det.iter().find(|p| p["size"] == 8 && p["fraction"] == 0.001).unwrap();
+    assert!(tiny["detection"]["measured"].as_f64().unwrap() < 1.0, "{tiny}");
     assert!(tiny["detection"]["predicted"].as_f64().unwrap() < 0.1);
 
     // Flaky: an attempt faults exactly when its die armed the fault (lavapipe: a crash).
@@ -127,29 +109,15 @@ fn quick_bench_writes_its_contract_and_detection_follows_the_injection() {
     assert_eq!(sw.len(), 2);
     assert!(sw[0]["skipped"].is_null() && sw[0]["wall_ratio"] == 1.0);
     assert_eq!(sw[0]["phase_ratio"]["trace"], 1.0);
-    assert!(
-        sw[1]["skipped"]
-            .as_str()
-            .unwrap()
-            .contains("--no-such-flag"),
-        "{}",
-        sw[1]
-    );
+    assert!(sw[1]["skipped"].as_str().unwrap().contains("--no-such-flag"), "{}", sw[1]);
 
     for (name, needles) in [
         (
             "detection-vs-size.svg",
-            &[
-                "measured f=0.001",
-                "1-(1-f)^n, f=1",
-                "share of injected cells caught",
-            ][..],
+            &["measured f=0.001", "1-(1-f)^n, f=1", "share of injected cells caught"][..],
         ),
         ("time-vs-size.svg", &["wall", "trace", "time (s"][..]),
-        (
-            "flaky-repeats.svg",
-            &["measured P=0.5", "1-(1-P)^r, P=0.5", "attempts r"][..],
-        ),
+        ("flaky-repeats.svg", &["measured P=0.5", "1-(1-P)^r, P=0.5", "attempts r"][..]),
         ("sweep-phases.svg", &["-j 1", "trace", "device"][..]),
     ] {
         let svg = std::fs::read_to_string(out.join(name)).unwrap();
@@ -197,11 +165,7 @@ fn bench_bad_input_is_one_line_and_writes_nothing() {
         6,
         "rtprobe run",
     );
-    assert_eq!(
-        std::fs::read_dir(&out).unwrap().count(),
-        0,
-        "no half-written output"
-    );
+    assert_eq!(std::fs::read_dir(&out).unwrap().count(), 0, "no half-written output");
     // Filters that parse but select no cell: the first timed point says so, nothing written.
     assert_one_line_error(
         &run(&[
@@ -217,9 +181,5 @@ fn bench_bad_input_is_one_line_and_writes_nothing() {
         2,
         "ran no timed cell",
     );
-    assert_eq!(
-        std::fs::read_dir(&out).unwrap().count(),
-        0,
-        "no half-written output"
-    );
+    assert_eq!(std::fs::read_dir(&out).unwrap().count(), 0, "no half-written output");
 }

@@ -37,33 +37,17 @@ fn run_report(dir: &Path, name: &str, filter: &str, inject: &[&str], extra: &[&s
     }
     args.extend_from_slice(extra);
     let o = run(&args);
-    assert!(
-        matches!(o.status.code(), Some(0 | 1)),
-        "run failed: {}\n{}",
-        stdout(&o),
-        stderr(&o)
-    );
+    assert!(matches!(o.status.code(), Some(0 | 1)), "run failed: {}\n{}", stdout(&o), stderr(&o));
     out
 }
 
 /// `bisect REPORT --json FILE extra…`: stdout and the JSON.
 fn bisect(report: &Path, extra: &[&str]) -> (String, Value) {
     let json = report.with_extension("bisect.json");
-    let mut args = vec![
-        "bisect",
-        report.to_str().unwrap(),
-        "--json",
-        json.to_str().unwrap(),
-    ];
+    let mut args = vec!["bisect", report.to_str().unwrap(), "--json", json.to_str().unwrap()];
     args.extend_from_slice(extra);
     let o = run(&args);
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "bisect failed: {}\n{}",
-        stdout(&o),
-        stderr(&o)
-    );
+    assert_eq!(o.status.code(), Some(0), "bisect failed: {}\n{}", stdout(&o), stderr(&o));
     (stdout(&o), json_file(&json))
 }
 
@@ -91,10 +75,7 @@ fn shared() -> &'static (tempfile::TempDir, PathBuf) {
 fn single_axis_two_axis_and_value_set_predicates_come_back_exactly() {
     let dir = tempfile::tempdir().unwrap();
     let cases = [
-        (
-            "index=dynamic",
-            run_report(dir.path(), "one.json", SCOPE, &["index=dynamic"], &[]),
-        ),
+        ("index=dynamic", run_report(dir.path(), "one.json", SCOPE, &["index=dynamic"], &[])),
         ("stage=closest_hit,index=dynamic", shared().1.clone()),
         (
             "resource=uniform_buffer,index=literal|spec_constant",
@@ -120,17 +101,10 @@ fn single_axis_two_axis_and_value_set_predicates_come_back_exactly() {
                 && text.contains("full matrix "),
             "{text}"
         );
-        assert!(
-            text.contains(": ❌ crash (") && text.contains(": ✅ passes ("),
-            "{text}"
-        );
+        assert!(text.contains(": ❌ crash (") && text.contains(": ✅ passes ("), "{text}");
         let iso = j["isolation"].as_array().unwrap();
         assert_eq!(iso[0]["cell"], j["representative"]);
-        assert!(
-            iso[0]["line"].as_str().unwrap().contains(" reading "),
-            "{}",
-            iso[0]["line"]
-        );
+        assert!(iso[0]["line"].as_str().unwrap().contains(" reading "), "{}", iso[0]["line"]);
         // Every verdict used carries k of N. The deterministic fault faulted every time, so its
         // bound is alpha^(1/N); each pass is held to it: (1 - bound)^attempts below 1%.
         for l in iso {
@@ -139,29 +113,17 @@ fn single_axis_two_axis_and_value_set_predicates_come_back_exactly() {
         let n = iso[0]["attempts"].as_u64().unwrap() as u32;
         assert_eq!(iso[0]["agreeing"].as_u64().unwrap() as u32, n, "{}", iso[0]);
         let bound = stats::rate_bound(n, n);
-        assert!(
-            (j["fault_rate_bound"].as_f64().unwrap() - bound).abs() < 1e-12,
-            "{j}"
-        );
-        assert!(
-            text.contains(&format!("({n} of {n}, p ≥ {bound:.2} at 95%)")),
-            "{text}"
-        );
+        assert!((j["fault_rate_bound"].as_f64().unwrap() - bound).abs() < 1e-12, "{j}");
+        assert!(text.contains(&format!("({n} of {n}, p ≥ {bound:.2} at 95%)")), "{text}");
         let need = stats::attempts_needed(bound, 0.01, 50);
         assert_eq!(j["attempts_per_pass"].as_u64().unwrap() as u32, need);
         // The fault was repeated until it had as many attempts as a pass then needs.
         assert!(n >= need, "{n} attempts of the fault, {need} per pass");
         for l in iso.iter().filter(|l| l["verdict"] == "pass") {
             assert_eq!(l["attempts"].as_u64().unwrap() as u32, need, "{l}");
+            assert!(l["miss_probability"].as_f64().unwrap() < 0.01 && l["settled"] == true, "{l}");
             assert!(
-                l["miss_probability"].as_f64().unwrap() < 0.01 && l["settled"] == true,
-                "{l}"
-            );
-            assert!(
-                l["line"]
-                    .as_str()
-                    .unwrap()
-                    .contains(&format!("({need} of {need}; miss ≤ ")),
+                l["line"].as_str().unwrap().contains(&format!("({need} of {need}; miss ≤ ")),
                 "{l}"
             );
         }
@@ -189,10 +151,7 @@ fn a_flaky_injection_is_recovered_with_repeats_and_its_miss_probability() {
         })
         .find(|r| {
             json_file(r)["cells"].as_array().unwrap().iter().any(|c| {
-                !matches!(
-                    c["outcome"].as_str(),
-                    Some("pass" | "unsupported" | "not_implemented")
-                )
+                !matches!(c["outcome"].as_str(), Some("pass" | "unsupported" | "not_implemented"))
             })
         })
         .expect("one of 8 runs saw the rate-0.5 fault");
@@ -200,11 +159,7 @@ fn a_flaky_injection_is_recovered_with_repeats_and_its_miss_probability() {
     // pass is held to the fault's 95% lower bound, so with --max-miss 0.001 it misses a rate-0.5
     // fault only where that bound overshoots 0.5 (5%) and the shorter run still misses.
     let (text, j) = bisect(&report, &["--max-miss", "0.001"]);
-    assert_eq!(
-        last_line(&text),
-        "minimal: stage=raygen,index=dynamic",
-        "{text}"
-    );
+    assert_eq!(last_line(&text), "minimal: stage=raygen,index=dynamic", "{text}");
     assert!(text.contains("worst miss probability"), "{text}");
     let worst = j["worst_miss_probability"].as_f64().unwrap();
     assert!(worst < 0.001, "{worst}");
@@ -213,54 +168,30 @@ fn a_flaky_injection_is_recovered_with_repeats_and_its_miss_probability() {
     assert!(union <= 1.0, "{union}");
     // Several passes relied on, each with a miss probability of its own: the union bound sums
     // them, so it lies strictly above the worst one.
-    assert!(
-        j["passes_relied_on"].as_u64().unwrap() >= 2,
-        "{}",
-        j["passes_relied_on"]
-    );
+    assert!(j["passes_relied_on"].as_u64().unwrap() >= 2, "{}", j["passes_relied_on"]);
     assert!(union > worst, "{union} vs {worst}");
-    assert!(
-        text.contains("that any of them missed (union bound)"),
-        "{text}"
-    );
-    assert!(
-        j["unsettled"].as_array().unwrap().is_empty(),
-        "{}",
-        j["unsettled"]
-    );
+    assert!(text.contains("that any of them missed (union bound)"), "{text}");
+    assert!(j["unsettled"].as_array().unwrap().is_empty(), "{}", j["unsettled"]);
     // The minimal failing cell did not fault every time; its bound is its own k of N.
     let rep = &j["isolation"][0];
-    let (k, n) = (
-        rep["agreeing"].as_u64().unwrap() as u32,
-        rep["attempts"].as_u64().unwrap() as u32,
-    );
+    let (k, n) =
+        (rep["agreeing"].as_u64().unwrap() as u32, rep["attempts"].as_u64().unwrap() as u32);
     assert!(k < n, "a rate-0.5 fault missed some of {n} attempts: {rep}");
     let bound = stats::rate_bound(k, n);
     assert!((j["fault_rate_bound"].as_f64().unwrap() - bound).abs() < 1e-12);
     assert!(
-        rep["line"]
-            .as_str()
-            .unwrap()
-            .contains(&format!("({k} of {n}, p ≥ {bound:.2} at 95%)")),
+        rep["line"].as_str().unwrap().contains(&format!("({k} of {n}, p ≥ {bound:.2} at 95%)")),
         "{rep}"
     );
     // Passes were repeated to the attempts the bound asks for, and print their miss probability.
     let need = stats::attempts_needed(bound, 0.001, 50);
     assert_eq!(j["attempts_per_pass"].as_u64().unwrap() as u32, need);
     assert!(n >= need, "the fault was repeated first: {n} < {need}");
-    for l in j["isolation"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter(|l| l["verdict"] == "pass")
-    {
+    for l in j["isolation"].as_array().unwrap().iter().filter(|l| l["verdict"] == "pass") {
         assert!(l["attempts"].as_u64().unwrap() as u32 >= need, "{l}");
         assert!(
             l["line"].as_str().unwrap().contains("; miss ≤ ")
-                && l["line"]
-                    .as_str()
-                    .unwrap()
-                    .contains(&format!("for p ≥ {bound:.2})")),
+                && l["line"].as_str().unwrap().contains(&format!("for p ≥ {bound:.2})")),
             "{l}"
         );
     }
@@ -275,10 +206,7 @@ fn a_fault_no_conjunction_separates_is_said_so_with_a_disjunction() {
         dir.path(),
         "two.json",
         scope,
-        &[
-            "stage=raygen,index=literal",
-            "stage=closest_hit,index=dynamic",
-        ],
+        &["stage=raygen,index=literal", "stage=closest_hit,index=dynamic"],
         &[],
     );
     let (text, j) = bisect(&report, &[]);
@@ -338,10 +266,7 @@ fn the_issue_has_every_section() {
         assert!(text.contains(section), "{section} missing:\n{text}");
     }
     assert!(
-        text.contains(&format!(
-            "Minimal description: `{}`",
-            j["minimal"].as_str().unwrap()
-        )),
+        text.contains(&format!("Minimal description: `{}`", j["minimal"].as_str().unwrap())),
         "{text}"
     );
     assert!(
@@ -358,11 +283,7 @@ fn the_issue_has_every_section() {
     // Issue 9: whether the engines' recommended pattern nearest the finding works on this driver.
     assert!(text.contains("- recommended pattern geometry (one storage buffer at a spec-constant slot, dynamic element offset; closest_hit.storage_buffer.dynamic_element."), "{text}");
     let dis = Path::new("/usr/bin/spirv-dis").exists();
-    assert_eq!(
-        text.contains("; SPIR-V"),
-        dis,
-        "disassembly present iff spirv-dis is installed"
-    );
+    assert_eq!(text.contains("; SPIR-V"), dis, "disassembly present iff spirv-dis is installed");
     // JSON: the same content as data; without --bisect, the report's own verdicts are bisected.
     let o = run(&["report", report.to_str().unwrap(), "--format", "json"]);
     let v = json(&o);
@@ -391,22 +312,12 @@ fn the_issue_has_every_section() {
     let bad = dir.path().join("no/such/dir");
     std::fs::write(dir.path().join("no"), b"a file").unwrap();
     assert_one_line_error(
-        &run(&[
-            "report",
-            report.to_str().unwrap(),
-            "-o",
-            bad.join("i.md").to_str().unwrap(),
-        ]),
+        &run(&["report", report.to_str().unwrap(), "-o", bad.join("i.md").to_str().unwrap()]),
         9,
         "cannot write",
     );
     assert_one_line_error(
-        &run(&[
-            "report",
-            report.to_str().unwrap(),
-            "--bisect",
-            report.to_str().unwrap(),
-        ]),
+        &run(&["report", report.to_str().unwrap(), "--bisect", report.to_str().unwrap()]),
         9,
         "not an rtprobe bisection",
     );
@@ -420,22 +331,11 @@ fn a_repro_bundle_reruns_its_cell_with_the_same_verdict() {
         "closest_hit.uniform_buffer.dynamic.nonuniform.descriptor_indexing",
         "closest_hit.storage_buffer.literal.descriptor_indexing",
     ] {
-        let want = r["cells"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|c| c["id"] == id)
-            .unwrap()["outcome"]
+        let want = r["cells"].as_array().unwrap().iter().find(|c| c["id"] == id).unwrap()
+            ["outcome"]
             .clone();
         let b = dir.path().join(format!("repro-{id}"));
-        let o = run(&[
-            "repro",
-            id,
-            "--from",
-            report.to_str().unwrap(),
-            "-o",
-            b.to_str().unwrap(),
-        ]);
+        let o = run(&["repro", id, "--from", report.to_str().unwrap(), "-o", b.to_str().unwrap()]);
         assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
         for f in [
             "cell.json",
@@ -464,26 +364,11 @@ fn a_repro_bundle_reruns_its_cell_with_the_same_verdict() {
         assert_eq!(cells[0]["id"], id);
         assert_eq!(cells[0]["outcome"], want, "{id}: {}", stderr(&o));
         // The cell's own compile: the persisted pipeline cache is never loaded by a repro.
-        assert!(
-            again["options"]["pipeline_cache"].is_null(),
-            "{}",
-            again["options"]
-        );
-        assert!(
-            again["pipeline_cache"].is_null(),
-            "{}",
-            again["pipeline_cache"]
-        );
+        assert!(again["options"]["pipeline_cache"].is_null(), "{}", again["options"]);
+        assert!(again["pipeline_cache"].is_null(), "{}", again["pipeline_cache"]);
     }
     assert_one_line_error(
-        &run(&[
-            "repro",
-            "raygen.nope",
-            "--from",
-            report.to_str().unwrap(),
-            "-o",
-            "/tmp/x",
-        ]),
+        &run(&["repro", "raygen.nope", "--from", report.to_str().unwrap(), "-o", "/tmp/x"]),
         9,
         "not a cell id",
     );
@@ -506,11 +391,7 @@ fn nothing_to_bisect_and_a_wrong_cell_are_one_line_errors() {
         &[],
         &[],
     );
-    assert_one_line_error(
-        &run(&["bisect", report.to_str().unwrap()]),
-        9,
-        "nothing to bisect",
-    );
+    assert_one_line_error(&run(&["bisect", report.to_str().unwrap()]), 9, "nothing to bisect");
     let (_, shared_report) = shared();
     assert_one_line_error(
         &run(&[
@@ -549,26 +430,16 @@ fn passes_below_the_threshold_are_not_concluded_on() {
     let miss = stats::miss(stats::rate_bound(2, 2), 2);
     assert!(miss >= 0.01);
     assert!(text.contains("NOT CONCLUDED"), "{text}");
-    let passes: Vec<&Value> = j["isolation"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter(|l| l["verdict"] == "pass")
-        .collect();
+    let passes: Vec<&Value> =
+        j["isolation"].as_array().unwrap().iter().filter(|l| l["verdict"] == "pass").collect();
     assert!(!passes.is_empty(), "{text}");
     for l in passes {
         assert_eq!(l["settled"], false, "{l}");
         assert!(
-            l["line"]
-                .as_str()
-                .unwrap()
-                .contains("too little evidence, not concluded on"),
+            l["line"].as_str().unwrap().contains("too little evidence, not concluded on"),
             "{l}"
         );
-        assert!(
-            j["unsettled"].as_array().unwrap().contains(&l["cell"]),
-            "{l}"
-        );
+        assert!(j["unsettled"].as_array().unwrap().contains(&l["cell"]), "{l}");
     }
 }
 
@@ -579,24 +450,15 @@ fn a_bundle_is_replaced_whole_runs_its_own_spirv_and_has_an_amber_script_where_i
     let report = run_report(dir.path(), "mixed.json", filter, &[], &[]);
     let b = dir.path().join("bundle");
     let repro = |id: &str, force: bool| {
-        let mut args = vec![
-            "repro",
-            id,
-            "--from",
-            report.to_str().unwrap(),
-            "-o",
-            b.to_str().unwrap(),
-        ];
+        let mut args =
+            vec!["repro", id, "--from", report.to_str().unwrap(), "-o", b.to_str().unwrap()];
         if force {
             args.push("--force");
         }
         run(&args)
     };
     // A compute buffer cell: an Amber script with its SPIR-V, buffers and expected records.
-    let o = repro(
-        "compute.storage_buffer.push_constant.descriptor_indexing",
-        false,
-    );
+    let o = repro("compute.storage_buffer.push_constant.descriptor_indexing", false);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let amber = std::fs::read_to_string(b.join("cell.amber")).expect("cell.amber");
     assert!(
@@ -614,49 +476,28 @@ fn a_bundle_is_replaced_whole_runs_its_own_spirv_and_has_an_amber_script_where_i
     let spec = json_file(&b.join("cell.json"));
     let modules = spec["modules"].as_array().unwrap();
     assert_eq!(modules.len(), 1);
-    assert!(
-        modules[0]["compiler"]
-            .as_str()
-            .unwrap()
-            .starts_with("shaderc-rs "),
-        "{spec}"
-    );
+    assert!(modules[0]["compiler"].as_str().unwrap().starts_with("shaderc-rs "), "{spec}");
     let readme = std::fs::read_to_string(b.join("README.txt")).unwrap();
-    assert!(
-        readme.contains("The SPIR-V was compiled by shaderc-rs "),
-        "{readme}"
-    );
+    assert!(readme.contains("The SPIR-V was compiled by shaderc-rs "), "{readme}");
     // A second bundle into the same folder: refused without --force, the first one left whole.
     assert_one_line_error(
-        &repro(
-            "closest_hit.storage_buffer.literal.descriptor_indexing",
-            false,
-        ),
+        &repro("closest_hit.storage_buffer.literal.descriptor_indexing", false),
         9,
         "--force",
     );
     assert!(b.join("cell.amber").exists());
     // With --force: the old bundle's files are gone (a ray tracing cell has no Amber script) and
     // nothing is left beside it.
-    let o = repro(
-        "closest_hit.storage_buffer.literal.descriptor_indexing",
-        true,
-    );
+    let o = repro("closest_hit.storage_buffer.literal.descriptor_indexing", true);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     assert!(!b.join("cell.amber").exists(), "stale cell.amber kept");
-    assert!(
-        !b.join("shaders/probe.comp.spv").exists(),
-        "stale shader kept"
-    );
+    assert!(!b.join("shaders/probe.comp.spv").exists(), "stale shader kept");
     assert_eq!(
         json_file(&b.join("cell.json"))["id"],
         "closest_hit.storage_buffer.literal.descriptor_indexing"
     );
     let readme = std::fs::read_to_string(b.join("README.txt")).unwrap();
-    assert!(
-        readme.contains("no cell.amber: ray tracing cell"),
-        "{readme}"
-    );
+    assert!(readme.contains("no cell.amber: ray tracing cell"), "{readme}");
     let leftovers: Vec<_> = std::fs::read_dir(dir.path())
         .unwrap()
         .flatten()
@@ -675,11 +516,7 @@ fn a_bundle_is_replaced_whole_runs_its_own_spirv_and_has_an_amber_script_where_i
         "-o",
         out.to_str().unwrap(),
     ]);
-    assert!(
-        stderr(&o).contains("running the bundle's SPIR-V"),
-        "{}",
-        stderr(&o)
-    );
+    assert!(stderr(&o).contains("running the bundle's SPIR-V"), "{}", stderr(&o));
     let cell = &json_file(&out)["cells"][0];
     assert_eq!(cell["outcome"], "error", "{cell}");
     assert!(cell.to_string().contains("is not SPIR-V"), "{cell}");
@@ -712,11 +549,7 @@ fn force_replaces_only_a_bundle_and_never_the_folder_of_the_report_or_the_curren
     let plain = dir.path().join("plain");
     std::fs::create_dir(&plain).unwrap();
     std::fs::write(plain.join("notes.txt"), b"mine").unwrap();
-    assert_one_line_error(
-        &repro(&plain, report),
-        9,
-        "is not a repro bundle (no cell.json)",
-    );
+    assert_one_line_error(&repro(&plain, report), 9, "is not a repro bundle (no cell.json)");
     assert_eq!(std::fs::read(plain.join("notes.txt")).unwrap(), b"mine");
     // A bundle-looking folder that holds the --from report: refused, the report left.
     let holder = dir.path().join("holder");
@@ -743,17 +576,11 @@ fn force_replaces_only_a_bundle_and_never_the_folder_of_the_report_or_the_curren
     assert_one_line_error(&o, 9, "holds the current directory");
     assert_one_line_error(&repro(Path::new("/"), report), 9, "does not name a folder");
     let names = |d: &Path| {
-        std::fs::read_dir(d)
-            .unwrap()
-            .flatten()
-            .map(|e| e.file_name())
-            .collect::<Vec<_>>()
+        std::fs::read_dir(d).unwrap().flatten().map(|e| e.file_name()).collect::<Vec<_>>()
     };
     assert_eq!(names(&holder).len(), 2, "{:?}", names(&holder));
     assert!(
-        names(dir.path())
-            .iter()
-            .all(|n| !n.to_string_lossy().starts_with('.')),
+        names(dir.path()).iter().all(|n| !n.to_string_lossy().starts_with('.')),
         "{:?}",
         names(dir.path())
     );
@@ -785,20 +612,10 @@ fn another_card_of_the_same_driver_bisects_and_another_driver_build_is_refused()
         "{warning}"
     );
     assert!(warning.contains("of the same driver build"), "{warning}");
-    let here = json_file(&json)["device_uuid_rerun"]
-        .as_str()
-        .expect("device_uuid_rerun")
-        .to_string();
-    assert!(
-        warning.contains(&format!("UUID {here} of the same driver build")),
-        "{warning}"
-    );
-    let issue = run(&[
-        "report",
-        other_card.to_str().unwrap(),
-        "--bisect",
-        json.to_str().unwrap(),
-    ]);
+    let here =
+        json_file(&json)["device_uuid_rerun"].as_str().expect("device_uuid_rerun").to_string();
+    assert!(warning.contains(&format!("UUID {here} of the same driver build")), "{warning}");
+    let issue = run(&["report", other_card.to_str().unwrap(), "--bisect", json.to_str().unwrap()]);
     assert!(
         stdout(&issue).contains(&format!(
             "re-ran cells on another card of the same driver build, UUID {here}"

@@ -4,13 +4,8 @@ mod common;
 use common::*;
 
 fn vulkaninfo_summary() -> Option<String> {
-    let o = std::process::Command::new("vulkaninfo")
-        .arg("--summary")
-        .output()
-        .ok()?;
-    o.status
-        .success()
-        .then(|| String::from_utf8_lossy(&o.stdout).into_owned())
+    let o = std::process::Command::new("vulkaninfo").arg("--summary").output().ok()?;
+    o.status.success().then(|| String::from_utf8_lossy(&o.stdout).into_owned())
 }
 
 /// `key = value` from vulkaninfo --summary's first GPU block.
@@ -25,16 +20,9 @@ fn summary_value(summary: &str, key: &str) -> Option<String> {
 fn caps_json_describes_lavapipe_and_agrees_with_vulkaninfo() {
     let v = json(&run(&["caps", "--json"]));
     assert_eq!(v["schema"], "rtprobe.caps/2");
-    assert_eq!(
-        v["ray_tracing_pipeline"]["supported"], true,
-        "{}",
-        v["ray_tracing_pipeline"]
-    );
+    assert_eq!(v["ray_tracing_pipeline"]["supported"], true, "{}", v["ray_tracing_pipeline"]);
     let name = v["device"]["name"].as_str().unwrap();
-    assert!(
-        name.contains("llvmpipe"),
-        "tests expect lavapipe, got {name}"
-    );
+    assert!(name.contains("llvmpipe"), "tests expect lavapipe, got {name}");
 
     let summary =
         vulkaninfo_summary().expect("vulkaninfo --summary (apt-get install vulkan-tools)");
@@ -70,25 +58,13 @@ fn caps_json_describes_lavapipe_and_agrees_with_vulkaninfo() {
     assert_eq!(v["extensions"]["VK_EXT_descriptor_heap"]["present"], false);
     let heap = &v["matrix"]["descriptor_model"]["descriptor_heap"];
     assert_eq!(heap["status"], "unsupported");
-    assert!(heap["reason"]
-        .as_str()
-        .unwrap()
-        .contains("VK_EXT_descriptor_heap"));
-    assert_eq!(
-        v["matrix"]["descriptor_model"]["descriptor_indexing"]["status"],
-        "supported"
-    );
+    assert!(heap["reason"].as_str().unwrap().contains("VK_EXT_descriptor_heap"));
+    assert_eq!(v["matrix"]["descriptor_model"]["descriptor_indexing"]["status"], "supported");
     assert_eq!(v["matrix"]["stage"]["closest_hit"]["status"], "supported");
     // Lavapipe has ray queries and descriptor buffers; the matrix must say so.
     assert_eq!(v["extensions"]["VK_KHR_ray_query"]["present"], true);
-    assert_eq!(
-        v["matrix"]["descriptor_model"]["descriptor_buffer"]["status"],
-        "supported"
-    );
-    assert_eq!(
-        v["matrix"]["as_access"]["address_patched"]["status"],
-        "supported"
-    );
+    assert_eq!(v["matrix"]["descriptor_model"]["descriptor_buffer"]["status"], "supported");
+    assert_eq!(v["matrix"]["as_access"]["address_patched"]["status"], "supported");
 
     // The logical device with everything the matrix needs was created.
     assert_eq!(v["device_creation"]["ok"], true, "{}", v["device_creation"]);
@@ -113,25 +89,10 @@ fn caps_matrix_lists_exactly_the_axes_and_values_filter_accepts() {
     for (axis, values) in matrix {
         // Every value caps lists, `run --filter` takes (one term with all of them), and a value
         // caps does not list it refuses, naming the values it takes: the same list.
-        let listed: Vec<&str> = values
-            .as_object()
-            .unwrap()
-            .keys()
-            .map(String::as_str)
-            .collect();
-        let o = run(&[
-            "run",
-            "--list",
-            "--filter",
-            &format!("{axis}={}", listed.join("|")),
-        ]);
+        let listed: Vec<&str> = values.as_object().unwrap().keys().map(String::as_str).collect();
+        let o = run(&["run", "--list", "--filter", &format!("{axis}={}", listed.join("|"))]);
         assert_eq!(o.status.code(), Some(0), "{axis}: {}", stderr(&o));
-        let o = run(&[
-            "run",
-            "--list",
-            "--filter",
-            &format!("{axis}=no_such_value"),
-        ]);
+        let o = run(&["run", "--list", "--filter", &format!("{axis}=no_such_value")]);
         assert_eq!(o.status.code(), Some(2), "{axis}: {}", stderr(&o));
         let taken = stderr(&o)
             .rsplit_once("values: ")
@@ -152,9 +113,7 @@ fn vulkaninfo_device_extensions() -> std::collections::BTreeMap<String, u64> {
         .output()
         .expect("vulkaninfo (apt-get install vulkan-tools)");
     let text = String::from_utf8_lossy(&o.stdout).into_owned();
-    let mut lines = text
-        .lines()
-        .skip_while(|l| !l.starts_with("Device Extensions:"));
+    let mut lines = text.lines().skip_while(|l| !l.starts_with("Device Extensions:"));
     lines.next();
     lines
         .take_while(|l| !l.trim().is_empty())
@@ -162,11 +121,7 @@ fn vulkaninfo_device_extensions() -> std::collections::BTreeMap<String, u64> {
             let (name, rev) = l.split_once(':')?;
             Some((
                 name.trim().to_string(),
-                rev.trim()
-                    .trim_start_matches("extension revision")
-                    .trim()
-                    .parse()
-                    .ok()?,
+                rev.trim().trim_start_matches("extension revision").trim().parse().ok()?,
             ))
         })
         .collect()
@@ -202,11 +157,7 @@ fn every_rt_extension_is_listed_and_agrees_with_vulkaninfo() {
     }
     // Present exactly when vulkaninfo lists it, with its revision; a group for the text output.
     for (name, e) in exts {
-        assert_eq!(
-            e["present"].as_bool(),
-            Some(vi.contains_key(name)),
-            "{name}: {e}"
-        );
+        assert_eq!(e["present"].as_bool(), Some(vi.contains_key(name)), "{name}: {e}");
         if let Some(rev) = vi.get(name) {
             assert_eq!(e["spec_version"].as_u64(), Some(*rev), "{name}");
         }
@@ -267,13 +218,7 @@ fn caps_text_and_profile_export() {
     let dir = tempfile::tempdir().unwrap();
     let prof = dir.path().join("p.json");
     let out = dir.path().join("caps.json");
-    let o = run(&[
-        "caps",
-        "--profile",
-        prof.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    let o = run(&["caps", "--profile", prof.to_str().unwrap(), "-o", out.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
     let text = stdout(&o);
     assert!(text.contains("RT pipeline yes"), "{text}");
@@ -281,9 +226,7 @@ fn caps_text_and_profile_export() {
     let p: serde_json::Value = serde_json::from_slice(&std::fs::read(&prof).unwrap()).unwrap();
     assert!(p["$schema"].as_str().unwrap().contains("profiles"));
     let caps = &p["capabilities"]["rtprobe_caps"];
-    assert!(caps["extensions"]["VK_KHR_ray_tracing_pipeline"]
-        .as_u64()
-        .is_some());
+    assert!(caps["extensions"]["VK_KHR_ray_tracing_pipeline"].as_u64().is_some());
     assert_eq!(
         caps["features"]["VkPhysicalDeviceRayTracingPipelineFeaturesKHR"]["rayTracingPipeline"],
         true
@@ -297,30 +240,17 @@ fn devices_lists_lavapipe_as_rt_capable() {
     let o = run(&["devices"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let out = stdout(&o);
-    let line = out
-        .lines()
-        .find(|l| l.contains("llvmpipe"))
-        .expect("llvmpipe listed");
+    let line = out.lines().find(|l| l.contains("llvmpipe")).expect("llvmpipe listed");
     assert!(line.starts_with(|c: char| c.is_ascii_digit()), "{line}");
     assert!(line.contains("rt-pipeline: yes"), "{line}");
-    assert!(
-        line.contains("driver llvmpipe 25."),
-        "decoded Mesa version: {line}"
-    );
+    assert!(line.contains("driver llvmpipe 25."), "decoded Mesa version: {line}");
     let v = json(&run(&["devices", "--json"]));
-    assert!(v
-        .as_array()
-        .unwrap()
-        .iter()
-        .any(|d| d["ray_tracing_pipeline"]["supported"] == true));
+    assert!(v.as_array().unwrap().iter().any(|d| d["ray_tracing_pipeline"]["supported"] == true));
 }
 
 #[test]
 fn missing_loader_is_one_line_exit_3() {
-    let o = run_env(
-        &["caps"],
-        &[("RTPROBE_VULKAN_LIB", "/nonexistent/libvulkan.so.1")],
-    );
+    let o = run_env(&["caps"], &[("RTPROBE_VULKAN_LIB", "/nonexistent/libvulkan.so.1")]);
     assert_one_line_error(&o, 3, "no Vulkan loader");
 }
 
@@ -342,35 +272,21 @@ fn device_without_rt_is_one_line_exit_5() {
     let hide = [("RTPROBE_HIDE_EXTENSIONS", "VK_KHR_ray_tracing_pipeline")];
     let o = run_env(&["caps"], &hide);
     assert_one_line_error(&o, 5, "no device can run ray tracing pipelines");
-    assert!(
-        stderr(&o).contains("VK_KHR_ray_tracing_pipeline"),
-        "{}",
-        stderr(&o)
-    );
+    assert!(stderr(&o).contains("VK_KHR_ray_tracing_pipeline"), "{}", stderr(&o));
     // Its caps can still be shown when asked for by index, saying what is missing, and the
     // RT stages are unsupported with that reason.
     let v = json(&run_env(&["caps", "--json", "--device", "0"], &hide));
     assert_eq!(v["ray_tracing_pipeline"]["supported"], false);
-    assert_eq!(
-        v["ray_tracing_pipeline"]["missing"][0],
-        "VK_KHR_ray_tracing_pipeline"
-    );
+    assert_eq!(v["ray_tracing_pipeline"]["missing"][0], "VK_KHR_ray_tracing_pipeline");
     assert_eq!(v["matrix"]["stage"]["closest_hit"]["status"], "unsupported");
     assert_eq!(v["matrix"]["stage"]["compute"]["status"], "supported");
-    assert_eq!(
-        v["device_creation"]["ok"], true,
-        "the device is still created, without RT"
-    );
+    assert_eq!(v["device_creation"]["ok"], true, "the device is still created, without RT");
 }
 
 #[test]
 fn bad_device_selection_is_one_line_exit_6() {
     assert_one_line_error(&run(&["caps", "--device", "99"]), 6, "matches no device");
-    assert_one_line_error(
-        &run(&["caps", "--device", "no-such-gpu"]),
-        6,
-        "matches no device",
-    );
+    assert_one_line_error(&run(&["caps", "--device", "no-such-gpu"]), 6, "matches no device");
 }
 
 #[test]
@@ -395,11 +311,7 @@ fn reorder_cells_are_unsupported_on_lavapipe_with_the_reason() {
     let has_ser = v["extensions"]["VK_NV_ray_tracing_invocation_reorder"]["present"] == true;
     for r in ["reorder", "reorder_hint"] {
         let s = &v["matrix"]["reorder"][r];
-        assert_eq!(
-            s["status"],
-            if has_ser { "supported" } else { "unsupported" },
-            "{r}: {s}"
-        );
+        assert_eq!(s["status"], if has_ser { "supported" } else { "unsupported" }, "{r}: {s}");
     }
     assert!(!has_ser, "lavapipe grew SER: the cells below would now run");
     let dir = tempfile::tempdir().unwrap();
@@ -419,17 +331,10 @@ fn reorder_cells_are_unsupported_on_lavapipe_with_the_reason() {
     for c in cells {
         assert_eq!(c["outcome"], "unsupported", "{}", c["id"]);
         assert!(
-            c["reason"]
-                .as_str()
-                .unwrap()
-                .contains("VK_NV_ray_tracing_invocation_reorder"),
+            c["reason"].as_str().unwrap().contains("VK_NV_ray_tracing_invocation_reorder"),
             "{c}"
         );
-        assert!(
-            c["id"].as_str().unwrap().contains(".reorder"),
-            "{}",
-            c["id"]
-        );
+        assert!(c["id"].as_str().unwrap().contains(".reorder"), "{}", c["id"]);
         assert_eq!(c["stage"], "closest_hit");
     }
 }

@@ -42,12 +42,7 @@ pub fn stderr(o: &Output) -> String {
 }
 
 pub fn json(o: &Output) -> serde_json::Value {
-    assert!(
-        o.status.success(),
-        "rtprobe failed: {:?}\nstderr: {}",
-        o.status,
-        stderr(o)
-    );
+    assert!(o.status.success(), "rtprobe failed: {:?}\nstderr: {}", o.status, stderr(o));
     serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("not JSON ({e}): {}", stdout(o)))
 }
 
@@ -55,15 +50,8 @@ pub fn json(o: &Output) -> serde_json::Value {
 pub fn assert_one_line_error(o: &Output, code: i32, needle: &str) {
     let err = stderr(o);
     assert_eq!(o.status.code(), Some(code), "exit code; stderr: {err}");
-    let lines: Vec<&str> = err
-        .lines()
-        .filter(|l| l.starts_with("rtprobe: error:"))
-        .collect();
+    let lines: Vec<&str> = err.lines().filter(|l| l.starts_with("rtprobe: error:")).collect();
     assert_eq!(lines.len(), 1, "one error line expected, got: {err}");
-    assert!(
-        lines[0].contains(needle),
-        "{needle:?} not in {:?}",
-        lines[0]
-    );
+    assert!(lines[0].contains(needle), "{needle:?} not in {:?}", lines[0]);
     assert!(!err.contains("panicked"), "panic: {err}");
 }

@@ -16,12 +16,8 @@ use serde_json::Value;
 use std::path::{Path, PathBuf};
 
 /// Schemas of files rtprobe writes and never loads as a whole (they are for people and scripts).
-const WRITE_ONLY: &[&str] = &[
-    "rtprobe.caps/1",
-    "rtprobe.caps/2",
-    "rtprobe.stress/1",
-    "rtprobe.bench/1",
-];
+const WRITE_ONLY: &[&str] =
+    &["rtprobe.caps/1", "rtprobe.caps/2", "rtprobe.stress/1", "rtprobe.bench/1"];
 
 fn json_files(dir: &Path, out: &mut Vec<PathBuf>) {
     let Ok(entries) = std::fs::read_dir(dir) else {
@@ -61,9 +57,7 @@ fn round_trip<T: DeserializeOwned + Serialize>(v: &Value) -> Result<(), String> 
     let again: T = serde_json::from_value(back.clone())
         .map_err(|e| format!("its own output does not load: {e}"))?;
     let twice = serde_json::to_value(&again).map_err(|e| e.to_string())?;
-    (back == twice)
-        .then_some(())
-        .ok_or_else(|| "a second round trip changed it".into())
+    (back == twice).then_some(()).ok_or_else(|| "a second round trip changed it".into())
 }
 
 /// Load the file at `path` with the loader rtprobe itself uses for its schema (which also checks
@@ -73,15 +67,14 @@ fn load(path: &Path, schema: &str) -> Result<(), String> {
         s if s == rtprobe::model::report::SCHEMA => {
             RunReport::load(path).map(|_| ()).map_err(|e| e.to_string())
         }
-        s if s == rtprobe::model::bisection::SCHEMA => BisectFile::load(path)
-            .map(|_| ())
-            .map_err(|e| e.to_string()),
-        s if s == rtprobe::model::baseline::SCHEMA => Baseline::parse(
-            &path.display().to_string(),
-            &std::fs::read_to_string(path).unwrap(),
-        )
-        .map(|_| ())
-        .map_err(|e| e.to_string()),
+        s if s == rtprobe::model::bisection::SCHEMA => {
+            BisectFile::load(path).map(|_| ()).map_err(|e| e.to_string())
+        }
+        s if s == rtprobe::model::baseline::SCHEMA => {
+            Baseline::parse(&path.display().to_string(), &std::fs::read_to_string(path).unwrap())
+                .map(|_| ())
+                .map_err(|e| e.to_string())
+        }
         s if s == rtprobe::model::bundle::SCHEMA => CellSpec::load(path)
             .and_then(|c| c.spirv_dir(path))
             .map(|_| ())
@@ -92,11 +85,7 @@ fn load(path: &Path, schema: &str) -> Result<(), String> {
 
 /// Load `v` by its schema; `Ok(false)` for a write-only file.
 fn check(v: &Value) -> Result<bool, String> {
-    let schema = v
-        .get("schema")
-        .or_else(|| v.get("$schema"))
-        .and_then(Value::as_str)
-        .unwrap_or("");
+    let schema = v.get("schema").or_else(|| v.get("$schema")).and_then(Value::as_str).unwrap_or("");
     match schema {
         s if s == rtprobe::model::report::SCHEMA => round_trip::<RunReport>(v).map(|_| true),
         s if s == rtprobe::model::bisection::SCHEMA => round_trip::<BisectFile>(v).map(|_| true),
@@ -107,9 +96,7 @@ fn check(v: &Value) -> Result<bool, String> {
         {
             Ok(false)
         }
-        s => Err(format!(
-            "unknown schema {s:?}: load it here, or list it as write-only"
-        )),
+        s => Err(format!("unknown schema {s:?}: load it here, or list it as write-only")),
     }
 }
 
@@ -129,10 +116,7 @@ fn every_file_an_earlier_release_wrote_still_loads() {
         match check(&v).and_then(|typed| load(f, schema).map(|_| typed)) {
             Ok(true) => loaded += 1,
             Ok(false) => write_only += 1,
-            Err(e) => failed.push(format!(
-                "{}: {e}",
-                f.strip_prefix(root).unwrap_or(f).display()
-            )),
+            Err(e) => failed.push(format!("{}: {e}", f.strip_prefix(root).unwrap_or(f).display())),
         }
     }
     println!(
@@ -141,16 +125,9 @@ fn every_file_an_earlier_release_wrote_still_loads() {
     );
     assert!(failed.is_empty(), "{}", failed.join("\n"));
     // Each kind rtprobe reads back is among them (else this test would prove nothing about it).
-    for kind in [
-        "rtprobe.report/1",
-        "rtprobe.bisect/1",
-        "rtprobe.baseline/1",
-        "rtprobe.cell/1",
-    ] {
+    for kind in ["rtprobe.report/1", "rtprobe.bisect/1", "rtprobe.baseline/1", "rtprobe.cell/1"] {
         assert!(
-            files
-                .iter()
-                .any(|f| std::fs::read_to_string(f).unwrap().contains(kind)),
+            files.iter().any(|f| std::fs::read_to_string(f).unwrap().contains(kind)),
             "no {kind} file to check"
         );
     }
@@ -159,24 +136,14 @@ fn every_file_an_earlier_release_wrote_still_loads() {
 #[test]
 fn a_dropped_or_changed_field_is_caught() {
     let old = serde_json::json!({"a": 1, "b": {"c": [1, 2], "d": "x"}});
-    assert!(holds(
-        &old,
-        &serde_json::json!({"a": 1, "b": {"c": [1, 2], "d": "x", "e": null}}),
-        ""
-    )
-    .is_ok());
-    assert!(
-        holds(&old, &serde_json::json!({"a": 1, "b": {"c": [1, 2]}}), "")
-            .unwrap_err()
-            .contains(".b.d was dropped")
-    );
-    assert!(holds(
-        &old,
-        &serde_json::json!({"a": 1, "b": {"c": [1, 3], "d": "x"}}),
-        ""
-    )
-    .unwrap_err()
-    .contains(".b.c[1]"));
+    assert!(holds(&old, &serde_json::json!({"a": 1, "b": {"c": [1, 2], "d": "x", "e": null}}), "")
+        .is_ok());
+    assert!(holds(&old, &serde_json::json!({"a": 1, "b": {"c": [1, 2]}}), "")
+        .unwrap_err()
+        .contains(".b.d was dropped"));
+    assert!(holds(&old, &serde_json::json!({"a": 1, "b": {"c": [1, 3], "d": "x"}}), "")
+        .unwrap_err()
+        .contains(".b.c[1]"));
     // A report whose options lose a field on the way through the typed model fails the check.
     let report =
         std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("reports/lavapipe/run.json"))
@@ -189,17 +156,10 @@ fn a_dropped_or_changed_field_is_caught() {
     v["options"].as_object_mut().unwrap().remove("inject");
     check(&v).unwrap();
     let r: RunReport = serde_json::from_value(v.clone()).unwrap();
-    assert_eq!(
-        (r.options.patches, r.options.inject.len()),
-        (rtprobe::model::PatchMode::Faults, 0)
-    );
+    assert_eq!((r.options.patches, r.options.inject.len()), (rtprobe::model::PatchMode::Faults, 0));
     // A key the typed model does not hold is caught where nothing keeps unknown keys.
     v["cells"][0]["not_a_field"] = Value::Bool(true);
-    assert!(
-        check(&v).unwrap_err().contains("not_a_field was dropped"),
-        "{:?}",
-        check(&v)
-    );
+    assert!(check(&v).unwrap_err().contains("not_a_field was dropped"), "{:?}", check(&v));
     v["schema"] = "rtprobe.nonsense/9".into();
     assert!(check(&v).unwrap_err().contains("unknown schema"));
 }
@@ -211,13 +171,7 @@ fn a_bundle_an_earlier_release_wrote_runs_and_gives_its_verdict() {
     let original: Value = serde_json::from_slice(&std::fs::read(&spec).unwrap()).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("rerun.json");
-    let o = run(&[
-        "run",
-        "--cell-spec",
-        spec.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    let o = run(&["run", "--cell-spec", spec.to_str().unwrap(), "-o", out.to_str().unwrap()]);
     assert!(o.status.code().is_some_and(|c| c <= 1), "{}", stderr(&o));
     let report: Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
     let cell = report["cells"]

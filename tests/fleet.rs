@@ -21,25 +21,15 @@ fn verdicts(r: &Value) -> BTreeMap<String, String> {
         .unwrap()
         .iter()
         .map(|c| {
-            (
-                c["id"].as_str().unwrap().to_string(),
-                c["outcome"].as_str().unwrap().to_string(),
-            )
+            (c["id"].as_str().unwrap().to_string(), c["outcome"].as_str().unwrap().to_string())
         })
         .collect()
 }
 
 fn run_to(dir: &Path, name: &str, extra: &[&str]) -> (PathBuf, std::process::Output) {
     let out = dir.join(name);
-    let mut args = vec![
-        "run",
-        "--patches",
-        "none",
-        "--filter",
-        FILTER,
-        "-o",
-        out.to_str().unwrap(),
-    ];
+    let mut args =
+        vec!["run", "--patches", "none", "--filter", FILTER, "-o", out.to_str().unwrap()];
     args.extend_from_slice(extra);
     let o = run(&args);
     (out, o)
@@ -67,10 +57,7 @@ fn shards_merged_equal_the_unsharded_run() {
         22,
         "20 cells, and the 2 storage-buffer dynamic_element ones"
     );
-    assert!(
-        sizes.iter().max().unwrap() - sizes.iter().min().unwrap() <= 1,
-        "balanced: {sizes:?}"
-    );
+    assert!(sizes.iter().max().unwrap() - sizes.iter().min().unwrap() <= 1, "balanced: {sizes:?}");
     let merged = dir.path().join("merged.json");
     let mut args = vec!["merge", "-o", merged.to_str().unwrap()];
     args.extend(parts.iter().map(|p| p.to_str().unwrap()));
@@ -82,13 +69,7 @@ fn shards_merged_equal_the_unsharded_run() {
     assert_eq!(a["summary"], m["summary"]);
     assert_eq!(m["options"]["merged_from"].as_array().unwrap().len(), 3);
     // The merged report is a run report like any other: diff against the unsharded run is empty.
-    let o = run(&[
-        "diff",
-        all.to_str().unwrap(),
-        merged.to_str().unwrap(),
-        "--noise",
-        "1000",
-    ]);
+    let o = run(&["diff", all.to_str().unwrap(), merged.to_str().unwrap(), "--noise", "1000"]);
     assert_eq!(o.status.code(), Some(0), "{}", stdout(&o));
     assert!(stdout(&o).contains("no outcome changes"));
     // Reports of another scene do not merge.
@@ -101,10 +82,7 @@ fn shards_merged_equal_the_unsharded_run() {
         other.to_str().unwrap(),
     ]);
     assert_one_line_error(&o, 9, "does not belong");
-    assert!(
-        !dir.path().join("x.json").exists(),
-        "no half-written output"
-    );
+    assert!(!dir.path().join("x.json").exists(), "no half-written output");
     // The same shard twice would double its attempts: refused.
     let o = run(&[
         "merge",
@@ -132,28 +110,15 @@ fn a_baseline_expects_known_faults_and_names_new_ones() {
     assert!(o.status.success(), "{}", stderr(&o));
     let b: Value = serde_json::from_slice(&std::fs::read(&base).unwrap()).unwrap();
     assert_eq!(b["schema"], "rtprobe.baseline/1");
-    assert_eq!(
-        b["expected"].as_array().unwrap().len(),
-        2,
-        "miss x 2 resources, literal: {b}"
-    );
+    assert_eq!(b["expected"].as_array().unwrap().len(), 2, "miss x 2 resources, literal: {b}");
     // The same faults again: the run passes.
     let (_, o) = run_to(
         dir.path(),
         "again.json",
-        &[
-            "--inject-fault",
-            KNOWN,
-            "--baseline",
-            base.to_str().unwrap(),
-        ],
+        &["--inject-fault", KNOWN, "--baseline", base.to_str().unwrap()],
     );
     assert_eq!(o.status.code(), Some(0), "{}", stdout(&o));
-    assert!(
-        stdout(&o).contains("0 regressions, 0 improvements"),
-        "{}",
-        stdout(&o)
-    );
+    assert!(stdout(&o).contains("0 regressions, 0 improvements"), "{}", stdout(&o));
     // A new fault fails it, naming the cell.
     let (r, o) = run_to(
         dir.path(),
@@ -171,17 +136,9 @@ fn a_baseline_expects_known_faults_and_names_new_ones() {
     assert!(stdout(&o).contains("REGRESSION: raygen.uniform_buffer.spec_constant.descriptor_indexing expected pass got mismatch"), "{}", stdout(&o));
     assert_eq!(report(&r)["baseline"]["cells"].as_array().unwrap().len(), 1);
     // The known faults gone: an improvement, failing unless allowed.
-    let (_, o) = run_to(
-        dir.path(),
-        "fixed.json",
-        &["--baseline", base.to_str().unwrap()],
-    );
+    let (_, o) = run_to(dir.path(), "fixed.json", &["--baseline", base.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
-    assert!(
-        stdout(&o).contains("UNEXPECTED IMPROVEMENT"),
-        "{}",
-        stdout(&o)
-    );
+    assert!(stdout(&o).contains("UNEXPECTED IMPROVEMENT"), "{}", stdout(&o));
     let (_, o) = run_to(
         dir.path(),
         "fixed2.json",
@@ -200,10 +157,7 @@ fn a_baseline_expects_known_faults_and_names_new_ones() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let text = std::fs::read_to_string(&csv).unwrap();
-    assert!(
-        text.contains("miss.storage_buffer.literal.descriptor_indexing,Fail"),
-        "{text}"
-    );
+    assert!(text.contains("miss.storage_buffer.literal.descriptor_indexing,Fail"), "{text}");
     let (_, o) = run_to(
         dir.path(),
         "csv.json",
@@ -226,11 +180,7 @@ fn a_baseline_expects_known_faults_and_names_new_ones() {
     assert_eq!(o.status.code(), Some(0), "{}", stdout(&o));
     // A bad baseline is one error line.
     std::fs::write(&flakes, "a.b,Exploded\n").unwrap();
-    let (_, o) = run_to(
-        dir.path(),
-        "bad.json",
-        &["--baseline", flakes.to_str().unwrap()],
-    );
+    let (_, o) = run_to(dir.path(), "bad.json", &["--baseline", flakes.to_str().unwrap()]);
     assert_one_line_error(&o, 9, "unknown status");
 }
 
@@ -252,33 +202,16 @@ fn a_phase_slower_than_its_bound_fails_the_run() {
         "100",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let (_, o) = run_to(
-        dir.path(),
-        "ok.json",
-        &["--baseline", base.to_str().unwrap()],
-    );
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "generous bounds hold: {}",
-        stdout(&o)
-    );
+    let (_, o) = run_to(dir.path(), "ok.json", &["--baseline", base.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "generous bounds hold: {}", stdout(&o));
     // The same run against a bound it cannot meet (as if the driver got 1000x slower).
     let mut b: Value = serde_json::from_slice(&std::fs::read(&base).unwrap()).unwrap();
     b["performance"]["pipeline"] =
         serde_json::json!({ "mean_ms": 0.0, "factor": 1.0, "slack_ms": 0.0 });
     std::fs::write(&base, serde_json::to_vec(&b).unwrap()).unwrap();
-    let (_, o) = run_to(
-        dir.path(),
-        "slow.json",
-        &["--baseline", base.to_str().unwrap()],
-    );
+    let (_, o) = run_to(dir.path(), "slow.json", &["--baseline", base.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
-    assert!(
-        stdout(&o).contains("PERFORMANCE REGRESSION: pipeline"),
-        "{}",
-        stdout(&o)
-    );
+    assert!(stdout(&o).contains("PERFORMANCE REGRESSION: pipeline"), "{}", stdout(&o));
     assert_one_line_error(
         &run(&[
             "baseline",
@@ -299,11 +232,7 @@ fn diff_of_a_report_with_itself_is_empty_and_with_an_edit_shows_the_edit() {
     let (r, _) = run_to(dir.path(), "r.json", &[]);
     let o = run(&["diff", r.to_str().unwrap(), r.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(0), "{}", stdout(&o));
-    assert!(
-        stdout(&o).contains("no outcome changes (22 unchanged)"),
-        "{}",
-        stdout(&o)
-    );
+    assert!(stdout(&o).contains("no outcome changes (22 unchanged)"), "{}", stdout(&o));
     assert!(stdout(&o).contains("no phase changed"), "{}", stdout(&o));
     let mut edited = report(&r);
     let cells = edited["cells"].as_array_mut().unwrap();
@@ -325,14 +254,8 @@ fn diff_of_a_report_with_itself_is_empty_and_with_an_edit_shows_the_edit() {
     assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
     let text = std::fs::read_to_string(&md).unwrap();
     assert!(text.contains("1 regressed, 1 gone"), "{text}");
-    assert!(
-        text.contains(&format!("| ❌ regressed | `{id}` | pass | device_lost |")),
-        "{text}"
-    );
-    assert!(
-        text.contains(&format!("| ➖ gone | `{gone}` | pass | — |")),
-        "{text}"
-    );
+    assert!(text.contains(&format!("| ❌ regressed | `{id}` | pass | device_lost |")), "{text}");
+    assert!(text.contains(&format!("| ➖ gone | `{gone}` | pass | — |")), "{text}");
     assert_eq!(
         text.lines().filter(|l| l.contains("` |")).count(),
         2,

@@ -22,10 +22,7 @@ fn sid_root() -> PathBuf {
 /// password); panics when it must (RTPROBE_REQUIRE_SID=1).
 fn have_sid() -> bool {
     let can_chroot = unsafe { libc::geteuid() } == 0
-        || Command::new("sudo")
-            .args(["-n", "true"])
-            .output()
-            .is_ok_and(|o| o.status.success());
+        || Command::new("sudo").args(["-n", "true"]).output().is_ok_and(|o| o.status.success());
     let ok = sid_root().join("etc/rtprobe-sid.stamp").exists() && can_chroot;
     if !ok && std::env::var("RTPROBE_REQUIRE_SID").is_ok_and(|v| v == "1") {
         panic!("RTPROBE_REQUIRE_SID=1 but there is no sid root at {} (make it with scripts/setup-sid), or no root rights to enter it", sid_root().display());
@@ -96,12 +93,7 @@ fn list_counts(out: &str) -> (usize, usize, usize) {
 
 #[test]
 fn host_lavapipe_plans_heap_cells_as_unsupported_with_the_reason() {
-    let o = run(&[
-        "run",
-        "--list",
-        "--filter",
-        "descriptor_model=descriptor_heap",
-    ]);
+    let o = run(&["run", "--list", "--filter", "descriptor_model=descriptor_heap"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let out = stdout(&o);
     let (to_run, unsupported, not_implemented) = list_counts(&out);
@@ -110,10 +102,7 @@ fn host_lavapipe_plans_heap_cells_as_unsupported_with_the_reason() {
         return;
     }
     assert!(unsupported > 0, "{out}");
-    assert_eq!(
-        not_implemented, 0,
-        "the device's reason wins over rtprobe's own gaps: {out}"
-    );
+    assert_eq!(not_implemented, 0, "the device's reason wins over rtprobe's own gaps: {out}");
     assert!(
         out.lines()
             .filter(|l| l.starts_with("unsupported "))
@@ -128,10 +117,7 @@ fn host_lavapipe_plans_heap_cells_as_unsupported_with_the_reason() {
         "mapped_shader_record_index",
         "direct",
     ] {
-        assert!(
-            out.contains(&format!(".descriptor_heap.{way} ")),
-            "{way} missing: {out}"
-        );
+        assert!(out.contains(&format!(".descriptor_heap.{way} ")), "{way} missing: {out}");
     }
     assert!(
         out.contains(&format!(
@@ -147,12 +133,7 @@ fn sid_plans_every_heap_cell_and_drops_none() {
     if !have_sid() {
         return;
     }
-    let o = in_sid(&[
-        "run",
-        "--list",
-        "--filter",
-        "descriptor_model=descriptor_heap",
-    ]);
+    let o = in_sid(&["run", "--list", "--filter", "descriptor_model=descriptor_heap"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let out = stdout(&o);
     let (to_run, _, not_implemented) = list_counts(&out);
@@ -167,10 +148,7 @@ fn sid_plans_every_heap_cell_and_drops_none() {
                 && l.contains("as-to-address")),
         "{out}"
     );
-    assert!(
-        out.contains("compiler: heap_access=direct shaders by glslangValidator 16."),
-        "{out}"
-    );
+    assert!(out.contains("compiler: heap_access=direct shaders by glslangValidator 16."), "{out}");
     for way in [
         "mapped_constant_offset",
         "mapped_push_index",
@@ -187,12 +165,7 @@ fn sid_plans_every_heap_cell_and_drops_none() {
     // Without a heap-capable GLSL compiler the direct way is rtprobe's own gap: planned and
     // counted as not_implemented with the reason, never dropped or blamed on the device.
     let o = in_sid_env(
-        &[
-            "run",
-            "--list",
-            "--filter",
-            "descriptor_model=descriptor_heap",
-        ],
+        &["run", "--list", "--filter", "descriptor_model=descriptor_heap"],
         &[("RTPROBE_GLSLANG", "/nonexistent/glslangValidator")],
     );
     assert!(o.status.success(), "{}", stderr(&o));
@@ -205,12 +178,7 @@ fn sid_plans_every_heap_cell_and_drops_none() {
             .all(|l| l.contains(".descriptor_heap.direct") && l.contains("GL_EXT_descriptor_heap")),
         "{out}"
     );
-    assert!(
-        out.lines()
-            .filter(|l| l.starts_with("run "))
-            .all(|l| l.contains(".mapped_")),
-        "{out}"
-    );
+    assert!(out.lines().filter(|l| l.starts_with("run ")).all(|l| l.contains(".mapped_")), "{out}");
     assert!(
         out.contains(&format!("{} planned: {to_run} to run, {unsupported} unsupported, {not_implemented} not implemented in rtprobe; ", to_run + unsupported + not_implemented)),
         "{out}"
@@ -245,19 +213,13 @@ fn sid_runs_heap_cells_against_the_reference() {
         cells.len(),
         "every planned cell is in the report"
     );
-    assert_eq!(
-        report["plan"]["not_implemented"].as_u64().unwrap() as usize,
-        not_impl
-    );
+    assert_eq!(report["plan"]["not_implemented"].as_u64().unwrap() as usize, not_impl);
     assert!(
         not_impl > 0
             && cells
                 .iter()
                 .filter(|c| outcome(c, "not_implemented"))
-                .all(|c| c["id"]
-                    .as_str()
-                    .unwrap()
-                    .contains(".descriptor_heap.direct"))
+                .all(|c| c["id"].as_str().unwrap().contains(".descriptor_heap.direct"))
     );
     for way in [
         "mapped_constant_offset",
@@ -279,9 +241,7 @@ fn sid_runs_heap_cells_against_the_reference() {
         "acceleration_structure",
     ] {
         assert!(
-            cells
-                .iter()
-                .any(|c| c["resource"] == r && outcome(c, "pass")),
+            cells.iter().any(|c| c["resource"] == r && outcome(c, "pass")),
             "a {r} heap cell passes"
         );
     }
@@ -291,12 +251,7 @@ fn sid_runs_heap_cells_against_the_reference() {
         !["pass", "not_implemented", "unsupported"].contains(&c["outcome"].as_str().unwrap())
     });
     assert!(pass > 0);
-    assert_eq!(
-        o.status.code(),
-        Some(if findings > 0 { 1 } else { 0 }),
-        "{}",
-        stderr(&o)
-    );
+    assert_eq!(o.status.code(), Some(if findings > 0 { 1 } else { 0 }), "{}", stderr(&o));
     let summary = stdout(&o);
     assert!(
         !summary.contains("no faults or mismatches\n"),
@@ -315,11 +270,7 @@ fn sid_runs_direct_heap_cells_compiled_by_the_roots_glslang() {
     let (o, report) = run_in_sid("heap-direct", filter, &[], &[]);
     let cells = report["cells"].as_array().unwrap();
     assert_eq!(cells.len(), 20, "2 stages x (3 resources + sampled images with a constant and a dynamic sampler) x nonuniform or not");
-    assert!(
-        cells.iter().all(|c| c["outcome"] == "pass"),
-        "{}",
-        stdout(&o)
-    );
+    assert!(cells.iter().all(|c| c["outcome"] == "pass"), "{}", stdout(&o));
     // A compiler that drops nonuniformEXT (glslang 16.6 on heap arrays) is said so, and only
     // where the cell asked for nonuniformEXT.
     let noted = |c: &serde_json::Value| {
@@ -327,14 +278,7 @@ fn sid_runs_direct_heap_cells_compiled_by_the_roots_glslang() {
             .as_str()
             .is_some_and(|d| d.contains("dropped nonuniformEXT"))
     };
-    assert!(
-        cells
-            .iter()
-            .filter(|c| noted(c))
-            .all(|c| c["nonuniform"] == true),
-        "{}",
-        stdout(&o)
-    );
+    assert!(cells.iter().filter(|c| noted(c)).all(|c| c["nonuniform"] == true), "{}", stdout(&o));
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
 }
 
@@ -352,57 +296,32 @@ fn sid_runs_the_original_engines_base_sources_and_sampler_indices() {
     // 3 bases x (direct: SSBO + sampled image with 2 samplers; mapped: SSBO + sampled image)
     assert_eq!(cells.len(), 3 * (3 + 2), "{}", stdout(&o));
     for base in ["shader_record", "buffer"] {
-        assert!(
-            cells.iter().any(|c| c["base"] == base),
-            "base={base} planned"
-        );
+        assert!(cells.iter().any(|c| c["base"] == base), "base={base} planned");
     }
     for sampler in ["constant", "dynamic"] {
-        assert!(
-            cells.iter().any(|c| c["sampler"] == sampler),
-            "sampler={sampler} planned"
-        );
+        assert!(cells.iter().any(|c| c["sampler"] == sampler), "sampler={sampler} planned");
     }
-    assert!(
-        cells.iter().all(|c| c["outcome"] == "pass"),
-        "{}",
-        stdout(&o)
-    );
+    assert!(cells.iter().all(|c| c["outcome"] == "pass"), "{}", stdout(&o));
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     // Where the compiler dropped nonuniformEXT from a heap index (glslang 16.6 does), the cell
     // says so and is judged as undefined (any element): the note and the lenient judgment come
     // together, and only on direct cells.
     for c in cells {
         let r = &c["attempts"][0]["result"];
-        let noted = r["detail"]
-            .as_str()
-            .is_some_and(|d| d.contains("dropped nonuniformEXT"));
-        assert_eq!(
-            noted,
-            r["comparison"]["element_reads"].is_object(),
-            "{}: {}",
-            c["id"],
-            r
-        );
+        let noted = r["detail"].as_str().is_some_and(|d| d.contains("dropped nonuniformEXT"));
+        assert_eq!(noted, r["comparison"]["element_reads"].is_object(), "{}: {}", c["id"], r);
         assert!(!noted || c["heap_access"] == "direct", "{}", c["id"]);
     }
     // Twin: a wrong value at the probed read of those cells mismatches.
     let (o, report) = run_in_sid(
         "heap-base-sampler-corrupt",
         filter,
-        &[
-            "--inject-fault",
-            &format!("{filter},base=shader_record|buffer@value"),
-        ],
+        &["--inject-fault", &format!("{filter},base=shader_record|buffer@value")],
         &[],
     );
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     for c in report["cells"].as_array().unwrap() {
-        let want = if c["base"].is_string() {
-            "mismatch"
-        } else {
-            "pass"
-        };
+        let want = if c["base"].is_string() { "mismatch" } else { "pass" };
         assert_eq!(c["outcome"], want, "{}", c["id"]);
     }
 }
@@ -455,25 +374,16 @@ fn sid_recommended_patterns_read_the_exact_element_and_layer_in_every_heap_way()
         assert!(!dropped || c["sampler"] == "dynamic", "{id}");
         if c["outcome"] == "pass" && !dropped {
             let d = r["comparison"]["discrimination"].as_f64().unwrap();
-            assert!(
-                d >= 0.99,
-                "{id}: every pixel would catch another element or layer ({d})"
-            );
+            assert!(d >= 0.99, "{id}: every pixel would catch another element or layer ({d})");
         }
     }
     // The geometry pattern passes in every way, and both patterns read straight from the heap.
     let pass = |id: &str| {
-        cells
-            .iter()
-            .find(|c| c["id"] == id)
-            .unwrap_or_else(|| panic!("{id} planned"))["outcome"]
+        cells.iter().find(|c| c["id"] == id).unwrap_or_else(|| panic!("{id} planned"))["outcome"]
             == "pass"
     };
     assert!(
-        cells
-            .iter()
-            .filter(|c| c["resource"] == "storage_buffer")
-            .all(|c| c["outcome"] == "pass"),
+        cells.iter().filter(|c| c["resource"] == "storage_buffer").all(|c| c["outcome"] == "pass"),
         "{}",
         stdout(&o)
     );
@@ -497,11 +407,7 @@ fn sid_recommended_patterns_read_the_exact_element_and_layer_in_every_heap_way()
     );
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(
-        report["cells"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .all(|c| c["outcome"] == "mismatch"),
+        report["cells"].as_array().unwrap().iter().all(|c| c["outcome"] == "mismatch"),
         "{}",
         stdout(&o)
     );
@@ -518,26 +424,14 @@ fn sid_a_direct_heap_fault_says_whether_the_recommended_pattern_works() {
     let filter = "descriptor_model=descriptor_heap,heap_access=direct,stage=closest_hit,index=dynamic,nonuniform=false,resource=storage_buffer|sampled_image,base=push_data,sampler=dynamic|none";
     let (o, report) = sid_report(
         "heap-pattern-finding",
-        &[
-            "--filter",
-            filter,
-            "--no-confirm",
-            "--inject-fault",
-            &format!("{filter}@device"),
-        ],
+        &["--filter", filter, "--no-confirm", "--inject-fault", &format!("{filter}@device")],
         &[],
     );
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     let cells = report["cells"].as_array().unwrap();
     for (id, pattern) in [
-        (
-            "closest_hit.storage_buffer.dynamic.descriptor_heap.direct",
-            "geometry",
-        ),
-        (
-            "closest_hit.sampled_image.dynamic.descriptor_heap.direct.sampler_dynamic",
-            "materials",
-        ),
+        ("closest_hit.storage_buffer.dynamic.descriptor_heap.direct", "geometry"),
+        ("closest_hit.sampled_image.dynamic.descriptor_heap.direct.sampler_dynamic", "materials"),
     ] {
         let f = cells.iter().find(|c| c["id"] == id).unwrap();
         assert_eq!(f["outcome"], "crash", "{}", f["reason"]);
@@ -547,11 +441,7 @@ fn sid_a_direct_heap_fault_says_whether_the_recommended_pattern_works() {
             (Some(pattern), Some("passes")),
             "{p}"
         );
-        assert!(
-            stdout(&o).contains(&format!("recommended pattern {pattern} (")),
-            "{}",
-            stdout(&o)
-        );
+        assert!(stdout(&o).contains(&format!("recommended pattern {pattern} (")), "{}", stdout(&o));
     }
 }
 
@@ -567,11 +457,7 @@ fn sid_gpu_av_reruns_heap_findings_with_a_control() {
     let (o, report) = run_in_sid(
         "heap-gpu-av",
         filter,
-        &[
-            "--validate=gpu-av",
-            "--inject-fault",
-            "index=dynamic@device",
-        ],
+        &["--validate=gpu-av", "--inject-fault", "index=dynamic@device"],
         &[],
     );
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
@@ -583,16 +469,12 @@ fn sid_gpu_av_reruns_heap_findings_with_a_control() {
             .unwrap();
         assert_eq!(f["attempts"].as_array().unwrap().len(), 1);
         let v = &f["gpu_av"];
-        let control = v["control"]
-            .as_array()
-            .unwrap_or_else(|| panic!("{stage}: a control ran: {v}"));
+        let control =
+            v["control"].as_array().unwrap_or_else(|| panic!("{stage}: a control ran: {v}"));
         let control_faulted =
             !["pass", "unsupported", "not_implemented"].contains(&control[1].as_str().unwrap());
         let verdict = v["verdict"].as_str().unwrap();
-        assert!(
-            ["masked", "still_faults", "gpu_av_failed"].contains(&verdict),
-            "{stage}: {v}"
-        );
+        assert!(["masked", "still_faults", "gpu_av_failed"].contains(&verdict), "{stage}: {v}");
         if verdict != "masked" {
             assert_eq!(verdict == "gpu_av_failed", control_faulted, "{stage}: {v}");
         }

@@ -58,23 +58,12 @@ impl Analysis {
     /// Cycles between files, named by module path.
     fn file_cycles(&self) -> Vec<Vec<String>> {
         let nodes = self.files.keys().cloned().collect();
-        cycles(
-            nodes,
-            self.edges
-                .iter()
-                .map(|e| (e.from.clone(), e.to.clone()))
-                .collect(),
-        )
+        cycles(nodes, self.edges.iter().map(|e| (e.from.clone(), e.to.clone())).collect())
     }
 
     /// Number of top-level modules, the crate root not counted.
     fn top_level_count(&self) -> usize {
-        self.files
-            .keys()
-            .filter(|m| !m.is_empty())
-            .map(|m| top(m))
-            .collect::<BTreeSet<_>>()
-            .len()
+        self.files.keys().filter(|m| !m.is_empty()).map(|m| top(m)).collect::<BTreeSet<_>>().len()
     }
 }
 
@@ -90,10 +79,7 @@ fn top(module: &str) -> String {
 /// `a/mod.rs` is `a`, `a/b.rs` is `a::b`; `None` for binaries (`main.rs`, `bin/`) and other
 /// files.
 fn module_of(rel: &Path) -> Option<String> {
-    let mut parts: Vec<String> = rel
-        .iter()
-        .map(|p| p.to_string_lossy().into_owned())
-        .collect();
+    let mut parts: Vec<String> = rel.iter().map(|p| p.to_string_lossy().into_owned()).collect();
     let file = parts.pop()?;
     let stem = file.strip_suffix(".rs")?;
     if parts.first().is_some_and(|p| p == "bin") {
@@ -127,9 +113,7 @@ fn rust_files(dir: &Path) -> Vec<PathBuf> {
 }
 
 fn is_ident(text: &str) -> bool {
-    text.chars()
-        .next()
-        .is_some_and(|c| c.is_alphanumeric() || c == '_')
+    text.chars().next().is_some_and(|c| c.is_alphanumeric() || c == '_')
 }
 
 /// Index just past the string literal whose opening quote is at `i - 1` (escapes honoured).
@@ -149,13 +133,7 @@ fn skip_raw_string(c: &[char], i: usize) -> Option<usize> {
     }
     let mut j = i + hashes + 1;
     while j < c.len() {
-        if c[j] == '"'
-            && c[j + 1..]
-                .iter()
-                .take(hashes)
-                .filter(|&&ch| ch == '#')
-                .count()
-                == hashes
+        if c[j] == '"' && c[j + 1..].iter().take(hashes).filter(|&&ch| ch == '#').count() == hashes
         {
             return Some(j + 1 + hashes);
         }
@@ -223,10 +201,7 @@ fn tokenize(src: &str) -> Vec<Token> {
         let next = c.get(i + 1).copied();
         let text = match c[i] {
             '/' if next == Some('/') => {
-                i += c[i..]
-                    .iter()
-                    .position(|&ch| ch == '\n')
-                    .unwrap_or(c.len() - i);
+                i += c[i..].iter().position(|&ch| ch == '\n').unwrap_or(c.len() - i);
                 None
             }
             '/' if next == Some('*') => {
@@ -258,10 +233,7 @@ fn tokenize(src: &str) -> Vec<Token> {
         if let Some(text) = text {
             out.push(Token { text, line });
         }
-        line += c[start..i.min(c.len())]
-            .iter()
-            .filter(|&&ch| ch == '\n')
-            .count();
+        line += c[start..i.min(c.len())].iter().filter(|&&ch| ch == '\n').count();
     }
     out
 }
@@ -397,21 +369,14 @@ fn is_child_path(toks: &[Token], i: usize, base: &[String], modules: &BTreeSet<S
     is_ident(&toks[i].text)
         && toks.get(i + 1).is_some_and(|t| t.text == "::")
         && (i == 0 || toks[i - 1].text != "::")
-        && modules.contains(
-            &[base, std::slice::from_ref(&toks[i].text)]
-                .concat()
-                .join("::"),
-        )
+        && modules.contains(&[base, std::slice::from_ref(&toks[i].text)].concat().join("::"))
 }
 
 /// Every path in a file of module `module`: (line, path as written, absolute path). Inline
 /// `mod name { ... }` blocks move `self` and `super` one level down while inside them.
 fn paths_in(toks: &[Token], module: &str, modules: &BTreeSet<String>) -> Paths {
-    let file_base: Vec<String> = module
-        .split("::")
-        .filter(|s| !s.is_empty())
-        .map(String::from)
-        .collect();
+    let file_base: Vec<String> =
+        module.split("::").filter(|s| !s.is_empty()).map(String::from).collect();
     let (mut out, mut inline, mut depth, mut i) = (Vec::new(), Vec::<(String, usize)>::new(), 0, 0);
     while i < toks.len() {
         match toks[i].text.as_str() {
@@ -480,18 +445,13 @@ fn reexports(
             let public =
                 k >= 1 && (toks[k - 1].text == "pub" || (k >= 4 && toks[k - 4].text == "pub"));
             if t.text == "use" && public {
-                let end = toks[k..]
-                    .iter()
-                    .find(|t| t.text == ";")
-                    .map_or(t.line, |e| e.line);
+                let end = toks[k..].iter().find(|t| t.text == ";").map_or(t.line, |e| e.line);
                 lines.extend(t.line..=end);
             }
         }
         for (line, _, abs) in &paths[module] {
             if let Some(name) = abs.last().filter(|_| lines.contains(line)) {
-                out.entry(module.clone())
-                    .or_default()
-                    .insert(name.clone(), abs.clone());
+                out.entry(module.clone()).or_default().insert(name.clone(), abs.clone());
             }
         }
     }
@@ -526,50 +486,31 @@ fn analyze(src: &Path) -> Analysis {
     let mut parsed = BTreeMap::new();
     let mut test_only = Vec::new();
     for path in rust_files(src) {
-        let rel = path
-            .strip_prefix(src)
-            .expect("file under the source folder");
+        let rel = path.strip_prefix(src).expect("file under the source folder");
         let Some(module) = module_of(rel) else {
             continue;
         };
         let text = fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         let (toks, test_mods) = drop_test_items(&tokenize(&text));
-        let prefix = if module.is_empty() {
-            String::new()
-        } else {
-            format!("{module}::")
-        };
+        let prefix = if module.is_empty() { String::new() } else { format!("{module}::") };
         test_only.extend(test_mods.into_iter().map(|m| format!("{prefix}{m}")));
         let rel = rel.to_string_lossy().replace('\\', "/");
         parsed.insert(module, (rel, toks));
     }
-    let excluded = |m: &str| {
-        test_only
-            .iter()
-            .any(|t| m == t || m.starts_with(&format!("{t}::")))
-    };
+    let excluded = |m: &str| test_only.iter().any(|t| m == t || m.starts_with(&format!("{t}::")));
     parsed.retain(|m, _| !excluded(m));
-    let files: BTreeMap<String, String> = parsed
-        .iter()
-        .map(|(m, (rel, _))| (m.clone(), rel.clone()))
-        .collect();
+    let files: BTreeMap<String, String> =
+        parsed.iter().map(|(m, (rel, _))| (m.clone(), rel.clone())).collect();
     let modules: BTreeSet<String> = files.keys().cloned().collect();
-    let paths: BTreeMap<&String, _> = parsed
-        .iter()
-        .map(|(m, (_, toks))| (m, paths_in(toks, m, &modules)))
-        .collect();
+    let paths: BTreeMap<&String, _> =
+        parsed.iter().map(|(m, (_, toks))| (m, paths_in(toks, m, &modules))).collect();
     let reexports = reexports(&parsed, &paths);
     let mut edges = Vec::new();
     for (from, found) in paths {
         for (line, text, abs) in found {
             let to = owner(&files, &through_reexports(&files, &reexports, abs));
             if to != *from {
-                edges.push(Edge {
-                    from: from.clone(),
-                    to,
-                    line,
-                    text,
-                });
+                edges.push(Edge { from: from.clone(), to, line, text });
             }
         }
     }
@@ -689,11 +630,7 @@ fn no_module_cycles() {
     let detail = if n == 0 {
         String::new()
     } else {
-        format!(
-            " ({} between top-level modules, {} between files)",
-            modules.len(),
-            files.len()
-        )
+        format!(" ({} between top-level modules, {} between files)", modules.len(), files.len())
     };
     println!(
         "module_cycles: {} top-level modules, {} files, {n} cycles{detail}",
@@ -714,58 +651,29 @@ fn planted_cycle_is_found() {
     let names = |v: &[&str]| v.iter().map(ToString::to_string).collect::<Vec<_>>();
     // `c::tests` is declared under `#[cfg(test)]`: not a file of the graph.
     let files: Vec<&str> = a.files.keys().map(String::as_str).collect();
-    assert_eq!(
-        files,
-        ["", "a", "a::x", "a::y", "b", "c", "d", "d::e", "f", "f::g", "h"]
-    );
+    assert_eq!(files, ["", "a", "a::x", "a::y", "b", "c", "d", "d::e", "f", "f::g", "h"]);
     assert_eq!(a.module_cycles(), vec![names(&["a", "b"])]);
     // `d` and its child reach each other by a bare child path and `super::`; `f` is a facade
     // only, so `h`'s `crate::f::G` is an edge to `f::g`, and no cycle.
-    assert_eq!(
-        a.file_cycles(),
-        vec![names(&["a::x", "b"]), names(&["d", "d::e"])]
-    );
-    assert!(
-        a.edges.iter().any(|e| e.from == "h" && e.to == "f::g"),
-        "{:#?}",
-        a.edges
-    );
-    assert!(
-        !a.edges.iter().any(|e| e.from == "h" && e.to == "f"),
-        "{:#?}",
-        a.edges
-    );
+    assert_eq!(a.file_cycles(), vec![names(&["a::x", "b"]), names(&["d", "d::e"])]);
+    assert!(a.edges.iter().any(|e| e.from == "h" && e.to == "f::g"), "{:#?}", a.edges);
+    assert!(!a.edges.iter().any(|e| e.from == "h" && e.to == "f"), "{:#?}", a.edges);
     let has = |from: &str, to: &str, text: &str| {
-        a.edges
-            .iter()
-            .any(|e| e.from == from && e.to == to && e.text == text)
+        a.edges.iter().any(|e| e.from == from && e.to == to && e.text == text)
     };
     assert!(has("a::x", "b", "crate::b::Y"), "{:#?}", a.edges);
-    assert!(
-        has("b", "a::x", "super::a::x::f"),
-        "inline path after tricky literals"
-    );
+    assert!(has("b", "a::x", "super::a::x::f"), "inline path after tricky literals");
     assert!(has("a::x", "c", "crate::c::C"), "nested use group expanded");
     assert!(has("a::y", "b", "super::super::b::Y"), "super chain");
     // Comments, literals, test-only items and inline-module `super` make no edge: the only edge
     // touching `c` is the real one above, and nothing points at the crate root.
-    let touching_c: Vec<&Edge> = a
-        .edges
-        .iter()
-        .filter(|e| e.from == "c" || e.to == "c")
-        .collect();
+    let touching_c: Vec<&Edge> = a.edges.iter().filter(|e| e.from == "c" || e.to == "c").collect();
     assert_eq!(touching_c.len(), 1, "{touching_c:#?}");
     assert!(a.edges.iter().all(|e| !e.to.is_empty()), "{:#?}", a.edges);
     let report = describe(&a, "top-level module", &a.module_cycles(), top);
     assert!(report.contains("src/a/x.rs:"), "{report}");
-    assert!(
-        report.contains("src/a/x.rs:4  crate::b, crate::b::Y  (a -> b)"),
-        "{report}"
-    );
-    println!(
-        "{report}{}",
-        describe(&a, "file", &a.file_cycles(), shown_module)
-    );
+    assert!(report.contains("src/a/x.rs:4  crate::b, crate::b::Y  (a -> b)"), "{report}");
+    println!("{report}{}", describe(&a, "file", &a.file_cycles(), shown_module));
 }
 
 /// The bottom layer's modules: they may use each other and nothing else of the crate.
@@ -786,15 +694,8 @@ fn the_data_layer_imports_nothing_above_it() {
     let root = Path::new(option_env!("CARGO_MANIFEST_DIR").unwrap_or("."));
     let a = analyze(&root.join("src"));
     let up = above_the_bottom(&a);
-    println!(
-        "module_cycles: {} references from {BOTTOM:?} to modules above them",
-        up.len()
-    );
-    assert!(
-        up.is_empty(),
-        "the data layer reaches up:\n{}",
-        up.join("\n")
-    );
+    println!("module_cycles: {} references from {BOTTOM:?} to modules above them", up.len());
+    assert!(up.is_empty(), "the data layer reaches up:\n{}", up.join("\n"));
     // Twin: an edge from `model` up to `report` is listed.
     let planted = Analysis {
         files: [
@@ -809,8 +710,5 @@ fn the_data_layer_imports_nothing_above_it() {
             text: "crate::report::f".into(),
         }],
     };
-    assert_eq!(
-        above_the_bottom(&planted),
-        ["  src/model/x.rs:3  crate::report::f"]
-    );
+    assert_eq!(above_the_bottom(&planted), ["  src/model/x.rs:3  crate::report::f"]);
 }

@@ -16,19 +16,9 @@ fn tool(name: &str, args: &[&str]) -> std::process::Output {
 fn assemble(src: &Path, out: &Path) {
     let o = tool(
         "spirv-as",
-        &[
-            "--target-env",
-            "vulkan1.2",
-            src.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-        ],
+        &["--target-env", "vulkan1.2", src.to_str().unwrap(), "-o", out.to_str().unwrap()],
     );
-    assert!(
-        o.status.success(),
-        "spirv-as: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    assert!(o.status.success(), "spirv-as: {}", String::from_utf8_lossy(&o.stderr));
 }
 
 fn dis(p: &Path) -> String {
@@ -38,10 +28,7 @@ fn dis(p: &Path) -> String {
 }
 
 fn val(p: &Path) {
-    let o = tool(
-        "spirv-val",
-        &["--target-env", "vulkan1.2", p.to_str().unwrap()],
-    );
+    let o = tool("spirv-val", &["--target-env", "vulkan1.2", p.to_str().unwrap()]);
     assert!(
         o.status.success(),
         "spirv-val {}: {}",
@@ -76,39 +63,23 @@ fn as_to_address_rewrites_hand_written_spirv() {
     // The descriptor array is gone; the handle comes from an address in a table whose address is
     // appended to the existing push-constant block at the first free 8-aligned offset (8).
     assert!(
-        !text
-            .lines()
-            .any(|l| l.contains("OpVariable") && l.contains("UniformConstant")),
+        !text.lines().any(|l| l.contains("OpVariable") && l.contains("UniformConstant")),
         "{text}"
     );
     assert!(!text.contains("DescriptorSet"), "{text}");
-    assert!(
-        text.contains("OpMemoryModel PhysicalStorageBuffer64 GLSL450"),
-        "{text}"
-    );
-    assert!(
-        text.contains("OpMemberDecorate %") && text.contains(" 1 Offset 8"),
-        "{text}"
-    );
+    assert!(text.contains("OpMemoryModel PhysicalStorageBuffer64 GLSL450"), "{text}");
+    assert!(text.contains("OpMemberDecorate %") && text.contains(" 1 Offset 8"), "{text}");
     assert!(text.contains("OpConvertUToPtr"), "{text}");
     assert!(text.contains("Aligned 8"), "{text}");
-    assert!(
-        text.contains("OpConvertUToAccelerationStructureKHR"),
-        "{text}"
-    );
+    assert!(text.contains("OpConvertUToAccelerationStructureKHR"), "{text}");
     // The diff printed on request shows the load being replaced.
     let diff = stdout(&o);
     assert!(
-        diff.lines().any(
-            |l| l.starts_with("- ") && l.contains("OpLoad") && l.contains("%chain")
-                || l.starts_with("- ") && l.contains("OpAccessChain")
-        ),
+        diff.lines().any(|l| l.starts_with("- ") && l.contains("OpLoad") && l.contains("%chain")
+            || l.starts_with("- ") && l.contains("OpAccessChain")),
         "{diff}"
     );
-    assert!(
-        diff.contains("+ ") && diff.contains("OpConvertUToAccelerationStructureKHR"),
-        "{diff}"
-    );
+    assert!(diff.contains("+ ") && diff.contains("OpConvertUToAccelerationStructureKHR"), "{diff}");
 }
 
 #[test]
@@ -128,16 +99,10 @@ fn nonuniform_and_pin_index_rewrite_hand_written_spirv() {
         "--disassemble",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(
-        stdout(&o).contains("3 objects decorated NonUniform"),
-        "{}",
-        stdout(&o)
-    );
+    assert!(stdout(&o).contains("3 objects decorated NonUniform"), "{}", stdout(&o));
     let diff = stdout(&o);
     assert_eq!(
-        diff.lines()
-            .filter(|l| l.starts_with("+ ") && l.ends_with(" NonUniform"))
-            .count(),
+        diff.lines().filter(|l| l.starts_with("+ ") && l.ends_with(" NonUniform")).count(),
         3,
         "{diff}"
     );
@@ -163,16 +128,8 @@ fn nonuniform_and_pin_index_rewrite_hand_written_spirv() {
             .any(|l| l.starts_with("+ ") && l.contains("OpSpecConstant") && l.ends_with(" 2")),
         "{diff}"
     );
-    assert!(
-        diff.lines()
-            .any(|l| l.starts_with("+ ") && l.contains("SpecId 0")),
-        "{diff}"
-    );
-    assert!(
-        diff.lines()
-            .any(|l| l.starts_with("- ") && l.contains("OpAccessChain")),
-        "{diff}"
-    );
+    assert!(diff.lines().any(|l| l.starts_with("+ ") && l.contains("SpecId 0")), "{diff}");
+    assert!(diff.lines().any(|l| l.starts_with("- ") && l.contains("OpAccessChain")), "{diff}");
     val(&pin);
     // the spec id is refused when already used
     let again = d.path().join("again.spv");
@@ -252,9 +209,7 @@ fn engine_shaders_are_patched_from_glsl() {
     let text = dis(&pinned);
     assert!(
         text.contains("SpecId 0")
-            && text
-                .lines()
-                .any(|l| l.contains("OpSpecConstant") && l.ends_with(" 3")),
+            && text.lines().any(|l| l.contains("OpSpecConstant") && l.ends_with(" 3")),
         "{text}"
     );
     val(&pinned);
@@ -272,11 +227,7 @@ fn engine_shaders_are_patched_from_glsl() {
         raddr.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(
-        stdout(&o).contains("address at push-constant offset 8"),
-        "{}",
-        stdout(&o)
-    );
+    assert!(stdout(&o).contains("address at push-constant offset 8"), "{}", stdout(&o));
     let text = dis(&raddr);
     assert!(
         text.contains("OpConvertUToAccelerationStructureKHR") && !text.contains("%tlas"),
@@ -305,11 +256,7 @@ fn as_to_address_sizes_an_engine_camera_push_block() {
         out.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(
-        stdout(&o).contains("address at push-constant offset 200"),
-        "{}",
-        stdout(&o)
-    );
+    assert!(stdout(&o).contains("address at push-constant offset 200"), "{}", stdout(&o));
     let text = dis(&out);
     assert!(text.contains(" Offset 200"), "{text}");
     val(&out);
@@ -351,17 +298,10 @@ fn ssbo_to_address_turns_the_mesh_array_into_address_loads() {
         out.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(
-        stdout(&o).contains("3 loads now read through buffer addresses"),
-        "{}",
-        stdout(&o)
-    );
+    assert!(stdout(&o).contains("3 loads now read through buffer addresses"), "{}", stdout(&o));
     val(&out);
     let text = dis(&out);
-    assert!(
-        text.contains("OpMemoryModel PhysicalStorageBuffer64"),
-        "{text}"
-    );
+    assert!(text.contains("OpMemoryModel PhysicalStorageBuffer64"), "{text}");
     // the per-mesh array is gone; the single material buffer (not an array) is untouched
     assert!(!text.contains("\"meshVertices\""), "{text}");
     assert!(text.contains("\"materials\""), "{text}");
@@ -391,14 +331,7 @@ fn bad_input_is_refused_with_one_line_and_no_output() {
     let junk = d.path().join("junk.spv");
     std::fs::write(&junk, b"this is not spir-v at all!!").unwrap();
     assert_one_line_error(
-        &run(&[
-            "patch",
-            junk.to_str().unwrap(),
-            "-a",
-            "nonuniform",
-            "-o",
-            outs,
-        ]),
+        &run(&["patch", junk.to_str().unwrap(), "-a", "nonuniform", "-o", outs]),
         9,
         "not a SPIR-V module",
     );
@@ -409,14 +342,7 @@ fn bad_input_is_refused_with_one_line_and_no_output() {
     let trunc = d.path().join("trunc.spv");
     std::fs::write(&trunc, &bytes[..bytes.len() / 2 / 4 * 4]).unwrap();
     assert_one_line_error(
-        &run(&[
-            "patch",
-            trunc.to_str().unwrap(),
-            "-a",
-            "as-to-address",
-            "-o",
-            outs,
-        ]),
+        &run(&["patch", trunc.to_str().unwrap(), "-a", "as-to-address", "-o", outs]),
         9,
         "not a SPIR-V module",
     );
@@ -484,14 +410,7 @@ fn bad_input_is_refused_with_one_line_and_no_output() {
         "offset",
     );
     assert_one_line_error(
-        &run(&[
-            "patch",
-            good.to_str().unwrap(),
-            "-a",
-            "make-it-fast",
-            "-o",
-            outs,
-        ]),
+        &run(&["patch", good.to_str().unwrap(), "-a", "make-it-fast", "-o", outs]),
         2,
         "unknown patch",
     );
@@ -551,11 +470,7 @@ fn random_and_truncated_modules_never_panic() {
         ]);
         let err = stderr(&o);
         assert!(!err.contains("panicked"), "case {i}: {err}");
-        assert!(
-            matches!(o.status.code(), Some(0) | Some(9)),
-            "case {i}: {:?} {err}",
-            o.status
-        );
+        assert!(matches!(o.status.code(), Some(0) | Some(9)), "case {i}: {:?} {err}", o.status);
     }
 }
 
@@ -589,30 +504,19 @@ fn glsl_shader_tree_with_includes_and_defines_is_patched() {
     assert!(o.status.success(), "{}", stderr(&o));
     val(&out8);
     let text = dis(&out8);
-    assert!(
-        text.contains("OpCapability StorageBufferArrayNonUniformIndexing"),
-        "{text}"
-    );
-    assert!(
-        text.contains("OpCapability SampledImageArrayNonUniformIndexing"),
-        "{text}"
-    );
+    assert!(text.contains("OpCapability StorageBufferArrayNonUniformIndexing"), "{text}");
+    assert!(text.contains("OpCapability SampledImageArrayNonUniformIndexing"), "{text}");
     // The define reaches the included header: the material table is 8 long.
     assert!(
         text.lines().any(|l| l.contains("OpTypeArray"))
-            && text
-                .lines()
-                .any(|l| l.contains("OpConstant") && l.ends_with(" 8")),
+            && text.lines().any(|l| l.contains("OpConstant") && l.ends_with(" 8")),
         "{text}"
     );
     // A value-less define switches the local helper's branch: no texture read is left.
     let dbg = d.path().join("dbg.spv");
     let o = compile(&["-D", "MAX_MATERIALS=4", "-D", "DEBUG_UV"], &dbg);
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(
-        !dis(&dbg).contains("OpImageSampleExplicitLod"),
-        "DEBUG_UV not applied"
-    );
+    assert!(!dis(&dbg).contains("OpImageSampleExplicitLod"), "DEBUG_UV not applied");
     assert!(text.contains("OpImageSampleExplicitLod"));
     // Target environments: SPIR-V 1.5 for vulkan1.2 (default), 1.6 for vulkan1.3 and vulkan1.4.
     let version = |p: &Path| {
@@ -655,10 +559,7 @@ fn glsl_include_errors_are_one_line_naming_the_file_and_chain() {
     assert_one_line_error(&o, 9, "missing/constants.glsl");
     let err = stderr(&o);
     assert!(err.contains("helpers.glsl:3"), "{err}");
-    assert!(
-        err.contains("broken/main.rgen:5"),
-        "the chain names the root's include line: {err}"
-    );
+    assert!(err.contains("broken/main.rgen:5"), "the chain names the root's include line: {err}");
     // A compile error inside an included file: that file and line, then who included it.
     let o = patch(&tree.join("broken/typo.rgen"), "rgen", &[]);
     assert_one_line_error(&o, 9, "typo.glsl:3");
@@ -676,11 +577,7 @@ fn glsl_include_errors_are_one_line_naming_the_file_and_chain() {
     // An #error in a nested header (define forgotten) names the header and the chain.
     let o = patch(&chit, "rchit", &["-I", inc.to_str().unwrap()]);
     assert_one_line_error(&o, 9, "MAX_MATERIALS must be defined");
-    assert!(
-        stderr(&o).contains("render/bindings.glsl:"),
-        "{}",
-        stderr(&o)
-    );
+    assert!(stderr(&o).contains("render/bindings.glsl:"), "{}", stderr(&o));
     // An include cycle ends with one line instead of a hang.
     std::fs::write(d.path().join("cycle.comp"), "#version 460\n#extension GL_GOOGLE_include_directive : require\n#include \"a.glsl\"\nlayout(local_size_x = 1) in;\nvoid main() {}\n").unwrap();
     std::fs::write(d.path().join("a.glsl"), "#include \"b.glsl\"\n").unwrap();
@@ -688,11 +585,7 @@ fn glsl_include_errors_are_one_line_naming_the_file_and_chain() {
     let o = patch(&d.path().join("cycle.comp"), "comp", &[]);
     assert_one_line_error(&o, 9, "include cycle");
     // Bad flags are usage errors.
-    assert_one_line_error(
-        &patch(&chit, "rchit", &["-D", "1BAD=2"]),
-        2,
-        "GLSL identifier",
-    );
+    assert_one_line_error(&patch(&chit, "rchit", &["-D", "1BAD=2"]), 2, "GLSL identifier");
     assert_one_line_error(
         &patch(&chit, "rchit", &["-I", "/nonexistent/dir"]),
         2,

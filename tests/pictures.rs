@@ -19,11 +19,7 @@ fn decode(p: &Path) -> (usize, usize, Vec<[u8; 3]>) {
     let info = r.next_frame(&mut buf).unwrap();
     assert_eq!(info.color_type, png::ColorType::Rgb);
     buf.truncate(info.buffer_size());
-    (
-        info.width as usize,
-        info.height as usize,
-        buf.chunks(3).map(|c| [c[0], c[1], c[2]]).collect(),
-    )
+    (info.width as usize, info.height as usize, buf.chunks(3).map(|c| [c[0], c[1], c[2]]).collect())
 }
 
 fn run_cell(extra: &[&str], dir: &Path) -> (std::process::Output, Value) {
@@ -40,17 +36,10 @@ fn run_cell(extra: &[&str], dir: &Path) -> (std::process::Output, Value) {
 #[test]
 fn a_mismatch_leaves_pictures_that_agree_with_the_report() {
     let dir = tempfile::tempdir().unwrap();
-    let (o, r) = run_cell(
-        &["--inject-fault", "stage=closest_hit@value:0.1"],
-        dir.path(),
-    );
+    let (o, r) = run_cell(&["--inject-fault", "stage=closest_hit@value:0.1"], dir.path());
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
-    let c = r["cells"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|c| c["id"] == CELL)
-        .expect("cell in report");
+    let c =
+        r["cells"].as_array().unwrap().iter().find(|c| c["id"] == CELL).expect("cell in report");
     assert_eq!(c["outcome"], "mismatch");
     let cmp = &c["attempts"][0]["result"]["comparison"];
     let pics: Vec<&str> = cmp["pictures"]
@@ -67,20 +56,12 @@ fn a_mismatch_leaves_pictures_that_agree_with_the_report() {
         "{pics:?}"
     );
     // The terminal summary points to the diff.
-    assert!(
-        stdout(&o).contains(&format!("pictures: {}", pics[2])),
-        "{}",
-        stdout(&o)
-    );
+    assert!(stdout(&o).contains(&format!("pictures: {}", pics[2])), "{}", stdout(&o));
 
     let (w, h, diff) = decode(Path::new(pics[2]));
     assert_eq!(w * h, cmp["pixels"].as_u64().unwrap() as usize);
     let count = |rgb: [u8; 3]| diff.iter().filter(|p| **p == rgb).count();
-    let (red, grey, green) = (
-        count([255, 0, 0]),
-        count([128, 128, 128]),
-        count([0, 72, 0]),
-    );
+    let (red, grey, green) = (count([255, 0, 0]), count([128, 128, 128]), count([0, 72, 0]));
     assert_eq!(red, cmp["mismatched_pixels"].as_u64().unwrap() as usize);
     assert_eq!(grey, cmp["ambiguous"].as_u64().unwrap() as usize);
     assert_eq!(red + green, cmp["compared"].as_u64().unwrap() as usize);
@@ -99,24 +80,13 @@ fn a_mismatch_leaves_pictures_that_agree_with_the_report() {
             continue;
         }
         for panel in 0..3 {
-            assert_eq!(
-                at(&exp, panel, i),
-                at(&act, panel, i),
-                "panel {panel} pixel {i}"
-            );
+            assert_eq!(at(&exp, panel, i), at(&act, panel, i), "panel {panel} pixel {i}");
         }
         let differs = at(&exp, 3, i) != at(&act, 3, i);
-        assert_eq!(
-            differs,
-            diff[i] == [255, 0, 0],
-            "pixel {i}: value panel vs diff"
-        );
+        assert_eq!(differs, diff[i] == [255, 0, 0], "pixel {i}: value panel vs diff");
         value_differs += differs as usize;
     }
-    assert_eq!(
-        value_differs,
-        cmp["by_field"]["value"].as_u64().unwrap() as usize
-    );
+    assert_eq!(value_differs, cmp["by_field"]["value"].as_u64().unwrap() as usize);
 }
 
 #[test]
@@ -126,14 +96,7 @@ fn a_passing_cell_leaves_no_pictures() {
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let c = &r["cells"][0];
     assert_eq!(c["outcome"], "pass");
-    assert!(c["attempts"][0]["result"]["comparison"]
-        .get("pictures")
-        .is_none());
+    assert!(c["attempts"][0]["result"]["comparison"].get("pictures").is_none());
     assert!(!dir.path().join("dump").join(CELL).join("diff.png").exists());
-    assert!(dir
-        .path()
-        .join("dump")
-        .join(CELL)
-        .join("closest_hit_triangles.rchit.glsl")
-        .exists());
+    assert!(dir.path().join("dump").join(CELL).join("closest_hit_triangles.rchit.glsl").exists());
 }

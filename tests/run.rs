@@ -30,32 +30,21 @@ fn default_matrix_passes_on_lavapipe_and_canaries_are_classified() {
         "--junit",
         junit.to_str().unwrap(),
     ]);
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "stdout: {}\nstderr: {}",
-        stdout(&o),
-        stderr(&o)
-    );
+    assert_eq!(o.status.code(), Some(0), "stdout: {}\nstderr: {}", stdout(&o), stderr(&o));
     let r = report(&out);
     assert_eq!(r["schema"], "rtprobe.report/1");
     assert_eq!(r["complete"], true);
     let cs = cells(&r);
     assert_eq!(cs.len() as u64, r["plan"]["planned"].as_u64().unwrap());
-    assert!(
-        r["plan"]["to_run"].as_u64().unwrap() >= 400,
-        "{}",
-        r["plan"]
-    );
+    assert!(r["plan"]["to_run"].as_u64().unwrap() >= 400, "{}", r["plan"]);
     let mut passed = 0;
     for c in cs {
         let id = c["id"].as_str().unwrap();
         match c["outcome"].as_str().unwrap() {
             "pass" => passed += 1,
-            "unsupported" => assert!(
-                c["reason"].as_str().is_some_and(|s| !s.is_empty()),
-                "{id} has no reason"
-            ),
+            "unsupported" => {
+                assert!(c["reason"].as_str().is_some_and(|s| !s.is_empty()), "{id} has no reason")
+            }
             other if id.starts_with("canary.") => {
                 assert_eq!(c["canary_check"]["detected"], true, "{id}: {other}")
             }
@@ -72,25 +61,16 @@ fn default_matrix_passes_on_lavapipe_and_canaries_are_classified() {
     assert!(passed >= 400, "passed {passed}");
     // Canaries: an invalid read crashes the lavapipe worker, an endless loop times out.
     let canary = |id: &str| {
-        cs.iter().find(|c| c["id"] == id).unwrap()["outcome"]
-            .as_str()
-            .unwrap()
-            .to_string()
+        cs.iter().find(|c| c["id"] == id).unwrap()["outcome"].as_str().unwrap().to_string()
     };
     assert_eq!(canary("canary.invalid_address"), "crash");
     assert_eq!(canary("canary.infinite_loop"), "timeout");
     // Every descriptor_heap cell is unsupported, with the reason from the device.
-    let heap: Vec<_> = cs
-        .iter()
-        .filter(|c| c["descriptor_model"] == "descriptor_heap")
-        .collect();
+    let heap: Vec<_> = cs.iter().filter(|c| c["descriptor_model"] == "descriptor_heap").collect();
     assert!(!heap.is_empty());
     for c in heap {
         assert_eq!(c["outcome"], "unsupported");
-        assert!(c["reason"]
-            .as_str()
-            .unwrap()
-            .contains("VK_EXT_descriptor_heap"));
+        assert!(c["reason"].as_str().unwrap().contains("VK_EXT_descriptor_heap"));
     }
     // Every stage, resource and index source actually ran somewhere.
     for (axis, values) in [
@@ -117,16 +97,7 @@ fn default_matrix_passes_on_lavapipe_and_canaries_are_classified() {
                 "acceleration_structure",
             ],
         ),
-        (
-            "index",
-            vec![
-                "literal",
-                "spec_constant",
-                "push_constant",
-                "dynamic",
-                "dynamic_element",
-            ],
-        ),
+        ("index", vec!["literal", "spec_constant", "push_constant", "dynamic", "dynamic_element"]),
     ] {
         for v in values {
             assert!(
@@ -165,19 +136,10 @@ fn injected_wrong_values_are_reported_as_confirmed_mismatches() {
         "-o",
         out.to_str().unwrap(),
     ]);
-    assert_eq!(
-        o.status.code(),
-        Some(1),
-        "findings exit 1; stderr {}",
-        stderr(&o)
-    );
+    assert_eq!(o.status.code(), Some(1), "findings exit 1; stderr {}", stderr(&o));
     let r = report(&out);
     let cs = cells(&r);
-    assert_eq!(
-        cs.len(),
-        12,
-        "2 stages x 5 index variants, and dynamic_element"
-    );
+    assert_eq!(cs.len(), 12, "2 stages x 5 index variants, and dynamic_element");
     for c in cs {
         assert_eq!(c["outcome"], "mismatch", "{}", c["id"]);
         assert_eq!(c["confirmed"], true, "re-run alone gives the same outcome");
@@ -214,11 +176,7 @@ fn reports_carry_discrimination_and_the_reads_of_cells_without_nonuniform() {
         if no_nonuniform {
             undefined += 1;
             let reads = &cmp["element_reads"];
-            assert_eq!(
-                reads["outside_spec"], "VUID-RuntimeSpirv-NonUniform-06274",
-                "{}",
-                c["id"]
-            );
+            assert_eq!(reads["outside_spec"], "VUID-RuntimeSpirv-NonUniform-06274", "{}", c["id"]);
             assert_eq!(
                 c["outside_spec"], "VUID-RuntimeSpirv-NonUniform-06274",
                 "the cell is labelled: {}",
@@ -233,18 +191,13 @@ fn reports_carry_discrimination_and_the_reads_of_cells_without_nonuniform() {
             assert!(cmp["discrimination"].is_null());
         } else {
             exact += 1;
-            let d = cmp["discrimination"]
-                .as_f64()
-                .unwrap_or_else(|| panic!("{}: {cmp}", c["id"]));
+            let d = cmp["discrimination"].as_f64().unwrap_or_else(|| panic!("{}: {cmp}", c["id"]));
             assert!(d >= 0.5, "{}: discrimination {d}", c["id"]);
             assert!(cmp.get("element_reads").is_none());
             assert!(c.get("outside_spec").is_none(), "{}", c["id"]);
         }
     }
-    assert!(
-        exact >= 20 && undefined >= 4,
-        "{exact} exact, {undefined} without nonuniform"
-    );
+    assert!(exact >= 20 && undefined >= 4, "{exact} exact, {undefined} without nonuniform");
     assert!(
         stdout(&o).contains(&format!("outside the spec's guarantees: {undefined} cells")),
         "{}",
@@ -258,14 +211,8 @@ fn list_says_what_is_planned_skipped_and_not_generated() {
     assert!(o.status.success(), "{}", stderr(&o));
     let out = stdout(&o);
     let to_run = out.lines().filter(|l| l.starts_with("run ")).count();
-    let unsupported = out
-        .lines()
-        .filter(|l| l.starts_with("unsupported "))
-        .count();
-    let not_implemented = out
-        .lines()
-        .filter(|l| l.starts_with("not_implemented "))
-        .count();
+    let unsupported = out.lines().filter(|l| l.starts_with("unsupported ")).count();
+    let not_implemented = out.lines().filter(|l| l.starts_with("not_implemented ")).count();
     assert!(to_run > 0 && unsupported > 0);
     assert!(
         out.contains(&format!(
@@ -333,10 +280,7 @@ fn killed_supervisor_loses_no_finished_cell_and_resume_completes() {
                 }
             }
         }
-        assert!(
-            start.elapsed() < Duration::from_secs(120),
-            "run made no progress"
-        );
+        assert!(start.elapsed() < Duration::from_secs(120), "run made no progress");
         std::thread::sleep(Duration::from_millis(5));
     };
     child.kill().unwrap();
@@ -383,13 +327,8 @@ fn process_per_cell_starts_a_worker_per_cell() {
     ]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let r = report(&out);
-    assert_eq!(
-        r["timing"]["workers_started"].as_u64().unwrap() as usize,
-        cells(&r).len()
-    );
-    assert!(cells(&r)
-        .iter()
-        .all(|c| c["attempts"][0]["isolated"] == true));
+    assert_eq!(r["timing"]["workers_started"].as_u64().unwrap() as usize, cells(&r).len());
+    assert!(cells(&r).iter().all(|c| c["attempts"][0]["isolated"] == true));
 }
 
 #[test]
@@ -419,12 +358,7 @@ fn dump_writes_glsl_and_valid_spirv() {
                 .arg(&p)
                 .output()
                 .expect("spirv-val (apt-get install spirv-tools)");
-            assert!(
-                v.status.success(),
-                "{}: {}",
-                p.display(),
-                String::from_utf8_lossy(&v.stderr)
-            );
+            assert!(v.status.success(), "{}: {}", p.display(), String::from_utf8_lossy(&v.stderr));
             checked += 1;
         }
     }
@@ -442,12 +376,7 @@ fn patched_variants_render_like_the_originals() {
     assert_eq!(o.status.code(), Some(0), "{}\n{}", stdout(&o), stderr(&o));
     let r = report(&out);
     let cs = cells(&r);
-    for patch in [
-        "nonuniform",
-        "pin-index",
-        "as-to-address",
-        "ssbo-to-address",
-    ] {
+    for patch in ["nonuniform", "pin-index", "as-to-address", "ssbo-to-address"] {
         let n = cs.iter().filter(|c| c["patch"] == patch).count();
         assert!(n > 0, "no cell with patch {patch}");
     }
@@ -456,14 +385,10 @@ fn patched_variants_render_like_the_originals() {
     for c in cs.iter().filter(|c| c["outcome"] != "unsupported") {
         assert_eq!(c["outcome"], "pass", "{}: {}", c["id"], c["reason"]);
     }
-    let patched_as = cs
-        .iter()
-        .filter(|c| c["as_access"] == "address_patched" && c["outcome"] == "pass")
-        .count();
-    let address = cs
-        .iter()
-        .filter(|c| c["as_access"] == "address" && c["outcome"] == "pass")
-        .count();
+    let patched_as =
+        cs.iter().filter(|c| c["as_access"] == "address_patched" && c["outcome"] == "pass").count();
+    let address =
+        cs.iter().filter(|c| c["as_access"] == "address" && c["outcome"] == "pass").count();
     assert!(patched_as > 0 && address > 0);
 }
 
@@ -489,10 +414,7 @@ fn findings_say_whether_the_recommended_pattern_works() {
     ]);
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     let r = report(&out);
-    for (resource, pattern) in [
-        ("storage_buffer", "geometry"),
-        ("sampled_image", "materials"),
-    ] {
+    for (resource, pattern) in [("storage_buffer", "geometry"), ("sampled_image", "materials")] {
         let base = cells(&r)
             .iter()
             .find(|c| {
@@ -503,11 +425,7 @@ fn findings_say_whether_the_recommended_pattern_works() {
         let p = &base["recommended"];
         let id = format!("closest_hit.{resource}.dynamic_element.descriptor_indexing");
         assert_eq!(
-            (
-                p["pattern"].as_str(),
-                p["cell"].as_str(),
-                p["status"].as_str()
-            ),
+            (p["pattern"].as_str(), p["cell"].as_str(), p["status"].as_str()),
             (Some(pattern), Some(id.as_str()), Some("passes")),
             "{p}"
         );
@@ -545,10 +463,7 @@ fn findings_say_whether_the_recommended_pattern_works() {
         .find(|c| c["id"] == "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_indexing")
         .unwrap();
     assert_eq!(
-        (
-            base["recommended"]["status"].as_str(),
-            base["recommended"]["outcome"].as_str()
-        ),
+        (base["recommended"]["status"].as_str(), base["recommended"]["outcome"].as_str()),
         (Some("fails"), Some("mismatch")),
         "{}",
         base["recommended"]
@@ -601,10 +516,7 @@ fn gpu_av_reruns_each_finding_and_says_whether_it_masks_it() {
         );
         assert_eq!(
             v["control"],
-            serde_json::json!([
-                "closest_hit.storage_buffer.literal.descriptor_indexing",
-                "pass"
-            ]),
+            serde_json::json!(["closest_hit.storage_buffer.literal.descriptor_indexing", "pass"]),
             "{v}"
         );
         assert!(stdout(&o).contains("GPU-AV: still faults (mismatch, 1 of 1 attempts under GPU-AV; its control closest_hit.storage_buffer.literal.descriptor_indexing is pass under GPU-AV"), "{}", stdout(&o));
@@ -624,11 +536,7 @@ fn gpu_av_reruns_each_finding_and_says_whether_it_masks_it() {
     // Not a validation mode: one line, usage exit.
     let o = run(&["run", "--validate=sometimes", "--list"]);
     assert_ne!(o.status.code(), Some(0));
-    assert!(
-        stderr(&o).contains("not a validation mode"),
-        "{}",
-        stderr(&o)
-    );
+    assert!(stderr(&o).contains("not a validation mode"), "{}", stderr(&o));
 }
 
 /// Under `--validate` a cell's validation errors are counted around its own work, so no pipeline
@@ -664,11 +572,7 @@ fn validate_runs_with_one_thread() {
     assert!(err.contains("--validate runs with --threads 1"), "{err}");
     let (r, _) = go(&["--validate=off"], "plain.json");
     assert_eq!(r["options"]["threads"], 4, "{}", r["options"]);
-    assert!(
-        r["timing"]["prebuilt_pipelines"].as_u64().unwrap() > 0,
-        "{}",
-        r["timing"]
-    );
+    assert!(r["timing"]["prebuilt_pipelines"].as_u64().unwrap() > 0, "{}", r["timing"]);
 }
 
 /// Re-runs start from a cold pipeline cache: the first pass loads the persisted file, the
@@ -703,11 +607,7 @@ fn confirmations_run_without_the_persisted_pipeline_cache() {
     go(); // writes the cache file
     let r = go();
     let c = &cells(&r)[0];
-    assert_eq!(
-        c["attempts"].as_array().unwrap().len(),
-        2,
-        "the finding was confirmed: {c}"
-    );
+    assert_eq!(c["attempts"].as_array().unwrap().len(), 2, "the finding was confirmed: {c}");
     assert_eq!(r["timing"]["workers_started"], 2, "{}", r["timing"]);
     assert_eq!(
         r["pipeline_cache"]["workers_loaded"], 1,
@@ -715,11 +615,7 @@ fn confirmations_run_without_the_persisted_pipeline_cache() {
         r["pipeline_cache"]
     );
     assert_eq!(r["options"]["pipeline_cache"], cache.to_str().unwrap());
-    assert!(
-        r["options"]["rerun_pipeline_cache"].is_null(),
-        "{}",
-        r["options"]
-    );
+    assert!(r["options"]["rerun_pipeline_cache"].is_null(), "{}", r["options"]);
 }
 
 #[test]
@@ -752,11 +648,7 @@ fn faulting_cells_are_retried_with_each_applicable_workaround() {
         .map(|w| w["patch"].as_str().unwrap())
         .collect();
     assert_eq!(tried, vec!["nonuniform", "pin-index", "ssbo-to-address"]);
-    assert!(base["workarounds"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .all(|w| w["verified"] == false));
+    assert!(base["workarounds"].as_array().unwrap().iter().all(|w| w["verified"] == false));
     assert!(stdout(&o).contains("no verified workaround (nonuniform → mismatch, pin-index → mismatch, ssbo-to-address → mismatch)"), "{}", stdout(&o));
     // A fault only the unpatched shape has, seen once: each workaround passes once, which a fault
     // as frequent as one seen once would miss with p = 0.95, so none is called verified.
@@ -836,10 +728,7 @@ fn faulting_cells_are_retried_with_each_applicable_workaround() {
     for w in base["workarounds"].as_array().unwrap() {
         let n = w["attempts"].as_u64().unwrap() as u32;
         let m = rtprobe::model::stats::pass_miss(inc("faulted"), inc("attempts"), n);
-        assert!(
-            n > 0 && (w["miss_probability"].as_f64().unwrap() - m).abs() < 1e-9,
-            "{w}"
-        );
+        assert!(n > 0 && (w["miss_probability"].as_f64().unwrap() - m).abs() < 1e-9, "{w}");
         assert!(stdout(&o).contains(&format!("{} → passes ({n}/{n}; a fault as frequent as this finding's would be missed with p ≤ {m:.2})", w["patch"].as_str().unwrap())), "{}", stdout(&o));
     }
 }
@@ -873,33 +762,18 @@ fn threads_change_no_verdict() {
                         .as_array()
                         .unwrap()
                         .iter()
-                        .map(|a| {
-                            (
-                                a["outcome"].clone(),
-                                a["phase"].clone(),
-                                a["detail"].clone(),
-                            )
-                        })
+                        .map(|a| (a["outcome"].clone(), a["phase"].clone(), a["detail"].clone()))
                         .collect(),
                 )
             })
             .collect();
         assert!(
-            verdicts
-                .iter()
-                .any(|(_, a)| a[0].0 == "error" && a[0].1 == "pipeline"),
+            verdicts.iter().any(|(_, a)| a[0].0 == "error" && a[0].1 == "pipeline"),
             "{verdicts:?}"
         );
-        assert!(
-            verdicts.iter().any(|(_, a)| a[0].0 == "crash"),
-            "{verdicts:?}"
-        );
+        assert!(verdicts.iter().any(|(_, a)| a[0].0 == "crash"), "{verdicts:?}");
         if t == "2" {
-            assert!(
-                r["timing"]["prebuilt_pipelines"].as_u64().unwrap() > 0,
-                "{}",
-                r["timing"]
-            );
+            assert!(r["timing"]["prebuilt_pipelines"].as_u64().unwrap() > 0, "{}", r["timing"]);
         }
         seen.push(verdicts);
     }
@@ -937,9 +811,7 @@ fn a_corrupt_pipeline_cache_is_ignored_and_replaced() {
         ]);
         assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
         let r = report(&out);
-        assert!(cells(&r)
-            .iter()
-            .all(|c| c["outcome"] == "pass" || c["outcome"] == "unsupported"));
+        assert!(cells(&r).iter().all(|c| c["outcome"] == "pass" || c["outcome"] == "unsupported"));
         r
     };
     let r = go();
@@ -951,23 +823,12 @@ fn a_corrupt_pipeline_cache_is_ignored_and_replaced() {
         "not a VkPipelineCacheHeaderVersionOne: {good:?}"
     );
     let r = go();
-    assert_eq!(
-        r["pipeline_cache"]["workers_loaded"], 1,
-        "{}",
-        r["pipeline_cache"]
-    );
-    assert!(
-        r["pipeline_cache"]["ignored"].is_null(),
-        "{}",
-        r["pipeline_cache"]
-    );
+    assert_eq!(r["pipeline_cache"]["workers_loaded"], 1, "{}", r["pipeline_cache"]);
+    assert!(r["pipeline_cache"]["ignored"].is_null(), "{}", r["pipeline_cache"]);
     let mut foreign = good.clone();
     foreign[16] ^= 0xff; // another pipelineCacheUUID
     for (what, bytes) in [
-        (
-            "garbage",
-            b"this is not a pipeline cache, not at all".to_vec(),
-        ),
+        ("garbage", b"this is not a pipeline cache, not at all".to_vec()),
         ("truncated", good[..20].to_vec()),
         ("foreign", foreign),
     ] {
@@ -975,33 +836,15 @@ fn a_corrupt_pipeline_cache_is_ignored_and_replaced() {
         let r = go();
         let pc = &r["pipeline_cache"];
         assert_eq!(pc["workers_loaded"], 0, "{what}: {pc}");
-        assert!(
-            pc["ignored"].as_array().is_some_and(|a| !a.is_empty()),
-            "{what}: {pc}"
-        );
+        assert!(pc["ignored"].as_array().is_some_and(|a| !a.is_empty()), "{what}: {pc}");
         let now = std::fs::read(cache_file(&cache)).unwrap();
-        assert_eq!(
-            now[..32],
-            good[..32],
-            "{what}: the file was not replaced by a valid cache"
-        );
+        assert_eq!(now[..32], good[..32], "{what}: the file was not replaced by a valid cache");
     }
     // Off: nothing recorded, nothing written.
     let off = dir.path().join("off.json");
     let o = run_env(
-        &[
-            "run",
-            "--filter",
-            one,
-            "--pipeline-cache",
-            "off",
-            "-o",
-            off.to_str().unwrap(),
-        ],
-        &[(
-            "RTPROBE_CACHE_DIR",
-            dir.path().join("unused").to_str().unwrap(),
-        )],
+        &["run", "--filter", one, "--pipeline-cache", "off", "-o", off.to_str().unwrap()],
+        &[("RTPROBE_CACHE_DIR", dir.path().join("unused").to_str().unwrap())],
     );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     assert!(report(&off)["pipeline_cache"].is_null());

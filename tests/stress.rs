@@ -25,15 +25,11 @@ fn case<'a>(doc: &'a serde_json::Value, name: &str) -> &'a serde_json::Value {
 }
 
 fn n(c: &serde_json::Value, field: &str) -> u64 {
-    c[field]
-        .as_u64()
-        .unwrap_or_else(|| panic!("{field} missing in {c}"))
+    c[field].as_u64().unwrap_or_else(|| panic!("{field} missing in {c}"))
 }
 
 fn f(c: &serde_json::Value, field: &str) -> f64 {
-    c[field]
-        .as_f64()
-        .unwrap_or_else(|| panic!("{field} missing in {c}"))
+    c[field].as_f64().unwrap_or_else(|| panic!("{field} missing in {c}"))
 }
 
 #[test]
@@ -44,24 +40,9 @@ fn stress_report_has_every_case_with_the_contract_fields() {
     assert_eq!(doc["schema"], "rtprobe.stress/1");
     // The stress pipeline itself is valid usage (when the layer is installed, tests enable it).
     assert_eq!(doc["validation"]["errors"], 0, "{}", stderr(&out));
-    let names: Vec<&str> = doc["cases"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|c| c["name"].as_str().unwrap())
-        .collect();
-    assert_eq!(
-        names,
-        [
-            "watertight",
-            "far",
-            "grazing",
-            "degenerate",
-            "tmin",
-            "transform",
-            "self"
-        ]
-    );
+    let names: Vec<&str> =
+        doc["cases"].as_array().unwrap().iter().map(|c| c["name"].as_str().unwrap()).collect();
+    assert_eq!(names, ["watertight", "far", "grazing", "degenerate", "tmin", "transform", "self"]);
     for c in doc["cases"].as_array().unwrap() {
         for field in [
             "name",
@@ -78,17 +59,8 @@ fn stress_report_has_every_case_with_the_contract_fields() {
         }
     }
     // A failing case makes the exit status 1, and the table says which.
-    let failed = doc["cases"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .any(|c| c["verdict"] == "fail");
-    assert_eq!(
-        out.status.code(),
-        Some(if failed { 1 } else { 0 }),
-        "{}",
-        stdout(&out)
-    );
+    let failed = doc["cases"].as_array().unwrap().iter().any(|c| c["verdict"] == "fail");
+    assert_eq!(out.status.code(), Some(if failed { 1 } else { 0 }), "{}", stdout(&out));
     assert!(stdout(&out).contains("watertight —"));
     let svg = std::fs::read_to_string(&svg_path).unwrap();
     assert!(
@@ -102,10 +74,8 @@ fn stress_report_has_every_case_with_the_contract_fields() {
 /// hits, a zero-area hit) the deviation must be the one documented in docs/stress.md.
 #[test]
 fn lavapipe_figures_stay_within_the_rules() {
-    let (_out, doc, _dir) = stress(&[
-        "--cases",
-        "watertight,far,grazing,degenerate,tmin,transform",
-    ]);
+    let (_out, doc, _dir) =
+        stress(&["--cases", "watertight,far,grazing,degenerate,tmin,transform"]);
     for c in doc["cases"].as_array().unwrap() {
         // Every compared hit within the tolerance; no hit on a primitive the ray misses; any-hit
         // never sees one primitive twice (NO_DUPLICATE_ANY_HIT_INVOCATION).
@@ -116,12 +86,7 @@ fn lavapipe_figures_stay_within_the_rules() {
         // Every leak has a subnormal ray component (flush to zero near a fan's centre vertex).
         assert_eq!(n(c, "leaks"), n(c, "leaks_subnormal"), "{}", c["name"]);
         // Every double hit is near a shared edge (what f32 rounding can explain).
-        assert_eq!(
-            n(c, "double_hits"),
-            n(c, "double_hits_near_edge"),
-            "{}",
-            c["name"]
-        );
+        assert_eq!(n(c, "double_hits"), n(c, "double_hits_near_edge"), "{}", c["name"]);
     }
     let w = case(&doc, "watertight");
     assert!(n(w, "rays") > 10_000 && n(w, "hits") > 10_000);
@@ -134,10 +99,7 @@ fn lavapipe_figures_stay_within_the_rules() {
     for name in ["grazing", "tmin", "transform"] {
         let c = case(&doc, name);
         assert_eq!(c["verdict"], "pass", "{c}");
-        assert!(
-            f(c, "t_rel_err_max") < 1e-3 && f(c, "bary_err_max") < 1e-3,
-            "{c}"
-        );
+        assert!(f(c, "t_rel_err_max") < 1e-3 && f(c, "bary_err_max") < 1e-3, "{c}");
     }
     // far: one point per distance and mode. Hit/miss always agrees; t stays within 1e-3
     // relative; double hits, and barycentric errors over 1e-3, only for rays from the origin to
@@ -171,12 +133,7 @@ fn lavapipe_figures_stay_within_the_rules() {
     // degenerate: NaN-X and coincident vertices never hit; the one false hit lavapipe shows is the
     // collinear triangle (primitive 1), written up in docs/stress.md.
     let d = case(&doc, "degenerate");
-    for e in d["examples"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter(|e| e["kind"] == "false_hit")
-    {
+    for e in d["examples"].as_array().unwrap().iter().filter(|e| e["kind"] == "false_hit") {
         assert_eq!(e["hit"][0], 1, "{e}");
     }
 }
@@ -189,13 +146,7 @@ fn self_hits_are_counted_and_the_offset_removes_them() {
     let c = case(&doc, "self");
     assert_eq!(n(c, "disagreements"), 0, "{c}");
     let part = |label: &str| {
-        c["parts"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|p| p["label"] == label)
-            .unwrap()
-            .clone()
+        c["parts"].as_array().unwrap().iter().find(|p| p["label"] == label).unwrap().clone()
     };
     let (raw, off) = (part("secondary-raw"), part("secondary-offset"));
     assert!(n(&raw, "self_hits") > 100, "{raw}");
@@ -211,14 +162,8 @@ fn a_hang_is_a_timeout_and_later_cases_say_why_they_did_not_run() {
     assert_eq!(case(&doc, "tmin")["verdict"], "timeout");
     let far = case(&doc, "far");
     assert_eq!(far["verdict"], "error");
-    assert!(
-        far["detail"].as_str().unwrap().contains("not traced"),
-        "{far}"
-    );
-    assert!(
-        n(far, "rays") > 0,
-        "the rays that could not run are counted"
-    );
+    assert!(far["detail"].as_str().unwrap().contains("not traced"), "{far}");
+    assert!(n(far, "rays") > 0, "the rays that could not run are counted");
 }
 
 /// Ray queries in a compute shader trace the same rays: on lavapipe (one intersection routine)
@@ -260,12 +205,7 @@ fn stress_bad_input_is_one_line() {
     let bad = dir.path().join("a-file").join("x.json");
     let o = run(&["stress", "--cases", "tmin", "--json", bad.to_str().unwrap()]);
     assert_one_line_error(&o, 9, "writing the stress report");
-    let o = run(&[
-        "stress",
-        "--cases",
-        "tmin",
-        "--svg",
-        dir.path().join("f.svg").to_str().unwrap(),
-    ]);
+    let o =
+        run(&["stress", "--cases", "tmin", "--svg", dir.path().join("f.svg").to_str().unwrap()]);
     assert_one_line_error(&o, 9, "--svg needs the far case");
 }

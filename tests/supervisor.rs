@@ -42,17 +42,8 @@ fn run_bounded(args: &[&str], fault: Option<&str>, limit: Duration) -> (Output, 
         c.env("RTPROBE_WORKER_FAULT", f);
     }
     // `-vv` logs can be huge when the supervisor fails to stop a flooding worker: not kept.
-    let err = if args.contains(&"-vv") {
-        Stdio::null()
-    } else {
-        Stdio::piped()
-    };
-    let child = c
-        .args(args)
-        .stdout(Stdio::piped())
-        .stderr(err)
-        .spawn()
-        .expect("spawn rtprobe");
+    let err = if args.contains(&"-vv") { Stdio::null() } else { Stdio::piped() };
+    let child = c.args(args).stdout(Stdio::piped()).stderr(err).spawn().expect("spawn rtprobe");
     let pid = child.id() as i32;
     let (tx, rx) = std::sync::mpsc::channel();
     let t = Instant::now();
@@ -116,10 +107,7 @@ fn device_loss_in_setup_is_the_setups_outcome_and_no_cell_runs() {
         assert_eq!(w["phase"], "setup");
         assert_eq!(w["outcome"], "device_lost");
         assert!(
-            w["detail"]
-                .as_str()
-                .unwrap()
-                .contains("acceleration structures and resources"),
+            w["detail"].as_str().unwrap().contains("acceleration structures and resources"),
             "{w}"
         );
     }
@@ -129,22 +117,15 @@ fn device_loss_in_setup_is_the_setups_outcome_and_no_cell_runs() {
         // Every cell is recorded, none blamed: not run, with the setup's outcome.
         assert_eq!(c["outcome"], "device_lost", "{c}");
         assert_eq!(c["attempts"][0]["phase"], "setup");
-        assert!(
-            c["attempts"][0]["result"].is_null(),
-            "a cell ran on a lost device: {c}"
-        );
+        assert!(c["attempts"][0]["result"].is_null(), "a cell ran on a lost device: {c}");
         assert!(c["reason"].as_str().unwrap().starts_with("not run:"), "{c}");
     }
 }
 
 #[test]
 fn hung_device_creation_makes_the_cells_timeout_in_setup() {
-    let (o, r, took) = fault_run(
-        "setup:hang",
-        TWO,
-        &["--setup-timeout", "2"],
-        Duration::from_secs(120),
-    );
+    let (o, r, took) =
+        fault_run("setup:hang", TWO, &["--setup-timeout", "2"], Duration::from_secs(120));
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(took < Duration::from_secs(60), "took {took:?}");
     let ws = workers(&r);
@@ -155,10 +136,7 @@ fn hung_device_creation_makes_the_cells_timeout_in_setup() {
             (Some("setup"), Some("timeout")),
             "{w}"
         );
-        assert!(
-            w["detail"].as_str().unwrap().contains("vkCreateDevice"),
-            "{w}"
-        );
+        assert!(w["detail"].as_str().unwrap().contains("vkCreateDevice"), "{w}");
     }
     for c in cells(&r) {
         assert_eq!(c["outcome"], "timeout", "{c}");
@@ -168,12 +146,7 @@ fn hung_device_creation_makes_the_cells_timeout_in_setup() {
 
 #[test]
 fn a_hang_in_pipeline_creation_is_a_timeout_in_pipeline() {
-    let (o, r, _) = fault_run(
-        "pipeline:hang",
-        ONE,
-        &["--timeout", "3"],
-        Duration::from_secs(120),
-    );
+    let (o, r, _) = fault_run("pipeline:hang", ONE, &["--timeout", "3"], Duration::from_secs(120));
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     let cs = cells(&r);
     assert_eq!(cs.len(), 1);
@@ -192,13 +165,8 @@ fn a_worker_that_keeps_printing_still_times_out() {
     // With debug logs on (`-vv`, as when someone investigates a hang) the supervisor handles each
     // line slower than the worker prints them: its queue never runs dry, and the deadline must
     // still fire.
-    let (o, r, took) = fault_run_with(
-        &["-vv"],
-        "trace:spam",
-        ONE,
-        &["--timeout", "3"],
-        Duration::from_secs(60),
-    );
+    let (o, r, took) =
+        fault_run_with(&["-vv"], "trace:spam", ONE, &["--timeout", "3"], Duration::from_secs(60));
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(took < Duration::from_secs(60), "took {took:?}");
     let cs = cells(&r);
@@ -217,63 +185,35 @@ fn a_crash_between_cells_is_recorded_and_the_rest_still_run() {
         assert_eq!(c["outcome"], "pass", "{c}");
         assert_eq!(c["attempts"].as_array().unwrap().len(), 1);
     }
-    let crashes: Vec<_> = workers(&r)
-        .into_iter()
-        .filter(|w| w["outcome"] == "crash")
-        .collect();
+    let crashes: Vec<_> = workers(&r).into_iter().filter(|w| w["outcome"] == "crash").collect();
     assert_eq!(crashes.len(), 1, "{:?}", workers(&r));
     assert_eq!(crashes[0]["phase"], "between_cells");
     assert_eq!(crashes[0]["worker_exit"]["signal"], 11);
     // The replacement worker ran the second cell.
-    assert_ne!(
-        cs[0]["attempts"][0]["worker"],
-        cs[1]["attempts"][0]["worker"]
-    );
-    assert!(
-        stdout(&o).contains("worker faults outside cells (1)"),
-        "{}",
-        stdout(&o)
-    );
+    assert_ne!(cs[0]["attempts"][0]["worker"], cs[1]["attempts"][0]["worker"]);
+    assert!(stdout(&o).contains("worker faults outside cells (1)"), "{}", stdout(&o));
 }
 
 #[test]
 fn a_hang_between_cells_is_the_workers_and_the_next_cell_still_runs() {
-    let (o, r, took) = fault_run(
-        "between_cells:hang",
-        TWO,
-        &["--timeout", "3"],
-        Duration::from_secs(120),
-    );
+    let (o, r, took) =
+        fault_run("between_cells:hang", TWO, &["--timeout", "3"], Duration::from_secs(120));
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(took < Duration::from_secs(60), "took {took:?}");
-    assert!(
-        cells(&r).iter().all(|c| c["outcome"] == "pass"),
-        "{:?}",
-        cells(&r)
-    );
-    let hung: Vec<_> = workers(&r)
-        .into_iter()
-        .filter(|w| w["outcome"] == "timeout")
-        .collect();
+    assert!(cells(&r).iter().all(|c| c["outcome"] == "pass"), "{:?}", cells(&r));
+    let hung: Vec<_> = workers(&r).into_iter().filter(|w| w["outcome"] == "timeout").collect();
     assert_eq!(hung.len(), 1, "{:?}", workers(&r));
     assert_eq!(hung[0]["phase"], "between_cells");
 }
 
 #[test]
 fn a_hang_in_teardown_is_bounded_and_reported() {
-    let (o, r, took) = fault_run(
-        "teardown:hang",
-        ONE,
-        &["--timeout", "3"],
-        Duration::from_secs(120),
-    );
+    let (o, r, took) =
+        fault_run("teardown:hang", ONE, &["--timeout", "3"], Duration::from_secs(120));
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(took < Duration::from_secs(60), "took {took:?}");
     assert_eq!(cells(&r)[0]["outcome"], "pass");
-    let hung: Vec<_> = workers(&r)
-        .into_iter()
-        .filter(|w| w["phase"] == "teardown")
-        .collect();
+    let hung: Vec<_> = workers(&r).into_iter().filter(|w| w["phase"] == "teardown").collect();
     assert_eq!(hung.len(), 1, "{:?}", workers(&r));
     assert_eq!(hung[0]["outcome"], "timeout");
 }
@@ -316,22 +256,15 @@ fn every_attempt_records_the_features_its_worker_enabled() {
     );
     // A compute cell alone needs no ray tracing pipeline: its worker did not enable one.
     let compute = features("compute");
+    assert!(compute.iter().any(|f| f == "bufferDeviceAddress"), "{compute:?}");
     assert!(
-        compute.iter().any(|f| f == "bufferDeviceAddress"),
-        "{compute:?}"
-    );
-    assert!(
-        !compute
-            .iter()
-            .any(|f| f == "VK_KHR_ray_tracing_pipeline" || f == "rayTracingPipeline"),
+        !compute.iter().any(|f| f == "VK_KHR_ray_tracing_pipeline" || f == "rayTracingPipeline"),
         "{compute:?}"
     );
     // And the workers' setup records say the same.
     let ws = workers(&r);
     assert_eq!(ws.len(), 2);
-    assert!(ws
-        .iter()
-        .all(|w| w["phase"] == "setup" && w["outcome"] == "pass"));
+    assert!(ws.iter().all(|w| w["phase"] == "setup" && w["outcome"] == "pass"));
 }
 
 // ---- no orphans ----------------------------------------------------------------------------
@@ -401,19 +334,13 @@ fn interrupt_mid_run(
             .ok()
             .and_then(|b| serde_json::from_slice::<Value>(&b).ok())
             .map(|r| {
-                cells(&r)
-                    .iter()
-                    .filter(|c| !c["attempts"].as_array().unwrap().is_empty())
-                    .count()
+                cells(&r).iter().filter(|c| !c["attempts"].as_array().unwrap().is_empty()).count()
             })
             .unwrap_or(0);
         if (done >= 1 || fault.is_some()) && !live_workers(&job_dir).is_empty() {
             break;
         }
-        assert!(
-            start.elapsed() < Duration::from_secs(120),
-            "run made no progress"
-        );
+        assert!(start.elapsed() < Duration::from_secs(120), "run made no progress");
         std::thread::sleep(Duration::from_millis(20));
     }
     if fault.is_some() {
@@ -424,12 +351,7 @@ fn interrupt_mid_run(
     let status = child.wait().unwrap();
     let mut err = String::new();
     use std::io::Read;
-    child
-        .stderr
-        .take()
-        .unwrap()
-        .read_to_string(&mut err)
-        .unwrap();
+    child.stderr.take().unwrap().read_to_string(&mut err).unwrap();
     // Nothing of this run may still be running (SIGKILL and reaping take a moment).
     let start = Instant::now();
     loop {
@@ -456,10 +378,7 @@ fn ctrl_c_kills_every_worker_keeps_the_report_and_resume_finishes() {
     let out = dir.path().join("r.json");
     let (status, err) = interrupt_mid_run(&out, libc::SIGINT, MANY, None);
     assert_eq!(status.code(), Some(130), "{status:?}");
-    assert!(
-        err.contains("interrupted (SIGINT)") && err.contains("--resume"),
-        "{err}"
-    );
+    assert!(err.contains("interrupted (SIGINT)") && err.contains("--resume"), "{err}");
     let r = report(&out);
     assert_eq!(r["complete"], false);
     // The same result-changing options as the interrupted run (a different --timeout is refused).
@@ -500,12 +419,8 @@ fn ctrl_c_kills_every_worker_keeps_the_report_and_resume_finishes() {
 #[test]
 fn sigterm_kills_a_hung_worker_too() {
     let dir = tempfile::tempdir().unwrap();
-    let (status, err) = interrupt_mid_run(
-        &dir.path().join("r.json"),
-        libc::SIGTERM,
-        ONE,
-        Some("pipeline:hang"),
-    );
+    let (status, err) =
+        interrupt_mid_run(&dir.path().join("r.json"), libc::SIGTERM, ONE, Some("pipeline:hang"));
     assert_eq!(status.code(), Some(143), "{status:?}");
     assert!(err.contains("terminated (SIGTERM)"), "{err}");
 }
@@ -514,12 +429,8 @@ fn sigterm_kills_a_hung_worker_too() {
 fn a_killed_supervisor_leaves_no_worker_running() {
     // The worker hangs in pipeline creation: nothing but the supervisor's death can end it.
     let dir = tempfile::tempdir().unwrap();
-    let (status, _) = interrupt_mid_run(
-        &dir.path().join("r.json"),
-        libc::SIGKILL,
-        ONE,
-        Some("pipeline:hang"),
-    );
+    let (status, _) =
+        interrupt_mid_run(&dir.path().join("r.json"), libc::SIGKILL, ONE, Some("pipeline:hang"));
     use std::os::unix::process::ExitStatusExt;
     assert_eq!(status.signal(), Some(libc::SIGKILL));
 }
@@ -549,10 +460,7 @@ fn a_fault_while_prebuilding_is_the_workers_and_the_batch_runs_cell_by_cell() {
         assert_eq!(pre.len(), 1, "{fault}: {ws:?}");
         assert_eq!(pre[0]["outcome"], outcome, "{fault}: {}", pre[0]);
         assert!(
-            pre[0]["detail"]
-                .as_str()
-                .unwrap()
-                .contains("each cell building at its turn"),
+            pre[0]["detail"].as_str().unwrap().contains("each cell building at its turn"),
             "{}",
             pre[0]
         );
@@ -573,17 +481,10 @@ fn a_fault_while_prebuilding_is_the_workers_and_the_batch_runs_cell_by_cell() {
 /// Twin: with one thread the worker never prebuilds, so the same hook never fires.
 #[test]
 fn one_thread_never_prebuilds() {
-    let (o, r, _) = fault_run(
-        "prebuild:crash",
-        TWO,
-        &["--threads", "1"],
-        Duration::from_secs(120),
-    );
+    let (o, r, _) = fault_run("prebuild:crash", TWO, &["--threads", "1"], Duration::from_secs(120));
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     assert!(
-        workers(&r)
-            .iter()
-            .all(|w| w["phase"] == "setup" && w["outcome"] == "pass"),
+        workers(&r).iter().all(|w| w["phase"] == "setup" && w["outcome"] == "pass"),
         "{:?}",
         workers(&r)
     );
@@ -603,11 +504,7 @@ fn a_crash_in_pipeline_with_threads_is_one_cells_verdict() {
         Duration::from_secs(180),
     );
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
-    assert!(
-        r["timing"]["prebuilt_pipelines"].as_u64().unwrap() >= 1,
-        "{}",
-        r["timing"]
-    );
+    assert!(r["timing"]["prebuilt_pipelines"].as_u64().unwrap() >= 1, "{}", r["timing"]);
     for c in cells(&r) {
         assert_eq!(c["outcome"], "crash", "{c}");
         assert_eq!(c["attempts"][0]["phase"], "pipeline", "{c}");

@@ -43,11 +43,7 @@ fn each_fault_kind_lands_on_exactly_its_cells_with_the_expected_outcome() {
             "value:0.1",
             "mismatch",
         ),
-        (
-            "stage=closest_hit,resource=storage_buffer,index=literal",
-            "nan",
-            "mismatch",
-        ),
+        ("stage=closest_hit,resource=storage_buffer,index=literal", "nan", "mismatch"),
     ];
     let mut args = vec![
         "run".to_string(), "--patches".into(), "none".into(), "--timeout".into(), "4".into(),
@@ -59,13 +55,7 @@ fn each_fault_kind_lands_on_exactly_its_cells_with_the_expected_outcome() {
         args.push(format!("{p}@{k}"));
     }
     let o = run(&args.iter().map(String::as_str).collect::<Vec<_>>());
-    assert_eq!(
-        o.status.code(),
-        Some(1),
-        "findings exit 1\n{}\n{}",
-        stdout(&o),
-        stderr(&o)
-    );
+    assert_eq!(o.status.code(), Some(1), "findings exit 1\n{}\n{}", stdout(&o), stderr(&o));
     let r = report(&out);
     let cs = cells(&r);
     assert_eq!(
@@ -81,51 +71,28 @@ fn each_fault_kind_lands_on_exactly_its_cells_with_the_expected_outcome() {
                 injected += 1;
                 assert_eq!(c["outcome"], *expect, "{id} with {k}: {}", c["reason"]);
                 assert_eq!(c["injected"].as_str().unwrap(), format!("{p}@{k}"), "{id}");
-                assert_eq!(
-                    c["confirmed"], true,
-                    "{id}: a deterministic fault repeats alone"
-                );
+                assert_eq!(c["confirmed"], true, "{id}: a deterministic fault repeats alone");
             }
             None => {
-                assert_eq!(
-                    c["outcome"], "pass",
-                    "{id} has no injection: {}",
-                    c["reason"]
-                );
+                assert_eq!(c["outcome"], "pass", "{id} has no injection: {}", c["reason"]);
                 assert!(c["injected"].is_null(), "{id}");
             }
         }
     }
-    assert_eq!(
-        injected,
-        4 + 2 + 2 + 1,
-        "device: 2 resources x 2 dynamic; hang 2; value 2; nan 1"
-    );
+    assert_eq!(injected, 4 + 2 + 2 + 1, "device: 2 resources x 2 dynamic; hang 2; value 2; nan 1");
     // The value fault hit about 10% of the pixels, not all of them.
-    let v = cs
-        .iter()
-        .find(|c| c["id"] == "raygen.uniform_buffer.literal.descriptor_indexing")
-        .unwrap();
+    let v =
+        cs.iter().find(|c| c["id"] == "raygen.uniform_buffer.literal.descriptor_indexing").unwrap();
     let cmp = &v["attempts"][0]["result"]["comparison"];
-    let (bad, compared) = (
-        cmp["mismatched_pixels"].as_f64().unwrap(),
-        cmp["compared"].as_f64().unwrap(),
-    );
-    assert!(
-        bad / compared > 0.03 && bad / compared < 0.2,
-        "{bad} of {compared}"
-    );
+    let (bad, compared) =
+        (cmp["mismatched_pixels"].as_f64().unwrap(), cmp["compared"].as_f64().unwrap());
+    assert!(bad / compared > 0.03 && bad / compared < 0.2, "{bad} of {compared}");
     // NaN never compares as exact.
     let n = cs
         .iter()
         .find(|c| c["id"] == "closest_hit.storage_buffer.literal.descriptor_indexing")
         .unwrap();
-    assert!(
-        n["attempts"][0]["result"]["comparison"]["by_field"]["value"]
-            .as_u64()
-            .unwrap()
-            > 0
-    );
+    assert!(n["attempts"][0]["result"]["comparison"]["by_field"]["value"].as_u64().unwrap() > 0);
     assert_eq!(r["tally"]["findings"], injected);
     let xml = std::fs::read_to_string(&junit).unwrap();
     assert!(xml.contains(&format!("failures=\"{injected}\"")), "{xml}");
@@ -157,25 +124,16 @@ fn a_fault_that_does_not_repeat_stays_a_finding_with_its_rate() {
     ]);
     assert_eq!(o.status.code(), Some(1), "{}\n{}", stdout(&o), stderr(&o));
     let r = report(&out);
-    let findings: Vec<&Value> = cells(&r)
-        .iter()
-        .filter(|c| c["outcome"] != "pass")
-        .collect();
+    let findings: Vec<&Value> = cells(&r).iter().filter(|c| c["outcome"] != "pass").collect();
     assert!(!findings.is_empty());
     let mut flaky = 0;
     for c in &findings {
         let id = c["id"].as_str().unwrap();
-        assert_eq!(
-            c["outcome"], "crash",
-            "{id}: the worst attempt is the verdict"
-        );
+        assert_eq!(c["outcome"], "crash", "{id}: the worst attempt is the verdict");
         let attempts = c["attempts"].as_array().unwrap();
         assert_eq!(attempts.len(), 8, "{id}: --repeat 8");
         // Every attempt says whether its die armed the fault, and the verdict counts them.
-        let armed = attempts
-            .iter()
-            .filter(|a| a["injected"]["armed"] == true)
-            .count();
+        let armed = attempts.iter().filter(|a| a["injected"]["armed"] == true).count();
         let crashed = attempts.iter().filter(|a| a["outcome"] == "crash").count() as u64;
         assert_eq!(
             crashed as usize, armed,
@@ -185,18 +143,12 @@ fn a_fault_that_does_not_repeat_stays_a_finding_with_its_rate() {
         assert_eq!(inc["attempts"], 8);
         assert_eq!(inc["faulted"].as_u64().unwrap(), crashed);
         let expect = (1.0 - crashed as f64 / 8.0).powi(8);
-        assert!(
-            (inc["miss_probability"].as_f64().unwrap() - expect).abs() < 1e-12,
-            "{id}: {inc}"
-        );
+        assert!((inc["miss_probability"].as_f64().unwrap() - expect).abs() < 1e-12, "{id}: {inc}");
         assert_eq!(c["flaky"] == true, crashed < 8, "{id}");
         if crashed < 8 {
             flaky += 1;
             assert!(
-                c["reason"]
-                    .as_str()
-                    .unwrap()
-                    .contains(&format!("{crashed} of 8 attempts")),
+                c["reason"].as_str().unwrap().contains(&format!("{crashed} of 8 attempts")),
                 "{id}: {}",
                 c["reason"]
             );
@@ -206,15 +158,9 @@ fn a_fault_that_does_not_repeat_stays_a_finding_with_its_rate() {
     assert!(flaky > 0, "no flaky cell among {}", findings.len());
     assert_eq!(r["tally"]["flaky"], flaky);
     let text = stdout(&o);
-    assert!(
-        text.contains("[FLAKY]") && text.contains("of 8 attempts"),
-        "{text}"
-    );
+    assert!(text.contains("[FLAKY]") && text.contains("of 8 attempts"), "{text}");
     let xml = std::fs::read_to_string(&junit).unwrap();
-    assert!(
-        xml.contains("(flaky)") && xml.contains("name=\"flaky\""),
-        "{xml}"
-    );
+    assert!(xml.contains("(flaky)") && xml.contains("name=\"flaky\""), "{xml}");
 }
 
 #[test]
@@ -225,15 +171,7 @@ fn resume_refuses_another_device_scene_or_injection() {
         "stage=raygen,resource=storage_buffer,index=literal,descriptor_model=descriptor_indexing";
     let o = run(&["run", "--filter", filter, "-o", out.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    let o = run(&[
-        "run",
-        "--filter",
-        filter,
-        "--seed",
-        "2",
-        "--resume",
-        out.to_str().unwrap(),
-    ]);
+    let o = run(&["run", "--filter", filter, "--seed", "2", "--resume", out.to_str().unwrap()]);
     assert_one_line_error(&o, 9, "scene differs");
     let o = run(&[
         "run",
@@ -264,10 +202,6 @@ fn bad_injections_are_usage_errors() {
         2,
         "flaky probability",
     );
-    assert_one_line_error(
-        &run(&["run", "--inject-fault", "colour=red"]),
-        2,
-        "unknown axis",
-    );
+    assert_one_line_error(&run(&["run", "--inject-fault", "colour=red"]), 2, "unknown axis");
     assert_one_line_error(&run(&["run", "--repeat", "0"]), 2, "--repeat");
 }

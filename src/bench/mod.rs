@@ -57,16 +57,9 @@ pub enum BenchError {
     #[error("cannot start `{cmd}`: {source}")]
     Spawn { cmd: String, source: std::io::Error },
     #[error("`{cmd}` exited with code {code}: {stderr}")]
-    RunFailed {
-        cmd: String,
-        code: i32,
-        stderr: String,
-    },
+    RunFailed { cmd: String, code: i32, stderr: String },
     #[error("`{cmd}`: {why}")]
-    Report {
-        cmd: String,
-        why: crate::model::LoadError,
-    },
+    Report { cmd: String, why: crate::model::LoadError },
     #[error("`{cmd}` ran no {what} cell: check the filter")]
     Empty { cmd: String, what: &'static str },
 }
@@ -135,9 +128,7 @@ fn size_arg(s: u32) -> String {
 }
 
 fn shell_quote(a: &str) -> String {
-    if a.chars()
-        .all(|c| c.is_ascii_alphanumeric() || "-_./=:,".contains(c))
-    {
+    if a.chars().all(|c| c.is_ascii_alphanumeric() || "-_./=:,".contains(c)) {
         a.to_string()
     } else {
         format!("'{}'", a.replace('\'', "'\\''"))
@@ -151,11 +142,7 @@ fn shard_for(pixels: u64, reference: u64) -> u64 {
 
 impl<'a> Bench<'a> {
     pub fn new(opts: &'a BenchOptions, progress: &'a mut dyn FnMut(&str)) -> Self {
-        Bench {
-            opts,
-            counter: 0,
-            progress,
-        }
+        Bench { opts, counter: 0, progress }
     }
 
     fn base(&self) -> Vec<String> {
@@ -182,19 +169,13 @@ impl<'a> Bench<'a> {
             .stdout(stdout)
             .stderr(Stdio::piped())
             .output()
-            .map_err(|source| BenchError::Spawn {
-                cmd: cmd.to_string(),
-                source,
-            })
+            .map_err(|source| BenchError::Spawn { cmd: cmd.to_string(), source })
     }
 
     /// `rtprobe run ARGS` (plus the base arguments), its report read back and deleted.
     fn run(&mut self, args: &[String]) -> Result<Ran, BenchError> {
         self.counter += 1;
-        let out = self
-            .opts
-            .work_dir
-            .join(format!("point-{}.json", self.counter));
+        let out = self.opts.work_dir.join(format!("point-{}.json", self.counter));
         let mut full = vec!["run".to_string()];
         full.extend(self.base());
         full.extend(args.iter().cloned());
@@ -209,22 +190,12 @@ impl<'a> Bench<'a> {
         let code = o.status.code().unwrap_or(-1);
         // 0: all passed; 1: findings (the injected ones); 11: an injection went undetected.
         if ![0, 1, 11].contains(&code) {
-            return Err(BenchError::RunFailed {
-                cmd: command,
-                code,
-                stderr: last_line(&o.stderr),
-            });
+            return Err(BenchError::RunFailed { cmd: command, code, stderr: last_line(&o.stderr) });
         }
-        let report = RunReport::load(&out).map_err(|why| BenchError::Report {
-            cmd: command.clone(),
-            why,
-        })?;
+        let report = RunReport::load(&out)
+            .map_err(|why| BenchError::Report { cmd: command.clone(), why })?;
         let _ = std::fs::remove_file(&out);
-        Ok(Ran {
-            command,
-            wall_s,
-            report,
-        })
+        Ok(Ran { command, wall_s, report })
     }
 
     /// How many cells `run --list ARGS` would run.
@@ -241,19 +212,13 @@ impl<'a> Bench<'a> {
                 stderr: last_line(&o.stderr),
             });
         }
-        Ok(String::from_utf8_lossy(&o.stdout)
-            .lines()
-            .filter(|l| l.starts_with("run "))
-            .count())
+        Ok(String::from_utf8_lossy(&o.stdout).lines().filter(|l| l.starts_with("run ")).count())
     }
 
     /// The long and short flags `rtprobe run --help` lists.
     fn known_flags(&self) -> Result<Vec<String>, BenchError> {
-        let o = self.spawn(
-            &["run".into(), "--help".into()],
-            "rtprobe run --help",
-            Stdio::piped(),
-        )?;
+        let o =
+            self.spawn(&["run".into(), "--help".into()], "rtprobe run --help", Stdio::piped())?;
         let text = String::from_utf8_lossy(&o.stdout);
         Ok(text
             .split(|c: char| c.is_whitespace() || c == ',' || c == '[' || c == ']' || c == '=')
@@ -313,11 +278,7 @@ impl<'a> Bench<'a> {
         let mut points = vec![];
         for (i, &s) in self.opts.sizes.iter().enumerate() {
             let px = u64::from(s).pow(2);
-            let k = if self.opts.sample_large {
-                shard_for(px, dpx)
-            } else {
-                1
-            };
+            let k = if self.opts.sample_large { shard_for(px, dpx) } else { 1 };
             let mut args = vec!["--size".to_string(), size_arg(s)];
             args.extend(filters.iter().cloned());
             if k > 1 {
@@ -326,27 +287,16 @@ impl<'a> Bench<'a> {
             // Warm the caches once: the pipelines do not depend on the size. (A sample's workers
             // may enable other feature sets and JIT a few pipelines cold: small beside the
             // trace and check of a large image.)
-            let warmup = if self.opts.warmup && i == 0 {
-                Some(self.run(&args)?.wall_s)
-            } else {
-                None
-            };
+            let warmup =
+                if self.opts.warmup && i == 0 { Some(self.run(&args)?.wall_s) } else { None };
             let r = self.run(&args)?;
             if device.is_null() {
                 *device = r.report.device.clone();
             }
             let ph = phases(&r.report);
-            let ran = r
-                .report
-                .cells
-                .iter()
-                .filter(|c| !c.attempts.is_empty())
-                .count();
+            let ran = r.report.cells.iter().filter(|c| !c.attempts.is_empty()).count();
             if ran == 0 {
-                return Err(BenchError::Empty {
-                    cmd: r.command,
-                    what: "timed",
-                });
+                return Err(BenchError::Empty { cmd: r.command, what: "timed" });
             }
             let scale = full_cells as f64 / ran as f64;
             let (est_wall, est_ph) = estimate(&r, &ph, scale);
@@ -379,11 +329,7 @@ impl<'a> Bench<'a> {
         let mut pooled = vec![];
         for &s in &self.opts.sizes {
             let px = u64::from(s).pow(2);
-            let k = if self.opts.sample_large {
-                shard_for(px, dpx)
-            } else {
-                1
-            };
+            let k = if self.opts.sample_large { shard_for(px, dpx) } else { 1 };
             // Above twice the default size every cell is caught at any f of interest (n in the
             // tens of thousands) and a run costs most: one seed there.
             let seeds = if px > dpx {
@@ -408,10 +354,7 @@ impl<'a> Bench<'a> {
                     let r = self.run(&args)?;
                     let (trials, not_compared) = trials_of(&r.report);
                     if trials.is_empty() && not_compared.is_empty() {
-                        return Err(BenchError::Empty {
-                            cmd: r.command,
-                            what: "injected",
-                        });
+                        return Err(BenchError::Empty { cmd: r.command, what: "injected" });
                     }
                     let d = stats::aggregate(f, &trials);
                     (self.progress)(&format!("detection {} f={f} seed {seed}: {} of {} cells caught (predicted {:.3}), {:.1} s", size_arg(s), d.detected, d.trials, d.predicted, r.wall_s));
@@ -467,18 +410,14 @@ impl<'a> Bench<'a> {
                 }
             }
             if per_cell.is_empty() {
-                return Err(BenchError::Empty {
-                    cmd: command,
-                    what: "flaky-injected",
-                });
+                return Err(BenchError::Empty { cmd: command, what: "flaky-injected" });
             }
             let faulted: Vec<Vec<bool>> = per_cell.values().cloned().collect();
             let attempts = faulted.iter().map(Vec::len).sum::<usize>();
             let first = stats::first_fault_curve(&faulted, rounds as usize);
             let measured = stats::window_curve(&faulted, rounds as usize);
-            let predicted: Vec<f64> = (1..=rounds)
-                .map(|r| stats::detect_probability(p, r as u64))
-                .collect();
+            let predicted: Vec<f64> =
+                (1..=rounds).map(|r| stats::detect_probability(p, r as u64)).collect();
             let rate = if attempts > 0 {
                 faulted.iter().flatten().filter(|f| **f).count() as f64 / attempts as f64
             } else {
@@ -507,9 +446,7 @@ impl<'a> Bench<'a> {
 
     fn sweep(&mut self) -> Result<Value, BenchError> {
         let known = self.known_flags()?;
-        let cores = std::thread::available_parallelism()
-            .map(|n| n.get())
-            .unwrap_or(1);
+        let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
         let mut filters: Vec<String> = self
             .opts
             .sweep_filter
@@ -528,11 +465,7 @@ impl<'a> Bench<'a> {
             }
             let mut args = filters.clone();
             args.extend(extra);
-            let warmup = if self.opts.warmup {
-                Some(self.run(&args)?.wall_s)
-            } else {
-                None
-            };
+            let warmup = if self.opts.warmup { Some(self.run(&args)?.wall_s) } else { None };
             let r = self.run(&args)?;
             let ph = phases(&r.report);
             let (base, base_ph) = first.get_or_insert_with(|| (r.wall_s, ph.clone())).clone();
@@ -542,11 +475,7 @@ impl<'a> Bench<'a> {
                     let b = base_ph[k].as_f64().unwrap_or(0.0);
                     (
                         k.clone(),
-                        if b > 0.0 {
-                            json!(v.as_f64().unwrap_or(0.0) / b)
-                        } else {
-                            Value::Null
-                        },
+                        if b > 0.0 { json!(v.as_f64().unwrap_or(0.0) / b) } else { Value::Null },
                     )
                 })
                 .collect();
@@ -572,15 +501,8 @@ impl<'a> Bench<'a> {
 /// A child's last stderr line, without its own `rtprobe: error: ` prefix.
 fn last_line(stderr: &[u8]) -> String {
     let text = String::from_utf8_lossy(stderr);
-    let last = text
-        .lines()
-        .rev()
-        .find(|l| !l.trim().is_empty())
-        .unwrap_or("")
-        .trim();
-    last.strip_prefix("rtprobe: error: ")
-        .unwrap_or(last)
-        .to_string()
+    let last = text.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("").trim();
+    last.strip_prefix("rtprobe: error: ").unwrap_or(last).to_string()
 }
 
 /// Why a sweep entry cannot run on this binary/machine: a flag `run` does not know, or more
@@ -598,9 +520,7 @@ pub fn skip_reason(args: &[String], known: &[String], cores: usize) -> Option<St
             .and_then(|w| w[1].parse::<usize>().ok())
     };
     if let Some(j) = value(&["-j", "--jobs"]).filter(|&j| j > cores.max(2)) {
-        return Some(format!(
-            "-j {j} is more workers than this machine's {cores} cores"
-        ));
+        return Some(format!("-j {j} is more workers than this machine's {cores} cores"));
     }
     value(&["--threads"])
         .filter(|&t| t > cores.max(2))
@@ -631,23 +551,11 @@ pub fn phases(r: &RunReport) -> serde_json::Map<String, Value> {
         t.check_ms,
         t.overhead_ms,
     ];
-    PHASES
-        .iter()
-        .zip(values)
-        .map(|(k, v)| (k.to_string(), json!(v)))
-        .collect()
+    PHASES.iter().zip(values).map(|(k, v)| (k.to_string(), json!(v))).collect()
 }
 
-pub const PHASES: [&str; 8] = [
-    "spawn_reference",
-    "device",
-    "compile",
-    "pipeline",
-    "setup",
-    "trace",
-    "check",
-    "overhead",
-];
+pub const PHASES: [&str; 8] =
+    ["spawn_reference", "device", "compile", "pipeline", "setup", "trace", "check", "overhead"];
 
 /// Phases paid per worker, not per cell: a sample keeps them as they are.
 const PER_WORKER: [&str; 2] = ["spawn_reference", "device"];
@@ -673,11 +581,7 @@ fn estimate(
                 k.clone(),
                 json!(
                     v.as_f64().unwrap_or(0.0)
-                        * if PER_WORKER.contains(&k.as_str()) {
-                            1.0
-                        } else {
-                            scale
-                        }
+                        * if PER_WORKER.contains(&k.as_str()) { 1.0 } else { scale }
                 ),
             )
         })
@@ -725,15 +629,9 @@ fn default_statement(o: &BenchOptions, size_time: &Value, detection: &Value) -> 
 /// Check that `dir` can take the output (created if missing) before any run: a probe file is
 /// written and removed.
 pub fn check_out_dir(dir: &Path) -> Result<(), OutDirError> {
-    std::fs::create_dir_all(dir).map_err(|err| OutDirError::Create {
-        dir: dir.into(),
-        err,
-    })?;
+    std::fs::create_dir_all(dir).map_err(|err| OutDirError::Create { dir: dir.into(), err })?;
     let probe = dir.join(format!(".rtprobe-bench-{}", std::process::id()));
-    std::fs::write(&probe, b"").map_err(|err| OutDirError::NotWritable {
-        dir: dir.into(),
-        err,
-    })?;
+    std::fs::write(&probe, b"").map_err(|err| OutDirError::NotWritable { dir: dir.into(), err })?;
     let _ = std::fs::remove_file(&probe);
     Ok(())
 }
@@ -744,33 +642,18 @@ mod tests {
 
     #[test]
     fn sweep_entries_with_unknown_flags_or_too_many_jobs_are_skipped() {
-        let known: Vec<String> = ["-j", "--jobs", "--isolation", "--size"]
-            .iter()
-            .map(|s| s.to_string())
-            .collect();
+        let known: Vec<String> =
+            ["-j", "--jobs", "--isolation", "--size"].iter().map(|s| s.to_string()).collect();
         let a = |s: &str| s.split_whitespace().map(String::from).collect::<Vec<_>>();
         assert_eq!(skip_reason(&a("-j 1"), &known, 2), None);
-        assert_eq!(
-            skip_reason(&a("-j 1 --isolation process-per-cell"), &known, 2),
-            None
-        );
-        assert!(skip_reason(&a("-j 1 --threads 2"), &known, 2)
-            .unwrap()
-            .contains("--threads"));
-        assert!(skip_reason(&a("-j 8"), &known, 2)
-            .unwrap()
-            .contains("cores"));
-        assert_eq!(
-            skip_reason(&a("-j 2"), &known, 1),
-            None,
-            "two workers always run"
-        );
+        assert_eq!(skip_reason(&a("-j 1 --isolation process-per-cell"), &known, 2), None);
+        assert!(skip_reason(&a("-j 1 --threads 2"), &known, 2).unwrap().contains("--threads"));
+        assert!(skip_reason(&a("-j 8"), &known, 2).unwrap().contains("cores"));
+        assert_eq!(skip_reason(&a("-j 2"), &known, 1), None, "two workers always run");
         assert_eq!(skip_reason(&a("--isolation=worker"), &known, 2), None);
         let known: Vec<String> = ["-j", "--threads"].iter().map(|s| s.to_string()).collect();
         assert_eq!(skip_reason(&a("-j 1 --threads 2"), &known, 2), None);
-        assert!(skip_reason(&a("-j 1 --threads 16"), &known, 2)
-            .unwrap()
-            .contains("--threads 16"));
+        assert!(skip_reason(&a("-j 1 --threads 16"), &known, 2).unwrap().contains("--threads 16"));
         assert_eq!(skip_reason(&a("-j 1 --threads 16"), &known, 16), None);
     }
 
@@ -784,10 +667,7 @@ mod tests {
 
     #[test]
     fn quoting_keeps_predicates_one_word() {
-        assert_eq!(
-            shell_quote("stage=raygen|miss@value:0.1:1"),
-            "'stage=raygen|miss@value:0.1:1'"
-        );
+        assert_eq!(shell_quote("stage=raygen|miss@value:0.1:1"), "'stage=raygen|miss@value:0.1:1'");
         assert_eq!(shell_quote("64x64"), "64x64");
     }
 }

@@ -17,10 +17,7 @@ pub fn all(bench: &Value) -> Vec<(String, String)> {
     let device = bench["device"]["name"].as_str().unwrap_or("device");
     let default_px = bench["default"]["size"].as_f64().map(|s| s * s);
     vec![
-        (
-            "detection-vs-size.svg".into(),
-            detection(bench, device, default_px),
-        ),
+        ("detection-vs-size.svg".into(), detection(bench, device, default_px)),
         ("time-vs-size.svg".into(), time(bench, device, default_px)),
         ("flaky-repeats.svg".into(), flaky(bench, device)),
         ("sweep-phases.svg".into(), sweep(bench, device)),
@@ -28,8 +25,7 @@ pub fn all(bench: &Value) -> Vec<(String, String)> {
 }
 
 fn default_line(px: Option<f64>) -> Vec<(f64, String)> {
-    px.map(|p| vec![(p, format!("default {}×{}", p.sqrt(), p.sqrt()))])
-        .unwrap_or_default()
+    px.map(|p| vec![(p, format!("default {}×{}", p.sqrt(), p.sqrt()))]).unwrap_or_default()
 }
 
 fn detection(b: &Value, device: &str, default_px: Option<f64>) -> String {
@@ -86,30 +82,16 @@ fn time(b: &Value, device: &str, default_px: Option<f64>) -> String {
     let phase = |name: &'static str| move |p: &Value| f(&p["estimated"]["phases_ms"][name]) / 1e3;
     LineChart {
         title: format!("Matrix time against image size — {device}"),
-        x: Axis {
-            label: "image size (pixels, log)".into(),
-            log: true,
-            range: None,
-        },
+        x: Axis { label: "image size (pixels, log)".into(), log: true, range: None },
         y: Axis {
             label: "time (s, log; sums over cells for phases)".into(),
             log: true,
             range: None,
         },
         series: vec![
-            line(
-                "wall (estimated for samples)",
-                &|p| f(&p["estimated"]["wall_s"]),
-                0,
-                Style::Line,
-            ),
+            line("wall (estimated for samples)", &|p| f(&p["estimated"]["wall_s"]), 0, Style::Line),
             line("trace", &phase("trace"), 1, Style::Dashed),
-            line(
-                "check (readback + compare)",
-                &phase("check"),
-                2,
-                Style::Dashed,
-            ),
+            line("check (readback + compare)", &phase("check"), 2, Style::Dashed),
             line("pipeline", &phase("pipeline"), 3, Style::Dashed),
             line("compile", &phase("compile"), 4, Style::Dashed),
         ],
@@ -123,11 +105,7 @@ fn flaky(b: &Value, device: &str) -> String {
     let mut series = vec![];
     for (k, p) in arr(&b["flaky"]["points"]).iter().enumerate() {
         let curve = |key: &str| {
-            arr(&p[key])
-                .iter()
-                .enumerate()
-                .map(|(i, v)| ((i + 1) as f64, f(v)))
-                .collect::<Vec<_>>()
+            arr(&p[key]).iter().enumerate().map(|(i, v)| ((i + 1) as f64, f(v))).collect::<Vec<_>>()
         };
         series.push(Series {
             name: format!("measured P={}", p["probability"]),
@@ -144,11 +122,7 @@ fn flaky(b: &Value, device: &str) -> String {
     }
     LineChart {
         title: format!("Flaky faults: detection against attempts — {device}"),
-        x: Axis {
-            label: "attempts r (repeats)".into(),
-            log: false,
-            range: None,
-        },
+        x: Axis { label: "attempts r (repeats)".into(), log: false, range: None },
         y: Axis {
             label: "share of cells that faulted within r attempts".into(),
             log: false,
@@ -162,32 +136,19 @@ fn flaky(b: &Value, device: &str) -> String {
 }
 
 fn sweep(b: &Value, device: &str) -> String {
-    let ran: Vec<&Value> = arr(&b["sweep"]["entries"])
-        .iter()
-        .filter(|e| e["skipped"].is_null())
-        .collect();
+    let ran: Vec<&Value> =
+        arr(&b["sweep"]["entries"]).iter().filter(|e| e["skipped"].is_null()).collect();
     StackedBars {
         title: format!("Where the time goes, per run configuration — {device}"),
         y_label: "time summed over cells and workers (s)".into(),
         x_label: "extra run arguments (wall time)".into(),
         categories: ran
             .iter()
-            .map(|e| {
-                format!(
-                    "{} ({:.1} s)",
-                    e["args"].as_str().unwrap_or(""),
-                    f(&e["wall_s"])
-                )
-            })
+            .map(|e| format!("{} ({:.1} s)", e["args"].as_str().unwrap_or(""), f(&e["wall_s"])))
             .collect(),
         layers: super::PHASES
             .iter()
-            .map(|ph| {
-                (
-                    ph.to_string(),
-                    ran.iter().map(|e| f(&e["phases_ms"][*ph]) / 1e3).collect(),
-                )
-            })
+            .map(|ph| (ph.to_string(), ran.iter().map(|e| f(&e["phases_ms"][*ph]) / 1e3).collect()))
             .collect(),
     }
     .svg()

@@ -28,13 +28,7 @@ pub fn repeats_needed(p: f64, confidence: f64) -> Option<u32> {
     let r = ((1.0 - confidence).ln() / (-p).ln_1p()).ceil();
     // Guard the ceiling against rounding just above a whole number.
     let r = (r as u32).max(1);
-    Some(
-        if r > 1 && detect_probability(p, (r - 1) as u64) >= confidence {
-            r - 1
-        } else {
-            r
-        },
-    )
+    Some(if r > 1 && detect_probability(p, (r - 1) as u64) >= confidence { r - 1 } else { r })
 }
 
 /// The Wilson score interval (95%, z = 1.96) of `k` successes in `n` trials.
@@ -89,20 +83,12 @@ pub fn aggregate(f: f64, trials: &[Trial]) -> Detection {
         measured: if n > 0 { k as f64 / n as f64 } else { 0.0 },
         ci95: wilson(k, n),
         predicted: if n > 0 {
-            trials
-                .iter()
-                .map(|t| detect_probability(f, t.n))
-                .sum::<f64>()
-                / n as f64
+            trials.iter().map(|t| detect_probability(f, t.n)).sum::<f64>() / n as f64
         } else {
             0.0
         },
         n_min: trials.iter().map(|t| t.n).min().unwrap_or(0),
-        n_mean: if n > 0 {
-            checked as f64 / n as f64
-        } else {
-            0.0
-        },
+        n_mean: if n > 0 { checked as f64 / n as f64 } else { 0.0 },
         n_max: trials.iter().map(|t| t.n).max().unwrap_or(0),
         corrupted_share: if checked > 0 {
             trials.iter().map(|t| t.mismatched).sum::<u64>() as f64 / checked as f64
@@ -117,10 +103,7 @@ pub fn aggregate(f: f64, trials: &[Trial]) -> Detection {
 pub fn first_fault_curve(faulted: &[Vec<bool>], rounds: usize) -> Vec<f64> {
     (1..=rounds)
         .map(|r| {
-            let hit = faulted
-                .iter()
-                .filter(|a| a.iter().take(r).any(|f| *f))
-                .count();
+            let hit = faulted.iter().filter(|a| a.iter().take(r).any(|f| *f)).count();
             if faulted.is_empty() {
                 0.0
             } else {
@@ -154,10 +137,7 @@ pub fn window_curve(faulted: &[Vec<bool>], rounds: usize) -> Vec<f64> {
 
 /// The first r (1-based) at which `curve` reaches `confidence`.
 pub fn first_reaching(curve: &[f64], confidence: f64) -> Option<u32> {
-    curve
-        .iter()
-        .position(|v| *v >= confidence)
-        .map(|i| i as u32 + 1)
+    curve.iter().position(|v| *v >= confidence).map(|i| i as u32 + 1)
 }
 
 #[cfg(test)]
@@ -204,10 +184,7 @@ mod tests {
     #[test]
     fn wilson_interval() {
         let (lo, hi) = wilson(50, 100);
-        assert!(
-            (lo - 0.4038).abs() < 1e-3 && (hi - 0.5962).abs() < 1e-3,
-            "{lo} {hi}"
-        );
+        assert!((lo - 0.4038).abs() < 1e-3 && (hi - 0.5962).abs() < 1e-3, "{lo} {hi}");
         let (lo, hi) = wilson(10, 10);
         assert!(hi == 1.0 && lo > 0.69 && lo < 0.73, "{lo}");
         assert_eq!(wilson(0, 0), (0.0, 1.0));
@@ -216,16 +193,8 @@ mod tests {
 
     #[test]
     fn aggregation_of_trials() {
-        let t = |n, detected, mismatched| Trial {
-            cell: "c".into(),
-            n,
-            detected,
-            mismatched,
-        };
-        let d = aggregate(
-            0.5,
-            &[t(1, true, 1), t(2, false, 0), t(0, false, 0), t(3, true, 2)],
-        );
+        let t = |n, detected, mismatched| Trial { cell: "c".into(), n, detected, mismatched };
+        let d = aggregate(0.5, &[t(1, true, 1), t(2, false, 0), t(0, false, 0), t(3, true, 2)]);
         assert_eq!((d.trials, d.detected), (4, 2));
         assert_eq!(d.measured, 0.5);
         assert!((d.predicted - (0.5 + 0.75 + 0.0 + 0.875) / 4.0).abs() < 1e-12);
@@ -233,10 +202,7 @@ mod tests {
         assert!((d.n_mean - 1.5).abs() < 1e-12);
         assert!((d.corrupted_share - 0.5).abs() < 1e-12);
         let empty = aggregate(0.1, &[]);
-        assert_eq!(
-            (empty.trials, empty.measured, empty.predicted),
-            (0, 0.0, 0.0)
-        );
+        assert_eq!((empty.trials, empty.measured, empty.predicted), (0, 0.0, 0.0));
     }
 
     #[test]
@@ -254,10 +220,7 @@ mod tests {
         assert!(first_fault_curve(&[], 2).iter().all(|v| *v == 0.0));
         // Windows: r=1 is the fault rate (4 of 12), r=3 the whole sequences (3 of 4).
         let w = window_curve(&f, 3);
-        assert!(
-            (w[0] - 4.0 / 12.0).abs() < 1e-12 && (w[2] - 0.75).abs() < 1e-12,
-            "{w:?}"
-        );
+        assert!((w[0] - 4.0 / 12.0).abs() < 1e-12 && (w[2] - 0.75).abs() < 1e-12, "{w:?}");
         // r=2: windows [t,f] [f,f] | [f,f] [f,t] | [f,f] [f,f] | [f,t] [t,t] → 4 of 8.
         assert!((w[1] - 0.5).abs() < 1e-12, "{w:?}");
     }

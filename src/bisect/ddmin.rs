@@ -75,10 +75,7 @@ mod tests {
         // Nothing needed: the empty list.
         assert!(ddmin(&items, &mut |_| true).is_empty());
         // Everything needed.
-        assert_eq!(
-            ddmin(&[1, 2, 3], &mut |s: &[i32]| s.len() == 3),
-            vec![1, 2, 3]
-        );
+        assert_eq!(ddmin(&[1, 2, 3], &mut |s: &[i32]| s.len() == 3), vec![1, 2, 3]);
     }
 
     #[test]

@@ -77,26 +77,15 @@ pub fn line(cell: &Cell, varied: Option<&str>, verdicts: &Verdicts, ev: Evidence
     let evidence = match (l.verdict.as_str(), l.miss_probability, l.rate_bound) {
         ("not_run", _, _) => "❔ not run".to_string(),
         ("pass", Some(m), Some(p)) => {
-            let weak = if l.settled() {
-                ""
-            } else {
-                "; too little evidence, not concluded on"
-            };
-            format!(
-                "✅ passes ({} of {n}; miss ≤ {} for p ≥ {p:.2}{weak})",
-                l.agreeing,
-                percent(m)
-            )
+            let weak = if l.settled() { "" } else { "; too little evidence, not concluded on" };
+            format!("✅ passes ({} of {n}; miss ≤ {} for p ≥ {p:.2}{weak})", l.agreeing, percent(m))
         }
-        ("pass", _, _) => format!(
-            "✅ passes ({} of {n}; no faulting cell to hold it to)",
-            l.agreeing
-        ),
-        ("error", _, _) => format!(
-            "⚠ error ({}/{n}): {}",
-            l.agreeing,
-            l.reason.as_deref().unwrap_or("no detail")
-        ),
+        ("pass", _, _) => {
+            format!("✅ passes ({} of {n}; no faulting cell to hold it to)", l.agreeing)
+        }
+        ("error", _, _) => {
+            format!("⚠ error ({}/{n}): {}", l.agreeing, l.reason.as_deref().unwrap_or("no detail"))
+        }
         (v, _, Some(p)) => format!("❌ {v} ({k} of {n}, p ≥ {p:.2} at {conf})"),
         (v, _, None) => format!("❌ {v} ({k} of {n})"),
     };
@@ -112,24 +101,12 @@ pub fn line(cell: &Cell, varied: Option<&str>, verdicts: &Verdicts, ev: Evidence
 /// differs only in a defined index (another index source, or `nonuniformEXT`): the read of
 /// "another element" may be that fault.
 pub fn suspect(cell: &Cell, verdicts: &Verdicts) -> Option<(Cell, usize)> {
-    let other = verdicts
-        .get(cell)?
-        .element_reads()
-        .map(|e| e.other)
-        .max()
-        .filter(|o| *o > 0)?;
+    let other = verdicts.get(cell)?.element_reads().map(|e| e.other).max().filter(|o| *o > 0)?;
     let defined = IndexSource::ALL
         .iter()
         .filter(|i| **i != IndexSource::Dynamic)
-        .map(|i| Cell {
-            index: *i,
-            nonuniform: false,
-            ..*cell
-        })
-        .chain(std::iter::once(Cell {
-            nonuniform: true,
-            ..*cell
-        }));
+        .map(|i| Cell { index: *i, nonuniform: false, ..*cell })
+        .chain(std::iter::once(Cell { nonuniform: true, ..*cell }));
     defined
         .into_iter()
         .filter(|s| s != cell)

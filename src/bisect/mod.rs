@@ -54,10 +54,7 @@ use std::collections::HashMap;
 
 /// The axes bisection reduces over: every axis of a cell except `canary`.
 pub fn axes() -> impl Iterator<Item = &'static str> {
-    registry::AXES
-        .iter()
-        .filter(|a| a.id != registry::AxisId::Canary)
-        .map(|a| a.name)
+    registry::AXES.iter().filter(|a| a.id != registry::AxisId::Canary).map(|a| a.name)
 }
 /// Default: a pass may hide a fault of its faulting cell's rate bound with at most this
 /// probability.
@@ -89,11 +86,7 @@ pub struct Settings {
 
 impl Default for Settings {
     fn default() -> Self {
-        Settings {
-            max_miss: DEFAULT_MAX_MISS,
-            max_attempts: DEFAULT_MAX_ATTEMPTS,
-            batch: 4,
-        }
+        Settings { max_miss: DEFAULT_MAX_MISS, max_attempts: DEFAULT_MAX_ATTEMPTS, batch: 4 }
     }
 }
 
@@ -137,11 +130,7 @@ impl<'o> Bisector<'o> {
     }
 
     fn faulting(&self) -> Vec<Cell> {
-        self.scope
-            .iter()
-            .filter(|c| self.verdicts.state(c) == State::Fault)
-            .copied()
-            .collect()
+        self.scope.iter().filter(|c| self.verdicts.state(c) == State::Fault).copied().collect()
     }
 
     /// Attempts a pass held to faulting cell `fault` needs: `(1 - bound)^N < max_miss`.
@@ -157,10 +146,7 @@ impl<'o> Bisector<'o> {
     /// fault a conjunction over `region` claims, which its passes are held to.
     fn reference(&self, region: &[Cell]) -> Option<Cell> {
         let mut best: Option<(f64, u32, Cell)> = None;
-        for c in region
-            .iter()
-            .filter(|c| self.verdicts.state(c) == State::Fault)
-        {
+        for c in region.iter().filter(|c| self.verdicts.state(c) == State::Fault) {
             let (b, n) = (self.verdicts.rate_bound(c), self.verdicts.evidence(c));
             if best.is_none_or(|(bb, bn, _)| b > bb || (b == bb && n > bn)) {
                 best = Some((b, n, *c));
@@ -188,8 +174,7 @@ impl<'o> Bisector<'o> {
                 return;
             }
             let verdicts = &mut self.verdicts;
-            self.oracle
-                .run(&more, Mode::Alone, &mut |ev| verdicts.on_event(ev));
+            self.oracle.run(&more, Mode::Alone, &mut |ev| verdicts.on_event(ev));
             if self.verdicts.runs == before {
                 return;
             }
@@ -212,26 +197,19 @@ impl<'o> Bisector<'o> {
 
     /// Run the cells of `cells` without a verdict once (together, as a run would).
     fn run_unknown(&mut self, cells: &[Cell]) {
-        let unknown: Vec<Cell> = cells
-            .iter()
-            .filter(|c| self.verdicts.state(c) == State::Unknown)
-            .copied()
-            .collect();
+        let unknown: Vec<Cell> =
+            cells.iter().filter(|c| self.verdicts.state(c) == State::Unknown).copied().collect();
         if !unknown.is_empty() && self.oracle.can_run() {
             let verdicts = &mut self.verdicts;
-            self.oracle
-                .run(&unknown, Mode::Shared, &mut |ev| verdicts.on_event(ev));
+            self.oracle.run(&unknown, Mode::Shared, &mut |ev| verdicts.on_event(ev));
         }
     }
 
     /// Whether `region` has a pass that stays one when held to the region's fault: its passes,
     /// most attempts first, are settled until one holds (it is relied on) or every one faults.
     fn settled_pass(&mut self, region: &[Cell]) -> bool {
-        let mut passes: Vec<Cell> = region
-            .iter()
-            .filter(|c| self.verdicts.state(c) == State::Pass)
-            .copied()
-            .collect();
+        let mut passes: Vec<Cell> =
+            region.iter().filter(|c| self.verdicts.state(c) == State::Pass).copied().collect();
         passes.sort_by_key(|c| std::cmp::Reverse(self.verdicts.evidence(c)));
         for w in passes {
             let against = self.reference(region);
@@ -255,12 +233,7 @@ impl<'o> Bisector<'o> {
         if let Some(v) = self.memo.get(&key) {
             return *v;
         }
-        let region: Vec<Cell> = self
-            .scope
-            .iter()
-            .filter(|c| f.matches(c))
-            .copied()
-            .collect();
+        let region: Vec<Cell> = self.scope.iter().filter(|c| f.matches(c)).copied().collect();
         let mut ok = !self.settled_pass(&region);
         if ok {
             let unknown: Vec<Cell> = region
@@ -290,11 +263,8 @@ impl<'o> Bisector<'o> {
         for (w, f) in &relied {
             self.settle_against(&[*w], *f);
         }
-        let flipped = relied
-            .iter()
-            .any(|(w, _)| self.verdicts.state(w) != State::Pass);
-        self.relied
-            .retain(|(w, _)| self.verdicts.state(w) == State::Pass);
+        let flipped = relied.iter().any(|(w, _)| self.verdicts.state(w) != State::Pass);
+        self.relied.retain(|(w, _)| self.verdicts.state(w) == State::Pass);
         flipped
     }
 
@@ -306,9 +276,7 @@ impl<'o> Bisector<'o> {
             for c in &self.scope {
                 let v = c.axis_value(axis).expect("known axis");
                 if !vals.contains(&v)
-                    && cells
-                        .iter()
-                        .any(|f| f.axis_value(axis).as_deref() == Some(v.as_str()))
+                    && cells.iter().any(|f| f.axis_value(axis).as_deref() == Some(v.as_str()))
                 {
                     vals.push(v);
                 }
@@ -349,9 +317,7 @@ impl<'o> Bisector<'o> {
             .cloned()
             .collect();
         if primary.len() < terms.len()
-            && self.holds(&Filter {
-                terms: primary.iter().rev().cloned().collect(),
-            })
+            && self.holds(&Filter { terms: primary.iter().rev().cloned().collect() })
         {
             terms = primary;
         }
@@ -388,9 +354,7 @@ impl<'o> Bisector<'o> {
 
     /// Whether every faulting cell of the scope matches one of `cs`.
     fn covers(&self, cs: &[Filter]) -> bool {
-        self.faulting()
-            .iter()
-            .all(|f| cs.iter().any(|c| c.matches(f)))
+        self.faulting().iter().all(|f| cs.iter().any(|c| c.matches(f)))
     }
 
     /// The minimal description of the faulting cells: one conjunction when one separates them
@@ -450,10 +414,7 @@ impl<'o> Bisector<'o> {
             let patched: Vec<Cell> = rep
                 .applicable_patches()
                 .into_iter()
-                .map(|p| Cell {
-                    patch: Some(p),
-                    ..rep
-                })
+                .map(|p| Cell { patch: Some(p), ..rep })
                 .filter(|c| patch_supported(c))
                 .collect();
             let start = self.verdicts.runs;
@@ -471,21 +432,14 @@ impl<'o> Bisector<'o> {
             against: against.map(|f| b.verdicts.rate_bound(f)),
             max_miss: b.settings.max_miss,
         };
-        let mut isolation = vec![isolation::line(
-            &rep,
-            None,
-            &self.verdicts,
-            ev(self, Some(&rep)),
-        )];
+        let mut isolation = vec![isolation::line(&rep, None, &self.verdicts, ev(self, Some(&rep)))];
         isolation.extend(
             siblings.iter().map(|(axis, c)| {
                 isolation::line(c, Some(axis), &self.verdicts, ev(self, Some(&rep)))
             }),
         );
-        let workarounds: Vec<IsolationLine> = patched
-            .iter()
-            .map(|c| self.workaround_line(&rep, c, ev(self, Some(&rep))))
-            .collect();
+        let workarounds: Vec<IsolationLine> =
+            patched.iter().map(|c| self.workaround_line(&rep, c, ev(self, Some(&rep)))).collect();
         // Every pass relied on, each with the fault it is held to.
         let mut relied: Vec<(Cell, Cell)> = self.relied.clone();
         relied.extend(sib_cells.iter().chain(&patched).map(|c| (*c, rep)));
@@ -525,11 +479,7 @@ impl<'o> Bisector<'o> {
             unsettled,
             faulting_cells: self.faulting().len(),
             scope_cells: self.scope.len(),
-            not_run: self
-                .scope
-                .iter()
-                .filter(|c| self.verdicts.state(c) == State::Unknown)
-                .count(),
+            not_run: self.scope.iter().filter(|c| self.verdicts.state(c) == State::Unknown).count(),
             errored: self
                 .scope
                 .iter()
@@ -570,10 +520,8 @@ impl<'o> Bisector<'o> {
                     .filter(|(d, _)| *d <= 1)
                     .min_by_key(|(d, _)| *d);
                 // One line per cell: a sibling that is closest for two axes names both.
-                match (
-                    best,
-                    best.and_then(|(_, c)| out.iter_mut().find(|(_, o)| o.id() == c.id())),
-                ) {
+                match (best, best.and_then(|(_, c)| out.iter_mut().find(|(_, o)| o.id() == c.id())))
+                {
                     (_, Some(seen)) => seen.0 += &format!(", {axis}"),
                     (Some((_, c)), None) => out.push((axis.to_string(), *c)),
                     (None, None) => {}

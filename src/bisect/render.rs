@@ -108,9 +108,5 @@ pub fn predicate(f: &Filter) -> String {
     if f.terms.is_empty() {
         return "canary=none".into();
     }
-    f.terms
-        .iter()
-        .map(|(a, v)| format!("{a}={}", v.join("|")))
-        .collect::<Vec<_>>()
-        .join(",")
+    f.terms.iter().map(|(a, v)| format!("{a}={}", v.join("|"))).collect::<Vec<_>>().join(",")
 }

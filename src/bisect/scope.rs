@@ -53,15 +53,8 @@ impl ReportOptions {
 
     /// The scope filters: `given`, or else the report's own `--filter`s.
     pub fn scope_filters(&self, given: &[String]) -> Result<Vec<Filter>, ScopeError> {
-        let src = if given.is_empty() {
-            &self.filters
-        } else {
-            given
-        };
-        src.iter()
-            .map(|f| Filter::parse(f))
-            .collect::<Result<_, _>>()
-            .map_err(ScopeError::Filter)
+        let src = if given.is_empty() { &self.filters } else { given };
+        src.iter().map(|f| Filter::parse(f)).collect::<Result<_, _>>().map_err(ScopeError::Filter)
     }
 }
 
@@ -84,10 +77,9 @@ pub fn cell_by_id(id: &str) -> Option<Cell> {
     let (all, _) = crate::matrix::plan::all_cells();
     all.into_iter()
         .flat_map(|c| {
-            std::iter::once(c).chain(c.applicable_patches().into_iter().map(move |p| Cell {
-                patch: Some(p),
-                ..c
-            }))
+            std::iter::once(c).chain(
+                c.applicable_patches().into_iter().map(move |p| Cell { patch: Some(p), ..c }),
+            )
         })
         .chain(Canary::ALL.iter().map(|k| Cell::canary(*k)))
         .find(|c| c.id() == id)

@@ -23,10 +23,7 @@ impl Sim {
         }
     }
     fn roll(&mut self) -> f64 {
-        self.rng = self
-            .rng
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
+        self.rng = self.rng.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
         (self.rng >> 11) as f64 / (1u64 << 53) as f64
     }
 }
@@ -37,10 +34,7 @@ impl Oracle for Sim {
             self.runs += 1;
             let fault = self.truth.iter().any(|t| t.matches(c)) && self.roll() < self.p;
             let outcome = if fault { Outcome::Crash } else { Outcome::Pass };
-            on(Event::Attempt {
-                cell: c,
-                attempt: attempt(outcome, mode != Mode::Shared),
-            });
+            on(Event::Attempt { cell: c, attempt: attempt(outcome, mode != Mode::Shared) });
         }
     }
     fn can_run(&self) -> bool {
@@ -65,11 +59,7 @@ impl Oracle for Late {
                 on(Event::Attempt {
                     cell: c,
                     attempt: attempt(
-                        if self.seen >= self.from {
-                            Outcome::Crash
-                        } else {
-                            Outcome::Pass
-                        },
+                        if self.seen >= self.from { Outcome::Crash } else { Outcome::Pass },
                         mode != Mode::Shared,
                     ),
                 });
@@ -159,11 +149,7 @@ fn single_axis_two_axis_and_value_sets_are_recovered_exactly() {
             DEFAULT_MAX_ATTEMPTS,
         );
         assert_eq!(r.attempts_per_pass, need);
-        assert_eq!(
-            (r.isolation[0].agreeing, r.isolation[0].attempts),
-            (n0, n0),
-            "{truth}"
-        );
+        assert_eq!((r.isolation[0].agreeing, r.isolation[0].attempts), (n0, n0), "{truth}");
         assert!(
             r.isolation[0].line.contains(&format!(
                 "({n0} of {n0}, p ≥ {:.2} at 95%)",
@@ -180,19 +166,11 @@ fn single_axis_two_axis_and_value_sets_are_recovered_exactly() {
         assert!(r.worst_miss_probability < DEFAULT_MAX_MISS);
         assert_eq!(r.isolation[0].cell, r.representative);
         assert!(r.isolation[0].faults());
-        assert!(
-            r.isolation.iter().skip(1).any(|l| !l.faults()),
-            "{truth}: a passing sibling"
-        );
+        assert!(r.isolation.iter().skip(1).any(|l| !l.faults()), "{truth}: a passing sibling");
         for l in r.isolation.iter().filter(|l| l.verdict == "pass") {
             assert_eq!(l.attempts, need, "{}", l.line);
             let m = crate::model::stats::miss(crate::model::stats::rate_bound(n0, n0), need);
-            assert!(
-                l.line
-                    .contains(&format!("miss ≤ {}", isolation::percent(m))),
-                "{}",
-                l.line
-            );
+            assert!(l.line.contains(&format!("miss ≤ {}", isolation::percent(m))), "{}", l.line);
         }
     }
 }
@@ -202,10 +180,7 @@ fn a_redundant_predicate_comes_back_as_an_equivalent_set() {
     // as_access=address|address_patched already implies resource=acceleration_structure.
     let truth = "resource=acceleration_structure,as_access=address|address_patched";
     let (r, _) = bisect(&[truth], 1.0, SCOPE, SCOPE);
-    let (t, m) = (
-        Filter::parse(truth).unwrap(),
-        Filter::parse(&r.minimal).unwrap(),
-    );
+    let (t, m) = (Filter::parse(truth).unwrap(), Filter::parse(&r.minimal).unwrap());
     let sc = scope(SCOPE);
     assert!(
         sc.iter().all(|c| t.matches(c) == m.matches(c)),
@@ -217,10 +192,7 @@ fn a_redundant_predicate_comes_back_as_an_equivalent_set() {
 
 #[test]
 fn a_fault_no_conjunction_separates_gives_a_disjunction() {
-    let truth = [
-        "stage=raygen,index=literal",
-        "stage=closest_hit,index=dynamic",
-    ];
+    let truth = ["stage=raygen,index=literal", "stage=closest_hit,index=dynamic"];
     let (r, _) = bisect(&truth, 1.0, SCOPE, SCOPE);
     assert!(!r.separable);
     assert_eq!(r.conjunctions, truth);
@@ -234,23 +206,12 @@ fn a_flaky_fault_is_recovered_with_repeats_below_the_threshold() {
     let (r, runs) = bisect(&["stage=raygen|miss,index=dynamic"], 0.5, scope_f, scope_f);
     assert_eq!(r.minimal, "stage=raygen|miss,index=dynamic");
     assert!(r.concluded(), "{:?}", r.unsettled);
-    assert!(
-        r.worst_miss_probability < DEFAULT_MAX_MISS,
-        "{}",
-        r.worst_miss_probability
-    );
+    assert!(r.worst_miss_probability < DEFAULT_MAX_MISS, "{}", r.worst_miss_probability);
     // The bound is the minimal failing cell's own k of N, below the true rate 0.5 (at 95%).
     let rep = &r.isolation[0];
     let p = r.fault_rate_bound.unwrap();
-    assert_eq!(
-        p,
-        crate::model::stats::rate_bound(rep.agreeing, rep.attempts)
-    );
-    assert!(
-        rep.agreeing < rep.attempts,
-        "a rate-0.5 fault missed some attempts: {}",
-        rep.line
-    );
+    assert_eq!(p, crate::model::stats::rate_bound(rep.agreeing, rep.attempts));
+    assert!(rep.agreeing < rep.attempts, "a rate-0.5 fault missed some attempts: {}", rep.line);
     assert!(p < 0.5, "bound {p}");
     // It was repeated until it had the attempts a pass then needs, and every pass those.
     assert!(rep.attempts >= r.attempts_per_pass, "{}", rep.line);
@@ -259,11 +220,7 @@ fn a_flaky_fault_is_recovered_with_repeats_below_the_threshold() {
         crate::model::stats::attempts_needed(p, DEFAULT_MAX_MISS, DEFAULT_MAX_ATTEMPTS)
     );
     for l in r.isolation.iter().filter(|l| l.verdict == "pass") {
-        assert!(
-            l.attempts >= r.attempts_per_pass && l.settled(),
-            "{}",
-            l.line
-        );
+        assert!(l.attempts >= r.attempts_per_pass && l.settled(), "{}", l.line);
         assert!(
             l.line.contains("miss ≤ ") && l.line.contains(&format!("for p ≥ {p:.2}")),
             "{}",
@@ -283,21 +240,14 @@ fn cells_outside_the_report_are_run_only_where_needed() {
         "descriptor_model=descriptor_indexing,stage=closest_hit",
     );
     assert_eq!(r.minimal, "index=dynamic");
-    assert!(
-        runs < r.scope_cells / 2,
-        "{runs} runs for {} cells",
-        r.scope_cells
-    );
+    assert!(runs < r.scope_cells / 2, "{runs} runs for {} cells", r.scope_cells);
     assert!(r.not_run > 0);
 }
 
 #[test]
 fn offline_never_widens_over_cells_nobody_ran() {
     let mut sim = Sim::new(&["index=dynamic"], 1.0);
-    let v = report(
-        &mut sim,
-        &scope("descriptor_model=descriptor_indexing,stage=closest_hit"),
-    );
+    let v = report(&mut sim, &scope("descriptor_model=descriptor_indexing,stage=closest_hit"));
     let mut off = Offline;
     let mut b = Bisector::new(
         scope("descriptor_model=descriptor_indexing"),
@@ -311,10 +261,7 @@ fn offline_never_widens_over_cells_nobody_ran() {
     assert_eq!(r.runs, 0);
     // No repeats offline: one fault of one attempt bounds the rate only by alpha, and the passes
     // relied on (one attempt each) are not concluded on.
-    assert_eq!(
-        r.fault_rate_bound,
-        Some(1.0 - crate::model::stats::CONFIDENCE)
-    );
+    assert_eq!(r.fault_rate_bound, Some(1.0 - crate::model::stats::CONFIDENCE));
     assert!(!r.concluded() && !r.unsettled.is_empty());
     assert!(render(&r, 816).contains("NOT CONCLUDED"));
 }
@@ -325,23 +272,12 @@ fn no_fault_and_a_wrong_cell_are_errors() {
     let sc = scope("descriptor_model=descriptor_indexing,stage=closest_hit");
     let v = report(&mut sim, &sc);
     let mut b = Bisector::new(sc.clone(), v.clone(), &mut sim, Settings::default(), vec![]);
-    assert!(matches!(
-        b.bisect(None, &|_| true),
-        Err(BisectError::NoFault)
-    ));
+    assert!(matches!(b.bisect(None, &|_| true), Err(BisectError::NoFault)));
     let mut sim = Sim::new(&["index=dynamic"], 1.0);
-    let mut b = Bisector::new(
-        sc.clone(),
-        report(&mut sim, &sc),
-        &mut sim,
-        Settings::default(),
-        vec![],
-    );
+    let mut b =
+        Bisector::new(sc.clone(), report(&mut sim, &sc), &mut sim, Settings::default(), vec![]);
     assert!(matches!(
-        b.bisect(
-            Some("closest_hit.storage_buffer.literal.descriptor_indexing"),
-            &|_| true
-        ),
+        b.bisect(Some("closest_hit.storage_buffer.literal.descriptor_indexing"), &|_| true),
         Err(BisectError::NotFaulting(_))
     ));
 }
@@ -370,10 +306,8 @@ fn with_every_patched_variant_in_scope_a_patch_none_predicate_comes_back() {
     )
     .into_iter()
     .flat_map(|c| {
-        std::iter::once(c).chain(c.applicable_patches().into_iter().map(move |p| Cell {
-            patch: Some(p),
-            ..c
-        }))
+        std::iter::once(c)
+            .chain(c.applicable_patches().into_iter().map(move |p| Cell { patch: Some(p), ..c }))
     })
     .collect();
     let truth = "stage=closest_hit,index=dynamic,patch=none";
@@ -418,17 +352,11 @@ fn cells_rtprobe_could_not_run_count_neither_way() {
     );
     let mut v = Verdicts::default();
     o.run(&sc, Mode::Shared, &mut |ev| v.on_event(ev));
-    let dynamic = sc
-        .iter()
-        .filter(|c| c.index == crate::model::IndexSource::Dynamic)
-        .count();
+    let dynamic = sc.iter().filter(|c| c.index == crate::model::IndexSource::Dynamic).count();
     let mut b = Bisector::new(sc, v, &mut o, Settings::default(), vec![]);
     let r = b.bisect(None, &|_| true).unwrap();
     assert_eq!(r.minimal, "index=dynamic");
-    assert_eq!(
-        r.errored,
-        vec!["raygen.storage_buffer.dynamic.descriptor_indexing".to_string()]
-    );
+    assert_eq!(r.errored, vec!["raygen.storage_buffer.dynamic.descriptor_indexing".to_string()]);
     assert_eq!(r.faulting_cells, dynamic - 1);
 }
 
@@ -463,13 +391,8 @@ fn a_pass_with_too_little_evidence_is_not_concluded_on() {
     );
     let mut sim = Sim::new(&["stage=closest_hit,index=dynamic"], 1.0);
     let v = report(&mut sim, &sc);
-    let settings = Settings {
-        max_attempts: 3,
-        ..Settings::default()
-    };
-    let r = Bisector::new(sc, v, &mut sim, settings, vec![])
-        .bisect(None, &|_| true)
-        .unwrap();
+    let settings = Settings { max_attempts: 3, ..Settings::default() };
+    let r = Bisector::new(sc, v, &mut sim, settings, vec![]).bisect(None, &|_| true).unwrap();
     let (bound, miss) = (
         crate::model::stats::rate_bound(3, 3),
         crate::model::stats::miss(crate::model::stats::rate_bound(3, 3), 3),
@@ -481,11 +404,7 @@ fn a_pass_with_too_little_evidence_is_not_concluded_on() {
     assert!(!passes.is_empty());
     for l in passes {
         assert_eq!(l.attempts, 3);
-        assert!(
-            !l.settled() && l.line.contains("not concluded on"),
-            "{}",
-            l.line
-        );
+        assert!(!l.settled() && l.line.contains("not concluded on"), "{}", l.line);
         assert!((l.miss_probability.unwrap() - miss).abs() < 1e-12);
         assert!(r.unsettled.contains(&l.cell), "{}", l.cell);
     }
@@ -507,10 +426,7 @@ fn a_lenient_pass_that_read_other_elements_is_suspect_when_a_defined_sibling_fau
     use crate::model::IndexSource;
     use crate::model::{Comparison, ElementReads};
     let lenient = scope("stage=closest_hit,resource=sampled_image,index=dynamic,nonuniform=false,descriptor_model=descriptor_indexing")[0];
-    let literal = Cell {
-        index: IndexSource::Literal,
-        ..lenient
-    };
+    let literal = Cell { index: IndexSource::Literal, ..lenient };
     let reads = |other: usize| {
         let comparison = Comparison {
             element_reads: Some(ElementReads {
@@ -529,15 +445,9 @@ fn a_lenient_pass_that_read_other_elements_is_suspect_when_a_defined_sibling_fau
             fault: None,
             validation_errors: 0,
         };
-        Attempt {
-            result: Some(result),
-            ..attempt(Outcome::Pass, false)
-        }
+        Attempt { result: Some(result), ..attempt(Outcome::Pass, false) }
     };
-    let ev = isolation::Evidence {
-        against: Some(0.6),
-        max_miss: DEFAULT_MAX_MISS,
-    };
+    let ev = isolation::Evidence { against: Some(0.6), max_miss: DEFAULT_MAX_MISS };
     // Other elements read, and the literal sibling faults: suspect, naming it.
     let mut v = Verdicts::default();
     v.record(&lenient, reads(3));
@@ -546,8 +456,7 @@ fn a_lenient_pass_that_read_other_elements_is_suspect_when_a_defined_sibling_fau
     assert_eq!(l.suspect.as_deref(), Some(literal.id().as_str()));
     assert!(
         l.line.contains("suspect: 3 pixel(s) read another element")
-            && l.line
-                .contains("with literal index, descriptor_indexing faults"),
+            && l.line.contains("with literal index, descriptor_indexing faults"),
         "{}",
         l.line
     );
@@ -560,19 +469,12 @@ fn a_lenient_pass_that_read_other_elements_is_suspect_when_a_defined_sibling_fau
     clean.record(&lenient, reads(3));
     clean.record(&literal, attempt(Outcome::Pass, false));
     let l = isolation::line(&lenient, None, &clean, ev);
-    assert!(
-        l.suspect.is_none() && !l.line.contains("suspect"),
-        "{}",
-        l.line
-    );
+    assert!(l.suspect.is_none() && !l.line.contains("suspect"), "{}", l.line);
     // A cell with nonuniformEXT judged exactly (no element reads: the qualifier reached the
     // driver) is never suspect; one judged leniently because its compiler dropped the qualifier
     // (its comparison has element reads, `exec::heap::dropped_nonuniform`) is, like the cell
     // without it.
-    let nu = Cell {
-        nonuniform: true,
-        ..lenient
-    };
+    let nu = Cell { nonuniform: true, ..lenient };
     let mut v = Verdicts::default();
     v.record(&nu, attempt(Outcome::Pass, false));
     v.record(&literal, attempt(Outcome::Mismatch, false));
@@ -580,10 +482,7 @@ fn a_lenient_pass_that_read_other_elements_is_suspect_when_a_defined_sibling_fau
     let mut v = Verdicts::default();
     v.record(&nu, reads(3));
     v.record(&literal, attempt(Outcome::Mismatch, false));
-    assert_eq!(
-        isolation::line(&nu, None, &v, ev).suspect.as_deref(),
-        Some(literal.id().as_str())
-    );
+    assert_eq!(isolation::line(&nu, None, &v, ev).suspect.as_deref(), Some(literal.id().as_str()));
 }
 
 #[test]
@@ -606,22 +505,13 @@ fn a_sibling_that_faults_while_the_isolation_list_is_settled_is_covered() {
     let r = Bisector::new(sc.clone(), v, &mut o, Settings::default(), vec![])
         .bisect(None, &|_| true)
         .unwrap();
-    assert!(
-        o.seen >= 4,
-        "the late sibling was repeated into its fault ({} attempts)",
-        o.seen
-    );
+    assert!(o.seen >= 4, "the late sibling was repeated into its fault ({} attempts)", o.seen);
     assert_eq!(r.minimal, "stage=raygen,index=dynamic", "{r:?}");
     assert_eq!(r.faulting_cells, 2);
     let minimal = Filter::parse(&r.minimal).unwrap();
     for l in r.isolation.iter().filter(|l| l.verdict != "pass") {
         let c = sc.iter().find(|c| c.id() == l.cell).unwrap();
-        assert!(
-            minimal.matches(c),
-            "{} faults outside {}",
-            l.cell,
-            r.minimal
-        );
+        assert!(minimal.matches(c), "{} faults outside {}", l.cell, r.minimal);
     }
 }
 
@@ -632,17 +522,8 @@ fn descriptions_prefer_primary_axes_over_the_optional_axes_stand_in_values() {
     // the stage. A fault that needs the base keeps it.
     let sc = "descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit,index=literal|dynamic,reorder=none";
     let (r, _) = bisect(&["stage=raygen,nonuniform=true"], 1.0, sc, sc);
-    assert!(
-        !r.minimal.contains("base=") && !r.minimal.contains("sampler="),
-        "{}",
-        r.minimal
-    );
-    assert_eq!(
-        Filter::parse(&r.minimal).unwrap().terms.len(),
-        2,
-        "{}",
-        r.minimal
-    );
+    assert!(!r.minimal.contains("base=") && !r.minimal.contains("sampler="), "{}", r.minimal);
+    assert_eq!(Filter::parse(&r.minimal).unwrap().terms.len(), 2, "{}", r.minimal);
     let (r, _) = bisect(&["base=buffer"], 1.0, sc, sc);
     assert_eq!(r.minimal, "base=buffer");
 }
@@ -658,20 +539,14 @@ fn a_workaround_in_scope_that_faults_while_settled_is_covered() {
     let patched: Vec<Cell> = sc
         .iter()
         .flat_map(|c| {
-            c.applicable_patches().into_iter().map(move |p| Cell {
-                patch: Some(p),
-                ..*c
-            })
+            c.applicable_patches().into_iter().map(move |p| Cell { patch: Some(p), ..*c })
         })
         .collect();
     sc.extend(patched);
     let late = "raygen.storage_buffer.dynamic.nonuniform.descriptor_indexing.patch-ssbo-to-address";
     assert!(sc.iter().any(|c| c.id() == late));
     let mut o = Late {
-        sim: Sim::new(
-            &["stage=raygen,index=dynamic,nonuniform=true,patch=none"],
-            1.0,
-        ),
+        sim: Sim::new(&["stage=raygen,index=dynamic,nonuniform=true,patch=none"], 1.0),
         late: late.into(),
         from: 2,
         seen: 0,
@@ -684,18 +559,10 @@ fn a_workaround_in_scope_that_faults_while_settled_is_covered() {
     let r = Bisector::new(sc.clone(), v, &mut o, Settings::default(), vec![])
         .bisect(None, &|_| true)
         .unwrap();
-    assert!(
-        o.seen >= 2,
-        "the late workaround was repeated into its fault ({} attempts)",
-        o.seen
-    );
+    assert!(o.seen >= 2, "the late workaround was repeated into its fault ({} attempts)", o.seen);
     let minimal = Filter::parse(&r.minimal).unwrap();
     let late_cell = sc.iter().find(|c| c.id() == late).unwrap();
-    assert!(
-        minimal.matches(late_cell),
-        "{} excludes the faulting {late}",
-        r.minimal
-    );
+    assert!(minimal.matches(late_cell), "{} excludes the faulting {late}", r.minimal);
     for l in r
         .workarounds
         .iter()
@@ -703,12 +570,7 @@ fn a_workaround_in_scope_that_faults_while_settled_is_covered() {
         .filter(|l| l.verdict != "pass" && l.verdict != "not_run")
     {
         let c = sc.iter().find(|c| c.id() == l.cell).unwrap();
-        assert!(
-            minimal.matches(c),
-            "{} faults outside {}",
-            l.cell,
-            r.minimal
-        );
+        assert!(minimal.matches(c), "{} faults outside {}", l.cell, r.minimal);
     }
 }
 
@@ -742,10 +604,7 @@ fn evidence_counts_only_attempts_the_driver_decided() {
         &p,
         None,
         &v,
-        isolation::Evidence {
-            against: Some(0.6),
-            max_miss: DEFAULT_MAX_MISS,
-        },
+        isolation::Evidence { against: Some(0.6), max_miss: DEFAULT_MAX_MISS },
     );
     assert!(l.line.contains("passes (1 of 1;"), "{}", l.line);
 }

@@ -71,12 +71,8 @@ impl Verdicts {
         let evidence = |a: &&Attempt| !a.not_run() && a.outcome != Outcome::Error;
         let Some(r) = self.get(c) else { return (0, 0) };
         let n = r.attempts.iter().filter(evidence).count() as u32;
-        let k = r
-            .attempts
-            .iter()
-            .filter(evidence)
-            .filter(|a| a.outcome.is_finding())
-            .count() as u32;
+        let k =
+            r.attempts.iter().filter(evidence).filter(|a| a.outcome.is_finding()).count() as u32;
         (k, n)
     }
 

@@ -29,9 +29,7 @@ use crate::model::Cell;
 impl Campaign<'_> {
     /// Every round `policy` asks for, in the run's order: `cells` first, `canaries` last.
     pub fn run(&mut self, policy: &Policy, cells: &[Cell], canaries: &[Cell]) {
-        self.rec
-            .progress
-            .scheduled((cells.len() + canaries.len()) as u64);
+        self.rec.progress.scheduled((cells.len() + canaries.len()) as u64);
         self.matrix(cells);
         if policy.confirm {
             self.confirm();

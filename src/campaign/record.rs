@@ -47,19 +47,11 @@ impl Recorder {
 
     pub fn on_event(&mut self, ev: Event) {
         match ev {
-            Event::WorkerReady {
-                device_ms,
-                pipeline_cache,
-                ..
-            } => {
+            Event::WorkerReady { device_ms, pipeline_cache, .. } => {
                 self.writer.report.timing.workers_started += 1;
                 self.device_ms_sum += device_ms;
                 if let Some(l) = pipeline_cache {
-                    let s = self
-                        .writer
-                        .report
-                        .pipeline_cache
-                        .get_or_insert_with(Default::default);
+                    let s = self.writer.report.pipeline_cache.get_or_insert_with(Default::default);
                     s.file = Some(l.path);
                     if l.loaded_bytes > 0 {
                         s.workers_loaded += 1;
@@ -70,18 +62,12 @@ impl Recorder {
                     }
                 }
             }
-            Event::Prebuilt {
-                wall_ms, pipelines, ..
-            } => {
+            Event::Prebuilt { wall_ms, pipelines, .. } => {
                 self.writer.report.timing.prebuild_ms += wall_ms;
                 self.writer.report.timing.prebuilt_pipelines += pipelines;
             }
             Event::CacheSaved(saved) => {
-                let s = self
-                    .writer
-                    .report
-                    .pipeline_cache
-                    .get_or_insert_with(Default::default);
+                let s = self.writer.report.pipeline_cache.get_or_insert_with(Default::default);
                 match saved {
                     Ok(bytes) => {
                         s.saves += 1;

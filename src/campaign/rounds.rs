@@ -25,11 +25,7 @@ pub fn confirm_cells(report: &RunReport) -> Vec<Cell> {
 
 /// The faulting cells with fewer than `n` attempts.
 pub fn repeat_cells(report: &RunReport, n: u32) -> Vec<Cell> {
-    report
-        .findings()
-        .filter(|c| (c.attempts.len() as u32) < n)
-        .map(|c| c.cell)
-        .collect()
+    report.findings().filter(|c| (c.attempts.len() as u32) < n).map(|c| c.cell).collect()
 }
 
 /// Every finding with each workaround that applies to it, where the device can run the variant
@@ -42,10 +38,7 @@ pub fn workaround_cells(
     report
         .findings()
         .flat_map(|c| {
-            c.cell.applicable_patches().into_iter().map(move |p| Cell {
-                patch: Some(p),
-                ..c.cell
-            })
+            c.cell.applicable_patches().into_iter().map(move |p| Cell { patch: Some(p), ..c.cell })
         })
         .filter(|c| supported(c) && !done.contains(&c.id()))
         .collect()
@@ -121,11 +114,8 @@ impl Campaign<'_> {
 
     /// The findings' workaround variants the device can run, once, together.
     pub fn workarounds(&mut self) {
-        let retries = workaround_cells(
-            &self.rec.writer.report,
-            &self.rec.writer.done(),
-            self.supported,
-        );
+        let retries =
+            workaround_cells(&self.rec.writer.report, &self.rec.writer.done(), self.supported);
         self.round(&retries, Mode::Shared);
     }
 

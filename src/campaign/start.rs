@@ -79,9 +79,8 @@ pub fn resume(old: RunReport, fresh: &RunReport) -> Result<RunReport, NotSameRun
         .filter(|k| *k != ResultOption::Repeat)
         .chain([ResultOption::Shard])
         .collect();
-    crate::fleet::merge::same_run(&old, fresh, &options).map_err(|why| NotSameRun {
-        why: why.to_string(),
-    })?;
+    crate::fleet::merge::same_run(&old, fresh, &options)
+        .map_err(|why| NotSameRun { why: why.to_string() })?;
     Ok(RunReport {
         command_line: fresh.command_line.clone(),
         complete: false,
@@ -93,15 +92,8 @@ pub fn resume(old: RunReport, fresh: &RunReport) -> Result<RunReport, NotSameRun
 /// The plan's cells still to run — all, or after a resume those without an attempt that ran —
 /// as (probe cells, canaries): canaries run after every probe cell and its confirmation.
 pub fn pending(writer: &ReportWriter, plan: &RunPlan, resumed: bool) -> (Vec<Cell>, Vec<Cell>) {
-    let done = if resumed {
-        writer.done()
-    } else {
-        Default::default()
-    };
-    plan.to_run()
-        .filter(|c| !done.contains(&c.id()))
-        .copied()
-        .partition(|c| c.canary.is_none())
+    let done = if resumed { writer.done() } else { Default::default() };
+    plan.to_run().filter(|c| !done.contains(&c.id())).copied().partition(|c| c.canary.is_none())
 }
 
 /// End the report: wall time (added to a resumed run's), the workers' mean device setup time,

@@ -40,10 +40,8 @@ impl Oracle for Script {
             let k = *n;
             *n += 1;
             let script = if av { &self.gpu_av } else { &self.plain };
-            let outcome = script
-                .get(&c.id())
-                .map(|s| s[k.min(s.len() - 1)])
-                .unwrap_or(Outcome::Pass);
+            let outcome =
+                script.get(&c.id()).map(|s| s[k.min(s.len() - 1)]).unwrap_or(Outcome::Pass);
             on(Event::Attempt {
                 cell: c,
                 attempt: Attempt::for_tests(outcome, mode != Mode::Shared),
@@ -88,37 +86,19 @@ fn world(plan: &[Cell], oracle: Script) -> World {
     let dir = tempfile::tempdir().unwrap();
     let p = RunPlan {
         generated: plan.len(),
-        cells: plan
-            .iter()
-            .map(|c| PlannedCell {
-                cell: *c,
-                status: PlanStatus::Run,
-            })
-            .collect(),
+        cells: plan.iter().map(|c| PlannedCell { cell: *c, status: PlanStatus::Run }).collect(),
         not_generated: vec![],
         filtered_out: 0,
     };
-    let writer = ReportWriter::new(
-        dir.path().join("report.json"),
-        RunReport::for_tests(vec![]),
-        &p,
-    );
+    let writer =
+        ReportWriter::new(dir.path().join("report.json"), RunReport::for_tests(vec![]), &p);
     let counts = Rc::new(Counts::default());
-    World {
-        _dir: dir,
-        oracle,
-        rec: Recorder::new(writer, Box::new(counts.clone())),
-        counts,
-    }
+    World { _dir: dir, oracle, rec: Recorder::new(writer, Box::new(counts.clone())), counts }
 }
 
 impl World {
     fn campaign<'a>(&'a mut self, supported: &'a dyn Fn(&Cell) -> bool) -> Campaign<'a> {
-        Campaign {
-            oracle: &mut self.oracle,
-            rec: &mut self.rec,
-            supported,
-        }
+        Campaign { oracle: &mut self.oracle, rec: &mut self.rec, supported }
     }
     fn report(&self) -> &RunReport {
         &self.rec.writer.report
@@ -139,12 +119,7 @@ fn all(_: &Cell) -> bool {
 }
 
 fn cell(stage: Stage, index: IndexSource) -> Cell {
-    Cell::new(
-        stage,
-        Resource::StorageBuffer,
-        index,
-        DescriptorModel::DescriptorIndexing,
-    )
+    Cell::new(stage, Resource::StorageBuffer, index, DescriptorModel::DescriptorIndexing)
 }
 
 fn ids(cells: &[Cell]) -> BTreeSet<String> {
@@ -154,23 +129,14 @@ fn ids(cells: &[Cell]) -> BTreeSet<String> {
 /// Each batch of `got` has `want`'s mode and cells (in any order).
 fn same_batches(got: &[(Mode, Vec<Cell>)], want: &[(Mode, Vec<Cell>)]) -> Result<(), String> {
     let show = |b: &[(Mode, Vec<Cell>)]| {
-        b.iter()
-            .map(|(m, c)| format!("{m:?} {:?}", ids(c)))
-            .collect::<Vec<_>>()
+        b.iter().map(|(m, c)| format!("{m:?} {:?}", ids(c))).collect::<Vec<_>>()
     };
     let same = got.len() == want.len()
-        && got
-            .iter()
-            .zip(want)
-            .all(|((gm, gc), (wm, wc))| gm == wm && ids(gc) == ids(wc));
+        && got.iter().zip(want).all(|((gm, gc), (wm, wc))| gm == wm && ids(gc) == ids(wc));
     if same {
         Ok(())
     } else {
-        Err(format!(
-            "batches {:?}, expected {:?}",
-            show(got),
-            show(want)
-        ))
+        Err(format!("batches {:?}, expected {:?}", show(got), show(want)))
     }
 }
 
@@ -186,10 +152,8 @@ fn expect<T: PartialEq + std::fmt::Debug>(what: &str, got: T, want: T) -> Result
 
 /// A crash, a mismatch, a pass, an `error` and a canary that crashed, each run once.
 fn confirm_world() -> (World, Vec<Cell>) {
-    let (crash, mismatch) = (
-        cell(Stage::ClosestHit, IndexSource::Dynamic),
-        cell(Stage::Raygen, IndexSource::Dynamic),
-    );
+    let (crash, mismatch) =
+        (cell(Stage::ClosestHit, IndexSource::Dynamic), cell(Stage::Raygen, IndexSource::Dynamic));
     let (pass, error, canary) = (
         cell(Stage::ClosestHit, IndexSource::Literal),
         cell(Stage::ClosestHit, IndexSource::PushConstant),
@@ -208,13 +172,8 @@ fn confirm_world() -> (World, Vec<Cell>) {
 
 /// Confirmation ran the two faults, alone, once: nothing else ran again.
 fn check_confirm(w: &World, cells: &[Cell]) -> Result<(), String> {
-    same_batches(
-        &w.oracle.batches[1..],
-        &[(Mode::Alone, vec![cells[0], cells[1]])],
-    )?;
-    cells[2..]
-        .iter()
-        .try_for_each(|c| expect(&c.id(), w.attempts(c).len(), 1))
+    same_batches(&w.oracle.batches[1..], &[(Mode::Alone, vec![cells[0], cells[1]])])?;
+    cells[2..].iter().try_for_each(|c| expect(&c.id(), w.attempts(c).len(), 1))
 }
 
 #[test]
@@ -233,13 +192,8 @@ fn confirm_reruns_each_fault_alone_once() {
 #[test]
 fn confirm_twin_rerunning_passes_or_running_faults_together_is_caught() {
     let (mut w, cells) = confirm_world();
-    let once: Vec<Cell> = w
-        .report()
-        .cells
-        .iter()
-        .filter(|c| c.attempts.len() == 1)
-        .map(|c| c.cell)
-        .collect();
+    let once: Vec<Cell> =
+        w.report().cells.iter().filter(|c| c.attempts.len() == 1).map(|c| c.cell).collect();
     w.campaign(&all).round(&once, Mode::Alone);
     assert!(check_confirm(&w, &cells).is_err());
     let (mut w, cells) = confirm_world();
@@ -277,11 +231,7 @@ fn check_repeat(w: &World, [steady, flaky, pass]: [Cell; 3], n: usize) -> Result
     )?;
     expect("pass attempts", w.attempts(&pass).len(), 1)?;
     w.oracle.batches[1..].iter().try_for_each(|(m, c)| {
-        expect(
-            "repeat batch",
-            (*m, c.contains(&pass)),
-            (Mode::Alone, false),
-        )
+        expect("repeat batch", (*m, c.contains(&pass)), (Mode::Alone, false))
     })
 }
 
@@ -307,17 +257,12 @@ fn repeat_twin_a_single_round_is_caught() {
 /// first workaround always passes, its second passes once then mismatches, its third the device
 /// cannot run.
 fn workaround_world() -> (World, Cell, Vec<Cell>) {
-    let (finding, pass) = (
-        cell(Stage::ClosestHit, IndexSource::Dynamic),
-        cell(Stage::Raygen, IndexSource::Dynamic),
-    );
+    let (finding, pass) =
+        (cell(Stage::ClosestHit, IndexSource::Dynamic), cell(Stage::Raygen, IndexSource::Dynamic));
     let variants: Vec<Cell> = finding
         .applicable_patches()
         .into_iter()
-        .map(|p| Cell {
-            patch: Some(p),
-            ..finding
-        })
+        .map(|p| Cell { patch: Some(p), ..finding })
         .collect();
     assert!(variants.len() >= 3, "{variants:?}");
     let mut w = world(
@@ -334,15 +279,8 @@ fn workaround_world() -> (World, Cell, Vec<Cell>) {
 
 fn check_workarounds(w: &World, finding: Cell, v: &[Cell]) -> Result<(), String> {
     let (first, verify) = w.oracle.batches.split_first().ok_or("no batch")?;
-    same_batches(
-        std::slice::from_ref(first),
-        &[(Mode::Shared, vec![v[0], v[1]])],
-    )?;
-    expect(
-        "verifying batches run alone",
-        verify.iter().all(|(m, _)| *m == Mode::Alone),
-        true,
-    )?;
+    same_batches(std::slice::from_ref(first), &[(Mode::Shared, vec![v[0], v[1]])])?;
+    expect("verifying batches run alone", verify.iter().all(|(m, _)| *m == Mode::Alone), true)?;
     expect(
         "the passing workaround, as often as its finding",
         w.attempts(&v[0]),
@@ -365,10 +303,7 @@ fn workarounds_retry_applicable_supported_patches_until_as_many_attempts_as_the_
     check_workarounds(&w, finding, &v).unwrap();
     // After a resume, a variant that already ran is not run again.
     let done = [v[0].id()].into_iter().collect();
-    assert_eq!(
-        ids(&workaround_cells(w.report(), &done, &all)),
-        ids(&v[1..])
-    );
+    assert_eq!(ids(&workaround_cells(w.report(), &done, &all)), ids(&v[1..]));
 }
 
 #[test]
@@ -376,38 +311,23 @@ fn workarounds_twin_unverified_or_unsupported_variants_are_caught() {
     let (mut w, finding, v) = workaround_world();
     let supported = |c: &Cell| c.patch != v[2].patch;
     w.campaign(&supported).workarounds();
-    assert!(
-        check_workarounds(&w, finding, &v).is_err(),
-        "no verifying repeats"
-    );
+    assert!(check_workarounds(&w, finding, &v).is_err(), "no verifying repeats");
     let (mut w, finding, v) = workaround_world();
     let every = workaround_cells(w.report(), &w.rec.writer.done(), &all);
     w.campaign(&all).round(&every, Mode::Shared);
     w.campaign(&all).verify();
-    assert!(
-        check_workarounds(&w, finding, &v).is_err(),
-        "a variant the device cannot run"
-    );
+    assert!(check_workarounds(&w, finding, &v).is_err(), "a variant the device cannot run");
 }
 
 // ---- recommended patterns ----
 
 /// Two steady crashes with 3 attempts each; the device runs the first one's pattern only.
 fn pattern_world() -> (World, [Cell; 4]) {
-    let (f, h) = (
-        cell(Stage::ClosestHit, IndexSource::Dynamic),
-        cell(Stage::Raygen, IndexSource::Dynamic),
-    );
-    let (pf, ph) = (
-        f.recommended_pattern().unwrap().1,
-        h.recommended_pattern().unwrap().1,
-    );
-    let mut w = world(
-        &[f, h],
-        Script::default()
-            .with(f, &[Outcome::Crash])
-            .with(h, &[Outcome::Crash]),
-    );
+    let (f, h) =
+        (cell(Stage::ClosestHit, IndexSource::Dynamic), cell(Stage::Raygen, IndexSource::Dynamic));
+    let (pf, ph) = (f.recommended_pattern().unwrap().1, h.recommended_pattern().unwrap().1);
+    let mut w =
+        world(&[f, h], Script::default().with(f, &[Outcome::Crash]).with(h, &[Outcome::Crash]));
     w.campaign(&all).matrix(&[f, h]);
     w.campaign(&all).repeat(3);
     w.oracle.batches.clear();
@@ -417,11 +337,7 @@ fn pattern_world() -> (World, [Cell; 4]) {
 fn check_patterns(w: &World, [f, _, pf, ph]: [Cell; 4]) -> Result<(), String> {
     let (first, verify) = w.oracle.batches.split_first().ok_or("no batch")?;
     same_batches(std::slice::from_ref(first), &[(Mode::Shared, vec![pf])])?;
-    expect(
-        "verifying batches",
-        verify.iter().all(|(m, c)| *m == Mode::Alone && c == &[pf]),
-        true,
-    )?;
+    expect("verifying batches", verify.iter().all(|(m, c)| *m == Mode::Alone && c == &[pf]), true)?;
     expect(
         "the pattern, as often as its finding",
         w.attempts(&pf),
@@ -444,10 +360,7 @@ fn patterns_twin_unsupported_or_unverified_patterns_are_caught() {
     let (mut w, cells) = pattern_world();
     w.campaign(&all).patterns();
     w.campaign(&all).verify();
-    assert!(
-        check_patterns(&w, cells).is_err(),
-        "a pattern the device cannot run"
-    );
+    assert!(check_patterns(&w, cells).is_err(), "a pattern the device cannot run");
     let (mut w, cells) = pattern_world();
     let supported = |c: &Cell| *c != cells[3];
     w.campaign(&supported).patterns();
@@ -463,10 +376,8 @@ fn gpu_av_world() -> (World, [Cell; 4]) {
         cell(Stage::ClosestHit, IndexSource::Dynamic),
         cell(Stage::ClosestHit, IndexSource::Literal),
     );
-    let (g, gc) = (
-        cell(Stage::Raygen, IndexSource::Dynamic),
-        cell(Stage::Raygen, IndexSource::Literal),
-    );
+    let (g, gc) =
+        (cell(Stage::Raygen, IndexSource::Dynamic), cell(Stage::Raygen, IndexSource::Literal));
     let script = Script::default()
         .with(f, &[Outcome::Crash])
         .with(g, &[Outcome::Crash])
@@ -480,18 +391,11 @@ fn gpu_av_world() -> (World, [Cell; 4]) {
 const LAYER: Option<u32> = Some(ash::vk::make_api_version(0, 1, 4, 363));
 
 fn check_gpu_av(w: &World, [f, fc, g, gc]: [Cell; 4]) -> Result<(), String> {
-    let needed = gpu_av::passes_needed(
-        w.report()
-            .cells
-            .iter()
-            .find(|c| c.cell == f)
-            .ok_or("no finding")?,
-    ) as usize;
+    let needed =
+        gpu_av::passes_needed(w.report().cells.iter().find(|c| c.cell == f).ok_or("no finding")?)
+            as usize;
     let (first, more) = w.oracle.batches.split_first().ok_or("no batch")?;
-    same_batches(
-        std::slice::from_ref(first),
-        &[(Mode::GpuAv, vec![f, fc, g, gc])],
-    )?;
+    same_batches(std::slice::from_ref(first), &[(Mode::GpuAv, vec![f, fc, g, gc])])?;
     same_batches(more, &vec![(Mode::GpuAv, vec![f]); needed - 1])?;
     [f, fc, g, gc]
         .iter()
@@ -504,16 +408,8 @@ fn check_gpu_av(w: &World, [f, fc, g, gc]: [Cell; 4]) -> Result<(), String> {
             .and_then(|x| x.gpu_av.as_ref())
             .map(|r| (r.verdict, r.attempts as usize))
     };
-    expect(
-        "masked finding",
-        verdict(&f),
-        Some((GpuAvVerdict::Masked, needed)),
-    )?;
-    expect(
-        "finding that still faults",
-        verdict(&g),
-        Some((GpuAvVerdict::StillFaults, 1)),
-    )
+    expect("masked finding", verdict(&f), Some((GpuAvVerdict::Masked, needed)))?;
+    expect("finding that still faults", verdict(&g), Some((GpuAvVerdict::StillFaults, 1)))
 }
 
 #[test]
@@ -548,19 +444,13 @@ fn full_world() -> (World, Vec<Cell>, Vec<Cell>) {
     let canary = Cell::canary(Canary::InvalidAddress);
     let w = world(
         &[f, fc, p, canary],
-        Script::default()
-            .with(f, &[Outcome::Crash])
-            .with(canary, &[Outcome::Crash]),
+        Script::default().with(f, &[Outcome::Crash]).with(canary, &[Outcome::Crash]),
     );
     (w, vec![f, fc, p], vec![canary])
 }
 
-const FULL: Policy = Policy {
-    confirm: true,
-    repeat: Some(3),
-    workarounds: true,
-    gpu_av: Some(LAYER),
-};
+const FULL: Policy =
+    Policy { confirm: true, repeat: Some(3), workarounds: true, gpu_av: Some(LAYER) };
 
 /// The rounds each batch belongs to, in order, repeats of one round folded.
 fn rounds_of(batches: &[(Mode, Vec<Cell>)]) -> Vec<&'static str> {
@@ -588,15 +478,7 @@ fn check_order(w: &World) -> Result<(), String> {
     expect(
         "rounds",
         rounds_of(&w.oracle.batches),
-        vec![
-            "matrix",
-            "again",
-            "workarounds",
-            "patterns",
-            "verify",
-            "gpu_av",
-            "canaries",
-        ],
+        vec!["matrix", "again", "workarounds", "patterns", "verify", "gpu_av", "canaries"],
     )?;
     let (last, rest) = w.oracle.batches.split_last().ok_or("no batch")?;
     expect(
@@ -606,8 +488,7 @@ fn check_order(w: &World) -> Result<(), String> {
     )?;
     expect(
         "canaries before the last batch",
-        rest.iter()
-            .any(|(_, c)| c.iter().any(|c| c.canary.is_some())),
+        rest.iter().any(|(_, c)| c.iter().any(|c| c.canary.is_some())),
         false,
     )
 }
@@ -617,23 +498,13 @@ fn a_run_makes_its_rounds_in_order_and_canaries_last() {
     let (mut w, cells, canaries) = full_world();
     w.campaign(&all).run(&FULL, &cells, &canaries);
     check_order(&w).unwrap();
-    let attempts = w
-        .oracle
-        .batches
-        .iter()
-        .map(|(_, c)| c.len() as u64)
-        .sum::<u64>();
+    let attempts = w.oracle.batches.iter().map(|(_, c)| c.len() as u64).sum::<u64>();
     assert_eq!(
         (w.counts.scheduled.get(), w.counts.ended.get()),
         (attempts, attempts),
         "the progress ends full"
     );
-    let f = w
-        .report()
-        .cells
-        .iter()
-        .find(|c| c.cell == cells[0])
-        .unwrap();
+    let f = w.report().cells.iter().find(|c| c.cell == cells[0]).unwrap();
     assert!(
         f.recommended.is_some() && !f.workarounds.is_empty(),
         "findings are annotated at the end"
@@ -644,8 +515,7 @@ fn a_run_makes_its_rounds_in_order_and_canaries_last() {
 #[test]
 fn run_twin_canaries_with_the_matrix_are_caught() {
     let (mut w, cells, canaries) = full_world();
-    w.campaign(&all)
-        .run(&FULL, &[canaries, cells].concat(), &[]);
+    w.campaign(&all).run(&FULL, &[canaries, cells].concat(), &[]);
     assert!(check_order(&w).is_err());
 }
 
@@ -653,16 +523,9 @@ fn run_twin_canaries_with_the_matrix_are_caught() {
 fn an_oracle_that_runs_nothing_ends_every_round() {
     let (mut w, cells, canaries) = full_world();
     let f = cells[0];
-    w.rec
-        .writer
-        .record(&f, Attempt::for_tests(Outcome::Crash, false));
+    w.rec.writer.record(&f, Attempt::for_tests(Outcome::Crash, false));
     let mut deaf = Deaf(0);
-    Campaign {
-        oracle: &mut deaf,
-        rec: &mut w.rec,
-        supported: &all,
-    }
-    .run(&FULL, &cells, &canaries);
+    Campaign { oracle: &mut deaf, rec: &mut w.rec, supported: &all }.run(&FULL, &cells, &canaries);
     // The matrix, the confirmation, one repeat, the workarounds, the pattern, one GPU-AV batch
     // and the canaries: no round asks again after a batch that added nothing.
     assert_eq!(deaf.0, 7);
@@ -673,26 +536,13 @@ fn the_policy_follows_the_options() {
     let mut o = crate::model::report::RunOptions::for_tests();
     o.repeat = Some(5);
     let p = Policy::of(&o, || panic!("the layer is asked only under GPU-AV"));
-    assert_eq!(
-        p,
-        Policy {
-            confirm: true,
-            repeat: Some(5),
-            workarounds: true,
-            gpu_av: None
-        }
-    );
+    assert_eq!(p, Policy { confirm: true, repeat: Some(5), workarounds: true, gpu_av: None });
     o.isolation = crate::model::Isolation::ProcessPerCell;
     o.patches = crate::model::PatchMode::None;
     o.gpu_av = true;
     assert_eq!(
         Policy::of(&o, || None),
-        Policy {
-            confirm: false,
-            repeat: Some(5),
-            workarounds: false,
-            gpu_av: Some(None)
-        }
+        Policy { confirm: false, repeat: Some(5), workarounds: false, gpu_av: Some(None) }
     );
 }
 
@@ -701,9 +551,6 @@ fn the_recorder_saves_a_fault_at_once() {
     let (mut w, cells, _) = full_world();
     w.campaign(&all).matrix(&cells[..1]);
     let saved = std::fs::read_to_string(&w.rec.writer.path).unwrap();
-    assert!(
-        saved.contains(&cells[0].id()) && saved.contains("\"crash\""),
-        "{saved}"
-    );
+    assert!(saved.contains(&cells[0].id()) && saved.contains("\"crash\""), "{saved}");
     assert!(w.rec.save_error.is_none());
 }

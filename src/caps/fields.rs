@@ -133,14 +133,12 @@ pub fn features(info: &DeviceInfo) -> Map<String, Value> {
     put(
         &mut m,
         "VkPhysicalDeviceMaintenance5FeaturesKHR",
-        f.maintenance5
-            .map(|s| obj!(s; b "maintenance5" maintenance5)),
+        f.maintenance5.map(|s| obj!(s; b "maintenance5" maintenance5)),
     );
     put(
         &mut m,
         "VkPhysicalDeviceMaintenance6FeaturesKHR",
-        f.maintenance6
-            .map(|s| obj!(s; b "maintenance6" maintenance6)),
+        f.maintenance6.map(|s| obj!(s; b "maintenance6" maintenance6)),
     );
     rt_extension_features(info, &mut m);
     m
@@ -161,8 +159,7 @@ fn rt_extension_features(info: &DeviceInfo, m: &mut Map<String, Value>) {
     put(
         m,
         "VkPhysicalDeviceRayTracingValidationFeaturesNV",
-        f.rt_validation
-            .map(|s| obj!(s; b "rayTracingValidation" ray_tracing_validation)),
+        f.rt_validation.map(|s| obj!(s; b "rayTracingValidation" ray_tracing_validation)),
     );
     put(
         m,
@@ -199,8 +196,7 @@ fn rt_extension_features(info: &DeviceInfo, m: &mut Map<String, Value>) {
     put(
         m,
         "VkPhysicalDeviceDenseGeometryFormatFeaturesAMDX",
-        f.dense_geometry_format
-            .map(|s| obj!(s; b "denseGeometryFormat" dense_geometry_format)),
+        f.dense_geometry_format.map(|s| obj!(s; b "denseGeometryFormat" dense_geometry_format)),
     );
     put(m, "VkPhysicalDeviceRayTracingMotionBlurFeaturesNV", f.motion_blur.map(|s| obj!(s;
         b "rayTracingMotionBlur" ray_tracing_motion_blur,
@@ -218,8 +214,7 @@ fn rt_extension_features(info: &DeviceInfo, m: &mut Map<String, Value>) {
     put(
         m,
         "VkPhysicalDeviceOpacityMicromapFeaturesKHR",
-        f.opacity_micromap_khr
-            .map(|s| obj!(s; b "micromap" micromap)),
+        f.opacity_micromap_khr.map(|s| obj!(s; b "micromap" micromap)),
     );
     put(
         m,
@@ -232,8 +227,7 @@ fn rt_extension_features(info: &DeviceInfo, m: &mut Map<String, Value>) {
     put(
         m,
         "VkPhysicalDeviceDisplacementMicromapFeaturesNV",
-        f.displacement_micromap
-            .map(|s| obj!(s; b "displacementMicromap" displacement_micromap)),
+        f.displacement_micromap.map(|s| obj!(s; b "displacementMicromap" displacement_micromap)),
     );
 }
 
@@ -326,10 +320,7 @@ fn core_properties(p: &Properties, m: &mut Map<String, Value>) {
         n "minUniformBufferOffsetAlignment" min_uniform_buffer_offset_alignment,
         n "nonCoherentAtomSize" non_coherent_atom_size, n "timestampPeriod" timestamp_period,
     );
-    m.insert(
-        "VkPhysicalDeviceProperties".into(),
-        json!({ "limits": limits }),
-    );
+    m.insert("VkPhysicalDeviceProperties".into(), json!({ "limits": limits }));
     put(m, "VkPhysicalDeviceVulkan12Properties", p.v12.map(|s| obj!(s;
         n "maxUpdateAfterBindDescriptorsInAllPools" max_update_after_bind_descriptors_in_all_pools,
         b "shaderUniformBufferArrayNonUniformIndexingNative" shader_uniform_buffer_array_non_uniform_indexing_native,

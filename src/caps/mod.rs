@@ -165,14 +165,8 @@ mod tests {
             let want = present.contains_key(*name);
             assert_eq!(e["present"], json!(want), "{name}: {e}");
             assert_eq!(e["spec_version"].is_u64(), want, "{name}: {e}");
-            assert!(
-                e["group"].as_str().is_some_and(|g| !g.is_empty()),
-                "{name}: {e}"
-            );
+            assert!(e["group"].as_str().is_some_and(|g| !g.is_empty()), "{name}: {e}");
         }
-        assert_eq!(
-            v["VK_NV_ray_tracing_invocation_reorder"]["group"],
-            "invocation reorder"
-        );
+        assert_eq!(v["VK_NV_ray_tracing_invocation_reorder"]["group"], "invocation reorder");
     }
 }

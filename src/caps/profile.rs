@@ -67,10 +67,7 @@ mod tests {
             profile_name("llvmpipe (LLVM 15.0.6, 256 bits)"),
             "VP_RTPROBE_LLVMPIPE_LLVM_15_0_6_256_BITS"
         );
-        assert_eq!(
-            profile_name("NVIDIA H100 80GB HBM3"),
-            "VP_RTPROBE_NVIDIA_H100_80GB_HBM3"
-        );
+        assert_eq!(profile_name("NVIDIA H100 80GB HBM3"), "VP_RTPROBE_NVIDIA_H100_80GB_HBM3");
     }
 
     #[test]
@@ -79,10 +76,7 @@ mod tests {
             "extensions": {"VK_A": {"present": true, "spec_version": 3}, "VK_B": {"present": false}},
             "features": {"VkPhysicalDeviceFeatures": {"shaderInt64": true}}, "limits": {}});
         let p = export(&caps, "2026-01-01");
-        assert_eq!(
-            p["capabilities"]["rtprobe_caps"]["extensions"],
-            json!({"VK_A": 3})
-        );
+        assert_eq!(p["capabilities"]["rtprobe_caps"]["extensions"], json!({"VK_A": 3}));
         assert_eq!(p["profiles"]["VP_RTPROBE_X"]["api-version"], "1.3.0");
     }
 }

@@ -24,26 +24,18 @@ impl Support {
     }
 
     fn require(checks: &[(bool, &str)]) -> Support {
-        let missing: Vec<&str> = checks
-            .iter()
-            .filter(|(ok, _)| !ok)
-            .map(|(_, what)| *what)
-            .collect();
+        let missing: Vec<&str> =
+            checks.iter().filter(|(ok, _)| !ok).map(|(_, what)| *what).collect();
         if missing.is_empty() {
             Support::Supported
         } else {
-            Support::Unsupported {
-                reason: format!("device lacks {}", missing.join(", ")),
-            }
+            Support::Unsupported { reason: format!("device lacks {}", missing.join(", ")) }
         }
     }
 
     /// The first non-supported of several, or `Supported`.
     pub fn all(items: impl IntoIterator<Item = Support>) -> Support {
-        items
-            .into_iter()
-            .find(|s| !s.is_supported())
-            .unwrap_or(Support::Supported)
+        items.into_iter().find(|s| !s.is_supported()).unwrap_or(Support::Supported)
     }
 }
 
@@ -63,21 +55,13 @@ pub fn stage(info: &DeviceInfo, s: Stage) -> Support {
             if missing.is_empty() {
                 Support::Supported
             } else {
-                Support::Unsupported {
-                    reason: format!("device lacks {}", missing.join(", ")),
-                }
+                Support::Unsupported { reason: format!("device lacks {}", missing.join(", ")) }
             }
         }
         Stage::Fragment => Support::require(&[
             (info.universal_queue_family().is_some(), "a graphics queue"),
-            (
-                on(info.features.core.fragment_stores_and_atomics),
-                "fragmentStoresAndAtomics",
-            ),
-            (
-                info.features.v13.is_some_and(|v| on(v.dynamic_rendering)),
-                "dynamicRendering",
-            ),
+            (on(info.features.core.fragment_stores_and_atomics), "fragmentStoresAndAtomics"),
+            (info.features.v13.is_some_and(|v| on(v.dynamic_rendering)), "dynamicRendering"),
         ]),
         // Compute shaders and storage buffers are core Vulkan 1.0.
         Stage::Compute => Support::Supported,
@@ -97,9 +81,7 @@ pub fn resource(info: &DeviceInfo, r: Resource) -> Support {
             "storage R32G32B32A32_SFLOAT images",
         )]),
         Resource::AccelerationStructure => Support::require(&[(
-            info.features
-                .accel
-                .is_some_and(|a| on(a.acceleration_structure)),
+            info.features.accel.is_some_and(|a| on(a.acceleration_structure)),
             "accelerationStructure (VK_KHR_acceleration_structure)",
         )]),
     }
@@ -155,9 +137,7 @@ pub fn index(info: &DeviceInfo, i: IndexSource) -> Support {
         | IndexSource::DynamicElement => Support::Supported,
         IndexSource::Dynamic => {
             // Supported as an axis value when at least one resource kind can be indexed dynamically.
-            let any = Resource::ALL
-                .iter()
-                .any(|r| dynamic_index(info, *r, false).is_supported());
+            let any = Resource::ALL.iter().any(|r| dynamic_index(info, *r, false).is_supported());
             if any {
                 Support::Supported
             } else {
@@ -178,10 +158,7 @@ pub fn device_address_loads(info: &DeviceInfo) -> Support {
 }
 
 pub fn as_access(info: &DeviceInfo, a: AsAccess) -> Support {
-    let accel = info
-        .features
-        .accel
-        .is_some_and(|x| on(x.acceleration_structure));
+    let accel = info.features.accel.is_some_and(|x| on(x.acceleration_structure));
     let v12 = info.features.v12.unwrap_or_default();
     match a {
         AsAccess::Descriptor => Support::require(&[(accel, "accelerationStructure")]),
@@ -198,10 +175,7 @@ pub fn descriptor_model(info: &DeviceInfo, m: DescriptorModel) -> Support {
     match m {
         DescriptorModel::DescriptorIndexing => Support::require(&[
             (on(v12.runtime_descriptor_array), "runtimeDescriptorArray"),
-            (
-                on(v12.descriptor_binding_partially_bound),
-                "descriptorBindingPartiallyBound",
-            ),
+            (on(v12.descriptor_binding_partially_bound), "descriptorBindingPartiallyBound"),
         ]),
         DescriptorModel::DescriptorBuffer => {
             if !info.has_extension(ext::descriptor_buffer::NAME) {
@@ -211,9 +185,7 @@ pub fn descriptor_model(info: &DeviceInfo, m: DescriptorModel) -> Support {
             }
             Support::require(&[
                 (
-                    info.features
-                        .descriptor_buffer
-                        .is_some_and(|d| on(d.descriptor_buffer)),
+                    info.features.descriptor_buffer.is_some_and(|d| on(d.descriptor_buffer)),
                     "descriptorBuffer",
                 ),
                 (on(v12.buffer_device_address), "bufferDeviceAddress"),
@@ -228,15 +200,10 @@ pub fn descriptor_model(info: &DeviceInfo, m: DescriptorModel) -> Support {
             // rtprobe's instance is Vulkan 1.3, so maintenance5 (which heaps need) must be listed.
             Support::require(&[
                 (
-                    info.features
-                        .descriptor_heap
-                        .is_some_and(|d| on(d.descriptor_heap)),
+                    info.features.descriptor_heap.is_some_and(|d| on(d.descriptor_heap)),
                     "descriptorHeap",
                 ),
-                (
-                    info.has_extension(khr::maintenance5::NAME),
-                    "VK_KHR_maintenance5",
-                ),
+                (info.has_extension(khr::maintenance5::NAME), "VK_KHR_maintenance5"),
                 (on(v12.buffer_device_address), "bufferDeviceAddress"),
             ])
         }
@@ -289,15 +256,11 @@ pub fn heap_access(info: &DeviceInfo, h: HeapAccess) -> Support {
         | HeapAccess::MappedIndirectIndex
         | HeapAccess::MappedShaderRecordIndex => Support::Supported,
         HeapAccess::Direct => match Support::require(&[(
-            info.features
-                .untyped_pointers
-                .is_some_and(|u| on(u.shader_untyped_pointers)),
+            info.features.untyped_pointers.is_some_and(|u| on(u.shader_untyped_pointers)),
             "shaderUntypedPointers (VK_KHR_shader_untyped_pointers)",
         )]) {
             Support::Supported if crate::shadergen::glslang::find().is_none() => {
-                Support::NotImplemented {
-                    reason: crate::shadergen::glslang::missing_reason(),
-                }
+                Support::NotImplemented { reason: crate::shadergen::glslang::missing_reason() }
             }
             other => other,
         },

@@ -18,35 +18,29 @@ fn flag(v: &Value, path: &[&str]) -> &'static str {
 /// The feature that says whether a present extension is usable: (struct, member).
 fn headline_feature(ext: &str) -> Option<(&'static str, &'static str)> {
     Some(match ext {
-        "VK_KHR_ray_tracing_pipeline" => (
-            "VkPhysicalDeviceRayTracingPipelineFeaturesKHR",
-            "rayTracingPipeline",
-        ),
-        "VK_KHR_acceleration_structure" => (
-            "VkPhysicalDeviceAccelerationStructureFeaturesKHR",
-            "accelerationStructure",
-        ),
+        "VK_KHR_ray_tracing_pipeline" => {
+            ("VkPhysicalDeviceRayTracingPipelineFeaturesKHR", "rayTracingPipeline")
+        }
+        "VK_KHR_acceleration_structure" => {
+            ("VkPhysicalDeviceAccelerationStructureFeaturesKHR", "accelerationStructure")
+        }
         "VK_KHR_ray_query" => ("VkPhysicalDeviceRayQueryFeaturesKHR", "rayQuery"),
-        "VK_KHR_ray_tracing_maintenance1" => (
-            "VkPhysicalDeviceRayTracingMaintenance1FeaturesKHR",
-            "rayTracingMaintenance1",
-        ),
-        "VK_KHR_ray_tracing_position_fetch" => (
-            "VkPhysicalDeviceRayTracingPositionFetchFeaturesKHR",
-            "rayTracingPositionFetch",
-        ),
+        "VK_KHR_ray_tracing_maintenance1" => {
+            ("VkPhysicalDeviceRayTracingMaintenance1FeaturesKHR", "rayTracingMaintenance1")
+        }
+        "VK_KHR_ray_tracing_position_fetch" => {
+            ("VkPhysicalDeviceRayTracingPositionFetchFeaturesKHR", "rayTracingPositionFetch")
+        }
         "VK_EXT_pipeline_library_group_handles" => (
             "VkPhysicalDevicePipelineLibraryGroupHandlesFeaturesEXT",
             "pipelineLibraryGroupHandles",
         ),
-        "VK_NV_ray_tracing_validation" => (
-            "VkPhysicalDeviceRayTracingValidationFeaturesNV",
-            "rayTracingValidation",
-        ),
-        "VK_NV_ray_tracing_invocation_reorder" => (
-            "VkPhysicalDeviceRayTracingInvocationReorderFeaturesNV",
-            "rayTracingInvocationReorder",
-        ),
+        "VK_NV_ray_tracing_validation" => {
+            ("VkPhysicalDeviceRayTracingValidationFeaturesNV", "rayTracingValidation")
+        }
+        "VK_NV_ray_tracing_invocation_reorder" => {
+            ("VkPhysicalDeviceRayTracingInvocationReorderFeaturesNV", "rayTracingInvocationReorder")
+        }
         "VK_EXT_ray_tracing_invocation_reorder" => (
             "VkPhysicalDeviceRayTracingInvocationReorderFeaturesEXT",
             "rayTracingInvocationReorder",
@@ -59,36 +53,27 @@ fn headline_feature(ext: &str) -> Option<(&'static str, &'static str)> {
             "VkPhysicalDevicePartitionedAccelerationStructureFeaturesNV",
             "partitionedAccelerationStructure",
         ),
-        "VK_AMDX_dense_geometry_format" => (
-            "VkPhysicalDeviceDenseGeometryFormatFeaturesAMDX",
-            "denseGeometryFormat",
-        ),
-        "VK_NV_ray_tracing_motion_blur" => (
-            "VkPhysicalDeviceRayTracingMotionBlurFeaturesNV",
-            "rayTracingMotionBlur",
-        ),
-        "VK_NV_ray_tracing_linear_swept_spheres" => (
-            "VkPhysicalDeviceRayTracingLinearSweptSpheresFeaturesNV",
-            "linearSweptSpheres",
-        ),
+        "VK_AMDX_dense_geometry_format" => {
+            ("VkPhysicalDeviceDenseGeometryFormatFeaturesAMDX", "denseGeometryFormat")
+        }
+        "VK_NV_ray_tracing_motion_blur" => {
+            ("VkPhysicalDeviceRayTracingMotionBlurFeaturesNV", "rayTracingMotionBlur")
+        }
+        "VK_NV_ray_tracing_linear_swept_spheres" => {
+            ("VkPhysicalDeviceRayTracingLinearSweptSpheresFeaturesNV", "linearSweptSpheres")
+        }
         "VK_EXT_opacity_micromap" => ("VkPhysicalDeviceOpacityMicromapFeaturesEXT", "micromap"),
         "VK_KHR_opacity_micromap" => ("VkPhysicalDeviceOpacityMicromapFeaturesKHR", "micromap"),
-        "VK_ARM_pipeline_opacity_micromap" => (
-            "VkPhysicalDevicePipelineOpacityMicromapFeaturesARM",
-            "pipelineOpacityMicromap",
-        ),
-        "VK_NV_displacement_micromap" => (
-            "VkPhysicalDeviceDisplacementMicromapFeaturesNV",
-            "displacementMicromap",
-        ),
-        "VK_EXT_descriptor_buffer" => (
-            "VkPhysicalDeviceDescriptorBufferFeaturesEXT",
-            "descriptorBuffer",
-        ),
-        "VK_EXT_descriptor_heap" => (
-            "VkPhysicalDeviceDescriptorHeapFeaturesEXT",
-            "descriptorHeap",
-        ),
+        "VK_ARM_pipeline_opacity_micromap" => {
+            ("VkPhysicalDevicePipelineOpacityMicromapFeaturesARM", "pipelineOpacityMicromap")
+        }
+        "VK_NV_displacement_micromap" => {
+            ("VkPhysicalDeviceDisplacementMicromapFeaturesNV", "displacementMicromap")
+        }
+        "VK_EXT_descriptor_buffer" => {
+            ("VkPhysicalDeviceDescriptorBufferFeaturesEXT", "descriptorBuffer")
+        }
+        "VK_EXT_descriptor_heap" => ("VkPhysicalDeviceDescriptorHeapFeaturesEXT", "descriptorHeap"),
         _ => return None,
     })
 }
@@ -129,11 +114,7 @@ fn render_extensions(caps: &Value, s: &mut String) {
         let _ = writeln!(
             s,
             "  {group:<24} {}",
-            if present.is_empty() {
-                "-".to_string()
-            } else {
-                present.join(", ")
-            }
+            if present.is_empty() { "-".to_string() } else { present.join(", ") }
         );
         if !absent.is_empty() {
             let _ = writeln!(s, "  {:<24} ✗ {}", "", absent.join(", "));
@@ -180,32 +161,19 @@ pub fn render(caps: &Value) -> String {
             "  RT pipeline no: missing {}",
             rt["missing"]
                 .as_array()
-                .map(|a| a
-                    .iter()
-                    .filter_map(|x| x.as_str())
-                    .collect::<Vec<_>>()
-                    .join(", "))
+                .map(|a| a.iter().filter_map(|x| x.as_str()).collect::<Vec<_>>().join(", "))
                 .unwrap_or_default()
         );
     }
     let rows: &[(&str, &[&str])] = &[
         (
             "accel struct",
-            &[
-                "VkPhysicalDeviceAccelerationStructureFeaturesKHR",
-                "accelerationStructure",
-            ],
+            &["VkPhysicalDeviceAccelerationStructureFeaturesKHR", "accelerationStructure"],
         ),
-        (
-            "ray query",
-            &["VkPhysicalDeviceRayQueryFeaturesKHR", "rayQuery"],
-        ),
+        ("ray query", &["VkPhysicalDeviceRayQueryFeaturesKHR", "rayQuery"]),
         (
             "position fetch",
-            &[
-                "VkPhysicalDeviceRayTracingPositionFetchFeaturesKHR",
-                "rayTracingPositionFetch",
-            ],
+            &["VkPhysicalDeviceRayTracingPositionFetchFeaturesKHR", "rayTracingPositionFetch"],
         ),
         (
             "reorder (NV)",
@@ -221,39 +189,12 @@ pub fn render(caps: &Value) -> String {
                 "rayTracingInvocationReorder",
             ],
         ),
-        (
-            "buffer address",
-            &["VkPhysicalDeviceVulkan12Features", "bufferDeviceAddress"],
-        ),
-        (
-            "desc indexing",
-            &["VkPhysicalDeviceVulkan12Features", "descriptorIndexing"],
-        ),
-        (
-            "desc buffer",
-            &[
-                "VkPhysicalDeviceDescriptorBufferFeaturesEXT",
-                "descriptorBuffer",
-            ],
-        ),
-        (
-            "desc heap",
-            &[
-                "VkPhysicalDeviceDescriptorHeapFeaturesEXT",
-                "descriptorHeap",
-            ],
-        ),
-        (
-            "robustness2",
-            &[
-                "VkPhysicalDeviceRobustness2FeaturesEXT",
-                "robustBufferAccess2",
-            ],
-        ),
-        (
-            "device fault",
-            &["VkPhysicalDeviceFaultFeaturesEXT", "deviceFault"],
-        ),
+        ("buffer address", &["VkPhysicalDeviceVulkan12Features", "bufferDeviceAddress"]),
+        ("desc indexing", &["VkPhysicalDeviceVulkan12Features", "descriptorIndexing"]),
+        ("desc buffer", &["VkPhysicalDeviceDescriptorBufferFeaturesEXT", "descriptorBuffer"]),
+        ("desc heap", &["VkPhysicalDeviceDescriptorHeapFeaturesEXT", "descriptorHeap"]),
+        ("robustness2", &["VkPhysicalDeviceRobustness2FeaturesEXT", "robustBufferAccess2"]),
+        ("device fault", &["VkPhysicalDeviceFaultFeaturesEXT", "deviceFault"]),
         ("shaderInt64", &["VkPhysicalDeviceFeatures", "shaderInt64"]),
     ];
     for (name, path) in rows {
@@ -289,11 +230,7 @@ pub fn render(caps: &Value) -> String {
         let _ = writeln!(
             s,
             "device creation: {} in {} ms",
-            if c["ok"].as_bool() == Some(true) {
-                "ok"
-            } else {
-                "FAILED"
-            },
+            if c["ok"].as_bool() == Some(true) { "ok" } else { "FAILED" },
             c["ms"]
         );
     }

@@ -42,9 +42,7 @@ fn parse_validate(s: &str) -> Result<ValidateMode, String> {
         "" | "0" | "false" | "no" | "off" => Ok(ValidateMode::Off),
         "1" | "true" | "yes" | "on" | "core" => Ok(ValidateMode::Core),
         "gpu-av" | "gpuav" => Ok(ValidateMode::GpuAv),
-        other => Err(format!(
-            "{other:?} is not a validation mode (core, gpu-av, or a boolean)"
-        )),
+        other => Err(format!("{other:?} is not a validation mode (core, gpu-av, or a boolean)")),
     }
 }
 
@@ -401,21 +399,11 @@ pub struct PatchArgs {
 
     /// GLSL include directory (repeatable, searched in order after the input's own directory);
     /// `#include "x"` also looks next to the including file first
-    #[arg(
-        short = 'I',
-        long = "include-dir",
-        value_name = "DIR",
-        requires = "glsl"
-    )]
+    #[arg(short = 'I', long = "include-dir", value_name = "DIR", requires = "glsl")]
     pub include_dirs: Vec<PathBuf>,
 
     /// GLSL macro NAME or NAME=VALUE (repeatable)
-    #[arg(
-        short = 'D',
-        long = "define",
-        value_name = "NAME[=VALUE]",
-        requires = "glsl"
-    )]
+    #[arg(short = 'D', long = "define", value_name = "NAME[=VALUE]", requires = "glsl")]
     pub defines: Vec<String>,
 
     /// Vulkan environment of GLSL input: vulkan1.2 (SPIR-V 1.5), vulkan1.3 or vulkan1.4 (SPIR-V 1.6)

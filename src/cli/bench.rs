@@ -42,9 +42,7 @@ fn parse_size(flag: &str, s: &str) -> Result<u32> {
 }
 
 fn check_filter(flag: &str, f: &str) -> Result<()> {
-    Filter::parse(f)
-        .map(|_| ())
-        .map_err(|e| coded(exit::USAGE, format!("{flag}: {e}")))
+    Filter::parse(f).map(|_| ()).map_err(|e| coded(exit::USAGE, format!("{flag}: {e}")))
 }
 
 fn options(g: &Globals, a: &BenchArgs) -> Result<BenchOptions> {
@@ -56,10 +54,7 @@ fn options(g: &Globals, a: &BenchArgs) -> Result<BenchOptions> {
             FULL_SIZES.to_vec()
         }
     } else {
-        a.sizes
-            .iter()
-            .map(|s| parse_size("--sizes", s))
-            .collect::<Result<_>>()?
+        a.sizes.iter().map(|s| parse_size("--sizes", s)).collect::<Result<_>>()?
     };
     let fractions = if a.fractions.is_empty() {
         if q {
@@ -71,10 +66,7 @@ fn options(g: &Globals, a: &BenchArgs) -> Result<BenchOptions> {
         a.fractions.clone()
     };
     if let Some(f) = fractions.iter().find(|f| !(**f > 0.0 && **f <= 1.0)) {
-        return Err(coded(
-            exit::USAGE,
-            format!("--fractions: {f} is outside (0, 1]"),
-        ));
+        return Err(coded(exit::USAGE, format!("--fractions: {f} is outside (0, 1]")));
     }
     let flaky = if a.no_flaky {
         vec![]
@@ -88,10 +80,7 @@ fn options(g: &Globals, a: &BenchArgs) -> Result<BenchOptions> {
         a.flaky.clone()
     };
     if let Some(p) = flaky.iter().find(|p| !(**p > 0.0 && **p < 1.0)) {
-        return Err(coded(
-            exit::USAGE,
-            format!("--flaky: {p} is outside (0, 1)"),
-        ));
+        return Err(coded(exit::USAGE, format!("--flaky: {p} is outside (0, 1)")));
     }
     if let Some(t) = a.flaky_timeout.filter(|t| !(*t > 0.0 && *t <= 3600.0)) {
         return Err(coded(
@@ -113,11 +102,8 @@ fn options(g: &Globals, a: &BenchArgs) -> Result<BenchOptions> {
     } else {
         a.matrix_filter.clone()
     };
-    let sweep_filter = if a.sweep_filter.is_empty() {
-        vec![small.to_string()]
-    } else {
-        a.sweep_filter.clone()
-    };
+    let sweep_filter =
+        if a.sweep_filter.is_empty() { vec![small.to_string()] } else { a.sweep_filter.clone() };
     check_filter("--inject-filter", &inject_filter)?;
     check_filter("--flaky-filter", &flaky_filter)?;
     for f in matrix_filter.iter().chain(&sweep_filter) {
@@ -126,11 +112,7 @@ fn options(g: &Globals, a: &BenchArgs) -> Result<BenchOptions> {
     let sweep = if !a.sweep_args.is_empty() {
         a.sweep_args.clone()
     } else if q {
-        vec![
-            "-j 1 --threads 1".into(),
-            "-j 2 --threads 1".into(),
-            "-j 1 --threads 2".into(),
-        ]
+        vec!["-j 1 --threads 1".into(), "-j 2 --threads 1".into(), "-j 1 --threads 2".into()]
     } else {
         bench::DEFAULT_SWEEP.iter().map(|s| s.to_string()).collect()
     };
@@ -140,12 +122,8 @@ fn options(g: &Globals, a: &BenchArgs) -> Result<BenchOptions> {
     }) {
         return Err(coded(exit::USAGE, format!("--sweep-args {e:?}: bench chooses -o itself; --resume, --list and --cell-spec cannot be swept")));
     }
-    let exe = std::env::current_exe().map_err(|e| {
-        coded(
-            exit::INTERNAL,
-            format!("cannot find the rtprobe executable: {e}"),
-        )
-    })?;
+    let exe = std::env::current_exe()
+        .map_err(|e| coded(exit::INTERNAL, format!("cannot find the rtprobe executable: {e}")))?;
     Ok(BenchOptions {
         exe,
         work_dir: std::env::temp_dir().join(format!("rtprobe-bench-{}", std::process::id())),
@@ -191,10 +169,7 @@ pub fn bench(g: &Globals, a: &BenchArgs) -> Result<u8> {
     });
     bench::check_out_dir(&out).map_err(|e| coded(exit::BAD_INPUT, format!("-o: {e}")))?;
     std::fs::create_dir_all(&opts.work_dir).map_err(|e| {
-        coded(
-            exit::BAD_INPUT,
-            format!("cannot create {}: {e}", opts.work_dir.display()),
-        )
+        coded(exit::BAD_INPUT, format!("cannot create {}: {e}", opts.work_dir.display()))
     })?;
     let mut progress = |line: &str| eprintln!("bench: {line}");
     let result = Bench::new(&opts, &mut progress).run_all();
@@ -217,11 +192,7 @@ pub fn bench(g: &Globals, a: &BenchArgs) -> Result<u8> {
     // bench.json last: its presence says every plot beside it is complete.
     write_atomic(&out.join("bench.json"), &json).with_context(|| "writing bench.json")?;
     print_summary(&value);
-    println!(
-        "bench: {} ({} plots)",
-        out.join("bench.json").display(),
-        plots.len()
-    );
+    println!("bench: {} ({} plots)", out.join("bench.json").display(), plots.len());
     Ok(exit::OK)
 }
 

@@ -50,30 +50,14 @@ pub fn bisect(g: &Globals, a: &BisectArgs) -> Result<u8> {
     let report = load_report(&a.report)?;
     let ro = ReportOptions::of(&report)
         .map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.report.display())))?;
-    let filters = ro
-        .scope_filters(&a.filter)
-        .map_err(|e| coded(exit::USAGE, e))?;
-    let settings = Settings {
-        max_miss: a.max_miss,
-        max_attempts: a.max_attempts,
-        ..Settings::default()
-    };
+    let filters = ro.scope_filters(&a.filter).map_err(|e| coded(exit::USAGE, e))?;
+    let settings =
+        Settings { max_miss: a.max_miss, max_attempts: a.max_attempts, ..Settings::default() };
     let verdicts = Verdicts::from_report(&report);
-    let patches = if ro.patches == PatchMode::All {
-        PatchMode::All
-    } else {
-        PatchMode::None
-    };
+    let patches = if ro.patches == PatchMode::All { PatchMode::All } else { PatchMode::None };
     let mut device_uuid_rerun = None;
     let result = if a.offline {
-        offline(
-            &report,
-            &filters,
-            patches,
-            settings,
-            &ro.inject,
-            a.cell.as_deref(),
-        )
+        offline(&report, &filters, patches, settings, &ro.inject, a.cell.as_deref())
     } else {
         let (_inst, info, rerun) = report_device(g, &report)?;
         device_uuid_rerun = rerun;
@@ -87,10 +71,7 @@ pub fn bisect(g: &Globals, a: &BisectArgs) -> Result<u8> {
             },
         );
         let scope: Vec<Cell> = the_plan.to_run().copied().collect();
-        let jobs = a
-            .jobs
-            .or(ro.jobs)
-            .unwrap_or_else(|| super::shared::default_jobs(&info));
+        let jobs = a.jobs.or(ro.jobs).unwrap_or_else(|| super::shared::default_jobs(&info));
         let mut opts = super::shared::supervisor_options(
             info.index,
             report.scene.params,
@@ -108,10 +89,7 @@ pub fn bisect(g: &Globals, a: &BisectArgs) -> Result<u8> {
         let job_dir = opts.job_dir.clone();
         let mut oracle = SupervisorOracle::for_bisect(opts);
         let supported = |c: &Cell| plan::device_support(&info, c).is_supported();
-        let settings = Settings {
-            batch: 2 * jobs,
-            ..settings
-        };
+        let settings = Settings { batch: 2 * jobs, ..settings };
         let r = Bisector::new(scope, verdicts, &mut oracle, settings, ro.inject.clone())
             .bisect(a.cell.as_deref(), &supported);
         let _ = std::fs::remove_dir_all(&job_dir);

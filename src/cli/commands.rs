@@ -21,10 +21,7 @@ pub struct Globals {
 }
 
 pub fn open_instance(g: &Globals) -> Result<Arc<Instance>> {
-    Ok(Arc::new(Instance::new(&InstanceOptions {
-        validate: g.validate,
-        gpu_av: false,
-    })?))
+    Ok(Arc::new(Instance::new(&InstanceOptions { validate: g.validate, gpu_av: false })?))
 }
 
 pub fn devices(g: &Globals, args: &DevicesArgs) -> Result<u8> {
@@ -67,12 +64,8 @@ pub fn devices(g: &Globals, args: &DevicesArgs) -> Result<u8> {
 /// What the whole matrix (every workaround, canaries) needs of `info`, as far as `info` can run it:
 /// the same rule a worker uses for its own cells.
 pub fn full_requirements(info: &DeviceInfo) -> Requirements {
-    let opts = PlanOptions {
-        filters: vec![],
-        canaries: true,
-        patches: PatchMode::All,
-        inject: vec![],
-    };
+    let opts =
+        PlanOptions { filters: vec![], canaries: true, patches: PatchMode::All, inject: vec![] };
     let cells: Vec<_> = plan::plan(info, &opts).to_run().copied().collect();
     crate::runner::worker::requirements(info, &cells)
 }
@@ -84,17 +77,9 @@ fn check_device_creation(inst: &Arc<Instance>, info: &DeviceInfo) -> DeviceCreat
     match r {
         Ok(gpu) => {
             drop(gpu);
-            DeviceCreationCheck {
-                ok: true,
-                ms,
-                error: None,
-            }
+            DeviceCreationCheck { ok: true, ms, error: None }
         }
-        Err(e) => DeviceCreationCheck {
-            ok: false,
-            ms,
-            error: Some(e.to_string()),
-        },
+        Err(e) => DeviceCreationCheck { ok: false, ms, error: Some(e.to_string()) },
     }
 }
 

@@ -49,11 +49,7 @@ pub struct CodedError {
 
 /// `message` (a `String`, or a library error whose text is the message) with exit code `code`.
 pub fn coded(code: u8, message: impl std::fmt::Display) -> anyhow::Error {
-    CodedError {
-        code,
-        message: message.to_string(),
-    }
-    .into()
+    CodedError { code, message: message.to_string() }.into()
 }
 
 /// The code of a library error the CLI reports as text ([`coded`]): [`NO_SHADER_COMPILER`] when
@@ -117,9 +113,7 @@ mod tests {
         })
         .context("selecting");
         assert_eq!(code_for(&e), BAD_DEVICE_SELECTION);
-        let e = anyhow::Error::from(VkError::DeviceLost {
-            call: "vkQueueSubmit",
-        });
+        let e = anyhow::Error::from(VkError::DeviceLost { call: "vkQueueSubmit" });
         assert_eq!(code_for(&e), DEVICE_LOST);
         assert_eq!(code_for(&coded(BAD_INPUT, "bad json")), BAD_INPUT);
         assert_eq!(code_for(&anyhow::anyhow!("??")), INTERNAL);
@@ -134,15 +128,9 @@ mod tests {
         assert_eq!(compiler_or(&shaders, INTERNAL), NO_SHADER_COMPILER);
         let stress = crate::stress::TraceError::Compile(CompileError::Init);
         assert_eq!(compiler_or(&stress, INTERNAL), NO_SHADER_COMPILER);
-        assert_eq!(
-            code_for(&coded(compiler_or(&stress, INTERNAL), &stress)),
-            NO_SHADER_COMPILER
-        );
+        assert_eq!(code_for(&coded(compiler_or(&stress, INTERNAL), &stress)), NO_SHADER_COMPILER);
         // A GLSL error is the input's, and keeps the caller's code.
-        let glsl = CompileError::Glsl {
-            file: "x.rgen".into(),
-            message: "syntax".into(),
-        };
+        let glsl = CompileError::Glsl { file: "x.rgen".into(), message: "syntax".into() };
         assert_eq!(compiler_or(&glsl, BAD_INPUT), BAD_INPUT);
         assert_eq!(code_for(&anyhow::Error::from(glsl)), INTERNAL);
         assert!(HELP.contains("\n  12 the shader compiler (shaderc) could not be started"));

@@ -25,10 +25,7 @@ pub fn baseline(a: &BaselineArgs) -> Result<u8> {
         ));
     }
     if !(a.perf_factor >= 1.0 && a.perf_slack_ms >= 0.0) {
-        return Err(coded(
-            exit::USAGE,
-            "--perf-factor must be >= 1 and --perf-slack-ms >= 0",
-        ));
+        return Err(coded(exit::USAGE, "--perf-factor must be >= 1 and --perf-slack-ms >= 0"));
     }
     let mut b = Baseline::from_report(
         &r,
@@ -58,10 +55,7 @@ pub fn baseline(a: &BaselineArgs) -> Result<u8> {
 
 pub fn load_baseline(p: &Path) -> Result<Baseline> {
     let text = std::fs::read_to_string(p).map_err(|e| {
-        coded(
-            exit::BAD_INPUT,
-            format!("cannot read baseline {}: {e}", p.display()),
-        )
+        coded(exit::BAD_INPUT, format!("cannot read baseline {}: {e}", p.display()))
     })?;
     Baseline::parse(&p.display().to_string(), &text)
         .map_err(|e| coded(exit::BAD_INPUT, e.to_string()))
@@ -89,10 +83,7 @@ pub fn merge_cmd(a: &MergeArgs) -> Result<u8> {
 
 pub fn diff_cmd(a: &DiffArgs) -> Result<u8> {
     if !(a.noise >= 0.0 && a.noise_floor_ms >= 0.0) {
-        return Err(coded(
-            exit::USAGE,
-            "--noise and --noise-floor-ms must be >= 0",
-        ));
+        return Err(coded(exit::USAGE, "--noise and --noise-floor-ms must be >= 0"));
     }
     let (old, new) = (load(&a.old)?, load(&a.new)?);
     let d = diff::diff(&old, &new, a.noise, a.noise_floor_ms);
@@ -104,9 +95,5 @@ pub fn diff_cmd(a: &DiffArgs) -> Result<u8> {
         write_atomic(o, text.as_bytes()).with_context(|| "writing the diff")?;
     }
     print!("{text}");
-    Ok(if d.cells.is_empty() {
-        exit::OK
-    } else {
-        exit::FINDINGS
-    })
+    Ok(if d.cells.is_empty() { exit::OK } else { exit::FINDINGS })
 }

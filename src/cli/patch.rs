@@ -29,10 +29,7 @@ fn kind(stage: &str) -> Option<shaderc::ShaderKind> {
 fn glsl_options(a: &PatchArgs, input: &std::path::Path) -> Result<GlslOptions> {
     for d in &a.include_dirs {
         if !d.is_dir() {
-            return Err(coded(
-                exit::USAGE,
-                format!("-I {}: not a directory", d.display()),
-            ));
+            return Err(coded(exit::USAGE, format!("-I {}: not a directory", d.display())));
         }
     }
     let mut defines = Vec::new();
@@ -41,16 +38,10 @@ fn glsl_options(a: &PatchArgs, input: &std::path::Path) -> Result<GlslOptions> {
             Some((n, v)) => (n.trim(), Some(v.to_string())),
             None => (d.trim(), None),
         };
-        let ident = name
-            .chars()
-            .next()
-            .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+        let ident = name.chars().next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
             && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
         if !ident {
-            return Err(coded(
-                exit::USAGE,
-                format!("-D {d:?}: NAME must be a GLSL identifier"),
-            ));
+            return Err(coded(exit::USAGE, format!("-D {d:?}: NAME must be a GLSL identifier")));
         }
         defines.push((name.to_string(), value));
     }
@@ -74,15 +65,9 @@ pub fn patch(a: &PatchArgs) -> Result<u8> {
         .as_ref()
         .ok_or_else(|| coded(exit::USAGE, "patch needs an input file (or --list)"))?;
     if a.apply.is_empty() {
-        return Err(coded(
-            exit::USAGE,
-            "patch needs --apply PATCH[,PATCH...] (see --list)",
-        ));
+        return Err(coded(exit::USAGE, "patch needs --apply PATCH[,PATCH...] (see --list)"));
     }
-    let out = a
-        .out
-        .as_ref()
-        .ok_or_else(|| coded(exit::USAGE, "patch needs -o OUT.spv"))?;
+    let out = a.out.as_ref().ok_or_else(|| coded(exit::USAGE, "patch needs -o OUT.spv"))?;
     let names = a
         .apply
         .iter()
@@ -106,10 +91,7 @@ pub fn patch(a: &PatchArgs) -> Result<u8> {
         })?;
         let k = kind(stage).ok_or_else(|| coded(exit::USAGE, format!("--stage {stage:?}: use rgen, rchit, rahit, rmiss, rint, rcall, vert, frag or comp")))?;
         let src = String::from_utf8(bytes).map_err(|_| {
-            coded(
-                exit::BAD_INPUT,
-                format!("{} is not UTF-8 GLSL", input.display()),
-            )
+            coded(exit::BAD_INPUT, format!("{} is not UTF-8 GLSL", input.display()))
         })?;
         let opts = glsl_options(a, input)?;
         let mut c = crate::shadergen::compile::Compiler::new()

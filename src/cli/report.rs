@@ -50,14 +50,9 @@ pub fn report(a: &ReportArgs) -> Result<u8> {
             b
         }
         None => {
-            let filters = ro
-                .scope_filters(&[])
-                .map_err(|e| coded(exit::BAD_INPUT, e))?;
-            let patches = if ro.patches == PatchMode::All {
-                PatchMode::All
-            } else {
-                PatchMode::None
-            };
+            let filters = ro.scope_filters(&[]).map_err(|e| coded(exit::BAD_INPUT, e))?;
+            let patches =
+                if ro.patches == PatchMode::All { PatchMode::All } else { PatchMode::None };
             let bi = offline(&r, &filters, patches, Settings::default(), &ro.inject, None)
                 .map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.report.display())))?;
             BisectFile::new(&a.report, &r, &filters, &ro.inject, true, bi)

@@ -20,26 +20,15 @@ use std::path::Path;
 
 impl CellSpec {
     pub fn load(path: &Path) -> Result<CellSpec> {
-        let bytes = std::fs::read(path).map_err(|e| {
-            coded(
-                exit::BAD_INPUT,
-                format!("cannot read {}: {e}", path.display()),
-            )
-        })?;
+        let bytes = std::fs::read(path)
+            .map_err(|e| coded(exit::BAD_INPUT, format!("cannot read {}: {e}", path.display())))?;
         let s: CellSpec = serde_json::from_slice(&bytes).map_err(|e| {
-            coded(
-                exit::BAD_INPUT,
-                format!("{} is not an rtprobe cell spec: {e}", path.display()),
-            )
+            coded(exit::BAD_INPUT, format!("{} is not an rtprobe cell spec: {e}", path.display()))
         })?;
         if s.schema != SCHEMA {
             return Err(coded(
                 exit::BAD_INPUT,
-                format!(
-                    "{} has schema {:?}, expected {SCHEMA:?}",
-                    path.display(),
-                    s.schema
-                ),
+                format!("{} has schema {:?}, expected {SCHEMA:?}", path.display(), s.schema),
             ));
         }
         if s.cell.id() != s.id {
@@ -92,11 +81,7 @@ impl CellSpec {
         Ok(super::args::RunArgs {
             filter: vec![crate::model::registry::exact_filter(&self.cell)],
             inject_fault: self.inject.clone(),
-            patches: if self.cell.patch.is_some() {
-                PatchMode::All
-            } else {
-                PatchMode::None
-            },
+            patches: if self.cell.patch.is_some() { PatchMode::All } else { PatchMode::None },
             canaries: self.cell.canary.is_some(),
             seed: p.seed,
             size: format!("{}x{}", p.width, p.height),
@@ -121,9 +106,7 @@ fn publish(tmp: &Path, out: &Path, force: bool) -> Result<()> {
     let ctx = || format!("writing the repro bundle in {}", out.display());
     let old = out.with_file_name(format!(
         ".{}.old-{}",
-        out.file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default(),
+        out.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default(),
         std::process::id()
     ));
     let empty = match std::fs::read_dir(out) {
@@ -135,10 +118,7 @@ fn publish(tmp: &Path, out: &Path, force: bool) -> Result<()> {
             ))
         }
         Err(e) => {
-            return Err(coded(
-                exit::BAD_INPUT,
-                format!("cannot read {}: {e}", out.display()),
-            ))
+            return Err(coded(exit::BAD_INPUT, format!("cannot read {}: {e}", out.display())))
         }
         Ok(mut entries) => Some(entries.next().is_none()),
     };
@@ -222,34 +202,22 @@ pub fn repro(g: &Globals, a: &ReproArgs) -> Result<u8> {
     let ro = ReportOptions::of(&report)
         .map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.from.display())))?;
     let cell = cell_by_id(&a.cell).ok_or_else(|| {
-        coded(
-            exit::BAD_INPUT,
-            format!("{:?} is not a cell id (see `rtprobe run --list`)", a.cell),
-        )
+        coded(exit::BAD_INPUT, format!("{:?} is not a cell id (see `rtprobe run --list`)", a.cell))
     })?;
     let entry = report.cells.iter().find(|c| c.id == a.cell);
     let inject: Vec<&Injection> = for_cell(&ro.inject, &cell).into_iter().collect();
-    let shaders = cell_shaders(&cell, inject.first().map(|i| i.fault)).map_err(|e| {
-        coded(
-            exit::compiler_or(&e, exit::INTERNAL),
-            format!("{}: {e}", cell.id()),
-        )
-    })?;
+    let shaders = cell_shaders(&cell, inject.first().map(|i| i.fault))
+        .map_err(|e| coded(exit::compiler_or(&e, exit::INTERNAL), format!("{}: {e}", cell.id())))?;
     check_out(&a.out, &a.from, a.force)?;
     let name = a
         .out
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "repro".into());
-    let tmp = a
-        .out
-        .with_file_name(format!(".{name}.tmp-{}", std::process::id()));
+    let tmp = a.out.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
     if let Some(parent) = a.out.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent).map_err(|e| {
-            coded(
-                exit::BAD_INPUT,
-                format!("cannot create {}: {e}", parent.display()),
-            )
+            coded(exit::BAD_INPUT, format!("cannot create {}: {e}", parent.display()))
         })?;
     }
     let built = build(g, a, &report, &ro, cell, entry, &inject, &shaders, &tmp);
@@ -325,11 +293,7 @@ fn build(
         }
         Err(e) => format!("no caps.json: {e:#}"),
     };
-    let origin = format!(
-        "from {} (rtprobe {})",
-        a.from.display(),
-        env!("CARGO_PKG_VERSION")
-    );
+    let origin = format!("from {} (rtprobe {})", a.from.display(), env!("CARGO_PKG_VERSION"));
     let amber_note = match crate::report::amber::script(
         &cell,
         shaders,

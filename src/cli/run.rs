@@ -27,10 +27,7 @@ fn scene_params(a: &RunArgs) -> Result<SceneParams> {
         .split_once(['x', 'X'])
         .and_then(|(w, h)| Some((w.trim().parse::<u32>().ok()?, h.trim().parse::<u32>().ok()?)))
         .ok_or_else(|| {
-            coded(
-                exit::USAGE,
-                format!("--size {:?} is not WIDTHxHEIGHT (e.g. 64x64)", a.size),
-            )
+            coded(exit::USAGE, format!("--size {:?} is not WIDTHxHEIGHT (e.g. 64x64)", a.size))
         })?;
     let p = SceneParams {
         seed: a.seed,
@@ -39,8 +36,7 @@ fn scene_params(a: &RunArgs) -> Result<SceneParams> {
         instances: a.instances,
         mesh_detail: a.mesh_detail,
     };
-    p.validate()
-        .map_err(|e| coded(exit::USAGE, format!("scene: {e}")))?;
+    p.validate().map_err(|e| coded(exit::USAGE, format!("scene: {e}")))?;
     Ok(p)
 }
 
@@ -56,19 +52,9 @@ fn pipeline_cache_dir(arg: Option<&str>) -> Option<PathBuf> {
 fn slug(name: &str) -> String {
     let s: String = name
         .chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() {
-                c.to_ascii_lowercase()
-            } else {
-                '-'
-            }
-        })
+        .map(|c| if c.is_ascii_alphanumeric() { c.to_ascii_lowercase() } else { '-' })
         .collect();
-    s.split('-')
-        .filter(|p| !p.is_empty())
-        .take(4)
-        .collect::<Vec<_>>()
-        .join("-")
+    s.split('-').filter(|p| !p.is_empty()).take(4).collect::<Vec<_>>().join("-")
 }
 
 pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
@@ -119,23 +105,15 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     let wall = Instant::now();
     let supported = |cell: &Cell| plan::device_support(&info, cell).is_supported();
     let policy = Policy::of(&options, || inst.validation_layer_version());
-    Campaign {
-        oracle: &mut oracle,
-        rec: &mut rec,
-        supported: &supported,
-    }
-    .run(&policy, &cells, &canaries);
+    Campaign { oracle: &mut oracle, rec: &mut rec, supported: &supported }
+        .run(&policy, &cells, &canaries);
     bar.finish_and_clear();
     let _ = std::fs::remove_dir_all(&job_dir);
     if let Some(e) = rec.save_error.take() {
         return Err(anyhow::Error::from(e).context("writing the report"));
     }
     let source = a.baseline.as_ref().map(|p| p.display().to_string());
-    start::finish(
-        &mut rec,
-        wall.elapsed(),
-        c.baseline.as_ref().zip(source.as_deref()),
-    );
+    start::finish(&mut rec, wall.elapsed(), c.baseline.as_ref().zip(source.as_deref()));
     print_end(a, &rec.writer, &out)
 }
 
@@ -183,17 +161,9 @@ fn check(a: &RunArgs) -> Result<Checked> {
     if a.repeat.is_some_and(|n| n == 0 || n > 1000) {
         return Err(coded(exit::USAGE, "--repeat must be 1..=1000"));
     }
-    let shard = a
-        .shard
-        .as_deref()
-        .map(Shard::parse)
-        .transpose()
-        .map_err(|e| coded(exit::USAGE, e))?;
-    let baseline = a
-        .baseline
-        .as_deref()
-        .map(super::fleet::load_baseline)
-        .transpose()?;
+    let shard =
+        a.shard.as_deref().map(Shard::parse).transpose().map_err(|e| coded(exit::USAGE, e))?;
+    let baseline = a.baseline.as_deref().map(super::fleet::load_baseline).transpose()?;
     let params = scene_params(a)?;
     if a.jobs.is_some_and(|j| j == 0 || j > 64) {
         return Err(coded(exit::USAGE, "--jobs must be 1..=64"));
@@ -201,31 +171,16 @@ fn check(a: &RunArgs) -> Result<Checked> {
     if a.threads.is_some_and(|t| t == 0 || t > 64) {
         return Err(coded(exit::USAGE, "--threads must be 1..=64"));
     }
-    if a.pipeline_cache
-        .as_deref()
-        .is_some_and(|d| d.trim().is_empty())
-    {
-        return Err(coded(
-            exit::USAGE,
-            "--pipeline-cache needs a folder, or `off`",
-        ));
+    if a.pipeline_cache.as_deref().is_some_and(|d| d.trim().is_empty()) {
+        return Err(coded(exit::USAGE, "--pipeline-cache needs a folder, or `off`"));
     }
     if !(a.timeout > 0.0 && a.timeout <= 3600.0) {
         return Err(coded(exit::USAGE, "--timeout must be in (0, 3600] seconds"));
     }
     if !(a.setup_timeout > 0.0 && a.setup_timeout <= 3600.0) {
-        return Err(coded(
-            exit::USAGE,
-            "--setup-timeout must be in (0, 3600] seconds",
-        ));
+        return Err(coded(exit::USAGE, "--setup-timeout must be in (0, 3600] seconds"));
     }
-    Ok(Checked {
-        filters,
-        inject,
-        shard,
-        baseline,
-        params,
-    })
+    Ok(Checked { filters, inject, shard, baseline, params })
 }
 
 fn select_device(inst: &crate::vk::Instance, a: &RunArgs) -> Result<DeviceInfo> {
@@ -245,11 +200,7 @@ fn run_options(
     // Under validation a cell's `validation_errors` is the global counter's difference around its
     // own work, so its pipelines must be created at its turn: VUIDs raised on prebuild threads
     // would fall outside every cell's window. `--validate` (any mode) runs with one thread.
-    let threads = if g.validate {
-        1
-    } else {
-        a.threads.unwrap_or_else(|| default_threads(info))
-    };
+    let threads = if g.validate { 1 } else { a.threads.unwrap_or_else(|| default_threads(info)) };
     if g.validate && a.threads.is_some_and(|t| t > 1) {
         eprintln!("rtprobe: note: --validate runs with --threads 1, so that each validation error is counted for the cell that raised it");
     }
@@ -321,18 +272,12 @@ fn print_list(the_plan: &RunPlan, shard: Option<Shard>, sharded_out: usize) {
         the_plan.filtered_out
     );
     if let Some(s) = shard {
-        println!(
-            "shard {}: {sharded_out} cells left to the other shards",
-            s.label()
-        );
+        println!("shard {}: {sharded_out} cells left to the other shards", s.label());
     }
     for ng in &the_plan.not_generated {
         println!("not generated: {} ({} combinations)", ng.rule, ng.count);
     }
-    if the_plan
-        .to_run()
-        .any(|c| c.heap_access == Some(crate::model::HeapAccess::Direct))
-    {
+    if the_plan.to_run().any(|c| c.heap_access == Some(crate::model::HeapAccess::Direct)) {
         if let Some(g) = crate::shadergen::glslang::find() {
             println!(
                 "compiler: heap_access=direct shaders by {} {}; all others by shaderc",
@@ -363,10 +308,7 @@ fn base_report(a: &RunArgs, fresh: RunReport) -> Result<RunReport> {
     start::resume(old, &fresh).map_err(|why| {
         coded(
             exit::BAD_INPUT,
-            format!(
-                "cannot resume {}: {why}; start a new run instead",
-                r.display()
-            ),
+            format!("cannot resume {}: {why}; start a new run instead", r.display()),
         )
     })
 }
@@ -405,10 +347,7 @@ fn print_end(a: &RunArgs, writer: &ReportWriter, out: &Path) -> Result<u8> {
     }
     print!("{}", summary::render(&writer.report));
     if let Some(c) = &writer.report.baseline {
-        print!(
-            "{}",
-            crate::fleet::baseline::render(c, a.allow_improvements)
-        );
+        print!("{}", crate::fleet::baseline::render(c, a.allow_improvements));
     }
     println!("report: {}", out.display());
     Ok(exit_code(&writer.report, a.allow_improvements))
@@ -454,24 +393,15 @@ mod tests {
         ]);
         assert_eq!(exit_code(&detected, false), exit::OK);
         assert_eq!(detected.tally.canaries_detected, 2);
-        assert_eq!(
-            detected.summary["crash"], 0,
-            "a detected canary is not a crash finding"
-        );
+        assert_eq!(detected.summary["crash"], 0, "a detected canary is not a crash finding");
         let junit = crate::report::junit::render(&detected);
         assert!(junit.contains("failures=\"0\""), "{junit}");
         // A driver on which the invalid read ran to completion: classification unproven.
-        let undetected = report(vec![ran(
-            Cell::canary(Canary::InvalidAddress),
-            Outcome::Pass,
-        )]);
+        let undetected = report(vec![ran(Cell::canary(Canary::InvalidAddress), Outcome::Pass)]);
         assert_eq!(exit_code(&undetected, false), exit::CANARY_UNDETECTED);
         assert_eq!(undetected.tally.canaries_undetected, 1);
         let junit = crate::report::junit::render(&undetected);
-        assert!(
-            junit.contains("failures=\"1\"") && junit.contains("canary_undetected"),
-            "{junit}"
-        );
+        assert!(junit.contains("failures=\"1\"") && junit.contains("canary_undetected"), "{junit}");
         assert!(crate::report::summary::render(&undetected).contains("NOT detected"));
     }
 }

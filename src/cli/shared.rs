@@ -33,9 +33,7 @@ pub(crate) fn report_device(
         keys.iter().all(|k| j[*k] == r.device[*k])
     };
     const DRIVER: [&str; 3] = ["name", "driver_version", "driver_uuid"];
-    let card = all
-        .iter()
-        .find(|d| same(d, &DRIVER) && same(d, &["device_uuid"]));
+    let card = all.iter().find(|d| same(d, &DRIVER) && same(d, &["device_uuid"]));
     let other = card.is_none();
     let info = card.or_else(|| all.iter().find(|d| same(d, &DRIVER))).cloned().ok_or_else(|| {
         coded(
@@ -64,10 +62,7 @@ pub(crate) fn report_device(
 /// on GPUs (the driver parallelises; several processes only contend for one device).
 pub(crate) fn default_jobs(info: &crate::vk::DeviceInfo) -> usize {
     if info.properties.core.device_type == ash::vk::PhysicalDeviceType::CPU {
-        std::thread::available_parallelism()
-            .map(|n| n.get())
-            .unwrap_or(1)
-            .clamp(1, 8)
+        std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1).clamp(1, 8)
     } else {
         1
     }
@@ -80,10 +75,7 @@ pub(crate) fn default_threads(info: &crate::vk::DeviceInfo) -> usize {
     if info.properties.core.device_type == ash::vk::PhysicalDeviceType::CPU {
         1
     } else {
-        std::thread::available_parallelism()
-            .map(|n| n.get())
-            .unwrap_or(1)
-            .clamp(1, 16)
+        std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1).clamp(1, 16)
     }
 }
 
@@ -147,22 +139,13 @@ impl SupervisorOracle {
     }
 
     pub(crate) fn for_bisect(opts: SupervisorOptions) -> Self {
-        SupervisorOracle {
-            opts,
-            shared: None,
-            announce: true,
-            attempts: 0,
-        }
+        SupervisorOracle { opts, shared: None, announce: true, attempts: 0 }
     }
 
     fn say(&self, cells: usize, mode: Mode) {
         let msg = format!(
             "bisect: running {cells} cell(s){} ({} run so far)",
-            if mode == Mode::Shared {
-                ""
-            } else {
-                ", each alone"
-            },
+            if mode == Mode::Shared { "" } else { ", each alone" },
             self.attempts
         );
         if std::io::IsTerminal::is_terminal(&std::io::stderr()) {

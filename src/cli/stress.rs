@@ -34,26 +34,15 @@ pub fn stress(g: &Globals, args: &StressArgs) -> Result<u8> {
     if !(args.timeout > 0.0 && args.timeout.is_finite()) {
         return Err(exit::coded(
             exit::USAGE,
-            format!(
-                "--timeout must be a positive number of seconds, got {}",
-                args.timeout
-            ),
+            format!("--timeout must be a positive number of seconds, got {}", args.timeout),
         ));
     }
-    let opts = StressOptions {
-        cases,
-        seed: args.seed,
-        full: args.full,
-    };
+    let opts = StressOptions { cases, seed: args.seed, full: args.full };
     let inst = open_instance(g)?;
     let all = features::query_all(&inst)?;
     let info = features::select(&all, args.device.as_deref())?.clone();
     let device_json = crate::caps::device_json(&info);
-    let mode = if args.ray_query {
-        Mode::RayQuery
-    } else {
-        Mode::Pipeline
-    };
+    let mode = if args.ray_query { Mode::RayQuery } else { Mode::Pipeline };
     let req = Requirements {
         rt_pipeline: mode == Mode::Pipeline,
         ray_query: mode == Mode::RayQuery,
@@ -86,18 +75,9 @@ pub fn stress(g: &Globals, args: &StressArgs) -> Result<u8> {
     let results = stress::run(&mut tracer, &opts);
     print!("{}", report::text(&name, &results));
     if let Some(path) = &args.json {
-        let validation = (
-            validation_active,
-            crate::vk::instance::validation_error_count(),
-        );
-        let doc = report::json(
-            &device_json,
-            mode.as_str(),
-            opts.seed,
-            opts.full,
-            validation,
-            &results,
-        );
+        let validation = (validation_active, crate::vk::instance::validation_error_count());
+        let doc =
+            report::json(&device_json, mode.as_str(), opts.seed, opts.full, validation, &results);
         let text = serde_json::to_string_pretty(&doc)? + "\n";
         write_atomic(path, text.as_bytes()).context("writing the stress report")?;
     }
@@ -116,9 +96,5 @@ pub fn stress(g: &Globals, args: &StressArgs) -> Result<u8> {
             }
         }
     }
-    Ok(if report::all_passed(&results) {
-        exit::OK
-    } else {
-        exit::FINDINGS
-    })
+    Ok(if report::all_passed(&results) { exit::OK } else { exit::FINDINGS })
 }

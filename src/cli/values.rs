@@ -50,30 +50,18 @@ mod tests {
     #[test]
     fn command_line_names_are_the_report_names() {
         for v in Isolation::value_variants() {
-            assert_eq!(
-                serde_json::to_value(v).unwrap(),
-                v.to_possible_value().unwrap().get_name()
-            );
+            assert_eq!(serde_json::to_value(v).unwrap(), v.to_possible_value().unwrap().get_name());
         }
         for v in PatchMode::value_variants() {
-            assert_eq!(
-                serde_json::to_value(v).unwrap(),
-                v.to_possible_value().unwrap().get_name()
-            );
+            assert_eq!(serde_json::to_value(v).unwrap(), v.to_possible_value().unwrap().get_name());
         }
     }
 
     #[test]
     fn target_env_default_is_the_flags_default() {
         // `patch --target-env` defaults to "vulkan1.2"; `GlslOptions` defaults to this.
-        assert_eq!(
-            TargetEnv::default().to_possible_value().unwrap().get_name(),
-            "vulkan1.2"
-        );
-        assert_eq!(
-            TargetEnv::from_str("vulkan1.4", false),
-            Ok(TargetEnv::Vulkan1_4)
-        );
+        assert_eq!(TargetEnv::default().to_possible_value().unwrap().get_name(), "vulkan1.2");
+        assert_eq!(TargetEnv::from_str("vulkan1.4", false), Ok(TargetEnv::Vulkan1_4));
         assert_eq!(Format::from_str("json", false), Ok(Format::Json));
     }
 }

@@ -161,11 +161,7 @@ impl Binding {
                 unreachable!("the plan never runs descriptor_heap cells")
             }
         };
-        Ok(Binding {
-            set_layout,
-            pipeline_layout,
-            bound,
-        })
+        Ok(Binding { set_layout, pipeline_layout, bound })
     }
 
     fn write_set(
@@ -182,9 +178,7 @@ impl Binding {
                 descriptor_count: t.len() as u32,
             })
             .collect();
-        let mut pci = vk::DescriptorPoolCreateInfo::default()
-            .max_sets(1)
-            .pool_sizes(&sizes);
+        let mut pci = vk::DescriptorPoolCreateInfo::default().max_sets(1).pool_sizes(&sizes);
         if uab {
             pci = pci.flags(vk::DescriptorPoolCreateFlags::UPDATE_AFTER_BIND);
         }
@@ -205,13 +199,8 @@ impl Binding {
             let mut accels = Vec::new();
             for t in ts {
                 match *t {
-                    Target::Buffer { raw, range, .. } => {
-                        buffer_infos.push(vk::DescriptorBufferInfo {
-                            buffer: raw,
-                            offset: 0,
-                            range,
-                        })
-                    }
+                    Target::Buffer { raw, range, .. } => buffer_infos
+                        .push(vk::DescriptorBufferInfo { buffer: raw, offset: 0, range }),
                     Target::Image { view, sampler, .. } => {
                         image_infos.push(vk::DescriptorImageInfo {
                             sampler,
@@ -224,10 +213,8 @@ impl Binding {
             }
             let mut as_write = vk::WriteDescriptorSetAccelerationStructureKHR::default()
                 .acceleration_structures(&accels);
-            let mut w = vk::WriteDescriptorSet::default()
-                .dst_set(set)
-                .dst_binding(*b)
-                .descriptor_type(*ty);
+            let mut w =
+                vk::WriteDescriptorSet::default().dst_set(set).dst_binding(*b).descriptor_type(*ty);
             if !buffer_infos.is_empty() {
                 w = w.buffer_info(&buffer_infos);
             } else if !image_infos.is_empty() {
@@ -246,21 +233,11 @@ impl Binding {
         layout: vk::DescriptorSetLayout,
         targets: &[(u32, Resource, Vec<Target>)],
     ) -> Result<Bound, VkError> {
-        let db = gpu
-            .descriptor_buffer
-            .as_ref()
-            .expect("descriptor buffer enabled");
-        let props = gpu
-            .info
-            .properties
-            .descriptor_buffer
-            .expect("descriptor buffer properties");
+        let db = gpu.descriptor_buffer.as_ref().expect("descriptor buffer enabled");
+        let props = gpu.info.properties.descriptor_buffer.expect("descriptor buffer properties");
         let size = unsafe { db.get_descriptor_set_layout_size(layout) };
         let mut usage = vk::BufferUsageFlags::RESOURCE_DESCRIPTOR_BUFFER_EXT;
-        if targets
-            .iter()
-            .any(|(_, kind, _)| *kind == Resource::SampledImage)
-        {
+        if targets.iter().any(|(_, kind, _)| *kind == Resource::SampledImage) {
             usage |= vk::BufferUsageFlags::SAMPLER_DESCRIPTOR_BUFFER_EXT;
         }
         let buffer = Buffer::new(
@@ -286,13 +263,9 @@ impl Binding {
                             .range(range)
                             .format(vk::Format::UNDEFINED);
                         let data = if *ty == vk::DescriptorType::UNIFORM_BUFFER {
-                            vk::DescriptorDataEXT {
-                                p_uniform_buffer: &info,
-                            }
+                            vk::DescriptorDataEXT { p_uniform_buffer: &info }
                         } else {
-                            vk::DescriptorDataEXT {
-                                p_storage_buffer: &info,
-                            }
+                            vk::DescriptorDataEXT { p_storage_buffer: &info }
                         };
                         unsafe {
                             db.get_descriptor(
@@ -308,13 +281,9 @@ impl Binding {
                             image_layout: vk::ImageLayout::GENERAL,
                         };
                         let data = if *ty == vk::DescriptorType::COMBINED_IMAGE_SAMPLER {
-                            vk::DescriptorDataEXT {
-                                p_combined_image_sampler: &info,
-                            }
+                            vk::DescriptorDataEXT { p_combined_image_sampler: &info }
                         } else {
-                            vk::DescriptorDataEXT {
-                                p_storage_image: &info,
-                            }
+                            vk::DescriptorDataEXT { p_storage_image: &info }
                         };
                         unsafe {
                             db.get_descriptor(
@@ -324,9 +293,7 @@ impl Binding {
                         };
                     }
                     Target::Accel { address, .. } => {
-                        let data = vk::DescriptorDataEXT {
-                            acceleration_structure: address,
-                        };
+                        let data = vk::DescriptorDataEXT { acceleration_structure: address };
                         unsafe {
                             db.get_descriptor(
                                 &vk::DescriptorGetInfoEXT::default().ty(*ty).data(data),
@@ -354,10 +321,7 @@ impl Binding {
                 )
             },
             Bound::Buffer { buffer, usage } => {
-                let db = gpu
-                    .descriptor_buffer
-                    .as_ref()
-                    .expect("descriptor buffer enabled");
+                let db = gpu.descriptor_buffer.as_ref().expect("descriptor buffer enabled");
                 let info = [vk::DescriptorBufferBindingInfoEXT::default()
                     .address(buffer.address)
                     .usage(*usage)];
@@ -381,8 +345,7 @@ impl Binding {
     pub fn push(&self, gpu: &Gpu, cmd: vk::CommandBuffer, stages: vk::ShaderStageFlags, pc: &[u8]) {
         match &self.bound {
             Bound::Set { .. } | Bound::Buffer { .. } => unsafe {
-                gpu.device
-                    .cmd_push_constants(cmd, self.pipeline_layout, stages, 0, pc)
+                gpu.device.cmd_push_constants(cmd, self.pipeline_layout, stages, 0, pc)
             },
             Bound::Heap(h) => h.push(gpu, cmd, pc),
         }
@@ -403,10 +366,8 @@ impl Binding {
                 Bound::Buffer { buffer, .. } => buffer.destroy(gpu),
                 Bound::Heap(h) => h.destroy(gpu),
             }
-            gpu.device
-                .destroy_pipeline_layout(self.pipeline_layout, None);
-            gpu.device
-                .destroy_descriptor_set_layout(self.set_layout, None);
+            gpu.device.destroy_pipeline_layout(self.pipeline_layout, None);
+            gpu.device.destroy_descriptor_set_layout(self.set_layout, None);
         }
     }
 }

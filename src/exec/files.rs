@@ -23,14 +23,10 @@ pub(super) fn bundle_spirv(
     role: shadergen::Role,
 ) -> Result<Vec<u32>, FileError> {
     let path = dir.join(format!("{}.spv", role.file_name()));
-    let bytes = std::fs::read(&path).map_err(|err| FileError::BundleUnreadable {
-        path: path.clone(),
-        err,
-    })?;
-    let words: Vec<u32> = bytes
-        .chunks_exact(4)
-        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-        .collect();
+    let bytes = std::fs::read(&path)
+        .map_err(|err| FileError::BundleUnreadable { path: path.clone(), err })?;
+    let words: Vec<u32> =
+        bytes.chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
     if bytes.len() % 4 != 0 || words.first() != Some(&0x0723_0203) {
         return Err(FileError::NotSpirv(path));
     }
@@ -44,22 +40,14 @@ pub(super) fn dump(
     spirv: &[std::sync::Arc<Vec<u32>>],
 ) -> Result<(), FileError> {
     let d = dir.join(cell.id());
-    std::fs::create_dir_all(&d).map_err(|err| FileError::Dump {
-        path: d.clone(),
-        err,
-    })?;
+    std::fs::create_dir_all(&d).map_err(|err| FileError::Dump { path: d.clone(), err })?;
     for (s, words) in shaders.shaders.iter().zip(spirv) {
         let glsl = d.join(format!("{}.glsl", s.role.file_name()));
-        std::fs::write(&glsl, &s.glsl).map_err(|err| FileError::Dump {
-            path: glsl.clone(),
-            err,
-        })?;
+        std::fs::write(&glsl, &s.glsl)
+            .map_err(|err| FileError::Dump { path: glsl.clone(), err })?;
         let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
         let spv = d.join(format!("{}.spv", s.role.file_name()));
-        std::fs::write(&spv, bytes).map_err(|err| FileError::Dump {
-            path: spv.clone(),
-            err,
-        })?;
+        std::fs::write(&spv, bytes).map_err(|err| FileError::Dump { path: spv.clone(), err })?;
     }
     Ok(())
 }

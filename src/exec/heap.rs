@@ -69,10 +69,7 @@ impl Heap {
         let bind = h::BindHeapInfo {
             s_type: h::STRUCTURE_TYPE_BIND_HEAP_INFO_EXT,
             p_next: std::ptr::null(),
-            heap_range: h::DeviceAddressRange {
-                address: base,
-                size,
-            },
+            heap_range: h::DeviceAddressRange { address: base, size },
             reserved_range_offset: reserved_offset,
             reserved_range_size: reserved,
         };
@@ -96,21 +93,11 @@ impl HeapLayout {
     pub fn new(slot: u32, probe_stride: u32, probe_count: u32, direct: bool) -> HeapLayout {
         if direct {
             let records = align((probe_count * probe_stride) as u64, slot as u64) as u32;
-            HeapLayout {
-                records,
-                tlas: records + slot,
-                probe: 0,
-                probe_stride,
-            }
+            HeapLayout { records, tlas: records + slot, probe: 0, probe_stride }
         } else {
             // After records and TLAS, one unused descriptor, so an index off by one reads zeros.
             let index = (2 * slot).div_ceil(probe_stride.max(1)) + 1;
-            HeapLayout {
-                records: 0,
-                tlas: slot,
-                probe: index * probe_stride,
-                probe_stride,
-            }
+            HeapLayout { records: 0, tlas: slot, probe: index * probe_stride, probe_stride }
         }
     }
 
@@ -142,9 +129,7 @@ fn props(gpu: &Gpu) -> h::PhysicalDeviceDescriptorHeapPropertiesEXT {
 }
 
 fn fns(gpu: &Gpu) -> &h::HeapFns {
-    gpu.heap
-        .as_ref()
-        .expect("descriptor heap enabled for heap cells (worker::requirements)")
+    gpu.heap.as_ref().expect("descriptor heap enabled for heap cells (worker::requirements)")
 }
 
 /// A descriptor type as the heaps hold it: heaps have no combined descriptors, a sampled image's
@@ -212,10 +197,7 @@ impl ResourceWrites {
                 w.at.push((layout.offset(*b, i), sizes.written(*ty) as usize));
                 match *t {
                     Target::Buffer { address, range, .. } => {
-                        w.ranges.push(h::DeviceAddressRange {
-                            address,
-                            size: range,
-                        });
+                        w.ranges.push(h::DeviceAddressRange { address, size: range });
                         w.kinds.push((heap_type(*ty), false, w.ranges.len() - 1));
                     }
                     // The range of an AS descriptor is unused and may be 0 (VkResourceDescriptorInfoEXT).
@@ -261,13 +243,9 @@ impl ResourceWrites {
                 p_next: std::ptr::null(),
                 ty,
                 data: if image {
-                    h::ResourceDescriptorData {
-                        p_image: &images[i],
-                    }
+                    h::ResourceDescriptorData { p_image: &images[i] }
                 } else {
-                    h::ResourceDescriptorData {
-                        p_address_range: &self.ranges[i],
-                    }
+                    h::ResourceDescriptorData { p_address_range: &self.ranges[i] }
                 },
             })
             .collect();
@@ -301,9 +279,7 @@ impl ResourceWrites {
 /// (`samplerDescriptorSize`), like the resource arrays; never less than what a write fills.
 fn write_samplers(sizes: &Sizes, samplers: &[vk::SamplerCreateInfo]) -> Result<Vec<u8>, VkError> {
     let sampler_size = sizes.written(vk::DescriptorType::SAMPLER).max(1) as usize;
-    let sampler_stride = sizes
-        .class(vk::DescriptorType::SAMPLER)
-        .max(sampler_size as u32) as usize;
+    let sampler_stride = sizes.class(vk::DescriptorType::SAMPLER).max(sampler_size as u32) as usize;
     let mut sbytes = vec![0u8; sampler_stride * (samplers.len().max(1) - 1) + sampler_size];
     let sbase = sbytes.as_mut_ptr();
     // SAFETY: sampler k's range [k * stride, k * stride + size) lies inside `sbytes`.
@@ -337,16 +313,11 @@ impl HeapBinding {
         samplers: &[vk::SamplerCreateInfo],
         direct: bool,
     ) -> Result<HeapBinding, VkError> {
-        let sizes = Sizes {
-            gpu,
-            p: props(gpu),
-            f: fns(gpu),
-        };
+        let sizes = Sizes { gpu, p: props(gpu), f: fns(gpu) };
         let p = &sizes.p;
         let slot = align(
             p.buffer_descriptor_size.max(p.image_descriptor_size),
-            p.buffer_descriptor_alignment
-                .max(p.image_descriptor_alignment),
+            p.buffer_descriptor_alignment.max(p.image_descriptor_alignment),
         ) as u32;
         let (probe_ty, probe_count) = targets
             .iter()
@@ -401,12 +372,7 @@ impl HeapBinding {
             }
         };
         tracing::debug!(?layout, "descriptor heaps written");
-        Ok(HeapBinding {
-            resources,
-            samplers,
-            index,
-            layout,
-        })
+        Ok(HeapBinding { resources, samplers, index, layout })
     }
 
     pub fn bind(&self, gpu: &Gpu, cmd: vk::CommandBuffer) {
@@ -467,10 +433,9 @@ fn probe_source(
 ) -> Option<(MappingSource, h::MappingSourceData)> {
     let stride = l.probe_stride;
     match access {
-        HeapAccess::MappedConstantOffset => Some((
-            MappingSource::HeapWithConstantOffset,
-            constant(l.probe, stride),
-        )),
+        HeapAccess::MappedConstantOffset => {
+            Some((MappingSource::HeapWithConstantOffset, constant(l.probe, stride)))
+        }
         HeapAccess::MappedPushIndex => Some((
             MappingSource::HeapWithPushIndex,
             h::MappingSourceData {
@@ -554,17 +519,8 @@ impl PipelineMapping {
                 }
             };
         let mut mappings = vec![
-            mapping(
-                0,
-                (
-                    MappingSource::HeapWithConstantOffset,
-                    constant(l.records, 0),
-                ),
-            ),
-            mapping(
-                1,
-                (MappingSource::HeapWithConstantOffset, constant(l.tlas, 0)),
-            ),
+            mapping(0, (MappingSource::HeapWithConstantOffset, constant(l.records, 0))),
+            mapping(1, (MappingSource::HeapWithConstantOffset, constant(l.tlas, 0))),
         ];
         mappings.extend(probe.map(|p| mapping(2, p)));
         let mut b = Box::new(PipelineMapping {
@@ -661,14 +617,7 @@ pub fn heap_nonuniform(words: &[u32]) -> HeapNonUniform {
             _ => {}
         }
     }
-    let uses = |id: &u32| {
-        made_from
-            .get(id)
-            .into_iter()
-            .flatten()
-            .copied()
-            .collect::<Vec<u32>>()
-    };
+    let uses = |id: &u32| made_from.get(id).into_iter().flatten().copied().collect::<Vec<u32>>();
     let mut out = HeapNonUniform::default();
     for (op, o) in instructions(words) {
         // OpUntyped(InBounds)AccessChainKHR: result type, result, base type, base, indexes...
@@ -772,32 +721,20 @@ mod tests {
         };
         // OpDecorate %20 NonUniform
         assert_eq!(
-            heap_nonuniform(&module(&[
-                (3 << 16) | OP_DECORATE,
-                20,
-                DECORATION_NON_UNIFORM
-            ]))
-            .resource,
+            heap_nonuniform(&module(&[(3 << 16) | OP_DECORATE, 20, DECORATION_NON_UNIFORM]))
+                .resource,
             Some(true)
         );
         // OpDecorate %20 Binding 2... with a NonUniform-valued operand: must not count
         assert_eq!(
-            heap_nonuniform(&module(&[
-                (4 << 16) | OP_DECORATE,
-                20,
-                33,
-                DECORATION_NON_UNIFORM
-            ]))
-            .resource,
+            heap_nonuniform(&module(&[(4 << 16) | OP_DECORATE, 20, 33, DECORATION_NON_UNIFORM]))
+                .resource,
             Some(false)
         );
         assert_eq!(heap_nonuniform(&module(&[])).resource, Some(false));
         assert_eq!(heap_nonuniform(&header), HeapNonUniform::default());
         // a zero word count ends nowhere near an infinite loop
-        assert_eq!(
-            heap_nonuniform(&[0, 0, 0, 0, 0, 0, 0]),
-            HeapNonUniform::default()
-        );
+        assert_eq!(heap_nonuniform(&[0, 0, 0, 0, 0, 0, 0]), HeapNonUniform::default());
     }
 
     /// Per heap: an untyped access chain into the sampler heap whose index is decorated, one into
@@ -807,28 +744,13 @@ mod tests {
     fn heap_accesses_are_judged_per_heap_by_their_own_decoration() {
         let header = [0x0723_0203, 0x0001_0600, 0, 40, 0];
         let decorate = |id: u32, d: u32, extra: &[u32]| -> Vec<u32> {
-            [
-                vec![((3 + extra.len() as u32) << 16) | OP_DECORATE, id, d],
-                extra.to_vec(),
-            ]
-            .concat()
+            [vec![((3 + extra.len() as u32) << 16) | OP_DECORATE, id, d], extra.to_vec()].concat()
         };
         let chain = |result: u32, base: u32, index: u32| {
-            vec![
-                (6 << 16) | OP_UNTYPED_ACCESS_CHAIN,
-                1,
-                result,
-                2,
-                base,
-                index,
-            ]
+            vec![(6 << 16) | OP_UNTYPED_ACCESS_CHAIN, 1, result, 2, base, index]
         };
         let module = |parts: Vec<Vec<u32>>| -> Vec<u32> {
-            header
-                .iter()
-                .copied()
-                .chain(parts.into_iter().flatten())
-                .collect()
+            header.iter().copied().chain(parts.into_iter().flatten()).collect()
         };
         // %10 resource heap, %11 sampler heap; %20 / %21 indices; %30 / %31 chains.
         let builtins = vec![
@@ -845,10 +767,7 @@ mod tests {
         );
         assert_eq!(
             heap_nonuniform(&m),
-            HeapNonUniform {
-                resource: Some(false),
-                sampler: Some(true)
-            }
+            HeapNonUniform { resource: Some(false), sampler: Some(true) }
         );
         // decorated on the chain's result instead of the index counts too
         let m = module(
@@ -859,30 +778,14 @@ mod tests {
             ]
             .concat(),
         );
-        assert_eq!(
-            heap_nonuniform(&m),
-            HeapNonUniform {
-                resource: Some(true),
-                sampler: None
-            }
-        );
+        assert_eq!(heap_nonuniform(&m), HeapNonUniform { resource: Some(true), sampler: None });
         // a NonUniform elsewhere does not vouch for an undecorated heap access
         let m = module(
-            [
-                builtins,
-                vec![decorate(99, DECORATION_NON_UNIFORM, &[])],
-                vec![chain(31, 11, 21)],
-            ]
-            .concat(),
+            [builtins, vec![decorate(99, DECORATION_NON_UNIFORM, &[])], vec![chain(31, 11, 21)]]
+                .concat(),
         );
         assert!(instructions(&m).any(|(op, o)| op == OP_DECORATE && o[1] == DECORATION_NON_UNIFORM));
-        assert_eq!(
-            heap_nonuniform(&m),
-            HeapNonUniform {
-                resource: None,
-                sampler: Some(false)
-            }
-        );
+        assert_eq!(heap_nonuniform(&m), HeapNonUniform { resource: None, sampler: Some(false) });
         assert_eq!(heap_nonuniform(&header), HeapNonUniform::default());
         // decorated on the sampled image made from the loaded sampler (where the VUID wants it)
         let m = module(vec![
@@ -892,30 +795,13 @@ mod tests {
             vec![(4 << 16) | OP_LOAD, 3, 40, 31],
             vec![(5 << 16) | OP_SAMPLED_IMAGE, 4, 41, 39, 40],
         ]);
-        assert_eq!(
-            heap_nonuniform(&m),
-            HeapNonUniform {
-                resource: None,
-                sampler: Some(true)
-            }
-        );
+        assert_eq!(heap_nonuniform(&m), HeapNonUniform { resource: None, sampler: Some(true) });
         // truncated or zero word counts: no panic, no loop
         assert_eq!(
-            heap_nonuniform(&[
-                0x0723_0203,
-                0,
-                0,
-                0,
-                0,
-                (9 << 16) | OP_UNTYPED_ACCESS_CHAIN,
-                1
-            ]),
+            heap_nonuniform(&[0x0723_0203, 0, 0, 0, 0, (9 << 16) | OP_UNTYPED_ACCESS_CHAIN, 1]),
             HeapNonUniform::default()
         );
-        assert_eq!(
-            heap_nonuniform(&[0x0723_0203, 0, 0, 0, 0, 0, 0, 0]),
-            HeapNonUniform::default()
-        );
+        assert_eq!(heap_nonuniform(&[0x0723_0203, 0, 0, 0, 0, 0, 0, 0]), HeapNonUniform::default());
     }
 
     #[test]

@@ -223,11 +223,7 @@ impl Executor {
         let injected = crate::model::inject::roll(&self.opts.inject, cell, self.opts.inject_seed);
         let result = self
             .try_run(cell, injected.as_ref(), &mut timings, on_phase)
-            .and_then(|done| {
-                on_phase(Phase::Check)
-                    .map(|()| done)
-                    .map_err(CellError::from)
-            });
+            .and_then(|done| on_phase(Phase::Check).map(|()| done).map_err(CellError::from));
         let mut out = match result {
             Ok((records, dropped)) => {
                 let t = Instant::now();
@@ -238,11 +234,7 @@ impl Executor {
                     (Some(d), Some(n)) => Some(format!("{d}; {n}")),
                     (d, n) => d.or(n),
                 };
-                CellResult {
-                    timings: timings.clone(),
-                    detail,
-                    ..r
-                }
+                CellResult { timings: timings.clone(), detail, ..r }
             }
             Err(e) => {
                 let outcome = e.outcome();
@@ -251,11 +243,8 @@ impl Executor {
                 } else {
                     e.to_string()
                 };
-                let fault = if outcome == Outcome::DeviceLost {
-                    fault::query(&self.gpu)
-                } else {
-                    None
-                };
+                let fault =
+                    if outcome == Outcome::DeviceLost { fault::query(&self.gpu) } else { None };
                 CellResult {
                     outcome,
                     detail: Some(detail),
@@ -305,21 +294,16 @@ impl Executor {
         let expected = reference::expected_with(cell, &self.scene, &self.sref, undefined);
         let (w, h) = (self.scene.params.width, self.scene.params.height);
         let mut cmp = reference::compare(&expected, records, w);
-        let outcome = if cmp.passed() {
-            Outcome::Pass
-        } else {
-            Outcome::Mismatch
-        };
+        let outcome = if cmp.passed() { Outcome::Pass } else { Outcome::Mismatch };
         let mut detail = (!cmp.passed()).then(|| {
             format!(
                 "{} of {} compared pixels differ ({:?})",
                 cmp.mismatched_pixels, cmp.compared, cmp.by_field
             )
         });
-        if let (Some(dir), Some(d)) = (
-            self.opts.dump.as_ref().filter(|_| !cmp.passed()),
-            detail.as_mut(),
-        ) {
+        if let (Some(dir), Some(d)) =
+            (self.opts.dump.as_ref().filter(|_| !cmp.passed()), detail.as_mut())
+        {
             match crate::exec::pictures::write(&dir.join(cell.id()), &expected, records, w, h) {
                 Ok(paths) => cmp.pictures = paths,
                 Err(e) => d.push_str(&format!("; pictures not written: {e}")),
@@ -337,12 +321,8 @@ impl Executor {
 
     fn ensure_scene(&mut self) -> Result<&SceneGpu, CellError> {
         if self.scene_gpu.is_none() {
-            self.scene_gpu = Some(SceneGpu::build(
-                &self.gpu,
-                &self.scene,
-                &self.submitter,
-                self.opts.timeout,
-            )?);
+            self.scene_gpu =
+                Some(SceneGpu::build(&self.gpu, &self.scene, &self.submitter, self.opts.timeout)?);
         }
         Ok(self.scene_gpu.as_ref().expect("built above"))
     }
@@ -367,10 +347,7 @@ impl Executor {
             t.push((
                 1,
                 Resource::AccelerationStructure,
-                vec![Target::Accel {
-                    raw: s.scene_tlas.raw,
-                    address: s.scene_tlas.address,
-                }],
+                vec![Target::Accel { raw: s.scene_tlas.raw, address: s.scene_tlas.address }],
             ));
         }
         if let Some(r) = key.probe {
@@ -380,24 +357,17 @@ impl Executor {
                 (0..slots)
                     .map(|k| {
                         let a = &s.probe_tlas[probe::as_slot_tlas(k)];
-                        Target::Accel {
-                            raw: a.raw,
-                            address: a.address,
-                        }
+                        Target::Accel { raw: a.raw, address: a.address }
                     })
                     .collect()
             } else {
                 self.ensure_array(r)?;
-                self.arrays[&r]
-                    .targets(self.sampler, r, key.packed)
-                    .map_err(|e| match e {
-                        resources::PackedError::TooManyLayers { .. } => {
-                            CellError::Unsupported(e.to_string())
-                        }
-                        resources::PackedError::NoPacked(_) => {
-                            CellError::NotImplemented(e.to_string())
-                        }
-                    })?
+                self.arrays[&r].targets(self.sampler, r, key.packed).map_err(|e| match e {
+                    resources::PackedError::TooManyLayers { .. } => {
+                        CellError::Unsupported(e.to_string())
+                    }
+                    resources::PackedError::NoPacked(_) => CellError::NotImplemented(e.to_string()),
+                })?
             };
             t.push((2, r, targets));
         }
@@ -423,16 +393,10 @@ impl Executor {
         }
         if spec.addresses.ssbo_table && self.ssbo_table.is_none() {
             self.ensure_array(Resource::StorageBuffer)?;
-            let addrs: Vec<u64> = self.arrays[&Resource::StorageBuffer]
-                .buffers
-                .iter()
-                .map(|b| b.address)
-                .collect();
-            self.ssbo_table = Some(resources::address_table(
-                &self.gpu,
-                &addrs,
-                "SSBO address table",
-            )?);
+            let addrs: Vec<u64> =
+                self.arrays[&Resource::StorageBuffer].buffers.iter().map(|b| b.address).collect();
+            self.ssbo_table =
+                Some(resources::address_table(&self.gpu, &addrs, "SSBO address table")?);
         }
         if spec.addresses.as_table && self.as_table.is_none() {
             let s = self.ensure_scene()?;
@@ -444,21 +408,13 @@ impl Executor {
             let bytes = probe::base_buffer(self.scene.params.instances);
             let usage =
                 vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
-            self.bases = Some(Buffer::with_data(
-                &self.gpu,
-                &bytes,
-                usage,
-                "per-instance bases",
-            )?);
+            self.bases = Some(Buffer::with_data(&self.gpu, &bytes, usage, "per-instance bases")?);
         }
         if shaders.kind == PipelineKind::Graphics && self.color.is_none() {
             let (w, h) = (self.scene.params.width, self.scene.params.height);
             self.color = Some(Image::new(
                 &self.gpu,
-                vk::Extent2D {
-                    width: w,
-                    height: h,
-                },
+                vk::Extent2D { width: w, height: h },
                 pipeline::COLOR_FORMAT,
                 vk::ImageUsageFlags::COLOR_ATTACHMENT,
             )?);
@@ -489,9 +445,7 @@ impl Executor {
     ) -> Result<Compiled, CellError> {
         let spec = ProbeSpec::of(cell);
         if spec.array == ArrayAt::Heap && shadergen::glslang::find().is_none() {
-            return Err(CellError::NotImplemented(
-                shadergen::glslang::missing_reason(),
-            ));
+            return Err(CellError::NotImplemented(shadergen::glslang::missing_reason()));
         }
         // SPIR-V
         let mut spirv = Vec::new();
@@ -537,11 +491,7 @@ impl Executor {
             files::dump(dir, cell, &shaders, &spirv).map_err(CellError::Io)?;
         }
         let dropped = heap::dropped_nonuniform(&spec, &spirv);
-        Ok(Compiled {
-            shaders,
-            spirv,
-            dropped,
-        })
+        Ok(Compiled { shaders, spirv, dropped })
     }
 
     /// Resources (built by `prepare`), descriptor bindings (cached per layout) and the key of the
@@ -569,11 +519,7 @@ impl Executor {
         };
         // RTPROBE_BINDING_STAGES=all: declare bindings and push constants for VK_SHADER_STAGE_ALL
         // instead of the pipeline's stages (reproduces reports/lavapipe/FINDINGS.md).
-        let stages = if self.opts.all_stages {
-            vk::ShaderStageFlags::ALL
-        } else {
-            stages
-        };
+        let stages = if self.opts.all_stages { vk::ShaderStageFlags::ALL } else { stages };
         let key = LayoutKey {
             stages,
             model: spec.model,
@@ -632,10 +578,8 @@ impl Executor {
         let spec = ProbeSpec::of(cell);
         let binding = &self.bindings[&b.key];
         let layout = binding.heap_layout();
-        let mapping = spec
-            .heap
-            .zip(layout.as_ref())
-            .map(|(access, l)| heap::PipelineMapping::new(access, l));
+        let mapping =
+            spec.heap.zip(layout.as_ref()).map(|(access, l)| heap::PipelineMapping::new(access, l));
         let records = pipeline::shader_records(&spec, layout.as_ref());
         PipelineInput {
             shaders: &c.shaders,
@@ -743,8 +687,7 @@ impl Executor {
         // Sentinel: a record no probe wrote reads as flags 0xffffffff. Written from the host
         // (the buffer is mapped): a vkCmdFillBuffer is an internal compute dispatch on some
         // drivers and must not disturb the state this cell binds.
-        self.records
-            .write(0, &vec![0xffu8; self.scene.params.pixels() * RECORD_SIZE]);
+        self.records.write(0, &vec![0xffu8; self.scene.params.pixels() * RECORD_SIZE]);
         let mut entered_trace = Ok(());
         let waited = self.submitter.run(gpu, self.opts.timeout, |cmd| unsafe {
             work.record(gpu, cmd);
@@ -771,10 +714,7 @@ impl Executor {
         on_phase(Phase::Readback)?;
         let t = Instant::now();
         let bytes = self.records.read(self.scene.params.pixels() * RECORD_SIZE);
-        let recs = bytes
-            .chunks_exact(RECORD_SIZE)
-            .map(Record::from_bytes)
-            .collect();
+        let recs = bytes.chunks_exact(RECORD_SIZE).map(Record::from_bytes).collect();
         timings.check_ms = t.elapsed().as_secs_f64() * 1e3;
         Ok((recs, bound.dropped))
     }
@@ -842,10 +782,7 @@ impl Work<'_> {
                     .store_op(vk::AttachmentStoreOp::STORE)];
                 let area = vk::Rect2D {
                     offset: vk::Offset2D::default(),
-                    extent: vk::Extent2D {
-                        width: w,
-                        height: h,
-                    },
+                    extent: vk::Extent2D { width: w, height: h },
                 };
                 d.cmd_begin_rendering(
                     cmd,
@@ -897,12 +834,7 @@ impl Drop for Executor {
         for a in self.arrays.values() {
             a.destroy(gpu);
         }
-        for t in self
-            .as_table
-            .iter()
-            .chain(self.ssbo_table.iter())
-            .chain(self.bases.iter())
-        {
+        for t in self.as_table.iter().chain(self.ssbo_table.iter()).chain(self.bases.iter()) {
             t.destroy(gpu);
         }
         if let Some(c) = &self.color {

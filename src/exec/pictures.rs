@@ -25,17 +25,11 @@ const BLACK: [u8; 3] = [0, 0, 0];
 #[derive(Debug, thiserror::Error)]
 pub enum PictureError {
     #[error("{path}: {source}")]
-    Io {
-        path: PathBuf,
-        source: std::io::Error,
-    },
+    Io { path: PathBuf, source: std::io::Error },
     #[error(transparent)]
     Write(#[from] crate::atomic::WriteError),
     #[error("{path}: {source}")]
-    Encode {
-        path: PathBuf,
-        source: png::EncodingError,
-    },
+    Encode { path: PathBuf, source: png::EncodingError },
     #[error("{expected} expected records for {actual} actual ones")]
     Length { expected: usize, actual: usize },
 }
@@ -59,10 +53,7 @@ pub fn field_colour(r: &Record, panel: usize) -> [u8; 3] {
         1 if hit => false_colour(r.custom as u64),
         2 if hit => false_colour((1 << 40) | r.primitive as u64),
         3 if probed => {
-            let bits = r
-                .value
-                .iter()
-                .fold(0u64, |a, v| a.rotate_left(16) ^ v.to_bits() as u64);
+            let bits = r.value.iter().fold(0u64, |a, v| a.rotate_left(16) ^ v.to_bits() as u64);
             false_colour((2 << 40) ^ bits)
         }
         _ => BLACK,
@@ -108,10 +99,7 @@ fn write_png(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<(), Pic
         let mut enc = png::Encoder::new(&mut bytes, width, height);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
-        let encode = |e| PictureError::Encode {
-            path: path.to_path_buf(),
-            source: e,
-        };
+        let encode = |e| PictureError::Encode { path: path.to_path_buf(), source: e };
         let mut w = enc.write_header().map_err(encode)?;
         w.write_image_data(rgb).map_err(encode)?;
         w.finish().map_err(encode)?;
@@ -129,28 +117,15 @@ pub fn write(
 ) -> Result<Vec<String>, PictureError> {
     let n = (width * height) as usize;
     if expected.len() != n || actual.len() != n {
-        return Err(PictureError::Length {
-            expected: expected.len(),
-            actual: actual.len(),
-        });
+        return Err(PictureError::Length { expected: expected.len(), actual: actual.len() });
     }
-    std::fs::create_dir_all(dir).map_err(|e| PictureError::Io {
-        path: dir.to_path_buf(),
-        source: e,
-    })?;
+    std::fs::create_dir_all(dir)
+        .map_err(|e| PictureError::Io { path: dir.to_path_buf(), source: e })?;
     let exp: Vec<Record> = expected.iter().map(|e| e.record).collect();
     let diff: Vec<u8> = classify(expected, actual, width).concat();
     let files = [
-        (
-            "expected.png",
-            PANELS.len() as u32 * width,
-            strip(&exp, width, height),
-        ),
-        (
-            "actual.png",
-            PANELS.len() as u32 * width,
-            strip(actual, width, height),
-        ),
+        ("expected.png", PANELS.len() as u32 * width, strip(&exp, width, height)),
+        ("actual.png", PANELS.len() as u32 * width, strip(actual, width, height)),
         ("diff.png", width, diff),
     ];
     let mut paths = Vec::new();
@@ -201,22 +176,14 @@ mod tests {
             e(rec(3, 4, 5.0), true),
             e(rec(0, 0, 0.0), false),
         ];
-        let actual = vec![
-            rec(3, 4, 5.0),
-            rec(3, 4, 6.0),
-            rec(3, 9, 5.0),
-            rec(0, 0, 0.0),
-        ];
+        let actual = vec![rec(3, 4, 5.0), rec(3, 4, 6.0), rec(3, 9, 5.0), rec(0, 0, 0.0)];
         let d = tempfile::tempdir().unwrap();
         let paths = write(d.path(), &expected, &actual, 2, 2).unwrap();
         assert_eq!(paths.len(), 3);
         let (w, h, diff) = decode(&paths[2]);
         assert_eq!((w, h), (2, 2));
         let px: Vec<&[u8]> = diff.chunks(3).collect();
-        assert_eq!(
-            px,
-            vec![&MATCH[..], &MISMATCH[..], &AMBIGUOUS[..], &MATCH[..]]
-        );
+        assert_eq!(px, vec![&MATCH[..], &MISMATCH[..], &AMBIGUOUS[..], &MATCH[..]]);
         let (w, _, exp) = decode(&paths[0]);
         let (_, _, act) = decode(&paths[1]);
         assert_eq!(w, 8, "four panels of width 2");

@@ -74,18 +74,8 @@ pub fn shader_records(
     if !mapped && !base {
         return ShaderRecords::default();
     }
-    let heap_index = if mapped {
-        heap.map(|l| l.probe_index()).unwrap_or(0)
-    } else {
-        0
-    };
-    let record = |dyn_base: u32| {
-        probe::ShaderRecordData {
-            heap_index,
-            dyn_base,
-        }
-        .to_bytes()
-    };
+    let heap_index = if mapped { heap.map(|l| l.probe_index()).unwrap_or(0) } else { 0 };
+    let record = |dyn_base: u32| probe::ShaderRecordData { heap_index, dyn_base }.to_bytes();
     ShaderRecords {
         other: record(probe::RECORD_BASE_OTHER),
         hit_triangles: record(probe::RECORD_BASE_TRIANGLES),
@@ -124,14 +114,8 @@ pub fn create(
         }
     }
     let spec_data = probe::SPEC_SLOT.to_le_bytes();
-    let spec_entries = [vk::SpecializationMapEntry {
-        constant_id: 0,
-        offset: 0,
-        size: 4,
-    }];
-    let spec = vk::SpecializationInfo::default()
-        .map_entries(&spec_entries)
-        .data(&spec_data);
+    let spec_entries = [vk::SpecializationMapEntry { constant_id: 0, offset: 0, size: 4 }];
+    let spec = vk::SpecializationInfo::default().map_entries(&spec_entries).data(&spec_data);
     let stages: Vec<vk::PipelineShaderStageCreateInfo> = shaders
         .shaders
         .iter()
@@ -171,11 +155,7 @@ pub fn create(
             }
             unsafe { d.create_compute_pipelines(cache, &[ci], None) }
                 .map_err(|(_, e)| VkError::from_result("vkCreateComputePipelines", e))
-                .map(|p| Pipeline {
-                    raw: p[0],
-                    kind: PipelineKind::Compute,
-                    sbt: None,
-                })
+                .map(|p| Pipeline { raw: p[0], kind: PipelineKind::Compute, sbt: None })
         }
         PipelineKind::Graphics => create_graphics(gpu, cache, &stages, layout, flags, flags2),
     };
@@ -199,9 +179,7 @@ fn create_graphics(
     let vi = vk::PipelineVertexInputStateCreateInfo::default();
     let ia = vk::PipelineInputAssemblyStateCreateInfo::default()
         .topology(vk::PrimitiveTopology::TRIANGLE_LIST);
-    let vp = vk::PipelineViewportStateCreateInfo::default()
-        .viewport_count(1)
-        .scissor_count(1);
+    let vp = vk::PipelineViewportStateCreateInfo::default().viewport_count(1).scissor_count(1);
     let rs = vk::PipelineRasterizationStateCreateInfo::default()
         .polygon_mode(vk::PolygonMode::FILL)
         .cull_mode(vk::CullModeFlags::NONE)
@@ -230,11 +208,7 @@ fn create_graphics(
     }
     unsafe { gpu.device.create_graphics_pipelines(cache, &[ci], None) }
         .map_err(|(_, e)| VkError::from_result("vkCreateGraphicsPipelines", e))
-        .map(|p| Pipeline {
-            raw: p[0],
-            kind: PipelineKind::Graphics,
-            sbt: None,
-        })
+        .map(|p| Pipeline { raw: p[0], kind: PipelineKind::Graphics, sbt: None })
 }
 
 /// The shader groups in SBT order: raygen, miss, probe miss, the triangle and procedural hit
@@ -308,11 +282,7 @@ fn create_rt(
     .map_err(|(_, e)| VkError::from_result("vkCreateRayTracingPipelinesKHR", e))?[0];
     let has_callable = shaders.get(Role::Callable).is_some();
     let sbt = shader_binding_table(gpu, raw, groups.len() as u32, has_callable, records)?;
-    Ok(Pipeline {
-        raw,
-        kind: PipelineKind::RayTracing,
-        sbt: Some(sbt),
-    })
+    Ok(Pipeline { raw, kind: PipelineKind::RayTracing, sbt: Some(sbt) })
 }
 
 /// The SBT of pipeline `raw` with `n` groups (in [`rt_groups`]' order, the callable's last when
@@ -326,11 +296,7 @@ fn shader_binding_table(
     records: &ShaderRecords,
 ) -> Result<Sbt, VkError> {
     let rt = gpu.rt.as_ref().expect("ray tracing pipeline enabled");
-    let props = gpu
-        .info
-        .properties
-        .rt_pipeline
-        .expect("RT pipeline properties");
+    let props = gpu.info.properties.rt_pipeline.expect("RT pipeline properties");
     let h = props.shader_group_handle_size as u64;
     let ha = props.shader_group_handle_alignment as u64;
     let ba = props.shader_group_base_alignment as u64;
@@ -340,10 +306,7 @@ fn shader_binding_table(
         Ok(h) => h,
         Err(e) => {
             unsafe { gpu.device.destroy_pipeline(raw, None) };
-            return Err(VkError::from_result(
-                "vkGetRayTracingShaderGroupHandlesKHR",
-                e,
-            ));
+            return Err(VkError::from_result("vkGetRayTracingShaderGroupHandlesKHR", e));
         }
     };
     // Each record: the group handle, then its shader record data.

@@ -38,11 +38,7 @@ const HEADER_LEN: usize = 32;
 /// The cache folder: `$RTPROBE_CACHE_DIR`, else `$XDG_CACHE_HOME/rtprobe`, else
 /// `~/.cache/rtprobe`; `None` when none of them is set.
 pub fn default_dir() -> Option<PathBuf> {
-    let var = |k: &str| {
-        std::env::var_os(k)
-            .filter(|v| !v.is_empty())
-            .map(PathBuf::from)
-    };
+    let var = |k: &str| std::env::var_os(k).filter(|v| !v.is_empty()).map(PathBuf::from);
     var("RTPROBE_CACHE_DIR")
         .or_else(|| var("XDG_CACHE_HOME").map(|d| d.join("rtprobe")))
         .or_else(|| var("HOME").map(|h| h.join(".cache").join("rtprobe")))
@@ -50,11 +46,7 @@ pub fn default_dir() -> Option<PathBuf> {
 
 /// The cache file of a device and driver (`p`: its properties).
 pub fn file_name(p: &vk::PhysicalDeviceProperties) -> String {
-    let uuid: String = p
-        .pipeline_cache_uuid
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect();
+    let uuid: String = p.pipeline_cache_uuid.iter().map(|b| format!("{b:02x}")).collect();
     format!(
         "pipeline-cache-{:04x}-{:04x}-{:08x}-{uuid}.bin",
         p.vendor_id, p.device_id, p.driver_version
@@ -64,10 +56,7 @@ pub fn file_name(p: &vk::PhysicalDeviceProperties) -> String {
 /// Why `bytes` cannot be this device's pipeline cache data (`None`: the header matches).
 pub fn header_mismatch(bytes: &[u8], props: &vk::PhysicalDeviceProperties) -> Option<String> {
     if bytes.len() < HEADER_LEN {
-        return Some(format!(
-            "{} bytes, shorter than the {HEADER_LEN}-byte header",
-            bytes.len()
-        ));
+        return Some(format!("{} bytes, shorter than the {HEADER_LEN}-byte header", bytes.len()));
     }
     let u32_at = |o: usize| u32::from_le_bytes(bytes[o..o + 4].try_into().expect("4 bytes"));
     let (size, version, vendor, device) = (u32_at(0), u32_at(4), u32_at(8), u32_at(12));
@@ -117,10 +106,8 @@ fn read_valid(
 
 fn create(gpu: &Gpu, data: &[u8]) -> Result<vk::PipelineCache, VkError> {
     unsafe {
-        gpu.device.create_pipeline_cache(
-            &vk::PipelineCacheCreateInfo::default().initial_data(data),
-            None,
-        )
+        gpu.device
+            .create_pipeline_cache(&vk::PipelineCacheCreateInfo::default().initial_data(data), None)
     }
     .at("vkCreatePipelineCache")
 }
@@ -132,10 +119,7 @@ pub fn open(gpu: &Gpu, dir: Option<&Path>) -> Result<(vk::PipelineCache, Option<
         return Ok((create(gpu, &[])?, None));
     };
     let path = dir.join(file_name(&gpu.info.properties.core));
-    let mut status = Loaded {
-        path: path.clone(),
-        ..Default::default()
-    };
+    let mut status = Loaded { path: path.clone(), ..Default::default() };
     let data = match read_valid(&path, &gpu.info.properties.core) {
         Ok(d) => d.unwrap_or_default(),
         Err(why) => {
@@ -197,10 +181,8 @@ mod tests {
     }
 
     fn header(size: u32, version: u32, vendor: u32, device: u32, uuid: [u8; 16]) -> Vec<u8> {
-        let mut b: Vec<u8> = [size, version, vendor, device]
-            .iter()
-            .flat_map(|v| v.to_le_bytes())
-            .collect();
+        let mut b: Vec<u8> =
+            [size, version, vendor, device].iter().flat_map(|v| v.to_le_bytes()).collect();
         b.extend_from_slice(&uuid);
         b.extend_from_slice(b"driver payload");
         b
@@ -209,10 +191,7 @@ mod tests {
     #[test]
     fn only_this_devices_header_is_accepted() {
         let p = props();
-        assert_eq!(
-            header_mismatch(&header(32, 1, 0x10de, 0x2330, [7; 16]), &p),
-            None
-        );
+        assert_eq!(header_mismatch(&header(32, 1, 0x10de, 0x2330, [7; 16]), &p), None);
         assert!(header_mismatch(&header(32, 1, 0x10de, 0x2330, [8; 16]), &p)
             .unwrap()
             .contains("UUID"));
@@ -228,26 +207,19 @@ mod tests {
         assert!(header_mismatch(&header(16, 1, 0x10de, 0x2330, [7; 16]), &p)
             .unwrap()
             .contains("header size"));
-        assert!(
-            header_mismatch(&header(4096, 1, 0x10de, 0x2330, [7; 16]), &p)
-                .unwrap()
-                .contains("header size")
-        );
+        assert!(header_mismatch(&header(4096, 1, 0x10de, 0x2330, [7; 16]), &p)
+            .unwrap()
+            .contains("header size"));
         // Truncated inside the header, and empty.
-        assert!(
-            header_mismatch(&header(32, 1, 0x10de, 0x2330, [7; 16])[..20], &p)
-                .unwrap()
-                .contains("shorter")
-        );
+        assert!(header_mismatch(&header(32, 1, 0x10de, 0x2330, [7; 16])[..20], &p)
+            .unwrap()
+            .contains("shorter"));
         assert!(header_mismatch(&[], &p).is_some());
     }
 
     #[test]
     fn the_file_name_names_device_driver_and_uuid() {
-        let p = vk::PhysicalDeviceProperties {
-            driver_version: 0x1234_5678,
-            ..props()
-        };
+        let p = vk::PhysicalDeviceProperties { driver_version: 0x1234_5678, ..props() };
         assert_eq!(
             file_name(&p),
             format!("pipeline-cache-10de-2330-12345678-{}.bin", "07".repeat(16))

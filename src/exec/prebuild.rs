@@ -106,8 +106,7 @@ impl Executor {
                 .iter()
                 .flat_map(|g| g.shaders.iter().map(|s| (s.role, s.glsl.as_str())))
                 .collect();
-            self.compiler
-                .precompile(&sources, threads, &|k, n| progress(Step::Glsl(k, n)));
+            self.compiler.precompile(&sources, threads, &|k, n| progress(Step::Glsl(k, n)));
         }
         let mut staged: Vec<(Cell, Timings, Compiled, Bound)> = Vec::new();
         for (k, (cell, shaders)) in cells.iter().zip(generated).enumerate() {
@@ -147,11 +146,7 @@ impl Executor {
                     let (cell, timings) = (staged[i].0, staged[i].1.clone());
                     self.prebuilt.insert(
                         cell.id(),
-                        Prebuilt {
-                            timings,
-                            phase: Phase::Pipeline,
-                            result: Err(e),
-                        },
+                        Prebuilt { timings, phase: Phase::Pipeline, result: Err(e) },
                     );
                 }
             }
@@ -162,11 +157,7 @@ impl Executor {
             if !failed.contains(&bound.pkey) {
                 self.prebuilt.insert(
                     cell.id(),
-                    Prebuilt {
-                        timings,
-                        phase: Phase::Pipeline,
-                        result: Ok(bound),
-                    },
+                    Prebuilt { timings, phase: Phase::Pipeline, result: Ok(bound) },
                 );
             }
         }
@@ -192,14 +183,7 @@ impl Executor {
             },
         };
         let e = keep(e)?;
-        self.prebuilt.insert(
-            cell.id(),
-            Prebuilt {
-                timings,
-                phase,
-                result: Err(e),
-            },
-        );
+        self.prebuilt.insert(cell.id(), Prebuilt { timings, phase, result: Err(e) });
         Ok(None)
     }
 }
@@ -221,9 +205,7 @@ fn create_all(
         },
         progress,
     );
-    made.into_iter()
-        .map(|m| m.expect("every thread takes items (its init cannot fail)"))
-        .collect()
+    made.into_iter().map(|m| m.expect("every thread takes items (its init cannot fail)")).collect()
 }
 
 #[cfg(test)]
@@ -234,18 +216,13 @@ mod tests {
 
     #[test]
     fn an_error_that_ends_the_worker_aborts_the_prebuild_and_others_are_kept() {
-        let lost = || VkError::DeviceLost {
-            call: "vkCreateDescriptorPool",
-        };
+        let lost = || VkError::DeviceLost { call: "vkCreateDescriptorPool" };
         let aborts = [
             CellError::Vk(lost()),
             CellError::Build(BuildError::Vk(lost())),
             CellError::Build(BuildError::TimedOut(Duration::from_secs(1))),
             CellError::Timeout("upload"),
-            CellError::Vk(VkError::Call {
-                call: "vkWaitForFences",
-                result: vk::Result::TIMEOUT,
-            }),
+            CellError::Vk(VkError::Call { call: "vkWaitForFences", result: vk::Result::TIMEOUT }),
         ];
         for e in aborts {
             let what = e.to_string();

@@ -114,10 +114,7 @@ impl ResourceArray {
                     } else {
                         vk::ImageUsageFlags::STORAGE
                     };
-                let extent = vk::Extent2D {
-                    width: 2,
-                    height: 2,
-                };
+                let extent = vk::Extent2D { width: 2, height: 2 };
                 let mut staging = Vec::new();
                 for s in 0..slots {
                     images.push(Image::new(gpu, extent, PROBE_IMAGE_FORMAT, usage)?);
@@ -180,11 +177,7 @@ impl ResourceArray {
                                 base_array_layer: 0,
                                 layer_count: *layers,
                             })
-                            .image_extent(vk::Extent3D {
-                                width: 2,
-                                height: 2,
-                                depth: 1,
-                            });
+                            .image_extent(vk::Extent3D { width: 2, height: 2, depth: 1 });
                         gpu.device.cmd_copy_buffer_to_image(
                             cmd,
                             st.raw,
@@ -197,15 +190,7 @@ impl ResourceArray {
                             vk::AccessFlags::SHADER_READ,
                             vk::PipelineStageFlags::ALL_COMMANDS,
                         );
-                        transition(
-                            gpu,
-                            cmd,
-                            img.raw,
-                            Transition {
-                                from: dst,
-                                to: general,
-                            },
-                        );
+                        transition(gpu, cmd, img.raw, Transition { from: dst, to: general });
                     }
                 });
                 for st in &staging {
@@ -250,38 +235,23 @@ impl ResourceArray {
             self.images
                 .iter()
                 .zip(&self.array_views)
-                .map(|(i, v)| Target::Image {
-                    image: i.raw,
-                    view: *v,
-                    sampler,
-                    layers: Some(1),
-                })
+                .map(|(i, v)| Target::Image { image: i.raw, view: *v, sampler, layers: Some(1) })
                 .collect()
         } else {
             self.images
                 .iter()
-                .map(|i| Target::Image {
-                    image: i.raw,
-                    view: i.view,
-                    sampler,
-                    layers: None,
-                })
+                .map(|i| Target::Image { image: i.raw, view: i.view, sampler, layers: None })
                 .collect()
         };
         if packed {
             let slot = probe::PACKED_SLOT as usize;
             t[slot] = match &self.packed {
-                Some(Packed::Buffer(b)) => Target::Buffer {
-                    raw: b.raw,
-                    address: b.address,
-                    range: b.size,
-                },
-                Some(Packed::Image(i, n)) => Target::Image {
-                    image: i.raw,
-                    view: i.view,
-                    sampler,
-                    layers: Some(*n),
-                },
+                Some(Packed::Buffer(b)) => {
+                    Target::Buffer { raw: b.raw, address: b.address, range: b.size }
+                }
+                Some(Packed::Image(i, n)) => {
+                    Target::Image { image: i.raw, view: i.view, sampler, layers: Some(*n) }
+                }
                 None if kind == Resource::SampledImage => {
                     return Err(PackedError::TooManyLayers {
                         slots: t.len() as u32,
@@ -342,10 +312,7 @@ fn sampler_info_for(mode: crate::probe::AddressMode) -> vk::SamplerCreateInfo<'s
 
 /// The sampler heap's samplers, in heap order (`probe::SAMPLER_MODES`).
 pub fn heap_sampler_infos() -> Vec<vk::SamplerCreateInfo<'static>> {
-    crate::probe::SAMPLER_MODES
-        .iter()
-        .map(|m| sampler_info_for(*m))
-        .collect()
+    crate::probe::SAMPLER_MODES.iter().map(|m| sampler_info_for(*m)).collect()
 }
 
 pub fn descriptor_type(kind: Resource) -> vk::DescriptorType {
@@ -360,9 +327,7 @@ pub fn descriptor_type(kind: Resource) -> vk::DescriptorType {
 
 /// A buffer of `slots` device addresses: slot k → probe TLAS variant `probe::as_slot_tlas(k)`.
 pub fn as_table(gpu: &Gpu, variant_addresses: &[u64], slots: u32) -> Result<Buffer, VkError> {
-    let addrs: Vec<u64> = (0..slots)
-        .map(|k| variant_addresses[probe::as_slot_tlas(k)])
-        .collect();
+    let addrs: Vec<u64> = (0..slots).map(|k| variant_addresses[probe::as_slot_tlas(k)]).collect();
     address_table(gpu, &addrs, "AS address table")
 }
 

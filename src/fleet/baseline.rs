@@ -40,10 +40,7 @@ fn worker_faults(r: &RunReport) -> Vec<(WorkerFault, String)> {
         .filter(|w| w.outcome.is_finding())
         .map(|w| {
             (
-                WorkerFault {
-                    phase: w.phase.to_string(),
-                    outcome: w.outcome,
-                },
+                WorkerFault { phase: w.phase.to_string(), outcome: w.outcome },
                 format!(
                     "worker {} {} in {}: {}",
                     w.worker,
@@ -59,11 +56,7 @@ fn worker_faults(r: &RunReport) -> Vec<(WorkerFault, String)> {
 #[derive(Debug, thiserror::Error)]
 pub enum BaselineError {
     #[error("{file}: line {line}: {message}")]
-    Line {
-        file: String,
-        line: usize,
-        message: String,
-    },
+    Line { file: String, line: usize, message: String },
     #[error("{file}: {message}")]
     File { file: String, message: String },
     /// `--perf PHASE` names no phase of [`PHASES`], or the report timed no cell in it.
@@ -105,17 +98,9 @@ impl Baseline {
         slack_ms: f64,
     ) -> Result<Baseline, BaselineError> {
         let mut expected = Vec::new();
-        for c in r
-            .cells
-            .iter()
-            .filter(|c| c.cell.canary.is_none() && c.outcome.is_finding())
-        {
-            let mut also: Vec<Outcome> = c
-                .attempts
-                .iter()
-                .map(|a| a.outcome)
-                .filter(|o| *o != c.outcome)
-                .collect();
+        for c in r.cells.iter().filter(|c| c.cell.canary.is_none() && c.outcome.is_finding()) {
+            let mut also: Vec<Outcome> =
+                c.attempts.iter().map(|a| a.outcome).filter(|o| *o != c.outcome).collect();
             also.sort();
             also.dedup();
             expected.push(Expectation {
@@ -134,14 +119,7 @@ impl Baseline {
         for p in perf {
             let mean =
                 phase_mean(r, p).ok_or_else(|| BaselineError::NoPhaseMean { phase: p.clone() })?;
-            performance.insert(
-                p.clone(),
-                PerfBound {
-                    mean_ms: mean,
-                    factor,
-                    slack_ms,
-                },
-            );
+            performance.insert(p.clone(), PerfBound { mean_ms: mean, factor, slack_ms });
         }
         let mut worker_faults: Vec<WorkerFault> =
             worker_faults(r).into_iter().map(|(f, _)| f).collect();
@@ -150,10 +128,7 @@ impl Baseline {
         Ok(Baseline {
             schema: SCHEMA.into(),
             device: r.device["name"].as_str().unwrap_or("?").into(),
-            driver_version: r.device["driver_version"]["decoded"]
-                .as_str()
-                .unwrap_or("?")
-                .into(),
+            driver_version: r.device["driver_version"]["decoded"].as_str().unwrap_or("?").into(),
             source: source.into(),
             expected,
             worker_faults,
@@ -203,25 +178,15 @@ impl Baseline {
             if line.is_empty() {
                 continue;
             }
-            let err = |message: String| BaselineError::Line {
-                file: file.into(),
-                line: n + 1,
-                message,
-            };
+            let err =
+                |message: String| BaselineError::Line { file: file.into(), line: n + 1, message };
             let (cell, status) = line
                 .split_once(',')
                 .ok_or_else(|| err(format!("{line:?} is not `cell,Status`")))?;
             let (outcome, flake) = from_deqp(status.trim()).ok_or_else(|| {
-                err(format!(
-                    "unknown status {:?} (Fail, Crash, Timeout, Flake)",
-                    status.trim()
-                ))
+                err(format!("unknown status {:?} (Fail, Crash, Timeout, Flake)", status.trim()))
             })?;
-            let also = if flake {
-                DEQP_FLAKE_ALSO.to_vec()
-            } else {
-                vec![]
-            };
+            let also = if flake { DEQP_FLAKE_ALSO.to_vec() } else { vec![] };
             b.expected.push(Expectation {
                 cell: cell.trim().into(),
                 outcome,
@@ -245,11 +210,7 @@ impl Baseline {
             self.device, self.driver_version
         );
         for e in &self.expected {
-            let status = if e.flake {
-                "Flake"
-            } else {
-                deqp_status(e.outcome).unwrap_or("Fail")
-            };
+            let status = if e.flake { "Flake" } else { deqp_status(e.outcome).unwrap_or("Fail") };
             s += &format!("{},{status}\n", e.cell);
         }
         s
@@ -263,14 +224,9 @@ impl Baseline {
 fn classify(c: &CellReport, e: Option<&Expectation>) -> (Status, Outcome) {
     let actual = c.outcome;
     match e {
-        None => (
-            if actual.is_finding() {
-                Status::Regression
-            } else {
-                Status::Expected
-            },
-            Outcome::Pass,
-        ),
+        None => {
+            (if actual.is_finding() { Status::Regression } else { Status::Expected }, Outcome::Pass)
+        }
         Some(e) if e.flake => {
             // A flake tolerates, in any mix, a pass and the outcomes it was seen with (by deqp
             // class: crash and device loss are one fault); any other outcome is a regression.
@@ -281,20 +237,9 @@ fn classify(c: &CellReport, e: Option<&Expectation>) -> (Status, Outcome) {
                         .chain(e.also.iter().copied())
                         .any(|k| class(k) == class(o))
             };
-            let all_known = c
-                .attempts
-                .iter()
-                .filter(|a| !a.not_run())
-                .all(|a| known(a.outcome))
+            let all_known = c.attempts.iter().filter(|a| !a.not_run()).all(|a| known(a.outcome))
                 && known(actual);
-            (
-                if all_known {
-                    Status::KnownFlake
-                } else {
-                    Status::Regression
-                },
-                e.outcome,
-            )
+            (if all_known { Status::KnownFlake } else { Status::Regression }, e.outcome)
         }
         Some(e) => {
             // Outcomes of one deqp class (crash / device loss; mismatch / error) are the same fault.
@@ -316,14 +261,8 @@ fn classify(c: &CellReport, e: Option<&Expectation>) -> (Status, Outcome) {
 
 /// Compare a run with a baseline: per cell (canaries and unsupported cells aside) and per phase.
 pub fn check(r: &RunReport, b: &Baseline, source: &str) -> BaselineCheck {
-    let mut out = BaselineCheck {
-        source: source.into(),
-        ..Default::default()
-    };
-    for c in r
-        .cells
-        .iter()
-        .filter(|c| c.cell.canary.is_none() && c.outcome != Outcome::Unsupported)
+    let mut out = BaselineCheck { source: source.into(), ..Default::default() };
+    for c in r.cells.iter().filter(|c| c.cell.canary.is_none() && c.outcome != Outcome::Unsupported)
     {
         let e = b.get(&c.id);
         let (status, expected) = classify(c, e);
@@ -333,22 +272,13 @@ pub fn check(r: &RunReport, b: &Baseline, source: &str) -> BaselineCheck {
             Status::Regression | Status::Improvement => {}
         }
         if status != Status::Expected {
-            out.cells.push(CellCheck {
-                cell: c.id.clone(),
-                status,
-                expected,
-                actual: c.outcome,
-            });
+            out.cells.push(CellCheck { cell: c.id.clone(), status, expected, actual: c.outcome });
         }
     }
     out.not_run = b
         .expected
         .iter()
-        .filter(|e| {
-            !r.cells
-                .iter()
-                .any(|c| c.id == e.cell && !c.attempts.is_empty())
-        })
+        .filter(|e| !r.cells.iter().any(|c| c.id == e.cell && !c.attempts.is_empty()))
         .count();
     for (fault, text) in worker_faults(r) {
         if b.worker_faults.contains(&fault) {
@@ -382,11 +312,7 @@ pub fn render(c: &BaselineCheck, allow_improvements: bool) -> String {
         c.known_flakes,
         c.regressions().count(),
         c.improvements().count(),
-        if c.not_run > 0 {
-            format!(", {} entries not run here", c.not_run)
-        } else {
-            String::new()
-        }
+        if c.not_run > 0 { format!(", {} entries not run here", c.not_run) } else { String::new() }
     );
     for x in &c.cells {
         let what = match x.status {
@@ -435,23 +361,13 @@ mod tests {
         let again = Baseline::parse("y.csv", &b.to_deqp()).unwrap();
         assert_eq!(again.expected, b.expected);
         assert_eq!(again.to_deqp(), b.to_deqp());
-        let e = Baseline::parse("z.csv", "a.b,Crash\nnonsense\n")
-            .unwrap_err()
-            .to_string();
+        let e = Baseline::parse("z.csv", "a.b,Crash\nnonsense\n").unwrap_err().to_string();
         assert!(e.contains("z.csv: line 2"), "{e}");
-        let e = Baseline::parse("z.csv", "a.b,Exploded\n")
-            .unwrap_err()
-            .to_string();
+        let e = Baseline::parse("z.csv", "a.b,Exploded\n").unwrap_err().to_string();
         assert!(e.contains("unknown status"), "{e}");
         // The JSON form round-trips too.
         let j = Baseline::parse("b.json", &b.to_json()).unwrap();
-        assert_eq!(
-            j,
-            Baseline {
-                source: "x.csv".into(),
-                ..b
-            }
-        );
+        assert_eq!(j, Baseline { source: "x.csv".into(), ..b });
     }
 
     fn cell(index: crate::model::IndexSource) -> crate::model::Cell {
@@ -493,10 +409,8 @@ mod tests {
             assert_eq!(c.known_flakes, 1);
         }
         // A flake tolerates what it was seen with, not a mismatch it never showed.
-        let wrong = RunReport::for_tests(vec![cell_with(
-            I::Dynamic,
-            &[Outcome::Mismatch, Outcome::Pass],
-        )]);
+        let wrong =
+            RunReport::for_tests(vec![cell_with(I::Dynamic, &[Outcome::Mismatch, Outcome::Pass])]);
         let c = check(&wrong, &b, "b");
         assert_eq!(c.regressions().count(), 1, "{c:?}");
         // A steady expected fault that now passes is an improvement; another fault a regression.
@@ -505,20 +419,12 @@ mod tests {
             cell_with(I::SpecConstant, &[Outcome::Timeout]),
         ]);
         let c = check(&fixed, &b, "b");
-        assert_eq!(
-            (c.improvements().count(), c.regressions().count()),
-            (1, 1),
-            "{c:?}"
-        );
+        assert_eq!((c.improvements().count(), c.regressions().count()), (1, 1), "{c:?}");
     }
 
     #[test]
     fn perf_bound_limit() {
-        let p = PerfBound {
-            mean_ms: 2.0,
-            factor: 2.0,
-            slack_ms: 1.0,
-        };
+        let p = PerfBound { mean_ms: 2.0, factor: 2.0, slack_ms: 1.0 };
         assert_eq!(p.limit(), 5.0);
     }
 }

@@ -97,16 +97,10 @@ pub fn diff(old: &RunReport, new: &RunReport, noise: f64, floor_ms: f64) -> Repo
         format!(
             "{} ({})",
             r.device["name"].as_str().unwrap_or("?"),
-            r.device["driver_version"]["decoded"]
-                .as_str()
-                .unwrap_or("?")
+            r.device["driver_version"]["decoded"].as_str().unwrap_or("?")
         )
     };
-    let mut d = ReportDiff {
-        old_device: name(old),
-        new_device: name(new),
-        ..Default::default()
-    };
+    let mut d = ReportDiff { old_device: name(old), new_device: name(new), ..Default::default() };
     let olds: BTreeMap<&str, &CellReport> = old.cells.iter().map(|c| (c.id.as_str(), c)).collect();
     let news: BTreeMap<&str, &CellReport> = new.cells.iter().map(|c| (c.id.as_str(), c)).collect();
     for c in &new.cells {
@@ -128,11 +122,7 @@ pub fn diff(old: &RunReport, new: &RunReport, noise: f64, floor_ms: f64) -> Repo
             },
         }
     }
-    for c in old
-        .cells
-        .iter()
-        .filter(|c| !news.contains_key(c.id.as_str()))
-    {
+    for c in old.cells.iter().filter(|c| !news.contains_key(c.id.as_str())) {
         d.cells.push(CellDiff {
             cell: c.id.clone(),
             change: Change::Gone,
@@ -140,18 +130,12 @@ pub fn diff(old: &RunReport, new: &RunReport, noise: f64, floor_ms: f64) -> Repo
             new: None,
         });
     }
-    d.cells
-        .sort_by(|a, b| (a.change, &a.cell).cmp(&(b.change, &b.cell)));
+    d.cells.sort_by(|a, b| (a.change, &a.cell).cmp(&(b.change, &b.cell)));
     for p in PHASES {
         if let (Some(a), Some(b)) = (phase_mean(old, p), phase_mean(new, p)) {
             let ratio = if a > 0.0 { b / a } else { f64::INFINITY };
             if (b - a).abs() > floor_ms && (ratio > 1.0 + noise || ratio < 1.0 / (1.0 + noise)) {
-                d.timing.push(PhaseDiff {
-                    phase: p.to_string(),
-                    old_ms: a,
-                    new_ms: b,
-                    ratio,
-                });
+                d.timing.push(PhaseDiff { phase: p.to_string(), old_ms: a, new_ms: b, ratio });
             }
         }
     }
@@ -160,13 +144,7 @@ pub fn diff(old: &RunReport, new: &RunReport, noise: f64, floor_ms: f64) -> Repo
 
 fn counts(d: &ReportDiff) -> String {
     let mut parts = vec![];
-    for ch in [
-        Change::Fixed,
-        Change::Regressed,
-        Change::Changed,
-        Change::New,
-        Change::Gone,
-    ] {
+    for ch in [Change::Fixed, Change::Regressed, Change::Changed, Change::New, Change::Gone] {
         let n = d.cells.iter().filter(|c| c.change == ch).count();
         if n > 0 {
             parts.push(format!("{n} {}", ch.as_str()));
@@ -194,10 +172,7 @@ pub fn render_text(d: &ReportDiff) -> String {
         );
     }
     if d.timing.is_empty() {
-        let _ = writeln!(
-            s,
-            "time per cell: no phase changed beyond the noise threshold"
-        );
+        let _ = writeln!(s, "time per cell: no phase changed beyond the noise threshold");
     }
     for t in &d.timing {
         let _ = writeln!(

@@ -16,20 +16,12 @@ pub enum NotSameRun {
     Version(Value, Value),
     /// `key`: the [`DEVICE_KEYS`] entry that differs.
     #[error("it was made on another device ({key} {here} here {there})")]
-    Device {
-        key: &'static str,
-        here: Value,
-        there: Value,
-    },
+    Device { key: &'static str, here: Value, there: Value },
     #[error("its scene differs (size, seed, instances or mesh detail: {0:?} here {1:?})")]
     Scene(SceneParams, SceneParams),
     /// `flag`: the option's command-line flag.
     #[error("its {flag} differs ({here} here {there})")]
-    Option {
-        flag: &'static str,
-        here: Value,
-        there: Value,
-    },
+    Option { flag: &'static str, here: Value, there: Value },
 }
 
 /// Why reports do not merge.
@@ -38,11 +30,7 @@ pub enum MergeError {
     #[error("merge needs at least one report")]
     NoReports,
     #[error("{name} does not belong with {first}: {why} (--force merges anyway)")]
-    NotSameRun {
-        name: String,
-        first: String,
-        why: NotSameRun,
-    },
+    NotSameRun { name: String, first: String, why: NotSameRun },
     /// The same run (start stamp and command line) given twice.
     #[error("{name} is a run already merged (started {started}, same command line): merging it twice would double its attempts")]
     MergedTwice { name: String, started: String },
@@ -50,13 +38,8 @@ pub enum MergeError {
 
 /// Device identity: a report continues, merges with or is compared like-for-like with another
 /// only when all of these agree.
-pub const DEVICE_KEYS: &[&str] = &[
-    "name",
-    "driver_version",
-    "api_version",
-    "driver_uuid",
-    "device_uuid",
-];
+pub const DEVICE_KEYS: &[&str] =
+    &["name", "driver_version", "api_version", "driver_uuid", "device_uuid"];
 
 /// Whether `b` describes the same device, scene and result-changing options as `a`; says what
 /// differs. `options` limits which option keys are compared.
@@ -64,10 +47,7 @@ pub const DEVICE_KEYS: &[&str] = &[
 #[allow(clippy::result_large_err)]
 pub fn same_run(a: &RunReport, b: &RunReport, options: &[ResultOption]) -> Result<(), NotSameRun> {
     if a.tool["version"] != b.tool["version"] {
-        return Err(NotSameRun::Version(
-            a.tool["version"].clone(),
-            b.tool["version"].clone(),
-        ));
+        return Err(NotSameRun::Version(a.tool["version"].clone(), b.tool["version"].clone()));
     }
     for key in DEVICE_KEYS {
         if a.device[key] != b.device[key] {
@@ -84,11 +64,7 @@ pub fn same_run(a: &RunReport, b: &RunReport, options: &[ResultOption]) -> Resul
     for key in options {
         let (va, vb) = (key.value(&a.options), key.value(&b.options));
         if va != vb {
-            return Err(NotSameRun::Option {
-                flag: key.flag(),
-                here: va,
-                there: vb,
-            });
+            return Err(NotSameRun::Option { flag: key.flag(), here: va, there: vb });
         }
     }
     Ok(())
@@ -116,12 +92,8 @@ pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport
     let mut started = vec![(out.started.clone(), out.command_line.clone())];
     // Baseline checks describe one report's cells; the merged report is checked anew.
     out.baseline = None;
-    let mut by_id: HashMap<String, usize> = out
-        .cells
-        .iter()
-        .enumerate()
-        .map(|(i, c)| (c.id.clone(), i))
-        .collect();
+    let mut by_id: HashMap<String, usize> =
+        out.cells.iter().enumerate().map(|(i, c)| (c.id.clone(), i)).collect();
     for (name, r) in it {
         if !force {
             same_run(&out, &r, ResultOption::MERGED).map_err(|why| MergeError::NotSameRun {
@@ -132,10 +104,7 @@ pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport
         }
         let id = (r.started.clone(), r.command_line.clone());
         if started.contains(&id) {
-            return Err(MergeError::MergedTwice {
-                name,
-                started: r.started,
-            });
+            return Err(MergeError::MergedTwice { name, started: r.started });
         }
         started.push(id);
         names.push(name);
@@ -180,20 +149,14 @@ pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport
     let order = order();
     out.cells.sort_by_key(|c| {
         (
-            order
-                .get(&c.cell.base().id())
-                .copied()
-                .unwrap_or(usize::MAX),
+            order.get(&c.cell.base().id()).copied().unwrap_or(usize::MAX),
             c.cell.patch.map(|p| 1 + p as usize).unwrap_or(0),
         )
     });
     // Workaround variants are planned cells only with --patches all (else they are retries).
     let variants_planned = out.options.patches == PatchMode::All;
-    let planned: Vec<&CellReport> = out
-        .cells
-        .iter()
-        .filter(|c| c.cell.patch.is_none() || variants_planned)
-        .collect();
+    let planned: Vec<&CellReport> =
+        out.cells.iter().filter(|c| c.cell.patch.is_none() || variants_planned).collect();
     let unsupported = planned.iter().filter(|c| c.attempts.is_empty()).count();
     out.plan.planned = planned.len();
     out.plan.unsupported = unsupported;

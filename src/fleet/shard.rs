@@ -21,10 +21,8 @@ impl Shard {
     pub fn parse(s: &str) -> Result<Shard, ShardError> {
         let bad = || ShardError(s.into());
         let (i, n) = s.split_once('/').ok_or_else(bad)?;
-        let (index, count): (u32, u32) = (
-            i.trim().parse().map_err(|_| bad())?,
-            n.trim().parse().map_err(|_| bad())?,
-        );
+        let (index, count): (u32, u32) =
+            (i.trim().parse().map_err(|_| bad())?, n.trim().parse().map_err(|_| bad())?);
         if count == 0 || index == 0 || index > count {
             return Err(bad());
         }
@@ -63,10 +61,7 @@ mod tests {
             generated: cells.len(),
             cells: cells
                 .into_iter()
-                .map(|cell| PlannedCell {
-                    cell,
-                    status: PlanStatus::Run,
-                })
+                .map(|cell| PlannedCell { cell, status: PlanStatus::Run })
                 .collect(),
             not_generated,
             filtered_out: 0,
@@ -88,10 +83,7 @@ mod tests {
             }
         }
         assert_eq!(seen.len(), total);
-        assert!(
-            sizes.iter().max().unwrap() - sizes.iter().min().unwrap() <= 1,
-            "{sizes:?}"
-        );
+        assert!(sizes.iter().max().unwrap() - sizes.iter().min().unwrap() <= 1, "{sizes:?}");
         // Plan order inside a shard is kept (canaries stay last).
         let mut p = full();
         Shard { index: 2, count: 3 }.apply(&mut p);

@@ -64,10 +64,7 @@ pub fn device_support(info: &DeviceInfo, cell: &Cell) -> Support {
     }
     if cell.resource == Resource::AccelerationStructure {
         if !cell.stage.can_trace_ray()
-            && info
-                .features
-                .ray_query
-                .is_none_or(|r| r.ray_query != ash::vk::TRUE)
+            && info.features.ray_query.is_none_or(|r| r.ray_query != ash::vk::TRUE)
         {
             checks.push(Support::Unsupported {
                 reason: format!(
@@ -76,11 +73,7 @@ pub fn device_support(info: &DeviceInfo, cell: &Cell) -> Support {
                 ),
             });
         }
-        let depth = info
-            .properties
-            .rt_pipeline
-            .map(|p| p.max_ray_recursion_depth)
-            .unwrap_or(0);
+        let depth = info.properties.rt_pipeline.map(|p| p.max_ray_recursion_depth).unwrap_or(0);
         if matches!(cell.stage, Stage::ClosestHit | Stage::Miss) && depth < 2 {
             checks.push(Support::Unsupported {
                 reason: format!(
@@ -201,10 +194,7 @@ fn heap_cells(base: Cell, cells: &mut Vec<Cell>, skipped: &mut Skipped) {
             skipped.heap_index_without_binding += 1;
             continue;
         }
-        let cell = Cell {
-            heap_access,
-            ..base
-        };
+        let cell = Cell { heap_access, ..base };
         let samplers: Vec<Option<SamplerIndex>> = if cell.sampler_applies() {
             SamplerIndex::ALL.iter().map(|s| Some(*s)).collect()
         } else {
@@ -215,18 +205,12 @@ fn heap_cells(base: Cell, cells: &mut Vec<Cell>, skipped: &mut Skipped) {
             let cell = Cell { sampler, ..cell };
             cells.push(cell);
             if cell.reorder_applies() {
-                cells.extend(Reorder::ALL.iter().map(|r| Cell {
-                    reorder: Some(*r),
-                    ..cell
-                }));
+                cells.extend(Reorder::ALL.iter().map(|r| Cell { reorder: Some(*r), ..cell }));
             } else {
                 skipped.reorder_elsewhere += Reorder::ALL.len();
             }
             if cell.base_applies() {
-                cells.extend(BaseSource::ALL.iter().map(|b| Cell {
-                    base: Some(*b),
-                    ..cell
-                }));
+                cells.extend(BaseSource::ALL.iter().map(|b| Cell { base: Some(*b), ..cell }));
             } else {
                 skipped.base_elsewhere += BaseSource::ALL.len();
             }
@@ -263,10 +247,7 @@ pub fn plan(info: &DeviceInfo, opts: &PlanOptions) -> RunPlan {
                 Default::default()
             }
             .into_iter()
-            .map(move |p| Cell {
-                patch: Some(p),
-                ..cell
-            }),
+            .map(move |p| Cell { patch: Some(p), ..cell }),
         );
         for cell in variants {
             if opts.filters.iter().all(|f| f.matches(&cell)) {
@@ -284,12 +265,7 @@ pub fn plan(info: &DeviceInfo, opts: &PlanOptions) -> RunPlan {
             push(Cell::canary(c), &mut cells);
         }
     }
-    RunPlan {
-        generated,
-        cells,
-        not_generated,
-        filtered_out,
-    }
+    RunPlan { generated, cells, not_generated, filtered_out }
 }
 
 #[cfg(test)]
@@ -299,9 +275,7 @@ mod tests {
     #[test]
     fn matrix_has_no_meaningless_cells_and_unique_ids() {
         let (cells, skipped) = all_cells();
-        assert!(cells
-            .iter()
-            .all(|c| !c.nonuniform || c.index == IndexSource::Dynamic));
+        assert!(cells.iter().all(|c| !c.nonuniform || c.index == IndexSource::Dynamic));
         assert!(cells
             .iter()
             .all(|c| c.as_access.is_some() == (c.resource == Resource::AccelerationStructure)));
@@ -337,32 +311,23 @@ mod tests {
                 + sampler_extra
                 + base_extra
         );
-        assert!(cells
-            .iter()
-            .all(|c| c.sampler.is_some() == c.sampler_applies()));
+        assert!(cells.iter().all(|c| c.sampler.is_some() == c.sampler_applies()));
         assert!(cells.iter().all(|c| c.base.is_none() || c.base_applies()));
         // Every base_applies cell has both other bases; reorder never combines with a base.
-        for c in cells
-            .iter()
-            .filter(|c| c.base.is_none() && c.base_applies())
-        {
+        for c in cells.iter().filter(|c| c.base.is_none() && c.base_applies()) {
             for b in BaseSource::ALL {
                 assert!(
-                    cells.contains(&Cell {
-                        base: Some(*b),
-                        ..*c
-                    }),
+                    cells.contains(&Cell { base: Some(*b), ..*c }),
                     "{} without base {b}",
                     c.id()
                 );
             }
         }
-        assert!(cells
-            .iter()
-            .filter(|c| c.index == IndexSource::DynamicElement)
-            .all(|c| Cell::dynamic_element_applies(c.resource)
+        assert!(cells.iter().filter(|c| c.index == IndexSource::DynamicElement).all(|c| {
+            Cell::dynamic_element_applies(c.resource)
                 && !c.nonuniform
-                && c.applicable_patches().is_empty()));
+                && c.applicable_patches().is_empty()
+        }));
         // Every dynamic storage-buffer / sampled-image cell has its recommended pattern in the matrix.
         for c in cells.iter().filter(|c| {
             c.index == IndexSource::Dynamic && Cell::dynamic_element_applies(c.resource)
@@ -374,9 +339,7 @@ mod tests {
             .iter()
             .all(|c| c.heap_access.is_some()
                 == (c.descriptor_model == DescriptorModel::DescriptorHeap)));
-        assert!(cells
-            .iter()
-            .all(|c| c.reorder.is_none() || c.reorder_applies()));
+        assert!(cells.iter().all(|c| c.reorder.is_none() || c.reorder_applies()));
         assert!(skipped.iter().all(|s| s.count > 0));
     }
 
@@ -386,18 +349,10 @@ mod tests {
         let (cells, _) = all_cells();
         let kept: Vec<_> = cells.iter().filter(|c| f.matches(c)).collect();
         assert!(!kept.is_empty());
-        assert!(kept
-            .iter()
-            .all(|c| matches!(c.stage, Stage::ClosestHit | Stage::Raygen)
-                && c.index == IndexSource::Dynamic));
-        assert!(Filter::parse("stage=nope")
-            .unwrap_err()
-            .to_string()
-            .contains("closest_hit"));
-        assert!(Filter::parse("colour=red")
-            .unwrap_err()
-            .to_string()
-            .contains("unknown axis"));
+        assert!(kept.iter().all(|c| matches!(c.stage, Stage::ClosestHit | Stage::Raygen)
+            && c.index == IndexSource::Dynamic));
+        assert!(Filter::parse("stage=nope").unwrap_err().to_string().contains("closest_hit"));
+        assert!(Filter::parse("colour=red").unwrap_err().to_string().contains("unknown axis"));
         assert!(Filter::parse("stage").is_err());
     }
 
@@ -405,18 +360,10 @@ mod tests {
     fn every_cell() -> Vec<Cell> {
         let (cells, _) = all_cells();
         let variants = cells.iter().flat_map(|c| {
-            c.applicable_patches().into_iter().map(move |p| Cell {
-                patch: Some(p),
-                ..*c
-            })
+            c.applicable_patches().into_iter().map(move |p| Cell { patch: Some(p), ..*c })
         });
         let canaries = Canary::ALL.iter().map(|k| Cell::canary(*k));
-        cells
-            .iter()
-            .copied()
-            .chain(variants)
-            .chain(canaries)
-            .collect()
+        cells.iter().copied().chain(variants).chain(canaries).collect()
     }
 
     #[test]

@@ -77,35 +77,20 @@ impl Attempt {
 
     /// Who ran it: the worker (0: none started), its last phase and what its device enabled.
     pub fn with_worker(self, worker: u64, phase: Phase, device_features: Vec<String>) -> Attempt {
-        Attempt {
-            worker,
-            phase: Some(phase),
-            device_features,
-            ..self
-        }
+        Attempt { worker, phase: Some(phase), device_features, ..self }
     }
 
     pub fn with_detail(self, detail: impl Into<String>) -> Attempt {
-        Attempt {
-            detail: Some(detail.into()),
-            ..self
-        }
+        Attempt { detail: Some(detail.into()), ..self }
     }
 
     /// The worker's own report; its detail becomes the attempt's.
     pub fn with_result(self, result: CellResult) -> Attempt {
-        Attempt {
-            detail: result.detail.clone(),
-            result: Some(result),
-            ..self
-        }
+        Attempt { detail: result.detail.clone(), result: Some(result), ..self }
     }
 
     pub fn with_exit(self, exit: WorkerExit) -> Attempt {
-        Attempt {
-            worker_exit: Some(exit),
-            ..self
-        }
+        Attempt { worker_exit: Some(exit), ..self }
     }
 
     pub fn with_wall_ms(self, wall_ms: f64) -> Attempt {

@@ -112,9 +112,7 @@ impl BaselineCheck {
         self.cells.iter().filter(|c| c.status == Status::Regression)
     }
     pub fn improvements(&self) -> impl Iterator<Item = &CellCheck> {
-        self.cells
-            .iter()
-            .filter(|c| c.status == Status::Improvement)
+        self.cells.iter().filter(|c| c.status == Status::Improvement)
     }
     /// Whether the run is as expected (improvements count unless allowed).
     pub fn ok(&self, allow_improvements: bool) -> bool {

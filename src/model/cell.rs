@@ -54,12 +54,8 @@ impl Workaround {
         Workaround::AsToAddress,
         Workaround::SsboToAddress,
     ];
-    pub const NAMES: &'static [&'static str] = &[
-        "nonuniform",
-        "pin-index",
-        "as-to-address",
-        "ssbo-to-address",
-    ];
+    pub const NAMES: &'static [&'static str] =
+        &["nonuniform", "pin-index", "as-to-address", "ssbo-to-address"];
     pub fn parse(s: &str) -> Option<Workaround> {
         Workaround::ALL.iter().copied().find(|w| w.as_str() == s)
     }
@@ -203,10 +199,7 @@ impl Cell {
     pub fn base_applies(&self) -> bool {
         self.canary.is_none()
             && self.stage == Stage::ClosestHit
-            && matches!(
-                self.index,
-                IndexSource::Dynamic | IndexSource::DynamicElement
-            )
+            && matches!(self.index, IndexSource::Dynamic | IndexSource::DynamicElement)
             && self.resource != Resource::AccelerationStructure
             && self.reorder.is_none()
     }
@@ -246,10 +239,7 @@ impl Cell {
         let pattern = Pattern::of(self.resource)
             .ok_or_else(|| format!("rtprobe has no recommended single-descriptor pattern for {} (only storage buffers: geometry, sampled images: materials)", self.resource))?;
         if self.index == IndexSource::DynamicElement && self.patch.is_none() {
-            return Err(format!(
-                "this cell is the recommended pattern ({})",
-                pattern.as_str()
-            ));
+            return Err(format!("this cell is the recommended pattern ({})", pattern.as_str()));
         }
         // Same base and sampler: the pattern reads its dynamic value the way the finding did.
         Ok((
@@ -266,10 +256,7 @@ impl Cell {
 
     /// The cell without its workaround.
     pub fn base(&self) -> Cell {
-        Cell {
-            patch: None,
-            ..*self
-        }
+        Cell { patch: None, ..*self }
     }
 
     /// The workarounds that apply to this cell's shaders.
@@ -342,29 +329,15 @@ mod tests {
                 DescriptorModel::DescriptorIndexing,
             )
         };
-        assert_eq!(
-            c.id(),
-            "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_indexing"
-        );
+        assert_eq!(c.id(), "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_indexing");
         assert_eq!(c.axis_value("base").as_deref(), Some("push_data"));
-        let b = Cell {
-            base: Some(BaseSource::ShaderRecord),
-            ..c
-        };
+        let b = Cell { base: Some(BaseSource::ShaderRecord), ..c };
         assert_eq!(
             b.id(),
             "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_indexing.base_shader_record"
         );
         assert!(!b.reorder_applies() && b.base_applies());
-        assert_eq!(
-            Cell {
-                stage: Stage::AnyHit,
-                ..c
-            }
-            .axis_value("base")
-            .as_deref(),
-            Some("none")
-        );
+        assert_eq!(Cell { stage: Stage::AnyHit, ..c }.axis_value("base").as_deref(), Some("none"));
         let d = Cell {
             resource: Resource::SampledImage,
             descriptor_model: DescriptorModel::DescriptorHeap,
@@ -378,43 +351,23 @@ mod tests {
         );
         assert!(
             d.sampler_applies()
-                && !Cell {
-                    heap_access: Some(HeapAccess::MappedPushIndex),
-                    ..d
-                }
-                .sampler_applies()
+                && !Cell { heap_access: Some(HeapAccess::MappedPushIndex), ..d }.sampler_applies()
         );
-        let r = Cell {
-            reorder: Some(Reorder::ReorderHint),
-            patch: Some(Workaround::PinIndex),
-            ..c
-        };
+        let r =
+            Cell { reorder: Some(Reorder::ReorderHint), patch: Some(Workaround::PinIndex), ..c };
         assert_eq!(r.id(), "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_indexing.reorder_hint.patch-pin-index");
         assert_eq!(r.axis_value("reorder").as_deref(), Some("reorder_hint"));
         assert!(
-            c.reorder_applies()
-                && !Cell {
-                    index: IndexSource::Literal,
-                    ..c
-                }
-                .reorder_applies()
+            c.reorder_applies() && !Cell { index: IndexSource::Literal, ..c }.reorder_applies()
         );
-        let p = Cell {
-            nonuniform: false,
-            patch: Some(Workaround::Nonuniform),
-            ..c
-        };
+        let p = Cell { nonuniform: false, patch: Some(Workaround::Nonuniform), ..c };
         assert_eq!(
             p.id(),
             "closest_hit.storage_buffer.dynamic.descriptor_indexing.patch-nonuniform"
         );
         assert_eq!(
             p.base().applicable_patches(),
-            vec![
-                Workaround::Nonuniform,
-                Workaround::PinIndex,
-                Workaround::SsboToAddress
-            ]
+            vec![Workaround::Nonuniform, Workaround::PinIndex, Workaround::SsboToAddress]
         );
         let a = Cell {
             resource: Resource::AccelerationStructure,
@@ -426,10 +379,7 @@ mod tests {
             a.id(),
             "closest_hit.acceleration_structure.dynamic.address.descriptor_indexing"
         );
-        assert_eq!(
-            Cell::canary(Canary::InfiniteLoop).id(),
-            "canary.infinite_loop"
-        );
+        assert_eq!(Cell::canary(Canary::InfiniteLoop).id(), "canary.infinite_loop");
         let h = Cell {
             descriptor_model: DescriptorModel::DescriptorHeap,
             heap_access: Some(HeapAccess::MappedPushIndex),
@@ -439,9 +389,6 @@ mod tests {
             h.id(),
             "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_heap.mapped_push_index"
         );
-        assert_eq!(
-            h.axis_value("heap_access").as_deref(),
-            Some("mapped_push_index")
-        );
+        assert_eq!(h.axis_value("heap_access").as_deref(), Some("mapped_push_index"));
     }
 }

@@ -20,11 +20,7 @@ pub enum FilterError {
     UnknownAxis { axis: String, axes: String },
     /// `values`: the axis's values, for the message.
     #[error("unknown value {value:?} for {axis} in --filter; values: {values}")]
-    UnknownValue {
-        value: String,
-        axis: String,
-        values: String,
-    },
+    UnknownValue { value: String, axis: String, values: String },
     #[error("empty --filter")]
     Empty,
 }

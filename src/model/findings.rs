@@ -30,11 +30,7 @@ pub enum PatternStatus {
         miss_probability: Option<f64>,
     },
     /// The pattern's cell has a finding too (its verdict and how often).
-    Fails {
-        outcome: Outcome,
-        faulted: u32,
-        attempts: u32,
-    },
+    Fails { outcome: Outcome, faulted: u32, attempts: u32 },
     /// The pattern's cell did not run (unsupported, not implemented, not planned), with why.
     NotRun { reason: String },
     /// No recommended pattern applies to the finding, with why.
@@ -45,30 +41,21 @@ impl PatternResult {
     /// `recommended pattern geometry (one storage buffer …; cell): passes (3/3)`
     pub fn line(&self) -> String {
         let status = match &self.status {
-            PatternStatus::Passes {
-                passed,
-                attempts,
-                miss_probability,
-            } => crate::model::stats::passes_text(*passed, *attempts, *miss_probability),
-            PatternStatus::Fails {
-                outcome,
-                faulted,
-                attempts,
-            } => format!(
-                "fails: {} ({faulted} of {attempts} attempts)",
-                outcome.as_str()
-            ),
+            PatternStatus::Passes { passed, attempts, miss_probability } => {
+                crate::model::stats::passes_text(*passed, *attempts, *miss_probability)
+            }
+            PatternStatus::Fails { outcome, faulted, attempts } => {
+                format!("fails: {} ({faulted} of {attempts} attempts)", outcome.as_str())
+            }
             PatternStatus::NotRun { reason } => format!("not run ({reason})"),
             PatternStatus::NotApplicable { reason } => {
                 return format!("recommended pattern: none ({reason})")
             }
         };
         match (self.pattern, &self.cell) {
-            (Some(p), Some(c)) => format!(
-                "recommended pattern {} ({}; {c}): {status}",
-                p.as_str(),
-                p.description()
-            ),
+            (Some(p), Some(c)) => {
+                format!("recommended pattern {} ({}; {c}): {status}", p.as_str(), p.description())
+            }
             _ => format!("recommended pattern: {status}"),
         }
     }
@@ -124,10 +111,7 @@ impl GpuAvResult {
     /// `GPU-AV: masked (passes under GPU-AV; 0 validation errors)`
     pub fn line(&self) -> String {
         let errors = if self.validation_errors > 0 {
-            format!(
-                "; GPU-AV reported {} validation errors",
-                self.validation_errors
-            )
+            format!("; GPU-AV reported {} validation errors", self.validation_errors)
         } else {
             String::new()
         };

@@ -44,11 +44,7 @@ pub enum InjectError {
     NotANumber { what: &'static str, arg: String },
     /// `close`: the interval's closing bracket, `)` or `]`.
     #[error("{what} must be in (0, 1{close}, got {arg}")]
-    OutOfRange {
-        what: &'static str,
-        close: &'static str,
-        arg: String,
-    },
+    OutOfRange { what: &'static str, close: &'static str, arg: String },
     #[error("fault kind {kind:?} takes no argument (got {arg:?})")]
     TakesNoArgument { kind: String, arg: String },
     #[error("value seed {0:?} is not a whole number (value:F:SEED)")]
@@ -69,10 +65,7 @@ impl FaultKind {
             None => (s.trim(), None),
         };
         let fraction = |what: &'static str, a: &str, open_top: bool| -> Result<f64, InjectError> {
-            let v: f64 = a.parse().map_err(|_| InjectError::NotANumber {
-                what,
-                arg: a.into(),
-            })?;
+            let v: f64 = a.parse().map_err(|_| InjectError::NotANumber { what, arg: a.into() })?;
             let ok = v > 0.0 && if open_top { v < 1.0 } else { v <= 1.0 };
             if !ok {
                 return Err(InjectError::OutOfRange {
@@ -85,10 +78,7 @@ impl FaultKind {
         };
         let no_arg = |k: FaultKind| match arg {
             None => Ok(k),
-            Some(a) => Err(InjectError::TakesNoArgument {
-                kind: name.into(),
-                arg: a.into(),
-            }),
+            Some(a) => Err(InjectError::TakesNoArgument { kind: name.into(), arg: a.into() }),
         };
         match name {
             "device" => no_arg(FaultKind::Device),
@@ -96,9 +86,7 @@ impl FaultKind {
             "nan" => no_arg(FaultKind::Nan),
             "value" => {
                 let (f, seed) = match arg.map(|a| {
-                    a.split_once(':')
-                        .map(|(f, s)| (f.trim(), Some(s.trim())))
-                        .unwrap_or((a, None))
+                    a.split_once(':').map(|(f, s)| (f.trim(), Some(s.trim()))).unwrap_or((a, None))
                 }) {
                     Some((f, seed)) => (fraction("value fraction", f, false)?, seed),
                     None => (1.0, None),
@@ -109,9 +97,9 @@ impl FaultKind {
                 Ok(FaultKind::Value { fraction: f, seed })
             }
             "flaky" => match arg {
-                Some(a) => Ok(FaultKind::Flaky {
-                    probability: fraction("flaky probability", a, true)?,
-                }),
+                Some(a) => {
+                    Ok(FaultKind::Flaky { probability: fraction("flaky probability", a, true)? })
+                }
                 None => Err(InjectError::FlakyWithoutProbability),
             },
             other => Err(InjectError::UnknownKind(other.into())),
@@ -122,14 +110,8 @@ impl FaultKind {
         match self {
             FaultKind::Device => "device".into(),
             FaultKind::Hang => "hang".into(),
-            FaultKind::Value {
-                fraction,
-                seed: None,
-            } => format!("value:{fraction}"),
-            FaultKind::Value {
-                fraction,
-                seed: Some(s),
-            } => format!("value:{fraction}:{s}"),
+            FaultKind::Value { fraction, seed: None } => format!("value:{fraction}"),
+            FaultKind::Value { fraction, seed: Some(s) } => format!("value:{fraction}:{s}"),
             FaultKind::Nan => "nan".into(),
             FaultKind::Flaky { probability } => format!("flaky:{probability}"),
         }
@@ -160,15 +142,9 @@ impl Injection {
             Some((p, k)) => (p, FaultKind::parse(k)?),
             None => (s, FaultKind::Device),
         };
-        let predicate = Filter::parse(pred).map_err(|filter| InjectError::Predicate {
-            spec: s.into(),
-            filter,
-        })?;
-        Ok(Injection {
-            spec: format!("{}@{}", pred.trim(), kind.label()),
-            predicate,
-            fault: kind,
-        })
+        let predicate = Filter::parse(pred)
+            .map_err(|filter| InjectError::Predicate { spec: s.into(), filter })?;
+        Ok(Injection { spec: format!("{}@{}", pred.trim(), kind.label()), predicate, fault: kind })
     }
 
     pub fn matches(&self, cell: &Cell) -> bool {
@@ -197,12 +173,7 @@ pub fn roll(injections: &[Injection], cell: &Cell, seed: u64) -> Option<Injected
         FaultKind::Flaky { probability } => Some(flaky_fires(probability, seed, &cell.id())),
         FaultKind::Device | FaultKind::Hang | FaultKind::Value { .. } | FaultKind::Nan => None,
     };
-    Some(InjectedFault {
-        spec: i.spec.clone(),
-        fault: i.fault,
-        armed,
-        seed,
-    })
+    Some(InjectedFault { spec: i.spec.clone(), fault: i.fault, armed, seed })
 }
 
 /// The injection that applies to `cell` (the first that matches), if any.
@@ -247,12 +218,7 @@ mod tests {
     use crate::model::{Canary, DescriptorModel, IndexSource, Resource, Stage};
 
     fn cell(stage: Stage, index: IndexSource) -> Cell {
-        Cell::new(
-            stage,
-            Resource::StorageBuffer,
-            index,
-            DescriptorModel::DescriptorIndexing,
-        )
+        Cell::new(stage, Resource::StorageBuffer, index, DescriptorModel::DescriptorIndexing)
     }
 
     #[test]
@@ -260,39 +226,21 @@ mod tests {
         let i = Injection::parse("stage=closest_hit|any_hit,index=dynamic").unwrap();
         assert_eq!(i.fault, FaultKind::Device);
         assert_eq!(i.spec, "stage=closest_hit|any_hit,index=dynamic@device");
-        assert_eq!(
-            Injection::parse("stage=raygen@hang").unwrap().fault,
-            FaultKind::Hang
-        );
+        assert_eq!(Injection::parse("stage=raygen@hang").unwrap().fault, FaultKind::Hang);
         assert_eq!(
             Injection::parse("stage=raygen@value:0.01").unwrap().fault,
-            FaultKind::Value {
-                fraction: 0.01,
-                seed: None
-            }
+            FaultKind::Value { fraction: 0.01, seed: None }
         );
         assert_eq!(
             Injection::parse("stage=raygen@value").unwrap().fault,
-            FaultKind::Value {
-                fraction: 1.0,
-                seed: None
-            }
+            FaultKind::Value { fraction: 1.0, seed: None }
         );
         let seeded = Injection::parse("stage=raygen@value:0.01:7").unwrap();
         assert_eq!(
             (seeded.fault, seeded.spec.as_str()),
-            (
-                FaultKind::Value {
-                    fraction: 0.01,
-                    seed: Some(7)
-                },
-                "stage=raygen@value:0.01:7"
-            )
+            (FaultKind::Value { fraction: 0.01, seed: Some(7) }, "stage=raygen@value:0.01:7")
         );
-        assert_eq!(
-            Injection::parse("stage=raygen@nan").unwrap().fault,
-            FaultKind::Nan
-        );
+        assert_eq!(Injection::parse("stage=raygen@nan").unwrap().fault, FaultKind::Nan);
         assert_eq!(
             Injection::parse("stage=raygen@flaky:0.5").unwrap().fault,
             FaultKind::Flaky { probability: 0.5 }
@@ -316,22 +264,10 @@ mod tests {
     #[test]
     fn errors_say_what_is_wrong() {
         let msg = |s: &str| Injection::parse(s).unwrap_err().to_string();
-        assert_eq!(
-            msg("stage=raygen@flaky:1"),
-            "flaky probability must be in (0, 1), got 1"
-        );
-        assert_eq!(
-            msg("stage=raygen@value:2"),
-            "value fraction must be in (0, 1], got 2"
-        );
-        assert_eq!(
-            msg("stage=raygen@value:x"),
-            "value fraction \"x\" is not a number"
-        );
-        assert_eq!(
-            msg("stage=raygen@hang:3"),
-            "fault kind \"hang\" takes no argument (got \"3\")"
-        );
+        assert_eq!(msg("stage=raygen@flaky:1"), "flaky probability must be in (0, 1), got 1");
+        assert_eq!(msg("stage=raygen@value:2"), "value fraction must be in (0, 1], got 2");
+        assert_eq!(msg("stage=raygen@value:x"), "value fraction \"x\" is not a number");
+        assert_eq!(msg("stage=raygen@hang:3"), "fault kind \"hang\" takes no argument (got \"3\")");
         assert_eq!(
             msg("stage=raygen@value:0.5:x"),
             "value seed \"x\" is not a whole number (value:F:SEED)"
@@ -355,20 +291,13 @@ mod tests {
         assert!(!i.matches(&cell(Stage::Raygen, IndexSource::Dynamic)));
         let all = Injection::parse("canary=none|invalid_address@hang").unwrap();
         assert!(!all.matches(&Cell::canary(Canary::InvalidAddress)));
-        let list = [
-            i.clone(),
-            Injection::parse("stage=closest_hit@nan").unwrap(),
-        ];
+        let list = [i.clone(), Injection::parse("stage=closest_hit@nan").unwrap()];
         assert_eq!(
-            for_cell(&list, &cell(Stage::ClosestHit, IndexSource::Dynamic))
-                .unwrap()
-                .fault,
+            for_cell(&list, &cell(Stage::ClosestHit, IndexSource::Dynamic)).unwrap().fault,
             FaultKind::Hang
         );
         assert_eq!(
-            for_cell(&list, &cell(Stage::ClosestHit, IndexSource::Literal))
-                .unwrap()
-                .fault,
+            for_cell(&list, &cell(Stage::ClosestHit, IndexSource::Literal)).unwrap().fault,
             FaultKind::Nan
         );
     }
@@ -378,11 +307,7 @@ mod tests {
         let n = 20_000;
         let fired = (0..n)
             .filter(|s| {
-                flaky_fires(
-                    0.3,
-                    *s,
-                    "closest_hit.storage_buffer.dynamic.descriptor_indexing",
-                )
+                flaky_fires(0.3, *s, "closest_hit.storage_buffer.dynamic.descriptor_indexing")
             })
             .count();
         let rate = fired as f64 / n as f64;
@@ -393,26 +318,14 @@ mod tests {
 
     #[test]
     fn value_salt_is_zero_without_a_seed_and_differs_per_cell_with_one() {
-        let plain = FaultKind::Value {
-            fraction: 0.1,
-            seed: None,
-        };
+        let plain = FaultKind::Value { fraction: 0.1, seed: None };
         assert_eq!(value_salt(plain, "a"), 0);
-        let seeded = FaultKind::Value {
-            fraction: 0.1,
-            seed: Some(3),
-        };
+        let seeded = FaultKind::Value { fraction: 0.1, seed: Some(3) };
         assert_ne!(value_salt(seeded, "a"), 0);
         assert_ne!(value_salt(seeded, "a"), value_salt(seeded, "b"));
         assert_ne!(
             value_salt(seeded, "a"),
-            value_salt(
-                FaultKind::Value {
-                    fraction: 0.1,
-                    seed: Some(4)
-                },
-                "a"
-            )
+            value_salt(FaultKind::Value { fraction: 0.1, seed: Some(4) }, "a")
         );
         assert_eq!(value_salt(seeded, "a"), value_salt(seeded, "a"));
         assert_eq!(value_salt(FaultKind::Nan, "a"), 0);

@@ -85,11 +85,7 @@ impl RunOptions {
     /// The options of a plain `rtprobe run` (unit tests of reporters and fleet tools).
     #[cfg(test)]
     pub fn for_tests() -> RunOptions {
-        RunOptions {
-            threads: Some(1),
-            setup_timeout_s: Some(120.0),
-            ..RunOptions::default()
-        }
+        RunOptions { threads: Some(1), setup_timeout_s: Some(120.0), ..RunOptions::default() }
     }
 }
 

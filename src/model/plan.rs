@@ -42,26 +42,17 @@ pub struct RunPlan {
 
 impl RunPlan {
     pub fn to_run(&self) -> impl Iterator<Item = &Cell> {
-        self.cells
-            .iter()
-            .filter(|c| c.status == PlanStatus::Run)
-            .map(|c| &c.cell)
+        self.cells.iter().filter(|c| c.status == PlanStatus::Run).map(|c| &c.cell)
     }
 
     /// Cells the device cannot run (its features say so).
     pub fn unsupported_count(&self) -> usize {
-        self.cells
-            .iter()
-            .filter(|c| matches!(c.status, PlanStatus::Unsupported { .. }))
-            .count()
+        self.cells.iter().filter(|c| matches!(c.status, PlanStatus::Unsupported { .. })).count()
     }
 
     /// Cells rtprobe itself cannot run yet: planned and reported, never dropped.
     pub fn not_implemented_count(&self) -> usize {
-        self.cells
-            .iter()
-            .filter(|c| matches!(c.status, PlanStatus::NotImplemented { .. }))
-            .count()
+        self.cells.iter().filter(|c| matches!(c.status, PlanStatus::NotImplemented { .. })).count()
     }
 }
 

@@ -211,11 +211,7 @@ pub const AXES: &[Axis] = &[
         segment: Segment::Whole,
         get: |c| c.canary.map(Canary::as_str).unwrap_or("none"),
         set: |c, v| set_opt(&mut c.canary, Canary::parse, v),
-        phrase: |c| {
-            c.canary
-                .map(|k| format!("canary {}", k.as_str()))
-                .unwrap_or_default()
-        },
+        phrase: |c| c.canary.map(|k| format!("canary {}", k.as_str())).unwrap_or_default(),
     },
     Axis {
         id: AxisId::Patch,
@@ -227,11 +223,7 @@ pub const AXES: &[Axis] = &[
         segment: Segment::Last("patch-"),
         get: |c| c.patch.map(Workaround::as_str).unwrap_or("none"),
         set: |c, v| set_opt(&mut c.patch, Workaround::parse, v),
-        phrase: |c| {
-            c.patch
-                .map(|p| format!(", patched with {}", p.as_str()))
-                .unwrap_or_default()
-        },
+        phrase: |c| c.patch.map(|p| format!(", patched with {}", p.as_str())).unwrap_or_default(),
     },
     Axis {
         id: AxisId::Reorder,
@@ -243,11 +235,7 @@ pub const AXES: &[Axis] = &[
         segment: Segment::Value,
         get: |c| c.reorder.map(Reorder::as_str).unwrap_or("none"),
         set: |c, v| set_opt(&mut c.reorder, Reorder::parse, v),
-        phrase: |c| {
-            c.reorder
-                .map(|r| format!(", raygen reordering with {r}"))
-                .unwrap_or_default()
-        },
+        phrase: |c| c.reorder.map(|r| format!(", raygen reordering with {r}")).unwrap_or_default(),
     },
     Axis {
         id: AxisId::Base,
@@ -326,19 +314,14 @@ pub fn filter_help() -> String {
 
 /// Every axis of `c` as an exact `--filter` (stand-ins included).
 pub fn exact_filter(c: &Cell) -> String {
-    AXES.iter()
-        .map(|a| format!("{}={}", a.name, (a.get)(c)))
-        .collect::<Vec<_>>()
-        .join(",")
+    AXES.iter().map(|a| format!("{}={}", a.name, (a.get)(c))).collect::<Vec<_>>().join(",")
 }
 
 /// The axes in the order a cell's id and its sentence list them: registry order, the
 /// [`Segment::Last`] ones at the end.
 fn in_id_order() -> impl Iterator<Item = &'static Axis> {
     let last = |a: &&Axis| matches!(a.segment, Segment::Last(_));
-    AXES.iter()
-        .filter(move |a| !last(a))
-        .chain(AXES.iter().filter(last))
+    AXES.iter().filter(move |a| !last(a)).chain(AXES.iter().filter(last))
 }
 
 /// A cell's id: its axis values in registry order (see [`Segment`]).
@@ -370,11 +353,7 @@ pub enum IdError {
     NoSuchCanary { id: String, canaries: String },
     /// An axis without stand-in has no value at its place (`values`: the axis's values).
     #[error("{id:?} is not a cell id ({axis} must be one of {values})")]
-    MissingValue {
-        id: String,
-        axis: &'static str,
-        values: String,
-    },
+    MissingValue { id: String, axis: &'static str, values: String },
     #[error("{id:?} is not a cell id ({rest:?} is no axis value at its place)")]
     Misplaced { id: String, rest: String },
     /// It parses, but [`id`] writes the cell another way.
@@ -386,12 +365,10 @@ pub enum IdError {
 /// the id taking its stand-in. Refuses what [`id`] would not write back the same.
 pub fn parse_id(s: &str) -> Result<Cell, IdError> {
     if let Some(name) = s.strip_prefix("canary.") {
-        return Canary::parse(name)
-            .map(Cell::canary)
-            .ok_or_else(|| IdError::NoSuchCanary {
-                id: s.into(),
-                canaries: Canary::NAMES.join(", "),
-            });
+        return Canary::parse(name).map(Cell::canary).ok_or_else(|| IdError::NoSuchCanary {
+            id: s.into(),
+            canaries: Canary::NAMES.join(", "),
+        });
     }
     let mut c = Cell::new(
         Stage::Raygen,
@@ -421,16 +398,10 @@ pub fn parse_id(s: &str) -> Result<Cell, IdError> {
         }
     }
     if let Some(rest) = parts.next() {
-        return Err(IdError::Misplaced {
-            id: s.into(),
-            rest: rest.into(),
-        });
+        return Err(IdError::Misplaced { id: s.into(), rest: rest.into() });
     }
     if id(&c) != s {
-        return Err(IdError::NotCanonical {
-            id: s.into(),
-            reads: id(&c),
-        });
+        return Err(IdError::NotCanonical { id: s.into(), reads: id(&c) });
     }
     Ok(c)
 }
@@ -438,10 +409,7 @@ pub fn parse_id(s: &str) -> Result<Cell, IdError> {
 /// One cell as a sentence a driver engineer can read without knowing rtprobe's ids.
 pub fn describe(c: &Cell) -> String {
     if c.canary.is_some() {
-        let canary = AXES
-            .iter()
-            .find(|a| a.segment == Segment::Whole)
-            .expect("the canary axis");
+        let canary = AXES.iter().find(|a| a.segment == Segment::Whole).expect("the canary axis");
         return (canary.phrase)(c);
     }
     in_id_order().map(|a| (a.phrase)(c)).collect()
@@ -541,10 +509,7 @@ mod tests {
         };
         assert_eq!(id(&c), "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_buffer.base_buffer.patch-pin-index");
         assert_eq!(parse_id(&id(&c)), Ok(c));
-        assert_eq!(
-            parse_id("canary.infinite_loop"),
-            Ok(Cell::canary(Canary::InfiniteLoop))
-        );
+        assert_eq!(parse_id("canary.infinite_loop"), Ok(Cell::canary(Canary::InfiniteLoop)));
         for bad in [
             "",
             "closest_hit",

@@ -117,14 +117,9 @@ impl CellReport {
     /// The own/other/neither element reads of each attempt that compared (cells without
     /// `nonuniformEXT` on a dynamic descriptor index).
     pub fn element_reads(&self) -> impl Iterator<Item = &crate::model::ElementReads> {
-        self.attempts.iter().filter_map(|a| {
-            a.result
-                .as_ref()?
-                .comparison
-                .as_ref()?
-                .element_reads
-                .as_ref()
-        })
+        self.attempts
+            .iter()
+            .filter_map(|a| a.result.as_ref()?.comparison.as_ref()?.element_reads.as_ref())
     }
 
     /// A cell with its first attempt.
@@ -164,11 +159,8 @@ impl CellReport {
     /// outcome (the worker's own record carries it too), but it never counts towards a rate.
     pub fn refresh(&mut self) {
         let ran: Vec<&Attempt> = self.attempts.iter().filter(|a| !a.not_run()).collect();
-        let counted: Vec<&Attempt> = if ran.is_empty() {
-            self.attempts.iter().collect()
-        } else {
-            ran
-        };
+        let counted: Vec<&Attempt> =
+            if ran.is_empty() { self.attempts.iter().collect() } else { ran };
         let Some(worst) = counted.iter().max_by_key(|a| a.outcome.severity()) else {
             return;
         };
@@ -193,11 +185,8 @@ impl CellReport {
                 .then(|| alone.iter().any(|a| a.outcome.is_finding())),
             miss_probability: crate::model::stats::miss(k as f64 / n as f64, n),
         });
-        self.injected = self
-            .attempts
-            .iter()
-            .find_map(|a| a.injected.as_ref())
-            .map(|i| i.spec.clone());
+        self.injected =
+            self.attempts.iter().find_map(|a| a.injected.as_ref()).map(|i| i.spec.clone());
         // Labelled from the cell's shape, so a cell that crashed (no comparison) carries it too,
         // or from a comparison judged so (the compiler dropped a nonuniformEXT: `exec::heap`).
         let judged_undefined = self.attempts.iter().any(|a| {
@@ -210,19 +199,14 @@ impl CellReport {
             || judged_undefined)
             .then(|| crate::model::NO_NONUNIFORM_VUID.to_string());
         self.reason = match (&self.incidence, detail) {
-            (Some(inc), d) if n > 1 => Some(format!(
-                "{} ({})",
-                d.unwrap_or_else(|| outcome.as_str().into()),
-                inc.label()
-            )),
+            (Some(inc), d) if n > 1 => {
+                Some(format!("{} ({})", d.unwrap_or_else(|| outcome.as_str().into()), inc.label()))
+            }
             (_, d) => d,
         };
         self.canary_check = self.cell.canary.map(|c| {
             let expected = canary_expectation(c);
-            CanaryCheck {
-                detected: expected.contains(&outcome),
-                expected,
-            }
+            CanaryCheck { detected: expected.contains(&outcome), expected }
         });
     }
 }
@@ -447,11 +431,7 @@ impl RunReport {
         }
         t.findings = self.findings().count();
         t.injections_undetected = self.cells.iter().filter(|c| c.injection_undetected).count();
-        t.worker_faults = self
-            .workers
-            .iter()
-            .filter(|w| w.outcome.is_finding())
-            .count();
+        t.worker_faults = self.workers.iter().filter(|w| w.outcome.is_finding()).count();
         t.flaky = self.findings().filter(|c| c.flaky).count();
         self.summary = m;
         self.tally = t;
@@ -459,9 +439,7 @@ impl RunReport {
 
     /// Canaries whose fault rtprobe did not classify as expected: detection is unproven.
     pub fn undetected_canaries(&self) -> impl Iterator<Item = &CellReport> {
-        self.cells
-            .iter()
-            .filter(|c| c.canary_check.as_ref().is_some_and(|k| !k.detected))
+        self.cells.iter().filter(|c| c.canary_check.as_ref().is_some_and(|k| !k.detected))
     }
 
     /// Cells with a finding (canaries and workaround variants excluded).
@@ -486,10 +464,7 @@ impl RunReport {
                 )
             })
             .collect();
-        for c in self
-            .cells
-            .iter_mut()
-            .filter(|c| c.cell.patch.is_none() && c.cell.canary.is_none())
+        for c in self.cells.iter_mut().filter(|c| c.cell.patch.is_none() && c.cell.canary.is_none())
         {
             let incidence = c.incidence.clone();
             let finding = c.outcome.is_finding();
@@ -550,16 +525,10 @@ mod tests {
         assert!(c.flaky);
         assert_eq!(c.confirmed, Some(false));
         let inc = c.incidence.clone().unwrap();
-        assert_eq!(
-            (inc.faulted, inc.attempts, inc.reproduced_alone),
-            (1, 2, Some(false))
-        );
+        assert_eq!((inc.faulted, inc.attempts, inc.reproduced_alone), (1, 2, Some(false)));
         assert!((inc.miss_probability - 0.25).abs() < 1e-12);
         assert!(
-            c.reason
-                .as_deref()
-                .unwrap()
-                .contains("1 of 2 attempts; not reproduced alone"),
+            c.reason.as_deref().unwrap().contains("1 of 2 attempts; not reproduced alone"),
             "{:?}",
             c.reason
         );
@@ -567,10 +536,7 @@ mod tests {
 
     #[test]
     fn the_worst_attempt_wins_in_any_order_and_repeats_confirm() {
-        for order in [
-            [Outcome::Pass, Outcome::Mismatch],
-            [Outcome::Mismatch, Outcome::Pass],
-        ] {
+        for order in [[Outcome::Pass, Outcome::Mismatch], [Outcome::Mismatch, Outcome::Pass]] {
             let mut c = CellReport::new(&cell(), attempt(order[0], false));
             c.attempts.push(attempt(order[1], true));
             c.refresh();
@@ -580,10 +546,7 @@ mod tests {
         let mut c = CellReport::new(&cell(), attempt(Outcome::Crash, false));
         c.attempts.push(attempt(Outcome::Crash, true));
         c.refresh();
-        assert_eq!(
-            (c.outcome, c.flaky, c.confirmed),
-            (Outcome::Crash, false, Some(true))
-        );
+        assert_eq!((c.outcome, c.flaky, c.confirmed), (Outcome::Crash, false, Some(true)));
         assert_eq!(c.incidence.as_ref().unwrap().miss_probability, 0.0);
         assert_eq!(c.incidence.as_ref().unwrap().reproduced_alone, Some(true));
         let pass = CellReport::new(&cell(), attempt(Outcome::Pass, false));

@@ -27,13 +27,7 @@ pub enum SceneError {
 
 impl Default for SceneParams {
     fn default() -> Self {
-        Self {
-            seed: 1,
-            width: 64,
-            height: 64,
-            instances: 16,
-            mesh_detail: 16,
-        }
+        Self { seed: 1, width: 64, height: 64, instances: 16, mesh_detail: 16 }
     }
 }
 
@@ -49,10 +43,7 @@ impl SceneParams {
             || self.width > 4096
             || self.height > 4096
         {
-            return Err(SceneError::ImageSize {
-                width: self.width,
-                height: self.height,
-            });
+            return Err(SceneError::ImageSize { width: self.width, height: self.height });
         }
         if self.mesh_detail < 4 || self.mesh_detail > 256 || self.mesh_detail % 4 != 0 {
             return Err(SceneError::MeshDetail(self.mesh_detail));

@@ -31,9 +31,7 @@ pub fn binomial_tail(k: u32, n: u32, p: f64) -> f64 {
     }
     let (lp, lq) = (p.ln(), (1.0 - p).ln());
     // ln C(n, j), built up term by term from ln C(n, k).
-    let mut lc: f64 = (0..k)
-        .map(|i| ((n - i) as f64).ln() - ((i + 1) as f64).ln())
-        .sum();
+    let mut lc: f64 = (0..k).map(|i| ((n - i) as f64).ln() - ((i + 1) as f64).ln()).sum();
     let mut sum = 0.0;
     for j in k..=n {
         sum += (lc + j as f64 * lp + (n - j) as f64 * lq).exp();
@@ -124,10 +122,7 @@ mod tests {
     fn a_pass_against_a_flaky_finding_carries_its_miss_probability() {
         // 3 of 10: bound ≈ 0.087, so 2 passes miss it with p ≈ 0.83 — the text says so.
         let m = pass_miss(3, 10, 2);
-        assert!(
-            (m - (1.0 - rate_bound(3, 10)).powi(2)).abs() < 1e-12 && m > 0.5,
-            "{m}"
-        );
+        assert!((m - (1.0 - rate_bound(3, 10)).powi(2)).abs() < 1e-12 && m > 0.5, "{m}");
         assert!(
             passes_text(2, 2, Some(m)).starts_with(
                 "passes (2/2; a fault as frequent as this finding's would be missed with p ≤ 0.8"
@@ -147,20 +142,12 @@ mod tests {
     #[test]
     fn closed_forms_hold() {
         for n in 1..=40 {
-            assert!(close(
-                cp_lower(n, n, 0.05),
-                0.05f64.powf(1.0 / n as f64),
-                1e-15
-            ));
+            assert!(close(cp_lower(n, n, 0.05), 0.05f64.powf(1.0 / n as f64), 1e-15));
             assert_eq!(cp_lower(0, n, 0.05), 0.0);
             // k = 1: P(X >= 1) = 1 - (1 - p)^n = alpha. (n = 1 is the k = n form.)
             if n > 1 {
                 assert!(
-                    close(
-                        cp_lower(1, n, 0.05),
-                        1.0 - 0.95f64.powf(1.0 / n as f64),
-                        1e-12
-                    ),
+                    close(cp_lower(1, n, 0.05), 1.0 - 0.95f64.powf(1.0 / n as f64), 1e-12),
                     "1 of {n}"
                 );
             }
@@ -171,16 +158,8 @@ mod tests {
     fn published_values() {
         // 5 of 10: the two-sided 95% Clopper–Pearson interval is (0.1871, 0.8129), so the
         // one-sided 97.5% lower bound is 0.1871; the two-sided 90% interval starts at 0.2224.
-        assert!(
-            close(cp_lower(5, 10, 0.025), 0.1871, 5e-5),
-            "{}",
-            cp_lower(5, 10, 0.025)
-        );
-        assert!(
-            close(cp_lower(5, 10, 0.05), 0.2224, 5e-5),
-            "{}",
-            cp_lower(5, 10, 0.05)
-        );
+        assert!(close(cp_lower(5, 10, 0.025), 0.1871, 5e-5), "{}", cp_lower(5, 10, 0.025));
+        assert!(close(cp_lower(5, 10, 0.05), 0.2224, 5e-5), "{}", cp_lower(5, 10, 0.05));
         // 1 of 10, two-sided 95%: the interval starts at 0.0025.
         assert!(close(cp_lower(1, 10, 0.025), 0.0025, 5e-5));
     }
@@ -211,11 +190,7 @@ mod tests {
         // Beta(a, b) at alpha mirrors Beta(b, a) at 1 - alpha.
         for (a, b) in [(1, 1), (2, 5), (7, 3), (10, 10)] {
             assert!(
-                close(
-                    beta_quantile_int(0.05, a, b),
-                    1.0 - beta_quantile_int(0.95, b, a),
-                    1e-9
-                ),
+                close(beta_quantile_int(0.05, a, b), 1.0 - beta_quantile_int(0.95, b, a), 1e-9),
                 "{a},{b}"
             );
         }
@@ -235,10 +210,7 @@ mod tests {
     fn attempts_needed_is_the_first_n_below_the_threshold() {
         for p in [0.05, 0.2224, 0.5, 0.5493, 0.9] {
             let n = attempts_needed(p, 0.01, 1000);
-            assert!(
-                miss(p, n) < 0.01 && miss(p, n - 1) >= 0.01 || n == 1,
-                "{p}: {n}"
-            );
+            assert!(miss(p, n) < 0.01 && miss(p, n - 1) >= 0.01 || n == 1, "{p}: {n}");
         }
         // The rule is strict: 0.5^2 = 0.25 is not below 0.25.
         assert_eq!(attempts_needed(0.5, 0.25, 50), 3);

@@ -75,11 +75,7 @@ fn as_variables(m: &Module, opts: &Options) -> Result<Vec<(Word, bool, Word)>, P
     }
     // AS descriptor variables: var id -> (is array, AS type)
     let mut vars: Vec<(Word, bool, Word)> = Vec::new();
-    for v in m
-        .types_global_values
-        .iter()
-        .filter(|i| i.class.opcode == Op::Variable)
-    {
+    for v in m.types_global_values.iter().filter(|i| i.class.opcode == Op::Variable) {
         let (Some(id), Some(ptr)) = (v.result_id, v.result_type) else {
             continue;
         };
@@ -169,9 +165,7 @@ pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
     let var_ids: HashSet<Word> = vars.iter().map(|v| v.0).collect();
     let (sites, removed) = load_sites(m, &var_ids)?;
     let any_array = vars.iter().any(|v| v.1);
-    let mode = opts
-        .mode
-        .unwrap_or(if any_array { Mode::Table } else { Mode::Direct });
+    let mode = opts.mode.unwrap_or(if any_array { Mode::Table } else { Mode::Direct });
     if mode == Mode::Direct && any_array && sites.iter().any(|s| s.index.is_some()) {
         return Err(PatchError::BadOption {
             patch: NAME,
@@ -199,19 +193,9 @@ pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
         None
     };
     let n_sites = sites.len();
-    rewrite_loads(
-        m,
-        sites,
-        table.as_ref(),
-        (pc_var, member_c, ptr_pc_u64, u64_t),
-    );
+    rewrite_loads(m, sites, table.as_ref(), (pc_var, member_c, ptr_pc_u64, u64_t));
     edit::remove_ids(m, &removed);
-    Ok(Report {
-        rewritten_loads: n_sites,
-        removed_variables: var_ids.len(),
-        offset,
-        mode,
-    })
+    Ok(Report { rewritten_loads: n_sites, removed_variables: var_ids.len(), offset, mode })
 }
 
 /// Each site's `OpLoad` becomes `OpConvertUToAccelerationStructureKHR` of its address: the table's
@@ -283,13 +267,7 @@ pub(super) fn push_constant_u64(
             let members: Vec<Word> = st_def
                 .operands
                 .iter()
-                .filter_map(|o| {
-                    if let Operand::IdRef(w) = o {
-                        Some(*w)
-                    } else {
-                        None
-                    }
-                })
+                .filter_map(|o| if let Operand::IdRef(w) = o { Some(*w) } else { None })
                 .collect();
             // Sized from its Offset / ArrayStride / MatrixStride decorations; a block without them
             // is not a valid Vulkan push-constant block.
@@ -317,11 +295,7 @@ pub(super) fn push_constant_u64(
                 });
             }
             let k = members.len() as u32;
-            if let Some(s) = m
-                .types_global_values
-                .iter_mut()
-                .find(|i| i.result_id == Some(st))
-            {
+            if let Some(s) = m.types_global_values.iter_mut().find(|i| i.result_id == Some(st)) {
                 s.operands.push(Operand::IdRef(u64_t));
             }
             m.annotations.push(Instruction::new(
@@ -385,9 +359,8 @@ mod tests {
 
     fn module(glsl: &str) -> Module {
         let mut c = crate::shadergen::compile::Compiler::new().expect("shaderc");
-        let words = c
-            .compile_glsl(shaderc::ShaderKind::RayGeneration, "t.rgen", glsl)
-            .expect("compiles");
+        let words =
+            c.compile_glsl(shaderc::ShaderKind::RayGeneration, "t.rgen", glsl).expect("compiles");
         let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
         crate::patches::load(&bytes).expect("loads")
     }
@@ -405,28 +378,13 @@ mod tests {
         let v = crate::patches::validate(&crate::patches::assemble(&m));
         assert_eq!(v, crate::patches::Validation::Valid);
         // an offset inside the block is refused, one past it accepted
-        let err = apply(
-            &mut module(CAMERA),
-            &Options {
-                offset: Some(192),
-                ..Default::default()
-            },
-        )
-        .unwrap_err();
-        assert!(
-            err.to_string().contains("overlaps") && err.to_string().contains("193"),
-            "{err}"
-        );
+        let err = apply(&mut module(CAMERA), &Options { offset: Some(192), ..Default::default() })
+            .unwrap_err();
+        assert!(err.to_string().contains("overlaps") && err.to_string().contains("193"), "{err}");
         assert_eq!(
-            apply(
-                &mut module(CAMERA),
-                &Options {
-                    offset: Some(200),
-                    ..Default::default()
-                }
-            )
-            .unwrap()
-            .offset,
+            apply(&mut module(CAMERA), &Options { offset: Some(200), ..Default::default() })
+                .unwrap()
+                .offset,
             200
         );
     }

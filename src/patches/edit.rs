@@ -16,9 +16,7 @@ pub fn def(m: &Module, id: Word) -> Option<&Instruction> {
     m.types_global_values
         .iter()
         .chain(m.functions.iter().flat_map(|f| {
-            f.parameters
-                .iter()
-                .chain(f.blocks.iter().flat_map(|b| b.instructions.iter()))
+            f.parameters.iter().chain(f.blocks.iter().flat_map(|b| b.instructions.iter()))
         }))
         .find(|i| i.result_id == Some(id))
 }
@@ -53,8 +51,7 @@ pub fn decoration_literal(m: &Module, id: Word, d: Decoration) -> Option<u32> {
 pub fn decorate(m: &mut Module, id: Word, d: Decoration, extra: &[Operand]) {
     let mut ops = vec![Operand::IdRef(id), Operand::Decoration(d)];
     ops.extend_from_slice(extra);
-    m.annotations
-        .push(Instruction::new(Op::Decorate, None, None, ops));
+    m.annotations.push(Instruction::new(Op::Decorate, None, None, ops));
 }
 
 pub fn add_capability(m: &mut Module, c: Capability) {
@@ -91,12 +88,7 @@ pub fn add_extension(m: &mut Module, name: &str) {
 pub fn version(m: &Module) -> (u8, u8) {
     m.header
         .as_ref()
-        .map(|h| {
-            (
-                ((h.version >> 16) & 0xff) as u8,
-                ((h.version >> 8) & 0xff) as u8,
-            )
-        })
+        .map(|h| (((h.version >> 16) & 0xff) as u8, ((h.version >> 8) & 0xff) as u8))
         .unwrap_or((1, 0))
 }
 
@@ -104,11 +96,7 @@ pub fn version(m: &Module) -> (u8, u8) {
 pub fn type_int(m: &mut Module, width: u32, signed: bool) -> Word {
     let found = m.types_global_values.iter().find(|i| {
         i.class.opcode == Op::TypeInt
-            && i.operands
-                == [
-                    Operand::LiteralBit32(width),
-                    Operand::LiteralBit32(signed as u32),
-                ]
+            && i.operands == [Operand::LiteralBit32(width), Operand::LiteralBit32(signed as u32)]
     });
     if let Some(i) = found {
         return i.result_id.expect("types have ids");
@@ -123,10 +111,7 @@ pub fn type_int(m: &mut Module, width: u32, signed: bool) -> Word {
             Op::TypeInt,
             None,
             Some(id),
-            vec![
-                Operand::LiteralBit32(width),
-                Operand::LiteralBit32(signed as u32),
-            ],
+            vec![Operand::LiteralBit32(width), Operand::LiteralBit32(signed as u32)],
         ),
     );
     id
@@ -153,11 +138,7 @@ pub fn type_pointer(m: &mut Module, sc: StorageClass, pointee: Word) -> Word {
 
 /// `OpConstant ty value` (32- or 64-bit literal by `wide`), found or appended.
 pub fn constant(m: &mut Module, ty: Word, value: u64, wide: bool) -> Word {
-    let lit = if wide {
-        Operand::LiteralBit64(value)
-    } else {
-        Operand::LiteralBit32(value as u32)
-    };
+    let lit = if wide { Operand::LiteralBit64(value) } else { Operand::LiteralBit32(value as u32) };
     let found = m.types_global_values.iter().find(|i| {
         i.class.opcode == Op::Constant && i.result_type == Some(ty) && i.operands == [lit.clone()]
     });
@@ -165,12 +146,7 @@ pub fn constant(m: &mut Module, ty: Word, value: u64, wide: bool) -> Word {
         return i.result_id.expect("constants have ids");
     }
     let id = next_id(m);
-    m.types_global_values.push(Instruction::new(
-        Op::Constant,
-        Some(ty),
-        Some(id),
-        vec![lit],
-    ));
+    m.types_global_values.push(Instruction::new(Op::Constant, Some(ty), Some(id), vec![lit]));
     id
 }
 
@@ -192,8 +168,7 @@ pub fn is_constant(m: &Module, id: Word) -> bool {
 /// Remove the global definitions of `ids` and every annotation, name and entry-point interface
 /// entry that names them.
 pub fn remove_ids(m: &mut Module, ids: &HashSet<Word>) {
-    m.types_global_values
-        .retain(|i| !i.result_id.is_some_and(|r| ids.contains(&r)));
+    m.types_global_values.retain(|i| !i.result_id.is_some_and(|r| ids.contains(&r)));
     let names = |i: &Instruction| id_operand(i, 0).is_some_and(|t| ids.contains(&t));
     m.annotations.retain(|i| !names(i));
     m.debug_names.retain(|i| !names(i));
@@ -210,8 +185,7 @@ pub fn remove_ids(m: &mut Module, ids: &HashSet<Word>) {
     }
     for f in &mut m.functions {
         for b in &mut f.blocks {
-            b.instructions
-                .retain(|i| !i.result_id.is_some_and(|r| ids.contains(&r)));
+            b.instructions.retain(|i| !i.result_id.is_some_and(|r| ids.contains(&r)));
         }
     }
 }
@@ -223,12 +197,7 @@ pub fn add_to_interfaces(m: &mut Module, var: Word) {
         return;
     }
     for ep in &mut m.entry_points {
-        if !ep
-            .operands
-            .iter()
-            .skip(3)
-            .any(|o| *o == Operand::IdRef(var))
-        {
+        if !ep.operands.iter().skip(3).any(|o| *o == Operand::IdRef(var)) {
             ep.operands.push(Operand::IdRef(var));
         }
     }
@@ -330,12 +299,8 @@ pub fn explicit_extent(m: &Module, ty: Word, matrix: Option<(u32, bool)>) -> Opt
                 };
                 let k = k as u32;
                 let offset = member_decoration(m, ty, k, Decoration::Offset)?;
-                let matrix = member_decoration(m, ty, k, Decoration::MatrixStride).map(|s| {
-                    (
-                        s,
-                        member_decoration(m, ty, k, Decoration::RowMajor).is_some(),
-                    )
-                });
+                let matrix = member_decoration(m, ty, k, Decoration::MatrixStride)
+                    .map(|s| (s, member_decoration(m, ty, k, Decoration::RowMajor).is_some()));
                 end = end.max(offset + explicit_extent(m, *member_ty, matrix)?);
             }
             Some(end)
@@ -377,12 +342,7 @@ pub fn table_entry(
         vec![Operand::IdRef(t.pc_var), Operand::IdRef(t.member)],
     ));
     let base = next_id(m);
-    out.push(Instruction::new(
-        Op::Load,
-        Some(t.u64_t),
-        Some(base),
-        vec![Operand::IdRef(pm)],
-    ));
+    out.push(Instruction::new(Op::Load, Some(t.u64_t), Some(base), vec![Operand::IdRef(pm)]));
     let at = match index {
         Some(idx) => {
             let (idx64, off, sum) = (next_id(m), next_id(m), next_id(m));

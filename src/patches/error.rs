@@ -8,11 +8,7 @@ pub enum PatchError {
     #[error("{patch}: nothing to patch: {what}")]
     NothingToPatch { patch: &'static str, what: String },
     #[error("{patch}: cannot rewrite %{id}: {what}")]
-    Unsupported {
-        patch: &'static str,
-        id: u32,
-        what: String,
-    },
+    Unsupported { patch: &'static str, id: u32, what: String },
     #[error("{patch}: {what}")]
     BadOption { patch: &'static str, what: String },
     #[error("unknown patch {0:?}; `rtprobe patch --list` shows them")]

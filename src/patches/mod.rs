@@ -113,19 +113,13 @@ pub fn load(bytes: &[u8]) -> Result<Module, PatchError> {
     }
     let magic = u32::from_le_bytes([bytes[0], bytes[1], bytes[2], bytes[3]]);
     let words: Vec<u32> = match magic {
-        0x0723_0203 => bytes
-            .chunks_exact(4)
-            .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-            .collect(),
-        0x0302_2307 => bytes
-            .chunks_exact(4)
-            .map(|c| u32::from_be_bytes([c[0], c[1], c[2], c[3]]))
-            .collect(),
-        _ => {
-            return Err(PatchError::NotSpirv(format!(
-                "bad magic number {magic:#010x}"
-            )))
+        0x0723_0203 => {
+            bytes.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect()
         }
+        0x0302_2307 => {
+            bytes.chunks_exact(4).map(|c| u32::from_be_bytes([c[0], c[1], c[2], c[3]])).collect()
+        }
+        _ => return Err(PatchError::NotSpirv(format!("bad magic number {magic:#010x}"))),
     };
     match quietly(move || rspirv::dr::load_words(&words)) {
         Ok(Ok(m)) if m.header.is_some() => Ok(m),
@@ -254,24 +248,17 @@ pub fn validate(words: &[u32]) -> Validation {
         return Validation::Unavailable;
     }
     // SPIR-V 1.6 (from `patch --glsl --target-env vulkan1.3/1.4`) needs a Vulkan 1.3 environment.
-    let env = if words.get(1).is_some_and(|v| *v >= 0x0001_0600) {
-        "vulkan1.3"
-    } else {
-        "vulkan1.2"
-    };
-    let out = std::process::Command::new("spirv-val")
-        .args(["--target-env", env])
-        .arg(&dir)
-        .output();
+    let env =
+        if words.get(1).is_some_and(|v| *v >= 0x0001_0600) { "vulkan1.3" } else { "vulkan1.2" };
+    let out =
+        std::process::Command::new("spirv-val").args(["--target-env", env]).arg(&dir).output();
     let _ = std::fs::remove_file(&dir);
     match out {
         Err(_) => Validation::Unavailable,
         Ok(o) if o.status.success() => Validation::Valid,
-        Ok(o) => Validation::Invalid(
-            String::from_utf8_lossy(&o.stderr)
-                .trim()
-                .replace('\n', " | "),
-        ),
+        Ok(o) => {
+            Validation::Invalid(String::from_utf8_lossy(&o.stderr).trim().replace('\n', " | "))
+        }
     }
 }
 
@@ -283,11 +270,8 @@ pub fn diff(before: &str, after: &str) -> String {
     let mut lcs = vec![vec![0u32; m + 1]; n + 1];
     for i in (0..n).rev() {
         for j in (0..m).rev() {
-            lcs[i][j] = if a[i] == b[j] {
-                lcs[i + 1][j + 1] + 1
-            } else {
-                lcs[i + 1][j].max(lcs[i][j + 1])
-            };
+            lcs[i][j] =
+                if a[i] == b[j] { lcs[i + 1][j + 1] + 1 } else { lcs[i + 1][j].max(lcs[i][j + 1]) };
         }
     }
     let (mut i, mut j, mut out) = (0, 0, String::new());

@@ -27,13 +27,11 @@ fn capability_for(m: &Module, storage: StorageClass, element: Word) -> Option<Ca
             return Some(Capability::StorageBufferArrayNonUniformIndexing)
         }
         StorageClass::Uniform => {
-            return Some(
-                if edit::has_decoration(m, element, Decoration::BufferBlock) {
-                    Capability::StorageBufferArrayNonUniformIndexing
-                } else {
-                    Capability::UniformBufferArrayNonUniformIndexing
-                },
-            )
+            return Some(if edit::has_decoration(m, element, Decoration::BufferBlock) {
+                Capability::StorageBufferArrayNonUniformIndexing
+            } else {
+                Capability::UniformBufferArrayNonUniformIndexing
+            })
         }
         _ => {}
     }
@@ -54,10 +52,7 @@ pub fn apply(m: &mut Module, strip: bool) -> Result<Report, PatchError> {
         let before = m.annotations.len();
         m.annotations.retain(|a| {
             !(a.class.opcode == Op::Decorate
-                && matches!(
-                    a.operands.get(1),
-                    Some(Operand::Decoration(Decoration::NonUniform))
-                ))
+                && matches!(a.operands.get(1), Some(Operand::Decoration(Decoration::NonUniform))))
         });
         let stripped = before - m.annotations.len();
         if stripped == 0 {
@@ -66,10 +61,7 @@ pub fn apply(m: &mut Module, strip: bool) -> Result<Report, PatchError> {
                 what: "no NonUniform decoration to strip".into(),
             });
         }
-        return Ok(Report {
-            decorated: 0,
-            stripped,
-        });
+        return Ok(Report { decorated: 0, stripped });
     }
     let accesses = dynamic_access::find(m);
     if accesses.is_empty() {
@@ -133,8 +125,5 @@ pub fn apply(m: &mut Module, strip: bool) -> Result<Report, PatchError> {
     for id in &new {
         edit::decorate(m, *id, Decoration::NonUniform, &[]);
     }
-    Ok(Report {
-        decorated: new.len(),
-        stripped: 0,
-    })
+    Ok(Report { decorated: new.len(), stripped: 0 })
 }

@@ -32,10 +32,7 @@ pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
     const NAME: &str = "pin-index";
     let accesses: Vec<_> = dynamic_access::find(m)
         .into_iter()
-        .filter(|a| {
-            opts.binding
-                .is_none_or(|b| dynamic_access::binding(m, a.var) == Some(b))
-        })
+        .filter(|a| opts.binding.is_none_or(|b| dynamic_access::binding(m, a.var) == Some(b)))
         .collect();
     if accesses.is_empty() {
         let what = match opts.binding {
@@ -47,16 +44,14 @@ pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
     let used: Vec<u32> = m
         .annotations
         .iter()
-        .filter_map(
-            |a| match (a.class.opcode, a.operands.get(1), a.operands.get(2)) {
-                (
-                    Op::Decorate,
-                    Some(Operand::Decoration(Decoration::SpecId)),
-                    Some(Operand::LiteralBit32(v)),
-                ) => Some(*v),
-                _ => None,
-            },
-        )
+        .filter_map(|a| match (a.class.opcode, a.operands.get(1), a.operands.get(2)) {
+            (
+                Op::Decorate,
+                Some(Operand::Decoration(Decoration::SpecId)),
+                Some(Operand::LiteralBit32(v)),
+            ) => Some(*v),
+            _ => None,
+        })
         .collect();
     let spec_id = match opts.spec_id {
         Some(id) if used.contains(&id) => {
@@ -72,13 +67,11 @@ pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
     let mut by_type: std::collections::HashMap<u32, u32> = Default::default();
     for a in &accesses {
         let ty =
-            edit::def(m, a.index)
-                .and_then(|d| d.result_type)
-                .ok_or(PatchError::Unsupported {
-                    patch: NAME,
-                    id: a.index,
-                    what: "index without a type".into(),
-                })?;
+            edit::def(m, a.index).and_then(|d| d.result_type).ok_or(PatchError::Unsupported {
+                patch: NAME,
+                id: a.index,
+                what: "index without a type".into(),
+            })?;
         let sc = match by_type.get(&ty) {
             Some(sc) => *sc,
             None => {
@@ -103,8 +96,5 @@ pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
             what: "dynamic indices of different integer types share one SpecId".into(),
         });
     }
-    Ok(Report {
-        pinned: accesses.len(),
-        spec_id,
-    })
+    Ok(Report { pinned: accesses.len(), spec_id })
 }

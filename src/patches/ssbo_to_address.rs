@@ -42,11 +42,7 @@ const NAME: &str = "ssbo-to-address";
 /// The storage-buffer descriptor arrays `opts` selects: variable -> its `Block` struct.
 fn ssbo_arrays(m: &Module, opts: &Options) -> Result<HashMap<Word, Word>, PatchError> {
     let mut vars: HashMap<Word, Word> = HashMap::new();
-    for v in m
-        .types_global_values
-        .iter()
-        .filter(|i| i.class.opcode == Op::Variable)
-    {
+    for v in m.types_global_values.iter().filter(|i| i.class.opcode == Op::Variable) {
         let (Some(id), Some(ptr)) = (v.result_id, v.result_type) else {
             continue;
         };
@@ -190,8 +186,7 @@ pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
     for (fi, bi, ii) in &loads {
         let l = &mut m.functions[*fi].blocks[*bi].instructions[*ii];
         l.operands.truncate(1);
-        l.operands
-            .push(Operand::MemoryAccess(MemoryAccess::ALIGNED));
+        l.operands.push(Operand::MemoryAccess(MemoryAccess::ALIGNED));
         l.operands.push(Operand::LiteralBit32(4));
     }
     rewrite_chains(m, &chains, &vars, &table)?;
@@ -199,17 +194,11 @@ pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
     m.annotations.retain(|a| {
         !(a.class.opcode == Op::Decorate
             && id_operand(a, 0).is_some_and(|t| chain_ids.contains(&t))
-            && matches!(
-                a.operands.get(1),
-                Some(Operand::Decoration(Decoration::NonUniform))
-            ))
+            && matches!(a.operands.get(1), Some(Operand::Decoration(Decoration::NonUniform))))
     });
     let removed: HashSet<Word> = vars.keys().copied().collect();
     edit::remove_ids(m, &removed);
-    Ok(Report {
-        rewritten_loads: loads.len(),
-        offset,
-    })
+    Ok(Report { rewritten_loads: loads.len(), offset })
 }
 
 /// Each chain starts from the buffer's address (`OpConvertUToPtr` of its table entry) and yields
@@ -223,9 +212,8 @@ fn rewrite_chains(
     // Re-point every chain's result type to PhysicalStorageBuffer.
     let mut psb_of: HashMap<Word, Word> = HashMap::new();
     for c in chains {
-        let ty = m.functions[c.func].blocks[c.block].instructions[c.inst]
-            .result_type
-            .expect("typed");
+        let ty =
+            m.functions[c.func].blocks[c.block].instructions[c.inst].result_type.expect("typed");
         let (_, pointee) = edit::pointer_info(m, ty).ok_or(PatchError::Unsupported {
             patch: NAME,
             id: c.id,
@@ -236,12 +224,7 @@ fn rewrite_chains(
     }
     let block_ptrs: HashMap<Word, Word> = vars
         .iter()
-        .map(|(v, blk)| {
-            (
-                *v,
-                edit::type_pointer(m, StorageClass::PhysicalStorageBuffer, *blk),
-            )
-        })
+        .map(|(v, blk)| (*v, edit::type_pointer(m, StorageClass::PhysicalStorageBuffer, *blk)))
         .collect();
     let mut order: Vec<&Chain> = chains.iter().collect();
     order.sort_by_key(|c| std::cmp::Reverse((c.func, c.block, c.inst)));

@@ -8,9 +8,7 @@ use crate::model::{Cell, Workaround};
 /// The workarounds the worker applies to `cell`'s generated modules, in order (its probe spec's,
 /// `probe::spec::ProbeSpec::workarounds`).
 pub fn of_cell(cell: &Cell) -> Vec<Workaround> {
-    crate::probe::spec::ProbeSpec::of(cell)
-        .workarounds()
-        .collect()
+    crate::probe::spec::ProbeSpec::of(cell).workarounds().collect()
 }
 
 /// Apply the workaround `w` to one module, restricted to the probed array (binding 2):
@@ -18,12 +16,8 @@ pub fn of_cell(cell: &Cell) -> Vec<Workaround> {
 pub fn patch_module(words: &[u32], w: Workaround) -> Result<Option<Vec<u32>>, PatchError> {
     let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
     let mut m = super::load(&bytes)?;
-    let kv = |pairs: &[(&str, String)]| {
-        pairs
-            .iter()
-            .map(|(k, v)| (k.to_string(), v.clone()))
-            .collect()
-    };
+    let kv =
+        |pairs: &[(&str, String)]| pairs.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
     let (name, opts) = match w {
         Workaround::AsToAddress => (
             PatchName::AsToAddress,

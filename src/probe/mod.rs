@@ -167,46 +167,16 @@ impl PushConstants {
         let mut b = vec![0u8; PUSH_CONSTANT_BYTES as usize];
         let mut put = |o: usize, bytes: &[u8]| b[o..o + bytes.len()].copy_from_slice(bytes);
         put(offset_of!(PushConstants, width), &self.width.to_le_bytes());
-        put(
-            offset_of!(PushConstants, height),
-            &self.height.to_le_bytes(),
-        );
-        put(
-            offset_of!(PushConstants, push_slot),
-            &self.push_slot.to_le_bytes(),
-        );
-        put(
-            offset_of!(PushConstants, dyn_base),
-            &self.dyn_base.to_le_bytes(),
-        );
-        put(
-            offset_of!(PushConstants, slot_count),
-            &self.slot_count.to_le_bytes(),
-        );
-        put(
-            offset_of!(PushConstants, loop_forever),
-            &self.loop_forever.to_le_bytes(),
-        );
-        put(
-            offset_of!(PushConstants, dyn_mask),
-            &self.dyn_mask.to_le_bytes(),
-        );
-        put(
-            offset_of!(PushConstants, inject_salt),
-            &self.inject_salt.to_le_bytes(),
-        );
-        put(
-            offset_of!(PushConstants, as_table),
-            &self.as_table.to_le_bytes(),
-        );
-        put(
-            offset_of!(PushConstants, bad_address),
-            &self.bad_address.to_le_bytes(),
-        );
-        put(
-            offset_of!(PushConstants, base_address),
-            &self.base_address.to_le_bytes(),
-        );
+        put(offset_of!(PushConstants, height), &self.height.to_le_bytes());
+        put(offset_of!(PushConstants, push_slot), &self.push_slot.to_le_bytes());
+        put(offset_of!(PushConstants, dyn_base), &self.dyn_base.to_le_bytes());
+        put(offset_of!(PushConstants, slot_count), &self.slot_count.to_le_bytes());
+        put(offset_of!(PushConstants, loop_forever), &self.loop_forever.to_le_bytes());
+        put(offset_of!(PushConstants, dyn_mask), &self.dyn_mask.to_le_bytes());
+        put(offset_of!(PushConstants, inject_salt), &self.inject_salt.to_le_bytes());
+        put(offset_of!(PushConstants, as_table), &self.as_table.to_le_bytes());
+        put(offset_of!(PushConstants, bad_address), &self.bad_address.to_le_bytes());
+        put(offset_of!(PushConstants, base_address), &self.base_address.to_le_bytes());
         put(PATCHED_TABLE_OFFSET as usize, &patched_table.to_le_bytes());
         b
     }
@@ -337,9 +307,7 @@ pub fn instance_base(instance_id: u32) -> u32 {
 /// per scene instance and one for the AS probe's floor instance (`gl_InstanceID == instances` in
 /// the probe TLAS), so no hit reads past the end.
 pub fn base_buffer(instances: u32) -> Vec<u8> {
-    (0..=instances)
-        .flat_map(|i| instance_base(i).to_le_bytes())
-        .collect()
+    (0..=instances).flat_map(|i| instance_base(i).to_le_bytes()).collect()
 }
 
 /// A sampler's address mode (the Vulkan modes the sampler heap's samplers use).
@@ -352,11 +320,8 @@ pub enum AddressMode {
 
 /// The sampler heap's samplers, by index: all nearest-filtered, differing in address mode (u, v
 /// and w alike). Sampler 0 is the one mapped (combined image sampler) cells use.
-pub const SAMPLER_MODES: [AddressMode; 3] = [
-    AddressMode::ClampToEdge,
-    AddressMode::Repeat,
-    AddressMode::MirroredRepeat,
-];
+pub const SAMPLER_MODES: [AddressMode; 3] =
+    [AddressMode::ClampToEdge, AddressMode::Repeat, AddressMode::MirroredRepeat];
 /// The sampler a `sampler=constant` probe uses: not 0, so that a driver ignoring the sampler
 /// index reads another texel.
 pub const SAMPLER_LITERAL: u32 = 2;
@@ -396,10 +361,7 @@ pub fn sampled_element(sampler: u32, element: u32) -> u32 {
 /// The value element `element` of a buffer or image slot holds (exact in f32), distinct per
 /// resource kind, slot and element.
 pub fn resource_value(resource: Resource, slot: u32, element: u32) -> [f32; 4] {
-    let r = Resource::ALL
-        .iter()
-        .position(|x| *x == resource)
-        .unwrap_or(0) as f32;
+    let r = Resource::ALL.iter().position(|x| *x == resource).unwrap_or(0) as f32;
     [
         slot as f32 + 1.0,
         r * 16.0 + 1.0,
@@ -431,12 +393,7 @@ pub fn as_custom(variant: u32, k: u32) -> u32 {
 
 /// The AS probe's value: the probe ray's committed custom index + 1, or 0 on a miss.
 pub fn as_value(hit_custom: Option<u32>) -> [f32; 4] {
-    [
-        hit_custom.map(|c| c as f32 + 1.0).unwrap_or(0.0),
-        0.0,
-        0.0,
-        1.0,
-    ]
+    [hit_custom.map(|c| c as f32 + 1.0).unwrap_or(0.0), 0.0, 0.0, 1.0]
 }
 
 /// The slot `index=dynamic` selects in `stage` for pixel (x, y); in hit stages `base` ([`spec::Base::value`])
@@ -491,10 +448,7 @@ pub struct HitIds {
 pub fn element(stage: Stage, x: u32, y: u32, hit: HitIds) -> u32 {
     match stage {
         Stage::ClosestHit | Stage::AnyHit | Stage::Intersection => {
-            hit.primitive
-                .wrapping_add(hit.geometry)
-                .wrapping_add(hit.instance_id)
-                & (ELEMENTS - 1)
+            hit.primitive.wrapping_add(hit.geometry).wrapping_add(hit.instance_id) & (ELEMENTS - 1)
         }
         Stage::Raygen | Stage::Miss | Stage::Callable | Stage::Compute | Stage::Fragment => {
             ((x >> 1) ^ y) & (ELEMENTS - 1)
@@ -519,18 +473,12 @@ fn glsl_zero(ty: &str) -> &'static str {
 pub fn glsl_declarations() -> String {
     let mut s = String::from("// Generated from src/probe.rs (Record, PushConstants): do not edit by hand.\nstruct Record {\n");
     for f in RECORD_FIELDS {
-        s += &format!(
-            "    {} {}; // offset {}\n",
-            f.glsl_type, f.glsl_name, f.offset
-        );
+        s += &format!("    {} {}; // offset {}\n", f.glsl_type, f.glsl_name, f.offset);
     }
     s += "};\n\nlayout(set = 0, binding = 0, std430) buffer Records { Record records[]; };\n\n";
     s += "layout(push_constant, std430) uniform PushConstants {\n";
     for f in PUSH_FIELDS {
-        s += &format!(
-            "    layout(offset = {}) {} {};\n",
-            f.offset, f.glsl_type, f.glsl_name
-        );
+        s += &format!("    layout(offset = {}) {} {};\n", f.offset, f.glsl_type, f.glsl_name);
     }
     s += "} pc;\n\n";
     s += &format!("const uint FLAG_HIT = {FLAG_HIT}u;\nconst uint FLAG_PROBE = {FLAG_PROBE}u;\nconst uint ELEMENTS = {ELEMENTS}u;\n");
@@ -540,14 +488,8 @@ pub fn glsl_declarations() -> String {
         "const vec3 PROBE_DIR = vec3({:?}, {:?}, {:?});\n",
         PROBE_DIR[0], PROBE_DIR[1], PROBE_DIR[2]
     );
-    let zeros: Vec<&str> = RECORD_FIELDS
-        .iter()
-        .map(|f| glsl_zero(f.glsl_type))
-        .collect();
-    s += &format!(
-        "\nRecord emptyRecord() {{\n    return Record({});\n}}\n",
-        zeros.join(", ")
-    );
+    let zeros: Vec<&str> = RECORD_FIELDS.iter().map(|f| glsl_zero(f.glsl_type)).collect();
+    s += &format!("\nRecord emptyRecord() {{\n    return Record({});\n}}\n", zeros.join(", "));
     let args: Vec<String> = RECORD_FIELDS
         .iter()
         .map(|f| match f.glsl_name {
@@ -564,10 +506,7 @@ pub fn glsl_declarations() -> String {
 pub fn glsl_shader_record() -> String {
     let mut s = String::from("// Generated from src/probe.rs (ShaderRecordData).\nlayout(shaderRecordEXT, std430) buffer ShaderRecordData {\n");
     for f in SHADER_RECORD_FIELDS {
-        s += &format!(
-            "    {} {}; // offset {}\n",
-            f.glsl_type, f.glsl_name, f.offset
-        );
+        s += &format!("    {} {}; // offset {}\n", f.glsl_type, f.glsl_name, f.offset);
     }
     s += "} shaderRecord;\n";
     s

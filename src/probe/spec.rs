@@ -260,9 +260,9 @@ impl ProbeSpec {
         let sampler = match (separate, sampler) {
             (false, None | Some(SamplerIndex::Constant | SamplerIndex::Dynamic)) => Sampler::None,
             (true, None | Some(SamplerIndex::Constant)) => Sampler::Constant,
-            (true, Some(SamplerIndex::Dynamic)) => Sampler::Dynamic {
-                nonuniform: cell.sampler_nonuniform(),
-            },
+            (true, Some(SamplerIndex::Dynamic)) => {
+                Sampler::Dynamic { nonuniform: cell.sampler_nonuniform() }
+            }
         };
         let hit_dynamic = hit_stage(stage)
             && (slot == SlotSource::Dynamic || matches!(sampler, Sampler::Dynamic { .. }));
@@ -366,19 +366,12 @@ mod tests {
     fn cell(stage: Stage, resource: Resource, index: IndexSource) -> Cell {
         let as_access =
             (resource == Resource::AccelerationStructure).then_some(AsAccess::Descriptor);
-        Cell {
-            as_access,
-            ..Cell::new(stage, resource, index, DescriptorModel::DescriptorIndexing)
-        }
+        Cell { as_access, ..Cell::new(stage, resource, index, DescriptorModel::DescriptorIndexing) }
     }
 
     #[test]
     fn fixed_index_sources_read_their_constant_slots() {
-        let s = ProbeSpec::of(&cell(
-            Stage::Raygen,
-            Resource::StorageBuffer,
-            IndexSource::Literal,
-        ));
+        let s = ProbeSpec::of(&cell(Stage::Raygen, Resource::StorageBuffer, IndexSource::Literal));
         assert_eq!(
             (s.slot, s.access, s.element, s.base, s.sampler, s.read),
             (
@@ -398,13 +391,9 @@ mod tests {
         ));
         assert!(s.spec_constant() && !s.packed() && s.push_addresses().is_empty() && !s.int64());
         assert_eq!(
-            ProbeSpec::of(&cell(
-                Stage::Miss,
-                Resource::StorageImage,
-                IndexSource::PushConstant
-            ))
-            .slot
-            .fixed(),
+            ProbeSpec::of(&cell(Stage::Miss, Resource::StorageImage, IndexSource::PushConstant))
+                .slot
+                .fixed(),
             Some(crate::probe::PUSH_SLOT)
         );
     }
@@ -418,21 +407,12 @@ mod tests {
         ));
         assert_eq!(
             (s.slot, s.access, s.element, s.read),
-            (
-                SlotSource::Dynamic,
-                Access::Packed,
-                ElementMap::Packed,
-                ReadIndex::Defined
-            )
+            (SlotSource::Dynamic, Access::Packed, ElementMap::Packed, ReadIndex::Defined)
         );
         assert!(s.spec_constant() && s.packed());
         let closest = Cell {
             base: Some(BaseSource::Buffer),
-            ..cell(
-                Stage::ClosestHit,
-                Resource::SampledImage,
-                IndexSource::DynamicElement,
-            )
+            ..cell(Stage::ClosestHit, Resource::SampledImage, IndexSource::DynamicElement)
         };
         let s = ProbeSpec::of(&closest);
         assert_eq!(
@@ -444,93 +424,39 @@ mod tests {
 
     #[test]
     fn dynamic_indices_without_nonuniform_are_undefined_until_a_workaround_defines_them() {
-        let plain = cell(
-            Stage::ClosestHit,
-            Resource::StorageBuffer,
-            IndexSource::Dynamic,
-        );
+        let plain = cell(Stage::ClosestHit, Resource::StorageBuffer, IndexSource::Dynamic);
         let s = ProbeSpec::of(&plain);
         assert_eq!((s.base, s.read), (Base::PushData, ReadIndex::Undefined));
+        assert_eq!(ProbeSpec::of(&Cell { nonuniform: true, ..plain }).read, ReadIndex::Defined);
         assert_eq!(
-            ProbeSpec::of(&Cell {
-                nonuniform: true,
-                ..plain
-            })
-            .read,
-            ReadIndex::Defined
-        );
-        assert_eq!(
-            ProbeSpec::of(&Cell {
-                patch: Some(Workaround::PinIndex),
-                ..plain
-            })
-            .read,
+            ProbeSpec::of(&Cell { patch: Some(Workaround::PinIndex), ..plain }).read,
             ReadIndex::Pinned
         );
-        let ssbo = ProbeSpec::of(&Cell {
-            patch: Some(Workaround::SsboToAddress),
-            ..plain
-        });
+        let ssbo = ProbeSpec::of(&Cell { patch: Some(Workaround::SsboToAddress), ..plain });
         assert_eq!(
             (ssbo.read, ssbo.addresses, ssbo.int64()),
-            (
-                ReadIndex::Defined,
-                AddressTables {
-                    as_table: false,
-                    ssbo_table: true
-                },
-                true
-            )
+            (ReadIndex::Defined, AddressTables { as_table: false, ssbo_table: true }, true)
         );
-        assert_eq!(
-            ssbo.workarounds().collect::<Vec<_>>(),
-            [Workaround::SsboToAddress]
-        );
+        assert_eq!(ssbo.workarounds().collect::<Vec<_>>(), [Workaround::SsboToAddress]);
     }
 
     #[test]
     fn as_cells_reach_the_table_written_or_patched() {
-        let d = cell(
-            Stage::Raygen,
-            Resource::AccelerationStructure,
-            IndexSource::Dynamic,
-        );
+        let d = cell(Stage::Raygen, Resource::AccelerationStructure, IndexSource::Dynamic);
         let s = ProbeSpec::of(&d);
         assert_eq!(
             (s.access, s.element, s.read, s.addresses.as_table),
-            (
-                Access::Slot { nonuniform: false },
-                ElementMap::None,
-                ReadIndex::Undefined,
-                false
-            )
+            (Access::Slot { nonuniform: false }, ElementMap::None, ReadIndex::Undefined, false)
         );
-        let a = ProbeSpec::of(&Cell {
-            as_access: Some(AsAccess::Address),
-            ..d
-        });
+        let a = ProbeSpec::of(&Cell { as_access: Some(AsAccess::Address), ..d });
         assert_eq!(
             (a.access, a.read, a.addresses.as_table, a.push_addresses()),
-            (
-                Access::AddressTable,
-                ReadIndex::Defined,
-                true,
-                vec!["asTable"]
-            )
+            (Access::AddressTable, ReadIndex::Defined, true, vec!["asTable"])
         );
         // address_patched: the descriptor variant's GLSL, then as-to-address.
-        let p = ProbeSpec::of(&Cell {
-            as_access: Some(AsAccess::AddressPatched),
-            ..d
-        });
-        assert_eq!(
-            (p.access, p.read, p.addresses.as_table),
-            (s.access, ReadIndex::Defined, true)
-        );
-        assert_eq!(
-            p.workarounds().collect::<Vec<_>>(),
-            [Workaround::AsToAddress]
-        );
+        let p = ProbeSpec::of(&Cell { as_access: Some(AsAccess::AddressPatched), ..d });
+        assert_eq!((p.access, p.read, p.addresses.as_table), (s.access, ReadIndex::Defined, true));
+        assert_eq!(p.workarounds().collect::<Vec<_>>(), [Workaround::AsToAddress]);
         assert!(p.int64() && !s.int64());
     }
 
@@ -541,31 +467,18 @@ mod tests {
     fn planned_cells_resolve_to_specs_their_consumers_can_run() {
         let (cells, _) = crate::matrix::plan::all_cells();
         for base in cells {
-            for c in
-                std::iter::once(base).chain(base.applicable_patches().into_iter().map(|p| Cell {
-                    patch: Some(p),
-                    ..base
-                }))
-            {
+            for c in std::iter::once(base).chain(
+                base.applicable_patches().into_iter().map(|p| Cell { patch: Some(p), ..base }),
+            ) {
                 let s = ProbeSpec::of(&c);
-                assert_eq!(
-                    s.sampler != Sampler::None,
-                    c.sampler.is_some(),
-                    "{}",
-                    c.id()
-                );
+                assert_eq!(s.sampler != Sampler::None, c.sampler.is_some(), "{}", c.id());
                 assert_eq!(
                     matches!(s.base, Base::ShaderRecord | Base::InstanceBuffer),
                     c.base.is_some(),
                     "{}",
                     c.id()
                 );
-                assert_eq!(
-                    s.packed(),
-                    c.index == IndexSource::DynamicElement,
-                    "{}",
-                    c.id()
-                );
+                assert_eq!(s.packed(), c.index == IndexSource::DynamicElement, "{}", c.id());
                 assert_eq!(
                     s.packed(),
                     matches!(s.element, ElementMap::Packed | ElementMap::Layer),
@@ -610,23 +523,12 @@ mod tests {
         // The literal descriptor index leaves the dynamic sampler index qualified; its base is push data.
         assert_eq!(
             (s.array, s.sampler, s.base),
-            (
-                ArrayAt::Heap,
-                Sampler::Dynamic { nonuniform: true },
-                Base::PushData
-            )
+            (ArrayAt::Heap, Sampler::Dynamic { nonuniform: true }, Base::PushData)
         );
-        let unqualified = ProbeSpec::of(&Cell {
-            index: IndexSource::Dynamic,
-            ..c
-        });
+        let unqualified = ProbeSpec::of(&Cell { index: IndexSource::Dynamic, ..c });
         assert_eq!(unqualified.sampler, Sampler::Dynamic { nonuniform: false });
         assert_eq!(
-            ProbeSpec::of(&Cell {
-                sampler: Some(SamplerIndex::Constant),
-                ..c
-            })
-            .base,
+            ProbeSpec::of(&Cell { sampler: Some(SamplerIndex::Constant), ..c }).base,
             Base::None
         );
         // Mapped heap access samples a combined image sampler.

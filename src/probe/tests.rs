@@ -32,19 +32,13 @@ fn glsl_offsets(fields: &[Field]) -> (Vec<usize>, usize) {
 #[test]
 fn glsl_record_layout_is_the_rust_layout() {
     let (offs, size) = glsl_offsets(RECORD_FIELDS);
-    assert_eq!(
-        offs,
-        RECORD_FIELDS.iter().map(|f| f.offset).collect::<Vec<_>>()
-    );
+    assert_eq!(offs, RECORD_FIELDS.iter().map(|f| f.offset).collect::<Vec<_>>());
     assert_eq!(size, RECORD_SIZE);
     // every byte of the Rust struct is covered by a member GLSL declares
     let covered: usize = RECORD_FIELDS.iter().map(|f| std430(f.glsl_type).1).sum();
     assert_eq!(covered, RECORD_SIZE);
     let (poffs, psize) = glsl_offsets(PUSH_FIELDS);
-    assert_eq!(
-        poffs,
-        PUSH_FIELDS.iter().map(|f| f.offset).collect::<Vec<_>>()
-    );
+    assert_eq!(poffs, PUSH_FIELDS.iter().map(|f| f.offset).collect::<Vec<_>>());
     assert_eq!(psize as u32, PUSH_BLOCK_BYTES);
     let g = glsl_declarations();
     assert!(g.contains("layout(offset = 32) uvec2 asTable;"), "{g}");
@@ -54,19 +48,9 @@ fn glsl_record_layout_is_the_rust_layout() {
 #[test]
 fn shader_record_layout_is_the_rust_layout() {
     let (offs, size) = glsl_offsets(SHADER_RECORD_FIELDS);
-    assert_eq!(
-        offs,
-        SHADER_RECORD_FIELDS
-            .iter()
-            .map(|f| f.offset)
-            .collect::<Vec<_>>()
-    );
+    assert_eq!(offs, SHADER_RECORD_FIELDS.iter().map(|f| f.offset).collect::<Vec<_>>());
     assert_eq!(size, std::mem::size_of::<ShaderRecordData>());
-    let b = ShaderRecordData {
-        heap_index: 9,
-        dyn_base: DYNAMIC_BASE,
-    }
-    .to_bytes();
+    let b = ShaderRecordData { heap_index: 9, dyn_base: DYNAMIC_BASE }.to_bytes();
     assert_eq!(b, [9u32.to_le_bytes(), DYNAMIC_BASE.to_le_bytes()].concat());
     assert!(glsl_shader_record().contains("uint dynBase; // offset 4"));
 }
@@ -94,10 +78,7 @@ fn samplers_pick_the_texels_their_address_modes_say() {
             .count()
             >= 3
     );
-    assert_eq!(
-        (0..6).map(sampler_slot).collect::<Vec<_>>(),
-        [0, 1, 2, 0, 1, 2]
-    );
+    assert_eq!((0..6).map(sampler_slot).collect::<Vec<_>>(), [0, 1, 2, 0, 1, 2]);
 }
 
 #[test]
@@ -120,13 +101,7 @@ fn record_round_trips_through_bytes() {
     assert_eq!(Record::from_bytes(&bytes), r);
     // the bytes sit where GLSL's std430 layout puts them
     let word = |o: usize| u32::from_le_bytes(bytes[o..o + 4].try_into().unwrap());
-    let at = |name: &str| {
-        RECORD_FIELDS
-            .iter()
-            .find(|f| f.glsl_name == name)
-            .unwrap()
-            .offset
-    };
+    let at = |name: &str| RECORD_FIELDS.iter().find(|f| f.glsl_name == name).unwrap().offset;
     assert_eq!(word(at("custom")), 0xfffff3);
     assert_eq!(word(at("element")), 3);
     assert_eq!(f32::from_bits(word(at("value") + 12)), 0.25);
@@ -142,15 +117,9 @@ fn push_constants_bytes_follow_the_offsets() {
     let b = p.to_bytes(0xabcd);
     assert_eq!(b.len() as u32, PUSH_CONSTANT_BYTES);
     let u64_at = |o: usize| u64::from_le_bytes(b[o..o + 8].try_into().unwrap());
-    assert_eq!(
-        u64_at(offset_of!(PushConstants, as_table)),
-        0x1122_3344_5566_7788
-    );
+    assert_eq!(u64_at(offset_of!(PushConstants, as_table)), 0x1122_3344_5566_7788);
     assert_eq!(u64_at(PATCHED_TABLE_OFFSET as usize), 0xabcd);
-    assert_eq!(
-        u32::from_le_bytes(b[12..16].try_into().unwrap()),
-        DYNAMIC_BASE
-    );
+    assert_eq!(u32::from_le_bytes(b[12..16].try_into().unwrap()), DYNAMIC_BASE);
 }
 
 #[test]
@@ -158,10 +127,7 @@ fn slots_fit_the_array_and_values_are_distinct() {
     let n = slot_count(Resource::StorageBuffer, 16);
     assert_eq!(n, DYNAMIC_BASE + 16);
     assert_eq!(slot_count(Resource::AccelerationStructure, 16), n);
-    assert_eq!(
-        slot_count(Resource::StorageBuffer, 4096),
-        DYNAMIC_BASE + 4096
-    );
+    assert_eq!(slot_count(Resource::StorageBuffer, 4096), DYNAMIC_BASE + 4096);
     assert_eq!(as_variants(4096), MAX_AS_VARIANTS);
     assert!([LITERAL_SLOT, SPEC_SLOT, PUSH_SLOT].iter().all(|s| *s < n));
     assert_eq!(
@@ -173,10 +139,7 @@ fn slots_fit_the_array_and_values_are_distinct() {
     for r in Resource::ALL {
         for s in 0..n {
             for e in 0..ELEMENTS {
-                assert!(
-                    seen.insert(resource_value(*r, s, e).map(f32::to_bits)),
-                    "{r:?} {s} {e}"
-                );
+                assert!(seen.insert(resource_value(*r, s, e).map(f32::to_bits)), "{r:?} {s} {e}");
             }
         }
     }
@@ -198,8 +161,5 @@ fn slots_fit_the_array_and_values_are_distinct() {
         "uint packedElement(uint slot, uint element) { return slot * ELEMENTS + element; }"
     ));
     assert!(PACKED_SLOT < n);
-    assert_ne!(
-        as_value(Some(as_custom(1, 3))),
-        as_value(Some(as_custom(2, 3)))
-    );
+    assert_ne!(as_value(Some(as_custom(1, 3))), as_value(Some(as_custom(2, 3))));
 }

@@ -41,9 +41,7 @@ fn compare_hit(c: &mut Comparison, bad: &mut Bad, r: &Record, a: &Record) {
     if te.is_nan() || te > T_REL_TOL {
         bad.push(("t", r.t.to_string(), a.t.to_string()));
     }
-    let be = (0..2)
-        .map(|k| (a.bary[k] as f64 - r.bary[k] as f64).abs())
-        .fold(0.0, worst);
+    let be = (0..2).map(|k| (a.bary[k] as f64 - r.bary[k] as f64).abs()).fold(0.0, worst);
     c.worst_bary = worst(c.worst_bary, be);
     if be.is_nan() || be > BARY_TOL {
         bad.push(("bary", format!("{:?}", r.bary), format!("{:?}", a.bary)));
@@ -60,12 +58,8 @@ fn compare_probe(c: &mut Comparison, bad: &mut Bad, e: &Expected, a: &Record) {
     let own = r.value == a.value;
     let allowed = !own && e.rule.allows(a.value);
     if !allowed {
-        let ve = r
-            .value
-            .iter()
-            .zip(a.value)
-            .map(|(x, y)| (*x as f64 - y as f64).abs())
-            .fold(0.0, worst);
+        let ve =
+            r.value.iter().zip(a.value).map(|(x, y)| (*x as f64 - y as f64).abs()).fold(0.0, worst);
         c.worst_value = worst(c.worst_value, ve);
     }
     match e.rule {
@@ -95,10 +89,7 @@ fn compare_probe(c: &mut Comparison, bad: &mut Bad, e: &Expected, a: &Record) {
 }
 
 pub fn compare(expected: &[Expected], actual: &[Record], width: u32) -> Comparison {
-    let mut c = Comparison {
-        pixels: expected.len(),
-        ..Default::default()
-    };
+    let mut c = Comparison { pixels: expected.len(), ..Default::default() };
     let mut exact_probe_pixels = 0usize;
     for (i, (e, a)) in expected.iter().zip(actual).enumerate() {
         if e.ambiguous {

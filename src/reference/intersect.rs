@@ -188,17 +188,11 @@ pub fn resolve(cands: &[Candidate], include: impl Fn(&Hit) -> bool) -> TraceRef 
     let kept: Vec<&Candidate> = cands.iter().filter(|c| include(&c.hit)).collect();
     // The GPU commits the closest certain-or-marginal hit it finds; a marginal candidate may or
     // may not be found, so it only makes the pixel ambiguous when it could be the closest.
-    let best = kept
-        .iter()
-        .filter(|c| !c.marginal)
-        .min_by(|a, b| a.hit.t.total_cmp(&b.hit.t));
+    let best = kept.iter().filter(|c| !c.marginal).min_by(|a, b| a.hit.t.total_cmp(&b.hit.t));
     let ambiguous_near = |t: f64| t * (1.0 + EPS_T) + EPS_T;
     let key = |h: &Hit| (h.instance_id, h.geometry, h.primitive);
     match best {
-        None => TraceRef {
-            hit: None,
-            ambiguous: !kept.is_empty(),
-        },
+        None => TraceRef { hit: None, ambiguous: !kept.is_empty() },
         Some(b) => {
             let bound = ambiguous_near(b.hit.t);
             let ambiguous = kept.iter().any(|c| {
@@ -206,10 +200,7 @@ pub fn resolve(cands: &[Candidate], include: impl Fn(&Hit) -> bool) -> TraceRef 
                     && c.hit.t <= bound
                     && (c.marginal || key(&c.hit) != key(&b.hit))
             });
-            TraceRef {
-                hit: Some(b.hit),
-                ambiguous,
-            }
+            TraceRef { hit: Some(b.hit), ambiguous }
         }
     }
 }
@@ -221,12 +212,8 @@ pub fn trace(
     dir: [f32; 3],
     include: impl Fn(&Instance) -> bool,
 ) -> TraceRef {
-    let insts = scene
-        .instances
-        .iter()
-        .enumerate()
-        .map(|(k, i)| (k as u32, i))
-        .filter(|&(_, i)| include(i));
+    let insts =
+        scene.instances.iter().enumerate().map(|(k, i)| (k as u32, i)).filter(|&(_, i)| include(i));
     resolve(&candidates(scene, origin, dir, insts), |_| true)
 }
 

@@ -58,9 +58,8 @@ impl SceneReference {
         let n = scene.instances.len() as u32;
         let variants = probe::as_variants(scene.params.instances);
         let mut full = Vec::with_capacity(scene.params.pixels());
-        let mut probe_rays: Vec<Vec<TraceRef>> = (0..variants)
-            .map(|_| Vec::with_capacity(scene.params.pixels()))
-            .collect();
+        let mut probe_rays: Vec<Vec<TraceRef>> =
+            (0..variants).map(|_| Vec::with_capacity(scene.params.pixels())).collect();
         let with_floor: Vec<(u32, &crate::scene::Instance)> = scene
             .instances
             .iter()
@@ -81,10 +80,7 @@ impl SceneReference {
                 }
             }
         }
-        Self {
-            full,
-            probe: probe_rays,
-        }
+        Self { full, probe: probe_rays }
     }
 
     pub fn ambiguous_pixels(&self) -> usize {
@@ -95,10 +91,7 @@ impl SceneReference {
     pub fn as_value(&self, slot: u32, p: usize) -> ([f32; 4], bool) {
         let v = probe::as_slot_tlas(slot);
         let t = self.probe[v][p];
-        (
-            probe::as_value(t.hit.map(|h| probe::as_custom(v as u32, h.instance_id))),
-            t.ambiguous,
-        )
+        (probe::as_value(t.hit.map(|h| probe::as_custom(v as u32, h.instance_id))), t.ambiguous)
     }
 }
 
@@ -118,10 +111,7 @@ pub fn expected(cell: &Cell, scene: &Scene, sref: &SceneReference) -> Vec<Expect
         cell,
         scene,
         sref,
-        Undefined {
-            descriptor: ProbeSpec::of(cell).read == ReadIndex::Undefined,
-            sampler: false,
-        },
+        Undefined { descriptor: ProbeSpec::of(cell).read == ReadIndex::Undefined, sampler: false },
     )
 }
 
@@ -148,9 +138,8 @@ impl Probed<'_> {
         let spec = self.spec;
         let (rec, slots) = (&mut e.record, self.slots);
         // The stage's runtime value (the dynamic slot, the dynamic sampler's source).
-        let base = hit
-            .map(|h| spec.base.value(h.instance_id, h.sphere))
-            .unwrap_or(probe::DYNAMIC_BASE);
+        let base =
+            hit.map(|h| spec.base.value(h.instance_id, h.sphere)).unwrap_or(probe::DYNAMIC_BASE);
         let dynamic = probe::dynamic_slot(
             spec.stage,
             x,
@@ -250,15 +239,7 @@ pub fn expected_with(
     let slots = probe::slot_count(spec.resource, scene.params.instances);
     let variants = probe::as_variants(scene.params.instances);
     let buffer_disc = vec![None; (slots * probe::ELEMENTS) as usize];
-    let mut probed = Probed {
-        spec,
-        sref,
-        width: w,
-        slots,
-        variants,
-        undefined,
-        buffer_disc,
-    };
+    let mut probed = Probed { spec, sref, width: w, slots, variants, undefined, buffer_disc };
     let mut out = Vec::with_capacity(scene.params.pixels());
     for y in 0..h {
         for x in 0..w {

@@ -57,9 +57,7 @@ impl ValueRule {
                 ..
             } => v[1..] == [0.0, 0.0, 1.0] && as_values[..variants as usize].contains(&v[0]),
             ValueRule::AnySampler { values } => values.contains(&v),
-            ValueRule::AnyElement {
-                resource, slots, ..
-            } => {
+            ValueRule::AnyElement { resource, slots, .. } => {
                 let (s, e) = (v[0] - 1.0, v[3] - 0.25);
                 let whole = |x: f32, n: u32| x >= 0.0 && x.fract() == 0.0 && (x as u32) < n;
                 whole(s, slots)

@@ -7,12 +7,7 @@ use crate::model::{Comparison, NO_NONUNIFORM_VUID};
 use std::sync::OnceLock;
 
 fn cell(stage: Stage, index: IndexSource) -> Cell {
-    Cell::new(
-        stage,
-        Resource::StorageBuffer,
-        index,
-        DescriptorModel::DescriptorIndexing,
-    )
+    Cell::new(stage, Resource::StorageBuffer, index, DescriptorModel::DescriptorIndexing)
 }
 
 fn world() -> &'static (Scene, SceneReference) {
@@ -46,25 +41,14 @@ fn reading(e: &[Expected], read: impl Fn(&Record) -> [f32; 4]) -> Vec<Record> {
 fn default_scene_has_hits_misses_spheres_and_few_ambiguous_pixels() {
     let (_, r) = world();
     let hits = r.full.iter().filter(|t| t.hit.is_some()).count();
-    let spheres = r
-        .full
-        .iter()
-        .filter(|t| t.hit.is_some_and(|h| h.sphere))
-        .count();
+    let spheres = r.full.iter().filter(|t| t.hit.is_some_and(|h| h.sphere)).count();
     let n = r.full.len();
     assert!(hits > n / 5 && hits < n, "hits {hits} of {n}");
     assert!(spheres > 50, "spheres {spheres}");
-    assert!(
-        r.ambiguous_pixels() < n / 20,
-        "ambiguous {}",
-        r.ambiguous_pixels()
-    );
+    assert!(r.ambiguous_pixels() < n / 20, "ambiguous {}", r.ambiguous_pixels());
     // several geometries per BLAS are hit
-    let geoms: std::collections::BTreeSet<u32> = r
-        .full
-        .iter()
-        .filter_map(|t| t.hit.map(|h| h.geometry))
-        .collect();
+    let geoms: std::collections::BTreeSet<u32> =
+        r.full.iter().filter_map(|t| t.hit.map(|h| h.geometry)).collect();
     assert!(geoms.len() >= 3, "{geoms:?}");
     // the probe rays hit in every variant almost everywhere (the floor), with different instance sets
     for v in &r.probe {
@@ -120,34 +104,20 @@ fn a_wrong_base_source_is_caught() {
     let slots = probe::slot_count(Resource::StorageBuffer, scene.params.instances);
     type Wrong = fn(u32, bool) -> u32;
     let cases: [(BaseSource, &str, Wrong); 8] = [
-        (BaseSource::ShaderRecord, "push data's", |_, _| {
-            probe::DYNAMIC_BASE
+        (BaseSource::ShaderRecord, "push data's", |_, _| probe::DYNAMIC_BASE),
+        (BaseSource::ShaderRecord, "the raygen record's", |_, _| probe::RECORD_BASE_OTHER),
+        (BaseSource::ShaderRecord, "the other hit group's", |_, sphere| {
+            if sphere {
+                probe::RECORD_BASE_TRIANGLES
+            } else {
+                probe::RECORD_BASE_PROCEDURAL
+            }
         }),
-        (BaseSource::ShaderRecord, "the raygen record's", |_, _| {
-            probe::RECORD_BASE_OTHER
-        }),
-        (
-            BaseSource::ShaderRecord,
-            "the other hit group's",
-            |_, sphere| {
-                if sphere {
-                    probe::RECORD_BASE_TRIANGLES
-                } else {
-                    probe::RECORD_BASE_PROCEDURAL
-                }
-            },
-        ),
-        (BaseSource::Buffer, "push data's", |_, _| {
-            probe::DYNAMIC_BASE
-        }),
-        (BaseSource::Buffer, "entry 0", |_, _| {
-            probe::instance_base(0)
-        }),
+        (BaseSource::Buffer, "push data's", |_, _| probe::DYNAMIC_BASE),
+        (BaseSource::Buffer, "entry 0", |_, _| probe::instance_base(0)),
         (BaseSource::Buffer, "no (a dropped)", |_, _| 0),
         (BaseSource::ShaderRecord, "no (a dropped)", |_, _| 0),
-        (BaseSource::Buffer, "the next instance's", |i, _| {
-            probe::instance_base(i + 1)
-        }),
+        (BaseSource::Buffer, "the next instance's", |i, _| probe::instance_base(i + 1)),
     ];
     for (base, what, wrong) in cases {
         let c = Cell {
@@ -223,11 +193,7 @@ fn a_wrong_sampler_reads_another_texel_and_is_caught() {
                 let cmp = compare(&e, &wrong, 64);
                 // Constant: sampler 2 against 0 differs on 3 elements of 4. Dynamic: a third
                 // of the pixels use sampler 0 itself, the others differ on 3 elements of 4.
-                let share = if sampler == SamplerIndex::Constant {
-                    0.7
-                } else {
-                    0.4
-                };
+                let share = if sampler == SamplerIndex::Constant { 0.7 } else { 0.4 };
                 assert!(
                     cmp.mismatched_pixels as f64 > share * cmp.probe_checked as f64,
                     "{}: sampler 0 caught on {} of {}",
@@ -239,15 +205,8 @@ fn a_wrong_sampler_reads_another_texel_and_is_caught() {
                 // sampler's texel of the right slot passes, counted as another element; a
                 // wrong slot still mismatches everywhere.
                 if c.sampler_nonuniform() {
-                    let e = expected_with(
-                        &c,
-                        scene,
-                        r,
-                        Undefined {
-                            descriptor: false,
-                            sampler: true,
-                        },
-                    );
+                    let e =
+                        expected_with(&c, scene, r, Undefined { descriptor: false, sampler: true });
                     let cmp = compare(&e, &wrong, 64);
                     assert!(
                         cmp.passed() && cmp.element_reads.as_ref().is_some_and(|x| x.other > 0),
@@ -303,21 +262,11 @@ fn dynamic_element_reads_must_be_the_exact_packed_element_and_layer() {
     let (scene, r) = world();
     for resource in [Resource::StorageBuffer, Resource::SampledImage] {
         for stage in [Stage::ClosestHit, Stage::Raygen, Stage::Compute] {
-            let c = Cell {
-                resource,
-                ..cell(stage, IndexSource::DynamicElement)
-            };
+            let c = Cell { resource, ..cell(stage, IndexSource::DynamicElement) };
             let e = expected(&c, scene, r);
             // Same records as the dynamic cell (with nonuniformEXT: exact, no any-element rule).
-            let d = expected(
-                &Cell {
-                    index: IndexSource::Dynamic,
-                    nonuniform: true,
-                    ..c
-                },
-                scene,
-                r,
-            );
+            let d =
+                expected(&Cell { index: IndexSource::Dynamic, nonuniform: true, ..c }, scene, r);
             assert!(e.iter().zip(&d).all(|(a, b)| a.record == b.record
                 && a.rule == ValueRule::Exact
                 && a.discriminating == b.discriminating));
@@ -349,9 +298,7 @@ fn dynamic_element_reads_must_be_the_exact_packed_element_and_layer() {
                 );
             }
             assert!(
-                compare(&e, &records(&e), 64)
-                    .discrimination
-                    .is_some_and(|x| x >= 0.99),
+                compare(&e, &records(&e), 64).discrimination.is_some_and(|x| x >= 0.99),
                 "{}",
                 c.id()
             );
@@ -360,15 +307,8 @@ fn dynamic_element_reads_must_be_the_exact_packed_element_and_layer() {
 }
 
 /// Bit patterns no correct probe writes where the reference has an ordinary value.
-const GARBAGE: [u32; 7] = [
-    0x7fc0_0000,
-    0xffc0_0001,
-    0x7f80_0000,
-    0xff80_0000,
-    0xffff_ffff,
-    0x0000_0001,
-    0x807f_ffff,
-];
+const GARBAGE: [u32; 7] =
+    [0x7fc0_0000, 0xffc0_0001, 0x7f80_0000, 0xff80_0000, 0xffff_ffff, 0x0000_0001, 0x807f_ffff];
 
 /// The record with the 32-bit word at byte `offset` replaced by `bits`.
 fn with_word(r: &Record, offset: usize, bits: u32) -> Record {
@@ -394,10 +334,7 @@ fn garbage_in_any_record_field_never_passes() {
                 && x.record.t > 1.0
         })
         .unwrap();
-    let miss = e
-        .iter()
-        .position(|x| !x.ambiguous && x.record.flags == 0)
-        .unwrap();
+    let miss = e.iter().position(|x| !x.ambiguous && x.record.flags == 0).unwrap();
     let word_fields: Vec<(&str, usize)> = crate::probe::RECORD_FIELDS
         .iter()
         .filter(|f| !f.glsl_name.starts_with("pad"))
@@ -434,10 +371,7 @@ fn garbage_in_any_record_field_never_passes() {
     // the worker sends comparisons to the supervisor as JSON: NaN survives the trip
     let text = serde_json::to_string(&cmp).unwrap();
     assert!(text.contains(r#""worst_bary":"NaN""#), "{text}");
-    assert!(serde_json::from_str::<Comparison>(&text)
-        .unwrap()
-        .worst_bary
-        .is_nan());
+    assert!(serde_json::from_str::<Comparison>(&text).unwrap().worst_bary.is_nan());
     actual[tri].bary[1] = good[tri].bary[1];
     actual[tri].value[2] = f32::INFINITY;
     let cmp = compare(&e, &actual, 64);
@@ -489,10 +423,7 @@ fn a_driver_returning_instance_id_as_custom_index_is_caught() {
             })
             .collect();
         let cmp = compare(&e, &actual, 64);
-        let hits = e
-            .iter()
-            .filter(|x| !x.ambiguous && x.record.flags & FLAG_HIT != 0)
-            .count();
+        let hits = e.iter().filter(|x| !x.ambiguous && x.record.flags & FLAG_HIT != 0).count();
         assert!(hits > 500);
         assert_eq!(cmp.by_field.get("custom"), Some(&hits), "{cmp:?}");
         let wrong_values = cmp.by_field.get("value").copied().unwrap_or(0);
@@ -506,10 +437,8 @@ fn a_driver_returning_instance_id_as_custom_index_is_caught() {
 #[test]
 fn a_driver_ignoring_base_shows_in_the_element_reads() {
     let (scene, r) = world();
-    let c = Cell {
-        resource: Resource::UniformBuffer,
-        ..cell(Stage::ClosestHit, IndexSource::Dynamic)
-    };
+    let c =
+        Cell { resource: Resource::UniformBuffer, ..cell(Stage::ClosestHit, IndexSource::Dynamic) };
     let e = expected(&c, scene, r);
     let base_dropped = reading(&e, |a| {
         crate::probe::resource_value(
@@ -519,32 +448,20 @@ fn a_driver_ignoring_base_shows_in_the_element_reads() {
         )
     });
     let cmp = compare(&e, &base_dropped, 64);
-    let reads = cmp
-        .element_reads
-        .clone()
-        .expect("no-nonuniform cells count their reads");
+    let reads = cmp.element_reads.clone().expect("no-nonuniform cells count their reads");
     assert_eq!(reads.outside_spec, NO_NONUNIFORM_VUID);
     assert_eq!((reads.own, reads.neither), (0, 0), "{reads:?}");
     assert_eq!(reads.other, cmp.any_element_values);
     assert!(reads.other > 100);
-    assert!(
-        cmp.passed(),
-        "which element is read is undefined without nonuniformEXT"
-    );
+    assert!(cmp.passed(), "which element is read is undefined without nonuniformEXT");
     assert_eq!(cmp.discrimination, None);
     // the same reads with nonuniformEXT are mismatches
-    let nu = Cell {
-        nonuniform: true,
-        ..c
-    };
+    let nu = Cell { nonuniform: true, ..c };
     let cmp = compare(&expected(&nu, scene, r), &base_dropped, 64);
     assert_eq!(cmp.by_field.get("value"), Some(&reads.other));
     // and the own reads are counted as own
     let cmp = compare(&e, &records(&e), 64);
-    assert_eq!(
-        cmp.element_reads.map(|x| (x.own, x.other)),
-        Some((reads.other, 0))
-    );
+    assert_eq!(cmp.element_reads.map(|x| (x.own, x.other)), Some((reads.other, 0)));
 }
 
 #[test]
@@ -552,16 +469,11 @@ fn elements_are_read_at_per_primitive_offsets() {
     let (scene, r) = world();
     let c = cell(Stage::ClosestHit, IndexSource::Literal);
     let e = expected(&c, scene, r);
-    let elements: std::collections::BTreeSet<u32> = e
-        .iter()
-        .filter(|x| x.record.flags & FLAG_PROBE != 0)
-        .map(|x| x.record.element)
-        .collect();
+    let elements: std::collections::BTreeSet<u32> =
+        e.iter().filter(|x| x.record.flags & FLAG_PROBE != 0).map(|x| x.record.element).collect();
     assert_eq!(elements.len() as u32, crate::probe::ELEMENTS);
     // a driver that always reads v[0] is caught wherever the element is not 0
-    let v0 = reading(&e, |a| {
-        crate::probe::resource_value(Resource::StorageBuffer, a.slot, 0)
-    });
+    let v0 = reading(&e, |a| crate::probe::resource_value(Resource::StorageBuffer, a.slot, 0));
     let cmp = compare(&e, &v0, 64);
     let nonzero = e
         .iter()
@@ -573,10 +485,7 @@ fn elements_are_read_at_per_primitive_offsets() {
 #[test]
 fn nonuniform_index_without_qualifier_accepts_any_element_but_not_garbage() {
     let (scene, r) = world();
-    let c = Cell {
-        resource: Resource::UniformBuffer,
-        ..cell(Stage::Raygen, IndexSource::Dynamic)
-    };
+    let c = Cell { resource: Resource::UniformBuffer, ..cell(Stage::Raygen, IndexSource::Dynamic) };
     let e = expected(&c, scene, r);
     let mut actual = records(&e);
     // Another element's value (as a driver reading one lane's descriptor would return): fine.
@@ -591,10 +500,7 @@ fn nonuniform_index_without_qualifier_accepts_any_element_but_not_garbage() {
     assert!(!cmp.passed());
     assert_eq!(cmp.element_reads.map(|x| x.neither), Some(1));
     // With nonuniformEXT the element must be exact.
-    let nu = Cell {
-        nonuniform: true,
-        ..c
-    };
+    let nu = Cell { nonuniform: true, ..c };
     let e = expected(&nu, scene, r);
     assert!(!compare(&e, &actual, 64).passed());
 }
@@ -610,18 +516,9 @@ fn dynamic_indices_into_memory_are_checked_exactly() {
         ..cell(Stage::Raygen, IndexSource::Dynamic)
     };
     let cells = [
-        Cell {
-            as_access: Some(AsAccess::Address),
-            ..base
-        },
-        Cell {
-            as_access: Some(AsAccess::AddressPatched),
-            ..base
-        },
-        Cell {
-            patch: Some(Workaround::AsToAddress),
-            ..base
-        },
+        Cell { as_access: Some(AsAccess::Address), ..base },
+        Cell { as_access: Some(AsAccess::AddressPatched), ..base },
+        Cell { patch: Some(Workaround::AsToAddress), ..base },
         Cell {
             resource: Resource::StorageBuffer,
             as_access: None,
@@ -647,13 +544,9 @@ fn dynamic_indices_into_memory_are_checked_exactly() {
         );
     }
     // the descriptor variant itself is outside the spec's guarantees
-    assert!(compare(
-        &expected(&base, scene, r),
-        &records(&expected(&base, scene, r)),
-        64
-    )
-    .element_reads
-    .is_some());
+    assert!(compare(&expected(&base, scene, r), &records(&expected(&base, scene, r)), 64)
+        .element_reads
+        .is_some());
 }
 
 #[test]
@@ -680,12 +573,7 @@ fn as_cells_discriminate_in_a_large_scene() {
         r.probe.len() as u32,
         crate::probe::slot_count(Resource::AccelerationStructure, 256)
     );
-    for stage in [
-        Stage::Raygen,
-        Stage::ClosestHit,
-        Stage::Miss,
-        Stage::Compute,
-    ] {
+    for stage in [Stage::Raygen, Stage::ClosestHit, Stage::Miss, Stage::Compute] {
         let c = Cell {
             resource: Resource::AccelerationStructure,
             as_access: Some(AsAccess::Descriptor),
@@ -713,17 +601,14 @@ fn every_cell_of_the_default_plan_discriminates() {
     let mut weak = Vec::new();
     let mut checked = 0;
     for base in cells {
-        for c in std::iter::once(base).chain(base.applicable_patches().into_iter().map(|p| Cell {
-            patch: Some(p),
-            ..base
-        })) {
+        for c in std::iter::once(base)
+            .chain(base.applicable_patches().into_iter().map(|p| Cell { patch: Some(p), ..base }))
+        {
             let e = expected(&c, scene, r);
             let cmp = compare(&e, &records(&e), 64);
             assert!(cmp.passed(), "{}: {cmp:?}", c.id());
-            let probed = e
-                .iter()
-                .filter(|x| !x.ambiguous && x.record.flags & FLAG_PROBE != 0)
-                .count();
+            let probed =
+                e.iter().filter(|x| !x.ambiguous && x.record.flags & FLAG_PROBE != 0).count();
             assert!(probed > 50, "{}: only {probed} probe pixels", c.id());
             match (cmp.discrimination, &cmp.element_reads) {
                 (Some(d), None) => {

@@ -58,12 +58,7 @@ pub fn plane(o: DVec3, d: DVec3, v: [DVec3; 3]) -> Option<PlaneHit> {
     }
     let t = (u * a.2 + vv * b.2 + w * c.2) / det;
     let (b0, b1, b2) = (u / det, vv / det, w / det);
-    Some(PlaneHit {
-        t,
-        bary: [b1, b2],
-        inside: b0.min(b1).min(b2),
-        det_positive: det > 0.0,
-    })
+    Some(PlaneHit { t, bary: [b1, b2], inside: b0.min(b1).min(b2), det_positive: det > 0.0 })
 }
 
 /// The watertight test: the plane crossing when it lies inside the triangle or on its edges.
@@ -104,10 +99,7 @@ mod tests {
         assert!((h.inside - 0.25).abs() < 1e-15);
         assert!(intersect(DVec3::new(0.75, 0.5, -2.0), DVec3::Z, TRI).is_none());
         let back = intersect(DVec3::new(0.25, 0.25, 2.0), -DVec3::Z, TRI).unwrap();
-        assert_eq!(
-            back.t, 2.0,
-            "both sides are hit (culling is the tracer's business)"
-        );
+        assert_eq!(back.t, 2.0, "both sides are hit (culling is the tracer's business)");
     }
 
     #[test]
@@ -134,11 +126,7 @@ mod tests {
 
     #[test]
     fn oblique_rays_agree_with_the_plane_equation() {
-        let tri = [
-            DVec3::new(0.0, 0.0, 1.0),
-            DVec3::new(2.0, 0.0, 1.5),
-            DVec3::new(0.0, 2.0, 0.5),
-        ];
+        let tri = [DVec3::new(0.0, 0.0, 1.0), DVec3::new(2.0, 0.0, 1.5), DVec3::new(0.0, 2.0, 0.5)];
         let o = DVec3::new(-1.0, -0.5, -3.0);
         let d = DVec3::new(0.3, 0.2, 1.0);
         let h = intersect(o, d, tri).unwrap();

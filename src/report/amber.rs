@@ -201,10 +201,7 @@ fn write(cell: &Cell, shader: &Shader, scene: &SceneParams, origin: &str) -> Str
         })
         .collect();
     s += &format!("# Push constants ({}).\n", names.join(" "));
-    s += &format!(
-        "BUFFER pc DATA_TYPE uint32 DATA {} END\n",
-        pc_words.join(" ")
-    );
+    s += &format!("BUFFER pc DATA_TYPE uint32 DATA {} END\n", pc_words.join(" "));
     let (buffers, array) = probed_array(&spec, scene.instances, kind);
     s += &buffers;
     s += "\nPIPELINE compute probe_pipeline\n  ATTACH probe";
@@ -218,11 +215,7 @@ fn write(cell: &Cell, shader: &Shader, scene: &SceneParams, origin: &str) -> Str
         array.join(" ")
     );
     s += "  BIND BUFFER pc AS push_constant\nEND\n\n";
-    s += &format!(
-        "RUN probe_pipeline {} {} 1\n\n",
-        w.div_ceil(GROUP),
-        h.div_ceil(GROUP)
-    );
+    s += &format!("RUN probe_pipeline {} {} 1\n\n", w.div_ceil(GROUP), h.div_ceil(GROUP));
     s += &expectations(cell, scene);
     s
 }
@@ -232,11 +225,7 @@ fn write(cell: &Cell, shader: &Shader, scene: &SceneParams, origin: &str) -> Str
 /// `probe::PACKED_SLOT` where the spec reads it, as the worker binds it.
 fn probed_array(spec: &ProbeSpec, instances: u32, kind: &str) -> (String, Vec<String>) {
     let slots = probe::slot_count(spec.resource, instances);
-    let layout = if spec.resource == Resource::UniformBuffer {
-        "STD140"
-    } else {
-        "STD430"
-    };
+    let layout = if spec.resource == Resource::UniformBuffer { "STD140" } else { "STD430" };
     let mut s = format!("# The probed array: {slots} {kind} buffers of {} vec4, slot s element e = (s+1, kind*16+1, 1000+4s+e, 0.25+e).\n", probe::ELEMENTS);
     for slot in 0..slots {
         if spec.packed() && slot == probe::PACKED_SLOT {
@@ -262,10 +251,7 @@ fn probed_array(spec: &ProbeSpec, instances: u32, kind: &str) -> (String, Vec<St
             probe::PACKED_SLOT,
             probe::ELEMENTS
         );
-        s += &format!(
-            "BUFFER packed DATA_TYPE vec4<float> {layout} DATA {} END\n",
-            vals.join(" ")
-        );
+        s += &format!("BUFFER packed DATA_TYPE vec4<float> {layout} DATA {} END\n", vals.join(" "));
         names[probe::PACKED_SLOT as usize] = "packed".into();
     }
     (s, names)
@@ -292,10 +278,7 @@ fn expectations(cell: &Cell, params: &SceneParams) -> String {
 
 /// Little-endian bytes as AmberScript uint32 values.
 fn u32_words(bytes: &[u8]) -> Vec<String> {
-    bytes
-        .chunks(4)
-        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]).to_string())
-        .collect()
+    bytes.chunks(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]).to_string()).collect()
 }
 
 /// An f32 as AmberScript reads it back exactly (the shortest round-trip form).
@@ -310,20 +293,11 @@ mod tests {
     use crate::report::shaders::cell_shaders;
 
     fn compute(resource: Resource, index: IndexSource) -> Cell {
-        Cell::new(
-            Stage::Compute,
-            resource,
-            index,
-            DescriptorModel::DescriptorIndexing,
-        )
+        Cell::new(Stage::Compute, resource, index, DescriptorModel::DescriptorIndexing)
     }
 
     fn small() -> SceneParams {
-        SceneParams {
-            width: 16,
-            height: 8,
-            ..SceneParams::default()
-        }
+        SceneParams { width: 16, height: 8, ..SceneParams::default() }
     }
 
     #[test]
@@ -355,10 +329,9 @@ mod tests {
             "GLSL comment"
         );
         let slots = probe::slot_count(cell.resource, small().instances);
-        assert!(text.contains(&format!(
-            "BUFFER slot{} DATA_TYPE vec4<float> STD430 DATA ",
-            slots - 1
-        )));
+        assert!(
+            text.contains(&format!("BUFFER slot{} DATA_TYPE vec4<float> STD430 DATA ", slots - 1))
+        );
         assert!(!text.contains(&format!("BUFFER slot{slots} ")));
         assert!(
             text.contains("BIND BUFFER_ARRAY slot0 slot1 ")
@@ -366,46 +339,24 @@ mod tests {
         );
         assert!(text.contains("RUN probe_pipeline 2 1 1\n"));
         // One EXPECT per pixel; pixel 0 reads the push-constant slot's element 0.
-        assert_eq!(
-            text.matches("\nEXPECT records IDX ").count(),
-            small().pixels()
-        );
+        assert_eq!(text.matches("\nEXPECT records IDX ").count(), small().pixels());
         let want = probe::resource_value(cell.resource, probe::PUSH_SLOT, 0);
-        let line = text
-            .lines()
-            .find(|l| l.starts_with("EXPECT records IDX 0 EQ "))
-            .unwrap();
-        let words: Vec<u32> = line
-            .split_whitespace()
-            .skip(5)
-            .map(|w| w.parse().unwrap())
-            .collect();
+        let line = text.lines().find(|l| l.starts_with("EXPECT records IDX 0 EQ ")).unwrap();
+        let words: Vec<u32> = line.split_whitespace().skip(5).map(|w| w.parse().unwrap()).collect();
         assert_eq!(words[0], probe::FLAG_PROBE);
         assert_eq!(words[8], probe::PUSH_SLOT);
         assert_eq!(words[12..16], want.map(f32::to_bits));
         // The push constants carry the slot the shader reads.
         let pc = text.lines().find(|l| l.starts_with("BUFFER pc ")).unwrap();
-        assert!(
-            pc.contains(&format!("DATA 16 8 {} ", probe::PUSH_SLOT)),
-            "{pc}"
-        );
+        assert!(pc.contains(&format!("DATA 16 8 {} ", probe::PUSH_SLOT)), "{pc}");
     }
 
     #[test]
     fn uniform_spec_constant_cells_specialize_and_use_std140() {
         let cell = compute(Resource::UniformBuffer, IndexSource::SpecConstant);
-        let text = script(
-            &cell,
-            &cell_shaders(&cell, None).unwrap(),
-            &small(),
-            None,
-            "test",
-        )
-        .unwrap();
-        assert!(text.contains(&format!(
-            "ATTACH probe SPECIALIZE 0 AS uint32 {}",
-            probe::SPEC_SLOT
-        )));
+        let text =
+            script(&cell, &cell_shaders(&cell, None).unwrap(), &small(), None, "test").unwrap();
+        assert!(text.contains(&format!("ATTACH probe SPECIALIZE 0 AS uint32 {}", probe::SPEC_SLOT)));
         assert!(
             text.contains("STD140 DATA") && text.contains(" AS uniform DESCRIPTOR_SET 0 BINDING 2")
         );
@@ -420,34 +371,16 @@ mod tests {
     #[test]
     fn a_dynamic_element_cell_specializes_the_slot_and_binds_the_packed_buffer() {
         let cell = compute(Resource::StorageBuffer, IndexSource::DynamicElement);
-        assert_eq!(
-            cell.id(),
-            "compute.storage_buffer.dynamic_element.descriptor_indexing"
-        );
-        let text = script(
-            &cell,
-            &cell_shaders(&cell, None).unwrap(),
-            &small(),
-            None,
-            "test",
-        )
-        .unwrap();
+        assert_eq!(cell.id(), "compute.storage_buffer.dynamic_element.descriptor_indexing");
+        let text =
+            script(&cell, &cell_shaders(&cell, None).unwrap(), &small(), None, "test").unwrap();
         assert!(
-            text.contains(&format!(
-                "ATTACH probe SPECIALIZE 0 AS uint32 {}\n",
-                probe::PACKED_SLOT
-            )),
+            text.contains(&format!("ATTACH probe SPECIALIZE 0 AS uint32 {}\n", probe::PACKED_SLOT)),
             "no SPECIALIZE"
         );
         let slots = probe::slot_count(cell.resource, small().instances);
         let names: Vec<String> = (0..slots)
-            .map(|k| {
-                if k == probe::PACKED_SLOT {
-                    "packed".into()
-                } else {
-                    format!("slot{k}")
-                }
-            })
+            .map(|k| if k == probe::PACKED_SLOT { "packed".into() } else { format!("slot{k}") })
             .collect();
         assert!(
             text.contains(&format!(
@@ -477,40 +410,24 @@ mod tests {
         let expects: Vec<Vec<u32>> = text
             .lines()
             .filter(|l| l.starts_with("EXPECT records IDX "))
-            .map(|l| {
-                l.split_whitespace()
-                    .skip(5)
-                    .map(|w| w.parse().unwrap())
-                    .collect()
-            })
+            .map(|l| l.split_whitespace().skip(5).map(|w| w.parse().unwrap()).collect())
             .collect();
         assert_eq!(expects.len(), small().pixels());
         for words in &expects {
             let at = probe::packed_element(words[8], words[9]) as usize * 4;
             assert_eq!(
                 words[12..16],
-                packed[at..at + 4]
-                    .iter()
-                    .map(|v| v.to_bits())
-                    .collect::<Vec<_>>()
+                packed[at..at + 4].iter().map(|v| v.to_bits()).collect::<Vec<_>>()
             );
         }
-        assert!(expects
-            .iter()
-            .any(|w| w[8] != 0 && w[8] != probe::PACKED_SLOT));
+        assert!(expects.iter().any(|w| w[8] != 0 && w[8] != probe::PACKED_SLOT));
     }
 
     #[test]
     fn a_lenient_dynamic_cell_has_no_expectations_and_says_why() {
         let cell = compute(Resource::StorageBuffer, IndexSource::Dynamic);
-        let text = script(
-            &cell,
-            &cell_shaders(&cell, None).unwrap(),
-            &small(),
-            None,
-            "test",
-        )
-        .unwrap();
+        let text =
+            script(&cell, &cell_shaders(&cell, None).unwrap(), &small(), None, "test").unwrap();
         assert!(!text.contains("\nEXPECT "));
         assert!(text.contains("No EXPECT: the index is dynamic without nonuniformEXT"));
     }
@@ -527,24 +444,15 @@ mod tests {
             fits(&heap, None).unwrap_err().to_string(),
             "Amber has no VK_EXT_descriptor_heap"
         );
-        let buf = Cell {
-            descriptor_model: DescriptorModel::DescriptorBuffer,
-            ..c
-        };
+        let buf = Cell { descriptor_model: DescriptorModel::DescriptorBuffer, ..c };
         assert_eq!(
             fits(&buf, None).unwrap_err().to_string(),
             "Amber has no VK_EXT_descriptor_buffer"
         );
-        assert!(fits(
-            &Cell {
-                stage: Stage::ClosestHit,
-                ..c
-            },
-            None
-        )
-        .unwrap_err()
-        .to_string()
-        .starts_with("ray tracing cell"));
+        assert!(fits(&Cell { stage: Stage::ClosestHit, ..c }, None)
+            .unwrap_err()
+            .to_string()
+            .starts_with("ray tracing cell"));
         assert!(fits(
             &Cell {
                 resource: Resource::AccelerationStructure,
@@ -555,30 +463,17 @@ mod tests {
         )
         .is_err());
         // Refusals come from what the spec needs.
-        let ssbo = Cell {
-            index: IndexSource::Dynamic,
-            patch: Some(Workaround::SsboToAddress),
-            ..c
-        };
+        let ssbo =
+            Cell { index: IndexSource::Dynamic, patch: Some(Workaround::SsboToAddress), ..c };
         assert_eq!(fits(&ssbo, None).unwrap_err().to_string(), "the probe reads device addresses from push constants (patchedTable), which AmberScript cannot provide");
         let ubo_packed = compute(Resource::UniformBuffer, IndexSource::DynamicElement);
         assert!(fits(&ubo_packed, None)
             .unwrap_err()
             .to_string()
             .starts_with("rtprobe has no packed uniform_buffer buffer"));
-        assert!(fits(
-            &Cell {
-                patch: Some(Workaround::PinIndex),
-                ..ssbo
-            },
-            None
-        )
-        .is_ok());
+        assert!(fits(&Cell { patch: Some(Workaround::PinIndex), ..ssbo }, None).is_ok());
         let inj = Injection::parse("stage=compute").unwrap();
-        assert!(fits(&c, Some(&inj))
-            .unwrap_err()
-            .to_string()
-            .contains("injected fault"));
+        assert!(fits(&c, Some(&inj)).unwrap_err().to_string().contains("injected fault"));
         assert!(fits(&c, None).is_ok());
     }
 

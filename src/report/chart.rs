@@ -69,9 +69,7 @@ struct Scale {
 
 impl Scale {
     fn new(axis: &Axis, values: impl Iterator<Item = f64>, p0: f64, p1: f64) -> Scale {
-        let vals: Vec<f64> = values
-            .filter(|v| v.is_finite() && (!axis.log || *v > 0.0))
-            .collect();
+        let vals: Vec<f64> = values.filter(|v| v.is_finite() && (!axis.log || *v > 0.0)).collect();
         let (mut lo, mut hi) = axis.range.unwrap_or_else(|| {
             (
                 vals.iter().cloned().fold(f64::INFINITY, f64::min),
@@ -97,13 +95,7 @@ impl Scale {
                 hi = lo + 1.0;
             }
         }
-        Scale {
-            lo,
-            hi,
-            log: axis.log,
-            p0,
-            p1,
-        }
+        Scale { lo, hi, log: axis.log, p0, p1 }
     }
 
     fn at(&self, v: f64) -> f64 {
@@ -124,9 +116,7 @@ impl Scale {
             let step = nice_step(self.hi - self.lo);
             let first = (self.lo / step).ceil() as i64;
             let last = (self.hi / step + 1e-9).floor() as i64;
-            (first..=last)
-                .map(|k| (k as f64 * step, fmt_num(k as f64 * step)))
-                .collect()
+            (first..=last).map(|k| (k as f64 * step, fmt_num(k as f64 * step))).collect()
         }
     }
 }
@@ -146,18 +136,10 @@ fn format_decade(e: i32) -> String {
 
 /// A step of 1, 2 or 5 × 10^k giving 4 to 10 ticks over `span`.
 fn nice_step(span: f64) -> f64 {
-    let span = if span > 0.0 && span.is_finite() {
-        span
-    } else {
-        1.0
-    };
+    let span = if span > 0.0 && span.is_finite() { span } else { 1.0 };
     let raw = span / 6.0;
     let mag = 10f64.powf(raw.log10().floor());
-    [1.0, 2.0, 5.0, 10.0]
-        .iter()
-        .map(|m| m * mag)
-        .find(|s| *s >= raw)
-        .unwrap_or(10.0 * mag)
+    [1.0, 2.0, 5.0, 10.0].iter().map(|m| m * mag).find(|s| *s >= raw).unwrap_or(10.0 * mag)
 }
 
 fn fmt_num(v: f64) -> String {
@@ -171,10 +153,7 @@ fn fmt_num(v: f64) -> String {
 }
 
 pub fn xml(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
 }
 
 fn header(title: &str) -> String {
@@ -205,11 +184,7 @@ fn legend(s: &mut String, k: usize, name: &str, colour: &str, style: Style) {
     let (x0, x1) = (W - R + 10.0, W - R + 34.0);
     match style {
         Style::Line | Style::Dashed => {
-            let dash = if style == Style::Dashed {
-                " stroke-dasharray=\"6,4\""
-            } else {
-                ""
-            };
+            let dash = if style == Style::Dashed { " stroke-dasharray=\"6,4\"" } else { "" };
             s.push_str(&format!("<line x1=\"{x0:.1}\" y1=\"{ly:.1}\" x2=\"{x1:.1}\" y2=\"{ly:.1}\" stroke=\"{colour}\" stroke-width=\"2\"{dash}/>\n"));
         }
         Style::Points => {}
@@ -295,10 +270,8 @@ impl LineChart {
                         && (!self.y.log || y > 0.0)
                 })
                 .collect();
-            let path: Vec<String> = visible
-                .iter()
-                .map(|&(x, y)| format!("{:.1},{:.1}", xs.at(x), ys.at(y)))
-                .collect();
+            let path: Vec<String> =
+                visible.iter().map(|&(x, y)| format!("{:.1},{:.1}", xs.at(x), ys.at(y))).collect();
             match se.style {
                 Style::Line => s += &format!("<polyline fill=\"none\" stroke=\"{c}\" stroke-width=\"2\" points=\"{}\"/>\n", path.join(" ")),
                 Style::Dashed => s += &format!("<polyline fill=\"none\" stroke=\"{c}\" stroke-width=\"1.5\" stroke-dasharray=\"6,4\" points=\"{}\"/>\n", path.join(" ")),
@@ -334,19 +307,10 @@ impl StackedBars {
     pub fn svg(&self) -> String {
         let n = self.categories.len().max(1);
         let totals: Vec<f64> = (0..n)
-            .map(|i| {
-                self.layers
-                    .iter()
-                    .map(|l| l.1.get(i).copied().unwrap_or(0.0).max(0.0))
-                    .sum()
-            })
+            .map(|i| self.layers.iter().map(|l| l.1.get(i).copied().unwrap_or(0.0).max(0.0)).sum())
             .collect();
         let ys = Scale::new(
-            &Axis {
-                label: String::new(),
-                log: false,
-                range: None,
-            },
+            &Axis { label: String::new(), log: false, range: None },
             totals.iter().copied(),
             H - B,
             T,
@@ -449,12 +413,7 @@ pub fn check_well_formed(doc: &str) -> Result<(), SvgError> {
         if let Some(name) = tag.strip_prefix('/') {
             match stack.pop() {
                 Some(open) if open == name.trim() => {}
-                open => {
-                    return Err(SvgError::Misnested {
-                        name: name.trim().into(),
-                        open,
-                    })
-                }
+                open => return Err(SvgError::Misnested { name: name.trim().into(), open }),
             }
         } else if !tag.ends_with('/') && !tag.starts_with('?') && !tag.starts_with('!') {
             stack.push(tag.split_whitespace().next().unwrap_or("").to_string());
@@ -474,16 +433,8 @@ mod tests {
     fn chart(log: bool) -> LineChart {
         LineChart {
             title: "detection <vs> size".into(),
-            x: Axis {
-                label: "pixels".into(),
-                log,
-                range: None,
-            },
-            y: Axis {
-                label: "P(detect)".into(),
-                log: false,
-                range: Some((0.0, 1.0)),
-            },
+            x: Axis { label: "pixels".into(), log, range: None },
+            y: Axis { label: "P(detect)".into(), log: false, range: Some((0.0, 1.0)) },
             series: vec![
                 Series {
                     name: "measured f=0.01".into(),
@@ -531,10 +482,7 @@ mod tests {
             y_label: "time (s)".into(),
             x_label: "run".into(),
             categories: vec!["-j 1".into(), "-j 2".into()],
-            layers: vec![
-                ("trace".into(), vec![1.0, 0.5]),
-                ("check".into(), vec![0.5, 0.25]),
-            ],
+            layers: vec![("trace".into(), vec![1.0, 0.5]), ("check".into(), vec![0.5, 0.25])],
         };
         let svg = b.svg();
         check_well_formed(&svg).unwrap();

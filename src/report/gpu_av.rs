@@ -24,11 +24,7 @@ pub const CAP: u32 = 20;
 
 /// Passes under GPU-AV that `finding` needs before `masked` (its own k of n, see the module doc).
 pub fn passes_needed(finding: &crate::model::CellReport) -> u32 {
-    let (k, n) = finding
-        .incidence
-        .as_ref()
-        .map(|i| (i.faulted, i.attempts))
-        .unwrap_or((0, 0));
+    let (k, n) = finding.incidence.as_ref().map(|i| (i.faulted, i.attempts)).unwrap_or((0, 0));
     crate::model::stats::attempts_needed(crate::model::stats::rate_bound(k, n), MAX_MISS, CAP)
 }
 
@@ -38,11 +34,8 @@ pub fn more(report: &RunReport, got: &[(Cell, Attempt)]) -> Vec<Cell> {
     report
         .findings()
         .filter(|f| {
-            let mine: Vec<&Attempt> = got
-                .iter()
-                .filter(|(c, _)| *c == f.cell)
-                .map(|(_, a)| a)
-                .collect();
+            let mine: Vec<&Attempt> =
+                got.iter().filter(|(c, _)| *c == f.cell).map(|(_, a)| a).collect();
             !mine.is_empty()
                 && mine.iter().all(|a| a.outcome == Outcome::Pass)
                 && (mine.len() as u32) < passes_needed(f)
@@ -55,9 +48,7 @@ pub fn more(report: &RunReport, got: &[(Cell, Attempt)]) -> Vec<Cell> {
 /// a constant sampler index (no dynamic descriptor access), when the report has it passing
 /// without GPU-AV.
 pub fn control(report: &RunReport, finding: &Cell) -> Option<Cell> {
-    let sampler = finding
-        .sampler
-        .map(|_| crate::model::SamplerIndex::Constant);
+    let sampler = finding.sampler.map(|_| crate::model::SamplerIndex::Constant);
     let c = Cell {
         index: IndexSource::Literal,
         nonuniform: false,
@@ -67,12 +58,8 @@ pub fn control(report: &RunReport, finding: &Cell) -> Option<Cell> {
         sampler,
         ..*finding
     };
-    (c != *finding
-        && report
-            .cells
-            .iter()
-            .any(|x| x.cell == c && x.outcome == Outcome::Pass))
-    .then_some(c)
+    (c != *finding && report.cells.iter().any(|x| x.cell == c && x.outcome == Outcome::Pass))
+        .then_some(c)
 }
 
 /// What to run under GPU-AV: the findings GPU-AV can check and their controls; the others with
@@ -116,26 +103,15 @@ pub fn annotate(report: &mut RunReport, got: &[(Cell, Attempt)], skipped: &[(Cel
             results.push((f.cell, r.clone()));
             continue;
         }
-        let mine: Vec<&Attempt> = got
-            .iter()
-            .filter(|(x, _)| *x == f.cell)
-            .map(|(_, a)| a)
-            .collect();
+        let mine: Vec<&Attempt> =
+            got.iter().filter(|(x, _)| *x == f.cell).map(|(_, a)| a).collect();
         // The verdict follows the first fault under GPU-AV, else the last attempt.
-        let Some(a) = mine
-            .iter()
-            .find(|a| a.outcome.is_finding())
-            .or(mine.last())
-            .copied()
-        else {
+        let Some(a) = mine.iter().find(|a| a.outcome.is_finding()).or(mine.last()).copied() else {
             continue;
         };
         let ctl = control(report, &f.cell).and_then(|c| under(&c).map(|ca| (c.id(), ca.outcome)));
-        let validation_errors = mine
-            .iter()
-            .filter_map(|a| a.result.as_ref())
-            .map(|r| r.validation_errors)
-            .sum();
+        let validation_errors =
+            mine.iter().filter_map(|a| a.result.as_ref()).map(|r| r.validation_errors).sum();
         let attempts = mine.len() as u32;
         let passed = mine.iter().filter(|a| a.outcome == Outcome::Pass).count() as u32;
         let miss_probability = (passed == attempts)
@@ -175,10 +151,7 @@ pub fn annotate(report: &mut RunReport, got: &[(Cell, Attempt)], skipped: &[(Cel
         ));
     }
     for c in report.cells.iter_mut() {
-        c.gpu_av = results
-            .iter()
-            .find(|(x, _)| *x == c.cell)
-            .map(|(_, r)| r.clone());
+        c.gpu_av = results.iter().find(|(x, _)| *x == c.cell).map(|(_, r)| r.clone());
     }
 }
 
@@ -191,10 +164,7 @@ mod tests {
 
     fn cell(model: DescriptorModel, index: IndexSource) -> Cell {
         let heap_access = (model == DescriptorModel::DescriptorHeap).then_some(HeapAccess::Direct);
-        Cell {
-            heap_access,
-            ..Cell::new(Stage::ClosestHit, Resource::StorageBuffer, index, model)
-        }
+        Cell { heap_access, ..Cell::new(Stage::ClosestHit, Resource::StorageBuffer, index, model) }
     }
 
     fn ran(c: Cell, o: Outcome) -> CellReport {
@@ -223,15 +193,10 @@ mod tests {
         assert_eq!((run.len(), skipped.len()), (4, 0));
         let verdict = |got: Vec<(Cell, Outcome)>| {
             let mut r = report.clone();
-            let got: Vec<(Cell, Attempt)> = got
-                .into_iter()
-                .map(|(c, o)| (c, Attempt::for_tests(o, true)))
-                .collect();
+            let got: Vec<(Cell, Attempt)> =
+                got.into_iter().map(|(c, o)| (c, Attempt::for_tests(o, true))).collect();
             annotate(&mut r, &got, &[]);
-            (
-                r.cells[0].gpu_av.clone().unwrap(),
-                r.cells[2].gpu_av.clone().unwrap(),
-            )
+            (r.cells[0].gpu_av.clone().unwrap(), r.cells[2].gpu_av.clone().unwrap())
         };
         // Masked: passes under GPU-AV. Still faults: faults with a control that passes.
         let (h, d) = verdict(vec![
@@ -240,10 +205,7 @@ mod tests {
             (di, Outcome::Crash),
             (di_ctl, Outcome::Pass),
         ]);
-        assert_eq!(
-            (h.verdict, d.verdict),
-            (GpuAvVerdict::Masked, GpuAvVerdict::StillFaults)
-        );
+        assert_eq!((h.verdict, d.verdict), (GpuAvVerdict::Masked, GpuAvVerdict::StillFaults));
         let m = crate::model::stats::pass_miss(1, 1, 1);
         assert_eq!(h.line(), format!("GPU-AV: masked (passes (1/1; a fault as frequent as this finding's would be missed with p ≤ {m:.2}) under GPU-AV)"));
         assert_eq!((h.attempts, h.passed, h.miss_probability), (1, 1, Some(m)));
@@ -256,9 +218,8 @@ mod tests {
         ];
         assert_eq!(passes_needed(&report.cells[0]), CAP);
         assert_eq!(more(&report, &one), vec![heap]);
-        let enough: Vec<(Cell, Attempt)> = (0..CAP)
-            .map(|_| (heap, Attempt::for_tests(Outcome::Pass, true)))
-            .collect();
+        let enough: Vec<(Cell, Attempt)> =
+            (0..CAP).map(|_| (heap, Attempt::for_tests(Outcome::Pass, true))).collect();
         assert!(more(&report, &enough).is_empty());
         // A pass after passes, then a fault: the fault decides (never masked on the passes).
         let (h, _) = verdict(vec![
@@ -306,13 +267,7 @@ mod tests {
         let r = RunReport::for_tests(vec![
             ran(img, Outcome::Crash),
             ran(img_ctl, Outcome::Pass),
-            ran(
-                Cell {
-                    index: IndexSource::Literal,
-                    ..img
-                },
-                Outcome::Pass,
-            ),
+            ran(Cell { index: IndexSource::Literal, ..img }, Outcome::Pass),
         ]);
         assert_eq!(
             control(&r, &img).map(|c| c.id()).as_deref(),

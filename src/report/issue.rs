@@ -109,25 +109,16 @@ fn os_and_kernel() -> (String, String) {
         .ok()
         .and_then(|t| {
             t.lines().find_map(|l| {
-                l.strip_prefix("PRETTY_NAME=")
-                    .map(|v| v.trim_matches('"').to_string())
+                l.strip_prefix("PRETTY_NAME=").map(|v| v.trim_matches('"').to_string())
             })
         })
         .unwrap_or_else(|| "unknown".into());
     let mut u: libc::utsname = unsafe { std::mem::zeroed() };
     let kernel = if unsafe { libc::uname(&mut u) } == 0 {
         let f = |b: &[std::ffi::c_char]| {
-            unsafe { std::ffi::CStr::from_ptr(b.as_ptr()) }
-                .to_string_lossy()
-                .into_owned()
+            unsafe { std::ffi::CStr::from_ptr(b.as_ptr()) }.to_string_lossy().into_owned()
         };
-        format!(
-            "{} {} {} {}",
-            f(&u.sysname),
-            f(&u.release),
-            f(&u.version),
-            f(&u.machine)
-        )
+        format!("{} {} {} {}", f(&u.sysname), f(&u.release), f(&u.version), f(&u.machine))
     } else {
         "unknown".into()
     };
@@ -173,23 +164,14 @@ pub fn build(
     let outcome = rep_report
         .map(|c| c.outcome)
         .or_else(|| {
-            rep_line.and_then(|l| {
-                Outcome::ALL
-                    .iter()
-                    .copied()
-                    .find(|o| o.as_str() == l.verdict)
-            })
+            rep_line.and_then(|l| Outcome::ALL.iter().copied().find(|o| o.as_str() == l.verdict))
         })
         .unwrap_or(Outcome::Error);
     let injection = for_cell(inject, &rep);
     let injected = injection.map(|i| format!("This fault was injected on purpose with `--inject-fault '{}'`: rtprobe made the shader misbehave to prove its own detection. It is not a driver bug; do not file it.", i.spec));
     let title = format!(
         "{}{}: {} on {} ({} {}, Vulkan {})",
-        if injected.is_some() {
-            "[injected, not a driver bug] "
-        } else {
-            ""
-        },
+        if injected.is_some() { "[injected, not a driver bug] " } else { "" },
         symptom(outcome),
         describe(&rep),
         environment.gpu,
@@ -278,9 +260,7 @@ fn incidence_text(
     agree: u32,
     n: u32,
 ) -> String {
-    let alone = match rep_report
-        .and_then(|c| c.incidence.as_ref())
-        .and_then(|i| i.reproduced_alone)
+    let alone = match rep_report.and_then(|c| c.incidence.as_ref()).and_then(|i| i.reproduced_alone)
     {
         Some(true) => " It also faulted when run alone in a fresh process.",
         Some(false) => " It did NOT fault when run alone in a fresh process.",
@@ -314,11 +294,8 @@ fn summary_text(
     bi: &crate::model::Bisection,
     real: bool,
 ) -> String {
-    let verified: Vec<&IsolationLine> = bi
-        .workarounds
-        .iter()
-        .filter(|w| w.verdict == "pass" && w.settled() && real)
-        .collect();
+    let verified: Vec<&IsolationLine> =
+        bi.workarounds.iter().filter(|w| w.verdict == "pass" && w.settled() && real).collect();
     format!(
         "On {} with {} {} (Vulkan {}), a {} {} ({}). Bisecting {} cells of rtprobe's shader matrix ({} extra runs beyond the report) narrows the failing configurations down to `{}`{}. {}",
         env.gpu,
@@ -378,11 +355,8 @@ fn actual_text(rep: Option<&CellReport>, outcome: Outcome) -> String {
         c.reason.clone().unwrap_or_else(|| outcome.as_str().into())
     );
     if let Some(a) = worst {
-        if let Some(cmp) = a
-            .result
-            .as_ref()
-            .and_then(|r| r.comparison.as_ref())
-            .filter(|c| !c.passed())
+        if let Some(cmp) =
+            a.result.as_ref().and_then(|r| r.comparison.as_ref()).filter(|c| !c.passed())
         {
             let fields: Vec<String> = cmp
                 .by_field
@@ -426,16 +400,11 @@ fn validation_text(report: &RunReport, rep: Option<&CellReport>) -> String {
     let on = report.options.validate;
     let errors: u64 = rep
         .map(|c| {
-            c.attempts
-                .iter()
-                .filter_map(|a| a.result.as_ref())
-                .map(|r| r.validation_errors)
-                .sum()
+            c.attempts.iter().filter_map(|a| a.result.as_ref()).map(|r| r.validation_errors).sum()
         })
         .unwrap_or(0);
-    let ran_to_end = rep
-        .map(|c| c.attempts.iter().filter(|a| a.result.is_some()).count())
-        .unwrap_or(0);
+    let ran_to_end =
+        rep.map(|c| c.attempts.iter().filter(|a| a.result.is_some()).count()).unwrap_or(0);
     let mut t = if !on {
         "The run did not enable VK_LAYER_KHRONOS_validation (`--validate`): API usage was not checked for this report.".to_string()
     } else if errors > 0 {
@@ -514,23 +483,14 @@ fn not_tested(report: &RunReport, b: &BisectFile) -> Vec<String> {
         v.push(format!("Not concluded: {} passing cells relied on have fewer attempts than a miss probability below {} needs: {}.", bi.unsettled.len(), percent(bi.max_miss), bi.unsettled.join(", ")));
     }
     let mut reasons: std::collections::BTreeMap<String, usize> = Default::default();
-    for c in report
-        .cells
-        .iter()
-        .filter(|c| c.outcome == Outcome::Unsupported)
-    {
-        *reasons
-            .entry(c.reason.clone().unwrap_or_default())
-            .or_default() += 1;
+    for c in report.cells.iter().filter(|c| c.outcome == Outcome::Unsupported) {
+        *reasons.entry(c.reason.clone().unwrap_or_default()).or_default() += 1;
     }
     for (r, n) in reasons {
         v.push(format!("{n} cells unsupported on this device: {r}."));
     }
     for ng in &report.plan.not_generated {
-        v.push(format!(
-            "Not generated ({} combinations): {}.",
-            ng.count, ng.rule
-        ));
+        v.push(format!("Not generated ({} combinations): {}.", ng.count, ng.rule));
     }
     let p = &report.scene.params;
     v.push(format!("One scene only (seed {}, {}x{}, {} instances, mesh detail {}); other scene sizes were not tried.", p.seed, p.width, p.height, p.instances, p.mesh_detail));
@@ -553,9 +513,7 @@ fn shader_comparison(
     let sibling = order
         .iter()
         .find_map(|ax| {
-            bi.isolation
-                .iter()
-                .find(|l| l.varied.as_deref() == Some(*ax) && l.verdict == "pass")
+            bi.isolation.iter().find(|l| l.varied.as_deref() == Some(*ax) && l.verdict == "pass")
         })
         .and_then(|l| cell_by_id(&l.cell));
     let role = probed_role(rep.stage);
@@ -607,10 +565,7 @@ impl Issue {
         );
         m += &format!("## Summary\n\n{}\n\n", self.summary);
         m += &format!("## Incidence\n\n{}\n\n", self.incidence);
-        m += &format!(
-            "## Expected\n\n{}\n\n## Actual\n\n{}\n\n",
-            self.expected, self.actual
-        );
+        m += &format!("## Expected\n\n{}\n\n## Actual\n\n{}\n\n", self.expected, self.actual);
         m += "## Isolation\n\nThe minimal failing cell first, then its closest siblings, one axis changed at a time (k/N: attempts that agree with the verdict, of all attempts):\n\n";
         for l in &self.isolation {
             m += &format!("- {l}\n");

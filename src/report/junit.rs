@@ -40,11 +40,7 @@ fn run_level_failures(r: &RunReport) -> Vec<(String, String, String)> {
             .iter()
             .enumerate()
             .map(|(k, w)| {
-                (
-                    format!("worker-fault-{k}"),
-                    "unexpected_worker_fault".to_string(),
-                    w.clone(),
-                )
+                (format!("worker-fault-{k}"), "unexpected_worker_fault".to_string(), w.clone())
             })
             .chain(b.performance.iter().map(|p| {
                 (

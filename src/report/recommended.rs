@@ -33,18 +33,10 @@ pub fn result(report: &RunReport, finding: &Cell) -> PatternResult {
         },
         Some(c) => status_of(
             c,
-            report
-                .cells
-                .iter()
-                .find(|x| x.cell == *finding)
-                .and_then(|f| f.incidence.as_ref()),
+            report.cells.iter().find(|x| x.cell == *finding).and_then(|f| f.incidence.as_ref()),
         ),
     };
-    PatternResult {
-        pattern: Some(pattern),
-        cell: Some(id),
-        status,
-    }
+    PatternResult { pattern: Some(pattern), cell: Some(id), status }
 }
 
 fn status_of(c: &CellReport, finding: Option<&crate::model::Incidence>) -> PatternStatus {
@@ -180,14 +172,7 @@ mod tests {
         let ubo = heap(Resource::UniformBuffer, IndexSource::Dynamic);
         let geometry = heap(Resource::StorageBuffer, IndexSource::DynamicElement);
         let mut r = RunReport::for_tests(vec![
-            ran(
-                ssbo,
-                &[
-                    Outcome::DeviceLost,
-                    Outcome::DeviceLost,
-                    Outcome::DeviceLost,
-                ],
-            ),
+            ran(ssbo, &[Outcome::DeviceLost, Outcome::DeviceLost, Outcome::DeviceLost]),
             ran(tex, &[Outcome::DeviceLost]),
             ran(ubo, &[Outcome::Crash]),
             ran(geometry, &[Outcome::Pass]),
@@ -195,33 +180,17 @@ mod tests {
         // The geometry pattern passed once against a finding seen 3 times: run it again.
         assert_eq!(retries(&r), vec![geometry]);
         // The materials pattern is not in the report: scheduled.
-        assert_eq!(
-            missing(&r),
-            vec![heap(Resource::SampledImage, IndexSource::DynamicElement)]
-        );
+        assert_eq!(missing(&r), vec![heap(Resource::SampledImage, IndexSource::DynamicElement)]);
         annotate(&mut r);
         let line = |c: &Cell| {
-            r.cells
-                .iter()
-                .find(|x| x.cell == *c)
-                .unwrap()
-                .recommended
-                .as_ref()
-                .map(|p| p.line())
+            r.cells.iter().find(|x| x.cell == *c).unwrap().recommended.as_ref().map(|p| p.line())
         };
         assert_eq!(
             line(&ssbo).unwrap(),
             "recommended pattern geometry (one storage buffer at a spec-constant slot, dynamic element offset; closest_hit.storage_buffer.dynamic_element.descriptor_heap.direct): passes (1/1; a fault as frequent as this finding's would be missed with p ≤ 0.63)"
         );
         // 1 pass against 3 of 3: (1 - 0.05^(1/3))^1 ≈ 0.63, in the JSON too.
-        let geo = r
-            .cells
-            .iter()
-            .find(|x| x.cell == ssbo)
-            .unwrap()
-            .recommended
-            .clone()
-            .unwrap();
+        let geo = r.cells.iter().find(|x| x.cell == ssbo).unwrap().recommended.clone().unwrap();
         assert!(
             matches!(geo.status, PatternStatus::Passes { miss_probability: Some(m), .. } if (m - crate::model::stats::pass_miss(3, 3, 1)).abs() < 1e-12)
         );
@@ -238,11 +207,7 @@ mod tests {
             "{:?}",
             line(&ubo)
         );
-        assert_eq!(
-            line(&geometry),
-            None,
-            "a passing cell carries no pattern result"
-        );
+        assert_eq!(line(&geometry), None, "a passing cell carries no pattern result");
         // A pattern that faults too is a failure, never a pass.
         let mut bad = RunReport::for_tests(vec![
             ran(ssbo, &[Outcome::DeviceLost]),
@@ -252,17 +217,9 @@ mod tests {
         let p = bad.cells[0].recommended.clone().unwrap();
         assert_eq!(
             p.status,
-            PatternStatus::Fails {
-                outcome: Outcome::Mismatch,
-                faulted: 1,
-                attempts: 2
-            }
+            PatternStatus::Fails { outcome: Outcome::Mismatch, faulted: 1, attempts: 2 }
         );
-        assert!(
-            p.line().ends_with("fails: mismatch (1 of 2 attempts)"),
-            "{}",
-            p.line()
-        );
+        assert!(p.line().ends_with("fails: mismatch (1 of 2 attempts)"), "{}", p.line());
         // Unsupported pattern cells say why.
         let mut un = RunReport::for_tests(vec![
             ran(ssbo, &[Outcome::DeviceLost]),

@@ -33,9 +33,7 @@ fn header(s: &mut String, r: &RunReport) {
         "rtprobe run on {} ({} {})",
         r.device["name"].as_str().unwrap_or("?"),
         r.device["driver_name"].as_str().unwrap_or("?"),
-        r.device["driver_version"]["decoded"]
-            .as_str()
-            .unwrap_or("?")
+        r.device["driver_version"]["decoded"].as_str().unwrap_or("?")
     );
     let _ = writeln!(
         s,
@@ -52,11 +50,7 @@ fn header(s: &mut String, r: &RunReport) {
 
 /// Canaries, fault injection, and worker faults outside any cell.
 fn worker_and_canary_notes(s: &mut String, r: &RunReport) {
-    let canaries: Vec<_> = r
-        .cells
-        .iter()
-        .filter(|c| c.canary_check.is_some())
-        .collect();
+    let canaries: Vec<_> = r.cells.iter().filter(|c| c.canary_check.is_some()).collect();
     for c in &canaries {
         let chk = c.canary_check.as_ref().expect("filtered");
         let _ = writeln!(
@@ -81,11 +75,7 @@ fn worker_and_canary_notes(s: &mut String, r: &RunReport) {
         );
     }
     // Worker faults outside any cell (failed setups, crashes between cells, hung teardowns).
-    let faults: Vec<_> = r
-        .workers
-        .iter()
-        .filter(|w| w.outcome != Outcome::Pass)
-        .collect();
+    let faults: Vec<_> = r.workers.iter().filter(|w| w.outcome != Outcome::Pass).collect();
     if !faults.is_empty() {
         let _ = writeln!(s, "worker faults outside cells ({}):", faults.len());
         for w in faults.iter().take(10) {
@@ -104,16 +94,9 @@ fn worker_and_canary_notes(s: &mut String, r: &RunReport) {
 
 /// Reads outside the spec's guarantees, validation errors, undetected injections.
 fn spec_and_injection_notes(s: &mut String, r: &RunReport) {
-    let outside: Vec<_> = r
-        .cells
-        .iter()
-        .filter(|c| c.outside_spec.is_some())
-        .collect();
+    let outside: Vec<_> = r.cells.iter().filter(|c| c.outside_spec.is_some()).collect();
     if let Some(first) = outside.first() {
-        let other = outside
-            .iter()
-            .filter(|c| c.element_reads().any(|e| e.other > 0))
-            .count();
+        let other = outside.iter().filter(|c| c.element_reads().any(|e| e.other > 0)).count();
         let _ = writeln!(
             s,
             "outside the spec's guarantees: {} cells index descriptors dynamically without nonuniformEXT, or with one their compiler dropped ({}); {other} of them read another element of the array on some pixels (allowed there; counts per cell in the report)",
@@ -125,9 +108,7 @@ fn spec_and_injection_notes(s: &mut String, r: &RunReport) {
         .cells
         .iter()
         .filter(|c| {
-            c.attempts
-                .iter()
-                .any(|a| a.result.as_ref().is_some_and(|x| x.validation_errors > 0))
+            c.attempts.iter().any(|a| a.result.as_ref().is_some_and(|x| x.validation_errors > 0))
         })
         .collect();
     if !vcells.is_empty() {
@@ -166,11 +147,7 @@ fn findings(s: &mut String, r: &RunReport) {
             s,
             "findings ({}{}):",
             findings.len(),
-            if flaky > 0 {
-                format!(", {flaky} flaky")
-            } else {
-                String::new()
-            }
+            if flaky > 0 { format!(", {flaky} flaky") } else { String::new() }
         );
         for c in findings.iter().take(40) {
             finding(s, c);
@@ -200,18 +177,11 @@ fn finding(s: &mut String, c: &crate::model::CellReport) {
         .rev()
         .find_map(|a| a.result.as_ref()?.comparison.as_ref()?.pictures.last())
     {
-        let _ = writeln!(
-            s,
-            "      pictures: {diff} (expected.png and actual.png beside it)"
-        );
+        let _ = writeln!(s, "      pictures: {diff} (expected.png and actual.png beside it)");
     }
     if !c.workarounds.is_empty() {
-        let verified: Vec<&str> = c
-            .workarounds
-            .iter()
-            .filter(|w| w.verified)
-            .map(|w| w.patch.as_str())
-            .collect();
+        let verified: Vec<&str> =
+            c.workarounds.iter().filter(|w| w.verified).map(|w| w.patch.as_str()).collect();
         let tried: Vec<String> = c.workarounds.iter().map(|w| w.tried()).collect();
         if verified.is_empty() {
             let _ = writeln!(s, "      no verified workaround ({})", tried.join(", "));
@@ -249,19 +219,12 @@ fn timing(s: &mut String, r: &RunReport) {
         t.overhead_ms / n
     );
     if t.prebuilt_pipelines > 0 {
-        let threads = r
-            .options
-            .threads
-            .map(|n| n.to_string())
-            .unwrap_or_else(|| "--threads".into());
+        let threads =
+            r.options.threads.map(|n| n.to_string()).unwrap_or_else(|| "--threads".into());
         let _ = writeln!(s, "prebuild: {} pipelines created on {threads} threads ahead of their cells, {:.1} s wall (their per-cell time above is each one's time on its thread)", t.prebuilt_pipelines, t.prebuild_ms / 1e3);
     }
     if let Some(pc) = &r.pipeline_cache {
-        let file = pc
-            .file
-            .as_ref()
-            .map(|f| f.display().to_string())
-            .unwrap_or_default();
+        let file = pc.file.as_ref().map(|f| f.display().to_string()).unwrap_or_default();
         let ignored = if pc.ignored.is_empty() {
             String::new()
         } else {

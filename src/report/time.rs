@@ -10,12 +10,7 @@ pub fn civil_date(unix_secs: u64) -> String {
 pub fn stamp(unix_secs: u64) -> String {
     let (y, m, d) = ymd(unix_secs);
     let s = unix_secs % 86_400;
-    format!(
-        "{y:04}{m:02}{d:02}-{:02}{:02}{:02}",
-        s / 3600,
-        (s / 60) % 60,
-        s % 60
-    )
+    format!("{y:04}{m:02}{d:02}-{:02}{:02}{:02}", s / 3600, (s / 60) % 60, s % 60)
 }
 
 fn ymd(unix_secs: u64) -> (i64, u32, u32) {

@@ -15,12 +15,7 @@ pub struct ReportWriter {
 
 impl ReportWriter {
     pub fn new(path: PathBuf, mut report: RunReport, plan: &RunPlan) -> Self {
-        let order = plan
-            .cells
-            .iter()
-            .enumerate()
-            .map(|(i, c)| (c.cell.id(), i))
-            .collect();
+        let order = plan.cells.iter().enumerate().map(|(i, c)| (c.cell.id(), i)).collect();
         for pc in &plan.cells {
             let not_run = match &pc.status {
                 PlanStatus::Run => None,
@@ -29,17 +24,11 @@ impl ReportWriter {
             };
             if let Some((outcome, reason)) = not_run {
                 if !report.cells.iter().any(|c| c.id == pc.cell.id()) {
-                    report
-                        .cells
-                        .push(CellReport::unrun(&pc.cell, outcome, reason.clone()));
+                    report.cells.push(CellReport::unrun(&pc.cell, outcome, reason.clone()));
                 }
             }
         }
-        let mut w = ReportWriter {
-            path,
-            report,
-            order,
-        };
+        let mut w = ReportWriter { path, report, order };
         w.sort();
         w
     }
@@ -50,14 +39,7 @@ impl ReportWriter {
         let key = |c: &CellReport| {
             let base = c.cell.base().id();
             let patch = c.cell.patch.map(|p| 1 + p as usize).unwrap_or(0);
-            (
-                order
-                    .get(&c.id)
-                    .or_else(|| order.get(&base))
-                    .copied()
-                    .unwrap_or(usize::MAX),
-                patch,
-            )
+            (order.get(&c.id).or_else(|| order.get(&base)).copied().unwrap_or(usize::MAX), patch)
         };
         self.report.cells.sort_by_key(key);
         self.report.recount();

@@ -22,14 +22,7 @@ pub fn harden(cmd: &mut Command) {
     // SAFETY: only async-signal-safe syscalls between fork and exec; no allocation.
     unsafe {
         cmd.pre_exec(move || {
-            if libc::prctl(
-                libc::PR_SET_PDEATHSIG,
-                libc::SIGKILL as libc::c_ulong,
-                0,
-                0,
-                0,
-            ) != 0
-            {
+            if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL as libc::c_ulong, 0, 0, 0) != 0 {
                 return Err(std::io::Error::last_os_error());
             }
             if libc::getppid() != parent {
@@ -44,9 +37,7 @@ pub fn harden(cmd: &mut Command) {
 /// Remember a live worker group (for the signal handler).
 pub fn register(pgid: i32) {
     for g in &GROUPS {
-        if g.compare_exchange(0, pgid, Ordering::SeqCst, Ordering::SeqCst)
-            .is_ok()
-        {
+        if g.compare_exchange(0, pgid, Ordering::SeqCst, Ordering::SeqCst).is_ok() {
             return;
         }
     }
@@ -57,9 +48,7 @@ pub fn register(pgid: i32) {
 
 pub fn unregister(pgid: i32) {
     for g in &GROUPS {
-        if g.compare_exchange(pgid, 0, Ordering::SeqCst, Ordering::SeqCst)
-            .is_ok()
-        {
+        if g.compare_exchange(pgid, 0, Ordering::SeqCst, Ordering::SeqCst).is_ok() {
             return;
         }
     }

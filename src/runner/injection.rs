@@ -13,10 +13,7 @@ pub(super) struct Injections {
 
 impl Injections {
     pub fn new(inject: Vec<Injection>) -> Self {
-        Injections {
-            inject,
-            seeds: HashMap::new(),
-        }
+        Injections { inject, seeds: HashMap::new() }
     }
 
     /// What every worker is told to inject.
@@ -63,28 +60,15 @@ mod tests {
             IndexSource::Dynamic,
             DescriptorModel::DescriptorIndexing,
         );
-        let other = Cell {
-            stage: Stage::Miss,
-            ..cell
-        };
+        let other = Cell { stage: Stage::Miss, ..cell };
         let mut inj = Injections::new(vec![Injection::parse("stage=raygen@device").unwrap()]);
         let mut a = Attempt::new(Outcome::Crash, false);
         inj.tag(&cell, &mut a);
-        assert_eq!(
-            a.injected, None,
-            "a cell never sent to a worker has no dice"
-        );
+        assert_eq!(a.injected, None, "a cell never sent to a worker has no dice");
         let seed = inj.deal(1, &[cell, other]);
-        assert_ne!(
-            seed,
-            inj.deal(2, &[other]),
-            "each worker rolls its own dice"
-        );
+        assert_ne!(seed, inj.deal(2, &[other]), "each worker rolls its own dice");
         inj.tag(&cell, &mut a);
-        assert!(
-            a.injected.is_some(),
-            "the fault is recorded even though the worker died"
-        );
+        assert!(a.injected.is_some(), "the fault is recorded even though the worker died");
         let mut b = Attempt::new(Outcome::Pass, false);
         inj.tag(&other, &mut b);
         assert_eq!(b.injected, None, "the filter does not match");

@@ -215,32 +215,13 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
     match msg {
         WorkerMsg::Ready { .. } if w.state != State::Setup => {
             // Only once, at the end of setup: it must not restart any clock.
-            fx.push(Effect::Log(format!(
-                "worker {} sent ready again; ignored",
-                w.id
-            )));
+            fx.push(Effect::Log(format!("worker {} sent ready again; ignored", w.id)));
         }
-        WorkerMsg::Ready {
-            device_ms,
-            reference_ms,
-            device_features,
-            pipeline_cache,
-        } => {
+        WorkerMsg::Ready { device_ms, reference_ms, device_features, pipeline_cache } => {
             w.enter(State::Between { since: now }, Phase::BetweenCells);
             w.device_features = device_features;
-            fx.push(Effect::Ready {
-                device_ms,
-                reference_ms,
-                pipeline_cache,
-            });
-            fx.push(Effect::Worker(event(
-                w,
-                Phase::Setup,
-                Outcome::Pass,
-                None,
-                None,
-                now,
-            )));
+            fx.push(Effect::Ready { device_ms, reference_ms, pipeline_cache });
+            fx.push(Effect::Worker(event(w, Phase::Setup, Outcome::Pass, None, None, now)));
         }
         WorkerMsg::Phase { phase, step } => {
             // Prebuild progress (GLSL, a cell compiled and bound, a pipeline) restarts its clock.
@@ -262,18 +243,10 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
             "worker {} sent prebuild while not between cells; ignored",
             w.id
         ))),
-        WorkerMsg::Prebuilt {
-            wall_ms,
-            pipelines,
-            threads,
-        } => {
+        WorkerMsg::Prebuilt { wall_ms, pipelines, threads } => {
             if matches!(w.state, State::Prebuild { .. }) {
                 w.enter(State::Between { since: now }, Phase::BetweenCells);
-                fx.push(Effect::Prebuilt {
-                    wall_ms,
-                    pipelines,
-                    threads,
-                });
+                fx.push(Effect::Prebuilt { wall_ms, pipelines, threads });
             }
         }
         WorkerMsg::CacheSaved { bytes, error } => fx.push(Effect::CacheSaved(
@@ -293,13 +266,7 @@ fn start(w: &mut Worker, cell: String, now: Instant, fx: &mut Vec<Effect>) {
             w.id
         )));
     } else if let Some(c) = w.pending.iter().find(|c| c.id() == cell) {
-        w.enter(
-            State::Cell {
-                cell: *c,
-                since: now,
-            },
-            Phase::Compile,
-        );
+        w.enter(State::Cell { cell: *c, since: now }, Phase::Compile);
     }
 }
 
@@ -321,9 +288,7 @@ fn finished(
     };
     let c = w.pending.remove(pos);
     let ends = result.outcome.ends_worker();
-    let attempt = attempt(w, result.outcome)
-        .with_result(result)
-        .with_wall_ms(ms(since, now));
+    let attempt = attempt(w, result.outcome).with_result(result).with_wall_ms(ms(since, now));
     w.progressed = true;
     if ends || w.pending.is_empty() {
         w.enter(State::Teardown { since: now }, Phase::Teardown);
@@ -338,10 +303,7 @@ fn garbage(w: &mut Worker, text: String, fx: &mut Vec<Effect>) {
     if w.garbage <= GARBAGE_LOGGED {
         fx.push(Effect::Log(format!("worker {} said: {text}", w.id)));
     } else if w.garbage == GARBAGE_LOGGED + 1 {
-        fx.push(Effect::Log(format!(
-            "worker {} keeps printing; further lines not logged",
-            w.id
-        )));
+        fx.push(Effect::Log(format!("worker {} keeps printing; further lines not logged", w.id)));
     }
 }
 
@@ -349,11 +311,7 @@ fn dying(w: &mut Worker, cause: Cause, fx: &mut Vec<Effect>) {
     if !alive(&w.state) {
         return;
     }
-    fx.push(if cause == Cause::Eof {
-        Effect::Reap
-    } else {
-        Effect::Kill
-    });
+    fx.push(if cause == Cause::Eof { Effect::Reap } else { Effect::Kill });
     let was = Box::new(std::mem::replace(&mut w.state, State::Ended));
     w.state = State::Dying { was, cause };
 }
@@ -373,10 +331,7 @@ fn exited(w: &mut Worker, exit: WorkerExit, now: Instant, limits: &Limits, fx: &
         (State::Cell { .. }, Cause::Eof) => (died_as, format!("{what} mid-cell, in {at}")),
         (State::Cell { .. }, Cause::Deadline) => (
             Outcome::Timeout,
-            format!(
-                "no result within {:?}, in {at}; worker process group killed",
-                limits.timeout
-            ),
+            format!("no result within {:?}, in {at}; worker process group killed", limits.timeout),
         ),
         (State::Prebuild { .. }, Cause::Fatal { message, outcome }) => {
             (outcome, format!("worker failed in {at}: {message}"))
@@ -393,17 +348,11 @@ fn exited(w: &mut Worker, exit: WorkerExit, now: Instant, limits: &Limits, fx: &
         ),
         (State::Setup, Cause::Deadline) => (
             Outcome::Timeout,
-            format!(
-                "worker setup took longer than {:?}, in {at}; killed",
-                limits.setup_timeout
-            ),
+            format!("worker setup took longer than {:?}, in {at}; killed", limits.setup_timeout),
         ),
         (State::Between { .. }, Cause::Deadline) => (
             Outcome::Timeout,
-            format!(
-                "no next cell within {:?} after the last result; killed",
-                limits.timeout
-            ),
+            format!("no next cell within {:?} after the last result; killed", limits.timeout),
         ),
         (State::Teardown { .. }, Cause::Deadline) => (
             Outcome::Timeout,
@@ -441,14 +390,7 @@ fn prebuild_failed(
 ) {
     fx.push(Effect::Serial(cells));
     let detail = format!("{detail}; its batch runs again, each cell building at its turn");
-    fx.push(Effect::Worker(event(
-        w,
-        Phase::Prebuild,
-        outcome,
-        Some(detail),
-        Some(exit),
-        now,
-    )));
+    fx.push(Effect::Worker(event(w, Phase::Prebuild, outcome, Some(detail), Some(exit), now)));
 }
 
 /// A worker failed outside any cell: in setup, between cells or in teardown. Its own event;
@@ -466,14 +408,7 @@ fn worker_failed(
         outcome.as_str(),
         w.phase
     );
-    fx.push(Effect::Worker(event(
-        w,
-        w.phase,
-        outcome,
-        Some(detail),
-        Some(exit.clone()),
-        now,
-    )));
+    fx.push(Effect::Worker(event(w, w.phase, outcome, Some(detail), Some(exit.clone()), now)));
     if !w.progressed {
         fx.push(Effect::Fruitless {
             batch: w.batch,
@@ -514,10 +449,9 @@ fn ms(since: Instant, now: Instant) -> f64 {
 /// How a worker that ended unasked is classified: a signal or a non-zero code is a crash.
 pub(super) fn died(exit: &WorkerExit) -> (Outcome, String) {
     match (exit.signal, exit.code) {
-        (Some(s), _) => (
-            Outcome::Crash,
-            format!("worker killed by signal {s} ({})", signal_name(s)),
-        ),
+        (Some(s), _) => {
+            (Outcome::Crash, format!("worker killed by signal {s} ({})", signal_name(s)))
+        }
         (None, Some(c)) if c != 0 => (Outcome::Crash, format!("worker exited with code {c}")),
         (None, Some(_)) => (Outcome::Error, "worker exited (code 0) early".into()),
         (None, None) => (Outcome::Error, "worker vanished".into()),

@@ -50,9 +50,7 @@ impl Misbehave {
             "spam" => Action::Spam,
             "lose" => Action::Lose,
             other => {
-                return Err(format!(
-                    "{ENV}: unknown action {other:?} (hang, crash, spam, lose)"
-                ))
+                return Err(format!("{ENV}: unknown action {other:?} (hang, crash, spam, lose)"))
             }
         };
         Ok(Misbehave { phase, action })
@@ -71,11 +69,8 @@ impl Misbehave {
         if phase != self.phase {
             return Ok(());
         }
-        let wanted = if self.action == Action::Lose {
-            SetupStep::Scene
-        } else {
-            SetupStep::CreateDevice
-        };
+        let wanted =
+            if self.action == Action::Lose { SetupStep::Scene } else { SetupStep::CreateDevice };
         if phase == Phase::Setup && step != Some(wanted) {
             return Ok(());
         }
@@ -95,9 +90,9 @@ impl Misbehave {
                     let _ = out.write_all(b"driver debug: still busy (injected spam)\n");
                 }
             }
-            Action::Lose => Err(VkError::DeviceLost {
-                call: "injected device loss (RTPROBE_WORKER_FAULT)",
-            }),
+            Action::Lose => {
+                Err(VkError::DeviceLost { call: "injected device loss (RTPROBE_WORKER_FAULT)" })
+            }
         }
     }
 }
@@ -110,15 +105,9 @@ mod tests {
     fn parses_phase_and_action() {
         assert_eq!(
             Misbehave::parse("pipeline:hang"),
-            Ok(Misbehave {
-                phase: Phase::Pipeline,
-                action: Action::Hang
-            })
+            Ok(Misbehave { phase: Phase::Pipeline, action: Action::Hang })
         );
-        assert_eq!(
-            Misbehave::parse("between_cells:crash").unwrap().action,
-            Action::Crash
-        );
+        assert_eq!(Misbehave::parse("between_cells:crash").unwrap().action, Action::Crash);
         assert!(Misbehave::parse("pipeline").is_err());
         assert!(Misbehave::parse("nowhere:hang").is_err());
         assert!(Misbehave::parse("trace:explode").is_err());
@@ -126,16 +115,10 @@ mod tests {
 
     #[test]
     fn loss_fires_only_in_its_phase() {
-        let m = Misbehave {
-            phase: Phase::Trace,
-            action: Action::Lose,
-        };
+        let m = Misbehave { phase: Phase::Trace, action: Action::Lose };
         assert!(m.at(Phase::Compile, None).is_ok());
         assert!(m.at(Phase::Trace, None).unwrap_err().is_device_lost());
-        let s = Misbehave {
-            phase: Phase::Setup,
-            action: Action::Lose,
-        };
+        let s = Misbehave { phase: Phase::Setup, action: Action::Lose };
         assert!(s.at(Phase::Setup, Some(SetupStep::CreateDevice)).is_ok());
         assert!(s.at(Phase::Setup, Some(SetupStep::Scene)).is_err());
     }

@@ -59,24 +59,12 @@ impl Proc {
         });
         let stderr = Arc::new(Mutex::new(String::new()));
         keep_tail(child.stderr.take().expect("piped stderr"), stderr.clone());
-        Ok(Proc {
-            child,
-            pid,
-            worker,
-            stderr,
-        })
+        Ok(Proc { child, pid, worker, stderr })
     }
 
     /// Kills its group (see [`kill_group`]).
     pub fn kill(&mut self, grace: Duration, kill_wait: Duration) -> WorkerExit {
-        kill_group(
-            &mut self.child,
-            self.pid,
-            self.worker,
-            &self.stderr,
-            grace,
-            kill_wait,
-        )
+        kill_group(&mut self.child, self.pid, self.worker, &self.stderr, grace, kill_wait)
     }
 
     /// Its output ended: waits at most `grace` for the exit; one that closed its output but does
@@ -104,9 +92,7 @@ fn keep_tail(mut pipe: impl Read + Send + 'static, sink: Arc<Mutex<String>>) {
                 s.push_str(&String::from_utf8_lossy(&buf[..n]));
                 if s.len() > 2 * STDERR_TAIL {
                     let cut = s.len() - STDERR_TAIL;
-                    let cut = (cut..s.len())
-                        .find(|i| s.is_char_boundary(*i))
-                        .unwrap_or(cut);
+                    let cut = (cut..s.len()).find(|i| s.is_char_boundary(*i)).unwrap_or(cut);
                     s.drain(..cut);
                 }
             }
@@ -197,10 +183,7 @@ mod tests {
     fn a_process_that_will_not_exit_is_not_waited_on_forever() {
         // A child that ignores SIGTERM stands in for one stuck in the kernel: poll_exit must
         // return within its bound rather than block.
-        let mut child = Command::new("sh")
-            .args(["-c", "trap '' TERM; sleep 30"])
-            .spawn()
-            .unwrap();
+        let mut child = Command::new("sh").args(["-c", "trap '' TERM; sleep 30"]).spawn().unwrap();
         let t = Instant::now();
         assert!(poll_exit(&mut child, Duration::from_millis(200)).is_none());
         assert!(t.elapsed() < Duration::from_secs(2));

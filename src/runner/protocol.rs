@@ -123,22 +123,10 @@ mod tests {
 
     #[test]
     fn messages_are_one_json_object_with_a_type() {
-        let m = WorkerMsg::Phase {
-            phase: Phase::Pipeline,
-            step: None,
-        };
-        assert_eq!(
-            serde_json::to_string(&m).unwrap(),
-            r#"{"type":"phase","phase":"pipeline"}"#
-        );
+        let m = WorkerMsg::Phase { phase: Phase::Pipeline, step: None };
+        assert_eq!(serde_json::to_string(&m).unwrap(), r#"{"type":"phase","phase":"pipeline"}"#);
         let f: WorkerMsg = serde_json::from_str(r#"{"type":"fatal","message":"x"}"#).unwrap();
-        assert!(matches!(
-            f,
-            WorkerMsg::Fatal {
-                outcome: Outcome::Error,
-                ..
-            }
-        ));
+        assert!(matches!(f, WorkerMsg::Fatal { outcome: Outcome::Error, .. }));
     }
 
     #[test]
@@ -161,18 +149,10 @@ mod tests {
         };
         let mut v = serde_json::to_value(&job).unwrap();
         assert_eq!(
-            serde_json::from_value::<WorkerJob>(v.clone())
-                .unwrap()
-                .binding_stages
-                .as_deref(),
+            serde_json::from_value::<WorkerJob>(v.clone()).unwrap().binding_stages.as_deref(),
             Some("all")
         );
         v.as_object_mut().unwrap().remove("binding_stages");
-        assert_eq!(
-            serde_json::from_value::<WorkerJob>(v)
-                .unwrap()
-                .binding_stages,
-            None
-        );
+        assert_eq!(serde_json::from_value::<WorkerJob>(v).unwrap().binding_stages, None);
     }
 }

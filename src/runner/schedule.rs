@@ -51,9 +51,7 @@ impl<W> Schedule<W> {
 
     /// No cell left and no worker running.
     pub fn finished(&self) -> bool {
-        self.slots
-            .iter()
-            .all(|s| s.worker.is_none() && s.queue.is_empty())
+        self.slots.iter().all(|s| s.worker.is_none() && s.queue.is_empty())
     }
 
     /// Slots with cells left and no worker.
@@ -71,11 +69,7 @@ impl<W> Schedule<W> {
         } else {
             s.queue.iter().copied().collect()
         };
-        let serial = cells
-            .iter()
-            .map(Cell::id)
-            .filter(|id| s.serial.contains(id))
-            .collect();
+        let serial = cells.iter().map(Cell::id).filter(|id| s.serial.contains(id)).collect();
         Job { cells, serial }
     }
 
@@ -188,16 +182,9 @@ mod tests {
         let c = cells(4);
         let mut s: Schedule<()> = Schedule::new(&c, 1, true);
         assert!(s.fruitless(0, 1).is_empty(), "the first failure is retried");
-        assert_eq!(
-            s.fruitless(0, 1),
-            c[..1],
-            "the second gives up on that worker's job only"
-        );
+        assert_eq!(s.fruitless(0, 1), c[..1], "the second gives up on that worker's job only");
         assert_eq!(s.job(0).cells, c[1..2]);
-        assert!(
-            s.fruitless(0, 1).is_empty(),
-            "the count starts again for the next job"
-        );
+        assert!(s.fruitless(0, 1).is_empty(), "the count starts again for the next job");
     }
 
     #[test]

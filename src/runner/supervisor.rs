@@ -109,21 +109,11 @@ impl Supervisor {
         super::groups::install_handlers();
         let (tx, rx) = channel();
         let injections = Injections::new(opts.inject.clone());
-        Supervisor {
-            opts,
-            injections,
-            tx,
-            rx,
-            generation: 0,
-            rerun: false,
-        }
+        Supervisor { opts, injections, tx, rx, generation: 0, rerun: false }
     }
 
     fn limits(&self) -> Limits {
-        Limits {
-            timeout: self.opts.timeout,
-            setup_timeout: self.opts.setup_timeout,
-        }
+        Limits { timeout: self.opts.timeout, setup_timeout: self.opts.setup_timeout }
     }
 
     /// Run `cells`, calling `on` for each attempt as it finishes. `isolated` forces one fresh
@@ -148,10 +138,7 @@ impl Supervisor {
                 .filter_map(|r| r.worker.deadline(&limits))
                 .min()
                 .unwrap_or(now + Duration::from_millis(50));
-            match self
-                .rx
-                .recv_timeout(deadline.saturating_duration_since(now))
-            {
+            match self.rx.recv_timeout(deadline.saturating_duration_since(now)) {
                 Ok((i, id, input)) => {
                     // Worker ids are unique per supervisor; a late line from a worker of an
                     // earlier `run` (more slots, or a slot since reused) matches no worker here.
@@ -211,14 +198,8 @@ impl Supervisor {
             binding_stages: self.opts.binding_stages.clone(),
         };
         std::fs::create_dir_all(&self.opts.job_dir)?;
-        let path = self
-            .opts
-            .job_dir
-            .join(format!("job-{}-{id}.json", std::process::id()));
-        std::fs::write(
-            &path,
-            serde_json::to_vec(&job).map_err(std::io::Error::other)?,
-        )?;
+        let path = self.opts.job_dir.join(format!("job-{}-{id}.json", std::process::id()));
+        std::fs::write(&path, serde_json::to_vec(&job).map_err(std::io::Error::other)?)?;
         let process = Proc::start(&path, slot, id, self.tx.clone())?;
         Ok(Running {
             process,
@@ -285,33 +266,17 @@ impl Supervisor {
         match effect {
             Effect::Log(line) => tracing::debug!("{line}"),
             Effect::Kill => {
-                return Some(Input::Exited(
-                    process.kill(self.opts.grace, self.opts.kill_wait),
-                ))
+                return Some(Input::Exited(process.kill(self.opts.grace, self.opts.kill_wait)))
             }
             Effect::Reap => {
-                return Some(Input::Exited(
-                    process.reap(self.opts.grace, self.opts.kill_wait),
-                ))
+                return Some(Input::Exited(process.reap(self.opts.grace, self.opts.kill_wait)))
             }
-            Effect::Ready {
-                device_ms,
-                reference_ms,
-                pipeline_cache,
-            } => on(Event::WorkerReady {
-                device_ms,
-                reference_ms,
-                pipeline_cache,
-            }),
-            Effect::Prebuilt {
-                wall_ms,
-                pipelines,
-                threads,
-            } => on(Event::Prebuilt {
-                wall_ms,
-                pipelines,
-                threads,
-            }),
+            Effect::Ready { device_ms, reference_ms, pipeline_cache } => {
+                on(Event::WorkerReady { device_ms, reference_ms, pipeline_cache })
+            }
+            Effect::Prebuilt { wall_ms, pipelines, threads } => {
+                on(Event::Prebuilt { wall_ms, pipelines, threads })
+            }
             Effect::CacheSaved(saved) => on(Event::CacheSaved(saved)),
             Effect::Worker(event) => on(Event::Worker(event)),
             Effect::Attempt { cell, attempt } => {

@@ -34,10 +34,7 @@ pub fn requirements(info: &crate::vk::DeviceInfo, cells: &[Cell]) -> Requirement
         descriptor_buffer: any(&|s| s.model == DescriptorModel::DescriptorBuffer),
         descriptor_heap: any(&|s| s.model == DescriptorModel::DescriptorHeap),
         untyped_pointers: any(&|s| s.array == ArrayAt::Heap),
-        device_fault: info
-            .features
-            .fault
-            .is_some_and(|f| f.device_fault == ash::vk::TRUE),
+        device_fault: info.features.fault.is_some_and(|f| f.device_fault == ash::vk::TRUE),
         int64: any(&ProbeSpec::int64),
         fragment_stores: fragment,
         dynamic_rendering: fragment,
@@ -59,10 +56,7 @@ struct Phases {
 
 impl Phases {
     fn enter(&self, phase: Phase, step: Option<(SetupStep, &str)>) -> Result<(), VkError> {
-        send(&WorkerMsg::Phase {
-            phase,
-            step: step.map(|(_, s)| s.to_string()),
-        });
+        send(&WorkerMsg::Phase { phase, step: step.map(|(_, s)| s.to_string()) });
         match &self.hook {
             Some(h) => h.at(phase, step.map(|(s, _)| s)),
             None => Ok(()),
@@ -78,10 +72,7 @@ struct SetupFailure {
 
 impl From<CellError> for SetupFailure {
     fn from(e: CellError) -> Self {
-        SetupFailure {
-            outcome: e.outcome(),
-            message: e.to_string(),
-        }
+        SetupFailure { outcome: e.outcome(), message: e.to_string() }
     }
 }
 
@@ -92,14 +83,9 @@ impl From<VkError> for SetupFailure {
 }
 
 fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
-    phases.enter(
-        Phase::Setup,
-        Some((SetupStep::CreateInstance, "vkCreateInstance")),
-    )?;
-    let inst = Arc::new(Instance::new(&InstanceOptions {
-        validate: job.validate,
-        gpu_av: job.gpu_av,
-    })?);
+    phases.enter(Phase::Setup, Some((SetupStep::CreateInstance, "vkCreateInstance")))?;
+    let inst =
+        Arc::new(Instance::new(&InstanceOptions { validate: job.validate, gpu_av: job.gpu_av })?);
     let all = features::query_all(&inst)?;
     let info = all
         .get(job.device_index)
@@ -113,10 +99,7 @@ fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
     req.int64 |= job.cells.iter().any(|c| {
         crate::model::inject::for_cell(&job.inject, c).is_some_and(|i| i.fault.reads_bad_address())
     });
-    phases.enter(
-        Phase::Setup,
-        Some((SetupStep::CreateDevice, "vkCreateDevice")),
-    )?;
+    phases.enter(Phase::Setup, Some((SetupStep::CreateDevice, "vkCreateDevice")))?;
     let gpu = Gpu::new(inst, info, req)?;
     let opts = ExecOptions {
         timeout: Duration::from_millis(job.fence_timeout_ms),
@@ -128,10 +111,8 @@ fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
         all_stages: job.binding_stages.as_deref() == Some("all"),
     };
     let mut exec = Executor::new(gpu, &job.scene, opts)?;
-    phases.enter(
-        Phase::Setup,
-        Some((SetupStep::Scene, "acceleration structures and resources")),
-    )?;
+    phases
+        .enter(Phase::Setup, Some((SetupStep::Scene, "acceleration structures and resources")))?;
     exec.prepare(&job.cells)?;
     Ok(exec)
 }
@@ -153,24 +134,15 @@ fn prebuild(
     threads: usize,
     phases: &Phases,
 ) {
-    let cells: Vec<Cell> = chunk
-        .iter()
-        .filter(|c| !serial.contains(c.id().as_str()))
-        .copied()
-        .collect();
+    let cells: Vec<Cell> =
+        chunk.iter().filter(|c| !serial.contains(c.id().as_str())).copied().collect();
     if threads <= 1 || cells.len() < 2 {
         return;
     }
-    send(&WorkerMsg::Prebuild {
-        cells: cells.iter().map(Cell::id).collect(),
-        threads,
-    });
+    send(&WorkerMsg::Prebuild { cells: cells.iter().map(Cell::id).collect(), threads });
     let t = Instant::now();
     let progress = |step: Step| {
-        send(&WorkerMsg::Phase {
-            phase: Phase::Prebuild,
-            step: Some(step.to_string()),
-        })
+        send(&WorkerMsg::Phase { phase: Phase::Prebuild, step: Some(step.to_string()) })
     };
     match phases
         .enter(Phase::Prebuild, None)
@@ -197,10 +169,7 @@ pub fn main(job_path: &std::path::Path) -> u8 {
     let hook = match Misbehave::from_env() {
         Ok(h) => h,
         Err(message) => {
-            send(&WorkerMsg::Fatal {
-                message,
-                outcome: Outcome::Error,
-            });
+            send(&WorkerMsg::Fatal { message, outcome: Outcome::Error });
             return 2;
         }
     };

@@ -70,15 +70,11 @@ pub(crate) fn triangles(
     };
     let tri = vk::AccelerationStructureGeometryTrianglesDataKHR::default()
         .vertex_format(vk::Format::R32G32B32_SFLOAT)
-        .vertex_data(vk::DeviceOrHostAddressConstKHR {
-            device_address: vb.address,
-        })
+        .vertex_data(vk::DeviceOrHostAddressConstKHR { device_address: vb.address })
         .vertex_stride(12)
         .max_vertex(positions.len() as u32 - 1)
         .index_type(vk::IndexType::UINT32)
-        .index_data(vk::DeviceOrHostAddressConstKHR {
-            device_address: ib.address,
-        });
+        .index_data(vk::DeviceOrHostAddressConstKHR { device_address: ib.address });
     let geometry = vk::AccelerationStructureGeometryKHR::default()
         .geometry_type(vk::GeometryTypeKHR::TRIANGLES)
         .geometry(vk::AccelerationStructureGeometryDataKHR { triangles: tri })
@@ -125,15 +121,11 @@ fn pending_blas(
         let ib = Buffer::with_data(gpu, bytes_of(&mesh.indices), INPUT_USAGE, "index buffer")?;
         let tri = vk::AccelerationStructureGeometryTrianglesDataKHR::default()
             .vertex_format(vk::Format::R32G32B32_SFLOAT)
-            .vertex_data(vk::DeviceOrHostAddressConstKHR {
-                device_address: vb.address,
-            })
+            .vertex_data(vk::DeviceOrHostAddressConstKHR { device_address: vb.address })
             .vertex_stride(12)
             .max_vertex(mesh.positions.len() as u32 - 1)
             .index_type(vk::IndexType::UINT32)
-            .index_data(vk::DeviceOrHostAddressConstKHR {
-                device_address: ib.address,
-            });
+            .index_data(vk::DeviceOrHostAddressConstKHR { device_address: ib.address });
         let geometry = vk::AccelerationStructureGeometryKHR::default()
             .geometry_type(vk::GeometryTypeKHR::TRIANGLES)
             .geometry(vk::AccelerationStructureGeometryDataKHR { triangles: tri })
@@ -165,9 +157,7 @@ fn pending_blas(
     };
     let ab = Buffer::with_data(gpu, bytes_of(&[aabb]), INPUT_USAGE, "AABB buffer")?;
     let aabbs = vk::AccelerationStructureGeometryAabbsDataKHR::default()
-        .data(vk::DeviceOrHostAddressConstKHR {
-            device_address: ab.address,
-        })
+        .data(vk::DeviceOrHostAddressConstKHR { device_address: ab.address })
         .stride(std::mem::size_of::<vk::AabbPositionsKHR>() as u64);
     blas_pending.push(Pending {
         geometries: vec![vk::AccelerationStructureGeometryKHR::default()
@@ -192,9 +182,7 @@ fn instance_lists(
         Geometry::Sphere => scene.meshes.len(),
     };
     let instance = |i: &Instance, custom: u32| vk::AccelerationStructureInstanceKHR {
-        transform: vk::TransformMatrixKHR {
-            matrix: bytemuck_transform(&i.transform),
-        },
+        transform: vk::TransformMatrixKHR { matrix: bytemuck_transform(&i.transform) },
         instance_custom_index_and_mask: vk::Packed24_8::new(custom, 0xff),
         instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(
             i.sbt_offset(),
@@ -205,11 +193,8 @@ fn instance_lists(
         },
     };
     let n = scene.instances.len() as u32;
-    let mut lists = vec![scene
-        .instances
-        .iter()
-        .map(|i| instance(i, i.custom_index))
-        .collect::<Vec<_>>()];
+    let mut lists =
+        vec![scene.instances.iter().map(|i| instance(i, i.custom_index)).collect::<Vec<_>>()];
     for v in 0..probe::as_variants(n) {
         let mut l: Vec<_> = (0..n)
             .filter(|k| probe::as_variant_has(v, *k))
@@ -232,9 +217,7 @@ fn pending_tlas(
         let ib = Buffer::with_data(gpu, bytes_of(&instances), INPUT_USAGE, "instance buffer")?;
         let data = vk::AccelerationStructureGeometryInstancesDataKHR::default()
             .array_of_pointers(false)
-            .data(vk::DeviceOrHostAddressConstKHR {
-                device_address: ib.address,
-            });
+            .data(vk::DeviceOrHostAddressConstKHR { device_address: ib.address });
         tlas_pending.push(Pending {
             geometries: vec![vk::AccelerationStructureGeometryKHR::default()
                 .geometry_type(vk::GeometryTypeKHR::INSTANCES)
@@ -263,9 +246,8 @@ impl SceneGpu {
         let tlas_pending = pending_tlas(gpu, instance_lists(scene, &blas), &mut inputs)?;
         let (mut tlas, tlas_builds) = Self::prepare_all(gpu, &tlas_pending, &mut all_scratch)?;
 
-        let waited = submitter.run(gpu, timeout, |cmd| {
-            record_builds(gpu, cmd, &[&blas_builds, &tlas_builds])
-        })?;
+        let waited = submitter
+            .run(gpu, timeout, |cmd| record_builds(gpu, cmd, &[&blas_builds, &tlas_builds]))?;
         for s in &all_scratch {
             s.destroy(gpu);
         }
@@ -306,14 +288,8 @@ impl SceneGpu {
     fn prepare<'a>(
         gpu: &Gpu,
         p: &'a Pending,
-    ) -> Result<
-        (
-            AccelStruct,
-            Buffer,
-            vk::AccelerationStructureBuildGeometryInfoKHR<'a>,
-        ),
-        VkError,
-    > {
+    ) -> Result<(AccelStruct, Buffer, vk::AccelerationStructureBuildGeometryInfoKHR<'a>), VkError>
+    {
         let accel = gpu.accel.as_ref().expect("acceleration structures enabled");
         let mut info = vk::AccelerationStructureBuildGeometryInfoKHR::default()
             .ty(p.ty)
@@ -367,27 +343,14 @@ impl SceneGpu {
         let aligned = scratch.address.div_ceil(align) * align;
         info = info
             .dst_acceleration_structure(raw)
-            .scratch_data(vk::DeviceOrHostAddressKHR {
-                device_address: aligned,
-            });
-        Ok((
-            AccelStruct {
-                raw,
-                buffer,
-                address,
-            },
-            scratch,
-            info,
-        ))
+            .scratch_data(vk::DeviceOrHostAddressKHR { device_address: aligned });
+        Ok((AccelStruct { raw, buffer, address }, scratch, info))
     }
 
     pub fn destroy(&self, gpu: &Gpu) {
         let accel = gpu.accel.as_ref().expect("acceleration structures enabled");
-        for a in self
-            .blas
-            .iter()
-            .chain(std::iter::once(&self.scene_tlas))
-            .chain(self.probe_tlas.iter())
+        for a in
+            self.blas.iter().chain(std::iter::once(&self.scene_tlas)).chain(self.probe_tlas.iter())
         {
             unsafe { accel.destroy_acceleration_structure(a.raw, None) };
             a.buffer.destroy(gpu);

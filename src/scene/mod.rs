@@ -86,24 +86,13 @@ pub struct Scene {
 
 /// Split `n` triangles into `parts` contiguous geometries.
 fn split(n: u32, parts: u32) -> Vec<std::ops::Range<u32>> {
-    (0..parts)
-        .map(|g| g * n / parts..(g + 1) * n / parts)
-        .collect()
+    (0..parts).map(|g| g * n / parts..(g + 1) * n / parts).collect()
 }
 
 fn floor_quad() -> Mesh {
-    let positions = vec![
-        [-1.0, -1.0, 0.0],
-        [1.0, -1.0, 0.0],
-        [-1.0, 1.0, 0.0],
-        [1.0, 1.0, 0.0],
-    ];
+    let positions = vec![[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [-1.0, 1.0, 0.0], [1.0, 1.0, 0.0]];
     // Two geometries of one triangle each.
-    Mesh {
-        positions,
-        indices: vec![[0, 1, 2], [1, 3, 2]],
-        geometries: split(2, 2),
-    }
+    Mesh { positions, indices: vec![[0, 1, 2], [1, 3, 2]], geometries: split(2, 2) }
 }
 
 /// Custom indices of `n` instances: low bits (under `probe::instance_mask`) a seeded permutation of
@@ -126,11 +115,8 @@ fn custom_indices(n: u32, seed: u64) -> Vec<u32> {
     perm.iter()
         .enumerate()
         .map(|(k, low)| {
-            let high = if k % 4 == 1 {
-                high_max
-            } else {
-                (rng.next_u64() % (high_max as u64 + 1)) as u32
-            };
+            let high =
+                if k % 4 == 1 { high_max } else { (rng.next_u64() % (high_max as u64 + 1)) as u32 };
             (high << bits) | low
         })
         .collect()
@@ -155,11 +141,7 @@ fn height_field(n: u32, rng: &mut Rng) -> Mesh {
         }
     }
     let geometries = split(indices.len() as u32, GEOMETRIES_PER_MESH);
-    Mesh {
-        positions,
-        indices,
-        geometries,
-    }
+    Mesh { positions, indices, geometries }
 }
 
 impl Scene {
@@ -182,18 +164,11 @@ impl Scene {
                 -VIEW_HALF + spacing * (cy as f32 + 0.5) + rng.range(-0.1, 0.1) * spacing,
                 rng.range(0.0, 2.0),
             );
-            let axis = Vec3::new(
-                rng.range(-1.0, 1.0),
-                rng.range(-1.0, 1.0),
-                rng.range(0.2, 1.0),
-            )
-            .normalize();
+            let axis = Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(0.2, 1.0))
+                .normalize();
             let rot = Quat::from_axis_angle(axis, rng.range(-1.1, 1.1));
-            let geometry = if k % 4 == 3 {
-                Geometry::Sphere
-            } else {
-                Geometry::Mesh((k as usize) % 3)
-            };
+            let geometry =
+                if k % 4 == 3 { Geometry::Sphere } else { Geometry::Mesh((k as usize) % 3) };
             let size = match geometry {
                 Geometry::Sphere => spacing * rng.range(0.7, 1.1),
                 Geometry::Mesh(_) => spacing * rng.range(0.35, 0.55),
@@ -205,11 +180,7 @@ impl Scene {
                 [c[0][1], c[1][1], c[2][1], centre.y],
                 [c[0][2], c[1][2], c[2][2], centre.z],
             ];
-            instances.push(Instance {
-                transform,
-                custom_index: 0,
-                geometry,
-            });
+            instances.push(Instance { transform, custom_index: 0, geometry });
         }
         for (i, c) in instances.iter_mut().zip(custom_indices(n, params.seed)) {
             i.custom_index = c;
@@ -224,12 +195,7 @@ impl Scene {
             geometry: Geometry::Mesh(meshes.len()),
         };
         meshes.push(floor_quad());
-        Scene {
-            params: *params,
-            meshes,
-            instances,
-            floor,
-        }
+        Scene { params: *params, meshes, instances, floor }
     }
 
     /// The primary ray of pixel (x, y): origin and direction, exactly as the shaders compute them.
@@ -280,15 +246,10 @@ mod tests {
         let mask = crate::probe::instance_mask(16);
         let mut ids: Vec<u32> = a.instances.iter().map(|i| i.custom_index).collect();
         assert!(
-            ids.iter()
-                .enumerate()
-                .all(|(k, c)| *c < 1 << 24 && c & mask != k as u32),
+            ids.iter().enumerate().all(|(k, c)| *c < 1 << 24 && c & mask != k as u32),
             "{ids:?}"
         );
-        assert!(
-            ids.iter().filter(|c| **c >= (1 << 24) - 16).count() >= 4,
-            "{ids:?}"
-        );
+        assert!(ids.iter().filter(|c| **c >= (1 << 24) - 16).count() >= 4, "{ids:?}");
         ids.sort();
         ids.dedup();
         assert_eq!(ids.len(), 16);
@@ -296,18 +257,8 @@ mod tests {
 
     #[test]
     fn params_are_checked() {
-        assert!(SceneParams {
-            instances: 4,
-            ..Default::default()
-        }
-        .validate()
-        .is_err());
-        assert!(SceneParams {
-            width: 60,
-            ..Default::default()
-        }
-        .validate()
-        .is_err());
+        assert!(SceneParams { instances: 4, ..Default::default() }.validate().is_err());
+        assert!(SceneParams { width: 60, ..Default::default() }.validate().is_err());
         assert!(SceneParams::default().validate().is_ok());
     }
 }

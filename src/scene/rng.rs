@@ -36,8 +36,6 @@ mod tests {
         };
         assert_eq!(a, b);
         let mut r = super::Rng::new(1);
-        assert!((0..1000)
-            .map(|_| r.range(-1.0, 1.0))
-            .all(|x| (-1.0..1.0).contains(&x)));
+        assert!((0..1000).map(|_| r.range(-1.0, 1.0)).all(|x| (-1.0..1.0).contains(&x)));
     }
 }

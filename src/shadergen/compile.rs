@@ -92,10 +92,8 @@ impl Compiler {
             },
             progress,
         );
-        for (&(key, _, _), (words, ms)) in todo
-            .iter()
-            .zip(compiled)
-            .filter_map(|(t, c)| Some(t).zip(c.flatten()))
+        for (&(key, _, _), (words, ms)) in
+            todo.iter().zip(compiled).filter_map(|(t, c)| Some(t).zip(c.flatten()))
         {
             self.cache.insert(key, Arc::new(words));
             self.precompiled_ms.insert(key, ms);
@@ -141,10 +139,8 @@ impl Compiler {
         glsl: &str,
         o: &GlslOptions,
     ) -> Result<Vec<u32>, CompileError> {
-        let includes = o
-            .input
-            .as_ref()
-            .map(|input| Includes::new(input, file, glsl, &o.include_dirs));
+        let includes =
+            o.input.as_ref().map(|input| Includes::new(input, file, glsl, &o.include_dirs));
         let mut opts = shaderc::CompileOptions::new().map_err(|_| CompileError::Init)?;
         let (env, spirv) = o.target.versions();
         opts.set_target_env(shaderc::TargetEnv::Vulkan, env as u32);
@@ -157,19 +153,14 @@ impl Compiler {
                 inc.resolve(req, ty, from, depth)
             });
         }
-        let out = self
-            .inner
-            .compile_into_spirv(glsl, kind, file, "main", Some(&opts))
-            .map_err(|e| {
+        let out =
+            self.inner.compile_into_spirv(glsl, kind, file, "main", Some(&opts)).map_err(|e| {
                 let message = e.to_string();
                 let message = match &includes {
                     Some(inc) => inc.annotate(&message),
                     None => message.replace('\n', " | "),
                 };
-                CompileError::Glsl {
-                    file: file.to_string(),
-                    message,
-                }
+                CompileError::Glsl { file: file.to_string(), message }
             })?;
         Ok(out.as_binary().to_vec())
     }
@@ -216,27 +207,16 @@ mod tests {
     #[test]
     fn the_shaderc_named_is_the_one_cargo_locked() {
         let lock = include_str!("../../Cargo.lock");
-        let at = lock
-            .find("name = \"shaderc\"\nversion = \"")
-            .expect("shaderc in Cargo.lock");
-        let version = lock[at..]
-            .lines()
-            .nth(1)
-            .unwrap()
-            .trim_start_matches("version = ")
-            .trim_matches('"');
-        assert!(
-            SHADERC.contains(&format!(" {version} ")),
-            "{SHADERC} vs Cargo.lock {version}"
-        );
+        let at = lock.find("name = \"shaderc\"\nversion = \"").expect("shaderc in Cargo.lock");
+        let version =
+            lock[at..].lines().nth(1).unwrap().trim_start_matches("version = ").trim_matches('"');
+        assert!(SHADERC.contains(&format!(" {version} ")), "{SHADERC} vs Cargo.lock {version}");
     }
 
     #[test]
     fn heap_sources_name_glslang() {
         assert_eq!(compiler_for("#version 460\nvoid main() {}\n"), SHADERC);
-        assert!(
-            compiler_for("#version 460\n#extension GL_EXT_descriptor_heap : require\n")
-                .starts_with("glslangValidator")
-        );
+        assert!(compiler_for("#version 460\n#extension GL_EXT_descriptor_heap : require\n")
+            .starts_with("glslangValidator"));
     }
 }

@@ -36,11 +36,7 @@ pub fn find() -> Option<&'static Glslang> {
             let path = PathBuf::from(
                 std::env::var_os("RTPROBE_GLSLANG").unwrap_or_else(|| "glslangValidator".into()),
             );
-            let out = Command::new(&path)
-                .arg("--version")
-                .stdin(Stdio::null())
-                .output()
-                .ok()?;
+            let out = Command::new(&path).arg("--version").stdin(Stdio::null()).output().ok()?;
             let text = String::from_utf8_lossy(&out.stdout);
             let v = parse_version(&text)?;
             let version = text
@@ -80,20 +76,16 @@ fn stage(role: Role) -> &'static str {
 /// Compile `glsl` with the external glslangValidator (uncached; [`super::compile::Compiler`] caches).
 pub fn compile(role: Role, glsl: &str) -> Result<Vec<u32>, CompileError> {
     let file = role.file_name().to_string();
-    let g = find().ok_or_else(|| CompileError::Glsl {
-        file: file.clone(),
-        message: missing_reason(),
-    })?;
+    let g = find()
+        .ok_or_else(|| CompileError::Glsl { file: file.clone(), message: missing_reason() })?;
     let dir = TempDir::new().map_err(|e| CompileError::Glsl {
         file: file.clone(),
         message: format!("temporary folder: {e}"),
     })?;
     let src = dir.0.join(&file);
     let spv = dir.0.join("out.spv");
-    std::fs::write(&src, glsl).map_err(|e| CompileError::Glsl {
-        file: file.clone(),
-        message: e.to_string(),
-    })?;
+    std::fs::write(&src, glsl)
+        .map_err(|e| CompileError::Glsl { file: file.clone(), message: e.to_string() })?;
     let out = Command::new(&g.path)
         .args(["-V", "--target-env", "vulkan1.3", "-S", stage(role), "-o"])
         .arg(&spv)
@@ -112,20 +104,15 @@ pub fn compile(role: Role, glsl: &str) -> Result<Vec<u32>, CompileError> {
             message: format!("glslang {}: {}", g.version, msg.trim().replace('\n', " | ")),
         });
     }
-    let bytes = std::fs::read(&spv).map_err(|e| CompileError::Glsl {
-        file: file.clone(),
-        message: e.to_string(),
-    })?;
+    let bytes = std::fs::read(&spv)
+        .map_err(|e| CompileError::Glsl { file: file.clone(), message: e.to_string() })?;
     if bytes.len() % 4 != 0 || bytes.is_empty() {
         return Err(CompileError::Glsl {
             file,
             message: "glslangValidator wrote no SPIR-V".into(),
         });
     }
-    Ok(bytes
-        .chunks_exact(4)
-        .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
-        .collect())
+    Ok(bytes.chunks_exact(4).map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]])).collect())
 }
 
 /// A private folder under the system temp dir, removed on drop.
@@ -153,10 +140,7 @@ mod tests {
 
     #[test]
     fn versions_parse_and_old_glslang_is_refused() {
-        assert_eq!(
-            parse_version("Glslang Version: 11:16.6.0\nESSL Version: ..."),
-            Some((16, 6))
-        );
+        assert_eq!(parse_version("Glslang Version: 11:16.6.0\nESSL Version: ..."), Some((16, 6)));
         assert_eq!(parse_version("Glslang Version: 11:12.0.0"), Some((12, 0)));
         assert!(parse_version("Glslang Version: 11:12.0.0").unwrap() < MIN_VERSION);
         assert_eq!(parse_version("garbage"), None);

@@ -41,11 +41,7 @@ impl Includes {
         let mut search = vec![own];
         search.extend(dirs.iter().cloned());
         let sources = HashMap::from([(root_name.to_string(), root_source.to_string())]);
-        Self {
-            search,
-            origins: RefCell::new(HashMap::new()),
-            sources: RefCell::new(sources),
-        }
+        Self { search, origins: RefCell::new(HashMap::new()), sources: RefCell::new(sources) }
     }
 
     /// The include callback: resolve `requested` from `requester`, `depth` includes deep.
@@ -72,26 +68,15 @@ impl Includes {
         let found = candidates.iter().find(|p| p.is_file());
         let Some(path) = found else {
             let dirs: Vec<String> = self.search.iter().map(|d| display(d)).collect();
-            return Err(format!(
-                "cannot find {requested:?} (searched {})",
-                dirs.join(", ")
-            ));
+            return Err(format!("cannot find {requested:?} (searched {})", dirs.join(", ")));
         };
         let name = display(path);
         let content =
             std::fs::read_to_string(path).map_err(|e| format!("cannot read {name}: {e}"))?;
         let line = self.include_line(requester, requested);
-        self.origins
-            .borrow_mut()
-            .entry(name.clone())
-            .or_insert((requester.to_string(), line));
-        self.sources
-            .borrow_mut()
-            .insert(name.clone(), content.clone());
-        Ok(shaderc::ResolvedInclude {
-            resolved_name: name,
-            content,
-        })
+        self.origins.borrow_mut().entry(name.clone()).or_insert((requester.to_string(), line));
+        self.sources.borrow_mut().insert(name.clone(), content.clone());
+        Ok(shaderc::ResolvedInclude { resolved_name: name, content })
     }
 
     /// The 1-based line of `requester` that includes `requested` (0 when not found).
@@ -120,11 +105,7 @@ impl Includes {
             if parts.len() > 64 {
                 break; // a cycle; glslang stops it by depth, we only describe it
             }
-            parts.push(if *line > 0 {
-                format!("{from}:{line}")
-            } else {
-                from.clone()
-            });
+            parts.push(if *line > 0 { format!("{from}:{line}") } else { from.clone() });
             cur = from.clone();
         }
         if parts.is_empty() {
@@ -161,11 +142,7 @@ mod tests {
             "#version 460\n#extension GL_GOOGLE_include_directive : require\n#include \"a.glsl\"\n",
         )
         .unwrap();
-        std::fs::write(
-            d.path().join("inc/a.glsl"),
-            "// a\n#include \"sub/b.glsl\"\n",
-        )
-        .unwrap();
+        std::fs::write(d.path().join("inc/a.glsl"), "// a\n#include \"sub/b.glsl\"\n").unwrap();
         std::fs::write(d.path().join("inc/sub/b.glsl"), "// b\n").unwrap();
         d
     }
@@ -181,37 +158,19 @@ mod tests {
             &std::fs::read_to_string(&main).unwrap(),
             &[d.path().join("inc")],
         );
-        let a = inc
-            .resolve("a.glsl", shaderc::IncludeType::Relative, &root, 1)
-            .unwrap();
-        assert!(
-            a.resolved_name.ends_with("inc/a.glsl"),
-            "{}",
-            a.resolved_name
-        );
-        let b = inc
-            .resolve(
-                "sub/b.glsl",
-                shaderc::IncludeType::Relative,
-                &a.resolved_name,
-                2,
-            )
-            .unwrap();
+        let a = inc.resolve("a.glsl", shaderc::IncludeType::Relative, &root, 1).unwrap();
+        assert!(a.resolved_name.ends_with("inc/a.glsl"), "{}", a.resolved_name);
+        let b =
+            inc.resolve("sub/b.glsl", shaderc::IncludeType::Relative, &a.resolved_name, 2).unwrap();
         assert!(b.resolved_name.ends_with("inc/sub/b.glsl"));
         let chain = inc.chain_of(&b.resolved_name);
-        assert!(
-            chain.contains(&format!("a.glsl:2, from {root}:3")),
-            "{chain}"
-        );
+        assert!(chain.contains(&format!("a.glsl:2, from {root}:3")), "{chain}");
         let msg = inc.annotate(&format!(
             "{}:1: error: 'x' : undeclared\n1 error generated.\n",
             b.resolved_name
         ));
         assert!(!msg.contains('\n'));
-        assert!(
-            msg.contains("sub/b.glsl:1: error: 'x' : undeclared (included from"),
-            "{msg}"
-        );
+        assert!(msg.contains("sub/b.glsl:1: error: 'x' : undeclared (included from"), "{msg}");
     }
 
     #[test]
@@ -220,21 +179,12 @@ mod tests {
         let main = d.path().join("main.rgen");
         let root = display(&main);
         let inc = Includes::new(&main, &root, "", &[]);
-        let e = inc
-            .resolve("nope.glsl", shaderc::IncludeType::Standard, &root, 1)
-            .unwrap_err();
+        let e = inc.resolve("nope.glsl", shaderc::IncludeType::Standard, &root, 1).unwrap_err();
         assert!(e.contains("cannot find \"nope.glsl\""), "{e}");
         // Without -I the input's own directory is the only place searched; a.glsl lives in inc/.
-        assert!(inc
-            .resolve("a.glsl", shaderc::IncludeType::Relative, &root, 1)
-            .is_err());
+        assert!(inc.resolve("a.glsl", shaderc::IncludeType::Relative, &root, 1).is_err());
         let e = Includes::new(&main, &root, "", &[d.path().join("inc")])
-            .resolve(
-                "a.glsl",
-                shaderc::IncludeType::Relative,
-                &root,
-                MAX_DEPTH + 1,
-            )
+            .resolve("a.glsl", shaderc::IncludeType::Relative, &root, MAX_DEPTH + 1)
             .unwrap_err();
         assert!(e.contains("include cycle"), "{e}");
     }

@@ -114,14 +114,8 @@ records[i] = probeRecord(probeSlot, probeElement, probeValue);\n    color = vec4
             CellShaders {
                 kind: PipelineKind::Graphics,
                 shaders: vec![
-                    ShaderSource {
-                        role: Role::Vertex,
-                        glsl: vert,
-                    },
-                    ShaderSource {
-                        role: Role::Fragment,
-                        glsl: frag,
-                    },
+                    ShaderSource { role: Role::Vertex, glsl: vert },
+                    ShaderSource { role: Role::Fragment, glsl: frag },
                 ],
                 recursion_depth: 0,
                 uses_probe_binding: probe.uses_binding,
@@ -138,10 +132,7 @@ records[i] = probeRecord(probeSlot, probeElement, probeValue);\n}}\n",
             );
             CellShaders {
                 kind: PipelineKind::Compute,
-                shaders: vec![ShaderSource {
-                    role: Role::Compute,
-                    glsl: comp,
-                }],
+                shaders: vec![ShaderSource { role: Role::Compute, glsl: comp }],
                 recursion_depth: 0,
                 uses_probe_binding: probe.uses_binding,
                 uses_scene_tlas: false,
@@ -199,30 +190,15 @@ fn ray_tracing<'a>(
     here: impl Fn(Stage) -> Option<&'a ProbeCode>,
 ) -> CellShaders {
     let mut shaders = vec![
-        ShaderSource {
-            role: Role::Raygen,
-            glsl: raygen(spec, probe, here(Stage::Raygen)),
-        },
-        ShaderSource {
-            role: Role::Miss,
-            glsl: miss(probe, here(Stage::Miss)),
-        },
+        ShaderSource { role: Role::Raygen, glsl: raygen(spec, probe, here(Stage::Raygen)) },
+        ShaderSource { role: Role::Miss, glsl: miss(probe, here(Stage::Miss)) },
     ];
     // miss 1: the AS probe ray's miss (its payload stays an empty record)
     let pmiss = format!("{}layout(location = 1) rayPayloadInEXT Record probePl;\nvoid main() {{\n    probePl.flags = 0u;\n}}\n", header(true, None, &[]));
-    shaders.push(ShaderSource {
-        role: Role::ProbeMiss,
-        glsl: pmiss,
-    });
+    shaders.push(ShaderSource { role: Role::ProbeMiss, glsl: pmiss });
     let (tri, proc_) = closest_hits(spec, probe, here(Stage::ClosestHit));
-    shaders.push(ShaderSource {
-        role: Role::ClosestHitTriangles,
-        glsl: tri,
-    });
-    shaders.push(ShaderSource {
-        role: Role::ClosestHitProcedural,
-        glsl: proc_,
-    });
+    shaders.push(ShaderSource { role: Role::ClosestHitTriangles, glsl: tri });
+    shaders.push(ShaderSource { role: Role::ClosestHitProcedural, glsl: proc_ });
     shaders.push(ShaderSource {
         role: Role::Intersection,
         glsl: intersection(probe, here(Stage::Intersection)),
@@ -233,10 +209,7 @@ fn ray_tracing<'a>(
         ahit += &probe.body;
         ahit += STORE;
         ahit += "}\n";
-        shaders.push(ShaderSource {
-            role: Role::AnyHit,
-            glsl: ahit,
-        });
+        shaders.push(ShaderSource { role: Role::AnyHit, glsl: ahit });
     }
     if spec.stage == Stage::Callable {
         let mut call = header(true, Some(probe), &[]);
@@ -244,10 +217,7 @@ fn ray_tracing<'a>(
         call += "layout(location = 2) callableDataInEXT CallData cd;\nvoid main() {\n    uvec2 px = gl_LaunchIDEXT.xy;\n";
         call += &probe.body;
         call += "    cd.slot = probeSlot;\n    cd.element = probeElement;\n    cd.value = probeValue;\n}\n";
-        shaders.push(ShaderSource {
-            role: Role::Callable,
-            glsl: call,
-        });
+        shaders.push(ShaderSource { role: Role::Callable, glsl: call });
     }
     let traces_from_hit_or_miss =
         probe.traces && matches!(spec.stage, Stage::ClosestHit | Stage::Miss);
@@ -264,11 +234,8 @@ fn ray_tracing<'a>(
 /// The raygen shader: the primary trace, then the probe when it runs here (`here`), or the
 /// callable's, into the record of its pixel.
 fn raygen(spec: &ProbeSpec, probe: &ProbeCode, here: Option<&ProbeCode>) -> String {
-    let reorder_ext: &[&str] = if spec.reorder.is_some() {
-        &["GL_NV_shader_invocation_reorder"]
-    } else {
-        &[]
-    };
+    let reorder_ext: &[&str] =
+        if spec.reorder.is_some() { &["GL_NV_shader_invocation_reorder"] } else { &[] };
     let mut rgen = header(true, here, reorder_ext);
     rgen += "layout(set = 0, binding = 1) uniform accelerationStructureEXT sceneTlas;\nlayout(location = 0) rayPayloadEXT Record pl;\n";
     if spec.stage == Stage::Callable {
@@ -366,10 +333,9 @@ fn canary(c: Canary) -> CellShaders {
     let carrier = ProbeSpec::of(&Cell::canary(c));
     let mut shaders = ray_tracing(&carrier, &ProbeCode::none(), |_| None).shaders;
     let exts: &[&str] = match c {
-        Canary::InvalidAddress => &[
-            "GL_EXT_buffer_reference",
-            "GL_EXT_shader_explicit_arithmetic_types_int64",
-        ],
+        Canary::InvalidAddress => {
+            &["GL_EXT_buffer_reference", "GL_EXT_shader_explicit_arithmetic_types_int64"]
+        }
         Canary::InfiniteLoop => &[],
     };
     let mut rgen = header(true, None, exts);
@@ -384,10 +350,7 @@ fn canary(c: Canary) -> CellShaders {
         }
     };
     rgen += &format!("void main() {{\n    uvec2 px = gl_LaunchIDEXT.xy;\n    uint i = px.x + px.y * pc.width;\n{body}}}\n");
-    shaders[0] = ShaderSource {
-        role: Role::Raygen,
-        glsl: rgen,
-    };
+    shaders[0] = ShaderSource { role: Role::Raygen, glsl: rgen };
     CellShaders {
         kind: PipelineKind::RayTracing,
         shaders,
@@ -457,15 +420,8 @@ mod tests {
         use crate::model::BaseSource;
         let mut c = compile::Compiler::new().unwrap();
         for resource in [Resource::StorageBuffer, Resource::SampledImage] {
-            for base in [
-                None,
-                Some(BaseSource::ShaderRecord),
-                Some(BaseSource::Buffer),
-            ] {
-                let cell = Cell {
-                    base,
-                    ..reorder_cell(None, resource)
-                };
+            for base in [None, Some(BaseSource::ShaderRecord), Some(BaseSource::Buffer)] {
+                let cell = Cell { base, ..reorder_cell(None, resource) };
                 let shaders = generate(&cell);
                 let chit = &shaders.get(Role::ClosestHitTriangles).unwrap().glsl;
                 let want = match base {
@@ -497,39 +453,21 @@ mod tests {
     #[test]
     fn patched_cells_generate_the_glsl_they_patch() {
         use crate::model::Workaround;
-        let glsl = |c: &Cell| {
-            generate(c)
-                .shaders
-                .into_iter()
-                .map(|s| s.glsl)
-                .collect::<Vec<_>>()
-        };
-        let d = Cell {
-            nonuniform: false,
-            ..reorder_cell(None, Resource::AccelerationStructure)
-        };
+        let glsl = |c: &Cell| generate(c).shaders.into_iter().map(|s| s.glsl).collect::<Vec<_>>();
+        let d = Cell { nonuniform: false, ..reorder_cell(None, Resource::AccelerationStructure) };
         let patched = Cell {
             as_access: Some(AsAccess::AddressPatched),
             patch: Some(Workaround::PinIndex),
             ..d
         };
         assert_eq!(glsl(&patched), glsl(&d));
-        let written = glsl(&Cell {
-            as_access: Some(AsAccess::Address),
-            ..d
-        });
+        let written = glsl(&Cell { as_access: Some(AsAccess::Address), ..d });
         assert_ne!(written, glsl(&d));
         assert!(written
             .iter()
             .any(|g| g.contains("accelerationStructureEXT(AsTable(packUint2x32(pc.asTable)).a[")));
         let ssbo = reorder_cell(None, Resource::StorageBuffer);
-        assert_eq!(
-            glsl(&Cell {
-                patch: Some(Workaround::SsboToAddress),
-                ..ssbo
-            }),
-            glsl(&ssbo)
-        );
+        assert_eq!(glsl(&Cell { patch: Some(Workaround::SsboToAddress), ..ssbo }), glsl(&ssbo));
     }
 
     /// Lavapipe has no SER, so these shaders never reach a driver in the test suite: they are
@@ -565,18 +503,9 @@ mod tests {
                 // Every shader but the raygen is the plain cell's.
                 let plain = generate(&reorder_cell(None, resource));
                 for s in plain.shaders.iter().filter(|s| s.role != Role::Raygen) {
-                    assert_eq!(
-                        shaders.get(s.role).map(|x| &x.glsl),
-                        Some(&s.glsl),
-                        "{:?}",
-                        s.role
-                    );
+                    assert_eq!(shaders.get(s.role).map(|x| &x.glsl), Some(&s.glsl), "{:?}", s.role);
                 }
-                assert!(plain
-                    .get(Role::Raygen)
-                    .unwrap()
-                    .glsl
-                    .contains("traceRayEXT(sceneTlas"));
+                assert!(plain.get(Role::Raygen).unwrap().glsl.contains("traceRayEXT(sceneTlas"));
             }
         }
     }

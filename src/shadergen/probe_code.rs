@@ -64,10 +64,9 @@ fn base_expr(base: Base) -> &'static str {
 /// The stage's runtime slot value (`probe::dynamic_slot`).
 fn dynamic_expr(spec: &ProbeSpec) -> String {
     match spec.stage {
-        Stage::ClosestHit | Stage::AnyHit | Stage::Intersection => format!(
-            "({} + (uint(gl_InstanceCustomIndexEXT) & pc.dynMask))",
-            base_expr(spec.base)
-        ),
+        Stage::ClosestHit | Stage::AnyHit | Stage::Intersection => {
+            format!("({} + (uint(gl_InstanceCustomIndexEXT) & pc.dynMask))", base_expr(spec.base))
+        }
         Stage::Raygen | Stage::Miss | Stage::Callable => {
             "((gl_LaunchIDEXT.x + gl_LaunchIDEXT.y * pc.width) % pc.slotCount)".into()
         }

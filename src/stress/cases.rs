@@ -58,12 +58,7 @@ fn next_up(x: f32) -> f32 {
 
 /// The ray along `d` through `p`, starting `back` direction lengths before it.
 fn ray_through(p: DVec3, d: [f32; 3], back: f64) -> Ray {
-    Ray {
-        origin: f32v(p - dv(d) * back),
-        tmin: 0.0,
-        dir: d,
-        tmax: FAR_TMAX,
-    }
+    Ray { origin: f32v(p - dv(d) * back), tmin: 0.0, dir: d, tmax: FAR_TMAX }
 }
 
 fn push(part: &mut Part, ray: Ray, must_hit: bool) {
@@ -72,14 +67,7 @@ fn push(part: &mut Part, ray: Ray, must_hit: bool) {
 }
 
 fn new_part(label: String, scene: Scene) -> Part {
-    Part {
-        label,
-        distance: None,
-        scene,
-        rays: Vec::new(),
-        info: Vec::new(),
-        ray_flags: 0,
-    }
+    Part { label, distance: None, scene, rays: Vec::new(), info: Vec::new(), ray_flags: 0 }
 }
 
 /// Rays at `p` along each direction, and the ulp-nudged copies of each.
@@ -90,18 +78,12 @@ fn edge_rays(part: &mut Part, p: DVec3, must_hit: bool) {
         for k in NUDGES {
             push(
                 part,
-                Ray {
-                    origin: [nudge(r.origin[0], k), r.origin[1], r.origin[2]],
-                    ..r
-                },
+                Ray { origin: [nudge(r.origin[0], k), r.origin[1], r.origin[2]], ..r },
                 must_hit,
             );
             push(
                 part,
-                Ray {
-                    origin: [r.origin[0], nudge(r.origin[1], k), r.origin[2]],
-                    ..r
-                },
+                Ray { origin: [r.origin[0], nudge(r.origin[1], k), r.origin[2]], ..r },
                 must_hit,
             );
         }
@@ -125,11 +107,8 @@ pub fn split_square(rng: &mut Rng, triangles: usize, jitter: f32) -> Mesh {
         let w1 = rng.range(0.05, 0.9);
         let w2 = rng.range(0.05, 0.95 - w1);
         let (w1, w2) = (w1 as f64, w2 as f64);
-        let (pa, pb, pc) = (
-            dv(positions[a as usize]),
-            dv(positions[b as usize]),
-            dv(positions[c as usize]),
-        );
+        let (pa, pb, pc) =
+            (dv(positions[a as usize]), dv(positions[b as usize]), dv(positions[c as usize]));
         let p = pa * (1.0 - w1 - w2) + pb * w1 + pc * w2;
         let i = positions.len() as u32;
         positions.push([p.x as f32, p.y as f32, rng.range(-jitter, jitter)]);
@@ -138,11 +117,7 @@ pub fn split_square(rng: &mut Rng, triangles: usize, jitter: f32) -> Mesh {
         indices.push([c, a, i]);
     }
     let inactive = vec![false; indices.len()];
-    Mesh {
-        positions,
-        indices,
-        inactive,
-    }
+    Mesh { positions, indices, inactive }
 }
 
 /// A closed fan: centre vertex 0 and `n` ring vertices on the unit circle, z jittered.
@@ -152,14 +127,8 @@ pub fn closed_fan(rng: &mut Rng, n: u32, jitter: f32) -> Mesh {
         let a = std::f64::consts::TAU * i as f64 / n as f64;
         positions.push([a.cos() as f32, a.sin() as f32, rng.range(-jitter, jitter)]);
     }
-    let indices = (0..n)
-        .map(|i| [0, 1 + i, 1 + (i + 1) % n])
-        .collect::<Vec<_>>();
-    Mesh {
-        positions,
-        inactive: vec![false; indices.len()],
-        indices,
-    }
+    let indices = (0..n).map(|i| [0, 1 + i, 1 + (i + 1) % n]).collect::<Vec<_>>();
+    Mesh { positions, inactive: vec![false; indices.len()], indices }
 }
 
 /// Interior edges (shared by two triangles) of a mesh, as vertex pairs.
@@ -171,11 +140,8 @@ fn shared_edges(mesh: &Mesh) -> Vec<(u32, u32)> {
         .map(|(a, b)| (a.min(b), a.max(b)))
         .collect();
     edges.sort_unstable();
-    let mut shared: Vec<(u32, u32)> = edges
-        .windows(2)
-        .filter(|w| w[0] == w[1])
-        .map(|w| w[0])
-        .collect();
+    let mut shared: Vec<(u32, u32)> =
+        edges.windows(2).filter(|w| w[0] == w[1]).map(|w| w[0]).collect();
     shared.dedup();
     shared
 }
@@ -195,11 +161,7 @@ fn watertight(rng: &mut Rng, full: bool) -> Vec<Part> {
         let mut part = new_part(format!("square-{}", mesh.indices.len()), one_mesh(mesh));
         // CI: every edge and vertex of the small square, a sample of the large one.
         let stride = if full { 1 } else { (mids.len() / 400).max(1) };
-        for p in mids
-            .iter()
-            .step_by(stride)
-            .chain(verts.iter().step_by(stride))
-        {
+        for p in mids.iter().step_by(stride).chain(verts.iter().step_by(stride)) {
             edge_rays(&mut part, *p, interior(*p));
         }
         let g = if full { 256 } else { 32 };
@@ -219,9 +181,8 @@ fn watertight(rng: &mut Rng, full: bool) -> Vec<Part> {
     for &n in fans {
         let mesh = closed_fan(rng, n, 0.01);
         let centre = dv(mesh.positions[0]);
-        let spokes: Vec<DVec3> = (1..=n as usize)
-            .map(|i| (centre + dv(mesh.positions[i])) * 0.5)
-            .collect();
+        let spokes: Vec<DVec3> =
+            (1..=n as usize).map(|i| (centre + dv(mesh.positions[i])) * 0.5).collect();
         let mut part = new_part(format!("fan-{n}"), one_mesh(mesh));
         edge_rays(&mut part, centre, true);
         for p in spokes {
@@ -259,11 +220,7 @@ fn grid(rng: &mut Rng, n: u32) -> Mesh {
             indices.push([a + 1, a + row + 1, a + row]);
         }
     }
-    Mesh {
-        positions,
-        inactive: vec![false; indices.len()],
-        indices,
-    }
+    Mesh { positions, inactive: vec![false; indices.len()], indices }
 }
 
 fn far(rng: &mut Rng, full: bool) -> Vec<Part> {
@@ -271,11 +228,7 @@ fn far(rng: &mut Rng, full: bool) -> Vec<Part> {
     let count = if full { 4096 } else { 512 };
     let targets: Vec<(DVec3, [f32; 3])> = (0..count)
         .map(|_| {
-            let p = DVec3::new(
-                rng.range(0.25, 7.75) as f64,
-                rng.range(0.25, 7.75) as f64,
-                0.0,
-            );
+            let p = DVec3::new(rng.range(0.25, 7.75) as f64, rng.range(0.25, 7.75) as f64, 0.0);
             (p, [rng.range(-0.5, 0.5), rng.range(-0.5, 0.5), 1.0])
         })
         .collect();
@@ -335,11 +288,7 @@ fn grazing(rng: &mut Rng, full: bool) -> Vec<Part> {
         .map(|&s| {
             let mut part = new_part(format!("slope-{s:e}"), one_mesh(tri.clone()));
             for _ in 0..count {
-                let p = DVec3::new(
-                    rng.range(5.0, 45.0) as f64,
-                    rng.range(5.0, 45.0) as f64,
-                    0.0,
-                );
+                let p = DVec3::new(rng.range(5.0, 45.0) as f64, rng.range(5.0, 45.0) as f64, 0.0);
                 let dir = [1.0, rng.range(-0.5, 0.5), (-s) as f32];
                 push(&mut part, ray_through(p, dir, 10.0), false);
             }
@@ -390,14 +339,7 @@ fn degenerate(rng: &mut Rng) -> Vec<Part> {
         [15, 17, 18],
     ];
     let inactive = vec![true, true, true, true, false, false, false];
-    let mut part = new_part(
-        "mixed".into(),
-        one_mesh(Mesh {
-            positions,
-            indices,
-            inactive,
-        }),
-    );
+    let mut part = new_part("mixed".into(), one_mesh(Mesh { positions, indices, inactive }));
     // At the degenerate ones (their vertices, edges and would-be interiors): the huge triangle
     // behind must be the hit, never the degenerate primitive.
     let spots = [
@@ -428,20 +370,12 @@ fn degenerate(rng: &mut Rng) -> Vec<Part> {
         (-0.1, 0.5),
     ] {
         for d in DIRS {
-            push(
-                &mut part,
-                ray_through(DVec3::new(10.0 + a * t, b * t, 0.0), d, 1.0),
-                false,
-            );
+            push(&mut part, ray_through(DVec3::new(10.0 + a * t, b * t, 0.0), d, 1.0), false);
         }
     }
     // The huge triangles' interior, far from the origin: precision of a 1e6 triangle.
     for _ in 0..256 {
-        let p = DVec3::new(
-            rng.range(-5e5, 5e5) as f64,
-            rng.range(-5e5, 5e5) as f64,
-            5.0,
-        );
+        let p = DVec3::new(rng.range(-5e5, 5e5) as f64, rng.range(-5e5, 5e5) as f64, 5.0);
         push(&mut part, ray_through(p, DIRS[1], 2.0), false);
     }
     vec![part]
@@ -454,12 +388,7 @@ pub const TMIN_OFFSETS: [i32; 9] = [-1024, -64, -4, -1, 0, 1, 4, 64, 1024];
 
 fn tmin() -> Vec<Part> {
     let quad = Mesh {
-        positions: vec![
-            [-1.0, -1.0, 0.0],
-            [1.0, -1.0, 0.0],
-            [1.0, 1.0, 0.0],
-            [-1.0, 1.0, 0.0],
-        ],
+        positions: vec![[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]],
         indices: vec![[0, 1, 2], [0, 2, 3]],
         inactive: vec![false, false],
     };
@@ -473,21 +402,8 @@ fn tmin() -> Vec<Part> {
                         // The plane z = 0 is reached at exactly t = z0 (d.z = 1).
                         let origin = [x - d[0] * z0, y - d[1] * z0, -z0];
                         let at = nudge(z0, k);
-                        let (tmin, tmax) = if bound == "tmin" {
-                            (at, FAR_TMAX)
-                        } else {
-                            (0.0, at)
-                        };
-                        push(
-                            &mut part,
-                            Ray {
-                                origin,
-                                tmin,
-                                dir: d,
-                                tmax,
-                            },
-                            false,
-                        );
+                        let (tmin, tmax) = if bound == "tmin" { (at, FAR_TMAX) } else { (0.0, at) };
+                        push(&mut part, Ray { origin, tmin, dir: d, tmax }, false);
                     }
                 }
             }
@@ -536,11 +452,7 @@ mod tests {
 
     #[test]
     fn every_case_builds_its_parts_but_self() {
-        let opts = StressOptions {
-            cases: vec![],
-            seed: 1,
-            full: false,
-        };
+        let opts = StressOptions { cases: vec![], seed: 1, full: false };
         for k in CaseKind::ALL {
             let parts = build(k, &opts);
             match k {

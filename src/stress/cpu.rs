@@ -29,11 +29,7 @@ pub fn sloppy_f32(o: [f32; 3], d: [f32; 3], v: [[f32; 3]; 3]) -> Option<(f32, f3
     const EPS: f32 = 1e-5;
     let sub = |a: [f32; 3], b: [f32; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
     let cross = |a: [f32; 3], b: [f32; 3]| {
-        [
-            a[1] * b[2] - a[2] * b[1],
-            a[2] * b[0] - a[0] * b[2],
-            a[0] * b[1] - a[1] * b[0],
-        ]
+        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
     };
     let dot = |a: [f32; 3], b: [f32; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
     let (e1, e2) = (sub(v[1], v[0]), sub(v[2], v[0]));
@@ -110,20 +106,13 @@ mod tests {
     use crate::stress::{run, CaseKind, StressOptions};
 
     fn case(tracer: &mut CpuTracer, kind: CaseKind) -> crate::stress::evaluate::CaseResult {
-        let opts = StressOptions {
-            cases: vec![kind],
-            seed: 1,
-            full: false,
-        };
+        let opts = StressOptions { cases: vec![kind], seed: 1, full: false };
         run(tracer, &opts).remove(0)
     }
 
     #[test]
     fn the_watertight_reference_as_device_has_no_leaks() {
-        let mut t = CpuTracer {
-            name: "watertight f64",
-            intersect: watertight_f64,
-        };
+        let mut t = CpuTracer { name: "watertight f64", intersect: watertight_f64 };
         let r = case(&mut t, CaseKind::Watertight);
         assert_eq!(r.metrics.leaks, 0, "{r:?}");
         assert_eq!(r.metrics.disagreements, 0, "{r:?}");
@@ -131,12 +120,7 @@ mod tests {
         // An edge-inclusive test double-hits on shared edges (and at folds near them), only there.
         assert!(r.metrics.double_hits_on_edge > 0);
         assert_eq!(r.metrics.double_hits, r.metrics.double_hits_near_edge);
-        for k in [
-            CaseKind::Degenerate,
-            CaseKind::Tmin,
-            CaseKind::Far,
-            CaseKind::Grazing,
-        ] {
+        for k in [CaseKind::Degenerate, CaseKind::Tmin, CaseKind::Far, CaseKind::Grazing] {
             let r = case(&mut t, k);
             assert_eq!(r.metrics.disagreements, 0, "{k:?}: {r:?}");
             assert_eq!(r.metrics.over_tolerance, 0, "{k:?}: {r:?}");
@@ -158,22 +142,8 @@ mod tests {
     }
 
     fn broken(f: fn(&mut Traced), kind: CaseKind) -> crate::stress::evaluate::CaseResult {
-        let mut t = Broken(
-            CpuTracer {
-                name: "watertight f64",
-                intersect: watertight_f64,
-            },
-            f,
-        );
-        run(
-            &mut t,
-            &StressOptions {
-                cases: vec![kind],
-                seed: 1,
-                full: false,
-            },
-        )
-        .remove(0)
+        let mut t = Broken(CpuTracer { name: "watertight f64", intersect: watertight_f64 }, f);
+        run(&mut t, &StressOptions { cases: vec![kind], seed: 1, full: false }).remove(0)
     }
 
     #[test]
@@ -195,10 +165,7 @@ mod tests {
             },
             CaseKind::Grazing,
         );
-        assert_eq!(
-            r.metrics.over_tolerance, r.metrics.compared,
-            "NaN barycentrics"
-        );
+        assert_eq!(r.metrics.over_tolerance, r.metrics.compared, "NaN barycentrics");
         assert!(r.metrics.compared > 0);
         let r = broken(
             |t| {
@@ -208,10 +175,7 @@ mod tests {
             },
             CaseKind::Degenerate,
         );
-        assert!(
-            r.metrics.false_hits > 0,
-            "hits on the NaN-X triangle: {r:?}"
-        );
+        assert!(r.metrics.false_hits > 0, "hits on the NaN-X triangle: {r:?}");
         let r = broken(
             |t| {
                 t.candidates += 1;
@@ -230,10 +194,7 @@ mod tests {
 
     #[test]
     fn a_sloppy_intersector_leaks_and_fails() {
-        let mut t = CpuTracer {
-            name: "sloppy f32 Möller–Trumbore",
-            intersect: sloppy_f32,
-        };
+        let mut t = CpuTracer { name: "sloppy f32 Möller–Trumbore", intersect: sloppy_f32 };
         let r = case(&mut t, CaseKind::Watertight);
         assert!(r.metrics.leaks > 100, "{r:?}");
         assert_eq!(r.verdict, crate::stress::evaluate::Verdict::Fail);

@@ -157,10 +157,7 @@ pub struct CaseResult {
 
 impl CaseResult {
     pub fn not_implemented(kind: CaseKind) -> Self {
-        let detail = Some(format!(
-            "rtprobe does not implement the {} case yet",
-            kind.as_str()
-        ));
+        let detail = Some(format!("rtprobe does not implement the {} case yet", kind.as_str()));
         CaseResult {
             name: kind.as_str(),
             verdict: Verdict::NotImplemented,
@@ -178,10 +175,8 @@ impl CaseResult {
             TraceError::Timeout(_) => Verdict::Timeout,
             TraceError::Failed(_) | TraceError::Compile(_) => Verdict::Error,
         };
-        let metrics = Metrics {
-            rays: parts.iter().map(|p| p.rays.len()).sum(),
-            ..Metrics::default()
-        };
+        let metrics =
+            Metrics { rays: parts.iter().map(|p| p.rays.len()).sum(), ..Metrics::default() };
         CaseResult {
             name: kind.as_str(),
             verdict,
@@ -233,10 +228,7 @@ fn resolve(part: &Part, instance: u32, primitive: u32, ray: &Ray) -> Option<Reso
 /// Smallest altitude of a triangle (∞ for a degenerate one: no barycentric margin applies).
 fn min_altitude(v: [DVec3; 3]) -> f64 {
     let area2 = (v[1] - v[0]).cross(v[2] - v[0]).length();
-    let longest = (v[1] - v[0])
-        .length()
-        .max((v[2] - v[1]).length())
-        .max((v[0] - v[2]).length());
+    let longest = (v[1] - v[0]).length().max((v[2] - v[1]).length()).max((v[0] - v[2]).length());
     if area2 == 0.0 || longest == 0.0 {
         f64::INFINITY
     } else {
@@ -303,10 +295,7 @@ fn candidates(part: &Part, index: &Index, ray: &Ray) -> Vec<Candidate> {
 fn crossings(cands: &[Candidate]) -> u32 {
     let mut n = 0;
     for side in [false, true] {
-        let mut cs: Vec<&Candidate> = cands
-            .iter()
-            .filter(|c| c.hit.det_positive == side)
-            .collect();
+        let mut cs: Vec<&Candidate> = cands.iter().filter(|c| c.hit.det_positive == side).collect();
         cs.sort_by(|a, b| a.hit.t.total_cmp(&b.hit.t));
         let mut last: Option<&Candidate> = None;
         for c in cs {
@@ -332,10 +321,7 @@ struct Acc {
 }
 
 fn bits(v: [f32; 4]) -> String {
-    v.iter()
-        .map(|x| format!("{:08x}", x.to_bits()))
-        .collect::<Vec<_>>()
-        .join(" ")
+    v.iter().map(|x| format!("{:08x}", x.to_bits())).collect::<Vec<_>>().join(" ")
 }
 
 impl Acc {
@@ -405,11 +391,7 @@ impl Acc {
             .scene
             .instances
             .get(h.instance as usize)
-            .and_then(|inst| {
-                part.scene.meshes[inst.mesh]
-                    .inactive
-                    .get(h.primitive as usize)
-            })
+            .and_then(|inst| part.scene.meshes[inst.mesh].inactive.get(h.primitive as usize))
             .copied();
         if !may_hit || inactive == Some(true) {
             self.m.false_hits += 1;
@@ -493,8 +475,7 @@ impl Acc {
             self.example("over_tolerance", part, i, tr, cands);
         }
         let ulps = dt / ulp_f32(p.t);
-        self.t_ulps
-            .push(if ulps.is_nan() { f64::INFINITY } else { ulps });
+        self.t_ulps.push(if ulps.is_nan() { f64::INFINITY } else { ulps });
         let rel = if p.t != 0.0 { dt / p.t.abs() } else { dt };
         self.m.t_rel_err_max = Some(self.m.t_rel_err_max.unwrap_or(0.0).max(if rel.is_nan() {
             f64::INFINITY
@@ -596,15 +577,7 @@ pub fn evaluate(kind: CaseKind, parts: &[Part], traced: &[Vec<Traced>]) -> CaseR
             metrics.facing_errors
         )
     });
-    CaseResult {
-        name: kind.as_str(),
-        verdict,
-        detail,
-        metrics,
-        ms: 0.0,
-        parts: results,
-        examples,
-    }
+    CaseResult { name: kind.as_str(), verdict, detail, metrics, ms: 0.0, parts: results, examples }
 }
 
 #[cfg(test)]

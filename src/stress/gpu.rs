@@ -150,10 +150,7 @@ const RQ_HEADER: &str = "#version 460\n#extension GL_EXT_ray_query : require\n#e
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require\n";
 
 fn source(role: Role, body: &str) -> ShaderSource {
-    ShaderSource {
-        role,
-        glsl: format!("{HEADER}{}{COMMON}{RT_INDEX}{body}", glsl_header()),
-    }
+    ShaderSource { role, glsl: format!("{HEADER}{}{COMMON}{RT_INDEX}{body}", glsl_header()) }
 }
 
 /// How rays are traced: `traceRayEXT` in an RT pipeline, or `rayQueryEXT` in a compute shader.
@@ -199,11 +196,8 @@ impl Mode {
                 glsl: format!("{RQ_HEADER}{}{COMMON}{RAY_QUERY}", glsl_header()),
             }],
         };
-        let kind = if self == Mode::Pipeline {
-            PipelineKind::RayTracing
-        } else {
-            PipelineKind::Compute
-        };
+        let kind =
+            if self == Mode::Pipeline { PipelineKind::RayTracing } else { PipelineKind::Compute };
         CellShaders {
             kind,
             shaders,
@@ -240,17 +234,10 @@ impl GpuTracer {
         let shaders = mode.shaders();
         let mut spirv = Vec::new();
         for s in &shaders.shaders {
-            spirv.push(
-                compiler
-                    .compile(s.role, &s.glsl)
-                    .map_err(TraceError::Compile)?
-                    .0,
-            );
+            spirv.push(compiler.compile(s.role, &s.glsl).map_err(TraceError::Compile)?.0);
         }
         let submitter = Submitter::new(&gpu).map_err(vk_err)?;
-        let range = [vk::PushConstantRange::default()
-            .stage_flags(mode.stages())
-            .size(PUSH_SIZE)];
+        let range = [vk::PushConstantRange::default().stage_flags(mode.stages()).size(PUSH_SIZE)];
         let layout = unsafe {
             gpu.device.create_pipeline_layout(
                 &vk::PipelineLayoutCreateInfo::default().push_constant_ranges(&range),
@@ -270,15 +257,7 @@ impl GpuTracer {
             &Default::default(),
         )
         .map_err(vk_err)?;
-        Ok(GpuTracer {
-            gpu,
-            submitter,
-            layout,
-            pipeline,
-            timeout,
-            broken: None,
-            mode,
-        })
+        Ok(GpuTracer { gpu, submitter, layout, pipeline, timeout, broken: None, mode })
     }
 
     fn build(
@@ -309,9 +288,7 @@ impl GpuTracer {
             .iter()
             .enumerate()
             .map(|(k, i)| vk::AccelerationStructureInstanceKHR {
-                transform: vk::TransformMatrixKHR {
-                    matrix: bytemuck_transform(&i.transform),
-                },
+                transform: vk::TransformMatrixKHR { matrix: bytemuck_transform(&i.transform) },
                 instance_custom_index_and_mask: vk::Packed24_8::new(k as u32, 0xff),
                 instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(0, 0),
                 acceleration_structure_reference: vk::AccelerationStructureReferenceKHR {
@@ -321,11 +298,8 @@ impl GpuTracer {
             .collect();
         let ib = Buffer::with_data(gpu, bytes_of(&instances), INPUT_USAGE, "instance buffer")
             .map_err(vk_err)?;
-        let data = vk::AccelerationStructureGeometryInstancesDataKHR::default().data(
-            vk::DeviceOrHostAddressConstKHR {
-                device_address: ib.address,
-            },
-        );
+        let data = vk::AccelerationStructureGeometryInstancesDataKHR::default()
+            .data(vk::DeviceOrHostAddressConstKHR { device_address: ib.address });
         keep.push(ib);
         let tlas_pending = [Pending {
             geometries: vec![vk::AccelerationStructureGeometryKHR::default()
@@ -337,9 +311,9 @@ impl GpuTracer {
         }];
         let (mut tlas, tlas_builds) =
             SceneGpu::prepare_all(gpu, &tlas_pending, &mut scratch).map_err(vk_err)?;
-        let waited = self.submitter.run(gpu, self.timeout, |cmd| {
-            record_builds(gpu, cmd, &[&blas_builds, &tlas_builds])
-        });
+        let waited = self
+            .submitter
+            .run(gpu, self.timeout, |cmd| record_builds(gpu, cmd, &[&blas_builds, &tlas_builds]));
         for s in &scratch {
             s.destroy(gpu);
         }
@@ -390,8 +364,7 @@ impl GpuTracer {
                         vk::PipelineBindPoint::RAY_TRACING_KHR,
                         self.pipeline.raw,
                     );
-                    gpu.device
-                        .cmd_push_constants(cmd, self.layout, self.mode.stages(), 0, &push);
+                    gpu.device.cmd_push_constants(cmd, self.layout, self.mode.stages(), 0, &push);
                     rt.cmd_trace_rays(
                         cmd,
                         &sbt.raygen,
@@ -409,8 +382,7 @@ impl GpuTracer {
                         vk::PipelineBindPoint::COMPUTE,
                         self.pipeline.raw,
                     );
-                    gpu.device
-                        .cmd_push_constants(cmd, self.layout, self.mode.stages(), 0, &push);
+                    gpu.device.cmd_push_constants(cmd, self.layout, self.mode.stages(), 0, &push);
                     gpu.device.cmd_dispatch(cmd, (n as u32).div_ceil(64), 1, 1);
                 }
             }
@@ -428,10 +400,7 @@ impl GpuTracer {
                         "{lost} of {n} rays ran neither the closest-hit nor the miss shader"
                     )));
                 }
-                Ok(decoded
-                    .into_iter()
-                    .map(|d| d.expect("checked above"))
-                    .collect())
+                Ok(decoded.into_iter().map(|d| d.expect("checked above")).collect())
             }
         }
     }
@@ -458,9 +427,7 @@ impl Tracer for GpuTracer {
 
     fn trace(&mut self, part: &Part) -> Result<Vec<Traced>, TraceError> {
         if let Some(why) = &self.broken {
-            return Err(TraceError::Failed(format!(
-                "not traced: {why} in an earlier case"
-            )));
+            return Err(TraceError::Failed(format!("not traced: {why} in an earlier case")));
         }
         let mut keep = Vec::new();
         let result = self.build(part, &mut keep).and_then(|(blas, tlas)| {

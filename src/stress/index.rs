@@ -67,12 +67,7 @@ impl Index {
         let lo = boxes.iter().fold(DVec3::splat(f64::MAX), |a, b| a.min(b.0));
         let hi = boxes.iter().fold(DVec3::splat(f64::MIN), |a, b| a.max(b.1));
         let n = ((all.len() as f64 / 2.0).sqrt() as usize).clamp(1, 512);
-        let mut grid = Grid {
-            lo,
-            hi,
-            n,
-            cells: vec![Vec::new(); n * n],
-        };
+        let mut grid = Grid { lo, hi, n, cells: vec![Vec::new(); n * n] };
         for (i, (blo, bhi)) in boxes.iter().enumerate() {
             for y in grid.cell(blo.y, 1)..=grid.cell(bhi.y, 1) {
                 for x in grid.cell(blo.x, 0)..=grid.cell(bhi.x, 0) {
@@ -80,10 +75,7 @@ impl Index {
                 }
             }
         }
-        Index {
-            all,
-            grid: Some(grid),
-        }
+        Index { all, grid: Some(grid) }
     }
 
     /// The triangles the ray may reach: (instance, primitive).
@@ -129,22 +121,12 @@ mod tests {
 
     #[test]
     fn the_grid_finds_every_candidate_brute_force_finds() {
-        let opts = StressOptions {
-            cases: vec![],
-            seed: 2,
-            full: false,
-        };
+        let opts = StressOptions { cases: vec![], seed: 2, full: false };
         let parts = cases::build(CaseKind::Watertight, &opts).unwrap();
-        let big = parts
-            .iter()
-            .find(|p| p.scene.meshes[0].indices.len() > BRUTE_FORCE)
-            .unwrap();
+        let big = parts.iter().find(|p| p.scene.meshes[0].indices.len() > BRUTE_FORCE).unwrap();
         let index = Index::build(big);
         assert!(index.grid.is_some());
-        let brute = Index {
-            all: index.all.clone(),
-            grid: None,
-        };
+        let brute = Index { all: index.all.clone(), grid: None };
         for r in big.rays.iter().step_by(7) {
             let got = index.query(r);
             let hits = |list: &[(u32, u32)]| {

@@ -44,16 +44,7 @@ pub fn glsl_header() -> String {
 pub fn ray_bytes(rays: &[Ray]) -> Vec<u8> {
     rays.iter()
         .flat_map(|r| {
-            [
-                r.origin[0],
-                r.origin[1],
-                r.origin[2],
-                r.tmin,
-                r.dir[0],
-                r.dir[1],
-                r.dir[2],
-                r.tmax,
-            ]
+            [r.origin[0], r.origin[1], r.origin[2], r.tmin, r.dir[0], r.dir[1], r.dir[2], r.tmax]
         })
         .flat_map(f32::to_le_bytes)
         .collect()
@@ -83,11 +74,7 @@ pub fn decode(bytes: &[u8], n: usize) -> Vec<Option<Traced>> {
             };
             let candidates = w(i, W_CANDIDATES);
             let first = [w(i, W_CAND0), w(i, W_CAND1)];
-            Some(Traced {
-                hit,
-                candidates,
-                first_candidates: first,
-            })
+            Some(Traced { hit, candidates, first_candidates: first })
         })
         .collect()
 }
@@ -108,18 +95,8 @@ mod tests {
         let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
         let d = decode(&bytes, 3);
         let h = d[0].unwrap().hit.unwrap();
-        assert_eq!(
-            (h.t, h.bary[0], h.primitive, d[0].unwrap().candidates),
-            (2.5, 0.25, 7, 2)
-        );
-        assert_eq!(
-            d[1],
-            Some(Traced {
-                hit: None,
-                candidates: 0,
-                first_candidates: [0, 0]
-            })
-        );
+        assert_eq!((h.t, h.bary[0], h.primitive, d[0].unwrap().candidates), (2.5, 0.25, 7, 2));
+        assert_eq!(d[1], Some(Traced { hit: None, candidates: 0, first_candidates: [0, 0] }));
         assert_eq!(d[2], None, "an unwritten record is a lost ray");
         assert_eq!(
             ray_bytes(&[Ray {

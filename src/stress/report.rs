@@ -56,11 +56,8 @@ pub fn text(device: &str, cases: &[CaseResult]) -> String {
         .iter()
         .filter(|c| c.verdict != Verdict::Pass && c.verdict != Verdict::NotImplemented)
         .count();
-    let missing: Vec<&str> = cases
-        .iter()
-        .filter(|c| c.verdict == Verdict::NotImplemented)
-        .map(|c| c.name)
-        .collect();
+    let missing: Vec<&str> =
+        cases.iter().filter(|c| c.verdict == Verdict::NotImplemented).map(|c| c.name).collect();
     s.push_str(&format!("\n{} cases, {} not passed", cases.len(), failed));
     if !missing.is_empty() {
         s.push_str(&format!(", not implemented: {}", missing.join(", ")));
@@ -100,7 +97,5 @@ pub fn json(
 
 /// Exit status of the command: every implemented case passed.
 pub fn all_passed(cases: &[CaseResult]) -> bool {
-    cases
-        .iter()
-        .all(|c| matches!(c.verdict, Verdict::Pass | Verdict::NotImplemented))
+    cases.iter().all(|c| matches!(c.verdict, Verdict::Pass | Verdict::NotImplemented))
 }

@@ -21,20 +21,11 @@ fn scene(rng: &mut Rng) -> Scene {
     let positions = m
         .positions
         .iter()
-        .map(|p| {
-            [
-                p[0] * 4.0 + OFFSET,
-                p[1] * 4.0 + OFFSET,
-                p[2] * 4.0 + OFFSET,
-            ]
-        })
+        .map(|p| [p[0] * 4.0 + OFFSET, p[1] * 4.0 + OFFSET, p[2] * 4.0 + OFFSET])
         .collect();
     Scene {
         meshes: vec![Mesh { positions, ..m }],
-        instances: vec![Instance {
-            transform: IDENTITY,
-            mesh: 0,
-        }],
+        instances: vec![Instance { transform: IDENTITY, mesh: 0 }],
     }
 }
 
@@ -56,7 +47,7 @@ pub fn offset_ray(p: [f32; 3], n: [f32; 3]) -> [f32; 3] {
         let of = (INT_SCALE * n[k]) as i32;
         let pi =
             f32::from_bits(
-                (p[k].to_bits() as i32).wrapping_add(if p[k] < 0.0 { -of } else { of }) as u32,
+                (p[k].to_bits() as i32).wrapping_add(if p[k] < 0.0 { -of } else { of }) as u32
             );
         if p[k].abs() < ORIGIN {
             p[k] + FLOAT_SCALE * n[k]
@@ -69,14 +60,8 @@ pub fn offset_ray(p: [f32; 3], n: [f32; 3]) -> [f32; 3] {
 /// Secondary rays (raw origin, offset origin) from the primary hits.
 fn secondaries(primary: &Part, traced: &[Traced]) -> (Part, Part) {
     let mesh = &primary.scene.meshes[0];
-    let mut raw = Part {
-        label: "secondary-raw".into(),
-        ..primary.clone_empty()
-    };
-    let mut off = Part {
-        label: "secondary-offset".into(),
-        ..raw.clone_empty()
-    };
+    let mut raw = Part { label: "secondary-raw".into(), ..primary.clone_empty() };
+    let mut off = Part { label: "secondary-offset".into(), ..raw.clone_empty() };
     for (ray, tr) in primary.rays.iter().zip(traced) {
         let Some(h) = tr.hit else { continue };
         let Some(tri) = mesh.indices.get(h.primitive as usize) else {
@@ -102,12 +87,7 @@ fn secondaries(primary: &Part, traced: &[Traced]) -> (Part, Part) {
         let k = 2.0 * dot(d, n);
         let r = std::array::from_fn(|i| d[i] - k * n[i]);
         let push = |part: &mut Part, origin| {
-            part.rays.push(Ray {
-                origin,
-                tmin: 0.0,
-                dir: r,
-                tmax: 1e30,
-            });
+            part.rays.push(Ray { origin, tmin: 0.0, dir: r, tmax: 1e30 });
             part.info.push(RayInfo { must_hit: false });
         };
         push(&mut raw, p);
@@ -189,11 +169,7 @@ mod tests {
         let o = offset_ray(p, [0.0, 0.0, 1.0]);
         assert_eq!(o[0], 1000.0);
         assert_eq!(o[1], -1000.0);
-        assert_eq!(
-            o[2],
-            0.001 + 1.0 / 65536.0,
-            "near the origin: absolute offset"
-        );
+        assert_eq!(o[2], 0.001 + 1.0 / 65536.0, "near the origin: absolute offset");
         let o = offset_ray(p, [1.0, -1.0, 0.0]);
         assert_eq!(o[0].to_bits(), 1000.0f32.to_bits() + 256);
         assert!(o[1] < -1000.0 && o[1].to_bits() == (-1000.0f32).to_bits() + 256);

@@ -20,17 +20,9 @@ pub const HIT_KIND_BACK: u32 = 0xFF;
 fn transforms() -> Vec<(&'static str, DMat3, DVec3)> {
     let rot = DMat3::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 0.7);
     vec![
-        (
-            "scale",
-            DMat3::from_diagonal(DVec3::new(3.0, 0.5, 2.0)),
-            DVec3::new(1.0, 2.0, 3.0),
-        ),
+        ("scale", DMat3::from_diagonal(DVec3::new(3.0, 0.5, 2.0)), DVec3::new(1.0, 2.0, 3.0)),
         ("rotate", rot, DVec3::new(-2.0, 0.5, 1.0)),
-        (
-            "mirror",
-            DMat3::from_diagonal(DVec3::new(-1.0, 1.0, 1.0)),
-            DVec3::new(0.0, 0.0, 2.0),
-        ),
+        ("mirror", DMat3::from_diagonal(DVec3::new(-1.0, 1.0, 1.0)), DVec3::new(0.0, 0.0, 2.0)),
         (
             "mirror-rotate-scale",
             rot * DMat3::from_diagonal(DVec3::new(-2.0, 1.0, 0.5)),
@@ -40,63 +32,34 @@ fn transforms() -> Vec<(&'static str, DMat3, DVec3)> {
 }
 
 fn row_major(m: DMat3, t: DVec3) -> [[f32; 4]; 3] {
-    std::array::from_fn(|r| {
-        [
-            m.row(r).x as f32,
-            m.row(r).y as f32,
-            m.row(r).z as f32,
-            t[r] as f32,
-        ]
-    })
+    std::array::from_fn(|r| [m.row(r).x as f32, m.row(r).y as f32, m.row(r).z as f32, t[r] as f32])
 }
 
 pub fn parts(rng: &mut Rng) -> Vec<Part> {
     let quad = Mesh {
-        positions: vec![
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [1.0, 1.0, 0.0],
-            [0.0, 1.0, 0.0],
-        ],
+        positions: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]],
         indices: vec![[0, 1, 2], [0, 2, 3]],
         inactive: vec![false, false],
     };
     // Object-space rays from both sides of the quad.
     let object: Vec<(DVec3, DVec3)> = (0..256)
         .map(|k| {
-            let p = DVec3::new(
-                rng.range(0.05, 0.95) as f64,
-                rng.range(0.05, 0.95) as f64,
-                0.0,
-            );
+            let p = DVec3::new(rng.range(0.05, 0.95) as f64, rng.range(0.05, 0.95) as f64, 0.0);
             let side = if k % 2 == 0 { 1.0 } else { -1.0 };
-            let d = DVec3::new(
-                rng.range(-0.5, 0.5) as f64,
-                rng.range(-0.5, 0.5) as f64,
-                side,
-            );
+            let d = DVec3::new(rng.range(-0.5, 0.5) as f64, rng.range(-0.5, 0.5) as f64, side);
             (p - d * 2.0, d)
         })
         .collect();
     let mut out = Vec::new();
     for (name, m, t) in transforms() {
         let transform = row_major(m, t);
-        for (flags, suffix) in [
-            (0, ""),
-            (CULL_BACK, "-cull-back"),
-            (CULL_FRONT, "-cull-front"),
-        ] {
+        for (flags, suffix) in [(0, ""), (CULL_BACK, "-cull-back"), (CULL_FRONT, "-cull-front")] {
             let mut scene = one_mesh(quad.clone());
             scene.instances = vec![Instance { transform, mesh: 0 }];
             let f = |v: DVec3| [v.x as f32, v.y as f32, v.z as f32];
             let rays = object
                 .iter()
-                .map(|&(o, d)| Ray {
-                    origin: f(m * o + t),
-                    tmin: 0.0,
-                    dir: f(m * d),
-                    tmax: 1e30,
-                })
+                .map(|&(o, d)| Ray { origin: f(m * o + t), tmin: 0.0, dir: f(m * d), tmax: 1e30 })
                 .collect::<Vec<_>>();
             let info = vec![RayInfo { must_hit: false }; rays.len()];
             out.push(Part {
@@ -135,12 +98,8 @@ pub fn facing_errors(parts: &[Part], traced: &[Vec<Traced>]) -> usize {
                     watertight::to_f64(r.origin),
                     watertight::to_f64(r.dir),
                 );
-                watertight::plane(
-                    o,
-                    d,
-                    tri.map(|i| watertight::to_f64(mesh.positions[i as usize])),
-                )
-                .map(|ph| ph.det_positive)
+                watertight::plane(o, d, tri.map(|i| watertight::to_f64(mesh.positions[i as usize])))
+                    .map(|ph| ph.det_positive)
             })
             .collect();
         if p.ray_flags == 0 {
@@ -172,12 +131,7 @@ pub fn facing_errors(parts: &[Part], traced: &[Vec<Traced>]) -> usize {
     }
     if kt == kf {
         // One hit kind for both windings: every hit of the smaller winding is wrong.
-        errors += counts
-            .iter()
-            .filter(|((_, k), _)| *k == kt)
-            .map(|(_, n)| *n)
-            .min()
-            .unwrap_or(0);
+        errors += counts.iter().filter(|((_, k), _)| *k == kt).map(|(_, n)| *n).min().unwrap_or(0);
     }
     // Culling: parts come as (none, cull-back, cull-front) per transform.
     for chunk in (0..parts.len()).collect::<Vec<_>>().chunks(3) {
@@ -215,11 +169,7 @@ mod tests {
             "facing".into()
         }
         fn trace(&mut self, part: &Part) -> Result<Vec<Traced>, TraceError> {
-            let mut v = CpuTracer {
-                name: "f64",
-                intersect: watertight_f64,
-            }
-            .trace(part)?;
+            let mut v = CpuTracer { name: "f64", intersect: watertight_f64 }.trace(part)?;
             let m = part.scene.instances[0].transform;
             let det = DMat3::from_cols_array_2d(&std::array::from_fn(|c| {
                 std::array::from_fn(|r| m[r][c] as f64)
@@ -256,18 +206,12 @@ mod tests {
             seed: 1,
             full: false,
         };
-        crate::stress::run(&mut Facing { world }, &opts)
-            .remove(0)
-            .metrics
-            .facing_errors
+        crate::stress::run(&mut Facing { world }, &opts).remove(0).metrics.facing_errors
     }
 
     #[test]
     fn object_space_facing_passes_and_world_space_facing_is_caught() {
         assert_eq!(facing(false), 0);
-        assert!(
-            facing(true) > 100,
-            "mirrored instances flip a world-space facing"
-        );
+        assert!(facing(true) > 100, "mirrored instances flip a world-space facing");
     }
 }

@@ -27,11 +27,8 @@ pub struct Instance {
     pub mesh: usize,
 }
 
-pub const IDENTITY: [[f32; 4]; 3] = [
-    [1.0, 0.0, 0.0, 0.0],
-    [0.0, 1.0, 0.0, 0.0],
-    [0.0, 0.0, 1.0, 0.0],
-];
+pub const IDENTITY: [[f32; 4]; 3] =
+    [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]];
 
 #[derive(Clone, Debug, Default)]
 pub struct Scene {
@@ -154,11 +151,5 @@ pub struct StressOptions {
 
 /// A scene of one mesh at the identity transform.
 pub(crate) fn one_mesh(mesh: Mesh) -> Scene {
-    Scene {
-        meshes: vec![mesh],
-        instances: vec![Instance {
-            transform: IDENTITY,
-            mesh: 0,
-        }],
-    }
+    Scene { meshes: vec![mesh], instances: vec![Instance { transform: IDENTITY, mesh: 0 }] }
 }

@@ -60,22 +60,18 @@ impl Requirements {
             m.push("runtimeDescriptorArray + descriptorBindingPartiallyBound".into());
         }
         if self.descriptor_buffer
-            && f.descriptor_buffer
-                .is_none_or(|x| x.descriptor_buffer != vk::TRUE)
+            && f.descriptor_buffer.is_none_or(|x| x.descriptor_buffer != vk::TRUE)
         {
             m.push("descriptorBuffer (VK_EXT_descriptor_buffer)".into());
         }
         if self.descriptor_heap
-            && !(f
-                .descriptor_heap
-                .is_some_and(|x| x.descriptor_heap == vk::TRUE)
+            && !(f.descriptor_heap.is_some_and(|x| x.descriptor_heap == vk::TRUE)
                 && info.has_extension(khr::maintenance5::NAME))
         {
             m.push("descriptorHeap (VK_EXT_descriptor_heap) + VK_KHR_maintenance5".into());
         }
         if self.untyped_pointers
-            && f.untyped_pointers
-                .is_none_or(|x| x.shader_untyped_pointers != vk::TRUE)
+            && f.untyped_pointers.is_none_or(|x| x.shader_untyped_pointers != vk::TRUE)
         {
             m.push("shaderUntypedPointers (VK_KHR_shader_untyped_pointers)".into());
         }
@@ -92,8 +88,7 @@ impl Requirements {
             m.push("dynamicRendering (Vulkan 1.3)".into());
         }
         if self.invocation_reorder
-            && f.invocation_reorder_nv
-                .is_none_or(|x| x.ray_tracing_invocation_reorder != vk::TRUE)
+            && f.invocation_reorder_nv.is_none_or(|x| x.ray_tracing_invocation_reorder != vk::TRUE)
         {
             m.push("rayTracingInvocationReorder (VK_NV_ray_tracing_invocation_reorder)".into());
         }
@@ -179,25 +174,15 @@ impl Chosen {
         if req.device_fault {
             c.exts.push(ext::device_fault::NAME);
             c.fault.device_fault = vk::TRUE;
-            c.fault.device_fault_vendor_binary = sup
-                .fault
-                .map(|f| f.device_fault_vendor_binary)
-                .unwrap_or(vk::FALSE);
+            c.fault.device_fault_vendor_binary =
+                sup.fault.map(|f| f.device_fault_vendor_binary).unwrap_or(vk::FALSE);
         }
         if req.invocation_reorder {
             c.exts.push(nv::ray_tracing_invocation_reorder::NAME);
             c.reorder.ray_tracing_invocation_reorder = vk::TRUE;
         }
-        c.core.shader_int64 = if req.int64 || bda {
-            sup.core.shader_int64
-        } else {
-            vk::FALSE
-        };
-        c.core.fragment_stores_and_atomics = if req.fragment_stores {
-            vk::TRUE
-        } else {
-            vk::FALSE
-        };
+        c.core.shader_int64 = if req.int64 || bda { sup.core.shader_int64 } else { vk::FALSE };
+        c.core.fragment_stores_and_atomics = if req.fragment_stores { vk::TRUE } else { vk::FALSE };
         c.core.vertex_pipeline_stores_and_atomics = vk::FALSE;
         c
     }
@@ -205,10 +190,8 @@ impl Chosen {
     /// Acceleration structures, the RT pipeline and ray queries.
     fn ray_tracing(&mut self, req: &Requirements) {
         if req.rt_pipeline || req.ray_query {
-            self.exts.extend([
-                khr::acceleration_structure::NAME,
-                khr::deferred_host_operations::NAME,
-            ]);
+            self.exts
+                .extend([khr::acceleration_structure::NAME, khr::deferred_host_operations::NAME]);
             self.accel.acceleration_structure = vk::TRUE;
         }
         if req.rt_pipeline {
@@ -224,12 +207,8 @@ impl Chosen {
     /// Every descriptor-indexing bit the device supports (runtime arrays, partially bound,
     /// variable count, update-after-bind, non-uniform indexing).
     fn descriptor_indexing(&mut self, sup: &super::features::Features) {
-        let (c, sup12, core, v12) = (
-            &sup.core,
-            sup.v12.unwrap_or_default(),
-            &mut self.core,
-            &mut self.v12,
-        );
+        let (c, sup12, core, v12) =
+            (&sup.core, sup.v12.unwrap_or_default(), &mut self.core, &mut self.v12);
         core.shader_storage_buffer_array_dynamic_indexing =
             c.shader_storage_buffer_array_dynamic_indexing;
         core.shader_uniform_buffer_array_dynamic_indexing =
@@ -259,8 +238,7 @@ impl Chosen {
             sup12.descriptor_binding_sampled_image_update_after_bind;
         v12.descriptor_binding_storage_image_update_after_bind =
             sup12.descriptor_binding_storage_image_update_after_bind;
-        self.accel
-            .descriptor_binding_acceleration_structure_update_after_bind = sup
+        self.accel.descriptor_binding_acceleration_structure_update_after_bind = sup
             .accel
             .map(|a| a.descriptor_binding_acceleration_structure_update_after_bind)
             .unwrap_or(vk::FALSE);
@@ -273,8 +251,7 @@ impl Chosen {
             self.db.descriptor_buffer = vk::TRUE;
         }
         if req.descriptor_heap {
-            self.exts
-                .extend([super::heap::NAME, khr::maintenance5::NAME]);
+            self.exts.extend([super::heap::NAME, khr::maintenance5::NAME]);
         }
         if req.untyped_pointers {
             self.exts.push(super::heap::UNTYPED_POINTERS_NAME);
@@ -295,9 +272,8 @@ impl Chosen {
             .queue_family_index(queue_family)
             .queue_priorities(&prio)];
         let ext_ptrs: Vec<*const i8> = self.exts.iter().map(|e| e.as_ptr()).collect();
-        let mut f2 = vk::PhysicalDeviceFeatures2::default()
-            .features(self.core)
-            .push_next(&mut self.v12);
+        let mut f2 =
+            vk::PhysicalDeviceFeatures2::default().features(self.core).push_next(&mut self.v12);
         if req.dynamic_rendering {
             f2 = f2.push_next(&mut self.v13);
         }
@@ -335,11 +311,8 @@ impl Chosen {
     /// The extension names, then each feature bit given as true (Vulkan spelling).
     fn names(&self, req: &Requirements) -> Vec<String> {
         let (core, v12) = (&self.core, &self.v12);
-        let mut names: Vec<String> = self
-            .exts
-            .iter()
-            .map(|e| e.to_string_lossy().into_owned())
-            .collect();
+        let mut names: Vec<String> =
+            self.exts.iter().map(|e| e.to_string_lossy().into_owned()).collect();
         let on = |name: &str, bit: vk::Bool32, chained: bool| {
             (chained && bit == vk::TRUE).then(|| name.to_string())
         };
@@ -347,11 +320,7 @@ impl Chosen {
         names.extend(
             [
                 on("shaderInt64", core.shader_int64, true),
-                on(
-                    "fragmentStoresAndAtomics",
-                    core.fragment_stores_and_atomics,
-                    true,
-                ),
+                on("fragmentStoresAndAtomics", core.fragment_stores_and_atomics, true),
                 on(
                     "shaderStorageBufferArrayDynamicIndexing",
                     core.shader_storage_buffer_array_dynamic_indexing,
@@ -375,11 +344,7 @@ impl Chosen {
                 on("bufferDeviceAddress", v12.buffer_device_address, true),
                 on("descriptorIndexing", v12.descriptor_indexing, true),
                 on("runtimeDescriptorArray", v12.runtime_descriptor_array, true),
-                on(
-                    "descriptorBindingPartiallyBound",
-                    v12.descriptor_binding_partially_bound,
-                    true,
-                ),
+                on("descriptorBindingPartiallyBound", v12.descriptor_binding_partially_bound, true),
                 on(
                     "descriptorBindingVariableDescriptorCount",
                     v12.descriptor_binding_variable_descriptor_count,
@@ -425,33 +390,16 @@ impl Chosen {
                     v12.descriptor_binding_storage_image_update_after_bind,
                     true,
                 ),
-                on(
-                    "dynamicRendering",
-                    self.v13.dynamic_rendering,
-                    req.dynamic_rendering,
-                ),
-                on(
-                    "accelerationStructure",
-                    self.accel.acceleration_structure,
-                    rtq,
-                ),
+                on("dynamicRendering", self.v13.dynamic_rendering, req.dynamic_rendering),
+                on("accelerationStructure", self.accel.acceleration_structure, rtq),
                 on(
                     "descriptorBindingAccelerationStructureUpdateAfterBind",
-                    self.accel
-                        .descriptor_binding_acceleration_structure_update_after_bind,
+                    self.accel.descriptor_binding_acceleration_structure_update_after_bind,
                     rtq,
                 ),
-                on(
-                    "rayTracingPipeline",
-                    self.rt.ray_tracing_pipeline,
-                    req.rt_pipeline,
-                ),
+                on("rayTracingPipeline", self.rt.ray_tracing_pipeline, req.rt_pipeline),
                 on("rayQuery", self.rq.ray_query, req.ray_query),
-                on(
-                    "descriptorBuffer",
-                    self.db.descriptor_buffer,
-                    req.descriptor_buffer,
-                ),
+                on("descriptorBuffer", self.db.descriptor_buffer, req.descriptor_buffer),
                 on("deviceFault", self.fault.device_fault, req.device_fault),
                 on(
                     "deviceFaultVendorBinary",
@@ -480,13 +428,11 @@ impl Gpu {
                 missing: missing.join(", "),
             });
         }
-        let queue_family = info
-            .universal_queue_family()
-            .ok_or_else(|| VkError::Unsupported {
-                index: info.index,
-                name: info.name(),
-                missing: "a graphics+compute queue".into(),
-            })?;
+        let queue_family = info.universal_queue_family().ok_or_else(|| VkError::Unsupported {
+            index: info.index,
+            name: info.name(),
+            missing: "a graphics+compute queue".into(),
+        })?;
         let mut chosen = Chosen::of(&req, &info.features);
         let device = chosen.create_device(&instance, &info, queue_family, &req)?;
         let enabled_names = chosen.names(&req);
@@ -508,17 +454,13 @@ impl Gpu {
         };
         let gpu = Gpu {
             heap,
-            rt: req
-                .rt_pipeline
-                .then(|| khr::ray_tracing_pipeline::Device::new(inst, &device)),
+            rt: req.rt_pipeline.then(|| khr::ray_tracing_pipeline::Device::new(inst, &device)),
             accel: (req.rt_pipeline || req.ray_query)
                 .then(|| khr::acceleration_structure::Device::new(inst, &device)),
             descriptor_buffer: req
                 .descriptor_buffer
                 .then(|| ext::descriptor_buffer::Device::new(inst, &device)),
-            fault: req
-                .device_fault
-                .then(|| ext::device_fault::Device::new(inst, &device)),
+            fault: req.device_fault.then(|| ext::device_fault::Device::new(inst, &device)),
             instance: instance.clone(),
             info,
             device,

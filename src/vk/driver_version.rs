@@ -29,10 +29,7 @@ pub fn decode_driver_version(vendor_id: u32, driver_id: vk::DriverId, v: u32) ->
 /// `"25.0.7"` from a Mesa `driverInfo` such as `"Mesa 25.0.7-2~bpo12+1 (LLVM 15.0.6)"`.
 pub fn mesa_version_from_info(info: &str) -> Option<String> {
     let rest = info.strip_prefix("Mesa ")?;
-    let v: String = rest
-        .chars()
-        .take_while(|c| c.is_ascii_digit() || *c == '.')
-        .collect();
+    let v: String = rest.chars().take_while(|c| c.is_ascii_digit() || *c == '.').collect();
     (v.split('.').count() >= 2 && !v.starts_with('.')).then(|| v.trim_end_matches('.').to_string())
 }
 
@@ -86,10 +83,7 @@ mod tests {
     #[test]
     fn mesa_uses_make_version() {
         let v = vk::make_api_version(0, 25, 0, 7);
-        assert_eq!(
-            decode_driver_version(0x10005, vk::DriverId::MESA_LLVMPIPE, v),
-            "25.0.7"
-        );
+        assert_eq!(decode_driver_version(0x10005, vk::DriverId::MESA_LLVMPIPE, v), "25.0.7");
     }
 
     #[test]

@@ -16,32 +16,17 @@ pub enum VkError {
     #[error("--device {spec:?} matches several devices ({matches}); pass the index instead")]
     AmbiguousDevice { spec: String, matches: String },
     #[error("device {index} ({name}) cannot run ray tracing pipelines: {missing}; pick another with --device (see `rtprobe devices`)")]
-    NotRtCapable {
-        index: usize,
-        name: String,
-        missing: String,
-    },
+    NotRtCapable { index: usize, name: String, missing: String },
     #[error("no device can run ray tracing pipelines ({details}); see `rtprobe devices`")]
     NoRtDevice { details: String },
     #[error("the device was lost during {call}")]
     DeviceLost { call: &'static str },
     #[error("{call} failed: {result}")]
-    Call {
-        call: &'static str,
-        result: vk::Result,
-    },
+    Call { call: &'static str, result: vk::Result },
     #[error("device {index} ({name}) lacks what this work needs: {missing}")]
-    Unsupported {
-        index: usize,
-        name: String,
-        missing: String,
-    },
+    Unsupported { index: usize, name: String, missing: String },
     #[error("{what}: no memory type fits (type bits {type_bits:#x}, wanted {flags:?})")]
-    NoMemoryType {
-        what: &'static str,
-        type_bits: u32,
-        flags: vk::MemoryPropertyFlags,
-    },
+    NoMemoryType { what: &'static str, type_bits: u32, flags: vk::MemoryPropertyFlags },
 }
 
 impl VkError {

@@ -5,11 +5,7 @@ use crate::model::{FaultAddress, FaultInfo, FaultVendorInfo};
 use ash::vk;
 
 fn cstr(bytes: &[std::ffi::c_char]) -> String {
-    let b: Vec<u8> = bytes
-        .iter()
-        .take_while(|c| **c != 0)
-        .map(|c| *c as u8)
-        .collect();
+    let b: Vec<u8> = bytes.iter().take_while(|c| **c != 0).map(|c| *c as u8).collect();
     String::from_utf8_lossy(&b).into_owned()
 }
 
@@ -33,16 +29,9 @@ pub fn query(gpu: &Gpu) -> Option<FaultInfo> {
     let mut vendor =
         vec![vk::DeviceFaultVendorInfoEXT::default(); counts.vendor_info_count as usize];
     let mut info = vk::DeviceFaultInfoEXT::default();
-    info.p_address_infos = if addrs.is_empty() {
-        std::ptr::null_mut()
-    } else {
-        addrs.as_mut_ptr()
-    };
-    info.p_vendor_infos = if vendor.is_empty() {
-        std::ptr::null_mut()
-    } else {
-        vendor.as_mut_ptr()
-    };
+    info.p_address_infos = if addrs.is_empty() { std::ptr::null_mut() } else { addrs.as_mut_ptr() };
+    info.p_vendor_infos =
+        if vendor.is_empty() { std::ptr::null_mut() } else { vendor.as_mut_ptr() };
     info.p_vendor_binary_data = std::ptr::null_mut();
     let vendor_binary_bytes = counts.vendor_binary_size;
     counts.vendor_binary_size = 0;

@@ -30,37 +30,16 @@ pub const TRACKED_EXTENSIONS: &[Tracked] = &[
     t("ray tracing pipeline", khr::ray_tracing_pipeline::NAME),
     t("ray tracing pipeline", khr::ray_tracing_maintenance1::NAME),
     t("ray tracing pipeline", khr::pipeline_library::NAME),
-    t(
-        "ray tracing pipeline",
-        ext::pipeline_library_group_handles::NAME,
-    ),
+    t("ray tracing pipeline", ext::pipeline_library_group_handles::NAME),
     t("ray tracing pipeline", nv::ray_tracing_validation::NAME),
     t("ray tracing pipeline", nv::ray_tracing::NAME),
-    t(
-        "invocation reorder",
-        nv::ray_tracing_invocation_reorder::NAME,
-    ),
-    t(
-        "invocation reorder",
-        rt_ext::EXT_RAY_TRACING_INVOCATION_REORDER,
-    ),
+    t("invocation reorder", nv::ray_tracing_invocation_reorder::NAME),
+    t("invocation reorder", rt_ext::EXT_RAY_TRACING_INVOCATION_REORDER),
     t("acceleration structures", khr::acceleration_structure::NAME),
-    t(
-        "acceleration structures",
-        khr::deferred_host_operations::NAME,
-    ),
-    t(
-        "acceleration structures",
-        rt_ext::NV_CLUSTER_ACCELERATION_STRUCTURE,
-    ),
-    t(
-        "acceleration structures",
-        rt_ext::NV_PARTITIONED_ACCELERATION_STRUCTURE,
-    ),
-    t(
-        "acceleration structures",
-        rt_ext::AMDX_DENSE_GEOMETRY_FORMAT,
-    ),
+    t("acceleration structures", khr::deferred_host_operations::NAME),
+    t("acceleration structures", rt_ext::NV_CLUSTER_ACCELERATION_STRUCTURE),
+    t("acceleration structures", rt_ext::NV_PARTITIONED_ACCELERATION_STRUCTURE),
+    t("acceleration structures", rt_ext::AMDX_DENSE_GEOMETRY_FORMAT),
     t("geometry", nv::ray_tracing_motion_blur::NAME),
     t("geometry", rt_ext::NV_RAY_TRACING_LINEAR_SWEPT_SPHERES),
     t("geometry", khr::ray_tracing_position_fetch::NAME),
@@ -355,8 +334,7 @@ impl DeviceInfo {
     }
 
     pub fn has_extension(&self, name: &CStr) -> bool {
-        self.extensions
-            .contains_key(name.to_str().unwrap_or_default())
+        self.extensions.contains_key(name.to_str().unwrap_or_default())
     }
 
     pub fn api_version(&self) -> u32 {
@@ -370,22 +348,14 @@ impl DeviceInfo {
     pub fn driver_name(&self) -> String {
         self.properties
             .v12
-            .and_then(|p| {
-                p.driver_name_as_c_str()
-                    .ok()
-                    .map(|c| c.to_string_lossy().into_owned())
-            })
+            .and_then(|p| p.driver_name_as_c_str().ok().map(|c| c.to_string_lossy().into_owned()))
             .unwrap_or_default()
     }
 
     pub fn driver_info(&self) -> String {
         self.properties
             .v12
-            .and_then(|p| {
-                p.driver_info_as_c_str()
-                    .ok()
-                    .map(|c| c.to_string_lossy().into_owned())
-            })
+            .and_then(|p| p.driver_info_as_c_str().ok().map(|c| c.to_string_lossy().into_owned()))
             .unwrap_or_default()
     }
 
@@ -405,10 +375,7 @@ impl DeviceInfo {
     /// A queue family that supports graphics and compute (ray tracing runs on such a queue).
     pub fn universal_queue_family(&self) -> Option<u32> {
         let want = vk::QueueFlags::GRAPHICS | vk::QueueFlags::COMPUTE;
-        self.queue_families
-            .iter()
-            .position(|q| q.queue_flags.contains(want))
-            .map(|i| i as u32)
+        self.queue_families.iter().position(|q| q.queue_flags.contains(want)).map(|i| i as u32)
     }
 
     /// Why this device cannot run rtprobe's ray tracing pipelines; empty when it can.
@@ -430,14 +397,10 @@ impl DeviceInfo {
             }
         }
         let f = &self.features;
-        if f.rt_pipeline
-            .is_some_and(|x| x.ray_tracing_pipeline == vk::FALSE)
-        {
+        if f.rt_pipeline.is_some_and(|x| x.ray_tracing_pipeline == vk::FALSE) {
             m.push("rayTracingPipeline feature".into());
         }
-        if f.accel
-            .is_some_and(|x| x.acceleration_structure == vk::FALSE)
-        {
+        if f.accel.is_some_and(|x| x.acceleration_structure == vk::FALSE) {
             m.push("accelerationStructure feature".into());
         }
         if f.v12.is_some_and(|x| x.buffer_device_address == vk::FALSE) {
@@ -452,9 +415,7 @@ impl DeviceInfo {
     pub fn memory_type_index(&self, type_bits: u32, flags: vk::MemoryPropertyFlags) -> Option<u32> {
         (0..self.memory.memory_type_count).find(|&i| {
             type_bits & (1 << i) != 0
-                && self.memory.memory_types[i as usize]
-                    .property_flags
-                    .contains(flags)
+                && self.memory.memory_types[i as usize].property_flags.contains(flags)
         })
     }
 }
@@ -476,30 +437,20 @@ pub fn select<'a>(
     spec: Option<&str>,
 ) -> Result<&'a DeviceInfo, VkError> {
     let listing = || {
-        devices
-            .iter()
-            .map(|d| format!("{}: {}", d.index, d.name()))
-            .collect::<Vec<_>>()
-            .join(", ")
+        devices.iter().map(|d| format!("{}: {}", d.index, d.name())).collect::<Vec<_>>().join(", ")
     };
     match spec {
         Some(s) => {
             if let Ok(i) = s.trim().parse::<usize>() {
-                return devices.get(i).ok_or_else(|| VkError::NoSuchDevice {
-                    spec: s.into(),
-                    available: listing(),
-                });
+                return devices
+                    .get(i)
+                    .ok_or_else(|| VkError::NoSuchDevice { spec: s.into(), available: listing() });
             }
             let needle = s.to_lowercase();
-            let hits: Vec<&DeviceInfo> = devices
-                .iter()
-                .filter(|d| d.name().to_lowercase().contains(&needle))
-                .collect();
+            let hits: Vec<&DeviceInfo> =
+                devices.iter().filter(|d| d.name().to_lowercase().contains(&needle)).collect();
             match hits.as_slice() {
-                [] => Err(VkError::NoSuchDevice {
-                    spec: s.into(),
-                    available: listing(),
-                }),
+                [] => Err(VkError::NoSuchDevice { spec: s.into(), available: listing() }),
                 [one] => Ok(one),
                 many => Err(VkError::AmbiguousDevice {
                     spec: s.into(),
@@ -512,9 +463,7 @@ pub fn select<'a>(
             }
         }
         None => {
-            let capable = devices
-                .iter()
-                .filter(|d| d.rt_pipeline_missing().is_empty());
+            let capable = devices.iter().filter(|d| d.rt_pipeline_missing().is_empty());
             let best = capable
                 .clone()
                 .find(|d| d.properties.core.device_type == vk::PhysicalDeviceType::DISCRETE_GPU)

@@ -400,10 +400,7 @@ mod tests {
         assert_eq!(size_of::<MappingConstantOffset>(), 24);
         assert_eq!(size_of::<MappingIndirectIndex>(), 56);
         assert_eq!(offset_of!(MappingIndirectIndex, p_embedded_sampler), 24);
-        assert_eq!(
-            offset_of!(MappingIndirectIndex, sampler_heap_array_stride),
-            52
-        );
+        assert_eq!(offset_of!(MappingIndirectIndex, sampler_heap_array_stride), 52);
         assert_eq!(size_of::<MappingSourceData>(), 56);
         assert_eq!(offset_of!(SetAndBindingMapping, source_data), 40);
         assert_eq!(size_of::<SetAndBindingMapping>(), 96);

@@ -85,9 +85,7 @@ unsafe extern "system" fn debug_callback(
 fn validation_layer(entry: &ash::Entry) -> Result<Option<vk::LayerProperties>, VkError> {
     let available = unsafe { entry.enumerate_instance_layer_properties() }
         .at("vkEnumerateInstanceLayerProperties")?;
-    Ok(available
-        .into_iter()
-        .find(|l| l.layer_name_as_c_str() == Ok(VALIDATION_LAYER)))
+    Ok(available.into_iter().find(|l| l.layer_name_as_c_str() == Ok(VALIDATION_LAYER)))
 }
 
 /// The loader (`RTPROBE_VULKAN_LIB`, else the system's) and the instance version it supports,
@@ -98,9 +96,7 @@ fn load_entry() -> Result<(ash::Entry, u32), VkError> {
         Some(path) => unsafe { ash::Entry::load_from(&path) },
         None => unsafe { ash::Entry::load() },
     }
-    .map_err(|e| VkError::LoaderMissing {
-        detail: e.to_string(),
-    })?;
+    .map_err(|e| VkError::LoaderMissing { detail: e.to_string() })?;
 
     let loader_version = unsafe { entry.try_enumerate_instance_version() }
         .at("vkEnumerateInstanceVersion")?
@@ -223,18 +219,8 @@ impl Instance {
         let (entry, loader_version) = load_entry()?;
         let layers = Layers::of(&entry, opts)?;
         let raw = layers.create_instance(&entry, loader_version)?;
-        let debug = if layers.validation {
-            Some(messenger(&entry, &raw)?)
-        } else {
-            None
-        };
-        Ok(Self {
-            entry,
-            raw,
-            loader_version,
-            validation: layers.validation,
-            debug,
-        })
+        let debug = if layers.validation { Some(messenger(&entry, &raw)?) } else { None };
+        Ok(Self { entry, raw, loader_version, validation: layers.validation, debug })
     }
 
     /// The installed validation layer's specVersion (enabled or not), `None` without one.
@@ -250,9 +236,7 @@ impl Instance {
             Err(e) => return Err(VkError::from_result("vkEnumeratePhysicalDevices", e)),
         };
         if pds.is_empty() {
-            return Err(VkError::NoDriver {
-                detail: "the loader found no physical device".into(),
-            });
+            return Err(VkError::NoDriver { detail: "the loader found no physical device".into() });
         }
         Ok(pds)
     }

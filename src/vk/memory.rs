@@ -45,16 +45,11 @@ fn allocate(
                 })
                 .flatten()
         })
-        .ok_or(VkError::NoMemoryType {
-            what,
-            type_bits: req.memory_type_bits,
-            flags,
-        })?;
+        .ok_or(VkError::NoMemoryType { what, type_bits: req.memory_type_bits, flags })?;
     let mut flags_info =
         vk::MemoryAllocateFlagsInfo::default().flags(vk::MemoryAllocateFlags::DEVICE_ADDRESS);
-    let mut info = vk::MemoryAllocateInfo::default()
-        .allocation_size(req.size)
-        .memory_type_index(type_index);
+    let mut info =
+        vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(type_index);
     if device_address {
         info = info.push_next(&mut flags_info);
     }
@@ -72,10 +67,7 @@ impl Buffer {
         let d = &gpu.device;
         let size = size.max(16);
         let raw = unsafe {
-            d.create_buffer(
-                &vk::BufferCreateInfo::default().size(size).usage(usage),
-                None,
-            )
+            d.create_buffer(&vk::BufferCreateInfo::default().size(size).usage(usage), None)
         }
         .at("vkCreateBuffer")?;
         let req = unsafe { d.get_buffer_memory_requirements(raw) };
@@ -101,13 +93,7 @@ impl Buffer {
         } else {
             0
         };
-        Ok(Buffer {
-            raw,
-            memory,
-            size,
-            address,
-            mapped,
-        })
+        Ok(Buffer { raw, memory, size, address, mapped })
     }
 
     /// A host-visible buffer holding `bytes`.
@@ -124,10 +110,7 @@ impl Buffer {
 
     pub fn write(&self, offset: usize, bytes: &[u8]) {
         assert!(!self.mapped.is_null(), "write to a device-local buffer");
-        assert!(
-            offset + bytes.len() <= self.size as usize,
-            "write past the end of a buffer"
-        );
+        assert!(offset + bytes.len() <= self.size as usize, "write past the end of a buffer");
         // SAFETY: mapped for the buffer's whole size; bounds checked above.
         unsafe {
             std::ptr::copy_nonoverlapping(bytes.as_ptr(), self.mapped.add(offset), bytes.len())
@@ -182,11 +165,7 @@ impl Image {
         let ci = vk::ImageCreateInfo::default()
             .image_type(vk::ImageType::TYPE_2D)
             .format(format)
-            .extent(vk::Extent3D {
-                width: extent.width,
-                height: extent.height,
-                depth: 1,
-            })
+            .extent(vk::Extent3D { width: extent.width, height: extent.height, depth: 1 })
             .mip_levels(1)
             .array_layers(layers.unwrap_or(1))
             .samples(vk::SampleCountFlags::TYPE_1)
@@ -198,12 +177,7 @@ impl Image {
         let memory = allocate(gpu, req, Location::Device, false, "image")?;
         unsafe { d.bind_image_memory(raw, memory, 0) }.at("vkBindImageMemory")?;
         let view = create_view(gpu, raw, format, layers)?;
-        Ok(Image {
-            raw,
-            view,
-            memory,
-            extent,
-        })
+        Ok(Image { raw, view, memory, extent })
     }
 
     pub fn destroy(&self, gpu: &Gpu) {
@@ -241,10 +215,7 @@ pub fn view_type(layers: Option<u32>) -> vk::ImageViewType {
 
 /// The colour subresource range over `layers` (one layer for `None`).
 pub fn layer_range(layers: Option<u32>) -> vk::ImageSubresourceRange {
-    vk::ImageSubresourceRange {
-        layer_count: layers.unwrap_or(1),
-        ..color_range()
-    }
+    vk::ImageSubresourceRange { layer_count: layers.unwrap_or(1), ..color_range() }
 }
 
 pub fn color_range() -> vk::ImageSubresourceRange {

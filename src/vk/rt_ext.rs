@@ -141,14 +141,8 @@ mod tests {
     /// Sizes and offsets a C compiler gives the `vulkan_core.h` definitions on 64-bit targets.
     #[test]
     fn layouts_match_the_c_headers() {
-        assert_eq!(
-            size_of::<PhysicalDeviceClusterAccelerationStructureFeaturesNV>(),
-            24
-        );
-        assert_eq!(
-            size_of::<PhysicalDeviceClusterAccelerationStructurePropertiesNV>(),
-            48
-        );
+        assert_eq!(size_of::<PhysicalDeviceClusterAccelerationStructureFeaturesNV>(), 24);
+        assert_eq!(size_of::<PhysicalDeviceClusterAccelerationStructurePropertiesNV>(), 48);
         assert_eq!(
             offset_of!(
                 PhysicalDeviceClusterAccelerationStructurePropertiesNV,
@@ -156,18 +150,9 @@ mod tests {
             ),
             44
         );
-        assert_eq!(
-            size_of::<PhysicalDevicePartitionedAccelerationStructurePropertiesNV>(),
-            24
-        );
-        assert_eq!(
-            size_of::<PhysicalDeviceRayTracingLinearSweptSpheresFeaturesNV>(),
-            24
-        );
-        assert_eq!(
-            size_of::<PhysicalDeviceRayTracingInvocationReorderPropertiesEXT>(),
-            24
-        );
+        assert_eq!(size_of::<PhysicalDevicePartitionedAccelerationStructurePropertiesNV>(), 24);
+        assert_eq!(size_of::<PhysicalDeviceRayTracingLinearSweptSpheresFeaturesNV>(), 24);
+        assert_eq!(size_of::<PhysicalDeviceRayTracingInvocationReorderPropertiesEXT>(), 24);
         assert_eq!(
             offset_of!(
                 PhysicalDeviceRayTracingInvocationReorderPropertiesEXT,
@@ -177,10 +162,7 @@ mod tests {
         );
         // The u64 after three u32s is aligned to 8: offset 32, size 40.
         assert_eq!(
-            offset_of!(
-                PhysicalDeviceOpacityMicromapPropertiesKHR,
-                max_micromap_triangles
-            ),
+            offset_of!(PhysicalDeviceOpacityMicromapPropertiesKHR, max_micromap_triangles),
             32
         );
         assert_eq!(size_of::<PhysicalDeviceOpacityMicromapPropertiesKHR>(), 40);
@@ -193,9 +175,7 @@ mod tests {
         assert!(f.p_next.is_null());
         assert_eq!(f.ray_tracing_invocation_reorder, vk::FALSE);
         assert_eq!(
-            PhysicalDeviceOpacityMicromapPropertiesKHR::default()
-                .s_type
-                .as_raw(),
+            PhysicalDeviceOpacityMicromapPropertiesKHR::default().s_type.as_raw(),
             1_000_623_001
         );
     }

@@ -5,10 +5,8 @@
 use super::*;
 use crate::model::{CellResult, DescriptorModel, IndexSource, Resource, Stage, Timings};
 
-const LIMITS: Limits = Limits {
-    timeout: Duration::from_secs(10),
-    setup_timeout: Duration::from_secs(60),
-};
+const LIMITS: Limits =
+    Limits { timeout: Duration::from_secs(10), setup_timeout: Duration::from_secs(60) };
 
 fn cells() -> Vec<Cell> {
     [Stage::Raygen, Stage::ClosestHit, Stage::Miss]
@@ -50,10 +48,7 @@ fn start(c: &Cell) -> Input {
 }
 
 fn phase(p: Phase, step: Option<&str>) -> Input {
-    msg(WorkerMsg::Phase {
-        phase: p,
-        step: step.map(String::from),
-    })
+    msg(WorkerMsg::Phase { phase: p, step: step.map(String::from) })
 }
 
 fn result(c: &Cell, outcome: Outcome) -> Input {
@@ -65,18 +60,11 @@ fn result(c: &Cell, outcome: Outcome) -> Input {
         fault: None,
         validation_errors: 0,
     };
-    msg(WorkerMsg::Result {
-        cell: c.id(),
-        result,
-    })
+    msg(WorkerMsg::Result { cell: c.id(), result })
 }
 
 fn exit(code: Option<i32>, signal: Option<i32>) -> WorkerExit {
-    WorkerExit {
-        code,
-        signal,
-        ..Default::default()
-    }
+    WorkerExit { code, signal, ..Default::default() }
 }
 
 /// Worker 7 with three cells, ready at t0 + 100 ms.
@@ -94,11 +82,7 @@ fn in_cell(t0: Instant, p: Phase) -> Worker {
 
 /// `ready_worker` after its first cell's result at t0 + 300 ms.
 fn one_done(t0: Instant) -> Worker {
-    let (w, _) = feed(
-        in_cell(t0, Phase::Check),
-        result(&cells()[0], Outcome::Pass),
-        at(t0, 300),
-    );
+    let (w, _) = feed(in_cell(t0, Phase::Check), result(&cells()[0], Outcome::Pass), at(t0, 300));
     w
 }
 
@@ -107,11 +91,7 @@ fn dies(w: Worker, cause: Input, ended: WorkerExit, now: Instant) -> (Effect, Ve
     let (w, mut fx) = feed(w, cause, now);
     assert_eq!(fx.len(), 1, "{fx:?}");
     assert!(matches!(w.state, State::Dying { .. }));
-    assert_eq!(
-        w.deadline(&LIMITS),
-        None,
-        "the supervisor waits for no deadline while it kills"
-    );
+    assert_eq!(w.deadline(&LIMITS), None, "the supervisor waits for no deadline while it kills");
     let (w, recorded) = feed(w, Input::Exited(ended), now);
     assert!(w.ended());
     (fx.remove(0), recorded)
@@ -130,15 +110,7 @@ fn attempts(fx: &[Effect]) -> Vec<(Cell, &Attempt)> {
 }
 
 fn events(fx: &[Effect]) -> Vec<&WorkerEvent> {
-    fx.iter()
-        .filter_map(|e| {
-            if let Effect::Worker(ev) = e {
-                Some(ev)
-            } else {
-                None
-            }
-        })
-        .collect()
+    fx.iter().filter_map(|e| if let Effect::Worker(ev) = e { Some(ev) } else { None }).collect()
 }
 
 fn fruitless(fx: &[Effect]) -> Option<(usize, &Attempt)> {
@@ -173,27 +145,16 @@ fn setup_has_its_own_deadline_and_the_others_share_the_timeout() {
         Worker::new(1, cells(), false, t0).deadline(&LIMITS),
         Some(t0 + LIMITS.setup_timeout)
     );
-    assert_eq!(
-        in_cell(t0, Phase::Trace).deadline(&LIMITS),
-        Some(at(t0, 200) + LIMITS.timeout)
-    );
-    assert_eq!(
-        one_done(t0).deadline(&LIMITS),
-        Some(at(t0, 300) + LIMITS.timeout)
-    );
+    assert_eq!(in_cell(t0, Phase::Trace).deadline(&LIMITS), Some(at(t0, 200) + LIMITS.timeout));
+    assert_eq!(one_done(t0).deadline(&LIMITS), Some(at(t0, 300) + LIMITS.timeout));
 }
 
 #[test]
 fn a_result_line_is_the_cells_attempt_with_its_phase_and_time() {
     let t0 = Instant::now();
-    let (w, fx) = feed(
-        in_cell(t0, Phase::Check),
-        result(&cells()[0], Outcome::Mismatch),
-        at(t0, 450),
-    );
-    let [(cell, a)] = attempts(&fx)[..] else {
-        panic!("{fx:?}")
-    };
+    let (w, fx) =
+        feed(in_cell(t0, Phase::Check), result(&cells()[0], Outcome::Mismatch), at(t0, 450));
+    let [(cell, a)] = attempts(&fx)[..] else { panic!("{fx:?}") };
     assert_eq!(cell, cells()[0]);
     assert_eq!(
         (a.outcome, a.phase, a.worker, a.wall_ms, a.isolated),
@@ -204,10 +165,7 @@ fn a_result_line_is_the_cells_attempt_with_its_phase_and_time() {
     assert_eq!(a.device_features, ["VK_KHR_ray_tracing_pipeline"]);
     // A mismatch does not end the worker: the next cell's gap starts.
     assert_eq!(w.state, State::Between { since: at(t0, 450) });
-    assert_eq!(
-        (w.phase, w.pending.len(), w.progressed),
-        (Phase::BetweenCells, 2, true)
-    );
+    assert_eq!((w.phase, w.pending.len(), w.progressed), (Phase::BetweenCells, 2, true));
 }
 
 #[test]
@@ -219,15 +177,7 @@ fn the_last_result_moves_to_teardown_and_a_clean_exit_records_nothing() {
         (w, _) = feed(w, start(c), at(t0, t));
         (w, _) = feed(w, result(c, Outcome::Pass), at(t0, t + 10));
     }
-    assert_eq!(
-        (&w.state, w.phase),
-        (
-            &State::Teardown {
-                since: at(t0, 3010)
-            },
-            Phase::Teardown
-        )
-    );
+    assert_eq!((&w.state, w.phase), (&State::Teardown { since: at(t0, 3010) }, Phase::Teardown));
     let (asked, recorded) = dies(w, Input::Eof, exit(Some(0), None), at(t0, 3020));
     assert_eq!(asked, Effect::Reap, "its output ended: reaped, not killed");
     assert!(recorded.is_empty(), "{recorded:?}");
@@ -251,17 +201,10 @@ fn a_crash_in_teardown_is_the_workers_not_a_cells() {
 #[test]
 fn a_device_lost_result_ends_the_worker() {
     let t0 = Instant::now();
-    let (w, fx) = feed(
-        in_cell(t0, Phase::Trace),
-        result(&cells()[0], Outcome::DeviceLost),
-        at(t0, 300),
-    );
+    let (w, fx) =
+        feed(in_cell(t0, Phase::Trace), result(&cells()[0], Outcome::DeviceLost), at(t0, 300));
     assert_eq!(attempts(&fx)[0].1.outcome, Outcome::DeviceLost);
-    assert_eq!(
-        w.state,
-        State::Teardown { since: at(t0, 300) },
-        "two cells left, yet it must exit"
-    );
+    assert_eq!(w.state, State::Teardown { since: at(t0, 300) }, "two cells left, yet it must exit");
     assert_eq!(w.pending.len(), 2);
     // It `_exit(0)`s by itself: nothing more to record; its cells stay queued for the next worker.
     let (_, fx) = dies(w, Input::Eof, exit(Some(0), None), at(t0, 310));
@@ -278,22 +221,14 @@ fn eof_mid_cell_is_a_crash_in_the_cells_phase() {
         at(t0, 700),
     );
     assert_eq!(asked, Effect::Reap);
-    let [(cell, a)] = attempts(&fx)[..] else {
-        panic!("{fx:?}")
-    };
+    let [(cell, a)] = attempts(&fx)[..] else { panic!("{fx:?}") };
     assert_eq!(cell, cells()[0]);
-    assert_eq!(
-        (a.outcome, a.phase, a.wall_ms),
-        (Outcome::Crash, Some(Phase::Pipeline), 500.0)
-    );
+    assert_eq!((a.outcome, a.phase, a.wall_ms), (Outcome::Crash, Some(Phase::Pipeline), 500.0));
     assert_eq!(
         a.detail.as_deref(),
         Some("worker killed by signal 11 (SIGSEGV) mid-cell, in pipeline")
     );
-    assert_eq!(
-        a.worker_exit.as_ref().and_then(|e| e.signal),
-        Some(libc::SIGSEGV)
-    );
+    assert_eq!(a.worker_exit.as_ref().and_then(|e| e.signal), Some(libc::SIGSEGV));
     assert!(events(&fx).is_empty(), "a cell's fault, not the worker's");
 }
 
@@ -307,15 +242,8 @@ fn eof_mid_cell_is_never_a_pass() {
         exit(None, None),
         exit(None, Some(libc::SIGKILL)),
     ] {
-        let (_, fx) = dies(
-            in_cell(t0, Phase::Trace),
-            Input::Eof,
-            ended.clone(),
-            at(t0, 300),
-        );
-        let [(_, a)] = attempts(&fx)[..] else {
-            panic!("{fx:?}")
-        };
+        let (_, fx) = dies(in_cell(t0, Phase::Trace), Input::Eof, ended.clone(), at(t0, 300));
+        let [(_, a)] = attempts(&fx)[..] else { panic!("{fx:?}") };
         assert_ne!(a.outcome, Outcome::Pass, "{ended:?}");
         assert!(a.result.is_none());
         assert_eq!(a.phase, Some(Phase::Trace));
@@ -332,13 +260,8 @@ fn a_deadline_mid_cell_is_the_cells_timeout() {
         at(t0, 10_200),
     );
     assert_eq!(asked, Effect::Kill);
-    let [(cell, a)] = attempts(&fx)[..] else {
-        panic!("{fx:?}")
-    };
-    assert_eq!(
-        (cell, a.outcome, a.phase),
-        (cells()[0], Outcome::Timeout, Some(Phase::Trace))
-    );
+    let [(cell, a)] = attempts(&fx)[..] else { panic!("{fx:?}") };
+    assert_eq!((cell, a.outcome, a.phase), (cells()[0], Outcome::Timeout, Some(Phase::Trace)));
     assert_eq!(
         a.detail.as_deref(),
         Some("no result within 10s, in trace; worker process group killed")
@@ -349,23 +272,13 @@ fn a_deadline_mid_cell_is_the_cells_timeout() {
 #[test]
 fn a_deadline_between_cells_is_never_blamed_on_a_cell() {
     let t0 = Instant::now();
-    let (asked, fx) = dies(
-        one_done(t0),
-        Input::Deadline,
-        exit(None, Some(libc::SIGTERM)),
-        at(t0, 10_300),
-    );
+    let (asked, fx) =
+        dies(one_done(t0), Input::Deadline, exit(None, Some(libc::SIGTERM)), at(t0, 10_300));
     assert_eq!(asked, Effect::Kill);
     assert!(attempts(&fx).is_empty(), "{fx:?}");
     let ev = events(&fx)[0];
-    assert_eq!(
-        (ev.phase, ev.outcome),
-        (Phase::BetweenCells, Outcome::Timeout)
-    );
-    assert_eq!(
-        ev.detail.as_deref(),
-        Some("no next cell within 10s after the last result; killed")
-    );
+    assert_eq!((ev.phase, ev.outcome), (Phase::BetweenCells, Outcome::Timeout));
+    assert_eq!(ev.detail.as_deref(), Some("no next cell within 10s after the last result; killed"));
     assert_eq!(fruitless(&fx), None, "it ran a cell");
 }
 
@@ -377,12 +290,7 @@ fn a_deadline_in_setup_is_a_failed_setup() {
         phase(Phase::Setup, Some("vkCreateDevice")),
         at(t0, 5),
     );
-    let (asked, fx) = dies(
-        w,
-        Input::Deadline,
-        exit(None, Some(libc::SIGKILL)),
-        at(t0, 60_000),
-    );
+    let (asked, fx) = dies(w, Input::Deadline, exit(None, Some(libc::SIGKILL)), at(t0, 60_000));
     assert_eq!(asked, Effect::Kill);
     let ev = events(&fx)[0];
     assert_eq!(
@@ -401,26 +309,14 @@ fn a_deadline_in_setup_is_a_failed_setup() {
     assert!(not_run.detail.as_deref().unwrap().starts_with(
         "not run: two workers in a row failed before running a cell; the last: timeout in setup"
     ));
-    assert!(
-        attempts(&fx).is_empty(),
-        "the scheduler decides whether its cells are given up"
-    );
+    assert!(attempts(&fx).is_empty(), "the scheduler decides whether its cells are given up");
 }
 
 #[test]
 fn a_deadline_in_teardown_is_the_workers() {
     let t0 = Instant::now();
-    let (w, _) = feed(
-        in_cell(t0, Phase::Trace),
-        result(&cells()[0], Outcome::Crash),
-        at(t0, 300),
-    );
-    let (_, fx) = dies(
-        w,
-        Input::Deadline,
-        exit(None, Some(libc::SIGTERM)),
-        at(t0, 10_300),
-    );
+    let (w, _) = feed(in_cell(t0, Phase::Trace), result(&cells()[0], Outcome::Crash), at(t0, 300));
+    let (_, fx) = dies(w, Input::Deadline, exit(None, Some(libc::SIGTERM)), at(t0, 10_300));
     assert!(attempts(&fx).is_empty());
     let ev = events(&fx)[0];
     assert_eq!((ev.phase, ev.outcome), (Phase::Teardown, Outcome::Timeout));
@@ -444,11 +340,7 @@ fn a_failed_setup_is_a_worker_event_and_fruitless() {
         outcome: Outcome::DeviceLost,
     });
     let (asked, fx) = dies(w, fatal, exit(Some(3), None), at(t0, 50));
-    assert_eq!(
-        asked,
-        Effect::Kill,
-        "its group is killed: nothing of it may linger"
-    );
+    assert_eq!(asked, Effect::Kill, "its group is killed: nothing of it may linger");
     let ev = events(&fx)[0];
     assert_eq!((ev.phase, ev.outcome), (Phase::Setup, Outcome::DeviceLost));
     assert_eq!(ev.detail.as_deref(), Some("worker setup failed in setup (acceleration structures and resources): injected device loss"));
@@ -462,16 +354,8 @@ fn a_failed_setup_is_a_worker_event_and_fruitless() {
 #[test]
 fn a_fatal_mid_cell_is_the_workers_and_the_cell_runs_again() {
     let t0 = Instant::now();
-    let fatal = msg(WorkerMsg::Fatal {
-        message: "gone".into(),
-        outcome: Outcome::Error,
-    });
-    let (_, fx) = dies(
-        in_cell(t0, Phase::Record),
-        fatal,
-        exit(Some(2), None),
-        at(t0, 300),
-    );
+    let fatal = msg(WorkerMsg::Fatal { message: "gone".into(), outcome: Outcome::Error });
+    let (_, fx) = dies(in_cell(t0, Phase::Record), fatal, exit(Some(2), None), at(t0, 300));
     assert!(attempts(&fx).is_empty(), "{fx:?}");
     assert_eq!(events(&fx)[0].phase, Phase::Record);
 }
@@ -480,65 +364,29 @@ fn a_fatal_mid_cell_is_the_workers_and_the_cell_runs_again() {
 fn a_prebuild_step_restarts_the_deadline() {
     let t0 = Instant::now();
     let ids: Vec<String> = cells().iter().map(Cell::id).collect();
-    let (w, _) = feed(
-        ready_worker(t0),
-        msg(WorkerMsg::Prebuild {
-            cells: ids,
-            threads: 4,
-        }),
-        at(t0, 200),
-    );
+    let (w, _) =
+        feed(ready_worker(t0), msg(WorkerMsg::Prebuild { cells: ids, threads: 4 }), at(t0, 200));
     assert_eq!(
         (w.phase, w.deadline(&LIMITS)),
         (Phase::Prebuild, Some(at(t0, 200) + LIMITS.timeout))
     );
-    let (w, _) = feed(
-        w,
-        phase(Phase::Prebuild, Some("pipelines 1/3")),
-        at(t0, 9_000),
-    );
+    let (w, _) = feed(w, phase(Phase::Prebuild, Some("pipelines 1/3")), at(t0, 9_000));
     assert_eq!(w.deadline(&LIMITS), Some(at(t0, 9_000) + LIMITS.timeout));
     assert_eq!(w.where_(), "prebuild (pipelines 1/3)");
-    let (w, fx) = feed(
-        w,
-        msg(WorkerMsg::Prebuilt {
-            wall_ms: 5.0,
-            pipelines: 3,
-            threads: 4,
-        }),
-        at(t0, 9_500),
-    );
-    assert_eq!(
-        fx,
-        [Effect::Prebuilt {
-            wall_ms: 5.0,
-            pipelines: 3,
-            threads: 4
-        }]
-    );
-    assert_eq!(
-        w.state,
-        State::Between {
-            since: at(t0, 9_500)
-        }
-    );
+    let (w, fx) =
+        feed(w, msg(WorkerMsg::Prebuilt { wall_ms: 5.0, pipelines: 3, threads: 4 }), at(t0, 9_500));
+    assert_eq!(fx, [Effect::Prebuilt { wall_ms: 5.0, pipelines: 3, threads: 4 }]);
+    assert_eq!(w.state, State::Between { since: at(t0, 9_500) });
 }
 
 #[test]
 fn a_phase_or_a_repeated_start_mid_cell_does_not_restart_the_deadline() {
     // The twin: only a prebuild's progress moves a deadline; a cell's clock runs from its start.
     let t0 = Instant::now();
-    let (w, _) = feed(
-        in_cell(t0, Phase::Pipeline),
-        phase(Phase::Trace, None),
-        at(t0, 9_000),
-    );
+    let (w, _) = feed(in_cell(t0, Phase::Pipeline), phase(Phase::Trace, None), at(t0, 9_000));
     let (w, fx) = feed(w, start(&cells()[0]), at(t0, 9_500));
     assert!(matches!(&fx[..], [Effect::Log(l)] if l.contains("ignored")));
-    assert_eq!(
-        (w.phase, w.deadline(&LIMITS)),
-        (Phase::Trace, Some(at(t0, 200) + LIMITS.timeout))
-    );
+    assert_eq!((w.phase, w.deadline(&LIMITS)), (Phase::Trace, Some(at(t0, 200) + LIMITS.timeout)));
 }
 
 #[test]
@@ -547,24 +395,14 @@ fn a_death_while_prebuilding_sends_its_batch_cell_by_cell() {
     let ids: Vec<String> = cells().iter().map(Cell::id).collect();
     let (w, _) = feed(
         ready_worker(t0),
-        msg(WorkerMsg::Prebuild {
-            cells: ids.clone(),
-            threads: 4,
-        }),
+        msg(WorkerMsg::Prebuild { cells: ids.clone(), threads: 4 }),
         at(t0, 200),
     );
     for (cause, ended, outcome) in [
-        (
-            Input::Deadline,
-            exit(None, Some(libc::SIGTERM)),
-            Outcome::Timeout,
-        ),
+        (Input::Deadline, exit(None, Some(libc::SIGTERM)), Outcome::Timeout),
         (Input::Eof, exit(None, Some(libc::SIGSEGV)), Outcome::Crash),
         (
-            msg(WorkerMsg::Fatal {
-                message: "lost".into(),
-                outcome: Outcome::DeviceLost,
-            }),
+            msg(WorkerMsg::Fatal { message: "lost".into(), outcome: Outcome::DeviceLost }),
             exit(Some(0), None),
             Outcome::DeviceLost,
         ),
@@ -616,36 +454,20 @@ fn lines_out_of_place_are_ignored() {
     let (w2, fx) = feed(w.clone(), ready(), at(t0, 400));
     assert!(matches!(&fx[..], [Effect::Log(l)] if l.contains("ready again")));
     assert_eq!(w2.state, w.state);
-    let stranger = Cell {
-        nonuniform: true,
-        ..cells()[1]
-    };
+    let stranger = Cell { nonuniform: true, ..cells()[1] };
     let (w2, fx) = feed(w.clone(), start(&stranger), at(t0, 400));
-    assert!(
-        fx.is_empty() && w2.state == w.state,
-        "a cell outside its job does not start"
-    );
+    assert!(fx.is_empty() && w2.state == w.state, "a cell outside its job does not start");
     let (w2, fx) = feed(w.clone(), result(&stranger, Outcome::Pass), at(t0, 400));
     assert!(fx.is_empty() && w2.state == w.state, "nor is it recorded");
     let (w2, fx) = feed(
         w.clone(),
-        msg(WorkerMsg::Prebuilt {
-            wall_ms: 1.0,
-            pipelines: 1,
-            threads: 2,
-        }),
+        msg(WorkerMsg::Prebuilt { wall_ms: 1.0, pipelines: 1, threads: 2 }),
         at(t0, 400),
     );
-    assert!(
-        fx.is_empty() && w2.state == w.state,
-        "prebuilt without a prebuild"
-    );
+    assert!(fx.is_empty() && w2.state == w.state, "prebuilt without a prebuild");
     let (_, fx) = feed(
         in_cell(t0, Phase::Trace),
-        msg(WorkerMsg::Prebuild {
-            cells: vec![],
-            threads: 2,
-        }),
+        msg(WorkerMsg::Prebuild { cells: vec![], threads: 2 }),
         at(t0, 400),
     );
     assert!(matches!(&fx[..], [Effect::Log(l)] if l.contains("not between cells")));
@@ -659,26 +481,14 @@ fn a_dying_worker_takes_no_more_lines() {
     assert!(fx.is_empty());
     let (w, fx) = feed(w, Input::Deadline, at(t0, 302));
     assert!(fx.is_empty(), "one kill per death");
-    assert!(matches!(
-        w.state,
-        State::Dying {
-            cause: Cause::Eof,
-            ..
-        }
-    ));
+    assert!(matches!(w.state, State::Dying { cause: Cause::Eof, .. }));
 }
 
 #[test]
 fn cache_saved_is_passed_on_with_its_reason() {
     let t0 = Instant::now();
-    let (_, fx) = feed(
-        one_done(t0),
-        msg(WorkerMsg::CacheSaved {
-            bytes: None,
-            error: None,
-        }),
-        at(t0, 400),
-    );
+    let (_, fx) =
+        feed(one_done(t0), msg(WorkerMsg::CacheSaved { bytes: None, error: None }), at(t0, 400));
     assert_eq!(fx, [Effect::CacheSaved(Err("not saved".into()))]);
 }
 
