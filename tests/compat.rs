@@ -25,7 +25,9 @@ fn json_files(dir: &Path, out: &mut Vec<PathBuf>) {
     };
     for e in entries.flatten() {
         let p = e.path();
-        if p.is_dir() {
+        // reports/tmp/ is scratch space (git ignores it): what a developer left there is no
+        // release's output.
+        if p.is_dir() && !p.ends_with("reports/tmp") {
             json_files(&p, out);
         } else if p.extension().is_some_and(|x| x == "json") {
             out.push(p);
