@@ -74,18 +74,7 @@ impl Oracle for Late {
 }
 
 fn attempt(outcome: Outcome, isolated: bool) -> Attempt {
-    Attempt {
-        outcome,
-        isolated,
-        detail: None,
-        result: None,
-        worker_exit: None,
-        injected: None,
-        wall_ms: 0.0,
-        phase: None,
-        worker: 0,
-        device_features: vec![],
-    }
+    Attempt::new(outcome, isolated)
 }
 
 fn scope(filter: &str) -> Vec<Cell> {
