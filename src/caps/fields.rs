@@ -2,7 +2,7 @@
 //! structure name and member names (`"VkPhysicalDeviceRayTracingPipelineFeaturesKHR":
 //! {"rayTracingPipeline": true}`) — the layout the Vulkan Profiles JSON format uses, so the caps
 //! report and the profile export share one representation. A struct the device lacks is absent.
-use crate::vk::features::Properties;
+use crate::vk::features::{Features, Properties};
 use crate::vk::{rt_ext, DeviceInfo};
 use ash::vk;
 use serde_json::{json, Map, Value};
@@ -29,8 +29,18 @@ fn put(m: &mut Map<String, Value>, key: &str, v: Option<Value>) {
 pub fn features(info: &DeviceInfo) -> Map<String, Value> {
     let f = &info.features;
     let mut m = Map::new();
+    core_features(f, &mut m);
+    rt_features(f, &mut m);
+    descriptor_and_device_features(f, &mut m);
+    rt_extension_features(f, &mut m);
+    rt_geometry_features(f, &mut m);
+    m
+}
+
+/// The core features rtprobe relies on, and those of Vulkan 1.1, 1.2 and 1.3.
+fn core_features(f: &Features, m: &mut Map<String, Value>) {
     put(
-        &mut m,
+        m,
         "VkPhysicalDeviceFeatures",
         Some(obj!(f.core;
             b "robustBufferAccess" robust_buffer_access, b "shaderInt64" shader_int64, b "shaderInt16" shader_int16,
@@ -42,11 +52,11 @@ pub fn features(info: &DeviceInfo) -> Map<String, Value> {
             b "shaderStorageImageArrayDynamicIndexing" shader_storage_image_array_dynamic_indexing,
         )),
     );
-    put(&mut m, "VkPhysicalDeviceVulkan11Features", f.v11.map(|s| obj!(s;
+    put(m, "VkPhysicalDeviceVulkan11Features", f.v11.map(|s| obj!(s;
         b "storageBuffer16BitAccess" storage_buffer16_bit_access, b "variablePointersStorageBuffer" variable_pointers_storage_buffer,
         b "variablePointers" variable_pointers, b "shaderDrawParameters" shader_draw_parameters,
     )));
-    put(&mut m, "VkPhysicalDeviceVulkan12Features", f.v12.map(|s| obj!(s;
+    put(m, "VkPhysicalDeviceVulkan12Features", f.v12.map(|s| obj!(s;
         b "descriptorIndexing" descriptor_indexing,
         b "shaderUniformBufferArrayNonUniformIndexing" shader_uniform_buffer_array_non_uniform_indexing,
         b "shaderSampledImageArrayNonUniformIndexing" shader_sampled_image_array_non_uniform_indexing,
@@ -64,18 +74,23 @@ pub fn features(info: &DeviceInfo) -> Map<String, Value> {
         b "scalarBlockLayout" scalar_block_layout, b "timelineSemaphore" timeline_semaphore,
         b "vulkanMemoryModel" vulkan_memory_model, b "shaderInt8" shader_int8, b "shaderFloat16" shader_float16,
     )));
-    put(&mut m, "VkPhysicalDeviceVulkan13Features", f.v13.map(|s| obj!(s;
+    put(m, "VkPhysicalDeviceVulkan13Features", f.v13.map(|s| obj!(s;
         b "robustImageAccess" robust_image_access, b "synchronization2" synchronization2,
         b "maintenance4" maintenance4, b "dynamicRendering" dynamic_rendering, b "inlineUniformBlock" inline_uniform_block,
     )));
-    put(&mut m, "VkPhysicalDeviceRayTracingPipelineFeaturesKHR", f.rt_pipeline.map(|s| obj!(s;
+}
+
+/// The ray tracing pipeline, acceleration structures, ray query, maintenance1 and position fetch:
+/// the extensions rtprobe's matrix uses.
+fn rt_features(f: &Features, m: &mut Map<String, Value>) {
+    put(m, "VkPhysicalDeviceRayTracingPipelineFeaturesKHR", f.rt_pipeline.map(|s| obj!(s;
         b "rayTracingPipeline" ray_tracing_pipeline,
         b "rayTracingPipelineShaderGroupHandleCaptureReplay" ray_tracing_pipeline_shader_group_handle_capture_replay,
         b "rayTracingPipelineShaderGroupHandleCaptureReplayMixed" ray_tracing_pipeline_shader_group_handle_capture_replay_mixed,
         b "rayTracingPipelineTraceRaysIndirect" ray_tracing_pipeline_trace_rays_indirect,
         b "rayTraversalPrimitiveCulling" ray_traversal_primitive_culling,
     )));
-    put(&mut m, "VkPhysicalDeviceAccelerationStructureFeaturesKHR", f.accel.map(|s| obj!(s;
+    put(m, "VkPhysicalDeviceAccelerationStructureFeaturesKHR", f.accel.map(|s| obj!(s;
         b "accelerationStructure" acceleration_structure,
         b "accelerationStructureCaptureReplay" acceleration_structure_capture_replay,
         b "accelerationStructureIndirectBuild" acceleration_structure_indirect_build,
@@ -83,12 +98,12 @@ pub fn features(info: &DeviceInfo) -> Map<String, Value> {
         b "descriptorBindingAccelerationStructureUpdateAfterBind" descriptor_binding_acceleration_structure_update_after_bind,
     )));
     put(
-        &mut m,
+        m,
         "VkPhysicalDeviceRayQueryFeaturesKHR",
         f.ray_query.map(|s| obj!(s; b "rayQuery" ray_query)),
     );
     put(
-        &mut m,
+        m,
         "VkPhysicalDeviceRayTracingMaintenance1FeaturesKHR",
         f.rt_maintenance1.map(|s| {
             obj!(s;
@@ -98,32 +113,36 @@ pub fn features(info: &DeviceInfo) -> Map<String, Value> {
         }),
     );
     put(
-        &mut m,
+        m,
         "VkPhysicalDeviceRayTracingPositionFetchFeaturesKHR",
         f.position_fetch.map(|s| {
             obj!(s;
         b "rayTracingPositionFetch" ray_tracing_position_fetch)
         }),
     );
-    put(&mut m, "VkPhysicalDeviceDescriptorBufferFeaturesEXT", f.descriptor_buffer.map(|s| obj!(s;
+}
+
+/// Descriptor buffer and heap, untyped pointers, robustness2, device fault, maintenance5 and 6.
+fn descriptor_and_device_features(f: &Features, m: &mut Map<String, Value>) {
+    put(m, "VkPhysicalDeviceDescriptorBufferFeaturesEXT", f.descriptor_buffer.map(|s| obj!(s;
         b "descriptorBuffer" descriptor_buffer, b "descriptorBufferCaptureReplay" descriptor_buffer_capture_replay,
         b "descriptorBufferImageLayoutIgnored" descriptor_buffer_image_layout_ignored,
         b "descriptorBufferPushDescriptors" descriptor_buffer_push_descriptors,
     )));
-    put(&mut m, "VkPhysicalDeviceDescriptorHeapFeaturesEXT", f.descriptor_heap.map(|s| obj!(s;
+    put(m, "VkPhysicalDeviceDescriptorHeapFeaturesEXT", f.descriptor_heap.map(|s| obj!(s;
         b "descriptorHeap" descriptor_heap, b "descriptorHeapCaptureReplay" descriptor_heap_capture_replay)));
     put(
-        &mut m,
+        m,
         "VkPhysicalDeviceShaderUntypedPointersFeaturesKHR",
         f.untyped_pointers.map(|s| {
             obj!(s;
         b "shaderUntypedPointers" shader_untyped_pointers)
         }),
     );
-    put(&mut m, "VkPhysicalDeviceRobustness2FeaturesEXT", f.robustness2.map(|s| obj!(s;
+    put(m, "VkPhysicalDeviceRobustness2FeaturesEXT", f.robustness2.map(|s| obj!(s;
         b "robustBufferAccess2" robust_buffer_access2, b "robustImageAccess2" robust_image_access2, b "nullDescriptor" null_descriptor)));
     put(
-        &mut m,
+        m,
         "VkPhysicalDeviceFaultFeaturesEXT",
         f.fault.map(|s| {
             obj!(s;
@@ -131,23 +150,21 @@ pub fn features(info: &DeviceInfo) -> Map<String, Value> {
         }),
     );
     put(
-        &mut m,
+        m,
         "VkPhysicalDeviceMaintenance5FeaturesKHR",
         f.maintenance5.map(|s| obj!(s; b "maintenance5" maintenance5)),
     );
     put(
-        &mut m,
+        m,
         "VkPhysicalDeviceMaintenance6FeaturesKHR",
         f.maintenance6.map(|s| obj!(s; b "maintenance6" maintenance6)),
     );
-    rt_extension_features(info, &mut m);
-    m
 }
 
-/// The ray tracing extensions beyond what rtprobe's matrix uses (pipeline libraries, invocation
-/// reorder, cluster / partitioned AS, geometry kinds, micromaps).
-fn rt_extension_features(info: &DeviceInfo, m: &mut Map<String, Value>) {
-    let f = &info.features;
+/// The ray tracing extensions beyond what rtprobe's matrix uses: pipeline libraries, validation,
+/// invocation reorder, cluster and partitioned AS (the geometry kinds and micromaps are in
+/// [`rt_geometry_features`]).
+fn rt_extension_features(f: &Features, m: &mut Map<String, Value>) {
     put(
         m,
         "VkPhysicalDevicePipelineLibraryGroupHandlesFeaturesEXT",
@@ -193,6 +210,11 @@ fn rt_extension_features(info: &DeviceInfo, m: &mut Map<String, Value>) {
         b "partitionedAccelerationStructure" partitioned_acceleration_structure)
         }),
     );
+}
+
+/// The ray tracing geometry kinds beyond triangles and AABBs (dense geometry, motion blur, swept
+/// spheres) and micromaps.
+fn rt_geometry_features(f: &Features, m: &mut Map<String, Value>) {
     put(
         m,
         "VkPhysicalDeviceDenseGeometryFormatFeaturesAMDX",
@@ -231,8 +253,8 @@ fn rt_extension_features(info: &DeviceInfo, m: &mut Map<String, Value>) {
     );
 }
 
-/// Properties of the ray tracing extensions listed in [`rt_extension_features`], and of the
-/// legacy VK_NV_ray_tracing.
+/// Properties of the ray tracing extensions listed in [`rt_extension_features`] and
+/// [`rt_geometry_features`], and of the legacy VK_NV_ray_tracing.
 fn rt_extension_properties(info: &DeviceInfo, m: &mut Map<String, Value>) {
     let p = &info.properties;
     put(m, "VkPhysicalDeviceRayTracingPropertiesNV", p.rt_nv.map(|s| obj!(s;

@@ -122,11 +122,57 @@ fn render_extensions(caps: &Value, s: &mut String) {
     }
 }
 
+/// The headline features under the device line: (label, [struct, member]).
+const FEATURE_ROWS: &[(&str, &[&str])] = &[
+    (
+        "accel struct",
+        &["VkPhysicalDeviceAccelerationStructureFeaturesKHR", "accelerationStructure"],
+    ),
+    ("ray query", &["VkPhysicalDeviceRayQueryFeaturesKHR", "rayQuery"]),
+    (
+        "position fetch",
+        &["VkPhysicalDeviceRayTracingPositionFetchFeaturesKHR", "rayTracingPositionFetch"],
+    ),
+    (
+        "reorder (NV)",
+        &["VkPhysicalDeviceRayTracingInvocationReorderFeaturesNV", "rayTracingInvocationReorder"],
+    ),
+    (
+        "reorder (EXT)",
+        &["VkPhysicalDeviceRayTracingInvocationReorderFeaturesEXT", "rayTracingInvocationReorder"],
+    ),
+    ("buffer address", &["VkPhysicalDeviceVulkan12Features", "bufferDeviceAddress"]),
+    ("desc indexing", &["VkPhysicalDeviceVulkan12Features", "descriptorIndexing"]),
+    ("desc buffer", &["VkPhysicalDeviceDescriptorBufferFeaturesEXT", "descriptorBuffer"]),
+    ("desc heap", &["VkPhysicalDeviceDescriptorHeapFeaturesEXT", "descriptorHeap"]),
+    ("robustness2", &["VkPhysicalDeviceRobustness2FeaturesEXT", "robustBufferAccess2"]),
+    ("device fault", &["VkPhysicalDeviceFaultFeaturesEXT", "deviceFault"]),
+    ("shaderInt64", &["VkPhysicalDeviceFeatures", "shaderInt64"]),
+];
+
+/// The caps report as `rtprobe caps` prints it.
 pub fn render(caps: &Value) -> String {
-    let d = &caps["device"];
-    let f = &caps["features"];
-    let l = &caps["limits"];
     let mut s = String::new();
+    render_device(&caps["device"], &mut s);
+    render_ray_tracing(caps, &mut s);
+    for (name, path) in FEATURE_ROWS {
+        let _ = writeln!(s, "  {:<15} {}", name, flag(&caps["features"], path));
+    }
+    render_extensions(caps, &mut s);
+    render_matrix(caps, &mut s);
+    if let Some(c) = caps["device_creation"].as_object() {
+        let _ = writeln!(
+            s,
+            "device creation: {} in {} ms",
+            if c["ok"].as_bool() == Some(true) { "ok" } else { "FAILED" },
+            c["ms"]
+        );
+    }
+    s
+}
+
+/// The device line (name, index, type, vendor and ids) and the driver line.
+fn render_device(d: &Value, s: &mut String) {
     let _ = writeln!(
         s,
         "{} [device {}, {}, {} {:#06x}:{:#06x}]",
@@ -145,9 +191,13 @@ pub fn render(caps: &Value) -> String {
         d["driver_info"].as_str().unwrap_or(""),
         d["api_version"].as_str().unwrap_or("?")
     );
+}
+
+/// Whether the ray tracing pipeline is supported, with its headline limits, or what it misses.
+fn render_ray_tracing(caps: &Value, s: &mut String) {
     let rt = &caps["ray_tracing_pipeline"];
     if rt["supported"].as_bool() == Some(true) {
-        let p = &l["VkPhysicalDeviceRayTracingPipelinePropertiesKHR"];
+        let p = &caps["limits"]["VkPhysicalDeviceRayTracingPipelinePropertiesKHR"];
         let _ = writeln!(
             s,
             "  RT pipeline yes (handle {} B, recursion {}, dispatch {})",
@@ -165,74 +215,35 @@ pub fn render(caps: &Value) -> String {
                 .unwrap_or_default()
         );
     }
-    let rows: &[(&str, &[&str])] = &[
-        (
-            "accel struct",
-            &["VkPhysicalDeviceAccelerationStructureFeaturesKHR", "accelerationStructure"],
-        ),
-        ("ray query", &["VkPhysicalDeviceRayQueryFeaturesKHR", "rayQuery"]),
-        (
-            "position fetch",
-            &["VkPhysicalDeviceRayTracingPositionFetchFeaturesKHR", "rayTracingPositionFetch"],
-        ),
-        (
-            "reorder (NV)",
-            &[
-                "VkPhysicalDeviceRayTracingInvocationReorderFeaturesNV",
-                "rayTracingInvocationReorder",
-            ],
-        ),
-        (
-            "reorder (EXT)",
-            &[
-                "VkPhysicalDeviceRayTracingInvocationReorderFeaturesEXT",
-                "rayTracingInvocationReorder",
-            ],
-        ),
-        ("buffer address", &["VkPhysicalDeviceVulkan12Features", "bufferDeviceAddress"]),
-        ("desc indexing", &["VkPhysicalDeviceVulkan12Features", "descriptorIndexing"]),
-        ("desc buffer", &["VkPhysicalDeviceDescriptorBufferFeaturesEXT", "descriptorBuffer"]),
-        ("desc heap", &["VkPhysicalDeviceDescriptorHeapFeaturesEXT", "descriptorHeap"]),
-        ("robustness2", &["VkPhysicalDeviceRobustness2FeaturesEXT", "robustBufferAccess2"]),
-        ("device fault", &["VkPhysicalDeviceFaultFeaturesEXT", "deviceFault"]),
-        ("shaderInt64", &["VkPhysicalDeviceFeatures", "shaderInt64"]),
-    ];
-    for (name, path) in rows {
-        let _ = writeln!(s, "  {:<15} {}", name, flag(f, path));
-    }
-    render_extensions(caps, &mut s);
+}
+
+/// Per matrix axis, the supported values on one line and each other value, with its status and
+/// reason, on a line of its own.
+fn render_matrix(caps: &Value, s: &mut String) {
     let _ = writeln!(s, "matrix (what `rtprobe run` can do here):");
-    if let Some(m) = caps["matrix"].as_object() {
-        for (axis, values) in m {
-            let Some(values) = values.as_object() else {
-                continue;
-            };
-            let mut ok = Vec::new();
-            let mut not = Vec::new();
-            for (v, sup) in values {
-                match sup["status"].as_str() {
-                    Some("supported") => ok.push(v.clone()),
-                    Some(st) => not.push(format!(
-                        "{v} ({}: {})",
-                        st.replace('_', " "),
-                        sup["reason"].as_str().unwrap_or("")
-                    )),
-                    None => {}
-                }
-            }
-            let _ = writeln!(s, "  {axis:<22} {}", ok.join(" "));
-            for n in not {
-                let _ = writeln!(s, "  {:<22} ✗ {n}", "");
+    let Some(m) = caps["matrix"].as_object() else {
+        return;
+    };
+    for (axis, values) in m {
+        let Some(values) = values.as_object() else {
+            continue;
+        };
+        let mut ok = Vec::new();
+        let mut not = Vec::new();
+        for (v, sup) in values {
+            match sup["status"].as_str() {
+                Some("supported") => ok.push(v.clone()),
+                Some(st) => not.push(format!(
+                    "{v} ({}: {})",
+                    st.replace('_', " "),
+                    sup["reason"].as_str().unwrap_or("")
+                )),
+                None => {}
             }
         }
+        let _ = writeln!(s, "  {axis:<22} {}", ok.join(" "));
+        for n in not {
+            let _ = writeln!(s, "  {:<22} ✗ {n}", "");
+        }
     }
-    if let Some(c) = caps["device_creation"].as_object() {
-        let _ = writeln!(
-            s,
-            "device creation: {} in {} ms",
-            if c["ok"].as_bool() == Some(true) { "ok" } else { "FAILED" },
-            c["ms"]
-        );
-    }
-    s
 }
