@@ -11,13 +11,60 @@ use crate::report::time;
 use anyhow::{Context, Result};
 use std::path::PathBuf;
 
-const FULL_SIZES: [u32; 7] = [8, 16, 32, 64, 128, 256, 512];
 const DEFAULT_SIZE: u32 = 64;
 const INJECT_FILTER: &str = "descriptor_model=descriptor_indexing,resource=storage_buffer";
 const FLAKY_FILTER: &str =
     "descriptor_model=descriptor_indexing,resource=storage_buffer,index=literal";
 const QUICK_FILTER: &str = "descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit,index=literal|dynamic";
 const QUICK_FLAKY_FILTER: &str = "descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit,index=literal";
+
+/// What each flag left out defaults to: one set for a full bench, one for `--quick`.
+struct Defaults {
+    sizes: &'static [u32],
+    fractions: &'static [f64],
+    flaky: &'static [f64],
+    seeds: &'static [u64],
+    /// Also the sweep's filter.
+    inject_filter: &'static str,
+    flaky_filter: &'static str,
+    /// Empty: the default matrix.
+    matrix_filter: &'static [&'static str],
+    sweep: &'static [&'static str],
+    max_rounds: u32,
+}
+
+const FULL: Defaults = Defaults {
+    sizes: &[8, 16, 32, 64, 128, 256, 512],
+    fractions: &[0.001, 0.01, 0.1],
+    flaky: &[0.1, 0.3, 0.5],
+    seeds: &[1, 2],
+    inject_filter: INJECT_FILTER,
+    flaky_filter: FLAKY_FILTER,
+    matrix_filter: &[],
+    sweep: bench::DEFAULT_SWEEP,
+    max_rounds: 30,
+};
+
+const QUICK: Defaults = Defaults {
+    sizes: &[8, 16],
+    fractions: &[0.001, 1.0],
+    flaky: &[0.5],
+    seeds: &[1],
+    inject_filter: QUICK_FILTER,
+    flaky_filter: QUICK_FLAKY_FILTER,
+    matrix_filter: &[QUICK_FILTER],
+    sweep: &["-j 1 --threads 1", "-j 2 --threads 1", "-j 1 --threads 2"],
+    max_rounds: 3,
+};
+
+/// `given`, or `default` when the flag was left out.
+fn or_default<T: Clone>(given: &[T], default: &[T]) -> Vec<T> {
+    if given.is_empty() {
+        default.to_vec()
+    } else {
+        given.to_vec()
+    }
+}
 
 /// `N` or `NxN`: a square size, N a multiple of 8 in 8..=2048; errors name `flag`.
 fn parse_size(flag: &str, s: &str) -> Result<u32> {
@@ -45,43 +92,50 @@ fn check_filter(flag: &str, f: &str) -> Result<()> {
     Filter::parse(f).map(|_| ()).map_err(|e| coded(exit::USAGE, format!("{flag}: {e}")))
 }
 
-fn options(g: &Globals, a: &BenchArgs) -> Result<BenchOptions> {
-    let q = a.quick;
-    let sizes = if a.sizes.is_empty() {
-        if q {
-            vec![8, 16]
-        } else {
-            FULL_SIZES.to_vec()
+/// The filters of the four parts, each checked.
+struct Filters {
+    inject: String,
+    flaky: String,
+    matrix: Vec<String>,
+    sweep: Vec<String>,
+}
+
+impl Filters {
+    fn of(a: &BenchArgs, d: &Defaults) -> Result<Filters> {
+        let f = Filters {
+            inject: a.inject_filter.clone().unwrap_or_else(|| d.inject_filter.into()),
+            flaky: a.flaky_filter.clone().unwrap_or_else(|| d.flaky_filter.into()),
+            matrix: if a.matrix_filter.is_empty() {
+                d.matrix_filter.iter().map(|s| s.to_string()).collect()
+            } else {
+                a.matrix_filter.clone()
+            },
+            sweep: or_default(&a.sweep_filter, &[d.inject_filter.to_string()]),
+        };
+        check_filter("--inject-filter", &f.inject)?;
+        check_filter("--flaky-filter", &f.flaky)?;
+        for m in f.matrix.iter().chain(&f.sweep) {
+            check_filter("--matrix-filter/--sweep-filter", m)?;
         }
-    } else {
-        a.sizes.iter().map(|s| parse_size("--sizes", s)).collect::<Result<_>>()?
-    };
-    let fractions = if a.fractions.is_empty() {
-        if q {
-            vec![0.001, 1.0]
-        } else {
-            vec![0.001, 0.01, 0.1]
-        }
-    } else {
-        a.fractions.clone()
-    };
+        Ok(f)
+    }
+}
+
+/// The injected fractions and flaky probabilities, each in its range.
+fn probabilities(a: &BenchArgs, d: &Defaults) -> Result<(Vec<f64>, Vec<f64>)> {
+    let fractions = or_default(&a.fractions, d.fractions);
     if let Some(f) = fractions.iter().find(|f| !(**f > 0.0 && **f <= 1.0)) {
         return Err(coded(exit::USAGE, format!("--fractions: {f} is outside (0, 1]")));
     }
-    let flaky = if a.no_flaky {
-        vec![]
-    } else if a.flaky.is_empty() {
-        if q {
-            vec![0.5]
-        } else {
-            vec![0.1, 0.3, 0.5]
-        }
-    } else {
-        a.flaky.clone()
-    };
+    let flaky = if a.no_flaky { vec![] } else { or_default(&a.flaky, d.flaky) };
     if let Some(p) = flaky.iter().find(|p| !(**p > 0.0 && **p < 1.0)) {
         return Err(coded(exit::USAGE, format!("--flaky: {p} is outside (0, 1)")));
     }
+    Ok((fractions, flaky))
+}
+
+/// `--flaky-timeout` and `--max-rounds` in their ranges.
+fn check_flaky_limits(a: &BenchArgs) -> Result<()> {
     if let Some(t) = a.flaky_timeout.filter(|t| !(*t > 0.0 && *t <= 3600.0)) {
         return Err(coded(
             exit::USAGE,
@@ -91,30 +145,16 @@ fn options(g: &Globals, a: &BenchArgs) -> Result<BenchOptions> {
     if a.max_rounds == Some(0) || a.max_rounds.is_some_and(|r| r > 1000) {
         return Err(coded(exit::USAGE, "--max-rounds must be 1..=1000"));
     }
-    let small = if q { QUICK_FILTER } else { INJECT_FILTER };
-    let inject_filter = a.inject_filter.clone().unwrap_or_else(|| small.into());
-    let flaky_filter = a
-        .flaky_filter
-        .clone()
-        .unwrap_or_else(|| if q { QUICK_FLAKY_FILTER } else { FLAKY_FILTER }.into());
-    let matrix_filter = if a.matrix_filter.is_empty() && q {
-        vec![QUICK_FILTER.to_string()]
+    Ok(())
+}
+
+/// The run-argument sweep; an entry with a flag bench sets itself or that cannot be swept is
+/// refused.
+fn sweep_args(a: &BenchArgs, d: &Defaults) -> Result<Vec<String>> {
+    let sweep = if a.sweep_args.is_empty() {
+        d.sweep.iter().map(|s| s.to_string()).collect()
     } else {
-        a.matrix_filter.clone()
-    };
-    let sweep_filter =
-        if a.sweep_filter.is_empty() { vec![small.to_string()] } else { a.sweep_filter.clone() };
-    check_filter("--inject-filter", &inject_filter)?;
-    check_filter("--flaky-filter", &flaky_filter)?;
-    for f in matrix_filter.iter().chain(&sweep_filter) {
-        check_filter("--matrix-filter/--sweep-filter", f)?;
-    }
-    let sweep = if !a.sweep_args.is_empty() {
         a.sweep_args.clone()
-    } else if q {
-        vec!["-j 1 --threads 1".into(), "-j 2 --threads 1".into(), "-j 1 --threads 2".into()]
-    } else {
-        bench::DEFAULT_SWEEP.iter().map(|s| s.to_string()).collect()
     };
     if let Some(e) = sweep.iter().find(|e| {
         e.split_whitespace()
@@ -122,6 +162,22 @@ fn options(g: &Globals, a: &BenchArgs) -> Result<BenchOptions> {
     }) {
         return Err(coded(exit::USAGE, format!("--sweep-args {e:?}: bench chooses -o itself; --resume, --list and --cell-spec cannot be swept")));
     }
+    Ok(sweep)
+}
+
+/// Every flag checked, and defaulted (full or `--quick`), before any run.
+fn options(g: &Globals, a: &BenchArgs) -> Result<BenchOptions> {
+    let q = a.quick;
+    let d = if q { &QUICK } else { &FULL };
+    let sizes = if a.sizes.is_empty() {
+        d.sizes.to_vec()
+    } else {
+        a.sizes.iter().map(|s| parse_size("--sizes", s)).collect::<Result<_>>()?
+    };
+    let (fractions, flaky) = probabilities(a, d)?;
+    check_flaky_limits(a)?;
+    let filters = Filters::of(a, d)?;
+    let sweep = sweep_args(a, d)?;
     let exe = std::env::current_exe()
         .map_err(|e| coded(exit::INTERNAL, format!("cannot find the rtprobe executable: {e}")))?;
     Ok(BenchOptions {
@@ -131,30 +187,22 @@ fn options(g: &Globals, a: &BenchArgs) -> Result<BenchOptions> {
         validate: g.validate,
         sizes,
         default_size: DEFAULT_SIZE,
-        matrix_filter,
-        inject_filter,
+        matrix_filter: filters.matrix,
+        inject_filter: filters.inject,
         fractions,
-        seeds: if a.seeds.is_empty() {
-            if q {
-                vec![1]
-            } else {
-                vec![1, 2]
-            }
-        } else {
-            a.seeds.clone()
-        },
+        seeds: or_default(&a.seeds, d.seeds),
         flaky,
-        flaky_filter,
+        flaky_filter: filters.flaky,
         flaky_size: a
             .flaky_size
             .as_deref()
             .map(|s| parse_size("--flaky-size", s))
             .transpose()?
             .unwrap_or(16),
-        max_rounds: a.max_rounds.unwrap_or(if q { 3 } else { 30 }),
+        max_rounds: a.max_rounds.unwrap_or(d.max_rounds),
         flaky_timeout: a.flaky_timeout,
         sweep,
-        sweep_filter,
+        sweep_filter: filters.sweep,
         sweep_size: DEFAULT_SIZE,
         warmup: !a.no_warmup && !q,
         sample_large: !a.no_sample,
