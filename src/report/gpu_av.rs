@@ -171,8 +171,17 @@ mod tests {
         CellReport::new(&c, Attempt::for_tests(o, false))
     }
 
-    #[test]
-    fn masked_still_faulting_gpu_av_failing_and_old_layers_are_told_apart() {
+    /// Two findings with their literal controls, which pass: a descriptor-heap cell that loses
+    /// the device and a descriptor-indexing cell that crashes.
+    struct Fixture {
+        heap: Cell,
+        heap_ctl: Cell,
+        di: Cell,
+        di_ctl: Cell,
+        report: RunReport,
+    }
+
+    fn fixture() -> Fixture {
         let heap = cell(DescriptorModel::DescriptorHeap, IndexSource::Dynamic);
         let heap_ctl = cell(DescriptorModel::DescriptorHeap, IndexSource::Literal);
         let di = cell(DescriptorModel::DescriptorIndexing, IndexSource::Dynamic);
@@ -183,58 +192,91 @@ mod tests {
             ran(di, Outcome::Crash),
             ran(di_ctl, Outcome::Pass),
         ]);
-        // Bookworm's layers: heap findings cannot run under GPU-AV, with the layer's version.
-        let (run, skipped) = schedule(&report, Some(vk::make_api_version(0, 1, 3, 239)));
-        assert_eq!(run, vec![di, di_ctl]);
-        assert_eq!(skipped.len(), 1);
-        assert_eq!(skipped[0].1.line(), "GPU-AV: not run (unsupported: validation layers 1.3.239 predate VK_EXT_descriptor_heap)");
-        // 1.4.363: everything runs, each finding with its control.
-        let (run, skipped) = schedule(&report, Some(vk::make_api_version(0, 1, 4, 363)));
-        assert_eq!((run.len(), skipped.len()), (4, 0));
-        let verdict = |got: Vec<(Cell, Outcome)>| {
-            let mut r = report.clone();
+        Fixture { heap, heap_ctl, di, di_ctl, report }
+    }
+
+    impl Fixture {
+        /// The GPU-AV results of the heap and the descriptor-indexing finding once `got` ran
+        /// under GPU-AV.
+        fn verdict(&self, got: Vec<(Cell, Outcome)>) -> (GpuAvResult, GpuAvResult) {
+            let mut r = self.report.clone();
             let got: Vec<(Cell, Attempt)> =
                 got.into_iter().map(|(c, o)| (c, Attempt::for_tests(o, true))).collect();
             annotate(&mut r, &got, &[]);
             (r.cells[0].gpu_av.clone().unwrap(), r.cells[2].gpu_av.clone().unwrap())
-        };
-        // Masked: passes under GPU-AV. Still faults: faults with a control that passes.
-        let (h, d) = verdict(vec![
-            (heap, Outcome::Pass),
-            (heap_ctl, Outcome::Pass),
-            (di, Outcome::Crash),
-            (di_ctl, Outcome::Pass),
+        }
+    }
+
+    #[test]
+    fn layers_that_predate_descriptor_heap_skip_heap_findings() {
+        let x = fixture();
+        // Bookworm's layers: heap findings cannot run under GPU-AV, with the layer's version.
+        let (run, skipped) = schedule(&x.report, Some(vk::make_api_version(0, 1, 3, 239)));
+        assert_eq!(run, vec![x.di, x.di_ctl]);
+        assert_eq!(skipped.len(), 1);
+        assert_eq!(skipped[0].1.line(), "GPU-AV: not run (unsupported: validation layers 1.3.239 predate VK_EXT_descriptor_heap)");
+    }
+
+    #[test]
+    fn recent_layers_run_every_finding_with_its_control() {
+        let x = fixture();
+        let (run, skipped) = schedule(&x.report, Some(vk::make_api_version(0, 1, 4, 363)));
+        assert_eq!((run.len(), skipped.len()), (4, 0));
+    }
+
+    #[test]
+    fn masked_passes_and_still_faulting_faults_beside_a_passing_control() {
+        let x = fixture();
+        let (h, d) = x.verdict(vec![
+            (x.heap, Outcome::Pass),
+            (x.heap_ctl, Outcome::Pass),
+            (x.di, Outcome::Crash),
+            (x.di_ctl, Outcome::Pass),
         ]);
         assert_eq!((h.verdict, d.verdict), (GpuAvVerdict::Masked, GpuAvVerdict::StillFaults));
         let m = crate::model::stats::pass_miss(1, 1, 1);
         assert_eq!(h.line(), format!("GPU-AV: masked (passes (1/1; a fault as frequent as this finding's would be missed with p ≤ {m:.2}) under GPU-AV)"));
         assert_eq!((h.attempts, h.passed, h.miss_probability), (1, 1, Some(m)));
         assert_eq!(d.line(), "GPU-AV: still faults (crash, 1 of 1 attempts under GPU-AV; its control closest_hit.storage_buffer.literal.descriptor_indexing is pass under GPU-AV)");
-        // One pass against a finding seen once is far from enough: it runs again, up to CAP; a
-        // finding that faulted under GPU-AV does not.
+    }
+
+    /// One pass against a finding seen once is far from enough: it runs again, up to CAP; a
+    /// finding that faulted under GPU-AV does not.
+    #[test]
+    fn a_passing_finding_runs_again_up_to_cap() {
+        let x = fixture();
         let one: Vec<(Cell, Attempt)> = vec![
-            (heap, Attempt::for_tests(Outcome::Pass, true)),
-            (di, Attempt::for_tests(Outcome::Crash, true)),
+            (x.heap, Attempt::for_tests(Outcome::Pass, true)),
+            (x.di, Attempt::for_tests(Outcome::Crash, true)),
         ];
-        assert_eq!(passes_needed(&report.cells[0]), CAP);
-        assert_eq!(more(&report, &one), vec![heap]);
+        assert_eq!(passes_needed(&x.report.cells[0]), CAP);
+        assert_eq!(more(&x.report, &one), vec![x.heap]);
         let enough: Vec<(Cell, Attempt)> =
-            (0..CAP).map(|_| (heap, Attempt::for_tests(Outcome::Pass, true))).collect();
-        assert!(more(&report, &enough).is_empty());
-        // A pass after passes, then a fault: the fault decides (never masked on the passes).
-        let (h, _) = verdict(vec![
-            (heap, Outcome::Pass),
-            (heap, Outcome::Pass),
-            (heap, Outcome::DeviceLost),
-            (heap_ctl, Outcome::Pass),
-            (di, Outcome::Crash),
+            (0..CAP).map(|_| (x.heap, Attempt::for_tests(Outcome::Pass, true))).collect();
+        assert!(more(&x.report, &enough).is_empty());
+    }
+
+    /// A pass after passes, then a fault: the fault decides (never masked on the passes).
+    #[test]
+    fn a_fault_after_passes_decides() {
+        let x = fixture();
+        let (h, _) = x.verdict(vec![
+            (x.heap, Outcome::Pass),
+            (x.heap, Outcome::Pass),
+            (x.heap, Outcome::DeviceLost),
+            (x.heap_ctl, Outcome::Pass),
+            (x.di, Outcome::Crash),
         ]);
         assert_eq!(
             (h.verdict, h.attempts, h.passed, h.miss_probability),
             (GpuAvVerdict::StillFaults, 3, 2, None)
         );
-        // No control ran: the fault is not pinned on the driver.
-        let (_, d) = verdict(vec![(heap, Outcome::Pass), (di, Outcome::Crash)]);
+    }
+
+    #[test]
+    fn without_a_control_the_fault_is_not_pinned_on_the_driver() {
+        let x = fixture();
+        let (_, d) = x.verdict(vec![(x.heap, Outcome::Pass), (x.di, Outcome::Crash)]);
         assert_eq!(d.verdict, GpuAvVerdict::StillFaults);
         assert!(
             d.line().contains(
@@ -243,21 +285,31 @@ mod tests {
             "{}",
             d.line()
         );
-        // GPU-AV itself failed: the control crashes under GPU-AV too (lavapipe 26's closest-hit heap pipelines).
-        let (h, _) = verdict(vec![
-            (heap, Outcome::Crash),
-            (heap_ctl, Outcome::Crash),
-            (di, Outcome::Crash),
-            (di_ctl, Outcome::Pass),
+    }
+
+    /// GPU-AV itself failed: the control crashes under GPU-AV too (lavapipe 26's closest-hit
+    /// heap pipelines).
+    #[test]
+    fn gpu_av_failed_when_the_control_faults_under_it_too() {
+        let x = fixture();
+        let (h, _) = x.verdict(vec![
+            (x.heap, Outcome::Crash),
+            (x.heap_ctl, Outcome::Crash),
+            (x.di, Outcome::Crash),
+            (x.di_ctl, Outcome::Pass),
         ]);
         assert_eq!(h.verdict, GpuAvVerdict::GpuAvFailed);
         assert!(h.line().contains("its control closest_hit.storage_buffer.literal.descriptor_heap.direct passes without GPU-AV and is crash with it"), "{}", h.line());
-        // A direct sampled image with a dynamic sampler index: its control indexes both heaps
-        // with constants (literal texture, constant sampler), not the dynamic sampler.
+    }
+
+    /// A direct sampled image with a dynamic sampler index: its control indexes both heaps with
+    /// constants (literal texture, constant sampler), not the dynamic sampler.
+    #[test]
+    fn a_sampled_image_control_indexes_texture_and_sampler_with_constants() {
         let img = Cell {
             resource: Resource::SampledImage,
             sampler: Some(crate::model::SamplerIndex::Dynamic),
-            ..heap
+            ..fixture().heap
         };
         let img_ctl = Cell {
             index: IndexSource::Literal,
@@ -273,8 +325,11 @@ mod tests {
             control(&r, &img).map(|c| c.id()).as_deref(),
             Some("closest_hit.sampled_image.literal.descriptor_heap.direct.sampler_constant")
         );
-        // No layer at all.
-        let (run, skipped) = schedule(&report, None);
+    }
+
+    #[test]
+    fn without_the_validation_layer_nothing_runs() {
+        let (run, skipped) = schedule(&fixture().report, None);
         assert!(
             run.is_empty()
                 && skipped.iter().all(|(_, r)| r
