@@ -252,105 +252,111 @@ pub(super) fn push_constant_u64(
         i.class.opcode == Op::Variable
             && i.operands.first() == Some(&Operand::StorageClass(StorageClass::PushConstant))
     });
-    let found = match pc_var.and_then(|v| Some((v.result_id?, v.result_type?))) {
-        Some((var, ptr)) => {
-            let (_, st) = edit::pointer_info(m, ptr).ok_or(PatchError::Unsupported {
+    match pc_var.and_then(|v| Some((v.result_id?, v.result_type?))) {
+        Some((var, ptr)) => append_member(m, (var, ptr), u64_t, offset, patch),
+        None => new_block(m, u64_t, offset.unwrap_or(0), patch),
+    }
+}
+
+/// Append a `u64_t` member to the block of the push-constant variable `var` (of pointer type
+/// `ptr`) at `offset`, which must lie past the block's end (default: the end, 8-aligned).
+fn append_member(
+    m: &mut Module,
+    (var, ptr): (Word, Word),
+    u64_t: Word,
+    offset: Option<u32>,
+    patch: &'static str,
+) -> Result<(Word, u32, u32), PatchError> {
+    let (_, st) = edit::pointer_info(m, ptr).ok_or(PatchError::Unsupported {
+        patch,
+        id: var,
+        what: "push-constant variable without pointer type".into(),
+    })?;
+    let st_def = edit::def(m, st).cloned().ok_or(PatchError::Unsupported {
+        patch,
+        id: st,
+        what: "push-constant block type not found".into(),
+    })?;
+    let members = st_def.operands.iter().filter(|o| matches!(o, Operand::IdRef(_))).count();
+    // Sized from its Offset / ArrayStride / MatrixStride decorations; a block without them is not
+    // a valid Vulkan push-constant block.
+    let end = edit::explicit_extent(m, st, None).ok_or(PatchError::Unsupported {
+        patch,
+        id: st,
+        what: "the push-constant block lacks the Offset / ArrayStride / MatrixStride decorations that give its size".into(),
+    })?;
+    let offset = match offset {
+        Some(o) if o < end => {
+            return Err(PatchError::BadOption {
                 patch,
-                id: var,
-                what: "push-constant variable without pointer type".into(),
-            })?;
-            let st_def = edit::def(m, st).cloned().ok_or(PatchError::Unsupported {
-                patch,
-                id: st,
-                what: "push-constant block type not found".into(),
-            })?;
-            let members: Vec<Word> = st_def
-                .operands
-                .iter()
-                .filter_map(|o| if let Operand::IdRef(w) = o { Some(*w) } else { None })
-                .collect();
-            // Sized from its Offset / ArrayStride / MatrixStride decorations; a block without them
-            // is not a valid Vulkan push-constant block.
-            let end = edit::explicit_extent(m, st, None).ok_or(PatchError::Unsupported {
-                patch,
-                id: st,
-                what: "the push-constant block lacks the Offset / ArrayStride / MatrixStride decorations that give its size".into(),
-            })?;
-            let offset = match offset {
-                Some(o) if o < end => {
-                    return Err(PatchError::BadOption {
-                        patch,
-                        what: format!(
-                            "offset={o} overlaps the push-constant block, which ends at {end}"
-                        ),
-                    })
-                }
-                Some(o) => o,
-                None => end.div_ceil(8) * 8,
-            };
-            if offset % 8 != 0 {
-                return Err(PatchError::BadOption {
-                    patch,
-                    what: format!("offset={offset} is not 8-byte aligned"),
-                });
-            }
-            let k = members.len() as u32;
-            if let Some(s) = m.types_global_values.iter_mut().find(|i| i.result_id == Some(st)) {
-                s.operands.push(Operand::IdRef(u64_t));
-            }
-            m.annotations.push(Instruction::new(
-                Op::MemberDecorate,
-                None,
-                None,
-                vec![
-                    Operand::IdRef(st),
-                    Operand::LiteralBit32(k),
-                    Operand::Decoration(Decoration::Offset),
-                    Operand::LiteralBit32(offset),
-                ],
-            ));
-            (var, k, offset)
+                what: format!("offset={o} overlaps the push-constant block, which ends at {end}"),
+            })
         }
-        None => {
-            let offset = offset.unwrap_or(0);
-            if offset % 8 != 0 {
-                return Err(PatchError::BadOption {
-                    patch,
-                    what: format!("offset={offset} is not 8-byte aligned"),
-                });
-            }
-            let st = edit::next_id(m);
-            m.types_global_values.push(Instruction::new(
-                Op::TypeStruct,
-                None,
-                Some(st),
-                vec![Operand::IdRef(u64_t)],
-            ));
-            edit::decorate(m, st, Decoration::Block, &[]);
-            m.annotations.push(Instruction::new(
-                Op::MemberDecorate,
-                None,
-                None,
-                vec![
-                    Operand::IdRef(st),
-                    Operand::LiteralBit32(0),
-                    Operand::Decoration(Decoration::Offset),
-                    Operand::LiteralBit32(offset),
-                ],
-            ));
-            let ptr = edit::type_pointer(m, StorageClass::PushConstant, st);
-            let var = edit::next_id(m);
-            m.types_global_values.push(Instruction::new(
-                Op::Variable,
-                Some(ptr),
-                Some(var),
-                vec![Operand::StorageClass(StorageClass::PushConstant)],
-            ));
-            edit::add_to_interfaces(m, var);
-            (var, 0, offset)
-        }
+        Some(o) => o,
+        None => end.div_ceil(8) * 8,
     };
-    Ok(found)
+    check_aligned(offset, patch)?;
+    let k = members as u32;
+    if let Some(s) = m.types_global_values.iter_mut().find(|i| i.result_id == Some(st)) {
+        s.operands.push(Operand::IdRef(u64_t));
+    }
+    m.annotations.push(member_offset(st, k, offset));
+    Ok((var, k, offset))
+}
+
+/// A new push-constant block of one `u64_t` member at `offset`, and its variable.
+fn new_block(
+    m: &mut Module,
+    u64_t: Word,
+    offset: u32,
+    patch: &'static str,
+) -> Result<(Word, u32, u32), PatchError> {
+    check_aligned(offset, patch)?;
+    let st = edit::next_id(m);
+    m.types_global_values.push(Instruction::new(
+        Op::TypeStruct,
+        None,
+        Some(st),
+        vec![Operand::IdRef(u64_t)],
+    ));
+    edit::decorate(m, st, Decoration::Block, &[]);
+    m.annotations.push(member_offset(st, 0, offset));
+    let ptr = edit::type_pointer(m, StorageClass::PushConstant, st);
+    let var = edit::next_id(m);
+    m.types_global_values.push(Instruction::new(
+        Op::Variable,
+        Some(ptr),
+        Some(var),
+        vec![Operand::StorageClass(StorageClass::PushConstant)],
+    ));
+    edit::add_to_interfaces(m, var);
+    Ok((var, 0, offset))
+}
+
+/// A 64-bit member's offset must be 8-byte aligned.
+fn check_aligned(offset: u32, patch: &'static str) -> Result<(), PatchError> {
+    if offset % 8 != 0 {
+        return Err(PatchError::BadOption {
+            patch,
+            what: format!("offset={offset} is not 8-byte aligned"),
+        });
+    }
+    Ok(())
+}
+
+/// `OpMemberDecorate %st member Offset offset`.
+fn member_offset(st: Word, member: u32, offset: u32) -> Instruction {
+    Instruction::new(
+        Op::MemberDecorate,
+        None,
+        None,
+        vec![
+            Operand::IdRef(st),
+            Operand::LiteralBit32(member),
+            Operand::Decoration(Decoration::Offset),
+            Operand::LiteralBit32(offset),
+        ],
+    )
 }
 
 #[cfg(test)]

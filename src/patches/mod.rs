@@ -141,8 +141,25 @@ pub fn apply(
             return Err(PatchError::UnknownOption(k.clone()));
         }
     }
-    let num = |p: PatchName, k: &str| -> Result<Option<u32>, PatchError> {
-        options
+    let o = Options(options);
+    patches
+        .iter()
+        .map(|&p| match p {
+            PatchName::AsToAddress => as_to_address_line(m, &o),
+            PatchName::Nonuniform => nonuniform_line(m, &o),
+            PatchName::PinIndex => pin_index_line(m, &o),
+            PatchName::SsboToAddress => ssbo_to_address_line(m, &o),
+        })
+        .collect()
+}
+
+/// The `key=value` options of [`apply`], read for one patch.
+struct Options<'a>(&'a BTreeMap<String, String>);
+
+impl Options<'_> {
+    /// The number `k=N`, if given.
+    fn num(&self, p: PatchName, k: &str) -> Result<Option<u32>, PatchError> {
+        self.0
             .get(k)
             .map(|v| {
                 v.parse::<u32>().map_err(|_| PatchError::BadOption {
@@ -151,72 +168,77 @@ pub fn apply(
                 })
             })
             .transpose()
-    };
-    let mut lines = Vec::new();
-    for &p in patches {
-        let line = match p {
-            PatchName::AsToAddress => {
-                let mode = match options.get("mode").map(String::as_str) {
-                    None => None,
-                    Some("direct") => Some(as_to_address::Mode::Direct),
-                    Some("table") => Some(as_to_address::Mode::Table),
-                    Some(o) => {
-                        return Err(PatchError::BadOption {
-                            patch: p.as_str(),
-                            what: format!("mode={o:?}: use direct or table"),
-                        })
-                    }
-                };
-                let opts = as_to_address::Options {
-                    offset: num(p, "offset")?,
-                    mode,
-                    binding: num(p, "binding")?,
-                };
-                let r = on_copy(m, |w| as_to_address::apply(w, &opts))?;
-                format!("as-to-address: {} loads rewritten, {} descriptor variables removed, address at push-constant offset {} ({:?} mode)", r.rewritten_loads, r.removed_variables, r.offset, r.mode)
-            }
-            PatchName::Nonuniform => {
-                let strip = match options.get("strip").map(String::as_str) {
-                    None | Some("false") => false,
-                    Some("true") => true,
-                    Some(o) => {
-                        return Err(PatchError::BadOption {
-                            patch: p.as_str(),
-                            what: format!("strip={o:?}: use true or false"),
-                        })
-                    }
-                };
-                let r = on_copy(m, |w| nonuniform::apply(w, strip))?;
-                if strip {
-                    format!("nonuniform: {} NonUniform decorations stripped", r.stripped)
-                } else {
-                    format!("nonuniform: {} objects decorated NonUniform", r.decorated)
-                }
-            }
-            PatchName::PinIndex => {
-                let opts = pin_index::Options {
-                    binding: num(p, "binding")?,
-                    value: num(p, "value")?.unwrap_or(0),
-                    spec_id: num(p, "spec-id")?,
-                };
-                let r = on_copy(m, |w| pin_index::apply(w, &opts))?;
-                format!(
-                    "pin-index: {} accesses now index with SpecId {} (default {})",
-                    r.pinned, r.spec_id, opts.value
-                )
-            }
-            PatchName::SsboToAddress => {
-                let opts = ssbo_to_address::Options {
-                    offset: num(p, "offset")?,
-                    binding: num(p, "binding")?,
-                };
-                let r = on_copy(m, |w| ssbo_to_address::apply(w, &opts))?;
-                format!("ssbo-to-address: {} loads now read through buffer addresses (table address at push-constant offset {})", r.rewritten_loads, r.offset)
-            }
-        };
-        lines.push(line);
     }
-    Ok(lines)
+
+    /// The value `choices` pairs with `k`'s, if given; a value not among them is an error that
+    /// names `expected`.
+    fn choice<T: Copy>(
+        &self,
+        p: PatchName,
+        k: &str,
+        choices: &[(&str, T)],
+        expected: &str,
+    ) -> Result<Option<T>, PatchError> {
+        let Some(v) = self.0.get(k) else {
+            return Ok(None);
+        };
+        match choices.iter().find(|(name, _)| *name == v.as_str()) {
+            Some((_, t)) => Ok(Some(*t)),
+            None => Err(PatchError::BadOption {
+                patch: p.as_str(),
+                what: format!("{k}={v:?}: use {expected}"),
+            }),
+        }
+    }
+}
+
+/// [`as_to_address`] with `mode`, `offset` and `binding`, and the line saying what it did.
+fn as_to_address_line(m: &mut Module, o: &Options) -> Result<String, PatchError> {
+    let p = PatchName::AsToAddress;
+    let modes = [("direct", as_to_address::Mode::Direct), ("table", as_to_address::Mode::Table)];
+    let mode = o.choice(p, "mode", &modes, "direct or table")?;
+    let opts =
+        as_to_address::Options { offset: o.num(p, "offset")?, mode, binding: o.num(p, "binding")? };
+    let r = on_copy(m, |w| as_to_address::apply(w, &opts))?;
+    Ok(format!("as-to-address: {} loads rewritten, {} descriptor variables removed, address at push-constant offset {} ({:?} mode)", r.rewritten_loads, r.removed_variables, r.offset, r.mode))
+}
+
+/// [`nonuniform`] (`strip`: remove the decorations instead), and the line saying what it did.
+fn nonuniform_line(m: &mut Module, o: &Options) -> Result<String, PatchError> {
+    let p = PatchName::Nonuniform;
+    let strip = o
+        .choice(p, "strip", &[("false", false), ("true", true)], "true or false")?
+        .unwrap_or(false);
+    let r = on_copy(m, |w| nonuniform::apply(w, strip))?;
+    Ok(if strip {
+        format!("nonuniform: {} NonUniform decorations stripped", r.stripped)
+    } else {
+        format!("nonuniform: {} objects decorated NonUniform", r.decorated)
+    })
+}
+
+/// [`pin_index`] with `binding`, `value` and `spec-id`, and the line saying what it did.
+fn pin_index_line(m: &mut Module, o: &Options) -> Result<String, PatchError> {
+    let p = PatchName::PinIndex;
+    let opts = pin_index::Options {
+        binding: o.num(p, "binding")?,
+        value: o.num(p, "value")?.unwrap_or(0),
+        spec_id: o.num(p, "spec-id")?,
+    };
+    let r = on_copy(m, |w| pin_index::apply(w, &opts))?;
+    Ok(format!(
+        "pin-index: {} accesses now index with SpecId {} (default {})",
+        r.pinned, r.spec_id, opts.value
+    ))
+}
+
+/// [`ssbo_to_address`] with `offset` and `binding`, and the line saying what it did.
+fn ssbo_to_address_line(m: &mut Module, o: &Options) -> Result<String, PatchError> {
+    let p = PatchName::SsboToAddress;
+    let opts =
+        ssbo_to_address::Options { offset: o.num(p, "offset")?, binding: o.num(p, "binding")? };
+    let r = on_copy(m, |w| ssbo_to_address::apply(w, &opts))?;
+    Ok(format!("ssbo-to-address: {} loads now read through buffer addresses (table address at push-constant offset {})", r.rewritten_loads, r.offset))
 }
 
 pub fn assemble(m: &Module) -> Vec<u32> {

@@ -46,22 +46,13 @@ fn capability_for(m: &Module, storage: StorageClass, element: Word) -> Option<Ca
     }
 }
 
+const NAME: &str = "nonuniform";
+
+/// Decorate every dynamically indexed descriptor access `NonUniform`, declaring the capabilities
+/// that needs; with `strip`, remove every `NonUniform` decoration instead.
 pub fn apply(m: &mut Module, strip: bool) -> Result<Report, PatchError> {
-    const NAME: &str = "nonuniform";
     if strip {
-        let before = m.annotations.len();
-        m.annotations.retain(|a| {
-            !(a.class.opcode == Op::Decorate
-                && matches!(a.operands.get(1), Some(Operand::Decoration(Decoration::NonUniform))))
-        });
-        let stripped = before - m.annotations.len();
-        if stripped == 0 {
-            return Err(PatchError::NothingToPatch {
-                patch: NAME,
-                what: "no NonUniform decoration to strip".into(),
-            });
-        }
-        return Ok(Report { decorated: 0, stripped });
+        return strip_all(m);
     }
     let accesses = dynamic_access::find(m);
     if accesses.is_empty() {
@@ -75,35 +66,12 @@ pub fn apply(m: &mut Module, strip: bool) -> Result<Report, PatchError> {
     for a in &accesses {
         targets.insert(a.index);
         targets.insert(a.chain);
-        // objects derived from the chain: loads, member chains, their loads, sampled images
-        let mut frontier = vec![a.chain];
-        for _ in 0..3 {
-            let mut next = Vec::new();
-            for id in frontier {
-                for u in edit::users(m, id) {
-                    let op = edit::def(m, u).map(|d| d.class.opcode);
-                    if matches!(
-                        op,
-                        Some(
-                            Op::Load
-                                | Op::AccessChain
-                                | Op::InBoundsAccessChain
-                                | Op::SampledImage
-                                | Op::Image
-                        )
-                    ) && targets.insert(u)
-                    {
-                        next.push(u);
-                    }
-                }
-            }
-            frontier = next;
-        }
+        derived_objects(m, a.chain, &mut targets);
         if let Some(c) = capability_for(m, a.storage, a.element) {
             caps.push(c);
         }
     }
-    let new: Vec<Word> = targets
+    let mut new: Vec<Word> = targets
         .into_iter()
         .filter(|t| !edit::has_decoration(m, *t, Decoration::NonUniform))
         .collect();
@@ -113,7 +81,6 @@ pub fn apply(m: &mut Module, strip: bool) -> Result<Report, PatchError> {
             what: "every dynamic descriptor access is already NonUniform".into(),
         });
     }
-    let mut new = new;
     new.sort_unstable();
     edit::add_capability(m, Capability::ShaderNonUniform);
     for c in caps {
@@ -126,4 +93,49 @@ pub fn apply(m: &mut Module, strip: bool) -> Result<Report, PatchError> {
         edit::decorate(m, *id, Decoration::NonUniform, &[]);
     }
     Ok(Report { decorated: new.len(), stripped: 0 })
+}
+
+/// `strip`: remove every `NonUniform` decoration.
+fn strip_all(m: &mut Module) -> Result<Report, PatchError> {
+    let before = m.annotations.len();
+    m.annotations.retain(|a| {
+        !(a.class.opcode == Op::Decorate
+            && matches!(a.operands.get(1), Some(Operand::Decoration(Decoration::NonUniform))))
+    });
+    let stripped = before - m.annotations.len();
+    if stripped == 0 {
+        return Err(PatchError::NothingToPatch {
+            patch: NAME,
+            what: "no NonUniform decoration to strip".into(),
+        });
+    }
+    Ok(Report { decorated: 0, stripped })
+}
+
+/// Add to `targets` the objects derived from the access chain `chain`, three steps deep: loads,
+/// member chains, their loads, sampled images and images.
+fn derived_objects(m: &Module, chain: Word, targets: &mut HashSet<Word>) {
+    let mut frontier = vec![chain];
+    for _ in 0..3 {
+        let mut next = Vec::new();
+        for id in frontier {
+            for u in edit::users(m, id) {
+                let op = edit::def(m, u).map(|d| d.class.opcode);
+                if matches!(
+                    op,
+                    Some(
+                        Op::Load
+                            | Op::AccessChain
+                            | Op::InBoundsAccessChain
+                            | Op::SampledImage
+                            | Op::Image
+                    )
+                ) && targets.insert(u)
+                {
+                    next.push(u);
+                }
+            }
+        }
+        frontier = next;
+    }
 }
