@@ -98,6 +98,30 @@ pub enum BisectError {
     NotFaulting(String),
 }
 
+/// A description with its isolation list and workarounds settled ([`Bisector::settle`]).
+struct Settled {
+    separable: bool,
+    conjunctions: Vec<Filter>,
+    /// The faulting cell the isolation list is built around.
+    rep: Cell,
+    /// Each sibling with the axes it is the sibling for.
+    siblings: Vec<(String, Cell)>,
+    /// The representative's workaround variants the device supports.
+    patched: Vec<Cell>,
+}
+
+/// The passes bisection relied on ([`Bisector::reliance`]).
+struct Reliance {
+    /// The largest miss probability of one of them.
+    worst_miss: f64,
+    /// The union bound on any of them having missed, capped at 1.
+    union_miss: f64,
+    /// Those that did not reach the threshold.
+    unsettled: Vec<String>,
+    /// How many cells they are.
+    passes: usize,
+}
+
 pub struct Bisector<'o> {
     /// The cells bisection may use, in plan order (all runnable on the device).
     pub scope: Vec<Cell>,
@@ -393,74 +417,16 @@ impl<'o> Bisector<'o> {
         cell: Option<&str>,
         patch_supported: &dyn Fn(&Cell) -> bool,
     ) -> Result<Bisection, BisectError> {
-        // Settling the isolation list's siblings and the workarounds repeats them; one in the
-        // scope that faults there is a fault the description must cover too: then the search
-        // starts over (faults are never reversed, so this ends).
-        let (separable, conjunctions, rep, siblings, sib_cells, patched) = loop {
-            let (separable, conjunctions) = self.describe_faults()?;
-            let faulting = self.faulting();
-            let rep = match cell {
-                Some(id) => *faulting
-                    .iter()
-                    .find(|c| c.id() == id)
-                    .ok_or_else(|| BisectError::NotFaulting(id.to_string()))?,
-                None => *faulting
-                    .iter()
-                    .find(|c| conjunctions[0].matches(c))
-                    .expect("the first conjunction holds for a faulting cell"),
-            };
-            let siblings = self.siblings(&rep);
-            let sib_cells: Vec<Cell> = siblings.iter().map(|(_, c)| *c).collect();
-            let patched: Vec<Cell> = rep
-                .applicable_patches()
-                .into_iter()
-                .map(|p| Cell { patch: Some(p), ..rep })
-                .filter(|c| patch_supported(c))
-                .collect();
-            let start = self.verdicts.runs;
-            self.run_unknown(&sib_cells);
-            self.settle_against(&sib_cells, rep);
-            // (Patched variants are in the scope when the report planned them: they count too.)
-            self.run_unknown(&patched);
-            self.settle_against(&patched, rep);
-            if self.covers(&conjunctions) || self.verdicts.runs == start {
-                break (separable, conjunctions, rep, siblings, sib_cells, patched);
-            }
-            self.memo.retain(|_, holds| *holds);
-        };
-        let ev = |b: &Self, against: Option<&Cell>| isolation::Evidence {
-            against: against.map(|f| b.verdicts.rate_bound(f)),
-            max_miss: b.settings.max_miss,
-        };
-        let mut isolation = vec![isolation::line(&rep, None, &self.verdicts, ev(self, Some(&rep)))];
+        let Settled { separable, conjunctions, rep, siblings, patched } =
+            self.settle(cell, patch_supported)?;
+        let ev = self.evidence_against(&rep);
+        let mut isolation = vec![isolation::line(&rep, None, &self.verdicts, ev)];
         isolation.extend(
-            siblings.iter().map(|(axis, c)| {
-                isolation::line(c, Some(axis), &self.verdicts, ev(self, Some(&rep)))
-            }),
+            siblings.iter().map(|(axis, c)| isolation::line(c, Some(axis), &self.verdicts, ev)),
         );
         let workarounds: Vec<IsolationLine> =
-            patched.iter().map(|c| self.workaround_line(&rep, c, ev(self, Some(&rep)))).collect();
-        // Every pass relied on, each with the fault it is held to.
-        let mut relied: Vec<(Cell, Cell)> = self.relied.clone();
-        relied.extend(sib_cells.iter().chain(&patched).map(|c| (*c, rep)));
-        relied.retain(|(c, _)| self.verdicts.state(c) == State::Pass);
-        let miss_of = |(c, f): &(Cell, Cell)| {
-            crate::model::stats::miss(self.verdicts.rate_bound(f), self.verdicts.evidence(c))
-        };
-        relied.sort_by_key(|(c, f)| (c.id(), f.id()));
-        relied.dedup();
-        let worst_miss = relied.iter().map(miss_of).fold(0.0, f64::max);
-        let union_miss = relied.iter().map(miss_of).sum::<f64>().min(1.0);
-        let mut unsettled: Vec<String> = relied
-            .iter()
-            .filter(|r| miss_of(r) >= self.settings.max_miss)
-            .map(|(c, _)| c.id())
-            .collect();
-        unsettled.sort();
-        unsettled.dedup();
-        let mut relied_ids: Vec<String> = relied.iter().map(|(c, _)| c.id()).collect();
-        relied_ids.sort();
-        relied_ids.dedup();
+            patched.iter().map(|c| self.workaround_line(&rep, c, ev)).collect();
+        let reliance = self.reliance(siblings.iter().map(|(_, c)| c).chain(&patched), rep);
         let strings: Vec<String> = conjunctions.iter().map(predicate).collect();
         Ok(Bisection {
             separable,
@@ -473,10 +439,10 @@ impl<'o> Bisector<'o> {
             confidence: crate::model::stats::CONFIDENCE,
             attempts_per_pass: self.attempts_needed(&rep),
             max_miss: self.settings.max_miss,
-            worst_miss_probability: worst_miss,
-            union_miss_probability: union_miss,
-            passes_relied_on: relied_ids.len(),
-            unsettled,
+            worst_miss_probability: reliance.worst_miss,
+            union_miss_probability: reliance.union_miss,
+            passes_relied_on: reliance.passes,
+            unsettled: reliance.unsettled,
             faulting_cells: self.faulting().len(),
             scope_cells: self.scope.len(),
             not_run: self.scope.iter().filter(|c| self.verdicts.state(c) == State::Unknown).count(),
@@ -492,6 +458,96 @@ impl<'o> Bisector<'o> {
                 .map(String::from)
                 .collect(),
         })
+    }
+
+    /// The minimal description with its representative's siblings and workarounds run and
+    /// settled. Settling them repeats them; one in the scope that faults there is a fault the
+    /// description must cover too: then the search starts over (faults are never reversed, so
+    /// this ends).
+    fn settle(
+        &mut self,
+        cell: Option<&str>,
+        patch_supported: &dyn Fn(&Cell) -> bool,
+    ) -> Result<Settled, BisectError> {
+        loop {
+            let (separable, conjunctions) = self.describe_faults()?;
+            let rep = self.representative(cell, &conjunctions)?;
+            let siblings = self.siblings(&rep);
+            let sib_cells: Vec<Cell> = siblings.iter().map(|(_, c)| *c).collect();
+            let patched: Vec<Cell> = rep
+                .applicable_patches()
+                .into_iter()
+                .map(|p| Cell { patch: Some(p), ..rep })
+                .filter(|c| patch_supported(c))
+                .collect();
+            let start = self.verdicts.runs;
+            self.run_unknown(&sib_cells);
+            self.settle_against(&sib_cells, rep);
+            // (Patched variants are in the scope when the report planned them: they count too.)
+            self.run_unknown(&patched);
+            self.settle_against(&patched, rep);
+            if self.covers(&conjunctions) || self.verdicts.runs == start {
+                return Ok(Settled { separable, conjunctions, rep, siblings, patched });
+            }
+            self.memo.retain(|_, holds| *holds);
+        }
+    }
+
+    /// The faulting cell the isolation list is built around: `cell`, or the first faulting cell
+    /// the first conjunction describes.
+    fn representative(
+        &self,
+        cell: Option<&str>,
+        conjunctions: &[Filter],
+    ) -> Result<Cell, BisectError> {
+        let faulting = self.faulting();
+        Ok(match cell {
+            Some(id) => *faulting
+                .iter()
+                .find(|c| c.id() == id)
+                .ok_or_else(|| BisectError::NotFaulting(id.to_string()))?,
+            None => *faulting
+                .iter()
+                .find(|c| conjunctions[0].matches(c))
+                .expect("the first conjunction holds for a faulting cell"),
+        })
+    }
+
+    /// The evidence a pass held to `fault`'s rate bound gives.
+    fn evidence_against(&self, fault: &Cell) -> isolation::Evidence {
+        isolation::Evidence {
+            against: Some(self.verdicts.rate_bound(fault)),
+            max_miss: self.settings.max_miss,
+        }
+    }
+
+    /// Every pass relied on — the refused conjunctions' and `also`, held to `rep` — and how
+    /// likely they are to have missed their fault.
+    fn reliance<'c>(&self, also: impl Iterator<Item = &'c Cell>, rep: Cell) -> Reliance {
+        let mut relied: Vec<(Cell, Cell)> = self.relied.clone();
+        relied.extend(also.map(|c| (*c, rep)));
+        relied.retain(|(c, _)| self.verdicts.state(c) == State::Pass);
+        let miss_of = |(c, f): &(Cell, Cell)| {
+            crate::model::stats::miss(self.verdicts.rate_bound(f), self.verdicts.evidence(c))
+        };
+        relied.sort_by_key(|(c, f)| (c.id(), f.id()));
+        relied.dedup();
+        let mut unsettled: Vec<String> = relied
+            .iter()
+            .filter(|r| miss_of(r) >= self.settings.max_miss)
+            .map(|(c, _)| c.id())
+            .collect();
+        unsettled.sort();
+        unsettled.dedup();
+        let mut ids: Vec<String> = relied.iter().map(|(c, _)| c.id()).collect();
+        ids.sort();
+        ids.dedup();
+        Reliance {
+            worst_miss: relied.iter().map(miss_of).fold(0.0, f64::max),
+            union_miss: relied.iter().map(miss_of).sum::<f64>().min(1.0),
+            unsettled,
+            passes: ids.len(),
+        }
     }
 
     /// Per axis, per other value, the scope cell closest to `rep` (fewest other axes changed, at
