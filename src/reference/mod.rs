@@ -136,91 +136,116 @@ impl Probed<'_> {
         hit: Option<intersect::Hit>,
     ) {
         let spec = self.spec;
-        let (rec, slots) = (&mut e.record, self.slots);
-        // The stage's runtime value (the dynamic slot, the dynamic sampler's source).
-        let base =
-            hit.map(|h| spec.base.value(h.instance_id, h.sphere)).unwrap_or(probe::DYNAMIC_BASE);
-        let dynamic = probe::dynamic_slot(
-            spec.stage,
-            x,
-            y,
-            self.width,
-            hit.map(|h| h.instance).unwrap_or(0),
-            base,
-            slots,
-        );
+        let dynamic = self.dynamic_slot(x, y, hit);
         // dynamic_element records the dynamic value as its slot and reads that slot's element
         // from the packed resource (probe::packed_element): the same record.
         let slot = spec.slot.fixed().unwrap_or(dynamic);
-        rec.flags |= FLAG_PROBE;
-        rec.slot = slot;
+        e.record.flags |= FLAG_PROBE;
+        e.record.slot = slot;
         // pin-index: the shader still records its computed slot, but reads the pinned one.
         let read = match spec.read {
             ReadIndex::Pinned => probe::SPEC_SLOT,
             ReadIndex::Defined | ReadIndex::Undefined => slot,
         };
         match spec.element {
-            ElementMap::None => {
-                let (value, amb) = self.sref.as_value(read, p);
-                e.ambiguous |= amb;
-                rec.value = value;
-                e.discriminating =
-                    (0..slots).all(|s| s == read || self.sref.as_value(s, p).0 != value);
-            }
+            ElementMap::None => self.read_as(e, read, p),
             ElementMap::Own | ElementMap::Packed | ElementMap::Layer => {
-                let ids = hit
-                    .map(|h| HitIds {
-                        instance_id: h.instance_id,
-                        geometry: h.geometry,
-                        primitive: h.primitive,
-                    })
-                    .unwrap_or_default();
-                rec.element = probe::element(spec.stage, x, y, ids);
-                // A separate-sampler probe reads the texel its sampler's address mode picks.
-                let texel = match spec.sampler {
-                    Sampler::None => rec.element,
-                    Sampler::Constant => {
-                        probe::sampled_element(probe::SAMPLER_LITERAL, rec.element)
-                    }
-                    Sampler::Dynamic { .. } => {
-                        probe::sampled_element(probe::sampler_slot(dynamic), rec.element)
-                    }
-                };
-                rec.value = probe::resource_value(spec.resource, read, texel);
-                let k = (read * probe::ELEMENTS + texel) as usize;
-                e.discriminating = *self.buffer_disc[k].get_or_insert_with(|| {
-                    buffer_value_discriminates(spec.resource, slots, read, texel)
-                });
-                if self.undefined.sampler && spec.sampler != Sampler::None {
-                    let values = std::array::from_fn(|s| {
-                        probe::resource_value(
-                            spec.resource,
-                            read,
-                            probe::sampled_element(s as u32, rec.element),
-                        )
-                    });
-                    e.rule = ValueRule::AnySampler { values };
-                    e.discriminating = false;
-                }
+                self.read_resource(e, (x, y), hit, (read, dynamic))
             }
         }
         if self.undefined.descriptor {
-            let mut as_values = [0.0; MAX_AS_VARIANTS as usize];
-            if spec.element == ElementMap::None {
-                for v in 0..self.variants {
-                    let (value, amb) = self.sref.as_value(v, p);
-                    as_values[v as usize] = value[0];
-                    e.ambiguous |= amb;
-                }
+            self.any_element(e, p);
+        }
+    }
+
+    /// The stage's runtime value at pixel (x, y): the dynamic slot, the dynamic sampler's source.
+    fn dynamic_slot(&self, x: u32, y: u32, hit: Option<intersect::Hit>) -> u32 {
+        let spec = self.spec;
+        let base =
+            hit.map(|h| spec.base.value(h.instance_id, h.sphere)).unwrap_or(probe::DYNAMIC_BASE);
+        probe::dynamic_slot(
+            spec.stage,
+            x,
+            y,
+            self.width,
+            hit.map(|h| h.instance).unwrap_or(0),
+            base,
+            self.slots,
+        )
+    }
+
+    /// An acceleration structure probe reading AS slot `read` at pixel `p`.
+    fn read_as(&self, e: &mut Expected, read: u32, p: usize) {
+        let (value, amb) = self.sref.as_value(read, p);
+        e.ambiguous |= amb;
+        e.record.value = value;
+        e.discriminating =
+            (0..self.slots).all(|s| s == read || self.sref.as_value(s, p).0 != value);
+    }
+
+    /// A buffer or image probe reading slot `read` at pixel (x, y); `dynamic` is the stage's
+    /// runtime value (a dynamic sampler's source).
+    fn read_resource(
+        &mut self,
+        e: &mut Expected,
+        (x, y): (u32, u32),
+        hit: Option<intersect::Hit>,
+        (read, dynamic): (u32, u32),
+    ) {
+        let spec = self.spec;
+        let rec = &mut e.record;
+        let ids = hit
+            .map(|h| HitIds {
+                instance_id: h.instance_id,
+                geometry: h.geometry,
+                primitive: h.primitive,
+            })
+            .unwrap_or_default();
+        rec.element = probe::element(spec.stage, x, y, ids);
+        // A separate-sampler probe reads the texel its sampler's address mode picks.
+        let texel = match spec.sampler {
+            Sampler::None => rec.element,
+            Sampler::Constant => probe::sampled_element(probe::SAMPLER_LITERAL, rec.element),
+            Sampler::Dynamic { .. } => {
+                probe::sampled_element(probe::sampler_slot(dynamic), rec.element)
             }
-            e.rule = ValueRule::AnyElement {
-                resource: spec.resource,
-                slots,
-                as_values,
-                variants: self.variants,
-            };
+        };
+        rec.value = probe::resource_value(spec.resource, read, texel);
+        let k = (read * probe::ELEMENTS + texel) as usize;
+        let slots = self.slots;
+        e.discriminating = *self.buffer_disc[k]
+            .get_or_insert_with(|| buffer_value_discriminates(spec.resource, slots, read, texel));
+        if self.undefined.sampler && spec.sampler != Sampler::None {
+            let element = e.record.element;
+            let values = std::array::from_fn(|s| {
+                probe::resource_value(
+                    spec.resource,
+                    read,
+                    probe::sampled_element(s as u32, element),
+                )
+            });
+            e.rule = ValueRule::AnySampler { values };
             e.discriminating = false;
         }
+    }
+
+    /// An undefined descriptor read: the value of any element of the array passes.
+    fn any_element(&self, e: &mut Expected, p: usize) {
+        let mut as_values = [0.0; MAX_AS_VARIANTS as usize];
+        if self.spec.element == ElementMap::None {
+            for v in 0..self.variants {
+                let (value, amb) = self.sref.as_value(v, p);
+                as_values[v as usize] = value[0];
+                e.ambiguous |= amb;
+            }
+        }
+        e.rule = ValueRule::AnyElement {
+            resource: self.spec.resource,
+            slots: self.slots,
+            as_values,
+            variants: self.variants,
+        };
+        e.discriminating = false;
     }
 }
 

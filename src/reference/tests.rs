@@ -175,82 +175,101 @@ fn a_wrong_sampler_reads_another_texel_and_is_caught() {
                 let c = direct(stage, index, nonuniform, sampler);
                 let e = expected(&c, scene, r);
                 assert!(compare(&e, &records(&e), 64).passed(), "{}", c.id());
-                // The same read with sampler 0 (clamp to edge): element 1 of the slot read.
-                let slot_read = |a: &Record| {
-                    if index == IndexSource::DynamicElement || index == IndexSource::Dynamic {
-                        a.slot
-                    } else {
-                        probe::LITERAL_SLOT
-                    }
-                };
-                let wrong = reading(&e, |a| {
-                    probe::resource_value(
-                        Resource::SampledImage,
-                        slot_read(a),
-                        probe::sampled_element(0, a.element),
-                    )
-                });
-                let cmp = compare(&e, &wrong, 64);
-                // Constant: sampler 2 against 0 differs on 3 elements of 4. Dynamic: a third
-                // of the pixels use sampler 0 itself, the others differ on 3 elements of 4.
-                let share = if sampler == SamplerIndex::Constant { 0.7 } else { 0.4 };
-                assert!(
-                    cmp.mismatched_pixels as f64 > share * cmp.probe_checked as f64,
-                    "{}: sampler 0 caught on {} of {}",
-                    c.id(),
-                    cmp.mismatched_pixels,
-                    cmp.probe_checked
-                );
-                // The compiler dropped the sampler index's NonUniform (and only that): any
-                // sampler's texel of the right slot passes, counted as another element; a
-                // wrong slot still mismatches everywhere.
+                let wrong = sampler_zero_is_caught(&c, &e);
                 if c.sampler_nonuniform() {
-                    let e =
-                        expected_with(&c, scene, r, Undefined { descriptor: false, sampler: true });
-                    let cmp = compare(&e, &wrong, 64);
-                    assert!(
-                        cmp.passed() && cmp.element_reads.as_ref().is_some_and(|x| x.other > 0),
-                        "{}: {:?}",
-                        c.id(),
-                        cmp.element_reads
-                    );
-                    let slots = probe::slot_count(Resource::SampledImage, scene.params.instances);
-                    let off = reading(&e, |a| {
-                        probe::resource_value(
-                            Resource::SampledImage,
-                            (slot_read(a) + 1) % slots,
-                            probe::sampled_element(0, a.element),
-                        )
-                    });
-                    let cmp = compare(&e, &off, 64);
-                    assert_eq!(
-                        cmp.mismatched_pixels,
-                        cmp.probe_checked,
-                        "{}: another slot through any sampler",
-                        c.id()
-                    );
+                    dropped_sampler_nonuniform_allows_any_sampler(&c, &wrong, scene, r);
                 }
                 if sampler == SamplerIndex::Dynamic {
-                    // The constant sampler instead of the dynamic one.
-                    let wrong = reading(&e, |a| {
-                        probe::resource_value(
-                            Resource::SampledImage,
-                            slot_read(a),
-                            probe::sampled_element(probe::SAMPLER_LITERAL, a.element),
-                        )
-                    });
-                    let cmp = compare(&e, &wrong, 64);
-                    assert!(
-                        cmp.mismatched_pixels * 3 > cmp.probe_checked,
-                        "{}: constant sampler caught on {} of {}",
-                        c.id(),
-                        cmp.mismatched_pixels,
-                        cmp.probe_checked
-                    );
+                    constant_sampler_is_caught(&c, &e);
                 }
             }
         }
     }
+}
+
+/// The slot a direct sampled-image probe of `c` reads at record `a`.
+fn slot_read(c: &Cell, a: &Record) -> u32 {
+    if c.index == IndexSource::DynamicElement || c.index == IndexSource::Dynamic {
+        a.slot
+    } else {
+        probe::LITERAL_SLOT
+    }
+}
+
+/// The probe pixels of `e` read through sampler `sampler` instead of the cell's.
+fn through_sampler(c: &Cell, e: &[Expected], sampler: u32) -> Vec<Record> {
+    reading(e, |a| {
+        probe::resource_value(
+            Resource::SampledImage,
+            slot_read(c, a),
+            probe::sampled_element(sampler, a.element),
+        )
+    })
+}
+
+/// The same read with sampler 0 (clamp to edge) is caught on most probe pixels; returns its
+/// records.
+fn sampler_zero_is_caught(c: &Cell, e: &[Expected]) -> Vec<Record> {
+    let wrong = through_sampler(c, e, 0);
+    let cmp = compare(e, &wrong, 64);
+    // Constant: sampler 2 against 0 differs on 3 elements of 4. Dynamic: a third of the pixels
+    // use sampler 0 itself, the others differ on 3 elements of 4.
+    let share = if c.sampler == Some(SamplerIndex::Constant) { 0.7 } else { 0.4 };
+    assert!(
+        cmp.mismatched_pixels as f64 > share * cmp.probe_checked as f64,
+        "{}: sampler 0 caught on {} of {}",
+        c.id(),
+        cmp.mismatched_pixels,
+        cmp.probe_checked
+    );
+    wrong
+}
+
+/// The compiler dropped the sampler index's NonUniform (and only that): any sampler's texel of
+/// the right slot (`wrong`, read through sampler 0) passes, counted as another element; a wrong
+/// slot still mismatches everywhere.
+fn dropped_sampler_nonuniform_allows_any_sampler(
+    c: &Cell,
+    wrong: &[Record],
+    scene: &Scene,
+    r: &SceneReference,
+) {
+    let e = expected_with(c, scene, r, Undefined { descriptor: false, sampler: true });
+    let cmp = compare(&e, wrong, 64);
+    assert!(
+        cmp.passed() && cmp.element_reads.as_ref().is_some_and(|x| x.other > 0),
+        "{}: {:?}",
+        c.id(),
+        cmp.element_reads
+    );
+    let slots = probe::slot_count(Resource::SampledImage, scene.params.instances);
+    let off = reading(&e, |a| {
+        probe::resource_value(
+            Resource::SampledImage,
+            (slot_read(c, a) + 1) % slots,
+            probe::sampled_element(0, a.element),
+        )
+    });
+    let cmp = compare(&e, &off, 64);
+    assert_eq!(
+        cmp.mismatched_pixels,
+        cmp.probe_checked,
+        "{}: another slot through any sampler",
+        c.id()
+    );
+}
+
+/// The constant sampler instead of the dynamic one is caught on a third of the probe pixels.
+fn constant_sampler_is_caught(c: &Cell, e: &[Expected]) {
+    let wrong = through_sampler(c, e, probe::SAMPLER_LITERAL);
+    let cmp = compare(e, &wrong, 64);
+    assert!(
+        cmp.mismatched_pixels * 3 > cmp.probe_checked,
+        "{}: constant sampler caught on {} of {}",
+        c.id(),
+        cmp.mismatched_pixels,
+        cmp.probe_checked
+    );
 }
 
 /// `index=dynamic_element` (the recommended pattern): the reference knows the value of every
