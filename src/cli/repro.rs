@@ -11,10 +11,10 @@ use crate::bisect::isolation::describe;
 use crate::bisect::scope::{cell_by_id, ReportOptions};
 use crate::model::bundle::{BundleModule, CellSpec, SCHEMA};
 use crate::model::inject::for_cell;
-use crate::model::Cell;
 use crate::model::Injection;
 use crate::model::PatchMode;
-use crate::report::shaders::{cell_shaders, spirv_bytes, spirv_dis};
+use crate::model::{Cell, CellReport, RunReport};
+use crate::report::shaders::{cell_shaders, spirv_bytes, spirv_dis, Shader};
 use anyhow::{Context, Result};
 use std::path::Path;
 
@@ -220,7 +220,9 @@ pub fn repro(g: &Globals, a: &ReproArgs) -> Result<u8> {
             coded(exit::BAD_INPUT, format!("cannot create {}: {e}", parent.display()))
         })?;
     }
-    let built = build(g, a, &report, &ro, cell, entry, &inject, &shaders, &tmp);
+    let bundle =
+        Bundle { g, a, report: &report, ro: &ro, cell, entry, inject: &inject, shaders: &shaders };
+    let built = bundle.build(&tmp);
     let result = built.and_then(|()| publish(&tmp, &a.out, a.force));
     let _ = std::fs::remove_dir_all(&tmp);
     result?;
@@ -233,95 +235,141 @@ pub fn repro(g: &Globals, a: &ReproArgs) -> Result<u8> {
     Ok(exit::OK)
 }
 
-/// Write the bundle into `dir` (a temporary directory).
-#[allow(clippy::too_many_arguments)]
-fn build(
-    g: &Globals,
-    a: &ReproArgs,
-    report: &crate::model::RunReport,
-    ro: &ReportOptions,
+/// What a repro bundle is made of: one cell of a report, with its injections and shaders.
+struct Bundle<'a> {
+    g: &'a Globals,
+    a: &'a ReproArgs,
+    report: &'a RunReport,
+    ro: &'a ReportOptions,
     cell: Cell,
-    entry: Option<&crate::model::CellReport>,
-    inject: &[&Injection],
-    shaders: &[crate::report::shaders::Shader],
-    dir: &Path,
-) -> Result<()> {
-    let mut listing = Vec::new();
-    let mut modules = Vec::new();
-    let mut disassembled = true;
-    for s in shaders {
-        let f = s.role.file_name();
-        modules.push(BundleModule {
-            file: format!("{f}.spv"),
-            compiler: s.compiler.clone(),
-            patched: s.patched.iter().map(|p| p.to_string()).collect(),
-        });
-        write(dir, &format!("shaders/{f}.glsl"), s.glsl.as_bytes())?;
-        write(dir, &format!("shaders/{f}.spv"), &spirv_bytes(&s.spirv))?;
-        match spirv_dis(&s.spirv) {
-            Some(d) => write(dir, &format!("shaders/{f}.spvasm"), d.as_bytes())?,
-            None => disassembled = false,
-        }
-        listing.push(f);
+    /// The cell's entry in the report (None: not in it).
+    entry: Option<&'a CellReport>,
+    inject: &'a [&'a Injection],
+    shaders: &'a [Shader],
+}
+
+/// The shader files written into the bundle, for its README.
+struct Listing {
+    /// Each shader's file stem.
+    files: Vec<&'static str>,
+    /// `spirv-dis` disassembled every module.
+    disassembled: bool,
+}
+
+impl Bundle<'_> {
+    /// Write the bundle into `dir` (a temporary directory).
+    fn build(&self, dir: &Path) -> Result<()> {
+        let (modules, listing) = self.write_shaders(dir)?;
+        let spec = self.spec(modules);
+        write(dir, "cell.json", &(serde_json::to_vec_pretty(&spec)?))?;
+        let caps_note = self.write_caps(dir)?;
+        let amber_note = self.write_amber(dir)?;
+        let readme = self.readme(&spec, &listing, &caps_note, &amber_note);
+        write(dir, "README.txt", readme.as_bytes())
     }
-    let spec = CellSpec {
-        schema: SCHEMA.into(),
-        id: cell.id(),
-        description: describe(&cell),
-        cell,
-        scene: report.scene.params,
-        inject: inject.iter().map(|i| i.spec.clone()).collect(),
-        timeout_s: ro.timeout_s,
-        binding_stages: report.options.binding_stages.clone(),
-        original: serde_json::json!({
-            "report": a.from,
-            "device": report.device,
-            "outcome": entry.map(|c| c.outcome),
-            "reason": entry.and_then(|c| c.reason.clone()),
-            "incidence": entry.and_then(|c| c.incidence.clone()),
-        }),
-        modules,
-    };
-    write(dir, "cell.json", &(serde_json::to_vec_pretty(&spec)?))?;
-    // The caps of the report's device, when it is on this machine.
-    let caps_note = match report_device(g, report) {
-        Ok((inst, info, _)) => {
-            let caps = crate::caps::caps_json(&info, inst.loader_version, None);
-            write(dir, "caps.json", &serde_json::to_vec_pretty(&caps)?)?;
-            "caps.json: `rtprobe caps --json` of the device (without the device-creation check)"
-                .to_string()
+
+    /// Each shader's GLSL, SPIR-V and (with `spirv-dis`) disassembly under `shaders/`.
+    fn write_shaders(&self, dir: &Path) -> Result<(Vec<BundleModule>, Listing)> {
+        let mut modules = Vec::new();
+        let mut listing = Listing { files: Vec::new(), disassembled: true };
+        for s in self.shaders {
+            let f = s.role.file_name();
+            modules.push(BundleModule {
+                file: format!("{f}.spv"),
+                compiler: s.compiler.clone(),
+                patched: s.patched.iter().map(|p| p.to_string()).collect(),
+            });
+            write(dir, &format!("shaders/{f}.glsl"), s.glsl.as_bytes())?;
+            write(dir, &format!("shaders/{f}.spv"), &spirv_bytes(&s.spirv))?;
+            match spirv_dis(&s.spirv) {
+                Some(d) => write(dir, &format!("shaders/{f}.spvasm"), d.as_bytes())?,
+                None => listing.disassembled = false,
+            }
+            listing.files.push(f);
         }
-        Err(e) => format!("no caps.json: {e:#}"),
-    };
-    let origin = format!("from {} (rtprobe {})", a.from.display(), env!("CARGO_PKG_VERSION"));
-    let amber_note = match crate::report::amber::script(
-        &cell,
-        shaders,
-        &report.scene.params,
-        inject.first().copied(),
-        &origin,
-    ) {
-        Ok(text) => {
-            write(dir, "cell.amber", text.as_bytes())?;
-            "cell.amber      an Amber script of the same cell: its SPIR-V, buffers and expected records (not run by rtprobe; see its header)".to_string()
+        Ok((modules, listing))
+    }
+
+    /// `cell.json`: what `run --cell-spec` re-runs, and the verdict the cell had.
+    fn spec(&self, modules: Vec<BundleModule>) -> CellSpec {
+        let (report, entry, cell) = (self.report, self.entry, self.cell);
+        CellSpec {
+            schema: SCHEMA.into(),
+            id: cell.id(),
+            description: describe(&cell),
+            cell,
+            scene: report.scene.params,
+            inject: self.inject.iter().map(|i| i.spec.clone()).collect(),
+            timeout_s: self.ro.timeout_s,
+            binding_stages: report.options.binding_stages.clone(),
+            original: serde_json::json!({
+                "report": self.a.from,
+                "device": report.device,
+                "outcome": entry.map(|c| c.outcome),
+                "reason": entry.and_then(|c| c.reason.clone()),
+                "incidence": entry.and_then(|c| c.incidence.clone()),
+            }),
+            modules,
         }
-        Err(why) => format!("no cell.amber: {why}"),
-    };
-    let made_by: std::collections::BTreeSet<&str> =
-        shaders.iter().map(|s| s.compiler.as_str()).collect();
-    let readme = format!(
-        "rtprobe repro bundle: {}\n{}\n\nOriginal verdict: {} ({})\nInjected: {}\n\nRe-run exactly this cell (same scene, same injection, the SPIR-V in shaders/):\n\n    rtprobe run --cell-spec {}/cell.json\n\nFiles:\n  cell.json       the cell, scene parameters, injections, original verdict, the SPIR-V modules and their compiler\n  shaders/        {}: GLSL as generated, SPIR-V as the worker runs it (patched where the cell says){}\n  {}\n  {}\n\nThe SPIR-V was compiled by {}. `run --cell-spec` runs these .spv files, not a fresh compile, so a\nmachine with another compiler runs the same binary.\n",
-        spec.id,
-        spec.description,
-        entry.map(|c| c.outcome.as_str()).unwrap_or("not in the report"),
-        entry.and_then(|c| c.reason.clone()).unwrap_or_default(),
-        if spec.inject.is_empty() { "nothing".into() } else { spec.inject.join("; ") },
-        a.out.display(),
-        listing.join(", "),
-        if disassembled { ", .spvasm from spirv-dis" } else { "; spirv-dis is not installed, so no .spvasm" },
-        caps_note,
-        amber_note,
-        made_by.into_iter().collect::<Vec<_>>().join(" and "),
-    );
-    write(dir, "README.txt", readme.as_bytes())
+    }
+
+    /// The caps of the report's device, when it is on this machine; the README's line about it.
+    fn write_caps(&self, dir: &Path) -> Result<String> {
+        Ok(match report_device(self.g, self.report) {
+            Ok((inst, info, _)) => {
+                let caps = crate::caps::caps_json(&info, inst.loader_version, None);
+                write(dir, "caps.json", &serde_json::to_vec_pretty(&caps)?)?;
+                "caps.json: `rtprobe caps --json` of the device (without the device-creation check)"
+                    .to_string()
+            }
+            Err(e) => format!("no caps.json: {e:#}"),
+        })
+    }
+
+    /// The cell as an Amber script, or why there is none; the README's line about it.
+    fn write_amber(&self, dir: &Path) -> Result<String> {
+        let a = self.a;
+        let origin = format!("from {} (rtprobe {})", a.from.display(), env!("CARGO_PKG_VERSION"));
+        let script = crate::report::amber::script(
+            &self.cell,
+            self.shaders,
+            &self.report.scene.params,
+            self.inject.first().copied(),
+            &origin,
+        );
+        Ok(match script {
+            Ok(text) => {
+                write(dir, "cell.amber", text.as_bytes())?;
+                "cell.amber      an Amber script of the same cell: its SPIR-V, buffers and expected records (not run by rtprobe; see its header)".to_string()
+            }
+            Err(why) => format!("no cell.amber: {why}"),
+        })
+    }
+
+    /// README.txt: the cell, its verdict, how to re-run it and what each file is.
+    fn readme(
+        &self,
+        spec: &CellSpec,
+        listing: &Listing,
+        caps_note: &str,
+        amber_note: &str,
+    ) -> String {
+        let entry = self.entry;
+        let made_by: std::collections::BTreeSet<&str> =
+            self.shaders.iter().map(|s| s.compiler.as_str()).collect();
+        format!(
+            "rtprobe repro bundle: {}\n{}\n\nOriginal verdict: {} ({})\nInjected: {}\n\nRe-run exactly this cell (same scene, same injection, the SPIR-V in shaders/):\n\n    rtprobe run --cell-spec {}/cell.json\n\nFiles:\n  cell.json       the cell, scene parameters, injections, original verdict, the SPIR-V modules and their compiler\n  shaders/        {}: GLSL as generated, SPIR-V as the worker runs it (patched where the cell says){}\n  {}\n  {}\n\nThe SPIR-V was compiled by {}. `run --cell-spec` runs these .spv files, not a fresh compile, so a\nmachine with another compiler runs the same binary.\n",
+            spec.id,
+            spec.description,
+            entry.map(|c| c.outcome.as_str()).unwrap_or("not in the report"),
+            entry.and_then(|c| c.reason.clone()).unwrap_or_default(),
+            if spec.inject.is_empty() { "nothing".into() } else { spec.inject.join("; ") },
+            self.a.out.display(),
+            listing.files.join(", "),
+            if listing.disassembled { ", .spvasm from spirv-dis" } else { "; spirv-dis is not installed, so no .spvasm" },
+            caps_note,
+            amber_note,
+            made_by.into_iter().collect::<Vec<_>>().join(" and "),
+        )
+    }
 }
