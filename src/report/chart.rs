@@ -219,28 +219,22 @@ impl LineChart {
             T,
         );
         let mut s = header(&self.title);
-        for (v, label) in xs.ticks() {
-            let px = xs.at(v);
-            s += &format!("<line x1=\"{px:.1}\" y1=\"{T}\" x2=\"{px:.1}\" y2=\"{:.1}\" stroke=\"#e4e4e4\"/>\n", H - B);
-            s += &format!(
-                "<text x=\"{px:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{label}</text>\n",
-                H - B + 15.0
-            );
-        }
-        for (v, label) in ys.ticks() {
-            let py = ys.at(v);
-            s += &format!("<line x1=\"{L}\" y1=\"{py:.1}\" x2=\"{:.1}\" y2=\"{py:.1}\" stroke=\"#e4e4e4\"/>\n", W - R);
-            s += &format!(
-                "<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"end\">{label}</text>\n",
-                L - 5.0,
-                py + 4.0
-            );
-        }
+        grid(&mut s, &xs, &ys);
         axis_labels(&mut s, &self.x.label, &self.y.label);
+        self.reference_lines(&mut s, &xs, &ys);
+        for (k, se) in self.series.iter().enumerate() {
+            self.series_svg(&mut s, se, &xs, &ys);
+            legend(&mut s, k, &se.name, colour(se.colour), se.style);
+        }
+        s + "</svg>\n"
+    }
+
+    /// The dotted horizontal and vertical reference lines, with their labels.
+    fn reference_lines(&self, s: &mut String, xs: &Scale, ys: &Scale) {
         for (v, label) in &self.hlines {
             let py = ys.at(*v);
-            s += &format!("<line x1=\"{L}\" y1=\"{py:.1}\" x2=\"{:.1}\" y2=\"{py:.1}\" stroke=\"#555\" stroke-dasharray=\"2,3\"/>\n", W - R);
-            s += &format!(
+            *s += &format!("<line x1=\"{L}\" y1=\"{py:.1}\" x2=\"{:.1}\" y2=\"{py:.1}\" stroke=\"#555\" stroke-dasharray=\"2,3\"/>\n", W - R);
+            *s += &format!(
                 "<text x=\"{:.1}\" y=\"{:.1}\" fill=\"#555\" text-anchor=\"end\">{}</text>\n",
                 W - R - 4.0,
                 py - 3.0,
@@ -249,46 +243,73 @@ impl LineChart {
         }
         for (v, label) in &self.vlines {
             let px = xs.at(*v);
-            s += &format!("<line x1=\"{px:.1}\" y1=\"{T}\" x2=\"{px:.1}\" y2=\"{:.1}\" stroke=\"#555\" stroke-dasharray=\"2,3\"/>\n", H - B);
-            s += &format!(
+            *s += &format!("<line x1=\"{px:.1}\" y1=\"{T}\" x2=\"{px:.1}\" y2=\"{:.1}\" stroke=\"#555\" stroke-dasharray=\"2,3\"/>\n", H - B);
+            *s += &format!(
                 "<text x=\"{:.1}\" y=\"{:.1}\" fill=\"#555\">{}</text>\n",
                 px + 3.0,
                 T + 12.0,
                 xml(label)
             );
         }
-        for (k, se) in self.series.iter().enumerate() {
-            let c = colour(se.colour);
-            let visible: Vec<(f64, f64)> = se
-                .points
-                .iter()
-                .copied()
-                .filter(|&(x, y)| {
-                    x.is_finite()
-                        && y.is_finite()
-                        && (!self.x.log || x > 0.0)
-                        && (!self.y.log || y > 0.0)
-                })
-                .collect();
-            let path: Vec<String> =
-                visible.iter().map(|&(x, y)| format!("{:.1},{:.1}", xs.at(x), ys.at(y))).collect();
-            match se.style {
-                Style::Line => s += &format!("<polyline fill=\"none\" stroke=\"{c}\" stroke-width=\"2\" points=\"{}\"/>\n", path.join(" ")),
-                Style::Dashed => s += &format!("<polyline fill=\"none\" stroke=\"{c}\" stroke-width=\"1.5\" stroke-dasharray=\"6,4\" points=\"{}\"/>\n", path.join(" ")),
-                Style::Points => {}
-            }
-            if se.style != Style::Dashed {
-                for &(x, y) in &visible {
-                    s += &format!(
-                        "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"3\" fill=\"{c}\"/>\n",
-                        xs.at(x),
-                        ys.at(y)
-                    );
-                }
-            }
-            legend(&mut s, k, &se.name, c, se.style);
+    }
+
+    /// Series `se`: its line and markers, through the points both axes can show.
+    fn series_svg(&self, s: &mut String, se: &Series, xs: &Scale, ys: &Scale) {
+        let c = colour(se.colour);
+        let visible: Vec<(f64, f64)> = se
+            .points
+            .iter()
+            .copied()
+            .filter(|&(x, y)| {
+                x.is_finite()
+                    && y.is_finite()
+                    && (!self.x.log || x > 0.0)
+                    && (!self.y.log || y > 0.0)
+            })
+            .collect();
+        let path: Vec<String> =
+            visible.iter().map(|&(x, y)| format!("{:.1},{:.1}", xs.at(x), ys.at(y))).collect();
+        match se.style {
+            Style::Line => *s += &format!("<polyline fill=\"none\" stroke=\"{c}\" stroke-width=\"2\" points=\"{}\"/>\n", path.join(" ")),
+            Style::Dashed => *s += &format!("<polyline fill=\"none\" stroke=\"{c}\" stroke-width=\"1.5\" stroke-dasharray=\"6,4\" points=\"{}\"/>\n", path.join(" ")),
+            Style::Points => {}
         }
-        s + "</svg>\n"
+        if se.style != Style::Dashed {
+            for &(x, y) in &visible {
+                *s += &format!(
+                    "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"3\" fill=\"{c}\"/>\n",
+                    xs.at(x),
+                    ys.at(y)
+                );
+            }
+        }
+    }
+}
+
+/// The grid lines and tick labels of both axes.
+fn grid(s: &mut String, xs: &Scale, ys: &Scale) {
+    for (v, label) in xs.ticks() {
+        let px = xs.at(v);
+        *s += &format!(
+            "<line x1=\"{px:.1}\" y1=\"{T}\" x2=\"{px:.1}\" y2=\"{:.1}\" stroke=\"#e4e4e4\"/>\n",
+            H - B
+        );
+        *s += &format!(
+            "<text x=\"{px:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{label}</text>\n",
+            H - B + 15.0
+        );
+    }
+    for (v, label) in ys.ticks() {
+        let py = ys.at(v);
+        *s += &format!(
+            "<line x1=\"{L}\" y1=\"{py:.1}\" x2=\"{:.1}\" y2=\"{py:.1}\" stroke=\"#e4e4e4\"/>\n",
+            W - R
+        );
+        *s += &format!(
+            "<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"end\">{label}</text>\n",
+            L - 5.0,
+            py + 4.0
+        );
     }
 }
 

@@ -147,6 +147,9 @@ fn what_happens(o: Outcome) -> &'static str {
     }
 }
 
+/// What the issue says a correct run does.
+const EXPECTED: &str = "The trace completes and every pixel's record matches rtprobe's CPU reference (f64): hit kind, instance custom index, primitive id and probed slot exactly, t within 1e-3 relative, barycentrics within 1e-3, and the value read from the probed resource exactly (for a dynamic index without nonuniformEXT, some element of the array).";
+
 /// Build the issue for `report` and its bisection.
 pub fn build(
     report: &RunReport,
@@ -161,12 +164,7 @@ pub fn build(
         .ok_or_else(|| IssueError::NotACell(bi.representative.clone()))?;
     let rep_line = bi.isolation.first();
     let rep_report: Option<&CellReport> = report.cells.iter().find(|c| c.id == bi.representative);
-    let outcome = rep_report
-        .map(|c| c.outcome)
-        .or_else(|| {
-            rep_line.and_then(|l| Outcome::ALL.iter().copied().find(|o| o.as_str() == l.verdict))
-        })
-        .unwrap_or(Outcome::Error);
+    let outcome = representative_outcome(rep_report, rep_line);
     let injection = for_cell(inject, &rep);
     let injected = injection.map(|i| format!("This fault was injected on purpose with `--inject-fault '{}'`: rtprobe made the shader misbehave to prove its own detection. It is not a driver bug; do not file it.", i.spec));
     let title = format!(
@@ -191,23 +189,10 @@ pub fn build(
         bi,
         injection.is_none(),
     );
-    let expected = "The trace completes and every pixel's record matches rtprobe's CPU reference (f64): hit kind, instance custom index, primitive id and probed slot exactly, t within 1e-3 relative, barycentrics within 1e-3, and the value read from the probed resource exactly (for a dynamic index without nonuniformEXT, some element of the array).".to_string();
-    let actual = actual_text(rep_report, outcome);
-    let shader = shader_comparison(&rep, bi, inject);
-    let (shader, shader_error) = match shader {
+    let (shader, shader_error) = match shader_comparison(&rep, bi, inject) {
         Ok(sc) => (Some(sc), None),
         Err(e) => (None, Some(e.to_string())),
     };
-    let device_fault = device_fault_text(rep_report, outcome);
-    let validation = validation_text(report, rep_report);
-    let reproduce = reproduce_commands(report, report_path, &rep, injection);
-    let workarounds = if bi.workarounds.is_empty() {
-        vec!["No workaround patch applies to this cell.".into()]
-    } else {
-        bi.workarounds.iter().map(|w| w.line.clone()).collect()
-    };
-    let not_tested = not_tested(report, b);
-    let recommended_pattern = crate::report::recommended::result(report, &rep).line();
     Ok(Issue {
         schema: SCHEMA.into(),
         title,
@@ -215,20 +200,43 @@ pub fn build(
         environment,
         summary,
         incidence,
-        expected,
-        actual,
+        expected: EXPECTED.to_string(),
+        actual: actual_text(rep_report, outcome),
         minimal: bi.minimal.clone(),
         separable: bi.separable,
         isolation: bi.isolation.iter().map(|l| l.line.clone()).collect(),
         shader,
         shader_error,
-        device_fault,
-        validation,
-        reproduce,
-        workarounds,
-        recommended_pattern,
-        not_tested,
+        device_fault: device_fault_text(rep_report, outcome),
+        validation: validation_text(report, rep_report),
+        reproduce: reproduce_commands(report, report_path, &rep, injection),
+        workarounds: workaround_lines(bi),
+        recommended_pattern: crate::report::recommended::result(report, &rep).line(),
+        not_tested: not_tested(report, b),
     })
+}
+
+/// The representative's outcome: its verdict in the report, else the one its isolation line
+/// names, else `error`.
+fn representative_outcome(
+    rep_report: Option<&CellReport>,
+    rep_line: Option<&IsolationLine>,
+) -> Outcome {
+    rep_report
+        .map(|c| c.outcome)
+        .or_else(|| {
+            rep_line.and_then(|l| Outcome::ALL.iter().copied().find(|o| o.as_str() == l.verdict))
+        })
+        .unwrap_or(Outcome::Error)
+}
+
+/// The bisection's workaround lines, or a line saying none applies.
+fn workaround_lines(bi: &crate::model::Bisection) -> Vec<String> {
+    if bi.workarounds.is_empty() {
+        vec!["No workaround patch applies to this cell.".into()]
+    } else {
+        bi.workarounds.iter().map(|w| w.line.clone()).collect()
+    }
 }
 
 /// The device, driver and machine the issue is about.
