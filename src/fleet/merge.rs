@@ -4,6 +4,7 @@
 //! keeps every attempt (its verdict is recomputed from all of them).
 use crate::matrix::plan::all_cells;
 use crate::model::report::ResultOption;
+use crate::model::report::TimingSummary;
 use crate::model::Canary;
 use crate::model::{CellReport, PatchMode, RunReport, SceneParams};
 use serde_json::Value;
@@ -108,44 +109,60 @@ pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport
         }
         started.push(id);
         names.push(name);
-        out.complete &= r.complete;
-        // Worker numbers restart in every report: keep them apart.
-        let offset = out.workers.iter().map(|w| w.worker).max().unwrap_or(0);
-        out.workers.extend(r.workers.iter().cloned().map(|mut w| {
-            w.worker += offset;
-            w
-        }));
-        let t = &mut out.timing;
-        let workers = t.workers_started + r.timing.workers_started;
-        if workers > 0 {
-            t.device_ms_mean = (t.device_ms_mean * t.workers_started as f64
-                + r.timing.device_ms_mean * r.timing.workers_started as f64)
-                / workers as f64;
+        absorb(&mut out, &mut by_id, r);
+    }
+    finish(&mut out, names);
+    Ok(out)
+}
+
+/// Add `r`'s workers, times and attempts to `out`; `by_id` says where each cell of `out` is.
+fn absorb(out: &mut RunReport, by_id: &mut HashMap<String, usize>, r: RunReport) {
+    out.complete &= r.complete;
+    // Worker numbers restart in every report: keep them apart.
+    let offset = out.workers.iter().map(|w| w.worker).max().unwrap_or(0);
+    out.workers.extend(r.workers.iter().cloned().map(|mut w| {
+        w.worker += offset;
+        w
+    }));
+    add_timing(&mut out.timing, &r.timing);
+    for mut c in r.cells {
+        for a in c.attempts.iter_mut() {
+            a.worker += offset;
         }
-        t.workers_started = workers;
-        t.wall_ms += r.timing.wall_ms;
-        t.compile_ms += r.timing.compile_ms;
-        t.pipeline_ms += r.timing.pipeline_ms;
-        t.setup_ms += r.timing.setup_ms;
-        t.trace_ms += r.timing.trace_ms;
-        t.check_ms += r.timing.check_ms;
-        t.overhead_ms += r.timing.overhead_ms;
-        t.cells_timed += r.timing.cells_timed;
-        t.prebuild_ms += r.timing.prebuild_ms;
-        t.prebuilt_pipelines += r.timing.prebuilt_pipelines;
-        for mut c in r.cells {
-            for a in c.attempts.iter_mut() {
-                a.worker += offset;
-            }
-            match by_id.get(&c.id) {
-                Some(&i) => join(&mut out.cells[i], c),
-                None => {
-                    by_id.insert(c.id.clone(), out.cells.len());
-                    out.cells.push(c);
-                }
+        match by_id.get(&c.id) {
+            Some(&i) => join(&mut out.cells[i], c),
+            None => {
+                by_id.insert(c.id.clone(), out.cells.len());
+                out.cells.push(c);
             }
         }
     }
+}
+
+/// `r`'s times added to `t`: sums, and the device time's mean over both reports' workers.
+fn add_timing(t: &mut TimingSummary, r: &TimingSummary) {
+    let workers = t.workers_started + r.workers_started;
+    if workers > 0 {
+        t.device_ms_mean = (t.device_ms_mean * t.workers_started as f64
+            + r.device_ms_mean * r.workers_started as f64)
+            / workers as f64;
+    }
+    t.workers_started = workers;
+    t.wall_ms += r.wall_ms;
+    t.compile_ms += r.compile_ms;
+    t.pipeline_ms += r.pipeline_ms;
+    t.setup_ms += r.setup_ms;
+    t.trace_ms += r.trace_ms;
+    t.check_ms += r.check_ms;
+    t.overhead_ms += r.overhead_ms;
+    t.cells_timed += r.cells_timed;
+    t.prebuild_ms += r.prebuild_ms;
+    t.prebuilt_pipelines += r.prebuilt_pipelines;
+}
+
+/// The merged report made whole: cells in plan order, the plan and tallies recounted, shard
+/// options cleared, the reports it came from (`names`) listed, and the findings annotated.
+fn finish(out: &mut RunReport, names: Vec<String>) {
     let order = order();
     out.cells.sort_by_key(|c| {
         (
@@ -165,8 +182,7 @@ pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport
     out.options.shard = None;
     out.options.merged_from = names;
     out.recount();
-    crate::report::writer::annotate_findings(&mut out);
-    Ok(out)
+    crate::report::writer::annotate_findings(out);
 }
 
 /// The same cell from two reports: every attempt kept, the verdict recomputed.
