@@ -299,9 +299,61 @@ fn grazing(rng: &mut Rng, full: bool) -> Vec<Part> {
 
 // ---- degenerate --------------------------------------------------------------------------------
 
+/// Edge of the tiny triangle of [`degenerate_mesh`].
+const TINY: f32 = 1e-6;
+
+/// Points on the degenerate triangles of [`degenerate_mesh`] (their vertices, edges and
+/// would-be interiors), where the huge triangle behind must be the hit, never the degenerate one.
+const DEGENERATE_SPOTS: [[f64; 2]; 10] = [
+    [0.0, 0.0],
+    [1.0, 3.0],
+    [0.5, 2.5],
+    [2.0, 4.0],
+    [4.0, 0.0],
+    [4.5, 0.5],
+    [4.6, 0.4],
+    [6.3, 6.3],
+    [7.0, 6.0],
+    [6.5, 6.5],
+];
+
+/// Points (x, y) in units of [`TINY`] from the tiny triangle's right-angle corner: inside it, on
+/// its edges and just outside.
+const TINY_SPOTS: [(f64, f64); 8] = [
+    (0.25, 0.25),
+    (0.1, 0.1),
+    (0.6, 0.2),
+    (0.2, 0.6),
+    (0.5, 0.0),
+    (0.5, 0.5),
+    (1.1, 0.1),
+    (-0.1, 0.5),
+];
+
 fn degenerate(rng: &mut Rng) -> Vec<Part> {
+    let mut part = new_part("mixed".into(), one_mesh(degenerate_mesh()));
+    for [x, y] in DEGENERATE_SPOTS {
+        edge_rays(&mut part, DVec3::new(x, y, 0.0), true);
+    }
+    // The tiny triangle: interior points (must hit, t = 1), its edges and just outside.
+    let t = TINY as f64;
+    for (a, b) in TINY_SPOTS {
+        for d in DIRS {
+            push(&mut part, ray_through(DVec3::new(10.0 + a * t, b * t, 0.0), d, 1.0), false);
+        }
+    }
+    // The huge triangles' interior, far from the origin: precision of a 1e6 triangle.
+    for _ in 0..256 {
+        let p = DVec3::new(rng.range(-5e5, 5e5) as f64, rng.range(-5e5, 5e5) as f64, 5.0);
+        push(&mut part, ray_through(p, DIRS[1], 2.0), false);
+    }
+    vec![part]
+}
+
+/// Four inactive degenerate triangles (zero area, collinear, a duplicate vertex, a NaN), a tiny
+/// one, and two huge ones behind them all.
+fn degenerate_mesh() -> Mesh {
     let nan = f32::NAN;
-    let tiny = 1e-6f32;
     let positions = vec![
         // 0: zero area (three equal vertices)
         [0.0, 0.0, 0.0],
@@ -321,8 +373,8 @@ fn degenerate(rng: &mut Rng) -> Vec<Part> {
         [6.0, 7.0, 0.0],
         // 4: tiny
         [10.0, 0.0, 0.0],
-        [10.0 + tiny, 0.0, 0.0],
-        [10.0, tiny, 0.0],
+        [10.0 + TINY, 0.0, 0.0],
+        [10.0, TINY, 0.0],
         // 5, 6: huge, behind everything
         [-1e6, -1e6, 5.0],
         [1e6, -1e6, 5.0],
@@ -339,46 +391,7 @@ fn degenerate(rng: &mut Rng) -> Vec<Part> {
         [15, 17, 18],
     ];
     let inactive = vec![true, true, true, true, false, false, false];
-    let mut part = new_part("mixed".into(), one_mesh(Mesh { positions, indices, inactive }));
-    // At the degenerate ones (their vertices, edges and would-be interiors): the huge triangle
-    // behind must be the hit, never the degenerate primitive.
-    let spots = [
-        [0.0, 0.0],
-        [1.0, 3.0],
-        [0.5, 2.5],
-        [2.0, 4.0],
-        [4.0, 0.0],
-        [4.5, 0.5],
-        [4.6, 0.4],
-        [6.3, 6.3],
-        [7.0, 6.0],
-        [6.5, 6.5],
-    ];
-    for [x, y] in spots {
-        edge_rays(&mut part, DVec3::new(x, y, 0.0), true);
-    }
-    // The tiny triangle: interior points (must hit, t = 1), its edges and just outside.
-    let t = tiny as f64;
-    for (a, b) in [
-        (0.25, 0.25),
-        (0.1, 0.1),
-        (0.6, 0.2),
-        (0.2, 0.6),
-        (0.5, 0.0),
-        (0.5, 0.5),
-        (1.1, 0.1),
-        (-0.1, 0.5),
-    ] {
-        for d in DIRS {
-            push(&mut part, ray_through(DVec3::new(10.0 + a * t, b * t, 0.0), d, 1.0), false);
-        }
-    }
-    // The huge triangles' interior, far from the origin: precision of a 1e6 triangle.
-    for _ in 0..256 {
-        let p = DVec3::new(rng.range(-5e5, 5e5) as f64, rng.range(-5e5, 5e5) as f64, 5.0);
-        push(&mut part, ray_through(p, DIRS[1], 2.0), false);
-    }
-    vec![part]
+    Mesh { positions, indices, inactive }
 }
 
 // ---- tmin --------------------------------------------------------------------------------------
