@@ -82,9 +82,9 @@ impl Recorder {
                 self.save(true);
             }
             Event::Attempt { cell, attempt } => {
-                self.progress.ended(cell, Some(attempt.outcome));
+                self.progress.ended(&cell, Some(attempt.outcome));
                 let urgent = attempt.outcome != Outcome::Pass;
-                self.writer.record(cell, attempt);
+                self.writer.record(&cell, attempt);
                 self.save(urgent);
             }
         }

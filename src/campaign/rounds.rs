@@ -150,8 +150,8 @@ impl Campaign<'_> {
             progress.scheduled(again.len() as u64);
             self.oracle.run(&again, Mode::GpuAv, &mut |ev| {
                 if let Event::Attempt { cell, attempt } = ev {
-                    progress.ended(cell, None);
-                    got.push((*cell, attempt));
+                    progress.ended(&cell, None);
+                    got.push((cell, attempt));
                 }
             });
             again = gpu_av::more(&self.rec.writer.report, &got);

@@ -43,7 +43,7 @@ impl Oracle for Script {
             let outcome =
                 script.get(&c.id()).map(|s| s[k.min(s.len() - 1)]).unwrap_or(Outcome::Pass);
             on(Event::Attempt {
-                cell: c,
+                cell: *c,
                 attempt: Attempt::for_tests(outcome, mode != Mode::Shared),
             });
         }

@@ -100,7 +100,7 @@ fn dies(w: Worker, cause: Input, ended: WorkerExit, now: Instant) -> (Effect, Ve
 fn attempts(fx: &[Effect]) -> Vec<(Cell, &Attempt)> {
     fx.iter()
         .filter_map(|e| {
-            if let Effect::Attempt { cell, attempt } = e {
+            if let Effect::Report(Event::Attempt { cell, attempt }) = e {
                 Some((*cell, attempt))
             } else {
                 None
@@ -110,7 +110,9 @@ fn attempts(fx: &[Effect]) -> Vec<(Cell, &Attempt)> {
 }
 
 fn events(fx: &[Effect]) -> Vec<&WorkerEvent> {
-    fx.iter().filter_map(|e| if let Effect::Worker(ev) = e { Some(ev) } else { None }).collect()
+    fx.iter()
+        .filter_map(|e| if let Effect::Report(Event::Worker(ev)) = e { Some(ev) } else { None })
+        .collect()
 }
 
 fn fruitless(fx: &[Effect]) -> Option<(usize, &Attempt)> {
@@ -128,7 +130,9 @@ fn ready_records_the_setup_and_starts_the_gap_before_the_first_cell() {
     let t0 = Instant::now();
     let (w, fx) = feed(Worker::new(7, cells(), false, t0), ready(), at(t0, 100));
     assert_eq!(w.deadline(&LIMITS), Some(at(t0, 100) + LIMITS.timeout));
-    assert!(matches!(fx[0], Effect::Ready { device_ms, .. } if device_ms == 1.0));
+    assert!(
+        matches!(fx[0], Effect::Report(Event::WorkerReady { device_ms, .. }) if device_ms == 1.0)
+    );
     let ev = events(&fx)[0];
     assert_eq!(
         (ev.worker, ev.phase, ev.outcome, ev.cells, ev.wall_ms),
@@ -375,7 +379,7 @@ fn a_prebuild_step_restarts_the_deadline() {
     assert_eq!(w.where_(), "prebuild (pipelines 1/3)");
     let (w, fx) =
         feed(w, msg(WorkerMsg::Prebuilt { wall_ms: 5.0, pipelines: 3, threads: 4 }), at(t0, 9_500));
-    assert_eq!(fx, [Effect::Prebuilt { wall_ms: 5.0, pipelines: 3, threads: 4 }]);
+    assert_eq!(fx, [Effect::Report(Event::Prebuilt { wall_ms: 5.0, pipelines: 3, threads: 4 })]);
     assert_eq!(w.state, State::Between { since: at(t0, 9_500) });
 }
 
@@ -489,7 +493,7 @@ fn cache_saved_is_passed_on_with_its_reason() {
     let t0 = Instant::now();
     let (_, fx) =
         feed(one_done(t0), msg(WorkerMsg::CacheSaved { bytes: None, error: None }), at(t0, 400));
-    assert_eq!(fx, [Effect::CacheSaved(Err("not saved".into()))]);
+    assert_eq!(fx, [Effect::Report(Event::CacheSaved(Err("not saved".into())))]);
 }
 
 #[test]
