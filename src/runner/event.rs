@@ -3,7 +3,7 @@
 //! attempt tagged with what was injected into it), and the rounds above record it through
 //! [`super::oracle::Oracle`]. A new event is a variant here, emitted by the machine and recorded
 //! by its consumers: nothing translates one event type into another.
-use crate::model::{Attempt, Cell, WorkerEvent};
+use crate::model::{Attempt, Cell, Halt, WorkerEvent};
 
 /// Events for the report writer and progress display.
 // One message per line, moved once: boxing the large variant would buy nothing.
@@ -24,4 +24,7 @@ pub enum Event {
     Worker(WorkerEvent),
     /// An attempt of one cell.
     Attempt { cell: Cell, attempt: Attempt },
+    /// A worker found what no cell of the run can get past: the supervisor stops its workers
+    /// and runs nothing more, and the rounds above stop (after the worker's own record).
+    Halt(Halt),
 }

@@ -13,10 +13,11 @@
 //! worker that must go (end of output, a deadline, a fatal message) is `Dying` until the
 //! supervisor feeds how it ended, then `Ended`. What is recorded is decided there, from the state
 //! it died in: a cell's attempt (`crash` or `timeout` mid-cell, with the phase), the prebuild's
-//! worker event (its batch then builds cell by cell), or a worker event outside any cell.
+//! worker event (its batch then builds cell by cell), or a worker event outside any cell; a
+//! fatal message that halts the run (no shader compiler) is the worker's event, then the halt.
 use super::event::Event;
 use super::protocol::WorkerMsg;
-use crate::model::{signal_name, Attempt, Cell, Outcome, Phase, WorkerEvent, WorkerExit};
+use crate::model::{signal_name, Attempt, Cell, Halt, Outcome, Phase, WorkerEvent, WorkerExit};
 use std::time::{Duration, Instant};
 
 /// Lines that are not protocol messages logged per worker (a worker can flood them).
@@ -67,8 +68,9 @@ pub(super) enum Cause {
     Eof,
     /// Its state's deadline passed.
     Deadline,
-    /// It said it cannot go on (a failed setup; a device loss or hung fence while prebuilding).
-    Fatal { message: String, outcome: Outcome },
+    /// It said it cannot go on (a failed setup; a device loss or hung fence while prebuilding);
+    /// `halt`: nor can the run.
+    Fatal { message: String, outcome: Outcome, halt: Option<Halt> },
 }
 
 // One message per line, moved once: boxing the large variant would buy nothing.
@@ -239,7 +241,9 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
         ))),
         WorkerMsg::Start { cell } => start(w, cell, now, fx),
         WorkerMsg::Result { cell, result } => finished(w, &cell, result, now, fx),
-        WorkerMsg::Fatal { message, outcome } => dying(w, Cause::Fatal { message, outcome }, fx),
+        WorkerMsg::Fatal { message, outcome, halt } => {
+            dying(w, Cause::Fatal { message, outcome, halt }, fx)
+        }
     }
 }
 
@@ -310,7 +314,10 @@ fn exited(w: &mut Worker, exit: WorkerExit, now: Instant, limits: &Limits, fx: &
     let (died_as, what) = died(&exit);
     let at = w.where_();
     // A fatal message mid-cell is the worker's: the cell was not what failed, and runs again.
-    let fatal = matches!(cause, Cause::Fatal { .. });
+    let (fatal, halt) = match &cause {
+        Cause::Fatal { halt, .. } => (true, *halt),
+        _ => (false, None),
+    };
     let (outcome, detail) = match (&*was, cause) {
         (State::Teardown { .. }, Cause::Eof) if exit.code == Some(0) => return, // exited cleanly
         (State::Cell { .. }, Cause::Eof) => (died_as, format!("{what} mid-cell, in {at}")),
@@ -318,10 +325,10 @@ fn exited(w: &mut Worker, exit: WorkerExit, now: Instant, limits: &Limits, fx: &
             Outcome::Timeout,
             format!("no result within {:?}, in {at}; worker process group killed", limits.timeout),
         ),
-        (State::Prebuild { .. }, Cause::Fatal { message, outcome }) => {
+        (State::Prebuild { .. }, Cause::Fatal { message, outcome, .. }) => {
             (outcome, format!("worker failed in {at}: {message}"))
         }
-        (_, Cause::Fatal { message, outcome }) => {
+        (_, Cause::Fatal { message, outcome, .. }) => {
             (outcome, format!("worker setup failed in {at}: {message}"))
         }
         (State::Prebuild { .. }, Cause::Deadline) => (
@@ -356,8 +363,10 @@ fn exited(w: &mut Worker, exit: WorkerExit, now: Instant, limits: &Limits, fx: &
                 .with_wall_ms(ms(since, now));
             fx.push(Effect::Report(Event::Attempt { cell, attempt }));
         }
-        State::Prebuild { cells, .. } => prebuild_failed(w, cells, outcome, detail, exit, now, fx),
-        _ => worker_failed(w, outcome, detail, exit, now, fx),
+        State::Prebuild { cells, .. } if halt.is_none() => {
+            prebuild_failed(w, cells, outcome, detail, exit, now, fx)
+        }
+        _ => worker_failed(w, outcome, detail, exit, halt, now, fx),
     }
 }
 
@@ -379,12 +388,14 @@ fn prebuild_failed(
 }
 
 /// A worker failed outside any cell: in setup, between cells or in teardown. Its own event;
-/// without an attempt it is fruitless too, with what its cells get should the slot give up.
+/// then its `halt`, which stops the run (its cells stay without an attempt), or, without an
+/// attempt, it is fruitless too, with what its cells get should the slot give up.
 fn worker_failed(
     w: &Worker,
     outcome: Outcome,
     detail: String,
     exit: WorkerExit,
+    halt: Option<Halt>,
     now: Instant,
     fx: &mut Vec<Effect>,
 ) {
@@ -394,7 +405,9 @@ fn worker_failed(
         w.phase
     );
     fx.push(record(w, w.phase, outcome, Some(detail), Some(exit.clone()), now));
-    if !w.progressed {
+    if let Some(h) = halt {
+        fx.push(Effect::Report(Event::Halt(h)));
+    } else if !w.progressed {
         fx.push(Effect::Fruitless {
             batch: w.batch,
             not_run: attempt(w, outcome).with_detail(why).with_exit(exit),

@@ -7,6 +7,8 @@
 //! dies mid-cell is `crash` (with signal and stderr tail), both with the phase they happened in.
 //! A failed setup (device, scene AS, resources) is its own record and is retried once in a fresh
 //! worker; then the cells it would have run are recorded as not run, with the setup's outcome. A
+//! setup that no worker can get past (the shader compiler cannot start) halts the run instead:
+//! every worker is killed, nothing more starts, and the cells left stay without an attempt. A
 //! fault between cells or in teardown is recorded for the worker, not blamed on a cell. Kills
 //! are SIGTERM to the group, a grace period, SIGKILL, and a bounded wait: a process that will not
 //! die (uninterruptible sleep in the driver) is reported and abandoned.
@@ -99,6 +101,10 @@ impl Supervisor {
         let per_cell = isolated || self.opts.isolation == Isolation::ProcessPerCell;
         let mut schedule: Schedule<Running> = Schedule::new(cells, self.opts.jobs, per_cell);
         loop {
+            if schedule.halted() {
+                self.stop(&mut schedule);
+                break;
+            }
             self.start_workers(&mut schedule, on);
             if schedule.finished() {
                 break;
@@ -202,6 +208,17 @@ impl Supervisor {
         !due.is_empty()
     }
 
+    /// The run halted: every worker still running is killed; what it was doing is not recorded
+    /// (the run stops, its cells left without an attempt).
+    fn stop(&self, schedule: &mut Schedule<Running>) {
+        for slot in &mut schedule.slots {
+            if let Some(mut r) = slot.worker.take() {
+                tracing::debug!("worker {} stopped: the run halted", r.worker.id);
+                r.process.kill(self.opts.grace, self.opts.kill_wait);
+            }
+        }
+    }
+
     /// Steps slot `i`'s worker with `input` and carries out the effects; a kill or reap feeds how
     /// the process ended back in. An ended worker leaves its slot.
     fn feed(
@@ -250,6 +267,10 @@ impl Supervisor {
             Effect::Report(Event::Attempt { cell, attempt }) => {
                 schedule.ran(i, &cell);
                 self.record(cell, attempt, on);
+            }
+            Effect::Report(Event::Halt(halt)) => {
+                schedule.halt();
+                on(Event::Halt(halt))
             }
             Effect::Report(event) => on(event),
             Effect::Serial(cells) => schedule.serial(i, cells),

@@ -342,6 +342,7 @@ fn a_failed_setup_is_a_worker_event_and_fruitless() {
     let fatal = msg(WorkerMsg::Fatal {
         message: "injected device loss".into(),
         outcome: Outcome::DeviceLost,
+        halt: None,
     });
     let (asked, fx) = dies(w, fatal, exit(Some(3), None), at(t0, 50));
     assert_eq!(asked, Effect::Kill, "its group is killed: nothing of it may linger");
@@ -355,10 +356,74 @@ fn a_failed_setup_is_a_worker_event_and_fruitless() {
     );
 }
 
+/// A fatal message that halts the run: the shader compiler could not start.
+fn no_compiler() -> Input {
+    msg(WorkerMsg::Fatal {
+        message: "the shader compiler (shaderc) could not be started".into(),
+        outcome: Outcome::Error,
+        halt: Some(Halt::NoShaderCompiler),
+    })
+}
+
+fn halts(fx: &[Effect]) -> Vec<Halt> {
+    fx.iter()
+        .filter_map(|e| if let Effect::Report(Event::Halt(h)) = e { Some(*h) } else { None })
+        .collect()
+}
+
+#[test]
+fn a_setup_without_a_shader_compiler_is_recorded_then_halts_the_run() {
+    let t0 = Instant::now();
+    let (w, _) = feed(
+        Worker::new(4, cells(), false, t0),
+        phase(Phase::Setup, Some("vkCreateDevice")),
+        at(t0, 5),
+    );
+    let (asked, fx) = dies(w, no_compiler(), exit(Some(3), None), at(t0, 50));
+    assert_eq!(asked, Effect::Kill);
+    let ev = events(&fx)[0];
+    assert_eq!((ev.worker, ev.phase, ev.outcome), (4, Phase::Setup, Outcome::Error));
+    assert_eq!(
+        ev.detail.as_deref(),
+        Some("worker setup failed in setup (vkCreateDevice): the shader compiler (shaderc) could not be started")
+    );
+    assert_eq!(halts(&fx), [Halt::NoShaderCompiler]);
+    assert!(
+        matches!(fx.last(), Some(Effect::Report(Event::Halt(_)))),
+        "the worker's record comes first: {fx:?}"
+    );
+    // The run stops: its cells are neither given up as not run nor blamed.
+    assert_eq!(fruitless(&fx), None, "{fx:?}");
+    assert!(attempts(&fx).is_empty());
+}
+
+#[test]
+fn only_a_halting_fatal_halts_and_a_halt_is_never_lost() {
+    // The twin: the same failed setup without `halt` is this worker's alone (fruitless, retried).
+    let t0 = Instant::now();
+    let plain = msg(WorkerMsg::Fatal {
+        message: "the shader compiler (shaderc) could not be started".into(),
+        outcome: Outcome::Error,
+        halt: None,
+    });
+    let (_, fx) = dies(Worker::new(4, cells(), false, t0), plain, exit(Some(3), None), at(t0, 50));
+    assert!(halts(&fx).is_empty() && fruitless(&fx).is_some(), "{fx:?}");
+    // A halt in any state reaches the supervisor: mid-cell, while prebuilding.
+    let ids: Vec<String> = cells().iter().map(Cell::id).collect();
+    let (prebuilding, _) =
+        feed(ready_worker(t0), msg(WorkerMsg::Prebuild { cells: ids, threads: 4 }), at(t0, 200));
+    for w in [in_cell(t0, Phase::Compile), prebuilding] {
+        let (_, fx) = dies(w, no_compiler(), exit(Some(0), None), at(t0, 300));
+        assert_eq!(halts(&fx), [Halt::NoShaderCompiler], "{fx:?}");
+        assert!(attempts(&fx).is_empty() && fruitless(&fx).is_none(), "{fx:?}");
+    }
+}
+
 #[test]
 fn a_fatal_mid_cell_is_the_workers_and_the_cell_runs_again() {
     let t0 = Instant::now();
-    let fatal = msg(WorkerMsg::Fatal { message: "gone".into(), outcome: Outcome::Error });
+    let fatal =
+        msg(WorkerMsg::Fatal { message: "gone".into(), outcome: Outcome::Error, halt: None });
     let (_, fx) = dies(in_cell(t0, Phase::Record), fatal, exit(Some(2), None), at(t0, 300));
     assert!(attempts(&fx).is_empty(), "{fx:?}");
     assert_eq!(events(&fx)[0].phase, Phase::Record);
@@ -406,7 +471,11 @@ fn a_death_while_prebuilding_sends_its_batch_cell_by_cell() {
         (Input::Deadline, exit(None, Some(libc::SIGTERM)), Outcome::Timeout),
         (Input::Eof, exit(None, Some(libc::SIGSEGV)), Outcome::Crash),
         (
-            msg(WorkerMsg::Fatal { message: "lost".into(), outcome: Outcome::DeviceLost }),
+            msg(WorkerMsg::Fatal {
+                message: "lost".into(),
+                outcome: Outcome::DeviceLost,
+                halt: None,
+            }),
             exit(Some(0), None),
             Outcome::DeviceLost,
         ),
