@@ -10,7 +10,11 @@
 //! is unusable and no cell of the batch can be blamed. Each unit of work (the threaded GLSL, each
 //! cell's compile and bindings, each pipeline) is reported as a [`Step`], so the supervisor's
 //! deadline measures silence, not the batch's size. Traces still run one cell at a time.
-use super::{Bound, CellError, Compiled, Executor, Pipeline, PipelineInput, Prebuilt};
+use super::built::{Bound, Compiled, PipelineInput, Prebuilt};
+use super::compile::cell_shaders;
+use super::error::CellError;
+use super::executor::Executor;
+use super::pipeline::Pipeline;
 use crate::model::Cell;
 use crate::model::Phase;
 use crate::model::Timings;
@@ -94,7 +98,7 @@ impl Executor {
         let generated: Vec<_> = cells
             .iter()
             .map(|c| {
-                super::cell_shaders(
+                cell_shaders(
                     c,
                     crate::model::inject::roll(&self.opts.inject, c, self.opts.inject_seed)
                         .as_ref(),
