@@ -90,7 +90,7 @@ impl Binding {
             let heap = HeapBinding::create(
                 gpu,
                 targets,
-                &super::resources::heap_sampler_infos(),
+                &super::samplers::heap_sampler_infos(),
                 key.heap_direct,
             )?;
             return Ok(Binding {

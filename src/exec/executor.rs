@@ -8,7 +8,8 @@ use super::built::Prebuilt;
 use super::error::CellError;
 use super::pipeline::Pipeline;
 use super::pipeline_cache;
-use super::resources::{self, ResourceArray};
+use super::resources::ResourceArray;
+use super::samplers;
 use crate::model::{Phase, Resource, SceneParams};
 use crate::probe::RECORD_SIZE;
 use crate::reference::SceneReference;
@@ -92,7 +93,7 @@ impl Executor {
             Location::Host,
             "records",
         )?;
-        let sampler = resources::create_sampler(&gpu)?;
+        let sampler = samplers::create_sampler(&gpu)?;
         let (cache, cache_status) = pipeline_cache::open(&gpu, opts.pipeline_cache.as_deref())?;
         Ok(Executor {
             gpu,

@@ -11,8 +11,8 @@
 //! (`bind`, `pipeline_key`), building at the cell's turn or ahead of it (`build`, `prebuild`),
 //! what each step hands to the next (`built`), the turn itself (`run`), recording the three
 //! pipeline kinds (`record`), judging the records (`check`, `pictures`), error → outcome
-//! (`error`); below them resources, bindings, the descriptor heap, pipelines, the pipeline cache
-//! and files.
+//! (`error`); below them resources and samplers, bindings, the descriptor heap, pipelines, the
+//! pipeline cache and files.
 mod bind;
 pub mod bindings;
 mod build;
@@ -31,6 +31,7 @@ pub mod prebuild;
 mod record;
 pub mod resources;
 mod run;
+mod samplers;
 mod setup;
 
 pub use error::CellError;

@@ -2,7 +2,7 @@
 //! buffer or image per slot (as an engine keeps one SSBO per mesh and one texture per material),
 //! each holding `probe::ELEMENTS` elements `probe::resource_value(kind, slot, element)` (a
 //! buffer's `vec4 v[ELEMENTS]`, an image's 2×2 texels, element e at texel (e & 1, e >> 1)); plus the
-//! TLAS address table. Storage buffers and sampled images also get the packed resource of
+//! TLAS and SSBO address tables. Storage buffers and sampled images also get the packed resource of
 //! `index=dynamic_element` (`probe::PACKED_SLOT`): one buffer with every slot's elements
 //! (`probe::packed_bytes`), or one array image whose layer d holds slot d's texels, and (images)
 //! a one-layer 2D-array view of every slot's own image, so that the whole probed array has the
@@ -12,7 +12,7 @@ use crate::probe;
 use crate::vk::features::PROBE_IMAGE_FORMAT;
 use crate::vk::memory::{transition, Buffer, Image, Transition};
 use crate::vk::submit::{Submitter, Waited};
-use crate::vk::{Gpu, VkError, VkResultExt};
+use crate::vk::{Gpu, VkError};
 use ash::vk;
 use std::time::Duration;
 
@@ -305,39 +305,6 @@ unsafe fn record_upload(gpu: &Gpu, cmd: vk::CommandBuffer, img: &Image, layers: 
         vk::PipelineStageFlags::ALL_COMMANDS,
     );
     transition(gpu, cmd, img.raw, Transition { from: dst, to: general });
-}
-
-pub fn create_sampler(gpu: &Gpu) -> Result<vk::Sampler, VkError> {
-    unsafe { gpu.device.create_sampler(&sampler_info(), None) }.at("vkCreateSampler")
-}
-
-/// The probes' sampler: sampler 0 of the sampler heap (`probe::SAMPLER_MODES[0]`, clamp to edge),
-/// the one combined image samplers use.
-pub fn sampler_info() -> vk::SamplerCreateInfo<'static> {
-    sampler_info_for(crate::probe::SAMPLER_MODES[0])
-}
-
-/// A nearest-filtered sampler with `mode` in u, v and w.
-fn sampler_info_for(mode: crate::probe::AddressMode) -> vk::SamplerCreateInfo<'static> {
-    use crate::probe::AddressMode;
-    let mode = match mode {
-        AddressMode::ClampToEdge => vk::SamplerAddressMode::CLAMP_TO_EDGE,
-        AddressMode::Repeat => vk::SamplerAddressMode::REPEAT,
-        AddressMode::MirroredRepeat => vk::SamplerAddressMode::MIRRORED_REPEAT,
-    };
-    vk::SamplerCreateInfo::default()
-        .mag_filter(vk::Filter::NEAREST)
-        .min_filter(vk::Filter::NEAREST)
-        .mipmap_mode(vk::SamplerMipmapMode::NEAREST)
-        .address_mode_u(mode)
-        .address_mode_v(mode)
-        .address_mode_w(mode)
-        .max_lod(0.0)
-}
-
-/// The sampler heap's samplers, in heap order (`probe::SAMPLER_MODES`).
-pub fn heap_sampler_infos() -> Vec<vk::SamplerCreateInfo<'static>> {
-    crate::probe::SAMPLER_MODES.iter().map(|m| sampler_info_for(*m)).collect()
 }
 
 pub fn descriptor_type(kind: Resource) -> vk::DescriptorType {
