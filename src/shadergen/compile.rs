@@ -21,9 +21,10 @@ pub struct Compiler {
     precompiled_ms: HashMap<u64, f64>,
 }
 
-/// The shaderc this binary links (the `shaderc` crate built from source, with the glslang of that
-/// release); a test holds it to Cargo.lock.
-pub const SHADERC: &str = "shaderc-rs 0.10.1 (shaderc built from source)";
+/// The shaderc this binary links: the `shaderc` crate over the system's shaderc, glslang and
+/// SPIRV-Tools (their versions, from build.rs), or over its own copy built from source
+/// (`bundled-shaderc`). Reports and bundles name it; a test holds the crate version to Cargo.lock.
+pub const SHADERC: &str = concat!("shaderc-rs 0.10.1 (", env!("RTPROBE_SHADERC_BUILD"), ")");
 
 /// Whether `glsl` needs the external glslangValidator (it enables GL_EXT_descriptor_heap).
 pub fn uses_heap(glsl: &str) -> bool {
