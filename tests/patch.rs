@@ -532,6 +532,35 @@ fn glsl_shader_tree_with_includes_and_defines_is_patched() {
     }
 }
 
+/// A compute shader at SPIR-V 1.6: glslang 12 (the system shaderc's) writes its workgroup size as
+/// `OpExecutionModeId ... LocalSizeId`, which the patcher must load and write back.
+#[test]
+fn glsl_compute_at_spirv_1_6_is_patched() {
+    let d = tempfile::tempdir().unwrap();
+    let src = d.path().join("d.comp");
+    std::fs::write(&src, "#version 460\n#extension GL_EXT_nonuniform_qualifier : require\nlayout(local_size_x = 8) in;\nlayout(binding = 0) buffer B { uint x; } b[4];\nlayout(push_constant) uniform P { uint i; } p;\nvoid main() { b[p.i].x = 1u; }\n").unwrap();
+    for env in ["vulkan1.2", "vulkan1.3", "vulkan1.4"] {
+        let out = d.path().join(format!("{env}.spv"));
+        let o = run(&[
+            "patch",
+            src.to_str().unwrap(),
+            "--glsl",
+            "--stage",
+            "comp",
+            "--target-env",
+            env,
+            "--apply",
+            "nonuniform",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{env}: {}", stderr(&o));
+        let text = dis(&out);
+        assert!(text.contains("NonUniform"), "{env}: {text}");
+        assert!(text.contains("LocalSize"), "{env}: {text}");
+    }
+}
+
 #[test]
 fn glsl_include_errors_are_one_line_naming_the_file_and_chain() {
     let d = tempfile::tempdir().unwrap();
