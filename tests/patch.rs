@@ -529,6 +529,10 @@ fn glsl_shader_tree_with_includes_and_defines_is_patched() {
         let o = compile(&["-D", "MAX_MATERIALS=8", "--target-env", env], &p);
         assert!(o.status.success(), "{env}: {}", stderr(&o));
         assert_eq!(version(&p), 0x0001_0600, "{env}");
+        // The system shaderc predates Vulkan 1.4: rtprobe asks it for 1.3 and says so.
+        let noted =
+            stderr(&o).contains("rtprobe: note: --target-env vulkan1.4: compiled for vulkan1.3");
+        assert_eq!(noted, env == "vulkan1.4" && cfg!(system_shaderc), "{env}: {}", stderr(&o));
     }
 }
 
@@ -559,6 +563,32 @@ fn glsl_compute_at_spirv_1_6_is_patched() {
         assert!(text.contains("NonUniform"), "{env}: {text}");
         assert!(text.contains("LocalSize"), "{env}: {text}");
     }
+}
+
+/// GLSL enabling an extension newer than shaderc's glslang goes to the external glslangValidator
+/// (tests/heap.rs compiles it in the sid root); without one, one line names the extension.
+#[test]
+fn glsl_with_a_newer_extension_needs_the_external_glslang() {
+    let d = tempfile::tempdir().unwrap();
+    let src = d.path().join("ser.rgen");
+    std::fs::write(&src, "#version 460\n#extension GL_EXT_ray_tracing : require\n#extension GL_EXT_shader_invocation_reorder : require\nvoid main() {}\n").unwrap();
+    let out = d.path().join("out.spv");
+    let o = run_env(
+        &[
+            "patch",
+            src.to_str().unwrap(),
+            "--glsl",
+            "--stage",
+            "rgen",
+            "--apply",
+            "nonuniform",
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        &[("RTPROBE_GLSLANG", "/nonexistent/glslangValidator")],
+    );
+    assert_one_line_error(&o, 9, "no GLSL compiler with GL_EXT_shader_invocation_reorder");
+    assert!(!out.exists());
 }
 
 #[test]
