@@ -9,7 +9,8 @@
 //! glslang or SPIRV-Tools archives cannot link: the build stops here naming the packages.
 //!
 //! What was linked reaches the code as `RTPROBE_SHADERC_BUILD` (the compiler named in reports and
-//! bundles) and, for the system compiler, `cfg(system_shaderc)` (what it cannot compile).
+//! bundles) and, for the system compiler, `cfg(system_shaderc)`, with
+//! `cfg(shaderc_without_vulkan_1_4)` where its `shaderc/env.h` has no Vulkan 1.4 (Debian 12's).
 use std::env;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -41,6 +42,7 @@ fn main() {
         println!("cargo::rerun-if-env-changed={v}");
     }
     println!("cargo::rustc-check-cfg=cfg(system_shaderc)");
+    println!("cargo::rustc-check-cfg=cfg(shaderc_without_vulkan_1_4)");
     let built = "shaderc built from source";
     if env::var_os("CARGO_FEATURE_BUNDLED_SHADERC").is_some() {
         return name(built);
@@ -121,6 +123,14 @@ fn main() {
     println!("cargo::rustc-link-arg=-Wl,--end-group");
     println!("cargo::rustc-link-arg=-lstdc++");
     println!("cargo::rustc-cfg=system_shaderc");
+    // shaderc before 2024 has no Vulkan 1.4 environment and silently compiles for its default.
+    let include =
+        pkg_config(&["--variable=includedir", "shaderc"]).unwrap_or("/usr/include".into());
+    let env_h =
+        std::fs::read_to_string(Path::new(&include).join("shaderc/env.h")).unwrap_or_default();
+    if !env_h.contains("shaderc_env_version_vulkan_1_4") {
+        println!("cargo::rustc-cfg=shaderc_without_vulkan_1_4");
+    }
     let shaderc = pkg_config(&["--modversion", "shaderc"]).unwrap_or_else(|| "?".into());
     let spirv = pkg_config(&["--modversion", "SPIRV-Tools"]).unwrap_or_else(|| "?".into());
     name(&format!(

@@ -6,7 +6,7 @@
 //!
 //! shaderc is the system's (shaderc 2023.2 with glslang 12 on Debian 12, linked statically by
 //! build.rs) or, with `--features bundled-shaderc`, its own copy built from source; [`SHADERC`]
-//! says which. The system one predates Vulkan 1.4: [`TargetEnv::compiled_as`].
+//! says which. Debian 12's predates Vulkan 1.4: [`TargetEnv::compiled_as`].
 use super::include::Includes;
 use super::Role;
 use std::collections::HashMap;
@@ -32,6 +32,8 @@ pub const SHADERC: &str = concat!("shaderc-rs 0.10.1 (", env!("RTPROBE_SHADERC_B
 
 /// Whether shaderc is the system's (glslang 12 on Debian 12), not the bundled build.
 pub const SYSTEM_SHADERC: bool = cfg!(system_shaderc);
+/// Whether the linked shaderc knows a Vulkan 1.4 environment (the system's 2023.2 does not).
+pub const KNOWS_VULKAN_1_4: bool = !cfg!(shaderc_without_vulkan_1_4);
 
 /// Whether `glsl` needs the external glslangValidator (it enables an extension of
 /// [`super::glslang::EXTENSIONS`], such as GL_EXT_descriptor_heap).
@@ -222,14 +224,14 @@ impl TargetEnv {
         }
     }
 
-    /// The environment shaderc is asked for. The system shaderc (2023.2) predates Vulkan 1.4
-    /// and would silently compile it for its default environment instead; rtprobe asks it for
+    /// The environment shaderc is asked for. A system shaderc that predates Vulkan 1.4 (Debian
+    /// 12's 2023.2) would silently compile it for its default environment instead; rtprobe asks it for
     /// Vulkan 1.3 with SPIR-V 1.6, the SPIR-V version Vulkan 1.4 also uses, and says so
     /// ([`TargetEnv::mapping_note`]). The bundled shaderc and the external glslangValidator know
     /// Vulkan 1.4.
     pub fn compiled_as(self) -> TargetEnv {
         match self {
-            TargetEnv::Vulkan1_4 if SYSTEM_SHADERC => TargetEnv::Vulkan1_3,
+            TargetEnv::Vulkan1_4 if !KNOWS_VULKAN_1_4 => TargetEnv::Vulkan1_3,
             t => t,
         }
     }
@@ -294,13 +296,14 @@ mod tests {
     }
 
     #[test]
-    fn vulkan1_4_is_mapped_only_for_the_system_shaderc() {
+    fn vulkan1_4_is_mapped_only_for_a_shaderc_without_it() {
         assert_eq!(SHADERC.contains("system shaderc"), SYSTEM_SHADERC, "{SHADERC}");
+        const { assert!(KNOWS_VULKAN_1_4 || SYSTEM_SHADERC, "the bundled shaderc knows Vulkan 1.4") };
         for t in [TargetEnv::Vulkan1_2, TargetEnv::Vulkan1_3] {
             assert_eq!((t.compiled_as(), t.mapping_note()), (t, None));
         }
         let t = TargetEnv::Vulkan1_4;
-        if SYSTEM_SHADERC {
+        if !KNOWS_VULKAN_1_4 {
             assert_eq!(t.compiled_as(), TargetEnv::Vulkan1_3);
             let note = t.mapping_note().unwrap();
             assert!(note.contains("compiled for vulkan1.3") && note.contains("glslang "), "{note}");
