@@ -27,17 +27,22 @@
 //! dynamic sampler index without `nonuniformEXT` (only in cells whose dynamic descriptor index
 //! goes without it) falls under the any-element rule with the rest of the read.
 //!
+//! Lane evidence (`probe::FLAG_LANES`, where the probe measured it: [`expect_lanes`]): each such
+//! record's lane words must be consistent ([`lanes::inconsistency`]); [`lanes::Lanes`] reads the
+//! device's subgroups back from them. Records without it must hold zero lane words.
+//!
 //! Discrimination: on each exactly checked probe pixel, whether every other slot of the array and
 //! every other element of the slot holds a different value, i.e. whether reading any wrong
 //! element would have been caught there.
 mod compare;
 pub mod intersect;
+pub mod lanes;
 mod rules;
 pub mod watertight;
 
-use crate::model::{Cell, Resource, Stage};
+use crate::model::{Cell, LaneEvidence, Resource, Stage};
 use crate::probe::spec::{ElementMap, ProbeSpec, ReadIndex, Sampler};
-use crate::probe::{self, HitIds, Record, FLAG_HIT, FLAG_PROBE, MAX_AS_VARIANTS};
+use crate::probe::{self, HitIds, Record, FLAG_HIT, FLAG_LANES, FLAG_PROBE, MAX_AS_VARIANTS};
 use crate::scene::Scene;
 pub use compare::compare;
 use intersect::TraceRef;
@@ -113,6 +118,16 @@ pub fn expected(cell: &Cell, scene: &Scene, sref: &SceneReference) -> Vec<Expect
         sref,
         Undefined { descriptor: ProbeSpec::of(cell).read == ReadIndex::Undefined, sampler: false },
     )
+}
+
+/// Where the probe measured its lane evidence (`lanes.recorded()`), every probe pixel of
+/// `expected` must carry it (`FLAG_LANES`, consistent lane words); elsewhere the lane words stay 0.
+pub fn expect_lanes(expected: &mut [Expected], lanes: LaneEvidence) {
+    if lanes.recorded() {
+        for e in expected.iter_mut().filter(|e| e.record.flags & FLAG_PROBE != 0) {
+            e.record.flags |= FLAG_LANES;
+        }
+    }
 }
 
 /// What every probed pixel of one cell shares: its spec, the array's size, what is undefined, and
