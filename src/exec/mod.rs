@@ -10,7 +10,7 @@
 //! cells need built first (`setup`), phase `compile` (`compile`), binding and the pipeline key
 //! (`bind`, `pipeline_key`), building at the cell's turn or ahead of it (`build`, `prebuild`),
 //! what each step hands to the next (`built`) and what the driver saw of the cell's shape
-//! (`seen`), the turn itself (`run`), recording the three
+//! (`seen`), whether its modules fit its layout (`fit`), the turn itself (`run`), recording the three
 //! pipeline kinds (`record`), judging the records (`check`, `pictures`), error → outcome
 //! (`error`); below them resources and samplers, bindings, the descriptor heap, pipelines, the
 //! pipeline cache and files.
@@ -23,6 +23,7 @@ mod compile;
 pub mod error;
 mod executor;
 mod files;
+mod fit;
 pub mod heap;
 pub mod pictures;
 pub mod pipeline;
