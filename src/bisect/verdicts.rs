@@ -68,12 +68,7 @@ impl Verdicts {
     /// decided — not a worker that never got its device up (`Attempt::not_run`), not an `error`
     /// (rtprobe could not run the cell). Rate bounds and miss probabilities rest on these.
     pub fn counts(&self, c: &Cell) -> (u32, u32) {
-        let evidence = |a: &&Attempt| !a.not_run() && a.outcome != Outcome::Error;
-        let Some(r) = self.get(c) else { return (0, 0) };
-        let n = r.attempts.iter().filter(evidence).count() as u32;
-        let k =
-            r.attempts.iter().filter(evidence).filter(|a| a.outcome.is_finding()).count() as u32;
-        (k, n)
+        self.get(c).map(CellReport::evidence_counts).unwrap_or((0, 0))
     }
 
     /// Attempts that count as evidence (see [`Verdicts::counts`]).
