@@ -49,7 +49,7 @@ use crate::model::{Cell, LaneEvidence, Resource, Stage};
 use crate::probe::spec::{ElementMap, ProbeSpec, ReadIndex, Sampler};
 use crate::probe::{self, HitIds, Record, FLAG_HIT, FLAG_LANES, FLAG_PROBE, MAX_AS_VARIANTS};
 use crate::scene::Scene;
-pub use compare::compare;
+pub use compare::{compare, compare_with};
 use intersect::TraceRef;
 pub use rules::{Expected, Undefined, ValueRule, BARY_TOL, T_REL_TOL};
 
@@ -237,7 +237,7 @@ impl Probed<'_> {
             .get_or_insert_with(|| buffer_value_discriminates(spec.resource, slots, read, texel));
     }
 
-    /// An undefined descriptor read: the value of any element of the array passes.
+    /// An undefined descriptor read: judged by the other-lane heuristic ([`ValueRule::AnyElement`]).
     fn any_element(&self, e: &mut Expected, p: usize) {
         let mut as_values = [0.0; MAX_AS_VARIANTS as usize];
         if self.spec.element == ElementMap::None {
@@ -247,9 +247,11 @@ impl Probed<'_> {
                 e.ambiguous |= amb;
             }
         }
+        // Set/binding reads only (heap reads are never undefined): no separate sampler, so the
+        // lane's texel is its element.
         e.rule = ValueRule::AnyElement {
             resource: self.spec.resource,
-            slots: self.slots,
+            texel: e.record.element,
             as_values,
             variants: self.variants,
         };
