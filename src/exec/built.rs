@@ -4,8 +4,9 @@
 //! needs ([`PipelineInput`]).
 use super::bindings::LayoutKey;
 use super::error::CellError;
-use super::heap::{DroppedNonUniform, PipelineMapping};
+use super::heap::PipelineMapping;
 use super::pipeline::{self, Pipeline};
+pub(super) use super::seen::Seen;
 use crate::model::{DescriptorModel, Phase, Timings};
 use crate::shadergen::CellShaders;
 use crate::vk::{Gpu, VkError};
@@ -16,8 +17,7 @@ use std::sync::Arc;
 pub(super) struct Compiled {
     pub(super) shaders: CellShaders,
     pub(super) spirv: Vec<Arc<Vec<u32>>>,
-    /// The `nonuniformEXT` the compiler dropped (direct heap cells).
-    pub(super) dropped: Option<DroppedNonUniform>,
+    pub(super) seen: Seen,
 }
 
 /// The device addresses a cell's push constants carry (0 where the cell has none).
@@ -32,12 +32,12 @@ pub(super) struct Addresses {
 }
 
 /// A cell ready to record: its descriptor binding, the key of its (created) pipeline, the
-/// addresses its push constants carry, and the note on what the compiler did to its shape.
+/// addresses its push constants carry, and what the driver saw of its shape.
 pub(super) struct Bound {
     pub(super) key: LayoutKey,
     pub(super) pkey: u64,
     pub(super) addresses: Addresses,
-    pub(super) dropped: Option<DroppedNonUniform>,
+    pub(super) seen: Seen,
 }
 
 /// What [`Executor::prebuild`](super::Executor::prebuild) made for one cell: its timings, the

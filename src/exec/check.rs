@@ -1,28 +1,28 @@
 //! Judging a cell from its records: a canary that ran to completion passes; otherwise the records
-//! are compared with the CPU reference (reads the compiler left undecorated judged as undefined),
-//! with pictures of a mismatch under `--dump`, and the note on a dropped `nonuniformEXT` added.
+//! are compared with the CPU reference (a read is undefined as the driver saw it: `seen`), with
+//! pictures of a mismatch under `--dump`, and the note on what the driver saw added.
+use super::built::Seen;
 use super::executor::Executor;
-use super::heap::DroppedNonUniform;
 use super::pictures;
 use crate::model::{Cell, CellResult, Outcome, Timings};
-use crate::probe::spec::{ProbeSpec, ReadIndex};
+use crate::probe::spec::ProbeSpec;
 use crate::probe::Record;
 use crate::reference;
 use std::time::Instant;
 
 impl Executor {
     /// The cell's result from its records: [`Executor::check`] (its time added to
-    /// `timings.check_ms`), with the note on a dropped `nonuniformEXT` after its detail.
+    /// `timings.check_ms`), with the note on what the driver saw after its detail.
     pub(super) fn judge(
         &self,
         cell: &Cell,
         records: &[Record],
-        dropped: Option<DroppedNonUniform>,
+        seen: Seen,
         timings: &mut Timings,
     ) -> CellResult {
         let t = Instant::now();
-        let r = self.check(cell, records, dropped);
-        let note = dropped.map(|d| d.note());
+        let r = self.check(cell, records, seen);
+        let note = seen.note(cell);
         timings.check_ms += t.elapsed().as_secs_f64() * 1e3;
         let detail = match (r.detail.clone(), note) {
             (Some(d), Some(n)) => Some(format!("{d}; {n}")),
@@ -31,15 +31,9 @@ impl Executor {
         CellResult { timings: timings.clone(), detail, ..r }
     }
 
-    /// Compare `records` with the reference; `dropped`: the driver saw the cell's non-uniform
-    /// descriptor or sampler index without `NonUniform` (the compiler dropped it), so that part of
-    /// the read is judged as undefined.
-    fn check(
-        &self,
-        cell: &Cell,
-        records: &[Record],
-        dropped: Option<DroppedNonUniform>,
-    ) -> CellResult {
+    /// Compare `records` with the reference; `seen`: whether the driver saw the cell's
+    /// descriptor index as undefined, and the lane evidence the records carry.
+    fn check(&self, cell: &Cell, records: &[Record], seen: Seen) -> CellResult {
         let none = |outcome, detail: &str| CellResult {
             outcome,
             detail: Some(detail.into()),
@@ -57,14 +51,17 @@ impl Executor {
                 ),
             );
         }
-        let undefined = reference::Undefined {
-            descriptor: ProbeSpec::of(cell).read == ReadIndex::Undefined
-                || dropped.is_some_and(|d| d.resource),
-            sampler: dropped.is_some_and(|d| d.sampler),
-        };
-        let expected = reference::expected_with(cell, &self.scene, &self.sref, undefined);
+        let undefined = reference::Undefined { descriptor: seen.undefined(cell) };
+        let mut expected = reference::expected_with(cell, &self.scene, &self.sref, undefined);
+        reference::expect_lanes(&mut expected, seen.lanes);
         let (w, h) = (self.scene.params.width, self.scene.params.height);
-        let mut cmp = reference::compare(&expected, records, w);
+        let lanes = seen.lanes.usable().then(|| reference::lanes::Lanes::from_records(records));
+        let mut cmp = reference::compare_with(&expected, records, w, lanes.as_ref());
+        cmp.lane_evidence = seen.lanes;
+        cmp.heap = self.heap_detail(cell);
+        if let Some(split) = cmp.lanes.as_mut() {
+            split.evidence = seen.lanes;
+        }
         let outcome = if cmp.passed() { Outcome::Pass } else { Outcome::Mismatch };
         let mut detail = (!cmp.passed()).then(|| {
             format!(
@@ -88,5 +85,23 @@ impl Executor {
             fault: None,
             validation_errors: 0,
         }
+    }
+
+    /// A heap cell's probed descriptors in the heap and binding 2's mapping (`None` under other
+    /// models, or before its binding exists).
+    fn heap_detail(&self, cell: &Cell) -> Option<crate::model::comparison::HeapDetail> {
+        let spec = ProbeSpec::of(cell);
+        let access = spec.heap?;
+        let shaders = crate::shadergen::generate(cell);
+        let key = super::bind::layout_key(&spec, &shaders, self.opts.all_stages);
+        let l = self.bindings.get(&key)?.heap_layout()?;
+        let records = super::pipeline::shader_records(&spec, Some(&l));
+        let hex: Vec<String> = records.hit_triangles.iter().map(|b| format!("{b:02x}")).collect();
+        Some(crate::model::comparison::HeapDetail {
+            mapping: super::heap::describe_mapping(access, &l),
+            shader_record: hex.join(" "),
+            probe_offset: l.probe,
+            probe_stride: l.probe_stride,
+        })
     }
 }

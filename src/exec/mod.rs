@@ -9,7 +9,8 @@
 //! Files, in the order a cell meets them: the executor and its options (`executor`), what the
 //! cells need built first (`setup`), phase `compile` (`compile`), binding and the pipeline key
 //! (`bind`, `pipeline_key`), building at the cell's turn or ahead of it (`build`, `prebuild`),
-//! what each step hands to the next (`built`), the turn itself (`run`), recording the three
+//! what each step hands to the next (`built`) and what the driver saw of the cell's shape
+//! (`seen`), whether its modules fit its layout (`fit`), the turn itself (`run`), recording the three
 //! pipeline kinds (`record`), judging the records (`check`, `pictures`), error → outcome
 //! (`error`); below them resources and samplers, bindings, the descriptor heap, pipelines, the
 //! pipeline cache and files.
@@ -22,6 +23,7 @@ mod compile;
 pub mod error;
 mod executor;
 mod files;
+mod fit;
 pub mod heap;
 pub mod pictures;
 pub mod pipeline;
@@ -32,6 +34,7 @@ mod record;
 pub mod resources;
 mod run;
 mod samplers;
+mod seen;
 mod setup;
 
 pub use error::CellError;

@@ -19,27 +19,37 @@
 //! losses and crashes; [`ElementReads`] counts pixels that read their own element, another one,
 //! or neither. The slot the shader computed is still exact. Where no descriptor array is indexed
 //! any more (`as_access=address|address_patched`, the `as-to-address` / `ssbo-to-address`
-//! patches) a non-uniform index reads memory, which is well defined: those cells are exact.
+//! patches) a non-uniform index reads memory, which is well defined: those cells are exact. So
+//! are `layout(descriptor_heap)` reads (`heap_access=direct`), with or without `nonuniformEXT`:
+//! their modules declare `DescriptorHeapEXT`, and the heap "can be accessed non-uniformly, with no
+//! further decoration required" (Vulkan 1.4.360, Descriptor Heap Interface; the VUIDs above apply
+//! only where that capability is not declared). Which module declares what is `exec`'s to say
+//! (`patches::uniformity`); a set/binding index whose `nonuniformEXT` a compiler dropped is
+//! undefined as the driver saw it.
 //!
 //! Separate-sampler probes (`sampler` axis, direct heap sampled images) sample a shifted coordinate,
 //! so their value is the texel their sampler's address mode picks ([`probe::sampled_element`]):
-//! reading with another sampler reads another texel on most pixels, and that is a mismatch. A
-//! dynamic sampler index without `nonuniformEXT` (only in cells whose dynamic descriptor index
-//! goes without it) falls under the any-element rule with the rest of the read.
+//! reading with another sampler reads another texel on most pixels, and that is a mismatch, with
+//! or without `nonuniformEXT` on a dynamic sampler index (heap modules: exact).
+//!
+//! Lane evidence (`probe::FLAG_LANES`, where the probe measured it: [`expect_lanes`]): each such
+//! record's lane words must be consistent ([`lanes::inconsistency`]); [`lanes::Lanes`] reads the
+//! device's subgroups back from them. Records without it must hold zero lane words.
 //!
 //! Discrimination: on each exactly checked probe pixel, whether every other slot of the array and
 //! every other element of the slot holds a different value, i.e. whether reading any wrong
 //! element would have been caught there.
 mod compare;
 pub mod intersect;
+pub mod lanes;
 mod rules;
 pub mod watertight;
 
-use crate::model::{Cell, Resource, Stage};
+use crate::model::{Cell, LaneEvidence, Resource, Stage};
 use crate::probe::spec::{ElementMap, ProbeSpec, ReadIndex, Sampler};
-use crate::probe::{self, HitIds, Record, FLAG_HIT, FLAG_PROBE, MAX_AS_VARIANTS};
+use crate::probe::{self, HitIds, Record, FLAG_HIT, FLAG_LANES, FLAG_PROBE, MAX_AS_VARIANTS};
 use crate::scene::Scene;
-pub use compare::compare;
+pub use compare::{compare, compare_with};
 use intersect::TraceRef;
 pub use rules::{Expected, Undefined, ValueRule, BARY_TOL, T_REL_TOL};
 
@@ -111,8 +121,18 @@ pub fn expected(cell: &Cell, scene: &Scene, sref: &SceneReference) -> Vec<Expect
         cell,
         scene,
         sref,
-        Undefined { descriptor: ProbeSpec::of(cell).read == ReadIndex::Undefined, sampler: false },
+        Undefined { descriptor: ProbeSpec::of(cell).read == ReadIndex::Undefined },
     )
+}
+
+/// Where the probe measured its lane evidence (`lanes.recorded()`), every probe pixel of
+/// `expected` must carry it (`FLAG_LANES`, consistent lane words); elsewhere the lane words stay 0.
+pub fn expect_lanes(expected: &mut [Expected], lanes: LaneEvidence) {
+    if lanes.recorded() {
+        for e in expected.iter_mut().filter(|e| e.record.flags & FLAG_PROBE != 0) {
+            e.record.flags |= FLAG_LANES;
+        }
+    }
 }
 
 /// What every probed pixel of one cell shares: its spec, the array's size, what is undefined, and
@@ -215,21 +235,9 @@ impl Probed<'_> {
         let slots = self.slots;
         e.discriminating = *self.buffer_disc[k]
             .get_or_insert_with(|| buffer_value_discriminates(spec.resource, slots, read, texel));
-        if self.undefined.sampler && spec.sampler != Sampler::None {
-            let element = e.record.element;
-            let values = std::array::from_fn(|s| {
-                probe::resource_value(
-                    spec.resource,
-                    read,
-                    probe::sampled_element(s as u32, element),
-                )
-            });
-            e.rule = ValueRule::AnySampler { values };
-            e.discriminating = false;
-        }
     }
 
-    /// An undefined descriptor read: the value of any element of the array passes.
+    /// An undefined descriptor read: judged by the other-lane heuristic ([`ValueRule::AnyElement`]).
     fn any_element(&self, e: &mut Expected, p: usize) {
         let mut as_values = [0.0; MAX_AS_VARIANTS as usize];
         if self.spec.element == ElementMap::None {
@@ -239,9 +247,11 @@ impl Probed<'_> {
                 e.ambiguous |= amb;
             }
         }
+        // Set/binding reads only (heap reads are never undefined): no separate sampler, so the
+        // lane's texel is its element.
         e.rule = ValueRule::AnyElement {
             resource: self.spec.resource,
-            slots: self.slots,
+            texel: e.record.element,
             as_values,
             variants: self.variants,
         };
@@ -250,9 +260,9 @@ impl Probed<'_> {
 }
 
 /// [`expected`] with what is undefined decided by the caller: the driver saw a non-uniform
-/// descriptor or sampler index without `NonUniform` — the cell's shape (its spec's
-/// [`ReadIndex::Undefined`]) or a compiler that dropped the qualifier
-/// (`exec::heap::dropped_nonuniform`).
+/// set/binding descriptor index without `NonUniform` — the cell's shape (its spec's
+/// [`ReadIndex::Undefined`]) or a compiler that dropped the qualifier — in a module that does not
+/// declare `DescriptorHeapEXT` (`patches::uniformity`).
 pub fn expected_with(
     cell: &Cell,
     scene: &Scene,

@@ -23,6 +23,25 @@ fn records(e: &[Expected]) -> Vec<Record> {
     e.iter().map(|x| x.record).collect()
 }
 
+/// The expected records with the lane evidence a device of 8-lane subgroups writes when each
+/// subgroup holds 8 consecutive pixels and the probe pixels among them are its active lanes.
+fn with_lanes(e: &[Expected]) -> Vec<Record> {
+    let mut out = records(e);
+    for (g, chunk) in out.chunks_mut(8).enumerate() {
+        let active: Vec<usize> =
+            (0..chunk.len()).filter(|&k| chunk[k].flags & FLAG_PROBE != 0).collect();
+        let mask = active.iter().fold(0u32, |m, &k| m | 1 << k);
+        for &k in &active {
+            let r = &mut chunk[k];
+            r.lane = k as u32;
+            r.leader = (g * 8 + active[0]) as u32;
+            r.active_mask = mask;
+            r.active_count = active.len() as u32;
+        }
+    }
+    out
+}
+
 /// The expected records with every probe pixel's value replaced by `read(record)` (what a
 /// faulty driver would read there).
 fn reading(e: &[Expected], read: impl Fn(&Record) -> [f32; 4]) -> Vec<Record> {
@@ -175,10 +194,7 @@ fn a_wrong_sampler_reads_another_texel_and_is_caught() {
                 let c = direct(stage, index, nonuniform, sampler);
                 let e = expected(&c, scene, r);
                 assert!(compare(&e, &records(&e), 64).passed(), "{}", c.id());
-                let wrong = sampler_zero_is_caught(&c, &e);
-                if c.sampler_nonuniform() {
-                    dropped_sampler_nonuniform_allows_any_sampler(&c, &wrong, scene, r);
-                }
+                sampler_zero_is_caught(&c, &e);
                 if sampler == SamplerIndex::Dynamic {
                     constant_sampler_is_caught(&c, &e);
                 }
@@ -207,9 +223,8 @@ fn through_sampler(c: &Cell, e: &[Expected], sampler: u32) -> Vec<Record> {
     })
 }
 
-/// The same read with sampler 0 (clamp to edge) is caught on most probe pixels; returns its
-/// records.
-fn sampler_zero_is_caught(c: &Cell, e: &[Expected]) -> Vec<Record> {
+/// The same read with sampler 0 (clamp to edge) is caught on most probe pixels.
+fn sampler_zero_is_caught(c: &Cell, e: &[Expected]) {
     let wrong = through_sampler(c, e, 0);
     let cmp = compare(e, &wrong, 64);
     // Constant: sampler 2 against 0 differs on 3 elements of 4. Dynamic: a third of the pixels
@@ -221,41 +236,6 @@ fn sampler_zero_is_caught(c: &Cell, e: &[Expected]) -> Vec<Record> {
         c.id(),
         cmp.mismatched_pixels,
         cmp.probe_checked
-    );
-    wrong
-}
-
-/// The compiler dropped the sampler index's NonUniform (and only that): any sampler's texel of
-/// the right slot (`wrong`, read through sampler 0) passes, counted as another element; a wrong
-/// slot still mismatches everywhere.
-fn dropped_sampler_nonuniform_allows_any_sampler(
-    c: &Cell,
-    wrong: &[Record],
-    scene: &Scene,
-    r: &SceneReference,
-) {
-    let e = expected_with(c, scene, r, Undefined { descriptor: false, sampler: true });
-    let cmp = compare(&e, wrong, 64);
-    assert!(
-        cmp.passed() && cmp.element_reads.as_ref().is_some_and(|x| x.other > 0),
-        "{}: {:?}",
-        c.id(),
-        cmp.element_reads
-    );
-    let slots = probe::slot_count(Resource::SampledImage, scene.params.instances);
-    let off = reading(&e, |a| {
-        probe::resource_value(
-            Resource::SampledImage,
-            (slot_read(c, a) + 1) % slots,
-            probe::sampled_element(0, a.element),
-        )
-    });
-    let cmp = compare(&e, &off, 64);
-    assert_eq!(
-        cmp.mismatched_pixels,
-        cmp.probe_checked,
-        "{}: another slot through any sampler",
-        c.id()
     );
 }
 
@@ -336,6 +316,48 @@ fn with_word(r: &Record, offset: usize, bits: u32) -> Record {
     Record::from_bytes(&b)
 }
 
+/// Where the probe measured lane evidence every probe record must carry consistent lane words
+/// (and the flag); a record without the flag, or with a lane outside its own mask, a zero or
+/// oversized count, a mask with more lanes than counted, or a leader off the image, mismatches.
+/// Without lane evidence the words must stay zero.
+#[test]
+fn lane_words_are_held_to_consistency() {
+    let (scene, r) = world();
+    let c = cell(Stage::ClosestHit, IndexSource::Literal);
+    let mut e = expected(&c, scene, r);
+    expect_lanes(&mut e, LaneEvidence::Supported);
+    let good = with_lanes(&e);
+    assert!(compare(&e, &good, 64).passed());
+    let p = e.iter().position(|x| !x.ambiguous && x.record.flags & FLAG_PROBE != 0).unwrap();
+    let bad: [fn(&mut Record); 6] = [
+        |r| r.flags &= !FLAG_LANES,
+        |r| r.active_mask &= !(1 << r.lane),
+        |r| r.active_count = 0,
+        |r| r.active_count = 129,
+        |r| r.active_mask = 0xffff_ffff,
+        |r| r.leader = 4096,
+    ];
+    for (k, spoil) in bad.iter().enumerate() {
+        let mut actual = good.clone();
+        spoil(&mut actual[p]);
+        let cmp = compare(&e, &actual, 64);
+        assert_eq!(cmp.mismatched_pixels, 1, "spoiler {k}");
+    }
+    // without lane evidence, lane words a probe did write mismatch
+    let plain = expected(&c, scene, r);
+    assert!(compare(&plain, &records(&plain), 64).passed());
+    let unflagged: Vec<Record> =
+        good.iter().map(|r| Record { flags: r.flags & !FLAG_LANES, ..*r }).collect();
+    let cmp = compare(&plain, &unflagged, 64);
+    assert!(!cmp.passed() && cmp.by_field.keys().eq(["lanes"]), "{:?}", cmp.by_field);
+    // the device's subgroups read back: every probe pixel's subgroup is known
+    let lanes = lanes::Lanes::from_records(&good);
+    let probe_pixels = e.iter().filter(|x| x.record.flags & FLAG_PROBE != 0).count();
+    assert_eq!(lanes.known(), probe_pixels);
+    let group = lanes.subgroup(p).unwrap();
+    assert!(group.contains(&p) && group.iter().all(|q| q / 8 == p / 8));
+}
+
 #[test]
 fn garbage_in_any_record_field_never_passes() {
     let (scene, r) = world();
@@ -366,7 +388,7 @@ fn garbage_in_any_record_field_never_passes() {
             (0..words).map(move |k| (f.glsl_name, f.offset + 4 * k))
         })
         .collect();
-    assert_eq!(word_fields.len(), 14);
+    assert_eq!(word_fields.len(), 18);
     for &p in &[tri, miss] {
         for &(name, offset) in &word_fields {
             for bits in GARBAGE {
@@ -453,6 +475,54 @@ fn a_driver_returning_instance_id_as_custom_index_is_caught() {
     }
 }
 
+/// `heap_access=direct` reads are judged exactly, with and without `nonuniformEXT`: the heap needs
+/// no NonUniform (the DescriptorHeapEXT exemption of VUID-RuntimeSpirv-None-10148 / -10149,
+/// Vulkan 1.4.360). A driver reading heap index 0, or the literal slot, instead of each lane's
+/// index mismatches on nearly every probe pixel (issue 21: such a bundle passed); its own read
+/// passes. The set/binding twin without `nonuniformEXT` stays lenient.
+#[test]
+fn direct_heap_reads_are_judged_exactly() {
+    let (scene, r) = world();
+    for stage in [Stage::ClosestHit, Stage::Raygen, Stage::Compute] {
+        for resource in [Resource::StorageBuffer, Resource::SampledImage] {
+            for nonuniform in [false, true] {
+                let c = Cell {
+                    resource,
+                    nonuniform,
+                    descriptor_model: DescriptorModel::DescriptorHeap,
+                    heap_access: Some(crate::model::HeapAccess::Direct),
+                    ..cell(stage, IndexSource::Dynamic)
+                };
+                let e = expected(&c, scene, r);
+                assert!(compare(&e, &records(&e), 64).passed(), "{}", c.id());
+                for wrong_slot in [0, probe::LITERAL_SLOT] {
+                    let wrong = reading(&e, |a| {
+                        let texel = if resource == Resource::SampledImage {
+                            probe::sampled_element(probe::SAMPLER_LITERAL, a.element)
+                        } else {
+                            a.element
+                        };
+                        probe::resource_value(resource, wrong_slot, texel)
+                    });
+                    let cmp = compare(&e, &wrong, 64);
+                    assert!(cmp.element_reads.is_none(), "{}", c.id());
+                    assert!(
+                        cmp.mismatched_pixels * 10 >= cmp.probe_checked * 9,
+                        "{}: heap index {wrong_slot} caught on {} of {}",
+                        c.id(),
+                        cmp.mismatched_pixels,
+                        cmp.probe_checked
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// A closest-hit lane computes `DYNAMIC_BASE + (custom & mask)`, so no lane computes slots
+/// 0..DYNAMIC_BASE: a driver that drops the base reads such a slot wherever the masked custom
+/// index is small, and the other-lane heuristic calls that a mismatch; where it lands on a slot
+/// another lane computed, it is counted as another lane's read.
 #[test]
 fn a_driver_ignoring_base_shows_in_the_element_reads() {
     let (scene, r) = world();
@@ -469,18 +539,114 @@ fn a_driver_ignoring_base_shows_in_the_element_reads() {
     let cmp = compare(&e, &base_dropped, 64);
     let reads = cmp.element_reads.clone().expect("no-nonuniform cells count their reads");
     assert_eq!(reads.outside_spec, NO_NONUNIFORM_VUID);
-    assert_eq!((reads.own, reads.neither), (0, 0), "{reads:?}");
-    assert_eq!(reads.other, cmp.any_element_values);
-    assert!(reads.other > 100);
-    assert!(cmp.passed(), "which element is read is undefined without nonuniformEXT");
+    assert_eq!(reads.own, 0, "{reads:?}");
+    assert_eq!(reads.other + reads.neither, cmp.any_element_values);
+    let below_base = e
+        .iter()
+        .filter(|x| {
+            !x.ambiguous
+                && x.record.flags & FLAG_PROBE != 0
+                && x.record.slot < 2 * crate::probe::DYNAMIC_BASE
+        })
+        .count();
+    assert_eq!(reads.neither, below_base, "{reads:?}");
+    assert!(reads.other > 100 && reads.neither > 100, "{reads:?}");
+    assert_eq!(cmp.by_field.get("value"), Some(&reads.neither));
     assert_eq!(cmp.discrimination, None);
-    // the same reads with nonuniformEXT are mismatches
+    // the same reads with nonuniformEXT are mismatches everywhere
     let nu = Cell { nonuniform: true, ..c };
     let cmp = compare(&expected(&nu, scene, r), &base_dropped, 64);
-    assert_eq!(cmp.by_field.get("value"), Some(&reads.other));
+    assert_eq!(cmp.by_field.get("value"), Some(&(reads.other + reads.neither)));
     // and the own reads are counted as own
     let cmp = compare(&e, &records(&e), 64);
-    assert_eq!(cmp.element_reads.map(|x| (x.own, x.other)), Some((reads.other, 0)));
+    assert_eq!(cmp.element_reads.map(|x| (x.own, x.other)), Some((reads.other + reads.neither, 0)));
+}
+
+/// Issue 21, item 2: without `nonuniformEXT` a hit-stage read of slot 0 — an index dropped to 0,
+/// which no lane computes there (every lane's is `DYNAMIC_BASE` or more) — is a mismatch on every
+/// probe pixel, for buffers, images and acceleration structures alike (before, "any element of
+/// the array" passed it).
+#[test]
+fn an_index_no_lane_computed_is_a_mismatch_without_nonuniform() {
+    let (scene, r) = world();
+    for stage in [Stage::ClosestHit, Stage::AnyHit, Stage::Intersection] {
+        for resource in
+            [Resource::StorageBuffer, Resource::SampledImage, Resource::AccelerationStructure]
+        {
+            let as_access =
+                (resource == Resource::AccelerationStructure).then_some(AsAccess::Descriptor);
+            let c = Cell { resource, as_access, ..cell(stage, IndexSource::Dynamic) };
+            let e = expected(&c, scene, r);
+            assert!(compare(&e, &records(&e), 64).passed(), "{}", c.id());
+            let slot0: Vec<Record> = e
+                .iter()
+                .enumerate()
+                .map(|(p, x)| {
+                    let mut a = x.record;
+                    if a.flags & FLAG_PROBE != 0 {
+                        a.value = if resource == Resource::AccelerationStructure {
+                            r.as_value(0, p).0
+                        } else {
+                            probe::resource_value(resource, 0, a.element)
+                        };
+                    }
+                    a
+                })
+                .collect();
+            let cmp = compare(&e, &slot0, 64);
+            let reads = cmp.element_reads.clone().unwrap();
+            // (an AS read through slot 0 may give the same hit as the lane's own slot)
+            assert!(
+                reads.neither * 10 >= cmp.probe_checked * 9,
+                "{}: slot 0 read caught on {} of {} ({reads:?})",
+                c.id(),
+                reads.neither,
+                cmp.probe_checked
+            );
+            assert_eq!(reads.other, 0, "{}", c.id());
+        }
+    }
+}
+
+/// With the device's lane evidence an undefined read may only read what a lane of its own
+/// subgroup computed: the leader's index broadcast to every lane passes (counted per subgroup),
+/// an index only a lane of another subgroup computed is a mismatch there, though it passes
+/// against the whole dispatch (no lane evidence).
+#[test]
+fn with_lane_evidence_an_undefined_read_is_judged_per_subgroup() {
+    let (scene, r) = world();
+    let c = cell(Stage::Raygen, IndexSource::Dynamic);
+    let mut e = expected(&c, scene, r);
+    expect_lanes(&mut e, LaneEvidence::Supported);
+    let good = with_lanes(&e);
+    let lanes = lanes::Lanes::from_records(&good);
+    assert!(compare_with(&e, &good, 64, Some(&lanes)).passed());
+    let slots = probe::slot_count(Resource::StorageBuffer, scene.params.instances);
+    let read = |slot_of: &dyn Fn(usize, &Record) -> u32| -> Vec<Record> {
+        good.iter()
+            .enumerate()
+            .map(|(p, a)| Record {
+                value: probe::resource_value(Resource::StorageBuffer, slot_of(p, a), a.element),
+                ..*a
+            })
+            .collect()
+    };
+    let broadcast = read(&|p, _| good[lanes.leader(p).unwrap()].slot);
+    let cmp = compare_with(&e, &broadcast, 64, Some(&lanes));
+    let reads = cmp.element_reads.clone().unwrap();
+    assert!(cmp.passed() && reads.other > 1000, "{reads:?}");
+    assert_eq!(reads.by_subgroup, cmp.any_element_values);
+    // Eight pixels on: a slot only the next subgroup's lanes computed.
+    let next = read(&|_, a| (a.slot + 8) % slots);
+    let cmp = compare_with(&e, &next, 64, Some(&lanes));
+    assert_eq!(cmp.mismatched_pixels, cmp.probe_checked, "{:?}", cmp.element_reads);
+    assert!(compare(&e, &next, 64).passed(), "the whole dispatch computed those slots");
+    // A subgroup the records do not show whole falls back to the dispatch.
+    let mut partial = next.clone();
+    partial[1].active_count += 1;
+    let lanes = lanes::Lanes::from_records(&partial);
+    let cmp = compare_with(&e, &partial, 64, Some(&lanes));
+    assert!(cmp.element_reads.unwrap().by_subgroup < cmp.probe_checked);
 }
 
 #[test]
@@ -502,17 +668,26 @@ fn elements_are_read_at_per_primitive_offsets() {
 }
 
 #[test]
-fn nonuniform_index_without_qualifier_accepts_any_element_but_not_garbage() {
+fn an_undefined_read_accepts_another_lanes_index_at_its_own_element_only() {
     let (scene, r) = world();
     let c = Cell { resource: Resource::UniformBuffer, ..cell(Stage::Raygen, IndexSource::Dynamic) };
     let e = expected(&c, scene, r);
     let mut actual = records(&e);
-    // Another element's value (as a driver reading one lane's descriptor would return): fine.
-    actual[10].value = crate::probe::resource_value(Resource::UniformBuffer, 0, 2);
+    // Slot 0 (another lane's index: raygen lanes compute every slot) at the lane's own element,
+    // as a driver reading one lane's descriptor would return: accepted by the heuristic.
+    let own = e[10].record.element;
+    actual[10].value = crate::probe::resource_value(Resource::UniformBuffer, 0, own);
     let cmp = compare(&e, &actual, 64);
     assert!(cmp.passed(), "{cmp:?}");
     assert_eq!(cmp.any_element_values, cmp.compared);
-    assert_eq!(cmp.element_reads.as_ref().map(|x| x.other), Some(1));
+    let reads = cmp.element_reads.as_ref().unwrap();
+    assert_eq!((reads.other, reads.by_subgroup), (1, 0));
+    assert_eq!(reads.heuristic, crate::model::OTHER_LANE_HEURISTIC);
+    // Another element of that slot is no lane's read.
+    let mut other_element = actual.clone();
+    other_element[10].value =
+        crate::probe::resource_value(Resource::UniformBuffer, 0, (own + 1) % probe::ELEMENTS);
+    assert!(!compare(&e, &other_element, 64).passed());
     // Garbage is not.
     actual[11].value = [7.5, 0.0, 0.0, 0.0];
     let cmp = compare(&e, &actual, 64);

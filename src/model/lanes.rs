@@ -1,0 +1,234 @@
+//! Lane evidence: whether a cell's probe recorded which subgroup lane did its read and with whom
+//! (`probe::Record`'s `lane`, `leader`, `active_mask`, `active_count`), the run option that
+//! decides it, and (for a mismatch) how the failing pixels split by those words.
+use serde::{Deserialize, Serialize};
+
+/// The rule lane evidence relies on: subgroup operations only in the stages the device lists in
+/// `subgroupSupportedStages` (Vulkan 1.4.360, "Validation Rules within a Module").
+pub const SUBGROUP_STAGE_VUID: &str = "VUID-RuntimeSpirv-None-06343";
+
+/// The key of a report's `device` listing the probe stages where subgroup ballot works.
+pub const DEVICE_BALLOT_STAGES: &str = "subgroup_ballot_stages";
+
+/// Whether the report's `device` (`caps::device_json`) lists subgroup ballot in `stage` (false
+/// in reports from before the list).
+pub fn device_ballot(device: &serde_json::Value, stage: super::Stage) -> bool {
+    device[DEVICE_BALLOT_STAGES]
+        .as_array()
+        .is_some_and(|a| a.iter().any(|s| s.as_str() == Some(stage.as_str())))
+}
+
+/// `run --lane-evidence`: when the probe measures its lane evidence.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LaneMode {
+    /// Where the device says subgroup ballot works in the probed stage (`subgroupSupportedStages`
+    /// has it and `subgroupSupportedOperations` has BALLOT).
+    #[default]
+    Auto,
+    /// Also where it does not: the shader then breaks [`SUBGROUP_STAGE_VUID`], so the evidence is
+    /// a diagnosis only (the reference never judges by it) and the verdicts of such a run are not
+    /// those of a valid shader.
+    Force,
+    /// Never (the probe without the subgroup code).
+    Off,
+}
+
+impl LaneMode {
+    pub const ALL: &'static [LaneMode] = &[LaneMode::Auto, LaneMode::Force, LaneMode::Off];
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            LaneMode::Auto => "auto",
+            LaneMode::Force => "force",
+            LaneMode::Off => "off",
+        }
+    }
+
+    /// What a cell's probe records under this mode, `supported` being whether the device's
+    /// subgroup ballot works in its probed stage.
+    pub fn evidence(self, supported: bool) -> LaneEvidence {
+        match (self, supported) {
+            (LaneMode::Off, _) | (LaneMode::Auto, false) => LaneEvidence::Absent,
+            (LaneMode::Auto | LaneMode::Force, true) => LaneEvidence::Supported,
+            (LaneMode::Force, false) => LaneEvidence::Forced,
+        }
+    }
+}
+
+/// Whether a cell's records carry lane evidence, and whether it may be judged by.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LaneEvidence {
+    /// No lane evidence (the device lacks ballot in the stage, `--lane-evidence off`, or a report
+    /// from before lane evidence): the reference does not use it.
+    #[default]
+    Absent,
+    /// Recorded with ballot the device supports in the stage: the reference may use it.
+    Supported,
+    /// Recorded although the device does not list the stage ([`SUBGROUP_STAGE_VUID`]): shown as a
+    /// diagnosis, never judged by.
+    Forced,
+}
+
+impl LaneEvidence {
+    /// The probe was generated with the subgroup code (its records carry `FLAG_LANES`).
+    pub fn recorded(self) -> bool {
+        match self {
+            LaneEvidence::Absent => false,
+            LaneEvidence::Supported | LaneEvidence::Forced => true,
+        }
+    }
+
+    /// The reference may judge by it.
+    pub fn usable(self) -> bool {
+        match self {
+            LaneEvidence::Absent | LaneEvidence::Forced => false,
+            LaneEvidence::Supported => true,
+        }
+    }
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            LaneEvidence::Absent => "absent",
+            LaneEvidence::Supported => "supported",
+            LaneEvidence::Forced => "forced",
+        }
+    }
+}
+
+/// Probe pixels of one kind, and how many of them mismatched.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Split {
+    pub pixels: usize,
+    pub failed: usize,
+}
+
+impl Split {
+    pub fn add(&mut self, failed: bool) {
+        self.pixels += 1;
+        self.failed += usize::from(failed);
+    }
+}
+
+/// How a mismatching cell's probe pixels split by their lane evidence: whether lane 0 of their
+/// subgroup was active in the probed stage's call (bit 0 of the ballot), whether they were their
+/// subgroup's first active lane (the leader), and by lane id. Counted over the compared probe
+/// pixels whose records carry consistent lane evidence.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct LaneSplit {
+    /// Supported or forced (a diagnosis outside the spec).
+    pub evidence: LaneEvidence,
+    pub lane0_active: Split,
+    pub lane0_inactive: Split,
+    pub leaders: Split,
+    pub followers: Split,
+    /// Index: the lane id.
+    pub by_lane: Vec<Split>,
+}
+
+impl LaneSplit {
+    /// Count one probe pixel of lane `lane` in a subgroup whose ballot's low bits are `mask`,
+    /// led by pixel `leader`, the pixel itself being `pixel`.
+    pub fn add(&mut self, (lane, mask, leader, pixel): (u32, u32, usize, usize), failed: bool) {
+        if mask & 1 != 0 {
+            self.lane0_active.add(failed);
+        } else {
+            self.lane0_inactive.add(failed);
+        }
+        if leader == pixel {
+            self.leaders.add(failed);
+        } else {
+            self.followers.add(failed);
+        }
+        let lane = lane as usize;
+        if self.by_lane.len() <= lane {
+            self.by_lane.resize(lane + 1, Split::default());
+        }
+        self.by_lane[lane].add(failed);
+    }
+
+    /// `mismatches by lane 0 of the subgroup: inactive in the call 926 of 933 pixels, active 0 of
+    /// 1821; leaders 3 of 600, others 923 of 2154; by lane: 0: 0/300, 1: 120/260, …`
+    pub fn sentence(&self) -> String {
+        let lanes: Vec<String> = self
+            .by_lane
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.pixels > 0)
+            .map(|(k, s)| format!("{k}: {}/{}", s.failed, s.pixels))
+            .collect();
+        let forced = match self.evidence {
+            LaneEvidence::Forced => format!(
+                " (forced lane evidence: the device does not list subgroup ballot in this stage, {SUBGROUP_STAGE_VUID}; a diagnosis)"
+            ),
+            LaneEvidence::Absent | LaneEvidence::Supported => String::new(),
+        };
+        format!(
+            "mismatches by lane 0 of the subgroup: where it was inactive in the call {} of {} pixels, where active {} of {}; subgroup leaders {} of {}, other lanes {} of {}; by lane (mismatched/pixels): {}{forced}",
+            self.lane0_inactive.failed,
+            self.lane0_inactive.pixels,
+            self.lane0_active.failed,
+            self.lane0_active.pixels,
+            self.leaders.failed,
+            self.leaders.pixels,
+            self.followers.failed,
+            self.followers.pixels,
+            lanes.join(", ")
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_mode_and_the_device_decide_the_evidence() {
+        assert_eq!(LaneMode::Auto.evidence(true), LaneEvidence::Supported);
+        assert_eq!(LaneMode::Auto.evidence(false), LaneEvidence::Absent);
+        assert_eq!(LaneMode::Force.evidence(false), LaneEvidence::Forced);
+        assert_eq!(LaneMode::Force.evidence(true), LaneEvidence::Supported);
+        assert_eq!(LaneMode::Off.evidence(true), LaneEvidence::Absent);
+        assert!(LaneEvidence::Forced.recorded() && !LaneEvidence::Forced.usable());
+        assert!(!LaneEvidence::Absent.recorded() && LaneEvidence::Supported.usable());
+        // a report without the field reads as no evidence
+        assert_eq!(
+            serde_json::from_str::<LaneEvidence>("\"forced\"").unwrap(),
+            LaneEvidence::Forced
+        );
+        assert_eq!(LaneEvidence::default(), LaneEvidence::Absent);
+    }
+
+    #[test]
+    fn the_split_counts_pixels_by_lane_zero_leader_and_lane() {
+        let mut s = LaneSplit { evidence: LaneEvidence::Forced, ..Default::default() };
+        // a subgroup without lane 0 (lanes 1, 2 active, led by pixel 10): both fail
+        s.add((1, 0b110, 10, 10), true);
+        s.add((2, 0b110, 10, 11), true);
+        // a subgroup with lane 0: it passes
+        s.add((0, 0b11, 20, 20), false);
+        s.add((1, 0b11, 20, 21), false);
+        assert_eq!(s.lane0_inactive, Split { pixels: 2, failed: 2 });
+        assert_eq!(s.lane0_active, Split { pixels: 2, failed: 0 });
+        assert_eq!(
+            (s.leaders, s.followers),
+            (Split { pixels: 2, failed: 1 }, Split { pixels: 2, failed: 1 })
+        );
+        assert_eq!(
+            s.by_lane,
+            vec![
+                Split { pixels: 1, failed: 0 },
+                Split { pixels: 2, failed: 1 },
+                Split { pixels: 1, failed: 1 }
+            ]
+        );
+        let t = s.sentence();
+        assert!(t.starts_with("mismatches by lane 0 of the subgroup: where it was inactive in the call 2 of 2 pixels, where active 0 of 2"), "{t}");
+        assert!(
+            t.contains("by lane (mismatched/pixels): 0: 0/1, 1: 1/2, 2: 1/1")
+                && t.contains("forced lane evidence"),
+            "{t}"
+        );
+    }
+}
