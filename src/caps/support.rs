@@ -3,8 +3,8 @@
 //! marks what rtprobe itself cannot do yet, which is never blamed on the device.
 use crate::model::registry::AxisId;
 use crate::model::{
-    AsAccess, BaseSource, Canary, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource,
-    SamplerIndex, Stage, Workaround,
+    AsAccess, BaseSource, Canary, DescriptorModel, HeapAccess, IndexSource, Mutant, Reorder,
+    Resource, SamplerIndex, Stage, Workaround,
 };
 use crate::vk::{heap, DeviceInfo};
 use ash::{ext, khr, nv, vk};
@@ -321,5 +321,24 @@ pub fn value(info: &DeviceInfo, axis: AxisId, v: &str) -> Support {
             }
             Some(Workaround::Nonuniform | Workaround::PinIndex) | None => Support::Supported,
         },
+        AxisId::Mutant => of(Mutant::parse(v).map(|m| mutant(info, m, None))),
+    }
+}
+
+/// What a mutant needs of the device beyond what its cell needs, in the cell's `stage` (`None`:
+/// in some stage, for `caps`'s matrix). Only `index-broadcast` needs something:
+/// `OpGroupNonUniformBroadcastFirst` needs the subgroup ballot operations in that stage
+/// (TODO(verdicts): from the subgroup properties `vk::features` gains with the lane evidence).
+pub fn mutant(_info: &DeviceInfo, m: Mutant, _stage: Option<Stage>) -> Support {
+    match m {
+        Mutant::IndexBroadcast
+        | Mutant::IndexZero
+        | Mutant::IndexNext
+        | Mutant::BaseDropped
+        | Mutant::ElementZero
+        | Mutant::StrideDouble
+        | Mutant::SamplerNext
+        | Mutant::TlasOther
+        | Mutant::ValueBits => Support::Supported,
     }
 }
