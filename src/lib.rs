@@ -12,6 +12,7 @@ pub mod exec;
 pub mod fleet;
 pub mod matrix;
 pub mod model;
+pub mod mutants;
 pub mod patches;
 pub mod pool;
 pub mod probe;
