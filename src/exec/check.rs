@@ -65,6 +65,7 @@ impl Executor {
         let expected = reference::expected_with(cell, &self.scene, &self.sref, undefined);
         let (w, h) = (self.scene.params.width, self.scene.params.height);
         let mut cmp = reference::compare(&expected, records, w);
+        cmp.mutant = self.predict_mutant(cell, undefined, &expected, records);
         let outcome = if cmp.passed() { Outcome::Pass } else { Outcome::Mismatch };
         let mut detail = (!cmp.passed()).then(|| {
             format!(

@@ -1,5 +1,6 @@
 //! Phase `compile` of a cell: its GLSL generated (with its injected fault), compiled to SPIR-V
-//! (cached per source) or read from a repro bundle, patched by the spec's workarounds, written
+//! (cached per source) or read from a repro bundle, patched by the spec's workarounds (then a
+//! mutant cell's mutation, `super::mutant`), written
 //! out with `--dump`, and scanned for the `nonuniformEXT` the compiler dropped.
 use super::built::Compiled;
 use super::error::CellError;
@@ -35,6 +36,10 @@ impl Executor {
         let workarounds = spec.workarounds().filter(|_| self.opts.spirv_dir.is_none());
         for w in workarounds {
             patch_all(&mut spirv, w, timings)?;
+        }
+        // Then a mutant's mutation (`run --mutants`).
+        if let (Some(m), Some(mutation)) = (spec.mutant, self.mutation(&spec)?) {
+            super::mutant::mutate_all(&mut spirv, mutation, m.as_str(), timings)?;
         }
         if let Some(dir) = &self.opts.dump {
             files::dump(dir, cell, &shaders, &spirv).map_err(CellError::Io)?;

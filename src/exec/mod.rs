@@ -10,8 +10,8 @@
 //! cells need built first (`setup`), phase `compile` (`compile`), binding and the pipeline key
 //! (`bind`, `pipeline_key`), building at the cell's turn or ahead of it (`build`, `prebuild`),
 //! what each step hands to the next (`built`), the turn itself (`run`), recording the three
-//! pipeline kinds (`record`), judging the records (`check`, `pictures`), error → outcome
-//! (`error`); below them resources and samplers, bindings, the descriptor heap, pipelines, the
+//! pipeline kinds (`record`), judging the records (`check`, `pictures`), a mutant cell's mutation
+//! and prediction (`mutant`), error → outcome (`error`); below them resources and samplers, bindings, the descriptor heap, pipelines, the
 //! pipeline cache and files.
 mod bind;
 pub mod bindings;
@@ -23,6 +23,7 @@ pub mod error;
 mod executor;
 mod files;
 pub mod heap;
+mod mutant;
 pub mod pictures;
 pub mod pipeline;
 pub mod pipeline_cache;
