@@ -5,8 +5,8 @@
 //! what no cell can get past) no round runs anything.
 use super::Campaign;
 use super::{Event, Mode};
-use crate::model::{Cell, Outcome, RunReport};
-use crate::report::{gpu_av, recommended};
+use crate::model::{Attempt, Cell, Outcome, RunReport};
+use crate::report::{gpu_av, mutants, recommended};
 use std::collections::HashSet;
 
 /// The cells to confirm: probe cells whose one attempt ran and faulted (`worth_confirming`).
@@ -166,6 +166,54 @@ impl Campaign<'_> {
             again = gpu_av::more(&self.rec.writer.report, &got);
         }
         gpu_av::annotate(&mut self.rec.writer.report, &got, &skipped);
+    }
+
+    /// Each mutant on every cell that ran and passed, where the reference says it can apply and
+    /// the device can run it (`report::mutants::schedule`), together; their attempts kept apart
+    /// from the cells' own, the kill matrix into the report.
+    pub fn mutants(&mut self, policy: &super::MutantPolicy) {
+        let t = std::time::Instant::now();
+        let report = &self.rec.writer.report;
+        let (run, mut entries) = mutants::schedule(
+            report,
+            &policy.mutants,
+            policy.sample,
+            (self.applies, self.supported),
+        );
+        let cells: Vec<Cell> = run.iter().map(|(c, _)| *c).collect();
+        let got = self.apart(&cells, Mode::Shared);
+        for (c, before) in &run {
+            let a = got.iter().find(|(x, _)| x == c).map(|(_, a)| a);
+            entries.extend(c.mutant.map(|m| mutants::verdict((c, m), *before, a)));
+        }
+        let sample = self.rec.writer.report.options.mutants_sample.clone();
+        let wall_ms = t.elapsed().as_secs_f64() * 1e3;
+        let r = &mut self.rec.writer.report;
+        mutants::annotate(r, &policy.mutants, sample.as_deref(), entries, wall_ms);
+    }
+
+    /// Run `cells` as `mode` says, their attempts kept apart from the cells' own (returned, not
+    /// recorded); worker readiness and caches still reach the report, a halt stops the run.
+    fn apart(&mut self, cells: &[Cell], mode: Mode) -> Vec<(Cell, Attempt)> {
+        let mut got = vec![];
+        if cells.is_empty() || self.rec.halted.is_some() {
+            return got;
+        }
+        self.rec.progress.scheduled(cells.len() as u64);
+        let rec = &mut *self.rec;
+        self.oracle.run(cells, mode, &mut |ev| match ev {
+            Event::Attempt { cell, attempt } => {
+                rec.progress.ended(&cell, Some(attempt.outcome));
+                got.push((cell, attempt));
+            }
+            // A worker's fault outside a cell during the round is no cell's and no finding.
+            Event::Worker(_) => {}
+            ev @ (Event::WorkerReady { .. }
+            | Event::Prebuilt { .. }
+            | Event::CacheSaved(_)
+            | Event::Halt(_)) => rec.on_event(ev),
+        });
+        got
     }
 
     /// The canaries, together, after everything else (the progress already counts them).

@@ -66,6 +66,7 @@ pub fn fresh(
         baseline: None,
         workers: vec![],
         pipeline_cache: None,
+        mutants: None,
         cells: vec![],
     }
 }
