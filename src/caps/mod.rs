@@ -37,6 +37,12 @@ pub fn device_json(info: &DeviceInfo) -> Value {
         "conformance_version": conformance,
         "driver_uuid": info.properties.v11.map(|v| hex(&v.driver_uuid)),
         "device_uuid": info.properties.v11.map(|v| hex(&v.device_uuid)),
+        "subgroup_size": info.properties.v11.map(|v| v.subgroup_size),
+        "subgroup_ballot_stages": crate::model::Stage::ALL
+            .iter()
+            .filter(|s| info.subgroup_ballot(**s))
+            .map(|s| s.as_str())
+            .collect::<Vec<_>>(),
     })
 }
 

@@ -327,12 +327,23 @@ pub fn value(info: &DeviceInfo, axis: AxisId, v: &str) -> Support {
 
 /// What a mutant needs of the device beyond what its cell needs, in the cell's `stage` (`None`:
 /// in some stage, for `caps`'s matrix). Only `index-broadcast` needs something:
-/// `OpGroupNonUniformBroadcastFirst` needs the subgroup ballot operations in that stage
-/// (TODO(verdicts): from the subgroup properties `vk::features` gains with the lane evidence).
-pub fn mutant(_info: &DeviceInfo, m: Mutant, _stage: Option<Stage>) -> Support {
+/// `OpGroupNonUniformBroadcastFirst` is a subgroup ballot operation, allowed only in the stages
+/// the device lists (VUID-RuntimeSpirv-None-06343), and its prediction reads the lane evidence,
+/// which needs the same.
+pub fn mutant(info: &DeviceInfo, m: Mutant, stage: Option<Stage>) -> Support {
     match m {
-        Mutant::IndexBroadcast
-        | Mutant::IndexZero
+        Mutant::IndexBroadcast => {
+            let ok = match stage {
+                Some(s) => info.subgroup_ballot(s),
+                None => Stage::ALL.iter().any(|s| info.subgroup_ballot(*s)),
+            };
+            let where_ = stage.map(|s| format!("in {s}")).unwrap_or_else(|| "in any stage".into());
+            Support::require(&[(
+                ok,
+                &format!("subgroup ballot {where_} (subgroupSupportedStages, subgroupSupportedOperations BALLOT; {})", crate::model::lanes::SUBGROUP_STAGE_VUID),
+            )])
+        }
+        Mutant::IndexZero
         | Mutant::IndexNext
         | Mutant::BaseDropped
         | Mutant::ElementZero

@@ -171,6 +171,12 @@ pub struct RunArgs {
     #[arg(long, value_enum, default_value = "faults")]
     pub patches: crate::model::PatchMode,
 
+    /// Where the probe records its subgroup lane evidence (docs/lane-evidence.md): `auto` where
+    /// the device lists ballot in the probed stage; `force` everywhere (a diagnosis only: outside
+    /// the spec where the device does not list the stage); `off` never
+    #[arg(long, value_enum, default_value = "auto")]
+    pub lane_evidence: crate::model::LaneMode,
+
     /// Scene seed
     #[arg(long, default_value_t = 1)]
     pub seed: u64,

@@ -86,6 +86,7 @@ pub fn bisect(g: &Globals, a: &BisectArgs) -> Result<u8> {
         }
         // The report's binding stages change results: the cells bisect runs use them too.
         opts.binding_stages = report.options.binding_stages.clone();
+        opts.lane_evidence = report.options.lane_evidence;
         let job_dir = opts.job_dir.clone();
         let mut oracle = SupervisorOracle::for_bisect(opts);
         let supported = |c: &Cell| plan::device_support(&info, c).is_supported();

@@ -206,7 +206,8 @@ pub fn repro(g: &Globals, a: &ReproArgs) -> Result<u8> {
     })?;
     let entry = report.cells.iter().find(|c| c.id == a.cell);
     let inject: Vec<&Injection> = for_cell(&ro.inject, &cell).into_iter().collect();
-    let shaders = cell_shaders(&cell, inject.first().map(|i| i.fault))
+    let lanes = crate::report::shaders::lanes_in(&report, &cell);
+    let shaders = cell_shaders(&cell, inject.first().map(|i| i.fault), lanes)
         .map_err(|e| coded(exit::compiler_or(&e, exit::INTERNAL), format!("{}: {e}", cell.id())))?;
     check_out(&a.out, &a.from, a.force)?;
     let name = a

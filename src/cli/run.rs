@@ -261,6 +261,7 @@ fn run_options(
         repeat: a.repeat,
         shard: c.shard.map(|s| s.label()),
         binding_stages,
+        lane_evidence: a.lane_evidence,
         spirv_from: a.spirv_dir.clone(),
         merged_from: vec![],
         mutants: c.mutants.clone(),
@@ -278,6 +279,7 @@ fn supervisor(a: &RunArgs, o: &RunOptions, info: &DeviceInfo, c: &Checked) -> Su
         threads: o.threads.unwrap_or(1),
         pipeline_cache: o.pipeline_cache.clone(),
         binding_stages: o.binding_stages.clone(),
+        lane_evidence: o.lane_evidence,
         ..supervisor_options(
             info.index,
             c.params,

@@ -110,6 +110,7 @@ pub(crate) fn supervisor_options(
         threads: 1,
         pipeline_cache: None,
         binding_stages: None,
+        lane_evidence: crate::model::LaneMode::Auto,
     }
 }
 

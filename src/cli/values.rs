@@ -1,6 +1,6 @@
 //! Command-line values of enums below the CLI: `clap::ValueEnum` written here, so that nothing
 //! below the CLI knows clap. The data layer's names are the ones the report writes (serde's).
-use crate::model::{Isolation, PatchMode};
+use crate::model::{Isolation, LaneMode, PatchMode};
 use crate::report::issue::Format;
 use crate::shadergen::compile::TargetEnv;
 use clap::builder::PossibleValue;
@@ -31,6 +31,12 @@ value_enum!(PatchMode {
     PatchMode::All => "all": "Plan every cell with every workaround that applies to it",
 });
 
+value_enum!(LaneMode {
+    LaneMode::Auto => "auto": "Where the device lists subgroup ballot in the probed stage",
+    LaneMode::Force => "force": "Also where it does not (a diagnosis: outside the spec there)",
+    LaneMode::Off => "off": "Never",
+});
+
 value_enum!(TargetEnv {
     TargetEnv::Vulkan1_2 => "vulkan1.2": "Vulkan 1.2, SPIR-V 1.5 (what rtprobe's own shaders use)",
     TargetEnv::Vulkan1_3 => "vulkan1.3": "Vulkan 1.3, SPIR-V 1.6",
@@ -54,6 +60,10 @@ mod tests {
         }
         for v in PatchMode::value_variants() {
             assert_eq!(serde_json::to_value(v).unwrap(), v.to_possible_value().unwrap().get_name());
+        }
+        for v in LaneMode::value_variants() {
+            assert_eq!(serde_json::to_value(v).unwrap(), v.to_possible_value().unwrap().get_name());
+            assert_eq!(v.as_str(), v.to_possible_value().unwrap().get_name());
         }
     }
 

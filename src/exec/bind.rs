@@ -46,7 +46,7 @@ impl Executor {
         timings.setup_ms = t.elapsed().as_secs_f64() * 1e3;
         // pipeline (reused for identical SPIR-V and model)
         let pkey = pipeline_key::of(c, &spec, key);
-        Ok(Bound { key, pkey, addresses, dropped: c.dropped })
+        Ok(Bound { key, pkey, addresses, seen: c.seen })
     }
 
     /// The layout key of a cell with `spec` and `shaders`.

@@ -2,7 +2,6 @@
 //! second half of phase `pipeline` creates the pipeline unless an identical one exists), or take
 //! what a prebuild made for it; and what creating a cell's pipeline needs.
 use super::built::{Bound, Compiled, PipelineInput};
-use super::compile::cell_shaders;
 use super::error::CellError;
 use super::executor::{Executor, PhaseHook};
 use super::{heap, pipeline};
@@ -71,7 +70,7 @@ impl Executor {
                 p.result
             }
             None => {
-                let c = self.compile_cell(cell, cell_shaders(cell, injected), timings)?;
+                let c = self.compile_cell(cell, self.cell_shaders(cell, injected), timings)?;
                 on_phase(Phase::Pipeline)?;
                 let b = self.bind_cell(cell, &c, timings)?;
                 self.ensure_pipeline(cell, &c, &b, timings)?;

@@ -6,18 +6,25 @@ use super::bindings::LayoutKey;
 use super::error::CellError;
 use super::heap::{DroppedNonUniform, PipelineMapping};
 use super::pipeline::{self, Pipeline};
-use crate::model::{DescriptorModel, Phase, Timings};
+use crate::model::{DescriptorModel, LaneEvidence, Phase, Timings};
 use crate::shadergen::CellShaders;
 use crate::vk::{Gpu, VkError};
 use ash::vk;
 use std::sync::Arc;
 
+/// What the driver saw of a cell's shape that its judging needs: the `nonuniformEXT` the compiler
+/// dropped (direct heap cells), and the lane evidence its records carry.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Seen {
+    pub(super) dropped: Option<DroppedNonUniform>,
+    pub(super) lanes: LaneEvidence,
+}
+
 /// A cell's shaders as SPIR-V, workarounds applied (what phase `compile` produces).
 pub(super) struct Compiled {
     pub(super) shaders: CellShaders,
     pub(super) spirv: Vec<Arc<Vec<u32>>>,
-    /// The `nonuniformEXT` the compiler dropped (direct heap cells).
-    pub(super) dropped: Option<DroppedNonUniform>,
+    pub(super) seen: Seen,
 }
 
 /// The device addresses a cell's push constants carry (0 where the cell has none).
@@ -32,12 +39,12 @@ pub(super) struct Addresses {
 }
 
 /// A cell ready to record: its descriptor binding, the key of its (created) pipeline, the
-/// addresses its push constants carry, and the note on what the compiler did to its shape.
+/// addresses its push constants carry, and what the driver saw of its shape.
 pub(super) struct Bound {
     pub(super) key: LayoutKey,
     pub(super) pkey: u64,
     pub(super) addresses: Addresses,
-    pub(super) dropped: Option<DroppedNonUniform>,
+    pub(super) seen: Seen,
 }
 
 /// What [`Executor::prebuild`](super::Executor::prebuild) made for one cell: its timings, the

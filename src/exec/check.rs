@@ -1,8 +1,8 @@
 //! Judging a cell from its records: a canary that ran to completion passes; otherwise the records
 //! are compared with the CPU reference (reads the compiler left undecorated judged as undefined),
 //! with pictures of a mismatch under `--dump`, and the note on a dropped `nonuniformEXT` added.
+use super::built::Seen;
 use super::executor::Executor;
-use super::heap::DroppedNonUniform;
 use super::pictures;
 use crate::model::{Cell, CellResult, Outcome, Timings};
 use crate::probe::spec::{ProbeSpec, ReadIndex};
@@ -17,12 +17,12 @@ impl Executor {
         &self,
         cell: &Cell,
         records: &[Record],
-        dropped: Option<DroppedNonUniform>,
+        seen: Seen,
         timings: &mut Timings,
     ) -> CellResult {
         let t = Instant::now();
-        let r = self.check(cell, records, dropped);
-        let note = dropped.map(|d| d.note());
+        let r = self.check(cell, records, seen);
+        let note = seen.dropped.map(|d| d.note());
         timings.check_ms += t.elapsed().as_secs_f64() * 1e3;
         let detail = match (r.detail.clone(), note) {
             (Some(d), Some(n)) => Some(format!("{d}; {n}")),
@@ -31,15 +31,11 @@ impl Executor {
         CellResult { timings: timings.clone(), detail, ..r }
     }
 
-    /// Compare `records` with the reference; `dropped`: the driver saw the cell's non-uniform
+    /// Compare `records` with the reference; `seen.dropped`: the driver saw the cell's non-uniform
     /// descriptor or sampler index without `NonUniform` (the compiler dropped it), so that part of
-    /// the read is judged as undefined.
-    fn check(
-        &self,
-        cell: &Cell,
-        records: &[Record],
-        dropped: Option<DroppedNonUniform>,
-    ) -> CellResult {
+    /// the read is judged as undefined; `seen.lanes`: the records carry lane evidence.
+    fn check(&self, cell: &Cell, records: &[Record], seen: Seen) -> CellResult {
+        let dropped = seen.dropped;
         let none = |outcome, detail: &str| CellResult {
             outcome,
             detail: Some(detail.into()),
@@ -62,10 +58,12 @@ impl Executor {
                 || dropped.is_some_and(|d| d.resource),
             sampler: dropped.is_some_and(|d| d.sampler),
         };
-        let expected = reference::expected_with(cell, &self.scene, &self.sref, undefined);
+        let mut expected = reference::expected_with(cell, &self.scene, &self.sref, undefined);
+        reference::expect_lanes(&mut expected, seen.lanes);
         let (w, h) = (self.scene.params.width, self.scene.params.height);
         let mut cmp = reference::compare(&expected, records, w);
-        cmp.mutant = self.predict_mutant(cell, undefined, &expected, records);
+        cmp.mutant = self.predict_mutant(cell, (undefined, seen.lanes), &expected, records);
+        cmp.lane_evidence = seen.lanes;
         let outcome = if cmp.passed() { Outcome::Pass } else { Outcome::Mismatch };
         let mut detail = (!cmp.passed()).then(|| {
             format!(

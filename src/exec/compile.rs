@@ -1,24 +1,57 @@
 //! Phase `compile` of a cell: its GLSL generated (with its injected fault), compiled to SPIR-V
 //! (cached per source) or read from a repro bundle, patched by the spec's workarounds (then a
-//! mutant cell's mutation, `super::mutant`), written
-//! out with `--dump`, and scanned for the `nonuniformEXT` the compiler dropped.
-use super::built::Compiled;
+//! mutant cell's mutation, `super::mutant`), written out with `--dump`, and scanned for the
+//! `nonuniformEXT` the compiler dropped. Where the probe measures its lane evidence is decided
+//! here ([`Executor::lane_evidence`]).
+use super::built::{Compiled, Seen};
 use super::error::CellError;
 use super::executor::Executor;
 use super::{files, heap};
-use crate::model::{Cell, InjectedFault, Timings, Workaround};
+use crate::model::{Cell, InjectedFault, LaneEvidence, LaneMode, Timings, Workaround};
 use crate::patches::{workaround, PatchError};
 use crate::probe::spec::{ArrayAt, ProbeSpec};
 use crate::shadergen::{self, CellShaders};
 use std::sync::Arc;
 use std::time::Instant;
 
-/// The GLSL of every shader `cell` needs, with its injected fault (if any) appended.
-pub(super) fn cell_shaders(cell: &Cell, injected: Option<&InjectedFault>) -> CellShaders {
-    shadergen::generate_with(cell, injected.map(|i| i.fault))
+/// SPIR-V `OpCapability` and `Capability GroupNonUniformBallot` (SPIR-V 1.6 unified spec).
+const OP_CAPABILITY: u32 = 17;
+const CAPABILITY_GROUP_NON_UNIFORM_BALLOT: u32 = 64;
+
+/// Whether a module declares `GroupNonUniformBallot` (what the probe's lane evidence needs).
+fn declares_ballot(words: &[u32]) -> bool {
+    let mut i = 5;
+    while let Some(&first) = words.get(i) {
+        let (count, op) = ((first >> 16) as usize, first & 0xffff);
+        if count == 0 {
+            return false;
+        }
+        if op == OP_CAPABILITY && words.get(i + 1) == Some(&CAPABILITY_GROUP_NON_UNIFORM_BALLOT) {
+            return true;
+        }
+        i += count;
+    }
+    false
 }
 
 impl Executor {
+    /// What `cell`'s probe records as lane evidence under the run's `--lane-evidence`: the device
+    /// says whether subgroup ballot works in its probed stage (`vk::features`).
+    pub(super) fn lane_evidence(&self, cell: &Cell) -> LaneEvidence {
+        self.opts.lanes.evidence(self.gpu.info.subgroup_ballot(cell.stage))
+    }
+
+    /// The GLSL of every shader `cell` needs, with its injected fault (if any) appended and its
+    /// lane evidence where [`Executor::lane_evidence`] says.
+    pub(super) fn cell_shaders(
+        &self,
+        cell: &Cell,
+        injected: Option<&InjectedFault>,
+    ) -> CellShaders {
+        let lanes = cell.canary.is_none() && self.lane_evidence(cell).recorded();
+        shadergen::generate_with(cell, injected.map(|i| i.fault), lanes)
+    }
+
     /// GLSL → SPIR-V (cached per source), the cell's workarounds, `--dump`: phase `compile`.
     pub(super) fn compile_cell(
         &mut self,
@@ -45,7 +78,35 @@ impl Executor {
             files::dump(dir, cell, &shaders, &spirv).map_err(CellError::Io)?;
         }
         let dropped = heap::dropped_nonuniform(&spec, &spirv);
-        Ok(Compiled { shaders, spirv, dropped })
+        let lanes = self.recorded_lanes(cell, &shaders, &spirv);
+        Ok(Compiled { shaders, spirv, seen: Seen { dropped, lanes } })
+    }
+
+    /// The lane evidence the cell's records will carry: as generated, or for a bundle's SPIR-V,
+    /// whether its probed module measures it (declares `GroupNonUniformBallot`).
+    fn recorded_lanes(
+        &self,
+        cell: &Cell,
+        shaders: &CellShaders,
+        spirv: &[Arc<Vec<u32>>],
+    ) -> LaneEvidence {
+        if cell.canary.is_some() {
+            return LaneEvidence::Absent;
+        }
+        let wanted = self.lane_evidence(cell);
+        if self.opts.spirv_dir.is_none() {
+            return wanted;
+        }
+        let role = shadergen::Role::probed(cell.stage);
+        let probed = shaders.shaders.iter().position(|s| s.role == role);
+        let ballot = probed.and_then(|k| spirv.get(k)).is_some_and(|w| declares_ballot(w));
+        match (ballot, wanted) {
+            (false, _) => LaneEvidence::Absent,
+            (true, LaneEvidence::Supported) => LaneEvidence::Supported,
+            (true, LaneEvidence::Absent | LaneEvidence::Forced) => {
+                LaneMode::Force.evidence(self.gpu.info.subgroup_ballot(cell.stage))
+            }
+        }
     }
 
     /// Every shader's SPIR-V, in order: compiled from its GLSL (the time added to
@@ -99,4 +160,22 @@ fn patch_all(
         .into());
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_ballot_capability_is_found_and_its_absence_too() {
+        let header = [0x0723_0203, 0x0001_0600, 0, 40, 0];
+        let cap = |c: u32| [(2 << 16) | OP_CAPABILITY, c];
+        let m: Vec<u32> = header.iter().chain(&cap(1)).chain(&cap(64)).copied().collect();
+        assert!(declares_ballot(&m));
+        let m: Vec<u32> = header.iter().chain(&cap(1)).chain(&cap(61)).copied().collect();
+        assert!(!declares_ballot(&m));
+        // truncated or zero word counts end the scan
+        assert!(!declares_ballot(&[0x0723_0203, 0, 0, 0, 0, 0, 64]));
+        assert!(!declares_ballot(&header));
+    }
 }

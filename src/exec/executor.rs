@@ -41,6 +41,8 @@ pub struct ExecOptions {
     pub pipeline_cache: Option<PathBuf>,
     /// `RTPROBE_BINDING_STAGES=all` of the run (the job file's `binding_stages`).
     pub all_stages: bool,
+    /// `--lane-evidence` of the run: where the probe measures its lane evidence.
+    pub lanes: crate::model::LaneMode,
 }
 
 /// Told each phase a cell (or the setup) enters; an error ends the cell there (the worker's

@@ -3,7 +3,7 @@
 //! added to the comparison, which judges the records against the unmutated probe.
 use super::error::CellError;
 use super::executor::Executor;
-use crate::model::{Cell, MutantPrediction, Timings};
+use crate::model::{Cell, LaneEvidence, Mutant, MutantPrediction, Timings};
 use crate::mutants::{self, Mutation};
 use crate::patches::PatchError;
 use crate::probe::spec::ProbeSpec;
@@ -14,27 +14,41 @@ use std::time::Instant;
 
 impl Executor {
     /// What `spec`'s mutant rewrites (`None`: no mutant); one with nothing to rewrite in this
-    /// cell is an error (the mutants round never schedules one).
+    /// cell is an error (the mutants round never schedules one), and so is a broadcast whose
+    /// prediction would lack the device's lane evidence (its leaders): it needs evidence the
+    /// device supports in the stage (`LaneEvidence::Supported`; forced evidence is never judged
+    /// by, `model::lanes`).
     pub(super) fn mutation(&self, spec: &ProbeSpec) -> Result<Option<Mutation>, CellError> {
         let Some(m) = spec.mutant else { return Ok(None) };
         let slots = probe::slot_count(spec.resource, self.scene.params.instances);
-        mutants::site(spec, m, slots).map(Some).map_err(|what| {
+        let refuse = |what: String| {
             CellError::Mutant(PatchError::NothingToPatch { patch: m.as_str(), what })
-        })
+        };
+        let site = mutants::site(spec, m, slots).map_err(refuse)?;
+        let lanes = self.opts.lanes.evidence(self.gpu.info.subgroup_ballot(spec.stage));
+        if m == Mutant::IndexBroadcast && lanes != LaneEvidence::Supported {
+            return Err(refuse(format!(
+                "its prediction needs the device's lane evidence in {} (subgroup ballot listed for the stage, --lane-evidence auto; {})",
+                spec.stage,
+                crate::model::lanes::SUBGROUP_STAGE_VUID
+            )));
+        }
+        Ok(Some(site))
     }
 
     /// The reference's prediction for a mutant cell's records (`None`: not a mutant cell):
-    /// `expected` is the unmutated probe's, `records` the device's (a broadcast's leaders).
+    /// judged as `undefined` says, with the lane evidence the records carry; `expected` is the
+    /// unmutated probe's, `records` the device's (a broadcast's leaders).
     pub(super) fn predict_mutant(
         &self,
         cell: &Cell,
-        undefined: Undefined,
+        judged: (Undefined, LaneEvidence),
         expected: &[Expected],
         records: &[Record],
     ) -> Option<MutantPrediction> {
         let site = self.mutation(&ProbeSpec::of(cell)).ok().flatten()?;
         let world = (&self.scene, &self.sref);
-        Some(reference::mutant_after_run(cell, world, undefined, site, (expected, records)))
+        Some(reference::mutant_after_run(cell, world, judged, site, (expected, records)))
     }
 }
 

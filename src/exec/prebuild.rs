@@ -11,7 +11,6 @@
 //! cell's compile and bindings, each pipeline) is reported as a [`Step`], so the supervisor's
 //! deadline measures silence, not the batch's size. Traces still run one cell at a time.
 use super::built::{Bound, Compiled, PipelineInput, Prebuilt};
-use super::compile::cell_shaders;
 use super::error::CellError;
 use super::executor::Executor;
 use super::pipeline::Pipeline;
@@ -140,7 +139,7 @@ impl Executor {
         let generated: Vec<_> = cells
             .iter()
             .map(|c| {
-                cell_shaders(
+                self.cell_shaders(
                     c,
                     crate::model::inject::roll(&self.opts.inject, c, self.opts.inject_seed)
                         .as_ref(),

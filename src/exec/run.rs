@@ -1,10 +1,9 @@
 //! One cell's turn: built (or taken from the prebuild), its push constants, the records buffer
 //! filled with the sentinel, the work recorded and submitted with a deadline, the records read
 //! back and judged; the phases told to the caller, and every failure made the cell's result.
-use super::built::Bound;
+use super::built::{Bound, Seen};
 use super::error::CellError;
 use super::executor::{Executor, PhaseHook};
-use super::heap::DroppedNonUniform;
 use super::record::{self, Work};
 use crate::model::inject::{self, FaultKind};
 use crate::model::{Canary, Cell, CellResult, InjectedFault, Phase, Timings};
@@ -27,7 +26,7 @@ impl Executor {
             .try_run(cell, injected.as_ref(), &mut timings, on_phase)
             .and_then(|done| on_phase(Phase::Check).map(|()| done).map_err(CellError::from));
         let mut out = match result {
-            Ok((records, dropped)) => self.judge(cell, &records, dropped, &mut timings),
+            Ok((records, seen)) => self.judge(cell, &records, seen, &mut timings),
             Err(e) => e.result(&self.gpu, self.opts.timeout, timings.clone()),
         };
         out.timings.total_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -59,14 +58,14 @@ impl Executor {
         .to_bytes(b.addresses.patched_table)
     }
 
-    /// The cell's records, and the `nonuniformEXT` the compiler dropped from the cell's shape (if any).
+    /// The cell's records, and what the driver saw of the cell's shape.
     fn try_run(
         &mut self,
         cell: &Cell,
         injected: Option<&InjectedFault>,
         timings: &mut Timings,
         on_phase: PhaseHook,
-    ) -> Result<(Vec<Record>, Option<DroppedNonUniform>), CellError> {
+    ) -> Result<(Vec<Record>, Seen), CellError> {
         let bound = self.build(cell, injected, timings, on_phase)?;
         on_phase(Phase::Record)?;
         let pc = self.push_constants(cell, injected, &bound);
@@ -100,6 +99,6 @@ impl Executor {
         let bytes = self.records.read(self.scene.params.pixels() * RECORD_SIZE);
         let recs = bytes.chunks_exact(RECORD_SIZE).map(Record::from_bytes).collect();
         timings.check_ms = t.elapsed().as_secs_f64() * 1e3;
-        Ok((recs, bound.dropped))
+        Ok((recs, bound.seen))
     }
 }

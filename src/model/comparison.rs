@@ -84,6 +84,10 @@ pub struct Comparison {
     pub element_reads: Option<ElementReads>,
     /// The first few mismatches, for the report.
     pub examples: Vec<Mismatch>,
+    /// Whether the records carried the probed stage's lane evidence and whether it was judged by
+    /// (absent in reports before lane evidence).
+    #[serde(default)]
+    pub lane_evidence: crate::model::LaneEvidence,
     /// Pictures of a mismatching comparison (expected, actual, diff PNGs; `run --dump`).
     #[serde(skip_serializing_if = "Vec::is_empty", default)]
     pub pictures: Vec<String>,

@@ -43,6 +43,9 @@ pub struct RunOptions {
     pub shard: Option<String>,
     /// `RTPROBE_BINDING_STAGES` as set for the run.
     pub binding_stages: Option<String>,
+    /// `--lane-evidence`: where the probe measured its subgroup lane evidence (absent: `auto`).
+    #[serde(default)]
+    pub lane_evidence: super::LaneMode,
     /// A repro bundle's `shaders/` the workers ran (`run --cell-spec`).
     #[serde(default)]
     pub spirv_from: Option<PathBuf>,
@@ -82,6 +85,7 @@ impl Default for RunOptions {
             repeat: None,
             shard: None,
             binding_stages: None,
+            lane_evidence: super::LaneMode::Auto,
             spirv_from: None,
             merged_from: vec![],
             mutants: vec![],
@@ -113,6 +117,8 @@ pub enum ResultOption {
     Repeat,
     Isolation,
     BindingStages,
+    /// The subgroup code in the probe changes its code generation.
+    LaneEvidence,
     /// Not result-changing for `merge` (shards are what it joins), but `--resume` keeps it.
     Shard,
 }
@@ -130,6 +136,7 @@ impl ResultOption {
         ResultOption::Repeat,
         ResultOption::Isolation,
         ResultOption::BindingStages,
+        ResultOption::LaneEvidence,
     ];
 
     /// The flag (or variable) the option comes from, for messages.
@@ -145,6 +152,7 @@ impl ResultOption {
             ResultOption::Repeat => "--repeat",
             ResultOption::Isolation => "--isolation",
             ResultOption::BindingStages => "RTPROBE_BINDING_STAGES",
+            ResultOption::LaneEvidence => "--lane-evidence",
             ResultOption::Shard => "--shard",
         }
     }
@@ -162,6 +170,7 @@ impl ResultOption {
             ResultOption::Repeat => serde_json::to_value(o.repeat),
             ResultOption::Isolation => serde_json::to_value(o.isolation),
             ResultOption::BindingStages => serde_json::to_value(&o.binding_stages),
+            ResultOption::LaneEvidence => serde_json::to_value(o.lane_evidence),
             ResultOption::Shard => serde_json::to_value(&o.shard),
         };
         v.unwrap_or(Value::Null)

@@ -13,7 +13,8 @@ pub mod spec;
 use crate::model::{Resource, Stage};
 use std::mem::offset_of;
 
-/// One record per pixel (std430, 64 bytes): what the ray hit and what the probed stage read.
+/// One record per pixel (std430, 80 bytes): what the ray hit, what the probed stage read, and
+/// the probed stage's lane evidence ([`FLAG_LANES`]): which subgroup lane did the read, with whom.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Record {
@@ -32,9 +33,22 @@ pub struct Record {
     pub slot: u32,
     /// The element of the slot's resource the probe read (per-primitive or per-pixel offset).
     pub element: u32,
+    /// Written by the hang injection's loop and the infinite-loop canary (a store the compiler
+    /// cannot drop).
     pub pad: u32,
     pub pad2: u32,
     pub value: [f32; 4],
+    /// Lane evidence (with [`FLAG_LANES`]; zero without): `gl_SubgroupInvocationID` of the
+    /// probed stage's invocation.
+    pub lane: u32,
+    /// `subgroupBroadcastFirst` of this pixel's linear index (`x + y * width`): the pixel of the
+    /// first active lane of this invocation's subgroup in the probed stage's call. Pixels with
+    /// equal `leader` ran in the same subgroup instance of that call.
+    pub leader: u32,
+    /// The low 32 bits of `subgroupBallot(true)`: which lanes of the subgroup were active.
+    pub active_mask: u32,
+    /// `subgroupBallotBitCount(subgroupBallot(true))`: active lanes (above 32 on wave64 devices).
+    pub active_count: u32,
 }
 
 /// GLSL name and type of a member of a Rust struct shared with the shaders, at its Rust offset.
@@ -65,10 +79,14 @@ pub const RECORD_FIELDS: &[Field] = fields!(Record {
     pad: "pad" "uint",
     pad2: "pad2" "uint",
     value: "value" "vec4",
+    lane: "lane" "uint",
+    leader: "leader" "uint",
+    active_mask: "activeMask" "uint",
+    active_count: "activeCount" "uint",
 });
 
 pub const RECORD_SIZE: usize = std::mem::size_of::<Record>();
-const _: () = assert!(RECORD_SIZE == 64);
+const _: () = assert!(RECORD_SIZE == 80);
 
 impl Record {
     /// The bytes the GPU writes for this record (tests build garbage records from them).
@@ -90,6 +108,10 @@ impl Record {
         for k in 0..4 {
             put(offset_of!(Record, value) + 4 * k, self.value[k].to_bits());
         }
+        put(offset_of!(Record, lane), self.lane);
+        put(offset_of!(Record, leader), self.leader);
+        put(offset_of!(Record, active_mask), self.active_mask);
+        put(offset_of!(Record, active_count), self.active_count);
         b
     }
 
@@ -109,6 +131,10 @@ impl Record {
             pad: u(offset_of!(Record, pad)),
             pad2: u(offset_of!(Record, pad2)),
             value: [0, 1, 2, 3].map(|k| f(offset_of!(Record, value) + 4 * k)),
+            lane: u(offset_of!(Record, lane)),
+            leader: u(offset_of!(Record, leader)),
+            active_mask: u(offset_of!(Record, active_mask)),
+            active_count: u(offset_of!(Record, active_count)),
         }
     }
 }
@@ -186,6 +212,11 @@ impl PushConstants {
 pub const FLAG_HIT: u32 = 1;
 /// The probed stage ran for this pixel and wrote `slot`, `element` and `value`.
 pub const FLAG_PROBE: u32 = 2;
+/// The probed stage wrote its lane evidence (`lane`, `leader`, `active_mask`, `active_count`):
+/// set where the probe was generated with it ([`LANE_EXTENSION`]); without it those words are 0.
+pub const FLAG_LANES: u32 = 4;
+/// The GLSL extension the lane evidence needs (SPIR-V `GroupNonUniformBallot`).
+pub const LANE_EXTENSION: &str = "GL_KHR_shader_subgroup_ballot";
 
 /// Slot read with `index=literal` (a literal in the GLSL).
 pub const LITERAL_SLOT: u32 = 3;
@@ -481,7 +512,7 @@ pub fn glsl_declarations() -> String {
         s += &format!("    layout(offset = {}) {} {};\n", f.offset, f.glsl_type, f.glsl_name);
     }
     s += "} pc;\n\n";
-    s += &format!("const uint FLAG_HIT = {FLAG_HIT}u;\nconst uint FLAG_PROBE = {FLAG_PROBE}u;\nconst uint ELEMENTS = {ELEMENTS}u;\n");
+    s += &format!("const uint FLAG_HIT = {FLAG_HIT}u;\nconst uint FLAG_PROBE = {FLAG_PROBE}u;\nconst uint FLAG_LANES = {FLAG_LANES}u;\nconst uint ELEMENTS = {ELEMENTS}u;\n");
     // The GLSL twin of packed_element.
     s += "uint packedElement(uint slot, uint element) { return slot * ELEMENTS + element; }\n";
     s += &format!(
@@ -499,7 +530,25 @@ pub fn glsl_declarations() -> String {
         })
         .collect();
     s += &format!("\n// A record of a stage that traced no ray (fragment, compute).\nRecord probeRecord(uint slot, uint element, vec4 value) {{\n    return Record({});\n}}\n", args.join(", "));
+    s += LANE_SETTER;
     s
+}
+
+/// The GLSL that writes a probe's lane evidence into a record (`laneFlag` is [`FLAG_LANES`] or 0;
+/// `lanes` = (lane, leader, active mask, active count), as [`lane_evidence_glsl`] computes them).
+const LANE_SETTER: &str = "\n// The probed stage's lane evidence into a record (probe::Record's lane words).\nvoid setLanes(inout Record r, uint laneFlag, uvec4 lanes) {\n    r.flags |= laneFlag;\n    r.lane = lanes.x;\n    r.leader = lanes.y;\n    r.activeMask = lanes.z;\n    r.activeCount = lanes.w;\n}\n";
+
+/// GLSL statements (indented) that define `uint probeLaneFlag` and `uvec4 probeLanes` = (lane,
+/// leader, active mask, active count) in the probed stage, `px` being the pixel: measured with
+/// subgroup ballot where `recorded` ([`LANE_EXTENSION`]; the device must list the stage in
+/// `subgroupSupportedStages` and ballot in `subgroupSupportedOperations`,
+/// VUID-RuntimeSpirv-None-06343), else zeros without [`FLAG_LANES`].
+pub fn lane_evidence_glsl(recorded: bool) -> &'static str {
+    if recorded {
+        "    uvec4 probeBallot = subgroupBallot(true);\n    uint probeLaneFlag = FLAG_LANES;\n    uvec4 probeLanes = uvec4(gl_SubgroupInvocationID, subgroupBroadcastFirst(px.x + px.y * pc.width), probeBallot.x, subgroupBallotBitCount(probeBallot));\n"
+    } else {
+        "    uint probeLaneFlag = 0u;\n    uvec4 probeLanes = uvec4(0u);\n"
+    }
 }
 
 /// The `shaderRecordEXT` block of a probe reading [`ShaderRecordData`] (instance `shaderRecord`).

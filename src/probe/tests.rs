@@ -96,6 +96,10 @@ fn record_round_trips_through_bytes() {
         pad: 0,
         pad2: 11,
         value: [1.0, 2.0, 3.0, 0.25],
+        lane: 5,
+        leader: 4093,
+        active_mask: 0b1110_0000,
+        active_count: 3,
     };
     let bytes = r.to_bytes();
     assert_eq!(Record::from_bytes(&bytes), r);
@@ -105,6 +109,12 @@ fn record_round_trips_through_bytes() {
     assert_eq!(word(at("custom")), 0xfffff3);
     assert_eq!(word(at("element")), 3);
     assert_eq!(f32::from_bits(word(at("value") + 12)), 0.25);
+    assert_eq!(
+        [word(at("lane")), word(at("leader")), word(at("activeMask")), word(at("activeCount"))],
+        [5, 4093, 0b1110_0000, 3]
+    );
+    // the lane evidence sits after every word the record had before it (older readers' offsets)
+    assert_eq!(at("lane"), 64);
 }
 
 #[test]

@@ -3,7 +3,7 @@
 //! own/other/neither reads of an undefined index, and the first mismatches as examples.
 use super::rules::{Expected, ValueRule, BARY_TOL, T_REL_TOL};
 use crate::model::{Comparison, ElementReads, Mismatch, NO_NONUNIFORM_VUID};
-use crate::probe::{Record, FLAG_HIT, FLAG_PROBE};
+use crate::probe::{Record, FLAG_HIT, FLAG_LANES, FLAG_PROBE};
 
 /// The larger error, NaN when either is NaN (`f64::max` would drop it).
 fn worst(acc: f64, e: f64) -> f64 {
@@ -45,6 +45,29 @@ fn compare_hit(c: &mut Comparison, bad: &mut Bad, r: &Record, a: &Record) {
     c.worst_bary = worst(c.worst_bary, be);
     if be.is_nan() || be > BARY_TOL {
         bad.push(("bary", format!("{:?}", r.bary), format!("{:?}", a.bary)));
+    }
+}
+
+/// The lane words: consistent where the probe measured them (`FLAG_LANES`), else all zero.
+fn compare_lanes(bad: &mut Bad, r: &Record, a: &Record, pixels: usize) {
+    if r.flags & FLAG_LANES != 0 {
+        if let Some(why) = super::lanes::inconsistency(a, pixels) {
+            let words = format!(
+                "lane {} leader {} mask {:#x} count {}",
+                a.lane, a.leader, a.active_mask, a.active_count
+            );
+            bad.push(("lanes", format!("consistent lane words ({why})"), words));
+        }
+    } else {
+        unset_fields_differ(
+            bad,
+            &[
+                ("lanes", 0, a.lane),
+                ("lanes", 0, a.leader),
+                ("lanes", 0, a.active_mask),
+                ("lanes", 0, a.active_count),
+            ],
+        );
     }
 }
 
@@ -121,6 +144,7 @@ pub fn compare(expected: &[Expected], actual: &[Record], width: u32) -> Comparis
                     ],
                 );
             }
+            compare_lanes(&mut bad, r, a, expected.len());
             if r.flags & FLAG_PROBE != 0 {
                 if e.rule == ValueRule::Exact {
                     exact_probe_pixels += 1;

@@ -27,6 +27,10 @@
 //! dynamic sampler index without `nonuniformEXT` (only in cells whose dynamic descriptor index
 //! goes without it) falls under the any-element rule with the rest of the read.
 //!
+//! Lane evidence (`probe::FLAG_LANES`, where the probe measured it: [`expect_lanes`]): each such
+//! record's lane words must be consistent ([`lanes::inconsistency`]); [`lanes::Lanes`] reads the
+//! device's subgroups back from them. Records without it must hold zero lane words.
+//!
 //! Mutants (`run --mutants`): [`mutation`] is the reference run with a mutant's mutation (which
 //! slot, sampler, packed element or value the mutated probe reads), to predict whether it applies
 //! and what the comparison must flag; a mutant attempt is judged with [`expected`] of its
@@ -37,13 +41,14 @@
 //! element would have been caught there.
 mod compare;
 pub mod intersect;
+pub mod lanes;
 pub mod mutation;
 mod rules;
 pub mod watertight;
 
-use crate::model::{Cell, Resource, Stage};
+use crate::model::{Cell, LaneEvidence, Resource, Stage};
 use crate::probe::spec::{ElementMap, ProbeSpec, ReadIndex, Sampler};
-use crate::probe::{self, HitIds, Record, FLAG_HIT, FLAG_PROBE, MAX_AS_VARIANTS};
+use crate::probe::{self, HitIds, Record, FLAG_HIT, FLAG_LANES, FLAG_PROBE, MAX_AS_VARIANTS};
 use crate::scene::Scene;
 pub use compare::compare;
 use intersect::TraceRef;
@@ -119,6 +124,16 @@ pub fn expected(cell: &Cell, scene: &Scene, sref: &SceneReference) -> Vec<Expect
         sref,
         Undefined { descriptor: ProbeSpec::of(cell).read == ReadIndex::Undefined, sampler: false },
     )
+}
+
+/// Where the probe measured its lane evidence (`lanes.recorded()`), every probe pixel of
+/// `expected` must carry it (`FLAG_LANES`, consistent lane words); elsewhere the lane words stay 0.
+pub fn expect_lanes(expected: &mut [Expected], lanes: LaneEvidence) {
+    if lanes.recorded() {
+        for e in expected.iter_mut().filter(|e| e.record.flags & FLAG_PROBE != 0) {
+            e.record.flags |= FLAG_LANES;
+        }
+    }
 }
 
 /// What every probed pixel of one cell shares: its spec, the array's size, what is undefined, and
@@ -301,23 +316,25 @@ pub fn expected_mutated(
 }
 
 /// What mutant `site` is predicted to do to `cell` after its run: the reference run with the
-/// mutation (a broadcast's leaders from the device's `records`) against the cell's own
+/// mutation (a broadcast's leaders from the device's `records`: [`lanes::Lanes`]), judged as
+/// `undefined` and with the lane evidence `lanes` as the cell is, against the cell's own
 /// `expected` records (`mutation::predict`).
 pub fn mutant_after_run(
     cell: &Cell,
     (scene, sref): (&Scene, &SceneReference),
-    undefined: Undefined,
+    (undefined, lanes): (Undefined, LaneEvidence),
     site: crate::mutants::Mutation,
     (expected, records): (&[Expected], &[Record]),
 ) -> crate::model::MutantPrediction {
     let mut m = mutation::Mutation::new(site);
-    let lanes = mutation::broadcast(site);
-    if lanes {
-        m.leader_slots = mutation::leader_slots(expected, records);
+    let from_lanes = mutation::broadcast(site);
+    if from_lanes {
+        m.leader_slots = mutation::leader_slots(expected, &lanes::Lanes::from_records(records));
     }
-    let mutated = expected_mutated(cell, scene, sref, undefined, &m);
+    let mut mutated = expected_mutated(cell, scene, sref, undefined, &m);
+    expect_lanes(&mut mutated, lanes);
     let p = mutation::predict(expected, &mutated, Some(records), scene.params.width);
-    crate::model::MutantPrediction { from_lanes: lanes, ..p }
+    crate::model::MutantPrediction { from_lanes, ..p }
 }
 
 /// Whether mutant `site` can apply to `cell` before anything ran: the prediction without the

@@ -11,6 +11,7 @@
 //! `mutant_after_run`); before the run (`mutant_before_run`) it is equivalent only where every
 //! checked pixel computes the same slot ([`one_slot`]).
 use super::compare::compare;
+use super::lanes::Lanes;
 use super::rules::Expected;
 use crate::model::MutantPrediction;
 use crate::mutants::{index, value, IndexFn, Mutation as Site};
@@ -87,12 +88,17 @@ impl Mutation {
     }
 }
 
-/// Per pixel, the slot its subgroup's first active lane computed: the expected slot of the pixel
-/// the device's record names as `leader`, where that record carries lane evidence and names a
-/// probe pixel.
-pub fn leader_slots(_expected: &[Expected], _device: &[Record]) -> Vec<Option<u32>> {
-    // TODO(verdicts): the records' lane evidence (`leader`) arrives with the verdicts branch.
-    vec![]
+/// Per pixel, the slot its subgroup's first active lane computed (what `subgroupBroadcastFirst`
+/// of the index hands every lane): the expected slot of its leader pixel, read from the device's
+/// lane evidence (`lanes`: where the pixel's record carries consistent evidence and its leader
+/// is a probe pixel).
+pub fn leader_slots(expected: &[Expected], lanes: &Lanes) -> Vec<Option<u32>> {
+    (0..expected.len())
+        .map(|p| {
+            let leader = expected.get(lanes.leader(p)?)?;
+            (leader.record.flags & FLAG_PROBE != 0).then_some(leader.record.slot)
+        })
+        .collect()
 }
 
 /// `mutated` against `expected`: the checked pixels whose records differ, and those the
@@ -108,8 +114,13 @@ pub fn predict(
         .iter()
         .enumerate()
         .map(|(p, m)| match device.and_then(|d| d.get(p)) {
-            // TODO(verdicts): the device's lane words.
-            Some(_) => m.record,
+            Some(d) => Record {
+                lane: d.lane,
+                leader: d.leader,
+                active_mask: d.active_mask,
+                active_count: d.active_count,
+                ..m.record
+            },
             None => m.record,
         })
         .collect();

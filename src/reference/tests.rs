@@ -23,6 +23,25 @@ fn records(e: &[Expected]) -> Vec<Record> {
     e.iter().map(|x| x.record).collect()
 }
 
+/// The expected records with the lane evidence a device of 8-lane subgroups writes when each
+/// subgroup holds 8 consecutive pixels and the probe pixels among them are its active lanes.
+fn with_lanes(e: &[Expected]) -> Vec<Record> {
+    let mut out = records(e);
+    for (g, chunk) in out.chunks_mut(8).enumerate() {
+        let active: Vec<usize> =
+            (0..chunk.len()).filter(|&k| chunk[k].flags & FLAG_PROBE != 0).collect();
+        let mask = active.iter().fold(0u32, |m, &k| m | 1 << k);
+        for &k in &active {
+            let r = &mut chunk[k];
+            r.lane = k as u32;
+            r.leader = (g * 8 + active[0]) as u32;
+            r.active_mask = mask;
+            r.active_count = active.len() as u32;
+        }
+    }
+    out
+}
+
 /// The expected records with every probe pixel's value replaced by `read(record)` (what a
 /// faulty driver would read there).
 fn reading(e: &[Expected], read: impl Fn(&Record) -> [f32; 4]) -> Vec<Record> {
@@ -336,6 +355,48 @@ fn with_word(r: &Record, offset: usize, bits: u32) -> Record {
     Record::from_bytes(&b)
 }
 
+/// Where the probe measured lane evidence every probe record must carry consistent lane words
+/// (and the flag); a record without the flag, or with a lane outside its own mask, a zero or
+/// oversized count, a mask with more lanes than counted, or a leader off the image, mismatches.
+/// Without lane evidence the words must stay zero.
+#[test]
+fn lane_words_are_held_to_consistency() {
+    let (scene, r) = world();
+    let c = cell(Stage::ClosestHit, IndexSource::Literal);
+    let mut e = expected(&c, scene, r);
+    expect_lanes(&mut e, LaneEvidence::Supported);
+    let good = with_lanes(&e);
+    assert!(compare(&e, &good, 64).passed());
+    let p = e.iter().position(|x| !x.ambiguous && x.record.flags & FLAG_PROBE != 0).unwrap();
+    let bad: [fn(&mut Record); 6] = [
+        |r| r.flags &= !FLAG_LANES,
+        |r| r.active_mask &= !(1 << r.lane),
+        |r| r.active_count = 0,
+        |r| r.active_count = 129,
+        |r| r.active_mask = 0xffff_ffff,
+        |r| r.leader = 4096,
+    ];
+    for (k, spoil) in bad.iter().enumerate() {
+        let mut actual = good.clone();
+        spoil(&mut actual[p]);
+        let cmp = compare(&e, &actual, 64);
+        assert_eq!(cmp.mismatched_pixels, 1, "spoiler {k}");
+    }
+    // without lane evidence, lane words a probe did write mismatch
+    let plain = expected(&c, scene, r);
+    assert!(compare(&plain, &records(&plain), 64).passed());
+    let unflagged: Vec<Record> =
+        good.iter().map(|r| Record { flags: r.flags & !FLAG_LANES, ..*r }).collect();
+    let cmp = compare(&plain, &unflagged, 64);
+    assert!(!cmp.passed() && cmp.by_field.keys().eq(["lanes"]), "{:?}", cmp.by_field);
+    // the device's subgroups read back: every probe pixel's subgroup is known
+    let lanes = lanes::Lanes::from_records(&good);
+    let probe_pixels = e.iter().filter(|x| x.record.flags & FLAG_PROBE != 0).count();
+    assert_eq!(lanes.known(), probe_pixels);
+    let group = lanes.subgroup(p).unwrap();
+    assert!(group.contains(&p) && group.iter().all(|q| q / 8 == p / 8));
+}
+
 #[test]
 fn garbage_in_any_record_field_never_passes() {
     let (scene, r) = world();
@@ -366,7 +427,7 @@ fn garbage_in_any_record_field_never_passes() {
             (0..words).map(move |k| (f.glsl_name, f.offset + 4 * k))
         })
         .collect();
-    assert_eq!(word_fields.len(), 14);
+    assert_eq!(word_fields.len(), 18);
     for &p in &[tri, miss] {
         for &(name, offset) in &word_fields {
             for bits in GARBAGE {

@@ -303,7 +303,7 @@ mod tests {
     #[test]
     fn a_compute_buffer_cell_has_its_spirv_glsl_buffers_and_expectations() {
         let cell = compute(Resource::StorageBuffer, IndexSource::PushConstant);
-        let shaders = cell_shaders(&cell, None).unwrap();
+        let shaders = cell_shaders(&cell, None, false).unwrap();
         let text = script(&cell, &shaders, &small(), None, "test").unwrap();
         assert!(text.starts_with("#!amber\n"));
         // The SPIR-V, byte for byte: the magic number little-endian first.
@@ -355,7 +355,8 @@ mod tests {
     fn uniform_spec_constant_cells_specialize_and_use_std140() {
         let cell = compute(Resource::UniformBuffer, IndexSource::SpecConstant);
         let text =
-            script(&cell, &cell_shaders(&cell, None).unwrap(), &small(), None, "test").unwrap();
+            script(&cell, &cell_shaders(&cell, None, false).unwrap(), &small(), None, "test")
+                .unwrap();
         assert!(text.contains(&format!("ATTACH probe SPECIALIZE 0 AS uint32 {}", probe::SPEC_SLOT)));
         assert!(
             text.contains("STD140 DATA") && text.contains(" AS uniform DESCRIPTOR_SET 0 BINDING 2")
@@ -373,7 +374,8 @@ mod tests {
         let cell = compute(Resource::StorageBuffer, IndexSource::DynamicElement);
         assert_eq!(cell.id(), "compute.storage_buffer.dynamic_element.descriptor_indexing");
         let text =
-            script(&cell, &cell_shaders(&cell, None).unwrap(), &small(), None, "test").unwrap();
+            script(&cell, &cell_shaders(&cell, None, false).unwrap(), &small(), None, "test")
+                .unwrap();
         assert!(
             text.contains(&format!("ATTACH probe SPECIALIZE 0 AS uint32 {}\n", probe::PACKED_SLOT)),
             "no SPECIALIZE"
@@ -427,7 +429,8 @@ mod tests {
     fn a_lenient_dynamic_cell_has_no_expectations_and_says_why() {
         let cell = compute(Resource::StorageBuffer, IndexSource::Dynamic);
         let text =
-            script(&cell, &cell_shaders(&cell, None).unwrap(), &small(), None, "test").unwrap();
+            script(&cell, &cell_shaders(&cell, None, false).unwrap(), &small(), None, "test")
+                .unwrap();
         assert!(!text.contains("\nEXPECT "));
         assert!(text.contains("No EXPECT: the index is dynamic without nonuniformEXT"));
     }
@@ -481,7 +484,7 @@ mod tests {
     fn the_bindings_are_the_generated_glsls() {
         for r in [Resource::StorageBuffer, Resource::UniformBuffer] {
             let cell = compute(r, IndexSource::Literal);
-            let glsl = &cell_shaders(&cell, None).unwrap()[0].glsl;
+            let glsl = &cell_shaders(&cell, None, false).unwrap()[0].glsl;
             assert!(
                 glsl.contains(&format!(
                     "layout(set = 0, binding = {RECORDS_BINDING}, std430) buffer Records"

@@ -14,7 +14,7 @@ use crate::model::Injection;
 use crate::model::IsolationLine;
 use crate::model::Outcome;
 use crate::model::{CellReport, RunReport};
-use crate::report::shaders::{cell_shaders, probed_role, spirv_dis, ShaderError};
+use crate::report::shaders::{cell_shaders, lanes_in, probed_role, spirv_dis, ShaderError};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
@@ -189,7 +189,7 @@ pub fn build(
         bi,
         injection.is_none(),
     );
-    let (shader, shader_error) = match shader_comparison(&rep, bi, inject) {
+    let (shader, shader_error) = match shader_comparison(report, &rep, bi, inject) {
         Ok(sc) => (Some(sc), None),
         Err(e) => (None, Some(e.to_string())),
     };
@@ -509,6 +509,7 @@ fn not_tested(report: &RunReport, b: &BisectFile) -> Vec<String> {
 /// The probed shader of the failing cell and of its closest passing sibling (preferring a
 /// sibling that differs in the index, then the resource, then the other axes in registry order).
 fn shader_comparison(
+    report: &RunReport,
     rep: &Cell,
     bi: &crate::model::Bisection,
     inject: &[Injection],
@@ -527,8 +528,8 @@ fn shader_comparison(
     let role = probed_role(rep.stage);
     let pick = |c: &Cell| -> Result<(String, Vec<u32>), IssueError> {
         let fault = for_cell(inject, c).map(|i| i.fault);
-        let shaders =
-            cell_shaders(c, fault).map_err(|err| IssueError::Shaders { cell: c.id(), err })?;
+        let shaders = cell_shaders(c, fault, lanes_in(report, c))
+            .map_err(|err| IssueError::Shaders { cell: c.id(), err })?;
         let sh = shaders
             .into_iter()
             .find(|s| s.role == probed_role(c.stage))

@@ -126,7 +126,7 @@ pub fn schedule(
                     ..entry(&c.cell, m, MutantStatus::Equivalent, "the reference predicts the same records on every checked pixel")
                 }),
                 Ok(_) if c.outcome != Outcome::Pass => decided.push(entry(&c.cell, m, MutantStatus::NotRun, format!("the cell itself did not pass ({}): a kill could not be told from its own fault", c.outcome.as_str()))),
-                Ok(_) if !supported(&mc) => decided.push(entry(&c.cell, m, MutantStatus::NotRun, "the device cannot run this mutant (see `rtprobe caps`, axis mutant)")),
+                Ok(_) if !supported(&mc) => decided.push(entry(&c.cell, m, MutantStatus::NotRun, unsupported_why(m, &c.cell))),
                 Ok(p) => run.push((mc, p)),
             }
         }
@@ -143,6 +143,21 @@ pub fn schedule(
         decided.retain(|e| kept.contains(&e.cell));
     }
     (run, decided)
+}
+
+/// Why the device cannot run mutant `m` on `cell` (its support is `caps::support::mutant`'s).
+fn unsupported_why(m: Mutant, cell: &Cell) -> String {
+    match m {
+        Mutant::IndexBroadcast => format!("the device lists no subgroup ballot in {} ({}): no broadcast there, and no lane evidence to predict it", cell.stage, crate::model::lanes::SUBGROUP_STAGE_VUID),
+        Mutant::IndexZero
+        | Mutant::IndexNext
+        | Mutant::BaseDropped
+        | Mutant::ElementZero
+        | Mutant::StrideDouble
+        | Mutant::SamplerNext
+        | Mutant::TlasOther
+        | Mutant::ValueBits => "the device cannot run this mutant (`rtprobe caps`, axis mutant)".into(),
+    }
 }
 
 /// The verdict of mutant `m` of `cell` (its unmutated cell), predicted `before` the run, from

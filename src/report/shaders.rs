@@ -25,21 +25,24 @@ pub struct Shader {
 
 /// The role of the shader that does the probed read of `stage`.
 pub fn probed_role(stage: Stage) -> Role {
-    match stage {
-        Stage::Raygen => Role::Raygen,
-        Stage::ClosestHit => Role::ClosestHitTriangles,
-        Stage::AnyHit => Role::AnyHit,
-        Stage::Miss => Role::Miss,
-        Stage::Intersection => Role::Intersection,
-        Stage::Callable => Role::Callable,
-        Stage::Fragment => Role::Fragment,
-        Stage::Compute => Role::Compute,
-    }
+    Role::probed(stage)
 }
 
-/// Every shader of `cell` with `fault` injected, as the worker builds them.
-pub fn cell_shaders(cell: &Cell, fault: Option<FaultKind>) -> Result<Vec<Shader>, ShaderError> {
-    let gen = shadergen::generate_with(cell, fault);
+/// Whether the worker of `report` generated `cell`'s probe with its lane evidence: the run's
+/// `--lane-evidence` and the report's device (`model::lanes::device_ballot`).
+pub fn lanes_in(report: &crate::model::RunReport, cell: &Cell) -> bool {
+    let supported = crate::model::lanes::device_ballot(&report.device, cell.stage);
+    cell.canary.is_none() && report.options.lane_evidence.evidence(supported).recorded()
+}
+
+/// Every shader of `cell` with `fault` injected and its lane evidence where `lanes`
+/// ([`lanes_in`]), as the worker builds them.
+pub fn cell_shaders(
+    cell: &Cell,
+    fault: Option<FaultKind>,
+    lanes: bool,
+) -> Result<Vec<Shader>, ShaderError> {
+    let gen = shadergen::generate_with(cell, fault, lanes);
     let mut compiler = Compiler::new()?;
     let mut out = Vec::new();
     for s in &gen.shaders {

@@ -45,6 +45,9 @@ pub struct WorkerJob {
     /// It changes results, so it travels in the job, not through the worker's environment.
     #[serde(default)]
     pub binding_stages: Option<String>,
+    /// `--lane-evidence` of the run (absent: `auto`).
+    #[serde(default)]
+    pub lane_evidence: crate::model::LaneMode,
 }
 
 fn one() -> usize {
@@ -158,6 +161,7 @@ mod tests {
             serial: vec![],
             pipeline_cache: None,
             binding_stages: Some("all".into()),
+            lane_evidence: crate::model::LaneMode::Force,
         };
         let mut v = serde_json::to_value(&job).unwrap();
         assert_eq!(
@@ -165,6 +169,12 @@ mod tests {
             Some("all")
         );
         v.as_object_mut().unwrap().remove("binding_stages");
-        assert_eq!(serde_json::from_value::<WorkerJob>(v).unwrap().binding_stages, None);
+        assert_eq!(
+            serde_json::from_value::<WorkerJob>(v.clone()).unwrap().lane_evidence,
+            crate::model::LaneMode::Force
+        );
+        v.as_object_mut().unwrap().remove("lane_evidence");
+        let old = serde_json::from_value::<WorkerJob>(v).unwrap();
+        assert_eq!((old.binding_stages, old.lane_evidence), (None, crate::model::LaneMode::Auto));
     }
 }

@@ -64,6 +64,8 @@ pub struct SupervisorOptions {
     pub pipeline_cache: Option<PathBuf>,
     /// `RTPROBE_BINDING_STAGES` of the run, written into each worker's job file.
     pub binding_stages: Option<String>,
+    /// `--lane-evidence` of the run, written into each worker's job file.
+    pub lane_evidence: crate::model::LaneMode,
 }
 
 /// A worker the supervisor runs: its process, and its state as [`machine`] keeps it.
@@ -178,6 +180,7 @@ impl Supervisor {
             threads: self.opts.threads.max(1),
             pipeline_cache: self.opts.pipeline_cache.clone().filter(|_| !self.rerun),
             binding_stages: self.opts.binding_stages.clone(),
+            lane_evidence: self.opts.lane_evidence,
         };
         std::fs::create_dir_all(&self.opts.job_dir)?;
         let path = self.opts.job_dir.join(format!("job-{}-{id}.json", std::process::id()));

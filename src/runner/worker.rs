@@ -128,6 +128,7 @@ fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
         pipeline_cache: job.pipeline_cache.clone(),
         spirv_dir: job.spirv_dir.clone(),
         all_stages: job.binding_stages.as_deref() == Some("all"),
+        lanes: job.lane_evidence,
     };
     phases.compiler()?;
     let mut exec = Executor::new(gpu, &job.scene, opts)?;

@@ -78,19 +78,24 @@ fn header(rt: bool, probe: Option<&ProbeCode>, extra_ext: &[&str]) -> String {
     s
 }
 
-/// Generate all shaders of `cell`.
+/// Generate all shaders of `cell`, without lane evidence (what needs only their shape: the
+/// resources a cell binds).
 pub fn generate(cell: &Cell) -> CellShaders {
-    generate_with(cell, None)
+    generate_with(cell, None, false)
 }
 
 /// Generate all shaders of `cell` (as its probe spec says), with `fault` injected at the probed
-/// read.
-pub fn generate_with(cell: &Cell, fault: Option<crate::model::FaultKind>) -> CellShaders {
+/// read, and the probed stage's lane evidence (`probe::FLAG_LANES`) where `lanes`.
+pub fn generate_with(
+    cell: &Cell,
+    fault: Option<crate::model::FaultKind>,
+    lanes: bool,
+) -> CellShaders {
     let spec = ProbeSpec::of(cell);
     if let Some(c) = spec.canary {
         return canary(c);
     }
-    let mut probe = ProbeCode::new(&spec);
+    let mut probe = ProbeCode::new(&spec, lanes);
     if let Some(f) = fault {
         inject::apply(&mut probe, f);
     }
@@ -107,7 +112,7 @@ gl_Position = vec4(corner / vec2(float(pc.width), float(pc.height)) * 2.0 - 1.0,
             );
             let frag = format!(
                 "{}\nlayout(location = 0) flat in uint inSlot;\nlayout(location = 0) out vec4 color;\nvoid main() {{\n    uvec2 px = uvec2(gl_FragCoord.xy);\n    uint i = px.x + px.y * pc.width;\n{}    \
-records[i] = probeRecord(probeSlot, probeElement, probeValue);\n    color = vec4(0.0);\n}}\n",
+Record r = probeRecord(probeSlot, probeElement, probeValue);\n    setLanes(r, probeLaneFlag, probeLanes);\n    records[i] = r;\n    color = vec4(0.0);\n}}\n",
                 header(false, Some(&probe), &[]),
                 probe.body
             );
@@ -126,7 +131,7 @@ records[i] = probeRecord(probeSlot, probeElement, probeValue);\n    color = vec4
         Stage::Compute => {
             let comp = format!(
                 "{}\nlayout(local_size_x = 8, local_size_y = 8) in;\nvoid main() {{\n    uvec2 px = gl_GlobalInvocationID.xy;\n    if (px.x >= pc.width || px.y >= pc.height) return;\n    uint i = px.x + px.y * pc.width;\n{}    \
-records[i] = probeRecord(probeSlot, probeElement, probeValue);\n}}\n",
+Record r = probeRecord(probeSlot, probeElement, probeValue);\n    setLanes(r, probeLaneFlag, probeLanes);\n    records[i] = r;\n}}\n",
                 header(false, Some(&probe), &[]),
                 probe.body
             );
@@ -176,13 +181,16 @@ reorderThreadNV(hitObj, hint, 16);\n"
 }
 
 /// The probe's result copied into the payload (raygen, miss, closest-hit and any-hit probes).
-const STORE: &str = "    pl.flags |= FLAG_PROBE;\n    pl.slot = probeSlot;\n    pl.element = probeElement;\n    pl.value = probeValue;\n";
+const STORE: &str = "    pl.flags |= FLAG_PROBE;\n    pl.slot = probeSlot;\n    pl.element = probeElement;\n    pl.value = probeValue;\n    setLanes(pl, probeLaneFlag, probeLanes);\n";
 /// What a callable probe hands back to raygen.
 const CALL_DATA: &str =
-    "struct CallData { uint slot; uint element; uint p1; uint p2; vec4 value; };\n";
-/// What an intersection probe hands to the procedural closest-hit shader.
+    "struct CallData { uint slot; uint element; uint laneFlag; uint p2; vec4 value; uvec4 lanes; };\n";
+/// What an intersection probe hands to the procedural closest-hit shader, in the 32 bytes every
+/// device allows (`maxRayHitAttributeSize` is at least 32): the element, lane, active count and
+/// lane flag share `packed` (8 bits each; an element is below `ELEMENTS`, a lane below 128 and an
+/// active count at most 128, the largest subgroup size).
 const PROBE_ATTR: &str =
-    "struct ProbeAttr { vec4 value; uint slot; uint element; };\nhitAttributeEXT ProbeAttr attr;\n";
+    "struct ProbeAttr { vec4 value; uint slot; uint packed; uint leader; uint mask; };\nhitAttributeEXT ProbeAttr attr;\n";
 
 fn ray_tracing<'a>(
     spec: &ProbeSpec,
@@ -216,7 +224,7 @@ fn ray_tracing<'a>(
         call += CALL_DATA;
         call += "layout(location = 2) callableDataInEXT CallData cd;\nvoid main() {\n    uvec2 px = gl_LaunchIDEXT.xy;\n";
         call += &probe.body;
-        call += "    cd.slot = probeSlot;\n    cd.element = probeElement;\n    cd.value = probeValue;\n}\n";
+        call += "    cd.slot = probeSlot;\n    cd.element = probeElement;\n    cd.value = probeValue;\n    cd.laneFlag = probeLaneFlag;\n    cd.lanes = probeLanes;\n}\n";
         shaders.push(ShaderSource { role: Role::Callable, glsl: call });
     }
     let traces_from_hit_or_miss =
@@ -249,7 +257,7 @@ fn raygen(spec: &ProbeSpec, probe: &ProbeCode, here: Option<&ProbeCode>) -> Stri
         rgen += STORE;
     }
     if spec.stage == Stage::Callable {
-        rgen += "    executeCallableEXT(0, 2);\n    pl.flags |= FLAG_PROBE;\n    pl.slot = cd.slot;\n    pl.element = cd.element;\n    pl.value = cd.value;\n";
+        rgen += "    executeCallableEXT(0, 2);\n    pl.flags |= FLAG_PROBE;\n    pl.slot = cd.slot;\n    pl.element = cd.element;\n    pl.value = cd.value;\n    setLanes(pl, cd.laneFlag, cd.lanes);\n";
     }
     rgen += "    records[i] = pl;\n}\n";
     rgen
@@ -304,7 +312,8 @@ fn closest_hits(
     proc_ += "layout(location = 0) rayPayloadInEXT Record pl;\n";
     proc_ += PROBE_ATTR;
     let from_attr = if spec.stage == Stage::Intersection {
-        "    pl.bary = vec2(0.0);\n    pl.flags |= FLAG_PROBE;\n    pl.slot = attr.slot;\n    pl.element = attr.element;\n    pl.value = attr.value;\n"
+        "    pl.bary = vec2(0.0);\n    pl.flags |= FLAG_PROBE;\n    pl.slot = attr.slot;\n    pl.element = attr.packed & 0xffu;\n    pl.value = attr.value;\n    \
+setLanes(pl, (attr.packed >> 24u) != 0u ? FLAG_LANES : 0u, uvec4((attr.packed >> 8u) & 0xffu, attr.leader, attr.mask, (attr.packed >> 16u) & 0xffu));\n"
     } else {
         "    pl.bary = vec2(0.0);\n"
     };
@@ -321,9 +330,11 @@ fn intersection(probe: &ProbeCode, here: Option<&ProbeCode>) -> String {
     if here.is_some() {
         rint += "    uvec2 px = gl_LaunchIDEXT.xy;\n";
         rint += &probe.body;
-        rint += "        attr.slot = probeSlot;\n        attr.element = probeElement;\n        attr.value = probeValue;\n";
+        rint += "        attr.slot = probeSlot;\n        attr.value = probeValue;\n        \
+attr.packed = (probeElement & 0xffu) | ((probeLanes.x & 0xffu) << 8u) | ((probeLanes.w & 0xffu) << 16u) | (probeLaneFlag != 0u ? 1u << 24u : 0u);\n        \
+attr.leader = probeLanes.y;\n        attr.mask = probeLanes.z;\n";
     } else {
-        rint += "        attr.slot = 0u;\n        attr.element = 0u;\n        attr.value = vec4(0.0);\n";
+        rint += "        attr.slot = 0u;\n        attr.packed = 0u;\n        attr.leader = 0u;\n        attr.mask = 0u;\n        attr.value = vec4(0.0);\n";
     }
     rint += "        reportIntersectionEXT(t, 0u);\n    }\n}\n";
     rint
@@ -468,6 +479,53 @@ mod tests {
             .any(|g| g.contains("accelerationStructureEXT(AsTable(packUint2x32(pc.asTable)).a[")));
         let ssbo = reorder_cell(None, Resource::StorageBuffer);
         assert_eq!(glsl(&Cell { patch: Some(Workaround::SsboToAddress), ..ssbo }), glsl(&ssbo));
+    }
+
+    /// Lane evidence: in every probed stage the probe measures lane, leader, mask and count with
+    /// subgroup ballot next to its read and hands them to the record (through the payload, the
+    /// callable data or the packed hit attributes); without it, no subgroup code at all. Every
+    /// shader compiles to valid SPIR-V either way.
+    #[test]
+    fn lane_evidence_is_measured_in_the_probed_stage_only_when_asked() {
+        let mut c = compile::Compiler::new().unwrap();
+        for stage in Stage::ALL {
+            let cell = Cell::new(
+                *stage,
+                Resource::StorageBuffer,
+                IndexSource::Dynamic,
+                DescriptorModel::DescriptorIndexing,
+            );
+            for lanes in [false, true] {
+                let shaders = generate_with(&cell, None, lanes);
+                let probed = shaders.get(Role::probed(*stage)).unwrap();
+                assert_eq!(
+                    probed.glsl.contains("subgroupBroadcastFirst(px.x + px.y * pc.width)"),
+                    lanes,
+                    "{stage:?}"
+                );
+                for s in shaders.shaders.iter().filter(|s| s.role != Role::probed(*stage)) {
+                    let procedural =
+                        *stage == Stage::ClosestHit && s.role == Role::ClosestHitProcedural;
+                    assert!(
+                        procedural || !s.glsl.contains("subgroupBallot("),
+                        "{stage:?} {:?}",
+                        s.role
+                    );
+                }
+                let writes = shaders.shaders.iter().any(|s| s.glsl.contains("setLanes(pl,"))
+                    || probed.glsl.contains("setLanes(r, probeLaneFlag, probeLanes)");
+                assert!(writes, "{stage:?}");
+                for s in &shaders.shaders {
+                    let (words, _) = c
+                        .compile(s.role, &s.glsl)
+                        .unwrap_or_else(|e| panic!("{stage:?} {:?}: {e}\n{}", s.role, s.glsl));
+                    if let crate::patches::Validation::Invalid(m) = crate::patches::validate(&words)
+                    {
+                        panic!("{stage:?} {:?} lanes {lanes}: {m}", s.role);
+                    }
+                }
+            }
+        }
     }
 
     /// Lavapipe has no SER, so these shaders never reach a driver in the test suite: they are

@@ -17,6 +17,8 @@
 //! device address, instead of push data. Direct sampled-image cells sample with sampler
 //! `probeSampler[s]` of the sampler heap at a shifted coordinate (`probe::SAMPLER_SHIFT`), `s` a
 //! literal (`sampler=constant`) or the stage's runtime value modulo the samplers (`dynamic`).
+//! Right before the read, the body measures the probed stage's lane evidence (`probeLaneFlag`,
+//! `probeLanes`: `probe::lane_evidence_glsl`) where the cell is generated with it.
 use crate::model::{Resource, Stage};
 use crate::probe;
 use crate::probe::spec::{Access, ArrayAt, Base, ElementMap, ProbeSpec, Sampler, SlotSource};
@@ -24,8 +26,8 @@ use crate::probe::spec::{Access, ArrayAt, Base, ElementMap, ProbeSpec, Sampler, 
 pub struct ProbeCode {
     pub extensions: Vec<&'static str>,
     pub decls: String,
-    /// Statements (indented) that define `uint probeSlot`, `uint probeElement` and `vec4
-    /// probeValue`; expect `px`.
+    /// Statements (indented) that define `uint probeSlot`, `uint probeElement`, `uint
+    /// probeLaneFlag`, `uvec4 probeLanes` and `vec4 probeValue`; expect `px`.
     pub body: String,
     pub uses_binding: bool,
     /// The AS probe traces with traceRayEXT (a `Record` payload at location 1, miss index 1, ray
@@ -173,18 +175,22 @@ impl ProbeCode {
         ProbeCode {
             extensions: vec![],
             decls: String::new(),
-            body: String::new(),
+            body: probe::lane_evidence_glsl(false).into(),
             uses_binding: false,
             traces: false,
             ray_query: false,
         }
     }
 
-    /// The probe `spec` describes.
-    pub fn new(spec: &ProbeSpec) -> Self {
+    /// The probe `spec` describes, measuring its lane evidence where `lanes` (the device's
+    /// subgroup ballot works in the probed stage, or the run forces it).
+    pub fn new(spec: &ProbeSpec, lanes: bool) -> Self {
         let idx = index_expr(spec);
         let sub = descriptor_expr(spec, &idx);
         let mut extensions = vec!["GL_EXT_nonuniform_qualifier"];
+        if lanes {
+            extensions.push(probe::LANE_EXTENSION);
+        }
         if spec.array == ArrayAt::Heap {
             extensions.push(super::glslang::HEAP_EXTENSION);
         }
@@ -197,7 +203,10 @@ impl ProbeCode {
             ElementMap::None => "0u",
             ElementMap::Own | ElementMap::Packed | ElementMap::Layer => element_expr(spec.stage),
         };
-        let body = format!("    uint probeSlot = {idx};\n    uint probeElement = {element};\n");
+        let body = format!(
+            "    uint probeSlot = {idx};\n    uint probeElement = {element};\n{}",
+            probe::lane_evidence_glsl(lanes)
+        );
         let mut p = ProbeCode {
             extensions,
             decls,

@@ -18,6 +18,22 @@ pub enum Role {
 }
 
 impl Role {
+    /// The role of the shader that does the probed read of `stage` (closest-hit: the triangle
+    /// one; the procedural one probes too).
+    pub fn probed(stage: crate::model::Stage) -> Role {
+        use crate::model::Stage;
+        match stage {
+            Stage::Raygen => Role::Raygen,
+            Stage::ClosestHit => Role::ClosestHitTriangles,
+            Stage::AnyHit => Role::AnyHit,
+            Stage::Miss => Role::Miss,
+            Stage::Intersection => Role::Intersection,
+            Stage::Callable => Role::Callable,
+            Stage::Fragment => Role::Fragment,
+            Stage::Compute => Role::Compute,
+        }
+    }
+
     pub fn kind(self) -> shaderc::ShaderKind {
         use shaderc::ShaderKind as K;
         match self {

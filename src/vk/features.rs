@@ -333,6 +333,27 @@ impl DeviceInfo {
             .unwrap_or_default()
     }
 
+    /// Whether subgroup ballot works in probe stage `stage`: `subgroupSupportedStages` has it and
+    /// `subgroupSupportedOperations` has BALLOT (Vulkan 1.1 properties; the probe's lane evidence
+    /// needs both, VUID-RuntimeSpirv-None-06343).
+    pub fn subgroup_ballot(&self, stage: crate::model::Stage) -> bool {
+        use crate::model::Stage;
+        let flag = match stage {
+            Stage::Raygen => vk::ShaderStageFlags::RAYGEN_KHR,
+            Stage::ClosestHit => vk::ShaderStageFlags::CLOSEST_HIT_KHR,
+            Stage::AnyHit => vk::ShaderStageFlags::ANY_HIT_KHR,
+            Stage::Miss => vk::ShaderStageFlags::MISS_KHR,
+            Stage::Intersection => vk::ShaderStageFlags::INTERSECTION_KHR,
+            Stage::Callable => vk::ShaderStageFlags::CALLABLE_KHR,
+            Stage::Fragment => vk::ShaderStageFlags::FRAGMENT,
+            Stage::Compute => vk::ShaderStageFlags::COMPUTE,
+        };
+        self.properties.v11.is_some_and(|p| {
+            p.subgroup_supported_stages.contains(flag)
+                && p.subgroup_supported_operations.contains(vk::SubgroupFeatureFlags::BALLOT)
+        })
+    }
+
     pub fn has_extension(&self, name: &CStr) -> bool {
         self.extensions.contains_key(name.to_str().unwrap_or_default())
     }
