@@ -599,6 +599,20 @@ pub struct BenchArgs {
     #[arg(long, value_name = "FILTER")]
     pub sweep_filter: Vec<String>,
 
+    /// Image sizes of part 4, detection with mutants (`run --mutants` at each; default 8,16,64;
+    /// `--quick`: 16)
+    #[arg(long, value_delimiter = ',', value_name = "N,...")]
+    pub mutants_sizes: Vec<String>,
+
+    /// The cells part 4 mutates (repeatable, --filter syntax; default
+    /// descriptor_model=descriptor_indexing,resource=storage_buffer|acceleration_structure)
+    #[arg(long, value_name = "FILTER")]
+    pub mutants_filter: Vec<String>,
+
+    /// Skip part 4 (detection with mutants)
+    #[arg(long, conflicts_with = "mutants_sizes")]
+    pub no_mutants: bool,
+
     /// Do not run each timed point once before measuring it (caches stay as they are)
     #[arg(long)]
     pub no_warmup: bool,

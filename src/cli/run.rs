@@ -451,4 +451,29 @@ mod tests {
         assert!(junit.contains("failures=\"1\"") && junit.contains("canary_undetected"), "{junit}");
         assert!(crate::report::summary::render(&undetected).contains("NOT detected"));
     }
+
+    /// A mutant the reference says must be caught that survived is a probe defect: detection is
+    /// unproven, as with an undetected canary (exit 11); a survivor the cell's rule allows is not.
+    #[test]
+    fn a_probe_defect_among_the_mutants_exits_11_and_an_allowed_survivor_does_not() {
+        use crate::model::{Mutant, MutantEntry, MutantReport, MutantStatus};
+        let cell = Cell::canary(Canary::InfiniteLoop);
+        let survivor = |probe_defect: bool| MutantEntry {
+            cell: "c".into(),
+            mutant: Mutant::IndexNext,
+            status: MutantStatus::Survived,
+            why: String::new(),
+            outcome: Some(Outcome::Pass),
+            prediction: None,
+            probe_defect,
+            allowed_by: (!probe_defect).then(|| "VUID".into()),
+            wall_ms: 0.0,
+        };
+        let mut r = report(vec![ran(cell, Outcome::Timeout)]);
+        assert_eq!(exit_code(&r, false), exit::OK);
+        r.mutants = Some(MutantReport { entries: vec![survivor(false)], ..Default::default() });
+        assert_eq!(exit_code(&r, false), exit::OK);
+        r.mutants = Some(MutantReport { entries: vec![survivor(true)], ..Default::default() });
+        assert_eq!(exit_code(&r, false), exit::CANARY_UNDETECTED);
+    }
 }
