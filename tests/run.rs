@@ -176,9 +176,9 @@ fn reports_carry_discrimination_and_the_reads_of_cells_without_nonuniform() {
         if no_nonuniform {
             undefined += 1;
             let reads = &cmp["element_reads"];
-            assert_eq!(reads["outside_spec"], "VUID-RuntimeSpirv-NonUniform-06274", "{}", c["id"]);
+            assert_eq!(reads["outside_spec"], "VUID-RuntimeSpirv-None-10148 / VUID-RuntimeSpirv-subgroupSize-10149 (Vulkan 1.4.360)", "{}", c["id"]);
             assert_eq!(
-                c["outside_spec"], "VUID-RuntimeSpirv-NonUniform-06274",
+                c["outside_spec"], "VUID-RuntimeSpirv-None-10148 / VUID-RuntimeSpirv-subgroupSize-10149 (Vulkan 1.4.360)",
                 "the cell is labelled: {}",
                 c["id"]
             );

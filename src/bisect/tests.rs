@@ -461,7 +461,7 @@ fn a_lenient_pass_that_read_other_elements_is_suspect_when_a_defined_sibling_fau
     assert!(l.suspect.is_none() && !l.line.contains("suspect"), "{}", l.line);
     // A cell with nonuniformEXT judged exactly (no element reads: the qualifier reached the
     // driver) is never suspect; one judged leniently because its compiler dropped the qualifier
-    // (its comparison has element reads, `exec::heap::dropped_nonuniform`) is, like the cell
+    // (its comparison has element reads, `exec::seen`) is, like the cell
     // without it.
     let nu = Cell { nonuniform: true, ..lenient };
     let mut v = Verdicts::default();

@@ -4,21 +4,14 @@
 //! needs ([`PipelineInput`]).
 use super::bindings::LayoutKey;
 use super::error::CellError;
-use super::heap::{DroppedNonUniform, PipelineMapping};
+use super::heap::PipelineMapping;
 use super::pipeline::{self, Pipeline};
-use crate::model::{DescriptorModel, LaneEvidence, Phase, Timings};
+pub(super) use super::seen::Seen;
+use crate::model::{DescriptorModel, Phase, Timings};
 use crate::shadergen::CellShaders;
 use crate::vk::{Gpu, VkError};
 use ash::vk;
 use std::sync::Arc;
-
-/// What the driver saw of a cell's shape that its judging needs: the `nonuniformEXT` the compiler
-/// dropped (direct heap cells), and the lane evidence its records carry.
-#[derive(Clone, Copy, Debug)]
-pub(super) struct Seen {
-    pub(super) dropped: Option<DroppedNonUniform>,
-    pub(super) lanes: LaneEvidence,
-}
 
 /// A cell's shaders as SPIR-V, workarounds applied (what phase `compile` produces).
 pub(super) struct Compiled {

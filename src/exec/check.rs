@@ -1,18 +1,17 @@
 //! Judging a cell from its records: a canary that ran to completion passes; otherwise the records
-//! are compared with the CPU reference (reads the compiler left undecorated judged as undefined),
-//! with pictures of a mismatch under `--dump`, and the note on a dropped `nonuniformEXT` added.
+//! are compared with the CPU reference (a read is undefined as the driver saw it: `seen`), with
+//! pictures of a mismatch under `--dump`, and the note on what the driver saw added.
 use super::built::Seen;
 use super::executor::Executor;
 use super::pictures;
 use crate::model::{Cell, CellResult, Outcome, Timings};
-use crate::probe::spec::{ProbeSpec, ReadIndex};
 use crate::probe::Record;
 use crate::reference;
 use std::time::Instant;
 
 impl Executor {
     /// The cell's result from its records: [`Executor::check`] (its time added to
-    /// `timings.check_ms`), with the note on a dropped `nonuniformEXT` after its detail.
+    /// `timings.check_ms`), with the note on what the driver saw after its detail.
     pub(super) fn judge(
         &self,
         cell: &Cell,
@@ -22,7 +21,7 @@ impl Executor {
     ) -> CellResult {
         let t = Instant::now();
         let r = self.check(cell, records, seen);
-        let note = seen.dropped.map(|d| d.note());
+        let note = seen.note(cell);
         timings.check_ms += t.elapsed().as_secs_f64() * 1e3;
         let detail = match (r.detail.clone(), note) {
             (Some(d), Some(n)) => Some(format!("{d}; {n}")),
@@ -31,11 +30,9 @@ impl Executor {
         CellResult { timings: timings.clone(), detail, ..r }
     }
 
-    /// Compare `records` with the reference; `seen.dropped`: the driver saw the cell's non-uniform
-    /// descriptor or sampler index without `NonUniform` (the compiler dropped it), so that part of
-    /// the read is judged as undefined; `seen.lanes`: the records carry lane evidence.
+    /// Compare `records` with the reference; `seen`: whether the driver saw the cell's
+    /// descriptor index as undefined, and the lane evidence the records carry.
     fn check(&self, cell: &Cell, records: &[Record], seen: Seen) -> CellResult {
-        let dropped = seen.dropped;
         let none = |outcome, detail: &str| CellResult {
             outcome,
             detail: Some(detail.into()),
@@ -53,11 +50,7 @@ impl Executor {
                 ),
             );
         }
-        let undefined = reference::Undefined {
-            descriptor: ProbeSpec::of(cell).read == ReadIndex::Undefined
-                || dropped.is_some_and(|d| d.resource),
-            sampler: dropped.is_some_and(|d| d.sampler),
-        };
+        let undefined = reference::Undefined { descriptor: seen.undefined(cell) };
         let mut expected = reference::expected_with(cell, &self.scene, &self.sref, undefined);
         reference::expect_lanes(&mut expected, seen.lanes);
         let (w, h) = (self.scene.params.width, self.scene.params.height);

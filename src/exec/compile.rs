@@ -1,12 +1,12 @@
 //! Phase `compile` of a cell: its GLSL generated (with its injected fault), compiled to SPIR-V
 //! (cached per source) or read from a repro bundle, patched by the spec's workarounds (then a
-//! mutant cell's mutation, `super::mutant`), written out with `--dump`, and scanned for the
-//! `nonuniformEXT` the compiler dropped. Where the probe measures its lane evidence is decided
-//! here ([`Executor::lane_evidence`]).
+//! mutant cell's mutation, `super::mutant`), written out with `--dump`, and what the driver saw
+//! of it (`seen`). Where the probe measures its lane evidence is decided here
+//! ([`Executor::lane_evidence`]).
 use super::built::{Compiled, Seen};
 use super::error::CellError;
 use super::executor::Executor;
-use super::{files, heap};
+use super::files;
 use crate::model::{Cell, InjectedFault, LaneEvidence, LaneMode, Timings, Workaround};
 use crate::patches::{workaround, PatchError};
 use crate::probe::spec::{ArrayAt, ProbeSpec};
@@ -77,9 +77,9 @@ impl Executor {
         if let Some(dir) = &self.opts.dump {
             files::dump(dir, cell, &shaders, &spirv).map_err(CellError::Io)?;
         }
-        let dropped = heap::dropped_nonuniform(&spec, &spirv);
         let lanes = self.recorded_lanes(cell, &shaders, &spirv);
-        Ok(Compiled { shaders, spirv, seen: Seen { dropped, lanes } })
+        let seen = Seen::of(cell, &shaders, &spirv, lanes);
+        Ok(Compiled { shaders, spirv, seen })
     }
 
     /// The lane evidence the cell's records will carry: as generated, or for a bundle's SPIR-V,

@@ -9,10 +9,11 @@
 //! Files, in the order a cell meets them: the executor and its options (`executor`), what the
 //! cells need built first (`setup`), phase `compile` (`compile`), binding and the pipeline key
 //! (`bind`, `pipeline_key`), building at the cell's turn or ahead of it (`build`, `prebuild`),
-//! what each step hands to the next (`built`), the turn itself (`run`), recording the three
-//! pipeline kinds (`record`), judging the records (`check`, `pictures`), a mutant cell's mutation
-//! and prediction (`mutant`), error → outcome (`error`); below them resources and samplers, bindings, the descriptor heap, pipelines, the
-//! pipeline cache and files.
+//! what each step hands to the next (`built`) and what the driver saw of the cell's shape
+//! (`seen`), the turn itself (`run`), recording the three pipeline kinds (`record`), judging the
+//! records (`check`, `pictures`), a mutant cell's mutation and prediction (`mutant`), error →
+//! outcome (`error`); below them resources and samplers, bindings, the descriptor heap, pipelines,
+//! the pipeline cache and files.
 mod bind;
 pub mod bindings;
 mod build;
@@ -33,6 +34,7 @@ mod record;
 pub mod resources;
 mod run;
 mod samplers;
+mod seen;
 mod setup;
 
 pub use error::CellError;

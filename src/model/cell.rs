@@ -301,13 +301,18 @@ impl Cell {
     }
 }
 
-/// The rule a dynamic descriptor index without `nonuniformEXT` breaks.
-pub const NO_NONUNIFORM_VUID: &str = "VUID-RuntimeSpirv-NonUniform-06274";
+/// The rule a dynamic set/binding descriptor index without `nonuniformEXT` breaks: an operand
+/// for a resource that is not uniform must be decorated `NonUniform` where the module does not
+/// declare `DescriptorHeapEXT` (Vulkan 1.4.360; these replaced VUID-RuntimeSpirv-NonUniform-06274
+/// in 1.3.294, and gained the heap exemption in 1.4.340).
+pub const NO_NONUNIFORM_VUID: &str =
+    "VUID-RuntimeSpirv-None-10148 / VUID-RuntimeSpirv-subgroupSize-10149 (Vulkan 1.4.360)";
 
-/// Whether `cell` indexes a descriptor array with a non-uniform value that carries no
-/// `NonUniform` ([`NO_NONUNIFORM_VUID`]): not after the nonuniform / pin-index patches, and not
-/// where no descriptor is indexed any more (an address table, written so or patched), since a
-/// non-uniform index into memory is well defined.
+/// Whether `cell` indexes a set/binding descriptor array with a non-uniform value that carries no
+/// `NonUniform` ([`NO_NONUNIFORM_VUID`]): not after the nonuniform / pin-index patches, not where
+/// no descriptor is indexed any more (an address table, written so or patched), since a
+/// non-uniform index into memory is well defined, and not from the heap (`heap_access=direct`:
+/// the module declares `DescriptorHeapEXT`, whose heap accesses need no decoration).
 pub fn undefined_descriptor_read(cell: &Cell) -> bool {
     let descriptor_indexed = match cell.as_access {
         None | Some(AsAccess::Descriptor) => true,
@@ -322,7 +327,21 @@ pub fn undefined_descriptor_read(cell: &Cell) -> bool {
             | Workaround::SsboToAddress,
         ) => false,
     };
-    cell.index == IndexSource::Dynamic && !cell.nonuniform && descriptor_indexed && patch_keeps_it
+    let set_binding = match cell.heap_access {
+        None
+        | Some(
+            HeapAccess::MappedConstantOffset
+            | HeapAccess::MappedPushIndex
+            | HeapAccess::MappedIndirectIndex
+            | HeapAccess::MappedShaderRecordIndex,
+        ) => true,
+        Some(HeapAccess::Direct) => false,
+    };
+    cell.index == IndexSource::Dynamic
+        && !cell.nonuniform
+        && descriptor_indexed
+        && patch_keeps_it
+        && set_binding
 }
 
 #[cfg(test)]

@@ -188,7 +188,7 @@ impl CellReport {
         self.injected =
             self.attempts.iter().find_map(|a| a.injected.as_ref()).map(|i| i.spec.clone());
         // Labelled from the cell's shape, so a cell that crashed (no comparison) carries it too,
-        // or from a comparison judged so (the compiler dropped a nonuniformEXT: `exec::heap`).
+        // or from a comparison judged so (the compiler dropped a nonuniformEXT: `exec::seen`).
         let judged_undefined = self.attempts.iter().any(|a| {
             a.result
                 .as_ref()

@@ -9,6 +9,7 @@ mod error;
 pub mod nonuniform;
 pub mod pin_index;
 pub mod ssbo_to_address;
+pub mod uniformity;
 pub mod workaround;
 
 use rspirv::binary::{Assemble, Disassemble};

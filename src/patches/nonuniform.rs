@@ -114,7 +114,7 @@ fn strip_all(m: &mut Module) -> Result<Report, PatchError> {
 
 /// Add to `targets` the objects derived from the access chain `chain`, three steps deep: loads,
 /// member chains, their loads, sampled images and images.
-fn derived_objects(m: &Module, chain: Word, targets: &mut HashSet<Word>) {
+pub(super) fn derived_objects(m: &Module, chain: Word, targets: &mut HashSet<Word>) {
     let mut frontier = vec![chain];
     for _ in 0..3 {
         let mut next = Vec::new();

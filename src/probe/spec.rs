@@ -135,8 +135,11 @@ pub enum Sampler {
 pub enum ReadIndex {
     /// The recorded slot's, exactly.
     Defined,
-    /// A non-uniform index into a descriptor array without `NonUniform`: which element is read
-    /// is undefined (`reference::NO_NONUNIFORM_VUID`).
+    /// A non-uniform index into a set/binding descriptor array without `NonUniform`: which
+    /// element is read is undefined (`model::NO_NONUNIFORM_VUID`). Never a `layout(descriptor_heap)`
+    /// array: its module declares `DescriptorHeapEXT`, whose heap "can be accessed non-uniformly,
+    /// with no further decoration required" (Vulkan 1.4.360, Descriptor Heap Interface; the
+    /// VUIDs apply only where that capability is not declared).
     Undefined,
     /// `pin-index`: [`super::SPEC_SLOT`]'s, whatever slot the shader computed and records.
     Pinned,
@@ -288,10 +291,12 @@ impl ProbeSpec {
             Some(Workaround::Nonuniform | Workaround::AsToAddress | Workaround::SsboToAddress) => {
                 ReadIndex::Defined
             }
-            // Once as-to-address rewrote it, a non-uniform index reads memory: well defined.
+            // Once as-to-address rewrote it, a non-uniform index reads memory: well defined; a
+            // heap array needs no NonUniform (the DescriptorHeapEXT exemption).
             None if slot == SlotSource::Dynamic
                 && access == (Access::Slot { nonuniform: false })
-                && patched_to_address.is_none() =>
+                && patched_to_address.is_none()
+                && array == ArrayAt::Binding =>
             {
                 ReadIndex::Undefined
             }
@@ -521,6 +526,22 @@ mod tests {
         }
         let canary = ProbeSpec::of(&Cell::canary(Canary::InvalidAddress));
         assert!(canary.int64() && !ProbeSpec::of(&Cell::canary(Canary::InfiniteLoop)).int64());
+    }
+
+    /// A `layout(descriptor_heap)` read is defined with or without `nonuniformEXT` (its module
+    /// declares DescriptorHeapEXT); the mapped (set/binding) twin without it is not.
+    #[test]
+    fn heap_reads_are_defined_and_mapped_ones_follow_the_nonuniform_rule() {
+        let direct = Cell {
+            descriptor_model: DescriptorModel::DescriptorHeap,
+            heap_access: Some(HeapAccess::Direct),
+            ..cell(Stage::ClosestHit, Resource::StorageBuffer, IndexSource::Dynamic)
+        };
+        assert_eq!(ProbeSpec::of(&direct).read, ReadIndex::Defined);
+        assert!(!crate::model::undefined_descriptor_read(&direct));
+        let mapped = Cell { heap_access: Some(HeapAccess::MappedShaderRecordIndex), ..direct };
+        assert_eq!(ProbeSpec::of(&mapped).read, ReadIndex::Undefined);
+        assert!(crate::model::undefined_descriptor_read(&mapped));
     }
 
     #[test]

@@ -93,7 +93,7 @@ fn compare_probe(c: &mut Comparison, bad: &mut Bad, e: &Expected, a: &Record) {
                 c.discrimination.get_or_insert(0.0);
             }
         }
-        ValueRule::AnyElement { .. } | ValueRule::AnySampler { .. } => {
+        ValueRule::AnyElement { .. } => {
             c.any_element_values += 1;
             let reads = c.element_reads.get_or_insert_with(|| ElementReads {
                 outside_spec: NO_NONUNIFORM_VUID.into(),

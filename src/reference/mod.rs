@@ -19,13 +19,18 @@
 //! losses and crashes; [`ElementReads`] counts pixels that read their own element, another one,
 //! or neither. The slot the shader computed is still exact. Where no descriptor array is indexed
 //! any more (`as_access=address|address_patched`, the `as-to-address` / `ssbo-to-address`
-//! patches) a non-uniform index reads memory, which is well defined: those cells are exact.
+//! patches) a non-uniform index reads memory, which is well defined: those cells are exact. So
+//! are `layout(descriptor_heap)` reads (`heap_access=direct`), with or without `nonuniformEXT`:
+//! their modules declare `DescriptorHeapEXT`, and the heap "can be accessed non-uniformly, with no
+//! further decoration required" (Vulkan 1.4.360, Descriptor Heap Interface; the VUIDs above apply
+//! only where that capability is not declared). Which module declares what is `exec`'s to say
+//! (`patches::uniformity`); a set/binding index whose `nonuniformEXT` a compiler dropped is
+//! undefined as the driver saw it.
 //!
 //! Separate-sampler probes (`sampler` axis, direct heap sampled images) sample a shifted coordinate,
 //! so their value is the texel their sampler's address mode picks ([`probe::sampled_element`]):
-//! reading with another sampler reads another texel on most pixels, and that is a mismatch. A
-//! dynamic sampler index without `nonuniformEXT` (only in cells whose dynamic descriptor index
-//! goes without it) falls under the any-element rule with the rest of the read.
+//! reading with another sampler reads another texel on most pixels, and that is a mismatch, with
+//! or without `nonuniformEXT` on a dynamic sampler index (heap modules: exact).
 //!
 //! Lane evidence (`probe::FLAG_LANES`, where the probe measured it: [`expect_lanes`]): each such
 //! record's lane words must be consistent ([`lanes::inconsistency`]); [`lanes::Lanes`] reads the
@@ -122,7 +127,7 @@ pub fn expected(cell: &Cell, scene: &Scene, sref: &SceneReference) -> Vec<Expect
         cell,
         scene,
         sref,
-        Undefined { descriptor: ProbeSpec::of(cell).read == ReadIndex::Undefined, sampler: false },
+        Undefined { descriptor: ProbeSpec::of(cell).read == ReadIndex::Undefined },
     )
 }
 
@@ -256,18 +261,6 @@ impl Probed<'_> {
         let slots = self.slots;
         e.discriminating = *self.buffer_disc[k]
             .get_or_insert_with(|| buffer_value_discriminates(spec.resource, slots, read, texel));
-        if self.undefined.sampler && spec.sampler != Sampler::None {
-            let element = e.record.element;
-            let values = std::array::from_fn(|s| {
-                probe::resource_value(
-                    spec.resource,
-                    read,
-                    probe::sampled_element(s as u32, element),
-                )
-            });
-            e.rule = ValueRule::AnySampler { values };
-            e.discriminating = false;
-        }
     }
 
     /// An undefined descriptor read: the value of any element of the array passes.
@@ -291,9 +284,9 @@ impl Probed<'_> {
 }
 
 /// [`expected`] with what is undefined decided by the caller: the driver saw a non-uniform
-/// descriptor or sampler index without `NonUniform` — the cell's shape (its spec's
-/// [`ReadIndex::Undefined`]) or a compiler that dropped the qualifier
-/// (`exec::heap::dropped_nonuniform`).
+/// set/binding descriptor index without `NonUniform` — the cell's shape (its spec's
+/// [`ReadIndex::Undefined`]) or a compiler that dropped the qualifier — in a module that does not
+/// declare `DescriptorHeapEXT` (`patches::uniformity`).
 pub fn expected_with(
     cell: &Cell,
     scene: &Scene,

@@ -1,6 +1,6 @@
 //! What a pixel must hold: the record the reference expects, the rule its probed value is
-//! judged by (exact, any element of the array, any sampler), and the tolerances of the hit
-//! fields.
+//! judged by (exact, or any element of the array where the read is undefined), and the
+//! tolerances of the hit fields.
 use crate::model::Resource;
 use crate::probe::{self, Record, MAX_AS_VARIANTS};
 
@@ -20,20 +20,14 @@ pub enum ValueRule {
         as_values: [f32; MAX_AS_VARIANTS as usize],
         variants: u32,
     },
-    /// Only the sampler index is undefined (a dynamic sampler index whose `NonUniform` the
-    /// compiler dropped; the texture index is defined): the read slot's element through any of the
-    /// sampler heap's samplers (`values[s]` through sampler `s`). Slot and element stay exact.
-    AnySampler {
-        values: [[f32; 4]; probe::SAMPLER_MODES.len()],
-    },
 }
 
 /// What the driver saw undefined in a cell's probed read: the descriptor index (a non-uniform
-/// index without `NonUniform`: any element of the array), or only the sampler index.
+/// set/binding index without `NonUniform`). A separate sampler index is never undefined: only
+/// `layout(descriptor_heap)` probes have one, and their modules declare `DescriptorHeapEXT`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Undefined {
     pub descriptor: bool,
-    pub sampler: bool,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -56,7 +50,6 @@ impl ValueRule {
                 variants,
                 ..
             } => v[1..] == [0.0, 0.0, 1.0] && as_values[..variants as usize].contains(&v[0]),
-            ValueRule::AnySampler { values } => values.contains(&v),
             ValueRule::AnyElement { resource, slots, .. } => {
                 let (s, e) = (v[0] - 1.0, v[3] - 0.25);
                 let whole = |x: f32, n: u32| x >= 0.0 && x.fract() == 0.0 && (x as u32) < n;

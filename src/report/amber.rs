@@ -260,7 +260,7 @@ fn probed_array(spec: &ProbeSpec, instances: u32, kind: &str) -> (String, Vec<St
 /// The expected records as EXPECT lines, or why there are none.
 fn expectations(cell: &Cell, params: &SceneParams) -> String {
     if ProbeSpec::of(cell).read == ReadIndex::Undefined {
-        return "# No EXPECT: the index is dynamic without nonuniformEXT, so which element a lane reads is\n# undefined (VUID-RuntimeSpirv-NonUniform-06274); rtprobe accepts any element of the array there.\n".into();
+        return format!("# No EXPECT: the index is dynamic without nonuniformEXT, so which element a lane reads is\n# undefined ({}); rtprobe accepts another lane's element there.\n", crate::model::NO_NONUNIFORM_VUID);
     }
     let scene = Scene::build(params);
     let sref = crate::reference::SceneReference::compute(&scene);

@@ -40,7 +40,7 @@ impl Prefilter {
         let spec = ProbeSpec::of(c);
         let slots = crate::probe::slot_count(spec.resource, self.scene.params.instances);
         let site = crate::mutants::site(&spec, m, slots)?;
-        let undefined = Undefined { descriptor: spec.read == ReadIndex::Undefined, sampler: false };
+        let undefined = Undefined { descriptor: spec.read == ReadIndex::Undefined };
         let world = (&self.scene, &self.sref);
         Ok(crate::reference::mutant_before_run(&c.unmutated(), world, undefined, site))
     }

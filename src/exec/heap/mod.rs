@@ -27,21 +27,15 @@
 //!
 //! Files: the heap layout (`layout`), the device's descriptor sizes and heap commands (`sizes`),
 //! writing descriptors into heap bytes (`write`), the two heaps created, bound and pushed to
-//! (`binding`), push data (`push`), the set/binding mapping of heap pipelines (`mapping`), the
-//! NonUniform word scan of SPIR-V (`nonuniform`) and what it says the compiler dropped
-//! (`dropped`).
+//! (`binding`), push data (`push`), and the set/binding mapping of heap pipelines (`mapping`).
 mod binding;
-mod dropped;
 mod layout;
 mod mapping;
-mod nonuniform;
 mod push;
 mod sizes;
 mod write;
 
 pub use binding::HeapBinding;
-pub use dropped::{dropped_nonuniform, DroppedNonUniform};
 pub use layout::HeapLayout;
 pub use mapping::PipelineMapping;
-pub use nonuniform::{heap_nonuniform, HeapNonUniform};
 pub use push::{PUSH_INDEX_ADDRESS_OFFSET, PUSH_INDEX_OFFSET};
