@@ -53,15 +53,20 @@ fn a_sampled_share_of_the_mutants_is_all_caught_in_under_three_minutes() {
     let total = |k: &str| {
         m["counts"].as_object().unwrap().values().map(|c| c[k].as_u64().unwrap()).sum::<u64>()
     };
-    assert_eq!((total("probe_defects"), total("faults"), total("not_run")), (0, 0, 0));
+    assert_eq!((total("probe_defects"), total("faults")), (0, 0));
     assert_eq!(total("killed") + total("survived"), 24);
-    // Every pair of a sampled cell has its verdict, the unrun ones with why.
+    // Every pair of a sampled cell has its verdict, the unrun ones with why: not applicable, or
+    // a broadcast where lavapipe lists no subgroup ballot (its ray tracing stages).
     for e in entries.iter().filter(|e| e["outcome"].is_null()) {
-        assert!(
-            ["equivalent", "no_target"].contains(&status(e).as_str())
-                && !e["why"].as_str().unwrap().is_empty(),
-            "{e}"
-        );
+        let why = e["why"].as_str().unwrap();
+        let ok = match status(e).as_str() {
+            "equivalent" | "no_target" => !why.is_empty(),
+            "not_run" => {
+                e["mutant"] == "index-broadcast" && why.contains("VUID-RuntimeSpirv-None-06343")
+            }
+            _ => false,
+        };
+        assert!(ok, "{e}");
     }
     // The cells' own verdicts: the plan's cells only, each with its one passing attempt.
     for c in r["cells"].as_array().unwrap().iter().filter(|c| c["outcome"] == "pass") {
