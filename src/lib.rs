@@ -10,6 +10,7 @@ pub mod caps;
 pub mod cli;
 pub mod exec;
 pub mod fleet;
+pub mod interface;
 pub mod matrix;
 pub mod model;
 pub mod mutants;

@@ -647,3 +647,38 @@ fn another_card_of_the_same_driver_bisects_and_another_driver_build_is_refused()
         "not on this machine",
     );
 }
+
+/// Issue 21, item 7: a bundle whose SPIR-V does not fit its cell's interface (here a sampled-image
+/// cell's bundle carrying a storage-buffer cell's compute module) is the cell's `error` naming
+/// binding 2, found before any pipeline is made — never a driver finding (on lavapipe such a
+/// pipeline crashed and was reported as a `crash`).
+#[test]
+fn a_bundle_whose_spirv_does_not_fit_its_cell_is_an_error_naming_the_binding() {
+    let dir = tempfile::tempdir().unwrap();
+    let filter = "stage=compute,resource=storage_buffer|sampled_image,index=literal,descriptor_model=descriptor_indexing";
+    let report = run_report(dir.path(), "two.json", filter, &[], &[]);
+    let bundle = |id: &str, name: &str| {
+        let b = dir.path().join(name);
+        let o = run(&["repro", id, "--from", report.to_str().unwrap(), "-o", b.to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        b
+    };
+    let ssbo = bundle("compute.storage_buffer.literal.descriptor_indexing", "ssbo");
+    let image = bundle("compute.sampled_image.literal.descriptor_indexing", "image");
+    std::fs::copy(ssbo.join("shaders/probe.comp.spv"), image.join("shaders/probe.comp.spv"))
+        .unwrap();
+    let out = dir.path().join("rerun.json");
+    let spec = image.join("cell.json");
+    let o = run(&["run", "--cell-spec", spec.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    let cell = &json_file(&out)["cells"][0];
+    assert_eq!(cell["outcome"], "error", "{cell}");
+    let detail = cell["attempts"][0]["result"]["detail"].as_str().unwrap_or_default();
+    assert!(
+        detail.contains("set 0 binding 2")
+            && detail.contains(
+                "declares a storage buffer, the pipeline provides a combined image sampler"
+            ),
+        "{detail}"
+    );
+    assert!(stdout(&o).contains("error"), "{}", stdout(&o));
+}

@@ -2,8 +2,8 @@
 //! with dynamic index (nonuniformEXT), descriptor_indexing`) and a verdict with its evidence
 //! (`❌ crash (6 of 6, p ≥ 0.61 at 95%)`, `✅ passes (5 of 5; miss ≤ 0.94% for p ≥ 0.61)`).
 use super::Verdicts;
+use crate::model::Cell;
 use crate::model::IsolationLine;
-use crate::model::{Cell, IndexSource};
 
 /// One cell as a sentence a driver engineer can read without knowing rtprobe's ids.
 pub fn describe(c: &Cell) -> String {
@@ -68,7 +68,7 @@ pub fn line(cell: &Cell, varied: Option<&str>, verdicts: &Verdicts, ev: Evidence
                 l.miss_probability =
                     Some(ev.against.map_or(1.0, |p| crate::model::stats::miss(p, n)));
                 l.settled = l.miss_probability.map(|m| m < ev.max_miss);
-                sus = suspect(cell, verdicts);
+                sus = verdicts.suspect(cell);
                 l.suspect = sus.map(|(sib, _)| sib.id());
             }
         }
@@ -91,27 +91,15 @@ pub fn line(cell: &Cell, varied: Option<&str>, verdicts: &Verdicts, ev: Evidence
     };
     l.line = format!("{}: {evidence}", l.description);
     if let Some((sib, other)) = sus {
-        l.line += &format!(" — suspect: {other} pixel(s) read another element (allowed without nonuniformEXT, undefined which), while {} faults", describe(&sib));
+        l.line += &format!(" — suspect, not used: {other} pixel(s) read what another lane's index gives (accepted without nonuniformEXT by rtprobe's heuristic; the spec leaves it undefined), while {} faults", describe(&sib));
+    }
+    if verdicts.state(cell) == super::State::Doubtful(super::Doubt::UndefinedFault) {
+        l.line += &format!(
+            " — not used: the spec leaves this read undefined ({})",
+            crate::model::NO_NONUNIFORM_VUID
+        );
     }
     l
-}
-
-/// For a cell judged leniently (its dynamic index lacks `nonuniformEXT`, or the compiler dropped
-/// it) whose attempts read other elements (the most in one attempt), a faulting sibling that
-/// differs only in a defined index (another index source, or `nonuniformEXT`): the read of
-/// "another element" may be that fault.
-pub fn suspect(cell: &Cell, verdicts: &Verdicts) -> Option<(Cell, usize)> {
-    let other = verdicts.get(cell)?.element_reads().map(|e| e.other).max().filter(|o| *o > 0)?;
-    let defined = IndexSource::ALL
-        .iter()
-        .filter(|i| **i != IndexSource::Dynamic)
-        .map(|i| Cell { index: *i, nonuniform: false, ..*cell })
-        .chain(std::iter::once(Cell { nonuniform: true, ..*cell }));
-    defined
-        .into_iter()
-        .filter(|s| s != cell)
-        .find(|s| verdicts.state(s) == super::State::Fault)
-        .map(|s| (s, other))
 }
 
 /// A probability as a short percentage (`0.78%`, `< 0.01%`).

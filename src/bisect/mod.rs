@@ -1,6 +1,7 @@
-//! `rtprobe bisect`: from a run report with faults to the minimal description of the fault — the
-//! smallest conjunction of `axis=value[|value…]` terms (the `--inject-fault` predicate syntax)
-//! that holds for every faulting cell of the scope and for no passing one.
+//! `rtprobe bisect`: from a run report with faults to the minimal description of the fault — a
+//! 1-minimal conjunction (ddmin's guarantee: no term can be dropped) of `axis=value[|value…]`
+//! terms (the `--inject-fault` predicate syntax) that holds for every faulting cell of the scope
+//! and for no passing one.
 //!
 //! How ([`Bisector::bisect`]):
 //! 1. Every verdict the report already has is used; a cell's verdict is its worst attempt, with
@@ -27,7 +28,9 @@
 //!    without a verdict are run (in small batches, stopping at the first pass); when that turns
 //!    up a faulting cell outside the conjunction, bisection starts over with it.
 //! 5. Cells rtprobe could not run (`error`) are evidence of nothing: neither faulting nor
-//!    passing; they are listed.
+//!    passing; they are listed. So is evidence rtprobe itself doubts ([`Doubt`]): a fault of a
+//!    read the spec leaves undefined (`model::NO_NONUNIFORM_VUID`) and a lenient pass that a
+//!    faulting sibling makes suspect.
 //! 6. The isolation list: the minimal failing cell and, per axis, its closest siblings in the
 //!    scope (run if unknown); then each workaround patch that applies to it (verified by runs).
 //!
@@ -43,7 +46,7 @@ pub mod scope;
 mod verdicts;
 
 pub use render::predicate;
-pub use verdicts::{State, Verdicts};
+pub use verdicts::{Doubt, State, Verdicts};
 
 use crate::model::inject::for_cell;
 use crate::model::registry;
@@ -451,6 +454,14 @@ impl<'o> Bisector<'o> {
                 .iter()
                 .filter(|c| self.verdicts.state(c) == State::Error)
                 .map(|c| c.id())
+                .collect(),
+            doubtful: self
+                .scope
+                .iter()
+                .filter_map(|c| match self.verdicts.state(c) {
+                    State::Doubtful(d) => Some(format!("{} ({})", c.id(), d.why())),
+                    State::Fault | State::Pass | State::Error | State::Unknown => None,
+                })
                 .collect(),
             runs: self.verdicts.runs,
             not_varied: axes()

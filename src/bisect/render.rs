@@ -61,6 +61,9 @@ pub fn render(b: &Bisection, full_matrix: usize) -> String {
             b.errored.join(", ")
         );
     }
+    if !b.doubtful.is_empty() {
+        s += &format!("not evidence (rtprobe doubts them): {}\n", b.doubtful.join(", "));
+    }
     if !b.not_varied.is_empty() {
         s += &format!(
             "not varied in this scope (the result says nothing about them): {}\n",

@@ -1,6 +1,6 @@
 //! Every cell's attempts as bisection sees them: the report's, then its own, and what each
 //! cell's verdict says (fault, pass, error, unknown).
-use crate::model::{Attempt, Cell, CellReport, Outcome, RunReport};
+use crate::model::{Attempt, Cell, CellReport, IndexSource, Outcome, RunReport};
 use crate::runner::oracle::Event;
 use std::collections::HashMap;
 
@@ -12,8 +12,32 @@ pub enum State {
     /// rtprobe could not run it (`error`): no evidence about the driver either way, so it is
     /// neither a faulting cell nor a passing one, and is not run again.
     Error,
+    /// Evidence rtprobe itself doubts ([`Doubt`]): used neither as a fault nor as a pass, and not
+    /// run again (another attempt would not settle it).
+    Doubtful(Doubt),
     /// Never ran (or unsupported).
     Unknown,
+}
+
+/// Why a verdict is no evidence for bisection.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Doubt {
+    /// A fault of a read the spec leaves undefined (a dynamic set/binding index without
+    /// `nonuniformEXT` in a module without `DescriptorHeapEXT`: `model::NO_NONUNIFORM_VUID`):
+    /// whatever it read, it is no driver bug by the spec.
+    UndefinedFault,
+    /// A pass judged leniently whose pixels read what another lane's index gives while a sibling
+    /// with a defined index faults (`isolation::suspect`): the lenient read may be that fault.
+    SuspectPass,
+}
+
+impl Doubt {
+    pub fn why(self) -> &'static str {
+        match self {
+            Doubt::UndefinedFault => "a fault of a read the spec leaves undefined (no nonuniformEXT on a set/binding index)",
+            Doubt::SuspectPass => "a lenient pass whose other-lane reads a faulting sibling with a defined index may explain",
+        }
+    }
 }
 
 /// Every cell's attempts, keyed by id: the report's, then bisection's own.
@@ -68,12 +92,7 @@ impl Verdicts {
     /// decided — not a worker that never got its device up (`Attempt::not_run`), not an `error`
     /// (rtprobe could not run the cell). Rate bounds and miss probabilities rest on these.
     pub fn counts(&self, c: &Cell) -> (u32, u32) {
-        let evidence = |a: &&Attempt| !a.not_run() && a.outcome != Outcome::Error;
-        let Some(r) = self.get(c) else { return (0, 0) };
-        let n = r.attempts.iter().filter(evidence).count() as u32;
-        let k =
-            r.attempts.iter().filter(evidence).filter(|a| a.outcome.is_finding()).count() as u32;
-        (k, n)
+        self.get(c).map(CellReport::evidence_counts).unwrap_or((0, 0))
     }
 
     /// Attempts that count as evidence (see [`Verdicts::counts`]).
@@ -87,14 +106,38 @@ impl Verdicts {
         crate::model::stats::rate_bound(k, n)
     }
 
+    /// For a cell judged leniently (its dynamic index lacks `nonuniformEXT`, or the compiler dropped
+    /// it) whose attempts read other elements (the most in one attempt), a faulting sibling that
+    /// differs only in a defined index (another index source, or `nonuniformEXT`): the read of
+    /// "another element" may be that fault.
+    pub fn suspect(&self, cell: &Cell) -> Option<(Cell, usize)> {
+        let other = self.get(cell)?.element_reads().map(|e| e.other).max().filter(|o| *o > 0)?;
+        let defined = IndexSource::ALL
+            .iter()
+            .filter(|i| **i != IndexSource::Dynamic)
+            .map(|i| Cell { index: *i, nonuniform: false, ..*cell })
+            .chain(std::iter::once(Cell { nonuniform: true, ..*cell }));
+        defined
+            .into_iter()
+            .filter(|s| s != cell)
+            .find(|s| self.state(s) == State::Fault)
+            .map(|s| (s, other))
+    }
+
     pub fn state(&self, c: &Cell) -> State {
         match self.get(c).filter(|r| !r.attempts.is_empty()) {
             None => State::Unknown,
             Some(r) => match r.outcome {
                 Outcome::Error => State::Error,
+                Outcome::Mismatch | Outcome::DeviceLost | Outcome::Crash | Outcome::Timeout
+                    if r.outside_spec.is_some() =>
+                {
+                    State::Doubtful(Doubt::UndefinedFault)
+                }
                 Outcome::Mismatch | Outcome::DeviceLost | Outcome::Crash | Outcome::Timeout => {
                     State::Fault
                 }
+                Outcome::Pass if self.suspect(c).is_some() => State::Doubtful(Doubt::SuspectPass),
                 Outcome::Pass => State::Pass,
                 Outcome::Unsupported | Outcome::NotImplemented => State::Unknown,
             },

@@ -1,6 +1,7 @@
 //! The first half of phase `pipeline`: a cell's resources (built by `prepare`), its layout key
-//! (stages, model, which bindings, heap direct or mapped, packed), its descriptor binding (cached
-//! per key), the addresses its push constants carry and the key of its pipeline.
+//! (stages, model, which bindings, heap direct or mapped, packed), whether its modules fit that
+//! layout (`fit`), its descriptor binding (cached per key), the addresses its push constants
+//! carry and the key of its pipeline.
 use super::bindings::{Binding, LayoutKey};
 use super::built::{Addresses, Bound, Compiled};
 use super::error::CellError;
@@ -28,6 +29,21 @@ fn stages(kind: PipelineKind) -> vk::ShaderStageFlags {
     }
 }
 
+/// The layout key of a cell with `spec` and `shaders`; `all_stages`: RTPROBE_BINDING_STAGES=all
+/// declares bindings and push constants for VK_SHADER_STAGE_ALL instead of the pipeline's stages
+/// (reproduces reports/lavapipe/FINDINGS.md).
+pub(super) fn layout_key(spec: &ProbeSpec, shaders: &CellShaders, all_stages: bool) -> LayoutKey {
+    let stages = if all_stages { vk::ShaderStageFlags::ALL } else { stages(shaders.kind) };
+    LayoutKey {
+        stages,
+        model: spec.model,
+        scene_tlas: shaders.uses_scene_tlas,
+        probe: shaders.uses_probe_binding.then_some(spec.resource),
+        heap_direct: spec.array == ArrayAt::Heap,
+        packed: spec.packed(),
+    }
+}
+
 impl Executor {
     /// Resources (built by `prepare`), descriptor bindings (cached per layout) and the key of the
     /// cell's pipeline: the first half of phase `pipeline`.
@@ -40,29 +56,14 @@ impl Executor {
         let t = Instant::now();
         let spec = ProbeSpec::of(cell);
         self.ensure_resources(cell, &c.shaders)?;
-        let key = self.layout_key(&spec, &c.shaders);
+        let key = layout_key(&spec, &c.shaders, self.opts.all_stages);
+        self.fit(key, &c.shaders, &c.spirv)?;
         self.ensure_binding(key)?;
         let addresses = self.addresses(&spec);
         timings.setup_ms = t.elapsed().as_secs_f64() * 1e3;
         // pipeline (reused for identical SPIR-V and model)
         let pkey = pipeline_key::of(c, &spec, key);
         Ok(Bound { key, pkey, addresses, seen: c.seen })
-    }
-
-    /// The layout key of a cell with `spec` and `shaders`.
-    fn layout_key(&self, spec: &ProbeSpec, shaders: &CellShaders) -> LayoutKey {
-        // RTPROBE_BINDING_STAGES=all: declare bindings and push constants for VK_SHADER_STAGE_ALL
-        // instead of the pipeline's stages (reproduces reports/lavapipe/FINDINGS.md).
-        let stages =
-            if self.opts.all_stages { vk::ShaderStageFlags::ALL } else { stages(shaders.kind) };
-        LayoutKey {
-            stages,
-            model: spec.model,
-            scene_tlas: shaders.uses_scene_tlas,
-            probe: shaders.uses_probe_binding.then_some(spec.resource),
-            heap_direct: spec.array == ArrayAt::Heap,
-            packed: spec.packed(),
-        }
     }
 
     /// The binding of `key`, created (with its targets) unless it exists.

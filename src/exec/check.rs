@@ -5,6 +5,7 @@ use super::built::Seen;
 use super::executor::Executor;
 use super::pictures;
 use crate::model::{Cell, CellResult, Outcome, Timings};
+use crate::probe::spec::ProbeSpec;
 use crate::probe::Record;
 use crate::reference;
 use std::time::Instant;
@@ -54,9 +55,14 @@ impl Executor {
         let mut expected = reference::expected_with(cell, &self.scene, &self.sref, undefined);
         reference::expect_lanes(&mut expected, seen.lanes);
         let (w, h) = (self.scene.params.width, self.scene.params.height);
-        let mut cmp = reference::compare(&expected, records, w);
+        let lanes = seen.lanes.usable().then(|| reference::lanes::Lanes::from_records(records));
+        let mut cmp = reference::compare_with(&expected, records, w, lanes.as_ref());
         cmp.mutant = self.predict_mutant(cell, (undefined, seen.lanes), &expected, records);
         cmp.lane_evidence = seen.lanes;
+        cmp.heap = self.heap_detail(cell);
+        if let Some(split) = cmp.lanes.as_mut() {
+            split.evidence = seen.lanes;
+        }
         let outcome = if cmp.passed() { Outcome::Pass } else { Outcome::Mismatch };
         let mut detail = (!cmp.passed()).then(|| {
             format!(
@@ -80,5 +86,23 @@ impl Executor {
             fault: None,
             validation_errors: 0,
         }
+    }
+
+    /// A heap cell's probed descriptors in the heap and binding 2's mapping (`None` under other
+    /// models, or before its binding exists).
+    fn heap_detail(&self, cell: &Cell) -> Option<crate::model::comparison::HeapDetail> {
+        let spec = ProbeSpec::of(cell);
+        let access = spec.heap?;
+        let shaders = crate::shadergen::generate(cell);
+        let key = super::bind::layout_key(&spec, &shaders, self.opts.all_stages);
+        let l = self.bindings.get(&key)?.heap_layout()?;
+        let records = super::pipeline::shader_records(&spec, Some(&l));
+        let hex: Vec<String> = records.hit_triangles.iter().map(|b| format!("{b:02x}")).collect();
+        Some(crate::model::comparison::HeapDetail {
+            mapping: super::heap::describe_mapping(access, &l),
+            shader_record: hex.join(" "),
+            probe_offset: l.probe,
+            probe_stride: l.probe_stride,
+        })
     }
 }

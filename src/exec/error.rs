@@ -32,6 +32,10 @@ pub enum CellError {
     /// A queried limit of the device rules the cell out at this scene size (outcome `unsupported`).
     #[error("{0}")]
     Unsupported(String),
+    /// A module does not fit the cell's layout (a bundle's or user's SPIR-V; `interface`): the
+    /// cell's `error`, never handed to the driver.
+    #[error("the shaders do not fit the cell's pipeline layout: {0}")]
+    Interface(crate::interface::Mismatch),
 }
 
 impl CellError {
@@ -44,7 +48,8 @@ impl CellError {
             CellError::Compile(_)
             | CellError::Io(_)
             | CellError::Patch(_)
-            | CellError::Mutant(_) => Outcome::Error,
+            | CellError::Mutant(_)
+            | CellError::Interface(_) => Outcome::Error,
             CellError::NotImplemented(_) => Outcome::NotImplemented,
             CellError::Unsupported(_) => Outcome::Unsupported,
         }

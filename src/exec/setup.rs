@@ -42,7 +42,8 @@ impl Executor {
         Ok(self.scene_gpu.as_ref().expect("built above"))
     }
 
-    fn slots(&self, r: Resource) -> u32 {
+    /// Descriptors of the probed array of `r`.
+    pub(super) fn slots(&self, r: Resource) -> u32 {
         probe::slot_count(r, self.scene.params.instances)
     }
 

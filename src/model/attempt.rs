@@ -110,6 +110,18 @@ impl Attempt {
     pub fn not_run(&self) -> bool {
         self.phase == Some(Phase::Setup)
     }
+
+    /// Evidence about the driver: the cell ran (not a failed setup, [`Attempt::not_run`]) and the
+    /// driver decided the outcome — not `error`, where rtprobe could not run the cell. A cell's
+    /// incidence, bisection's rate bounds and every miss probability rest on these alone.
+    pub fn is_evidence(&self) -> bool {
+        !self.not_run() && self.outcome != Outcome::Error
+    }
+
+    /// Evidence of a driver fault ([`Attempt::is_evidence`] and a finding).
+    pub fn faulted(&self) -> bool {
+        self.is_evidence() && self.outcome.is_finding()
+    }
 }
 
 /// A worker's own record: its setup (`pass` once it is ready) or a fault outside any cell

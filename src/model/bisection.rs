@@ -80,6 +80,10 @@ pub struct Bisection {
     /// Cells of the scope rtprobe could not run (`error`): used neither as faults nor as passes.
     #[serde(default)]
     pub errored: Vec<String>,
+    /// Cells of the scope whose verdict rtprobe doubts (a fault of a read the spec leaves
+    /// undefined, a suspect lenient pass), each with why: used neither as faults nor as passes.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub doubtful: Vec<String>,
     /// Attempts bisection ran itself.
     pub runs: usize,
     /// Axes with a single value in the scope: the conjunction says nothing about them.

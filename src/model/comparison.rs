@@ -9,18 +9,46 @@ pub struct Mismatch {
     pub actual: String,
 }
 
+/// What rtprobe accepts where the spec leaves a read undefined: its own heuristic, not the spec's.
+pub const OTHER_LANE_HEURISTIC: &str = "rtprobe's heuristic for a scalarizing driver, not a rule of the spec (which leaves the read undefined): the value through the descriptor index another active lane of the same subgroup computed (from the lane evidence; without it, any lane of the dispatch), at the lane's own element";
+
 /// Pixels of a cell without `nonuniformEXT` on its dynamic index (outside the spec's guarantees,
 /// see [`NO_NONUNIFORM_VUID`]), by what they read.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct ElementReads {
     /// The rule these cells break: the spec guarantees nothing about which element they read.
     pub outside_spec: String,
+    /// What rtprobe accepted there instead ([`OTHER_LANE_HEURISTIC`]; empty in older reports,
+    /// which accepted any element of the array).
+    #[serde(default)]
+    pub heuristic: String,
     /// Read their own element (as with `nonuniformEXT`).
     pub own: usize,
-    /// Read another element of the array (allowed: which one is undefined).
+    /// Read what another lane's index gives (accepted by the heuristic).
     pub other: usize,
     /// Read neither: a mismatch.
     pub neither: usize,
+    /// Pixels judged against their own subgroup's lanes (the device's lane evidence showed the
+    /// whole subgroup); the others against every lane of the dispatch.
+    #[serde(default)]
+    pub by_subgroup: usize,
+}
+
+/// Where a heap cell's probed descriptors sit in the resource heap, and how its binding 2 reaches
+/// them: what a driver engineer needs to recompute the address of the descriptor a lane should
+/// have read.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct HeapDetail {
+    /// Binding 2's `VkDescriptorSetAndBindingMappingEXT` (source and its fields), or that the
+    /// shader reads the heap itself (`direct`).
+    pub mapping: String,
+    /// The shader record data after each hit group's SBT handle (hex bytes; empty: none).
+    #[serde(default)]
+    pub shader_record: String,
+    /// Byte offset of the probed array's element 0 in the resource heap, and its stride: slot
+    /// `s` is read from `probe_offset + s * probe_stride`.
+    pub probe_offset: u32,
+    pub probe_stride: u32,
 }
 
 /// f64 figures that may be NaN or ∞: a number in JSON when finite, else "NaN" / "inf" / "-inf".
@@ -88,6 +116,12 @@ pub struct Comparison {
     /// (absent in reports before lane evidence).
     #[serde(default)]
     pub lane_evidence: crate::model::LaneEvidence,
+    /// For a mismatch whose records carry lane evidence: how the mismatched pixels split by it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lanes: Option<crate::model::LaneSplit>,
+    /// Heap cells: where the probed descriptors sit in the heap and how binding 2 reaches them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub heap: Option<HeapDetail>,
     /// Pictures of a mismatching comparison (expected, actual, diff PNGs; `run --dump`).
     #[serde(skip_serializing_if = "Vec::is_empty", default)]
     pub pictures: Vec<String>,

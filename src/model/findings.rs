@@ -64,7 +64,12 @@ impl PatternResult {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum GpuAvVerdict {
+    /// Every attempt under GPU-AV passed, enough of them that a fault as frequent as the
+    /// finding's would have shown (miss probability below 1%, the verified-workaround rule).
     Masked,
+    /// Every attempt under GPU-AV passed, but too few to say (the finding's own attempts bound its
+    /// rate too loosely: confirm it more, `--repeat`).
+    Inconclusive,
     StillFaults,
     GpuAvFailed,
     NotRun,
@@ -88,8 +93,8 @@ pub struct GpuAvResult {
     pub attempts: u32,
     #[serde(default)]
     pub passed: u32,
-    /// For `masked`: the chance that these passes would all have missed a fault as frequent as
-    /// the finding's ([`super::stats::pass_miss`]).
+    /// For `masked` and `inconclusive`: the chance that these passes would all have missed a
+    /// fault as frequent as the finding's ([`super::stats::pass_miss`]).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub miss_probability: Option<f64>,
 }
@@ -119,6 +124,11 @@ impl GpuAvResult {
             GpuAvVerdict::Masked => format!(
                 "GPU-AV: masked ({} under GPU-AV{errors})",
                 super::stats::passes_text(self.passed, self.attempts, self.miss_probability)
+            ),
+            GpuAvVerdict::Inconclusive => format!(
+                "GPU-AV: inconclusive ({} under GPU-AV, not below the {:.0}% needed to call it masked{errors}; more attempts of the finding itself (--repeat) tighten its rate)",
+                super::stats::passes_text(self.passed, self.attempts, self.miss_probability),
+                100.0 * super::stats::DEFAULT_MAX_MISS
             ),
             GpuAvVerdict::StillFaults => {
                 let control = match &self.control {

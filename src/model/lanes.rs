@@ -97,6 +97,88 @@ impl LaneEvidence {
     }
 }
 
+/// Probe pixels of one kind, and how many of them mismatched.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Split {
+    pub pixels: usize,
+    pub failed: usize,
+}
+
+impl Split {
+    pub fn add(&mut self, failed: bool) {
+        self.pixels += 1;
+        self.failed += usize::from(failed);
+    }
+}
+
+/// How a mismatching cell's probe pixels split by their lane evidence: whether lane 0 of their
+/// subgroup was active in the probed stage's call (bit 0 of the ballot), whether they were their
+/// subgroup's first active lane (the leader), and by lane id. Counted over the compared probe
+/// pixels whose records carry consistent lane evidence.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct LaneSplit {
+    /// Supported or forced (a diagnosis outside the spec).
+    pub evidence: LaneEvidence,
+    pub lane0_active: Split,
+    pub lane0_inactive: Split,
+    pub leaders: Split,
+    pub followers: Split,
+    /// Index: the lane id.
+    pub by_lane: Vec<Split>,
+}
+
+impl LaneSplit {
+    /// Count one probe pixel of lane `lane` in a subgroup whose ballot's low bits are `mask`,
+    /// led by pixel `leader`, the pixel itself being `pixel`.
+    pub fn add(&mut self, (lane, mask, leader, pixel): (u32, u32, usize, usize), failed: bool) {
+        if mask & 1 != 0 {
+            self.lane0_active.add(failed);
+        } else {
+            self.lane0_inactive.add(failed);
+        }
+        if leader == pixel {
+            self.leaders.add(failed);
+        } else {
+            self.followers.add(failed);
+        }
+        let lane = lane as usize;
+        if self.by_lane.len() <= lane {
+            self.by_lane.resize(lane + 1, Split::default());
+        }
+        self.by_lane[lane].add(failed);
+    }
+
+    /// `mismatches by lane 0 of the subgroup: inactive in the call 926 of 933 pixels, active 0 of
+    /// 1821; leaders 3 of 600, others 923 of 2154; by lane: 0: 0/300, 1: 120/260, …`
+    pub fn sentence(&self) -> String {
+        let lanes: Vec<String> = self
+            .by_lane
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.pixels > 0)
+            .map(|(k, s)| format!("{k}: {}/{}", s.failed, s.pixels))
+            .collect();
+        let forced = match self.evidence {
+            LaneEvidence::Forced => format!(
+                " (forced lane evidence: the device does not list subgroup ballot in this stage, {SUBGROUP_STAGE_VUID}; a diagnosis)"
+            ),
+            LaneEvidence::Absent | LaneEvidence::Supported => String::new(),
+        };
+        format!(
+            "mismatches by lane 0 of the subgroup: where it was inactive in the call {} of {} pixels, where active {} of {}; subgroup leaders {} of {}, other lanes {} of {}; by lane (mismatched/pixels): {}{forced}",
+            self.lane0_inactive.failed,
+            self.lane0_inactive.pixels,
+            self.lane0_active.failed,
+            self.lane0_active.pixels,
+            self.leaders.failed,
+            self.leaders.pixels,
+            self.followers.failed,
+            self.followers.pixels,
+            lanes.join(", ")
+        )
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -116,5 +198,37 @@ mod tests {
             LaneEvidence::Forced
         );
         assert_eq!(LaneEvidence::default(), LaneEvidence::Absent);
+    }
+
+    #[test]
+    fn the_split_counts_pixels_by_lane_zero_leader_and_lane() {
+        let mut s = LaneSplit { evidence: LaneEvidence::Forced, ..Default::default() };
+        // a subgroup without lane 0 (lanes 1, 2 active, led by pixel 10): both fail
+        s.add((1, 0b110, 10, 10), true);
+        s.add((2, 0b110, 10, 11), true);
+        // a subgroup with lane 0: it passes
+        s.add((0, 0b11, 20, 20), false);
+        s.add((1, 0b11, 20, 21), false);
+        assert_eq!(s.lane0_inactive, Split { pixels: 2, failed: 2 });
+        assert_eq!(s.lane0_active, Split { pixels: 2, failed: 0 });
+        assert_eq!(
+            (s.leaders, s.followers),
+            (Split { pixels: 2, failed: 1 }, Split { pixels: 2, failed: 1 })
+        );
+        assert_eq!(
+            s.by_lane,
+            vec![
+                Split { pixels: 1, failed: 0 },
+                Split { pixels: 2, failed: 1 },
+                Split { pixels: 1, failed: 1 }
+            ]
+        );
+        let t = s.sentence();
+        assert!(t.starts_with("mismatches by lane 0 of the subgroup: where it was inactive in the call 2 of 2 pixels, where active 0 of 2"), "{t}");
+        assert!(
+            t.contains("by lane (mismatched/pixels): 0: 0/1, 1: 1/2, 2: 1/1")
+                && t.contains("forced lane evidence"),
+            "{t}"
+        );
     }
 }

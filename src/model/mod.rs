@@ -36,12 +36,12 @@ pub use baseline::{
 };
 pub use bisection::{BisectFile, Bisection, IsolationLine};
 pub use cell::{undefined_descriptor_read, Canary, Cell, Pattern, Workaround, NO_NONUNIFORM_VUID};
-pub use comparison::{Comparison, ElementReads, Mismatch, MutantPrediction};
+pub use comparison::{Comparison, ElementReads, Mismatch, MutantPrediction, OTHER_LANE_HEURISTIC};
 pub use fault::{FaultAddress, FaultInfo, FaultVendorInfo};
 pub use filter::{Filter, FilterError};
 pub use findings::{GpuAvResult, GpuAvVerdict, PatternResult, PatternStatus};
 pub use inject::{FaultKind, InjectError, InjectedFault, Injection};
-pub use lanes::{LaneEvidence, LaneMode};
+pub use lanes::{LaneEvidence, LaneMode, LaneSplit, Split};
 pub use load::LoadError;
 pub use mutant::{Mutant, MutantEntry, MutantReport, MutantStatus};
 pub use outcome::{CellResult, Outcome, Timings};

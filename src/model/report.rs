@@ -151,6 +151,14 @@ impl CellReport {
         }
     }
 
+    /// (faulted, attempts) over the attempts that are evidence about the driver
+    /// ([`Attempt::is_evidence`]): what the incidence and bisection count.
+    pub fn evidence_counts(&self) -> (u32, u32) {
+        let n = self.attempts.iter().filter(|a| a.is_evidence()).count() as u32;
+        let k = self.attempts.iter().filter(|a| a.faulted()).count() as u32;
+        (k, n)
+    }
+
     /// Recompute the verdict from every attempt: the worst outcome, its incidence, whether the
     /// attempts disagree, and (for a canary) whether the fault was detected.
     ///
@@ -165,9 +173,9 @@ impl CellReport {
             return;
         };
         let (outcome, detail) = (worst.outcome, worst.detail.clone());
-        let n = counted.len() as u32;
-        let k = counted.iter().filter(|a| a.outcome.is_finding()).count() as u32;
-        let alone: Vec<&&Attempt> = counted.iter().skip(1).filter(|a| a.isolated).collect();
+        let (k, n) = self.evidence_counts();
+        let alone: Vec<&&Attempt> =
+            counted.iter().skip(1).filter(|a| a.isolated && a.is_evidence()).collect();
         self.outcome = outcome;
         self.flaky = counted.iter().any(|a| a.outcome != outcome);
         self.confirmed =
@@ -178,7 +186,9 @@ impl CellReport {
             a.outcome == Outcome::Pass
                 && a.injected.as_ref().is_some_and(|i| i.armed != Some(false))
         });
-        self.incidence = outcome.is_finding().then(|| Incidence {
+        // Incidence is over the evidence only (`Attempt::is_evidence`), as bisection counts it: an
+        // `error` verdict, or one no attempt that ran decided, has none.
+        self.incidence = (outcome.is_finding() && n > 0).then(|| Incidence {
             faulted: k,
             attempts: n,
             reproduced_alone: (!alone.is_empty())
@@ -556,6 +566,36 @@ mod tests {
         assert_eq!(c.incidence.as_ref().unwrap().reproduced_alone, Some(true));
         let pass = CellReport::new(&cell(), attempt(Outcome::Pass, false));
         assert!(pass.incidence.is_none() && !pass.flaky && pass.confirmed.is_none());
+    }
+
+    /// Issue 21, item 6: `error` attempts (rtprobe could not run the cell) are no evidence about
+    /// the driver, for the incidence as for bisection: a mismatch among two errors is 1 of 1, a
+    /// cell of errors only has no incidence, and a failed setup counts neither.
+    #[test]
+    fn the_incidence_counts_what_bisection_counts() {
+        let mut c = CellReport::new(&cell(), attempt(Outcome::Mismatch, false));
+        c.attempts.push(attempt(Outcome::Error, true));
+        c.attempts.push(attempt(Outcome::Error, false));
+        c.refresh();
+        assert_eq!(c.outcome, Outcome::Mismatch);
+        let inc = c.incidence.clone().unwrap();
+        assert_eq!((inc.faulted, inc.attempts), (1, 1));
+        assert_eq!(inc.reproduced_alone, None, "the error that ran alone reproduced nothing");
+        assert_eq!(c.evidence_counts(), (1, 1));
+        let mut errors = CellReport::new(&cell(), attempt(Outcome::Error, false));
+        errors.attempts.push(attempt(Outcome::Error, true));
+        errors.refresh();
+        assert_eq!((errors.outcome, errors.incidence.clone()), (Outcome::Error, None));
+        let mut setup = CellReport::new(&cell(), attempt(Outcome::Pass, false));
+        setup.attempts.push(Attempt::for_tests(Outcome::Crash, false).with_worker(
+            1,
+            crate::model::Phase::Setup,
+            vec![],
+        ));
+        setup.attempts.push(attempt(Outcome::Crash, true));
+        setup.refresh();
+        let inc = setup.incidence.clone().unwrap();
+        assert_eq!((inc.faulted, inc.attempts, inc.reproduced_alone), (1, 2, Some(true)));
     }
 
     #[test]

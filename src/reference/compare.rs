@@ -1,8 +1,12 @@
 //! A cell's records against the reference's: per pixel the hit fields within their tolerances
 //! (`T_REL_TOL`, `BARY_TOL`) and the probed value by its rule, with counts, worst errors, the
-//! own/other/neither reads of an undefined index, and the first mismatches as examples.
+//! own/other/neither reads of an undefined index (judged by the other-lane heuristic against the
+//! slots [`OtherLanes`] names), and the first mismatches as examples.
+use super::lanes::Lanes;
 use super::rules::{Expected, ValueRule, BARY_TOL, T_REL_TOL};
-use crate::model::{Comparison, ElementReads, Mismatch, NO_NONUNIFORM_VUID};
+use crate::model::{
+    Comparison, ElementReads, LaneSplit, Mismatch, NO_NONUNIFORM_VUID, OTHER_LANE_HEURISTIC,
+};
 use crate::probe::{Record, FLAG_HIT, FLAG_LANES, FLAG_PROBE};
 
 /// The larger error, NaN when either is NaN (`f64::max` would drop it).
@@ -71,7 +75,57 @@ fn compare_lanes(bad: &mut Bad, r: &Record, a: &Record, pixels: usize) {
     }
 }
 
-fn compare_probe(c: &mut Comparison, bad: &mut Bad, e: &Expected, a: &Record) {
+/// The descriptor indices other lanes computed, for the other-lane heuristic of undefined reads:
+/// each probe pixel's expected slot (and, where its hit is ambiguous, the slot it recorded: it may
+/// have hit the other surface), per subgroup where the device's lane evidence shows the whole
+/// subgroup, else over the whole dispatch.
+struct OtherLanes<'a> {
+    expected: &'a [Expected],
+    actual: &'a [Record],
+    lanes: Option<&'a Lanes>,
+    dispatch: Vec<u32>,
+}
+
+impl<'a> OtherLanes<'a> {
+    fn new(expected: &'a [Expected], actual: &'a [Record], lanes: Option<&'a Lanes>) -> Self {
+        let lenient = expected.iter().any(|e| e.rule != ValueRule::Exact);
+        let mut dispatch: Vec<u32> = if lenient {
+            (0..expected.len()).flat_map(|q| Self::computed(expected, actual, q)).collect()
+        } else {
+            vec![]
+        };
+        dispatch.sort_unstable();
+        dispatch.dedup();
+        OtherLanes { expected, actual, lanes, dispatch }
+    }
+
+    /// The slots lane `q` computed: its expected slot where the probe runs there, and its
+    /// recorded one too where its hit is ambiguous.
+    fn computed(expected: &[Expected], actual: &[Record], q: usize) -> impl Iterator<Item = u32> {
+        let e = &expected[q];
+        let probe = e.record.flags & FLAG_PROBE != 0;
+        let recorded = (e.ambiguous && actual[q].flags & FLAG_PROBE != 0).then(|| actual[q].slot);
+        probe.then_some(e.record.slot).into_iter().chain(recorded)
+    }
+
+    /// The slots pixel `p` may have read through, and whether they are its subgroup's.
+    fn of(&self, p: usize) -> (Vec<u32>, bool) {
+        match self.lanes.and_then(|l| l.subgroup(p)) {
+            Some(group) => (
+                group.iter().flat_map(|&q| Self::computed(self.expected, self.actual, q)).collect(),
+                true,
+            ),
+            None => (self.dispatch.clone(), false),
+        }
+    }
+}
+
+fn compare_probe(
+    c: &mut Comparison,
+    bad: &mut Bad,
+    (e, a, p): (&Expected, &Record, usize),
+    others: &OtherLanes,
+) {
     let r = &e.record;
     for (name, x, g) in [("slot", r.slot, a.slot), ("element", r.element, a.element)] {
         if x != g {
@@ -79,7 +133,11 @@ fn compare_probe(c: &mut Comparison, bad: &mut Bad, e: &Expected, a: &Record) {
         }
     }
     let own = r.value == a.value;
-    let allowed = !own && e.rule.allows(a.value);
+    let (slots, by_subgroup) = match e.rule {
+        ValueRule::Exact => (vec![], false),
+        ValueRule::AnyElement { .. } => others.of(p),
+    };
+    let allowed = !own && e.rule.allows(a.value, slots.into_iter());
     if !allowed {
         let ve =
             r.value.iter().zip(a.value).map(|(x, y)| (*x as f64 - y as f64).abs()).fold(0.0, worst);
@@ -97,8 +155,10 @@ fn compare_probe(c: &mut Comparison, bad: &mut Bad, e: &Expected, a: &Record) {
             c.any_element_values += 1;
             let reads = c.element_reads.get_or_insert_with(|| ElementReads {
                 outside_spec: NO_NONUNIFORM_VUID.into(),
+                heuristic: OTHER_LANE_HEURISTIC.into(),
                 ..Default::default()
             });
+            reads.by_subgroup += usize::from(by_subgroup);
             match (own, allowed) {
                 (true, _) => reads.own += 1,
                 (false, true) => reads.other += 1,
@@ -111,9 +171,25 @@ fn compare_probe(c: &mut Comparison, bad: &mut Bad, e: &Expected, a: &Record) {
     }
 }
 
+/// [`compare_with`] without lane evidence (undefined reads judged against the whole dispatch).
 pub fn compare(expected: &[Expected], actual: &[Record], width: u32) -> Comparison {
+    compare_with(expected, actual, width, None)
+}
+
+/// Compare the records; `lanes`: the device's subgroups where its lane evidence may be judged by
+/// (then an undefined read may only read what a lane of its own subgroup computed). Where the
+/// records carry lane evidence and some mismatch, `lanes` of the result splits the probe pixels
+/// by it (its `evidence` is for the caller to say).
+pub fn compare_with(
+    expected: &[Expected],
+    actual: &[Record],
+    width: u32,
+    lanes: Option<&Lanes>,
+) -> Comparison {
+    let others = OtherLanes::new(expected, actual, lanes);
     let mut c = Comparison { pixels: expected.len(), ..Default::default() };
     let mut exact_probe_pixels = 0usize;
+    let mut split = LaneSplit::default();
     for (i, (e, a)) in expected.iter().zip(actual).enumerate() {
         if e.ambiguous {
             c.ambiguous += 1;
@@ -123,39 +199,14 @@ pub fn compare(expected: &[Expected], actual: &[Record], width: u32) -> Comparis
         let r = &e.record;
         if r.flags & FLAG_PROBE != 0 {
             c.probe_checked += 1;
+            // (the denominator of the discrimination: exact pixels whose probe fields were read)
+            exact_probe_pixels += usize::from(e.rule == ValueRule::Exact && r.flags == a.flags);
         }
-        let mut bad: Bad = Vec::new();
-        if r.flags != a.flags {
-            bad.push(("flags", r.flags.to_string(), a.flags.to_string()));
-        } else {
-            if r.flags & FLAG_HIT != 0 {
-                compare_hit(&mut c, &mut bad, r, a);
-            } else {
-                unset_fields_differ(
-                    &mut bad,
-                    &[
-                        ("custom", r.custom, a.custom),
-                        ("instance_id", r.instance_id, a.instance_id),
-                        ("geometry", r.geometry, a.geometry),
-                        ("primitive", r.primitive, a.primitive),
-                        ("t", r.t.to_bits(), a.t.to_bits()),
-                        ("bary", r.bary[0].to_bits(), a.bary[0].to_bits()),
-                        ("bary", r.bary[1].to_bits(), a.bary[1].to_bits()),
-                    ],
-                );
-            }
-            compare_lanes(&mut bad, r, a, expected.len());
-            if r.flags & FLAG_PROBE != 0 {
-                if e.rule == ValueRule::Exact {
-                    exact_probe_pixels += 1;
-                }
-                compare_probe(&mut c, &mut bad, e, a);
-            } else {
-                let mut fields = vec![("slot", r.slot, a.slot), ("element", r.element, a.element)];
-                fields
-                    .extend((0..4).map(|k| ("value", r.value[k].to_bits(), a.value[k].to_bits())));
-                unset_fields_differ(&mut bad, &fields);
-            }
+        let mut bad = compare_pixel(&mut c, (e, a, i), &others, expected.len());
+        let lane_words =
+            r.flags & FLAG_LANES != 0 && super::lanes::inconsistency(a, expected.len()).is_none();
+        if lane_words {
+            split.add((a.lane, a.active_mask, a.leader as usize, i), !bad.is_empty());
         }
         if !bad.is_empty() {
             c.mismatched_pixels += 1;
@@ -177,5 +228,47 @@ pub fn compare(expected: &[Expected], actual: &[Record], width: u32) -> Comparis
     if let Some(d) = c.discrimination.as_mut() {
         *d /= exact_probe_pixels as f64;
     }
+    c.lanes = (c.mismatched_pixels > 0 && !split.by_lane.is_empty()).then_some(split);
     c
+}
+
+/// One compared pixel's differing fields: flags, the hit's fields (or their zero bits), the lane
+/// words, the probe's fields (or their zero bits).
+fn compare_pixel(
+    c: &mut Comparison,
+    (e, a, i): (&Expected, &Record, usize),
+    others: &OtherLanes,
+    pixels: usize,
+) -> Bad {
+    let r = &e.record;
+    let mut bad: Bad = Vec::new();
+    if r.flags != a.flags {
+        bad.push(("flags", r.flags.to_string(), a.flags.to_string()));
+        return bad;
+    }
+    if r.flags & FLAG_HIT != 0 {
+        compare_hit(c, &mut bad, r, a);
+    } else {
+        unset_fields_differ(
+            &mut bad,
+            &[
+                ("custom", r.custom, a.custom),
+                ("instance_id", r.instance_id, a.instance_id),
+                ("geometry", r.geometry, a.geometry),
+                ("primitive", r.primitive, a.primitive),
+                ("t", r.t.to_bits(), a.t.to_bits()),
+                ("bary", r.bary[0].to_bits(), a.bary[0].to_bits()),
+                ("bary", r.bary[1].to_bits(), a.bary[1].to_bits()),
+            ],
+        );
+    }
+    compare_lanes(&mut bad, r, a, pixels);
+    if r.flags & FLAG_PROBE != 0 {
+        compare_probe(c, &mut bad, (e, a, i), others);
+    } else {
+        let mut fields = vec![("slot", r.slot, a.slot), ("element", r.element, a.element)];
+        fields.extend((0..4).map(|k| ("value", r.value[k].to_bits(), a.value[k].to_bits())));
+        unset_fields_differ(&mut bad, &fields);
+    }
+    bad
 }

@@ -55,7 +55,7 @@ use crate::model::{Cell, LaneEvidence, Resource, Stage};
 use crate::probe::spec::{ElementMap, ProbeSpec, ReadIndex, Sampler};
 use crate::probe::{self, HitIds, Record, FLAG_HIT, FLAG_LANES, FLAG_PROBE, MAX_AS_VARIANTS};
 use crate::scene::Scene;
-pub use compare::compare;
+pub use compare::{compare, compare_with};
 use intersect::TraceRef;
 pub use rules::{Expected, Undefined, ValueRule, BARY_TOL, T_REL_TOL};
 
@@ -263,7 +263,7 @@ impl Probed<'_> {
             .get_or_insert_with(|| buffer_value_discriminates(spec.resource, slots, read, texel));
     }
 
-    /// An undefined descriptor read: the value of any element of the array passes.
+    /// An undefined descriptor read: judged by the other-lane heuristic ([`ValueRule::AnyElement`]).
     fn any_element(&self, e: &mut Expected, p: usize) {
         let mut as_values = [0.0; MAX_AS_VARIANTS as usize];
         if self.spec.element == ElementMap::None {
@@ -273,9 +273,11 @@ impl Probed<'_> {
                 e.ambiguous |= amb;
             }
         }
+        // Set/binding reads only (heap reads are never undefined): no separate sampler, so the
+        // lane's texel is its element.
         e.rule = ValueRule::AnyElement {
             resource: self.spec.resource,
-            slots: self.slots,
+            texel: e.record.element,
             as_values,
             variants: self.variants,
         };
@@ -321,12 +323,14 @@ pub fn mutant_after_run(
 ) -> crate::model::MutantPrediction {
     let mut m = mutation::Mutation::new(site);
     let from_lanes = mutation::broadcast(site);
+    let subgroups = lanes::Lanes::from_records(records);
     if from_lanes {
-        m.leader_slots = mutation::leader_slots(expected, &lanes::Lanes::from_records(records));
+        m.leader_slots = mutation::leader_slots(expected, &subgroups);
     }
     let mut mutated = expected_mutated(cell, scene, sref, undefined, &m);
     expect_lanes(&mut mutated, lanes);
-    let p = mutation::predict(expected, &mutated, Some(records), scene.params.width);
+    let judged = lanes.usable().then_some(&subgroups);
+    let p = mutation::predict(expected, &mutated, (Some(records), judged), scene.params.width);
     crate::model::MutantPrediction { from_lanes, ..p }
 }
 
@@ -343,7 +347,7 @@ pub fn mutant_before_run(
         return mutation::one_slot(&expected);
     }
     let mutated = expected_mutated(cell, scene, sref, undefined, &mutation::Mutation::new(site));
-    mutation::predict(&expected, &mutated, None, scene.params.width)
+    mutation::predict(&expected, &mutated, (None, None), scene.params.width)
 }
 
 fn expected_probed(

@@ -10,7 +10,7 @@
 //! records' `leader`), so its prediction is made after the run ([`leader_slots`]; the reference's
 //! `mutant_after_run`); before the run (`mutant_before_run`) it is equivalent only where every
 //! checked pixel computes the same slot ([`one_slot`]).
-use super::compare::compare;
+use super::compare::compare_with;
 use super::lanes::Lanes;
 use super::rules::Expected;
 use crate::model::MutantPrediction;
@@ -102,12 +102,13 @@ pub fn leader_slots(expected: &[Expected], lanes: &Lanes) -> Vec<Option<u32>> {
 }
 
 /// `mutated` against `expected`: the checked pixels whose records differ, and those the
-/// comparison flags. The mutated records take the device's lane words (`device`), so that only
+/// comparison flags, judged as the cell is (`lanes`: the device's subgroups where its evidence
+/// may be judged by). The mutated records take the device's lane words (`device`), so that only
 /// the mutation can make a difference.
 pub fn predict(
     expected: &[Expected],
     mutated: &[Expected],
-    device: Option<&[Record]>,
+    (device, lanes): (Option<&[Record]>, Option<&Lanes>),
     width: u32,
 ) -> MutantPrediction {
     let records: Vec<Record> = mutated
@@ -129,7 +130,7 @@ pub fn predict(
         .zip(mutated)
         .filter(|(e, m)| !e.ambiguous && !m.ambiguous && e.record != m.record)
         .count();
-    let caught = compare(expected, &records, width).mismatched_pixels;
+    let caught = compare_with(expected, &records, width, lanes).mismatched_pixels;
     MutantPrediction { differing, caught, from_lanes: false }
 }
 

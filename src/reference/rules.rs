@@ -12,11 +12,16 @@ pub const BARY_TOL: f64 = 1e-3;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum ValueRule {
     Exact,
-    /// Any element of the probed array is allowed (non-uniform index without NonUniform); for AS
-    /// arrays, the first component of any probe TLAS variant's value (`as_values[..variants]`).
+    /// An undefined read (a non-uniform set/binding index without `NonUniform`): the spec allows
+    /// anything, and rtprobe's *heuristic* for a scalarizing driver accepts the value of the
+    /// descriptor index some other lane computed — in the same subgroup where the device's lane
+    /// evidence shows it, else anywhere in the dispatch (`compare` picks the slots) — at this
+    /// lane's own element (`texel`: the texel this lane samples). For AS arrays the value is the
+    /// probe ray through that slot's TLAS variant at this pixel (`as_values[slot]`, first
+    /// component; `variants` of them).
     AnyElement {
         resource: Resource,
-        slots: u32,
+        texel: u32,
         as_values: [f32; MAX_AS_VARIANTS as usize],
         variants: u32,
     },
@@ -40,8 +45,9 @@ pub struct Expected {
 }
 
 impl ValueRule {
-    /// Whether `v` is the value of some element of the array.
-    pub(super) fn allows(&self, v: [f32; 4]) -> bool {
+    /// Whether `v` is what this pixel reads through the descriptor at one of `slots` (the slots
+    /// other lanes computed).
+    pub(super) fn allows(&self, v: [f32; 4], mut slots: impl Iterator<Item = u32>) -> bool {
         match *self {
             ValueRule::Exact => false,
             ValueRule::AnyElement {
@@ -49,13 +55,12 @@ impl ValueRule {
                 as_values,
                 variants,
                 ..
-            } => v[1..] == [0.0, 0.0, 1.0] && as_values[..variants as usize].contains(&v[0]),
-            ValueRule::AnyElement { resource, slots, .. } => {
-                let (s, e) = (v[0] - 1.0, v[3] - 0.25);
-                let whole = |x: f32, n: u32| x >= 0.0 && x.fract() == 0.0 && (x as u32) < n;
-                whole(s, slots)
-                    && whole(e, probe::ELEMENTS)
-                    && probe::resource_value(resource, s as u32, e as u32) == v
+            } => {
+                v[1..] == [0.0, 0.0, 1.0]
+                    && slots.any(|s| s < variants && as_values[s as usize] == v[0])
+            }
+            ValueRule::AnyElement { resource, texel, .. } => {
+                slots.any(|s| probe::resource_value(resource, s, texel) == v)
             }
         }
     }

@@ -519,6 +519,10 @@ fn direct_heap_reads_are_judged_exactly() {
     }
 }
 
+/// A closest-hit lane computes `DYNAMIC_BASE + (custom & mask)`, so no lane computes slots
+/// 0..DYNAMIC_BASE: a driver that drops the base reads such a slot wherever the masked custom
+/// index is small, and the other-lane heuristic calls that a mismatch; where it lands on a slot
+/// another lane computed, it is counted as another lane's read.
 #[test]
 fn a_driver_ignoring_base_shows_in_the_element_reads() {
     let (scene, r) = world();
@@ -535,18 +539,114 @@ fn a_driver_ignoring_base_shows_in_the_element_reads() {
     let cmp = compare(&e, &base_dropped, 64);
     let reads = cmp.element_reads.clone().expect("no-nonuniform cells count their reads");
     assert_eq!(reads.outside_spec, NO_NONUNIFORM_VUID);
-    assert_eq!((reads.own, reads.neither), (0, 0), "{reads:?}");
-    assert_eq!(reads.other, cmp.any_element_values);
-    assert!(reads.other > 100);
-    assert!(cmp.passed(), "which element is read is undefined without nonuniformEXT");
+    assert_eq!(reads.own, 0, "{reads:?}");
+    assert_eq!(reads.other + reads.neither, cmp.any_element_values);
+    let below_base = e
+        .iter()
+        .filter(|x| {
+            !x.ambiguous
+                && x.record.flags & FLAG_PROBE != 0
+                && x.record.slot < 2 * crate::probe::DYNAMIC_BASE
+        })
+        .count();
+    assert_eq!(reads.neither, below_base, "{reads:?}");
+    assert!(reads.other > 100 && reads.neither > 100, "{reads:?}");
+    assert_eq!(cmp.by_field.get("value"), Some(&reads.neither));
     assert_eq!(cmp.discrimination, None);
-    // the same reads with nonuniformEXT are mismatches
+    // the same reads with nonuniformEXT are mismatches everywhere
     let nu = Cell { nonuniform: true, ..c };
     let cmp = compare(&expected(&nu, scene, r), &base_dropped, 64);
-    assert_eq!(cmp.by_field.get("value"), Some(&reads.other));
+    assert_eq!(cmp.by_field.get("value"), Some(&(reads.other + reads.neither)));
     // and the own reads are counted as own
     let cmp = compare(&e, &records(&e), 64);
-    assert_eq!(cmp.element_reads.map(|x| (x.own, x.other)), Some((reads.other, 0)));
+    assert_eq!(cmp.element_reads.map(|x| (x.own, x.other)), Some((reads.other + reads.neither, 0)));
+}
+
+/// Issue 21, item 2: without `nonuniformEXT` a hit-stage read of slot 0 — an index dropped to 0,
+/// which no lane computes there (every lane's is `DYNAMIC_BASE` or more) — is a mismatch on every
+/// probe pixel, for buffers, images and acceleration structures alike (before, "any element of
+/// the array" passed it).
+#[test]
+fn an_index_no_lane_computed_is_a_mismatch_without_nonuniform() {
+    let (scene, r) = world();
+    for stage in [Stage::ClosestHit, Stage::AnyHit, Stage::Intersection] {
+        for resource in
+            [Resource::StorageBuffer, Resource::SampledImage, Resource::AccelerationStructure]
+        {
+            let as_access =
+                (resource == Resource::AccelerationStructure).then_some(AsAccess::Descriptor);
+            let c = Cell { resource, as_access, ..cell(stage, IndexSource::Dynamic) };
+            let e = expected(&c, scene, r);
+            assert!(compare(&e, &records(&e), 64).passed(), "{}", c.id());
+            let slot0: Vec<Record> = e
+                .iter()
+                .enumerate()
+                .map(|(p, x)| {
+                    let mut a = x.record;
+                    if a.flags & FLAG_PROBE != 0 {
+                        a.value = if resource == Resource::AccelerationStructure {
+                            r.as_value(0, p).0
+                        } else {
+                            probe::resource_value(resource, 0, a.element)
+                        };
+                    }
+                    a
+                })
+                .collect();
+            let cmp = compare(&e, &slot0, 64);
+            let reads = cmp.element_reads.clone().unwrap();
+            // (an AS read through slot 0 may give the same hit as the lane's own slot)
+            assert!(
+                reads.neither * 10 >= cmp.probe_checked * 9,
+                "{}: slot 0 read caught on {} of {} ({reads:?})",
+                c.id(),
+                reads.neither,
+                cmp.probe_checked
+            );
+            assert_eq!(reads.other, 0, "{}", c.id());
+        }
+    }
+}
+
+/// With the device's lane evidence an undefined read may only read what a lane of its own
+/// subgroup computed: the leader's index broadcast to every lane passes (counted per subgroup),
+/// an index only a lane of another subgroup computed is a mismatch there, though it passes
+/// against the whole dispatch (no lane evidence).
+#[test]
+fn with_lane_evidence_an_undefined_read_is_judged_per_subgroup() {
+    let (scene, r) = world();
+    let c = cell(Stage::Raygen, IndexSource::Dynamic);
+    let mut e = expected(&c, scene, r);
+    expect_lanes(&mut e, LaneEvidence::Supported);
+    let good = with_lanes(&e);
+    let lanes = lanes::Lanes::from_records(&good);
+    assert!(compare_with(&e, &good, 64, Some(&lanes)).passed());
+    let slots = probe::slot_count(Resource::StorageBuffer, scene.params.instances);
+    let read = |slot_of: &dyn Fn(usize, &Record) -> u32| -> Vec<Record> {
+        good.iter()
+            .enumerate()
+            .map(|(p, a)| Record {
+                value: probe::resource_value(Resource::StorageBuffer, slot_of(p, a), a.element),
+                ..*a
+            })
+            .collect()
+    };
+    let broadcast = read(&|p, _| good[lanes.leader(p).unwrap()].slot);
+    let cmp = compare_with(&e, &broadcast, 64, Some(&lanes));
+    let reads = cmp.element_reads.clone().unwrap();
+    assert!(cmp.passed() && reads.other > 1000, "{reads:?}");
+    assert_eq!(reads.by_subgroup, cmp.any_element_values);
+    // Eight pixels on: a slot only the next subgroup's lanes computed.
+    let next = read(&|_, a| (a.slot + 8) % slots);
+    let cmp = compare_with(&e, &next, 64, Some(&lanes));
+    assert_eq!(cmp.mismatched_pixels, cmp.probe_checked, "{:?}", cmp.element_reads);
+    assert!(compare(&e, &next, 64).passed(), "the whole dispatch computed those slots");
+    // A subgroup the records do not show whole falls back to the dispatch.
+    let mut partial = next.clone();
+    partial[1].active_count += 1;
+    let lanes = lanes::Lanes::from_records(&partial);
+    let cmp = compare_with(&e, &partial, 64, Some(&lanes));
+    assert!(cmp.element_reads.unwrap().by_subgroup < cmp.probe_checked);
 }
 
 #[test]
@@ -568,17 +668,26 @@ fn elements_are_read_at_per_primitive_offsets() {
 }
 
 #[test]
-fn nonuniform_index_without_qualifier_accepts_any_element_but_not_garbage() {
+fn an_undefined_read_accepts_another_lanes_index_at_its_own_element_only() {
     let (scene, r) = world();
     let c = Cell { resource: Resource::UniformBuffer, ..cell(Stage::Raygen, IndexSource::Dynamic) };
     let e = expected(&c, scene, r);
     let mut actual = records(&e);
-    // Another element's value (as a driver reading one lane's descriptor would return): fine.
-    actual[10].value = crate::probe::resource_value(Resource::UniformBuffer, 0, 2);
+    // Slot 0 (another lane's index: raygen lanes compute every slot) at the lane's own element,
+    // as a driver reading one lane's descriptor would return: accepted by the heuristic.
+    let own = e[10].record.element;
+    actual[10].value = crate::probe::resource_value(Resource::UniformBuffer, 0, own);
     let cmp = compare(&e, &actual, 64);
     assert!(cmp.passed(), "{cmp:?}");
     assert_eq!(cmp.any_element_values, cmp.compared);
-    assert_eq!(cmp.element_reads.as_ref().map(|x| x.other), Some(1));
+    let reads = cmp.element_reads.as_ref().unwrap();
+    assert_eq!((reads.other, reads.by_subgroup), (1, 0));
+    assert_eq!(reads.heuristic, crate::model::OTHER_LANE_HEURISTIC);
+    // Another element of that slot is no lane's read.
+    let mut other_element = actual.clone();
+    other_element[10].value =
+        crate::probe::resource_value(Resource::UniformBuffer, 0, (own + 1) % probe::ELEMENTS);
+    assert!(!compare(&e, &other_element, 64).passed());
     // Garbage is not.
     actual[11].value = [7.5, 0.0, 0.0, 0.0];
     let cmp = compare(&e, &actual, 64);

@@ -92,6 +92,14 @@ pub struct Issue {
     /// driver (`report::recommended`): "recommended pattern X (…): passes (k/N)" / fails / not run.
     #[serde(default)]
     pub recommended_pattern: String,
+    /// How the minimal failing cell's mismatching pixels split by their subgroup lane evidence,
+    /// or why there is none (`model::lanes`).
+    #[serde(default)]
+    pub lanes: String,
+    /// For a descriptor-heap cell: binding 2's mapping, the shader record bytes and where the
+    /// probed descriptors sit in the heap.
+    #[serde(default)]
+    pub heap: String,
     pub not_tested: Vec<String>,
 }
 
@@ -212,6 +220,8 @@ pub fn build(
         reproduce: reproduce_commands(report, report_path, &rep, injection),
         workarounds: workaround_lines(bi),
         recommended_pattern: crate::report::recommended::result(report, &rep).line(),
+        lanes: lanes_text(report, &rep, rep_report),
+        heap: heap_text(&rep, rep_report),
         not_tested: not_tested(report, b),
     })
 }
@@ -349,6 +359,53 @@ fn device_fault_text(rep_report: Option<&CellReport>, outcome: Outcome) -> Strin
     }
 }
 
+/// The comparisons of the cell's attempts, latest first.
+fn comparisons(rep: Option<&CellReport>) -> impl Iterator<Item = &crate::model::Comparison> {
+    rep.into_iter()
+        .flat_map(|c| c.attempts.iter().rev())
+        .filter_map(|a| a.result.as_ref()?.comparison.as_ref())
+}
+
+/// How the minimal failing cell's mismatches split by lane evidence, or why there is none.
+fn lanes_text(report: &RunReport, rep: &Cell, rep_report: Option<&CellReport>) -> String {
+    if let Some(split) = comparisons(rep_report).find_map(|c| c.lanes.as_ref()) {
+        return format!(
+            "Lane evidence of its latest mismatching attempt (`docs/lane-evidence.md`): {}.",
+            split.sentence()
+        );
+    }
+    let recorded = comparisons(rep_report).any(|c| c.lane_evidence.recorded());
+    match (recorded, crate::model::lanes::device_ballot(&report.device, rep.stage)) {
+        (true, _) => "Its records carry lane evidence, but no attempt with a comparison mismatched.".into(),
+        (false, true) => "No lane evidence in the run report (the run was made with --lane-evidence off, or by an older rtprobe).".into(),
+        (false, false) => format!("No lane evidence: the device does not list subgroup ballot in {} shaders ({}); `rtprobe run --lane-evidence force` records it anyway, as a diagnosis outside the spec.", rep.stage.as_str(), crate::model::lanes::SUBGROUP_STAGE_VUID),
+    }
+}
+
+/// A heap cell's binding 2 mapping, shader record bytes and descriptor offsets (empty for other
+/// models).
+fn heap_text(rep: &Cell, rep_report: Option<&CellReport>) -> String {
+    let Some(h) = comparisons(rep_report).find_map(|c| c.heap.as_ref()) else {
+        return String::new();
+    };
+    let slot = crate::probe::spec::ProbeSpec::of(rep).slot.fixed();
+    let read = match slot {
+        Some(s) => {
+            format!("this cell reads slot {s}, at byte {}", h.probe_offset + s * h.probe_stride)
+        }
+        None => "this cell reads the slot each lane computes (the record's `slot`)".into(),
+    };
+    let record = if h.shader_record.is_empty() {
+        "no shader record data".to_string()
+    } else {
+        format!("the shader record data after each hit group's handle is `{}` (the heap index, then the base, little-endian u32s)", h.shader_record)
+    };
+    format!(
+        "Binding 2 (set 0) is mapped {}; {record}. The probed array's element 0 sits at byte {} of the resource heap with stride {}, so slot s is read from byte {} + s × {}: {read}.",
+        h.mapping, h.probe_offset, h.probe_stride, h.probe_offset, h.probe_stride
+    )
+}
+
 fn actual_text(rep: Option<&CellReport>, outcome: Outcome) -> String {
     let Some(c) = rep else {
         return format!(
@@ -484,6 +541,13 @@ fn not_tested(report: &RunReport, b: &BisectFile) -> Vec<String> {
             bi.not_run
         ));
     }
+    if !bi.doubtful.is_empty() {
+        v.push(format!(
+            "{} cells of the scope are evidence rtprobe doubts, so they count neither way: {}.",
+            bi.doubtful.len(),
+            bi.doubtful.join(", ")
+        ));
+    }
     if !bi.errored.is_empty() {
         v.push(format!("{} cells of the scope could not be run by rtprobe (`error`), so they count neither way: {}.", bi.errored.len(), bi.errored.join(", ")));
     }
@@ -610,6 +674,12 @@ impl Issue {
             }
             (None, Some(err)) => m += &format!("The shaders could not be rebuilt: {err}\n\n"),
             (None, None) => {}
+        }
+        if !self.lanes.is_empty() {
+            m += &format!("## Lane evidence\n\n{}\n\n", self.lanes);
+        }
+        if !self.heap.is_empty() {
+            m += &format!("## Descriptor heap\n\n{}\n\n", self.heap);
         }
         m += &format!("## VK_EXT_device_fault\n\n{}\n\n", self.device_fault);
         m += &format!("## Validation\n\n{}\n\n", self.validation);

@@ -202,7 +202,7 @@ pub fn verdict(
     });
     let why = match status {
         MutantStatus::Survived if probe_defect => format!("PROBE DEFECT: the reference predicts {} of {} differing pixels the comparison must flag, and it flagged none", prediction.caught, prediction.differing),
-        MutantStatus::Survived => format!("allowed: the cell's read is undefined ({}); its lenient rule accepts what the mutant read on all {} differing pixels", allowed_by.as_deref().unwrap_or(""), prediction.differing),
+        MutantStatus::Survived => format!("allowed: the spec leaves this read undefined ({}); rtprobe's lenient rule for it (an index another lane computed) accepts what the mutant read on all {} differing pixels", allowed_by.as_deref().unwrap_or(""), prediction.differing),
         MutantStatus::Equivalent => "the device's lane evidence shows every subgroup computed one slot: the reference predicts the same records".into(),
         MutantStatus::Killed
         | MutantStatus::Fault
@@ -217,6 +217,14 @@ pub fn verdict(
         wall_ms: a.wall_ms,
         ..entry(&base, m, status, why)
     }
+}
+
+/// One verdict into the report's kill matrix as its attempt comes back (counted; [`annotate`]
+/// orders the matrix at the round's end).
+pub fn record(report: &mut RunReport, e: MutantEntry) {
+    let r = report.mutants.get_or_insert_with(MutantReport::default);
+    r.entries.push(e);
+    r.recount();
 }
 
 /// The kill matrix into the report: `entries` added to what a resumed run had, in report order

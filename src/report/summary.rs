@@ -182,6 +182,11 @@ fn finding(s: &mut String, c: &crate::model::CellReport) {
     {
         let _ = writeln!(s, "      pictures: {diff} (expected.png and actual.png beside it)");
     }
+    if let Some(split) =
+        c.attempts.iter().rev().find_map(|a| a.result.as_ref()?.comparison.as_ref()?.lanes.as_ref())
+    {
+        let _ = writeln!(s, "      lanes: {}", split.sentence());
+    }
     if !c.workarounds.is_empty() {
         let verified: Vec<&str> =
             c.workarounds.iter().filter(|w| w.verified).map(|w| w.patch.as_str()).collect();

@@ -89,6 +89,39 @@ fn probe_source(
     }
 }
 
+/// Binding 2's mapping of a cell reaching the heap `access`-wise, in the words of
+/// VkDescriptorSetAndBindingMappingEXT (for the vendor issue); a direct cell's shader reads the heap
+/// itself.
+pub fn describe(access: HeapAccess, l: &HeapLayout) -> String {
+    let Some((source, data)) = probe_source(access, l) else {
+        return "none: the shader indexes the resource heap itself (layout(descriptor_heap)), the array at heap index 0".into();
+    };
+    // Each arm reads the union member `source` says is written (probe_source writes exactly it).
+    unsafe {
+        match source {
+            MappingSource::HeapWithConstantOffset => {
+                let d = data.constant_offset;
+                format!(
+                    "HEAP_WITH_CONSTANT_OFFSET {{ heapOffset {}, heapArrayStride {} }}",
+                    d.heap_offset, d.heap_array_stride
+                )
+            }
+            MappingSource::HeapWithPushIndex => {
+                let d = data.push_index;
+                format!("HEAP_WITH_PUSH_INDEX {{ heapOffset {}, pushOffset {}, heapIndexStride {}, heapArrayStride {} }} (push data holds heap index {})", d.heap_offset, d.push_offset, d.heap_index_stride, d.heap_array_stride, l.probe_index())
+            }
+            MappingSource::HeapWithIndirectIndex => {
+                let d = data.indirect_index;
+                format!("HEAP_WITH_INDIRECT_INDEX {{ heapOffset {}, pushOffset {}, addressOffset {}, heapIndexStride {}, heapArrayStride {} }} (the addressed buffer holds heap index {})", d.heap_offset, d.push_offset, d.address_offset, d.heap_index_stride, d.heap_array_stride, l.probe_index())
+            }
+            MappingSource::HeapWithShaderRecordIndex => {
+                let d = data.shader_record_index;
+                format!("HEAP_WITH_SHADER_RECORD_INDEX {{ heapOffset {}, shaderRecordOffset {}, heapIndexStride {}, heapArrayStride {} }} (every record holds heap index {})", d.heap_offset, d.shader_record_offset, d.heap_index_stride, d.heap_array_stride, l.probe_index())
+            }
+        }
+    }
+}
+
 /// The set/binding → heap mapping every stage of a heap pipeline gets (boxed: the info points at
 /// the mappings).
 pub struct PipelineMapping {

@@ -37,5 +37,5 @@ mod write;
 
 pub use binding::HeapBinding;
 pub use layout::HeapLayout;
-pub use mapping::PipelineMapping;
+pub use mapping::{describe as describe_mapping, PipelineMapping};
 pub use push::{PUSH_INDEX_ADDRESS_OFFSET, PUSH_INDEX_OFFSET};

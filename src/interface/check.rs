@@ -1,0 +1,104 @@
+//! The checks of [`check`]: resources, push constants, payloads and callable data, hit
+//! attributes (the rules are in the module doc).
+use super::error::Mismatch;
+use super::layout::PipelineDesc;
+use super::spirv::ModuleInterface;
+
+/// The first way `modules` (SPIR-V words, in the pipeline's stage order) do not fit `pipeline`.
+pub fn check(modules: &[&[u32]], pipeline: &PipelineDesc) -> Result<(), Mismatch> {
+    let mut read = Vec::with_capacity(modules.len());
+    for (k, words) in modules.iter().enumerate() {
+        let m = ModuleInterface::read(words).map_err(|source| Mismatch::Unreadable {
+            module: k,
+            stage: ash::vk::ShaderStageFlags::empty(),
+            source,
+        })?;
+        read.push(m);
+    }
+    for m in &read {
+        resources(m, pipeline)?;
+        push(m, pipeline)?;
+    }
+    calls(&read)?;
+    hit_attributes(&read, pipeline)
+}
+
+fn resources(m: &ModuleInterface, p: &PipelineDesc) -> Result<(), Mismatch> {
+    for r in &m.resources {
+        let (set, binding, stage) = (r.set, r.binding, m.stage);
+        let shader = r.kind.as_str();
+        let Some(b) = p.bindings.iter().find(|b| b.set == set && b.binding == binding) else {
+            return Err(Mismatch::NoBinding { set, binding, stage, shader });
+        };
+        if !b.stages.contains(stage) {
+            return Err(Mismatch::NotVisible { set, binding, stage });
+        }
+        if !b.kind.backs(r.kind) {
+            let layout = b.kind.as_str();
+            return Err(Mismatch::Kind { set, binding, stage, shader, layout });
+        }
+        let needed = r.array.unwrap_or(1);
+        if needed > b.count {
+            return Err(Mismatch::Count { set, binding, stage, shader: needed, layout: b.count });
+        }
+    }
+    Ok(())
+}
+
+fn push(m: &ModuleInterface, p: &PipelineDesc) -> Result<(), Mismatch> {
+    let Some((start, end)) = m.push else { return Ok(()) };
+    let fits = p.push.is_some_and(|r| {
+        r.stages.contains(m.stage) && start >= r.offset && end <= r.offset + r.size
+    });
+    if fits {
+        return Ok(());
+    }
+    let range = match p.push {
+        Some(r) if r.stages.contains(m.stage) => format!("{}..{}", r.offset, r.offset + r.size),
+        Some(_) | None => "none".into(),
+    };
+    Err(Mismatch::Push { stage: m.stage, start, end, range })
+}
+
+/// Incoming payloads and callable data against what the pipeline's stages send.
+fn calls(read: &[ModuleInterface]) -> Result<(), Mismatch> {
+    let sent: Vec<u32> = read.iter().flat_map(|m| m.payloads.iter().copied()).collect();
+    let passed: Vec<u32> = read.iter().flat_map(|m| m.callable_data.iter().copied()).collect();
+    for m in read {
+        if let Some(size) = m.incoming_payload.filter(|s| !sent.contains(s)) {
+            return Err(Mismatch::Payload { stage: m.stage, size, sent });
+        }
+        if let Some(size) = m.incoming_callable_data.filter(|s| !passed.contains(s)) {
+            return Err(Mismatch::CallableData { stage: m.stage, size, sent: passed });
+        }
+    }
+    Ok(())
+}
+
+/// Every hit attribute within the device's limit; per hit group, the closest-hit and any-hit
+/// attribute is the intersection shader's, or two floats (8 bytes) without one.
+fn hit_attributes(read: &[ModuleInterface], p: &PipelineDesc) -> Result<(), Mismatch> {
+    for m in read {
+        if let Some(size) = m.hit_attribute.filter(|s| *s > p.max_hit_attribute) {
+            let expected =
+                format!("the device's maxRayHitAttributeSize is {}", p.max_hit_attribute);
+            return Err(Mismatch::HitAttribute { stage: m.stage, size, expected });
+        }
+    }
+    for g in &p.hit_groups {
+        let written = g.intersection.and_then(|i| read.get(i)?.hit_attribute);
+        let (want, what) = match (g.intersection, written) {
+            (Some(_), Some(s)) => (s, format!("its intersection shader writes {s}")),
+            (Some(_), None) => continue,
+            (None, _) => (8, "a triangle hit's attribute is two floats (8 bytes)".to_string()),
+        };
+        for k in [g.closest_hit, g.any_hit].into_iter().flatten() {
+            if let Some(m) = read.get(k) {
+                if let Some(size) = m.hit_attribute.filter(|s| *s != want) {
+                    return Err(Mismatch::HitAttribute { stage: m.stage, size, expected: what });
+                }
+            }
+        }
+    }
+    Ok(())
+}
