@@ -13,6 +13,7 @@ pub mod fleet;
 pub mod interface;
 pub mod matrix;
 pub mod model;
+pub mod mutants;
 pub mod patches;
 pub mod pool;
 pub mod probe;

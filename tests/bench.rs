@@ -111,7 +111,19 @@ fn quick_bench_writes_its_contract_and_detection_follows_the_injection() {
     assert_eq!(sw[0]["phase_ratio"]["trace"], 1.0);
     assert!(sw[1]["skipped"].as_str().unwrap().contains("--no-such-flag"), "{}", sw[1]);
 
+    // Mutants (`--quick`: 16×16, the quick cells): every applicable mutant that must be caught is
+    // killed; the rate leaves out only survivors the cell's own rule allows.
+    let mu = points(&b, "mutants");
+    assert_eq!(mu.len(), 1);
+    let t = &mu[0]["counts"]["total"];
+    assert!(mu[0]["command"].as_str().unwrap().contains("--mutants --filter"), "{}", mu[0]);
+    assert!(t["applicable"].as_u64().unwrap() > 0 && t["killed"].as_u64().unwrap() > 0, "{t}");
+    assert_eq!((t["probe_defects"].as_u64(), t["faults"].as_u64()), (Some(0), Some(0)), "{t}");
+    assert_eq!(mu[0]["counts"]["kill_rate"], 1.0);
+    assert!(mu[0]["ms_per_mutant_attempt"].as_f64().unwrap() > 0.0);
+
     for (name, needles) in [
+        ("mutants-kills.svg", &["killed", "value-bits", "16×16"][..]),
         (
             "detection-vs-size.svg",
             &["measured f=0.001", "1-(1-f)^n, f=1", "share of injected cells caught"][..],

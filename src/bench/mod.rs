@@ -4,7 +4,7 @@
 //! user would type (recorded per point), runs the whole product (supervisor, workers, report),
 //! and lets the run-argument sweep be a list of plain arguments.
 //!
-//! Three parts, each in a file of its own beside `child` (the child runs), `options`, `timing`
+//! Four parts, each in a file of its own beside `child` (the child runs), `options`, `timing`
 //! (the per-phase split, and a sample's time scaled to the full cell set), `stats` and `plots`:
 //! 1. **Size against detection** (`size`): for each image size, the matrix's time (wall and
 //!    per-phase sums; at large sizes a deterministic `--shard 1/k` sample, scaled up), and the
@@ -17,6 +17,9 @@
 //! 3. **Where the time goes** (`sweep`): the per-phase time of each entry of a list of extra run
 //!    arguments ([`DEFAULT_SWEEP`]); entries naming a flag this binary's `run` does not know are
 //!    recorded as skipped.
+//! 4. **Detection with mutants** (`mutants`): at each of its sizes, `run --mutants` on its filter's
+//!    cells: per mutant (an emulated driver bug) the applicable pairs killed, the survivors, and
+//!    the round's time per mutant attempt.
 //!
 //! Nothing is written until every point ran: then `bench.json` and the SVG plots, atomically.
 pub mod plots;
@@ -24,12 +27,14 @@ pub mod stats;
 
 mod child;
 mod flaky;
+mod mutants;
 mod options;
 mod size;
 mod sweep;
 mod timing;
 
 pub use child::{Bench, BenchError};
+pub use mutants::counts_of as mutant_counts;
 pub use options::{BenchOptions, BASE_ARGS, DEFAULT_SWEEP};
 pub use size::trials_of;
 pub use sweep::skip_reason;
@@ -60,6 +65,8 @@ impl Bench<'_> {
         let size_time = self.size_time(&mut device)?;
         let detection = self.detection()?;
         let sweep = self.sweep()?;
+        let mutants =
+            if self.opts.mutants_sizes.is_empty() { Value::Null } else { self.mutants()? };
         // Last: its injected fault reads an invalid address, which leaves some GPUs hung for
         // every later process (NVIDIA 580 on the H100); `--no-flaky` leaves it out.
         let flaky = self.flaky()?;
@@ -82,6 +89,7 @@ impl Bench<'_> {
                 "prediction": "1 - (1 - f)^n per cell, averaged over a point's cells; flaky: 1 - (1 - P)^r",
                 "flaky_measured": "measured: share of all windows of r consecutive attempts (every cell, every start) with a fault; measured_first: share of cells with a fault in their first r attempts (fewer samples)",
                 "phases": "spawn_reference: worker process start to ready minus device (includes the CPU reference); device: instance, device, scene AS and resources; compile, pipeline, setup (per-cell resources), trace, check (readback and compare); overhead: supervisor-observed time beyond the worker's split",
+                "mutants": "each point is `rtprobe run --mutants` on the mutants filter at one size; kill_rate = killed / (killed + probe defects): survivors the cell's own rule allows (undefined reads) are left out, faults are never kills",
                 "sampling": "with sample_large, a size of p pixels runs `--shard 1/k` of the cells (k = p / default pixels for time, p / (2·default)² for detection, where only the first seed runs); estimated: per-cell phases scaled to the full cell count, per-worker phases (spawn_reference, device) kept, wall + the added per-cell time / jobs",
             },
             "default": default,
@@ -89,6 +97,7 @@ impl Bench<'_> {
             "detection": detection,
             "flaky": flaky,
             "sweep": sweep,
+            "mutants": mutants,
         }))
     }
 }

@@ -53,6 +53,9 @@ pub struct BenchOptions {
     pub sweep: Vec<String>,
     pub sweep_filter: Vec<String>,
     pub sweep_size: u32,
+    /// Part 4's sizes (empty: no mutants part) and the cells it mutates (`--filter`s).
+    pub mutants_sizes: Vec<u32>,
+    pub mutants_filter: Vec<String>,
     /// Run each timed point once first (not recorded but its wall time): warm shader caches.
     pub warmup: bool,
     /// Sample sizes above the default with `--shard 1/k`, k = pixels / default pixels (timed

@@ -21,6 +21,7 @@ pub fn all(bench: &Value) -> Vec<(String, String)> {
         ("time-vs-size.svg".into(), time(bench, device, default_px)),
         ("flaky-repeats.svg".into(), flaky(bench, device)),
         ("sweep-phases.svg".into(), sweep(bench, device)),
+        ("mutants-kills.svg".into(), mutants(bench, device)),
     ]
 }
 
@@ -154,6 +155,35 @@ fn sweep(b: &Value, device: &str) -> String {
     .svg()
 }
 
+/// Part 4 at its largest size: per mutant, its applicable pairs killed, survived as the cell's
+/// rule allows, survived as probe defects, and faults.
+fn mutants(b: &Value, device: &str) -> String {
+    let points = arr(&b["mutants"]["points"]);
+    let last = points.iter().max_by_key(|p| p["size"].as_u64().unwrap_or(0));
+    let per = last.and_then(|p| p["counts"]["per_mutant"].as_object()).cloned().unwrap_or_default();
+    let count = |m: &Value, k: &str| m["counts"][k].as_f64().unwrap_or(0.0);
+    let layer = |name: &str, key: &str| {
+        (name.to_string(), per.values().map(|m| count(m, key)).collect::<Vec<f64>>())
+    };
+    StackedBars {
+        title: format!(
+            "Emulated driver bugs caught, per mutant ({}×{}) — {device}",
+            last.map(|p| f(&p["size"])).unwrap_or(0.0),
+            last.map(|p| f(&p["size"])).unwrap_or(0.0)
+        ),
+        y_label: "applicable (cell, mutant) pairs".into(),
+        x_label: "mutant".into(),
+        categories: per.keys().cloned().collect(),
+        layers: vec![
+            layer("killed", "killed"),
+            layer("survived, allowed by the cell's rule", "allowed"),
+            layer("survived: probe defect", "probe_defects"),
+            layer("fault (not a kill)", "faults"),
+        ],
+    }
+    .svg()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -172,9 +202,11 @@ mod tests {
             "size_time": { "points": [ { "pixels": 64, "estimated": { "wall_s": 1.0, "phases_ms": { "trace": 300.0, "check": 1.0, "pipeline": 20.0, "compile": 5.0 } } } ] },
             "flaky": { "points": [ { "probability": 0.5, "measured": [0.4, 0.8], "predicted": [0.5, 0.75] } ] },
             "sweep": { "entries": [ { "args": "-j 1", "wall_s": 2.0, "phases_ms": { "trace": 1000.0 } }, { "args": "-j 1 --threads 2", "skipped": "unknown" } ] },
+            "mutants": { "points": [ { "size": 16, "counts": { "per_mutant": { "index-next": { "counts": { "killed": 5, "allowed": 2, "probe_defects": 0, "faults": 1 } } } } } ] },
         });
         let plots = all(&b);
-        assert_eq!(plots.len(), 4);
+        assert_eq!(plots.len(), 5);
+        assert!(plots[4].1.contains("index-next") && plots[4].1.contains("probe defect"));
         for (name, svg) in &plots {
             check_well_formed(svg).unwrap_or_else(|e| panic!("{name}: {e}"));
             assert!(svg.contains("llvmpipe"), "{name}");

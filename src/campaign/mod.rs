@@ -8,7 +8,7 @@
 //!
 //! The order is the run's contract (ARCHITECTURE.md, "A run, end to end"): every probe cell,
 //! then faults confirmed alone, then `--repeat`, then workarounds and patterns with their
-//! verifying repeats, then GPU-AV (attempts kept apart from the cells' own), canaries last (they
+//! verifying repeats, then `--mutants` (each cell's emulated driver bugs, kept apart), then GPU-AV (attempts kept apart from the cells' own), canaries last (they
 //! may wedge a real GPU), then the findings are annotated with what the rounds found.
 mod policy;
 pub mod progress;
@@ -19,7 +19,7 @@ pub mod start;
 mod tests;
 
 pub use crate::runner::oracle::{Event, Mode, Oracle};
-pub use policy::{Campaign, Policy};
+pub use policy::{Campaign, MutantPolicy, Policy};
 pub use progress::Progress;
 pub use record::Recorder;
 pub use rounds::{confirm_cells, repeat_cells, verify_cells, workaround_cells};
@@ -41,6 +41,9 @@ impl Campaign<'_> {
             self.workarounds();
             self.patterns();
             self.verify();
+        }
+        if let Some(m) = &policy.mutants {
+            self.mutants(m);
         }
         if let Some(layer) = policy.gpu_av {
             self.gpu_av(layer);

@@ -39,7 +39,8 @@ impl Recorder {
         }
     }
 
-    fn save(&mut self, urgent: bool) {
+    /// Save the report: at once when `urgent`, else at most every [`SAVE_INTERVAL`].
+    pub(super) fn save(&mut self, urgent: bool) {
         if !urgent && self.last_save.elapsed() < SAVE_INTERVAL {
             return;
         }

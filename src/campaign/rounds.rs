@@ -5,9 +5,9 @@
 //! what no cell can get past) no round runs anything.
 use super::Campaign;
 use super::{Event, Mode};
-use crate::model::{Cell, Outcome, RunReport};
-use crate::report::{gpu_av, recommended};
-use std::collections::HashSet;
+use crate::model::{Attempt, Cell, MutantPrediction, Outcome, RunReport};
+use crate::report::{gpu_av, mutants, recommended};
+use std::collections::{HashMap, HashSet};
 
 /// The cells to confirm: probe cells whose one attempt ran and faulted (`worth_confirming`).
 pub fn confirm_cells(report: &RunReport) -> Vec<Cell> {
@@ -166,6 +166,70 @@ impl Campaign<'_> {
             again = gpu_av::more(&self.rec.writer.report, &got);
         }
         gpu_av::annotate(&mut self.rec.writer.report, &got, &skipped);
+    }
+
+    /// Each mutant on every cell that ran and passed, where the reference says it can apply and
+    /// the device can run it (`report::mutants::schedule`), together; their attempts kept apart
+    /// from the cells' own, each verdict into the report's kill matrix as it comes (saved like a
+    /// pass or a fault, so that `--resume` runs only the pairs left).
+    pub fn mutants(&mut self, policy: &super::MutantPolicy) {
+        let t = std::time::Instant::now();
+        let (run, decided) = mutants::schedule(
+            &self.rec.writer.report,
+            &policy.mutants,
+            policy.sample,
+            (self.applies, self.supported),
+        );
+        let sample = self.rec.writer.report.options.mutants_sample.clone();
+        let r = &mut self.rec.writer.report;
+        mutants::annotate(r, &policy.mutants, sample.as_deref(), decided, 0.0);
+        let before: HashMap<Cell, MutantPrediction> = run.iter().copied().collect();
+        let cells: Vec<Cell> = run.iter().map(|(c, _)| *c).collect();
+        let mut judged: HashSet<Cell> = HashSet::new();
+        self.apart(&cells, Mode::Shared, &mut |rec, cell, attempt| {
+            if let (Some(m), Some(b)) = (cell.mutant, before.get(&cell)) {
+                let e = mutants::verdict((&cell, m), *b, Some(&attempt));
+                mutants::record(&mut rec.writer.report, e);
+                judged.insert(cell);
+                rec.save(attempt.outcome != Outcome::Pass);
+            }
+        });
+        let missing: Vec<_> = run
+            .iter()
+            .filter(|(c, _)| !judged.contains(c))
+            .filter_map(|(c, b)| c.mutant.map(|m| mutants::verdict((c, m), *b, None)))
+            .collect();
+        let wall_ms = t.elapsed().as_secs_f64() * 1e3;
+        let r = &mut self.rec.writer.report;
+        mutants::annotate(r, &policy.mutants, sample.as_deref(), missing, wall_ms);
+    }
+
+    /// Run `cells` as `mode` says, each attempt handed to `on_attempt` (with the recorder) and
+    /// kept apart from the cells' own; worker readiness and caches still reach the report, a
+    /// halt stops the run.
+    fn apart(
+        &mut self,
+        cells: &[Cell],
+        mode: Mode,
+        on_attempt: &mut dyn FnMut(&mut super::Recorder, Cell, Attempt),
+    ) {
+        if cells.is_empty() || self.rec.halted.is_some() {
+            return;
+        }
+        self.rec.progress.scheduled(cells.len() as u64);
+        let rec = &mut *self.rec;
+        self.oracle.run(cells, mode, &mut |ev| match ev {
+            Event::Attempt { cell, attempt } => {
+                rec.progress.ended(&cell, Some(attempt.outcome));
+                on_attempt(rec, cell, attempt);
+            }
+            // A worker's fault outside a cell during the round is no cell's and no finding.
+            Event::Worker(_) => {}
+            ev @ (Event::WorkerReady { .. }
+            | Event::Prebuilt { .. }
+            | Event::CacheSaved(_)
+            | Event::Halt(_)) => rec.on_event(ev),
+        });
     }
 
     /// The canaries, together, after everything else (the progress already counts them).

@@ -67,6 +67,7 @@ pub fn fresh(
         baseline: None,
         workers: vec![],
         pipeline_cache: None,
+        mutants: None,
         cells: vec![],
     }
 }

@@ -2,8 +2,8 @@
 //! round's check is also run against a broken policy (its twin), which the check must reject.
 use super::*;
 use crate::model::{
-    Attempt, Canary, DescriptorModel, GpuAvVerdict, Halt, IndexSource, Outcome, PlanStatus,
-    PlannedCell, Resource, RunPlan, RunReport, Stage,
+    Attempt, Canary, DescriptorModel, GpuAvVerdict, Halt, IndexSource, Mutant, MutantPrediction,
+    MutantStatus, Outcome, PlanStatus, PlannedCell, Resource, RunPlan, RunReport, Stage,
 };
 use crate::report::gpu_av;
 use crate::report::writer::ReportWriter;
@@ -111,7 +111,7 @@ fn world(plan: &[Cell], oracle: Script) -> World {
 
 impl World {
     fn campaign<'a>(&'a mut self, supported: &'a dyn Fn(&Cell) -> bool) -> Campaign<'a> {
-        Campaign { oracle: &mut self.oracle, rec: &mut self.rec, supported }
+        Campaign { oracle: &mut self.oracle, rec: &mut self.rec, supported, applies: &applies }
     }
     fn report(&self) -> &RunReport {
         &self.rec.writer.report
@@ -129,6 +129,18 @@ impl World {
 
 fn all(_: &Cell) -> bool {
     true
+}
+
+/// Every mutant applies (10 pixels differ, all to be caught) but `sampler-next`, which has no
+/// target, and `index-zero` on literal-index cells, which is equivalent there.
+fn applies(c: &Cell) -> Result<MutantPrediction, String> {
+    match c.mutant {
+        Some(Mutant::SamplerNext) => Err("no separate sampler index".into()),
+        Some(Mutant::IndexZero) if c.index == IndexSource::Literal => {
+            Ok(MutantPrediction::default())
+        }
+        _ => Ok(MutantPrediction { differing: 10, caught: 10, from_lanes: false }),
+    }
 }
 
 fn cell(stage: Stage, index: IndexSource) -> Cell {
@@ -472,8 +484,15 @@ fn full_world() -> (World, Vec<Cell>, Vec<Cell>) {
     (w, vec![f, fc, p], vec![canary])
 }
 
-const FULL: Policy =
-    Policy { confirm: true, repeat: Some(3), workarounds: true, gpu_av: Some(LAYER) };
+fn full() -> Policy {
+    Policy {
+        confirm: true,
+        repeat: Some(3),
+        workarounds: true,
+        gpu_av: Some(LAYER),
+        mutants: Some(MutantPolicy { mutants: vec![Mutant::ValueBits], sample: None }),
+    }
+}
 
 /// The rounds each batch belongs to, in order, repeats of one round folded.
 fn rounds_of(batches: &[(Mode, Vec<Cell>)]) -> Vec<&'static str> {
@@ -483,6 +502,7 @@ fn rounds_of(batches: &[(Mode, Vec<Cell>)]) -> Vec<&'static str> {
         let pattern = cells.iter().any(|c| c.index == IndexSource::DynamicElement);
         let round = match (mode, patched || pattern) {
             _ if cells.iter().any(|c| c.canary.is_some()) => "canaries",
+            _ if cells.iter().any(|c| c.mutant.is_some()) => "mutants",
             (Mode::Shared, _) if i == 0 => "matrix",
             (Mode::Shared, _) if patched => "workarounds",
             (Mode::Shared, _) => "patterns",
@@ -501,7 +521,16 @@ fn check_order(w: &World) -> Result<(), String> {
     expect(
         "rounds",
         rounds_of(&w.oracle.batches),
-        vec!["matrix", "again", "workarounds", "patterns", "verify", "gpu_av", "canaries"],
+        vec![
+            "matrix",
+            "again",
+            "workarounds",
+            "patterns",
+            "verify",
+            "mutants",
+            "gpu_av",
+            "canaries",
+        ],
     )?;
     let (last, rest) = w.oracle.batches.split_last().ok_or("no batch")?;
     expect(
@@ -519,7 +548,7 @@ fn check_order(w: &World) -> Result<(), String> {
 #[test]
 fn a_run_makes_its_rounds_in_order_and_canaries_last() {
     let (mut w, cells, canaries) = full_world();
-    w.campaign(&all).run(&FULL, &cells, &canaries);
+    w.campaign(&all).run(&full(), &cells, &canaries);
     check_order(&w).unwrap();
     let attempts = w.oracle.batches.iter().map(|(_, c)| c.len() as u64).sum::<u64>();
     assert_eq!(
@@ -538,7 +567,7 @@ fn a_run_makes_its_rounds_in_order_and_canaries_last() {
 #[test]
 fn run_twin_canaries_with_the_matrix_are_caught() {
     let (mut w, cells, canaries) = full_world();
-    w.campaign(&all).run(&FULL, &[canaries, cells].concat(), &[]);
+    w.campaign(&all).run(&full(), &[canaries, cells].concat(), &[]);
     assert!(check_order(&w).is_err());
 }
 
@@ -548,7 +577,11 @@ fn an_oracle_that_runs_nothing_ends_every_round() {
     let f = cells[0];
     w.rec.writer.record(&f, Attempt::for_tests(Outcome::Crash, false));
     let mut deaf = Deaf(0);
-    Campaign { oracle: &mut deaf, rec: &mut w.rec, supported: &all }.run(&FULL, &cells, &canaries);
+    Campaign { oracle: &mut deaf, rec: &mut w.rec, supported: &all, applies: &applies }.run(
+        &full(),
+        &cells,
+        &canaries,
+    );
     // The matrix, the confirmation, one repeat, the workarounds, the pattern, one GPU-AV batch
     // and the canaries: no round asks again after a batch that added nothing.
     assert_eq!(deaf.0, 7);
@@ -558,15 +591,18 @@ fn an_oracle_that_runs_nothing_ends_every_round() {
 fn a_halt_ends_the_run_in_any_round() {
     // Where each round's first batch is, from a run that does not halt.
     let (mut w, cells, canaries) = full_world();
-    w.campaign(&all).run(&FULL, &cells, &canaries);
+    w.campaign(&all).run(&full(), &cells, &canaries);
     assert_eq!(w.rec.halted, None);
     let gpu_av = w.oracle.batches.iter().position(|(m, _)| *m == Mode::GpuAv).unwrap();
     for at in [0, 1, gpu_av] {
         let (mut w, cells, canaries) = full_world();
         let script = Script::default().with(cells[0], &[Outcome::Crash]);
         let mut halting = Halting(script, at);
-        Campaign { oracle: &mut halting, rec: &mut w.rec, supported: &all }
-            .run(&FULL, &cells, &canaries);
+        Campaign { oracle: &mut halting, rec: &mut w.rec, supported: &all, applies: &applies }.run(
+            &full(),
+            &cells,
+            &canaries,
+        );
         assert_eq!(halting.0.batches.len(), at + 1, "nothing runs after the halt (batch {at})");
         assert_eq!(w.rec.halted, Some(Halt::NoShaderCompiler));
         assert!(w.attempts(&canaries[0]).is_empty(), "not even the canaries");
@@ -574,8 +610,11 @@ fn a_halt_ends_the_run_in_any_round() {
     // In the matrix: the cells after the halting one stay without an attempt, for `--resume`.
     let (mut w, cells, canaries) = full_world();
     let mut halting = Halting(Script::default(), 0);
-    Campaign { oracle: &mut halting, rec: &mut w.rec, supported: &all }
-        .run(&FULL, &cells, &canaries);
+    Campaign { oracle: &mut halting, rec: &mut w.rec, supported: &all, applies: &applies }.run(
+        &full(),
+        &cells,
+        &canaries,
+    );
     assert_eq!(w.attempts(&cells[0]), [Outcome::Pass]);
     assert!(cells[1..].iter().all(|c| w.attempts(c).is_empty()));
 }
@@ -585,16 +624,28 @@ fn the_policy_follows_the_options() {
     let mut o = crate::model::report::RunOptions::for_tests();
     o.repeat = Some(5);
     let p = Policy::of(&o, || panic!("the layer is asked only under GPU-AV"));
-    assert_eq!(p, Policy { confirm: true, repeat: Some(5), workarounds: true, gpu_av: None });
+    assert_eq!(
+        p,
+        Policy { confirm: true, repeat: Some(5), workarounds: true, gpu_av: None, mutants: None }
+    );
     o.confirm = false;
     assert!(!Policy::of(&o, || None).confirm, "--no-confirm confirms nothing");
     o.confirm = true;
     o.isolation = crate::model::Isolation::ProcessPerCell;
     o.patches = crate::model::PatchMode::None;
     o.gpu_av = true;
+    o.mutants = vec![Mutant::IndexZero, Mutant::ValueBits];
+    o.mutants_sample = Some("5:9".into());
+    let sample = Some(crate::report::mutants::Sample { n: 5, seed: 9 });
     assert_eq!(
         Policy::of(&o, || None),
-        Policy { confirm: false, repeat: Some(5), workarounds: false, gpu_av: Some(None) }
+        Policy {
+            confirm: false,
+            repeat: Some(5),
+            workarounds: false,
+            gpu_av: Some(None),
+            mutants: Some(MutantPolicy { mutants: o.mutants.clone(), sample }),
+        }
     );
 }
 
@@ -605,4 +656,143 @@ fn the_recorder_saves_a_fault_at_once() {
     let saved = std::fs::read_to_string(&w.rec.writer.path).unwrap();
     assert!(saved.contains(&cells[0].id()) && saved.contains("\"crash\""), "{saved}");
     assert!(w.rec.save_error.is_none());
+}
+
+// ---- mutants ----
+
+/// Three cells: `a` passes (its index-zero mutant is killed, its value-bits mutant survives), `b`
+/// mismatches, `c` passes with a literal index (index-zero equivalent, its value-bits mutant
+/// crashes).
+fn mutants_world() -> (World, [Cell; 3]) {
+    let (a, b, c) = (
+        cell(Stage::ClosestHit, IndexSource::Dynamic),
+        cell(Stage::Raygen, IndexSource::Dynamic),
+        cell(Stage::Raygen, IndexSource::Literal),
+    );
+    let m = |x: Cell, k: Mutant| Cell { mutant: Some(k), ..x };
+    let script = Script::default()
+        .with(b, &[Outcome::Mismatch])
+        .with(m(a, Mutant::IndexZero), &[Outcome::Mismatch])
+        .with(m(c, Mutant::ValueBits), &[Outcome::Crash]);
+    let mut w = world(&[a, b, c], script);
+    w.campaign(&all).matrix(&[a, b, c]);
+    (w, [a, b, c])
+}
+
+fn policy() -> MutantPolicy {
+    MutantPolicy {
+        mutants: vec![Mutant::IndexZero, Mutant::SamplerNext, Mutant::ValueBits],
+        sample: None,
+    }
+}
+
+/// One shared batch of exactly the applicable pairs of the passing cells; the cells' own
+/// attempts untouched (no mutant cell in the report's cells); each pair's verdict.
+fn check_mutants(w: &World, [a, b, c]: [Cell; 3]) -> Result<(), String> {
+    let m = |x: Cell, k: Mutant| Cell { mutant: Some(k), ..x };
+    same_batches(
+        &w.oracle.batches[1..],
+        &[(
+            Mode::Shared,
+            vec![m(a, Mutant::IndexZero), m(a, Mutant::ValueBits), m(c, Mutant::ValueBits)],
+        )],
+    )?;
+    expect("cells in the report", w.report().cells.len(), 3)?;
+    for x in [a, b, c] {
+        expect(&x.id(), w.attempts(&x).len(), 1)?;
+    }
+    expect("findings", w.report().tally.findings, 1)?;
+    let r = w.report().mutants.as_ref().ok_or("no kill matrix")?;
+    let status = |x: Cell, k: Mutant| {
+        r.entries
+            .iter()
+            .find(|e| e.cell == x.id() && e.mutant == k)
+            .map(|e| (e.status, e.probe_defect))
+    };
+    use MutantStatus::*;
+    let want = [
+        (a, Mutant::IndexZero, Killed, false),
+        (a, Mutant::SamplerNext, NoTarget, false),
+        (a, Mutant::ValueBits, Survived, true),
+        (b, Mutant::IndexZero, NotRun, false),
+        (b, Mutant::SamplerNext, NoTarget, false),
+        (c, Mutant::IndexZero, Equivalent, false),
+        (c, Mutant::ValueBits, Fault, false),
+    ];
+    for (x, k, st, defect) in want {
+        expect(&format!("{} × {}", x.id(), k.as_str()), status(x, k), Some((st, defect)))?;
+    }
+    expect("entries", r.entries.len(), 9)?;
+    let z = &r.counts["index-zero"];
+    expect("index-zero counts", (z.applicable, z.killed, z.equivalent, z.not_run), (1, 1, 1, 1))?;
+    let v = &r.counts["value-bits"];
+    expect("value-bits counts", (v.applicable, v.survived, v.probe_defects, v.faults), (2, 1, 1, 1))
+}
+
+#[test]
+fn mutants_run_each_applicable_pair_apart_and_fill_the_kill_matrix() {
+    let (mut w, cells) = mutants_world();
+    w.campaign(&all).mutants(&policy());
+    check_mutants(&w, cells).unwrap();
+    let scheduled = w.oracle.batches.iter().map(|(_, c)| c.len() as u64).sum::<u64>();
+    assert_eq!(w.counts.scheduled.get(), scheduled - 3, "the round counts its own attempts");
+}
+
+#[test]
+fn mutants_twin_recording_mutant_attempts_as_cells_or_running_every_pair_is_caught() {
+    // A round that records its attempts among the cells' own.
+    let (mut w, cells) = mutants_world();
+    let run: Vec<Cell> = [Mutant::IndexZero, Mutant::ValueBits]
+        .iter()
+        .flat_map(|k| [cells[0], cells[2]].map(|c| Cell { mutant: Some(*k), ..c }))
+        .collect();
+    w.campaign(&all).round(&run, Mode::Shared);
+    w.campaign(&all).mutants(&MutantPolicy { mutants: vec![], sample: None });
+    assert!(check_mutants(&w, cells).is_err());
+    // A round that ignores the reference (runs the equivalent pair too).
+    let (mut w, cells) = mutants_world();
+    let every = |_: &Cell| Ok(MutantPrediction { differing: 1, caught: 1, from_lanes: false });
+    Campaign { oracle: &mut w.oracle, rec: &mut w.rec, supported: &all, applies: &every }
+        .mutants(&policy());
+    assert!(check_mutants(&w, cells).is_err());
+}
+
+#[test]
+fn a_mutants_sample_runs_n_pairs_chosen_by_its_seed() {
+    let run = |seed: u64| {
+        let (mut w, _) = mutants_world();
+        let sample = Some(crate::report::mutants::Sample { n: 1, seed });
+        w.campaign(&all).mutants(&MutantPolicy { sample, ..policy() });
+        let batch = w.oracle.batches[1].1.clone();
+        (batch, w.report().mutants.clone().unwrap())
+    };
+    let (one, r) = run(7);
+    assert_eq!(one.len(), 1);
+    assert_eq!(run(7).0, one, "the same seed picks the same pair");
+    assert!((1..40).any(|s| run(s).0 != one), "another seed picks another pair");
+    // The matrix holds the sampled cell's pairs only.
+    assert!(r.entries.iter().all(|e| e.cell == one[0].unmutated().id()));
+}
+
+#[test]
+fn a_halt_in_the_mutants_round_keeps_what_came_back_and_says_the_rest_did_not_run() {
+    let (w, cells) = mutants_world();
+    let World { _dir, oracle, mut rec, counts: _ } = w;
+    // Batch 1 (the mutants round's) halts after its first pair.
+    let mut halting = Halting(oracle, 1);
+    Campaign { oracle: &mut halting, rec: &mut rec, supported: &all, applies: &applies }
+        .mutants(&policy());
+    let r = rec.writer.report.mutants.as_ref().unwrap();
+    let ran: Vec<_> = r.entries.iter().filter(|e| e.outcome.is_some()).collect();
+    assert_eq!(ran.len(), 1, "the first pair's verdict was recorded as it came");
+    let not_run: Vec<_> = r
+        .entries
+        .iter()
+        .filter(|e| e.status == MutantStatus::NotRun && e.why.contains("no attempt came back"))
+        .collect();
+    assert_eq!(not_run.len(), 2, "{:?}", r.entries);
+    assert_eq!(rec.halted, Some(Halt::NoShaderCompiler));
+    // Saved: the report on disk has the kill matrix so far.
+    let saved = std::fs::read_to_string(&rec.writer.path).unwrap();
+    assert!(saved.contains("\"mutants\"") && saved.contains(&cells[0].id()), "{saved}");
 }

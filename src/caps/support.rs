@@ -3,8 +3,8 @@
 //! marks what rtprobe itself cannot do yet, which is never blamed on the device.
 use crate::model::registry::AxisId;
 use crate::model::{
-    AsAccess, BaseSource, Canary, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource,
-    SamplerIndex, Stage, Workaround,
+    AsAccess, BaseSource, Canary, DescriptorModel, HeapAccess, IndexSource, Mutant, Reorder,
+    Resource, SamplerIndex, Stage, Workaround,
 };
 use crate::vk::{heap, DeviceInfo};
 use ash::{ext, khr, nv, vk};
@@ -321,5 +321,35 @@ pub fn value(info: &DeviceInfo, axis: AxisId, v: &str) -> Support {
             }
             Some(Workaround::Nonuniform | Workaround::PinIndex) | None => Support::Supported,
         },
+        AxisId::Mutant => of(Mutant::parse(v).map(|m| mutant(info, m, None))),
+    }
+}
+
+/// What a mutant needs of the device beyond what its cell needs, in the cell's `stage` (`None`:
+/// in some stage, for `caps`'s matrix). Only `index-broadcast` needs something:
+/// `OpGroupNonUniformBroadcastFirst` is a subgroup ballot operation, allowed only in the stages
+/// the device lists (VUID-RuntimeSpirv-None-06343), and its prediction reads the lane evidence,
+/// which needs the same.
+pub fn mutant(info: &DeviceInfo, m: Mutant, stage: Option<Stage>) -> Support {
+    match m {
+        Mutant::IndexBroadcast => {
+            let ok = match stage {
+                Some(s) => info.subgroup_ballot(s),
+                None => Stage::ALL.iter().any(|s| info.subgroup_ballot(*s)),
+            };
+            let where_ = stage.map(|s| format!("in {s}")).unwrap_or_else(|| "in any stage".into());
+            Support::require(&[(
+                ok,
+                &format!("subgroup ballot {where_} (subgroupSupportedStages, subgroupSupportedOperations BALLOT; {})", crate::model::lanes::SUBGROUP_STAGE_VUID),
+            )])
+        }
+        Mutant::IndexZero
+        | Mutant::IndexNext
+        | Mutant::BaseDropped
+        | Mutant::ElementZero
+        | Mutant::StrideDouble
+        | Mutant::SamplerNext
+        | Mutant::TlasOther
+        | Mutant::ValueBits => Support::Supported,
     }
 }

@@ -225,6 +225,25 @@ pub struct RunArgs {
     #[arg(long, value_name = "N")]
     pub repeat: Option<u32>,
 
+    /// Prove that every emulated driver bug is caught: after the matrix, run each cell that
+    /// passed again with each mutant — a SPIR-V mutation of its probed stage that reads another
+    /// descriptor, element, sampler or TLAS (always in bounds), or flips a result word's bits —
+    /// where the CPU reference, run with the same mutation, predicts other records, and report
+    /// the kill matrix (docs/mutants.md). Mutant attempts never change a cell's verdict
+    #[arg(long)]
+    pub mutants: bool,
+
+    /// Only these mutants (comma-separated, repeatable; implies --mutants): index-zero,
+    /// index-next, index-broadcast, base-dropped, element-zero, stride-double, sampler-next,
+    /// tlas-other, value-bits
+    #[arg(long, value_name = "NAME", value_delimiter = ',')]
+    pub mutant: Vec<String>,
+
+    /// Run only a seeded sample of N applicable (cell, mutant) pairs (implies --mutants; CI's
+    /// share of the kill matrix; SEED defaults to 1)
+    #[arg(long, value_name = "N[:SEED]")]
+    pub mutants_sample: Option<String>,
+
     /// Run exactly the cell described by a repro bundle's cell.json (`rtprobe repro`): it
     /// replaces the plan, the scene and the injections
     #[arg(long, value_name = "FILE", conflicts_with_all = ["filter", "inject_fault", "resume", "canaries"])]
@@ -580,6 +599,20 @@ pub struct BenchArgs {
     /// descriptor_model=descriptor_indexing,resource=storage_buffer)
     #[arg(long, value_name = "FILTER")]
     pub sweep_filter: Vec<String>,
+
+    /// Image sizes of part 4, detection with mutants (`run --mutants` at each; default 8,16,64;
+    /// `--quick`: 16)
+    #[arg(long, value_delimiter = ',', value_name = "N,...")]
+    pub mutants_sizes: Vec<String>,
+
+    /// The cells part 4 mutates (repeatable, --filter syntax; default
+    /// descriptor_model=descriptor_indexing,resource=storage_buffer|acceleration_structure)
+    #[arg(long, value_name = "FILTER")]
+    pub mutants_filter: Vec<String>,
+
+    /// Skip part 4 (detection with mutants)
+    #[arg(long, conflicts_with = "mutants_sizes")]
+    pub no_mutants: bool,
 
     /// Do not run each timed point once before measuring it (caches stay as they are)
     #[arg(long)]

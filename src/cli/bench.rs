@@ -17,6 +17,8 @@ const FLAKY_FILTER: &str =
     "descriptor_model=descriptor_indexing,resource=storage_buffer,index=literal";
 const QUICK_FILTER: &str = "descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit,index=literal|dynamic";
 const QUICK_FLAKY_FILTER: &str = "descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit,index=literal";
+const MUTANTS_FILTER: &str =
+    "descriptor_model=descriptor_indexing,resource=storage_buffer|acceleration_structure";
 
 /// What each flag left out defaults to: one set for a full bench, one for `--quick`.
 struct Defaults {
@@ -31,6 +33,8 @@ struct Defaults {
     matrix_filter: &'static [&'static str],
     sweep: &'static [&'static str],
     max_rounds: u32,
+    mutants_sizes: &'static [u32],
+    mutants_filter: &'static str,
 }
 
 const FULL: Defaults = Defaults {
@@ -43,6 +47,8 @@ const FULL: Defaults = Defaults {
     matrix_filter: &[],
     sweep: bench::DEFAULT_SWEEP,
     max_rounds: 30,
+    mutants_sizes: &[8, 16, 64],
+    mutants_filter: MUTANTS_FILTER,
 };
 
 const QUICK: Defaults = Defaults {
@@ -55,6 +61,8 @@ const QUICK: Defaults = Defaults {
     matrix_filter: &[QUICK_FILTER],
     sweep: &["-j 1 --threads 1", "-j 2 --threads 1", "-j 1 --threads 2"],
     max_rounds: 3,
+    mutants_sizes: &[16],
+    mutants_filter: QUICK_FILTER,
 };
 
 /// `given`, or `default` when the flag was left out.
@@ -92,12 +100,13 @@ fn check_filter(flag: &str, f: &str) -> Result<()> {
     Filter::parse(f).map(|_| ()).map_err(|e| coded(exit::USAGE, format!("{flag}: {e}")))
 }
 
-/// The filters of the four parts, each checked.
+/// The filters of the five parts, each checked.
 struct Filters {
     inject: String,
     flaky: String,
     matrix: Vec<String>,
     sweep: Vec<String>,
+    mutants: Vec<String>,
 }
 
 impl Filters {
@@ -111,11 +120,15 @@ impl Filters {
                 a.matrix_filter.clone()
             },
             sweep: or_default(&a.sweep_filter, &[d.inject_filter.to_string()]),
+            mutants: or_default(&a.mutants_filter, &[d.mutants_filter.to_string()]),
         };
         check_filter("--inject-filter", &f.inject)?;
         check_filter("--flaky-filter", &f.flaky)?;
         for m in f.matrix.iter().chain(&f.sweep) {
             check_filter("--matrix-filter/--sweep-filter", m)?;
+        }
+        for m in &f.mutants {
+            check_filter("--mutants-filter", m)?;
         }
         Ok(f)
     }
@@ -178,6 +191,13 @@ fn options(g: &Globals, a: &BenchArgs) -> Result<BenchOptions> {
     check_flaky_limits(a)?;
     let filters = Filters::of(a, d)?;
     let sweep = sweep_args(a, d)?;
+    let mutants_sizes = if a.no_mutants {
+        vec![]
+    } else if a.mutants_sizes.is_empty() {
+        d.mutants_sizes.to_vec()
+    } else {
+        a.mutants_sizes.iter().map(|s| parse_size("--mutants-sizes", s)).collect::<Result<_>>()?
+    };
     let exe = std::env::current_exe()
         .map_err(|e| coded(exit::INTERNAL, format!("cannot find the rtprobe executable: {e}")))?;
     Ok(BenchOptions {
@@ -204,6 +224,8 @@ fn options(g: &Globals, a: &BenchArgs) -> Result<BenchOptions> {
         sweep,
         sweep_filter: filters.sweep,
         sweep_size: DEFAULT_SIZE,
+        mutants_sizes,
+        mutants_filter: filters.mutants,
         warmup: !a.no_warmup && !q,
         sample_large: !a.no_sample,
         quick: q,
@@ -257,6 +279,20 @@ fn print_summary(v: &serde_json::Value) {
             x["measured"].as_f64().unwrap_or(f64::NAN),
             x["predicted"].as_f64().unwrap_or(f64::NAN),
             x["n_mean"].as_f64().unwrap_or(0.0)
+        );
+    }
+    for p in v["mutants"]["points"].as_array().into_iter().flatten() {
+        let t = &p["counts"]["total"];
+        println!(
+            "mutants {0}×{0}: {1} of {2} applicable killed (kill rate {3}), {4} allowed survivors, {5} probe defects, {6} faults; {7:.0} ms per mutant attempt",
+            p["size"],
+            t["killed"],
+            t["applicable"],
+            p["counts"]["kill_rate"],
+            t["allowed"],
+            t["probe_defects"],
+            t["faults"],
+            p["ms_per_mutant_attempt"].as_f64().unwrap_or(f64::NAN)
         );
     }
     for p in v["flaky"]["points"].as_array().into_iter().flatten() {

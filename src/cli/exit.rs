@@ -17,8 +17,8 @@ pub const VULKAN_ERROR: u8 = 7;
 pub const DEVICE_LOST: u8 = 8;
 pub const BAD_INPUT: u8 = 9;
 pub const INTERNAL: u8 = 10;
-/// `run`: no finding, but a canary's fault, or an `--inject-fault`, was not detected:
-/// classification is unproven.
+/// `run`: no finding, but a canary's fault, an `--inject-fault`, or a `--mutants` mutant the
+/// probe must catch (a probe defect) was not detected: classification is unproven.
 pub const CANARY_UNDETECTED: u8 = 11;
 /// The shader compiler (shaderc, linked in) could not be started: nothing can be compiled (in
 /// this process, or in a worker of `run`: the run halts, [`halted`]).
@@ -38,8 +38,8 @@ Exit codes:
   8  the device was lost outside a supervised cell
   9  bad input file or unwritable output
   10 internal error
-  11 run: no finding, but a --canaries or --inject-fault fault was not detected (fault
-     classification unproven)
+  11 run: no finding, but a --canaries or --inject-fault fault, or a --mutants mutant the probe
+     must catch, was not detected (fault classification unproven)
   12 the shader compiler (shaderc) could not be started, by rtprobe or by a worker of run";
 
 /// An error that carries its own exit code (bad input, unwritable output, ...).

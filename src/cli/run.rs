@@ -11,8 +11,10 @@ use crate::fleet::shard::Shard;
 use crate::matrix::plan::{self, PlanOptions};
 use crate::model::report::RunOptions;
 use crate::model::{
-    Baseline, Cell, Filter, Injection, Outcome, PlanStatus, RunPlan, RunReport, SceneParams,
+    Baseline, Cell, Filter, Injection, Mutant, MutantPrediction, Outcome, PlanStatus, RunPlan,
+    RunReport, SceneParams,
 };
+use crate::report::mutants::{Prefilter, Sample};
 use crate::report::writer::ReportWriter;
 use crate::report::{junit, summary, time};
 use crate::runner::supervisor::SupervisorOptions;
@@ -105,7 +107,12 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     let wall = Instant::now();
     let supported = |cell: &Cell| plan::device_support(&info, cell).is_supported();
     let policy = Policy::of(&options, || inst.validation_layer_version());
-    Campaign { oracle: &mut oracle, rec: &mut rec, supported: &supported }
+    // The mutants' reference (a scene and its trace on the CPU), made only when asked for.
+    let prefilter = policy.mutants.as_ref().map(|_| Prefilter::new(&c.params));
+    let applies = |cell: &Cell| -> Result<MutantPrediction, String> {
+        prefilter.as_ref().ok_or_else(|| "no --mutants".to_string())?.applies(cell)
+    };
+    Campaign { oracle: &mut oracle, rec: &mut rec, supported: &supported, applies: &applies }
         .run(&policy, &cells, &canaries);
     bar.finish_and_clear();
     let _ = std::fs::remove_dir_all(&job_dir);
@@ -148,6 +155,33 @@ struct Checked {
     shard: Option<Shard>,
     baseline: Option<Baseline>,
     params: SceneParams,
+    /// `--mutants` / `--mutant` / `--mutants-sample`: the mutants tried (empty: none).
+    mutants: Vec<Mutant>,
+}
+
+/// The mutants `--mutants`, `--mutant NAME` and `--mutants-sample` ask for (empty: none).
+fn mutants_of(a: &RunArgs) -> Result<Vec<Mutant>> {
+    if let Some(s) = &a.mutants_sample {
+        Sample::parse(s).map_err(|e| coded(exit::USAGE, e))?;
+    }
+    let named: Vec<Mutant> = a
+        .mutant
+        .iter()
+        .map(|n| {
+            crate::model::mutant::parse_list(n)
+                .map_err(|e| coded(exit::USAGE, format!("--mutant: {e}")))
+        })
+        .collect::<Result<Vec<_>>>()?
+        .into_iter()
+        .flatten()
+        .collect();
+    Ok(if !named.is_empty() {
+        Mutant::ALL.iter().copied().filter(|m| named.contains(m)).collect()
+    } else if a.mutants || a.mutants_sample.is_some() {
+        Mutant::ALL.to_vec()
+    } else {
+        vec![]
+    })
 }
 
 fn check(a: &RunArgs) -> Result<Checked> {
@@ -184,7 +218,8 @@ fn check(a: &RunArgs) -> Result<Checked> {
     if !(a.setup_timeout > 0.0 && a.setup_timeout <= 3600.0) {
         return Err(coded(exit::USAGE, "--setup-timeout must be in (0, 3600] seconds"));
     }
-    Ok(Checked { filters, inject, shard, baseline, params })
+    let mutants = mutants_of(a)?;
+    Ok(Checked { filters, inject, shard, baseline, params, mutants })
 }
 
 fn select_device(inst: &crate::vk::Instance, a: &RunArgs) -> Result<DeviceInfo> {
@@ -229,6 +264,8 @@ fn run_options(
         lane_evidence: a.lane_evidence,
         spirv_from: a.spirv_dir.clone(),
         merged_from: vec![],
+        mutants: c.mutants.clone(),
+        mutants_sample: a.mutants_sample.clone(),
         extra: Default::default(),
     }
 }
@@ -360,9 +397,10 @@ fn print_end(a: &RunArgs, writer: &ReportWriter, out: &Path) -> Result<u8> {
     Ok(exit_code(&writer.report, a.allow_improvements))
 }
 
-/// Without a baseline: findings first (exit 1), then canaries whose fault went undetected (exit
-/// 11). With one, only what the baseline did not expect is a finding. A worker fault outside any
-/// cell (a crash between cells, a hung teardown) is always a finding.
+/// Without a baseline: findings first (exit 1), then canaries whose fault, injections and
+/// `--mutants` survivors the probe must catch (probe defects) that went undetected (exit 11).
+/// With one, only what the baseline did not expect is a finding. A worker fault outside any cell
+/// (a crash between cells, a hung teardown) is always a finding.
 fn exit_code(r: &RunReport, allow_improvements: bool) -> u8 {
     let findings = match &r.baseline {
         Some(c) => !c.ok(allow_improvements),
@@ -370,7 +408,10 @@ fn exit_code(r: &RunReport, allow_improvements: bool) -> u8 {
     };
     if findings {
         exit::FINDINGS
-    } else if r.undetected_canaries().next().is_some() || r.tally.injections_undetected > 0 {
+    } else if r.undetected_canaries().next().is_some()
+        || r.tally.injections_undetected > 0
+        || r.mutants.as_ref().is_some_and(|m| m.probe_defects().next().is_some())
+    {
         exit::CANARY_UNDETECTED
     } else {
         exit::OK
@@ -410,5 +451,30 @@ mod tests {
         let junit = crate::report::junit::render(&undetected);
         assert!(junit.contains("failures=\"1\"") && junit.contains("canary_undetected"), "{junit}");
         assert!(crate::report::summary::render(&undetected).contains("NOT detected"));
+    }
+
+    /// A mutant the reference says must be caught that survived is a probe defect: detection is
+    /// unproven, as with an undetected canary (exit 11); a survivor the cell's rule allows is not.
+    #[test]
+    fn a_probe_defect_among_the_mutants_exits_11_and_an_allowed_survivor_does_not() {
+        use crate::model::{Mutant, MutantEntry, MutantReport, MutantStatus};
+        let cell = Cell::canary(Canary::InfiniteLoop);
+        let survivor = |probe_defect: bool| MutantEntry {
+            cell: "c".into(),
+            mutant: Mutant::IndexNext,
+            status: MutantStatus::Survived,
+            why: String::new(),
+            outcome: Some(Outcome::Pass),
+            prediction: None,
+            probe_defect,
+            allowed_by: (!probe_defect).then(|| "VUID".into()),
+            wall_ms: 0.0,
+        };
+        let mut r = report(vec![ran(cell, Outcome::Timeout)]);
+        assert_eq!(exit_code(&r, false), exit::OK);
+        r.mutants = Some(MutantReport { entries: vec![survivor(false)], ..Default::default() });
+        assert_eq!(exit_code(&r, false), exit::OK);
+        r.mutants = Some(MutantReport { entries: vec![survivor(true)], ..Default::default() });
+        assert_eq!(exit_code(&r, false), exit::CANARY_UNDETECTED);
     }
 }

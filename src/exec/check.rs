@@ -57,6 +57,7 @@ impl Executor {
         let (w, h) = (self.scene.params.width, self.scene.params.height);
         let lanes = seen.lanes.usable().then(|| reference::lanes::Lanes::from_records(records));
         let mut cmp = reference::compare_with(&expected, records, w, lanes.as_ref());
+        cmp.mutant = self.predict_mutant(cell, (undefined, seen.lanes), &expected, records);
         cmp.lane_evidence = seen.lanes;
         cmp.heap = self.heap_detail(cell);
         if let Some(split) = cmp.lanes.as_mut() {

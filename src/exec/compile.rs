@@ -1,7 +1,8 @@
 //! Phase `compile` of a cell: its GLSL generated (with its injected fault), compiled to SPIR-V
-//! (cached per source) or read from a repro bundle, patched by the spec's workarounds, written
-//! out with `--dump`, and what the driver saw of it (`seen`). Where the probe
-//! measures its lane evidence is decided here ([`Executor::lane_evidence`]).
+//! (cached per source) or read from a repro bundle, patched by the spec's workarounds (then a
+//! mutant cell's mutation, `super::mutant`), written out with `--dump`, and what the driver saw
+//! of it (`seen`). Where the probe measures its lane evidence is decided here
+//! ([`Executor::lane_evidence`]).
 use super::built::{Compiled, Seen};
 use super::error::CellError;
 use super::executor::Executor;
@@ -68,6 +69,10 @@ impl Executor {
         let workarounds = spec.workarounds().filter(|_| self.opts.spirv_dir.is_none());
         for w in workarounds {
             patch_all(&mut spirv, w, timings)?;
+        }
+        // Then a mutant's mutation (`run --mutants`).
+        if let (Some(m), Some(mutation)) = (spec.mutant, self.mutation(&spec)?) {
+            super::mutant::mutate_all(&mut spirv, mutation, m.as_str(), timings)?;
         }
         if let Some(dir) = &self.opts.dump {
             files::dump(dir, cell, &shaders, &spirv).map_err(CellError::Io)?;

@@ -23,6 +23,9 @@ pub enum CellError {
     Io(#[from] super::files::FileError),
     #[error("as-to-address patch: {0}")]
     Patch(#[from] crate::patches::PatchError),
+    /// A mutant that could not be applied (`run --mutants`): not a run of the cell.
+    #[error("mutant: {0}")]
+    Mutant(crate::patches::PatchError),
     /// rtprobe's own gap (outcome `not_implemented`).
     #[error("not implemented in rtprobe: {0}")]
     NotImplemented(String),
@@ -45,6 +48,7 @@ impl CellError {
             CellError::Compile(_)
             | CellError::Io(_)
             | CellError::Patch(_)
+            | CellError::Mutant(_)
             | CellError::Interface(_) => Outcome::Error,
             CellError::NotImplemented(_) => Outcome::NotImplemented,
             CellError::Unsupported(_) => Outcome::Unsupported,

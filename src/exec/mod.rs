@@ -10,10 +10,10 @@
 //! cells need built first (`setup`), phase `compile` (`compile`), binding and the pipeline key
 //! (`bind`, `pipeline_key`), building at the cell's turn or ahead of it (`build`, `prebuild`),
 //! what each step hands to the next (`built`) and what the driver saw of the cell's shape
-//! (`seen`), whether its modules fit its layout (`fit`), the turn itself (`run`), recording the three
-//! pipeline kinds (`record`), judging the records (`check`, `pictures`), error → outcome
-//! (`error`); below them resources and samplers, bindings, the descriptor heap, pipelines, the
-//! pipeline cache and files.
+//! (`seen`), whether its modules fit its layout (`fit`), the turn itself (`run`), recording the
+//! three pipeline kinds (`record`), judging the records (`check`, `pictures`), a mutant cell's
+//! mutation and prediction (`mutant`), error → outcome (`error`); below them resources and
+//! samplers, bindings, the descriptor heap, pipelines, the pipeline cache and files.
 mod bind;
 pub mod bindings;
 mod build;
@@ -25,6 +25,7 @@ mod executor;
 mod files;
 mod fit;
 pub mod heap;
+mod mutant;
 pub mod pictures;
 pub mod pipeline;
 pub mod pipeline_cache;

@@ -6,7 +6,7 @@ use crate::matrix::plan::all_cells;
 use crate::model::report::ResultOption;
 use crate::model::report::TimingSummary;
 use crate::model::Canary;
-use crate::model::{CellReport, PatchMode, RunReport, SceneParams};
+use crate::model::{CellReport, MutantReport, PatchMode, RunReport, SceneParams};
 use serde_json::Value;
 use std::collections::HashMap;
 
@@ -125,6 +125,9 @@ fn absorb(out: &mut RunReport, by_id: &mut HashMap<String, usize>, r: RunReport)
         w
     }));
     add_timing(&mut out.timing, &r.timing);
+    if let Some(m) = r.mutants {
+        absorb_mutants(out.mutants.get_or_insert_with(Default::default), m);
+    }
     for mut c in r.cells {
         for a in c.attempts.iter_mut() {
             a.worker += offset;
@@ -137,6 +140,20 @@ fn absorb(out: &mut RunReport, by_id: &mut HashMap<String, usize>, r: RunReport)
             }
         }
     }
+}
+
+/// A shard's kill matrix (`run --mutants`) joined into `out`'s: its mutants, entries and round
+/// time added, the counts recounted (shards hold other cells, so no entry repeats).
+fn absorb_mutants(out: &mut MutantReport, m: MutantReport) {
+    for k in m.mutants {
+        if !out.mutants.contains(&k) {
+            out.mutants.push(k);
+        }
+    }
+    out.mutants.sort();
+    out.wall_ms += m.wall_ms;
+    out.entries.extend(m.entries);
+    out.recount();
 }
 
 /// `r`'s times added to `t`: sums, and the device time's mean over both reports' workers.
@@ -181,6 +198,11 @@ fn finish(out: &mut RunReport, names: Vec<String>) {
     out.plan.sharded_out = 0;
     out.options.shard = None;
     out.options.merged_from = names;
+    if let Some(m) = out.mutants.as_mut() {
+        let at: HashMap<&str, usize> =
+            out.cells.iter().enumerate().map(|(i, c)| (c.id.as_str(), i)).collect();
+        m.entries.sort_by_key(|e| (at.get(e.cell.as_str()).copied(), e.mutant));
+    }
     out.recount();
     crate::report::writer::annotate_findings(out);
 }
@@ -192,5 +214,49 @@ fn join(into: &mut CellReport, other: CellReport) {
     } else if !other.attempts.is_empty() {
         into.attempts.extend(other.attempts);
         into.refresh();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{Mutant, MutantEntry, MutantStatus};
+
+    fn entry(cell: &str, mutant: Mutant, status: MutantStatus) -> MutantEntry {
+        MutantEntry {
+            cell: cell.into(),
+            mutant,
+            status,
+            why: String::new(),
+            outcome: None,
+            prediction: None,
+            probe_defect: false,
+            allowed_by: None,
+            wall_ms: 0.0,
+        }
+    }
+
+    #[test]
+    fn shards_kill_matrices_join_and_recount() {
+        let mut out = MutantReport {
+            mutants: vec![Mutant::ValueBits],
+            wall_ms: 1.0,
+            entries: vec![entry("a", Mutant::ValueBits, MutantStatus::Killed)],
+            ..Default::default()
+        };
+        out.recount();
+        let shard = MutantReport {
+            mutants: vec![Mutant::IndexZero, Mutant::ValueBits],
+            wall_ms: 2.0,
+            entries: vec![
+                entry("b", Mutant::IndexZero, MutantStatus::Equivalent),
+                entry("b", Mutant::ValueBits, MutantStatus::Killed),
+            ],
+            ..Default::default()
+        };
+        absorb_mutants(&mut out, shard);
+        assert_eq!(out.mutants, [Mutant::IndexZero, Mutant::ValueBits]);
+        assert_eq!((out.wall_ms, out.entries.len()), (3.0, 3));
+        assert_eq!((out.counts["value-bits"].killed, out.counts["index-zero"].equivalent), (2, 1));
     }
 }

@@ -56,6 +56,9 @@ pub fn device_support(info: &DeviceInfo, cell: &Cell) -> Support {
     if let Some(b) = cell.base {
         checks.push(support::base(info, b));
     }
+    if let Some(m) = cell.mutant {
+        checks.push(support::mutant(info, m, Some(cell.stage)));
+    }
     if matches!(
         cell.patch,
         Some(crate::model::Workaround::AsToAddress | crate::model::Workaround::SsboToAddress)
@@ -356,14 +359,22 @@ mod tests {
         assert!(Filter::parse("stage").is_err());
     }
 
-    /// Every planned cell, its workaround variants and the canaries.
+    /// Every planned cell, its workaround variants, its mutants (`--mutants`: those with a site
+    /// in its probe) and the canaries.
     fn every_cell() -> Vec<Cell> {
         let (cells, _) = all_cells();
         let variants = cells.iter().flat_map(|c| {
             c.applicable_patches().into_iter().map(move |p| Cell { patch: Some(p), ..*c })
         });
+        let mutants = cells.iter().flat_map(|c| {
+            let spec = crate::probe::spec::ProbeSpec::of(c);
+            crate::model::Mutant::ALL
+                .iter()
+                .filter(move |m| crate::mutants::site(&spec, **m, 20).is_ok())
+                .map(move |m| Cell { mutant: Some(*m), ..*c })
+        });
         let canaries = Canary::ALL.iter().map(|k| Cell::canary(*k));
-        cells.iter().copied().chain(variants).chain(canaries).collect()
+        cells.iter().copied().chain(variants).chain(mutants).chain(canaries).collect()
     }
 
     /// Every shader the plan generates (each cell, its workaround variants, the canaries)

@@ -1,6 +1,6 @@
 //! One cell of the matrix: its axis values, where each optional axis applies, and its stable id,
 //! built from the axes by the registry (never from run order):
-//! `stage.resource.index[.nonuniform][.as_access].descriptor_model[.heap_access][.reorder][.base_<base>][.sampler_<sampler>][.patch-<name>]`,
+//! `stage.resource.index[.nonuniform][.as_access].descriptor_model[.heap_access][.reorder][.base_<base>][.sampler_<sampler>][.patch-<name>][.mutant-<name>]`,
 //! or `canary.<name>`.
 use super::axes::{
     AsAccess, BaseSource, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource,
@@ -138,6 +138,10 @@ pub struct Cell {
     /// `heap_access=direct` sampled-image cells, never elsewhere ([`Cell::sampler_applies`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sampler: Option<SamplerIndex>,
+    /// The emulated driver bug mutated into the probed stage's SPIR-V (`mutant` axis, `run
+    /// --mutants`; none for plan cells): a mutant attempt's identity.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mutant: Option<super::mutant::Mutant>,
 }
 
 impl Cell {
@@ -163,6 +167,7 @@ impl Cell {
             reorder: None,
             base: None,
             sampler: None,
+            mutant: None,
         }
     }
 
@@ -259,11 +264,17 @@ impl Cell {
         Cell { patch: None, ..*self }
     }
 
+    /// The cell without its mutant (what a mutant attempt is judged as).
+    pub fn unmutated(&self) -> Cell {
+        Cell { mutant: None, ..*self }
+    }
+
     /// The workarounds that apply to this cell's shaders.
     pub fn applicable_patches(&self) -> Vec<Workaround> {
         // Direct heap reads are untyped access chains, which no workaround rewrites.
         if self.canary.is_some()
             || self.patch.is_some()
+            || self.mutant.is_some()
             || self.heap_access == Some(HeapAccess::Direct)
         {
             return vec![];

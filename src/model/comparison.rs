@@ -125,10 +125,37 @@ pub struct Comparison {
     /// Pictures of a mismatching comparison (expected, actual, diff PNGs; `run --dump`).
     #[serde(skip_serializing_if = "Vec::is_empty", default)]
     pub pictures: Vec<String>,
+    /// A mutant attempt (`run --mutants`): what the reference, run with the same mutation,
+    /// predicted this comparison would flag.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mutant: Option<MutantPrediction>,
 }
 
 impl Comparison {
     pub fn passed(&self) -> bool {
         self.mismatched_pixels == 0
+    }
+}
+
+/// What the CPU reference, run with a mutant's mutation, predicts for a cell: on how many checked
+/// pixels the records differ from the cell's own, and on how many of them the cell's comparison
+/// must flag the difference (the rest its lenient rule allows). Carried in the mutant attempt's
+/// comparison (`Comparison::mutant`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct MutantPrediction {
+    /// Checked (non-ambiguous) pixels whose predicted record differs from the unmutated one.
+    pub differing: usize,
+    /// Of those, pixels the comparison with the unmutated reference must flag.
+    pub caught: usize,
+    /// Predicted from the device's own lane evidence (`index-broadcast`: which lane led each
+    /// subgroup), so decided after the run.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub from_lanes: bool,
+}
+
+impl MutantPrediction {
+    /// The mutant applies: the reference predicts other records on some checked pixel.
+    pub fn applicable(&self) -> bool {
+        self.differing > 0
     }
 }

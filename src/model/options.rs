@@ -54,6 +54,14 @@ pub struct RunOptions {
     /// The reports `merge` joined into this one.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub merged_from: Vec<String>,
+    /// `--mutants` / `--mutant NAME`: the mutants the run tries on its passing cells (empty:
+    /// none). They add the kill matrix; no cell's verdict depends on them.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub mutants: Vec<super::mutant::Mutant>,
+    /// `--mutants-sample N:SEED` as given: the run tried a seeded sample of N (cell, mutant)
+    /// pairs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mutants_sample: Option<String>,
     /// Options of another release this one does not read, kept as they were.
     #[serde(flatten)]
     pub extra: serde_json::Map<String, Value>,
@@ -82,6 +90,8 @@ impl Default for RunOptions {
             lane_evidence: super::LaneMode::Auto,
             spirv_from: None,
             merged_from: vec![],
+            mutants: vec![],
+            mutants_sample: None,
             extra: serde_json::Map::new(),
         }
     }

@@ -13,6 +13,7 @@ use super::axes::{
     SamplerIndex, Stage,
 };
 use super::cell::{Canary, Cell, Workaround};
+use super::mutant::Mutant;
 
 /// The axes, closed: a consumer that must say something about each one matches this exhaustively.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -29,6 +30,7 @@ pub enum AxisId {
     Base,
     Sampler,
     Patch,
+    Mutant,
 }
 
 /// Whether bisection describes a fault by this axis before the others: secondary axes (where a
@@ -281,6 +283,18 @@ pub const AXES: &[Axis] = &[
             .into()
         },
     },
+    Axis {
+        id: AxisId::Mutant,
+        name: "mutant",
+        help: "an emulated driver bug mutated into the probe's SPIR-V (run --mutants)",
+        values: Mutant::NAMES,
+        stand_ins: &["none"],
+        rank: Rank::Secondary,
+        segment: Segment::Last("mutant-"),
+        get: |c| c.mutant.map(Mutant::as_str).unwrap_or("none"),
+        set: |c, v| set_opt(&mut c.mutant, Mutant::parse, v),
+        phrase: |c| c.mutant.map(|m| format!(", mutated with {}", m.as_str())).unwrap_or_default(),
+    },
 ];
 
 /// The axis called `name`.
@@ -474,7 +488,8 @@ mod tests {
                 "patch",
                 "reorder",
                 "base",
-                "sampler"
+                "sampler",
+                "mutant"
             ]
         );
         let c = Cell {
@@ -489,7 +504,7 @@ mod tests {
         };
         assert_eq!(
             exact_filter(&c),
-            "stage=closest_hit,resource=storage_buffer,index=dynamic,nonuniform=true,as_access=none,descriptor_model=descriptor_indexing,heap_access=none,canary=none,patch=pin-index,reorder=none,base=push_data,sampler=none"
+            "stage=closest_hit,resource=storage_buffer,index=dynamic,nonuniform=true,as_access=none,descriptor_model=descriptor_indexing,heap_access=none,canary=none,patch=pin-index,reorder=none,base=push_data,sampler=none,mutant=none"
         );
         assert_eq!(describe(&c), "closest_hit reading storage_buffer with dynamic index (nonuniformEXT), descriptor_indexing, patched with pin-index");
     }
@@ -509,6 +524,11 @@ mod tests {
         };
         assert_eq!(id(&c), "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_buffer.base_buffer.patch-pin-index");
         assert_eq!(parse_id(&id(&c)), Ok(c));
+        // A mutant comes last, after the workaround.
+        let m = Cell { mutant: Some(Mutant::IndexNext), ..c };
+        assert_eq!(id(&m), "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_buffer.base_buffer.patch-pin-index.mutant-index-next");
+        assert_eq!(parse_id(&id(&m)), Ok(m));
+        assert_eq!(m.unmutated(), c);
         assert_eq!(parse_id("canary.infinite_loop"), Ok(Cell::canary(Canary::InfiniteLoop)));
         for bad in [
             "",

@@ -382,6 +382,10 @@ pub struct RunReport {
     /// The persisted pipeline cache (absent: `--pipeline-cache off`, or an older report).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pipeline_cache: Option<PipelineCacheSummary>,
+    /// With `--mutants`: the kill matrix (each cell's mutant attempts are not among its
+    /// `attempts`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mutants: Option<crate::model::MutantReport>,
     pub cells: Vec<CellReport>,
 }
 
@@ -423,6 +427,7 @@ impl RunReport {
             baseline: None,
             workers: vec![],
             pipeline_cache: None,
+            mutants: None,
             cells,
         };
         r.recount();

@@ -87,7 +87,7 @@ fn quietly<T>(f: impl FnOnce() -> T + std::panic::UnwindSafe) -> Result<T, Panic
 
 /// Run `f` on a copy of `m`, catching panics; `m` takes the copy only when `f` succeeds, so a
 /// failed patch leaves the module as it was.
-fn on_copy<R>(
+pub(crate) fn on_copy<R>(
     m: &mut Module,
     f: impl FnOnce(&mut Module) -> Result<R, PatchError>,
 ) -> Result<R, PatchError> {
@@ -123,7 +123,7 @@ pub fn load(bytes: &[u8]) -> Result<Module, PatchError> {
         _ => return Err(PatchError::NotSpirv(format!("bad magic number {magic:#010x}"))),
     };
     let (words, mode_ids) = take_execution_mode_ids(words);
-    match quietly(move || rspirv::dr::load_words(&words)) {
+    match quietly(move || load_words(&words)) {
         Ok(Ok(mut m)) if m.header.is_some() => {
             for operands in mode_ids {
                 m.execution_modes.push(execution_mode_id(&operands)?);
@@ -298,6 +298,65 @@ fn ssbo_to_address_line(m: &mut Module, o: &Options) -> Result<String, PatchErro
     Ok(format!("ssbo-to-address: {} loads now read through buffer addresses (table address at push-constant offset {})", r.rewritten_loads, r.offset))
 }
 
+/// rspirv's loader, taking `OpUntypedVariableKHR` at module scope too: SPV_KHR_untyped_pointers
+/// declares the descriptor heaps of `layout(descriptor_heap)` shaders so (`BuiltIn
+/// ResourceHeapEXT` / `SamplerHeapEXT`), and rspirv 0.13's loader refuses every module-scope
+/// instruction it does not sort as a type, constant or `OpVariable`. Such a variable reaches the
+/// loader as an `OpVariable` (its leading operands are the same: result type, result, storage
+/// class), is kept among the globals in its place, and gets its own opcode back after.
+struct UntypedLoader {
+    inner: rspirv::dr::Loader,
+    in_function: bool,
+    untyped: std::collections::HashSet<u32>,
+}
+
+impl rspirv::binary::Consumer for UntypedLoader {
+    fn initialize(&mut self) -> rspirv::binary::ParseAction {
+        self.inner.initialize()
+    }
+    fn finalize(&mut self) -> rspirv::binary::ParseAction {
+        self.inner.finalize()
+    }
+    fn consume_header(&mut self, h: rspirv::dr::ModuleHeader) -> rspirv::binary::ParseAction {
+        self.inner.consume_header(h)
+    }
+    fn consume_instruction(
+        &mut self,
+        mut inst: rspirv::dr::Instruction,
+    ) -> rspirv::binary::ParseAction {
+        use rspirv::spirv::Op;
+        match inst.class.opcode {
+            Op::Function => self.in_function = true,
+            Op::FunctionEnd => self.in_function = false,
+            Op::UntypedVariableKHR if !self.in_function => {
+                self.untyped.extend(inst.result_id);
+                inst.class = rspirv::dr::Instruction::new(Op::Variable, None, None, vec![]).class;
+            }
+            _ => {}
+        }
+        self.inner.consume_instruction(inst)
+    }
+}
+
+/// Load `words` with [`UntypedLoader`].
+fn load_words(words: &[u32]) -> Result<Module, String> {
+    use rspirv::spirv::Op;
+    let mut l = UntypedLoader {
+        inner: rspirv::dr::Loader::new(),
+        in_function: false,
+        untyped: Default::default(),
+    };
+    rspirv::binary::parse_words(words, &mut l).map_err(|e| e.to_string())?;
+    let mut m = l.inner.module();
+    let class = rspirv::dr::Instruction::new(Op::UntypedVariableKHR, None, None, vec![]).class;
+    for i in &mut m.types_global_values {
+        if i.class.opcode == Op::Variable && i.result_id.is_some_and(|r| l.untyped.contains(&r)) {
+            i.class = class;
+        }
+    }
+    Ok(m)
+}
+
 pub fn assemble(m: &Module) -> Vec<u32> {
     m.assemble()
 }
@@ -421,6 +480,58 @@ mod tests {
             }
             assert!(load(&b).is_err() || len >= 20);
         }
+    }
+
+    /// A module-scope `OpUntypedVariableKHR` (a descriptor heap), which rspirv's own loader
+    /// refuses, loads and assembles back to the same words.
+    #[test]
+    fn module_scope_untyped_variables_load_and_round_trip() {
+        // OpCapability Shader, UntypedPointersKHR; OpMemoryModel Logical GLSL450;
+        // %1 = OpTypeUntypedPointerKHR UniformConstant; %2 = OpUntypedVariableKHR %1 UniformConstant;
+        // %3 = OpTypeVoid; %4 = OpTypeFunction %3; %5 = OpFunction %3 None %4; OpLabel; OpReturn.
+        let words: Vec<u32> = vec![
+            0x0723_0203,
+            0x0001_0600,
+            0,
+            7,
+            0,
+            (2 << 16) | 17,
+            1,
+            (2 << 16) | 17,
+            4473,
+            (3 << 16) | 14,
+            0,
+            1,
+            (3 << 16) | 4417,
+            1,
+            0,
+            (4 << 16) | 4418,
+            1,
+            2,
+            0,
+            (2 << 16) | 19,
+            3,
+            (3 << 16) | 33,
+            4,
+            3,
+            (5 << 16) | 54,
+            3,
+            5,
+            0,
+            4,
+            (2 << 16) | 248,
+            6,
+            (1 << 16) | 253,
+            (1 << 16) | 56,
+        ];
+        assert!(rspirv::dr::load_words(&words).is_err(), "rspirv's own loader refuses it");
+        let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+        let m = load(&bytes).unwrap();
+        assert_eq!(m.types_global_values[1].class.opcode, rspirv::spirv::Op::UntypedVariableKHR);
+        // The same words after the header (whose generator word rspirv writes as its own).
+        let out = assemble(&m);
+        assert_eq!((out[1], out[3]), (words[1], words[3]));
+        assert_eq!(out[5..], words[5..]);
     }
 
     #[test]

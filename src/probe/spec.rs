@@ -11,7 +11,7 @@
 //! from the spec. Cells outside the plan's rules (`matrix::plan::all_cells`) still get a spec:
 //! what their generated GLSL does, which the reference then checks.
 use crate::model::{
-    AsAccess, BaseSource, Canary, Cell, DescriptorModel, HeapAccess, IndexSource, Reorder,
+    AsAccess, BaseSource, Canary, Cell, DescriptorModel, HeapAccess, IndexSource, Mutant, Reorder,
     Resource, SamplerIndex, Stage, Workaround,
 };
 use serde::Serialize;
@@ -180,6 +180,11 @@ pub struct ProbeSpec {
     pub workarounds: [Option<Workaround>; 2],
     pub read: ReadIndex,
     pub addresses: AddressTables,
+    /// The emulated driver bug mutated into the probed stage's SPIR-V after the workarounds
+    /// (`run --mutants`; `mutants::site` says what it rewrites). Nothing else in the spec
+    /// changes: the GLSL, the resources and the reference are the unmutated cell's, so a mutant
+    /// is judged against what the probe must read.
+    pub mutant: Option<Mutant>,
 }
 
 /// Whether the stage has a hit (its dynamic value adds a base to the custom index).
@@ -219,6 +224,7 @@ impl ProbeSpec {
             reorder,
             base,
             sampler,
+            mutant,
         } = *cell;
         let slot = match index {
             IndexSource::Literal => SlotSource::Literal,
@@ -319,6 +325,7 @@ impl ProbeSpec {
             workarounds,
             read,
             addresses,
+            mutant,
         }
     }
 

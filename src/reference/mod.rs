@@ -36,12 +36,18 @@
 //! record's lane words must be consistent ([`lanes::inconsistency`]); [`lanes::Lanes`] reads the
 //! device's subgroups back from them. Records without it must hold zero lane words.
 //!
+//! Mutants (`run --mutants`): [`mutation`] is the reference run with a mutant's mutation (which
+//! slot, sampler, packed element or value the mutated probe reads), to predict whether it applies
+//! and what the comparison must flag; a mutant attempt is judged with [`expected`] of its
+//! unmutated cell.
+//!
 //! Discrimination: on each exactly checked probe pixel, whether every other slot of the array and
 //! every other element of the slot holds a different value, i.e. whether reading any wrong
 //! element would have been caught there.
 mod compare;
 pub mod intersect;
 pub mod lanes;
+pub mod mutation;
 mod rules;
 pub mod watertight;
 
@@ -145,6 +151,8 @@ struct Probed<'a> {
     variants: u32,
     undefined: Undefined,
     buffer_disc: Vec<Option<bool>>,
+    /// A mutant's mutation (`mutation`): what the mutated probe reads instead.
+    mutation: Option<&'a mutation::Mutation>,
 }
 
 impl Probed<'_> {
@@ -167,6 +175,10 @@ impl Probed<'_> {
             ReadIndex::Pinned => probe::SPEC_SLOT,
             ReadIndex::Defined | ReadIndex::Undefined => slot,
         };
+        let read = match self.mutation {
+            Some(m) => m.read_slot(read, self.masked_slot(x, y, hit), p),
+            None => read,
+        };
         match spec.element {
             ElementMap::None => self.read_as(e, read, p),
             ElementMap::Own | ElementMap::Packed | ElementMap::Layer => {
@@ -176,6 +188,16 @@ impl Probed<'_> {
         if self.undefined.descriptor {
             self.any_element(e, p);
         }
+        if let Some(m) = self.mutation {
+            e.record.value = m.value(e.record.value);
+        }
+    }
+
+    /// The stage's dynamic value without its base (`custom & mask` in hit stages): what
+    /// `base-dropped` reads.
+    fn masked_slot(&self, x: u32, y: u32, hit: Option<intersect::Hit>) -> u32 {
+        let custom = hit.map(|h| h.instance).unwrap_or(0);
+        probe::dynamic_slot(self.spec.stage, x, y, self.width, custom, 0, self.slots)
     }
 
     /// The stage's runtime value at pixel (x, y): the dynamic slot, the dynamic sampler's source.
@@ -223,13 +245,17 @@ impl Probed<'_> {
             .unwrap_or_default();
         rec.element = probe::element(spec.stage, x, y, ids);
         // A separate-sampler probe reads the texel its sampler's address mode picks.
+        let sampler = |s: u32| self.mutation.map_or(s, |m| m.sampler(s));
         let texel = match spec.sampler {
             Sampler::None => rec.element,
-            Sampler::Constant => probe::sampled_element(probe::SAMPLER_LITERAL, rec.element),
+            Sampler::Constant => {
+                probe::sampled_element(sampler(probe::SAMPLER_LITERAL), rec.element)
+            }
             Sampler::Dynamic { .. } => {
-                probe::sampled_element(probe::sampler_slot(dynamic), rec.element)
+                probe::sampled_element(sampler(probe::sampler_slot(dynamic)), rec.element)
             }
         };
+        let (read, texel) = self.mutation.map_or((read, texel), |m| m.packed(read, texel));
         rec.value = probe::resource_value(spec.resource, read, texel);
         let k = (read * probe::ELEMENTS + texel) as usize;
         let slots = self.slots;
@@ -269,12 +295,75 @@ pub fn expected_with(
     sref: &SceneReference,
     undefined: Undefined,
 ) -> Vec<Expected> {
+    expected_probed(cell, scene, sref, undefined, None)
+}
+
+/// [`expected_with`] of the probe mutated as `m` says: what a mutant's records are predicted to
+/// be (`mutation`).
+pub fn expected_mutated(
+    cell: &Cell,
+    scene: &Scene,
+    sref: &SceneReference,
+    undefined: Undefined,
+    m: &mutation::Mutation,
+) -> Vec<Expected> {
+    expected_probed(cell, scene, sref, undefined, Some(m))
+}
+
+/// What mutant `site` is predicted to do to `cell` after its run: the reference run with the
+/// mutation (a broadcast's leaders from the device's `records`: [`lanes::Lanes`]), judged as
+/// `undefined` and with the lane evidence `lanes` as the cell is, against the cell's own
+/// `expected` records (`mutation::predict`).
+pub fn mutant_after_run(
+    cell: &Cell,
+    (scene, sref): (&Scene, &SceneReference),
+    (undefined, lanes): (Undefined, LaneEvidence),
+    site: crate::mutants::Mutation,
+    (expected, records): (&[Expected], &[Record]),
+) -> crate::model::MutantPrediction {
+    let mut m = mutation::Mutation::new(site);
+    let from_lanes = mutation::broadcast(site);
+    let subgroups = lanes::Lanes::from_records(records);
+    if from_lanes {
+        m.leader_slots = mutation::leader_slots(expected, &subgroups);
+    }
+    let mut mutated = expected_mutated(cell, scene, sref, undefined, &m);
+    expect_lanes(&mut mutated, lanes);
+    let judged = lanes.usable().then_some(&subgroups);
+    let p = mutation::predict(expected, &mutated, (Some(records), judged), scene.params.width);
+    crate::model::MutantPrediction { from_lanes, ..p }
+}
+
+/// Whether mutant `site` can apply to `cell` before anything ran: the prediction without the
+/// device's records (a broadcast: `mutation::one_slot`).
+pub fn mutant_before_run(
+    cell: &Cell,
+    (scene, sref): (&Scene, &SceneReference),
+    undefined: Undefined,
+    site: crate::mutants::Mutation,
+) -> crate::model::MutantPrediction {
+    let expected = expected_with(cell, scene, sref, undefined);
+    if mutation::broadcast(site) {
+        return mutation::one_slot(&expected);
+    }
+    let mutated = expected_mutated(cell, scene, sref, undefined, &mutation::Mutation::new(site));
+    mutation::predict(&expected, &mutated, (None, None), scene.params.width)
+}
+
+fn expected_probed(
+    cell: &Cell,
+    scene: &Scene,
+    sref: &SceneReference,
+    undefined: Undefined,
+    mutation: Option<&mutation::Mutation>,
+) -> Vec<Expected> {
     let spec = ProbeSpec::of(cell);
     let (w, h) = (scene.params.width, scene.params.height);
     let slots = probe::slot_count(spec.resource, scene.params.instances);
     let variants = probe::as_variants(scene.params.instances);
     let buffer_disc = vec![None; (slots * probe::ELEMENTS) as usize];
-    let mut probed = Probed { spec, sref, width: w, slots, variants, undefined, buffer_disc };
+    let mut probed =
+        Probed { spec, sref, width: w, slots, variants, undefined, buffer_disc, mutation };
     let mut out = Vec::with_capacity(scene.params.pixels());
     for y in 0..h {
         for x in 0..w {

@@ -1,11 +1,12 @@
 //! Renderers over the data layer: the run report's writer, timestamps, JUnit, the terminal
-//! summary, the vendor issue, the recommended-pattern and GPU-AV rounds' scheduling and verdicts,
+//! summary, the vendor issue, the recommended-pattern, GPU-AV and mutants rounds' scheduling and verdicts,
 //! a cell's shaders as a reader gets them, the repro bundle's Amber script, and SVG charts.
 pub mod amber;
 pub mod chart;
 pub mod gpu_av;
 pub mod issue;
 pub mod junit;
+pub mod mutants;
 pub mod recommended;
 pub mod shaders;
 pub mod summary;

@@ -22,6 +22,9 @@ pub fn render(r: &RunReport) -> String {
     worker_and_canary_notes(&mut s, r);
     spec_and_injection_notes(&mut s, r);
     findings(&mut s, r);
+    if let Some(m) = &r.mutants {
+        s += &crate::report::mutants::render(m);
+    }
     timing(&mut s, r);
     s
 }
