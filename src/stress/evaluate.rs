@@ -71,6 +71,9 @@ impl Verdict {
 pub struct Metrics {
     pub rays: usize,
     pub hits: usize,
+    /// Rays the reference cannot judge strictly: some primitive they may hit lies within the
+    /// ambiguity margin of an edge or of tmin/tmax (only a case's must-hit still holds there).
+    pub ambiguous: usize,
     /// Hit/miss against an unambiguous reference, plus hits on the wrong primitive.
     pub disagreements: usize,
     /// Rays that must hit and missed.
@@ -369,6 +372,9 @@ impl Acc {
         let must_hit = !culled && (part.info[i].must_hit || cands.iter().any(|c| c.certain));
         let may_hit = !cands.is_empty();
         self.m.rays += 1;
+        if cands.iter().any(|c| !c.certain) {
+            self.m.ambiguous += 1;
+        }
         if tr.candidates > crossings(&cands).max(1) {
             self.double_hit(part, i, tr, &cands);
         }
@@ -504,6 +510,7 @@ impl Acc {
         let (a, b) = (&mut self.m, &other.m);
         a.rays += b.rays;
         a.hits += b.hits;
+        a.ambiguous += b.ambiguous;
         a.self_hits += b.self_hits;
         a.disagreements += b.disagreements;
         a.leaks += b.leaks;

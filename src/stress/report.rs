@@ -14,10 +14,11 @@ fn opt(x: Option<f64>) -> String {
 
 fn row(label: &str, m: &Metrics) -> String {
     format!(
-        "  {:<18} {:>6} {:>6} {:>5} {:>5} {:>5} {:>6} {:>6} {:>5} {:>10} {:>10} {:>10} {:>10}\n",
+        "  {:<18} {:>6} {:>6} {:>6} {:>5} {:>5} {:>5} {:>6} {:>6} {:>5} {:>10} {:>10} {:>10} {:>10}\n",
         label,
         m.rays,
         m.hits,
+        m.ambiguous,
         m.leaks,
         m.false_hits,
         m.wrong_hits,
@@ -44,8 +45,8 @@ pub fn text(device: &str, cases: &[CaseResult]) -> String {
             continue;
         }
         s.push_str(&format!(
-            "  {:<18} {:>6} {:>6} {:>5} {:>5} {:>5} {:>6} {:>6} {:>5} {:>10} {:>10} {:>10} {:>10}\n",
-            "part", "rays", "hits", "leak", "false", "wrong", "double", "overtol", "self", "t_ulps_max", "t_ulps_p99", "t_rel_max", "bary_max"
+            "  {:<18} {:>6} {:>6} {:>6} {:>5} {:>5} {:>5} {:>6} {:>6} {:>5} {:>10} {:>10} {:>10} {:>10}\n",
+            "part", "rays", "hits", "ambig", "leak", "false", "wrong", "double", "overtol", "self", "t_ulps_max", "t_ulps_p99", "t_rel_max", "bary_max"
         ));
         for p in &c.parts {
             s.push_str(&row(&p.label, &p.metrics));
