@@ -3,7 +3,7 @@
 //! rays; a [`Tracer`] (the real RT pipeline in `gpu`, or a CPU intersector in `cpu` for tests)
 //! returns, per ray, the committed hit and the number of candidate hits any-hit saw; `evaluate`
 //! turns them into leaks, double hits, disagreements and t / barycentric / built-in errors
-//! against tolerances (`transform` adds facing and culling, `selfhit` builds the `self` case
+//! against tolerances and ambiguity margins measured in ray space (`margin`) (`transform` adds facing and culling, `selfhit` builds the `self` case
 //! from the device's own hits); `report` prints the tables and writes the JSON and the SVG of `far`.
 pub mod cases;
 pub mod cpu;
@@ -11,7 +11,10 @@ pub mod evaluate;
 pub mod gpu;
 pub mod index;
 pub mod layout;
+pub mod margin;
+pub mod mesh;
 pub mod report;
+pub mod result;
 pub mod selfhit;
 pub mod svg;
 pub mod transform;
