@@ -60,7 +60,7 @@ impl Acc {
         let r = &part.rays[i];
         let closest = cands.iter().min_by(|a, b| a.hit.t.total_cmp(&b.hit.t));
         self.examples.push(Example {
-            kind,
+            kind: kind.into(),
             part: part.label.clone(),
             origin: r.origin,
             dir: r.dir,
@@ -289,7 +289,15 @@ pub fn evaluate(kind: CaseKind, parts: &[Part], traced: &[Vec<Traced>]) -> CaseR
         metrics.facing_errors = super::transform::facing_errors(parts, traced);
     }
     let (verdict, detail) = verdict(&metrics);
-    CaseResult { name: kind.as_str(), verdict, detail, metrics, ms: 0.0, parts: results, examples }
+    CaseResult {
+        name: kind.as_str().into(),
+        verdict,
+        detail,
+        metrics,
+        ms: 0.0,
+        parts: results,
+        examples,
+    }
 }
 
 /// The verdict of a case's counts and what it rests on.

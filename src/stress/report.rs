@@ -57,8 +57,11 @@ pub fn text(device: &str, cases: &[CaseResult]) -> String {
     }
     let failed = cases.iter().filter(|c| !c.verdict.passed()).count();
     let warned = cases.iter().filter(|c| c.verdict == Verdict::Warn).count();
-    let missing: Vec<&str> =
-        cases.iter().filter(|c| c.verdict == Verdict::NotImplemented).map(|c| c.name).collect();
+    let missing: Vec<&str> = cases
+        .iter()
+        .filter(|c| c.verdict == Verdict::NotImplemented)
+        .map(|c| c.name.as_str())
+        .collect();
     s.push_str(&format!(
         "\n{} cases, {} not passed, {} with warnings",
         cases.len(),

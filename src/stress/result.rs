@@ -1,11 +1,11 @@
 //! What a stress case reports: its verdict, the counts and errors per case and part, and
 //! examples of the rays that failed a check.
 use super::{CaseKind, Part, TraceError};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// A case's verdict. `Fail` is a broken "must" (or a "expected and tested" rule the CTS counts:
 /// leaks); `Warn` a broken "should" only (double hits outside the ambiguity margin).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Verdict {
     Pass,
@@ -46,7 +46,7 @@ impl Verdict {
     }
 }
 
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct Metrics {
     pub rays: usize,
     pub hits: usize,
@@ -98,9 +98,9 @@ pub struct Metrics {
 
 /// One ray that failed a check, with what the reference and the tracer said (evidence for a
 /// write-up; at most [`EXAMPLES_PER_KIND`] per kind and case).
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Example {
-    pub kind: &'static str,
+    pub kind: String,
     pub part: String,
     pub origin: [f32; 3],
     pub dir: [f32; 3],
@@ -122,7 +122,7 @@ pub struct Example {
 
 pub const EXAMPLES_PER_KIND: usize = 3;
 
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct PartResult {
     pub label: String,
     pub distance: Option<f64>,
@@ -130,9 +130,9 @@ pub struct PartResult {
     pub metrics: Metrics,
 }
 
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct CaseResult {
-    pub name: &'static str,
+    pub name: String,
     pub verdict: Verdict,
     pub detail: Option<String>,
     #[serde(flatten)]
@@ -165,7 +165,7 @@ impl CaseResult {
     /// A case that produced no results: its verdict, why, and how many rays it would have traced.
     pub fn without_results(kind: CaseKind, verdict: Verdict, detail: String, rays: usize) -> Self {
         CaseResult {
-            name: kind.as_str(),
+            name: kind.as_str().into(),
             verdict,
             detail: Some(detail),
             metrics: Metrics { rays, ..Metrics::default() },
