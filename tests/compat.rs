@@ -16,8 +16,13 @@ use serde_json::Value;
 use std::path::{Path, PathBuf};
 
 /// Schemas of files rtprobe writes and never loads as a whole (they are for people and scripts).
-const WRITE_ONLY: &[&str] =
-    &["rtprobe.caps/1", "rtprobe.caps/2", "rtprobe.stress/1", "rtprobe.bench/1"];
+const WRITE_ONLY: &[&str] = &[
+    "rtprobe.caps/1",
+    "rtprobe.caps/2",
+    "rtprobe.stress/1",
+    "rtprobe.stress/2",
+    "rtprobe.bench/1",
+];
 
 fn json_files(dir: &Path, out: &mut Vec<PathBuf>) {
     let Ok(entries) = std::fs::read_dir(dir) else {

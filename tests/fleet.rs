@@ -118,7 +118,7 @@ fn a_baseline_expects_known_faults_and_names_new_ones() {
         &["--inject-fault", KNOWN, "--baseline", base.to_str().unwrap()],
     );
     assert_eq!(o.status.code(), Some(0), "{}", stdout(&o));
-    assert!(stdout(&o).contains("0 regressions, 0 improvements"), "{}", stdout(&o));
+    assert!(stdout(&o).contains("0 regressions, 0 missing, 0 improvements"), "{}", stdout(&o));
     // A new fault fails it, naming the cell.
     let (r, o) = run_to(
         dir.path(),
@@ -261,4 +261,127 @@ fn diff_of_a_report_with_itself_is_empty_and_with_an_edit_shows_the_edit() {
         2,
         "exactly the two edited cells: {text}"
     );
+}
+
+/// Issue 22's CI transcript: a sharded run held to a baseline, whose shards each pass (the
+/// baseline's entries for other shards' cells are theirs), is refused at the merge when a shard
+/// is missing or the shard counts differ — never merged into a `complete` report of some cells.
+#[test]
+fn a_sharded_run_with_a_baseline_and_a_missing_shard_is_refused_at_the_merge() {
+    let dir = tempfile::tempdir().unwrap();
+    let (first, _) = run_to(dir.path(), "first.json", &["--inject-fault", KNOWN]);
+    let base = dir.path().join("base.json");
+    let o = run(&["baseline", first.to_str().unwrap(), "-o", base.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let shard = |label: &str| {
+        let name = format!("s{}.json", label.replace('/', "-"));
+        let args =
+            ["--inject-fault", KNOWN, "--shard", label, "--baseline", base.to_str().unwrap()];
+        let (p, o) = run_to(dir.path(), &name, &args);
+        assert_eq!(o.status.code(), Some(0), "shard {label}: {}", stdout(&o));
+        assert!(!stdout(&o).contains("MISSING"), "{}", stdout(&o));
+        p
+    };
+    let (s1, s2, s3) = (shard("1/3"), shard("2/3"), shard("3/3"));
+    let merged = dir.path().join("merged.json");
+    let merge = |parts: &[&PathBuf]| {
+        let mut args = vec!["merge", "-o", merged.to_str().unwrap()];
+        args.extend(parts.iter().map(|p| p.to_str().unwrap()));
+        run(&args)
+    };
+    assert_one_line_error(&merge(&[&s1, &s2]), 9, "shard 3/3 missing (given: 1/3, 2/3)");
+    assert!(!merged.exists(), "no report of 15 of 22 cells");
+    let half = shard("2/2");
+    assert_one_line_error(&merge(&[&s1, &half, &s3]), 9, "the shards of one run share their count");
+    assert!(!merged.exists());
+    let o = merge(&[&s1, &s2, &s3]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(report(&merged)["cells"].as_array().unwrap().len(), 22);
+}
+
+fn write_baseline(dir: &Path, name: &str, expected: Value) -> PathBuf {
+    let p = dir.join(name);
+    let b = serde_json::json!({ "schema": "rtprobe.baseline/1", "expected": expected });
+    std::fs::write(&p, serde_json::to_vec_pretty(&b).unwrap()).unwrap();
+    p
+}
+
+/// Issue 22's T1, T2 and T4, reproduced with injected faults: each fails the run.
+#[test]
+fn a_baseline_does_not_let_another_fault_a_risen_flake_or_a_vanished_cell_through() {
+    let dir = tempfile::tempdir().unwrap();
+    // T1: `error` expected, a mismatch got.
+    let known = "miss.storage_buffer.literal.descriptor_indexing";
+    let b = write_baseline(
+        dir.path(),
+        "t1.json",
+        serde_json::json!([
+            { "cell": known, "outcome": "error" },
+            { "cell": "miss.uniform_buffer.literal.descriptor_indexing", "outcome": "mismatch" }
+        ]),
+    );
+    let (_, o) = run_to(
+        dir.path(),
+        "t1r.json",
+        &["--inject-fault", KNOWN, "--baseline", b.to_str().unwrap()],
+    );
+    assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
+    assert!(
+        stdout(&o).contains(&format!("REGRESSION: {known} expected error got mismatch")),
+        "{}",
+        stdout(&o)
+    );
+    // T2: a flake recorded at 1 of 8 that crashes 6 of 6 times.
+    let flaky = "raygen.storage_buffer.literal.descriptor_indexing";
+    let b = write_baseline(
+        dir.path(),
+        "t2.json",
+        serde_json::json!([{ "cell": flaky, "outcome": "crash", "flake": true, "also": ["pass"], "rate": "1 of 8 attempts" }]),
+    );
+    let args = [
+        "--filter",
+        "stage=raygen,index=literal,resource=storage_buffer,descriptor_model=descriptor_indexing",
+        "--inject-fault",
+        "stage=raygen,index=literal,resource=storage_buffer@device",
+        "--repeat",
+        "6",
+        "--baseline",
+        b.to_str().unwrap(),
+    ];
+    let out = dir.path().join("t2r.json");
+    let mut all = vec!["run", "--patches", "none", "-o", out.to_str().unwrap()];
+    all.extend_from_slice(&args);
+    let o = run(&all);
+    assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
+    assert!(
+        stdout(&o).contains("its fault rate rose: 6 of 6 attempts against 1 of 8"),
+        "{}",
+        stdout(&o)
+    );
+    // T4: an expected crash whose cell is unsupported here (lavapipe 25 has no descriptor heap).
+    let heap = "raygen.storage_buffer.literal.descriptor_heap.direct";
+    let b = write_baseline(
+        dir.path(),
+        "t4.json",
+        serde_json::json!([{ "cell": heap, "outcome": "crash" }]),
+    );
+    let out = dir.path().join("t4r.json");
+    let o = run(&[
+        "run",
+        "-o",
+        out.to_str().unwrap(),
+        "--filter",
+        "stage=raygen,resource=storage_buffer,index=literal,descriptor_model=descriptor_heap,heap_access=direct",
+        "--baseline",
+        b.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
+    assert!(
+        stdout(&o).contains(&format!(
+            "MISSING: {heap}: expected crash, but the cell is unsupported here"
+        )),
+        "{}",
+        stdout(&o)
+    );
+    assert_eq!(report(&out)["baseline"]["cells"][0]["status"], "missing");
 }

@@ -2,6 +2,7 @@
 //! held to the same run — the cells still to run, and how the report ends (timing, completion,
 //! the baseline check).
 use super::Recorder;
+use crate::fleet::baseline::Scope;
 use crate::model::report::RunOptions;
 use crate::model::report::{PlanSummary, ResultOption, SceneSummary, TimingSummary, SCHEMA};
 use crate::model::{Baseline, Cell, RunPlan, RunReport, SceneParams};
@@ -99,9 +100,9 @@ pub fn pending(writer: &ReportWriter, plan: &RunPlan, resumed: bool) -> (Vec<Cel
 }
 
 /// End the report: wall time (added to a resumed run's), the workers' mean device setup time,
-/// when it finished, complete, and with `baseline` (the expectations and where they came from)
-/// how the run compares.
-pub fn finish(rec: &mut Recorder, wall: Duration, baseline: Option<(&Baseline, &str)>) {
+/// when it finished, complete, and with `baseline` (the expectations, where they came from, and
+/// where the cells this run did not plan went) how the run compares.
+pub fn finish(rec: &mut Recorder, wall: Duration, baseline: Option<(&Baseline, &str, &Scope)>) {
     let r = &mut rec.writer.report;
     r.timing.wall_ms += wall.as_secs_f64() * 1e3;
     r.timing.device_ms_mean = if r.timing.workers_started > 0 {
@@ -112,7 +113,7 @@ pub fn finish(rec: &mut Recorder, wall: Duration, baseline: Option<(&Baseline, &
     let now = time::now_unix();
     r.finished = Some(format!("{} ({now})", time::stamp(now)));
     r.complete = true;
-    if let Some((b, source)) = baseline {
-        r.baseline = Some(crate::fleet::baseline::check(r, b, source));
+    if let Some((b, source, scope)) = baseline {
+        r.baseline = Some(crate::fleet::baseline::check(r, b, source, scope));
     }
 }

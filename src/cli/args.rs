@@ -84,6 +84,12 @@ pub enum Command {
         /// The job file written by the supervisor
         job: PathBuf,
     },
+    /// Internal: run one stress case for `rtprobe stress`; not for direct use
+    #[command(name = "__stress", hide = true)]
+    StressWorker {
+        /// The job file written by `rtprobe stress`
+        job: PathBuf,
+    },
 }
 
 #[derive(Args, Debug, Clone)]

@@ -62,6 +62,7 @@ pub fn main_entry() -> u8 {
         Command::Merge(a) => fleet::merge_cmd(a),
         Command::Diff(a) => fleet::diff_cmd(a),
         Command::Worker { job } => return crate::runner::worker::main(job),
+        Command::StressWorker { job } => return crate::stress::worker::main(job),
     };
     match result {
         Ok(code) => code,

@@ -7,6 +7,7 @@ use super::exit::{self, coded};
 use super::shared::{default_jobs, default_threads, supervisor_options, SupervisorOracle};
 use crate::atomic::write_atomic;
 use crate::campaign::{start, Campaign, Policy, Progress, Recorder};
+use crate::fleet::baseline::Scope;
 use crate::fleet::shard::Shard;
 use crate::matrix::plan::{self, PlanOptions};
 use crate::model::report::RunOptions;
@@ -20,6 +21,7 @@ use crate::report::{junit, summary, time};
 use crate::runner::supervisor::SupervisorOptions;
 use crate::vk::{features, DeviceInfo};
 use anyhow::{Context, Result};
+use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -80,7 +82,16 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             inject: c.inject.clone(),
         },
     );
+    let before_shard: HashSet<String> = the_plan.cells.iter().map(|c| c.cell.id()).collect();
     let sharded_out = c.shard.map(|s| s.apply(&mut the_plan)).unwrap_or(0);
+    // Baseline entries another shard runs, or --filter excludes, are not this run's to miss.
+    let scope = Scope {
+        other_shards: the_plan.cells.iter().fold(before_shard, |mut ids, c| {
+            ids.remove(&c.cell.id());
+            ids
+        }),
+        filters: c.filters.clone(),
+    };
     if a.list {
         print_list(&the_plan, c.shard, sharded_out);
         return Ok(exit::OK);
@@ -124,7 +135,8 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         return Err(exit::halted(halt, &out));
     }
     let source = a.baseline.as_ref().map(|p| p.display().to_string());
-    start::finish(&mut rec, wall.elapsed(), c.baseline.as_ref().zip(source.as_deref()));
+    let baseline = c.baseline.as_ref().zip(source.as_deref()).map(|(b, s)| (b, s, &scope));
+    start::finish(&mut rec, wall.elapsed(), baseline);
     print_end(a, &rec.writer, &out)
 }
 

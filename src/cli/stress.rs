@@ -1,13 +1,15 @@
-//! The `stress` command: parse the cases, open the device with what the stress pipeline needs,
-//! run the cases in this process (fence deadlines; a lost device or a timeout ends the remaining
-//! cases with that reason), print the tables, write the JSON and SVG atomically.
+//! The `stress` command: parse the cases, check the device has what the stress pipeline needs
+//! and the shaders compile, run each case in a worker process of its own (`stress::supervised`:
+//! a crash, hang or device loss is that case's outcome, and the next case runs), print the
+//! tables, write the JSON and SVG atomically.
 use super::args::StressArgs;
 use super::commands::{open_instance, Globals};
 use super::exit;
 use crate::atomic::write_atomic;
-use crate::stress::gpu::{GpuTracer, Mode};
-use crate::stress::{self, report, CaseKind, StressOptions, Tracer};
-use crate::vk::{features, Gpu, Requirements};
+use crate::stress::gpu::Mode;
+use crate::stress::supervised::Supervised;
+use crate::stress::{self, report, CaseKind, StressOptions};
+use crate::vk::{features, Requirements};
 use anyhow::{Context, Result};
 use std::time::Duration;
 
@@ -43,39 +45,38 @@ pub fn stress(g: &Globals, args: &StressArgs) -> Result<u8> {
     let info = features::select(&all, args.device.as_deref())?.clone();
     let device_json = crate::caps::device_json(&info);
     let mode = if args.ray_query { Mode::RayQuery } else { Mode::Pipeline };
-    let req = Requirements {
-        rt_pipeline: mode == Mode::Pipeline,
-        ray_query: mode == Mode::RayQuery,
-        buffer_device_address: true,
-        int64: true,
-        ..Requirements::default()
-    };
-    let missing = req.missing_on(&info);
-    if !missing.is_empty() {
-        return Err(exit::coded(
-            exit::UNSUPPORTED_DEVICE,
-            format!(
-                "{} cannot run the stress suite with {}: missing {}",
-                info.name(),
-                mode.as_str(),
-                missing.join(", ")
-            ),
-        ));
-    }
+    can_run(&info, mode)?;
     let validation_active = inst.validation;
-    let gpu = Gpu::new(inst, info, req)?;
-    let mut tracer =
-        GpuTracer::new(gpu, Duration::from_secs_f64(args.timeout), mode).map_err(|e| {
-            exit::coded(
-                exit::compiler_or(&e, exit::INTERNAL),
-                format!("setting up the stress pipeline: {e}"),
-            )
-        })?;
-    let name = tracer.name();
-    let results = stress::run(&mut tracer, &opts);
+    let name = format!(
+        "{} ({} {}), {}",
+        info.name(),
+        info.driver_name(),
+        info.driver_version(),
+        mode.as_str()
+    );
+    crate::runner::groups::install_handlers();
+    let dir = tempfile_dir()?;
+    let runner = Supervised {
+        device_index: info.index,
+        timeout: Duration::from_secs_f64(args.timeout),
+        ray_query: args.ray_query,
+        validate: g.validate,
+        dir: dir.clone(),
+    };
+    let mut validation_errors = 0;
+    let results: Vec<_> = opts
+        .cases
+        .iter()
+        .map(|&kind| {
+            let (r, errors) = runner.case(kind, &opts);
+            validation_errors += errors;
+            r
+        })
+        .collect();
+    let _ = std::fs::remove_dir_all(&dir);
     print!("{}", report::text(&name, &results));
     if let Some(path) = &args.json {
-        let validation = (validation_active, crate::vk::instance::validation_error_count());
+        let validation = (validation_active, validation_errors);
         let doc =
             report::json(&device_json, mode.as_str(), opts.seed, opts.full, validation, &results);
         let text = serde_json::to_string_pretty(&doc)? + "\n";
@@ -97,4 +98,42 @@ pub fn stress(g: &Globals, args: &StressArgs) -> Result<u8> {
         }
     }
     Ok(if report::all_passed(&results) { exit::OK } else { exit::FINDINGS })
+}
+
+/// The device has what the stress pipeline of `mode` needs, and its shaders compile here (a
+/// one-line error with its exit code before any worker starts).
+fn can_run(info: &crate::vk::DeviceInfo, mode: Mode) -> Result<()> {
+    let req = Requirements {
+        rt_pipeline: mode == Mode::Pipeline,
+        ray_query: mode == Mode::RayQuery,
+        buffer_device_address: true,
+        int64: true,
+        ..Requirements::default()
+    };
+    let missing = req.missing_on(info);
+    if !missing.is_empty() {
+        return Err(exit::coded(
+            exit::UNSUPPORTED_DEVICE,
+            format!(
+                "{} cannot run the stress suite with {}: missing {}",
+                info.name(),
+                mode.as_str(),
+                missing.join(", ")
+            ),
+        ));
+    }
+    stress::gpu::spirv(mode).map(|_| ()).map_err(|e| {
+        exit::coded(
+            exit::compiler_or(&e, exit::INTERNAL),
+            format!("setting up the stress pipeline: {e}"),
+        )
+    })
+}
+
+/// A fresh folder for the workers' job and result files.
+fn tempfile_dir() -> Result<std::path::PathBuf> {
+    let dir = std::env::temp_dir().join(format!("rtprobe-stress-{}", std::process::id()));
+    std::fs::create_dir_all(&dir)
+        .with_context(|| format!("creating the stress workers' folder {}", dir.display()))?;
+    Ok(dir)
 }

@@ -2,21 +2,35 @@
 //! deqp-runner reads `--baseline`: the non-pass outcomes a device is known to have, per cell id,
 //! optional flake entries with their bug link and failure rate, and optional performance bounds
 //! per phase. A run compared against it fails only on what is *unexpected*: a regression (worse
-//! than expected) or an improvement (better than expected, so the baseline gets updated).
+//! than expected, or another fault), a missing cell (expected to fault, and it did not run), or
+//! an improvement (better than expected, so the baseline gets updated).
+//!
+//! Rules that keep a regression from hiding (issue 22):
+//! - an outcome is matched exactly (`error` is not `mismatch`), but for crash and device loss;
+//! - a flake tolerates its outcomes only at a rate its recorded one explains: it fails when
+//!   `P(X ≥ k | n, p) < 1%`, p the recorded rate's 95% upper Clopper–Pearson bound, or when
+//!   Fisher's exact test finds the run's k of n above the recorded rate at 1% (the bound alone
+//!   cannot: 6 of 6 against 1 of 8 is P = 1.09% there, 0.23% by Fisher's test); without a
+//!   recorded rate (a deqp `Flake` line) the rate is deqp-runner's own, one fault in two;
+//! - an expected fault whose cell is unsupported or not implemented here, or that neither this
+//!   run nor another shard of it plans, is `Missing`; only entries another shard runs or the
+//!   run's `--filter` excludes are "not run here".
 //!
 //! Two file forms:
 //! - native JSON (`"schema": "rtprobe.baseline/1"`) with a header (device, driver, where it came
 //!   from), `expected` entries and `performance` bounds;
-//! - deqp-runner's `test,Status` lines (`#` comments), statuses `Fail` (mismatch or error),
-//!   `Crash` (crash or device loss), `Timeout`, `Flake`. Read by extension `.csv`/`.txt` or
-//!   content; written with `--format deqp`.
-use crate::model::baseline::SCHEMA;
+//! - deqp-runner's `test,Status` lines (`deqp`). Read by content; written with `--format deqp`.
+use crate::model::baseline::{DEQP_FLAKE_RATE, SCHEMA};
+use crate::model::stats::{binomial_tail, cp_upper, fisher_greater, CONFIDENCE};
 use crate::model::Outcome;
 use crate::model::{
     Baseline, BaselineCheck, CellCheck, Expectation, PerfBound, Status, WorkerFault,
 };
-use crate::model::{CellReport, RunReport};
-use std::collections::BTreeMap;
+use crate::model::{Cell, CellReport, Filter, RunReport};
+use std::collections::{BTreeMap, HashSet};
+
+/// A flake fails when its run is this unlikely at the recorded rate.
+pub const FLAKE_MAX_P: f64 = 0.01;
 
 /// The phases a baseline can bound (means per timed cell, from the report's timing summary).
 pub const PHASES: &[&str] = &["compile", "pipeline", "setup", "trace", "check"];
@@ -63,29 +77,6 @@ pub enum BaselineError {
     #[error("--perf {phase}: not a phase ({}) or the report timed no cell", PHASES.join(", "))]
     NoPhaseMean { phase: String },
 }
-
-fn deqp_status(o: Outcome) -> Option<&'static str> {
-    match o {
-        Outcome::Pass | Outcome::Unsupported | Outcome::NotImplemented => None,
-        Outcome::Mismatch | Outcome::Error => Some("Fail"),
-        Outcome::Crash | Outcome::DeviceLost => Some("Crash"),
-        Outcome::Timeout => Some("Timeout"),
-    }
-}
-
-/// The outcomes a deqp-runner status stands for (the first is what the verdict is recorded as).
-fn from_deqp(status: &str) -> Option<(Outcome, bool)> {
-    Some(match status {
-        "Fail" | "ExpectedFail" => (Outcome::Mismatch, false),
-        "Crash" => (Outcome::Crash, false),
-        "Timeout" => (Outcome::Timeout, false),
-        "Flake" | "KnownFlake" => (Outcome::Crash, true),
-        _ => return None,
-    })
-}
-
-/// A deqp-runner `Flake` line says only that the test is unreliable: any failure is tolerated.
-const DEQP_FLAKE_ALSO: &[Outcome] = &[Outcome::Mismatch, Outcome::Timeout, Outcome::DeviceLost];
 
 impl Baseline {
     /// The expectations of a finished run: every finding (flaky ones as flakes with their rate),
@@ -148,138 +139,171 @@ impl Baseline {
                     message: format!("schema {:?}, expected {SCHEMA:?}", b.schema),
                 });
             }
+            for e in &b.expected {
+                e.recorded()
+                    .map_err(|message| BaselineError::File { file: file.into(), message })?;
+            }
             return Ok(b);
         }
-        Self::parse_deqp(file, text)
-    }
-
-    /// deqp-runner's `test,Status` lines; `# device: …` / `# driver: …` comments fill the header.
-    fn parse_deqp(file: &str, text: &str) -> Result<Baseline, BaselineError> {
-        let mut b = Baseline {
-            schema: SCHEMA.into(),
-            device: String::new(),
-            driver_version: String::new(),
-            source: file.into(),
-            expected: vec![],
-            worker_faults: vec![],
-            performance: BTreeMap::new(),
-        };
-        for (n, raw) in text.lines().enumerate() {
-            let line = raw.trim();
-            if let Some(c) = line.strip_prefix('#') {
-                let c = c.trim();
-                if let Some(v) = c.strip_prefix("device:") {
-                    b.device = v.trim().into();
-                } else if let Some(v) = c.strip_prefix("driver:") {
-                    b.driver_version = v.trim().into();
-                }
-                continue;
-            }
-            if line.is_empty() {
-                continue;
-            }
-            let err =
-                |message: String| BaselineError::Line { file: file.into(), line: n + 1, message };
-            let (cell, status) = line
-                .split_once(',')
-                .ok_or_else(|| err(format!("{line:?} is not `cell,Status`")))?;
-            let (outcome, flake) = from_deqp(status.trim()).ok_or_else(|| {
-                err(format!("unknown status {:?} (Fail, Crash, Timeout, Flake)", status.trim()))
-            })?;
-            let also = if flake { DEQP_FLAKE_ALSO.to_vec() } else { vec![] };
-            b.expected.push(Expectation {
-                cell: cell.trim().into(),
-                outcome,
-                flake,
-                also,
-                rate: None,
-                bug: None,
-            });
-        }
-        Ok(b)
+        super::deqp::parse(file, text).map_err(|e| BaselineError::Line {
+            file: file.into(),
+            line: e.line,
+            message: e.message,
+        })
     }
 
     pub fn to_json(&self) -> String {
         serde_json::to_string_pretty(self).expect("baseline serializes") + "\n"
     }
 
-    /// deqp-runner form (performance bounds and flake details do not fit it and are dropped).
+    /// deqp-runner form (`deqp::write`).
     pub fn to_deqp(&self) -> String {
-        let mut s = format!(
-            "# rtprobe baseline (deqp-runner form)\n# device: {}\n# driver: {}\n",
-            self.device, self.driver_version
-        );
-        for e in &self.expected {
-            let status = if e.flake { "Flake" } else { deqp_status(e.outcome).unwrap_or("Fail") };
-            s += &format!("{},{status}\n", e.cell);
-        }
-        s
-    }
-
-    fn get(&self, id: &str) -> Option<&Expectation> {
-        self.expected.iter().find(|e| e.cell == id)
+        super::deqp::write(self)
     }
 }
 
-fn classify(c: &CellReport, e: Option<&Expectation>) -> (Status, Outcome) {
+/// Crash and device loss are one fault (a GPU fault may end the worker either way); every other
+/// outcome is its own.
+fn same_fault(a: Outcome, b: Outcome) -> bool {
+    a == b
+        || matches!(
+            (a, b),
+            (Outcome::Crash, Outcome::DeviceLost) | (Outcome::DeviceLost, Outcome::Crash)
+        )
+}
+
+fn accepts(e: &Expectation, o: Outcome) -> bool {
+    std::iter::once(e.outcome).chain(e.also.iter().copied()).any(|k| same_fault(k, o))
+}
+
+/// How a cell compared: its status, the outcome expected, and why where that needs saying.
+type Classified = (Status, Outcome, Option<String>);
+
+fn classify(c: &CellReport, e: Option<&Expectation>) -> Classified {
     let actual = c.outcome;
-    match e {
-        None => {
-            (if actual.is_finding() { Status::Regression } else { Status::Expected }, Outcome::Pass)
-        }
-        Some(e) if e.flake => {
-            // A flake tolerates, in any mix, a pass and the outcomes it was seen with (by deqp
-            // class: crash and device loss are one fault); any other outcome is a regression.
-            let class = |o: Outcome| deqp_status(o).unwrap_or("Pass");
-            let known = |o: Outcome| {
-                o == Outcome::Pass
-                    || std::iter::once(e.outcome)
-                        .chain(e.also.iter().copied())
-                        .any(|k| class(k) == class(o))
-            };
-            let all_known = c.attempts.iter().filter(|a| !a.not_run()).all(|a| known(a.outcome))
-                && known(actual);
-            (if all_known { Status::KnownFlake } else { Status::Regression }, e.outcome)
-        }
-        Some(e) => {
-            // Outcomes of one deqp class (crash / device loss; mismatch / error) are the same fault.
-            let same = actual == e.outcome
-                || (actual.is_finding() && deqp_status(actual) == deqp_status(e.outcome));
-            // Passing where a fault was expected is better; another fault is not (deqp-runner
-            // fails on any unexpected status too).
-            let status = if same {
-                Status::Expected
-            } else if actual.is_finding() {
-                Status::Regression
-            } else {
-                Status::Improvement
-            };
-            (status, e.outcome)
-        }
+    let Some(e) = e else {
+        let status = if actual.is_finding() { Status::Regression } else { Status::Expected };
+        return (status, Outcome::Pass, None);
+    };
+    if matches!(actual, Outcome::Unsupported | Outcome::NotImplemented) || c.attempts.is_empty() {
+        let why =
+            format!("expected {}, but the cell is {} here", e.outcome.as_str(), actual.as_str());
+        return (Status::Missing, e.outcome, Some(why));
+    }
+    if e.flake {
+        return flake(c, e);
+    }
+    // Passing where a fault was expected is better; another fault is not (deqp-runner fails on
+    // any unexpected status too).
+    let status = if accepts(e, actual) {
+        Status::Expected
+    } else if actual.is_finding() {
+        Status::Regression
+    } else {
+        Status::Improvement
+    };
+    (status, e.outcome, None)
+}
+
+/// A known flake: a pass and the outcomes it was seen with, in any mix, at a rate its recorded
+/// one explains.
+fn flake(c: &CellReport, e: &Expectation) -> Classified {
+    let known = |o: Outcome| o == Outcome::Pass || accepts(e, o);
+    let ran: Vec<Outcome> = c.attempts.iter().filter(|a| !a.not_run()).map(|a| a.outcome).collect();
+    if !(ran.iter().all(|&o| known(o)) && known(c.outcome)) {
+        let why = "an outcome this flake was never seen with".to_string();
+        return (Status::Regression, e.outcome, Some(why));
+    }
+    let k = ran.iter().filter(|o| o.is_finding()).count() as u32;
+    let recorded = e.recorded().ok().flatten().unwrap_or(DEQP_FLAKE_RATE);
+    match rate_rose(recorded, k, ran.len() as u32) {
+        Some(why) => (Status::Regression, e.outcome, Some(why)),
+        None => (Status::KnownFlake, e.outcome, None),
     }
 }
 
-/// Compare a run with a baseline: per cell (canaries and unsupported cells aside) and per phase.
-pub fn check(r: &RunReport, b: &Baseline, source: &str) -> BaselineCheck {
+/// Why `k` faults in `n` attempts are more than a flake recorded at `k0` of `n0` explains, or
+/// `None`: `P(X ≥ k | n, p) < FLAKE_MAX_P` at p = the recorded rate's 95% upper Clopper–Pearson
+/// bound, or Fisher's exact test of the run against the record below `FLAKE_MAX_P`.
+pub fn rate_rose((k0, n0): (u32, u32), k: u32, n: u32) -> Option<String> {
+    let bound = cp_upper(k0, n0, 1.0 - CONFIDENCE);
+    let at_bound = binomial_tail(k, n, bound);
+    let fisher = fisher_greater(k, n, k0, n0);
+    (at_bound < FLAKE_MAX_P || fisher < FLAKE_MAX_P).then(|| {
+        format!(
+            "its fault rate rose: {k} of {n} attempts against {k0} of {n0} recorded (P = {at_bound:.4} at the recorded rate's 95% bound {bound:.3}, Fisher's exact P = {fisher:.4}; below {FLAKE_MAX_P} fails)"
+        )
+    })
+}
+
+/// Where the cells a run did not plan went: the ids other shards of it run (its plan before
+/// `--shard`, less its own), and its `--filter`s.
+#[derive(Clone, Debug, Default)]
+pub struct Scope {
+    pub other_shards: HashSet<String>,
+    pub filters: Vec<Filter>,
+}
+
+impl Scope {
+    /// Whether another shard runs `id` or the filters exclude it (a baseline may cover more
+    /// than one run asks for); `false` for a cell this run should have planned.
+    fn elsewhere(&self, id: &str) -> bool {
+        self.other_shards.contains(id)
+            || (!self.filters.is_empty()
+                && Cell::parse_id(id).is_ok_and(|c| !self.filters.iter().all(|f| f.matches(&c))))
+    }
+}
+
+/// Compare a run with a baseline: per cell (canaries aside) and per phase; entries for cells
+/// the run did not plan are checked against `scope`.
+pub fn check(r: &RunReport, b: &Baseline, source: &str, scope: &Scope) -> BaselineCheck {
     let mut out = BaselineCheck { source: source.into(), ..Default::default() };
-    for c in r.cells.iter().filter(|c| c.cell.canary.is_none() && c.outcome != Outcome::Unsupported)
-    {
-        let e = b.get(&c.id);
-        let (status, expected) = classify(c, e);
+    let by_id: BTreeMap<&str, &Expectation> =
+        b.expected.iter().map(|e| (e.cell.as_str(), e)).collect();
+    for c in r.cells.iter().filter(|c| c.cell.canary.is_none()) {
+        let e = by_id.get(c.id.as_str()).copied();
+        if e.is_none() && !c.outcome.is_finding() && c.outcome != Outcome::Pass {
+            continue; // unsupported or not implemented, and expected to be: nothing to say
+        }
+        let (status, expected, why) = classify(c, e);
         match status {
             Status::Expected => out.expected += 1,
             Status::KnownFlake => out.known_flakes += 1,
-            Status::Regression | Status::Improvement => {}
+            Status::Regression | Status::Improvement | Status::Missing => {}
         }
         if status != Status::Expected {
-            out.cells.push(CellCheck { cell: c.id.clone(), status, expected, actual: c.outcome });
+            out.cells.push(CellCheck {
+                cell: c.id.clone(),
+                status,
+                expected,
+                actual: c.outcome,
+                why,
+            });
         }
     }
-    out.not_run = b
-        .expected
-        .iter()
-        .filter(|e| !r.cells.iter().any(|c| c.id == e.cell && !c.attempts.is_empty()))
-        .count();
+    let planned: HashSet<&str> = r.cells.iter().map(|c| c.id.as_str()).collect();
+    for e in b.expected.iter().filter(|e| !planned.contains(e.cell.as_str())) {
+        if scope.elsewhere(&e.cell) {
+            out.not_run += 1;
+        } else {
+            out.cells.push(CellCheck {
+                cell: e.cell.clone(),
+                status: Status::Missing,
+                expected: e.outcome,
+                actual: Outcome::NotImplemented,
+                why: Some(format!(
+                    "expected {}, but neither this run nor another shard of it plans the cell",
+                    e.outcome.as_str()
+                )),
+            });
+        }
+    }
+    worker_and_phase_checks(r, b, &mut out);
+    out
+}
+
+/// Worker faults outside cells and phase times against the baseline.
+fn worker_and_phase_checks(r: &RunReport, b: &Baseline, out: &mut BaselineCheck) {
     for (fault, text) in worker_faults(r) {
         if b.worker_faults.contains(&fault) {
             out.expected_worker_faults += 1;
@@ -300,19 +324,23 @@ pub fn check(r: &RunReport, b: &Baseline, source: &str) -> BaselineCheck {
             }
         }
     }
-    out
 }
 
 /// Lines for the terminal summary.
 pub fn render(c: &BaselineCheck, allow_improvements: bool) -> String {
     let mut s = format!(
-        "baseline {}: {} as expected, {} known flakes, {} regressions, {} improvements{}\n",
+        "baseline {}: {} as expected, {} known flakes, {} regressions, {} missing, {} improvements{}\n",
         c.source,
         c.expected,
         c.known_flakes,
         c.regressions().count(),
+        c.missing().count(),
         c.improvements().count(),
-        if c.not_run > 0 { format!(", {} entries not run here", c.not_run) } else { String::new() }
+        if c.not_run > 0 {
+            format!(", {} entries left to other shards or outside --filter", c.not_run)
+        } else {
+            String::new()
+        }
     );
     for x in &c.cells {
         let what = match x.status {
@@ -323,13 +351,18 @@ pub fn render(c: &BaselineCheck, allow_improvements: bool) -> String {
             }
             Status::KnownFlake => "known flake",
             Status::Expected => "expected",
+            Status::Missing => "MISSING",
         };
-        s += &format!(
-            "  {what}: {} expected {} got {}\n",
-            x.cell,
-            x.expected.as_str(),
-            x.actual.as_str()
-        );
+        let why = x.why.as_deref().map(|w| format!(": {w}")).unwrap_or_default();
+        s += &match x.status {
+            Status::Missing => format!("  {what}: {}{why}\n", x.cell),
+            _ => format!(
+                "  {what}: {} expected {} got {}{why}\n",
+                x.cell,
+                x.expected.as_str(),
+                x.actual.as_str()
+            ),
+        };
     }
     for p in &c.performance {
         s += &format!("  PERFORMANCE REGRESSION: {p}\n");
@@ -404,22 +437,126 @@ mod tests {
         let b = Baseline::from_report(&r, "r.json", &[], 2.0, 1.0).unwrap();
         for text in [b.to_json(), b.to_deqp()] {
             let back = Baseline::parse("b", &text).unwrap();
-            let c = check(&r, &back, "b");
+            let c = check(&r, &back, "b", &Scope::default());
             assert!(c.ok(false), "{text}\n{c:?}");
             assert_eq!(c.known_flakes, 1);
         }
         // A flake tolerates what it was seen with, not a mismatch it never showed.
         let wrong =
             RunReport::for_tests(vec![cell_with(I::Dynamic, &[Outcome::Mismatch, Outcome::Pass])]);
-        let c = check(&wrong, &b, "b");
+        let c = check(&wrong, &b, "b", &Scope::default());
         assert_eq!(c.regressions().count(), 1, "{c:?}");
         // A steady expected fault that now passes is an improvement; another fault a regression.
         let fixed = RunReport::for_tests(vec![
             cell_with(I::Literal, &[Outcome::Pass]),
             cell_with(I::SpecConstant, &[Outcome::Timeout]),
         ]);
-        let c = check(&fixed, &b, "b");
+        let c = check(&fixed, &b, "b", &Scope::default());
         assert_eq!((c.improvements().count(), c.regressions().count()), (1, 1), "{c:?}");
+    }
+
+    fn expect(cell: &CellReport, outcome: Outcome, flake: bool, rate: Option<&str>) -> Baseline {
+        let e = Expectation {
+            cell: cell.id.clone(),
+            outcome,
+            flake,
+            also: if flake { vec![Outcome::Pass] } else { vec![] },
+            rate: rate.map(String::from),
+            bug: None,
+        };
+        let mut b = Baseline::parse("b.csv", "").unwrap();
+        b.expected.push(e);
+        b
+    }
+
+    fn status_of(r: &RunReport, b: &Baseline, scope: &Scope) -> Vec<Status> {
+        check(r, b, "b", scope).cells.iter().map(|c| c.status).collect()
+    }
+
+    /// T1 of issue 22: an expected `error` that became a mismatch is another fault.
+    #[test]
+    fn an_expected_error_does_not_absorb_a_mismatch() {
+        use crate::model::IndexSource as I;
+        let c = cell_with(I::Literal, &[Outcome::Mismatch]);
+        let r = RunReport::for_tests(vec![c.clone()]);
+        let b = expect(&c, Outcome::Error, false, None);
+        assert_eq!(status_of(&r, &b, &Scope::default()), [Status::Regression]);
+        assert!(!check(&r, &b, "b", &Scope::default()).ok(true));
+        // Crash and device loss stay one fault; the same outcome is expected.
+        let lost = RunReport::for_tests(vec![cell_with(I::Literal, &[Outcome::DeviceLost])]);
+        assert!(check(&lost, &expect(&c, Outcome::Crash, false, None), "b", &Scope::default())
+            .ok(false));
+        assert!(check(&r, &expect(&c, Outcome::Mismatch, false, None), "b", &Scope::default())
+            .ok(false));
+    }
+
+    /// T2 of issue 22: a flake recorded at 1 of 8 that crashed 6 of 6 times.
+    #[test]
+    fn a_flake_whose_rate_rose_is_a_regression() {
+        use crate::model::IndexSource as I;
+        let c = cell_with(I::Literal, &[Outcome::Crash; 6]);
+        let r = RunReport::for_tests(vec![c.clone()]);
+        let b = expect(&c, Outcome::Crash, true, Some("1 of 8 attempts"));
+        let checked = check(&r, &b, "b", &Scope::default());
+        assert_eq!(checked.cells[0].status, Status::Regression, "{checked:?}");
+        let why = checked.cells[0].why.as_deref().unwrap();
+        assert!(why.contains("6 of 6 attempts against 1 of 8"), "{why}");
+        // At about the recorded rate it stays a known flake: 1, 2 or 3 of 6.
+        for faults in [1usize, 2, 3] {
+            let mut outcomes = vec![Outcome::Pass; 6];
+            outcomes[..faults].fill(Outcome::Crash);
+            let r = RunReport::for_tests(vec![cell_with(I::Literal, &outcomes)]);
+            assert!(check(&r, &b, "b", &Scope::default()).ok(false), "{faults} of 6");
+        }
+        // A flake recorded at 3 of 3 explains any rate.
+        let b = expect(&c, Outcome::Crash, true, Some("3 of 3 attempts"));
+        assert!(check(&r, &b, "b", &Scope::default()).ok(false));
+        // Without a rate (a deqp `Flake` line): deqp-runner's one fault in two, whose bound
+        // 0.975 explains 4 of 4 (T3) and anything up to 179 of 179, not 180 of 180.
+        let b = Baseline::parse("f.csv", &format!("{},Flake\n", c.id)).unwrap();
+        let four = RunReport::for_tests(vec![cell_with(I::Literal, &[Outcome::Mismatch; 4])]);
+        assert_eq!(check(&four, &b, "b", &Scope::default()).known_flakes, 1);
+        let all =
+            |n: usize| RunReport::for_tests(vec![cell_with(I::Literal, &vec![Outcome::Crash; n])]);
+        assert!(check(&all(179), &b, "b", &Scope::default()).ok(false));
+        assert!(!check(&all(180), &b, "b", &Scope::default()).ok(false));
+    }
+
+    #[test]
+    fn the_flake_rule_meets_its_figures() {
+        assert!(rate_rose((1, 8), 6, 6).is_some(), "Fisher: 7/3003");
+        assert!(rate_rose((1, 8), 7, 7).is_some(), "P = 0.0051 at the bound");
+        assert!(rate_rose((1, 8), 1, 6).is_none());
+        assert!(rate_rose((1, 2), 4, 4).is_none());
+        let bound = cp_upper(1, 8, 0.05);
+        assert!(binomial_tail(6, 6, bound) > FLAKE_MAX_P, "the bound alone passes 6 of 6");
+    }
+
+    /// T4 of issue 22: an expected crash whose cell is now unsupported, or not planned.
+    #[test]
+    fn an_expected_fault_that_did_not_run_is_missing_unless_another_shard_runs_it() {
+        use crate::model::IndexSource as I;
+        let mut c = cell_with(I::Literal, &[Outcome::Pass]);
+        c.attempts.clear();
+        c.outcome = Outcome::Unsupported;
+        let r = RunReport::for_tests(vec![c.clone()]);
+        let b = expect(&c, Outcome::Crash, false, None);
+        assert_eq!(status_of(&r, &b, &Scope::default()), [Status::Missing]);
+        assert!(!check(&r, &b, "b", &Scope::default()).ok(true));
+        // Not in this run's report: missing, unless another shard runs it or --filter
+        // excludes it.
+        let other = RunReport::for_tests(vec![cell_with(I::Dynamic, &[Outcome::Pass])]);
+        assert_eq!(status_of(&other, &b, &Scope::default()), [Status::Missing]);
+        let shards = Scope { other_shards: [c.id.clone()].into(), filters: vec![] };
+        let checked = check(&other, &b, "b", &shards);
+        assert!(checked.ok(false) && checked.not_run == 1, "{checked:?}");
+        let filtered =
+            Scope { filters: vec![Filter::parse("index=dynamic").unwrap()], ..Scope::default() };
+        assert!(check(&other, &b, "b", &filtered).ok(false));
+        let kept =
+            Scope { filters: vec![Filter::parse("index=literal").unwrap()], ..Scope::default() };
+        assert_eq!(status_of(&other, &b, &kept), [Status::Missing]);
+        assert!(render(&check(&r, &b, "b", &Scope::default()), false).contains("MISSING: "));
     }
 
     #[test]

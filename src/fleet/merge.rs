@@ -1,7 +1,10 @@
 //! `rtprobe merge A.json B.json … -o ALL.json`: join the reports of one matrix run in shards
 //! (or re-runs of parts of it) into one. Refuses reports of different rtprobe versions, device
 //! identities, scenes or result-changing options unless forced; the same cell in two reports
-//! keeps every attempt (its verdict is recomputed from all of them).
+//! keeps every attempt (its verdict is recomputed from all of them). Sharded reports must make
+//! a whole run, forced or not: one shard count, every shard 1…N (issue 22: shards 1/3 and 2/3
+//! merged into a `complete` report of 15 of 22 cells, and 1/2 with 2/3 was accepted).
+use super::shard::Shard;
 use crate::matrix::plan::all_cells;
 use crate::model::report::ResultOption;
 use crate::model::report::TimingSummary;
@@ -35,6 +38,14 @@ pub enum MergeError {
     /// The same run (start stamp and command line) given twice.
     #[error("{name} is a run already merged (started {started}, same command line): merging it twice would double its attempts")]
     MergedTwice { name: String, started: String },
+    /// Shards of different splits: their cells overlap and leave gaps.
+    #[error("{first} is shard {first_shard} and {name} is shard {shard}: the shards of one run share their count N")]
+    MixedShardCounts { first: String, first_shard: String, name: String, shard: String },
+    /// Not every shard 1…N is given: the merged report would lack their cells.
+    #[error("shard {} missing (given: {}): merge every shard of the run, or the report lacks their cells", missing.join(", "), given.join(", "))]
+    MissingShards { missing: Vec<String>, given: Vec<String> },
+    #[error("{name}: its --shard {shard:?} is not I/N")]
+    BadShard { name: String, shard: String },
 }
 
 /// Device identity: a report continues, merges with or is compared like-for-like with another
@@ -82,9 +93,46 @@ fn order() -> HashMap<String, usize> {
     m
 }
 
-/// Merge `reports` (with their file names for messages). `force` skips the identity checks.
+/// Whether the sharded ones of `reports` make whole runs: one shard count, and every shard of
+/// it (a shard may come twice: a re-run). Unsharded reports are re-runs and join freely.
+#[allow(clippy::result_large_err)] // as same_run
+/// `reports`: each report's file name and `--shard`.
+pub fn whole_shards(reports: &[(String, Option<String>)]) -> Result<(), MergeError> {
+    let mut first: Option<(&str, Shard)> = None;
+    let mut given = std::collections::BTreeSet::new();
+    for (name, shard) in reports {
+        let Some(label) = shard else { continue };
+        let bad = || MergeError::BadShard { name: name.clone(), shard: label.clone() };
+        let s = Shard::parse(label).map_err(|_| bad())?;
+        match first {
+            None => first = Some((name, s)),
+            Some((f, fs)) if fs.count != s.count => {
+                return Err(MergeError::MixedShardCounts {
+                    first: f.into(),
+                    first_shard: fs.label(),
+                    name: name.clone(),
+                    shard: s.label(),
+                })
+            }
+            Some(_) => {}
+        }
+        given.insert(s.index);
+    }
+    let Some((_, s)) = first else { return Ok(()) };
+    let label = |i: u32| Shard { index: i, count: s.count }.label();
+    let missing: Vec<String> = (1..=s.count).filter(|i| !given.contains(i)).map(label).collect();
+    if missing.is_empty() {
+        return Ok(());
+    }
+    Err(MergeError::MissingShards { missing, given: given.into_iter().map(label).collect() })
+}
+
+/// Merge `reports` (with their file names for messages). `force` skips the identity checks,
+/// never [`whole_shards`].
 #[allow(clippy::result_large_err)] // as same_run
 pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport, MergeError> {
+    let shards: Vec<(String, Option<String>)> =
+        reports.iter().map(|(n, r)| (n.clone(), r.options.shard.clone())).collect();
     let mut it = reports.into_iter();
     let (first_name, mut out) = it.next().ok_or(MergeError::NoReports)?;
     let mut names = vec![first_name.clone()];
@@ -111,6 +159,7 @@ pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport
         names.push(name);
         absorb(&mut out, &mut by_id, r);
     }
+    whole_shards(&shards)?;
     finish(&mut out, names);
     Ok(out)
 }
@@ -258,5 +307,32 @@ mod tests {
         assert_eq!(out.mutants, [Mutant::IndexZero, Mutant::ValueBits]);
         assert_eq!((out.wall_ms, out.entries.len()), (3.0, 3));
         assert_eq!((out.counts["value-bits"].killed, out.counts["index-zero"].equivalent), (2, 1));
+    }
+
+    fn shard(label: Option<&str>) -> (String, RunReport) {
+        let mut r = RunReport::for_tests(vec![]);
+        r.options.shard = label.map(String::from);
+        (format!("{}.json", label.unwrap_or("all").replace('/', "-of-")), r)
+    }
+
+    #[test]
+    #[allow(clippy::result_large_err)] // as same_run
+    fn shards_must_make_a_whole_run() {
+        let all = |labels: &[Option<&str>]| {
+            let given: Vec<(String, Option<String>)> =
+                labels.iter().map(|l| shard(*l)).map(|(n, r)| (n, r.options.shard)).collect();
+            whole_shards(&given)
+        };
+        all(&[Some("1/3"), Some("3/3"), Some("2/3")]).unwrap();
+        all(&[Some("1/2"), Some("2/2"), Some("2/2"), None]).unwrap();
+        all(&[None, None]).unwrap();
+        let e = all(&[Some("1/3"), Some("2/3")]).unwrap_err().to_string();
+        assert!(e.starts_with("shard 3/3 missing (given: 1/3, 2/3)"), "{e}");
+        let e = all(&[Some("1/2"), Some("2/3")]).unwrap_err().to_string();
+        assert!(e.contains("1-of-2.json is shard 1/2 and 2-of-3.json is shard 2/3"), "{e}");
+        assert!(matches!(all(&[Some("4/3")]), Err(MergeError::BadShard { .. })));
+        // --force does not make a partial set whole.
+        let e = merge(vec![shard(Some("1/2"))], true).unwrap_err().to_string();
+        assert!(e.contains("shard 2/2 missing"), "{e}");
     }
 }

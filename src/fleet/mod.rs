@@ -2,6 +2,7 @@
 //! system's parallel jobs (`shard`), joining their reports (`merge`), and what changed between two
 //! runs (`diff`). rtprobe shards and merges; the CI system schedules the machines.
 pub mod baseline;
+pub mod deqp;
 pub mod diff;
 pub mod merge;
 pub mod shard;

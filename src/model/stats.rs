@@ -114,9 +114,54 @@ pub fn attempts_needed(p: f64, max_miss: f64, cap: u32) -> u32 {
     n.min(cap)
 }
 
+/// The one-sided Clopper–Pearson upper bound on the fault rate of `k` faults in `n` attempts, at
+/// confidence `1 - alpha`: the `p` at which `k` or fewer faults have probability `alpha`
+/// (`1 - cp_lower(n - k, n, alpha)` by symmetry; 1 when `k = n`).
+pub fn cp_upper(k: u32, n: u32, alpha: f64) -> f64 {
+    if n == 0 || k >= n {
+        return 1.0;
+    }
+    1.0 - cp_lower(n - k, n, alpha)
+}
+
+/// Fisher's exact test, one-sided: the chance that `k` or more of the `n` attempts of a run fault
+/// when its attempts and `n0` earlier ones (`k0` faulted) share one fault rate — given the
+/// `k + k0` faults, how they fall is hypergeometric. Small: the run's rate rose.
+pub fn fisher_greater(k: u32, n: u32, k0: u32, n0: u32) -> f64 {
+    let (total, faults) = (n + n0, k + k0);
+    let ln_choose = |a: u32, b: u32| -> f64 {
+        if b > a {
+            return f64::NEG_INFINITY;
+        }
+        let b = b.min(a - b);
+        (0..b).map(|i| ((a - i) as f64).ln() - ((i + 1) as f64).ln()).sum()
+    };
+    let denom = ln_choose(total, n);
+    let top = faults.min(n);
+    let p: f64 = (k..=top)
+        .map(|j| (ln_choose(faults, j) + ln_choose(total - faults, n - j) - denom).exp())
+        .sum();
+    p.min(1.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn upper_bounds_and_fishers_test_meet_their_closed_forms() {
+        // k = 0: 1 - alpha^(1/n); the 95% bound of 1 of 8 ≈ 0.4707 (P(X <= 1) = 0.05 there).
+        assert!((cp_upper(0, 8, 0.05) - (1.0 - 0.05f64.powf(1.0 / 8.0))).abs() < 1e-9);
+        let p = cp_upper(1, 8, 0.05);
+        assert!((1.0 - binomial_tail(2, 8, p) - 0.05).abs() < 1e-9 && (0.47..0.471).contains(&p));
+        assert_eq!(cp_upper(3, 3, 0.05), 1.0);
+        // 6 faults of 6 against 1 of 8: all 7 faults in the 6-attempt group of 14 has chance
+        // C(7, 6)·C(7, 0) / C(14, 6) = 7/3003.
+        assert!((fisher_greater(6, 6, 1, 8) - 7.0 / 3003.0).abs() < 1e-12);
+        assert!((fisher_greater(0, 5, 2, 5) - 1.0).abs() < 1e-12);
+        // The same rate twice is no evidence of a rise.
+        assert!(fisher_greater(3, 8, 3, 8) > 0.3);
+    }
 
     #[test]
     fn a_pass_against_a_flaky_finding_carries_its_miss_probability() {

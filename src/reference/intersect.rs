@@ -7,8 +7,14 @@
 use crate::scene::{Geometry, Instance, Scene, RAY_TMAX, RAY_TMIN, SPHERE_RADIUS};
 use glam::DVec3;
 
-/// Barycentric margin inside which a hit is marginal.
+/// Barycentric margin inside which a hit is marginal, at least (a floor for triangles seen
+/// face-on; [`RAY_SPACE_ULPS`] widens it where the triangle is seen edge-on).
 pub const EPS_BARY: f64 = 1e-4;
+/// The f32 position error the GPU may make across the ray, in ulps of the largest coordinate
+/// (and f32 epsilons of the edge functions' products): measured in ray space, where a triangle
+/// seen nearly edge-on has a tiny altitude, so a barycentric margin alone is far too narrow
+/// there (issue 22: the same root as `stress`'s sliver "wrong hits"; `watertight::PlaneHit::edge_margins`).
+pub const RAY_SPACE_ULPS: f64 = 64.0;
 /// Relative distance margin for two hits to be too close to order.
 pub const EPS_T: f64 = 1e-4;
 
@@ -78,11 +84,28 @@ fn triangle(o: DVec3, d: DVec3, v0: DVec3, v1: DVec3, v2: DVec3) -> Option<(f64,
     let v = d.dot(q) * inv;
     let t = e2.dot(q) * inv;
     let w = 1.0 - u - v;
-    let min = u.min(v).min(w);
-    if min < -EPS_BARY || t <= RAY_TMIN as f64 || t >= RAY_TMAX as f64 {
+    // Each weight's margin: EPS_BARY, or its ray-space margin where that is wider.
+    let margin = ray_space_margins(o, d, [v0, v1, v2]).map(|m| m.max(EPS_BARY));
+    let weights = [w, u, v];
+    if (0..3).any(|k| weights[k] < -margin[k]) || t <= RAY_TMIN as f64 || t >= RAY_TMAX as f64 {
         return None;
     }
-    Some((t, u, v, min < EPS_BARY))
+    Some((t, u, v, (0..3).any(|k| weights[k] < margin[k])))
+}
+
+/// The barycentric margin of each vertex's weight for [`RAY_SPACE_ULPS`] of position error in
+/// ray space (∞ where the triangle has no area in ray space; 0 where it is farther from the ray
+/// than that error).
+fn ray_space_margins(o: DVec3, d: DVec3, v: [DVec3; 3]) -> [f64; 3] {
+    let s = v.iter().fold(o.abs().max_element(), |m, p| m.max(p.abs().max_element()));
+    let abs = RAY_SPACE_ULPS * super::watertight::ulp_f32(s);
+    let rel = RAY_SPACE_ULPS * f32::EPSILON as f64;
+    match super::watertight::plane(o, d, v) {
+        // Out of reach in ray space: no margin can bring the ray onto it.
+        Some(h) if h.gap > abs + rel * h.reach_max => [0.0; 3],
+        Some(h) => h.edge_margins(abs, rel).map(|m| if m.is_nan() { f64::INFINITY } else { m }),
+        None => [f64::INFINITY; 3],
+    }
 }
 
 fn sphere(o: DVec3, d: DVec3) -> Option<(f64, bool)> {
@@ -236,6 +259,24 @@ mod tests {
         let edge = triangle(DVec3::new(0.5, 0.5 - 1e-6, -1.0), d, v0, v1, v2).unwrap();
         assert!(edge.3, "near the hypotenuse is marginal");
         assert!(triangle(DVec3::new(0.9, 0.9, -1.0), d, v0, v1, v2).is_none());
+    }
+
+    #[test]
+    fn a_triangle_seen_edge_on_is_marginal_by_its_ray_space_margin() {
+        // Steep: its projection along +z is 1e-4 high, its 3D altitudes near 1. A ray 1e-6
+        // (≈ 8 ulps at this scale) inside its long edge is 0.01 inside in barycentrics: far
+        // beyond EPS_BARY, well within the ray-space margin (64 ulps ≈ 8e-6 across the ray).
+        let (v0, v1, v2) = (DVec3::ZERO, DVec3::X, DVec3::new(0.0, 1e-4, 1.0));
+        let near = triangle(DVec3::new(0.5, 1e-6, -1.0), DVec3::Z, v0, v1, v2).unwrap();
+        assert!(near.2 > 50.0 * EPS_BARY, "{near:?}");
+        assert!(near.3, "marginal in ray space");
+        // Just outside it the ray is a possible hit, marginal; well inside it is certain.
+        let out = triangle(DVec3::new(0.5, -1e-6, -1.0), DVec3::Z, v0, v1, v2).unwrap();
+        assert!(out.3);
+        let inside = triangle(DVec3::new(0.25, 5e-5, -1.0), DVec3::Z, v0, v1, v2).unwrap();
+        assert!(!inside.3, "{inside:?}");
+        // Face-on, the floor still holds: 1e-6 inside a unit triangle's edge is marginal.
+        assert!(triangle(DVec3::new(0.5, 1e-6, -1.0), DVec3::Z, v0, v1, DVec3::Y).unwrap().3);
     }
 
     #[test]

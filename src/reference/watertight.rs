@@ -5,6 +5,14 @@
 //! test is inclusive on edges (U, V, W all ≥ 0 or all ≤ 0). The f32 inputs are exact in f64 and
 //! the shear adds at most a few f64 ulps, 2^-29 below f32 resolution, so this is the reference
 //! the driver's f32 traversal is measured against.
+//!
+//! How close to an edge a ray may pass before an f32 traversal can legitimately decide the other
+//! way is a question of *ray space*, the 2D frame the edge functions are evaluated in, not of the
+//! triangle's 3D shape: a triangle seen nearly edge-on (a near-vertical sliver under a +z ray)
+//! has a 3D altitude of 0.01 and a ray-space altitude of 1e-7. [`PlaneHit::edge_margins`] turns
+//! an error in ray space into a barycentric margin per edge (Woop et al. §4 bound the f32 edge
+//! functions the same way: the error of `U = Cx·By − Cy·Bx` is the coordinates' error times
+//! `|B| + |C|` plus the products' relative error times `|B|·|C|`).
 use glam::{DMat3, DVec3};
 
 /// One ray/triangle intersection: distance, the weights of v1 and v2 (as `hitAttributeEXT vec2`
@@ -18,6 +26,45 @@ pub struct PlaneHit {
     /// Sign of the determinant: which side of the triangle the ray comes from. Two triangles of
     /// a surface crossed at one point share it; at a fold (silhouette) they differ.
     pub det_positive: bool,
+    /// All three barycentrics: the weights of v0, v1 and v2 (`inside` is the smallest).
+    pub weights: [f64; 3],
+    /// The t at which the ray reaches each vertex's depth: `t` is their mean by `weights`, so a
+    /// barycentric error `δb` moves t by `Σ δb_k·(vertex_t_k − t)` (large on a steep triangle).
+    pub vertex_t: [f64; 3],
+    /// |det|: twice the triangle's area in ray space.
+    pub det_abs: f64,
+    /// Per vertex k, the edge opposite it in ray space: its endpoints' distances from the ray
+    /// `|B| + |C|`, their product `|B|·|C|`, and its length `|B − C|`.
+    pub edge_reach: [f64; 3],
+    pub edge_span: [f64; 3],
+    pub edge_len: [f64; 3],
+    /// How far the ray passes from the triangle in ray space (0 through it). Per-edge margins
+    /// say which side of each edge's *line* rounding may put the ray; a triangle farther than
+    /// the position error is out of reach whatever its edge lines do (a 1e-6 triangle seen from
+    /// 3e5 away has lines that rounding can turn any way).
+    pub gap: f64,
+    /// The largest distance of a vertex from the ray in ray space.
+    pub reach_max: f64,
+    /// Depth in f32 comes from the ray's dominant axis alone (`t_k = (v_k − o)[kz] / d[kz]`):
+    /// the largest |coordinate| on that axis of the origin and the vertices, and |d[kz]|.
+    pub depth_scale: f64,
+    pub depth_dir: f64,
+}
+
+impl PlaneHit {
+    /// The barycentric margin of each weight (vertex k: the edge opposite it) for an absolute
+    /// error `abs` of the ray-space coordinates and a relative error `rel` of the edge
+    /// functions' products: `(abs·(|B| + |C|) + rel·|B|·|C|) / |det|`. For a ray near the edge
+    /// (|B| + |C| ≈ |B − C|) the first term is `abs / h_k`, h_k the ray-space altitude of vertex k.
+    pub fn edge_margins(&self, abs: f64, rel: f64) -> [f64; 3] {
+        std::array::from_fn(|k| (abs * self.edge_reach[k] + rel * self.edge_span[k]) / self.det_abs)
+    }
+
+    /// The ray's signed distance from the line of the edge opposite vertex k in ray space
+    /// (positive inside).
+    pub fn edge_distance(&self, k: usize) -> f64 {
+        self.weights[k] * self.det_abs / self.edge_len[k]
+    }
 }
 
 fn axes(d: DVec3) -> (usize, usize, usize) {
@@ -57,8 +104,48 @@ pub fn plane(o: DVec3, d: DVec3, v: [DVec3; 3]) -> Option<PlaneHit> {
         return None;
     }
     let t = (u * a.2 + vv * b.2 + w * c.2) / det;
+    // The edge opposite each vertex: (v1, v2), (v2, v0), (v0, v1).
+    let p = [(a.0, a.1), (b.0, b.1), (c.0, c.1)];
+    let len = |q: (f64, f64)| (q.0 * q.0 + q.1 * q.1).sqrt();
+    let edge = |i: usize, j: usize| {
+        let (bi, cj) = (len(p[i]), len(p[j]));
+        (bi + cj, bi * cj, len((p[i].0 - p[j].0, p[i].1 - p[j].1)))
+    };
+    let e = [edge(1, 2), edge(2, 0), edge(0, 1)];
     let (b0, b1, b2) = (u / det, vv / det, w / det);
-    Some(PlaneHit { t, bary: [b1, b2], inside: b0.min(b1).min(b2), det_positive: det > 0.0 })
+    let gap = if b0 >= 0.0 && b1 >= 0.0 && b2 >= 0.0 {
+        0.0
+    } else {
+        [(1, 2), (2, 0), (0, 1)]
+            .iter()
+            .map(|&(i, j)| segment_gap(p[i], p[j]))
+            .fold(f64::MAX, f64::min)
+    };
+    Some(PlaneHit {
+        t,
+        bary: [b1, b2],
+        inside: b0.min(b1).min(b2),
+        det_positive: det > 0.0,
+        weights: [b0, b1, b2],
+        vertex_t: [a.2, b.2, c.2],
+        det_abs: det.abs(),
+        edge_reach: e.map(|x| x.0),
+        edge_span: e.map(|x| x.1),
+        edge_len: e.map(|x| x.2),
+        gap,
+        reach_max: p.iter().map(|&q| len(q)).fold(0.0, f64::max),
+        depth_scale: v.iter().fold(o[kz].abs(), |m, q| m.max(q[kz].abs())),
+        depth_dir: d[kz].abs(),
+    })
+}
+
+/// Distance from the ray (the origin of ray space) to the segment p–q.
+fn segment_gap(p: (f64, f64), q: (f64, f64)) -> f64 {
+    let (dx, dy) = (q.0 - p.0, q.1 - p.1);
+    let l2 = dx * dx + dy * dy;
+    let s = if l2 > 0.0 { (-(p.0 * dx + p.1 * dy) / l2).clamp(0.0, 1.0) } else { 0.0 };
+    let (x, y) = (p.0 + s * dx, p.1 + s * dy);
+    (x * x + y * y).sqrt()
 }
 
 /// The watertight test: the plane crossing when it lies inside the triangle or on its edges.
@@ -78,6 +165,13 @@ pub fn object_ray(transform: &[[f32; 4]; 3], o: DVec3, d: DVec3) -> (DVec3, DVec
     let t = DVec3::new(m[0][3] as f64, m[1][3] as f64, m[2][3] as f64);
     let inv = a.inverse();
     (inv * (o - t), inv * d)
+}
+
+/// f32 ulp of |x| (of the smallest normal below it).
+pub fn ulp_f32(x: f64) -> f64 {
+    let x = (x.abs() as f32).max(f32::MIN_POSITIVE);
+    let e = (x.to_bits() >> 23) as i32 - 127;
+    2f64.powi(e - 23)
 }
 
 /// Vertex of an f32 mesh as f64 (exact).
@@ -122,6 +216,39 @@ mod tests {
         assert!(intersect(DVec3::new(0.0, 0.5, -1.0), DVec3::Z, dup).is_none());
         let nan = [DVec3::new(f64::NAN, 0.0, 0.0), DVec3::X, DVec3::Y];
         assert!(intersect(DVec3::new(0.25, 0.25, -1.0), DVec3::Z, nan).is_none());
+    }
+
+    #[test]
+    fn ulps_of_f32() {
+        assert_eq!(ulp_f32(1.0), 2f64.powi(-23));
+        assert_eq!(ulp_f32(1e7), 1.0);
+        assert_eq!(ulp_f32(-3.0), 2f64.powi(-22));
+    }
+
+    #[test]
+    fn margins_are_measured_in_ray_space() {
+        // A unit right triangle seen face-on: at the hypotenuse's midpoint a ray-space error of
+        // 1e-6 is 1e-6 / h = √2·1e-6 in v0's weight (|B| + |C| = √2, |det| = 1, h = 1/√2).
+        let h = intersect(DVec3::new(0.5, 0.5, -1.0), DVec3::Z, TRI).unwrap();
+        let m = h.edge_margins(1e-6, 0.0);
+        assert!((m[0] - 2f64.sqrt() * 1e-6).abs() < 1e-15, "{m:?}");
+        assert!((h.edge_distance(0)).abs() < 1e-15);
+        // The same triangle tilted until it is seen nearly edge-on from the ray: its 3D
+        // altitudes stay near 1, its ray-space altitude toward v2 shrinks to 1e-6, so the same
+        // ray-space error is a barycentric margin a million times wider.
+        let steep = [DVec3::ZERO, DVec3::X, DVec3::new(0.0, 1e-6, 1.0)];
+        let o = DVec3::new(0.25, 0.25e-6, -1.0);
+        let s = intersect(o, DVec3::Z, steep).unwrap();
+        let m = s.edge_margins(1e-6, 0.0);
+        assert!(m[2] > 0.9 && m[2] < 2.1, "{m:?}");
+        assert!((s.edge_distance(2) - 0.25e-6).abs() < 1e-15, "{}", s.edge_distance(2));
+        // t moves with the weights on a steep triangle: v2 is a whole unit deeper.
+        assert!((s.vertex_t[2] - 2.0).abs() < 1e-12 && (s.vertex_t[0] - 1.0).abs() < 1e-12);
+        // Through the triangle the gap is 0; 3 units beside the hypotenuse's midpoint, 3.
+        assert_eq!(s.gap, 0.0);
+        let off = 3.0 / 2f64.sqrt();
+        let g = plane(DVec3::new(0.5 + off, 0.5 + off, -1.0), DVec3::Z, TRI).unwrap();
+        assert!((g.gap - 3.0).abs() < 1e-12, "{}", g.gap);
     }
 
     #[test]

@@ -49,6 +49,14 @@ fn run_level_failures(r: &RunReport) -> Vec<(String, String, String)> {
                     p.clone(),
                 )
             }))
+            // An expected fault whose cell did not run: a failure of the run, by cell.
+            .chain(b.missing().map(|m| {
+                (
+                    format!("baseline.{}", m.cell),
+                    "missing".to_string(),
+                    m.why.clone().unwrap_or_default(),
+                )
+            }))
             .collect(),
         None => r
             .workers
@@ -70,7 +78,7 @@ fn expected_by_baseline<'a>(r: &'a RunReport, c: &crate::model::CellReport) -> O
     let b = r.baseline.as_ref()?;
     match b.cells.iter().find(|x| x.cell == c.id).map(|x| x.status) {
         Some(Status::KnownFlake) => Some("known flake in the baseline"),
-        Some(Status::Regression | Status::Improvement) => None,
+        Some(Status::Regression | Status::Improvement | Status::Missing) => None,
         // Not listed among the surprises: the baseline expected exactly this.
         Some(Status::Expected) | None => Some("expected by the baseline"),
     }

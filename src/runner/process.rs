@@ -1,7 +1,9 @@
 //! Worker processes as the supervisor controls them: starting one (`rtprobe __worker JOB`, stdin
 //! null, in its own process group, dying with the supervisor) with a thread that turns its stdout
 //! into [`Input`]s and one that keeps its stderr's tail, waiting with a bound, the kernel state of
-//! one that will not die, killing its process group, and how it ended.
+//! one that will not die, killing its process group, and how it ended. [`run_to_end`] runs a
+//! child that is not a set of cells (`rtprobe stress`'s cases) the same way, under a deadline of
+//! its own.
 use super::groups;
 use super::machine::Input;
 use super::protocol::WorkerMsg;
@@ -10,7 +12,7 @@ use std::io::{BufRead, BufReader, Read};
 use std::os::unix::process::ExitStatusExt;
 use std::path::Path;
 use std::process::{Child, Command, ExitStatus, Stdio};
-use std::sync::mpsc::Sender;
+use std::sync::mpsc::{channel, RecvTimeoutError, Sender};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -76,6 +78,64 @@ impl Proc {
                 exit_of(Some(status), &self.stderr)
             }
             None => self.kill(Duration::ZERO, kill_wait),
+        }
+    }
+}
+
+/// How a child of [`run_to_end`] ended: its exit, and whether it was killed for silence.
+#[derive(Clone, Debug)]
+pub struct ChildEnd {
+    pub exit: WorkerExit,
+    pub timed_out: bool,
+}
+
+/// Runs this executable as `rtprobe SUBCOMMAND JOB` (stdin null, its own process group, dying
+/// with this process, as a worker) to its end. Each stdout line goes to `on_line`, which returns
+/// the silence allowed until the next (`silence`: until the first); past it the group is killed
+/// (SIGTERM, `grace`, SIGKILL, at most `kill_wait`, else abandoned). A child that closes its
+/// output but does not exit within `grace` is killed too.
+pub fn run_to_end(
+    subcommand: &str,
+    job: &Path,
+    silence: Duration,
+    (grace, kill_wait): (Duration, Duration),
+    on_line: &mut dyn FnMut(&str) -> Duration,
+) -> std::io::Result<ChildEnd> {
+    let mut cmd = Command::new(std::env::current_exe()?);
+    cmd.arg(subcommand).arg(job).stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped());
+    groups::harden(&mut cmd);
+    let mut child = cmd.spawn()?;
+    let pid = child.id() as i32;
+    groups::register(pid);
+    let (tx, rx) = channel::<String>();
+    let stdout = child.stdout.take().expect("piped stdout");
+    std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                return;
+            }
+        }
+    });
+    let stderr = Arc::new(Mutex::new(String::new()));
+    keep_tail(child.stderr.take().expect("piped stderr"), stderr.clone());
+    let mut silence = silence;
+    loop {
+        match rx.recv_timeout(silence) {
+            Ok(line) => silence = on_line(&line),
+            Err(RecvTimeoutError::Disconnected) => {
+                let exit = match poll_exit(&mut child, grace) {
+                    Some(status) => {
+                        groups::unregister(pid);
+                        exit_of(Some(status), &stderr)
+                    }
+                    None => kill_group(&mut child, pid, 0, &stderr, Duration::ZERO, kill_wait),
+                };
+                return Ok(ChildEnd { exit, timed_out: false });
+            }
+            Err(RecvTimeoutError::Timeout) => {
+                let exit = kill_group(&mut child, pid, 0, &stderr, grace, kill_wait);
+                return Ok(ChildEnd { exit, timed_out: true });
+            }
         }
     }
 }

@@ -2,6 +2,7 @@
 //! points rays aim at are computed in f64 and the ray origin rounded, so "a ray at a shared edge"
 //! passes within an ulp of it, and the ulp-nudged copies bracket it. Sizes are CI sizes unless
 //! `full` (CTS sizes). `transform` is built in `transform`; `self` from the device's hits in `selfhit`.
+use super::mesh::{closed_fan, shared_edges, split_square};
 use super::{one_mesh, CaseKind, Instance, Mesh, Part, Ray, RayInfo, Scene, StressOptions};
 use crate::scene::rng::Rng;
 use glam::DVec3;
@@ -91,60 +92,6 @@ fn edge_rays(part: &mut Part, p: DVec3, must_hit: bool) {
 }
 
 // ---- watertight --------------------------------------------------------------------------------
-
-/// The CTS-like unit square: two triangles, then random interior points each splitting the
-/// triangle that holds it into three (same winding), z jittered by ±`jitter`.
-pub fn split_square(rng: &mut Rng, triangles: usize, jitter: f32) -> Mesh {
-    let mut positions: Vec<[f32; 3]> = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]
-        .iter()
-        .map(|p| [p[0], p[1], rng.range(-jitter, jitter)])
-        .collect();
-    let mut indices = vec![[0u32, 1, 2], [0, 2, 3]];
-    while indices.len() + 2 <= triangles {
-        let k = (rng.next_u64() % indices.len() as u64) as usize;
-        let [a, b, c] = indices[k];
-        // Barycentrics of the new point, each at least 0.05: strictly inside (a, b, c).
-        let w1 = rng.range(0.05, 0.9);
-        let w2 = rng.range(0.05, 0.95 - w1);
-        let (w1, w2) = (w1 as f64, w2 as f64);
-        let (pa, pb, pc) =
-            (dv(positions[a as usize]), dv(positions[b as usize]), dv(positions[c as usize]));
-        let p = pa * (1.0 - w1 - w2) + pb * w1 + pc * w2;
-        let i = positions.len() as u32;
-        positions.push([p.x as f32, p.y as f32, rng.range(-jitter, jitter)]);
-        indices[k] = [a, b, i];
-        indices.push([b, c, i]);
-        indices.push([c, a, i]);
-    }
-    let inactive = vec![false; indices.len()];
-    Mesh { positions, indices, inactive }
-}
-
-/// A closed fan: centre vertex 0 and `n` ring vertices on the unit circle, z jittered.
-pub fn closed_fan(rng: &mut Rng, n: u32, jitter: f32) -> Mesh {
-    let mut positions = vec![[0.0, 0.0, rng.range(-jitter, jitter)]];
-    for i in 0..n {
-        let a = std::f64::consts::TAU * i as f64 / n as f64;
-        positions.push([a.cos() as f32, a.sin() as f32, rng.range(-jitter, jitter)]);
-    }
-    let indices = (0..n).map(|i| [0, 1 + i, 1 + (i + 1) % n]).collect::<Vec<_>>();
-    Mesh { positions, inactive: vec![false; indices.len()], indices }
-}
-
-/// Interior edges (shared by two triangles) of a mesh, as vertex pairs.
-fn shared_edges(mesh: &Mesh) -> Vec<(u32, u32)> {
-    let mut edges: Vec<(u32, u32)> = mesh
-        .indices
-        .iter()
-        .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
-        .map(|(a, b)| (a.min(b), a.max(b)))
-        .collect();
-    edges.sort_unstable();
-    let mut shared: Vec<(u32, u32)> =
-        edges.windows(2).filter(|w| w[0] == w[1]).map(|w| w[0]).collect();
-    shared.dedup();
-    shared
-}
 
 fn watertight(rng: &mut Rng, full: bool) -> Vec<Part> {
     let mut parts = Vec::new();
@@ -429,31 +376,6 @@ fn tmin() -> Vec<Part> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn split_square_is_closed_and_keeps_winding() {
-        let mut rng = Rng::new(3);
-        let m = split_square(&mut rng, 64, 0.01);
-        assert_eq!(m.indices.len(), 64);
-        // Area of the xy projection sums to 1 with every triangle counter-clockwise.
-        let area: f64 = m
-            .indices
-            .iter()
-            .map(|t| {
-                let (a, b, c) = (
-                    dv(m.positions[t[0] as usize]),
-                    dv(m.positions[t[1] as usize]),
-                    dv(m.positions[t[2] as usize]),
-                );
-                let s = ((b - a).x * (c - a).y - (b - a).y * (c - a).x) * 0.5;
-                assert!(s > 0.0);
-                s
-            })
-            .sum();
-        assert!((area - 1.0).abs() < 1e-5, "{area}");
-        // every interior edge is shared by exactly two triangles
-        assert!(shared_edges(&m).len() > 64);
-    }
 
     #[test]
     fn nudges_move_by_ulps() {

@@ -4,7 +4,7 @@
 //! (one non-opaque geometry with NO_DUPLICATE_ANY_HIT_INVOCATION) and a TLAS. The raygen traces
 //! each ray twice: first non-opaque, where any-hit counts every candidate and ignores it (so
 //! each intersected primitive is counted once), then with gl_RayFlagsOpaqueEXT for the closest
-//! hit. Runs in the `rtprobe stress` process; every submission has a fence deadline and a lost
+//! hit. Runs in a stress worker (`worker`); every submission has a fence deadline and a lost
 //! device or a timeout ends the case with that verdict.
 use super::layout::{self, glsl_header, LAUNCH_WIDTH, PUSH_SIZE, RESULT_WORDS};
 use super::{Part, TraceError, Traced, Tracer};
@@ -209,6 +209,17 @@ impl Mode {
     }
 }
 
+/// The stress shaders of `mode` compiled to SPIR-V (no device needed: `rtprobe stress` checks
+/// its compiler this way before it starts a worker).
+pub fn spirv(mode: Mode) -> Result<Vec<std::sync::Arc<Vec<u32>>>, TraceError> {
+    let mut compiler = Compiler::new().map_err(TraceError::Compile)?;
+    let mut spirv = Vec::new();
+    for s in &mode.shaders().shaders {
+        spirv.push(compiler.compile(s.role, &s.glsl).map_err(TraceError::Compile)?.0);
+    }
+    Ok(spirv)
+}
+
 pub struct GpuTracer {
     gpu: Gpu,
     submitter: Submitter,
@@ -230,12 +241,8 @@ fn vk_err(e: VkError) -> TraceError {
 
 impl GpuTracer {
     pub fn new(gpu: Gpu, timeout: Duration, mode: Mode) -> Result<Self, TraceError> {
-        let mut compiler = Compiler::new().map_err(TraceError::Compile)?;
         let shaders = mode.shaders();
-        let mut spirv = Vec::new();
-        for s in &shaders.shaders {
-            spirv.push(compiler.compile(s.role, &s.glsl).map_err(TraceError::Compile)?.0);
-        }
+        let spirv = spirv(mode)?;
         let submitter = Submitter::new(&gpu).map_err(vk_err)?;
         let range = [vk::PushConstantRange::default().stage_flags(mode.stages()).size(PUSH_SIZE)];
         let layout = unsafe {

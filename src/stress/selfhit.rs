@@ -6,7 +6,7 @@
 //! rule. The reference judges each secondary ray on its exact f32 origin, so a hit where the
 //! raw point lies below the surface is not the driver's fault; `self_hits` counts secondary hits
 //! closer than [`SELF_T`]: expected for raw origins, none allowed with the offset.
-use super::cases::split_square;
+use super::mesh::split_square;
 use super::{
     Instance, Mesh, Part, Ray, RayInfo, Scene, StressOptions, TraceError, Traced, Tracer, IDENTITY,
 };
