@@ -21,4 +21,5 @@ pub mod runner;
 pub mod scene;
 pub mod shadergen;
 pub mod stress;
+pub mod tools;
 pub mod vk;

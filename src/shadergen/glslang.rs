@@ -4,57 +4,24 @@
 //! that enable that extension, compiled for Vulkan 1.3 / SPIR-V 1.6 without optimization.
 use super::error::CompileError;
 use super::Role;
+use crate::tools::Tool;
 use std::path::PathBuf;
-use std::process::{Command, Stdio};
-use std::sync::OnceLock;
 
 /// The GLSL extension only this compiler handles.
 pub const HEAP_EXTENSION: &str = "GL_EXT_descriptor_heap";
 /// The first glslang release with GL_EXT_descriptor_heap.
 pub const MIN_VERSION: (u32, u32) = (16, 2);
 
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct Glslang {
-    pub path: PathBuf,
-    /// "16.6.0"
-    pub version: String,
-}
-
-/// `Glslang Version: 11:16.6.0` → (16, 6).
-pub fn parse_version(out: &str) -> Option<(u32, u32)> {
-    let line = out.lines().find(|l| l.starts_with("Glslang Version:"))?;
-    let v = line.rsplit(':').next()?.trim();
-    let mut it = v.split('.').map(|p| p.parse::<u32>().ok());
-    Some((it.next()??, it.next()??))
-}
-
-/// The heap-capable glslangValidator of this machine, looked up once per process.
-pub fn find() -> Option<&'static Glslang> {
-    static FOUND: OnceLock<Option<Glslang>> = OnceLock::new();
-    FOUND
-        .get_or_init(|| {
-            let path = PathBuf::from(
-                std::env::var_os("RTPROBE_GLSLANG").unwrap_or_else(|| "glslangValidator".into()),
-            );
-            let out = Command::new(&path).arg("--version").stdin(Stdio::null()).output().ok()?;
-            let text = String::from_utf8_lossy(&out.stdout);
-            let v = parse_version(&text)?;
-            let version = text
-                .lines()
-                .find(|l| l.starts_with("Glslang Version:"))?
-                .rsplit(':')
-                .next()?
-                .trim()
-                .to_string();
-            (v >= MIN_VERSION).then_some(Glslang { path, version })
-        })
-        .as_ref()
+/// The heap-capable glslangValidator of this machine: the newest of the sid root's and PATH's
+/// (`RTPROBE_GLSLANG` replaces the PATH lookup; [`crate::tools`]), accepted from [`MIN_VERSION`].
+pub fn find() -> Option<&'static Tool> {
+    crate::tools::glslang().filter(|g| g.version >= MIN_VERSION)
 }
 
 /// Why heap GLSL cannot be compiled here, for `not_implemented` reasons.
 pub fn missing_reason() -> String {
     format!(
-        "no GLSL compiler with {HEAP_EXTENSION} here (glslangValidator >= {}.{} on PATH or RTPROBE_GLSLANG; shaderc's bundled glslang predates it; scripts/in-sid has one)",
+        "no GLSL compiler with {HEAP_EXTENSION} here (glslangValidator >= {}.{} on PATH, RTPROBE_GLSLANG, or the sid root of scripts/setup-sid; shaderc's bundled glslang predates it)",
         MIN_VERSION.0, MIN_VERSION.1
     )
 }
@@ -86,22 +53,22 @@ pub fn compile(role: Role, glsl: &str) -> Result<Vec<u32>, CompileError> {
     let spv = dir.0.join("out.spv");
     std::fs::write(&src, glsl)
         .map_err(|e| CompileError::Glsl { file: file.clone(), message: e.to_string() })?;
-    let out = Command::new(&g.path)
+    let out = g
+        .command()
         .args(["-V", "--target-env", "vulkan1.3", "-S", stage(role), "-o"])
         .arg(&spv)
         .arg(&src)
-        .stdin(Stdio::null())
         .output()
         .map_err(|e| CompileError::Glsl {
             file: file.clone(),
-            message: format!("{}: {e}", g.path.display()),
+            message: format!("{}: {e}", g.describe()),
         })?;
     if !out.status.success() {
         let msg = String::from_utf8_lossy(&out.stdout).to_string()
             + &String::from_utf8_lossy(&out.stderr);
         return Err(CompileError::Glsl {
             file,
-            message: format!("glslang {}: {}", g.version, msg.trim().replace('\n', " | ")),
+            message: format!("glslang {}: {}", g.version_text, msg.trim().replace('\n', " | ")),
         });
     }
     let bytes = std::fs::read(&spv)
@@ -111,6 +78,64 @@ pub fn compile(role: Role, glsl: &str) -> Result<Vec<u32>, CompileError> {
             file,
             message: "glslangValidator wrote no SPIR-V".into(),
         });
+    }
+    Ok(bytes.chunks_exact(4).map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]])).collect())
+}
+
+/// The `-S` stage name of a shaderc kind (the stages `rtprobe patch` compiles).
+pub fn stage_name(kind: shaderc::ShaderKind) -> Option<&'static str> {
+    use shaderc::ShaderKind as K;
+    Some(match kind {
+        K::RayGeneration => "rgen",
+        K::ClosestHit => "rchit",
+        K::AnyHit => "rahit",
+        K::Miss => "rmiss",
+        K::Intersection => "rint",
+        K::Callable => "rcall",
+        K::Vertex => "vert",
+        K::Fragment => "frag",
+        K::Compute => "comp",
+        _ => return None,
+    })
+}
+
+/// Compile the user's GLSL file `input` with glslangValidator `g` (which reads it and its
+/// includes itself) as `stage`, with `args` (`--target-env`, `-I`, `-D`) before the file.
+/// Errors are one line.
+pub fn compile_file(
+    g: &Tool,
+    stage: &str,
+    input: &std::path::Path,
+    args: &[String],
+) -> Result<Vec<u32>, CompileError> {
+    let file = super::include::display(input);
+    let err = |message: String| CompileError::Glsl { file: file.clone(), message };
+    let dir = TempDir::new().map_err(|e| err(format!("temporary folder: {e}")))?;
+    let spv = dir.0.join("out.spv");
+    let out = g
+        .command()
+        .args(["-V", "-S", stage])
+        .args(args)
+        .arg("-o")
+        .arg(&spv)
+        .arg(input)
+        .output()
+        .map_err(|e| err(format!("{}: {e}", g.describe())))?;
+    if !out.status.success() {
+        let msg = String::from_utf8_lossy(&out.stdout).to_string()
+            + &String::from_utf8_lossy(&out.stderr);
+        let lines: Vec<&str> = msg
+            .lines()
+            .map(str::trim)
+            .filter(|l| l.starts_with("ERROR:") && !l.contains("compilation errors"))
+            .collect();
+        let text =
+            if lines.is_empty() { msg.trim().replace('\n', " | ") } else { lines.join(" | ") };
+        return Err(err(format!("{}: {text}", g.describe())));
+    }
+    let bytes = std::fs::read(&spv).map_err(|e| err(e.to_string()))?;
+    if bytes.len() % 4 != 0 || bytes.is_empty() {
+        return Err(err("glslangValidator wrote no SPIR-V".into()));
     }
     Ok(bytes.chunks_exact(4).map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]])).collect())
 }
@@ -139,10 +164,12 @@ mod tests {
     use super::*;
 
     #[test]
-    fn versions_parse_and_old_glslang_is_refused() {
-        assert_eq!(parse_version("Glslang Version: 11:16.6.0\nESSL Version: ..."), Some((16, 6)));
-        assert_eq!(parse_version("Glslang Version: 11:12.0.0"), Some((12, 0)));
-        assert!(parse_version("Glslang Version: 11:12.0.0").unwrap() < MIN_VERSION);
-        assert_eq!(parse_version("garbage"), None);
+    fn old_glslang_is_refused() {
+        let v = crate::tools::parse_glslang_version("Glslang Version: 11:12.0.0").unwrap().0;
+        assert!(v < MIN_VERSION);
+        assert!(
+            crate::tools::parse_glslang_version("Glslang Version: 11:16.6.0").unwrap().0
+                >= MIN_VERSION
+        );
     }
 }
