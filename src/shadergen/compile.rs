@@ -36,7 +36,7 @@ pub fn compiler_for(glsl: &str) -> String {
         return SHADERC.into();
     }
     match super::glslang::find() {
-        Some(g) => format!("glslangValidator {} ({})", g.version, g.path.display()),
+        Some(g) => g.describe(),
         None => "glslangValidator (not found here)".into(),
     }
 }
@@ -131,7 +131,10 @@ impl Compiler {
     }
 
     /// Compile GLSL with `#include` resolution, macro definitions and a target environment
-    /// (`rtprobe patch --glsl`). Errors are one line, each naming its file, line and include chain.
+    /// (`rtprobe patch`). Errors are one line, each naming its file, line and include chain. A
+    /// missing or too old `#version` is refused before the compiler sees it
+    /// ([`super::preflight`]); a source enabling an extension the bundled glslang does not know
+    /// goes, when it is a file (`o.input`), to the newest glslangValidator here.
     pub fn compile_user_glsl(
         &mut self,
         kind: shaderc::ShaderKind,
@@ -139,6 +142,9 @@ impl Compiler {
         glsl: &str,
         o: &GlslOptions,
     ) -> Result<Vec<u32>, CompileError> {
+        if let Some(why) = super::preflight::version_problem(kind, glsl) {
+            return Err(CompileError::Glsl { file: file.to_string(), message: why });
+        }
         let includes =
             o.input.as_ref().map(|input| Includes::new(input, file, glsl, &o.include_dirs));
         let mut opts = shaderc::CompileOptions::new().map_err(|_| CompileError::Init)?;
@@ -153,17 +159,57 @@ impl Compiler {
                 inc.resolve(req, ty, from, depth)
             });
         }
-        let out =
-            self.inner.compile_into_spirv(glsl, kind, file, "main", Some(&opts)).map_err(|e| {
-                let message = e.to_string();
-                let message = match &includes {
-                    Some(inc) => inc.annotate(&message),
-                    None => message.replace('\n', " | "),
-                };
-                CompileError::Glsl { file: file.to_string(), message }
-            })?;
-        Ok(out.as_binary().to_vec())
+        let out = self.inner.compile_into_spirv(glsl, kind, file, "main", Some(&opts));
+        let e = match out {
+            Ok(a) => return Ok(a.as_binary().to_vec()),
+            Err(e) => e,
+        };
+        let message = match &includes {
+            Some(inc) => inc.annotate(&e.to_string()),
+            None => e.to_string().replace('\n', " | "),
+        };
+        match (super::preflight::unknown_extension(&message), &o.input) {
+            (Some(ext), Some(input)) => external(kind, input, o, &ext),
+            _ => Err(CompileError::Glsl { file: file.to_string(), message }),
+        }
     }
+}
+
+/// Compile the file `input` with the newest glslangValidator, for the extension `ext` the bundled
+/// compiler does not know; when it knows it neither (or there is none), one line saying so and
+/// where a newer one is (the sid root of `scripts/setup-sid`).
+fn external(
+    kind: shaderc::ShaderKind,
+    input: &std::path::Path,
+    o: &GlslOptions,
+    ext: &str,
+) -> Result<Vec<u32>, CompileError> {
+    let file = super::include::display(input);
+    let hint = match crate::tools::sid_root() {
+        Some(root) => format!("the sid root at {} has none newer", root.display()),
+        None => "no sid root here (RTPROBE_SID_ROOT, default /var/lib/rtprobe/sid-root): \
+                 scripts/setup-sid makes one with glslang 16.6"
+            .into(),
+    };
+    let unknown = |by: String| CompileError::Glsl {
+        file: file.clone(),
+        message: format!("{ext} is not known to {by}; {hint}"),
+    };
+    let Some(g) = crate::tools::glslang() else {
+        return Err(unknown(format!(
+            "the bundled compiler ({SHADERC}) and no glslangValidator is installed"
+        )));
+    };
+    let stage = super::glslang::stage_name(kind)
+        .ok_or_else(|| unknown(format!("the bundled compiler ({SHADERC})")))?;
+    super::glslang::compile_file(g, stage, input, &o.glslang_args()).map_err(|e| match e {
+        CompileError::Glsl { message, .. }
+            if message.contains(&format!("extension not supported: {ext}")) =>
+        {
+            unknown(format!("the bundled compiler ({SHADERC}) nor to {}", g.describe()))
+        }
+        e => e,
+    })
 }
 
 /// The Vulkan environment GLSL is compiled for (`--target-env`'s names and help are in
@@ -180,6 +226,15 @@ pub enum TargetEnv {
 }
 
 impl TargetEnv {
+    /// glslangValidator's `--target-env` name.
+    pub fn name(self) -> &'static str {
+        match self {
+            TargetEnv::Vulkan1_2 => "vulkan1.2",
+            TargetEnv::Vulkan1_3 => "vulkan1.3",
+            TargetEnv::Vulkan1_4 => "vulkan1.4",
+        }
+    }
+
     fn versions(self) -> (shaderc::EnvVersion, shaderc::SpirvVersion) {
         match self {
             TargetEnv::Vulkan1_2 => (shaderc::EnvVersion::Vulkan1_2, shaderc::SpirvVersion::V1_5),
@@ -198,6 +253,26 @@ pub struct GlslOptions {
     /// `-D NAME[=VALUE]`.
     pub defines: Vec<(String, Option<String>)>,
     pub target: TargetEnv,
+}
+
+impl GlslOptions {
+    /// The same options as glslangValidator arguments: target, the input's directory and each
+    /// `-I` (glslang searches the including file's directory first, as [`Includes`] does), `-D`.
+    pub fn glslang_args(&self) -> Vec<String> {
+        let mut a = vec!["--target-env".to_string(), self.target.name().to_string()];
+        let own =
+            self.input.as_ref().and_then(|i| i.parent()).filter(|p| !p.as_os_str().is_empty());
+        for d in own.into_iter().chain(self.include_dirs.iter().map(|d| d.as_path())) {
+            a.push(format!("-I{}", d.display()));
+        }
+        for (name, value) in &self.defines {
+            a.push(match value {
+                Some(v) => format!("-D{name}={v}"),
+                None => format!("-D{name}"),
+            });
+        }
+        a
+    }
 }
 
 #[cfg(test)]
