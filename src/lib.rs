@@ -10,6 +10,7 @@ pub mod caps;
 pub mod cli;
 pub mod exec;
 pub mod fleet;
+pub mod harness;
 pub mod matrix;
 pub mod model;
 pub mod patches;
