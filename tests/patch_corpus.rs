@@ -7,6 +7,7 @@
 //!   otherwise), read from the host contract against the descriptors each module lost;
 //! - where lavapipe runs the pipeline, `--verify`: the patched pipeline, fed as the contract says,
 //!   renders the unpatched pipeline's image texel for texel, with distinct data per descriptor.
+//!
 //! Refusals must be one line naming the reason. The table of counts is printed; 0 invalid and 0
 //! merged are required.
 mod common;

@@ -8,17 +8,20 @@
 //! `rtprobe patch --verify` ([`verify`]). Uses exec's pieces: the device, memory, the scene's
 //! acceleration structures and `exec::pipeline`'s RT pipeline and SBT. Runs in the calling
 //! process with a fence deadline per submission.
+mod error;
 pub mod reflect;
 mod resources;
+
+pub use error::HarnessError;
 
 use crate::exec::pipeline::{self, Pipeline, RtPipeline, SbtCounts};
 use crate::model::contract::HostContract;
 use crate::model::SceneParams;
-use crate::scene::gpu::{BuildError, SceneGpu};
+use crate::scene::gpu::SceneGpu;
 use crate::scene::Scene;
 use crate::vk::memory::{color_range, full_barrier, transition, Buffer, Location, Transition};
 use crate::vk::submit::{Submitter, Waited};
-use crate::vk::{Gpu, Requirements, VkError, VkResultExt};
+use crate::vk::{Gpu, Requirements, VkResultExt};
 use ash::vk;
 use reflect::Interface;
 use resources::{Element, Resources};
@@ -28,22 +31,6 @@ use std::time::Duration;
 /// Width and height of the traced image.
 pub const SIZE: u32 = 64;
 const TIMEOUT: Duration = Duration::from_secs(30);
-
-#[derive(Debug, thiserror::Error)]
-pub enum HarnessError {
-    #[error(transparent)]
-    Vk(#[from] VkError),
-    #[error(transparent)]
-    Build(#[from] BuildError),
-    /// Something the harness cannot run yet (a stage, a binding type, a pipeline without raygen).
-    #[error("{0}")]
-    Unsupported(String),
-    /// The modules disagree with each other or with the contract.
-    #[error("{0}")]
-    Interface(String),
-    #[error("the trace did not finish within {0:?}")]
-    Timeout(Duration),
-}
 
 /// One module of a pipeline: its name, SPIR-V and interface.
 pub struct UserModule {
@@ -134,6 +121,9 @@ fn groups(modules: &[&UserModule]) -> Result<Groups, HarnessError> {
     Ok(g)
 }
 
+/// Each stage's SPIR-V, stage flag and entry name, and the intersection shader's index.
+type Sources = (Vec<Vec<u32>>, Vec<vk::ShaderStageFlags>, Vec<CString>, usize);
+
 /// An intersection shader that reports nothing, for the procedural hit group of a pipeline
 /// without one (the scene's spheres then stay invisible).
 const NO_INTERSECTION: &str =
@@ -173,9 +163,9 @@ impl Harness {
         )
     }
 
-    /// The RT pipeline of `modules`.
-    fn pipeline(&self, modules: &[&UserModule]) -> Result<Pipeline, HarnessError> {
-        let g = groups(modules)?;
+    /// The SPIR-V, stage flags and entry names of `modules`, plus the reporting-nothing
+    /// intersection shader when they have none; and the index of the intersection shader.
+    fn stage_sources(modules: &[&UserModule], g: &Groups) -> Result<Sources, HarnessError> {
         let mut spirv: Vec<Vec<u32>> = modules.iter().map(|m| m.words.clone()).collect();
         let mut flags: Vec<vk::ShaderStageFlags> =
             modules.iter().map(|m| stage_flag(&m.iface.stage)).collect();
@@ -183,24 +173,26 @@ impl Harness {
             .iter()
             .map(|m| CString::new(m.iface.entry.clone()).unwrap_or_default())
             .collect();
-        let intersection = match g.intersection {
-            Some(i) => i,
-            None => {
-                let mut c = crate::shadergen::compile::Compiler::new()
-                    .map_err(|e| HarnessError::Unsupported(e.to_string()))?;
-                spirv.push(
-                    c.compile_glsl(
-                        shaderc::ShaderKind::Intersection,
-                        "harness.rint",
-                        NO_INTERSECTION,
-                    )
-                    .map_err(|e| HarnessError::Unsupported(e.to_string()))?,
-                );
-                flags.push(vk::ShaderStageFlags::INTERSECTION_KHR);
-                names.push(CString::new("main").expect("no NUL"));
-                spirv.len() - 1
-            }
-        };
+        if let Some(i) = g.intersection {
+            return Ok((spirv, flags, names, i));
+        }
+        let unsupported =
+            |e: crate::shadergen::compile::CompileError| HarnessError::Unsupported(e.to_string());
+        let mut c = crate::shadergen::compile::Compiler::new().map_err(unsupported)?;
+        spirv.push(
+            c.compile_glsl(shaderc::ShaderKind::Intersection, "harness.rint", NO_INTERSECTION)
+                .map_err(unsupported)?,
+        );
+        flags.push(vk::ShaderStageFlags::INTERSECTION_KHR);
+        names.push(CString::new("main").expect("no NUL"));
+        let i = spirv.len() - 1;
+        Ok((spirv, flags, names, i))
+    }
+
+    /// The RT pipeline of `modules`.
+    fn pipeline(&self, modules: &[&UserModule]) -> Result<Pipeline, HarnessError> {
+        let g = groups(modules)?;
+        let (spirv, flags, names, intersection) = Self::stage_sources(modules, &g)?;
         let words: Vec<&[u32]> = spirv.iter().map(|w| w.as_slice()).collect();
         let shader_modules = pipeline::shader_modules(&self.gpu, &words)?;
         let stages: Vec<vk::PipelineShaderStageCreateInfo> = shader_modules
@@ -480,8 +472,9 @@ mod tests {
         let part = |bytes: Vec<u8>| Part { label: "img".into(), bytes, texel: 4 };
         let a = part([[1u8, 0, 0, 0], [2, 0, 0, 0], [2, 0, 0, 0]].concat());
         let b = part([[1u8, 0, 0, 0], [2, 0, 0, 0], [3, 0, 0, 0]].concat());
-        let c = &compare(&[a.clone()], &[b])[0];
+        let c = &compare(std::slice::from_ref(&a), &[b])[0];
         assert_eq!((c.texels, c.differing, c.distinct), (3, 1, 2));
-        assert_eq!(compare(&[a.clone()], &[a])[0].differing, 0);
+        let same = std::slice::from_ref(&a);
+        assert_eq!(compare(same, same)[0].differing, 0);
     }
 }

@@ -3,8 +3,8 @@
 //! (the scene TLAS, then the AS probe's variants: other instances, other custom indices), every
 //! buffer holds floats that encode its own descriptor, storage images start at zero. Plus the
 //! descriptor sets that bind them, and the address tables a host contract asks for.
+use super::error::HarnessError;
 use super::reflect::{Binding, BindingKind};
-use super::HarnessError;
 use crate::model::contract::{AddressKind, HostContract};
 use crate::scene::gpu::SceneGpu;
 use crate::vk::memory::{Buffer, Image, Location};
@@ -210,7 +210,7 @@ impl Resources {
         &self,
         gpu: &Gpu,
         c: &HostContract,
-    ) -> Result<(Vec<(u32, u64)>, Vec<Buffer>), HarnessError> {
+    ) -> Result<(Vec<(u32, u64)>, Tables), HarnessError> {
         let mut out = Vec::new();
         let mut tables = Vec::new();
         for a in &c.addresses {
@@ -261,6 +261,9 @@ impl Resources {
         }
     }
 }
+
+/// Address tables a trace reads (destroyed after it).
+pub type Tables = Vec<Buffer>;
 
 /// One set layout per set number up to the highest bound (empty ones between), a pool and the
 /// sets.

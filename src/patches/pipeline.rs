@@ -141,14 +141,105 @@ fn parse(p: PatchName, o: &Opts) -> Result<Parsed, PatchError> {
     })
 }
 
+/// The stages reading an address, and its array length.
+type Readers = (BTreeSet<String>, Option<u32>);
+
+/// Each module's push block ([start, end)), the pipeline's push end, and where addresses start.
+type PushLayout = (Vec<Option<[u32; 2]>>, u32, u32);
+
 /// The pipeline-wide state the patches share.
 struct Shared {
     slots: Slots,
     spec: SpecIds,
     /// Stages reading each address / spec constant, and what each address holds.
-    address_stages: BTreeMap<(SlotKind, u32, u32), (BTreeSet<String>, Option<u32>)>,
+    address_stages: BTreeMap<(SlotKind, u32, u32), Readers>,
     spec_stages: BTreeMap<u32, (u32, u32, BTreeSet<String>)>,
     added_khr: bool,
+}
+
+impl Shared {
+    /// Note that `stage` reads the address of (kind, set, binding), an array of `elements`.
+    fn reads_address(&mut self, key: (SlotKind, u32, u32), elements: Option<u32>, stage: &str) {
+        let s = self.address_stages.entry(key).or_default();
+        s.0.insert(stage.into());
+        s.1 = elements;
+    }
+}
+
+/// `as-to-address` on one module, and its line.
+fn run_as(
+    m: &mut Module,
+    o: &as_to_address::Options,
+    rules: Rules,
+    stage: &str,
+    sh: &mut Shared,
+) -> Result<String, PatchError> {
+    let r = on_copy(m, |w| as_to_address::apply(w, o, &mut sh.slots, rules))?;
+    sh.added_khr |= r.added_khr;
+    let mut parts = Vec::new();
+    for e in &r.entries {
+        let (kind, mode) = match e.mode {
+            Mode::Table => (SlotKind::AsTable, "table"),
+            Mode::Direct => (SlotKind::AsAddress, "direct"),
+        };
+        sh.reads_address((kind, e.set, e.binding), e.elements, stage);
+        parts.push(format!(
+            "set {} binding {}: address at push-constant offset {} ({mode} mode)",
+            e.set, e.binding, e.offset
+        ));
+    }
+    Ok(format!(
+        "as-to-address: {} loads rewritten, {} descriptor variables removed; {}",
+        r.rewritten_loads,
+        r.removed_variables,
+        parts.join("; ")
+    ))
+}
+
+/// `pin-index` on one module, and its line.
+fn run_pin(
+    m: &mut Module,
+    o: &pin_index::Options,
+    stage: &str,
+    sh: &mut Shared,
+) -> Result<String, PatchError> {
+    let r = on_copy(m, |w| pin_index::apply(w, o, &mut sh.spec))?;
+    let mut parts = Vec::new();
+    for d in &r.descriptors {
+        let s = sh.spec_stages.entry(d.spec_id).or_insert((d.set, d.binding, BTreeSet::new()));
+        s.2.insert(stage.into());
+        parts.push(format!("set {} binding {} -> SpecId {}", d.set, d.binding, d.spec_id));
+    }
+    Ok(format!(
+        "pin-index: {} accesses now index with spec constants (default {}): {}",
+        r.pinned,
+        o.value,
+        parts.join(", ")
+    ))
+}
+
+/// `ssbo-to-address` on one module, and its line.
+fn run_ssbo(
+    m: &mut Module,
+    o: &ssbo_to_address::Options,
+    rules: Rules,
+    stage: &str,
+    sh: &mut Shared,
+) -> Result<String, PatchError> {
+    let r = on_copy(m, |w| ssbo_to_address::apply(w, o, &mut sh.slots, rules))?;
+    let mut parts = Vec::new();
+    for e in &r.entries {
+        sh.reads_address((SlotKind::BufferTable, e.set, e.binding), e.elements, stage);
+        parts.push(format!(
+            "set {} binding {}: table address at push-constant offset {}",
+            e.set, e.binding, e.offset
+        ));
+    }
+    Ok(format!(
+        "ssbo-to-address: {} loads now read through buffer addresses; {}",
+        r.rewritten_loads,
+        parts.join("; ")
+    ))
 }
 
 /// Run patch `parsed` on one module: the line saying what it did.
@@ -160,31 +251,7 @@ fn run_one(
     sh: &mut Shared,
 ) -> Result<String, PatchError> {
     match parsed {
-        Parsed::As(o) => {
-            let r = on_copy(m, |w| as_to_address::apply(w, o, &mut sh.slots, rules))?;
-            sh.added_khr |= r.added_khr;
-            let parts: Vec<String> = r
-                .entries
-                .iter()
-                .map(|e| {
-                    let kind =
-                        if e.mode == Mode::Table { SlotKind::AsTable } else { SlotKind::AsAddress };
-                    let s = sh.address_stages.entry((kind, e.set, e.binding)).or_default();
-                    s.0.insert(stage.into());
-                    s.1 = e.elements;
-                    format!(
-                        "set {} binding {}: address at push-constant offset {} ({:?} mode)",
-                        e.set, e.binding, e.offset, e.mode
-                    )
-                })
-                .collect();
-            Ok(format!(
-                "as-to-address: {} loads rewritten, {} descriptor variables removed; {}",
-                r.rewritten_loads,
-                r.removed_variables,
-                parts.join("; ")
-            ))
-        }
+        Parsed::As(o) => run_as(m, o, rules, stage, sh),
         Parsed::Nonuniform(strip) => {
             let r = on_copy(m, |w| nonuniform::apply(w, *strip))?;
             Ok(if *strip {
@@ -193,61 +260,14 @@ fn run_one(
                 format!("nonuniform: {} objects decorated NonUniform", r.decorated)
             })
         }
-        Parsed::Pin(o) => {
-            let r = on_copy(m, |w| pin_index::apply(w, o, &mut sh.spec))?;
-            let parts: Vec<String> = r
-                .descriptors
-                .iter()
-                .map(|d| {
-                    let s = sh.spec_stages.entry(d.spec_id).or_insert((
-                        d.set,
-                        d.binding,
-                        BTreeSet::new(),
-                    ));
-                    s.2.insert(stage.into());
-                    format!("set {} binding {} -> SpecId {}", d.set, d.binding, d.spec_id)
-                })
-                .collect();
-            Ok(format!(
-                "pin-index: {} accesses now index with spec constants (default {}): {}",
-                r.pinned,
-                o.value,
-                parts.join(", ")
-            ))
-        }
-        Parsed::Ssbo(o) => {
-            let r = on_copy(m, |w| ssbo_to_address::apply(w, o, &mut sh.slots, rules))?;
-            let parts: Vec<String> = r
-                .entries
-                .iter()
-                .map(|e| {
-                    let s = sh
-                        .address_stages
-                        .entry((SlotKind::BufferTable, e.set, e.binding))
-                        .or_default();
-                    s.0.insert(stage.into());
-                    s.1 = e.elements;
-                    format!(
-                        "set {} binding {}: table address at push-constant offset {}",
-                        e.set, e.binding, e.offset
-                    )
-                })
-                .collect();
-            Ok(format!(
-                "ssbo-to-address: {} loads now read through buffer addresses; {}",
-                r.rewritten_loads,
-                parts.join("; ")
-            ))
-        }
+        Parsed::Pin(o) => run_pin(m, o, stage, sh),
+        Parsed::Ssbo(o) => run_ssbo(m, o, rules, stage, sh),
     }
 }
 
 /// The modules' push blocks ([start, end) each) and where the pipeline's addresses start: past
 /// every block (`offset=` may move them further, never into a block).
-fn push_layout(
-    stages: &[Stage],
-    offset: Option<u32>,
-) -> Result<(Vec<Option<[u32; 2]>>, u32, u32), StageError> {
+fn push_layout(stages: &[Stage], offset: Option<u32>) -> Result<PushLayout, StageError> {
     let mut blocks = Vec::new();
     let mut end = 0;
     for s in stages {
@@ -359,6 +379,34 @@ fn one_stage_warning(
     }
 }
 
+/// The contract's addresses, in offset order: what each holds and which stages read it.
+fn addresses(sh: &Shared) -> Vec<AddressEntry> {
+    let mut out: Vec<AddressEntry> = sh
+        .slots
+        .taken()
+        .iter()
+        .filter_map(|(k, off)| {
+            let (st, elements) = sh.address_stages.get(&(k.kind, k.set, k.binding))?;
+            let kind = match k.kind {
+                SlotKind::AsAddress => AddressKind::AccelerationStructure,
+                SlotKind::AsTable => AddressKind::AccelerationStructureTable,
+                SlotKind::BufferTable => AddressKind::BufferTable,
+            };
+            let stages = st.iter().cloned().collect();
+            Some(AddressEntry {
+                offset: *off,
+                kind,
+                set: k.set,
+                binding: k.binding,
+                elements: *elements,
+                stages,
+            })
+        })
+        .collect();
+    out.sort_by_key(|a| a.offset);
+    out
+}
+
 /// The host contract of the patched pipeline.
 fn contract(
     stages: &[Stage],
@@ -380,28 +428,7 @@ fn contract(
             patched: patched[i].clone(),
         })
         .collect();
-    let mut addresses: Vec<AddressEntry> = sh
-        .slots
-        .taken()
-        .iter()
-        .filter_map(|(k, off)| {
-            let (st, elements) = sh.address_stages.get(&(k.kind, k.set, k.binding))?;
-            let kind = match k.kind {
-                SlotKind::AsAddress => AddressKind::AccelerationStructure,
-                SlotKind::AsTable => AddressKind::AccelerationStructureTable,
-                SlotKind::BufferTable => AddressKind::BufferTable,
-            };
-            Some(AddressEntry {
-                offset: *off,
-                kind,
-                set: k.set,
-                binding: k.binding,
-                elements: *elements,
-                stages: st.iter().cloned().collect(),
-            })
-        })
-        .collect();
-    addresses.sort_by_key(|a| a.offset);
+    let addresses = addresses(sh);
     let push_range = addresses.first().map(|first| {
         let end = addresses.iter().map(|a| a.offset + 8).max().unwrap_or(first.offset);
         let stages: BTreeSet<String> =

@@ -148,7 +148,7 @@ pub fn u64_member(
         return Ok((new_block(m, u64_t, offset), 0));
     };
     let members: Vec<Word> = edit::def(m, b.st)
-        .map(|d| d.operands.iter().filter_map(|o| edit::id_from(o)).collect())
+        .map(|d| d.operands.iter().filter_map(edit::id_from).collect())
         .unwrap_or_default();
     for (k, ty) in members.iter().enumerate() {
         let at = edit::member_decoration(m, b.st, k as u32, Decoration::Offset);
@@ -259,7 +259,7 @@ mod tests {
             void main() { vec4 t = pc.tint; uint64_t x = uint64_t(gl_LaunchIDEXT.x) * 3ul; c = t * float(x); }\n";
         let mut m = module(glsl);
         let pos = |m: &Module, f: &dyn Fn(&Instruction) -> bool| {
-            m.types_global_values.iter().position(|i| f(i)).unwrap()
+            m.types_global_values.iter().position(f).unwrap()
         };
         let is_u64 = |i: &Instruction| {
             i.class.opcode == Op::TypeInt && i.operands[0] == Operand::LiteralBit32(64)

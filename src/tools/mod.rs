@@ -84,12 +84,15 @@ fn in_sid_root(root: &Path, name: &str) -> Option<(PathBuf, Vec<OsString>)> {
     bin.is_file().then(|| (ld, vec!["--library-path".into(), libs.into_os_string(), bin.into()]))
 }
 
+/// Reads a tool's `--version` output: ((major, minor), the version as printed).
+pub type ParseVersion = fn(&str) -> Option<((u32, u32), String)>;
+
 /// Run `program prefix --version` and read the version with `parse` (stdout, then stderr).
 fn probe(
     name: &'static str,
     (program, prefix): (PathBuf, Vec<OsString>),
     origin: Origin,
-    parse: fn(&str) -> Option<((u32, u32), String)>,
+    parse: ParseVersion,
 ) -> Option<Tool> {
     let out =
         Command::new(&program).args(&prefix).arg("--version").stdin(Stdio::null()).output().ok()?;
@@ -101,11 +104,7 @@ fn probe(
 
 /// The newest of `name` in the sid root and on PATH (`env` names a variable that replaces the
 /// PATH lookup with a path), found once per process.
-pub fn find(
-    name: &'static str,
-    env: Option<&str>,
-    parse: fn(&str) -> Option<((u32, u32), String)>,
-) -> Option<&'static Tool> {
+pub fn find(name: &'static str, env: Option<&str>, parse: ParseVersion) -> Option<&'static Tool> {
     static FOUND: OnceLock<Mutex<HashMap<&'static str, Option<&'static Tool>>>> = OnceLock::new();
     let map = FOUND.get_or_init(Default::default);
     if let Some(t) = map.lock().unwrap_or_else(|e| e.into_inner()).get(name) {
