@@ -5,6 +5,13 @@
 //! entry `i` is array element `i`'s), the spec constants that pin indices, and the device features
 //! the patched modules need. A user cannot apply an address patch without it; the patch harness
 //! feeds a patched pipeline from it.
+//!
+//! The push range is said as bytes to *cover*, not a range to add, because of two rules (Vulkan
+//! 1.4.360): VUID-VkPipelineLayoutCreateInfo-pPushConstantRanges-00292 "Any two elements of
+//! pPushConstantRanges must not include the same stage in stageFlags", and
+//! VUID-VkRayTracingPipelineCreateInfoKHR-layout-10069 "the block must be contained inside the
+//! push constant range in layout that matches the stage": a stage that already has a range must
+//! have it widened.
 use serde::{Deserialize, Serialize};
 
 pub const SCHEMA: &str = "rtprobe.patch-contract/1";

@@ -11,8 +11,10 @@
 //!   `OpLoad` keeps its result id, so every user stays valid. It needs the `RayTracingKHR` or
 //!   `RayQueryKHR` capability: a module of `SPV_NV_ray_tracing` (older DXC, GLSL's
 //!   GL_NV_ray_tracing; `OpTypeAccelerationStructureNV` is the same opcode) gets `RayTracingKHR`
-//!   and `SPV_KHR_ray_tracing` added, and its pipeline then needs VK_KHR_ray_tracing_pipeline
-//!   (Vulkan's SPIR-V environment: "RayTracingKHR … requires VK_KHR_ray_tracing_pipeline").
+//!   and `SPV_KHR_ray_tracing` added, and its pipeline then needs VK_KHR_ray_tracing_pipeline:
+//!   Vulkan's SPIR-V environment (1.4.360, vk.xml `<spirvcapability name="RayTracingKHR">`)
+//!   enables that capability only through the `rayTracingPipeline` feature of
+//!   VK_KHR_ray_tracing_pipeline, while `RayTracingNV` is enabled by VK_NV_ray_tracing.
 //! - The push-constant member is appended past the block ([`super::push`]).
 //! - `direct` mode (default for single variables) reads the AS address itself from the block;
 //!   `table` mode (default for arrays, or on request) reads the address of the descriptor's own

@@ -14,6 +14,10 @@
 //!   after the block struct is moved in front of it (an `OpTypeInt` refers to no other id).
 //! - An entry point may statically use at most one push-constant variable; a module without one
 //!   gets a new block (and, from SPIR-V 1.4, the variable joins every entry point's interface).
+//! - "The Offset decoration for any member of a push constant block must not cause the space
+//!   required for that member to extend outside the range [0, maxPushConstantsSize)" (Vulkan
+//!   1.4.360, chapters/interfaces.adoc, Push Constant Interface): [`Slots`] refuses an address
+//!   past the limit it is given (128 bytes, the minimum every device has, unless told more).
 use super::edit;
 use super::layout::{self, Rules};
 use super::PatchError;
