@@ -2,7 +2,7 @@
 //! happen (setup, pipeline, between cells, teardown), deadlines fire whatever the worker does,
 //! every attempt records the device features its worker enabled, and no worker outlives the
 //! supervisor (SIGINT, SIGKILL). Misbehaving workers come from the supervisor's own test hook,
-//! `RTPROBE_WORKER_FAULT=<phase>:<hang|crash|spam|lose>` (src/runner/misbehave.rs).
+//! `RTPROBE_WORKER_FAULT=<phase>:<hang|crash|spam|lose|no_compiler>` (src/runner/misbehave.rs).
 mod common;
 use common::*;
 use serde_json::Value;
@@ -142,6 +142,43 @@ fn hung_device_creation_makes_the_cells_timeout_in_setup() {
         assert_eq!(c["outcome"], "timeout", "{c}");
         assert_eq!(c["attempts"][0]["phase"], "setup");
     }
+}
+
+#[test]
+fn a_worker_without_a_shader_compiler_stops_the_run_with_exit_12() {
+    // Two workers at once: the first whose shader compiler cannot start halts the run. The other
+    // is killed, no worker is retried, no cell is given up as not run, and the CLI exits 12.
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("r.json");
+    let args = [
+        "run",
+        "-j",
+        "2",
+        "--no-confirm",
+        "--patches",
+        "none",
+        "--filter",
+        TWO,
+        "-o",
+        out.to_str().unwrap(),
+    ];
+    let (o, took) = run_bounded(&args, Some("setup:no_compiler"), Duration::from_secs(120));
+    assert_one_line_error(&o, 12, "could not start the shader compiler (shaderc)");
+    let err = stderr(&o);
+    assert!(err.contains("ulimit -v") && err.contains(out.to_str().unwrap()), "{err}");
+    assert!(took < Duration::from_secs(60), "took {took:?}");
+    let r = report(&out);
+    let ws = workers(&r);
+    assert_eq!(ws.len(), 1, "halted at the first, not retried: {ws:?}");
+    assert_eq!(
+        (ws[0]["phase"].as_str(), ws[0]["outcome"].as_str()),
+        (Some("setup"), Some("error"))
+    );
+    assert!(ws[0]["detail"].as_str().unwrap().contains("could not be started"), "{}", ws[0]);
+    // Its cells stay without an attempt (a later `--resume` runs them), and the report says
+    // the run did not complete.
+    assert!(cells(&r).is_empty(), "{:?}", cells(&r));
+    assert_eq!(r["complete"], false);
 }
 
 #[test]

@@ -34,7 +34,7 @@ impl Oracle for Sim {
             self.runs += 1;
             let fault = self.truth.iter().any(|t| t.matches(c)) && self.roll() < self.p;
             let outcome = if fault { Outcome::Crash } else { Outcome::Pass };
-            on(Event::Attempt { cell: c, attempt: attempt(outcome, mode != Mode::Shared) });
+            on(Event::Attempt { cell: *c, attempt: attempt(outcome, mode != Mode::Shared) });
         }
     }
     fn can_run(&self) -> bool {
@@ -57,7 +57,7 @@ impl Oracle for Late {
             if c.id() == self.late {
                 self.seen += 1;
                 on(Event::Attempt {
-                    cell: c,
+                    cell: *c,
                     attempt: attempt(
                         if self.seen >= self.from { Outcome::Crash } else { Outcome::Pass },
                         mode != Mode::Shared,
@@ -317,7 +317,7 @@ fn cells_rtprobe_could_not_run_count_neither_way() {
             for c in cells {
                 if c.id() == self.1 {
                     on(Event::Attempt {
-                        cell: c,
+                        cell: *c,
                         attempt: Attempt {
                             detail: Some("could not".into()),
                             ..attempt(Outcome::Error, mode != Mode::Shared)

@@ -51,7 +51,7 @@ impl Verdicts {
     /// Record an oracle's attempt (its other events say nothing about a cell).
     pub fn on_event(&mut self, ev: Event) {
         if let Event::Attempt { cell, attempt } = ev {
-            self.record(cell, attempt);
+            self.record(&cell, attempt);
         }
     }
 

@@ -1,9 +1,10 @@
 //! The run's events into its report: every attempt into the [`ReportWriter`] (saved at once
 //! after a fault or worker event, passes at most every [`SAVE_INTERVAL`]), workers' setup times,
-//! prebuilds and pipeline cache use into the report's timing and cache summary.
+//! prebuilds and pipeline cache use into the report's timing and cache summary, and a halt (the
+//! run cannot go on) kept for the rounds and the CLI.
 use super::{Event, Progress};
 use crate::atomic::WriteError;
-use crate::model::Outcome;
+use crate::model::{Halt, Outcome};
 use crate::report::writer::ReportWriter;
 use std::time::{Duration, Instant};
 
@@ -20,6 +21,8 @@ pub struct Recorder {
     pub device_ms_sum: f64,
     /// The first save that failed (the run goes on; the CLI reports it at the end).
     pub save_error: Option<WriteError>,
+    /// What stopped the run ([`Event::Halt`]): no round runs anything more.
+    pub halted: Option<Halt>,
     /// When the report was last written.
     last_save: Instant,
 }
@@ -31,6 +34,7 @@ impl Recorder {
             progress,
             device_ms_sum: 0.0,
             save_error: None,
+            halted: None,
             last_save: Instant::now(),
         }
     }
@@ -82,10 +86,14 @@ impl Recorder {
                 self.save(true);
             }
             Event::Attempt { cell, attempt } => {
-                self.progress.ended(cell, Some(attempt.outcome));
+                self.progress.ended(&cell, Some(attempt.outcome));
                 let urgent = attempt.outcome != Outcome::Pass;
-                self.writer.record(cell, attempt);
+                self.writer.record(&cell, attempt);
                 self.save(urgent);
+            }
+            Event::Halt(h) => {
+                self.halted.get_or_insert(h);
+                self.save(true);
             }
         }
     }

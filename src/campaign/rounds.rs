@@ -1,7 +1,8 @@
 //! Each round of a run: which cells it runs again (a pure function of the report so far, where
 //! the round has a policy of its own) and how (together or alone), recording what comes back.
 //! Rounds that repeat until their cells have enough attempts stop when a batch adds none (an
-//! oracle that could not run them), so that they never loop.
+//! oracle that could not run them), so that they never loop. Once the run halted (a worker found
+//! what no cell can get past) no round runs anything.
 use super::Campaign;
 use super::{Event, Mode};
 use crate::model::{Cell, Outcome, RunReport};
@@ -66,8 +67,12 @@ pub fn verify_cells(report: &RunReport) -> Vec<Cell> {
 }
 
 impl Campaign<'_> {
-    /// Run `cells` as `mode` says, recording every event; the attempts that came back.
+    /// Run `cells` as `mode` says, recording every event; the attempts that came back (none
+    /// once the run halted).
     pub(super) fn batch(&mut self, cells: &[Cell], mode: Mode) -> usize {
+        if self.rec.halted.is_some() {
+            return 0;
+        }
         let rec = &mut *self.rec;
         let mut attempts = 0;
         self.oracle.run(cells, mode, &mut |ev| {
@@ -77,9 +82,10 @@ impl Campaign<'_> {
         attempts
     }
 
-    /// A round's batch: the progress learns of it first; nothing to run is no batch.
+    /// A round's batch: the progress learns of it first; nothing to run (or a halted run) is no
+    /// batch.
     pub(super) fn round(&mut self, cells: &[Cell], mode: Mode) -> usize {
-        if cells.is_empty() {
+        if cells.is_empty() || self.rec.halted.is_some() {
             return 0;
         }
         self.rec.progress.scheduled(cells.len() as u64);
@@ -143,16 +149,19 @@ impl Campaign<'_> {
         let (mut again, skipped) = gpu_av::schedule(&self.rec.writer.report, layer);
         let mut got: Vec<(Cell, crate::model::Attempt)> = Vec::new();
         for _ in 0..gpu_av::CAP {
-            if again.is_empty() {
+            if again.is_empty() || self.rec.halted.is_some() {
                 break;
             }
             let progress = &*self.rec.progress;
             progress.scheduled(again.len() as u64);
-            self.oracle.run(&again, Mode::GpuAv, &mut |ev| {
-                if let Event::Attempt { cell, attempt } = ev {
-                    progress.ended(cell, None);
-                    got.push((*cell, attempt));
+            let halted = &mut self.rec.halted;
+            self.oracle.run(&again, Mode::GpuAv, &mut |ev| match ev {
+                Event::Attempt { cell, attempt } => {
+                    progress.ended(&cell, None);
+                    got.push((cell, attempt));
                 }
+                Event::Halt(h) => *halted = Some(h),
+                _ => {}
             });
             again = gpu_av::more(&self.rec.writer.report, &got);
         }

@@ -2,8 +2,8 @@
 //! round's check is also run against a broken policy (its twin), which the check must reject.
 use super::*;
 use crate::model::{
-    Attempt, Canary, DescriptorModel, GpuAvVerdict, IndexSource, Outcome, PlanStatus, PlannedCell,
-    Resource, RunPlan, RunReport, Stage,
+    Attempt, Canary, DescriptorModel, GpuAvVerdict, Halt, IndexSource, Outcome, PlanStatus,
+    PlannedCell, Resource, RunPlan, RunReport, Stage,
 };
 use crate::report::gpu_av;
 use crate::report::writer::ReportWriter;
@@ -43,7 +43,7 @@ impl Oracle for Script {
             let outcome =
                 script.get(&c.id()).map(|s| s[k.min(s.len() - 1)]).unwrap_or(Outcome::Pass);
             on(Event::Attempt {
-                cell: c,
+                cell: *c,
                 attempt: Attempt::for_tests(outcome, mode != Mode::Shared),
             });
         }
@@ -56,6 +56,19 @@ struct Deaf(usize);
 impl Oracle for Deaf {
     fn run(&mut self, _: &[Cell], _: Mode, _: &mut dyn FnMut(Event)) {
         self.0 += 1;
+    }
+}
+
+/// `Script`, but its batch number `.1` (from 0) ends in a halt after its first cell.
+struct Halting(Script, usize);
+
+impl Oracle for Halting {
+    fn run(&mut self, cells: &[Cell], mode: Mode, on: &mut dyn FnMut(Event)) {
+        if self.0.batches.len() != self.1 {
+            return self.0.run(cells, mode, on);
+        }
+        self.0.run(&cells[..1], mode, on);
+        on(Event::Halt(Halt::NoShaderCompiler));
     }
 }
 
@@ -529,6 +542,32 @@ fn an_oracle_that_runs_nothing_ends_every_round() {
     // The matrix, the confirmation, one repeat, the workarounds, the pattern, one GPU-AV batch
     // and the canaries: no round asks again after a batch that added nothing.
     assert_eq!(deaf.0, 7);
+}
+
+#[test]
+fn a_halt_ends_the_run_in_any_round() {
+    // Where each round's first batch is, from a run that does not halt.
+    let (mut w, cells, canaries) = full_world();
+    w.campaign(&all).run(&FULL, &cells, &canaries);
+    assert_eq!(w.rec.halted, None);
+    let gpu_av = w.oracle.batches.iter().position(|(m, _)| *m == Mode::GpuAv).unwrap();
+    for at in [0, 1, gpu_av] {
+        let (mut w, cells, canaries) = full_world();
+        let script = Script::default().with(cells[0], &[Outcome::Crash]);
+        let mut halting = Halting(script, at);
+        Campaign { oracle: &mut halting, rec: &mut w.rec, supported: &all }
+            .run(&FULL, &cells, &canaries);
+        assert_eq!(halting.0.batches.len(), at + 1, "nothing runs after the halt (batch {at})");
+        assert_eq!(w.rec.halted, Some(Halt::NoShaderCompiler));
+        assert!(w.attempts(&canaries[0]).is_empty(), "not even the canaries");
+    }
+    // In the matrix: the cells after the halting one stay without an attempt, for `--resume`.
+    let (mut w, cells, canaries) = full_world();
+    let mut halting = Halting(Script::default(), 0);
+    Campaign { oracle: &mut halting, rec: &mut w.rec, supported: &all }
+        .run(&FULL, &cells, &canaries);
+    assert_eq!(w.attempts(&cells[0]), [Outcome::Pass]);
+    assert!(cells[1..].iter().all(|c| w.attempts(c).is_empty()));
 }
 
 #[test]

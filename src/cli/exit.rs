@@ -1,6 +1,8 @@
 //! Process exit codes (documented in `--help` and docs/exit-codes.md) and the mapping from errors to them.
+use crate::model::Halt;
 use crate::shadergen::compile::CompileError;
 use crate::vk::VkError;
+use std::path::Path;
 
 pub const OK: u8 = 0;
 /// `run`: at least one cell faulted or mismatched, or a worker faulted outside a cell.
@@ -18,7 +20,8 @@ pub const INTERNAL: u8 = 10;
 /// `run`: no finding, but a canary's fault, or an `--inject-fault`, was not detected:
 /// classification is unproven.
 pub const CANARY_UNDETECTED: u8 = 11;
-/// The shader compiler (shaderc, linked in) could not be started: nothing can be compiled.
+/// The shader compiler (shaderc, linked in) could not be started: nothing can be compiled (in
+/// this process, or in a worker of `run`: the run halts, [`halted`]).
 pub const NO_SHADER_COMPILER: u8 = 12;
 
 pub const HELP: &str = "\
@@ -38,7 +41,7 @@ Exit codes:
   10 internal error
   11 run: no finding, but a --canaries or --inject-fault fault was not detected (fault
      classification unproven)
-  12 the shader compiler (shaderc) could not be started";
+  12 the shader compiler (shaderc) could not be started, by rtprobe or by a worker of run";
 
 /// An error that carries its own exit code (bad input, unwritable output, ...).
 #[derive(Debug, thiserror::Error)]
@@ -51,6 +54,24 @@ pub struct CodedError {
 /// `message` (a `String`, or a library error whose text is the message) with exit code `code`.
 pub fn coded(code: u8, message: impl std::fmt::Display) -> anyhow::Error {
     CodedError { code, message: message.to_string() }.into()
+}
+
+/// A run that halted (a worker found what no cell can get past): its code, and one line that
+/// says what to do. `report`: where the report so far was written.
+pub fn halted(halt: Halt, report: &Path) -> anyhow::Error {
+    match halt {
+        // `shaderc_compiler_initialize` fails only when its allocation does.
+        Halt::NoShaderCompiler => coded(
+            NO_SHADER_COMPILER,
+            format!(
+                "a worker could not start the shader compiler (shaderc), so no cell can be \
+                 compiled and the run stopped: shaderc fails to start only when memory runs out; \
+                 free memory or raise the memory limit (ulimit -v), then run again (the report \
+                 so far: {})",
+                report.display()
+            ),
+        ),
+    }
 }
 
 /// The code of a library error the CLI reports as text ([`coded`]): [`NO_SHADER_COMPILER`] when
@@ -118,6 +139,16 @@ mod tests {
         assert_eq!(code_for(&e), DEVICE_LOST);
         assert_eq!(code_for(&coded(BAD_INPUT, "bad json")), BAD_INPUT);
         assert_eq!(code_for(&anyhow::anyhow!("??")), INTERNAL);
+    }
+
+    #[test]
+    fn a_run_halted_for_its_shader_compiler_exits_12_with_one_line() {
+        let e = halted(Halt::NoShaderCompiler, Path::new("reports/r.json"));
+        assert_eq!(code_for(&e), NO_SHADER_COMPILER);
+        let line = format!("{e:#}");
+        assert!(!line.contains('\n'), "{line}");
+        assert!(line.contains("shader compiler (shaderc)") && line.contains("ulimit -v"), "{line}");
+        assert!(line.ends_with("(the report so far: reports/r.json)"), "{line}");
     }
 
     #[test]

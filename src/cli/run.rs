@@ -112,6 +112,10 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     if let Some(e) = rec.save_error.take() {
         return Err(anyhow::Error::from(e).context("writing the report"));
     }
+    if let Some(halt) = rec.halted {
+        rec.writer.save(true).with_context(|| "writing the report")?;
+        return Err(exit::halted(halt, &out));
+    }
     let source = a.baseline.as_ref().map(|p| p.display().to_string());
     start::finish(&mut rec, wall.elapsed(), c.baseline.as_ref().zip(source.as_deref()));
     print_end(a, &rec.writer, &out)

@@ -1,5 +1,6 @@
-//! One run of one cell (`Attempt`), how a worker ended, its own records, and how cells are
-//! isolated: what the supervisor records and every report keeps.
+//! One run of one cell (`Attempt`), how a worker ended, its own records, what in a worker stops
+//! the whole run (`Halt`), and how cells are isolated: what the supervisor records and every
+//! report keeps.
 use crate::model::{CellResult, Outcome, Phase};
 use serde::{Deserialize, Serialize};
 
@@ -127,6 +128,15 @@ pub struct WorkerEvent {
     pub device_features: Vec<String>,
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub worker_exit: Option<WorkerExit>,
+}
+
+/// What a worker found that no cell of the run can get past: the run stops (its cells left
+/// without an attempt, for a later `--resume`), and the CLI exits with the halt's own code.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Halt {
+    /// The shader compiler (shaderc) could not be started: no cell can be compiled (exit 12).
+    NoShaderCompiler,
 }
 
 pub fn signal_name(sig: i32) -> &'static str {

@@ -25,7 +25,7 @@ pub mod report;
 pub mod scene;
 pub mod stats;
 
-pub use attempt::{signal_name, Attempt, Isolation, WorkerEvent, WorkerExit};
+pub use attempt::{signal_name, Attempt, Halt, Isolation, WorkerEvent, WorkerExit};
 pub use axes::{
     AsAccess, BaseSource, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource,
     SamplerIndex, Stage,

@@ -1,7 +1,8 @@
 //! A worker as the supervisor sees it, as a pure state machine: [`step`] takes the worker's state
 //! and one input (a parsed line of its output, the end of its output, a deadline that passed, or
 //! how its process ended) and gives the next state and the [`Effect`]s the supervisor must carry
-//! out (record an attempt or a worker event, kill or reap the process, send cells back). No
+//! out (report an [`Event`]: an attempt or a worker event; kill or reap the process, send cells
+//! back). No
 //! processes and no clock of its own: `now` comes with each input, and the supervisor alone
 //! decides that a deadline passed (it compares [`Worker::deadline`] with its clock and feeds
 //! [`Input::Deadline`]), as nextest's runner decides for its executors.
@@ -12,9 +13,11 @@
 //! worker that must go (end of output, a deadline, a fatal message) is `Dying` until the
 //! supervisor feeds how it ended, then `Ended`. What is recorded is decided there, from the state
 //! it died in: a cell's attempt (`crash` or `timeout` mid-cell, with the phase), the prebuild's
-//! worker event (its batch then builds cell by cell), or a worker event outside any cell.
+//! worker event (its batch then builds cell by cell), or a worker event outside any cell; a
+//! fatal message that halts the run (no shader compiler) is the worker's event, then the halt.
+use super::event::Event;
 use super::protocol::WorkerMsg;
-use crate::model::{signal_name, Attempt, Cell, Outcome, Phase, WorkerEvent, WorkerExit};
+use crate::model::{signal_name, Attempt, Cell, Halt, Outcome, Phase, WorkerEvent, WorkerExit};
 use std::time::{Duration, Instant};
 
 /// Lines that are not protocol messages logged per worker (a worker can flood them).
@@ -65,8 +68,9 @@ pub(super) enum Cause {
     Eof,
     /// Its state's deadline passed.
     Deadline,
-    /// It said it cannot go on (a failed setup; a device loss or hung fence while prebuilding).
-    Fatal { message: String, outcome: Outcome },
+    /// It said it cannot go on (a failed setup; a device loss or hung fence while prebuilding);
+    /// `halt`: nor can the run.
+    Fatal { message: String, outcome: Outcome, halt: Option<Halt> },
 }
 
 // One message per line, moved once: boxing the large variant would buy nothing.
@@ -92,32 +96,15 @@ pub(super) enum Effect {
     /// Its output ended: wait for the exit (bounded; one that does not exit is killed), then feed
     /// `Exited`.
     Reap,
-    Ready {
-        device_ms: f64,
-        reference_ms: f64,
-        pipeline_cache: Option<crate::exec::pipeline_cache::Loaded>,
-    },
-    Prebuilt {
-        wall_ms: f64,
-        pipelines: usize,
-        threads: usize,
-    },
-    CacheSaved(Result<u64, String>),
-    /// The worker's own record: its setup, or a fault outside any cell.
-    Worker(WorkerEvent),
-    /// An attempt of one of its cells: the cell leaves the queue.
-    Attempt {
-        cell: Cell,
-        attempt: Attempt,
-    },
+    /// An event for the rounds above: its setup, a prebuild, the pipeline cache saved, the
+    /// worker's own record (its setup, or a fault outside any cell), or an attempt of one of its
+    /// cells (the cell leaves the queue).
+    Report(Event),
     /// Cells it died or hung prebuilding: later workers build them at their turn only.
     Serial(Vec<String>),
     /// It ended without an attempt; should the slot give up on its `batch` cells, each is
     /// recorded as `not_run`.
-    Fruitless {
-        batch: usize,
-        not_run: Attempt,
-    },
+    Fruitless { batch: usize, not_run: Attempt },
 }
 
 #[derive(Clone, Debug)]
@@ -220,8 +207,8 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
         WorkerMsg::Ready { device_ms, reference_ms, device_features, pipeline_cache } => {
             w.enter(State::Between { since: now }, Phase::BetweenCells);
             w.device_features = device_features;
-            fx.push(Effect::Ready { device_ms, reference_ms, pipeline_cache });
-            fx.push(Effect::Worker(event(w, Phase::Setup, Outcome::Pass, None, None, now)));
+            fx.push(Effect::Report(Event::WorkerReady { device_ms, reference_ms, pipeline_cache }));
+            fx.push(record(w, Phase::Setup, Outcome::Pass, None, None, now));
         }
         WorkerMsg::Phase { phase, step } => {
             // Prebuild progress (GLSL, a cell compiled and bound, a pipeline) restarts its clock.
@@ -246,15 +233,17 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
         WorkerMsg::Prebuilt { wall_ms, pipelines, threads } => {
             if matches!(w.state, State::Prebuild { .. }) {
                 w.enter(State::Between { since: now }, Phase::BetweenCells);
-                fx.push(Effect::Prebuilt { wall_ms, pipelines, threads });
+                fx.push(Effect::Report(Event::Prebuilt { wall_ms, pipelines, threads }));
             }
         }
-        WorkerMsg::CacheSaved { bytes, error } => fx.push(Effect::CacheSaved(
+        WorkerMsg::CacheSaved { bytes, error } => fx.push(Effect::Report(Event::CacheSaved(
             bytes.ok_or_else(|| error.unwrap_or_else(|| "not saved".into())),
-        )),
+        ))),
         WorkerMsg::Start { cell } => start(w, cell, now, fx),
         WorkerMsg::Result { cell, result } => finished(w, &cell, result, now, fx),
-        WorkerMsg::Fatal { message, outcome } => dying(w, Cause::Fatal { message, outcome }, fx),
+        WorkerMsg::Fatal { message, outcome, halt } => {
+            dying(w, Cause::Fatal { message, outcome, halt }, fx)
+        }
     }
 }
 
@@ -295,7 +284,7 @@ fn finished(
     } else {
         w.enter(State::Between { since: now }, Phase::BetweenCells);
     }
-    fx.push(Effect::Attempt { cell: c, attempt });
+    fx.push(Effect::Report(Event::Attempt { cell: c, attempt }));
 }
 
 fn garbage(w: &mut Worker, text: String, fx: &mut Vec<Effect>) {
@@ -325,7 +314,10 @@ fn exited(w: &mut Worker, exit: WorkerExit, now: Instant, limits: &Limits, fx: &
     let (died_as, what) = died(&exit);
     let at = w.where_();
     // A fatal message mid-cell is the worker's: the cell was not what failed, and runs again.
-    let fatal = matches!(cause, Cause::Fatal { .. });
+    let (fatal, halt) = match &cause {
+        Cause::Fatal { halt, .. } => (true, *halt),
+        _ => (false, None),
+    };
     let (outcome, detail) = match (&*was, cause) {
         (State::Teardown { .. }, Cause::Eof) if exit.code == Some(0) => return, // exited cleanly
         (State::Cell { .. }, Cause::Eof) => (died_as, format!("{what} mid-cell, in {at}")),
@@ -333,10 +325,10 @@ fn exited(w: &mut Worker, exit: WorkerExit, now: Instant, limits: &Limits, fx: &
             Outcome::Timeout,
             format!("no result within {:?}, in {at}; worker process group killed", limits.timeout),
         ),
-        (State::Prebuild { .. }, Cause::Fatal { message, outcome }) => {
+        (State::Prebuild { .. }, Cause::Fatal { message, outcome, .. }) => {
             (outcome, format!("worker failed in {at}: {message}"))
         }
-        (_, Cause::Fatal { message, outcome }) => {
+        (_, Cause::Fatal { message, outcome, .. }) => {
             (outcome, format!("worker setup failed in {at}: {message}"))
         }
         (State::Prebuild { .. }, Cause::Deadline) => (
@@ -369,10 +361,12 @@ fn exited(w: &mut Worker, exit: WorkerExit, now: Instant, limits: &Limits, fx: &
                 .with_detail(detail)
                 .with_exit(exit)
                 .with_wall_ms(ms(since, now));
-            fx.push(Effect::Attempt { cell, attempt });
+            fx.push(Effect::Report(Event::Attempt { cell, attempt }));
         }
-        State::Prebuild { cells, .. } => prebuild_failed(w, cells, outcome, detail, exit, now, fx),
-        _ => worker_failed(w, outcome, detail, exit, now, fx),
+        State::Prebuild { cells, .. } if halt.is_none() => {
+            prebuild_failed(w, cells, outcome, detail, exit, now, fx)
+        }
+        _ => worker_failed(w, outcome, detail, exit, halt, now, fx),
     }
 }
 
@@ -390,16 +384,18 @@ fn prebuild_failed(
 ) {
     fx.push(Effect::Serial(cells));
     let detail = format!("{detail}; its batch runs again, each cell building at its turn");
-    fx.push(Effect::Worker(event(w, Phase::Prebuild, outcome, Some(detail), Some(exit), now)));
+    fx.push(record(w, Phase::Prebuild, outcome, Some(detail), Some(exit), now));
 }
 
 /// A worker failed outside any cell: in setup, between cells or in teardown. Its own event;
-/// without an attempt it is fruitless too, with what its cells get should the slot give up.
+/// then its `halt`, which stops the run (its cells stay without an attempt), or, without an
+/// attempt, it is fruitless too, with what its cells get should the slot give up.
 fn worker_failed(
     w: &Worker,
     outcome: Outcome,
     detail: String,
     exit: WorkerExit,
+    halt: Option<Halt>,
     now: Instant,
     fx: &mut Vec<Effect>,
 ) {
@@ -408,8 +404,10 @@ fn worker_failed(
         outcome.as_str(),
         w.phase
     );
-    fx.push(Effect::Worker(event(w, w.phase, outcome, Some(detail), Some(exit.clone()), now)));
-    if !w.progressed {
+    fx.push(record(w, w.phase, outcome, Some(detail), Some(exit.clone()), now));
+    if let Some(h) = halt {
+        fx.push(Effect::Report(Event::Halt(h)));
+    } else if !w.progressed {
         fx.push(Effect::Fruitless {
             batch: w.batch,
             not_run: attempt(w, outcome).with_detail(why).with_exit(exit),
@@ -422,15 +420,16 @@ fn attempt(w: &Worker, outcome: Outcome) -> Attempt {
     Attempt::new(outcome, w.isolated).with_worker(w.id, w.phase, w.device_features.clone())
 }
 
-fn event(
+/// The worker's own record, to report.
+fn record(
     w: &Worker,
     phase: Phase,
     outcome: Outcome,
     detail: Option<String>,
     worker_exit: Option<WorkerExit>,
     now: Instant,
-) -> WorkerEvent {
-    WorkerEvent {
+) -> Effect {
+    Effect::Report(Event::Worker(WorkerEvent {
         worker: w.id,
         phase,
         outcome,
@@ -439,7 +438,7 @@ fn event(
         wall_ms: ms(w.spawned, now),
         device_features: w.device_features.clone(),
         worker_exit,
-    }
+    }))
 }
 
 fn ms(since: Instant, now: Instant) -> f64 {

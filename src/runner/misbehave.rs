@@ -5,16 +5,21 @@
 //! their runners). Read once when the worker starts; without the variable nothing here runs.
 //!
 //! Actions: `hang` (sleeps forever), `crash` (SIGSEGV), `spam` (prints non-protocol lines
-//! without pause, never progresses), `lose` (the phase fails with `VK_ERROR_DEVICE_LOST`).
+//! without pause, never progresses), `lose` (the phase fails with `VK_ERROR_DEVICE_LOST`),
+//! `no_compiler` (`setup` only: the shader compiler fails to start, as `shaderc::Compiler::new`
+//! does when memory runs out, its only failure; the worker meets it where the executor starts
+//! its compiler, after vkCreateDevice).
 //! A `setup` hang, crash or spam happens just before vkCreateDevice (standing in for a hung or
 //! crashing device creation); a `setup` loss happens after it, where the scene's acceleration
 //! structures are built (a loss needs a device). A `prebuild` action happens as the worker starts
 //! building a batch ahead of the cells' turns (only where it prebuilds: `--threads` above 1).
 use crate::model::Phase;
+use crate::shadergen::compile::CompileError;
 use crate::vk::VkError;
 use std::io::Write;
 
 pub const ENV: &str = "RTPROBE_WORKER_FAULT";
+const ACTIONS: &str = "hang|crash|spam|lose|no_compiler";
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Action {
@@ -22,6 +27,7 @@ pub enum Action {
     Crash,
     Spam,
     Lose,
+    NoCompiler,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -42,16 +48,16 @@ impl Misbehave {
     pub fn parse(spec: &str) -> Result<Misbehave, String> {
         let (p, a) = spec
             .split_once(':')
-            .ok_or_else(|| format!("{ENV}={spec:?}: expected <phase>:<hang|crash|spam|lose>"))?;
+            .ok_or_else(|| format!("{ENV}={spec:?}: expected <phase>:<{ACTIONS}>"))?;
         let phase = Phase::parse(p).ok_or_else(|| format!("{ENV}: unknown phase {p:?}"))?;
         let action = match a {
             "hang" => Action::Hang,
             "crash" => Action::Crash,
             "spam" => Action::Spam,
             "lose" => Action::Lose,
-            other => {
-                return Err(format!("{ENV}: unknown action {other:?} (hang, crash, spam, lose)"))
-            }
+            "no_compiler" if phase == Phase::Setup => Action::NoCompiler,
+            "no_compiler" => return Err(format!("{ENV}: no_compiler is a setup action")),
+            other => return Err(format!("{ENV}: unknown action {other:?} ({ACTIONS})")),
         };
         Ok(Misbehave { phase, action })
     }
@@ -93,6 +99,15 @@ impl Misbehave {
             Action::Lose => {
                 Err(VkError::DeviceLost { call: "injected device loss (RTPROBE_WORKER_FAULT)" })
             }
+            Action::NoCompiler => Ok(()),
+        }
+    }
+
+    /// Called as the worker's setup starts its shader compiler: `setup:no_compiler` fails it.
+    pub fn compiler(&self) -> Result<(), CompileError> {
+        match self.action {
+            Action::NoCompiler => Err(CompileError::Init),
+            _ => Ok(()),
         }
     }
 }
@@ -111,6 +126,8 @@ mod tests {
         assert!(Misbehave::parse("pipeline").is_err());
         assert!(Misbehave::parse("nowhere:hang").is_err());
         assert!(Misbehave::parse("trace:explode").is_err());
+        assert_eq!(Misbehave::parse("setup:no_compiler").unwrap().action, Action::NoCompiler);
+        assert!(Misbehave::parse("trace:no_compiler").is_err(), "the compiler starts in setup");
     }
 
     #[test]
@@ -121,5 +138,15 @@ mod tests {
         let s = Misbehave { phase: Phase::Setup, action: Action::Lose };
         assert!(s.at(Phase::Setup, Some(SetupStep::CreateDevice)).is_ok());
         assert!(s.at(Phase::Setup, Some(SetupStep::Scene)).is_err());
+        assert!(s.compiler().is_ok(), "a device loss leaves the compiler alone");
+    }
+
+    #[test]
+    fn no_compiler_fails_the_compiler_only() {
+        let m = Misbehave::parse("setup:no_compiler").unwrap();
+        for step in [SetupStep::CreateInstance, SetupStep::CreateDevice, SetupStep::Scene] {
+            assert!(m.at(Phase::Setup, Some(step)).is_ok(), "{step:?}");
+        }
+        assert!(matches!(m.compiler(), Err(CompileError::Init)));
     }
 }

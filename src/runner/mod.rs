@@ -1,9 +1,10 @@
 //! Running cells in isolation: the worker (`rtprobe __worker`), the supervisor that owns
 //! deadlines and kills, their line protocol, the phases a worker reports, the supervisor's own
 //! fault injection for its tests, and the oracle trait the rounds above run cells through. The
-//! supervisor's parts: a worker's lines as a pure state machine (`machine`), which worker runs
-//! which cells (`schedule`), the faults injected into each attempt (`injection`) and the
-//! processes themselves (`process`).
+//! supervisor's parts: a worker's lines as a pure state machine (`machine`) emitting the events
+//! everything above records (`event`), which worker runs which cells (`schedule`), the faults
+//! injected into each attempt (`injection`) and the processes themselves (`process`).
+pub mod event;
 pub mod groups;
 mod injection;
 mod machine;

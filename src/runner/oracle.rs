@@ -1,8 +1,9 @@
 //! What cells are run through above the supervisor: an [`Oracle`] takes a batch of cells and a
-//! [`Mode`] and reports what happens as the supervisor's [`Event`]s. `campaign`'s rounds and
-//! `bisect` share it; the CLI's implementation wraps [`super::supervisor::Supervisor`], tests
-//! script outcomes per cell, `bisect --offline`'s runs nothing.
-pub use super::supervisor::Event;
+//! [`Mode`] and reports what happens as [`Event`]s (the runner's one vocabulary, from
+//! `super::event`). `campaign`'s rounds and `bisect` share it; the CLI's implementation wraps
+//! [`super::supervisor::Supervisor`], tests script outcomes per cell, `bisect --offline`'s runs
+//! nothing.
+pub use super::event::Event;
 use crate::model::Cell;
 
 /// How a batch of cells runs.

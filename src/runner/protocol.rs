@@ -5,7 +5,7 @@
 use crate::model::Cell;
 use crate::model::Phase;
 use crate::model::SceneParams;
-use crate::model::{CellResult, Outcome};
+use crate::model::{CellResult, Halt, Outcome};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
@@ -105,11 +105,14 @@ pub enum WorkerMsg {
     },
     /// Setup failed: the worker cannot run its cells (or, during a prebuild, an error that ends
     /// the worker: a device loss or a hung fence). `outcome` classifies the failure
-    /// (`device_lost`, `timeout` of a fence in an upload or AS build, `error`).
+    /// (`device_lost`, `timeout` of a fence in an upload or AS build, `error`). `halt`: what
+    /// failed stops the whole run, not only this worker (no shader compiler).
     Fatal {
         message: String,
         #[serde(default = "error_outcome")]
         outcome: Outcome,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        halt: Option<Halt>,
     },
 }
 
@@ -126,7 +129,16 @@ mod tests {
         let m = WorkerMsg::Phase { phase: Phase::Pipeline, step: None };
         assert_eq!(serde_json::to_string(&m).unwrap(), r#"{"type":"phase","phase":"pipeline"}"#);
         let f: WorkerMsg = serde_json::from_str(r#"{"type":"fatal","message":"x"}"#).unwrap();
-        assert!(matches!(f, WorkerMsg::Fatal { outcome: Outcome::Error, .. }));
+        assert!(matches!(f, WorkerMsg::Fatal { outcome: Outcome::Error, halt: None, .. }));
+        let h = WorkerMsg::Fatal {
+            message: "x".into(),
+            outcome: Outcome::Error,
+            halt: Some(Halt::NoShaderCompiler),
+        };
+        let line = serde_json::to_string(&h).unwrap();
+        assert!(line.ends_with(r#""halt":"no_shader_compiler"}"#), "{line}");
+        let back: WorkerMsg = serde_json::from_str(&line).unwrap();
+        assert!(matches!(back, WorkerMsg::Fatal { halt: Some(Halt::NoShaderCompiler), .. }));
     }
 
     #[test]

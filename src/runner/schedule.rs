@@ -3,7 +3,8 @@
 //! queue, or its first cell alone when cells are isolated), the cells later workers must build at
 //! their turn (an earlier worker died or hung prebuilding them), and the slot's count of fruitless
 //! workers in a row (failed setups, deaths before the first cell): at two, the slot gives up on
-//! the last one's cells. No processes: `W` is whatever the supervisor keeps of a running worker.
+//! the last one's cells; and a halted run, which starts no worker again. No processes: `W` is
+//! whatever the supervisor keeps of a running worker.
 use crate::model::Cell;
 use std::collections::{HashSet, VecDeque};
 
@@ -20,6 +21,8 @@ pub(super) struct Schedule<W> {
     pub slots: Vec<Slot<W>>,
     /// One worker per cell (`--isolation process-per-cell`, or a re-run alone).
     per_cell: bool,
+    /// A worker halted the run ([`Schedule::halt`]).
+    halted: bool,
 }
 
 /// A worker's job: its cells, and those of them it must not prebuild.
@@ -42,7 +45,7 @@ impl<W> Schedule<W> {
                 serial: HashSet::new(),
             })
             .collect();
-        Schedule { slots, per_cell }
+        Schedule { slots, per_cell, halted: false }
     }
 
     pub fn per_cell(&self) -> bool {
@@ -104,6 +107,19 @@ impl<W> Schedule<W> {
         s.fruitless = 0;
         let n = batch.min(s.queue.len());
         s.queue.drain(..n).collect()
+    }
+
+    /// A worker found what no cell can get past: every slot's cells are dropped, without an
+    /// attempt, so that no worker starts again; stopping the running ones is the supervisor's.
+    pub fn halt(&mut self) {
+        self.halted = true;
+        for s in &mut self.slots {
+            s.queue.clear();
+        }
+    }
+
+    pub fn halted(&self) -> bool {
+        self.halted
     }
 
     /// No worker can start for slot `i`: every cell it has left, to be recorded as not run.
@@ -194,6 +210,22 @@ mod tests {
         assert!(s.job(0).serial.is_empty());
         s.serial(0, vec![c[0].id(), c[2].id(), "not-in-this-slot".into()]);
         assert_eq!(s.job(0).serial, [c[0].id(), c[2].id()]);
+    }
+
+    #[test]
+    fn a_halt_drops_every_cell_left_and_starts_no_worker() {
+        let c = cells(4);
+        let mut s: Schedule<u8> = Schedule::new(&c, 2, false);
+        s.slots[1].worker = Some(7);
+        assert!(!s.halted());
+        s.halt();
+        assert!(s.halted());
+        assert!(s.idle().is_empty(), "no worker starts again");
+        assert!(s.job(0).cells.is_empty() && s.job(1).cells.is_empty());
+        assert!(s.fruitless(1, 2).is_empty() && s.fruitless(1, 2).is_empty(), "nothing given up");
+        assert!(!s.finished(), "a worker still runs: the supervisor stops it");
+        s.slots[1].worker = None;
+        assert!(s.finished());
     }
 
     #[test]

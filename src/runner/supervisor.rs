@@ -7,6 +7,8 @@
 //! dies mid-cell is `crash` (with signal and stderr tail), both with the phase they happened in.
 //! A failed setup (device, scene AS, resources) is its own record and is retried once in a fresh
 //! worker; then the cells it would have run are recorded as not run, with the setup's outcome. A
+//! setup that no worker can get past (the shader compiler cannot start) halts the run instead:
+//! every worker is killed, nothing more starts, and the cells left stay without an attempt. A
 //! fault between cells or in teardown is recorded for the worker, not blamed on a cell. Kills
 //! are SIGTERM to the group, a grace period, SIGKILL, and a bounded wait: a process that will not
 //! die (uninterruptible sleep in the driver) is reported and abandoned.
@@ -15,6 +17,7 @@
 //! deadlines. What a worker's lines mean is [`super::machine`] (a pure state machine whose effects
 //! are carried out here), which worker runs which cells is [`super::schedule`], and the faults
 //! injected into each attempt are [`super::injection`].
+use super::event::Event;
 use super::injection::Injections;
 use super::machine::{self, Effect, Input, Limits};
 use super::process::{Line, Proc};
@@ -24,7 +27,7 @@ use crate::model::Cell;
 use crate::model::Outcome;
 use crate::model::Phase;
 use crate::model::SceneParams;
-use crate::model::{Attempt, Isolation, WorkerEvent};
+use crate::model::{Attempt, Isolation};
 use std::path::PathBuf;
 use std::sync::mpsc::{channel, Receiver, RecvTimeoutError, Sender};
 use std::time::{Duration, Instant};
@@ -63,31 +66,6 @@ pub struct SupervisorOptions {
     pub binding_stages: Option<String>,
 }
 
-/// Events for the report writer and progress display.
-// One message per line, moved once: boxing the large variant would buy nothing.
-#[allow(clippy::large_enum_variant)]
-pub enum Event<'a> {
-    WorkerReady {
-        device_ms: f64,
-        reference_ms: f64,
-        pipeline_cache: Option<crate::exec::pipeline_cache::Loaded>,
-    },
-    /// A worker built a batch of cells ahead of their turns.
-    Prebuilt {
-        wall_ms: f64,
-        pipelines: usize,
-        threads: usize,
-    },
-    /// A worker wrote the pipeline cache back (`Err`: why not).
-    CacheSaved(Result<u64, String>),
-    /// A worker's setup finished or failed, or it faulted outside a cell.
-    Worker(WorkerEvent),
-    Attempt {
-        cell: &'a Cell,
-        attempt: Attempt,
-    },
-}
-
 /// A worker the supervisor runs: its process, and its state as [`machine`] keeps it.
 struct Running {
     process: Proc,
@@ -123,6 +101,10 @@ impl Supervisor {
         let per_cell = isolated || self.opts.isolation == Isolation::ProcessPerCell;
         let mut schedule: Schedule<Running> = Schedule::new(cells, self.opts.jobs, per_cell);
         loop {
+            if schedule.halted() {
+                self.stop(&mut schedule);
+                break;
+            }
             self.start_workers(&mut schedule, on);
             if schedule.finished() {
                 break;
@@ -169,7 +151,7 @@ impl Supervisor {
                         let attempt = Attempt::new(Outcome::Error, schedule.per_cell())
                             .with_worker(0, Phase::Setup, vec![])
                             .with_detail(msg.clone());
-                        self.record(&c, attempt, on);
+                        self.record(c, attempt, on);
                     }
                 }
             }
@@ -226,6 +208,17 @@ impl Supervisor {
         !due.is_empty()
     }
 
+    /// The run halted: every worker still running is killed; what it was doing is not recorded
+    /// (the run stops, its cells left without an attempt).
+    fn stop(&self, schedule: &mut Schedule<Running>) {
+        for slot in &mut schedule.slots {
+            if let Some(mut r) = slot.worker.take() {
+                tracing::debug!("worker {} stopped: the run halted", r.worker.id);
+                r.process.kill(self.opts.grace, self.opts.kill_wait);
+            }
+        }
+    }
+
     /// Steps slot `i`'s worker with `input` and carries out the effects; a kill or reap feeds how
     /// the process ended back in. An ended worker leaves its slot.
     fn feed(
@@ -271,22 +264,19 @@ impl Supervisor {
             Effect::Reap => {
                 return Some(Input::Exited(process.reap(self.opts.grace, self.opts.kill_wait)))
             }
-            Effect::Ready { device_ms, reference_ms, pipeline_cache } => {
-                on(Event::WorkerReady { device_ms, reference_ms, pipeline_cache })
-            }
-            Effect::Prebuilt { wall_ms, pipelines, threads } => {
-                on(Event::Prebuilt { wall_ms, pipelines, threads })
-            }
-            Effect::CacheSaved(saved) => on(Event::CacheSaved(saved)),
-            Effect::Worker(event) => on(Event::Worker(event)),
-            Effect::Attempt { cell, attempt } => {
+            Effect::Report(Event::Attempt { cell, attempt }) => {
                 schedule.ran(i, &cell);
-                self.record(&cell, attempt, on);
+                self.record(cell, attempt, on);
             }
+            Effect::Report(Event::Halt(halt)) => {
+                schedule.halt();
+                on(Event::Halt(halt))
+            }
+            Effect::Report(event) => on(event),
             Effect::Serial(cells) => schedule.serial(i, cells),
             Effect::Fruitless { batch, not_run } => {
                 for c in schedule.fruitless(i, batch) {
-                    self.record(&c, not_run.clone(), on);
+                    self.record(c, not_run.clone(), on);
                 }
             }
         }
@@ -294,8 +284,8 @@ impl Supervisor {
     }
 
     /// Every attempt records what was injected into it, worked out as the worker did.
-    fn record(&self, cell: &Cell, mut attempt: Attempt, on: &mut dyn FnMut(Event)) {
-        self.injections.tag(cell, &mut attempt);
+    fn record(&self, cell: Cell, mut attempt: Attempt, on: &mut dyn FnMut(Event)) {
+        self.injections.tag(&cell, &mut attempt);
         on(Event::Attempt { cell, attempt });
     }
 }

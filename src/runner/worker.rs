@@ -4,15 +4,17 @@
 //! telling the supervisor each phase it enters, and reports each cell on stdout. After a device
 //! loss, a timeout or a crash the device is unusable, so it reports and exits at once (`_exit`,
 //! skipping destructors that could block on a hung queue). The supervisor kills it if the
-//! supervisor dies (PR_SET_PDEATHSIG, set at spawn).
+//! supervisor dies (PR_SET_PDEATHSIG, set at spawn). A setup failure that no worker can get past
+//! (the shader compiler cannot start) says so in its `fatal` message (`halt`): the run stops.
 use super::misbehave::{Misbehave, SetupStep};
 use super::protocol::{WorkerJob, WorkerMsg};
 use crate::exec::prebuild::Step;
 use crate::exec::{CellError, ExecOptions, Executor};
-use crate::model::Outcome;
 use crate::model::Phase;
 use crate::model::{Cell, DescriptorModel, Resource, Stage};
+use crate::model::{Halt, Outcome};
 use crate::probe::spec::{ArrayAt, ProbeSpec};
+use crate::shadergen::compile::CompileError;
 use crate::vk::{features, Gpu, Instance, InstanceOptions, Requirements, VkError};
 use std::collections::HashSet;
 use std::io::Write;
@@ -63,17 +65,33 @@ impl Phases {
             None => Ok(()),
         }
     }
+
+    /// The test hook's turn as the setup starts the shader compiler (`setup:no_compiler`).
+    fn compiler(&self) -> Result<(), CompileError> {
+        self.hook.as_ref().map_or(Ok(()), Misbehave::compiler)
+    }
 }
 
-/// A setup that failed, classified.
+/// A setup that failed, classified; `halt` when no worker could get past it.
 struct SetupFailure {
     outcome: Outcome,
     message: String,
+    halt: Option<Halt>,
 }
 
 impl From<CellError> for SetupFailure {
     fn from(e: CellError) -> Self {
-        SetupFailure { outcome: e.outcome(), message: e.to_string() }
+        let halt = match e {
+            CellError::Compile(CompileError::Init) => Some(Halt::NoShaderCompiler),
+            _ => None,
+        };
+        SetupFailure { outcome: e.outcome(), message: e.to_string(), halt }
+    }
+}
+
+impl From<CompileError> for SetupFailure {
+    fn from(e: CompileError) -> Self {
+        CellError::Compile(e).into()
     }
 }
 
@@ -93,6 +111,7 @@ fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
         .ok_or_else(|| SetupFailure {
             outcome: Outcome::Error,
             message: format!("device {} vanished", job.device_index),
+            halt: None,
         })?
         .clone();
     let mut req = requirements(&info, &job.cells);
@@ -111,6 +130,7 @@ fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
         spirv_dir: job.spirv_dir.clone(),
         all_stages: job.binding_stages.as_deref() == Some("all"),
     };
+    phases.compiler()?;
     let mut exec = Executor::new(gpu, &job.scene, opts)?;
     phases
         .enter(Phase::Setup, Some((SetupStep::Scene, "acceleration structures and resources")))?;
@@ -159,6 +179,7 @@ fn prebuild(
             send(&WorkerMsg::Fatal {
                 message: format!("building a batch of cells on {threads} threads: {e}"),
                 outcome: e.outcome(),
+                halt: None,
             });
             unsafe { libc::_exit(0) };
         }
@@ -170,7 +191,7 @@ pub fn main(job_path: &std::path::Path) -> u8 {
     let hook = match Misbehave::from_env() {
         Ok(h) => h,
         Err(message) => {
-            send(&WorkerMsg::Fatal { message, outcome: Outcome::Error });
+            send(&WorkerMsg::Fatal { message, outcome: Outcome::Error, halt: None });
             return 2;
         }
     };
@@ -184,6 +205,7 @@ pub fn main(job_path: &std::path::Path) -> u8 {
             send(&WorkerMsg::Fatal {
                 message: format!("cannot read job {}: {e}", job_path.display()),
                 outcome: Outcome::Error,
+                halt: None,
             });
             return 2;
         }
@@ -193,8 +215,8 @@ pub fn main(job_path: &std::path::Path) -> u8 {
     let t = Instant::now();
     let mut exec = match setup(&job, &phases) {
         Ok(e) => e,
-        Err(SetupFailure { outcome, message }) => {
-            send(&WorkerMsg::Fatal { message, outcome });
+        Err(SetupFailure { outcome, message, halt }) => {
+            send(&WorkerMsg::Fatal { message, outcome, halt });
             return 3;
         }
     };
@@ -238,4 +260,25 @@ pub fn main(job_path: &std::path::Path) -> u8 {
     }
     drop(exec);
     0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_compiler_that_cannot_start_halts_the_run_and_other_setup_failures_do_not() {
+        let f = SetupFailure::from(CompileError::Init);
+        assert_eq!((f.outcome, f.halt), (Outcome::Error, Some(Halt::NoShaderCompiler)));
+        assert_eq!(f.message, "the shader compiler (shaderc) could not be started");
+        // The test hook fails the setup the same way, through the same conversion.
+        let hooked = Phases { hook: Some(Misbehave::parse("setup:no_compiler").unwrap()) };
+        assert_eq!(SetupFailure::from(hooked.compiler().unwrap_err()).halt, f.halt);
+        assert!(Phases { hook: None }.compiler().is_ok());
+        // The twins: a cell's GLSL error or a device loss stops this worker only.
+        let glsl = CompileError::Glsl { file: "probe.rgen".into(), message: "bad".into() };
+        assert_eq!(SetupFailure::from(glsl).halt, None);
+        let lost = SetupFailure::from(VkError::DeviceLost { call: "vkQueueSubmit" });
+        assert_eq!((lost.outcome, lost.halt), (Outcome::DeviceLost, None));
+    }
 }

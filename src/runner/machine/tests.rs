@@ -100,7 +100,7 @@ fn dies(w: Worker, cause: Input, ended: WorkerExit, now: Instant) -> (Effect, Ve
 fn attempts(fx: &[Effect]) -> Vec<(Cell, &Attempt)> {
     fx.iter()
         .filter_map(|e| {
-            if let Effect::Attempt { cell, attempt } = e {
+            if let Effect::Report(Event::Attempt { cell, attempt }) = e {
                 Some((*cell, attempt))
             } else {
                 None
@@ -110,7 +110,9 @@ fn attempts(fx: &[Effect]) -> Vec<(Cell, &Attempt)> {
 }
 
 fn events(fx: &[Effect]) -> Vec<&WorkerEvent> {
-    fx.iter().filter_map(|e| if let Effect::Worker(ev) = e { Some(ev) } else { None }).collect()
+    fx.iter()
+        .filter_map(|e| if let Effect::Report(Event::Worker(ev)) = e { Some(ev) } else { None })
+        .collect()
 }
 
 fn fruitless(fx: &[Effect]) -> Option<(usize, &Attempt)> {
@@ -128,7 +130,9 @@ fn ready_records_the_setup_and_starts_the_gap_before_the_first_cell() {
     let t0 = Instant::now();
     let (w, fx) = feed(Worker::new(7, cells(), false, t0), ready(), at(t0, 100));
     assert_eq!(w.deadline(&LIMITS), Some(at(t0, 100) + LIMITS.timeout));
-    assert!(matches!(fx[0], Effect::Ready { device_ms, .. } if device_ms == 1.0));
+    assert!(
+        matches!(fx[0], Effect::Report(Event::WorkerReady { device_ms, .. }) if device_ms == 1.0)
+    );
     let ev = events(&fx)[0];
     assert_eq!(
         (ev.worker, ev.phase, ev.outcome, ev.cells, ev.wall_ms),
@@ -338,6 +342,7 @@ fn a_failed_setup_is_a_worker_event_and_fruitless() {
     let fatal = msg(WorkerMsg::Fatal {
         message: "injected device loss".into(),
         outcome: Outcome::DeviceLost,
+        halt: None,
     });
     let (asked, fx) = dies(w, fatal, exit(Some(3), None), at(t0, 50));
     assert_eq!(asked, Effect::Kill, "its group is killed: nothing of it may linger");
@@ -351,10 +356,74 @@ fn a_failed_setup_is_a_worker_event_and_fruitless() {
     );
 }
 
+/// A fatal message that halts the run: the shader compiler could not start.
+fn no_compiler() -> Input {
+    msg(WorkerMsg::Fatal {
+        message: "the shader compiler (shaderc) could not be started".into(),
+        outcome: Outcome::Error,
+        halt: Some(Halt::NoShaderCompiler),
+    })
+}
+
+fn halts(fx: &[Effect]) -> Vec<Halt> {
+    fx.iter()
+        .filter_map(|e| if let Effect::Report(Event::Halt(h)) = e { Some(*h) } else { None })
+        .collect()
+}
+
+#[test]
+fn a_setup_without_a_shader_compiler_is_recorded_then_halts_the_run() {
+    let t0 = Instant::now();
+    let (w, _) = feed(
+        Worker::new(4, cells(), false, t0),
+        phase(Phase::Setup, Some("vkCreateDevice")),
+        at(t0, 5),
+    );
+    let (asked, fx) = dies(w, no_compiler(), exit(Some(3), None), at(t0, 50));
+    assert_eq!(asked, Effect::Kill);
+    let ev = events(&fx)[0];
+    assert_eq!((ev.worker, ev.phase, ev.outcome), (4, Phase::Setup, Outcome::Error));
+    assert_eq!(
+        ev.detail.as_deref(),
+        Some("worker setup failed in setup (vkCreateDevice): the shader compiler (shaderc) could not be started")
+    );
+    assert_eq!(halts(&fx), [Halt::NoShaderCompiler]);
+    assert!(
+        matches!(fx.last(), Some(Effect::Report(Event::Halt(_)))),
+        "the worker's record comes first: {fx:?}"
+    );
+    // The run stops: its cells are neither given up as not run nor blamed.
+    assert_eq!(fruitless(&fx), None, "{fx:?}");
+    assert!(attempts(&fx).is_empty());
+}
+
+#[test]
+fn only_a_halting_fatal_halts_and_a_halt_is_never_lost() {
+    // The twin: the same failed setup without `halt` is this worker's alone (fruitless, retried).
+    let t0 = Instant::now();
+    let plain = msg(WorkerMsg::Fatal {
+        message: "the shader compiler (shaderc) could not be started".into(),
+        outcome: Outcome::Error,
+        halt: None,
+    });
+    let (_, fx) = dies(Worker::new(4, cells(), false, t0), plain, exit(Some(3), None), at(t0, 50));
+    assert!(halts(&fx).is_empty() && fruitless(&fx).is_some(), "{fx:?}");
+    // A halt in any state reaches the supervisor: mid-cell, while prebuilding.
+    let ids: Vec<String> = cells().iter().map(Cell::id).collect();
+    let (prebuilding, _) =
+        feed(ready_worker(t0), msg(WorkerMsg::Prebuild { cells: ids, threads: 4 }), at(t0, 200));
+    for w in [in_cell(t0, Phase::Compile), prebuilding] {
+        let (_, fx) = dies(w, no_compiler(), exit(Some(0), None), at(t0, 300));
+        assert_eq!(halts(&fx), [Halt::NoShaderCompiler], "{fx:?}");
+        assert!(attempts(&fx).is_empty() && fruitless(&fx).is_none(), "{fx:?}");
+    }
+}
+
 #[test]
 fn a_fatal_mid_cell_is_the_workers_and_the_cell_runs_again() {
     let t0 = Instant::now();
-    let fatal = msg(WorkerMsg::Fatal { message: "gone".into(), outcome: Outcome::Error });
+    let fatal =
+        msg(WorkerMsg::Fatal { message: "gone".into(), outcome: Outcome::Error, halt: None });
     let (_, fx) = dies(in_cell(t0, Phase::Record), fatal, exit(Some(2), None), at(t0, 300));
     assert!(attempts(&fx).is_empty(), "{fx:?}");
     assert_eq!(events(&fx)[0].phase, Phase::Record);
@@ -375,7 +444,7 @@ fn a_prebuild_step_restarts_the_deadline() {
     assert_eq!(w.where_(), "prebuild (pipelines 1/3)");
     let (w, fx) =
         feed(w, msg(WorkerMsg::Prebuilt { wall_ms: 5.0, pipelines: 3, threads: 4 }), at(t0, 9_500));
-    assert_eq!(fx, [Effect::Prebuilt { wall_ms: 5.0, pipelines: 3, threads: 4 }]);
+    assert_eq!(fx, [Effect::Report(Event::Prebuilt { wall_ms: 5.0, pipelines: 3, threads: 4 })]);
     assert_eq!(w.state, State::Between { since: at(t0, 9_500) });
 }
 
@@ -402,7 +471,11 @@ fn a_death_while_prebuilding_sends_its_batch_cell_by_cell() {
         (Input::Deadline, exit(None, Some(libc::SIGTERM)), Outcome::Timeout),
         (Input::Eof, exit(None, Some(libc::SIGSEGV)), Outcome::Crash),
         (
-            msg(WorkerMsg::Fatal { message: "lost".into(), outcome: Outcome::DeviceLost }),
+            msg(WorkerMsg::Fatal {
+                message: "lost".into(),
+                outcome: Outcome::DeviceLost,
+                halt: None,
+            }),
             exit(Some(0), None),
             Outcome::DeviceLost,
         ),
@@ -489,7 +562,7 @@ fn cache_saved_is_passed_on_with_its_reason() {
     let t0 = Instant::now();
     let (_, fx) =
         feed(one_done(t0), msg(WorkerMsg::CacheSaved { bytes: None, error: None }), at(t0, 400));
-    assert_eq!(fx, [Effect::CacheSaved(Err("not saved".into()))]);
+    assert_eq!(fx, [Effect::Report(Event::CacheSaved(Err("not saved".into())))]);
 }
 
 #[test]

@@ -1,0 +1,30 @@
+//! What running cells reports, in one vocabulary from the worker's state machine up: the machine
+//! ([`super::machine`]) emits each [`Event`] as an effect, the supervisor passes it on (an
+//! attempt tagged with what was injected into it), and the rounds above record it through
+//! [`super::oracle::Oracle`]. A new event is a variant here, emitted by the machine and recorded
+//! by its consumers: nothing translates one event type into another.
+use crate::model::{Attempt, Cell, Halt, WorkerEvent};
+
+/// Events for the report writer and progress display.
+// One message per line, moved once: boxing the large variant would buy nothing.
+#[allow(clippy::large_enum_variant)]
+#[derive(Debug, PartialEq)]
+pub enum Event {
+    /// A worker finished its setup.
+    WorkerReady {
+        device_ms: f64,
+        reference_ms: f64,
+        pipeline_cache: Option<crate::exec::pipeline_cache::Loaded>,
+    },
+    /// A worker built a batch of cells ahead of their turns.
+    Prebuilt { wall_ms: f64, pipelines: usize, threads: usize },
+    /// A worker wrote the pipeline cache back (`Err`: why not).
+    CacheSaved(Result<u64, String>),
+    /// A worker's setup finished or failed, or it faulted outside a cell.
+    Worker(WorkerEvent),
+    /// An attempt of one cell.
+    Attempt { cell: Cell, attempt: Attempt },
+    /// A worker found what no cell of the run can get past: the supervisor stops its workers
+    /// and runs nothing more, and the rounds above stop (after the worker's own record).
+    Halt(Halt),
+}
