@@ -152,7 +152,11 @@ pub fn patch(g: &Globals, a: &PatchArgs) -> Result<u8> {
         stages.push(Stage { file: i.name.clone(), module, rules });
         val.push(opts);
     }
-    let before: Vec<String> = stages.iter().map(|s| patches::disassemble(&s.module)).collect();
+    let before: Vec<String> = if a.disassemble {
+        stages.iter().map(|s| patches::disassemble(&s.module)).collect()
+    } else {
+        Vec::new()
+    };
     let applied = pipeline::apply(&mut stages, &names, &options, a.max_push_constants)
         .map_err(|e| coded(exit::BAD_INPUT, e.to_string()))?;
     let patched: Vec<Vec<u32>> = stages.iter().map(|s| patches::assemble(&s.module)).collect();

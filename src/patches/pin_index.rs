@@ -139,3 +139,58 @@ pub fn apply(m: &mut Module, opts: &Options, ids: &mut SpecIds) -> Result<Report
     }
     Ok(Report { pinned: accesses.len(), descriptors })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn module(glsl: &str) -> Module {
+        let mut c = crate::shadergen::compile::Compiler::new().expect("shaderc");
+        let words =
+            c.compile_glsl(shaderc::ShaderKind::ClosestHit, "t.rchit", glsl).expect("compiles");
+        crate::patches::load(&crate::tools::spirv::bytes(&words)).expect("loads")
+    }
+
+    const MIXED: &str = "#version 460\n#extension GL_EXT_ray_tracing : require\n\
+        #extension GL_EXT_nonuniform_qualifier : require\n\
+        layout(set = 2, binding = 0) readonly buffer A { vec4 a[]; } as_[3];\n\
+        layout(set = 3, binding = 0) readonly buffer B { vec4 b[]; } bs[3];\n\
+        layout(location = 0) rayPayloadInEXT vec4 c;\n\
+        void main() { uint u = uint(gl_InstanceCustomIndexEXT) % 3u; int i = gl_PrimitiveID % 3;\n\
+        c = as_[nonuniformEXT(u)].a[0] + bs[nonuniformEXT(i)].b[1] + as_[nonuniformEXT(i)].a[2]; }\n";
+
+    #[test]
+    fn each_descriptor_gets_its_own_spec_id_whatever_its_index_type() {
+        // Set 2 and set 3, both binding 0, indexed by uint and int: binding=0 alone pins both, each
+        // with its own SpecId (one 32-bit unsigned spec constant each).
+        let mut m = module(MIXED);
+        let mut ids = SpecIds::new(used(&m), None);
+        let o = Options { binding: Some(0), value: 1, ..Options::default() };
+        let r = apply(&mut m, &o, &mut ids).expect("int and uint indices are pinned alike");
+        assert_eq!(r.pinned, 3);
+        let pairs: Vec<(u32, u32, u32)> =
+            r.descriptors.iter().map(|d| (d.set, d.binding, d.spec_id)).collect();
+        assert_eq!(pairs, vec![(2, 0, 0), (3, 0, 1)]);
+        let specs: Vec<_> =
+            m.types_global_values.iter().filter(|i| i.class.opcode == Op::SpecConstant).collect();
+        assert_eq!(specs.len(), 2);
+        let u32_t = edit::type_int(&mut m.clone(), 32, false);
+        assert!(specs.iter().all(|s| s.result_type == Some(u32_t)));
+        let v = crate::patches::validate(&crate::patches::assemble(&m));
+        assert!(
+            matches!(
+                v,
+                crate::patches::Validation::Valid | crate::patches::Validation::Unavailable
+            ),
+            "{v:?}"
+        );
+        // set=3 narrows it to one descriptor; a SpecId the module already uses is refused.
+        let mut m = module(MIXED);
+        let o = Options { set: Some(3), ..Options::default() };
+        let mut ids = SpecIds::new(used(&m), None);
+        assert_eq!(apply(&mut m, &o, &mut ids).unwrap().pinned, 1);
+        let taken = used(&m);
+        let e = apply(&mut module(MIXED), &Options::default(), &mut SpecIds::new(taken, Some(0)));
+        assert!(e.unwrap_err().to_string().contains("spec-id=0 is already used"));
+    }
+}

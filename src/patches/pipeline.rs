@@ -469,3 +469,91 @@ fn contract(
         ..HostContract::default()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn stage(file: &str, kind: shaderc::ShaderKind, glsl: &str) -> Stage {
+        let mut c = crate::shadergen::compile::Compiler::new().expect("shaderc");
+        let words = c.compile_glsl(kind, file, glsl).expect("compiles");
+        let module = crate::patches::load(&crate::tools::spirv::bytes(&words)).expect("loads");
+        Stage { file: file.into(), module, rules: Rules::Standard }
+    }
+
+    const HEAD: &str = "#version 460\n#extension GL_EXT_ray_tracing : require\n";
+
+    fn pipeline() -> Vec<Stage> {
+        let rgen = format!(
+            "{HEAD}layout(set = 0, binding = 0) uniform accelerationStructureEXT t;\n\
+            layout(location = 0) rayPayloadEXT vec4 c;\n\
+            void main() {{ traceRayEXT(t, 0u, 0xFF, 0, 0, 0, vec3(0), 0.0, vec3(1), 1.0, 0); }}\n"
+        );
+        let chit = format!("{HEAD}layout(push_constant) uniform P {{ vec4 tint; vec2 k; }} pc;\n\
+            layout(set = 0, binding = 0) uniform accelerationStructureEXT t;\n\
+            layout(location = 0) rayPayloadInEXT vec4 c;\nlayout(location = 1) rayPayloadEXT vec4 s;\n\
+            void main() {{ traceRayEXT(t, 0u, 0xFF, 0, 0, 1, vec3(0), 0.0, vec3(1), 1.0, 1); c = pc.tint * s + pc.k.x; }}\n");
+        vec![
+            stage("a.rgen", shaderc::ShaderKind::RayGeneration, &rgen),
+            stage("b.rchit", shaderc::ShaderKind::ClosestHit, &chit),
+        ]
+    }
+
+    fn options(kv: &[(&str, &str)]) -> BTreeMap<String, String> {
+        kv.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect()
+    }
+
+    #[test]
+    fn one_address_per_descriptor_past_every_stage_and_in_every_stage_that_reads_it() {
+        let mut s = pipeline();
+        let a = apply(&mut s, &[PatchName::AsToAddress], &options(&[]), 128).unwrap();
+        // b.rchit's block ends at 24: the TLAS both stages read gets one address there.
+        let c = &a.contract;
+        assert_eq!(c.addresses.len(), 1);
+        assert_eq!((c.addresses[0].offset, c.addresses[0].set, c.addresses[0].binding), (24, 0, 0));
+        assert_eq!(c.addresses[0].stages, vec!["closest_hit".to_string(), "raygen".to_string()]);
+        assert_eq!(c.push_range.as_ref().map(|r| (r.offset, r.size)), Some((24, 8)));
+        assert_eq!(c.push_end, 32);
+        assert_eq!(c.modules[1].push_block, Some([0, 24]));
+        assert!(a.warnings.is_empty(), "{:?}", a.warnings);
+        for st in &s {
+            let v = crate::patches::validate(&crate::patches::assemble(&st.module));
+            assert!(
+                matches!(
+                    v,
+                    crate::patches::Validation::Valid | crate::patches::Validation::Unavailable
+                ),
+                "{}: {v:?}",
+                st.file
+            );
+        }
+    }
+
+    #[test]
+    fn an_offset_inside_another_stages_block_or_past_the_limit_is_refused() {
+        // a.rgen has no block, but b.rchit's bytes 0..24 are the pipeline's: offset=16 overlaps.
+        let e =
+            apply(&mut pipeline(), &[PatchName::AsToAddress], &options(&[("offset", "16")]), 128)
+                .unwrap_err();
+        assert_eq!(e.file.as_deref(), Some("b.rchit"));
+        assert!(
+            e.to_string().contains("overlaps the push-constant block, which ends at 24"),
+            "{e}"
+        );
+        assert_eq!(
+            apply(&mut pipeline(), &[PatchName::AsToAddress], &options(&[("offset", "32")]), 128)
+                .unwrap()
+                .contract
+                .addresses[0]
+                .offset,
+            32
+        );
+        let e = apply(&mut pipeline(), &[PatchName::AsToAddress], &options(&[]), 28).unwrap_err();
+        assert!(e.to_string().contains("past maxPushConstantsSize 28"), "{e}");
+        // One stage alone without a block: warned about.
+        let mut one = pipeline();
+        one.truncate(1);
+        let a = apply(&mut one, &[PatchName::AsToAddress], &options(&[]), 128).unwrap();
+        assert!(a.warnings[0].contains("a.rgen had no push-constant block"), "{:?}", a.warnings);
+    }
+}

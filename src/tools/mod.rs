@@ -53,6 +53,9 @@ impl Tool {
             Origin::SidRoot(root) => {
                 format!("{} {} (sid root {})", self.name, self.version_text, root.display())
             }
+            Origin::Path if self.program.components().count() == 1 => {
+                format!("{} {} (on PATH)", self.name, self.version_text)
+            }
             Origin::Path => {
                 format!("{} {} ({})", self.name, self.version_text, self.program.display())
             }
