@@ -110,6 +110,11 @@ fn compile(a: &PatchArgs, path: &Path, bytes: &[u8], name: &str) -> Result<Vec<u
     })?;
     let src = crate::shadergen::include::decode(bytes);
     let opts = glsl_options(a, path)?;
+    if let Some(note) = opts.target.mapping_note() {
+        if crate::shadergen::glslang::needed_by(&src).is_none() {
+            eprintln!("rtprobe: note: {note}");
+        }
+    }
     let mut c = crate::shadergen::compile::Compiler::new()
         .map_err(|e| coded(exit::NO_SHADER_COMPILER, e))?;
     c.compile_user_glsl(k, name, &src, &opts).map_err(|e| coded(exit::BAD_INPUT, e.to_string()))

@@ -209,7 +209,7 @@ fn run_options(
         eprintln!("rtprobe: note: --validate runs with --threads 1, so that each validation error is counted for the cell that raised it");
     }
     RunOptions {
-        jobs: a.jobs.unwrap_or_else(|| default_jobs(info)),
+        jobs: Some(a.jobs.unwrap_or_else(|| default_jobs(info))),
         threads: Some(threads),
         pipeline_cache: pipeline_cache_dir(a.pipeline_cache.as_deref()),
         rerun_pipeline_cache: None,
@@ -244,7 +244,7 @@ fn supervisor(a: &RunArgs, o: &RunOptions, info: &DeviceInfo, c: &Checked) -> Su
         ..supervisor_options(
             info.index,
             c.params,
-            o.jobs,
+            o.jobs.unwrap_or_else(|| default_jobs(info)),
             o.isolation,
             o.timeout_s,
             o.validate,
@@ -284,8 +284,9 @@ fn print_list(the_plan: &RunPlan, shard: Option<Shard>, sharded_out: usize) {
     if the_plan.to_run().any(|c| c.heap_access == Some(crate::model::HeapAccess::Direct)) {
         if let Some(g) = crate::shadergen::glslang::find() {
             println!(
-                "compiler: heap_access=direct shaders by {}; all others by shaderc",
-                g.describe()
+                "compiler: heap_access=direct shaders by {}; all others by {}",
+                g.describe(),
+                crate::shadergen::compile::SHADERC
             );
         }
     }
@@ -362,7 +363,7 @@ fn print_end(a: &RunArgs, writer: &ReportWriter, out: &Path) -> Result<u8> {
 fn exit_code(r: &RunReport, allow_improvements: bool) -> u8 {
     let findings = match &r.baseline {
         Some(c) => !c.ok(allow_improvements),
-        None => r.findings().next().is_some() || r.workers.iter().any(|w| w.outcome.is_finding()),
+        None => r.findings().next().is_some() || r.workers.iter().any(|w| w.is_fault()),
     };
     if findings {
         exit::FINDINGS

@@ -1,8 +1,12 @@
 //! GLSL → SPIR-V with shaderc (Vulkan 1.2 / SPIR-V 1.5, no optimization: the driver must see
-//! the shape the cell asks for); sources with GL_EXT_descriptor_heap, which shaderc's glslang
-//! predates, go to an external glslangValidator ([`super::glslang`]). Each distinct source is
-//! compiled once per process. User GLSL (`patch --glsl`) may pick another target and use
-//! `#include` ([`super::include`]) and defines.
+//! the shape the cell asks for); sources that enable an extension shaderc's glslang predates
+//! (GL_EXT_descriptor_heap, ...) go to an external glslangValidator ([`super::glslang`]). Each
+//! distinct source is compiled once per process. User GLSL (`patch --glsl`) may pick another
+//! target and use `#include` ([`super::include`]) and defines.
+//!
+//! shaderc is the system's (shaderc 2023.2 with glslang 12 on Debian 12, linked statically by
+//! build.rs) or, with `--features bundled-shaderc`, its own copy built from source; [`SHADERC`]
+//! says which. Debian 12's predates Vulkan 1.4: [`TargetEnv::compiled_as`].
 use super::include::Includes;
 use super::Role;
 use std::collections::HashMap;
@@ -21,18 +25,25 @@ pub struct Compiler {
     precompiled_ms: HashMap<u64, f64>,
 }
 
-/// The shaderc this binary links (the `shaderc` crate built from source, with the glslang of that
-/// release); a test holds it to Cargo.lock.
-pub const SHADERC: &str = "shaderc-rs 0.10.1 (shaderc built from source)";
+/// The shaderc this binary links: the `shaderc` crate over the system's shaderc, glslang and
+/// SPIRV-Tools (their versions, from build.rs), or over its own copy built from source
+/// (`bundled-shaderc`). Reports and bundles name it; a test holds the crate version to Cargo.lock.
+pub const SHADERC: &str = concat!("shaderc-rs 0.10.1 (", env!("RTPROBE_SHADERC_BUILD"), ")");
 
-/// Whether `glsl` needs the external glslangValidator (it enables GL_EXT_descriptor_heap).
-pub fn uses_heap(glsl: &str) -> bool {
-    glsl.contains(&format!("#extension {} ", super::glslang::HEAP_EXTENSION))
+/// Whether shaderc is the system's (glslang 12 on Debian 12), not the bundled build.
+pub const SYSTEM_SHADERC: bool = cfg!(system_shaderc);
+/// Whether the linked shaderc knows a Vulkan 1.4 environment (the system's 2023.2 does not).
+pub const KNOWS_VULKAN_1_4: bool = !cfg!(shaderc_without_vulkan_1_4);
+
+/// Whether `glsl` needs the external glslangValidator (it enables an extension of
+/// [`super::glslang::EXTENSIONS`], such as GL_EXT_descriptor_heap).
+pub fn uses_external(glsl: &str) -> bool {
+    super::glslang::needed_by(glsl).is_some()
 }
 
 /// The compiler [`Compiler::compile`] uses for `glsl`, with its version.
 pub fn compiler_for(glsl: &str) -> String {
-    if !uses_heap(glsl) {
+    if !uses_external(glsl) {
         return SHADERC.into();
     }
     match super::glslang::find() {
@@ -73,7 +84,7 @@ impl Compiler {
             .iter()
             .map(|&(role, glsl)| (source_hash(role, glsl), role, glsl))
             .filter(|&(key, _, glsl)| {
-                !uses_heap(glsl) && !self.cache.contains_key(&key) && seen.insert(key)
+                !uses_external(glsl) && !self.cache.contains_key(&key) && seen.insert(key)
             })
             .collect();
         if todo.is_empty() {
@@ -111,7 +122,7 @@ impl Compiler {
             return Ok((s.clone(), self.precompiled_ms.remove(&key).unwrap_or(0.0)));
         }
         let t = Instant::now();
-        let words = Arc::new(if uses_heap(glsl) {
+        let words = Arc::new(if uses_external(glsl) {
             super::glslang::compile(role, glsl)?
         } else {
             self.compile_glsl(role.kind(), role.file_name(), glsl)?
@@ -132,9 +143,11 @@ impl Compiler {
 
     /// Compile GLSL with `#include` resolution, macro definitions and a target environment
     /// (`rtprobe patch`). Errors are one line, each naming its file, line and include chain. A
-    /// missing or too old `#version` is refused before the compiler sees it
-    /// ([`super::preflight`]); a source enabling an extension the bundled glslang does not know
-    /// goes, when it is a file (`o.input`), to the newest glslangValidator here.
+    /// missing or too old `#version` is refused before a compiler sees it
+    /// ([`super::preflight`]). A source that enables an extension of
+    /// [`super::glslang::EXTENSIONS`] goes to the external glslangValidator with the same target,
+    /// include folders and defines; one that enables another extension the glslang in shaderc does
+    /// not know goes there too when shaderc refuses it.
     pub fn compile_user_glsl(
         &mut self,
         kind: shaderc::ShaderKind,
@@ -145,10 +158,13 @@ impl Compiler {
         if let Some(why) = super::preflight::version_problem(kind, glsl) {
             return Err(CompileError::Glsl { file: file.to_string(), message: why });
         }
+        if let Some(ext) = super::glslang::needed_by(glsl) {
+            return external(kind, file, glsl, o, ext);
+        }
         let includes =
             o.input.as_ref().map(|input| Includes::new(input, file, glsl, &o.include_dirs));
         let mut opts = shaderc::CompileOptions::new().map_err(|_| CompileError::Init)?;
-        let (env, spirv) = o.target.versions();
+        let (env, spirv) = o.target.compiled_as().versions();
         opts.set_target_env(shaderc::TargetEnv::Vulkan, env as u32);
         opts.set_target_spirv(spirv);
         for (name, value) in &o.defines {
@@ -168,45 +184,34 @@ impl Compiler {
             Some(inc) => inc.annotate(&e.to_string()),
             None => e.to_string().replace('\n', " | "),
         };
-        match (super::preflight::unknown_extension(&message), &o.input) {
-            (Some(ext), Some(input)) => external(kind, input, o, &ext),
-            _ => Err(CompileError::Glsl { file: file.to_string(), message }),
+        match super::preflight::unknown_extension(&message) {
+            Some(ext) => external(kind, file, glsl, o, &ext),
+            None => Err(CompileError::Glsl { file: file.to_string(), message }),
         }
     }
 }
 
-/// Compile the file `input` with the newest glslangValidator, for the extension `ext` the bundled
-/// compiler does not know; when it knows it neither (or there is none), one line saying so and
-/// where a newer one is (the sid root of `scripts/setup-sid`).
+/// Compile `glsl` (named `file`) with the external glslangValidator, for the extension `ext`
+/// the glslang in shaderc does not know: the same target, include folders (the input's own
+/// first) and defines. When that one does not know it either, one line says so.
 fn external(
     kind: shaderc::ShaderKind,
-    input: &std::path::Path,
+    file: &str,
+    glsl: &str,
     o: &GlslOptions,
     ext: &str,
 ) -> Result<Vec<u32>, CompileError> {
-    let file = super::include::display(input);
-    let hint = match crate::tools::sid_root() {
-        Some(root) => format!("the sid root at {} has none newer", root.display()),
-        None => "no sid root here (RTPROBE_SID_ROOT, default /var/lib/rtprobe/sid-root): \
-                 scripts/setup-sid makes one with glslang 16.6"
-            .into(),
-    };
-    let unknown = |by: String| CompileError::Glsl {
-        file: file.clone(),
-        message: format!("{ext} is not known to {by}; {hint}"),
-    };
-    let Some(g) = crate::tools::glslang() else {
-        return Err(unknown(format!(
-            "the bundled compiler ({SHADERC}) and no glslangValidator is installed"
-        )));
-    };
-    let stage = super::glslang::stage_name(kind)
-        .ok_or_else(|| unknown(format!("the bundled compiler ({SHADERC})")))?;
-    super::glslang::compile_file(g, stage, input, &o.glslang_args()).map_err(|e| match e {
-        CompileError::Glsl { message, .. }
+    let args = o.glslang_args();
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let stage = super::glslang::stage_of_kind(kind);
+    super::glslang::compile_with(file, stage, glsl, ext, &args).map_err(|e| match e {
+        CompileError::Glsl { file, message }
             if message.contains(&format!("extension not supported: {ext}")) =>
         {
-            unknown(format!("the bundled compiler ({SHADERC}) nor to {}", g.describe()))
+            let by = super::glslang::find().map(|g| g.describe()).unwrap_or_default();
+            let message =
+                format!("{ext} is known neither to the glslang in shaderc ({SHADERC}) nor to {by}");
+            CompileError::Glsl { file, message }
         }
         e => e,
     })
@@ -226,13 +231,41 @@ pub enum TargetEnv {
 }
 
 impl TargetEnv {
-    /// glslangValidator's `--target-env` name.
+    /// The `--target-env` name (shaderc's and glslangValidator's).
     pub fn name(self) -> &'static str {
         match self {
             TargetEnv::Vulkan1_2 => "vulkan1.2",
             TargetEnv::Vulkan1_3 => "vulkan1.3",
             TargetEnv::Vulkan1_4 => "vulkan1.4",
         }
+    }
+
+    /// The environment shaderc is asked for. A system shaderc that predates Vulkan 1.4 (Debian
+    /// 12's 2023.2) would silently compile it for its default environment instead; rtprobe asks it for
+    /// Vulkan 1.3 with SPIR-V 1.6, the SPIR-V version Vulkan 1.4 also uses, and says so
+    /// ([`TargetEnv::mapping_note`]). The bundled shaderc and the external glslangValidator know
+    /// Vulkan 1.4.
+    pub fn compiled_as(self) -> TargetEnv {
+        match self {
+            TargetEnv::Vulkan1_4 if !KNOWS_VULKAN_1_4 => TargetEnv::Vulkan1_3,
+            t => t,
+        }
+    }
+
+    /// What [`TargetEnv::compiled_as`] changed, in a sentence for the user; `None` when nothing.
+    pub fn mapping_note(self) -> Option<String> {
+        let as_ = self.compiled_as();
+        (as_ != self).then(|| {
+            format!(
+                "--target-env {}: compiled for {} (SPIR-V 1.6, as {} uses): the system shaderc \
+                 this rtprobe links predates Vulkan 1.4 ({SHADERC}); a build with --features \
+                 bundled-shaderc compiles for {} itself",
+                self.name(),
+                as_.name(),
+                self.name(),
+                self.name()
+            )
+        })
     }
 
     fn versions(self) -> (shaderc::EnvVersion, shaderc::SpirvVersion) {
@@ -260,9 +293,14 @@ impl GlslOptions {
     /// `-I` (glslang searches the including file's directory first, as [`Includes`] does), `-D`.
     pub fn glslang_args(&self) -> Vec<String> {
         let mut a = vec!["--target-env".to_string(), self.target.name().to_string()];
-        let own =
-            self.input.as_ref().and_then(|i| i.parent()).filter(|p| !p.as_os_str().is_empty());
-        for d in own.into_iter().chain(self.include_dirs.iter().map(|d| d.as_path())) {
+        let own = self.input.as_ref().and_then(|i| i.parent()).map(|d| {
+            if d.as_os_str().is_empty() {
+                PathBuf::from(".")
+            } else {
+                d.to_path_buf()
+            }
+        });
+        for d in own.iter().chain(&self.include_dirs) {
             a.push(format!("-I{}", d.display()));
         }
         for (name, value) in &self.defines {
@@ -293,5 +331,25 @@ mod tests {
         assert_eq!(compiler_for("#version 460\nvoid main() {}\n"), SHADERC);
         assert!(compiler_for("#version 460\n#extension GL_EXT_descriptor_heap : require\n")
             .starts_with("glslangValidator"));
+        assert!(compiler_for("#extension GL_EXT_shader_invocation_reorder : require\n")
+            .starts_with("glslangValidator"));
+        assert_eq!(compiler_for("#extension GL_NV_shader_invocation_reorder : require\n"), SHADERC);
+    }
+
+    #[test]
+    fn vulkan1_4_is_mapped_only_for_a_shaderc_without_it() {
+        assert_eq!(SHADERC.contains("system shaderc"), SYSTEM_SHADERC, "{SHADERC}");
+        const { assert!(KNOWS_VULKAN_1_4 || SYSTEM_SHADERC, "the bundled shaderc knows Vulkan 1.4") };
+        for t in [TargetEnv::Vulkan1_2, TargetEnv::Vulkan1_3] {
+            assert_eq!((t.compiled_as(), t.mapping_note()), (t, None));
+        }
+        let t = TargetEnv::Vulkan1_4;
+        if !KNOWS_VULKAN_1_4 {
+            assert_eq!(t.compiled_as(), TargetEnv::Vulkan1_3);
+            let note = t.mapping_note().unwrap();
+            assert!(note.contains("compiled for vulkan1.3") && note.contains("glslang "), "{note}");
+        } else {
+            assert_eq!((t.compiled_as(), t.mapping_note()), (t, None));
+        }
     }
 }
