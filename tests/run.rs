@@ -735,8 +735,10 @@ fn faulting_cells_are_retried_with_each_applicable_workaround() {
 
 /// Building pipelines on several threads changes nothing but time: every cell's attempts have
 /// the same outcomes, phases and details with `--threads 1` and `--threads 2`, including a
-/// crash in a trace (injected), a pipeline creation error (ssbo-to-address on the injected
-/// shader) and the workers that replace crashed ones.
+/// crash in a trace (injected) and the workers that replace crashed ones. (The pipeline creation
+/// error this run used to include was ssbo-to-address's own invalid SPIR-V — its 64-bit type
+/// declared after the push block that used it, issue #23 — and is gone: that variant now
+/// crashes in its trace like the cell it patches.)
 #[test]
 fn threads_change_no_verdict() {
     let dir = tempfile::tempdir().unwrap();
@@ -767,11 +769,19 @@ fn threads_change_no_verdict() {
                 )
             })
             .collect();
-        assert!(
-            verdicts.iter().any(|(_, a)| a[0].0 == "error" && a[0].1 == "pipeline"),
+        let first =
+            |id: &str| verdicts.iter().find(|v| v.0 == id).and_then(|v| v.1.first().cloned());
+        let ssbo =
+            first("closest_hit.storage_buffer.dynamic.descriptor_indexing.patch-ssbo-to-address");
+        assert_eq!(
+            ssbo.map(|a| (a.0, a.1)),
+            Some(("crash".into(), "trace".into())),
             "{verdicts:?}"
         );
-        assert!(verdicts.iter().any(|(_, a)| a[0].0 == "crash"), "{verdicts:?}");
+        assert!(
+            verdicts.iter().all(|(_, a)| a.first().is_none_or(|x| x.0 != "error")),
+            "{verdicts:?}"
+        );
         if t == "2" {
             assert!(r["timing"]["prebuilt_pipelines"].as_u64().unwrap() > 0, "{}", r["timing"]);
         }

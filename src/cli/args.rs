@@ -404,37 +404,50 @@ pub struct StressArgs {
 
 #[derive(Args, Debug)]
 pub struct PatchArgs {
-    /// Input: a SPIR-V binary (or GLSL source with --glsl)
-    pub input: Option<PathBuf>,
+    /// Inputs: SPIR-V binaries (`.spv`, or any file starting with the SPIR-V magic number) or
+    /// GLSL sources. Several inputs are one pipeline, patched together: one push-constant
+    /// address per descriptor across all of them, past every stage's own push data
+    pub inputs: Vec<PathBuf>,
 
-    /// Patches to apply, in order (comma-separated): as-to-address, nonuniform, pin-index,
-    /// ssbo-to-address (`rtprobe patch --list` describes each)
-    #[arg(long, short = 'a', value_delimiter = ',', value_name = "PATCH,...")]
+    #[arg(long, short = 'a', value_delimiter = ',', value_name = "PATCH,...", help = crate::patches::apply_help())]
     pub apply: Vec<String>,
 
     /// A patch option KEY=VALUE (repeatable); see --list for each patch's keys
     #[arg(long = "option", value_name = "KEY=VALUE")]
     pub options: Vec<String>,
 
-    /// Output SPIR-V file (written only if every patch applied and the result validates)
-    #[arg(long, short = 'o', value_name = "FILE")]
+    /// Output: a file (one input), a folder (several inputs), or `-` for stdout (one input).
+    /// Default: beside each input, NAME.patched.spv. Written only if every patch applied and every
+    /// result validates
+    #[arg(long, short = 'o', value_name = "FILE|DIR|-")]
     pub out: Option<PathBuf>,
+
+    /// The host contract (JSON): the push-constant bytes and stages to add, which address goes
+    /// where, the spec constants. Default: beside the output, NAME.contract.json
+    #[arg(long, value_name = "FILE")]
+    pub contract: Option<PathBuf>,
+
+    /// Also write the input as compiled, before any patch (a file for one input, a folder for
+    /// several)
+    #[arg(long, value_name = "FILE|DIR")]
+    pub emit_unpatched: Option<PathBuf>,
 
     /// List the patches and their options
     #[arg(long)]
     pub list: bool,
 
-    /// The input is GLSL: compile it with shaderc first (see --target-env, -I, -D)
+    /// Read every input as GLSL (default: GLSL unless it is a `.spv` file or starts with the
+    /// SPIR-V magic number)
     #[arg(long)]
     pub glsl: bool,
 
     /// GLSL include directory (repeatable, searched in order after the input's own directory);
     /// `#include "x"` also looks next to the including file first
-    #[arg(short = 'I', long = "include-dir", value_name = "DIR", requires = "glsl")]
+    #[arg(short = 'I', long = "include-dir", value_name = "DIR")]
     pub include_dirs: Vec<PathBuf>,
 
-    /// GLSL macro NAME or NAME=VALUE (repeatable)
-    #[arg(short = 'D', long = "define", value_name = "NAME[=VALUE]", requires = "glsl")]
+    /// GLSL macro NAME, NAME=VALUE or NAME(ARGS)=BODY, like glslang's -D (repeatable)
+    #[arg(short = 'D', long = "define", value_name = "NAME[=VALUE]")]
     pub defines: Vec<String>,
 
     /// Vulkan environment of GLSL input: vulkan1.2 (SPIR-V 1.5), vulkan1.3 or vulkan1.4 (SPIR-V 1.6;
@@ -442,9 +455,31 @@ pub struct PatchArgs {
     #[arg(long, value_enum, default_value = "vulkan1.2", value_name = "ENV")]
     pub target_env: crate::shadergen::compile::TargetEnv,
 
-    /// Stage of GLSL input: rgen, rchit, rahit, rmiss, rint, rcall, vert, frag, comp
+    /// Stage of a GLSL input, overriding its file name (.rgen .rchit .rahit .rmiss .rint .rcall
+    /// .comp .vert .frag, also NAME.rchit.glsl): rgen, rchit, rahit, rmiss, rint, rcall, vert,
+    /// frag, comp. A SPIR-V module's stage is its entry point's
     #[arg(long, value_name = "STAGE")]
     pub stage: Option<String>,
+
+    /// maxPushConstantsSize of the target device: a patch needing push constants past it is
+    /// refused (128 bytes is what every Vulkan device has)
+    #[arg(long, default_value_t = 128, value_name = "BYTES")]
+    pub max_push_constants: u32,
+
+    /// Patch without running spirv-val on the inputs and outputs (when the validator here is
+    /// too old for a module)
+    #[arg(long)]
+    pub no_spirv_val: bool,
+
+    /// Run the unpatched and the patched pipeline on the device (ray tracing stages: raygen
+    /// and the stages it needs) with distinct data in every descriptor, fed as the host contract
+    /// says, and require identical output; nothing is written when they differ
+    #[arg(long)]
+    pub verify: bool,
+
+    /// With --verify: device index or case-insensitive name substring
+    #[arg(long, short = 'd', value_name = "INDEX|NAME")]
+    pub device: Option<String>,
 
     /// Print the diff of the disassembly before and after
     #[arg(long)]

@@ -28,7 +28,8 @@ pub const HELP: &str = "\
 Exit codes:
   0  success (run: every cell passed or was unsupported)
   1  run: at least one cell faulted (device_lost, crash, timeout, error) or mismatched,
-     or a worker faulted outside a cell (between cells, in teardown); stress: a case did not pass
+     or a worker faulted outside a cell (between cells, in teardown); stress: a case did not pass;
+     patch --verify: the patched pipeline rendered differently from the unpatched one
   2  bad command-line arguments
   3  no Vulkan loader (libvulkan.so.1), or one older than Vulkan 1.2
   4  no Vulkan driver / physical device

@@ -7,6 +7,7 @@ pub mod commands;
 pub mod exit;
 pub mod fleet;
 pub mod patch;
+pub mod patch_inputs;
 pub mod report;
 pub mod repro;
 pub mod run;
@@ -52,7 +53,7 @@ pub fn main_entry() -> u8 {
         Command::Devices(a) => commands::devices(&g, a),
         Command::Caps(a) => commands::caps_cmd(&g, a),
         Command::Run(a) => run::run(&g, a),
-        Command::Patch(a) => patch::patch(a),
+        Command::Patch(a) => patch::patch(&g, a),
         Command::Bisect(a) => bisect::bisect(&g, a),
         Command::Report(a) => report::report(a),
         Command::Repro(a) => repro::repro(&g, a),

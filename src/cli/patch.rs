@@ -1,73 +1,36 @@
-//! `rtprobe patch`: read a SPIR-V binary (or compile GLSL), apply the requested patches, validate
-//! with spirv-val, and write the result atomically — or fail with one line and write nothing.
+//! `rtprobe patch`: read SPIR-V modules or compile GLSL ([`super::patch_inputs`]), validate each
+//! input with the options it needs, apply the requested patches to all of them as one pipeline,
+//! validate each result with its input's options, optionally run both pipelines on the device
+//! (`--verify`), and write the results and the host contract atomically — or fail with one line
+//! and write nothing.
 use super::args::PatchArgs;
+use super::commands::Globals;
 use super::exit::{self, coded};
+use super::patch_inputs::{self, Dest, Input};
 use crate::atomic::write_atomic;
+use crate::patches::layout::Rules;
+use crate::patches::pipeline::{self, Applied, Stage};
 use crate::patches::{self, PatchName, Validation};
-use crate::shadergen::compile::GlslOptions;
+use crate::tools::spirv::{self as spirv_tools, ValOptions};
 use anyhow::{Context, Result};
 use std::collections::BTreeMap;
+use std::io::Write;
 
-fn kind(stage: &str) -> Option<shaderc::ShaderKind> {
-    use shaderc::ShaderKind as K;
-    Some(match stage {
-        "rgen" => K::RayGeneration,
-        "rchit" => K::ClosestHit,
-        "rahit" => K::AnyHit,
-        "rmiss" => K::Miss,
-        "rint" => K::Intersection,
-        "rcall" => K::Callable,
-        "vert" => K::Vertex,
-        "frag" => K::Fragment,
-        "comp" => K::Compute,
-        _ => return None,
-    })
+fn list() -> u8 {
+    for (name, opts, what) in patches::LIST {
+        println!("{name:<16} [{opts}]\n    {what}");
+    }
+    exit::OK
 }
 
-/// `-I`, `-D` and `--target-env` as compile options; a bad `-D` or a missing `-I` directory is a
-/// usage error.
-fn glsl_options(a: &PatchArgs, input: &std::path::Path) -> Result<GlslOptions> {
-    for d in &a.include_dirs {
-        if !d.is_dir() {
-            return Err(coded(exit::USAGE, format!("-I {}: not a directory", d.display())));
-        }
+/// The patches and their `KEY=VALUE` options.
+fn requested(a: &PatchArgs) -> Result<(Vec<PatchName>, BTreeMap<String, String>)> {
+    if a.inputs.is_empty() {
+        return Err(coded(exit::USAGE, "patch needs an input file (or --list)"));
     }
-    let mut defines = Vec::new();
-    for d in &a.defines {
-        let (name, value) = match d.split_once('=') {
-            Some((n, v)) => (n.trim(), Some(v.to_string())),
-            None => (d.trim(), None),
-        };
-        let ident = name.chars().next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
-            && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
-        if !ident {
-            return Err(coded(exit::USAGE, format!("-D {d:?}: NAME must be a GLSL identifier")));
-        }
-        defines.push((name.to_string(), value));
-    }
-    Ok(GlslOptions {
-        input: Some(input.to_path_buf()),
-        include_dirs: a.include_dirs.clone(),
-        defines,
-        target: a.target_env,
-    })
-}
-
-pub fn patch(a: &PatchArgs) -> Result<u8> {
-    if a.list {
-        for (name, opts, what) in patches::LIST {
-            println!("{name:<14} [{opts}]\n    {what}");
-        }
-        return Ok(exit::OK);
-    }
-    let input = a
-        .input
-        .as_ref()
-        .ok_or_else(|| coded(exit::USAGE, "patch needs an input file (or --list)"))?;
     if a.apply.is_empty() {
         return Err(coded(exit::USAGE, "patch needs --apply PATCH[,PATCH...] (see --list)"));
     }
-    let out = a.out.as_ref().ok_or_else(|| coded(exit::USAGE, "patch needs -o OUT.spv"))?;
     let names = a
         .apply
         .iter()
@@ -81,53 +44,254 @@ pub fn patch(a: &PatchArgs) -> Result<u8> {
             .ok_or_else(|| coded(exit::USAGE, format!("--option {o:?} is not KEY=VALUE")))?;
         options.insert(k.trim().to_string(), v.trim().to_string());
     }
-    let bytes = std::fs::read(input).with_context(|| format!("reading {}", input.display()))?;
-    let module_bytes = if a.glsl {
-        let stage = a.stage.as_deref().ok_or_else(|| {
-            coded(
-                exit::USAGE,
-                "--glsl needs --stage (rgen, rchit, rahit, rmiss, rint, rcall, vert, frag, comp)",
-            )
-        })?;
-        let k = kind(stage).ok_or_else(|| coded(exit::USAGE, format!("--stage {stage:?}: use rgen, rchit, rahit, rmiss, rint, rcall, vert, frag or comp")))?;
-        let src = String::from_utf8(bytes).map_err(|_| {
-            coded(exit::BAD_INPUT, format!("{} is not UTF-8 GLSL", input.display()))
-        })?;
-        let opts = glsl_options(a, input)?;
-        if let Some(note) = opts.target.mapping_note() {
-            if crate::shadergen::glslang::needed_by(&src).is_none() {
-                eprintln!("rtprobe: note: {note}");
-            }
+    Ok((names, options))
+}
+
+/// The validator's name for messages.
+fn validator() -> String {
+    spirv_tools::tool(spirv_tools::SpirvTool::Val).map(|t| t.describe()).unwrap_or_default()
+}
+
+fn too_old(name: &str, validator: &str, what: &str) -> anyhow::Error {
+    coded(
+        exit::BAD_INPUT,
+        format!(
+            "{name}: {validator} is too old for {what}: the module is not checked by it; a newer \
+             SPIRV-Tools (2026.x in the sid root of scripts/setup-sid) validates it, or pass \
+             --no-spirv-val to patch without validation"
+        ),
+    )
+}
+
+/// Validate an input with the options it needs: its layout rules and the options its outputs
+/// are checked with (`None`: not validated). A problem already in the input is said as such.
+fn check_input(
+    input: &Input,
+    skip: bool,
+    warned: &mut bool,
+) -> Result<(Rules, Option<ValOptions>)> {
+    if skip {
+        return Ok((Rules::Standard, None));
+    }
+    match spirv_tools::validate_input(&input.words) {
+        (Validation::Valid, o) => {
+            Ok((if o.scalar_block_layout { Rules::Scalar } else { Rules::Standard }, Some(o)))
         }
-        let mut c = crate::shadergen::compile::Compiler::new()
-            .map_err(|e| coded(exit::NO_SHADER_COMPILER, e))?;
-        let name = crate::shadergen::include::display(input);
-        let words = c
-            .compile_user_glsl(k, &name, &src, &opts)
-            .map_err(|e| coded(exit::BAD_INPUT, e.to_string()))?;
-        words.iter().flat_map(|w| w.to_le_bytes()).collect()
-    } else {
-        bytes
+        (Validation::Unavailable, _) => {
+            if !std::mem::replace(warned, true) {
+                eprintln!("rtprobe: warning: spirv-val is not installed (apt-get install spirv-tools, or scripts/setup-sid for SPIRV-Tools 2026.x): neither inputs nor outputs are validated");
+            }
+            Ok((Rules::Standard, None))
+        }
+        (Validation::TooOld { validator, what }, _) => Err(too_old(&input.name, &validator, &what)),
+        (Validation::Invalid(msg), o) => Err(coded(
+            exit::BAD_INPUT,
+            format!(
+                "{} fails spirv-val before any patch ({}, {}): {msg} — the input itself is invalid; fix it, or pass --no-spirv-val",
+                input.name,
+                validator(),
+                o.describe()
+            ),
+        )),
+    }
+}
+
+/// Validate a patched module with its input's options: a failure now is the patch's.
+fn check_output(name: &str, words: &[u32], opts: Option<&ValOptions>) -> Result<()> {
+    let Some(o) = opts else {
+        return Ok(());
     };
-    let mut module = patches::load(&module_bytes)
-        .map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", input.display())))?;
-    let before = a.disassemble.then(|| patches::disassemble(&module));
-    let lines = patches::apply(&mut module, &names, &options)
-        .map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", input.display())))?;
-    let words = patches::assemble(&module);
-    match patches::validate(&words) {
-        Validation::Valid => {}
-        Validation::Unavailable => eprintln!("rtprobe: warning: spirv-val is not installed (apt-get install spirv-tools); the output was not validated"),
-        Validation::Invalid(msg) => return Err(coded(exit::BAD_INPUT, format!("the patched module fails spirv-val, nothing written: {msg}"))),
+    match spirv_tools::validate(words, o) {
+        Validation::Valid | Validation::Unavailable => Ok(()),
+        Validation::TooOld { validator, what } => Err(too_old(name, &validator, &what)),
+        Validation::Invalid(msg) => Err(coded(
+            exit::BAD_INPUT,
+            format!(
+                "the patched {name} fails spirv-val ({}, {}; its input passes), nothing written: {msg}",
+                validator(),
+                o.describe()
+            ),
+        )),
     }
-    let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
-    write_atomic(out, &bytes).context("writing the patched module")?;
-    for l in lines {
-        println!("{l}");
+}
+
+/// Write `words` to `dest` (atomically, or to stdout).
+fn write_module(dest: &Dest, words: &[u32]) -> Result<()> {
+    let bytes = spirv_tools::bytes(words);
+    match dest {
+        Dest::Stdout => std::io::stdout().write_all(&bytes).context("writing to stdout"),
+        Dest::File(p) => write_atomic(p, &bytes)
+            .with_context(|| format!("writing {}", p.display()))
+            .map_err(|e| coded(exit::BAD_INPUT, format!("{e:#}"))),
     }
-    if let Some(b) = before {
-        print!("{}", patches::diff(&b, &patches::disassemble(&module)));
+}
+
+/// What the command prints: to stdout, or to stderr when the module goes to stdout.
+fn say(info_out: bool, line: &str) {
+    if info_out {
+        println!("{line}");
+    } else {
+        eprintln!("{line}");
     }
-    println!("wrote {} ({} bytes)", out.display(), bytes.len());
+}
+
+pub fn patch(g: &Globals, a: &PatchArgs) -> Result<u8> {
+    if a.list {
+        return Ok(list());
+    }
+    let (names, options) = requested(a)?;
+    let inputs = patch_inputs::read(a)?;
+    let (outs, unpatched, contract_path) = patch_inputs::destinations(a, &inputs)?;
+    let mut warned = false;
+    let mut stages = Vec::new();
+    let mut val = Vec::new();
+    for i in &inputs {
+        let (rules, opts) = check_input(i, a.no_spirv_val, &mut warned)?;
+        let module = patches::load(&spirv_tools::bytes(&i.words))
+            .map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", i.name)))?;
+        stages.push(Stage { file: i.name.clone(), module, rules });
+        val.push(opts);
+    }
+    let before: Vec<String> = if a.disassemble {
+        stages.iter().map(|s| patches::disassemble(&s.module)).collect()
+    } else {
+        Vec::new()
+    };
+    let applied = pipeline::apply(&mut stages, &names, &options, a.max_push_constants)
+        .map_err(|e| coded(exit::BAD_INPUT, e.to_string()))?;
+    let patched: Vec<Vec<u32>> = stages.iter().map(|s| patches::assemble(&s.module)).collect();
+    for ((s, words), opts) in stages.iter().zip(&patched).zip(&val) {
+        check_output(&s.file, words, opts.as_ref())?;
+    }
+    let scalar = stages.iter().any(|s| s.rules == Rules::Scalar);
+    let verified =
+        if a.verify { verify(g, a, &inputs, &patched, &applied, scalar)? } else { Vec::new() };
+    for (p, i) in unpatched.iter().zip(&inputs) {
+        write_module(&Dest::File(p.clone()), &i.words)?;
+    }
+    for (d, words) in outs.iter().zip(&patched) {
+        write_module(d, words)?;
+    }
+    report(a, &stages, &before, &outs, &applied, contract_path.as_deref(), &verified)
+}
+
+/// Write the contract and print what was done.
+fn report(
+    a: &PatchArgs,
+    stages: &[Stage],
+    before: &[String],
+    outs: &[Dest],
+    applied: &Applied,
+    contract_path: Option<&std::path::Path>,
+    verified: &[String],
+) -> Result<u8> {
+    let info_out = !outs.contains(&Dest::Stdout);
+    let c = &applied.contract;
+    let contract_written = match contract_path {
+        Some(p) if !c.is_empty() => {
+            let json = serde_json::to_vec_pretty(c).context("contract JSON")?;
+            write_atomic(p, &json)
+                .map_err(|e| coded(exit::BAD_INPUT, format!("writing {}: {e:#}", p.display())))?;
+            Some(p)
+        }
+        _ => None,
+    };
+    for w in &applied.warnings {
+        eprintln!("rtprobe: warning: {w}");
+    }
+    for l in &applied.lines {
+        say(info_out, l);
+    }
+    if a.disassemble {
+        for (s, b) in stages.iter().zip(before) {
+            if stages.len() > 1 {
+                say(info_out, &format!("--- {}", s.file));
+            }
+            let d = patches::diff(b, &patches::disassemble(&s.module));
+            say(info_out, d.trim_end());
+        }
+    }
+    if !c.is_empty() {
+        say(info_out, &c.sentence());
+    }
+    for v in verified {
+        say(info_out, v);
+    }
+    if let Some(p) = contract_written {
+        say(info_out, &format!("wrote {} (host contract)", p.display()));
+    }
+    for d in outs {
+        if let Dest::File(p) = d {
+            say(info_out, &format!("wrote {}", p.display()));
+        }
+    }
     Ok(exit::OK)
+}
+
+/// A harness failure as a coded error.
+fn harness_error(e: crate::harness::HarnessError) -> anyhow::Error {
+    use crate::harness::HarnessError as H;
+    let code = match &e {
+        H::Vk(v) if v.is_device_lost() => exit::DEVICE_LOST,
+        H::Vk(_) | H::Build(_) | H::Timeout(_) => exit::VULKAN_ERROR,
+        H::Unsupported(_) | H::Interface(_) => exit::BAD_INPUT,
+    };
+    coded(code, format!("--verify: {e}"))
+}
+
+/// `--verify`: the unpatched and the patched pipeline on the device, compared texel for texel;
+/// the lines saying so, or an error when they differ, validation spoke, or nothing was written.
+fn verify(
+    g: &Globals,
+    a: &PatchArgs,
+    inputs: &[Input],
+    patched: &[Vec<u32>],
+    applied: &Applied,
+    scalar: bool,
+) -> Result<Vec<String>> {
+    use crate::harness::{self, UserModule};
+    let before: Vec<UserModule> = inputs
+        .iter()
+        .map(|i| UserModule::new(&i.name, &i.words))
+        .collect::<Result<_, _>>()
+        .map_err(harness_error)?;
+    let after: Vec<UserModule> = inputs
+        .iter()
+        .zip(patched)
+        .map(|(i, w)| UserModule::new(&i.name, w))
+        .collect::<Result<_, _>>()
+        .map_err(harness_error)?;
+    let inst = super::commands::open_instance(g)?;
+    let all = crate::vk::features::query_all(&inst)?;
+    let info = crate::vk::features::select(&all, a.device.as_deref())?.clone();
+    let req = harness::requirements(scalar);
+    let missing = req.missing_on(&info);
+    if !missing.is_empty() {
+        return Err(coded(
+            exit::UNSUPPORTED_DEVICE,
+            format!(
+                "--verify: {} cannot run the pipelines: missing {}",
+                info.name(),
+                missing.join(", ")
+            ),
+        ));
+    }
+    let messages = crate::vk::instance::validation_error_count();
+    let gpu = crate::vk::Gpu::new(inst, info, req)?;
+    let (device, compared) =
+        harness::verify(gpu, &before, &after, &applied.contract).map_err(harness_error)?;
+    let messages = crate::vk::instance::validation_error_count() - messages;
+    if messages > 0 {
+        return Err(coded(exit::VULKAN_ERROR, format!("--verify: {messages} validation messages while running the pipelines on {device} (printed above); nothing written")));
+    }
+    if compared.is_empty() {
+        return Err(coded(
+            exit::BAD_INPUT,
+            "--verify: the pipeline writes no storage image to compare",
+        ));
+    }
+    if let Some(c) = compared.iter().find(|c| c.differing > 0) {
+        return Err(coded(exit::FINDINGS, format!("--verify: the patched pipeline's {} differs from the unpatched one's in {} of {} texels on {device}; nothing written", c.label, c.differing, c.texels)));
+    }
+    Ok(compared.iter().map(|c| format!("verified on {device}: {}: {} texels identical, unpatched and patched ({} distinct values)", c.label, c.texels, c.distinct)).collect())
 }

@@ -83,6 +83,26 @@ pub fn shader_records(
     }
 }
 
+/// One `VkShaderModule` per SPIR-V module, all or none.
+pub fn shader_modules(gpu: &Gpu, spirv: &[&[u32]]) -> Result<Vec<vk::ShaderModule>, VkError> {
+    let d = &gpu.device;
+    let mut modules = Vec::new();
+    for words in spirv {
+        match unsafe {
+            d.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(words), None)
+        } {
+            Ok(m) => modules.push(m),
+            Err(e) => {
+                for m in &modules {
+                    unsafe { d.destroy_shader_module(*m, None) };
+                }
+                return Err(VkError::from_result("vkCreateShaderModule", e));
+            }
+        }
+    }
+    Ok(modules)
+}
+
 /// Create the pipeline for `shaders` (SPIR-V in `spirv`, same order), specializing constant 0 to
 /// `probe::SPEC_SLOT` in every stage. `heap` (the set/binding → heap mapping chained to each
 /// stage) is `Some` exactly for the descriptor_heap model; `records` is the shader record data
@@ -99,20 +119,8 @@ pub fn create(
     records: &ShaderRecords,
 ) -> Result<Pipeline, VkError> {
     let d = &gpu.device;
-    let mut modules = Vec::new();
-    for words in spirv {
-        match unsafe {
-            d.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(words), None)
-        } {
-            Ok(m) => modules.push(m),
-            Err(e) => {
-                for m in &modules {
-                    unsafe { d.destroy_shader_module(*m, None) };
-                }
-                return Err(VkError::from_result("vkCreateShaderModule", e));
-            }
-        }
-    }
+    let words: Vec<&[u32]> = spirv.iter().map(|w| w.as_slice()).collect();
+    let modules = shader_modules(gpu, &words)?;
     let spec_data = probe::SPEC_SLOT.to_le_bytes();
     let spec_entries = [vk::SpecializationMapEntry { constant_id: 0, offset: 0, size: 4 }];
     let spec = vk::SpecializationInfo::default().map_entries(&spec_entries).data(&spec_data);
@@ -265,14 +273,54 @@ fn create_rt(
     flags2: Option<&mut vk::PipelineCreateFlags2CreateInfoKHR>,
     records: &ShaderRecords,
 ) -> Result<Pipeline, VkError> {
-    let rt = gpu.rt.as_ref().expect("ray tracing pipeline enabled");
     let groups = rt_groups(shaders);
+    let has_callable = shaders.get(Role::Callable).is_some();
+    // Group order: raygen, miss, probe miss, triangle hits, procedural hits, callable.
+    let record = |g: usize| match g {
+        3 => records.hit_triangles.as_slice(),
+        4 => records.hit_procedural.as_slice(),
+        _ => records.other.as_slice(),
+    };
+    let counts = SbtCounts { miss: 2, hit: 2, callable: has_callable as u32 };
+    let rt = RtPipeline { stages, groups: &groups, counts, depth: shaders.recursion_depth, layout };
+    create_rt_pipeline(gpu, cache, &rt, flags, flags2, &record)
+}
+
+/// How many groups each SBT region holds after the raygen group (groups in that order).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SbtCounts {
+    pub miss: u32,
+    pub hit: u32,
+    pub callable: u32,
+}
+
+/// A ray tracing pipeline's parts: stages, groups (raygen, misses, hits, callables, as
+/// `counts` says), recursion depth and layout.
+pub struct RtPipeline<'a> {
+    pub stages: &'a [vk::PipelineShaderStageCreateInfo<'a>],
+    pub groups: &'a [vk::RayTracingShaderGroupCreateInfoKHR<'a>],
+    pub counts: SbtCounts,
+    pub depth: u32,
+    pub layout: vk::PipelineLayout,
+}
+
+/// Create the RT pipeline `p` and its SBT, each group's record its handle then `record(group)`
+/// (all records the same length). Used by the cells' pipelines and the user-shader harness.
+pub fn create_rt_pipeline<'r>(
+    gpu: &Gpu,
+    cache: vk::PipelineCache,
+    p: &RtPipeline,
+    flags: vk::PipelineCreateFlags,
+    flags2: Option<&mut vk::PipelineCreateFlags2CreateInfoKHR>,
+    record: &dyn Fn(usize) -> &'r [u8],
+) -> Result<Pipeline, VkError> {
+    let rt = gpu.rt.as_ref().expect("ray tracing pipeline enabled");
     let mut ci = vk::RayTracingPipelineCreateInfoKHR::default()
         .flags(flags)
-        .stages(stages)
-        .groups(&groups)
-        .max_pipeline_ray_recursion_depth(shaders.recursion_depth)
-        .layout(layout);
+        .stages(p.stages)
+        .groups(p.groups)
+        .max_pipeline_ray_recursion_depth(p.depth)
+        .layout(p.layout);
     if let Some(f2) = flags2 {
         ci = ci.push_next(f2);
     }
@@ -280,26 +328,25 @@ fn create_rt(
         rt.create_ray_tracing_pipelines(vk::DeferredOperationKHR::null(), cache, &[ci], None)
     }
     .map_err(|(_, e)| VkError::from_result("vkCreateRayTracingPipelinesKHR", e))?[0];
-    let has_callable = shaders.get(Role::Callable).is_some();
-    let sbt = shader_binding_table(gpu, raw, groups.len() as u32, has_callable, records)?;
+    let sbt = shader_binding_table(gpu, raw, p.counts, record)?;
     Ok(Pipeline { raw, kind: PipelineKind::RayTracing, sbt: Some(sbt) })
 }
 
-/// The SBT of pipeline `raw` with `n` groups (in [`rt_groups`]' order, the callable's last when
-/// `has_callable`): each record the group's handle, then its shader record data. The pipeline is
-/// destroyed when its handles cannot be read.
-fn shader_binding_table(
+/// The SBT of pipeline `raw`: the raygen group, then `counts` miss, hit and callable groups, each
+/// record the group's handle then `record(group)`. The pipeline is destroyed when its handles
+/// cannot be read.
+fn shader_binding_table<'r>(
     gpu: &Gpu,
     raw: vk::Pipeline,
-    n: u32,
-    has_callable: bool,
-    records: &ShaderRecords,
+    counts: SbtCounts,
+    record: &dyn Fn(usize) -> &'r [u8],
 ) -> Result<Sbt, VkError> {
     let rt = gpu.rt.as_ref().expect("ray tracing pipeline enabled");
     let props = gpu.info.properties.rt_pipeline.expect("RT pipeline properties");
     let h = props.shader_group_handle_size as u64;
     let ha = props.shader_group_handle_alignment as u64;
     let ba = props.shader_group_base_alignment as u64;
+    let n = 1 + counts.miss + counts.hit + counts.callable;
     let handles = match unsafe {
         rt.get_ray_tracing_shader_group_handles(raw, 0, n, (n as u64 * h) as usize)
     } {
@@ -310,13 +357,13 @@ fn shader_binding_table(
         }
     };
     // Each record: the group handle, then its shader record data.
-    let rec = h + records.other.len() as u64;
+    let rec = h + record(0).len() as u64;
     let stride = align(rec, ha);
     let rg_size = align(rec, ba);
     let miss_off = align(rg_size, ba);
-    let hit_off = align(miss_off + 2 * stride, ba);
-    let call_off = align(hit_off + 2 * stride, ba);
-    let total = call_off + stride + ba;
+    let hit_off = align(miss_off + counts.miss as u64 * stride, ba);
+    let call_off = align(hit_off + counts.hit as u64 * stride, ba);
+    let total = call_off + counts.callable.max(1) as u64 * stride + ba;
     let buffer = Buffer::new(
         gpu,
         total,
@@ -328,32 +375,37 @@ fn shader_binding_table(
     let base = align(buffer.address, ba);
     let shift = (base - buffer.address) as usize;
     let handle = |g: usize| &handles[g * h as usize..(g + 1) * h as usize];
-    let put = |off: u64, g: usize, data: &[u8]| {
+    let put = |off: u64, g: usize| {
         buffer.write(shift + off as usize, handle(g));
-        buffer.write(shift + (off + h) as usize, data);
+        buffer.write(shift + (off + h) as usize, record(g));
     };
-    put(0, 0, &records.other);
-    put(miss_off, 1, &records.other);
-    put(miss_off + stride, 2, &records.other);
-    put(hit_off, 3, &records.hit_triangles);
-    put(hit_off + stride, 4, &records.hit_procedural);
-    if has_callable {
-        put(call_off, 5, &records.other);
+    put(0, 0);
+    let mut g = 1;
+    for (off, count) in
+        [(miss_off, counts.miss), (hit_off, counts.hit), (call_off, counts.callable)]
+    {
+        for k in 0..count as u64 {
+            put(off + k * stride, g);
+            g += 1;
+        }
     }
-    let region = |off: u64, stride: u64, size: u64| vk::StridedDeviceAddressRegionKHR {
-        device_address: base + off,
-        stride,
-        size,
+    let region = |off: u64, count: u32| match count {
+        0 => vk::StridedDeviceAddressRegionKHR::default(),
+        n => vk::StridedDeviceAddressRegionKHR {
+            device_address: base + off,
+            stride,
+            size: n as u64 * stride,
+        },
     };
     Ok(Sbt {
-        raygen: region(0, rg_size, rg_size),
-        miss: region(miss_off, stride, 2 * stride),
-        hit: region(hit_off, stride, 2 * stride),
-        callable: if has_callable {
-            region(call_off, stride, stride)
-        } else {
-            vk::StridedDeviceAddressRegionKHR::default()
+        raygen: vk::StridedDeviceAddressRegionKHR {
+            device_address: base,
+            stride: rg_size,
+            size: rg_size,
         },
+        miss: region(miss_off, counts.miss),
+        hit: region(hit_off, counts.hit),
+        callable: region(call_off, counts.callable),
         buffer,
     })
 }

@@ -10,6 +10,7 @@ pub mod bisection;
 pub mod bundle;
 pub mod cell;
 pub mod comparison;
+pub mod contract;
 pub mod fault;
 pub mod filter;
 pub mod findings;

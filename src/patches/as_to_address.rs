@@ -1,28 +1,38 @@
 //! `as-to-address`: every acceleration structure read through a descriptor (a `UniformConstant`
 //! variable of `OpTypeAccelerationStructureKHR`, or an array of them) becomes
 //! `OpConvertUToAccelerationStructureKHR` of a 64-bit device address taken from push constants —
-//! the known workaround for drivers that fault reading the AS descriptor.
+//! the known workaround for drivers that fault reading the AS descriptor. Each descriptor (set,
+//! binding) gets its own push-constant address ([`super::push::Slots`]): two TLASes never share
+//! one.
 //!
 //! SPIR-V rules relied on:
 //! - `OpConvertUToAccelerationStructureKHR` (SPV_KHR_ray_tracing / SPV_KHR_ray_query) turns a
 //!   64-bit unsigned device address into an AS object usable wherever a loaded AS is; the rewritten
-//!   `OpLoad` keeps its result id, so every user stays valid.
-//! - A push-constant block is a `Block`-decorated struct in `PushConstant` storage with explicit
-//!   member `Offset`s; appending a member at an unused 8-aligned offset leaves the others intact.
-//! - `direct` mode reads the AS address itself from the block (non-array variables); `table` mode
-//!   (arrays, or on request) reads the address of a table of 64-bit addresses and loads element
-//!   `index` through a `PhysicalStorageBuffer` pointer, which needs the `PhysicalStorageBuffer64`
-//!   addressing model, the `PhysicalStorageBufferAddresses` capability and an `Aligned` operand.
+//!   `OpLoad` keeps its result id, so every user stays valid. It needs the `RayTracingKHR` or
+//!   `RayQueryKHR` capability: a module of `SPV_NV_ray_tracing` (older DXC, GLSL's
+//!   GL_NV_ray_tracing; `OpTypeAccelerationStructureNV` is the same opcode) gets `RayTracingKHR`
+//!   and `SPV_KHR_ray_tracing` added, and its pipeline then needs VK_KHR_ray_tracing_pipeline:
+//!   Vulkan's SPIR-V environment (1.4.360, vk.xml `<spirvcapability name="RayTracingKHR">`)
+//!   enables that capability only through the `rayTracingPipeline` feature of
+//!   VK_KHR_ray_tracing_pipeline, while `RayTracingNV` is enabled by VK_NV_ray_tracing.
+//! - The push-constant member is appended past the block ([`super::push`]).
+//! - `direct` mode (default for single variables) reads the AS address itself from the block;
+//!   `table` mode (default for arrays, or on request) reads the address of the descriptor's own
+//!   table of 64-bit addresses and loads element `index` through a `PhysicalStorageBuffer`
+//!   pointer, which needs the `PhysicalStorageBuffer64` addressing model, the
+//!   `PhysicalStorageBufferAddresses` capability and an `Aligned` operand.
 //! - From SPIR-V 1.4 an entry point's interface lists every global it references: the removed
 //!   variables leave it, a new push-constant variable joins it.
 //!
 //! Handled shapes: `OpLoad %var`, and `OpLoad (OpAccessChain %var %index)`. Any other use of the
 //! variable (passing its pointer to a function, copying it) is refused, naming the instruction.
 use super::edit::{self, id_operand};
+use super::layout::Rules;
+use super::push::{self, SlotKey, SlotKind, Slots};
 use super::PatchError;
 use rspirv::dr::{Instruction, Module, Operand};
-use rspirv::spirv::{Decoration, Op, StorageClass, Word};
-use std::collections::HashSet;
+use rspirv::spirv::{Capability, Decoration, Op, StorageClass, Word};
+use std::collections::{BTreeMap, HashMap, HashSet};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Mode {
@@ -32,35 +42,57 @@ pub enum Mode {
 
 #[derive(Clone, Debug, Default)]
 pub struct Options {
-    /// Byte offset of the new 64-bit push-constant member (default: the end of the existing block
-    /// rounded up to 8, or 0 when the module has none).
-    pub offset: Option<u32>,
-    /// Default: `table` when any AS variable is an array, else `direct`.
+    /// Default: `table` for arrays, `direct` for single variables.
     pub mode: Option<Mode>,
-    /// Only the AS variable with this binding (default: every AS descriptor variable).
+    /// Only AS variables of this descriptor set (default: every set).
+    pub set: Option<u32>,
+    /// Only AS variables with this binding (default: every binding).
     pub binding: Option<u32>,
+}
+
+/// One descriptor's address: where it is and what it holds.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Entry {
+    pub set: u32,
+    pub binding: u32,
+    pub offset: u32,
+    pub mode: Mode,
+    /// The array's length (None: a single variable or a runtime array).
+    pub elements: Option<u32>,
 }
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Report {
     pub rewritten_loads: usize,
     pub removed_variables: usize,
-    pub offset: u32,
-    pub mode: Mode,
+    pub entries: Vec<Entry>,
+    /// `RayTracingKHR` and `SPV_KHR_ray_tracing` were added to an `SPV_NV_ray_tracing` module.
+    pub added_khr: bool,
+}
+
+/// An AS descriptor variable.
+struct Var {
+    id: Word,
+    set: u32,
+    binding: u32,
+    array: bool,
+    /// The array's length, when a constant.
+    elements: Option<u32>,
 }
 
 struct Site {
     func: usize,
     block: usize,
     inst: usize,
+    var: Word,
     /// None: direct load of a non-array variable.
     index: Option<Word>,
 }
 
 const NAME: &str = "as-to-address";
 
-/// The AS descriptor variables `opts` selects: (variable, is an array, AS type).
-fn as_variables(m: &Module, opts: &Options) -> Result<Vec<(Word, bool, Word)>, PatchError> {
+/// The AS descriptor variables `opts` selects.
+fn as_variables(m: &Module, opts: &Options) -> Result<Vec<Var>, PatchError> {
     let as_types: HashSet<Word> = m
         .types_global_values
         .iter()
@@ -73,8 +105,7 @@ fn as_variables(m: &Module, opts: &Options) -> Result<Vec<(Word, bool, Word)>, P
             what: "the module declares no acceleration structure type".into(),
         });
     }
-    // AS descriptor variables: var id -> (is array, AS type)
-    let mut vars: Vec<(Word, bool, Word)> = Vec::new();
+    let mut vars = Vec::new();
     for v in m.types_global_values.iter().filter(|i| i.class.opcode == Op::Variable) {
         let (Some(id), Some(ptr)) = (v.result_id, v.result_type) else {
             continue;
@@ -82,23 +113,31 @@ fn as_variables(m: &Module, opts: &Options) -> Result<Vec<(Word, bool, Word)>, P
         let Some((StorageClass::UniformConstant, pointee)) = edit::pointer_info(m, ptr) else {
             continue;
         };
+        let set = edit::decoration_literal(m, id, Decoration::DescriptorSet).unwrap_or(0);
+        let binding = edit::decoration_literal(m, id, Decoration::Binding).unwrap_or(0);
+        let var = |array, elements| Var { id, set, binding, array, elements };
         if as_types.contains(&pointee) {
-            vars.push((id, false, pointee));
+            vars.push(var(false, None));
         } else if let Some(d) = edit::def(m, pointee) {
-            if matches!(d.class.opcode, Op::TypeArray | Op::TypeRuntimeArray) {
-                if let Some(elem) = id_operand(d, 0).filter(|e| as_types.contains(e)) {
-                    vars.push((id, true, elem));
-                }
+            let elem = id_operand(d, 0).filter(|e| as_types.contains(e));
+            match (d.class.opcode, elem) {
+                (Op::TypeArray, Some(_)) => vars.push(var(true, edit::array_length(m, d))),
+                (Op::TypeRuntimeArray, Some(_)) => vars.push(var(true, None)),
+                _ => {}
             }
         }
     }
-    if let Some(b) = opts.binding {
-        vars.retain(|v| edit::decoration_literal(m, v.0, Decoration::Binding) == Some(b));
-    }
+    vars.retain(|v| {
+        opts.set.is_none_or(|s| v.set == s) && opts.binding.is_none_or(|b| v.binding == b)
+    });
     if vars.is_empty() {
-        let what = match opts.binding {
-            Some(b) => format!("no acceleration-structure descriptor at binding {b}"),
-            None => "no acceleration structure is read through a descriptor".into(),
+        let what = match (opts.set, opts.binding) {
+            (None, None) => "no acceleration structure is read through a descriptor".into(),
+            (s, b) => format!(
+                "no acceleration-structure descriptor at{}{}",
+                s.map(|s| format!(" set {s}")).unwrap_or_default(),
+                b.map(|b| format!(" binding {b}")).unwrap_or_default()
+            ),
         };
         return Err(PatchError::NothingToPatch { patch: NAME, what });
     }
@@ -111,40 +150,40 @@ fn load_sites(
     m: &Module,
     var_ids: &HashSet<Word>,
 ) -> Result<(Vec<Site>, HashSet<Word>), PatchError> {
-    let mut chains: std::collections::HashMap<Word, Word> = Default::default(); // chain id -> index id
+    let mut chains: HashMap<Word, (Word, Word)> = HashMap::new(); // chain id -> (var, index id)
     let mut sites = Vec::new();
     let mut removed: HashSet<Word> = var_ids.clone();
     for (fi, f) in m.functions.iter().enumerate() {
         for (bi, b) in f.blocks.iter().enumerate() {
             for (ii, i) in b.instructions.iter().enumerate() {
-                let uses_var = i
+                let var_used = i
                     .operands
                     .iter()
-                    .any(|o| matches!(o, Operand::IdRef(w) if var_ids.contains(w)));
-                let uses_chain = i
+                    .find_map(|o| edit::id_from(o).filter(|w| var_ids.contains(w)));
+                let chain_used = i
                     .operands
                     .iter()
-                    .any(|o| matches!(o, Operand::IdRef(w) if chains.contains_key(w)));
-                match i.class.opcode {
-                    Op::AccessChain | Op::InBoundsAccessChain if uses_var => {
-                        if i.operands.len() != 2 {
-                            return Err(PatchError::Unsupported { patch: NAME, id: i.result_id.unwrap_or(0), what: "an access chain into an AS array with more than one index".into() });
+                    .find_map(|o| edit::id_from(o).and_then(|w| chains.get(&w)).copied());
+                let refuse = |what: String| PatchError::Unsupported {
+                    patch: NAME,
+                    id: i.result_id.unwrap_or(0),
+                    what,
+                };
+                match (i.class.opcode, var_used, chain_used) {
+                    (Op::AccessChain | Op::InBoundsAccessChain, Some(var), _) => {
+                        if i.operands.len() != 2 || id_operand(i, 0) != Some(var) {
+                            return Err(refuse("an access chain into an AS array with more than one index".into()));
                         }
-                        let idx = id_operand(i, 1).expect("index operand");
-                        chains.insert(i.result_id.expect("chains have ids"), idx);
-                        removed.insert(i.result_id.expect("chains have ids"));
+                        let id = i.result_id.expect("chains have ids");
+                        chains.insert(id, (var, id_operand(i, 1).expect("index operand")));
+                        removed.insert(id);
                     }
-                    Op::Load if uses_var => sites.push(Site { func: fi, block: bi, inst: ii, index: None }),
-                    Op::Load if uses_chain => {
-                        let c = id_operand(i, 0).expect("pointer operand");
-                        sites.push(Site { func: fi, block: bi, inst: ii, index: Some(chains[&c]) });
+                    (Op::Load, Some(var), _) => sites.push(Site { func: fi, block: bi, inst: ii, var, index: None }),
+                    (Op::Load, None, Some((var, idx))) => {
+                        sites.push(Site { func: fi, block: bi, inst: ii, var, index: Some(idx) })
                     }
-                    _ if uses_var || uses_chain => {
-                        return Err(PatchError::Unsupported {
-                            patch: NAME,
-                            id: i.result_id.unwrap_or(0),
-                            what: format!("Op{:?} uses an acceleration-structure descriptor in a way this patch does not rewrite", i.class.opcode),
-                        })
+                    (op, Some(_), _) | (op, None, Some(_)) => {
+                        return Err(refuse(format!("Op{op:?} uses an acceleration-structure descriptor in a way this patch does not rewrite")))
                     }
                     _ => {}
                 }
@@ -160,68 +199,101 @@ fn load_sites(
     Ok((sites, removed))
 }
 
-pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
-    let vars = as_variables(m, opts)?;
-    let var_ids: HashSet<Word> = vars.iter().map(|v| v.0).collect();
-    let (sites, removed) = load_sites(m, &var_ids)?;
-    let any_array = vars.iter().any(|v| v.1);
-    let mode = opts.mode.unwrap_or(if any_array { Mode::Table } else { Mode::Direct });
-    if mode == Mode::Direct && any_array && sites.iter().any(|s| s.index.is_some()) {
-        return Err(PatchError::BadOption {
-            patch: NAME,
-            what: "mode=direct cannot address the elements of an AS array; use mode=table".into(),
-        });
-    }
-
-    // Types and the push-constant member.
-    let u32_t = edit::type_int(m, 32, false);
-    let u64_t = edit::type_int(m, 64, false);
-    let (pc_var, member, offset) = push_constant_u64(m, opts.offset, NAME)?;
-    let ptr_pc_u64 = edit::type_pointer(m, StorageClass::PushConstant, u64_t);
-    let member_c = edit::constant(m, u32_t, member as u64, false);
-    let table = if mode == Mode::Table {
-        edit::enable_physical_storage_buffer(m);
-        Some(edit::TableTypes {
-            pc_var,
-            member: member_c,
-            ptr_pc_u64,
-            u64_t,
-            ptr_psb_u64: edit::type_pointer(m, StorageClass::PhysicalStorageBuffer, u64_t),
-            eight: edit::constant(m, u64_t, 8, true),
-        })
-    } else {
-        None
-    };
-    let n_sites = sites.len();
-    rewrite_loads(m, sites, table.as_ref(), (pc_var, member_c, ptr_pc_u64, u64_t));
-    edit::remove_ids(m, &removed);
-    Ok(Report { rewritten_loads: n_sites, removed_variables: var_ids.len(), offset, mode })
+/// The address a variable's loads read: its push member (direct) or its table (table mode).
+enum Source {
+    Direct { pc_var: Word, member: Word, ptr_pc_u64: Word, u64_t: Word },
+    Table(edit::TableTypes),
 }
 
-/// Each site's `OpLoad` becomes `OpConvertUToAccelerationStructureKHR` of its address: the table's
-/// entry (`table`), else the push-constant member itself (`direct`: the block variable, member
-/// constant, pointer type and u64 type). Last site first, so indices stay valid.
-fn rewrite_loads(
+/// Rewrite every AS descriptor `opts` selects, each reading its own address at the offset
+/// `slots` gives its descriptor, placed in the push block under `rules`.
+pub fn apply(
     m: &mut Module,
-    mut sites: Vec<Site>,
-    table: Option<&edit::TableTypes>,
-    direct: (Word, Word, Word, Word),
-) {
-    let (pc_var, member_c, ptr_pc_u64, u64_t) = direct;
+    opts: &Options,
+    slots: &mut Slots,
+    rules: Rules,
+) -> Result<Report, PatchError> {
+    let vars = as_variables(m, opts)?;
+    let var_ids: HashSet<Word> = vars.iter().map(|v| v.id).collect();
+    let (sites, removed) = load_sites(m, &var_ids)?;
+    let mode_of = |v: &Var| opts.mode.unwrap_or(if v.array { Mode::Table } else { Mode::Direct });
+    if let Some(v) = vars.iter().find(|v| v.array && mode_of(v) == Mode::Direct) {
+        return Err(PatchError::BadOption {
+            patch: NAME,
+            what: format!("mode=direct cannot address the elements of the AS array at set {} binding {}; use mode=table", v.set, v.binding),
+        });
+    }
+    let mut entries = Vec::new();
+    for v in &vars {
+        let kind = if mode_of(v) == Mode::Table { SlotKind::AsTable } else { SlotKind::AsAddress };
+        let offset = slots.offset(SlotKey { kind, set: v.set, binding: v.binding }, NAME)?;
+        entries.push(Entry {
+            set: v.set,
+            binding: v.binding,
+            offset,
+            mode: mode_of(v),
+            elements: v.elements,
+        });
+    }
+    // Members in offset order, so the block's offsets grow with its members.
+    let mut order: Vec<usize> = (0..vars.len()).collect();
+    order.sort_by_key(|k| entries[*k].offset);
+    let mut sources: BTreeMap<Word, Source> = BTreeMap::new();
+    for k in order {
+        let (pc_var, member) = push::u64_member(m, entries[k].offset, rules, NAME)?;
+        let source = match entries[k].mode {
+            Mode::Table => Source::Table(edit::TableTypes::new(m, pc_var, member)),
+            Mode::Direct => {
+                let u32_t = edit::type_int(m, 32, false);
+                let u64_t = edit::type_int(m, 64, false);
+                Source::Direct {
+                    pc_var,
+                    member: edit::constant(m, u32_t, member as u64, false),
+                    ptr_pc_u64: edit::type_pointer(m, StorageClass::PushConstant, u64_t),
+                    u64_t,
+                }
+            }
+        };
+        sources.insert(vars[k].id, source);
+    }
+    let added_khr = khr_capability(m);
+    let n_sites = sites.len();
+    rewrite_loads(m, sites, &sources);
+    edit::remove_ids(m, &removed);
+    Ok(Report { rewritten_loads: n_sites, removed_variables: var_ids.len(), entries, added_khr })
+}
+
+/// Give an `SPV_NV_ray_tracing` module the capability `OpConvertUToAccelerationStructureKHR`
+/// needs (`RayTracingKHR`, with `SPV_KHR_ray_tracing`); true when it was missing.
+fn khr_capability(m: &mut Module) -> bool {
+    let has = |m: &Module, c: Capability| {
+        m.capabilities.iter().any(|i| i.operands.first() == Some(&Operand::Capability(c)))
+    };
+    if has(m, Capability::RayTracingKHR) || has(m, Capability::RayQueryKHR) {
+        return false;
+    }
+    edit::add_capability(m, Capability::RayTracingKHR);
+    edit::add_extension(m, "SPV_KHR_ray_tracing");
+    true
+}
+
+/// Each site's `OpLoad` becomes `OpConvertUToAccelerationStructureKHR` of its variable's address
+/// (`sources`). Last site first, so indices stay valid.
+fn rewrite_loads(m: &mut Module, mut sites: Vec<Site>, sources: &BTreeMap<Word, Source>) {
     sites.sort_by_key(|s| std::cmp::Reverse((s.func, s.block, s.inst)));
     for s in sites {
-        let (new, addr) = match table {
-            Some(t) => edit::table_entry(m, t, s.index),
-            None => {
+        let (new, addr) = match &sources[&s.var] {
+            Source::Table(t) => edit::table_entry(m, t, s.index),
+            Source::Direct { pc_var, member, ptr_pc_u64, u64_t } => {
                 let (pm, base) = (edit::next_id(m), edit::next_id(m));
                 let new = vec![
                     Instruction::new(
                         Op::AccessChain,
-                        Some(ptr_pc_u64),
+                        Some(*ptr_pc_u64),
                         Some(pm),
-                        vec![Operand::IdRef(pc_var), Operand::IdRef(member_c)],
+                        vec![Operand::IdRef(*pc_var), Operand::IdRef(*member)],
                     ),
-                    Instruction::new(Op::Load, Some(u64_t), Some(base), vec![Operand::IdRef(pm)]),
+                    Instruction::new(Op::Load, Some(*u64_t), Some(base), vec![Operand::IdRef(pm)]),
                 ];
                 (new, base)
             }
@@ -240,128 +312,18 @@ fn rewrite_loads(
     }
 }
 
-/// Append a 64-bit member to the module's push-constant block at `offset` (default: the block's
-/// end, 8-aligned), creating the block if there is none. Returns (variable, member index, offset).
-pub(super) fn push_constant_u64(
-    m: &mut Module,
-    offset: Option<u32>,
-    patch: &'static str,
-) -> Result<(Word, u32, u32), PatchError> {
-    let u64_t = edit::type_int(m, 64, false);
-    let pc_var = m.types_global_values.iter().find(|i| {
-        i.class.opcode == Op::Variable
-            && i.operands.first() == Some(&Operand::StorageClass(StorageClass::PushConstant))
-    });
-    match pc_var.and_then(|v| Some((v.result_id?, v.result_type?))) {
-        Some((var, ptr)) => append_member(m, (var, ptr), u64_t, offset, patch),
-        None => new_block(m, u64_t, offset.unwrap_or(0), patch),
-    }
-}
-
-/// Append a `u64_t` member to the block of the push-constant variable `var` (of pointer type
-/// `ptr`) at `offset`, which must lie past the block's end (default: the end, 8-aligned).
-fn append_member(
-    m: &mut Module,
-    (var, ptr): (Word, Word),
-    u64_t: Word,
-    offset: Option<u32>,
-    patch: &'static str,
-) -> Result<(Word, u32, u32), PatchError> {
-    let (_, st) = edit::pointer_info(m, ptr).ok_or(PatchError::Unsupported {
-        patch,
-        id: var,
-        what: "push-constant variable without pointer type".into(),
-    })?;
-    let st_def = edit::def(m, st).cloned().ok_or(PatchError::Unsupported {
-        patch,
-        id: st,
-        what: "push-constant block type not found".into(),
-    })?;
-    let members = st_def.operands.iter().filter(|o| matches!(o, Operand::IdRef(_))).count();
-    // Sized from its Offset / ArrayStride / MatrixStride decorations; a block without them is not
-    // a valid Vulkan push-constant block.
-    let end = edit::explicit_extent(m, st, None).ok_or(PatchError::Unsupported {
-        patch,
-        id: st,
-        what: "the push-constant block lacks the Offset / ArrayStride / MatrixStride decorations that give its size".into(),
-    })?;
-    let offset = match offset {
-        Some(o) if o < end => {
-            return Err(PatchError::BadOption {
-                patch,
-                what: format!("offset={o} overlaps the push-constant block, which ends at {end}"),
-            })
-        }
-        Some(o) => o,
-        None => end.div_ceil(8) * 8,
-    };
-    check_aligned(offset, patch)?;
-    let k = members as u32;
-    if let Some(s) = m.types_global_values.iter_mut().find(|i| i.result_id == Some(st)) {
-        s.operands.push(Operand::IdRef(u64_t));
-    }
-    m.annotations.push(member_offset(st, k, offset));
-    Ok((var, k, offset))
-}
-
-/// A new push-constant block of one `u64_t` member at `offset`, and its variable.
-fn new_block(
-    m: &mut Module,
-    u64_t: Word,
-    offset: u32,
-    patch: &'static str,
-) -> Result<(Word, u32, u32), PatchError> {
-    check_aligned(offset, patch)?;
-    let st = edit::next_id(m);
-    m.types_global_values.push(Instruction::new(
-        Op::TypeStruct,
-        None,
-        Some(st),
-        vec![Operand::IdRef(u64_t)],
-    ));
-    edit::decorate(m, st, Decoration::Block, &[]);
-    m.annotations.push(member_offset(st, 0, offset));
-    let ptr = edit::type_pointer(m, StorageClass::PushConstant, st);
-    let var = edit::next_id(m);
-    m.types_global_values.push(Instruction::new(
-        Op::Variable,
-        Some(ptr),
-        Some(var),
-        vec![Operand::StorageClass(StorageClass::PushConstant)],
-    ));
-    edit::add_to_interfaces(m, var);
-    Ok((var, 0, offset))
-}
-
-/// A 64-bit member's offset must be 8-byte aligned.
-fn check_aligned(offset: u32, patch: &'static str) -> Result<(), PatchError> {
-    if offset % 8 != 0 {
-        return Err(PatchError::BadOption {
-            patch,
-            what: format!("offset={offset} is not 8-byte aligned"),
-        });
-    }
-    Ok(())
-}
-
-/// `OpMemberDecorate %st member Offset offset`.
-fn member_offset(st: Word, member: u32, offset: u32) -> Instruction {
-    Instruction::new(
-        Op::MemberDecorate,
-        None,
-        None,
-        vec![
-            Operand::IdRef(st),
-            Operand::LiteralBit32(member),
-            Operand::Decoration(Decoration::Offset),
-            Operand::LiteralBit32(offset),
-        ],
-    )
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The patch on one module, its addresses from `offset` (default: past its block).
+    fn patch(m: &mut Module, offset: Option<u32>) -> Result<Report, PatchError> {
+        let start = match offset {
+            Some(o) => o,
+            None => push::end(m, Rules::Standard, NAME)?,
+        };
+        apply(m, &Options::default(), &mut Slots::new(start, 256), Rules::Standard)
+    }
 
     fn module(glsl: &str) -> Module {
         let mut c = crate::shadergen::compile::Compiler::new().expect("shaderc");
@@ -379,20 +341,14 @@ mod tests {
         // 16: 64..124; vec3 128..140; u16 140..142; u64 144..152; Light[2] at 160, stride 16,
         // Light 15 bytes: 160..191; u8 frame 192..193 -> first free 8-aligned offset 200.
         let mut m = module(CAMERA);
-        let r = apply(&mut m, &Options::default()).expect("sized without --option offset");
-        assert_eq!(r.offset, 200);
+        let r = patch(&mut m, None).expect("sized without --option offset");
+        assert_eq!(r.entries[0].offset, 200);
         let v = crate::patches::validate(&crate::patches::assemble(&m));
         assert_eq!(v, crate::patches::Validation::Valid);
         // an offset inside the block is refused, one past it accepted
-        let err = apply(&mut module(CAMERA), &Options { offset: Some(192), ..Default::default() })
-            .unwrap_err();
+        let err = patch(&mut module(CAMERA), Some(192)).unwrap_err();
         assert!(err.to_string().contains("overlaps") && err.to_string().contains("193"), "{err}");
-        assert_eq!(
-            apply(&mut module(CAMERA), &Options { offset: Some(200), ..Default::default() })
-                .unwrap()
-                .offset,
-            200
-        );
+        assert_eq!(patch(&mut module(CAMERA), Some(200)).unwrap().entries[0].offset, 200);
     }
 
     #[test]
@@ -423,7 +379,7 @@ void main() {
             })
             .and_then(|i| i.result_id)
             .unwrap();
-        assert_eq!(edit::explicit_extent(&m, st, None), Some(65));
-        assert_eq!(apply(&mut m, &Options::default()).unwrap().offset, 72);
+        assert_eq!(crate::patches::layout::block_end(&m, st, Rules::Standard), Some(65));
+        assert_eq!(patch(&mut m, None).unwrap().entries[0].offset, 72);
     }
 }

@@ -3,7 +3,7 @@
 //! constant. Shared by `nonuniform` and `pin-index`.
 use super::edit::{self, id_operand};
 use rspirv::dr::Module;
-use rspirv::spirv::{Decoration, Op, StorageClass, Word};
+use rspirv::spirv::{Op, StorageClass, Word};
 
 pub struct Access {
     pub func: usize,
@@ -63,9 +63,4 @@ pub fn find(m: &Module) -> Vec<Access> {
         }
     }
     out
-}
-
-/// The binding number of a descriptor variable.
-pub fn binding(m: &Module, var: Word) -> Option<u32> {
-    edit::decoration_literal(m, var, Decoration::Binding)
 }

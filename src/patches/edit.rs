@@ -28,6 +28,44 @@ pub fn id_operand(i: &Instruction, n: usize) -> Option<Word> {
     }
 }
 
+/// The id an operand names, if it is an id.
+pub fn id_from(o: &Operand) -> Option<Word> {
+    match o {
+        Operand::IdRef(w) => Some(*w),
+        _ => None,
+    }
+}
+
+/// (width, signed) of the integer type of value `id`.
+pub fn int_type_of(m: &Module, id: Word) -> Option<(u32, bool)> {
+    let ty = def(m, def(m, id)?.result_type?)?;
+    match (ty.class.opcode, ty.operands.first(), ty.operands.get(1)) {
+        (Op::TypeInt, Some(Operand::LiteralBit32(w)), Some(Operand::LiteralBit32(s))) => {
+            Some((*w, *s == 1))
+        }
+        _ => None,
+    }
+}
+
+/// Give the load or store `i` an `Aligned align` memory operand (keeping its other memory
+/// operands; the `Aligned` literal comes first among them, as the lowest bit with a literal).
+/// `first` is the index of the memory-operand mask (1 for `OpLoad`, 2 for `OpStore`).
+pub fn set_aligned(i: &mut Instruction, first: usize, align: u32) {
+    use rspirv::spirv::MemoryAccess;
+    match i.operands.get(first).cloned() {
+        Some(Operand::MemoryAccess(f)) if f.contains(MemoryAccess::ALIGNED) => {}
+        Some(Operand::MemoryAccess(f)) => {
+            i.operands[first] = Operand::MemoryAccess(f | MemoryAccess::ALIGNED);
+            i.operands.insert(first + 1, Operand::LiteralBit32(align));
+        }
+        _ => {
+            i.operands.truncate(first);
+            i.operands.push(Operand::MemoryAccess(MemoryAccess::ALIGNED));
+            i.operands.push(Operand::LiteralBit32(align));
+        }
+    }
+}
+
 pub fn has_decoration(m: &Module, id: Word, d: Decoration) -> bool {
     m.annotations.iter().any(|a| {
         a.class.opcode == Op::Decorate
@@ -150,6 +188,15 @@ pub fn constant(m: &mut Module, ty: Word, value: u64, wide: bool) -> Word {
     id
 }
 
+/// The length of array type `d` (an `OpTypeArray`), when a plain constant.
+pub fn array_length(m: &Module, d: &Instruction) -> Option<u32> {
+    let len = def(m, id_operand(d, 1)?)?;
+    match (len.class.opcode, len.operands.first()) {
+        (Op::Constant, Some(Operand::LiteralBit32(v))) => Some(*v),
+        _ => None,
+    }
+}
+
 pub fn is_constant(m: &Module, id: Word) -> bool {
     def(m, id).is_some_and(|d| {
         matches!(
@@ -249,70 +296,6 @@ pub fn member_decoration(m: &Module, st: Word, member: u32, d: Decoration) -> Op
     })
 }
 
-fn literal(i: &Instruction, n: usize) -> Option<u32> {
-    match i.operands.get(n) {
-        Some(Operand::LiteralBit32(v)) => Some(*v),
-        _ => None,
-    }
-}
-
-/// Bytes a value of type `ty` spans in an explicitly laid-out block (push constants, UBO, SSBO):
-/// scalars of 8/16/32/64 bits, vectors, matrices (from the enclosing member's `MatrixStride` and
-/// `RowMajor`, passed as `matrix`), arrays (`ArrayStride` × length), structs (the largest member
-/// `Offset` + extent), physical-storage-buffer pointers (8). `None` for what has no fixed extent
-/// (runtime arrays, spec-constant lengths, missing decorations).
-///
-/// SPIR-V rules relied on (Vulkan "Offset and Stride Assignment"): every member of a block struct
-/// has an `Offset`; arrays have an `ArrayStride`; matrix members (or arrays of them) have a
-/// `MatrixStride` and are `ColMajor` unless `RowMajor`; vector components are tightly packed.
-pub fn explicit_extent(m: &Module, ty: Word, matrix: Option<(u32, bool)>) -> Option<u32> {
-    let d = def(m, ty)?;
-    match d.class.opcode {
-        Op::TypeInt | Op::TypeFloat => literal(d, 0).map(|bits| bits / 8),
-        Op::TypeVector => Some(explicit_extent(m, id_operand(d, 0)?, None)? * literal(d, 1)?),
-        Op::TypeMatrix => {
-            let column = def(m, id_operand(d, 0)?)?;
-            let (cols, rows) = (literal(d, 1)?, literal(column, 1)?);
-            let comp = explicit_extent(m, id_operand(column, 0)?, None)?;
-            let (stride, row_major) = matrix?;
-            // stride separates columns (column-major) or rows (row-major)
-            Some(if row_major {
-                (rows - 1) * stride + cols * comp
-            } else {
-                (cols - 1) * stride + rows * comp
-            })
-        }
-        Op::TypeArray => {
-            let len_def = def(m, id_operand(d, 1)?)?;
-            if len_def.class.opcode != Op::Constant {
-                return None;
-            }
-            let len = literal(len_def, 0)?;
-            let stride = decoration_literal(m, ty, Decoration::ArrayStride)?;
-            Some(len.checked_sub(1)? * stride + explicit_extent(m, id_operand(d, 0)?, matrix)?)
-        }
-        Op::TypeStruct => {
-            let mut end = 0;
-            for (k, o) in d.operands.iter().enumerate() {
-                let Operand::IdRef(member_ty) = o else {
-                    return None;
-                };
-                let k = k as u32;
-                let offset = member_decoration(m, ty, k, Decoration::Offset)?;
-                let matrix = member_decoration(m, ty, k, Decoration::MatrixStride)
-                    .map(|s| (s, member_decoration(m, ty, k, Decoration::RowMajor).is_some()));
-                end = end.max(offset + explicit_extent(m, *member_ty, matrix)?);
-            }
-            Some(end)
-        }
-        Op::TypePointer => match d.operands.first() {
-            Some(Operand::StorageClass(StorageClass::PhysicalStorageBuffer)) => Some(8),
-            _ => None,
-        },
-        _ => None,
-    }
-}
-
 /// Ids the address-table loads need (see [`table_entry`]).
 pub struct TableTypes {
     pub pc_var: Word,
@@ -321,6 +304,24 @@ pub struct TableTypes {
     pub u64_t: Word,
     pub ptr_psb_u64: Word,
     pub eight: Word,
+}
+
+impl TableTypes {
+    /// The ids for a table whose address is member `member` of push-constant variable `pc_var`
+    /// (the module switches to PhysicalStorageBuffer64 addressing).
+    pub fn new(m: &mut Module, pc_var: Word, member: u32) -> TableTypes {
+        let u32_t = type_int(m, 32, false);
+        let u64_t = type_int(m, 64, false);
+        enable_physical_storage_buffer(m);
+        TableTypes {
+            pc_var,
+            member: constant(m, u32_t, member as u64, false),
+            ptr_pc_u64: type_pointer(m, StorageClass::PushConstant, u64_t),
+            u64_t,
+            ptr_psb_u64: type_pointer(m, StorageClass::PhysicalStorageBuffer, u64_t),
+            eight: constant(m, u64_t, 8, true),
+        }
+    }
 }
 
 /// Instructions loading entry `index` (None: entry 0) of a table of 64-bit addresses whose own
@@ -345,13 +346,32 @@ pub fn table_entry(
     out.push(Instruction::new(Op::Load, Some(t.u64_t), Some(base), vec![Operand::IdRef(pm)]));
     let at = match index {
         Some(idx) => {
-            let (idx64, off, sum) = (next_id(m), next_id(m), next_id(m));
-            out.push(Instruction::new(
-                Op::UConvert,
-                Some(t.u64_t),
-                Some(idx64),
-                vec![Operand::IdRef(idx)],
-            ));
+            // The index as a 64-bit unsigned value: UConvert from a narrower integer (its
+            // operand may be signed), a Bitcast from a signed 64-bit one, itself when u64.
+            let idx64 = match int_type_of(m, idx) {
+                Some((64, false)) => idx,
+                Some((64, true)) => {
+                    let id = next_id(m);
+                    out.push(Instruction::new(
+                        Op::Bitcast,
+                        Some(t.u64_t),
+                        Some(id),
+                        vec![Operand::IdRef(idx)],
+                    ));
+                    id
+                }
+                _ => {
+                    let id = next_id(m);
+                    out.push(Instruction::new(
+                        Op::UConvert,
+                        Some(t.u64_t),
+                        Some(id),
+                        vec![Operand::IdRef(idx)],
+                    ));
+                    id
+                }
+            };
+            let (off, sum) = (next_id(m), next_id(m));
             out.push(Instruction::new(
                 Op::IMul,
                 Some(t.u64_t),

@@ -1,13 +1,21 @@
 //! SPIR-V rewrites that work around driver faults (`rtprobe patch`, and `as_access=address_patched`
 //! cells of the matrix). Each patch is a plain function over `&mut rspirv::dr::Module`, in its own
-//! file with the SPIR-V rules it relies on: [`as_to_address`], [`nonuniform`], [`pin_index`].
-//! Loading never panics on arbitrary bytes; every output can be checked with `spirv-val`.
+//! file with the SPIR-V rules it relies on: [`as_to_address`], [`nonuniform`], [`pin_index`],
+//! [`ssbo_to_address`]; [`pipeline`] runs them over a pipeline's modules together with one set of
+//! push-constant addresses ([`push`], sized by [`layout`]) and writes the host contract. Loading
+//! never panics on arbitrary bytes; every output can be checked with `spirv-val`
+//! ([`crate::tools::spirv`]).
 pub mod as_to_address;
 mod dynamic_access;
 pub mod edit;
 mod error;
+mod guard;
+pub mod layout;
+mod name;
 pub mod nonuniform;
 pub mod pin_index;
+pub mod pipeline;
+pub mod push;
 pub mod ssbo_to_address;
 pub mod uniformity;
 pub mod workaround;
@@ -17,86 +25,9 @@ use rspirv::dr::Module;
 use std::collections::BTreeMap;
 
 pub use error::PatchError;
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum PatchName {
-    AsToAddress,
-    Nonuniform,
-    PinIndex,
-    SsboToAddress,
-}
-
-/// Name, options and one-line description of each patch.
-pub const LIST: &[(&str, &str, &str)] = &[
-    ("as-to-address", "offset=BYTES mode=direct|table binding=N", "acceleration structures read through descriptors become OpConvertUToAccelerationStructureKHR of a 64-bit address from push constants (table mode: address of a table of addresses, indexed like the descriptor array)"),
-    ("nonuniform", "strip=true|false", "decorate every dynamically indexed descriptor access NonUniform (what nonuniformEXT would give), or strip every NonUniform decoration"),
-    ("pin-index", "binding=N value=K spec-id=ID", "replace the runtime index of dynamically indexed descriptor arrays by an OpSpecConstant (default value K)"),
-    ("ssbo-to-address", "offset=BYTES binding=N", "reads of a storage-buffer descriptor array become PhysicalStorageBuffer loads from a table of buffer addresses in push constants (reads only)"),
-];
-
-impl PatchName {
-    pub fn parse(s: &str) -> Result<Self, PatchError> {
-        match s.trim() {
-            "as-to-address" => Ok(PatchName::AsToAddress),
-            "nonuniform" => Ok(PatchName::Nonuniform),
-            "pin-index" => Ok(PatchName::PinIndex),
-            "ssbo-to-address" => Ok(PatchName::SsboToAddress),
-            other => Err(PatchError::Unknown(other.into())),
-        }
-    }
-
-    pub fn as_str(self) -> &'static str {
-        match self {
-            PatchName::AsToAddress => "as-to-address",
-            PatchName::Nonuniform => "nonuniform",
-            PatchName::PinIndex => "pin-index",
-            PatchName::SsboToAddress => "ssbo-to-address",
-        }
-    }
-
-    fn keys(self) -> &'static [&'static str] {
-        match self {
-            PatchName::AsToAddress => &["offset", "mode", "binding"],
-            PatchName::Nonuniform => &["strip"],
-            PatchName::PinIndex => &["binding", "value", "spec-id"],
-            PatchName::SsboToAddress => &["offset", "binding"],
-        }
-    }
-}
-
-/// A panic [`quietly`] caught, with its message ("panic" when it had none).
-#[derive(Debug, thiserror::Error)]
-#[error("{0}")]
-struct Panicked(String);
-
-/// `f`, with a panic caught and returned instead of printed.
-fn quietly<T>(f: impl FnOnce() -> T + std::panic::UnwindSafe) -> Result<T, Panicked> {
-    let hook = std::panic::take_hook();
-    std::panic::set_hook(Box::new(|_| {}));
-    let r = std::panic::catch_unwind(f);
-    std::panic::set_hook(hook);
-    r.map_err(|e| {
-        Panicked(
-            e.downcast_ref::<&str>()
-                .map(|s| s.to_string())
-                .or_else(|| e.downcast_ref::<String>().cloned())
-                .unwrap_or_else(|| "panic".into()),
-        )
-    })
-}
-
-/// Run `f` on a copy of `m`, catching panics; `m` takes the copy only when `f` succeeds, so a
-/// failed patch leaves the module as it was.
-pub(crate) fn on_copy<R>(
-    m: &mut Module,
-    f: impl FnOnce(&mut Module) -> Result<R, PatchError>,
-) -> Result<R, PatchError> {
-    let mut work = m.clone();
-    let r = quietly(std::panic::AssertUnwindSafe(|| f(&mut work)))
-        .map_err(|p| PatchError::Internal(p.0))??;
-    *m = work;
-    Ok(r)
-}
+pub(crate) use guard::on_copy;
+use guard::quietly;
+pub use name::{apply_help, PatchName, LIST};
 
 /// Parse a SPIR-V binary (either endianness). Never panics.
 pub fn load(bytes: &[u8]) -> Result<Module, PatchError> {
@@ -186,116 +117,21 @@ fn execution_mode_id(operands: &[u32]) -> Result<rspirv::dr::Instruction, PatchE
     Ok(rspirv::dr::Instruction::new(rspirv::spirv::Op::ExecutionModeId, None, None, ops))
 }
 
-/// Apply `patches` in order with `options` (`key=value`, each key belonging to one of them).
+/// Apply `patches` in order to one module with `options` (`key=value`, each key belonging to one
+/// of them), its blocks under the standard layout rules and push constants up to 256 bytes.
 /// Returns one line per patch saying what it did.
 pub fn apply(
     m: &mut Module,
     patches: &[PatchName],
     options: &BTreeMap<String, String>,
 ) -> Result<Vec<String>, PatchError> {
-    for k in options.keys() {
-        if !patches.iter().any(|p| p.keys().contains(&k.as_str())) {
-            return Err(PatchError::UnknownOption(k.clone()));
-        }
-    }
-    let o = Options(options);
-    patches
-        .iter()
-        .map(|&p| match p {
-            PatchName::AsToAddress => as_to_address_line(m, &o),
-            PatchName::Nonuniform => nonuniform_line(m, &o),
-            PatchName::PinIndex => pin_index_line(m, &o),
-            PatchName::SsboToAddress => ssbo_to_address_line(m, &o),
-        })
-        .collect()
-}
-
-/// The `key=value` options of [`apply`], read for one patch.
-struct Options<'a>(&'a BTreeMap<String, String>);
-
-impl Options<'_> {
-    /// The number `k=N`, if given.
-    fn num(&self, p: PatchName, k: &str) -> Result<Option<u32>, PatchError> {
-        self.0
-            .get(k)
-            .map(|v| {
-                v.parse::<u32>().map_err(|_| PatchError::BadOption {
-                    patch: p.as_str(),
-                    what: format!("{k}={v:?} is not a number"),
-                })
-            })
-            .transpose()
-    }
-
-    /// The value `choices` pairs with `k`'s, if given; a value not among them is an error that
-    /// names `expected`.
-    fn choice<T: Copy>(
-        &self,
-        p: PatchName,
-        k: &str,
-        choices: &[(&str, T)],
-        expected: &str,
-    ) -> Result<Option<T>, PatchError> {
-        let Some(v) = self.0.get(k) else {
-            return Ok(None);
-        };
-        match choices.iter().find(|(name, _)| *name == v.as_str()) {
-            Some((_, t)) => Ok(Some(*t)),
-            None => Err(PatchError::BadOption {
-                patch: p.as_str(),
-                what: format!("{k}={v:?}: use {expected}"),
-            }),
-        }
-    }
-}
-
-/// [`as_to_address`] with `mode`, `offset` and `binding`, and the line saying what it did.
-fn as_to_address_line(m: &mut Module, o: &Options) -> Result<String, PatchError> {
-    let p = PatchName::AsToAddress;
-    let modes = [("direct", as_to_address::Mode::Direct), ("table", as_to_address::Mode::Table)];
-    let mode = o.choice(p, "mode", &modes, "direct or table")?;
-    let opts =
-        as_to_address::Options { offset: o.num(p, "offset")?, mode, binding: o.num(p, "binding")? };
-    let r = on_copy(m, |w| as_to_address::apply(w, &opts))?;
-    Ok(format!("as-to-address: {} loads rewritten, {} descriptor variables removed, address at push-constant offset {} ({:?} mode)", r.rewritten_loads, r.removed_variables, r.offset, r.mode))
-}
-
-/// [`nonuniform`] (`strip`: remove the decorations instead), and the line saying what it did.
-fn nonuniform_line(m: &mut Module, o: &Options) -> Result<String, PatchError> {
-    let p = PatchName::Nonuniform;
-    let strip = o
-        .choice(p, "strip", &[("false", false), ("true", true)], "true or false")?
-        .unwrap_or(false);
-    let r = on_copy(m, |w| nonuniform::apply(w, strip))?;
-    Ok(if strip {
-        format!("nonuniform: {} NonUniform decorations stripped", r.stripped)
-    } else {
-        format!("nonuniform: {} objects decorated NonUniform", r.decorated)
-    })
-}
-
-/// [`pin_index`] with `binding`, `value` and `spec-id`, and the line saying what it did.
-fn pin_index_line(m: &mut Module, o: &Options) -> Result<String, PatchError> {
-    let p = PatchName::PinIndex;
-    let opts = pin_index::Options {
-        binding: o.num(p, "binding")?,
-        value: o.num(p, "value")?.unwrap_or(0),
-        spec_id: o.num(p, "spec-id")?,
-    };
-    let r = on_copy(m, |w| pin_index::apply(w, &opts))?;
-    Ok(format!(
-        "pin-index: {} accesses now index with SpecId {} (default {})",
-        r.pinned, r.spec_id, opts.value
-    ))
-}
-
-/// [`ssbo_to_address`] with `offset` and `binding`, and the line saying what it did.
-fn ssbo_to_address_line(m: &mut Module, o: &Options) -> Result<String, PatchError> {
-    let p = PatchName::SsboToAddress;
-    let opts =
-        ssbo_to_address::Options { offset: o.num(p, "offset")?, binding: o.num(p, "binding")? };
-    let r = on_copy(m, |w| ssbo_to_address::apply(w, &opts))?;
-    Ok(format!("ssbo-to-address: {} loads now read through buffer addresses (table address at push-constant offset {})", r.rewritten_loads, r.offset))
+    let work = std::mem::replace(m, Module::new());
+    let mut stages =
+        [pipeline::Stage { file: "module".into(), module: work, rules: layout::Rules::Standard }];
+    let r = pipeline::apply(&mut stages, patches, options, 256);
+    let [stage] = stages;
+    *m = stage.module;
+    r.map(|a| a.lines).map_err(|e| e.error)
 }
 
 /// rspirv's loader, taking `OpUntypedVariableKHR` at module scope too: SPV_KHR_untyped_pointers
@@ -365,39 +201,13 @@ pub fn disassemble(m: &Module) -> String {
     m.disassemble()
 }
 
-/// What `spirv-val` said.
-#[derive(Debug, PartialEq)]
-pub enum Validation {
-    /// spirv-val is not installed.
-    Unavailable,
-    Valid,
-    Invalid(String),
-}
+pub use crate::tools::spirv::Validation;
 
-/// Run `spirv-val --target-env vulkan1.2` on `words`, if it is installed.
+/// Validate `words` with `spirv-val` ([`crate::tools::spirv`]: the newest one here) in the
+/// environment of its SPIR-V version, without layout options.
 pub fn validate(words: &[u32]) -> Validation {
-    // A name no other call in this process uses at the same time (tests validate on several
-    // threads; a name from the module's length alone let two calls overwrite each other's file).
-    static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    let dir = std::env::temp_dir().join(format!("rtprobe-val-{}-{n}", std::process::id()));
-    let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
-    if std::fs::write(&dir, bytes).is_err() {
-        return Validation::Unavailable;
-    }
-    // SPIR-V 1.6 (from `patch --glsl --target-env vulkan1.3/1.4`) needs a Vulkan 1.3 environment.
-    let env =
-        if words.get(1).is_some_and(|v| *v >= 0x0001_0600) { "vulkan1.3" } else { "vulkan1.2" };
-    let out =
-        std::process::Command::new("spirv-val").args(["--target-env", env]).arg(&dir).output();
-    let _ = std::fs::remove_file(&dir);
-    match out {
-        Err(_) => Validation::Unavailable,
-        Ok(o) if o.status.success() => Validation::Valid,
-        Ok(o) => {
-            Validation::Invalid(String::from_utf8_lossy(&o.stderr).trim().replace('\n', " | "))
-        }
-    }
+    let opts = crate::tools::spirv::ValOptions::for_version(words.get(1).copied().unwrap_or(0));
+    crate::tools::spirv::validate(words, &opts)
 }
 
 /// Line diff (`- ` removed, `+ ` added) of two disassemblies, by longest common subsequence.

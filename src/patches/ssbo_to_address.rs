@@ -1,148 +1,176 @@
 //! `ssbo-to-address`: a dynamically indexed storage-buffer descriptor array becomes loads through
 //! `PhysicalStorageBuffer` pointers taken from an address table, so the descriptor selection
-//! disappears and only a memory load is dynamic.
+//! disappears and only a memory load is dynamic. Each array (set, binding) reads its own table,
+//! whose address is its own push-constant member ([`super::push::Slots`]): three arrays never
+//! share one table.
 //!
-//! Handled shape (and only this one; anything else is refused, naming the instruction):
-//! a `StorageBuffer` variable that is an array of a `Block` struct, read as
-//! `OpLoad (OpAccessChain %var %index %member...)` — reads only. Stores, atomics,
-//! `OpArrayLength`, copies of the pointer and access chains without a member index are refused.
+//! Handled shape (and only this one; anything else is refused, naming the instruction): a
+//! `StorageBuffer` variable that is an array of a `Block` struct, reached by
+//! `OpAccessChain %var %index [%member...]` and then read: loads through that chain, and through
+//! further access chains and copies of it (glslang chains to the member at once; DXC and Slang
+//! often chain to the element first, then to its members). Stores, atomics, `OpArrayLength`,
+//! function calls and every other use are refused.
 //!
 //! SPIR-V rules relied on:
-//! - The table's address is a 64-bit member appended to the push-constant block (as in
-//!   `as-to-address`); element `index` of the table is the buffer's device address.
+//! - The table's address is a 64-bit push-constant member ([`super::push`]); element `index` of
+//!   the table is the element buffer's device address.
 //! - `OpConvertUToPtr` to a `PhysicalStorageBuffer` pointer to the same `Block` struct (with its
 //!   explicit `Offset`s and `ArrayStride`s) is a valid pointer to the buffer's contents; access
-//!   chains through it keep the `PhysicalStorageBuffer` storage class, so their result types are
-//!   re-pointed to `PhysicalStorageBuffer` pointers of the same pointee.
-//! - A load through a `PhysicalStorageBuffer` pointer needs an `Aligned` memory operand; 4 is a
-//!   correct (conservative) alignment for every 32-bit-component type.
+//!   chains and copies of it keep the `PhysicalStorageBuffer` storage class, so their result types
+//!   are re-pointed to `PhysicalStorageBuffer` pointers of the same pointee.
+//! - Every load through a `PhysicalStorageBuffer` pointer needs an `Aligned` memory operand: the
+//!   loaded type's scalar alignment ([`super::layout::scalar_alignment`]) holds for any block
+//!   layout, since every layout aligns at least to it.
 //! - The module needs `PhysicalStorageBuffer64` addressing and `PhysicalStorageBufferAddresses`.
 use super::edit::{self, id_operand};
+use super::layout::{self, Rules};
+use super::push::{self, SlotKey, SlotKind, Slots};
 use super::PatchError;
 use rspirv::dr::{Instruction, Module, Operand};
-use rspirv::spirv::{Decoration, MemoryAccess, Op, StorageClass, Word};
-use std::collections::{HashMap, HashSet};
+use rspirv::spirv::{Decoration, Op, StorageClass, Word};
+use std::collections::{BTreeMap, HashMap, HashSet};
 
 #[derive(Clone, Debug, Default)]
 pub struct Options {
-    /// Byte offset of the table address in the push-constant block (default: its end, 8-aligned).
-    pub offset: Option<u32>,
+    /// Only SSBO arrays of this descriptor set (default: every set).
+    pub set: Option<u32>,
     /// Only the SSBO array at this binding (default: every SSBO array).
     pub binding: Option<u32>,
+}
+
+/// One array's table: where its address is and how many entries it needs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Entry {
+    pub set: u32,
+    pub binding: u32,
+    pub offset: u32,
+    /// The array's length (None: a runtime array).
+    pub elements: Option<u32>,
 }
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Report {
     pub rewritten_loads: usize,
-    pub offset: u32,
+    pub entries: Vec<Entry>,
 }
 
 const NAME: &str = "ssbo-to-address";
 
-/// The storage-buffer descriptor arrays `opts` selects: variable -> its `Block` struct.
-fn ssbo_arrays(m: &Module, opts: &Options) -> Result<HashMap<Word, Word>, PatchError> {
-    let mut vars: HashMap<Word, Word> = HashMap::new();
+/// A storage-buffer descriptor array.
+struct Var {
+    block: Word,
+    set: u32,
+    binding: u32,
+    elements: Option<u32>,
+}
+
+/// The storage-buffer descriptor arrays `opts` selects.
+fn ssbo_arrays(m: &Module, opts: &Options) -> Result<BTreeMap<Word, Var>, PatchError> {
+    let mut vars = BTreeMap::new();
+    let mut old_style = false;
     for v in m.types_global_values.iter().filter(|i| i.class.opcode == Op::Variable) {
         let (Some(id), Some(ptr)) = (v.result_id, v.result_type) else {
             continue;
         };
-        let Some((StorageClass::StorageBuffer, pointee)) = edit::pointer_info(m, ptr) else {
+        let Some((sc, pointee)) = edit::pointer_info(m, ptr) else {
             continue;
         };
         let Some(arr) = edit::def(m, pointee) else {
             continue;
         };
-        if !matches!(arr.class.opcode, Op::TypeArray | Op::TypeRuntimeArray) {
-            continue;
-        }
+        let elements = match arr.class.opcode {
+            Op::TypeArray => edit::array_length(m, arr),
+            Op::TypeRuntimeArray => None,
+            _ => continue,
+        };
         let Some(block) = id_operand(arr, 0) else {
             continue;
         };
-        if !edit::has_decoration(m, block, Decoration::Block) {
+        old_style |=
+            sc == StorageClass::Uniform && edit::has_decoration(m, block, Decoration::BufferBlock);
+        if sc != StorageClass::StorageBuffer || !edit::has_decoration(m, block, Decoration::Block) {
             continue;
         }
-        if opts
-            .binding
-            .is_some_and(|b| edit::decoration_literal(m, id, Decoration::Binding) != Some(b))
-        {
+        let set = edit::decoration_literal(m, id, Decoration::DescriptorSet).unwrap_or(0);
+        let binding = edit::decoration_literal(m, id, Decoration::Binding).unwrap_or(0);
+        if opts.set.is_some_and(|s| s != set) || opts.binding.is_some_and(|b| b != binding) {
             continue;
         }
-        vars.insert(id, block);
+        vars.insert(id, Var { block, set, binding, elements });
     }
     if vars.is_empty() {
-        return Err(PatchError::NothingToPatch {
-            patch: NAME,
-            what: "no storage-buffer descriptor array".into(),
-        });
+        let what = if old_style {
+            "no storage-buffer descriptor array in StorageBuffer storage (the Uniform + BufferBlock \
+             arrays of SPIR-V 1.0-1.3 are not rewritten: compile for SPIR-V 1.4 or later)"
+        } else {
+            "no storage-buffer descriptor array"
+        };
+        return Err(PatchError::NothingToPatch { patch: NAME, what: what.into() });
     }
     Ok(vars)
 }
 
-/// An access chain into an SSBO array (at function `func`, block `block`, instruction `inst`).
-struct Chain {
-    func: usize,
-    block: usize,
-    inst: usize,
-    id: Word,
-    var: Word,
-    index: Word,
+/// Where an instruction is: (function, block, instruction).
+type At = (usize, usize, usize);
+
+/// The reads of the SSBO arrays.
+#[derive(Default)]
+struct Reads {
+    /// Access chains on an array variable: where, var, index.
+    roots: Vec<(At, Word, Word)>,
+    /// Pointers derived from a root (chains on them, copies), to re-point to PhysicalStorageBuffer.
+    derived: Vec<At>,
+    /// Loads through any of them.
+    loads: Vec<At>,
+    /// The roots' result ids.
+    root_ids: HashSet<Word>,
 }
 
-/// The SSBO arrays' reads: the access chains into `vars`, their ids, and the loads through them
-/// (function, block, instruction); other shapes are refused.
-type Reads = (Vec<Chain>, HashSet<Word>, Vec<(usize, usize, usize)>);
-
-/// Collect chains into the vars and their loads; refuse other shapes.
-fn reads(m: &Module, vars: &HashMap<Word, Word>) -> Result<Reads, PatchError> {
-    let mut chains: Vec<Chain> = Vec::new();
-    let mut chain_ids: HashSet<Word> = HashSet::new();
-    let mut loads: Vec<(usize, usize, usize)> = Vec::new();
+/// Collect the chains into `vars`, the pointers derived from them and their loads; refuse every
+/// other use. One forward pass: blocks come in dominance order, so a pointer's definition is
+/// seen before its uses.
+fn reads(m: &Module, vars: &BTreeMap<Word, Var>) -> Result<Reads, PatchError> {
+    let mut r = Reads::default();
+    let mut pointers: HashSet<Word> = HashSet::new();
     for (fi, f) in m.functions.iter().enumerate() {
         for (bi, b) in f.blocks.iter().enumerate() {
             for (ii, i) in b.instructions.iter().enumerate() {
-                let uses_var = i
-                    .operands
-                    .iter()
-                    .any(|o| matches!(o, Operand::IdRef(w) if vars.contains_key(w)));
-                let uses_chain = i
-                    .operands
-                    .iter()
-                    .any(|o| matches!(o, Operand::IdRef(w) if chain_ids.contains(w)));
-                let refuse = |what: &str| PatchError::Unsupported {
+                let at = (fi, bi, ii);
+                let ids: Vec<Word> = i.operands.iter().filter_map(edit::id_from).collect();
+                let uses_var = ids.iter().any(|w| vars.contains_key(w));
+                let uses_ptr = ids.iter().any(|w| pointers.contains(w));
+                let refuse = |what: String| PatchError::Unsupported {
                     patch: NAME,
                     id: i.result_id.unwrap_or(0),
-                    what: what.into(),
+                    what,
                 };
+                let chain = matches!(i.class.opcode, Op::AccessChain | Op::InBoundsAccessChain);
+                let base = id_operand(i, 0);
                 match i.class.opcode {
-                    Op::AccessChain | Op::InBoundsAccessChain if uses_var => {
-                        if id_operand(i, 0).is_none_or(|b| !vars.contains_key(&b)) {
-                            return Err(refuse("an SSBO array used as an access-chain index"));
-                        }
-                        if i.operands.len() < 3 {
-                            return Err(refuse(
-                                "an access chain to a whole buffer block (no member index)",
-                            ));
-                        }
+                    _ if chain && uses_var => {
+                        let var = base.filter(|b| vars.contains_key(b)).ok_or_else(|| {
+                            refuse("an SSBO array used as an access-chain index".into())
+                        })?;
                         let id = i.result_id.expect("chains have ids");
-                        chain_ids.insert(id);
-                        chains.push(Chain {
-                            func: fi,
-                            block: bi,
-                            inst: ii,
-                            id,
-                            var: id_operand(i, 0).expect("base"),
-                            index: id_operand(i, 1).expect("index"),
-                        });
+                        r.roots.push((at, var, id_operand(i, 1).expect("index")));
+                        r.root_ids.insert(id);
+                        pointers.insert(id);
                     }
-                    Op::Load if uses_chain => loads.push((fi, bi, ii)),
                     _ if uses_var => {
-                        return Err(refuse(&format!(
+                        return Err(refuse(format!(
                             "Op{:?} uses a storage-buffer array directly",
                             i.class.opcode
                         )))
                     }
-                    _ if uses_chain => {
-                        return Err(refuse(&format!(
+                    _ if (chain || i.class.opcode == Op::CopyObject)
+                        && base.is_some_and(|b| pointers.contains(&b)) =>
+                    {
+                        r.derived.push(at);
+                        pointers.insert(i.result_id.expect("chains have ids"));
+                    }
+                    Op::Load if base.is_some_and(|b| pointers.contains(&b)) => r.loads.push(at),
+                    _ if uses_ptr => {
+                        return Err(refuse(format!(
                             "Op{:?} on an SSBO element (only loads are rewritten)",
                             i.class.opcode
                         )))
@@ -152,102 +180,132 @@ fn reads(m: &Module, vars: &HashMap<Word, Word>) -> Result<Reads, PatchError> {
             }
         }
     }
-    if chains.is_empty() {
+    if r.roots.is_empty() {
         return Err(PatchError::NothingToPatch {
             patch: NAME,
             what: "the storage-buffer arrays are never read".into(),
         });
     }
-    Ok((chains, chain_ids, loads))
+    Ok(r)
 }
 
-/// The address table's types, its address a new push-constant member; with the member's offset.
-fn address_table(m: &mut Module, opts: &Options) -> Result<(edit::TableTypes, u32), PatchError> {
-    let (pc_var, member, offset) = super::as_to_address::push_constant_u64(m, opts.offset, NAME)?;
-    let u32_t = edit::type_int(m, 32, false);
-    let u64_t = edit::type_int(m, 64, false);
-    edit::enable_physical_storage_buffer(m);
-    let table = edit::TableTypes {
-        pc_var,
-        member: edit::constant(m, u32_t, member as u64, false),
-        ptr_pc_u64: edit::type_pointer(m, StorageClass::PushConstant, u64_t),
-        u64_t,
-        ptr_psb_u64: edit::type_pointer(m, StorageClass::PhysicalStorageBuffer, u64_t),
-        eight: edit::constant(m, u64_t, 8, true),
-    };
-    Ok((table, offset))
-}
-
-pub fn apply(m: &mut Module, opts: &Options) -> Result<Report, PatchError> {
+/// Rewrite every SSBO array `opts` selects: each reads its own table, at the offset `slots`
+/// gives its descriptor, placed in the push block under `rules`.
+pub fn apply(
+    m: &mut Module,
+    opts: &Options,
+    slots: &mut Slots,
+    rules: Rules,
+) -> Result<Report, PatchError> {
     let vars = ssbo_arrays(m, opts)?;
-    let (chains, chain_ids, loads) = reads(m, &vars)?;
-    let (table, offset) = address_table(m, opts)?;
-    // Loads through rewritten chains need an Aligned operand.
-    for (fi, bi, ii) in &loads {
-        let l = &mut m.functions[*fi].blocks[*bi].instructions[*ii];
-        l.operands.truncate(1);
-        l.operands.push(Operand::MemoryAccess(MemoryAccess::ALIGNED));
-        l.operands.push(Operand::LiteralBit32(4));
+    let r = reads(m, &vars)?;
+    // Only the arrays actually read get a table.
+    let read: Vec<Word> =
+        vars.keys().copied().filter(|v| r.roots.iter().any(|x| x.1 == *v)).collect();
+    let mut entries = Vec::new();
+    for v in &read {
+        let var = &vars[v];
+        let key = SlotKey { kind: SlotKind::BufferTable, set: var.set, binding: var.binding };
+        let offset = slots.offset(key, NAME)?;
+        entries.push((
+            *v,
+            Entry { set: var.set, binding: var.binding, offset, elements: var.elements },
+        ));
     }
-    rewrite_chains(m, &chains, &vars, &table)?;
+    entries.sort_by_key(|e| e.1.offset);
+    let mut tables: HashMap<Word, edit::TableTypes> = HashMap::new();
+    for (v, e) in &entries {
+        let (pc_var, member) = push::u64_member(m, e.offset, rules, NAME)?;
+        tables.insert(*v, edit::TableTypes::new(m, pc_var, member));
+    }
+    for at in &r.loads {
+        let ty = instruction(m, *at).result_type.expect("loads are typed");
+        let align = layout::scalar_alignment(m, ty).unwrap_or(1).max(1);
+        edit::set_aligned(instruction_mut(m, *at), 1, align);
+    }
+    for at in &r.derived {
+        repoint(m, *at)?;
+    }
+    rewrite_roots(m, &r.roots, &vars, &tables)?;
     // NonUniform on the chains is meaningless now (no descriptor); drop it there.
     m.annotations.retain(|a| {
         !(a.class.opcode == Op::Decorate
-            && id_operand(a, 0).is_some_and(|t| chain_ids.contains(&t))
+            && id_operand(a, 0).is_some_and(|t| r.root_ids.contains(&t))
             && matches!(a.operands.get(1), Some(Operand::Decoration(Decoration::NonUniform))))
     });
-    let removed: HashSet<Word> = vars.keys().copied().collect();
+    let removed: HashSet<Word> = read.iter().copied().collect();
     edit::remove_ids(m, &removed);
-    Ok(Report { rewritten_loads: loads.len(), offset })
+    Ok(Report {
+        rewritten_loads: r.loads.len(),
+        entries: entries.into_iter().map(|e| e.1).collect(),
+    })
 }
 
-/// Each chain starts from the buffer's address (`OpConvertUToPtr` of its table entry) and yields
-/// a `PhysicalStorageBuffer` pointer of the same pointee; last chain first.
-fn rewrite_chains(
+fn instruction(m: &Module, (f, b, i): At) -> &Instruction {
+    &m.functions[f].blocks[b].instructions[i]
+}
+
+fn instruction_mut(m: &mut Module, (f, b, i): At) -> &mut Instruction {
+    &mut m.functions[f].blocks[b].instructions[i]
+}
+
+/// The `PhysicalStorageBuffer` pointer type to what the pointer type `ty` points to.
+fn psb_pointer(m: &mut Module, ty: Word, id: Word) -> Result<Word, PatchError> {
+    let (_, pointee) = edit::pointer_info(m, ty).ok_or(PatchError::Unsupported {
+        patch: NAME,
+        id,
+        what: "a pointer without pointer type".into(),
+    })?;
+    Ok(edit::type_pointer(m, StorageClass::PhysicalStorageBuffer, pointee))
+}
+
+/// A pointer derived from a rewritten chain becomes a `PhysicalStorageBuffer` pointer.
+fn repoint(m: &mut Module, at: At) -> Result<(), PatchError> {
+    let i = instruction(m, at);
+    let (ty, id) = (i.result_type.expect("typed"), i.result_id.unwrap_or(0));
+    let psb = psb_pointer(m, ty, id)?;
+    instruction_mut(m, at).result_type = Some(psb);
+    Ok(())
+}
+
+/// Each root chain starts from the element buffer's address (`OpConvertUToPtr` of its table
+/// entry) and yields a `PhysicalStorageBuffer` pointer of the same pointee (a copy of the block
+/// pointer when it had no member index); last chain first, so positions stay valid.
+fn rewrite_roots(
     m: &mut Module,
-    chains: &[Chain],
-    vars: &HashMap<Word, Word>,
-    table: &edit::TableTypes,
+    roots: &[(At, Word, Word)],
+    vars: &BTreeMap<Word, Var>,
+    tables: &HashMap<Word, edit::TableTypes>,
 ) -> Result<(), PatchError> {
-    // Re-point every chain's result type to PhysicalStorageBuffer.
-    let mut psb_of: HashMap<Word, Word> = HashMap::new();
-    for c in chains {
-        let ty =
-            m.functions[c.func].blocks[c.block].instructions[c.inst].result_type.expect("typed");
-        let (_, pointee) = edit::pointer_info(m, ty).ok_or(PatchError::Unsupported {
-            patch: NAME,
-            id: c.id,
-            what: "chain without pointer type".into(),
-        })?;
-        let psb = edit::type_pointer(m, StorageClass::PhysicalStorageBuffer, pointee);
-        psb_of.insert(c.id, psb);
-    }
-    let block_ptrs: HashMap<Word, Word> = vars
-        .iter()
-        .map(|(v, blk)| (*v, edit::type_pointer(m, StorageClass::PhysicalStorageBuffer, *blk)))
-        .collect();
-    let mut order: Vec<&Chain> = chains.iter().collect();
-    order.sort_by_key(|c| std::cmp::Reverse((c.func, c.block, c.inst)));
-    for c in order {
-        let (mut new, addr) = edit::table_entry(m, table, Some(c.index));
+    let mut order: Vec<&(At, Word, Word)> = roots.iter().collect();
+    order.sort_by_key(|r| std::cmp::Reverse(r.0));
+    for &&(at, var, index) in &order {
+        let (ty, id) = {
+            let i = instruction(m, at);
+            (i.result_type.expect("typed"), i.result_id.expect("chains have ids"))
+        };
+        let psb = psb_pointer(m, ty, id)?;
+        let block_ptr =
+            edit::type_pointer(m, StorageClass::PhysicalStorageBuffer, vars[&var].block);
+        let (mut new, addr) = edit::table_entry(m, &tables[&var], Some(index));
         let blk = edit::next_id(m);
         new.push(Instruction::new(
             Op::ConvertUToPtr,
-            Some(block_ptrs[&c.var]),
+            Some(block_ptr),
             Some(blk),
             vec![Operand::IdRef(addr)],
         ));
-        let block = &mut m.functions[c.func].blocks[c.block];
-        let ch = &mut block.instructions[c.inst];
+        let ch = instruction_mut(m, at);
         let rest: Vec<Operand> = ch.operands[2..].to_vec();
-        *ch = Instruction::new(
-            ch.class.opcode,
-            Some(psb_of[&c.id]),
-            Some(c.id),
-            std::iter::once(Operand::IdRef(blk)).chain(rest).collect(),
-        );
+        *ch = if rest.is_empty() {
+            Instruction::new(Op::CopyObject, Some(psb), Some(id), vec![Operand::IdRef(blk)])
+        } else {
+            let ops = std::iter::once(Operand::IdRef(blk)).chain(rest).collect();
+            Instruction::new(ch.class.opcode, Some(psb), Some(id), ops)
+        };
+        let block = &mut m.functions[at.0].blocks[at.1];
         for (k, i) in new.into_iter().enumerate() {
-            block.instructions.insert(c.inst + k, i);
+            block.instructions.insert(at.2 + k, i);
         }
     }
     Ok(())

@@ -41,6 +41,7 @@ pub fn requirements(info: &crate::vk::DeviceInfo, cells: &[Cell]) -> Requirement
         fragment_stores: fragment,
         dynamic_rendering: fragment,
         invocation_reorder: any(&|s| s.reorder.is_some()),
+        scalar_block_layout: false,
     }
 }
 

@@ -47,7 +47,7 @@ pub fn compiler_for(glsl: &str) -> String {
         return SHADERC.into();
     }
     match super::glslang::find() {
-        Some(g) => format!("glslangValidator {} ({})", g.version, g.path.display()),
+        Some(g) => g.describe(),
         None => "glslangValidator (not found here)".into(),
     }
 }
@@ -142,9 +142,12 @@ impl Compiler {
     }
 
     /// Compile GLSL with `#include` resolution, macro definitions and a target environment
-    /// (`rtprobe patch --glsl`). Errors are one line, each naming its file, line and include chain.
-    /// A source that enables an extension shaderc's glslang predates goes to the external
-    /// glslangValidator with the same target, include folders and defines.
+    /// (`rtprobe patch`). Errors are one line, each naming its file, line and include chain. A
+    /// missing or too old `#version` is refused before a compiler sees it
+    /// ([`super::preflight`]). A source that enables an extension of
+    /// [`super::glslang::EXTENSIONS`] goes to the external glslangValidator with the same target,
+    /// include folders and defines; one that enables another extension the glslang in shaderc does
+    /// not know goes there too when shaderc refuses it.
     pub fn compile_user_glsl(
         &mut self,
         kind: shaderc::ShaderKind,
@@ -152,27 +155,11 @@ impl Compiler {
         glsl: &str,
         o: &GlslOptions,
     ) -> Result<Vec<u32>, CompileError> {
+        if let Some(why) = super::preflight::version_problem(kind, glsl) {
+            return Err(CompileError::Glsl { file: file.to_string(), message: why });
+        }
         if let Some(ext) = super::glslang::needed_by(glsl) {
-            let mut args = vec!["--target-env".to_string(), o.target.name().to_string()];
-            let input_dir = o.input.as_ref().and_then(|i| i.parent()).map(|d| {
-                if d.as_os_str().is_empty() {
-                    PathBuf::from(".")
-                } else {
-                    d.to_path_buf()
-                }
-            });
-            for d in input_dir.iter().chain(&o.include_dirs) {
-                args.push(format!("-I{}", d.display()));
-            }
-            for (name, value) in &o.defines {
-                args.push(match value {
-                    Some(v) => format!("-D{name}={v}"),
-                    None => format!("-D{name}"),
-                });
-            }
-            let args: Vec<&str> = args.iter().map(String::as_str).collect();
-            let stage = super::glslang::stage_of_kind(kind);
-            return super::glslang::compile_with(file, stage, glsl, ext, &args);
+            return external(kind, file, glsl, o, ext);
         }
         let includes =
             o.input.as_ref().map(|input| Includes::new(input, file, glsl, &o.include_dirs));
@@ -188,17 +175,46 @@ impl Compiler {
                 inc.resolve(req, ty, from, depth)
             });
         }
-        let out =
-            self.inner.compile_into_spirv(glsl, kind, file, "main", Some(&opts)).map_err(|e| {
-                let message = e.to_string();
-                let message = match &includes {
-                    Some(inc) => inc.annotate(&message),
-                    None => message.replace('\n', " | "),
-                };
-                CompileError::Glsl { file: file.to_string(), message }
-            })?;
-        Ok(out.as_binary().to_vec())
+        let out = self.inner.compile_into_spirv(glsl, kind, file, "main", Some(&opts));
+        let e = match out {
+            Ok(a) => return Ok(a.as_binary().to_vec()),
+            Err(e) => e,
+        };
+        let message = match &includes {
+            Some(inc) => inc.annotate(&e.to_string()),
+            None => e.to_string().replace('\n', " | "),
+        };
+        match super::preflight::unknown_extension(&message) {
+            Some(ext) => external(kind, file, glsl, o, &ext),
+            None => Err(CompileError::Glsl { file: file.to_string(), message }),
+        }
     }
+}
+
+/// Compile `glsl` (named `file`) with the external glslangValidator, for the extension `ext`
+/// the glslang in shaderc does not know: the same target, include folders (the input's own
+/// first) and defines. When that one does not know it either, one line says so.
+fn external(
+    kind: shaderc::ShaderKind,
+    file: &str,
+    glsl: &str,
+    o: &GlslOptions,
+    ext: &str,
+) -> Result<Vec<u32>, CompileError> {
+    let args = o.glslang_args();
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let stage = super::glslang::stage_of_kind(kind);
+    super::glslang::compile_with(file, stage, glsl, ext, &args).map_err(|e| match e {
+        CompileError::Glsl { file, message }
+            if message.contains(&format!("extension not supported: {ext}")) =>
+        {
+            let by = super::glslang::find().map(|g| g.describe()).unwrap_or_default();
+            let message =
+                format!("{ext} is known neither to the glslang in shaderc ({SHADERC}) nor to {by}");
+            CompileError::Glsl { file, message }
+        }
+        e => e,
+    })
 }
 
 /// The Vulkan environment GLSL is compiled for (`--target-env`'s names and help are in
@@ -215,7 +231,7 @@ pub enum TargetEnv {
 }
 
 impl TargetEnv {
-    /// The `--target-env` name.
+    /// The `--target-env` name (shaderc's and glslangValidator's).
     pub fn name(self) -> &'static str {
         match self {
             TargetEnv::Vulkan1_2 => "vulkan1.2",
@@ -270,6 +286,31 @@ pub struct GlslOptions {
     /// `-D NAME[=VALUE]`.
     pub defines: Vec<(String, Option<String>)>,
     pub target: TargetEnv,
+}
+
+impl GlslOptions {
+    /// The same options as glslangValidator arguments: target, the input's directory and each
+    /// `-I` (glslang searches the including file's directory first, as [`Includes`] does), `-D`.
+    pub fn glslang_args(&self) -> Vec<String> {
+        let mut a = vec!["--target-env".to_string(), self.target.name().to_string()];
+        let own = self.input.as_ref().and_then(|i| i.parent()).map(|d| {
+            if d.as_os_str().is_empty() {
+                PathBuf::from(".")
+            } else {
+                d.to_path_buf()
+            }
+        });
+        for d in own.iter().chain(&self.include_dirs) {
+            a.push(format!("-I{}", d.display()));
+        }
+        for (name, value) in &self.defines {
+            a.push(match value {
+                Some(v) => format!("-D{name}={v}"),
+                None => format!("-D{name}"),
+            });
+        }
+        a
+    }
 }
 
 #[cfg(test)]

@@ -1,14 +1,14 @@
 //! An external `glslangValidator` for what the glslang inside shaderc cannot compile: GLSL that
 //! enables an extension of [`EXTENSIONS`], such as `GL_EXT_descriptor_heap`
-//! (`layout(descriptor_heap)`, glslang >= 16.2). Found on PATH (`RTPROBE_GLSLANG` overrides) and
-//! accepted by the version it prints. rtprobe's heap shaders are compiled for Vulkan 1.3 /
+//! (`layout(descriptor_heap)`, glslang >= 16.2). The newest of the sid root's and PATH's
+//! (`RTPROBE_GLSLANG` replaces the PATH lookup; [`crate::tools`]), accepted by the version it
+//! prints. rtprobe's heap shaders are compiled for Vulkan 1.3 /
 //! SPIR-V 1.6 without optimization; user GLSL (`patch --glsl`) for its own target, with its `-I`
 //! and `-D`.
 use super::error::CompileError;
 use super::Role;
+use crate::tools::Tool;
 use std::path::PathBuf;
-use std::process::{Command, Stdio};
-use std::sync::OnceLock;
 
 /// The GLSL extension of rtprobe's heap shaders, which only this compiler handles.
 pub const HEAP_EXTENSION: &str = "GL_EXT_descriptor_heap";
@@ -27,42 +27,10 @@ pub fn needed_by(glsl: &str) -> Option<&'static str> {
     })
 }
 
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct Glslang {
-    pub path: PathBuf,
-    /// "16.6.0"
-    pub version: String,
-}
-
-/// `Glslang Version: 11:16.6.0` → (16, 6).
-pub fn parse_version(out: &str) -> Option<(u32, u32)> {
-    let line = out.lines().find(|l| l.starts_with("Glslang Version:"))?;
-    let v = line.rsplit(':').next()?.trim();
-    let mut it = v.split('.').map(|p| p.parse::<u32>().ok());
-    Some((it.next()??, it.next()??))
-}
-
-/// The heap-capable glslangValidator of this machine, looked up once per process.
-pub fn find() -> Option<&'static Glslang> {
-    static FOUND: OnceLock<Option<Glslang>> = OnceLock::new();
-    FOUND
-        .get_or_init(|| {
-            let path = PathBuf::from(
-                std::env::var_os("RTPROBE_GLSLANG").unwrap_or_else(|| "glslangValidator".into()),
-            );
-            let out = Command::new(&path).arg("--version").stdin(Stdio::null()).output().ok()?;
-            let text = String::from_utf8_lossy(&out.stdout);
-            let v = parse_version(&text)?;
-            let version = text
-                .lines()
-                .find(|l| l.starts_with("Glslang Version:"))?
-                .rsplit(':')
-                .next()?
-                .trim()
-                .to_string();
-            (v >= MIN_VERSION).then_some(Glslang { path, version })
-        })
-        .as_ref()
+/// The heap-capable glslangValidator of this machine: the newest of the sid root's and PATH's
+/// (`RTPROBE_GLSLANG` replaces the PATH lookup; [`crate::tools`]), accepted from [`MIN_VERSION`].
+pub fn find() -> Option<&'static Tool> {
+    crate::tools::glslang().filter(|g| g.version >= MIN_VERSION)
 }
 
 /// Why heap GLSL cannot be compiled here, for `not_implemented` reasons.
@@ -72,8 +40,15 @@ pub fn missing_reason() -> String {
 
 /// Why GLSL enabling `extension` (one of [`EXTENSIONS`]) cannot be compiled here.
 pub fn missing_for(extension: &str) -> String {
+    let root = match crate::tools::sid_root() {
+        Some(r) => format!("the sid root at {} has none that new", r.display()),
+        None => "no sid root here (RTPROBE_SID_ROOT, default /var/lib/rtprobe/sid-root): \
+                 scripts/setup-sid makes one with glslang 16.6"
+            .into(),
+    };
     format!(
-        "no GLSL compiler with {extension} here (glslangValidator >= {}.{} on PATH or RTPROBE_GLSLANG; the glslang in shaderc predates it; scripts/in-sid has one)",
+        "no GLSL compiler with {extension} here: the glslang in shaderc predates it, and no \
+         glslangValidator >= {}.{} is on PATH or in RTPROBE_GLSLANG; {root}",
         MIN_VERSION.0, MIN_VERSION.1
     )
 }
@@ -133,17 +108,17 @@ pub fn compile_with(
     let spv = dir.0.join("out.spv");
     std::fs::write(&src, glsl)
         .map_err(|e| CompileError::Glsl { file: file.clone(), message: e.to_string() })?;
-    let out = Command::new(&g.path)
+    let out = g
+        .command()
         .arg("-V")
         .args(args)
         .args(["-S", stage, "-o"])
         .arg(&spv)
         .arg(&src)
-        .stdin(Stdio::null())
         .output()
         .map_err(|e| CompileError::Glsl {
             file: file.clone(),
-            message: format!("{}: {e}", g.path.display()),
+            message: format!("{}: {e}", g.describe()),
         })?;
     if !out.status.success() {
         let msg = String::from_utf8_lossy(&out.stdout).to_string()
@@ -151,7 +126,7 @@ pub fn compile_with(
         let msg = msg.replace(&format!("{}/", dir.0.display()), "");
         return Err(CompileError::Glsl {
             file,
-            message: format!("glslang {}: {}", g.version, msg.trim().replace('\n', " | ")),
+            message: format!("glslang {}: {}", g.version_text, msg.trim().replace('\n', " | ")),
         });
     }
     let bytes = std::fs::read(&spv)
@@ -189,11 +164,11 @@ mod tests {
     use super::*;
 
     #[test]
-    fn versions_parse_and_old_glslang_is_refused() {
-        assert_eq!(parse_version("Glslang Version: 11:16.6.0\nESSL Version: ..."), Some((16, 6)));
-        assert_eq!(parse_version("Glslang Version: 11:12.0.0"), Some((12, 0)));
-        assert!(parse_version("Glslang Version: 11:12.0.0").unwrap() < MIN_VERSION);
-        assert_eq!(parse_version("garbage"), None);
+    fn old_glslang_is_refused() {
+        let v = crate::tools::parse_glslang_version("Glslang Version: 11:12.0.0").unwrap().0;
+        assert!(v < MIN_VERSION);
+        let new = crate::tools::parse_glslang_version("Glslang Version: 11:16.6.0").unwrap().0;
+        assert!(new >= MIN_VERSION);
     }
 
     #[test]

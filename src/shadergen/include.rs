@@ -22,6 +22,17 @@ pub struct Includes {
     sources: RefCell<HashMap<String, String>>,
 }
 
+/// Source text from a file's bytes, as glslang reads them: UTF-8 when they are, else one
+/// character per byte (Latin-1), so a header with a Latin-1 comment still compiles (GLSL
+/// source outside comments is ASCII).
+pub fn decode(bytes: &[u8]) -> String {
+    let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
+    match std::str::from_utf8(bytes) {
+        Ok(s) => s.to_string(),
+        Err(_) => bytes.iter().map(|&b| b as char).collect(),
+    }
+}
+
 /// The name a path is shown and resolved under: as built from the search path, with `./`
 /// prefixes dropped.
 pub fn display(p: &Path) -> String {
@@ -71,8 +82,9 @@ impl Includes {
             return Err(format!("cannot find {requested:?} (searched {})", dirs.join(", ")));
         };
         let name = display(path);
-        let content =
-            std::fs::read_to_string(path).map_err(|e| format!("cannot read {name}: {e}"))?;
+        let content = std::fs::read(path)
+            .map(|b| decode(&b))
+            .map_err(|e| format!("cannot read {name}: {e}"))?;
         let line = self.include_line(requester, requested);
         self.origins.borrow_mut().entry(name.clone()).or_insert((requester.to_string(), line));
         self.sources.borrow_mut().insert(name.clone(), content.clone());
@@ -171,6 +183,21 @@ mod tests {
         ));
         assert!(!msg.contains('\n'));
         assert!(msg.contains("sub/b.glsl:1: error: 'x' : undeclared (included from"), "{msg}");
+    }
+
+    #[test]
+    fn latin1_and_utf8_sources_decode() {
+        assert_eq!(decode(b"// caf\xe9\n"), "// caf\u{e9}\n");
+        assert_eq!(decode("// café\n".as_bytes()), "// café\n");
+        assert_eq!(decode(b"\xEF\xBB\xBF#version 460\n"), "#version 460\n");
+        // A Latin-1 header is found and read through the include callback.
+        let d = tree();
+        std::fs::write(d.path().join("inc/latin.glsl"), b"// r\xe9flexion\nfloat k = 1.0;\n")
+            .unwrap();
+        let main = d.path().join("main.rgen");
+        let inc = Includes::new(&main, "main.rgen", "", &[d.path().join("inc")]);
+        let r = inc.resolve("latin.glsl", shaderc::IncludeType::Relative, "main.rgen", 1).unwrap();
+        assert!(r.content.contains("float k") && r.content.contains('\u{e9}'), "{}", r.content);
     }
 
     #[test]

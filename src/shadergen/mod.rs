@@ -10,6 +10,7 @@ pub mod error;
 pub mod glslang;
 pub mod include;
 mod inject;
+pub mod preflight;
 mod probe_code;
 mod role;
 
@@ -554,6 +555,9 @@ mod tests {
                         .unwrap_or_else(|e| panic!("{r:?} {:?}: {e}\n{}", s.role, s.glsl));
                     match crate::patches::validate(&words) {
                         crate::patches::Validation::Invalid(m) => panic!("{r:?} {:?}: {m}", s.role),
+                        crate::patches::Validation::TooOld { validator, what } => {
+                            panic!("{r:?} {:?}: {validator} too old for {what}", s.role)
+                        }
                         crate::patches::Validation::Valid
                         | crate::patches::Validation::Unavailable => {}
                     }

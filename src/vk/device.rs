@@ -36,6 +36,8 @@ pub struct Requirements {
     pub dynamic_rendering: bool,
     /// VK_NV_ray_tracing_invocation_reorder (hit objects and reorderThreadNV in raygen).
     pub invocation_reorder: bool,
+    /// scalarBlockLayout (user modules whose blocks use `layout(scalar)`).
+    pub scalar_block_layout: bool,
 }
 
 impl Requirements {
@@ -77,6 +79,9 @@ impl Requirements {
         }
         if self.device_fault && f.fault.is_none_or(|x| x.device_fault != vk::TRUE) {
             m.push("deviceFault (VK_EXT_device_fault)".into());
+        }
+        if self.scalar_block_layout && v12.scalar_block_layout == vk::FALSE {
+            m.push("scalarBlockLayout".into());
         }
         if self.int64 && f.core.shader_int64 == vk::FALSE {
             m.push("shaderInt64".into());
@@ -166,6 +171,9 @@ impl Chosen {
         c.ray_tracing(req);
         if bda {
             c.v12.buffer_device_address = vk::TRUE;
+        }
+        if req.scalar_block_layout {
+            c.v12.scalar_block_layout = vk::TRUE;
         }
         if req.descriptor_indexing {
             c.descriptor_indexing(sup);
@@ -345,6 +353,7 @@ impl Chosen {
         let v12 = &self.v12;
         vec![
             given("bufferDeviceAddress", v12.buffer_device_address),
+            given("scalarBlockLayout", v12.scalar_block_layout),
             given("descriptorIndexing", v12.descriptor_indexing),
             given("runtimeDescriptorArray", v12.runtime_descriptor_array),
             given("descriptorBindingPartiallyBound", v12.descriptor_binding_partially_bound),

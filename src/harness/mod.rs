@@ -1,0 +1,480 @@
+//! The patch harness: a ray tracing pipeline built from given SPIR-V modules (raygen, misses,
+//! closest-hit, any-hit, intersection, callables; a procedural hit group without an intersection
+//! shader of its own gets one that reports nothing), its resources made from the modules'
+//! reflected interface ([`reflect`]) with distinct data in every descriptor ([`resources`]), the
+//! rtprobe scene traced 64×64 from its raygen, and every storage image read back. Running the
+//! unpatched pipeline and the patched one — fed as the host contract says: each address in push
+//! constants, tables of addresses — and comparing their images texel for texel is
+//! `rtprobe patch --verify` ([`verify`]). Uses exec's pieces: the device, memory, the scene's
+//! acceleration structures and `exec::pipeline`'s RT pipeline and SBT. Runs in the calling
+//! process with a fence deadline per submission.
+mod error;
+pub mod reflect;
+mod resources;
+
+pub use error::HarnessError;
+
+use crate::exec::pipeline::{self, Pipeline, RtPipeline, SbtCounts};
+use crate::model::contract::HostContract;
+use crate::model::SceneParams;
+use crate::scene::gpu::SceneGpu;
+use crate::scene::Scene;
+use crate::vk::memory::{color_range, full_barrier, transition, Buffer, Location, Transition};
+use crate::vk::submit::{Submitter, Waited};
+use crate::vk::{Gpu, Requirements, VkResultExt};
+use ash::vk;
+use reflect::Interface;
+use resources::{Element, Resources};
+use std::ffi::CString;
+use std::time::Duration;
+
+/// Width and height of the traced image.
+pub const SIZE: u32 = 64;
+const TIMEOUT: Duration = Duration::from_secs(30);
+
+/// One module of a pipeline: its name, SPIR-V and interface.
+pub struct UserModule {
+    pub name: String,
+    pub words: Vec<u32>,
+    pub iface: Interface,
+}
+
+impl UserModule {
+    pub fn new(name: &str, words: &[u32]) -> Result<UserModule, HarnessError> {
+        let m = crate::patches::load(&crate::tools::spirv::bytes(words))
+            .map_err(|e| HarnessError::Interface(format!("{name}: {e}")))?;
+        let iface =
+            reflect::reflect(&m).map_err(|e| HarnessError::Unsupported(format!("{name}: {e}")))?;
+        Ok(UserModule { name: name.to_string(), words: words.to_vec(), iface })
+    }
+}
+
+/// What the device must enable for `modules` (`scalar`: their blocks need scalar layout).
+/// Every module needs the RT pipeline; the patched ones device addresses and 64-bit integers;
+/// descriptor indexing covers runtime arrays and non-uniform indexing.
+pub fn requirements(scalar: bool) -> Requirements {
+    Requirements {
+        rt_pipeline: true,
+        buffer_device_address: true,
+        int64: true,
+        descriptor_indexing: true,
+        scalar_block_layout: scalar,
+        ..Requirements::default()
+    }
+}
+
+/// One read-back output: a storage image's texels.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Part {
+    pub label: String,
+    pub bytes: Vec<u8>,
+    /// Bytes per texel.
+    pub texel: u32,
+}
+
+/// A device with the scene, the resources of a set of modules and a pipeline layout for them.
+pub struct Harness {
+    gpu: Gpu,
+    submitter: Submitter,
+    scene: SceneGpu,
+    res: Resources,
+    layout: vk::PipelineLayout,
+    push_size: u32,
+}
+
+/// The groups of a pipeline from its modules (by index): raygen, misses, the triangle hit group
+/// (closest-hit, any-hit), the procedural one (intersection, second closest-hit), callables.
+struct Groups {
+    raygen: usize,
+    misses: Vec<usize>,
+    hit: [Option<usize>; 2],
+    any_hit: Option<usize>,
+    intersection: Option<usize>,
+    callables: Vec<usize>,
+}
+
+fn groups(modules: &[&UserModule]) -> Result<Groups, HarnessError> {
+    let mut g = Groups {
+        raygen: usize::MAX,
+        misses: vec![],
+        hit: [None, None],
+        any_hit: None,
+        intersection: None,
+        callables: vec![],
+    };
+    let mut chits = Vec::new();
+    for (i, m) in modules.iter().enumerate() {
+        match m.iface.stage.as_str() {
+            "raygen" if g.raygen == usize::MAX => g.raygen = i,
+            "miss" => g.misses.push(i),
+            "closest_hit" => chits.push(i),
+            "any_hit" if g.any_hit.is_none() => g.any_hit = Some(i),
+            "intersection" if g.intersection.is_none() => g.intersection = Some(i),
+            "callable" => g.callables.push(i),
+            s => return Err(HarnessError::Unsupported(format!("{}: the harness runs one raygen with its misses, hit shaders and callables; a {s} module is not one of them", m.name))),
+        }
+    }
+    if g.raygen == usize::MAX || g.misses.is_empty() {
+        return Err(HarnessError::Unsupported("the harness needs the pipeline's raygen and miss shaders (give every stage of the pipeline)".into()));
+    }
+    g.hit = [chits.first().copied(), chits.get(1).copied()];
+    Ok(g)
+}
+
+/// Each stage's SPIR-V, stage flag and entry name, and the intersection shader's index.
+type Sources = (Vec<Vec<u32>>, Vec<vk::ShaderStageFlags>, Vec<CString>, usize);
+
+/// An intersection shader that reports nothing, for the procedural hit group of a pipeline
+/// without one (the scene's spheres then stay invisible).
+const NO_INTERSECTION: &str =
+    "#version 460\n#extension GL_EXT_ray_tracing : require\nvoid main() {}\n";
+
+impl Harness {
+    /// The scene and resources for `modules` (every module the pipelines will use, unpatched:
+    /// the patched ones read the same resources through addresses), push constants of
+    /// `push_size` bytes.
+    pub fn new(gpu: Gpu, modules: &[&UserModule], push_size: u32) -> Result<Harness, HarnessError> {
+        let submitter = Submitter::new(&gpu)?;
+        let scene =
+            Scene::build(&SceneParams { width: SIZE, height: SIZE, ..SceneParams::default() });
+        let scene = SceneGpu::build(&gpu, &scene, &submitter, TIMEOUT)?;
+        let bindings: Vec<reflect::Binding> =
+            modules.iter().flat_map(|m| m.iface.bindings.iter().cloned()).collect();
+        let extent = vk::Extent2D { width: SIZE, height: SIZE };
+        let res = Resources::new(&gpu, &bindings, &scene, extent)?;
+        let push_size = push_size.div_ceil(4) * 4;
+        let range =
+            [vk::PushConstantRange::default().stage_flags(resources::rt_stages()).size(push_size)];
+        let mut ci = vk::PipelineLayoutCreateInfo::default().set_layouts(&res.set_layouts);
+        if push_size > 0 {
+            ci = ci.push_constant_ranges(&range);
+        }
+        let layout =
+            unsafe { gpu.device.create_pipeline_layout(&ci, None) }.at("vkCreatePipelineLayout")?;
+        Ok(Harness { gpu, submitter, scene, res, layout, push_size })
+    }
+
+    pub fn device_name(&self) -> String {
+        format!(
+            "{} ({} {})",
+            self.gpu.info.name(),
+            self.gpu.info.driver_name(),
+            self.gpu.info.driver_version()
+        )
+    }
+
+    /// The SPIR-V, stage flags and entry names of `modules`, plus the reporting-nothing
+    /// intersection shader when they have none; and the index of the intersection shader.
+    fn stage_sources(modules: &[&UserModule], g: &Groups) -> Result<Sources, HarnessError> {
+        let mut spirv: Vec<Vec<u32>> = modules.iter().map(|m| m.words.clone()).collect();
+        let mut flags: Vec<vk::ShaderStageFlags> =
+            modules.iter().map(|m| stage_flag(&m.iface.stage)).collect();
+        let mut names: Vec<CString> = modules
+            .iter()
+            .map(|m| CString::new(m.iface.entry.clone()).unwrap_or_default())
+            .collect();
+        if let Some(i) = g.intersection {
+            return Ok((spirv, flags, names, i));
+        }
+        let unsupported =
+            |e: crate::shadergen::compile::CompileError| HarnessError::Unsupported(e.to_string());
+        let mut c = crate::shadergen::compile::Compiler::new().map_err(unsupported)?;
+        spirv.push(
+            c.compile_glsl(shaderc::ShaderKind::Intersection, "harness.rint", NO_INTERSECTION)
+                .map_err(unsupported)?,
+        );
+        flags.push(vk::ShaderStageFlags::INTERSECTION_KHR);
+        names.push(CString::new("main").expect("no NUL"));
+        let i = spirv.len() - 1;
+        Ok((spirv, flags, names, i))
+    }
+
+    /// The RT pipeline of `modules`.
+    fn pipeline(&self, modules: &[&UserModule]) -> Result<Pipeline, HarnessError> {
+        let g = groups(modules)?;
+        let (spirv, flags, names, intersection) = Self::stage_sources(modules, &g)?;
+        let words: Vec<&[u32]> = spirv.iter().map(|w| w.as_slice()).collect();
+        let shader_modules = pipeline::shader_modules(&self.gpu, &words)?;
+        let stages: Vec<vk::PipelineShaderStageCreateInfo> = shader_modules
+            .iter()
+            .zip(&flags)
+            .zip(&names)
+            .map(|((m, f), n)| {
+                vk::PipelineShaderStageCreateInfo::default().stage(*f).module(*m).name(n)
+            })
+            .collect();
+        let idx = |i: Option<usize>| i.map_or(vk::SHADER_UNUSED_KHR, |i| i as u32);
+        let general = |i: usize| {
+            vk::RayTracingShaderGroupCreateInfoKHR::default()
+                .ty(vk::RayTracingShaderGroupTypeKHR::GENERAL)
+                .general_shader(i as u32)
+                .closest_hit_shader(vk::SHADER_UNUSED_KHR)
+                .any_hit_shader(vk::SHADER_UNUSED_KHR)
+                .intersection_shader(vk::SHADER_UNUSED_KHR)
+        };
+        let hit = |ty, chit: Option<usize>, isect: Option<usize>| {
+            vk::RayTracingShaderGroupCreateInfoKHR::default()
+                .ty(ty)
+                .general_shader(vk::SHADER_UNUSED_KHR)
+                .closest_hit_shader(idx(chit))
+                .any_hit_shader(idx(g.any_hit))
+                .intersection_shader(idx(isect))
+        };
+        let mut groups = vec![general(g.raygen)];
+        groups.extend(g.misses.iter().map(|i| general(*i)));
+        groups.push(hit(vk::RayTracingShaderGroupTypeKHR::TRIANGLES_HIT_GROUP, g.hit[0], None));
+        groups.push(hit(
+            vk::RayTracingShaderGroupTypeKHR::PROCEDURAL_HIT_GROUP,
+            g.hit[1],
+            Some(intersection),
+        ));
+        groups.extend(g.callables.iter().map(|i| general(*i)));
+        let depth = self
+            .gpu
+            .info
+            .properties
+            .rt_pipeline
+            .map_or(1, |p| p.max_ray_recursion_depth.clamp(1, 2));
+        let counts =
+            SbtCounts { miss: g.misses.len() as u32, hit: 2, callable: g.callables.len() as u32 };
+        let p = RtPipeline { stages: &stages, groups: &groups, counts, depth, layout: self.layout };
+        let r = pipeline::create_rt_pipeline(
+            &self.gpu,
+            vk::PipelineCache::null(),
+            &p,
+            vk::PipelineCreateFlags::empty(),
+            None,
+            &|_| &[],
+        );
+        for m in &shader_modules {
+            unsafe { self.gpu.device.destroy_shader_module(*m, None) };
+        }
+        Ok(r?)
+    }
+
+    /// The push-constant bytes: floats `0.5 + w / 4` for word `w`, then each contract address.
+    fn push_bytes(&self, addresses: &[(u32, u64)]) -> Vec<u8> {
+        let mut p: Vec<u8> =
+            (0..self.push_size / 4).flat_map(|w| (0.5 + w as f32 / 4.0).to_le_bytes()).collect();
+        for (off, a) in addresses {
+            p[*off as usize..*off as usize + 8].copy_from_slice(&a.to_le_bytes());
+        }
+        p
+    }
+
+    /// Trace `modules` (fed as `contract` says, when given) and read back every storage image.
+    pub fn trace(
+        &self,
+        modules: &[&UserModule],
+        contract: Option<&HostContract>,
+    ) -> Result<Vec<Part>, HarnessError> {
+        let pipeline = self.pipeline(modules)?;
+        self.res.refill();
+        let (addresses, tables) = match contract {
+            Some(c) => self.res.contract_addresses(&self.gpu, c)?,
+            None => (Vec::new(), Vec::new()),
+        };
+        let push = self.push_bytes(&addresses);
+        let images: Vec<(String, &crate::vk::memory::Image, u32)> = self
+            .res
+            .bindings
+            .iter()
+            .flat_map(|((set, binding), (b, elems))| {
+                elems.iter().enumerate().filter_map(move |(k, e)| match (e, b.kind) {
+                    (Element::Image(i), reflect::BindingKind::StorageImage(f)) => Some((
+                        format!("set {set} binding {binding}[{k}]"),
+                        i,
+                        resources::format(f).map_or(4, |x| x.1),
+                    )),
+                    _ => None,
+                })
+            })
+            .collect();
+        let readback: Vec<Buffer> = images
+            .iter()
+            .map(|(_, _, t)| {
+                Buffer::new(
+                    &self.gpu,
+                    (SIZE * SIZE * t) as u64,
+                    vk::BufferUsageFlags::TRANSFER_DST,
+                    Location::Host,
+                    "readback",
+                )
+            })
+            .collect::<Result<_, _>>()?;
+        let waited = self
+            .submitter
+            .run(&self.gpu, TIMEOUT, |cmd| self.record(cmd, &pipeline, &push, &images, &readback));
+        let result = match waited {
+            Ok(Waited::Done(_)) => Ok(images
+                .iter()
+                .zip(&readback)
+                .map(|((label, _, t), b)| Part {
+                    label: label.clone(),
+                    bytes: b.read((SIZE * SIZE * t) as usize),
+                    texel: *t,
+                })
+                .collect()),
+            Ok(Waited::TimedOut) => Err(HarnessError::Timeout(TIMEOUT)),
+            Err(e) => Err(e.into()),
+        };
+        if result.is_ok() {
+            pipeline.destroy(&self.gpu);
+            for b in readback.iter().chain(&tables) {
+                b.destroy(&self.gpu);
+            }
+        }
+        result
+    }
+
+    /// Clear the images, trace, copy the images out.
+    fn record(
+        &self,
+        cmd: vk::CommandBuffer,
+        p: &Pipeline,
+        push: &[u8],
+        images: &[(String, &crate::vk::memory::Image, u32)],
+        readback: &[Buffer],
+    ) {
+        let (gpu, d) = (&self.gpu, &self.gpu.device);
+        for (_, i, _) in images {
+            let t = Transition {
+                from: (
+                    vk::ImageLayout::UNDEFINED,
+                    vk::AccessFlags::empty(),
+                    vk::PipelineStageFlags::TOP_OF_PIPE,
+                ),
+                to: (
+                    vk::ImageLayout::GENERAL,
+                    vk::AccessFlags::TRANSFER_WRITE,
+                    vk::PipelineStageFlags::TRANSFER,
+                ),
+            };
+            transition(gpu, cmd, i.raw, t);
+            unsafe {
+                d.cmd_clear_color_image(
+                    cmd,
+                    i.raw,
+                    vk::ImageLayout::GENERAL,
+                    &vk::ClearColorValue::default(),
+                    &[color_range()],
+                )
+            };
+        }
+        full_barrier(gpu, cmd);
+        let rt = gpu.rt.as_ref().expect("ray tracing pipeline enabled");
+        let sbt = p.sbt.as_ref().expect("RT pipelines have an SBT");
+        unsafe {
+            d.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::RAY_TRACING_KHR, p.raw);
+            if !self.res.sets.is_empty() {
+                d.cmd_bind_descriptor_sets(
+                    cmd,
+                    vk::PipelineBindPoint::RAY_TRACING_KHR,
+                    self.layout,
+                    0,
+                    &self.res.sets,
+                    &[],
+                );
+            }
+            if !push.is_empty() {
+                d.cmd_push_constants(cmd, self.layout, resources::rt_stages(), 0, push);
+            }
+            rt.cmd_trace_rays(cmd, &sbt.raygen, &sbt.miss, &sbt.hit, &sbt.callable, SIZE, SIZE, 1);
+        }
+        full_barrier(gpu, cmd);
+        for ((_, i, _), b) in images.iter().zip(readback) {
+            let region = vk::BufferImageCopy::default()
+                .image_subresource(vk::ImageSubresourceLayers {
+                    aspect_mask: vk::ImageAspectFlags::COLOR,
+                    mip_level: 0,
+                    base_array_layer: 0,
+                    layer_count: 1,
+                })
+                .image_extent(vk::Extent3D { width: SIZE, height: SIZE, depth: 1 });
+            unsafe {
+                d.cmd_copy_image_to_buffer(cmd, i.raw, vk::ImageLayout::GENERAL, b.raw, &[region])
+            };
+        }
+        full_barrier(gpu, cmd);
+    }
+}
+
+impl Drop for Harness {
+    fn drop(&mut self) {
+        unsafe { self.gpu.device.device_wait_idle().ok() };
+        self.res.destroy(&self.gpu);
+        self.scene.destroy(&self.gpu);
+        unsafe { self.gpu.device.destroy_pipeline_layout(self.layout, None) };
+        self.submitter.destroy(&self.gpu);
+    }
+}
+
+fn stage_flag(stage: &str) -> vk::ShaderStageFlags {
+    match stage {
+        "raygen" => vk::ShaderStageFlags::RAYGEN_KHR,
+        "miss" => vk::ShaderStageFlags::MISS_KHR,
+        "closest_hit" => vk::ShaderStageFlags::CLOSEST_HIT_KHR,
+        "any_hit" => vk::ShaderStageFlags::ANY_HIT_KHR,
+        "intersection" => vk::ShaderStageFlags::INTERSECTION_KHR,
+        _ => vk::ShaderStageFlags::CALLABLE_KHR,
+    }
+}
+
+/// One image compared: texels, how many differ, how many distinct values the unpatched one has.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Compared {
+    pub label: String,
+    pub texels: usize,
+    pub differing: usize,
+    pub distinct: usize,
+}
+
+/// Texel-by-texel comparison of two runs' images.
+pub fn compare(before: &[Part], after: &[Part]) -> Vec<Compared> {
+    before
+        .iter()
+        .zip(after)
+        .map(|(b, a)| {
+            let t = b.texel.max(1) as usize;
+            let texels: Vec<&[u8]> = b.bytes.chunks(t).collect();
+            let differing = texels.iter().zip(a.bytes.chunks(t)).filter(|(x, y)| **x != *y).count()
+                + texels.len().abs_diff(a.bytes.len() / t);
+            let distinct = texels.iter().collect::<std::collections::BTreeSet<_>>().len();
+            Compared { label: b.label.clone(), texels: texels.len(), differing, distinct }
+        })
+        .collect()
+}
+
+/// The unpatched pipeline `before` and the patched one `after` (fed as `contract` says) on the
+/// device, their images compared.
+pub fn verify(
+    gpu: Gpu,
+    before: &[UserModule],
+    after: &[UserModule],
+    contract: &HostContract,
+) -> Result<(String, Vec<Compared>), HarnessError> {
+    let b: Vec<&UserModule> = before.iter().collect();
+    let a: Vec<&UserModule> = after.iter().collect();
+    let push =
+        b.iter().chain(&a).map(|m| m.iface.push_end).max().unwrap_or(0).max(contract.push_end);
+    let h = Harness::new(gpu, &b, push)?;
+    let unpatched = h.trace(&b, None)?;
+    let patched = h.trace(&a, Some(contract))?;
+    Ok((h.device_name(), compare(&unpatched, &patched)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn comparison_counts_differing_and_distinct_texels() {
+        let part = |bytes: Vec<u8>| Part { label: "img".into(), bytes, texel: 4 };
+        let a = part([[1u8, 0, 0, 0], [2, 0, 0, 0], [2, 0, 0, 0]].concat());
+        let b = part([[1u8, 0, 0, 0], [2, 0, 0, 0], [3, 0, 0, 0]].concat());
+        let c = &compare(std::slice::from_ref(&a), &[b])[0];
+        assert_eq!((c.texels, c.differing, c.distinct), (3, 1, 2));
+        let same = std::slice::from_ref(&a);
+        assert_eq!(compare(same, same)[0].differing, 0);
+    }
+}

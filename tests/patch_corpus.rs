@@ -1,0 +1,378 @@
+//! The patch corpus (`tests/fixtures/patch-corpus/`): engine-like shaders written for these tests —
+//! GLSL with includes (a Latin-1 header, a function-like `-D`), and DXC-, Slang- and older-DXC
+//! (SPV_NV_ray_tracing) modules as SPIR-V assembly — each case patched by `rtprobe patch`, and
+//! every result checked here, independently of the command's own checks:
+//! - valid under the newest spirv-val with the options its input needs (`invalid` otherwise);
+//! - one push-constant address per descriptor the patch removed, none shared (`merged`
+//!   otherwise), read from the host contract against the descriptors each module lost;
+//! - where lavapipe runs the pipeline, `--verify`: the patched pipeline, fed as the contract says,
+//!   renders the unpatched pipeline's image texel for texel, with distinct data per descriptor.
+//!
+//! Refusals must be one line naming the reason. The table of counts is printed; 0 invalid and 0
+//! merged are required.
+mod common;
+use common::*;
+use rtprobe::harness::reflect::{self, BindingKind};
+use rtprobe::model::contract::HostContract;
+use rtprobe::tools::spirv::{self as tools, Validation};
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+
+fn corpus() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/patch-corpus")
+}
+
+/// What a case must come to.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Expect {
+    /// Patched, valid, and identical on lavapipe (`--verify`).
+    Verified,
+    /// Patched and valid; not run on the host's lavapipe, for this reason.
+    Valid(&'static str),
+    /// Refused with one line containing this.
+    Refused(&'static str),
+}
+
+struct Case {
+    name: &'static str,
+    inputs: &'static [&'static str],
+    patches: &'static str,
+    extra: &'static [&'static str],
+    expect: Expect,
+}
+
+const SCENE: &[&str] = &["scene/raygen.rgen", "scene/hit.rchit", "common/miss.rmiss"];
+const PUSH: &[&str] = &["push/raygen.rgen", "push/hit.rchit", "push/miss.rmiss"];
+const DXC: &[&str] = &["dxc/raygen.spvasm", "dxc/closesthit.spvasm", "dxc/miss.spvasm"];
+
+const CASES: &[Case] = &[
+    Case { name: "two TLASes, one address each", inputs: SCENE, patches: "as-to-address", extra: &[], expect: Expect::Verified },
+    Case { name: "three SSBO arrays, one table each", inputs: SCENE, patches: "ssbo-to-address", extra: &[], expect: Expect::Verified },
+    Case { name: "both address patches together", inputs: SCENE, patches: "as-to-address,ssbo-to-address", extra: &[], expect: Expect::Verified },
+    Case { name: "set=3 picks the shadow TLAS only", inputs: SCENE, patches: "as-to-address", extra: &["--option", "set=3"], expect: Expect::Verified },
+    Case { name: "mixed int/uint indices pinned", inputs: &["scene/hit.rchit"], patches: "pin-index", extra: &[], expect: Expect::Valid("pin-index changes the index by design") },
+    Case { name: "overlapping push ranges", inputs: PUSH, patches: "as-to-address", extra: &[], expect: Expect::Verified },
+    Case { name: "nonuniform on a forgotten nonuniformEXT", inputs: PUSH, patches: "nonuniform", extra: &[], expect: Expect::Verified },
+    Case { name: "nested 36-byte push struct", inputs: &["nested/raygen.rgen", "common/hit.rchit", "common/miss.rmiss"], patches: "as-to-address", extra: &[], expect: Expect::Verified },
+    Case { name: "layout(scalar) blocks", inputs: &["common/raygen.rgen", "scalar/hit.rchit", "common/miss.rmiss"], patches: "ssbo-to-address", extra: &[], expect: Expect::Verified },
+    Case { name: "uint64 declared after the push block", inputs: &["late64/raygen.rgen", "common/hit.rchit", "common/miss.rmiss"], patches: "as-to-address", extra: &[], expect: Expect::Verified },
+    Case { name: "function-like -D", inputs: &["defines/tonemap.rgen", "common/hit.rchit", "common/miss.rmiss"], patches: "as-to-address", extra: &["-D", "TONEMAP(c)=c/(c+1.0)"], expect: Expect::Verified },
+    Case { name: "DXC pipeline", inputs: DXC, patches: "as-to-address,ssbo-to-address", extra: &[], expect: Expect::Verified },
+    Case { name: "DXC closest-hit, nonuniform stripped", inputs: DXC, patches: "nonuniform", extra: &["--option", "strip=true"], expect: Expect::Verified },
+    Case { name: "Slang closest-hit", inputs: &["common/raygen.rgen", "slang/closesthit.spvasm", "common/miss.rmiss"], patches: "ssbo-to-address", extra: &[], expect: Expect::Valid("the host's validation layer predates Slang's source tag: verified in the sid root (slang_pipeline_verifies_in_the_sid_root)") },
+    Case { name: "SPV_NV_ray_tracing raygen (older DXC)", inputs: &["nv/raygen.spvasm"], patches: "as-to-address", extra: &[], expect: Expect::Valid("lavapipe has no VK_NV_ray_tracing") },
+    Case { name: "SER raygen (GL_EXT_shader_invocation_reorder)", inputs: &["ser/raygen.rgen"], patches: "as-to-address", extra: &[], expect: Expect::Valid("lavapipe 25 has no shader invocation reorder") },
+    Case { name: "store into an SSBO array", inputs: &["bad/store.rchit"], patches: "ssbo-to-address", extra: &[], expect: Expect::Refused("only loads are rewritten") },
+    Case { name: "push range past 128 bytes", inputs: &["bad/full_push.rchit"], patches: "as-to-address", extra: &[], expect: Expect::Refused("maxPushConstantsSize 128") },
+    Case { name: "no acceleration structure", inputs: &["common/miss.rmiss"], patches: "as-to-address", extra: &[], expect: Expect::Refused("nothing to patch") },
+    Case { name: "GLSL without #version", inputs: &["bad/noversion.rgen"], patches: "as-to-address", extra: &[], expect: Expect::Refused("no #version line") },
+];
+
+/// The input files of a case, ready for `rtprobe patch`: GLSL as is, assembly assembled (by the
+/// newest spirv-as) into `dir`.
+fn prepare(inputs: &[&str], dir: &Path) -> Vec<PathBuf> {
+    inputs
+        .iter()
+        .map(|i| {
+            let src = corpus().join(i);
+            if !i.ends_with(".spvasm") {
+                return src;
+            }
+            let out = dir.join(i.replace('/', "_").replace(".spvasm", ".spv"));
+            let env = if i.starts_with("nv/") { "vulkan1.1" } else { "vulkan1.2" };
+            tools::assemble(&src, &out, env).unwrap_or_else(|e| panic!("{i}: {e}"));
+            out
+        })
+        .collect()
+}
+
+fn words(p: &Path) -> Vec<u32> {
+    let b = std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+    b.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect()
+}
+
+/// The descriptors (set, binding) of a module that an address patch may replace: acceleration
+/// structures and storage-buffer arrays.
+fn addressable(w: &[u32]) -> BTreeSet<(u32, u32)> {
+    let m = rtprobe::patches::load(&tools::bytes(w)).expect("loads");
+    reflect::reflect(&m)
+        .expect("reflects")
+        .bindings
+        .iter()
+        .filter(|b| {
+            b.kind == BindingKind::AccelerationStructure
+                || matches!(b.kind, BindingKind::StorageBuffer(_))
+        })
+        .map(|b| (b.set, b.binding))
+        .collect()
+}
+
+/// What one case came to.
+#[derive(Default)]
+struct Tally {
+    compiled: usize,
+    ok: usize,
+    verified: usize,
+    refused_right: usize,
+    invalid: usize,
+    merged: usize,
+    wrong: Vec<String>,
+}
+
+/// The outputs of a case: each input's patched module and the input as compiled.
+fn outputs(inputs: &[PathBuf], dir: &Path) -> Vec<(PathBuf, PathBuf)> {
+    inputs
+        .iter()
+        .map(|i| {
+            let f = i.file_name().unwrap().to_string_lossy().into_owned();
+            let stem = f.strip_suffix(".spv").unwrap_or(&f).to_string();
+            (dir.join(format!("{stem}.patched.spv")), dir.join(format!("{stem}.unpatched.spv")))
+        })
+        .collect()
+}
+
+/// Check a patched case: validity per module, one address per removed descriptor.
+fn check_patched(
+    case: &Case,
+    pairs: &[(PathBuf, PathBuf)],
+    contract: Option<HostContract>,
+    t: &mut Tally,
+) {
+    let mut removed = BTreeSet::new();
+    for (patched, unpatched) in pairs {
+        let (input, output) = (words(unpatched), words(patched));
+        t.compiled += 1;
+        let (v, opts) = tools::validate_input(&input);
+        assert_eq!(v, Validation::Valid, "{}: the input must validate", case.name);
+        match tools::validate(&output, &opts) {
+            Validation::Valid => {}
+            other => {
+                t.invalid += 1;
+                t.wrong.push(format!("{}: {} invalid: {other:?}", case.name, patched.display()));
+            }
+        }
+        removed.extend(addressable(&input).difference(&addressable(&output)).copied());
+    }
+    let addresses = contract.map(|c| c.addresses).unwrap_or_default();
+    let offsets: BTreeSet<u32> = addresses.iter().map(|a| a.offset).collect();
+    let listed: Vec<(u32, u32)> = addresses.iter().map(|a| (a.set, a.binding)).collect();
+    let each_once = removed.iter().all(|d| listed.iter().filter(|l| *l == d).count() == 1);
+    if offsets.len() != addresses.len() || !each_once || listed.len() != removed.len() {
+        t.merged += 1;
+        t.wrong.push(format!(
+            "{}: descriptors {removed:?} but addresses {listed:?} at {offsets:?}",
+            case.name
+        ));
+    }
+}
+
+fn run_case(case: &Case, t: &mut Tally) {
+    let d = tempfile::tempdir().unwrap();
+    let inputs = prepare(case.inputs, d.path());
+    let out = d.path().join("out");
+    let unpatched = d.path().join("out");
+    let mut args: Vec<String> = vec!["patch".into()];
+    args.extend(inputs.iter().map(|p| p.to_string_lossy().into_owned()));
+    let inc = corpus().join("include");
+    args.extend(["-I", inc.to_str().unwrap(), "-a", case.patches].map(String::from));
+    args.extend(case.extra.iter().map(|s| s.to_string()));
+    let (o_flag, contract) = if inputs.len() > 1 {
+        (out.clone(), out.join("pipeline.contract.json"))
+    } else {
+        let f = inputs[0].file_name().unwrap().to_string_lossy().into_owned();
+        let stem = f.strip_suffix(".spv").unwrap_or(&f).to_string();
+        (out.join(format!("{stem}.patched.spv")), out.join(format!("{stem}.patched.contract.json")))
+    };
+    std::fs::create_dir_all(&out).unwrap();
+    args.extend(["-o".to_string(), o_flag.to_string_lossy().into_owned()]);
+    let emit =
+        if inputs.len() > 1 { unpatched.clone() } else { outputs(&inputs, &out)[0].1.clone() };
+    args.extend(["--emit-unpatched".to_string(), emit.to_string_lossy().into_owned()]);
+    if case.expect == Expect::Verified {
+        args.push("--verify".into());
+    }
+    let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+    let o = run(&refs);
+    match case.expect {
+        Expect::Refused(needle) => {
+            assert_one_line_error(&o, 9, needle);
+            assert!(
+                std::fs::read_dir(&out).unwrap().next().is_none(),
+                "{}: nothing written",
+                case.name
+            );
+            t.refused_right += 1;
+        }
+        Expect::Verified | Expect::Valid(_) => {
+            assert!(o.status.success(), "{}: {}", case.name, stderr(&o));
+            let c = std::fs::read(&contract)
+                .ok()
+                .map(|b| serde_json::from_slice(&b).expect("contract JSON"));
+            check_patched(case, &outputs(&inputs, &out), c, t);
+            t.ok += 1;
+            if case.expect == Expect::Verified {
+                let s = stdout(&o);
+                assert!(
+                    s.contains("verified on") && s.contains("texels identical"),
+                    "{}: {s}",
+                    case.name
+                );
+                t.verified += 1;
+            }
+        }
+    }
+}
+
+#[test]
+fn the_corpus_patches_validly_without_merging_and_renders_identically() {
+    let mut t = Tally::default();
+    for case in CASES {
+        run_case(case, &mut t);
+    }
+    println!("patch corpus: {} cases ({} run on lavapipe)", CASES.len(), t.verified);
+    println!("| modules compiled | cases ok | ran identical | refused right | invalid | merged |");
+    println!("|---|---|---|---|---|---|");
+    println!(
+        "| {} | {} | {} | {} | {} | {} |",
+        t.compiled, t.ok, t.verified, t.refused_right, t.invalid, t.merged
+    );
+    for case in CASES {
+        let how = match case.expect {
+            Expect::Verified => "patched, valid, identical on lavapipe".to_string(),
+            Expect::Valid(why) => format!("patched, valid; not run: {why}"),
+            Expect::Refused(why) => format!("refused: {why}"),
+        };
+        println!("  {:<48} {how}", case.name);
+    }
+    assert!(t.wrong.is_empty(), "{:#?}", t.wrong);
+    assert_eq!((t.invalid, t.merged), (0, 0));
+    assert_eq!(t.ok + t.refused_right, CASES.len());
+}
+
+/// The two-TLAS case patched (no --verify): its directory, inputs, outputs and contract path.
+fn two_tlas_case() -> (tempfile::TempDir, Vec<(PathBuf, PathBuf)>, PathBuf) {
+    let d = tempfile::tempdir().unwrap();
+    let inputs = prepare(SCENE, d.path());
+    let out = d.path().join("out");
+    let mut args: Vec<String> = vec!["patch".into()];
+    args.extend(inputs.iter().map(|p| p.to_string_lossy().into_owned()));
+    let inc = corpus().join("include");
+    let o = out.to_string_lossy().into_owned();
+    args.extend(
+        ["-I", inc.to_str().unwrap(), "-a", "as-to-address", "-o", &o, "--emit-unpatched", &o]
+            .map(String::from),
+    );
+    let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+    let r = run(&refs);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let pairs = outputs(&inputs, &out);
+    (d, pairs, out.join("pipeline.contract.json"))
+}
+
+/// Twin of the corpus checks: a contract giving two descriptors one address is counted merged,
+/// a broken output invalid.
+#[test]
+fn the_checks_catch_a_shared_address_and_an_invalid_module() {
+    let (_d, pairs, contract) = two_tlas_case();
+    let case = &CASES[0];
+    let mut c: HostContract = serde_json::from_slice(&std::fs::read(&contract).unwrap()).unwrap();
+    let mut t = Tally::default();
+    check_patched(case, &pairs, Some(c.clone()), &mut t);
+    assert_eq!((t.invalid, t.merged), (0, 0), "{:?}", t.wrong);
+    assert_eq!(c.addresses.len(), 2, "set 2 and set 3 binding 0");
+    // One address for both descriptors, as `binding=0` gave before: merged.
+    c.addresses[1].offset = c.addresses[0].offset;
+    let mut t = Tally::default();
+    check_patched(case, &pairs, Some(c.clone()), &mut t);
+    assert_eq!(t.merged, 1);
+    // One descriptor left out of the contract: merged too.
+    c.addresses.pop();
+    let mut t = Tally::default();
+    check_patched(case, &pairs, Some(c), &mut t);
+    assert_eq!(t.merged, 1);
+    // An output that uses 64-bit integers without declaring Int64: invalid.
+    let mut w = words(&pairs[0].0);
+    let at = w.windows(2).position(|p| p == [0x0002_0011, 11]).expect("OpCapability Int64");
+    w.drain(at..at + 2);
+    std::fs::write(&pairs[0].0, tools::bytes(&w)).unwrap();
+    let mut t = Tally::default();
+    check_patched(
+        case,
+        &pairs,
+        Some(serde_json::from_slice(&std::fs::read(&contract).unwrap()).unwrap()),
+        &mut t,
+    );
+    assert_eq!(t.invalid, 1, "{:?}", t.wrong);
+}
+
+/// Twin of `--verify`: fed against the contract — the two TLAS addresses swapped — the patched
+/// pipeline renders something else, so identical images mean each descriptor got its own data.
+#[test]
+fn verify_sees_two_tlases_swapped() {
+    use rtprobe::harness::{self, UserModule};
+    let (_d, pairs, contract) = two_tlas_case();
+    let mut c: HostContract = serde_json::from_slice(&std::fs::read(&contract).unwrap()).unwrap();
+    let module = |p: &Path| UserModule::new(&p.display().to_string(), &words(p)).unwrap();
+    let before: Vec<UserModule> = pairs.iter().map(|p| module(&p.1)).collect();
+    let after: Vec<UserModule> = pairs.iter().map(|p| module(&p.0)).collect();
+    let gpu = || {
+        let inst =
+            std::sync::Arc::new(rtprobe::vk::Instance::new(&Default::default()).expect("instance"));
+        let all = rtprobe::vk::features::query_all(&inst).expect("devices");
+        let info = rtprobe::vk::features::select(&all, None).expect("a device").clone();
+        rtprobe::vk::Gpu::new(inst, info, harness::requirements(false)).expect("device")
+    };
+    let (_, same) = harness::verify(gpu(), &before, &after, &c).unwrap();
+    assert!(same.iter().all(|x| x.differing == 0 && x.distinct > 1000), "{same:?}");
+    let (a, b) = (c.addresses[0].offset, c.addresses[1].offset);
+    c.addresses[0].offset = b;
+    c.addresses[1].offset = a;
+    let (_, swapped) = harness::verify(gpu(), &before, &after, &c).unwrap();
+    assert!(swapped[0].differing > 100, "{swapped:?}");
+}
+
+/// The Slang closest-hit under the sid root's lavapipe 26 and validation layers 1.4.363 (the
+/// host's layers predate Slang's source tag): patched, verified identical, no validation message.
+#[test]
+fn slang_pipeline_verifies_in_the_sid_root() {
+    let root = std::env::var_os("RTPROBE_SID_ROOT")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from("/var/lib/rtprobe/sid-root"));
+    if !root.join("etc/rtprobe-sid.stamp").exists() || unsafe { libc::geteuid() } != 0 {
+        if std::env::var("RTPROBE_REQUIRE_SID").is_ok_and(|v| v == "1") {
+            panic!(
+                "RTPROBE_REQUIRE_SID=1 but no sid root at {} (or no root rights)",
+                root.display()
+            );
+        }
+        eprintln!(
+            "skipped: no sid root at {} (scripts/setup-sid), or no root rights",
+            root.display()
+        );
+        return;
+    }
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = repo.join(format!("target/patch-corpus-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let inputs =
+        prepare(&["common/raygen.rgen", "slang/closesthit.spvasm", "common/miss.rmiss"], &dir);
+    let inc = corpus().join("include");
+    let out = dir.join("out");
+    let mut c = std::process::Command::new(repo.join("scripts/in-sid"));
+    c.arg(env!("CARGO_BIN_EXE_rtprobe")).args(["--validate", "patch"]).args(&inputs);
+    c.args([
+        "-I",
+        inc.to_str().unwrap(),
+        "-a",
+        "ssbo-to-address",
+        "--verify",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let o = c.env_remove("RTPROBE_VALIDATE").output().expect("scripts/in-sid");
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let s = stdout(&o);
+    assert!(s.contains("verified on llvmpipe") && s.contains("texels identical"), "{s}");
+    assert!(!stderr(&o).contains("Validation Error"), "{}", stderr(&o));
+}
