@@ -51,9 +51,16 @@ impl Recorder {
 
     pub fn on_event(&mut self, ev: Event) {
         match ev {
-            Event::WorkerReady { device_ms, pipeline_cache, .. } => {
+            Event::WorkerReady { device_ms, pipeline_cache, pipeline_binaries, .. } => {
                 self.writer.report.timing.workers_started += 1;
                 self.device_ms_sum += device_ms;
+                if let Some(b) = pipeline_binaries {
+                    self.writer
+                        .report
+                        .pipeline_binaries
+                        .get_or_insert_with(Default::default)
+                        .ready(b);
+                }
                 if let Some(l) = pipeline_cache {
                     let s = self.writer.report.pipeline_cache.get_or_insert_with(Default::default);
                     s.file = Some(l.path);
@@ -69,6 +76,10 @@ impl Recorder {
             Event::Prebuilt { wall_ms, pipelines, .. } => {
                 self.writer.report.timing.prebuild_ms += wall_ms;
                 self.writer.report.timing.prebuilt_pipelines += pipelines;
+            }
+            Event::Binaries(stats) => {
+                let s = self.writer.report.pipeline_binaries.get_or_insert_with(Default::default);
+                s.totals.add(&stats);
             }
             Event::CacheSaved(saved) => {
                 let s = self.writer.report.pipeline_cache.get_or_insert_with(Default::default);

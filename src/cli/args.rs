@@ -228,6 +228,11 @@ pub struct RunArgs {
     /// of compiling the GLSL (not a flag).
     #[arg(skip)]
     pub spirv_dir: Option<PathBuf>,
+
+    /// Set by `--cell-spec`: every worker compiles afresh (no pipeline cache or binaries, the
+    /// driver's own cache bypassed; not a flag).
+    #[arg(skip)]
+    pub fresh: bool,
 }
 
 #[derive(Args, Debug)]

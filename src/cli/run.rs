@@ -129,6 +129,7 @@ fn cell_spec_args(a: &RunArgs, p: &Path) -> Result<(RunArgs, Option<String>)> {
     args.spirv_dir = spec.spirv_dir(p)?;
     // The cell's own compile, not a binary a cache kept from another run (docs/performance.md).
     args.pipeline_cache = Some("off".into());
+    args.fresh = true;
     if let Some(dir) = &args.spirv_dir {
         let made_by: std::collections::BTreeSet<&str> =
             spec.modules.iter().map(|m| m.compiler.as_str()).collect();
@@ -241,6 +242,7 @@ fn supervisor(a: &RunArgs, o: &RunOptions, info: &DeviceInfo, c: &Checked) -> Su
         threads: o.threads.unwrap_or(1),
         pipeline_cache: o.pipeline_cache.clone(),
         binding_stages: o.binding_stages.clone(),
+        fresh: a.fresh,
         ..supervisor_options(
             info.index,
             c.params,

@@ -110,6 +110,7 @@ pub(crate) fn supervisor_options(
         threads: 1,
         pipeline_cache: None,
         binding_stages: None,
+        fresh: true,
     }
 }
 
@@ -174,6 +175,7 @@ impl Oracle for SupervisorOracle {
                     gpu_av: true,
                     threads: 1,
                     pipeline_cache: None,
+                    fresh: true,
                     job_dir: self.opts.job_dir.join("gpu-av"),
                     ..self.opts.clone()
                 };

@@ -6,6 +6,7 @@ use super::bindings::LayoutKey;
 use super::error::CellError;
 use super::heap::{DroppedNonUniform, PipelineMapping};
 use super::pipeline::{self, Pipeline};
+use super::pipeline_binaries::BinaryStore;
 use crate::model::{DescriptorModel, Phase, Timings};
 use crate::shadergen::CellShaders;
 use crate::vk::{Gpu, VkError};
@@ -49,7 +50,7 @@ pub(super) struct Prebuilt {
     pub(super) result: Result<Bound, CellError>,
 }
 
-/// What creating one pipeline needs apart from the device and the cache.
+/// What creating one pipeline needs apart from the device, the cache and the binary store.
 pub(super) struct PipelineInput<'a> {
     pub(super) shaders: &'a CellShaders,
     pub(super) spirv: &'a [Arc<Vec<u32>>],
@@ -57,19 +58,39 @@ pub(super) struct PipelineInput<'a> {
     pub(super) model: DescriptorModel,
     pub(super) mapping: Option<Box<PipelineMapping>>,
     pub(super) records: pipeline::ShaderRecords,
+    pub(super) specialization: pipeline::Specialization,
+    /// The layout's contents hashed (`Binding::digest`), part of [`PipelineInput::id`].
+    pub(super) layout_digest: u128,
 }
 
 impl PipelineInput<'_> {
-    pub(super) fn create(&self, gpu: &Gpu, cache: vk::PipelineCache) -> Result<Pipeline, VkError> {
-        pipeline::create(
-            gpu,
-            cache,
-            self.shaders,
-            self.spirv,
-            self.layout,
-            self.model,
-            self.mapping.as_deref(),
-            &self.records,
-        )
+    pub(super) fn desc(&self) -> pipeline::Desc<'_> {
+        pipeline::Desc {
+            shaders: self.shaders,
+            spirv: self.spirv,
+            layout: self.layout,
+            model: self.model,
+            heap: self.mapping.as_deref(),
+            records: &self.records,
+            specialization: &self.specialization,
+        }
+    }
+
+    /// The pipeline's identity across runs ([`super::pipeline_id`]).
+    pub(super) fn id(&self) -> u128 {
+        super::pipeline_id::of(&self.desc(), self.layout_digest)
+    }
+
+    /// The pipeline: through the binary store when there is one, else compiled with `cache`.
+    pub(super) fn create(
+        &self,
+        gpu: &Gpu,
+        cache: vk::PipelineCache,
+        store: Option<&BinaryStore>,
+    ) -> Result<Pipeline, VkError> {
+        match store {
+            Some(s) => s.make(gpu, &self.desc(), self.id()),
+            None => pipeline::create(gpu, pipeline::Source::Cache(cache), &self.desc()),
+        }
     }
 }

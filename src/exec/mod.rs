@@ -11,8 +11,9 @@
 //! (`bind`, `pipeline_key`), building at the cell's turn or ahead of it (`build`, `prebuild`),
 //! what each step hands to the next (`built`), the turn itself (`run`), recording the three
 //! pipeline kinds (`record`), judging the records (`check`, `pictures`), error → outcome
-//! (`error`); below them resources and samplers, bindings, the descriptor heap, pipelines, the
-//! pipeline cache and files.
+//! (`error`); below them resources and samplers, bindings, the descriptor heap, pipelines, their
+//! identity across runs (`pipeline_id`), the pipeline binaries and the pipeline cache kept between
+//! runs, and files.
 mod bind;
 pub mod bindings;
 mod build;
@@ -25,7 +26,9 @@ mod files;
 pub mod heap;
 pub mod pictures;
 pub mod pipeline;
+pub mod pipeline_binaries;
 pub mod pipeline_cache;
+mod pipeline_id;
 mod pipeline_key;
 pub mod prebuild;
 mod record;

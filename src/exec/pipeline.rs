@@ -83,40 +83,143 @@ pub fn shader_records(
     }
 }
 
-/// Create the pipeline for `shaders` (SPIR-V in `spirv`, same order), specializing constant 0 to
-/// `probe::SPEC_SLOT` in every stage. `heap` (the set/binding → heap mapping chained to each
-/// stage) is `Some` exactly for the descriptor_heap model; `records` is the shader record data
-/// written after each SBT handle (ray tracing pipelines).
-#[allow(clippy::too_many_arguments)]
-pub fn create(
-    gpu: &Gpu,
-    cache: vk::PipelineCache,
-    shaders: &CellShaders,
-    spirv: &[std::sync::Arc<Vec<u32>>],
-    layout: vk::PipelineLayout,
-    model: DescriptorModel,
-    heap: Option<&PipelineMapping>,
-    records: &ShaderRecords,
-) -> Result<Pipeline, VkError> {
-    let d = &gpu.device;
+/// The specialization every stage of a cell's pipeline gets: constant 0 is `probe::SPEC_SLOT`.
+#[derive(Clone, Debug)]
+pub struct Specialization {
+    data: Vec<u8>,
+    entries: Vec<vk::SpecializationMapEntry>,
+}
+
+impl Specialization {
+    /// The probes' specialization.
+    pub fn probe() -> Specialization {
+        Specialization {
+            data: probe::SPEC_SLOT.to_le_bytes().to_vec(),
+            entries: vec![vk::SpecializationMapEntry { constant_id: 0, offset: 0, size: 4 }],
+        }
+    }
+
+    /// The bytes the constants are read from (part of a pipeline's identity).
+    pub fn data(&self) -> &[u8] {
+        &self.data
+    }
+
+    fn info(&self) -> vk::SpecializationInfo<'_> {
+        vk::SpecializationInfo::default().map_entries(&self.entries).data(&self.data)
+    }
+}
+
+/// Where a pipeline's code comes from: compiled with a `VkPipelineCache` (null: none); compiled
+/// with `VK_PIPELINE_CREATE_2_CAPTURE_DATA_BIT_KHR` so that its binaries can be read after (no
+/// cache allowed, VUID-vkCreateRayTracingPipelinesKHR-pNext-09617); or made from stored binaries
+/// (no cache, no shader modules: the spec ignores them, VkPipelineBinaryInfoKHR).
+#[derive(Clone, Copy, Debug)]
+pub enum Source<'a> {
+    Cache(vk::PipelineCache),
+    Capture,
+    Binaries(&'a [crate::vk::binary::PipelineBinary]),
+}
+
+impl Source<'_> {
+    fn cache(&self) -> vk::PipelineCache {
+        match self {
+            Source::Cache(c) => *c,
+            Source::Capture | Source::Binaries(_) => vk::PipelineCache::null(),
+        }
+    }
+}
+
+/// Everything a pipeline is made of, apart from where its code comes from.
+#[derive(Clone, Copy)]
+pub struct Desc<'a> {
+    pub shaders: &'a CellShaders,
+    /// SPIR-V of `shaders`, same order.
+    pub spirv: &'a [std::sync::Arc<Vec<u32>>],
+    pub layout: vk::PipelineLayout,
+    pub model: DescriptorModel,
+    /// The set/binding → heap mapping chained to each stage: `Some` exactly for the
+    /// descriptor_heap model.
+    pub heap: Option<&'a PipelineMapping>,
+    /// The shader record data written after each SBT handle (ray tracing pipelines).
+    pub records: &'a ShaderRecords,
+    pub specialization: &'a Specialization,
+}
+
+/// The create flags of a pipeline under `model` (`heap`: with a heap mapping), as
+/// `VkPipelineCreateFlags2` (whose low bits are the `VkPipelineCreateFlags` of the same meaning).
+pub fn flags2(model: DescriptorModel, heap: bool) -> vk::PipelineCreateFlags2KHR {
+    let mut f = vk::PipelineCreateFlags2KHR::empty();
+    if model == DescriptorModel::DescriptorBuffer {
+        f |= vk::PipelineCreateFlags2KHR::from_raw(
+            vk::PipelineCreateFlags::DESCRIPTOR_BUFFER_EXT.as_raw() as u64,
+        );
+    }
+    if heap {
+        f |= crate::vk::heap::PIPELINE_CREATE_2_DESCRIPTOR_HEAP;
+    }
+    f
+}
+
+/// The shader modules of `d` (none when made from binaries: `module` may then be null,
+/// VUID-VkPipelineShaderStageCreateInfo-stage-08771); on an error the ones made are destroyed.
+fn modules(gpu: &Gpu, d: &Desc, source: Source) -> Result<Vec<vk::ShaderModule>, VkError> {
+    let dev = &gpu.device;
+    if matches!(source, Source::Binaries(_)) {
+        return Ok(vec![vk::ShaderModule::null(); d.spirv.len()]);
+    }
     let mut modules = Vec::new();
-    for words in spirv {
-        match unsafe {
-            d.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(words), None)
-        } {
+    for words in d.spirv {
+        let ci = vk::ShaderModuleCreateInfo::default().code(words);
+        match unsafe { dev.create_shader_module(&ci, None) } {
             Ok(m) => modules.push(m),
             Err(e) => {
                 for m in &modules {
-                    unsafe { d.destroy_shader_module(*m, None) };
+                    unsafe { dev.destroy_shader_module(*m, None) };
                 }
                 return Err(VkError::from_result("vkCreateShaderModule", e));
             }
         }
     }
-    let spec_data = probe::SPEC_SLOT.to_le_bytes();
-    let spec_entries = [vk::SpecializationMapEntry { constant_id: 0, offset: 0, size: 4 }];
-    let spec = vk::SpecializationInfo::default().map_entries(&spec_entries).data(&spec_data);
-    let stages: Vec<vk::PipelineShaderStageCreateInfo> = shaders
+    Ok(modules)
+}
+
+/// The pNext additions every pipeline kind takes: the flags2 struct (heap pipelines, captures)
+/// and the binaries to make it from.
+struct Extra {
+    flags2: Option<vk::PipelineCreateFlags2CreateInfoKHR<'static>>,
+    binaries: Option<crate::vk::binary::PipelineBinaryInfoKHR>,
+}
+
+impl Extra {
+    fn of(d: &Desc, source: Source) -> Extra {
+        let mut f = flags2(d.model, d.heap.is_some());
+        if matches!(source, Source::Capture) {
+            f |= crate::vk::binary::PIPELINE_CREATE_2_CAPTURE_DATA;
+        }
+        // Chained only where needed: it requires maintenance5 (enabled with heaps and binaries).
+        let chain = d.heap.is_some() || matches!(source, Source::Capture);
+        let binaries = match source {
+            Source::Binaries(b) => Some(crate::vk::binary::PipelineBinaryInfoKHR {
+                binary_count: b.len() as u32,
+                p_pipeline_binaries: b.as_ptr(),
+                ..Default::default()
+            }),
+            Source::Cache(_) | Source::Capture => None,
+        };
+        Extra {
+            flags2: chain.then(|| vk::PipelineCreateFlags2CreateInfoKHR::default().flags(f)),
+            binaries,
+        }
+    }
+}
+
+/// Create the pipeline `d` describes, its code from `source`, specializing every stage with
+/// `d.specialization`.
+pub fn create(gpu: &Gpu, source: Source, d: &Desc) -> Result<Pipeline, VkError> {
+    let modules = modules(gpu, d, source)?;
+    let spec = d.specialization.info();
+    let stages: Vec<vk::PipelineShaderStageCreateInfo> = d
+        .shaders
         .shaders
         .iter()
         .zip(&modules)
@@ -126,41 +229,40 @@ pub fn create(
                 .module(*m)
                 .name(MAIN)
                 .specialization_info(&spec);
-            if let Some(h) = heap {
+            if let Some(h) = d.heap {
                 st.p_next = h.stage_next();
             }
             st
         })
         .collect();
-    let flags = if model == DescriptorModel::DescriptorBuffer {
+    let flags = if d.model == DescriptorModel::DescriptorBuffer {
         vk::PipelineCreateFlags::DESCRIPTOR_BUFFER_EXT
     } else {
         vk::PipelineCreateFlags::empty()
     };
-    // Heap pipelines: VK_PIPELINE_CREATE_2_DESCRIPTOR_HEAP_BIT_EXT, which only the flags2 struct carries.
-    let mut flags2 = vk::PipelineCreateFlags2CreateInfoKHR::default()
-        .flags(crate::vk::heap::PIPELINE_CREATE_2_DESCRIPTOR_HEAP);
-    let flags2 = heap.is_some().then_some(&mut flags2);
-    let result = match shaders.kind {
-        PipelineKind::RayTracing => {
-            create_rt(gpu, cache, shaders, &stages, layout, flags, flags2, records)
-        }
+    let mut extra = Extra::of(d, source);
+    let cache = source.cache();
+    let result = match d.shaders.kind {
+        PipelineKind::RayTracing => create_rt(gpu, cache, d, &stages, flags, &mut extra),
         PipelineKind::Compute => {
             let mut ci = vk::ComputePipelineCreateInfo::default()
                 .stage(stages[0])
-                .layout(layout)
+                .layout(d.layout)
                 .flags(flags);
-            if let Some(f2) = flags2 {
+            if let Some(f2) = extra.flags2.as_mut() {
                 ci = ci.push_next(f2);
             }
-            unsafe { d.create_compute_pipelines(cache, &[ci], None) }
+            if let Some(b) = extra.binaries.as_mut() {
+                ci = ci.push_next(b);
+            }
+            unsafe { gpu.device.create_compute_pipelines(cache, &[ci], None) }
                 .map_err(|(_, e)| VkError::from_result("vkCreateComputePipelines", e))
                 .map(|p| Pipeline { raw: p[0], kind: PipelineKind::Compute, sbt: None })
         }
-        PipelineKind::Graphics => create_graphics(gpu, cache, &stages, layout, flags, flags2),
+        PipelineKind::Graphics => create_graphics(gpu, cache, &stages, d.layout, flags, &mut extra),
     };
-    for m in &modules {
-        unsafe { d.destroy_shader_module(*m, None) };
+    for m in modules.iter().filter(|m| **m != vk::ShaderModule::null()) {
+        unsafe { gpu.device.destroy_shader_module(*m, None) };
     }
     result
 }
@@ -171,7 +273,7 @@ fn create_graphics(
     stages: &[vk::PipelineShaderStageCreateInfo],
     layout: vk::PipelineLayout,
     flags: vk::PipelineCreateFlags,
-    flags2: Option<&mut vk::PipelineCreateFlags2CreateInfoKHR>,
+    extra: &mut Extra,
 ) -> Result<Pipeline, VkError> {
     let formats = [COLOR_FORMAT];
     let mut rendering =
@@ -203,8 +305,11 @@ fn create_graphics(
         .dynamic_state(&ds)
         .layout(layout)
         .push_next(&mut rendering);
-    if let Some(f2) = flags2 {
+    if let Some(f2) = extra.flags2.as_mut() {
         ci = ci.push_next(f2);
+    }
+    if let Some(b) = extra.binaries.as_mut() {
+        ci = ci.push_next(b);
     }
     unsafe { gpu.device.create_graphics_pipelines(cache, &[ci], None) }
         .map_err(|(_, e)| VkError::from_result("vkCreateGraphicsPipelines", e))
@@ -253,35 +358,34 @@ fn rt_groups(shaders: &CellShaders) -> Vec<vk::RayTracingShaderGroupCreateInfoKH
     groups
 }
 
-// One RT pipeline's inputs, each a distinct Vulkan object or table.
-#[allow(clippy::too_many_arguments)]
 fn create_rt(
     gpu: &Gpu,
     cache: vk::PipelineCache,
-    shaders: &CellShaders,
+    d: &Desc,
     stages: &[vk::PipelineShaderStageCreateInfo],
-    layout: vk::PipelineLayout,
     flags: vk::PipelineCreateFlags,
-    flags2: Option<&mut vk::PipelineCreateFlags2CreateInfoKHR>,
-    records: &ShaderRecords,
+    extra: &mut Extra,
 ) -> Result<Pipeline, VkError> {
     let rt = gpu.rt.as_ref().expect("ray tracing pipeline enabled");
-    let groups = rt_groups(shaders);
+    let groups = rt_groups(d.shaders);
     let mut ci = vk::RayTracingPipelineCreateInfoKHR::default()
         .flags(flags)
         .stages(stages)
         .groups(&groups)
-        .max_pipeline_ray_recursion_depth(shaders.recursion_depth)
-        .layout(layout);
-    if let Some(f2) = flags2 {
+        .max_pipeline_ray_recursion_depth(d.shaders.recursion_depth)
+        .layout(d.layout);
+    if let Some(f2) = extra.flags2.as_mut() {
         ci = ci.push_next(f2);
+    }
+    if let Some(b) = extra.binaries.as_mut() {
+        ci = ci.push_next(b);
     }
     let raw = unsafe {
         rt.create_ray_tracing_pipelines(vk::DeferredOperationKHR::null(), cache, &[ci], None)
     }
     .map_err(|(_, e)| VkError::from_result("vkCreateRayTracingPipelinesKHR", e))?[0];
-    let has_callable = shaders.get(Role::Callable).is_some();
-    let sbt = shader_binding_table(gpu, raw, groups.len() as u32, has_callable, records)?;
+    let has_callable = d.shaders.get(Role::Callable).is_some();
+    let sbt = shader_binding_table(gpu, raw, groups.len() as u32, has_callable, d.records)?;
     Ok(Pipeline { raw, kind: PipelineKind::RayTracing, sbt: Some(sbt) })
 }
 

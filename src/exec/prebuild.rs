@@ -15,6 +15,7 @@ use super::compile::cell_shaders;
 use super::error::CellError;
 use super::executor::Executor;
 use super::pipeline::Pipeline;
+use super::pipeline_binaries::BinaryStore;
 use crate::model::Cell;
 use crate::model::Phase;
 use crate::model::Timings;
@@ -69,12 +70,14 @@ pub struct PrebuildStats {
 struct Shared<'a> {
     gpu: &'a Gpu,
     cache: vk::PipelineCache,
+    binaries: Option<&'a BinaryStore>,
     inputs: Vec<PipelineInput<'a>>,
 }
 
 // SAFETY: the inputs are plain Vulkan handles and create-info data (the heap mapping's pNext
 // pointers point into its own box) that live for the thread scope and are only read; the device
-// functions are thread-safe for pipeline creation (module doc) and `Gpu` is only read.
+// functions are thread-safe for pipeline creation (module doc), `Gpu` is only read, and the binary
+// store keeps its counts behind a mutex and writes each pipeline's own file.
 unsafe impl Sync for Shared<'_> {}
 
 /// A created pipeline handed back from a thread.
@@ -196,6 +199,7 @@ impl Executor {
         let shared = Shared {
             gpu: &self.gpu,
             cache: self.cache,
+            binaries: self.binaries.as_ref(),
             inputs: makers
                 .iter()
                 .map(|&i| {
@@ -250,7 +254,7 @@ fn create_all(
         || Some(()),
         |(), i| {
             let t = Instant::now();
-            let r = shared.inputs[i].create(shared.gpu, shared.cache);
+            let r = shared.inputs[i].create(shared.gpu, shared.cache, shared.binaries);
             Made(r, t.elapsed().as_secs_f64() * 1e3)
         },
         progress,

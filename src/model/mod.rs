@@ -6,6 +6,7 @@
 pub mod attempt;
 pub mod axes;
 pub mod baseline;
+pub mod binaries;
 pub mod bisection;
 pub mod bundle;
 pub mod cell;
@@ -32,6 +33,7 @@ pub use axes::{
 pub use baseline::{
     Baseline, BaselineCheck, CellCheck, Expectation, PerfBound, Status, WorkerFault,
 };
+pub use binaries::{BinaryStats, BinaryStatus, PipelineBinarySummary};
 pub use bisection::{BisectFile, Bisection, IsolationLine};
 pub use cell::{undefined_descriptor_read, Canary, Cell, Pattern, Workaround, NO_NONUNIFORM_VUID};
 pub use comparison::{Comparison, ElementReads, Mismatch};

@@ -366,6 +366,9 @@ pub struct RunReport {
     /// The persisted pipeline cache (absent: `--pipeline-cache off`, or an older report).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pipeline_cache: Option<PipelineCacheSummary>,
+    /// Pipeline binaries (absent: not used, or an older report).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pipeline_binaries: Option<super::binaries::PipelineBinarySummary>,
     pub cells: Vec<CellReport>,
 }
 
@@ -406,6 +409,7 @@ impl RunReport {
             baseline: None,
             workers: vec![],
             pipeline_cache: None,
+            pipeline_binaries: None,
             cells,
         };
         r.recount();

@@ -45,6 +45,11 @@ pub struct WorkerJob {
     /// It changes results, so it travels in the job, not through the worker's environment.
     #[serde(default)]
     pub binding_stages: Option<String>,
+    /// Compile afresh (re-runs of a cell alone, GPU-AV, bisect, repro): no pipeline cache or
+    /// binaries, and the driver's own cache bypassed (its documented switch, and
+    /// `disableInternalCache` where `pipelineBinaryInternalCacheControl` allows).
+    #[serde(default)]
+    pub fresh: bool,
 }
 
 fn one() -> usize {
@@ -67,6 +72,10 @@ pub enum WorkerMsg {
         /// The pipeline cache file and what was loaded from it (absent: `--pipeline-cache off`).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         pipeline_cache: Option<crate::exec::pipeline_cache::Loaded>,
+        /// Pipeline binaries: where they are kept and the driver's properties, or a fresh
+        /// worker's cache switch (absent: none of this applies).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        pipeline_binaries: Option<crate::model::BinaryStatus>,
     },
     /// The worker builds these cells ahead of their turns (phase `prebuild`): compile and
     /// bindings in order, pipelines on `threads` threads. Progress comes as `phase` messages
@@ -81,6 +90,10 @@ pub enum WorkerMsg {
         wall_ms: f64,
         pipelines: usize,
         threads: usize,
+    },
+    /// After the last cell: what the worker did with pipeline binaries.
+    Binaries {
+        stats: crate::model::BinaryStats,
     },
     /// After the last cell: the pipeline cache was written (`bytes`) or not (`error`).
     CacheSaved {
@@ -158,6 +171,7 @@ mod tests {
             serial: vec![],
             pipeline_cache: None,
             binding_stages: Some("all".into()),
+            fresh: false,
         };
         let mut v = serde_json::to_value(&job).unwrap();
         assert_eq!(

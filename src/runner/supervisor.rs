@@ -64,6 +64,9 @@ pub struct SupervisorOptions {
     pub pipeline_cache: Option<PathBuf>,
     /// `RTPROBE_BINDING_STAGES` of the run, written into each worker's job file.
     pub binding_stages: Option<String>,
+    /// Every worker compiles afresh (`bisect`, `run --cell-spec`, the GPU-AV re-runs), as
+    /// re-runs alone always do: no pipeline cache or binaries, the driver's own cache bypassed.
+    pub fresh: bool,
 }
 
 /// A worker the supervisor runs: its process, and its state as [`machine`] keeps it.
@@ -158,6 +161,12 @@ impl Supervisor {
         }
     }
 
+    /// Whether workers started now compile afresh: re-runs alone, and every worker of a fresh
+    /// supervisor.
+    fn fresh(&self) -> bool {
+        self.rerun || self.opts.fresh
+    }
+
     /// Writes worker `id`'s job file and starts it.
     fn spawn(&mut self, slot: usize, job: Job, per_cell: bool) -> std::io::Result<Running> {
         self.generation += 1;
@@ -176,8 +185,9 @@ impl Supervisor {
             serial: job.serial,
             cells: job.cells,
             threads: self.opts.threads.max(1),
-            pipeline_cache: self.opts.pipeline_cache.clone().filter(|_| !self.rerun),
+            pipeline_cache: self.opts.pipeline_cache.clone().filter(|_| !self.fresh()),
             binding_stages: self.opts.binding_stages.clone(),
+            fresh: self.fresh(),
         };
         std::fs::create_dir_all(&self.opts.job_dir)?;
         let path = self.opts.job_dir.join(format!("job-{}-{id}.json", std::process::id()));

@@ -41,8 +41,34 @@ pub fn requirements(info: &crate::vk::DeviceInfo, cells: &[Cell]) -> Requirement
         fragment_stores: fragment,
         dynamic_rendering: fragment,
         invocation_reorder: any(&|s| s.reorder.is_some()),
+        pipeline_binaries: false,
+        pipeline_library: false,
+        disable_internal_cache: false,
     }
 }
+
+/// How the worker's pipelines are made, on top of what its cells need: from pipeline binaries
+/// kept in the cache folder where the device has them (`pipelineBinaries`), unless the worker
+/// compiles afresh; then with the driver's internal cache off where
+/// `pipelineBinaryInternalCacheControl` allows it.
+fn pipeline_creation(info: &crate::vk::DeviceInfo, job: &WorkerJob, req: &mut Requirements) {
+    let binaries =
+        info.features.pipeline_binary.is_some_and(|f| f.pipeline_binaries == ash::vk::TRUE)
+            && info.has_extension(ash::khr::maintenance5::NAME);
+    let control = info
+        .properties
+        .pipeline_binary
+        .is_some_and(|p| p.pipeline_binary_internal_cache_control == ash::vk::TRUE);
+    req.pipeline_binaries = binaries && !job.fresh && job.pipeline_cache.is_some();
+    req.disable_internal_cache = binaries && control && job.fresh;
+}
+
+/// The drivers' documented switches for their own shader caches, set before the driver loads in
+/// a worker that compiles afresh (the driver reads them at instance or device creation): NVIDIA's
+/// `__GL_SHADER_DISK_CACHE=0` and Mesa's `MESA_SHADER_CACHE_DISABLE=true`. Where the driver
+/// offers `disableInternalCache` it is set too ([`pipeline_creation`]).
+const FRESH_ENV: &[(&str, &str)] =
+    &[("__GL_SHADER_DISK_CACHE", "0"), ("MESA_SHADER_CACHE_DISABLE", "true")];
 
 fn send(msg: &WorkerMsg) {
     let mut out = std::io::stdout().lock();
@@ -101,6 +127,12 @@ impl From<VkError> for SetupFailure {
 }
 
 fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
+    if job.fresh {
+        for (k, v) in FRESH_ENV {
+            // Single-threaded here: no other thread reads the environment yet.
+            std::env::set_var(k, v);
+        }
+    }
     phases.enter(Phase::Setup, Some((SetupStep::CreateInstance, "vkCreateInstance")))?;
     let inst =
         Arc::new(Instance::new(&InstanceOptions { validate: job.validate, gpu_av: job.gpu_av })?);
@@ -118,6 +150,7 @@ fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
     req.int64 |= job.cells.iter().any(|c| {
         crate::model::inject::for_cell(&job.inject, c).is_some_and(|i| i.fault.reads_bad_address())
     });
+    pipeline_creation(&info, job, &mut req);
     phases.enter(Phase::Setup, Some((SetupStep::CreateDevice, "vkCreateDevice")))?;
     let gpu = Gpu::new(inst, info, req)?;
     let opts = ExecOptions {
@@ -126,6 +159,7 @@ fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
         inject_seed: job.inject_seed,
         dump: job.dump.clone(),
         pipeline_cache: job.pipeline_cache.clone(),
+        fresh: job.fresh,
         spirv_dir: job.spirv_dir.clone(),
         all_stages: job.binding_stages.as_deref() == Some("all"),
     };
@@ -224,6 +258,7 @@ pub fn main(job_path: &std::path::Path) -> u8 {
         reference_ms: exec.reference_ms,
         device_features: exec.gpu.enabled_names.clone(),
         pipeline_cache: exec.cache_status.clone(),
+        pipeline_binaries: exec.binary_status.clone(),
     });
     let serial: HashSet<&str> = job.serial.iter().map(String::as_str).collect();
     for (k, chunk) in job.cells.chunks(PREBUILD_CHUNK).enumerate() {
@@ -246,6 +281,9 @@ pub fn main(job_path: &std::path::Path) -> u8 {
             // A loss injected here has nothing to fail; hang, crash and spam act by themselves.
             let _ = phases.enter(next, None);
         }
+    }
+    if let Some(stats) = exec.binary_stats() {
+        send(&WorkerMsg::Binaries { stats });
     }
     if let Some(saved) = exec.save_pipeline_cache() {
         let (bytes, error) = match saved {
