@@ -214,6 +214,13 @@ pub struct RunArgs {
     #[arg(long, value_name = "I/N")]
     pub shard: Option<String>,
 
+    /// Run exactly N probe cells, each with a pipeline of its own: the first N of the plan, or
+    /// all of them and then copies (`<id>.copy-k`: the same probe with a constant of its own in
+    /// the first stage, so new shaders and a new pipeline, the same records). For measuring time
+    /// against the number of cells (`rtprobe bench --cells`)
+    #[arg(long, value_name = "N")]
+    pub cells_scale: Option<usize>,
+
     /// Run each faulting cell until it has N attempts (each alone in a fresh worker) and report
     /// k of N with the chance that a fault of the observed rate would have been missed
     #[arg(long, value_name = "N")]
@@ -587,4 +594,15 @@ pub struct BenchArgs {
     /// scaled up)
     #[arg(long)]
     pub no_sample: bool,
+
+    /// Measure only time against distinct cells: one `run --cells-scale N` per N, twice in a row
+    /// (first, again), with a fitted line each (e.g. 100,500,1000,2000,5000; plot
+    /// time-vs-cells.svg). The other parts do not run
+    #[arg(long, value_delimiter = ',', value_name = "N,...")]
+    pub cells: Vec<usize>,
+
+    /// With --cells: each point's first run in new, empty cache folders (rtprobe's, NVIDIA's and
+    /// Mesa's), so every pipeline is compiled
+    #[arg(long, requires = "cells")]
+    pub cells_cold: bool,
 }

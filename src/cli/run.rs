@@ -66,8 +66,10 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     };
     let a = &a;
     let c = check(a)?;
+    tracing::debug!("run: arguments checked");
     let inst = open_instance(g)?;
     let info = select_device(&inst, a)?;
+    tracing::debug!("run: instance created, device selected");
     let options = run_options(g, a, &c, &info, binding_stages);
     let mut the_plan = plan::plan(
         &info,
@@ -78,11 +80,13 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
             inject: c.inject.clone(),
         },
     );
-    let sharded_out = c.shard.map(|s| s.apply(&mut the_plan)).unwrap_or(0);
+    let sharded_out = c.shard.map(|s| s.apply(&mut the_plan)).unwrap_or(0)
+        + a.cells_scale.map(|n| the_plan.scale_to(n)).unwrap_or(0);
     if a.list {
         print_list(&the_plan, c.shard, sharded_out);
         return Ok(exit::OK);
     }
+    tracing::debug!("run: planned");
     let started = time::now_unix();
     let out = out_path(a, started, &info);
     let fresh = start::fresh(
@@ -105,8 +109,10 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     let wall = Instant::now();
     let supported = |cell: &Cell| plan::device_support(&info, cell).is_supported();
     let policy = Policy::of(&options, || inst.validation_layer_version());
+    tracing::debug!("run: report started, rounds begin");
     Campaign { oracle: &mut oracle, rec: &mut rec, supported: &supported }
         .run(&policy, &cells, &canaries);
+    tracing::debug!("run: rounds done");
     bar.finish_and_clear();
     let _ = std::fs::remove_dir_all(&job_dir);
     if let Some(e) = rec.save_error.take() {
@@ -173,6 +179,9 @@ fn check(a: &RunArgs) -> Result<Checked> {
     if a.jobs.is_some_and(|j| j == 0 || j > 64) {
         return Err(coded(exit::USAGE, "--jobs must be 1..=64"));
     }
+    if a.cells_scale.is_some_and(|n| n == 0 || n > 100_000) {
+        return Err(coded(exit::USAGE, "--cells-scale must be 1..=100000"));
+    }
     if a.threads.is_some_and(|t| t == 0 || t > 64) {
         return Err(coded(exit::USAGE, "--threads must be 1..=64"));
     }
@@ -226,6 +235,7 @@ fn run_options(
         inject: c.inject.iter().map(|i| i.spec.clone()).collect(),
         repeat: a.repeat,
         shard: c.shard.map(|s| s.label()),
+        cells_scale: a.cells_scale,
         binding_stages,
         spirv_from: a.spirv_dir.clone(),
         merged_from: vec![],
@@ -243,6 +253,7 @@ fn supervisor(a: &RunArgs, o: &RunOptions, info: &DeviceInfo, c: &Checked) -> Su
         pipeline_cache: o.pipeline_cache.clone(),
         binding_stages: o.binding_stages.clone(),
         fresh: a.fresh,
+        pipelines: std::env::var("RTPROBE_PIPELINES").ok().filter(|v| !v.is_empty()),
         ..supervisor_options(
             info.index,
             c.params,
@@ -351,6 +362,7 @@ fn print_end(a: &RunArgs, writer: &ReportWriter, out: &Path) -> Result<u8> {
         write_atomic(j, junit::render(&writer.report).as_bytes())
             .with_context(|| "writing the JUnit file")?;
     }
+    tracing::debug!("run: report written");
     print!("{}", summary::render(&writer.report));
     if let Some(c) = &writer.report.baseline {
         print!("{}", crate::fleet::baseline::render(c, a.allow_improvements));

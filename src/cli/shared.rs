@@ -111,6 +111,7 @@ pub(crate) fn supervisor_options(
         pipeline_cache: None,
         binding_stages: None,
         fresh: true,
+        pipelines: None,
     }
 }
 

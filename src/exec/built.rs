@@ -7,8 +7,9 @@ use super::error::CellError;
 use super::heap::{DroppedNonUniform, PipelineMapping};
 use super::pipeline::{self, Pipeline};
 use super::pipeline_binaries::BinaryStore;
+use super::pipeline_library::Libraries;
 use crate::model::{DescriptorModel, Phase, Timings};
-use crate::shadergen::CellShaders;
+use crate::shadergen::{CellShaders, PipelineKind};
 use crate::vk::{Gpu, VkError};
 use ash::vk;
 use std::sync::Arc;
@@ -81,16 +82,25 @@ impl PipelineInput<'_> {
         super::pipeline_id::of(&self.desc(), self.layout_digest)
     }
 
-    /// The pipeline: through the binary store when there is one, else compiled with `cache`.
-    pub(super) fn create(
-        &self,
-        gpu: &Gpu,
-        cache: vk::PipelineCache,
-        store: Option<&BinaryStore>,
-    ) -> Result<Pipeline, VkError> {
-        match store {
-            Some(s) => s.make(gpu, &self.desc(), self.id()),
-            None => pipeline::create(gpu, pipeline::Source::Cache(cache), &self.desc()),
+    /// The pipeline: through the binary store when there is one, linked from libraries (ray
+    /// tracing pipelines) when they are used, else compiled with the cache.
+    pub(super) fn create(&self, gpu: &Gpu, how: &Creation) -> Result<Pipeline, VkError> {
+        let d = self.desc();
+        match (how.binaries, how.libraries) {
+            (Some(s), _) => s.make(gpu, &d, self.id()),
+            (None, Some(l)) if d.shaders.kind == PipelineKind::RayTracing => {
+                l.make(gpu, how.cache, &d, self.layout_digest)
+            }
+            (None, _) => pipeline::create(gpu, pipeline::Source::Cache(how.cache), &d),
         }
     }
+}
+
+/// How an executor makes pipelines: its cache, and its binary store or libraries when it has
+/// them.
+#[derive(Clone, Copy)]
+pub(super) struct Creation<'a> {
+    pub(super) cache: vk::PipelineCache,
+    pub(super) binaries: Option<&'a BinaryStore>,
+    pub(super) libraries: Option<&'a Libraries>,
 }

@@ -4,11 +4,13 @@
 //! target, bindings, pipelines, prebuilt cells), its options, its creation and teardown, and the
 //! pipeline cache saved back.
 use super::bindings::{Binding, LayoutKey};
+use super::built::Creation;
 use super::built::Prebuilt;
 use super::error::CellError;
 use super::pipeline::Pipeline;
 use super::pipeline_binaries::BinaryStore;
 use super::pipeline_cache;
+use super::pipeline_library::Libraries;
 use super::resources::ResourceArray;
 use super::samplers;
 use crate::model::{Phase, Resource, SceneParams};
@@ -81,6 +83,8 @@ pub struct Executor {
     pub(super) binaries: Option<BinaryStore>,
     /// Pipeline binaries for the report: the store's folder and key, or a fresh worker's switch.
     pub binary_status: Option<crate::model::BinaryStatus>,
+    /// Group libraries of ray tracing pipelines (a device created with VK_KHR_pipeline_library).
+    pub(super) libraries: Option<Libraries>,
     /// Milliseconds the CPU reference took.
     pub reference_ms: f64,
 }
@@ -108,6 +112,7 @@ impl Executor {
         let (binaries, binary_status) = open_binaries(&gpu, &opts)?;
         let dir = opts.pipeline_cache.as_deref().filter(|_| binaries.is_none());
         let (cache, cache_status) = pipeline_cache::open(&gpu, dir)?;
+        let libraries = gpu.enabled.pipeline_library.then(Libraries::default);
         Ok(Executor {
             gpu,
             scene,
@@ -128,10 +133,25 @@ impl Executor {
             pipelines: HashMap::new(),
             prebuilt: HashMap::new(),
             cache_status,
+            libraries,
             binaries,
             binary_status,
             reference_ms,
         })
+    }
+
+    /// How this executor makes pipelines.
+    pub(super) fn creation(&self) -> Creation<'_> {
+        Creation {
+            cache: self.cache,
+            binaries: self.binaries.as_ref(),
+            libraries: self.libraries.as_ref(),
+        }
+    }
+
+    /// The group libraries made and the pipelines linked (`None`: no libraries).
+    pub fn library_stats(&self) -> Option<String> {
+        self.libraries.as_ref().map(Libraries::stats)
     }
 
     /// What this worker did with pipeline binaries (`None`: it kept none).
@@ -158,6 +178,7 @@ fn open_binaries(
         let status = crate::model::BinaryStatus {
             fresh: true,
             internal_cache_disabled: gpu.enabled.disable_internal_cache,
+            properties: super::pipeline_binaries::properties(gpu),
             ..Default::default()
         };
         return Ok((None, Some(status)));
@@ -179,6 +200,9 @@ impl Drop for Executor {
         }
         for p in self.pipelines.values() {
             p.destroy(gpu);
+        }
+        if let Some(l) = &self.libraries {
+            l.destroy(gpu);
         }
         for b in self.bindings.values() {
             b.destroy(gpu);

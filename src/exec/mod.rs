@@ -30,6 +30,7 @@ pub mod pipeline_binaries;
 pub mod pipeline_cache;
 mod pipeline_id;
 mod pipeline_key;
+mod pipeline_library;
 pub mod prebuild;
 mod record;
 pub mod resources;

@@ -163,12 +163,19 @@ pub fn flags2(model: DescriptorModel, heap: bool) -> vk::PipelineCreateFlags2KHR
 /// The shader modules of `d` (none when made from binaries: `module` may then be null,
 /// VUID-VkPipelineShaderStageCreateInfo-stage-08771); on an error the ones made are destroyed.
 fn modules(gpu: &Gpu, d: &Desc, source: Source) -> Result<Vec<vk::ShaderModule>, VkError> {
-    let dev = &gpu.device;
-    if matches!(source, Source::Binaries(_)) {
+    if matches!(source, Source::Binaries(_)) && std::env::var_os("RTPROBE_BINARY_MODULES").is_none()
+    {
         return Ok(vec![vk::ShaderModule::null(); d.spirv.len()]);
     }
+    let all: Vec<usize> = (0..d.spirv.len()).collect();
+    modules_of(gpu, d, &all)
+}
+
+/// The shader modules of `d`'s shaders at `which`; on an error the ones made are destroyed.
+fn modules_of(gpu: &Gpu, d: &Desc, which: &[usize]) -> Result<Vec<vk::ShaderModule>, VkError> {
+    let dev = &gpu.device;
     let mut modules = Vec::new();
-    for words in d.spirv {
+    for words in which.iter().map(|&i| &d.spirv[i]) {
         let ci = vk::ShaderModuleCreateInfo::default().code(words);
         match unsafe { dev.create_shader_module(&ci, None) } {
             Ok(m) => modules.push(m),
@@ -213,28 +220,38 @@ impl Extra {
     }
 }
 
-/// Create the pipeline `d` describes, its code from `source`, specializing every stage with
-/// `d.specialization`.
-pub fn create(gpu: &Gpu, source: Source, d: &Desc) -> Result<Pipeline, VkError> {
-    let modules = modules(gpu, d, source)?;
-    let spec = d.specialization.info();
-    let stages: Vec<vk::PipelineShaderStageCreateInfo> = d
-        .shaders
-        .shaders
+/// The stage create infos of `d`'s shaders at `which` (indices), with `modules` (same order as
+/// `which`) and `spec`.
+fn stage_infos<'a>(
+    d: &Desc<'a>,
+    which: &[usize],
+    modules: &[vk::ShaderModule],
+    spec: &'a vk::SpecializationInfo<'a>,
+) -> Vec<vk::PipelineShaderStageCreateInfo<'a>> {
+    which
         .iter()
-        .zip(&modules)
-        .map(|(s, m)| {
+        .zip(modules)
+        .map(|(&i, m)| {
             let mut st = vk::PipelineShaderStageCreateInfo::default()
-                .stage(stage_flag(s.role))
+                .stage(stage_flag(d.shaders.shaders[i].role))
                 .module(*m)
                 .name(MAIN)
-                .specialization_info(&spec);
+                .specialization_info(spec);
             if let Some(h) = d.heap {
                 st.p_next = h.stage_next();
             }
             st
         })
-        .collect();
+        .collect()
+}
+
+/// Create the pipeline `d` describes, its code from `source`, specializing every stage with
+/// `d.specialization`.
+pub fn create(gpu: &Gpu, source: Source, d: &Desc) -> Result<Pipeline, VkError> {
+    let modules = modules(gpu, d, source)?;
+    let spec = d.specialization.info();
+    let all: Vec<usize> = (0..d.shaders.shaders.len()).collect();
+    let stages = stage_infos(d, &all, &modules, &spec);
     let flags = if d.model == DescriptorModel::DescriptorBuffer {
         vk::PipelineCreateFlags::DESCRIPTOR_BUFFER_EXT
     } else {
@@ -386,6 +403,118 @@ fn create_rt(
     .map_err(|(_, e)| VkError::from_result("vkCreateRayTracingPipelinesKHR", e))?[0];
     let has_callable = d.shaders.get(Role::Callable).is_some();
     let sbt = shader_binding_table(gpu, raw, groups.len() as u32, has_callable, d.records)?;
+    Ok(Pipeline { raw, kind: PipelineKind::RayTracing, sbt: Some(sbt) })
+}
+
+/// One shader group and the stages it uses (indices into the cell's shaders): what a group's
+/// pipeline library holds.
+#[derive(Clone, Debug)]
+pub struct GroupStages {
+    pub ty: vk::RayTracingShaderGroupTypeKHR,
+    pub stages: Vec<usize>,
+    /// The group with its shader indices renumbered into `stages`.
+    group: vk::RayTracingShaderGroupCreateInfoKHR<'static>,
+}
+
+/// The groups of [`rt_groups`] with their stages, in SBT order.
+pub fn rt_group_stages(shaders: &CellShaders) -> Vec<GroupStages> {
+    rt_groups(shaders)
+        .into_iter()
+        .map(|g| {
+            let mut stages = Vec::new();
+            let mut local = |i: u32| {
+                if i == vk::SHADER_UNUSED_KHR {
+                    return i;
+                }
+                stages.push(i as usize);
+                stages.len() as u32 - 1
+            };
+            let group = vk::RayTracingShaderGroupCreateInfoKHR::default()
+                .ty(g.ty)
+                .general_shader(local(g.general_shader))
+                .closest_hit_shader(local(g.closest_hit_shader))
+                .any_hit_shader(local(g.any_hit_shader))
+                .intersection_shader(local(g.intersection_shader));
+            GroupStages { ty: g.ty, stages, group }
+        })
+        .collect()
+}
+
+/// The flags of a pipeline library under `d`'s model, as flags and (heap pipelines) flags2.
+fn library_flags(
+    d: &Desc,
+) -> (vk::PipelineCreateFlags, Option<vk::PipelineCreateFlags2CreateInfoKHR<'static>>) {
+    let lib = vk::PipelineCreateFlags::LIBRARY_KHR;
+    let f2 = flags2(d.model, d.heap.is_some())
+        | vk::PipelineCreateFlags2KHR::from_raw(lib.as_raw() as u64);
+    let flags = vk::PipelineCreateFlags::from_raw(flags2(d.model, false).as_raw() as u32) | lib;
+    (flags, d.heap.map(|_| vk::PipelineCreateFlags2CreateInfoKHR::default().flags(f2)))
+}
+
+/// A pipeline library of group `g` of `d` (`iface`: the interface every library and the linked
+/// pipeline share).
+pub fn create_rt_library(
+    gpu: &Gpu,
+    cache: vk::PipelineCache,
+    d: &Desc,
+    g: &GroupStages,
+    iface: &vk::RayTracingPipelineInterfaceCreateInfoKHR,
+) -> Result<vk::Pipeline, VkError> {
+    let rt = gpu.rt.as_ref().expect("ray tracing pipeline enabled");
+    let modules = modules_of(gpu, d, &g.stages)?;
+    let spec = d.specialization.info();
+    let stages = stage_infos(d, &g.stages, &modules, &spec);
+    let groups = [g.group];
+    let (flags, mut f2) = library_flags(d);
+    let mut ci = vk::RayTracingPipelineCreateInfoKHR::default()
+        .flags(flags)
+        .stages(&stages)
+        .groups(&groups)
+        .max_pipeline_ray_recursion_depth(d.shaders.recursion_depth)
+        .library_interface(iface)
+        .layout(d.layout);
+    if let Some(f2) = f2.as_mut() {
+        ci = ci.push_next(f2);
+    }
+    let r = unsafe {
+        rt.create_ray_tracing_pipelines(vk::DeferredOperationKHR::null(), cache, &[ci], None)
+    }
+    .map_err(|(_, e)| VkError::from_result("vkCreateRayTracingPipelinesKHR (library)", e));
+    for m in &modules {
+        unsafe { gpu.device.destroy_shader_module(*m, None) };
+    }
+    Ok(r?[0])
+}
+
+/// The ray tracing pipeline `d` linked from `libs` (one per group, in SBT order), and its SBT.
+pub fn link_rt(
+    gpu: &Gpu,
+    cache: vk::PipelineCache,
+    d: &Desc,
+    libs: &[vk::Pipeline],
+    iface: &vk::RayTracingPipelineInterfaceCreateInfoKHR,
+) -> Result<Pipeline, VkError> {
+    let rt = gpu.rt.as_ref().expect("ray tracing pipeline enabled");
+    let info = vk::PipelineLibraryCreateInfoKHR::default().libraries(libs);
+    let flags = vk::PipelineCreateFlags::from_raw(flags2(d.model, false).as_raw() as u32);
+    let mut f2 = d
+        .heap
+        .map(|_| vk::PipelineCreateFlags2CreateInfoKHR::default().flags(flags2(d.model, true)));
+    let mut ci = vk::RayTracingPipelineCreateInfoKHR::default()
+        .flags(flags)
+        .library_info(&info)
+        .library_interface(iface)
+        .max_pipeline_ray_recursion_depth(d.shaders.recursion_depth)
+        .layout(d.layout);
+    if let Some(f2) = f2.as_mut() {
+        ci = ci.push_next(f2);
+    }
+    let raw = unsafe {
+        rt.create_ray_tracing_pipelines(vk::DeferredOperationKHR::null(), cache, &[ci], None)
+    }
+    .map_err(|(_, e)| VkError::from_result("vkCreateRayTracingPipelinesKHR (link)", e))?[0];
+    let has_callable = d.shaders.get(Role::Callable).is_some();
+    let sbt = shader_binding_table(gpu, raw, libs.len() as u32, has_callable, d.records)?;
     Ok(Pipeline { raw, kind: PipelineKind::RayTracing, sbt: Some(sbt) })
 }
 

@@ -253,7 +253,7 @@ fn from_binaries(
 }
 
 /// `VkPhysicalDevicePipelineBinaryPropertiesKHR` by member name (empty without the extension).
-fn properties(gpu: &Gpu) -> std::collections::BTreeMap<String, bool> {
+pub(super) fn properties(gpu: &Gpu) -> std::collections::BTreeMap<String, bool> {
     let Some(p) = gpu.info.properties.pipeline_binary else {
         return Default::default();
     };

@@ -10,18 +10,16 @@
 //! is unusable and no cell of the batch can be blamed. Each unit of work (the threaded GLSL, each
 //! cell's compile and bindings, each pipeline) is reported as a [`Step`], so the supervisor's
 //! deadline measures silence, not the batch's size. Traces still run one cell at a time.
-use super::built::{Bound, Compiled, PipelineInput, Prebuilt};
+use super::built::{Bound, Compiled, Creation, PipelineInput, Prebuilt};
 use super::compile::cell_shaders;
 use super::error::CellError;
 use super::executor::Executor;
 use super::pipeline::Pipeline;
-use super::pipeline_binaries::BinaryStore;
 use crate::model::Cell;
 use crate::model::Phase;
 use crate::model::Timings;
 use crate::shadergen::CellShaders;
 use crate::vk::{Gpu, VkError};
-use ash::vk;
 use std::collections::HashSet;
 use std::time::Instant;
 
@@ -69,15 +67,15 @@ pub struct PrebuildStats {
 /// The pipelines' inputs shared by the threads.
 struct Shared<'a> {
     gpu: &'a Gpu,
-    cache: vk::PipelineCache,
-    binaries: Option<&'a BinaryStore>,
+    how: Creation<'a>,
     inputs: Vec<PipelineInput<'a>>,
 }
 
 // SAFETY: the inputs are plain Vulkan handles and create-info data (the heap mapping's pNext
 // pointers point into its own box) that live for the thread scope and are only read; the device
 // functions are thread-safe for pipeline creation (module doc), `Gpu` is only read, and the binary
-// store keeps its counts behind a mutex and writes each pipeline's own file.
+// store keeps its counts behind a mutex and writes each pipeline's own file, and the libraries'
+// slots are behind mutexes.
 unsafe impl Sync for Shared<'_> {}
 
 /// A created pipeline handed back from a thread.
@@ -198,8 +196,7 @@ impl Executor {
     ) -> Vec<Made> {
         let shared = Shared {
             gpu: &self.gpu,
-            cache: self.cache,
-            binaries: self.binaries.as_ref(),
+            how: self.creation(),
             inputs: makers
                 .iter()
                 .map(|&i| {
@@ -254,7 +251,7 @@ fn create_all(
         || Some(()),
         |(), i| {
             let t = Instant::now();
-            let r = shared.inputs[i].create(shared.gpu, shared.cache, shared.binaries);
+            let r = shared.inputs[i].create(shared.gpu, &shared.how);
             Made(r, t.elapsed().as_secs_f64() * 1e3)
         },
         progress,

@@ -138,6 +138,15 @@ pub struct Cell {
     /// `heap_access=direct` sampled-image cells, never elsewhere ([`Cell::sampler_applies`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sampler: Option<SamplerIndex>,
+    /// `run --cells-scale`: copy k (≥ 1) of the cell, with shaders of its own (a constant in
+    /// the first stage that never changes what it records), so that it makes a pipeline of its
+    /// own; 0 for the matrix's cells. Id suffix `.copy-k`.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub copy: u32,
+}
+
+fn is_zero(v: &u32) -> bool {
+    *v == 0
 }
 
 impl Cell {
@@ -163,6 +172,7 @@ impl Cell {
             reorder: None,
             base: None,
             sampler: None,
+            copy: 0,
         }
     }
 

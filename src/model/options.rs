@@ -41,6 +41,9 @@ pub struct RunOptions {
     pub repeat: Option<u32>,
     /// `--shard I/N` as given.
     pub shard: Option<String>,
+    /// `--cells-scale N`: the probe cells were cut or copied to exactly N.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cells_scale: Option<usize>,
     /// `RTPROBE_BINDING_STAGES` as set for the run.
     pub binding_stages: Option<String>,
     /// A repro bundle's `shaders/` the workers ran (`run --cell-spec`).
@@ -73,6 +76,7 @@ impl Default for RunOptions {
             inject: vec![],
             repeat: None,
             shard: None,
+            cells_scale: None,
             binding_stages: None,
             spirv_from: None,
             merged_from: vec![],

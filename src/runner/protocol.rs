@@ -50,6 +50,11 @@ pub struct WorkerJob {
     /// `disableInternalCache` where `pipelineBinaryInternalCacheControl` allows).
     #[serde(default)]
     pub fresh: bool,
+    /// `RTPROBE_PIPELINES` of the run: how pipelines are made (`binaries`, the default where the
+    /// device has them; `cache`: the VkPipelineCache only; `libraries`: linked from group
+    /// libraries).
+    #[serde(default)]
+    pub pipelines: Option<String>,
 }
 
 fn one() -> usize {
@@ -172,6 +177,7 @@ mod tests {
             pipeline_cache: None,
             binding_stages: Some("all".into()),
             fresh: false,
+            pipelines: None,
         };
         let mut v = serde_json::to_value(&job).unwrap();
         assert_eq!(

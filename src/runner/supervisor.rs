@@ -67,6 +67,8 @@ pub struct SupervisorOptions {
     /// Every worker compiles afresh (`bisect`, `run --cell-spec`, the GPU-AV re-runs), as
     /// re-runs alone always do: no pipeline cache or binaries, the driver's own cache bypassed.
     pub fresh: bool,
+    /// `RTPROBE_PIPELINES` of the run, written into each worker's job file.
+    pub pipelines: Option<String>,
 }
 
 /// A worker the supervisor runs: its process, and its state as [`machine`] keeps it.
@@ -188,6 +190,7 @@ impl Supervisor {
             pipeline_cache: self.opts.pipeline_cache.clone().filter(|_| !self.fresh()),
             binding_stages: self.opts.binding_stages.clone(),
             fresh: self.fresh(),
+            pipelines: self.opts.pipelines.clone(),
         };
         std::fs::create_dir_all(&self.opts.job_dir)?;
         let path = self.opts.job_dir.join(format!("job-{}-{id}.json", std::process::id()));
@@ -244,6 +247,12 @@ impl Supervisor {
         let limits = self.limits();
         let mut next = Some(input);
         while let Some(input) = next.take() {
+            // The worker's timeline (RUST_LOG=rtprobe::runner::supervisor=trace): each line as
+            // it arrives, cut short.
+            if tracing::enabled!(tracing::Level::TRACE) {
+                let line: String = format!("{input:?}").chars().take(120).collect();
+                tracing::trace!("worker {}: {line}", r.worker.id);
+            }
             let (worker, effects) = machine::step(r.worker, input, Instant::now(), &limits);
             r.worker = worker;
             for effect in effects {

@@ -59,8 +59,13 @@ fn pipeline_creation(info: &crate::vk::DeviceInfo, job: &WorkerJob, req: &mut Re
         .properties
         .pipeline_binary
         .is_some_and(|p| p.pipeline_binary_internal_cache_control == ash::vk::TRUE);
-    req.pipeline_binaries = binaries && !job.fresh && job.pipeline_cache.is_some();
+    let mode = job.pipelines.as_deref().unwrap_or("binaries");
+    req.pipeline_binaries =
+        binaries && !job.fresh && job.pipeline_cache.is_some() && mode == "binaries";
     req.disable_internal_cache = binaries && control && job.fresh;
+    req.pipeline_library = mode == "libraries"
+        && req.rt_pipeline
+        && info.has_extension(ash::khr::pipeline_library::NAME);
 }
 
 /// The drivers' documented switches for their own shader caches, set before the driver loads in
@@ -280,6 +285,13 @@ pub fn main(job_path: &std::path::Path) -> u8 {
             };
             // A loss injected here has nothing to fail; hang, crash and spam act by themselves.
             let _ = phases.enter(next, None);
+        }
+    }
+    if let (Some(s), Ok(log)) = (exec.library_stats(), std::env::var("RTPROBE_PERF_LOG")) {
+        // Measurement hook: pipeline libraries' time, appended to the file named.
+        use std::io::Write as _;
+        if let Ok(mut f) = std::fs::OpenOptions::new().create(true).append(true).open(log) {
+            let _ = writeln!(f, "{s}");
         }
     }
     if let Some(stats) = exec.binary_stats() {
