@@ -66,7 +66,7 @@ pub fn fresh(
         baseline: None,
         workers: vec![],
         pipeline_cache: None,
-        pipeline_binaries: None,
+        driver_cache: None,
         cells: vec![],
     }
 }

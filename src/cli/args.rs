@@ -214,6 +214,14 @@ pub struct RunArgs {
     #[arg(long, value_name = "I/N")]
     pub shard: Option<String>,
 
+    /// How ray tracing pipelines are made: `linked` from one pipeline library per shader group
+    /// (VK_KHR_pipeline_library), each library made once and shared by the cells whose group is
+    /// the same, or `whole` from all their stages; `auto` links on GPUs (faster there) and not on
+    /// CPU devices (lavapipe compiles each pipeline at its first trace, and lavapipe 25's linked
+    /// pipelines give wrong results). See docs/performance.md
+    #[arg(long, value_enum, default_value = "auto", value_name = "MODE")]
+    pub pipelines: crate::model::PipelineMode,
+
     /// Run exactly N probe cells, each with a pipeline of its own: the first N of the plan, or
     /// all of them and then copies (`<id>.copy-k`: the same probe with a constant of its own in
     /// the first stage, so new shaders and a new pipeline, the same records). For measuring time

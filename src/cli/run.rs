@@ -70,7 +70,10 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     let inst = open_instance(g)?;
     let info = select_device(&inst, a)?;
     tracing::debug!("run: instance created, device selected");
-    let options = run_options(g, a, &c, &info, binding_stages);
+    let mut options = run_options(g, a, &c, &info, binding_stages);
+    let mode = super::shared::pipeline_mode(a.pipelines, &info)
+        .map_err(|e| coded(exit::UNSUPPORTED_DEVICE, e))?;
+    options.pipelines = Some(mode);
     let mut the_plan = plan::plan(
         &info,
         &PlanOptions {
@@ -235,6 +238,7 @@ fn run_options(
         inject: c.inject.iter().map(|i| i.spec.clone()).collect(),
         repeat: a.repeat,
         shard: c.shard.map(|s| s.label()),
+        pipelines: None,
         cells_scale: a.cells_scale,
         binding_stages,
         spirv_from: a.spirv_dir.clone(),
@@ -253,7 +257,8 @@ fn supervisor(a: &RunArgs, o: &RunOptions, info: &DeviceInfo, c: &Checked) -> Su
         pipeline_cache: o.pipeline_cache.clone(),
         binding_stages: o.binding_stages.clone(),
         fresh: a.fresh,
-        pipelines: std::env::var("RTPROBE_PIPELINES").ok().filter(|v| !v.is_empty()),
+        internal_cache_control: crate::vk::device::internal_cache_control(info),
+        linked: o.pipelines == Some(crate::model::PipelineMode::Linked),
         ..supervisor_options(
             info.index,
             c.params,

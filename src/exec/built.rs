@@ -6,7 +6,6 @@ use super::bindings::LayoutKey;
 use super::error::CellError;
 use super::heap::{DroppedNonUniform, PipelineMapping};
 use super::pipeline::{self, Pipeline};
-use super::pipeline_binaries::BinaryStore;
 use super::pipeline_library::Libraries;
 use crate::model::{DescriptorModel, Phase, Timings};
 use crate::shadergen::{CellShaders, PipelineKind};
@@ -51,7 +50,7 @@ pub(super) struct Prebuilt {
     pub(super) result: Result<Bound, CellError>,
 }
 
-/// What creating one pipeline needs apart from the device, the cache and the binary store.
+/// What creating one pipeline needs apart from the device and how it is made.
 pub(super) struct PipelineInput<'a> {
     pub(super) shaders: &'a CellShaders,
     pub(super) spirv: &'a [Arc<Vec<u32>>],
@@ -60,7 +59,7 @@ pub(super) struct PipelineInput<'a> {
     pub(super) mapping: Option<Box<PipelineMapping>>,
     pub(super) records: pipeline::ShaderRecords,
     pub(super) specialization: pipeline::Specialization,
-    /// The layout's contents hashed (`Binding::digest`), part of [`PipelineInput::id`].
+    /// The layout's contents hashed (`Binding::digest`), part of a group library's identity.
     pub(super) layout_digest: u128,
 }
 
@@ -77,30 +76,22 @@ impl PipelineInput<'_> {
         }
     }
 
-    /// The pipeline's identity across runs ([`super::pipeline_id`]).
-    pub(super) fn id(&self) -> u128 {
-        super::pipeline_id::of(&self.desc(), self.layout_digest)
-    }
-
-    /// The pipeline: through the binary store when there is one, linked from libraries (ray
-    /// tracing pipelines) when they are used, else compiled with the cache.
+    /// The pipeline: linked from group libraries (ray tracing pipelines, where the executor
+    /// links them), else made whole, both with the cache.
     pub(super) fn create(&self, gpu: &Gpu, how: &Creation) -> Result<Pipeline, VkError> {
         let d = self.desc();
-        match (how.binaries, how.libraries) {
-            (Some(s), _) => s.make(gpu, &d, self.id()),
-            (None, Some(l)) if d.shaders.kind == PipelineKind::RayTracing => {
+        match how.libraries {
+            Some(l) if d.shaders.kind == PipelineKind::RayTracing => {
                 l.make(gpu, how.cache, &d, self.layout_digest)
             }
-            (None, _) => pipeline::create(gpu, pipeline::Source::Cache(how.cache), &d),
+            Some(_) | None => pipeline::create(gpu, how.cache, &d),
         }
     }
 }
 
-/// How an executor makes pipelines: its cache, and its binary store or libraries when it has
-/// them.
+/// How an executor makes pipelines: its cache, and its group libraries where it links.
 #[derive(Clone, Copy)]
 pub(super) struct Creation<'a> {
     pub(super) cache: vk::PipelineCache,
-    pub(super) binaries: Option<&'a BinaryStore>,
     pub(super) libraries: Option<&'a Libraries>,
 }

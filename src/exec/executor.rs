@@ -8,7 +8,6 @@ use super::built::Creation;
 use super::built::Prebuilt;
 use super::error::CellError;
 use super::pipeline::Pipeline;
-use super::pipeline_binaries::BinaryStore;
 use super::pipeline_cache;
 use super::pipeline_library::Libraries;
 use super::resources::ResourceArray;
@@ -40,13 +39,8 @@ pub struct ExecOptions {
     /// A repro bundle's `shaders/`: each module is read from `<role file>.spv` there (already
     /// patched as the cell says) instead of compiled.
     pub spirv_dir: Option<PathBuf>,
-    /// Folder of the persisted pipeline caches and pipeline binaries (`None`: an empty cache,
-    /// no binaries, nothing saved). On a device with pipeline binaries, binaries are kept there
-    /// instead of the `VkPipelineCache` ([`super::pipeline_binaries`]).
+    /// Folder of the persisted pipeline caches (`None`: an empty cache, nothing saved).
     pub pipeline_cache: Option<PathBuf>,
-    /// Compile afresh (re-runs of a cell alone): nothing persisted is loaded, and the device was
-    /// created with the driver's own cache off where it allows (recorded in `binary_status`).
-    pub fresh: bool,
     /// `RTPROBE_BINDING_STAGES=all` of the run (the job file's `binding_stages`).
     pub all_stages: bool,
 }
@@ -76,14 +70,10 @@ pub struct Executor {
     pub(super) pipelines: HashMap<u64, Pipeline>,
     /// Cells compiled and bound ahead of their turn, with their pipelines, by cell id.
     pub(super) prebuilt: HashMap<String, Prebuilt>,
-    /// Where the pipeline cache came from and what was loaded (`None` with binaries).
+    /// Where the pipeline cache came from and what was loaded.
     pub cache_status: Option<pipeline_cache::Loaded>,
-    /// The pipeline binaries kept between runs (a device with VK_KHR_pipeline_binary, and a
-    /// cache folder).
-    pub(super) binaries: Option<BinaryStore>,
-    /// Pipeline binaries for the report: the store's folder and key, or a fresh worker's switch.
-    pub binary_status: Option<crate::model::BinaryStatus>,
-    /// Group libraries of ray tracing pipelines (a device created with VK_KHR_pipeline_library).
+    /// Group libraries of ray tracing pipelines (a device created with VK_KHR_pipeline_library:
+    /// its RT pipelines are linked from them).
     pub(super) libraries: Option<Libraries>,
     /// Milliseconds the CPU reference took.
     pub reference_ms: f64,
@@ -109,9 +99,7 @@ impl Executor {
             "records",
         )?;
         let sampler = samplers::create_sampler(&gpu)?;
-        let (binaries, binary_status) = open_binaries(&gpu, &opts)?;
-        let dir = opts.pipeline_cache.as_deref().filter(|_| binaries.is_none());
-        let (cache, cache_status) = pipeline_cache::open(&gpu, dir)?;
+        let (cache, cache_status) = pipeline_cache::open(&gpu, opts.pipeline_cache.as_deref())?;
         let libraries = gpu.enabled.pipeline_library.then(Libraries::default);
         Ok(Executor {
             gpu,
@@ -134,29 +122,13 @@ impl Executor {
             prebuilt: HashMap::new(),
             cache_status,
             libraries,
-            binaries,
-            binary_status,
             reference_ms,
         })
     }
 
     /// How this executor makes pipelines.
     pub(super) fn creation(&self) -> Creation<'_> {
-        Creation {
-            cache: self.cache,
-            binaries: self.binaries.as_ref(),
-            libraries: self.libraries.as_ref(),
-        }
-    }
-
-    /// The group libraries made and the pipelines linked (`None`: no libraries).
-    pub fn library_stats(&self) -> Option<String> {
-        self.libraries.as_ref().map(Libraries::stats)
-    }
-
-    /// What this worker did with pipeline binaries (`None`: it kept none).
-    pub fn binary_stats(&self) -> Option<crate::model::BinaryStats> {
-        self.binaries.as_ref().map(BinaryStore::totals)
+        Creation { cache: self.cache, libraries: self.libraries.as_ref() }
     }
 
     /// Write the pipeline cache back to its file (merged with what is there): the bytes written;
@@ -165,30 +137,6 @@ impl Executor {
     pub fn save_pipeline_cache(&self) -> Option<Result<u64, String>> {
         let path = &self.cache_status.as_ref()?.path;
         Some(pipeline_cache::save(&self.gpu, self.cache, path).map_err(|e| e.to_string()))
-    }
-}
-
-/// The binary store of a device created with pipeline binaries and a cache folder, with its
-/// status; a fresh worker's status (binaries off, the internal cache switch it was given).
-fn open_binaries(
-    gpu: &Gpu,
-    opts: &ExecOptions,
-) -> Result<(Option<BinaryStore>, Option<crate::model::BinaryStatus>), VkError> {
-    if opts.fresh {
-        let status = crate::model::BinaryStatus {
-            fresh: true,
-            internal_cache_disabled: gpu.enabled.disable_internal_cache,
-            properties: super::pipeline_binaries::properties(gpu),
-            ..Default::default()
-        };
-        return Ok((None, Some(status)));
-    }
-    match (gpu.enabled.pipeline_binaries, opts.pipeline_cache.as_deref()) {
-        (true, Some(root)) => {
-            let (store, status) = BinaryStore::open(gpu, root)?;
-            Ok((Some(store), Some(status)))
-        }
-        _ => Ok((None, None)),
     }
 }
 

@@ -11,9 +11,9 @@
 //! (`bind`, `pipeline_key`), building at the cell's turn or ahead of it (`build`, `prebuild`),
 //! what each step hands to the next (`built`), the turn itself (`run`), recording the three
 //! pipeline kinds (`record`), judging the records (`check`, `pictures`), error → outcome
-//! (`error`); below them resources and samplers, bindings, the descriptor heap, pipelines, their
-//! identity across runs (`pipeline_id`), the pipeline binaries and the pipeline cache kept between
-//! runs, and files.
+//! (`error`); below them resources and samplers, bindings, the descriptor heap, pipelines whole or
+//! linked from group libraries (`pipeline_library`), the pipeline cache kept between runs, files,
+//! and the stable hash of library and layout identities (`stable_hash`).
 mod bind;
 pub mod bindings;
 mod build;
@@ -26,9 +26,7 @@ mod files;
 pub mod heap;
 pub mod pictures;
 pub mod pipeline;
-pub mod pipeline_binaries;
 pub mod pipeline_cache;
-mod pipeline_id;
 mod pipeline_key;
 mod pipeline_library;
 pub mod prebuild;
@@ -37,6 +35,7 @@ pub mod resources;
 mod run;
 mod samplers;
 mod setup;
+mod stable_hash;
 
 pub use error::CellError;
 pub use executor::{ExecOptions, Executor, PhaseHook};

@@ -109,27 +109,7 @@ impl Specialization {
     }
 }
 
-/// Where a pipeline's code comes from: compiled with a `VkPipelineCache` (null: none); compiled
-/// with `VK_PIPELINE_CREATE_2_CAPTURE_DATA_BIT_KHR` so that its binaries can be read after (no
-/// cache allowed, VUID-vkCreateRayTracingPipelinesKHR-pNext-09617); or made from stored binaries
-/// (no cache, no shader modules: the spec ignores them, VkPipelineBinaryInfoKHR).
-#[derive(Clone, Copy, Debug)]
-pub enum Source<'a> {
-    Cache(vk::PipelineCache),
-    Capture,
-    Binaries(&'a [crate::vk::binary::PipelineBinary]),
-}
-
-impl Source<'_> {
-    fn cache(&self) -> vk::PipelineCache {
-        match self {
-            Source::Cache(c) => *c,
-            Source::Capture | Source::Binaries(_) => vk::PipelineCache::null(),
-        }
-    }
-}
-
-/// Everything a pipeline is made of, apart from where its code comes from.
+/// Everything a pipeline is made of.
 #[derive(Clone, Copy)]
 pub struct Desc<'a> {
     pub shaders: &'a CellShaders,
@@ -160,17 +140,6 @@ pub fn flags2(model: DescriptorModel, heap: bool) -> vk::PipelineCreateFlags2KHR
     f
 }
 
-/// The shader modules of `d` (none when made from binaries: `module` may then be null,
-/// VUID-VkPipelineShaderStageCreateInfo-stage-08771); on an error the ones made are destroyed.
-fn modules(gpu: &Gpu, d: &Desc, source: Source) -> Result<Vec<vk::ShaderModule>, VkError> {
-    if matches!(source, Source::Binaries(_)) && std::env::var_os("RTPROBE_BINARY_MODULES").is_none()
-    {
-        return Ok(vec![vk::ShaderModule::null(); d.spirv.len()]);
-    }
-    let all: Vec<usize> = (0..d.spirv.len()).collect();
-    modules_of(gpu, d, &all)
-}
-
 /// The shader modules of `d`'s shaders at `which`; on an error the ones made are destroyed.
 fn modules_of(gpu: &Gpu, d: &Desc, which: &[usize]) -> Result<Vec<vk::ShaderModule>, VkError> {
     let dev = &gpu.device;
@@ -190,34 +159,10 @@ fn modules_of(gpu: &Gpu, d: &Desc, which: &[usize]) -> Result<Vec<vk::ShaderModu
     Ok(modules)
 }
 
-/// The pNext additions every pipeline kind takes: the flags2 struct (heap pipelines, captures)
-/// and the binaries to make it from.
-struct Extra {
-    flags2: Option<vk::PipelineCreateFlags2CreateInfoKHR<'static>>,
-    binaries: Option<crate::vk::binary::PipelineBinaryInfoKHR>,
-}
-
-impl Extra {
-    fn of(d: &Desc, source: Source) -> Extra {
-        let mut f = flags2(d.model, d.heap.is_some());
-        if matches!(source, Source::Capture) {
-            f |= crate::vk::binary::PIPELINE_CREATE_2_CAPTURE_DATA;
-        }
-        // Chained only where needed: it requires maintenance5 (enabled with heaps and binaries).
-        let chain = d.heap.is_some() || matches!(source, Source::Capture);
-        let binaries = match source {
-            Source::Binaries(b) => Some(crate::vk::binary::PipelineBinaryInfoKHR {
-                binary_count: b.len() as u32,
-                p_pipeline_binaries: b.as_ptr(),
-                ..Default::default()
-            }),
-            Source::Cache(_) | Source::Capture => None,
-        };
-        Extra {
-            flags2: chain.then(|| vk::PipelineCreateFlags2CreateInfoKHR::default().flags(f)),
-            binaries,
-        }
-    }
+/// The flags2 struct of heap pipelines (the descriptor-heap flag exists only there; it needs
+/// maintenance5, which heaps enable), `None` for the others.
+fn flags2_info(d: &Desc) -> Option<vk::PipelineCreateFlags2CreateInfoKHR<'static>> {
+    d.heap.map(|_| vk::PipelineCreateFlags2CreateInfoKHR::default().flags(flags2(d.model, true)))
 }
 
 /// The stage create infos of `d`'s shaders at `which` (indices), with `modules` (same order as
@@ -245,20 +190,19 @@ fn stage_infos<'a>(
         .collect()
 }
 
-/// Create the pipeline `d` describes, its code from `source`, specializing every stage with
+/// Create the pipeline `d` describes with `cache`, specializing every stage with
 /// `d.specialization`.
-pub fn create(gpu: &Gpu, source: Source, d: &Desc) -> Result<Pipeline, VkError> {
-    let modules = modules(gpu, d, source)?;
-    let spec = d.specialization.info();
+pub fn create(gpu: &Gpu, cache: vk::PipelineCache, d: &Desc) -> Result<Pipeline, VkError> {
     let all: Vec<usize> = (0..d.shaders.shaders.len()).collect();
+    let modules = modules_of(gpu, d, &all)?;
+    let spec = d.specialization.info();
     let stages = stage_infos(d, &all, &modules, &spec);
     let flags = if d.model == DescriptorModel::DescriptorBuffer {
         vk::PipelineCreateFlags::DESCRIPTOR_BUFFER_EXT
     } else {
         vk::PipelineCreateFlags::empty()
     };
-    let mut extra = Extra::of(d, source);
-    let cache = source.cache();
+    let mut extra = flags2_info(d);
     let result = match d.shaders.kind {
         PipelineKind::RayTracing => create_rt(gpu, cache, d, &stages, flags, &mut extra),
         PipelineKind::Compute => {
@@ -266,11 +210,8 @@ pub fn create(gpu: &Gpu, source: Source, d: &Desc) -> Result<Pipeline, VkError> 
                 .stage(stages[0])
                 .layout(d.layout)
                 .flags(flags);
-            if let Some(f2) = extra.flags2.as_mut() {
+            if let Some(f2) = extra.as_mut() {
                 ci = ci.push_next(f2);
-            }
-            if let Some(b) = extra.binaries.as_mut() {
-                ci = ci.push_next(b);
             }
             unsafe { gpu.device.create_compute_pipelines(cache, &[ci], None) }
                 .map_err(|(_, e)| VkError::from_result("vkCreateComputePipelines", e))
@@ -278,7 +219,7 @@ pub fn create(gpu: &Gpu, source: Source, d: &Desc) -> Result<Pipeline, VkError> 
         }
         PipelineKind::Graphics => create_graphics(gpu, cache, &stages, d.layout, flags, &mut extra),
     };
-    for m in modules.iter().filter(|m| **m != vk::ShaderModule::null()) {
+    for m in &modules {
         unsafe { gpu.device.destroy_shader_module(*m, None) };
     }
     result
@@ -290,7 +231,7 @@ fn create_graphics(
     stages: &[vk::PipelineShaderStageCreateInfo],
     layout: vk::PipelineLayout,
     flags: vk::PipelineCreateFlags,
-    extra: &mut Extra,
+    extra: &mut Option<vk::PipelineCreateFlags2CreateInfoKHR<'static>>,
 ) -> Result<Pipeline, VkError> {
     let formats = [COLOR_FORMAT];
     let mut rendering =
@@ -322,11 +263,8 @@ fn create_graphics(
         .dynamic_state(&ds)
         .layout(layout)
         .push_next(&mut rendering);
-    if let Some(f2) = extra.flags2.as_mut() {
+    if let Some(f2) = extra.as_mut() {
         ci = ci.push_next(f2);
-    }
-    if let Some(b) = extra.binaries.as_mut() {
-        ci = ci.push_next(b);
     }
     unsafe { gpu.device.create_graphics_pipelines(cache, &[ci], None) }
         .map_err(|(_, e)| VkError::from_result("vkCreateGraphicsPipelines", e))
@@ -381,7 +319,7 @@ fn create_rt(
     d: &Desc,
     stages: &[vk::PipelineShaderStageCreateInfo],
     flags: vk::PipelineCreateFlags,
-    extra: &mut Extra,
+    extra: &mut Option<vk::PipelineCreateFlags2CreateInfoKHR<'static>>,
 ) -> Result<Pipeline, VkError> {
     let rt = gpu.rt.as_ref().expect("ray tracing pipeline enabled");
     let groups = rt_groups(d.shaders);
@@ -391,11 +329,8 @@ fn create_rt(
         .groups(&groups)
         .max_pipeline_ray_recursion_depth(d.shaders.recursion_depth)
         .layout(d.layout);
-    if let Some(f2) = extra.flags2.as_mut() {
+    if let Some(f2) = extra.as_mut() {
         ci = ci.push_next(f2);
-    }
-    if let Some(b) = extra.binaries.as_mut() {
-        ci = ci.push_next(b);
     }
     let raw = unsafe {
         rt.create_ray_tracing_pipelines(vk::DeferredOperationKHR::null(), cache, &[ci], None)

@@ -10,13 +10,11 @@
 //! (VUID-VkRayTracingPipelineCreateInfoKHR-pLibraries-03591). Libraries live as long as the
 //! executor.
 use super::pipeline::{self, Desc, Pipeline};
-use super::pipeline_id::StableHash;
+use super::stable_hash::StableHash;
 use crate::vk::{Gpu, VkError};
 use ash::vk;
 use std::collections::HashMap;
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
-use std::time::Instant;
 
 /// The payload and hit-attribute bytes every library declares: the probes' `Record` payload and
 /// the intersection probe's `ProbeAttr` (24 bytes) fit.
@@ -33,11 +31,6 @@ type Slot = Arc<Mutex<Option<vk::Pipeline>>>;
 #[derive(Default)]
 pub struct Libraries {
     made: Mutex<HashMap<u128, Slot>>,
-    /// Libraries made and links, with their nanoseconds (summed over threads).
-    libs: AtomicU64,
-    lib_ns: AtomicU64,
-    links: AtomicU64,
-    link_ns: AtomicU64,
 }
 
 impl Libraries {
@@ -55,23 +48,7 @@ impl Libraries {
         for g in &groups {
             libs.push(self.library(gpu, cache, d, layout, g)?);
         }
-        let t = Instant::now();
-        let p = pipeline::link_rt(gpu, cache, d, &libs, &interface());
-        self.links.fetch_add(1, Ordering::Relaxed);
-        self.link_ns.fetch_add(t.elapsed().as_nanos() as u64, Ordering::Relaxed);
-        p
-    }
-
-    /// Libraries made and pipelines linked, with their milliseconds.
-    pub fn stats(&self) -> String {
-        let ms = |a: &AtomicU64| a.load(Ordering::Relaxed) as f64 / 1e6;
-        format!(
-            "libraries {} in {:.1} ms, links {} in {:.1} ms",
-            self.libs.load(Ordering::Relaxed),
-            ms(&self.lib_ns),
-            self.links.load(Ordering::Relaxed),
-            ms(&self.link_ns)
-        )
+        pipeline::link_rt(gpu, cache, d, &libs, &interface())
     }
 
     /// The library of group `g` (stage indices into `d`'s shaders), made unless it exists.
@@ -90,10 +67,7 @@ impl Libraries {
         if let Some(p) = *slot {
             return Ok(p);
         }
-        let t = Instant::now();
         let p = pipeline::create_rt_library(gpu, cache, d, g, &interface())?;
-        self.libs.fetch_add(1, Ordering::Relaxed);
-        self.lib_ns.fetch_add(t.elapsed().as_nanos() as u64, Ordering::Relaxed);
         *slot = Some(p);
         Ok(p)
     }
@@ -107,10 +81,12 @@ impl Libraries {
     }
 }
 
-/// A group library's identity: what [`super::pipeline_id::of`] hashes, for its stages alone.
+/// A group library's identity: everything that makes it — its group and stages' SPIR-V, the
+/// specialization, the recursion depth, the descriptor model's flags, the layout's contents and
+/// the heap mapping structs.
 fn group_id(d: &Desc, layout: u128, g: &pipeline::GroupStages) -> u128 {
     let mut h = StableHash::default();
-    h.u32(super::pipeline_id::FORMAT).str("rt group library").u32(g.ty.as_raw() as u32);
+    h.str("rt group library").u32(g.ty.as_raw() as u32);
     for &i in &g.stages {
         h.str(d.shaders.shaders[i].role.file_name()).words(&d.spirv[i]);
     }

@@ -6,11 +6,11 @@
 pub mod attempt;
 pub mod axes;
 pub mod baseline;
-pub mod binaries;
 pub mod bisection;
 pub mod bundle;
 pub mod cell;
 pub mod comparison;
+pub mod driver_cache;
 pub mod fault;
 pub mod filter;
 pub mod findings;
@@ -33,15 +33,16 @@ pub use axes::{
 pub use baseline::{
     Baseline, BaselineCheck, CellCheck, Expectation, PerfBound, Status, WorkerFault,
 };
-pub use binaries::{BinaryStats, BinaryStatus, PipelineBinarySummary};
 pub use bisection::{BisectFile, Bisection, IsolationLine};
 pub use cell::{undefined_descriptor_read, Canary, Cell, Pattern, Workaround, NO_NONUNIFORM_VUID};
 pub use comparison::{Comparison, ElementReads, Mismatch};
+pub use driver_cache::{DriverCache, DriverCacheSummary};
 pub use fault::{FaultAddress, FaultInfo, FaultVendorInfo};
 pub use filter::{Filter, FilterError};
 pub use findings::{GpuAvResult, GpuAvVerdict, PatternResult, PatternStatus};
 pub use inject::{FaultKind, InjectError, InjectedFault, Injection};
 pub use load::LoadError;
+pub use options::PipelineMode;
 pub use outcome::{CellResult, Outcome, Timings};
 pub use phase::Phase;
 pub use plan::{NotGenerated, PatchMode, PlanStatus, PlannedCell, RunPlan};

@@ -41,6 +41,10 @@ pub struct RunOptions {
     pub repeat: Option<u32>,
     /// `--shard I/N` as given.
     pub shard: Option<String>,
+    /// How ray tracing pipelines were made (`--pipelines`, resolved for the device; absent in
+    /// reports before it: whole).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pipelines: Option<PipelineMode>,
     /// `--cells-scale N`: the probe cells were cut or copied to exactly N.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cells_scale: Option<usize>,
@@ -55,6 +59,18 @@ pub struct RunOptions {
     /// Options of another release this one does not read, kept as they were.
     #[serde(flatten)]
     pub extra: serde_json::Map<String, Value>,
+}
+
+/// How a run makes its ray tracing pipelines (`--pipelines`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PipelineMode {
+    /// `linked` on GPUs that have VK_KHR_pipeline_library, `whole` on CPU devices.
+    Auto,
+    /// Each pipeline linked from one library per shader group, shared between cells.
+    Linked,
+    /// Each pipeline made from all its stages.
+    Whole,
 }
 
 impl Default for RunOptions {
@@ -76,6 +92,7 @@ impl Default for RunOptions {
             inject: vec![],
             repeat: None,
             shard: None,
+            pipelines: None,
             cells_scale: None,
             binding_stages: None,
             spirv_from: None,

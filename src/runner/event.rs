@@ -15,10 +15,8 @@ pub enum Event {
         device_ms: f64,
         reference_ms: f64,
         pipeline_cache: Option<crate::exec::pipeline_cache::Loaded>,
-        pipeline_binaries: Option<crate::model::BinaryStatus>,
+        driver_cache: Option<crate::model::DriverCache>,
     },
-    /// What a worker did with pipeline binaries, after its last cell.
-    Binaries(crate::model::BinaryStats),
     /// A worker built a batch of cells ahead of their turns.
     Prebuilt { wall_ms: f64, pipelines: usize, threads: usize },
     /// A worker wrote the pipeline cache back (`Err`: why not).

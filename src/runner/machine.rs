@@ -209,7 +209,7 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
             reference_ms,
             device_features,
             pipeline_cache,
-            pipeline_binaries,
+            driver_cache,
         } => {
             w.enter(State::Between { since: now }, Phase::BetweenCells);
             w.device_features = device_features;
@@ -217,7 +217,7 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
                 device_ms,
                 reference_ms,
                 pipeline_cache,
-                pipeline_binaries,
+                driver_cache,
             }));
             fx.push(record(w, Phase::Setup, Outcome::Pass, None, None, now));
         }
@@ -247,7 +247,6 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
                 fx.push(Effect::Report(Event::Prebuilt { wall_ms, pipelines, threads }));
             }
         }
-        WorkerMsg::Binaries { stats } => fx.push(Effect::Report(Event::Binaries(stats))),
         WorkerMsg::CacheSaved { bytes, error } => fx.push(Effect::Report(Event::CacheSaved(
             bytes.ok_or_else(|| error.unwrap_or_else(|| "not saved".into())),
         ))),

@@ -45,16 +45,18 @@ pub struct WorkerJob {
     /// It changes results, so it travels in the job, not through the worker's environment.
     #[serde(default)]
     pub binding_stages: Option<String>,
-    /// Compile afresh (re-runs of a cell alone, GPU-AV, bisect, repro): no pipeline cache or
-    /// binaries, and the driver's own cache bypassed (its documented switch, and
-    /// `disableInternalCache` where `pipelineBinaryInternalCacheControl` allows).
+    /// Compile afresh (re-runs of a cell alone, GPU-AV, bisect, repro): no pipeline cache, and
+    /// the driver's own cache bypassed: `disableInternalCache` where `internal_cache_control`,
+    /// else the drivers' documented environment switches.
     #[serde(default)]
     pub fresh: bool,
-    /// `RTPROBE_PIPELINES` of the run: how pipelines are made (`binaries`, the default where the
-    /// device has them; `cache`: the VkPipelineCache only; `libraries`: linked from group
-    /// libraries).
+    /// The device offers `pipelineBinaryInternalCacheControl` (as the run read it, before any
+    /// environment switch could hide it).
     #[serde(default)]
-    pub pipelines: Option<String>,
+    pub internal_cache_control: bool,
+    /// Ray tracing pipelines are linked from group libraries (`--pipelines`).
+    #[serde(default)]
+    pub linked: bool,
 }
 
 fn one() -> usize {
@@ -77,10 +79,9 @@ pub enum WorkerMsg {
         /// The pipeline cache file and what was loaded from it (absent: `--pipeline-cache off`).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         pipeline_cache: Option<crate::exec::pipeline_cache::Loaded>,
-        /// Pipeline binaries: where they are kept and the driver's properties, or a fresh
-        /// worker's cache switch (absent: none of this applies).
+        /// The driver's pipeline-binary properties and the cache switch a fresh worker used.
         #[serde(default, skip_serializing_if = "Option::is_none")]
-        pipeline_binaries: Option<crate::model::BinaryStatus>,
+        driver_cache: Option<crate::model::DriverCache>,
     },
     /// The worker builds these cells ahead of their turns (phase `prebuild`): compile and
     /// bindings in order, pipelines on `threads` threads. Progress comes as `phase` messages
@@ -95,10 +96,6 @@ pub enum WorkerMsg {
         wall_ms: f64,
         pipelines: usize,
         threads: usize,
-    },
-    /// After the last cell: what the worker did with pipeline binaries.
-    Binaries {
-        stats: crate::model::BinaryStats,
     },
     /// After the last cell: the pipeline cache was written (`bytes`) or not (`error`).
     CacheSaved {
@@ -177,7 +174,8 @@ mod tests {
             pipeline_cache: None,
             binding_stages: Some("all".into()),
             fresh: false,
-            pipelines: None,
+            internal_cache_control: false,
+            linked: false,
         };
         let mut v = serde_json::to_value(&job).unwrap();
         assert_eq!(

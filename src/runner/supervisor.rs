@@ -65,10 +65,13 @@ pub struct SupervisorOptions {
     /// `RTPROBE_BINDING_STAGES` of the run, written into each worker's job file.
     pub binding_stages: Option<String>,
     /// Every worker compiles afresh (`bisect`, `run --cell-spec`, the GPU-AV re-runs), as
-    /// re-runs alone always do: no pipeline cache or binaries, the driver's own cache bypassed.
+    /// re-runs alone always do: no pipeline cache, the driver's own cache bypassed.
     pub fresh: bool,
-    /// `RTPROBE_PIPELINES` of the run, written into each worker's job file.
-    pub pipelines: Option<String>,
+    /// The device offers `pipelineBinaryInternalCacheControl` (fresh workers turn the driver's
+    /// cache off with it rather than with the environment switches).
+    pub internal_cache_control: bool,
+    /// Ray tracing pipelines are linked from group libraries (`--pipelines`).
+    pub linked: bool,
 }
 
 /// A worker the supervisor runs: its process, and its state as [`machine`] keeps it.
@@ -190,7 +193,8 @@ impl Supervisor {
             pipeline_cache: self.opts.pipeline_cache.clone().filter(|_| !self.fresh()),
             binding_stages: self.opts.binding_stages.clone(),
             fresh: self.fresh(),
-            pipelines: self.opts.pipelines.clone(),
+            internal_cache_control: self.opts.internal_cache_control,
+            linked: self.opts.linked,
         };
         std::fs::create_dir_all(&self.opts.job_dir)?;
         let path = self.opts.job_dir.join(format!("job-{}-{id}.json", std::process::id()));

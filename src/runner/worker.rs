@@ -41,39 +41,43 @@ pub fn requirements(info: &crate::vk::DeviceInfo, cells: &[Cell]) -> Requirement
         fragment_stores: fragment,
         dynamic_rendering: fragment,
         invocation_reorder: any(&|s| s.reorder.is_some()),
-        pipeline_binaries: false,
         pipeline_library: false,
         disable_internal_cache: false,
     }
 }
 
-/// How the worker's pipelines are made, on top of what its cells need: from pipeline binaries
-/// kept in the cache folder where the device has them (`pipelineBinaries`), unless the worker
-/// compiles afresh; then with the driver's internal cache off where
-/// `pipelineBinaryInternalCacheControl` allows it.
+/// How the worker's pipelines are made, on top of what its cells need: ray tracing pipelines
+/// linked from group libraries (`job.linked`, where the device has VK_KHR_pipeline_library); in
+/// a worker that compiles afresh, the driver's own cache off with `disableInternalCache` where
+/// the run saw `pipelineBinaryInternalCacheControl` ([`env_switch`] otherwise).
 fn pipeline_creation(info: &crate::vk::DeviceInfo, job: &WorkerJob, req: &mut Requirements) {
-    let binaries =
-        info.features.pipeline_binary.is_some_and(|f| f.pipeline_binaries == ash::vk::TRUE)
-            && info.has_extension(ash::khr::maintenance5::NAME);
-    let control = info
-        .properties
-        .pipeline_binary
-        .is_some_and(|p| p.pipeline_binary_internal_cache_control == ash::vk::TRUE);
-    let mode = job.pipelines.as_deref().unwrap_or("binaries");
-    req.pipeline_binaries =
-        binaries && !job.fresh && job.pipeline_cache.is_some() && mode == "binaries";
-    req.disable_internal_cache = binaries && control && job.fresh;
-    req.pipeline_library = mode == "libraries"
-        && req.rt_pipeline
-        && info.has_extension(ash::khr::pipeline_library::NAME);
+    req.pipeline_library =
+        job.linked && req.rt_pipeline && info.has_extension(ash::khr::pipeline_library::NAME);
+    req.disable_internal_cache =
+        job.fresh && job.internal_cache_control && crate::vk::device::internal_cache_control(info);
 }
 
-/// The drivers' documented switches for their own shader caches, set before the driver loads in
-/// a worker that compiles afresh (the driver reads them at instance or device creation): NVIDIA's
-/// `__GL_SHADER_DISK_CACHE=0` and Mesa's `MESA_SHADER_CACHE_DISABLE=true`. Where the driver
-/// offers `disableInternalCache` it is set too ([`pipeline_creation`]).
+/// Whether a worker sets the drivers' documented cache switches ([`FRESH_ENV`]): it compiles
+/// afresh on a device without `pipelineBinaryInternalCacheControl`. Set before the driver loads
+/// (it reads them at instance or device creation); on NVIDIA they also hide that property.
+fn env_switch(job: &WorkerJob) -> bool {
+    job.fresh && !job.internal_cache_control
+}
+
+/// NVIDIA's `__GL_SHADER_DISK_CACHE=0` and Mesa's `MESA_SHADER_CACHE_DISABLE=true`.
 const FRESH_ENV: &[(&str, &str)] =
     &[("__GL_SHADER_DISK_CACHE", "0"), ("MESA_SHADER_CACHE_DISABLE", "true")];
+
+/// What the report records of the driver's own cache for this worker.
+fn driver_cache(exec: &Executor, job: &WorkerJob) -> crate::model::DriverCache {
+    let gpu = &exec.gpu;
+    crate::model::DriverCache {
+        properties: gpu.info.properties.pipeline_binary.map(|p| p.by_name()).unwrap_or_default(),
+        fresh: job.fresh,
+        internal_cache_disabled: gpu.enabled.disable_internal_cache,
+        env_switch: env_switch(job),
+    }
+}
 
 fn send(msg: &WorkerMsg) {
     let mut out = std::io::stdout().lock();
@@ -132,7 +136,7 @@ impl From<VkError> for SetupFailure {
 }
 
 fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
-    if job.fresh {
+    if env_switch(job) {
         for (k, v) in FRESH_ENV {
             // Single-threaded here: no other thread reads the environment yet.
             std::env::set_var(k, v);
@@ -164,7 +168,6 @@ fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
         inject_seed: job.inject_seed,
         dump: job.dump.clone(),
         pipeline_cache: job.pipeline_cache.clone(),
-        fresh: job.fresh,
         spirv_dir: job.spirv_dir.clone(),
         all_stages: job.binding_stages.as_deref() == Some("all"),
     };
@@ -263,7 +266,7 @@ pub fn main(job_path: &std::path::Path) -> u8 {
         reference_ms: exec.reference_ms,
         device_features: exec.gpu.enabled_names.clone(),
         pipeline_cache: exec.cache_status.clone(),
-        pipeline_binaries: exec.binary_status.clone(),
+        driver_cache: Some(driver_cache(&exec, &job)),
     });
     let serial: HashSet<&str> = job.serial.iter().map(String::as_str).collect();
     for (k, chunk) in job.cells.chunks(PREBUILD_CHUNK).enumerate() {
@@ -286,16 +289,6 @@ pub fn main(job_path: &std::path::Path) -> u8 {
             // A loss injected here has nothing to fail; hang, crash and spam act by themselves.
             let _ = phases.enter(next, None);
         }
-    }
-    if let (Some(s), Ok(log)) = (exec.library_stats(), std::env::var("RTPROBE_PERF_LOG")) {
-        // Measurement hook: pipeline libraries' time, appended to the file named.
-        use std::io::Write as _;
-        if let Ok(mut f) = std::fs::OpenOptions::new().create(true).append(true).open(log) {
-            let _ = writeln!(f, "{s}");
-        }
-    }
-    if let Some(stats) = exec.binary_stats() {
-        send(&WorkerMsg::Binaries { stats });
     }
     if let Some(saved) = exec.save_pipeline_cache() {
         let (bytes, error) = match saved {

@@ -255,9 +255,7 @@ impl GpuTracer {
             records: &Default::default(),
             specialization: &pipeline::Specialization::probe(),
         };
-        let pipeline =
-            pipeline::create(&gpu, pipeline::Source::Cache(vk::PipelineCache::null()), &desc)
-                .map_err(vk_err)?;
+        let pipeline = pipeline::create(&gpu, vk::PipelineCache::null(), &desc).map_err(vk_err)?;
         Ok(GpuTracer { gpu, submitter, layout, pipeline, timeout, broken: None, mode })
     }
 

@@ -36,14 +36,12 @@ pub struct Requirements {
     pub dynamic_rendering: bool,
     /// VK_NV_ray_tracing_invocation_reorder (hit objects and reorderThreadNV in raygen).
     pub invocation_reorder: bool,
-    /// VK_KHR_pipeline_binary with `pipelineBinaries` (and VK_KHR_maintenance5, which it
-    /// requires): pipelines created from stored binaries, or captured to store them.
-    pub pipeline_binaries: bool,
     /// VK_KHR_pipeline_library: ray tracing pipelines linked from libraries.
     pub pipeline_library: bool,
     /// `VkDevicePipelineBinaryInternalCacheControlKHR::disableInternalCache`: the driver keeps no
-    /// pipeline cache of its own (only where `pipelineBinaryInternalCacheControl` allows it; it
-    /// needs VK_KHR_pipeline_binary enabled, so it implies `pipeline_binaries`).
+    /// pipeline cache of its own, where `pipelineBinaryInternalCacheControl` allows it (the struct
+    /// is VK_KHR_pipeline_binary's: that extension and VK_KHR_maintenance5, which it requires,
+    /// are enabled with it).
     pub disable_internal_cache: bool,
 }
 
@@ -105,22 +103,14 @@ impl Requirements {
         m
     }
 
-    /// What pipeline binaries, libraries and the internal-cache switch need that `info` lacks.
+    /// What pipeline libraries and the internal-cache switch need that `info` lacks.
     fn missing_pipeline_creation(&self, info: &DeviceInfo) -> Vec<String> {
         let mut m = Vec::new();
-        let binaries =
-            info.features.pipeline_binary.is_some_and(|x| x.pipeline_binaries == vk::TRUE)
-                && info.has_extension(khr::maintenance5::NAME);
-        if (self.pipeline_binaries || self.disable_internal_cache) && !binaries {
-            m.push("pipelineBinaries (VK_KHR_pipeline_binary) + VK_KHR_maintenance5".into());
-        }
-        if self.disable_internal_cache
-            && !info
-                .properties
-                .pipeline_binary
-                .is_some_and(|p| p.pipeline_binary_internal_cache_control == vk::TRUE)
-        {
-            m.push("pipelineBinaryInternalCacheControl (VK_KHR_pipeline_binary)".into());
+        if self.disable_internal_cache && !internal_cache_control(info) {
+            m.push(
+                "pipelineBinaryInternalCacheControl (VK_KHR_pipeline_binary) + VK_KHR_maintenance5"
+                    .into(),
+            );
         }
         if self.pipeline_library && !info.has_extension(khr::pipeline_library::NAME) {
             m.push("VK_KHR_pipeline_library".into());
@@ -144,8 +134,6 @@ pub struct Gpu {
     pub accel: Option<khr::acceleration_structure::Device>,
     pub descriptor_buffer: Option<ext::descriptor_buffer::Device>,
     pub heap: Option<super::heap::HeapFns>,
-    /// VK_KHR_pipeline_binary's commands (`Requirements::pipeline_binaries`).
-    pub binary: Option<super::binary::BinaryFns>,
     pub fault: Option<ext::device_fault::Device>,
 }
 
@@ -166,7 +154,6 @@ struct Chosen {
     dh: super::heap::PhysicalDeviceDescriptorHeapFeaturesEXT,
     m5: vk::PhysicalDeviceMaintenance5FeaturesKHR<'static>,
     up: super::heap::PhysicalDeviceShaderUntypedPointersFeaturesKHR,
-    pb: super::binary::PhysicalDevicePipelineBinaryFeaturesKHR,
     icc: super::binary::DevicePipelineBinaryInternalCacheControlKHR,
 }
 
@@ -192,10 +179,6 @@ impl Chosen {
             m5: vk::PhysicalDeviceMaintenance5FeaturesKHR::default().maintenance5(true),
             up: super::heap::PhysicalDeviceShaderUntypedPointersFeaturesKHR {
                 shader_untyped_pointers: vk::TRUE,
-                ..Default::default()
-            },
-            pb: super::binary::PhysicalDevicePipelineBinaryFeaturesKHR {
-                pipeline_binaries: vk::TRUE,
                 ..Default::default()
             },
             icc: super::binary::DevicePipelineBinaryInternalCacheControlKHR {
@@ -301,7 +284,7 @@ impl Chosen {
         if req.untyped_pointers {
             self.exts.push(super::heap::UNTYPED_POINTERS_NAME);
         }
-        if binaries(req) {
+        if req.disable_internal_cache {
             self.exts.push(super::binary::NAME);
             if !req.descriptor_heap {
                 self.exts.push(khr::maintenance5::NAME);
@@ -346,11 +329,8 @@ impl Chosen {
         if req.descriptor_heap {
             f2 = f2.push_next(&mut self.dh);
         }
-        if req.descriptor_heap || binaries(req) {
+        if req.descriptor_heap || req.disable_internal_cache {
             f2 = f2.push_next(&mut self.m5);
-        }
-        if binaries(req) {
-            f2 = f2.push_next(&mut self.pb);
         }
         if req.untyped_pointers {
             f2 = f2.push_next(&mut self.up);
@@ -467,15 +447,18 @@ impl Chosen {
             on("descriptorBuffer", self.db.descriptor_buffer, req.descriptor_buffer),
             on("deviceFault", self.fault.device_fault, req.device_fault),
             on("deviceFaultVendorBinary", self.fault.device_fault_vendor_binary, req.device_fault),
-            on("pipelineBinaries", self.pb.pipeline_binaries, binaries(req)),
             on("disableInternalCache", self.icc.disable_internal_cache, req.disable_internal_cache),
         ]
     }
 }
 
-/// Whether VK_KHR_pipeline_binary is enabled: for binaries, or to turn the internal cache off.
-fn binaries(req: &Requirements) -> bool {
-    req.pipeline_binaries || req.disable_internal_cache
+/// Whether `info` lets a device turn the driver's own pipeline cache off
+/// (`pipelineBinaryInternalCacheControl`, with VK_KHR_maintenance5 for the extension).
+pub fn internal_cache_control(info: &DeviceInfo) -> bool {
+    info.properties
+        .pipeline_binary
+        .is_some_and(|p| p.pipeline_binary_internal_cache_control == vk::TRUE)
+        && info.has_extension(khr::maintenance5::NAME)
 }
 
 /// `name` when `bit` is true in a struct that is `chained` (given to vkCreateDevice).
@@ -526,20 +509,8 @@ impl Gpu {
                 });
             }
         };
-        let binary = match binaries(&req).then(|| super::binary::BinaryFns::load(inst, &device)) {
-            Some(Err(missing)) => {
-                unsafe { device.destroy_device(None) };
-                return Err(VkError::Call {
-                    call: missing,
-                    result: vk::Result::ERROR_EXTENSION_NOT_PRESENT,
-                });
-            }
-            Some(Ok(b)) => Some(b),
-            None => None,
-        };
         let gpu = Gpu {
             heap,
-            binary,
             rt: req.rt_pipeline.then(|| khr::ray_tracing_pipeline::Device::new(inst, &device)),
             accel: (req.rt_pipeline || req.ray_query)
                 .then(|| khr::acceleration_structure::Device::new(inst, &device)),

@@ -1,12 +1,7 @@
-//! A pipeline's identity across runs: rtprobe's own 128-bit hash (FNV-1a, stable across builds,
-//! processes and machines, unlike `std`'s hasher) of everything that makes the pipeline — its
-//! kind, each stage's role, SPIR-V and specialization data, the shader groups (fixed by the roles
-//! present), the ray recursion depth, the create flags of its descriptor model, its pipeline
-//! layout's contents and, for heap pipelines, every set/binding → heap mapping struct. Stored
-//! pipeline binaries are filed under it: the Vulkan spec ignores the mapping structs (and shader
-//! modules) when binaries are given ("Pipeline Binaries", VkPipelineBinaryInfoKHR), so an identity
-//! without them would hand a binary built for one mapping to a pipeline of another.
-use super::pipeline::{self, Desc};
+//! A 128-bit hash that is the same in every build, process and machine (FNV-1a; `std`'s hasher
+//! promises neither): the identity of a group library (`pipeline_library`: its stages' SPIR-V,
+//! the layout's contents, the heap mapping structs) and of a pipeline layout's contents
+//! (`bindings::layout::digest`).
 
 /// FNV-1a over 128 bits: every value is written as little-endian bytes, each variable-length one
 /// after its length, so two different sequences of writes never meet by concatenation.
@@ -59,30 +54,6 @@ impl StableHash {
     pub fn finish(&self) -> u128 {
         self.0
     }
-}
-
-/// The version of what [`StableHash`] is fed for a pipeline: bumped when the inputs change
-/// meaning, so older stored binaries are never matched.
-pub const FORMAT: u32 = 1;
-
-/// The identity of the pipeline `d` describes, its layout's contents hashed as `layout`
-/// ([`super::bindings::Binding::digest`]; heap pipelines have none: their mapping is hashed). The
-/// shader record data is not part of it: it is written into the SBT, not compiled.
-pub(super) fn of(d: &Desc, layout: u128) -> u128 {
-    let mut h = StableHash::default();
-    h.u32(FORMAT).str(&format!("{:?}", d.shaders.kind));
-    for (s, words) in d.shaders.shaders.iter().zip(d.spirv) {
-        h.str(s.role.file_name()).words(words);
-    }
-    h.bytes(d.specialization.data());
-    h.u32(d.shaders.recursion_depth).str(d.model.as_str());
-    h.u64(pipeline::flags2(d.model, d.heap.is_some()).as_raw());
-    h.u64(layout as u64).u64((layout >> 64) as u64);
-    match d.heap {
-        Some(m) => h.u32(1).words(&m.words()),
-        None => h.u32(0),
-    };
-    h.finish()
 }
 
 #[cfg(test)]
