@@ -126,6 +126,20 @@ impl Executor {
         })
     }
 
+    /// Destroy every pipeline and group library made so far (each cell's submission has been
+    /// waited for): what a later cell needs is made again, from the pipeline cache. Keeps the
+    /// driver's live pipelines to a chunk's (a driver's creation time can grow with them).
+    pub fn release_pipelines(&mut self) {
+        for p in self.pipelines.values() {
+            p.destroy(&self.gpu);
+        }
+        self.pipelines.clear();
+        if let Some(l) = self.libraries.take() {
+            l.destroy(&self.gpu);
+            self.libraries = Some(Libraries::default());
+        }
+    }
+
     /// How this executor makes pipelines.
     pub(super) fn creation(&self) -> Creation<'_> {
         Creation { cache: self.cache, libraries: self.libraries.as_ref() }

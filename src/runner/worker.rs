@@ -289,6 +289,9 @@ pub fn main(job_path: &std::path::Path) -> u8 {
             // A loss injected here has nothing to fail; hang, crash and spam act by themselves.
             let _ = phases.enter(next, None);
         }
+        // The chunk's cells ran: its pipelines go, so the live ones stay a chunk's whatever
+        // the job's size (a later cell that shares one makes it again, from the cache).
+        exec.release_pipelines();
     }
     if let Some(saved) = exec.save_pipeline_cache() {
         let (bytes, error) = match saved {
