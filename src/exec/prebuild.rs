@@ -263,6 +263,7 @@ fn create_all(
 mod tests {
     use super::*;
     use crate::scene::gpu::BuildError;
+    use ash::vk;
     use std::time::Duration;
 
     #[test]

@@ -153,6 +153,7 @@ mod tests {
             base: None,
             sampler: (resource == Resource::SampledImage)
                 .then_some(crate::model::axes::SamplerIndex::Dynamic),
+            copy: 0,
         }
     }
 
