@@ -78,27 +78,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     let mode = super::shared::pipeline_mode(a.pipelines, &info)
         .map_err(|e| coded(exit::UNSUPPORTED_DEVICE, e))?;
     options.pipelines = Some(mode);
-    let mut the_plan = plan::plan(
-        &info,
-        &PlanOptions {
-            filters: c.filters.clone(),
-            canaries: a.canaries,
-            patches: a.patches,
-            inject: c.inject.clone(),
-        },
-    );
-    let before_shard: HashSet<String> = the_plan.cells.iter().map(|c| c.cell.id()).collect();
-    let sharded_out = c.shard.map(|s| s.apply(&mut the_plan)).unwrap_or(0);
-    // Baseline entries another shard runs, or --filter excludes, are not this run's to miss
-    // (cells --cells-scale leaves out are: the run did not check them).
-    let scope = Scope {
-        other_shards: the_plan.cells.iter().fold(before_shard, |mut ids, c| {
-            ids.remove(&c.cell.id());
-            ids
-        }),
-        filters: c.filters.clone(),
-    };
-    let sharded_out = sharded_out + a.cells_scale.map(|n| the_plan.scale_to(n)).unwrap_or(0);
+    let (the_plan, scope, sharded_out) = plan_run(a, &c, &info);
     if a.list {
         print_list(&the_plan, c.shard, sharded_out);
         return Ok(exit::OK);
@@ -148,6 +128,34 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     let baseline = c.baseline.as_ref().zip(source.as_deref()).map(|(b, s)| (b, s, &scope));
     start::finish(&mut rec, wall.elapsed(), baseline);
     print_end(a, &rec.writer, &out)
+}
+
+/// The run's plan: the device's matrix with the filters, then this shard's part, then cut or
+/// copied to `--cells-scale`; with the scope a baseline is checked in and how many planned cells
+/// the shard and the scale left out.
+fn plan_run(a: &RunArgs, c: &Checked, info: &DeviceInfo) -> (RunPlan, Scope, usize) {
+    let mut the_plan = plan::plan(
+        info,
+        &PlanOptions {
+            filters: c.filters.clone(),
+            canaries: a.canaries,
+            patches: a.patches,
+            inject: c.inject.clone(),
+        },
+    );
+    let before_shard: HashSet<String> = the_plan.cells.iter().map(|c| c.cell.id()).collect();
+    let sharded_out = c.shard.map(|s| s.apply(&mut the_plan)).unwrap_or(0);
+    // Baseline entries another shard runs, or --filter excludes, are not this run's to miss
+    // (cells --cells-scale leaves out are: the run did not check them).
+    let scope = Scope {
+        other_shards: the_plan.cells.iter().fold(before_shard, |mut ids, c| {
+            ids.remove(&c.cell.id());
+            ids
+        }),
+        filters: c.filters.clone(),
+    };
+    let scaled_out = a.cells_scale.map(|n| the_plan.scale_to(n)).unwrap_or(0);
+    (the_plan, scope, sharded_out + scaled_out)
 }
 
 /// A repro bundle's cell (`--cell-spec`): exactly that cell, its scene, injections and binding
