@@ -17,7 +17,12 @@ fn report(path: &Path) -> Value {
 }
 
 fn ran(r: &Value) -> Vec<&Value> {
-    r["cells"].as_array().unwrap().iter().filter(|c| !c["attempts"].as_array().unwrap().is_empty()).collect()
+    r["cells"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|c| !c["attempts"].as_array().unwrap().is_empty())
+        .collect()
 }
 
 #[test]
@@ -37,7 +42,8 @@ fn cells_scale_runs_exactly_n_distinct_cells_and_bad_counts_are_refused() {
     let r = report(&out);
     let cells = ran(&r);
     assert_eq!(cells.len(), want);
-    let ids: std::collections::HashSet<&str> = cells.iter().map(|c| c["id"].as_str().unwrap()).collect();
+    let ids: std::collections::HashSet<&str> =
+        cells.iter().map(|c| c["id"].as_str().unwrap()).collect();
     assert_eq!(ids.len(), want, "every cell distinct");
     let copies = cells.iter().filter(|c| c["id"].as_str().unwrap().ends_with(".copy-1")).count();
     assert_eq!(copies, want - n);
@@ -49,7 +55,15 @@ fn cells_scale_runs_exactly_n_distinct_cells_and_bad_counts_are_refused() {
     assert_eq!(ran(&report(&out)).len(), 1);
     // The twins: no count, or one past the limit, is a usage error and runs nothing.
     for bad in ["0", "100001"] {
-        let e = run(&["run", "--filter", COMPUTE, "--cells-scale", bad, "-o", dir.path().join("x.json").to_str().unwrap()]);
+        let e = run(&[
+            "run",
+            "--filter",
+            COMPUTE,
+            "--cells-scale",
+            bad,
+            "-o",
+            dir.path().join("x.json").to_str().unwrap(),
+        ]);
         assert_one_line_error(&e, 2, "--cells-scale must be 1..=100000");
         assert!(!dir.path().join("x.json").exists());
     }
@@ -60,7 +74,8 @@ fn pipelines_auto_is_whole_on_lavapipe_and_linked_is_recorded() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("r.json");
     let o = out.to_str().unwrap();
-    let filter = "stage=raygen,resource=storage_buffer,index=literal,descriptor_model=descriptor_indexing";
+    let filter =
+        "stage=raygen,resource=storage_buffer,index=literal,descriptor_model=descriptor_indexing";
     let auto = run(&["run", "--filter", filter, "--no-confirm", "--patches", "none", "-o", o]);
     assert!(auto.status.success(), "{}", stderr(&auto));
     let r = report(&out);
@@ -76,7 +91,18 @@ fn pipelines_auto_is_whole_on_lavapipe_and_linked_is_recorded() {
     assert!(!features(&r).iter().any(|f| f == "VK_KHR_pipeline_library"));
     // Linked on request: recorded, and the device enables the extension (its verdict on lavapipe
     // 25 is the driver's, see the module doc).
-    let _ = run(&["run", "--pipelines", "linked", "--filter", filter, "--no-confirm", "--patches", "none", "-o", o]);
+    let _ = run(&[
+        "run",
+        "--pipelines",
+        "linked",
+        "--filter",
+        filter,
+        "--no-confirm",
+        "--patches",
+        "none",
+        "-o",
+        o,
+    ]);
     let r = report(&out);
     assert_eq!(r["options"]["pipelines"], "linked");
     assert!(features(&r).iter().any(|f| f == "VK_KHR_pipeline_library"));
@@ -127,13 +153,26 @@ fn linked_pipelines_give_whole_pipelines_verdicts_on_lavapipe_26() {
     let mut verdicts = vec![];
     for mode in ["linked", "whole"] {
         let out = dir.join(format!("{mode}.json"));
-        let o = in_sid(&["run", "--pipelines", mode, "--filter", filter, "--no-confirm", "--patches", "none", "-o", out.to_str().unwrap()]);
+        let o = in_sid(&[
+            "run",
+            "--pipelines",
+            mode,
+            "--filter",
+            filter,
+            "--no-confirm",
+            "--patches",
+            "none",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
         assert!(o.status.success() || o.status.code() == Some(1), "{}", stderr(&o));
         let r = report(&out);
         assert_eq!(r["options"]["pipelines"], mode);
         let mut v: Vec<(String, String)> = ran(&r)
             .iter()
-            .map(|c| (c["id"].as_str().unwrap().to_string(), c["outcome"].as_str().unwrap().to_string()))
+            .map(|c| {
+                (c["id"].as_str().unwrap().to_string(), c["outcome"].as_str().unwrap().to_string())
+            })
             .collect();
         v.sort();
         assert!(v.len() >= 6, "{mode}: {} cells", v.len());
