@@ -65,15 +65,18 @@ impl<'a> Bench<'a> {
         a
     }
 
-    /// This executable with `args` (stdin closed, stderr captured; stdout as `stdout` says).
+    /// This executable with `args` and `env` (stdin closed, stderr captured; stdout as `stdout`
+    /// says).
     fn spawn(
         &self,
         args: &[String],
         cmd: &str,
         stdout: Stdio,
+        env: &[(&str, std::path::PathBuf)],
     ) -> Result<std::process::Output, BenchError> {
         Command::new(&self.opts.exe)
             .args(args)
+            .envs(env.iter().map(|(k, v)| (*k, v)))
             .stdin(Stdio::null())
             .stdout(stdout)
             .stderr(Stdio::piped())
@@ -83,6 +86,15 @@ impl<'a> Bench<'a> {
 
     /// `rtprobe run ARGS` (plus the base arguments), its report read back and deleted.
     pub(super) fn run(&mut self, args: &[String]) -> Result<Ran, BenchError> {
+        self.run_env(args, &[])
+    }
+
+    /// [`Bench::run`] with `env` set for the child (cache folders).
+    pub(super) fn run_env(
+        &mut self,
+        args: &[String],
+        env: &[(&str, std::path::PathBuf)],
+    ) -> Result<Ran, BenchError> {
         self.counter += 1;
         let out = self.opts.work_dir.join(format!("point-{}.json", self.counter));
         let mut full = vec!["run".to_string()];
@@ -94,7 +106,7 @@ impl<'a> Bench<'a> {
             .join(" ");
         full.extend(["-o".to_string(), out.to_string_lossy().into_owned()]);
         let t = Instant::now();
-        let o = self.spawn(&full, &command, Stdio::null())?;
+        let o = self.spawn(&full, &command, Stdio::null(), env)?;
         let wall_s = t.elapsed().as_secs_f64();
         let code = o.status.code().unwrap_or(-1);
         // 0: all passed; 1: findings (the injected ones); 11: an injection went undetected.
@@ -113,7 +125,7 @@ impl<'a> Bench<'a> {
         full.extend(self.base());
         full.extend(args.iter().cloned());
         let cmd = format!("rtprobe {}", full.join(" "));
-        let o = self.spawn(&full, &cmd, Stdio::piped())?;
+        let o = self.spawn(&full, &cmd, Stdio::piped(), &[])?;
         if !o.status.success() {
             return Err(BenchError::RunFailed {
                 cmd,
@@ -126,8 +138,12 @@ impl<'a> Bench<'a> {
 
     /// The long and short flags `rtprobe run --help` lists.
     pub(super) fn known_flags(&self) -> Result<Vec<String>, BenchError> {
-        let o =
-            self.spawn(&["run".into(), "--help".into()], "rtprobe run --help", Stdio::piped())?;
+        let o = self.spawn(
+            &["run".into(), "--help".into()],
+            "rtprobe run --help",
+            Stdio::piped(),
+            &[],
+        )?;
         let text = String::from_utf8_lossy(&o.stdout);
         Ok(text
             .split(|c: char| c.is_whitespace() || c == ',' || c == '[' || c == ']' || c == '=')

@@ -21,10 +21,15 @@
 //!    cells: per mutant (an emulated driver bug) the applicable pairs killed, the survivors, and
 //!    the round's time per mutant attempt.
 //!
+//!
+//! With `--cells`, only **time against distinct cells** runs (`cells`): `run --cells-scale N`
+//! for each N, first and again, with a fitted line each.
+//!
 //! Nothing is written until every point ran: then `bench.json` and the SVG plots, atomically.
 pub mod plots;
 pub mod stats;
 
+mod cells;
 mod child;
 mod flaky;
 mod mutants;
@@ -46,6 +51,9 @@ use std::time::Instant;
 
 pub const SCHEMA: &str = "rtprobe.bench/1";
 
+/// How `--cells` points are made (bench.json's `method.cells`).
+const CELLS_METHOD: &str = "each point is `rtprobe run --cells-scale N`: the matrix's first N cells, or all of them and then copies (`.copy-k`), each copy with a constant of its own in its first stage, so shaders and a pipeline of its own; run twice in a row, `first` (with --cells-cold in new, empty cache folders) and `again`; wall = the child process's; fit = least squares over the points";
+
 /// The output folder cannot take bench's files ([`check_out_dir`]).
 #[derive(Debug, thiserror::Error)]
 pub enum OutDirError {
@@ -62,6 +70,20 @@ impl Bench<'_> {
         let started = crate::report::time::now_unix();
         let t = Instant::now();
         let mut device = Value::Null;
+        if !self.opts.cells.is_empty() {
+            let cells = self.cells(&mut device)?;
+            return Ok(json!({
+                "schema": SCHEMA,
+                "tool": { "name": "rtprobe", "version": env!("CARGO_PKG_VERSION") },
+                "command_line": std::env::args().collect::<Vec<_>>(),
+                "started": format!("{} ({started})", crate::report::time::stamp(started)),
+                "wall_s": t.elapsed().as_secs_f64(),
+                "device": device,
+                "options": self.opts,
+                "method": { "cells": CELLS_METHOD, "base_args": BASE_ARGS },
+                "cells": cells,
+            }));
+        }
         let size_time = self.size_time(&mut device)?;
         let detection = self.detection()?;
         let sweep = self.sweep()?;

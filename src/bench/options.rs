@@ -62,4 +62,8 @@ pub struct BenchOptions {
     /// matrix) and pixels / (2 × default)² (detection), and scale the times up.
     pub sample_large: bool,
     pub quick: bool,
+    /// `--cells`: only time against distinct cells, at these counts.
+    pub cells: Vec<usize>,
+    /// `--cells-cold`: each count's first run in new, empty cache folders.
+    pub cells_cold: bool,
 }

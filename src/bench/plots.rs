@@ -15,6 +15,9 @@ fn arr(v: &Value) -> &[Value] {
 /// Every plot: (file name, SVG).
 pub fn all(bench: &Value) -> Vec<(String, String)> {
     let device = bench["device"]["name"].as_str().unwrap_or("device");
+    if bench.get("cells").is_some() {
+        return vec![("time-vs-cells.svg".into(), cells(bench, device))];
+    }
     let default_px = bench["default"]["size"].as_f64().map(|s| s * s);
     vec![
         ("detection-vs-size.svg".into(), detection(bench, device, default_px)),
@@ -23,6 +26,44 @@ pub fn all(bench: &Value) -> Vec<(String, String)> {
         ("sweep-phases.svg".into(), sweep(bench, device)),
         ("mutants-kills.svg".into(), mutants(bench, device)),
     ]
+}
+
+/// Time against distinct cells: each series' points and its fitted line.
+fn cells(b: &Value, device: &str) -> String {
+    let pts = arr(&b["cells"]["points"]);
+    let mut series = vec![];
+    for (k, (key, fit, name)) in [
+        (
+            "first_wall_s",
+            "fit_first",
+            if b["cells"]["cold"] == true { "first run (cold caches)" } else { "first run" },
+        ),
+        ("again_wall_s", "fit_again", "again (warm)"),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let points: Vec<(f64, f64)> = pts.iter().map(|p| (f(&p["cells"]), f(&p[key]))).collect();
+        let fitted = &b["cells"][fit];
+        let (ms, fixed, r2) = (f(&fitted["per_cell_ms"]), f(&fitted["fixed_s"]), f(&fitted["r2"]));
+        let line = points.iter().map(|&(x, _)| (x, fixed + ms / 1e3 * x)).collect();
+        series.push(Series { name: name.into(), points, style: Style::Points, colour: k });
+        series.push(Series {
+            name: format!("{ms:.2} ms/cell + {fixed:.2} s, R² {r2:.4}"),
+            points: line,
+            style: Style::Dashed,
+            colour: k,
+        });
+    }
+    LineChart {
+        title: format!("rtprobe run: time against distinct cells (--cells-scale) — {device}"),
+        x: Axis { label: "cells run, each with its own pipeline".into(), log: false, range: None },
+        y: Axis { label: "wall time of the run (s)".into(), log: false, range: None },
+        series,
+        hlines: vec![],
+        vlines: vec![],
+    }
+    .svg()
 }
 
 fn default_line(px: Option<f64>) -> Vec<(f64, String)> {

@@ -1,5 +1,6 @@
 //! The run's events into its report: every attempt into the [`ReportWriter`] (saved at once
-//! after a fault or worker event, passes at most every [`SAVE_INTERVAL`]), workers' setup times,
+//! after a fault or worker event, passes at most every [`SAVE_INTERVAL`] and every
+//! [`SAVE_COST_FACTOR`] times the last save's duration), workers' setup times,
 //! prebuilds and pipeline cache use into the report's timing and cache summary, and a halt (the
 //! run cannot go on) kept for the rounds and the CLI.
 use super::{Event, Progress};
@@ -13,6 +14,18 @@ use std::time::{Duration, Instant};
 /// fast GPU run. Faults, worker events and the end of the run are saved at once.
 pub const SAVE_INTERVAL: Duration = Duration::from_millis(100);
 
+/// Passes are saved at most once per this many times the last save took, whatever
+/// [`SAVE_INTERVAL`] allows: a save grows with the report, so a fixed interval makes a run of n
+/// cells spend time in n² (5,000 cells: a 20 MB report every 100 ms); with the interval tied to
+/// the save's cost, saving stays under 1/SAVE_COST_FACTOR of the run.
+pub const SAVE_COST_FACTOR: u32 = 8;
+
+/// When a pass may be saved: [`SAVE_INTERVAL`] after the last save, or [`SAVE_COST_FACTOR`]
+/// times the last save's duration, whichever is later.
+pub fn pass_save_due(since_last: Duration, last_cost: Duration) -> bool {
+    since_last >= SAVE_INTERVAL.max(last_cost * SAVE_COST_FACTOR)
+}
+
 /// Records a run's events in its report as they come.
 pub struct Recorder {
     pub writer: ReportWriter,
@@ -23,8 +36,9 @@ pub struct Recorder {
     pub save_error: Option<WriteError>,
     /// What stopped the run ([`Event::Halt`]): no round runs anything more.
     pub halted: Option<Halt>,
-    /// When the report was last written.
+    /// When the report was last written, and how long that took.
     last_save: Instant,
+    last_cost: Duration,
 }
 
 impl Recorder {
@@ -36,25 +50,32 @@ impl Recorder {
             save_error: None,
             halted: None,
             last_save: Instant::now(),
+            last_cost: Duration::ZERO,
         }
     }
 
-    /// Save the report: at once when `urgent`, else at most every [`SAVE_INTERVAL`].
+    /// Save the report: at once when `urgent`, else passes at most as often as
+    /// [`pass_save_due`] allows.
     pub(super) fn save(&mut self, urgent: bool) {
-        if !urgent && self.last_save.elapsed() < SAVE_INTERVAL {
+        if !urgent && !pass_save_due(self.last_save.elapsed(), self.last_cost) {
             return;
         }
-        self.last_save = Instant::now();
+        let t = Instant::now();
         if let Err(e) = self.writer.save(false) {
             self.save_error.get_or_insert(e);
         }
+        self.last_cost = t.elapsed();
+        self.last_save = Instant::now();
     }
 
     pub fn on_event(&mut self, ev: Event) {
         match ev {
-            Event::WorkerReady { device_ms, pipeline_cache, .. } => {
+            Event::WorkerReady { device_ms, pipeline_cache, driver_cache, .. } => {
                 self.writer.report.timing.workers_started += 1;
                 self.device_ms_sum += device_ms;
+                if let Some(c) = driver_cache {
+                    self.writer.report.driver_cache.get_or_insert_with(Default::default).ready(c);
+                }
                 if let Some(l) = pipeline_cache {
                     let s = self.writer.report.pipeline_cache.get_or_insert_with(Default::default);
                     s.file = Some(l.path);
@@ -97,5 +118,20 @@ impl Recorder {
                 self.save(true);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn passes_wait_for_the_interval_and_for_a_multiple_of_the_last_save() {
+        let ms = Duration::from_millis;
+        assert!(!pass_save_due(ms(50), ms(0)));
+        assert!(pass_save_due(ms(100), ms(1)));
+        // A 100 ms save (a large report) holds the next pass save off for 800 ms.
+        assert!(!pass_save_due(ms(500), ms(100)));
+        assert!(pass_save_due(ms(800), ms(100)));
     }
 }

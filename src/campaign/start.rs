@@ -69,6 +69,7 @@ pub fn fresh(
         workers: vec![],
         pipeline_cache: None,
         mutants: None,
+        driver_cache: None,
         cells: vec![],
     }
 }

@@ -175,6 +175,11 @@ fn rt_extension_features(f: &Features, m: &mut Map<String, Value>) {
     );
     put(
         m,
+        "VkPhysicalDevicePipelineBinaryFeaturesKHR",
+        f.pipeline_binary.map(|s| obj!(s; b "pipelineBinaries" pipeline_binaries)),
+    );
+    put(
+        m,
         "VkPhysicalDeviceRayTracingValidationFeaturesNV",
         f.rt_validation.map(|s| obj!(s; b "rayTracingValidation" ray_tracing_validation)),
     );
@@ -382,7 +387,7 @@ fn pipeline_and_accel_properties(p: &Properties, m: &mut Map<String, Value>) {
     )));
 }
 
-/// Descriptor buffer, descriptor heap and robustness2 properties.
+/// Descriptor buffer, descriptor heap, pipeline binary and robustness2 properties.
 fn descriptor_properties(p: &Properties, m: &mut Map<String, Value>) {
     put(m, "VkPhysicalDeviceDescriptorBufferPropertiesEXT", p.descriptor_buffer.map(|s| obj!(s;
         b "combinedImageSamplerDescriptorSingleArray" combined_image_sampler_descriptor_single_array,
@@ -413,6 +418,13 @@ fn descriptor_properties(p: &Properties, m: &mut Map<String, Value>) {
         n "minSamplerHeapReservedRangeWithEmbedded" min_sampler_heap_reserved_range_with_embedded,
         n "minResourceHeapReservedRange" min_resource_heap_reserved_range,
         n "maxPushDataSize" max_push_data_size,
+    )));
+    put(m, "VkPhysicalDevicePipelineBinaryPropertiesKHR", p.pipeline_binary.map(|s| obj!(s;
+        b "pipelineBinaryInternalCache" pipeline_binary_internal_cache,
+        b "pipelineBinaryInternalCacheControl" pipeline_binary_internal_cache_control,
+        b "pipelineBinaryPrefersInternalCache" pipeline_binary_prefers_internal_cache,
+        b "pipelineBinaryPrecompiledInternalCache" pipeline_binary_precompiled_internal_cache,
+        b "pipelineBinaryCompressedData" pipeline_binary_compressed_data,
     )));
     put(m, "VkPhysicalDeviceRobustness2PropertiesEXT", p.robustness2.map(|s| obj!(s;
         n "robustStorageBufferAccessSizeAlignment" robust_storage_buffer_access_size_alignment,

@@ -74,6 +74,9 @@ fn headline_feature(ext: &str) -> Option<(&'static str, &'static str)> {
             ("VkPhysicalDeviceDescriptorBufferFeaturesEXT", "descriptorBuffer")
         }
         "VK_EXT_descriptor_heap" => ("VkPhysicalDeviceDescriptorHeapFeaturesEXT", "descriptorHeap"),
+        "VK_KHR_pipeline_binary" => {
+            ("VkPhysicalDevicePipelineBinaryFeaturesKHR", "pipelineBinaries")
+        }
         _ => return None,
     })
 }

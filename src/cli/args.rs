@@ -226,6 +226,21 @@ pub struct RunArgs {
     #[arg(long, value_name = "I/N")]
     pub shard: Option<String>,
 
+    /// How ray tracing pipelines are made: `linked` from one pipeline library per shader group
+    /// (VK_KHR_pipeline_library), each library made once and shared by the cells whose group is
+    /// the same, or `whole` from all their stages; `auto` links on GPUs (faster there) and not on
+    /// CPU devices (lavapipe compiles each pipeline at its first trace, and lavapipe 25's linked
+    /// pipelines give wrong results). See docs/performance.md
+    #[arg(long, value_enum, default_value = "auto", value_name = "MODE")]
+    pub pipelines: crate::model::PipelineMode,
+
+    /// Run exactly N probe cells, each with a pipeline of its own: the first N of the plan, or
+    /// all of them and then copies (`<id>.copy-k`: the same probe with a constant of its own in
+    /// the first stage, so new shaders and a new pipeline, the same records). For measuring time
+    /// against the number of cells (`rtprobe bench --cells`)
+    #[arg(long, value_name = "N")]
+    pub cells_scale: Option<usize>,
+
     /// Run each faulting cell until it has N attempts (each alone in a fresh worker) and report
     /// k of N with the chance that a fault of the observed rate would have been missed
     #[arg(long, value_name = "N")]
@@ -259,6 +274,11 @@ pub struct RunArgs {
     /// of compiling the GLSL (not a flag).
     #[arg(skip)]
     pub spirv_dir: Option<PathBuf>,
+
+    /// Set by `--cell-spec`: every worker compiles afresh (no pipeline cache or binaries, the
+    /// driver's own cache bypassed; not a flag).
+    #[arg(skip)]
+    pub fresh: bool,
 }
 
 #[derive(Args, Debug)]
@@ -663,4 +683,15 @@ pub struct BenchArgs {
     /// scaled up)
     #[arg(long)]
     pub no_sample: bool,
+
+    /// Measure only time against distinct cells: one `run --cells-scale N` per N, twice in a row
+    /// (first, again), with a fitted line each (e.g. 100,500,1000,2000,5000; plot
+    /// time-vs-cells.svg). The other parts do not run
+    #[arg(long, value_delimiter = ',', value_name = "N,...")]
+    pub cells: Vec<usize>,
+
+    /// With --cells: each point's first run in new, empty cache folders (rtprobe's, NVIDIA's and
+    /// Mesa's), so every pipeline is compiled
+    #[arg(long, requires = "cells")]
+    pub cells_cold: bool,
 }

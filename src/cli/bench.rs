@@ -229,7 +229,20 @@ fn options(g: &Globals, a: &BenchArgs) -> Result<BenchOptions> {
         warmup: !a.no_warmup && !q,
         sample_large: !a.no_sample,
         quick: q,
+        cells: check_cells(&a.cells)?,
+        cells_cold: a.cells_cold,
     })
+}
+
+/// `--cells`: each N in 1..=100000 (what `run --cells-scale` takes), at least two of them.
+fn check_cells(cells: &[usize]) -> Result<Vec<usize>> {
+    if let Some(n) = cells.iter().find(|n| **n == 0 || **n > 100_000) {
+        return Err(coded(exit::USAGE, format!("--cells: {n} is outside 1..=100000")));
+    }
+    if cells.len() == 1 {
+        return Err(coded(exit::USAGE, "--cells needs two counts or more to fit a line"));
+    }
+    Ok(cells.to_vec())
 }
 
 pub fn bench(g: &Globals, a: &BenchArgs) -> Result<u8> {
@@ -267,6 +280,16 @@ pub fn bench(g: &Globals, a: &BenchArgs) -> Result<u8> {
 }
 
 fn print_summary(v: &serde_json::Value) {
+    for (name, f) in [("first", &v["cells"]["fit_first"]), ("again", &v["cells"]["fit_again"])] {
+        if let (Some(ms), Some(s), Some(r2)) =
+            (f["per_cell_ms"].as_f64(), f["fixed_s"].as_f64(), f["r2"].as_f64())
+        {
+            println!("cells, {name}: {ms:.2} ms per cell + {s:.2} s fixed (R² {r2:.4})");
+        }
+    }
+    if v.get("cells").is_some() {
+        return;
+    }
     let d = &v["default"];
     match d["matrix_wall_s"].as_f64() {
         Some(t) => println!("default size {0}×{0}: matrix {t:.1} s", d["size"]),

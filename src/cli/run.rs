@@ -70,32 +70,20 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     };
     let a = &a;
     let c = check(a)?;
+    tracing::debug!("run: arguments checked");
     let inst = open_instance(g)?;
     let info = select_device(&inst, a)?;
-    let options = run_options(g, a, &c, &info, binding_stages);
-    let mut the_plan = plan::plan(
-        &info,
-        &PlanOptions {
-            filters: c.filters.clone(),
-            canaries: a.canaries,
-            patches: a.patches,
-            inject: c.inject.clone(),
-        },
-    );
-    let before_shard: HashSet<String> = the_plan.cells.iter().map(|c| c.cell.id()).collect();
-    let sharded_out = c.shard.map(|s| s.apply(&mut the_plan)).unwrap_or(0);
-    // Baseline entries another shard runs, or --filter excludes, are not this run's to miss.
-    let scope = Scope {
-        other_shards: the_plan.cells.iter().fold(before_shard, |mut ids, c| {
-            ids.remove(&c.cell.id());
-            ids
-        }),
-        filters: c.filters.clone(),
-    };
+    tracing::debug!("run: instance created, device selected");
+    let mut options = run_options(g, a, &c, &info, binding_stages);
+    let mode = super::shared::pipeline_mode(a.pipelines, &info)
+        .map_err(|e| coded(exit::UNSUPPORTED_DEVICE, e))?;
+    options.pipelines = Some(mode);
+    let (the_plan, scope, sharded_out) = plan_run(a, &c, &info);
     if a.list {
         print_list(&the_plan, c.shard, sharded_out);
         return Ok(exit::OK);
     }
+    tracing::debug!("run: planned");
     let started = time::now_unix();
     let out = out_path(a, started, &info);
     let fresh = start::fresh(
@@ -123,8 +111,10 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     let applies = |cell: &Cell| -> Result<MutantPrediction, String> {
         prefilter.as_ref().ok_or_else(|| "no --mutants".to_string())?.applies(cell)
     };
+    tracing::debug!("run: report started, rounds begin");
     Campaign { oracle: &mut oracle, rec: &mut rec, supported: &supported, applies: &applies }
         .run(&policy, &cells, &canaries);
+    tracing::debug!("run: rounds done");
     bar.finish_and_clear();
     let _ = std::fs::remove_dir_all(&job_dir);
     if let Some(e) = rec.save_error.take() {
@@ -140,6 +130,34 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     print_end(a, &rec.writer, &out)
 }
 
+/// The run's plan: the device's matrix with the filters, then this shard's part, then cut or
+/// copied to `--cells-scale`; with the scope a baseline is checked in and how many planned cells
+/// the shard and the scale left out.
+fn plan_run(a: &RunArgs, c: &Checked, info: &DeviceInfo) -> (RunPlan, Scope, usize) {
+    let mut the_plan = plan::plan(
+        info,
+        &PlanOptions {
+            filters: c.filters.clone(),
+            canaries: a.canaries,
+            patches: a.patches,
+            inject: c.inject.clone(),
+        },
+    );
+    let before_shard: HashSet<String> = the_plan.cells.iter().map(|c| c.cell.id()).collect();
+    let sharded_out = c.shard.map(|s| s.apply(&mut the_plan)).unwrap_or(0);
+    // Baseline entries another shard runs, or --filter excludes, are not this run's to miss
+    // (cells --cells-scale leaves out are: the run did not check them).
+    let scope = Scope {
+        other_shards: the_plan.cells.iter().fold(before_shard, |mut ids, c| {
+            ids.remove(&c.cell.id());
+            ids
+        }),
+        filters: c.filters.clone(),
+    };
+    let scaled_out = a.cells_scale.map(|n| the_plan.scale_to(n)).unwrap_or(0);
+    (the_plan, scope, sharded_out + scaled_out)
+}
+
 /// A repro bundle's cell (`--cell-spec`): exactly that cell, its scene, injections and binding
 /// stages, its SPIR-V when the bundle has it, and no persisted pipeline cache.
 fn cell_spec_args(a: &RunArgs, p: &Path) -> Result<(RunArgs, Option<String>)> {
@@ -148,6 +166,7 @@ fn cell_spec_args(a: &RunArgs, p: &Path) -> Result<(RunArgs, Option<String>)> {
     args.spirv_dir = spec.spirv_dir(p)?;
     // The cell's own compile, not a binary a cache kept from another run (docs/performance.md).
     args.pipeline_cache = Some("off".into());
+    args.fresh = true;
     if let Some(dir) = &args.spirv_dir {
         let made_by: std::collections::BTreeSet<&str> =
             spec.modules.iter().map(|m| m.compiler.as_str()).collect();
@@ -218,6 +237,9 @@ fn check(a: &RunArgs) -> Result<Checked> {
     if a.jobs.is_some_and(|j| j == 0 || j > 64) {
         return Err(coded(exit::USAGE, "--jobs must be 1..=64"));
     }
+    if a.cells_scale.is_some_and(|n| n == 0 || n > 100_000) {
+        return Err(coded(exit::USAGE, "--cells-scale must be 1..=100000"));
+    }
     if a.threads.is_some_and(|t| t == 0 || t > 64) {
         return Err(coded(exit::USAGE, "--threads must be 1..=64"));
     }
@@ -272,6 +294,8 @@ fn run_options(
         inject: c.inject.iter().map(|i| i.spec.clone()).collect(),
         repeat: a.repeat,
         shard: c.shard.map(|s| s.label()),
+        pipelines: None,
+        cells_scale: a.cells_scale,
         binding_stages,
         lane_evidence: a.lane_evidence,
         spirv_from: a.spirv_dir.clone(),
@@ -292,6 +316,9 @@ fn supervisor(a: &RunArgs, o: &RunOptions, info: &DeviceInfo, c: &Checked) -> Su
         pipeline_cache: o.pipeline_cache.clone(),
         binding_stages: o.binding_stages.clone(),
         lane_evidence: o.lane_evidence,
+        fresh: a.fresh,
+        internal_cache_control: crate::vk::device::internal_cache_control(info),
+        linked: o.pipelines == Some(crate::model::PipelineMode::Linked),
         ..supervisor_options(
             info.index,
             c.params,
@@ -400,6 +427,7 @@ fn print_end(a: &RunArgs, writer: &ReportWriter, out: &Path) -> Result<u8> {
         write_atomic(j, junit::render(&writer.report).as_bytes())
             .with_context(|| "writing the JUnit file")?;
     }
+    tracing::debug!("run: report written");
     print!("{}", summary::render(&writer.report));
     if let Some(c) = &writer.report.baseline {
         print!("{}", crate::fleet::baseline::render(c, a.allow_improvements));

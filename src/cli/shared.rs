@@ -68,6 +68,26 @@ pub(crate) fn default_jobs(info: &crate::vk::DeviceInfo) -> usize {
     }
 }
 
+/// `--pipelines` for `info`: `auto` resolved (linked on GPUs with VK_KHR_pipeline_library, whole
+/// on CPU devices); `linked` on a device without the extension is an error.
+pub(crate) fn pipeline_mode(
+    mode: crate::model::PipelineMode,
+    info: &crate::vk::DeviceInfo,
+) -> Result<crate::model::PipelineMode, String> {
+    use crate::model::PipelineMode;
+    let has = info.has_extension(ash::khr::pipeline_library::NAME);
+    let cpu = info.properties.core.device_type == ash::vk::PhysicalDeviceType::CPU;
+    match mode {
+        PipelineMode::Auto if has && !cpu => Ok(PipelineMode::Linked),
+        PipelineMode::Auto | PipelineMode::Whole => Ok(PipelineMode::Whole),
+        PipelineMode::Linked if has => Ok(PipelineMode::Linked),
+        PipelineMode::Linked => Err(format!(
+            "--pipelines linked: {} lacks VK_KHR_pipeline_library; use --pipelines whole",
+            info.name()
+        )),
+    }
+}
+
 /// Pipeline-creation threads per worker: the cores (at most 16) on GPUs, where creating
 /// pipelines is most of a cell's time; 1 on CPU devices, whose workers already take one core
 /// each and which compile at the first trace (measured on lavapipe: docs/performance.md).
@@ -111,6 +131,9 @@ pub(crate) fn supervisor_options(
         pipeline_cache: None,
         binding_stages: None,
         lane_evidence: crate::model::LaneMode::Auto,
+        fresh: true,
+        internal_cache_control: false,
+        linked: false,
     }
 }
 
@@ -175,6 +198,7 @@ impl Oracle for SupervisorOracle {
                     gpu_av: true,
                     threads: 1,
                     pipeline_cache: None,
+                    fresh: true,
                     job_dir: self.opts.job_dir.join("gpu-av"),
                     ..self.opts.clone()
                 };

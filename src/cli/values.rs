@@ -1,6 +1,6 @@
 //! Command-line values of enums below the CLI: `clap::ValueEnum` written here, so that nothing
 //! below the CLI knows clap. The data layer's names are the ones the report writes (serde's).
-use crate::model::{Isolation, LaneMode, PatchMode};
+use crate::model::{Isolation, LaneMode, PatchMode, PipelineMode};
 use crate::report::issue::Format;
 use crate::shadergen::compile::TargetEnv;
 use clap::builder::PossibleValue;
@@ -23,6 +23,12 @@ macro_rules! value_enum {
 value_enum!(Isolation {
     Isolation::Worker => "worker": "One worker runs many cells and is replaced after a fault",
     Isolation::ProcessPerCell => "process-per-cell": "Every cell runs in a fresh worker process",
+});
+
+value_enum!(PipelineMode {
+    PipelineMode::Auto => "auto": "linked on GPUs that have VK_KHR_pipeline_library, whole on CPU devices",
+    PipelineMode::Linked => "linked": "Each RT pipeline linked from one library per shader group, shared between cells",
+    PipelineMode::Whole => "whole": "Each pipeline made from all its stages",
 });
 
 value_enum!(PatchMode {

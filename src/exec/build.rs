@@ -30,6 +30,8 @@ impl Executor {
             model: spec.model,
             mapping,
             records,
+            specialization: pipeline::Specialization::probe(),
+            layout_digest: binding.digest,
         }
     }
 
@@ -44,7 +46,7 @@ impl Executor {
         if !self.pipelines.contains_key(&b.pkey) {
             let input = self.pipeline_input(cell, c, b);
             let t = Instant::now();
-            let p = input.create(&self.gpu, self.cache)?;
+            let p = input.create(&self.gpu, &self.creation())?;
             timings.pipeline_ms = t.elapsed().as_secs_f64() * 1e3;
             self.pipelines.insert(b.pkey, p);
         }

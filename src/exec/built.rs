@@ -6,9 +6,10 @@ use super::bindings::LayoutKey;
 use super::error::CellError;
 use super::heap::PipelineMapping;
 use super::pipeline::{self, Pipeline};
+use super::pipeline_library::Libraries;
 pub(super) use super::seen::Seen;
 use crate::model::{DescriptorModel, Phase, Timings};
-use crate::shadergen::CellShaders;
+use crate::shadergen::{CellShaders, PipelineKind};
 use crate::vk::{Gpu, VkError};
 use ash::vk;
 use std::sync::Arc;
@@ -49,7 +50,7 @@ pub(super) struct Prebuilt {
     pub(super) result: Result<Bound, CellError>,
 }
 
-/// What creating one pipeline needs apart from the device and the cache.
+/// What creating one pipeline needs apart from the device and how it is made.
 pub(super) struct PipelineInput<'a> {
     pub(super) shaders: &'a CellShaders,
     pub(super) spirv: &'a [Arc<Vec<u32>>],
@@ -57,19 +58,40 @@ pub(super) struct PipelineInput<'a> {
     pub(super) model: DescriptorModel,
     pub(super) mapping: Option<Box<PipelineMapping>>,
     pub(super) records: pipeline::ShaderRecords,
+    pub(super) specialization: pipeline::Specialization,
+    /// The layout's contents hashed (`Binding::digest`), part of a group library's identity.
+    pub(super) layout_digest: u128,
 }
 
 impl PipelineInput<'_> {
-    pub(super) fn create(&self, gpu: &Gpu, cache: vk::PipelineCache) -> Result<Pipeline, VkError> {
-        pipeline::create(
-            gpu,
-            cache,
-            self.shaders,
-            self.spirv,
-            self.layout,
-            self.model,
-            self.mapping.as_deref(),
-            &self.records,
-        )
+    pub(super) fn desc(&self) -> pipeline::Desc<'_> {
+        pipeline::Desc {
+            shaders: self.shaders,
+            spirv: self.spirv,
+            layout: self.layout,
+            model: self.model,
+            heap: self.mapping.as_deref(),
+            records: &self.records,
+            specialization: &self.specialization,
+        }
     }
+
+    /// The pipeline: linked from group libraries (ray tracing pipelines, where the executor
+    /// links them), else made whole, both with the cache.
+    pub(super) fn create(&self, gpu: &Gpu, how: &Creation) -> Result<Pipeline, VkError> {
+        let d = self.desc();
+        match how.libraries {
+            Some(l) if d.shaders.kind == PipelineKind::RayTracing => {
+                l.make(gpu, how.cache, &d, self.layout_digest)
+            }
+            Some(_) | None => pipeline::create(gpu, how.cache, &d),
+        }
+    }
+}
+
+/// How an executor makes pipelines: its cache, and its group libraries where it links.
+#[derive(Clone, Copy)]
+pub(super) struct Creation<'a> {
+    pub(super) cache: vk::PipelineCache,
+    pub(super) libraries: Option<&'a Libraries>,
 }

@@ -4,10 +4,12 @@
 //! target, bindings, pipelines, prebuilt cells), its options, its creation and teardown, and the
 //! pipeline cache saved back.
 use super::bindings::{Binding, LayoutKey};
+use super::built::Creation;
 use super::built::Prebuilt;
 use super::error::CellError;
 use super::pipeline::Pipeline;
 use super::pipeline_cache;
+use super::pipeline_library::Libraries;
 use super::resources::ResourceArray;
 use super::samplers;
 use crate::model::{Phase, Resource, SceneParams};
@@ -72,6 +74,9 @@ pub struct Executor {
     pub(super) prebuilt: HashMap<String, Prebuilt>,
     /// Where the pipeline cache came from and what was loaded.
     pub cache_status: Option<pipeline_cache::Loaded>,
+    /// Group libraries of ray tracing pipelines (a device created with VK_KHR_pipeline_library:
+    /// its RT pipelines are linked from them).
+    pub(super) libraries: Option<Libraries>,
     /// Milliseconds the CPU reference took.
     pub reference_ms: f64,
 }
@@ -97,6 +102,7 @@ impl Executor {
         )?;
         let sampler = samplers::create_sampler(&gpu)?;
         let (cache, cache_status) = pipeline_cache::open(&gpu, opts.pipeline_cache.as_deref())?;
+        let libraries = gpu.enabled.pipeline_library.then(Libraries::default);
         Ok(Executor {
             gpu,
             scene,
@@ -117,8 +123,28 @@ impl Executor {
             pipelines: HashMap::new(),
             prebuilt: HashMap::new(),
             cache_status,
+            libraries,
             reference_ms,
         })
+    }
+
+    /// Destroy every pipeline and group library made so far (each cell's submission has been
+    /// waited for): what a later cell needs is made again, from the pipeline cache. Keeps the
+    /// driver's live pipelines to a chunk's (a driver's creation time can grow with them).
+    pub fn release_pipelines(&mut self) {
+        for p in self.pipelines.values() {
+            p.destroy(&self.gpu);
+        }
+        self.pipelines.clear();
+        if let Some(l) = self.libraries.take() {
+            l.destroy(&self.gpu);
+            self.libraries = Some(Libraries::default());
+        }
+    }
+
+    /// How this executor makes pipelines.
+    pub(super) fn creation(&self) -> Creation<'_> {
+        Creation { cache: self.cache, libraries: self.libraries.as_ref() }
     }
 
     /// Write the pipeline cache back to its file (merged with what is there): the bytes written;
@@ -138,6 +164,9 @@ impl Drop for Executor {
         }
         for p in self.pipelines.values() {
             p.destroy(gpu);
+        }
+        if let Some(l) = &self.libraries {
+            l.destroy(gpu);
         }
         for b in self.bindings.values() {
             b.destroy(gpu);

@@ -13,7 +13,9 @@
 //! (`seen`), whether its modules fit its layout (`fit`), the turn itself (`run`), recording the
 //! three pipeline kinds (`record`), judging the records (`check`, `pictures`), a mutant cell's
 //! mutation and prediction (`mutant`), error → outcome (`error`); below them resources and
-//! samplers, bindings, the descriptor heap, pipelines, the pipeline cache and files.
+//! samplers, bindings, the descriptor heap, pipelines whole or linked from group libraries
+//! (`pipeline_library`), the pipeline cache kept between runs, files, and the stable hash of
+//! library and layout identities (`stable_hash`).
 mod bind;
 pub mod bindings;
 mod build;
@@ -30,6 +32,7 @@ pub mod pictures;
 pub mod pipeline;
 pub mod pipeline_cache;
 mod pipeline_key;
+mod pipeline_library;
 pub mod prebuild;
 mod record;
 pub mod resources;
@@ -37,6 +40,7 @@ mod run;
 mod samplers;
 mod seen;
 mod setup;
+mod stable_hash;
 
 pub use error::CellError;
 pub use executor::{ExecOptions, Executor, PhaseHook};

@@ -3,7 +3,10 @@
 //! fixed: raygen; miss 0 (primary), miss 1 (AS probe ray); hit group 0 triangles, hit group 1
 //! procedural (intersection); callable 0 when the callable stage is probed. Heap pipelines (see
 //! [`super::heap`]) have no layout, the descriptor-heap create flag, the set/binding mapping on
-//! every stage, and shader record data after each SBT handle where their mapping reads it.
+//! every stage, and shader record data after each SBT handle where their mapping reads it. A
+//! cell's RT pipeline is made whole or linked from one library per group
+//! ([`super::pipeline_library`]); [`create_rt_pipeline`] takes any group counts (the user-shader
+//! harness).
 use super::heap::PipelineMapping;
 use crate::model::DescriptorModel;
 use crate::probe;
@@ -83,6 +86,63 @@ pub fn shader_records(
     }
 }
 
+/// The specialization every stage of a cell's pipeline gets: constant 0 is `probe::SPEC_SLOT`.
+#[derive(Clone, Debug)]
+pub struct Specialization {
+    data: Vec<u8>,
+    entries: Vec<vk::SpecializationMapEntry>,
+}
+
+impl Specialization {
+    /// The probes' specialization.
+    pub fn probe() -> Specialization {
+        Specialization {
+            data: probe::SPEC_SLOT.to_le_bytes().to_vec(),
+            entries: vec![vk::SpecializationMapEntry { constant_id: 0, offset: 0, size: 4 }],
+        }
+    }
+
+    /// The bytes the constants are read from (part of a pipeline's identity).
+    pub fn data(&self) -> &[u8] {
+        &self.data
+    }
+
+    fn info(&self) -> vk::SpecializationInfo<'_> {
+        vk::SpecializationInfo::default().map_entries(&self.entries).data(&self.data)
+    }
+}
+
+/// Everything a pipeline is made of.
+#[derive(Clone, Copy)]
+pub struct Desc<'a> {
+    pub shaders: &'a CellShaders,
+    /// SPIR-V of `shaders`, same order.
+    pub spirv: &'a [std::sync::Arc<Vec<u32>>],
+    pub layout: vk::PipelineLayout,
+    pub model: DescriptorModel,
+    /// The set/binding → heap mapping chained to each stage: `Some` exactly for the
+    /// descriptor_heap model.
+    pub heap: Option<&'a PipelineMapping>,
+    /// The shader record data written after each SBT handle (ray tracing pipelines).
+    pub records: &'a ShaderRecords,
+    pub specialization: &'a Specialization,
+}
+
+/// The create flags of a pipeline under `model` (`heap`: with a heap mapping), as
+/// `VkPipelineCreateFlags2` (whose low bits are the `VkPipelineCreateFlags` of the same meaning).
+pub fn flags2(model: DescriptorModel, heap: bool) -> vk::PipelineCreateFlags2KHR {
+    let mut f = vk::PipelineCreateFlags2KHR::empty();
+    if model == DescriptorModel::DescriptorBuffer {
+        f |= vk::PipelineCreateFlags2KHR::from_raw(
+            vk::PipelineCreateFlags::DESCRIPTOR_BUFFER_EXT.as_raw() as u64,
+        );
+    }
+    if heap {
+        f |= crate::vk::heap::PIPELINE_CREATE_2_DESCRIPTOR_HEAP;
+    }
+    f
+}
+
 /// One `VkShaderModule` per SPIR-V module, all or none.
 pub fn shader_modules(gpu: &Gpu, spirv: &[&[u32]]) -> Result<Vec<vk::ShaderModule>, VkError> {
     let d = &gpu.device;
@@ -103,72 +163,74 @@ pub fn shader_modules(gpu: &Gpu, spirv: &[&[u32]]) -> Result<Vec<vk::ShaderModul
     Ok(modules)
 }
 
-/// Create the pipeline for `shaders` (SPIR-V in `spirv`, same order), specializing constant 0 to
-/// `probe::SPEC_SLOT` in every stage. `heap` (the set/binding → heap mapping chained to each
-/// stage) is `Some` exactly for the descriptor_heap model; `records` is the shader record data
-/// written after each SBT handle (ray tracing pipelines).
-#[allow(clippy::too_many_arguments)]
-pub fn create(
-    gpu: &Gpu,
-    cache: vk::PipelineCache,
-    shaders: &CellShaders,
-    spirv: &[std::sync::Arc<Vec<u32>>],
-    layout: vk::PipelineLayout,
-    model: DescriptorModel,
-    heap: Option<&PipelineMapping>,
-    records: &ShaderRecords,
-) -> Result<Pipeline, VkError> {
-    let d = &gpu.device;
-    let words: Vec<&[u32]> = spirv.iter().map(|w| w.as_slice()).collect();
-    let modules = shader_modules(gpu, &words)?;
-    let spec_data = probe::SPEC_SLOT.to_le_bytes();
-    let spec_entries = [vk::SpecializationMapEntry { constant_id: 0, offset: 0, size: 4 }];
-    let spec = vk::SpecializationInfo::default().map_entries(&spec_entries).data(&spec_data);
-    let stages: Vec<vk::PipelineShaderStageCreateInfo> = shaders
-        .shaders
+/// The shader modules of `d`'s shaders at `which`; on an error the ones made are destroyed.
+fn modules_of(gpu: &Gpu, d: &Desc, which: &[usize]) -> Result<Vec<vk::ShaderModule>, VkError> {
+    let words: Vec<&[u32]> = which.iter().map(|&i| d.spirv[i].as_slice()).collect();
+    shader_modules(gpu, &words)
+}
+
+/// The flags2 struct of heap pipelines (the descriptor-heap flag exists only there; it needs
+/// maintenance5, which heaps enable), `None` for the others.
+fn flags2_info(d: &Desc) -> Option<vk::PipelineCreateFlags2CreateInfoKHR<'static>> {
+    d.heap.map(|_| vk::PipelineCreateFlags2CreateInfoKHR::default().flags(flags2(d.model, true)))
+}
+
+/// The stage create infos of `d`'s shaders at `which` (indices), with `modules` (same order as
+/// `which`) and `spec`.
+fn stage_infos<'a>(
+    d: &Desc<'a>,
+    which: &[usize],
+    modules: &[vk::ShaderModule],
+    spec: &'a vk::SpecializationInfo<'a>,
+) -> Vec<vk::PipelineShaderStageCreateInfo<'a>> {
+    which
         .iter()
-        .zip(&modules)
-        .map(|(s, m)| {
+        .zip(modules)
+        .map(|(&i, m)| {
             let mut st = vk::PipelineShaderStageCreateInfo::default()
-                .stage(stage_flag(s.role))
+                .stage(stage_flag(d.shaders.shaders[i].role))
                 .module(*m)
                 .name(MAIN)
-                .specialization_info(&spec);
-            if let Some(h) = heap {
+                .specialization_info(spec);
+            if let Some(h) = d.heap {
                 st.p_next = h.stage_next();
             }
             st
         })
-        .collect();
-    let flags = if model == DescriptorModel::DescriptorBuffer {
+        .collect()
+}
+
+/// Create the pipeline `d` describes with `cache`, specializing every stage with
+/// `d.specialization`.
+pub fn create(gpu: &Gpu, cache: vk::PipelineCache, d: &Desc) -> Result<Pipeline, VkError> {
+    let all: Vec<usize> = (0..d.shaders.shaders.len()).collect();
+    let modules = modules_of(gpu, d, &all)?;
+    let spec = d.specialization.info();
+    let stages = stage_infos(d, &all, &modules, &spec);
+    let flags = if d.model == DescriptorModel::DescriptorBuffer {
         vk::PipelineCreateFlags::DESCRIPTOR_BUFFER_EXT
     } else {
         vk::PipelineCreateFlags::empty()
     };
-    // Heap pipelines: VK_PIPELINE_CREATE_2_DESCRIPTOR_HEAP_BIT_EXT, which only the flags2 struct carries.
-    let mut flags2 = vk::PipelineCreateFlags2CreateInfoKHR::default()
-        .flags(crate::vk::heap::PIPELINE_CREATE_2_DESCRIPTOR_HEAP);
-    let flags2 = heap.is_some().then_some(&mut flags2);
-    let result = match shaders.kind {
-        PipelineKind::RayTracing => {
-            create_rt(gpu, cache, shaders, &stages, layout, flags, flags2, records)
-        }
+    let mut extra = flags2_info(d);
+    let result = match d.shaders.kind {
+        PipelineKind::RayTracing => create_rt(gpu, cache, d, &stages, flags, &mut extra),
         PipelineKind::Compute => {
             let mut ci = vk::ComputePipelineCreateInfo::default()
                 .stage(stages[0])
-                .layout(layout)
+                .layout(d.layout)
                 .flags(flags);
-            if let Some(f2) = flags2 {
+            if let Some(f2) = extra.as_mut() {
                 ci = ci.push_next(f2);
             }
-            unsafe { d.create_compute_pipelines(cache, &[ci], None) }
+            unsafe { gpu.device.create_compute_pipelines(cache, &[ci], None) }
                 .map_err(|(_, e)| VkError::from_result("vkCreateComputePipelines", e))
                 .map(|p| Pipeline { raw: p[0], kind: PipelineKind::Compute, sbt: None })
         }
-        PipelineKind::Graphics => create_graphics(gpu, cache, &stages, layout, flags, flags2),
+        PipelineKind::Graphics => create_graphics(gpu, cache, &stages, d.layout, flags, &mut extra),
     };
     for m in &modules {
-        unsafe { d.destroy_shader_module(*m, None) };
+        unsafe { gpu.device.destroy_shader_module(*m, None) };
     }
     result
 }
@@ -179,7 +241,7 @@ fn create_graphics(
     stages: &[vk::PipelineShaderStageCreateInfo],
     layout: vk::PipelineLayout,
     flags: vk::PipelineCreateFlags,
-    flags2: Option<&mut vk::PipelineCreateFlags2CreateInfoKHR>,
+    extra: &mut Option<vk::PipelineCreateFlags2CreateInfoKHR<'static>>,
 ) -> Result<Pipeline, VkError> {
     let formats = [COLOR_FORMAT];
     let mut rendering =
@@ -211,7 +273,7 @@ fn create_graphics(
         .dynamic_state(&ds)
         .layout(layout)
         .push_next(&mut rendering);
-    if let Some(f2) = flags2 {
+    if let Some(f2) = extra.as_mut() {
         ci = ci.push_next(f2);
     }
     unsafe { gpu.device.create_graphics_pipelines(cache, &[ci], None) }
@@ -261,29 +323,42 @@ fn rt_groups(shaders: &CellShaders) -> Vec<vk::RayTracingShaderGroupCreateInfoKH
     groups
 }
 
-// One RT pipeline's inputs, each a distinct Vulkan object or table.
-#[allow(clippy::too_many_arguments)]
-fn create_rt(
-    gpu: &Gpu,
-    cache: vk::PipelineCache,
-    shaders: &CellShaders,
-    stages: &[vk::PipelineShaderStageCreateInfo],
-    layout: vk::PipelineLayout,
-    flags: vk::PipelineCreateFlags,
-    flags2: Option<&mut vk::PipelineCreateFlags2CreateInfoKHR>,
-    records: &ShaderRecords,
-) -> Result<Pipeline, VkError> {
-    let groups = rt_groups(shaders);
+/// The SBT regions' group counts of a cell's pipeline ([`rt_groups`]' order: two misses, two hit
+/// groups, the callable when the cell has one).
+fn cell_sbt_counts(shaders: &CellShaders) -> SbtCounts {
     let has_callable = shaders.get(Role::Callable).is_some();
-    // Group order: raygen, miss, probe miss, triangle hits, procedural hits, callable.
-    let record = |g: usize| match g {
+    SbtCounts { miss: 2, hit: 2, callable: has_callable as u32 }
+}
+
+/// The shader record data after group `g`'s handle in a cell's SBT. Group order: raygen, miss,
+/// probe miss, triangle hits, procedural hits, callable.
+fn cell_record(records: &ShaderRecords, g: usize) -> &[u8] {
+    match g {
         3 => records.hit_triangles.as_slice(),
         4 => records.hit_procedural.as_slice(),
         _ => records.other.as_slice(),
+    }
+}
+
+fn create_rt(
+    gpu: &Gpu,
+    cache: vk::PipelineCache,
+    d: &Desc,
+    stages: &[vk::PipelineShaderStageCreateInfo],
+    flags: vk::PipelineCreateFlags,
+    extra: &mut Option<vk::PipelineCreateFlags2CreateInfoKHR<'static>>,
+) -> Result<Pipeline, VkError> {
+    let groups = rt_groups(d.shaders);
+    let counts = cell_sbt_counts(d.shaders);
+    let rt = RtPipeline {
+        stages,
+        groups: &groups,
+        counts,
+        depth: d.shaders.recursion_depth,
+        layout: d.layout,
     };
-    let counts = SbtCounts { miss: 2, hit: 2, callable: has_callable as u32 };
-    let rt = RtPipeline { stages, groups: &groups, counts, depth: shaders.recursion_depth, layout };
-    create_rt_pipeline(gpu, cache, &rt, flags, flags2, &record)
+    let record = |g: usize| cell_record(d.records, g);
+    create_rt_pipeline(gpu, cache, &rt, flags, extra.as_mut(), &record)
 }
 
 /// How many groups each SBT region holds after the raygen group (groups in that order).
@@ -329,6 +404,120 @@ pub fn create_rt_pipeline<'r>(
     }
     .map_err(|(_, e)| VkError::from_result("vkCreateRayTracingPipelinesKHR", e))?[0];
     let sbt = shader_binding_table(gpu, raw, p.counts, record)?;
+    Ok(Pipeline { raw, kind: PipelineKind::RayTracing, sbt: Some(sbt) })
+}
+
+/// One shader group and the stages it uses (indices into the cell's shaders): what a group's
+/// pipeline library holds.
+#[derive(Clone, Debug)]
+pub struct GroupStages {
+    pub ty: vk::RayTracingShaderGroupTypeKHR,
+    pub stages: Vec<usize>,
+    /// The group with its shader indices renumbered into `stages`.
+    group: vk::RayTracingShaderGroupCreateInfoKHR<'static>,
+}
+
+/// The groups of [`rt_groups`] with their stages, in SBT order.
+pub fn rt_group_stages(shaders: &CellShaders) -> Vec<GroupStages> {
+    rt_groups(shaders)
+        .into_iter()
+        .map(|g| {
+            let mut stages = Vec::new();
+            let mut local = |i: u32| {
+                if i == vk::SHADER_UNUSED_KHR {
+                    return i;
+                }
+                stages.push(i as usize);
+                stages.len() as u32 - 1
+            };
+            let group = vk::RayTracingShaderGroupCreateInfoKHR::default()
+                .ty(g.ty)
+                .general_shader(local(g.general_shader))
+                .closest_hit_shader(local(g.closest_hit_shader))
+                .any_hit_shader(local(g.any_hit_shader))
+                .intersection_shader(local(g.intersection_shader));
+            GroupStages { ty: g.ty, stages, group }
+        })
+        .collect()
+}
+
+/// The flags of a pipeline library under `d`'s model, as flags and (heap pipelines) flags2.
+fn library_flags(
+    d: &Desc,
+) -> (vk::PipelineCreateFlags, Option<vk::PipelineCreateFlags2CreateInfoKHR<'static>>) {
+    let lib = vk::PipelineCreateFlags::LIBRARY_KHR;
+    let f2 = flags2(d.model, d.heap.is_some())
+        | vk::PipelineCreateFlags2KHR::from_raw(lib.as_raw() as u64);
+    let flags = vk::PipelineCreateFlags::from_raw(flags2(d.model, false).as_raw() as u32) | lib;
+    (flags, d.heap.map(|_| vk::PipelineCreateFlags2CreateInfoKHR::default().flags(f2)))
+}
+
+/// A pipeline library of group `g` of `d` (`iface`: the interface every library and the linked
+/// pipeline share).
+pub fn create_rt_library(
+    gpu: &Gpu,
+    cache: vk::PipelineCache,
+    d: &Desc,
+    g: &GroupStages,
+    iface: &vk::RayTracingPipelineInterfaceCreateInfoKHR,
+) -> Result<vk::Pipeline, VkError> {
+    let rt = gpu.rt.as_ref().expect("ray tracing pipeline enabled");
+    let modules = modules_of(gpu, d, &g.stages)?;
+    let spec = d.specialization.info();
+    let stages = stage_infos(d, &g.stages, &modules, &spec);
+    let groups = [g.group];
+    let (flags, mut f2) = library_flags(d);
+    let mut ci = vk::RayTracingPipelineCreateInfoKHR::default()
+        .flags(flags)
+        .stages(&stages)
+        .groups(&groups)
+        .max_pipeline_ray_recursion_depth(d.shaders.recursion_depth)
+        .library_interface(iface)
+        .layout(d.layout);
+    if let Some(f2) = f2.as_mut() {
+        ci = ci.push_next(f2);
+    }
+    let r = unsafe {
+        rt.create_ray_tracing_pipelines(vk::DeferredOperationKHR::null(), cache, &[ci], None)
+    }
+    .map_err(|(_, e)| VkError::from_result("vkCreateRayTracingPipelinesKHR (library)", e));
+    for m in &modules {
+        unsafe { gpu.device.destroy_shader_module(*m, None) };
+    }
+    Ok(r?[0])
+}
+
+/// The ray tracing pipeline `d` linked from `libs` (one per group, in SBT order), and its SBT.
+pub fn link_rt(
+    gpu: &Gpu,
+    cache: vk::PipelineCache,
+    d: &Desc,
+    libs: &[vk::Pipeline],
+    iface: &vk::RayTracingPipelineInterfaceCreateInfoKHR,
+) -> Result<Pipeline, VkError> {
+    let rt = gpu.rt.as_ref().expect("ray tracing pipeline enabled");
+    let info = vk::PipelineLibraryCreateInfoKHR::default().libraries(libs);
+    let flags = vk::PipelineCreateFlags::from_raw(flags2(d.model, false).as_raw() as u32);
+    let mut f2 = d
+        .heap
+        .map(|_| vk::PipelineCreateFlags2CreateInfoKHR::default().flags(flags2(d.model, true)));
+    let mut ci = vk::RayTracingPipelineCreateInfoKHR::default()
+        .flags(flags)
+        .library_info(&info)
+        .library_interface(iface)
+        .max_pipeline_ray_recursion_depth(d.shaders.recursion_depth)
+        .layout(d.layout);
+    if let Some(f2) = f2.as_mut() {
+        ci = ci.push_next(f2);
+    }
+    let raw = unsafe {
+        rt.create_ray_tracing_pipelines(vk::DeferredOperationKHR::null(), cache, &[ci], None)
+    }
+    .map_err(|(_, e)| VkError::from_result("vkCreateRayTracingPipelinesKHR (link)", e))?[0];
+    // One library per group, in SBT order: the linked pipeline's groups are the cell's groups.
+    debug_assert_eq!(libs.len(), rt_groups(d.shaders).len());
+    let record = |g: usize| cell_record(d.records, g);
+    let sbt = shader_binding_table(gpu, raw, cell_sbt_counts(d.shaders), &record)?;
     Ok(Pipeline { raw, kind: PipelineKind::RayTracing, sbt: Some(sbt) })
 }
 

@@ -10,7 +10,7 @@
 //! is unusable and no cell of the batch can be blamed. Each unit of work (the threaded GLSL, each
 //! cell's compile and bindings, each pipeline) is reported as a [`Step`], so the supervisor's
 //! deadline measures silence, not the batch's size. Traces still run one cell at a time.
-use super::built::{Bound, Compiled, PipelineInput, Prebuilt};
+use super::built::{Bound, Compiled, Creation, PipelineInput, Prebuilt};
 use super::error::CellError;
 use super::executor::Executor;
 use super::pipeline::Pipeline;
@@ -19,7 +19,6 @@ use crate::model::Phase;
 use crate::model::Timings;
 use crate::shadergen::CellShaders;
 use crate::vk::{Gpu, VkError};
-use ash::vk;
 use std::collections::HashSet;
 use std::time::Instant;
 
@@ -67,13 +66,15 @@ pub struct PrebuildStats {
 /// The pipelines' inputs shared by the threads.
 struct Shared<'a> {
     gpu: &'a Gpu,
-    cache: vk::PipelineCache,
+    how: Creation<'a>,
     inputs: Vec<PipelineInput<'a>>,
 }
 
 // SAFETY: the inputs are plain Vulkan handles and create-info data (the heap mapping's pNext
 // pointers point into its own box) that live for the thread scope and are only read; the device
-// functions are thread-safe for pipeline creation (module doc) and `Gpu` is only read.
+// functions are thread-safe for pipeline creation (module doc), `Gpu` is only read, and the binary
+// store keeps its counts behind a mutex and writes each pipeline's own file, and the libraries'
+// slots are behind mutexes.
 unsafe impl Sync for Shared<'_> {}
 
 /// A created pipeline handed back from a thread.
@@ -194,7 +195,7 @@ impl Executor {
     ) -> Vec<Made> {
         let shared = Shared {
             gpu: &self.gpu,
-            cache: self.cache,
+            how: self.creation(),
             inputs: makers
                 .iter()
                 .map(|&i| {
@@ -249,7 +250,7 @@ fn create_all(
         || Some(()),
         |(), i| {
             let t = Instant::now();
-            let r = shared.inputs[i].create(shared.gpu, shared.cache);
+            let r = shared.inputs[i].create(shared.gpu, &shared.how);
             Made(r, t.elapsed().as_secs_f64() * 1e3)
         },
         progress,
@@ -261,6 +262,7 @@ fn create_all(
 mod tests {
     use super::*;
     use crate::scene::gpu::BuildError;
+    use ash::vk;
     use std::time::Duration;
 
     #[test]

@@ -142,6 +142,15 @@ pub struct Cell {
     /// --mutants`; none for plan cells): a mutant attempt's identity.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mutant: Option<super::mutant::Mutant>,
+    /// `run --cells-scale`: copy k (≥ 1) of the cell, with shaders of its own (a constant in
+    /// the first stage that never changes what it records), so that it makes a pipeline of its
+    /// own; 0 for the matrix's cells. Id suffix `.copy-k`.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub copy: u32,
+}
+
+fn is_zero(v: &u32) -> bool {
+    *v == 0
 }
 
 impl Cell {
@@ -168,6 +177,7 @@ impl Cell {
             base: None,
             sampler: None,
             mutant: None,
+            copy: 0,
         }
     }
 

@@ -43,6 +43,13 @@ pub struct RunOptions {
     pub repeat: Option<u32>,
     /// `--shard I/N` as given.
     pub shard: Option<String>,
+    /// How ray tracing pipelines were made (`--pipelines`, resolved for the device; absent in
+    /// reports before it: whole).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pipelines: Option<PipelineMode>,
+    /// `--cells-scale N`: the probe cells were cut or copied to exactly N.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cells_scale: Option<usize>,
     /// `RTPROBE_BINDING_STAGES` as set for the run.
     pub binding_stages: Option<String>,
     /// `--lane-evidence`: where the probe measured its subgroup lane evidence (absent: `auto`).
@@ -67,6 +74,18 @@ pub struct RunOptions {
     pub extra: serde_json::Map<String, Value>,
 }
 
+/// How a run makes its ray tracing pipelines (`--pipelines`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PipelineMode {
+    /// `linked` on GPUs that have VK_KHR_pipeline_library, `whole` on CPU devices.
+    Auto,
+    /// Each pipeline linked from one library per shader group, shared between cells.
+    Linked,
+    /// Each pipeline made from all its stages.
+    Whole,
+}
+
 impl Default for RunOptions {
     fn default() -> RunOptions {
         RunOptions {
@@ -86,6 +105,8 @@ impl Default for RunOptions {
             inject: vec![],
             repeat: None,
             shard: None,
+            pipelines: None,
+            cells_scale: None,
             binding_stages: None,
             lane_evidence: super::LaneMode::Auto,
             spirv_from: None,

@@ -338,8 +338,21 @@ fn in_id_order() -> impl Iterator<Item = &'static Axis> {
     AXES.iter().filter(move |a| !last(a)).chain(AXES.iter().filter(last))
 }
 
-/// A cell's id: its axis values in registry order (see [`Segment`]).
+/// The id suffix of a `--cells-scale` copy (`.copy-k`), after every axis.
+const COPY: &str = ".copy-";
+
+/// A cell's id: its axis values in registry order (see [`Segment`]), then `.copy-k` for copy k.
 pub fn id(c: &Cell) -> String {
+    let base = axes_id(c);
+    if c.copy > 0 {
+        format!("{base}{COPY}{}", c.copy)
+    } else {
+        base
+    }
+}
+
+/// The axes' part of a cell's id.
+fn axes_id(c: &Cell) -> String {
     if let Some(k) = c.canary {
         return format!("canary.{}", k.as_str());
     }
@@ -378,6 +391,19 @@ pub enum IdError {
 /// The cell a well-formed id names: the segments read in registry order, each axis absent from
 /// the id taking its stand-in. Refuses what [`id`] would not write back the same.
 pub fn parse_id(s: &str) -> Result<Cell, IdError> {
+    let copy = s.rsplit_once(COPY).and_then(|(base, k)| Some(base).zip(k.parse::<u32>().ok()));
+    let Some((base, k)) = copy.filter(|&(_, k)| k > 0) else {
+        return parse_axes(s);
+    };
+    let c = Cell { copy: k, ..parse_axes(base)? };
+    if id(&c) != s {
+        return Err(IdError::NotCanonical { id: s.into(), reads: id(&c) });
+    }
+    Ok(c)
+}
+
+/// The cell whose axes' part of the id is `s` (no copy suffix).
+fn parse_axes(s: &str) -> Result<Cell, IdError> {
     if let Some(name) = s.strip_prefix("canary.") {
         return Canary::parse(name).map(Cell::canary).ok_or_else(|| IdError::NoSuchCanary {
             id: s.into(),
@@ -537,6 +563,28 @@ mod tests {
             "closest_hit.storage_buffer.dynamic.descriptor_buffer.extra",
             "canary.nope",
             "closest_hit.storage_buffer.dynamic.descriptor_buffer.base_push_data",
+        ] {
+            assert!(parse_id(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn a_copy_keeps_its_number_in_its_id_and_bad_copies_are_refused() {
+        let base = Cell::new(
+            Stage::Raygen,
+            Resource::StorageBuffer,
+            IndexSource::Literal,
+            DescriptorModel::DescriptorIndexing,
+        );
+        let c = Cell { copy: 12, ..base };
+        assert_eq!(id(&c), "raygen.storage_buffer.literal.descriptor_indexing.copy-12");
+        assert_eq!(parse_id(&id(&c)), Ok(c));
+        assert_ne!(parse_id(&id(&c)), Ok(base), "the copy is not its base cell");
+        for bad in [
+            "raygen.storage_buffer.literal.descriptor_indexing.copy-0",
+            "raygen.storage_buffer.literal.descriptor_indexing.copy-012",
+            "raygen.storage_buffer.literal.descriptor_indexing.copy-x",
+            "raygen.storage_buffer.literal.copy-3",
         ] {
             assert!(parse_id(bad).is_err(), "{bad}");
         }

@@ -386,6 +386,10 @@ pub struct RunReport {
     /// `attempts`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mutants: Option<crate::model::MutantReport>,
+    /// The driver's own pipeline cache: its pipeline-binary properties and how fresh re-runs
+    /// bypassed it (absent in older reports).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub driver_cache: Option<super::driver_cache::DriverCacheSummary>,
     pub cells: Vec<CellReport>,
 }
 
@@ -428,6 +432,7 @@ impl RunReport {
             workers: vec![],
             pipeline_cache: None,
             mutants: None,
+            driver_cache: None,
             cells,
         };
         r.recount();
@@ -439,18 +444,23 @@ impl RunReport {
     /// since their expected outcome is a fault), and the tally of findings, flaky cells and
     /// canaries.
     pub fn recount(&mut self) {
-        let mut m = BTreeMap::new();
-        for o in Outcome::ALL {
-            m.insert(o.as_str().to_string(), 0);
-        }
+        // Counted by position in Outcome::ALL, no string per cell: the writer recounts after
+        // every attempt, so this stays a plain pass over the cells.
+        let mut counts = vec![0usize; Outcome::ALL.len()];
         let mut t = Tally::default();
         for c in &self.cells {
             match &c.canary_check {
                 Some(chk) if chk.detected => t.canaries_detected += 1,
                 Some(_) => t.canaries_undetected += 1,
-                None => *m.entry(c.outcome.as_str().to_string()).or_default() += 1,
+                None => {
+                    if let Some(i) = Outcome::ALL.iter().position(|o| *o == c.outcome) {
+                        counts[i] += 1;
+                    }
+                }
             }
         }
+        let m: BTreeMap<String, usize> =
+            Outcome::ALL.iter().zip(counts).map(|(o, n)| (o.as_str().to_string(), n)).collect();
         t.findings = self.findings().count();
         t.injections_undetected = self.cells.iter().filter(|c| c.injection_undetected).count();
         t.worker_faults = self.workers.iter().filter(|w| w.is_fault()).count();

@@ -225,6 +225,9 @@ impl ProbeSpec {
             base,
             sampler,
             mutant,
+            // A `--cells-scale` copy reads what its base cell reads (only its first stage's
+            // shader has a constant of its own, shadergen::copy_constant).
+            copy: _,
         } = *cell;
         let slot = match index {
             IndexSource::Literal => SlotSource::Literal,

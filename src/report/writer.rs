@@ -16,6 +16,8 @@ pub struct ReportWriter {
 impl ReportWriter {
     pub fn new(path: PathBuf, mut report: RunReport, plan: &RunPlan) -> Self {
         let order = plan.cells.iter().enumerate().map(|(i, c)| (c.cell.id(), i)).collect();
+        let known: std::collections::HashSet<String> =
+            report.cells.iter().map(|c| c.id.clone()).collect();
         for pc in &plan.cells {
             let not_run = match &pc.status {
                 PlanStatus::Run => None,
@@ -23,7 +25,7 @@ impl ReportWriter {
                 PlanStatus::NotImplemented { reason } => Some((Outcome::NotImplemented, reason)),
             };
             if let Some((outcome, reason)) = not_run {
-                if !report.cells.iter().any(|c| c.id == pc.cell.id()) {
+                if !known.contains(&pc.cell.id()) {
                     report.cells.push(CellReport::unrun(&pc.cell, outcome, reason.clone()));
                 }
             }
@@ -33,15 +35,19 @@ impl ReportWriter {
         w
     }
 
+    /// Where a cell sits: its plan position (a workaround variant: its plain cell's), then its
+    /// patch, so variants sit right after their plain cell.
+    fn key(&self, cell: &Cell, id: &str) -> (usize, usize) {
+        let patch = cell.patch.map(|p| 1 + p as usize).unwrap_or(0);
+        let at = self.order.get(id).or_else(|| self.order.get(&cell.base().id()));
+        (at.copied().unwrap_or(usize::MAX), patch)
+    }
+
+    /// Every entry in [`Self::key`] order (once, at the start; [`Self::record`] keeps it).
     fn sort(&mut self) {
-        let order = &self.order;
-        // Workaround variants sit right after their plain cell.
-        let key = |c: &CellReport| {
-            let base = c.cell.base().id();
-            let patch = c.cell.patch.map(|p| 1 + p as usize).unwrap_or(0);
-            (order.get(&c.id).or_else(|| order.get(&base)).copied().unwrap_or(usize::MAX), patch)
-        };
-        self.report.cells.sort_by_key(key);
+        let mut cells = std::mem::take(&mut self.report.cells);
+        cells.sort_by_cached_key(|c| self.key(&c.cell, &c.id));
+        self.report.cells = cells;
         self.report.recount();
     }
 
@@ -83,18 +89,25 @@ impl ReportWriter {
                     .max(0.0);
             t.cells_timed += 1;
         }
-        match self.report.cells.iter_mut().find(|c| c.id == id) {
+        // The entries are in key order: the cell's entry, if any, is among those of its key
+        // (binary search, not a scan or a sort per attempt: linear in the cells over a run).
+        let key = self.key(cell, &id);
+        let cells = &self.report.cells;
+        let from = cells.partition_point(|c| self.key(&c.cell, &c.id) < key);
+        let to = from + cells[from..].partition_point(|c| self.key(&c.cell, &c.id) <= key);
+        match (from..to).find(|&i| cells[i].id == id) {
             // An unsupported entry of an older plan (resume) is replaced by what ran.
-            Some(existing) if existing.attempts.is_empty() => {
-                *existing = CellReport::new(cell, attempt)
+            Some(i) if cells[i].attempts.is_empty() => {
+                self.report.cells[i] = CellReport::new(cell, attempt)
             }
-            Some(existing) => {
+            Some(i) => {
+                let existing = &mut self.report.cells[i];
                 existing.attempts.push(attempt);
                 existing.refresh();
             }
-            None => self.report.cells.push(CellReport::new(cell, attempt)),
+            None => self.report.cells.insert(to, CellReport::new(cell, attempt)),
         }
-        self.sort();
+        self.report.recount();
     }
 
     pub fn record_worker(&mut self, event: WorkerEvent) {
@@ -118,4 +131,46 @@ impl ReportWriter {
 pub fn annotate_findings(report: &mut RunReport) {
     report.annotate_workarounds();
     super::recommended::annotate(report);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{DescriptorModel, IndexSource, PlannedCell, Resource, Stage, Workaround};
+
+    fn cell(stage: Stage, index: IndexSource) -> Cell {
+        Cell::new(stage, Resource::StorageBuffer, index, DescriptorModel::DescriptorIndexing)
+    }
+
+    /// Attempts arrive in any order (workers, confirmations, workaround variants); the entries
+    /// stay in plan order, each cell once, its variants right after it — the order a full sort
+    /// after every attempt gave.
+    #[test]
+    fn entries_stay_in_plan_order_whatever_order_attempts_arrive_in() {
+        let cells: Vec<Cell> = [Stage::Raygen, Stage::Miss, Stage::ClosestHit, Stage::AnyHit]
+            .iter()
+            .flat_map(|&s| [cell(s, IndexSource::Literal), cell(s, IndexSource::Dynamic)])
+            .collect();
+        let mut planned: Vec<PlannedCell> =
+            cells.iter().map(|&cell| PlannedCell { cell, status: PlanStatus::Run }).collect();
+        planned[3].status = PlanStatus::Unsupported { reason: "x".into() };
+        let plan = RunPlan { generated: 8, cells: planned, not_generated: vec![], filtered_out: 0 };
+        let dir = tempfile::tempdir().unwrap();
+        let mut w =
+            ReportWriter::new(dir.path().join("r.json"), RunReport::for_tests(vec![]), &plan);
+        let variant = Cell { patch: Some(Workaround::PinIndex), ..cells[1] };
+        let pass = || Attempt::for_tests(Outcome::Pass, false);
+        for i in [7, 0, 5, 1, 2, 6, 4] {
+            w.record(&cells[i], pass());
+        }
+        w.record(&variant, pass());
+        w.record(&cells[5], pass());
+        let ids: Vec<&str> = w.report.cells.iter().map(|c| c.id.as_str()).collect();
+        let mut want: Vec<String> = cells.iter().map(Cell::id).collect();
+        want.insert(2, variant.id());
+        assert_eq!(ids, want);
+        assert_eq!(w.report.cells[6].attempts.len(), 2, "a second attempt joins its cell");
+        assert_eq!(w.report.summary["pass"], 8);
+        assert_eq!(w.report.summary["unsupported"], 1);
+    }
 }

@@ -15,6 +15,7 @@ pub enum Event {
         device_ms: f64,
         reference_ms: f64,
         pipeline_cache: Option<crate::exec::pipeline_cache::Loaded>,
+        driver_cache: Option<crate::model::DriverCache>,
     },
     /// A worker built a batch of cells ahead of their turns.
     Prebuilt { wall_ms: f64, pipelines: usize, threads: usize },

@@ -204,10 +204,21 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
             // Only once, at the end of setup: it must not restart any clock.
             fx.push(Effect::Log(format!("worker {} sent ready again; ignored", w.id)));
         }
-        WorkerMsg::Ready { device_ms, reference_ms, device_features, pipeline_cache } => {
+        WorkerMsg::Ready {
+            device_ms,
+            reference_ms,
+            device_features,
+            pipeline_cache,
+            driver_cache,
+        } => {
             w.enter(State::Between { since: now }, Phase::BetweenCells);
             w.device_features = device_features;
-            fx.push(Effect::Report(Event::WorkerReady { device_ms, reference_ms, pipeline_cache }));
+            fx.push(Effect::Report(Event::WorkerReady {
+                device_ms,
+                reference_ms,
+                pipeline_cache,
+                driver_cache,
+            }));
             fx.push(record(w, Phase::Setup, Outcome::Pass, None, None, now));
         }
         WorkerMsg::Phase { phase, step } => {

@@ -48,6 +48,18 @@ pub struct WorkerJob {
     /// `--lane-evidence` of the run (absent: `auto`).
     #[serde(default)]
     pub lane_evidence: crate::model::LaneMode,
+    /// Compile afresh (re-runs of a cell alone, GPU-AV, bisect, repro): no pipeline cache, and
+    /// the driver's own cache bypassed: `disableInternalCache` where `internal_cache_control`,
+    /// else the drivers' documented environment switches.
+    #[serde(default)]
+    pub fresh: bool,
+    /// The device offers `pipelineBinaryInternalCacheControl` (as the run read it, before any
+    /// environment switch could hide it).
+    #[serde(default)]
+    pub internal_cache_control: bool,
+    /// Ray tracing pipelines are linked from group libraries (`--pipelines`).
+    #[serde(default)]
+    pub linked: bool,
 }
 
 fn one() -> usize {
@@ -70,6 +82,9 @@ pub enum WorkerMsg {
         /// The pipeline cache file and what was loaded from it (absent: `--pipeline-cache off`).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         pipeline_cache: Option<crate::exec::pipeline_cache::Loaded>,
+        /// The driver's pipeline-binary properties and the cache switch a fresh worker used.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        driver_cache: Option<crate::model::DriverCache>,
     },
     /// The worker builds these cells ahead of their turns (phase `prebuild`): compile and
     /// bindings in order, pipelines on `threads` threads. Progress comes as `phase` messages
@@ -162,6 +177,9 @@ mod tests {
             pipeline_cache: None,
             binding_stages: Some("all".into()),
             lane_evidence: crate::model::LaneMode::Force,
+            fresh: false,
+            internal_cache_control: false,
+            linked: false,
         };
         let mut v = serde_json::to_value(&job).unwrap();
         assert_eq!(

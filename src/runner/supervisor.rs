@@ -66,6 +66,14 @@ pub struct SupervisorOptions {
     pub binding_stages: Option<String>,
     /// `--lane-evidence` of the run, written into each worker's job file.
     pub lane_evidence: crate::model::LaneMode,
+    /// Every worker compiles afresh (`bisect`, `run --cell-spec`, the GPU-AV re-runs), as
+    /// re-runs alone always do: no pipeline cache, the driver's own cache bypassed.
+    pub fresh: bool,
+    /// The device offers `pipelineBinaryInternalCacheControl` (fresh workers turn the driver's
+    /// cache off with it rather than with the environment switches).
+    pub internal_cache_control: bool,
+    /// Ray tracing pipelines are linked from group libraries (`--pipelines`).
+    pub linked: bool,
 }
 
 /// A worker the supervisor runs: its process, and its state as [`machine`] keeps it.
@@ -160,6 +168,12 @@ impl Supervisor {
         }
     }
 
+    /// Whether workers started now compile afresh: re-runs alone, and every worker of a fresh
+    /// supervisor.
+    fn fresh(&self) -> bool {
+        self.rerun || self.opts.fresh
+    }
+
     /// Writes worker `id`'s job file and starts it.
     fn spawn(&mut self, slot: usize, job: Job, per_cell: bool) -> std::io::Result<Running> {
         self.generation += 1;
@@ -178,9 +192,12 @@ impl Supervisor {
             serial: job.serial,
             cells: job.cells,
             threads: self.opts.threads.max(1),
-            pipeline_cache: self.opts.pipeline_cache.clone().filter(|_| !self.rerun),
+            pipeline_cache: self.opts.pipeline_cache.clone().filter(|_| !self.fresh()),
             binding_stages: self.opts.binding_stages.clone(),
             lane_evidence: self.opts.lane_evidence,
+            fresh: self.fresh(),
+            internal_cache_control: self.opts.internal_cache_control,
+            linked: self.opts.linked,
         };
         std::fs::create_dir_all(&self.opts.job_dir)?;
         let path = self.opts.job_dir.join(format!("job-{}-{id}.json", std::process::id()));
@@ -237,6 +254,12 @@ impl Supervisor {
         let limits = self.limits();
         let mut next = Some(input);
         while let Some(input) = next.take() {
+            // The worker's timeline (RUST_LOG=rtprobe::runner::supervisor=trace): each line as
+            // it arrives, cut short.
+            if tracing::enabled!(tracing::Level::TRACE) {
+                let line: String = format!("{input:?}").chars().take(120).collect();
+                tracing::trace!("worker {}: {line}", r.worker.id);
+            }
             let (worker, effects) = machine::step(r.worker, input, Instant::now(), &limits);
             r.worker = worker;
             for effect in effects {

@@ -42,6 +42,41 @@ pub fn requirements(info: &crate::vk::DeviceInfo, cells: &[Cell]) -> Requirement
         dynamic_rendering: fragment,
         invocation_reorder: any(&|s| s.reorder.is_some()),
         scalar_block_layout: false,
+        pipeline_library: false,
+        disable_internal_cache: false,
+    }
+}
+
+/// How the worker's pipelines are made, on top of what its cells need: ray tracing pipelines
+/// linked from group libraries (`job.linked`, where the device has VK_KHR_pipeline_library); in
+/// a worker that compiles afresh, the driver's own cache off with `disableInternalCache` where
+/// the run saw `pipelineBinaryInternalCacheControl` ([`env_switch`] otherwise).
+fn pipeline_creation(info: &crate::vk::DeviceInfo, job: &WorkerJob, req: &mut Requirements) {
+    req.pipeline_library =
+        job.linked && req.rt_pipeline && info.has_extension(ash::khr::pipeline_library::NAME);
+    req.disable_internal_cache =
+        job.fresh && job.internal_cache_control && crate::vk::device::internal_cache_control(info);
+}
+
+/// Whether a worker sets the drivers' documented cache switches ([`FRESH_ENV`]): it compiles
+/// afresh on a device without `pipelineBinaryInternalCacheControl`. Set before the driver loads
+/// (it reads them at instance or device creation); on NVIDIA they also hide that property.
+fn env_switch(job: &WorkerJob) -> bool {
+    job.fresh && !job.internal_cache_control
+}
+
+/// NVIDIA's `__GL_SHADER_DISK_CACHE=0` and Mesa's `MESA_SHADER_CACHE_DISABLE=true`.
+const FRESH_ENV: &[(&str, &str)] =
+    &[("__GL_SHADER_DISK_CACHE", "0"), ("MESA_SHADER_CACHE_DISABLE", "true")];
+
+/// What the report records of the driver's own cache for this worker.
+fn driver_cache(exec: &Executor, job: &WorkerJob) -> crate::model::DriverCache {
+    let gpu = &exec.gpu;
+    crate::model::DriverCache {
+        properties: gpu.info.properties.pipeline_binary.map(|p| p.by_name()).unwrap_or_default(),
+        fresh: job.fresh,
+        internal_cache_disabled: gpu.enabled.disable_internal_cache,
+        env_switch: env_switch(job),
     }
 }
 
@@ -107,6 +142,12 @@ impl From<VkError> for SetupFailure {
 }
 
 fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
+    if env_switch(job) {
+        for (k, v) in FRESH_ENV {
+            // Single-threaded here: no other thread reads the environment yet.
+            std::env::set_var(k, v);
+        }
+    }
     phases.enter(Phase::Setup, Some((SetupStep::CreateInstance, "vkCreateInstance")))?;
     let inst =
         Arc::new(Instance::new(&InstanceOptions { validate: job.validate, gpu_av: job.gpu_av })?);
@@ -124,6 +165,7 @@ fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
     req.int64 |= job.cells.iter().any(|c| {
         crate::model::inject::for_cell(&job.inject, c).is_some_and(|i| i.fault.reads_bad_address())
     });
+    pipeline_creation(&info, job, &mut req);
     phases.enter(Phase::Setup, Some((SetupStep::CreateDevice, "vkCreateDevice")))?;
     let gpu = Gpu::new(inst, info, req)?;
     let opts = ExecOptions {
@@ -232,6 +274,7 @@ pub fn main(job_path: &std::path::Path) -> u8 {
         reference_ms: exec.reference_ms,
         device_features: exec.gpu.enabled_names.clone(),
         pipeline_cache: exec.cache_status.clone(),
+        driver_cache: Some(driver_cache(&exec, &job)),
     });
     let serial: HashSet<&str> = job.serial.iter().map(String::as_str).collect();
     for (k, chunk) in job.cells.chunks(PREBUILD_CHUNK).enumerate() {
@@ -254,6 +297,9 @@ pub fn main(job_path: &std::path::Path) -> u8 {
             // A loss injected here has nothing to fail; hang, crash and spam act by themselves.
             let _ = phases.enter(next, None);
         }
+        // The chunk's cells ran: its pipelines go, so the live ones stay a chunk's whatever
+        // the job's size (a later cell that shares one makes it again, from the cache).
+        exec.release_pipelines();
     }
     if let Some(saved) = exec.save_pipeline_cache() {
         let (bytes, error) = match saved {

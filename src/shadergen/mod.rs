@@ -92,6 +92,25 @@ pub fn generate_with(
     fault: Option<crate::model::FaultKind>,
     lanes: bool,
 ) -> CellShaders {
+    let mut shaders = generate_probe(cell, fault, lanes);
+    copy_constant(&mut shaders, cell.copy);
+    shaders
+}
+
+/// A `--cells-scale` copy's own constant in the first stage (raygen, vertex or compute): an
+/// early return on an image width no run has (`0xFFFFFFFF - copy`), so the copy's SPIR-V, and
+/// so its pipeline, differ from every other copy's while its records stay its base cell's.
+fn copy_constant(shaders: &mut CellShaders, copy: u32) {
+    if copy == 0 {
+        return;
+    }
+    if let Some(first) = shaders.shaders.first_mut() {
+        let line = format!("void main() {{\n    if (pc.width == {}u) return;\n", u32::MAX - copy);
+        first.glsl = first.glsl.replacen("void main() {\n", &line, 1);
+    }
+}
+
+fn generate_probe(cell: &Cell, fault: Option<crate::model::FaultKind>, lanes: bool) -> CellShaders {
     let spec = ProbeSpec::of(cell);
     if let Some(c) = spec.canary {
         return canary(c);
@@ -569,6 +588,41 @@ mod tests {
                 }
                 assert!(plain.get(Role::Raygen).unwrap().glsl.contains("traceRayEXT(sceneTlas"));
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod copy_tests {
+    use super::*;
+    use crate::model::{DescriptorModel, IndexSource, Resource};
+
+    /// A copy differs from its base cell and from every other copy in its first stage only, and
+    /// that stage still compiles (a copy that compiled to its base's SPIR-V would share its
+    /// pipeline and measure nothing).
+    #[test]
+    fn copies_have_first_stages_of_their_own_that_compile() {
+        let mut compiler = compile::Compiler::new().expect("shaderc");
+        for stage in [Stage::Raygen, Stage::Fragment, Stage::Compute] {
+            let base = Cell::new(
+                stage,
+                Resource::StorageBuffer,
+                IndexSource::Dynamic,
+                DescriptorModel::DescriptorIndexing,
+            );
+            let g = |copy| generate(&Cell { copy, ..base });
+            let (b, c1, c2) = (g(0), g(1), g(2));
+            assert_ne!(b.shaders[0].glsl, c1.shaders[0].glsl, "{stage:?}");
+            assert_ne!(c1.shaders[0].glsl, c2.shaders[0].glsl, "{stage:?}");
+            for i in 1..b.shaders.len() {
+                assert_eq!(b.shaders[i].glsl, c1.shaders[i].glsl, "{stage:?} stage {i}");
+            }
+            let spirv = |s: &ShaderSource, c: &mut compile::Compiler| {
+                c.compile(s.role, &s.glsl).map(|r| r.0)
+            };
+            let (sb, s1) =
+                (spirv(&b.shaders[0], &mut compiler), spirv(&c1.shaders[0], &mut compiler));
+            assert_ne!(sb.expect("base compiles"), s1.expect("copy compiles"), "{stage:?}");
         }
     }
 }

@@ -253,17 +253,16 @@ impl GpuTracer {
         }
         .at("vkCreatePipelineLayout")
         .map_err(vk_err)?;
-        let pipeline = pipeline::create(
-            &gpu,
-            vk::PipelineCache::null(),
-            &shaders,
-            &spirv,
+        let desc = pipeline::Desc {
+            shaders: &shaders,
+            spirv: &spirv,
             layout,
-            DescriptorModel::DescriptorIndexing,
-            None,
-            &Default::default(),
-        )
-        .map_err(vk_err)?;
+            model: DescriptorModel::DescriptorIndexing,
+            heap: None,
+            records: &Default::default(),
+            specialization: &pipeline::Specialization::probe(),
+        };
+        let pipeline = pipeline::create(&gpu, vk::PipelineCache::null(), &desc).map_err(vk_err)?;
         Ok(GpuTracer { gpu, submitter, layout, pipeline, timeout, broken: None, mode })
     }
 

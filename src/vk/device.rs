@@ -38,6 +38,13 @@ pub struct Requirements {
     pub invocation_reorder: bool,
     /// scalarBlockLayout (user modules whose blocks use `layout(scalar)`).
     pub scalar_block_layout: bool,
+    /// VK_KHR_pipeline_library: ray tracing pipelines linked from libraries.
+    pub pipeline_library: bool,
+    /// `VkDevicePipelineBinaryInternalCacheControlKHR::disableInternalCache`: the driver keeps no
+    /// pipeline cache of its own, where `pipelineBinaryInternalCacheControl` allows it (the struct
+    /// is VK_KHR_pipeline_binary's: that extension and VK_KHR_maintenance5, which it requires,
+    /// are enabled with it).
+    pub disable_internal_cache: bool,
 }
 
 impl Requirements {
@@ -97,6 +104,22 @@ impl Requirements {
         {
             m.push("rayTracingInvocationReorder (VK_NV_ray_tracing_invocation_reorder)".into());
         }
+        m.extend(self.missing_pipeline_creation(info));
+        m
+    }
+
+    /// What pipeline libraries and the internal-cache switch need that `info` lacks.
+    fn missing_pipeline_creation(&self, info: &DeviceInfo) -> Vec<String> {
+        let mut m = Vec::new();
+        if self.disable_internal_cache && !internal_cache_control(info) {
+            m.push(
+                "pipelineBinaryInternalCacheControl (VK_KHR_pipeline_binary) + VK_KHR_maintenance5"
+                    .into(),
+            );
+        }
+        if self.pipeline_library && !info.has_extension(khr::pipeline_library::NAME) {
+            m.push("VK_KHR_pipeline_library".into());
+        }
         m
     }
 }
@@ -136,6 +159,7 @@ struct Chosen {
     dh: super::heap::PhysicalDeviceDescriptorHeapFeaturesEXT,
     m5: vk::PhysicalDeviceMaintenance5FeaturesKHR<'static>,
     up: super::heap::PhysicalDeviceShaderUntypedPointersFeaturesKHR,
+    icc: super::binary::DevicePipelineBinaryInternalCacheControlKHR,
 }
 
 impl Chosen {
@@ -160,6 +184,10 @@ impl Chosen {
             m5: vk::PhysicalDeviceMaintenance5FeaturesKHR::default().maintenance5(true),
             up: super::heap::PhysicalDeviceShaderUntypedPointersFeaturesKHR {
                 shader_untyped_pointers: vk::TRUE,
+                ..Default::default()
+            },
+            icc: super::binary::DevicePipelineBinaryInternalCacheControlKHR {
+                disable_internal_cache: vk::TRUE,
                 ..Default::default()
             },
         };
@@ -264,6 +292,15 @@ impl Chosen {
         if req.untyped_pointers {
             self.exts.push(super::heap::UNTYPED_POINTERS_NAME);
         }
+        if req.disable_internal_cache {
+            self.exts.push(super::binary::NAME);
+            if !req.descriptor_heap {
+                self.exts.push(khr::maintenance5::NAME);
+            }
+        }
+        if req.pipeline_library {
+            self.exts.push(khr::pipeline_library::NAME);
+        }
     }
 
     /// `vkCreateDevice` with one queue of `queue_family`, the extensions, and the feature structs
@@ -298,7 +335,10 @@ impl Chosen {
             f2 = f2.push_next(&mut self.db);
         }
         if req.descriptor_heap {
-            f2 = f2.push_next(&mut self.dh).push_next(&mut self.m5);
+            f2 = f2.push_next(&mut self.dh);
+        }
+        if req.descriptor_heap || req.disable_internal_cache {
+            f2 = f2.push_next(&mut self.m5);
         }
         if req.untyped_pointers {
             f2 = f2.push_next(&mut self.up);
@@ -309,10 +349,13 @@ impl Chosen {
         if req.invocation_reorder {
             f2 = f2.push_next(&mut self.reorder);
         }
-        let ci = vk::DeviceCreateInfo::default()
+        let mut ci = vk::DeviceCreateInfo::default()
             .queue_create_infos(&qci)
             .enabled_extension_names(&ext_ptrs)
             .push_next(&mut f2);
+        if req.disable_internal_cache {
+            ci = ci.push_next(&mut self.icc);
+        }
         unsafe { instance.raw.create_device(info.raw, &ci, None) }.at("vkCreateDevice")
     }
 
@@ -413,8 +456,18 @@ impl Chosen {
             on("descriptorBuffer", self.db.descriptor_buffer, req.descriptor_buffer),
             on("deviceFault", self.fault.device_fault, req.device_fault),
             on("deviceFaultVendorBinary", self.fault.device_fault_vendor_binary, req.device_fault),
+            on("disableInternalCache", self.icc.disable_internal_cache, req.disable_internal_cache),
         ]
     }
+}
+
+/// Whether `info` lets a device turn the driver's own pipeline cache off
+/// (`pipelineBinaryInternalCacheControl`, with VK_KHR_maintenance5 for the extension).
+pub fn internal_cache_control(info: &DeviceInfo) -> bool {
+    info.properties
+        .pipeline_binary
+        .is_some_and(|p| p.pipeline_binary_internal_cache_control == vk::TRUE)
+        && info.has_extension(khr::maintenance5::NAME)
 }
 
 /// `name` when `bit` is true in a struct that is `chained` (given to vkCreateDevice).

@@ -7,7 +7,7 @@
 //! structs are `Some` when the device's API version has them.
 use super::error::{VkError, VkResultExt};
 use super::instance::Instance;
-use super::{heap, rt_ext};
+use super::{binary, heap, rt_ext};
 use ash::{ext, khr, nv, vk};
 use std::collections::BTreeMap;
 use std::ffi::CStr;
@@ -31,6 +31,7 @@ pub const TRACKED_EXTENSIONS: &[Tracked] = &[
     t("ray tracing pipeline", khr::ray_tracing_maintenance1::NAME),
     t("ray tracing pipeline", khr::pipeline_library::NAME),
     t("ray tracing pipeline", ext::pipeline_library_group_handles::NAME),
+    t("ray tracing pipeline", binary::NAME),
     t("ray tracing pipeline", nv::ray_tracing_validation::NAME),
     t("ray tracing pipeline", nv::ray_tracing::NAME),
     t("invocation reorder", nv::ray_tracing_invocation_reorder::NAME),
@@ -85,6 +86,7 @@ pub struct Features {
     pub maintenance6: Option<vk::PhysicalDeviceMaintenance6FeaturesKHR<'static>>,
     pub pipeline_library_group_handles:
         Option<vk::PhysicalDevicePipelineLibraryGroupHandlesFeaturesEXT<'static>>,
+    pub pipeline_binary: Option<binary::PhysicalDevicePipelineBinaryFeaturesKHR>,
     pub rt_validation: Option<vk::PhysicalDeviceRayTracingValidationFeaturesNV<'static>>,
     pub invocation_reorder_nv:
         Option<vk::PhysicalDeviceRayTracingInvocationReorderFeaturesNV<'static>>,
@@ -114,6 +116,7 @@ pub struct Properties {
     pub descriptor_buffer: Option<vk::PhysicalDeviceDescriptorBufferPropertiesEXT<'static>>,
     pub descriptor_heap: Option<heap::PhysicalDeviceDescriptorHeapPropertiesEXT>,
     pub robustness2: Option<vk::PhysicalDeviceRobustness2PropertiesEXT<'static>>,
+    pub pipeline_binary: Option<binary::PhysicalDevicePipelineBinaryPropertiesKHR>,
     /// VK_NV_ray_tracing (the legacy NV pipeline; it has no feature struct).
     pub rt_nv: Option<vk::PhysicalDeviceRayTracingPropertiesNV<'static>>,
     pub invocation_reorder_nv:
@@ -203,6 +206,7 @@ impl Features {
             maintenance6: has(khr::maintenance6::NAME).then(Default::default),
             pipeline_library_group_handles: has(ext::pipeline_library_group_handles::NAME)
                 .then(Default::default),
+            pipeline_binary: has(binary::NAME).then(Default::default),
             rt_validation: has(nv::ray_tracing_validation::NAME).then(Default::default),
             invocation_reorder_nv: has(nv::ray_tracing_invocation_reorder::NAME)
                 .then(Default::default),
@@ -243,6 +247,7 @@ impl Properties {
             descriptor_buffer: f.descriptor_buffer.map(|_| Default::default()),
             descriptor_heap: f.descriptor_heap.map(|_| Default::default()),
             robustness2: f.robustness2.map(|_| Default::default()),
+            pipeline_binary: f.pipeline_binary.map(|_| Default::default()),
             rt_nv: has(nv::ray_tracing::NAME).then(Default::default),
             invocation_reorder_nv: f.invocation_reorder_nv.map(|_| Default::default()),
             invocation_reorder_ext: f.invocation_reorder_ext.map(|_| Default::default()),
@@ -268,11 +273,11 @@ fn query_chains(
     // chained members is written once (`feature_structs!` / `property_structs!`).
     macro_rules! feature_structs { ($m:ident) => { $m!(f; v11, v12, v13, rt_pipeline, accel, ray_query, rt_maintenance1,
         position_fetch, descriptor_buffer, descriptor_heap, untyped_pointers, robustness2, fault, maintenance5, maintenance6,
-        pipeline_library_group_handles, rt_validation, invocation_reorder_nv, invocation_reorder_ext, cluster_accel,
+        pipeline_library_group_handles, pipeline_binary, rt_validation, invocation_reorder_nv, invocation_reorder_ext, cluster_accel,
         partitioned_accel, dense_geometry_format, motion_blur, linear_swept_spheres, opacity_micromap,
         opacity_micromap_khr, pipeline_opacity_micromap, displacement_micromap) } }
     macro_rules! property_structs { ($m:ident) => { $m!(p; v11, v12, v13, rt_pipeline, accel, descriptor_buffer,
-        descriptor_heap, robustness2, rt_nv, invocation_reorder_nv, invocation_reorder_ext, cluster_accel,
+        descriptor_heap, robustness2, pipeline_binary, rt_nv, invocation_reorder_nv, invocation_reorder_ext, cluster_accel,
         partitioned_accel, opacity_micromap, opacity_micromap_khr, displacement_micromap) } }
     macro_rules! chain { ($top:ident, $v:ident; $($s:ident),*) => { $( if let Some(x) = $v.$s.as_mut() { $top = $top.push_next(x); } )* } }
     macro_rules! clear { ($v:ident; $($s:ident),*) => { $( null_next(&mut $v.$s, |x| x.p_next = std::ptr::null_mut()); )* } }

@@ -1,6 +1,7 @@
 //! Everything that talks to Vulkan directly: the instance, the per-device feature/property
 //! struct ([`DeviceInfo`]), logical device creation ([`Gpu`]) and the error type with its
 //! first-class `DeviceLost`. Nothing here knows about the CLI or reports.
+pub mod binary;
 pub mod device;
 pub mod driver_version;
 pub mod error;

@@ -89,6 +89,25 @@ pub(super) fn set_layout(
     unsafe { gpu.device.create_descriptor_set_layout(&ci, None) }.at("vkCreateDescriptorSetLayout")
 }
 
+/// The contents of the set and pipeline layouts [`set_layout`] and [`pipeline_layout`] make from
+/// the same arguments, hashed: each binding's number, type, count, stages and flags, the set
+/// layout's flags and the push-constant range (part of a pipeline's identity across runs).
+pub(super) fn digest(
+    key: LayoutKey,
+    targets: &[(u32, Resource, Vec<Target>)],
+    flags: &[vk::DescriptorBindingFlags],
+    uab: bool,
+) -> u128 {
+    let mut h = crate::exec::stable_hash::StableHash::default();
+    h.str(key.model.as_str()).u32(key.stages.as_raw()).u32(u32::from(uab));
+    for (i, (b, kind, t)) in targets.iter().enumerate() {
+        h.u32(*b).u32(descriptor_type(*kind).as_raw() as u32).u64(t.len() as u64);
+        h.u32(flags.get(i).map_or(0, |f| f.as_raw()));
+    }
+    h.u32(PUSH_CONSTANT_BYTES);
+    h.finish()
+}
+
 /// The pipeline layout: `set_layout` and the probes' push constants, both seen by `stages`.
 pub(super) fn pipeline_layout(
     gpu: &Gpu,

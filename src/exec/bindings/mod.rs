@@ -21,7 +21,7 @@ use crate::model::{DescriptorModel, Resource};
 use crate::vk::memory::Buffer;
 use crate::vk::{Gpu, VkError};
 use ash::vk;
-use layout::{binding_flags, pipeline_layout, set_layout};
+use layout::{binding_flags, digest, pipeline_layout, set_layout};
 
 /// What holds a binding's descriptors under its model.
 enum Bound {
@@ -41,6 +41,8 @@ enum Bound {
 pub struct Binding {
     pub set_layout: vk::DescriptorSetLayout,
     pub pipeline_layout: vk::PipelineLayout,
+    /// The layouts' contents hashed (`layout::digest`; 0 for the heap model, which has none).
+    pub digest: u128,
     bound: Bound,
 }
 
@@ -57,6 +59,7 @@ impl Binding {
         }
         let flags = binding_flags(gpu, key, targets);
         let uab = flags.iter().any(|f| f.contains(vk::DescriptorBindingFlags::UPDATE_AFTER_BIND));
+        let digest = digest(key, targets, &flags, uab);
         let set_layout = set_layout(gpu, key, targets, &flags, uab)?;
         let pipeline_layout = pipeline_layout(gpu, key.stages, set_layout)?;
         let bound = match key.model {
@@ -72,7 +75,7 @@ impl Binding {
                 unreachable!("the plan never runs descriptor_heap cells")
             }
         };
-        Ok(Binding { set_layout, pipeline_layout, bound })
+        Ok(Binding { set_layout, pipeline_layout, digest, bound })
     }
 
     /// The heap model's binding: resource and sampler heaps, no set or pipeline layout.
@@ -90,6 +93,7 @@ impl Binding {
         Ok(Binding {
             set_layout: vk::DescriptorSetLayout::null(),
             pipeline_layout: vk::PipelineLayout::null(),
+            digest: 0,
             bound: Bound::Heap(heap),
         })
     }

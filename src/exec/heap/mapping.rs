@@ -122,6 +122,72 @@ pub fn describe(access: HeapAccess, l: &HeapLayout) -> String {
     }
 }
 
+/// The members of `data` that `source` says it holds, in declaration order (see
+/// [`PipelineMapping::words`]).
+fn source_words(source: MappingSource, data: &h::MappingSourceData) -> Vec<u32> {
+    let null = |p: *const vk::SamplerCreateInfo<'static>| u32::from(!p.is_null());
+    // SAFETY: each arm reads the union member that `source` names, the one `probe_source` and
+    // `constant` write for it.
+    unsafe {
+        match source {
+            MappingSource::HeapWithConstantOffset => {
+                let c = data.constant_offset;
+                vec![c.heap_offset, c.heap_array_stride, null(c.p_embedded_sampler)]
+                    .into_iter()
+                    .chain([c.sampler_heap_offset, c.sampler_heap_array_stride])
+                    .collect()
+            }
+            MappingSource::HeapWithPushIndex => {
+                let p = data.push_index;
+                vec![
+                    p.heap_offset,
+                    p.push_offset,
+                    p.heap_index_stride,
+                    p.heap_array_stride,
+                    null(p.p_embedded_sampler),
+                    p.use_combined_image_sampler_index,
+                    p.sampler_heap_offset,
+                    p.sampler_push_offset,
+                    p.sampler_heap_index_stride,
+                    p.sampler_heap_array_stride,
+                ]
+            }
+            MappingSource::HeapWithIndirectIndex => {
+                let i = data.indirect_index;
+                vec![
+                    i.heap_offset,
+                    i.push_offset,
+                    i.address_offset,
+                    i.heap_index_stride,
+                    i.heap_array_stride,
+                    null(i.p_embedded_sampler),
+                    i.use_combined_image_sampler_index,
+                    i.sampler_heap_offset,
+                    i.sampler_push_offset,
+                    i.sampler_address_offset,
+                    i.sampler_heap_index_stride,
+                    i.sampler_heap_array_stride,
+                ]
+            }
+            MappingSource::HeapWithShaderRecordIndex => {
+                let r = data.shader_record_index;
+                vec![
+                    r.heap_offset,
+                    r.shader_record_offset,
+                    r.heap_index_stride,
+                    r.heap_array_stride,
+                    null(r.p_embedded_sampler),
+                    r.use_combined_image_sampler_index,
+                    r.sampler_heap_offset,
+                    r.sampler_shader_record_offset,
+                    r.sampler_heap_index_stride,
+                    r.sampler_heap_array_stride,
+                ]
+            }
+        }
+    }
+}
+
 /// The set/binding → heap mapping every stage of a heap pipeline gets (boxed: the info points at
 /// the mappings).
 pub struct PipelineMapping {
@@ -165,8 +231,59 @@ impl PipelineMapping {
         b
     }
 
+    /// Every member of every mapping struct as words (a pipeline's identity hashes them: binaries
+    /// made for one mapping must never serve another). The union member read is the one its
+    /// `source` names; the embedded-sampler pointers are always null and count as a 0.
+    pub fn words(&self) -> Vec<u32> {
+        let mut w = Vec::new();
+        for m in &self.mappings {
+            w.extend([m.descriptor_set, m.first_binding, m.binding_count, m.resource_mask]);
+            w.push(m.source as u32);
+            w.extend(source_words(m.source, &m.source_data));
+        }
+        w
+    }
+
     /// What to chain to each VkPipelineShaderStageCreateInfo.
     pub fn stage_next(&self) -> *const c_void {
         &self.info as *const _ as *const c_void
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The words a pipeline's identity hashes tell every access and every layout apart: a binary
+    /// made for one mapping is never filed under another's identity.
+    #[test]
+    fn mapping_words_differ_with_the_access_and_the_layout() {
+        let l = HeapLayout::new(64, 16, 17, false);
+        let accesses = [
+            HeapAccess::MappedConstantOffset,
+            HeapAccess::MappedPushIndex,
+            HeapAccess::MappedIndirectIndex,
+            HeapAccess::MappedShaderRecordIndex,
+            HeapAccess::Direct,
+        ];
+        let words: Vec<Vec<u32>> =
+            accesses.iter().map(|&a| PipelineMapping::new(a, &l).words()).collect();
+        for i in 0..words.len() {
+            for j in 0..i {
+                assert_ne!(words[i], words[j], "{:?} and {:?}", accesses[i], accesses[j]);
+            }
+        }
+        // The same access over another layout (another stride) differs too.
+        let other = HeapLayout::new(64, 32, 17, false);
+        for a in accesses.iter().filter(|a| **a != HeapAccess::Direct) {
+            assert_ne!(
+                PipelineMapping::new(*a, &l).words(),
+                PipelineMapping::new(*a, &other).words()
+            );
+        }
+        assert_eq!(
+            PipelineMapping::new(HeapAccess::MappedPushIndex, &l).words(),
+            PipelineMapping::new(HeapAccess::MappedPushIndex, &l).words()
+        );
     }
 }

@@ -40,6 +40,7 @@ fn ready() -> Input {
         reference_ms: 2.0,
         device_features: vec!["VK_KHR_ray_tracing_pipeline".into()],
         pipeline_cache: None,
+        driver_cache: None,
     })
 }
 
