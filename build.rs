@@ -73,16 +73,17 @@ fn main() {
     }
     if !dir.join("libshaderc_combined.a").is_file() {
         if dir.join("libshaderc.so").exists() {
-            panic!(
+            fail(&format!(
                 "rtprobe: {} has libshaderc.so but not libshaderc_combined.a, which rtprobe links \
                  statically (Debian's libshaderc.so.1 does not carry glslang or SPIRV-Tools): {INSTALL}, \
                  or build with --features bundled-shaderc",
                 dir.display()
-            );
+            ));
         }
         println!(
             "cargo::warning=rtprobe: no system shaderc in {} ({INSTALL}); the shaderc crate builds \
-             its bundled copy from source instead (about 10 minutes on 2 cores; \
+             its bundled copy from source instead (about 10 minutes on 2 cores; it needs cmake, \
+             python3 and a C++ compiler: `RTPROBE_BUNDLED_SHADERC=1 scripts/setup`; \
              --features bundled-shaderc asks for that on purpose)",
             dir.display()
         );
@@ -107,12 +108,12 @@ fn main() {
         }
     }
     if !missing.is_empty() {
-        panic!(
+        fail(&format!(
             "rtprobe: the system shaderc ({}) needs the static glslang and SPIRV-Tools libraries, \
              and {} are missing: {INSTALL}, or build with --features bundled-shaderc",
             dir.join("libshaderc_combined.a").display(),
             missing.join(", ")
-        );
+        ));
     }
     // Link arguments come after every crate and its native libraries on the linker's command
     // line, so these archives resolve what shaderc_combined (inside shaderc-sys) leaves undefined.
@@ -139,6 +140,12 @@ fn main() {
     ))
 }
 
+/// Stop the build with one line (a panic would add a backtrace note around it).
+fn fail(msg: &str) -> ! {
+    eprintln!("error: {msg}");
+    std::process::exit(1)
+}
+
 fn name(s: &str) {
     println!("cargo::rustc-env=RTPROBE_SHADERC_BUILD={s}");
 }
@@ -150,11 +157,16 @@ fn pkg_config(args: &[&str]) -> Option<String> {
     (out.status.success() && !s.is_empty()).then_some(s)
 }
 
-/// Debian's multiarch library directory (what the shaderc crate searches without pkg-config).
+/// The library directory the shaderc crate (0.10) searches without pkg-config: Debian's
+/// multiarch directory where it exists, else /usr/lib64, else /usr/lib (Fedora, Arch).
 fn multiarch_dir() -> PathBuf {
     let arch = env::var("CARGO_CFG_TARGET_ARCH").unwrap_or_default();
     let arch = if arch == "x86" { "i386".to_string() } else { arch };
-    PathBuf::from(format!("/usr/lib/{arch}-linux-gnu"))
+    [format!("/usr/lib/{arch}-linux-gnu"), "/usr/lib64".into()]
+        .into_iter()
+        .map(PathBuf::from)
+        .find(|d| d.is_dir())
+        .unwrap_or_else(|| PathBuf::from("/usr/lib"))
 }
 
 /// glslang's version from its `build_info.h` (Debian's glslang.pc has an empty Version).

@@ -30,8 +30,14 @@ fn default_matrix_passes_on_lavapipe_and_canaries_are_classified() {
         "--junit",
         junit.to_str().unwrap(),
     ]);
-    assert_eq!(o.status.code(), Some(0), "stdout: {}\nstderr: {}", stdout(&o), stderr(&o));
     let r = report(&out);
+    // Lavapipe 25 reads lane 0's descriptor index in closest-hit calls where lane 0 is inactive
+    // (the gallivm defect of reports/lavapipe-26/FINDINGS.md #2): in cells without nonuniformEXT
+    // that is a read no active lane's index gives, a mismatch under rtprobe's other-lane
+    // heuristic (the spec leaves those reads undefined). Those are the run's only findings.
+    let heuristic = cells(&r).iter().filter(|c| c["outcome"] == "mismatch").count();
+    let code = if heuristic > 0 { 1 } else { 0 };
+    assert_eq!(o.status.code(), Some(code), "stdout: {}\nstderr: {}", stdout(&o), stderr(&o));
     assert_eq!(r["schema"], "rtprobe.report/1");
     assert_eq!(r["complete"], true);
     let cs = cells(&r);
@@ -47,6 +53,14 @@ fn default_matrix_passes_on_lavapipe_and_canaries_are_classified() {
             }
             other if id.starts_with("canary.") => {
                 assert_eq!(c["canary_check"]["detected"], true, "{id}: {other}")
+            }
+            "mismatch" => {
+                assert!(c["outside_spec"].is_string(), "{id}: a mismatch of a defined read");
+                let reads = &c["attempts"][0]["result"]["comparison"]["element_reads"];
+                assert!(reads["neither"].as_u64().unwrap() > 0, "{id}: {reads}");
+                assert!(reads["heuristic"].as_str().unwrap().contains("heuristic"), "{id}");
+                let by = &c["attempts"][0]["result"]["comparison"]["by_field"];
+                assert_eq!(by.as_object().unwrap().keys().collect::<Vec<_>>(), ["value"], "{id}");
             }
             other => panic!("{id}: {other} ({})", c["reason"]),
         }

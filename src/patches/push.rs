@@ -48,7 +48,8 @@ pub struct SlotKey {
 /// block), 8 bytes each, never past `limit` (maxPushConstantsSize).
 #[derive(Clone, Debug)]
 pub struct Slots {
-    next: u32,
+    /// (u64: an offset near u32::MAX must not wrap to 0 and alias another stage's push data)
+    next: u64,
     limit: u32,
     taken: BTreeMap<SlotKey, u32>,
 }
@@ -56,7 +57,7 @@ pub struct Slots {
 impl Slots {
     /// Slots from `start` (rounded up to 8) to `limit`.
     pub fn new(start: u32, limit: u32) -> Slots {
-        Slots { next: start.div_ceil(8) * 8, limit, taken: BTreeMap::new() }
+        Slots { next: u64::from(start).div_ceil(8) * 8, limit, taken: BTreeMap::new() }
     }
 
     /// The offset of `key`'s address: the one it has, else the next free one.
@@ -65,7 +66,7 @@ impl Slots {
             return Ok(*o);
         }
         let o = self.next;
-        if o + 8 > self.limit {
+        if o + 8 > u64::from(self.limit) {
             return Err(PatchError::BadOption {
                 patch,
                 what: format!(
@@ -77,6 +78,8 @@ impl Slots {
             });
         }
         self.next += 8;
+        // (below `limit`, a u32, by the check above)
+        let o = o as u32;
         self.taken.insert(key, o);
         Ok(o)
     }
@@ -232,6 +235,17 @@ fn member_offset(st: Word, member: u32, offset: u32) -> Instruction {
 
 #[cfg(test)]
 mod tests {
+    /// An offset near u32::MAX is refused: rounded up to 8 in u32 it wrapped to 0 and put the
+    /// address on another stage's push data.
+    #[test]
+    fn a_start_near_the_top_of_u32_is_refused_not_wrapped() {
+        let key = || SlotKey { kind: SlotKind::AsAddress, set: 0, binding: 0 };
+        let mut s = Slots::new(u32::MAX - 3, u32::MAX);
+        assert!(s.offset(key(), "as-to-address").is_err());
+        let mut s = Slots::new(4, 128);
+        assert_eq!(s.offset(key(), "as-to-address").unwrap(), 8);
+    }
+
     use super::*;
 
     fn module(glsl: &str) -> Module {
