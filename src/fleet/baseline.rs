@@ -64,7 +64,8 @@ pub enum BaselineError {
     NoPhaseMean { phase: String },
 }
 
-fn deqp_status(o: Outcome) -> Option<&'static str> {
+/// deqp-runner's status of a fault (`None`: no fault).
+pub fn deqp_status(o: Outcome) -> Option<&'static str> {
     match o {
         Outcome::Pass | Outcome::Unsupported | Outcome::NotImplemented => None,
         Outcome::Mismatch | Outcome::Error => Some("Fail"),
@@ -85,7 +86,7 @@ fn from_deqp(status: &str) -> Option<(Outcome, bool)> {
 }
 
 /// A deqp-runner `Flake` line says only that the test is unreliable: any failure is tolerated.
-const DEQP_FLAKE_ALSO: &[Outcome] = &[Outcome::Mismatch, Outcome::Timeout, Outcome::DeviceLost];
+pub const DEQP_FLAKE_ALSO: &[Outcome] = &[Outcome::Mismatch, Outcome::Timeout, Outcome::DeviceLost];
 
 impl Baseline {
     /// The expectations of a finished run: every finding (flaky ones as flakes with their rate),
@@ -98,7 +99,8 @@ impl Baseline {
         slack_ms: f64,
     ) -> Result<Baseline, BaselineError> {
         let mut expected = Vec::new();
-        for c in r.cells.iter().filter(|c| c.cell.canary.is_none() && c.outcome.is_finding()) {
+        let probe = |c: &&CellReport| c.cell.canary.is_none() && !c.is_retry(r.options.patches);
+        for c in r.cells.iter().filter(probe).filter(|c| c.outcome.is_finding()) {
             let mut also: Vec<Outcome> =
                 c.attempts.iter().map(|a| a.outcome).filter(|o| *o != c.outcome).collect();
             also.sort();
@@ -259,11 +261,17 @@ fn classify(c: &CellReport, e: Option<&Expectation>) -> (Status, Outcome) {
     }
 }
 
-/// Compare a run with a baseline: per cell (canaries and unsupported cells aside) and per phase.
+/// Compare a run with a baseline: per planned probe cell (canaries, retries — a round's
+/// workaround variants and patterns, whose errors are rtprobe's — and unsupported cells aside)
+/// and per phase.
 pub fn check(r: &RunReport, b: &Baseline, source: &str) -> BaselineCheck {
     let mut out = BaselineCheck { source: source.into(), ..Default::default() };
-    for c in r.cells.iter().filter(|c| c.cell.canary.is_none() && c.outcome != Outcome::Unsupported)
-    {
+    let probe = |c: &&CellReport| {
+        c.cell.canary.is_none()
+            && !c.is_retry(r.options.patches)
+            && c.outcome != Outcome::Unsupported
+    };
+    for c in r.cells.iter().filter(probe) {
         let e = b.get(&c.id);
         let (status, expected) = classify(c, e);
         match status {
@@ -275,11 +283,13 @@ pub fn check(r: &RunReport, b: &Baseline, source: &str) -> BaselineCheck {
             out.cells.push(CellCheck { cell: c.id.clone(), status, expected, actual: c.outcome });
         }
     }
-    out.not_run = b
+    out.not_run_cells = b
         .expected
         .iter()
         .filter(|e| !r.cells.iter().any(|c| c.id == e.cell && !c.attempts.is_empty()))
-        .count();
+        .map(|e| e.cell.clone())
+        .collect();
+    out.not_run = out.not_run_cells.len();
     for (fault, text) in worker_faults(r) {
         if b.worker_faults.contains(&fault) {
             out.expected_worker_faults += 1;
@@ -306,26 +316,30 @@ pub fn check(r: &RunReport, b: &Baseline, source: &str) -> BaselineCheck {
 /// Lines for the terminal summary.
 pub fn render(c: &BaselineCheck, allow_improvements: bool) -> String {
     let mut s = format!(
-        "baseline {}: {} as expected, {} known flakes, {} regressions, {} improvements{}\n",
+        "baseline {}: {} as expected, {}, {}, {}{}\n",
         c.source,
         c.expected,
-        c.known_flakes,
-        c.regressions().count(),
-        c.improvements().count(),
+        crate::model::plural(c.known_flakes, "known flake"),
+        crate::model::plural(c.regressions().count(), "regression"),
+        match c.improvements().count() {
+            1 => "1 unexpected pass".to_string(),
+            n => format!("{n} unexpected passes"),
+        },
         if c.not_run > 0 { format!(", {} entries not run here", c.not_run) } else { String::new() }
     );
     for x in &c.cells {
-        let what = match x.status {
-            Status::Regression => "REGRESSION",
-            Status::Improvement if allow_improvements => "improvement (allowed)",
+        // deqp-runner's word for a pass where a fault was expected: UnexpectedPass.
+        let (what, then) = match x.status {
+            Status::Regression => ("REGRESSION", ""),
+            Status::Improvement if allow_improvements => ("UnexpectedPass", " (allowed)"),
             Status::Improvement => {
-                "UNEXPECTED IMPROVEMENT (update the baseline, or --allow-improvements)"
+                ("UnexpectedPass", " (update the baseline, or --allow-improvements)")
             }
-            Status::KnownFlake => "known flake",
-            Status::Expected => "expected",
+            Status::KnownFlake => ("known flake", ""),
+            Status::Expected => ("expected", ""),
         };
         s += &format!(
-            "  {what}: {} expected {} got {}\n",
+            "  {what}: {} expected {} got {}{then}\n",
             x.cell,
             x.expected.as_str(),
             x.actual.as_str()
