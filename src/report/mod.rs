@@ -1,13 +1,15 @@
-//! Renderers over the data layer: the run report's writer, timestamps, JUnit, the terminal
-//! summary, the vendor issue, the recommended-pattern and GPU-AV rounds' scheduling and verdicts,
+//! Renderers over the data layer: the run report's writer and its lock, timestamps, JUnit and
+//! deqp-runner's result files, the terminal summary and the run's one verdict, the vendor issue, the recommended-pattern and GPU-AV rounds' scheduling and verdicts,
 //! a cell's shaders as a reader gets them, the repro bundle's Amber script, and SVG charts.
 pub mod amber;
 pub mod chart;
 pub mod gpu_av;
 pub mod issue;
 pub mod junit;
+pub mod lock;
 pub mod recommended;
 pub mod shaders;
 pub mod summary;
 pub mod time;
+pub mod verdict;
 pub mod writer;
