@@ -444,7 +444,7 @@ fn a_lenient_pass_that_read_other_elements_is_suspect_when_a_defined_sibling_fau
     let l = isolation::line(&lenient, Some("index"), &v, ev);
     assert_eq!(l.suspect.as_deref(), Some(literal.id().as_str()));
     assert!(
-        l.line.contains("suspect: 3 pixel(s) read another element")
+        l.line.contains("suspect: 3 pixels read another element")
             && l.line.contains("with literal index, descriptor_indexing faults"),
         "{}",
         l.line
