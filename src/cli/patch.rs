@@ -2,6 +2,7 @@
 //! with spirv-val, and write the result atomically — or fail with one line and write nothing.
 use super::args::PatchArgs;
 use super::exit::{self, coded};
+use super::out::{errln, out, outln};
 use crate::atomic::write_atomic;
 use crate::patches::{self, PatchName, Validation};
 use crate::shadergen::compile::GlslOptions;
@@ -56,7 +57,7 @@ fn glsl_options(a: &PatchArgs, input: &std::path::Path) -> Result<GlslOptions> {
 pub fn patch(a: &PatchArgs) -> Result<u8> {
     if a.list {
         for (name, opts, what) in patches::LIST {
-            println!("{name:<14} [{opts}]\n    {what}");
+            outln!("{name:<14} [{opts}]\n    {what}");
         }
         return Ok(exit::OK);
     }
@@ -112,17 +113,17 @@ pub fn patch(a: &PatchArgs) -> Result<u8> {
     let words = patches::assemble(&module);
     match patches::validate(&words) {
         Validation::Valid => {}
-        Validation::Unavailable => eprintln!("rtprobe: warning: spirv-val is not installed (apt-get install spirv-tools); the output was not validated"),
+        Validation::Unavailable => errln!("rtprobe: warning: spirv-val is not installed (apt-get install spirv-tools); the output was not validated"),
         Validation::Invalid(msg) => return Err(coded(exit::BAD_INPUT, format!("the patched module fails spirv-val, nothing written: {msg}"))),
     }
     let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
     write_atomic(out, &bytes).context("writing the patched module")?;
     for l in lines {
-        println!("{l}");
+        outln!("{l}");
     }
     if let Some(b) = before {
-        print!("{}", patches::diff(&b, &patches::disassemble(&module)));
+        out!("{}", patches::diff(&b, &patches::disassemble(&module)));
     }
-    println!("wrote {} ({} bytes)", out.display(), bytes.len());
+    outln!("wrote {} ({} bytes)", out.display(), bytes.len());
     Ok(exit::OK)
 }

@@ -4,6 +4,7 @@
 use super::args::StressArgs;
 use super::commands::{open_instance, Globals};
 use super::exit;
+use super::out::out;
 use crate::atomic::write_atomic;
 use crate::stress::gpu::{GpuTracer, Mode};
 use crate::stress::{self, report, CaseKind, StressOptions, Tracer};
@@ -31,6 +32,11 @@ fn parse_cases(names: &[String]) -> Result<Vec<CaseKind>> {
 
 pub fn stress(g: &Globals, args: &StressArgs) -> Result<u8> {
     let cases = parse_cases(&args.cases)?;
+    // Before any case runs: a long run that cannot write its files fails at once.
+    super::paths::writable_files(&[
+        ("--json", args.json.as_deref()),
+        ("--svg", args.svg.as_deref()),
+    ])?;
     if !(args.timeout > 0.0 && args.timeout.is_finite()) {
         return Err(exit::coded(
             exit::USAGE,
@@ -73,7 +79,7 @@ pub fn stress(g: &Globals, args: &StressArgs) -> Result<u8> {
         })?;
     let name = tracer.name();
     let results = stress::run(&mut tracer, &opts);
-    print!("{}", report::text(&name, &results));
+    out!("{}", report::text(&name, &results));
     if let Some(path) = &args.json {
         let validation = (validation_active, crate::vk::instance::validation_error_count());
         let doc =
