@@ -92,6 +92,29 @@ fn list_counts(out: &str) -> (usize, usize, usize) {
 }
 
 #[test]
+fn sid_relative_output_paths_land_in_the_callers_folder() {
+    if !have_sid() {
+        return;
+    }
+    // A folder outside the repository: before, the root's shell fell back to `cd /` and the file
+    // landed inside the root.
+    let dir = tempfile::tempdir().unwrap();
+    let o = Command::new(repo().join("scripts/in-sid"))
+        .current_dir(dir.path())
+        .args([env!("CARGO_BIN_EXE_rtprobe"), "caps", "--no-device-check", "-o", "caps.json"])
+        .env_remove("RTPROBE_VALIDATE")
+        .output()
+        .expect("spawn scripts/in-sid");
+    assert!(o.status.success(), "{}", stderr(&o));
+    let caps: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(dir.path().join("caps.json")).expect("caps.json where the caller is"),
+    )
+    .unwrap();
+    assert_eq!(caps["schema"], "rtprobe.caps/2");
+    assert!(!sid_root().join("caps.json").exists(), "nothing written inside the root");
+}
+
+#[test]
 fn host_lavapipe_plans_heap_cells_as_unsupported_with_the_reason() {
     let o = run(&["run", "--list", "--filter", "descriptor_model=descriptor_heap"]);
     assert!(o.status.success(), "{}", stderr(&o));
