@@ -252,7 +252,7 @@ fn an_interrupted_run_resumes_with_the_command_it_prints() {
     );
     // A differing option given explicitly is still another run.
     let o = run(&["run", "--resume", x.to_str().unwrap(), "--seed", "4"]);
-    assert_one_line_error(&o, 2, "it was run with --seed 3, this command gives --seed 4");
+    assert_one_line_error(&o, 9, "its scene differs (--seed 3 in the report, 4 here)");
 }
 
 // ---- 6.–9., 11. what a run prints ----

@@ -213,6 +213,30 @@ fn sid_plans_every_heap_cell_and_drops_none() {
 }
 
 #[test]
+fn sid_the_pipeline_cache_save_error_is_said_once() {
+    if !have_sid() {
+        return;
+    }
+    // Lavapipe 26.2.6 returns a 20-byte vkGetPipelineCacheData: every save fails the same way.
+    // The first run says so; later runs do not repeat it (their reports keep it).
+    // Under target/ (the same path inside the root), fresh for this test.
+    let cache = repo().join(format!("target/heap-tests/cache-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&cache);
+    let env = [("RTPROBE_CACHE_DIR", cache.to_str().unwrap())];
+    let filter =
+        "stage=raygen,resource=storage_buffer,descriptor_model=descriptor_indexing,index=literal";
+    let said = "not a valid cache";
+    let (o, r) = sid_report("cache-once-1", &["--filter", filter], &env);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains(said), "the first run says it: {}", stdout(&o));
+    assert!(r["pipeline_cache"]["save_errors"][0].as_str().unwrap().contains(said));
+    let (o, r) = sid_report("cache-once-2", &["--filter", filter], &env);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stdout(&o).contains(said), "said once: {}", stdout(&o));
+    assert!(r["pipeline_cache"]["save_errors"][0].as_str().unwrap().contains(said), "kept");
+}
+
+#[test]
 fn sid_runs_heap_cells_against_the_reference() {
     if !have_sid() {
         return;

@@ -734,7 +734,7 @@ fn faulting_cells_are_retried_with_each_applicable_workaround() {
         let n = w["attempts"].as_u64().unwrap() as u32;
         let m = rtprobe::model::stats::pass_miss(inc("faulted"), inc("attempts"), n);
         assert!(n > 0 && (w["miss_probability"].as_f64().unwrap() - m).abs() < 1e-9, "{w}");
-        assert!(stdout(&o).contains(&format!("{} → passes ({n}/{n}; a fault as frequent as this finding's would be missed with p ≤ {m:.2})", w["patch"].as_str().unwrap())), "{}", stdout(&o));
+        assert!(stdout(&o).contains(&format!("{} → passes ({n} of {n}; a fault as frequent as this finding's would be missed with p ≤ {m:.3})", w["patch"].as_str().unwrap())), "{}", stdout(&o));
     }
 }
 

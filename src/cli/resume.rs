@@ -12,6 +12,9 @@ use crate::model::{RunReport, SceneParams};
 use anyhow::Result;
 use std::path::Path;
 
+/// The arguments that make the scene.
+const SCENE: &[&str] = &["seed", "size", "instances", "mesh_detail"];
+
 /// Which arguments were given, and the report they are held to.
 struct Given<'a> {
     path: &'a Path,
@@ -40,10 +43,11 @@ impl Given<'_> {
         if *given == theirs {
             return Ok(());
         }
+        let what = if SCENE.contains(&id) { "scene" } else { flag };
         Err(coded(
-            exit::USAGE,
+            exit::BAD_INPUT,
             format!(
-                "cannot resume {}: it was run with {flag} {}, this command gives {flag} {}; leave {flag} out to resume with the report's, or give another run its own -o",
+                "cannot resume {}: its {what} differs ({flag} {} in the report, {} here); leave {flag} out to resume with the report's, or give another run its own -o",
                 self.path.display(),
                 show(&theirs),
                 show(given)
@@ -236,11 +240,11 @@ mod tests {
         let line = format!("{e:#}");
         assert!(
             line.contains(
-                "it was run with --filter 'stage=raygen', this command gives --filter 'stage=miss'"
+                "its --filter differs (--filter 'stage=raygen' in the report, 'stage=miss' here)"
             ),
             "{line}"
         );
-        assert_eq!(exit::code_for(&e), exit::USAGE);
+        assert_eq!(exit::code_for(&e), exit::BAD_INPUT);
         assert!(args(&g, &parse(&["--resume", "r.json", "--seed", "5"]), p, &r).is_ok());
         assert!(args(&g, &parse(&["--resume", "r.json", "--seed", "6"]), p, &r).is_err());
         // More repeats are no other run.

@@ -319,7 +319,8 @@ fn with_flakes(c: &Checked, the_plan: &RunPlan) -> Option<(Baseline, String)> {
 }
 
 /// The device: `--device`, else for `--resume` the report's own (by identity), else the first
-/// RT-capable one.
+/// RT-capable one (for a report of a device not here, the resume is then refused saying what
+/// differs: `continued`).
 fn select_device(
     inst: &crate::vk::Instance,
     a: &RunArgs,
@@ -331,16 +332,9 @@ fn select_device(
             let j = crate::caps::device_json(d);
             crate::fleet::merge::DEVICE_KEYS.iter().all(|k| j[*k] == r.device[*k])
         };
-        return all.iter().find(same).cloned().ok_or_else(|| {
-            coded(
-                exit::BAD_DEVICE_SELECTION,
-                format!(
-                    "cannot resume: the report was made on {} (driver {}), which is not on this machine",
-                    r.device["name"].as_str().unwrap_or("?"),
-                    r.device["driver_version"]["decoded"].as_str().unwrap_or("?")
-                ),
-            )
-        });
+        if let Some(d) = all.iter().find(same) {
+            return Ok(d.clone());
+        }
     }
     Ok(features::select(&all, a.device.as_deref())?.clone())
 }
@@ -460,7 +454,7 @@ fn cache_errors_known(r: &RunReport) -> bool {
     if std::fs::read_to_string(&note).is_ok_and(|t| t == text) {
         return true;
     }
-    let _ = std::fs::write(&note, &text);
+    let _ = crate::atomic::write_atomic(&note, text.as_bytes());
     false
 }
 

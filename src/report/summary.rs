@@ -114,8 +114,12 @@ fn worker_and_canary_notes(s: &mut String, r: &RunReport) {
         let injected = r.cells.iter().filter(|c| c.injected.is_some()).count();
         let _ = writeln!(
             s,
-            "fault injection: {} misbehave on purpose ({})",
-            plural(injected, "cell"),
+            "fault injection: {} on purpose ({})",
+            if injected == 1 {
+                "1 cell misbehaves".to_string()
+            } else {
+                format!("{injected} cells misbehave")
+            },
             r.options.inject.join("; ")
         );
     }
@@ -144,8 +148,8 @@ fn spec_and_injection_notes(s: &mut String, r: &RunReport) {
         let other = outside.iter().filter(|c| c.element_reads().any(|e| e.other > 0)).count();
         let _ = writeln!(
             s,
-            "outside the spec's guarantees: {} index descriptors dynamically without nonuniformEXT, or with one their compiler dropped ({}); {other} of them read another element of the array on some pixels (allowed there; counts per cell in the report)",
-            plural(outside.len(), "cell"),
+            "outside the spec's guarantees: {} descriptors dynamically without nonuniformEXT, or with one their compiler dropped ({}); {other} of them read another element of the array on some pixels (allowed there; counts per cell in the report)",
+            if outside.len() == 1 { "1 cell indexes".to_string() } else { format!("{} cells index", outside.len()) },
             first.outside_spec.as_deref().unwrap_or("")
         );
     }
