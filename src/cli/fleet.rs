@@ -92,9 +92,15 @@ pub fn merge_cmd(a: &MergeArgs) -> Result<u8> {
     };
     let bytes = serde_json::to_vec_pretty(&m).context("serializing the merged report")?;
     write_atomic(&a.out, &bytes).with_context(|| "writing the merged report")?;
+    let retries = m.retries.values().sum::<usize>();
     outln!(
-        "merged {n} reports: {}, {}, {} outside cells → {}",
-        crate::model::plural(m.cells.len(), "cell"),
+        "merged {n} reports: {} planned{}, {}, {} outside cells → {}",
+        crate::model::plural(m.plan.planned, "cell"),
+        match retries {
+            0 => String::new(),
+            1 => " (and 1 retry)".into(),
+            n => format!(" (and {n} retries)"),
+        },
         crate::model::plural(m.tally.findings, "finding"),
         crate::model::plural(m.tally.worker_faults, "worker fault"),
         a.out.display()

@@ -254,20 +254,46 @@ fn finish(out: &mut RunReport, names: Vec<String>) {
     crate::report::writer::annotate_findings(out);
 }
 
-/// The same cell from two reports: every attempt kept, the verdict recomputed.
+/// The same cell from two reports: every attempt kept, the verdict recomputed. A cell one shard
+/// planned is planned, even where another shard's round ran it as a retry (a recommended pattern
+/// of a finding whose pattern cell fell to the other shard).
 fn join(into: &mut CellReport, other: CellReport) {
+    let retry = into.retry && other.retry;
     if into.attempts.is_empty() {
         *into = other;
     } else if !other.attempts.is_empty() {
         into.attempts.extend(other.attempts);
         into.refresh();
     }
+    into.retry = retry;
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::model::{BaselineCheck, CellCheck, Outcome, Status};
+
+    #[test]
+    fn a_cell_one_shard_planned_stays_planned() {
+        use crate::model::{Attempt, Cell, DescriptorModel, IndexSource, Resource, Stage};
+        let c = Cell::new(
+            Stage::ClosestHit,
+            Resource::StorageBuffer,
+            IndexSource::DynamicElement,
+            DescriptorModel::DescriptorIndexing,
+        );
+        let mut retried = CellReport::new(&c, Attempt::for_tests(Outcome::Pass, true));
+        retried.retry = true;
+        let planned = CellReport::new(&c, Attempt::for_tests(Outcome::Pass, false));
+        for (a, b) in [(retried.clone(), planned.clone()), (planned, retried.clone())] {
+            let mut into = a;
+            join(&mut into, b);
+            assert!(!into.retry && into.attempts.len() == 2);
+        }
+        let mut both = retried.clone();
+        join(&mut both, retried);
+        assert!(both.retry, "a retry in every shard stays one");
+    }
 
     #[test]
     fn values_read_as_words_not_json() {
