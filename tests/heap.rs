@@ -329,6 +329,54 @@ fn sid_runs_direct_heap_cells_compiled_by_the_roots_glslang() {
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
 }
 
+/// `patch --glsl` of a source with an extension newer than shaderc's glslang
+/// (GL_EXT_shader_invocation_reorder) goes to the root's glslangValidator, with its `-I`, `-D`
+/// and `--target-env vulkan1.4` (which that glslang knows: no note).
+#[test]
+fn sid_patch_glsl_sends_a_newer_extension_to_the_roots_glslang() {
+    if !have_sid() {
+        return;
+    }
+    let dir = repo().join(format!("target/heap-tests/ser-{}", std::process::id()));
+    std::fs::create_dir_all(dir.join("inc")).unwrap();
+    std::fs::write(
+        dir.join("inc/bindings.glsl"),
+        "layout(binding = 1) buffer B { vec4 v; } bufs[COUNT];\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("ser.rgen"),
+        "#version 460\n#extension GL_EXT_ray_tracing : require\n#extension GL_EXT_shader_invocation_reorder : require\n#extension GL_EXT_nonuniform_qualifier : require\n#extension GL_GOOGLE_include_directive : require\n#include \"bindings.glsl\"\nlayout(binding = 0) uniform accelerationStructureEXT tlas;\nlayout(location = 0) rayPayloadEXT vec4 payload;\nlayout(push_constant) uniform P { uint i; } p;\nvoid main() {\n    hitObjectEXT h;\n    hitObjectTraceRayEXT(h, tlas, 0, 0xff, 0, 0, 0, vec3(0), 0.0, vec3(0, 0, 1), 10.0, 0);\n    reorderThreadEXT(h);\n    hitObjectExecuteShaderEXT(h, 0);\n    bufs[p.i].v = payload;\n}\n",
+    )
+    .unwrap();
+    let src = dir.join("ser.rgen");
+    let inc = dir.join("inc");
+    let out = dir.join("ser.spv");
+    let o = in_sid(&[
+        "patch",
+        src.to_str().unwrap(),
+        "--glsl",
+        "--stage",
+        "rgen",
+        "-I",
+        inc.to_str().unwrap(),
+        "-D",
+        "COUNT=4",
+        "--target-env",
+        "vulkan1.4",
+        "--apply",
+        "nonuniform",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("note:"), "{}", stderr(&o));
+    let b = std::fs::read(&out).unwrap();
+    assert_eq!(u32::from_le_bytes([b[4], b[5], b[6], b[7]]), 0x0001_0600);
+    assert!(stdout(&o).contains("NonUniform"), "{}", stdout(&o));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn sid_runs_the_original_engines_base_sources_and_sampler_indices() {
     if !have_sid() {

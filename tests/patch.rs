@@ -529,7 +529,71 @@ fn glsl_shader_tree_with_includes_and_defines_is_patched() {
         let o = compile(&["-D", "MAX_MATERIALS=8", "--target-env", env], &p);
         assert!(o.status.success(), "{env}: {}", stderr(&o));
         assert_eq!(version(&p), 0x0001_0600, "{env}");
+        // The system shaderc predates Vulkan 1.4: rtprobe asks it for 1.3 and says so.
+        let noted =
+            stderr(&o).contains("rtprobe: note: --target-env vulkan1.4: compiled for vulkan1.3");
+        assert_eq!(
+            noted,
+            env == "vulkan1.4" && cfg!(shaderc_without_vulkan_1_4),
+            "{env}: {}",
+            stderr(&o)
+        );
     }
+}
+
+/// A compute shader at SPIR-V 1.6: glslang 12 (the system shaderc's) writes its workgroup size as
+/// `OpExecutionModeId ... LocalSizeId`, which the patcher must load and write back.
+#[test]
+fn glsl_compute_at_spirv_1_6_is_patched() {
+    let d = tempfile::tempdir().unwrap();
+    let src = d.path().join("d.comp");
+    std::fs::write(&src, "#version 460\n#extension GL_EXT_nonuniform_qualifier : require\nlayout(local_size_x = 8) in;\nlayout(binding = 0) buffer B { uint x; } b[4];\nlayout(push_constant) uniform P { uint i; } p;\nvoid main() { b[p.i].x = 1u; }\n").unwrap();
+    for env in ["vulkan1.2", "vulkan1.3", "vulkan1.4"] {
+        let out = d.path().join(format!("{env}.spv"));
+        let o = run(&[
+            "patch",
+            src.to_str().unwrap(),
+            "--glsl",
+            "--stage",
+            "comp",
+            "--target-env",
+            env,
+            "--apply",
+            "nonuniform",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{env}: {}", stderr(&o));
+        let text = dis(&out);
+        assert!(text.contains("NonUniform"), "{env}: {text}");
+        assert!(text.contains("LocalSize"), "{env}: {text}");
+    }
+}
+
+/// GLSL enabling an extension newer than shaderc's glslang goes to the external glslangValidator
+/// (tests/heap.rs compiles it in the sid root); without one, one line names the extension.
+#[test]
+fn glsl_with_a_newer_extension_needs_the_external_glslang() {
+    let d = tempfile::tempdir().unwrap();
+    let src = d.path().join("ser.rgen");
+    std::fs::write(&src, "#version 460\n#extension GL_EXT_ray_tracing : require\n#extension GL_EXT_shader_invocation_reorder : require\nvoid main() {}\n").unwrap();
+    let out = d.path().join("out.spv");
+    let o = run_env(
+        &[
+            "patch",
+            src.to_str().unwrap(),
+            "--glsl",
+            "--stage",
+            "rgen",
+            "--apply",
+            "nonuniform",
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        &[("RTPROBE_GLSLANG", "/nonexistent/glslangValidator")],
+    );
+    assert_one_line_error(&o, 9, "no GLSL compiler with GL_EXT_shader_invocation_reorder");
+    assert!(!out.exists());
 }
 
 #[test]

@@ -165,7 +165,9 @@ fn a_worker_without_a_shader_compiler_stops_the_run_with_exit_12() {
     let (o, took) = run_bounded(&args, Some("setup:no_compiler"), Duration::from_secs(120));
     assert_one_line_error(&o, 12, "could not start the shader compiler (shaderc)");
     let err = stderr(&o);
-    assert!(err.contains("ulimit -v") && err.contains(out.to_str().unwrap()), "{err}");
+    // The hook is named as the cause (not memory), and the resume command is the real one.
+    assert!(err.contains("RTPROBE_WORKER_FAULT=setup:no_compiler made it fail"), "{err}");
+    assert!(err.contains(&format!("--resume {}", out.display())), "{err}");
     assert!(took < Duration::from_secs(60), "took {took:?}");
     let r = report(&out);
     let ws = workers(&r);
@@ -174,11 +176,25 @@ fn a_worker_without_a_shader_compiler_stops_the_run_with_exit_12() {
         (ws[0]["phase"].as_str(), ws[0]["outcome"].as_str()),
         (Some("setup"), Some("error"))
     );
-    assert!(ws[0]["detail"].as_str().unwrap().contains("could not be started"), "{}", ws[0]);
-    // Its cells stay without an attempt (a later `--resume` runs them), and the report says
-    // the run did not complete.
+    let detail = ws[0]["detail"].as_str().unwrap();
+    assert!(detail.contains("(shader compiler (shaderc)): "), "blames its own step: {detail}");
+    assert_eq!(ws[0]["halt"], "no_shader_compiler", "{}", ws[0]);
+    // Its cells stay without an attempt, and the report says the run did not complete.
     assert!(cells(&r).is_empty(), "{:?}", cells(&r));
     assert_eq!(r["complete"], false);
+    // Once the compiler starts again, `--resume` runs them, and the halted worker is no driver
+    // fault: the run passes (exit 0), and a baseline made from it expects no worker fault.
+    let mut resumed = args[..args.len() - 2].to_vec();
+    resumed.extend(["--resume", out.to_str().unwrap()]);
+    let (o, _) = run_bounded(&resumed, None, Duration::from_secs(120));
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let r = report(&out);
+    assert!(!cells(&r).is_empty() && r["complete"] == true, "{r}");
+    let base = dir.path().join("b.json");
+    let o = bin().args(["baseline", out.to_str().unwrap(), "-o", base.to_str().unwrap()]).output();
+    assert!(o.unwrap().status.success());
+    let b: serde_json::Value = serde_json::from_slice(&std::fs::read(&base).unwrap()).unwrap();
+    assert!(b.get("worker_faults").is_none_or(|w| w.as_array().unwrap().is_empty()), "{b}");
 }
 
 #[test]

@@ -49,7 +49,7 @@ pub(super) fn estimate(
         .filter(|(k, _)| !PER_WORKER.contains(&k.as_str()))
         .map(|(_, v)| v.as_f64().unwrap_or(0.0))
         .sum();
-    let jobs = (r.report.options.jobs as f64).max(1.0);
+    let jobs = (r.report.options.jobs.unwrap_or(1) as f64).max(1.0);
     let wall = r.wall_s + (scale - 1.0).max(0.0) * per_cell / 1e3 / jobs;
     let m = ph
         .iter()

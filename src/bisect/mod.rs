@@ -96,6 +96,9 @@ pub enum BisectError {
     NoFault,
     #[error("--cell {0}: not a faulting cell of the scope")]
     NotFaulting(String),
+    /// A run of bisection's halted: no cell can run here, so no evidence can be had.
+    #[error("bisection's runs halted: {0:?}")]
+    Halted(crate::model::Halt),
 }
 
 /// A description with its isolation list and workarounds settled ([`Bisector::settle`]).
@@ -419,6 +422,9 @@ impl<'o> Bisector<'o> {
     ) -> Result<Bisection, BisectError> {
         let Settled { separable, conjunctions, rep, siblings, patched } =
             self.settle(cell, patch_supported)?;
+        if let Some(h) = self.verdicts.halt {
+            return Err(BisectError::Halted(h));
+        }
         let ev = self.evidence_against(&rep);
         let mut isolation = vec![isolation::line(&rep, None, &self.verdicts, ev)];
         isolation.extend(

@@ -43,7 +43,7 @@ impl ReportOptions {
             filters: o.filters.clone(),
             patches: o.patches,
             inject,
-            jobs: Some(o.jobs),
+            jobs: o.jobs,
             isolation: o.isolation,
             timeout_s: o.timeout_s,
             setup_timeout_s: o.setup_timeout_s,

@@ -372,6 +372,29 @@ fn an_oracle_that_adds_nothing_ends_the_bisection() {
 }
 
 #[test]
+fn an_oracle_that_halts_ends_the_bisection_with_the_halt() {
+    // A worker that cannot start its shader compiler halts every run: bisection must say so (the
+    // CLI exits 12), not conclude "not concluded (attempt cap or offline)" and exit 0.
+    struct Halting;
+    impl Oracle for Halting {
+        fn run(&mut self, _: &[Cell], _: Mode, on: &mut dyn FnMut(Event)) {
+            on(Event::Halt(crate::model::Halt::NoShaderCompiler));
+        }
+    }
+    let sc = scope(
+        "descriptor_model=descriptor_indexing,resource=storage_buffer,stage=raygen|closest_hit",
+    );
+    let mut sim = Sim::new(&["index=dynamic"], 1.0);
+    let v = report(&mut sim, &sc[..6]);
+    let r = Bisector::new(sc, v, &mut Halting, Settings::default(), vec![]).bisect(None, &|_| true);
+    assert!(
+        matches!(r, Err(BisectError::Halted(crate::model::Halt::NoShaderCompiler))),
+        "{:?}",
+        r.map(|b| b.minimal)
+    );
+}
+
+#[test]
 fn a_pass_with_too_little_evidence_is_not_concluded_on() {
     // Three attempts at most: a fault seen 3 of 3 is only p >= alpha^(1/3) at 95%, and a pass of 3
     // attempts would miss such a fault with probability (1 - alpha^(1/3))^3, above 1%.

@@ -1,6 +1,6 @@
 //! Every cell's attempts as bisection sees them: the report's, then its own, and what each
 //! cell's verdict says (fault, pass, error, unknown).
-use crate::model::{Attempt, Cell, CellReport, Outcome, RunReport};
+use crate::model::{Attempt, Cell, CellReport, Halt, Outcome, RunReport};
 use crate::runner::oracle::Event;
 use std::collections::HashMap;
 
@@ -22,6 +22,8 @@ pub struct Verdicts {
     cells: HashMap<String, CellReport>,
     /// Attempts bisection added.
     pub runs: usize,
+    /// A run of bisection's that halted (no cell can run): bisection stops with it.
+    pub halt: Option<Halt>,
 }
 
 impl Verdicts {
@@ -32,7 +34,7 @@ impl Verdicts {
             .filter(|c| !c.attempts.is_empty())
             .map(|c| (c.id.clone(), c.clone()))
             .collect();
-        Verdicts { cells, runs: 0 }
+        Verdicts { cells, runs: 0, halt: None }
     }
 
     pub fn record(&mut self, cell: &Cell, attempt: Attempt) {
@@ -48,10 +50,15 @@ impl Verdicts {
         }
     }
 
-    /// Record an oracle's attempt (its other events say nothing about a cell).
+    /// Record an oracle's attempt, or its halt (its other events say nothing about a cell).
     pub fn on_event(&mut self, ev: Event) {
-        if let Event::Attempt { cell, attempt } = ev {
-            self.record(&cell, attempt);
+        match ev {
+            Event::Attempt { cell, attempt } => self.record(&cell, attempt),
+            Event::Halt(h) => self.halt = Some(h),
+            Event::WorkerReady { .. }
+            | Event::Prebuilt { .. }
+            | Event::CacheSaved(_)
+            | Event::Worker(_) => {}
         }
     }
 

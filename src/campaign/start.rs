@@ -42,6 +42,7 @@ pub fn fresh(
         complete: false,
         device: crate::caps::device_json(info),
         matrix_support: crate::caps::matrix_json(info),
+        matrix_support_schema: Some(crate::caps::SCHEMA.into()),
         scene: SceneSummary {
             params,
             instances: scene.instances.len(),

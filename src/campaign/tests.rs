@@ -168,7 +168,9 @@ fn expect<T: PartialEq + std::fmt::Debug>(what: &str, got: T, want: T) -> Result
 
 // ---- confirm ----
 
-/// A crash, a mismatch, a pass, an `error` and a canary that crashed, each run once.
+/// A crash, a mismatch, a pass, an `error` and a canary that crashed, each run once; a crash
+/// whose only attempt is a worker that never got its device up (not run), and a crash already
+/// run twice (a resumed report's confirmed fault).
 fn confirm_world() -> (World, Vec<Cell>) {
     let (crash, mismatch) =
         (cell(Stage::ClosestHit, IndexSource::Dynamic), cell(Stage::Raygen, IndexSource::Dynamic));
@@ -177,21 +179,29 @@ fn confirm_world() -> (World, Vec<Cell>) {
         cell(Stage::ClosestHit, IndexSource::PushConstant),
         Cell::canary(Canary::InvalidAddress),
     );
-    let cells = vec![crash, mismatch, pass, error, canary];
+    let (unrun, twice) =
+        (cell(Stage::Miss, IndexSource::Dynamic), cell(Stage::AnyHit, IndexSource::Dynamic));
+    let cells = vec![crash, mismatch, pass, error, canary, unrun, twice];
     let script = Script::default()
         .with(crash, &[Outcome::Crash])
         .with(mismatch, &[Outcome::Mismatch])
         .with(error, &[Outcome::Error])
-        .with(canary, &[Outcome::Crash]);
+        .with(canary, &[Outcome::Crash])
+        .with(twice, &[Outcome::Crash]);
     let mut w = world(&cells, script);
-    w.campaign(&all).matrix(&cells);
+    w.campaign(&all).matrix(&cells[..5]);
+    w.campaign(&all).matrix(&[twice, twice]);
+    let mut setup = Attempt::for_tests(Outcome::Crash, true);
+    setup.phase = Some(crate::model::Phase::Setup);
+    w.rec.writer.record(&unrun, setup);
     (w, cells)
 }
 
 /// Confirmation ran the two faults, alone, once: nothing else ran again.
 fn check_confirm(w: &World, cells: &[Cell]) -> Result<(), String> {
-    same_batches(&w.oracle.batches[1..], &[(Mode::Alone, vec![cells[0], cells[1]])])?;
-    cells[2..].iter().try_for_each(|c| expect(&c.id(), w.attempts(c).len(), 1))
+    same_batches(&w.oracle.batches[2..], &[(Mode::Alone, vec![cells[0], cells[1]])])?;
+    let before = [1, 1, 1, 1, 2];
+    cells[2..].iter().zip(before).try_for_each(|(c, n)| expect(&c.id(), w.attempts(c).len(), n))
 }
 
 #[test]
@@ -583,6 +593,9 @@ fn the_policy_follows_the_options() {
     o.repeat = Some(5);
     let p = Policy::of(&o, || panic!("the layer is asked only under GPU-AV"));
     assert_eq!(p, Policy { confirm: true, repeat: Some(5), workarounds: true, gpu_av: None });
+    o.confirm = false;
+    assert!(!Policy::of(&o, || None).confirm, "--no-confirm confirms nothing");
+    o.confirm = true;
     o.isolation = crate::model::Isolation::ProcessPerCell;
     o.patches = crate::model::PatchMode::None;
     o.gpu_av = true;

@@ -434,7 +434,8 @@ pub struct PatchArgs {
     #[arg(short = 'D', long = "define", value_name = "NAME[=VALUE]", requires = "glsl")]
     pub defines: Vec<String>,
 
-    /// Vulkan environment of GLSL input: vulkan1.2 (SPIR-V 1.5), vulkan1.3 or vulkan1.4 (SPIR-V 1.6)
+    /// Vulkan environment of GLSL input: vulkan1.2 (SPIR-V 1.5), vulkan1.3 or vulkan1.4 (SPIR-V 1.6;
+    /// the system shaderc, which predates 1.4, compiles it as vulkan1.3 and says so)
     #[arg(long, value_enum, default_value = "vulkan1.2", value_name = "ENV")]
     pub target_env: crate::shadergen::compile::TargetEnv,
 

@@ -97,7 +97,10 @@ pub fn bisect(g: &Globals, a: &BisectArgs) -> Result<u8> {
         let _ = std::fs::remove_dir_all(&job_dir);
         r
     };
-    let b = result.map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.report.display())))?;
+    let b = result.map_err(|e| match e {
+        bisect::BisectError::Halted(h) => exit::bisect_halted(h),
+        e => coded(exit::BAD_INPUT, format!("{}: {e}", a.report.display())),
+    })?;
     let mut file = BisectFile::new(&a.report, &report, &filters, &ro.inject, a.offline, b);
     if let Some(uuid) = device_uuid_rerun {
         file.text.push_str(&format!(

@@ -60,18 +60,41 @@ pub fn coded(code: u8, message: impl std::fmt::Display) -> anyhow::Error {
 /// A run that halted (a worker found what no cell can get past): its code, and one line that
 /// says what to do. `report`: where the report so far was written.
 pub fn halted(halt: Halt, report: &Path) -> anyhow::Error {
+    let then = format!(
+        "then run again, or add --resume {} to run the cells still without an attempt",
+        report.display()
+    );
+    halted_then(halt, "the run", &then)
+}
+
+/// `bisect` whose runs halted: nothing was written.
+pub fn bisect_halted(halt: Halt) -> anyhow::Error {
+    halted_then(halt, "bisection", "then run bisect again (nothing was written)")
+}
+
+fn halted_then(halt: Halt, what: &str, then: &str) -> anyhow::Error {
     match halt {
-        // `shaderc_compiler_initialize` fails only when its allocation does.
         Halt::NoShaderCompiler => coded(
             NO_SHADER_COMPILER,
             format!(
                 "a worker could not start the shader compiler (shaderc), so no cell can be \
-                 compiled and the run stopped: shaderc fails to start only when memory runs out; \
-                 free memory or raise the memory limit (ulimit -v), then run again (the report \
-                 so far: {})",
-                report.display()
+                 compiled and {what} stopped: {}; {then}",
+                no_compiler_cause(),
             ),
         ),
+    }
+}
+
+/// Why a worker's shaderc did not start: the test hook when it is set, else memory.
+fn no_compiler_cause() -> String {
+    match std::env::var(crate::runner::misbehave::ENV) {
+        Ok(v) if v.contains("no_compiler") => {
+            format!("{}={v} made it fail on purpose; unset it", crate::runner::misbehave::ENV)
+        }
+        // `shaderc_compiler_initialize` fails only when its allocation does.
+        _ => "shaderc fails to start only when memory runs out; free memory or raise the memory \
+              limit (ulimit -v)"
+            .into(),
     }
 }
 
@@ -188,7 +211,10 @@ mod tests {
         let line = format!("{e:#}");
         assert!(!line.contains('\n'), "{line}");
         assert!(line.contains("shader compiler (shaderc)") && line.contains("ulimit -v"), "{line}");
-        assert!(line.ends_with("(the report so far: reports/r.json)"), "{line}");
+        assert!(line.contains("--resume reports/r.json"), "{line}");
+        let b = format!("{:#}", bisect_halted(Halt::NoShaderCompiler));
+        assert!(!b.contains('\n') && b.contains("bisection stopped"), "{b}");
+        assert_eq!(code_for(&bisect_halted(Halt::NoShaderCompiler)), NO_SHADER_COMPILER);
     }
 
     #[test]

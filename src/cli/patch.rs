@@ -95,6 +95,11 @@ pub fn patch(a: &PatchArgs) -> Result<u8> {
             coded(exit::BAD_INPUT, format!("{} is not UTF-8 GLSL", input.display()))
         })?;
         let opts = glsl_options(a, input)?;
+        if let Some(note) = opts.target.mapping_note() {
+            if crate::shadergen::glslang::needed_by(&src).is_none() {
+                eprintln!("rtprobe: note: {note}");
+            }
+        }
         let mut c = crate::shadergen::compile::Compiler::new()
             .map_err(|e| coded(exit::NO_SHADER_COMPILER, e))?;
         let name = crate::shadergen::include::display(input);

@@ -121,9 +121,10 @@ pub fn print_list(the_plan: &RunPlan, shard: Option<Shard>, sharded_out: usize) 
     if the_plan.to_run().any(|c| c.heap_access == Some(crate::model::HeapAccess::Direct)) {
         if let Some(g) = crate::shadergen::glslang::find() {
             outln!(
-                "compiler: heap_access=direct shaders by {} {}; all others by shaderc",
+                "compiler: heap_access=direct shaders by {} {}; all others by {}",
                 g.path.display(),
-                g.version
+                g.version,
+                crate::shadergen::compile::SHADERC
             );
         }
     }

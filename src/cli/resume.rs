@@ -116,7 +116,7 @@ fn worker_options(g: &Given, a: &mut RunArgs, r: &RunReport) -> Result<()> {
     g.take("isolation", "--isolation", &mut a.isolation, o.isolation, iso)?;
     // These change no verdict: the report's unless given.
     g.keep("repeat", &mut a.repeat, o.repeat);
-    g.keep("jobs", &mut a.jobs, Some(o.jobs));
+    g.keep("jobs", &mut a.jobs, o.jobs);
     g.keep("threads", &mut a.threads, o.threads);
     let cache = o.pipeline_cache.as_ref().map(|p| p.display().to_string());
     g.keep("pipeline_cache", &mut a.pipeline_cache, Some(cache.unwrap_or_else(|| "off".into())));
@@ -208,7 +208,7 @@ mod tests {
         r.options.inject = vec!["stage=raygen@value".into()];
         r.options.canaries = true;
         r.options.timeout_s = 7.0;
-        r.options.jobs = 3;
+        r.options.jobs = Some(3);
         r.scene.params.seed = 5;
         r
     }

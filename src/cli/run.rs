@@ -356,7 +356,7 @@ fn run_options(
         errln!("rtprobe: note: --validate runs with --threads 1, so that each validation error is counted for the cell that raised it");
     }
     RunOptions {
-        jobs: a.jobs.unwrap_or_else(|| default_jobs(info)),
+        jobs: Some(a.jobs.unwrap_or_else(|| default_jobs(info))),
         threads: Some(threads),
         pipeline_cache: pipeline_cache_dir(a.pipeline_cache.as_deref()),
         rerun_pipeline_cache: None,
@@ -392,7 +392,7 @@ fn supervisor(a: &RunArgs, o: &RunOptions, info: &DeviceInfo, c: &Checked) -> Su
         ..supervisor_options(
             info.index,
             c.params,
-            o.jobs,
+            o.jobs.unwrap_or_else(|| default_jobs(info)),
             o.isolation,
             o.timeout_s,
             o.validate,

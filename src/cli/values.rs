@@ -62,6 +62,9 @@ mod tests {
         // `patch --target-env` defaults to "vulkan1.2"; `GlslOptions` defaults to this.
         assert_eq!(TargetEnv::default().to_possible_value().unwrap().get_name(), "vulkan1.2");
         assert_eq!(TargetEnv::from_str("vulkan1.4", false), Ok(TargetEnv::Vulkan1_4));
+        for t in TargetEnv::value_variants() {
+            assert_eq!(t.to_possible_value().unwrap().get_name(), t.name());
+        }
         assert_eq!(Format::from_str("json", false), Ok(Format::Json));
     }
 }

@@ -1,10 +1,12 @@
-//! What running one cell can fail with, and the outcome each failure means (error → outcome
-//! is decided here once: a lost device is `device_lost` wherever it surfaced).
-use crate::model::Outcome;
+//! What running one cell can fail with, the outcome each failure means (error → outcome is
+//! decided here once: a lost device is `device_lost` wherever it surfaced), and the cell's result
+//! made from it.
+use crate::model::{CellResult, Outcome, Timings};
 use crate::scene::gpu::BuildError;
 use crate::shadergen::compile::CompileError;
-use crate::vk::VkError;
+use crate::vk::{fault, Gpu, VkError};
 use ash::vk;
+use std::time::Duration;
 
 #[derive(Debug, thiserror::Error)]
 pub enum CellError {
@@ -39,6 +41,27 @@ impl CellError {
             CellError::Compile(_) | CellError::Io(_) | CellError::Patch(_) => Outcome::Error,
             CellError::NotImplemented(_) => Outcome::NotImplemented,
             CellError::Unsupported(_) => Outcome::Unsupported,
+        }
+    }
+
+    /// The result of a cell that failed with this error: its outcome, the error as the detail
+    /// (with the fence wait limit `timeout` for a timeout), and after a device loss what the
+    /// device reports on the fault (VK_EXT_device_fault).
+    pub fn result(&self, gpu: &Gpu, timeout: Duration, timings: Timings) -> CellResult {
+        let outcome = self.outcome();
+        let detail = if outcome == Outcome::Timeout {
+            format!("{self} (fence wait limit {timeout:?})")
+        } else {
+            self.to_string()
+        };
+        let fault = if outcome == Outcome::DeviceLost { fault::query(gpu) } else { None };
+        CellResult {
+            outcome,
+            detail: Some(detail),
+            timings,
+            comparison: None,
+            fault,
+            validation_errors: 0,
         }
     }
 }

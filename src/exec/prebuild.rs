@@ -10,10 +10,15 @@
 //! is unusable and no cell of the batch can be blamed. Each unit of work (the threaded GLSL, each
 //! cell's compile and bindings, each pipeline) is reported as a [`Step`], so the supervisor's
 //! deadline measures silence, not the batch's size. Traces still run one cell at a time.
-use super::{Bound, CellError, Compiled, Executor, Pipeline, PipelineInput, Prebuilt};
+use super::built::{Bound, Compiled, PipelineInput, Prebuilt};
+use super::compile::cell_shaders;
+use super::error::CellError;
+use super::executor::Executor;
+use super::pipeline::Pipeline;
 use crate::model::Cell;
 use crate::model::Phase;
 use crate::model::Timings;
+use crate::shadergen::CellShaders;
 use crate::vk::{Gpu, VkError};
 use ash::vk;
 use std::collections::HashSet;
@@ -78,6 +83,14 @@ struct Made(Result<Pipeline, VkError>, f64);
 // no longer touches it once it is handed over.
 unsafe impl Send for Made {}
 
+/// A cell compiled and bound on the calling thread, waiting for its pipeline.
+struct Staged {
+    cell: Cell,
+    timings: Timings,
+    compiled: Compiled,
+    bound: Bound,
+}
+
 impl Executor {
     /// Build `cells` (compile, bind, create pipelines on `threads` threads), keeping each cell's
     /// result for [`Executor::run`]. `progress` is called after every unit of work ([`Step`]).
@@ -89,71 +102,20 @@ impl Executor {
         threads: usize,
         progress: &(dyn Fn(Step) + Sync),
     ) -> Result<PrebuildStats, CellError> {
-        // Each cell's GLSL, generated once; compiled on the threads first (into the compiler's
-        // per-source cache), then taken by each cell's compile in order.
-        let generated: Vec<_> = cells
-            .iter()
-            .map(|c| {
-                super::cell_shaders(
-                    c,
-                    crate::model::inject::roll(&self.opts.inject, c, self.opts.inject_seed)
-                        .as_ref(),
-                )
-            })
-            .collect();
-        if self.opts.spirv_dir.is_none() {
-            let sources: Vec<_> = generated
-                .iter()
-                .flat_map(|g| g.shaders.iter().map(|s| (s.role, s.glsl.as_str())))
-                .collect();
-            self.compiler.precompile(&sources, threads, &|k, n| progress(Step::Glsl(k, n)));
-        }
-        let mut staged: Vec<(Cell, Timings, Compiled, Bound)> = Vec::new();
+        let generated = self.precompile(cells, threads, progress);
+        let mut staged = Vec::new();
         for (k, (cell, shaders)) in cells.iter().zip(generated).enumerate() {
             if let Some(s) = self.stage(cell, shaders)? {
                 staged.push(s);
             }
             progress(Step::Compiled(k + 1, cells.len()));
         }
-        // The first cell of each pipeline not created yet makes it (its timings get the time).
-        let mut seen = HashSet::new();
-        let makers: Vec<usize> = (0..staged.len())
-            .filter(|&i| {
-                !self.pipelines.contains_key(&staged[i].3.pkey) && seen.insert(staged[i].3.pkey)
-            })
-            .collect();
-        let made = {
-            let shared = Shared {
-                gpu: &self.gpu,
-                cache: self.cache,
-                inputs: makers
-                    .iter()
-                    .map(|&i| self.pipeline_input(&staged[i].0, &staged[i].2, &staged[i].3))
-                    .collect(),
-            };
-            create_all(&shared, threads, &|k, n| progress(Step::Pipelines(k, n)))
-        };
-        let mut failed: HashSet<u64> = HashSet::new();
-        for (&i, Made(result, ms)) in makers.iter().zip(made) {
-            staged[i].1.pipeline_ms = ms;
-            match result {
-                Ok(p) => {
-                    self.pipelines.insert(staged[i].3.pkey, p);
-                }
-                Err(e) => {
-                    let e = keep(e.into())?;
-                    failed.insert(staged[i].3.pkey);
-                    let (cell, timings) = (staged[i].0, staged[i].1.clone());
-                    self.prebuilt.insert(
-                        cell.id(),
-                        Prebuilt { timings, phase: Phase::Pipeline, result: Err(e) },
-                    );
-                }
-            }
-        }
+        let makers = self.makers(&staged);
+        let made = self.make_pipelines(&staged, &makers, threads, progress);
+        let failed = self.keep_pipelines(&mut staged, &makers, made)?;
         // A failed pipeline's maker keeps its error (above); the other cells of that pipeline try
         // again at their turn, as they would have without the prebuild.
-        for (cell, timings, _, bound) in staged {
+        for Staged { cell, timings, bound, .. } in staged {
             if !failed.contains(&bound.pkey) {
                 self.prebuilt.insert(
                     cell.id(),
@@ -167,24 +129,112 @@ impl Executor {
         })
     }
 
+    /// Each cell's GLSL, generated once; compiled on the threads first (into the compiler's
+    /// per-source cache), then taken by each cell's compile in order.
+    fn precompile(
+        &mut self,
+        cells: &[Cell],
+        threads: usize,
+        progress: &(dyn Fn(Step) + Sync),
+    ) -> Vec<CellShaders> {
+        let generated: Vec<_> = cells
+            .iter()
+            .map(|c| {
+                cell_shaders(
+                    c,
+                    crate::model::inject::roll(&self.opts.inject, c, self.opts.inject_seed)
+                        .as_ref(),
+                )
+            })
+            .collect();
+        if self.opts.spirv_dir.is_none() {
+            let sources: Vec<_> = generated
+                .iter()
+                .flat_map(|g| g.shaders.iter().map(|s| (s.role, s.glsl.as_str())))
+                .collect();
+            self.compiler.precompile(&sources, threads, &|k, n| progress(Step::Glsl(k, n)));
+        }
+        generated
+    }
+
     /// Compile and bind one cell on the calling thread: `Some` when it is ready for its pipeline;
     /// `None` when its error is kept for its turn; `Err` when the error ends the worker.
-    fn stage(
-        &mut self,
-        cell: &Cell,
-        shaders: crate::shadergen::CellShaders,
-    ) -> Result<Option<(Cell, Timings, Compiled, Bound)>, CellError> {
+    fn stage(&mut self, cell: &Cell, shaders: CellShaders) -> Result<Option<Staged>, CellError> {
         let mut timings = Timings::default();
         let (phase, e) = match self.compile_cell(cell, shaders, &mut timings) {
             Err(e) => (Phase::Compile, e),
             Ok(compiled) => match self.bind_cell(cell, &compiled, &mut timings) {
-                Ok(b) => return Ok(Some((*cell, timings, compiled, b))),
+                Ok(bound) => return Ok(Some(Staged { cell: *cell, timings, compiled, bound })),
                 Err(e) => (Phase::Pipeline, e),
             },
         };
         let e = keep(e)?;
         self.prebuilt.insert(cell.id(), Prebuilt { timings, phase, result: Err(e) });
         Ok(None)
+    }
+
+    /// Which staged cells make a pipeline: the first cell of each pipeline not created yet (its
+    /// timings get the time).
+    fn makers(&self, staged: &[Staged]) -> Vec<usize> {
+        let mut seen = HashSet::new();
+        (0..staged.len())
+            .filter(|&i| {
+                let pkey = staged[i].bound.pkey;
+                !self.pipelines.contains_key(&pkey) && seen.insert(pkey)
+            })
+            .collect()
+    }
+
+    /// The makers' pipelines, created on `threads` threads, in the makers' order.
+    fn make_pipelines(
+        &self,
+        staged: &[Staged],
+        makers: &[usize],
+        threads: usize,
+        progress: &(dyn Fn(Step) + Sync),
+    ) -> Vec<Made> {
+        let shared = Shared {
+            gpu: &self.gpu,
+            cache: self.cache,
+            inputs: makers
+                .iter()
+                .map(|&i| {
+                    let s = &staged[i];
+                    self.pipeline_input(&s.cell, &s.compiled, &s.bound)
+                })
+                .collect(),
+        };
+        create_all(&shared, threads, &|k, n| progress(Step::Pipelines(k, n)))
+    }
+
+    /// Keep each made pipeline, or its error for its maker's turn (with the time in its timings);
+    /// the keys of the pipelines that failed. An error that ends the worker is returned.
+    fn keep_pipelines(
+        &mut self,
+        staged: &mut [Staged],
+        makers: &[usize],
+        made: Vec<Made>,
+    ) -> Result<HashSet<u64>, CellError> {
+        let mut failed: HashSet<u64> = HashSet::new();
+        for (&i, Made(result, ms)) in makers.iter().zip(made) {
+            let s = &mut staged[i];
+            s.timings.pipeline_ms = ms;
+            match result {
+                Ok(p) => {
+                    self.pipelines.insert(s.bound.pkey, p);
+                }
+                Err(e) => {
+                    let e = keep(e.into())?;
+                    failed.insert(s.bound.pkey);
+                    let timings = s.timings.clone();
+                    self.prebuilt.insert(
+                        s.cell.id(),
+                        Prebuilt { timings, phase: Phase::Pipeline, result: Err(e) },
+                    );
+                }
+            }
+        }
+        Ok(failed)
     }
 }
 

@@ -2,7 +2,7 @@
 //! buffer or image per slot (as an engine keeps one SSBO per mesh and one texture per material),
 //! each holding `probe::ELEMENTS` elements `probe::resource_value(kind, slot, element)` (a
 //! buffer's `vec4 v[ELEMENTS]`, an image's 2×2 texels, element e at texel (e & 1, e >> 1)); plus the
-//! TLAS address table. Storage buffers and sampled images also get the packed resource of
+//! TLAS and SSBO address tables. Storage buffers and sampled images also get the packed resource of
 //! `index=dynamic_element` (`probe::PACKED_SLOT`): one buffer with every slot's elements
 //! (`probe::packed_bytes`), or one array image whose layer d holds slot d's texels, and (images)
 //! a one-layer 2D-array view of every slot's own image, so that the whole probed array has the
@@ -12,7 +12,7 @@ use crate::probe;
 use crate::vk::features::PROBE_IMAGE_FORMAT;
 use crate::vk::memory::{transition, Buffer, Image, Transition};
 use crate::vk::submit::{Submitter, Waited};
-use crate::vk::{Gpu, VkError, VkResultExt};
+use crate::vk::{Gpu, VkError};
 use ash::vk;
 use std::time::Duration;
 
@@ -72,146 +72,121 @@ impl ResourceArray {
         submitter: &Submitter,
         timeout: Duration,
     ) -> Result<Self, VkError> {
-        let mut buffers = Vec::new();
-        let mut images = Vec::new();
-        let mut packed = None;
-        let mut array_views = Vec::new();
-        // Every element of a slot, in element order (texels row by row for a 2×2 image).
-        let value_bytes = |slot: u32| -> Vec<u8> {
-            (0..probe::ELEMENTS)
-                .flat_map(|e| probe::resource_value(kind, slot, e))
-                .flat_map(|f| f.to_le_bytes())
-                .collect()
+        let mut array = ResourceArray {
+            buffers: Vec::new(),
+            images: Vec::new(),
+            packed: None,
+            array_views: Vec::new(),
+            max_layers: gpu.info.properties.core.limits.max_image_array_layers,
         };
         match kind {
             Resource::StorageBuffer | Resource::UniformBuffer => {
-                let usage = if kind == Resource::StorageBuffer {
-                    vk::BufferUsageFlags::STORAGE_BUFFER
-                } else {
-                    vk::BufferUsageFlags::UNIFORM_BUFFER
-                };
-                for s in 0..slots {
-                    buffers.push(Buffer::with_data(
-                        gpu,
-                        &value_bytes(s),
-                        usage | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
-                        "probe buffer",
-                    )?);
-                }
-                if kind == Resource::StorageBuffer {
-                    packed = Some(Packed::Buffer(Buffer::with_data(
-                        gpu,
-                        &probe::packed_bytes(kind, slots),
-                        usage | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
-                        "packed probe buffer",
-                    )?));
-                }
+                array.add_buffers(gpu, kind, slots)?
             }
             Resource::SampledImage | Resource::StorageImage => {
-                let usage = vk::ImageUsageFlags::TRANSFER_DST
-                    | if kind == Resource::SampledImage {
-                        vk::ImageUsageFlags::SAMPLED
-                    } else {
-                        vk::ImageUsageFlags::STORAGE
-                    };
-                let extent = vk::Extent2D { width: 2, height: 2 };
-                let mut staging = Vec::new();
-                for s in 0..slots {
-                    images.push(Image::new(gpu, extent, PROBE_IMAGE_FORMAT, usage)?);
-                    staging.push(Buffer::with_data(
-                        gpu,
-                        &value_bytes(s),
-                        vk::BufferUsageFlags::TRANSFER_SRC,
-                        "staging",
-                    )?);
-                }
-                if kind == Resource::SampledImage {
-                    for i in &images {
-                        array_views.push(crate::vk::memory::create_view(
-                            gpu,
-                            i.raw,
-                            PROBE_IMAGE_FORMAT,
-                            Some(1),
-                        )?);
-                    }
-                    if slots <= gpu.info.properties.core.limits.max_image_array_layers {
-                        let img = Image::with_layers(
-                            gpu,
-                            extent,
-                            PROBE_IMAGE_FORMAT,
-                            usage,
-                            Some(slots),
-                        )?;
-                        staging.push(Buffer::with_data(
-                            gpu,
-                            &probe::packed_bytes(kind, slots),
-                            vk::BufferUsageFlags::TRANSFER_SRC,
-                            "staging",
-                        )?);
-                        packed = Some(Packed::Image(img, slots));
-                    }
-                }
-                let packed_image = match &packed {
-                    Some(Packed::Image(img, n)) => Some((img, *n)),
-                    Some(Packed::Buffer(_)) | None => None,
-                };
-                let uploads: Vec<(&Image, u32)> =
-                    images.iter().map(|i| (i, 1)).chain(packed_image).collect();
-                let waited = submitter.run(gpu, timeout, |cmd| unsafe {
-                    for ((img, layers), st) in uploads.iter().zip(&staging) {
-                        let dst = (
-                            vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-                            vk::AccessFlags::TRANSFER_WRITE,
-                            vk::PipelineStageFlags::TRANSFER,
-                        );
-                        let top = (
-                            vk::ImageLayout::UNDEFINED,
-                            vk::AccessFlags::empty(),
-                            vk::PipelineStageFlags::TOP_OF_PIPE,
-                        );
-                        transition(gpu, cmd, img.raw, Transition { from: top, to: dst });
-                        let region = vk::BufferImageCopy::default()
-                            .image_subresource(vk::ImageSubresourceLayers {
-                                aspect_mask: vk::ImageAspectFlags::COLOR,
-                                mip_level: 0,
-                                base_array_layer: 0,
-                                layer_count: *layers,
-                            })
-                            .image_extent(vk::Extent3D { width: 2, height: 2, depth: 1 });
-                        gpu.device.cmd_copy_buffer_to_image(
-                            cmd,
-                            st.raw,
-                            img.raw,
-                            vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-                            &[region],
-                        );
-                        let general = (
-                            vk::ImageLayout::GENERAL,
-                            vk::AccessFlags::SHADER_READ,
-                            vk::PipelineStageFlags::ALL_COMMANDS,
-                        );
-                        transition(gpu, cmd, img.raw, Transition { from: dst, to: general });
-                    }
-                });
-                for st in &staging {
-                    st.destroy(gpu);
-                }
-                if waited? == Waited::TimedOut {
-                    return Err(VkError::Call {
-                        call: "image upload (fence wait)",
-                        result: vk::Result::TIMEOUT,
-                    });
-                }
+                let staging = array.add_images(gpu, kind, slots)?;
+                array.upload(gpu, staging, submitter, timeout)?;
             }
             Resource::AccelerationStructure => {}
         }
-        Ok(ResourceArray {
-            buffers,
-            images,
-            packed,
-            array_views,
-            max_layers: gpu.info.properties.core.limits.max_image_array_layers,
-        })
+        Ok(array)
+    }
+
+    /// One buffer per slot holding its elements and, for storage buffers, the packed buffer.
+    fn add_buffers(&mut self, gpu: &Gpu, kind: Resource, slots: u32) -> Result<(), VkError> {
+        let usage = if kind == Resource::StorageBuffer {
+            vk::BufferUsageFlags::STORAGE_BUFFER
+        } else {
+            vk::BufferUsageFlags::UNIFORM_BUFFER
+        };
+        for s in 0..slots {
+            self.buffers.push(Buffer::with_data(
+                gpu,
+                &value_bytes(kind, s),
+                usage | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+                "probe buffer",
+            )?);
+        }
+        if kind == Resource::StorageBuffer {
+            self.packed = Some(Packed::Buffer(Buffer::with_data(
+                gpu,
+                &probe::packed_bytes(kind, slots),
+                usage | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+                "packed probe buffer",
+            )?));
+        }
+        Ok(())
+    }
+
+    /// One 2×2 image per slot and, for sampled images, a one-layer 2D-array view of each and the
+    /// packed array image (where maxImageArrayLayers allows it); not yet filled. Returns the
+    /// staging buffers holding their texels, in the order [`ResourceArray::upload`] copies them.
+    fn add_images(
+        &mut self,
+        gpu: &Gpu,
+        kind: Resource,
+        slots: u32,
+    ) -> Result<Vec<Buffer>, VkError> {
+        let usage = vk::ImageUsageFlags::TRANSFER_DST
+            | if kind == Resource::SampledImage {
+                vk::ImageUsageFlags::SAMPLED
+            } else {
+                vk::ImageUsageFlags::STORAGE
+            };
+        let mut staging = Vec::new();
+        for s in 0..slots {
+            self.images.push(Image::new(gpu, IMAGE_EXTENT, PROBE_IMAGE_FORMAT, usage)?);
+            staging.push(staging_buffer(gpu, &value_bytes(kind, s))?);
+        }
+        if kind == Resource::SampledImage {
+            for i in &self.images {
+                self.array_views.push(crate::vk::memory::create_view(
+                    gpu,
+                    i.raw,
+                    PROBE_IMAGE_FORMAT,
+                    Some(1),
+                )?);
+            }
+            if slots <= self.max_layers {
+                let img =
+                    Image::with_layers(gpu, IMAGE_EXTENT, PROBE_IMAGE_FORMAT, usage, Some(slots))?;
+                staging.push(staging_buffer(gpu, &probe::packed_bytes(kind, slots))?);
+                self.packed = Some(Packed::Image(img, slots));
+            }
+        }
+        Ok(staging)
+    }
+
+    /// Copy `staging` into the images (each slot's, then the packed image), leaving them in the
+    /// GENERAL layout, and destroy it; a fence wait past `timeout` is an error.
+    fn upload(
+        &self,
+        gpu: &Gpu,
+        staging: Vec<Buffer>,
+        submitter: &Submitter,
+        timeout: Duration,
+    ) -> Result<(), VkError> {
+        let packed_image = match &self.packed {
+            Some(Packed::Image(img, n)) => Some((img, *n)),
+            Some(Packed::Buffer(_)) | None => None,
+        };
+        let uploads: Vec<(&Image, u32)> =
+            self.images.iter().map(|i| (i, 1)).chain(packed_image).collect();
+        let waited = submitter.run(gpu, timeout, |cmd| unsafe {
+            for ((img, layers), st) in uploads.iter().zip(&staging) {
+                record_upload(gpu, cmd, img, *layers, st);
+            }
+        });
+        for st in &staging {
+            st.destroy(gpu);
+        }
+        if waited? == Waited::TimedOut {
+            return Err(VkError::Call {
+                call: "image upload (fence wait)",
+                result: vk::Result::TIMEOUT,
+            });
+        }
+        Ok(())
     }
 
     /// The descriptors of the probed array; `packed` (`index=dynamic_element`): the packed
@@ -282,37 +257,54 @@ impl ResourceArray {
     }
 }
 
-pub fn create_sampler(gpu: &Gpu) -> Result<vk::Sampler, VkError> {
-    unsafe { gpu.device.create_sampler(&sampler_info(), None) }.at("vkCreateSampler")
+/// The probe images' size: 2×2 texels, element e at texel (e & 1, e >> 1).
+const IMAGE_EXTENT: vk::Extent2D = vk::Extent2D { width: 2, height: 2 };
+
+/// Every element of `kind`'s `slot`, in element order (texels row by row for a 2×2 image).
+fn value_bytes(kind: Resource, slot: u32) -> Vec<u8> {
+    (0..probe::ELEMENTS)
+        .flat_map(|e| probe::resource_value(kind, slot, e))
+        .flat_map(|f| f.to_le_bytes())
+        .collect()
 }
 
-/// The probes' sampler: sampler 0 of the sampler heap (`probe::SAMPLER_MODES[0]`, clamp to edge),
-/// the one combined image samplers use.
-pub fn sampler_info() -> vk::SamplerCreateInfo<'static> {
-    sampler_info_for(crate::probe::SAMPLER_MODES[0])
+/// A host buffer holding `bytes` to copy into an image.
+fn staging_buffer(gpu: &Gpu, bytes: &[u8]) -> Result<Buffer, VkError> {
+    Buffer::with_data(gpu, bytes, vk::BufferUsageFlags::TRANSFER_SRC, "staging")
 }
 
-/// A nearest-filtered sampler with `mode` in u, v and w.
-fn sampler_info_for(mode: crate::probe::AddressMode) -> vk::SamplerCreateInfo<'static> {
-    use crate::probe::AddressMode;
-    let mode = match mode {
-        AddressMode::ClampToEdge => vk::SamplerAddressMode::CLAMP_TO_EDGE,
-        AddressMode::Repeat => vk::SamplerAddressMode::REPEAT,
-        AddressMode::MirroredRepeat => vk::SamplerAddressMode::MIRRORED_REPEAT,
-    };
-    vk::SamplerCreateInfo::default()
-        .mag_filter(vk::Filter::NEAREST)
-        .min_filter(vk::Filter::NEAREST)
-        .mipmap_mode(vk::SamplerMipmapMode::NEAREST)
-        .address_mode_u(mode)
-        .address_mode_v(mode)
-        .address_mode_w(mode)
-        .max_lod(0.0)
-}
-
-/// The sampler heap's samplers, in heap order (`probe::SAMPLER_MODES`).
-pub fn heap_sampler_infos() -> Vec<vk::SamplerCreateInfo<'static>> {
-    crate::probe::SAMPLER_MODES.iter().map(|m| sampler_info_for(*m)).collect()
+/// Record the copy of `st` into the first `layers` layers of `img`: UNDEFINED → TRANSFER_DST,
+/// the copy, then GENERAL for shader reads.
+unsafe fn record_upload(gpu: &Gpu, cmd: vk::CommandBuffer, img: &Image, layers: u32, st: &Buffer) {
+    let dst = (
+        vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+        vk::AccessFlags::TRANSFER_WRITE,
+        vk::PipelineStageFlags::TRANSFER,
+    );
+    let top =
+        (vk::ImageLayout::UNDEFINED, vk::AccessFlags::empty(), vk::PipelineStageFlags::TOP_OF_PIPE);
+    transition(gpu, cmd, img.raw, Transition { from: top, to: dst });
+    let region = vk::BufferImageCopy::default()
+        .image_subresource(vk::ImageSubresourceLayers {
+            aspect_mask: vk::ImageAspectFlags::COLOR,
+            mip_level: 0,
+            base_array_layer: 0,
+            layer_count: layers,
+        })
+        .image_extent(vk::Extent3D { width: 2, height: 2, depth: 1 });
+    gpu.device.cmd_copy_buffer_to_image(
+        cmd,
+        st.raw,
+        img.raw,
+        vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+        &[region],
+    );
+    let general = (
+        vk::ImageLayout::GENERAL,
+        vk::AccessFlags::SHADER_READ,
+        vk::PipelineStageFlags::ALL_COMMANDS,
+    );
+    transition(gpu, cmd, img.raw, Transition { from: dst, to: general });
 }
 
 pub fn descriptor_type(kind: Resource) -> vk::DescriptorType {

@@ -37,7 +37,7 @@ pub fn phase_mean(r: &RunReport, phase: &str) -> Option<f64> {
 fn worker_faults(r: &RunReport) -> Vec<(WorkerFault, String)> {
     r.workers
         .iter()
-        .filter(|w| w.outcome.is_finding())
+        .filter(|w| w.is_fault())
         .map(|w| {
             (
                 WorkerFault { phase: w.phase.to_string(), outcome: w.outcome },

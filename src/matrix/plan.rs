@@ -366,6 +366,68 @@ mod tests {
         cells.iter().copied().chain(variants).chain(canaries).collect()
     }
 
+    /// Every shader the plan generates (each cell, its workaround variants, the canaries)
+    /// compiles with the linked shaderc and, after the cell's workaround patches, passes
+    /// spirv-val (when installed): the system shaderc (glslang 12) and the bundled one alike.
+    /// Sources for the external glslangValidator (heap `direct`) are compiled by the heap tests
+    /// in the sid root.
+    #[test]
+    fn every_generated_shader_compiles_and_validates() {
+        use crate::shadergen::{self, compile};
+        let mut sources = std::collections::BTreeMap::new();
+        let mut variants = std::collections::BTreeSet::new();
+        for c in every_cell() {
+            let workarounds = crate::patches::workaround::of_cell(&c);
+            for s in shadergen::generate(&c).shaders {
+                if compile::uses_external(&s.glsl) {
+                    continue;
+                }
+                let key = compile::source_hash(s.role, &s.glsl);
+                variants.insert((key, workarounds.clone()));
+                sources.entry(key).or_insert((s.role, s.glsl, c.id()));
+            }
+        }
+        let mut compiler = compile::Compiler::new().unwrap();
+        let list: Vec<_> = sources.values().map(|(r, g, _)| (*r, g.as_str())).collect();
+        compiler.precompile(&list, 2, &|_, _| {});
+        let mut modules = Vec::new();
+        for (key, workarounds) in &variants {
+            let (role, glsl, id) = &sources[key];
+            let (words, _) = compiler
+                .compile(*role, glsl)
+                .unwrap_or_else(|e| panic!("{id} {role:?}: {e}\n{glsl}"));
+            let mut words = words.to_vec();
+            for w in workarounds {
+                if let Some(p) = crate::patches::workaround::patch_module(&words, *w)
+                    .unwrap_or_else(|e| panic!("{id} {role:?} {w:?}: {e}"))
+                {
+                    words = p;
+                }
+            }
+            modules.push((id.clone(), *role, words));
+        }
+        modules.sort_by(|a, b| a.2.cmp(&b.2));
+        modules.dedup_by(|a, b| a.2 == b.2);
+        let failures: Vec<String> = crate::pool::map(
+            modules.len(),
+            2,
+            || Some(()),
+            |_, i| match crate::patches::validate(&modules[i].2) {
+                crate::patches::Validation::Invalid(m) => {
+                    Some(format!("{} {:?}: {m}", modules[i].0, modules[i].1))
+                }
+                _ => None,
+            },
+            &|_, _| {},
+        )
+        .into_iter()
+        .flatten()
+        .flatten()
+        .collect();
+        assert!(sources.len() > 100, "{} sources", sources.len());
+        assert_eq!(failures, Vec::<String>::new(), "{} modules", modules.len());
+    }
+
     #[test]
     fn the_plan_filters_ids_and_sentences_cover_every_registry_value() {
         use crate::model::registry::{self, AXES};

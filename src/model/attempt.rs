@@ -128,6 +128,18 @@ pub struct WorkerEvent {
     pub device_features: Vec<String>,
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub worker_exit: Option<WorkerExit>,
+    /// Set when this failure stopped the run ([`Halt`]): the machine's state, not the driver's,
+    /// so it is no driver fault — a baseline, the exit code and the summary's worker faults leave
+    /// it out, and a `--resume` after the cause is fixed passes clean.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub halt: Option<Halt>,
+}
+
+impl WorkerEvent {
+    /// A fault of the driver outside any cell: a failing outcome that did not halt the run.
+    pub fn is_fault(&self) -> bool {
+        self.outcome.is_finding() && self.halt.is_none()
+    }
 }
 
 /// What a worker found that no cell of the run can get past: the run stops (its cells left

@@ -7,13 +7,15 @@ use std::path::PathBuf;
 
 /// The options a run was made with (the report's `options`): what `--resume`, `merge`, `bisect`,
 /// `repro` and the renderers read back. Any field a report lacks takes the default an untyped
-/// read gave it before (`Default`: 1 job, worker isolation, 20 s, confirm, `--patches faults`),
+/// read gave it before (`Default`: jobs unknown, worker isolation, 20 s, confirm, `--patches faults`),
 /// and keys this release does not know are kept (`extra`), so rewriting a report (merge,
 /// `--resume`) loses nothing.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(default)]
 pub struct RunOptions {
-    pub jobs: usize,
+    /// Workers at once (`None`: a report without it, or with `null`: readers pick their own
+    /// default, as bisect picks the device's).
+    pub jobs: Option<usize>,
     /// Threads a worker creates pipelines on (absent in reports before the prebuild).
     #[serde(default)]
     pub threads: Option<usize>,
@@ -60,7 +62,7 @@ pub struct RunOptions {
 impl Default for RunOptions {
     fn default() -> RunOptions {
         RunOptions {
-            jobs: 1,
+            jobs: None,
             threads: None,
             pipeline_cache: None,
             rerun_pipeline_cache: None,

@@ -374,7 +374,13 @@ pub struct RunReport {
     pub finished: Option<String>,
     pub complete: bool,
     pub device: Value,
+    /// The caps file's `matrix` object for this device, as informational data no reader
+    /// interprets; its shape is that of the caps schema named in `matrix_support_schema`.
     pub matrix_support: Value,
+    /// The caps schema `matrix_support` follows (absent: `rtprobe.caps/1`'s, which had
+    /// `nonuniform_by_resource` where `/2` has one key per registry axis).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub matrix_support_schema: Option<String>,
     pub scene: SceneSummary,
     pub options: RunOptions,
     pub plan: PlanSummary,
@@ -416,6 +422,7 @@ impl RunReport {
             complete: true,
             device: serde_json::json!({ "name": "test device" }),
             matrix_support: serde_json::json!({}),
+            matrix_support_schema: None,
             scene: SceneSummary {
                 params: SceneParams::default(),
                 instances: 16,
@@ -471,7 +478,7 @@ impl RunReport {
         self.retries = retries;
         t.findings = self.findings().count();
         t.injections_undetected = self.cells.iter().filter(|c| c.injection_undetected).count();
-        t.worker_faults = self.workers.iter().filter(|w| w.outcome.is_finding()).count();
+        t.worker_faults = self.workers.iter().filter(|w| w.is_fault()).count();
         t.flaky = self.findings().filter(|c| c.flaky).count();
         self.summary = m;
         self.tally = t;

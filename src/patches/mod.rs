@@ -121,12 +121,68 @@ pub fn load(bytes: &[u8]) -> Result<Module, PatchError> {
         }
         _ => return Err(PatchError::NotSpirv(format!("bad magic number {magic:#010x}"))),
     };
+    let (words, mode_ids) = take_execution_mode_ids(words);
     match quietly(move || rspirv::dr::load_words(&words)) {
-        Ok(Ok(m)) if m.header.is_some() => Ok(m),
+        Ok(Ok(mut m)) if m.header.is_some() => {
+            for operands in mode_ids {
+                m.execution_modes.push(execution_mode_id(&operands)?);
+            }
+            Ok(m)
+        }
         Ok(Ok(_)) => Err(PatchError::NotSpirv("no header".into())),
         Ok(Err(e)) => Err(PatchError::NotSpirv(e.to_string())),
         Err(p) => Err(PatchError::NotSpirv(format!("unparseable ({p})"))),
     }
+}
+
+/// rspirv 0.13's loader rejects OpExecutionModeId ("not inside block"), which glslang 12 (the
+/// system shaderc's) writes for a compute shader's workgroup size at SPIR-V 1.6
+/// (`OpExecutionModeId %main LocalSizeId %c1 %c1 %c1`). Take those instructions out of the words
+/// (their operands are returned) so the rest loads; [`load`] puts them back among the execution
+/// modes, from where they are assembled unchanged. Words that do not parse are left as they are,
+/// for the loader to report.
+fn take_execution_mode_ids(words: Vec<u32>) -> (Vec<u32>, Vec<Vec<u32>>) {
+    const OP_EXECUTION_MODE_ID: u32 = 331;
+    let mut i = 5;
+    let mut found = Vec::new();
+    while i < words.len() {
+        let count = (words[i] >> 16) as usize;
+        if count == 0 || i + count > words.len() {
+            return (words, vec![]);
+        }
+        if words[i] & 0xffff == OP_EXECUTION_MODE_ID {
+            found.push(i);
+        }
+        i += count;
+    }
+    if found.is_empty() {
+        return (words, vec![]);
+    }
+    let mut rest = words[..5].to_vec();
+    let mut ops = Vec::new();
+    let mut i = 5;
+    while i < words.len() {
+        let count = (words[i] >> 16) as usize;
+        if found.contains(&i) {
+            ops.push(words[i + 1..i + count].to_vec());
+        } else {
+            rest.extend_from_slice(&words[i..i + count]);
+        }
+        i += count;
+    }
+    (rest, ops)
+}
+
+/// `OpExecutionModeId` from its operands: the entry point, the mode, then ids.
+fn execution_mode_id(operands: &[u32]) -> Result<rspirv::dr::Instruction, PatchError> {
+    use rspirv::dr::Operand;
+    let bad = || PatchError::NotSpirv("malformed OpExecutionModeId".into());
+    let (&entry, rest) = operands.split_first().ok_or_else(bad)?;
+    let (&mode, ids) = rest.split_first().ok_or_else(bad)?;
+    let mode = rspirv::spirv::ExecutionMode::from_u32(mode).ok_or_else(bad)?;
+    let mut ops = vec![Operand::IdRef(entry), Operand::ExecutionMode(mode)];
+    ops.extend(ids.iter().map(|&id| Operand::IdRef(id)));
+    Ok(rspirv::dr::Instruction::new(rspirv::spirv::Op::ExecutionModeId, None, None, ops))
 }
 
 /// Apply `patches` in order with `options` (`key=value`, each key belonging to one of them).
@@ -315,6 +371,38 @@ pub fn diff(before: &str, after: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn execution_mode_ids_load_and_assemble_unchanged() {
+        // glslang 12 at SPIR-V 1.6: OpExecutionModeId %main LocalSizeId %c1 %c1 %c1.
+        let mut b = rspirv::dr::Builder::new();
+        b.set_version(1, 6);
+        b.capability(rspirv::spirv::Capability::Shader);
+        b.memory_model(
+            rspirv::spirv::AddressingModel::Logical,
+            rspirv::spirv::MemoryModel::GLSL450,
+        );
+        let void = b.type_void();
+        let fn_ty = b.type_function(void, vec![]);
+        let uint = b.type_int(32, 0);
+        let one = b.constant_bit32(uint, 1);
+        let main =
+            b.begin_function(void, None, rspirv::spirv::FunctionControl::NONE, fn_ty).unwrap();
+        b.begin_block(None).unwrap();
+        b.ret().unwrap();
+        b.end_function().unwrap();
+        b.entry_point(rspirv::spirv::ExecutionModel::GLCompute, main, "main", vec![]);
+        let mut m = b.module();
+        m.execution_modes.push(execution_mode_id(&[main, 38, one, one, one]).unwrap());
+        let words = m.assemble();
+        let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+        let loaded = load(&bytes).expect("loads despite OpExecutionModeId");
+        assert_eq!(assemble(&loaded), words);
+        assert!(disassemble(&loaded).contains("OpExecutionModeId %"), "{}", disassemble(&loaded));
+        // Its operands are checked, not trusted.
+        assert!(execution_mode_id(&[main]).is_err());
+        assert!(execution_mode_id(&[main, 0xdead]).is_err());
+    }
 
     #[test]
     fn load_never_panics_on_arbitrary_bytes() {

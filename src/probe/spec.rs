@@ -197,6 +197,11 @@ fn loads_address(w: Workaround) -> bool {
 
 impl ProbeSpec {
     /// The spec of `cell`: the one place an axis value is given its meaning.
+    ///
+    /// Longer than 80 lines on purpose, not split: it is the one exhaustive match from every
+    /// axis value to what the probe reads, and keeping each value's meaning beside the others is
+    /// what lets the compiler point here when an axis gains a value (split, a new value could be
+    /// handled in one helper and forgotten in another).
     pub fn of(cell: &Cell) -> ProbeSpec {
         let Cell {
             stage,

@@ -55,7 +55,7 @@ fn run_level_failures(r: &RunReport) -> Vec<(String, String, String)> {
         None => r
             .workers
             .iter()
-            .filter(|w| w.outcome.is_finding())
+            .filter(|w| w.is_fault())
             .map(|w| {
                 (
                     format!("worker-{}.{}", w.worker, w.phase),

@@ -123,8 +123,10 @@ fn worker_and_canary_notes(s: &mut String, r: &RunReport) {
             r.options.inject.join("; ")
         );
     }
-    // Worker faults outside any cell (failed setups, crashes between cells, hung teardowns).
-    let faults: Vec<_> = r.workers.iter().filter(|w| w.outcome != Outcome::Pass).collect();
+    // Worker faults outside any cell (failed setups, crashes between cells, hung teardowns); a
+    // worker that halted the run is said by the run's own error line, not as a driver's fault.
+    let faults: Vec<_> =
+        r.workers.iter().filter(|w| w.outcome != Outcome::Pass && w.halt.is_none()).collect();
     if !faults.is_empty() {
         let _ = writeln!(s, "worker faults outside cells ({}):", faults.len());
         for w in faults.iter().take(10) {
@@ -179,7 +181,7 @@ fn spec_and_injection_notes(s: &mut String, r: &RunReport) {
 fn findings(s: &mut String, r: &RunReport) {
     let findings: Vec<_> = r.findings().collect();
     let not_run = r.plan.unsupported + r.plan.not_implemented;
-    let worker_faults = r.workers.iter().filter(|w| w.outcome.is_finding()).count();
+    let worker_faults = r.workers.iter().filter(|w| w.is_fault()).count();
     if findings.is_empty() && worker_faults > 0 {
         let _ = writeln!(
             s,

@@ -60,7 +60,7 @@ fn against_baseline(r: &RunReport, allow_improvements: bool) -> Option<Vec<Strin
 /// The run's verdict (`allow_improvements`: `--allow-improvements`).
 pub fn verdict(r: &RunReport, allow_improvements: bool) -> Verdict {
     let findings = r.findings().count();
-    let worker_faults = r.workers.iter().filter(|w| w.outcome.is_finding()).count();
+    let worker_faults = r.workers.iter().filter(|w| w.is_fault()).count();
     let fail = match (&r.baseline, against_baseline(r, allow_improvements)) {
         (Some(_), Some(why)) => Some(why.join(", ")),
         (Some(_), None) => None,

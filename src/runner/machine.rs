@@ -404,7 +404,11 @@ fn worker_failed(
         outcome.as_str(),
         w.phase
     );
-    fx.push(record(w, w.phase, outcome, Some(detail), Some(exit.clone()), now));
+    let mut event = record(w, w.phase, outcome, Some(detail), Some(exit.clone()), now);
+    if let Effect::Report(Event::Worker(e)) = &mut event {
+        e.halt = halt;
+    }
+    fx.push(event);
     if let Some(h) = halt {
         fx.push(Effect::Report(Event::Halt(h)));
     } else if !w.progressed {
@@ -438,6 +442,7 @@ fn record(
         wall_ms: ms(w.spawned, now),
         device_features: w.device_features.clone(),
         worker_exit,
+        halt: None,
     }))
 }
 

@@ -41,6 +41,7 @@ pub struct Misbehave {
 pub enum SetupStep {
     CreateInstance,
     CreateDevice,
+    Compiler,
     Scene,
 }
 

@@ -80,11 +80,16 @@ struct SetupFailure {
 
 impl From<CellError> for SetupFailure {
     fn from(e: CellError) -> Self {
-        let halt = match e {
-            CellError::Compile(CompileError::Init) => Some(Halt::NoShaderCompiler),
-            _ => None,
-        };
-        SetupFailure { outcome: e.outcome(), message: e.to_string(), halt }
+        SetupFailure { outcome: e.outcome(), message: e.to_string(), halt: halt_of(&e) }
+    }
+}
+
+/// What of `e` no worker can get past: the shader compiler not starting, in setup or on a
+/// prebuild thread alike.
+fn halt_of(e: &CellError) -> Option<Halt> {
+    match e {
+        CellError::Compile(CompileError::Init) => Some(Halt::NoShaderCompiler),
+        _ => None,
     }
 }
 
@@ -129,6 +134,7 @@ fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
         spirv_dir: job.spirv_dir.clone(),
         all_stages: job.binding_stages.as_deref() == Some("all"),
     };
+    phases.enter(Phase::Setup, Some((SetupStep::Compiler, "shader compiler (shaderc)")))?;
     phases.compiler()?;
     let mut exec = Executor::new(gpu, &job.scene, opts)?;
     phases
@@ -178,7 +184,7 @@ fn prebuild(
             send(&WorkerMsg::Fatal {
                 message: format!("building a batch of cells on {threads} threads: {e}"),
                 outcome: e.outcome(),
-                halt: None,
+                halt: halt_of(&e),
             });
             unsafe { libc::_exit(0) };
         }

@@ -1,8 +1,12 @@
 //! GLSL → SPIR-V with shaderc (Vulkan 1.2 / SPIR-V 1.5, no optimization: the driver must see
-//! the shape the cell asks for); sources with GL_EXT_descriptor_heap, which shaderc's glslang
-//! predates, go to an external glslangValidator ([`super::glslang`]). Each distinct source is
-//! compiled once per process. User GLSL (`patch --glsl`) may pick another target and use
-//! `#include` ([`super::include`]) and defines.
+//! the shape the cell asks for); sources that enable an extension shaderc's glslang predates
+//! (GL_EXT_descriptor_heap, ...) go to an external glslangValidator ([`super::glslang`]). Each
+//! distinct source is compiled once per process. User GLSL (`patch --glsl`) may pick another
+//! target and use `#include` ([`super::include`]) and defines.
+//!
+//! shaderc is the system's (shaderc 2023.2 with glslang 12 on Debian 12, linked statically by
+//! build.rs) or, with `--features bundled-shaderc`, its own copy built from source; [`SHADERC`]
+//! says which. Debian 12's predates Vulkan 1.4: [`TargetEnv::compiled_as`].
 use super::include::Includes;
 use super::Role;
 use std::collections::HashMap;
@@ -21,18 +25,25 @@ pub struct Compiler {
     precompiled_ms: HashMap<u64, f64>,
 }
 
-/// The shaderc this binary links (the `shaderc` crate built from source, with the glslang of that
-/// release); a test holds it to Cargo.lock.
-pub const SHADERC: &str = "shaderc-rs 0.10.1 (shaderc built from source)";
+/// The shaderc this binary links: the `shaderc` crate over the system's shaderc, glslang and
+/// SPIRV-Tools (their versions, from build.rs), or over its own copy built from source
+/// (`bundled-shaderc`). Reports and bundles name it; a test holds the crate version to Cargo.lock.
+pub const SHADERC: &str = concat!("shaderc-rs 0.10.1 (", env!("RTPROBE_SHADERC_BUILD"), ")");
 
-/// Whether `glsl` needs the external glslangValidator (it enables GL_EXT_descriptor_heap).
-pub fn uses_heap(glsl: &str) -> bool {
-    glsl.contains(&format!("#extension {} ", super::glslang::HEAP_EXTENSION))
+/// Whether shaderc is the system's (glslang 12 on Debian 12), not the bundled build.
+pub const SYSTEM_SHADERC: bool = cfg!(system_shaderc);
+/// Whether the linked shaderc knows a Vulkan 1.4 environment (the system's 2023.2 does not).
+pub const KNOWS_VULKAN_1_4: bool = !cfg!(shaderc_without_vulkan_1_4);
+
+/// Whether `glsl` needs the external glslangValidator (it enables an extension of
+/// [`super::glslang::EXTENSIONS`], such as GL_EXT_descriptor_heap).
+pub fn uses_external(glsl: &str) -> bool {
+    super::glslang::needed_by(glsl).is_some()
 }
 
 /// The compiler [`Compiler::compile`] uses for `glsl`, with its version.
 pub fn compiler_for(glsl: &str) -> String {
-    if !uses_heap(glsl) {
+    if !uses_external(glsl) {
         return SHADERC.into();
     }
     match super::glslang::find() {
@@ -73,7 +84,7 @@ impl Compiler {
             .iter()
             .map(|&(role, glsl)| (source_hash(role, glsl), role, glsl))
             .filter(|&(key, _, glsl)| {
-                !uses_heap(glsl) && !self.cache.contains_key(&key) && seen.insert(key)
+                !uses_external(glsl) && !self.cache.contains_key(&key) && seen.insert(key)
             })
             .collect();
         if todo.is_empty() {
@@ -111,7 +122,7 @@ impl Compiler {
             return Ok((s.clone(), self.precompiled_ms.remove(&key).unwrap_or(0.0)));
         }
         let t = Instant::now();
-        let words = Arc::new(if uses_heap(glsl) {
+        let words = Arc::new(if uses_external(glsl) {
             super::glslang::compile(role, glsl)?
         } else {
             self.compile_glsl(role.kind(), role.file_name(), glsl)?
@@ -132,6 +143,8 @@ impl Compiler {
 
     /// Compile GLSL with `#include` resolution, macro definitions and a target environment
     /// (`rtprobe patch --glsl`). Errors are one line, each naming its file, line and include chain.
+    /// A source that enables an extension shaderc's glslang predates goes to the external
+    /// glslangValidator with the same target, include folders and defines.
     pub fn compile_user_glsl(
         &mut self,
         kind: shaderc::ShaderKind,
@@ -139,10 +152,32 @@ impl Compiler {
         glsl: &str,
         o: &GlslOptions,
     ) -> Result<Vec<u32>, CompileError> {
+        if let Some(ext) = super::glslang::needed_by(glsl) {
+            let mut args = vec!["--target-env".to_string(), o.target.name().to_string()];
+            let input_dir = o.input.as_ref().and_then(|i| i.parent()).map(|d| {
+                if d.as_os_str().is_empty() {
+                    PathBuf::from(".")
+                } else {
+                    d.to_path_buf()
+                }
+            });
+            for d in input_dir.iter().chain(&o.include_dirs) {
+                args.push(format!("-I{}", d.display()));
+            }
+            for (name, value) in &o.defines {
+                args.push(match value {
+                    Some(v) => format!("-D{name}={v}"),
+                    None => format!("-D{name}"),
+                });
+            }
+            let args: Vec<&str> = args.iter().map(String::as_str).collect();
+            let stage = super::glslang::stage_of_kind(kind);
+            return super::glslang::compile_with(file, stage, glsl, ext, &args);
+        }
         let includes =
             o.input.as_ref().map(|input| Includes::new(input, file, glsl, &o.include_dirs));
         let mut opts = shaderc::CompileOptions::new().map_err(|_| CompileError::Init)?;
-        let (env, spirv) = o.target.versions();
+        let (env, spirv) = o.target.compiled_as().versions();
         opts.set_target_env(shaderc::TargetEnv::Vulkan, env as u32);
         opts.set_target_spirv(spirv);
         for (name, value) in &o.defines {
@@ -180,6 +215,43 @@ pub enum TargetEnv {
 }
 
 impl TargetEnv {
+    /// The `--target-env` name.
+    pub fn name(self) -> &'static str {
+        match self {
+            TargetEnv::Vulkan1_2 => "vulkan1.2",
+            TargetEnv::Vulkan1_3 => "vulkan1.3",
+            TargetEnv::Vulkan1_4 => "vulkan1.4",
+        }
+    }
+
+    /// The environment shaderc is asked for. A system shaderc that predates Vulkan 1.4 (Debian
+    /// 12's 2023.2) would silently compile it for its default environment instead; rtprobe asks it for
+    /// Vulkan 1.3 with SPIR-V 1.6, the SPIR-V version Vulkan 1.4 also uses, and says so
+    /// ([`TargetEnv::mapping_note`]). The bundled shaderc and the external glslangValidator know
+    /// Vulkan 1.4.
+    pub fn compiled_as(self) -> TargetEnv {
+        match self {
+            TargetEnv::Vulkan1_4 if !KNOWS_VULKAN_1_4 => TargetEnv::Vulkan1_3,
+            t => t,
+        }
+    }
+
+    /// What [`TargetEnv::compiled_as`] changed, in a sentence for the user; `None` when nothing.
+    pub fn mapping_note(self) -> Option<String> {
+        let as_ = self.compiled_as();
+        (as_ != self).then(|| {
+            format!(
+                "--target-env {}: compiled for {} (SPIR-V 1.6, as {} uses): the system shaderc \
+                 this rtprobe links predates Vulkan 1.4 ({SHADERC}); a build with --features \
+                 bundled-shaderc compiles for {} itself",
+                self.name(),
+                as_.name(),
+                self.name(),
+                self.name()
+            )
+        })
+    }
+
     fn versions(self) -> (shaderc::EnvVersion, shaderc::SpirvVersion) {
         match self {
             TargetEnv::Vulkan1_2 => (shaderc::EnvVersion::Vulkan1_2, shaderc::SpirvVersion::V1_5),
@@ -218,5 +290,25 @@ mod tests {
         assert_eq!(compiler_for("#version 460\nvoid main() {}\n"), SHADERC);
         assert!(compiler_for("#version 460\n#extension GL_EXT_descriptor_heap : require\n")
             .starts_with("glslangValidator"));
+        assert!(compiler_for("#extension GL_EXT_shader_invocation_reorder : require\n")
+            .starts_with("glslangValidator"));
+        assert_eq!(compiler_for("#extension GL_NV_shader_invocation_reorder : require\n"), SHADERC);
+    }
+
+    #[test]
+    fn vulkan1_4_is_mapped_only_for_a_shaderc_without_it() {
+        assert_eq!(SHADERC.contains("system shaderc"), SYSTEM_SHADERC, "{SHADERC}");
+        const { assert!(KNOWS_VULKAN_1_4 || SYSTEM_SHADERC, "the bundled shaderc knows Vulkan 1.4") };
+        for t in [TargetEnv::Vulkan1_2, TargetEnv::Vulkan1_3] {
+            assert_eq!((t.compiled_as(), t.mapping_note()), (t, None));
+        }
+        let t = TargetEnv::Vulkan1_4;
+        if !KNOWS_VULKAN_1_4 {
+            assert_eq!(t.compiled_as(), TargetEnv::Vulkan1_3);
+            let note = t.mapping_note().unwrap();
+            assert!(note.contains("compiled for vulkan1.3") && note.contains("glslang "), "{note}");
+        } else {
+            assert_eq!((t.compiled_as(), t.mapping_note()), (t, None));
+        }
     }
 }

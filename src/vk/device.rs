@@ -310,108 +310,112 @@ impl Chosen {
 
     /// The extension names, then each feature bit given as true (Vulkan spelling).
     fn names(&self, req: &Requirements) -> Vec<String> {
-        let (core, v12) = (&self.core, &self.v12);
-        let mut names: Vec<String> =
-            self.exts.iter().map(|e| e.to_string_lossy().into_owned()).collect();
-        let on = |name: &str, bit: vk::Bool32, chained: bool| {
-            (chained && bit == vk::TRUE).then(|| name.to_string())
-        };
-        let rtq = req.rt_pipeline || req.ray_query;
-        names.extend(
-            [
-                on("shaderInt64", core.shader_int64, true),
-                on("fragmentStoresAndAtomics", core.fragment_stores_and_atomics, true),
-                on(
-                    "shaderStorageBufferArrayDynamicIndexing",
-                    core.shader_storage_buffer_array_dynamic_indexing,
-                    true,
-                ),
-                on(
-                    "shaderUniformBufferArrayDynamicIndexing",
-                    core.shader_uniform_buffer_array_dynamic_indexing,
-                    true,
-                ),
-                on(
-                    "shaderSampledImageArrayDynamicIndexing",
-                    core.shader_sampled_image_array_dynamic_indexing,
-                    true,
-                ),
-                on(
-                    "shaderStorageImageArrayDynamicIndexing",
-                    core.shader_storage_image_array_dynamic_indexing,
-                    true,
-                ),
-                on("bufferDeviceAddress", v12.buffer_device_address, true),
-                on("descriptorIndexing", v12.descriptor_indexing, true),
-                on("runtimeDescriptorArray", v12.runtime_descriptor_array, true),
-                on("descriptorBindingPartiallyBound", v12.descriptor_binding_partially_bound, true),
-                on(
-                    "descriptorBindingVariableDescriptorCount",
-                    v12.descriptor_binding_variable_descriptor_count,
-                    true,
-                ),
-                on(
-                    "shaderStorageBufferArrayNonUniformIndexing",
-                    v12.shader_storage_buffer_array_non_uniform_indexing,
-                    true,
-                ),
-                on(
-                    "shaderUniformBufferArrayNonUniformIndexing",
-                    v12.shader_uniform_buffer_array_non_uniform_indexing,
-                    true,
-                ),
-                on(
-                    "shaderSampledImageArrayNonUniformIndexing",
-                    v12.shader_sampled_image_array_non_uniform_indexing,
-                    true,
-                ),
-                on(
-                    "shaderStorageImageArrayNonUniformIndexing",
-                    v12.shader_storage_image_array_non_uniform_indexing,
-                    true,
-                ),
-                on(
-                    "descriptorBindingStorageBufferUpdateAfterBind",
-                    v12.descriptor_binding_storage_buffer_update_after_bind,
-                    true,
-                ),
-                on(
-                    "descriptorBindingUniformBufferUpdateAfterBind",
-                    v12.descriptor_binding_uniform_buffer_update_after_bind,
-                    true,
-                ),
-                on(
-                    "descriptorBindingSampledImageUpdateAfterBind",
-                    v12.descriptor_binding_sampled_image_update_after_bind,
-                    true,
-                ),
-                on(
-                    "descriptorBindingStorageImageUpdateAfterBind",
-                    v12.descriptor_binding_storage_image_update_after_bind,
-                    true,
-                ),
-                on("dynamicRendering", self.v13.dynamic_rendering, req.dynamic_rendering),
-                on("accelerationStructure", self.accel.acceleration_structure, rtq),
-                on(
-                    "descriptorBindingAccelerationStructureUpdateAfterBind",
-                    self.accel.descriptor_binding_acceleration_structure_update_after_bind,
-                    rtq,
-                ),
-                on("rayTracingPipeline", self.rt.ray_tracing_pipeline, req.rt_pipeline),
-                on("rayQuery", self.rq.ray_query, req.ray_query),
-                on("descriptorBuffer", self.db.descriptor_buffer, req.descriptor_buffer),
-                on("deviceFault", self.fault.device_fault, req.device_fault),
-                on(
-                    "deviceFaultVendorBinary",
-                    self.fault.device_fault_vendor_binary,
-                    req.device_fault,
-                ),
-            ]
-            .into_iter()
-            .flatten(),
-        );
-        names
+        let exts = self.exts.iter().map(|e| e.to_string_lossy().into_owned());
+        let bits = [self.core_names(), self.v12_names(), self.extension_names(req)];
+        exts.chain(bits.into_iter().flatten().flatten()).collect()
     }
+
+    /// The Vulkan 1.0 feature bits given as true.
+    fn core_names(&self) -> Vec<Option<String>> {
+        let core = &self.core;
+        vec![
+            given("shaderInt64", core.shader_int64),
+            given("fragmentStoresAndAtomics", core.fragment_stores_and_atomics),
+            given(
+                "shaderStorageBufferArrayDynamicIndexing",
+                core.shader_storage_buffer_array_dynamic_indexing,
+            ),
+            given(
+                "shaderUniformBufferArrayDynamicIndexing",
+                core.shader_uniform_buffer_array_dynamic_indexing,
+            ),
+            given(
+                "shaderSampledImageArrayDynamicIndexing",
+                core.shader_sampled_image_array_dynamic_indexing,
+            ),
+            given(
+                "shaderStorageImageArrayDynamicIndexing",
+                core.shader_storage_image_array_dynamic_indexing,
+            ),
+        ]
+    }
+
+    /// The Vulkan 1.2 feature bits given as true.
+    fn v12_names(&self) -> Vec<Option<String>> {
+        let v12 = &self.v12;
+        vec![
+            given("bufferDeviceAddress", v12.buffer_device_address),
+            given("descriptorIndexing", v12.descriptor_indexing),
+            given("runtimeDescriptorArray", v12.runtime_descriptor_array),
+            given("descriptorBindingPartiallyBound", v12.descriptor_binding_partially_bound),
+            given(
+                "descriptorBindingVariableDescriptorCount",
+                v12.descriptor_binding_variable_descriptor_count,
+            ),
+            given(
+                "shaderStorageBufferArrayNonUniformIndexing",
+                v12.shader_storage_buffer_array_non_uniform_indexing,
+            ),
+            given(
+                "shaderUniformBufferArrayNonUniformIndexing",
+                v12.shader_uniform_buffer_array_non_uniform_indexing,
+            ),
+            given(
+                "shaderSampledImageArrayNonUniformIndexing",
+                v12.shader_sampled_image_array_non_uniform_indexing,
+            ),
+            given(
+                "shaderStorageImageArrayNonUniformIndexing",
+                v12.shader_storage_image_array_non_uniform_indexing,
+            ),
+            given(
+                "descriptorBindingStorageBufferUpdateAfterBind",
+                v12.descriptor_binding_storage_buffer_update_after_bind,
+            ),
+            given(
+                "descriptorBindingUniformBufferUpdateAfterBind",
+                v12.descriptor_binding_uniform_buffer_update_after_bind,
+            ),
+            given(
+                "descriptorBindingSampledImageUpdateAfterBind",
+                v12.descriptor_binding_sampled_image_update_after_bind,
+            ),
+            given(
+                "descriptorBindingStorageImageUpdateAfterBind",
+                v12.descriptor_binding_storage_image_update_after_bind,
+            ),
+        ]
+    }
+
+    /// The feature bits of Vulkan 1.3 and the extensions given as true, where `req` chains their
+    /// structs.
+    fn extension_names(&self, req: &Requirements) -> Vec<Option<String>> {
+        let rtq = req.rt_pipeline || req.ray_query;
+        vec![
+            on("dynamicRendering", self.v13.dynamic_rendering, req.dynamic_rendering),
+            on("accelerationStructure", self.accel.acceleration_structure, rtq),
+            on(
+                "descriptorBindingAccelerationStructureUpdateAfterBind",
+                self.accel.descriptor_binding_acceleration_structure_update_after_bind,
+                rtq,
+            ),
+            on("rayTracingPipeline", self.rt.ray_tracing_pipeline, req.rt_pipeline),
+            on("rayQuery", self.rq.ray_query, req.ray_query),
+            on("descriptorBuffer", self.db.descriptor_buffer, req.descriptor_buffer),
+            on("deviceFault", self.fault.device_fault, req.device_fault),
+            on("deviceFaultVendorBinary", self.fault.device_fault_vendor_binary, req.device_fault),
+        ]
+    }
+}
+
+/// `name` when `bit` is true in a struct that is `chained` (given to vkCreateDevice).
+fn on(name: &str, bit: vk::Bool32, chained: bool) -> Option<String> {
+    (chained && bit == vk::TRUE).then(|| name.to_string())
+}
+
+/// `name` when `bit` is true in a struct that is always chained (1.0, 1.2).
+fn given(name: &str, bit: vk::Bool32) -> Option<String> {
+    on(name, bit, true)
 }
 
 impl Gpu {

@@ -1,0 +1,99 @@
+//! The first half of phase `pipeline`: a cell's resources (built by `prepare`), its layout key
+//! (stages, model, which bindings, heap direct or mapped, packed), its descriptor binding (cached
+//! per key), the addresses its push constants carry and the key of its pipeline.
+use super::bindings::{Binding, LayoutKey};
+use super::built::{Addresses, Bound, Compiled};
+use super::error::CellError;
+use super::executor::Executor;
+use super::pipeline_key;
+use crate::model::{Cell, Timings};
+use crate::probe::spec::{ArrayAt, ProbeSpec};
+use crate::shadergen::{CellShaders, PipelineKind};
+use ash::vk;
+use std::time::Instant;
+
+/// The stages of a pipeline of `kind`: all of them see the bindings and push constants.
+fn stages(kind: PipelineKind) -> vk::ShaderStageFlags {
+    match kind {
+        PipelineKind::RayTracing => {
+            vk::ShaderStageFlags::RAYGEN_KHR
+                | vk::ShaderStageFlags::MISS_KHR
+                | vk::ShaderStageFlags::CLOSEST_HIT_KHR
+                | vk::ShaderStageFlags::ANY_HIT_KHR
+                | vk::ShaderStageFlags::INTERSECTION_KHR
+                | vk::ShaderStageFlags::CALLABLE_KHR
+        }
+        PipelineKind::Graphics => vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT,
+        PipelineKind::Compute => vk::ShaderStageFlags::COMPUTE,
+    }
+}
+
+impl Executor {
+    /// Resources (built by `prepare`), descriptor bindings (cached per layout) and the key of the
+    /// cell's pipeline: the first half of phase `pipeline`.
+    pub(super) fn bind_cell(
+        &mut self,
+        cell: &Cell,
+        c: &Compiled,
+        timings: &mut Timings,
+    ) -> Result<Bound, CellError> {
+        let t = Instant::now();
+        let spec = ProbeSpec::of(cell);
+        self.ensure_resources(cell, &c.shaders)?;
+        let key = self.layout_key(&spec, &c.shaders);
+        self.ensure_binding(key)?;
+        let addresses = self.addresses(&spec);
+        timings.setup_ms = t.elapsed().as_secs_f64() * 1e3;
+        // pipeline (reused for identical SPIR-V and model)
+        let pkey = pipeline_key::of(c, &spec, key);
+        Ok(Bound { key, pkey, addresses, dropped: c.dropped })
+    }
+
+    /// The layout key of a cell with `spec` and `shaders`.
+    fn layout_key(&self, spec: &ProbeSpec, shaders: &CellShaders) -> LayoutKey {
+        // RTPROBE_BINDING_STAGES=all: declare bindings and push constants for VK_SHADER_STAGE_ALL
+        // instead of the pipeline's stages (reproduces reports/lavapipe/FINDINGS.md).
+        let stages =
+            if self.opts.all_stages { vk::ShaderStageFlags::ALL } else { stages(shaders.kind) };
+        LayoutKey {
+            stages,
+            model: spec.model,
+            scene_tlas: shaders.uses_scene_tlas,
+            probe: shaders.uses_probe_binding.then_some(spec.resource),
+            heap_direct: spec.array == ArrayAt::Heap,
+            packed: spec.packed(),
+        }
+    }
+
+    /// The binding of `key`, created (with its targets) unless it exists.
+    fn ensure_binding(&mut self, key: LayoutKey) -> Result<(), CellError> {
+        if !self.bindings.contains_key(&key) {
+            let targets = self.targets(key)?;
+            let b = Binding::create(&self.gpu, key, &targets)?;
+            self.bindings.insert(key, b);
+        }
+        Ok(())
+    }
+
+    /// The addresses a cell with `spec` pushes: its address tables and per-instance bases (built
+    /// by `ensure_resources`).
+    fn addresses(&self, spec: &ProbeSpec) -> Addresses {
+        // The table the address patches read at push-constant offset probe::PATCHED_TABLE_OFFSET
+        // (PushConstants::as_table is the hand-written address variant's).
+        let mut patched_table = 0;
+        if spec.addresses.ssbo_table {
+            patched_table = self.ssbo_table.as_ref().map(|b| b.address).unwrap_or(0);
+        }
+        let mut as_table = 0;
+        if spec.addresses.as_table {
+            as_table = self.as_table.as_ref().map(|b| b.address).unwrap_or(0);
+            patched_table = as_table;
+        }
+        let base = if spec.instance_bases() {
+            self.bases.as_ref().map(|b| b.address).unwrap_or(0)
+        } else {
+            0
+        };
+        Addresses { as_table, patched_table, base }
+    }
+}

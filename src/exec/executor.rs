@@ -1,0 +1,162 @@
+//! The executor of one device ([`Executor`]): what it holds (the scene and its CPU reference,
+//! the shader compiler, the submitter, the records buffer, the sampler, the pipeline cache, and
+//! what cells made: scene acceleration structures, resource arrays, address tables, the color
+//! target, bindings, pipelines, prebuilt cells), its options, its creation and teardown, and the
+//! pipeline cache saved back.
+use super::bindings::{Binding, LayoutKey};
+use super::built::Prebuilt;
+use super::error::CellError;
+use super::pipeline::Pipeline;
+use super::pipeline_cache;
+use super::resources::ResourceArray;
+use super::samplers;
+use crate::model::{Phase, Resource, SceneParams};
+use crate::probe::RECORD_SIZE;
+use crate::reference::SceneReference;
+use crate::scene::gpu::SceneGpu;
+use crate::scene::Scene;
+use crate::shadergen::compile::Compiler;
+use crate::vk::memory::{Buffer, Image, Location};
+use crate::vk::submit::Submitter;
+use crate::vk::{Gpu, VkError};
+use ash::vk;
+use std::collections::HashMap;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+#[derive(Clone, Debug)]
+pub struct ExecOptions {
+    /// Fence deadline per submission.
+    pub timeout: Duration,
+    /// `--inject-fault`: cells matching one of these misbehave at the probed read.
+    pub inject: Vec<crate::model::Injection>,
+    /// Seed of this worker's flaky-injection dice (recorded in each injected result).
+    pub inject_seed: u64,
+    /// Write each cell's GLSL and SPIR-V under this folder, and pictures of each mismatch.
+    pub dump: Option<PathBuf>,
+    /// A repro bundle's `shaders/`: each module is read from `<role file>.spv` there (already
+    /// patched as the cell says) instead of compiled.
+    pub spirv_dir: Option<PathBuf>,
+    /// Folder of the persisted pipeline caches (`None`: an empty cache, nothing saved).
+    pub pipeline_cache: Option<PathBuf>,
+    /// `RTPROBE_BINDING_STAGES=all` of the run (the job file's `binding_stages`).
+    pub all_stages: bool,
+}
+
+/// Told each phase a cell (or the setup) enters; an error ends the cell there (the worker's
+/// fault injection uses it to stand in for a device loss).
+pub type PhaseHook<'a> = &'a mut dyn FnMut(Phase) -> Result<(), VkError>;
+
+pub struct Executor {
+    pub gpu: Gpu,
+    pub(super) scene: Scene,
+    pub(super) sref: SceneReference,
+    pub(super) opts: ExecOptions,
+    pub(super) compiler: Compiler,
+    pub(super) submitter: Submitter,
+    pub(super) records: Buffer,
+    pub(super) sampler: vk::Sampler,
+    pub(super) cache: vk::PipelineCache,
+    pub(super) scene_gpu: Option<SceneGpu>,
+    pub(super) arrays: HashMap<Resource, ResourceArray>,
+    pub(super) as_table: Option<Buffer>,
+    pub(super) ssbo_table: Option<Buffer>,
+    /// `base=buffer`: one base per scene instance (`probe::base_buffer`).
+    pub(super) bases: Option<Buffer>,
+    pub(super) color: Option<Image>,
+    pub(super) bindings: HashMap<LayoutKey, Binding>,
+    pub(super) pipelines: HashMap<u64, Pipeline>,
+    /// Cells compiled and bound ahead of their turn, with their pipelines, by cell id.
+    pub(super) prebuilt: HashMap<String, Prebuilt>,
+    /// Where the pipeline cache came from and what was loaded.
+    pub cache_status: Option<pipeline_cache::Loaded>,
+    /// Milliseconds the CPU reference took.
+    pub reference_ms: f64,
+}
+
+impl Executor {
+    /// The shader compiler failing to start is `CellError::Compile(CompileError::Init)`, not a
+    /// Vulkan error: the worker's setup reports it as such.
+    pub fn new(gpu: Gpu, params: &SceneParams, opts: ExecOptions) -> Result<Self, CellError> {
+        let scene = Scene::build(params);
+        let t = Instant::now();
+        let sref = SceneReference::compute(&scene);
+        let reference_ms = t.elapsed().as_secs_f64() * 1e3;
+        let compiler = Compiler::new()?;
+        let submitter = Submitter::new(&gpu)?;
+        let records = Buffer::new(
+            &gpu,
+            (params.pixels() * RECORD_SIZE) as u64,
+            vk::BufferUsageFlags::STORAGE_BUFFER
+                | vk::BufferUsageFlags::TRANSFER_DST
+                | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+            Location::Host,
+            "records",
+        )?;
+        let sampler = samplers::create_sampler(&gpu)?;
+        let (cache, cache_status) = pipeline_cache::open(&gpu, opts.pipeline_cache.as_deref())?;
+        Ok(Executor {
+            gpu,
+            scene,
+            sref,
+            opts,
+            compiler,
+            submitter,
+            records,
+            sampler,
+            cache,
+            scene_gpu: None,
+            arrays: HashMap::new(),
+            as_table: None,
+            ssbo_table: None,
+            bases: None,
+            color: None,
+            bindings: HashMap::new(),
+            pipelines: HashMap::new(),
+            prebuilt: HashMap::new(),
+            cache_status,
+            reference_ms,
+        })
+    }
+
+    /// Write the pipeline cache back to its file (merged with what is there): the bytes written;
+    /// `None` without a cache folder. The error is text: the worker sends it as it is
+    /// (`WorkerMsg::CacheSaved`).
+    pub fn save_pipeline_cache(&self) -> Option<Result<u64, String>> {
+        let path = &self.cache_status.as_ref()?.path;
+        Some(pipeline_cache::save(&self.gpu, self.cache, path).map_err(|e| e.to_string()))
+    }
+}
+
+impl Drop for Executor {
+    fn drop(&mut self) {
+        let gpu = &self.gpu;
+        unsafe {
+            let _ = gpu.device.device_wait_idle();
+        }
+        for p in self.pipelines.values() {
+            p.destroy(gpu);
+        }
+        for b in self.bindings.values() {
+            b.destroy(gpu);
+        }
+        for a in self.arrays.values() {
+            a.destroy(gpu);
+        }
+        for t in self.as_table.iter().chain(self.ssbo_table.iter()).chain(self.bases.iter()) {
+            t.destroy(gpu);
+        }
+        if let Some(c) = &self.color {
+            c.destroy(gpu);
+        }
+        if let Some(s) = &self.scene_gpu {
+            s.destroy(gpu);
+        }
+        self.records.destroy(gpu);
+        self.submitter.destroy(gpu);
+        unsafe {
+            gpu.device.destroy_sampler(self.sampler, None);
+            gpu.device.destroy_pipeline_cache(self.cache, None);
+        }
+    }
+}

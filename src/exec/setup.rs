@@ -1,0 +1,156 @@
+//! What cells need built on the device before they bind: the scene's acceleration structures,
+//! the probed resource arrays, the SSBO and AS address tables, the per-instance bases and the color
+//! target (all built once, normally by [`Executor::prepare`] before the first cell), and the
+//! targets of a layout's bindings 0..=2 taken from them.
+use super::bindings::LayoutKey;
+use super::error::CellError;
+use super::executor::Executor;
+use super::pipeline;
+use super::resources::{self, ResourceArray, Target};
+use crate::model::{Cell, Outcome, Resource};
+use crate::probe;
+use crate::probe::spec::ProbeSpec;
+use crate::scene::gpu::SceneGpu;
+use crate::shadergen::{self, PipelineKind};
+use crate::vk::memory::{Buffer, Image};
+use ash::vk;
+
+impl Executor {
+    /// Build everything `cells` need before any of them runs: the scene's acceleration
+    /// structures, resource arrays, address tables, the color target. A device loss or a fence
+    /// timeout here is the worker's setup fault (no cell ran on this device). A plain creation
+    /// error (say, a format the driver refuses) is left to the cells that need that resource:
+    /// they retry it and report it as their own `error`.
+    pub fn prepare(&mut self, cells: &[Cell]) -> Result<(), CellError> {
+        for cell in cells {
+            let shaders = shadergen::generate(cell);
+            if let Err(e) = self.ensure_resources(cell, &shaders) {
+                if e.outcome() != Outcome::Error {
+                    return Err(e);
+                }
+                tracing::warn!("setup for {}: {e}; left to the cell", cell.id());
+            }
+        }
+        Ok(())
+    }
+
+    fn ensure_scene(&mut self) -> Result<&SceneGpu, CellError> {
+        if self.scene_gpu.is_none() {
+            self.scene_gpu =
+                Some(SceneGpu::build(&self.gpu, &self.scene, &self.submitter, self.opts.timeout)?);
+        }
+        Ok(self.scene_gpu.as_ref().expect("built above"))
+    }
+
+    fn slots(&self, r: Resource) -> u32 {
+        probe::slot_count(r, self.scene.params.instances)
+    }
+
+    /// Targets of bindings 0..=2 for `key`, creating what is missing.
+    pub(super) fn targets(
+        &mut self,
+        key: LayoutKey,
+    ) -> Result<Vec<(u32, Resource, Vec<Target>)>, CellError> {
+        let mut t = vec![(
+            0,
+            Resource::StorageBuffer,
+            vec![Target::Buffer {
+                raw: self.records.raw,
+                address: self.records.address,
+                range: self.records.size,
+            }],
+        )];
+        if key.scene_tlas {
+            let s = self.ensure_scene()?;
+            t.push((
+                1,
+                Resource::AccelerationStructure,
+                vec![Target::Accel { raw: s.scene_tlas.raw, address: s.scene_tlas.address }],
+            ));
+        }
+        if let Some(r) = key.probe {
+            let slots = self.slots(r);
+            let targets = if r == Resource::AccelerationStructure {
+                let s = self.ensure_scene()?;
+                (0..slots)
+                    .map(|k| {
+                        let a = &s.probe_tlas[probe::as_slot_tlas(k)];
+                        Target::Accel { raw: a.raw, address: a.address }
+                    })
+                    .collect()
+            } else {
+                self.ensure_array(r)?;
+                self.arrays[&r].targets(self.sampler, r, key.packed).map_err(|e| match e {
+                    resources::PackedError::TooManyLayers { .. } => {
+                        CellError::Unsupported(e.to_string())
+                    }
+                    resources::PackedError::NoPacked(_) => CellError::NotImplemented(e.to_string()),
+                })?
+            };
+            t.push((2, r, targets));
+        }
+        Ok(t)
+    }
+
+    /// The scene, resource arrays, address tables and color target `cell` needs (built once,
+    /// normally by [`Executor::prepare`]).
+    pub(super) fn ensure_resources(
+        &mut self,
+        cell: &Cell,
+        shaders: &shadergen::CellShaders,
+    ) -> Result<(), CellError> {
+        let spec = ProbeSpec::of(cell);
+        if shaders.kind == PipelineKind::RayTracing
+            || shaders.uses_scene_tlas
+            || spec.resource == Resource::AccelerationStructure
+        {
+            self.ensure_scene()?;
+        }
+        if shaders.uses_probe_binding && spec.resource != Resource::AccelerationStructure {
+            self.ensure_array(spec.resource)?;
+        }
+        if spec.addresses.ssbo_table && self.ssbo_table.is_none() {
+            self.ensure_array(Resource::StorageBuffer)?;
+            let addrs: Vec<u64> =
+                self.arrays[&Resource::StorageBuffer].buffers.iter().map(|b| b.address).collect();
+            self.ssbo_table =
+                Some(resources::address_table(&self.gpu, &addrs, "SSBO address table")?);
+        }
+        if spec.addresses.as_table && self.as_table.is_none() {
+            let s = self.ensure_scene()?;
+            let addrs: Vec<u64> = s.probe_tlas.iter().map(|t| t.address).collect();
+            let slots = self.slots(Resource::AccelerationStructure);
+            self.as_table = Some(resources::as_table(&self.gpu, &addrs, slots)?);
+        }
+        if spec.instance_bases() && self.bases.is_none() {
+            let bytes = probe::base_buffer(self.scene.params.instances);
+            let usage =
+                vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+            self.bases = Some(Buffer::with_data(&self.gpu, &bytes, usage, "per-instance bases")?);
+        }
+        if shaders.kind == PipelineKind::Graphics && self.color.is_none() {
+            let (w, h) = (self.scene.params.width, self.scene.params.height);
+            self.color = Some(Image::new(
+                &self.gpu,
+                vk::Extent2D { width: w, height: h },
+                pipeline::COLOR_FORMAT,
+                vk::ImageUsageFlags::COLOR_ATTACHMENT,
+            )?);
+        }
+        Ok(())
+    }
+
+    fn ensure_array(&mut self, r: Resource) -> Result<(), CellError> {
+        if !self.arrays.contains_key(&r) {
+            let a = ResourceArray::create(
+                &self.gpu,
+                r,
+                self.slots(r),
+                &self.submitter,
+                self.opts.timeout,
+            )?;
+            self.arrays.insert(r, a);
+        }
+        Ok(())
+    }
+}
