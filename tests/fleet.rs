@@ -62,7 +62,9 @@ fn shards_merged_equal_the_unsharded_run() {
     let mut args = vec!["merge", "-o", merged.to_str().unwrap()];
     args.extend(parts.iter().map(|p| p.to_str().unwrap()));
     let o = run(&args);
-    assert!(o.status.success(), "{}", stderr(&o));
+    // The merged report's verdict is the run's: the injected fault is a finding (exit 1).
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stdout(&o).trim_end().ends_with("verdict: FAIL — 2 findings"), "{}", stdout(&o));
     let (a, m) = (report(&all), report(&merged));
     assert_eq!(verdicts(&a), verdicts(&m), "same cells, same verdicts");
     assert_eq!(a["plan"]["planned"], m["plan"]["planned"]);
@@ -118,7 +120,11 @@ fn a_baseline_expects_known_faults_and_names_new_ones() {
         &["--inject-fault", KNOWN, "--baseline", base.to_str().unwrap()],
     );
     assert_eq!(o.status.code(), Some(0), "{}", stdout(&o));
-    assert!(stdout(&o).contains("0 regressions, 0 missing, 0 improvements"), "{}", stdout(&o));
+    assert!(
+        stdout(&o).contains("0 regressions, 0 missing, 0 unexpected passes"),
+        "{}",
+        stdout(&o)
+    );
     // A new fault fails it, naming the cell.
     let (r, o) = run_to(
         dir.path(),
@@ -138,7 +144,7 @@ fn a_baseline_expects_known_faults_and_names_new_ones() {
     // The known faults gone: an improvement, failing unless allowed.
     let (_, o) = run_to(dir.path(), "fixed.json", &["--baseline", base.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
-    assert!(stdout(&o).contains("UNEXPECTED IMPROVEMENT"), "{}", stdout(&o));
+    assert!(stdout(&o).contains("UnexpectedPass: miss.storage_buffer.literal.descriptor_indexing expected mismatch got pass (update the baseline"), "{}", stdout(&o));
     let (_, o) = run_to(
         dir.path(),
         "fixed2.json",
