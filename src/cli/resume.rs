@@ -1,6 +1,6 @@
 //! `run --resume REPORT`: the run's arguments taken from the report it continues — device,
 //! scene, filters, skips, injections, canaries, patches, confirmation, isolation, deadlines,
-//! shard, validation, repeats, workers and threads — so that `rtprobe run --resume REPORT` alone
+//! shard, validation, lane evidence, mutants, repeats, workers and threads — so that `rtprobe run --resume REPORT` alone
 //! finishes the run. An argument given here (on the command line or through its variable) that
 //! differs from the report's is refused: that would be another run. What the report does not
 //! keep (`--baseline`, `--junit`, `--output-dir`, `--flakes`, `--dump`) is given again; the
@@ -123,6 +123,23 @@ fn worker_options(g: &Given, a: &mut RunArgs, r: &RunReport) -> Result<()> {
     Ok(())
 }
 
+/// What the probe records (`--lane-evidence`, which changes results) and the mutants tried
+/// (`--mutants`, `--mutant`, `--mutants-sample`: no cell's verdict depends on them, so they are
+/// the report's unless one of them is given).
+fn probe_options(g: &Given, a: &mut RunArgs, r: &RunReport) -> Result<()> {
+    let o = &r.options;
+    let mode = |m: &crate::model::LaneMode| {
+        serde_json::to_value(m).ok().and_then(|v| v.as_str().map(String::from)).unwrap_or_default()
+    };
+    g.take("lane_evidence", "--lane-evidence", &mut a.lane_evidence, o.lane_evidence, mode)?;
+    if !["mutants", "mutant", "mutants_sample"].iter().any(|id| g.explicit(id)) {
+        a.mutants = !o.mutants.is_empty();
+        a.mutant = o.mutants.iter().map(|m| m.as_str().to_string()).collect();
+        a.mutants_sample = o.mutants_sample.clone();
+    }
+    Ok(())
+}
+
 /// `a` and `g` completed from the report at `path` (which `report` holds) for `--resume`; the
 /// device is the report's unless `--device` is given (`run` finds it by identity).
 pub fn args(
@@ -136,6 +153,7 @@ pub fn args(
     scene(&given, &mut a, &report.scene.params)?;
     plan_options(&given, &mut a, report)?;
     worker_options(&given, &mut a, report)?;
+    probe_options(&given, &mut a, report)?;
     let o = &report.options;
     let mut mode = (g.validate, g.gpu_av);
     let show = |m: &(bool, bool)| match m {
@@ -250,6 +268,34 @@ mod tests {
         // More repeats are no other run.
         let (_, a) = args(&g, &parse(&["--resume", "r.json", "--repeat", "9"]), p, &r).unwrap();
         assert_eq!(a.repeat, Some(9));
+    }
+
+    /// The options of the other branches (lane evidence, mutants) come from the report too: a
+    /// run with `--lane-evidence force --mutant index-zero` resumes as such, and an explicit
+    /// other `--lane-evidence` is refused.
+    #[test]
+    fn lane_evidence_and_mutants_come_from_the_report() {
+        use crate::model::{LaneMode, Mutant};
+        let g = Globals { validate: false, gpu_av: false };
+        let mut r = report();
+        r.options.lane_evidence = LaneMode::Force;
+        r.options.mutants = vec![Mutant::IndexZero];
+        r.options.mutants_sample = Some("4:1".into());
+        let p = Path::new("r.json");
+        let (_, a) = args(&g, &parse(&["--resume", "r.json"]), p, &r).unwrap();
+        assert_eq!(a.lane_evidence, LaneMode::Force);
+        assert!(a.mutants && a.mutant == ["index-zero"]);
+        assert_eq!(a.mutants_sample.as_deref(), Some("4:1"));
+        // Its twin: a fresh run's defaults differ on each.
+        let fresh = parse(&[]);
+        assert!(fresh.lane_evidence == LaneMode::Auto && !fresh.mutants && fresh.mutant.is_empty());
+        let e = args(&g, &parse(&["--resume", "r.json", "--lane-evidence", "off"]), p, &r)
+            .unwrap_err();
+        assert!(format!("{e:#}").contains("its --lane-evidence differs"), "{e:#}");
+        // Mutants given here are this run's (they change no verdict).
+        let (_, a) =
+            args(&g, &parse(&["--resume", "r.json", "--mutant", "value-bits"]), p, &r).unwrap();
+        assert_eq!((a.mutant.clone(), a.mutants_sample), (vec!["value-bits".to_string()], None));
     }
 
     #[test]
