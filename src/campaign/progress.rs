@@ -8,10 +8,10 @@ pub trait Progress {
     /// A round scheduled `n` more attempts.
     fn scheduled(&self, _n: u64) {}
     /// A round after the matrix starts, running `n` attempts: its name (`confirm`, `repeat`,
-    /// `workarounds`, `patterns`, `verify`, `gpu-av`, `canaries`) and how they run.
+    /// `workarounds`, `patterns`, `verify`, `gpu-av`, `mutants`, `canaries`) and how they run.
     fn round(&self, _name: &'static str, _n: u64, _alone: bool) {}
     /// An attempt ended: the cell's, with its outcome (`None`: one apart from the report's cells,
-    /// under GPU-AV).
+    /// under GPU-AV or a mutant's).
     fn ended(&self, _cell: &Cell, _outcome: Option<Outcome>) {}
     /// Every round is done (the summary comes next).
     fn finish(&self) {}

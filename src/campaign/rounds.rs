@@ -188,7 +188,7 @@ impl Campaign<'_> {
         let before: HashMap<Cell, MutantPrediction> = run.iter().copied().collect();
         let cells: Vec<Cell> = run.iter().map(|(c, _)| *c).collect();
         let mut judged: HashSet<Cell> = HashSet::new();
-        self.apart(&cells, Mode::Shared, &mut |rec, cell, attempt| {
+        self.apart("mutants", &cells, Mode::Shared, &mut |rec, cell, attempt| {
             if let (Some(m), Some(b)) = (cell.mutant, before.get(&cell)) {
                 let e = mutants::verdict((&cell, m), *b, Some(&attempt));
                 mutants::record(&mut rec.writer.report, e);
@@ -206,11 +206,12 @@ impl Campaign<'_> {
         mutants::annotate(r, &policy.mutants, sample.as_deref(), missing, wall_ms);
     }
 
-    /// Run `cells` as `mode` says, each attempt handed to `on_attempt` (with the recorder) and
-    /// kept apart from the cells' own; worker readiness and caches still reach the report, a
-    /// halt stops the run.
+    /// Run `cells` as `mode` says (the round `name`), each attempt handed to `on_attempt` (with
+    /// the recorder) and kept apart from the cells' own, so the progress counts no outcome of
+    /// it; worker readiness and caches still reach the report, a halt stops the run.
     fn apart(
         &mut self,
+        name: &'static str,
         cells: &[Cell],
         mode: Mode,
         on_attempt: &mut dyn FnMut(&mut super::Recorder, Cell, Attempt),
@@ -219,10 +220,11 @@ impl Campaign<'_> {
             return;
         }
         self.rec.progress.scheduled(cells.len() as u64);
+        self.rec.progress.round(name, cells.len() as u64, mode != Mode::Shared);
         let rec = &mut *self.rec;
         self.oracle.run(cells, mode, &mut |ev| match ev {
             Event::Attempt { cell, attempt } => {
-                rec.progress.ended(&cell, Some(attempt.outcome));
+                rec.progress.ended(&cell, None);
                 on_attempt(rec, cell, attempt);
             }
             // A worker's fault outside a cell during the round is no cell's and no finding.
