@@ -284,7 +284,7 @@ fn print_summary(v: &serde_json::Value) {
     }
     for p in v["mutants"]["points"].as_array().into_iter().flatten() {
         let t = &p["counts"]["total"];
-        println!(
+        outln!(
             "mutants {0}×{0}: {1} of {2} applicable killed (kill rate {3}), {4} allowed survivors, {5} probe defects, {6} faults; {7:.0} ms per mutant attempt",
             p["size"],
             t["killed"],
