@@ -90,8 +90,6 @@ fn change(old: &CellReport, new: &CellReport) -> Option<Change> {
     })
 }
 
-/// Compare two reports. `noise`: a phase's time per cell must change by more than this factor
-/// (0.5 = ±50%) and by more than `floor_ms` to be reported.
 /// A warning when OLD and NEW were made on different devices (by name): their differences may be
 /// the devices', not a driver's. Another driver version of the same device is what `diff` is for.
 pub fn device_warning(old: &RunReport, new: &RunReport) -> Option<String> {
@@ -105,6 +103,8 @@ pub fn device_warning(old: &RunReport, new: &RunReport) -> Option<String> {
     })
 }
 
+/// Compare two reports. `noise`: a phase's time per cell must change by more than this factor
+/// (0.5 = ±50%) and by more than `floor_ms` to be reported.
 pub fn diff(old: &RunReport, new: &RunReport, noise: f64, floor_ms: f64) -> ReportDiff {
     let name = |r: &RunReport| {
         format!(
