@@ -371,13 +371,15 @@ fn a_baseline_does_not_let_another_fault_a_risen_flake_or_a_vanished_cell_throug
         "t4.json",
         serde_json::json!([{ "cell": heap, "outcome": "crash" }]),
     );
+    // The heap cell among cells that run (a plan the device can run none of is refused before
+    // any baseline check, issue 29: below).
     let out = dir.path().join("t4r.json");
     let o = run(&[
         "run",
         "-o",
         out.to_str().unwrap(),
         "--filter",
-        "stage=raygen,resource=storage_buffer,index=literal,descriptor_model=descriptor_heap,heap_access=direct",
+        "stage=raygen,resource=storage_buffer,index=literal",
         "--baseline",
         b.to_str().unwrap(),
     ]);
@@ -390,4 +392,15 @@ fn a_baseline_does_not_let_another_fault_a_risen_flake_or_a_vanished_cell_throug
         stdout(&o)
     );
     assert_eq!(report(&out)["baseline"]["cells"][0]["status"], "missing");
+    // The heap cell alone: nothing the device can run, refused (exit 5), never a pass.
+    let o = run(&[
+        "run",
+        "-o",
+        dir.path().join("t4only.json").to_str().unwrap(),
+        "--filter",
+        "stage=raygen,resource=storage_buffer,index=literal,descriptor_model=descriptor_heap,heap_access=direct",
+        "--baseline",
+        b.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(5), "{}", String::from_utf8_lossy(&o.stderr));
 }
