@@ -4,9 +4,9 @@
 //! and canary) and `failures.csv` (the lines CI looks at). Statuses are deqp-runner's: `Pass`,
 //! `Fail` (mismatch, error), `Crash` (crash, device loss), `Timeout`, `Skip` (unsupported, not
 //! implemented), `Flake` (its attempts disagree), and against a baseline `ExpectedFail`,
-//! `KnownFlake` and `UnexpectedPass`.
+//! `KnownFlake`, `UnexpectedPass` and `Missing` (a fault was expected and the cell did not run).
 use super::deqp::{status as deqp_status, FLAKE_ALSO};
-use crate::model::{Baseline, CellReport, Expectation, Outcome, RunReport, Status};
+use crate::model::{Baseline, CellCheck, CellReport, Expectation, Outcome, RunReport, Status};
 use regex_automata::meta::Regex;
 
 /// A `--skips` / `--flakes` list.
@@ -101,6 +101,9 @@ pub fn status(r: &RunReport, c: &CellReport) -> &'static str {
     }
     let against = r.baseline.as_ref().and_then(|b| b.cells.iter().find(|x| x.cell == c.id));
     match (c.outcome, against.map(|x| x.status)) {
+        // Expected to fault, and it did not run here: deqp-runner's word for a test without a
+        // result.
+        (_, Some(Status::Missing)) => "Missing",
         (Outcome::Unsupported | Outcome::NotImplemented, _) => "Skip",
         (_, Some(Status::Improvement)) => "UnexpectedPass",
         (_, Some(Status::KnownFlake)) => "KnownFlake",
@@ -119,25 +122,34 @@ fn tests(r: &RunReport) -> impl Iterator<Item = &CellReport> {
     r.cells.iter().filter(|c| !c.is_retry(r.options.patches))
 }
 
-fn line(r: &RunReport, c: &CellReport) -> String {
-    let secs: f64 = c.attempts.iter().map(|a| a.wall_ms).sum::<f64>() / 1e3;
-    format!("{},{},{secs:.3}\n", c.id, status(r, c))
+/// `test,Status,duration` rows: the planned cells and canaries, then the baseline's missing
+/// entries that `r` did not plan at all (no duration).
+fn rows(r: &RunReport) -> Vec<(&str, &'static str, f64)> {
+    let mut rows: Vec<(&str, &'static str, f64)> = tests(r)
+        .map(|c| (c.id.as_str(), status(r, c), c.attempts.iter().map(|a| a.wall_ms).sum::<f64>()))
+        .collect();
+    let unplanned = |x: &&CellCheck| !r.cells.iter().any(|c| c.id == x.cell);
+    for x in r.baseline.iter().flat_map(|b| b.missing()).filter(unplanned) {
+        rows.push((x.cell.as_str(), "Missing", 0.0));
+    }
+    rows
 }
 
-/// `results.csv`: every planned cell and canary, `test,Status,duration` (seconds, all attempts).
+fn line((id, status, ms): &(&str, &str, f64)) -> String {
+    format!("{id},{status},{:.3}\n", ms / 1e3)
+}
+
+/// `results.csv`: every planned cell and canary, `test,Status,duration` (seconds, all attempts),
+/// and the baseline's missing cells.
 pub fn results_csv(r: &RunReport) -> String {
-    tests(r).map(|c| line(r, c)).collect()
+    rows(r).iter().map(line).collect()
 }
 
 /// `failures.csv`: the results CI looks at (`Fail`, `Crash`, `Timeout`, `Flake`,
-/// `UnexpectedPass`): neither the passes and skips nor what the baseline expects.
+/// `UnexpectedPass`, `Missing`): neither the passes and skips nor what the baseline expects.
 pub fn failures_csv(r: &RunReport) -> String {
-    tests(r)
-        .filter(|c| {
-            matches!(status(r, c), "Fail" | "Crash" | "Timeout" | "Flake" | "UnexpectedPass")
-        })
-        .map(|c| line(r, c))
-        .collect()
+    let failing = ["Fail", "Crash", "Timeout", "Flake", "UnexpectedPass", "Missing"];
+    rows(r).iter().filter(|(_, s, _)| failing.contains(s)).map(line).collect()
 }
 
 #[cfg(test)]
@@ -209,6 +221,37 @@ mod tests {
         let got: Vec<&str> = r.cells.iter().map(|c| status(&r, c)).collect();
         assert_eq!(got, ["UnexpectedPass", "ExpectedFail", "ExpectedFail", "ExpectedFail"]);
         assert_eq!(failures_csv(&r), format!("{},UnexpectedPass,0.001\n", r.cells[0].id));
+    }
+
+    /// A baseline's missing cell (a fault expected, and the cell did not run: unsupported here,
+    /// or planned nowhere) is deqp-runner's `Missing`, among the failures.
+    #[test]
+    fn missing_cells_are_failures_planned_or_not() {
+        let mut r = RunReport::for_tests(vec![
+            cell(IndexSource::Literal, &[Outcome::Unsupported]),
+            cell(IndexSource::Dynamic, &[Outcome::Unsupported]),
+        ]);
+        // Its twin first: without a baseline an unsupported cell is a skip, no failure.
+        assert_eq!(status(&r, &r.cells[0]), "Skip");
+        assert_eq!(failures_csv(&r), "");
+        let missing = |cell: &str| CellCheck {
+            cell: cell.into(),
+            status: Status::Missing,
+            expected: Outcome::Crash,
+            actual: Outcome::Unsupported,
+            why: None,
+        };
+        r.baseline = Some(BaselineCheck {
+            cells: vec![missing(&r.cells[0].id), missing("raygen.renamed.cell")],
+            ..Default::default()
+        });
+        assert_eq!(status(&r, &r.cells[0]), "Missing");
+        assert_eq!(status(&r, &r.cells[1]), "Skip");
+        assert_eq!(
+            failures_csv(&r),
+            format!("{},Missing,0.001\nraygen.renamed.cell,Missing,0.000\n", r.cells[0].id)
+        );
+        assert_eq!(results_csv(&r).lines().count(), 3);
     }
 
     #[test]
