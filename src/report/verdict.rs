@@ -87,11 +87,15 @@ pub fn verdict(r: &RunReport, allow_improvements: bool) -> Verdict {
     let injections = r.tally.injections_undetected;
     let defects = r.mutants.as_ref().map_or(0, |m| m.probe_defects().count());
     if canaries + injections + defects > 0 {
-        let mut what: Vec<String> = [(canaries, "canary"), (injections, "injected fault")]
-            .iter()
-            .filter(|(n, _)| *n > 0)
-            .map(|(n, w)| format!("{} not detected", plural(*n, w)))
-            .collect();
+        let mut what = Vec::new();
+        match canaries {
+            0 => {}
+            1 => what.push("1 canary not detected".to_string()),
+            n => what.push(format!("{n} canaries not detected")),
+        }
+        if injections > 0 {
+            what.push(format!("{} not detected", plural(injections, "injected fault")));
+        }
         if defects > 0 {
             what.push(format!("{} among the mutants", plural(defects, "probe defect")));
         }
@@ -192,6 +196,11 @@ mod tests {
         let v = verdict(&r, false);
         assert_eq!(v.kind, Kind::Undetected);
         assert!(v.line().starts_with("verdict: FAIL — 1 canary not detected"), "{v:?}");
+        let two = RunReport::for_tests(vec![
+            ran(Cell::canary(Canary::InvalidAddress), Outcome::Pass),
+            ran(Cell::canary(Canary::InfiniteLoop), Outcome::Pass),
+        ]);
+        assert!(verdict(&two, false).why.starts_with("2 canaries not detected"), "{:?}", verdict(&two, false));
         let detected =
             RunReport::for_tests(vec![ran(Cell::canary(Canary::InvalidAddress), Outcome::Crash)]);
         assert_eq!(verdict(&detected, false).kind, Kind::Pass);
