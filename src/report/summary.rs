@@ -157,6 +157,17 @@ fn spec_and_injection_notes(s: &mut String, r: &RunReport) {
             if outside.len() == 1 { "1 cell indexes".to_string() } else { format!("{} cells index", outside.len()) },
             first.outside_spec.as_deref().unwrap_or("")
         );
+        let neither: Vec<_> =
+            outside.iter().filter(|c| c.element_reads().any(|e| e.neither > 0)).collect();
+        if let Some(c) = neither.first() {
+            let px = c.element_reads().map(|e| e.neither).max().unwrap_or(0);
+            let _ = writeln!(
+                s,
+                "warning: {} of them read a value no active lane of their subgroup computed (first {}, {px} pixels): a driver reading an inactive lane's index; the spec leaves the read undefined, so this is no driver fault — add nonuniformEXT",
+                neither.len(),
+                c.id
+            );
+        }
     }
     let vcells: Vec<_> = r
         .cells
