@@ -83,21 +83,7 @@ pub fn line(cell: &Cell, varied: Option<&str>, verdicts: &Verdicts, ev: Evidence
         ("pass", _, _) => {
             format!("✅ passes ({} of {n}; no faulting cell to hold it to)", l.agreeing)
         }
-        ("error", _, _) => {
-            // An error is no evidence (`Verdicts::counts` leaves it out): say the attempts made.
-            let made = report.map_or(0, |r| r.attempts.iter().filter(|a| !a.not_run()).count());
-            format!(
-                "⚠ error ({} of {}; rtprobe could not run it, no evidence either way): {}",
-                report.map_or(0, |r| {
-                    r.attempts
-                        .iter()
-                        .filter(|a| a.outcome == crate::model::outcome::Outcome::Error)
-                        .count()
-                }),
-                crate::model::plural(made, "attempt"),
-                l.reason.as_deref().unwrap_or("no detail")
-            )
-        }
+        ("error", _, _) => error_evidence(report, l.reason.as_deref()),
         (v, _, Some(p)) => format!("❌ {v} ({k} of {n}, p ≥ {p:.2} at {conf})"),
         (v, _, None) => format!("❌ {v} ({k} of {n})"),
     };
@@ -112,6 +98,20 @@ pub fn line(cell: &Cell, varied: Option<&str>, verdicts: &Verdicts, ev: Evidence
         );
     }
     l
+}
+
+/// An error's words: no evidence (`Verdicts::counts` leaves it out), so the attempts made and
+/// how many said error, with the reason.
+fn error_evidence(report: Option<&crate::model::CellReport>, reason: Option<&str>) -> String {
+    let made = report.map_or(0, |r| r.attempts.iter().filter(|a| !a.not_run()).count());
+    let errors = report.map_or(0, |r| {
+        r.attempts.iter().filter(|a| a.outcome == crate::model::outcome::Outcome::Error).count()
+    });
+    format!(
+        "⚠ error ({errors} of {}; rtprobe could not run it, no evidence either way): {}",
+        crate::model::plural(made, "attempt"),
+        reason.unwrap_or("no detail")
+    )
 }
 
 /// A probability as a short percentage (`0.78%`, `< 0.01%`).
