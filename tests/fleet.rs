@@ -120,11 +120,7 @@ fn a_baseline_expects_known_faults_and_names_new_ones() {
         &["--inject-fault", KNOWN, "--baseline", base.to_str().unwrap()],
     );
     assert_eq!(o.status.code(), Some(0), "{}", stdout(&o));
-    assert!(
-        stdout(&o).contains("0 regressions, 0 missing, 0 unexpected passes"),
-        "{}",
-        stdout(&o)
-    );
+    assert!(stdout(&o).contains("0 regressions, 0 missing, 0 unexpected passes"), "{}", stdout(&o));
     // A new fault fails it, naming the cell.
     let (r, o) = run_to(
         dir.path(),

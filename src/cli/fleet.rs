@@ -7,8 +7,8 @@ use crate::atomic::write_atomic;
 use crate::fleet::baseline::Scope;
 use crate::fleet::deqp_files::Patterns;
 use crate::fleet::{diff, merge};
-use crate::model::{Baseline, Filter};
 use crate::model::RunReport;
+use crate::model::{Baseline, Filter};
 use anyhow::{Context, Result};
 use std::path::Path;
 

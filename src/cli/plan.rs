@@ -42,7 +42,8 @@ pub fn make(info: &DeviceInfo, p: &PlanArgs) -> Made {
             inject: p.inject.to_vec(),
         },
     );
-    let ids = |plan: &RunPlan| -> HashSet<String> { plan.cells.iter().map(|c| c.cell.id()).collect() };
+    let ids =
+        |plan: &RunPlan| -> HashSet<String> { plan.cells.iter().map(|c| c.cell.id()).collect() };
     let before = ids(&the_plan);
     the_plan.cells.retain(|c| c.cell.canary.is_some() || !p.skips.matches(&c.cell.id()));
     the_plan.filtered_out += before.len() - the_plan.cells.len();

@@ -289,8 +289,8 @@ mod tests {
         // Its twin: a fresh run's defaults differ on each.
         let fresh = parse(&[]);
         assert!(fresh.lane_evidence == LaneMode::Auto && !fresh.mutants && fresh.mutant.is_empty());
-        let e = args(&g, &parse(&["--resume", "r.json", "--lane-evidence", "off"]), p, &r)
-            .unwrap_err();
+        let e =
+            args(&g, &parse(&["--resume", "r.json", "--lane-evidence", "off"]), p, &r).unwrap_err();
         assert!(format!("{e:#}").contains("its --lane-evidence differs"), "{e:#}");
         // Mutants given here are this run's (they change no verdict).
         let (_, a) =

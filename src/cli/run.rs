@@ -357,7 +357,12 @@ fn with_flakes(c: &Checked, the_plan: &RunPlan) -> Option<(Baseline, String)> {
         Some((b, s)) => (Some(b.clone()), format!("{s} + --flakes {file}")),
         None => (None, format!("--flakes {file}")),
     };
-    let b = crate::fleet::deqp_files::with_flakes(base, flakes, &source, ids.iter().map(String::as_str));
+    let b = crate::fleet::deqp_files::with_flakes(
+        base,
+        flakes,
+        &source,
+        ids.iter().map(String::as_str),
+    );
     Some((b, source))
 }
 

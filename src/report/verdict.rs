@@ -200,7 +200,11 @@ mod tests {
             ran(Cell::canary(Canary::InvalidAddress), Outcome::Pass),
             ran(Cell::canary(Canary::InfiniteLoop), Outcome::Pass),
         ]);
-        assert!(verdict(&two, false).why.starts_with("2 canaries not detected"), "{:?}", verdict(&two, false));
+        assert!(
+            verdict(&two, false).why.starts_with("2 canaries not detected"),
+            "{:?}",
+            verdict(&two, false)
+        );
         let detected =
             RunReport::for_tests(vec![ran(Cell::canary(Canary::InvalidAddress), Outcome::Crash)]);
         assert_eq!(verdict(&detected, false).kind, Kind::Pass);
