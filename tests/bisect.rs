@@ -128,7 +128,9 @@ fn single_axis_two_axis_and_value_set_predicates_come_back_exactly() {
         assert_eq!(j["attempts_per_pass"].as_u64().unwrap() as u32, need);
         // The fault was repeated until it had as many attempts as a pass then needs.
         assert!(n >= need, "{n} attempts of the fault, {need} per pass");
-        for l in iso.iter().filter(|l| l["verdict"] == "pass") {
+        // (a suspect pass — an undefined read whose other-lane reads a faulting sibling may
+        // explain — is listed but not used, so not repeated either)
+        for l in iso.iter().filter(|l| l["verdict"] == "pass" && l["suspect"].is_null()) {
             assert_eq!(l["attempts"].as_u64().unwrap() as u32, need, "{l}");
             assert!(l["miss_probability"].as_f64().unwrap() < 0.01 && l["settled"] == true, "{l}");
             assert!(
@@ -158,9 +160,15 @@ fn a_flaky_injection_is_recovered_with_repeats_and_its_miss_probability() {
                 &["--repeat", "4"],
             )
         })
+        // (the injected cell with nonuniformEXT: its twin without it reads undefined, and bisect
+        // uses no evidence of such a cell)
         .find(|r| {
             json_file(r)["cells"].as_array().unwrap().iter().any(|c| {
-                !matches!(c["outcome"].as_str(), Some("pass" | "unsupported" | "not_implemented"))
+                c["nonuniform"] == true
+                    && !matches!(
+                        c["outcome"].as_str(),
+                        Some("pass" | "unsupported" | "not_implemented")
+                    )
             })
         })
         .expect("one of 8 runs saw the rate-0.5 fault");

@@ -41,10 +41,12 @@ fn default_matrix_passes_on_lavapipe_and_canaries_are_classified() {
     assert_eq!(r["schema"], "rtprobe.report/1");
     assert_eq!(r["complete"], true);
     let cs = cells(&r);
-    assert_eq!(cs.len() as u64, r["plan"]["planned"].as_u64().unwrap());
+    // (the workaround variants tried on the findings are retries, outside the plan)
+    let planned = cs.iter().filter(|c| c["retry"] != true).count();
+    assert_eq!(planned as u64, r["plan"]["planned"].as_u64().unwrap());
     assert!(r["plan"]["to_run"].as_u64().unwrap() >= 400, "{}", r["plan"]);
     let mut passed = 0;
-    for c in cs {
+    for c in cs.iter().filter(|c| c["retry"] != true) {
         let id = c["id"].as_str().unwrap();
         match c["outcome"].as_str().unwrap() {
             "pass" => passed += 1,
@@ -126,8 +128,9 @@ fn default_matrix_passes_on_lavapipe_and_canaries_are_classified() {
     let xml = std::fs::read_to_string(&junit).unwrap();
     assert_eq!(xml.matches("<testcase ").count(), cs.len());
     assert!(xml.contains("<skipped"));
-    // Detected canaries are successes, in JUnit and in the summary's outcome counts.
-    assert!(xml.contains("failures=\"0\""), "{xml}");
+    // Detected canaries are successes, in JUnit and in the summary's outcome counts; the only
+    // failures are the heuristic mismatches above.
+    assert!(xml.contains(&format!("failures=\"{heuristic}\"")), "{xml}");
     assert!(xml.contains("canary detected: crash"), "{xml}");
     assert_eq!(r["tally"]["canaries_detected"], 2);
     assert_eq!(r["summary"]["crash"], 0);
@@ -175,7 +178,7 @@ fn reports_carry_discrimination_and_the_reads_of_cells_without_nonuniform() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("r.json");
     let o = run(&[
-        "run", "--patches", "none", "--filter", "stage=miss|closest_hit|compute,resource=acceleration_structure|uniform_buffer,descriptor_model=descriptor_indexing",
+        "run", "--patches", "none", "--filter", "stage=miss|closest_hit|compute,resource=acceleration_structure|uniform_buffer,descriptor_model=descriptor_indexing,base=none|push_data",
         "-o", out.to_str().unwrap(),
     ]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
@@ -274,7 +277,7 @@ fn killed_supervisor_loses_no_finished_cell_and_resume_completes() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("r.json");
     let filter =
-        "descriptor_model=descriptor_indexing,resource=storage_buffer|uniform_buffer,reorder=none";
+        "descriptor_model=descriptor_indexing,resource=storage_buffer|uniform_buffer,reorder=none,base=none|push_data";
     let mut child = bin()
         .args(["run", "--filter", filter, "-o", out.to_str().unwrap()])
         .stdout(std::process::Stdio::null())
@@ -384,7 +387,7 @@ fn patched_variants_render_like_the_originals() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("r.json");
     let o = run(&[
-        "run", "--patches", "all", "--filter", "stage=closest_hit|compute|fragment,resource=storage_buffer|sampled_image|acceleration_structure,index=dynamic,descriptor_model=descriptor_indexing",
+        "run", "--patches", "all", "--filter", "stage=closest_hit|compute|fragment,resource=storage_buffer|sampled_image|acceleration_structure,index=dynamic,descriptor_model=descriptor_indexing,base=none|push_data",
         "-o", out.to_str().unwrap(),
     ]);
     assert_eq!(o.status.code(), Some(0), "{}\n{}", stdout(&o), stderr(&o));

@@ -97,9 +97,9 @@ fn lavapipe_figures_stay_within_the_rules() {
         // Every leak has a subnormal ray component (flush to zero near a fan's centre vertex).
         assert_eq!(n(c, "leaks"), n(c, "leaks_subnormal"), "{}", c["name"]);
         // Every double hit is within the ambiguity margin of a shared edge (what f32 rounding
-        // can explain): none is a warning.
+        // can explain); the warnings are those exactly on the edge (the spec's "should not").
         assert_eq!(n(c, "double_hits"), n(c, "double_hits_in_margin"), "{}", c["name"]);
-        assert_eq!(n(c, "double_hit_warnings"), 0, "{}", c["name"]);
+        assert_eq!(n(c, "double_hit_warnings"), n(c, "double_hits_on_edge"), "{}", c["name"]);
     }
     let w = case(&doc, "watertight");
     assert!(n(w, "rays") > 10_000 && n(w, "hits") > 10_000);

@@ -423,7 +423,7 @@ fn interrupt_mid_run(
     (status, err)
 }
 
-const MANY: &str = "descriptor_model=descriptor_indexing,resource=storage_buffer|uniform_buffer,stage=raygen|closest_hit|miss|compute";
+const MANY: &str = "descriptor_model=descriptor_indexing,resource=storage_buffer|uniform_buffer,stage=raygen|closest_hit|miss|compute,base=none|push_data";
 
 #[test]
 fn ctrl_c_kills_every_worker_keeps_the_report_and_resume_finishes() {

@@ -240,8 +240,10 @@ fn check_cells(cells: &[usize]) -> Result<Vec<usize>> {
     if let Some(n) = cells.iter().find(|n| **n == 0 || **n > 100_000) {
         return Err(coded(exit::USAGE, format!("--cells: {n} is outside 1..=100000")));
     }
-    if cells.len() == 1 {
-        return Err(coded(exit::USAGE, "--cells needs two counts or more to fit a line"));
+    // Distinct counts: `--cells 5,5` fitted a line through one point (NaN slope in the plot).
+    let distinct: std::collections::BTreeSet<_> = cells.iter().collect();
+    if !cells.is_empty() && distinct.len() < 2 {
+        return Err(coded(exit::USAGE, "--cells needs two different counts or more to fit a line"));
     }
     Ok(cells.to_vec())
 }

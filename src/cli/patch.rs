@@ -291,6 +291,14 @@ fn verify(
             "--verify: the pipeline writes no storage image to compare",
         ));
     }
+    // Outputs of one value everywhere prove nothing about the patched reads (a raygen that
+    // writes a constant, or results that do not depend on the patched descriptors).
+    if compared.iter().all(|c| c.distinct <= 1) {
+        return Err(coded(
+            exit::BAD_INPUT,
+            "--verify: every storage image the pipeline writes holds one value, so the comparison cannot tell a wrong read from a right one; write something that depends on the patched descriptors (nothing written)",
+        ));
+    }
     if let Some(c) = compared.iter().find(|c| c.differing > 0) {
         return Err(coded(exit::FINDINGS, format!("--verify: the patched pipeline's {} differs from the unpatched one's in {} of {} texels on {device}; nothing written", c.label, c.differing, c.texels)));
     }

@@ -338,6 +338,7 @@ fn check_ranges(a: &RunArgs) -> Result<()> {
     bad(a.repeat.is_some_and(|n| n == 0 || n > 1000), "--repeat must be 1..=1000")?;
     bad(a.jobs.is_some_and(|j| j == 0 || j > 64), "--jobs must be 1..=64")?;
     bad(a.threads.is_some_and(|t| t == 0 || t > 64), "--threads must be 1..=64")?;
+    bad(a.cells_scale.is_some_and(|n| n == 0 || n > 100_000), "--cells-scale must be 1..=100000")?;
     bad(
         a.pipeline_cache.as_deref().is_some_and(|d| d.trim().is_empty()),
         "--pipeline-cache needs a folder, or `off`",

@@ -118,11 +118,12 @@ mod tests {
         assert_eq!(r.metrics.disagreements, 0, "{r:?}");
         assert!(r.metrics.rays > 1000);
         // An edge-inclusive test double-hits on shared edges (and at folds near them), only
-        // there: within the ambiguity margin, so never a warning.
+        // there: within the ambiguity margin; those exactly on the edge are the spec's "should
+        // not double-hit" case, so warnings, and the only ones.
         assert!(r.metrics.double_hits_on_edge > 0);
         assert_eq!(r.metrics.double_hits, r.metrics.double_hits_in_margin);
-        assert_eq!(r.metrics.double_hit_warnings, 0);
-        assert_eq!(r.verdict, crate::stress::evaluate::Verdict::Pass, "{:?}", r.detail);
+        assert_eq!(r.metrics.double_hit_warnings, r.metrics.double_hits_on_edge);
+        assert_eq!(r.verdict, crate::stress::evaluate::Verdict::Warn, "{:?}", r.detail);
         for k in [CaseKind::Degenerate, CaseKind::Tmin, CaseKind::Far, CaseKind::Grazing] {
             let r = case(&mut t, k);
             assert_eq!(r.metrics.disagreements, 0, "{k:?}: {r:?}");
