@@ -10,7 +10,7 @@ use crate::atomic::write_atomic;
 use crate::stress::gpu::Mode;
 use crate::stress::supervised::Supervised;
 use crate::stress::{self, report, CaseKind, StressOptions};
-use crate::vk::{features, Requirements};
+use crate::vk::features;
 use anyhow::{Context, Result};
 use std::time::Duration;
 
@@ -109,13 +109,7 @@ pub fn stress(g: &Globals, args: &StressArgs) -> Result<u8> {
 /// The device has what the stress pipeline of `mode` needs, and its shaders compile here (a
 /// one-line error with its exit code before any worker starts).
 fn can_run(info: &crate::vk::DeviceInfo, mode: Mode) -> Result<()> {
-    let req = Requirements {
-        rt_pipeline: mode == Mode::Pipeline,
-        ray_query: mode == Mode::RayQuery,
-        buffer_device_address: true,
-        int64: true,
-        ..Requirements::default()
-    };
+    let req = mode.requirements();
     let missing = req.missing_on(info);
     if !missing.is_empty() {
         return Err(exit::coded(

@@ -161,6 +161,18 @@ pub enum Mode {
 }
 
 impl Mode {
+    /// What the device must have to trace this way: the one set `stress` checks before any
+    /// worker starts and each worker then creates its device with.
+    pub fn requirements(self) -> crate::vk::Requirements {
+        crate::vk::Requirements {
+            rt_pipeline: self == Mode::Pipeline,
+            ray_query: self == Mode::RayQuery,
+            buffer_device_address: true,
+            int64: true,
+            ..crate::vk::Requirements::default()
+        }
+    }
+
     pub fn as_str(self) -> &'static str {
         match self {
             Mode::Pipeline => "pipeline",

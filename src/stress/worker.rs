@@ -10,7 +10,7 @@
 use super::gpu::{GpuTracer, Mode};
 use super::result::{CaseResult, Verdict};
 use super::{CaseKind, Part, StressOptions, TraceError, Traced, Tracer};
-use crate::vk::{features, Gpu, Instance, InstanceOptions, Requirements};
+use crate::vk::{features, Gpu, Instance, InstanceOptions};
 use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -102,13 +102,7 @@ fn open(job: &CaseJob) -> Result<GpuTracer, String> {
     let all = features::query_all(&inst).map_err(|e| e.to_string())?;
     let info = all.get(job.device_index).ok_or("the device vanished")?.clone();
     let mode = if job.ray_query { Mode::RayQuery } else { Mode::Pipeline };
-    let req = Requirements {
-        rt_pipeline: mode == Mode::Pipeline,
-        ray_query: mode == Mode::RayQuery,
-        buffer_device_address: true,
-        int64: true,
-        ..Requirements::default()
-    };
+    let req = mode.requirements();
     let gpu = Gpu::new(inst, info, req).map_err(|e| e.to_string())?;
     GpuTracer::new(gpu, Duration::from_millis(job.timeout_ms), mode).map_err(|e| e.to_string())
 }
