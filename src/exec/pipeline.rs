@@ -274,16 +274,21 @@ fn create_rt(
     records: &ShaderRecords,
 ) -> Result<Pipeline, VkError> {
     let groups = rt_groups(shaders);
-    let has_callable = shaders.get(Role::Callable).is_some();
     // Group order: raygen, miss, probe miss, triangle hits, procedural hits, callable.
     let record = |g: usize| match g {
         3 => records.hit_triangles.as_slice(),
         4 => records.hit_procedural.as_slice(),
         _ => records.other.as_slice(),
     };
-    let counts = SbtCounts { miss: 2, hit: 2, callable: has_callable as u32 };
+    let counts = sbt_counts(shaders);
     let rt = RtPipeline { stages, groups: &groups, counts, depth: shaders.recursion_depth, layout };
     create_rt_pipeline(gpu, cache, &rt, flags, flags2, &record)
+}
+
+/// The groups of a cell's SBT after raygen: miss and probe miss, the two hit groups, and the
+/// callable where the cell has one ([`rt_groups`]'s order).
+pub fn sbt_counts(shaders: &CellShaders) -> SbtCounts {
+    SbtCounts { miss: 2, hit: 2, callable: shaders.get(Role::Callable).is_some() as u32 }
 }
 
 /// How many groups each SBT region holds after the raygen group (groups in that order).
@@ -332,6 +337,35 @@ pub fn create_rt_pipeline<'r>(
     Ok(Pipeline { raw, kind: PipelineKind::RayTracing, sbt: Some(sbt) })
 }
 
+/// Where an SBT's regions sit (bytes from its base), as [`sbt_layout`] computes them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SbtLayout {
+    /// Every record's stride: the handle and its shader record data, aligned to
+    /// `shaderGroupHandleAlignment`.
+    pub stride: u64,
+    /// The raygen region's size (and stride): one record aligned to `shaderGroupBaseAlignment`.
+    pub raygen_size: u64,
+    pub miss_off: u64,
+    pub hit_off: u64,
+    pub call_off: u64,
+    /// The buffer's size, with room to align its base.
+    pub total: u64,
+}
+
+/// The SBT layout of `counts` groups after the raygen group, each record a `handle`-byte handle
+/// then `record` bytes of shader record data, for the device's handle and base alignments (`ha`,
+/// `ba`): what the worker writes, and what the vendor issue says it wrote.
+pub fn sbt_layout(counts: SbtCounts, handle: u64, ha: u64, ba: u64, record: u64) -> SbtLayout {
+    let rec = handle + record;
+    let stride = align(rec, ha);
+    let raygen_size = align(rec, ba);
+    let miss_off = align(raygen_size, ba);
+    let hit_off = align(miss_off + counts.miss as u64 * stride, ba);
+    let call_off = align(hit_off + counts.hit as u64 * stride, ba);
+    let total = call_off + counts.callable.max(1) as u64 * stride + ba;
+    SbtLayout { stride, raygen_size, miss_off, hit_off, call_off, total }
+}
+
 /// The SBT of pipeline `raw`: the raygen group, then `counts` miss, hit and callable groups, each
 /// record the group's handle then `record(group)`. The pipeline is destroyed when its handles
 /// cannot be read.
@@ -356,14 +390,8 @@ fn shader_binding_table<'r>(
             return Err(VkError::from_result("vkGetRayTracingShaderGroupHandlesKHR", e));
         }
     };
-    // Each record: the group handle, then its shader record data.
-    let rec = h + record(0).len() as u64;
-    let stride = align(rec, ha);
-    let rg_size = align(rec, ba);
-    let miss_off = align(rg_size, ba);
-    let hit_off = align(miss_off + counts.miss as u64 * stride, ba);
-    let call_off = align(hit_off + counts.hit as u64 * stride, ba);
-    let total = call_off + counts.callable.max(1) as u64 * stride + ba;
+    let SbtLayout { stride, raygen_size: rg_size, miss_off, hit_off, call_off, total } =
+        sbt_layout(counts, h, ha, ba, record(0).len() as u64);
     let buffer = Buffer::new(
         gpu,
         total,
