@@ -85,7 +85,7 @@ pub fn script(
 
 /// Why `cell` does not fit, checked on its probe spec: what the spec needs that this writer
 /// cannot express is refused with that reason.
-fn fits(cell: &Cell, inject: Option<&Injection>) -> Result<(), Unfit> {
+pub fn fits(cell: &Cell, inject: Option<&Injection>) -> Result<(), Unfit> {
     let spec = ProbeSpec::of(cell);
     if spec.canary.is_some() {
         return Err(Unfit::Canary);
