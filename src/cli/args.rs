@@ -118,8 +118,9 @@ pub struct RunArgs {
     #[arg(long, value_name = "FILE")]
     pub junit: Option<PathBuf>,
 
-    /// Write each cell's generated GLSL and SPIR-V under DIR/<cell id>/, and for a cell whose
-    /// records mismatch, pictures of them there: expected.png, actual.png, diff.png
+    /// Write each cell's generated GLSL and SPIR-V and the records it read back (records.bin)
+    /// under DIR/<cell id>/, and for a cell whose records mismatch, pictures of them there:
+    /// expected.png, actual.png, diff.png
     #[arg(long, value_name = "DIR")]
     pub dump: Option<PathBuf>,
 
