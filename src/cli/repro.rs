@@ -344,7 +344,10 @@ impl Bundle<'_> {
                 write(dir, "cell.amber", text.as_bytes())?;
                 "cell.amber      an Amber script of the same cell, the reproducer without rtprobe: its SPIR-V, scene, buffers and expected records (`amber -d cell.amber`; see its header)".to_string()
             }
-            Err(why) => format!("no cell.amber: {why}"),
+            Err(why) => format!(
+                "no cell.amber: {why};\n                  {}",
+                crate::report::amber::NO_STANDALONE
+            ),
         })
     }
 

@@ -21,6 +21,10 @@ pub use fit::{fits, Unfit};
 pub use parts::{PROBE_BINDING, RECORDS, RECORDS_BINDING};
 
 use crate::model::{Cell, Injection, SceneParams, Stage};
+
+/// What a cell without an Amber script has instead, and why rtprobe writes no standalone
+/// program for it (docs/bisect-report-repro.md#no-standalone-program).
+pub const NO_STANDALONE: &str = "no standalone program either: it would re-implement rtprobe's executor for the cell's binding model in C (docs/bisect-report-repro.md#no-standalone-program); the values such a program needs are in the issue, and `rtprobe run --cell-spec` runs the bundle's SPIR-V";
 use crate::report::shaders::Shader;
 
 /// The script for `cell`, or why none is written (a sentence for the README); `lanes`: the probe

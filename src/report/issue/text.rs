@@ -398,7 +398,10 @@ pub(super) fn reproducer(
     let detail = rep.entry.and_then(worst).and_then(|a| a.detail.clone()).unwrap_or_default();
     let without_rtprobe = match crate::report::amber::fits(&rep.cell, rep.injection) {
         Ok(()) => "`amber repro/cell.amber` runs the same SPIR-V on the same scene and checks the same records without rtprobe (Amber is built from source: docs/bisect-report-repro.md#amber).".to_string(),
-        Err(why) => format!("No Amber script for this cell: {why}."),
+        Err(why) => format!(
+            "No Amber script for this cell: {why}; {}.",
+            crate::report::amber::NO_STANDALONE
+        ),
     };
     Reproducer {
         command: format!(
