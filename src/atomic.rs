@@ -3,12 +3,20 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
+/// A file that could not be written: the path and the OS error (said once: it is the message's
+/// end, not a `source` a caller would print again).
 #[derive(Debug, thiserror::Error)]
-#[error("cannot write {path}: {source}")]
+#[error("cannot write {}: {err}", .path.display())]
 pub struct WriteError {
     pub path: PathBuf,
-    #[source]
-    pub source: std::io::Error,
+    pub err: std::io::Error,
+}
+
+impl WriteError {
+    /// The disk (or the user's quota) is full: the write can succeed later.
+    pub fn storage_full(&self) -> bool {
+        matches!(self.err.raw_os_error(), Some(libc::ENOSPC | libc::EDQUOT))
+    }
 }
 
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
@@ -18,7 +26,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
 /// As [`write_atomic`]; `sync` = false skips the fsync (the rename is still atomic against a
 /// killed writer, just not against power loss) for the frequent incremental report saves.
 pub fn write_atomic_with(path: &Path, bytes: &[u8], sync: bool) -> Result<(), WriteError> {
-    let err = |source| WriteError { path: path.to_path_buf(), source };
+    let err = |err| WriteError { path: path.to_path_buf(), err };
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(err)?;
     }

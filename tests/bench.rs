@@ -178,7 +178,8 @@ fn bench_bad_input_is_one_line_and_writes_nothing() {
         "rtprobe run",
     );
     assert_eq!(std::fs::read_dir(&out).unwrap().count(), 0, "no half-written output");
-    // Filters that parse but select no cell: the first timed point says so, nothing written.
+    // Filters that parse but select no cell: the run bench starts says why (its exit code, 2),
+    // nothing written.
     assert_one_line_error(
         &run(&[
             "bench",
@@ -191,7 +192,7 @@ fn bench_bad_input_is_one_line_and_writes_nothing() {
             "stage=miss",
         ]),
         2,
-        "ran no timed cell",
+        "have no cell in common",
     );
     assert_eq!(std::fs::read_dir(&out).unwrap().count(), 0, "no half-written output");
 }

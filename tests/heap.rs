@@ -92,6 +92,29 @@ fn list_counts(out: &str) -> (usize, usize, usize) {
 }
 
 #[test]
+fn sid_relative_output_paths_land_in_the_callers_folder() {
+    if !have_sid() {
+        return;
+    }
+    // A folder outside the repository: before, the root's shell fell back to `cd /` and the file
+    // landed inside the root.
+    let dir = tempfile::tempdir().unwrap();
+    let o = Command::new(repo().join("scripts/in-sid"))
+        .current_dir(dir.path())
+        .args([env!("CARGO_BIN_EXE_rtprobe"), "caps", "--no-device-check", "-o", "caps.json"])
+        .env_remove("RTPROBE_VALIDATE")
+        .output()
+        .expect("spawn scripts/in-sid");
+    assert!(o.status.success(), "{}", stderr(&o));
+    let caps: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(dir.path().join("caps.json")).expect("caps.json where the caller is"),
+    )
+    .unwrap();
+    assert_eq!(caps["schema"], "rtprobe.caps/2");
+    assert!(!sid_root().join("caps.json").exists(), "nothing written inside the root");
+}
+
+#[test]
 fn host_lavapipe_plans_heap_cells_as_unsupported_with_the_reason() {
     let o = run(&["run", "--list", "--filter", "descriptor_model=descriptor_heap"]);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -187,6 +210,30 @@ fn sid_plans_every_heap_cell_and_drops_none() {
         !out.contains("not implemented in rtprobe:"),
         "nothing is moved to the not-generated list: {out}"
     );
+}
+
+#[test]
+fn sid_the_pipeline_cache_save_error_is_said_once() {
+    if !have_sid() {
+        return;
+    }
+    // Lavapipe 26.2.6 returns a 20-byte vkGetPipelineCacheData: every save fails the same way.
+    // The first run says so; later runs do not repeat it (their reports keep it).
+    // Under target/ (the same path inside the root), fresh for this test.
+    let cache = repo().join(format!("target/heap-tests/cache-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&cache);
+    let env = [("RTPROBE_CACHE_DIR", cache.to_str().unwrap())];
+    let filter =
+        "stage=raygen,resource=storage_buffer,descriptor_model=descriptor_indexing,index=literal";
+    let said = "not a valid cache";
+    let (o, r) = sid_report("cache-once-1", &["--filter", filter], &env);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains(said), "the first run says it: {}", stdout(&o));
+    assert!(r["pipeline_cache"]["save_errors"][0].as_str().unwrap().contains(said));
+    let (o, r) = sid_report("cache-once-2", &["--filter", filter], &env);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stdout(&o).contains(said), "said once: {}", stdout(&o));
+    assert!(r["pipeline_cache"]["save_errors"][0].as_str().unwrap().contains(said), "kept");
 }
 
 #[test]

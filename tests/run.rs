@@ -436,7 +436,12 @@ fn findings_say_whether_the_recommended_pattern_works() {
         );
         let pc = cells(&r).iter().find(|c| c["id"] == id).expect("scheduled");
         assert_eq!(pc["attempts"].as_array().unwrap().len(), 2);
-        assert!(stdout(&o).contains(&format!("recommended pattern {pattern} (")) && stdout(&o).contains(&format!("{id}): passes (2/2; a fault as frequent as this finding's would be missed with p ≤ ")), "{}", stdout(&o));
+        assert!(
+            stdout(&o).contains(&format!("recommended pattern {pattern} ("))
+                && stdout(&o).contains(&format!("{id}): not proven (2 passes; need ")),
+            "{}",
+            stdout(&o)
+        );
         let m = p["miss_probability"].as_f64().expect("miss_probability");
         let inc = |k: &str| base["incidence"][k].as_u64().unwrap() as u32;
         assert!(
@@ -679,7 +684,7 @@ fn faulting_cells_are_retried_with_each_applicable_workaround() {
         base["workarounds"]
     );
     assert!(
-        stdout(&o).contains("no verified workaround (nonuniform → passes (1/1;"),
+        stdout(&o).contains("no verified workaround (nonuniform → not proven (1 pass; need "),
         "{}",
         stdout(&o)
     );
@@ -729,7 +734,7 @@ fn faulting_cells_are_retried_with_each_applicable_workaround() {
         let n = w["attempts"].as_u64().unwrap() as u32;
         let m = rtprobe::model::stats::pass_miss(inc("faulted"), inc("attempts"), n);
         assert!(n > 0 && (w["miss_probability"].as_f64().unwrap() - m).abs() < 1e-9, "{w}");
-        assert!(stdout(&o).contains(&format!("{} → passes ({n}/{n}; a fault as frequent as this finding's would be missed with p ≤ {m:.2})", w["patch"].as_str().unwrap())), "{}", stdout(&o));
+        assert!(stdout(&o).contains(&format!("{} → passes ({n} of {n}; a fault as frequent as this finding's would be missed with p ≤ {m:.3})", w["patch"].as_str().unwrap())), "{}", stdout(&o));
     }
 }
 

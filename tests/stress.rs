@@ -263,7 +263,10 @@ fn stress_bad_input_is_one_line() {
     std::fs::write(dir.path().join("a-file"), b"").unwrap();
     let bad = dir.path().join("a-file").join("x.json");
     let o = run(&["stress", "--cases", "tmin", "--json", bad.to_str().unwrap()]);
-    assert_one_line_error(&o, 9, "writing the stress report");
+    // Checked before any case runs (no table printed), in one line.
+    assert_one_line_error(&o, 9, "--json");
+    assert!(stderr(&o).contains("cannot write in"), "{}", stderr(&o));
+    assert!(stdout(&o).is_empty(), "{}", stdout(&o));
     let o =
         run(&["stress", "--cases", "tmin", "--svg", dir.path().join("f.svg").to_str().unwrap()]);
     assert_one_line_error(&o, 9, "--svg needs the far case");

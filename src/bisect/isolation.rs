@@ -83,15 +83,13 @@ pub fn line(cell: &Cell, varied: Option<&str>, verdicts: &Verdicts, ev: Evidence
         ("pass", _, _) => {
             format!("✅ passes ({} of {n}; no faulting cell to hold it to)", l.agreeing)
         }
-        ("error", _, _) => {
-            format!("⚠ error ({}/{n}): {}", l.agreeing, l.reason.as_deref().unwrap_or("no detail"))
-        }
+        ("error", _, _) => error_evidence(report, l.reason.as_deref()),
         (v, _, Some(p)) => format!("❌ {v} ({k} of {n}, p ≥ {p:.2} at {conf})"),
         (v, _, None) => format!("❌ {v} ({k} of {n})"),
     };
     l.line = format!("{}: {evidence}", l.description);
     if let Some((sib, other)) = sus {
-        l.line += &format!(" — suspect, not used: {other} pixel(s) read what another lane's index gives (accepted without nonuniformEXT by rtprobe's heuristic; the spec leaves it undefined), while {} faults", describe(&sib));
+        l.line += &format!(" — suspect, not used: {} read what another lane's index gives (accepted without nonuniformEXT by rtprobe's heuristic; the spec leaves it undefined), while {} faults", crate::model::plural(other, "pixel"), describe(&sib));
     }
     if verdicts.state(cell) == super::State::Doubtful(super::Doubt::UndefinedFault) {
         l.line += &format!(
@@ -100,6 +98,20 @@ pub fn line(cell: &Cell, varied: Option<&str>, verdicts: &Verdicts, ev: Evidence
         );
     }
     l
+}
+
+/// An error's words: no evidence (`Verdicts::counts` leaves it out), so the attempts made and
+/// how many said error, with the reason.
+fn error_evidence(report: Option<&crate::model::CellReport>, reason: Option<&str>) -> String {
+    let made = report.map_or(0, |r| r.attempts.iter().filter(|a| !a.not_run()).count());
+    let errors = report.map_or(0, |r| {
+        r.attempts.iter().filter(|a| a.outcome == crate::model::outcome::Outcome::Error).count()
+    });
+    format!(
+        "⚠ error ({errors} of {}; rtprobe could not run it, no evidence either way): {}",
+        crate::model::plural(made, "attempt"),
+        reason.unwrap_or("no detail")
+    )
 }
 
 /// A probability as a short percentage (`0.78%`, `< 0.01%`).
@@ -137,5 +149,26 @@ mod tests {
         assert_eq!(describe(&d), "closest_hit reading storage_buffer with dynamic index (nonuniformEXT), descriptor_indexing, patched with ssbo-to-address");
         assert_eq!(percent(0.0078125), "0.78%");
         assert_eq!(percent(1e-9), "< 0.01%");
+    }
+
+    #[test]
+    fn an_error_line_counts_the_attempts_made_not_the_evidence() {
+        use crate::model::{Attempt, Outcome};
+        let c = Cell::new(
+            Stage::ClosestHit,
+            Resource::StorageBuffer,
+            IndexSource::Dynamic,
+            DescriptorModel::DescriptorIndexing,
+        );
+        let mut v = Verdicts::default();
+        v.record(&c, Attempt::for_tests(Outcome::Error, false));
+        let ev = Evidence { against: Some(0.5), max_miss: 0.01 };
+        let l = line(&c, None, &v, ev);
+        // No evidence (0 of 0 counted), but one attempt made, and it said error.
+        assert_eq!(v.counts(&c), (0, 0));
+        assert!(l.line.contains("⚠ error (1 of 1 attempt; rtprobe could not run it"), "{}", l.line);
+        assert!(l.line.ends_with(": error happened"), "{}", l.line);
+        v.record(&c, Attempt::for_tests(Outcome::Error, true));
+        assert!(line(&c, None, &v, ev).line.contains("error (2 of 2 attempts;"));
     }
 }

@@ -36,11 +36,11 @@ pub fn render(b: &Bisection, full_matrix: usize) -> String {
     s += "\n";
     match b.fault_rate_bound {
         Some(p) => s += &format!(
-            "evidence: the minimal failing cell's fault rate is p ≥ {p:.2} at {:.0}% (one-sided Clopper–Pearson); a pass held to it needs {} attempt(s) for a miss probability below {}; {} pass(es) relied on, worst miss probability {} per pass, at most {} that any of them missed (union bound), given that the rate bound holds ({:.0}% confidence)\n",
+            "evidence: the minimal failing cell's fault rate is p ≥ {p:.2} at {:.0}% (one-sided Clopper–Pearson); a pass held to it needs {} for a miss probability below {}; {} relied on, worst miss probability {} per pass, at most {} that any of them missed (union bound), given that the rate bound holds ({:.0}% confidence)\n",
             100.0 * b.confidence,
-            b.attempts_per_pass,
+            crate::model::plural(b.attempts_per_pass as usize, "attempt"),
             super::isolation::percent(b.max_miss),
-            b.passes_relied_on,
+            passes(b.passes_relied_on),
             super::isolation::percent(b.worst_miss_probability),
             super::isolation::percent(b.union_miss_probability),
             100.0 * b.confidence
@@ -49,8 +49,8 @@ pub fn render(b: &Bisection, full_matrix: usize) -> String {
     }
     if !b.unsettled.is_empty() {
         s += &format!(
-            "NOT CONCLUDED: {} pass(es) relied on stay at or above a miss probability of {} (attempt cap or offline); the result rests on them: {}\n",
-            b.unsettled.len(),
+            "NOT CONCLUDED: {} relied on stay at or above a miss probability of {} (attempt cap or offline); the result rests on them: {}\n",
+            passes(b.unsettled.len()),
             super::isolation::percent(b.max_miss),
             b.unsettled.join(", ")
         );
@@ -112,4 +112,13 @@ pub fn predicate(f: &Filter) -> String {
         return "canary=none".into();
     }
     f.terms.iter().map(|(a, v)| format!("{a}={}", v.join("|"))).collect::<Vec<_>>().join(",")
+}
+
+/// `1 pass`, `5 passes`.
+fn passes(n: usize) -> String {
+    if n == 1 {
+        "1 pass".into()
+    } else {
+        format!("{n} passes")
+    }
 }

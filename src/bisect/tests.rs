@@ -475,7 +475,7 @@ fn a_lenient_pass_that_read_other_elements_is_suspect_when_a_defined_sibling_fau
     let l = isolation::line(&lenient, Some("index"), &v, ev);
     assert_eq!(l.suspect.as_deref(), Some(literal.id().as_str()));
     assert!(
-        l.line.contains("suspect, not used: 3 pixel(s) read what another lane's index gives")
+        l.line.contains("suspect, not used: 3 pixels read what another lane's index gives")
             && l.line.contains("with literal index, descriptor_indexing faults"),
         "{}",
         l.line

@@ -118,7 +118,12 @@ impl Verdicts {
     /// differs only in a defined index (another index source, or `nonuniformEXT`): the read of
     /// "another element" may be that fault.
     pub fn suspect(&self, cell: &Cell) -> Option<(Cell, usize)> {
-        let other = self.get(cell)?.element_reads().map(|e| e.other).max().filter(|o| *o > 0)?;
+        let other = self
+            .get(cell)?
+            .element_reads()
+            .map(|e| e.other + e.neither)
+            .max()
+            .filter(|o| *o > 0)?;
         let defined = IndexSource::ALL
             .iter()
             .filter(|i| **i != IndexSource::Dynamic)

@@ -82,21 +82,22 @@ impl Campaign<'_> {
         attempts
     }
 
-    /// A round's batch: the progress learns of it first; nothing to run (or a halted run) is no
-    /// batch.
-    pub(super) fn round(&mut self, cells: &[Cell], mode: Mode) -> usize {
+    /// A round's batch (`name`: which round): the progress learns of it first; nothing to run
+    /// (or a halted run) is no batch.
+    pub(super) fn round(&mut self, name: &'static str, cells: &[Cell], mode: Mode) -> usize {
         if cells.is_empty() || self.rec.halted.is_some() {
             return 0;
         }
         self.rec.progress.scheduled(cells.len() as u64);
+        self.rec.progress.round(name, cells.len() as u64, mode != Mode::Shared);
         self.batch(cells, mode)
     }
 
     /// Run `next(report)` alone until it is empty (or a batch adds nothing).
-    fn until_done(&mut self, next: &dyn Fn(&RunReport) -> Vec<Cell>) {
+    fn until_done(&mut self, name: &'static str, next: &dyn Fn(&RunReport) -> Vec<Cell>) {
         loop {
             let more = next(&self.rec.writer.report);
-            if more.is_empty() || self.round(&more, Mode::Alone) == 0 {
+            if more.is_empty() || self.round(name, &more, Mode::Alone) == 0 {
                 break;
             }
         }
@@ -110,19 +111,19 @@ impl Campaign<'_> {
     /// Each fault again, alone in a fresh worker.
     pub fn confirm(&mut self) {
         let again = confirm_cells(&self.rec.writer.report);
-        self.round(&again, Mode::Alone);
+        self.round("confirm", &again, Mode::Alone);
     }
 
     /// Every faulting cell until it has `n` attempts in all, each alone in a fresh worker.
     pub fn repeat(&mut self, n: u32) {
-        self.until_done(&|r| repeat_cells(r, n));
+        self.until_done("repeat", &|r| repeat_cells(r, n));
     }
 
     /// The findings' workaround variants the device can run, once, together.
     pub fn workarounds(&mut self) {
         let retries =
             workaround_cells(&self.rec.writer.report, &self.rec.writer.done(), self.supported);
-        self.round(&retries, Mode::Shared);
+        self.round("workarounds", &retries, Mode::Shared);
     }
 
     /// The recommended pattern nearest each finding (`report::recommended`), where the report
@@ -133,12 +134,12 @@ impl Campaign<'_> {
             .into_iter()
             .filter(|c| supported(c))
             .collect();
-        self.round(&patterns, Mode::Shared);
+        self.round("patterns", &patterns, Mode::Shared);
     }
 
     /// Passing variants and patterns again, alone, until they have their finding's attempts.
     pub fn verify(&mut self) {
-        self.until_done(&verify_cells);
+        self.until_done("verify", &verify_cells);
     }
 
     /// Each finding again, alone, under GPU-AV, next to its control (`report::gpu_av`), kept
@@ -154,6 +155,7 @@ impl Campaign<'_> {
             }
             let progress = &*self.rec.progress;
             progress.scheduled(again.len() as u64);
+            progress.round("gpu-av", again.len() as u64, true);
             let halted = &mut self.rec.halted;
             self.oracle.run(&again, Mode::GpuAv, &mut |ev| match ev {
                 Event::Attempt { cell, attempt } => {
@@ -186,7 +188,7 @@ impl Campaign<'_> {
         let before: HashMap<Cell, MutantPrediction> = run.iter().copied().collect();
         let cells: Vec<Cell> = run.iter().map(|(c, _)| *c).collect();
         let mut judged: HashSet<Cell> = HashSet::new();
-        self.apart(&cells, Mode::Shared, &mut |rec, cell, attempt| {
+        self.apart("mutants", &cells, Mode::Shared, &mut |rec, cell, attempt| {
             if let (Some(m), Some(b)) = (cell.mutant, before.get(&cell)) {
                 let e = mutants::verdict((&cell, m), *b, Some(&attempt));
                 mutants::record(&mut rec.writer.report, e);
@@ -204,11 +206,12 @@ impl Campaign<'_> {
         mutants::annotate(r, &policy.mutants, sample.as_deref(), missing, wall_ms);
     }
 
-    /// Run `cells` as `mode` says, each attempt handed to `on_attempt` (with the recorder) and
-    /// kept apart from the cells' own; worker readiness and caches still reach the report, a
-    /// halt stops the run.
+    /// Run `cells` as `mode` says (the round `name`), each attempt handed to `on_attempt` (with
+    /// the recorder) and kept apart from the cells' own, so the progress counts no outcome of
+    /// it; worker readiness and caches still reach the report, a halt stops the run.
     fn apart(
         &mut self,
+        name: &'static str,
         cells: &[Cell],
         mode: Mode,
         on_attempt: &mut dyn FnMut(&mut super::Recorder, Cell, Attempt),
@@ -217,10 +220,11 @@ impl Campaign<'_> {
             return;
         }
         self.rec.progress.scheduled(cells.len() as u64);
+        self.rec.progress.round(name, cells.len() as u64, mode != Mode::Shared);
         let rec = &mut *self.rec;
         self.oracle.run(cells, mode, &mut |ev| match ev {
             Event::Attempt { cell, attempt } => {
-                rec.progress.ended(&cell, Some(attempt.outcome));
+                rec.progress.ended(&cell, None);
                 on_attempt(rec, cell, attempt);
             }
             // A worker's fault outside a cell during the round is no cell's and no finding.
@@ -235,6 +239,7 @@ impl Campaign<'_> {
     /// The canaries, together, after everything else (the progress already counts them).
     pub fn canaries(&mut self, canaries: &[Cell]) {
         if !canaries.is_empty() {
+            self.rec.progress.round("canaries", canaries.len() as u64, false);
             self.batch(canaries, Mode::Shared);
         }
     }

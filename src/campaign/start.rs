@@ -38,7 +38,7 @@ pub fn fresh(
         schema: SCHEMA.into(),
         tool: json!({ "name": "rtprobe", "version": env!("CARGO_PKG_VERSION") }),
         command_line,
-        started: format!("{} ({started})", time::stamp(started)),
+        started: time::rfc3339(started),
         finished: None,
         complete: false,
         device: crate::caps::device_json(info),
@@ -63,6 +63,8 @@ pub fn fresh(
             sharded_out,
         },
         summary: Default::default(),
+        retries: Default::default(),
+        resumed: vec![],
         tally: Default::default(),
         timing: TimingSummary::default(),
         baseline: None,
@@ -93,10 +95,23 @@ pub fn resume(old: RunReport, fresh: &RunReport) -> Result<RunReport, NotSameRun
 }
 
 /// The plan's cells still to run — all, or after a resume those without an attempt that ran —
-/// as (probe cells, canaries): canaries run after every probe cell and its confirmation.
-pub fn pending(writer: &ReportWriter, plan: &RunPlan, resumed: bool) -> (Vec<Cell>, Vec<Cell>) {
+/// as (probe cells, canaries): canaries run after every probe cell and its confirmation. A resume
+/// is recorded in the report (`resumed`: when, the cells kept, the cells left).
+pub fn pending(writer: &mut ReportWriter, plan: &RunPlan, resumed: bool) -> (Vec<Cell>, Vec<Cell>) {
     let done = if resumed { writer.done() } else { Default::default() };
-    plan.to_run().filter(|c| !done.contains(&c.id())).copied().partition(|c| c.canary.is_none())
+    let (cells, canaries): (Vec<Cell>, Vec<Cell>) = plan
+        .to_run()
+        .filter(|c| !done.contains(&c.id()))
+        .copied()
+        .partition(|c| c.canary.is_none());
+    if resumed {
+        writer.report.resumed.push(crate::model::report::Resumed {
+            at: time::rfc3339(time::now_unix()),
+            kept: done.len(),
+            to_run: cells.len() + canaries.len(),
+        });
+    }
+    (cells, canaries)
 }
 
 /// End the report: wall time (added to a resumed run's), the workers' mean device setup time,
@@ -111,7 +126,7 @@ pub fn finish(rec: &mut Recorder, wall: Duration, baseline: Option<(&Baseline, &
         0.0
     };
     let now = time::now_unix();
-    r.finished = Some(format!("{} ({now})", time::stamp(now)));
+    r.finished = Some(time::rfc3339(now));
     r.complete = true;
     if let Some((b, source, scope)) = baseline {
         r.baseline = Some(crate::fleet::baseline::check(r, b, source, scope));

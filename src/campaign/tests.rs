@@ -77,11 +77,16 @@ impl Oracle for Halting {
 struct Counts {
     scheduled: std::cell::Cell<u64>,
     ended: std::cell::Cell<u64>,
+    /// The rounds announced: name, attempts, alone.
+    rounds: std::cell::RefCell<Vec<(&'static str, u64, bool)>>,
 }
 
 impl Progress for Rc<Counts> {
     fn scheduled(&self, n: u64) {
         self.scheduled.set(self.scheduled.get() + n);
+    }
+    fn round(&self, name: &'static str, n: u64, alone: bool) {
+        self.rounds.borrow_mut().push((name, n, alone));
     }
     fn ended(&self, _: &Cell, _: Option<Outcome>) {
         self.ended.set(self.ended.get() + 1);
@@ -216,6 +221,8 @@ fn confirm_reruns_each_fault_alone_once() {
     let (mut w, cells) = confirm_world();
     w.campaign(&all).confirm();
     check_confirm(&w, &cells).unwrap();
+    // The progress heard of the round by name (the matrix is not a round it announces).
+    assert_eq!(*w.counts.rounds.borrow(), vec![("confirm", 2, true)]);
     assert_eq!(w.attempts(&cells[0]), vec![Outcome::Crash, Outcome::Crash]);
     assert_eq!(
         w.counts.scheduled.get(),
@@ -229,11 +236,11 @@ fn confirm_twin_rerunning_passes_or_running_faults_together_is_caught() {
     let (mut w, cells) = confirm_world();
     let once: Vec<Cell> =
         w.report().cells.iter().filter(|c| c.attempts.len() == 1).map(|c| c.cell).collect();
-    w.campaign(&all).round(&once, Mode::Alone);
+    w.campaign(&all).round("test", &once, Mode::Alone);
     assert!(check_confirm(&w, &cells).is_err());
     let (mut w, cells) = confirm_world();
     let faults = confirm_cells(w.report());
-    w.campaign(&all).round(&faults, Mode::Shared);
+    w.campaign(&all).round("test", &faults, Mode::Shared);
     assert!(check_confirm(&w, &cells).is_err());
 }
 
@@ -282,7 +289,7 @@ fn repeat_gives_every_faulting_cell_n_attempts_alone() {
 fn repeat_twin_a_single_round_is_caught() {
     let (mut w, cells) = repeat_world();
     let more = repeat_cells(w.report(), 4);
-    w.campaign(&all).round(&more, Mode::Alone);
+    w.campaign(&all).round("test", &more, Mode::Alone);
     assert!(check_repeat(&w, cells, 4).is_err());
 }
 
@@ -349,7 +356,7 @@ fn workarounds_twin_unverified_or_unsupported_variants_are_caught() {
     assert!(check_workarounds(&w, finding, &v).is_err(), "no verifying repeats");
     let (mut w, finding, v) = workaround_world();
     let every = workaround_cells(w.report(), &w.rec.writer.done(), &all);
-    w.campaign(&all).round(&every, Mode::Shared);
+    w.campaign(&all).round("test", &every, Mode::Shared);
     w.campaign(&all).verify();
     assert!(check_workarounds(&w, finding, &v).is_err(), "a variant the device cannot run");
 }
@@ -463,7 +470,7 @@ fn gpu_av_runs_findings_next_to_controls_apart_and_repeats_passes_until_enough()
 fn gpu_av_twin_attempts_recorded_as_the_cells_own_are_caught() {
     let (mut w, cells) = gpu_av_world();
     let (again, _) = gpu_av::schedule(w.report(), LAYER);
-    w.campaign(&all).round(&again, Mode::GpuAv);
+    w.campaign(&all).round("test", &again, Mode::GpuAv);
     assert!(check_gpu_av(&w, cells).is_err());
 }
 
@@ -746,7 +753,7 @@ fn mutants_twin_recording_mutant_attempts_as_cells_or_running_every_pair_is_caug
         .iter()
         .flat_map(|k| [cells[0], cells[2]].map(|c| Cell { mutant: Some(*k), ..c }))
         .collect();
-    w.campaign(&all).round(&run, Mode::Shared);
+    w.campaign(&all).round("test", &run, Mode::Shared);
     w.campaign(&all).mutants(&MutantPolicy { mutants: vec![], sample: None });
     assert!(check_mutants(&w, cells).is_err());
     // A round that ignores the reference (runs the equivalent pair too).

@@ -106,13 +106,32 @@ pub struct RunArgs {
     #[arg(long)]
     pub list: bool,
 
-    /// Report file (default: reports/run-<timestamp>-<device>.json)
-    #[arg(long, short = 'o', value_name = "FILE")]
+    /// Report file (default: reports/run-<timestamp>-<device>.json, never one that exists or
+    /// that another run is writing)
+    #[arg(long, short = 'o', visible_alias = "output", value_name = "FILE")]
     pub out: Option<PathBuf>,
 
-    /// Continue an interrupted run from its report (finished cells are kept, not re-run)
+    /// Continue an interrupted run from its report (finished cells are kept, not re-run). The
+    /// device, scene, filters, injections and options are the report's; one given here that
+    /// differs from the report's is refused
     #[arg(long, value_name = "REPORT")]
     pub resume: Option<PathBuf>,
+
+    /// Also write deqp-runner's files into DIR: results.csv (`test,Status,duration` for every
+    /// planned cell), failures.csv (the lines CI looks at: Fail, Crash, Timeout, Flake,
+    /// UnexpectedPass), junit.xml, and the report (DIR/report.json unless -o says otherwise)
+    #[arg(long, value_name = "DIR")]
+    pub output_dir: Option<PathBuf>,
+
+    /// Known flakes, deqp-runner's form: a regular expression per line (`#` comments) matched
+    /// against cell ids; a matching cell that faults is a known flake, not a failure
+    #[arg(long, value_name = "FILE")]
+    pub flakes: Option<PathBuf>,
+
+    /// Cells not to run, deqp-runner's form: a regular expression per line (`#` comments)
+    /// matched against cell ids; they are left out of the plan as a filter would
+    #[arg(long, value_name = "FILE")]
+    pub skips: Option<PathBuf>,
 
     /// Also write JUnit XML (findings as failures, unsupported cells as skipped)
     #[arg(long, value_name = "FILE")]
@@ -260,6 +279,15 @@ pub struct RunArgs {
     /// of compiling the GLSL (not a flag).
     #[arg(skip)]
     pub spirv_dir: Option<PathBuf>,
+
+    /// The arguments given on the command line or through their variable, by clap id (not a
+    /// flag): `--resume` takes the others from the report and refuses these where they differ.
+    #[arg(skip)]
+    pub explicit: Vec<String>,
+
+    /// `--skips` patterns taken from the report `--resume` continues (not a flag).
+    #[arg(skip)]
+    pub skip_patterns: Option<Vec<String>>,
 }
 
 #[derive(Args, Debug)]
@@ -310,7 +338,7 @@ pub struct ReportArgs {
     pub bisect: Option<PathBuf>,
 
     /// Output file (default: stdout); written atomically
-    #[arg(long, short = 'o', value_name = "FILE")]
+    #[arg(long, short = 'o', alias = "output", value_name = "FILE")]
     pub out: Option<PathBuf>,
 
     /// `md` (the issue text) or `json` (the same content as data)
@@ -339,7 +367,7 @@ pub struct ReproArgs {
     pub from: PathBuf,
 
     /// The bundle directory (created; an existing non-empty one needs --force)
-    #[arg(long, short = 'o', value_name = "DIR")]
+    #[arg(long, short = 'o', alias = "output", value_name = "DIR")]
     pub out: PathBuf,
 
     /// Replace an existing non-empty DIR (its old files are removed, not merged)
@@ -366,7 +394,7 @@ pub struct CapsArgs {
     pub json: bool,
 
     /// Also write the JSON report to FILE (atomically)
-    #[arg(long, short = 'o', value_name = "FILE")]
+    #[arg(long, short = 'o', alias = "output", value_name = "FILE")]
     pub out: Option<PathBuf>,
 
     /// Also write the capabilities as a Khronos Vulkan Profiles JSON file
@@ -431,7 +459,7 @@ pub struct PatchArgs {
     /// Output: a file (one input), a folder (several inputs), or `-` for stdout (one input).
     /// Default: beside each input, NAME.patched.spv. Written only if every patch applied and every
     /// result validates
-    #[arg(long, short = 'o', value_name = "FILE|DIR|-")]
+    #[arg(long, short = 'o', alias = "output", value_name = "FILE|DIR|-")]
     pub out: Option<PathBuf>,
 
     /// The host contract (JSON): the push-constant bytes and stages to add, which address goes
@@ -504,7 +532,7 @@ pub struct BaselineArgs {
     pub report: PathBuf,
 
     /// Output file
-    #[arg(long, short = 'o', value_name = "FILE")]
+    #[arg(long, short = 'o', alias = "output", value_name = "FILE")]
     pub out: PathBuf,
 
     /// `json` (rtprobe's own, with flake details and performance bounds) or `deqp`
@@ -542,12 +570,21 @@ pub struct MergeArgs {
     pub reports: Vec<PathBuf>,
 
     /// Output report
-    #[arg(long, short = 'o', value_name = "FILE")]
+    #[arg(long, short = 'o', alias = "output", value_name = "FILE")]
     pub out: PathBuf,
 
     /// Merge even reports of different devices, scenes, options or rtprobe versions
     #[arg(long)]
     pub force: bool,
+
+    /// Hold the merged report to this baseline (as `run --baseline`); without it, the shards'
+    /// own baseline checks are carried when they all used the same baseline
+    #[arg(long, value_name = "FILE")]
+    pub baseline: Option<PathBuf>,
+
+    /// With a baseline: cells better than expected are reported but do not fail the merge
+    #[arg(long)]
+    pub allow_improvements: bool,
 }
 
 #[derive(Args, Debug)]
@@ -560,7 +597,7 @@ pub struct DiffArgs {
     pub format: DiffFormat,
 
     /// Also write the diff to FILE (in --format)
-    #[arg(long, short = 'o', value_name = "FILE")]
+    #[arg(long, short = 'o', alias = "output", value_name = "FILE")]
     pub out: Option<PathBuf>,
 
     /// Report a phase's time per cell only when it changed by more than this factor (0.5 = ±50%)
@@ -585,7 +622,7 @@ pub struct BenchArgs {
     pub device: Option<String>,
 
     /// Output directory for bench.json and the SVG plots (default: reports/bench-<timestamp>)
-    #[arg(long, short = 'o', value_name = "DIR")]
+    #[arg(long, short = 'o', alias = "output", value_name = "DIR")]
     pub out: Option<PathBuf>,
 
     /// A small bench for tests and CI: sizes 8 and 16, a few cells, f 0.001 and 1, one flaky

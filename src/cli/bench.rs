@@ -4,6 +4,7 @@
 use super::args::BenchArgs;
 use super::commands::Globals;
 use super::exit::{self, coded};
+use super::out::{errln, outln};
 use crate::atomic::write_atomic;
 use crate::bench::{self, Bench, BenchError, BenchOptions};
 use crate::model::Filter;
@@ -241,7 +242,7 @@ pub fn bench(g: &Globals, a: &BenchArgs) -> Result<u8> {
     std::fs::create_dir_all(&opts.work_dir).map_err(|e| {
         coded(exit::BAD_INPUT, format!("cannot create {}: {e}", opts.work_dir.display()))
     })?;
-    let mut progress = |line: &str| eprintln!("bench: {line}");
+    let mut progress = |line: &str| errln!("bench: {line}");
     let result = Bench::new(&opts, &mut progress).run_all();
     let _ = std::fs::remove_dir_all(&opts.work_dir);
     let value = result.map_err(|e| match &e {
@@ -262,18 +263,18 @@ pub fn bench(g: &Globals, a: &BenchArgs) -> Result<u8> {
     // bench.json last: its presence says every plot beside it is complete.
     write_atomic(&out.join("bench.json"), &json).with_context(|| "writing bench.json")?;
     print_summary(&value);
-    println!("bench: {} ({} plots)", out.join("bench.json").display(), plots.len());
+    outln!("bench: {} ({} plots)", out.join("bench.json").display(), plots.len());
     Ok(exit::OK)
 }
 
 fn print_summary(v: &serde_json::Value) {
     let d = &v["default"];
     match d["matrix_wall_s"].as_f64() {
-        Some(t) => println!("default size {0}×{0}: matrix {t:.1} s", d["size"]),
-        None => println!("default size {0}×{0}: not among --sizes", d["size"]),
+        Some(t) => outln!("default size {0}×{0}: matrix {t:.1} s", d["size"]),
+        None => outln!("default size {0}×{0}: not among --sizes", d["size"]),
     }
     for x in d["detection"].as_array().into_iter().flatten() {
-        println!(
+        outln!(
             "  f={}: caught {:.3} (predicted {:.3}, n mean {:.0})",
             x["fraction"],
             x["measured"].as_f64().unwrap_or(f64::NAN),
@@ -283,7 +284,7 @@ fn print_summary(v: &serde_json::Value) {
     }
     for p in v["mutants"]["points"].as_array().into_iter().flatten() {
         let t = &p["counts"]["total"];
-        println!(
+        outln!(
             "mutants {0}×{0}: {1} of {2} applicable killed (kill rate {3}), {4} allowed survivors, {5} probe defects, {6} faults; {7:.0} ms per mutant attempt",
             p["size"],
             t["killed"],
@@ -297,7 +298,7 @@ fn print_summary(v: &serde_json::Value) {
     }
     for p in v["flaky"]["points"].as_array().into_iter().flatten() {
         let n = &p["repeats_needed"];
-        println!(
+        outln!(
             "flaky:{}: rate {:.3}; repeats for 95%: {} predicted, {} measured; 99%: {} / {}",
             p["probability"],
             p["measured_rate"].as_f64().unwrap_or(0.0),

@@ -4,6 +4,7 @@
 use super::args::BisectArgs;
 use super::commands::Globals;
 use super::exit::{self, coded};
+use super::out::out;
 use super::shared::{load_report, report_device, SupervisorOracle};
 use crate::atomic::write_atomic;
 use crate::bisect::scope::{report_scope, ReportOptions};
@@ -47,6 +48,7 @@ pub(crate) fn offline(
 
 pub fn bisect(g: &Globals, a: &BisectArgs) -> Result<u8> {
     check_args(a)?;
+    super::paths::writable_files(&[("--json", a.json.as_deref())])?;
     let report = load_report(&a.report)?;
     let ro = ReportOptions::of(&report)
         .map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.report.display())))?;
@@ -110,6 +112,6 @@ pub fn bisect(g: &Globals, a: &BisectArgs) -> Result<u8> {
     if let Some(path) = &a.json {
         write_atomic(path, &serde_json::to_vec_pretty(&file)?).context("writing the bisection")?;
     }
-    print!("{}", file.text);
+    out!("{}", file.text);
     Ok(exit::OK)
 }

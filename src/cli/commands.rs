@@ -1,6 +1,7 @@
 //! The `devices` and `caps` commands: glue between parsed arguments and the library modules.
 use super::args::{CapsArgs, DevicesArgs};
 use super::exit;
+use super::out::{out, outln};
 use crate::atomic::write_atomic;
 use crate::caps::{self, DeviceCreationCheck};
 use crate::matrix::plan::{self, PlanOptions};
@@ -14,6 +15,7 @@ use serde_json::json;
 use std::sync::Arc;
 use std::time::Instant;
 
+#[derive(Debug)]
 pub struct Globals {
     pub validate: bool,
     /// `--validate=gpu-av`: `run` re-runs each finding under GPU-Assisted Validation.
@@ -35,7 +37,7 @@ pub fn devices(g: &Globals, args: &DevicesArgs) -> Result<u8> {
                 json!({ "device": caps::device_json(d), "ray_tracing_pipeline": { "supported": missing.is_empty(), "missing": missing } })
             })
             .collect();
-        println!("{}", serde_json::to_string_pretty(&v)?);
+        outln!("{}", serde_json::to_string_pretty(&v)?);
         return Ok(exit::OK);
     }
     for d in &all {
@@ -46,7 +48,7 @@ pub fn devices(g: &Globals, args: &DevicesArgs) -> Result<u8> {
             format!("no (missing {})", missing.join(", "))
         };
         let p = &d.properties.core;
-        println!(
+        outln!(
             "{}  {}  vendor {} ({:#06x})  driver {} {}  Vulkan {}  rt-pipeline: {}",
             d.index,
             d.name(),
@@ -84,6 +86,10 @@ fn check_device_creation(inst: &Arc<Instance>, info: &DeviceInfo) -> DeviceCreat
 }
 
 pub fn caps_cmd(g: &Globals, args: &CapsArgs) -> Result<u8> {
+    super::paths::writable_files(&[
+        ("-o", args.out.as_deref()),
+        ("--profile", args.profile.as_deref()),
+    ])?;
     let inst = open_instance(g)?;
     let all = features::query_all(&inst)?;
     let info = features::select(&all, args.device.as_deref()).map_err(|e| match e {
@@ -104,11 +110,27 @@ pub fn caps_cmd(g: &Globals, args: &CapsArgs) -> Result<u8> {
         write_atomic(p, prof.as_bytes()).context("writing the Vulkan profile")?;
     }
     if args.json {
-        print!("{pretty}");
+        out!("{pretty}");
     } else {
-        print!("{}", caps::text::render(&report));
+        out!("{}", caps::text::render(&report));
+        outln!("{}", first_run(info));
     }
     Ok(exit::OK)
+}
+
+/// The first run to try after `caps`: closest-hit and raygen shaders reading storage buffers
+/// through descriptor indexing (the README's tour), with how many cells it runs on `info`.
+pub fn first_run(info: &DeviceInfo) -> String {
+    const FILTER: &str =
+        "stage=closest_hit|raygen,resource=storage_buffer,descriptor_model=descriptor_indexing";
+    let filters = vec![crate::model::Filter::parse(FILTER).expect("a valid filter")];
+    let opts = PlanOptions { filters, canaries: false, patches: PatchMode::Faults, inject: vec![] };
+    let n = plan::plan(info, &opts).to_run().count();
+    let flag = if info.index == 0 { String::new() } else { format!(" --device {}", info.index) };
+    format!(
+        "next: a first run ({} of the matrix): rtprobe run{flag} --filter '{FILTER}' -o first.json",
+        crate::model::plural(n, "cell")
+    )
 }
 
 /// Today's date (UTC) as YYYY-MM-DD, from the system clock.

@@ -28,16 +28,18 @@ pub const HELP: &str = "\
 Exit codes:
   0  success (run: every cell passed or was unsupported)
   1  run: at least one cell faulted (device_lost, crash, timeout, error) or mismatched,
-     or a worker faulted outside a cell (between cells, in teardown); stress: a case did not pass;
+     or a worker faulted outside a cell (between cells, in teardown); with --baseline, only what
+     it did not expect; merge: the same for the merged report; stress: a case did not pass;
      patch --verify: the patched pipeline rendered differently from the unpatched one
-  2  bad command-line arguments
+  2  bad command-line arguments, or --filters that leave no cell to plan
   3  no Vulkan loader (libvulkan.so.1), or one older than Vulkan 1.2
   4  no Vulkan driver / physical device
-  5  the device cannot do what was asked (e.g. no ray tracing pipeline)
+  5  the device cannot do what was asked (e.g. no ray tracing pipeline; run: none of the
+     planned cells)
   6  --device matches no device, or several
   7  a Vulkan call failed
   8  the device was lost outside a supervised cell
-  9  bad input file or unwritable output
+  9  bad input file, unwritable output, or a report another run is writing
   10 internal error
   11 run: no finding, but a --canaries or --inject-fault fault, or a --mutants mutant the probe
      must catch, was not detected (fault classification unproven)
@@ -115,6 +117,32 @@ fn is_no_compiler(e: &(dyn std::error::Error + 'static)) -> bool {
     matches!(e.downcast_ref::<CompileError>(), Some(CompileError::Init))
 }
 
+/// The error and its causes on one line, each cause said once: a cause whose text the line
+/// already holds (a library error that prints its source, as `WriteError` did) is left out.
+pub fn one_line(err: &anyhow::Error) -> String {
+    let mut line = String::new();
+    for cause in err.chain() {
+        let text = cause.to_string().replace('\n', " ");
+        if line.contains(&text) {
+            continue;
+        }
+        if !line.is_empty() {
+            line += ": ";
+        }
+        line += &text;
+    }
+    line
+}
+
+/// The exit code of a run's verdict (`run`, and `merge` of its shards).
+pub fn of_verdict(v: &crate::report::verdict::Verdict) -> u8 {
+    match v.kind {
+        crate::report::verdict::Kind::Pass => OK,
+        crate::report::verdict::Kind::Findings => FINDINGS,
+        crate::report::verdict::Kind::Undetected => CANARY_UNDETECTED,
+    }
+}
+
 pub fn code_for(err: &anyhow::Error) -> u8 {
     for cause in err.chain() {
         if let Some(c) = cause.downcast_ref::<CodedError>() {
@@ -162,6 +190,19 @@ mod tests {
         assert_eq!(code_for(&e), DEVICE_LOST);
         assert_eq!(code_for(&coded(BAD_INPUT, "bad json")), BAD_INPUT);
         assert_eq!(code_for(&anyhow::anyhow!("??")), INTERNAL);
+    }
+
+    #[test]
+    fn an_os_error_is_said_once() {
+        let io = std::io::Error::from_raw_os_error(libc::EACCES);
+        let e = anyhow::Error::from(crate::atomic::WriteError { path: "r.json".into(), err: io })
+            .context("writing the report");
+        let line = one_line(&e);
+        assert_eq!(line.matches("os error 13").count(), 1, "{line}");
+        assert!(line.starts_with("writing the report: cannot write r.json: "), "{line}");
+        // A chain whose causes each add something keeps them all.
+        let e = anyhow::anyhow!("inner").context("middle").context("outer");
+        assert_eq!(one_line(&e), "outer: middle: inner");
     }
 
     #[test]

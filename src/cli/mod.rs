@@ -1,5 +1,5 @@
-//! The command line: clap definitions ([`args`]), exit codes ([`exit`]), and dispatch. Nothing
-//! below this module knows about clap.
+//! The command line: clap definitions ([`args`]), exit codes ([`exit`]), output that never
+//! panics ([`out`]), and dispatch. Nothing below this module knows about clap.
 pub mod args;
 pub mod bench;
 pub mod bisect;
@@ -7,17 +7,24 @@ pub mod commands;
 pub mod exit;
 pub mod fleet;
 pub mod issue_run;
+pub mod out;
+pub mod output_dir;
 pub mod patch;
 pub mod patch_inputs;
+pub mod paths;
+pub mod plan;
+pub mod progress;
 pub mod report;
 pub mod repro;
+pub mod resume;
 pub mod run;
 pub mod shared;
 pub mod stress;
 pub mod values;
 
 use args::{Cli, Command};
-use clap::Parser;
+use clap::{CommandFactory, FromArgMatches};
+use out::{errln, out};
 
 fn init_tracing(verbose: u8) {
     use tracing_subscriber::EnvFilter;
@@ -34,15 +41,78 @@ fn init_tracing(verbose: u8) {
         .try_init();
 }
 
+/// A clap error as rtprobe's: `rtprobe: error: <what>; <clap's tip>` on one line, then a hint
+/// line naming the command's help.
+fn usage_error(e: &clap::Error, command: &str) -> String {
+    let text = e.render().to_string();
+    let mut what = String::new();
+    let mut tips = Vec::new();
+    for line in text.lines().map(str::trim).filter(|l| !l.is_empty()) {
+        if let Some(first) = line.strip_prefix("error: ").filter(|_| what.is_empty()) {
+            what = first.to_string();
+        } else if let Some(tip) = line.strip_prefix("tip: ") {
+            tips.push(tip.to_string());
+        }
+    }
+    if what.is_empty() {
+        what = text.lines().next().unwrap_or("bad arguments").trim().to_string();
+    }
+    let tips = if tips.is_empty() { String::new() } else { format!(" ({})", tips.join("; ")) };
+    format!("rtprobe: error: {what}{tips}\nrtprobe: hint: `{command} --help` lists every option\n")
+}
+
+/// The ids of the arguments `m` got from the command line or from their variable.
+fn explicit_ids(m: &clap::ArgMatches) -> Vec<String> {
+    use clap::parser::ValueSource;
+    m.ids()
+        .filter(|id| {
+            matches!(
+                m.value_source(id.as_str()),
+                Some(ValueSource::CommandLine | ValueSource::EnvVariable)
+            )
+        })
+        .map(|id| id.as_str().to_string())
+        .collect()
+}
+
+/// Parse the command line (clap errors in rtprobe's form: [`usage_error`]); for `run`, which of
+/// its arguments were given.
+fn parse() -> Result<Cli, u8> {
+    let fail = |e: clap::Error, command: &str| {
+        if e.use_stderr() {
+            out::stderr(&usage_error(&e, command));
+            exit::USAGE
+        } else {
+            // --help and --version: their text, on stdout.
+            out!("{}", e.render().ansi());
+            exit::OK
+        }
+    };
+    let argv: Vec<std::ffi::OsString> = std::env::args_os().collect();
+    let command = argv
+        .get(1)
+        .and_then(|a| a.to_str())
+        .filter(|a| !a.starts_with('-'))
+        .map(|a| format!("rtprobe {a}"))
+        .unwrap_or_else(|| "rtprobe".into());
+    let color =
+        if out::plain_stdout() { clap::ColorChoice::Never } else { clap::ColorChoice::Auto };
+    let matches =
+        Cli::command().color(color).try_get_matches_from(&argv).map_err(|e| fail(e, &command))?;
+    let mut cli = Cli::from_arg_matches(&matches).map_err(|e| fail(e, &command))?;
+    if let (Command::Run(a), Some(("run", sub))) = (&mut cli.command, matches.subcommand()) {
+        a.explicit = explicit_ids(sub);
+        a.explicit.extend(explicit_ids(&matches));
+    }
+    Ok(cli)
+}
+
 /// Parse the command line, run the command, and return the process exit code. Errors are printed
 /// as one line on stderr.
 pub fn main_entry() -> u8 {
-    let cli = match Cli::try_parse() {
+    let cli = match parse() {
         Ok(c) => c,
-        Err(e) => {
-            let _ = e.print();
-            return if e.use_stderr() { exit::USAGE } else { exit::OK };
-        }
+        Err(code) => return code,
     };
     init_tracing(cli.verbose);
     let mode = cli.validate.unwrap_or(args::ValidateMode::Off);
@@ -69,7 +139,7 @@ pub fn main_entry() -> u8 {
     match result {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("rtprobe: error: {}", format!("{e:#}").replace('\n', " "));
+            errln!("rtprobe: error: {}", exit::one_line(&e));
             exit::code_for(&e)
         }
     }

@@ -6,6 +6,7 @@
 use super::args::PatchArgs;
 use super::commands::Globals;
 use super::exit::{self, coded};
+use super::out::{errln, outln};
 use super::patch_inputs::{self, Dest, Input};
 use crate::atomic::write_atomic;
 use crate::patches::layout::Rules;
@@ -18,7 +19,7 @@ use std::io::Write;
 
 fn list() -> u8 {
     for (name, opts, what) in patches::LIST {
-        println!("{name:<16} [{opts}]\n    {what}");
+        outln!("{name:<16} [{opts}]\n    {what}");
     }
     exit::OK
 }
@@ -79,7 +80,7 @@ fn check_input(
         }
         (Validation::Unavailable, _) => {
             if !std::mem::replace(warned, true) {
-                eprintln!("rtprobe: warning: spirv-val is not installed (apt-get install spirv-tools, or scripts/setup-sid for SPIRV-Tools 2026.x): neither inputs nor outputs are validated");
+                errln!("rtprobe: warning: spirv-val is not installed (apt-get install spirv-tools, or scripts/setup-sid for SPIRV-Tools 2026.x): neither inputs nor outputs are validated");
             }
             Ok((Rules::Standard, None))
         }
@@ -129,9 +130,9 @@ fn write_module(dest: &Dest, words: &[u32]) -> Result<()> {
 /// What the command prints: to stdout, or to stderr when the module goes to stdout.
 fn say(info_out: bool, line: &str) {
     if info_out {
-        println!("{line}");
+        outln!("{line}");
     } else {
-        eprintln!("{line}");
+        errln!("{line}");
     }
 }
 
@@ -197,7 +198,7 @@ fn report(
         _ => None,
     };
     for w in &applied.warnings {
-        eprintln!("rtprobe: warning: {w}");
+        errln!("rtprobe: warning: {w}");
     }
     for l in &applied.lines {
         say(info_out, l);

@@ -3,6 +3,7 @@
 //! where each output, the unpatched copy and the host contract go.
 use super::args::PatchArgs;
 use super::exit::{self, coded};
+use super::out::errln;
 use crate::shadergen::compile::GlslOptions;
 use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
@@ -112,7 +113,7 @@ fn compile(a: &PatchArgs, path: &Path, bytes: &[u8], name: &str) -> Result<Vec<u
     let opts = glsl_options(a, path)?;
     if let Some(note) = opts.target.mapping_note() {
         if crate::shadergen::glslang::needed_by(&src).is_none() {
-            eprintln!("rtprobe: note: {note}");
+            errln!("rtprobe: note: {note}");
         }
     }
     let mut c = crate::shadergen::compile::Compiler::new()

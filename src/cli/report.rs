@@ -5,6 +5,7 @@ use super::args::ReportArgs;
 use super::bisect::offline;
 use super::commands::Globals;
 use super::exit::{self, coded};
+use super::out::{out, outln};
 use super::shared::load_report;
 use crate::atomic::write_atomic;
 use crate::bisect::scope::ReportOptions;
@@ -15,6 +16,7 @@ use crate::report::issue::{self, Format};
 use anyhow::{Context, Result};
 
 pub fn report(g: &Globals, a: &ReportArgs) -> Result<u8> {
+    super::paths::writable_files(&[("-o", a.out.as_deref())])?;
     let r = load_report(&a.report)?;
     let ro = ReportOptions::of(&r)
         .map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.report.display())))?;
@@ -77,9 +79,9 @@ pub fn report(g: &Globals, a: &ReportArgs) -> Result<u8> {
     match &a.out {
         Some(o) => {
             write_atomic(o, text.as_bytes()).context("writing the issue")?;
-            println!("issue: {}", o.display());
+            outln!("issue: {}", o.display());
         }
-        None => print!("{text}"),
+        None => out!("{text}"),
     }
     Ok(exit::OK)
 }

@@ -5,6 +5,7 @@
 use super::args::ReproArgs;
 use super::commands::Globals;
 use super::exit::{self, coded};
+use super::out::outln;
 use super::shared::{load_report, report_device};
 use crate::atomic::write_atomic;
 use crate::bisect::isolation::describe;
@@ -227,7 +228,7 @@ pub fn repro(g: &Globals, a: &ReproArgs) -> Result<u8> {
     let result = built.and_then(|()| publish(&tmp, &a.out, a.force));
     let _ = std::fs::remove_dir_all(&tmp);
     result?;
-    println!(
+    outln!(
         "repro bundle: {} ({} shaders); re-run: rtprobe run --cell-spec {}/cell.json",
         a.out.display(),
         shaders.len(),

@@ -1,27 +1,30 @@
-//! `rtprobe run`: check the arguments, resolve them into a plan (before any GPU work), print it
-//! (`--list`) or run its rounds (`campaign`) through the supervisor, with a progress bar, and
-//! print the summary.
+//! `rtprobe run`: check the arguments (`--resume` takes them from its report), resolve them into
+//! a plan (before any GPU work; `cli::plan`), print it (`--list`) or lock the report and run its
+//! rounds (`campaign`) through the supervisor with progress (`cli::progress`), then print the
+//! summary and the one verdict line, and write the report's companions (JUnit, `--output-dir`).
 use super::args::RunArgs;
 use super::commands::{open_instance, Globals};
 use super::exit::{self, coded};
+use super::out::{errln, out, outln};
+use super::plan::{self as run_plan, PlanArgs};
 use super::shared::{default_jobs, default_threads, supervisor_options, SupervisorOracle};
-use crate::atomic::write_atomic;
-use crate::campaign::{start, Campaign, Policy, Progress, Recorder};
+use crate::atomic::{write_atomic, WriteError};
+use crate::campaign::{start, Campaign, Policy, Recorder};
 use crate::fleet::baseline::Scope;
+use crate::fleet::deqp_files::Patterns;
 use crate::fleet::shard::Shard;
-use crate::matrix::plan::{self, PlanOptions};
+use crate::matrix::plan;
 use crate::model::report::RunOptions;
 use crate::model::{
-    Baseline, Cell, Filter, Injection, Mutant, MutantPrediction, Outcome, PlanStatus, RunPlan,
-    RunReport, SceneParams,
+    Baseline, Cell, Filter, Injection, Mutant, MutantPrediction, RunPlan, RunReport, SceneParams,
 };
+use crate::report::lock::{LockError, ReportLock};
 use crate::report::mutants::{Prefilter, Sample};
 use crate::report::writer::ReportWriter;
-use crate::report::{junit, summary, time};
+use crate::report::{junit, summary, time, verdict};
 use crate::runner::supervisor::SupervisorOptions;
 use crate::vk::{features, DeviceInfo};
 use anyhow::{Context, Result};
-use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -62,42 +65,40 @@ fn slug(name: &str) -> String {
 }
 
 pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
-    // The binding stages are read here once (a bundle's, or the user's RTPROBE_BINDING_STAGES);
-    // from now on the report's options and each worker's job file carry them.
-    let (a, binding_stages) = match &a.cell_spec {
+    // The binding stages are read here once (a bundle's, the user's RTPROBE_BINDING_STAGES, or
+    // the resumed report's); from now on the report's options and each job file carry them.
+    let (a, mut binding_stages) = match &a.cell_spec {
         Some(p) => cell_spec_args(a, p)?,
         None => (a.clone(), std::env::var("RTPROBE_BINDING_STAGES").ok()),
     };
-    let a = &a;
+    // `--resume`: the report stays locked for the whole run (`_resume_lock`).
+    let (g, a, resumed, _resume_lock) = match &a.resume {
+        Some(p) => {
+            let (g, a, (old, lock)) = resumed_args(g, &a, p)?;
+            binding_stages = binding_stages.or_else(|| old.options.binding_stages.clone());
+            (g, a, Some(old), Some(lock))
+        }
+        None => (Globals { validate: g.validate, gpu_av: g.gpu_av }, a, None, None),
+    };
+    let (g, a) = (&g, &a);
     let c = check(a)?;
     let inst = open_instance(g)?;
-    let info = select_device(&inst, a)?;
+    let info = select_device(&inst, a, resumed.as_ref())?;
     let options = run_options(g, a, &c, &info, binding_stages);
-    let mut the_plan = plan::plan(
-        &info,
-        &PlanOptions {
-            filters: c.filters.clone(),
-            canaries: a.canaries,
-            patches: a.patches,
-            inject: c.inject.clone(),
-        },
-    );
-    let before_shard: HashSet<String> = the_plan.cells.iter().map(|c| c.cell.id()).collect();
-    let sharded_out = c.shard.map(|s| s.apply(&mut the_plan)).unwrap_or(0);
-    // Baseline entries another shard runs, or --filter excludes, are not this run's to miss.
-    let scope = Scope {
-        other_shards: the_plan.cells.iter().fold(before_shard, |mut ids, c| {
-            ids.remove(&c.cell.id());
-            ids
-        }),
-        filters: c.filters.clone(),
-    };
+    let pa = c.plan_args(a);
+    let made = run_plan::make(&info, &pa);
+    let (the_plan, sharded_out) = (made.plan, made.sharded_out);
     if a.list {
-        print_list(&the_plan, c.shard, sharded_out);
-        return Ok(exit::OK);
+        run_plan::print_list(&the_plan, c.shard, sharded_out);
+        return run_plan::nothing_planned(&the_plan, &pa, sharded_out).map_or(Ok(exit::OK), Err);
+    }
+    if let Some(e) = run_plan::nothing_planned(&the_plan, &pa, sharded_out)
+        .or_else(|| run_plan::nothing_runs(&the_plan, &info, sharded_out))
+    {
+        return Err(e);
     }
     let started = time::now_unix();
-    let out = out_path(a, started, &info);
+    let (out, _lock) = reserve_out(a, started, &info, resumed.is_some())?;
     let fresh = start::fresh(
         &info,
         c.params,
@@ -107,16 +108,57 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         std::env::args().collect(),
         started,
     );
-    let writer = ReportWriter::new(out.clone(), base_report(a, fresh)?, &the_plan);
-    let (cells, canaries) = start::pending(&writer, &the_plan, a.resume.is_some());
+    let base = match resumed {
+        Some(old) => continued(a, old, fresh)?,
+        None => fresh,
+    };
+    let scope = Scope { elsewhere: made.elsewhere, filters: c.filters.clone() };
+    let c = Checked { baseline: with_flakes(&c, &the_plan), scope, ..c };
+    run_rounds(&inst, a, &c, &info, &the_plan, options, base, out)
+}
+
+/// `--resume REPORT`: the report locked (no other run writes it) and read, and the arguments
+/// taken from it (`cli::resume`).
+fn resumed_args(
+    g: &Globals,
+    a: &RunArgs,
+    p: &Path,
+) -> Result<(Globals, RunArgs, (RunReport, ReportLock))> {
+    let lock = ReportLock::acquire(p).map_err(|e| match e {
+        LockError::Busy { .. } => coded(
+            exit::BAD_INPUT,
+            format!("cannot resume: {e}; wait for it to end (or stop it), then resume"),
+        ),
+        e => coded(exit::BAD_INPUT, e),
+    })?;
+    let old = RunReport::load(p).map_err(|e| coded(exit::BAD_INPUT, e))?;
+    let (g, a) = super::resume::args(g, a, p, &old)?;
+    Ok((g, a, (old, lock)))
+}
+
+/// The run's rounds through the supervisor, from the report `base` written to `out`, then the
+/// end: summary, files, verdict.
+#[allow(clippy::too_many_arguments)] // one call, from `run`, with what it resolved
+fn run_rounds(
+    inst: &crate::vk::Instance,
+    a: &RunArgs,
+    c: &Checked,
+    info: &DeviceInfo,
+    the_plan: &RunPlan,
+    options: RunOptions,
+    base: RunReport,
+    out: PathBuf,
+) -> Result<u8> {
+    let mut writer = ReportWriter::new(out.clone(), base, the_plan);
+    let (cells, canaries) = start::pending(&mut writer, the_plan, a.resume.is_some());
     writer.save(false).with_context(|| "writing the report")?;
-    let opts = supervisor(a, &options, &info, &c);
+    crate::runner::groups::set_resume_hint(&super::resume::command(a, &out));
+    let opts = supervisor(a, &options, info, c);
     let job_dir = opts.job_dir.clone();
     let mut oracle = SupervisorOracle::for_run(opts);
-    let bar = progress_bar();
-    let mut rec = Recorder::new(writer, Box::new(Bar(bar.clone())));
+    let mut rec = Recorder::new(writer, super::progress::for_stderr());
     let wall = Instant::now();
-    let supported = |cell: &Cell| plan::device_support(&info, cell).is_supported();
+    let supported = |cell: &Cell| plan::device_support(info, cell).is_supported();
     let policy = Policy::of(&options, || inst.validation_layer_version());
     // The mutants' reference (a scene and its trace on the CPU), made only when asked for.
     let prefilter = policy.mutants.as_ref().map(|_| Prefilter::new(&c.params));
@@ -125,19 +167,33 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     };
     Campaign { oracle: &mut oracle, rec: &mut rec, supported: &supported, applies: &applies }
         .run(&policy, &cells, &canaries);
-    bar.finish_and_clear();
+    rec.progress.finish();
     let _ = std::fs::remove_dir_all(&job_dir);
     if let Some(e) = rec.save_error.take() {
-        return Err(anyhow::Error::from(e).context("writing the report"));
+        return Err(save_failed(e, a, &out));
     }
     if let Some(halt) = rec.halted {
-        rec.writer.save(true).with_context(|| "writing the report")?;
+        rec.writer.save(true).map_err(|e| save_failed(e, a, &out))?;
         return Err(exit::halted(halt, &out));
     }
-    let source = a.baseline.as_ref().map(|p| p.display().to_string());
-    let baseline = c.baseline.as_ref().zip(source.as_deref()).map(|(b, s)| (b, s, &scope));
+    let baseline = c.baseline.as_ref().map(|(b, s)| (b, s.as_str(), &c.scope));
     start::finish(&mut rec, wall.elapsed(), baseline);
     print_end(a, &rec.writer, &out)
+}
+
+/// A report save that failed: on a full disk, the report on disk is the last whole save (each
+/// save replaces it atomically), so it is valid and `--resume` finishes the run.
+fn save_failed(e: WriteError, a: &RunArgs, out: &Path) -> anyhow::Error {
+    if e.storage_full() && out.exists() {
+        return coded(
+            exit::BAD_INPUT,
+            format!(
+                "writing the report: {e}; the report on disk is the last one saved whole, valid and resumable: free some space, then `{}`",
+                super::resume::command(a, out)
+            ),
+        );
+    }
+    anyhow::Error::from(e).context("writing the report")
 }
 
 /// A repro bundle's cell (`--cell-spec`): exactly that cell, its scene, injections and binding
@@ -151,7 +207,7 @@ fn cell_spec_args(a: &RunArgs, p: &Path) -> Result<(RunArgs, Option<String>)> {
     if let Some(dir) = &args.spirv_dir {
         let made_by: std::collections::BTreeSet<&str> =
             spec.modules.iter().map(|m| m.compiler.as_str()).collect();
-        eprintln!(
+        errln!(
             "running the bundle's SPIR-V ({}, made by {}), not recompiling",
             dir.display(),
             made_by.into_iter().collect::<Vec<_>>().join(", ")
@@ -163,12 +219,18 @@ fn cell_spec_args(a: &RunArgs, p: &Path) -> Result<(RunArgs, Option<String>)> {
 /// `run`'s arguments, parsed and held to their ranges (usage errors, before any device work).
 struct Checked {
     filters: Vec<Filter>,
+    skips: Patterns,
     inject: Vec<Injection>,
     shard: Option<Shard>,
-    baseline: Option<Baseline>,
+    /// `--baseline` (with `--flakes` added once the plan is known) and where it came from.
+    baseline: Option<(Baseline, String)>,
+    flakes: Option<(Patterns, String)>,
     params: SceneParams,
     /// `--mutants` / `--mutant` / `--mutants-sample`: the mutants tried (empty: none).
     mutants: Vec<Mutant>,
+    /// Where the baseline entries the plan lacks went (other shards, `--filter`, `--skips`): set
+    /// once the plan is made.
+    scope: Scope,
 }
 
 /// The mutants `--mutants`, `--mutant NAME` and `--mutants-sample` ask for (empty: none).
@@ -196,6 +258,26 @@ fn mutants_of(a: &RunArgs) -> Result<Vec<Mutant>> {
     })
 }
 
+impl Checked {
+    fn plan_args<'a>(&'a self, a: &RunArgs) -> PlanArgs<'a> {
+        PlanArgs {
+            filters: &self.filters,
+            skips: &self.skips,
+            canaries: a.canaries,
+            patches: a.patches,
+            inject: &self.inject,
+            shard: self.shard,
+        }
+    }
+}
+
+/// A `--skips` / `--flakes` file (deqp-runner's regular expressions, `fleet::deqp_files`).
+fn patterns(p: &Path, flag: &str) -> Result<Patterns> {
+    let text = std::fs::read_to_string(p)
+        .map_err(|e| coded(exit::BAD_INPUT, format!("cannot read {flag} {}: {e}", p.display())))?;
+    Patterns::parse(&p.display().to_string(), &text).map_err(|e| coded(exit::BAD_INPUT, e))
+}
+
 fn check(a: &RunArgs) -> Result<Checked> {
     let filters = a
         .filter
@@ -208,34 +290,100 @@ fn check(a: &RunArgs) -> Result<Checked> {
         .filter(|s| !s.trim().is_empty())
         .map(|s| Injection::parse(s).map_err(|e| coded(exit::USAGE, e)))
         .collect::<Result<Vec<_>>>()?;
-    if a.repeat.is_some_and(|n| n == 0 || n > 1000) {
-        return Err(coded(exit::USAGE, "--repeat must be 1..=1000"));
-    }
+    check_ranges(a)?;
     let shard =
         a.shard.as_deref().map(Shard::parse).transpose().map_err(|e| coded(exit::USAGE, e))?;
-    let baseline = a.baseline.as_deref().map(super::fleet::load_baseline).transpose()?;
+    let baseline = match &a.baseline {
+        Some(p) => Some((super::fleet::load_baseline(p)?, p.display().to_string())),
+        None => None,
+    };
+    let skips = match (&a.skips, &a.skip_patterns) {
+        (Some(p), _) => patterns(p, "--skips")?,
+        (None, Some(lines)) => {
+            Patterns::of(lines.clone()).map_err(|e| coded(exit::BAD_INPUT, e))?
+        }
+        (None, None) => Patterns::of(vec![]).map_err(|e| coded(exit::INTERNAL, e))?,
+    };
+    let flakes = match &a.flakes {
+        Some(p) => Some((patterns(p, "--flakes")?, p.display().to_string())),
+        None => None,
+    };
     let params = scene_params(a)?;
-    if a.jobs.is_some_and(|j| j == 0 || j > 64) {
-        return Err(coded(exit::USAGE, "--jobs must be 1..=64"));
-    }
-    if a.threads.is_some_and(|t| t == 0 || t > 64) {
-        return Err(coded(exit::USAGE, "--threads must be 1..=64"));
-    }
-    if a.pipeline_cache.as_deref().is_some_and(|d| d.trim().is_empty()) {
-        return Err(coded(exit::USAGE, "--pipeline-cache needs a folder, or `off`"));
-    }
-    if !(a.timeout > 0.0 && a.timeout <= 3600.0) {
-        return Err(coded(exit::USAGE, "--timeout must be in (0, 3600] seconds"));
-    }
-    if !(a.setup_timeout > 0.0 && a.setup_timeout <= 3600.0) {
-        return Err(coded(exit::USAGE, "--setup-timeout must be in (0, 3600] seconds"));
-    }
+    check_outputs(a)?;
     let mutants = mutants_of(a)?;
-    Ok(Checked { filters, inject, shard, baseline, params, mutants })
+    let scope = Scope::default();
+    Ok(Checked { filters, skips, inject, shard, baseline, flakes, params, mutants, scope })
 }
 
-fn select_device(inst: &crate::vk::Instance, a: &RunArgs) -> Result<DeviceInfo> {
+/// The numbers `run` takes, in their ranges.
+fn check_ranges(a: &RunArgs) -> Result<()> {
+    let bad = |cond: bool, what: &str| {
+        if cond {
+            Err(coded(exit::USAGE, what.to_string()))
+        } else {
+            Ok(())
+        }
+    };
+    bad(a.repeat.is_some_and(|n| n == 0 || n > 1000), "--repeat must be 1..=1000")?;
+    bad(a.jobs.is_some_and(|j| j == 0 || j > 64), "--jobs must be 1..=64")?;
+    bad(a.threads.is_some_and(|t| t == 0 || t > 64), "--threads must be 1..=64")?;
+    bad(
+        a.pipeline_cache.as_deref().is_some_and(|d| d.trim().is_empty()),
+        "--pipeline-cache needs a folder, or `off`",
+    )?;
+    bad(!(a.timeout > 0.0 && a.timeout <= 3600.0), "--timeout must be in (0, 3600] seconds")?;
+    bad(
+        !(a.setup_timeout > 0.0 && a.setup_timeout <= 3600.0),
+        "--setup-timeout must be in (0, 3600] seconds",
+    )
+}
+
+/// Every file and folder the run will write, writable before it starts.
+fn check_outputs(a: &RunArgs) -> Result<()> {
+    super::paths::writable_files(&[("-o", a.out.as_deref()), ("--junit", a.junit.as_deref())])?;
+    for (flag, dir) in [("--output-dir", &a.output_dir), ("--dump", &a.dump)] {
+        if let Some(d) = dir {
+            super::paths::writable_dir(d, flag)?;
+        }
+    }
+    Ok(())
+}
+
+/// The baseline with `--flakes`' cells of the plan added as known flakes.
+fn with_flakes(c: &Checked, the_plan: &RunPlan) -> Option<(Baseline, String)> {
+    let Some((flakes, file)) = &c.flakes else { return c.baseline.clone() };
+    let ids: Vec<String> = the_plan.cells.iter().map(|p| p.cell.id()).collect();
+    let (base, source) = match &c.baseline {
+        Some((b, s)) => (Some(b.clone()), format!("{s} + --flakes {file}")),
+        None => (None, format!("--flakes {file}")),
+    };
+    let b = crate::fleet::deqp_files::with_flakes(
+        base,
+        flakes,
+        &source,
+        ids.iter().map(String::as_str),
+    );
+    Some((b, source))
+}
+
+/// The device: `--device`, else for `--resume` the report's own (by identity), else the first
+/// RT-capable one (for a report of a device not here, the resume is then refused saying what
+/// differs: `continued`).
+fn select_device(
+    inst: &crate::vk::Instance,
+    a: &RunArgs,
+    resumed: Option<&RunReport>,
+) -> Result<DeviceInfo> {
     let all = features::query_all(inst)?;
+    if let (Some(r), None) = (resumed, &a.device) {
+        let same = |d: &&DeviceInfo| {
+            let j = crate::caps::device_json(d);
+            crate::fleet::merge::DEVICE_KEYS.iter().all(|k| j[*k] == r.device[*k])
+        };
+        if let Some(d) = all.iter().find(same) {
+            return Ok(d.clone());
+        }
+    }
     Ok(features::select(&all, a.device.as_deref())?.clone())
 }
 
@@ -253,7 +401,7 @@ fn run_options(
     // would fall outside every cell's window. `--validate` (any mode) runs with one thread.
     let threads = if g.validate { 1 } else { a.threads.unwrap_or_else(|| default_threads(info)) };
     if g.validate && a.threads.is_some_and(|t| t > 1) {
-        eprintln!("rtprobe: note: --validate runs with --threads 1, so that each validation error is counted for the cell that raised it");
+        errln!("rtprobe: note: --validate runs with --threads 1, so that each validation error is counted for the cell that raised it");
     }
     RunOptions {
         jobs: Some(a.jobs.unwrap_or_else(|| default_jobs(info))),
@@ -266,6 +414,7 @@ fn run_options(
         confirm: !a.no_confirm,
         canaries: a.canaries,
         filters: a.filter.clone(),
+        skips: c.skips.lines.clone(),
         patches: a.patches,
         validate: g.validate,
         gpu_av: g.gpu_av,
@@ -304,141 +453,94 @@ fn supervisor(a: &RunArgs, o: &RunOptions, info: &DeviceInfo, c: &Checked) -> Su
     }
 }
 
-/// `--list`: the plan, cell by cell, and its counts.
-fn print_list(the_plan: &RunPlan, shard: Option<Shard>, sharded_out: usize) {
-    for pc in &the_plan.cells {
-        match &pc.status {
-            PlanStatus::Run => println!("run          {}", pc.cell.id()),
-            PlanStatus::Unsupported { reason } => {
-                println!("unsupported  {}  ({reason})", pc.cell.id())
-            }
-            PlanStatus::NotImplemented { reason } => {
-                println!("not_implemented  {}  ({reason})", pc.cell.id())
-            }
-        }
-    }
-    let to_run = the_plan.to_run().count();
-    println!(
-        "{} planned: {} to run, {} unsupported, {} not implemented in rtprobe; {} filtered out",
-        the_plan.cells.len(),
-        to_run,
-        the_plan.unsupported_count(),
-        the_plan.not_implemented_count(),
-        the_plan.filtered_out
-    );
-    if let Some(s) = shard {
-        println!("shard {}: {sharded_out} cells left to the other shards", s.label());
-    }
-    for ng in &the_plan.not_generated {
-        println!("not generated: {} ({} combinations)", ng.rule, ng.count);
-    }
-    if the_plan.to_run().any(|c| c.heap_access == Some(crate::model::HeapAccess::Direct)) {
-        if let Some(g) = crate::shadergen::glslang::find() {
-            println!(
-                "compiler: heap_access=direct shaders by {}; all others by {}",
-                g.describe(),
-                crate::shadergen::compile::SHADERC
-            );
+/// Where the report goes, locked for this run (no other run writes it meanwhile): `-o`, else
+/// `--output-dir`'s report.json, else the report resumed (`resumed`: already locked), else the
+/// first free `reports/run-<time>-<device>[-N].json`.
+fn reserve_out(
+    a: &RunArgs,
+    started: u64,
+    info: &DeviceInfo,
+    resumed: bool,
+) -> Result<(PathBuf, Option<ReportLock>)> {
+    let busy = |e: LockError| match e {
+        LockError::Busy { .. } => coded(exit::BAD_INPUT, format!("{e}; give this run another -o")),
+        e => coded(exit::BAD_INPUT, e),
+    };
+    let given =
+        a.out.clone().or_else(|| a.output_dir.as_deref().map(super::output_dir::report_path));
+    match (given, &a.resume) {
+        (Some(o), Some(r)) if resumed && o == *r => Ok((o, None)),
+        (Some(o), _) => Ok((o.clone(), Some(ReportLock::acquire(&o).map_err(busy)?))),
+        (None, Some(r)) if resumed => Ok((r.clone(), None)),
+        (None, _) => {
+            let stem = format!("run-{}-{}", time::stamp(started), slug(&info.name()));
+            let (path, lock) = ReportLock::unique(Path::new("reports"), &stem).map_err(busy)?;
+            Ok((path, Some(lock)))
         }
     }
 }
 
-/// `-o`, else the report resumed, else `reports/run-<time>-<device>.json`.
-fn out_path(a: &RunArgs, started: u64, info: &DeviceInfo) -> PathBuf {
-    match (&a.out, &a.resume) {
-        (Some(o), _) => o.clone(),
-        (None, Some(r)) => r.clone(),
-        (None, None) => PathBuf::from("reports").join(format!(
-            "run-{}-{}.json",
-            time::stamp(started),
-            slug(&info.name())
-        )),
-    }
-}
-
-/// The report the run writes into: `fresh`, or with `--resume` the old one, if it is the same run.
-fn base_report(a: &RunArgs, fresh: RunReport) -> Result<RunReport> {
-    let Some(r) = &a.resume else { return Ok(fresh) };
-    let old = RunReport::load(r).map_err(|e| coded(exit::BAD_INPUT, e))?;
+/// The report `--resume` continues, if `fresh` is the same run (it is, unless an argument given
+/// to this run differs: `cli::resume` refuses those first).
+fn continued(a: &RunArgs, old: RunReport, fresh: RunReport) -> Result<RunReport> {
+    let path = a.resume.as_deref().unwrap_or(Path::new("?"));
     start::resume(old, &fresh).map_err(|why| {
         coded(
             exit::BAD_INPUT,
-            format!("cannot resume {}: {why}; start a new run instead", r.display()),
+            format!("cannot resume {}: {why}; start a new run instead", path.display()),
         )
     })
 }
 
-/// The progress bar: attempts scheduled against attempts ended, the last one's outcome and cell.
-fn progress_bar() -> indicatif::ProgressBar {
-    let bar = indicatif::ProgressBar::new(0);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} {msg}")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-    );
-    bar
+/// The pipeline cache's save errors were said on an earlier run already (the cache folder keeps
+/// a note of the last ones said; lavapipe 26 fails every save the same way): say them once.
+fn cache_errors_known(r: &RunReport) -> bool {
+    let Some(pc) = &r.pipeline_cache else { return false };
+    let Some(file) = &pc.file else { return false };
+    let note = file.with_extension("save-error");
+    if pc.save_errors.is_empty() {
+        let _ = std::fs::remove_file(&note);
+        return false;
+    }
+    let text = pc.save_errors.join("\n");
+    if std::fs::read_to_string(&note).is_ok_and(|t| t == text) {
+        return true;
+    }
+    let _ = crate::atomic::write_atomic(&note, text.as_bytes());
+    false
 }
 
-struct Bar(indicatif::ProgressBar);
-
-impl Progress for Bar {
-    fn scheduled(&self, n: u64) {
-        self.0.inc_length(n);
-    }
-    fn ended(&self, cell: &Cell, outcome: Option<Outcome>) {
-        self.0.inc(1);
-        if let Some(o) = outcome {
-            self.0.set_message(format!("{} {}", o.as_str(), cell.id()));
-        }
-    }
-}
-
-/// Write the final report (and `--junit`), print the summary and the baseline's verdict; the
-/// exit code.
+/// Write the final report and its companions (`--junit`, `--output-dir`), print the summary,
+/// the baseline's lines and the verdict; the exit code is the verdict's.
 fn print_end(a: &RunArgs, writer: &ReportWriter, out: &Path) -> Result<u8> {
-    writer.save(true).with_context(|| "writing the report")?;
+    writer.save(true).map_err(|e| save_failed(e, a, out))?;
+    let r = &writer.report;
     if let Some(j) = &a.junit {
-        write_atomic(j, junit::render(&writer.report).as_bytes())
-            .with_context(|| "writing the JUnit file")?;
+        write_atomic(j, junit::render(r).as_bytes()).with_context(|| "writing the JUnit file")?;
     }
-    print!("{}", summary::render(&writer.report));
-    if let Some(c) = &writer.report.baseline {
-        print!("{}", crate::fleet::baseline::render(c, a.allow_improvements));
+    if let Some(d) = &a.output_dir {
+        super::output_dir::write(d, r)?;
     }
-    println!("report: {}", out.display());
-    Ok(exit_code(&writer.report, a.allow_improvements))
-}
-
-/// Without a baseline: findings first (exit 1), then canaries whose fault, injections and
-/// `--mutants` survivors the probe must catch (probe defects) that went undetected (exit 11).
-/// With one, only what the baseline did not expect is a finding. A worker fault outside any cell
-/// (a crash between cells, a hung teardown) is always a finding.
-fn exit_code(r: &RunReport, allow_improvements: bool) -> u8 {
-    let findings = match &r.baseline {
-        Some(c) => !c.ok(allow_improvements),
-        None => r.findings().next().is_some() || r.workers.iter().any(|w| w.is_fault()),
-    };
-    if findings {
-        exit::FINDINGS
-    } else if r.undetected_canaries().next().is_some()
-        || r.tally.injections_undetected > 0
-        || r.mutants.as_ref().is_some_and(|m| m.probe_defects().next().is_some())
-    {
-        exit::CANARY_UNDETECTED
-    } else {
-        exit::OK
+    let quiet = summary::Quiet { cache_errors: cache_errors_known(r) };
+    out!("{}", summary::render_quiet(r, quiet));
+    if let Some(c) = &r.baseline {
+        out!("{}", crate::fleet::baseline::render(c, a.allow_improvements));
     }
+    outln!("report: {}", out.display());
+    if let Some(d) = &a.output_dir {
+        outln!("deqp-runner files: {}", d.join("results.csv").display());
+    }
+    let v = verdict::verdict(r, a.allow_improvements);
+    outln!("{}", v.line());
+    Ok(exit::of_verdict(&v))
 }
 
 #[cfg(test)]
 mod tests {
-    use super::*;
     use crate::model::Attempt;
     use crate::model::Canary;
-    use crate::model::CellReport;
-
-    fn report(cells: Vec<CellReport>) -> RunReport {
-        RunReport::for_tests(cells)
-    }
+    use crate::model::{Cell, CellReport, Outcome, RunReport};
+    use crate::report::verdict::verdict;
 
     fn ran(cell: Cell, outcome: Outcome) -> CellReport {
         CellReport::new(&cell, Attempt::for_tests(outcome, false))
@@ -446,18 +548,20 @@ mod tests {
 
     #[test]
     fn an_undetected_canary_fails_the_run_and_a_detected_one_does_not() {
-        let detected = report(vec![
+        let code = |r: &RunReport| super::exit::of_verdict(&verdict(r, false));
+        let detected = RunReport::for_tests(vec![
             ran(Cell::canary(Canary::InvalidAddress), Outcome::Crash),
             ran(Cell::canary(Canary::InfiniteLoop), Outcome::Timeout),
         ]);
-        assert_eq!(exit_code(&detected, false), exit::OK);
+        assert_eq!(code(&detected), super::exit::OK);
         assert_eq!(detected.tally.canaries_detected, 2);
         assert_eq!(detected.summary["crash"], 0, "a detected canary is not a crash finding");
         let junit = crate::report::junit::render(&detected);
         assert!(junit.contains("failures=\"0\""), "{junit}");
         // A driver on which the invalid read ran to completion: classification unproven.
-        let undetected = report(vec![ran(Cell::canary(Canary::InvalidAddress), Outcome::Pass)]);
-        assert_eq!(exit_code(&undetected, false), exit::CANARY_UNDETECTED);
+        let undetected =
+            RunReport::for_tests(vec![ran(Cell::canary(Canary::InvalidAddress), Outcome::Pass)]);
+        assert_eq!(code(&undetected), super::exit::CANARY_UNDETECTED);
         assert_eq!(undetected.tally.canaries_undetected, 1);
         let junit = crate::report::junit::render(&undetected);
         assert!(junit.contains("failures=\"1\"") && junit.contains("canary_undetected"), "{junit}");
@@ -481,11 +585,13 @@ mod tests {
             allowed_by: (!probe_defect).then(|| "VUID".into()),
             wall_ms: 0.0,
         };
-        let mut r = report(vec![ran(cell, Outcome::Timeout)]);
-        assert_eq!(exit_code(&r, false), exit::OK);
+        let code = |r: &RunReport| super::exit::of_verdict(&verdict(r, false));
+        let mut r = RunReport::for_tests(vec![ran(cell, Outcome::Timeout)]);
+        assert_eq!(code(&r), super::exit::OK);
         r.mutants = Some(MutantReport { entries: vec![survivor(false)], ..Default::default() });
-        assert_eq!(exit_code(&r, false), exit::OK);
+        assert_eq!(code(&r), super::exit::OK);
         r.mutants = Some(MutantReport { entries: vec![survivor(true)], ..Default::default() });
-        assert_eq!(exit_code(&r, false), exit::CANARY_UNDETECTED);
+        assert_eq!(code(&r), super::exit::CANARY_UNDETECTED);
+        assert!(verdict(&r, false).line().contains("1 probe defect among the mutants"));
     }
 }

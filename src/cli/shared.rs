@@ -3,6 +3,7 @@
 //! supervisor-backed oracle that `run`'s rounds and `bisect` run cells through.
 use super::commands::{open_instance, Globals};
 use super::exit::{self, coded};
+use super::out::errln;
 use crate::model::Cell;
 use crate::model::{Injection, Isolation, RunReport, SceneParams};
 use crate::runner::oracle::{Event, Mode, Oracle};
@@ -48,7 +49,7 @@ pub(crate) fn report_device(
     let rerun = other.then(|| {
         let j = crate::caps::device_json(&info);
         let uuid = j["device_uuid"].as_str().unwrap_or("?").to_string();
-        eprintln!(
+        errln!(
             "rtprobe: warning: the report's card (UUID {}) is not here; re-running on {} UUID {uuid} of the same driver build",
             r.device["device_uuid"].as_str().unwrap_or("?"),
             j["name"].as_str().unwrap_or("?")
@@ -145,12 +146,13 @@ impl SupervisorOracle {
 
     fn say(&self, cells: usize, mode: Mode) {
         let msg = format!(
-            "bisect: running {cells} cell(s){} ({} run so far)",
+            "bisect: running {}{} ({} run so far)",
+            crate::model::plural(cells, "cell"),
             if mode == Mode::Shared { "" } else { ", each alone" },
             self.attempts
         );
         if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
-            eprintln!("{msg}");
+            errln!("{msg}");
         } else {
             tracing::info!("{msg}");
         }

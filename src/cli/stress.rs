@@ -5,6 +5,7 @@
 use super::args::StressArgs;
 use super::commands::{open_instance, Globals};
 use super::exit;
+use super::out::out;
 use crate::atomic::write_atomic;
 use crate::stress::gpu::Mode;
 use crate::stress::supervised::Supervised;
@@ -33,6 +34,11 @@ fn parse_cases(names: &[String]) -> Result<Vec<CaseKind>> {
 
 pub fn stress(g: &Globals, args: &StressArgs) -> Result<u8> {
     let cases = parse_cases(&args.cases)?;
+    // Before any case runs: a long run that cannot write its files fails at once.
+    super::paths::writable_files(&[
+        ("--json", args.json.as_deref()),
+        ("--svg", args.svg.as_deref()),
+    ])?;
     if !(args.timeout > 0.0 && args.timeout.is_finite()) {
         return Err(exit::coded(
             exit::USAGE,
@@ -74,7 +80,7 @@ pub fn stress(g: &Globals, args: &StressArgs) -> Result<u8> {
         })
         .collect();
     let _ = std::fs::remove_dir_all(&dir);
-    print!("{}", report::text(&name, &results));
+    out!("{}", report::text(&name, &results));
     if let Some(path) = &args.json {
         let validation = (validation_active, validation_errors);
         let doc =

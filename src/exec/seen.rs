@@ -5,7 +5,7 @@
 //! evidence the records carry. The rules are `patches::uniformity`'s.
 use crate::model::{Cell, LaneEvidence, NO_NONUNIFORM_VUID};
 use crate::patches::uniformity::{self, Uniformity};
-use crate::probe::spec::{Access, ProbeSpec, ReadIndex};
+use crate::probe::spec::{Access, ProbeSpec, ReadIndex, SlotSource};
 use crate::shadergen::{CellShaders, Role};
 use std::sync::Arc;
 
@@ -61,8 +61,12 @@ impl Seen {
                 "the GLSL compiler dropped nonuniformEXT on the descriptor index: no NonUniform decoration reached the driver, so the read is judged as undefined ({NO_NONUNIFORM_VUID})"
             ));
         }
-        let shape_undefined = ProbeSpec::of(cell).read == ReadIndex::Undefined;
-        (self.heap_capability && shape_undefined).then(|| {
+        // A dynamic index without nonuniformEXT: undefined on a set/binding array, exact here.
+        let spec = ProbeSpec::of(cell);
+        let unqualified = spec.read == ReadIndex::Undefined
+            || (spec.slot == SlotSource::Dynamic
+                && spec.access == (Access::Slot { nonuniform: false }));
+        (self.heap_capability && unqualified).then(|| {
             "judged exactly: the module declares DescriptorHeapEXT, whose accesses need no NonUniform decoration (VUID-RuntimeSpirv-None-10148 / -subgroupSize-10149 exempt it, Vulkan 1.4.360)".to_string()
         })
     }

@@ -89,7 +89,8 @@ impl Baseline {
         slack_ms: f64,
     ) -> Result<Baseline, BaselineError> {
         let mut expected = Vec::new();
-        for c in r.cells.iter().filter(|c| c.cell.canary.is_none() && c.outcome.is_finding()) {
+        let probe = |c: &&CellReport| c.cell.canary.is_none() && !c.is_retry(r.options.patches);
+        for c in r.cells.iter().filter(probe).filter(|c| c.outcome.is_finding()) {
             let mut also: Vec<Outcome> =
                 c.attempts.iter().map(|a| a.outcome).filter(|o| *o != c.outcome).collect();
             also.sort();
@@ -237,30 +238,33 @@ pub fn rate_rose((k0, n0): (u32, u32), k: u32, n: u32) -> Option<String> {
 }
 
 /// Where the cells a run did not plan went: the ids other shards of it run (its plan before
-/// `--shard`, less its own), and its `--filter`s.
+/// `--shard`, less its own) or its `--skips` left out, and its `--filter`s.
 #[derive(Clone, Debug, Default)]
 pub struct Scope {
-    pub other_shards: HashSet<String>,
+    pub elsewhere: HashSet<String>,
     pub filters: Vec<Filter>,
 }
 
 impl Scope {
-    /// Whether another shard runs `id` or the filters exclude it (a baseline may cover more
-    /// than one run asks for); `false` for a cell this run should have planned.
+    /// Whether another shard runs `id`, `--skips` left it out or the filters exclude it (a
+    /// baseline may cover more than one run asks for); `false` for a cell this run should have
+    /// planned.
     fn elsewhere(&self, id: &str) -> bool {
-        self.other_shards.contains(id)
+        self.elsewhere.contains(id)
             || (!self.filters.is_empty()
                 && Cell::parse_id(id).is_ok_and(|c| !self.filters.iter().all(|f| f.matches(&c))))
     }
 }
 
-/// Compare a run with a baseline: per cell (canaries aside) and per phase; entries for cells
-/// the run did not plan are checked against `scope`.
+/// Compare a run with a baseline: per planned probe cell (canaries and retries — a round's
+/// workaround variants and patterns, whose errors are rtprobe's — aside) and per phase; entries
+/// for cells the run did not plan are checked against `scope`.
 pub fn check(r: &RunReport, b: &Baseline, source: &str, scope: &Scope) -> BaselineCheck {
     let mut out = BaselineCheck { source: source.into(), ..Default::default() };
     let by_id: BTreeMap<&str, &Expectation> =
         b.expected.iter().map(|e| (e.cell.as_str(), e)).collect();
-    for c in r.cells.iter().filter(|c| c.cell.canary.is_none()) {
+    let probe = |c: &&CellReport| c.cell.canary.is_none() && !c.is_retry(r.options.patches);
+    for c in r.cells.iter().filter(probe) {
         let e = by_id.get(c.id.as_str()).copied();
         if e.is_none() && !c.outcome.is_finding() && c.outcome != Outcome::Pass {
             continue; // unsupported or not implemented, and expected to be: nothing to say
@@ -284,7 +288,7 @@ pub fn check(r: &RunReport, b: &Baseline, source: &str, scope: &Scope) -> Baseli
     let planned: HashSet<&str> = r.cells.iter().map(|c| c.id.as_str()).collect();
     for e in b.expected.iter().filter(|e| !planned.contains(e.cell.as_str())) {
         if scope.elsewhere(&e.cell) {
-            out.not_run += 1;
+            out.not_run_cells.push(e.cell.clone());
         } else {
             out.cells.push(CellCheck {
                 cell: e.cell.clone(),
@@ -298,6 +302,7 @@ pub fn check(r: &RunReport, b: &Baseline, source: &str, scope: &Scope) -> Baseli
             });
         }
     }
+    out.not_run = out.not_run_cells.len();
     worker_and_phase_checks(r, b, &mut out);
     out
 }
@@ -329,13 +334,16 @@ fn worker_and_phase_checks(r: &RunReport, b: &Baseline, out: &mut BaselineCheck)
 /// Lines for the terminal summary.
 pub fn render(c: &BaselineCheck, allow_improvements: bool) -> String {
     let mut s = format!(
-        "baseline {}: {} as expected, {} known flakes, {} regressions, {} missing, {} improvements{}\n",
+        "baseline {}: {} as expected, {}, {}, {} missing, {}{}\n",
         c.source,
         c.expected,
-        c.known_flakes,
-        c.regressions().count(),
+        crate::model::plural(c.known_flakes, "known flake"),
+        crate::model::plural(c.regressions().count(), "regression"),
         c.missing().count(),
-        c.improvements().count(),
+        match c.improvements().count() {
+            1 => "1 unexpected pass".to_string(),
+            n => format!("{n} unexpected passes"),
+        },
         if c.not_run > 0 {
             format!(", {} entries left to other shards or outside --filter", c.not_run)
         } else {
@@ -343,21 +351,22 @@ pub fn render(c: &BaselineCheck, allow_improvements: bool) -> String {
         }
     );
     for x in &c.cells {
-        let what = match x.status {
-            Status::Regression => "REGRESSION",
-            Status::Improvement if allow_improvements => "improvement (allowed)",
+        // deqp-runner's word for a pass where a fault was expected: UnexpectedPass.
+        let (what, then) = match x.status {
+            Status::Regression => ("REGRESSION", ""),
+            Status::Improvement if allow_improvements => ("UnexpectedPass", " (allowed)"),
             Status::Improvement => {
-                "UNEXPECTED IMPROVEMENT (update the baseline, or --allow-improvements)"
+                ("UnexpectedPass", " (update the baseline, or --allow-improvements)")
             }
-            Status::KnownFlake => "known flake",
-            Status::Expected => "expected",
-            Status::Missing => "MISSING",
+            Status::KnownFlake => ("known flake", ""),
+            Status::Expected => ("expected", ""),
+            Status::Missing => ("MISSING", ""),
         };
         let why = x.why.as_deref().map(|w| format!(": {w}")).unwrap_or_default();
         s += &match x.status {
             Status::Missing => format!("  {what}: {}{why}\n", x.cell),
             _ => format!(
-                "  {what}: {} expected {} got {}{why}\n",
+                "  {what}: {} expected {} got {}{why}{then}\n",
                 x.cell,
                 x.expected.as_str(),
                 x.actual.as_str()
@@ -547,7 +556,7 @@ mod tests {
         // excludes it.
         let other = RunReport::for_tests(vec![cell_with(I::Dynamic, &[Outcome::Pass])]);
         assert_eq!(status_of(&other, &b, &Scope::default()), [Status::Missing]);
-        let shards = Scope { other_shards: [c.id.clone()].into(), filters: vec![] };
+        let shards = Scope { elsewhere: [c.id.clone()].into(), filters: vec![] };
         let checked = check(&other, &b, "b", &shards);
         assert!(checked.ok(false) && checked.not_run == 1, "{checked:?}");
         let filtered =

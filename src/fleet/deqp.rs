@@ -39,6 +39,11 @@ fn status_of(e: &Expectation) -> &'static str {
     }
 }
 
+/// What a deqp-runner `Flake` stands for besides a crash: any other failure (`--flakes` entries
+/// too, `deqp_files::with_flakes`).
+pub const FLAKE_ALSO: &[Outcome] =
+    &[Outcome::Mismatch, Outcome::Error, Outcome::Timeout, Outcome::DeviceLost];
+
 /// What a deqp-runner status stands for when no exact expectation comes with it: the outcome
 /// recorded, the others it accepts, and whether it is a flake.
 fn foreign(status: &str) -> Option<(Outcome, &'static [Outcome], bool)> {
@@ -46,11 +51,7 @@ fn foreign(status: &str) -> Option<(Outcome, &'static [Outcome], bool)> {
         "Fail" | "ExpectedFail" => (Outcome::Mismatch, &[Outcome::Error], false),
         "Crash" => (Outcome::Crash, &[Outcome::DeviceLost], false),
         "Timeout" => (Outcome::Timeout, &[], false),
-        "Flake" | "KnownFlake" => (
-            Outcome::Crash,
-            &[Outcome::Mismatch, Outcome::Error, Outcome::Timeout, Outcome::DeviceLost],
-            true,
-        ),
+        "Flake" | "KnownFlake" => (Outcome::Crash, FLAKE_ALSO, true),
         _ => return None,
     })
 }

@@ -90,6 +90,19 @@ fn change(old: &CellReport, new: &CellReport) -> Option<Change> {
     })
 }
 
+/// A warning when OLD and NEW were made on different devices (by name): their differences may be
+/// the devices', not a driver's. Another driver version of the same device is what `diff` is for.
+pub fn device_warning(old: &RunReport, new: &RunReport) -> Option<String> {
+    let name = |r: &RunReport| r.device["name"].as_str().unwrap_or("?").to_string();
+    (old.device["name"] != new.device["name"]).then(|| {
+        format!(
+            "the reports were made on different devices ({} and {}): what differs may be the devices, not a driver change",
+            name(old),
+            name(new)
+        )
+    })
+}
+
 /// Compare two reports. `noise`: a phase's time per cell must change by more than this factor
 /// (0.5 = ±50%) and by more than `floor_ms` to be reported.
 pub fn diff(old: &RunReport, new: &RunReport, noise: f64, floor_ms: f64) -> ReportDiff {
@@ -222,4 +235,21 @@ pub fn render_markdown(d: &ReportDiff) -> String {
         }
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn two_devices_are_warned_of_and_two_drivers_of_one_are_not() {
+        let mut a = RunReport::for_tests(vec![]);
+        let mut b = RunReport::for_tests(vec![]);
+        b.device["driver_version"] = serde_json::json!({ "decoded": "26.2.6" });
+        assert_eq!(device_warning(&a, &b), None);
+        a.device["name"] = serde_json::json!("llvmpipe");
+        b.device["name"] = serde_json::json!("NVIDIA H100");
+        let w = device_warning(&a, &b).unwrap();
+        assert!(w.contains("(llvmpipe and NVIDIA H100)"), "{w}");
+    }
 }

@@ -9,23 +9,47 @@ use crate::matrix::plan::all_cells;
 use crate::model::report::ResultOption;
 use crate::model::report::TimingSummary;
 use crate::model::Canary;
-use crate::model::{CellReport, MutantReport, PatchMode, RunReport, SceneParams};
+use crate::model::{CellReport, MutantReport, RunReport, SceneParams};
 use serde_json::Value;
 use std::collections::HashMap;
 
 /// How two reports are not of the same run ([`same_run`]).
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum NotSameRun {
-    #[error("rtprobe versions differ ({0} and {1})")]
+    #[error("rtprobe versions differ ({} and {})", human(.0), human(.1))]
     Version(Value, Value),
     /// `key`: the [`DEVICE_KEYS`] entry that differs.
-    #[error("it was made on another device ({key} {here} here {there})")]
+    #[error("it was made on another device ({key} {} here, {} there)", human(.here), human(.there))]
     Device { key: &'static str, here: Value, there: Value },
-    #[error("its scene differs (size, seed, instances or mesh detail: {0:?} here {1:?})")]
+    #[error("its scene differs ({} here, {} there)", scene(.0), scene(.1))]
     Scene(SceneParams, SceneParams),
     /// `flag`: the option's command-line flag.
-    #[error("its {flag} differs ({here} here {there})")]
+    #[error("its {flag} differs ({} here, {} there)", human(.here), human(.there))]
     Option { flag: &'static str, here: Value, there: Value },
+}
+
+/// A report value as a person reads it: text without quotes, a list joined by `; `, a decoded
+/// version (`driver_version`'s `decoded`), `none` for nothing.
+pub fn human(v: &Value) -> String {
+    match v {
+        Value::Null => "none".into(),
+        Value::String(s) => s.clone(),
+        Value::Array(a) if a.is_empty() => "none".into(),
+        Value::Array(a) => a.iter().map(human).collect::<Vec<_>>().join("; "),
+        Value::Object(o) => match o.get("decoded") {
+            Some(d) => human(d),
+            None => v.to_string(),
+        },
+        other => other.to_string(),
+    }
+}
+
+/// A scene as `run`'s flags give it.
+fn scene(p: &SceneParams) -> String {
+    format!(
+        "--seed {} --size {}x{} --instances {} --mesh-detail {}",
+        p.seed, p.width, p.height, p.instances, p.mesh_detail
+    )
 }
 
 /// Why reports do not merge.
@@ -80,6 +104,51 @@ pub fn same_run(a: &RunReport, b: &RunReport, options: &[ResultOption]) -> Resul
         }
     }
     Ok(())
+}
+
+/// The baseline checks of the reports merged, joined: what `merge` carries when every report was
+/// checked against the same baseline (`None`: none was checked; `Err`: they differ, or only some
+/// were checked, and the merge needs `--baseline`).
+pub fn carried_check(
+    checks: &[Option<&crate::model::BaselineCheck>],
+) -> Result<Option<crate::model::BaselineCheck>, String> {
+    if checks.iter().all(Option::is_none) {
+        return Ok(None);
+    }
+    let sources: Vec<&str> =
+        checks.iter().map(|c| c.map_or("none", |c| c.source.as_str())).collect();
+    if checks.iter().any(Option::is_none) || sources.iter().any(|s| *s != sources[0]) {
+        return Err(format!(
+            "the reports were held to different baselines ({}), or only some to one",
+            sources.join(", ")
+        ));
+    }
+    let all: Vec<&crate::model::BaselineCheck> = checks.iter().flatten().copied().collect();
+    let mut out = crate::model::BaselineCheck { source: sources[0].into(), ..Default::default() };
+    for c in &all {
+        for x in &c.cells {
+            out.cells.retain(|y| y.cell != x.cell);
+            out.cells.push(x.clone());
+        }
+        out.expected += c.expected;
+        out.known_flakes += c.known_flakes;
+        out.performance.extend(c.performance.iter().cloned());
+        out.worker_faults.extend(c.worker_faults.iter().cloned());
+        out.expected_worker_faults += c.expected_worker_faults;
+    }
+    // An entry none of them ran (each report lists those it did not run).
+    out.not_run_cells = all[0]
+        .not_run_cells
+        .iter()
+        .filter(|e| all.iter().all(|c| c.not_run_cells.contains(e)))
+        .cloned()
+        .collect();
+    out.not_run = if all.iter().all(|c| c.not_run_cells.len() == c.not_run) {
+        out.not_run_cells.len()
+    } else {
+        all.iter().map(|c| c.not_run).min().unwrap_or(0)
+    };
+    Ok(Some(out))
 }
 
 /// Plan order of every cell id the matrix can hold (workaround variants sort after their cell).
@@ -236,10 +305,10 @@ fn finish(out: &mut RunReport, names: Vec<String>) {
             c.cell.patch.map(|p| 1 + p as usize).unwrap_or(0),
         )
     });
-    // Workaround variants are planned cells only with --patches all (else they are retries).
-    let variants_planned = out.options.patches == PatchMode::All;
-    let planned: Vec<&CellReport> =
-        out.cells.iter().filter(|c| c.cell.patch.is_none() || variants_planned).collect();
+    // Retries (workaround variants unless --patches all planned them, recommended patterns a
+    // round added) are no planned cells.
+    let patches = out.options.patches;
+    let planned: Vec<&CellReport> = out.cells.iter().filter(|c| !c.is_retry(patches)).collect();
     let unsupported = planned.iter().filter(|c| c.attempts.is_empty()).count();
     out.plan.planned = planned.len();
     out.plan.unsupported = unsupported;
@@ -256,20 +325,105 @@ fn finish(out: &mut RunReport, names: Vec<String>) {
     crate::report::writer::annotate_findings(out);
 }
 
-/// The same cell from two reports: every attempt kept, the verdict recomputed.
+/// The same cell from two reports: every attempt kept, the verdict recomputed. A cell one shard
+/// planned is planned, even where another shard's round ran it as a retry (a recommended pattern
+/// of a finding whose pattern cell fell to the other shard).
 fn join(into: &mut CellReport, other: CellReport) {
+    let retry = into.retry && other.retry;
     if into.attempts.is_empty() {
         *into = other;
     } else if !other.attempts.is_empty() {
         into.attempts.extend(other.attempts);
         into.refresh();
     }
+    into.retry = retry;
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::{BaselineCheck, CellCheck, Outcome, Status};
     use crate::model::{Mutant, MutantEntry, MutantStatus};
+
+    #[test]
+    fn a_cell_one_shard_planned_stays_planned() {
+        use crate::model::{Attempt, Cell, DescriptorModel, IndexSource, Resource, Stage};
+        let c = Cell::new(
+            Stage::ClosestHit,
+            Resource::StorageBuffer,
+            IndexSource::DynamicElement,
+            DescriptorModel::DescriptorIndexing,
+        );
+        let mut retried = CellReport::new(&c, Attempt::for_tests(Outcome::Pass, true));
+        retried.retry = true;
+        let planned = CellReport::new(&c, Attempt::for_tests(Outcome::Pass, false));
+        for (a, b) in [(retried.clone(), planned.clone()), (planned, retried.clone())] {
+            let mut into = a;
+            join(&mut into, b);
+            assert!(!into.retry && into.attempts.len() == 2);
+        }
+        let mut both = retried.clone();
+        join(&mut both, retried);
+        assert!(both.retry, "a retry in every shard stays one");
+    }
+
+    #[test]
+    fn values_read_as_words_not_json() {
+        let v = serde_json::json!({ "value": 136, "decoded": "25.0.7" });
+        assert_eq!(human(&v), "25.0.7");
+        assert_eq!(
+            human(&serde_json::json!(["stage=raygen", "index=dynamic"])),
+            "stage=raygen; index=dynamic"
+        );
+        assert_eq!(human(&serde_json::json!([])), "none");
+        let e = NotSameRun::Device {
+            key: "driver_version",
+            here: v.clone(),
+            there: serde_json::json!({ "value": 137, "decoded": "26.2.6" }),
+        };
+        assert_eq!(
+            e.to_string(),
+            "it was made on another device (driver_version 25.0.7 here, 26.2.6 there)"
+        );
+    }
+
+    fn check(cells: &[&str], not_run: &[&str]) -> BaselineCheck {
+        BaselineCheck {
+            source: "b.json".into(),
+            cells: cells
+                .iter()
+                .map(|c| CellCheck {
+                    cell: c.to_string(),
+                    status: Status::Regression,
+                    expected: Outcome::Pass,
+                    actual: Outcome::Crash,
+                    why: None,
+                })
+                .collect(),
+            expected: 3,
+            not_run: not_run.len(),
+            not_run_cells: not_run.iter().map(|c| c.to_string()).collect(),
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn shards_checked_against_one_baseline_carry_it_joined() {
+        let (a, b) = (check(&["x"], &["p", "q"]), check(&["y"], &["q", "x2"]));
+        let m = carried_check(&[Some(&a), Some(&b)]).unwrap().unwrap();
+        assert_eq!(m.regressions().count(), 2);
+        assert_eq!(m.expected, 6);
+        assert_eq!(
+            (m.not_run, m.not_run_cells.clone()),
+            (1, vec!["q".to_string()]),
+            "only q ran nowhere"
+        );
+        assert_eq!(carried_check(&[None, None]).unwrap(), None);
+        // Another baseline, or none on one shard: no verdict to carry.
+        let other = BaselineCheck { source: "c.json".into(), ..a.clone() };
+        assert!(carried_check(&[Some(&a), Some(&other)]).unwrap_err().contains("b.json, c.json"));
+        assert!(carried_check(&[Some(&a), None]).is_err());
+    }
 
     fn entry(cell: &str, mutant: Mutant, status: MutantStatus) -> MutantEntry {
         MutantEntry {

@@ -187,6 +187,26 @@ fn every_twin_is_a_mismatch_naming_what_does_not_fit() {
     assert!(matches!(fit(&[vec![1, 2, 3]], &layout()), Err(Mismatch::Unreadable { .. })));
 }
 
+/// A raygen that traces no ray (as rtprobe's canaries) sends no payload, so the stages that would
+/// receive one are never invoked: nothing to mismatch. Its twin, a raygen sending a payload the
+/// miss shader does not take, is the mismatch above.
+#[test]
+fn stages_no_ray_reaches_have_no_payload_to_match() {
+    let mut m = engine();
+    m[0] = compile(
+        ShaderKind::RayGeneration,
+        "layout(set = 0, binding = 1, rgba8) uniform writeonly image2D target;\nvoid main() { imageStore(target, ivec2(gl_LaunchIDEXT.xy), vec4(frame.frame)); }\n",
+    );
+    fit(&m, &layout()).unwrap();
+    m[0] = compile(
+        ShaderKind::RayGeneration,
+        &RAYGEN
+            .replace("rayPayloadEXT Shade shade;", "rayPayloadEXT vec4 sky;\nShade shade;")
+            .replace("0.0, 0)", "0.0, 0); shade.color = sky"),
+    );
+    assert!(matches!(fit(&m, &layout()), Err(Mismatch::Payload { .. })));
+}
+
 /// Sampled images and samplers may sit behind a combined image sampler; nothing else stands in.
 #[test]
 fn a_combined_image_sampler_backs_images_and_samplers_only() {

@@ -133,6 +133,9 @@ pub struct BaselineCheck {
     pub known_flakes: usize,
     /// Baseline entries for cells this run left to another shard or its `--filter` excluded.
     pub not_run: usize,
+    /// Those entries' cells (`merge` keeps the ones no shard ran; absent in older reports).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub not_run_cells: Vec<String>,
     /// Phases over their bound: `phase: actual ms/cell > limit`.
     pub performance: Vec<String>,
     /// Worker faults outside cells the baseline does not list (each fails the run).
@@ -152,6 +155,14 @@ impl BaselineCheck {
     }
     pub fn missing(&self) -> impl Iterator<Item = &CellCheck> {
         self.cells.iter().filter(|c| c.status == Status::Missing)
+    }
+    /// Whether the baseline expects the verdict of `cell` (a finding it lists, a known flake, or
+    /// a pass): it is not among the regressions, missing cells and unexpected passes.
+    pub fn expects(&self, cell: &str) -> bool {
+        !self.cells.iter().any(|c| {
+            c.cell == cell
+                && matches!(c.status, Status::Regression | Status::Improvement | Status::Missing)
+        })
     }
     /// Whether the run is as expected (improvements count unless allowed).
     pub fn ok(&self, allow_improvements: bool) -> bool {

@@ -26,7 +26,8 @@ pub struct ElementReads {
     pub own: usize,
     /// Read what another lane's index gives (accepted by the heuristic).
     pub other: usize,
-    /// Read neither: a mismatch.
+    /// Read neither: outside the heuristic too. A warning, not a mismatch: the spec leaves the
+    /// read undefined, so no value breaks a rule of it.
     pub neither: usize,
     /// Pixels judged against their own subgroup's lanes (the device's lane evidence showed the
     /// whole subgroup); the others against every lane of the dispatch.

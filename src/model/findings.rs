@@ -38,7 +38,8 @@ pub enum PatternStatus {
 }
 
 impl PatternResult {
-    /// `recommended pattern geometry (one storage buffer …; cell): passes (3/3)`
+    /// `recommended pattern geometry (one storage buffer …; cell): not proven (2 passes; need 19
+    /// for 99%)`
     pub fn line(&self) -> String {
         let status = match &self.status {
             PatternStatus::Passes { passed, attempts, miss_probability } => {

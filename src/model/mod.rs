@@ -26,6 +26,7 @@ pub mod registry;
 pub mod report;
 pub mod scene;
 pub mod stats;
+pub mod text;
 
 pub use attempt::{signal_name, Attempt, Halt, Isolation, WorkerEvent, WorkerExit};
 pub use axes::{
@@ -50,3 +51,4 @@ pub use phase::Phase;
 pub use plan::{NotGenerated, PatchMode, PlanStatus, PlannedCell, RunPlan};
 pub use report::{CellReport, Incidence, RunReport, WorkaroundResult};
 pub use scene::{SceneError, SceneParams};
+pub use text::{nearest, plural};

@@ -34,6 +34,9 @@ pub struct RunOptions {
     pub canaries: bool,
     /// `--filter` arguments as given.
     pub filters: Vec<String>,
+    /// `--skips` patterns (regular expressions over cell ids), read from its file.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub skips: Vec<String>,
     pub patches: PatchMode,
     pub validate: bool,
     #[serde(default)]
@@ -80,6 +83,7 @@ impl Default for RunOptions {
             confirm: true,
             canaries: false,
             filters: vec![],
+            skips: vec![],
             patches: PatchMode::Faults,
             validate: false,
             gpu_av: false,
@@ -112,6 +116,8 @@ pub enum ResultOption {
     Patches,
     Inject,
     Filters,
+    /// `--skips` (absent: none).
+    Skips,
     Canaries,
     Validate,
     Timeout,
@@ -131,6 +137,7 @@ impl ResultOption {
         ResultOption::Patches,
         ResultOption::Inject,
         ResultOption::Filters,
+        ResultOption::Skips,
         ResultOption::Canaries,
         ResultOption::Validate,
         ResultOption::Timeout,
@@ -147,6 +154,7 @@ impl ResultOption {
             ResultOption::Patches => "--patches",
             ResultOption::Inject => "--inject-fault",
             ResultOption::Filters => "--filter",
+            ResultOption::Skips => "--skips",
             ResultOption::Canaries => "--canaries",
             ResultOption::Validate => "--validate",
             ResultOption::Timeout => "--timeout",
@@ -165,6 +173,7 @@ impl ResultOption {
             ResultOption::Patches => serde_json::to_value(o.patches),
             ResultOption::Inject => serde_json::to_value(&o.inject),
             ResultOption::Filters => serde_json::to_value(&o.filters),
+            ResultOption::Skips => serde_json::to_value(&o.skips),
             ResultOption::Canaries => serde_json::to_value(o.canaries),
             ResultOption::Validate => serde_json::to_value(o.validate),
             ResultOption::Timeout => serde_json::to_value(o.timeout_s),

@@ -74,6 +74,13 @@ pub struct CellReport {
     /// (`report::gpu_av`; those attempts are not among `attempts`).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub gpu_av: Option<crate::model::GpuAvResult>,
+    /// Not a planned cell: a round added it to test a finding (a workaround variant, or a
+    /// recommended pattern the plan lacked). Counted apart from the plan (`RunReport::retries`),
+    /// never a finding or a baseline regression of its own. Reports before this field mark
+    /// nothing: their workaround variants are retries where the run did not plan them
+    /// ([`CellReport::is_retry`]).
+    #[serde(skip_serializing_if = "std::ops::Not::not", default)]
+    pub retry: bool,
     #[serde(default)]
     pub attempts: Vec<Attempt>,
 }
@@ -114,6 +121,12 @@ impl Incidence {
 }
 
 impl CellReport {
+    /// Whether the cell is a round's retry rather than a planned cell ([`CellReport::retry`]; a
+    /// workaround variant of a run that did not plan them, `patches` not `all`).
+    pub fn is_retry(&self, patches: crate::model::PatchMode) -> bool {
+        self.retry || (self.cell.patch.is_some() && patches != crate::model::PatchMode::All)
+    }
+
     /// The own/other/neither element reads of each attempt that compared (cells without
     /// `nonuniformEXT` on a dynamic descriptor index).
     pub fn element_reads(&self) -> impl Iterator<Item = &crate::model::ElementReads> {
@@ -147,6 +160,7 @@ impl CellReport {
             workarounds: vec![],
             recommended: None,
             gpu_av: None,
+            retry: false,
             attempts: vec![],
         }
     }
@@ -241,7 +255,7 @@ pub struct WorkaroundResult {
 }
 
 impl WorkaroundResult {
-    /// `interleave → passes (2/2; … p ≤ 0.49)` / `interleave → crash`.
+    /// `interleave → not proven (2 passes; need 19 for 99%)` / `interleave → crash`.
     pub fn tried(&self) -> String {
         match self.outcome {
             Outcome::Pass => format!(
@@ -349,6 +363,17 @@ pub struct PipelineCacheSummary {
     pub save_errors: Vec<String>,
 }
 
+/// One `--resume` of a report.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Resumed {
+    /// When the resumed run started (RFC 3339, UTC).
+    pub at: String,
+    /// Cells with an attempt that ran, kept from before (not run again).
+    pub kept: usize,
+    /// Cells of the plan it still had to run.
+    pub to_run: usize,
+}
+
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct RunReport {
     pub schema: String,
@@ -369,7 +394,16 @@ pub struct RunReport {
     pub scene: SceneSummary,
     pub options: RunOptions,
     pub plan: PlanSummary,
+    /// Verdicts of the planned probe cells, every outcome present (canaries are in `tally`;
+    /// retries in `retries`): they add up to `plan.planned`.
     pub summary: BTreeMap<String, usize>,
+    /// Verdicts of the retries (workaround variants and recommended patterns a round added, not
+    /// planned), by outcome; empty when there were none.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub retries: BTreeMap<String, usize>,
+    /// Each `--resume` of this report: when, and how many cells it kept (not run again).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub resumed: Vec<Resumed>,
     #[serde(default)]
     pub tally: Tally,
     pub timing: TimingSummary,
@@ -422,6 +456,8 @@ impl RunReport {
                 sharded_out: 0,
             },
             summary: Default::default(),
+            retries: Default::default(),
+            resumed: vec![],
             tally: Default::default(),
             timing: TimingSummary::default(),
             baseline: None,
@@ -434,23 +470,27 @@ impl RunReport {
         r
     }
 
-    /// The outcome counts, every outcome present.
-    /// The outcome counts of the probe cells (every outcome present; canaries are tallied apart,
-    /// since their expected outcome is a fault), and the tally of findings, flaky cells and
-    /// canaries.
+    /// The outcome counts of the planned probe cells (every outcome present; canaries are
+    /// tallied apart, since their expected outcome is a fault; retries are counted apart, in
+    /// `retries`), and the tally of findings, flaky cells and canaries.
     pub fn recount(&mut self) {
         let mut m = BTreeMap::new();
         for o in Outcome::ALL {
             m.insert(o.as_str().to_string(), 0);
         }
+        let mut retries = BTreeMap::new();
         let mut t = Tally::default();
         for c in &self.cells {
             match &c.canary_check {
                 Some(chk) if chk.detected => t.canaries_detected += 1,
                 Some(_) => t.canaries_undetected += 1,
+                None if c.is_retry(self.options.patches) => {
+                    *retries.entry(c.outcome.as_str().to_string()).or_default() += 1
+                }
                 None => *m.entry(c.outcome.as_str().to_string()).or_default() += 1,
             }
         }
+        self.retries = retries;
         t.findings = self.findings().count();
         t.injections_undetected = self.cells.iter().filter(|c| c.injection_undetected).count();
         t.worker_faults = self.workers.iter().filter(|w| w.is_fault()).count();
@@ -464,11 +504,11 @@ impl RunReport {
         self.cells.iter().filter(|c| c.canary_check.as_ref().is_some_and(|k| !k.detected))
     }
 
-    /// Cells with a finding (canaries and workaround variants excluded).
+    /// Cells with a finding (canaries, workaround variants and other retries excluded).
     pub fn findings(&self) -> impl Iterator<Item = &CellReport> {
-        self.cells
-            .iter()
-            .filter(|c| c.cell.canary.is_none() && c.cell.patch.is_none() && c.outcome.is_finding())
+        self.cells.iter().filter(|c| {
+            c.cell.canary.is_none() && c.cell.patch.is_none() && !c.retry && c.outcome.is_finding()
+        })
     }
 
     /// Attach to each finding the outcome of its workaround variants present in the report.
@@ -513,9 +553,12 @@ impl RunReport {
         }
     }
 
+    /// Read a report back. Its counts are recomputed from its cells, so that a report written
+    /// before retries were counted apart (its `summary` held them) reads as one written now.
     pub fn load(path: &Path) -> Result<RunReport, LoadError> {
-        let r: RunReport = super::load::read_json(path, "run report")?;
+        let mut r: RunReport = super::load::read_json(path, "run report")?;
         super::load::check_schema(path, &r.schema, SCHEMA)?;
+        r.recount();
         Ok(r)
     }
 }

@@ -89,12 +89,32 @@ pub fn pass_miss(faulted: u32, attempts: u32, passes: u32) -> f64 {
     miss(rate_bound(faulted, attempts), passes)
 }
 
-/// `passes (2/2; a fault as frequent as this finding's would be missed with p ≤ 0.49)`.
+/// Passes held to a finding, in words: proven when they would have missed a fault as frequent
+/// as the finding's with probability below [`DEFAULT_MAX_MISS`] (`passes (19 of 19; a fault as
+/// frequent as this finding's would be missed with p ≤ 0.009)`), else `not proven (2 passes;
+/// need 19 for 99%)`; without a finding to hold them to, `passes (2 of 2)`.
 pub fn passes_text(passed: u32, attempts: u32, miss_probability: Option<f64>) -> String {
     match miss_probability {
-        Some(m) => format!("passes ({passed}/{attempts}; a fault as frequent as this finding's would be missed with p ≤ {m:.2})"),
-        None => format!("passes ({passed}/{attempts})"),
+        Some(m) if m < DEFAULT_MAX_MISS => format!("passes ({passed} of {attempts}; a fault as frequent as this finding's would be missed with p ≤ {m:.3})"),
+        Some(m) => format!(
+            "not proven ({passed} pass{}; need {} for {:.0}%)",
+            if passed == 1 { "" } else { "es" },
+            needed_passes(passed, m),
+            100.0 * (1.0 - DEFAULT_MAX_MISS)
+        ),
+        None => format!("passes ({passed} of {attempts})"),
     }
+}
+
+/// The passes that prove what `passed` passes with miss probability `miss` do not: the rate
+/// bound they were held to is `1 - miss^(1/passed)` (`miss = (1 - bound)^passed`), and
+/// [`attempts_needed`] at [`DEFAULT_MAX_MISS`] follows from it. No pass: unknown (shown as 0).
+pub fn needed_passes(passed: u32, miss: f64) -> u32 {
+    if passed == 0 {
+        return 0;
+    }
+    let bound = 1.0 - miss.clamp(0.0, 1.0).powf(1.0 / passed as f64);
+    attempts_needed(bound, DEFAULT_MAX_MISS, 10_000)
 }
 
 /// Attempts a pass needs so that a fault of rate at least `p` would have shown with probability
@@ -168,16 +188,34 @@ mod tests {
         // 3 of 10: bound ≈ 0.087, so 2 passes miss it with p ≈ 0.83 — the text says so.
         let m = pass_miss(3, 10, 2);
         assert!((m - (1.0 - rate_bound(3, 10)).powi(2)).abs() < 1e-12 && m > 0.5, "{m}");
-        assert!(
-            passes_text(2, 2, Some(m)).starts_with(
-                "passes (2/2; a fault as frequent as this finding's would be missed with p ≤ 0.8"
-            ),
-            "{}",
-            passes_text(2, 2, Some(m))
+        // Not proven: as many passes as attempts_needed says for the finding's bound.
+        let need = attempts_needed(rate_bound(3, 10), DEFAULT_MAX_MISS, 10_000);
+        assert_eq!(
+            passes_text(2, 2, Some(m)),
+            format!("not proven (2 passes; need {need} for 99%)")
+        );
+        assert_eq!(needed_passes(2, m), need);
+        // With that many passes it is proven, and the text says the miss probability.
+        let proven = pass_miss(3, 10, need);
+        assert!(proven < DEFAULT_MAX_MISS);
+        assert!(passes_text(need, need, Some(proven)).starts_with(&format!(
+            "passes ({need} of {need}; a fault as frequent as this finding's would be missed with p ≤ 0.0"
+        )));
+        // One pass less is not.
+        assert!(passes_text(need - 1, need - 1, Some(pass_miss(3, 10, need - 1)))
+            .starts_with("not proven"));
+        // 2 of 2 faulted: the bound is sqrt(0.05) ≈ 0.22, so 2 passes (p ≈ 0.60) need 19.
+        assert_eq!(
+            passes_text(2, 2, Some(pass_miss(2, 2, 2))),
+            "not proven (2 passes; need 19 for 99%)"
+        );
+        assert_eq!(
+            passes_text(1, 1, Some(pass_miss(2, 2, 1))),
+            "not proven (1 pass; need 19 for 99%)"
         );
         // More passes, smaller miss; a finding that always faulted needs fewer.
         assert!(pass_miss(3, 10, 40) < 0.05 && pass_miss(10, 10, 2) < m);
-        assert_eq!(passes_text(2, 2, None), "passes (2/2)");
+        assert_eq!(passes_text(2, 2, None), "passes (2 of 2)");
     }
 
     fn close(a: f64, b: f64, tol: f64) -> bool {

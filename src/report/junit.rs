@@ -19,10 +19,12 @@ fn esc(s: &str) -> String {
 }
 
 /// Whether the JUnit testcase fails: a finding of a probe cell (flaky ones too), or a canary
-/// whose fault was not detected. A detected canary is a success.
+/// whose fault was not detected. A detected canary is a success; a retry (a workaround variant or
+/// recommended pattern a round added) only informs its finding.
 fn fails(r: &RunReport, c: &crate::model::CellReport) -> bool {
     match &c.canary_check {
         Some(chk) => !chk.detected,
+        None if c.is_retry(r.options.patches) => false,
         None => {
             (c.outcome.is_finding() && expected_by_baseline(r, c).is_none())
                 || (c.injection_undetected && c.outcome == Outcome::Pass)
@@ -133,6 +135,12 @@ pub fn render(r: &RunReport) -> String {
             } else {
                 format!("<failure type=\"canary_undetected\" message=\"expected {}, got {}: {reason}\"/>", expected.join(" or "), c.outcome.as_str())
             };
+        } else if c.is_retry(r.options.patches) {
+            s += &format!(
+                "<system-out>{}: {} (a retry of a finding, not a planned cell)</system-out>",
+                esc(c.outcome.as_str()),
+                reason
+            );
         } else if let Some(why) = expected_by_baseline(r, c).filter(|_| c.outcome.is_finding()) {
             s += &format!(
                 "<system-out>{}: {} ({why})</system-out>",

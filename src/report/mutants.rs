@@ -202,7 +202,10 @@ pub fn verdict(
     });
     let why = match status {
         MutantStatus::Survived if probe_defect => format!("PROBE DEFECT: the reference predicts {} of {} differing pixels the comparison must flag, and it flagged none", prediction.caught, prediction.differing),
-        MutantStatus::Survived => format!("allowed: the spec leaves this read undefined ({}); rtprobe's lenient rule for it (an index another lane computed) accepts what the mutant read on all {} differing pixels", allowed_by.as_deref().unwrap_or(""), prediction.differing),
+        MutantStatus::Survived => {
+            let neither = cmp.and_then(|c| c.element_reads.as_ref()).map_or(0, |r| r.neither);
+            format!("allowed: the spec leaves this read undefined ({}), so no value is a mismatch there; of {} differing pixels, {neither} read what no active lane of their subgroup computed (a warning)", allowed_by.as_deref().unwrap_or(""), prediction.differing)
+        }
         MutantStatus::Equivalent => "the device's lane evidence shows every subgroup computed one slot: the reference predicts the same records".into(),
         MutantStatus::Killed
         | MutantStatus::Fault

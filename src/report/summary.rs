@@ -1,6 +1,6 @@
 //! The terminal summary printed at the end of `rtprobe run`.
-use crate::model::Outcome;
 use crate::model::RunReport;
+use crate::model::{plural, Outcome};
 use std::fmt::Write;
 
 fn mark(o: Outcome) -> &'static str {
@@ -16,7 +16,20 @@ fn mark(o: Outcome) -> &'static str {
     }
 }
 
+/// What the summary leaves out.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Quiet {
+    /// The pipeline cache's save errors: already said on an earlier run (the report keeps them).
+    pub cache_errors: bool,
+}
+
+/// The summary (the verdict line and the baseline's are the CLI's, after it).
 pub fn render(r: &RunReport) -> String {
+    render_quiet(r, Quiet::default())
+}
+
+/// [`render`], leaving out what `quiet` says.
+pub fn render_quiet(r: &RunReport, quiet: Quiet) -> String {
     let mut s = String::new();
     header(&mut s, r);
     worker_and_canary_notes(&mut s, r);
@@ -25,7 +38,7 @@ pub fn render(r: &RunReport) -> String {
     if let Some(m) = &r.mutants {
         s += &crate::report::mutants::render(m);
     }
-    timing(&mut s, r);
+    timing(&mut s, r, quiet);
     s
 }
 
@@ -49,6 +62,37 @@ fn header(s: &mut String, r: &RunReport) {
         let _ = write!(s, "  {} {} {n}", mark(*o), o.as_str());
     }
     let _ = writeln!(s);
+    retries(s, r);
+    if let Some(last) = r.resumed.last() {
+        let _ = writeln!(
+            s,
+            "resumed: {} kept from the interrupted run (not run again), {} run now",
+            plural(last.kept, "cell"),
+            plural(last.to_run, "cell")
+        );
+    }
+}
+
+/// The retries a round added (workaround variants, recommended patterns), apart from the plan.
+fn retries(s: &mut String, r: &RunReport) {
+    if r.retries.is_empty() {
+        return;
+    }
+    let cells: Vec<_> = r.cells.iter().filter(|c| c.is_retry(r.options.patches)).collect();
+    let variants = cells.iter().filter(|c| c.cell.patch.is_some()).count();
+    let counts: Vec<String> = r.retries.iter().map(|(o, n)| format!("{o} {n}")).collect::<Vec<_>>();
+    let kinds: Vec<String> =
+        [(variants, "workaround variant"), (cells.len() - variants, "recommended pattern")]
+            .iter()
+            .filter(|(n, _)| *n > 0)
+            .map(|(n, w)| plural(*n, w))
+            .collect();
+    let _ = writeln!(
+        s,
+        "retries (not in the plan, not counted above): {} tried on the findings: {}",
+        kinds.join(" and "),
+        counts.join(", ")
+    );
 }
 
 /// Canaries, fault injection, and worker faults outside any cell.
@@ -73,8 +117,13 @@ fn worker_and_canary_notes(s: &mut String, r: &RunReport) {
         let injected = r.cells.iter().filter(|c| c.injected.is_some()).count();
         let _ = writeln!(
             s,
-            "fault injection: {injected} cells misbehave on purpose ({})",
-            serde_json::Value::from(r.options.inject.clone())
+            "fault injection: {} on purpose ({})",
+            if injected == 1 {
+                "1 cell misbehaves".to_string()
+            } else {
+                format!("{injected} cells misbehave")
+            },
+            r.options.inject.join("; ")
         );
     }
     // Worker faults outside any cell (failed setups, crashes between cells, hung teardowns); a
@@ -104,10 +153,21 @@ fn spec_and_injection_notes(s: &mut String, r: &RunReport) {
         let other = outside.iter().filter(|c| c.element_reads().any(|e| e.other > 0)).count();
         let _ = writeln!(
             s,
-            "outside the spec's guarantees: {} cells index descriptors dynamically without nonuniformEXT, or with one their compiler dropped ({}); {other} of them read another element of the array on some pixels (allowed there; counts per cell in the report)",
-            outside.len(),
+            "outside the spec's guarantees: {} descriptors dynamically without nonuniformEXT, or with one their compiler dropped ({}); {other} of them read another element of the array on some pixels (allowed there; counts per cell in the report)",
+            if outside.len() == 1 { "1 cell indexes".to_string() } else { format!("{} cells index", outside.len()) },
             first.outside_spec.as_deref().unwrap_or("")
         );
+        let neither: Vec<_> =
+            outside.iter().filter(|c| c.element_reads().any(|e| e.neither > 0)).collect();
+        if let Some(c) = neither.first() {
+            let px = c.element_reads().map(|e| e.neither).max().unwrap_or(0);
+            let _ = writeln!(
+                s,
+                "warning: {} of them read a value no active lane of their subgroup computed (first {}, {px} pixels): a driver reading an inactive lane's index; the spec leaves the read undefined, so this is no driver fault — add nonuniformEXT",
+                neither.len(),
+                c.id
+            );
+        }
     }
     let vcells: Vec<_> = r
         .cells
@@ -117,14 +177,14 @@ fn spec_and_injection_notes(s: &mut String, r: &RunReport) {
         })
         .collect();
     if !vcells.is_empty() {
-        let _ = writeln!(s, "validation errors in {} cells (rtprobe misused the API there; their outcomes prove nothing): first {}", vcells.len(), vcells[0].id);
+        let _ = writeln!(s, "validation errors in {} (rtprobe misused the API there; their outcomes prove nothing): first {}", plural(vcells.len(), "cell"), vcells[0].id);
     }
     let undetected: Vec<_> = r.cells.iter().filter(|c| c.injection_undetected).collect();
     if let Some(first) = undetected.first() {
         let _ = writeln!(
             s,
-            "❌ injected faults NOT detected in {} cells (the injection ran and the cell passed: detection unproven here), first {} ({})",
-            undetected.len(),
+            "❌ injected faults NOT detected in {} (the injection ran and the cell passed: detection unproven here), first {} ({})",
+            plural(undetected.len(), "cell"),
             first.id,
             first.injected.as_deref().unwrap_or("")
         );
@@ -137,7 +197,11 @@ fn findings(s: &mut String, r: &RunReport) {
     let not_run = r.plan.unsupported + r.plan.not_implemented;
     let worker_faults = r.workers.iter().filter(|w| w.is_fault()).count();
     if findings.is_empty() && worker_faults > 0 {
-        let _ = writeln!(s, "no cell faulted or mismatched, but {worker_faults} worker faults outside cells (above) fail the run");
+        let _ = writeln!(
+            s,
+            "no cell faulted or mismatched, but {} outside cells (above)",
+            plural(worker_faults, "worker fault")
+        );
     } else if findings.is_empty() && not_run > 0 {
         let _ = writeln!(
             s,
@@ -148,14 +212,24 @@ fn findings(s: &mut String, r: &RunReport) {
         let _ = writeln!(s, "no faults or mismatches");
     } else {
         let flaky = findings.iter().filter(|c| c.flaky).count();
+        let expected =
+            |c: &crate::model::CellReport| r.baseline.as_ref().is_some_and(|b| b.expects(&c.id));
+        let n_expected = findings.iter().filter(|c| expected(c)).count();
+        let by_baseline = match &r.baseline {
+            Some(b) if n_expected == findings.len() => {
+                format!(", all expected by baseline {}", b.source)
+            }
+            Some(b) => format!(", {n_expected} expected by baseline {}", b.source),
+            None => String::new(),
+        };
         let _ = writeln!(
             s,
-            "findings ({}{}):",
+            "findings ({}{}{by_baseline}):",
             findings.len(),
             if flaky > 0 { format!(", {flaky} flaky") } else { String::new() }
         );
         for c in findings.iter().take(40) {
-            finding(s, c);
+            finding(s, c, r.baseline.is_some() && expected(c));
         }
         if findings.len() > 40 {
             let _ = writeln!(s, "  … and {} more (see the report)", findings.len() - 40);
@@ -163,14 +237,20 @@ fn findings(s: &mut String, r: &RunReport) {
     }
 }
 
-/// One finding with its pictures, workarounds, recommended pattern and GPU-AV result.
-fn finding(s: &mut String, c: &crate::model::CellReport) {
+/// One finding with its pictures, workarounds, recommended pattern and GPU-AV result;
+/// `expected`: the run's baseline expects it (no failure mark).
+fn finding(s: &mut String, c: &crate::model::CellReport, expected: bool) {
     // The reason already carries "k of N attempts"; a flaky cell says so up front.
-    let tag = if c.flaky { " [FLAKY]" } else { "" };
+    let tag = match (c.flaky, expected) {
+        (true, true) => " [FLAKY, expected]",
+        (true, false) => " [FLAKY]",
+        (false, true) => " [expected]",
+        (false, false) => "",
+    };
     let _ = writeln!(
         s,
         "  {} {:<12} {}{} — {}",
-        mark(c.outcome),
+        if expected { "➖" } else { mark(c.outcome) },
         c.outcome.as_str(),
         c.id,
         tag,
@@ -213,7 +293,7 @@ fn finding(s: &mut String, c: &crate::model::CellReport) {
 }
 
 /// Time per phase, the prebuild and the pipeline cache.
-fn timing(s: &mut String, r: &RunReport) {
+fn timing(s: &mut String, r: &RunReport, quiet: Quiet) {
     let t = &r.timing;
     let n = t.cells_timed.max(1) as f64;
     let _ = writeln!(
@@ -240,7 +320,7 @@ fn timing(s: &mut String, r: &RunReport) {
         } else {
             format!("; ignored: {}", pc.ignored.join("; "))
         };
-        let errors = if pc.save_errors.is_empty() {
+        let errors = if pc.save_errors.is_empty() || quiet.cache_errors {
             String::new()
         } else {
             format!("; {}", pc.save_errors.join("; "))

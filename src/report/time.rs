@@ -1,4 +1,5 @@
-//! UTC timestamps for report names and dates, from the system clock (no time-zone database).
+//! UTC timestamps for report names, dates and reports' `started`/`finished` (RFC 3339), from the
+//! system clock (no time-zone database).
 
 /// `YYYY-MM-DD` of a Unix time (days-from-civil inverse, Howard Hinnant's algorithm).
 pub fn civil_date(unix_secs: u64) -> String {
@@ -11,6 +12,12 @@ pub fn stamp(unix_secs: u64) -> String {
     let (y, m, d) = ymd(unix_secs);
     let s = unix_secs % 86_400;
     format!("{y:04}{m:02}{d:02}-{:02}{:02}{:02}", s / 3600, (s / 60) % 60, s % 60)
+}
+
+/// RFC 3339 (`YYYY-MM-DDTHH:MM:SSZ`, UTC) of a Unix time, for JSON.
+pub fn rfc3339(unix_secs: u64) -> String {
+    let s = unix_secs % 86_400;
+    format!("{}T{:02}:{:02}:{:02}Z", civil_date(unix_secs), s / 3600, (s / 60) % 60, s % 60)
 }
 
 fn ymd(unix_secs: u64) -> (i64, u32, u32) {
@@ -43,5 +50,7 @@ mod tests {
         assert_eq!(civil_date(1_795_000_000), "2026-11-18");
         assert_eq!(stamp(1_795_000_000), "20261118-110640");
         assert_eq!(civil_date(951_782_400), "2000-02-29");
+        assert_eq!(rfc3339(1_795_000_000), "2026-11-18T11:06:40Z");
+        assert_eq!(rfc3339(0), "1970-01-01T00:00:00Z");
     }
 }

@@ -92,7 +92,12 @@ impl ReportWriter {
                 existing.attempts.push(attempt);
                 existing.refresh();
             }
-            None => self.report.cells.push(CellReport::new(cell, attempt)),
+            None => {
+                let mut c = CellReport::new(cell, attempt);
+                // Not in the plan: a round's retry (a workaround variant, a recommended pattern).
+                c.retry = cell.canary.is_none() && !self.order.contains_key(&id);
+                self.report.cells.push(c);
+            }
         }
         self.sort();
     }
@@ -118,4 +123,54 @@ impl ReportWriter {
 pub fn annotate_findings(report: &mut RunReport) {
     report.annotate_workarounds();
     super::recommended::annotate(report);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{DescriptorModel, IndexSource, PlannedCell, Resource, Stage, Workaround};
+
+    #[test]
+    fn cells_outside_the_plan_are_retries_counted_apart() {
+        let planned = Cell::new(
+            Stage::ClosestHit,
+            Resource::StorageBuffer,
+            IndexSource::Dynamic,
+            DescriptorModel::DescriptorIndexing,
+        );
+        let plan = RunPlan {
+            generated: 1,
+            cells: vec![PlannedCell { cell: planned, status: PlanStatus::Run }],
+            not_generated: vec![],
+            filtered_out: 0,
+        };
+        let mut w = ReportWriter::new(PathBuf::from("r.json"), RunReport::for_tests(vec![]), &plan);
+        w.record(&planned, Attempt::for_tests(Outcome::Crash, false));
+        let variant = Cell { patch: Some(Workaround::PinIndex), ..planned };
+        let pattern = Cell { index: IndexSource::DynamicElement, ..planned };
+        w.record(&variant, Attempt::for_tests(Outcome::Error, false));
+        w.record(&pattern, Attempt::for_tests(Outcome::Crash, false));
+        let r = &w.report;
+        let retry = |id: String| r.cells.iter().find(|c| c.id == id).unwrap().retry;
+        assert!(!retry(planned.id()) && retry(variant.id()) && retry(pattern.id()));
+        // The plan's one cell is the plan's count; the two retries are counted apart, and the
+        // pattern's crash is no finding of its own.
+        assert_eq!(r.summary.values().sum::<usize>(), 1);
+        assert_eq!((r.summary["crash"], r.retries["error"], r.retries["crash"]), (1, 1, 1));
+        assert_eq!(r.findings().count(), 1);
+        // Its twin: had the plan held the pattern, it would be a planned cell and a finding.
+        let plan2 = RunPlan {
+            cells: vec![
+                PlannedCell { cell: planned, status: PlanStatus::Run },
+                PlannedCell { cell: pattern, status: PlanStatus::Run },
+            ],
+            ..plan
+        };
+        let mut w =
+            ReportWriter::new(PathBuf::from("r.json"), RunReport::for_tests(vec![]), &plan2);
+        w.record(&planned, Attempt::for_tests(Outcome::Crash, false));
+        w.record(&pattern, Attempt::for_tests(Outcome::Crash, false));
+        assert_eq!(w.report.findings().count(), 2);
+        assert!(w.report.retries.is_empty());
+    }
 }

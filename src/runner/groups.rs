@@ -5,11 +5,37 @@
 //! handler reads: it SIGKILLs every group, says so on stderr, and exits (128 + signal). Only
 //! async-signal-safe calls run in the handler; the report on disk stays whole (rewritten
 //! atomically: at once after a fault, after passes at most every 100 ms) and `--resume` finishes
-//! the run, running again the passes of the last 0.1 s that were not saved.
+//! the run, running again the passes of the last 0.1 s that were not saved. The message ends with
+//! the command that does ([`set_resume_hint`]), made before the handler can need it.
 use std::os::unix::process::CommandExt;
 use std::process::Command;
-use std::sync::atomic::{AtomicI32, Ordering};
+use std::sync::atomic::{AtomicI32, AtomicPtr, AtomicUsize, Ordering};
 use std::sync::Once;
+
+/// The end of the interrupt message: `; finish it with `COMMAND`\n` (leaked once per run, so the
+/// handler reads it without allocating).
+static HINT: AtomicPtr<u8> = AtomicPtr::new(std::ptr::null_mut());
+static HINT_LEN: AtomicUsize = AtomicUsize::new(0);
+
+/// The command that finishes an interrupted run (`rtprobe run --resume REPORT …`), for the
+/// interrupt message.
+pub fn set_resume_hint(command: &str) {
+    let text: &'static [u8] =
+        Box::leak(format!("; finish it with `{command}`\n").into_bytes().into_boxed_slice());
+    HINT_LEN.store(0, Ordering::SeqCst);
+    HINT.store(text.as_ptr() as *mut u8, Ordering::SeqCst);
+    HINT_LEN.store(text.len(), Ordering::SeqCst);
+}
+
+/// The hint as set, or the generic one.
+fn resume_hint() -> &'static [u8] {
+    let (p, n) = (HINT.load(Ordering::SeqCst), HINT_LEN.load(Ordering::SeqCst));
+    if p.is_null() || n == 0 {
+        return b"; finish it with `rtprobe run --resume REPORT` (the report it was writing)\n";
+    }
+    // SAFETY: `p` and `n` describe a leaked, never freed slice (`set_resume_hint`).
+    unsafe { std::slice::from_raw_parts(p, n) }
+}
 
 const MAX_GROUPS: usize = 256;
 static GROUPS: [AtomicI32; MAX_GROUPS] = [const { AtomicI32::new(0) }; MAX_GROUPS];
@@ -68,13 +94,15 @@ pub fn kill_all() {
 extern "C" fn on_signal(sig: libc::c_int) {
     kill_all();
     let msg: &[u8] = match sig {
-        libc::SIGINT => b"\nrtprobe: interrupted (SIGINT): every worker was killed; the report keeps every fault and all passes but those of the last 0.1 s (complete: false); finish it with `rtprobe run --resume REPORT`\n",
-        libc::SIGTERM => b"\nrtprobe: terminated (SIGTERM): every worker was killed; the report keeps every fault and all passes but those of the last 0.1 s (complete: false); finish it with `rtprobe run --resume REPORT`\n",
-        _ => b"\nrtprobe: hung up (SIGHUP): every worker was killed; the report keeps every fault and all passes but those of the last 0.1 s (complete: false); finish it with `rtprobe run --resume REPORT`\n",
+        libc::SIGINT => b"\nrtprobe: interrupted (SIGINT): every worker was killed; the report keeps every fault and all passes but those of the last 0.1 s (complete: false)",
+        libc::SIGTERM => b"\nrtprobe: terminated (SIGTERM): every worker was killed; the report keeps every fault and all passes but those of the last 0.1 s (complete: false)",
+        _ => b"\nrtprobe: hung up (SIGHUP): every worker was killed; the report keeps every fault and all passes but those of the last 0.1 s (complete: false)",
     };
-    // SAFETY: write(2) and _exit(2) are async-signal-safe.
+    let hint = resume_hint();
+    // SAFETY: write(2) and _exit(2) are async-signal-safe; the hint is a static slice.
     unsafe {
         libc::write(2, msg.as_ptr().cast(), msg.len());
+        libc::write(2, hint.as_ptr().cast(), hint.len());
         libc::_exit(128 + sig);
     }
 }
@@ -97,6 +125,15 @@ pub fn install_handlers() {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_interrupt_message_ends_with_the_command_set() {
+        assert!(std::str::from_utf8(resume_hint())
+            .unwrap()
+            .starts_with("; finish it with `rtprobe run --resume "));
+        set_resume_hint("rtprobe run --resume reports/r.json");
+        assert_eq!(resume_hint(), b"; finish it with `rtprobe run --resume reports/r.json`\n");
+    }
 
     #[test]
     fn groups_are_registered_and_forgotten() {
