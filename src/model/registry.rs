@@ -286,7 +286,7 @@ pub const AXES: &[Axis] = &[
     Axis {
         id: AxisId::Mutant,
         name: "mutant",
-        help: "an emulated driver bug mutated into the probe's SPIR-V (run --mutants)",
+        help: "an emulated driver bug mutated into the probe's SPIR-V, only by run --mutants",
         values: Mutant::NAMES,
         stand_ins: &["none"],
         rank: Rank::Secondary,
