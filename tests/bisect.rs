@@ -484,7 +484,7 @@ fn a_bundle_is_replaced_whole_runs_its_own_spirv_and_has_an_amber_script_where_i
             && amber.contains("\nRUN probe_pipeline ")
             && amber.contains("\nEXPECT records IDX 0 TOLERANCE 0.001 EQ ")
     );
-    assert!(amber.contains("# Run: amber -d cell.amber"), "says how to run it");
+    assert!(amber.contains("# Run: amber -d -v 1.2 cell.amber"), "says how to run it");
     let spec = json_file(&b.join("cell.json"));
     let modules = spec["modules"].as_array().unwrap();
     assert_eq!(modules.len(), 1);

@@ -343,7 +343,7 @@ impl Bundle<'_> {
         Ok(match script {
             Ok(text) => {
                 write(dir, "cell.amber", text.as_bytes())?;
-                "cell.amber      an Amber script of the same cell, the reproducer without rtprobe: its SPIR-V, scene, buffers and expected records (`amber -d cell.amber`; see its header)".to_string()
+                "cell.amber      an Amber script of the same cell, the reproducer without rtprobe: its SPIR-V, scene, buffers and expected records (`amber -d -v 1.2 cell.amber`; see its header)".to_string()
             }
             Err(why) => format!(
                 "no cell.amber: {why};\n                  {}",

@@ -65,7 +65,7 @@ fn header(cell: &Cell) -> String {
         cell.id(),
         crate::bisect::isolation::describe(cell)
     );
-    s += "# Run: amber -d cell.amber (Amber from github.com/google/amber; not run by rtprobe where this was written).\n";
+    s += "# Run: amber -d -v 1.2 cell.amber (Amber from github.com/google/amber: docs/bisect-report-repro.md#amber-the-reproducer-without-rtprobe;\n# -v 1.2: ray tracing needs Vulkan 1.2's vkGetBufferDeviceAddress; -d: without validation layers).\n";
     s += "# A pass means every EXPECT held: the driver wrote the records rtprobe's f64 reference expects.\n";
     s += &parts::features_note(&spec);
     s + "\n"

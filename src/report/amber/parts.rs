@@ -43,12 +43,14 @@ pub fn shader(kind: &str, name: &str, s: &Shader) -> String {
         out += &format!("#   {l}\n");
     }
     out += &format!("SHADER {kind} {name} SPIRV-HEX\n");
-    for chunk in crate::report::shaders::spirv_bytes(&s.spirv).chunks(32) {
-        let line: Vec<String> = chunk.iter().map(|b| format!("{b:02x}")).collect();
-        out += &line.join(" ");
-        out += "\n";
-    }
-    out + "END\n\n"
+    let lines: Vec<String> = crate::report::shaders::spirv_bytes(&s.spirv)
+        .chunks(32)
+        .map(|chunk| chunk.iter().map(|b| format!("{b:02x}")).collect::<Vec<_>>().join(" "))
+        .collect();
+    // `END` right after the last byte: Amber's ParseHex (src/shader_compiler.cc) loops forever
+    // on whitespace after the last number (strtol makes no progress there) until it runs out of
+    // memory, and the shader's text is everything up to `END`.
+    out + &lines.join("\n") + "END\n\n"
 }
 
 /// The AmberScript type of a record member's GLSL type.

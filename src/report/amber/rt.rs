@@ -82,7 +82,8 @@ fn pipeline(shaders: &[Shader], spec: &ProbeSpec, array: &[String], depth: u32) 
     let has = |r: Role| shaders.iter().any(|s| s.role == r);
     let name = |r: Role| amber_shader(r).map(|(_, n)| n).unwrap_or("?");
     let any = if has(Role::AnyHit) { " any_hit" } else { "" };
-    let mut s = String::from("PIPELINE ray_tracing probe_pipeline\n");
+    // `raytracing`: what Amber's parser takes (ToPipelineType), though its docs say `ray_tracing`.
+    let mut s = String::from("PIPELINE raytracing probe_pipeline\n");
     s += "  SHADER_GROUP g_raygen raygen\n  SHADER_GROUP g_miss miss\n  SHADER_GROUP g_probe_miss probe_miss\n";
     s += &format!("  SHADER_GROUP g_hit_triangles {}{any}\n", name(Role::ClosestHitTriangles));
     s += &format!(

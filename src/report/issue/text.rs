@@ -397,7 +397,7 @@ pub(super) fn reproducer(
     let id = rep.cell.id();
     let detail = rep.entry.and_then(worst).and_then(|a| a.detail.clone()).unwrap_or_default();
     let without_rtprobe = match crate::report::amber::fits(&rep.cell, rep.injection) {
-        Ok(()) => "`amber repro/cell.amber` runs the same SPIR-V on the same scene and checks the same records without rtprobe (Amber is built from source: docs/bisect-report-repro.md#amber).".to_string(),
+        Ok(()) => "`amber -d -v 1.2 repro/cell.amber` runs the same SPIR-V on the same scene and checks the same records without rtprobe (Amber is built from source: docs/bisect-report-repro.md#amber-the-reproducer-without-rtprobe).".to_string(),
         Err(why) => format!(
             "No Amber script for this cell: {why}; {}.",
             crate::report::amber::NO_STANDALONE
