@@ -20,7 +20,14 @@ pub(super) fn measure(
 ) -> (ValidationRun, Option<SbtProps>) {
     let (inst, info, _) = match report_device(g, r) {
         Ok(d) => d,
-        Err(e) => return (ValidationRun::NotRun(format!("{e:#}")), None),
+        Err(_) => {
+            let why = format!(
+                "the report's device, {} with driver {}, is not on the machine writing the issue",
+                r.device["name"].as_str().unwrap_or("?"),
+                r.device["driver_version"]["decoded"].as_str().unwrap_or("?")
+            );
+            return (ValidationRun::NotRun(why), None);
+        }
     };
     let sbt = info.properties.rt_pipeline.map(|p| SbtProps {
         handle_size: p.shader_group_handle_size,

@@ -96,6 +96,10 @@ impl Issue {
     fn collapsed(&self) -> String {
         let mut m = String::new();
         let mut iso: String = self.isolation.iter().map(|l| format!("- {l}\n")).collect();
+        if !self.workaround_details.is_empty() {
+            iso += "\nWorkaround patches on the minimal failing cell:\n\n";
+            iso += &self.workaround_details.iter().map(|l| format!("- {l}\n")).collect::<String>();
+        }
         iso += &format!("\n{}\n\n{}", self.summary, self.incidence);
         m += &details(
             "Isolation list with statistics (fault-rate bounds, miss probabilities)",

@@ -99,6 +99,7 @@ pub fn build(
         validation: text::validation_text(report, rep.entry, &extras.validation),
         reproduce: text::reproduce_commands(report, report_path, &rep.cell, rep.injection),
         workarounds: text::workaround_lines(bi),
+        workaround_details: bi.workarounds.iter().map(|w| w.line.clone()).collect(),
         recommended_pattern: crate::report::recommended::result(report, &rep.cell).line(),
         lanes: text::lanes_text(report, &rep.cell, rep.entry, extras.lanes),
         heap: text::heap_text(&rep.cell, rep.entry),

@@ -158,3 +158,17 @@ fn an_index_is_named_with_its_range_and_bounds() {
     assert!(f.sbt.contains("stride align(handle + 0, shaderGroupHandleAlignment)"), "{}", f.sbt);
     assert!(f.values.starts_with("No attempt of this cell"), "{}", f.values);
 }
+
+/// The injected H100 demo's bisection: workarounds and siblings on the screen with one count
+/// each and no statistics (those stay in the collapsed list), no stand-in `none` values.
+#[test]
+fn workarounds_and_siblings_are_one_count_each() {
+    let b = BisectFile::load(Path::new("reports/nvidia-h100/bisect-demo.bisect.json")).unwrap();
+    let w = text::workaround_lines(&b.bisection);
+    assert!(w.iter().any(|l| l == "patch `nonuniform`: ❌ mismatch 1/1 (the injected fault survives the patch: nothing about the driver)"), "{w:?}");
+    assert!(w.iter().all(|l| !l.contains("p ≥")), "{w:?}");
+    assert!(b.bisection.workarounds.iter().any(|l| l.line.contains("p ≥ 0.05")));
+    let iso = text::isolation_summary(&b.bisection);
+    assert!(iso.contains(&"**stage**: ✅ raygen 5/5, miss 5/5".to_string()), "{iso:?}");
+    assert!(iso.iter().all(|l| !l.contains("+none")), "{iso:?}");
+}

@@ -78,13 +78,31 @@ pub(super) fn representative_outcome(
         .unwrap_or(Outcome::Error)
 }
 
-/// The bisection's workaround lines, or a line saying none applies.
+/// The bisection's workarounds, one count each (their full lines are in the isolation list's
+/// section), or a line saying none applies.
 pub(super) fn workaround_lines(bi: &Bisection) -> Vec<String> {
     if bi.workarounds.is_empty() {
-        vec!["No workaround patch applies to this cell.".into()]
-    } else {
-        bi.workarounds.iter().map(|w| w.line.clone()).collect()
+        return vec!["No workaround patch applies to this cell.".into()];
     }
+    bi.workarounds
+        .iter()
+        .map(|w| {
+            let patch = cell_by_id(&w.cell)
+                .and_then(|c| c.patch)
+                .map(|p| p.as_str().to_string())
+                .unwrap_or_else(|| w.cell.clone());
+            let verdict = match w.verdict.as_str() {
+                "pass" => format!("✅ passes {}/{}", w.agreeing, w.attempts),
+                v => format!("❌ {v} {}/{}", w.agreeing, w.attempts),
+            };
+            let injected = if w.injected.is_some() && w.verdict != "pass" {
+                " (the injected fault survives the patch: nothing about the driver)"
+            } else {
+                ""
+            };
+            format!("patch `{patch}`: {verdict}{injected}")
+        })
+        .collect()
 }
 
 /// The device, driver and machine the issue is about; `glsl`: the failing shader's, for the
@@ -423,9 +441,12 @@ pub(super) fn isolation_summary(bi: &Bisection) -> Vec<String> {
     for l in bi.isolation.iter().filter(|l| l.varied.is_some() && !doubtful(&l.cell)) {
         let Some(c) = cell_by_id(&l.cell) else { continue };
         let axis = l.varied.clone().unwrap_or_default();
+        // The sibling's values where it differs: the varied axes', and any other axis's but a
+        // stand-in `none` (an axis that does not apply to the sibling).
+        let varied = |a: &str| axis.split(", ").any(|v| v == a);
         let values: Vec<String> = crate::model::registry::names()
             .filter(|a| c.axis_value(a) != rep.axis_value(a))
-            .filter_map(|a| c.axis_value(a))
+            .filter_map(|a| c.axis_value(a).filter(|v| varied(a) || v != "none"))
             .collect();
         let entry = format!("{} {}/{}", values.join("+"), l.agreeing, l.attempts);
         let at = match axes.iter().position(|(a, _, _)| *a == axis) {

@@ -157,7 +157,11 @@ pub struct Issue {
     pub device_fault: String,
     pub validation: String,
     pub reproduce: Vec<String>,
+    /// The workaround patches, one count each (or that none applies).
     pub workarounds: Vec<String>,
+    /// The bisection's workaround lines, with their statistics.
+    #[serde(default)]
+    pub workaround_details: Vec<String>,
     /// Whether the engines' recommended pattern nearest the minimal failing cell works on this
     /// driver (`report::recommended`): "recommended pattern X (…): passes (k/N)" / fails / not run.
     #[serde(default)]
