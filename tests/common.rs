@@ -22,7 +22,9 @@ pub fn cache_dir() -> std::path::PathBuf {
 }
 
 pub fn run(args: &[&str]) -> Output {
-    bin().args(args).output().expect("spawn rtprobe")
+    let o = bin().args(args).output().expect("spawn rtprobe");
+    hold_issue_to_one_screen(args, &o);
+    o
 }
 
 pub fn run_env(args: &[&str], env: &[(&str, &str)]) -> Output {
@@ -30,7 +32,36 @@ pub fn run_env(args: &[&str], env: &[(&str, &str)]) -> Output {
     for (k, v) in env {
         c.env(k, v);
     }
-    c.args(args).output().expect("spawn rtprobe")
+    let o = c.args(args).output().expect("spawn rtprobe");
+    hold_issue_to_one_screen(args, &o);
+    o
+}
+
+/// Issue 30: every Markdown issue the test suite writes (`rtprobe report`, to `-o FILE` or
+/// stdout) fits one screen: at most `ONE_SCREEN_LINES` lines before its first `<details>`.
+pub fn hold_issue_to_one_screen(args: &[&str], o: &Output) {
+    if args.first() != Some(&"report") || !o.status.success() {
+        return;
+    }
+    let after = |flag: &str| args.iter().position(|a| *a == flag).and_then(|k| args.get(k + 1));
+    if after("--format") == Some(&"json") {
+        return;
+    }
+    let md = match after("-o").or(after("--out")) {
+        Some(path) => std::fs::read_to_string(path).expect("the issue rtprobe wrote"),
+        None => stdout(o),
+    };
+    assert_one_screen(&md);
+}
+
+/// `md` has at most `ONE_SCREEN_LINES` lines before its first `<details>`.
+pub fn assert_one_screen(md: &str) {
+    use rtprobe::report::issue::{one_screen_lines, ONE_SCREEN_LINES};
+    let n = one_screen_lines(md);
+    assert!(
+        n <= ONE_SCREEN_LINES,
+        "the issue has {n} lines before its first <details> (at most {ONE_SCREEN_LINES}):\n{md}"
+    );
 }
 
 pub fn stdout(o: &Output) -> String {

@@ -137,8 +137,9 @@ pub struct RunArgs {
     #[arg(long, value_name = "FILE")]
     pub junit: Option<PathBuf>,
 
-    /// Write each cell's generated GLSL and SPIR-V under DIR/<cell id>/, and for a cell whose
-    /// records mismatch, pictures of them there: expected.png, actual.png, diff.png
+    /// Write each cell's generated GLSL and SPIR-V and the records it read back (records.bin)
+    /// under DIR/<cell id>/, and for a cell whose records mismatch, pictures of them there:
+    /// expected.png, actual.png, diff.png
     #[arg(long, value_name = "DIR")]
     pub dump: Option<PathBuf>,
 
@@ -363,6 +364,17 @@ pub struct ReportArgs {
     /// `md` (the issue text) or `json` (the same content as data)
     #[arg(long, value_enum, default_value = "md")]
     pub format: crate::report::issue::Format,
+
+    /// A run of the same device with `--lane-evidence force` that holds the failing cell: its
+    /// lane evidence goes into the issue (its verdicts do not)
+    #[arg(long, value_name = "REPORT")]
+    pub lanes: Option<PathBuf>,
+
+    /// Do not re-run the failing cell under VK_LAYER_KHRONOS_validation (by default the issue
+    /// carries that run's result when the report's device is on this machine and the run did
+    /// not validate)
+    #[arg(long)]
+    pub no_validation_run: bool,
 }
 
 #[derive(Args, Debug)]

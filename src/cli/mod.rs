@@ -6,6 +6,7 @@ pub mod bisect;
 pub mod commands;
 pub mod exit;
 pub mod fleet;
+pub mod issue_run;
 pub mod out;
 pub mod output_dir;
 pub mod patch;
@@ -125,7 +126,7 @@ pub fn main_entry() -> u8 {
         Command::Run(a) => run::run(&g, a),
         Command::Patch(a) => patch::patch(&g, a),
         Command::Bisect(a) => bisect::bisect(&g, a),
-        Command::Report(a) => report::report(a),
+        Command::Report(a) => report::report(&g, a),
         Command::Repro(a) => repro::repro(&g, a),
         Command::Stress(a) => stress::stress(&g, a),
         Command::Bench(a) => bench::bench(&g, a),

@@ -1,7 +1,9 @@
-//! `rtprobe report REPORT [--bisect FILE] -o issue.md [--format md|json]`: the vendor issue for a
-//! run's fault (see `report::issue`), written atomically.
+//! `rtprobe report REPORT [--bisect FILE] [--lanes REPORT] [--no-validation-run] -o issue.md
+//! [--format md|json]`: the vendor issue for a run's fault (see `report::issue`), with the
+//! failing cell re-run under the validation layer (`issue_run`), written atomically.
 use super::args::ReportArgs;
 use super::bisect::offline;
+use super::commands::Globals;
 use super::exit::{self, coded};
 use super::out::{out, outln};
 use super::shared::load_report;
@@ -13,7 +15,7 @@ use crate::model::PatchMode;
 use crate::report::issue::{self, Format};
 use anyhow::{Context, Result};
 
-pub fn report(a: &ReportArgs) -> Result<u8> {
+pub fn report(g: &Globals, a: &ReportArgs) -> Result<u8> {
     super::paths::writable_files(&[("-o", a.out.as_deref())])?;
     let r = load_report(&a.report)?;
     let ro = ReportOptions::of(&r)
@@ -60,7 +62,15 @@ pub fn report(a: &ReportArgs) -> Result<u8> {
             BisectFile::new(&a.report, &r, &filters, &ro.inject, true, bi)
         }
     };
-    let issue = issue::build(&r, &a.report.display().to_string(), &b, &ro.inject)
+    let lanes = match &a.lanes {
+        Some(p) => Some(lanes_report(p, &r)?),
+        None => None,
+    };
+    let cell = crate::bisect::scope::cell_by_id(&b.bisection.representative);
+    let (validation, sbt) =
+        super::issue_run::measure(g, &r, &ro, cell, !a.no_validation_run && !r.options.validate);
+    let extras = issue::Extras { lanes: lanes.as_ref(), validation, sbt };
+    let issue = issue::build(&r, &a.report.display().to_string(), &b, &ro.inject, &extras)
         .map_err(|e| coded(exit::BAD_INPUT, e))?;
     let text = match a.format {
         Format::Md => issue.markdown(),
@@ -74,4 +84,26 @@ pub fn report(a: &ReportArgs) -> Result<u8> {
         None => out!("{text}"),
     }
     Ok(exit::OK)
+}
+
+/// The `--lanes` report: a run of the report's device and driver build.
+fn lanes_report(
+    path: &std::path::Path,
+    r: &crate::model::RunReport,
+) -> Result<crate::model::RunReport> {
+    let l = load_report(path)?;
+    let same =
+        ["name", "driver_uuid", "driver_version"].iter().all(|k| l.device[*k] == r.device[*k]);
+    if !same {
+        return Err(coded(
+            exit::BAD_INPUT,
+            format!(
+                "--lanes {} is a run of {} (driver {}), not of the report's device; give a --lane-evidence force run of the same device",
+                path.display(),
+                l.device["name"],
+                l.device["driver_version"]["decoded"]
+            ),
+        ));
+    }
+    Ok(l)
 }

@@ -337,14 +337,18 @@ impl Bundle<'_> {
             self.shaders,
             &self.report.scene.params,
             self.inject.first().copied(),
+            crate::report::shaders::lanes_in(self.report, &self.cell),
             &origin,
         );
         Ok(match script {
             Ok(text) => {
                 write(dir, "cell.amber", text.as_bytes())?;
-                "cell.amber      an Amber script of the same cell: its SPIR-V, buffers and expected records (not run by rtprobe; see its header)".to_string()
+                "cell.amber      an Amber script of the same cell, the reproducer without rtprobe: its SPIR-V, scene, buffers and expected records (`amber -d -v 1.2 cell.amber`; see its header)".to_string()
             }
-            Err(why) => format!("no cell.amber: {why}"),
+            Err(why) => format!(
+                "no cell.amber: {why};\n                  {}",
+                crate::report::amber::NO_STANDALONE
+            ),
         })
     }
 

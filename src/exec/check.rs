@@ -1,6 +1,7 @@
 //! Judging a cell from its records: a canary that ran to completion passes; otherwise the records
 //! are compared with the CPU reference (a read is undefined as the driver saw it: `seen`), with
-//! pictures of a mismatch under `--dump`, and the note on what the driver saw added.
+//! the records and pictures of a mismatch under `--dump`, and the note on what the driver saw
+//! added.
 use super::built::Seen;
 use super::executor::Executor;
 use super::pictures;
@@ -70,6 +71,14 @@ impl Executor {
                 cmp.mismatched_pixels, cmp.compared, cmp.by_field
             )
         });
+        if let Some(dir) = self.opts.dump.as_ref() {
+            if let Err(e) = super::files::dump_records(dir, cell, records) {
+                detail = Some(match detail {
+                    Some(d) => format!("{d}; records not written: {e}"),
+                    None => format!("records not written: {e}"),
+                });
+            }
+        }
         if let (Some(dir), Some(d)) =
             (self.opts.dump.as_ref().filter(|_| !cmp.passed()), detail.as_mut())
         {

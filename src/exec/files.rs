@@ -1,5 +1,5 @@
-//! A cell's shader files on disk: a repro bundle's SPIR-V read back (`run --cell-spec`) and
-//! `--dump`'s GLSL and SPIR-V written per cell.
+//! A cell's files on disk: a repro bundle's SPIR-V read back (`run --cell-spec`), and `--dump`'s
+//! GLSL and SPIR-V and the records the cell's trace wrote (`records.bin`), per cell.
 use crate::model::Cell;
 use crate::shadergen;
 use std::path::PathBuf;
@@ -50,4 +50,19 @@ pub(super) fn dump(
         std::fs::write(&spv, bytes).map_err(|err| FileError::Dump { path: spv.clone(), err })?;
     }
     Ok(())
+}
+
+/// `--dump`'s `DIR/<cell id>/records.bin`: the records buffer as the worker read it back
+/// (`probe::Record::to_bytes`, pixel (x, y) at record x + y × width), what an Amber script's
+/// EXPECTs are checked against (`report::amber::check`).
+pub(super) fn dump_records(
+    dir: &std::path::Path,
+    cell: &Cell,
+    records: &[crate::probe::Record],
+) -> Result<(), FileError> {
+    let d = dir.join(cell.id());
+    std::fs::create_dir_all(&d).map_err(|err| FileError::Dump { path: d.clone(), err })?;
+    let path = d.join("records.bin");
+    let bytes: Vec<u8> = records.iter().flat_map(|r| r.to_bytes()).collect();
+    std::fs::write(&path, bytes).map_err(|err| FileError::Dump { path, err })
 }

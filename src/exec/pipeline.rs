@@ -323,13 +323,6 @@ fn rt_groups(shaders: &CellShaders) -> Vec<vk::RayTracingShaderGroupCreateInfoKH
     groups
 }
 
-/// The SBT regions' group counts of a cell's pipeline ([`rt_groups`]' order: two misses, two hit
-/// groups, the callable when the cell has one).
-fn cell_sbt_counts(shaders: &CellShaders) -> SbtCounts {
-    let has_callable = shaders.get(Role::Callable).is_some();
-    SbtCounts { miss: 2, hit: 2, callable: has_callable as u32 }
-}
-
 /// The shader record data after group `g`'s handle in a cell's SBT. Group order: raygen, miss,
 /// probe miss, triangle hits, procedural hits, callable.
 fn cell_record(records: &ShaderRecords, g: usize) -> &[u8] {
@@ -349,7 +342,7 @@ fn create_rt(
     extra: &mut Option<vk::PipelineCreateFlags2CreateInfoKHR<'static>>,
 ) -> Result<Pipeline, VkError> {
     let groups = rt_groups(d.shaders);
-    let counts = cell_sbt_counts(d.shaders);
+    let counts = sbt_counts(d.shaders);
     let rt = RtPipeline {
         stages,
         groups: &groups,
@@ -359,6 +352,12 @@ fn create_rt(
     };
     let record = |g: usize| cell_record(d.records, g);
     create_rt_pipeline(gpu, cache, &rt, flags, extra.as_mut(), &record)
+}
+
+/// The groups of a cell's SBT after raygen: miss and probe miss, the two hit groups, and the
+/// callable where the cell has one ([`rt_groups`]'s order).
+pub fn sbt_counts(shaders: &CellShaders) -> SbtCounts {
+    SbtCounts { miss: 2, hit: 2, callable: shaders.get(Role::Callable).is_some() as u32 }
 }
 
 /// How many groups each SBT region holds after the raygen group (groups in that order).
@@ -517,8 +516,37 @@ pub fn link_rt(
     // One library per group, in SBT order: the linked pipeline's groups are the cell's groups.
     debug_assert_eq!(libs.len(), rt_groups(d.shaders).len());
     let record = |g: usize| cell_record(d.records, g);
-    let sbt = shader_binding_table(gpu, raw, cell_sbt_counts(d.shaders), &record)?;
+    let sbt = shader_binding_table(gpu, raw, sbt_counts(d.shaders), &record)?;
     Ok(Pipeline { raw, kind: PipelineKind::RayTracing, sbt: Some(sbt) })
+}
+
+/// Where an SBT's regions sit (bytes from its base), as [`sbt_layout`] computes them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SbtLayout {
+    /// Every record's stride: the handle and its shader record data, aligned to
+    /// `shaderGroupHandleAlignment`.
+    pub stride: u64,
+    /// The raygen region's size (and stride): one record aligned to `shaderGroupBaseAlignment`.
+    pub raygen_size: u64,
+    pub miss_off: u64,
+    pub hit_off: u64,
+    pub call_off: u64,
+    /// The buffer's size, with room to align its base.
+    pub total: u64,
+}
+
+/// The SBT layout of `counts` groups after the raygen group, each record a `handle`-byte handle
+/// then `record` bytes of shader record data, for the device's handle and base alignments (`ha`,
+/// `ba`): what the worker writes, and what the vendor issue says it wrote.
+pub fn sbt_layout(counts: SbtCounts, handle: u64, ha: u64, ba: u64, record: u64) -> SbtLayout {
+    let rec = handle + record;
+    let stride = align(rec, ha);
+    let raygen_size = align(rec, ba);
+    let miss_off = align(raygen_size, ba);
+    let hit_off = align(miss_off + counts.miss as u64 * stride, ba);
+    let call_off = align(hit_off + counts.hit as u64 * stride, ba);
+    let total = call_off + counts.callable.max(1) as u64 * stride + ba;
+    SbtLayout { stride, raygen_size, miss_off, hit_off, call_off, total }
 }
 
 /// The SBT of pipeline `raw`: the raygen group, then `counts` miss, hit and callable groups, each
@@ -545,14 +573,8 @@ fn shader_binding_table<'r>(
             return Err(VkError::from_result("vkGetRayTracingShaderGroupHandlesKHR", e));
         }
     };
-    // Each record: the group handle, then its shader record data.
-    let rec = h + record(0).len() as u64;
-    let stride = align(rec, ha);
-    let rg_size = align(rec, ba);
-    let miss_off = align(rg_size, ba);
-    let hit_off = align(miss_off + counts.miss as u64 * stride, ba);
-    let call_off = align(hit_off + counts.hit as u64 * stride, ba);
-    let total = call_off + counts.callable.max(1) as u64 * stride + ba;
+    let SbtLayout { stride, raygen_size: rg_size, miss_off, hit_off, call_off, total } =
+        sbt_layout(counts, h, ha, ba, record(0).len() as u64);
     let buffer = Buffer::new(
         gpu,
         total,

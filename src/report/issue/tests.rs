@@ -1,0 +1,174 @@
+use super::*;
+use crate::model::{BisectFile, RunReport};
+use std::path::Path;
+
+const RUN: &str = "reports/lavapipe-26/run.json";
+const BISECT: &str = "reports/lavapipe-26/bisect-shader-record.json";
+const LANES: &str = "reports/lavapipe-26/lanes-forced.json";
+
+fn lavapipe_26() -> (RunReport, BisectFile, RunReport) {
+    (
+        RunReport::load(Path::new(RUN)).unwrap(),
+        BisectFile::load(Path::new(BISECT)).unwrap(),
+        RunReport::load(Path::new(LANES)).unwrap(),
+    )
+}
+
+fn screen(md: &str) -> &str {
+    let n: usize = md.lines().take(one_screen_lines(md)).map(|l| l.len() + 1).sum();
+    &md[..n.min(md.len())]
+}
+
+#[test]
+fn one_screen_counts_the_lines_before_the_first_details() {
+    let short = "# t\n\na\n<details><summary>x</summary>\n\nmore\n</details>\n";
+    assert_eq!(one_screen_lines(short), 3);
+    // The twin: a page without <details> is all screen, and 61 lines are too many.
+    let long: String = (0..61).map(|k| format!("line {k}\n")).collect();
+    assert_eq!(one_screen_lines(&long), 61);
+    assert!(one_screen_lines(&long) > ONE_SCREEN_LINES);
+}
+
+/// Issue 30's reading of the lavapipe 26 shader-record issue as a Mesa developer would, held on
+/// the issue the committed report, bisection and lane-evidence run make: one screen, with the
+/// facts that say what the driver does wrong.
+#[test]
+fn the_lavapipe_26_shader_record_issue_fits_one_screen_with_every_fact() {
+    let (r, b, lanes) = lavapipe_26();
+    let sbt = SbtProps {
+        handle_size: 32,
+        handle_alignment: 32,
+        base_alignment: 64,
+        max_recursion_depth: 31,
+    };
+    let run = ValidationRun::NotRun("a unit test".into());
+    let extras = Extras { lanes: Some(&lanes), validation: run, sbt: Some(sbt) };
+    let issue = build(&r, RUN, &b, &[], &extras).unwrap();
+    let md = issue.markdown();
+    assert!(
+        one_screen_lines(&md) <= ONE_SCREEN_LINES,
+        "{} lines:\n{}",
+        one_screen_lines(&md),
+        screen(&md)
+    );
+    let top = screen(&md);
+    assert!(top.starts_with("# Wrong results: closest_hit reading sampled_image"), "{top}");
+    for fact in [
+        "`driverInfo` Mesa 26.2.6-1 (LLVM 22.1.8)",
+        "**SPIR-V by** shaderc",
+        "6 of 6 attempts faulted, every one",
+        // Expected against actual, with the slots and heap bytes they come from.
+        "expected `[4.0, 33.0, 1014.0, 2.25]` = slot 3 element 2, heap byte 384, got `[1.0, 33.0, 1002.0, 2.25]` = slot 0 element 2, heap byte 192. The descriptor read is 3 × 64 = 192 bytes before the expected one.",
+        "uniform sampler2D probeTex[]",
+        "textureLod(probeTex[3u]",
+        "HEAP_WITH_SHADER_RECORD_INDEX { heapOffset 0, shaderRecordOffset 0, heapIndexStride 64, heapArrayStride 64 }",
+        "`03 00 00 00 02 00 00 00`",
+        "slot = literal 3 in the GLSL: slots 3..=3 of the 19 bound (in bounds)",
+        "each record a 32-byte handle + 8 bytes of data",
+        "maxPipelineRayRecursionDepth 1 (device maximum 31)",
+        "where it was inactive in the call 926 of 926 pixels, where active 0 of 1828",
+        "--lane-evidence force",
+        "**Validation**: Not checked",
+        "**Device fault**: Not applicable",
+        "**stage**: ❌ any_hit 2/2 mismatch, miss 2/2 mismatch · ✅ raygen 5/5",
+        "rtprobe repro closest_hit.sampled_image.literal.descriptor_heap.mapped_shader_record_index --from",
+        "No Amber script for this cell: Amber has no VK_EXT_descriptor_heap; no standalone program either",
+        "**Workarounds**",
+    ] {
+        assert!(top.contains(fact), "{fact:?} not on the first screen:\n{top}");
+    }
+    // One attempt count for the failing cell, stated once; no statistics for a fault seen every
+    // time; the cells whose read the spec leaves undefined are not on the screen.
+    assert_eq!(top.matches("6 of 6").count(), 1, "{top}");
+    assert!(!top.contains("p ≥") && !top.contains("miss ≤"), "{top}");
+    assert!(!top.contains("base_shader_record") && !top.contains("— not used:"), "{top}");
+    // The full list and real unified diffs are collapsed below.
+    let rest = &md[top.len()..];
+    assert!(
+        rest.contains("❌ mismatch (6 of 6, p ≥ 0.61 at 95%)") && rest.contains("— not used:"),
+        "{rest}"
+    );
+    let glsl = issue.shader.as_ref().unwrap().glsl_diff.as_ref().unwrap();
+    assert!(
+        glsl.starts_with("--- passing/closest_hit_triangles.rchit (") && glsl.contains("\n@@ -"),
+        "{glsl}"
+    );
+}
+
+#[test]
+fn the_excerpt_is_the_probed_array_and_the_read() {
+    let cell = crate::model::Cell::parse_id(
+        "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_indexing",
+    )
+    .unwrap();
+    let glsl = &crate::shadergen::generate(&cell)
+        .shaders
+        .iter()
+        .find(|s| s.role == crate::shadergen::Role::ClosestHitTriangles)
+        .unwrap()
+        .glsl
+        .clone();
+    let e = shaders::excerpt(glsl);
+    assert!(e.contains("layout(set = 0, binding = 2, std430) readonly buffer ProbeBuffer"), "{e}");
+    assert!(
+        e.contains(
+            "uint probeSlot = (pc.dynBase + (uint(gl_InstanceCustomIndexEXT) & pc.dynMask));"
+        ),
+        "{e}"
+    );
+    assert!(e.contains("probeBuf[nonuniformEXT("), "{e}");
+    assert!(!e.contains("rayPayloadInEXT") && !e.contains("pl.custom"), "{e}");
+    assert!(e.lines().count() <= 10, "{e}");
+    assert_eq!(shaders::excerpt("no probe here"), "");
+}
+
+#[test]
+fn the_attempt_count_carries_a_rate_bound_only_when_flaky() {
+    let every = text::attempts_text(6, 6);
+    assert_eq!(every, "6 of 6 attempts faulted, every one");
+    let flaky = text::attempts_text(3, 10);
+    assert!(flaky.starts_with("3 of 10 attempts faulted: flaky, fault rate p ≥ 0.0"), "{flaky}");
+}
+
+#[test]
+fn an_index_is_named_with_its_range_and_bounds() {
+    let cell =
+        crate::model::Cell::parse_id("closest_hit.storage_buffer.dynamic.descriptor_indexing")
+            .unwrap();
+    let r = RunReport::load(Path::new(RUN)).unwrap();
+    assert_eq!(r.scene.params.instances, 16);
+    let f = facts::of(&r, &cell, None, None);
+    assert!(
+        f.index
+            .contains("base + (gl_InstanceCustomIndexEXT & 0xf), base = push constant dynBase = 3"),
+        "{}",
+        f.index
+    );
+    assert!(
+        f.index.contains("without nonuniformEXT on a non-uniform index: the read is undefined"),
+        "{}",
+        f.index
+    );
+    assert!(f.index.contains("slots 3..=18 of the 19 bound (in bounds)"), "{}", f.index);
+    assert!(
+        f.layout.contains("19 × STORAGE_BUFFER") && f.layout.contains("PARTIALLY_BOUND"),
+        "{}",
+        f.layout
+    );
+    assert!(f.sbt.contains("stride align(handle + 0, shaderGroupHandleAlignment)"), "{}", f.sbt);
+    assert!(f.values.starts_with("No attempt of this cell"), "{}", f.values);
+}
+
+/// The injected H100 demo's bisection: workarounds and siblings on the screen with one count
+/// each and no statistics (those stay in the collapsed list), no stand-in `none` values.
+#[test]
+fn workarounds_and_siblings_are_one_count_each() {
+    let b = BisectFile::load(Path::new("reports/nvidia-h100/bisect-demo.bisect.json")).unwrap();
+    let w = text::workaround_lines(&b.bisection);
+    assert!(w.iter().any(|l| l == "patch `nonuniform`: ❌ mismatch 1/1 (the injected fault survives the patch: nothing about the driver)"), "{w:?}");
+    assert!(w.iter().all(|l| !l.contains("p ≥")), "{w:?}");
+    assert!(b.bisection.workarounds.iter().any(|l| l.line.contains("p ≥ 0.05")));
+    let iso = text::isolation_summary(&b.bisection);
+    assert!(iso.contains(&"**stage**: ✅ raygen 5/5, miss 5/5".to_string()), "{iso:?}");
+    assert!(iso.iter().all(|l| !l.contains("+none")), "{iso:?}");
+}
