@@ -16,6 +16,7 @@ use rtprobe::harness::reflect::{self, BindingKind};
 use rtprobe::model::contract::HostContract;
 use rtprobe::tools::spirv::{self as tools, Validation};
 use std::collections::BTreeSet;
+use std::os::unix::process::ExitStatusExt;
 use std::path::{Path, PathBuf};
 
 fn corpus() -> PathBuf {
@@ -43,6 +44,7 @@ struct Case {
 
 const SCENE: &[&str] = &["scene/raygen.rgen", "scene/hit.rchit", "common/miss.rmiss"];
 const PUSH: &[&str] = &["push/raygen.rgen", "push/hit.rchit", "push/miss.rmiss"];
+const BINDLESS: &[&str] = &["common/raygen.rgen", "bindless/hit.rchit", "common/miss.rmiss"];
 const DXC: &[&str] = &["dxc/raygen.spvasm", "dxc/closesthit.spvasm", "dxc/miss.spvasm"];
 
 const CASES: &[Case] = &[
@@ -50,6 +52,7 @@ const CASES: &[Case] = &[
     Case { name: "three SSBO arrays, one table each", inputs: SCENE, patches: "ssbo-to-address", extra: &[], expect: Expect::Verified },
     Case { name: "both address patches together", inputs: SCENE, patches: "as-to-address,ssbo-to-address", extra: &[], expect: Expect::Verified },
     Case { name: "set=3 picks the shadow TLAS only", inputs: SCENE, patches: "as-to-address", extra: &["--option", "set=3"], expect: Expect::Verified },
+    Case { name: "unbounded arrays indexed by custom index", inputs: BINDLESS, patches: "ssbo-to-address", extra: &[], expect: Expect::Verified },
     Case { name: "mixed int/uint indices pinned", inputs: &["scene/hit.rchit"], patches: "pin-index", extra: &[], expect: Expect::Valid("pin-index changes the index by design") },
     Case { name: "overlapping push ranges", inputs: PUSH, patches: "as-to-address", extra: &[], expect: Expect::Verified },
     Case { name: "nonuniform on a forgotten nonuniformEXT", inputs: PUSH, patches: "nonuniform", extra: &[], expect: Expect::Verified },
@@ -305,6 +308,15 @@ fn the_checks_catch_a_shared_address_and_an_invalid_module() {
     assert_eq!(t.invalid, 1, "{:?}", t.wrong);
 }
 
+/// A device for the harness, in this process.
+fn gpu() -> rtprobe::vk::Gpu {
+    let inst =
+        std::sync::Arc::new(rtprobe::vk::Instance::new(&Default::default()).expect("instance"));
+    let all = rtprobe::vk::features::query_all(&inst).expect("devices");
+    let info = rtprobe::vk::features::select(&all, None).expect("a device").clone();
+    rtprobe::vk::Gpu::new(inst, info, rtprobe::harness::requirements(false)).expect("device")
+}
+
 /// Twin of `--verify`: fed against the contract — the two TLAS addresses swapped — the patched
 /// pipeline renders something else, so identical images mean each descriptor got its own data.
 #[test]
@@ -315,13 +327,6 @@ fn verify_sees_two_tlases_swapped() {
     let module = |p: &Path| UserModule::new(&p.display().to_string(), &words(p)).unwrap();
     let before: Vec<UserModule> = pairs.iter().map(|p| module(&p.1)).collect();
     let after: Vec<UserModule> = pairs.iter().map(|p| module(&p.0)).collect();
-    let gpu = || {
-        let inst =
-            std::sync::Arc::new(rtprobe::vk::Instance::new(&Default::default()).expect("instance"));
-        let all = rtprobe::vk::features::query_all(&inst).expect("devices");
-        let info = rtprobe::vk::features::select(&all, None).expect("a device").clone();
-        rtprobe::vk::Gpu::new(inst, info, harness::requirements(false)).expect("device")
-    };
     let (_, same) = harness::verify(gpu(), &before, &after, &c).unwrap();
     assert!(same.iter().all(|x| x.differing == 0 && x.distinct > 1000), "{same:?}");
     let (a, b) = (c.addresses[0].offset, c.addresses[1].offset);
@@ -375,4 +380,87 @@ fn slang_pipeline_verifies_in_the_sid_root() {
     let s = stdout(&o);
     assert!(s.contains("verified on llvmpipe") && s.contains("texels identical"), "{s}");
     assert!(!stderr(&o).contains("Validation Error"), "{}", stderr(&o));
+}
+
+/// The bindless pipeline (unbounded SSBO arrays indexed by `gl_InstanceCustomIndexEXT`, a
+/// writable hit log) patched with ssbo-to-address, and `patch`'s other arguments after it.
+fn bindless_args(dir: &Path, extra: &[&str]) -> (Vec<String>, PathBuf) {
+    let inputs = prepare(BINDLESS, dir);
+    let out = dir.join("out");
+    std::fs::create_dir_all(&out).unwrap();
+    let mut args: Vec<String> = vec!["patch".into()];
+    args.extend(inputs.iter().map(|p| p.to_string_lossy().into_owned()));
+    let inc = corpus().join("include");
+    let o = out.to_string_lossy().into_owned();
+    args.extend(["-I", inc.to_str().unwrap(), "-a", "ssbo-to-address", "-o", &o].map(String::from));
+    args.extend(extra.iter().map(|s| s.to_string()));
+    (args, out)
+}
+
+/// Item 1 of the review: runtime arrays indexed by the custom index used to get 4 descriptors
+/// while the scene's custom indices reach 2^24, and the in-process trace took rtprobe down with
+/// a SIGSEGV. Now every index the scene produces is in bounds, and the writable log is compared.
+#[test]
+fn verify_runs_unbounded_arrays_indexed_by_the_custom_index() {
+    let d = tempfile::tempdir().unwrap();
+    let (args, _) = bindless_args(d.path(), &["--verify"]);
+    let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+    let o = run(&refs);
+    assert!(o.status.success(), "{:?}: {}", o.status, stderr(&o));
+    let s = stdout(&o);
+    assert!(s.contains("set 0 binding 1[0]: 4096 texels identical"), "{s}");
+    assert!(s.contains("storage buffer set 0 binding 2[0]: 16384 4-byte words identical"), "{s}");
+}
+
+/// Twin: a driver that crashes or hangs while verifying is the verification's one-line outcome
+/// (exit 8, nothing written), never a crash of rtprobe itself.
+#[test]
+fn a_crashing_or_hanging_verify_child_is_one_line_and_nothing_written() {
+    for (fault, needle) in [
+        ("crash", "died of signal 11 (SIGSEGV) at `trace patched`"),
+        ("hang", "was silent for 12s and was killed at `trace patched`"),
+    ] {
+        let d = tempfile::tempdir().unwrap();
+        let (args, out) = bindless_args(d.path(), &["--verify", "--verify-timeout", "1"]);
+        let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = run_env(&refs, &[("RTPROBE_VERIFY_FAULT", fault)]);
+        assert_eq!(o.status.signal(), None, "{fault}: rtprobe itself died: {}", stderr(&o));
+        assert_one_line_error(&o, 8, needle);
+        assert!(std::fs::read_dir(&out).unwrap().next().is_none(), "{fault}: nothing written");
+    }
+}
+
+/// Item 2 of the review: verify compares every writable storage buffer too. The patched hit
+/// shader fed the materials' table where the lights' belongs writes other lights into its log
+/// while the image (from the materials) stays identical: verify must fail on the buffer.
+#[test]
+fn verify_fails_when_only_a_writable_buffer_differs() {
+    use rtprobe::harness::{self, judge, PartKind, UserModule, Verdict};
+    let d = tempfile::tempdir().unwrap();
+    let (args, out) = bindless_args(d.path(), &["--emit-unpatched"]);
+    let mut args = args;
+    args.push(out.to_string_lossy().into_owned());
+    let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+    let r = run(&refs);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let pairs = outputs(&prepare(BINDLESS, d.path()), &out);
+    let c: HostContract =
+        serde_json::from_slice(&std::fs::read(out.join("pipeline.contract.json")).unwrap())
+            .unwrap();
+    let module = |p: &Path| UserModule::new(&p.display().to_string(), &words(p)).unwrap();
+    let before: Vec<UserModule> = pairs.iter().map(|p| module(&p.1)).collect();
+    let after: Vec<UserModule> = pairs.iter().map(|p| module(&p.0)).collect();
+    let (dev, same) = harness::verify(gpu(), &before, &after, &c).unwrap();
+    assert!(matches!(judge(&dev, &same), Verdict::Identical(_)), "{same:?}");
+    assert!(same.iter().any(|x| x.kind == PartKind::Buffer), "{same:?}");
+    let mut wrong = c.clone();
+    let lights = wrong.addresses.iter_mut().find(|a| a.binding == 1).expect("the lights' table");
+    lights.binding = 0;
+    let (dev, swapped) = harness::verify(gpu(), &before, &after, &wrong).unwrap();
+    let image = swapped.iter().find(|x| x.kind == PartKind::Image).unwrap();
+    assert_eq!(image.differing, 0, "the image does not read the lights: {swapped:?}");
+    match judge(&dev, &swapped) {
+        Verdict::Differs(l) => assert!(l.contains("storage buffer set 0 binding 2[0]"), "{l}"),
+        v => panic!("{v:?}"),
+    }
 }
