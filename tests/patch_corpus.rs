@@ -119,6 +119,8 @@ struct Tally {
     refused_right: usize,
     invalid: usize,
     merged: usize,
+    /// Cases whose modules read an address where the contract does not put it (or past 128).
+    offsets: usize,
     wrong: Vec<String>,
 }
 
@@ -134,7 +136,87 @@ fn outputs(inputs: &[PathBuf], dir: &Path) -> Vec<(PathBuf, PathBuf)> {
         .collect()
 }
 
-/// Check a patched case: validity per module, one address per removed descriptor.
+/// The offsets of the 8-byte members (64-bit integers, PhysicalStorageBuffer pointers) of a
+/// module's push-constant block, read here with rspirv independently of the patches' code.
+fn push_addresses(w: &[u32]) -> BTreeSet<u32> {
+    use rspirv::dr::Operand;
+    use rspirv::spirv::{Decoration, Op, StorageClass};
+    let m = rtprobe::patches::load(&tools::bytes(w)).expect("loads");
+    let def = |id: u32| m.types_global_values.iter().find(|i| i.result_id == Some(id));
+    let id = |o: &Operand| match o {
+        Operand::IdRef(x) => Some(*x),
+        _ => None,
+    };
+    let mut out = BTreeSet::new();
+    for v in m.types_global_values.iter().filter(|i| i.class.opcode == Op::Variable) {
+        if v.operands.first() != Some(&Operand::StorageClass(StorageClass::PushConstant)) {
+            continue;
+        }
+        let st = def(v.result_type.unwrap()).and_then(|p| id(&p.operands[1])).unwrap();
+        let members = &def(st).expect("the push block").operands;
+        for (k, o) in members.iter().enumerate() {
+            let ty = def(id(o).unwrap()).unwrap();
+            let eight = match ty.class.opcode {
+                Op::TypeInt => ty.operands[0] == Operand::LiteralBit32(64),
+                Op::TypePointer => {
+                    ty.operands[0] == Operand::StorageClass(StorageClass::PhysicalStorageBuffer)
+                }
+                _ => false,
+            };
+            let offset = m.annotations.iter().find_map(|a| {
+                let hit = a.class.opcode == Op::MemberDecorate
+                    && a.operands[0] == Operand::IdRef(st)
+                    && a.operands[1] == Operand::LiteralBit32(k as u32)
+                    && a.operands[2] == Operand::Decoration(Decoration::Offset);
+                hit.then(|| match a.operands[3] {
+                    Operand::LiteralBit32(x) => x,
+                    _ => u32::MAX,
+                })
+            });
+            if eight {
+                out.insert(offset.expect("push members have offsets"));
+            }
+        }
+    }
+    out
+}
+
+/// The push-constant offsets each stage's patched modules read addresses at (the 8-byte push
+/// members the patch added) against the contract's: equal per stage, each inside the
+/// `maxPushConstantsSize` 128 every device has, like the contract's range.
+fn check_offsets(case: &Case, pairs: &[(PathBuf, PathBuf)], c: &HostContract, t: &mut Tally) {
+    let mut found: std::collections::BTreeMap<String, BTreeSet<u32>> = Default::default();
+    for (patched, unpatched) in pairs {
+        let w = words(patched);
+        let m = rtprobe::patches::load(&tools::bytes(&w)).expect("loads");
+        let stage = reflect::reflect(&m).expect("reflects").stage;
+        let added: BTreeSet<u32> =
+            push_addresses(&w).difference(&push_addresses(&words(unpatched))).copied().collect();
+        found.entry(stage).or_default().extend(added);
+    }
+    let mut wanted: std::collections::BTreeMap<String, BTreeSet<u32>> = Default::default();
+    for a in &c.addresses {
+        for st in &a.stages {
+            wanted.entry(st.clone()).or_default().insert(a.offset);
+        }
+    }
+    found.retain(|_, v| !v.is_empty());
+    let range_end = c.push_range.as_ref().map_or(0, |r| r.offset + r.size);
+    let past = found.values().flatten().any(|o| o + 8 > 128) || range_end > 128 || c.push_end > 128;
+    let covered = c.addresses.iter().all(|a| {
+        c.push_range.as_ref().is_some_and(|r| a.offset >= r.offset && a.offset + 8 <= range_end)
+    });
+    if found != wanted || past || !covered {
+        t.offsets += 1;
+        t.wrong.push(format!(
+            "{}: the modules read addresses at {found:?}, the contract says {wanted:?} (range {:?}, push end {})",
+            case.name, c.push_range, c.push_end
+        ));
+    }
+}
+
+/// Check a patched case: validity per module, one address per removed descriptor, each where
+/// the contract says.
 fn check_patched(
     case: &Case,
     pairs: &[(PathBuf, PathBuf)],
@@ -155,6 +237,9 @@ fn check_patched(
             }
         }
         removed.extend(addressable(&input).difference(&addressable(&output)).copied());
+    }
+    if let Some(c) = &contract {
+        check_offsets(case, pairs, c, t);
     }
     let addresses = contract.map(|c| c.addresses).unwrap_or_default();
     let offsets: BTreeSet<u32> = addresses.iter().map(|a| a.offset).collect();
@@ -232,24 +317,66 @@ fn the_corpus_patches_validly_without_merging_and_renders_identically() {
     for case in CASES {
         run_case(case, &mut t);
     }
-    println!("patch corpus: {} cases ({} run on lavapipe)", CASES.len(), t.verified);
-    println!("| modules compiled | cases ok | ran identical | refused right | invalid | merged |");
-    println!("|---|---|---|---|---|---|");
-    println!(
-        "| {} | {} | {} | {} | {} | {} |",
-        t.compiled, t.ok, t.verified, t.refused_right, t.invalid, t.merged
+    let md = table(&t);
+    println!("{md}");
+    assert!(t.wrong.is_empty(), "{:#?}", t.wrong);
+    assert_eq!((t.invalid, t.merged, t.offsets), (0, 0, 0));
+    assert_eq!(t.ok + t.refused_right, CASES.len());
+    // The committed table (reports/patch/corpus.md) is this test's: it fails when they differ;
+    // RTPROBE_UPDATE_REPORTS=1 rewrites it.
+    let committed = Path::new(env!("CARGO_MANIFEST_DIR")).join("reports/patch/corpus.md");
+    if std::env::var("RTPROBE_UPDATE_REPORTS").is_ok_and(|v| v == "1") {
+        std::fs::create_dir_all(committed.parent().unwrap()).unwrap();
+        std::fs::write(&committed, &md).unwrap();
+    }
+    let old = std::fs::read_to_string(&committed).unwrap_or_default();
+    assert_eq!(old, md, "reports/patch/corpus.md is stale: re-run with RTPROBE_UPDATE_REPORTS=1");
+}
+
+/// The corpus table (reports/patch/corpus.md): the counts, then each case.
+fn table(t: &Tally) -> String {
+    let mut md = String::from("# The patch corpus\n\n");
+    md.push_str(
+        "Written by `RTPROBE_UPDATE_REPORTS=1 cargo test --release --test patch_corpus \
+        the_corpus_patches_validly_without_merging_and_renders_identically` (the test fails when \
+        this file differs from what it measures). The shaders are engine-like ones written for the \
+        tests (`tests/fixtures/patch-corpus/`); each case is `rtprobe patch` on its inputs as one \
+        pipeline, checked independently: spirv-val (the newest, with the input's options), one \
+        address per removed descriptor (`merged` otherwise), each patched module's push members \
+        at the contract's offsets within 128 bytes (`offset ≠ contract` otherwise), and \
+        `--verify` on lavapipe 25 (images texel for texel, writable buffers byte for byte).\n\n",
     );
+    md.push_str("| cases | modules compiled (patched cases) | ok (patched, valid) | ran identical on lavapipe | refused right | invalid | merged | offset ≠ contract |\n");
+    md.push_str("|---|---|---|---|---|---|---|---|\n");
+    md.push_str(&format!(
+        "| {} | {} | {} | {} | {} | {} | {} | {} |\n\n",
+        CASES.len(),
+        t.compiled,
+        t.ok,
+        t.verified,
+        t.refused_right,
+        t.invalid,
+        t.merged,
+        t.offsets
+    ));
+    md.push_str("| case | inputs | patches | result |\n|---|---|---|---|\n");
     for case in CASES {
         let how = match case.expect {
             Expect::Verified => "patched, valid, identical on lavapipe".to_string(),
             Expect::Valid(why) => format!("patched, valid; not run: {why}"),
             Expect::Refused(why) => format!("refused: {why}"),
         };
-        println!("  {:<48} {how}", case.name);
+        let mut patches = case.patches.to_string();
+        if !case.extra.is_empty() {
+            patches = format!("{patches} `{}`", case.extra.join(" "));
+        }
+        md.push_str(&format!(
+            "| {} | {} | {patches} | {how} |\n",
+            case.name,
+            case.inputs.join(" ")
+        ));
     }
-    assert!(t.wrong.is_empty(), "{:#?}", t.wrong);
-    assert_eq!((t.invalid, t.merged), (0, 0));
-    assert_eq!(t.ok + t.refused_right, CASES.len());
+    md
 }
 
 /// The two-TLAS case patched (no --verify): its directory, inputs, outputs and contract path.
@@ -273,7 +400,8 @@ fn two_tlas_case() -> (tempfile::TempDir, Vec<(PathBuf, PathBuf)>, PathBuf) {
 }
 
 /// Twin of the corpus checks: a contract giving two descriptors one address is counted merged,
-/// a broken output invalid.
+/// one placing an address where no module reads it (or past 128 bytes) a wrong offset, a broken
+/// output invalid.
 #[test]
 fn the_checks_catch_a_shared_address_and_an_invalid_module() {
     let (_d, pairs, contract) = two_tlas_case();
@@ -281,13 +409,27 @@ fn the_checks_catch_a_shared_address_and_an_invalid_module() {
     let mut c: HostContract = serde_json::from_slice(&std::fs::read(&contract).unwrap()).unwrap();
     let mut t = Tally::default();
     check_patched(case, &pairs, Some(c.clone()), &mut t);
-    assert_eq!((t.invalid, t.merged), (0, 0), "{:?}", t.wrong);
+    assert_eq!((t.invalid, t.merged, t.offsets), (0, 0, 0), "{:?}", t.wrong);
     assert_eq!(c.addresses.len(), 2, "set 2 and set 3 binding 0");
+    let good = c.clone();
     // One address for both descriptors, as `binding=0` gave before: merged.
     c.addresses[1].offset = c.addresses[0].offset;
     let mut t = Tally::default();
     check_patched(case, &pairs, Some(c.clone()), &mut t);
     assert_eq!(t.merged, 1);
+    // An address planted at an offset no module reads it at (the modules read 0 and 8):
+    // a wrong offset, as is a range past maxPushConstantsSize 128.
+    let mut planted = good.clone();
+    planted.addresses[1].offset = 64;
+    planted.push_range.as_mut().unwrap().size = 72;
+    let mut t = Tally::default();
+    check_patched(case, &pairs, Some(planted), &mut t);
+    assert_eq!((t.offsets, t.merged), (1, 0), "{:?}", t.wrong);
+    let mut past = good.clone();
+    past.push_range.as_mut().unwrap().size = 200;
+    let mut t = Tally::default();
+    check_patched(case, &pairs, Some(past), &mut t);
+    assert_eq!(t.offsets, 1, "{:?}", t.wrong);
     // One descriptor left out of the contract: merged too.
     c.addresses.pop();
     let mut t = Tally::default();
