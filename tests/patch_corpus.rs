@@ -1,5 +1,5 @@
 //! The patch corpus (`tests/fixtures/patch-corpus/`): engine-like shaders written for these tests —
-//! GLSL with includes (a Latin-1 header, a function-like `-D`), and DXC-, Slang- and older-DXC
+//! GLSL with includes (a Latin-1 header, a function-like `-D`, unbounded bindless arrays), and DXC-, Slang- and older-DXC
 //! (SPV_NV_ray_tracing) modules as SPIR-V assembly — each case patched by `rtprobe patch`, and
 //! every result checked here, independently of the command's own checks:
 //! - valid under the newest spirv-val with the options its input needs (`invalid` otherwise);
@@ -59,12 +59,13 @@ const CASES: &[Case] = &[
     Case { name: "nested 36-byte push struct", inputs: &["nested/raygen.rgen", "common/hit.rchit", "common/miss.rmiss"], patches: "as-to-address", extra: &[], expect: Expect::Verified },
     Case { name: "layout(scalar) blocks", inputs: &["common/raygen.rgen", "scalar/hit.rchit", "common/miss.rmiss"], patches: "ssbo-to-address", extra: &[], expect: Expect::Verified },
     Case { name: "uint64 declared after the push block", inputs: &["late64/raygen.rgen", "common/hit.rchit", "common/miss.rmiss"], patches: "as-to-address", extra: &[], expect: Expect::Verified },
+    Case { name: "Latin-1 header", inputs: &["latin1/raygen.rgen", "common/hit.rchit", "common/miss.rmiss"], patches: "as-to-address", extra: &[], expect: Expect::Verified },
     Case { name: "function-like -D", inputs: &["defines/tonemap.rgen", "common/hit.rchit", "common/miss.rmiss"], patches: "as-to-address", extra: &["-D", "TONEMAP(c)=c/(c+1.0)"], expect: Expect::Verified },
     Case { name: "DXC pipeline", inputs: DXC, patches: "as-to-address,ssbo-to-address", extra: &[], expect: Expect::Verified },
     Case { name: "DXC closest-hit, nonuniform stripped", inputs: DXC, patches: "nonuniform", extra: &["--option", "strip=true"], expect: Expect::Verified },
     Case { name: "Slang closest-hit", inputs: &["common/raygen.rgen", "slang/closesthit.spvasm", "common/miss.rmiss"], patches: "ssbo-to-address", extra: &[], expect: Expect::Valid("the host's validation layer predates Slang's source tag: verified in the sid root (slang_pipeline_verifies_in_the_sid_root)") },
     Case { name: "SPV_NV_ray_tracing raygen (older DXC)", inputs: &["nv/raygen.spvasm"], patches: "as-to-address", extra: &[], expect: Expect::Valid("lavapipe has no VK_NV_ray_tracing") },
-    Case { name: "SER raygen (GL_EXT_shader_invocation_reorder)", inputs: &["ser/raygen.rgen"], patches: "as-to-address", extra: &[], expect: Expect::Valid("lavapipe 25 has no shader invocation reorder") },
+    Case { name: "SER raygen (GL_EXT_shader_invocation_reorder)", inputs: &["ser/raygen.rgen"], patches: "as-to-address", extra: &[], expect: Expect::Valid("no lavapipe has VK_EXT_ray_tracing_invocation_reorder (25 and the sid root's 26: `rtprobe caps` says absent)") },
     Case { name: "store into an SSBO array", inputs: &["bad/store.rchit"], patches: "ssbo-to-address", extra: &[], expect: Expect::Refused("only loads are rewritten") },
     Case { name: "push range past 128 bytes", inputs: &["bad/full_push.rchit"], patches: "as-to-address", extra: &[], expect: Expect::Refused("maxPushConstantsSize 128") },
     Case { name: "no acceleration structure", inputs: &["common/miss.rmiss"], patches: "as-to-address", extra: &[], expect: Expect::Refused("nothing to patch") },
