@@ -70,9 +70,9 @@ mod tests {
         let variants = crate::probe::as_variants(s.instances.len() as u32);
         let bound = index_bound(&s, variants, variant_custom);
         assert!(bound <= INDEX_BOUND, "{bound}");
-        assert!(RUNTIME_ELEMENTS >= INDEX_BOUND);
+        const { assert!(RUNTIME_ELEMENTS >= INDEX_BOUND) };
         // A block's runtime array covers four words per index (`v[3 * gl_PrimitiveID + 2]`).
-        assert!(RUNTIME_MEMBERS >= 4 * INDEX_BOUND);
+        const { assert!(RUNTIME_MEMBERS >= 4 * INDEX_BOUND) };
         // The custom index is a permutation unlike the instance index.
         let mut c: Vec<u32> = s.instances.iter().map(|i| i.custom_index).collect();
         assert!(c.iter().enumerate().all(|(k, x)| *x != k as u32), "{c:?}");

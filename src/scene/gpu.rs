@@ -176,7 +176,6 @@ pub type VariantCustom = fn(u32, u32) -> u32;
 
 /// The TLAS instance lists: the scene TLAS, then the probe variants (`blas`: the BLAS of each
 /// mesh, then the sphere's), their custom indices from `custom`.
-
 fn instance_lists(
     scene: &Scene,
     blas: &[AccelStruct],
