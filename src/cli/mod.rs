@@ -11,6 +11,7 @@ pub mod out;
 pub mod output_dir;
 pub mod patch;
 pub mod patch_inputs;
+mod patch_verify;
 pub mod paths;
 pub mod plan;
 pub mod progress;
@@ -169,6 +170,7 @@ pub fn main_entry() -> u8 {
         Command::Diff(a) => fleet::diff_cmd(a),
         Command::Worker { job } => return crate::runner::worker::main(job),
         Command::StressWorker { job } => return crate::stress::worker::main(job),
+        Command::VerifyWorker { job } => return crate::harness::child::main(job),
     };
     match result {
         Ok(code) => code,
