@@ -3,7 +3,7 @@
 //! passes within an ulp of it, and the ulp-nudged copies bracket it. Sizes are CI sizes unless
 //! `full` (CTS sizes). `transform` is built in `transform`; `self` from the device's hits in `selfhit`.
 use super::mesh::{closed_fan, shared_edges, split_square};
-use super::{one_mesh, CaseKind, Instance, Mesh, Part, Ray, RayInfo, Scene, StressOptions};
+use super::{one_mesh, CaseKind, Mesh, Part, Ray, RayInfo, Scene, StressOptions};
 use crate::scene::rng::Rng;
 use glam::DVec3;
 
@@ -13,7 +13,7 @@ pub fn build(kind: CaseKind, opts: &StressOptions) -> Option<Vec<Part>> {
     let mut rng = Rng::new(opts.seed ^ kind as u64);
     match kind {
         CaseKind::Watertight => Some(watertight(&mut rng, opts.full)),
-        CaseKind::Far => Some(far(&mut rng, opts.full)),
+        CaseKind::Far => Some(super::far::parts(&mut rng, opts.full)),
         CaseKind::Grazing => Some(grazing(&mut rng, opts.full)),
         CaseKind::Degenerate => Some(degenerate(&mut rng)),
         CaseKind::Tmin => Some(tmin()),
@@ -136,84 +136,6 @@ fn watertight(rng: &mut Rng, full: bool) -> Vec<Part> {
             edge_rays(&mut part, p, true);
         }
         parts.push(part);
-    }
-    parts
-}
-
-// ---- far ---------------------------------------------------------------------------------------
-
-/// Distances `far` moves the scene to (exact in f32, below 2^24 so integer vertices stay exact).
-pub const FAR_DISTANCES: [f64; 8] = [0.0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7];
-
-/// How `far` moves the scene: by the instance transform (rays start 2 units before the hit), by
-/// the vertices themselves (same rays), or by the instance transform with the rays starting near
-/// the world origin (the hit is the distance away).
-pub const FAR_MODES: [&str; 3] = ["instance", "baked", "camera"];
-
-/// An 8×8 height field of unit quads on integer x, y (exact at any distance up to 2^24).
-fn grid(rng: &mut Rng, n: u32) -> Mesh {
-    let mut positions = Vec::new();
-    for j in 0..=n {
-        for i in 0..=n {
-            positions.push([i as f32, j as f32, rng.range(-0.25, 0.25)]);
-        }
-    }
-    let row = n + 1;
-    let mut indices = Vec::new();
-    for j in 0..n {
-        for i in 0..n {
-            let a = j * row + i;
-            indices.push([a, a + 1, a + row]);
-            indices.push([a + 1, a + row + 1, a + row]);
-        }
-    }
-    Mesh { positions, inactive: vec![false; indices.len()], indices }
-}
-
-fn far(rng: &mut Rng, full: bool) -> Vec<Part> {
-    let base = grid(rng, 8);
-    let count = if full { 4096 } else { 512 };
-    let targets: Vec<(DVec3, [f32; 3])> = (0..count)
-        .map(|_| {
-            let p = DVec3::new(rng.range(0.25, 7.75) as f64, rng.range(0.25, 7.75) as f64, 0.0);
-            (p, [rng.range(-0.5, 0.5), rng.range(-0.5, 0.5), 1.0])
-        })
-        .collect();
-    let mut parts = Vec::new();
-    for mode in FAR_MODES {
-        for d in FAR_DISTANCES {
-            let t = d as f32;
-            let scene = match mode {
-                "instance" | "camera" => Scene {
-                    meshes: vec![base.clone()],
-                    instances: vec![Instance {
-                        transform: [[1.0, 0.0, 0.0, t], [0.0, 1.0, 0.0, t], [0.0, 0.0, 1.0, t]],
-                        mesh: 0,
-                    }],
-                },
-                _ => one_mesh(Mesh {
-                    positions: base
-                        .positions
-                        .iter()
-                        .map(|p| [p[0] + t, p[1] + t, p[2] + t])
-                        .collect(),
-                    ..base.clone()
-                }),
-            };
-            let mut part = new_part(format!("{mode}-{d:e}"), scene);
-            part.distance = Some(d);
-            for (p, dir) in &targets {
-                let ray = if mode == "camera" {
-                    // From near the origin along ≈(1, 1, 1): the hit is `d` away.
-                    let dir = [1.0 + dir[0] * 0.1, 1.0 + dir[1] * 0.1, 1.0];
-                    ray_through(*p + DVec3::splat(d), dir, d.max(2.0))
-                } else {
-                    ray_through(*p + DVec3::splat(d), *dir, 2.0)
-                };
-                push(&mut part, ray, false);
-            }
-            parts.push(part);
-        }
     }
     parts
 }
