@@ -131,17 +131,27 @@ fn lavapipe_figures_stay_within_the_rules() {
             assert!(f(p, "bary_err_max") < 1e-3, "{p}");
         }
     }
-    // tmin: triangles are strict (no hit at t = tmin or t = tmax exactly, on exact rays).
+    // tmin: only offsets outside the t margin (issue 22), each certain in or out, none
+    // excluded as ambiguous.
     let tmin = case(&doc, "tmin");
+    assert_eq!(n(tmin, "excluded"), 0, "{tmin}");
     for p in tmin["parts"].as_array().unwrap() {
         let label = p["label"].as_str().unwrap();
         let hits = n(p, "hits");
         match label {
-            "tmin+0ulp" | "tmax+0ulp" => assert_eq!(hits, 0, "{label}"),
-            "tmin-1024ulp" | "tmax+1024ulp" => assert_eq!(hits, n(p, "rays"), "{label}"),
-            "tmin+1024ulp" | "tmax-1024ulp" => assert_eq!(hits, 0, "{label}"),
-            _ => {}
+            "tmin-1024ulp" | "tmin-256ulp" | "tmax+256ulp" | "tmax+1024ulp" => {
+                assert_eq!(hits, n(p, "rays"), "{label}")
+            }
+            "tmin+256ulp" | "tmin+1024ulp" | "tmax-256ulp" | "tmax-1024ulp" => {
+                assert_eq!(hits, 0, "{label}")
+            }
+            other => panic!("unexpected part {other}"),
         }
+    }
+    // Issue 22: no case but self (its secondary rays start on the surface, by construction
+    // within their own triangle's t margin) leaves more than 4% of its rays to ambiguity.
+    for c in doc["cases"].as_array().unwrap() {
+        assert!(n(c, "excluded") * 25 <= n(c, "rays"), "{}: {}", c["name"], n(c, "excluded"));
     }
     // degenerate: NaN-X and coincident vertices never hit; the one false hit lavapipe shows is the
     // collinear triangle (primitive 1), written up in docs/stress.md.

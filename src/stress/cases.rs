@@ -106,10 +106,14 @@ fn watertight(rng: &mut Rng, full: bool) -> Vec<Part> {
             .map(|&(a, b)| (dv(mesh.positions[a as usize]) + dv(mesh.positions[b as usize])) * 0.5)
             .collect();
         let mut part = new_part(format!("square-{}", mesh.indices.len()), one_mesh(mesh));
-        // CI: every edge and vertex of the small square, a sample of the large one.
+        // CI: every interior edge and vertex of the small square, a sample of the large one.
+        // Those on the square's open border are left out (issue 22): a miss there is
+        // legitimate, so they could hide a leak and judged nothing else the interior's don't.
         let stride = if full { 1 } else { (mids.len() / 400).max(1) };
+        let inner = |ps: &[DVec3]| ps.iter().copied().filter(|&p| interior(p)).collect::<Vec<_>>();
+        let (mids, verts) = (inner(&mids), inner(&verts));
         for p in mids.iter().step_by(stride).chain(verts.iter().step_by(stride)) {
-            edge_rays(&mut part, *p, interior(*p));
+            edge_rays(&mut part, *p, true);
         }
         let g = if full { 256 } else { 32 };
         for j in 0..g {
@@ -143,7 +147,10 @@ fn watertight(rng: &mut Rng, full: bool) -> Vec<Part> {
 // ---- grazing -----------------------------------------------------------------------------------
 
 /// Slopes of the grazing rays against the triangle's plane.
-pub const GRAZING_SLOPES: [f64; 6] = [1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6];
+/// Not below 1e-4 (issue 22): at slope s the ray-space margin (64 ulps of the coordinates,
+/// ~2.4e-4 here) spans 2.4e-4/s along the plane, more than the whole triangle from 1e-5 on, so
+/// every ray there was excluded as ambiguous: neither a hit nor a miss could be judged.
+pub const GRAZING_SLOPES: [f64; 4] = [1e-1, 1e-2, 1e-3, 1e-4];
 
 fn grazing(rng: &mut Rng, full: bool) -> Vec<Part> {
     let tri = Mesh {
@@ -265,8 +272,11 @@ fn degenerate_mesh() -> Mesh {
 
 // ---- tmin --------------------------------------------------------------------------------------
 
-/// ulp offsets of tmin / tmax from the exact hit distance.
-pub const TMIN_OFFSETS: [i32; 9] = [-1024, -64, -4, -1, 0, 1, 4, 64, 1024];
+/// ulp offsets of tmin / tmax from the exact hit distance: outside the t margin only (issue
+/// 22). The margin is 64 ulps of the depth coordinate plus T_EPS·t (81 … 97 ulps on these
+/// rays), so at 0, ±1, ±4 and ±64 ulps either answer was legitimate and a leak could not count
+/// (78% of the case's rays); at ±256 and ±1024 the hit is certain in or out.
+pub const TMIN_OFFSETS: [i32; 4] = [-1024, -256, 256, 1024];
 
 fn tmin() -> Vec<Part> {
     let quad = Mesh {
