@@ -383,6 +383,11 @@ pub struct RunReport {
     #[serde(default)]
     pub finished: Option<String>,
     pub complete: bool,
+    /// Why `complete` is false though every run in the report finished: `merge --force` joined
+    /// reports of different runs (another device, scene or result-changing option), so no
+    /// cell set or verdict of one run can be read from it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub incomplete: Option<String>,
     pub device: Value,
     /// The caps file's `matrix` object for this device, as informational data no reader
     /// interprets; its shape is that of the caps schema named in `matrix_support_schema`.
@@ -438,6 +443,7 @@ impl RunReport {
             started: String::new(),
             finished: None,
             complete: true,
+            incomplete: None,
             device: serde_json::json!({ "name": "test device" }),
             matrix_support: serde_json::json!({}),
             matrix_support_schema: None,
