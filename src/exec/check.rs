@@ -56,7 +56,9 @@ impl Executor {
         let mut expected = reference::expected_with(cell, &self.scene, &self.sref, undefined);
         reference::expect_lanes(&mut expected, seen.lanes);
         let (w, h) = (self.scene.params.width, self.scene.params.height);
-        let lanes = seen.lanes.usable().then(|| reference::lanes::Lanes::from_records(records));
+        let lanes = seen.lanes.recorded().then(|| {
+            reference::lanes::Lanes::for_stage(records, cell.stage).judged_by(seen.lanes.usable())
+        });
         let mut cmp = reference::compare_with(&expected, records, w, lanes.as_ref());
         cmp.mutant = self.predict_mutant(cell, (undefined, seen.lanes), &expected, records);
         cmp.lane_evidence = seen.lanes;
