@@ -166,6 +166,12 @@ pub struct MutantPrediction {
     pub differing: usize,
     /// Of those, pixels the comparison with the unmutated reference must flag.
     pub caught: usize,
+    /// Of `caught`, pixels judged by the other-lane heuristic (an undefined read, not in a
+    /// uniform subgroup): the mutated read is undefined there too (no `NonUniform`), so what the
+    /// driver reads is not the reference's to predict, and a survivor on them only is allowed.
+    /// The rest of `caught` is judged exactly: a survivor there is a probe defect.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub caught_by_heuristic: usize,
     /// Predicted from the device's own lane evidence (`index-broadcast`: which lane led each
     /// subgroup), so decided after the run.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
@@ -173,6 +179,11 @@ pub struct MutantPrediction {
 }
 
 impl MutantPrediction {
+    /// Pixels the comparison must flag whatever an undefined read returns: judged exactly.
+    pub fn caught_exactly(&self) -> usize {
+        self.caught.saturating_sub(self.caught_by_heuristic)
+    }
+
     /// The mutant applies: the reference predicts other records on some checked pixel.
     pub fn applicable(&self) -> bool {
         self.differing > 0
