@@ -252,8 +252,12 @@ pub fn compare_with(
         }
         let lane_words =
             r.flags & FLAG_LANES != 0 && super::lanes::inconsistency(a, expected.len()).is_none();
-        if lane_words && contradiction.is_none() {
-            split.add((a.lane, a.active_mask, a.leader as usize, i), !bad.is_empty());
+        match (lane_words, contradiction) {
+            (true, None) => {
+                split.add((a.lane, a.active_mask, a.leader as usize, i), !bad.is_empty())
+            }
+            (true, Some(_)) => split.contradicted.add(!bad.is_empty()),
+            (false, _) => {}
         }
         if !bad.is_empty() {
             c.mismatched_pixels += 1;
@@ -275,7 +279,8 @@ pub fn compare_with(
     if let Some(d) = c.discrimination.as_mut() {
         *d /= exact_probe_pixels as f64;
     }
-    c.lanes = (c.mismatched_pixels > 0 && !split.by_lane.is_empty()).then_some(split);
+    let split_any = !split.by_lane.is_empty() || split.contradicted.pixels > 0;
+    c.lanes = (c.mismatched_pixels > 0 && split_any).then_some(split);
     c
 }
 

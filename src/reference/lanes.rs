@@ -127,8 +127,10 @@ pub fn subgroup_contradiction(
 
 /// Per pixel: why its subgroup's records contradict each other ([`subgroup_contradiction`]),
 /// checked where each pixel's record comes from one call of `stage` ([`one_call_per_pixel`]).
-/// A subgroup whose leader wrote no record is no contradiction (a fragment subgroup's helper
-/// invocation may lead it and write none): only the checks among its members hold.
+/// In fragment shaders a subgroup whose leader wrote no record is no contradiction (a helper
+/// invocation may lead it and write none): only the checks among its members hold there.
+/// Elsewhere a leader that ran no probe (e.g. lavapipe 26's closest-hit under forced evidence:
+/// lane 0's pixel, a miss, named by every lane of a call lane 0 was not in) is one.
 pub fn contradictions(records: &[Record], stage: Stage) -> Vec<Option<&'static str>> {
     let mut out = vec![None; records.len()];
     if !one_call_per_pixel(stage) {
@@ -136,7 +138,7 @@ pub fn contradictions(records: &[Record], stage: Stage) -> Vec<Option<&'static s
     }
     let leader = leaders(records);
     for (l, group) in members(&leader) {
-        let led = leader.get(l).copied().flatten().is_some();
+        let led = leader.get(l).copied().flatten().is_some() || stage != Stage::Fragment;
         let why = subgroup_contradiction(records, l, &group)
             .filter(|why| led || !why.starts_with("the leader is not"));
         for q in group {
@@ -305,6 +307,17 @@ mod tests {
             // in any-hit a pixel's record may come from another call: not checked there
             assert_eq!(contradictions(&records, Stage::AnyHit), vec![None; 4], "{why}");
         }
+        // lavapipe 26's closest-hit (forced evidence): lanes 1, 2, 5, 6 active, and every one
+        // names pixel 8, lane 0's, which ran no probe (no record): a contradiction there, but
+        // not in a fragment shader, where a helper invocation may lead and write no record.
+        let mut lane0 = good.clone();
+        lane0.extend(std::iter::repeat_n(Record::default(), 5));
+        for r in &mut lane0[..4] {
+            r.leader = 8;
+        }
+        let c = contradictions(&lane0, Stage::ClosestHit);
+        assert!(c[..4].iter().all(|w| w.is_some_and(|w| w.contains("leader"))), "{c:?}");
+        assert_eq!(contradictions(&lane0, Stage::Fragment), vec![None; 9]);
     }
 
     #[test]
