@@ -255,6 +255,32 @@ fn an_interrupted_run_resumes_with_the_command_it_prints() {
     assert_one_line_error(&o, 9, "its scene differs (--seed 3 in the report, 4 here)");
 }
 
+/// #20's review, item 8: resuming a report that is already complete (its findings confirmed and
+/// their workarounds tried) runs nothing again: not the confirm round, not the workaround cells.
+#[test]
+fn resuming_a_complete_report_runs_no_cell_again() {
+    let dir = tempfile::tempdir().unwrap();
+    let x = dir.path().join("done.json");
+    let args = ["run", "--filter", SMALL, "--inject-fault", CRASH, "-o", "done.json"];
+    let o = bin().args(args).current_dir(dir.path()).output().unwrap();
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let before = report(&x);
+    let workaround_cells = before["cells"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|c| c["id"].as_str().unwrap().contains(".patch-"))
+        .count();
+    assert!(workaround_cells > 0, "the run tried workarounds on its findings: {}", stdout(&o));
+    let attempts = |r: &Value| -> usize {
+        r["cells"].as_array().unwrap().iter().map(|c| c["attempts"].as_array().unwrap().len()).sum()
+    };
+    let o = run(&["run", "--resume", x.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1), "the same findings: {}", stderr(&o));
+    assert!(stdout(&o).contains(", 0 cells run now"), "{}", stdout(&o));
+    assert_eq!(attempts(&report(&x)), attempts(&before), "no attempt was added");
+}
+
 // ---- 6.–9., 11. what a run prints ----
 
 #[test]

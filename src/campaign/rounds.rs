@@ -9,13 +9,16 @@ use crate::model::{Attempt, Cell, MutantPrediction, Outcome, RunReport};
 use crate::report::{gpu_av, mutants, recommended};
 use std::collections::{HashMap, HashSet};
 
-/// The cells to confirm: probe cells whose one attempt ran and faulted (`worth_confirming`).
+/// The cells to confirm: planned probe cells whose one attempt ran and faulted
+/// (`worth_confirming`). A round's retries (workaround variants, recommended patterns) are
+/// judged by their own rounds: a resumed report never confirms them.
 pub fn confirm_cells(report: &RunReport) -> Vec<Cell> {
     report
         .cells
         .iter()
         .filter(|c| {
             c.cell.canary.is_none()
+                && !c.is_retry(report.options.patches)
                 && c.attempts.len() == 1
                 && !c.attempts[0].not_run()
                 && c.outcome.worth_confirming()
