@@ -123,10 +123,18 @@ pub fn mismatch_detail(cmp: &crate::model::comparison::Comparison) -> String {
         cmp.compared,
         fields.join(", ")
     );
-    if let Some(e) = cmp.element_reads.as_ref().filter(|e| e.neither > 0) {
+    let Some(e) = cmp.element_reads.as_ref() else { return d };
+    let heuristic = e.neither.saturating_sub(e.uniform_mismatched);
+    if heuristic > 0 {
         d.push_str(&format!(
             "; no nonuniformEXT ({}): {} pixels read an element no active lane of their subgroup indexed (rtprobe's scalarizing-driver heuristic, see docs/run.md)",
-            e.outside_spec, e.neither
+            e.outside_spec, heuristic
+        ));
+    }
+    if e.uniform_mismatched > 0 {
+        d.push_str(&format!(
+            "; {} pixels of subgroups whose lanes all indexed one element read another (a uniform read, defined without nonuniformEXT: VUID-RuntimeSpirv-subgroupSize-10149, judged exactly)",
+            e.uniform_mismatched
         ));
     }
     d
