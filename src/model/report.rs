@@ -135,6 +135,21 @@ impl CellReport {
             .filter_map(|a| a.result.as_ref()?.comparison.as_ref()?.element_reads.as_ref())
     }
 
+    /// Whether an attempt of this cell, which lacks `nonuniformEXT`, mismatched where its read is
+    /// defined all the same: on a subgroup the device's lane evidence proves uniform
+    /// (`ElementReads::uniform_mismatched`, `VUID-RuntimeSpirv-subgroupSize-10149`), or on lane
+    /// words whose subgroup's records contradict each other (subgroup ballot the device supports
+    /// in the stage is defined). Such a fault is settled evidence, not an undefined read's.
+    pub fn defined_mismatch(&self) -> bool {
+        self.attempts.iter().filter(|a| a.outcome == crate::model::Outcome::Mismatch).any(|a| {
+            a.result.as_ref().and_then(|r| r.comparison.as_ref()).is_some_and(|c| {
+                c.element_reads.as_ref().is_some_and(|e| e.uniform_mismatched > 0)
+                    || (c.lane_contradictions > 0
+                        && c.lane_evidence == crate::model::LaneEvidence::Supported)
+            })
+        })
+    }
+
     /// A cell with its first attempt.
     pub fn new(cell: &Cell, attempt: Attempt) -> Self {
         let mut c = CellReport::unrun(cell, attempt.outcome, String::new());
