@@ -310,10 +310,13 @@ fn a_ci_log_shows_progress_counts_that_add_up_and_one_verdict_line() {
     assert!(out.contains("retries (not in the plan, not counted above): "), "{out}");
     assert!(j["retries"].as_object().is_some_and(|m| !m.is_empty()), "{}", j["retries"]);
     // 8: the last line is the verdict, after the findings.
-    assert_eq!(out.trim_end().lines().last().unwrap(), "verdict: FAIL — 2 findings");
+    assert_eq!(
+        out.trim_end().lines().last().unwrap(),
+        "verdict: FAIL — 2 findings (1 outside the spec's guarantees, judged by rtprobe's heuristic)"
+    );
     // 9, 11: words, not Rust or JSON; no emoji or escape codes in a log.
     assert!(out.contains(" cells misbehave on purpose (stage=miss,index=dynamic@device)"), "{out}");
-    for bad in ["[\"", "{\"", " 1 cells", "(s)", "✅", "💥", "\u{1b}["] {
+    for bad in ["[\"", "{\"", " 1 cells", " 1 workers", "(s)", "✅", "💥", "\u{1b}["] {
         assert!(!out.contains(bad) && !err.contains(bad), "{bad:?} in:\n{out}\n{err}");
     }
     assert!(out.contains("not proven (2 passes; need 19 for 99%)"), "{out}");
@@ -462,6 +465,23 @@ fn usage_errors_are_rtprobes_one_line_and_a_hint() {
     assert_eq!(report(&out)["complete"], true);
     // No escape codes in help that goes to a pipe.
     assert!(!stdout(&run(&["--help"])).contains('\u{1b}'));
+}
+
+/// The review of #29: clap's detail lines were dropped (the missing argument unnamed, the
+/// possible values lost), no command printed the about text as an error, and an unknown
+/// command's hint named itself.
+#[test]
+fn usage_errors_keep_the_detail_and_name_a_real_command() {
+    let o = run(&["report"]);
+    assert_one_line_error(&o, 2, "the following required arguments were not provided: <REPORT>");
+    let o = run(&["run", "--patches"]);
+    assert_one_line_error(&o, 2, "[possible values: none, faults, all]");
+    let o = run(&[]);
+    assert_one_line_error(&o, 2, "no command given: one of devices, caps, run,");
+    assert!(!stderr(&o).contains("__worker"), "hidden commands stay hidden: {}", stderr(&o));
+    let o = run(&["bogus"]);
+    assert_one_line_error(&o, 2, "unrecognized subcommand 'bogus'");
+    assert!(stderr(&o).contains("`rtprobe --help`"), "{}", stderr(&o));
 }
 
 // ---- 12. outputs checked first ----

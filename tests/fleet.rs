@@ -64,7 +64,8 @@ fn shards_merged_equal_the_unsharded_run() {
     let o = run(&args);
     // The merged report's verdict is the run's: the injected fault is a finding (exit 1).
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
-    assert!(stdout(&o).trim_end().ends_with("verdict: FAIL — 2 findings"), "{}", stdout(&o));
+    let last = stdout(&o).trim_end().lines().last().unwrap_or_default().to_string();
+    assert!(last.starts_with("verdict: FAIL — 2 findings"), "{}", stdout(&o));
     let (a, m) = (report(&all), report(&merged));
     assert_eq!(verdicts(&a), verdicts(&m), "same cells, same verdicts");
     assert_eq!(a["plan"]["planned"], m["plan"]["planned"]);

@@ -1,5 +1,5 @@
 //! The patch corpus (`tests/fixtures/patch-corpus/`): engine-like shaders written for these tests —
-//! GLSL with includes (a Latin-1 header, a function-like `-D`), and DXC-, Slang- and older-DXC
+//! GLSL with includes (a Latin-1 header, a function-like `-D`, unbounded bindless arrays), and DXC-, Slang- and older-DXC
 //! (SPV_NV_ray_tracing) modules as SPIR-V assembly — each case patched by `rtprobe patch`, and
 //! every result checked here, independently of the command's own checks:
 //! - valid under the newest spirv-val with the options its input needs (`invalid` otherwise);
@@ -16,6 +16,7 @@ use rtprobe::harness::reflect::{self, BindingKind};
 use rtprobe::model::contract::HostContract;
 use rtprobe::tools::spirv::{self as tools, Validation};
 use std::collections::BTreeSet;
+use std::os::unix::process::ExitStatusExt;
 use std::path::{Path, PathBuf};
 
 fn corpus() -> PathBuf {
@@ -43,6 +44,7 @@ struct Case {
 
 const SCENE: &[&str] = &["scene/raygen.rgen", "scene/hit.rchit", "common/miss.rmiss"];
 const PUSH: &[&str] = &["push/raygen.rgen", "push/hit.rchit", "push/miss.rmiss"];
+const BINDLESS: &[&str] = &["common/raygen.rgen", "bindless/hit.rchit", "common/miss.rmiss"];
 const DXC: &[&str] = &["dxc/raygen.spvasm", "dxc/closesthit.spvasm", "dxc/miss.spvasm"];
 
 const CASES: &[Case] = &[
@@ -50,18 +52,20 @@ const CASES: &[Case] = &[
     Case { name: "three SSBO arrays, one table each", inputs: SCENE, patches: "ssbo-to-address", extra: &[], expect: Expect::Verified },
     Case { name: "both address patches together", inputs: SCENE, patches: "as-to-address,ssbo-to-address", extra: &[], expect: Expect::Verified },
     Case { name: "set=3 picks the shadow TLAS only", inputs: SCENE, patches: "as-to-address", extra: &["--option", "set=3"], expect: Expect::Verified },
+    Case { name: "unbounded arrays indexed by custom index", inputs: BINDLESS, patches: "ssbo-to-address", extra: &[], expect: Expect::Verified },
     Case { name: "mixed int/uint indices pinned", inputs: &["scene/hit.rchit"], patches: "pin-index", extra: &[], expect: Expect::Valid("pin-index changes the index by design") },
     Case { name: "overlapping push ranges", inputs: PUSH, patches: "as-to-address", extra: &[], expect: Expect::Verified },
     Case { name: "nonuniform on a forgotten nonuniformEXT", inputs: PUSH, patches: "nonuniform", extra: &[], expect: Expect::Verified },
     Case { name: "nested 36-byte push struct", inputs: &["nested/raygen.rgen", "common/hit.rchit", "common/miss.rmiss"], patches: "as-to-address", extra: &[], expect: Expect::Verified },
     Case { name: "layout(scalar) blocks", inputs: &["common/raygen.rgen", "scalar/hit.rchit", "common/miss.rmiss"], patches: "ssbo-to-address", extra: &[], expect: Expect::Verified },
     Case { name: "uint64 declared after the push block", inputs: &["late64/raygen.rgen", "common/hit.rchit", "common/miss.rmiss"], patches: "as-to-address", extra: &[], expect: Expect::Verified },
+    Case { name: "Latin-1 header", inputs: &["latin1/raygen.rgen", "common/hit.rchit", "common/miss.rmiss"], patches: "as-to-address", extra: &[], expect: Expect::Verified },
     Case { name: "function-like -D", inputs: &["defines/tonemap.rgen", "common/hit.rchit", "common/miss.rmiss"], patches: "as-to-address", extra: &["-D", "TONEMAP(c)=c/(c+1.0)"], expect: Expect::Verified },
     Case { name: "DXC pipeline", inputs: DXC, patches: "as-to-address,ssbo-to-address", extra: &[], expect: Expect::Verified },
     Case { name: "DXC closest-hit, nonuniform stripped", inputs: DXC, patches: "nonuniform", extra: &["--option", "strip=true"], expect: Expect::Verified },
     Case { name: "Slang closest-hit", inputs: &["common/raygen.rgen", "slang/closesthit.spvasm", "common/miss.rmiss"], patches: "ssbo-to-address", extra: &[], expect: Expect::Valid("the host's validation layer predates Slang's source tag: verified in the sid root (slang_pipeline_verifies_in_the_sid_root)") },
     Case { name: "SPV_NV_ray_tracing raygen (older DXC)", inputs: &["nv/raygen.spvasm"], patches: "as-to-address", extra: &[], expect: Expect::Valid("lavapipe has no VK_NV_ray_tracing") },
-    Case { name: "SER raygen (GL_EXT_shader_invocation_reorder)", inputs: &["ser/raygen.rgen"], patches: "as-to-address", extra: &[], expect: Expect::Valid("lavapipe 25 has no shader invocation reorder") },
+    Case { name: "SER raygen (GL_EXT_shader_invocation_reorder)", inputs: &["ser/raygen.rgen"], patches: "as-to-address", extra: &[], expect: Expect::Valid("no lavapipe has VK_EXT_ray_tracing_invocation_reorder (25 and the sid root's 26: `rtprobe caps` says absent)") },
     Case { name: "store into an SSBO array", inputs: &["bad/store.rchit"], patches: "ssbo-to-address", extra: &[], expect: Expect::Refused("only loads are rewritten") },
     Case { name: "push range past 128 bytes", inputs: &["bad/full_push.rchit"], patches: "as-to-address", extra: &[], expect: Expect::Refused("maxPushConstantsSize 128") },
     Case { name: "no acceleration structure", inputs: &["common/miss.rmiss"], patches: "as-to-address", extra: &[], expect: Expect::Refused("nothing to patch") },
@@ -116,6 +120,8 @@ struct Tally {
     refused_right: usize,
     invalid: usize,
     merged: usize,
+    /// Cases whose modules read an address where the contract does not put it (or past 128).
+    offsets: usize,
     wrong: Vec<String>,
 }
 
@@ -131,7 +137,87 @@ fn outputs(inputs: &[PathBuf], dir: &Path) -> Vec<(PathBuf, PathBuf)> {
         .collect()
 }
 
-/// Check a patched case: validity per module, one address per removed descriptor.
+/// The offsets of the 8-byte members (64-bit integers, PhysicalStorageBuffer pointers) of a
+/// module's push-constant block, read here with rspirv independently of the patches' code.
+fn push_addresses(w: &[u32]) -> BTreeSet<u32> {
+    use rspirv::dr::Operand;
+    use rspirv::spirv::{Decoration, Op, StorageClass};
+    let m = rtprobe::patches::load(&tools::bytes(w)).expect("loads");
+    let def = |id: u32| m.types_global_values.iter().find(|i| i.result_id == Some(id));
+    let id = |o: &Operand| match o {
+        Operand::IdRef(x) => Some(*x),
+        _ => None,
+    };
+    let mut out = BTreeSet::new();
+    for v in m.types_global_values.iter().filter(|i| i.class.opcode == Op::Variable) {
+        if v.operands.first() != Some(&Operand::StorageClass(StorageClass::PushConstant)) {
+            continue;
+        }
+        let st = def(v.result_type.unwrap()).and_then(|p| id(&p.operands[1])).unwrap();
+        let members = &def(st).expect("the push block").operands;
+        for (k, o) in members.iter().enumerate() {
+            let ty = def(id(o).unwrap()).unwrap();
+            let eight = match ty.class.opcode {
+                Op::TypeInt => ty.operands[0] == Operand::LiteralBit32(64),
+                Op::TypePointer => {
+                    ty.operands[0] == Operand::StorageClass(StorageClass::PhysicalStorageBuffer)
+                }
+                _ => false,
+            };
+            let offset = m.annotations.iter().find_map(|a| {
+                let hit = a.class.opcode == Op::MemberDecorate
+                    && a.operands[0] == Operand::IdRef(st)
+                    && a.operands[1] == Operand::LiteralBit32(k as u32)
+                    && a.operands[2] == Operand::Decoration(Decoration::Offset);
+                hit.then(|| match a.operands[3] {
+                    Operand::LiteralBit32(x) => x,
+                    _ => u32::MAX,
+                })
+            });
+            if eight {
+                out.insert(offset.expect("push members have offsets"));
+            }
+        }
+    }
+    out
+}
+
+/// The push-constant offsets each stage's patched modules read addresses at (the 8-byte push
+/// members the patch added) against the contract's: equal per stage, each inside the
+/// `maxPushConstantsSize` 128 every device has, like the contract's range.
+fn check_offsets(case: &Case, pairs: &[(PathBuf, PathBuf)], c: &HostContract, t: &mut Tally) {
+    let mut found: std::collections::BTreeMap<String, BTreeSet<u32>> = Default::default();
+    for (patched, unpatched) in pairs {
+        let w = words(patched);
+        let m = rtprobe::patches::load(&tools::bytes(&w)).expect("loads");
+        let stage = reflect::reflect(&m).expect("reflects").stage;
+        let added: BTreeSet<u32> =
+            push_addresses(&w).difference(&push_addresses(&words(unpatched))).copied().collect();
+        found.entry(stage).or_default().extend(added);
+    }
+    let mut wanted: std::collections::BTreeMap<String, BTreeSet<u32>> = Default::default();
+    for a in &c.addresses {
+        for st in &a.stages {
+            wanted.entry(st.clone()).or_default().insert(a.offset);
+        }
+    }
+    found.retain(|_, v| !v.is_empty());
+    let range_end = c.push_range.as_ref().map_or(0, |r| r.offset + r.size);
+    let past = found.values().flatten().any(|o| o + 8 > 128) || range_end > 128 || c.push_end > 128;
+    let covered = c.addresses.iter().all(|a| {
+        c.push_range.as_ref().is_some_and(|r| a.offset >= r.offset && a.offset + 8 <= range_end)
+    });
+    if found != wanted || past || !covered {
+        t.offsets += 1;
+        t.wrong.push(format!(
+            "{}: the modules read addresses at {found:?}, the contract says {wanted:?} (range {:?}, push end {})",
+            case.name, c.push_range, c.push_end
+        ));
+    }
+}
+
+/// Check a patched case: validity per module, one address per removed descriptor, each where
+/// the contract says.
 fn check_patched(
     case: &Case,
     pairs: &[(PathBuf, PathBuf)],
@@ -152,6 +238,9 @@ fn check_patched(
             }
         }
         removed.extend(addressable(&input).difference(&addressable(&output)).copied());
+    }
+    if let Some(c) = &contract {
+        check_offsets(case, pairs, c, t);
     }
     let addresses = contract.map(|c| c.addresses).unwrap_or_default();
     let offsets: BTreeSet<u32> = addresses.iter().map(|a| a.offset).collect();
@@ -229,24 +318,66 @@ fn the_corpus_patches_validly_without_merging_and_renders_identically() {
     for case in CASES {
         run_case(case, &mut t);
     }
-    println!("patch corpus: {} cases ({} run on lavapipe)", CASES.len(), t.verified);
-    println!("| modules compiled | cases ok | ran identical | refused right | invalid | merged |");
-    println!("|---|---|---|---|---|---|");
-    println!(
-        "| {} | {} | {} | {} | {} | {} |",
-        t.compiled, t.ok, t.verified, t.refused_right, t.invalid, t.merged
+    let md = table(&t);
+    println!("{md}");
+    assert!(t.wrong.is_empty(), "{:#?}", t.wrong);
+    assert_eq!((t.invalid, t.merged, t.offsets), (0, 0, 0));
+    assert_eq!(t.ok + t.refused_right, CASES.len());
+    // The committed table (reports/patch/corpus.md) is this test's: it fails when they differ;
+    // RTPROBE_UPDATE_REPORTS=1 rewrites it.
+    let committed = Path::new(env!("CARGO_MANIFEST_DIR")).join("reports/patch/corpus.md");
+    if std::env::var("RTPROBE_UPDATE_REPORTS").is_ok_and(|v| v == "1") {
+        std::fs::create_dir_all(committed.parent().unwrap()).unwrap();
+        std::fs::write(&committed, &md).unwrap();
+    }
+    let old = std::fs::read_to_string(&committed).unwrap_or_default();
+    assert_eq!(old, md, "reports/patch/corpus.md is stale: re-run with RTPROBE_UPDATE_REPORTS=1");
+}
+
+/// The corpus table (reports/patch/corpus.md): the counts, then each case.
+fn table(t: &Tally) -> String {
+    let mut md = String::from("# The patch corpus\n\n");
+    md.push_str(
+        "Written by `RTPROBE_UPDATE_REPORTS=1 cargo test --release --test patch_corpus \
+        the_corpus_patches_validly_without_merging_and_renders_identically` (the test fails when \
+        this file differs from what it measures). The shaders are engine-like ones written for the \
+        tests (`tests/fixtures/patch-corpus/`); each case is `rtprobe patch` on its inputs as one \
+        pipeline, checked independently: spirv-val (the newest, with the input's options), one \
+        address per removed descriptor (`merged` otherwise), each patched module's push members \
+        at the contract's offsets within 128 bytes (`offset ≠ contract` otherwise), and \
+        `--verify` on lavapipe 25 (images texel for texel, writable buffers byte for byte).\n\n",
     );
+    md.push_str("| cases | modules compiled (patched cases) | ok (patched, valid) | ran identical on lavapipe | refused right | invalid | merged | offset ≠ contract |\n");
+    md.push_str("|---|---|---|---|---|---|---|---|\n");
+    md.push_str(&format!(
+        "| {} | {} | {} | {} | {} | {} | {} | {} |\n\n",
+        CASES.len(),
+        t.compiled,
+        t.ok,
+        t.verified,
+        t.refused_right,
+        t.invalid,
+        t.merged,
+        t.offsets
+    ));
+    md.push_str("| case | inputs | patches | result |\n|---|---|---|---|\n");
     for case in CASES {
         let how = match case.expect {
             Expect::Verified => "patched, valid, identical on lavapipe".to_string(),
             Expect::Valid(why) => format!("patched, valid; not run: {why}"),
             Expect::Refused(why) => format!("refused: {why}"),
         };
-        println!("  {:<48} {how}", case.name);
+        let mut patches = case.patches.to_string();
+        if !case.extra.is_empty() {
+            patches = format!("{patches} `{}`", case.extra.join(" "));
+        }
+        md.push_str(&format!(
+            "| {} | {} | {patches} | {how} |\n",
+            case.name,
+            case.inputs.join(" ")
+        ));
     }
-    assert!(t.wrong.is_empty(), "{:#?}", t.wrong);
-    assert_eq!((t.invalid, t.merged), (0, 0));
-    assert_eq!(t.ok + t.refused_right, CASES.len());
+    md
 }
 
 /// The two-TLAS case patched (no --verify): its directory, inputs, outputs and contract path.
@@ -270,7 +401,8 @@ fn two_tlas_case() -> (tempfile::TempDir, Vec<(PathBuf, PathBuf)>, PathBuf) {
 }
 
 /// Twin of the corpus checks: a contract giving two descriptors one address is counted merged,
-/// a broken output invalid.
+/// one placing an address where no module reads it (or past 128 bytes) a wrong offset, a broken
+/// output invalid.
 #[test]
 fn the_checks_catch_a_shared_address_and_an_invalid_module() {
     let (_d, pairs, contract) = two_tlas_case();
@@ -278,13 +410,27 @@ fn the_checks_catch_a_shared_address_and_an_invalid_module() {
     let mut c: HostContract = serde_json::from_slice(&std::fs::read(&contract).unwrap()).unwrap();
     let mut t = Tally::default();
     check_patched(case, &pairs, Some(c.clone()), &mut t);
-    assert_eq!((t.invalid, t.merged), (0, 0), "{:?}", t.wrong);
+    assert_eq!((t.invalid, t.merged, t.offsets), (0, 0, 0), "{:?}", t.wrong);
     assert_eq!(c.addresses.len(), 2, "set 2 and set 3 binding 0");
+    let good = c.clone();
     // One address for both descriptors, as `binding=0` gave before: merged.
     c.addresses[1].offset = c.addresses[0].offset;
     let mut t = Tally::default();
     check_patched(case, &pairs, Some(c.clone()), &mut t);
     assert_eq!(t.merged, 1);
+    // An address planted at an offset no module reads it at (the modules read 0 and 8):
+    // a wrong offset, as is a range past maxPushConstantsSize 128.
+    let mut planted = good.clone();
+    planted.addresses[1].offset = 64;
+    planted.push_range.as_mut().unwrap().size = 72;
+    let mut t = Tally::default();
+    check_patched(case, &pairs, Some(planted), &mut t);
+    assert_eq!((t.offsets, t.merged), (1, 0), "{:?}", t.wrong);
+    let mut past = good.clone();
+    past.push_range.as_mut().unwrap().size = 200;
+    let mut t = Tally::default();
+    check_patched(case, &pairs, Some(past), &mut t);
+    assert_eq!(t.offsets, 1, "{:?}", t.wrong);
     // One descriptor left out of the contract: merged too.
     c.addresses.pop();
     let mut t = Tally::default();
@@ -305,6 +451,15 @@ fn the_checks_catch_a_shared_address_and_an_invalid_module() {
     assert_eq!(t.invalid, 1, "{:?}", t.wrong);
 }
 
+/// A device for the harness, in this process.
+fn gpu() -> rtprobe::vk::Gpu {
+    let inst =
+        std::sync::Arc::new(rtprobe::vk::Instance::new(&Default::default()).expect("instance"));
+    let all = rtprobe::vk::features::query_all(&inst).expect("devices");
+    let info = rtprobe::vk::features::select(&all, None).expect("a device").clone();
+    rtprobe::vk::Gpu::new(inst, info, rtprobe::harness::requirements(false)).expect("device")
+}
+
 /// Twin of `--verify`: fed against the contract — the two TLAS addresses swapped — the patched
 /// pipeline renders something else, so identical images mean each descriptor got its own data.
 #[test]
@@ -315,13 +470,6 @@ fn verify_sees_two_tlases_swapped() {
     let module = |p: &Path| UserModule::new(&p.display().to_string(), &words(p)).unwrap();
     let before: Vec<UserModule> = pairs.iter().map(|p| module(&p.1)).collect();
     let after: Vec<UserModule> = pairs.iter().map(|p| module(&p.0)).collect();
-    let gpu = || {
-        let inst =
-            std::sync::Arc::new(rtprobe::vk::Instance::new(&Default::default()).expect("instance"));
-        let all = rtprobe::vk::features::query_all(&inst).expect("devices");
-        let info = rtprobe::vk::features::select(&all, None).expect("a device").clone();
-        rtprobe::vk::Gpu::new(inst, info, harness::requirements(false)).expect("device")
-    };
     let (_, same) = harness::verify(gpu(), &before, &after, &c).unwrap();
     assert!(same.iter().all(|x| x.differing == 0 && x.distinct > 1000), "{same:?}");
     let (a, b) = (c.addresses[0].offset, c.addresses[1].offset);
@@ -375,4 +523,87 @@ fn slang_pipeline_verifies_in_the_sid_root() {
     let s = stdout(&o);
     assert!(s.contains("verified on llvmpipe") && s.contains("texels identical"), "{s}");
     assert!(!stderr(&o).contains("Validation Error"), "{}", stderr(&o));
+}
+
+/// The bindless pipeline (unbounded SSBO arrays indexed by `gl_InstanceCustomIndexEXT`, a
+/// writable hit log) patched with ssbo-to-address, and `patch`'s other arguments after it.
+fn bindless_args(dir: &Path, extra: &[&str]) -> (Vec<String>, PathBuf) {
+    let inputs = prepare(BINDLESS, dir);
+    let out = dir.join("out");
+    std::fs::create_dir_all(&out).unwrap();
+    let mut args: Vec<String> = vec!["patch".into()];
+    args.extend(inputs.iter().map(|p| p.to_string_lossy().into_owned()));
+    let inc = corpus().join("include");
+    let o = out.to_string_lossy().into_owned();
+    args.extend(["-I", inc.to_str().unwrap(), "-a", "ssbo-to-address", "-o", &o].map(String::from));
+    args.extend(extra.iter().map(|s| s.to_string()));
+    (args, out)
+}
+
+/// Item 1 of the review: runtime arrays indexed by the custom index used to get 4 descriptors
+/// while the scene's custom indices reach 2^24, and the in-process trace took rtprobe down with
+/// a SIGSEGV. Now every index the scene produces is in bounds, and the writable log is compared.
+#[test]
+fn verify_runs_unbounded_arrays_indexed_by_the_custom_index() {
+    let d = tempfile::tempdir().unwrap();
+    let (args, _) = bindless_args(d.path(), &["--verify"]);
+    let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+    let o = run(&refs);
+    assert!(o.status.success(), "{:?}: {}", o.status, stderr(&o));
+    let s = stdout(&o);
+    assert!(s.contains("set 0 binding 1[0]: 4096 texels identical"), "{s}");
+    assert!(s.contains("storage buffer set 0 binding 2[0]: 16384 4-byte words identical"), "{s}");
+}
+
+/// Twin: a driver that crashes or hangs while verifying is the verification's one-line outcome
+/// (exit 8, nothing written), never a crash of rtprobe itself.
+#[test]
+fn a_crashing_or_hanging_verify_child_is_one_line_and_nothing_written() {
+    for (fault, needle) in [
+        ("crash", "died of signal 11 (SIGSEGV) at `trace patched`"),
+        ("hang", "was silent for 12s and was killed at `trace patched`"),
+    ] {
+        let d = tempfile::tempdir().unwrap();
+        let (args, out) = bindless_args(d.path(), &["--verify", "--verify-timeout", "1"]);
+        let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = run_env(&refs, &[("RTPROBE_VERIFY_FAULT", fault)]);
+        assert_eq!(o.status.signal(), None, "{fault}: rtprobe itself died: {}", stderr(&o));
+        assert_one_line_error(&o, 8, needle);
+        assert!(std::fs::read_dir(&out).unwrap().next().is_none(), "{fault}: nothing written");
+    }
+}
+
+/// Item 2 of the review: verify compares every writable storage buffer too. The patched hit
+/// shader fed the materials' table where the lights' belongs writes other lights into its log
+/// while the image (from the materials) stays identical: verify must fail on the buffer.
+#[test]
+fn verify_fails_when_only_a_writable_buffer_differs() {
+    use rtprobe::harness::{self, judge, PartKind, UserModule, Verdict};
+    let d = tempfile::tempdir().unwrap();
+    let (args, out) = bindless_args(d.path(), &["--emit-unpatched"]);
+    let mut args = args;
+    args.push(out.to_string_lossy().into_owned());
+    let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+    let r = run(&refs);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let pairs = outputs(&prepare(BINDLESS, d.path()), &out);
+    let c: HostContract =
+        serde_json::from_slice(&std::fs::read(out.join("pipeline.contract.json")).unwrap())
+            .unwrap();
+    let module = |p: &Path| UserModule::new(&p.display().to_string(), &words(p)).unwrap();
+    let before: Vec<UserModule> = pairs.iter().map(|p| module(&p.1)).collect();
+    let after: Vec<UserModule> = pairs.iter().map(|p| module(&p.0)).collect();
+    let (dev, same) = harness::verify(gpu(), &before, &after, &c).unwrap();
+    assert!(matches!(judge(&dev, &same), Verdict::Identical(_)), "{same:?}");
+    assert!(same.iter().any(|x| x.kind == PartKind::Buffer), "{same:?}");
+    let mut wrong = c.clone();
+    let lights = wrong.addresses.iter_mut().find(|a| a.binding == 1).expect("the lights' table");
+    lights.binding = 0;
+    let (dev, swapped) = harness::verify(gpu(), &before, &after, &wrong).unwrap();
+    let image = swapped.iter().find(|x| x.kind == PartKind::Image).unwrap();
+    assert_eq!(image.differing, 0, "the image does not read the lights: {swapped:?}");
+    match judge(&dev, &swapped) {
+        Verdict::Differs(l) => assert!(l.contains("storage buffer set 0 binding 2[0]"), "{l}"),
+        v => panic!("{v:?}"),
+    }
 }

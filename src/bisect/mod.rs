@@ -97,6 +97,9 @@ impl Default for Settings {
 pub enum BisectError {
     #[error("no cell of the scope has a finding: nothing to bisect")]
     NoFault,
+    /// Every finding of the scope is a read the spec leaves undefined: unsettled evidence.
+    #[error("the scope's {} are all reads the spec leaves undefined (a dynamic index without nonuniformEXT: VUID-RuntimeSpirv-None-10148, Vulkan 1.4.360), judged by rtprobe's heuristic; bisect and report use only settled evidence, so there is nothing to bisect or file (what such findings show: docs/run.md, \"outside the spec\")", crate::model::plural(*.0, "finding"))]
+    OnlyUndefined(usize),
     #[error("--cell {0}: not a faulting cell of the scope")]
     NotFaulting(String),
     /// A run of bisection's halted: no cell can run here, so no evidence can be had.
@@ -395,7 +398,15 @@ impl<'o> Bisector<'o> {
             let start = self.verdicts.runs;
             let faulting = self.faulting();
             if faulting.is_empty() {
-                return Err(BisectError::NoFault);
+                let undefined = self
+                    .scope
+                    .iter()
+                    .filter(|c| self.verdicts.state(c) == State::Doubtful(Doubt::UndefinedFault))
+                    .count();
+                return Err(match undefined {
+                    0 => BisectError::NoFault,
+                    n => BisectError::OnlyUndefined(n),
+                });
             }
             let tight = self.tight(&faulting);
             let (separable, cs) = if self.holds(&tight) {

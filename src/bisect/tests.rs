@@ -255,6 +255,24 @@ fn offline_never_widens_over_cells_nobody_ran() {
     assert!(render(&r, 816).contains("NOT CONCLUDED"));
 }
 
+/// The review of #29: a run whose only findings are undefined reads (no `nonuniformEXT`) said
+/// "no finding" to bisect and report, while `run` had failed on them.
+#[test]
+fn a_scope_whose_only_faults_are_undefined_reads_says_so() {
+    let mut sim = Sim::new(&["index=dynamic,nonuniform=false"], 1.0);
+    let sc = scope("descriptor_model=descriptor_indexing,stage=closest_hit,resource=sampled_image");
+    let v = report(&mut sim, &sc);
+    let mut b = Bisector::new(sc.clone(), v, &mut sim, Settings::default(), vec![]);
+    let e = b.bisect(None, &|_| true).unwrap_err();
+    assert!(matches!(e, BisectError::OnlyUndefined(n) if n > 0), "{e}");
+    assert!(e.to_string().contains("VUID-RuntimeSpirv-None-10148"), "{e}");
+    // Its twin: a defined fault beside them is bisected.
+    let mut sim = Sim::new(&["index=dynamic"], 1.0);
+    let v = report(&mut sim, &sc);
+    let mut b = Bisector::new(sc, v, &mut sim, Settings::default(), vec![]);
+    assert!(b.bisect(None, &|_| true).is_ok());
+}
+
 #[test]
 fn no_fault_and_a_wrong_cell_are_errors() {
     let mut sim = Sim::new(&["stage=raygen"], 1.0);

@@ -90,6 +90,12 @@ pub enum Command {
         /// The job file written by `rtprobe stress`
         job: PathBuf,
     },
+    /// Internal: run `patch --verify`'s pipelines for `rtprobe patch`; not for direct use
+    #[command(name = "__verify", hide = true)]
+    VerifyWorker {
+        /// The job file written by `rtprobe patch`
+        job: PathBuf,
+    },
 }
 
 #[derive(Args, Debug, Clone)]
@@ -533,9 +539,15 @@ pub struct PatchArgs {
 
     /// Run the unpatched and the patched pipeline on the device (ray tracing stages: raygen
     /// and the stages it needs) with distinct data in every descriptor, fed as the host contract
-    /// says, and require identical output; nothing is written when they differ
+    /// says, in a child process, and require identical storage images and writable storage
+    /// buffers; nothing is written when they differ or the child crashes or hangs
     #[arg(long)]
     pub verify: bool,
+
+    /// With --verify: fence deadline of one submission in seconds (the child is killed when
+    /// silent for twice this plus 10 s)
+    #[arg(long, default_value_t = 30, value_name = "SECONDS")]
+    pub verify_timeout: u64,
 
     /// With --verify: device index or case-insensitive name substring
     #[arg(long, short = 'd', value_name = "INDEX|NAME")]

@@ -11,6 +11,7 @@ pub mod out;
 pub mod output_dir;
 pub mod patch;
 pub mod patch_inputs;
+mod patch_verify;
 pub mod paths;
 pub mod plan;
 pub mod progress;
@@ -41,24 +42,63 @@ fn init_tracing(verbose: u8) {
         .try_init();
 }
 
-/// A clap error as rtprobe's: `rtprobe: error: <what>; <clap's tip>` on one line, then a hint
-/// line naming the command's help.
+/// A clap error as rtprobe's: `rtprobe: error: <what>: <its details>; <clap's tip>` on one line,
+/// then a hint line naming the command's help. clap's indented detail lines (the missing
+/// arguments, the possible values) join the first line; its usage block is left out.
 fn usage_error(e: &clap::Error, command: &str) -> String {
+    use clap::error::ErrorKind;
+    if matches!(
+        e.kind(),
+        ErrorKind::MissingSubcommand | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+    ) && command == "rtprobe"
+    {
+        let names: Vec<String> = Cli::command()
+            .get_subcommands()
+            .filter(|c| !c.is_hide_set())
+            .map(|c| c.get_name().to_string())
+            .collect();
+        return format!(
+            "rtprobe: error: no command given: one of {}\nrtprobe: hint: `rtprobe --help` says what each does\n",
+            names.join(", ")
+        );
+    }
     let text = e.render().to_string();
     let mut what = String::new();
+    let mut details = Vec::new();
     let mut tips = Vec::new();
-    for line in text.lines().map(str::trim).filter(|l| !l.is_empty()) {
+    for raw in text.lines() {
+        let line = raw.trim();
+        if line.is_empty() {
+            continue;
+        }
         if let Some(first) = line.strip_prefix("error: ").filter(|_| what.is_empty()) {
-            what = first.to_string();
+            what = first.trim_end_matches(':').to_string();
         } else if let Some(tip) = line.strip_prefix("tip: ") {
             tips.push(tip.to_string());
+        } else if line.starts_with("Usage:") || line.starts_with("For more information") {
+            break;
+        } else if !what.is_empty() && raw.starts_with(' ') {
+            details.push(line.to_string());
         }
     }
     if what.is_empty() {
         what = text.lines().next().unwrap_or("bad arguments").trim().to_string();
     }
+    if !details.is_empty() {
+        what = format!("{what}: {}", details.join(", "));
+    }
     let tips = if tips.is_empty() { String::new() } else { format!(" ({})", tips.join("; ")) };
     format!("rtprobe: error: {what}{tips}\nrtprobe: hint: `{command} --help` lists every option\n")
+}
+
+/// `rtprobe NAME` when the first argument names one of rtprobe's commands, else `rtprobe`.
+fn command_of(argv: &[std::ffi::OsString]) -> String {
+    let known = |a: &str| Cli::command().get_subcommands().any(|c| c.get_name() == a);
+    argv.get(1)
+        .and_then(|a| a.to_str())
+        .filter(|a| known(a))
+        .map(|a| format!("rtprobe {a}"))
+        .unwrap_or_else(|| "rtprobe".into())
 }
 
 /// The ids of the arguments `m` got from the command line or from their variable.
@@ -89,12 +129,7 @@ fn parse() -> Result<Cli, u8> {
         }
     };
     let argv: Vec<std::ffi::OsString> = std::env::args_os().collect();
-    let command = argv
-        .get(1)
-        .and_then(|a| a.to_str())
-        .filter(|a| !a.starts_with('-'))
-        .map(|a| format!("rtprobe {a}"))
-        .unwrap_or_else(|| "rtprobe".into());
+    let command = command_of(&argv);
     let color =
         if out::plain_stdout() { clap::ColorChoice::Never } else { clap::ColorChoice::Auto };
     let matches =
@@ -135,6 +170,7 @@ pub fn main_entry() -> u8 {
         Command::Diff(a) => fleet::diff_cmd(a),
         Command::Worker { job } => return crate::runner::worker::main(job),
         Command::StressWorker { job } => return crate::stress::worker::main(job),
+        Command::VerifyWorker { job } => return crate::harness::child::main(job),
     };
     match result {
         Ok(code) => code,

@@ -1,13 +1,14 @@
 //! `rtprobe patch`: read SPIR-V modules or compile GLSL ([`super::patch_inputs`]), validate each
 //! input with the options it needs, apply the requested patches to all of them as one pipeline,
 //! validate each result with its input's options, optionally run both pipelines on the device
-//! (`--verify`), and write the results and the host contract atomically — or fail with one line
+//! (`--verify`, [`super::patch_verify`]: in a child process), and write the results and the host contract atomically — or fail with one line
 //! and write nothing.
 use super::args::PatchArgs;
 use super::commands::Globals;
 use super::exit::{self, coded};
 use super::out::{errln, outln};
 use super::patch_inputs::{self, Dest, Input};
+use super::patch_verify::verify;
 use crate::atomic::write_atomic;
 use crate::patches::layout::Rules;
 use crate::patches::pipeline::{self, Applied, Stage};
@@ -165,8 +166,11 @@ pub fn patch(g: &Globals, a: &PatchArgs) -> Result<u8> {
         check_output(&s.file, words, opts.as_ref())?;
     }
     let scalar = stages.iter().any(|s| s.rules == Rules::Scalar);
-    let verified =
-        if a.verify { verify(g, a, &inputs, &patched, &applied, scalar)? } else { Vec::new() };
+    let verified = if a.verify {
+        verify(g, a, &inputs, &patched, &applied.contract, scalar)?
+    } else {
+        Vec::new()
+    };
     for (p, i) in unpatched.iter().zip(&inputs) {
         write_module(&Dest::File(p.clone()), &i.words)?;
     }
@@ -227,80 +231,4 @@ fn report(
         }
     }
     Ok(exit::OK)
-}
-
-/// A harness failure as a coded error.
-fn harness_error(e: crate::harness::HarnessError) -> anyhow::Error {
-    use crate::harness::HarnessError as H;
-    let code = match &e {
-        H::Vk(v) if v.is_device_lost() => exit::DEVICE_LOST,
-        H::Vk(_) | H::Build(_) | H::Timeout(_) => exit::VULKAN_ERROR,
-        H::Unsupported(_) | H::Interface(_) => exit::BAD_INPUT,
-    };
-    coded(code, format!("--verify: {e}"))
-}
-
-/// `--verify`: the unpatched and the patched pipeline on the device, compared texel for texel;
-/// the lines saying so, or an error when they differ, validation spoke, or nothing was written.
-fn verify(
-    g: &Globals,
-    a: &PatchArgs,
-    inputs: &[Input],
-    patched: &[Vec<u32>],
-    applied: &Applied,
-    scalar: bool,
-) -> Result<Vec<String>> {
-    use crate::harness::{self, UserModule};
-    let before: Vec<UserModule> = inputs
-        .iter()
-        .map(|i| UserModule::new(&i.name, &i.words))
-        .collect::<Result<_, _>>()
-        .map_err(harness_error)?;
-    let after: Vec<UserModule> = inputs
-        .iter()
-        .zip(patched)
-        .map(|(i, w)| UserModule::new(&i.name, w))
-        .collect::<Result<_, _>>()
-        .map_err(harness_error)?;
-    let inst = super::commands::open_instance(g)?;
-    let all = crate::vk::features::query_all(&inst)?;
-    let info = crate::vk::features::select(&all, a.device.as_deref())?.clone();
-    let req = harness::requirements(scalar);
-    let missing = req.missing_on(&info);
-    if !missing.is_empty() {
-        return Err(coded(
-            exit::UNSUPPORTED_DEVICE,
-            format!(
-                "--verify: {} cannot run the pipelines: missing {}",
-                info.name(),
-                missing.join(", ")
-            ),
-        ));
-    }
-    let messages = crate::vk::instance::validation_error_count();
-    let gpu = crate::vk::Gpu::new(inst, info, req)?;
-    let (device, compared) =
-        harness::verify(gpu, &before, &after, &applied.contract).map_err(harness_error)?;
-    let messages = crate::vk::instance::validation_error_count() - messages;
-    if messages > 0 {
-        return Err(coded(exit::VULKAN_ERROR, format!("--verify: {messages} validation messages while running the pipelines on {device} (printed above); nothing written")));
-    }
-    if compared.is_empty() {
-        return Err(coded(
-            exit::BAD_INPUT,
-            "--verify: the pipeline writes no storage image to compare",
-        ));
-    }
-    // Outputs of one value everywhere prove nothing about the patched reads (a raygen that
-    // writes a constant, or results that do not depend on the patched descriptors).
-    if compared.iter().all(|c| c.distinct <= 1) {
-        return Err(coded(
-            exit::BAD_INPUT,
-            "--verify: every storage image the pipeline writes holds one value, so the comparison cannot tell a wrong read from a right one; write something that depends on the patched descriptors (nothing written)",
-        ));
-    }
-    if let Some(c) = compared.iter().find(|c| c.differing > 0) {
-        return Err(coded(exit::FINDINGS, format!("--verify: the patched pipeline's {} differs from the unpatched one's in {} of {} texels on {device}; nothing written", c.label, c.differing, c.texels)));
-    }
-    Ok(compared.iter().map(|c| format!("verified on {device}: {}: {} texels identical, unpatched and patched ({} distinct values)", c.label, c.texels, c.distinct)).collect())
 }

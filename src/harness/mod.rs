@@ -2,35 +2,41 @@
 //! closest-hit, any-hit, intersection, callables; a procedural hit group without an intersection
 //! shader of its own gets one that reports nothing), its resources made from the modules'
 //! reflected interface ([`reflect`]) with distinct data in every descriptor ([`resources`]), the
-//! rtprobe scene traced 64×64 from its raygen, and every storage image read back. Running the
-//! unpatched pipeline and the patched one — fed as the host contract says: each address in push
-//! constants, tables of addresses — and comparing their images texel for texel is
-//! `rtprobe patch --verify` ([`verify`]). Uses exec's pieces: the device, memory, the scene's
-//! acceleration structures and `exec::pipeline`'s RT pipeline and SBT. Runs in the calling
-//! process with a fence deadline per submission.
+//! harness scene ([`scene`]: every index it produces within the runtime arrays) traced 64×64
+//! from its raygen, and every storage image and every writable storage buffer read back. Running
+//! the unpatched pipeline and the patched one — fed as the host contract says: each address in
+//! push constants, tables of addresses — and comparing their images texel for texel and their
+//! writable buffers byte for byte is `rtprobe patch --verify` ([`verify`], judged by [`judge`]).
+//! Uses exec's pieces: the device, memory, the scene's acceleration structures and
+//! `exec::pipeline`'s RT pipeline and SBT, with a fence deadline per submission. `rtprobe patch`
+//! runs it in a child process (`rtprobe __verify JOB`, [`child`]), so a driver crash is the
+//! verification's outcome, not the end of rtprobe.
+pub mod child;
+mod compare;
 mod error;
 pub mod reflect;
 mod resources;
+pub mod scene;
 
+pub use compare::{compare, judge, Compared, Part, PartKind, Verdict};
 pub use error::HarnessError;
 
 use crate::exec::pipeline::{self, Pipeline, RtPipeline, SbtCounts};
 use crate::model::contract::HostContract;
-use crate::model::SceneParams;
 use crate::scene::gpu::SceneGpu;
-use crate::scene::Scene;
 use crate::vk::memory::{color_range, full_barrier, transition, Buffer, Location, Transition};
 use crate::vk::submit::{Submitter, Waited};
 use crate::vk::{Gpu, Requirements, VkResultExt};
 use ash::vk;
-use reflect::Interface;
+use reflect::{BindingKind, Interface};
 use resources::{Element, Resources};
 use std::ffi::CString;
 use std::time::Duration;
 
 /// Width and height of the traced image.
 pub const SIZE: u32 = 64;
-const TIMEOUT: Duration = Duration::from_secs(30);
+/// The fence deadline of one submission by default.
+pub const TIMEOUT: Duration = Duration::from_secs(30);
 
 /// One module of a pipeline: its name, SPIR-V and interface.
 pub struct UserModule {
@@ -63,15 +69,6 @@ pub fn requirements(scalar: bool) -> Requirements {
     }
 }
 
-/// One read-back output: a storage image's texels.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Part {
-    pub label: String,
-    pub bytes: Vec<u8>,
-    /// Bytes per texel.
-    pub texel: u32,
-}
-
 /// A device with the scene, the resources of a set of modules and a pipeline layout for them.
 pub struct Harness {
     gpu: Gpu,
@@ -80,6 +77,8 @@ pub struct Harness {
     res: Resources,
     layout: vk::PipelineLayout,
     push_size: u32,
+    /// The fence deadline of one submission.
+    timeout: Duration,
 }
 
 /// The groups of a pipeline from its modules (by index): raygen, misses, the triangle hit group
@@ -132,12 +131,21 @@ const NO_INTERSECTION: &str =
 impl Harness {
     /// The scene and resources for `modules` (every module the pipelines will use, unpatched:
     /// the patched ones read the same resources through addresses), push constants of
-    /// `push_size` bytes.
-    pub fn new(gpu: Gpu, modules: &[&UserModule], push_size: u32) -> Result<Harness, HarnessError> {
+    /// `push_size` bytes, each submission fenced with `timeout`.
+    pub fn new(
+        gpu: Gpu,
+        modules: &[&UserModule],
+        push_size: u32,
+        timeout: Duration,
+    ) -> Result<Harness, HarnessError> {
         let submitter = Submitter::new(&gpu)?;
-        let scene =
-            Scene::build(&SceneParams { width: SIZE, height: SIZE, ..SceneParams::default() });
-        let scene = SceneGpu::build(&gpu, &scene, &submitter, TIMEOUT)?;
+        let scene = SceneGpu::build_with(
+            &gpu,
+            &scene::build(SIZE),
+            &submitter,
+            timeout,
+            scene::variant_custom,
+        )?;
         let bindings: Vec<reflect::Binding> =
             modules.iter().flat_map(|m| m.iface.bindings.iter().cloned()).collect();
         let extent = vk::Extent2D { width: SIZE, height: SIZE };
@@ -151,7 +159,7 @@ impl Harness {
         }
         let layout =
             unsafe { gpu.device.create_pipeline_layout(&ci, None) }.at("vkCreatePipelineLayout")?;
-        Ok(Harness { gpu, submitter, scene, res, layout, push_size })
+        Ok(Harness { gpu, submitter, scene, res, layout, push_size, timeout })
     }
 
     pub fn device_name(&self) -> String {
@@ -281,7 +289,7 @@ impl Harness {
             .iter()
             .flat_map(|((set, binding), (b, elems))| {
                 elems.iter().enumerate().filter_map(move |(k, e)| match (e, b.kind) {
-                    (Element::Image(i), reflect::BindingKind::StorageImage(f)) => Some((
+                    (Element::Image(i), BindingKind::StorageImage(f)) => Some((
                         format!("set {set} binding {binding}[{k}]"),
                         i,
                         resources::format(f).map_or(4, |x| x.1),
@@ -302,20 +310,22 @@ impl Harness {
                 )
             })
             .collect::<Result<_, _>>()?;
-        let waited = self
-            .submitter
-            .run(&self.gpu, TIMEOUT, |cmd| self.record(cmd, &pipeline, &push, &images, &readback));
+        let waited = self.submitter.run(&self.gpu, self.timeout, |cmd| {
+            self.record(cmd, &pipeline, &push, &images, &readback)
+        });
         let result = match waited {
             Ok(Waited::Done(_)) => Ok(images
                 .iter()
                 .zip(&readback)
                 .map(|((label, _, t), b)| Part {
                     label: label.clone(),
+                    kind: PartKind::Image,
                     bytes: b.read((SIZE * SIZE * t) as usize),
                     texel: *t,
                 })
+                .chain(self.written_buffers())
                 .collect()),
-            Ok(Waited::TimedOut) => Err(HarnessError::Timeout(TIMEOUT)),
+            Ok(Waited::TimedOut) => Err(HarnessError::Timeout(self.timeout)),
             Err(e) => Err(e.into()),
         };
         if result.is_ok() {
@@ -325,6 +335,27 @@ impl Harness {
             }
         }
         result
+    }
+
+    /// Every element of every writable storage buffer, as the trace left it.
+    fn written_buffers(&self) -> Vec<Part> {
+        let mut out = Vec::new();
+        for ((set, binding), (b, elems)) in &self.res.bindings {
+            let (BindingKind::StorageBuffer(size), true) = (b.kind, b.writable) else {
+                continue;
+            };
+            for (k, e) in elems.iter().enumerate() {
+                if let Element::Buffer(buf) = e {
+                    out.push(Part {
+                        label: format!("storage buffer set {set} binding {binding}[{k}]"),
+                        kind: PartKind::Buffer,
+                        bytes: buf.read(size as usize),
+                        texel: 4,
+                    });
+                }
+            }
+        }
+        out
     }
 
     /// Clear the images, trace, copy the images out.
@@ -420,61 +451,36 @@ fn stage_flag(stage: &str) -> vk::ShaderStageFlags {
     }
 }
 
-/// One image compared: texels, how many differ, how many distinct values the unpatched one has.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Compared {
-    pub label: String,
-    pub texels: usize,
-    pub differing: usize,
-    pub distinct: usize,
-}
-
-/// Texel-by-texel comparison of two runs' images.
-pub fn compare(before: &[Part], after: &[Part]) -> Vec<Compared> {
-    before
-        .iter()
-        .zip(after)
-        .map(|(b, a)| {
-            let t = b.texel.max(1) as usize;
-            let texels: Vec<&[u8]> = b.bytes.chunks(t).collect();
-            let differing = texels.iter().zip(a.bytes.chunks(t)).filter(|(x, y)| **x != *y).count()
-                + texels.len().abs_diff(a.bytes.len() / t);
-            let distinct = texels.iter().collect::<std::collections::BTreeSet<_>>().len();
-            Compared { label: b.label.clone(), texels: texels.len(), differing, distinct }
-        })
-        .collect()
-}
-
 /// The unpatched pipeline `before` and the patched one `after` (fed as `contract` says) on the
-/// device, their images compared.
+/// device, their images and writable buffers compared.
 pub fn verify(
     gpu: Gpu,
     before: &[UserModule],
     after: &[UserModule],
     contract: &HostContract,
 ) -> Result<(String, Vec<Compared>), HarnessError> {
+    verify_with(gpu, before, after, contract, TIMEOUT, &mut |_| {})
+}
+
+/// [`verify`] with a fence deadline of `timeout` per submission, telling `step` each step
+/// before taking it (`scene`, `trace unpatched`, `trace patched`).
+pub fn verify_with(
+    gpu: Gpu,
+    before: &[UserModule],
+    after: &[UserModule],
+    contract: &HostContract,
+    timeout: Duration,
+    step: &mut dyn FnMut(&str),
+) -> Result<(String, Vec<Compared>), HarnessError> {
     let b: Vec<&UserModule> = before.iter().collect();
     let a: Vec<&UserModule> = after.iter().collect();
     let push =
         b.iter().chain(&a).map(|m| m.iface.push_end).max().unwrap_or(0).max(contract.push_end);
-    let h = Harness::new(gpu, &b, push)?;
+    step("scene");
+    let h = Harness::new(gpu, &b, push, timeout)?;
+    step("trace unpatched");
     let unpatched = h.trace(&b, None)?;
+    step("trace patched");
     let patched = h.trace(&a, Some(contract))?;
     Ok((h.device_name(), compare(&unpatched, &patched)))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn comparison_counts_differing_and_distinct_texels() {
-        let part = |bytes: Vec<u8>| Part { label: "img".into(), bytes, texel: 4 };
-        let a = part([[1u8, 0, 0, 0], [2, 0, 0, 0], [2, 0, 0, 0]].concat());
-        let b = part([[1u8, 0, 0, 0], [2, 0, 0, 0], [3, 0, 0, 0]].concat());
-        let c = &compare(std::slice::from_ref(&a), &[b])[0];
-        assert_eq!((c.texels, c.differing, c.distinct), (3, 1, 2));
-        let same = std::slice::from_ref(&a);
-        assert_eq!(compare(same, same)[0].differing, 0);
-    }
 }

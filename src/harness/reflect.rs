@@ -9,10 +9,12 @@ use crate::patches::{edit, push};
 use rspirv::dr::{Module, Operand};
 use rspirv::spirv::{Decoration, ImageFormat, Op, StorageClass, Word};
 
-/// Elements given to a runtime-sized array (of descriptors, or at the end of a buffer block).
-pub const RUNTIME_ELEMENTS: u32 = 4;
-/// Elements of a runtime array at the end of a buffer block.
-pub const RUNTIME_MEMBERS: u32 = 64;
+/// Elements given to a runtime-sized array of descriptors: one per index the harness scene can
+/// produce (`super::scene::INDEX_BOUND`), so an array indexed by `gl_InstanceCustomIndexEXT` and
+/// the like stays in bounds.
+pub const RUNTIME_ELEMENTS: u32 = super::scene::INDEX_BOUND;
+/// Elements of a runtime array at the end of a buffer block: four per index the scene produces.
+pub const RUNTIME_MEMBERS: u32 = 4 * super::scene::INDEX_BOUND;
 
 /// What a binding holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -36,6 +38,9 @@ pub struct Binding {
     pub count: u32,
     /// A runtime-sized array (needs runtimeDescriptorArray).
     pub runtime: bool,
+    /// A storage buffer the module may write: neither the variable nor every member of its
+    /// block is `NonWritable` (false for every other kind).
+    pub writable: bool,
 }
 
 /// A module's interface.
@@ -128,7 +133,20 @@ fn binding(m: &Module, var: Word, ptr: Word) -> Result<Binding, ReflectError> {
         let op = edit::def(m, elem).map(|e| format!("Op{:?}", e.class.opcode)).unwrap_or_default();
         refuse(&format!("a {op} in {sc:?} storage, which the harness cannot make yet (acceleration structures, storage images, storage and uniform buffers)"))
     })?;
-    Ok(Binding { set, binding, kind, count, runtime })
+    let writable = matches!(kind, BindingKind::StorageBuffer(_)) && !non_writable(m, var, elem);
+    Ok(Binding { set, binding, kind, count, runtime, writable })
+}
+
+/// Whether a buffer variable is read-only: `NonWritable` on the variable (DXC, Slang) or on every
+/// member of its block (glslang's `readonly buffer`).
+fn non_writable(m: &Module, var: Word, block: Word) -> bool {
+    if edit::has_decoration(m, var, Decoration::NonWritable) {
+        return true;
+    }
+    let members = edit::def(m, block).map_or(0, |d| d.operands.len() as u32);
+    members > 0
+        && (0..members)
+            .all(|k| edit::member_decoration(m, block, k, Decoration::NonWritable).is_some())
 }
 
 /// The interface of module `m`.
@@ -168,23 +186,30 @@ mod tests {
             layout(set = 0, binding = 1, rgba32f) uniform image2D img;\n\
             layout(set = 1, binding = 0) readonly buffer V { vec4 head; float v[]; } verts[];\n\
             layout(set = 1, binding = 1) uniform Cam { mat4 view; } cam;\n\
+            layout(set = 1, binding = 2) buffer Log { uint hits; vec4 last; } log;\n\
             layout(push_constant) uniform P { vec4 a; uint b; } pc;\n\
             layout(location = 0) rayPayloadEXT vec4 c;\n\
             void main() { traceRayEXT(shadows[pc.b], 0u, 0xFF, 0, 0, 0, vec3(0), 0.0, vec3(1), 1.0, 0);\n\
             traceRayEXT(tlas, 0u, 0xFF, 0, 0, 0, vec3(0), 0.0, vec3(1), 1.0, 0);\n\
-            imageStore(img, ivec2(0), c + verts[nonuniformEXT(pc.b)].v[3] * cam.view[0] + pc.a); }\n";
+            imageStore(img, ivec2(0), c + verts[nonuniformEXT(pc.b)].v[3] * cam.view[0] + pc.a);\n\
+            log.last = c; }\n";
         let i = reflect(&module(shaderc::ShaderKind::RayGeneration, glsl)).unwrap();
         assert_eq!((i.stage.as_str(), i.entry.as_str(), i.push_end), ("raygen", "main", 20));
-        let b: Vec<(u32, u32, BindingKind, u32, bool)> =
-            i.bindings.iter().map(|b| (b.set, b.binding, b.kind, b.count, b.runtime)).collect();
+        let b: Vec<(u32, u32, BindingKind, u32, bool, bool)> = i
+            .bindings
+            .iter()
+            .map(|b| (b.set, b.binding, b.kind, b.count, b.runtime, b.writable))
+            .collect();
+        let verts = BindingKind::StorageBuffer(16 + RUNTIME_MEMBERS * 4);
         assert_eq!(
             b,
             vec![
-                (0, 1, BindingKind::StorageImage(ImageFormat::Rgba32f), 1, false),
-                (1, 0, BindingKind::StorageBuffer(16 + 64 * 4), RUNTIME_ELEMENTS, true),
-                (1, 1, BindingKind::UniformBuffer(64), 1, false),
-                (2, 0, BindingKind::AccelerationStructure, 1, false),
-                (3, 0, BindingKind::AccelerationStructure, 2, false),
+                (0, 1, BindingKind::StorageImage(ImageFormat::Rgba32f), 1, false, false),
+                (1, 0, verts, RUNTIME_ELEMENTS, true, false),
+                (1, 1, BindingKind::UniformBuffer(64), 1, false, false),
+                (1, 2, BindingKind::StorageBuffer(32), 1, false, true),
+                (2, 0, BindingKind::AccelerationStructure, 1, false, false),
+                (3, 0, BindingKind::AccelerationStructure, 2, false, false),
             ]
         );
         // A sampled texture is not made yet: refused naming its binding.

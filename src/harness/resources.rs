@@ -87,14 +87,15 @@ impl Resources {
             std::iter::once(&scene.scene_tlas).chain(&scene.probe_tlas).collect();
         let mut unique: BTreeMap<(u32, u32), Binding> = BTreeMap::new();
         for b in bindings {
-            match unique.get(&(b.set, b.binding)) {
+            match unique.get_mut(&(b.set, b.binding)) {
                 Some(old) if old.kind != b.kind || old.count != b.count => {
                     return Err(HarnessError::Interface(format!(
                         "set {} binding {} is {:?} x{} in one module and {:?} x{} in another",
                         b.set, b.binding, old.kind, old.count, b.kind, b.count
                     )));
                 }
-                Some(_) => {}
+                // Written by any module: compared after the trace.
+                Some(old) => old.writable |= b.writable,
                 None => {
                     unique.insert((b.set, b.binding), b.clone());
                 }

@@ -333,7 +333,7 @@ pub fn apply(
     let mut lines = Vec::new();
     let mut patched: Vec<Vec<String>> = vec![Vec::new(); stages.len()];
     for (p, parsed) in patches.iter().zip(&parsed) {
-        let mut nothing = None;
+        let mut nothing = Vec::new();
         let mut any = false;
         for (i, s) in stages.iter_mut().enumerate() {
             match run_one(&mut s.module, parsed, s.rules, &names[i].0, &mut sh) {
@@ -342,23 +342,42 @@ pub fn apply(
                     patched[i].push(p.as_str().to_string());
                     lines.push(if blocks.len() > 1 { format!("{}: {line}", s.file) } else { line });
                 }
-                Err(e @ PatchError::NothingToPatch { .. }) => {
-                    nothing.get_or_insert(e);
+                Err(PatchError::NothingToPatch { what, .. }) => {
+                    nothing.push((s.file.clone(), what));
                 }
                 Err(error) => return Err(StageError { file: Some(s.file.clone()), error }),
             }
         }
         if !any {
-            let files: Vec<&str> = stages.iter().map(|s| s.file.as_str()).collect();
-            return Err(StageError {
-                file: Some(files.join(", ")),
-                error: nothing.expect("no module patched"),
-            });
+            return Err(nothing_to_patch(p.as_str(), nothing));
         }
     }
     let warnings = one_stage_warning(stages, &blocks, offset);
     let contract = contract(stages, &names, &blocks, &patched, &sh, old_end, options);
     Ok(Applied { lines, warnings, contract })
+}
+
+/// The error of a patch that found nothing to patch in any module, from each module's reason:
+/// the files sorted, and each distinct reason once with the files it holds for, so that the
+/// message does not depend on the order the modules were given in.
+fn nothing_to_patch(patch: &'static str, mut reasons: Vec<(String, String)>) -> StageError {
+    reasons.sort();
+    let mut files: Vec<String> = reasons.iter().map(|r| r.0.clone()).collect();
+    files.dedup();
+    let mut by_reason: BTreeMap<&str, Vec<&str>> = BTreeMap::new();
+    for (f, what) in &reasons {
+        by_reason.entry(what).or_default().push(f);
+    }
+    let what = if by_reason.len() == 1 {
+        reasons.first().map(|r| r.1.clone()).unwrap_or_default()
+    } else {
+        let mut groups: Vec<(&Vec<&str>, &str)> = by_reason.iter().map(|(w, f)| (f, *w)).collect();
+        groups.sort();
+        let parts: Vec<String> =
+            groups.iter().map(|(f, w)| format!("{}: {w}", f.join(", "))).collect();
+        parts.join("; ")
+    };
+    StageError { file: Some(files.join(", ")), error: PatchError::NothingToPatch { patch, what } }
 }
 
 /// Given one module without a push block, which now has one at `offset` 0 or its end: other
@@ -527,6 +546,48 @@ mod tests {
                 st.file
             );
         }
+    }
+
+    #[test]
+    fn nothing_to_patch_says_the_same_in_any_order_of_the_modules() {
+        let miss = stage(
+            "c.rmiss",
+            shaderc::ShaderKind::Miss,
+            &format!("{HEAD}layout(location = 0) rayPayloadInEXT vec4 c;\nvoid main() {{ c = vec4(1); }}\n"),
+        );
+        // Declares an acceleration structure but never loads it.
+        let unused = stage(
+            "b.rchit",
+            shaderc::ShaderKind::ClosestHit,
+            &format!(
+                "{HEAD}layout(set = 0, binding = 0) uniform accelerationStructureEXT t;\n\
+                layout(location = 0) rayPayloadInEXT vec4 c;\nvoid main() {{ c = vec4(2); }}\n"
+            ),
+        );
+        let words: Vec<(String, Vec<u32>)> = [miss, unused]
+            .iter()
+            .map(|s| (s.file.clone(), crate::patches::assemble(&s.module)))
+            .collect();
+        let order = |idx: &[usize]| {
+            let mut st: Vec<Stage> = idx
+                .iter()
+                .map(|i| {
+                    let (f, w) = &words[*i];
+                    let module = crate::patches::load(&crate::tools::spirv::bytes(w)).unwrap();
+                    Stage { file: f.clone(), module, rules: Rules::Standard }
+                })
+                .collect();
+            apply(&mut st, &[PatchName::AsToAddress], &options(&[]), 128).unwrap_err().to_string()
+        };
+        let (a, b) = (order(&[0, 1]), order(&[1, 0]));
+        assert_eq!(a, b);
+        assert!(a.starts_with("b.rchit, c.rmiss: as-to-address: nothing to patch: "), "{a}");
+        // Each module's own reason, not the first module's.
+        assert!(
+            a.contains("b.rchit: acceleration-structure descriptors are declared but never loaded"),
+            "{a}"
+        );
+        assert!(a.contains("c.rmiss: the module declares no acceleration structure type"), "{a}");
     }
 
     #[test]

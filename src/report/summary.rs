@@ -287,9 +287,9 @@ fn timing(s: &mut String, r: &RunReport, quiet: Quiet) {
     let n = t.cells_timed.max(1) as f64;
     let _ = writeln!(
         s,
-        "time: {:.1} s wall, {} workers (device {:.0} ms each); per cell: compile {:.1} ms, pipeline {:.1} ms, trace {:.1} ms, check {:.1} ms, overhead {:.1} ms",
+        "time: {:.1} s wall, {} (device {:.0} ms each); per cell: compile {:.1} ms, pipeline {:.1} ms, trace {:.1} ms, check {:.1} ms, overhead {:.1} ms",
         t.wall_ms / 1e3,
-        t.workers_started,
+        plural(t.workers_started as usize, "worker"),
         t.device_ms_mean,
         t.compile_ms / n,
         t.pipeline_ms / n,
@@ -314,6 +314,12 @@ fn timing(s: &mut String, r: &RunReport, quiet: Quiet) {
         } else {
             format!("; {}", pc.save_errors.join("; "))
         };
-        let _ = writeln!(s, "pipeline cache: {} bytes loaded ({} workers), {} bytes saved ({file}){ignored}{errors}", pc.loaded_bytes, pc.workers_loaded, pc.saved_bytes);
+        let _ = writeln!(
+            s,
+            "pipeline cache: {} bytes loaded ({}), {} bytes saved ({file}){ignored}{errors}",
+            pc.loaded_bytes,
+            plural(pc.workers_loaded as usize, "worker"),
+            pc.saved_bytes
+        );
     }
 }

@@ -63,6 +63,19 @@ fn against_baseline(r: &RunReport, allow_improvements: bool) -> Option<Vec<Strin
     Some(why)
 }
 
+/// How many of the findings are reads the spec leaves undefined (judged by rtprobe's
+/// heuristic, not bisected): ` (12 outside the spec's guarantees: rtprobe's heuristic)`.
+fn outside_spec_note(r: &RunReport, findings: usize) -> String {
+    let outside = r.findings().filter(|c| c.outside_spec.is_some()).count();
+    match outside {
+        0 => String::new(),
+        n if n == findings => {
+            " (all outside the spec's guarantees, judged by rtprobe's heuristic)".to_string()
+        }
+        n => format!(" ({n} outside the spec's guarantees, judged by rtprobe's heuristic)"),
+    }
+}
+
 /// The run's verdict (`allow_improvements`: `--allow-improvements`).
 pub fn verdict(r: &RunReport, allow_improvements: bool) -> Verdict {
     let findings = r.findings().count();
@@ -77,7 +90,8 @@ pub fn verdict(r: &RunReport, allow_improvements: bool) -> Verdict {
                 .filter(|(n, _)| *n > 0)
                 .map(|(n, w)| plural(*n, w))
                 .collect::<Vec<_>>()
-                .join(", "),
+                .join(", ")
+                + &outside_spec_note(r, findings),
         ),
     };
     if let Some(why) = fail {
@@ -146,12 +160,19 @@ mod tests {
     #[test]
     fn findings_fail_and_a_clean_run_passes() {
         let r = RunReport::for_tests(vec![
-            ran(cell(IndexSource::Dynamic), Outcome::Crash),
-            ran(cell(IndexSource::Literal), Outcome::Pass),
+            ran(cell(IndexSource::Literal), Outcome::Crash),
+            ran(cell(IndexSource::SpecConstant), Outcome::Pass),
         ]);
         let v = verdict(&r, false);
         assert_eq!(v.kind, Kind::Findings);
         assert_eq!(v.line(), "verdict: FAIL — 1 finding");
+        // A finding the spec leaves undefined (a dynamic index without nonuniformEXT) says so.
+        let u = RunReport::for_tests(vec![ran(cell(IndexSource::Dynamic), Outcome::Crash)]);
+        assert!(u.cells[0].outside_spec.is_some());
+        assert_eq!(
+            verdict(&u, false).line(),
+            "verdict: FAIL — 1 finding (all outside the spec's guarantees, judged by rtprobe's heuristic)"
+        );
         let ok = RunReport::for_tests(vec![ran(cell(IndexSource::Literal), Outcome::Pass)]);
         assert_eq!(
             verdict(&ok, false).line(),

@@ -171,11 +171,15 @@ fn pending_blas(
     Ok(blas_pending)
 }
 
+/// The custom index of instance `k` (`k = instances`: the floor) in probe TLAS variant `v`.
+pub type VariantCustom = fn(u32, u32) -> u32;
+
 /// The TLAS instance lists: the scene TLAS, then the probe variants (`blas`: the BLAS of each
-/// mesh, then the sphere's).
+/// mesh, then the sphere's), their custom indices from `custom`.
 fn instance_lists(
     scene: &Scene,
     blas: &[AccelStruct],
+    custom: VariantCustom,
 ) -> Vec<Vec<vk::AccelerationStructureInstanceKHR>> {
     let blas_index = |g: Geometry| match g {
         Geometry::Mesh(m) => m,
@@ -198,9 +202,9 @@ fn instance_lists(
     for v in 0..probe::as_variants(n) {
         let mut l: Vec<_> = (0..n)
             .filter(|k| probe::as_variant_has(v, *k))
-            .map(|k| instance(&scene.instances[k as usize], probe::as_custom(v, k)))
+            .map(|k| instance(&scene.instances[k as usize], custom(v, k)))
             .collect();
-        l.push(instance(&scene.floor, probe::as_custom(v, n)));
+        l.push(instance(&scene.floor, custom(v, n)));
         lists.push(l);
     }
     lists
@@ -238,12 +242,24 @@ impl SceneGpu {
         submitter: &Submitter,
         timeout: Duration,
     ) -> Result<SceneGpu, BuildError> {
+        Self::build_with(gpu, scene, submitter, timeout, probe::as_custom)
+    }
+
+    /// [`Self::build`] with the probe TLAS variants' custom indices from `custom` instead of
+    /// `probe::as_custom` (the patch harness keeps them small enough to index arrays with).
+    pub fn build_with(
+        gpu: &Gpu,
+        scene: &Scene,
+        submitter: &Submitter,
+        timeout: Duration,
+        custom: VariantCustom,
+    ) -> Result<SceneGpu, BuildError> {
         let start = Instant::now();
         let mut inputs = Vec::new();
         let blas_pending = pending_blas(gpu, scene, &mut inputs)?;
         let mut all_scratch = Vec::new();
         let (blas, blas_builds) = Self::prepare_all(gpu, &blas_pending, &mut all_scratch)?;
-        let tlas_pending = pending_tlas(gpu, instance_lists(scene, &blas), &mut inputs)?;
+        let tlas_pending = pending_tlas(gpu, instance_lists(scene, &blas, custom), &mut inputs)?;
         let (mut tlas, tlas_builds) = Self::prepare_all(gpu, &tlas_pending, &mut all_scratch)?;
 
         let waited = submitter

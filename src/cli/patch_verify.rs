@@ -1,0 +1,207 @@
+//! `rtprobe patch --verify`: the unpatched and the patched pipeline run on the device in a child
+//! process (`rtprobe __verify JOB`, `harness::child`), started through
+//! `runner::process::run_to_end` like the supervisor's workers: its own process group, dying
+//! with this process, killed when silent past its deadline (setup: [`SETUP_SILENCE`] more; each
+//! step: twice the fence deadline plus [`STEP_SLACK`]). A child that crashes or hangs on a user's
+//! shader is the verification's outcome, one line and a non-zero exit; rtprobe itself never
+//! goes down with the driver.
+use super::args::PatchArgs;
+use super::commands::Globals;
+use super::exit::{self, coded};
+use super::patch_inputs::Input;
+use crate::harness::child::{FailKind, JobModule, Step, VerifyJob, VerifyOutput};
+use crate::harness::{self, UserModule, Verdict};
+use crate::model::contract::HostContract;
+use crate::model::signal_name;
+use crate::runner::process::{run_to_end, ChildEnd};
+use anyhow::{Context, Result};
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// Silence allowed before the child's first step, on top of a step's.
+const SETUP_SILENCE: Duration = Duration::from_secs(60);
+/// Silence allowed per step beyond twice the fence deadline.
+const STEP_SLACK: Duration = Duration::from_secs(10);
+/// SIGTERM to SIGKILL, and how long a killed child is waited for.
+const GRACE: Duration = Duration::from_secs(2);
+const KILL_WAIT: Duration = Duration::from_secs(5);
+
+/// Reflect every module here first: one the harness cannot run is refused before any child.
+fn reflect(inputs: &[Input], words: &[&[u32]]) -> Result<Vec<JobModule>> {
+    inputs
+        .iter()
+        .zip(words)
+        .map(|(i, w)| {
+            UserModule::new(&i.name, w)
+                .map(|_| JobModule { name: i.name.clone(), words: w.to_vec() })
+                .map_err(|e| coded(exit::BAD_INPUT, format!("--verify: {e}")))
+        })
+        .collect()
+}
+
+/// The device `--device` names, checked for what the harness needs: its index.
+fn device(g: &Globals, a: &PatchArgs, scalar: bool) -> Result<usize> {
+    let inst = super::commands::open_instance(g)?;
+    let all = crate::vk::features::query_all(&inst)?;
+    let info = crate::vk::features::select(&all, a.device.as_deref())?;
+    let missing = harness::requirements(scalar).missing_on(info);
+    if !missing.is_empty() {
+        return Err(coded(
+            exit::UNSUPPORTED_DEVICE,
+            format!(
+                "--verify: {} cannot run the pipelines: missing {}",
+                info.name(),
+                missing.join(", ")
+            ),
+        ));
+    }
+    Ok(info.index)
+}
+
+/// `--verify`: the lines saying the outputs are identical, or the error saying why not.
+pub fn verify(
+    g: &Globals,
+    a: &PatchArgs,
+    inputs: &[Input],
+    patched: &[Vec<u32>],
+    contract: &HostContract,
+    scalar: bool,
+) -> Result<Vec<String>> {
+    let before = reflect(inputs, &inputs.iter().map(|i| i.words.as_slice()).collect::<Vec<_>>())?;
+    let after = reflect(inputs, &patched.iter().map(|w| w.as_slice()).collect::<Vec<_>>())?;
+    let device_index = device(g, a, scalar)?;
+    let dir = std::env::temp_dir().join(format!("rtprobe-verify-{}", std::process::id()));
+    std::fs::create_dir_all(&dir)
+        .with_context(|| format!("creating the --verify folder {}", dir.display()))?;
+    let job = VerifyJob {
+        device_index,
+        validate: g.validate,
+        scalar,
+        before,
+        after,
+        contract: contract.clone(),
+        timeout_ms: a.verify_timeout.max(1) * 1000,
+        result: dir.join("result.json"),
+    };
+    let out = run_child(&job, dir.join("job.json"));
+    let _ = std::fs::remove_dir_all(&dir);
+    let (out, stderr) = out?;
+    outcome(out, &stderr)
+}
+
+/// How the child ended: its output, or the line saying how it died.
+type Ended = std::result::Result<VerifyOutput, String>;
+
+/// Run the child on `job`: how it ended, and the tail of its stderr.
+fn run_child(job: &VerifyJob, job_path: PathBuf) -> Result<(Ended, String)> {
+    let bytes = serde_json::to_vec(job).context("the --verify job")?;
+    crate::atomic::write_atomic(&job_path, &bytes)
+        .with_context(|| format!("writing {}", job_path.display()))?;
+    let step_silence = Duration::from_millis(job.timeout_ms) * 2 + STEP_SLACK;
+    let mut step = String::from("start");
+    let end = run_to_end(
+        "__verify",
+        &job_path,
+        step_silence + SETUP_SILENCE,
+        (GRACE, KILL_WAIT),
+        &mut |line| {
+            if let Ok(s) = serde_json::from_str::<Step>(line) {
+                step = s.step;
+            }
+            if step == "setup" || step == "scene" {
+                step_silence + SETUP_SILENCE
+            } else {
+                step_silence
+            }
+        },
+    )
+    .context("starting the --verify child")?;
+    let out = std::fs::read(&job.result)
+        .ok()
+        .and_then(|b| serde_json::from_slice::<VerifyOutput>(&b).ok());
+    Ok((out.ok_or_else(|| died(&end, &step, step_silence)), end.exit.stderr_tail))
+}
+
+/// The line for a child that ended without its result: killed for silence, or dead.
+pub fn died(end: &ChildEnd, step: &str, silence: Duration) -> String {
+    let how = if end.timed_out {
+        format!("was silent for {silence:?} and was killed")
+    } else {
+        match (end.exit.signal, end.exit.code) {
+            (Some(s), _) => format!("died of signal {s} ({})", signal_name(s)),
+            (None, Some(c)) => format!("exited with status {c} and no result"),
+            (None, None) => "ended without a result".into(),
+        }
+    };
+    let tail = end.exit.stderr_tail.lines().rev().find(|l| !l.trim().is_empty());
+    let tail = tail.map(|l| format!("; stderr: {}", l.chars().take(200).collect::<String>()));
+    let abandoned = end.exit.abandoned.as_deref().map(|a| format!("; {a}")).unwrap_or_default();
+    format!("the pipelines' child process {how} at `{step}`{}{abandoned}", tail.unwrap_or_default())
+}
+
+/// The verification's outcome as lines or a coded error; nothing is written on an error.
+/// `stderr`: the child's (where the validation layer's messages went).
+fn outcome(out: Ended, stderr: &str) -> Result<Vec<String>> {
+    let (device, compared, messages) = match out {
+        Err(line) => {
+            return Err(coded(
+                exit::DEVICE_LOST,
+                format!(
+                "--verify: {line} (the driver crashed or hung on these pipelines); nothing written"
+            ),
+            ))
+        }
+        Ok(VerifyOutput::Failed { kind, message }) => {
+            let code = match kind {
+                FailKind::DeviceLost => exit::DEVICE_LOST,
+                FailKind::Vulkan => exit::VULKAN_ERROR,
+                FailKind::Input => exit::BAD_INPUT,
+            };
+            return Err(coded(code, format!("--verify: {message}")));
+        }
+        Ok(VerifyOutput::Ran { device, compared, validation_errors }) => {
+            (device, compared, validation_errors)
+        }
+    };
+    if messages > 0 {
+        let first = stderr.lines().find(|l| l.contains("VUID") || l.contains("Validation"));
+        let first = first.map(|l| format!(" (one: {})", l.chars().take(300).collect::<String>()));
+        return Err(coded(exit::VULKAN_ERROR, format!("--verify: {messages} validation messages while running the pipelines on {device}{}; nothing written", first.unwrap_or_default())));
+    }
+    match harness::judge(&device, &compared) {
+        Verdict::Identical(lines) => Ok(lines),
+        Verdict::Differs(line) => {
+            Err(coded(exit::FINDINGS, format!("--verify: {line}; nothing written")))
+        }
+        Verdict::Unfit(why) => {
+            Err(coded(exit::BAD_INPUT, format!("--verify: {why} (nothing written)")))
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::WorkerExit;
+
+    fn end(signal: Option<i32>, timed_out: bool) -> ChildEnd {
+        let exit = WorkerExit {
+            code: None,
+            signal,
+            stderr_tail: "llvmpipe: boom\n".into(),
+            abandoned: None,
+        };
+        ChildEnd { exit, timed_out }
+    }
+
+    #[test]
+    fn a_dead_or_silent_child_is_one_line_with_where_and_why() {
+        let d = died(&end(Some(libc::SIGSEGV), false), "trace patched", Duration::from_secs(70));
+        assert_eq!(d, "the pipelines' child process died of signal 11 (SIGSEGV) at `trace patched`; stderr: llvmpipe: boom");
+        let t = died(&end(Some(libc::SIGTERM), true), "trace unpatched", Duration::from_secs(12));
+        assert!(t.contains("was silent for 12s and was killed at `trace unpatched`"), "{t}");
+        let e = outcome(Err(d), "").unwrap_err();
+        assert_eq!(exit::code_for(&e), exit::DEVICE_LOST);
+        assert!(!exit::one_line(&e).contains('\n'));
+    }
+}
