@@ -289,7 +289,7 @@ fn timing(s: &mut String, r: &RunReport, quiet: Quiet) {
         s,
         "time: {:.1} s wall, {} (device {:.0} ms each); per cell: compile {:.1} ms, pipeline {:.1} ms, trace {:.1} ms, check {:.1} ms, overhead {:.1} ms",
         t.wall_ms / 1e3,
-        plural(t.workers_started as usize, "worker"),
+        plural(t.workers_started, "worker"),
         t.device_ms_mean,
         t.compile_ms / n,
         t.pipeline_ms / n,
@@ -318,7 +318,7 @@ fn timing(s: &mut String, r: &RunReport, quiet: Quiet) {
             s,
             "pipeline cache: {} bytes loaded ({}), {} bytes saved ({file}){ignored}{errors}",
             pc.loaded_bytes,
-            plural(pc.workers_loaded as usize, "worker"),
+            plural(pc.workers_loaded, "worker"),
             pc.saved_bytes
         );
     }

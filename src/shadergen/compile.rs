@@ -97,7 +97,7 @@ impl Compiler {
     }
 
     /// A kept compile of `glsl`; a damaged file is said and left to be written again.
-    fn from_disk(&self, role: Role, glsl: &str) -> Option<Vec<u32>> {
+    fn kept(&self, role: Role, glsl: &str) -> Option<Vec<u32>> {
         let disk = self.disk.as_ref()?;
         let key = disk_key(role, glsl);
         match disk.load(key) {
@@ -140,7 +140,7 @@ impl Compiler {
         // Those kept on disk are read, not compiled.
         todo.retain(|&(key, role, glsl)| {
             let t = Instant::now();
-            let Some(words) = self.from_disk(role, glsl) else { return true };
+            let Some(words) = self.kept(role, glsl) else { return true };
             self.cache.insert(key, Arc::new(words));
             self.precompiled_ms.insert(key, t.elapsed().as_secs_f64() * 1e3);
             false
@@ -182,7 +182,7 @@ impl Compiler {
             return Ok((s.clone(), self.precompiled_ms.remove(&key).unwrap_or(0.0)));
         }
         let t = Instant::now();
-        let words = match self.from_disk(role, glsl) {
+        let words = match self.kept(role, glsl) {
             Some(words) => Arc::new(words),
             None => {
                 let words = if uses_external(glsl) {
