@@ -215,6 +215,7 @@ fn amber_itself_passes_every_script_and_fails_the_planted_one() {
         let path = r.dir.path().join("bundles").join(id).join("cell.amber");
         let (passed, out) = amber(&bin, &path);
         assert!(passed, "{id}: {out}");
+        eprintln!("amber {}: {id}: passed", bin.display());
         ran += 1;
     }
     assert_eq!(ran, 35);
@@ -224,4 +225,6 @@ fn amber_itself_passes_every_script_and_fails_the_planted_one() {
     std::fs::write(&path, planted).unwrap();
     let (passed, out) = amber(&bin, &path);
     assert!(!passed && out.contains(&format!("Line {line}: Verifier failed: ")), "{out}");
+    let why = out.lines().find(|l| l.contains("Verifier failed")).unwrap_or_default();
+    eprintln!("amber: {ran} scripts passed; the planted one failed: {why}");
 }

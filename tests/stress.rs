@@ -93,8 +93,8 @@ fn lavapipe_figures_stay_within_the_rules() {
         assert_eq!(n(c, "over_tolerance"), 0, "{}", c["name"]);
         assert_eq!(n(c, "wrong_hits"), 0, "{}", c["name"]);
         assert_eq!(n(c, "duplicate_any_hits"), 0, "{}", c["name"]);
-        assert!(n(c, "rays") > 100);
-        // Every leak has a subnormal ray component (flush to zero near a fan's centre vertex).
+        assert!(n(c, "rays") >= 96, "{}", c["name"]); // tmin: 8 parts of 12 rays
+                                                      // Every leak has a subnormal ray component (flush to zero near a fan's centre vertex).
         assert_eq!(n(c, "leaks"), n(c, "leaks_subnormal"), "{}", c["name"]);
         // Every double hit is within the ambiguity margin of a shared edge (what f32 rounding
         // can explain); the warnings are those exactly on the edge (the spec's "should not").
@@ -103,7 +103,9 @@ fn lavapipe_figures_stay_within_the_rules() {
     }
     let w = case(&doc, "watertight");
     assert!(n(w, "rays") > 10_000 && n(w, "hits") > 10_000);
-    assert!(f(w, "bary_err_max") <= 2e-3 && f(w, "t_rel_err_max") < 1e-4);
+    // lavapipe 25's largest barycentric error is on square-1024's slivers (2.4e-3 since issue
+    // 22's sample of interior edges), within its ray-space tolerance (over_tolerance is 0).
+    assert!(f(w, "bary_err_max") <= 5e-3 && f(w, "t_rel_err_max") < 1e-4);
     // transform: facing is a function of the object-space winding (mirrors included), culling
     // keeps exactly the other facing, object-space built-ins within the CTS's 3.8e-6.
     let tr = case(&doc, "transform");
@@ -131,17 +133,27 @@ fn lavapipe_figures_stay_within_the_rules() {
             assert!(f(p, "bary_err_max") < 1e-3, "{p}");
         }
     }
-    // tmin: triangles are strict (no hit at t = tmin or t = tmax exactly, on exact rays).
+    // tmin: only offsets outside the t margin (issue 22), each certain in or out, none
+    // excluded as ambiguous.
     let tmin = case(&doc, "tmin");
+    assert_eq!(n(tmin, "excluded"), 0, "{tmin}");
     for p in tmin["parts"].as_array().unwrap() {
         let label = p["label"].as_str().unwrap();
         let hits = n(p, "hits");
         match label {
-            "tmin+0ulp" | "tmax+0ulp" => assert_eq!(hits, 0, "{label}"),
-            "tmin-1024ulp" | "tmax+1024ulp" => assert_eq!(hits, n(p, "rays"), "{label}"),
-            "tmin+1024ulp" | "tmax-1024ulp" => assert_eq!(hits, 0, "{label}"),
-            _ => {}
+            "tmin-1024ulp" | "tmin-256ulp" | "tmax+256ulp" | "tmax+1024ulp" => {
+                assert_eq!(hits, n(p, "rays"), "{label}")
+            }
+            "tmin+256ulp" | "tmin+1024ulp" | "tmax-256ulp" | "tmax-1024ulp" => {
+                assert_eq!(hits, 0, "{label}")
+            }
+            other => panic!("unexpected part {other}"),
         }
+    }
+    // Issue 22: no case but self (its secondary rays start on the surface, by construction
+    // within their own triangle's t margin) leaves more than 4% of its rays to ambiguity.
+    for c in doc["cases"].as_array().unwrap() {
+        assert!(n(c, "excluded") * 25 <= n(c, "rays"), "{}: {}", c["name"], n(c, "excluded"));
     }
     // degenerate: NaN-X and coincident vertices never hit; the one false hit lavapipe shows is the
     // collinear triangle (primitive 1), written up in docs/stress.md.

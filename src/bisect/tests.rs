@@ -741,3 +741,41 @@ fn bisect_does_not_count_faults_of_undefined_reads() {
     assert_eq!(r.minimal, "index=literal", "{r:?}");
     assert!(!r.doubtful.is_empty() && r.doubtful.iter().all(|d| d.contains("undefined")));
 }
+
+/// A mismatch of a cell without `nonuniformEXT` is unsettled evidence (its read is undefined),
+/// unless it fell on a subgroup the device's lane evidence proves uniform: that read is defined
+/// (VUID-RuntimeSpirv-subgroupSize-10149, Vulkan 1.4.360), and bisect relies on its fault.
+#[test]
+fn a_mismatch_on_a_uniform_subgroup_is_a_fault_not_an_undefined_read() {
+    let c = scope("stage=closest_hit,resource=storage_buffer,index=dynamic,nonuniform=false,descriptor_model=descriptor_indexing")[0];
+    assert!(crate::model::undefined_descriptor_read(&c));
+    let mismatch = |uniform_mismatched: usize| {
+        let comparison = crate::model::Comparison {
+            mismatched_pixels: 5,
+            element_reads: Some(crate::model::ElementReads {
+                outside_spec: "x".into(),
+                own: 10,
+                neither: 5,
+                uniform: 8,
+                uniform_mismatched,
+                ..Default::default()
+            }),
+            ..Default::default()
+        };
+        let result = crate::model::CellResult {
+            outcome: Outcome::Mismatch,
+            detail: None,
+            timings: Default::default(),
+            comparison: Some(comparison),
+            fault: None,
+            validation_errors: 0,
+        };
+        Attempt { result: Some(result), ..attempt(Outcome::Mismatch, false) }
+    };
+    let mut v = Verdicts::default();
+    v.record(&c, mismatch(0));
+    assert_eq!(v.state(&c), State::Doubtful(Doubt::UndefinedFault));
+    let mut v = Verdicts::default();
+    v.record(&c, mismatch(2));
+    assert_eq!(v.state(&c), State::Fault);
+}

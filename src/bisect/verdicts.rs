@@ -24,7 +24,9 @@ pub enum State {
 pub enum Doubt {
     /// A fault of a read the spec leaves undefined (a dynamic set/binding index without
     /// `nonuniformEXT` in a module without `DescriptorHeapEXT`: `model::NO_NONUNIFORM_VUID`):
-    /// whatever it read, it is no driver bug by the spec.
+    /// whatever it read, it is no driver bug by the spec. Not where a mismatch fell on a subgroup
+    /// the device's lane evidence proves uniform (`CellReport::defined_mismatch`): that read was
+    /// defined (`VUID-RuntimeSpirv-subgroupSize-10149`), and its fault is settled.
     UndefinedFault,
     /// A pass judged leniently whose pixels read what another lane's index gives while a sibling
     /// with a defined index faults (`isolation::suspect`): the lenient read may be that fault.
@@ -137,7 +139,7 @@ impl Verdicts {
             Some(r) => match r.outcome {
                 Outcome::Error => State::Error,
                 Outcome::Mismatch | Outcome::DeviceLost | Outcome::Crash | Outcome::Timeout
-                    if r.outside_spec.is_some() =>
+                    if r.outside_spec.is_some() && !r.defined_mismatch() =>
                 {
                     State::Doubtful(Doubt::UndefinedFault)
                 }

@@ -41,6 +41,7 @@ pub fn fresh(
         started: time::rfc3339(started),
         finished: None,
         complete: false,
+        incomplete: None,
         device: crate::caps::device_json(info),
         matrix_support: crate::caps::matrix_json(info),
         matrix_support_schema: Some(crate::caps::SCHEMA.into()),
@@ -90,6 +91,7 @@ pub fn resume(old: RunReport, fresh: &RunReport) -> Result<RunReport, NotSameRun
     Ok(RunReport {
         command_line: fresh.command_line.clone(),
         complete: false,
+        incomplete: None,
         finished: None,
         ..old
     })

@@ -144,7 +144,12 @@ fn applies(c: &Cell) -> Result<MutantPrediction, String> {
         Some(Mutant::IndexZero) if c.index == IndexSource::Literal => {
             Ok(MutantPrediction::default())
         }
-        _ => Ok(MutantPrediction { differing: 10, caught: 10, from_lanes: false }),
+        _ => Ok(MutantPrediction {
+            differing: 10,
+            caught: 10,
+            from_lanes: false,
+            caught_by_heuristic: 0,
+        }),
     }
 }
 
@@ -758,7 +763,9 @@ fn mutants_twin_recording_mutant_attempts_as_cells_or_running_every_pair_is_caug
     assert!(check_mutants(&w, cells).is_err());
     // A round that ignores the reference (runs the equivalent pair too).
     let (mut w, cells) = mutants_world();
-    let every = |_: &Cell| Ok(MutantPrediction { differing: 1, caught: 1, from_lanes: false });
+    let every = |_: &Cell| {
+        Ok(MutantPrediction { differing: 1, caught: 1, from_lanes: false, caught_by_heuristic: 0 })
+    };
     Campaign { oracle: &mut w.oracle, rec: &mut w.rec, supported: &all, applies: &every }
         .mutants(&policy());
     assert!(check_mutants(&w, cells).is_err());

@@ -110,6 +110,9 @@ pub fn merge_cmd(a: &MergeArgs) -> Result<u8> {
         crate::model::plural(m.tally.worker_faults, "worker fault"),
         a.out.display()
     );
+    if let Some(why) = &m.incomplete {
+        outln!("not complete: {why}");
+    }
     if let Some(c) = &m.baseline {
         out!("{}", crate::fleet::baseline::render(c, a.allow_improvements));
     }

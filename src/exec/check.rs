@@ -56,7 +56,9 @@ impl Executor {
         let mut expected = reference::expected_with(cell, &self.scene, &self.sref, undefined);
         reference::expect_lanes(&mut expected, seen.lanes);
         let (w, h) = (self.scene.params.width, self.scene.params.height);
-        let lanes = seen.lanes.usable().then(|| reference::lanes::Lanes::from_records(records));
+        let lanes = seen.lanes.recorded().then(|| {
+            reference::lanes::Lanes::for_stage(records, cell.stage).judged_by(seen.lanes.usable())
+        });
         let mut cmp = reference::compare_with(&expected, records, w, lanes.as_ref());
         cmp.mutant = self.predict_mutant(cell, (undefined, seen.lanes), &expected, records);
         cmp.lane_evidence = seen.lanes;
@@ -121,10 +123,18 @@ pub fn mismatch_detail(cmp: &crate::model::comparison::Comparison) -> String {
         cmp.compared,
         fields.join(", ")
     );
-    if let Some(e) = cmp.element_reads.as_ref().filter(|e| e.neither > 0) {
+    let Some(e) = cmp.element_reads.as_ref() else { return d };
+    let heuristic = e.neither.saturating_sub(e.uniform_mismatched);
+    if heuristic > 0 {
         d.push_str(&format!(
             "; no nonuniformEXT ({}): {} pixels read an element no active lane of their subgroup indexed (rtprobe's scalarizing-driver heuristic, see docs/run.md)",
-            e.outside_spec, e.neither
+            e.outside_spec, heuristic
+        ));
+    }
+    if e.uniform_mismatched > 0 {
+        d.push_str(&format!(
+            "; {} pixels of subgroups whose lanes all indexed one element read another (a uniform read, defined without nonuniformEXT: VUID-RuntimeSpirv-subgroupSize-10149, judged exactly)",
+            e.uniform_mismatched
         ));
     }
     d

@@ -196,8 +196,9 @@ pub fn whole_shards(reports: &[(String, Option<String>)]) -> Result<(), MergeErr
     Err(MergeError::MissingShards { missing, given: given.into_iter().map(label).collect() })
 }
 
-/// Merge `reports` (with their file names for messages). `force` skips the identity checks,
-/// never [`whole_shards`].
+/// Merge `reports` (with their file names for messages). `force` merges reports the identity
+/// checks refuse, never a partial shard set ([`whole_shards`]); the result is then not
+/// `complete`, and `incomplete` says which reports differ in what.
 #[allow(clippy::result_large_err)] // as same_run
 pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport, MergeError> {
     let shards: Vec<(String, Option<String>)> =
@@ -212,13 +213,13 @@ pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport
     out.baseline = None;
     let mut by_id: HashMap<String, usize> =
         out.cells.iter().enumerate().map(|(i, c)| (c.id.clone(), i)).collect();
+    let mut forced = Vec::new();
     for (name, r) in it {
-        if !force {
-            same_run(&out, &r, ResultOption::MERGED).map_err(|why| MergeError::NotSameRun {
-                name: name.clone(),
-                first: first_name.clone(),
-                why,
-            })?;
+        if let Err(why) = same_run(&out, &r, ResultOption::MERGED) {
+            if !force {
+                return Err(MergeError::NotSameRun { name, first: first_name, why });
+            }
+            forced.push(format!("{name} does not belong with {first_name}: {why}"));
         }
         let id = (r.started.clone(), r.command_line.clone());
         if started.contains(&id) {
@@ -230,6 +231,11 @@ pub fn merge(reports: Vec<(String, RunReport)>, force: bool) -> Result<RunReport
     }
     whole_shards(&shards)?;
     finish(&mut out, names);
+    // Reports of different runs make no one run's report, whatever each says of itself.
+    if !forced.is_empty() {
+        out.complete = false;
+        out.incomplete = Some(format!("merged with --force: {}", forced.join("; ")));
+    }
     Ok(out)
 }
 
@@ -488,5 +494,25 @@ mod tests {
         // --force does not make a partial set whole.
         let e = merge(vec![shard(Some("1/2"))], true).unwrap_err().to_string();
         assert!(e.contains("shard 2/2 missing"), "{e}");
+    }
+
+    /// `merge --force` of shards with different `--filter`s (or any result-changing option):
+    /// their cells are no one run's, so the report is not `complete` and says why.
+    #[test]
+    fn forced_merges_of_different_runs_are_not_complete() {
+        let (mut a, mut b) = (shard(Some("1/2")), shard(Some("2/2")));
+        a.1.started = "2026-12-02T06:00:00Z".into();
+        b.1.started = "2026-12-02T06:01:00Z".into();
+        b.1.options.filters = vec!["model=descriptor_heap".into()];
+        let e = merge(vec![a.clone(), b.clone()], false).unwrap_err().to_string();
+        assert!(e.contains("--filter"), "{e}");
+        let m = merge(vec![a.clone(), b.clone()], true).unwrap();
+        assert!(!m.complete);
+        let why = m.incomplete.as_deref().unwrap_or_default();
+        assert!(why.starts_with("merged with --force: 2-of-2.json does not belong with 1-of-2.json: its --filter differs"), "{why}");
+        // The same options: --force changes nothing.
+        b.1.options.filters.clear();
+        let m = merge(vec![a, b], true).unwrap();
+        assert!(m.complete && m.incomplete.is_none());
     }
 }

@@ -32,6 +32,16 @@ pub struct ElementReads {
     /// whole subgroup); the others against every lane of the dispatch.
     #[serde(default)]
     pub by_subgroup: usize,
+    /// Pixels judged exactly although their cell lacks `nonuniformEXT`: the device's lane
+    /// evidence shows every active lane of their subgroup (two or more) computed the same index,
+    /// so the read is uniform within the subgroup and needs no `NonUniform`
+    /// (`VUID-RuntimeSpirv-subgroupSize-10149`, Vulkan 1.4.360). Counted in `own` / `neither`,
+    /// not in the comparison's `any_element_values`.
+    #[serde(default)]
+    pub uniform: usize,
+    /// Of `uniform`, pixels that mismatched: a defined read gone wrong, a finding like any other.
+    #[serde(default)]
+    pub uniform_mismatched: usize,
 }
 
 /// Where a heap cell's probed descriptors sit in the resource heap, and how its binding 2 reaches
@@ -116,6 +126,11 @@ pub struct Comparison {
     /// (absent in reports before lane evidence).
     #[serde(default)]
     pub lane_evidence: crate::model::LaneEvidence,
+    /// Probe pixels whose subgroup's records contradict each other (`reference::lanes::
+    /// contradictions`: garbage lane data): never used as evidence; a mismatch where the evidence
+    /// is judged by.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub lane_contradictions: usize,
     /// For a mismatch whose records carry lane evidence: how the mismatched pixels split by it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lanes: Option<crate::model::LaneSplit>,
@@ -129,6 +144,10 @@ pub struct Comparison {
     /// predicted this comparison would flag.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mutant: Option<MutantPrediction>,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 impl Comparison {
@@ -147,6 +166,12 @@ pub struct MutantPrediction {
     pub differing: usize,
     /// Of those, pixels the comparison with the unmutated reference must flag.
     pub caught: usize,
+    /// Of `caught`, pixels judged by the other-lane heuristic (an undefined read, not in a
+    /// uniform subgroup): the mutated read is undefined there too (no `NonUniform`), so what the
+    /// driver reads is not the reference's to predict, and a survivor on them only is allowed.
+    /// The rest of `caught` is judged exactly: a survivor there is a probe defect.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub caught_by_heuristic: usize,
     /// Predicted from the device's own lane evidence (`index-broadcast`: which lane led each
     /// subgroup), so decided after the run.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
@@ -154,6 +179,11 @@ pub struct MutantPrediction {
 }
 
 impl MutantPrediction {
+    /// Pixels the comparison must flag whatever an undefined read returns: judged exactly.
+    pub fn caught_exactly(&self) -> usize {
+        self.caught.saturating_sub(self.caught_by_heuristic)
+    }
+
     /// The mutant applies: the reference predicts other records on some checked pixel.
     pub fn applicable(&self) -> bool {
         self.differing > 0

@@ -125,6 +125,10 @@ pub struct LaneSplit {
     pub followers: Split,
     /// Index: the lane id.
     pub by_lane: Vec<Split>,
+    /// Pixels of subgroups whose records contradict each other (`reference::lanes`): garbage lane
+    /// data, left out of every split above and counted here.
+    #[serde(default)]
+    pub contradicted: Split,
 }
 
 impl LaneSplit {
@@ -164,8 +168,14 @@ impl LaneSplit {
             ),
             LaneEvidence::Absent | LaneEvidence::Supported => String::new(),
         };
+        let contradicted = match self.contradicted {
+            Split { pixels: 0, .. } => String::new(),
+            Split { pixels, failed } => format!(
+                "; in subgroups whose records contradict each other (garbage lane data, left out above) {failed} of {pixels} pixels"
+            ),
+        };
         format!(
-            "mismatches by lane 0 of the subgroup: where it was inactive in the call {} of {} pixels, where active {} of {}; subgroup leaders {} of {}, other lanes {} of {}; by lane (mismatched/pixels): {}{forced}",
+            "mismatches by lane 0 of the subgroup: where it was inactive in the call {} of {} pixels, where active {} of {}; subgroup leaders {} of {}, other lanes {} of {}; by lane (mismatched/pixels): {}{contradicted}{forced}",
             self.lane0_inactive.failed,
             self.lane0_inactive.pixels,
             self.lane0_active.failed,

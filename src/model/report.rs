@@ -144,6 +144,21 @@ impl CellReport {
             .filter_map(|a| a.result.as_ref()?.comparison.as_ref()?.element_reads.as_ref())
     }
 
+    /// Whether an attempt of this cell, which lacks `nonuniformEXT`, mismatched where its read is
+    /// defined all the same: on a subgroup the device's lane evidence proves uniform
+    /// (`ElementReads::uniform_mismatched`, `VUID-RuntimeSpirv-subgroupSize-10149`), or on lane
+    /// words whose subgroup's records contradict each other (subgroup ballot the device supports
+    /// in the stage is defined). Such a fault is settled evidence, not an undefined read's.
+    pub fn defined_mismatch(&self) -> bool {
+        self.attempts.iter().filter(|a| a.outcome == crate::model::Outcome::Mismatch).any(|a| {
+            a.result.as_ref().and_then(|r| r.comparison.as_ref()).is_some_and(|c| {
+                c.element_reads.as_ref().is_some_and(|e| e.uniform_mismatched > 0)
+                    || (c.lane_contradictions > 0
+                        && c.lane_evidence == crate::model::LaneEvidence::Supported)
+            })
+        })
+    }
+
     /// A cell with its first attempt.
     pub fn new(cell: &Cell, attempt: Attempt) -> Self {
         let mut c = CellReport::unrun(cell, attempt.outcome, String::new());
@@ -392,6 +407,11 @@ pub struct RunReport {
     #[serde(default)]
     pub finished: Option<String>,
     pub complete: bool,
+    /// Why `complete` is false though every run in the report finished: `merge --force` joined
+    /// reports of different runs (another device, scene or result-changing option), so no
+    /// cell set or verdict of one run can be read from it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub incomplete: Option<String>,
     pub device: Value,
     /// The caps file's `matrix` object for this device, as informational data no reader
     /// interprets; its shape is that of the caps schema named in `matrix_support_schema`.
@@ -447,6 +467,7 @@ impl RunReport {
             started: String::new(),
             finished: None,
             complete: true,
+            incomplete: None,
             device: serde_json::json!({ "name": "test device" }),
             matrix_support: serde_json::json!({}),
             matrix_support_schema: None,

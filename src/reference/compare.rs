@@ -108,16 +108,41 @@ impl<'a> OtherLanes<'a> {
         probe.then_some(e.record.slot).into_iter().chain(recorded)
     }
 
-    /// The slots pixel `p` may have read through, and whether they are its subgroup's.
-    fn of(&self, p: usize) -> (Vec<u32>, bool) {
-        match self.lanes.and_then(|l| l.subgroup(p)) {
-            Some(group) => (
-                group.iter().flat_map(|&q| Self::computed(self.expected, self.actual, q)).collect(),
-                true,
-            ),
-            None => (self.dispatch.clone(), false),
+    /// How pixel `p`'s undefined read is judged: exactly where its subgroup is proven uniform,
+    /// else against the slots its subgroup's lanes (or the dispatch's) computed.
+    fn of(&self, p: usize) -> Judged {
+        let Some(group) = self.lanes.and_then(|l| l.subgroup(p)) else {
+            return Judged::Dispatch(self.dispatch.clone());
+        };
+        let mut slots: Vec<u32> =
+            group.iter().flat_map(|&q| Self::computed(self.expected, self.actual, q)).collect();
+        let recorded = group.iter().map(|&q| &self.actual[q]);
+        slots.extend(recorded.filter(|a| a.flags & FLAG_PROBE != 0).map(|a| a.slot));
+        slots.sort_unstable();
+        slots.dedup();
+        if group.len() >= 2 && slots.len() == 1 {
+            Judged::Uniform
+        } else {
+            Judged::Subgroup(slots)
         }
     }
+}
+
+/// How an undefined read (a dynamic set/binding index without `NonUniform`, `ValueRule::
+/// AnyElement`) is judged at one pixel.
+enum Judged {
+    /// Every active lane of its subgroup computed (and recorded) the same slot, and the subgroup
+    /// has at least two active lanes, so its effective subgroup size is above 1: the resource is
+    /// uniform within the subgroup, and `VUID-RuntimeSpirv-subgroupSize-10149` (Vulkan 1.4.360)
+    /// asks for `NonUniform` only on a resource "not uniform within the invocation group, and not
+    /// uniform within the subgroup". The read is defined: judged exactly. (A one-lane subgroup
+    /// proves no subgroup size above 1, where `VUID-RuntimeSpirv-None-10148` asks for uniformity
+    /// within the whole invocation group, which lane evidence cannot show.)
+    Uniform,
+    /// The slots the lanes of its subgroup computed (the heuristic, per subgroup).
+    Subgroup(Vec<u32>),
+    /// The slots any lane of the dispatch computed (the heuristic without lane evidence).
+    Dispatch(Vec<u32>),
 }
 
 fn compare_probe(
@@ -133,11 +158,17 @@ fn compare_probe(
         }
     }
     let own = r.value == a.value;
-    let (slots, by_subgroup) = match e.rule {
-        ValueRule::Exact => (vec![], false),
-        ValueRule::AnyElement { .. } => others.of(p),
+    let judged = match e.rule {
+        ValueRule::Exact => None,
+        ValueRule::AnyElement { .. } => Some(others.of(p)),
     };
-    let allowed = !own && e.rule.allows(a.value, slots.into_iter());
+    let (slots, by_subgroup, uniform) = match judged {
+        None => (vec![], false, false),
+        Some(Judged::Uniform) => (vec![], true, true),
+        Some(Judged::Subgroup(s)) => (s, true, false),
+        Some(Judged::Dispatch(s)) => (s, false, false),
+    };
+    let allowed = !own && !uniform && e.rule.allows(a.value, slots.into_iter());
     if !allowed {
         let ve =
             r.value.iter().zip(a.value).map(|(x, y)| (*x as f64 - y as f64).abs()).fold(0.0, worst);
@@ -152,13 +183,18 @@ fn compare_probe(
             }
         }
         ValueRule::AnyElement { .. } => {
-            c.any_element_values += 1;
             let reads = c.element_reads.get_or_insert_with(|| ElementReads {
                 outside_spec: NO_NONUNIFORM_VUID.into(),
                 heuristic: OTHER_LANE_HEURISTIC.into(),
                 ..Default::default()
             });
-            reads.by_subgroup += usize::from(by_subgroup);
+            if uniform {
+                reads.uniform += 1;
+                reads.uniform_mismatched += usize::from(!own);
+            } else {
+                c.any_element_values += 1;
+                reads.by_subgroup += usize::from(by_subgroup);
+            }
             match (own, allowed) {
                 (true, _) => reads.own += 1,
                 (false, true) => reads.other += 1,
@@ -176,17 +212,19 @@ pub fn compare(expected: &[Expected], actual: &[Record], width: u32) -> Comparis
     compare_with(expected, actual, width, None)
 }
 
-/// Compare the records; `lanes`: the device's subgroups where its lane evidence may be judged by
-/// (then an undefined read may only read what a lane of its own subgroup computed). Where the
-/// records carry lane evidence and some mismatch, `lanes` of the result splits the probe pixels
-/// by it (its `evidence` is for the caller to say).
+/// Compare the records; `lanes`: the device's subgroups read from the records. Where it may be
+/// judged by (`Lanes::judged`) an undefined read may only read what a lane of its own subgroup
+/// computed, a subgroup proven uniform is judged exactly, and a subgroup whose records contradict
+/// each other is a mismatch on field `lanes` (garbage lane data). Where the records carry lane
+/// evidence and some mismatch, `lanes` of the result splits the probe pixels by it, without the
+/// contradicted subgroups (its `evidence` is for the caller to say).
 pub fn compare_with(
     expected: &[Expected],
     actual: &[Record],
     width: u32,
     lanes: Option<&Lanes>,
 ) -> Comparison {
-    let others = OtherLanes::new(expected, actual, lanes);
+    let others = OtherLanes::new(expected, actual, lanes.filter(|l| l.judged));
     let mut c = Comparison { pixels: expected.len(), ..Default::default() };
     let mut exact_probe_pixels = 0usize;
     let mut split = LaneSplit::default();
@@ -203,10 +241,23 @@ pub fn compare_with(
             exact_probe_pixels += usize::from(e.rule == ValueRule::Exact && r.flags == a.flags);
         }
         let mut bad = compare_pixel(&mut c, (e, a, i), &others, expected.len());
+        let contradiction = lanes.and_then(|l| Some((l.contradiction(i)?, l.judged)));
+        c.lane_contradictions += usize::from(contradiction.is_some());
+        if let Some((why, true)) = contradiction {
+            bad.push((
+                "lanes",
+                "lane words consistent with their subgroup's records".into(),
+                why.into(),
+            ));
+        }
         let lane_words =
             r.flags & FLAG_LANES != 0 && super::lanes::inconsistency(a, expected.len()).is_none();
-        if lane_words {
-            split.add((a.lane, a.active_mask, a.leader as usize, i), !bad.is_empty());
+        match (lane_words, contradiction) {
+            (true, None) => {
+                split.add((a.lane, a.active_mask, a.leader as usize, i), !bad.is_empty())
+            }
+            (true, Some(_)) => split.contradicted.add(!bad.is_empty()),
+            (false, _) => {}
         }
         if !bad.is_empty() {
             c.mismatched_pixels += 1;
@@ -228,7 +279,8 @@ pub fn compare_with(
     if let Some(d) = c.discrimination.as_mut() {
         *d /= exact_probe_pixels as f64;
     }
-    c.lanes = (c.mismatched_pixels > 0 && !split.by_lane.is_empty()).then_some(split);
+    let split_any = !split.by_lane.is_empty() || split.contradicted.pixels > 0;
+    c.lanes = (c.mismatched_pixels > 0 && split_any).then_some(split);
     c
 }
 

@@ -9,6 +9,16 @@
 //! stage runs more than once per pixel (any-hit, intersection) a later call overwrites an earlier
 //! one's evidence, and a fragment subgroup may hold helper invocations that write no record: such
 //! subgroups stay unknown, and whoever asks falls back to what holds without them.
+//!
+//! Records that share a subgroup key (their `leader`) must also agree with each other
+//! ([`contradictions`]): the leader is the lowest set lane of the active mask, lane ids are
+//! distinct and inside the mask, and the mask and count are the same in every record. A subgroup
+//! whose records contradict each other is garbage lane data from the driver: its pixels join no
+//! subgroup and no split, and where the evidence is judged by (`supported`) each of them is a
+//! mismatch on field `lanes` (`compare`). In stages that may run more than once per pixel
+//! (any-hit, intersection: a later call overwrites an earlier one's words) records sharing a
+//! leader may come from different calls, so only the per-record checks hold there.
+use crate::model::Stage;
 use crate::probe::{Record, FLAG_LANES, FLAG_PROBE};
 use std::collections::HashMap;
 
@@ -37,33 +47,141 @@ pub fn inconsistency(r: &Record, pixels: usize) -> Option<&'static str> {
     None
 }
 
+/// Whether each pixel's record comes from one call of the probed stage, so that records sharing
+/// a leader are one subgroup instance: not in any-hit and intersection, which may run several
+/// times per pixel.
+pub fn one_call_per_pixel(stage: Stage) -> bool {
+    match stage {
+        Stage::Raygen
+        | Stage::ClosestHit
+        | Stage::Miss
+        | Stage::Callable
+        | Stage::Fragment
+        | Stage::Compute => true,
+        Stage::AnyHit | Stage::Intersection => false,
+    }
+}
+
+/// Per pixel: the probe records with consistent lane words (`FLAG_PROBE` and `FLAG_LANES` set,
+/// [`inconsistency`] none) and their leader pixel.
+fn leaders(records: &[Record]) -> Vec<Option<usize>> {
+    let n = records.len();
+    let with_lanes = |r: &Record| {
+        r.flags & (FLAG_PROBE | FLAG_LANES) == FLAG_PROBE | FLAG_LANES
+            && inconsistency(r, n).is_none()
+    };
+    records.iter().map(|r| with_lanes(r).then_some(r.leader as usize)).collect()
+}
+
+/// The pixels sharing each leader (in pixel order).
+fn members(leader: &[Option<usize>]) -> HashMap<usize, Vec<usize>> {
+    let mut members: HashMap<usize, Vec<usize>> = HashMap::new();
+    for (p, l) in leader.iter().enumerate() {
+        if let Some(l) = l {
+            members.entry(*l).or_default().push(p);
+        }
+    }
+    members
+}
+
+/// What is wrong between the records of one subgroup (`group`: the pixels whose records name
+/// `leader`), if anything: members disagreeing on the mask or count, two members claiming one
+/// lane, a lane outside the subgroup's mask, or a leader that is not the lowest set lane of the
+/// mask (`subgroupBroadcastFirst` is SPIR-V's `OpGroupNonUniformBroadcastFirst`: "the Value of
+/// the invocation from the active invocation with the lowest id in the group", the id in a
+/// subgroup being `SubgroupLocalInvocationId`, the record's `lane`).
+pub fn subgroup_contradiction(
+    records: &[Record],
+    leader: usize,
+    group: &[usize],
+) -> Option<&'static str> {
+    // The subgroup's mask: its leader's record's where the leader is a member.
+    let first = &records[if group.contains(&leader) { leader } else { group[0] }];
+    let mask = first.active_mask;
+    if group.iter().any(|&q| records[q].lane < 32 && mask & (1 << records[q].lane) == 0) {
+        return Some("a lane outside its subgroup's active mask");
+    }
+    if group.iter().any(|&q| {
+        records[q].active_mask != first.active_mask || records[q].active_count != first.active_count
+    }) {
+        return Some("records of one subgroup disagree on the active mask or count");
+    }
+    let mut seen = std::collections::HashSet::new();
+    if !group.iter().all(|&q| seen.insert(records[q].lane)) {
+        return Some("two records of one subgroup claim the same lane");
+    }
+    if group.len() > first.active_count as usize {
+        return Some("more records in one subgroup than its active count");
+    }
+    let leads = group.contains(&leader)
+        && if mask == 0 {
+            records[leader].lane >= 32
+        } else {
+            records[leader].lane == mask.trailing_zeros()
+        };
+    if !leads {
+        return Some("the leader is not the lowest set lane of the subgroup's active mask");
+    }
+    None
+}
+
+/// Per pixel: why its subgroup's records contradict each other ([`subgroup_contradiction`]),
+/// checked where each pixel's record comes from one call of `stage` ([`one_call_per_pixel`]).
+/// In fragment shaders a subgroup whose leader wrote no record is no contradiction (a helper
+/// invocation may lead it and write none): only the checks among its members hold there.
+/// Elsewhere a leader that ran no probe (e.g. lavapipe 26's closest-hit under forced evidence:
+/// lane 0's pixel, a miss, named by every lane of a call lane 0 was not in) is one.
+pub fn contradictions(records: &[Record], stage: Stage) -> Vec<Option<&'static str>> {
+    let mut out = vec![None; records.len()];
+    if !one_call_per_pixel(stage) {
+        return out;
+    }
+    let leader = leaders(records);
+    for (l, group) in members(&leader) {
+        let led = leader.get(l).copied().flatten().is_some() || stage != Stage::Fragment;
+        let why = subgroup_contradiction(records, l, &group)
+            .filter(|why| led || !why.starts_with("the leader is not"));
+        for q in group {
+            out[q] = why;
+        }
+    }
+    out
+}
+
 /// Subgroup membership from a cell's records.
 #[derive(Clone, Debug, Default)]
 pub struct Lanes {
-    /// Per pixel: its leader pixel, where its record carries consistent lane evidence.
+    /// Per pixel: its leader pixel, where its record carries consistent lane evidence and its
+    /// subgroup's records do not contradict each other.
     leader: Vec<Option<usize>>,
     /// Per leader pixel: the members of its subgroup, where the records show all of it.
     groups: HashMap<usize, Vec<usize>>,
+    /// Per pixel: why its subgroup's records contradict each other ([`contradictions`]).
+    contradicted: Vec<Option<&'static str>>,
+    /// The evidence may be judged by (`LaneEvidence::Supported`): undefined reads per subgroup,
+    /// uniform subgroups exactly, contradictions as mismatches. Otherwise (forced evidence) it
+    /// only splits a mismatch for the diagnosis.
+    pub judged: bool,
 }
 
 impl Lanes {
-    /// Read the lane evidence of every probe record (`FLAG_PROBE` and `FLAG_LANES` set, lane
-    /// words consistent).
+    /// [`Lanes::for_stage`] of a stage that runs once per pixel (raygen).
     pub fn from_records(records: &[Record]) -> Lanes {
-        let n = records.len();
-        let with_lanes = |r: &Record| {
-            r.flags & (FLAG_PROBE | FLAG_LANES) == FLAG_PROBE | FLAG_LANES
-                && inconsistency(r, n).is_none()
-        };
-        let leader: Vec<Option<usize>> =
-            records.iter().map(|r| with_lanes(r).then_some(r.leader as usize)).collect();
-        let mut members: HashMap<usize, Vec<usize>> = HashMap::new();
-        for (p, l) in leader.iter().enumerate() {
-            if let Some(l) = l {
-                members.entry(*l).or_default().push(p);
+        Lanes::for_stage(records, Stage::Raygen)
+    }
+
+    /// Read the lane evidence of every probe record of a cell probing `stage` (`FLAG_PROBE` and
+    /// `FLAG_LANES` set, lane words consistent, the subgroup's records not contradicting each
+    /// other).
+    pub fn for_stage(records: &[Record], stage: Stage) -> Lanes {
+        let contradicted = contradictions(records, stage);
+        let mut leader = leaders(records);
+        for (l, c) in leader.iter_mut().zip(&contradicted) {
+            if c.is_some() {
+                *l = None;
             }
         }
-        let groups = members
+        let groups = members(&leader)
             .into_iter()
             .filter(|(l, m)| {
                 let first = &records[m[0]];
@@ -75,7 +193,17 @@ impl Lanes {
                     })
             })
             .collect();
-        Lanes { leader, groups }
+        Lanes { leader, groups, contradicted, judged: true }
+    }
+
+    /// This evidence, judged by only where `judged` (see [`Lanes::judged`]).
+    pub fn judged_by(self, judged: bool) -> Lanes {
+        Lanes { judged, ..self }
+    }
+
+    /// Why pixel `p`'s subgroup's records contradict each other, if they do.
+    pub fn contradiction(&self, p: usize) -> Option<&'static str> {
+        self.contradicted.get(p).copied().flatten()
     }
 
     /// The pixels that ran in the same subgroup instance of the probed stage's call as pixel `p`
@@ -132,6 +260,64 @@ mod tests {
         // Members disagreeing on the mask: not one subgroup.
         records[1].active_mask = 0b0110_0011;
         assert_eq!(Lanes::from_records(&records).subgroup(0), None);
+    }
+
+    /// Eight pixels in one subgroup of lanes 1, 2, 5, 6 (lane 0 inactive), led by pixel 0.
+    fn group() -> Vec<Record> {
+        let mask = 0b0110_0110;
+        vec![rec(1, 0, mask), rec(2, 0, mask), rec(5, 0, mask), rec(6, 0, mask)]
+    }
+
+    /// Twins of the cross-record checks: each planted fault makes the whole subgroup a
+    /// contradiction, unknown as a subgroup and without a leader.
+    #[test]
+    fn records_of_one_subgroup_must_agree_with_each_other() {
+        let good = group();
+        assert_eq!(contradictions(&good, Stage::ClosestHit), vec![None; 4]);
+        let lanes = Lanes::for_stage(&good, Stage::ClosestHit);
+        assert_eq!(
+            (lanes.subgroup(1).map(<[usize]>::len), lanes.contradiction(1)),
+            (Some(4), None)
+        );
+        let wrong_leader: Vec<Record> = good.iter().map(|r| Record { leader: 1, ..*r }).collect();
+        let mut duplicate = good.clone();
+        duplicate[2].lane = 2;
+        let mut outside = good.clone();
+        outside[3] = Record { lane: 3, active_mask: 0b0110_1110, active_count: 5, ..outside[3] };
+        let mut mask_differs = good.clone();
+        mask_differs[3].active_mask = 0b0110_0110 | 1 << 9;
+        mask_differs[3].active_count = 5;
+        let planted = [
+            (wrong_leader, "the leader is not the lowest set lane"),
+            (duplicate, "claim the same lane"),
+            (outside, "a lane outside"),
+            (mask_differs, "disagree on the active mask"),
+        ];
+        for (records, why) in planted {
+            // each record is consistent on its own: only the cross-record check sees the fault
+            assert!(records.iter().all(|r| inconsistency(r, 4).is_none()), "{why}");
+            let c = contradictions(&records, Stage::ClosestHit);
+            assert!(c.iter().all(|w| w.is_some_and(|w| w.contains(why))), "{why}: {c:?}");
+            let lanes = Lanes::for_stage(&records, Stage::ClosestHit);
+            assert_eq!(
+                (lanes.subgroup(0), lanes.leader(0), lanes.known()),
+                (None, None, 0),
+                "{why}"
+            );
+            // in any-hit a pixel's record may come from another call: not checked there
+            assert_eq!(contradictions(&records, Stage::AnyHit), vec![None; 4], "{why}");
+        }
+        // lavapipe 26's closest-hit (forced evidence): lanes 1, 2, 5, 6 active, and every one
+        // names pixel 8, lane 0's, which ran no probe (no record): a contradiction there, but
+        // not in a fragment shader, where a helper invocation may lead and write no record.
+        let mut lane0 = good.clone();
+        lane0.extend(std::iter::repeat_n(Record::default(), 5));
+        for r in &mut lane0[..4] {
+            r.leader = 8;
+        }
+        let c = contradictions(&lane0, Stage::ClosestHit);
+        assert!(c[..4].iter().all(|w| w.is_some_and(|w| w.contains("leader"))), "{c:?}");
+        assert_eq!(contradictions(&lane0, Stage::Fragment), vec![None; 9]);
     }
 
     #[test]

@@ -323,7 +323,7 @@ pub fn mutant_after_run(
 ) -> crate::model::MutantPrediction {
     let mut m = mutation::Mutation::new(site);
     let from_lanes = mutation::broadcast(site);
-    let subgroups = lanes::Lanes::from_records(records);
+    let subgroups = lanes::Lanes::for_stage(records, cell.stage);
     if from_lanes {
         m.leader_slots = mutation::leader_slots(expected, &subgroups);
     }

@@ -130,8 +130,16 @@ pub fn predict(
         .zip(mutated)
         .filter(|(e, m)| !e.ambiguous && !m.ambiguous && e.record != m.record)
         .count();
-    let caught = compare_with(expected, &records, width, lanes).mismatched_pixels;
-    MutantPrediction { differing, caught, from_lanes: false }
+    let cmp = compare_with(expected, &records, width, lanes);
+    // value mismatches of pixels the heuristic judged (a mutant changes only the value)
+    let caught_by_heuristic =
+        cmp.element_reads.as_ref().map_or(0, |r| r.neither.saturating_sub(r.uniform_mismatched));
+    MutantPrediction {
+        differing,
+        caught: cmp.mismatched_pixels,
+        caught_by_heuristic,
+        from_lanes: false,
+    }
 }
 
 /// Whether `site` is a broadcast (its prediction needs the device's lane evidence).
@@ -152,5 +160,5 @@ pub fn one_slot(expected: &[Expected]) -> MutantPrediction {
         .map(|e| e.record.slot);
     let first = slots.next();
     let differing = slots.filter(|s| Some(*s) != first).count();
-    MutantPrediction { differing, caught: differing, from_lanes: true }
+    MutantPrediction { differing, caught: differing, caught_by_heuristic: 0, from_lanes: true }
 }

@@ -824,3 +824,114 @@ fn every_cell_of_the_default_plan_discriminates() {
     assert!(weak.is_empty(), "cells below 50% discrimination: {weak:?}");
     assert!(checked > 500, "{checked}");
 }
+
+/// Records of one subgroup that contradict each other are garbage lane data: where the evidence
+/// is judged by (supported) each of its pixels is a mismatch on field `lanes`, and the subgroup
+/// is never evidence (no per-subgroup judging, no lane split), judged by or not. Twins: a planted
+/// wrong leader, a duplicate lane id, a lane outside the subgroup's mask; each record stays
+/// consistent on its own, so only the cross-record check catches them.
+#[test]
+fn contradicting_lane_records_are_a_finding_never_evidence() {
+    let (scene, r) = world();
+    let c = cell(Stage::Raygen, IndexSource::Literal);
+    let mut e = expected(&c, scene, r);
+    expect_lanes(&mut e, LaneEvidence::Supported);
+    let good = with_lanes(&e);
+    let judge = |records: &[Record], judged: bool| {
+        let lanes = lanes::Lanes::for_stage(records, Stage::Raygen).judged_by(judged);
+        compare_with(&e, records, 64, Some(&lanes))
+    };
+    assert!(judge(&good, true).passed());
+    let probe = |p: usize| good[p].flags & FLAG_PROBE != 0 && !e[p].ambiguous;
+    let g = (0..good.len() / 8).find(|g| (0..8).all(|k| probe(g * 8 + k))).unwrap();
+    let members: Vec<usize> = (g * 8..g * 8 + 8).collect();
+    let mut wrong_leader = good.clone();
+    for &p in &members {
+        wrong_leader[p].leader = members[1] as u32;
+    }
+    let mut duplicate = good.clone();
+    duplicate[members[2]].lane = good[members[1]].lane;
+    let mut outside = good.clone();
+    let q = &mut outside[members[2]];
+    (q.lane, q.active_mask, q.active_count) = (9, q.active_mask | 1 << 9, q.active_count + 1);
+    for (name, bad) in
+        [("wrong leader", wrong_leader), ("duplicate", duplicate), ("outside", outside)]
+    {
+        assert!(bad.iter().all(|a| lanes::inconsistency(a, bad.len()).is_none()), "{name}");
+        let cmp = judge(&bad, true);
+        assert_eq!(cmp.mismatched_pixels, members.len(), "{name}: {:?}", cmp.examples);
+        assert!(cmp.by_field.keys().eq(["lanes"]), "{name}: {:?}", cmp.by_field);
+        assert_eq!(cmp.lane_contradictions, members.len(), "{name}");
+        // forced evidence is never judged by: no mismatch, but the subgroup is no evidence either
+        let mut spoiled = bad.clone();
+        for a in spoiled.iter_mut().filter(|a| a.flags & FLAG_PROBE != 0) {
+            a.value[0] += 1.0;
+        }
+        let cmp = judge(&spoiled, false);
+        let split = cmp.lanes.expect("a mismatch with lane words is split");
+        let split_pixels = split.leaders.pixels + split.followers.pixels;
+        assert_eq!(split_pixels + members.len(), cmp.probe_checked, "{name}");
+        assert_eq!(split.contradicted.pixels, members.len(), "{name}: counted apart");
+        assert!(split.sentence().contains("contradict each other"), "{name}");
+        assert_eq!(cmp.by_field.get("lanes"), None, "{name}");
+    }
+}
+
+/// Records grouped into device subgroups of up to eight pixels that computed the same slot
+/// (`same`), or of eight neighbours (`!same`): lane k of a group of n, mask of n bits.
+fn grouped(e: &[Expected], same: bool) -> Vec<Record> {
+    let mut out = records(e);
+    let mut by: std::collections::BTreeMap<u32, Vec<usize>> = Default::default();
+    for (p, x) in e.iter().enumerate().filter(|(_, x)| x.record.flags & FLAG_PROBE != 0) {
+        by.entry(if same { x.record.slot } else { p as u32 / 8 }).or_default().push(p);
+    }
+    for pixels in by.values() {
+        for chunk in pixels.chunks(8) {
+            for (k, &p) in chunk.iter().enumerate() {
+                let r = &mut out[p];
+                (r.lane, r.leader) = (k as u32, chunk[0] as u32);
+                (r.active_mask, r.active_count) = ((1u32 << chunk.len()) - 1, chunk.len() as u32);
+            }
+        }
+    }
+    out
+}
+
+/// Where the lane evidence shows every active lane of a subgroup (two or more) computed the same
+/// index, the read is uniform within the subgroup and needs no NonUniform
+/// (VUID-RuntimeSpirv-subgroupSize-10149, Vulkan 1.4.360): judged exactly, not by the heuristic.
+/// Twin: a uniform subgroup's lane reading another element (one another subgroup computed, so
+/// the dispatch-wide heuristic would accept it) is a mismatch counted as a defined one.
+#[test]
+fn a_uniform_subgroup_is_judged_exactly() {
+    let (scene, r) = world();
+    let c = cell(Stage::Raygen, IndexSource::Dynamic);
+    let mut e = expected(&c, scene, r);
+    expect_lanes(&mut e, LaneEvidence::Supported);
+    assert!(e.iter().any(|x| x.rule != ValueRule::Exact), "an undefined read");
+    let judge = |records: &[Record]| {
+        compare_with(&e, records, 64, Some(&lanes::Lanes::from_records(records)))
+    };
+    let uniform = grouped(&e, true);
+    let cmp = judge(&uniform);
+    let reads = cmp.element_reads.clone().unwrap();
+    assert!(cmp.passed() && reads.uniform > 1000 && reads.uniform_mismatched == 0, "{reads:?}");
+    assert_eq!(reads.uniform + cmp.any_element_values, reads.own, "{reads:?}");
+    // one lane of a uniform subgroup reads the slot of a neighbour outside it
+    let lanes = lanes::Lanes::from_records(&uniform);
+    let p = (0..e.len())
+        .find(|&p| !e[p].ambiguous && lanes.subgroup(p).is_some_and(|g| g.len() >= 2))
+        .unwrap();
+    let probed = e.iter().filter(|x| x.record.flags & FLAG_PROBE != 0 && !x.ambiguous);
+    let other = probed.map(|x| x.record.slot).find(|s| *s != e[p].record.slot).unwrap();
+    let mut wrong = uniform.clone();
+    wrong[p].value = probe::resource_value(Resource::StorageBuffer, other, wrong[p].element);
+    assert!(compare(&e, &wrong, 64).passed(), "without lane evidence the heuristic allows it");
+    let cmp = judge(&wrong);
+    let reads = cmp.element_reads.clone().unwrap();
+    assert_eq!((cmp.mismatched_pixels, reads.uniform_mismatched), (1, 1), "{reads:?}");
+    assert!(cmp.by_field.keys().eq(["value"]));
+    // subgroups of neighbours computed different slots: the heuristic, never `uniform`
+    let mixed = judge(&grouped(&e, false)).element_reads.unwrap();
+    assert!(mixed.by_subgroup > 0, "{mixed:?}");
+}

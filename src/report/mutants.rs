@@ -194,14 +194,17 @@ pub fn verdict(
         }
     };
     let survived = status == MutantStatus::Survived;
-    let probe_defect = survived && prediction.caught > 0;
+    // Only pixels judged exactly bind the driver: where the cell's read is undefined the mutated
+    // read is undefined too (no NonUniform on it either), whatever the reference predicted.
+    let probe_defect = survived && prediction.caught_exactly() > 0;
     let allowed_by = (survived && !probe_defect).then(|| {
         cmp.and_then(|c| c.element_reads.as_ref())
             .map(|r| r.outside_spec.clone())
             .unwrap_or_else(|| NO_NONUNIFORM_VUID.to_string())
     });
     let why = match status {
-        MutantStatus::Survived if probe_defect => format!("PROBE DEFECT: the reference predicts {} of {} differing pixels the comparison must flag, and it flagged none", prediction.caught, prediction.differing),
+        MutantStatus::Survived if probe_defect => format!("PROBE DEFECT: the reference predicts {} of {} differing pixels the comparison must flag, and it flagged none", prediction.caught_exactly(), prediction.differing),
+        MutantStatus::Survived if prediction.caught_by_heuristic > 0 => format!("allowed: the spec leaves this read undefined ({}), and the mutated read too (no NonUniform on it either): a per-lane read of it would be caught on {} of {} differing pixels, but the driver may read through any lane's index, and rtprobe's lenient rule (an index another lane of the subgroup computed) accepted what it read", allowed_by.as_deref().unwrap_or(""), prediction.caught_by_heuristic, prediction.differing),
         MutantStatus::Survived => format!("allowed: the spec leaves this read undefined ({}); rtprobe's lenient rule for it (an index another lane computed) accepts what the mutant read on all {} differing pixels", allowed_by.as_deref().unwrap_or(""), prediction.differing),
         MutantStatus::Equivalent => "the device's lane evidence shows every subgroup computed one slot: the reference predicts the same records".into(),
         MutantStatus::Killed

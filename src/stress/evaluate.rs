@@ -9,8 +9,9 @@
 //! will perform watertight intersection tests" — the CTS (`watertightness` tests) counts misses.
 //! So:
 //! - fail: a leak (a ray that must hit misses: a certain hit, or a ray through the interior of a
-//!   closed surface), a wrong hit (a primitive the ray does not cross, or one behind a certain
-//!   closer hit), a false hit (a ray that must miss hits, or an inactive primitive is hit:
+//!   closed surface), a wrong hit (a primitive the ray does not cross, one behind a certain
+//!   closer hit, or a reported hit off the triangle: t outside its vertices' depth range or a
+//!   weight below 0 by more than its margin, `Margins::off_triangle`), a false hit (a ray that must miss hits, or an inactive primitive is hit:
 //!   `acceleration-structure-inactive-prims`, "An inactive object is considered invisible to all
 //!   rays"), a duplicate any-hit (`VK_GEOMETRY_NO_DUPLICATE_ANY_HIT_INVOCATION_BIT_KHR`: "the
 //!   implementation must only call the any-hit shader a single time for each primitive"), a
@@ -90,6 +91,9 @@ impl Acc {
         self.m.rays += 1;
         if cands.iter().any(|c| !c.certain) {
             self.m.ambiguous += 1;
+            if !must_hit && !culled {
+                self.m.excluded += 1;
+            }
         }
         if tr.candidates >= 2
             && tr.first_candidates[0] != 0
@@ -142,7 +146,7 @@ impl Acc {
                 && c.hit.t < p.t - m.t_amb
                 && (c.instance, c.primitive) != (h.instance, h.primitive)
         });
-        if m.outside(&p) || closer {
+        if m.outside(&p) || closer || m.off_triangle(h.t, h.bary) {
             self.m.wrong_hits += 1;
             self.m.disagreements += 1;
             self.example("wrong_hit", part, i, tr, &cands);
@@ -237,6 +241,7 @@ impl Acc {
         a.rays += b.rays;
         a.hits += b.hits;
         a.ambiguous += b.ambiguous;
+        a.excluded += b.excluded;
         a.self_hits += b.self_hits;
         a.disagreements += b.disagreements;
         a.leaks += b.leaks;
@@ -443,6 +448,70 @@ mod tests {
         let (w, d) = (c.hit.weights[k], c.hit.edge_distance(k));
         assert!((0.013..0.014).contains(&w) && (1e-9..2e-9).contains(&d), "{w} {d}");
         assert!(!c.certain && c.edge_margin > w);
+    }
+
+    /// Sliver 193 of `square-1024` and the ray lavapipe 26 hit it with (a legitimate answer):
+    /// the part holding only that ray, and the reference's hit and margins on 193.
+    fn sliver_193() -> (Part, PlaneHit, Margins) {
+        let opts = StressOptions { cases: vec![], seed: 1, full: false };
+        let mut part = cases::build(CaseKind::Watertight, &opts)
+            .unwrap()
+            .into_iter()
+            .find(|p| p.label == "square-1024")
+            .unwrap();
+        let ray = Ray {
+            origin: bits3([0x3e9e958e, 0x3f111103, 0xbf7dfdab]),
+            tmin: 0.0,
+            dir: [0.0, 0.0, 1.0],
+            tmax: f32::from_bits(0x7149f2ca),
+        };
+        part.rays = vec![ray];
+        part.info = vec![RayInfo { must_hit: true }];
+        let r = resolve(&part, 0, 193, &ray).unwrap();
+        let p = watertight::plane(r.o, r.d, r.v).unwrap();
+        let m = margins(&r, &ray, &p);
+        (part, p, m)
+    }
+
+    /// Issue 22: on a sliver the t tolerance (1e-3·t + Σ margin·depth) and the barycentric one
+    /// (1e-3 + Σ margins) are wide; a hit off the triangle — t outside its vertices' depth range,
+    /// or a weight below 0 beyond its margin — is a wrong hit even inside them.
+    #[test]
+    fn a_wrong_t_or_off_triangle_barycentrics_on_a_sliver_are_wrong_hits() {
+        let (part, p, m) = sliver_193();
+        let ray = part.rays[0];
+        let judge = |t: f64, w: [f64; 3]| {
+            let mut p2 = sliver_193().0;
+            p2.rays = vec![ray];
+            one(p2, vec![traced(&ray, Some(193), t as f32, [w[1] as f32, w[2] as f32])]).metrics
+        };
+        // The reference's own answer passes.
+        let ok = judge(p.t, p.weights);
+        assert_eq!((ok.wrong_hits, ok.over_tolerance), (0, 0));
+        // t just past the depth range, on the side nearer the crossing: inside the old tolerance.
+        let (lo, hi) = (m.t_range[0], m.t_range[1]);
+        let bad_t = if hi - p.t < p.t - lo { hi + 2e-5 } else { lo - 2e-5 };
+        assert!((bad_t - p.t).abs() <= m.t_tol, "the old tolerance accepts it");
+        let inside_t = if hi - p.t < p.t - lo { hi - 1e-7 } else { lo + 1e-7 };
+        assert_eq!(judge(inside_t, p.weights).wrong_hits, 0, "inside the range");
+        let r = judge(bad_t, p.weights);
+        assert_eq!(r.wrong_hits, 1, "t {bad_t} outside [{lo}, {hi}]");
+        // The weight with the widest margin planted just below its floor, another raised to keep
+        // the sum: inside the old barycentric tolerance, off the triangle.
+        let k = (0..3).max_by(|&a, &b| m.edge[a].total_cmp(&m.edge[b])).unwrap();
+        let j = (0..3).filter(|&j| j != k).max_by(|&a, &b| p.weights[a].total_cmp(&p.weights[b]));
+        let plant = |wk: f64| {
+            let mut w = p.weights;
+            w[j.unwrap()] += w[k] - wk;
+            w[k] = wk;
+            w
+        };
+        let floor = m.weight_floor[k];
+        let bad = plant(floor - 1e-3 * floor.abs() - 1e-6);
+        let db = (1..3).map(|i| (bad[i] - p.weights[i]).abs()).fold(0.0, f64::max);
+        assert!(db <= m.bary_tol, "the old tolerance accepts it: {db} {}", m.bary_tol);
+        assert_eq!(judge(p.t, plant(floor * 0.9)).wrong_hits, 0, "inside the margin");
+        assert_eq!(judge(p.t, bad).wrong_hits, 1, "weight {k} at {} < {floor}", bad[k]);
     }
 
     /// A steep quad (its plane y = 1e-3·z) seen along +z: ray-space altitudes ~7e-4 against

@@ -66,6 +66,13 @@ pub(super) struct Margins {
     pub t_amb: f64,
     pub t_tol: f64,
     pub bary_tol: f64,
+    /// The t range a hit on this triangle can report: its vertices' depths along the ray,
+    /// widened by the depth coordinate's error and T_EPS·t, and by as far as the reference's
+    /// own crossing lies outside an edge (within its margin).
+    pub t_range: [f64; 2],
+    /// The lowest weight a hit on this triangle can report, per vertex: minus its edge margin
+    /// and [`WEIGHT_EPS`].
+    pub weight_floor: [f64; 3],
 }
 
 impl Margins {
@@ -78,7 +85,22 @@ impl Margins {
     pub fn inside(&self, p: &PlaneHit) -> bool {
         (0..3).all(|k| p.weights[k] > self.edge[k])
     }
+    /// A reported hit that is not on this triangle: its t outside `t_range`, or a weight
+    /// (1 − u − v, u, v) below its floor. A watertight f32 test reports t as the weights' mean
+    /// of the vertices' f32 depths (Woop et al. §3: `t = (U·Az + V·Bz + W·Cz)/det`, U, V, W of
+    /// one sign), so it cannot leave their range; the relative t tolerance (1e-3·t) and the
+    /// barycentric one (1e-3 + Σ margins) are far wider on a sliver and let a hit off the
+    /// triangle pass (issue 22). NaN is left to the tolerance check (an infinite error).
+    pub fn off_triangle(&self, t: f32, bary: [f32; 2]) -> bool {
+        let (u, v) = (bary[0] as f64, bary[1] as f64);
+        let w = [1.0 - u - v, u, v];
+        let t = t as f64;
+        t < self.t_range[0] || t > self.t_range[1] || (0..3).any(|k| w[k] < self.weight_floor[k])
+    }
 }
+
+/// What f32 rounding of the reported barycentrics themselves may add below 0 (4 ulps of 1).
+pub const WEIGHT_EPS: f64 = 4.0 * f32::EPSILON as f64;
 
 pub(super) fn margins(r: &Resolved, ray: &Ray, p: &PlaneHit) -> Margins {
     let o = watertight::to_f64(ray.origin);
@@ -101,12 +123,20 @@ pub(super) fn margins(r: &Resolved, ray: &Ray, p: &PlaneHit) -> Margins {
     let along =
         ULPS_OF_SCALE * (ulp_f32(p.depth_scale) + world) / p.depth_dir.max(f64::MIN_POSITIVE);
     let depth: f64 = (0..3).map(|k| edge[k] * (p.vertex_t[k] - p.t).abs()).sum();
+    let (lo, hi) = p
+        .vertex_t
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &t| (lo.min(t), hi.max(t)));
+    let outside: f64 = p.weights.iter().map(|w| (-w).max(0.0)).sum();
+    let slack = T_EPS * p.t.abs() + along + outside * (hi - lo);
     Margins {
         reach: abs + rel * p.reach_max,
         edge,
         t_amb: T_EPS * p.t.abs() + along + depth,
         t_tol: T_REL_TOL * p.t.abs() + along + depth,
         bary_tol: BARY_TOL + edge.iter().sum::<f64>(),
+        t_range: [lo - slack, hi + slack],
+        weight_floor: edge.map(|e| -e - WEIGHT_EPS),
     }
 }
 

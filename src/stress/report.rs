@@ -1,7 +1,8 @@
 //! The stress report: a table per case on the terminal, and the JSON document
 //! (`"schema": "rtprobe.stress/2"`) with the tolerances it was judged by. Schema 2 (issue 22):
 //! margins in ray space, `ambiguous` rays counted, double hits split into warnings (outside
-//! the margin) and `double_hits_in_margin`, verdict `warn`.
+//! the margin) and `double_hits_in_margin`, verdict `warn`; `excluded` (column `excl`): the
+//! ambiguous rays where a miss would be no leak.
 use super::evaluate::{self, CaseResult, Metrics, Verdict};
 use serde_json::{json, Value};
 
@@ -16,11 +17,12 @@ fn opt(x: Option<f64>) -> String {
 
 fn row(label: &str, m: &Metrics) -> String {
     format!(
-        "  {:<18} {:>6} {:>6} {:>6} {:>5} {:>5} {:>5} {:>6} {:>6} {:>5} {:>10} {:>10} {:>10} {:>10}\n",
+        "  {:<18} {:>6} {:>6} {:>6} {:>6} {:>5} {:>5} {:>5} {:>6} {:>6} {:>5} {:>10} {:>10} {:>10} {:>10}\n",
         label,
         m.rays,
         m.hits,
         m.ambiguous,
+        m.excluded,
         m.leaks,
         m.false_hits,
         m.wrong_hits,
@@ -47,8 +49,8 @@ pub fn text(device: &str, cases: &[CaseResult]) -> String {
             continue;
         }
         s.push_str(&format!(
-            "  {:<18} {:>6} {:>6} {:>6} {:>5} {:>5} {:>5} {:>6} {:>6} {:>5} {:>10} {:>10} {:>10} {:>10}\n",
-            "part", "rays", "hits", "ambig", "leak", "false", "wrong", "double", "overtol", "self", "t_ulps_max", "t_ulps_p99", "t_rel_max", "bary_max"
+            "  {:<18} {:>6} {:>6} {:>6} {:>6} {:>5} {:>5} {:>5} {:>6} {:>6} {:>5} {:>10} {:>10} {:>10} {:>10}\n",
+            "part", "rays", "hits", "ambig", "excl", "leak", "false", "wrong", "double", "overtol", "self", "t_ulps_max", "t_ulps_p99", "t_rel_max", "bary_max"
         ));
         for p in &c.parts {
             s.push_str(&row(&p.label, &p.metrics));
@@ -97,7 +99,7 @@ pub fn json(
             "bary": evaluate::BARY_TOL,
             "ulps_of_scale": evaluate::ULPS_OF_SCALE,
             "t_eps": evaluate::T_EPS,
-            "rule": "ray space: position error abs = ulps_of_scale*(ulp(S_object) + ulp(S_world)*|d_object|/|d_world|), product error rel = ulps_of_scale*f32_epsilon; margin of weight k = (abs*(|B|+|C|) + rel*|B||C|)/|det| for the edge (B, C) opposite vertex k in ray space (≈ abs/h_k, h_k its ray-space altitude); |db| <= bary + sum of the margins, |dt| <= t_rel*t + abs/|d_object| + sum_k margin_k*|t_k - t|; S = max |coordinate| of ray origin, hit point and triangle; fail: leaks, false/wrong hits, duplicate any-hits, over tolerance, facing errors; warn: double hits outside the margins",
+            "rule": "ray space: position error abs = ulps_of_scale*(ulp(S_object) + ulp(S_world)*|d_object|/|d_world|), product error rel = ulps_of_scale*f32_epsilon; margin of weight k = (abs*(|B|+|C|) + rel*|B||C|)/|det| for the edge (B, C) opposite vertex k in ray space (≈ abs/h_k, h_k its ray-space altitude); |db| <= bary + sum of the margins, |dt| <= t_rel*t + abs/|d_object| + sum_k margin_k*|t_k - t|; a hit off the triangle is a wrong hit: t outside [min t_k, max t_k] widened by t_eps*t + abs/|d_object| (+ the reference's own outside weights times the range), or a weight below -(margin_k + 4 f32 eps); S = max |coordinate| of ray origin, hit point and triangle; fail: leaks, false/wrong hits, duplicate any-hits, over tolerance, facing errors; warn: double hits outside the margins",
         },
         "cases": cases,
     })

@@ -53,6 +53,10 @@ pub struct Metrics {
     /// Rays the reference cannot judge strictly: some primitive they may hit lies within the
     /// ambiguity margin of an edge or of tmin/tmax (only a case's must-hit still holds there).
     pub ambiguous: usize,
+    /// Of those, rays where a miss would be no leak (no must-hit from the case, not culled):
+    /// the share of a case a leak could hide in (issue 22).
+    #[serde(default)]
+    pub excluded: usize,
     /// Hit/miss against an unambiguous reference, plus hits on the wrong primitive.
     pub disagreements: usize,
     /// Rays that must hit and missed.

@@ -137,15 +137,22 @@ mod tests {
     fn a_dead_or_silent_worker_is_its_case_outcome_with_where_and_why() {
         let opts = StressOptions { cases: vec![], seed: 1, full: false };
         let part = Duration::from_secs(12);
-        let c =
-            died(CaseKind::Tmin, &opts, &end(Some(libc::SIGSEGV), false), "trace tmin-1ulp", part);
+        let c = died(
+            CaseKind::Tmin,
+            &opts,
+            &end(Some(libc::SIGSEGV), false),
+            "trace tmin-256ulp",
+            part,
+        );
         assert_eq!(c.verdict, Verdict::Crash);
         let d = c.detail.unwrap();
         assert!(
-            d.contains("signal 11 (SIGSEGV) at `trace tmin-1ulp`; stderr: lavapipe: boom"),
+            d.contains("signal 11 (SIGSEGV) at `trace tmin-256ulp`; stderr: lavapipe: boom"),
             "{d}"
         );
-        assert_eq!(c.metrics.rays, 216, "the rays it would have traced");
+        let rays: usize =
+            cases::build(CaseKind::Tmin, &opts).unwrap().iter().map(|p| p.rays.len()).sum();
+        assert_eq!(c.metrics.rays, rays, "the rays it would have traced");
         let t = died(CaseKind::Tmin, &opts, &end(Some(libc::SIGTERM), true), "ready", part);
         assert_eq!(t.verdict, Verdict::Timeout);
         assert!(t.detail.unwrap().contains("was silent for 12s and was killed at `ready`"));

@@ -9,7 +9,7 @@ const FLOOR: f64 = 1e-10;
 
 fn series(far: &CaseResult) -> Vec<Series> {
     let mut out = Vec::new();
-    for (k, mode) in super::cases::FAR_MODES.into_iter().enumerate() {
+    for (k, mode) in super::far::FAR_MODES.into_iter().enumerate() {
         let pts = |f: &dyn Fn(&super::evaluate::Metrics) -> Option<f64>| -> Vec<(f64, f64)> {
             far.parts
                 .iter()

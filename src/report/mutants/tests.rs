@@ -38,7 +38,8 @@ fn attempt(outcome: Outcome, prediction: Option<MutantPrediction>, lenient: bool
     Attempt::new(outcome, false).with_result(result).with_wall_ms(2.0)
 }
 
-const P: MutantPrediction = MutantPrediction { differing: 12, caught: 12, from_lanes: false };
+const P: MutantPrediction =
+    MutantPrediction { differing: 12, caught: 12, from_lanes: false, caught_by_heuristic: 0 };
 
 #[test]
 fn a_mismatch_is_a_kill_and_a_fault_is_not() {
@@ -79,7 +80,8 @@ fn a_survivor_is_a_probe_defect_unless_the_rule_allows_every_differing_pixel() {
         (MutantStatus::Survived, false, Some("VUID-X"))
     );
     // After the run the device's lane evidence can show a broadcast equivalent.
-    let none = MutantPrediction { differing: 0, caught: 0, from_lanes: true };
+    let none =
+        MutantPrediction { differing: 0, caught: 0, from_lanes: true, caught_by_heuristic: 0 };
     let q = verdict(
         (&cell(), Mutant::IndexBroadcast),
         P,
@@ -117,4 +119,37 @@ fn the_summary_names_probe_defects_loudly() {
 fn annotate_into(r: &mut MutantReport, e: MutantEntry) {
     r.entries.push(e);
     r.recount();
+}
+
+/// A survivor whose must-catch pixels were all judged by the other-lane heuristic (an undefined
+/// read, so the mutated read is undefined too: the driver may read any lane's index) is allowed,
+/// with the rule; one with a single pixel judged exactly is a probe defect. (lavapipe 25's
+/// compute UBO / image cells without nonuniformEXT × index-next: 512 of 4096 pixels per-lane
+/// reads would flag, the driver read the leader's index + 1, which the subgroup computed.)
+#[test]
+fn a_survivor_caught_only_by_the_heuristic_is_allowed_and_one_exact_pixel_is_a_defect() {
+    let heuristic = MutantPrediction {
+        differing: 4096,
+        caught: 512,
+        caught_by_heuristic: 512,
+        from_lanes: false,
+    };
+    let a = verdict(
+        (&cell(), Mutant::IndexNext),
+        heuristic,
+        Some(&attempt(Outcome::Pass, Some(heuristic), true)),
+    );
+    assert_eq!(
+        (a.status, a.probe_defect, a.allowed_by.as_deref()),
+        (MutantStatus::Survived, false, Some("VUID-X"))
+    );
+    assert!(a.why.contains("512 of 4096") && a.why.contains("mutated read too"), "{}", a.why);
+    let one_exact = MutantPrediction { caught_by_heuristic: 511, ..heuristic };
+    let d = verdict(
+        (&cell(), Mutant::IndexNext),
+        one_exact,
+        Some(&attempt(Outcome::Pass, Some(one_exact), true)),
+    );
+    assert_eq!((d.status, d.probe_defect), (MutantStatus::Survived, true));
+    assert!(d.why.starts_with("PROBE DEFECT: the reference predicts 1 of 4096"), "{}", d.why);
 }
