@@ -97,4 +97,11 @@ fn a_lanes_report_of_another_device_is_refused() {
         9,
         "not of the report's device",
     );
+    // A report of the same device without lane evidence for the cell (the run itself:
+    // lavapipe lists no subgroups in closest-hit) is refused, not silently ignored.
+    assert_one_line_error(
+        &run(&["report", report.to_str().unwrap(), "--lanes", report.to_str().unwrap()]),
+        9,
+        "no lane evidence for closest_hit.",
+    );
 }

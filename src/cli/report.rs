@@ -66,6 +66,9 @@ pub fn report(g: &Globals, a: &ReportArgs) -> Result<u8> {
         Some(p) => Some(lanes_report(p, &r)?),
         None => None,
     };
+    if let (Some(l), Some(p)) = (lanes.as_ref(), a.lanes.as_ref()) {
+        lanes_cover(l, p, &b.bisection.representative)?;
+    }
     let cell = crate::bisect::scope::cell_by_id(&b.bisection.representative);
     let (validation, sbt) =
         super::issue_run::measure(g, &r, &ro, cell, !a.no_validation_run && !r.options.validate);
@@ -84,6 +87,27 @@ pub fn report(g: &Globals, a: &ReportArgs) -> Result<u8> {
         None => out!("{text}"),
     }
     Ok(exit::OK)
+}
+
+/// The `--lanes` report must hold lane evidence for the issue's cell (`id`): else the option
+/// would be silently ignored and the issue would ask for the report just given.
+fn lanes_cover(l: &crate::model::RunReport, path: &std::path::Path, id: &str) -> Result<()> {
+    let recorded = l.cells.iter().filter(|c| c.id == id).flat_map(|c| &c.attempts).any(|a| {
+        a.result
+            .as_ref()
+            .and_then(|r| r.comparison.as_ref())
+            .is_some_and(|c| c.lane_evidence.recorded())
+    });
+    if recorded {
+        return Ok(());
+    }
+    Err(coded(
+        exit::BAD_INPUT,
+        format!(
+            "--lanes {}: no lane evidence for {id} there; run `rtprobe run --lane-evidence force --filter` on that cell and give its report",
+            path.display()
+        ),
+    ))
 }
 
 /// The `--lanes` report: a run of the report's device and driver build.
