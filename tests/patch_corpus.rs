@@ -47,7 +47,25 @@ const PUSH: &[&str] = &["push/raygen.rgen", "push/hit.rchit", "push/miss.rmiss"]
 const BINDLESS: &[&str] = &["common/raygen.rgen", "bindless/hit.rchit", "common/miss.rmiss"];
 const DXC: &[&str] = &["dxc/raygen.spvasm", "dxc/closesthit.spvasm", "dxc/miss.spvasm"];
 
+/// Integers read from a buffer and from push constants index other arrays (review item 1).
+const INDEXED: Case = Case {
+    name: "index buffer indexes the vertex buffer",
+    inputs: &["common/raygen.rgen", "indexed/hit.rchit", "common/miss.rmiss"],
+    patches: "ssbo-to-address",
+    extra: &[],
+    expect: Expect::Verified,
+};
+const PUSH_INDEX: Case = Case {
+    name: "material index in push constants",
+    inputs: &["common/raygen.rgen", "pushidx/hit.rchit", "common/miss.rmiss"],
+    patches: "ssbo-to-address",
+    extra: &[],
+    expect: Expect::Verified,
+};
+
 const CASES: &[Case] = &[
+    INDEXED,
+    PUSH_INDEX,
     Case { name: "two TLASes, one address each", inputs: SCENE, patches: "as-to-address", extra: &[], expect: Expect::Verified },
     Case { name: "three SSBO arrays, one table each", inputs: SCENE, patches: "ssbo-to-address", extra: &[], expect: Expect::Verified },
     Case { name: "both address patches together", inputs: SCENE, patches: "as-to-address,ssbo-to-address", extra: &[], expect: Expect::Verified },
@@ -332,6 +350,18 @@ fn the_corpus_patches_validly_without_merging_and_renders_identically() {
     }
     let old = std::fs::read_to_string(&committed).unwrap_or_default();
     assert_eq!(old, md, "reports/patch/corpus.md is stale: re-run with RTPROBE_UPDATE_REPORTS=1");
+}
+
+/// Review item 1: buffers used to hold float bits in every word, so an index read from an index
+/// buffer or from push constants was ~0x3F80xxxx: the patched pipeline (through addresses)
+/// crashed, or the unpatched one did. Integer words now hold small indices: both verify.
+#[test]
+fn indices_read_from_buffers_and_push_constants_verify() {
+    let mut t = Tally::default();
+    for case in [&INDEXED, &PUSH_INDEX] {
+        run_case(case, &mut t);
+    }
+    assert_eq!(t.verified, 2, "{:#?}", t.wrong);
 }
 
 /// The corpus table (reports/patch/corpus.md): the counts, then each case.

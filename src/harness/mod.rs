@@ -14,6 +14,7 @@
 pub mod child;
 mod compare;
 mod error;
+pub mod ints;
 pub mod reflect;
 mod resources;
 pub mod scene;
@@ -77,6 +78,8 @@ pub struct Harness {
     res: Resources,
     layout: vk::PipelineLayout,
     push_size: u32,
+    /// The integer words of the push range (every module's block).
+    push_ints: ints::IntWords,
     /// The fence deadline of one submission.
     timeout: Duration,
 }
@@ -151,6 +154,11 @@ impl Harness {
         let extent = vk::Extent2D { width: SIZE, height: SIZE };
         let res = Resources::new(&gpu, &bindings, &scene, extent)?;
         let push_size = push_size.div_ceil(4) * 4;
+        let mut push_ints = ints::IntWords::default();
+        for m in modules {
+            push_ints.fixed.low.extend(&m.iface.push_ints.fixed.low);
+            push_ints.fixed.high.extend(&m.iface.push_ints.fixed.high);
+        }
         let range =
             [vk::PushConstantRange::default().stage_flags(resources::rt_stages()).size(push_size)];
         let mut ci = vk::PipelineLayoutCreateInfo::default().set_layouts(&res.set_layouts);
@@ -159,7 +167,7 @@ impl Harness {
         }
         let layout =
             unsafe { gpu.device.create_pipeline_layout(&ci, None) }.at("vkCreatePipelineLayout")?;
-        Ok(Harness { gpu, submitter, scene, res, layout, push_size, timeout })
+        Ok(Harness { gpu, submitter, scene, res, layout, push_size, push_ints, timeout })
     }
 
     pub fn device_name(&self) -> String {
@@ -260,10 +268,15 @@ impl Harness {
         Ok(r?)
     }
 
-    /// The push-constant bytes: floats `0.5 + w / 4` for word `w`, then each contract address.
+    /// The push-constant bytes: floats `0.5 + w / 4` for word `w`, small integers in the words a
+    /// module's block reads as integers (a material index: [`ints`]), then each contract address.
     fn push_bytes(&self, addresses: &[(u32, u64)]) -> Vec<u8> {
-        let mut p: Vec<u8> =
-            (0..self.push_size / 4).flat_map(|w| (0.5 + w as f32 / 4.0).to_le_bytes()).collect();
+        let mut p: Vec<u8> = (0..self.push_size / 4)
+            .flat_map(|w| match self.push_ints.at(4 * w) {
+                ints::Fill::Float => (0.5 + w as f32 / 4.0).to_le_bytes(),
+                fill => resources::word(0, w, fill),
+            })
+            .collect();
         for (off, a) in addresses {
             p[*off as usize..*off as usize + 8].copy_from_slice(&a.to_le_bytes());
         }
