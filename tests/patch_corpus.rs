@@ -600,7 +600,26 @@ fn a_crashing_or_hanging_verify_child_is_one_line_and_nothing_written() {
         assert_eq!(o.status.signal(), None, "{fault}: rtprobe itself died: {}", stderr(&o));
         assert_one_line_error(&o, 8, needle);
         assert!(std::fs::read_dir(&out).unwrap().next().is_none(), "{fault}: nothing written");
+        if fault == "crash" {
+            let e = stderr(&o);
+            assert!(e.contains("the patched pipeline faulted where the unpatched one ran"), "{e}");
+            assert!(!e.contains("driver crashed"), "{e}");
+        }
     }
+}
+
+/// Review item 2: a crash while tracing the *unpatched* pipeline says nothing about the patch
+/// or the driver's handling of it: the harness cannot run this input (exit 9), never "the driver
+/// crashed".
+#[test]
+fn a_crash_of_the_unpatched_pipeline_is_unrunnable_input() {
+    let d = tempfile::tempdir().unwrap();
+    let (args, out) = bindless_args(d.path(), &["--verify"]);
+    let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+    let o = run_env(&refs, &[("RTPROBE_VERIFY_FAULT", "crash-unpatched")]);
+    assert_one_line_error(&o, 9, "at `trace unpatched`: the harness cannot run this input");
+    assert!(!stderr(&o).contains("driver crashed"), "{}", stderr(&o));
+    assert!(std::fs::read_dir(&out).unwrap().next().is_none(), "nothing written");
 }
 
 /// Item 2 of the review: verify compares every writable storage buffer too. The patched hit

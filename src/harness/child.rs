@@ -7,7 +7,8 @@
 //! only: the parent turns that into the verification's outcome.
 //!
 //! Test hook: `RTPROBE_VERIFY_FAULT=<crash|hang>` raises SIGSEGV or sleeps forever where the
-//! patched pipeline would be traced (`tests/patch_corpus.rs`).
+//! patched pipeline would be traced, `crash-unpatched` raises SIGSEGV where the unpatched one
+//! would (`tests/patch_corpus.rs`).
 use super::{Compared, HarnessError, UserModule};
 use crate::model::contract::HostContract;
 use crate::vk::{features, Gpu, Instance, InstanceOptions};
@@ -89,18 +90,23 @@ fn say(step: &str) {
     let _ = out.flush();
 }
 
-/// The test hook, where the patched pipeline is traced.
+/// The test hook, where the pipeline it names is traced.
 fn misbehave(step: &str) {
-    if step != "trace patched" {
+    let fault = std::env::var(FAULT_ENV).unwrap_or_default();
+    let (fault, at) = match fault.as_str() {
+        "crash-unpatched" => ("crash", "trace unpatched"),
+        f => (f, "trace patched"),
+    };
+    if step != at {
         return;
     }
-    match std::env::var(FAULT_ENV).as_deref() {
-        Ok("crash") => unsafe {
+    match fault {
+        "crash" => unsafe {
             // Rust's own SIGSEGV handler ignores a raised signal; restore the default first.
             libc::signal(libc::SIGSEGV, libc::SIG_DFL);
             libc::raise(libc::SIGSEGV);
         },
-        Ok("hang") => loop {
+        "hang" => loop {
             std::thread::sleep(Duration::from_secs(3600));
         },
         _ => {}
