@@ -63,8 +63,18 @@ const PUSH_INDEX: Case = Case {
     expect: Expect::Verified,
 };
 
+/// Runtime arrays indexed per pixel (review item 3).
+const PER_PIXEL: Case = Case {
+    name: "per-pixel runtime arrays",
+    inputs: &["perpixel/raygen.rgen", "perpixel/hit.rchit", "common/miss.rmiss"],
+    patches: "ssbo-to-address",
+    extra: &[],
+    expect: Expect::Verified,
+};
+
 const CASES: &[Case] = &[
     INDEXED,
+    PER_PIXEL,
     PUSH_INDEX,
     Case { name: "two TLASes, one address each", inputs: SCENE, patches: "as-to-address", extra: &[], expect: Expect::Verified },
     Case { name: "three SSBO arrays, one table each", inputs: SCENE, patches: "ssbo-to-address", extra: &[], expect: Expect::Verified },
@@ -362,6 +372,30 @@ fn indices_read_from_buffers_and_push_constants_verify() {
         run_case(case, &mut t);
     }
     assert_eq!(t.verified, 2, "{:#?}", t.wrong);
+}
+
+/// Review item 3: a block's runtime array had 256 elements while a per-pixel index reaches
+/// 64 × 64 − 1: the patched hit shader read past the history buffers through addresses (the
+/// descriptor path read zeros) and a correct patch failed. Now every runtime array covers every
+/// pixel, and the per-pixel accumulation buffer is compared whole.
+#[test]
+fn per_pixel_runtime_arrays_cover_the_trace() {
+    let d = tempfile::tempdir().unwrap();
+    let inputs = prepare(PER_PIXEL.inputs, d.path());
+    let out = d.path().join("out");
+    let mut args: Vec<String> = vec!["patch".into()];
+    args.extend(inputs.iter().map(|p| p.to_string_lossy().into_owned()));
+    let inc = corpus().join("include");
+    let o = out.to_string_lossy().into_owned();
+    args.extend(
+        ["-I", inc.to_str().unwrap(), "-a", "ssbo-to-address", "-o", &o, "--verify"]
+            .map(String::from),
+    );
+    let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+    let r = run(&refs);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let s = stdout(&r);
+    assert!(s.contains("storage buffer set 0 binding 3[0]: 16384 4-byte words"), "{s}");
 }
 
 /// The corpus table (reports/patch/corpus.md): the counts, then each case.

@@ -35,7 +35,7 @@ use std::ffi::CString;
 use std::time::Duration;
 
 /// Width and height of the traced image.
-pub const SIZE: u32 = 64;
+pub const SIZE: u32 = scene::TRACE_SIZE;
 /// The fence deadline of one submission by default.
 pub const TIMEOUT: Duration = Duration::from_secs(30);
 

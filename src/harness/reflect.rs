@@ -4,6 +4,7 @@
 //! make are accepted (acceleration structures, storage images, storage and uniform buffers); any
 //! other is refused naming its set and binding.
 use super::ints::{self, IntWords};
+use super::scene::{INDEX_BOUND, TRACE_SIZE};
 use crate::patches::layout::{self, Rules};
 use crate::patches::pipeline::stage_of;
 use crate::patches::{edit, push};
@@ -13,9 +14,18 @@ use rspirv::spirv::{Decoration, ImageFormat, Op, StorageClass, Word};
 /// Elements given to a runtime-sized array of descriptors: one per index the harness scene can
 /// produce (`super::scene::INDEX_BOUND`), so an array indexed by `gl_InstanceCustomIndexEXT` and
 /// the like stays in bounds.
-pub const RUNTIME_ELEMENTS: u32 = super::scene::INDEX_BOUND;
-/// Elements of a runtime array at the end of a buffer block: four per index the scene produces.
-pub const RUNTIME_MEMBERS: u32 = 4 * super::scene::INDEX_BOUND;
+pub const RUNTIME_ELEMENTS: u32 = INDEX_BOUND;
+/// Elements of a runtime array at the end of a buffer block: four per index the scene produces,
+/// and at least one per traced pixel (engines index per-pixel buffers, accumulation or history,
+/// with `gl_LaunchIDEXT.y * gl_LaunchSizeEXT.x + gl_LaunchIDEXT.x`).
+pub const RUNTIME_MEMBERS: u32 = {
+    let (per_index, per_pixel) = (4 * INDEX_BOUND, TRACE_SIZE * TRACE_SIZE);
+    if per_index > per_pixel {
+        per_index
+    } else {
+        per_pixel
+    }
+};
 
 /// What a binding holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
