@@ -8,7 +8,8 @@
 //!
 //! Test hook: `RTPROBE_VERIFY_FAULT=<crash|hang>` raises SIGSEGV or sleeps forever where the
 //! patched pipeline would be traced, `crash-unpatched` raises SIGSEGV where the unpatched one
-//! would (`tests/patch_corpus.rs`).
+//! would, `swap` swaps the push-constant offsets of the contract's first two addresses (a wrong
+//! patch: `tests/patch_corpus.rs`).
 use super::{Compared, HarnessError, UserModule};
 use crate::model::contract::HostContract;
 use crate::vk::{features, Gpu, Instance, InstanceOptions};
@@ -113,6 +114,17 @@ fn misbehave(step: &str) {
     }
 }
 
+/// The contract as the test hook leaves it: `swap` swaps the offsets of its first two addresses.
+fn wrong_contract(c: &HostContract) -> HostContract {
+    let mut c = c.clone();
+    if std::env::var(FAULT_ENV).as_deref() == Ok("swap") && c.addresses.len() >= 2 {
+        let (a, b) = (c.addresses[0].offset, c.addresses[1].offset);
+        c.addresses[0].offset = b;
+        c.addresses[1].offset = a;
+    }
+    c
+}
+
 fn modules(list: &[JobModule]) -> Result<Vec<UserModule>, HarnessError> {
     list.iter().map(|m| UserModule::new(&m.name, &m.words)).collect()
 }
@@ -129,8 +141,9 @@ fn run(job: &VerifyJob) -> Result<VerifyOutput, HarnessError> {
     let gpu = Gpu::new(inst, info, super::requirements(job.scalar))?;
     let messages = crate::vk::instance::validation_error_count();
     let timeout = Duration::from_millis(job.timeout_ms);
+    let contract = wrong_contract(&job.contract);
     let (device, compared) =
-        super::verify_with(gpu, &before, &after, &job.contract, timeout, &mut |s: &str| {
+        super::verify_with(gpu, &before, &after, &contract, timeout, &mut |s: &str| {
             say(s);
             misbehave(s);
         })?;
