@@ -460,6 +460,43 @@ fn an_append_queue_verifies_every_time() {
     }
 }
 
+/// Review item 7: end to end, a wrong patch (the child swaps the contract's two table addresses,
+/// `RTPROBE_VERIFY_FAULT=swap`) makes `rtprobe patch --verify` exit 1 and write nothing.
+#[test]
+fn a_wrong_patch_exits_1_and_writes_nothing() {
+    let d = tempfile::tempdir().unwrap();
+    let (args, out) = bindless_args(d.path(), &["--verify"]);
+    let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+    let o = run_env(&refs, &[("RTPROBE_VERIFY_FAULT", "swap")]);
+    assert_one_line_error(&o, 1, "differs from the unpatched one's");
+    assert!(std::fs::read_dir(&out).unwrap().next().is_none(), "nothing written");
+}
+
+/// Review item 8: pin-index changes the index by design, so `--verify` would always fail it:
+/// refused up front (exit 2, one line saying why), nothing written.
+#[test]
+fn verify_refuses_pin_index_up_front() {
+    let (o, d) = verify_cli(SCENE, "pin-index", &[], &[]);
+    assert_one_line_error(&o, 2, "--verify cannot check pin-index");
+    assert!(std::fs::read_dir(d.path().join("out")).unwrap().next().is_none(), "nothing written");
+}
+
+/// Review item 9: `--verify-timeout` took any u64 and `max(1) * 1000` overflowed; now 1..=3600.
+#[test]
+fn verify_timeout_out_of_range_is_a_usage_error() {
+    for t in ["0", "3601", "18446744073709551615"] {
+        let (o, d) = verify_cli(
+            &["common/raygen.rgen", "common/hit.rchit", "common/miss.rmiss"],
+            "as-to-address",
+            &["--verify-timeout", t],
+            &[],
+        );
+        assert_eq!(o.status.code(), Some(2), "{t}: {}", stderr(&o));
+        assert!(stderr(&o).contains("--verify-timeout"), "{t}: {}", stderr(&o));
+        assert!(std::fs::read_dir(d.path().join("out")).unwrap().next().is_none(), "{t}");
+    }
+}
+
 /// The corpus table (reports/patch/corpus.md): the counts, then each case.
 fn table(t: &Tally) -> String {
     let mut md = String::from("# The patch corpus\n\n");

@@ -80,7 +80,7 @@ pub fn verify(
         before,
         after,
         contract: contract.clone(),
-        timeout_ms: a.verify_timeout.max(1) * 1000,
+        timeout_ms: a.verify_timeout.clamp(1, 3600) * 1000,
         result: dir.join("result.json"),
     };
     let out = run_child(&job, dir.join("job.json"));
