@@ -99,7 +99,7 @@ fn at((func, block, inst): (usize, usize, usize), operand: usize) -> At {
 pub fn descriptor_indices(m: &Module, heap: bool) -> Vec<At> {
     if heap {
         let Some(h) = builtin_variable(m, BuiltIn::ResourceHeapEXT) else { return vec![] };
-        untyped_chains_into(m, h).into_iter().map(|(p, _)| at(p, 2)).collect()
+        untyped_chains_into(m, h).into_iter().map(|(p, i)| at(p, heap_array_index(m, i))).collect()
     } else {
         let Some(v) = probe_variable(m) else { return vec![] };
         chains_into(m, v)
@@ -113,7 +113,25 @@ pub fn descriptor_indices(m: &Module, heap: bool) -> Vec<At> {
 /// The sampler index of every access into the sampler heap (direct sampled-image probes).
 pub fn sampler_indices(m: &Module) -> Vec<At> {
     let Some(h) = builtin_variable(m, BuiltIn::SamplerHeapEXT) else { return vec![] };
-    untyped_chains_into(m, h).into_iter().map(|(p, _)| at(p, 2)).collect()
+    untyped_chains_into(m, h).into_iter().map(|(p, i)| at(p, heap_array_index(m, i))).collect()
+}
+
+/// The operand of an untyped heap chain that indexes the descriptor array: operand 2 (after the
+/// base type and the heap) when the base type is the array itself, operand 3 when it is a block
+/// holding the array as member 0 (glslang 16 declares `layout(descriptor_heap) image2D a[]` as
+/// `struct { a[] }` with `OffsetIdEXT`, and chains `%heap 0 %slot`): the member index is not the
+/// descriptor index, and rewriting it made index-zero a no-op and index-next an invalid member.
+fn heap_array_index(m: &Module, chain: &Instruction) -> usize {
+    let base_type = id_operand(chain, 0);
+    let is_struct = m
+        .types_global_values
+        .iter()
+        .any(|t| t.result_id == base_type && t.class.opcode == Op::TypeStruct);
+    if is_struct && chain.operands.len() > 3 {
+        3
+    } else {
+        2
+    }
 }
 
 /// The element index of every read of the packed buffer (`v[packedElement(…)]`): the last index

@@ -336,6 +336,32 @@ fn direct_heap_probes_mutate_their_heap_accesses() {
     assert_eq!(mutated(&buffer, Mutant::ValueBits).unwrap().len(), 2);
 }
 
+/// lavapipe 26's mutant run: on direct-heap storage images (glslang 16 wraps the heap array in a
+/// block, `%heap 0 %slot`) index-zero rewrote the member index 0 to 0 (a no-op, reported as a
+/// probe defect) and index-next made member 1 (an invalid pipeline). The descriptor index is the
+/// one after the member: each mutant changes the module, at the slot.
+#[test]
+fn direct_heap_storage_images_mutate_the_slot_not_the_block_member() {
+    for index in [IndexSource::SpecConstant, IndexSource::Literal] {
+        let image = direct(cell(Stage::Raygen, Resource::StorageImage, index));
+        let Some(got) = mutated(&image, Mutant::IndexZero) else { return };
+        assert_eq!(got.len(), 1, "{}", image.id());
+        for (_, before, after) in &got {
+            assert_eq!(changed(before, after).len(), 1, "{}: one access rewritten", image.id());
+            for (old, new) in rewritten(before, after, |m| locate::descriptor_indices(m, true)) {
+                assert_ne!(literal(before, old), Some(0), "the slot, not the member: %{old}");
+                assert_eq!(literal(after, new), Some(0));
+            }
+        }
+        for (_, before, after) in mutated(&image, Mutant::IndexNext).unwrap() {
+            for (old, new) in rewritten(&before, &after, |m| locate::descriptor_indices(m, true)) {
+                let (sum, _) = binary(&after, new, Op::UMod);
+                assert_eq!(binary(&after, sum, Op::IAdd).0, old);
+            }
+        }
+    }
+}
+
 #[test]
 fn workaround_variants_keep_their_sites_or_say_why_not() {
     let c = cell(Stage::ClosestHit, Resource::StorageBuffer, IndexSource::Dynamic);
