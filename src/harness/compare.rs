@@ -69,10 +69,10 @@ pub fn compare(before: &[Part], again: &[Part], after: &[Part]) -> Vec<Compared>
     before.iter().zip(again).zip(after).map(|((b, g), a)| compare_one(b, g, a)).collect()
 }
 
-fn compare_one(b: &Part, g: &Part, a: &Part) -> Compared {
+fn compare_one<'a>(b: &'a Part, g: &'a Part, a: &'a Part) -> Compared {
     let t = b.texel.max(1) as usize;
-    let (bs, gs, as_): (Vec<&[u8]>, Vec<&[u8]>, Vec<&[u8]>) =
-        (b.bytes.chunks(t).collect(), g.bytes.chunks(t).collect(), a.bytes.chunks(t).collect());
+    let units = |p: &'a Part| -> Vec<&'a [u8]> { p.bytes.chunks(t).collect() };
+    let (bs, gs, as_) = (units(b), units(g), units(a));
     let init: Option<Vec<&[u8]>> = b.initial.as_ref().map(|i| i.chunks(t).collect());
     let (mut unstable, mut differing) = (0, 0);
     let (mut kept_b, mut kept_a) = (Vec::new(), Vec::new());
@@ -298,7 +298,7 @@ mod tests {
         }
         // Twin: a value the unpatched runs never hold is a difference.
         let wrong = part(PartKind::Buffer, &[3, 10, 20, 99, 40]);
-        let c = compare(&[run1.clone()], &[run2], &[wrong]);
+        let c = compare(std::slice::from_ref(&run1), &[run2], &[wrong]);
         assert_eq!(c[0].differing, 1, "{c:?}");
         assert!(matches!(judge("dev", &c), Verdict::Differs(l) if l.contains("left out")));
     }
