@@ -23,6 +23,7 @@ pub mod report;
 pub mod runner;
 pub mod scene;
 pub mod shadergen;
+pub mod stable_hash;
 pub mod stress;
 pub mod tools;
 pub mod vk;

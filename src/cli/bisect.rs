@@ -86,9 +86,8 @@ pub fn bisect(g: &Globals, a: &BisectArgs) -> Result<u8> {
         if let Some(s) = ro.setup_timeout_s.filter(|s| *s > 0.0 && *s <= 3600.0) {
             opts.setup_timeout = std::time::Duration::from_secs_f64(s);
         }
-        // The report's binding stages change results: the cells bisect runs use them too.
-        opts.binding_stages = report.options.binding_stages.clone();
-        opts.lane_evidence = report.options.lane_evidence;
+        // The report's options that change results: the cells bisect runs use them too.
+        super::shared::as_the_report_ran(&mut opts, &report.options);
         let job_dir = opts.job_dir.clone();
         let mut oracle = SupervisorOracle::for_bisect(opts);
         let supported = |c: &Cell| plan::device_support(&info, c).is_supported();

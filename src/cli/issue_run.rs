@@ -50,7 +50,7 @@ pub(super) fn measure(
 }
 
 /// Run `cell` once alone with the validation layer, with the report's scene, timeout,
-/// injections, binding stages and lane evidence.
+/// injections, binding stages, lane evidence and `--pipelines`.
 fn run_validated(
     r: &RunReport,
     ro: &ReportOptions,
@@ -67,8 +67,7 @@ fn run_validated(
         true,
         ro.inject.clone(),
     );
-    opts.binding_stages = r.options.binding_stages.clone();
-    opts.lane_evidence = r.options.lane_evidence;
+    super::shared::as_the_report_ran(&mut opts, &r.options);
     let job_dir = opts.job_dir.clone();
     let mut oracle = SupervisorOracle::for_run(opts);
     let mut got = None;

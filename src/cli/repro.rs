@@ -91,6 +91,8 @@ impl CellSpec {
             timeout: self.timeout_s,
             cell_spec: None,
             spirv_dir: None,
+            // The original run's way (an older bundle without it: this run's `--pipelines`).
+            pipelines: self.pipelines.unwrap_or(a.pipelines),
             ..a.clone()
         })
     }
@@ -304,6 +306,7 @@ impl Bundle<'_> {
             inject: self.inject.iter().map(|i| i.spec.clone()).collect(),
             timeout_s: self.ro.timeout_s,
             binding_stages: report.options.binding_stages.clone(),
+            pipelines: report.options.pipelines,
             original: serde_json::json!({
                 "report": self.a.from,
                 "device": report.device,
@@ -377,5 +380,42 @@ impl Bundle<'_> {
             amber_note,
             made_by.into_iter().collect::<Vec<_>>().join(" and "),
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::cli::args::{Cli, Command};
+    use crate::model::bundle::CellSpec;
+    use crate::model::PipelineMode;
+    use clap::Parser;
+
+    /// `run --cell-spec` makes the cell's pipelines the way the original run did (the bundle's
+    /// `pipelines`), not this run's `--pipelines`; a bundle from before the field keeps this
+    /// run's.
+    #[test]
+    fn a_bundle_reruns_with_the_original_runs_pipelines() {
+        let Command::Run(a) =
+            Cli::try_parse_from(["rtprobe", "run", "--pipelines", "linked"]).unwrap().command
+        else {
+            panic!("not run")
+        };
+        let spec = |pipelines: &str| -> CellSpec {
+            serde_json::from_value(serde_json::json!({
+                "schema": "rtprobe.cell/1", "id": "x", "description": "x",
+                "cell": crate::model::Cell::new(
+                    crate::model::Stage::Raygen,
+                    crate::model::Resource::StorageBuffer,
+                    crate::model::IndexSource::Dynamic,
+                    crate::model::DescriptorModel::DescriptorIndexing),
+                "scene": crate::model::SceneParams::default(), "inject": [], "timeout_s": 5.0,
+                "original": {}, "pipelines": serde_json::from_str::<serde_json::Value>(pipelines).unwrap(),
+            }))
+            .unwrap()
+        };
+        assert_eq!(spec("\"whole\"").run_args(&a).unwrap().pipelines, PipelineMode::Whole);
+        assert_eq!(spec("\"linked\"").run_args(&a).unwrap().pipelines, PipelineMode::Linked);
+        // An older bundle: this run's `--pipelines linked`.
+        assert_eq!(spec("null").run_args(&a).unwrap().pipelines, PipelineMode::Linked);
     }
 }

@@ -138,6 +138,19 @@ pub(crate) fn supervisor_options(
     }
 }
 
+/// What a report's run set that changes results, applied to the supervisor options of a re-run
+/// of its cells (`bisect`, the validated run): binding stages, lane evidence, and how
+/// ray tracing pipelines were made (a linked pipeline can fault where a whole one does not; a
+/// report from before `--pipelines` made them whole).
+pub(crate) fn as_the_report_ran(
+    opts: &mut SupervisorOptions,
+    r: &crate::model::options::RunOptions,
+) {
+    opts.binding_stages = r.binding_stages.clone();
+    opts.lane_evidence = r.lane_evidence;
+    opts.linked = r.pipelines == Some(crate::model::PipelineMode::Linked);
+}
+
 /// The supervisor-backed [`Oracle`] of `run` and `bisect`. Under GPU-AV (`run
 /// --validate=gpu-av`'s findings) each batch gets a fresh supervisor with validation and GPU-AV
 /// on, one thread, no pipeline cache and its own job folder.
@@ -209,5 +222,42 @@ impl Oracle for SupervisorOracle {
             (_, Some(sup)) => sup.run(cells, isolated, on),
             (_, None) => Supervisor::new(self.opts.clone()).run(cells, isolated, on),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::options::RunOptions;
+    use crate::model::PipelineMode;
+
+    /// A re-run of a report's cells (bisect, the validated run) makes its ray tracing
+    /// pipelines as the report's run did; whole where the report says whole or says nothing (it
+    /// predates `--pipelines`), whatever the caller's options held.
+    #[test]
+    fn a_rerun_makes_pipelines_the_way_the_report_did() {
+        let rerun = |mode: Option<PipelineMode>, before: bool| {
+            let mut o = supervisor_options(
+                0,
+                SceneParams::default(),
+                1,
+                Isolation::Worker,
+                5.0,
+                false,
+                vec![],
+            );
+            o.linked = before;
+            let r = RunOptions {
+                pipelines: mode,
+                binding_stages: Some("rgen".into()),
+                ..RunOptions::for_tests()
+            };
+            as_the_report_ran(&mut o, &r);
+            assert_eq!(o.binding_stages.as_deref(), Some("rgen"));
+            o.linked
+        };
+        assert!(rerun(Some(PipelineMode::Linked), false));
+        assert!(!rerun(Some(PipelineMode::Whole), true));
+        assert!(!rerun(None, true));
     }
 }

@@ -41,6 +41,9 @@ pub struct ExecOptions {
     pub spirv_dir: Option<PathBuf>,
     /// Folder of the persisted pipeline caches (`None`: an empty cache, nothing saved).
     pub pipeline_cache: Option<PathBuf>,
+    /// Folder whose `glsl/` keeps GLSL compiles between runs (`shadergen::disk_cache`; `None`:
+    /// compile afresh, as re-runs and mutants do).
+    pub glsl_cache: Option<PathBuf>,
     /// `RTPROBE_BINDING_STAGES=all` of the run (the job file's `binding_stages`).
     pub all_stages: bool,
     /// `--lane-evidence` of the run: where the probe measures its lane evidence.
@@ -89,7 +92,8 @@ impl Executor {
         let t = Instant::now();
         let sref = SceneReference::compute(&scene);
         let reference_ms = t.elapsed().as_secs_f64() * 1e3;
-        let compiler = Compiler::new()?;
+        let mut compiler = Compiler::new()?;
+        compiler.use_disk_cache(opts.glsl_cache.as_deref());
         let submitter = Submitter::new(&gpu)?;
         let records = Buffer::new(
             &gpu,

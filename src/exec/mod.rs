@@ -14,8 +14,8 @@
 //! three pipeline kinds (`record`), judging the records (`check`, `pictures`), a mutant cell's
 //! mutation and prediction (`mutant`), error → outcome (`error`); below them resources and
 //! samplers, bindings, the descriptor heap, pipelines whole or linked from group libraries
-//! (`pipeline_library`), the pipeline cache kept between runs, files, and the stable hash of
-//! library and layout identities (`stable_hash`).
+//! (`pipeline_library`), the pipeline cache kept between runs, and files (library and layout
+//! identities use `crate::stable_hash`).
 mod bind;
 pub mod bindings;
 mod build;
@@ -40,7 +40,6 @@ mod run;
 mod samplers;
 mod seen;
 mod setup;
-mod stable_hash;
 
 pub use error::CellError;
 pub use executor::{ExecOptions, Executor, PhaseHook};

@@ -10,7 +10,7 @@
 //! (VUID-VkRayTracingPipelineCreateInfoKHR-pLibraries-03591). Libraries live as long as the
 //! executor.
 use super::pipeline::{self, Desc, Pipeline};
-use super::stable_hash::StableHash;
+use crate::stable_hash::StableHash;
 use crate::vk::{Gpu, VkError};
 use ash::vk;
 use std::collections::HashMap;

@@ -1,6 +1,6 @@
 //! A repro bundle's `cell.json` (`rtprobe.cell/1`): what `run --cell-spec` needs to run exactly
 //! one cell again (the data; `cli::repro` writes and loads it).
-use super::{Cell, SceneParams};
+use super::{Cell, PipelineMode, SceneParams};
 use serde::{Deserialize, Serialize};
 
 pub const SCHEMA: &str = "rtprobe.cell/1";
@@ -19,6 +19,11 @@ pub struct CellSpec {
     /// `RTPROBE_BINDING_STAGES` of the original run (it changes results: a re-run sets it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub binding_stages: Option<String>,
+    /// How the original run made its ray tracing pipelines (`--pipelines`, resolved): a linked
+    /// pipeline can fault where a whole one does not, so the re-run makes them the same way.
+    /// Absent in bundles from before: the re-run's own `--pipelines` then.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pipelines: Option<PipelineMode>,
     /// The verdict in the original report (for comparison), and its device.
     pub original: serde_json::Value,
     /// The bundle's SPIR-V modules (`shaders/<file>`), as the worker runs them, and what made

@@ -11,6 +11,7 @@ pub mod bundle;
 pub mod cell;
 pub mod comparison;
 pub mod contract;
+pub mod count;
 pub mod driver_cache;
 pub mod fault;
 pub mod filter;

@@ -123,6 +123,15 @@ impl Incidence {
 impl CellReport {
     /// Whether the cell is a round's retry rather than a planned cell ([`CellReport::retry`]; a
     /// workaround variant of a run that did not plan them, `patches` not `all`).
+    /// A finding: a planned probe cell (no canary, no workaround variant, no other retry) whose
+    /// worst attempt faulted or mismatched.
+    pub fn is_finding(&self) -> bool {
+        self.cell.canary.is_none()
+            && self.cell.patch.is_none()
+            && !self.retry
+            && self.outcome.is_finding()
+    }
+
     pub fn is_retry(&self, patches: crate::model::PatchMode) -> bool {
         self.retry || (self.cell.patch.is_some() && patches != crate::model::PatchMode::All)
     }
@@ -496,40 +505,6 @@ impl RunReport {
         r
     }
 
-    /// The outcome counts of the planned probe cells (every outcome present; canaries are
-    /// tallied apart, since their expected outcome is a fault; retries are counted apart, in
-    /// `retries`), and the tally of findings, flaky cells and canaries.
-    pub fn recount(&mut self) {
-        // Counted by position in Outcome::ALL, no string per cell: the writer recounts after
-        // every attempt, so this stays a plain pass over the cells.
-        let mut counts = vec![0usize; Outcome::ALL.len()];
-        let mut retries = BTreeMap::new();
-        let mut t = Tally::default();
-        for c in &self.cells {
-            match &c.canary_check {
-                Some(chk) if chk.detected => t.canaries_detected += 1,
-                Some(_) => t.canaries_undetected += 1,
-                None if c.is_retry(self.options.patches) => {
-                    *retries.entry(c.outcome.as_str().to_string()).or_default() += 1
-                }
-                None => {
-                    if let Some(i) = Outcome::ALL.iter().position(|o| *o == c.outcome) {
-                        counts[i] += 1;
-                    }
-                }
-            }
-        }
-        self.retries = retries;
-        let m: BTreeMap<String, usize> =
-            Outcome::ALL.iter().zip(counts).map(|(o, n)| (o.as_str().to_string(), n)).collect();
-        t.findings = self.findings().count();
-        t.injections_undetected = self.cells.iter().filter(|c| c.injection_undetected).count();
-        t.worker_faults = self.workers.iter().filter(|w| w.is_fault()).count();
-        t.flaky = self.findings().filter(|c| c.flaky).count();
-        self.summary = m;
-        self.tally = t;
-    }
-
     /// Canaries whose fault rtprobe did not classify as expected: detection is unproven.
     pub fn undetected_canaries(&self) -> impl Iterator<Item = &CellReport> {
         self.cells.iter().filter(|c| c.canary_check.as_ref().is_some_and(|k| !k.detected))
@@ -537,9 +512,7 @@ impl RunReport {
 
     /// Cells with a finding (canaries, workaround variants and other retries excluded).
     pub fn findings(&self) -> impl Iterator<Item = &CellReport> {
-        self.cells.iter().filter(|c| {
-            c.cell.canary.is_none() && c.cell.patch.is_none() && !c.retry && c.outcome.is_finding()
-        })
+        self.cells.iter().filter(|c| c.is_finding())
     }
 
     /// Attach to each finding the outcome of its workaround variants present in the report.

@@ -98,25 +98,32 @@ impl ReportWriter {
         match (from..to).find(|&i| cells[i].id == id) {
             // An unsupported entry of an older plan (resume) is replaced by what ran.
             Some(i) if cells[i].attempts.is_empty() => {
-                self.report.cells[i] = CellReport::new(cell, attempt)
+                self.report.count_cell(i, false);
+                self.report.cells[i] = CellReport::new(cell, attempt);
+                self.report.count_cell(i, true);
             }
             Some(i) => {
+                // The counts change by this cell's share alone (not a recount of every cell:
+                // that made a run quadratic in its cells).
+                self.report.count_cell(i, false);
                 let existing = &mut self.report.cells[i];
                 existing.attempts.push(attempt);
                 existing.refresh();
+                self.report.count_cell(i, true);
             }
             None => {
                 let mut c = CellReport::new(cell, attempt);
                 // Not in the plan: a round's retry (a workaround variant, a recommended pattern).
                 c.retry = cell.canary.is_none() && !self.order.contains_key(&id);
                 self.report.cells.insert(to, c);
+                self.report.count_cell(to, true);
             }
         }
-        self.report.recount();
     }
 
     pub fn record_worker(&mut self, event: WorkerEvent) {
         self.report.workers.push(event);
+        self.report.count_worker_event(self.report.workers.len() - 1);
     }
 
     /// Save (compact while running, pretty when final).
@@ -222,5 +229,89 @@ mod tests {
         w.record(&pattern, Attempt::for_tests(Outcome::Crash, false));
         assert_eq!(w.report.findings().count(), 2);
         assert!(w.report.retries.is_empty());
+    }
+
+    /// The counts kept incrementally equal a recount of every cell after each of thousands of
+    /// random attempts on a 5,000-cell report: planned cells, workaround variants (retries),
+    /// canaries, repeated attempts that make a cell flaky, worker events. Its twin: a writer
+    /// that added a cell's new share without taking out its old one would count a cell once per
+    /// attempt, and the first repeated attempt would fail the comparison.
+    #[test]
+    fn incremental_counts_match_a_full_recount_on_a_5000_cell_report() {
+        use crate::model::{Canary, Phase};
+        let stages = [Stage::Raygen, Stage::Miss, Stage::ClosestHit, Stage::AnyHit];
+        let cells: Vec<Cell> = (0..1250u32)
+            .flat_map(|copy| stages.map(|s| Cell { copy, ..cell(s, IndexSource::Dynamic) }))
+            .collect();
+        assert_eq!(cells.len(), 5000);
+        let planned = cells.iter().map(|&cell| PlannedCell { cell, status: PlanStatus::Run });
+        let plan = RunPlan {
+            generated: 5000,
+            cells: planned.collect(),
+            not_generated: vec![],
+            filtered_out: 0,
+        };
+        let mut w = ReportWriter::new(PathBuf::from("r.json"), RunReport::for_tests(vec![]), &plan);
+        let outcomes = [
+            Outcome::Pass,
+            Outcome::Pass,
+            Outcome::Mismatch,
+            Outcome::Crash,
+            Outcome::Timeout,
+            Outcome::Error,
+        ];
+        // A fixed xorshift: the same sequence every run, no dependency.
+        let mut x: u64 = 0x9e37_79b9_7f4a_7c15;
+        let mut next = move |n: usize| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x % n as u64) as usize
+        };
+        let mut repeated = 0;
+        for k in 0..6000 {
+            let mut c = cells[next(cells.len())];
+            match next(20) {
+                0 => c.patch = Some(Workaround::PinIndex),
+                1 => c.canary = Some(Canary::InfiniteLoop),
+                _ => {}
+            }
+            repeated += usize::from(w.report.cells.iter().any(|e| e.cell == c));
+            w.record(&c, Attempt::for_tests(outcomes[next(outcomes.len())], false));
+            if next(50) == 0 {
+                let outcome = outcomes[next(outcomes.len())];
+                w.record_worker(WorkerEvent {
+                    worker: k,
+                    phase: Phase::BetweenCells,
+                    outcome,
+                    detail: None,
+                    cells: 1,
+                    wall_ms: 1.0,
+                    device_features: vec![],
+                    worker_exit: None,
+                    halt: None,
+                });
+            }
+            if k % 97 == 0 || k == 5999 {
+                let mut full = w.report.clone();
+                full.recount();
+                assert_eq!(w.report.summary, full.summary, "after {k} attempts");
+                assert_eq!(w.report.retries, full.retries, "after {k} attempts");
+                assert_eq!(w.report.tally, full.tally, "after {k} attempts");
+            }
+        }
+        // The sequence did what the comparison needs: repeated cells, flaky findings, retries,
+        // canaries and worker faults all counted.
+        let r = &w.report;
+        assert!(repeated > 1000 && r.tally.flaky > 100, "{repeated} repeats, {:?}", r.tally);
+        assert!(r.tally.worker_faults > 10 && !r.retries.is_empty());
+        assert!(r.tally.canaries_detected + r.tally.canaries_undetected > 100);
+        assert_eq!(
+            r.summary.values().sum::<usize>(),
+            r.cells
+                .iter()
+                .filter(|c| c.canary_check.is_none() && !c.is_retry(r.options.patches))
+                .count()
+        );
     }
 }

@@ -9,7 +9,8 @@
 //!
 //! A worker's states: `Setup` until `ready`, then `Between` cells, `Prebuild` while it builds a
 //! batch ahead of the cells' turns (each step of progress restarts the deadline), `Cell` from a
-//! `start` to its `result`, and `Teardown` after its last result or a result that ends it. A
+//! `start` to its `result`, and `Teardown` after its last result or a result that ends it (a
+//! worker that then says `exiting` is `Ended` at once, its process reaped in the background). A
 //! worker that must go (end of output, a deadline, a fatal message) is `Dying` until the
 //! supervisor feeds how it ended, then `Ended`. What is recorded is decided there, from the state
 //! it died in: a cell's attempt (`crash` or `timeout` mid-cell, with the phase), the prebuild's
@@ -96,6 +97,9 @@ pub(super) enum Effect {
     /// Its output ended: wait for the exit (bounded; one that does not exit is killed), then feed
     /// `Exited`.
     Reap,
+    /// It said `exiting` after its last result: it owes nothing more. Reap it in the background
+    /// (killed if it is still there after the teardown deadline), without waiting for its exit.
+    Release,
     /// An event for the rounds above: its setup, a prebuild, the pipeline cache saved, the
     /// worker's own record (its setup, or a fault outside any cell), or an attempt of one of its
     /// cells (the cell leaves the queue).
@@ -249,6 +253,16 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
         }
         WorkerMsg::CacheSaved { bytes, error } => fx.push(Effect::Report(Event::CacheSaved(
             bytes.ok_or_else(|| error.unwrap_or_else(|| "not saved".into())),
+        ))),
+        WorkerMsg::Exiting if matches!(w.state, State::Teardown { .. }) && w.pending.is_empty() => {
+            // Everything is in: how the process ends (it skips its Vulkan teardown) is nobody's
+            // record, so nothing waits for it.
+            fx.push(Effect::Release);
+            w.state = State::Ended;
+        }
+        WorkerMsg::Exiting => fx.push(Effect::Log(format!(
+            "worker {} said exiting with cells left; waiting for its exit",
+            w.id
         ))),
         WorkerMsg::Start { cell } => start(w, cell, now, fx),
         WorkerMsg::Result { cell, result } => finished(w, &cell, result, now, fx),

@@ -69,6 +69,30 @@ impl Proc {
         kill_group(&mut self.child, self.pid, self.worker, &self.stderr, grace, kill_wait)
     }
 
+    /// It has nothing more to say (`exiting`): a thread reaps it (by its pid; its `Child` is
+    /// never waited on again), killing the group if it is still there after `bound`, so that
+    /// nobody waits for its exit.
+    pub fn release(&self, bound: Duration, kill_wait: Duration) {
+        let (pid, worker) = (self.pid, self.worker);
+        std::thread::spawn(move || {
+            let reaped = |until: Instant| loop {
+                let mut status = 0;
+                // SAFETY: waitpid on our own child's pid, with a valid status pointer.
+                let r = unsafe { libc::waitpid(pid, &mut status, libc::WNOHANG) };
+                if r != 0 || Instant::now() >= until {
+                    return r != 0;
+                }
+                std::thread::sleep(Duration::from_millis(5));
+            };
+            if !reaped(Instant::now() + bound) {
+                tracing::debug!("worker {worker} said exiting but did not exit; killed");
+                unsafe { libc::kill(-pid, libc::SIGKILL) };
+                reaped(Instant::now() + kill_wait);
+            }
+            groups::unregister(pid);
+        });
+    }
+
     /// Its output ended: waits at most `grace` for the exit; one that closed its output but does
     /// not exit is treated as hung and killed.
     pub fn reap(&mut self, grace: Duration, kill_wait: Duration) -> WorkerExit {

@@ -107,6 +107,10 @@ pub enum WorkerMsg {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         error: Option<String>,
     },
+    /// Its last message: every result is sent and the pipeline cache saved, and the worker exits
+    /// now without destroying its Vulkan objects (`runner::worker::exit_without_teardown`). The
+    /// supervisor owes it nothing more: it reaps the process in the background.
+    Exiting,
     /// The worker enters `phase` (`step` names the call, e.g. `vkCreateDevice`, in setup). The
     /// supervisor keeps the last one: a timeout or crash is attributed to it.
     Phase {

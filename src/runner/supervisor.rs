@@ -290,6 +290,7 @@ impl Supervisor {
             Effect::Reap => {
                 return Some(Input::Exited(process.reap(self.opts.grace, self.opts.kill_wait)))
             }
+            Effect::Release => process.release(self.opts.timeout, self.opts.kill_wait),
             Effect::Report(Event::Attempt { cell, attempt }) => {
                 schedule.ran(i, &cell);
                 self.record(cell, attempt, on);

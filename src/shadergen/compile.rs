@@ -1,12 +1,14 @@
 //! GLSL → SPIR-V with shaderc (Vulkan 1.2 / SPIR-V 1.5, no optimization: the driver must see
 //! the shape the cell asks for); sources that enable an extension shaderc's glslang predates
 //! (GL_EXT_descriptor_heap, ...) go to an external glslangValidator ([`super::glslang`]). Each
-//! distinct source is compiled once per process. User GLSL (`patch --glsl`) may pick another
+//! distinct source is compiled once per process, and kept on disk between runs when the worker
+//! has a cache folder ([`super::disk_cache`]: a warm run compiles nothing). User GLSL (`patch --glsl`) may pick another
 //! target and use `#include` ([`super::include`]) and defines.
 //!
 //! shaderc is the system's (shaderc 2023.2 with glslang 12 on Debian 12, linked statically by
 //! build.rs) or, with `--features bundled-shaderc`, its own copy built from source; [`SHADERC`]
 //! says which. Debian 12's predates Vulkan 1.4: [`TargetEnv::compiled_as`].
+use super::disk_cache::{DiskCache, KeyParts, Lookup};
 use super::include::Includes;
 use super::Role;
 use std::collections::HashMap;
@@ -23,6 +25,10 @@ pub struct Compiler {
     /// Milliseconds [`Compiler::precompile`] spent on a cached source, handed to the first
     /// [`Compiler::compile`] that takes it (so that cell's timings still show its compile).
     precompiled_ms: HashMap<u64, f64>,
+    /// Compiles kept between runs (`None`: every source is compiled in this process).
+    disk: Option<DiskCache>,
+    /// Sources this compiler (and its precompile threads) compiled, not found in a cache.
+    pub compiled: usize,
 }
 
 /// The shaderc this binary links: the `shaderc` crate over the system's shaderc, glslang and
@@ -59,13 +65,57 @@ pub fn source_hash(role: Role, glsl: &str) -> u64 {
     h.finish()
 }
 
+/// The disk cache key of a generated source: no includes, no defines, rtprobe's target, and the
+/// compiler that [`Compiler::compile`] picks for it.
+pub fn disk_key(role: Role, glsl: &str) -> u128 {
+    super::disk_cache::key(&KeyParts {
+        kind: &format!("{:?}", role.kind()),
+        file: role.file_name(),
+        glsl,
+        includes: &[],
+        defines: &[],
+        target: TargetEnv::default().compiled_as().name(),
+        compiler: &compiler_for(glsl),
+    })
+}
+
 impl Compiler {
     pub fn new() -> Result<Self, CompileError> {
         Ok(Self {
             inner: shaderc::Compiler::new().map_err(|_| CompileError::Init)?,
             cache: HashMap::new(),
             precompiled_ms: HashMap::new(),
+            disk: None,
+            compiled: 0,
         })
+    }
+
+    /// Keep compiles of generated GLSL under `cache_dir` (`<cache_dir>/glsl`) and read them back
+    /// instead of compiling; `None`: compile afresh (re-runs that must not depend on a cache).
+    pub fn use_disk_cache(&mut self, cache_dir: Option<&std::path::Path>) {
+        self.disk = cache_dir.map(DiskCache::under);
+    }
+
+    /// A kept compile of `glsl`; a damaged file is said and left to be written again.
+    fn kept(&self, role: Role, glsl: &str) -> Option<Vec<u32>> {
+        let disk = self.disk.as_ref()?;
+        let key = disk_key(role, glsl);
+        match disk.load(key) {
+            Lookup::Hit(words) => Some(words),
+            Lookup::Miss => None,
+            Lookup::Corrupt(why) => {
+                tracing::warn!("{}: {why}; compiled again", disk.path(key).display());
+                None
+            }
+        }
+    }
+
+    fn to_disk(&self, role: Role, glsl: &str, words: &[u32]) {
+        if let Some(disk) = &self.disk {
+            if let Err(e) = disk.store(disk_key(role, glsl), words) {
+                tracing::warn!("GLSL compile not kept: {e}");
+            }
+        }
     }
 
     /// Compile the uncached shaderc sources among `sources` on `threads` threads (one shaderc
@@ -80,13 +130,21 @@ impl Compiler {
         progress: &(dyn Fn(usize, usize) + Sync),
     ) {
         let mut seen = std::collections::HashSet::new();
-        let todo: Vec<(u64, Role, &str)> = sources
+        let mut todo: Vec<(u64, Role, &str)> = sources
             .iter()
             .map(|&(role, glsl)| (source_hash(role, glsl), role, glsl))
             .filter(|&(key, _, glsl)| {
                 !uses_external(glsl) && !self.cache.contains_key(&key) && seen.insert(key)
             })
             .collect();
+        // Those kept on disk are read, not compiled.
+        todo.retain(|&(key, role, glsl)| {
+            let t = Instant::now();
+            let Some(words) = self.kept(role, glsl) else { return true };
+            self.cache.insert(key, Arc::new(words));
+            self.precompiled_ms.insert(key, t.elapsed().as_secs_f64() * 1e3);
+            false
+        });
         if todo.is_empty() {
             return;
         }
@@ -103,9 +161,11 @@ impl Compiler {
             },
             progress,
         );
-        for (&(key, _, _), (words, ms)) in
+        for (&(key, role, glsl), (words, ms)) in
             todo.iter().zip(compiled).filter_map(|(t, c)| Some(t).zip(c.flatten()))
         {
+            self.to_disk(role, glsl, &words);
+            self.compiled += 1;
             self.cache.insert(key, Arc::new(words));
             self.precompiled_ms.insert(key, ms);
         }
@@ -122,11 +182,19 @@ impl Compiler {
             return Ok((s.clone(), self.precompiled_ms.remove(&key).unwrap_or(0.0)));
         }
         let t = Instant::now();
-        let words = Arc::new(if uses_external(glsl) {
-            super::glslang::compile(role, glsl)?
-        } else {
-            self.compile_glsl(role.kind(), role.file_name(), glsl)?
-        });
+        let words = match self.kept(role, glsl) {
+            Some(words) => Arc::new(words),
+            None => {
+                let words = if uses_external(glsl) {
+                    super::glslang::compile(role, glsl)?
+                } else {
+                    self.compile_glsl(role.kind(), role.file_name(), glsl)?
+                };
+                self.compiled += 1;
+                self.to_disk(role, glsl, &words);
+                Arc::new(words)
+            }
+        };
         self.cache.insert(key, words.clone());
         Ok((words, t.elapsed().as_secs_f64() * 1e3))
     }
@@ -351,5 +419,63 @@ mod tests {
         } else {
             assert_eq!((t.compiled_as(), t.mapping_note()), (t, None));
         }
+    }
+
+    /// A miss shader as an engine writes one: a payload struct, a sky gradient.
+    const SKY_MISS: &str = "#version 460\n#extension GL_EXT_ray_tracing : require\n\
+        struct HitPayload { vec3 radiance; float hitT; uint flags; };\n\
+        layout(location = 0) rayPayloadInEXT HitPayload payload;\n\
+        void main() {\n  vec3 d = normalize(gl_WorldRayDirectionEXT);\n\
+          float t = 0.5 * (d.y + 1.0);\n\
+          payload.radiance = mix(vec3(1.0), vec3(0.5, 0.7, 1.0), t);\n\
+          payload.hitT = -1.0;\n  payload.flags |= 1u;\n}\n";
+
+    /// A second compiler over the same cache folder (a warm run's worker) compiles nothing and
+    /// gets the same SPIR-V, in `compile` and in `precompile`. Its twins: garbage planted in the
+    /// cache file is detected and compiled again (and the file repaired), and a compiler without
+    /// the folder (a re-run that must compile afresh) compiles though the file is there.
+    #[test]
+    fn a_warm_compiler_reads_kept_compiles_and_recompiles_garbage() {
+        let d = tempfile::tempdir().unwrap();
+        let mut cold = Compiler::new().unwrap();
+        cold.use_disk_cache(Some(d.path()));
+        let (words, _) = cold.compile(Role::Miss, SKY_MISS).unwrap();
+        assert_eq!(cold.compiled, 1);
+        let file = DiskCache::under(d.path()).path(disk_key(Role::Miss, SKY_MISS));
+        assert!(file.exists());
+
+        let mut warm = Compiler::new().unwrap();
+        warm.use_disk_cache(Some(d.path()));
+        assert_eq!(warm.compile(Role::Miss, SKY_MISS).unwrap().0, words);
+        let mut warm2 = Compiler::new().unwrap();
+        warm2.use_disk_cache(Some(d.path()));
+        warm2.precompile(&[(Role::Miss, SKY_MISS)], 2, &|_, _| {});
+        assert_eq!(warm2.compile(Role::Miss, SKY_MISS).unwrap().0, words);
+        assert_eq!((warm.compiled, warm2.compiled), (0, 0), "a warm run compiles nothing");
+
+        // Garbage in the file: compiled again, the same SPIR-V, and the file is good again.
+        let mut bytes = std::fs::read(&file).unwrap();
+        let n = bytes.len();
+        bytes[n - 8..].copy_from_slice(b"garbage!");
+        std::fs::write(&file, &bytes).unwrap();
+        for pre in [false, true] {
+            let mut c = Compiler::new().unwrap();
+            c.use_disk_cache(Some(d.path()));
+            if pre {
+                std::fs::write(&file, b"not a cache file at all").unwrap();
+                c.precompile(&[(Role::Miss, SKY_MISS)], 2, &|_, _| {});
+            }
+            assert_eq!(c.compile(Role::Miss, SKY_MISS).unwrap().0, words);
+            assert_eq!(c.compiled, 1, "the damaged file was compiled again (precompile: {pre})");
+        }
+        let mut again = Compiler::new().unwrap();
+        again.use_disk_cache(Some(d.path()));
+        again.compile(Role::Miss, SKY_MISS).unwrap();
+        assert_eq!(again.compiled, 0, "the file was written again");
+
+        let mut fresh = Compiler::new().unwrap();
+        fresh.use_disk_cache(None);
+        assert_eq!(fresh.compile(Role::Miss, SKY_MISS).unwrap().0, words);
+        assert_eq!(fresh.compiled, 1, "no folder: compiled afresh");
     }
 }

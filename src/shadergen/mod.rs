@@ -6,6 +6,7 @@
 //! declarations come from `probes/common.glsl`. [`compile`] turns sources into SPIR-V with
 //! shaderc, caching by source.
 pub mod compile;
+pub mod disk_cache;
 pub mod error;
 pub mod glslang;
 pub mod include;

@@ -98,7 +98,7 @@ pub(super) fn digest(
     flags: &[vk::DescriptorBindingFlags],
     uab: bool,
 ) -> u128 {
-    let mut h = crate::exec::stable_hash::StableHash::default();
+    let mut h = crate::stable_hash::StableHash::default();
     h.str(key.model.as_str()).u32(key.stages.as_raw()).u32(u32::from(uab));
     for (i, (b, kind, t)) in targets.iter().enumerate() {
         h.u32(*b).u32(descriptor_type(*kind).as_raw() as u32).u64(t.len() as u64);

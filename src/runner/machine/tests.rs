@@ -574,3 +574,29 @@ fn a_death_is_a_crash_unless_the_exit_was_clean() {
     assert_eq!(died(&exit(Some(0), None)).0, Outcome::Error);
     assert_eq!(died(&exit(None, None)).0, Outcome::Error);
 }
+
+/// `exiting` after the last result: the worker ends at once, its process released (reaped in the
+/// background, not waited for), nothing recorded. Its twins: `exiting` with cells left (after a
+/// device loss, or mid-run) changes nothing, and the crash that follows is still recorded.
+#[test]
+fn exiting_after_the_last_result_ends_the_worker_without_waiting_for_its_exit() {
+    let t0 = Instant::now();
+    let mut w = ready_worker(t0);
+    for c in cells() {
+        (w, _) = feed(w, start(&c), at(t0, 200));
+        (w, _) = feed(w, result(&c, Outcome::Pass), at(t0, 300));
+    }
+    let (done, fx) = feed(w, msg(WorkerMsg::Exiting), at(t0, 310));
+    assert_eq!(fx, [Effect::Release]);
+    assert!(done.ended() && done.deadline(&LIMITS).is_none(), "{:?}", done.state);
+    // Mid-run: ignored; the cell's clock keeps running, and a death is still the cell's.
+    let (w, fx) = feed(in_cell(t0, Phase::Trace), msg(WorkerMsg::Exiting), at(t0, 320));
+    assert!(matches!(fx[..], [Effect::Log(_)]) && matches!(w.state, State::Cell { .. }));
+    let (_, fx) = dies(w, Input::Eof, exit(None, Some(libc::SIGSEGV)), at(t0, 330));
+    assert_eq!(attempts(&fx)[0].1.outcome, Outcome::Crash);
+    // After a device loss (cells left): the worker must still be reaped and its exit read.
+    let (w, _) =
+        feed(in_cell(t0, Phase::Trace), result(&cells()[0], Outcome::DeviceLost), at(t0, 300));
+    let (w, fx) = feed(w, msg(WorkerMsg::Exiting), at(t0, 301));
+    assert!(!fx.contains(&Effect::Release) && matches!(w.state, State::Teardown { .. }));
+}

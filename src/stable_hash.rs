@@ -1,7 +1,8 @@
 //! A 128-bit hash that is the same in every build, process and machine (FNV-1a; `std`'s hasher
-//! promises neither): the identity of a group library (`pipeline_library`: its stages' SPIR-V,
-//! the layout's contents, the heap mapping structs) and of a pipeline layout's contents
-//! (`bindings::layout::digest`).
+//! promises neither): the identity of a group library (`exec::pipeline_library`: its stages'
+//! SPIR-V, the layout's contents, the heap mapping structs), of a pipeline layout's contents
+//! (`exec::bindings::layout::digest`), and the key and checksum of a GLSL compile kept on disk
+//! (`shadergen::disk_cache`). Data layer: it uses nothing else of the crate.
 
 /// FNV-1a over 128 bits: every value is written as little-endian bytes, each variable-length one
 /// after its length, so two different sequences of writes never meet by concatenation.
