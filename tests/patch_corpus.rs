@@ -47,7 +47,45 @@ const PUSH: &[&str] = &["push/raygen.rgen", "push/hit.rchit", "push/miss.rmiss"]
 const BINDLESS: &[&str] = &["common/raygen.rgen", "bindless/hit.rchit", "common/miss.rmiss"];
 const DXC: &[&str] = &["dxc/raygen.spvasm", "dxc/closesthit.spvasm", "dxc/miss.spvasm"];
 
+/// Integers read from a buffer and from push constants index other arrays (review item 1).
+const INDEXED: Case = Case {
+    name: "index buffer indexes the vertex buffer",
+    inputs: &["common/raygen.rgen", "indexed/hit.rchit", "common/miss.rmiss"],
+    patches: "ssbo-to-address",
+    extra: &[],
+    expect: Expect::Verified,
+};
+const PUSH_INDEX: Case = Case {
+    name: "material index in push constants",
+    inputs: &["common/raygen.rgen", "pushidx/hit.rchit", "common/miss.rmiss"],
+    patches: "ssbo-to-address",
+    extra: &[],
+    expect: Expect::Verified,
+};
+
+/// Runtime arrays indexed per pixel (review item 3).
+const PER_PIXEL: Case = Case {
+    name: "per-pixel runtime arrays",
+    inputs: &["perpixel/raygen.rgen", "perpixel/hit.rchit", "common/miss.rmiss"],
+    patches: "ssbo-to-address",
+    extra: &[],
+    expect: Expect::Verified,
+};
+
+/// An atomic append queue beside the image (review item 6).
+const APPEND: Case = Case {
+    name: "atomic append queue",
+    inputs: &["append/raygen.rgen", "common/hit.rchit", "common/miss.rmiss"],
+    patches: "as-to-address",
+    extra: &[],
+    expect: Expect::Verified,
+};
+
 const CASES: &[Case] = &[
+    INDEXED,
+    APPEND,
+    PER_PIXEL,
+    PUSH_INDEX,
     Case { name: "two TLASes, one address each", inputs: SCENE, patches: "as-to-address", extra: &[], expect: Expect::Verified },
     Case { name: "three SSBO arrays, one table each", inputs: SCENE, patches: "ssbo-to-address", extra: &[], expect: Expect::Verified },
     Case { name: "both address patches together", inputs: SCENE, patches: "as-to-address,ssbo-to-address", extra: &[], expect: Expect::Verified },
@@ -334,6 +372,131 @@ fn the_corpus_patches_validly_without_merging_and_renders_identically() {
     assert_eq!(old, md, "reports/patch/corpus.md is stale: re-run with RTPROBE_UPDATE_REPORTS=1");
 }
 
+/// Review item 1: buffers used to hold float bits in every word, so an index read from an index
+/// buffer or from push constants was ~0x3F80xxxx: the patched pipeline (through addresses)
+/// crashed, or the unpatched one did. Integer words now hold small indices: both verify.
+#[test]
+fn indices_read_from_buffers_and_push_constants_verify() {
+    let mut t = Tally::default();
+    for case in [&INDEXED, &PUSH_INDEX] {
+        run_case(case, &mut t);
+    }
+    assert_eq!(t.verified, 2, "{:#?}", t.wrong);
+}
+
+/// Review item 3: a block's runtime array had 256 elements while a per-pixel index reaches
+/// 64 × 64 − 1: the patched hit shader read past the history buffers through addresses (the
+/// descriptor path read zeros) and a correct patch failed. Now every runtime array covers every
+/// pixel, and the per-pixel accumulation buffer is compared whole.
+#[test]
+fn per_pixel_runtime_arrays_cover_the_trace() {
+    let d = tempfile::tempdir().unwrap();
+    let inputs = prepare(PER_PIXEL.inputs, d.path());
+    let out = d.path().join("out");
+    let mut args: Vec<String> = vec!["patch".into()];
+    args.extend(inputs.iter().map(|p| p.to_string_lossy().into_owned()));
+    let inc = corpus().join("include");
+    let o = out.to_string_lossy().into_owned();
+    args.extend(
+        ["-I", inc.to_str().unwrap(), "-a", "ssbo-to-address", "-o", &o, "--verify"]
+            .map(String::from),
+    );
+    let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+    let r = run(&refs);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let s = stdout(&r);
+    assert!(s.contains("storage buffer set 0 binding 3[0]: 16384 4-byte words"), "{s}");
+}
+
+/// `rtprobe patch INPUTS -a PATCHES -o OUT --verify` (and `extra`) on corpus files, with `env`.
+fn verify_cli(
+    inputs: &[&str],
+    patches: &str,
+    extra: &[&str],
+    env: &[(&str, &str)],
+) -> (std::process::Output, tempfile::TempDir) {
+    let d = tempfile::tempdir().unwrap();
+    let inputs = prepare(inputs, d.path());
+    let out = d.path().join("out");
+    std::fs::create_dir_all(&out).unwrap();
+    let mut args: Vec<String> = vec!["patch".into()];
+    args.extend(inputs.iter().map(|p| p.to_string_lossy().into_owned()));
+    let inc = corpus().join("include");
+    let o = out.to_string_lossy().into_owned();
+    args.extend(
+        ["-I", inc.to_str().unwrap(), "-a", patches, "-o", &o, "--verify"].map(String::from),
+    );
+    args.extend(extra.iter().map(|s| s.to_string()));
+    let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+    (run_env(&refs, env), d)
+}
+
+/// Review item 5: a writable buffer the trace never writes compared "identical" (its initial
+/// fill) and verify passed comparing nothing. Now it is "not written", and with nothing else
+/// written the pipeline is unfit: exit 9, nothing written.
+#[test]
+fn a_pipeline_that_never_writes_its_buffer_is_unfit() {
+    let inputs = ["unwritten/raygen.rgen", "common/hit.rchit", "common/miss.rmiss"];
+    let (o, d) = verify_cli(&inputs, "as-to-address", &[], &[]);
+    assert_one_line_error(&o, 9, "writable buffers were not written by the trace");
+    assert!(std::fs::read_dir(d.path().join("out")).unwrap().next().is_none(), "nothing written");
+}
+
+/// Review item 6: an atomic append queue's record order is the driver's scheduling (lavapipe
+/// with 8 threads reorders it run to run), so a correct patch failed at random. Words that differ
+/// between two unpatched runs are left out (and counted); a reordered queue is no difference.
+/// Three runs, each with 8 llvmpipe threads.
+#[test]
+fn an_append_queue_verifies_every_time() {
+    for i in 0..3 {
+        let (o, _d) = verify_cli(APPEND.inputs, APPEND.patches, &[], &[("LP_NUM_THREADS", "8")]);
+        assert!(o.status.success(), "run {i}: {}", stderr(&o));
+        let s = stdout(&o);
+        assert!(
+            s.contains("storage buffer set 0 binding 4[0]: 16388 4-byte words identical"),
+            "run {i}: {s}"
+        );
+        println!("run {i}: {}", s.lines().find(|l| l.contains("binding 4")).unwrap_or_default());
+    }
+}
+
+/// Review item 7: end to end, a wrong patch (the child swaps the contract's two table addresses,
+/// `RTPROBE_VERIFY_FAULT=swap`) makes `rtprobe patch --verify` exit 1 and write nothing.
+#[test]
+fn a_wrong_patch_exits_1_and_writes_nothing() {
+    let d = tempfile::tempdir().unwrap();
+    let (args, out) = bindless_args(d.path(), &["--verify"]);
+    let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+    let o = run_env(&refs, &[("RTPROBE_VERIFY_FAULT", "swap")]);
+    assert_one_line_error(&o, 1, "differs from the unpatched one's");
+    assert!(std::fs::read_dir(&out).unwrap().next().is_none(), "nothing written");
+}
+
+/// Review item 8: pin-index changes the index by design, so `--verify` would always fail it:
+/// refused up front (exit 2, one line saying why), nothing written.
+#[test]
+fn verify_refuses_pin_index_up_front() {
+    let (o, d) = verify_cli(SCENE, "pin-index", &[], &[]);
+    assert_one_line_error(&o, 2, "--verify cannot check pin-index");
+    assert!(std::fs::read_dir(d.path().join("out")).unwrap().next().is_none(), "nothing written");
+}
+
+/// Review item 9: `--verify-timeout` took any u64 and `max(1) * 1000` overflowed; now 1..=3600.
+#[test]
+fn verify_timeout_out_of_range_is_a_usage_error() {
+    for t in ["0", "3601", "18446744073709551615"] {
+        let (o, d) = verify_cli(
+            &["common/raygen.rgen", "common/hit.rchit", "common/miss.rmiss"],
+            "as-to-address",
+            &["--verify-timeout", t],
+            &[],
+        );
+        assert_eq!(o.status.code(), Some(2), "{t}: {}", stderr(&o));
+        assert!(stderr(&o).contains("--verify-timeout"), "{t}: {}", stderr(&o));
+        assert!(std::fs::read_dir(d.path().join("out")).unwrap().next().is_none(), "{t}");
+    }
+}
+
 /// The corpus table (reports/patch/corpus.md): the counts, then each case.
 fn table(t: &Tally) -> String {
     let mut md = String::from("# The patch corpus\n\n");
@@ -570,7 +733,26 @@ fn a_crashing_or_hanging_verify_child_is_one_line_and_nothing_written() {
         assert_eq!(o.status.signal(), None, "{fault}: rtprobe itself died: {}", stderr(&o));
         assert_one_line_error(&o, 8, needle);
         assert!(std::fs::read_dir(&out).unwrap().next().is_none(), "{fault}: nothing written");
+        if fault == "crash" {
+            let e = stderr(&o);
+            assert!(e.contains("the patched pipeline faulted where the unpatched one ran"), "{e}");
+            assert!(!e.contains("driver crashed"), "{e}");
+        }
     }
+}
+
+/// Review item 2: a crash while tracing the *unpatched* pipeline says nothing about the patch
+/// or the driver's handling of it: the harness cannot run this input (exit 9), never "the driver
+/// crashed".
+#[test]
+fn a_crash_of_the_unpatched_pipeline_is_unrunnable_input() {
+    let d = tempfile::tempdir().unwrap();
+    let (args, out) = bindless_args(d.path(), &["--verify"]);
+    let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+    let o = run_env(&refs, &[("RTPROBE_VERIFY_FAULT", "crash-unpatched")]);
+    assert_one_line_error(&o, 9, "at `trace unpatched`: the harness cannot run this input");
+    assert!(!stderr(&o).contains("driver crashed"), "{}", stderr(&o));
+    assert!(std::fs::read_dir(&out).unwrap().next().is_none(), "nothing written");
 }
 
 /// Item 2 of the review: verify compares every writable storage buffer too. The patched hit

@@ -545,8 +545,8 @@ pub struct PatchArgs {
     pub verify: bool,
 
     /// With --verify: fence deadline of one submission in seconds (the child is killed when
-    /// silent for twice this plus 10 s)
-    #[arg(long, default_value_t = 30, value_name = "SECONDS")]
+    /// silent for twice this plus 10 s), 1 to 3600
+    #[arg(long, default_value_t = 30, value_name = "SECONDS", value_parser = clap::value_parser!(u64).range(1..=3600))]
     pub verify_timeout: u64,
 
     /// With --verify: device index or case-insensitive name substring

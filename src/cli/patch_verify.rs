@@ -80,7 +80,7 @@ pub fn verify(
         before,
         after,
         contract: contract.clone(),
-        timeout_ms: a.verify_timeout.max(1) * 1000,
+        timeout_ms: a.verify_timeout.clamp(1, 3600) * 1000,
         result: dir.join("result.json"),
     };
     let out = run_child(&job, dir.join("job.json"));
@@ -89,8 +89,8 @@ pub fn verify(
     outcome(out, &stderr)
 }
 
-/// How the child ended: its output, or the line saying how it died.
-type Ended = std::result::Result<VerifyOutput, String>;
+/// How the child ended: its output, or the line saying how it died and the step it died at.
+type Ended = std::result::Result<VerifyOutput, (String, String)>;
 
 /// Run the child on `job`: how it ended, and the tail of its stderr.
 fn run_child(job: &VerifyJob, job_path: PathBuf) -> Result<(Ended, String)> {
@@ -119,7 +119,8 @@ fn run_child(job: &VerifyJob, job_path: PathBuf) -> Result<(Ended, String)> {
     let out = std::fs::read(&job.result)
         .ok()
         .and_then(|b| serde_json::from_slice::<VerifyOutput>(&b).ok());
-    Ok((out.ok_or_else(|| died(&end, &step, step_silence)), end.exit.stderr_tail))
+    let ended = out.ok_or_else(|| (died(&end, &step, step_silence), step.clone()));
+    Ok((ended, end.exit.stderr_tail))
 }
 
 /// The line for a child that ended without its result: killed for silence, or dead.
@@ -139,18 +140,25 @@ pub fn died(end: &ChildEnd, step: &str, silence: Duration) -> String {
     format!("the pipelines' child process {how} at `{step}`{}{abandoned}", tail.unwrap_or_default())
 }
 
+/// The error for a child that died at `step`. At `trace unpatched` the input itself faults on the
+/// harness's resources, so nothing can be said about the patch (bad input); at `trace patched`,
+/// after the unpatched pipeline ran, the patched one faulted: through addresses it may read past
+/// a buffer whose descriptor reads the driver bounds-checked (lavapipe does, for descriptors).
+fn died_error(line: &str, step: &str) -> anyhow::Error {
+    if step.starts_with("trace unpatched") {
+        return coded(exit::BAD_INPUT, format!("--verify: {line}: the harness cannot run this input (the unpatched pipeline faults on the harness's scene and resources, so the run says nothing about the patch); nothing written"));
+    }
+    if step.starts_with("trace patched") {
+        return coded(exit::DEVICE_LOST, format!("--verify: {line}: the patched pipeline faulted where the unpatched one ran; through device addresses it may read past a buffer whose descriptor reads the driver bounds-checked (check the shader's indices and the host contract); nothing written"));
+    }
+    coded(exit::DEVICE_LOST, format!("--verify: {line} (the driver crashed or hung before the pipelines ran); nothing written"))
+}
+
 /// The verification's outcome as lines or a coded error; nothing is written on an error.
 /// `stderr`: the child's (where the validation layer's messages went).
 fn outcome(out: Ended, stderr: &str) -> Result<Vec<String>> {
     let (device, compared, messages) = match out {
-        Err(line) => {
-            return Err(coded(
-                exit::DEVICE_LOST,
-                format!(
-                "--verify: {line} (the driver crashed or hung on these pipelines); nothing written"
-            ),
-            ))
-        }
+        Err((line, step)) => return Err(died_error(&line, &step)),
         Ok(VerifyOutput::Failed { kind, message }) => {
             let code = match kind {
                 FailKind::DeviceLost => exit::DEVICE_LOST,
@@ -200,8 +208,13 @@ mod tests {
         assert_eq!(d, "the pipelines' child process died of signal 11 (SIGSEGV) at `trace patched`; stderr: llvmpipe: boom");
         let t = died(&end(Some(libc::SIGTERM), true), "trace unpatched", Duration::from_secs(12));
         assert!(t.contains("was silent for 12s and was killed at `trace unpatched`"), "{t}");
-        let e = outcome(Err(d), "").unwrap_err();
+        let e = outcome(Err((d, "trace patched".into())), "").unwrap_err();
         assert_eq!(exit::code_for(&e), exit::DEVICE_LOST);
-        assert!(!exit::one_line(&e).contains('\n'));
+        let l = exit::one_line(&e);
+        assert!(!l.contains('\n') && l.contains("the patched pipeline faulted"), "{l}");
+        assert!(!l.contains("driver crashed"), "{l}");
+        let e = outcome(Err((t, "trace unpatched".into())), "").unwrap_err();
+        assert_eq!(exit::code_for(&e), exit::BAD_INPUT);
+        assert!(exit::one_line(&e).contains("the harness cannot run this input"));
     }
 }

@@ -7,7 +7,9 @@
 //! only: the parent turns that into the verification's outcome.
 //!
 //! Test hook: `RTPROBE_VERIFY_FAULT=<crash|hang>` raises SIGSEGV or sleeps forever where the
-//! patched pipeline would be traced (`tests/patch_corpus.rs`).
+//! patched pipeline would be traced, `crash-unpatched` raises SIGSEGV where the unpatched one
+//! would, `swap` swaps the push-constant offsets of the contract's first two addresses (a wrong
+//! patch: `tests/patch_corpus.rs`).
 use super::{Compared, HarnessError, UserModule};
 use crate::model::contract::HostContract;
 use crate::vk::{features, Gpu, Instance, InstanceOptions};
@@ -89,22 +91,38 @@ fn say(step: &str) {
     let _ = out.flush();
 }
 
-/// The test hook, where the patched pipeline is traced.
+/// The test hook, where the pipeline it names is traced.
 fn misbehave(step: &str) {
-    if step != "trace patched" {
+    let fault = std::env::var(FAULT_ENV).unwrap_or_default();
+    let (fault, at) = match fault.as_str() {
+        "crash-unpatched" => ("crash", "trace unpatched"),
+        f => (f, "trace patched"),
+    };
+    if step != at {
         return;
     }
-    match std::env::var(FAULT_ENV).as_deref() {
-        Ok("crash") => unsafe {
+    match fault {
+        "crash" => unsafe {
             // Rust's own SIGSEGV handler ignores a raised signal; restore the default first.
             libc::signal(libc::SIGSEGV, libc::SIG_DFL);
             libc::raise(libc::SIGSEGV);
         },
-        Ok("hang") => loop {
+        "hang" => loop {
             std::thread::sleep(Duration::from_secs(3600));
         },
         _ => {}
     }
+}
+
+/// The contract as the test hook leaves it: `swap` swaps the offsets of its first two addresses.
+fn wrong_contract(c: &HostContract) -> HostContract {
+    let mut c = c.clone();
+    if std::env::var(FAULT_ENV).as_deref() == Ok("swap") && c.addresses.len() >= 2 {
+        let (a, b) = (c.addresses[0].offset, c.addresses[1].offset);
+        c.addresses[0].offset = b;
+        c.addresses[1].offset = a;
+    }
+    c
 }
 
 fn modules(list: &[JobModule]) -> Result<Vec<UserModule>, HarnessError> {
@@ -123,8 +141,9 @@ fn run(job: &VerifyJob) -> Result<VerifyOutput, HarnessError> {
     let gpu = Gpu::new(inst, info, super::requirements(job.scalar))?;
     let messages = crate::vk::instance::validation_error_count();
     let timeout = Duration::from_millis(job.timeout_ms);
+    let contract = wrong_contract(&job.contract);
     let (device, compared) =
-        super::verify_with(gpu, &before, &after, &job.contract, timeout, &mut |s: &str| {
+        super::verify_with(gpu, &before, &after, &contract, timeout, &mut |s: &str| {
             say(s);
             misbehave(s);
         })?;

@@ -20,10 +20,12 @@ pub struct Part {
     pub bytes: Vec<u8>,
     /// Bytes per texel (images) or per word (buffers: 4).
     pub texel: u32,
+    /// What a buffer held before the trace (the harness's fill); `None` for images.
+    pub initial: Option<Vec<u8>>,
 }
 
 /// One output compared: units (texels or words), how many differ, how many distinct values the
-/// unpatched one has.
+/// written units hold (both runs), how many the trace wrote, how many were unstable.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Compared {
     pub label: String,
@@ -31,6 +33,14 @@ pub struct Compared {
     pub texels: usize,
     pub differing: usize,
     pub distinct: usize,
+    /// Units the trace wrote: all of an image; a buffer's that differ from its initial fill in
+    /// either run. Only written units are compared.
+    #[serde(default)]
+    pub written: usize,
+    /// Units that differ between two runs of the unpatched pipeline (an append queue's order):
+    /// left out of the comparison.
+    #[serde(default)]
+    pub unstable: usize,
 }
 
 impl Compared {
@@ -40,28 +50,69 @@ impl Compared {
             PartKind::Buffer => "4-byte words",
         }
     }
+
+    /// Whether the output can tell a wrong read from a right one: written, more than one value.
+    fn informative(&self) -> bool {
+        self.written > 0 && self.distinct > 1
+    }
 }
 
-/// Unit-by-unit comparison of two runs' outputs (a length difference counts as differing units).
-pub fn compare(before: &[Part], after: &[Part]) -> Vec<Compared> {
-    before
-        .iter()
-        .zip(after)
-        .map(|(b, a)| {
-            let t = b.texel.max(1) as usize;
-            let texels: Vec<&[u8]> = b.bytes.chunks(t).collect();
-            let differing = texels.iter().zip(a.bytes.chunks(t)).filter(|(x, y)| **x != *y).count()
-                + texels.len().abs_diff(a.bytes.len().div_ceil(t));
-            let distinct = texels.iter().collect::<std::collections::BTreeSet<_>>().len();
-            Compared {
-                label: b.label.clone(),
-                kind: b.kind,
-                texels: texels.len(),
-                differing,
-                distinct,
-            }
-        })
-        .collect()
+/// Unit-by-unit comparison of the unpatched pipeline's outputs (`before`, and `again` from a
+/// second unpatched trace) with the patched one's (`after`). A unit that differs between the
+/// two unpatched runs is unstable and left out; a buffer unit equal to its initial fill in every
+/// run was not written and is left out; a length difference counts as differing units. A buffer
+/// with unstable units differs in none when its units, all of them as a multiset, are the same
+/// in both pipelines:
+/// the order an append queue fills in is the driver's scheduling (a record may land in the same
+/// slot in both unpatched runs by chance and in another in the patched one).
+pub fn compare(before: &[Part], again: &[Part], after: &[Part]) -> Vec<Compared> {
+    before.iter().zip(again).zip(after).map(|((b, g), a)| compare_one(b, g, a)).collect()
+}
+
+fn compare_one<'a>(b: &'a Part, g: &'a Part, a: &'a Part) -> Compared {
+    let t = b.texel.max(1) as usize;
+    let units = |p: &'a Part| -> Vec<&'a [u8]> { p.bytes.chunks(t).collect() };
+    let (bs, gs, as_) = (units(b), units(g), units(a));
+    let init: Option<Vec<&[u8]>> = b.initial.as_ref().map(|i| i.chunks(t).collect());
+    let (mut unstable, mut differing) = (0, 0);
+    let (mut kept_b, mut kept_a) = (Vec::new(), Vec::new());
+    for (k, x) in bs.iter().enumerate() {
+        if gs.get(k) != Some(x) {
+            unstable += 1;
+            continue;
+        }
+        let y = as_.get(k);
+        let unwritten =
+            init.as_ref().and_then(|i| i.get(k)).is_some_and(|i| x == i && y == Some(i));
+        if unwritten {
+            continue;
+        }
+        kept_b.push(*x);
+        if let Some(y) = y {
+            kept_a.push(*y);
+        }
+        differing += usize::from(y != Some(x));
+    }
+    // Units only the patched output has (the loop counted those only the unpatched one has).
+    differing += as_.len().saturating_sub(bs.len());
+    if unstable > 0 && differing > 0 && bs.len() == as_.len() {
+        let (mut x, mut y) = (bs.clone(), as_.clone());
+        x.sort_unstable();
+        y.sort_unstable();
+        if x == y {
+            differing = 0;
+        }
+    }
+    let distinct = kept_b.iter().chain(&kept_a).collect::<std::collections::BTreeSet<_>>().len();
+    Compared {
+        label: b.label.clone(),
+        kind: b.kind,
+        texels: bs.len(),
+        differing,
+        distinct,
+        written: kept_b.len(),
+        unstable,
+    }
 }
 
 /// What a comparison comes to.
@@ -75,41 +126,60 @@ pub enum Verdict {
     Unfit(String),
 }
 
-/// Judge the comparison of a pipeline's outputs on `device`.
+/// Judge the comparison of a pipeline's outputs on `device`: a difference first (in any
+/// output, informative or not); only when nothing differs, unfit when no compared output was
+/// written with more than one value (a raygen that writes a constant, a buffer the trace never
+/// writes, results that do not depend on the patched descriptors).
 pub fn judge(device: &str, compared: &[Compared]) -> Verdict {
-    let images: Vec<&Compared> = compared.iter().filter(|c| c.kind == PartKind::Image).collect();
     if compared.is_empty() {
         return Verdict::Unfit(
             "the pipeline writes no storage image or storage buffer to compare".into(),
         );
     }
-    // Images of one value everywhere prove nothing about the patched reads (a raygen that
-    // writes a constant, or results that do not depend on the patched descriptors).
-    if !images.is_empty() && images.iter().all(|c| c.distinct <= 1) {
-        return Verdict::Unfit("every storage image the pipeline writes holds one value, so the comparison cannot tell a wrong read from a right one; write something that depends on the patched descriptors".into());
-    }
     if let Some(c) = compared.iter().find(|c| c.differing > 0) {
         return Verdict::Differs(format!(
-            "the patched pipeline's {} differs from the unpatched one's in {} of {} {} on {device}",
+            "the patched pipeline's {} differs from the unpatched one's in {} of {} {} on {device}{}",
             c.label,
             c.differing,
             c.texels,
-            c.unit()
+            c.unit(),
+            unstable_note(c)
         ));
     }
-    Verdict::Identical(
-        compared
-            .iter()
-            .map(|c| {
-                format!(
-                    "verified on {device}: {}: {} {} identical, unpatched and patched ({} distinct values)",
-                    c.label,
-                    c.texels,
-                    c.unit(),
-                    c.distinct
-                )
-            })
-            .collect(),
+    if !compared.iter().any(Compared::informative) {
+        return Verdict::Unfit("nothing the pipeline wrote can tell a wrong read from a right one: its storage images hold one value and its writable buffers were not written by the trace (or hold one value); write something that depends on the patched descriptors".into());
+    }
+    Verdict::Identical(compared.iter().map(|c| identical_line(device, c)).collect())
+}
+
+/// ", N … left out: they differ between two unpatched runs" when any were.
+fn unstable_note(c: &Compared) -> String {
+    if c.unstable == 0 {
+        return String::new();
+    }
+    format!(
+        " ({} {} left out: they differ between two runs of the unpatched pipeline)",
+        c.unstable,
+        c.unit()
+    )
+}
+
+fn identical_line(device: &str, c: &Compared) -> String {
+    if c.kind == PartKind::Buffer && c.written == 0 {
+        return format!("on {device}: {}: not written by the trace (its initial data in every run; not counted){}", c.label, unstable_note(c));
+    }
+    let written = if c.kind == PartKind::Buffer && c.written < c.texels {
+        format!(" ({} written)", c.written)
+    } else {
+        String::new()
+    };
+    format!(
+        "verified on {device}: {}: {} {} identical{written}, unpatched and patched ({} distinct values){}",
+        c.label,
+        c.texels,
+        c.unit(),
+        c.distinct,
+        unstable_note(c)
     )
 }
 
@@ -118,35 +188,44 @@ mod tests {
     use super::*;
 
     fn part(kind: PartKind, words: &[u8]) -> Part {
+        let initial = (kind == PartKind::Buffer).then(|| vec![0xEE; words.len() * 4]);
         Part {
             label: "x".into(),
             kind,
             bytes: words.iter().flat_map(|w| [*w, 0, 0, 0]).collect(),
             texel: 4,
+            initial,
         }
+    }
+
+    /// Compare with the second unpatched run equal to the first.
+    fn cmp(before: &[Part], after: &[Part]) -> Vec<Compared> {
+        compare(before, before, after)
     }
 
     #[test]
     fn comparison_counts_differing_and_distinct_texels() {
         let a = part(PartKind::Image, &[1, 2, 2]);
         let b = part(PartKind::Image, &[1, 2, 3]);
-        let c = &compare(std::slice::from_ref(&a), &[b])[0];
-        assert_eq!((c.texels, c.differing, c.distinct), (3, 1, 2));
+        let c = &cmp(std::slice::from_ref(&a), &[b])[0];
+        assert_eq!((c.texels, c.differing, c.distinct, c.written), (3, 1, 3, 3));
         let same = std::slice::from_ref(&a);
-        assert_eq!(compare(same, same)[0].differing, 0);
-        // A shorter output differs in what it lacks.
+        assert_eq!(cmp(same, same)[0].differing, 0);
+        // A shorter or a longer output differs in what one lacks.
         let short = part(PartKind::Image, &[1, 2]);
-        assert_eq!(compare(same, &[short])[0].differing, 1);
+        assert_eq!(cmp(same, &[short])[0].differing, 1);
+        let long = part(PartKind::Image, &[1, 2, 2, 4, 5]);
+        assert_eq!(cmp(same, &[long])[0].differing, 2);
     }
 
     #[test]
     fn a_buffer_that_differs_fails_even_when_every_image_matches() {
         let img = part(PartKind::Image, &[1, 2, 3]);
         let buf = part(PartKind::Buffer, &[7, 8]);
-        let same = compare(&[img.clone(), buf.clone()], &[img.clone(), buf.clone()]);
+        let same = cmp(&[img.clone(), buf.clone()], &[img.clone(), buf.clone()]);
         assert!(matches!(judge("dev", &same), Verdict::Identical(l) if l.len() == 2));
         let other = part(PartKind::Buffer, &[7, 9]);
-        match judge("dev", &compare(&[img.clone(), buf], &[img, other])) {
+        match judge("dev", &cmp(&[img.clone(), buf], &[img, other])) {
             Verdict::Differs(l) => {
                 assert!(l.contains("differs") && l.contains("1 of 2 4-byte words"), "{l}")
             }
@@ -154,11 +233,73 @@ mod tests {
         }
     }
 
+    /// Review item 4: a one-valued image used to make the run unfit before any difference was
+    /// looked for, so a differing buffer beside it went unreported.
+    #[test]
+    fn a_difference_beside_a_one_valued_image_is_reported() {
+        let flat = part(PartKind::Image, &[5, 5, 5]);
+        let (buf, other) = (part(PartKind::Buffer, &[7, 8]), part(PartKind::Buffer, &[7, 9]));
+        let c = cmp(&[flat.clone(), buf], &[flat, other]);
+        assert!(matches!(judge("dev", &c), Verdict::Differs(l) if l.contains("1 of 2")), "{c:?}");
+    }
+
     #[test]
     fn one_valued_images_or_nothing_cannot_verify() {
         let flat = part(PartKind::Image, &[5, 5, 5]);
-        let c = compare(std::slice::from_ref(&flat), std::slice::from_ref(&flat));
+        let c = cmp(std::slice::from_ref(&flat), std::slice::from_ref(&flat));
         assert!(matches!(judge("dev", &c), Verdict::Unfit(w) if w.contains("one value")));
         assert!(matches!(judge("dev", &[]), Verdict::Unfit(w) if w.contains("no storage image")));
+        // A one-valued image beside a written, many-valued buffer: the buffer verifies.
+        let buf = part(PartKind::Buffer, &[7, 8]);
+        let c = cmp(&[flat.clone(), buf.clone()], &[flat, buf]);
+        assert!(matches!(judge("dev", &c), Verdict::Identical(_)), "{c:?}");
+    }
+
+    /// Review item 5: a buffer the trace never writes compared "identical" (its initial fill).
+    #[test]
+    fn a_buffer_left_as_filled_is_not_written_and_proves_nothing() {
+        let mut buf = part(PartKind::Buffer, &[7, 8, 9]);
+        buf.initial = Some(buf.bytes.clone());
+        let c = cmp(std::slice::from_ref(&buf), std::slice::from_ref(&buf));
+        assert_eq!((c[0].written, c[0].differing), (0, 0));
+        assert!(matches!(judge("dev", &c), Verdict::Unfit(w) if w.contains("not written")));
+        // Beside an informative image it is said, not counted.
+        let img = part(PartKind::Image, &[1, 2, 3]);
+        let c = cmp(&[img.clone(), buf.clone()], &[img, buf.clone()]);
+        match judge("dev", &c) {
+            Verdict::Identical(l) => assert!(l[1].contains("not written by the trace"), "{l:?}"),
+            v => panic!("{v:?}"),
+        }
+        // One word written: compared, and its change is a difference.
+        let mut wrote = buf.clone();
+        wrote.bytes[4] = 1;
+        let mut wrong = buf.clone();
+        wrong.bytes[4] = 2;
+        let c = cmp(std::slice::from_ref(&wrote), std::slice::from_ref(&wrong));
+        assert_eq!((c[0].written, c[0].differing), (1, 1));
+    }
+
+    /// Review item 6: units that differ between two unpatched runs are left out, said, and a
+    /// permutation of an append queue's records is no difference; a stable change still is.
+    #[test]
+    fn unstable_units_are_left_out_and_a_reordered_queue_is_no_difference() {
+        let run1 = part(PartKind::Buffer, &[3, 10, 20, 30, 40]);
+        let run2 = part(PartKind::Buffer, &[3, 20, 10, 30, 40]);
+        let patched = part(PartKind::Buffer, &[3, 30, 20, 10, 40]);
+        let c = compare(
+            std::slice::from_ref(&run1),
+            std::slice::from_ref(&run2),
+            std::slice::from_ref(&patched),
+        );
+        assert_eq!((c[0].unstable, c[0].differing), (2, 0), "{c:?}");
+        match judge("dev", &c) {
+            Verdict::Identical(l) => assert!(l[0].contains("2 4-byte words left out"), "{l:?}"),
+            v => panic!("{v:?}"),
+        }
+        // Twin: a value the unpatched runs never hold is a difference.
+        let wrong = part(PartKind::Buffer, &[3, 10, 20, 99, 40]);
+        let c = compare(std::slice::from_ref(&run1), &[run2], &[wrong]);
+        assert_eq!(c[0].differing, 1, "{c:?}");
+        assert!(matches!(judge("dev", &c), Verdict::Differs(l) if l.contains("left out")));
     }
 }

@@ -14,6 +14,7 @@
 pub mod child;
 mod compare;
 mod error;
+pub mod ints;
 pub mod reflect;
 mod resources;
 pub mod scene;
@@ -34,7 +35,7 @@ use std::ffi::CString;
 use std::time::Duration;
 
 /// Width and height of the traced image.
-pub const SIZE: u32 = 64;
+pub const SIZE: u32 = scene::TRACE_SIZE;
 /// The fence deadline of one submission by default.
 pub const TIMEOUT: Duration = Duration::from_secs(30);
 
@@ -77,6 +78,8 @@ pub struct Harness {
     res: Resources,
     layout: vk::PipelineLayout,
     push_size: u32,
+    /// The integer words of the push range (every module's block).
+    push_ints: ints::IntWords,
     /// The fence deadline of one submission.
     timeout: Duration,
 }
@@ -151,6 +154,11 @@ impl Harness {
         let extent = vk::Extent2D { width: SIZE, height: SIZE };
         let res = Resources::new(&gpu, &bindings, &scene, extent)?;
         let push_size = push_size.div_ceil(4) * 4;
+        let mut push_ints = ints::IntWords::default();
+        for m in modules {
+            push_ints.fixed.low.extend(&m.iface.push_ints.fixed.low);
+            push_ints.fixed.high.extend(&m.iface.push_ints.fixed.high);
+        }
         let range =
             [vk::PushConstantRange::default().stage_flags(resources::rt_stages()).size(push_size)];
         let mut ci = vk::PipelineLayoutCreateInfo::default().set_layouts(&res.set_layouts);
@@ -159,7 +167,7 @@ impl Harness {
         }
         let layout =
             unsafe { gpu.device.create_pipeline_layout(&ci, None) }.at("vkCreatePipelineLayout")?;
-        Ok(Harness { gpu, submitter, scene, res, layout, push_size, timeout })
+        Ok(Harness { gpu, submitter, scene, res, layout, push_size, push_ints, timeout })
     }
 
     pub fn device_name(&self) -> String {
@@ -260,10 +268,15 @@ impl Harness {
         Ok(r?)
     }
 
-    /// The push-constant bytes: floats `0.5 + w / 4` for word `w`, then each contract address.
+    /// The push-constant bytes: floats `0.5 + w / 4` for word `w`, small integers in the words a
+    /// module's block reads as integers (a material index: [`ints`]), then each contract address.
     fn push_bytes(&self, addresses: &[(u32, u64)]) -> Vec<u8> {
-        let mut p: Vec<u8> =
-            (0..self.push_size / 4).flat_map(|w| (0.5 + w as f32 / 4.0).to_le_bytes()).collect();
+        let mut p: Vec<u8> = (0..self.push_size / 4)
+            .flat_map(|w| match self.push_ints.at(4 * w) {
+                ints::Fill::Float => (0.5 + w as f32 / 4.0).to_le_bytes(),
+                fill => resources::word(0, w, fill),
+            })
+            .collect();
         for (off, a) in addresses {
             p[*off as usize..*off as usize + 8].copy_from_slice(&a.to_le_bytes());
         }
@@ -322,6 +335,7 @@ impl Harness {
                     kind: PartKind::Image,
                     bytes: b.read((SIZE * SIZE * t) as usize),
                     texel: *t,
+                    initial: None,
                 })
                 .chain(self.written_buffers())
                 .collect()),
@@ -337,22 +351,27 @@ impl Harness {
         result
     }
 
-    /// Every element of every writable storage buffer, as the trace left it.
+    /// Every element of every writable storage buffer, as the trace left it, with the data it
+    /// held before (numbered over every buffer element as [`Resources::refill`] numbers them).
     fn written_buffers(&self) -> Vec<Part> {
         let mut out = Vec::new();
+        let mut d = 0;
         for ((set, binding), (b, elems)) in &self.res.bindings {
-            let (BindingKind::StorageBuffer(size), true) = (b.kind, b.writable) else {
+            let (BindingKind::StorageBuffer(size) | BindingKind::UniformBuffer(size)) = b.kind
+            else {
                 continue;
             };
             for (k, e) in elems.iter().enumerate() {
-                if let Element::Buffer(buf) = e {
+                if let (Element::Buffer(buf), true) = (e, b.writable) {
                     out.push(Part {
                         label: format!("storage buffer set {set} binding {binding}[{k}]"),
                         kind: PartKind::Buffer,
                         bytes: buf.read(size as usize),
                         texel: 4,
+                        initial: Some(resources::buffer_data(d, size, &b.ints)),
                     });
                 }
+                d += 1;
             }
         }
         out
@@ -463,7 +482,7 @@ pub fn verify(
 }
 
 /// [`verify`] with a fence deadline of `timeout` per submission, telling `step` each step
-/// before taking it (`scene`, `trace unpatched`, `trace patched`).
+/// before taking it (`scene`, `trace unpatched`, `trace unpatched again`, `trace patched`).
 pub fn verify_with(
     gpu: Gpu,
     before: &[UserModule],
@@ -480,7 +499,10 @@ pub fn verify_with(
     let h = Harness::new(gpu, &b, push, timeout)?;
     step("trace unpatched");
     let unpatched = h.trace(&b, None)?;
+    // Twice: what differs between two unpatched runs (an append queue's order) is not compared.
+    step("trace unpatched again");
+    let again = h.trace(&b, None)?;
     step("trace patched");
     let patched = h.trace(&a, Some(contract))?;
-    Ok((h.device_name(), compare(&unpatched, &patched)))
+    Ok((h.device_name(), compare(&unpatched, &again, &patched)))
 }

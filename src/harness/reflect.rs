@@ -3,6 +3,8 @@
 //! buffer, and the bytes its push-constant block reads. Only the binding types the harness can
 //! make are accepted (acceleration structures, storage images, storage and uniform buffers); any
 //! other is refused naming its set and binding.
+use super::ints::{self, IntWords};
+use super::scene::{INDEX_BOUND, TRACE_SIZE};
 use crate::patches::layout::{self, Rules};
 use crate::patches::pipeline::stage_of;
 use crate::patches::{edit, push};
@@ -12,9 +14,18 @@ use rspirv::spirv::{Decoration, ImageFormat, Op, StorageClass, Word};
 /// Elements given to a runtime-sized array of descriptors: one per index the harness scene can
 /// produce (`super::scene::INDEX_BOUND`), so an array indexed by `gl_InstanceCustomIndexEXT` and
 /// the like stays in bounds.
-pub const RUNTIME_ELEMENTS: u32 = super::scene::INDEX_BOUND;
-/// Elements of a runtime array at the end of a buffer block: four per index the scene produces.
-pub const RUNTIME_MEMBERS: u32 = 4 * super::scene::INDEX_BOUND;
+pub const RUNTIME_ELEMENTS: u32 = INDEX_BOUND;
+/// Elements of a runtime array at the end of a buffer block: four per index the scene produces,
+/// and at least one per traced pixel (engines index per-pixel buffers, accumulation or history,
+/// with `gl_LaunchIDEXT.y * gl_LaunchSizeEXT.x + gl_LaunchIDEXT.x`).
+pub const RUNTIME_MEMBERS: u32 = {
+    let (per_index, per_pixel) = (4 * INDEX_BOUND, TRACE_SIZE * TRACE_SIZE);
+    if per_index > per_pixel {
+        per_index
+    } else {
+        per_pixel
+    }
+};
 
 /// What a binding holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -41,6 +52,8 @@ pub struct Binding {
     /// A storage buffer the module may write: neither the variable nor every member of its
     /// block is `NonWritable` (false for every other kind).
     pub writable: bool,
+    /// The integer words of a buffer's block (empty for every other kind).
+    pub ints: IntWords,
 }
 
 /// A module's interface.
@@ -52,6 +65,8 @@ pub struct Interface {
     pub bindings: Vec<Binding>,
     /// The end of the push-constant bytes it reads (0: none).
     pub push_end: u32,
+    /// The integer words of its push-constant block (offsets in the push range).
+    pub push_ints: IntWords,
 }
 
 /// What the harness cannot give a module.
@@ -134,7 +149,13 @@ fn binding(m: &Module, var: Word, ptr: Word) -> Result<Binding, ReflectError> {
         refuse(&format!("a {op} in {sc:?} storage, which the harness cannot make yet (acceleration structures, storage images, storage and uniform buffers)"))
     })?;
     let writable = matches!(kind, BindingKind::StorageBuffer(_)) && !non_writable(m, var, elem);
-    Ok(Binding { set, binding, kind, count, runtime, writable })
+    let ints = match kind {
+        BindingKind::StorageBuffer(_) | BindingKind::UniformBuffer(_) => {
+            ints::of_block(m, elem).unwrap_or_default()
+        }
+        _ => IntWords::default(),
+    };
+    Ok(Binding { set, binding, kind, count, runtime, writable, ints })
 }
 
 /// Whether a buffer variable is read-only: `NonWritable` on the variable (DXC, Slang) or on every
@@ -164,7 +185,9 @@ pub fn reflect(m: &Module) -> Result<Interface, ReflectError> {
     bindings.sort_by_key(|b| (b.set, b.binding));
     let push_end =
         push::end(m, Rules::Scalar, "harness").map_err(|e| ReflectError(e.to_string()))?;
-    Ok(Interface { stage, entry, bindings, push_end })
+    let block = push::block(m, "harness").map_err(|e| ReflectError(e.to_string()))?;
+    let push_ints = block.and_then(|b| ints::of_block(m, b.st)).unwrap_or_default();
+    Ok(Interface { stage, entry, bindings, push_end, push_ints })
 }
 
 #[cfg(test)]

@@ -1,10 +1,12 @@
 //! The harness's resources, one per descriptor of the pipelines' reflected bindings, each with
 //! data no other descriptor has: the acceleration structures cycle through the scene's TLASes
 //! (the scene TLAS, then the AS probe's variants: other instances, other custom indices), every
-//! buffer holds floats that encode its own descriptor, storage images start at zero. Plus the
+//! buffer holds floats that encode its own descriptor (small integers in its integer words), storage images start at zero. Plus the
 //! descriptor sets that bind them, and the address tables a host contract asks for.
 use super::error::HarnessError;
+use super::ints::{Fill, IntWords};
 use super::reflect::{Binding, BindingKind};
+use super::scene::INDEX_BOUND;
 use crate::model::contract::{AddressKind, HostContract};
 use crate::scene::gpu::SceneGpu;
 use crate::vk::memory::{Buffer, Image, Location};
@@ -44,11 +46,22 @@ pub fn format(f: ImageFormat) -> Option<(vk::Format, u32)> {
     })
 }
 
-/// The data of buffer number `d` (counted over every buffer descriptor): word `w` is the float
-/// `d + 1 + w / 256`, so no two descriptors hold the same values and every word is a plain
-/// number a shader can mix into a colour.
-pub fn buffer_data(d: u32, bytes: u32) -> Vec<u8> {
-    (0..bytes / 4).flat_map(|w| (d as f32 + 1.0 + w as f32 / 256.0).to_le_bytes()).collect()
+/// The data of buffer number `d` (counted over every buffer descriptor) with integer words
+/// `ints`: a float word `w` is `d + 1 + w / 256`, so no two descriptors hold the same values and
+/// every word is a plain number a shader can mix into a colour; an integer word is
+/// `(5d + w + 1) mod INDEX_BOUND` (the high half of a 64-bit one 0), so an index read from a
+/// buffer stays inside every array the harness makes ([`super::ints`] says why).
+pub fn buffer_data(d: u32, bytes: u32, ints: &IntWords) -> Vec<u8> {
+    (0..bytes / 4).flat_map(|w| word(d, w, ints.at(4 * w))).collect()
+}
+
+/// The bytes of word `w` of data set `d` holding `fill`.
+pub fn word(d: u32, w: u32, fill: Fill) -> [u8; 4] {
+    match fill {
+        Fill::Float => (d as f32 + 1.0 + w as f32 / 256.0).to_le_bytes(),
+        Fill::SmallInt => ((5 * d + w + 1) % INDEX_BOUND).to_le_bytes(),
+        Fill::Zero => [0; 4],
+    }
 }
 
 const RT_STAGES: vk::ShaderStageFlags = vk::ShaderStageFlags::from_raw(
@@ -130,7 +143,7 @@ impl Resources {
                             | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
                         let buf =
                             Buffer::new(gpu, size as u64, usage, Location::Host, "harness buffer")?;
-                        buf.write(0, &buffer_data(n_buf, size));
+                        buf.write(0, &buffer_data(n_buf, size, &b.ints));
                         n_buf += 1;
                         Element::Buffer(buf)
                     }
@@ -151,7 +164,7 @@ impl Resources {
             if let BindingKind::StorageBuffer(size) | BindingKind::UniformBuffer(size) = b.kind {
                 for e in elems {
                     if let Element::Buffer(buf) = e {
-                        buf.write(0, &buffer_data(d, size));
+                        buf.write(0, &buffer_data(d, size, &b.ints));
                     }
                     d += 1;
                 }

@@ -8,6 +8,9 @@
 use crate::model::SceneParams;
 use crate::scene::{Geometry, Scene};
 
+/// Width and height of the traced image: a per-pixel index reaches `TRACE_SIZE² − 1`.
+pub const TRACE_SIZE: u32 = 64;
+
 /// Every index the harness scene produces (custom index, instance index, geometry index,
 /// primitive index within its geometry) is below this.
 pub const INDEX_BOUND: u32 = 64;
@@ -73,6 +76,8 @@ mod tests {
         const { assert!(RUNTIME_ELEMENTS >= INDEX_BOUND) };
         // A block's runtime array covers four words per index (`v[3 * gl_PrimitiveID + 2]`).
         const { assert!(RUNTIME_MEMBERS >= 4 * INDEX_BOUND) };
+        // …and one element per traced pixel (a per-pixel index reaches width × height − 1).
+        const { assert!(RUNTIME_MEMBERS >= TRACE_SIZE * TRACE_SIZE) };
         // The custom index is a permutation unlike the instance index.
         let mut c: Vec<u32> = s.instances.iter().map(|i| i.custom_index).collect();
         assert!(c.iter().enumerate().all(|(k, x)| *x != k as u32), "{c:?}");
