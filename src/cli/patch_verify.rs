@@ -12,7 +12,6 @@ use super::patch_inputs::Input;
 use crate::harness::child::{FailKind, JobModule, Step, VerifyJob, VerifyOutput};
 use crate::harness::{self, UserModule, Verdict};
 use crate::model::contract::HostContract;
-use crate::model::signal_name;
 use crate::runner::process::{run_to_end, ChildEnd};
 use anyhow::{Context, Result};
 use std::path::PathBuf;
@@ -125,19 +124,7 @@ fn run_child(job: &VerifyJob, job_path: PathBuf) -> Result<(Ended, String)> {
 
 /// The line for a child that ended without its result: killed for silence, or dead.
 pub fn died(end: &ChildEnd, step: &str, silence: Duration) -> String {
-    let how = if end.timed_out {
-        format!("was silent for {silence:?} and was killed")
-    } else {
-        match (end.exit.signal, end.exit.code) {
-            (Some(s), _) => format!("died of signal {s} ({})", signal_name(s)),
-            (None, Some(c)) => format!("exited with status {c} and no result"),
-            (None, None) => "ended without a result".into(),
-        }
-    };
-    let tail = end.exit.stderr_tail.lines().rev().find(|l| !l.trim().is_empty());
-    let tail = tail.map(|l| format!("; stderr: {}", l.chars().take(200).collect::<String>()));
-    let abandoned = end.exit.abandoned.as_deref().map(|a| format!("; {a}")).unwrap_or_default();
-    format!("the pipelines' child process {how} at `{step}`{}{abandoned}", tail.unwrap_or_default())
+    end.describe("the pipelines' child process", step, silence)
 }
 
 /// The error for a child that died at `step`. At `trace unpatched` the input itself faults on the

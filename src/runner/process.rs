@@ -113,6 +113,28 @@ pub struct ChildEnd {
     pub timed_out: bool,
 }
 
+impl ChildEnd {
+    /// How a child (`who`, e.g. "the stress worker") that ended without its result ended, at
+    /// `step`: killed after `silence`, or dead of a signal or a status; then the last line of
+    /// its stderr and whether its group was abandoned.
+    pub fn describe(&self, who: &str, step: &str, silence: std::time::Duration) -> String {
+        let how = if self.timed_out {
+            format!("was silent for {silence:?} and was killed")
+        } else {
+            match (self.exit.signal, self.exit.code) {
+                (Some(s), _) => format!("died of signal {s} ({})", crate::model::signal_name(s)),
+                (None, Some(c)) => format!("exited with status {c} and no result"),
+                (None, None) => "ended without a result".into(),
+            }
+        };
+        let tail = self.exit.stderr_tail.lines().rev().find(|l| !l.trim().is_empty());
+        let tail = tail.map(|l| format!("; stderr: {}", l.chars().take(200).collect::<String>()));
+        let abandoned =
+            self.exit.abandoned.as_deref().map(|a| format!("; {a}")).unwrap_or_default();
+        format!("{who} {how} at `{step}`{}{abandoned}", tail.unwrap_or_default())
+    }
+}
+
 /// Runs this executable as `rtprobe SUBCOMMAND JOB` (stdin null, its own process group, dying
 /// with this process, as a worker) to its end. Each stdout line goes to `on_line`, which returns
 /// the silence allowed until the next (`silence`: until the first); past it the group is killed

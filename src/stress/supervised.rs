@@ -10,7 +10,6 @@
 use super::result::{CaseResult, Verdict};
 use super::worker::{CaseJob, CaseOutput, Progress};
 use super::{cases, CaseKind, StressOptions};
-use crate::model::signal_name;
 use crate::runner::process::{run_to_end, ChildEnd};
 use std::path::PathBuf;
 use std::time::Duration;
@@ -99,20 +98,7 @@ pub fn died(
     step: &str,
     part: Duration,
 ) -> CaseResult {
-    let how = if end.timed_out {
-        format!("was silent for {part:?} and was killed")
-    } else {
-        match (end.exit.signal, end.exit.code) {
-            (Some(s), _) => format!("died of signal {s} ({})", signal_name(s)),
-            (None, Some(c)) => format!("exited with status {c} and no result"),
-            (None, None) => "ended without a result".into(),
-        }
-    };
-    let tail = end.exit.stderr_tail.lines().rev().find(|l| !l.trim().is_empty());
-    let tail = tail.map(|l| format!("; stderr: {}", l.chars().take(200).collect::<String>()));
-    let abandoned = end.exit.abandoned.as_deref().map(|a| format!("; {a}")).unwrap_or_default();
-    let detail =
-        format!("the stress worker {how} at `{step}`{}{abandoned}", tail.unwrap_or_default());
+    let detail = end.describe("the stress worker", step, part);
     let verdict = if end.timed_out { Verdict::Timeout } else { Verdict::Crash };
     let rays = cases::build(kind, opts).map_or(0, |p| p.iter().map(|p| p.rays.len()).sum());
     CaseResult::without_results(kind, verdict, detail, rays)
