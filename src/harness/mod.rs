@@ -336,6 +336,7 @@ impl Harness {
                     bytes: b.read((SIZE * SIZE * t) as usize),
                     texel: *t,
                     initial: None,
+                    scheduled: false,
                 })
                 .chain(self.written_buffers())
                 .collect()),
@@ -369,6 +370,7 @@ impl Harness {
                         bytes: buf.read(size as usize),
                         texel: 4,
                         initial: Some(resources::buffer_data(d, size, &b.ints)),
+                        scheduled: b.atomic,
                     });
                 }
                 d += 1;

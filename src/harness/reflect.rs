@@ -54,6 +54,9 @@ pub struct Binding {
     pub writable: bool,
     /// The integer words of a buffer's block (empty for every other kind).
     pub ints: IntWords,
+    /// A buffer the module applies an atomic instruction to (an append queue's counter): the
+    /// order its words are filled in is the driver's scheduling.
+    pub atomic: bool,
 }
 
 /// A module's interface.
@@ -155,7 +158,60 @@ fn binding(m: &Module, var: Word, ptr: Word) -> Result<Binding, ReflectError> {
         }
         _ => IntWords::default(),
     };
-    Ok(Binding { set, binding, kind, count, runtime, writable, ints })
+    let atomic = writable && atomically_accessed(m, var);
+    Ok(Binding { set, binding, kind, count, runtime, writable, ints, atomic })
+}
+
+/// Whether an `OpAtomic*` instruction's pointer derives from `var` (through access chains and
+/// copies).
+fn atomically_accessed(m: &Module, var: Word) -> bool {
+    let body = || m.functions.iter().flat_map(|f| &f.blocks).flat_map(|b| &b.instructions);
+    let mut from: std::collections::BTreeSet<Word> = [var].into();
+    loop {
+        let before = from.len();
+        for i in body() {
+            let derives = matches!(
+                i.class.opcode,
+                Op::AccessChain | Op::InBoundsAccessChain | Op::PtrAccessChain | Op::CopyObject
+            );
+            if let (true, Some(id), Some(base)) = (derives, i.result_id, edit::id_operand(i, 0)) {
+                if from.contains(&base) {
+                    from.insert(id);
+                }
+            }
+        }
+        if from.len() == before {
+            break;
+        }
+    }
+    body().any(|i| {
+        is_atomic(i.class.opcode) && edit::id_operand(i, 0).is_some_and(|p| from.contains(&p))
+    })
+}
+
+fn is_atomic(op: Op) -> bool {
+    matches!(
+        op,
+        Op::AtomicLoad
+            | Op::AtomicStore
+            | Op::AtomicExchange
+            | Op::AtomicCompareExchange
+            | Op::AtomicCompareExchangeWeak
+            | Op::AtomicIIncrement
+            | Op::AtomicIDecrement
+            | Op::AtomicIAdd
+            | Op::AtomicISub
+            | Op::AtomicSMin
+            | Op::AtomicUMin
+            | Op::AtomicSMax
+            | Op::AtomicUMax
+            | Op::AtomicAnd
+            | Op::AtomicOr
+            | Op::AtomicXor
+            | Op::AtomicFAddEXT
+            | Op::AtomicFMinEXT
+            | Op::AtomicFMaxEXT
+    )
 }
 
 /// Whether a buffer variable is read-only: `NonWritable` on the variable (DXC, Slang) or on every
@@ -241,5 +297,21 @@ mod tests {
             void main() { c = textureLod(t, vec2(0), 0.0); }\n";
         let e = reflect(&module(shaderc::ShaderKind::Miss, tex)).unwrap_err();
         assert!(e.0.starts_with("set 4 binding 2: a OpTypeSampledImage"), "{e}");
+    }
+
+    /// An append queue's buffer is atomic (its counter is); a buffer only stored to is not,
+    /// nor one whose atomics go to another binding.
+    #[test]
+    fn buffers_written_through_atomics_are_marked() {
+        let glsl = "#version 460\n#extension GL_EXT_ray_tracing : require\n\
+            layout(set = 0, binding = 1) buffer Q { uint count; uvec4 rec[]; } q;\n\
+            layout(set = 0, binding = 2) buffer Plain { uint last; } plain;\n\
+            layout(set = 0, binding = 3) buffer Other { uint n; } other;\n\
+            layout(location = 0) rayPayloadInEXT vec4 c;\n\
+            void main() { uint k = atomicAdd(q.count, 1u); q.rec[k] = uvec4(gl_LaunchIDEXT, 0u);\n\
+            plain.last = k + atomicOr(other.n, 0u); }\n";
+        let i = reflect(&module(shaderc::ShaderKind::ClosestHit, glsl)).unwrap();
+        let a: Vec<(u32, bool)> = i.bindings.iter().map(|b| (b.binding, b.atomic)).collect();
+        assert_eq!(a, vec![(1, true), (2, false), (3, true)]);
     }
 }

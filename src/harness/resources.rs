@@ -108,7 +108,10 @@ impl Resources {
                     )));
                 }
                 // Written by any module: compared after the trace.
-                Some(old) => old.writable |= b.writable,
+                Some(old) => {
+                    old.writable |= b.writable;
+                    old.atomic |= b.atomic;
+                }
                 None => {
                     unique.insert((b.set, b.binding), b.clone());
                 }
