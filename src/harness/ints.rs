@@ -142,10 +142,7 @@ mod tests {
     use super::*;
 
     fn module(glsl: &str) -> Module {
-        let mut c = crate::shadergen::compile::Compiler::new().expect("shaderc");
-        let words =
-            c.compile_glsl(shaderc::ShaderKind::RayGeneration, "t.rgen", glsl).expect("compiles");
-        crate::patches::load(&crate::tools::spirv::bytes(&words)).expect("loads")
+        crate::patches::compiled(shaderc::ShaderKind::RayGeneration, "t.rgen", glsl)
     }
 
     /// The block struct of the (first) variable in storage class `sc`.

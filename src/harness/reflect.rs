@@ -251,9 +251,7 @@ mod tests {
     use super::*;
 
     fn module(kind: shaderc::ShaderKind, glsl: &str) -> Module {
-        let mut c = crate::shadergen::compile::Compiler::new().expect("shaderc");
-        let words = c.compile_glsl(kind, "t", glsl).expect("compiles");
-        crate::patches::load(&crate::tools::spirv::bytes(&words)).expect("loads")
+        crate::patches::compiled(kind, "t", glsl)
     }
 
     #[test]

@@ -326,11 +326,7 @@ mod tests {
     }
 
     fn module(glsl: &str) -> Module {
-        let mut c = crate::shadergen::compile::Compiler::new().expect("shaderc");
-        let words =
-            c.compile_glsl(shaderc::ShaderKind::RayGeneration, "t.rgen", glsl).expect("compiles");
-        let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
-        crate::patches::load(&bytes).expect("loads")
+        crate::patches::compiled(shaderc::ShaderKind::RayGeneration, "t.rgen", glsl)
     }
 
     const CAMERA: &str = include_str!("../../tests/shaders/engine_camera.rgen");

@@ -238,6 +238,15 @@ pub fn diff(before: &str, after: &str) -> String {
     out
 }
 
+/// A module compiled from GLSL by the system's shaderc and loaded, for the unit tests of the
+/// passes and of the harness (file name `t.<stage>`).
+#[cfg(test)]
+pub(crate) fn compiled(kind: shaderc::ShaderKind, file: &str, glsl: &str) -> Module {
+    let mut c = crate::shadergen::compile::Compiler::new().expect("shaderc");
+    let words = c.compile_glsl(kind, file, glsl).expect("compiles");
+    load(&crate::tools::spirv::bytes(&words)).expect("loads")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -145,10 +145,7 @@ mod tests {
     use super::*;
 
     fn module(glsl: &str) -> Module {
-        let mut c = crate::shadergen::compile::Compiler::new().expect("shaderc");
-        let words =
-            c.compile_glsl(shaderc::ShaderKind::ClosestHit, "t.rchit", glsl).expect("compiles");
-        crate::patches::load(&crate::tools::spirv::bytes(&words)).expect("loads")
+        crate::patches::compiled(shaderc::ShaderKind::ClosestHit, "t.rchit", glsl)
     }
 
     const MIXED: &str = "#version 460\n#extension GL_EXT_ray_tracing : require\n\

@@ -494,9 +494,7 @@ mod tests {
     use super::*;
 
     fn stage(file: &str, kind: shaderc::ShaderKind, glsl: &str) -> Stage {
-        let mut c = crate::shadergen::compile::Compiler::new().expect("shaderc");
-        let words = c.compile_glsl(kind, file, glsl).expect("compiles");
-        let module = crate::patches::load(&crate::tools::spirv::bytes(&words)).expect("loads");
+        let module = crate::patches::compiled(kind, file, glsl);
         Stage { file: file.into(), module, rules: Rules::Standard }
     }
 
