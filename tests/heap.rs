@@ -420,6 +420,59 @@ fn sid_runs_the_original_engines_base_sources_and_sampler_indices() {
     }
 }
 
+/// A heap cell's report records every VkDescriptorSetAndBindingMappingEXT its pipeline's stages
+/// got, member by member, for the vendor issue: binding 2 by the cell's way (its set, bindings,
+/// strides and sampler members), the records and TLAS at constant offsets. The twin: the other
+/// way's cell records another source, so the entries are the cell's, not a fixed text.
+#[test]
+fn sid_heap_reports_record_the_mapping_structs() {
+    if !have_sid() {
+        return;
+    }
+    let (_, report) = run_in_sid(
+        "heap-mappings",
+        "stage=closest_hit,resource=sampled_image,index=literal,descriptor_model=descriptor_heap,heap_access=mapped_shader_record_index|mapped_constant_offset",
+        &[],
+        &[],
+    );
+    let binding2 = |way: &str| {
+        let c = report["cells"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|c| c["id"].as_str().unwrap().ends_with(way))
+            .unwrap();
+        let m = &c["attempts"][0]["result"]["comparison"]["heap"]["mappings"];
+        assert_eq!(m.as_array().map(|a| a.len()), Some(3), "{way}: {m}");
+        assert_eq!(
+            (m[0]["first_binding"].as_u64(), m[1]["first_binding"].as_u64()),
+            (Some(0), Some(1))
+        );
+        m[2].clone()
+    };
+    let record = binding2("mapped_shader_record_index");
+    assert_eq!(
+        (
+            record["descriptor_set"].as_u64(),
+            record["first_binding"].as_u64(),
+            record["binding_count"].as_u64()
+        ),
+        (Some(0), Some(2), Some(1))
+    );
+    assert_eq!(record["source_member"], "shaderRecordIndex");
+    let fields = record["fields"].to_string();
+    for f in [
+        r#"["heapIndexStride","64"]"#,
+        r#"["pEmbeddedSampler","NULL"]"#,
+        r#"["samplerShaderRecordOffset","0"]"#,
+    ] {
+        assert!(fields.contains(f), "{f} not in {fields}");
+    }
+    let constant = binding2("mapped_constant_offset");
+    assert_eq!(constant["source"], "VK_DESCRIPTOR_MAPPING_SOURCE_HEAP_WITH_CONSTANT_OFFSET_EXT");
+    assert_ne!(constant["fields"], record["fields"]);
+}
+
 #[test]
 fn sid_heap_cells_are_checked_corrupted_expectations_mismatch() {
     if !have_sid() {

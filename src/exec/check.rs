@@ -67,7 +67,7 @@ impl Executor {
             split.evidence = seen.lanes;
         }
         let outcome = if cmp.passed() { Outcome::Pass } else { Outcome::Mismatch };
-        let mut detail = (!cmp.passed()).then(|| mismatch_detail(&cmp));
+        let mut detail = (!cmp.passed()).then(|| crate::model::comparison::mismatch_detail(&cmp));
         if let Some(dir) = self.opts.dump.as_ref() {
             if let Err(e) = super::files::dump_records(dir, cell, records) {
                 detail = Some(match detail {
@@ -106,60 +106,10 @@ impl Executor {
         let hex: Vec<String> = records.hit_triangles.iter().map(|b| format!("{b:02x}")).collect();
         Some(crate::model::comparison::HeapDetail {
             mapping: super::heap::describe_mapping(access, &l),
+            mappings: super::heap::PipelineMapping::new(access, &l).entries(),
             shader_record: hex.join(" "),
             probe_offset: l.probe,
             probe_stride: l.probe_stride,
         })
-    }
-}
-
-/// A mismatch in words: how many pixels differ, in which fields, and for a read outside the spec's
-/// guarantees which rule judged it ("924 of 4084 compared pixels differ (value 924)").
-pub fn mismatch_detail(cmp: &crate::model::comparison::Comparison) -> String {
-    let fields: Vec<String> = cmp.by_field.iter().map(|(f, n)| format!("{f} {n}")).collect();
-    let mut d = format!(
-        "{} of {} compared pixels differ ({})",
-        cmp.mismatched_pixels,
-        cmp.compared,
-        fields.join(", ")
-    );
-    let Some(e) = cmp.element_reads.as_ref() else { return d };
-    let heuristic = e.neither.saturating_sub(e.uniform_mismatched);
-    if heuristic > 0 {
-        d.push_str(&format!(
-            "; no nonuniformEXT ({}): {} pixels read an element no active lane of their subgroup indexed (rtprobe's scalarizing-driver heuristic, see docs/run.md)",
-            e.outside_spec, heuristic
-        ));
-    }
-    if e.uniform_mismatched > 0 {
-        d.push_str(&format!(
-            "; {} pixels of subgroups whose lanes all indexed one element read another (a uniform read, defined without nonuniformEXT: VUID-RuntimeSpirv-subgroupSize-10149, judged exactly)",
-            e.uniform_mismatched
-        ));
-    }
-    d
-}
-
-#[cfg(test)]
-mod detail_tests {
-    use super::mismatch_detail;
-    use crate::model::comparison::{Comparison, ElementReads};
-
-    #[test]
-    fn a_mismatch_is_said_in_words_and_names_the_heuristic_when_it_judged() {
-        let mut c = Comparison { compared: 4084, mismatched_pixels: 924, ..Default::default() };
-        c.by_field.insert("value".into(), 924);
-        assert_eq!(mismatch_detail(&c), "924 of 4084 compared pixels differ (value 924)");
-        c.element_reads = Some(ElementReads {
-            outside_spec: "VUID-X".into(),
-            neither: 924,
-            ..Default::default()
-        });
-        let d = mismatch_detail(&c);
-        assert!(
-            d.contains("VUID-X") && d.contains("924 pixels read an element no active lane"),
-            "{d}"
-        );
-        assert!(!d.contains('{'), "no debug output: {d}");
     }
 }

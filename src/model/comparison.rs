@@ -1,4 +1,6 @@
-//! Comparison of a cell's records with the CPU reference: counts, worst errors, examples.
+//! Comparison of a cell's records with the CPU reference: counts, worst errors, examples, a heap
+//! cell's descriptor placement and set/binding mappings, and a mismatch in words
+//! ([`mismatch_detail`], shared by the check that writes it and the renderers that read it back).
 use serde::{Deserialize, Serialize};
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -59,6 +61,68 @@ pub struct HeapDetail {
     /// `s` is read from `probe_offset + s * probe_stride`.
     pub probe_offset: u32,
     pub probe_stride: u32,
+    /// Every `VkDescriptorSetAndBindingMappingEXT` chained to the pipeline's stages, member by
+    /// member, read back from the structs the executor hands the driver (empty in reports made
+    /// before they were recorded).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub mappings: Vec<BindingMapping>,
+}
+
+/// One `VkDescriptorSetAndBindingMappingEXT` as the driver got it, its members named as in the
+/// Vulkan registry (`vk.xml`, Vulkan 1.4.360).
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct BindingMapping {
+    pub descriptor_set: u32,
+    pub first_binding: u32,
+    pub binding_count: u32,
+    /// `resourceMask`, e.g. `VK_SPIRV_RESOURCE_TYPE_ALL_EXT`.
+    pub resource_mask: String,
+    /// `source`, e.g. `VK_DESCRIPTOR_MAPPING_SOURCE_HEAP_WITH_SHADER_RECORD_INDEX_EXT`.
+    pub source: String,
+    /// The member of `sourceData` that `source` selects, e.g. `shaderRecordIndex`.
+    pub source_member: String,
+    /// That member's fields in declaration order: name and value (`pEmbeddedSampler` is `NULL`
+    /// or says it points at a sampler; booleans are `VK_TRUE` / `VK_FALSE`).
+    pub fields: Vec<(String, String)>,
+}
+
+impl BindingMapping {
+    /// `descriptorSet 0, firstBinding 2, bindingCount 1, resourceMask …`.
+    pub fn header(&self) -> String {
+        format!(
+            "descriptorSet {}, firstBinding {}, bindingCount {}, resourceMask {}",
+            self.descriptor_set, self.first_binding, self.binding_count, self.resource_mask
+        )
+    }
+
+    /// The source's sampler members (`pEmbeddedSampler`, `useCombinedImageSamplerIndex`,
+    /// `sampler…`): `name value` joined by commas.
+    pub fn sampler_fields(&self) -> String {
+        let sampler = |n: &str| {
+            n.starts_with("sampler")
+                || n == "pEmbeddedSampler"
+                || n == "useCombinedImageSamplerIndex"
+        };
+        let f: Vec<String> = self
+            .fields
+            .iter()
+            .filter(|(n, _)| sampler(n))
+            .map(|(n, v)| format!("{n} {v}"))
+            .collect();
+        f.join(", ")
+    }
+
+    /// The whole struct: `{ descriptorSet 0, …, source …, sourceData.shaderRecordIndex { … } }`.
+    pub fn text(&self) -> String {
+        let f: Vec<String> = self.fields.iter().map(|(n, v)| format!("{n} {v}")).collect();
+        format!(
+            "{{ {}, source {}, sourceData.{} {{ {} }} }}",
+            self.header(),
+            self.source,
+            self.source_member,
+            f.join(", ")
+        )
+    }
 }
 
 /// f64 figures that may be NaN or ∞: a number in JSON when finite, else "NaN" / "inf" / "-inf".
@@ -156,6 +220,48 @@ impl Comparison {
     }
 }
 
+/// A mismatch in words: how many pixels differ, in which fields, and for a read outside the spec's
+/// guarantees which rule judged it ("924 of 4084 compared pixels differ (value 924)").
+pub fn mismatch_detail(cmp: &Comparison) -> String {
+    let fields: Vec<String> = cmp.by_field.iter().map(|(f, n)| format!("{f} {n}")).collect();
+    let mut d = format!(
+        "{} of {} compared pixels differ ({})",
+        cmp.mismatched_pixels,
+        cmp.compared,
+        fields.join(", ")
+    );
+    let Some(e) = cmp.element_reads.as_ref() else { return d };
+    let heuristic = e.neither.saturating_sub(e.uniform_mismatched);
+    if heuristic > 0 {
+        d.push_str(&format!(
+            "; no nonuniformEXT ({}): {} pixels read an element no active lane of their subgroup indexed (rtprobe's scalarizing-driver heuristic, see docs/run.md)",
+            e.outside_spec, heuristic
+        ));
+    }
+    if e.uniform_mismatched > 0 {
+        d.push_str(&format!(
+            "; {} pixels of subgroups whose lanes all indexed one element read another (a uniform read, defined without nonuniformEXT: VUID-RuntimeSpirv-subgroupSize-10149, judged exactly)",
+            e.uniform_mismatched
+        ));
+    }
+    d
+}
+
+/// A stored attempt's `detail` with its counts in words: reports written before
+/// [`mismatch_detail`] began it with the per-field map in debug form (`… differ ({"value": 926})`);
+/// that opening is rewritten from the attempt's own comparison, the rest (notes after it) kept.
+/// Any other detail comes back as it is.
+pub fn detail_in_words(detail: &str, cmp: &Comparison) -> String {
+    let old = format!(
+        "{} of {} compared pixels differ ({:?})",
+        cmp.mismatched_pixels, cmp.compared, cmp.by_field
+    );
+    match detail.strip_prefix(&old) {
+        Some(rest) if !cmp.passed() => format!("{}{rest}", mismatch_detail(cmp)),
+        _ => detail.to_string(),
+    }
+}
+
 /// What the CPU reference, run with a mutant's mutation, predicts for a cell: on how many checked
 /// pixels the records differ from the cell's own, and on how many of them the cell's comparison
 /// must flag the difference (the rest its lenient rule allows). Carried in the mutant attempt's
@@ -187,5 +293,68 @@ impl MutantPrediction {
     /// The mutant applies: the reference predicts other records on some checked pixel.
     pub fn applicable(&self) -> bool {
         self.differing > 0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_mismatch_is_said_in_words_and_names_the_heuristic_when_it_judged() {
+        let mut c = Comparison { compared: 4084, mismatched_pixels: 924, ..Default::default() };
+        c.by_field.insert("value".into(), 924);
+        assert_eq!(mismatch_detail(&c), "924 of 4084 compared pixels differ (value 924)");
+        c.element_reads = Some(ElementReads {
+            outside_spec: "VUID-X".into(),
+            neither: 924,
+            ..Default::default()
+        });
+        let d = mismatch_detail(&c);
+        assert!(
+            d.contains("VUID-X") && d.contains("924 pixels read an element no active lane"),
+            "{d}"
+        );
+        assert!(!d.contains('{'), "no debug output: {d}");
+    }
+
+    /// A report of an older rtprobe said the per-field map in debug form; read back, the counts
+    /// come from the comparison in words and the notes after them stay. The twin: a detail that
+    /// does not begin with the comparison's own counts (here, other counts) is left alone.
+    #[test]
+    fn an_old_debug_form_detail_is_said_in_words_from_its_comparison() {
+        let mut c = Comparison { compared: 4087, mismatched_pixels: 926, ..Default::default() };
+        c.by_field.insert("value".into(), 926);
+        let old = r#"926 of 4087 compared pixels differ ({"value": 926}); a note"#;
+        assert_eq!(
+            detail_in_words(old, &c),
+            "926 of 4087 compared pixels differ (value 926); a note"
+        );
+        let other = r#"925 of 4087 compared pixels differ ({"value": 925})"#;
+        assert_eq!(detail_in_words(other, &c), other);
+        let words = "926 of 4087 compared pixels differ (value 926)";
+        assert_eq!(detail_in_words(words, &c), words);
+    }
+
+    #[test]
+    fn a_binding_mapping_names_its_members_and_its_sampler_fields() {
+        let m = BindingMapping {
+            descriptor_set: 0,
+            first_binding: 2,
+            binding_count: 1,
+            resource_mask: "VK_SPIRV_RESOURCE_TYPE_ALL_EXT".into(),
+            source: "VK_DESCRIPTOR_MAPPING_SOURCE_HEAP_WITH_CONSTANT_OFFSET_EXT".into(),
+            source_member: "constantOffset".into(),
+            fields: [
+                ("heapOffset", "192"),
+                ("pEmbeddedSampler", "NULL"),
+                ("samplerHeapOffset", "0"),
+            ]
+            .iter()
+            .map(|(n, v)| (n.to_string(), v.to_string()))
+            .collect(),
+        };
+        assert_eq!(m.text(), "{ descriptorSet 0, firstBinding 2, bindingCount 1, resourceMask VK_SPIRV_RESOURCE_TYPE_ALL_EXT, source VK_DESCRIPTOR_MAPPING_SOURCE_HEAP_WITH_CONSTANT_OFFSET_EXT, sourceData.constantOffset { heapOffset 192, pEmbeddedSampler NULL, samplerHeapOffset 0 } }");
+        assert_eq!(m.sampler_fields(), "pEmbeddedSampler NULL, samplerHeapOffset 0");
     }
 }

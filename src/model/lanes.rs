@@ -7,6 +7,24 @@ use serde::{Deserialize, Serialize};
 /// `subgroupSupportedStages` (Vulkan 1.4.360, "Validation Rules within a Module").
 pub const SUBGROUP_STAGE_VUID: &str = "VUID-RuntimeSpirv-None-06343";
 
+/// [`SUBGROUP_STAGE_VUID`]'s text, quoted from the Vulkan 1.4.360 specification (appendix "Vulkan
+/// Environment for SPIR-V", "Runtime SPIR-V Validation").
+pub const SUBGROUP_STAGE_RULE: &str = "Group operations with subgroup scope must not be used if the shader stage is not in subgroupSupportedStages";
+
+/// The rule, quoted with its VUID and the spec version.
+pub fn rule_quote() -> String {
+    format!("{SUBGROUP_STAGE_VUID} (Vulkan 1.4.360): \"{SUBGROUP_STAGE_RULE}\"")
+}
+
+/// The rule quoted, and what it means for lane evidence recorded in `stage` anyway: a "must" the
+/// shader breaks, so nothing the driver returns there is owed.
+pub fn forced_words(stage: &str) -> String {
+    format!(
+        "{}; this device's subgroupSupportedStages does not include {stage}, so the probe's ballot there breaks that rule and the driver owes it no meaningful answer: the lane words show how this driver happened to group the lanes, a hint where to look, never a verdict",
+        rule_quote()
+    )
+}
+
 /// The key of a report's `device` listing the probe stages where subgroup ballot works.
 pub const DEVICE_BALLOT_STAGES: &str = "subgroup_ballot_stages";
 
@@ -153,8 +171,9 @@ impl LaneSplit {
     }
 
     /// `mismatches by lane 0 of the subgroup: inactive in the call 926 of 933 pixels, active 0 of
-    /// 1821; leaders 3 of 600, others 923 of 2154; by lane: 0: 0/300, 1: 120/260, …`
-    pub fn sentence(&self) -> String {
+    /// 1821; leaders 3 of 600, others 923 of 2154; by lane: 0: 0/300, 1: 120/260, …`; forced
+    /// evidence of `stage` quotes the rule it breaks ([`forced_words`]).
+    pub fn sentence(&self, stage: &str) -> String {
         let lanes: Vec<String> = self
             .by_lane
             .iter()
@@ -163,9 +182,9 @@ impl LaneSplit {
             .map(|(k, s)| format!("{k}: {}/{}", s.failed, s.pixels))
             .collect();
         let forced = match self.evidence {
-            LaneEvidence::Forced => format!(
-                " (forced lane evidence: the device does not list subgroup ballot in this stage, {SUBGROUP_STAGE_VUID}; a diagnosis)"
-            ),
+            LaneEvidence::Forced => {
+                format!(" (forced lane evidence, a diagnosis only: {})", forced_words(stage))
+            }
             LaneEvidence::Absent | LaneEvidence::Supported => String::new(),
         };
         let contradicted = match self.contradicted {
@@ -233,12 +252,22 @@ mod tests {
                 Split { pixels: 1, failed: 1 }
             ]
         );
-        let t = s.sentence();
+        let t = s.sentence("closest_hit");
         assert!(t.starts_with("mismatches by lane 0 of the subgroup: where it was inactive in the call 2 of 2 pixels, where active 0 of 2"), "{t}");
         assert!(
             t.contains("by lane (mismatched/pixels): 0: 0/1, 1: 1/2, 2: 1/1")
                 && t.contains("forced lane evidence"),
             "{t}"
         );
+        // Forced evidence quotes the rule it breaks, with its version, and says what that means.
+        assert!(t.contains("VUID-RuntimeSpirv-None-06343 (Vulkan 1.4.360): \"Group operations with subgroup scope must not be used if the shader stage is not in subgroupSupportedStages\""), "{t}");
+        assert!(
+            t.contains("subgroupSupportedStages does not include closest_hit")
+                && t.contains("never a verdict"),
+            "{t}"
+        );
+        // The twin: evidence the device supports quotes no rule.
+        let supported = LaneSplit { evidence: LaneEvidence::Supported, ..s }.sentence("raygen");
+        assert!(!supported.contains("06343") && !supported.contains("forced"), "{supported}");
     }
 }

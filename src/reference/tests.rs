@@ -872,7 +872,7 @@ fn contradicting_lane_records_are_a_finding_never_evidence() {
         let split_pixels = split.leaders.pixels + split.followers.pixels;
         assert_eq!(split_pixels + members.len(), cmp.probe_checked, "{name}");
         assert_eq!(split.contradicted.pixels, members.len(), "{name}: counted apart");
-        assert!(split.sentence().contains("contradict each other"), "{name}");
+        assert!(split.sentence("closest_hit").contains("contradict each other"), "{name}");
         assert_eq!(cmp.by_field.get("lanes"), None, "{name}");
     }
 }

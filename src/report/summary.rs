@@ -256,7 +256,7 @@ fn finding(s: &mut String, c: &crate::model::CellReport, expected: bool) {
     if let Some(split) =
         c.attempts.iter().rev().find_map(|a| a.result.as_ref()?.comparison.as_ref()?.lanes.as_ref())
     {
-        let _ = writeln!(s, "      lanes: {}", split.sentence());
+        let _ = writeln!(s, "      lanes: {}", split.sentence(c.cell.stage.as_str()));
     }
     if !c.workarounds.is_empty() {
         let verified: Vec<&str> =

@@ -3,6 +3,7 @@
 //! the probed array (binding 2) as the cell's `heap_access` says.
 use super::layout::HeapLayout;
 use super::push::{PUSH_INDEX_ADDRESS_OFFSET, PUSH_INDEX_OFFSET};
+use crate::model::comparison::BindingMapping;
 use crate::model::HeapAccess;
 use crate::vk::heap::{self as h, MappingSource};
 use ash::vk;
@@ -122,69 +123,133 @@ pub fn describe(access: HeapAccess, l: &HeapLayout) -> String {
     }
 }
 
-/// The members of `data` that `source` says it holds, in declaration order (see
-/// [`PipelineMapping::words`]).
-fn source_words(source: MappingSource, data: &h::MappingSourceData) -> Vec<u32> {
-    let null = |p: *const vk::SamplerCreateInfo<'static>| u32::from(!p.is_null());
+/// A member of a mapping source struct as the driver gets it.
+#[derive(Clone, Copy)]
+enum Member {
+    U32(u32),
+    Bool(vk::Bool32),
+    Sampler(*const vk::SamplerCreateInfo<'static>),
+}
+
+impl Member {
+    /// The member as a word of the pipeline's identity (a sampler pointer: whether it is set).
+    fn word(self) -> u32 {
+        match self {
+            Member::U32(v) | Member::Bool(v) => v,
+            Member::Sampler(p) => u32::from(!p.is_null()),
+        }
+    }
+
+    /// The member as the issue names it.
+    fn text(self) -> String {
+        match self {
+            Member::U32(v) => v.to_string(),
+            Member::Bool(b) => if b == vk::FALSE { "VK_FALSE" } else { "VK_TRUE" }.into(),
+            Member::Sampler(p) if p.is_null() => "NULL".into(),
+            Member::Sampler(_) => "an embedded VkSamplerCreateInfo".into(),
+        }
+    }
+}
+
+/// A source's registry name, its `sourceData` member's name and that member's fields.
+type Members = (&'static str, &'static str, Vec<(&'static str, Member)>);
+
+/// `source`'s name in the registry, the member of `sourceData` it selects, and that member's
+/// fields in declaration order with their names in `vk.xml` (Vulkan 1.4.360).
+fn source_members(source: MappingSource, data: &h::MappingSourceData) -> Members {
+    use Member::{Bool, Sampler, U32};
     // SAFETY: each arm reads the union member that `source` names, the one `probe_source` and
     // `constant` write for it.
     unsafe {
         match source {
             MappingSource::HeapWithConstantOffset => {
                 let c = data.constant_offset;
-                vec![c.heap_offset, c.heap_array_stride, null(c.p_embedded_sampler)]
-                    .into_iter()
-                    .chain([c.sampler_heap_offset, c.sampler_heap_array_stride])
-                    .collect()
+                (
+                    "VK_DESCRIPTOR_MAPPING_SOURCE_HEAP_WITH_CONSTANT_OFFSET_EXT",
+                    "constantOffset",
+                    vec![
+                        ("heapOffset", U32(c.heap_offset)),
+                        ("heapArrayStride", U32(c.heap_array_stride)),
+                        ("pEmbeddedSampler", Sampler(c.p_embedded_sampler)),
+                        ("samplerHeapOffset", U32(c.sampler_heap_offset)),
+                        ("samplerHeapArrayStride", U32(c.sampler_heap_array_stride)),
+                    ],
+                )
             }
             MappingSource::HeapWithPushIndex => {
                 let p = data.push_index;
-                vec![
-                    p.heap_offset,
-                    p.push_offset,
-                    p.heap_index_stride,
-                    p.heap_array_stride,
-                    null(p.p_embedded_sampler),
-                    p.use_combined_image_sampler_index,
-                    p.sampler_heap_offset,
-                    p.sampler_push_offset,
-                    p.sampler_heap_index_stride,
-                    p.sampler_heap_array_stride,
-                ]
+                (
+                    "VK_DESCRIPTOR_MAPPING_SOURCE_HEAP_WITH_PUSH_INDEX_EXT",
+                    "pushIndex",
+                    vec![
+                        ("heapOffset", U32(p.heap_offset)),
+                        ("pushOffset", U32(p.push_offset)),
+                        ("heapIndexStride", U32(p.heap_index_stride)),
+                        ("heapArrayStride", U32(p.heap_array_stride)),
+                        ("pEmbeddedSampler", Sampler(p.p_embedded_sampler)),
+                        ("useCombinedImageSamplerIndex", Bool(p.use_combined_image_sampler_index)),
+                        ("samplerHeapOffset", U32(p.sampler_heap_offset)),
+                        ("samplerPushOffset", U32(p.sampler_push_offset)),
+                        ("samplerHeapIndexStride", U32(p.sampler_heap_index_stride)),
+                        ("samplerHeapArrayStride", U32(p.sampler_heap_array_stride)),
+                    ],
+                )
             }
-            MappingSource::HeapWithIndirectIndex => {
-                let i = data.indirect_index;
-                vec![
-                    i.heap_offset,
-                    i.push_offset,
-                    i.address_offset,
-                    i.heap_index_stride,
-                    i.heap_array_stride,
-                    null(i.p_embedded_sampler),
-                    i.use_combined_image_sampler_index,
-                    i.sampler_heap_offset,
-                    i.sampler_push_offset,
-                    i.sampler_address_offset,
-                    i.sampler_heap_index_stride,
-                    i.sampler_heap_array_stride,
-                ]
-            }
-            MappingSource::HeapWithShaderRecordIndex => {
-                let r = data.shader_record_index;
-                vec![
-                    r.heap_offset,
-                    r.shader_record_offset,
-                    r.heap_index_stride,
-                    r.heap_array_stride,
-                    null(r.p_embedded_sampler),
-                    r.use_combined_image_sampler_index,
-                    r.sampler_heap_offset,
-                    r.sampler_shader_record_offset,
-                    r.sampler_heap_index_stride,
-                    r.sampler_heap_array_stride,
-                ]
-            }
+            MappingSource::HeapWithIndirectIndex => indirect_members(&data.indirect_index),
+            MappingSource::HeapWithShaderRecordIndex => record_members(&data.shader_record_index),
         }
+    }
+}
+
+fn indirect_members(i: &h::MappingIndirectIndex) -> Members {
+    use Member::{Bool, Sampler, U32};
+    let name = "VK_DESCRIPTOR_MAPPING_SOURCE_HEAP_WITH_INDIRECT_INDEX_EXT";
+    (
+        name,
+        "indirectIndex",
+        vec![
+            ("heapOffset", U32(i.heap_offset)),
+            ("pushOffset", U32(i.push_offset)),
+            ("addressOffset", U32(i.address_offset)),
+            ("heapIndexStride", U32(i.heap_index_stride)),
+            ("heapArrayStride", U32(i.heap_array_stride)),
+            ("pEmbeddedSampler", Sampler(i.p_embedded_sampler)),
+            ("useCombinedImageSamplerIndex", Bool(i.use_combined_image_sampler_index)),
+            ("samplerHeapOffset", U32(i.sampler_heap_offset)),
+            ("samplerPushOffset", U32(i.sampler_push_offset)),
+            ("samplerAddressOffset", U32(i.sampler_address_offset)),
+            ("samplerHeapIndexStride", U32(i.sampler_heap_index_stride)),
+            ("samplerHeapArrayStride", U32(i.sampler_heap_array_stride)),
+        ],
+    )
+}
+
+fn record_members(r: &h::MappingShaderRecordIndex) -> Members {
+    use Member::{Bool, Sampler, U32};
+    let name = "VK_DESCRIPTOR_MAPPING_SOURCE_HEAP_WITH_SHADER_RECORD_INDEX_EXT";
+    (
+        name,
+        "shaderRecordIndex",
+        vec![
+            ("heapOffset", U32(r.heap_offset)),
+            ("shaderRecordOffset", U32(r.shader_record_offset)),
+            ("heapIndexStride", U32(r.heap_index_stride)),
+            ("heapArrayStride", U32(r.heap_array_stride)),
+            ("pEmbeddedSampler", Sampler(r.p_embedded_sampler)),
+            ("useCombinedImageSamplerIndex", Bool(r.use_combined_image_sampler_index)),
+            ("samplerHeapOffset", U32(r.sampler_heap_offset)),
+            ("samplerShaderRecordOffset", U32(r.sampler_shader_record_offset)),
+            ("samplerHeapIndexStride", U32(r.sampler_heap_index_stride)),
+            ("samplerHeapArrayStride", U32(r.sampler_heap_array_stride)),
+        ],
+    )
+}
+
+/// `resourceMask` by its registry name where rtprobe's one value, else in hex.
+fn resource_mask(mask: u32) -> String {
+    match mask {
+        h::SPIRV_RESOURCE_TYPE_ALL => "VK_SPIRV_RESOURCE_TYPE_ALL_EXT".into(),
+        m => format!("{m:#x}"),
     }
 }
 
@@ -239,9 +304,27 @@ impl PipelineMapping {
         for m in &self.mappings {
             w.extend([m.descriptor_set, m.first_binding, m.binding_count, m.resource_mask]);
             w.push(m.source as u32);
-            w.extend(source_words(m.source, &m.source_data));
+            w.extend(source_members(m.source, &m.source_data).2.into_iter().map(|(_, v)| v.word()));
         }
         w
+    }
+
+    /// Every mapping as the issue and the report show it: read back from the structs chained to
+    /// the stages, never recomputed.
+    pub fn entries(&self) -> Vec<BindingMapping> {
+        let entry = |m: &h::SetAndBindingMapping| {
+            let (source, member, fields) = source_members(m.source, &m.source_data);
+            BindingMapping {
+                descriptor_set: m.descriptor_set,
+                first_binding: m.first_binding,
+                binding_count: m.binding_count,
+                resource_mask: resource_mask(m.resource_mask),
+                source: source.into(),
+                source_member: member.into(),
+                fields: fields.into_iter().map(|(n, v)| (n.to_string(), v.text())).collect(),
+            }
+        };
+        self.mappings.iter().map(entry).collect()
     }
 
     /// What to chain to each VkPipelineShaderStageCreateInfo.
@@ -285,5 +368,26 @@ mod tests {
             PipelineMapping::new(HeapAccess::MappedPushIndex, &l).words(),
             PipelineMapping::new(HeapAccess::MappedPushIndex, &l).words()
         );
+    }
+
+    /// The entries the report records are the structs the stages get: the records and TLAS at
+    /// constant offsets, binding 2 by the cell's way, each member under its `vk.xml` name with
+    /// the sampler members. The twin: another layout's stride shows in the entry.
+    #[test]
+    fn entries_are_the_chained_structs_member_by_member() {
+        let l = HeapLayout::new(64, 64, 19, false);
+        let e = PipelineMapping::new(HeapAccess::MappedShaderRecordIndex, &l).entries();
+        let bindings: Vec<(u32, u32, u32)> =
+            e.iter().map(|m| (m.descriptor_set, m.first_binding, m.binding_count)).collect();
+        assert_eq!(bindings, [(0, 0, 1), (0, 1, 1), (0, 2, 1)]);
+        assert_eq!(e[2].text(), "{ descriptorSet 0, firstBinding 2, bindingCount 1, resourceMask VK_SPIRV_RESOURCE_TYPE_ALL_EXT, source VK_DESCRIPTOR_MAPPING_SOURCE_HEAP_WITH_SHADER_RECORD_INDEX_EXT, sourceData.shaderRecordIndex { heapOffset 0, shaderRecordOffset 0, heapIndexStride 64, heapArrayStride 64, pEmbeddedSampler NULL, useCombinedImageSamplerIndex VK_FALSE, samplerHeapOffset 0, samplerShaderRecordOffset 0, samplerHeapIndexStride 0, samplerHeapArrayStride 0 } }");
+        assert_eq!(e[1].source_member, "constantOffset");
+        assert_eq!(e[1].fields[0], ("heapOffset".to_string(), l.tlas.to_string()));
+        let direct = PipelineMapping::new(HeapAccess::Direct, &l).entries();
+        assert_eq!(direct.len(), 2, "a direct cell maps only the records and TLAS");
+        let other = HeapLayout::new(64, 32, 19, false);
+        let o = PipelineMapping::new(HeapAccess::MappedShaderRecordIndex, &other).entries();
+        assert!(o[2].text().contains("heapIndexStride 32, heapArrayStride 32"), "{}", o[2].text());
+        assert_ne!(o[2], e[2]);
     }
 }

@@ -26,7 +26,7 @@ pub(super) fn of(
 }
 
 /// `[4.0, 33.0, 1014.0, 2.25]` as four floats.
-fn parse_value(s: &str) -> Option<[f32; 4]> {
+pub(super) fn parse_value(s: &str) -> Option<[f32; 4]> {
     let v: Vec<f32> = s
         .trim()
         .strip_prefix('[')?
@@ -38,7 +38,7 @@ fn parse_value(s: &str) -> Option<[f32; 4]> {
 }
 
 /// Which (slot, element) of the probed array holds `v` (`probe::resource_value`), if one does.
-fn whose(resource: Resource, slots: u32, v: [f32; 4]) -> Option<(u32, u32)> {
+pub(super) fn whose(resource: Resource, slots: u32, v: [f32; 4]) -> Option<(u32, u32)> {
     (0..slots.max(64))
         .flat_map(|s| (0..ELEMENTS).map(move |e| (s, e)))
         .find(|&(s, e)| probe::resource_value(resource, s, e) == v)
@@ -146,7 +146,7 @@ fn layout(cell: &Cell, entry: Option<&CellReport>, instances: u32) -> String {
             };
             format!("descriptor set 0 (descriptor indexing): binding 0 the records (STORAGE_BUFFER){tlas}, {array}, binding flags PARTIALLY_BOUND{uab}; push constants {} bytes, every stage.", probe::PUSH_CONSTANT_BYTES)
         }
-        DescriptorModel::DescriptorBuffer => format!("VK_EXT_descriptor_buffer: set 0 (layout DESCRIPTOR_BUFFER_BIT_EXT, no binding flags) in one descriptor buffer: binding 0 the records{tlas}, {array}; push constants {} bytes.", probe::PUSH_CONSTANT_BYTES),
+        DescriptorModel::DescriptorBuffer => format!("VK_EXT_descriptor_buffer: set 0 (layout DESCRIPTOR_BUFFER_BIT_EXT, no binding flags) in one descriptor buffer bound with vkCmdSetDescriptorBufferOffsetsEXT (set 0 → buffer index 0, offset 0), each binding's descriptors written at vkGetDescriptorSetLayoutBindingOffsetEXT's offset with the device's descriptor size as stride (both the device's; the report does not record them): binding 0 the records{tlas}, {array}; push constants {} bytes.", probe::PUSH_CONSTANT_BYTES),
         DescriptorModel::DescriptorHeap => heap_layout(cell, entry, &array),
     }
 }
@@ -165,8 +165,40 @@ fn heap_layout(cell: &Cell, entry: Option<&CellReport>, array: &str) -> String {
         )
     };
     format!(
-        "VK_EXT_descriptor_heap: set 0 binding 2 → {}; {record}; the array's element 0 at resource-heap byte {}, stride {}: slot s at byte {} + s × {}.",
-        h.mapping, h.probe_offset, h.probe_stride, h.probe_offset, h.probe_stride
+        "VK_EXT_descriptor_heap: set 0 binding 2 → {}; {}; {record}; the array's element 0 at resource-heap byte {}, stride {}: slot s at byte {} + s × {}.",
+        h.mapping, mapping_entries(h), h.probe_offset, h.probe_stride, h.probe_offset, h.probe_stride
+    )
+}
+
+/// What the recorded `VkDescriptorSetAndBindingMappingEXT` entries add to binding 2's mapping:
+/// its set, bindings and resource mask, its sampler members, and the other entries' offsets; or
+/// that the report predates them.
+pub(super) fn mapping_entries(h: &crate::model::comparison::HeapDetail) -> String {
+    let Some(probe) = h.mappings.iter().find(|m| m.first_binding == 2) else {
+        return "the run's rtprobe did not record the VkDescriptorSetAndBindingMappingEXT entries (descriptorSet, firstBinding, bindingCount, the sampler members): a re-run of the cell does".into();
+    };
+    let sampler = match probe.sampler_fields() {
+        f if f.is_empty() => String::new(),
+        f => format!(", sampler members {f}"),
+    };
+    let others: Vec<String> = h
+        .mappings
+        .iter()
+        .filter(|m| m.first_binding != 2)
+        .map(|m| {
+            let offset = m.fields.iter().find(|(n, _)| n == "heapOffset").map(|(_, v)| v.as_str());
+            format!(
+                "binding {} {} heapOffset {}",
+                m.first_binding,
+                m.source_member,
+                offset.unwrap_or("?")
+            )
+        })
+        .collect();
+    format!(
+        "its VkDescriptorSetAndBindingMappingEXT: {}{sampler}; {}",
+        probe.header(),
+        if others.is_empty() { "no other entry".to_string() } else { others.join(", ") }
     )
 }
 

@@ -32,6 +32,9 @@ impl Issue {
         let e = &self.environment;
         let f = &self.facts;
         let mut m = format!("# {}\n\n", self.title);
+        if !self.diagnosis.is_empty() {
+            m += &format!("**Diagnosis**: {}\n\n", self.diagnosis);
+        }
         if let Some(i) = &self.injected {
             m += &format!("> **Note:** {i}\n\n");
         }

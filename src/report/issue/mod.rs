@@ -1,6 +1,6 @@
 //! The vendor issue (`rtprobe report`): from a run report and its bisection, the text a driver
 //! engineer accepts as is. One screen first ([`markdown::ONE_SCREEN_LINES`] lines before the
-//! first `<details>`): driver version and `driverInfo`, compiler, OS, the one-line reproducer and
+//! first `<details>`): a one-line diagnosis where the evidence supports one, driver version and `driverInfo`, compiler, OS, the one-line reproducer and
 //! what it prints, expected against actual values, the probed read and its declarations, the
 //! descriptor layout (binding flags, array size; a heap's mapping and byte offsets), the index
 //! values and whether they are in bounds, the SBT layout and recursion depth, the lane evidence,
@@ -9,6 +9,7 @@
 //! isolation list with its statistics, the environment table, the full shaders, real unified
 //! diffs against the closest passing sibling, the other reproduce commands and what was not
 //! tested. [`Issue`] is the data (`--format json`), [`Issue::markdown`] the text.
+mod diagnosis;
 mod diff;
 mod facts;
 mod markdown;
@@ -81,6 +82,7 @@ pub fn build(
         schema: SCHEMA.into(),
         title,
         injected,
+        diagnosis: diagnosis::of(&rep.cell, rep.entry, report.scene.params.instances, bi),
         summary: text::summary_text(&environment, report, &rep, bi),
         environment,
         incidence: text::incidence_text(bi, rep.entry, rep.agree, rep.n),

@@ -53,7 +53,17 @@ fn the_lavapipe_26_shader_record_issue_fits_one_screen_with_every_fact() {
     );
     let top = screen(&md);
     assert!(top.starts_with("# Wrong results: closest_hit reading sampled_image"), "{top}");
+    // The diagnosis right under the title, from the decode and the one-axis siblings.
+    assert_eq!(
+        md.lines().nth(2),
+        Some("**Diagnosis**: Reads the descriptor 192 bytes (3 descriptors) before the right one, in closest_hit/any_hit/miss shaders only, and only with heap_access=mapped_shader_record_index."),
+        "{top}"
+    );
     for fact in [
+        // The stored debug-form detail in words, from the comparison.
+        "**What happens**: mismatch: 926 of 4087 compared pixels differ (value 926); 6 of 6",
+        // This run's rtprobe recorded binding 2's summary but not the mapping structs.
+        "the run's rtprobe did not record the VkDescriptorSetAndBindingMappingEXT entries",
         "`driverInfo` Mesa 26.2.6-1 (LLVM 22.1.8)",
         "**SPIR-V by** shaderc",
         "6 of 6 attempts faulted, every one",
@@ -70,6 +80,7 @@ fn the_lavapipe_26_shader_record_issue_fits_one_screen_with_every_fact() {
         // lane 0's pixel to its lanes): counted apart, never in the split
         "where it was inactive in the call 0 of 0 pixels, where active 0 of 1806",
         "in subgroups whose records contradict each other (garbage lane data, left out above) 924 of 945 pixels",
+        "(forced lane evidence, a diagnosis only: VUID-RuntimeSpirv-None-06343 (Vulkan 1.4.360): \"Group operations with subgroup scope must not be used if the shader stage is not in subgroupSupportedStages\"; this device's subgroupSupportedStages does not include closest_hit",
         "--lane-evidence force",
         "**Validation**: Not checked",
         "**Device fault**: Not applicable",
@@ -85,6 +96,7 @@ fn the_lavapipe_26_shader_record_issue_fits_one_screen_with_every_fact() {
     assert_eq!(top.matches("6 of 6").count(), 1, "{top}");
     assert!(!top.contains("p ≥") && !top.contains("miss ≤"), "{top}");
     assert!(!top.contains("base_shader_record") && !top.contains("— not used:"), "{top}");
+    assert!(!top.contains("{\"value\""), "no debug-form detail: {top}");
     // The full list and real unified diffs are collapsed below.
     let rest = &md[top.len()..];
     assert!(
@@ -174,4 +186,81 @@ fn workarounds_and_siblings_are_one_count_each() {
     let iso = text::isolation_summary(&b.bisection);
     assert!(iso.contains(&"**stage**: ✅ raygen 5/5, miss 5/5".to_string()), "{iso:?}");
     assert!(iso.iter().all(|l| !l.contains("+none")), "{iso:?}");
+}
+
+fn lavapipe_26_issue(r: &RunReport, b: &BisectFile) -> Issue {
+    build(r, RUN, b, &[], &Extras::default()).unwrap()
+}
+
+/// The representative's report entry, to change what the issue is built from.
+fn rep_entry<'a>(r: &'a mut RunReport, b: &BisectFile) -> &'a mut crate::model::CellReport {
+    r.cells.iter_mut().find(|c| c.id == b.bisection.representative).unwrap()
+}
+
+/// The twins of the diagnosis: the isolation list that shows the fault depends on the stage
+/// gives the stage clause; a stage sibling that no longer passes (no split on the stage) drops
+/// it; without a decode (no example pixel to tell which descriptor was read) there is none.
+#[test]
+fn the_diagnosis_says_only_what_the_evidence_holds() {
+    let (r, b, _) = lavapipe_26();
+    let d = lavapipe_26_issue(&r, &b).diagnosis;
+    assert!(d.contains("in closest_hit/any_hit/miss shaders only"), "{d}");
+    // Every pure stage sibling faults: the stage is not where the fault is.
+    let mut every_stage = b.clone();
+    for l in
+        every_stage.bisection.isolation.iter_mut().filter(|l| l.varied.as_deref() == Some("stage"))
+    {
+        l.verdict = "mismatch".into();
+    }
+    let d = lavapipe_26_issue(&r, &every_stage).diagnosis;
+    assert!(d.starts_with("Reads the descriptor 192 bytes") && !d.contains("shaders only"), "{d}");
+    // No decode: no diagnosis, and no line for it on the screen.
+    let mut no_decode = r.clone();
+    for a in rep_entry(&mut no_decode, &b).attempts.iter_mut() {
+        if let Some(c) = a.result.as_mut().and_then(|x| x.comparison.as_mut()) {
+            c.examples.clear();
+        }
+    }
+    let issue = lavapipe_26_issue(&no_decode, &b);
+    assert_eq!(issue.diagnosis, "");
+    assert!(!issue.markdown().contains("**Diagnosis**"));
+    // Examples that disagree on the descriptor read: none either.
+    let mut mixed = r.clone();
+    for a in rep_entry(&mut mixed, &b).attempts.iter_mut() {
+        if let Some(c) = a.result.as_mut().and_then(|x| x.comparison.as_mut()) {
+            c.examples[1].actual = c.examples[1].expected.clone();
+        }
+    }
+    assert_eq!(lavapipe_26_issue(&mixed, &b).diagnosis, "");
+}
+
+/// A heap cell whose run recorded its VkDescriptorSetAndBindingMappingEXT entries shows binding
+/// 2's set, bindings and sampler members on the screen and every entry in the collapsed section;
+/// the twin, the committed run from before they were recorded, says so instead.
+#[test]
+fn recorded_mapping_entries_are_on_the_screen_and_in_full_below() {
+    let (r, b, _) = lavapipe_26();
+    let mut recorded = r.clone();
+    let l = crate::exec::heap::HeapLayout::new(64, 64, 19, false);
+    let entries = crate::exec::heap::PipelineMapping::new(
+        crate::model::HeapAccess::MappedShaderRecordIndex,
+        &l,
+    )
+    .entries();
+    for a in rep_entry(&mut recorded, &b).attempts.iter_mut() {
+        if let Some(h) = a.result.as_mut().and_then(|x| x.comparison.as_mut()?.heap.as_mut()) {
+            h.mappings = entries.clone();
+        }
+    }
+    let md = lavapipe_26_issue(&recorded, &b).markdown();
+    let top = screen(&md);
+    assert!(top.contains("its VkDescriptorSetAndBindingMappingEXT: descriptorSet 0, firstBinding 2, bindingCount 1, resourceMask VK_SPIRV_RESOURCE_TYPE_ALL_EXT, sampler members pEmbeddedSampler NULL, useCombinedImageSamplerIndex VK_FALSE, samplerHeapOffset 0, samplerShaderRecordOffset 0, samplerHeapIndexStride 0, samplerHeapArrayStride 0; binding 0 constantOffset heapOffset 0, binding 1 constantOffset heapOffset 64"), "{top}");
+    assert!(one_screen_lines(&md) <= ONE_SCREEN_LINES);
+    assert!(md.contains("- `{ descriptorSet 0, firstBinding 2, bindingCount 1, resourceMask VK_SPIRV_RESOURCE_TYPE_ALL_EXT, source VK_DESCRIPTOR_MAPPING_SOURCE_HEAP_WITH_SHADER_RECORD_INDEX_EXT, sourceData.shaderRecordIndex { heapOffset 0,"), "{md}");
+    let old = lavapipe_26_issue(&r, &b).markdown();
+    assert!(
+        !old.contains("firstBinding 2")
+            && old.contains("did not record the VkDescriptorSetAndBindingMappingEXT entries"),
+        "{old}"
+    );
 }

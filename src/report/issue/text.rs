@@ -248,21 +248,23 @@ pub(super) fn lanes_text(
     forced: Option<&RunReport>,
 ) -> String {
     if let Some(split) = comparisons(rep_report).find_map(|c| c.lanes.as_ref()) {
-        return format!("{} (`docs/lane-evidence.md`).", split.sentence());
+        return format!("{} (`docs/lane-evidence.md`).", split.sentence(rep.stage.as_str()));
     }
     let id = rep.id();
     let other = forced.and_then(|f| f.cells.iter().find(|c| c.id == id));
     if let Some(split) = comparisons(other).find_map(|c| c.lanes.as_ref()) {
         return format!(
             "{}; from a separate run with `--lane-evidence force`, whose verdict is not used (`docs/lane-evidence.md`).",
-            split.sentence()
+            split.sentence(rep.stage.as_str())
         );
     }
     let recorded = comparisons(rep_report).any(|c| c.lane_evidence.recorded());
-    match (recorded, crate::model::lanes::device_ballot(&report.device, rep.stage)) {
+    // A report from before the device's ballot stages were recorded says nothing about them.
+    let listed = report.device.get(crate::model::lanes::DEVICE_BALLOT_STAGES).is_some();
+    match (recorded, crate::model::lanes::device_ballot(&report.device, rep.stage) || !listed) {
         (true, _) => "Its records carry lane evidence, but no attempt with a comparison mismatched.".into(),
         (false, true) => "No lane evidence in the run report (the run was made with --lane-evidence off, or by an older rtprobe).".into(),
-        (false, false) => format!("No lane evidence: the device does not list subgroup ballot in {} shaders ({}); `rtprobe run --lane-evidence force` records it anyway, as a diagnosis outside the spec (`rtprobe report --lanes` reads that report).", rep.stage.as_str(), crate::model::lanes::SUBGROUP_STAGE_VUID),
+        (false, false) => format!("No lane evidence: {}, and this device's subgroupSupportedStages does not include {}, so rtprobe records none there; `rtprobe run --lane-evidence force` records it anyway, breaking that rule, as a diagnosis only (`rtprobe report --lanes` reads that report).", crate::model::lanes::rule_quote(), rep.stage.as_str()),
     }
 }
 
@@ -284,8 +286,15 @@ pub(super) fn heap_text(rep: &Cell, rep_report: Option<&CellReport>) -> String {
     } else {
         format!("the shader record data after each hit group's handle is `{}` (the heap index, then the base, little-endian u32s)", h.shader_record)
     };
+    let entries = match h.mappings.len() {
+        0 => "The run's rtprobe did not record the VkDescriptorSetAndBindingMappingEXT entries; a re-run of the cell (`rtprobe repro`, then `rtprobe run --cell-spec`) records them.".to_string(),
+        n => format!(
+            "The VkShaderDescriptorSetAndBindingMappingInfoEXT chained to every stage holds {n} VkDescriptorSetAndBindingMappingEXT, as the driver got them:\n\n{}",
+            h.mappings.iter().map(|m| format!("- `{}`", m.text())).collect::<Vec<_>>().join("\n")
+        ),
+    };
     format!(
-        "Binding 2 (set 0) is mapped {}; {record}. The probed array's element 0 sits at byte {} of the resource heap with stride {}, so slot s is read from byte {} + s × {}: {read}.",
+        "Binding 2 (set 0) is mapped {}; {record}. The probed array's element 0 sits at byte {} of the resource heap with stride {}, so slot s is read from byte {} + s × {}: {read}.\n\n{entries}",
         h.mapping, h.probe_offset, h.probe_stride, h.probe_offset, h.probe_stride
     )
 }
@@ -293,6 +302,16 @@ pub(super) fn heap_text(rep: &Cell, rep_report: Option<&CellReport>) -> String {
 /// The attempt that decided the cell's verdict (its worst).
 pub(super) fn worst(c: &CellReport) -> Option<&crate::model::Attempt> {
     c.attempts.iter().max_by_key(|a| a.outcome.severity())
+}
+
+/// An attempt's detail, its mismatch counts in words from its comparison
+/// (`model::comparison::detail_in_words`: older reports stored them in debug form).
+pub(super) fn detail_in_words(a: &crate::model::Attempt) -> Option<String> {
+    let d = a.detail.as_deref()?;
+    Some(match a.result.as_ref().and_then(|r| r.comparison.as_ref()) {
+        Some(cmp) => crate::model::comparison::detail_in_words(d, cmp),
+        None => d.to_string(),
+    })
 }
 
 /// What happened, from the worst attempt (no attempt count: [`attempts_text`] says it once).
@@ -303,7 +322,7 @@ pub(super) fn actual_text(rep: Option<&CellReport>, outcome: Outcome) -> String 
             outcome.as_str()
         );
     };
-    let detail = a.detail.clone().unwrap_or_else(|| outcome.as_str().into());
+    let detail = detail_in_words(a).unwrap_or_else(|| outcome.as_str().into());
     let mut t = format!("{}: {detail}", outcome.as_str());
     if let Some(x) = &a.worker_exit {
         if let Some(sig) = x.signal.filter(|_| !t.contains("signal")) {
@@ -413,7 +432,7 @@ pub(super) fn reproducer(
     rep: &Representative,
 ) -> Reproducer {
     let id = rep.cell.id();
-    let detail = rep.entry.and_then(worst).and_then(|a| a.detail.clone()).unwrap_or_default();
+    let detail = rep.entry.and_then(worst).and_then(detail_in_words).unwrap_or_default();
     let without_rtprobe = match crate::report::amber::fits(&rep.cell, rep.injection) {
         Ok(()) => "`amber -d -v 1.2 repro/cell.amber` runs the same SPIR-V on the same scene and checks the same records without rtprobe (Amber is built from source: docs/bisect-report-repro.md#amber-the-reproducer-without-rtprobe).".to_string(),
         Err(why) => format!(

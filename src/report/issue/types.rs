@@ -132,6 +132,10 @@ pub struct Issue {
     pub title: String,
     /// Set when the fault was injected with `--inject-fault`: not a driver bug.
     pub injected: Option<String>,
+    /// One sentence of what the evidence says the driver does (`diagnosis`), empty where it
+    /// supports none.
+    #[serde(default)]
+    pub diagnosis: String,
     pub environment: Environment,
     pub summary: String,
     /// The fault-rate statistics (in the collapsed isolation section).
