@@ -16,9 +16,14 @@ pub fn bin() -> Command {
     c
 }
 
-/// The pipeline cache folder of this test binary's runs.
+/// The cache folder (pipeline cache, compiled GLSL) of this test binary's runs: its own, or the
+/// one `RTPROBE_TEST_CACHE_DIR` names, which `.ci/run` shares between every suite of one CI run
+/// (a fresh folder per CI run: the first suite to compile a shader pays for it). Never the user's.
 pub fn cache_dir() -> std::path::PathBuf {
-    std::env::temp_dir().join(format!("rtprobe-test-cache-{}", std::process::id()))
+    match std::env::var_os("RTPROBE_TEST_CACHE_DIR") {
+        Some(d) if !d.is_empty() => d.into(),
+        _ => std::env::temp_dir().join(format!("rtprobe-test-cache-{}", std::process::id())),
+    }
 }
 
 pub fn run(args: &[&str]) -> Output {
