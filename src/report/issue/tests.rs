@@ -175,3 +175,56 @@ fn workarounds_and_siblings_are_one_count_each() {
     assert!(iso.contains(&"**stage**: ✅ raygen 5/5, miss 5/5".to_string()), "{iso:?}");
     assert!(iso.iter().all(|l| !l.contains("+none")), "{iso:?}");
 }
+
+/// The validation run whose worker crashed in setup before the cell's turn (issue 21's re-run:
+/// SIGSEGV in setup, twice): the issue says who ended how in which step, that the layer checked
+/// nothing of the cell, and what a control cell under the same layer did. Twins: a control that
+/// crashed the same way puts the fault on running under the layer; one that ran puts it on the
+/// cell's own setup.
+#[test]
+fn a_validation_run_that_never_reached_the_cell_says_who_crashed_where() {
+    use crate::model::{Attempt, CellResult, Outcome, Phase};
+    let (r, _, _) = lavapipe_26();
+    let detail = "not run: two workers in a row failed before running a cell; the last: crash in setup: worker killed by signal 11 (SIGSEGV) in setup (acceleration structures and resources)";
+    let crashed = || {
+        Attempt::new(Outcome::Crash, true).with_worker(2, Phase::Setup, vec![]).with_detail(detail)
+    };
+    let layer = "VK_LAYER_KHRONOS_validation 1.4.363".to_string();
+    let control = |attempt: Attempt| {
+        Some(ControlRun {
+            cell: "raygen.sampled_image.literal.descriptor_heap.mapped_shader_record_index".into(),
+            attempt: Box::new(attempt),
+        })
+    };
+    let text = |control| {
+        let run =
+            ValidationRun::Ran { layer: layer.clone(), attempt: Box::new(crashed()), control };
+        text::validation_text(&r, None, &run)
+    };
+    let same = text(control(crashed()));
+    for fact in [
+        "Not obtained: re-run alone under VK_LAYER_KHRONOS_validation 1.4.363, the failing cell never ran.",
+        "rtprobe's worker process (the layer and the driver loaded in it) crashed in its setup step, before the cell's turn",
+        "signal 11 (SIGSEGV) in setup (acceleration structures and resources)",
+        "so the layer checked nothing of the cell",
+        "A control cell that passed in the run, `raygen.sampled_image.literal.descriptor_heap.mapped_shader_record_index`, re-run alone under the same layer, crashed the same way in the same step: the fault comes with running under the layer on this device, not with the failing cell",
+    ] {
+        assert!(same.contains(fact), "{fact:?} not in {same}");
+    }
+    assert!(!same.contains("the cell crash "), "{same}");
+    let result = CellResult {
+        outcome: Outcome::Pass,
+        detail: None,
+        timings: Default::default(),
+        comparison: None,
+        fault: None,
+        validation_errors: 0,
+    };
+    let ran = Attempt::new(Outcome::Pass, true).with_result(result);
+    let own = text(control(ran));
+    assert!(
+        own.contains("set up and ran (`pass`, 0 validation message(s)): the fault is the failing cell's own setup under the layer"),
+        "{own}"
+    );
+    assert!(text(None).contains("No control cell was re-run under the layer"));
+}
