@@ -1,21 +1,24 @@
 //! What `rtprobe report` measures on the report's device before it writes the issue: the
 //! failing cell re-run once alone under VK_LAYER_KHRONOS_validation (unless the run validated
 //! already or `--no-validation-run`), and the device's SBT properties. Both need the device on
-//! this machine; where it is not, the issue says why instead.
+//! this machine; where it is not, the issue says why instead. Where the validation run's worker
+//! fails before the cell's turn, a control cell (one the run passed) is re-run the same way, so
+//! that the issue can tell a fault of every setup under the layer from the cell's own.
 use super::commands::Globals;
 use super::shared::{report_device, supervisor_options, SupervisorOracle};
 use crate::bisect::scope::ReportOptions;
 use crate::model::{Cell, RunReport};
-use crate::report::issue::{SbtProps, ValidationRun};
+use crate::report::issue::{ControlRun, SbtProps, ValidationRun};
 use crate::runner::oracle::{Event, Mode, Oracle};
 use crate::vk::driver_version::format_api_version;
 
-/// The validation run and the SBT properties (`validate`: make the run).
+/// The validation run and the SBT properties (`validate`: make the run; `cells`: the failing cell
+/// and a control cell that passed in the run).
 pub(super) fn measure(
     g: &Globals,
     r: &RunReport,
     ro: &ReportOptions,
-    cell: Option<Cell>,
+    (cell, control): (Option<Cell>, Option<Cell>),
     validate: bool,
 ) -> (ValidationRun, Option<SbtProps>) {
     let (inst, info, _) = match report_device(g, r) {
@@ -43,21 +46,32 @@ pub(super) fn measure(
         ),
         (true, Some(c), Some(v)) => {
             let layer = format!("VK_LAYER_KHRONOS_validation {}", format_api_version(v));
-            run_validated(r, ro, info.index, c, layer)
+            match run_validated(r, ro, info.index, c) {
+                Some(a) => {
+                    let control = control.filter(|_| a.result.is_none()).and_then(|k| {
+                        let attempt = Box::new(run_validated(r, ro, info.index, k)?);
+                        Some(ControlRun { cell: k.id(), attempt })
+                    });
+                    ValidationRun::Ran { layer, attempt: Box::new(a), control }
+                }
+                None => ValidationRun::NotRun(format!(
+                    "the validation run of {} recorded no attempt (its worker could not start)",
+                    c.id()
+                )),
+            }
         }
     };
     (run, sbt)
 }
 
 /// Run `cell` once alone with the validation layer, with the report's scene, timeout,
-/// injections, binding stages, lane evidence and `--pipelines`.
+/// injections, binding stages, lane evidence and `--pipelines`: its attempt, if it recorded one.
 fn run_validated(
     r: &RunReport,
     ro: &ReportOptions,
     device: usize,
     cell: Cell,
-    layer: String,
-) -> ValidationRun {
+) -> Option<crate::model::Attempt> {
     let mut opts = supervisor_options(
         device,
         r.scene.params,
@@ -77,11 +91,5 @@ fn run_validated(
         }
     });
     let _ = std::fs::remove_dir_all(&job_dir);
-    match got {
-        Some(a) => ValidationRun::Ran { layer, attempt: Box::new(a) },
-        None => ValidationRun::NotRun(format!(
-            "the validation run of {} recorded no attempt (its worker could not start)",
-            cell.id()
-        )),
-    }
+    got
 }

@@ -70,8 +70,13 @@ pub fn report(g: &Globals, a: &ReportArgs) -> Result<u8> {
         lanes_cover(l, p, &b.bisection.representative)?;
     }
     let cell = crate::bisect::scope::cell_by_id(&b.bisection.representative);
-    let (validation, sbt) =
-        super::issue_run::measure(g, &r, &ro, cell, !a.no_validation_run && !r.options.validate);
+    // the control of a validation run that never reaches the cell: the first settled, clean pass
+    let control = b.bisection.isolation.iter().find_map(|l| {
+        let clean = l.verdict == "pass" && l.settled != Some(false) && l.suspect.is_none();
+        clean.then(|| crate::bisect::scope::cell_by_id(&l.cell)).flatten()
+    });
+    let validate = !a.no_validation_run && !r.options.validate;
+    let (validation, sbt) = super::issue_run::measure(g, &r, &ro, (cell, control), validate);
     let extras = issue::Extras { lanes: lanes.as_ref(), validation, sbt };
     let issue = issue::build(&r, &a.report.display().to_string(), &b, &ro.inject, &extras)
         .map_err(|e| coded(exit::BAD_INPUT, e))?;

@@ -115,6 +115,21 @@ impl LaneEvidence {
     }
 }
 
+/// Of which kind a subgroup's contradicting records are (`reference::lanes::contradictions`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Contradicted {
+    /// Garbage lane data: the records of one call disagree among themselves (a duplicate lane, a
+    /// lane outside the mask, more records than lanes, a leader that is an active lane but not
+    /// the lowest).
+    Garbage,
+    /// The call's records agree among themselves, but their leader word names a pixel that was
+    /// not active in the call: `subgroupBroadcastFirst` returned an inactive lane's value.
+    LeaderOutsideCall,
+    /// The leader's own call (led by its lowest lane), sharing its leader pixel with a call of
+    /// the kind above: left out with it.
+    LeaderOwnCall,
+}
+
 /// Probe pixels of one kind, and how many of them mismatched.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Split {
@@ -147,6 +162,16 @@ pub struct LaneSplit {
     /// data, left out of every split above and counted here.
     #[serde(default)]
     pub contradicted: Split,
+    /// Of `contradicted`: pixels of calls whose records agree but whose leader word names a pixel
+    /// outside the call ([`Contradicted::LeaderOutsideCall`]).
+    #[serde(default)]
+    pub leader_outside: Split,
+    /// Of `leader_outside`: those whose call lacked lane 0 (bit 0 of the ballot clear).
+    #[serde(default)]
+    pub leader_outside_lane0_inactive: Split,
+    /// Of `contradicted`: the calls those leaders ran in ([`Contradicted::LeaderOwnCall`]).
+    #[serde(default)]
+    pub leader_own_call: Split,
 }
 
 impl LaneSplit {
@@ -170,6 +195,69 @@ impl LaneSplit {
         self.by_lane[lane].add(failed);
     }
 
+    /// Count one probe pixel of a subgroup whose records contradict each other, of `kind`, its
+    /// call having lane 0 active or not.
+    pub fn add_contradicted(&mut self, kind: Contradicted, lane0_active: bool, failed: bool) {
+        self.contradicted.add(failed);
+        match kind {
+            Contradicted::Garbage => {}
+            Contradicted::LeaderOutsideCall => {
+                self.leader_outside.add(failed);
+                if !lane0_active {
+                    self.leader_outside_lane0_inactive.add(failed);
+                }
+            }
+            Contradicted::LeaderOwnCall => self.leader_own_call.add(failed),
+        }
+    }
+
+    /// The calls whose lane words agree but whose leader word names a pixel outside the call, in
+    /// words (empty where there are none): the check they fail, how many of their pixels
+    /// mismatched, and, where every one lacked lane 0, what that looks like; then the leaders'
+    /// own calls, left out with them.
+    fn leader_outside_sentence(&self) -> String {
+        let (out, own, lane0) =
+            (self.leader_outside, self.leader_own_call, self.leader_outside_lane0_inactive);
+        if out.pixels == 0 {
+            return String::new();
+        }
+        let every = lane0.pixels == out.pixels;
+        let calls = if every {
+            "in calls without lane 0".to_string()
+        } else {
+            format!("in calls ({} of their pixels without lane 0)", lane0.pixels)
+        };
+        let mut t = format!(
+            "{calls} whose leader word is a pixel outside the call (the cross-record check they fail: the leader must be the lowest active lane, subgroupBroadcastFirst = OpGroupNonUniformBroadcastFirst) {} of {} pixels",
+            out.failed, out.pixels
+        );
+        if every {
+            t += " — the broadcast handed them inactive lane 0's value, which is what a uniform value read from lane 0 while lane 0 is not in the call looks like";
+        }
+        if own.pixels > 0 {
+            t += &format!(
+                "; in the calls their leaders ran in (left out with them) {} of {}",
+                own.failed, own.pixels
+            );
+        }
+        t + "; where the lane words hold, "
+    }
+
+    /// The rest of the contradicting subgroups: garbage lane data (empty where there is none).
+    fn garbage_sentence(&self) -> String {
+        let (out, own) = (self.leader_outside, self.leader_own_call);
+        let garbage = Split {
+            pixels: self.contradicted.pixels - out.pixels - own.pixels,
+            failed: self.contradicted.failed - out.failed - own.failed,
+        };
+        match garbage {
+            Split { pixels: 0, .. } => String::new(),
+            Split { pixels, failed } => format!(
+                "; in subgroups whose records contradict each other (garbage lane data, left out above) {failed} of {pixels} pixels"
+            ),
+        }
+    }
+
     /// `mismatches by lane 0 of the subgroup: inactive in the call 926 of 933 pixels, active 0 of
     /// 1821; leaders 3 of 600, others 923 of 2154; by lane: 0: 0/300, 1: 120/260, …`; forced
     /// evidence of `stage` quotes the rule it breaks ([`forced_words`]).
@@ -187,14 +275,9 @@ impl LaneSplit {
             }
             LaneEvidence::Absent | LaneEvidence::Supported => String::new(),
         };
-        let contradicted = match self.contradicted {
-            Split { pixels: 0, .. } => String::new(),
-            Split { pixels, failed } => format!(
-                "; in subgroups whose records contradict each other (garbage lane data, left out above) {failed} of {pixels} pixels"
-            ),
-        };
+        let (outside, contradicted) = (self.leader_outside_sentence(), self.garbage_sentence());
         format!(
-            "mismatches by lane 0 of the subgroup: where it was inactive in the call {} of {} pixels, where active {} of {}; subgroup leaders {} of {}, other lanes {} of {}; by lane (mismatched/pixels): {}{contradicted}{forced}",
+            "mismatches by lane 0 of the subgroup: {outside}where it was inactive in the call {} of {} pixels, where active {} of {}; subgroup leaders {} of {}, other lanes {} of {}; by lane (mismatched/pixels): {}{contradicted}{forced}",
             self.lane0_inactive.failed,
             self.lane0_inactive.pixels,
             self.lane0_active.failed,
@@ -269,5 +352,47 @@ mod tests {
         // The twin: evidence the device supports quotes no rule.
         let supported = LaneSplit { evidence: LaneEvidence::Supported, ..s }.sentence("raygen");
         assert!(!supported.contains("06343") && !supported.contains("forced"), "{supported}");
+    }
+
+    /// Twins: contradicting subgroups of calls whose leader is a pixel outside the call, every
+    /// one without lane 0, are presented as the evidence they are (the failed check, mismatched
+    /// of pixels there, what it looks like); a duplicate lane is garbage and still left out as
+    /// garbage; a report from before the kinds reads as garbage.
+    #[test]
+    fn a_leader_outside_the_call_is_evidence_and_garbage_stays_garbage() {
+        let mut s = LaneSplit { evidence: LaneEvidence::Forced, ..Default::default() };
+        s.add((0, 0b11, 20, 20), false);
+        for _ in 0..3 {
+            s.add_contradicted(Contradicted::LeaderOutsideCall, false, true);
+        }
+        s.add_contradicted(Contradicted::LeaderOutsideCall, false, false);
+        s.add_contradicted(Contradicted::LeaderOwnCall, true, false);
+        assert_eq!(s.contradicted, Split { pixels: 5, failed: 3 });
+        let t = s.sentence("closest_hit");
+        assert!(
+            t.starts_with("mismatches by lane 0 of the subgroup: in calls without lane 0 whose leader word is a pixel outside the call (the cross-record check they fail: the leader must be the lowest active lane, subgroupBroadcastFirst = OpGroupNonUniformBroadcastFirst) 3 of 4 pixels — the broadcast handed them inactive lane 0's value, which is what a uniform value read from lane 0 while lane 0 is not in the call looks like; in the calls their leaders ran in (left out with them) 0 of 1; where the lane words hold, where it was inactive in the call 0 of 0 pixels, where active 0 of 1")
+                && !t.contains("garbage"),
+            "{t}"
+        );
+        s.add_contradicted(Contradicted::Garbage, true, true);
+        let t = s.sentence("closest_hit");
+        assert!(
+            t.contains("(garbage lane data, left out above) 1 of 1 pixels") && t.contains("3 of 4"),
+            "{t}"
+        );
+        // one call with lane 0 among them: counted, not called lane 0's signature
+        s.add_contradicted(Contradicted::LeaderOutsideCall, true, true);
+        let t = s.sentence("closest_hit");
+        assert!(
+            t.contains("in calls (4 of their pixels without lane 0) whose leader word")
+                && t.contains("4 of 5 pixels")
+                && !t.contains("looks like"),
+            "{t}"
+        );
+        let old: LaneSplit = serde_json::from_str(
+            r#"{"evidence":"forced","lane0_active":{"pixels":1,"failed":0},"lane0_inactive":{"pixels":0,"failed":0},"leaders":{"pixels":1,"failed":0},"followers":{"pixels":0,"failed":0},"by_lane":[],"contradicted":{"pixels":945,"failed":924}}"#,
+        )
+        .unwrap();
+        assert!(old.sentence("closest_hit").contains("(garbage lane data, left out above) 924 of 945 pixels"));
     }
 }

@@ -243,11 +243,11 @@ pub fn compare_with(
         let mut bad = compare_pixel(&mut c, (e, a, i), &others, expected.len());
         let contradiction = lanes.and_then(|l| Some((l.contradiction(i)?, l.judged)));
         c.lane_contradictions += usize::from(contradiction.is_some());
-        if let Some((why, true)) = contradiction {
+        if let Some((c, true)) = contradiction {
             bad.push((
                 "lanes",
                 "lane words consistent with their subgroup's records".into(),
-                why.into(),
+                c.why.into(),
             ));
         }
         let lane_words =
@@ -256,7 +256,7 @@ pub fn compare_with(
             (true, None) => {
                 split.add((a.lane, a.active_mask, a.leader as usize, i), !bad.is_empty())
             }
-            (true, Some(_)) => split.contradicted.add(!bad.is_empty()),
+            (true, Some((c, _))) => split.add_contradicted(c.kind, c.lane0_active, !bad.is_empty()),
             (false, _) => {}
         }
         if !bad.is_empty() {

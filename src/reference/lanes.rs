@@ -13,11 +13,15 @@
 //! Records that share a subgroup key (their `leader`) must also agree with each other
 //! ([`contradictions`]): the leader is the lowest set lane of the active mask, lane ids are
 //! distinct and inside the mask, and the mask and count are the same in every record. A subgroup
-//! whose records contradict each other is garbage lane data from the driver: its pixels join no
-//! subgroup and no split, and where the evidence is judged by (`supported`) each of them is a
-//! mismatch on field `lanes` (`compare`). In stages that may run more than once per pixel
+//! whose records contradict each other is wrong lane data from the driver, of two kinds
+//! (`model::lanes::Contradicted`): a leader word naming a pixel outside a call whose records
+//! otherwise agree (`subgroupBroadcastFirst` returning an inactive lane's value: lavapipe 26's
+//! calls without lane 0), or garbage. Either way its pixels join no subgroup and no split (the
+//! split counts them apart, by kind), and where the evidence is judged by (`supported`) each of
+//! them is a mismatch on field `lanes` (`compare`). In stages that may run more than once per pixel
 //! (any-hit, intersection: a later call overwrites an earlier one's words) records sharing a
 //! leader may come from different calls, so only the per-record checks hold there.
+use crate::model::lanes::Contradicted;
 use crate::model::Stage;
 use crate::probe::{Record, FLAG_LANES, FLAG_PROBE};
 use std::collections::HashMap;
@@ -125,24 +129,106 @@ pub fn subgroup_contradiction(
     None
 }
 
-/// Per pixel: why its subgroup's records contradict each other ([`subgroup_contradiction`]),
-/// checked where each pixel's record comes from one call of `stage` ([`one_call_per_pixel`]) and
-/// the pixel a leader names is that leader's own: not in fragment shaders, where a helper
-/// invocation (no record of its own) or a fragment of another primitive whose record then holds
-/// that pixel may lead a subgroup; the NVIDIA H200 (580.159.04) led 28 of the 128 subgroups of a
-/// fragment probe so, and records keyed by the leader pixel are not one subgroup instance there.
-/// Elsewhere a leader that ran no probe (e.g. lavapipe 26's closest-hit under forced evidence:
-/// lane 0's pixel, a miss, named by every lane of a call lane 0 was not in) is a contradiction.
-pub fn contradictions(records: &[Record], stage: Stage) -> Vec<Option<&'static str>> {
+/// Why a pixel's subgroup's records contradict each other, and which kind of contradiction it is
+/// (`model::lanes::Contradicted`: garbage, or a leader word naming a pixel outside the call).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Contradiction {
+    pub kind: Contradicted,
+    /// The check that failed, in words ([`subgroup_contradiction`]'s, or the leader rule's).
+    pub why: &'static str,
+    /// Lane 0 was active in this pixel's call (bit 0 of its ballot).
+    pub lane0_active: bool,
+}
+
+/// The leader rule, as a pixel whose call's leader word names a pixel outside the call fails it.
+pub const LEADER_RULE: &str = "the leader is not the lowest set lane of the subgroup's active mask";
+
+/// Where the records sharing `leader` (`group`) fail [`subgroup_contradiction`] only because the
+/// leader word of some call names a pixel outside it: per member (in `group`'s order), its kind.
+/// The members split into calls by their mask and count; each call's records must agree among
+/// themselves (distinct lanes, each inside the call's mask, no more records than its count); the
+/// call holding the leader's pixel (if any) must be led by its lowest set lane; every other call
+/// must not count the leader's lane (`leader_lane`, where its record carries lane words) among
+/// its active lanes. Then `subgroupBroadcastFirst` handed those calls the value of a lane that
+/// was not active in them (lavapipe 26's closest-hit: lane 0's pixel where lane 0 was not in the
+/// call), and the leader's own call merely shares the key. Anything else is garbage: `None`.
+fn leader_outside(
+    records: &[Record],
+    leader: usize,
+    leader_lane: Option<u32>,
+    group: &[usize],
+) -> Option<Vec<Contradicted>> {
+    let mut calls: Vec<(u32, u32, Vec<usize>)> = Vec::new();
+    for &q in group {
+        let key = (records[q].active_mask, records[q].active_count);
+        match calls.iter_mut().find(|c| (c.0, c.1) == key) {
+            Some(c) => c.2.push(q),
+            None => calls.push((key.0, key.1, vec![q])),
+        }
+    }
+    let mut outside = false;
+    for (mask, count, members) in &calls {
+        let mut seen = std::collections::HashSet::new();
+        let agree = *mask != 0
+            && members.len() <= *count as usize
+            && members.iter().all(|&q| {
+                let lane = records[q].lane;
+                seen.insert(lane) && (lane >= 32 || mask & (1 << lane) != 0)
+            });
+        let led = if members.contains(&leader) {
+            records[leader].lane == mask.trailing_zeros()
+        } else {
+            outside = true;
+            leader_lane.is_none_or(|k| k >= 32 || mask & (1 << k) == 0)
+        };
+        if !agree || !led {
+            return None;
+        }
+    }
+    let own = |q: usize| calls.iter().any(|c| c.2.contains(&leader) && c.2.contains(&q));
+    outside.then(|| {
+        group
+            .iter()
+            .map(
+                |&q| {
+                    if own(q) {
+                        Contradicted::LeaderOwnCall
+                    } else {
+                        Contradicted::LeaderOutsideCall
+                    }
+                },
+            )
+            .collect()
+    })
+}
+
+/// Per pixel: why its subgroup's records contradict each other ([`subgroup_contradiction`]) and
+/// of which kind ([`leader_outside`], else garbage), checked where each pixel's record comes from
+/// one call of `stage` ([`one_call_per_pixel`]) and the pixel a leader names is that leader's
+/// own: not in fragment shaders, where a helper invocation (no record of its own) or a fragment
+/// of another primitive whose record then holds that pixel may lead a subgroup; the NVIDIA H200
+/// (580.159.04) led 28 of the 128 subgroups of a fragment probe so, and records keyed by the
+/// leader pixel are not one subgroup instance there. Elsewhere a leader that ran no probe (e.g.
+/// lavapipe 26's closest-hit under forced evidence: lane 0's pixel, a miss, named by every lane
+/// of a call lane 0 was not in) is a contradiction, of the leader-outside-the-call kind.
+pub fn contradictions(records: &[Record], stage: Stage) -> Vec<Option<Contradiction>> {
     let mut out = vec![None; records.len()];
     if !one_call_per_pixel(stage) || stage == Stage::Fragment {
         return out;
     }
     let leader = leaders(records);
     for (l, group) in members(&leader) {
-        let why = subgroup_contradiction(records, l, &group);
-        for q in group {
-            out[q] = why;
+        let Some(why) = subgroup_contradiction(records, l, &group) else { continue };
+        let leader_lane = leader.get(l).copied().flatten().map(|_| records[l].lane);
+        let kinds = leader_outside(records, l, leader_lane, &group)
+            .unwrap_or_else(|| vec![Contradicted::Garbage; group.len()]);
+        for (q, kind) in group.into_iter().zip(kinds) {
+            let why = match kind {
+                Contradicted::Garbage => why,
+                Contradicted::LeaderOutsideCall | Contradicted::LeaderOwnCall => LEADER_RULE,
+            };
+            out[q] =
+                Some(Contradiction { kind, why, lane0_active: records[q].active_mask & 1 != 0 });
         }
     }
     out
@@ -157,7 +243,7 @@ pub struct Lanes {
     /// Per leader pixel: the members of its subgroup, where the records show all of it.
     groups: HashMap<usize, Vec<usize>>,
     /// Per pixel: why its subgroup's records contradict each other ([`contradictions`]).
-    contradicted: Vec<Option<&'static str>>,
+    contradicted: Vec<Option<Contradiction>>,
     /// The evidence may be judged by (`LaneEvidence::Supported`): undefined reads per subgroup,
     /// uniform subgroups exactly, contradictions as mismatches. Otherwise (forced evidence) it
     /// only splits a mismatch for the diagnosis.
@@ -202,7 +288,7 @@ impl Lanes {
     }
 
     /// Why pixel `p`'s subgroup's records contradict each other, if they do.
-    pub fn contradiction(&self, p: usize) -> Option<&'static str> {
+    pub fn contradiction(&self, p: usize) -> Option<Contradiction> {
         self.contradicted.get(p).copied().flatten()
     }
 
@@ -297,7 +383,10 @@ mod tests {
             // each record is consistent on its own: only the cross-record check sees the fault
             assert!(records.iter().all(|r| inconsistency(r, 4).is_none()), "{why}");
             let c = contradictions(&records, Stage::ClosestHit);
-            assert!(c.iter().all(|w| w.is_some_and(|w| w.contains(why))), "{why}: {c:?}");
+            let garbage = |w: &Option<Contradiction>| {
+                w.is_some_and(|w| w.why.contains(why) && w.kind == Contradicted::Garbage)
+            };
+            assert!(c.iter().all(garbage), "{why}: {c:?}");
             let lanes = Lanes::for_stage(&records, Stage::ClosestHit);
             assert_eq!(
                 (lanes.subgroup(0), lanes.leader(0), lanes.known()),
@@ -318,8 +407,49 @@ mod tests {
             r.leader = 8;
         }
         let c = contradictions(&lane0, Stage::ClosestHit);
-        assert!(c[..4].iter().all(|w| w.is_some_and(|w| w.contains("leader"))), "{c:?}");
+        let outside = |w: &Option<Contradiction>| {
+            w.is_some_and(|w| w.why == LEADER_RULE && w.kind == Contradicted::LeaderOutsideCall)
+        };
+        assert!(c[..4].iter().all(outside), "{c:?}");
         assert_eq!(contradictions(&lane0, Stage::Fragment), vec![None; 9]);
+    }
+
+    /// A call without lane 0 whose lanes all name lane 0's pixel, which ran the probe in another
+    /// call (lanes 0, 3 active): the cross-record check fails, of the leader-outside-the-call kind
+    /// (what lavapipe 26's closest-hit records show), and lane 0's own call only shares the key.
+    /// Twins: a duplicate lane in the call, or a leader that is an active lane of the call, make
+    /// it garbage again.
+    #[test]
+    fn a_leader_outside_the_call_is_told_from_garbage() {
+        let mut records = group();
+        for r in &mut records {
+            r.leader = 4;
+        }
+        records.push(rec(0, 4, 0b1001));
+        records.push(rec(3, 4, 0b1001));
+        let c = contradictions(&records, Stage::ClosestHit);
+        let kinds: Vec<_> = c.iter().map(|w| w.map(|w| (w.kind, w.lane0_active))).collect();
+        let (out, own) = (Contradicted::LeaderOutsideCall, Contradicted::LeaderOwnCall);
+        assert_eq!(
+            kinds,
+            [[Some((out, false)); 4].as_slice(), &[Some((own, true)); 2]].concat(),
+            "{c:?}"
+        );
+        assert!(c.iter().all(|w| w.is_some_and(|w| w.why == LEADER_RULE)));
+        let lanes = Lanes::for_stage(&records, Stage::ClosestHit);
+        assert_eq!((lanes.leader(0), lanes.leader(4), lanes.known()), (None, None, 0));
+        let mut duplicate = records.clone();
+        duplicate[2].lane = 1;
+        let mut active = records.clone();
+        // the leader's call is lanes 1, 3, led by lane 1: an active lane of the other call too
+        (active[4], active[5]) = (rec(1, 4, 0b1010), rec(3, 4, 0b1010));
+        for (name, bad) in [("duplicate", duplicate), ("leader active in the call", active)] {
+            let c = contradictions(&bad, Stage::ClosestHit);
+            assert!(
+                c.iter().all(|w| w.is_some_and(|w| w.kind == Contradicted::Garbage)),
+                "{name}: {c:?}"
+            );
+        }
     }
 
     #[test]

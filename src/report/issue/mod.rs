@@ -20,8 +20,8 @@ mod types;
 pub use diff::{unified, Match};
 pub use markdown::{one_screen_lines, ONE_SCREEN_LINES};
 pub use types::{
-    Environment, Extras, Facts, Format, Issue, IssueError, Reproducer, SbtProps, ShaderComparison,
-    ValidationRun, SCHEMA,
+    ControlRun, Environment, Extras, Facts, Format, Issue, IssueError, Reproducer, SbtProps,
+    ShaderComparison, ValidationRun, SCHEMA,
 };
 
 use crate::bisect::isolation::describe;

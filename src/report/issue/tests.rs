@@ -59,6 +59,7 @@ fn the_lavapipe_26_shader_record_issue_fits_one_screen_with_every_fact() {
         Some("**Diagnosis**: Reads the descriptor 192 bytes (3 descriptors) before the right one, in closest_hit/any_hit/miss shaders only, and only with heap_access=mapped_shader_record_index."),
         "{top}"
     );
+    assert!(!top.contains("garbage lane data"), "{top}");
     for fact in [
         // The stored debug-form detail in words, from the comparison.
         "**What happens**: mismatch: 926 of 4087 compared pixels differ (value 926); 6 of 6",
@@ -76,10 +77,9 @@ fn the_lavapipe_26_shader_record_issue_fits_one_screen_with_every_fact() {
         "slot = literal 3 in the GLSL: slots 3..=3 of the 19 bound (in bounds)",
         "each record a 32-byte handle + 8 bytes of data",
         "maxPipelineRayRecursionDepth 1 (device maximum 31)",
-        // every call without lane 0 has contradicting lane words (subgroupBroadcastFirst hands
-        // lane 0's pixel to its lanes): counted apart, never in the split
-        "where it was inactive in the call 0 of 0 pixels, where active 0 of 1806",
-        "in subgroups whose records contradict each other (garbage lane data, left out above) 924 of 945 pixels",
+        // every call without lane 0 has a leader word outside the call (subgroupBroadcastFirst
+        // hands its lanes lane 0's pixel): shown as the evidence it is, never called garbage
+        "mismatches by lane 0 of the subgroup: in calls without lane 0 whose leader word is a pixel outside the call (the cross-record check they fail: the leader must be the lowest active lane, subgroupBroadcastFirst = OpGroupNonUniformBroadcastFirst) 924 of 924 pixels — the broadcast handed them inactive lane 0's value, which is what a uniform value read from lane 0 while lane 0 is not in the call looks like; in the calls their leaders ran in (left out with them) 0 of 21; where the lane words hold, where it was inactive in the call 0 of 0 pixels, where active 0 of 1806",
         "(forced lane evidence, a diagnosis only: VUID-RuntimeSpirv-None-06343 (Vulkan 1.4.360): \"Group operations with subgroup scope must not be used if the shader stage is not in subgroupSupportedStages\"; this device's subgroupSupportedStages does not include closest_hit",
         "--lane-evidence force",
         "**Validation**: Not checked",
@@ -263,4 +263,57 @@ fn recorded_mapping_entries_are_on_the_screen_and_in_full_below() {
             && old.contains("did not record the VkDescriptorSetAndBindingMappingEXT entries"),
         "{old}"
     );
+}
+
+/// The validation run whose worker crashed in setup before the cell's turn (issue 21's re-run:
+/// SIGSEGV in setup, twice): the issue says who ended how in which step, that the layer checked
+/// nothing of the cell, and what a control cell under the same layer did. Twins: a control that
+/// crashed the same way puts the fault on running under the layer; one that ran puts it on the
+/// cell's own setup.
+#[test]
+fn a_validation_run_that_never_reached_the_cell_says_who_crashed_where() {
+    use crate::model::{Attempt, CellResult, Outcome, Phase};
+    let (r, _, _) = lavapipe_26();
+    let detail = "not run: two workers in a row failed before running a cell; the last: crash in setup: worker killed by signal 11 (SIGSEGV) in setup (acceleration structures and resources)";
+    let crashed = || {
+        Attempt::new(Outcome::Crash, true).with_worker(2, Phase::Setup, vec![]).with_detail(detail)
+    };
+    let layer = "VK_LAYER_KHRONOS_validation 1.4.363".to_string();
+    let control = |attempt: Attempt| {
+        Some(ControlRun {
+            cell: "raygen.sampled_image.literal.descriptor_heap.mapped_shader_record_index".into(),
+            attempt: Box::new(attempt),
+        })
+    };
+    let text = |control| {
+        let run =
+            ValidationRun::Ran { layer: layer.clone(), attempt: Box::new(crashed()), control };
+        text::validation_text(&r, None, &run)
+    };
+    let same = text(control(crashed()));
+    for fact in [
+        "Not obtained: re-run alone under VK_LAYER_KHRONOS_validation 1.4.363, the failing cell never ran.",
+        "rtprobe's worker process (the layer and the driver loaded in it) crashed in its setup step, before the cell's turn",
+        "signal 11 (SIGSEGV) in setup (acceleration structures and resources)",
+        "so the layer checked nothing of the cell",
+        "A control cell that passed in the run, `raygen.sampled_image.literal.descriptor_heap.mapped_shader_record_index`, re-run alone under the same layer, crashed the same way in the same step: the fault comes with running under the layer on this device, not with the failing cell",
+    ] {
+        assert!(same.contains(fact), "{fact:?} not in {same}");
+    }
+    assert!(!same.contains("the cell crash "), "{same}");
+    let result = CellResult {
+        outcome: Outcome::Pass,
+        detail: None,
+        timings: Default::default(),
+        comparison: None,
+        fault: None,
+        validation_errors: 0,
+    };
+    let ran = Attempt::new(Outcome::Pass, true).with_result(result);
+    let own = text(control(ran));
+    assert!(
+        own.contains("set up and ran (`pass`, 0 validation message(s)): the fault is the failing cell's own setup under the layer"),
+        "{own}"
+    );
+    assert!(text(None).contains("No control cell was re-run under the layer"));
 }

@@ -2,7 +2,7 @@
 //! statistics, actual outcome, device fault, lane evidence, validation (the report's and the
 //! validation run's), reproducers, workarounds, the isolation list on one screen, and what was
 //! not tested.
-use super::types::{Environment, Representative, Reproducer, ValidationRun};
+use super::types::{ControlRun, Environment, Representative, Reproducer, ValidationRun};
 use crate::bisect::isolation::{describe, percent};
 use crate::bisect::scope::cell_by_id;
 use crate::model::{BisectFile, Comparison};
@@ -353,7 +353,9 @@ pub(super) fn validation_text(
         .unwrap_or(0);
     let mut t = match (report.options.validate, errors) {
         (false, _) => match run {
-            ValidationRun::Ran { layer, attempt } => validation_run_text(layer, attempt),
+            ValidationRun::Ran { layer, attempt, control } => {
+                validation_run_text(layer, attempt, control.as_ref())
+            }
             ValidationRun::NotRun(why) => format!("Not checked: the run did not enable VK_LAYER_KHRONOS_validation, and no validation run was made ({why})."),
         },
         (true, 0) => format!("Clean under VK_LAYER_KHRONOS_validation in the run: no validation error in the {} attempt(s) that reported back (an attempt whose process died reports nothing).", rep.map(|c| c.attempts.iter().filter(|a| a.result.is_some()).count()).unwrap_or(0)),
@@ -367,7 +369,11 @@ pub(super) fn validation_text(
 }
 
 /// What the validation run of `rtprobe report` found.
-fn validation_run_text(layer: &str, a: &crate::model::Attempt) -> String {
+fn validation_run_text(
+    layer: &str,
+    a: &crate::model::Attempt,
+    control: Option<&ControlRun>,
+) -> String {
     match &a.result {
         Some(r) if r.validation_errors == 0 => format!(
             "Clean: the failing cell re-run alone under {layer} reported no validation message, and still {} (`{}`).",
@@ -380,10 +386,58 @@ fn validation_run_text(layer: &str, a: &crate::model::Attempt) -> String {
             a.outcome.as_str()
         ),
         None => format!(
-            "Re-run alone under {layer}, the cell {} before the worker could report (no count of validation messages: {}).",
-            a.outcome.as_str(),
-            a.detail.as_deref().unwrap_or("no detail")
+            "Not obtained: re-run alone under {layer}, the failing cell never ran. {} {}",
+            never_ran(a, "rtprobe's worker process (the layer and the driver loaded in it)"),
+            control_text(a, control)
         ),
+    }
+}
+
+/// Who ended how, in which step, for an attempt whose worker reported no result: `who` ended with
+/// the attempt's outcome in its phase (the runner's detail quoted).
+fn never_ran(a: &crate::model::Attempt, who: &str) -> String {
+    let phase = a.phase.map_or("an unknown", crate::model::Phase::as_str);
+    let how = past(a.outcome);
+    format!(
+        "{who} {how} in its {phase} step, before the cell's turn (`{}`), so the layer checked nothing of the cell; which of the layer, the driver and rtprobe faulted takes a stack trace to say.",
+        a.detail.as_deref().unwrap_or("no detail")
+    )
+}
+
+/// What the control cell re-run under the layer shows about a validation run that never ran.
+fn control_text(a: &crate::model::Attempt, control: Option<&ControlRun>) -> String {
+    let Some(c) = control else {
+        return "No control cell was re-run under the layer (the bisection lists no passing cell), so whether every setup under the layer ends so is not known.".into();
+    };
+    let id = &c.cell;
+    match &c.attempt.result {
+        None if c.attempt.outcome == a.outcome && c.attempt.phase == a.phase => format!(
+            "A control cell that passed in the run, `{id}`, re-run alone under the same layer, {} the same way in the same step: the fault comes with running under the layer on this device, not with the failing cell, and says nothing about the finding.",
+            past(c.attempt.outcome)
+        ),
+        None => format!(
+            "A control cell that passed in the run, `{id}`, re-run alone under the same layer, ended otherwise: {}",
+            never_ran(&c.attempt, "its worker")
+        ),
+        Some(r) => format!(
+            "A control cell that passed in the run, `{id}`, re-run alone under the same layer, set up and ran (`{}`, {} validation message(s)): the fault is the failing cell's own setup under the layer.",
+            c.attempt.outcome.as_str(),
+            r.validation_errors
+        ),
+    }
+}
+
+/// An outcome of a worker that reported nothing, as a verb in the past.
+fn past(o: Outcome) -> &'static str {
+    match o {
+        Outcome::Crash => "crashed",
+        Outcome::Timeout => "hung",
+        Outcome::DeviceLost => "lost the device",
+        Outcome::Pass
+        | Outcome::Mismatch
+        | Outcome::Unsupported
+        | Outcome::NotImplemented
+        | Outcome::Error => "ended without a result",
     }
 }
 

@@ -70,11 +70,21 @@ pub struct ShaderComparison {
 #[derive(Clone, Debug)]
 pub enum ValidationRun {
     NotRun(String),
-    /// `layer`: the layer and its version; `attempt`: what the run recorded.
+    /// `layer`: the layer and its version; `attempt`: what the run recorded; `control`: where
+    /// the cell never ran (its worker failed first), a cell that passed in the run, re-run alone
+    /// under the same layer, to tell a fault of the cell's own setup from one of every setup.
     Ran {
         layer: String,
         attempt: Box<Attempt>,
+        control: Option<ControlRun>,
     },
+}
+
+/// A control cell re-run alone under the validation layer, and what it recorded.
+#[derive(Clone, Debug)]
+pub struct ControlRun {
+    pub cell: String,
+    pub attempt: Box<Attempt>,
 }
 
 /// The device's ray tracing pipeline properties the SBT layout depends on.
