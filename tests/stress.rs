@@ -237,6 +237,37 @@ fn a_hung_worker_is_killed_and_its_case_is_a_timeout() {
     assert!(t.elapsed() < std::time::Duration::from_secs(120));
 }
 
+/// A check longer than the silence deadline (twice `--timeout` plus 10 s: 12 s here) whose
+/// heartbeat runs — a line every 2 s with the rays judged so far — is not killed: the case ends
+/// with its own verdict, and the progress lines say which case and how far it got.
+#[test]
+fn a_check_slower_than_the_deadline_with_heartbeats_is_not_killed() {
+    let (out, doc) = stress_env(
+        &["--cases", "tmin", "--timeout", "1"],
+        &[("RTPROBE_STRESS_FAULT", "tmin:slow_check:16"), ("RTPROBE_PROGRESS_SECS", "5")],
+    );
+    let tmin = case(&doc, "tmin");
+    assert_eq!(tmin["verdict"], "pass", "{tmin}");
+    assert!(f(tmin, "ms") > 16_000.0, "{tmin}");
+    let err = stderr(&out);
+    assert!(err.contains("stress tmin: check: 0/96 rays"), "{err}");
+}
+
+/// The twin: the same check with its heartbeat not running (one `check` line, then silence)
+/// is killed at the deadline and the case is a `timeout` at `check`.
+#[test]
+fn a_check_slower_than_the_deadline_without_heartbeats_is_killed() {
+    let (out, doc) = stress_env(
+        &["--cases", "tmin", "--timeout", "1"],
+        &[("RTPROBE_STRESS_FAULT", "tmin:silent_check:16")],
+    );
+    assert_eq!(out.status.code(), Some(1), "{}", stdout(&out));
+    let tmin = case(&doc, "tmin");
+    assert_eq!(tmin["verdict"], "timeout", "{tmin}");
+    let detail = tmin["detail"].as_str().unwrap();
+    assert!(detail.contains("was silent for 12s and was killed at `check`"), "{detail}");
+}
+
 /// Ray queries in a compute shader trace the same rays: on lavapipe (one intersection routine)
 /// every count agrees with the pipeline's, and the report says which tracer ran.
 #[test]

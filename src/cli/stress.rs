@@ -68,6 +68,8 @@ pub fn stress(g: &Globals, args: &StressArgs) -> Result<u8> {
         ray_query: args.ray_query,
         validate: g.validate,
         dir: dir.clone(),
+        say: Box::new(|l: &str| super::out::stderr(&format!("{l}\n"))),
+        every: super::progress::interval(),
     };
     let mut validation_errors = 0;
     let results: Vec<_> = opts

@@ -31,6 +31,7 @@ pub use super::margin::{ulp_f32, BARY_TOL, ON_EDGE_EPS, T_EPS, T_REL_TOL, ULPS_O
 pub use super::result::{CaseResult, Example, Metrics, PartResult, Verdict, EXAMPLES_PER_KIND};
 use super::{CaseKind, Part, Traced};
 use crate::reference::watertight::{self, PlaneHit};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Object-space built-ins (CTS `builtin`: ≈3.8e-6).
 pub const BUILTIN_TOL: f64 = 4e-6;
@@ -277,6 +278,16 @@ impl Acc {
 /// duplicate any-hits, hits outside the tolerance, facing errors), warn on double hits outside
 /// the ambiguity margin, pass otherwise.
 pub fn evaluate(kind: CaseKind, parts: &[Part], traced: &[Vec<Traced>]) -> CaseResult {
+    evaluate_counting(kind, parts, traced, &AtomicU64::new(0))
+}
+
+/// [`evaluate`], adding each ray to `checked` as it is judged (a worker's heartbeat reads it).
+pub fn evaluate_counting(
+    kind: CaseKind,
+    parts: &[Part],
+    traced: &[Vec<Traced>],
+    checked: &AtomicU64,
+) -> CaseResult {
     let mut total = Acc::default();
     let mut results = Vec::new();
     for (part, tr) in parts.iter().zip(traced) {
@@ -284,6 +295,7 @@ pub fn evaluate(kind: CaseKind, parts: &[Part], traced: &[Vec<Traced>]) -> CaseR
         let index = Index::build(part);
         for (i, t) in tr.iter().enumerate() {
             acc.add(part, &index, i, t);
+            checked.fetch_add(1, Ordering::Relaxed);
         }
         total.merge(&acc);
         results.push(PartResult {

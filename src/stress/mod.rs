@@ -64,8 +64,19 @@ pub fn trace_case(tracer: &mut dyn Tracer, kind: CaseKind, opts: &StressOptions)
 
 /// Judge a traced case against the reference (the CPU work of a case).
 pub fn judge(kind: CaseKind, trace: &CaseTrace) -> evaluate::CaseResult {
+    judge_counting(kind, trace, &std::sync::atomic::AtomicU64::new(0))
+}
+
+/// [`judge`], adding each ray to `checked` as it is judged.
+pub fn judge_counting(
+    kind: CaseKind,
+    trace: &CaseTrace,
+    checked: &std::sync::atomic::AtomicU64,
+) -> evaluate::CaseResult {
     match trace {
-        CaseTrace::Traced(parts, traced) => evaluate::evaluate(kind, parts, traced),
+        CaseTrace::Traced(parts, traced) => {
+            evaluate::evaluate_counting(kind, parts, traced, checked)
+        }
         CaseTrace::Failed(parts, e) => evaluate::CaseResult::failed(kind, parts, e),
         CaseTrace::NotImplemented => evaluate::CaseResult::not_implemented(kind),
     }

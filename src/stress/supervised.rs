@@ -4,7 +4,10 @@
 //! stays silent past its deadline. The deadline restarts with each line of progress: the setup
 //! (device, shader compiles) gets [`SETUP_SILENCE`] more, each part twice the fence deadline (an
 //! AS build and a trace, each fenced in the worker) plus [`PART_SLACK`]; the CPU's judging sends
-//! a heartbeat. A worker that dies is the case's `crash`, one killed for silence its `timeout`,
+//! a heartbeat (the case's rays judged so far) every `worker::BEAT`, and a trace a line after each
+//! submission of a part's rays (`gpu::CHUNK_RAYS`), so a long check or trace that is alive is never
+//! killed and a silent one is. What the lines say reaches the user through [`Supervised::say`], at
+//! most every [`Supervised::every`] and when a case starts and ends. A worker that dies is the case's `crash`, one killed for silence its `timeout`,
 //! each with the step it was in, its signal and the end of its stderr; the next case starts in a
 //! fresh worker, so one crash or hang no longer ends the run.
 use super::result::{CaseResult, Verdict};
@@ -12,7 +15,7 @@ use super::worker::{CaseJob, CaseOutput, Progress};
 use super::{cases, CaseKind, StressOptions};
 use crate::runner::process::{run_to_end, ChildEnd};
 use std::path::PathBuf;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// Silence allowed before a worker is ready, on top of a part's.
 pub const SETUP_SILENCE: Duration = Duration::from_secs(60);
@@ -31,6 +34,17 @@ pub struct Supervised {
     pub validate: bool,
     /// Where job and result files go (the caller removes it).
     pub dir: PathBuf,
+    /// Where progress lines go (stderr), and the longest a line waits while a case runs.
+    pub say: Box<dyn Fn(&str)>,
+    pub every: Duration,
+}
+
+/// `trace square-65536: 131072/2268142 rays`
+pub fn describe(p: &Progress) -> String {
+    match (p.done, p.total) {
+        (Some(done), Some(total)) => format!("{}: {done}/{total} rays", p.step),
+        _ => p.step.clone(),
+    }
 }
 
 impl Supervised {
@@ -55,6 +69,9 @@ impl Supervised {
         }
         let part = self.timeout * 2 + PART_SLACK;
         let mut step = String::from("start");
+        let start = Instant::now();
+        let mut said = start;
+        (self.say)(&format!("[{:>7.1}s] stress {name}: start", 0.0));
         let end = run_to_end(
             "__stress",
             &job_path,
@@ -62,6 +79,11 @@ impl Supervised {
             (GRACE, KILL_WAIT),
             &mut |line| {
                 if let Ok(p) = serde_json::from_str::<Progress>(line) {
+                    if said.elapsed() >= self.every {
+                        said = Instant::now();
+                        let at = start.elapsed().as_secs_f64();
+                        (self.say)(&format!("[{at:>7.1}s] stress {name}: {}", describe(&p)));
+                    }
                     step = p.step;
                 }
                 if step == "setup" {
@@ -71,6 +93,8 @@ impl Supervised {
                 }
             },
         );
+        let at = start.elapsed().as_secs_f64();
+        (self.say)(&format!("[{at:>7.1}s] stress {name}: worker ended after `{step}`"));
         let _ = std::fs::remove_file(&job_path);
         let end = match end {
             Ok(end) => end,

@@ -1,12 +1,15 @@
 //! One stress case in a worker process: `rtprobe __stress JOB.json`, started by `supervised`.
 //! It opens the device the job names with what the stress pipeline needs, traces the case's
-//! parts (a progress line before each, so the parent's deadline follows the device work), then
-//! judges them on the CPU (a heartbeat line every few seconds, and only then: a hang in the driver
+//! parts (a progress line before each part and after each submission of its rays, with the rays
+//! traced so far: the parent's deadline follows the device work), then judges them on the CPU (a
+//! heartbeat line every [`BEAT`] with the rays judged so far, and only then: a hang in the driver
 //! stays silent) and writes a [`CaseOutput`] to the job's result file (tmp + rename). A driver
 //! crash kills this process and nothing else: the parent records it as the case's outcome.
 //!
 //! Test hook: `RTPROBE_STRESS_FAULT=<case>:<crash|hang>` makes that case's worker raise SIGSEGV
-//! or sleep forever where its first part would be traced (`tests/stress.rs`).
+//! or sleep forever where its first part would be traced; `<case>:slow_check:SECS` makes its
+//! check take SECS more, heartbeat running, and `<case>:silent_check:SECS` the same with the
+//! heartbeat not yet started (`tests/stress.rs`).
 use super::gpu::{GpuTracer, Mode};
 use super::result::{CaseResult, Verdict};
 use super::{CaseKind, Part, StressOptions, TraceError, Traced, Tracer};
@@ -14,7 +17,7 @@ use crate::vk::{features, Gpu, Instance, InstanceOptions};
 use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -42,26 +45,55 @@ pub struct CaseOutput {
     pub validation_errors: u64,
 }
 
-/// One line of progress on stdout: `setup`, `ready`, `trace PART`, `check` (a heartbeat).
+/// One line of progress on stdout: `setup`, `ready`, `trace PART` (before a part, and after
+/// each submission with the part's rays traced: `done` of `total`), `check` (a heartbeat, with
+/// the case's rays judged: `done` of `total`).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Progress {
     pub step: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub done: Option<u64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub total: Option<u64>,
 }
 
+/// How often the check's heartbeat speaks.
+pub const BEAT: Duration = Duration::from_secs(2);
+
 fn say(step: impl Into<String>) {
+    tell(Progress { step: step.into(), done: None, total: None });
+}
+
+fn tell(p: Progress) {
     let mut out = std::io::stdout().lock();
-    let _ = serde_json::to_writer(&mut out, &Progress { step: step.into() });
+    let _ = serde_json::to_writer(&mut out, &p);
     let _ = out.write_all(b"\n");
     let _ = out.flush();
 }
 
-/// `RTPROBE_STRESS_FAULT`: the case whose first trace misbehaves, and how.
-fn hook(case: &str) -> Option<&'static str> {
+/// `RTPROBE_STRESS_FAULT`: how the case's worker misbehaves.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Hook {
+    Crash,
+    Hang,
+    /// The check takes this much longer, its heartbeat running.
+    SlowCheck(Duration),
+    /// The check takes this much longer before its heartbeat starts.
+    SilentCheck(Duration),
+}
+
+fn hook(case: &str) -> Option<Hook> {
     let v = std::env::var("RTPROBE_STRESS_FAULT").ok()?;
     let (c, how) = v.split_once(':')?;
-    (c == case).then_some(match how {
-        "crash" => "crash",
-        "hang" => "hang",
+    if c != case {
+        return None;
+    }
+    let secs = |s: &str| s.parse::<f64>().ok().filter(|s| s.is_finite() && *s >= 0.0);
+    Some(match how.split_once(':') {
+        None if how == "crash" => Hook::Crash,
+        None if how == "hang" => Hook::Hang,
+        Some(("slow_check", s)) => Hook::SlowCheck(Duration::from_secs_f64(secs(s)?)),
+        Some(("silent_check", s)) => Hook::SilentCheck(Duration::from_secs_f64(secs(s)?)),
         _ => return None,
     })
 }
@@ -69,7 +101,7 @@ fn hook(case: &str) -> Option<&'static str> {
 /// The device tracer, saying each part before tracing it.
 struct Announced {
     inner: GpuTracer,
-    hook: Option<&'static str>,
+    hook: Option<Hook>,
 }
 
 impl Tracer for Announced {
@@ -79,16 +111,24 @@ impl Tracer for Announced {
     fn trace(&mut self, part: &Part) -> Result<Vec<Traced>, TraceError> {
         say(format!("trace {}", part.label));
         match self.hook.take() {
-            Some("crash") => unsafe {
+            Some(Hook::Crash) => unsafe {
                 // Rust's own SIGSEGV handler ignores a raised signal; restore the default first.
                 libc::signal(libc::SIGSEGV, libc::SIG_DFL);
                 libc::raise(libc::SIGSEGV);
             },
-            Some(_) => loop {
+            Some(Hook::Hang) => loop {
                 std::thread::sleep(Duration::from_secs(3600));
             },
-            None => {}
+            Some(Hook::SlowCheck(_) | Hook::SilentCheck(_)) | None => {}
         }
+        let step = format!("trace {}", part.label);
+        self.inner.on_chunk(Box::new(move |done, total| {
+            tell(Progress {
+                step: step.clone(),
+                done: Some(done as u64),
+                total: Some(total as u64),
+            })
+        }));
         self.inner.trace(part)
     }
 }
@@ -107,17 +147,19 @@ fn open(job: &CaseJob) -> Result<GpuTracer, String> {
     GpuTracer::new(gpu, Duration::from_millis(job.timeout_ms), mode).map_err(|e| e.to_string())
 }
 
-/// Prints `check` every few seconds while the CPU judges the case (stops when dropped).
+/// Prints `check` with the rays judged so far every [`BEAT`] while the CPU judges the case
+/// (stops when dropped).
 struct Heartbeat(Arc<AtomicBool>);
 
 impl Heartbeat {
-    fn start() -> Heartbeat {
+    fn start(checked: Arc<AtomicU64>, total: u64) -> Heartbeat {
         let on = Arc::new(AtomicBool::new(true));
         let flag = on.clone();
         std::thread::spawn(move || {
             while flag.load(Ordering::Relaxed) {
-                say("check");
-                std::thread::sleep(Duration::from_secs(2));
+                let done = Some(checked.load(Ordering::Relaxed));
+                tell(Progress { step: "check".into(), done, total: Some(total) });
+                std::thread::sleep(BEAT);
             }
         });
         Heartbeat(on)
@@ -140,12 +182,25 @@ fn run(job: &CaseJob, kind: CaseKind) -> CaseResult {
         }
     };
     say("ready");
-    let mut tracer = Announced { inner, hook: hook(kind.as_str()) };
+    let hook = hook(kind.as_str());
+    let mut tracer = Announced { inner, hook };
     let opts = StressOptions { cases: vec![kind], seed: job.seed, full: job.full };
     let start = std::time::Instant::now();
     let trace = super::trace_case(&mut tracer, kind, &opts);
-    let _beat = Heartbeat::start();
-    let mut r = super::judge(kind, &trace);
+    let total = match &trace {
+        super::CaseTrace::Traced(parts, _) => parts.iter().map(|p| p.rays.len() as u64).sum(),
+        _ => 0,
+    };
+    if let Some(Hook::SilentCheck(d)) = hook {
+        say("check");
+        std::thread::sleep(d);
+    }
+    let checked = Arc::new(AtomicU64::new(0));
+    let _beat = Heartbeat::start(checked.clone(), total);
+    if let Some(Hook::SlowCheck(d)) = hook {
+        std::thread::sleep(d);
+    }
+    let mut r = super::judge_counting(kind, &trace, &checked);
     r.ms = start.elapsed().as_secs_f64() * 1e3;
     r
 }
