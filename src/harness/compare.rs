@@ -22,9 +22,12 @@ pub struct Part {
     pub texel: u32,
     /// What a buffer held before the trace (the harness's fill); `None` for images.
     pub initial: Option<Vec<u8>>,
-    /// A buffer some module writes through atomics (an append queue): the order its words are
-    /// filled in is the driver's scheduling, so its words may be compared as a multiset.
+    /// A buffer some module writes through atomics (an append queue): the order its records
+    /// are filled in is the driver's scheduling, so they may be compared as a multiset.
     pub scheduled: bool,
+    /// A buffer block's trailing array: its byte offset and stride (`ArrayStride`), the records
+    /// an append queue fills. Without it no multiset comparison is made.
+    pub records: Option<(u32, u32)>,
 }
 
 /// One output compared: units (texels or words), how many differ, how many distinct values the
@@ -67,11 +70,16 @@ impl Compared {
 /// Unit-by-unit comparison of the unpatched pipeline's outputs (`before`, and `again` from a
 /// second unpatched trace) with the patched one's (`after`). A unit that differs between the
 /// two unpatched runs is unstable and left out; a buffer unit equal to its initial fill in every
-/// run was not written and is left out; a length difference counts as differing units. A buffer
-/// with unstable units, or one some module writes through atomics ([`Part::scheduled`]), differs
-/// in none when its units, all of them as a multiset, are the same in both pipelines: the order
-/// an append queue fills in is the driver's scheduling (two unpatched runs may fill it in the
-/// same order by chance and the patched one in another; CI saw 8402 of 16388 words move).
+/// run was not written and is left out; a length difference counts as differing units.
+///
+/// A buffer whose block ends in an array of records ([`Part::records`]) and which has unstable
+/// units or is written through atomics ([`Part::scheduled`]) differs in none when the words
+/// before the array are identical in place (unstable ones aside) and its records, each
+/// `ArrayStride` bytes whole, are the same multiset: the order an append queue fills in is the
+/// driver's scheduling (two unpatched runs may fill it in the same order by chance and the
+/// patched one in another; CI saw 8402 of 16388 words move). Whole records, never loose words:
+/// a patch that swaps two fields of every record still differs. Images never: a texel's place
+/// is its pixel.
 pub fn compare(before: &[Part], again: &[Part], after: &[Part]) -> Vec<Compared> {
     before.iter().zip(again).zip(after).map(|((b, g), a)| compare_one(b, g, a)).collect()
 }
@@ -102,15 +110,12 @@ fn compare_one<'a>(b: &'a Part, g: &'a Part, a: &'a Part) -> Compared {
     }
     // Units only the patched output has (the loop counted those only the unpatched one has).
     differing += as_.len().saturating_sub(bs.len());
-    let mut reordered = false;
-    if (unstable > 0 || b.scheduled) && differing > 0 && bs.len() == as_.len() {
-        let (mut x, mut y) = (bs.clone(), as_.clone());
-        x.sort_unstable();
-        y.sort_unstable();
-        if x == y {
-            differing = 0;
-            reordered = true;
-        }
+    let reordered = (unstable > 0 || b.scheduled)
+        && differing > 0
+        && b.kind == PartKind::Buffer
+        && same_records(b, g, a);
+    if reordered {
+        differing = 0;
     }
     let distinct = kept_b.iter().chain(&kept_a).collect::<std::collections::BTreeSet<_>>().len();
     Compared {
@@ -123,6 +128,32 @@ fn compare_one<'a>(b: &'a Part, g: &'a Part, a: &'a Part) -> Compared {
         unstable,
         reordered,
     }
+}
+
+/// Whether `b` (and `g`, its second run) and `a` are the same buffer up to the order of the
+/// records of its trailing array (see [`compare`]).
+fn same_records(b: &Part, g: &Part, a: &Part) -> bool {
+    let Some((offset, stride)) = b.records else {
+        return false;
+    };
+    let (offset, stride) = (offset as usize, stride as usize);
+    if a.bytes.len() != b.bytes.len() || offset > b.bytes.len() || stride == 0 {
+        return false;
+    }
+    let head_same = (0..offset / 4).all(|k| {
+        let w = |p: &Part| p.bytes.get(k * 4..k * 4 + 4).map(<[u8]>::to_vec);
+        w(b) != w(g) || w(b) == w(a)
+    });
+    let n = (b.bytes.len() - offset) / stride;
+    let end = offset + n * stride;
+    let sorted = |bytes: &[u8]| {
+        let mut r: Vec<Vec<u8>> = bytes.chunks(stride).map(<[u8]>::to_vec).collect();
+        r.sort_unstable();
+        r
+    };
+    head_same
+        && sorted(&b.bytes[offset..end]) == sorted(&a.bytes[offset..end])
+        && b.bytes[end..] == a.bytes[end..]
 }
 
 /// What a comparison comes to.
@@ -211,6 +242,7 @@ mod tests {
             texel: 4,
             initial,
             scheduled: false,
+            records: (kind == PartKind::Buffer).then_some((4, 4)),
         }
     }
 
@@ -341,5 +373,42 @@ mod tests {
         wrong.scheduled = true;
         let c = cmp(std::slice::from_ref(&run), std::slice::from_ref(&wrong));
         assert_eq!((c[0].differing, c[0].reordered), (2, false), "{c:?}");
+    }
+
+    /// Review: a patch that swapped two tables' addresses moved albedo and emissive between the
+    /// fields of every appended record and passed, the words compared loose. Records are whole
+    /// (`ArrayStride` bytes): whole records in another order are no difference, fields swapped
+    /// inside them are; a buffer with no record array and an image are never compared as a
+    /// multiset; the words before the array (the counter) must match in place.
+    #[test]
+    fn records_are_compared_whole_and_only_in_buffers_that_have_them() {
+        let queue = |words: &[u8], records| {
+            let mut p = part(PartKind::Buffer, words);
+            (p.scheduled, p.records) = (true, records);
+            p
+        };
+        let run = queue(&[2, 10, 11, 20, 21], Some((4, 8)));
+        let moved = queue(&[2, 20, 21, 10, 11], Some((4, 8)));
+        let fields = queue(&[2, 11, 10, 21, 20], Some((4, 8)));
+        let c = cmp(std::slice::from_ref(&run), std::slice::from_ref(&moved));
+        assert_eq!((c[0].differing, c[0].reordered), (0, true), "{c:?}");
+        let c = cmp(std::slice::from_ref(&run), std::slice::from_ref(&fields));
+        assert_eq!((c[0].differing, c[0].reordered), (4, false), "{c:?}");
+        // Loose words would have passed both.
+        let loose = queue(&[2, 10, 11, 20, 21], Some((4, 4)));
+        let c = cmp(std::slice::from_ref(&loose), &[queue(&[2, 11, 10, 21, 20], Some((4, 4)))]);
+        assert!(c[0].reordered, "{c:?}");
+        // The counter before the records must match in place.
+        let c = cmp(std::slice::from_ref(&run), &[queue(&[3, 20, 21, 10, 11], Some((4, 8)))]);
+        assert!(c[0].differing > 0 && !c[0].reordered, "{c:?}");
+        // No record array: in place only.
+        let flat = queue(&[2, 10, 11, 20, 21], None);
+        let c = cmp(std::slice::from_ref(&flat), &[queue(&[2, 20, 21, 10, 11], None)]);
+        assert_eq!((c[0].differing, c[0].reordered), (4, false), "{c:?}");
+        // An image with unstable texels: the rest compared in place, never as a multiset.
+        let (i1, i2) = (part(PartKind::Image, &[1, 2, 3, 4]), part(PartKind::Image, &[9, 2, 3, 4]));
+        let moved = part(PartKind::Image, &[9, 3, 2, 4]);
+        let c = compare(std::slice::from_ref(&i1), &[i2], &[moved]);
+        assert_eq!((c[0].unstable, c[0].differing, c[0].reordered), (1, 2, false), "{c:?}");
     }
 }

@@ -337,6 +337,7 @@ impl Harness {
                     texel: *t,
                     initial: None,
                     scheduled: false,
+                    records: None,
                 })
                 .chain(self.written_buffers())
                 .collect()),
@@ -371,6 +372,7 @@ impl Harness {
                         texel: 4,
                         initial: Some(resources::buffer_data(d, size, &b.ints)),
                         scheduled: b.atomic,
+                        records: b.records,
                     });
                 }
                 d += 1;

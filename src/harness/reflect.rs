@@ -57,6 +57,9 @@ pub struct Binding {
     /// A buffer the module applies an atomic instruction to (an append queue's counter): the
     /// order its words are filled in is the driver's scheduling.
     pub atomic: bool,
+    /// A buffer block whose last member is an array: its byte offset and `ArrayStride` (the
+    /// records an append queue fills), else `None`.
+    pub records: Option<(u32, u32)>,
 }
 
 /// A module's interface.
@@ -159,7 +162,21 @@ fn binding(m: &Module, var: Word, ptr: Word) -> Result<Binding, ReflectError> {
         _ => IntWords::default(),
     };
     let atomic = writable && atomically_accessed(m, var);
-    Ok(Binding { set, binding, kind, count, runtime, writable, ints, atomic })
+    let records = if writable { last_array_member(m, elem) } else { None };
+    Ok(Binding { set, binding, kind, count, runtime, writable, ints, atomic, records })
+}
+
+/// The byte offset and `ArrayStride` of block `st`'s last member when it is an array.
+fn last_array_member(m: &Module, st: Word) -> Option<(u32, u32)> {
+    let d = edit::def(m, st)?;
+    let last = d.operands.len().checked_sub(1)?;
+    let ty = edit::def(m, edit::id_operand(d, last)?)?;
+    if !matches!(ty.class.opcode, Op::TypeArray | Op::TypeRuntimeArray) {
+        return None;
+    }
+    let stride = edit::decoration_literal(m, ty.result_id?, Decoration::ArrayStride)?;
+    let offset = edit::member_decoration(m, st, last as u32, Decoration::Offset)?;
+    (stride > 0).then_some((offset, stride))
 }
 
 /// Whether an `OpAtomic*` instruction's pointer derives from `var` (through access chains and
@@ -311,5 +328,8 @@ mod tests {
         let i = reflect(&module(shaderc::ShaderKind::ClosestHit, glsl)).unwrap();
         let a: Vec<(u32, bool)> = i.bindings.iter().map(|b| (b.binding, b.atomic)).collect();
         assert_eq!(a, vec![(1, true), (2, false), (3, true)]);
+        // The queue's records: uvec4 rec[] after the counter, at byte 16, 16 bytes each.
+        let r: Vec<Option<(u32, u32)>> = i.bindings.iter().map(|b| b.records).collect();
+        assert_eq!(r, vec![Some((16, 16)), None, None]);
     }
 }

@@ -111,6 +111,7 @@ impl Resources {
                 Some(old) => {
                     old.writable |= b.writable;
                     old.atomic |= b.atomic;
+                    old.records = old.records.or(b.records);
                 }
                 None => {
                     unique.insert((b.set, b.binding), b.clone());

@@ -393,6 +393,8 @@ mod tests {
             r#"{"evidence":"forced","lane0_active":{"pixels":1,"failed":0},"lane0_inactive":{"pixels":0,"failed":0},"leaders":{"pixels":1,"failed":0},"followers":{"pixels":0,"failed":0},"by_lane":[],"contradicted":{"pixels":945,"failed":924}}"#,
         )
         .unwrap();
-        assert!(old.sentence("closest_hit").contains("(garbage lane data, left out above) 924 of 945 pixels"));
+        assert!(old
+            .sentence("closest_hit")
+            .contains("(garbage lane data, left out above) 924 of 945 pixels"));
     }
 }
