@@ -31,7 +31,6 @@ pub use super::margin::{ulp_f32, BARY_TOL, ON_EDGE_EPS, T_EPS, T_REL_TOL, ULPS_O
 pub use super::result::{CaseResult, Example, Metrics, PartResult, Verdict, EXAMPLES_PER_KIND};
 use super::{CaseKind, Part, Traced};
 use crate::reference::watertight::{self, PlaneHit};
-use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Object-space built-ins (CTS `builtin`: ≈3.8e-6).
 pub const BUILTIN_TOL: f64 = 4e-6;
@@ -278,15 +277,15 @@ impl Acc {
 /// duplicate any-hits, hits outside the tolerance, facing errors), warn on double hits outside
 /// the ambiguity margin, pass otherwise.
 pub fn evaluate(kind: CaseKind, parts: &[Part], traced: &[Vec<Traced>]) -> CaseResult {
-    evaluate_counting(kind, parts, traced, &AtomicU64::new(0))
+    evaluate_counting(kind, parts, traced, &|| {})
 }
 
-/// [`evaluate`], adding each ray to `checked` as it is judged (a worker's heartbeat reads it).
+/// [`evaluate`], calling `on_ray` after each ray is judged (a worker's heartbeat counts them).
 pub fn evaluate_counting(
     kind: CaseKind,
     parts: &[Part],
     traced: &[Vec<Traced>],
-    checked: &AtomicU64,
+    on_ray: &dyn Fn(),
 ) -> CaseResult {
     let mut total = Acc::default();
     let mut results = Vec::new();
@@ -295,7 +294,7 @@ pub fn evaluate_counting(
         let index = Index::build(part);
         for (i, t) in tr.iter().enumerate() {
             acc.add(part, &index, i, t);
-            checked.fetch_add(1, Ordering::Relaxed);
+            on_ray();
         }
         total.merge(&acc);
         results.push(PartResult {

@@ -64,18 +64,18 @@ pub fn trace_case(tracer: &mut dyn Tracer, kind: CaseKind, opts: &StressOptions)
 
 /// Judge a traced case against the reference (the CPU work of a case).
 pub fn judge(kind: CaseKind, trace: &CaseTrace) -> evaluate::CaseResult {
-    judge_counting(kind, trace, &std::sync::atomic::AtomicU64::new(0))
+    judge_counting(kind, trace, &|| {})
 }
 
-/// [`judge`], adding each ray to `checked` as it is judged.
+/// [`judge`], calling `on_ray` after each ray is judged (a worker's heartbeat counts them).
 pub fn judge_counting(
     kind: CaseKind,
     trace: &CaseTrace,
-    checked: &std::sync::atomic::AtomicU64,
+    on_ray: &dyn Fn(),
 ) -> evaluate::CaseResult {
     match trace {
         CaseTrace::Traced(parts, traced) => {
-            evaluate::evaluate_counting(kind, parts, traced, checked)
+            evaluate::evaluate_counting(kind, parts, traced, on_ray)
         }
         CaseTrace::Failed(parts, e) => evaluate::CaseResult::failed(kind, parts, e),
         CaseTrace::NotImplemented => evaluate::CaseResult::not_implemented(kind),

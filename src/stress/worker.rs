@@ -2,14 +2,14 @@
 //! It opens the device the job names with what the stress pipeline needs, traces the case's
 //! parts (a progress line before each part and after each submission of its rays, with the rays
 //! traced so far: the parent's deadline follows the device work), then judges them on the CPU (a
-//! heartbeat line every [`BEAT`] with the rays judged so far, and only then: a hang in the driver
-//! stays silent) and writes a [`CaseOutput`] to the job's result file (tmp + rename). A driver
+//! heartbeat line every [`BEAT`] in which more rays were judged, and only then: a hang in the
+//! driver or a stalled check stays silent and is killed at the parent's deadline) and writes a [`CaseOutput`] to the job's result file (tmp + rename). A driver
 //! crash kills this process and nothing else: the parent records it as the case's outcome.
 //!
 //! Test hook: `RTPROBE_STRESS_FAULT=<case>:<crash|hang>` makes that case's worker raise SIGSEGV
 //! or sleep forever where its first part would be traced; `<case>:slow_check:SECS` makes its
-//! check take SECS more, heartbeat running, and `<case>:silent_check:SECS` the same with the
-//! heartbeat not yet started (`tests/stress.rs`).
+//! check take SECS more, spread over its rays (slow, progressing), and `<case>:stalled_check:SECS`
+//! stalls it SECS before its first ray, heartbeat running (`tests/stress.rs`).
 use super::gpu::{GpuTracer, Mode};
 use super::result::{CaseResult, Verdict};
 use super::{CaseKind, Part, StressOptions, TraceError, Traced, Tracer};
@@ -76,10 +76,10 @@ fn tell(p: Progress) {
 enum Hook {
     Crash,
     Hang,
-    /// The check takes this much longer, its heartbeat running.
+    /// The check takes this much longer, spread over its rays.
     SlowCheck(Duration),
-    /// The check takes this much longer before its heartbeat starts.
-    SilentCheck(Duration),
+    /// The check stalls this long before its first ray, its heartbeat running.
+    StalledCheck(Duration),
 }
 
 fn hook(case: &str) -> Option<Hook> {
@@ -93,7 +93,7 @@ fn hook(case: &str) -> Option<Hook> {
         None if how == "crash" => Hook::Crash,
         None if how == "hang" => Hook::Hang,
         Some(("slow_check", s)) => Hook::SlowCheck(Duration::from_secs_f64(secs(s)?)),
-        Some(("silent_check", s)) => Hook::SilentCheck(Duration::from_secs_f64(secs(s)?)),
+        Some(("stalled_check", s)) => Hook::StalledCheck(Duration::from_secs_f64(secs(s)?)),
         _ => return None,
     })
 }
@@ -119,7 +119,7 @@ impl Tracer for Announced {
             Some(Hook::Hang) => loop {
                 std::thread::sleep(Duration::from_secs(3600));
             },
-            Some(Hook::SlowCheck(_) | Hook::SilentCheck(_)) | None => {}
+            Some(Hook::SlowCheck(_) | Hook::StalledCheck(_)) | None => {}
         }
         let step = format!("trace {}", part.label);
         self.inner.on_chunk(Box::new(move |done, total| {
@@ -147,8 +147,9 @@ fn open(job: &CaseJob) -> Result<GpuTracer, String> {
     GpuTracer::new(gpu, Duration::from_millis(job.timeout_ms), mode).map_err(|e| e.to_string())
 }
 
-/// Prints `check` with the rays judged so far every [`BEAT`] while the CPU judges the case
-/// (stops when dropped).
+/// Prints `check` with the rays judged so far when it starts and then every [`BEAT`] in which
+/// more were judged: a check that stops judging goes silent, and the parent's deadline kills
+/// it (stops when dropped).
 struct Heartbeat(Arc<AtomicBool>);
 
 impl Heartbeat {
@@ -156,9 +157,13 @@ impl Heartbeat {
         let on = Arc::new(AtomicBool::new(true));
         let flag = on.clone();
         std::thread::spawn(move || {
+            let mut told = None;
             while flag.load(Ordering::Relaxed) {
                 let done = Some(checked.load(Ordering::Relaxed));
-                tell(Progress { step: "check".into(), done, total: Some(total) });
+                if done != told {
+                    tell(Progress { step: "check".into(), done, total: Some(total) });
+                    told = done;
+                }
                 std::thread::sleep(BEAT);
             }
         });
@@ -191,16 +196,23 @@ fn run(job: &CaseJob, kind: CaseKind) -> CaseResult {
         super::CaseTrace::Traced(parts, _) => parts.iter().map(|p| p.rays.len() as u64).sum(),
         _ => 0,
     };
-    if let Some(Hook::SilentCheck(d)) = hook {
-        say("check");
-        std::thread::sleep(d);
-    }
     let checked = Arc::new(AtomicU64::new(0));
     let _beat = Heartbeat::start(checked.clone(), total);
-    if let Some(Hook::SlowCheck(d)) = hook {
-        std::thread::sleep(d);
-    }
-    let mut r = super::judge_counting(kind, &trace, &checked);
+    let pause = match hook {
+        Some(Hook::StalledCheck(d)) => {
+            std::thread::sleep(d);
+            Duration::ZERO
+        }
+        Some(Hook::SlowCheck(d)) => d / total.max(1) as u32,
+        _ => Duration::ZERO,
+    };
+    let on_ray = || {
+        if !pause.is_zero() {
+            std::thread::sleep(pause);
+        }
+        checked.fetch_add(1, Ordering::Relaxed);
+    };
+    let mut r = super::judge_counting(kind, &trace, &on_ray);
     r.ms = start.elapsed().as_secs_f64() * 1e3;
     r
 }
