@@ -8,21 +8,22 @@ use super::pictures;
 use crate::model::{Cell, CellResult, Outcome, Timings};
 use crate::probe::spec::ProbeSpec;
 use crate::probe::Record;
-use crate::reference;
+use crate::reference::{self, Expected};
 use std::time::Instant;
 
 impl Executor {
     /// The cell's result from its records: [`Executor::check`] (its time added to
-    /// `timings.check_ms`), with the note on what the driver saw after its detail.
+    /// `timings.check_ms`), with the note on what the driver saw after its detail. `expected`:
+    /// a buffer for the reference's records, kept from cell to cell.
     pub(super) fn judge(
         &self,
         cell: &Cell,
-        records: &[Record],
+        (records, expected): (&[Record], &mut Vec<Expected>),
         seen: Seen,
         timings: &mut Timings,
     ) -> CellResult {
         let t = Instant::now();
-        let r = self.check(cell, records, seen);
+        let r = self.check(cell, (records, expected), seen);
         let note = seen.note(cell);
         timings.check_ms += t.elapsed().as_secs_f64() * 1e3;
         let detail = match (r.detail.clone(), note) {
@@ -32,9 +33,14 @@ impl Executor {
         CellResult { timings: timings.clone(), detail, ..r }
     }
 
-    /// Compare `records` with the reference; `seen`: whether the driver saw the cell's
-    /// descriptor index as undefined, and the lane evidence the records carry.
-    fn check(&self, cell: &Cell, records: &[Record], seen: Seen) -> CellResult {
+    /// Compare `records` with the reference (written into `expected`); `seen`: whether the driver
+    /// saw the cell's descriptor index as undefined, and the lane evidence the records carry.
+    fn check(
+        &self,
+        cell: &Cell,
+        (records, expected): (&[Record], &mut Vec<Expected>),
+        seen: Seen,
+    ) -> CellResult {
         let none = |outcome, detail: &str| CellResult {
             outcome,
             detail: Some(detail.into()),
@@ -53,14 +59,15 @@ impl Executor {
             );
         }
         let undefined = reference::Undefined { descriptor: seen.undefined(cell) };
-        let mut expected = reference::expected_with(cell, &self.scene, &self.sref, undefined);
-        reference::expect_lanes(&mut expected, seen.lanes);
+        reference::expected_into(expected, cell, (&self.scene, &self.sref), undefined);
+        reference::expect_lanes(expected, seen.lanes);
+        let expected: &[Expected] = expected;
         let (w, h) = (self.scene.params.width, self.scene.params.height);
         let lanes = seen.lanes.recorded().then(|| {
             reference::lanes::Lanes::for_stage(records, cell.stage).judged_by(seen.lanes.usable())
         });
-        let mut cmp = reference::compare_with(&expected, records, w, lanes.as_ref());
-        cmp.mutant = self.predict_mutant(cell, (undefined, seen.lanes), &expected, records);
+        let mut cmp = reference::compare_with(expected, records, w, lanes.as_ref());
+        cmp.mutant = self.predict_mutant(cell, (undefined, seen.lanes), expected, records);
         cmp.lane_evidence = seen.lanes;
         cmp.heap = self.heap_detail(cell);
         if let Some(split) = cmp.lanes.as_mut() {
@@ -79,7 +86,7 @@ impl Executor {
         if let (Some(dir), Some(d)) =
             (self.opts.dump.as_ref().filter(|_| !cmp.passed()), detail.as_mut())
         {
-            match pictures::write(&dir.join(cell.id()), &expected, records, w, h) {
+            match pictures::write(&dir.join(cell.id()), expected, records, w, h) {
                 Ok(paths) => cmp.pictures = paths,
                 Err(e) => d.push_str(&format!("; pictures not written: {e}")),
             }

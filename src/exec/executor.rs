@@ -82,6 +82,17 @@ pub struct Executor {
     pub(super) libraries: Option<Libraries>,
     /// Milliseconds the CPU reference took.
     pub reference_ms: f64,
+    /// What a cell's readback and check fill, kept from cell to cell.
+    pub(super) scratch: Scratch,
+}
+
+/// Buffers every cell's readback and check fill, reused from cell to cell so that their pages
+/// stay mapped and warm: the records' bytes, the records, and the reference's expected records.
+#[derive(Default)]
+pub(super) struct Scratch {
+    pub(super) bytes: Vec<u8>,
+    pub(super) records: Vec<crate::probe::Record>,
+    pub(super) expected: Vec<crate::reference::Expected>,
 }
 
 impl Executor {
@@ -129,6 +140,7 @@ impl Executor {
             cache_status,
             libraries,
             reference_ms,
+            scratch: Scratch::default(),
         })
     }
 

@@ -26,7 +26,12 @@ impl Executor {
             .try_run(cell, injected.as_ref(), &mut timings, on_phase)
             .and_then(|done| on_phase(Phase::Check).map(|()| done).map_err(CellError::from));
         let mut out = match result {
-            Ok((records, seen)) => self.judge(cell, &records, seen, &mut timings),
+            Ok((records, seen)) => {
+                let mut expected = std::mem::take(&mut self.scratch.expected);
+                let out = self.judge(cell, (&records, &mut expected), seen, &mut timings);
+                (self.scratch.records, self.scratch.expected) = (records, expected);
+                out
+            }
             Err(e) => e.result(&self.gpu, self.opts.timeout, timings.clone()),
         };
         out.timings.total_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -58,7 +63,8 @@ impl Executor {
         .to_bytes(b.addresses.patched_table)
     }
 
-    /// The cell's records, and what the driver saw of the cell's shape.
+    /// The cell's records (in the scratch's vector, taken: [`Executor::run`] gives it back), and
+    /// what the driver saw of the cell's shape.
     fn try_run(
         &mut self,
         cell: &Cell,
@@ -81,7 +87,7 @@ impl Executor {
         // Sentinel: a record no probe wrote reads as flags 0xffffffff. Written from the host
         // (the buffer is mapped): a vkCmdFillBuffer is an internal compute dispatch on some
         // drivers and must not disturb the state this cell binds.
-        self.records.write(0, &vec![0xffu8; self.scene.params.pixels() * RECORD_SIZE]);
+        self.records.fill(0, self.scene.params.pixels() * RECORD_SIZE, 0xff);
         let mut entered_trace = Ok(());
         let waited = self.submitter.run(gpu, self.opts.timeout, |cmd| unsafe {
             work.record(gpu, cmd);
@@ -96,8 +102,11 @@ impl Executor {
         }
         on_phase(Phase::Readback)?;
         let t = Instant::now();
-        let bytes = self.records.read(self.scene.params.pixels() * RECORD_SIZE);
-        let recs = bytes.chunks_exact(RECORD_SIZE).map(Record::from_bytes).collect();
+        let bytes = &mut self.scratch.bytes;
+        self.records.read_into(self.scene.params.pixels() * RECORD_SIZE, bytes);
+        let mut recs = std::mem::take(&mut self.scratch.records);
+        recs.clear();
+        recs.extend(bytes.chunks_exact(RECORD_SIZE).map(Record::from_bytes));
         timings.check_ms = t.elapsed().as_secs_f64() * 1e3;
         Ok((recs, bound.seen))
     }

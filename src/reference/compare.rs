@@ -78,12 +78,23 @@ fn compare_lanes(bad: &mut Bad, r: &Record, a: &Record, pixels: usize) {
 /// The descriptor indices other lanes computed, for the other-lane heuristic of undefined reads:
 /// each probe pixel's expected slot (and, where its hit is ambiguous, the slot it recorded: it may
 /// have hit the other surface), per subgroup where the device's lane evidence shows the whole
-/// subgroup, else over the whole dispatch.
+/// subgroup, else over the whole dispatch. Each subgroup's slots are gathered once, when the cell
+/// has an undefined read at all, into one vector (no allocation per pixel or per subgroup).
 struct OtherLanes<'a> {
-    expected: &'a [Expected],
-    actual: &'a [Record],
     lanes: Option<&'a Lanes>,
     dispatch: Vec<u32>,
+    /// Per leader pixel of a subgroup the records show whole: how its reads are judged.
+    by_leader: Vec<Option<Group>>,
+    /// The slots of every such subgroup, each subgroup's sorted and deduplicated, end to end.
+    slots: Vec<u32>,
+}
+
+/// One whole subgroup's judgement: whether it is proven uniform, and where its slots lie in
+/// `OtherLanes::slots`.
+#[derive(Clone, Copy)]
+struct Group {
+    uniform: bool,
+    slots: (usize, usize),
 }
 
 impl<'a> OtherLanes<'a> {
@@ -96,7 +107,32 @@ impl<'a> OtherLanes<'a> {
         };
         dispatch.sort_unstable();
         dispatch.dedup();
-        OtherLanes { expected, actual, lanes, dispatch }
+        let mut others = OtherLanes { lanes, dispatch, by_leader: vec![], slots: vec![] };
+        if let Some(l) = lanes.filter(|_| lenient) {
+            others.gather(expected, actual, l);
+        }
+        others
+    }
+
+    /// Every whole subgroup's slots: those its lanes computed ([`OtherLanes::computed`]) and
+    /// those its probe records hold; uniform where it has two lanes or more and one slot.
+    fn gather(&mut self, expected: &[Expected], actual: &[Record], lanes: &Lanes) {
+        let mut scratch: Vec<u32> = Vec::new();
+        for (leader, group) in lanes.subgroups() {
+            scratch.clear();
+            scratch.extend(group.iter().flat_map(|&q| Self::computed(expected, actual, q)));
+            let recorded = group.iter().map(|&q| &actual[q]);
+            scratch.extend(recorded.filter(|a| a.flags & FLAG_PROBE != 0).map(|a| a.slot));
+            scratch.sort_unstable();
+            scratch.dedup();
+            let start = self.slots.len();
+            self.slots.extend_from_slice(&scratch);
+            let uniform = group.len() >= 2 && scratch.len() == 1;
+            if self.by_leader.len() <= leader {
+                self.by_leader.resize(leader + 1, None);
+            }
+            self.by_leader[leader] = Some(Group { uniform, slots: (start, self.slots.len()) });
+        }
     }
 
     /// The slots lane `q` computed: its expected slot where the probe runs there, and its
@@ -110,27 +146,21 @@ impl<'a> OtherLanes<'a> {
 
     /// How pixel `p`'s undefined read is judged: exactly where its subgroup is proven uniform,
     /// else against the slots its subgroup's lanes (or the dispatch's) computed.
-    fn of(&self, p: usize) -> Judged {
-        let Some(group) = self.lanes.and_then(|l| l.subgroup(p)) else {
-            return Judged::Dispatch(self.dispatch.clone());
-        };
-        let mut slots: Vec<u32> =
-            group.iter().flat_map(|&q| Self::computed(self.expected, self.actual, q)).collect();
-        let recorded = group.iter().map(|&q| &self.actual[q]);
-        slots.extend(recorded.filter(|a| a.flags & FLAG_PROBE != 0).map(|a| a.slot));
-        slots.sort_unstable();
-        slots.dedup();
-        if group.len() >= 2 && slots.len() == 1 {
-            Judged::Uniform
-        } else {
-            Judged::Subgroup(slots)
+    fn of(&self, p: usize) -> Judged<'_> {
+        // (a pixel's leader has a group here exactly where `Lanes::subgroup` shows it whole)
+        let leader = self.lanes.and_then(|l| l.leader(p));
+        let group = leader.and_then(|l| self.by_leader.get(l).copied().flatten());
+        match group {
+            None => Judged::Dispatch(&self.dispatch),
+            Some(Group { uniform: true, .. }) => Judged::Uniform,
+            Some(Group { slots: (a, b), .. }) => Judged::Subgroup(&self.slots[a..b]),
         }
     }
 }
 
 /// How an undefined read (a dynamic set/binding index without `NonUniform`, `ValueRule::
 /// AnyElement`) is judged at one pixel.
-enum Judged {
+enum Judged<'s> {
     /// Every active lane of its subgroup computed (and recorded) the same slot, and the subgroup
     /// has at least two active lanes, so its effective subgroup size is above 1: the resource is
     /// uniform within the subgroup, and `VUID-RuntimeSpirv-subgroupSize-10149` (Vulkan 1.4.360)
@@ -140,9 +170,9 @@ enum Judged {
     /// within the whole invocation group, which lane evidence cannot show.)
     Uniform,
     /// The slots the lanes of its subgroup computed (the heuristic, per subgroup).
-    Subgroup(Vec<u32>),
+    Subgroup(&'s [u32]),
     /// The slots any lane of the dispatch computed (the heuristic without lane evidence).
-    Dispatch(Vec<u32>),
+    Dispatch(&'s [u32]),
 }
 
 fn compare_probe(
@@ -162,13 +192,13 @@ fn compare_probe(
         ValueRule::Exact => None,
         ValueRule::AnyElement { .. } => Some(others.of(p)),
     };
-    let (slots, by_subgroup, uniform) = match judged {
-        None => (vec![], false, false),
-        Some(Judged::Uniform) => (vec![], true, true),
+    let (slots, by_subgroup, uniform): (&[u32], bool, bool) = match judged {
+        None => (&[], false, false),
+        Some(Judged::Uniform) => (&[], true, true),
         Some(Judged::Subgroup(s)) => (s, true, false),
         Some(Judged::Dispatch(s)) => (s, false, false),
     };
-    let allowed = !own && !uniform && e.rule.allows(a.value, slots.into_iter());
+    let allowed = !own && !uniform && e.rule.allows(a.value, slots.iter().copied());
     if !allowed {
         let ve =
             r.value.iter().zip(a.value).map(|(x, y)| (*x as f64 - y as f64).abs()).fold(0.0, worst);
@@ -318,9 +348,10 @@ fn compare_pixel(
     if r.flags & FLAG_PROBE != 0 {
         compare_probe(c, &mut bad, (e, a, i), others);
     } else {
-        let mut fields = vec![("slot", r.slot, a.slot), ("element", r.element, a.element)];
-        fields.extend((0..4).map(|k| ("value", r.value[k].to_bits(), a.value[k].to_bits())));
+        let v = |k: usize| ("value", r.value[k].to_bits(), a.value[k].to_bits());
+        let fields = [("slot", r.slot, a.slot), ("element", r.element, a.element)];
         unset_fields_differ(&mut bad, &fields);
+        unset_fields_differ(&mut bad, &[v(0), v(1), v(2), v(3)]);
     }
     bad
 }

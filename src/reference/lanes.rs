@@ -24,7 +24,6 @@
 use crate::model::lanes::Contradicted;
 use crate::model::Stage;
 use crate::probe::{Record, FLAG_LANES, FLAG_PROBE};
-use std::collections::HashMap;
 
 /// The largest subgroup size Vulkan allows (`subgroupSize` is a power of two, at most 128).
 pub const MAX_SUBGROUP: u32 = 128;
@@ -77,30 +76,76 @@ fn leaders(records: &[Record]) -> Vec<Option<usize>> {
     records.iter().map(|r| with_lanes(r).then_some(r.leader as usize)).collect()
 }
 
-/// The pixels sharing each leader (in pixel order).
-fn members(leader: &[Option<usize>]) -> HashMap<usize, Vec<usize>> {
-    let mut members: HashMap<usize, Vec<usize>> = HashMap::new();
-    for (p, l) in leader.iter().enumerate() {
-        if let Some(l) = l {
-            members.entry(*l).or_default().push(p);
+/// The pixels sharing each leader, found in one counting pass (no map, no per-group vector):
+/// `order` holds the pixels with a leader sorted by leader, in pixel order within one leader, and
+/// leader `l`'s members are `order[start[l]..start[l + 1]]`.
+struct Members {
+    order: Vec<usize>,
+    start: Vec<usize>,
+}
+
+impl Members {
+    fn of(leader: &[Option<usize>]) -> Members {
+        let mut start = vec![0usize; leader.len() + 1];
+        for l in leader.iter().flatten() {
+            start[l + 1] += 1;
         }
+        for k in 1..start.len() {
+            start[k] += start[k - 1];
+        }
+        let mut next = start.clone();
+        let mut order = vec![0; start[leader.len()]];
+        for (p, l) in leader.iter().enumerate() {
+            if let Some(l) = *l {
+                order[next[l]] = p;
+                next[l] += 1;
+            }
+        }
+        Members { order, start }
     }
-    members
+
+    /// The members of leader `l`'s subgroup (empty where no record names `l`).
+    fn group(&self, l: usize) -> &[usize] {
+        &self.order[self.start[l]..self.start[l + 1]]
+    }
+
+    /// Every leader some record names, with its members (in pixel order).
+    fn groups(&self) -> impl Iterator<Item = (usize, &[usize])> {
+        (0..self.start.len() - 1).map(|l| (l, self.group(l))).filter(|(_, g)| !g.is_empty())
+    }
+}
+
+/// Whether two of `group`'s records claim the same lane (a bit set per lane below
+/// [`MAX_SUBGROUP`], no allocation; a lane at or above it, which [`inconsistency`] refuses
+/// before, is compared with every other).
+fn duplicate_lane(records: &[Record], group: &[usize]) -> bool {
+    let mut seen = [0u64; (MAX_SUBGROUP / 64) as usize];
+    group.iter().enumerate().any(|(k, &q)| {
+        let lane = records[q].lane;
+        if lane >= MAX_SUBGROUP {
+            return group[..k].iter().any(|&o| records[o].lane == lane);
+        }
+        let (word, bit) = ((lane / 64) as usize, 1u64 << (lane % 64));
+        let dup = seen[word] & bit != 0;
+        seen[word] |= bit;
+        dup
+    })
 }
 
 /// What is wrong between the records of one subgroup (`group`: the pixels whose records name
-/// `leader`), if anything: members disagreeing on the mask or count, two members claiming one
-/// lane, a lane outside the subgroup's mask, or a leader that is not the lowest set lane of the
-/// mask (`subgroupBroadcastFirst` is SPIR-V's `OpGroupNonUniformBroadcastFirst`: "the Value of
-/// the invocation from the active invocation with the lowest id in the group", the id in a
-/// subgroup being `SubgroupLocalInvocationId`, the record's `lane`).
+/// `leader`), if anything: members disagreeing on the mask or count, two members
+/// claiming one lane, a lane outside the subgroup's mask, or a leader that is not the lowest set
+/// lane of the mask (`subgroupBroadcastFirst` is SPIR-V's `OpGroupNonUniformBroadcastFirst`: "the
+/// Value of the invocation from the active invocation with the lowest id in the group", the id in
+/// a subgroup being `SubgroupLocalInvocationId`, the record's `lane`).
 pub fn subgroup_contradiction(
     records: &[Record],
     leader: usize,
     group: &[usize],
 ) -> Option<&'static str> {
+    let leader_member = group.contains(&leader);
     // The subgroup's mask: its leader's record's where the leader is a member.
-    let first = &records[if group.contains(&leader) { leader } else { group[0] }];
+    let first = &records[if leader_member { leader } else { group[0] }];
     let mask = first.active_mask;
     if group.iter().any(|&q| records[q].lane < 32 && mask & (1 << records[q].lane) == 0) {
         return Some("a lane outside its subgroup's active mask");
@@ -110,14 +155,13 @@ pub fn subgroup_contradiction(
     }) {
         return Some("records of one subgroup disagree on the active mask or count");
     }
-    let mut seen = std::collections::HashSet::new();
-    if !group.iter().all(|&q| seen.insert(records[q].lane)) {
+    if duplicate_lane(records, group) {
         return Some("two records of one subgroup claim the same lane");
     }
     if group.len() > first.active_count as usize {
         return Some("more records in one subgroup than its active count");
     }
-    let leads = group.contains(&leader)
+    let leads = leader_member
         && if mask == 0 {
             records[leader].lane >= 32
         } else {
@@ -202,27 +246,43 @@ fn leader_outside(
     })
 }
 
+/// Whether the cross-record checks of [`subgroup_contradiction`] hold in `stage`: where each
+/// pixel's record comes from one call of it ([`one_call_per_pixel`]) and the pixel a leader names
+/// is that leader's own. Not in fragment shaders, where a helper invocation (no record of its
+/// own) or a fragment of another primitive whose record then holds that pixel may lead a
+/// subgroup; the NVIDIA H200 (580.159.04) led 28 of the 128 subgroups of a fragment probe so, and
+/// records keyed by the leader pixel are not one subgroup instance there. Elsewhere a leader that
+/// ran no probe (e.g. lavapipe 26's closest-hit under forced evidence: lane 0's pixel, a miss,
+/// named by every lane of a call lane 0 was not in) is a contradiction.
+fn cross_checked(stage: Stage) -> bool {
+    one_call_per_pixel(stage) && stage != Stage::Fragment
+}
+
 /// Per pixel: why its subgroup's records contradict each other ([`subgroup_contradiction`]) and
-/// of which kind ([`leader_outside`], else garbage), checked where each pixel's record comes from
-/// one call of `stage` ([`one_call_per_pixel`]) and the pixel a leader names is that leader's
-/// own: not in fragment shaders, where a helper invocation (no record of its own) or a fragment
-/// of another primitive whose record then holds that pixel may lead a subgroup; the NVIDIA H200
-/// (580.159.04) led 28 of the 128 subgroups of a fragment probe so, and records keyed by the
-/// leader pixel are not one subgroup instance there. Elsewhere a leader that ran no probe (e.g.
-/// lavapipe 26's closest-hit under forced evidence: lane 0's pixel, a miss, named by every lane
-/// of a call lane 0 was not in) is a contradiction, of the leader-outside-the-call kind.
+/// of which kind ([`leader_outside`], else garbage), checked where [`cross_checked`] says the
+/// checks hold.
 pub fn contradictions(records: &[Record], stage: Stage) -> Vec<Option<Contradiction>> {
+    let leader = leaders(records);
+    contradicted(records, stage, &leader, &Members::of(&leader))
+}
+
+/// [`contradictions`] over subgroups already grouped (`leader` as [`leaders`] gave it).
+fn contradicted(
+    records: &[Record],
+    stage: Stage,
+    leader: &[Option<usize>],
+    members: &Members,
+) -> Vec<Option<Contradiction>> {
     let mut out = vec![None; records.len()];
-    if !one_call_per_pixel(stage) || stage == Stage::Fragment {
+    if !cross_checked(stage) {
         return out;
     }
-    let leader = leaders(records);
-    for (l, group) in members(&leader) {
-        let Some(why) = subgroup_contradiction(records, l, &group) else { continue };
+    for (l, group) in members.groups() {
+        let Some(why) = subgroup_contradiction(records, l, group) else { continue };
         let leader_lane = leader.get(l).copied().flatten().map(|_| records[l].lane);
-        let kinds = leader_outside(records, l, leader_lane, &group)
+        let kinds = leader_outside(records, l, leader_lane, group)
             .unwrap_or_else(|| vec![Contradicted::Garbage; group.len()]);
-        for (q, kind) in group.into_iter().zip(kinds) {
+        for (&q, kind) in group.iter().zip(kinds) {
             let why = match kind {
                 Contradicted::Garbage => why,
                 Contradicted::LeaderOutsideCall | Contradicted::LeaderOwnCall => LEADER_RULE,
@@ -240,8 +300,12 @@ pub struct Lanes {
     /// Per pixel: its leader pixel, where its record carries consistent lane evidence and its
     /// subgroup's records do not contradict each other.
     leader: Vec<Option<usize>>,
-    /// Per leader pixel: the members of its subgroup, where the records show all of it.
-    groups: HashMap<usize, Vec<usize>>,
+    /// The pixels with a leader, by leader (see `Members`); a contradicted subgroup's pixels
+    /// stay in it, but no pixel names its leader any more.
+    order: Vec<usize>,
+    /// Per leader pixel: where its members lie in `order` when the records show all of its
+    /// subgroup (`None` otherwise).
+    whole: Vec<Option<(usize, usize)>>,
     /// Per pixel: why its subgroup's records contradict each other ([`contradictions`]).
     contradicted: Vec<Option<Contradiction>>,
     /// The evidence may be judged by (`LaneEvidence::Supported`): undefined reads per subgroup,
@@ -258,28 +322,34 @@ impl Lanes {
 
     /// Read the lane evidence of every probe record of a cell probing `stage` (`FLAG_PROBE` and
     /// `FLAG_LANES` set, lane words consistent, the subgroup's records not contradicting each
-    /// other).
+    /// other): the records grouped by leader once, each subgroup checked and, when its records
+    /// show all of it, kept whole.
     pub fn for_stage(records: &[Record], stage: Stage) -> Lanes {
-        let contradicted = contradictions(records, stage);
         let mut leader = leaders(records);
+        let members = Members::of(&leader);
+        let contradicted = contradicted(records, stage, &leader, &members);
+        let mut whole = vec![None; records.len()];
+        for (l, m) in members.groups() {
+            if contradicted[m[0]].is_some() {
+                continue;
+            }
+            let first = &records[m[0]];
+            let all = m.len() == first.active_count as usize
+                && m.contains(&l)
+                && m.iter().all(|&q| {
+                    records[q].active_count == first.active_count
+                        && records[q].active_mask == first.active_mask
+                });
+            if all {
+                whole[l] = Some((members.start[l], members.start[l + 1]));
+            }
+        }
         for (l, c) in leader.iter_mut().zip(&contradicted) {
             if c.is_some() {
                 *l = None;
             }
         }
-        let groups = members(&leader)
-            .into_iter()
-            .filter(|(l, m)| {
-                let first = &records[m[0]];
-                m.len() == first.active_count as usize
-                    && m.contains(l)
-                    && m.iter().all(|&q| {
-                        records[q].active_count == first.active_count
-                            && records[q].active_mask == first.active_mask
-                    })
-            })
-            .collect();
-        Lanes { leader, groups, contradicted, judged: true }
+        Lanes { leader, order: members.order, whole, contradicted, judged: true }
     }
 
     /// This evidence, judged by only where `judged` (see [`Lanes::judged`]).
@@ -296,7 +366,13 @@ impl Lanes {
     /// (`p` included, in pixel order), when the records show the whole subgroup.
     pub fn subgroup(&self, p: usize) -> Option<&[usize]> {
         let l = (*self.leader.get(p)?)?;
-        self.groups.get(&l).map(Vec::as_slice)
+        let (a, b) = self.whole[l]?;
+        Some(&self.order[a..b])
+    }
+
+    /// Every subgroup the records show whole: its leader pixel and its members (in pixel order).
+    pub fn subgroups(&self) -> impl Iterator<Item = (usize, &[usize])> {
+        self.whole.iter().enumerate().filter_map(|(l, w)| w.map(|(a, b)| (l, &self.order[a..b])))
     }
 
     /// The pixel of the first active lane of `p`'s subgroup (its leader): the lane whose index
@@ -307,7 +383,7 @@ impl Lanes {
 
     /// Pixels whose subgroup the records show whole.
     pub fn known(&self) -> usize {
-        self.groups.values().map(Vec::len).sum()
+        self.subgroups().map(|(_, m)| m.len()).sum()
     }
 }
 

@@ -66,6 +66,10 @@ pub struct SceneReference {
     pub full: Vec<TraceRef>,
     /// `probe[v][pixel]`: the AS probe ray through probe TLAS variant `v`.
     pub probe: Vec<Vec<TraceRef>>,
+    /// The AS probe's value and ambiguity per pixel and variant (`[pixel * variants + v]`), read
+    /// from `probe` once: what [`SceneReference::as_value`] answers for every cell, the variants
+    /// of one pixel side by side.
+    as_table: Vec<([f32; 4], bool)>,
 }
 
 impl SceneReference {
@@ -96,7 +100,14 @@ impl SceneReference {
                 }
             }
         }
-        Self { full, probe: probe_rays }
+        let as_table = (0..full.len())
+            .flat_map(|p| (0..probe_rays.len()).map(move |v| (p, v)))
+            .map(|(p, v)| {
+                let t = probe_rays[v][p];
+                (Self::probe_value(v, t), t.ambiguous)
+            })
+            .collect();
+        Self { full, probe: probe_rays, as_table }
     }
 
     pub fn ambiguous_pixels(&self) -> usize {
@@ -106,8 +117,18 @@ impl SceneReference {
     /// The AS probe's value through AS slot `slot` at pixel `p`, and whether it is ambiguous.
     pub fn as_value(&self, slot: u32, p: usize) -> ([f32; 4], bool) {
         let v = probe::as_slot_tlas(slot);
-        let t = self.probe[v][p];
-        (probe::as_value(t.hit.map(|h| probe::as_custom(v as u32, h.instance_id))), t.ambiguous)
+        let variants = self.probe.len();
+        if v >= variants || p >= self.full.len() {
+            // no such variant or pixel: indexing `probe` says so, as it always did
+            let t = self.probe[v][p];
+            return (Self::probe_value(v, t), t.ambiguous);
+        }
+        self.as_table[p * variants + v]
+    }
+
+    /// The AS probe's value for probe ray `t` through TLAS variant `v`.
+    fn probe_value(v: usize, t: TraceRef) -> [f32; 4] {
+        probe::as_value(t.hit.map(|h| probe::as_custom(v as u32, h.instance_id)))
     }
 }
 
@@ -295,7 +316,20 @@ pub fn expected_with(
     sref: &SceneReference,
     undefined: Undefined,
 ) -> Vec<Expected> {
-    expected_probed(cell, scene, sref, undefined, None)
+    let mut out = Vec::new();
+    expected_probed(&mut out, cell, scene, sref, (undefined, None));
+    out
+}
+
+/// [`expected_with`] written into `out` (cleared first): a caller judging cell after cell keeps
+/// one buffer, and its pages stay mapped and warm.
+pub fn expected_into(
+    out: &mut Vec<Expected>,
+    cell: &Cell,
+    (scene, sref): (&Scene, &SceneReference),
+    undefined: Undefined,
+) {
+    expected_probed(out, cell, scene, sref, (undefined, None));
 }
 
 /// [`expected_with`] of the probe mutated as `m` says: what a mutant's records are predicted to
@@ -307,7 +341,9 @@ pub fn expected_mutated(
     undefined: Undefined,
     m: &mutation::Mutation,
 ) -> Vec<Expected> {
-    expected_probed(cell, scene, sref, undefined, Some(m))
+    let mut out = Vec::new();
+    expected_probed(&mut out, cell, scene, sref, (undefined, Some(m)));
+    out
 }
 
 /// What mutant `site` is predicted to do to `cell` after its run: the reference run with the
@@ -350,13 +386,14 @@ pub fn mutant_before_run(
     mutation::predict(&expected, &mutated, (None, None), scene.params.width)
 }
 
+/// Every pixel's expected record, written into `out` (cleared first).
 fn expected_probed(
+    out: &mut Vec<Expected>,
     cell: &Cell,
     scene: &Scene,
     sref: &SceneReference,
-    undefined: Undefined,
-    mutation: Option<&mutation::Mutation>,
-) -> Vec<Expected> {
+    (undefined, mutation): (Undefined, Option<&mutation::Mutation>),
+) {
     let spec = ProbeSpec::of(cell);
     let (w, h) = (scene.params.width, scene.params.height);
     let slots = probe::slot_count(spec.resource, scene.params.instances);
@@ -364,7 +401,8 @@ fn expected_probed(
     let buffer_disc = vec![None; (slots * probe::ELEMENTS) as usize];
     let mut probed =
         Probed { spec, sref, width: w, slots, variants, undefined, buffer_disc, mutation };
-    let mut out = Vec::with_capacity(scene.params.pixels());
+    out.clear();
+    out.reserve(scene.params.pixels());
     for y in 0..h {
         for x in 0..w {
             let p = (y * w + x) as usize;
@@ -401,7 +439,6 @@ fn expected_probed(
             out.push(e);
         }
     }
-    out
 }
 
 #[cfg(test)]

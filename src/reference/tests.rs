@@ -935,3 +935,39 @@ fn a_uniform_subgroup_is_judged_exactly() {
     let mixed = judge(&grouped(&e, false)).element_reads.unwrap();
     assert!(mixed.by_subgroup > 0, "{mixed:?}");
 }
+
+/// Not a check: where a cell's CPU check spends its time (`cargo test --release --lib
+/// reference::tests::check_cost -- --ignored --nocapture`), over every cell of the default plan
+/// with the lane evidence of 8-lane subgroups.
+#[test]
+#[ignore]
+fn check_cost() {
+    let (scene, r) = world();
+    let (cells, _) = crate::matrix::plan::all_cells();
+    let (mut t_exp, mut t_lanes, mut t_cmp) = (0.0, 0.0, 0.0);
+    let secs = |t: std::time::Instant| t.elapsed().as_secs_f64();
+    let mut e = Vec::new();
+    for c in &cells {
+        let t = std::time::Instant::now();
+        let undefined = Undefined { descriptor: ProbeSpec::of(c).read == ReadIndex::Undefined };
+        expected_into(&mut e, c, (scene, r), undefined);
+        expect_lanes(&mut e, LaneEvidence::Supported);
+        t_exp += secs(t);
+        let good = with_lanes(&e);
+        let t = std::time::Instant::now();
+        let lanes = lanes::Lanes::for_stage(&good, c.stage);
+        t_lanes += secs(t);
+        let t = std::time::Instant::now();
+        let cmp = compare_with(&e, &good, 64, Some(&lanes));
+        t_cmp += secs(t);
+        assert!(cmp.passed(), "{}", c.id());
+    }
+    let n = cells.len() as f64 / 1e3;
+    eprintln!(
+        "{} cells, per cell: expected {:.3} ms, lanes {:.3} ms, compare {:.3} ms",
+        cells.len(),
+        t_exp / n,
+        t_lanes / n,
+        t_cmp / n
+    );
+}

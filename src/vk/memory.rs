@@ -126,6 +126,29 @@ impl Buffer {
         v
     }
 
+    /// [`Buffer::read`] into `out` (its contents replaced, its allocation kept): a buffer read
+    /// back after every cell reuses one vector.
+    pub fn read_into(&self, len: usize, out: &mut Vec<u8>) {
+        assert!(!self.mapped.is_null(), "read from a device-local buffer");
+        let len = len.min(self.size as usize);
+        out.clear();
+        out.reserve(len);
+        // SAFETY: mapped for the buffer's whole size; len clamped; `out` holds at least len
+        // bytes of capacity, all written before its length is set.
+        unsafe {
+            std::ptr::copy_nonoverlapping(self.mapped, out.as_mut_ptr(), len);
+            out.set_len(len);
+        }
+    }
+
+    /// Set `len` bytes from `offset` to `byte` (no staging vector).
+    pub fn fill(&self, offset: usize, len: usize, byte: u8) {
+        assert!(!self.mapped.is_null(), "write to a device-local buffer");
+        assert!(offset + len <= self.size as usize, "write past the end of a buffer");
+        // SAFETY: mapped for the buffer's whole size; bounds checked above.
+        unsafe { std::ptr::write_bytes(self.mapped.add(offset), byte, len) };
+    }
+
     pub fn destroy(&self, gpu: &Gpu) {
         unsafe {
             gpu.device.destroy_buffer(self.raw, None);
