@@ -42,11 +42,9 @@ struct Acc {
     examples: Vec<Example>,
 }
 
-fn bits(v: [f32; 4]) -> String {
-    v.iter().map(|x| format!("{:08x}", x.to_bits())).collect::<Vec<_>>().join(" ")
-}
-
 impl Acc {
+    /// Keep ray `i` as an example of `kind` (at most [`EXAMPLES_PER_KIND`] per kind and part:
+    /// an `Acc` holds one part).
     fn example(
         &mut self,
         kind: &'static str,
@@ -58,26 +56,7 @@ impl Acc {
         if self.examples.iter().filter(|e| e.kind == kind).count() >= EXAMPLES_PER_KIND {
             return;
         }
-        let r = &part.rays[i];
-        let closest = cands.iter().min_by(|a, b| a.hit.t.total_cmp(&b.hit.t));
-        self.examples.push(Example {
-            kind: kind.into(),
-            part: part.label.clone(),
-            origin: r.origin,
-            dir: r.dir,
-            tmin: r.tmin,
-            tmax: r.tmax,
-            bits: [
-                bits([r.origin[0], r.origin[1], r.origin[2], r.tmin]),
-                bits([r.dir[0], r.dir[1], r.dir[2], r.tmax]),
-            ],
-            reference: closest.map(|c| (c.primitive, c.hit.t, c.hit.inside)),
-            reference_margin: closest.map(|c| c.edge_margin),
-            crossings: crossings(cands),
-            hit: tr.hit.map(|h| (h.primitive, h.t, h.bary)),
-            candidates: tr.candidates,
-            first_candidates: tr.first_candidates,
-        });
+        self.examples.push(super::examples::build(kind, part, i, tr, cands));
     }
 
     fn add(&mut self, part: &Part, index: &Index, i: usize, tr: &Traced) {
@@ -265,11 +244,8 @@ impl Acc {
         a.facing_errors += b.facing_errors;
         a.bary_err_max = max(a.bary_err_max, b.bary_err_max);
         self.t_ulps.extend_from_slice(&other.t_ulps);
-        for e in &other.examples {
-            if self.examples.iter().filter(|x| x.kind == e.kind).count() < EXAMPLES_PER_KIND {
-                self.examples.push(e.clone());
-            }
-        }
+        // Each part's examples are bounded per kind already.
+        self.examples.extend_from_slice(&other.examples);
     }
 }
 
@@ -303,10 +279,12 @@ pub fn evaluate_counting(
             metrics: acc.finish(),
         });
     }
-    let examples = std::mem::take(&mut total.examples);
+    let mut examples = std::mem::take(&mut total.examples);
     let mut metrics = total.finish();
     if kind == CaseKind::Transform {
-        metrics.facing_errors = super::transform::facing_errors(parts, traced);
+        let errors = super::transform::facing_errors(parts, traced);
+        metrics.facing_errors = errors.len();
+        examples.extend(facing_examples(parts, traced, &errors));
     }
     let (verdict, detail) = verdict(&metrics);
     CaseResult {
@@ -318,6 +296,24 @@ pub fn evaluate_counting(
         parts: results,
         examples,
     }
+}
+
+/// Examples of facing errors (ray `i` of part `p`), at most [`EXAMPLES_PER_KIND`] per part.
+fn facing_examples(
+    parts: &[Part],
+    traced: &[Vec<Traced>],
+    errors: &[(usize, usize)],
+) -> Vec<Example> {
+    let mut out: Vec<Example> = Vec::new();
+    for &(p, i) in errors {
+        let part = &parts[p];
+        if out.iter().filter(|e| e.part == part.label).count() >= EXAMPLES_PER_KIND {
+            continue;
+        }
+        let cands = candidates(part, &Index::build(part), &part.rays[i]);
+        out.push(super::examples::build("facing_error", part, i, &traced[p][i], &cands));
+    }
+    out
 }
 
 /// The verdict of a case's counts and what it rests on.
@@ -657,5 +653,98 @@ mod tests {
         let dup = Traced { first_candidates: [1, 1], ..a(&outside) };
         let r = one(p, vec![dup]);
         assert_eq!((r.metrics.duplicate_any_hits, r.verdict), (1, Verdict::Fail));
+    }
+
+    /// A part of the steep pair with `rays` (none must hit: the pair is an open quad).
+    fn steep_with(rays: Vec<Ray>) -> Part {
+        let mut p = steep_pair();
+        p.info = vec![RayInfo { must_hit: false }; rays.len()];
+        p.rays = rays;
+        p
+    }
+
+    /// Twin of the examples: a planted leak and a planted wrong hit, each 1.3 margins inside
+    /// triangle A, are listed with their ray (f32 bits) and A (vertices as bits, the crossing
+    /// beyond the margin from its nearest edge); the wrong hit with B, the triangle reported.
+    #[test]
+    fn a_planted_leak_and_wrong_hit_are_examples_with_their_ray_and_triangle() {
+        let (ray, _) = beside_the_diagonal(&steep_pair(), 1.3);
+        let b = resolve(&steep_pair(), 0, 1, &ray).unwrap();
+        let pb = watertight::plane(b.o, b.d, b.v).unwrap();
+        let wrong = traced(&ray, Some(1), pb.t as f32, [pb.bary[0] as f32, pb.bary[1] as f32]);
+        let r = one(steep_with(vec![ray, ray]), vec![traced(&ray, None, 0.0, [0.0; 2]), wrong]);
+        assert_eq!(r.examples.len(), 2, "{:?}", r.examples);
+        let bits = format!(
+            "{:08x} {:08x} {:08x} 00000000",
+            ray.origin[0].to_bits(),
+            ray.origin[1].to_bits(),
+            ray.origin[2].to_bits()
+        );
+        for (e, kind, ray_index) in [(&r.examples[0], "leak", 0), (&r.examples[1], "wrong_hit", 1)]
+        {
+            assert_eq!((e.kind.as_str(), e.part.as_str(), e.ray), (kind, "steep", Some(ray_index)));
+            assert_eq!(e.bits[0], bits);
+            let a = &e.triangles[0];
+            assert_eq!((a.primitive, a.role), (0, super::super::result::TriangleRole::Contains));
+            assert_eq!(a.vertex_bits[2], "3f800000 3a83126f 3f800000", "{a:?}");
+            assert!(a.edge_distance > a.margin && a.margin > 0.0, "{a:?}");
+            assert!((1.0..2.0).contains(&a.t), "{a:?}");
+        }
+        assert_eq!(r.examples[0].hit, None);
+        assert_eq!(r.examples[1].hit.map(|h| h.0), Some(1));
+        let b = r.examples[1].triangles.iter().find(|t| t.primitive == 1).expect("B listed");
+        assert!(b.edge_distance < -b.margin, "{b:?}");
+        let text = super::super::examples::text(&r.examples);
+        assert!(text.contains(&bits) && text.contains("3f800000 3a83126f 3f800000"), "{text}");
+        assert!(text.contains("leak — steep ray 0") && text.contains("wrong_hit — steep ray 1"));
+    }
+
+    /// The other twin: a passing part has no examples; a failing one keeps at most
+    /// EXAMPLES_PER_KIND per kind and part.
+    #[test]
+    fn a_passing_part_has_no_examples_and_a_failing_one_at_most_eight_per_kind() {
+        let (ray, _) = beside_the_diagonal(&steep_pair(), 1.3);
+        let a = resolve(&steep_pair(), 0, 0, &ray).unwrap();
+        let pa = watertight::plane(a.o, a.d, a.v).unwrap();
+        let right = traced(&ray, Some(0), pa.t as f32, [pa.bary[0] as f32, pa.bary[1] as f32]);
+        let r = one(steep_with(vec![ray; 3]), vec![right; 3]);
+        assert_eq!((r.verdict, r.examples.len()), (Verdict::Pass, 0), "{:?}", r.examples);
+        let miss = traced(&ray, None, 0.0, [0.0; 2]);
+        let parts = [steep_with(vec![ray; 10]), steep_with(vec![ray; 10])];
+        let r = evaluate(CaseKind::Watertight, &parts, &[vec![miss; 10], vec![miss; 10]]);
+        assert_eq!(r.metrics.leaks, 20);
+        assert_eq!(r.examples.len(), 2 * EXAMPLES_PER_KIND);
+    }
+
+    /// lavapipe 26.2.6's two `--full` leaks (FINDINGS #6): each ray's f64 crossing lies inside
+    /// exactly one triangle of `square-65536` (a valid tiling seen along z: no gap), 3.85e-10 and
+    /// 7.0e-11 from its nearest edge — far inside the ray-space margin (~3.8e-6), so which
+    /// triangle an f32 traversal reports is open, but that it reports one is the tiling's.
+    #[test]
+    fn lavapipe_26s_full_leaks_lie_inside_the_square_within_the_margin() {
+        let opts = StressOptions { cases: vec![], seed: 1, full: true };
+        let parts = cases::build(CaseKind::Watertight, &opts).unwrap();
+        let part = parts.iter().find(|p| p.label == "square-65536").unwrap();
+        assert!(crate::stress::mesh::tiling_faults(&part.scene.meshes[0]).is_valid());
+        let index = Index::build(part);
+        for (i, origin, inside, dist) in [
+            (1_641_585, [0x3ed6d0ef, 0x3ea415c6, 0xbf7ed3eb], 14156, 3.85e-10),
+            (1_677_750, [0x3f70f723, 0x3f67ce4f, 0xbf7dfc36], 6687, 7.0e-11),
+        ] {
+            let ray = part.rays[i];
+            assert_eq!((ray.origin, ray.dir), (bits3(origin), [0.0, 0.0, 1.0]));
+            assert!(part.info[i].must_hit);
+            let cands = candidates(part, &index, &ray);
+            let holding: Vec<&Candidate> = cands.iter().filter(|c| c.hit.inside >= 0.0).collect();
+            assert_eq!(holding.len(), 1, "ray {i}");
+            let c = holding[0];
+            assert_eq!(c.primitive, inside);
+            assert!(!c.certain, "ray {i}: within the margin of an edge");
+            let k = (0..3).min_by(|&a, &b| c.hit.weights[a].total_cmp(&c.hit.weights[b])).unwrap();
+            let d = c.hit.edge_distance(k);
+            assert!((d / dist - 1.0).abs() < 0.02, "ray {i}: {d:e}");
+            let r = resolve(part, 0, c.primitive, &ray).unwrap();
+            assert!(d * 1e3 < margins(&r, &ray, &c.hit).abs, "ray {i}");
+        }
     }
 }

@@ -60,6 +60,8 @@ pub(super) fn resolve(part: &Part, instance: u32, primitive: u32, ray: &Ray) -> 
 /// Margins for one ray/triangle pair: per weight (ambiguity: a weight within `edge[k]` of 0 may
 /// fall either way), and for t (ambiguity and tolerance), and the barycentric tolerance.
 pub(super) struct Margins {
+    /// The ray-space position error allowed (`ULPS_OF_SCALE` ulps of the coordinates' scale).
+    pub abs: f64,
     /// The ray-space distance within which the triangle is in reach at all (`PlaneHit::gap`).
     pub reach: f64,
     pub edge: [f64; 3],
@@ -130,6 +132,7 @@ pub(super) fn margins(r: &Resolved, ray: &Ray, p: &PlaneHit) -> Margins {
     let outside: f64 = p.weights.iter().map(|w| (-w).max(0.0)).sum();
     let slack = T_EPS * p.t.abs() + along + outside * (hi - lo);
     Margins {
+        abs,
         reach: abs + rel * p.reach_max,
         edge,
         t_amb: T_EPS * p.t.abs() + along + depth,

@@ -10,6 +10,7 @@
 pub mod cases;
 pub mod cpu;
 pub mod evaluate;
+pub mod examples;
 pub mod far;
 pub mod gpu;
 pub mod index;

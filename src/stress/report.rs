@@ -56,6 +56,10 @@ pub fn text(device: &str, cases: &[CaseResult]) -> String {
             s.push_str(&row(&p.label, &p.metrics));
         }
         s.push_str(&row("total", &c.metrics));
+        if !c.examples.is_empty() {
+            s.push_str(&format!("  examples ({}):\n", c.examples.len()));
+            s.push_str(&super::examples::text(&c.examples));
+        }
     }
     let failed = cases.iter().filter(|c| !c.verdict.passed()).count();
     let warned = cases.iter().filter(|c| c.verdict == Verdict::Warn).count();

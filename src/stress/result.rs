@@ -100,12 +100,15 @@ pub struct Metrics {
     pub bary_err_max: Option<f64>,
 }
 
-/// One ray that failed a check, with what the reference and the tracer said (evidence for a
-/// write-up; at most [`EXAMPLES_PER_KIND`] per kind and case).
+/// One ray that failed a check, with what the reference and the tracer said (evidence a driver
+/// engineer can replay: at most [`EXAMPLES_PER_KIND`] per kind and part).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Example {
     pub kind: String,
     pub part: String,
+    /// The ray's index in its part (the order the tracer read them).
+    #[serde(default)]
+    pub ray: Option<usize>,
     pub origin: [f32; 3],
     pub dir: [f32; 3],
     pub tmin: f32,
@@ -118,13 +121,60 @@ pub struct Example {
     pub reference_margin: Option<f64>,
     /// Distinct crossings the reference counts.
     pub crossings: u32,
+    /// The device's closest hit: (primitive, t, barycentrics (u, v)); `None` a miss.
     pub hit: Option<(u32, f32, [f32; 2])>,
+    /// The instance of that hit.
+    #[serde(default)]
+    pub hit_instance: Option<u32>,
     pub candidates: u32,
     /// (instance << 24 | primitive) + 1 of the first two candidates any-hit counted.
     pub first_candidates: [u32; 2],
+    /// The reference's triangles for this ray: those whose closed shadow holds the f64 crossing
+    /// first, then the nearest the ray may hit within their margins, then the one the device
+    /// reported where it is none of these (at most [`TRIANGLES_PER_EXAMPLE`] + 1).
+    #[serde(default)]
+    pub triangles: Vec<RefTriangle>,
 }
 
-pub const EXAMPLES_PER_KIND: usize = 3;
+/// Why a triangle is listed with an example.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TriangleRole {
+    /// The f64 crossing lies inside or on its edges: exactly, the ray hits it.
+    Contains,
+    /// Outside it, but within an edge's ambiguity margin: an f32 traversal may report it.
+    Near,
+    /// The device reported it, and the reference has it neither way.
+    Reported,
+}
+
+/// A triangle of an example as the f64 reference sees it along the ray.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct RefTriangle {
+    pub role: TriangleRole,
+    pub instance: u32,
+    pub primitive: u32,
+    /// Its vertices in object space (f32, as the BLAS holds them) and their bit patterns.
+    pub vertices: [[f32; 3]; 3],
+    pub vertex_bits: [String; 3],
+    /// Where the ray crosses its plane: t and the weights of (v0, v1, v2) (f64).
+    pub t: f64,
+    pub weights: [f64; 3],
+    /// The signed ray-space distance from the crossing to its nearest edge's line (positive
+    /// inside), in object-space units.
+    pub edge_distance: f64,
+    /// The ray-space position error allowed (64 ulps of the coordinates' scale): a crossing
+    /// closer to an edge than about this may fall either side in f32.
+    pub margin: f64,
+    /// The same margin as a weight at that edge (the barycentric margin).
+    pub weight_margin: f64,
+    /// Inside every edge and tmin/tmax by more than the margins.
+    pub certain: bool,
+}
+
+pub const EXAMPLES_PER_KIND: usize = 8;
+/// The reference's triangles listed per example (besides the one the device reported).
+pub const TRIANGLES_PER_EXAMPLE: usize = 4;
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct PartResult {

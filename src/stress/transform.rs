@@ -78,8 +78,8 @@ pub fn parts(rng: &mut Rng) -> Vec<Part> {
 /// Facing and culling errors over the parts of [`parts`]: hits whose hit kind disagrees with
 /// the majority mapping from object-space winding to hit kind (or a mapping that does not
 /// separate the two windings), and culled traces that keep a hit of the culled facing or drop
-/// one of the other.
-pub fn facing_errors(parts: &[Part], traced: &[Vec<Traced>]) -> usize {
+/// one of the other: each as (part, ray).
+pub fn facing_errors(parts: &[Part], traced: &[Vec<Traced>]) -> Vec<(usize, usize)> {
     // (winding, hit kind) counts over the unculled traces.
     let mut counts = std::collections::HashMap::<(bool, u32), usize>::new();
     let mut winding_of = Vec::new();
@@ -121,17 +121,24 @@ pub fn facing_errors(parts: &[Part], traced: &[Vec<Traced>]) -> usize {
         }
     };
     let (kt, kf) = (kind_for(true), kind_for(false));
-    let mut errors = 0;
-    for (w, kind) in [(true, kt), (false, kf)] {
-        errors += counts
-            .iter()
-            .filter(|((cw, ck), _)| *cw == w && *ck != kind)
-            .map(|(_, n)| n)
-            .sum::<usize>();
-    }
-    if kt == kf {
-        // One hit kind for both windings: every hit of the smaller winding is wrong.
-        errors += counts.iter().filter(|((_, k), _)| *k == kt).map(|(_, n)| *n).min().unwrap_or(0);
+    // One hit kind for both windings: every hit of the smaller winding is wrong.
+    let smaller = (kt == kf).then(|| {
+        let n = |w: bool| counts.get(&(w, kt)).copied().unwrap_or(0);
+        n(true) <= n(false)
+    });
+    let mut errors = Vec::new();
+    for (p, (w, tr)) in winding_of.iter().zip(traced).enumerate() {
+        if parts[p].ray_flags != 0 {
+            continue;
+        }
+        for (i, (wi, t)) in w.iter().zip(tr).enumerate() {
+            if let (Some(wi), Some(h)) = (wi, t.hit) {
+                let want = if *wi { kt } else { kf };
+                if h.hit_kind != want || (smaller == Some(*wi) && h.hit_kind == kt) {
+                    errors.push((p, i));
+                }
+            }
+        }
     }
     // Culling: parts come as (none, cull-back, cull-front) per transform.
     for chunk in (0..parts.len()).collect::<Vec<_>>().chunks(3) {
@@ -142,10 +149,10 @@ pub fn facing_errors(parts: &[Part], traced: &[Vec<Traced>]) -> usize {
             let base = traced[none][i].hit;
             let keep = |culled: u32| base.is_some_and(|h| h.hit_kind != culled);
             if traced[back][i].hit.is_some() != keep(HIT_KIND_BACK) {
-                errors += 1;
+                errors.push((back, i));
             }
             if traced[front][i].hit.is_some() != keep(HIT_KIND_FRONT) {
-                errors += 1;
+                errors.push((front, i));
             }
         }
     }

@@ -1,0 +1,162 @@
+//! Examples of failing rays, as evidence a driver engineer can replay: the ray (f32 bits and
+//! decimals), what the device returned, and the reference's triangles along it — those whose
+//! closed shadow holds the f64 crossing, those within an edge's margin, and the one the device
+//! reported — with their vertices' f32 bits, the ray-space distance from the crossing to the
+//! nearest edge and the margin it was judged by. At most `EXAMPLES_PER_KIND` per kind and part.
+use super::margin::{crossings, margins, resolve, Candidate};
+use super::result::{Example, RefTriangle, TriangleRole, TRIANGLES_PER_EXAMPLE};
+use super::{Part, Traced};
+use crate::reference::watertight;
+
+fn bits(v: &[f32]) -> String {
+    v.iter().map(|x| format!("{:08x}", x.to_bits())).collect::<Vec<_>>().join(" ")
+}
+
+/// The example of ray `i` of `part`, judged `kind`, with the reference's candidates `cands`.
+pub(super) fn build(
+    kind: &str,
+    part: &Part,
+    i: usize,
+    tr: &Traced,
+    cands: &[Candidate],
+) -> Example {
+    let r = &part.rays[i];
+    let closest = cands.iter().min_by(|a, b| a.hit.t.total_cmp(&b.hit.t));
+    Example {
+        kind: kind.into(),
+        part: part.label.clone(),
+        ray: Some(i),
+        origin: r.origin,
+        dir: r.dir,
+        tmin: r.tmin,
+        tmax: r.tmax,
+        bits: [
+            bits(&[r.origin[0], r.origin[1], r.origin[2], r.tmin]),
+            bits(&[r.dir[0], r.dir[1], r.dir[2], r.tmax]),
+        ],
+        reference: closest.map(|c| (c.primitive, c.hit.t, c.hit.inside)),
+        reference_margin: closest.map(|c| c.edge_margin),
+        crossings: crossings(cands),
+        hit: tr.hit.map(|h| (h.primitive, h.t, h.bary)),
+        hit_instance: tr.hit.map(|h| h.instance),
+        candidates: tr.candidates,
+        first_candidates: tr.first_candidates,
+        triangles: triangles(part, i, tr, cands),
+    }
+}
+
+/// The reference's triangles for ray `i`: containing the crossing first, then by how far inside
+/// their nearest edge the ray passes; the device's reported one last where it is not among them.
+fn triangles(part: &Part, i: usize, tr: &Traced, cands: &[Candidate]) -> Vec<RefTriangle> {
+    let mut order: Vec<&Candidate> = cands.iter().collect();
+    order.sort_by(|a, b| b.hit.inside.total_cmp(&a.hit.inside));
+    let mut out: Vec<RefTriangle> = order
+        .iter()
+        .take(TRIANGLES_PER_EXAMPLE)
+        .filter_map(|c| {
+            let role =
+                if c.hit.inside >= 0.0 { TriangleRole::Contains } else { TriangleRole::Near };
+            triangle(part, i, c.instance, c.primitive, role, c.certain)
+        })
+        .collect();
+    if let Some(h) = tr.hit {
+        if !out.iter().any(|t| (t.instance, t.primitive) == (h.instance, h.primitive)) {
+            let listed =
+                cands.iter().find(|c| (c.instance, c.primitive) == (h.instance, h.primitive));
+            let (role, certain) = match listed {
+                Some(c) if c.hit.inside >= 0.0 => (TriangleRole::Contains, c.certain),
+                Some(c) => (TriangleRole::Near, c.certain),
+                None => (TriangleRole::Reported, false),
+            };
+            out.extend(triangle(part, i, h.instance, h.primitive, role, certain));
+        }
+    }
+    out
+}
+
+fn triangle(
+    part: &Part,
+    i: usize,
+    instance: u32,
+    primitive: u32,
+    role: TriangleRole,
+    certain: bool,
+) -> Option<RefTriangle> {
+    let ray = &part.rays[i];
+    let inst = part.scene.instances.get(instance as usize)?;
+    let mesh = &part.scene.meshes[inst.mesh];
+    let vertices = mesh.indices.get(primitive as usize)?.map(|v| mesh.positions[v as usize]);
+    let r = resolve(part, instance, primitive, ray)?;
+    let p = watertight::plane(r.o, r.d, r.v);
+    let (t, weights, edge_distance, margin, weight_margin) = match p {
+        Some(p) => {
+            let m = margins(&r, ray, &p);
+            let k = (0..3).min_by(|&a, &b| p.weights[a].total_cmp(&p.weights[b])).unwrap_or(0);
+            (p.t, p.weights, p.edge_distance(k), m.abs, m.edge[k])
+        }
+        // Parallel to the ray, degenerate or NaN: no crossing to measure.
+        None => (f64::NAN, [f64::NAN; 3], f64::NAN, f64::NAN, f64::NAN),
+    };
+    Some(RefTriangle {
+        role,
+        instance,
+        primitive,
+        vertices,
+        vertex_bits: vertices.map(|v| bits(&v)),
+        t,
+        weights,
+        edge_distance,
+        margin,
+        weight_margin,
+        certain,
+    })
+}
+
+fn role(r: TriangleRole) -> &'static str {
+    match r {
+        TriangleRole::Contains => "contains the crossing",
+        TriangleRole::Near => "within the margin",
+        TriangleRole::Reported => "reported by the device, not crossed",
+    }
+}
+
+/// The examples as text: per example its ray, the device's answer and the reference's
+/// triangles (vertices as f32 bits).
+pub fn text(examples: &[Example]) -> String {
+    let mut s = String::new();
+    for e in examples {
+        let ray = e.ray.map_or(String::new(), |i| format!(" ray {i}"));
+        s.push_str(&format!("  {} — {}{ray}\n", e.kind, e.part));
+        s.push_str(&format!(
+            "    origin {}  dir {}\n    origin ({:e}, {:e}, {:e}) dir ({:e}, {:e}, {:e}) tmin {:e} tmax {:e}\n",
+            e.bits[0], e.bits[1], e.origin[0], e.origin[1], e.origin[2], e.dir[0], e.dir[1],
+            e.dir[2], e.tmin, e.tmax
+        ));
+        let device = match e.hit {
+            Some((p, t, b)) => format!(
+                "hit instance {} primitive {p}, t {t:e}, barycentrics ({:e}, {:e})",
+                e.hit_instance.unwrap_or(0),
+                b[0],
+                b[1]
+            ),
+            None => "miss".into(),
+        };
+        s.push_str(&format!(
+            "    device: {device}; {} any-hit candidates; reference: {} crossings\n",
+            e.candidates, e.crossings
+        ));
+        for t in &e.triangles {
+            s.push_str(&format!(
+                "    triangle {} (instance {}, {}{}): t {:e}, weights ({:e}, {:e}, {:e}), {:e} from its nearest edge in ray space (margin {:e}; as a weight {:e})\n",
+                t.primitive, t.instance, role(t.role), if t.certain { ", certain" } else { "" },
+                t.t, t.weights[0], t.weights[1], t.weights[2], t.edge_distance, t.margin,
+                t.weight_margin
+            ));
+            s.push_str(&format!(
+                "      v0 {}  v1 {}  v2 {}\n",
+                t.vertex_bits[0], t.vertex_bits[1], t.vertex_bits[2]
+            ));
+        }
+    }
+    s
+}
