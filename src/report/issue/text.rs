@@ -413,7 +413,7 @@ fn mid_cell(layer: &str, rep: Option<&CellReport>, a: &crate::model::Attempt) ->
         (false, None) => "the run recorded no attempt to compare it with".to_string(),
     };
     format!(
-        "Re-run alone under {layer}, the failing cell ran its steps up to {phase} and {} there (`{}`): {how}, so the layer saw the cell's steps before it but reported no result. {}",
+        "Re-run alone under {layer}, the failing cell ran its steps up to {phase} and {} there (`{}`): {how}; the layer saw the cell's steps up to it, and the worker died before reporting its count of validation messages. {}",
         past(a.outcome),
         a.detail.as_deref().unwrap_or("no detail"),
         messages_before(a)
