@@ -2,8 +2,8 @@
 //! failing cell re-run once alone under VK_LAYER_KHRONOS_validation (unless the run validated
 //! already or `--no-validation-run`), and the device's SBT properties. Both need the device on
 //! this machine; where it is not, the issue says why instead. Where the validation run's worker
-//! fails before the cell's turn, a control cell (one the run passed) is re-run the same way, so
-//! that the issue can tell a fault of every setup under the layer from the cell's own.
+//! fails in its setup, before the cell's turn, a control cell (one the run passed) is re-run the
+//! same way, and the issue says what it did; a fault in the cell's own steps needs no control.
 use super::commands::Globals;
 use super::shared::{report_device, supervisor_options, SupervisorOracle};
 use crate::bisect::scope::ReportOptions;
@@ -48,7 +48,10 @@ pub(super) fn measure(
             let layer = format!("VK_LAYER_KHRONOS_validation {}", format_api_version(v));
             match run_validated(r, ro, info.index, c) {
                 Some(a) => {
-                    let control = control.filter(|_| a.result.is_none()).and_then(|k| {
+                    // only where the cell never ran: a fault in its own steps is the cell's
+                    let never_ran =
+                        a.result.is_none() && !a.phase.is_some_and(crate::model::Phase::in_cell);
+                    let control = control.filter(|_| never_ran).and_then(|k| {
                         let attempt = Box::new(run_validated(r, ro, info.index, k)?);
                         Some(ControlRun { cell: k.id(), attempt })
                     });

@@ -169,6 +169,10 @@ pub struct LaneSplit {
     /// Of `leader_outside`: those whose call lacked lane 0 (bit 0 of the ballot clear).
     #[serde(default)]
     pub leader_outside_lane0_inactive: Split,
+    /// Of `leader_outside`: those whose leader word names a pixel whose own record says lane 0
+    /// (absent in older reports: not known, so never called lane 0).
+    #[serde(default)]
+    pub leader_outside_named_lane0: Split,
     /// Of `contradicted`: the calls those leaders ran in ([`Contradicted::LeaderOwnCall`]).
     #[serde(default)]
     pub leader_own_call: Split,
@@ -196,8 +200,13 @@ impl LaneSplit {
     }
 
     /// Count one probe pixel of a subgroup whose records contradict each other, of `kind`, its
-    /// call having lane 0 active or not.
-    pub fn add_contradicted(&mut self, kind: Contradicted, lane0_active: bool, failed: bool) {
+    /// call having lane 0 active or not, the pixel its leader word names recorded as lane 0 or not.
+    pub fn add_contradicted(
+        &mut self,
+        kind: Contradicted,
+        (lane0_active, named_lane0): (bool, bool),
+        failed: bool,
+    ) {
         self.contradicted.add(failed);
         match kind {
             Contradicted::Garbage => {}
@@ -206,33 +215,51 @@ impl LaneSplit {
                 if !lane0_active {
                     self.leader_outside_lane0_inactive.add(failed);
                 }
+                if named_lane0 {
+                    self.leader_outside_named_lane0.add(failed);
+                }
             }
             Contradicted::LeaderOwnCall => self.leader_own_call.add(failed),
         }
     }
 
     /// The calls whose lane words agree but whose leader word names a pixel outside the call, in
-    /// words (empty where there are none): the check they fail, how many of their pixels
-    /// mismatched, and, where every one lacked lane 0, what that looks like; then the leaders'
-    /// own calls, left out with them.
+    /// words (empty where there are none): only what was observed — whether the calls lack lane
+    /// 0, whether the named pixel's own record says lane 0 (else "a pixel outside the call"), how
+    /// many of their pixels mismatched — and, where every one lacked lane 0, what that is
+    /// consistent with. The leader rule they break is a failed check only where the evidence is
+    /// judged by; forced evidence is a diagnosis ([`forced_words`]).
     fn leader_outside_sentence(&self) -> String {
-        let (out, own, lane0) =
-            (self.leader_outside, self.leader_own_call, self.leader_outside_lane0_inactive);
+        let (out, own, lane0, named) = (
+            self.leader_outside,
+            self.leader_own_call,
+            self.leader_outside_lane0_inactive,
+            self.leader_outside_named_lane0,
+        );
         if out.pixels == 0 {
             return String::new();
         }
         let every = lane0.pixels == out.pixels;
-        let calls = if every {
-            "in calls without lane 0".to_string()
-        } else {
-            format!("in calls ({} of their pixels without lane 0)", lane0.pixels)
+        let calls = match every {
+            true => "in calls without lane 0".to_string(),
+            false => format!("in calls ({} of their pixels without lane 0)", lane0.pixels),
+        };
+        let pixel = match named.pixels {
+            0 => "a pixel outside the call".to_string(),
+            n if n == out.pixels => "lane 0's pixel, outside the call".to_string(),
+            n => format!("a pixel outside the call (lane 0's by its own record for {n} of them)"),
+        };
+        let rule = "the leader must be the lowest active lane, subgroupBroadcastFirst = OpGroupNonUniformBroadcastFirst";
+        let rule = match self.evidence {
+            LaneEvidence::Supported => format!("the cross-record check they fail: {rule}"),
+            LaneEvidence::Absent | LaneEvidence::Forced => format!("in a valid shader {rule}"),
         };
         let mut t = format!(
-            "{calls} whose leader word is a pixel outside the call (the cross-record check they fail: the leader must be the lowest active lane, subgroupBroadcastFirst = OpGroupNonUniformBroadcastFirst) {} of {} pixels",
+            "{calls} whose leader word names {pixel} ({rule}), {} of {} pixels mismatched",
             out.failed, out.pixels
         );
         if every {
-            t += " — the broadcast handed them inactive lane 0's value, which is what a uniform value read from lane 0 while lane 0 is not in the call looks like";
+            t += " — consistent with a value taken from lane 0 while it is not in the call";
         }
         if own.pixels > 0 {
             t += &format!(
@@ -355,38 +382,55 @@ mod tests {
     }
 
     /// Twins: contradicting subgroups of calls whose leader is a pixel outside the call, every
-    /// one without lane 0, are presented as the evidence they are (the failed check, mismatched
-    /// of pixels there, what it looks like); a duplicate lane is garbage and still left out as
-    /// garbage; a report from before the kinds reads as garbage.
+    /// one without lane 0, are presented as what was observed (the calls lack lane 0, the leader
+    /// word names a pixel outside them, mismatched of pixels there, what that is consistent
+    /// with); forced evidence never says the records fail a check, supported evidence does; lane
+    /// 0 is named only where the named pixel's record says lane 0; a duplicate lane is garbage
+    /// and still left out as garbage; a report from before the kinds reads as garbage.
     #[test]
     fn a_leader_outside_the_call_is_evidence_and_garbage_stays_garbage() {
         let mut s = LaneSplit { evidence: LaneEvidence::Forced, ..Default::default() };
         s.add((0, 0b11, 20, 20), false);
         for _ in 0..3 {
-            s.add_contradicted(Contradicted::LeaderOutsideCall, false, true);
+            s.add_contradicted(Contradicted::LeaderOutsideCall, (false, false), true);
         }
-        s.add_contradicted(Contradicted::LeaderOutsideCall, false, false);
-        s.add_contradicted(Contradicted::LeaderOwnCall, true, false);
+        s.add_contradicted(Contradicted::LeaderOutsideCall, (false, false), false);
+        s.add_contradicted(Contradicted::LeaderOwnCall, (true, false), false);
         assert_eq!(s.contradicted, Split { pixels: 5, failed: 3 });
         let t = s.sentence("closest_hit");
         assert!(
-            t.starts_with("mismatches by lane 0 of the subgroup: in calls without lane 0 whose leader word is a pixel outside the call (the cross-record check they fail: the leader must be the lowest active lane, subgroupBroadcastFirst = OpGroupNonUniformBroadcastFirst) 3 of 4 pixels — the broadcast handed them inactive lane 0's value, which is what a uniform value read from lane 0 while lane 0 is not in the call looks like; in the calls their leaders ran in (left out with them) 0 of 1; where the lane words hold, where it was inactive in the call 0 of 0 pixels, where active 0 of 1")
+            t.starts_with("mismatches by lane 0 of the subgroup: in calls without lane 0 whose leader word names a pixel outside the call (in a valid shader the leader must be the lowest active lane, subgroupBroadcastFirst = OpGroupNonUniformBroadcastFirst), 3 of 4 pixels mismatched — consistent with a value taken from lane 0 while it is not in the call; in the calls their leaders ran in (left out with them) 0 of 1; where the lane words hold, where it was inactive in the call 0 of 0 pixels, where active 0 of 1")
                 && !t.contains("garbage"),
             "{t}"
         );
-        s.add_contradicted(Contradicted::Garbage, true, true);
+        // forced evidence: a diagnosis, never a failed check or a value the driver handed over
+        assert!(
+            !t.contains(" fail") && !t.contains("handed") && !t.contains("lane 0's pixel"),
+            "{t}"
+        );
+        assert!(t.contains("a diagnosis only"), "{t}");
+        let judged = LaneSplit { evidence: LaneEvidence::Supported, ..s.clone() };
+        let j = judged.sentence("raygen");
+        assert!(j.contains("(the cross-record check they fail: the leader must be"), "{j}");
+        // the named pixel's own record says lane 0: named so
+        let mut named = LaneSplit { evidence: LaneEvidence::Forced, ..Default::default() };
+        named.add_contradicted(Contradicted::LeaderOutsideCall, (false, true), true);
+        named.add_contradicted(Contradicted::LeaderOutsideCall, (false, true), true);
+        let n = named.sentence("closest_hit");
+        assert!(n.contains("whose leader word names lane 0's pixel, outside the call ("), "{n}");
+        s.add_contradicted(Contradicted::Garbage, (true, false), true);
         let t = s.sentence("closest_hit");
         assert!(
             t.contains("(garbage lane data, left out above) 1 of 1 pixels") && t.contains("3 of 4"),
             "{t}"
         );
         // one call with lane 0 among them: counted, not called lane 0's signature
-        s.add_contradicted(Contradicted::LeaderOutsideCall, true, true);
+        s.add_contradicted(Contradicted::LeaderOutsideCall, (true, false), true);
         let t = s.sentence("closest_hit");
         assert!(
             t.contains("in calls (4 of their pixels without lane 0) whose leader word")
                 && t.contains("4 of 5 pixels")
-                && !t.contains("looks like"),
+                && !t.contains("consistent with"),
             "{t}"
         );
         let old: LaneSplit = serde_json::from_str(

@@ -60,6 +60,20 @@ impl Phase {
         }
     }
 
+    /// One of a cell's own steps, from its compile to its check: a fault there is the cell's. The
+    /// others are the worker's, before its first cell (setup, prebuild) or after a result.
+    pub fn in_cell(self) -> bool {
+        match self {
+            Phase::Compile
+            | Phase::Pipeline
+            | Phase::Record
+            | Phase::Trace
+            | Phase::Readback
+            | Phase::Check => true,
+            Phase::Setup | Phase::Prebuild | Phase::BetweenCells | Phase::Teardown => false,
+        }
+    }
+
     pub fn parse(s: &str) -> Option<Phase> {
         Phase::ALL.iter().copied().find(|p| p.as_str() == s)
     }

@@ -182,6 +182,9 @@ pub struct Contradiction {
     pub why: &'static str,
     /// Lane 0 was active in this pixel's call (bit 0 of its ballot).
     pub lane0_active: bool,
+    /// The pixel its leader word names carries lane words of its own, and they say lane 0 (on
+    /// lavapipe 26's closest-hit it is a miss pixel, without them: not known to be lane 0).
+    pub named_lane0: bool,
 }
 
 /// The leader rule, as a pixel whose call's leader word names a pixel outside the call fails it.
@@ -193,7 +196,8 @@ pub const LEADER_RULE: &str = "the leader is not the lowest set lane of the subg
 /// themselves (distinct lanes, each inside the call's mask, no more records than its count); the
 /// call holding the leader's pixel (if any) must be led by its lowest set lane; every other call
 /// must not count the leader's lane (`leader_lane`, where its record carries lane words) among
-/// its active lanes. Then `subgroupBroadcastFirst` handed those calls the value of a lane that
+/// its active lanes; and at least two records outside the leader's call must name it (a lone
+/// one is what a random leader word gives). Then `subgroupBroadcastFirst` handed those calls the value of a lane that
 /// was not active in them (lavapipe 26's closest-hit: lane 0's pixel where lane 0 was not in the
 /// call), and the leader's own call merely shares the key. Anything else is garbage: `None`.
 fn leader_outside(
@@ -230,6 +234,11 @@ fn leader_outside(
         }
     }
     let own = |q: usize| calls.iter().any(|c| c.2.contains(&leader) && c.2.contains(&q));
+    // A lone record naming a pixel outside its call is what a random leader word gives: at least
+    // two records outside the leader's call must name it.
+    if group.iter().filter(|&&q| !own(q)).count() < 2 {
+        return None;
+    }
     outside.then(|| {
         group
             .iter()
@@ -287,8 +296,12 @@ fn contradicted(
                 Contradicted::Garbage => why,
                 Contradicted::LeaderOutsideCall | Contradicted::LeaderOwnCall => LEADER_RULE,
             };
-            out[q] =
-                Some(Contradiction { kind, why, lane0_active: records[q].active_mask & 1 != 0 });
+            out[q] = Some(Contradiction {
+                kind,
+                why,
+                lane0_active: records[q].active_mask & 1 != 0,
+                named_lane0: leader_lane == Some(0),
+            });
         }
     }
     out
@@ -487,7 +500,36 @@ mod tests {
             w.is_some_and(|w| w.why == LEADER_RULE && w.kind == Contradicted::LeaderOutsideCall)
         };
         assert!(c[..4].iter().all(outside), "{c:?}");
+        // pixel 8 carries no lane words: not known to be lane 0
+        assert!(c[..4].iter().all(|w| w.is_some_and(|w| !w.named_lane0)), "{c:?}");
         assert_eq!(contradictions(&lane0, Stage::Fragment), vec![None; 9]);
+    }
+
+    /// A random leader word: each record of the call names a different pixel outside it, so no
+    /// two records name one leader. That is garbage, not a leader outside the call; the twin,
+    /// two records of the call naming the same outside pixel, is of that kind.
+    #[test]
+    fn a_random_leader_word_is_garbage() {
+        let mut records = group();
+        records.extend(std::iter::repeat_n(Record::default(), 5));
+        for (k, r) in records[..4].iter_mut().enumerate() {
+            r.leader = [8, 5, 7, 6][k];
+        }
+        let c = contradictions(&records, Stage::ClosestHit);
+        assert!(c[..4].iter().all(|w| w.is_some_and(|w| w.kind == Contradicted::Garbage)), "{c:?}");
+        records[1].leader = 8;
+        let c = contradictions(&records, Stage::ClosestHit);
+        let kind = |p: usize| c[p].map(|w| w.kind);
+        assert_eq!(
+            (kind(0), kind(1), kind(2), kind(3)),
+            (
+                Some(Contradicted::LeaderOutsideCall),
+                Some(Contradicted::LeaderOutsideCall),
+                Some(Contradicted::Garbage),
+                Some(Contradicted::Garbage)
+            ),
+            "{c:?}"
+        );
     }
 
     /// A call without lane 0 whose lanes all name lane 0's pixel, which ran the probe in another
@@ -512,6 +554,8 @@ mod tests {
             "{c:?}"
         );
         assert!(c.iter().all(|w| w.is_some_and(|w| w.why == LEADER_RULE)));
+        // pixel 4's own record says lane 0: the leader word names lane 0's pixel
+        assert!(c.iter().all(|w| w.is_some_and(|w| w.named_lane0)), "{c:?}");
         let lanes = Lanes::for_stage(&records, Stage::ClosestHit);
         assert_eq!((lanes.leader(0), lanes.leader(4), lanes.known()), (None, None, 0));
         let mut duplicate = records.clone();

@@ -56,7 +56,7 @@ fn the_lavapipe_26_shader_record_issue_fits_one_screen_with_every_fact() {
     // The diagnosis right under the title, from the decode and the one-axis siblings.
     assert_eq!(
         md.lines().nth(2),
-        Some("**Diagnosis**: Reads the descriptor 192 bytes (3 descriptors) before the right one, in closest_hit/any_hit/miss shaders only, and only with heap_access=mapped_shader_record_index."),
+        Some("**Diagnosis**: Reads the descriptor 192 bytes (3 descriptors) before the right one, at the right element, in all 8 decoded example pixels of 926 that differ (16 examples from the run report's 2 failing attempts); fails in closest_hit/any_hit/miss, passes in raygen/intersection/callable; fails with heap_access=mapped_shader_record_index, passes with heap_access=mapped_constant_offset|mapped_push_index|mapped_indirect_index, one axis changed at a time."),
         "{top}"
     );
     assert!(!top.contains("garbage lane data"), "{top}");
@@ -77,9 +77,10 @@ fn the_lavapipe_26_shader_record_issue_fits_one_screen_with_every_fact() {
         "slot = literal 3 in the GLSL: slots 3..=3 of the 19 bound (in bounds)",
         "each record a 32-byte handle + 8 bytes of data",
         "maxPipelineRayRecursionDepth 1 (device maximum 31)",
-        // every call without lane 0 has a leader word outside the call (subgroupBroadcastFirst
-        // hands its lanes lane 0's pixel): shown as the evidence it is, never called garbage
-        "mismatches by lane 0 of the subgroup: in calls without lane 0 whose leader word is a pixel outside the call (the cross-record check they fail: the leader must be the lowest active lane, subgroupBroadcastFirst = OpGroupNonUniformBroadcastFirst) 924 of 924 pixels — the broadcast handed them inactive lane 0's value, which is what a uniform value read from lane 0 while lane 0 is not in the call looks like; in the calls their leaders ran in (left out with them) 0 of 21; where the lane words hold, where it was inactive in the call 0 of 0 pixels, where active 0 of 1806",
+        // every call without lane 0 has a leader word outside the call: shown as what was
+        // observed (the named pixel has no record saying lane 0), never called garbage, and under
+        // forced evidence never a check the driver failed
+        "mismatches by lane 0 of the subgroup: in calls without lane 0 whose leader word names a pixel outside the call (in a valid shader the leader must be the lowest active lane, subgroupBroadcastFirst = OpGroupNonUniformBroadcastFirst), 924 of 924 pixels mismatched — consistent with a value taken from lane 0 while it is not in the call; in the calls their leaders ran in (left out with them) 0 of 21; where the lane words hold, where it was inactive in the call 0 of 0 pixels, where active 0 of 1806",
         "(forced lane evidence, a diagnosis only: VUID-RuntimeSpirv-None-06343 (Vulkan 1.4.360): \"Group operations with subgroup scope must not be used if the shader stage is not in subgroupSupportedStages\"; this device's subgroupSupportedStages does not include closest_hit",
         "--lane-evidence force",
         "**Validation**: Not checked",
@@ -97,6 +98,7 @@ fn the_lavapipe_26_shader_record_issue_fits_one_screen_with_every_fact() {
     assert!(!top.contains("p ≥") && !top.contains("miss ≤"), "{top}");
     assert!(!top.contains("base_shader_record") && !top.contains("— not used:"), "{top}");
     assert!(!top.contains("{\"value\""), "no debug-form detail: {top}");
+    assert!(!top.contains("handed") && !top.contains("check they fail"), "{top}");
     // The full list and real unified diffs are collapsed below.
     let rest = &md[top.len()..];
     assert!(
@@ -198,13 +200,20 @@ fn rep_entry<'a>(r: &'a mut RunReport, b: &BisectFile) -> &'a mut crate::model::
 }
 
 /// The twins of the diagnosis: the isolation list that shows the fault depends on the stage
-/// gives the stage clause; a stage sibling that no longer passes (no split on the stage) drops
-/// it; without a decode (no example pixel to tell which descriptor was read) there is none.
+/// gives the stage clause, as the list shows it (fails in, passes in; never "only"); a stage
+/// sibling that no longer passes (no split on the stage) drops it; without a decode (no example
+/// pixel to tell which descriptor was read) there is none; the decode rests on every failing
+/// attempt's examples, says their number, and says when the element read differs.
 #[test]
 fn the_diagnosis_says_only_what_the_evidence_holds() {
     let (r, b, _) = lavapipe_26();
     let d = lavapipe_26_issue(&r, &b).diagnosis;
-    assert!(d.contains("in closest_hit/any_hit/miss shaders only"), "{d}");
+    assert!(
+        d.contains("; fails in closest_hit/any_hit/miss, passes in raygen/intersection/callable;"),
+        "{d}"
+    );
+    assert!(d.contains("in all 8 decoded example pixels of 926 that differ"), "{d}");
+    assert!(d.ends_with(", one axis changed at a time.") && !d.contains("only"), "{d}");
     // Every pure stage sibling faults: the stage is not where the fault is.
     let mut every_stage = b.clone();
     for l in
@@ -213,7 +222,7 @@ fn the_diagnosis_says_only_what_the_evidence_holds() {
         l.verdict = "mismatch".into();
     }
     let d = lavapipe_26_issue(&r, &every_stage).diagnosis;
-    assert!(d.starts_with("Reads the descriptor 192 bytes") && !d.contains("shaders only"), "{d}");
+    assert!(d.starts_with("Reads the descriptor 192 bytes") && !d.contains("fails in"), "{d}");
     // No decode: no diagnosis, and no line for it on the screen.
     let mut no_decode = r.clone();
     for a in rep_entry(&mut no_decode, &b).attempts.iter_mut() {
@@ -232,6 +241,38 @@ fn the_diagnosis_says_only_what_the_evidence_holds() {
         }
     }
     assert_eq!(lavapipe_26_issue(&mixed, &b).diagnosis, "");
+    // One example of the oldest failing attempt disagrees: every attempt's examples count.
+    let mut oldest = r.clone();
+    let first = rep_entry(&mut oldest, &b)
+        .attempts
+        .iter_mut()
+        .find_map(|a| a.result.as_mut()?.comparison.as_mut())
+        .unwrap();
+    first.examples[0].actual = first.examples[0].expected.clone();
+    assert_eq!(lavapipe_26_issue(&oldest, &b).diagnosis, "");
+}
+
+/// The decode requires the element to match; the twin reads the right slot shift at another
+/// element in one example per attempt, and says so with the count.
+#[test]
+fn the_diagnosis_says_when_the_element_differs() {
+    let (r, b, _) = lavapipe_26();
+    let cell = crate::model::Cell::parse_id(&b.bisection.representative).unwrap();
+    let slots = crate::probe::slot_count(cell.resource, r.scene.params.instances);
+    let mut other = r.clone();
+    for a in rep_entry(&mut other, &b).attempts.iter_mut() {
+        if let Some(c) = a.result.as_mut().and_then(|x| x.comparison.as_mut()) {
+            let m = &mut c.examples[0];
+            let (s, e) =
+                facts::whose(cell.resource, slots, facts::parse_value(&m.expected).unwrap())
+                    .unwrap();
+            let v = crate::probe::resource_value(cell.resource, s - 3, (e + 1) % 4);
+            m.actual = format!("{v:?}");
+        }
+    }
+    let d = lavapipe_26_issue(&other, &b).diagnosis;
+    assert!(d.contains("before the right one, at another element in 2 of 16, in all 8"), "{d}");
+    assert!(lavapipe_26_issue(&r, &b).diagnosis.contains("at the right element"));
 }
 
 /// A heap cell whose run recorded its VkDescriptorSetAndBindingMappingEXT entries shows binding
@@ -267,13 +308,13 @@ fn recorded_mapping_entries_are_on_the_screen_and_in_full_below() {
 
 /// The validation run whose worker crashed in setup before the cell's turn (issue 21's re-run:
 /// SIGSEGV in setup, twice): the issue says who ended how in which step, that the layer checked
-/// nothing of the cell, and what a control cell under the same layer did. Twins: a control that
-/// crashed the same way puts the fault on running under the layer; one that ran puts it on the
-/// cell's own setup.
+/// nothing of the cell, and what a control cell under the same layer did, as observed (one
+/// attempt of one cell that differs in its stage), never as a conclusion about the fault.
 #[test]
 fn a_validation_run_that_never_reached_the_cell_says_who_crashed_where() {
     use crate::model::{Attempt, CellResult, Outcome, Phase};
-    let (r, _, _) = lavapipe_26();
+    let (r, b, _) = lavapipe_26();
+    let rep = r.cells.iter().find(|c| c.id == b.bisection.representative);
     let detail = "not run: two workers in a row failed before running a cell; the last: crash in setup: worker killed by signal 11 (SIGSEGV) in setup (acceleration structures and resources)";
     let crashed = || {
         Attempt::new(Outcome::Crash, true).with_worker(2, Phase::Setup, vec![]).with_detail(detail)
@@ -288,7 +329,7 @@ fn a_validation_run_that_never_reached_the_cell_says_who_crashed_where() {
     let text = |control| {
         let run =
             ValidationRun::Ran { layer: layer.clone(), attempt: Box::new(crashed()), control };
-        text::validation_text(&r, None, &run)
+        text::validation_text(&r, rep, &run)
     };
     let same = text(control(crashed()));
     for fact in [
@@ -296,11 +337,11 @@ fn a_validation_run_that_never_reached_the_cell_says_who_crashed_where() {
         "rtprobe's worker process (the layer and the driver loaded in it) crashed in its setup step, before the cell's turn",
         "signal 11 (SIGSEGV) in setup (acceleration structures and resources)",
         "so the layer checked nothing of the cell",
-        "A control cell that passed in the run, `raygen.sampled_image.literal.descriptor_heap.mapped_shader_record_index`, re-run alone under the same layer, crashed the same way in the same step: the fault comes with running under the layer on this device, not with the failing cell",
+        "A control cell, `raygen.sampled_image.literal.descriptor_heap.mapped_shader_record_index` (it differs in stage raygen; passed in the run), re-run once alone under the same layer, crashed in its setup step",
     ] {
         assert!(same.contains(fact), "{fact:?} not in {same}");
     }
-    assert!(!same.contains("the cell crash "), "{same}");
+    assert!(!same.contains("the cell crash ") && !same.contains("the fault comes with"), "{same}");
     let result = CellResult {
         outcome: Outcome::Pass,
         detail: None,
@@ -312,8 +353,60 @@ fn a_validation_run_that_never_reached_the_cell_says_who_crashed_where() {
     let ran = Attempt::new(Outcome::Pass, true).with_result(result);
     let own = text(control(ran));
     assert!(
-        own.contains("set up and ran (`pass`, 0 validation message(s)): the fault is the failing cell's own setup under the layer"),
+        own.contains("re-run once alone under the same layer, set up and ran (`pass`, 0 validation message(s)).")
+            && !own.contains("own setup"),
         "{own}"
     );
     assert!(text(None).contains("No control cell was re-run under the layer"));
+}
+
+/// The README tour's validation run: the worker crashed in the cell's trace step (the injected
+/// fault, as in the run). The cell ran under the layer up to its trace, so it is no "never ran":
+/// the finding reproduced under the layer, with the layer's messages from the stderr tail. The
+/// twins: a run that recorded another fault says so; no message in the tail says that.
+#[test]
+fn a_validation_run_that_crashed_mid_cell_reproduced_the_finding() {
+    use crate::model::{Attempt, Outcome, Phase, WorkerExit};
+    let (r, b, _) = lavapipe_26();
+    let detail = "worker killed by signal 11 (SIGSEGV) mid-cell, in trace";
+    let tail = "ERROR Validation Error: [ VUID-vkCmdTraceRaysKHR-None-08114 ] a message\n";
+    let crashed = |tail: &str| {
+        Attempt::new(Outcome::Crash, true)
+            .with_worker(1, Phase::Trace, vec![])
+            .with_detail(detail)
+            .with_exit(WorkerExit {
+                signal: Some(11),
+                stderr_tail: tail.into(),
+                ..Default::default()
+            })
+    };
+    let layer = "VK_LAYER_KHRONOS_validation 1.4.363".to_string();
+    let mut entry = r.cells.iter().find(|c| c.id == b.bisection.representative).unwrap().clone();
+    let text = |entry: &crate::model::CellReport, tail: &str| {
+        let run = ValidationRun::Ran {
+            layer: layer.clone(),
+            attempt: Box::new(crashed(tail)),
+            control: None,
+        };
+        text::validation_text(&r, Some(entry), &run)
+    };
+    let mismatch = text(&entry, tail);
+    entry.attempts = vec![crashed("")];
+    let same = text(&entry, tail);
+    for t in [&same, &mismatch] {
+        assert!(
+            t.contains("the failing cell ran its steps up to trace and crashed there (`worker killed by signal 11 (SIGSEGV) mid-cell, in trace`)"),
+            "{t}"
+        );
+        assert!(
+            !t.contains("never ran")
+                && !t.contains("before the cell's turn")
+                && !t.contains("control"),
+            "{t}"
+        );
+        assert!(t.contains("1 validation message(s) in the worker's stderr before it"), "{t}");
+    }
+    assert!(same.contains(": the finding reproduced under the layer"), "{same}");
+    assert!(mismatch.contains("not the fault the run recorded (mismatch"), "{mismatch}");
+    assert!(text(&entry, "").contains("No validation message in the worker's stderr before it."));
 }

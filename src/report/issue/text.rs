@@ -354,7 +354,7 @@ pub(super) fn validation_text(
     let mut t = match (report.options.validate, errors) {
         (false, _) => match run {
             ValidationRun::Ran { layer, attempt, control } => {
-                validation_run_text(layer, attempt, control.as_ref())
+                validation_run_text(layer, rep, attempt, control.as_ref())
             }
             ValidationRun::NotRun(why) => format!("Not checked: the run did not enable VK_LAYER_KHRONOS_validation, and no validation run was made ({why})."),
         },
@@ -368,9 +368,11 @@ pub(super) fn validation_text(
     t
 }
 
-/// What the validation run of `rtprobe report` found.
+/// What the validation run of `rtprobe report` found (`rep`: the failing cell's report entry,
+/// for the fault the run recorded).
 fn validation_run_text(
     layer: &str,
+    rep: Option<&CellReport>,
     a: &crate::model::Attempt,
     control: Option<&ControlRun>,
 ) -> String {
@@ -385,16 +387,58 @@ fn validation_run_text(
             r.validation_errors,
             a.outcome.as_str()
         ),
+        None if a.phase.is_some_and(crate::model::Phase::in_cell) => mid_cell(layer, rep, a),
         None => format!(
             "Not obtained: re-run alone under {layer}, the failing cell never ran. {} {}",
             never_ran(a, "rtprobe's worker process (the layer and the driver loaded in it)"),
-            control_text(a, control)
+            control_text(rep, control)
         ),
     }
 }
 
-/// Who ended how, in which step, for an attempt whose worker reported no result: `who` ended with
-/// the attempt's outcome in its phase (the runner's detail quoted).
+/// A validation run whose worker died or hung in one of the cell's own steps: the cell ran under
+/// the layer up to that step, and faulted there, as the run recorded it or otherwise; the
+/// validation messages its worker printed before that, if any.
+fn mid_cell(layer: &str, rep: Option<&CellReport>, a: &crate::model::Attempt) -> String {
+    let phase = a.phase.map_or("an unknown", crate::model::Phase::as_str);
+    let run = rep.and_then(worst);
+    let same = run.is_some_and(|r| r.outcome == a.outcome && r.phase == a.phase);
+    let how = match (same, run) {
+        (true, _) => "the finding reproduced under the layer".to_string(),
+        (false, Some(r)) => format!(
+            "not the fault the run recorded ({}{})",
+            r.outcome.as_str(),
+            r.phase.map(|p| format!(" in {p}")).unwrap_or_default()
+        ),
+        (false, None) => "the run recorded no attempt to compare it with".to_string(),
+    };
+    format!(
+        "Re-run alone under {layer}, the failing cell ran its steps up to {phase} and {} there (`{}`): {how}; the layer saw the cell's steps up to it, and the worker died before reporting its count of validation messages. {}",
+        past(a.outcome),
+        a.detail.as_deref().unwrap_or("no detail"),
+        messages_before(a)
+    )
+}
+
+/// The validation layer's messages in a dead worker's stderr tail (its count went with it).
+fn messages_before(a: &crate::model::Attempt) -> String {
+    let tail = a.worker_exit.as_ref().map(|x| x.stderr_tail.as_str()).unwrap_or("");
+    let msgs: Vec<&str> = tail
+        .lines()
+        .map(str::trim)
+        .filter(|l| l.contains("Validation Error") || l.contains("VUID-"))
+        .collect();
+    match msgs.as_slice() {
+        [] => "No validation message in the worker's stderr before it.".into(),
+        [first, ..] => format!(
+            "{} validation message(s) in the worker's stderr before it (its last lines only), the first: `{first}`.",
+            msgs.len()
+        ),
+    }
+}
+
+/// Who ended how, in which step, for an attempt whose worker failed before the cell's turn: `who`
+/// ended with the attempt's outcome in its phase (the runner's detail quoted).
 fn never_ran(a: &crate::model::Attempt, who: &str) -> String {
     let phase = a.phase.map_or("an unknown", crate::model::Phase::as_str);
     let how = past(a.outcome);
@@ -404,26 +448,48 @@ fn never_ran(a: &crate::model::Attempt, who: &str) -> String {
     )
 }
 
-/// What the control cell re-run under the layer shows about a validation run that never ran.
-fn control_text(a: &crate::model::Attempt, control: Option<&ControlRun>) -> String {
+/// What the control cell re-run under the layer did, as observed: one attempt of one cell, which
+/// may differ from the failing cell in more than the axis that makes it fail, so no conclusion.
+fn control_text(rep: Option<&CellReport>, control: Option<&ControlRun>) -> String {
     let Some(c) = control else {
-        return "No control cell was re-run under the layer (the bisection lists no passing cell), so whether every setup under the layer ends so is not known.".into();
+        return "No control cell was re-run under the layer (the bisection lists no passing cell)."
+            .into();
     };
-    let id = &c.cell;
-    match &c.attempt.result {
-        None if c.attempt.outcome == a.outcome && c.attempt.phase == a.phase => format!(
-            "A control cell that passed in the run, `{id}`, re-run alone under the same layer, {} the same way in the same step: the fault comes with running under the layer on this device, not with the failing cell, and says nothing about the finding.",
-            past(c.attempt.outcome)
-        ),
+    let a = &c.attempt;
+    let who = format!(
+        "A control cell, `{}` ({}passed in the run), re-run once alone under the same layer,",
+        c.cell,
+        differs(rep.map(|r| r.id.as_str()), &c.cell)
+    );
+    match &a.result {
         None => format!(
-            "A control cell that passed in the run, `{id}`, re-run alone under the same layer, ended otherwise: {}",
-            never_ran(&c.attempt, "its worker")
+            "{who} {} in its {} step (`{}`).",
+            past(a.outcome),
+            a.phase.map_or("an unknown", crate::model::Phase::as_str),
+            a.detail.as_deref().unwrap_or("no detail")
         ),
         Some(r) => format!(
-            "A control cell that passed in the run, `{id}`, re-run alone under the same layer, set up and ran (`{}`, {} validation message(s)): the fault is the failing cell's own setup under the layer.",
-            c.attempt.outcome.as_str(),
+            "{who} set up and ran (`{}`, {} validation message(s)).",
+            a.outcome.as_str(),
             r.validation_errors
         ),
+    }
+}
+
+/// The axes where cell `other` differs from `cell` ("it differs in stage (raygen); "), empty
+/// where either is no cell id.
+fn differs(cell: Option<&str>, other: &str) -> String {
+    let (Some(a), Ok(b)) = (cell.and_then(|c| Cell::parse_id(c).ok()), Cell::parse_id(other))
+    else {
+        return String::new();
+    };
+    let axes: Vec<String> = crate::model::registry::names()
+        .filter(|x| a.axis_value(x) != b.axis_value(x))
+        .map(|x| format!("{x} {}", b.axis_value(x).unwrap_or_else(|| "none".into())))
+        .collect();
+    match axes.is_empty() {
+        true => String::new(),
+        false => format!("it differs in {}; ", axes.join(", ")),
     }
 }
 

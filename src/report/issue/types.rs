@@ -71,8 +71,8 @@ pub struct ShaderComparison {
 pub enum ValidationRun {
     NotRun(String),
     /// `layer`: the layer and its version; `attempt`: what the run recorded; `control`: where
-    /// the cell never ran (its worker failed first), a cell that passed in the run, re-run alone
-    /// under the same layer, to tell a fault of the cell's own setup from one of every setup.
+    /// the cell never ran (its worker failed in setup, before the cell's turn), a cell that
+    /// passed in the run, re-run alone under the same layer: what it did is shown as observed.
     Ran {
         layer: String,
         attempt: Box<Attempt>,
