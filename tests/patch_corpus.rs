@@ -452,10 +452,16 @@ fn an_append_queue_verifies_every_time() {
         let (o, _d) = verify_cli(APPEND.inputs, APPEND.patches, &[], &[("LP_NUM_THREADS", "8")]);
         assert!(o.status.success(), "run {i}: {}", stderr(&o));
         let s = stdout(&o);
+        // The queue in the unpatched order is compared; in another order it is said and not
+        // counted (the image decides): never a failure for the driver's scheduling.
         assert!(
-            s.contains("storage buffer set 0 binding 4[0]: 16388 4-byte words identical"),
+            s.contains("storage buffer set 0 binding 4[0]: 16388 4-byte words identical")
+                || s.contains(
+                    "storage buffer set 0 binding 4[0]: the same records in another order"
+                ),
             "run {i}: {s}"
         );
+        assert!(s.contains("texels identical"), "run {i}: {s}");
         println!("run {i}: {}", s.lines().find(|l| l.contains("binding 4")).unwrap_or_default());
     }
 }

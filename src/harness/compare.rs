@@ -61,9 +61,10 @@ impl Compared {
         }
     }
 
-    /// Whether the output can tell a wrong read from a right one: written, more than one value.
+    /// Whether the output can tell a wrong read from a right one: written, more than one value,
+    /// and compared in place (a reordered atomically written buffer is not).
     fn informative(&self) -> bool {
-        self.written > 0 && self.distinct > 1
+        self.written > 0 && self.distinct > 1 && !self.reordered
     }
 }
 
@@ -72,14 +73,16 @@ impl Compared {
 /// two unpatched runs is unstable and left out; a buffer unit equal to its initial fill in every
 /// run was not written and is left out; a length difference counts as differing units.
 ///
-/// A buffer whose block ends in an array of records ([`Part::records`]) and which has unstable
-/// units or is written through atomics ([`Part::scheduled`]) differs in none when the words
-/// before the array are identical in place (unstable ones aside) and its records, each
-/// `ArrayStride` bytes whole, are the same multiset: the order an append queue fills in is the
-/// driver's scheduling (two unpatched runs may fill it in the same order by chance and the
-/// patched one in another; CI saw 8402 of 16388 words move). Whole records, never loose words:
-/// a patch that swaps two fields of every record still differs. Images never: a texel's place
-/// is its pixel.
+/// A buffer written through atomics ([`Part::scheduled`]) whose block ends in an array
+/// ([`Part::records`]) and whose words differ in place but not as records (the words before the
+/// array identical in place, unstable ones aside; the array's `ArrayStride`-byte elements the
+/// same multiset) is `reordered`: the order an append queue fills in is the driver's scheduling
+/// (two unpatched runs may fill it in the same order by chance and the patched one in another;
+/// CI saw 8402 of 16388 words move). Such a buffer counts as no difference and as no evidence
+/// either: its in-place comparison failed, and a multiset cannot tell a record moved by the
+/// driver from one a wrong read put at another index (review: a pixel-indexed array beside an
+/// atomic counter; fields of a `uint data[]` queue swapped). The verdict then rests on the other
+/// outputs, else the run is unfit. Unstable units alone never allow a multiset; images never.
 pub fn compare(before: &[Part], again: &[Part], after: &[Part]) -> Vec<Compared> {
     before.iter().zip(again).zip(after).map(|((b, g), a)| compare_one(b, g, a)).collect()
 }
@@ -110,10 +113,8 @@ fn compare_one<'a>(b: &'a Part, g: &'a Part, a: &'a Part) -> Compared {
     }
     // Units only the patched output has (the loop counted those only the unpatched one has).
     differing += as_.len().saturating_sub(bs.len());
-    let reordered = (unstable > 0 || b.scheduled)
-        && differing > 0
-        && b.kind == PartKind::Buffer
-        && same_records(b, g, a);
+    let reordered =
+        b.scheduled && differing > 0 && b.kind == PartKind::Buffer && same_records(b, g, a);
     if reordered {
         differing = 0;
     }
@@ -195,22 +196,20 @@ pub fn judge(device: &str, compared: &[Compared]) -> Verdict {
 
 /// ", N … left out: they differ between two unpatched runs" when any were.
 fn unstable_note(c: &Compared) -> String {
-    let order = if c.reordered {
-        "; the same words in another order: the driver's scheduling of an append queue"
-    } else {
-        ""
-    };
     if c.unstable == 0 {
-        return if c.reordered { format!(" ({})", &order[2..]) } else { String::new() };
+        return String::new();
     }
     format!(
-        " ({} {} left out: they differ between two runs of the unpatched pipeline{order})",
+        " ({} {} left out: they differ between two runs of the unpatched pipeline)",
         c.unstable,
         c.unit()
     )
 }
 
 fn identical_line(device: &str, c: &Compared) -> String {
+    if c.reordered {
+        return format!("on {device}: {}: the same records in another order (written through atomics: the order is the driver's scheduling); not compared in place, not counted{}", c.label, unstable_note(c));
+    }
     if c.kind == PartKind::Buffer && c.written == 0 {
         return format!("on {device}: {}: not written by the trace (its initial data in every run; not counted){}", c.label, unstable_note(c));
     }
@@ -334,14 +333,26 @@ mod tests {
         let run1 = part(PartKind::Buffer, &[3, 10, 20, 30, 40]);
         let run2 = part(PartKind::Buffer, &[3, 20, 10, 30, 40]);
         let patched = part(PartKind::Buffer, &[3, 30, 20, 10, 40]);
+        // Not written through atomics: unstable units left out, the rest compared in place.
         let c = compare(
             std::slice::from_ref(&run1),
             std::slice::from_ref(&run2),
             std::slice::from_ref(&patched),
         );
-        assert_eq!((c[0].unstable, c[0].differing), (2, 0), "{c:?}");
+        assert_eq!((c[0].unstable, c[0].differing, c[0].reordered), (2, 1, false), "{c:?}");
+        let q = |p: &Part| Part { scheduled: true, ..p.clone() };
+        let img = part(PartKind::Image, &[1, 2, 3]);
+        let c = compare(
+            &[img.clone(), q(&run1)],
+            &[img.clone(), q(&run2)],
+            &[img.clone(), q(&patched)],
+        );
+        assert_eq!((c[1].unstable, c[1].differing, c[1].reordered), (2, 0, true), "{c:?}");
         match judge("dev", &c) {
-            Verdict::Identical(l) => assert!(l[0].contains("2 4-byte words left out"), "{l:?}"),
+            Verdict::Identical(l) => assert!(
+                l[1].contains("2 4-byte words left out") && l[1].contains("not counted"),
+                "{l:?}"
+            ),
             v => panic!("{v:?}"),
         }
         // Twin: a value the unpatched runs never hold is a difference.
@@ -364,8 +375,12 @@ mod tests {
         (run.scheduled, patched.scheduled) = (true, true);
         let c = cmp(std::slice::from_ref(&run), std::slice::from_ref(&patched));
         assert_eq!((c[0].unstable, c[0].differing, c[0].reordered), (0, 0, true), "{c:?}");
+        // No difference, but no evidence either: alone it cannot verify.
+        assert!(matches!(judge("dev", &c), Verdict::Unfit(_)), "{c:?}");
+        let img = part(PartKind::Image, &[1, 2, 3]);
+        let c = cmp(&[img.clone(), run.clone()], &[img, patched.clone()]);
         match judge("dev", &c) {
-            Verdict::Identical(l) => assert!(l[0].contains("in another order"), "{l:?}"),
+            Verdict::Identical(l) => assert!(l[1].contains("in another order"), "{l:?}"),
             v => panic!("{v:?}"),
         }
         // Twin: one record changed is a difference, whatever the order.

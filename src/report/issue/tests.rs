@@ -362,7 +362,7 @@ fn a_validation_run_that_never_reached_the_cell_says_who_crashed_where() {
 
 /// The README tour's validation run: the worker crashed in the cell's trace step (the injected
 /// fault, as in the run). The cell ran under the layer up to its trace, so it is no "never ran":
-/// the finding reproduced under the layer, with the layer's messages from the stderr tail. The
+/// the cell ended the same way in the same step under the layer, with the layer's messages from the stderr tail. The
 /// twins: a run that recorded another fault says so; no message in the tail says that.
 #[test]
 fn a_validation_run_that_crashed_mid_cell_reproduced_the_finding() {
@@ -406,7 +406,10 @@ fn a_validation_run_that_crashed_mid_cell_reproduced_the_finding() {
         );
         assert!(t.contains("1 validation message(s) in the worker's stderr before it"), "{t}");
     }
-    assert!(same.contains(": the finding reproduced under the layer"), "{same}");
+    assert!(
+        same.contains(": the cell ended the same way in the same step under the layer"),
+        "{same}"
+    );
     assert!(mismatch.contains("not the fault the run recorded (mismatch"), "{mismatch}");
     assert!(text(&entry, "").contains("No validation message in the worker's stderr before it."));
 }

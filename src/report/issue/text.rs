@@ -404,7 +404,7 @@ fn mid_cell(layer: &str, rep: Option<&CellReport>, a: &crate::model::Attempt) ->
     let run = rep.and_then(worst);
     let same = run.is_some_and(|r| r.outcome == a.outcome && r.phase == a.phase);
     let how = match (same, run) {
-        (true, _) => "the finding reproduced under the layer".to_string(),
+        (true, _) => "the cell ended the same way in the same step under the layer".to_string(),
         (false, Some(r)) => format!(
             "not the fault the run recorded ({}{})",
             r.outcome.as_str(),
