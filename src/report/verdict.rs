@@ -85,10 +85,10 @@ pub fn verdict(r: &RunReport, allow_improvements: bool) -> Verdict {
         (Some(_), None) => None,
         (None, _) if findings + worker_faults == 0 => None,
         (None, _) => Some(
-            [(findings, "finding"), (worker_faults, "worker fault outside cells")]
+            [(findings, "finding", ""), (worker_faults, "worker fault", " outside cells")]
                 .iter()
-                .filter(|(n, _)| *n > 0)
-                .map(|(n, w)| plural(*n, w))
+                .filter(|(n, _, _)| *n > 0)
+                .map(|(n, w, tail)| plural(*n, w) + tail)
                 .collect::<Vec<_>>()
                 .join(", ")
                 + &outside_spec_note(r, findings),
