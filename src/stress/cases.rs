@@ -305,6 +305,13 @@ fn tmin() -> Vec<Part> {
     parts
 }
 
+/// The watertight case's part `label` (seed 1; `--full`'s when `full`), for unit tests.
+#[cfg(test)]
+pub(crate) fn watertight_part(full: bool, label: &str) -> Part {
+    let opts = StressOptions { cases: vec![], seed: 1, full };
+    build(CaseKind::Watertight, &opts).unwrap().into_iter().find(|p| p.label == label).unwrap()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

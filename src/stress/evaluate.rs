@@ -351,6 +351,11 @@ mod tests {
     use super::*;
     use crate::stress::{cases, one_mesh, Mesh, Ray, RayInfo, StressOptions, TracedHit};
 
+    /// The hit of `ray` on `primitive` where the f64 reference crosses it (`p`), as f32.
+    fn traced_on(ray: &Ray, primitive: u32, p: &PlaneHit) -> Traced {
+        traced(ray, Some(primitive), p.t as f32, [p.bary[0] as f32, p.bary[1] as f32])
+    }
+
     fn traced(ray: &Ray, primitive: Option<u32>, t: f32, bary: [f32; 2]) -> Traced {
         Traced {
             hit: primitive.map(|primitive| TracedHit {
@@ -380,12 +385,7 @@ mod tests {
     /// margin of an edge of a near-vertical sliver, so each answer is legitimate.
     #[test]
     fn lavapipe_26s_answers_beside_slivers_are_neither_wrong_nor_over_tolerance() {
-        let opts = StressOptions { cases: vec![], seed: 1, full: false };
-        let square = cases::build(CaseKind::Watertight, &opts)
-            .unwrap()
-            .into_iter()
-            .find(|p| p.label == "square-1024")
-            .unwrap();
+        let square = cases::watertight_part(false, "square-1024");
         // (origin bits, lavapipe's primitive, t, barycentrics) as reports/lavapipe-26/stress.json
         // printed them (each an f32 written out as f64: exact).
         let answers: [([u32; 3], u32, f64, [f64; 2]); 6] = [
@@ -460,12 +460,7 @@ mod tests {
     /// Sliver 193 of `square-1024` and the ray lavapipe 26 hit it with (a legitimate answer):
     /// the part holding only that ray, and the reference's hit and margins on 193.
     fn sliver_193() -> (Part, PlaneHit, Margins) {
-        let opts = StressOptions { cases: vec![], seed: 1, full: false };
-        let mut part = cases::build(CaseKind::Watertight, &opts)
-            .unwrap()
-            .into_iter()
-            .find(|p| p.label == "square-1024")
-            .unwrap();
+        let mut part = cases::watertight_part(false, "square-1024");
         let ray = Ray {
             origin: bits3([0x3e9e958e, 0x3f111103, 0xbf7dfdab]),
             tmin: 0.0,
@@ -578,7 +573,7 @@ mod tests {
         // Inside A by ~0.6 of the margin: 0.0x in barycentrics, far beyond the 3D-altitude
         // margin (~2e-5) that called this a wrong hit.
         assert!(pb.inside < -1e-3, "{}", pb.inside);
-        let tb = traced(&ray, Some(1), pb.t as f32, [pb.bary[0] as f32, pb.bary[1] as f32]);
+        let tb = traced_on(&ray, 1, &pb);
         let with = |tr: Traced| {
             let mut p = steep_pair();
             p.rays = vec![ray];
@@ -605,7 +600,7 @@ mod tests {
             p.info = vec![RayInfo { must_hit: false }];
             one(p, vec![tr])
         };
-        let r = with(traced(&ray, Some(1), pb.t as f32, [pb.bary[0] as f32, pb.bary[1] as f32]));
+        let r = with(traced_on(&ray, 1, &pb));
         assert_eq!((r.metrics.wrong_hits, r.metrics.ambiguous), (1, 0), "{:?}", r.detail);
         assert_eq!(r.verdict, Verdict::Fail);
         let r = with(traced(&ray, None, 0.0, [0.0; 2]));
@@ -671,7 +666,7 @@ mod tests {
         let (ray, _) = beside_the_diagonal(&steep_pair(), 1.3);
         let b = resolve(&steep_pair(), 0, 1, &ray).unwrap();
         let pb = watertight::plane(b.o, b.d, b.v).unwrap();
-        let wrong = traced(&ray, Some(1), pb.t as f32, [pb.bary[0] as f32, pb.bary[1] as f32]);
+        let wrong = traced_on(&ray, 1, &pb);
         let r = one(steep_with(vec![ray, ray]), vec![traced(&ray, None, 0.0, [0.0; 2]), wrong]);
         assert_eq!(r.examples.len(), 2, "{:?}", r.examples);
         let bits = format!(
@@ -706,7 +701,7 @@ mod tests {
         let (ray, _) = beside_the_diagonal(&steep_pair(), 1.3);
         let a = resolve(&steep_pair(), 0, 0, &ray).unwrap();
         let pa = watertight::plane(a.o, a.d, a.v).unwrap();
-        let right = traced(&ray, Some(0), pa.t as f32, [pa.bary[0] as f32, pa.bary[1] as f32]);
+        let right = traced_on(&ray, 0, &pa);
         let r = one(steep_with(vec![ray; 3]), vec![right; 3]);
         assert_eq!((r.verdict, r.examples.len()), (Verdict::Pass, 0), "{:?}", r.examples);
         let miss = traced(&ray, None, 0.0, [0.0; 2]);
