@@ -6,7 +6,6 @@ use crate::fleet::baseline::Scope;
 use crate::model::report::RunOptions;
 use crate::model::report::{PlanSummary, ResultOption, SceneSummary, TimingSummary, SCHEMA};
 use crate::model::{Baseline, Cell, RunPlan, RunReport, SceneParams};
-use crate::reference::SceneReference;
 use crate::report::time;
 use crate::report::writer::ReportWriter;
 use crate::scene::Scene;
@@ -33,7 +32,6 @@ pub fn fresh(
     started: u64,
 ) -> RunReport {
     let scene = Scene::build(&params);
-    let sref = SceneReference::compute(&scene);
     RunReport {
         schema: SCHEMA.into(),
         tool: json!({ "name": "rtprobe", "version": env!("CARGO_PKG_VERSION") }),
@@ -50,7 +48,7 @@ pub fn fresh(
             instances: scene.instances.len(),
             blas: scene.meshes.len() + 1,
             triangles: scene.triangle_count(),
-            ambiguous_pixels: sref.ambiguous_pixels(),
+            ambiguous_pixels: crate::reference::ambiguous_primaries(&scene),
         },
         options,
         plan: PlanSummary {

@@ -72,14 +72,47 @@ pub struct SceneReference {
     as_table: Vec<([f32; 4], bool)>,
 }
 
+/// How many of `scene`'s primary rays are ambiguous (what [`SceneReference::ambiguous_pixels`]
+/// counts), traced alone — no AS probe rays — on every core: the supervisor's scene summary needs
+/// only this count, and the whole reference is the worker's.
+pub fn ambiguous_primaries(scene: &Scene) -> usize {
+    let (w, h) = (scene.params.width, scene.params.height);
+    let rows = on_every_core(h, |y| {
+        (0..w)
+            .filter(|&x| {
+                let (o, d) = scene.primary_ray(x, y);
+                intersect::trace(scene, o, d, |_| true).ambiguous
+            })
+            .count()
+    });
+    rows.into_iter().sum()
+}
+
+/// `row(y)` for every `y` below `rows`, in order, the rows spread over every core (the
+/// reference is pure and per pixel: the same results as one thread, sooner).
+fn on_every_core<T: Send>(rows: u32, row: impl Fn(u32) -> T + Sync) -> Vec<T> {
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let threads = threads.min(rows as usize).max(1) as u32;
+    let chunk = rows.div_ceil(threads);
+    let row = &row;
+    std::thread::scope(|s| {
+        let parts: Vec<_> = (0..threads)
+            .map(|t| {
+                s.spawn(move || (t * chunk..rows.min((t + 1) * chunk)).map(row).collect::<Vec<T>>())
+            })
+            .collect();
+        parts
+            .into_iter()
+            .flat_map(|p| p.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .collect::<Vec<T>>()
+    })
+}
+
 impl SceneReference {
     pub fn compute(scene: &Scene) -> Self {
         let (w, h) = (scene.params.width, scene.params.height);
         let n = scene.instances.len() as u32;
         let variants = probe::as_variants(scene.params.instances);
-        let mut full = Vec::with_capacity(scene.params.pixels());
-        let mut probe_rays: Vec<Vec<TraceRef>> =
-            (0..variants).map(|_| Vec::with_capacity(scene.params.pixels())).collect();
         let with_floor: Vec<(u32, &crate::scene::Instance)> = scene
             .instances
             .iter()
@@ -87,17 +120,29 @@ impl SceneReference {
             .map(|(k, i)| (k as u32, i))
             .chain(std::iter::once((n, &scene.floor)))
             .collect();
-        for y in 0..h {
-            for x in 0..w {
-                let (o, d) = scene.primary_ray(x, y);
-                full.push(intersect::trace(scene, o, d, |_| true));
-                let cands =
-                    intersect::candidates(scene, o, probe::PROBE_DIR, with_floor.iter().copied());
-                for (v, rays) in probe_rays.iter_mut().enumerate() {
-                    rays.push(intersect::resolve(&cands, |h| {
-                        h.instance_id == n || probe::as_variant_has(v as u32, h.instance_id)
-                    }));
-                }
+        // One pixel: its primary ray, and the AS probe ray through every variant.
+        let pixel = |x: u32, y: u32| {
+            let (o, d) = scene.primary_ray(x, y);
+            let full = intersect::trace(scene, o, d, |_| true);
+            let cands =
+                intersect::candidates(scene, o, probe::PROBE_DIR, with_floor.iter().copied());
+            let probes: Vec<TraceRef> = (0..variants)
+                .map(|v| {
+                    intersect::resolve(&cands, |h| {
+                        h.instance_id == n || probe::as_variant_has(v, h.instance_id)
+                    })
+                })
+                .collect();
+            (full, probes)
+        };
+        let rows = on_every_core(h, |y| (0..w).map(|x| pixel(x, y)).collect::<Vec<_>>());
+        let mut full = Vec::with_capacity(scene.params.pixels());
+        let mut probe_rays: Vec<Vec<TraceRef>> =
+            (0..variants).map(|_| Vec::with_capacity(scene.params.pixels())).collect();
+        for (f, probes) in rows.into_iter().flatten() {
+            full.push(f);
+            for (rays, t) in probe_rays.iter_mut().zip(probes) {
+                rays.push(t);
             }
         }
         let as_table = (0..full.len())

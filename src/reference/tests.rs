@@ -971,3 +971,28 @@ fn check_cost() {
         t_cmp / n
     );
 }
+
+/// The supervisor's count of ambiguous primary rays is the worker's reference's, on the default
+/// scene and on another seed (a count that ignored some rows or threads would differ).
+#[test]
+fn ambiguous_primaries_match_the_full_reference() {
+    let (scene, r) = world();
+    assert!(r.ambiguous_pixels() > 0, "the default scene has ambiguous pixels to count");
+    assert_eq!(ambiguous_primaries(scene), r.ambiguous_pixels());
+    let other = Scene::build(&SceneParams { seed: 7, ..SceneParams::default() });
+    assert_eq!(ambiguous_primaries(&other), SceneReference::compute(&other).ambiguous_pixels());
+}
+
+/// The reference is computed on every core: each pixel's primary trace still sits at its own
+/// index (a row shuffled by the split would put another pixel's hit there).
+#[test]
+fn the_reference_on_every_core_keeps_each_pixel_in_place() {
+    let (scene, r) = world();
+    let w = scene.params.width;
+    for p in (0..r.full.len()).step_by(97).chain([r.full.len() - 1]) {
+        let (o, d) = scene.primary_ray(p as u32 % w, p as u32 / w);
+        assert_eq!(r.full[p], intersect::trace(scene, o, d, |_| true), "pixel {p}");
+    }
+    assert_eq!(r.full.len(), scene.params.pixels());
+    assert!(r.probe.iter().all(|v| v.len() == r.full.len()));
+}
