@@ -173,6 +173,14 @@ pub struct LaneSplit {
     /// (absent in older reports: not known, so never called lane 0).
     #[serde(default)]
     pub leader_outside_named_lane0: Split,
+    /// Of `leader_outside`: the pixel their leader words name, while every one names the same
+    /// (a constant leader word looks like this too); `None` once two differ, or with none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub leader_outside_one_pixel: Option<usize>,
+    /// Of `leader_outside`: their leader words name more than one pixel (absent in older
+    /// reports: not known).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub leader_outside_several_pixels: bool,
     /// Of `contradicted`: the calls those leaders ran in ([`Contradicted::LeaderOwnCall`]).
     #[serde(default)]
     pub leader_own_call: Split,
@@ -200,11 +208,12 @@ impl LaneSplit {
     }
 
     /// Count one probe pixel of a subgroup whose records contradict each other, of `kind`, its
-    /// call having lane 0 active or not, the pixel its leader word names recorded as lane 0 or not.
+    /// call having lane 0 active or not, the pixel its leader word names (`named`) recorded as
+    /// lane 0 or not.
     pub fn add_contradicted(
         &mut self,
         kind: Contradicted,
-        (lane0_active, named_lane0): (bool, bool),
+        (lane0_active, named_lane0, named): (bool, bool, usize),
         failed: bool,
     ) {
         self.contradicted.add(failed);
@@ -217,6 +226,15 @@ impl LaneSplit {
                 }
                 if named_lane0 {
                     self.leader_outside_named_lane0.add(failed);
+                }
+                match (self.leader_outside_one_pixel, self.leader_outside_several_pixels) {
+                    (_, true) => {}
+                    (None, false) => self.leader_outside_one_pixel = Some(named),
+                    (Some(p), false) if p == named => {}
+                    (Some(_), false) => {
+                        self.leader_outside_one_pixel = None;
+                        self.leader_outside_several_pixels = true;
+                    }
                 }
             }
             Contradicted::LeaderOwnCall => self.leader_own_call.add(failed),
@@ -244,10 +262,25 @@ impl LaneSplit {
             true => "in calls without lane 0".to_string(),
             false => format!("in calls ({} of their pixels without lane 0)", lane0.pixels),
         };
-        let pixel = match named.pixels {
-            0 => "a pixel outside the call".to_string(),
-            n if n == out.pixels => "lane 0's pixel, outside the call".to_string(),
-            n => format!("a pixel outside the call (lane 0's by its own record for {n} of them)"),
+        // "Lane 0" only by the named pixel's own record: lane 0 of some call, not known to be
+        // of theirs. One pixel named by all is also what a constant leader word gives.
+        let distinct = match (self.leader_outside_one_pixel, self.leader_outside_several_pixels) {
+            (Some(p), _) => {
+                Some(format!("pixel {p} for all of them, as a constant leader word would give"))
+            }
+            (None, true) => Some("more than one pixel in all".to_string()),
+            (None, false) => None,
+        };
+        let lane0 = match named.pixels {
+            0 => None,
+            n if n == out.pixels => {
+                Some("the named pixel's own record says lane 0 for all of them".to_string())
+            }
+            n => Some(format!("the named pixel's own record says lane 0 for {n} of them")),
+        };
+        let pixel = match [distinct, lane0].into_iter().flatten().collect::<Vec<_>>() {
+            v if v.is_empty() => "a pixel outside the call".to_string(),
+            v => format!("a pixel outside the call ({})", v.join("; ")),
         };
         let rule = "the leader must be the lowest active lane, subgroupBroadcastFirst = OpGroupNonUniformBroadcastFirst";
         let rule = match self.evidence {
@@ -258,7 +291,7 @@ impl LaneSplit {
             "{calls} whose leader word names {pixel} ({rule}), {} of {} pixels mismatched",
             out.failed, out.pixels
         );
-        if every {
+        if every && self.leader_outside_several_pixels {
             t += " — consistent with a value taken from lane 0 while it is not in the call";
         }
         if own.pixels > 0 {
@@ -391,15 +424,15 @@ mod tests {
     fn a_leader_outside_the_call_is_evidence_and_garbage_stays_garbage() {
         let mut s = LaneSplit { evidence: LaneEvidence::Forced, ..Default::default() };
         s.add((0, 0b11, 20, 20), false);
-        for _ in 0..3 {
-            s.add_contradicted(Contradicted::LeaderOutsideCall, (false, false), true);
+        for p in [8, 8, 16] {
+            s.add_contradicted(Contradicted::LeaderOutsideCall, (false, false, p), true);
         }
-        s.add_contradicted(Contradicted::LeaderOutsideCall, (false, false), false);
-        s.add_contradicted(Contradicted::LeaderOwnCall, (true, false), false);
+        s.add_contradicted(Contradicted::LeaderOutsideCall, (false, false, 16), false);
+        s.add_contradicted(Contradicted::LeaderOwnCall, (true, false, 8), false);
         assert_eq!(s.contradicted, Split { pixels: 5, failed: 3 });
         let t = s.sentence("closest_hit");
         assert!(
-            t.starts_with("mismatches by lane 0 of the subgroup: in calls without lane 0 whose leader word names a pixel outside the call (in a valid shader the leader must be the lowest active lane, subgroupBroadcastFirst = OpGroupNonUniformBroadcastFirst), 3 of 4 pixels mismatched — consistent with a value taken from lane 0 while it is not in the call; in the calls their leaders ran in (left out with them) 0 of 1; where the lane words hold, where it was inactive in the call 0 of 0 pixels, where active 0 of 1")
+            t.starts_with("mismatches by lane 0 of the subgroup: in calls without lane 0 whose leader word names a pixel outside the call (more than one pixel in all) (in a valid shader the leader must be the lowest active lane, subgroupBroadcastFirst = OpGroupNonUniformBroadcastFirst), 3 of 4 pixels mismatched — consistent with a value taken from lane 0 while it is not in the call; in the calls their leaders ran in (left out with them) 0 of 1; where the lane words hold, where it was inactive in the call 0 of 0 pixels, where active 0 of 1")
                 && !t.contains("garbage"),
             "{t}"
         );
@@ -412,20 +445,32 @@ mod tests {
         let judged = LaneSplit { evidence: LaneEvidence::Supported, ..s.clone() };
         let j = judged.sentence("raygen");
         assert!(j.contains("(the cross-record check they fail: the leader must be"), "{j}");
-        // the named pixel's own record says lane 0: named so
+        // the named pixels' own records say lane 0: said so, of those pixels, not of the calls
         let mut named = LaneSplit { evidence: LaneEvidence::Forced, ..Default::default() };
-        named.add_contradicted(Contradicted::LeaderOutsideCall, (false, true), true);
-        named.add_contradicted(Contradicted::LeaderOutsideCall, (false, true), true);
+        named.add_contradicted(Contradicted::LeaderOutsideCall, (false, true, 8), true);
+        named.add_contradicted(Contradicted::LeaderOutsideCall, (false, true, 40), true);
         let n = named.sentence("closest_hit");
-        assert!(n.contains("whose leader word names lane 0's pixel, outside the call ("), "{n}");
-        s.add_contradicted(Contradicted::Garbage, (true, false), true);
+        assert!(n.contains("whose leader word names a pixel outside the call (more than one pixel in all; the named pixel's own record says lane 0 for all of them) ("), "{n}");
+        assert!(n.contains("consistent with a value taken from lane 0"), "{n}");
+        // twin: every call names one pixel — a constant leader word gives that too, so no
+        // lane 0 story is told
+        let mut one = LaneSplit { evidence: LaneEvidence::Forced, ..Default::default() };
+        one.add_contradicted(Contradicted::LeaderOutsideCall, (false, true, 0), true);
+        one.add_contradicted(Contradicted::LeaderOutsideCall, (false, true, 0), true);
+        let o = one.sentence("closest_hit");
+        assert!(
+            o.contains("(pixel 0 for all of them, as a constant leader word would give; the named"),
+            "{o}"
+        );
+        assert!(!o.contains("consistent with a value taken from lane 0"), "{o}");
+        s.add_contradicted(Contradicted::Garbage, (true, false, 3), true);
         let t = s.sentence("closest_hit");
         assert!(
             t.contains("(garbage lane data, left out above) 1 of 1 pixels") && t.contains("3 of 4"),
             "{t}"
         );
         // one call with lane 0 among them: counted, not called lane 0's signature
-        s.add_contradicted(Contradicted::LeaderOutsideCall, (true, false), true);
+        s.add_contradicted(Contradicted::LeaderOutsideCall, (true, false, 24), true);
         let t = s.sentence("closest_hit");
         assert!(
             t.contains("in calls (4 of their pixels without lane 0) whose leader word")

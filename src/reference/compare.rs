@@ -286,9 +286,11 @@ pub fn compare_with(
             (true, None) => {
                 split.add((a.lane, a.active_mask, a.leader as usize, i), !bad.is_empty())
             }
-            (true, Some((c, _))) => {
-                split.add_contradicted(c.kind, (c.lane0_active, c.named_lane0), !bad.is_empty())
-            }
+            (true, Some((c, _))) => split.add_contradicted(
+                c.kind,
+                (c.lane0_active, c.named_lane0, c.named),
+                !bad.is_empty(),
+            ),
             (false, _) => {}
         }
         if !bad.is_empty() {

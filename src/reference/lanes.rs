@@ -185,6 +185,8 @@ pub struct Contradiction {
     /// The pixel its leader word names carries lane words of its own, and they say lane 0 (on
     /// lavapipe 26's closest-hit it is a miss pixel, without them: not known to be lane 0).
     pub named_lane0: bool,
+    /// The pixel its leader word names.
+    pub named: usize,
 }
 
 /// The leader rule, as a pixel whose call's leader word names a pixel outside the call fails it.
@@ -301,6 +303,7 @@ fn contradicted(
                 why,
                 lane0_active: records[q].active_mask & 1 != 0,
                 named_lane0: leader_lane == Some(0),
+                named: l,
             });
         }
     }
