@@ -160,3 +160,89 @@ pub fn text(examples: &[Example]) -> String {
     }
     s
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::evaluate::evaluate;
+    use super::super::result::TriangleRole;
+    use super::super::{one_mesh, CaseKind, Instance, Mesh, Part, Ray, RayInfo, Traced};
+
+    /// A fold: A (z = 0) and B, sharing A's diagonal x + y = 1 and rising towards (1, 1) so that
+    /// beside the diagonal, inside A, B's plane lies *before* A's along +z.
+    fn fold() -> Mesh {
+        Mesh {
+            positions: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.5]],
+            indices: vec![[0, 1, 2], [1, 3, 2]],
+            inactive: vec![false, false],
+        }
+    }
+
+    /// A +z ray 1e-6 inside A from the diagonal (inside the ray-space margin, ~7.6e-6, so B is a
+    /// candidate: its plane crossing at t = 1 − 1e-6, before A's at t = 1).
+    fn beside_the_fold() -> Ray {
+        let x = 0.5f32 - 1e-6;
+        Ray { origin: [x, x, -1.0], tmin: 0.0, dir: [0.0, 0.0, 1.0], tmax: 1e30 }
+    }
+
+    fn leak_of(part: Part) -> super::super::result::Example {
+        let n = part.rays.len();
+        let r = evaluate(CaseKind::Watertight, &[part], &[vec![Traced::default(); n]]);
+        assert_eq!(r.metrics.leaks, 1, "{:?}", r.detail);
+        r.examples.into_iter().find(|e| e.kind == "leak").expect("a leak example")
+    }
+
+    fn part(scene: super::super::Scene, ray: Ray) -> Part {
+        Part {
+            label: "fold".into(),
+            distance: None,
+            scene,
+            rays: vec![ray],
+            info: vec![RayInfo { must_hit: true }],
+            ray_flags: 0,
+        }
+    }
+
+    /// Item 1 of issue 22's leftovers: the example's `reference` is the triangle the f64
+    /// reference's answer lies on (A, whose closed shadow holds the crossing), not the candidate
+    /// with the smallest t (B, within the margin only); B is listed, labelled `near`.
+    #[test]
+    fn the_reference_is_the_triangle_holding_the_crossing_not_the_nearest_candidate() {
+        let e = leak_of(part(one_mesh(fold()), beside_the_fold()));
+        let (primitive, t, inside) = e.reference.expect("a reference answer");
+        assert_eq!(primitive, 0, "{e:?}");
+        assert!((t - 1.0).abs() < 1e-12 && inside >= 0.0, "{e:?}");
+        let b = e.triangles.iter().find(|t| t.primitive == 1).expect("B listed");
+        assert_eq!(b.role, TriangleRole::Near, "{b:?}");
+        assert!(b.t < 1.0, "B's plane is crossed first: {b:?}");
+    }
+
+    /// Item 2: under an instance transform (scale 2, moved by (10, 20, 30)) the triangles'
+    /// vertices are printed in world space, where the ray is: the crossing the weights give
+    /// from them is the ray's point at t.
+    #[test]
+    fn under_an_instance_transform_the_vertices_are_in_world_space() {
+        let transform = [[2.0, 0.0, 0.0, 10.0], [0.0, 2.0, 0.0, 20.0], [0.0, 0.0, 2.0, 30.0]];
+        let scene = super::super::Scene {
+            meshes: vec![fold()],
+            instances: vec![Instance { transform, mesh: 0 }],
+        };
+        let o = [0.3f32, 0.2, -1.0];
+        let ray = Ray {
+            origin: [2.0 * o[0] + 10.0, 2.0 * o[1] + 20.0, 2.0 * o[2] + 30.0],
+            tmin: 0.0,
+            dir: [0.0, 0.0, 2.0],
+            tmax: 1e30,
+        };
+        let e = leak_of(part(scene, ray));
+        let a = e.triangles.iter().find(|t| t.primitive == 0).expect("A listed");
+        let at: Vec<f64> = (0..3)
+            .map(|c| (0..3).map(|k| a.weights[k] * a.vertices[k][c] as f64).sum())
+            .collect();
+        for c in 0..3 {
+            let want = ray.origin[c] as f64 + a.t * ray.dir[c] as f64;
+            assert!((at[c] - want).abs() < 1e-4, "axis {c}: {at:?} against {want}: {a:?}");
+        }
+        let text = super::text(std::slice::from_ref(&e));
+        assert!(text.contains("world space"), "{text}");
+    }
+}
