@@ -37,7 +37,7 @@ fn stress_report_has_every_case_with_the_contract_fields() {
     let svg_dir = tempfile::tempdir().unwrap();
     let svg_path = svg_dir.path().join("far.svg");
     let (out, doc, _dir) = stress(&["--svg", svg_path.to_str().unwrap()]);
-    assert_eq!(doc["schema"], "rtprobe.stress/2");
+    assert_eq!(doc["schema"], "rtprobe.stress/3");
     // The stress pipeline itself is valid usage (when the layer is installed, tests enable it).
     assert_eq!(doc["validation"]["errors"], 0, "{}", stderr(&out));
     let names: Vec<&str> =
