@@ -189,7 +189,9 @@ fn triangle_text(t: &RefTriangle) -> String {
     let [a, b, c] = &t.vertex_bits;
     match (&t.object_vertex_bits, &t.transform_bits) {
         (Some([oa, ob, oc]), Some([r0, r1, r2])) => {
-            s.push_str(&format!("      world space (the ray's, rounded to f32): v0 {a}  v1 {b}  v2 {c}\n"));
+            s.push_str(&format!(
+                "      world space (the ray's, rounded to f32): v0 {a}  v1 {b}  v2 {c}\n"
+            ));
             s.push_str(&format!("      object space (the BLAS's): v0 {oa}  v1 {ob}  v2 {oc}\n"));
             s.push_str(&format!("      instance transform rows: {r0} | {r1} | {r2}\n"));
         }
@@ -310,9 +312,8 @@ mod tests {
         };
         let e = leak_of(part(scene, ray));
         let a = e.triangles.iter().find(|t| t.primitive == 0).expect("A listed");
-        let at: Vec<f64> = (0..3)
-            .map(|c| (0..3).map(|k| a.weights[k] * a.vertices[k][c] as f64).sum())
-            .collect();
+        let at: Vec<f64> =
+            (0..3).map(|c| (0..3).map(|k| a.weights[k] * a.vertices[k][c] as f64).sum()).collect();
         for c in 0..3 {
             let want = ray.origin[c] as f64 + a.t * ray.dir[c] as f64;
             assert!((at[c] - want).abs() < 1e-4, "axis {c}: {at:?} against {want}: {a:?}");

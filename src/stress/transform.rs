@@ -75,6 +75,21 @@ pub fn parts(rng: &mut Rng) -> Vec<Part> {
     out
 }
 
+/// The object-space winding of the triangle `t` hit (`None`: no hit, or no such triangle).
+fn winding(p: &Part, r: &Ray, t: &Traced) -> Option<bool> {
+    let h = t.hit?;
+    let inst = &p.scene.instances[h.instance as usize];
+    let mesh = &p.scene.meshes[inst.mesh];
+    let tri = mesh.indices.get(h.primitive as usize)?;
+    let (o, d) = watertight::object_ray(
+        &inst.transform,
+        watertight::to_f64(r.origin),
+        watertight::to_f64(r.dir),
+    );
+    watertight::plane(o, d, tri.map(|i| watertight::to_f64(mesh.positions[i as usize])))
+        .map(|ph| ph.det_positive)
+}
+
 /// Facing and culling errors over the parts of [`parts`]: hits whose hit kind disagrees with
 /// the majority mapping from object-space winding to hit kind (or a mapping that does not
 /// separate the two windings), and culled traces that keep a hit of the culled facing or drop
@@ -95,17 +110,7 @@ pub fn facing_errors(
             .zip(tr)
             .map(|(r, t)| {
                 on_ray();
-                let h = t.hit?;
-                let inst = &p.scene.instances[h.instance as usize];
-                let mesh = &p.scene.meshes[inst.mesh];
-                let tri = mesh.indices.get(h.primitive as usize)?;
-                let (o, d) = watertight::object_ray(
-                    &inst.transform,
-                    watertight::to_f64(r.origin),
-                    watertight::to_f64(r.dir),
-                );
-                watertight::plane(o, d, tri.map(|i| watertight::to_f64(mesh.positions[i as usize])))
-                    .map(|ph| ph.det_positive)
+                winding(p, r, t)
             })
             .collect();
         if p.ray_flags == 0 {
@@ -231,7 +236,8 @@ mod tests {
         use std::cell::Cell;
         let opts = StressOptions { cases: vec![CaseKind::Transform], seed: 1, full: false };
         let parts = crate::stress::cases::build(CaseKind::Transform, &opts).unwrap();
-        let traced: Vec<_> = parts.iter().map(|p| Facing { world: false }.trace(p).unwrap()).collect();
+        let traced: Vec<_> =
+            parts.iter().map(|p| Facing { world: false }.trace(p).unwrap()).collect();
         let rays: usize = parts.iter().map(|p| p.rays.len()).sum();
         let triangles: usize = parts
             .iter()

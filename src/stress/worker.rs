@@ -196,7 +196,11 @@ impl Counters {
             .map(|m| m.indices.len() as u64)
             .sum();
         let facing = if kind == CaseKind::Transform { rays } else { 0 };
-        Counters { step: AtomicUsize::new(0), done: Default::default(), total: [triangles, rays, facing] }
+        Counters {
+            step: AtomicUsize::new(0),
+            done: Default::default(),
+            total: [triangles, rays, facing],
+        }
     }
 }
 
