@@ -21,6 +21,7 @@ const WRITE_ONLY: &[&str] = &[
     "rtprobe.caps/2",
     "rtprobe.stress/1",
     "rtprobe.stress/2",
+    "rtprobe.stress/3",
     "rtprobe.bench/1",
 ];
 

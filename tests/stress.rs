@@ -37,7 +37,7 @@ fn stress_report_has_every_case_with_the_contract_fields() {
     let svg_dir = tempfile::tempdir().unwrap();
     let svg_path = svg_dir.path().join("far.svg");
     let (out, doc, _dir) = stress(&["--svg", svg_path.to_str().unwrap()]);
-    assert_eq!(doc["schema"], "rtprobe.stress/2");
+    assert_eq!(doc["schema"], "rtprobe.stress/3");
     // The stress pipeline itself is valid usage (when the layer is installed, tests enable it).
     assert_eq!(doc["validation"]["errors"], 0, "{}", stderr(&out));
     let names: Vec<&str> =
@@ -272,6 +272,43 @@ fn a_check_slower_than_the_deadline_without_heartbeats_is_killed() {
     assert_eq!(tmin["verdict"], "timeout", "{tmin}");
     let detail = tmin["detail"].as_str().unwrap();
     assert!(detail.contains("was silent for 12s and was killed at `check`"), "{detail}");
+}
+
+/// Issue 22 leftovers, item 3: building the reference's grid (`stress::index::Index::build`)
+/// slower than the silence deadline (12 s here) — the test hook spreads 16 s over the case's
+/// triangles — reports the triangles placed (`index: k/n triangles`), so the worker is not
+/// killed and the case ends with its own verdict.
+#[test]
+fn an_index_build_slower_than_the_deadline_with_progress_is_not_killed() {
+    let (out, doc) = stress_env(
+        &["--cases", "tmin", "--timeout", "1"],
+        &[("RTPROBE_STRESS_FAULT", "tmin:slow_index:16"), ("RTPROBE_PROGRESS_SECS", "5")],
+    );
+    let tmin = case(&doc, "tmin");
+    assert_eq!(tmin["verdict"], "pass", "{tmin}");
+    assert!(f(tmin, "ms") > 16_000.0, "the hook ran: {tmin}");
+    let err = stderr(&out);
+    let moved = err.lines().any(|l| {
+        l.split("stress tmin: index: ")
+            .nth(1)
+            .is_some_and(|r| r.ends_with(" triangles") && !r.starts_with("0/"))
+    });
+    assert!(moved, "a line with triangles placed: {err}");
+}
+
+/// The twin: a grid build that stalls (no triangle placed for longer than the deadline) is
+/// killed at `index`, its case a `timeout`: the heartbeat speaks only on progress.
+#[test]
+fn an_index_build_that_stalls_is_killed_at_index() {
+    let (out, doc) = stress_env(
+        &["--cases", "tmin", "--timeout", "1"],
+        &[("RTPROBE_STRESS_FAULT", "tmin:stalled_index:16")],
+    );
+    assert_eq!(out.status.code(), Some(1), "{}", stdout(&out));
+    let tmin = case(&doc, "tmin");
+    assert_eq!(tmin["verdict"], "timeout", "{tmin}");
+    let detail = tmin["detail"].as_str().unwrap();
+    assert!(detail.contains("was silent for 12s and was killed at `index`"), "{detail}");
 }
 
 /// Ray queries in a compute shader trace the same rays: on lavapipe (one intersection routine)

@@ -451,7 +451,7 @@ pub struct StressArgs {
     #[arg(long)]
     pub full: bool,
 
-    /// Write the JSON report (schema rtprobe.stress/2) to FILE, atomically
+    /// Write the JSON report (schema rtprobe.stress/3) to FILE, atomically
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
 

@@ -29,7 +29,7 @@ use super::index::Index;
 use super::margin::{candidates, crossings, margins, resolve, Candidate, Margins, Resolved};
 pub use super::margin::{ulp_f32, BARY_TOL, ON_EDGE_EPS, T_EPS, T_REL_TOL, ULPS_OF_SCALE};
 pub use super::result::{CaseResult, Example, Metrics, PartResult, Verdict, EXAMPLES_PER_KIND};
-use super::{CaseKind, Part, Traced};
+use super::{CaseKind, Part, Traced, Work};
 use crate::reference::watertight::{self, PlaneHit};
 
 /// Object-space built-ins (CTS `builtin`: ≈3.8e-6).
@@ -253,24 +253,26 @@ impl Acc {
 /// duplicate any-hits, hits outside the tolerance, facing errors), warn on double hits outside
 /// the ambiguity margin, pass otherwise.
 pub fn evaluate(kind: CaseKind, parts: &[Part], traced: &[Vec<Traced>]) -> CaseResult {
-    evaluate_counting(kind, parts, traced, &|| {})
+    evaluate_counting(kind, parts, traced, &|_| {})
 }
 
-/// [`evaluate`], calling `on_ray` after each ray is judged (a worker's heartbeat counts them).
+/// [`evaluate`], calling `on_work` after each triangle placed in a part's grid, each ray
+/// judged and each ray's facing found (a worker's heartbeat counts them).
 pub fn evaluate_counting(
     kind: CaseKind,
     parts: &[Part],
     traced: &[Vec<Traced>],
-    on_ray: &dyn Fn(),
+    on_work: &dyn Fn(Work),
 ) -> CaseResult {
     let mut total = Acc::default();
     let mut results = Vec::new();
+    let mut indices = Vec::new();
     for (part, tr) in parts.iter().zip(traced) {
         let mut acc = Acc::default();
-        let index = Index::build(part);
+        let index = Index::build_reporting(part, &|| on_work(Work::Indexed));
         for (i, t) in tr.iter().enumerate() {
             acc.add(part, &index, i, t);
-            on_ray();
+            on_work(Work::Judged);
         }
         total.merge(&acc);
         results.push(PartResult {
@@ -278,13 +280,14 @@ pub fn evaluate_counting(
             distance: part.distance,
             metrics: acc.finish(),
         });
+        indices.push(index);
     }
     let mut examples = std::mem::take(&mut total.examples);
     let mut metrics = total.finish();
     if kind == CaseKind::Transform {
-        let errors = super::transform::facing_errors(parts, traced);
+        let errors = super::transform::facing_errors(parts, traced, &|| on_work(Work::Faced));
         metrics.facing_errors = errors.len();
-        examples.extend(facing_examples(parts, traced, &errors));
+        examples.extend(facing_examples(parts, &indices, traced, &errors));
     }
     let (verdict, detail) = verdict(&metrics);
     CaseResult {
@@ -298,9 +301,11 @@ pub fn evaluate_counting(
     }
 }
 
-/// Examples of facing errors (ray `i` of part `p`), at most [`EXAMPLES_PER_KIND`] per part.
+/// Examples of facing errors (ray `i` of part `p`; `indices`: each part's grid), at most
+/// [`EXAMPLES_PER_KIND`] per part.
 fn facing_examples(
     parts: &[Part],
+    indices: &[Index],
     traced: &[Vec<Traced>],
     errors: &[(usize, usize)],
 ) -> Vec<Example> {
@@ -310,7 +315,7 @@ fn facing_examples(
         if out.iter().filter(|e| e.part == part.label).count() >= EXAMPLES_PER_KIND {
             continue;
         }
-        let cands = candidates(part, &Index::build(part), &part.rays[i]);
+        let cands = candidates(part, &indices[p], &part.rays[i]);
         out.push(super::examples::build("facing_error", part, i, &traced[p][i], &cands));
     }
     out
@@ -680,7 +685,8 @@ mod tests {
             assert_eq!((e.kind.as_str(), e.part.as_str(), e.ray), (kind, "steep", Some(ray_index)));
             assert_eq!(e.bits[0], bits);
             let a = &e.triangles[0];
-            assert_eq!((a.primitive, a.role), (0, super::super::result::TriangleRole::Contains));
+            assert_eq!((a.primitive, a.role), (0, super::super::result::TriangleRole::Expected));
+            assert_eq!(e.reference.map(|r| r.0), Some(0), "{e:?}");
             assert_eq!(a.vertex_bits[2], "3f800000 3a83126f 3f800000", "{a:?}");
             assert!(a.edge_distance > a.margin && a.margin > 0.0, "{a:?}");
             assert!((1.0..2.0).contains(&a.t), "{a:?}");

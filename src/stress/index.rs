@@ -63,6 +63,13 @@ impl Grid {
 
 impl Index {
     pub fn build(part: &Part) -> Index {
+        Self::build_reporting(part, &|| {})
+    }
+
+    /// [`Index::build`], calling `on_triangle` once for each triangle of every instance: when it
+    /// is placed in its cells (the build's time), listed (a small part: no grid) or skipped
+    /// (inactive, not finite), so a long build on a big part shows progress.
+    pub fn build_reporting(part: &Part, on_triangle: &dyn Fn()) -> Index {
         let mut all = Vec::new();
         let mut boxes = Vec::new();
         let mut shadows = Vec::new();
@@ -80,11 +87,13 @@ impl Index {
             };
             for (p, tri) in mesh.indices.iter().enumerate() {
                 if mesh.inactive[p] {
+                    on_triangle();
                     continue;
                 }
                 let v = tri.map(|i| world(mesh.positions[i as usize]));
                 let (lo, hi) = (v[0].min(v[1]).min(v[2]), v[0].max(v[1]).max(v[2]));
                 if !(lo.is_finite() && hi.is_finite()) {
+                    on_triangle();
                     continue;
                 }
                 let pad =
@@ -95,6 +104,7 @@ impl Index {
             }
         }
         if all.len() <= BRUTE_FORCE {
+            all.iter().for_each(|_| on_triangle());
             return Index { all, grid: None };
         }
         let lo = boxes.iter().fold(DVec3::splat(f64::MAX), |a, b| a.min(b.0));
@@ -103,6 +113,7 @@ impl Index {
         let mut grid = Grid { lo, hi, n, cells: vec![Vec::new(); n * n] };
         for (i, (blo, bhi)) in boxes.iter().enumerate() {
             let (tri, pad) = shadows[i];
+            on_triangle();
             for y in grid.cell(blo.y, 1)..=grid.cell(bhi.y, 1) {
                 for x in grid.cell(blo.x, 0)..=grid.cell(bhi.x, 0) {
                     if grid.overlaps(x, y, &tri, pad) {

@@ -29,7 +29,7 @@ pub mod worker;
 pub(crate) use types::one_mesh;
 pub use types::{
     CaseKind, Instance, Mesh, Part, Ray, RayInfo, Scene, StressOptions, TraceError, Traced,
-    TracedHit, Tracer, IDENTITY,
+    TracedHit, Tracer, Work, IDENTITY,
 };
 
 /// What tracing one case gave: its parts with what the tracer returned for each, the parts and
@@ -65,18 +65,19 @@ pub fn trace_case(tracer: &mut dyn Tracer, kind: CaseKind, opts: &StressOptions)
 
 /// Judge a traced case against the reference (the CPU work of a case).
 pub fn judge(kind: CaseKind, trace: &CaseTrace) -> evaluate::CaseResult {
-    judge_counting(kind, trace, &|| {})
+    judge_counting(kind, trace, &|_| {})
 }
 
-/// [`judge`], calling `on_ray` after each ray is judged (a worker's heartbeat counts them).
+/// [`judge`], calling `on_work` after each unit of work — a triangle placed in the reference's
+/// grid, a ray judged, a ray's facing found (a worker's heartbeat counts them).
 pub fn judge_counting(
     kind: CaseKind,
     trace: &CaseTrace,
-    on_ray: &dyn Fn(),
+    on_work: &dyn Fn(Work),
 ) -> evaluate::CaseResult {
     match trace {
         CaseTrace::Traced(parts, traced) => {
-            evaluate::evaluate_counting(kind, parts, traced, on_ray)
+            evaluate::evaluate_counting(kind, parts, traced, on_work)
         }
         CaseTrace::Failed(parts, e) => evaluate::CaseResult::failed(kind, parts, e),
         CaseTrace::NotImplemented => evaluate::CaseResult::not_implemented(kind),

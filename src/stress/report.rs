@@ -2,7 +2,11 @@
 //! (`"schema": "rtprobe.stress/2"`) with the tolerances it was judged by. Schema 2 (issue 22):
 //! margins in ray space, `ambiguous` rays counted, double hits split into warnings (outside
 //! the margin) and `double_hits_in_margin`, verdict `warn`; `excluded` (column `excl`): the
-//! ambiguous rays where a miss would be no leak.
+//! ambiguous rays where a miss would be no leak. Schema 3 (issue 22's leftovers): an example's
+//! `reference` is the reference's answer (the closest triangle holding the f64 crossing, with
+//! `reference_instance`), not the candidate with the smallest t; its triangles' `vertices` are
+//! in world space (under a transform with `object_vertex_bits` and `transform_bits`), and role
+//! `expected` labels the answer.
 use super::evaluate::{self, CaseResult, Metrics, Verdict};
 use serde_json::{json, Value};
 
@@ -91,7 +95,7 @@ pub fn json(
     cases: &[CaseResult],
 ) -> Value {
     json!({
-        "schema": "rtprobe.stress/2",
+        "schema": "rtprobe.stress/3",
         "rtprobe_version": env!("CARGO_PKG_VERSION"),
         "device": device,
         "tracer": tracer,

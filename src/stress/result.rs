@@ -115,8 +115,14 @@ pub struct Example {
     pub tmax: f32,
     /// The same four vectors as f32 bit patterns (exact reproduction).
     pub bits: [String; 2],
-    /// The reference's closest possible hit: (primitive, t, smallest barycentric).
+    /// The reference's answer (`examples::expected`): the closest triangle whose closed shadow
+    /// holds the f64 crossing between tmin and tmax, as (primitive, t, smallest weight); the one
+    /// a leak should have hit. `None` where the f64 ray crosses no triangle. (Schema 2 named the
+    /// candidate with the smallest t, which could be one only within a margin.)
     pub reference: Option<(u32, f64, f64)>,
+    /// The instance of that triangle.
+    #[serde(default)]
+    pub reference_instance: Option<u32>,
     /// That hit's ambiguity margin at its nearest edge (barycentric, measured in ray space).
     pub reference_margin: Option<f64>,
     /// Distinct crossings the reference counts.
@@ -129,9 +135,10 @@ pub struct Example {
     pub candidates: u32,
     /// (instance << 24 | primitive) + 1 of the first two candidates any-hit counted.
     pub first_candidates: [u32; 2],
-    /// The reference's triangles for this ray: those whose closed shadow holds the f64 crossing
-    /// first, then the nearest the ray may hit within their margins, then the one the device
-    /// reported where it is none of these (at most [`TRIANGLES_PER_EXAMPLE`] + 1).
+    /// The reference's triangles for this ray, each labelled with its role: its answer first,
+    /// then the others whose closed shadow holds the f64 crossing, then the nearest the ray may
+    /// hit within their margins, then the one the device reported where it is none of these (at
+    /// most [`TRIANGLES_PER_EXAMPLE`] + 1).
     #[serde(default)]
     pub triangles: Vec<RefTriangle>,
 }
@@ -140,6 +147,8 @@ pub struct Example {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum TriangleRole {
+    /// The reference's answer (`Example::reference`): the closest triangle holding the crossing.
+    Expected,
     /// The f64 crossing lies inside or on its edges: exactly, the ray hits it.
     Contains,
     /// Outside it, but within an edge's ambiguity margin: an f32 traversal may report it.
@@ -154,14 +163,22 @@ pub struct RefTriangle {
     pub role: TriangleRole,
     pub instance: u32,
     pub primitive: u32,
-    /// Its vertices in object space (f32, as the BLAS holds them) and their bit patterns.
+    /// Its vertices in world space, the space the ray is in, and their bit patterns: the BLAS's
+    /// f32 vertices where the instance transform is the identity, else those under the transform
+    /// (in f64) rounded to f32. (Schema 2 listed object space.)
     pub vertices: [[f32; 3]; 3],
     pub vertex_bits: [String; 3],
+    /// Under an instance transform other than the identity: the vertices as the BLAS holds them
+    /// (object space, f32 bits) and the transform's three rows (f32 bits), for exact replay.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub object_vertex_bits: Option<[String; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub transform_bits: Option<[String; 3]>,
     /// Where the ray crosses its plane: t and the weights of (v0, v1, v2) (f64).
     pub t: f64,
     pub weights: [f64; 3],
     /// The signed ray-space distance from the crossing to its nearest edge's line (positive
-    /// inside), in object-space units.
+    /// inside; the edge nearest in ray space, not the smallest weight's), in object-space units.
     pub edge_distance: f64,
     /// The ray-space position error allowed (64 ulps of the coordinates' scale): a crossing
     /// closer to an edge than about this may fall either side in f32.

@@ -39,10 +39,12 @@ pub struct Supervised {
     pub every: Duration,
 }
 
-/// `trace square-65536: 131072/2268142 rays`
+/// `trace square-65536: 131072/2268142 rays`, `index: 4096/65536 triangles`
 pub fn describe(p: &Progress) -> String {
     match (p.done, p.total) {
-        (Some(done), Some(total)) => format!("{}: {done}/{total} rays", p.step),
+        (Some(done), Some(total)) => {
+            format!("{}: {done}/{total} {}", p.step, p.unit.as_deref().unwrap_or("rays"))
+        }
         _ => p.step.clone(),
     }
 }

@@ -93,6 +93,18 @@ pub enum TraceError {
     Compile(#[source] crate::shadergen::compile::CompileError),
 }
 
+/// One unit of the CPU's judging of a case, reported as it is done: a worker's heartbeat counts
+/// them, so that every long step of the check shows progress (issue 22).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Work {
+    /// One triangle placed in the reference's spatial grid (`index::Index::build`).
+    Indexed,
+    /// One ray judged against the reference (`evaluate`).
+    Judged,
+    /// One ray's facing found (`transform::facing_errors`).
+    Faced,
+}
+
 /// Traces every ray of a part: the device, or a CPU intersector.
 pub trait Tracer {
     fn name(&self) -> String;

@@ -2,22 +2,25 @@
 //! It opens the device the job names with what the stress pipeline needs, traces the case's
 //! parts (a progress line before each part and after each submission of its rays, with the rays
 //! traced so far: the parent's deadline follows the device work), then judges them on the CPU (a
-//! heartbeat line every [`BEAT`] in which more rays were judged, and only then: a hang in the
-//! driver or a stalled check stays silent and is killed at the parent's deadline) and writes a [`CaseOutput`] to the job's result file (tmp + rename). A driver
-//! crash kills this process and nothing else: the parent records it as the case's outcome.
+//! heartbeat line every [`BEAT`] in which the check moved — triangles placed in the reference's
+//! grid (`index`), rays judged (`check`), rays' facing found (`facing`) — and only then: a hang
+//! in the driver or a stalled check stays silent and is killed at the parent's deadline) and
+//! writes a [`CaseOutput`] to the job's result file (tmp + rename). A driver crash kills this
+//! process and nothing else: the parent records it as the case's outcome.
 //!
 //! Test hook: `RTPROBE_STRESS_FAULT=<case>:<crash|hang>` makes that case's worker raise SIGSEGV
-//! or sleep forever where its first part would be traced; `<case>:slow_check:SECS` makes its
-//! check take SECS more, spread over its rays (slow, progressing), and `<case>:stalled_check:SECS`
-//! stalls it SECS before its first ray, heartbeat running (`tests/stress.rs`).
+//! or sleep forever where its first part would be traced; `<case>:slow_<step>:SECS` makes the
+//! check's step (`index`, `check` or `facing`) take SECS more, spread over its units (slow,
+//! progressing), and `<case>:stalled_<step>:SECS` stalls it SECS at its first unit, heartbeat
+//! running (`tests/stress.rs`).
 use super::gpu::{GpuTracer, Mode};
 use super::result::{CaseResult, Verdict};
-use super::{CaseKind, Part, StressOptions, TraceError, Traced, Tracer};
+use super::{CaseKind, Part, StressOptions, TraceError, Traced, Tracer, Work};
 use crate::vk::{features, Gpu, Instance, InstanceOptions};
 use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -46,8 +49,9 @@ pub struct CaseOutput {
 }
 
 /// One line of progress on stdout: `setup`, `ready`, `trace PART` (before a part, and after
-/// each submission with the part's rays traced: `done` of `total`), `check` (a heartbeat, with
-/// the case's rays judged: `done` of `total`).
+/// each submission with the part's rays traced: `done` of `total`), and the check's heartbeat:
+/// `index` (the case's triangles placed in the reference's grids), `check` (its rays judged),
+/// `facing` (its rays' facing found), each `done` of `total` `unit`s.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Progress {
     pub step: String,
@@ -55,13 +59,16 @@ pub struct Progress {
     pub done: Option<u64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub total: Option<u64>,
+    /// What `done` counts: `rays` where absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub unit: Option<String>,
 }
 
 /// How often the check's heartbeat speaks.
 pub const BEAT: Duration = Duration::from_secs(2);
 
 fn say(step: impl Into<String>) {
-    tell(Progress { step: step.into(), done: None, total: None });
+    tell(Progress { step: step.into(), done: None, total: None, unit: None });
 }
 
 fn tell(p: Progress) {
@@ -76,11 +83,22 @@ fn tell(p: Progress) {
 enum Hook {
     Crash,
     Hang,
-    /// The check takes this much longer, spread over its rays.
-    SlowCheck(Duration),
-    /// The check stalls this long before its first ray, its heartbeat running.
-    StalledCheck(Duration),
+    /// The check's step takes this much longer, spread over its units.
+    Slow(Work, Duration),
+    /// The check's step stalls this long at its first unit, the heartbeat running.
+    Stalled(Work, Duration),
 }
+
+/// The heartbeat's name of each step of the check, and its unit.
+fn step_of(w: Work) -> (usize, &'static str, &'static str) {
+    match w {
+        Work::Indexed => (0, "index", "triangles"),
+        Work::Judged => (1, "check", "rays"),
+        Work::Faced => (2, "facing", "rays"),
+    }
+}
+
+const STEPS: [Work; 3] = [Work::Indexed, Work::Judged, Work::Faced];
 
 fn hook(case: &str) -> Option<Hook> {
     let v = std::env::var("RTPROBE_STRESS_FAULT").ok()?;
@@ -89,12 +107,19 @@ fn hook(case: &str) -> Option<Hook> {
         return None;
     }
     let secs = |s: &str| s.parse::<f64>().ok().filter(|s| s.is_finite() && *s >= 0.0);
+    let step = |name: &str| STEPS.into_iter().find(|&w| step_of(w).1 == name);
     Some(match how.split_once(':') {
         None if how == "crash" => Hook::Crash,
         None if how == "hang" => Hook::Hang,
-        Some(("slow_check", s)) => Hook::SlowCheck(Duration::from_secs_f64(secs(s)?)),
-        Some(("stalled_check", s)) => Hook::StalledCheck(Duration::from_secs_f64(secs(s)?)),
-        _ => return None,
+        Some((h, s)) => {
+            let d = Duration::from_secs_f64(secs(s)?);
+            match h.split_once('_')? {
+                ("slow", w) => Hook::Slow(step(w)?, d),
+                ("stalled", w) => Hook::Stalled(step(w)?, d),
+                _ => return None,
+            }
+        }
+        None => return None,
     })
 }
 
@@ -119,7 +144,7 @@ impl Tracer for Announced {
             Some(Hook::Hang) => loop {
                 std::thread::sleep(Duration::from_secs(3600));
             },
-            Some(Hook::SlowCheck(_) | Hook::StalledCheck(_)) | None => {}
+            Some(Hook::Slow(..) | Hook::Stalled(..)) | None => {}
         }
         let step = format!("trace {}", part.label);
         self.inner.on_chunk(Box::new(move |done, total| {
@@ -127,6 +152,7 @@ impl Tracer for Announced {
                 step: step.clone(),
                 done: Some(done as u64),
                 total: Some(total as u64),
+                unit: None,
             })
         }));
         self.inner.trace(part)
@@ -147,22 +173,60 @@ fn open(job: &CaseJob) -> Result<GpuTracer, String> {
     GpuTracer::new(gpu, Duration::from_millis(job.timeout_ms), mode).map_err(|e| e.to_string())
 }
 
-/// Prints `check` with the rays judged so far when it starts and then every [`BEAT`] in which
-/// more were judged: a check that stops judging goes silent, and the parent's deadline kills
-/// it (stops when dropped).
+/// What the check has done: per step (`step_of`) the units done and their total, and the step
+/// it is in.
+struct Counters {
+    step: AtomicUsize,
+    done: [AtomicU64; 3],
+    total: [u64; 3],
+}
+
+impl Counters {
+    /// The counters of judging `trace`'s parts: their triangles, rays, and rays again where the
+    /// case finds facing (`transform`).
+    fn of(kind: CaseKind, trace: &super::CaseTrace) -> Counters {
+        let parts: &[Part] = match trace {
+            super::CaseTrace::Traced(parts, _) => parts,
+            _ => &[],
+        };
+        let rays: u64 = parts.iter().map(|p| p.rays.len() as u64).sum();
+        let triangles = parts
+            .iter()
+            .flat_map(|p| p.scene.instances.iter().map(|i| &p.scene.meshes[i.mesh]))
+            .map(|m| m.indices.len() as u64)
+            .sum();
+        let facing = if kind == CaseKind::Transform { rays } else { 0 };
+        Counters {
+            step: AtomicUsize::new(0),
+            done: Default::default(),
+            total: [triangles, rays, facing],
+        }
+    }
+}
+
+/// Prints the check's step with its units done when it starts and then every [`BEAT`] in which
+/// it moved (more units done, or the next step begun): a check that stops moving goes silent,
+/// and the parent's deadline kills it (stops when dropped).
 struct Heartbeat(Arc<AtomicBool>);
 
 impl Heartbeat {
-    fn start(checked: Arc<AtomicU64>, total: u64) -> Heartbeat {
+    fn start(c: Arc<Counters>) -> Heartbeat {
         let on = Arc::new(AtomicBool::new(true));
         let flag = on.clone();
         std::thread::spawn(move || {
             let mut told = None;
             while flag.load(Ordering::Relaxed) {
-                let done = Some(checked.load(Ordering::Relaxed));
-                if done != told {
-                    tell(Progress { step: "check".into(), done, total: Some(total) });
-                    told = done;
+                let k = c.step.load(Ordering::Relaxed);
+                let now = (k, c.done[k].load(Ordering::Relaxed));
+                if Some(now) != told {
+                    let (_, step, unit) = step_of(STEPS[k]);
+                    tell(Progress {
+                        step: step.into(),
+                        done: Some(now.1),
+                        total: Some(c.total[k]),
+                        unit: Some(unit.into()),
+                    });
+                    told = Some(now);
                 }
                 std::thread::sleep(BEAT);
             }
@@ -175,6 +239,29 @@ impl Drop for Heartbeat {
     fn drop(&mut self) {
         self.0.store(false, Ordering::Relaxed);
     }
+}
+
+/// Judges `trace`, the heartbeat counting each unit of work and the test hook slowing or
+/// stalling its step.
+fn judge(kind: CaseKind, trace: &super::CaseTrace, hook: Option<Hook>) -> CaseResult {
+    let c = Arc::new(Counters::of(kind, trace));
+    let _beat = Heartbeat::start(c.clone());
+    let stalled = AtomicBool::new(false);
+    let on_work = |w: Work| {
+        let (k, _, _) = step_of(w);
+        c.step.store(k, Ordering::Relaxed);
+        match hook {
+            Some(Hook::Slow(h, d)) if h == w => {
+                std::thread::sleep(d / c.total[k].max(1) as u32);
+            }
+            Some(Hook::Stalled(h, d)) if h == w && !stalled.swap(true, Ordering::Relaxed) => {
+                std::thread::sleep(d);
+            }
+            Some(Hook::Crash | Hook::Hang | Hook::Slow(..) | Hook::Stalled(..)) | None => {}
+        }
+        c.done[k].fetch_add(1, Ordering::Relaxed);
+    };
+    super::judge_counting(kind, trace, &on_work)
 }
 
 fn run(job: &CaseJob, kind: CaseKind) -> CaseResult {
@@ -192,27 +279,7 @@ fn run(job: &CaseJob, kind: CaseKind) -> CaseResult {
     let opts = StressOptions { cases: vec![kind], seed: job.seed, full: job.full };
     let start = std::time::Instant::now();
     let trace = super::trace_case(&mut tracer, kind, &opts);
-    let total = match &trace {
-        super::CaseTrace::Traced(parts, _) => parts.iter().map(|p| p.rays.len() as u64).sum(),
-        _ => 0,
-    };
-    let checked = Arc::new(AtomicU64::new(0));
-    let _beat = Heartbeat::start(checked.clone(), total);
-    let pause = match hook {
-        Some(Hook::StalledCheck(d)) => {
-            std::thread::sleep(d);
-            Duration::ZERO
-        }
-        Some(Hook::SlowCheck(d)) => d / total.max(1) as u32,
-        _ => Duration::ZERO,
-    };
-    let on_ray = || {
-        if !pause.is_zero() {
-            std::thread::sleep(pause);
-        }
-        checked.fetch_add(1, Ordering::Relaxed);
-    };
-    let mut r = super::judge_counting(kind, &trace, &on_ray);
+    let mut r = judge(kind, &trace, hook);
     r.ms = start.elapsed().as_secs_f64() * 1e3;
     r
 }
