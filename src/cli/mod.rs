@@ -12,6 +12,10 @@ pub mod output_dir;
 pub mod patch;
 pub mod patch_inputs;
 mod patch_verify;
+pub mod shader;
+mod shader_exec;
+mod shader_plan;
+mod shader_report;
 pub mod paths;
 pub mod plan;
 pub mod progress;
@@ -171,6 +175,7 @@ pub fn main_entry() -> u8 {
         Command::Worker { job } => return crate::runner::worker::main(job),
         Command::StressWorker { job } => return crate::stress::worker::main(job),
         Command::VerifyWorker { job } => return crate::harness::child::main(job),
+        Command::ShaderWorker { job } => return crate::harness::run::main(job),
     };
     match result {
         Ok(code) => code,

@@ -13,10 +13,12 @@
 //! verification's outcome, not the end of rtprobe.
 pub mod child;
 mod compare;
+pub mod entry;
 mod error;
 pub mod ints;
 pub mod reflect;
 mod resources;
+pub mod run;
 pub mod scene;
 
 pub use compare::{compare, judge, Compared, Part, PartKind, Verdict};
