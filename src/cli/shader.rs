@@ -36,6 +36,9 @@ const TAKEN: &[&str] = &[
     "repeat",
     "validate",
     "verbose",
+    // clap's ids of the argument groups themselves.
+    "RunArgs",
+    "Cli",
 ];
 
 /// One line for the first argument given that `--shader` does not take.
@@ -81,14 +84,21 @@ fn device(g: &Globals, a: &RunArgs, plan: &ShaderPlan) -> Result<(usize, String)
     if !missing.is_empty() {
         return Err(coded(
             exit::UNSUPPORTED_DEVICE,
-            format!("--shader: {} cannot run the pipeline: missing {}", info.name(), missing.join(", ")),
+            format!(
+                "--shader: {} cannot run the pipeline: missing {}",
+                info.name(),
+                missing.join(", ")
+            ),
         ));
     }
     let max_hit = info.properties.rt_pipeline.map_or(0, |p| p.max_ray_hit_attribute_size);
     let desc = crate::harness::run::pipeline_desc(&plan.modules, max_hit);
     let words: Vec<&[u32]> = plan.modules.iter().map(|m| m.words.as_slice()).collect();
     crate::interface::check(&words, &desc).map_err(|e| {
-        coded(exit::BAD_INPUT, format!("--shader: the pipeline does not fit the harness's layout: {e}"))
+        coded(
+            exit::BAD_INPUT,
+            format!("--shader: the pipeline does not fit the harness's layout: {e}"),
+        )
     })?;
     Ok((info.index, info.name()))
 }
@@ -161,7 +171,10 @@ fn run_all(ctx: &Ctx, plan: &ShaderPlan) -> Result<(Vec<Ran>, Patched)> {
     let mut patched = Vec::new();
     for v in &plan.variants {
         let name = v.patch.as_str();
-        patched.push((name.to_string(), shader_exec::run_variant(ctx, name, &v.modules, Some(&v.contract))?));
+        patched.push((
+            name.to_string(),
+            shader_exec::run_variant(ctx, name, &v.modules, Some(&v.contract))?,
+        ));
     }
     Ok((unpatched, patched))
 }
@@ -179,8 +192,9 @@ fn dump(dir: &Path, plan: &ShaderPlan, unpatched: &[Ran], patched: &Patched) -> 
             let Some(parts) = &r.parts else { continue };
             if Some(k) == first || r.attempt.differs.is_some() {
                 let prefix = format!("{name}-{}", k + 1);
-                super::shader_report::dump(dir, &prefix, &plan.modules, parts)
-                    .map_err(|e| coded(exit::BAD_INPUT, format!("--dump {}: {e:#}", dir.display())))?;
+                super::shader_report::dump(dir, &prefix, &plan.modules, parts).map_err(|e| {
+                    coded(exit::BAD_INPUT, format!("--dump {}: {e:#}", dir.display()))
+                })?;
             }
         }
     }

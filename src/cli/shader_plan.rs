@@ -60,8 +60,8 @@ fn differential(p: PatchName) -> bool {
 /// Reduce `input` to `--entry` where it has several entry points.
 fn entry(input: &mut Input, entry: Option<&str>) -> Result<()> {
     let bad = |e: String| coded(exit::BAD_INPUT, format!("{}: {e}", input.name));
-    let mut m = crate::patches::load(&spirv_tools::bytes(&input.words))
-        .map_err(|e| bad(e.to_string()))?;
+    let mut m =
+        crate::patches::load(&spirv_tools::bytes(&input.words)).map_err(|e| bad(e.to_string()))?;
     if m.entry_points.len() < 2 {
         return Ok(());
     }
@@ -159,16 +159,19 @@ fn variants(stages: &[Stage], val: &[Option<ValOptions>]) -> (Vec<PlannedVariant
             .collect();
         let applied = match pipeline::apply(&mut copy, &[p], &BTreeMap::new(), MAX_PUSH) {
             Ok(a) => a,
-            Err(e) if matches!(e.error, PatchError::NothingToPatch { .. }) => {
-                notes.push(format!("{} does not apply: {}", p.as_str(), e.error));
-                continue;
-            }
-            Err(e) => {
-                notes.push(format!("{} not run: {e}", p.as_str()));
-                continue;
-            }
+            Err(e) => match e.error {
+                PatchError::NothingToPatch { what, .. } => {
+                    notes.push(format!("{} does not apply: {what}", p.as_str()));
+                    continue;
+                }
+                error => {
+                    notes.push(format!("{} not run: {error}", p.as_str()));
+                    continue;
+                }
+            },
         };
-        let words: Vec<Vec<u32>> = copy.iter().map(|s| crate::patches::assemble(&s.module)).collect();
+        let words: Vec<Vec<u32>> =
+            copy.iter().map(|s| crate::patches::assemble(&s.module)).collect();
         let invalid = words.iter().zip(val).zip(&copy).find_map(|((w, o), s)| {
             match o.as_ref().map(|o| spirv_tools::validate(w, o)) {
                 Some(Validation::Invalid(m)) => Some(format!("{}: {m}", s.file)),
@@ -176,7 +179,10 @@ fn variants(stages: &[Stage], val: &[Option<ValOptions>]) -> (Vec<PlannedVariant
             }
         });
         if let Some(why) = invalid {
-            notes.push(format!("{} not run: the patched module fails spirv-val ({why})", p.as_str()));
+            notes.push(format!(
+                "{} not run: the patched module fails spirv-val ({why})",
+                p.as_str()
+            ));
             continue;
         }
         let modules = copy

@@ -1,7 +1,7 @@
 //! `run --shader`'s terminal summary (one line per variant, the notes, then `verdict: PASS|FAIL
 //! — …` as `run` says it) and its exit code (`run`'s: 1 for a finding, an `error` included, as
-//! for generated cells), and `--dump DIR`: every storage image of each variant's first attempt
-//! that ran, and of every attempt that differs, as PNG.
+//! for generated cells), and `--dump DIR`: every storage image the trace wrote, of each
+//! variant's first attempt that ran and of every attempt that differs, as PNG.
 use super::exit;
 use crate::harness::reflect::BindingKind;
 use crate::harness::{Part, PartKind, UserModule};
@@ -17,7 +17,9 @@ pub fn variant_line(v: &ShaderVariant) -> String {
     let head = format!("  {}: {} ({n} attempt{})", v.name, v.judgement.as_str(), plural_s(n));
     let tail = match v.judgement {
         Judgement::Pass => format!("outputs identical, {messages} validation messages"),
-        Judgement::Validation => format!("{messages} validation messages: not evidence about the driver"),
+        Judgement::Validation => {
+            format!("{messages} validation messages: not evidence about the driver")
+        }
         Judgement::Fault | Judgement::Unstable | Judgement::PatchDiffers | Judgement::Error => {
             v.incidence.as_ref().map(|i| i.label()).unwrap_or_default()
         }
@@ -107,9 +109,9 @@ fn rgb(f: ImageFormat, t: &[u8]) -> [u8; 3] {
             ImageFormat::Rgba32f | ImageFormat::Rg32f | ImageFormat::R32f => {
                 word(k).map_or(0, |w| unit(f32::from_le_bytes(w)))
             }
-            ImageFormat::Rgba16f => t
-                .get(2 * k..2 * k + 2)
-                .map_or(0, |b| unit(half(u16::from_le_bytes([b[0], b[1]])))),
+            ImageFormat::Rgba16f => {
+                t.get(2 * k..2 * k + 2).map_or(0, |b| unit(half(u16::from_le_bytes([b[0], b[1]]))))
+            }
             ImageFormat::Rgba8 => t.get(k).copied().unwrap_or(0),
             _ => word(k).map_or(0, |w| w[0]),
         };
@@ -117,10 +119,17 @@ fn rgb(f: ImageFormat, t: &[u8]) -> [u8; 3] {
     out
 }
 
-/// Write `parts`' storage images as `DIR/PREFIX-set-S-binding-B-K.png`; returns the paths.
-pub fn dump(dir: &Path, prefix: &str, modules: &[UserModule], parts: &[Part]) -> Result<Vec<PathBuf>> {
+/// Write `parts`' storage images as `DIR/PREFIX-set-S-binding-B-K.png` (not those left all
+/// zero: the harness clears every storage image before the trace); returns the paths.
+pub fn dump(
+    dir: &Path,
+    prefix: &str,
+    modules: &[UserModule],
+    parts: &[Part],
+) -> Result<Vec<PathBuf>> {
     let mut written = Vec::new();
-    for p in parts.iter().filter(|p| p.kind == PartKind::Image) {
+    let shown = |p: &&Part| p.kind == PartKind::Image && p.bytes.iter().any(|b| *b != 0);
+    for p in parts.iter().filter(shown) {
         let Some(f) = image_format(modules, &p.label) else { continue };
         let size = crate::harness::SIZE;
         let pixels: Vec<u8> =

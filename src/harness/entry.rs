@@ -15,8 +15,7 @@ fn name(i: &rspirv::dr::Instruction) -> Option<&str> {
 
 /// Keep only the entry point called `entry`; an error names the ones the module has.
 pub fn select_entry(m: &mut Module, entry: &str) -> Result<(), String> {
-    let names: Vec<String> =
-        m.entry_points.iter().filter_map(name).map(String::from).collect();
+    let names: Vec<String> = m.entry_points.iter().filter_map(name).map(String::from).collect();
     let Some(kept) = m.entry_points.iter().find(|e| name(e) == Some(entry)).cloned() else {
         return Err(format!(
             "has no entry point {entry:?}; its entry points: {}",

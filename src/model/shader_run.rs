@@ -246,7 +246,8 @@ mod tests {
 
     #[test]
     fn a_device_loss_outranks_a_difference() {
-        let a = [attempt(Outcome::Pass, 0, Some("x differs")), attempt(Outcome::DeviceLost, 0, None)];
+        let a =
+            [attempt(Outcome::Pass, 0, Some("x differs")), attempt(Outcome::DeviceLost, 0, None)];
         let (o, j, _, i) = judge_variant(&a, true);
         assert_eq!((o, j), (Outcome::DeviceLost, Judgement::Fault));
         assert_eq!(i.map(|i| (i.faulted, i.attempts)), Some((2, 2)));
