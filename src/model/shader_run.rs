@@ -169,12 +169,13 @@ pub fn judge_variant(
         judged.iter().filter(|j| j.0 != Outcome::Error).collect();
     let (n, k) = (evidence.len() as u32, evidence.iter().filter(|j| j.0.is_finding()).count());
     let k = k as u32;
-    let incidence = (outcome.is_finding() && n > 0).then(|| Incidence {
-        faulted: k,
-        attempts: n,
-        reproduced_alone: None,
-        miss_probability: super::stats::miss(k as f64 / n as f64, n),
-    });
+    let incidence =
+        (outcome.is_finding() && outcome != Outcome::Error && n > 0).then(|| Incidence {
+            faulted: k,
+            attempts: n,
+            reproduced_alone: None,
+            miss_probability: super::stats::miss(k as f64 / n as f64, n),
+        });
     (outcome, judgement, detail, incidence)
 }
 
@@ -225,7 +226,10 @@ mod tests {
     }
 
     fn pass() -> ShaderAttempt {
-        attempt(Outcome::Pass, 0, None)
+        ShaderAttempt {
+            attempt: Attempt::new(Outcome::Pass, true),
+            ..attempt(Outcome::Pass, 0, None)
+        }
     }
 
     #[test]
