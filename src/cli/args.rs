@@ -46,6 +46,8 @@ fn parse_validate(s: &str) -> Result<ValidateMode, String> {
     }
 }
 
+// One value per process, parsed once: the size of `run`'s arguments costs nothing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Subcommand, Debug)]
 pub enum Command {
     /// List the Vulkan physical devices, one line each, and whether they can run RT pipelines
