@@ -46,6 +46,8 @@ fn parse_validate(s: &str) -> Result<ValidateMode, String> {
     }
 }
 
+// One value per process, parsed once: the size of `run`'s arguments costs nothing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Subcommand, Debug)]
 pub enum Command {
     /// List the Vulkan physical devices, one line each, and whether they can run RT pipelines
@@ -88,6 +90,12 @@ pub enum Command {
     #[command(name = "__stress", hide = true)]
     StressWorker {
         /// The job file written by `rtprobe stress`
+        job: PathBuf,
+    },
+    /// Internal: run `run --shader`'s attempts of one variant; not for direct use
+    #[command(name = "__shader", hide = true)]
+    ShaderWorker {
+        /// The job file written by `rtprobe run --shader`
         job: PathBuf,
     },
     /// Internal: run `patch --verify`'s pipelines for `rtprobe patch`; not for direct use
@@ -295,6 +303,49 @@ pub struct RunArgs {
     /// replaces the plan, the scene and the injections
     #[arg(long, value_name = "FILE", conflicts_with_all = ["filter", "inject_fault", "resume", "canaries"])]
     pub cell_spec: Option<PathBuf>,
+
+    /// Run your own ray tracing shaders instead of the generated matrix, one file per stage of
+    /// the pipeline (repeatable): SPIR-V, or GLSL whose stage its name says (.rgen, .rchit,
+    /// .rahit, .rmiss, .rint, .rcall; also NAME.rchit.glsl). Each variant — unpatched, and each
+    /// workaround patch that applies — is traced --repeat times (default 3) in a child process;
+    /// faults, validation messages and outputs that differ are findings. See
+    /// docs/your-shader.md
+    #[arg(long, value_name = "FILE", help_heading = "Your shaders")]
+    pub shader: Vec<PathBuf>,
+
+    /// With --shader: the entry point to run, in modules that have several
+    #[arg(long, value_name = "NAME", requires = "shader", help_heading = "Your shaders")]
+    pub entry: Option<String>,
+
+    /// With --shader: a folder `#include "…"` searches (repeatable), as glslang's -I
+    #[arg(
+        short = 'I',
+        long = "include-dir",
+        value_name = "DIR",
+        requires = "shader",
+        help_heading = "Your shaders"
+    )]
+    pub include_dirs: Vec<PathBuf>,
+
+    /// With --shader: a preprocessor macro for GLSL inputs (repeatable), as glslang's -D
+    #[arg(
+        short = 'D',
+        long = "define",
+        value_name = "NAME[=VALUE]",
+        requires = "shader",
+        help_heading = "Your shaders"
+    )]
+    pub defines: Vec<String>,
+
+    /// With --shader: the Vulkan environment GLSL inputs are compiled for (default vulkan1.2)
+    #[arg(
+        long,
+        value_enum,
+        value_name = "ENV",
+        requires = "shader",
+        help_heading = "Your shaders"
+    )]
+    pub target_env: Option<crate::shadergen::compile::TargetEnv>,
 
     /// Set by `--cell-spec`: the bundle's `shaders/` folder, whose SPIR-V the worker runs instead
     /// of compiling the GLSL (not a flag).

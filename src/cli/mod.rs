@@ -19,6 +19,10 @@ pub mod report;
 pub mod repro;
 pub mod resume;
 pub mod run;
+pub mod shader;
+mod shader_exec;
+mod shader_plan;
+mod shader_report;
 pub mod shared;
 pub mod stress;
 pub mod values;
@@ -171,6 +175,7 @@ pub fn main_entry() -> u8 {
         Command::Worker { job } => return crate::runner::worker::main(job),
         Command::StressWorker { job } => return crate::stress::worker::main(job),
         Command::VerifyWorker { job } => return crate::harness::child::main(job),
+        Command::ShaderWorker { job } => return crate::harness::run::main(job),
     };
     match result {
         Ok(code) => code,

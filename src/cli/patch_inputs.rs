@@ -1,10 +1,11 @@
-//! `rtprobe patch`'s inputs and outputs: whether an input is SPIR-V or GLSL, a GLSL input's stage
-//! (its file name, or `--stage`), compiling it (`-I`, `-D` like glslang's, `--target-env`), and
-//! where each output, the unpatched copy and the host contract go.
+//! Shader inputs of `rtprobe patch` and `run --shader` ([`InputOptions`]): whether an input is
+//! SPIR-V or GLSL, a GLSL input's stage (its file name, or `patch --stage`), compiling it (`-I`,
+//! `-D` like glslang's, `--target-env`); and where `patch`'s outputs, unpatched copies and host
+//! contract go.
 use super::args::PatchArgs;
 use super::exit::{self, coded};
 use super::out::errln;
-use crate::shadergen::compile::GlslOptions;
+use crate::shadergen::compile::{GlslOptions, TargetEnv};
 use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
 
@@ -77,9 +78,35 @@ pub fn parse_define(d: &str) -> Result<(String, Option<String>)> {
     Ok((name.to_string(), value))
 }
 
+/// How inputs are read: what `patch` and `run --shader` share.
+pub struct InputOptions<'a> {
+    /// Every input is GLSL, whatever its name or first bytes (`patch --glsl`).
+    pub glsl: bool,
+    /// The stage of the one GLSL input (`patch --stage`).
+    pub stage: Option<&'a str>,
+    pub include_dirs: &'a [PathBuf],
+    pub defines: &'a [String],
+    pub target_env: TargetEnv,
+    /// What the error for a GLSL input without a stage in its name adds (`, or pass --stage`).
+    pub stage_hint: &'static str,
+}
+
+impl<'a> InputOptions<'a> {
+    pub fn of_patch(a: &'a PatchArgs) -> InputOptions<'a> {
+        InputOptions {
+            glsl: a.glsl,
+            stage: a.stage.as_deref(),
+            include_dirs: &a.include_dirs,
+            defines: &a.defines,
+            target_env: a.target_env,
+            stage_hint: ", or pass --stage",
+        }
+    }
+}
+
 /// `-I`, `-D` and `--target-env` as compile options for `input`.
-fn glsl_options(a: &PatchArgs, input: &Path) -> Result<GlslOptions> {
-    for d in &a.include_dirs {
+fn glsl_options(a: &InputOptions, input: &Path) -> Result<GlslOptions> {
+    for d in a.include_dirs {
         if !d.is_dir() {
             return Err(coded(exit::USAGE, format!("-I {}: not a directory", d.display())));
         }
@@ -87,18 +114,18 @@ fn glsl_options(a: &PatchArgs, input: &Path) -> Result<GlslOptions> {
     let defines = a.defines.iter().map(|d| parse_define(d)).collect::<Result<_>>()?;
     Ok(GlslOptions {
         input: Some(input.to_path_buf()),
-        include_dirs: a.include_dirs.clone(),
+        include_dirs: a.include_dirs.to_vec(),
         defines,
         target: a.target_env,
     })
 }
 
 /// Compile the GLSL `bytes` of `path` (its stage from `--stage`, else its name).
-fn compile(a: &PatchArgs, path: &Path, bytes: &[u8], name: &str) -> Result<Vec<u32>> {
-    let stage = match &a.stage {
-        Some(s) => s.as_str(),
+fn compile(a: &InputOptions, path: &Path, bytes: &[u8], name: &str) -> Result<Vec<u32>> {
+    let stage = match a.stage {
+        Some(s) => s,
         None => stage_from_name(path).ok_or_else(|| {
-            coded(exit::USAGE, format!("{name}: cannot tell the stage of this GLSL from its name: name it .rgen, .rchit, .rahit, .rmiss, .rint, .rcall, .comp, .vert or .frag (also NAME.rchit.glsl), or pass --stage"))
+            coded(exit::USAGE, format!("{name}: cannot tell the stage of this GLSL from its name: name it .rgen, .rchit, .rahit, .rmiss, .rint, .rcall, .comp, .vert or .frag (also NAME.rchit.glsl){}", a.stage_hint))
         })?,
     };
     let k = kind(stage).ok_or_else(|| {
@@ -121,13 +148,18 @@ fn compile(a: &PatchArgs, path: &Path, bytes: &[u8], name: &str) -> Result<Vec<u
     c.compile_user_glsl(k, name, &src, &opts).map_err(|e| coded(exit::BAD_INPUT, e.to_string()))
 }
 
-/// Every input, as SPIR-V words.
+/// Every input of `patch`, as SPIR-V words.
 pub fn read(a: &PatchArgs) -> Result<Vec<Input>> {
     if a.stage.is_some() && a.inputs.len() > 1 {
         return Err(coded(exit::USAGE, "--stage overrides the stage of one GLSL input; name several by their stage (.rgen, .rchit, ...)"));
     }
+    read_with(&InputOptions::of_patch(a), &a.inputs)
+}
+
+/// Every input in `paths`, read as `a` says, as SPIR-V words.
+pub fn read_with(a: &InputOptions, paths: &[PathBuf]) -> Result<Vec<Input>> {
     let mut out = Vec::new();
-    for path in &a.inputs {
+    for path in paths {
         let name = crate::shadergen::include::display(path);
         let bytes = std::fs::read(path)
             .with_context(|| format!("reading {}", path.display()))

@@ -56,7 +56,7 @@ fn pipeline_cache_dir(arg: Option<&str>) -> Option<PathBuf> {
     }
 }
 
-fn slug(name: &str) -> String {
+pub(super) fn slug(name: &str) -> String {
     let s: String = name
         .chars()
         .map(|c| if c.is_ascii_alphanumeric() { c.to_ascii_lowercase() } else { '-' })
@@ -65,6 +65,9 @@ fn slug(name: &str) -> String {
 }
 
 pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
+    if !a.shader.is_empty() {
+        return super::shader::run_shaders(g, a);
+    }
     // The binding stages are read here once (a bundle's, the user's RTPROBE_BINDING_STAGES, or
     // the resumed report's); from now on the report's options and each job file carry them.
     let (a, mut binding_stages) = match &a.cell_spec {

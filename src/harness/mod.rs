@@ -11,12 +11,16 @@
 //! `exec::pipeline`'s RT pipeline and SBT, with a fence deadline per submission. `rtprobe patch`
 //! runs it in a child process (`rtprobe __verify JOB`, [`child`]), so a driver crash is the
 //! verification's outcome, not the end of rtprobe.
+//! `rtprobe run --shader` runs a user's pipeline in it the same way, one variant per child
+//! (`rtprobe __shader JOB`, [`run`]), `--entry` reducing a module to one entry point ([`entry`]).
 pub mod child;
 mod compare;
+pub mod entry;
 mod error;
 pub mod ints;
 pub mod reflect;
 mod resources;
+pub mod run;
 pub mod scene;
 
 pub use compare::{compare, judge, Compared, Part, PartKind, Verdict};

@@ -1,0 +1,247 @@
+//! `rtprobe run --shader FILE…`: the user's own ray tracing pipeline in the harness, isolated
+//! and judged without a CPU reference. The plan first ([`super::shader_plan`]: inputs read,
+//! validated, reflected, the pipeline checked, the variants patched), then the device and the
+//! interface check, then each variant's attempts in child processes ([`super::shader_exec`]),
+//! the verdicts (`model::shader_run`), the report (`rtprobe.shader-run/1`, written atomically),
+//! `--dump`'s PNGs and the summary ([`super::shader_report`]).
+use super::args::RunArgs;
+use super::commands::{open_instance, Globals};
+use super::exit::{self, coded};
+use super::out::outln;
+use super::shader_exec::{self, Ctx, Ran};
+use super::shader_plan::{self, ShaderPlan};
+use crate::harness::child::JobModule;
+use crate::model::shader_run::{self, ShaderRunReport, ShaderVariant};
+use crate::report::lock::{LockError, ReportLock};
+use anyhow::{Context, Result};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// Attempts per variant without `--repeat`: enough to see a fault that comes one time in two
+/// (missed with p = 1/8) and a pipeline that is not deterministic.
+pub const DEFAULT_REPEAT: u32 = 3;
+
+/// The arguments `run --shader` takes (clap ids); every other one given is refused.
+const TAKEN: &[&str] = &[
+    "shader",
+    "entry",
+    "include_dirs",
+    "defines",
+    "target_env",
+    "device",
+    "out",
+    "dump",
+    "timeout",
+    "setup_timeout",
+    "repeat",
+    "validate",
+    "verbose",
+    // clap's ids of the argument groups themselves.
+    "RunArgs",
+    "Cli",
+];
+
+/// One line for the first argument given that `--shader` does not take.
+fn refuse_others(a: &RunArgs) -> Result<()> {
+    let Some(id) = a.explicit.iter().find(|id| !TAKEN.contains(&id.as_str())) else {
+        return Ok(());
+    };
+    let flag = format!("--{}", id.replace('_', "-"));
+    let why = match id.as_str() {
+        "inject_fault" => "fault injection does not reach user shaders yet",
+        _ => "it applies to the generated matrix, which --shader replaces",
+    };
+    Err(coded(
+        exit::USAGE,
+        format!("{flag} cannot be used with --shader: {why}; drop it (--shader takes --entry, -I, -D, --target-env, --repeat, --timeout, --dump, -o, --device, --validate)"),
+    ))
+}
+
+/// `--repeat`, `--timeout` and `--setup-timeout` checked.
+fn numbers(a: &RunArgs) -> Result<(u32, Duration, Duration)> {
+    let repeat = a.repeat.unwrap_or(DEFAULT_REPEAT);
+    if !(1..=1000).contains(&repeat) {
+        return Err(coded(exit::USAGE, format!("--repeat {repeat}: give 1 to 1000 attempts")));
+    }
+    let secs = |s: f64, flag: &str| {
+        if s.is_finite() && s > 0.0 && s <= 3600.0 {
+            Ok(Duration::from_secs_f64(s))
+        } else {
+            Err(coded(exit::USAGE, format!("{flag} {s}: give seconds in (0, 3600]")))
+        }
+    };
+    Ok((repeat, secs(a.timeout, "--timeout")?, secs(a.setup_timeout, "--setup-timeout")?))
+}
+
+/// The device `--device` names, checked for what the harness needs and for the pipeline's
+/// interface (`interface::check` against the harness's layout and the device's hit-attribute
+/// limit): its index and name.
+fn device(g: &Globals, a: &RunArgs, plan: &ShaderPlan) -> Result<(usize, String)> {
+    let inst = open_instance(g)?;
+    let all = crate::vk::features::query_all(&inst)?;
+    let info = crate::vk::features::select(&all, a.device.as_deref())?;
+    let missing = crate::harness::requirements(plan.scalar).missing_on(info);
+    if !missing.is_empty() {
+        return Err(coded(
+            exit::UNSUPPORTED_DEVICE,
+            format!(
+                "--shader: {} cannot run the pipeline: missing {}",
+                info.name(),
+                missing.join(", ")
+            ),
+        ));
+    }
+    let max_hit = info.properties.rt_pipeline.map_or(0, |p| p.max_ray_hit_attribute_size);
+    let desc = crate::harness::run::pipeline_desc(&plan.modules, max_hit);
+    let words: Vec<&[u32]> = plan.modules.iter().map(|m| m.words.as_slice()).collect();
+    crate::interface::check(&words, &desc).map_err(|e| {
+        coded(
+            exit::BAD_INPUT,
+            format!("--shader: the pipeline does not fit the harness's layout: {e}"),
+        )
+    })?;
+    Ok((info.index, info.name()))
+}
+
+/// Where the report goes, locked: `-o`, else the first free `reports/shader-<time>-<device>.json`.
+fn reserve_out(a: &RunArgs, device: &str) -> Result<(PathBuf, ReportLock)> {
+    let busy = |e: LockError| coded(exit::BAD_INPUT, format!("{e}; give this run another -o"));
+    match &a.out {
+        Some(o) => Ok((o.clone(), ReportLock::acquire(o).map_err(busy)?)),
+        None => {
+            let stamp = crate::report::time::stamp(crate::report::time::now_unix());
+            let stem = format!("shader-{stamp}-{}", super::run::slug(device));
+            ReportLock::unique(Path::new("reports"), &stem).map_err(busy)
+        }
+    }
+}
+
+pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
+    refuse_others(a)?;
+    let (repeat, timeout, setup_timeout) = numbers(a)?;
+    let plan = shader_plan::plan(a)?;
+    let (device_index, device_name) = device(g, a, &plan)?;
+    let (out, _lock) = reserve_out(a, &device_name)?;
+    let dir = std::env::temp_dir().join(format!("rtprobe-shader-{}", std::process::id()));
+    std::fs::create_dir_all(&dir)
+        .with_context(|| format!("creating the --shader folder {}", dir.display()))?;
+    let ctx = Ctx {
+        device_index,
+        validate: g.validate,
+        scalar: plan.scalar,
+        unpatched: plan
+            .modules
+            .iter()
+            .map(|m| JobModule { name: m.name.clone(), words: m.words.clone() })
+            .collect(),
+        repeat,
+        timeout,
+        setup_timeout,
+        dir: dir.clone(),
+    };
+    let ran = run_all(&ctx, &plan);
+    let _ = std::fs::remove_dir_all(&dir);
+    let (mut unpatched, mut patched) = ran?;
+    let device = unpatched
+        .iter()
+        .chain(patched.iter().flat_map(|p| &p.1))
+        .find_map(|r| r.device.clone())
+        .unwrap_or(device_name);
+    let mut notes = plan.notes.clone();
+    notes.extend(shader_exec::compare_all(&device, &mut unpatched, &mut patched));
+    if let Some(d) = &a.dump {
+        dump(d, &plan, &unpatched, &patched)?;
+    }
+    let report = report(a, &plan, device, unpatched, patched, notes, (repeat, timeout, g.validate));
+    let json = serde_json::to_vec_pretty(&report).context("the report's JSON")?;
+    crate::atomic::write_atomic(&out, &json)
+        .map_err(|e| coded(exit::BAD_INPUT, format!("writing {}: {e}", out.display())))?;
+    let (lines, code) = super::shader_report::summary(&report, &out);
+    for l in lines {
+        outln!("{l}");
+    }
+    Ok(code)
+}
+
+/// Patched variants with their attempts.
+type Patched = Vec<(String, Vec<Ran>)>;
+
+fn run_all(ctx: &Ctx, plan: &ShaderPlan) -> Result<(Vec<Ran>, Patched)> {
+    let unpatched = shader_exec::run_variant(ctx, "unpatched", &ctx.unpatched, None)?;
+    let mut patched = Vec::new();
+    for v in &plan.variants {
+        let name = v.patch.as_str();
+        patched.push((
+            name.to_string(),
+            shader_exec::run_variant(ctx, name, &v.modules, Some(&v.contract))?,
+        ));
+    }
+    Ok((unpatched, patched))
+}
+
+/// `--dump DIR`: the images of each variant's first attempt that ran and of every attempt that
+/// differs from the reference.
+fn dump(dir: &Path, plan: &ShaderPlan, unpatched: &[Ran], patched: &Patched) -> Result<()> {
+    std::fs::create_dir_all(dir)
+        .map_err(|e| coded(exit::BAD_INPUT, format!("--dump {}: {e}", dir.display())))?;
+    let all = std::iter::once(("unpatched", unpatched))
+        .chain(patched.iter().map(|(n, r)| (n.as_str(), r.as_slice())));
+    for (name, ran) in all {
+        let first = ran.iter().position(|r| r.parts.is_some());
+        for (k, r) in ran.iter().enumerate() {
+            let Some(parts) = &r.parts else { continue };
+            if Some(k) == first || r.attempt.differs.is_some() {
+                let prefix = format!("{name}-{}", k + 1);
+                super::shader_report::dump(dir, &prefix, &plan.modules, parts).map_err(|e| {
+                    coded(exit::BAD_INPUT, format!("--dump {}: {e:#}", dir.display()))
+                })?;
+            }
+        }
+    }
+    Ok(())
+}
+
+fn report(
+    a: &RunArgs,
+    plan: &ShaderPlan,
+    device: String,
+    unpatched: Vec<Ran>,
+    patched: Patched,
+    notes: Vec<String>,
+    (repeat, timeout, validate): (u32, Duration, bool),
+) -> ShaderRunReport {
+    let attempts = |ran: Vec<Ran>| ran.into_iter().map(|r| r.attempt).collect::<Vec<_>>();
+    let mut variants = vec![ShaderVariant::judged("unpatched", None, vec![], attempts(unpatched))];
+    for ((name, ran), planned) in patched.into_iter().zip(&plan.variants) {
+        let mut lines = planned.lines.clone();
+        if !planned.contract.is_empty() {
+            lines.push(planned.contract.sentence());
+        }
+        variants.push(ShaderVariant::judged(&name, Some(name.clone()), lines, attempts(ran)));
+    }
+    let outcome = variants
+        .iter()
+        .map(|v| v.outcome)
+        .max_by_key(|o| o.severity())
+        .unwrap_or(crate::model::Outcome::Error);
+    let options = serde_json::json!({
+        "repeat": repeat,
+        "timeout_s": timeout.as_secs_f64(),
+        "validate": validate,
+        "entry": a.entry,
+        "include_dirs": a.include_dirs,
+        "defines": a.defines,
+        "target_env": format!("{:?}", a.target_env.unwrap_or_default()),
+    });
+    ShaderRunReport {
+        schema: shader_run::SCHEMA.into(),
+        rtprobe_version: env!("CARGO_PKG_VERSION").into(),
+        device,
+        cell: shader_run::cell_id(&plan.inputs),
+        options,
+        inputs: plan.inputs.clone(),
+        variants,
+        outcome,
+        notes,
+    }
+}

@@ -1,0 +1,216 @@
+//! `run --shader`'s attempts: each variant's traces in child processes (`rtprobe __shader JOB`,
+//! `harness::run`), started through `runner::process::run_to_end` as `patch --verify` starts its
+//! child: its own process group, dying with rtprobe, killed when silent past its deadline
+//! (setup: `--setup-timeout` more; each trace: twice the fence deadline, `--timeout`, plus
+//! [`STEP_SLACK`]). A child that dies or hangs in an attempt makes that attempt a `crash` or a
+//! `timeout`; a fresh child runs the attempts left. Then every attempt's outputs are compared
+//! with the reference, the unpatched pipeline's first attempt, by `harness::compare`.
+use super::exit::{self, coded};
+use crate::harness::child::{JobModule, Step};
+use crate::harness::run::{output_path, AttemptOutput, ShaderJob};
+use crate::harness::{self, Compared, Part, PartKind, Verdict};
+use crate::model::contract::HostContract;
+use crate::model::shader_run::{OutputHash, ShaderAttempt};
+use crate::model::{Attempt, Outcome};
+use crate::runner::process::{run_to_end, ChildEnd};
+use anyhow::{Context, Result};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// Silence allowed per trace beyond twice the fence deadline.
+const STEP_SLACK: Duration = Duration::from_secs(10);
+/// SIGTERM to SIGKILL, and how long a killed child is waited for.
+const GRACE: Duration = Duration::from_secs(2);
+const KILL_WAIT: Duration = Duration::from_secs(5);
+
+/// What every child of a run shares.
+pub struct Ctx {
+    pub device_index: usize,
+    pub validate: bool,
+    pub scalar: bool,
+    pub unpatched: Vec<JobModule>,
+    pub repeat: u32,
+    pub timeout: Duration,
+    pub setup_timeout: Duration,
+    /// The run's scratch folder (job and output files).
+    pub dir: PathBuf,
+}
+
+/// One attempt as it came back: the record, and the outputs when it ran.
+pub struct Ran {
+    pub attempt: ShaderAttempt,
+    pub parts: Option<Vec<Part>>,
+    pub device: Option<String>,
+}
+
+/// One child for the attempts `first..=ctx.repeat` of `variant`: how it ended, its last step.
+fn child(ctx: &Ctx, variant: &str, job: &ShaderJob) -> Result<(ChildEnd, String, Duration)> {
+    let path = ctx.dir.join(format!("{variant}-job-{}.json", job.first));
+    let bytes = serde_json::to_vec(job).context("the --shader job")?;
+    crate::atomic::write_atomic(&path, &bytes)
+        .map_err(|e| coded(exit::BAD_INPUT, format!("writing {}: {e}", path.display())))?;
+    let step_silence = ctx.timeout * 2 + STEP_SLACK;
+    let mut step = String::from("start");
+    let end = run_to_end(
+        "__shader",
+        &path,
+        step_silence + ctx.setup_timeout,
+        (GRACE, KILL_WAIT),
+        &mut |line| {
+            if let Ok(s) = serde_json::from_str::<Step>(line) {
+                step = s.step;
+            }
+            if step == "setup" {
+                step_silence + ctx.setup_timeout
+            } else {
+                step_silence
+            }
+        },
+    )
+    .context("starting a --shader child")?;
+    Ok((end, step, step_silence))
+}
+
+/// The attempt an output file holds.
+fn read_output(path: &Path, wall_ms: f64) -> Option<Ran> {
+    let out: AttemptOutput = serde_json::from_slice(&std::fs::read(path).ok()?).ok()?;
+    Some(match out {
+        AttemptOutput::Ran { device, parts, validation_messages } => {
+            let parts: Vec<Part> = parts.into_iter().map(Part::from).collect();
+            let outputs = parts
+                .iter()
+                .map(|p| OutputHash {
+                    label: p.label.clone(),
+                    hash: super::shader_plan::hash_hex(&p.bytes),
+                })
+                .collect();
+            let attempt = Attempt::new(Outcome::Pass, true).with_wall_ms(wall_ms);
+            let attempt = ShaderAttempt { attempt, validation_messages, outputs, differs: None };
+            Ran { attempt, parts: Some(parts), device: Some(device) }
+        }
+        AttemptOutput::Failed { outcome, message, validation_messages } => {
+            let attempt = Attempt::new(outcome, true).with_detail(message).with_wall_ms(wall_ms);
+            let attempt =
+                ShaderAttempt { attempt, validation_messages, outputs: vec![], differs: None };
+            Ran { attempt, parts: None, device: None }
+        }
+    })
+}
+
+/// Every attempt of one variant, `ctx.repeat` of them, each a fresh child's after a fault.
+pub fn run_variant(
+    ctx: &Ctx,
+    variant: &str,
+    modules: &[JobModule],
+    contract: Option<&HostContract>,
+) -> Result<Vec<Ran>> {
+    let mut out: Vec<Ran> = Vec::new();
+    let mut k = 1;
+    while k <= ctx.repeat {
+        let job = ShaderJob {
+            device_index: ctx.device_index,
+            validate: ctx.validate,
+            scalar: ctx.scalar,
+            unpatched: ctx.unpatched.clone(),
+            modules: modules.to_vec(),
+            contract: contract.cloned(),
+            variant: variant.into(),
+            first: k,
+            last: ctx.repeat,
+            timeout_ms: ctx.timeout.as_millis() as u64,
+            dir: ctx.dir.clone(),
+        };
+        let started = Instant::now();
+        let (end, step, silence) = child(ctx, variant, &job)?;
+        let first = k;
+        let per = started.elapsed().as_secs_f64() * 1000.0;
+        while k <= ctx.repeat {
+            let Some(r) = read_output(&output_path(&ctx.dir, variant, k), per / ctx.repeat as f64)
+            else {
+                break;
+            };
+            out.push(r);
+            k += 1;
+        }
+        // A child stops by itself only after a failed attempt (a device loss, a fence timeout,
+        // a failed setup): a fresh one runs the rest. Else it died or hung in attempt k.
+        let stopped = k > first && out.last().is_some_and(|r| r.parts.is_none());
+        if k > ctx.repeat || stopped {
+            continue;
+        }
+        let line = end.describe("the child process", &step, silence);
+        let outcome = if end.timed_out { Outcome::Timeout } else { Outcome::Crash };
+        let attempt = Attempt::new(outcome, true)
+            .with_detail(line)
+            .with_exit(end.exit.clone())
+            .with_wall_ms(started.elapsed().as_secs_f64() * 1000.0);
+        let attempt =
+            ShaderAttempt { attempt, validation_messages: 0, outputs: vec![], differs: None };
+        out.push(Ran { attempt, parts: None, device: None });
+        k += 1;
+    }
+    Ok(out)
+}
+
+fn unit(kind: PartKind) -> &'static str {
+    match kind {
+        PartKind::Image => "texels",
+        PartKind::Buffer => "4-byte words",
+    }
+}
+
+/// The first output `compared` says differs, in `harness::compare`'s numbers.
+fn first_difference(compared: &[Compared]) -> Option<&Compared> {
+    compared.iter().find(|c| c.differing > 0)
+}
+
+/// Judge every attempt's outputs against the reference — the unpatched pipeline's first
+/// attempt that ran (`reference`; `again`: its second, whose unstable units patched variants
+/// leave out). Unpatched attempts are compared in full (a difference is instability);
+/// a patched one in `harness::judge`'s words. Returns a note when nothing compared can tell a
+/// wrong read from a right one.
+pub fn compare_all(
+    device: &str,
+    unpatched: &mut [Ran],
+    patched: &mut [(String, Vec<Ran>)],
+) -> Option<String> {
+    let k0 = unpatched.iter().position(|r| r.parts.is_some())?;
+    let reference = unpatched[k0].parts.clone()?;
+    let again = unpatched
+        .iter()
+        .skip(k0 + 1)
+        .find_map(|r| r.parts.clone())
+        .unwrap_or_else(|| reference.clone());
+    for (k, r) in unpatched.iter_mut().enumerate().skip(k0 + 1) {
+        let Some(parts) = &r.parts else { continue };
+        let c = harness::compare(&reference, &reference, parts);
+        r.attempt.differs = first_difference(&c).map(|d| {
+            format!(
+                "attempt {}'s {} differs from attempt {}'s in {} of {} {} on {device}: the unpatched pipeline is not deterministic",
+                k + 1,
+                d.label,
+                k0 + 1,
+                d.differing,
+                d.texels,
+                unit(d.kind)
+            )
+        });
+    }
+    let mut note = None;
+    for (name, ran) in patched.iter_mut() {
+        for r in ran.iter_mut() {
+            let Some(parts) = &r.parts else { continue };
+            match harness::judge(device, &harness::compare(&reference, &again, parts)) {
+                Verdict::Differs(line) => r.attempt.differs = Some(format!("{name}: {line}")),
+                Verdict::Identical(_) => {}
+                Verdict::Unfit(why) => note = Some(why),
+            }
+        }
+    }
+    if let Verdict::Unfit(why) =
+        harness::judge(device, &harness::compare(&reference, &reference, &reference))
+    {
+        note = Some(why);
+    }
+    note.map(|w| format!("the outputs cannot show a difference: {w}"))
+}

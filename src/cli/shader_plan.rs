@@ -1,0 +1,201 @@
+//! `run --shader`'s plan, made before any GPU work: every input read (SPIR-V, or GLSL compiled
+//! as `patch` compiles it: [`super::patch_inputs`]), reduced to its `--entry`, validated with
+//! spirv-val, reflected by the harness, the pipeline completed (`harness::run::full_pipeline`)
+//! and checked (the harness's groups); then the variants: each workaround patch that applies to
+//! any module, patched as `rtprobe patch` patches them and validated again. A problem is one
+//! line naming the input and what to do.
+use super::args::RunArgs;
+use super::exit::{self, coded};
+use super::out::errln;
+use super::patch_inputs::{self, Input, InputOptions};
+use crate::harness::child::JobModule;
+use crate::harness::{self, UserModule};
+use crate::model::contract::HostContract;
+use crate::model::shader_run::ShaderInput;
+use crate::patches::layout::Rules;
+use crate::patches::pipeline::{self, Stage};
+use crate::patches::{PatchError, PatchName, Validation};
+use crate::stable_hash::StableHash;
+use crate::tools::spirv::{self as spirv_tools, ValOptions};
+use anyhow::Result;
+use std::collections::BTreeMap;
+
+/// The push-constant bytes a patch may use: Vulkan's guaranteed `maxPushConstantsSize`.
+const MAX_PUSH: u32 = 128;
+
+/// One patched variant.
+pub struct PlannedVariant {
+    pub patch: PatchName,
+    pub modules: Vec<JobModule>,
+    pub contract: HostContract,
+    /// What the patch did (`rtprobe patch`'s lines).
+    pub lines: Vec<String>,
+}
+
+/// Everything `run --shader` runs.
+pub struct ShaderPlan {
+    pub inputs: Vec<ShaderInput>,
+    /// The unpatched pipeline.
+    pub modules: Vec<UserModule>,
+    pub scalar: bool,
+    pub variants: Vec<PlannedVariant>,
+    /// Patches that do not apply, or cannot be run, and why.
+    pub notes: Vec<String>,
+}
+
+/// FNV-1a 128 of `bytes`, hex.
+pub fn hash_hex(bytes: &[u8]) -> String {
+    format!("{:032x}", StableHash::default().bytes(bytes).finish())
+}
+
+/// Whether a patch runs as a variant: one that reads what the original reads. `pin-index`
+/// replaces the runtime index by a constant, so its outputs differ by design.
+fn differential(p: PatchName) -> bool {
+    match p {
+        PatchName::AsToAddress | PatchName::Nonuniform | PatchName::SsboToAddress => true,
+        PatchName::PinIndex => false,
+    }
+}
+
+/// Reduce `input` to `--entry` where it has several entry points.
+fn entry(input: &mut Input, entry: Option<&str>) -> Result<()> {
+    let bad = |e: String| coded(exit::BAD_INPUT, format!("{}: {e}", input.name));
+    let mut m =
+        crate::patches::load(&spirv_tools::bytes(&input.words)).map_err(|e| bad(e.to_string()))?;
+    if m.entry_points.len() < 2 {
+        return Ok(());
+    }
+    let Some(name) = entry else {
+        return Err(bad(format!(
+            "has {} entry points: pick one with --entry NAME",
+            m.entry_points.len()
+        )));
+    };
+    harness::entry::select_entry(&mut m, name).map_err(bad)?;
+    input.words = crate::patches::assemble(&m);
+    Ok(())
+}
+
+/// spirv-val on an input: its layout rules and the options it validates with (`None`: no
+/// validator here, said once).
+fn validate(input: &Input, warned: &mut bool) -> Result<(Rules, Option<ValOptions>)> {
+    let validator =
+        spirv_tools::tool(spirv_tools::SpirvTool::Val).map(|t| t.describe()).unwrap_or_default();
+    match spirv_tools::validate_input(&input.words) {
+        (Validation::Valid, o) => {
+            Ok((if o.scalar_block_layout { Rules::Scalar } else { Rules::Standard }, Some(o)))
+        }
+        (Validation::Unavailable, _) => {
+            if !std::mem::replace(warned, true) {
+                errln!("rtprobe: warning: spirv-val is not installed (apt-get install spirv-tools): the inputs are not validated");
+            }
+            Ok((Rules::Standard, None))
+        }
+        (Validation::TooOld { validator, what }, _) => Err(coded(
+            exit::BAD_INPUT,
+            format!("{}: {validator} is too old for {what}; a newer SPIRV-Tools (scripts/setup-sid) validates it", input.name),
+        )),
+        (Validation::Invalid(msg), o) => Err(coded(
+            exit::BAD_INPUT,
+            format!(
+                "{} fails spirv-val ({validator}, {}): {msg} — rtprobe runs only valid modules; fix the shader",
+                input.name,
+                o.describe()
+            ),
+        )),
+    }
+}
+
+/// Read, reduce, validate and reflect every input; complete and check the pipeline.
+pub fn plan(a: &RunArgs) -> Result<ShaderPlan> {
+    let opts = InputOptions {
+        glsl: false,
+        stage: None,
+        include_dirs: &a.include_dirs,
+        defines: &a.defines,
+        target_env: a.target_env.unwrap_or_default(),
+        stage_hint: "",
+    };
+    let mut inputs = patch_inputs::read_with(&opts, &a.shader)?;
+    let mut warned = false;
+    let (mut stages, mut val, mut modules, mut described) = (vec![], vec![], vec![], vec![]);
+    for i in inputs.iter_mut() {
+        entry(i, a.entry.as_deref())?;
+        let (rules, o) = validate(i, &mut warned)?;
+        let m = UserModule::new(&i.name, &i.words).map_err(|e| {
+            coded(exit::BAD_INPUT, format!("{e} — the harness cannot run this module as it is"))
+        })?;
+        let module = crate::patches::load(&spirv_tools::bytes(&i.words))
+            .map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", i.name)))?;
+        let bytes = std::fs::read(&i.path).unwrap_or_default();
+        described.push(ShaderInput {
+            file: i.name.clone(),
+            stage: m.iface.stage.clone(),
+            entry: m.iface.entry.clone(),
+            hash: hash_hex(&bytes),
+        });
+        stages.push(Stage { file: i.name.clone(), module, rules });
+        val.push(o);
+        modules.push(m);
+    }
+    let modules = harness::run::full_pipeline(modules)
+        .map_err(|e| coded(exit::BAD_INPUT, format!("--shader: {e}")))?;
+    harness::run::check_pipeline(&modules)
+        .map_err(|e| coded(exit::BAD_INPUT, format!("--shader: {e}")))?;
+    let scalar = stages.iter().any(|s| s.rules == Rules::Scalar);
+    let (variants, notes) = variants(&stages, &val);
+    Ok(ShaderPlan { inputs: described, modules, scalar, variants, notes })
+}
+
+/// Each differential patch applied to a copy of the pipeline: the variants that apply and
+/// validate, and a note for each that does not.
+fn variants(stages: &[Stage], val: &[Option<ValOptions>]) -> (Vec<PlannedVariant>, Vec<String>) {
+    let (mut out, mut notes) = (Vec::new(), Vec::new());
+    let names = crate::patches::LIST.iter().filter_map(|p| PatchName::parse(p.0).ok());
+    for p in names.filter(|p| differential(*p)) {
+        let mut copy: Vec<Stage> = stages
+            .iter()
+            .map(|s| Stage { file: s.file.clone(), module: s.module.clone(), rules: s.rules })
+            .collect();
+        let applied = match pipeline::apply(&mut copy, &[p], &BTreeMap::new(), MAX_PUSH) {
+            Ok(a) => a,
+            Err(e) => match e.error {
+                PatchError::NothingToPatch { what, .. } => {
+                    notes.push(format!("{} does not apply: {what}", p.as_str()));
+                    continue;
+                }
+                error => {
+                    notes.push(format!("{} not run: {error}", p.as_str()));
+                    continue;
+                }
+            },
+        };
+        let words: Vec<Vec<u32>> =
+            copy.iter().map(|s| crate::patches::assemble(&s.module)).collect();
+        let invalid = words.iter().zip(val).zip(&copy).find_map(|((w, o), s)| {
+            match o.as_ref().map(|o| spirv_tools::validate(w, o)) {
+                Some(Validation::Invalid(m)) => Some(format!("{}: {m}", s.file)),
+                _ => None,
+            }
+        });
+        if let Some(why) = invalid {
+            notes.push(format!(
+                "{} not run: the patched module fails spirv-val ({why})",
+                p.as_str()
+            ));
+            continue;
+        }
+        let modules = copy
+            .iter()
+            .zip(words)
+            .map(|(s, words)| JobModule { name: s.file.clone(), words })
+            .collect();
+        out.push(PlannedVariant {
+            patch: p,
+            modules,
+            contract: applied.contract,
+            lines: applied.lines,
+        });
+    }
+    (out, notes)
+}

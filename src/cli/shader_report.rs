@@ -1,0 +1,179 @@
+//! `run --shader`'s terminal summary (one line per variant, the notes, then `verdict: PASS|FAIL
+//! — …` as `run` says it) and its exit code (`run`'s: 1 for a finding, an `error` included, as
+//! for generated cells), and `--dump DIR`: every storage image the trace wrote, of each
+//! variant's first attempt that ran and of every attempt that differs, as PNG.
+use super::exit;
+use crate::harness::reflect::BindingKind;
+use crate::harness::{Part, PartKind, UserModule};
+use crate::model::shader_run::{Judgement, ShaderRunReport, ShaderVariant};
+use anyhow::Result;
+use rspirv::spirv::ImageFormat;
+use std::path::{Path, PathBuf};
+
+/// One line for a variant: its verdict, its attempts and what decided it.
+pub fn variant_line(v: &ShaderVariant) -> String {
+    let n = v.attempts.len();
+    let messages: u64 = v.attempts.iter().map(|a| a.validation_messages).sum();
+    let head = format!("  {}: {} ({n} attempt{})", v.name, v.judgement.as_str(), plural_s(n));
+    let tail = match v.judgement {
+        Judgement::Pass => format!("outputs identical, {messages} validation messages"),
+        Judgement::Validation => {
+            format!("{messages} validation messages: not evidence about the driver")
+        }
+        Judgement::Fault | Judgement::Unstable | Judgement::PatchDiffers | Judgement::Error => {
+            v.incidence.as_ref().map(|i| i.label()).unwrap_or_default()
+        }
+    };
+    let detail = v.detail.as_deref().map(|d| format!(": {d}")).unwrap_or_default();
+    format!("{head} — {tail}{detail}")
+}
+
+fn plural_s(n: usize) -> &'static str {
+    if n == 1 {
+        ""
+    } else {
+        "s"
+    }
+}
+
+/// The verdict line and the exit code.
+pub fn verdict(r: &ShaderRunReport) -> (String, u8) {
+    let attempts: usize = r.variants.iter().map(|v| v.attempts.len()).sum();
+    match r.worst() {
+        Some(w) if w.outcome.is_finding() => (
+            format!(
+                "verdict: FAIL — {}: {} of {} ({})",
+                r.cell,
+                w.outcome.as_str(),
+                w.name,
+                w.judgement.as_str()
+            ),
+            exit::FINDINGS,
+        ),
+        _ => (
+            format!(
+                "verdict: PASS — {}: {} variant{}, {attempts} attempts, no fault, no message, no difference",
+                r.cell,
+                r.variants.len(),
+                plural_s(r.variants.len())
+            ),
+            exit::OK,
+        ),
+    }
+}
+
+/// The summary lines, verdict last.
+pub fn summary(r: &ShaderRunReport, report_path: &Path) -> (Vec<String>, u8) {
+    let mut lines = vec![format!("{} on {}", r.cell, r.device)];
+    lines.extend(r.variants.iter().map(variant_line));
+    lines.extend(r.notes.iter().map(|n| format!("  note: {n}")));
+    lines.push(format!("report: {}", report_path.display()));
+    let (v, code) = verdict(r);
+    lines.push(v);
+    (lines, code)
+}
+
+/// The format of the storage image `label` (`set S binding B[k]`) names.
+fn image_format(modules: &[UserModule], label: &str) -> Option<ImageFormat> {
+    let mut words = label.split([' ', '[']);
+    let (_, set, _, binding) = (words.next()?, words.next()?, words.next()?, words.next()?);
+    let (set, binding) = (set.parse::<u32>().ok()?, binding.parse::<u32>().ok()?);
+    modules.iter().flat_map(|m| &m.iface.bindings).find_map(|b| match b.kind {
+        BindingKind::StorageImage(f) if (b.set, b.binding) == (set, binding) => Some(f),
+        _ => None,
+    })
+}
+
+/// An IEEE half as f32.
+fn half(h: u16) -> f32 {
+    let (sign, exp, frac) = ((h >> 15) as u32, ((h >> 10) & 0x1f) as i32, (h & 0x3ff) as f32);
+    let v = match exp {
+        0 => frac * 2f32.powi(-24),
+        31 => f32::INFINITY,
+        e => (1.0 + frac / 1024.0) * 2f32.powi(e - 15),
+    };
+    if sign == 1 {
+        -v
+    } else {
+        v
+    }
+}
+
+/// A texel's first three channels as 8-bit colour: floats clamped to [0, 1], integers' low byte.
+fn rgb(f: ImageFormat, t: &[u8]) -> [u8; 3] {
+    let word = |k: usize| t.get(4 * k..4 * k + 4).map(|b| [b[0], b[1], b[2], b[3]]);
+    let unit = |x: f32| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
+    let mut out = [0u8; 3];
+    for (k, c) in out.iter_mut().enumerate() {
+        *c = match f {
+            ImageFormat::Rgba32f | ImageFormat::Rg32f | ImageFormat::R32f => {
+                word(k).map_or(0, |w| unit(f32::from_le_bytes(w)))
+            }
+            ImageFormat::Rgba16f => {
+                t.get(2 * k..2 * k + 2).map_or(0, |b| unit(half(u16::from_le_bytes([b[0], b[1]]))))
+            }
+            ImageFormat::Rgba8 => t.get(k).copied().unwrap_or(0),
+            _ => word(k).map_or(0, |w| w[0]),
+        };
+    }
+    out
+}
+
+/// Write `parts`' storage images as `DIR/PREFIX-set-S-binding-B-K.png` (not those left all
+/// zero: the harness clears every storage image before the trace); returns the paths.
+pub fn dump(
+    dir: &Path,
+    prefix: &str,
+    modules: &[UserModule],
+    parts: &[Part],
+) -> Result<Vec<PathBuf>> {
+    let mut written = Vec::new();
+    let shown = |p: &&Part| p.kind == PartKind::Image && p.bytes.iter().any(|b| *b != 0);
+    for p in parts.iter().filter(shown) {
+        let Some(f) = image_format(modules, &p.label) else { continue };
+        let size = crate::harness::SIZE;
+        let pixels: Vec<u8> =
+            p.bytes.chunks(p.texel.max(1) as usize).flat_map(|t| rgb(f, t)).collect();
+        if pixels.len() != (size * size * 3) as usize {
+            continue;
+        }
+        let name: String = p
+            .label
+            .chars()
+            .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
+            .collect::<String>()
+            .split('-')
+            .filter(|s| !s.is_empty())
+            .collect::<Vec<_>>()
+            .join("-");
+        let path = dir.join(format!("{prefix}-{name}.png"));
+        let mut bytes = Vec::new();
+        {
+            let mut enc = png::Encoder::new(&mut bytes, size, size);
+            enc.set_color(png::ColorType::Rgb);
+            enc.set_depth(png::BitDepth::Eight);
+            let mut w = enc.write_header()?;
+            w.write_image_data(&pixels)?;
+            w.finish()?;
+        }
+        crate::atomic::write_atomic_with(&path, &bytes, false)?;
+        written.push(path);
+    }
+    Ok(written)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn halves_and_texels_become_colours() {
+        assert_eq!(half(0x3c00), 1.0);
+        assert_eq!(half(0xc000), -2.0);
+        assert_eq!(half(0x3800), 0.5);
+        let t: Vec<u8> = [1.0f32, 0.5, -3.0, 1.0].iter().flat_map(|x| x.to_le_bytes()).collect();
+        assert_eq!(rgb(ImageFormat::Rgba32f, &t), [255, 128, 0]);
+        assert_eq!(rgb(ImageFormat::Rgba8, &[9, 8, 7, 6]), [9, 8, 7]);
+        assert_eq!(rgb(ImageFormat::R32ui, &[0x41, 1, 0, 0]), [0x41, 0, 0]);
+    }
+}

@@ -1,0 +1,328 @@
+//! `rtprobe __shader JOB.json`: `run --shader`'s device work, one variant of the user's pipeline
+//! (unpatched, or one workaround patch fed as its host contract says) traced for a range of
+//! attempts in a process of its own, started by `rtprobe run --shader` through
+//! `runner::process::run_to_end` (own process group, dying with its parent, killed when silent).
+//! The harness's resources are always made for the unpatched modules, as `patch --verify` makes
+//! them, so every variant reads the same data. Each attempt says `trace K` on stdout before it
+//! traces and writes its [`AttemptOutput`] to `DIR/VARIANT-K.json` (tmp + rename): its written
+//! outputs (every storage image, every writable storage buffer) and the validation messages it
+//! caused. After a device loss or a fence timeout the child stops (the device is gone): the
+//! parent starts a fresh one for the attempts left, and an attempt the child died in is the
+//! parent's to record (crash or timeout).
+//!
+//! Test hook: `RTPROBE_SHADER_FAULT=KIND[:VARIANT[:K]]` (VARIANT default `unpatched`, K: the
+//! 1-based attempt, default every one): `crash` raises SIGSEGV, `hang` sleeps forever where
+//! that attempt would trace, `flip` flips the first byte of its first output (a difference).
+use super::child::JobModule;
+use super::reflect::BindingKind;
+use super::{Harness, HarnessError, Part, PartKind, UserModule};
+use crate::interface::{BindingDesc, DescriptorKind, HitGroup, PipelineDesc, PushRange};
+use crate::model::contract::HostContract;
+use crate::model::Outcome;
+use crate::vk::{features, Gpu, Instance, InstanceOptions};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Duration;
+
+pub const FAULT_ENV: &str = "RTPROBE_SHADER_FAULT";
+
+/// What the parent asks of the child.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct ShaderJob {
+    /// The device's index in `features::query_all`.
+    pub device_index: usize,
+    pub validate: bool,
+    /// The modules' blocks need scalar layout.
+    pub scalar: bool,
+    /// The unpatched pipeline: the harness's resources are made for it.
+    pub unpatched: Vec<JobModule>,
+    /// This variant's modules, and the contract that feeds them (a patched variant).
+    pub modules: Vec<JobModule>,
+    #[serde(default)]
+    pub contract: Option<HostContract>,
+    /// The variant's name (`unpatched`, or the patch's): the output files' prefix.
+    pub variant: String,
+    /// The attempts to run, 1-based: `first ..= last`.
+    pub first: u32,
+    pub last: u32,
+    /// The fence deadline of one submission.
+    pub timeout_ms: u64,
+    /// Where the outputs go.
+    pub dir: PathBuf,
+}
+
+/// One read-back output, as the child hands it over (a [`Part`]).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct SavedPart {
+    pub label: String,
+    pub kind: PartKind,
+    pub bytes: Vec<u8>,
+    pub texel: u32,
+    pub initial: Option<Vec<u8>>,
+    pub scheduled: bool,
+    pub records: Option<(u32, u32)>,
+}
+
+impl From<Part> for SavedPart {
+    fn from(p: Part) -> SavedPart {
+        let Part { label, kind, bytes, texel, initial, scheduled, records } = p;
+        SavedPart { label, kind, bytes, texel, initial, scheduled, records }
+    }
+}
+
+impl From<SavedPart> for Part {
+    fn from(p: SavedPart) -> Part {
+        let SavedPart { label, kind, bytes, texel, initial, scheduled, records } = p;
+        Part { label, kind, bytes, texel, initial, scheduled, records }
+    }
+}
+
+/// What one attempt came to.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AttemptOutput {
+    Ran { device: String, parts: Vec<SavedPart>, validation_messages: u64 },
+    Failed { outcome: Outcome, message: String, validation_messages: u64 },
+}
+
+/// The pipeline's modules as the harness runs them: for now the given ones, unchanged (every
+/// stage must be given; the generated raygen and miss of a pipeline given without them come
+/// with `harness::supply`, which replaces this body).
+pub fn full_pipeline(modules: Vec<UserModule>) -> Result<Vec<UserModule>, HarnessError> {
+    Ok(modules)
+}
+
+/// Whether the harness can make a pipeline of `modules`: one raygen, a miss, hit shaders and
+/// callables, as [`Harness`] groups them.
+pub fn check_pipeline(modules: &[UserModule]) -> Result<(), HarnessError> {
+    let refs: Vec<&UserModule> = modules.iter().collect();
+    super::groups(&refs).map(|_| ())
+}
+
+/// What the harness's pipeline provides `modules` (`interface::check` holds them to it): every
+/// binding the modules reflect, the first declaration of a set and binding winning, seen by
+/// every ray tracing stage; the push range of the longest block; the device's hit-attribute
+/// limit; the two hit groups [`Harness`] makes (the procedural one with the harness's own
+/// intersection shader, not among `modules`, when none is given).
+pub fn pipeline_desc(modules: &[UserModule], max_hit_attribute: u32) -> PipelineDesc {
+    let stages = super::resources::rt_stages();
+    let mut bindings: Vec<BindingDesc> = Vec::new();
+    for b in modules.iter().flat_map(|m| &m.iface.bindings) {
+        if bindings.iter().any(|d| (d.set, d.binding) == (b.set, b.binding)) {
+            continue;
+        }
+        let kind = match b.kind {
+            BindingKind::AccelerationStructure => DescriptorKind::AccelerationStructure,
+            BindingKind::StorageImage(_) => DescriptorKind::StorageImage,
+            BindingKind::StorageBuffer(_) => DescriptorKind::StorageBuffer,
+            BindingKind::UniformBuffer(_) => DescriptorKind::UniformBuffer,
+        };
+        bindings.push(BindingDesc { set: b.set, binding: b.binding, kind, count: b.count, stages });
+    }
+    let push = modules.iter().map(|m| m.iface.push_end).max().unwrap_or(0);
+    let refs: Vec<&UserModule> = modules.iter().collect();
+    let hit_groups = super::groups(&refs).map_or_else(
+        |_| vec![],
+        |g| {
+            vec![
+                HitGroup { closest_hit: g.hit[0], any_hit: g.any_hit, intersection: None },
+                HitGroup {
+                    closest_hit: g.hit[1],
+                    any_hit: g.any_hit,
+                    intersection: g.intersection,
+                },
+            ]
+        },
+    );
+    PipelineDesc {
+        bindings,
+        push: (push > 0).then_some(PushRange { offset: 0, size: push.div_ceil(4) * 4, stages }),
+        max_hit_attribute,
+        hit_groups,
+    }
+}
+
+/// The file attempt `k` of `variant` writes.
+pub fn output_path(dir: &Path, variant: &str, k: u32) -> PathBuf {
+    dir.join(format!("{variant}-{k}.json"))
+}
+
+/// The outcome of a harness failure: a device loss, a fence timeout, else rtprobe's `error`.
+pub fn outcome_of(e: &HarnessError) -> Outcome {
+    match e {
+        HarnessError::Vk(v) if v.is_device_lost() => Outcome::DeviceLost,
+        HarnessError::Timeout(_) => Outcome::Timeout,
+        HarnessError::Vk(_)
+        | HarnessError::Build(_)
+        | HarnessError::Unsupported(_)
+        | HarnessError::Interface(_) => Outcome::Error,
+    }
+}
+
+fn say(step: &str) {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    let _ = serde_json::to_writer(&mut out, &super::child::Step { step: step.into() });
+    let _ = out.write_all(b"\n");
+    let _ = out.flush();
+}
+
+/// The test hook's fault for attempt `k` of `variant`, if it names it.
+fn hook(variant: &str, k: u32) -> Option<String> {
+    let spec = std::env::var(FAULT_ENV).ok()?;
+    let mut it = spec.split(':');
+    let kind = it.next()?.to_string();
+    let v = it.next().unwrap_or("unpatched");
+    let at = it.next().and_then(|a| a.parse::<u32>().ok());
+    (v == variant && at.is_none_or(|a| a == k)).then_some(kind)
+}
+
+fn misbehave(kind: Option<&str>) {
+    match kind {
+        Some("crash") => unsafe {
+            // Rust's own SIGSEGV handler ignores a raised signal; restore the default first.
+            libc::signal(libc::SIGSEGV, libc::SIG_DFL);
+            libc::raise(libc::SIGSEGV);
+        },
+        Some("hang") => loop {
+            std::thread::sleep(Duration::from_secs(3600));
+        },
+        _ => {}
+    }
+}
+
+fn write(job: &ShaderJob, k: u32, out: &AttemptOutput) -> Result<(), String> {
+    let bytes = serde_json::to_vec(out).map_err(|e| e.to_string())?;
+    crate::atomic::write_atomic(&output_path(&job.dir, &job.variant, k), &bytes)
+        .map_err(|e| e.to_string())
+}
+
+fn modules(list: &[JobModule]) -> Result<Vec<UserModule>, HarnessError> {
+    list.iter().map(|m| UserModule::new(&m.name, &m.words)).collect()
+}
+
+/// The harness of `job`: its device, the unpatched pipeline's resources, a push range that fits
+/// every module and the contract.
+fn harness(job: &ShaderJob) -> Result<(Harness, Vec<UserModule>), HarnessError> {
+    let (unpatched, variant) = (modules(&job.unpatched)?, modules(&job.modules)?);
+    let inst = Arc::new(Instance::new(&InstanceOptions { validate: job.validate, gpu_av: false })?);
+    let all = features::query_all(&inst)?;
+    let info = all
+        .get(job.device_index)
+        .ok_or_else(|| HarnessError::Unsupported("the device vanished".into()))?
+        .clone();
+    let gpu = Gpu::new(inst, info, super::requirements(job.scalar))?;
+    let push = unpatched
+        .iter()
+        .chain(&variant)
+        .map(|m| m.iface.push_end)
+        .max()
+        .unwrap_or(0)
+        .max(job.contract.as_ref().map_or(0, |c| c.push_end));
+    let refs: Vec<&UserModule> = unpatched.iter().collect();
+    let h = Harness::new(gpu, &refs, push, Duration::from_millis(job.timeout_ms))?;
+    Ok((h, variant))
+}
+
+/// Run the job's attempts; an error is the write's.
+fn run(job: &ShaderJob) -> Result<(), String> {
+    say("setup");
+    let mut seen = crate::vk::instance::validation_error_count();
+    let messages = |seen: &mut u64| {
+        let now = crate::vk::instance::validation_error_count();
+        std::mem::replace(seen, now).abs_diff(now)
+    };
+    let (h, variant) = match harness(job) {
+        Ok(x) => x,
+        Err(e) => {
+            let out = AttemptOutput::Failed {
+                outcome: outcome_of(&e),
+                message: format!("setup: {e}"),
+                validation_messages: messages(&mut seen),
+            };
+            return write(job, job.first, &out);
+        }
+    };
+    let refs: Vec<&UserModule> = variant.iter().collect();
+    for k in job.first..=job.last {
+        say(&format!("trace {k}"));
+        let fault = hook(&job.variant, k);
+        misbehave(fault.as_deref());
+        let out = match h.trace(&refs, job.contract.as_ref()) {
+            Ok(parts) => {
+                let mut parts: Vec<SavedPart> = parts.into_iter().map(SavedPart::from).collect();
+                if let (Some("flip"), Some(b)) =
+                    (fault.as_deref(), parts.first_mut().and_then(|p| p.bytes.first_mut()))
+                {
+                    *b ^= 0xFF;
+                }
+                let validation_messages = messages(&mut seen);
+                AttemptOutput::Ran { device: h.device_name(), parts, validation_messages }
+            }
+            Err(e) => {
+                let outcome = outcome_of(&e);
+                let out = AttemptOutput::Failed {
+                    outcome,
+                    message: e.to_string(),
+                    validation_messages: messages(&mut seen),
+                };
+                if outcome.ends_worker() {
+                    write(job, k, &out)?;
+                    // The device is gone: no teardown through it.
+                    unsafe { libc::_exit(0) };
+                }
+                out
+            }
+        };
+        write(job, k, &out)?;
+    }
+    Ok(())
+}
+
+/// The child's entry: 0 when it wrote its results, 2 otherwise.
+pub fn main(job_path: &Path) -> u8 {
+    let read = std::fs::read(job_path)
+        .map_err(|e| e.to_string())
+        .and_then(|b| serde_json::from_slice::<ShaderJob>(&b).map_err(|e| e.to_string()));
+    let job = match read {
+        Ok(j) => j,
+        Err(e) => {
+            eprintln!("rtprobe __shader: cannot read job {}: {e}", job_path.display());
+            return 2;
+        }
+    };
+    match run(&job) {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("rtprobe __shader: writing a result in {}: {e}", job.dir.display());
+            2
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_hook_names_a_variant_and_an_attempt() {
+        // One test sets and clears the variable: no other test of this binary reads it.
+        std::env::set_var(FAULT_ENV, "crash:unpatched:2");
+        assert_eq!(hook("unpatched", 2).as_deref(), Some("crash"));
+        assert_eq!(hook("unpatched", 1), None);
+        assert_eq!(hook("nonuniform", 2), None);
+        std::env::set_var(FAULT_ENV, "flip:nonuniform");
+        assert_eq!(hook("nonuniform", 3).as_deref(), Some("flip"));
+        assert_eq!(hook("unpatched", 3), None);
+        std::env::remove_var(FAULT_ENV);
+        assert_eq!(hook("unpatched", 1), None);
+    }
+
+    #[test]
+    fn faults_end_the_child_and_input_errors_do_not() {
+        assert_eq!(outcome_of(&HarnessError::Timeout(Duration::from_secs(1))), Outcome::Timeout);
+        assert_eq!(outcome_of(&HarnessError::Unsupported("x".into())), Outcome::Error);
+        assert!(outcome_of(&HarnessError::Timeout(Duration::ZERO)).ends_worker());
+    }
+}

@@ -1,0 +1,303 @@
+//! `run --shader`'s report (`rtprobe.shader-run/1`): the user's inputs with their hashes, the
+//! cell id naming them, each variant of their pipeline (unpatched, and each workaround patch
+//! that applies) with its attempts, and the verdicts judged from the attempts alone — there is
+//! no CPU reference for a user's shader ([`judge_variant`]). A fault (device lost, crash,
+//! timeout) is a finding with its incidence; an attempt with validation messages, or one
+//! rtprobe could not run, is an `error` (no evidence about the driver); unpatched attempts whose
+//! outputs differ from the first are `unstable` (outcome `mismatch`); a patched variant whose
+//! outputs differ from the unpatched ones is a `mismatch` naming the patch.
+use super::{Attempt, Incidence, Outcome};
+use serde::{Deserialize, Serialize};
+
+pub const SCHEMA: &str = "rtprobe.shader-run/1";
+
+/// One input file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ShaderInput {
+    pub file: String,
+    /// raygen, closest_hit, … (the module's entry point).
+    pub stage: String,
+    pub entry: String,
+    /// FNV-1a 128 of the file's bytes, hex.
+    pub hash: String,
+}
+
+/// The cell id of a pipeline of user shaders: `shader:` and each file's name with the first 12
+/// hex digits of its hash, joined by `+` (`shader:hit.rchit@1a2b3c4d5e6f+…`).
+pub fn cell_id(inputs: &[ShaderInput]) -> String {
+    let parts: Vec<String> = inputs
+        .iter()
+        .map(|i| {
+            let name = i.file.rsplit('/').next().unwrap_or(&i.file);
+            format!("{name}@{}", &i.hash[..i.hash.len().min(12)])
+        })
+        .collect();
+    format!("shader:{}", parts.join("+"))
+}
+
+/// One written output of an attempt: its label (`set 0 binding 1[0]`, `storage buffer …`) and
+/// the FNV-1a 128 hash of its bytes.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct OutputHash {
+    pub label: String,
+    pub hash: String,
+}
+
+/// One trace of one variant.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ShaderAttempt {
+    #[serde(flatten)]
+    pub attempt: Attempt,
+    /// Validation-layer messages while this attempt ran (with `--validate`; the first attempt
+    /// of a child also counts its setup's).
+    #[serde(default)]
+    pub validation_messages: u64,
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub outputs: Vec<OutputHash>,
+    /// How its outputs differ from the reference (the unpatched pipeline's first attempt), in
+    /// `harness::judge`'s words; `None`: identical, or nothing to compare.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub differs: Option<String>,
+}
+
+/// What a variant's attempts come to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Judgement {
+    /// Every attempt ran, no message, outputs as the reference's.
+    Pass,
+    /// Device lost, crash or timeout in some attempt.
+    Fault,
+    /// Unpatched attempts whose outputs differ from each other.
+    Unstable,
+    /// A patched variant whose outputs differ from the unpatched ones.
+    PatchDiffers,
+    /// Validation messages: the harness or the input misused the API; not evidence.
+    Validation,
+    /// rtprobe could not run the attempt (a Vulkan error, an input the harness cannot make).
+    Error,
+}
+
+impl Judgement {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Judgement::Pass => "pass",
+            Judgement::Fault => "fault",
+            Judgement::Unstable => "unstable",
+            Judgement::PatchDiffers => "patch_differs",
+            Judgement::Validation => "validation",
+            Judgement::Error => "error",
+        }
+    }
+}
+
+/// One variant: the unpatched pipeline (`patch` None) or one workaround patch applied.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ShaderVariant {
+    pub name: String,
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub patch: Option<String>,
+    /// What the patch did (`rtprobe patch`'s lines) and the host contract it was fed by.
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub patch_lines: Vec<String>,
+    pub attempts: Vec<ShaderAttempt>,
+    pub outcome: Outcome,
+    pub judgement: Judgement,
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub detail: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub incidence: Option<Incidence>,
+}
+
+/// The report `run --shader` writes.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ShaderRunReport {
+    pub schema: String,
+    pub rtprobe_version: String,
+    pub device: String,
+    pub cell: String,
+    pub options: serde_json::Value,
+    pub inputs: Vec<ShaderInput>,
+    pub variants: Vec<ShaderVariant>,
+    /// The worst variant's outcome.
+    pub outcome: Outcome,
+    /// Patches that do not apply, or were not run, and why; differential checks that compared
+    /// nothing informative.
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub notes: Vec<String>,
+}
+
+/// An attempt's own judgement: its fault, an error, its validation messages, its outputs
+/// against the reference (`differs`; `unstable` for the unpatched variant), else a pass.
+fn judge_attempt(a: &ShaderAttempt, patched: bool) -> (Outcome, Judgement) {
+    match a.attempt.outcome {
+        o @ (Outcome::DeviceLost | Outcome::Crash | Outcome::Timeout) => (o, Judgement::Fault),
+        Outcome::Error | Outcome::Unsupported | Outcome::NotImplemented => {
+            (Outcome::Error, Judgement::Error)
+        }
+        Outcome::Pass | Outcome::Mismatch => {
+            if a.validation_messages > 0 {
+                (Outcome::Error, Judgement::Validation)
+            } else if a.differs.is_some() {
+                let j = if patched { Judgement::PatchDiffers } else { Judgement::Unstable };
+                (Outcome::Mismatch, j)
+            } else {
+                (Outcome::Pass, Judgement::Pass)
+            }
+        }
+    }
+}
+
+/// A variant's verdict: its worst attempt (outcome severity), that attempt's detail (its
+/// difference, else its own detail) and, for a finding, the incidence over the attempts that
+/// are evidence (not `error`: validation messages or a harness failure say nothing about the
+/// driver), with the chance that as many attempts miss a fault of the observed rate.
+pub fn judge_variant(
+    attempts: &[ShaderAttempt],
+    patched: bool,
+) -> (Outcome, Judgement, Option<String>, Option<Incidence>) {
+    let judged: Vec<(Outcome, Judgement)> =
+        attempts.iter().map(|a| judge_attempt(a, patched)).collect();
+    let Some(worst) = (0..attempts.len()).max_by_key(|k| (judged[*k].0.severity(), usize::MAX - k))
+    else {
+        return (Outcome::Error, Judgement::Error, Some("no attempt ran".into()), None);
+    };
+    let (outcome, judgement) = judged[worst];
+    let a = &attempts[worst];
+    let detail = a.differs.clone().or_else(|| a.attempt.detail.clone());
+    let evidence: Vec<&(Outcome, Judgement)> =
+        judged.iter().filter(|j| j.0 != Outcome::Error).collect();
+    let (n, k) = (evidence.len() as u32, evidence.iter().filter(|j| j.0.is_finding()).count());
+    let k = k as u32;
+    let incidence =
+        (outcome.is_finding() && outcome != Outcome::Error && n > 0).then(|| Incidence {
+            faulted: k,
+            attempts: n,
+            reproduced_alone: None,
+            miss_probability: super::stats::miss(k as f64 / n as f64, n),
+        });
+    (outcome, judgement, detail, incidence)
+}
+
+impl ShaderVariant {
+    /// A variant judged from its attempts ([`judge_variant`]).
+    pub fn judged(
+        name: &str,
+        patch: Option<String>,
+        patch_lines: Vec<String>,
+        attempts: Vec<ShaderAttempt>,
+    ) -> ShaderVariant {
+        let (outcome, judgement, detail, incidence) = judge_variant(&attempts, patch.is_some());
+        ShaderVariant {
+            name: name.into(),
+            patch,
+            patch_lines,
+            attempts,
+            outcome,
+            judgement,
+            detail,
+            incidence,
+        }
+    }
+}
+
+impl ShaderRunReport {
+    /// The variant whose verdict decides the run's: the worst, the first of equals.
+    pub fn worst(&self) -> Option<&ShaderVariant> {
+        self.variants
+            .iter()
+            .enumerate()
+            .max_by_key(|(k, v)| (v.outcome.severity(), usize::MAX - k))
+            .map(|(_, v)| v)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn attempt(outcome: Outcome, messages: u64, differs: Option<&str>) -> ShaderAttempt {
+        ShaderAttempt {
+            attempt: Attempt::new(outcome, true).with_detail(format!("{}!", outcome.as_str())),
+            validation_messages: messages,
+            outputs: vec![],
+            differs: differs.map(String::from),
+        }
+    }
+
+    fn pass() -> ShaderAttempt {
+        ShaderAttempt {
+            attempt: Attempt::new(Outcome::Pass, true),
+            ..attempt(Outcome::Pass, 0, None)
+        }
+    }
+
+    #[test]
+    fn identical_attempts_pass_without_incidence() {
+        let (o, j, d, i) = judge_variant(&[pass(), pass(), pass()], false);
+        assert_eq!((o, j, d, i), (Outcome::Pass, Judgement::Pass, None, None));
+    }
+
+    #[test]
+    fn a_crash_in_one_of_three_is_a_fault_with_its_incidence() {
+        let (o, j, d, i) =
+            judge_variant(&[pass(), attempt(Outcome::Crash, 0, None), pass()], false);
+        assert_eq!((o, j, d.as_deref()), (Outcome::Crash, Judgement::Fault, Some("crash!")));
+        let i = i.expect("a finding has an incidence");
+        assert_eq!((i.faulted, i.attempts), (1, 3));
+        assert!((i.miss_probability - (2.0f64 / 3.0).powi(3)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_device_loss_outranks_a_difference() {
+        let a =
+            [attempt(Outcome::Pass, 0, Some("x differs")), attempt(Outcome::DeviceLost, 0, None)];
+        let (o, j, _, i) = judge_variant(&a, true);
+        assert_eq!((o, j), (Outcome::DeviceLost, Judgement::Fault));
+        assert_eq!(i.map(|i| (i.faulted, i.attempts)), Some((2, 2)));
+    }
+
+    #[test]
+    fn differing_unpatched_attempts_are_unstable_and_patched_ones_name_the_patch() {
+        let a = [pass(), attempt(Outcome::Pass, 0, Some("image differs in 3 of 4096 texels"))];
+        let (o, j, d, _) = judge_variant(&a, false);
+        assert_eq!((o, j), (Outcome::Mismatch, Judgement::Unstable));
+        assert_eq!(d.as_deref(), Some("image differs in 3 of 4096 texels"));
+        let (o, j, _, i) = judge_variant(&a, true);
+        assert_eq!((o, j), (Outcome::Mismatch, Judgement::PatchDiffers));
+        assert_eq!(i.map(|i| (i.faulted, i.attempts)), Some((1, 2)));
+    }
+
+    #[test]
+    fn validation_messages_are_an_error_and_no_evidence() {
+        let a = [pass(), attempt(Outcome::Pass, 2, None), attempt(Outcome::Crash, 0, None)];
+        // The crash stays the verdict; the attempt with messages is not counted.
+        let (o, _, _, i) = judge_variant(&a, false);
+        assert_eq!(o, Outcome::Crash);
+        assert_eq!(i.map(|i| (i.faulted, i.attempts)), Some((1, 2)));
+        let (o, j, _, i) = judge_variant(&[pass(), attempt(Outcome::Pass, 1, None)], false);
+        assert_eq!((o, j, i), (Outcome::Error, Judgement::Validation, None));
+        // Messages beside a difference: the messages decide (the difference is no evidence).
+        let (o, j, _, _) = judge_variant(&[attempt(Outcome::Pass, 1, Some("d"))], true);
+        assert_eq!((o, j), (Outcome::Error, Judgement::Validation));
+    }
+
+    #[test]
+    fn no_attempt_is_an_error() {
+        let (o, j, d, i) = judge_variant(&[], false);
+        assert_eq!((o, j, i), (Outcome::Error, Judgement::Error, None));
+        assert_eq!(d.as_deref(), Some("no attempt ran"));
+    }
+
+    #[test]
+    fn the_cell_id_names_each_file_and_its_hash() {
+        let input = |f: &str, h: &str| ShaderInput {
+            file: f.into(),
+            stage: "raygen".into(),
+            entry: "main".into(),
+            hash: h.into(),
+        };
+        let id = cell_id(&[input("a/b/cam.rgen", "0123456789abcdef"), input("hit.rchit", "ff")]);
+        assert_eq!(id, "shader:cam.rgen@0123456789ab+hit.rchit@ff");
+    }
+}

@@ -1,0 +1,215 @@
+//! End-to-end tests of `rtprobe run --shader` on lavapipe: engine-like pipelines written for
+//! these tests (`tests/shaders/user/`, with an `#include` of a common file) run under
+//! `--validate` with no message, no fault and the same outputs in every attempt and every
+//! patched variant; their twins (the child crashing in one attempt, one attempt's output
+//! flipped) fail with the attempts recorded; bad input is one line, a non-zero exit and no
+//! report.
+mod common;
+use common::*;
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+
+fn user() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/shaders/user")
+}
+
+/// `run --validate --shader F…` with `extra` and `env`; the output and the report, if written.
+fn shader_run(
+    files: &[&str],
+    extra: &[&str],
+    env: &[(&str, &str)],
+) -> (std::process::Output, Option<Value>, tempfile::TempDir) {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("report.json");
+    let mut args: Vec<String> = vec!["run".into(), "--validate".into()];
+    for f in files {
+        args.push("--shader".into());
+        args.push(user().join(f).to_string_lossy().into_owned());
+    }
+    args.extend(["-o".to_string(), out.to_string_lossy().into_owned()]);
+    args.extend(extra.iter().map(|s| s.to_string()));
+    let argv: Vec<&str> = args.iter().map(String::as_str).collect();
+    let o = run_env(&argv, env);
+    let report = std::fs::read(&out).ok().map(|b| serde_json::from_slice(&b).unwrap());
+    (o, report, d)
+}
+
+fn variants(r: &Value) -> &Vec<Value> {
+    r["variants"].as_array().unwrap()
+}
+
+fn attempts(v: &Value) -> &Vec<Value> {
+    v["attempts"].as_array().unwrap()
+}
+
+/// Every attempt of every variant: passed, no validation message, the outputs of the unpatched
+/// pipeline's first attempt; at least `min_variants` variants, `repeat` attempts each.
+fn assert_clean(o: &std::process::Output, r: &Value, min_variants: usize, repeat: usize) {
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(o), stderr(o));
+    assert_eq!(r["schema"], "rtprobe.shader-run/1");
+    assert!(r["cell"].as_str().unwrap().starts_with("shader:raygen.rgen@"), "{}", r["cell"]);
+    let v = variants(r);
+    assert!(v.len() >= min_variants, "{}", stdout(o));
+    assert_eq!(v[0]["name"], "unpatched");
+    let reference = &attempts(&v[0])[0]["outputs"];
+    assert!(!reference.as_array().unwrap().is_empty(), "outputs were hashed");
+    for variant in v {
+        assert_eq!(variant["outcome"], "pass", "{variant}");
+        assert_eq!(attempts(variant).len(), repeat);
+        for a in attempts(variant) {
+            assert_eq!(a["outcome"], "pass");
+            assert_eq!(a["validation_messages"], 0, "{a}");
+            assert_eq!(&a["outputs"], reference, "{}", variant["name"]);
+        }
+    }
+    assert!(stdout(o).lines().last().unwrap().starts_with("verdict: PASS"), "{}", stdout(o));
+}
+
+/// (a) A raygen with its own payload, a miss, and a bindless closest-hit indexing an SSBO array
+/// and a storage-image array by a push-constant base plus gl_InstanceCustomIndexEXT: clean
+/// unpatched and under as-to-address and ssbo-to-address, with the colour target dumped.
+#[test]
+fn a_bindless_closest_hit_runs_clean_in_every_variant() {
+    let dump = tempfile::tempdir().unwrap();
+    let dir = dump.path().to_str().unwrap();
+    let (o, r, _d) = shader_run(
+        &["raygen.rgen", "miss.rmiss", "bindless.rchit"],
+        &["--repeat", "2", "--dump", dir],
+        &[],
+    );
+    let r = r.unwrap_or_else(|| panic!("no report: {}", stderr(&o)));
+    assert_clean(&o, &r, 3, 2);
+    let names: Vec<&str> = variants(&r).iter().map(|v| v["name"].as_str().unwrap()).collect();
+    assert!(names.contains(&"ssbo-to-address") && names.contains(&"as-to-address"), "{names:?}");
+    let png = dump.path().join("unpatched-1-set-0-binding-1-0.png");
+    assert!(std::fs::read(&png).is_ok_and(|b| b.starts_with(b"\x89PNG")), "{}", png.display());
+}
+
+/// (b) An any-hit alpha test beside a plain closest-hit.
+#[test]
+fn an_any_hit_alpha_test_runs_clean() {
+    let (o, r, _d) = shader_run(
+        &["raygen.rgen", "miss.rmiss", "plain.rchit", "alpha.rahit"],
+        &["--repeat", "2"],
+        &[],
+    );
+    assert_clean(&o, &r.expect("report"), 2, 2);
+}
+
+/// (c) An intersection shader with its hit attributes, read by the sphere's closest-hit.
+#[test]
+fn an_intersection_shader_with_hit_attributes_runs_clean() {
+    let files = ["raygen.rgen", "miss.rmiss", "plain.rchit", "sphere.rint", "sphere.rchit"];
+    let (o, r, _d) = shader_run(&files, &["--repeat", "2"], &[]);
+    let r = r.expect("report");
+    assert_clean(&o, &r, 2, 2);
+    let stages: Vec<&str> =
+        r["inputs"].as_array().unwrap().iter().map(|i| i["stage"].as_str().unwrap()).collect();
+    assert_eq!(stages, ["raygen", "miss", "closest_hit", "intersection", "closest_hit"]);
+}
+
+/// (e) Twin: the child crashes in the unpatched pipeline's second attempt. The crash is a
+/// finding with its incidence, attempts 1 and 3 ran in other children, rtprobe exits 1.
+#[test]
+fn a_child_crash_is_a_finding_with_its_attempts() {
+    let env = [("RTPROBE_SHADER_FAULT", "crash:unpatched:2")];
+    let (o, r, _d) = shader_run(&["raygen.rgen", "miss.rmiss", "plain.rchit"], &[], &env);
+    assert_eq!(o.status.code(), Some(1), "{}{}", stdout(&o), stderr(&o));
+    let r = r.expect("the report is written");
+    let u = &variants(&r)[0];
+    let outcomes: Vec<&str> = attempts(u).iter().map(|a| a["outcome"].as_str().unwrap()).collect();
+    assert_eq!(outcomes, ["pass", "crash", "pass"]);
+    assert_eq!((u["outcome"].as_str(), u["judgement"].as_str()), (Some("crash"), Some("fault")));
+    assert_eq!(
+        (&u["incidence"]["faulted"], &u["incidence"]["attempts"]),
+        (&Value::from(1), &Value::from(3))
+    );
+    assert!(attempts(u)[1]["detail"].as_str().unwrap().contains("signal 11"), "{u}");
+    assert_eq!(r["outcome"], "crash");
+    assert!(stdout(&o).contains("verdict: FAIL"), "{}", stdout(&o));
+}
+
+/// (e) Twins of the differential checks: one unpatched attempt's output flipped is `unstable`;
+/// a patched variant's flipped is a mismatch naming the patch and the output.
+#[test]
+fn differing_outputs_are_unstable_or_the_patchs() {
+    let files = ["raygen.rgen", "miss.rmiss", "plain.rchit"];
+    let (o, r, _d) =
+        shader_run(&files, &["--repeat", "2"], &[("RTPROBE_SHADER_FAULT", "flip:unpatched:2")]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let u = &variants(r.as_ref().unwrap())[0];
+    assert_eq!(
+        (u["outcome"].as_str(), u["judgement"].as_str()),
+        (Some("mismatch"), Some("unstable"))
+    );
+    assert!(
+        u["detail"].as_str().unwrap().contains("attempt 2's set 0 binding 1[0] differs"),
+        "{u}"
+    );
+    let (o, r, _d) =
+        shader_run(&files, &["--repeat", "2"], &[("RTPROBE_SHADER_FAULT", "flip:as-to-address")]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let r = r.unwrap();
+    let v: Vec<&Value> = variants(&r).iter().filter(|v| v["name"] == "as-to-address").collect();
+    assert_eq!(
+        (v[0]["outcome"].as_str(), v[0]["judgement"].as_str()),
+        (Some("mismatch"), Some("patch_differs"))
+    );
+    assert!(
+        v[0]["detail"].as_str().unwrap().starts_with("as-to-address: the patched pipeline's"),
+        "{}",
+        v[0]
+    );
+    assert_eq!(variants(&r)[0]["outcome"], "pass");
+}
+
+/// (d) Bad input: one line naming the thing, a non-zero exit, no report.
+#[test]
+fn bad_input_is_one_line_and_no_report() {
+    let cases: &[(&[&str], &[&str], i32, &str)] = &[
+        (&["raygen.rgen", "missing.rmiss"], &[], 9, "missing.rmiss"),
+        (&["raygen.rgen", "miss.rmiss", "bad.rchit"], &[], 9, "bad.rchit"),
+        (&["raygen.rgen", "common.glsl"], &[], 2, "cannot tell the stage"),
+        (&["miss.rmiss", "plain.rchit"], &[], 9, "raygen and miss"),
+        (
+            &["raygen.rgen", "miss.rmiss"],
+            &["--filter", "stage=raygen"],
+            2,
+            "--filter cannot be used with --shader",
+        ),
+        (&["raygen.rgen", "miss.rmiss"], &["--repeat", "0"], 2, "--repeat 0"),
+    ];
+    for (files, extra, code, needle) in cases {
+        let (o, r, _d) = shader_run(files, extra, &[]);
+        assert_one_line_error(&o, *code, needle);
+        assert!(r.is_none(), "no report for {files:?} {extra:?}");
+    }
+    // A binding the harness cannot make (a combined image sampler) and an invalid module.
+    let d = tempfile::tempdir().unwrap();
+    let tex = d.path().join("tex.rchit");
+    std::fs::write(&tex, "#version 460\n#extension GL_EXT_ray_tracing : require\nlayout(set = 1, binding = 0) uniform sampler2D albedo;\nlayout(location = 0) rayPayloadInEXT vec4 p;\nvoid main() { p = texture(albedo, vec2(0.5)); }\n").unwrap();
+    let (o, r, _d2) = shader_run(&["raygen.rgen", "miss.rmiss", tex.to_str().unwrap()], &[], &[]);
+    assert_one_line_error(&o, 9, "set 1 binding 0");
+    assert!(r.is_none());
+    // A stage the harness does not run, and a raygen without its capability (spirv-val fails).
+    let frag = "OpCapability Shader\nOpMemoryModel Logical GLSL450\nOpEntryPoint Fragment %main \"main\"\nOpExecutionMode %main OriginUpperLeft\n";
+    let rgen = "OpCapability Shader\nOpMemoryModel Logical GLSL450\nOpEntryPoint RayGenerationKHR %main \"main\"\n";
+    let body = "%void = OpTypeVoid\n%fn = OpTypeFunction %void\n%main = OpFunction %void None %fn\n%l = OpLabel\nOpReturn\nOpFunctionEnd\n";
+    for (name, head, needle) in
+        [("frag.spv", frag, "fragment"), ("nocap.spv", rgen, "fails spirv-val")]
+    {
+        let spv = d.path().join(name);
+        let asm = d.path().join(format!("{name}asm"));
+        std::fs::write(&asm, format!("{head}{body}")).unwrap();
+        let a = std::process::Command::new("spirv-as")
+            .args([asm.to_str().unwrap(), "-o", spv.to_str().unwrap()])
+            .output()
+            .expect("spirv-as");
+        assert!(a.status.success(), "{}", String::from_utf8_lossy(&a.stderr));
+        let (o, r, _d3) =
+            shader_run(&["raygen.rgen", "miss.rmiss", spv.to_str().unwrap()], &[], &[]);
+        assert_one_line_error(&o, 9, needle);
+        assert!(stderr(&o).contains(name), "{}", stderr(&o));
+        assert!(r.is_none());
+    }
+}
