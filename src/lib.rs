@@ -18,6 +18,7 @@ pub mod mutants;
 pub mod patches;
 pub mod pool;
 pub mod probe;
+pub mod reflect;
 pub mod reference;
 pub mod report;
 pub mod runner;
