@@ -130,7 +130,11 @@ fn atomically_accessed(m: &Module, var: Word) -> bool {
         for i in body() {
             let derives = matches!(
                 i.class.opcode,
-                Op::AccessChain | Op::InBoundsAccessChain | Op::PtrAccessChain | Op::CopyObject
+                Op::AccessChain
+                    | Op::InBoundsAccessChain
+                    | Op::PtrAccessChain
+                    | Op::CopyObject
+                    | Op::ImageTexelPointer
             );
             if let (true, Some(r), Some(base)) = (derives, i.result_id, id(i.operands.first())) {
                 if from.contains(&base) {

@@ -71,6 +71,8 @@ pub struct Binding {
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Io {
     pub name: String,
+    /// Its `Location` decoration: glslang and DXC write none (`OpTraceRayKHR` and
+    /// `OpExecuteCallableKHR` name the variable itself), so it is mostly `None`.
     pub location: Option<u32>,
     pub ty: Ty,
     /// Bytes at scalar alignment ([`Ty::size`]).
