@@ -55,7 +55,9 @@ pub fn block(x: &Index, st: Word, name: &str) -> Result<Block, ReflectError> {
     };
     let start = ty.members.iter().filter_map(|m| m.offset).min().unwrap_or(0);
     let tail = ty.members.last().and_then(|m| match &m.ty {
-        Ty::Array { stride: Some(s), .. } => Some(Tail { offset: m.offset?, stride: *s, runtime: false }),
+        Ty::Array { stride: Some(s), .. } => {
+            Some(Tail { offset: m.offset?, stride: *s, runtime: false })
+        }
         Ty::RuntimeArray { stride: Some(s), .. } => {
             Some(Tail { offset: m.offset?, stride: *s, runtime: true })
         }
@@ -89,7 +91,9 @@ pub fn binding(
     let (elem, count) = match d.class.opcode {
         Op::TypeArray => {
             let len = id(d.operands.get(1)).and_then(|l| x.constant(l)).ok_or_else(|| {
-                ReflectError::Malformed(format!("set {set} binding {binding}: array length not a constant"))
+                ReflectError::Malformed(format!(
+                    "set {set} binding {binding}: array length not a constant"
+                ))
             })?;
             (id(d.operands.first()).unwrap_or(0), Count::Fixed(len))
         }
@@ -107,7 +111,16 @@ pub fn binding(
         Descriptor::StorageBuffer | Descriptor::StorageImage(_) | Descriptor::StorageTexelBuffer
     ) && !non_writable(x, var, elem);
     let atomic = atomically_accessed(m, var);
-    Ok(Some(Binding { set, binding, name: name.to_string(), descriptor, count, block, writable, atomic }))
+    Ok(Some(Binding {
+        set,
+        binding,
+        name: name.to_string(),
+        descriptor,
+        count,
+        block,
+        writable,
+        atomic,
+    }))
 }
 
 /// Whether a variable is read-only: `NonWritable` on the variable (DXC, Slang) or on every
@@ -116,7 +129,10 @@ fn non_writable(x: &Index, var: Word, block: Word) -> bool {
     if x.has(var, Decoration::NonWritable) {
         return true;
     }
-    let members = x.def(block).filter(|d| d.class.opcode == Op::TypeStruct).map_or(0, |d| d.operands.len() as u32);
+    let members = x
+        .def(block)
+        .filter(|d| d.class.opcode == Op::TypeStruct)
+        .map_or(0, |d| d.operands.len() as u32);
     members > 0 && (0..members).all(|k| x.member(block, k, Decoration::NonWritable).is_some())
 }
 
@@ -146,7 +162,9 @@ fn atomically_accessed(m: &Module, var: Word) -> bool {
             break;
         }
     }
-    body().any(|i| is_atomic(i.class.opcode) && id(i.operands.first()).is_some_and(|p| from.contains(&p)))
+    body().any(|i| {
+        is_atomic(i.class.opcode) && id(i.operands.first()).is_some_and(|p| from.contains(&p))
+    })
 }
 
 fn is_atomic(op: Op) -> bool {

@@ -45,7 +45,8 @@ pub fn used(m: &Module, function: Word) -> HashSet<Word> {
         if !seen.insert(f) {
             continue;
         }
-        let Some(func) = m.functions.iter().find(|x| x.def.as_ref().and_then(|d| d.result_id) == Some(f))
+        let Some(func) =
+            m.functions.iter().find(|x| x.def.as_ref().and_then(|d| d.result_id) == Some(f))
         else {
             continue;
         };

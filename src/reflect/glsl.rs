@@ -23,13 +23,70 @@ pub struct Glsl {
 }
 
 const KEYWORDS: &[&str] = &[
-    "input", "output", "sample", "filter", "common", "partition", "active", "buffer", "shared",
-    "coherent", "volatile", "restrict", "readonly", "writeonly", "uniform", "in", "out", "inout",
-    "layout", "struct", "precision", "highp", "mediump", "lowp", "smooth", "flat", "patch",
-    "centroid", "invariant", "texture", "image", "sampler", "main", "true", "false", "void",
-    "class", "union", "enum", "typedef", "template", "this", "packed", "goto", "switch", "default",
-    "inline", "noinline", "public", "static", "extern", "external", "interface", "long", "short",
-    "double", "half", "fixed", "unsigned", "superp", "cast", "namespace", "using", "row_major",
+    "input",
+    "output",
+    "sample",
+    "filter",
+    "common",
+    "partition",
+    "active",
+    "buffer",
+    "shared",
+    "coherent",
+    "volatile",
+    "restrict",
+    "readonly",
+    "writeonly",
+    "uniform",
+    "in",
+    "out",
+    "inout",
+    "layout",
+    "struct",
+    "precision",
+    "highp",
+    "mediump",
+    "lowp",
+    "smooth",
+    "flat",
+    "patch",
+    "centroid",
+    "invariant",
+    "texture",
+    "image",
+    "sampler",
+    "main",
+    "true",
+    "false",
+    "void",
+    "class",
+    "union",
+    "enum",
+    "typedef",
+    "template",
+    "this",
+    "packed",
+    "goto",
+    "switch",
+    "default",
+    "inline",
+    "noinline",
+    "public",
+    "static",
+    "extern",
+    "external",
+    "interface",
+    "long",
+    "short",
+    "double",
+    "half",
+    "fixed",
+    "unsigned",
+    "superp",
+    "cast",
+    "namespace",
+    "using",
+    "row_major",
 ];
 
 /// `s` as a GLSL identifier (`fallback` when empty).
@@ -57,7 +114,17 @@ fn is_type_word(s: &str) -> bool {
     let base = s.trim_end_matches(|c: char| c.is_ascii_digit() || c == 'x');
     matches!(
         base,
-        "bool" | "int" | "uint" | "float" | "vec" | "ivec" | "uvec" | "bvec" | "dvec" | "mat" | "dmat"
+        "bool"
+            | "int"
+            | "uint"
+            | "float"
+            | "vec"
+            | "ivec"
+            | "uvec"
+            | "bvec"
+            | "dvec"
+            | "mat"
+            | "dmat"
     )
 }
 

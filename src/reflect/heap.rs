@@ -21,9 +21,10 @@ fn builtin(x: &Index, var: Word) -> Option<HeapKind> {
 
 /// The module's heap use.
 pub fn heap(m: &Module, x: &Index) -> Heap {
-    let capability = m.capabilities.iter().any(|c| {
-        c.operands.first() == Some(&Operand::Capability(Capability::DescriptorHeapEXT))
-    });
+    let capability = m
+        .capabilities
+        .iter()
+        .any(|c| c.operands.first() == Some(&Operand::Capability(Capability::DescriptorHeapEXT)));
     let heaps: Vec<(Word, HeapKind)> = m
         .types_global_values
         .iter()
@@ -74,7 +75,10 @@ fn access(x: &Index, heap: HeapKind, base: Word) -> HeapAccess {
         _ => None,
     });
     let element = elem.map_or_else(|| "unknown".to_string(), |e| type_name(x, e));
-    let stride = match (x.decoration(array, Decoration::ArrayStrideIdEXT), x.literal(array, Decoration::ArrayStride)) {
+    let stride = match (
+        x.decoration(array, Decoration::ArrayStrideIdEXT),
+        x.literal(array, Decoration::ArrayStride),
+    ) {
         (_, Some(s)) => HeapStride::Bytes(s),
         (Some(Some(Operand::IdRef(s))), None) => stride_of(x, *s),
         _ => HeapStride::Unknown,

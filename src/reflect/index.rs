@@ -61,7 +61,10 @@ impl<'m> Index<'m> {
                 (Op::Name, [Operand::IdRef(t), Operand::LiteralString(s)]) => {
                     x.names.insert(*t, s);
                 }
-                (Op::MemberName, [Operand::IdRef(t), Operand::LiteralBit32(k), Operand::LiteralString(s)]) => {
+                (
+                    Op::MemberName,
+                    [Operand::IdRef(t), Operand::LiteralBit32(k), Operand::LiteralString(s)],
+                ) => {
                     x.member_names.insert((*t, *k), s);
                 }
                 _ => {}
@@ -72,11 +75,17 @@ impl<'m> Index<'m> {
                 (Op::Decorate | Op::DecorateId, [Operand::IdRef(t), ..]) => {
                     x.decorations.entry(*t).or_default().push(a)
                 }
-                (Op::MemberDecorate, [Operand::IdRef(t), Operand::LiteralBit32(k), Operand::Decoration(d), rest @ ..]) => {
+                (
+                    Op::MemberDecorate,
+                    [Operand::IdRef(t), Operand::LiteralBit32(k), Operand::Decoration(d), rest @ ..],
+                ) => {
                     let v = literal(rest.first()).unwrap_or(0);
                     x.member_decorations.entry((*t, *k)).or_default().push((*d, v));
                 }
-                (Op::MemberDecorateIdEXT, [Operand::IdRef(t), Operand::LiteralBit32(k), Operand::Decoration(d), rest @ ..]) => {
+                (
+                    Op::MemberDecorateIdEXT,
+                    [Operand::IdRef(t), Operand::LiteralBit32(k), Operand::Decoration(d), rest @ ..],
+                ) => {
                     if let Some(v) = id(rest.first()) {
                         x.member_ids.entry((*t, *k)).or_default().push((*d, v));
                     }
@@ -190,18 +199,20 @@ impl<'m> Index<'m> {
                     _ => return Err(bad("pointer without storage class")),
                 };
                 let p = op(1)?;
-                let pointee = if open.contains(&p) {
-                    None
-                } else {
-                    Some(Box::new(self.ty_at(p, open)?))
-                };
+                let pointee =
+                    if open.contains(&p) { None } else { Some(Box::new(self.ty_at(p, open)?)) };
                 Ty::Pointer { class, pointee }
             }
             other => Ty::Opaque(format!("Op{other:?}")),
         })
     }
 
-    fn structure(&self, st: Word, d: &Instruction, open: &mut Vec<Word>) -> Result<Struct, ReflectError> {
+    fn structure(
+        &self,
+        st: Word,
+        d: &Instruction,
+        open: &mut Vec<Word>,
+    ) -> Result<Struct, ReflectError> {
         let mut members = Vec::with_capacity(d.operands.len());
         for (k, o) in d.operands.iter().enumerate() {
             let k = k as u32;

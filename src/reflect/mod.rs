@@ -102,7 +102,13 @@ fn storage(x: &Index, i: &Instruction) -> Option<(StorageClass, Word)> {
 }
 
 /// Record global variable `i` (id `id`) in `r`.
-fn variable(m: &Module, x: &Index, i: &Instruction, id: Word, r: &mut Reflection) -> Result<(), ReflectError> {
+fn variable(
+    m: &Module,
+    x: &Index,
+    i: &Instruction,
+    id: Word,
+    r: &mut Reflection,
+) -> Result<(), ReflectError> {
     let Some((sc, ty)) = storage(x, i) else { return Ok(()) };
     let io = |x: &Index| -> Result<reflection::Io, ReflectError> {
         let t = x.ty(ty)?;

@@ -21,7 +21,13 @@ pub fn paths(name: &str, root: &Ty) -> Vec<PointerPath> {
 
 /// Visit `ty`, reached as `at` inside the current hop, after the hops `hops`; `seen` the
 /// pointees on this path.
-fn walk(ty: &Ty, at: String, hops: &mut Vec<String>, seen: &mut Vec<Ty>, out: &mut Vec<PointerPath>) {
+fn walk(
+    ty: &Ty,
+    at: String,
+    hops: &mut Vec<String>,
+    seen: &mut Vec<Ty>,
+    out: &mut Vec<PointerPath>,
+) {
     if out.len() >= MAX_PATHS {
         return;
     }

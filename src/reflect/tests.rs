@@ -65,7 +65,10 @@ fn a_bindless_closest_hit_reads_its_arrays_blocks_and_push_range() {
         .replace("uniform texture2D textures[];", "uniform texture2D textures[8];")
         .replace("frame.textureBase + mat.texture", "mat.texture & 7u")
         .replace("frame.materialBase + ", "")
-        .replace("layout(push_constant) uniform Frame { uint materialBase; uint textureBase; } frame;", "")
+        .replace(
+            "layout(push_constant) uniform Frame { uint materialBase; uint textureBase; } frame;",
+            "",
+        )
         .replace("hitAttributeEXT vec2 bary;", "vec2 bary = vec2(0.5);");
     let r = of(ShaderKind::ClosestHit, &fixed);
     assert_eq!(r.bindings[2].count, Count::Fixed(8));
@@ -142,7 +145,10 @@ fn a_struct_payload_is_a_type_tree_with_its_location_and_size() {
     assert_eq!(s.members[1].ty, Ty::Vector(Scalar::Float { bits: 32 }, 3));
     assert!(matches!(&s.members[2].ty, Ty::Array { len: 3, .. }));
     // Twin: a vec4 color is 4 bytes more and one scalar more
-    let r = of(ShaderKind::ClosestHit, &STRUCT_PAYLOAD.replace("vec3 color;", "vec4 color;").replace("vec3(1.0)", "vec4(1.0)"));
+    let r = of(
+        ShaderKind::ClosestHit,
+        &STRUCT_PAYLOAD.replace("vec3 color;", "vec4 color;").replace("vec3(1.0)", "vec4(1.0)"),
+    );
     let p = r.incoming_payload.unwrap();
     assert_eq!((p.size, p.ty.scalars()), (48, 12));
 }
@@ -196,8 +202,11 @@ fn spec_constants_have_their_id_type_and_default() {
         layout(location = 0) rayPayloadInEXT vec4 c;\n\
         void main() { c = vec4(float(MAX_BOUNCES) * EXPOSURE, SHADOWS ? 1.0 : 0.0, float(BIAS), 0.0); }\n";
     let r = of(ShaderKind::Miss, body);
-    let s: Vec<(u32, &str, Scalar, u64)> =
-        r.spec_constants.iter().map(|s| (s.spec_id, s.name.as_str(), s.scalar, s.default)).collect();
+    let s: Vec<(u32, &str, Scalar, u64)> = r
+        .spec_constants
+        .iter()
+        .map(|s| (s.spec_id, s.name.as_str(), s.scalar, s.default))
+        .collect();
     assert_eq!(
         s,
         vec![
@@ -208,8 +217,11 @@ fn spec_constants_have_their_id_type_and_default() {
         ]
     );
     // Twin: plain constants are none
-    let plain = body.replace("layout(constant_id = 7) ", "").replace("layout(constant_id = 2) ", "")
-        .replace("layout(constant_id = 3) ", "").replace("layout(constant_id = 4) ", "");
+    let plain = body
+        .replace("layout(constant_id = 7) ", "")
+        .replace("layout(constant_id = 2) ", "")
+        .replace("layout(constant_id = 3) ", "")
+        .replace("layout(constant_id = 4) ", "");
     assert!(of(ShaderKind::Miss, &plain).spec_constants.is_empty());
 }
 
@@ -229,7 +241,12 @@ fn the_shader_record_block_has_its_members_and_offsets() {
     assert_eq!(r.pointers[0].path, vec!["record.colors".to_string()]);
     assert_eq!(r.pointers[0].stride, Some(16));
     // Twin: without it, none
-    assert!(of(ShaderKind::ClosestHit, "layout(location = 0) rayPayloadInEXT vec4 c;\nvoid main() { c = vec4(1); }\n").record.is_none());
+    assert!(of(
+        ShaderKind::ClosestHit,
+        "layout(location = 0) rayPayloadInEXT vec4 c;\nvoid main() { c = vec4(1); }\n"
+    )
+    .record
+    .is_none());
 }
 
 /// A DXC-style module (written here as assembly): a `type.ConstantBuffer.Camera` block in the
@@ -318,11 +335,21 @@ fn a_dxc_module_with_two_entry_points_needs_one_named() {
     let block = sky.bindings[0].block.as_ref().unwrap();
     let mut g = glsl::Glsl::default();
     let text = g.block("set = 0, binding = 0", "uniform", &block.ty, "camera").unwrap();
-    assert!(text.contains("type_ConstantBuffer_Camera_ {") && text.contains("layout(offset = 0) float exposure;"), "{text}");
+    assert!(
+        text.contains("type_ConstantBuffer_Camera_ {")
+            && text.contains("layout(offset = 0) float exposure;"),
+        "{text}"
+    );
     let shadow = reflect(&m, Some("Shadow")).unwrap();
     let b = &shadow.bindings;
-    assert_eq!((b.len(), b[0].binding, b[0].descriptor, b[0].writable), (1, 1, Descriptor::StorageBuffer, true));
-    assert_eq!(b[0].block.as_ref().unwrap().tail, Some(Tail { offset: 0, stride: 4, runtime: true }));
+    assert_eq!(
+        (b.len(), b[0].binding, b[0].descriptor, b[0].writable),
+        (1, 1, Descriptor::StorageBuffer, true)
+    );
+    assert_eq!(
+        b[0].block.as_ref().unwrap().tail,
+        Some(Tail { offset: 0, stride: 4, runtime: true })
+    );
 }
 
 /// Any bytes — garbage, a truncated module, a module cut at every word — give a typed error or a
@@ -356,14 +383,22 @@ fn arbitrary_and_truncated_bytes_never_panic() {
 /// capability, and each access's element type and stride (the descriptor size).
 #[test]
 fn a_heap_closest_hit_reads_its_heaps_and_strides() {
-    let glsl = format!("{HEAD}#extension GL_EXT_descriptor_heap : require\n\
+    let glsl = format!(
+        "{HEAD}#extension GL_EXT_descriptor_heap : require\n\
         layout(descriptor_heap) buffer Mat {{ vec4 albedo[]; }} mats[];\n\
         layout(descriptor_heap) uniform texture2D texs[];\n\
         layout(descriptor_heap) uniform sampler samps[];\n\
         layout(location = 0) rayPayloadInEXT vec4 c;\n\
         void main() {{ c = mats[gl_InstanceCustomIndexEXT].albedo[gl_PrimitiveID] + \
-        textureLod(sampler2D(texs[gl_InstanceCustomIndexEXT + 3], samps[1]), vec2(0.5), 0.0); }}\n");
-    let words = match crate::shadergen::glslang::compile_with("h.rchit", "rchit", &glsl, "GL_EXT_descriptor_heap", &["--target-env", "vulkan1.3"]) {
+        textureLod(sampler2D(texs[gl_InstanceCustomIndexEXT + 3], samps[1]), vec2(0.5), 0.0); }}\n"
+    );
+    let words = match crate::shadergen::glslang::compile_with(
+        "h.rchit",
+        "rchit",
+        &glsl,
+        "GL_EXT_descriptor_heap",
+        &["--target-env", "vulkan1.3"],
+    ) {
         Ok(w) => w,
         Err(e) => return eprintln!("skipped: {e}"),
     };
@@ -371,7 +406,14 @@ fn a_heap_closest_hit_reads_its_heaps_and_strides() {
     assert!(r.heap.capability && r.heap.resource && r.heap.sampler, "{:?}", r.heap);
     let a: Vec<(HeapKind, &str, &HeapStride)> =
         r.heap.accesses.iter().map(|a| (a.heap, a.element.as_str(), &a.stride)).collect();
-    assert!(a.contains(&(HeapKind::Resource, "StorageBuffer buffer", &HeapStride::SizeOf("StorageBuffer buffer".into()))), "{a:?}");
+    assert!(
+        a.contains(&(
+            HeapKind::Resource,
+            "StorageBuffer buffer",
+            &HeapStride::SizeOf("StorageBuffer buffer".into())
+        )),
+        "{a:?}"
+    );
     assert!(a.iter().any(|x| x.0 == HeapKind::Resource && x.1 == "sampled image"), "{a:?}");
     assert!(a.iter().any(|x| x.0 == HeapKind::Sampler && x.1 == "sampler"), "{a:?}");
     assert!(r.bindings.is_empty());

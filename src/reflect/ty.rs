@@ -46,13 +46,27 @@ pub enum Ty {
     Scalar(Scalar),
     Vector(Scalar, u32),
     /// `columns` columns of `rows` scalars.
-    Matrix { scalar: Scalar, columns: u32, rows: u32 },
-    Array { elem: Box<Ty>, len: u32, stride: Option<u32> },
-    RuntimeArray { elem: Box<Ty>, stride: Option<u32> },
+    Matrix {
+        scalar: Scalar,
+        columns: u32,
+        rows: u32,
+    },
+    Array {
+        elem: Box<Ty>,
+        len: u32,
+        stride: Option<u32>,
+    },
+    RuntimeArray {
+        elem: Box<Ty>,
+        stride: Option<u32>,
+    },
     Struct(Struct),
     /// A pointer: its storage class, and its pointee (`None` where the pointee is a struct
     /// already being read, a linked list's `next`).
-    Pointer { class: rspirv::spirv::StorageClass, pointee: Option<Box<Ty>> },
+    Pointer {
+        class: rspirv::spirv::StorageClass,
+        pointee: Option<Box<Ty>>,
+    },
     /// Anything else (images, samplers, acceleration structures, …), by its opcode.
     Opaque(String),
 }
