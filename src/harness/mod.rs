@@ -18,9 +18,11 @@ pub mod ints;
 pub mod reflect;
 mod resources;
 pub mod scene;
+mod supply;
 
 pub use compare::{compare, judge, Compared, Part, PartKind, Verdict};
 pub use error::HarnessError;
+pub use supply::{supply, MISS_MARKER};
 
 use crate::exec::pipeline::{self, Pipeline, RtPipeline, SbtCounts};
 use crate::model::contract::HostContract;
@@ -40,6 +42,7 @@ pub const SIZE: u32 = scene::TRACE_SIZE;
 pub const TIMEOUT: Duration = Duration::from_secs(30);
 
 /// One module of a pipeline: its name, SPIR-V and interface.
+#[derive(Clone, Debug)]
 pub struct UserModule {
     pub name: String,
     pub words: Vec<u32>,
@@ -117,7 +120,10 @@ fn groups(modules: &[&UserModule]) -> Result<Groups, HarnessError> {
         }
     }
     if g.raygen == usize::MAX || g.misses.is_empty() {
-        return Err(HarnessError::Unsupported("the harness needs the pipeline's raygen and miss shaders (give every stage of the pipeline)".into()));
+        return Err(HarnessError::Unsupported(
+            "the harness needs a raygen and a miss shader (`supply` adds them where missing)"
+                .into(),
+        ));
     }
     g.hit = [chits.first().copied(), chits.get(1).copied()];
     Ok(g)
@@ -495,6 +501,8 @@ pub fn verify_with(
     timeout: Duration,
     step: &mut dyn FnMut(&str),
 ) -> Result<(String, Vec<Compared>), HarnessError> {
+    // Stages the modules lack (a closest-hit alone) supplied, the same for both pipelines.
+    let (before, after) = (supply(before.to_vec())?, supply(after.to_vec())?);
     let b: Vec<&UserModule> = before.iter().collect();
     let a: Vec<&UserModule> = after.iter().collect();
     let push =
