@@ -120,10 +120,10 @@ fn variable(
         })
     };
     match sc {
-        StorageClass::UniformConstant | StorageClass::Uniform | StorageClass::StorageBuffer => {
-            if x.has(id, Decoration::DescriptorSet) || x.has(id, Decoration::Binding) {
-                r.bindings.extend(bindings::binding(m, x, id, sc, ty)?);
-            }
+        StorageClass::UniformConstant | StorageClass::Uniform | StorageClass::StorageBuffer
+            if x.has(id, Decoration::DescriptorSet) || x.has(id, Decoration::Binding) =>
+        {
+            r.bindings.extend(bindings::binding(m, x, id, sc, ty)?);
         }
         StorageClass::PushConstant => r.push = Some(bindings::block(x, ty, "push")?),
         StorageClass::ShaderRecordBufferKHR => r.record = Some(bindings::block(x, ty, "record")?),
