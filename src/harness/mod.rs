@@ -502,7 +502,10 @@ pub fn verify_with(
     step: &mut dyn FnMut(&str),
 ) -> Result<(String, Vec<Compared>), HarnessError> {
     // Stages the modules lack (a closest-hit alone) supplied, the same for both pipelines.
-    let (before, after) = (supply(before.to_vec())?, supply(after.to_vec())?);
+    // The raygen's buffers at the same bindings in both: past every binding either declares.
+    let at = supply::free_binding(before).max(supply::free_binding(after));
+    let before = supply::supply_at(before.to_vec(), at)?;
+    let after = supply::supply_at(after.to_vec(), at)?;
     let b: Vec<&UserModule> = before.iter().collect();
     let a: Vec<&UserModule> = after.iter().collect();
     let push =

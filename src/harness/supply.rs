@@ -142,19 +142,33 @@ fn compiled(kind: ShaderKind, name: &str, glsl: &str) -> Result<UserModule, Harn
     UserModule::new(name, &words)
 }
 
+/// The first set-0 binding after every one `modules` declare there.
+pub fn free_binding(modules: &[UserModule]) -> u32 {
+    modules
+        .iter()
+        .flat_map(|m| m.iface.bindings.iter().filter(|b| b.set == 0).map(|b| b.binding + 1))
+        .max()
+        .unwrap_or(0)
+}
+
 /// `modules` with a raygen and a miss shader supplied where they have none.
-pub fn supply(mut modules: Vec<UserModule>) -> Result<Vec<UserModule>, HarnessError> {
+pub fn supply(modules: Vec<UserModule>) -> Result<Vec<UserModule>, HarnessError> {
+    let binding = free_binding(&modules);
+    supply_at(modules, binding)
+}
+
+/// [`supply`] with the raygen's TLAS at set 0 `binding` and its words at `binding + 1` (a
+/// patched pipeline that no longer declares a binding keeps the unpatched one's).
+pub fn supply_at(
+    mut modules: Vec<UserModule>,
+    binding: u32,
+) -> Result<Vec<UserModule>, HarnessError> {
     let has = |s: &str, m: &[UserModule]| m.iter().any(|m| m.iface.stage == s);
     let (raygen, miss) = (has("raygen", &modules), has("miss", &modules));
     if raygen && miss {
         return Ok(modules);
     }
     let (ty, what) = payload(&modules);
-    let binding = modules
-        .iter()
-        .flat_map(|m| m.iface.bindings.iter().filter(|b| b.set == 0).map(|b| b.binding + 1))
-        .max()
-        .unwrap_or(0);
     if !miss {
         modules.push(compiled(ShaderKind::Miss, "supplied miss", &miss_glsl(&ty, &what)?)?);
     }
