@@ -15,6 +15,7 @@ pub mod child;
 mod compare;
 mod error;
 pub mod ints;
+mod module;
 pub mod reflect;
 mod resources;
 pub mod scene;
@@ -22,6 +23,7 @@ mod supply;
 
 pub use compare::{compare, judge, Compared, Part, PartKind, Verdict};
 pub use error::HarnessError;
+pub use module::UserModule;
 pub use supply::{supply, MISS_MARKER};
 
 use crate::exec::pipeline::{self, Pipeline, RtPipeline, SbtCounts};
@@ -31,7 +33,7 @@ use crate::vk::memory::{color_range, full_barrier, transition, Buffer, Location,
 use crate::vk::submit::{Submitter, Waited};
 use crate::vk::{Gpu, Requirements, VkResultExt};
 use ash::vk;
-use reflect::{BindingKind, Interface};
+use reflect::BindingKind;
 use resources::{Element, Resources};
 use std::ffi::CString;
 use std::time::Duration;
@@ -40,24 +42,6 @@ use std::time::Duration;
 pub const SIZE: u32 = scene::TRACE_SIZE;
 /// The fence deadline of one submission by default.
 pub const TIMEOUT: Duration = Duration::from_secs(30);
-
-/// One module of a pipeline: its name, SPIR-V and interface.
-#[derive(Clone, Debug)]
-pub struct UserModule {
-    pub name: String,
-    pub words: Vec<u32>,
-    pub iface: Interface,
-}
-
-impl UserModule {
-    pub fn new(name: &str, words: &[u32]) -> Result<UserModule, HarnessError> {
-        let m = crate::patches::load(&crate::tools::spirv::bytes(words))
-            .map_err(|e| HarnessError::Interface(format!("{name}: {e}")))?;
-        let iface =
-            reflect::reflect(&m).map_err(|e| HarnessError::Unsupported(format!("{name}: {e}")))?;
-        Ok(UserModule { name: name.to_string(), words: words.to_vec(), iface })
-    }
-}
 
 /// What the device must enable for `modules` (`scalar`: their blocks need scalar layout).
 /// Every module needs the RT pipeline; the patched ones device addresses and 64-bit integers;

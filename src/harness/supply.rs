@@ -8,7 +8,9 @@
 //! scalar. Hit groups stay as `Harness::pipeline` makes them (a procedural group without an
 //! intersection shader gets the one that reports nothing). A payload the GLSL cannot mirror word
 //! for word (a pointer, a runtime array, a scalar not 32 bits wide) is a typed error naming it.
-use super::{HarnessError, UserModule, SIZE};
+use super::error::HarnessError;
+use super::module::UserModule;
+use super::scene::TRACE_SIZE as SIZE;
 use crate::reflect::glsl::{self, Glsl};
 use crate::reflect::{Scalar, Ty};
 use crate::scene::{RAY_TMAX, RAY_TMIN, RAY_Z, VIEW_HALF};
