@@ -19,6 +19,7 @@ pub mod patches;
 pub mod pool;
 pub mod probe;
 pub mod reference;
+pub mod reflect;
 pub mod report;
 pub mod runner;
 pub mod scene;

@@ -795,3 +795,26 @@ fn verify_fails_when_only_a_writable_buffer_differs() {
         v => panic!("{v:?}"),
     }
 }
+
+/// Issue #24 item 3: a closest-hit given alone runs in the harness with a supplied raygen and
+/// miss; every payload word the raygen writes (64×64 pixels × 10 words, at the binding after the
+/// user's) is compared, unpatched against patched. Twin: a payload holding a pointer cannot be
+/// mirrored: one line naming it, exit 9, nothing written.
+#[test]
+fn a_closest_hit_alone_verifies_with_supplied_stages() {
+    let verify = |file: &str| {
+        let d = tempfile::tempdir().unwrap();
+        let (src, out) = (corpus().join(file), d.path().join("out.spv"));
+        let args = ["patch", src.to_str().unwrap(), "-a", "ssbo-to-address", "-o"];
+        let o = run(&[&args[..], &[out.to_str().unwrap(), "--verify"]].concat());
+        (o, d)
+    };
+    let (o, _d) = verify("alone/shade.rchit");
+    assert!(o.status.success(), "{}", stderr(&o));
+    let s = stdout(&o);
+    assert!(s.contains("storage buffer set 0 binding 2[0]: 40960 4-byte words identical"), "{s}");
+    let (o, d) = verify("alone/node.rchit");
+    assert_one_line_error(&o, 9, "payload `visit` cannot be mirrored");
+    assert!(stderr(&o).contains("payload.node, a pointer"), "{}", stderr(&o));
+    assert!(std::fs::read_dir(d.path()).unwrap().next().is_none(), "nothing written");
+}

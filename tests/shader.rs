@@ -85,6 +85,27 @@ fn a_bindless_closest_hit_runs_clean_in_every_variant() {
     assert!(std::fs::read(&png).is_ok_and(|b| b.starts_with(b"\x89PNG")), "{}", png.display());
 }
 
+/// (f) The bindless closest-hit given alone: rtprobe supplies a raygen sending its payload type
+/// and a miss; clean in every variant, the supplied raygen's payload words among the outputs.
+#[test]
+fn a_closest_hit_alone_runs_with_supplied_stages() {
+    let (o, r, _d) = shader_run(&["bindless.rchit"], &["--repeat", "2"], &[]);
+    let r = r.unwrap_or_else(|| panic!("no report: {}", stderr(&o)));
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    assert!(r["cell"].as_str().unwrap().starts_with("shader:bindless.rchit@"), "{}", r["cell"]);
+    let v = variants(&r);
+    let reference = &attempts(&v[0])[0]["outputs"];
+    // the colour target and the supplied raygen's payload words: more than one output
+    assert!(reference.as_array().unwrap().len() >= 2, "{reference}");
+    for variant in v {
+        assert_eq!(variant["outcome"], "pass", "{variant}");
+        for a in attempts(variant) {
+            assert_eq!(a["validation_messages"], 0, "{a}");
+            assert_eq!(&a["outputs"], reference, "{}", variant["name"]);
+        }
+    }
+}
+
 /// (b) An any-hit alpha test beside a plain closest-hit.
 #[test]
 fn an_any_hit_alpha_test_runs_clean() {
@@ -170,7 +191,6 @@ fn bad_input_is_one_line_and_no_report() {
         (&["raygen.rgen", "missing.rmiss"], &[], 9, "missing.rmiss"),
         (&["raygen.rgen", "miss.rmiss", "bad.rchit"], &[], 9, "bad.rchit"),
         (&["raygen.rgen", "common.glsl"], &[], 2, "cannot tell the stage"),
-        (&["miss.rmiss", "plain.rchit"], &[], 9, "raygen and miss"),
         (
             &["raygen.rgen", "miss.rmiss"],
             &["--filter", "stage=raygen"],
@@ -184,6 +204,12 @@ fn bad_input_is_one_line_and_no_report() {
         assert_one_line_error(&o, *code, needle);
         assert!(r.is_none(), "no report for {files:?} {extra:?}");
     }
+    // A closest-hit alone whose payload holds a pointer: no raygen can be generated for it.
+    let node =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/patch-corpus/alone/node.rchit");
+    let (o, r, _d) = shader_run(&[node.to_str().unwrap()], &[], &[]);
+    assert_one_line_error(&o, 9, "give your raygen with --shader");
+    assert!(r.is_none(), "no report for node.rchit");
     // A binding the harness cannot make (a combined image sampler) and an invalid module.
     let d = tempfile::tempdir().unwrap();
     let tex = d.path().join("tex.rchit");

@@ -130,7 +130,7 @@ pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
         validate: g.validate,
         scalar: plan.scalar,
         unpatched: plan
-            .modules
+            .given
             .iter()
             .map(|m| JobModule { name: m.name.clone(), words: m.words.clone() })
             .collect(),

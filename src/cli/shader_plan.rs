@@ -35,7 +35,10 @@ pub struct PlannedVariant {
 /// Everything `run --shader` runs.
 pub struct ShaderPlan {
     pub inputs: Vec<ShaderInput>,
-    /// The unpatched pipeline.
+    /// The given modules, as the children get them (each supplies the missing stages itself,
+    /// at the same bindings for every variant).
+    pub given: Vec<UserModule>,
+    /// The unpatched pipeline as it runs: the given modules and the stages supplied.
     pub modules: Vec<UserModule>,
     pub scalar: bool,
     pub variants: Vec<PlannedVariant>,
@@ -138,13 +141,14 @@ pub fn plan(a: &RunArgs) -> Result<ShaderPlan> {
         val.push(o);
         modules.push(m);
     }
+    let given = modules.clone();
     let modules = harness::run::full_pipeline(modules)
         .map_err(|e| coded(exit::BAD_INPUT, format!("--shader: {e}")))?;
     harness::run::check_pipeline(&modules)
         .map_err(|e| coded(exit::BAD_INPUT, format!("--shader: {e}")))?;
     let scalar = stages.iter().any(|s| s.rules == Rules::Scalar);
     let (variants, notes) = variants(&stages, &val);
-    Ok(ShaderPlan { inputs: described, modules, scalar, variants, notes })
+    Ok(ShaderPlan { inputs: described, given, modules, scalar, variants, notes })
 }
 
 /// Each differential patch applied to a copy of the pipeline: the variants that apply and

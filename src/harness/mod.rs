@@ -18,13 +18,17 @@ mod compare;
 pub mod entry;
 mod error;
 pub mod ints;
+mod module;
 pub mod reflect;
 mod resources;
 pub mod run;
 pub mod scene;
+mod supply;
 
 pub use compare::{compare, judge, Compared, Part, PartKind, Verdict};
 pub use error::HarnessError;
+pub use module::UserModule;
+pub use supply::{supply, MISS_MARKER};
 
 use crate::exec::pipeline::{self, Pipeline, RtPipeline, SbtCounts};
 use crate::model::contract::HostContract;
@@ -33,7 +37,7 @@ use crate::vk::memory::{color_range, full_barrier, transition, Buffer, Location,
 use crate::vk::submit::{Submitter, Waited};
 use crate::vk::{Gpu, Requirements, VkResultExt};
 use ash::vk;
-use reflect::{BindingKind, Interface};
+use reflect::BindingKind;
 use resources::{Element, Resources};
 use std::ffi::CString;
 use std::time::Duration;
@@ -42,23 +46,6 @@ use std::time::Duration;
 pub const SIZE: u32 = scene::TRACE_SIZE;
 /// The fence deadline of one submission by default.
 pub const TIMEOUT: Duration = Duration::from_secs(30);
-
-/// One module of a pipeline: its name, SPIR-V and interface.
-pub struct UserModule {
-    pub name: String,
-    pub words: Vec<u32>,
-    pub iface: Interface,
-}
-
-impl UserModule {
-    pub fn new(name: &str, words: &[u32]) -> Result<UserModule, HarnessError> {
-        let m = crate::patches::load(&crate::tools::spirv::bytes(words))
-            .map_err(|e| HarnessError::Interface(format!("{name}: {e}")))?;
-        let iface =
-            reflect::reflect(&m).map_err(|e| HarnessError::Unsupported(format!("{name}: {e}")))?;
-        Ok(UserModule { name: name.to_string(), words: words.to_vec(), iface })
-    }
-}
 
 /// What the device must enable for `modules` (`scalar`: their blocks need scalar layout).
 /// Every module needs the RT pipeline; the patched ones device addresses and 64-bit integers;
@@ -121,7 +108,10 @@ fn groups(modules: &[&UserModule]) -> Result<Groups, HarnessError> {
         }
     }
     if g.raygen == usize::MAX || g.misses.is_empty() {
-        return Err(HarnessError::Unsupported("the harness needs the pipeline's raygen and miss shaders (give every stage of the pipeline)".into()));
+        return Err(HarnessError::Unsupported(
+            "the harness needs a raygen and a miss shader (`supply` adds them where missing)"
+                .into(),
+        ));
     }
     g.hit = [chits.first().copied(), chits.get(1).copied()];
     Ok(g)
@@ -499,6 +489,11 @@ pub fn verify_with(
     timeout: Duration,
     step: &mut dyn FnMut(&str),
 ) -> Result<(String, Vec<Compared>), HarnessError> {
+    // Stages the modules lack (a closest-hit alone) supplied, the same for both pipelines.
+    // The raygen's buffers at the same bindings in both: past every binding either declares.
+    let at = supply::free_binding(before).max(supply::free_binding(after));
+    let before = supply::supply_at(before.to_vec(), at)?;
+    let after = supply::supply_at(after.to_vec(), at)?;
     let b: Vec<&UserModule> = before.iter().collect();
     let a: Vec<&UserModule> = after.iter().collect();
     let push =

@@ -1,15 +1,14 @@
-//! What a module asks of its host, read with rspirv: its stage and entry point, its descriptor
-//! bindings (set, binding, type, array size; runtime arrays included) with the byte size of each
-//! buffer, and the bytes its push-constant block reads. Only the binding types the harness can
+//! What a module asks of its host, the harness's view of its [`crate::reflect`]ion: its stage
+//! and entry point, its descriptor bindings (set, binding, type, array size; runtime arrays
+//! included) with the byte size of each buffer, and the bytes its push-constant block reads. Only the binding types the harness can
 //! make are accepted (acceleration structures, storage images, storage and uniform buffers); any
 //! other is refused naming its set and binding.
 use super::ints::{self, IntWords};
 use super::scene::{INDEX_BOUND, TRACE_SIZE};
-use crate::patches::layout::{self, Rules};
-use crate::patches::pipeline::stage_of;
 use crate::patches::{edit, push};
-use rspirv::dr::{Module, Operand};
-use rspirv::spirv::{Decoration, ImageFormat, Op, StorageClass, Word};
+use crate::reflect::{self, Count, Descriptor};
+use rspirv::dr::Module;
+use rspirv::spirv::{Decoration, ImageFormat, Op, Word};
 
 /// Elements given to a runtime-sized array of descriptors: one per index the harness scene can
 /// produce (`super::scene::INDEX_BOUND`), so an array indexed by `gl_InstanceCustomIndexEXT` and
@@ -73,6 +72,8 @@ pub struct Interface {
     pub push_end: u32,
     /// The integer words of its push-constant block (offsets in the push range).
     pub push_ints: IntWords,
+    /// The whole reflection the harness's view was made from.
+    pub reflection: reflect::Reflection,
 }
 
 /// What the harness cannot give a module.
@@ -80,187 +81,87 @@ pub struct Interface {
 #[error("{0}")]
 pub struct ReflectError(pub String);
 
-/// The byte size of one buffer of block struct `st`: its members' ends, a runtime array at the
-/// end given [`RUNTIME_MEMBERS`] elements; rounded up to 16.
-fn buffer_size(m: &Module, st: Word) -> Option<u32> {
-    let d = edit::def(m, st)?;
-    let mut end = 0;
-    for (k, o) in d.operands.iter().enumerate() {
-        let ty = edit::id_from(o)?;
-        let offset = edit::member_decoration(m, st, k as u32, Decoration::Offset)?;
-        let t = edit::def(m, ty)?;
-        let size = if t.class.opcode == Op::TypeRuntimeArray {
-            RUNTIME_MEMBERS * edit::decoration_literal(m, ty, Decoration::ArrayStride)?
-        } else {
-            layout::extent(
-                m,
-                ty,
-                edit::member_decoration(m, st, k as u32, Decoration::MatrixStride).map(|s| {
-                    (s, edit::member_decoration(m, st, k as u32, Decoration::RowMajor).is_some())
-                }),
-            )?
-        };
-        end = end.max(offset + size);
-    }
-    Some(end.div_ceil(16) * 16)
+/// The byte size of one buffer of block `b`: its fixed part's end, a trailing runtime array
+/// given [`RUNTIME_MEMBERS`] elements; rounded up to 16.
+fn buffer_size(b: &reflect::Block) -> u32 {
+    let runtime = b.tail.filter(|t| t.runtime).map_or(0, |t| t.offset + RUNTIME_MEMBERS * t.stride);
+    b.end.max(runtime).div_ceil(16) * 16
 }
 
-/// The kind of one descriptor of type `ty` in storage class `sc`.
-fn kind(m: &Module, sc: StorageClass, ty: Word) -> Option<BindingKind> {
-    let d = edit::def(m, ty)?;
-    match (sc, d.class.opcode) {
-        (StorageClass::UniformConstant, Op::TypeAccelerationStructureKHR) => {
-            Some(BindingKind::AccelerationStructure)
-        }
-        (StorageClass::UniformConstant, Op::TypeImage) => {
-            let sampled = matches!(d.operands.get(5), Some(Operand::LiteralBit32(2)));
-            match d.operands.get(6) {
-                Some(Operand::ImageFormat(f)) if sampled => Some(BindingKind::StorageImage(*f)),
-                _ => None,
-            }
-        }
-        (StorageClass::StorageBuffer, Op::TypeStruct) => {
-            Some(BindingKind::StorageBuffer(buffer_size(m, ty)?))
-        }
-        (StorageClass::Uniform, Op::TypeStruct) => {
-            let size = buffer_size(m, ty)?;
-            Some(if edit::has_decoration(m, ty, Decoration::BufferBlock) {
-                BindingKind::StorageBuffer(size)
-            } else {
-                BindingKind::UniformBuffer(size)
-            })
-        }
-        _ => None,
-    }
-}
-
-/// One descriptor variable: its binding, or why the harness cannot make it.
-fn binding(m: &Module, var: Word, ptr: Word) -> Result<Binding, ReflectError> {
-    let set = edit::decoration_literal(m, var, Decoration::DescriptorSet).unwrap_or(0);
-    let binding = edit::decoration_literal(m, var, Decoration::Binding).unwrap_or(0);
+/// The harness's binding for reflected binding `b`, or why the harness cannot make it.
+fn binding(m: &Module, b: &reflect::Binding) -> Result<Binding, ReflectError> {
+    let (set, binding) = (b.set, b.binding);
     let refuse = |what: &str| ReflectError(format!("set {set} binding {binding}: {what}"));
-    let (sc, pointee) = edit::pointer_info(m, ptr).ok_or_else(|| refuse("not a pointer"))?;
-    let d = edit::def(m, pointee).ok_or_else(|| refuse("type not found"))?;
-    let (elem, count, runtime) = match d.class.opcode {
-        Op::TypeArray => {
-            let n = edit::array_length(m, d)
-                .ok_or_else(|| refuse("an array sized by a spec constant"))?;
-            (edit::id_operand(d, 0).unwrap_or(0), n, false)
+    let size = || b.block.as_ref().map_or(0, buffer_size);
+    let kind = match b.descriptor {
+        Descriptor::AccelerationStructure => BindingKind::AccelerationStructure,
+        Descriptor::StorageImage(f) if f != ImageFormat::Unknown => BindingKind::StorageImage(f),
+        Descriptor::StorageBuffer => BindingKind::StorageBuffer(size()),
+        Descriptor::UniformBuffer => BindingKind::UniformBuffer(size()),
+        Descriptor::StorageImage(_)
+        | Descriptor::SampledImage
+        | Descriptor::CombinedImageSampler
+        | Descriptor::Sampler
+        | Descriptor::UniformTexelBuffer
+        | Descriptor::StorageTexelBuffer
+        | Descriptor::InputAttachment => {
+            return Err(refuse(&format!("a {:?} descriptor, which the harness cannot make yet (acceleration structures, storage images of a known format, storage and uniform buffers)", b.descriptor)))
         }
-        Op::TypeRuntimeArray => (edit::id_operand(d, 0).unwrap_or(0), RUNTIME_ELEMENTS, true),
-        _ => (pointee, 1, false),
     };
-    let kind = kind(m, sc, elem).ok_or_else(|| {
-        let op = edit::def(m, elem).map(|e| format!("Op{:?}", e.class.opcode)).unwrap_or_default();
-        refuse(&format!("a {op} in {sc:?} storage, which the harness cannot make yet (acceleration structures, storage images, storage and uniform buffers)"))
-    })?;
-    let writable = matches!(kind, BindingKind::StorageBuffer(_)) && !non_writable(m, var, elem);
+    let (count, runtime) = match b.count {
+        Count::One => (1, false),
+        Count::Fixed(n) => (n, false),
+        Count::Runtime => (RUNTIME_ELEMENTS, true),
+    };
+    let writable = matches!(kind, BindingKind::StorageBuffer(_)) && b.writable;
+    let st = block_struct(m, b);
     let ints = match kind {
         BindingKind::StorageBuffer(_) | BindingKind::UniformBuffer(_) => {
-            ints::of_block(m, elem).unwrap_or_default()
+            st.and_then(|st| ints::of_block(m, st)).unwrap_or_default()
         }
         _ => IntWords::default(),
     };
-    let atomic = writable && atomically_accessed(m, var);
-    let records = if writable { last_array_member(m, elem) } else { None };
-    Ok(Binding { set, binding, kind, count, runtime, writable, ints, atomic, records })
-}
-
-/// The byte offset and `ArrayStride` of block `st`'s last member when it is an array.
-fn last_array_member(m: &Module, st: Word) -> Option<(u32, u32)> {
-    let d = edit::def(m, st)?;
-    let last = d.operands.len().checked_sub(1)?;
-    let ty = edit::def(m, edit::id_operand(d, last)?)?;
-    if !matches!(ty.class.opcode, Op::TypeArray | Op::TypeRuntimeArray) {
-        return None;
-    }
-    let stride = edit::decoration_literal(m, ty.result_id?, Decoration::ArrayStride)?;
-    let offset = edit::member_decoration(m, st, last as u32, Decoration::Offset)?;
-    (stride > 0).then_some((offset, stride))
-}
-
-/// Whether an `OpAtomic*` instruction's pointer derives from `var` (through access chains and
-/// copies).
-fn atomically_accessed(m: &Module, var: Word) -> bool {
-    let body = || m.functions.iter().flat_map(|f| &f.blocks).flat_map(|b| &b.instructions);
-    let mut from: std::collections::BTreeSet<Word> = [var].into();
-    loop {
-        let before = from.len();
-        for i in body() {
-            let derives = matches!(
-                i.class.opcode,
-                Op::AccessChain | Op::InBoundsAccessChain | Op::PtrAccessChain | Op::CopyObject
-            );
-            if let (true, Some(id), Some(base)) = (derives, i.result_id, edit::id_operand(i, 0)) {
-                if from.contains(&base) {
-                    from.insert(id);
-                }
-            }
-        }
-        if from.len() == before {
-            break;
-        }
-    }
-    body().any(|i| {
-        is_atomic(i.class.opcode) && edit::id_operand(i, 0).is_some_and(|p| from.contains(&p))
+    let records =
+        b.block.as_ref().and_then(|k| k.tail).filter(|_| writable).map(|t| (t.offset, t.stride));
+    Ok(Binding {
+        set,
+        binding,
+        kind,
+        count,
+        runtime,
+        writable,
+        ints,
+        atomic: writable && b.atomic,
+        records,
     })
 }
 
-fn is_atomic(op: Op) -> bool {
-    matches!(
-        op,
-        Op::AtomicLoad
-            | Op::AtomicStore
-            | Op::AtomicExchange
-            | Op::AtomicCompareExchange
-            | Op::AtomicCompareExchangeWeak
-            | Op::AtomicIIncrement
-            | Op::AtomicIDecrement
-            | Op::AtomicIAdd
-            | Op::AtomicISub
-            | Op::AtomicSMin
-            | Op::AtomicUMin
-            | Op::AtomicSMax
-            | Op::AtomicUMax
-            | Op::AtomicAnd
-            | Op::AtomicOr
-            | Op::AtomicXor
-            | Op::AtomicFAddEXT
-            | Op::AtomicFMinEXT
-            | Op::AtomicFMaxEXT
-    )
-}
-
-/// Whether a buffer variable is read-only: `NonWritable` on the variable (DXC, Slang) or on every
-/// member of its block (glslang's `readonly buffer`).
-fn non_writable(m: &Module, var: Word, block: Word) -> bool {
-    if edit::has_decoration(m, var, Decoration::NonWritable) {
-        return true;
+/// The block struct of binding `b`'s variable (for [`ints::of_block`], which reads the module).
+fn block_struct(m: &Module, b: &reflect::Binding) -> Option<Word> {
+    let var = m.types_global_values.iter().find(|v| {
+        v.class.opcode == Op::Variable
+            && v.result_id.is_some_and(|id| {
+                edit::decoration_literal(m, id, Decoration::DescriptorSet) == Some(b.set)
+                    && edit::decoration_literal(m, id, Decoration::Binding) == Some(b.binding)
+            })
+    })?;
+    let (_, pointee) = edit::pointer_info(m, var.result_type?)?;
+    let d = edit::def(m, pointee)?;
+    match d.class.opcode {
+        Op::TypeArray | Op::TypeRuntimeArray => edit::id_operand(d, 0),
+        _ => Some(pointee),
     }
-    let members = edit::def(m, block).map_or(0, |d| d.operands.len() as u32);
-    members > 0
-        && (0..members)
-            .all(|k| edit::member_decoration(m, block, k, Decoration::NonWritable).is_some())
 }
 
-/// The interface of module `m`.
+/// The interface of module `m` (its only entry point).
 pub fn reflect(m: &Module) -> Result<Interface, ReflectError> {
-    let (stage, entry) = stage_of(m).ok_or_else(|| ReflectError("no entry point".into()))?;
-    let mut bindings = Vec::new();
-    for v in m.types_global_values.iter().filter(|i| i.class.opcode == Op::Variable) {
-        let (Some(id), Some(ptr)) = (v.result_id, v.result_type) else {
-            continue;
-        };
-        if edit::has_decoration(m, id, Decoration::DescriptorSet) {
-            bindings.push(binding(m, id, ptr)?);
-        }
-    }
-    bindings.sort_by_key(|b| (b.set, b.binding));
-    let push_end =
-        push::end(m, Rules::Scalar, "harness").map_err(|e| ReflectError(e.to_string()))?;
+    let r = reflect::reflect(m, None).map_err(|e| ReflectError(e.to_string()))?;
+    let bindings = r.bindings.iter().map(|b| binding(m, b)).collect::<Result<Vec<_>, _>>()?;
+    let push_end = r.push.as_ref().map_or(0, |p| p.end);
     let block = push::block(m, "harness").map_err(|e| ReflectError(e.to_string()))?;
     let push_ints = block.and_then(|b| ints::of_block(m, b.st)).unwrap_or_default();
-    Ok(Interface { stage, entry, bindings, push_end, push_ints })
+    let (stage, entry) = (r.stage.clone(), r.entry.clone());
+    Ok(Interface { stage, entry, bindings, push_end, push_ints, reflection: r })
 }
 
 #[cfg(test)]
@@ -311,7 +212,7 @@ mod tests {
             layout(set = 4, binding = 2) uniform sampler2D t;\nlayout(location = 0) rayPayloadInEXT vec4 c;\n\
             void main() { c = textureLod(t, vec2(0), 0.0); }\n";
         let e = reflect(&module(shaderc::ShaderKind::Miss, tex)).unwrap_err();
-        assert!(e.0.starts_with("set 4 binding 2: a OpTypeSampledImage"), "{e}");
+        assert!(e.0.starts_with("set 4 binding 2: a CombinedImageSampler"), "{e}");
     }
 
     /// An append queue's buffer is atomic (its counter is); a buffer only stored to is not,

@@ -15,6 +15,7 @@
 //! that attempt would trace, `flip` flips the first byte of its first output (a difference).
 use super::child::JobModule;
 use super::reflect::BindingKind;
+use super::supply;
 use super::{Harness, HarnessError, Part, PartKind, UserModule};
 use crate::interface::{BindingDesc, DescriptorKind, HitGroup, PipelineDesc, PushRange};
 use crate::model::contract::HostContract;
@@ -86,11 +87,11 @@ pub enum AttemptOutput {
     Failed { outcome: Outcome, message: String, validation_messages: u64 },
 }
 
-/// The pipeline's modules as the harness runs them: for now the given ones, unchanged (every
-/// stage must be given; the generated raygen and miss of a pipeline given without them come
-/// with `harness::supply`, which replaces this body).
+/// The pipeline's modules as the harness runs them: the given ones, with a raygen and a miss
+/// supplied where they have none (`super::supply`; the child supplies them again, at the same
+/// bindings for every variant).
 pub fn full_pipeline(modules: Vec<UserModule>) -> Result<Vec<UserModule>, HarnessError> {
-    Ok(modules)
+    super::supply::supply(modules)
 }
 
 /// Whether the harness can make a pipeline of `modules`: one raygen, a miss, hit shaders and
@@ -206,6 +207,9 @@ fn modules(list: &[JobModule]) -> Result<Vec<UserModule>, HarnessError> {
 /// every module and the contract.
 fn harness(job: &ShaderJob) -> Result<(Harness, Vec<UserModule>), HarnessError> {
     let (unpatched, variant) = (modules(&job.unpatched)?, modules(&job.modules)?);
+    // Stages the modules lack supplied, at the same bindings in every variant (as `verify_with`).
+    let at = supply::free_binding(&unpatched).max(supply::free_binding(&variant));
+    let (unpatched, variant) = (supply::supply_at(unpatched, at)?, supply::supply_at(variant, at)?);
     let inst = Arc::new(Instance::new(&InstanceOptions { validate: job.validate, gpu_av: false })?);
     let all = features::query_all(&inst)?;
     let info = all

@@ -2,7 +2,7 @@
 //! attributes (the rules are in the module doc).
 use super::error::Mismatch;
 use super::layout::PipelineDesc;
-use super::spirv::ModuleInterface;
+use super::view::ModuleInterface;
 
 /// The first way `modules` (SPIR-V words, in the pipeline's stage order) do not fit `pipeline`.
 pub fn check(modules: &[&[u32]], pipeline: &PipelineDesc) -> Result<(), Mismatch> {

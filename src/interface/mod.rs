@@ -16,17 +16,18 @@
 //! attribute is two 32-bit floats); `maxRayHitAttributeSize` (block sizes at scalar alignment, as
 //! `maxPipelineRayHitAttributeSize` counts them).
 //!
-//! Files: reading a module's interface from its words (`spirv`), the pipeline's description
+//! Files: the checks' view of a module's interface (`view`, read by `crate::reflect`), the
+//! pipeline's description
 //! (`layout`), the checks (`check`), what they fail with (`error`).
 mod check;
 mod error;
 pub mod layout;
-pub mod spirv;
+pub mod view;
 
 pub use check::check;
 pub use error::{InterfaceError, Mismatch};
 pub use layout::{BindingDesc, DescriptorKind, HitGroup, PipelineDesc, PushRange};
-pub use spirv::ModuleInterface;
+pub use view::ModuleInterface;
 
 #[cfg(test)]
 mod tests;

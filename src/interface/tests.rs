@@ -103,13 +103,13 @@ fn the_engine_reads_as_declared_and_fits_its_layout() {
     assert_eq!(
         chit.resources,
         vec![
-            spirv::Resource {
+            view::Resource {
                 set: 1,
                 binding: 0,
                 kind: DescriptorKind::StorageBuffer,
                 array: Some(0)
             },
-            spirv::Resource {
+            view::Resource {
                 set: 1,
                 binding: 1,
                 kind: DescriptorKind::CombinedImageSampler,
