@@ -162,6 +162,7 @@ pub fn main_entry() -> u8 {
     let result = match &cli.command {
         Command::Devices(a) => commands::devices(&g, a),
         Command::Caps(a) => commands::caps_cmd(&g, a),
+        Command::Run(a) if !a.shader.is_empty() => shader::run_shaders(&g, a),
         Command::Run(a) => run::run(&g, a),
         Command::Patch(a) => patch::patch(&g, a),
         Command::Bisect(a) => bisect::bisect(&g, a),

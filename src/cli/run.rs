@@ -65,9 +65,6 @@ pub(super) fn slug(name: &str) -> String {
 }
 
 pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
-    if !a.shader.is_empty() {
-        return super::shader::run_shaders(g, a);
-    }
     // The binding stages are read here once (a bundle's, the user's RTPROBE_BINDING_STAGES, or
     // the resumed report's); from now on the report's options and each job file carry them.
     let (a, mut binding_stages) = match &a.cell_spec {
