@@ -84,6 +84,8 @@ pub struct Executor {
     pub reference_ms: f64,
     /// What a cell's readback and check fill, kept from cell to cell.
     pub(super) scratch: Scratch,
+    /// Each distinct module's interface, read once (`fit`), by a hash of its words.
+    pub(super) interfaces: std::collections::HashMap<u128, crate::interface::ModuleInterface>,
 }
 
 /// Buffers every cell's readback and check fill, reused from cell to cell so that their pages
@@ -141,6 +143,7 @@ impl Executor {
             libraries,
             reference_ms,
             scratch: Scratch::default(),
+            interfaces: Default::default(),
         })
     }
 

@@ -61,9 +61,11 @@ pub(super) fn pipeline_desc(
 }
 
 impl Executor {
-    /// `shaders`' modules (`spirv`) against what a pipeline of `key` provides them.
+    /// `shaders`' modules (`spirv`) against what a pipeline of `key` provides them. Each distinct
+    /// module is reflected once per executor (`interfaces`, keyed by a hash of its words): most
+    /// cells share their raygen and miss, and reading a module costs more than checking it.
     pub(super) fn fit(
-        &self,
+        &mut self,
         key: LayoutKey,
         shaders: &CellShaders,
         spirv: &[Arc<Vec<u32>>],
@@ -71,8 +73,17 @@ impl Executor {
         let slots = key.probe.map(|r| self.slots(r)).unwrap_or(0);
         let max_hit = self.gpu.info.properties.rt_pipeline.map(|p| p.max_ray_hit_attribute_size);
         let desc = pipeline_desc(key, shaders, slots, max_hit.unwrap_or(0));
-        let modules: Vec<&[u32]> = spirv.iter().map(|w| w.as_slice()).collect();
-        interface::check(&modules, &desc).map_err(CellError::Interface)
+        let mut read = Vec::with_capacity(spirv.len());
+        for (k, w) in spirv.iter().enumerate() {
+            let key = crate::stable_hash::StableHash::default().words(w).finish();
+            let m = match self.interfaces.get(&key) {
+                Some(m) => m.clone(),
+                None => interface::read(k, w).map_err(CellError::Interface)?,
+            };
+            self.interfaces.entry(key).or_insert_with(|| m.clone());
+            read.push(m);
+        }
+        interface::check_read(&read, &desc).map_err(CellError::Interface)
     }
 }
 

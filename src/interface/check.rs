@@ -6,21 +6,29 @@ use super::view::ModuleInterface;
 
 /// The first way `modules` (SPIR-V words, in the pipeline's stage order) do not fit `pipeline`.
 pub fn check(modules: &[&[u32]], pipeline: &PipelineDesc) -> Result<(), Mismatch> {
-    let mut read = Vec::with_capacity(modules.len());
-    for (k, words) in modules.iter().enumerate() {
-        let m = ModuleInterface::read(words).map_err(|source| Mismatch::Unreadable {
-            module: k,
-            stage: ash::vk::ShaderStageFlags::empty(),
-            source,
-        })?;
-        read.push(m);
-    }
-    for m in &read {
+    let read =
+        modules.iter().enumerate().map(|(k, w)| read(k, w)).collect::<Result<Vec<_>, _>>()?;
+    check_read(&read, pipeline)
+}
+
+/// Module `k` of a pipeline read, or why it cannot be.
+pub fn read(k: usize, words: &[u32]) -> Result<ModuleInterface, Mismatch> {
+    ModuleInterface::read(words).map_err(|source| Mismatch::Unreadable {
+        module: k,
+        stage: ash::vk::ShaderStageFlags::empty(),
+        source,
+    })
+}
+
+/// [`check`] of modules already read (a caller that checks many pipelines of the same modules
+/// reads each once).
+pub fn check_read(read: &[ModuleInterface], pipeline: &PipelineDesc) -> Result<(), Mismatch> {
+    for m in read {
         resources(m, pipeline)?;
         push(m, pipeline)?;
     }
-    calls(&read)?;
-    hit_attributes(&read, pipeline)
+    calls(read)?;
+    hit_attributes(read, pipeline)
 }
 
 fn resources(m: &ModuleInterface, p: &PipelineDesc) -> Result<(), Mismatch> {

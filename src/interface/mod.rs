@@ -24,7 +24,7 @@ mod error;
 pub mod layout;
 pub mod view;
 
-pub use check::check;
+pub use check::{check, check_read, read};
 pub use error::{InterfaceError, Mismatch};
 pub use layout::{BindingDesc, DescriptorKind, HitGroup, PipelineDesc, PushRange};
 pub use view::ModuleInterface;
