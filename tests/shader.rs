@@ -106,6 +106,52 @@ fn a_closest_hit_alone_runs_with_supplied_stages() {
     }
 }
 
+/// A closest-hit alone passing in every variant, no validation message, the same outputs.
+fn assert_alone_clean(file: &str) {
+    let (o, r, _d) = shader_run(&[file], &["--repeat", "2"], &[]);
+    let r = r.unwrap_or_else(|| panic!("no report: {}", stderr(&o)));
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    let v = variants(&r);
+    let reference = &attempts(&v[0])[0]["outputs"];
+    for variant in v {
+        assert_eq!(variant["outcome"], "pass", "{variant}");
+        for a in attempts(variant) {
+            assert_eq!(a["validation_messages"], 0, "{a}");
+            assert_eq!(&a["outputs"], reference, "{}", variant["name"]);
+        }
+    }
+}
+
+/// (g) Issue #24: an "ObjDesc" closest-hit dereferencing the `uint64_t` vertex and index
+/// addresses its SSBO holds: the harness fills them with its sink buffer's address, so the
+/// child reads zeros instead of crashing on a small integer taken for a pointer.
+#[test]
+fn an_objdesc_closest_hit_dereferences_the_sink() {
+    assert_alone_clean("objdesc.rchit");
+}
+
+/// (h) Two blocks aliased at one set/binding are one binding of the larger size: clean.
+#[test]
+fn aliased_blocks_at_one_binding_run_clean() {
+    assert_alone_clean("aliased.rchit");
+}
+
+/// (h) Twin: a storage and a uniform buffer at one binding cannot be one descriptor: refused
+/// before any child, one line, exit 9, no report.
+#[test]
+fn incompatible_kinds_at_one_binding_are_refused_at_plan_time() {
+    let d = tempfile::tempdir().unwrap();
+    let f = d.path().join("clash.rchit");
+    std::fs::write(&f, "#version 460\n#extension GL_EXT_ray_tracing : require\nlayout(set = 1, binding = 0) readonly buffer S { vec4 s[]; } sb;\nlayout(set = 1, binding = 0) uniform U { vec4 u; } ub;\nlayout(location = 0) rayPayloadInEXT vec4 p;\nvoid main() { p = sb.s[1] + ub.u; }\n").unwrap();
+    let (o, r, _d2) = shader_run(&[f.to_str().unwrap()], &[], &[]);
+    assert_one_line_error(
+        &o,
+        9,
+        "set 1 binding 0 is declared as a storage buffer and as a uniform buffer",
+    );
+    assert!(r.is_none(), "no report");
+}
+
 /// (b) An any-hit alpha test beside a plain closest-hit.
 #[test]
 fn an_any_hit_alpha_test_runs_clean() {

@@ -26,16 +26,16 @@ const GRACE: Duration = Duration::from_secs(2);
 const KILL_WAIT: Duration = Duration::from_secs(5);
 
 /// Reflect every module here first: one the harness cannot run is refused before any child.
+/// Their bindings too: two kinds at one set and binding are refused here, not in the child.
 fn reflect(inputs: &[Input], words: &[&[u32]]) -> Result<Vec<JobModule>> {
-    inputs
+    let bad = |e: harness::HarnessError| coded(exit::BAD_INPUT, format!("--verify: {e}"));
+    let modules: Vec<UserModule> = inputs
         .iter()
         .zip(words)
-        .map(|(i, w)| {
-            UserModule::new(&i.name, w)
-                .map(|_| JobModule { name: i.name.clone(), words: w.to_vec() })
-                .map_err(|e| coded(exit::BAD_INPUT, format!("--verify: {e}")))
-        })
-        .collect()
+        .map(|(i, w)| UserModule::new(&i.name, w).map_err(bad))
+        .collect::<Result<_>>()?;
+    harness::check_bindings(&modules).map_err(bad)?;
+    Ok(modules.into_iter().map(|m| JobModule { name: m.name, words: m.words }).collect())
 }
 
 /// The device `--device` names, checked for what the harness needs: its index.

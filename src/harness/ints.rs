@@ -1,14 +1,17 @@
 //! Which words of a buffer block or push-constant block hold integers, read from the module's
 //! types (members by their `Offset`, arrays by their `ArrayStride`, vectors component by
-//! component; nested structs and arrays walked). The harness fills those words with small
-//! integers below `scene::INDEX_BOUND` and every other word with floats: an index read from a
+//! component; nested structs and arrays walked). The harness fills 32-bit integer words with
+//! small integers below `scene::INDEX_BOUND`, every 64-bit integer and `PhysicalStorageBuffer`
+//! pointer with the device address of its zero-filled sink buffer (an engine's `uint64_t
+//! vertexAddress` is dereferenced: a small integer there is a wild pointer and a crash blamed on
+//! the driver), and every other word with floats: an index read from a
 //! buffer (`uvec3 ind = indices[mesh].i[gl_PrimitiveID]; vertices[mesh].v[ind.x]`) or from push
 //! constants (a material index) then stays inside the arrays it indexes. Float bits read as an
 //! integer (0x3F80xxxx) index a billion elements past the end: bounds-checked on lavapipe's
 //! descriptor path, a crash through a device address.
 use crate::patches::edit;
 use rspirv::dr::{Module, Operand};
-use rspirv::spirv::{Decoration, Op, Word};
+use rspirv::spirv::{Decoration, Op, StorageClass, Word};
 use std::collections::BTreeSet;
 
 /// Words walked at most in one block's fixed part (a bigger fixed array keeps floats past it).
@@ -17,10 +20,21 @@ const MAX_WORDS: u32 = 1 << 20;
 /// The integer words of one layout, as byte offsets.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Words {
-    /// 32-bit integers and the low halves of 64-bit ones: a small integer.
+    /// 32-bit integers: a small integer.
     pub low: BTreeSet<u32>,
-    /// The high halves of 64-bit integers: zero.
-    pub high: BTreeSet<u32>,
+    /// The first byte of each 64-bit integer or pointer: the sink's address.
+    pub addr: BTreeSet<u32>,
+}
+
+impl Words {
+    /// Both layouts' words in one; a word that is an address in either stays one (a small
+    /// integer read as half a pointer would be a wild pointer).
+    fn merge(&mut self, o: &Words) {
+        self.addr.extend(&o.addr);
+        self.low.extend(&o.low);
+        let taken: BTreeSet<u32> = self.addr.iter().flat_map(|a| [*a, a + 4]).collect();
+        self.low.retain(|w| !taken.contains(w));
+    }
 }
 
 /// The integer words of a block: its fixed part, and a runtime array at its end (its offset,
@@ -36,17 +50,22 @@ pub struct IntWords {
 pub enum Fill {
     Float,
     SmallInt,
-    Zero,
+    /// The low half of the sink's device address.
+    AddressLow,
+    /// Its high half.
+    AddressHigh,
 }
 
 impl IntWords {
     /// What the word at byte `offset` holds.
     pub fn at(&self, offset: u32) -> Fill {
         let of = |w: &Words, o: u32| {
-            if w.low.contains(&o) {
+            if w.addr.contains(&o) {
+                Fill::AddressLow
+            } else if o >= 4 && w.addr.contains(&(o - 4)) {
+                Fill::AddressHigh
+            } else if w.low.contains(&o) {
                 Fill::SmallInt
-            } else if w.high.contains(&o) {
-                Fill::Zero
             } else {
                 Fill::Float
             }
@@ -61,7 +80,23 @@ impl IntWords {
 
     /// Whether no word is an integer.
     pub fn is_empty(&self) -> bool {
-        self.fixed.low.is_empty() && self.tail.as_ref().is_none_or(|t| t.2.low.is_empty())
+        let none = |w: &Words| w.low.is_empty() && w.addr.is_empty();
+        none(&self.fixed) && self.tail.as_ref().is_none_or(|t| none(&t.2))
+    }
+
+    /// The words of two blocks aliased at one binding: the fixed parts merged; runtime tails
+    /// merged when they start and stride alike, else the one holding addresses (or the first)
+    /// kept, the other's tail words then filled as the kept one says.
+    pub fn merge(&mut self, o: &IntWords) {
+        self.fixed.merge(&o.fixed);
+        match (&mut self.tail, &o.tail) {
+            (Some((s, st, w)), Some((s2, st2, w2))) if (*s, *st) == (*s2, *st2) => w.merge(w2),
+            (Some((_, _, w)), Some(t)) if w.addr.is_empty() && !t.2.addr.is_empty() => {
+                self.tail = Some(t.clone())
+            }
+            (None, Some(t)) => self.tail = Some(t.clone()),
+            (Some(_), _) | (None, None) => {}
+        }
     }
 }
 
@@ -95,8 +130,7 @@ fn walk(m: &Module, ty: Word, base: u32, out: &mut Words) -> Option<()> {
                     out.low.insert(base);
                 }
                 Some(Operand::LiteralBit32(64)) => {
-                    out.low.insert(base);
-                    out.high.insert(base + 4);
+                    out.addr.insert(base);
                 }
                 // 8- and 16-bit integers share a word with others: left as they are.
                 _ => {}
@@ -124,7 +158,14 @@ fn walk(m: &Module, ty: Word, base: u32, out: &mut Words) -> Option<()> {
             let offset = edit::member_decoration(m, ty, k, Decoration::Offset)?;
             walk(m, member, base + offset, out)
         }),
-        // Floats, matrices (of floats), pointers and the rest: no integer word.
+        Op::TypePointer
+            if d.operands.first()
+                == Some(&Operand::StorageClass(StorageClass::PhysicalStorageBuffer)) =>
+        {
+            out.addr.insert(base);
+            Some(())
+        }
+        // Floats, matrices (of floats), other pointers and the rest: no integer word.
         _ => Some(()),
     }
 }
@@ -196,8 +237,44 @@ mod tests {
             let b = start + e * stride;
             let got: Vec<Fill> = (0..6).map(|w| buf.at(b + 4 * w)).collect();
             use Fill::*;
-            assert_eq!(got, [SmallInt, SmallInt, SmallInt, Float, SmallInt, Zero], "element {e}");
+            assert_eq!(
+                got,
+                [SmallInt, SmallInt, SmallInt, Float, AddressLow, AddressHigh],
+                "element {e}"
+            );
         }
         assert!(!buf.is_empty() && IntWords::default().is_empty());
+    }
+
+    /// Issue #24: a `uint64_t` address and a `buffer_reference` pointer member are address
+    /// words (the sink's address, never a small integer); a 32-bit member beside them is not.
+    #[test]
+    fn sixty_four_bit_integers_and_pointers_are_address_words() {
+        let glsl = "#version 460\n#extension GL_EXT_ray_tracing : require\n\
+            #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require\n\
+            #extension GL_EXT_buffer_reference2 : require\n\
+            #extension GL_EXT_scalar_block_layout : require\n\
+            layout(buffer_reference, scalar) buffer Verts { vec3 p[]; };\n\
+            struct Obj { uint64_t vertexAddress; Verts verts; uint material; };\n\
+            layout(set = 0, binding = 0, scalar) buffer Objs { Obj o[]; } objs;\n\
+            layout(set = 0, binding = 1, rgba32f) uniform image2D img;\n\
+            void main() { Obj o = objs.o[gl_LaunchIDEXT.x];\n\
+            imageStore(img, ivec2(0), vec4(Verts(o.vertexAddress).p[0] + o.verts.p[o.material], 1.0)); }\n";
+        let m = module(glsl);
+        let buf = of_block(&m, block_of(&m, rspirv::spirv::StorageClass::StorageBuffer)).unwrap();
+        let (start, stride, _) = buf.tail.clone().unwrap();
+        assert_eq!((start, stride), (0, 24));
+        use Fill::*;
+        let got: Vec<Fill> = (0..6).map(|w| buf.at(stride + 4 * w)).collect();
+        assert_eq!(got, [AddressLow, AddressHigh, AddressLow, AddressHigh, SmallInt, Float]);
+        // Merged with an aliased block reading those words as 32-bit integers, they stay
+        // addresses; its other integer word stays an integer.
+        let mut words = IntWords::default();
+        let mut w = Words::default();
+        w.low.extend([0, 4, 16, 20]);
+        words.tail = Some((0, 24, w));
+        words.merge(&buf);
+        let got: Vec<Fill> = (0..6).map(|w| words.at(24 + 4 * w)).collect();
+        assert_eq!(got, [AddressLow, AddressHigh, AddressLow, AddressHigh, SmallInt, SmallInt]);
     }
 }

@@ -13,6 +13,7 @@
 //! verification's outcome, not the end of rtprobe.
 //! `rtprobe run --shader` runs a user's pipeline in it the same way, one variant per child
 //! (`rtprobe __shader JOB`, [`run`]), `--entry` reducing a module to one entry point ([`entry`]).
+mod bindings;
 pub mod child;
 mod compare;
 pub mod entry;
@@ -25,6 +26,7 @@ pub mod run;
 pub mod scene;
 mod supply;
 
+pub use bindings::check as check_bindings;
 pub use compare::{compare, judge, Compared, Part, PartKind, Verdict};
 pub use error::HarnessError;
 pub use module::UserModule;
@@ -146,12 +148,19 @@ impl Harness {
         let bindings: Vec<reflect::Binding> =
             modules.iter().flat_map(|m| m.iface.bindings.iter().cloned()).collect();
         let extent = vk::Extent2D { width: SIZE, height: SIZE };
-        let res = Resources::new(&gpu, &bindings, &scene, extent)?;
+        // The supplied raygen traces the scene: its TLAS binding gets the scene TLAS.
+        let scene_at = modules
+            .iter()
+            .filter(|m| m.name == supply::RAYGEN_NAME)
+            .flat_map(|m| &m.iface.bindings)
+            .find(|b| b.kind == BindingKind::AccelerationStructure)
+            .map(|b| (b.set, b.binding));
+        let res = Resources::new(&gpu, &bindings, scene_at, &scene, extent)?;
         let push_size = push_size.div_ceil(4) * 4;
         let mut push_ints = ints::IntWords::default();
         for m in modules {
             push_ints.fixed.low.extend(&m.iface.push_ints.fixed.low);
-            push_ints.fixed.high.extend(&m.iface.push_ints.fixed.high);
+            push_ints.fixed.addr.extend(&m.iface.push_ints.fixed.addr);
         }
         let range =
             [vk::PushConstantRange::default().stage_flags(resources::rt_stages()).size(push_size)];
@@ -263,12 +272,13 @@ impl Harness {
     }
 
     /// The push-constant bytes: floats `0.5 + w / 4` for word `w`, small integers in the words a
-    /// module's block reads as integers (a material index: [`ints`]), then each contract address.
+    /// module's block reads as integers (a material index: [`ints`]), the sink's address in its
+    /// 64-bit integers and pointers, then each contract address.
     fn push_bytes(&self, addresses: &[(u32, u64)]) -> Vec<u8> {
         let mut p: Vec<u8> = (0..self.push_size / 4)
             .flat_map(|w| match self.push_ints.at(4 * w) {
                 ints::Fill::Float => (0.5 + w as f32 / 4.0).to_le_bytes(),
-                fill => resources::word(0, w, fill),
+                fill => resources::word(0, w, fill, self.res.sink.address),
             })
             .collect();
         for (off, a) in addresses {
@@ -349,7 +359,9 @@ impl Harness {
 
     /// Every element of every writable storage buffer, as the trace left it, with the data it
     /// held before (numbered over every buffer element as [`Resources::refill`] numbers them).
+    /// The sink's address reads as `resources::SINK_MARK` in them: each child makes its own sink.
     fn written_buffers(&self) -> Vec<Part> {
+        let sink = self.res.sink.address;
         let mut out = Vec::new();
         let mut d = 0;
         for ((set, binding), (b, elems)) in &self.res.bindings {
@@ -362,9 +374,12 @@ impl Harness {
                     out.push(Part {
                         label: format!("storage buffer set {set} binding {binding}[{k}]"),
                         kind: PartKind::Buffer,
-                        bytes: buf.read(size as usize),
+                        bytes: resources::mask_sink(buf.read(size as usize), sink),
                         texel: 4,
-                        initial: Some(resources::buffer_data(d, size, &b.ints)),
+                        initial: Some(resources::mask_sink(
+                            resources::buffer_data(d, size, &b.ints, sink),
+                            sink,
+                        )),
                         scheduled: b.atomic,
                         records: b.records,
                     });

@@ -1,8 +1,10 @@
 //! The harness's resources, one per descriptor of the pipelines' reflected bindings, each with
 //! data no other descriptor has: the acceleration structures cycle through the scene's TLASes
-//! (the scene TLAS, then the AS probe's variants: other instances, other custom indices), every
-//! buffer holds floats that encode its own descriptor (small integers in its integer words), storage images start at zero. Plus the
-//! descriptor sets that bind them, and the address tables a host contract asks for.
+//! (the scene TLAS, then the AS probe's variants: other instances, other custom indices; the
+//! supplied raygen's binding always the scene TLAS), every buffer holds floats that encode its
+//! own descriptor (small integers in its integer words, the zero-filled sink buffer's address in
+//! its 64-bit integers and pointers), storage images start at zero. Plus the descriptor sets
+//! that bind them, and the address tables a host contract asks for.
 use super::error::HarnessError;
 use super::ints::{Fill, IntWords};
 use super::reflect::{Binding, BindingKind};
@@ -29,6 +31,39 @@ pub struct Resources {
     pub set_layouts: Vec<vk::DescriptorSetLayout>,
     pub pool: vk::DescriptorPool,
     pub sets: Vec<vk::DescriptorSet>,
+    /// The zero-filled buffer every address word points at ([`SINK_SIZE`] bytes).
+    pub sink: Buffer,
+}
+
+/// The sink's size: every 64-bit integer and pointer the harness fills holds its address, so a
+/// shader reads zeros through it up to this many bytes past it.
+pub const SINK_SIZE: u64 = 4 << 20;
+const SINK_USAGE: vk::BufferUsageFlags = vk::BufferUsageFlags::from_raw(
+    vk::BufferUsageFlags::STORAGE_BUFFER.as_raw()
+        | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS.as_raw(),
+);
+/// What an 8-byte word holding the sink's address reads as in a read-back output: the sink's
+/// address differs between processes (each variant's child makes its own), this does not.
+pub const SINK_MARK: u64 = u64::from_le_bytes(*b"rtpSINK!");
+
+/// `bytes` with every 8-byte-aligned word equal to `sink` replaced by [`SINK_MARK`].
+pub fn mask_sink(mut bytes: Vec<u8>, sink: u64) -> Vec<u8> {
+    for c in bytes.chunks_exact_mut(8) {
+        if c == sink.to_le_bytes() {
+            c.copy_from_slice(&SINK_MARK.to_le_bytes());
+        }
+    }
+    bytes
+}
+
+/// Which of `n` TLASes binding `key` gets: the scene TLAS (0) at `scene_at` (the supplied
+/// raygen's binding: it traces the scene), else the next in turn of `turn`.
+fn tlas_index(key: (u32, u32), scene_at: Option<(u32, u32)>, turn: &mut usize, n: usize) -> usize {
+    if scene_at == Some(key) {
+        return 0;
+    }
+    *turn += 1;
+    (*turn - 1) % n
 }
 
 /// The Vulkan format and texel size of a storage image format.
@@ -49,18 +84,20 @@ pub fn format(f: ImageFormat) -> Option<(vk::Format, u32)> {
 /// The data of buffer number `d` (counted over every buffer descriptor) with integer words
 /// `ints`: a float word `w` is `d + 1 + w / 256`, so no two descriptors hold the same values and
 /// every word is a plain number a shader can mix into a colour; an integer word is
-/// `(5d + w + 1) mod INDEX_BOUND` (the high half of a 64-bit one 0), so an index read from a
-/// buffer stays inside every array the harness makes ([`super::ints`] says why).
-pub fn buffer_data(d: u32, bytes: u32, ints: &IntWords) -> Vec<u8> {
-    (0..bytes / 4).flat_map(|w| word(d, w, ints.at(4 * w))).collect()
+/// `(5d + w + 1) mod INDEX_BOUND`, so an index read from a buffer stays inside every array the
+/// harness makes, and a 64-bit integer or pointer is `sink`, the zero-filled sink buffer's
+/// device address, so a shader dereferencing it reads zeros ([`super::ints`] says why).
+pub fn buffer_data(d: u32, bytes: u32, ints: &IntWords, sink: u64) -> Vec<u8> {
+    (0..bytes / 4).flat_map(|w| word(d, w, ints.at(4 * w), sink)).collect()
 }
 
-/// The bytes of word `w` of data set `d` holding `fill`.
-pub fn word(d: u32, w: u32, fill: Fill) -> [u8; 4] {
+/// The bytes of word `w` of data set `d` holding `fill` (an address word: half of `sink`).
+pub fn word(d: u32, w: u32, fill: Fill, sink: u64) -> [u8; 4] {
     match fill {
         Fill::Float => (d as f32 + 1.0 + w as f32 / 256.0).to_le_bytes(),
         Fill::SmallInt => ((5 * d + w + 1) % INDEX_BOUND).to_le_bytes(),
-        Fill::Zero => [0; 4],
+        Fill::AddressLow => (sink as u32).to_le_bytes(),
+        Fill::AddressHigh => ((sink >> 32) as u32).to_le_bytes(),
     }
 }
 
@@ -88,36 +125,22 @@ fn descriptor_type(k: BindingKind) -> vk::DescriptorType {
 }
 
 impl Resources {
-    /// Resources for `bindings` (one per set and binding; the same binding in several modules must
-    /// agree on its type), TLASes from `scene`, images of `extent`.
+    /// Resources for `bindings` (one per set and binding, aliases merged: `super::bindings`),
+    /// TLASes from `scene` (the scene TLAS at `scene_at`, the supplied raygen's), images of
+    /// `extent`, and the sink buffer.
     pub fn new(
         gpu: &Gpu,
         bindings: &[Binding],
+        scene_at: Option<(u32, u32)>,
         scene: &SceneGpu,
         extent: vk::Extent2D,
     ) -> Result<Resources, HarnessError> {
         let tlases: Vec<&crate::scene::gpu::AccelStruct> =
             std::iter::once(&scene.scene_tlas).chain(&scene.probe_tlas).collect();
-        let mut unique: BTreeMap<(u32, u32), Binding> = BTreeMap::new();
-        for b in bindings {
-            match unique.get_mut(&(b.set, b.binding)) {
-                Some(old) if old.kind != b.kind || old.count != b.count => {
-                    return Err(HarnessError::Interface(format!(
-                        "set {} binding {} is {:?} x{} in one module and {:?} x{} in another",
-                        b.set, b.binding, old.kind, old.count, b.kind, b.count
-                    )));
-                }
-                // Written by any module: compared after the trace.
-                Some(old) => {
-                    old.writable |= b.writable;
-                    old.atomic |= b.atomic;
-                    old.records = old.records.or(b.records);
-                }
-                None => {
-                    unique.insert((b.set, b.binding), b.clone());
-                }
-            }
-        }
+        let unique = super::bindings::merged(bindings)?;
+        let sink = Buffer::new(gpu, SINK_SIZE, SINK_USAGE, Location::Host, "harness sink")?;
+        sink.write(0, &vec![0; SINK_SIZE as usize]);
+        let sink_address = sink.address;
         let mut all: BTreeMap<(u32, u32), (Binding, Vec<Element>)> = BTreeMap::new();
         let (mut n_as, mut n_buf) = (0usize, 0u32);
         for (key, b) in unique {
@@ -125,8 +148,7 @@ impl Resources {
             for _ in 0..b.count {
                 elems.push(match b.kind {
                     BindingKind::AccelerationStructure => {
-                        let t = tlases[n_as % tlases.len()];
-                        n_as += 1;
+                        let t = tlases[tlas_index(key, scene_at, &mut n_as, tlases.len())];
                         Element::Tlas(t.raw, t.address)
                     }
                     BindingKind::StorageImage(f) => {
@@ -147,7 +169,7 @@ impl Resources {
                             | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
                         let buf =
                             Buffer::new(gpu, size as u64, usage, Location::Host, "harness buffer")?;
-                        buf.write(0, &buffer_data(n_buf, size, &b.ints));
+                        buf.write(0, &buffer_data(n_buf, size, &b.ints, sink_address));
                         n_buf += 1;
                         Element::Buffer(buf)
                     }
@@ -156,19 +178,20 @@ impl Resources {
             all.insert(key, (b, elems));
         }
         let (set_layouts, pool, sets) = descriptor_sets(gpu, &all)?;
-        let r = Resources { bindings: all, set_layouts, pool, sets };
+        let r = Resources { bindings: all, set_layouts, pool, sets, sink };
         r.write_sets(gpu);
         Ok(r)
     }
 
     /// Every buffer back to its own data (a shader may have written it).
     pub fn refill(&self) {
+        self.sink.write(0, &vec![0; SINK_SIZE as usize]);
         let mut d = 0;
         for (b, elems) in self.bindings.values() {
             if let BindingKind::StorageBuffer(size) | BindingKind::UniformBuffer(size) = b.kind {
                 for e in elems {
                     if let Element::Buffer(buf) = e {
-                        buf.write(0, &buffer_data(d, size, &b.ints));
+                        buf.write(0, &buffer_data(d, size, &b.ints, self.sink.address));
                     }
                     d += 1;
                 }
@@ -268,6 +291,7 @@ impl Resources {
                 gpu.device.destroy_descriptor_set_layout(*l, None);
             }
         }
+        self.sink.destroy(gpu);
         for (_, elems) in self.bindings.values() {
             for e in elems {
                 match e {
@@ -349,4 +373,47 @@ fn descriptor_sets(
         .at("vkAllocateDescriptorSets")?
     };
     Ok((layouts, pool, sets))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::harness::ints::Words;
+
+    /// Issue #24: every address word of a buffer holds the sink's address, low half then high,
+    /// never a small integer; the 32-bit integer and float words keep their fills.
+    #[test]
+    fn address_words_hold_the_sinks_address() {
+        let sink = 0x0000_7f12_3456_7800_u64;
+        let mut w = Words::default();
+        w.addr.insert(8);
+        w.low.insert(4);
+        let ints = IntWords { fixed: w, tail: None };
+        let data = buffer_data(3, 24, &ints, sink);
+        assert_eq!(&data[8..16], &sink.to_le_bytes());
+        let word_at = |o: usize| u32::from_le_bytes(data[o..o + 4].try_into().unwrap());
+        assert!(word_at(4) < INDEX_BOUND);
+        assert_eq!(f32::from_bits(word_at(0)), 4.0);
+        // The read-back bytes carry the mark in its place, whatever the process's sink.
+        let masked = mask_sink(data.clone(), sink);
+        assert_eq!(&masked[8..16], &SINK_MARK.to_le_bytes());
+        assert_eq!((&masked[..8], &masked[16..]), (&data[..8], &data[16..]));
+    }
+
+    /// The supplied raygen's TLAS binding is the scene TLAS; other TLAS bindings take turns.
+    #[test]
+    fn the_supplied_raygens_tlas_is_the_scene() {
+        let mut turn = 0;
+        let supplied = Some((0, 2));
+        let got: Vec<usize> = [(0, 0), (0, 2), (1, 0)]
+            .iter()
+            .map(|k| tlas_index(*k, supplied, &mut turn, 3))
+            .collect();
+        assert_eq!(got, [0, 0, 1]);
+        // Twin: without a supplied raygen the binding after the first takes a variant.
+        let mut turn = 0;
+        let got: Vec<usize> =
+            [(0, 0), (0, 2)].iter().map(|k| tlas_index(*k, None, &mut turn, 3)).collect();
+        assert_eq!(got, [0, 1]);
+    }
 }

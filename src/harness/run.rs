@@ -95,21 +95,27 @@ pub fn full_pipeline(modules: Vec<UserModule>) -> Result<Vec<UserModule>, Harnes
 }
 
 /// Whether the harness can make a pipeline of `modules`: one raygen, a miss, hit shaders and
-/// callables, as [`Harness`] groups them.
+/// callables, as [`Harness`] groups them, and one descriptor for every set and binding
+/// (`super::bindings`: aliased buffer blocks merge, other kinds sharing a binding are refused).
 pub fn check_pipeline(modules: &[UserModule]) -> Result<(), HarnessError> {
     let refs: Vec<&UserModule> = modules.iter().collect();
-    super::groups(&refs).map(|_| ())
+    super::groups(&refs)?;
+    super::bindings::check(modules)
 }
 
 /// What the harness's pipeline provides `modules` (`interface::check` holds them to it): every
-/// binding the modules reflect, the first declaration of a set and binding winning, seen by
+/// binding the modules reflect, aliases merged (`super::bindings`; where they cannot be, the
+/// first declaration of a set and binding), seen by
 /// every ray tracing stage; the push range of the longest block; the device's hit-attribute
 /// limit; the two hit groups [`Harness`] makes (the procedural one with the harness's own
 /// intersection shader, not among `modules`, when none is given).
 pub fn pipeline_desc(modules: &[UserModule], max_hit_attribute: u32) -> PipelineDesc {
     let stages = super::resources::rt_stages();
     let mut bindings: Vec<BindingDesc> = Vec::new();
-    for b in modules.iter().flat_map(|m| &m.iface.bindings) {
+    let all: Vec<super::reflect::Binding> =
+        modules.iter().flat_map(|m| m.iface.bindings.iter().cloned()).collect();
+    let merged = super::bindings::merged(&all).map(|m| m.into_values().collect());
+    for b in merged.as_ref().unwrap_or(&all) {
         if bindings.iter().any(|d| (d.set, d.binding) == (b.set, b.binding)) {
             continue;
         }

@@ -16,6 +16,9 @@ use crate::reflect::{Scalar, Ty};
 use crate::scene::{RAY_TMAX, RAY_TMIN, RAY_Z, VIEW_HALF};
 use shaderc::ShaderKind;
 
+/// The supplied raygen's module name (the harness binds the scene TLAS at its TLAS binding).
+pub const RAYGEN_NAME: &str = "supplied raygen";
+
 /// What the supplied miss shader writes into the payload's first scalar ("MISS").
 pub const MISS_MARKER: u32 = 0x4D49_5353;
 
@@ -176,7 +179,7 @@ pub fn supply_at(
     }
     if !raygen {
         let glsl = raygen_glsl(&ty, &what, binding)?;
-        modules.insert(0, compiled(ShaderKind::RayGeneration, "supplied raygen", &glsl)?);
+        modules.insert(0, compiled(ShaderKind::RayGeneration, RAYGEN_NAME, &glsl)?);
     }
     Ok(modules)
 }
