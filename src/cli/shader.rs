@@ -196,8 +196,7 @@ pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
         device,
         unpatched,
         patched,
-        notes,
-        judged.uncompared,
+        (notes, judged.uncompared),
         (repeat, timeout, g.validate),
     );
     for (v, t) in report.variants.iter_mut().zip(teardowns) {
@@ -257,8 +256,7 @@ fn report(
     device: String,
     unpatched: Vec<Ran>,
     patched: Patched,
-    notes: Vec<String>,
-    uncompared: Option<&str>,
+    (notes, uncompared): (Vec<String>, Option<&str>),
     (repeat, timeout, validate): (u32, Duration, bool),
 ) -> ShaderRunReport {
     let attempts = |ran: Vec<Ran>| ran.into_iter().map(|r| r.attempt).collect::<Vec<_>>();

@@ -29,8 +29,7 @@ pub fn variant_line(v: &ShaderVariant) -> String {
         }
     };
     let detail = v.detail.as_deref().map(|d| format!(": {d}")).unwrap_or_default();
-    let teardown = v.teardown.as_deref().map(|t| format!("; the child {t}")).unwrap_or_default();
-    let teardown = teardown.replacen("the child the child process", "the child", 1);
+    let teardown = v.teardown.as_deref().map(|t| format!("; {t}")).unwrap_or_default();
     format!("{head} — {tail}{detail}{teardown}")
 }
 
