@@ -285,3 +285,61 @@ fn bad_input_is_one_line_and_no_report() {
         assert!(r.is_none());
     }
 }
+
+/// Issue 24 (B2, B4, B5): refused in one line before any device work — `--validate=gpu-av`, `-o`
+/// naming a folder, `--dump` naming a file, `--entry` naming no entry point of a module, and a
+/// GLSL file with many errors (its first error and how many more, not every one).
+#[test]
+fn refusals_before_the_device_are_one_short_line() {
+    let d = tempfile::tempdir().unwrap();
+    let f = |n: &str| user().join(n).to_string_lossy().into_owned();
+    let (rgen, miss) = (f("raygen.rgen"), f("miss.rmiss"));
+    let report = d.path().join("r.json").to_string_lossy().into_owned();
+    let file = d.path().join("a-file");
+    std::fs::write(&file, "x").unwrap();
+    let (dir, file) = (d.path().to_str().unwrap(), file.to_str().unwrap());
+    let many = d.path().join("many.rchit");
+    let body: String = (0..60).map(|k| format!("    p.x += undeclared{k};\n")).collect();
+    std::fs::write(&many, format!("#version 460\n#extension GL_EXT_ray_tracing : require\nlayout(location = 0) rayPayloadInEXT vec4 p;\nvoid main() {{\n{body}}}\n")).unwrap();
+    let many = many.to_string_lossy().into_owned();
+    let cases: &[(&[&str], i32, &str)] = &[
+        (&["--validate=gpu-av", "-o", &report], 2, "not yet with --shader"),
+        (&["-o", dir], 2, "is a folder"),
+        (&["-o", &report, "--dump", file], 2, "is a file"),
+        (&["-o", &report, "--entry", "nope"], 9, "has no entry point \"nope\""),
+    ];
+    for (extra, code, needle) in cases {
+        let mut args = vec!["run", "--shader", &rgen, "--shader", &miss];
+        args.extend_from_slice(extra);
+        let o = run_env(&args, &[]);
+        assert_one_line_error(&o, *code, needle);
+        assert!(!Path::new(&report).exists(), "no report for {extra:?}");
+    }
+    let o = run_env(
+        &["run", "--shader", &rgen, "--shader", &miss, "--shader", &many, "-o", &report],
+        &[],
+    );
+    assert_one_line_error(&o, 9, "(and 59 more errors)");
+    assert!(stderr(&o).len() < 1000, "{}", stderr(&o));
+}
+
+/// Issue 24 (B1, B3): every unpatched attempt crashes, so patched variants are compared among
+/// their own attempts and never called identical; a child that crashes after its last output
+/// is a teardown line in the report and the summary.
+#[test]
+fn uncompared_variants_and_teardown_faults_are_said() {
+    let files = ["raygen.rgen", "miss.rmiss", "plain.rchit"];
+    let (o, r, _d) =
+        shader_run(&files, &["--repeat", "2"], &[("RTPROBE_SHADER_FAULT", "crash:unpatched")]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let r = r.unwrap();
+    let v = &variants(&r)[1];
+    assert!(v["uncompared"].as_str().unwrap().contains("produced no outputs"), "{v}");
+    assert!(!stdout(&o).contains("identical"), "{}", stdout(&o));
+    let (o, r, _d) =
+        shader_run(&files, &["--repeat", "2"], &[("RTPROBE_SHADER_FAULT", "teardown:unpatched")]);
+    let r = r.unwrap_or_else(|| panic!("{}", stderr(&o)));
+    let t = variants(&r)[0]["teardown"].as_str().unwrap_or_else(|| panic!("{r}"));
+    assert!(t.contains("signal 11") && t.contains("teardown"), "{t}");
+    assert!(stdout(&o).contains("after its last attempt"), "{}", stdout(&o));
+}

@@ -145,7 +145,36 @@ fn compile(a: &InputOptions, path: &Path, bytes: &[u8], name: &str) -> Result<Ve
     }
     let mut c = crate::shadergen::compile::Compiler::new()
         .map_err(|e| coded(exit::NO_SHADER_COMPILER, e))?;
-    c.compile_user_glsl(k, name, &src, &opts).map_err(|e| coded(exit::BAD_INPUT, e.to_string()))
+    c.compile_user_glsl(k, name, &src, &opts)
+        .map_err(|e| coded(exit::BAD_INPUT, first_error(&e.to_string())))
+}
+
+/// The longest compile error line shown.
+const ERROR_LINE: usize = 400;
+
+/// A compiler's message as one line: its first error and how many more there are (the
+/// compilers print every error, each on a line, which `rtprobe` joins with ` | `).
+fn first_error(message: &str) -> String {
+    let lines: Vec<&str> = message
+        .split('\n')
+        .flat_map(|l| l.split(" | "))
+        .map(str::trim)
+        .filter(|l| !l.is_empty())
+        .collect();
+    let errors: Vec<&str> = lines.iter().copied().filter(|l| l.contains("error:")).collect();
+    let (first, more) = match errors.split_first() {
+        Some((f, rest)) => (*f, rest.len()),
+        None => (lines.first().copied().unwrap_or(message), 0),
+    };
+    let mut line: String = first.chars().take(ERROR_LINE).collect();
+    if line.len() < first.len() {
+        line.push('…');
+    }
+    match more {
+        0 => line,
+        1 => format!("{line} (and 1 more error)"),
+        n => format!("{line} (and {n} more errors)"),
+    }
 }
 
 /// Every input of `patch`, as SPIR-V words.
@@ -243,6 +272,23 @@ pub fn destinations(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_compile_error_is_its_first_error_and_a_count() {
+        let many: String = (1..=300)
+            .map(|k| format!("x.rchit:{k}: error: 'v{k}' : undeclared identifier\n"))
+            .collect::<String>()
+            + "300 errors generated.";
+        let one = first_error(&format!("GLSL compile error: {}", many.replace('\n', " | ")));
+        assert_eq!(
+            one,
+            "GLSL compile error: x.rchit:1: error: 'v1' : undeclared identifier (and 299 more errors)"
+        );
+        let single = "x.rchit:7: error: 'y' : undeclared identifier";
+        assert_eq!(first_error(single), single);
+        let long = format!("x.rchit:1: error: {}", "z".repeat(5000));
+        assert!(first_error(&long).chars().count() <= ERROR_LINE + 1);
+    }
 
     #[test]
     fn stages_come_from_names() {

@@ -8,7 +8,7 @@ use super::args::RunArgs;
 use super::commands::{open_instance, Globals};
 use super::exit::{self, coded};
 use super::out::outln;
-use super::shader_exec::{self, Ctx, Ran};
+use super::shader_exec::{self, Ctx, Ran, VariantRun};
 use super::shader_plan::{self, ShaderPlan};
 use crate::harness::child::JobModule;
 use crate::model::shader_run::{self, ShaderRunReport, ShaderVariant};
@@ -73,6 +73,33 @@ fn numbers(a: &RunArgs) -> Result<(u32, Duration, Duration)> {
     Ok((repeat, secs(a.timeout, "--timeout")?, secs(a.setup_timeout, "--setup-timeout")?))
 }
 
+/// What is refused before any device work: `--validate=gpu-av` (only the core layer runs in
+/// `--shader`'s children), `-o` naming a folder, `--dump` naming something not a folder.
+fn refuse_early(g: &Globals, a: &RunArgs) -> Result<()> {
+    if g.gpu_av {
+        return Err(coded(
+            exit::USAGE,
+            "--validate=gpu-av: not yet with --shader; use --validate (the core layer)",
+        ));
+    }
+    if let Some(o) = a.out.as_ref().filter(|o| o.is_dir()) {
+        return Err(coded(
+            exit::USAGE,
+            format!(
+                "-o {}: is a folder; give the report's file name (-o DIR/report.json)",
+                o.display()
+            ),
+        ));
+    }
+    if let Some(d) = a.dump.as_ref().filter(|d| d.exists() && !d.is_dir()) {
+        return Err(coded(
+            exit::USAGE,
+            format!("--dump {}: is a file; give a folder for the PNGs", d.display()),
+        ));
+    }
+    Ok(())
+}
+
 /// The device `--device` names, checked for what the harness needs and for the pipeline's
 /// interface (`interface::check` against the harness's layout and the device's hit-attribute
 /// limit): its index and name.
@@ -118,6 +145,7 @@ fn reserve_out(a: &RunArgs, device: &str) -> Result<(PathBuf, ReportLock)> {
 
 pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
     refuse_others(a)?;
+    refuse_early(g, a)?;
     let (repeat, timeout, setup_timeout) = numbers(a)?;
     let plan = shader_plan::plan(a)?;
     let (device_index, device_name) = device(g, a, &plan)?;
@@ -141,18 +169,39 @@ pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
     };
     let ran = run_all(&ctx, &plan);
     let _ = std::fs::remove_dir_all(&dir);
-    let (mut unpatched, mut patched) = ran?;
+    let (unpatched, patched) = ran?;
+    let (mut unpatched, unpatched_teardown) = (unpatched.ran, unpatched.teardown);
+    let mut teardowns = vec![unpatched_teardown];
+    let mut patched: Patched = patched
+        .into_iter()
+        .map(|(n, v)| {
+            teardowns.push(v.teardown);
+            (n, v.ran)
+        })
+        .collect();
     let device = unpatched
         .iter()
         .chain(patched.iter().flat_map(|p| &p.1))
         .find_map(|r| r.device.clone())
         .unwrap_or(device_name);
     let mut notes = plan.notes.clone();
-    notes.extend(shader_exec::compare_all(&device, &mut unpatched, &mut patched));
+    let judged = shader_exec::compare_all(&device, &mut unpatched, &mut patched);
+    notes.extend(judged.note);
     if let Some(d) = &a.dump {
         dump(d, &plan, &unpatched, &patched)?;
     }
-    let report = report(a, &plan, device, unpatched, patched, notes, (repeat, timeout, g.validate));
+    let mut report = report(
+        a,
+        &plan,
+        device,
+        unpatched,
+        patched,
+        (notes, judged.uncompared),
+        (repeat, timeout, g.validate),
+    );
+    for (v, t) in report.variants.iter_mut().zip(teardowns) {
+        v.teardown = t;
+    }
     let json = serde_json::to_vec_pretty(&report).context("the report's JSON")?;
     crate::atomic::write_atomic(&out, &json)
         .map_err(|e| coded(exit::BAD_INPUT, format!("writing {}: {e}", out.display())))?;
@@ -166,7 +215,7 @@ pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
 /// Patched variants with their attempts.
 type Patched = Vec<(String, Vec<Ran>)>;
 
-fn run_all(ctx: &Ctx, plan: &ShaderPlan) -> Result<(Vec<Ran>, Patched)> {
+fn run_all(ctx: &Ctx, plan: &ShaderPlan) -> Result<(VariantRun, Vec<(String, VariantRun)>)> {
     let unpatched = shader_exec::run_variant(ctx, "unpatched", &ctx.unpatched, None)?;
     let mut patched = Vec::new();
     for v in &plan.variants {
@@ -207,17 +256,19 @@ fn report(
     device: String,
     unpatched: Vec<Ran>,
     patched: Patched,
-    notes: Vec<String>,
+    (notes, uncompared): (Vec<String>, Option<&str>),
     (repeat, timeout, validate): (u32, Duration, bool),
 ) -> ShaderRunReport {
     let attempts = |ran: Vec<Ran>| ran.into_iter().map(|r| r.attempt).collect::<Vec<_>>();
-    let mut variants = vec![ShaderVariant::judged("unpatched", None, vec![], attempts(unpatched))];
+    let mut variants =
+        vec![ShaderVariant::judged("unpatched", None, vec![], attempts(unpatched), None)];
     for ((name, ran), planned) in patched.into_iter().zip(&plan.variants) {
         let mut lines = planned.lines.clone();
         if !planned.contract.is_empty() {
             lines.push(planned.contract.sentence());
         }
-        variants.push(ShaderVariant::judged(&name, Some(name.clone()), lines, attempts(ran)));
+        let why = uncompared.map(String::from);
+        variants.push(ShaderVariant::judged(&name, Some(name.clone()), lines, attempts(ran), why));
     }
     let outcome = variants
         .iter()

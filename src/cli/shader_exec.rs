@@ -10,7 +10,7 @@ use crate::harness::child::{JobModule, Step};
 use crate::harness::run::{output_path, AttemptOutput, ShaderJob};
 use crate::harness::{self, Compared, Part, PartKind, Verdict};
 use crate::model::contract::HostContract;
-use crate::model::shader_run::{OutputHash, ShaderAttempt};
+use crate::model::shader_run::{OutputHash, ShaderAttempt, CANNOT_SHOW};
 use crate::model::{Attempt, Outcome};
 use crate::runner::process::{run_to_end, ChildEnd};
 use anyhow::{Context, Result};
@@ -71,11 +71,12 @@ fn child(ctx: &Ctx, variant: &str, job: &ShaderJob) -> Result<(ChildEnd, String,
     Ok((end, step, step_silence))
 }
 
-/// The attempt an output file holds.
+/// The attempt an output file holds; the first validation message is the detail of an attempt
+/// that ran.
 fn read_output(path: &Path, wall_ms: f64) -> Option<Ran> {
     let out: AttemptOutput = serde_json::from_slice(&std::fs::read(path).ok()?).ok()?;
     Some(match out {
-        AttemptOutput::Ran { device, parts, validation_messages } => {
+        AttemptOutput::Ran { device, parts, validation_messages, validation_texts } => {
             let parts: Vec<Part> = parts.into_iter().map(Part::from).collect();
             let outputs = parts
                 .iter()
@@ -84,17 +85,43 @@ fn read_output(path: &Path, wall_ms: f64) -> Option<Ran> {
                     hash: super::shader_plan::hash_hex(&p.bytes),
                 })
                 .collect();
-            let attempt = Attempt::new(Outcome::Pass, true).with_wall_ms(wall_ms);
-            let attempt = ShaderAttempt { attempt, validation_messages, outputs, differs: None };
+            let mut attempt = Attempt::new(Outcome::Pass, true).with_wall_ms(wall_ms);
+            if let Some(first) = validation_texts.first() {
+                attempt = attempt.with_detail(format!("validation: {first}"));
+            }
+            let attempt = ShaderAttempt {
+                attempt,
+                validation_messages,
+                validation: validation_texts,
+                outputs,
+                differs: None,
+            };
             Ran { attempt, parts: Some(parts), device: Some(device) }
         }
-        AttemptOutput::Failed { outcome, message, validation_messages } => {
+        AttemptOutput::Failed { outcome, message, validation_messages, validation_texts } => {
             let attempt = Attempt::new(outcome, true).with_detail(message).with_wall_ms(wall_ms);
-            let attempt =
-                ShaderAttempt { attempt, validation_messages, outputs: vec![], differs: None };
+            let attempt = ShaderAttempt {
+                attempt,
+                validation_messages,
+                validation: validation_texts,
+                outputs: vec![],
+                differs: None,
+            };
             Ran { attempt, parts: None, device: None }
         }
     })
+}
+
+/// A variant's attempts and how a child that wrote every output then ended badly ended (a crash
+/// or a hang in teardown: not an attempt's, but the run's to report).
+pub struct VariantRun {
+    pub ran: Vec<Ran>,
+    pub teardown: Option<String>,
+}
+
+/// Whether a child ended as a child that finished does: status 0, not killed.
+fn clean(end: &ChildEnd) -> bool {
+    !end.timed_out && end.exit.signal.is_none() && end.exit.code == Some(0)
 }
 
 /// Every attempt of one variant, `ctx.repeat` of them, each a fresh child's after a fault.
@@ -103,8 +130,9 @@ pub fn run_variant(
     variant: &str,
     modules: &[JobModule],
     contract: Option<&HostContract>,
-) -> Result<Vec<Ran>> {
+) -> Result<VariantRun> {
     let mut out: Vec<Ran> = Vec::new();
+    let mut teardown = None;
     let mut k = 1;
     while k <= ctx.repeat {
         let job = ShaderJob {
@@ -135,6 +163,10 @@ pub fn run_variant(
         // A child stops by itself only after a failed attempt (a device loss, a fence timeout,
         // a failed setup): a fresh one runs the rest. Else it died or hung in attempt k.
         let stopped = k > first && out.last().is_some_and(|r| r.parts.is_none());
+        if k > ctx.repeat && !stopped && !clean(&end) {
+            let line = end.describe("the child process", &step, silence);
+            teardown = Some(format!("after its last attempt, {line}"));
+        }
         if k > ctx.repeat || stopped {
             continue;
         }
@@ -144,12 +176,17 @@ pub fn run_variant(
             .with_detail(line)
             .with_exit(end.exit.clone())
             .with_wall_ms(started.elapsed().as_secs_f64() * 1000.0);
-        let attempt =
-            ShaderAttempt { attempt, validation_messages: 0, outputs: vec![], differs: None };
+        let attempt = ShaderAttempt {
+            attempt,
+            validation_messages: 0,
+            validation: vec![],
+            outputs: vec![],
+            differs: None,
+        };
         out.push(Ran { attempt, parts: None, device: None });
         k += 1;
     }
-    Ok(out)
+    Ok(VariantRun { ran: out, teardown })
 }
 
 fn unit(kind: PartKind) -> &'static str {
@@ -164,29 +201,18 @@ fn first_difference(compared: &[Compared]) -> Option<&Compared> {
     compared.iter().find(|c| c.differing > 0)
 }
 
-/// Judge every attempt's outputs against the reference — the unpatched pipeline's first
-/// attempt that ran (`reference`; `again`: its second, whose unstable units patched variants
-/// leave out). Unpatched attempts are compared in full (a difference is instability);
-/// a patched one in `harness::judge`'s words. Returns a note when nothing compared can tell a
-/// wrong read from a right one.
-pub fn compare_all(
-    device: &str,
-    unpatched: &mut [Ran],
-    patched: &mut [(String, Vec<Ran>)],
-) -> Option<String> {
-    let k0 = unpatched.iter().position(|r| r.parts.is_some())?;
-    let reference = unpatched[k0].parts.clone()?;
-    let again = unpatched
-        .iter()
-        .skip(k0 + 1)
-        .find_map(|r| r.parts.clone())
-        .unwrap_or_else(|| reference.clone());
-    for (k, r) in unpatched.iter_mut().enumerate().skip(k0 + 1) {
+/// Attempts after the first that ran compared in full with it: a difference is `what`'s
+/// instability (`the unpatched pipeline`, or a patched variant's own when the unpatched one
+/// produced nothing to compare with).
+fn compare_among(device: &str, ran: &mut [Ran], what: &str) -> Option<Vec<Part>> {
+    let k0 = ran.iter().position(|r| r.parts.is_some())?;
+    let reference = ran[k0].parts.clone()?;
+    for (k, r) in ran.iter_mut().enumerate().skip(k0 + 1) {
         let Some(parts) = &r.parts else { continue };
         let c = harness::compare(&reference, &reference, parts);
         r.attempt.differs = first_difference(&c).map(|d| {
             format!(
-                "attempt {}'s {} differs from attempt {}'s in {} of {} {} on {device}: the unpatched pipeline is not deterministic",
+                "attempt {}'s {} differs from attempt {}'s in {} of {} {} on {device}: {what} is not deterministic",
                 k + 1,
                 d.label,
                 k0 + 1,
@@ -196,6 +222,53 @@ pub fn compare_all(
             )
         });
     }
+    Some(reference)
+}
+
+/// Why patched variants were not compared with the unpatched pipeline.
+pub const UNCOMPARED: &str = "not compared with the unpatched pipeline: it produced no outputs";
+
+/// What [`compare_all`] found beyond each attempt's `differs`.
+#[derive(Debug, Default, PartialEq)]
+pub struct Judged {
+    /// A note when nothing compared can tell a wrong read from a right one.
+    pub note: Option<String>,
+    /// Set when the unpatched pipeline produced no outputs ([`UNCOMPARED`]): each patched
+    /// variant's attempts were compared among themselves only.
+    pub uncompared: Option<&'static str>,
+}
+
+/// Judge every attempt's outputs against the reference — the unpatched pipeline's first
+/// attempt that ran (`again`: its second, whose unstable units patched variants leave out).
+/// Unpatched attempts are compared in full (a difference is instability); a patched one in
+/// `harness::judge`'s words. Without any unpatched outputs, each patched variant's attempts
+/// are compared among themselves, and never called identical to the unpatched ones.
+pub fn compare_all(
+    device: &str,
+    unpatched: &mut [Ran],
+    patched: &mut [(String, Vec<Ran>)],
+) -> Judged {
+    let cannot = |w: String| Some(format!("{CANNOT_SHOW}: {w}"));
+    let unfit = |p: &[Part]| match harness::judge(device, &harness::compare(p, p, p)) {
+        Verdict::Unfit(why) => cannot(why),
+        Verdict::Differs(_) | Verdict::Identical(_) => None,
+    };
+    let Some(reference) = compare_among(device, unpatched, "the unpatched pipeline") else {
+        let mut note = None;
+        for (name, ran) in patched.iter_mut() {
+            let what = format!("the {name} pipeline");
+            if let Some(r) = compare_among(device, ran, &what) {
+                note = note.or_else(|| unfit(&r));
+            }
+        }
+        return Judged { note, uncompared: (!patched.is_empty()).then_some(UNCOMPARED) };
+    };
+    let again = unpatched
+        .iter()
+        .filter_map(|r| r.parts.as_ref())
+        .nth(1)
+        .cloned()
+        .unwrap_or_else(|| reference.clone());
     let mut note = None;
     for (name, ran) in patched.iter_mut() {
         for r in ran.iter_mut() {
@@ -203,14 +276,9 @@ pub fn compare_all(
             match harness::judge(device, &harness::compare(&reference, &again, parts)) {
                 Verdict::Differs(line) => r.attempt.differs = Some(format!("{name}: {line}")),
                 Verdict::Identical(_) => {}
-                Verdict::Unfit(why) => note = Some(why),
+                Verdict::Unfit(why) => note = cannot(why),
             }
         }
     }
-    if let Verdict::Unfit(why) =
-        harness::judge(device, &harness::compare(&reference, &reference, &reference))
-    {
-        note = Some(why);
-    }
-    note.map(|w| format!("the outputs cannot show a difference: {w}"))
+    Judged { note: unfit(&reference).or(note), uncompared: None }
 }

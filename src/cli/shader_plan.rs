@@ -18,6 +18,7 @@ use crate::patches::{PatchError, PatchName, Validation};
 use crate::stable_hash::StableHash;
 use crate::tools::spirv::{self as spirv_tools, ValOptions};
 use anyhow::Result;
+use rspirv::spirv::ExecutionModel;
 use std::collections::BTreeMap;
 
 /// The push-constant bytes a patch may use: Vulkan's guaranteed `maxPushConstantsSize`.
@@ -60,21 +61,41 @@ fn differential(p: PatchName) -> bool {
     }
 }
 
-/// Reduce `input` to `--entry` where it has several entry points.
+/// The execution model a file name's stage says (`sky.rmiss.spv`, `hit.rchit`).
+fn named_model(path: &std::path::Path) -> Option<ExecutionModel> {
+    let name = path.file_name()?.to_string_lossy().to_lowercase();
+    let name = name.strip_suffix(".spv").unwrap_or(&name);
+    Some(match patch_inputs::stage_from_name(std::path::Path::new(name))? {
+        "rgen" => ExecutionModel::RayGenerationKHR,
+        "rchit" => ExecutionModel::ClosestHitKHR,
+        "rahit" => ExecutionModel::AnyHitKHR,
+        "rmiss" => ExecutionModel::MissKHR,
+        "rint" => ExecutionModel::IntersectionKHR,
+        "rcall" => ExecutionModel::CallableKHR,
+        "vert" => ExecutionModel::Vertex,
+        "frag" => ExecutionModel::Fragment,
+        "comp" => ExecutionModel::GLCompute,
+        _ => return None,
+    })
+}
+
+/// Reduce `input` to `--entry` (which must name one of its entry points); a module with several
+/// entry points needs it.
 fn entry(input: &mut Input, entry: Option<&str>) -> Result<()> {
     let bad = |e: String| coded(exit::BAD_INPUT, format!("{}: {e}", input.name));
     let mut m =
         crate::patches::load(&spirv_tools::bytes(&input.words)).map_err(|e| bad(e.to_string()))?;
-    if m.entry_points.len() < 2 {
-        return Ok(());
-    }
     let Some(name) = entry else {
+        if m.entry_points.len() < 2 {
+            return Ok(());
+        }
         return Err(bad(format!(
             "has {} entry points: pick one with --entry NAME",
             m.entry_points.len()
         )));
     };
-    harness::entry::select_entry(&mut m, name).map_err(bad)?;
+    harness::entry::select_entry(&mut m, name, named_model(&input.path))
+        .map_err(|e| bad(format!("{e} (--entry {name})")))?;
     input.words = crate::patches::assemble(&m);
     Ok(())
 }

@@ -5,7 +5,7 @@
 use super::exit;
 use crate::harness::reflect::BindingKind;
 use crate::harness::{Part, PartKind, UserModule};
-use crate::model::shader_run::{Judgement, ShaderRunReport, ShaderVariant};
+use crate::model::shader_run::{Judgement, ShaderRunReport, ShaderVariant, CANNOT_SHOW};
 use anyhow::Result;
 use rspirv::spirv::ImageFormat;
 use std::path::{Path, PathBuf};
@@ -16,7 +16,11 @@ pub fn variant_line(v: &ShaderVariant) -> String {
     let messages: u64 = v.attempts.iter().map(|a| a.validation_messages).sum();
     let head = format!("  {}: {} ({n} attempt{})", v.name, v.judgement.as_str(), plural_s(n));
     let tail = match v.judgement {
-        Judgement::Pass => format!("outputs identical, {messages} validation messages"),
+        Judgement::Pass => match (&v.uncompared, n) {
+            (Some(why), _) => format!("attempts agree among themselves, {why}"),
+            (None, 1) if v.patch.is_none() => "one attempt, nothing to compare".into(),
+            (None, _) => format!("outputs identical, {messages} validation messages"),
+        },
         Judgement::Validation => {
             format!("{messages} validation messages: not evidence about the driver")
         }
@@ -25,7 +29,8 @@ pub fn variant_line(v: &ShaderVariant) -> String {
         }
     };
     let detail = v.detail.as_deref().map(|d| format!(": {d}")).unwrap_or_default();
-    format!("{head} — {tail}{detail}")
+    let teardown = v.teardown.as_deref().map(|t| format!("; {t}")).unwrap_or_default();
+    format!("{head} — {tail}{detail}{teardown}")
 }
 
 fn plural_s(n: usize) -> &'static str {
@@ -52,12 +57,31 @@ pub fn verdict(r: &ShaderRunReport) -> (String, u8) {
         ),
         _ => (
             format!(
-                "verdict: PASS — {}: {} variant{}, {attempts} attempts, no fault, no message, no difference",
+                "verdict: PASS — {}: {} variant{}, {attempts} attempts, no fault, no message, {}",
                 r.cell,
                 r.variants.len(),
-                plural_s(r.variants.len())
+                plural_s(r.variants.len()),
+                differences(r)
             ),
             exit::OK,
+        ),
+    }
+}
+
+/// What a PASS says of the outputs: never "no difference" where nothing could show one.
+fn differences(r: &ShaderRunReport) -> String {
+    if let Some(n) = r.notes.iter().find(|n| n.starts_with(CANNOT_SHOW)) {
+        return n.clone();
+    }
+    if r.variants.iter().any(|v| v.uncompared.is_some()) {
+        return "no difference among each variant's own attempts (the unpatched pipeline produced no outputs)".into();
+    }
+    let teardowns = r.variants.iter().filter(|v| v.teardown.is_some()).count();
+    match teardowns {
+        0 => "no difference".into(),
+        n => format!(
+            "no difference, but {n} child{} failed in teardown",
+            if n == 1 { "" } else { "ren" }
         ),
     }
 }
@@ -165,6 +189,56 @@ pub fn dump(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::shader_run::ShaderAttempt;
+    use crate::model::{Attempt, Outcome};
+
+    fn variant(patch: Option<&str>, uncompared: Option<&str>) -> ShaderVariant {
+        let a = ShaderAttempt {
+            attempt: Attempt::new(Outcome::Pass, true),
+            validation_messages: 0,
+            validation: vec![],
+            outputs: vec![],
+            differs: None,
+        };
+        let name = patch.unwrap_or("unpatched");
+        let p = patch.map(String::from);
+        ShaderVariant::judged(name, p, vec![], vec![a.clone(), a], uncompared.map(String::from))
+    }
+
+    fn report(variants: Vec<ShaderVariant>, notes: Vec<String>) -> ShaderRunReport {
+        ShaderRunReport {
+            schema: String::new(),
+            rtprobe_version: String::new(),
+            device: "d".into(),
+            cell: "c".into(),
+            options: serde_json::Value::Null,
+            inputs: vec![],
+            variants,
+            outcome: Outcome::Pass,
+            notes,
+        }
+    }
+
+    #[test]
+    fn identical_is_said_only_of_outputs_compared() {
+        let compared = variant(Some("as-to-address"), None);
+        assert!(variant_line(&compared).contains("outputs identical"));
+        let alone = variant(Some("as-to-address"), Some("not compared: none"));
+        let line = variant_line(&alone);
+        assert!(!line.contains("identical") && line.contains("not compared: none"), "{line}");
+        let (v, _) = verdict(&report(vec![alone], vec![]));
+        assert!(!v.ends_with("no difference"), "{v}");
+        let note = format!("{CANNOT_SHOW}: nothing written");
+        let (v, _) = verdict(&report(vec![compared.clone()], vec![note]));
+        assert!(v.ends_with("cannot show a difference: nothing written"), "{v}");
+        let (v, _) = verdict(&report(vec![compared.clone()], vec![]));
+        assert!(v.ends_with("no difference"), "{v}");
+        let mut torn = compared;
+        torn.teardown = Some("after its last attempt, the child process died".into());
+        assert!(variant_line(&torn).contains("after its last attempt"));
+        let (v, _) = verdict(&report(vec![torn], vec![]));
+        assert!(v.contains("failed in teardown"), "{v}");
+    }
 
     #[test]
     fn halves_and_texels_become_colours() {

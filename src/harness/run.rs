@@ -12,7 +12,8 @@
 //!
 //! Test hook: `RTPROBE_SHADER_FAULT=KIND[:VARIANT[:K]]` (VARIANT default `unpatched`, K: the
 //! 1-based attempt, default every one): `crash` raises SIGSEGV, `hang` sleeps forever where
-//! that attempt would trace, `flip` flips the first byte of its first output (a difference).
+//! that attempt would trace, `flip` flips the first byte of its first output (a difference),
+//! `teardown` raises SIGSEGV after the child wrote attempt K's output, before its teardown.
 use super::child::JobModule;
 use super::reflect::BindingKind;
 use super::supply;
@@ -83,8 +84,21 @@ impl From<SavedPart> for Part {
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum AttemptOutput {
-    Ran { device: String, parts: Vec<SavedPart>, validation_messages: u64 },
-    Failed { outcome: Outcome, message: String, validation_messages: u64 },
+    Ran {
+        device: String,
+        parts: Vec<SavedPart>,
+        validation_messages: u64,
+        /// The first few messages' text, with their VUIDs.
+        #[serde(default)]
+        validation_texts: Vec<String>,
+    },
+    Failed {
+        outcome: Outcome,
+        message: String,
+        validation_messages: u64,
+        #[serde(default)]
+        validation_texts: Vec<String>,
+    },
 }
 
 /// The pipeline's modules as the harness runs them: the given ones, with a raygen and a miss
@@ -250,6 +264,7 @@ fn run(job: &ShaderJob) -> Result<(), String> {
                 outcome: outcome_of(&e),
                 message: format!("setup: {e}"),
                 validation_messages: messages(&mut seen),
+                validation_texts: crate::vk::instance::take_validation_texts(),
             };
             return write(job, job.first, &out);
         }
@@ -268,7 +283,12 @@ fn run(job: &ShaderJob) -> Result<(), String> {
                     *b ^= 0xFF;
                 }
                 let validation_messages = messages(&mut seen);
-                AttemptOutput::Ran { device: h.device_name(), parts, validation_messages }
+                AttemptOutput::Ran {
+                    device: h.device_name(),
+                    parts,
+                    validation_messages,
+                    validation_texts: crate::vk::instance::take_validation_texts(),
+                }
             }
             Err(e) => {
                 let outcome = outcome_of(&e);
@@ -276,6 +296,7 @@ fn run(job: &ShaderJob) -> Result<(), String> {
                     outcome,
                     message: e.to_string(),
                     validation_messages: messages(&mut seen),
+                    validation_texts: crate::vk::instance::take_validation_texts(),
                 };
                 if outcome.ends_worker() {
                     write(job, k, &out)?;
@@ -286,6 +307,10 @@ fn run(job: &ShaderJob) -> Result<(), String> {
             }
         };
         write(job, k, &out)?;
+    }
+    say("teardown");
+    if hook(&job.variant, job.last).as_deref() == Some("teardown") {
+        misbehave(Some("crash"));
     }
     Ok(())
 }

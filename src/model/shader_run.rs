@@ -11,6 +11,9 @@ use serde::{Deserialize, Serialize};
 
 pub const SCHEMA: &str = "rtprobe.shader-run/1";
 
+/// How a note that the outputs cannot tell a wrong read from a right one starts.
+pub const CANNOT_SHOW: &str = "the outputs cannot show a difference";
+
 /// One input file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ShaderInput {
@@ -52,6 +55,9 @@ pub struct ShaderAttempt {
     /// of a child also counts its setup's).
     #[serde(default)]
     pub validation_messages: u64,
+    /// The first few validation messages' text, with their VUIDs.
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub validation: Vec<String>,
     #[serde(skip_serializing_if = "Vec::is_empty", default)]
     pub outputs: Vec<OutputHash>,
     /// How its outputs differ from the reference (the unpatched pipeline's first attempt), in
@@ -107,6 +113,13 @@ pub struct ShaderVariant {
     pub detail: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub incidence: Option<Incidence>,
+    /// Why a patched variant's outputs were compared only among its own attempts (the unpatched
+    /// pipeline produced none); its differences are then `unstable`.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub uncompared: Option<String>,
+    /// How a child that wrote every output then ended (a crash or hang in teardown).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub teardown: Option<String>,
 }
 
 /// The report `run --shader` writes.
@@ -180,14 +193,17 @@ pub fn judge_variant(
 }
 
 impl ShaderVariant {
-    /// A variant judged from its attempts ([`judge_variant`]).
+    /// A variant judged from its attempts ([`judge_variant`]; as the unpatched one's when it
+    /// was not compared with the unpatched pipeline).
     pub fn judged(
         name: &str,
         patch: Option<String>,
         patch_lines: Vec<String>,
         attempts: Vec<ShaderAttempt>,
+        uncompared: Option<String>,
     ) -> ShaderVariant {
-        let (outcome, judgement, detail, incidence) = judge_variant(&attempts, patch.is_some());
+        let differential = patch.is_some() && uncompared.is_none();
+        let (outcome, judgement, detail, incidence) = judge_variant(&attempts, differential);
         ShaderVariant {
             name: name.into(),
             patch,
@@ -197,6 +213,8 @@ impl ShaderVariant {
             judgement,
             detail,
             incidence,
+            uncompared,
+            teardown: None,
         }
     }
 }
@@ -220,6 +238,7 @@ mod tests {
         ShaderAttempt {
             attempt: Attempt::new(outcome, true).with_detail(format!("{}!", outcome.as_str())),
             validation_messages: messages,
+            validation: vec![],
             outputs: vec![],
             differs: differs.map(String::from),
         }

@@ -27,6 +27,7 @@ mod pointers;
 mod reflection;
 mod ty;
 
+pub use entry::stage_name;
 pub use error::ReflectError;
 pub use reflection::{
     Binding, Block, Count, Descriptor, Heap, HeapAccess, HeapKind, HeapStride, Io, PointerPath,
@@ -49,7 +50,9 @@ pub fn reflect_words(words: &[u32], entry: Option<&str>) -> Result<Reflection, R
 pub fn reflect(m: &Module, entry: Option<&str>) -> Result<Reflection, ReflectError> {
     let e = entry::choose(m, entry)?;
     let x = Index::new(m);
-    let used = (m.entry_points.len() > 1).then(|| entry::used(m, e.function));
+    // Only the globals the entry point's call tree names: a linked module (or one `--entry`
+    // reduced) keeps other entry points' globals, which are not this one's interface.
+    let used = entry::used(m, e.function);
     let mut r = Reflection {
         model: e.model,
         stage: entry::stage_name(e.model),
@@ -68,7 +71,7 @@ pub fn reflect(m: &Module, entry: Option<&str>) -> Result<Reflection, ReflectErr
     };
     for i in &m.types_global_values {
         let Some(id) = i.result_id else { continue };
-        if used.as_ref().is_some_and(|u| !u.contains(&id)) && is_variable(i) {
+        if !used.contains(&id) && is_variable(i) {
             continue;
         }
         match i.class.opcode {

@@ -352,6 +352,22 @@ fn a_dxc_module_with_two_entry_points_needs_one_named() {
     );
 }
 
+/// The DXC module reduced to one entry point (as `run --shader --entry` reduces it): its
+/// reflection still counts only the globals that entry point's call tree uses.
+#[test]
+fn a_single_entry_point_left_in_a_library_sees_only_its_globals() {
+    let Some(mut m) = assembled(DXC) else { return };
+    m.entry_points
+        .retain(|e| matches!(e.operands.get(2), Some(Operand::LiteralString(n)) if n == "Sky"));
+    let sky = reflect(&m, None).unwrap();
+    assert_eq!(sky.entry, "Sky");
+    assert_eq!(
+        sky.bindings.iter().map(|b| (b.binding, b.descriptor)).collect::<Vec<_>>(),
+        vec![(0, Descriptor::UniformBuffer)],
+        "Shadow's storage buffer is not Sky's"
+    );
+}
+
 /// Any bytes — garbage, a truncated module, a module cut at every word — give a typed error or a
 /// reflection, never a panic.
 #[test]

@@ -17,6 +17,24 @@ pub fn validation_error_count() -> u64 {
     VALIDATION_ERRORS.load(Ordering::Relaxed)
 }
 
+/// How many error messages' text is kept until [`take_validation_texts`], and how much of each.
+pub const KEPT_TEXTS: usize = 4;
+const KEPT_CHARS: usize = 400;
+static VALIDATION_TEXTS: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
+
+/// Keep the first [`KEPT_TEXTS`] error messages (their VUID leads the layer's text).
+fn keep_text(msg: &str) {
+    let Ok(mut kept) = VALIDATION_TEXTS.lock() else { return };
+    if kept.len() < KEPT_TEXTS {
+        kept.push(msg.chars().take(KEPT_CHARS).collect());
+    }
+}
+
+/// The error messages kept since the last call (the first few, shortened), and forget them.
+pub fn take_validation_texts() -> Vec<String> {
+    VALIDATION_TEXTS.lock().map(|mut k| std::mem::take(&mut *k)).unwrap_or_default()
+}
+
 #[derive(Clone, Debug, Default)]
 pub struct InstanceOptions {
     /// Enable VK_LAYER_KHRONOS_validation when it is installed.
@@ -72,6 +90,7 @@ unsafe extern "system" fn debug_callback(
     };
     if severity.contains(vk::DebugUtilsMessageSeverityFlagsEXT::ERROR) {
         VALIDATION_ERRORS.fetch_add(1, Ordering::Relaxed);
+        keep_text(&msg);
         tracing::error!(target: "validation", "{msg}");
     } else if severity.contains(vk::DebugUtilsMessageSeverityFlagsEXT::WARNING) {
         tracing::warn!(target: "validation", "{msg}");
