@@ -50,6 +50,24 @@ pub struct Applied {
     pub contract: HostContract,
 }
 
+/// The stage name of an execution model (`closest_hit`, …; others in lower case), the one
+/// spelling `patch`, the harness and the reflection use.
+pub fn stage_name(model: ExecutionModel) -> String {
+    match model {
+        ExecutionModel::RayGenerationKHR => "raygen",
+        ExecutionModel::ClosestHitKHR => "closest_hit",
+        ExecutionModel::AnyHitKHR => "any_hit",
+        ExecutionModel::MissKHR => "miss",
+        ExecutionModel::IntersectionKHR => "intersection",
+        ExecutionModel::CallableKHR => "callable",
+        ExecutionModel::GLCompute => "compute",
+        ExecutionModel::Vertex => "vertex",
+        ExecutionModel::Fragment => "fragment",
+        other => return format!("{other:?}").to_lowercase(),
+    }
+    .to_string()
+}
+
 /// The stage name and entry point of a module's first entry point.
 pub fn stage_of(m: &Module) -> Option<(String, String)> {
     let ep = m.entry_points.first()?;
@@ -61,18 +79,7 @@ pub fn stage_of(m: &Module) -> Option<(String, String)> {
         Operand::LiteralString(s) => s.clone(),
         _ => return None,
     };
-    let stage = match model {
-        ExecutionModel::RayGenerationKHR => "raygen",
-        ExecutionModel::ClosestHitKHR => "closest_hit",
-        ExecutionModel::AnyHitKHR => "any_hit",
-        ExecutionModel::MissKHR => "miss",
-        ExecutionModel::IntersectionKHR => "intersection",
-        ExecutionModel::CallableKHR => "callable",
-        ExecutionModel::GLCompute => "compute",
-        ExecutionModel::Vertex => "vertex",
-        ExecutionModel::Fragment => "fragment",
-        other => return Some((format!("{other:?}").to_lowercase(), entry)),
-    };
+    let stage = stage_name(model);
     Some((stage.to_string(), entry))
 }
 

@@ -63,19 +63,5 @@ pub fn used(m: &Module, function: Word) -> HashSet<Word> {
     out
 }
 
-/// The stage name of an execution model.
-pub fn stage_name(model: ExecutionModel) -> String {
-    match model {
-        ExecutionModel::RayGenerationKHR => "raygen",
-        ExecutionModel::ClosestHitKHR => "closest_hit",
-        ExecutionModel::AnyHitKHR => "any_hit",
-        ExecutionModel::MissKHR => "miss",
-        ExecutionModel::IntersectionKHR => "intersection",
-        ExecutionModel::CallableKHR => "callable",
-        ExecutionModel::GLCompute => "compute",
-        ExecutionModel::Vertex => "vertex",
-        ExecutionModel::Fragment => "fragment",
-        other => return format!("{other:?}").to_lowercase(),
-    }
-    .to_string()
-}
+/// The stage name of an execution model (`patches`' spelling).
+pub use crate::patches::pipeline::stage_name;
