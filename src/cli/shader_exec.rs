@@ -77,7 +77,6 @@ fn read_output(path: &Path, wall_ms: f64) -> Option<Ran> {
     let out: AttemptOutput = serde_json::from_slice(&std::fs::read(path).ok()?).ok()?;
     Some(match out {
         AttemptOutput::Ran { device, parts, validation_messages, validation_texts } => {
-            let parts: Vec<Part> = parts.into_iter().map(Part::from).collect();
             let outputs = parts
                 .iter()
                 .map(|p| OutputHash {

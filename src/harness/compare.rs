@@ -12,8 +12,8 @@ pub enum PartKind {
     Buffer,
 }
 
-/// One read-back output.
-#[derive(Clone, Debug, PartialEq)]
+/// One read-back output (the `run --shader` child hands it over as JSON).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Part {
     pub label: String,
     pub kind: PartKind,

@@ -17,7 +17,7 @@
 use super::child::JobModule;
 use super::reflect::BindingKind;
 use super::supply;
-use super::{Harness, HarnessError, Part, PartKind, UserModule};
+use super::{Harness, HarnessError, Part, UserModule};
 use crate::interface::{BindingDesc, DescriptorKind, HitGroup, PipelineDesc, PushRange};
 use crate::model::contract::HostContract;
 use crate::model::Outcome;
@@ -54,39 +54,13 @@ pub struct ShaderJob {
     pub dir: PathBuf,
 }
 
-/// One read-back output, as the child hands it over (a [`Part`]).
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct SavedPart {
-    pub label: String,
-    pub kind: PartKind,
-    pub bytes: Vec<u8>,
-    pub texel: u32,
-    pub initial: Option<Vec<u8>>,
-    pub scheduled: bool,
-    pub records: Option<(u32, u32)>,
-}
-
-impl From<Part> for SavedPart {
-    fn from(p: Part) -> SavedPart {
-        let Part { label, kind, bytes, texel, initial, scheduled, records } = p;
-        SavedPart { label, kind, bytes, texel, initial, scheduled, records }
-    }
-}
-
-impl From<SavedPart> for Part {
-    fn from(p: SavedPart) -> Part {
-        let SavedPart { label, kind, bytes, texel, initial, scheduled, records } = p;
-        Part { label, kind, bytes, texel, initial, scheduled, records }
-    }
-}
-
 /// What one attempt came to.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum AttemptOutput {
     Ran {
         device: String,
-        parts: Vec<SavedPart>,
+        parts: Vec<Part>,
         validation_messages: u64,
         /// The first few messages' text, with their VUIDs.
         #[serde(default)]
@@ -276,7 +250,7 @@ fn run(job: &ShaderJob) -> Result<(), String> {
         misbehave(fault.as_deref());
         let out = match h.trace(&refs, job.contract.as_ref()) {
             Ok(parts) => {
-                let mut parts: Vec<SavedPart> = parts.into_iter().map(SavedPart::from).collect();
+                let mut parts = parts;
                 if let (Some("flip"), Some(b)) =
                     (fault.as_deref(), parts.first_mut().and_then(|p| p.bytes.first_mut()))
                 {
