@@ -3,8 +3,36 @@
 Markdown: per-mutant counts, survivors grouped by mutant and reason, not-run pairs by reason."""
 import collections, gzip, json, sys
 
+def load(path):
+    return json.load(gzip.open(path) if path.endswith(".gz") else open(path))
+
+if len(sys.argv) > 2:
+    # Several shards: the per-mutant counts summed, and each shard's wall time.
+    cols = ["applicable", "killed", "survived", "allowed", "probe_defects", "faults", "equivalent", "no_target", "not_run"]
+    per, order = collections.defaultdict(collections.Counter), []
+    for path in sys.argv[1:]:
+        r = load(path)
+        t = r.get("timing", {})
+        print(f"- `{path}`: started {r['started']}, finished {r['finished']}, complete {r['complete']}, cells {len(r['cells'])}, mutants round {r['mutants']['wall_ms'] / 1000:.1f} s")
+        for name in r["mutants"]["mutants"]:
+            if name not in order:
+                order.append(name)
+            for k in cols:
+                per[name][k] += r["mutants"]["counts"][name][k]
+    print("\n| mutant | applicable | killed | survived (allowed / probe defects) | faults | equivalent | no target | not run |")
+    print("|---|---|---|---|---|---|---|---|")
+    tot = collections.Counter()
+    for name in order:
+        c = per[name]
+        tot.update(c)
+        print(f"| `{name}` | {c['applicable']} | {c['killed']} | {c['survived']} ({c['allowed']} / {c['probe_defects']}) | {c['faults']} | {c['equivalent']} | {c['no_target']} | {c['not_run']} |")
+    c = tot
+    print(f"| **all** | {c['applicable']} | {c['killed']} | {c['survived']} ({c['allowed']} / {c['probe_defects']}) | {c['faults']} | {c['equivalent']} | {c['no_target']} | {c['not_run']} |")
+    print(f"\nHad to be caught: {c['applicable'] - c['allowed']}, killed {c['killed']}, probe defects {c['probe_defects']}, faults {c['faults']}.")
+    sys.exit(0)
+
 path = sys.argv[1]
-r = json.load(gzip.open(path) if path.endswith(".gz") else open(path))
+r = load(path)
 m = r["mutants"]
 cols = ["applicable", "killed", "survived", "faults", "equivalent", "no_target", "not_run"]
 print("| mutant | applicable | killed | survived (allowed / probe defects) | faults | equivalent | no target | not run |")
