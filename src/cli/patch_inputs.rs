@@ -15,6 +15,9 @@ pub struct Input {
     /// The name messages use.
     pub name: String,
     pub words: Vec<u32>,
+    /// FNV-1a 128 (hex) of what made `words`: a SPIR-V file's bytes; a GLSL file's contents,
+    /// every include it reaches, the defines and the target environment.
+    pub identity: String,
 }
 
 /// The stage names `--stage` and file names use, with their shaderc kinds.
@@ -120,8 +123,9 @@ fn glsl_options(a: &InputOptions, input: &Path) -> Result<GlslOptions> {
     })
 }
 
-/// Compile the GLSL `bytes` of `path` (its stage from `--stage`, else its name).
-fn compile(a: &InputOptions, path: &Path, bytes: &[u8], name: &str) -> Result<Vec<u32>> {
+/// Compile the GLSL `bytes` of `path` (its stage from `--stage`, else its name): the words and
+/// the input's identity ([`Input::identity`]).
+fn compile(a: &InputOptions, path: &Path, bytes: &[u8], name: &str) -> Result<(Vec<u32>, String)> {
     let stage = match a.stage {
         Some(s) => s,
         None => stage_from_name(path).ok_or_else(|| {
@@ -145,8 +149,26 @@ fn compile(a: &InputOptions, path: &Path, bytes: &[u8], name: &str) -> Result<Ve
     }
     let mut c = crate::shadergen::compile::Compiler::new()
         .map_err(|e| coded(exit::NO_SHADER_COMPILER, e))?;
-    c.compile_user_glsl(k, name, &src, &opts)
-        .map_err(|e| coded(exit::BAD_INPUT, first_error(&e.to_string())))
+    let words = c
+        .compile_user_glsl(k, name, &src, &opts)
+        .map_err(|e| coded(exit::BAD_INPUT, first_error(&e.to_string())))?;
+    Ok((words, glsl_identity(&c.input_files(name, &src, &opts), &opts)))
+}
+
+/// [`Input::identity`] of a GLSL input made of `files` (the root's name first is not assumed:
+/// only the contents count, so the same sources in another folder are the same input).
+fn glsl_identity(files: &[(String, String)], o: &GlslOptions) -> String {
+    let mut h = crate::stable_hash::StableHash::default();
+    h.str(o.target.name());
+    for (name, value) in &o.defines {
+        h.str(name).str(value.as_deref().unwrap_or("\u{0}"));
+    }
+    let mut contents: Vec<&str> = files.iter().map(|(_, c)| c.as_str()).collect();
+    contents.sort_unstable();
+    for c in contents {
+        h.str(c);
+    }
+    format!("{:032x}", h.finish())
 }
 
 /// The longest compile error line shown.
@@ -193,21 +215,23 @@ pub fn read_with(a: &InputOptions, paths: &[PathBuf]) -> Result<Vec<Input>> {
         let bytes = std::fs::read(path)
             .with_context(|| format!("reading {}", path.display()))
             .map_err(|e| coded(exit::BAD_INPUT, format!("{e:#}")))?;
-        let words = if !a.glsl && is_spirv(path, &bytes) {
+        let (words, identity) = if !a.glsl && is_spirv(path, &bytes) {
             let m = crate::patches::load(&bytes)
                 .map_err(|e| coded(exit::BAD_INPUT, format!("{name}: {e}")))?;
-            if bytes.starts_with(&0x0723_0203u32.to_le_bytes()) {
+            let identity = super::shader_plan::hash_hex(&bytes);
+            let words = if bytes.starts_with(&0x0723_0203u32.to_le_bytes()) {
                 bytes
                     .chunks_exact(4)
                     .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
                     .collect()
             } else {
                 crate::patches::assemble(&m)
-            }
+            };
+            (words, identity)
         } else {
             compile(a, path, &bytes, &name)?
         };
-        out.push(Input { path: path.clone(), name, words });
+        out.push(Input { path: path.clone(), name, words, identity });
     }
     Ok(out)
 }
@@ -272,6 +296,37 @@ pub fn destinations(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The identity of a GLSL input covers what it includes and its defines: an edited header,
+    /// or another `-D`, is another input; the same files read again are the same one (the twin);
+    /// a file that includes nothing new is not changed by an unrelated header.
+    #[test]
+    fn a_glsl_inputs_identity_covers_its_includes_and_defines() {
+        let d = tempfile::tempdir().unwrap();
+        let hit = d.path().join("hit.rchit");
+        std::fs::write(&hit, "#version 460\n#extension GL_EXT_ray_tracing : require\n#include \"common.glsl\"\nlayout(location = 0) rayPayloadInEXT vec4 p;\nvoid main() { p = vec4(K); }\n").unwrap();
+        let header = d.path().join("common.glsl");
+        let id = |defines: &[String]| {
+            let o = InputOptions {
+                glsl: false,
+                stage: None,
+                include_dirs: &[],
+                defines,
+                target_env: TargetEnv::default(),
+                stage_hint: "",
+            };
+            read_with(&o, std::slice::from_ref(&hit)).unwrap().remove(0).identity
+        };
+        std::fs::write(&header, "#define K 1.0\n").unwrap();
+        let first = id(&[]);
+        assert_eq!(id(&[]), first, "the same files are the same input");
+        std::fs::write(&header, "#define K 2.0\n").unwrap();
+        let edited = id(&[]);
+        assert_ne!(edited, first, "an edited header is another input");
+        assert_ne!(id(&["EXTRA=1".to_string()]), edited, "another -D is another input");
+        std::fs::write(d.path().join("unrelated.glsl"), "// not included\n").unwrap();
+        assert_eq!(id(&[]), edited);
+    }
 
     #[test]
     fn a_compile_error_is_its_first_error_and_a_count() {

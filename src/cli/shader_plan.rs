@@ -151,12 +151,11 @@ pub fn plan(a: &RunArgs) -> Result<ShaderPlan> {
         })?;
         let module = crate::patches::load(&spirv_tools::bytes(&i.words))
             .map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", i.name)))?;
-        let bytes = std::fs::read(&i.path).unwrap_or_default();
         described.push(ShaderInput {
             file: i.name.clone(),
             stage: m.iface.stage.clone(),
             entry: m.iface.entry.clone(),
-            hash: hash_hex(&bytes),
+            hash: i.identity.clone(),
         });
         stages.push(Stage { file: i.name.clone(), module, rules });
         val.push(o);

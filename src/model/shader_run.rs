@@ -21,7 +21,9 @@ pub struct ShaderInput {
     /// raygen, closest_hit, … (the module's entry point).
     pub stage: String,
     pub entry: String,
-    /// FNV-1a 128 of the file's bytes, hex.
+    /// FNV-1a 128, hex, of what made the module (`cli::patch_inputs::Input::identity`): a SPIR-V
+    /// file's bytes; a GLSL file's contents with every include it reaches, the defines and the
+    /// target environment.
     pub hash: String,
 }
 

@@ -209,6 +209,30 @@ impl Compiler {
         self.compile_user_glsl(kind, file, glsl, &GlslOptions::default())
     }
 
+    /// Every file a GLSL input is made of, by resolved name with its contents: the root and each
+    /// `#include` it reaches under `o` (shaderc's preprocessor resolves them, with `o`'s defines,
+    /// so an include under a false `#if` is not one). What the input's identity hashes: an
+    /// edited header makes another input. A preprocessor error stops at the files seen so far.
+    pub fn input_files(
+        &mut self,
+        file: &str,
+        glsl: &str,
+        o: &GlslOptions,
+    ) -> Vec<(String, String)> {
+        let Some(input) = o.input.as_ref() else {
+            return vec![(file.to_string(), glsl.to_string())];
+        };
+        let inc = Includes::new(input, file, glsl, &o.include_dirs);
+        if let Ok(mut opts) = shaderc::CompileOptions::new() {
+            for (name, value) in &o.defines {
+                opts.add_macro_definition(name, value.as_deref());
+            }
+            opts.set_include_callback(|req, ty, from, depth| inc.resolve(req, ty, from, depth));
+            let _ = self.inner.preprocess(glsl, file, "main", Some(&opts));
+        }
+        inc.contents()
+    }
+
     /// Compile GLSL with `#include` resolution, macro definitions and a target environment
     /// (`rtprobe patch`). Errors are one line, each naming its file, line and include chain. A
     /// missing or too old `#version` is refused before a compiler sees it

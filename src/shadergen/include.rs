@@ -108,6 +108,15 @@ impl Includes {
             .map_or(0, |i| i + 1)
     }
 
+    /// The contents of every file seen so far (the root first, then the included ones by resolved
+    /// name): what a hash of the input must cover.
+    pub fn contents(&self) -> Vec<(String, String)> {
+        let mut all: Vec<(String, String)> =
+            self.sources.borrow().iter().map(|(n, c)| (n.clone(), c.clone())).collect();
+        all.sort();
+        all
+    }
+
     /// ` (included from a.glsl:2, from main.rgen:5)` for a resolved file; empty for the root.
     pub fn chain_of(&self, file: &str) -> String {
         let origins = self.origins.borrow();
