@@ -2,7 +2,7 @@
 //! attributes (the rules are in the module doc).
 use super::error::Mismatch;
 use super::layout::PipelineDesc;
-use super::view::ModuleInterface;
+use super::view::{IoShape, ModuleInterface};
 
 /// The first way `modules` (SPIR-V words, in the pipeline's stage order) do not fit `pipeline`.
 pub fn check(modules: &[&[u32]], pipeline: &PipelineDesc) -> Result<(), Mismatch> {
@@ -73,17 +73,20 @@ fn push(m: &ModuleInterface, p: &PipelineDesc) -> Result<(), Mismatch> {
 /// that receive them, so there is nothing to match: the Ray Tracing Pipeline Interface rules bind
 /// a receiving stage to the payload of the `OpTraceRayKHR` that invokes it.
 fn calls(read: &[ModuleInterface]) -> Result<(), Mismatch> {
-    let sent: Vec<u32> = read.iter().flat_map(|m| m.payloads.iter().copied()).collect();
-    let passed: Vec<u32> = read.iter().flat_map(|m| m.callable_data.iter().copied()).collect();
+    let sent: Vec<&IoShape> = read.iter().flat_map(|m| &m.payloads).collect();
+    let passed: Vec<&IoShape> = read.iter().flat_map(|m| &m.callable_data).collect();
+    let list = |v: &[&IoShape]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>().join("; ");
     for m in read {
-        let unsent = m.incoming_payload.filter(|s| !sent.is_empty() && !sent.contains(s));
-        if let Some(size) = unsent {
-            return Err(Mismatch::Payload { stage: m.stage, size, sent });
+        let unsent = m.incoming_payload.as_ref().filter(|s| !sent.is_empty() && !sent.contains(s));
+        if let Some(got) = unsent {
+            let (got, sent) = (got.to_string(), list(&sent));
+            return Err(Mismatch::Payload { stage: m.stage, got, sent });
         }
         let unpassed =
-            m.incoming_callable_data.filter(|s| !passed.is_empty() && !passed.contains(s));
-        if let Some(size) = unpassed {
-            return Err(Mismatch::CallableData { stage: m.stage, size, sent: passed });
+            m.incoming_callable_data.as_ref().filter(|s| !passed.is_empty() && !passed.contains(s));
+        if let Some(got) = unpassed {
+            let (got, sent) = (got.to_string(), list(&passed));
+            return Err(Mismatch::CallableData { stage: m.stage, got, sent });
         }
     }
     Ok(())
@@ -93,24 +96,30 @@ fn calls(read: &[ModuleInterface]) -> Result<(), Mismatch> {
 /// attribute is the intersection shader's, or two floats (8 bytes) without one.
 fn hit_attributes(read: &[ModuleInterface], p: &PipelineDesc) -> Result<(), Mismatch> {
     for m in read {
-        if let Some(size) = m.hit_attribute.filter(|s| *s > p.max_hit_attribute) {
+        if let Some(a) = m.hit_attribute.as_ref().filter(|a| a.size > p.max_hit_attribute) {
             let expected =
                 format!("the device's maxRayHitAttributeSize is {}", p.max_hit_attribute);
-            return Err(Mismatch::HitAttribute { stage: m.stage, size, expected });
+            return Err(Mismatch::HitAttribute { stage: m.stage, got: a.to_string(), expected });
         }
     }
+    let barycentrics = IoShape::barycentrics();
     for g in &p.hit_groups {
-        let written = g.intersection.and_then(|i| read.get(i)?.hit_attribute);
+        let written = g.intersection.and_then(|i| read.get(i)?.hit_attribute.clone());
         let (want, what) = match (g.intersection, written) {
-            (Some(_), Some(s)) => (s, format!("its intersection shader writes {s}")),
+            (Some(_), Some(s)) => {
+                let what = format!("its intersection shader writes {s}");
+                (s, what)
+            }
             (Some(_), None) => continue,
-            (None, _) => (8, "a triangle hit's attribute is two floats (8 bytes)".to_string()),
+            (None, _) => {
+                (barycentrics.clone(), format!("a triangle hit's attribute is {barycentrics}"))
+            }
         };
         for k in [g.closest_hit, g.any_hit].into_iter().flatten() {
-            if let Some(m) = read.get(k) {
-                if let Some(size) = m.hit_attribute.filter(|s| *s != want) {
-                    return Err(Mismatch::HitAttribute { stage: m.stage, size, expected: what });
-                }
+            let Some(m) = read.get(k) else { continue };
+            if let Some(a) = m.hit_attribute.as_ref().filter(|a| **a != want) {
+                let (got, expected) = (a.to_string(), what);
+                return Err(Mismatch::HitAttribute { stage: m.stage, got, expected });
             }
         }
     }

@@ -30,10 +30,11 @@ pub enum Mismatch {
     Count { set: u32, binding: u32, stage: vk::ShaderStageFlags, shader: u32, layout: u32 },
     #[error("push constants: the {stage:?} shader's block spans bytes {start}..{end}, the pipeline's range for it is {range} (layout-07987 / layout-10069)")]
     Push { stage: vk::ShaderStageFlags, start: u32, end: u32, range: String },
-    #[error("ray payload: the {stage:?} shader receives a {size}-byte payload, no stage sends one of that size ({sent:?} bytes sent; Ray Tracing Pipeline Interface)")]
-    Payload { stage: vk::ShaderStageFlags, size: u32, sent: Vec<u32> },
-    #[error("callable data: the {stage:?} shader receives {size} bytes, no stage passes that size ({sent:?} bytes passed; Ray Tracing Pipeline Interface)")]
-    CallableData { stage: vk::ShaderStageFlags, size: u32, sent: Vec<u32> },
-    #[error("hit attribute: the {stage:?} shader's is {size} bytes, {expected} (Ray Tracing Pipeline Interface, maxRayHitAttributeSize)")]
-    HitAttribute { stage: vk::ShaderStageFlags, size: u32, expected: String },
+    /// `got`, `sent`: [`super::view::IoShape`]s as text (structure and size).
+    #[error("ray payload: the {stage:?} shader receives {got}, no stage sends that structure (sent: {sent}); the payload must be the same structure in every stage using it (Ray Tracing Pipeline Interface)")]
+    Payload { stage: vk::ShaderStageFlags, got: String, sent: String },
+    #[error("callable data: the {stage:?} shader receives {got}, no stage passes that structure (passed: {sent}); it must be the same structure (Ray Tracing Pipeline Interface)")]
+    CallableData { stage: vk::ShaderStageFlags, got: String, sent: String },
+    #[error("hit attribute: the {stage:?} shader's is {got}, {expected} (Ray Tracing Pipeline Interface, maxRayHitAttributeSize)")]
+    HitAttribute { stage: vk::ShaderStageFlags, got: String, expected: String },
 }

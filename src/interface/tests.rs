@@ -119,10 +119,14 @@ fn the_engine_reads_as_declared_and_fits_its_layout() {
     );
     // mat4 + uvec4; Shade is vec4 + 2 uints; two floats of barycentrics
     assert_eq!(
-        (chit.push, chit.incoming_payload, chit.hit_attribute),
+        (chit.push, chit.incoming_payload.map(|p| p.size), chit.hit_attribute.map(|a| a.size)),
         (Some((0, 80)), Some(24), Some(8))
     );
-    assert_eq!(ModuleInterface::read(&m[0]).unwrap().payloads, vec![24]);
+    let sent = ModuleInterface::read(&m[0]).unwrap().payloads;
+    assert_eq!(
+        sent.iter().map(|p| p.structure.as_str()).collect::<Vec<_>>(),
+        ["{vec4<f32>, u32, u32}"]
+    );
     assert_eq!(fit(&m, &layout()), Ok(()));
 }
 
@@ -154,7 +158,7 @@ fn every_twin_is_a_mismatch_naming_what_does_not_fit() {
     let e = with(&|d| d.push = None);
     assert!(e.to_string().contains("range for it is none"), "{e}");
     let e = with(&|d| d.max_hit_attribute = 4);
-    assert!(matches!(e, Mismatch::HitAttribute { size: 8, .. }), "{e}");
+    assert!(matches!(&e, Mismatch::HitAttribute { got, .. } if got.contains("8 bytes")), "{e}");
     // modules: a miss shader expecting another payload, an intersection writing more than the
     // closest-hit reads, a triangle closest-hit reading three floats
     let mut other = m.clone();
@@ -163,12 +167,26 @@ fn every_twin_is_a_mismatch_naming_what_does_not_fit() {
         "layout(location = 0) rayPayloadInEXT vec4 sky;\nvoid main() { sky = vec4(1.0); }\n",
     );
     let e = fit(&other, &layout()).unwrap_err();
-    assert!(matches!(e, Mismatch::Payload { size: 16, .. }), "{e}");
+    assert!(matches!(&e, Mismatch::Payload { got, .. } if got == "vec4<f32> (16 bytes)"), "{e}");
+    // the same size, another structure (a float where the raygen sends a uint): a mismatch
+    // the old size-only check let through; the same structure under other names is not one
+    other[1] = compile(
+        ShaderKind::Miss,
+        "struct Sky { vec4 c; float t; uint i; };\nlayout(location = 0) rayPayloadInEXT Sky sky;\nvoid main() { sky.c = vec4(1.0); }\n",
+    );
+    let e = fit(&other, &layout()).unwrap_err();
+    assert!(matches!(&e, Mismatch::Payload { got, .. } if got.contains("f32, u32}")), "{e}");
+    other[1] = compile(
+        ShaderKind::Miss,
+        "struct Sky { vec4 c; uint t; uint i; };\nlayout(location = 0) rayPayloadInEXT Sky sky;\nvoid main() { sky.c = vec4(1.0); }\n",
+    );
+    fit(&other, &layout()).unwrap();
     let mut other = m.clone();
     other[3] = compile(ShaderKind::Intersection, "hitAttributeEXT vec4 uvw;\nvoid main() { uvw = vec4(0.5); reportIntersectionEXT(1.0, 0u); }\n");
     let e = fit(&other, &layout()).unwrap_err();
     assert!(
-        matches!(e, Mismatch::HitAttribute { size: 8, .. }) && e.to_string().contains("writes 16"),
+        matches!(&e, Mismatch::HitAttribute { got, .. } if got.contains("8 bytes"))
+            && e.to_string().contains("writes vec4<f32> (16 bytes)"),
         "{e}"
     );
     let mut other = m.clone();
@@ -180,7 +198,24 @@ fn every_twin_is_a_mismatch_naming_what_does_not_fit() {
         ),
     );
     let e = fit(&other, &layout()).unwrap_err();
-    assert!(matches!(e, Mismatch::HitAttribute { size: 12, .. }), "{e}");
+    assert!(matches!(&e, Mismatch::HitAttribute { got, .. } if got.contains("12 bytes")), "{e}");
+    // a struct of two floats is the two floats (DXC's BuiltInTriangleIntersectionAttributes is
+    // a struct of one float2); a float and a uint in the same 8 bytes are not
+    let uv = |decl: &str| {
+        let mut o = m.clone();
+        let hit = format!(
+            "struct UV {{ {decl} }};\nhitAttributeEXT UV uv;\nvec2 bary = vec2(uv.u, uv.v);"
+        );
+        o[2] =
+            compile(ShaderKind::ClosestHit, &CLOSEST.replace("hitAttributeEXT vec2 bary;", &hit));
+        fit(&o, &layout())
+    };
+    uv("float u; float v;").unwrap();
+    let e = uv("float u; uint v;").unwrap_err();
+    assert!(
+        matches!(&e, Mismatch::HitAttribute { got, .. } if got == "{f32, u32} (8 bytes)"),
+        "{e}"
+    );
     // not SPIR-V at all
     let e = fit(&[vec![0x0723_0203, 0, 0, 9, 0, 0x0009_0011]], &layout()).unwrap_err();
     assert!(matches!(e, Mismatch::Unreadable { module: 0, .. }), "{e}");

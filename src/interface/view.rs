@@ -24,13 +24,54 @@ pub struct ModuleInterface {
     pub resources: Vec<Resource>,
     /// The push-constant block's byte range `(first member offset, end)`, if declared.
     pub push: Option<(u32, u32)>,
-    /// Outgoing ray payloads and callable data, incoming ones, and the hit attribute: sizes in
-    /// bytes (scalar alignment, as `maxPipelineRayPayloadSize` counts them).
-    pub payloads: Vec<u32>,
-    pub incoming_payload: Option<u32>,
-    pub callable_data: Vec<u32>,
-    pub incoming_callable_data: Option<u32>,
-    pub hit_attribute: Option<u32>,
+    /// Outgoing ray payloads and callable data, incoming ones, and the hit attribute.
+    pub payloads: Vec<IoShape>,
+    pub incoming_payload: Option<IoShape>,
+    pub callable_data: Vec<IoShape>,
+    pub incoming_callable_data: Option<IoShape>,
+    pub hit_attribute: Option<IoShape>,
+}
+
+/// A payload, callable data or hit attribute as the interface check compares it: its size in
+/// bytes at scalar alignment (as `maxPipelineRayPayloadSize` and `maxRayHitAttributeSize`
+/// count), its structure for messages ([`reflect::Ty::structure`], names left out), and its
+/// scalars in order ([`reflect::Ty::leaves`]), which two shapes must share to be equal.
+///
+/// The rule (Vulkan 1.4.360, "Ray Tracing Pipeline Interface", a *must*): a payload "must be the
+/// same structure for all shader stages using the payload for that ray"; callable data and an
+/// intersection's hit attribute likewise; a triangle hit's attribute "must be a vector of 2
+/// 32-bit floating-point values". rtprobe compares the flattened scalars, not the grouping:
+/// DXC declares the triangle attribute as `BuiltInTriangleIntersectionAttributes`, a struct of
+/// one `float2`, which the validation layers and drivers take as the vector. A different scalar
+/// in the same bytes (a float where a uint is sent) is a mismatch the size alone let through.
+#[derive(Clone, Debug, Eq)]
+pub struct IoShape {
+    pub size: u32,
+    pub structure: String,
+    pub leaves: String,
+}
+
+impl IoShape {
+    pub fn of(io: &reflect::Io) -> IoShape {
+        IoShape { size: io.size, structure: io.ty.structure(), leaves: io.ty.leaves() }
+    }
+
+    /// A triangle hit's attribute: two 32-bit floats.
+    pub fn barycentrics() -> IoShape {
+        IoShape { size: 8, structure: "vec2<f32>".into(), leaves: "f32 f32".into() }
+    }
+}
+
+impl PartialEq for IoShape {
+    fn eq(&self, other: &IoShape) -> bool {
+        self.size == other.size && self.leaves == other.leaves
+    }
+}
+
+impl std::fmt::Display for IoShape {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        write!(f, "{} ({} bytes)", self.structure, self.size)
+    }
 }
 
 fn kind(d: Descriptor) -> DescriptorKind {
@@ -88,14 +129,14 @@ impl ModuleInterface {
                 },
             })
             .collect();
-        let size = |io: &Option<reflect::Io>| io.as_ref().map(|i| i.size);
+        let size = |io: &Option<reflect::Io>| io.as_ref().map(IoShape::of);
         ModuleInterface {
             stage: stage(r.model),
             resources,
             push: r.push.as_ref().map(|p| (p.start, p.end)),
-            payloads: r.payloads.iter().map(|p| p.size).collect(),
+            payloads: r.payloads.iter().map(IoShape::of).collect(),
             incoming_payload: size(&r.incoming_payload),
-            callable_data: r.callable_data.iter().map(|p| p.size).collect(),
+            callable_data: r.callable_data.iter().map(IoShape::of).collect(),
             incoming_callable_data: size(&r.incoming_callable_data),
             hit_attribute: size(&r.hit_attribute),
         }

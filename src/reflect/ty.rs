@@ -126,6 +126,86 @@ impl Ty {
         }
     }
 
+    /// The type's structure without its names: what "the same structure" of the Ray Tracing
+    /// Pipeline Interface compares (`{vec4<f32>, f32, u32}`; offsets, strides and matrix layouts
+    /// where the module gives them, since they make another layout of the same members).
+    pub fn structure(&self) -> String {
+        let s = |s: &Scalar| match s {
+            Scalar::Bool => "bool".to_string(),
+            Scalar::Int { bits, signed: true } => format!("i{bits}"),
+            Scalar::Int { bits, signed: false } => format!("u{bits}"),
+            Scalar::Float { bits } => format!("f{bits}"),
+        };
+        let stride = |st: &Option<u32>| st.map(|v| format!(" /{v}")).unwrap_or_default();
+        match self {
+            Ty::Scalar(x) => s(x),
+            Ty::Vector(x, n) => format!("vec{n}<{}>", s(x)),
+            Ty::Matrix { scalar, columns, rows } => format!("mat{columns}x{rows}<{}>", s(scalar)),
+            Ty::Array { elem, len, stride: st } => {
+                format!("[{}; {len}{}]", elem.structure(), stride(st))
+            }
+            Ty::RuntimeArray { elem, stride: st } => {
+                format!("[{}{}]", elem.structure(), stride(st))
+            }
+            Ty::Struct(st) => {
+                let m: Vec<String> = st
+                    .members
+                    .iter()
+                    .map(|m| {
+                        let at = m.offset.map(|o| format!("@{o} ")).unwrap_or_default();
+                        let mx =
+                            m.matrix.map(|(v, r)| format!(" /{v}{}", if r { "r" } else { "" }));
+                        format!("{at}{}{}", m.ty.structure(), mx.unwrap_or_default())
+                    })
+                    .collect();
+                format!("{{{}}}", m.join(", "))
+            }
+            Ty::Pointer { class, pointee } => match pointee {
+                Some(p) => format!("ptr<{class:?}, {}>", p.structure()),
+                None => format!("ptr<{class:?}, …>"),
+            },
+            Ty::Opaque(op) => op.clone(),
+        }
+    }
+
+    /// Its scalars in order, flattened through vectors, matrices (column by column), arrays and
+    /// structs, each with its explicit offset where the module gives one (`f32 f32 u32`): how
+    /// [`crate::interface`] compares payloads, callable data and hit attributes.
+    pub fn leaves(&self) -> String {
+        let mut out = Vec::new();
+        self.push_leaves(None, &mut out);
+        out.join(" ")
+    }
+
+    fn push_leaves(&self, at: Option<u32>, out: &mut Vec<String>) {
+        let tag = |t: String| match at {
+            Some(o) => format!("{t}@{o}"),
+            None => t,
+        };
+        match self {
+            Ty::Scalar(_) | Ty::Vector(..) | Ty::Matrix { .. } => {
+                let (scalar, n) = match self {
+                    Ty::Scalar(x) => (*x, 1),
+                    Ty::Vector(x, n) => (*x, *n),
+                    Ty::Matrix { scalar, columns, rows } => (*scalar, columns * rows),
+                    _ => unreachable!("matched above"),
+                };
+                let name = Ty::Scalar(scalar).structure();
+                out.push(tag(name.clone()));
+                out.extend((1..n).map(|_| name.clone()));
+            }
+            Ty::Array { elem, len, .. } => (0..*len).for_each(|_| elem.push_leaves(None, out)),
+            Ty::Struct(st) => {
+                for (k, m) in st.members.iter().enumerate() {
+                    m.ty.push_leaves(if k == 0 { at.or(m.offset) } else { m.offset }, out);
+                }
+            }
+            Ty::RuntimeArray { .. } | Ty::Pointer { .. } | Ty::Opaque(_) => {
+                out.push(tag(self.structure()))
+            }
+        }
+    }
+
     /// The number of scalars in it (a runtime array, pointer or opaque type: none).
     pub fn scalars(&self) -> u32 {
         match self {
