@@ -5,7 +5,7 @@
 use super::layout::{align, HeapLayout};
 use super::push;
 use super::sizes::{fns, props, Sizes};
-use super::write::{write_samplers, ResourceWrites};
+use super::write::{write_samplers, Placed, ResourceWrites};
 use crate::exec::resources::{descriptor_type, Target};
 use crate::model::Resource;
 use crate::vk::heap as h;
@@ -88,15 +88,6 @@ fn bind_heaps(gpu: &Gpu, cmd: vk::CommandBuffer, resources: &Heap, samplers: &He
         (f.cmd_bind_resource_heap)(cmd, &resources.bind);
         (f.cmd_bind_sampler_heap)(cmd, &samplers.bind);
     }
-}
-
-/// One descriptor placed at a byte offset of the resource heap (`run --shader`'s heap model):
-/// what it describes, its type, and an image's view format.
-pub struct Placed {
-    pub offset: usize,
-    pub ty: vk::DescriptorType,
-    pub target: Target,
-    pub format: vk::Format,
 }
 
 /// The stride of an array of `ty` descriptors in a heap on this device: its class's descriptor

@@ -37,7 +37,8 @@ mod push;
 mod sizes;
 mod write;
 
-pub use binding::{descriptor_stride, HeapBinding, Placed, PlacedHeaps};
+pub use binding::{descriptor_stride, HeapBinding, PlacedHeaps};
 pub use layout::HeapLayout;
 pub use mapping::{describe as describe_mapping, PipelineMapping};
 pub use push::{PUSH_INDEX_ADDRESS_OFFSET, PUSH_INDEX_OFFSET};
+pub use write::Placed;

@@ -11,6 +11,15 @@ use crate::vk::{VkError, VkResultExt};
 use ash::vk;
 use std::ffi::c_void;
 
+/// One descriptor placed at a byte offset of the resource heap (`run --shader`'s heap model):
+/// what it describes, its type, and an image's view format.
+pub struct Placed {
+    pub offset: usize,
+    pub ty: vk::DescriptorType,
+    pub target: Target,
+    pub format: vk::Format,
+}
+
 /// The resource descriptors to write: what each describes (`kinds`: type, image or not, index
 /// into `views` or `ranges`) and where it goes (`at`: offset and size). The write infos point
 /// into these, so they live until the write call.
@@ -40,7 +49,7 @@ impl ResourceWrites {
     }
 
     /// The writes of descriptors at given places (`run --shader`'s heap model).
-    pub(super) fn placed(sizes: &Sizes, placed: &[super::binding::Placed]) -> ResourceWrites {
+    pub(super) fn placed(sizes: &Sizes, placed: &[Placed]) -> ResourceWrites {
         let mut w = ResourceWrites::default();
         for p in placed {
             w.at.push((p.offset, sizes.written(p.ty) as usize));
