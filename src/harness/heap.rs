@@ -391,6 +391,51 @@ mod tests {
         assert!(!e.contains('\n'), "{e}");
     }
 
+    /// The twin of the inferred layout: a stride the module does not state (a spec constant
+    /// put in place of `OpConstantSizeOfEXT`) is one line naming `--heap-layout`.
+    #[test]
+    fn a_stride_the_module_does_not_state_names_heap_layout() {
+        use rspirv::dr::{Instruction, Operand};
+        use rspirv::spirv::{Decoration, Op};
+        let glsl = format!(
+            "{HEAD}layout(descriptor_heap) readonly buffer M {{ vec4 v[]; }} mats[];\n\
+            void main() {{ c = mats[nonuniformEXT(gl_InstanceCustomIndexEXT)].v[0]; }}\n"
+        );
+        let Some(m) = heap_module(&glsl) else { return };
+        let mut module = crate::patches::load(&crate::tools::spirv::bytes(&m.words)).unwrap();
+        let uint = module
+            .types_global_values
+            .iter()
+            .find(|i| {
+                i.class.opcode == Op::TypeInt
+                    && i.operands == [Operand::LiteralBit32(32), Operand::LiteralBit32(0)]
+            })
+            .and_then(|i| i.result_id)
+            .unwrap();
+        let header = module.header.as_mut().unwrap();
+        let spec = header.bound;
+        header.bound += 1;
+        module.types_global_values.push(Instruction::new(
+            Op::SpecConstant,
+            Some(uint),
+            Some(spec),
+            vec![Operand::LiteralBit32(16)],
+        ));
+        let stride = module
+            .annotations
+            .iter_mut()
+            .find(|i| i.operands.get(1) == Some(&Operand::Decoration(Decoration::ArrayStrideIdEXT)))
+            .unwrap();
+        stride.operands[2] = Operand::IdRef(spec);
+        let words = crate::patches::assemble(&module);
+        let odd = UserModule::new("h.rchit", &words).unwrap();
+        let e = arrays(std::slice::from_ref(&odd)).unwrap_err().to_string();
+        assert!(e.contains("--heap-layout FILE") && e.contains("stride"), "{e}");
+        assert!(!e.contains('\n'), "{e}");
+        // The module as compiled is laid out.
+        assert!(arrays(std::slice::from_ref(&m)).is_ok());
+    }
+
     /// A set/binding module uses no heap.
     #[test]
     fn a_set_binding_module_uses_no_heap() {
