@@ -737,3 +737,76 @@ fn sid_a_direct_heap_read_of_index_zero_is_a_mismatch() {
         assert!(cmp["by_field"]["value"].as_u64().unwrap() > 1000, "{id}: {cmp}");
     }
 }
+
+/// Issue #24: a heap closest-hit like the original fault (a `layout(descriptor_heap)` SSBO
+/// array indexed by a push-data base plus gl_InstanceCustomIndexEXT) run with `--shader` on
+/// lavapipe 26 under `--validate`: the heap model chosen, no validation message, no fault, and
+/// every patched variant's outputs those of the unpatched pipeline.
+#[test]
+fn sid_a_heap_closest_hit_runs_clean_with_shader() {
+    if !have_sid() {
+        return;
+    }
+    let shader = repo().join("tests/shaders/user/heap.rchit");
+    let path = report_path("shader-heap");
+    let args = ["run", "--validate", "--repeat", "2", "--shader", shader.to_str().unwrap()];
+    let mut all = args.to_vec();
+    all.extend(["-o", path.to_str().unwrap()]);
+    let o = in_sid(&all);
+    let r: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(&path).unwrap_or_else(|e| panic!("no report ({e}): {}", stderr(&o))),
+    )
+    .unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    assert_eq!(r["options"]["descriptor_model"], "descriptor_heap");
+    let variants = r["variants"].as_array().unwrap();
+    let reference = &variants[0]["attempts"][0]["outputs"];
+    assert!(reference.as_array().is_some_and(|a| !a.is_empty()), "{reference}");
+    for v in variants {
+        assert_eq!(v["outcome"], "pass", "{v}");
+        let attempts = v["attempts"].as_array().unwrap();
+        assert_eq!(attempts.len(), 2);
+        for a in attempts {
+            assert_eq!(a["outcome"], "pass", "{a}");
+            assert_eq!(a["validation_messages"], 0, "{a}");
+            assert_eq!(&a["outputs"], reference, "{}", v["name"]);
+        }
+    }
+    // The heap's data reaches the outputs: the index shifted by one reads other descriptors,
+    // each with data of its own, so the outputs differ; the same ranges given as a
+    // --heap-layout file change nothing.
+    let run = |name: &str, extra: &[&str]| {
+        let path = report_path(name);
+        let mut all = vec!["run", "--repeat", "1", "--shader", shader.to_str().unwrap()];
+        all.extend_from_slice(extra);
+        all.extend(["-o", path.to_str().unwrap()]);
+        let o = in_sid(&all);
+        let r: serde_json::Value = serde_json::from_slice(
+            &std::fs::read(&path).unwrap_or_else(|e| panic!("no report ({e}): {}", stderr(&o))),
+        )
+        .unwrap();
+        assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+        r["variants"][0]["attempts"][0]["outputs"].clone()
+    };
+    let shifted = run("shader-heap-shift", &["-D", "MATERIAL_SHIFT=1"]);
+    assert_ne!(&shifted, reference, "another index, other descriptors");
+    let layout = repo().join("target/heap-tests/layout.json");
+    std::fs::write(
+        &layout,
+        r#"{"resource": [{"kind": "storage_buffer", "first": 0, "count": 128}]}"#,
+    )
+    .unwrap();
+    let given = run("shader-heap-layout", &["--heap-layout", layout.to_str().unwrap()]);
+    assert_eq!(&given, reference, "the inferred layout, given as a file");
+    // The twin: one attempt's output flipped is a difference the report shows.
+    let path = report_path("shader-heap-flip");
+    let mut all = args.to_vec();
+    all.extend(["-o", path.to_str().unwrap()]);
+    let o = in_sid_env(&all, &[("RTPROBE_SHADER_FAULT", "flip:unpatched:2")]);
+    let r: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(&path).unwrap_or_else(|e| panic!("no report ({e}): {}", stderr(&o))),
+    )
+    .unwrap();
+    assert_ne!(o.status.code(), Some(0), "{}", stdout(&o));
+    assert!(r["variants"][0]["attempts"][1]["differs"].is_string(), "{}", r["variants"][0]);
+}

@@ -377,4 +377,93 @@ fn dxc_style_spirv_runs_clean_in_every_variant() {
             assert_eq!(&a["outputs"], reference, "{}", variant["name"]);
         }
     }
+
+/// The unpatched pipeline's first attempt's output hashes of a clean `--repeat 1` run.
+fn first_outputs(files: &[&str], extra: &[&str]) -> Value {
+    let mut args = vec!["--repeat", "1"];
+    args.extend_from_slice(extra);
+    let (o, r, _d) = shader_run(files, &args, &[]);
+    let r = r.unwrap_or_else(|| panic!("no report: {}", stderr(&o)));
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    for variant in variants(&r) {
+        assert_eq!(variant["outcome"], "pass", "{variant}");
+        for a in attempts(variant) {
+            assert_eq!(a["validation_messages"], 0, "{a}");
+        }
+    }
+    let specs: Vec<&str> = extra.windows(2).filter(|w| w[0] == "--spec").map(|w| w[1]).collect();
+    assert_eq!(r["options"]["spec"], serde_json::json!(specs));
+    let models: Vec<&str> =
+        extra.windows(2).filter(|w| w[0] == "--descriptor-model").map(|w| w[1]).collect();
+    let model = models.first().copied().unwrap_or("descriptor_indexing");
+    assert_eq!(r["options"]["descriptor_model"], model);
+    attempts(&variants(&r)[0])[0]["outputs"].clone()
+}
+
+/// `--spec`: a closest-hit whose colour a spec constant sets gives other outputs with another
+/// value (the twin: the declared default given explicitly gives the default's outputs).
+#[test]
+fn a_spec_constant_reaches_the_pipeline() {
+    let default = first_outputs(&["tinted.rchit"], &[]);
+    let zero = first_outputs(&["tinted.rchit"], &["--spec", "1=0"]);
+    let five = first_outputs(&["tinted.rchit"], &["--spec", "1=5"]);
+    let gain = first_outputs(&["tinted.rchit"], &["--spec", "1=5", "--spec", "2=0.5"]);
+    assert_eq!(default, zero, "the declared default given explicitly changes nothing");
+    assert_ne!(zero, five, "TINT=5 colours the hits differently");
+    assert_ne!(five, gain, "GAIN=0.5 darkens them");
+}
+
+/// Bad `--spec` and `--descriptor-model` values: one line each, exit 2, no report.
+#[test]
+fn bad_spec_and_descriptor_models_are_one_line() {
+    let d = tempfile::tempdir().unwrap();
+    let report = d.path().join("r.json").to_string_lossy().into_owned();
+    let f = |n: &str| user().join(n).to_string_lossy().into_owned();
+    let (tinted, bindless) = (f("tinted.rchit"), f("bindless.rchit"));
+    let cases: &[(&str, &[&str], &str)] = &[
+        (&tinted, &["--spec", "9=1"], "no stage declares SpecId 9 (declared: 1, 2)"),
+        (&tinted, &["--spec", "1=-4"], "SpecId 1 is a 32-bit uint"),
+        (&tinted, &["--spec", "2=bright"], "SpecId 2 is a 32-bit float"),
+        (&tinted, &["--spec", "TINT"], "give ID=VALUE"),
+        (&bindless, &["--descriptor-model", "descriptor_heap"], "not through a heap"),
+        (&bindless, &["--descriptor-model", "sets"], "invalid value 'sets'"),
+        (&bindless, &["--heap-layout", "heap.json"], "the descriptor_indexing model has no heap"),
+    ];
+    for (file, extra, needle) in cases {
+        let mut args = vec!["run", "--shader", file, "-o", &report];
+        args.extend_from_slice(extra);
+        let o = run_env(&args, &[]);
+        assert_one_line_error(&o, 2, needle);
+        assert!(!Path::new(&report).exists(), "no report for {extra:?}");
+    }
+}
+
+/// A heap closest-hit on lavapipe 25 (no VK_EXT_descriptor_heap): the device's unsupported
+/// exit naming the feature; a set/binding model for it is refused before the device.
+#[test]
+fn a_heap_shader_on_a_device_without_heaps_is_unsupported() {
+    let d = tempfile::tempdir().unwrap();
+    let report = d.path().join("r.json").to_string_lossy().into_owned();
+    let heap = user().join("heap.rchit").to_string_lossy().into_owned();
+    let o = run_env(&["run", "--shader", &heap, "-o", &report], &[]);
+    if stderr(&o).contains("glslang") {
+        return eprintln!("skipped: no glslang with GL_EXT_descriptor_heap here: {}", stderr(&o));
+    }
+    assert_one_line_error(&o, 5, "descriptorHeap (VK_EXT_descriptor_heap)");
+    let args =
+        ["run", "--shader", &heap, "-o", &report, "--descriptor-model", "descriptor_indexing"];
+    assert_one_line_error(&run_env(&args, &[]), 2, "only the descriptor_heap model binds");
+    assert!(!Path::new(&report).exists());
+}
+
+/// `--descriptor-model descriptor_buffer` (VK_EXT_descriptor_buffer, which lavapipe 25 has): the
+/// bindless pipeline's hashed outputs are those of descriptor sets, in every variant (the
+/// twin: `--spec` above shows a changed pipeline changes the hashes).
+#[test]
+fn descriptor_buffers_give_the_outputs_of_descriptor_sets() {
+    let files = ["raygen.rgen", "miss.rmiss", "bindless.rchit"];
+    let sets = first_outputs(&files, &[]);
+    let buffers = first_outputs(&files, &["--descriptor-model", "descriptor_buffer"]);
+    assert!(sets.as_array().is_some_and(|a| a.len() >= 2), "{sets}");
+    assert_eq!(sets, buffers);
 }

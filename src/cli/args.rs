@@ -347,6 +347,32 @@ pub struct RunArgs {
     )]
     pub target_env: Option<crate::shadergen::compile::TargetEnv>,
 
+    /// With --shader: a specialization constant's value, ID=VALUE (repeatable), given to every
+    /// stage declaring SpecId ID; VALUE is read as the constant's type (bool, int, uint, float)
+    #[arg(
+        long = "spec",
+        value_name = "ID=VALUE",
+        requires = "shader",
+        help_heading = "Your shaders"
+    )]
+    pub spec: Vec<String>,
+
+    /// With --shader: how descriptors are bound. Default: descriptor_heap for modules that
+    /// read a descriptor heap (VK_EXT_descriptor_heap), descriptor_indexing for the others
+    #[arg(
+        long,
+        value_enum,
+        value_name = "MODEL",
+        requires = "shader",
+        help_heading = "Your shaders"
+    )]
+    pub descriptor_model: Option<crate::model::DescriptorModel>,
+
+    /// With --shader: the descriptor heap's ranges as a JSON file, for heap modules whose layout
+    /// the modules alone do not determine (docs/your-shader.md)
+    #[arg(long, value_name = "FILE", requires = "shader", help_heading = "Your shaders")]
+    pub heap_layout: Option<PathBuf>,
+
     /// Set by `--cell-spec`: the bundle's `shaders/` folder, whose SPIR-V the worker runs instead
     /// of compiling the GLSL (not a flag).
     #[arg(skip)]

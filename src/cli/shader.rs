@@ -12,6 +12,7 @@ use super::shader_exec::{self, Ctx, Ran, VariantRun};
 use super::shader_plan::{self, ShaderPlan};
 use crate::harness::child::JobModule;
 use crate::model::shader_run::{self, ShaderRunReport, ShaderVariant};
+use crate::model::DescriptorModel;
 use crate::report::lock::{LockError, ReportLock};
 use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
@@ -36,6 +37,9 @@ const TAKEN: &[&str] = &[
     "repeat",
     "validate",
     "verbose",
+    "spec",
+    "descriptor_model",
+    "heap_layout",
     // clap's ids of the argument groups themselves.
     "RunArgs",
     "Cli",
@@ -53,7 +57,7 @@ fn refuse_others(a: &RunArgs) -> Result<()> {
     };
     Err(coded(
         exit::USAGE,
-        format!("{flag} cannot be used with --shader: {why}; drop it (--shader takes --entry, -I, -D, --target-env, --repeat, --timeout, --dump, -o, --device, --validate)"),
+        format!("{flag} cannot be used with --shader: {why}; drop it (--shader takes --entry, -I, -D, --target-env, --spec, --descriptor-model, --heap-layout, --repeat, --timeout, --dump, -o, --device, --validate)"),
     ))
 }
 
@@ -103,11 +107,16 @@ fn refuse_early(g: &Globals, a: &RunArgs) -> Result<()> {
 /// The device `--device` names, checked for what the harness needs and for the pipeline's
 /// interface (`interface::check` against the harness's layout and the device's hit-attribute
 /// limit): its index and name.
-fn device(g: &Globals, a: &RunArgs, plan: &ShaderPlan) -> Result<(usize, String)> {
+fn device(
+    g: &Globals,
+    a: &RunArgs,
+    plan: &ShaderPlan,
+    model: DescriptorModel,
+) -> Result<(usize, String)> {
     let inst = open_instance(g)?;
     let all = crate::vk::features::query_all(&inst)?;
     let info = crate::vk::features::select(&all, a.device.as_deref())?;
-    let missing = crate::harness::requirements(plan.scalar).missing_on(info);
+    let missing = crate::harness::requirements_for(plan.scalar, model).missing_on(info);
     if !missing.is_empty() {
         return Err(coded(
             exit::UNSUPPORTED_DEVICE,
@@ -143,12 +152,70 @@ fn reserve_out(a: &RunArgs, device: &str) -> Result<(PathBuf, ReportLock)> {
     }
 }
 
+/// The descriptor model `--descriptor-model` asks for, checked against what the modules read:
+/// heap modules run only with the heap model, set/binding modules never with it.
+fn model(a: &RunArgs, plan: &ShaderPlan) -> Result<DescriptorModel> {
+    let heap = crate::harness::heap::uses_heap(&plan.given);
+    let bad = |m: &str, why: &str| coded(exit::USAGE, format!("--descriptor-model {m}: {why}"));
+    match (a.descriptor_model, heap) {
+        (None | Some(DescriptorModel::DescriptorHeap), true) => Ok(DescriptorModel::DescriptorHeap),
+        (None | Some(DescriptorModel::DescriptorIndexing), false) => {
+            Ok(DescriptorModel::DescriptorIndexing)
+        }
+        (Some(DescriptorModel::DescriptorBuffer), false) => Ok(DescriptorModel::DescriptorBuffer),
+        (Some(m @ (DescriptorModel::DescriptorIndexing | DescriptorModel::DescriptorBuffer)), true) => {
+            Err(bad(m.as_str(), "the modules read a descriptor heap (DescriptorHeapEXT), which only the descriptor_heap model binds; drop the flag or give descriptor_heap"))
+        }
+        (Some(DescriptorModel::DescriptorHeap), false) => Err(bad(
+            "descriptor_heap",
+            "the modules bind descriptors by set and binding, not through a heap; give descriptor_indexing",
+        )),
+    }
+}
+
+/// The heap model's arrays: `--heap-layout`'s ranges, else what the modules index (checked
+/// here, before the device: a layout they do not determine is one line naming the flag).
+fn heap_layout(
+    a: &RunArgs,
+    plan: &ShaderPlan,
+    model: DescriptorModel,
+) -> Result<Option<Vec<crate::harness::heap::Array>>> {
+    let heap = match model {
+        DescriptorModel::DescriptorHeap => true,
+        DescriptorModel::DescriptorIndexing | DescriptorModel::DescriptorBuffer => false,
+    };
+    match (&a.heap_layout, heap) {
+        (Some(_), false) => Err(coded(
+            exit::USAGE,
+            format!("--heap-layout: the {} model has no heap; drop it", model.as_str()),
+        )),
+        (Some(f), true) => {
+            let text = std::fs::read_to_string(f).map_err(|e| {
+                coded(exit::BAD_INPUT, format!("--heap-layout {}: {e}", f.display()))
+            })?;
+            crate::harness::heap::layout_file(&text)
+                .map(Some)
+                .map_err(|e| coded(exit::BAD_INPUT, format!("--heap-layout {}: {e}", f.display())))
+        }
+        (None, true) => {
+            crate::harness::heap::arrays(&plan.given)
+                .map_err(|e| coded(exit::BAD_INPUT, format!("--shader: {e}")))?;
+            Ok(None)
+        }
+        (None, false) => Ok(None),
+    }
+}
+
 pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
     refuse_others(a)?;
     refuse_early(g, a)?;
     let (repeat, timeout, setup_timeout) = numbers(a)?;
     let plan = shader_plan::plan(a)?;
-    let (device_index, device_name) = device(g, a, &plan)?;
+    let model = model(a, &plan)?;
+    let heap_layout = heap_layout(a, &plan, model)?;
+    let spec = crate::harness::spec::parse_all(&a.spec, &plan.given)
+        .map_err(|e| coded(exit::USAGE, e.to_string()))?;
+    let (device_index, device_name) = device(g, a, &plan, model)?;
     let (out, _lock) = reserve_out(a, &device_name)?;
     let dir = std::env::temp_dir().join(format!("rtprobe-shader-{}", std::process::id()));
     std::fs::create_dir_all(&dir)
@@ -166,6 +233,9 @@ pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
         timeout,
         setup_timeout,
         dir: dir.clone(),
+        model,
+        spec,
+        heap_layout,
     };
     let ran = run_all(&ctx, &plan);
     let _ = std::fs::remove_dir_all(&dir);
@@ -199,6 +269,7 @@ pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
         (notes, judged.uncompared),
         (repeat, timeout, g.validate),
     );
+    report.options["descriptor_model"] = serde_json::json!(model.as_str());
     for (v, t) in report.variants.iter_mut().zip(teardowns) {
         v.teardown = t;
     }
@@ -283,6 +354,8 @@ fn report(
         "include_dirs": a.include_dirs,
         "defines": a.defines,
         "target_env": format!("{:?}", a.target_env.unwrap_or_default()),
+        "spec": a.spec,
+        "heap_layout": a.heap_layout,
     });
     ShaderRunReport {
         schema: shader_run::SCHEMA.into(),

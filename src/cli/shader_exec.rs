@@ -8,10 +8,11 @@
 use super::exit::{self, coded};
 use crate::harness::child::{JobModule, Step};
 use crate::harness::run::{output_path, AttemptOutput, ShaderJob};
+use crate::harness::spec::SpecValue;
 use crate::harness::{self, Compared, Part, PartKind, Verdict};
 use crate::model::contract::HostContract;
 use crate::model::shader_run::{OutputHash, ShaderAttempt, CANNOT_SHOW};
-use crate::model::{Attempt, Outcome};
+use crate::model::{Attempt, DescriptorModel, Outcome};
 use crate::runner::process::{run_to_end, ChildEnd};
 use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
@@ -34,6 +35,9 @@ pub struct Ctx {
     pub setup_timeout: Duration,
     /// The run's scratch folder (job and output files).
     pub dir: PathBuf,
+    pub model: DescriptorModel,
+    pub spec: Vec<SpecValue>,
+    pub heap_layout: Option<Vec<crate::harness::heap::Array>>,
 }
 
 /// One attempt as it came back: the record, and the outputs when it ran.
@@ -146,6 +150,9 @@ pub fn run_variant(
             last: ctx.repeat,
             timeout_ms: ctx.timeout.as_millis() as u64,
             dir: ctx.dir.clone(),
+            model: Some(ctx.model),
+            spec: ctx.spec.clone(),
+            heap_layout: ctx.heap_layout.clone(),
         };
         let started = Instant::now();
         let (end, step, silence) = child(ctx, variant, &job)?;

@@ -1,6 +1,6 @@
 //! Command-line values of enums below the CLI: `clap::ValueEnum` written here, so that nothing
 //! below the CLI knows clap. The data layer's names are the ones the report writes (serde's).
-use crate::model::{Isolation, LaneMode, PatchMode, PipelineMode};
+use crate::model::{DescriptorModel, Isolation, LaneMode, PatchMode, PipelineMode};
 use crate::report::issue::Format;
 use crate::shadergen::compile::TargetEnv;
 use clap::builder::PossibleValue;
@@ -41,6 +41,12 @@ value_enum!(LaneMode {
     LaneMode::Auto => "auto": "Where the device lists subgroup ballot in the probed stage",
     LaneMode::Force => "force": "Also where it does not (a diagnosis: outside the spec there)",
     LaneMode::Off => "off": "Never",
+});
+
+value_enum!(DescriptorModel {
+    DescriptorModel::DescriptorIndexing => "descriptor_indexing": "Descriptor sets (set/binding modules)",
+    DescriptorModel::DescriptorBuffer => "descriptor_buffer": "Descriptor buffers, VK_EXT_descriptor_buffer (set/binding modules)",
+    DescriptorModel::DescriptorHeap => "descriptor_heap": "Descriptor heaps, VK_EXT_descriptor_heap (modules that read a heap)",
 });
 
 value_enum!(TargetEnv {

@@ -14,16 +14,19 @@
 //! `rtprobe run --shader` runs a user's pipeline in it the same way, one variant per child
 //! (`rtprobe __shader JOB`, [`run`]), `--entry` reducing a module to one entry point ([`entry`]).
 mod bindings;
+mod buffers;
 pub mod child;
 mod compare;
 pub mod entry;
 mod error;
+pub mod heap;
 pub mod ints;
 mod module;
 pub mod reflect;
 mod resources;
 pub mod run;
 pub mod scene;
+pub mod spec;
 mod supply;
 
 pub use bindings::check as check_bindings;
@@ -34,6 +37,7 @@ pub use supply::{supply, MISS_MARKER};
 
 use crate::exec::pipeline::{self, Pipeline, RtPipeline, SbtCounts};
 use crate::model::contract::HostContract;
+use crate::model::DescriptorModel;
 use crate::scene::gpu::SceneGpu;
 use crate::vk::memory::{color_range, full_barrier, transition, Buffer, Location, Transition};
 use crate::vk::submit::{Submitter, Waited};
@@ -53,14 +57,50 @@ pub const TIMEOUT: Duration = Duration::from_secs(30);
 /// Every module needs the RT pipeline; the patched ones device addresses and 64-bit integers;
 /// descriptor indexing covers runtime arrays and non-uniform indexing.
 pub fn requirements(scalar: bool) -> Requirements {
+    requirements_for(scalar, DescriptorModel::DescriptorIndexing)
+}
+
+/// [`requirements`] under descriptor model `model`: the heap model needs descriptor heaps and
+/// the untyped pointers `layout(descriptor_heap)` arrays are compiled to.
+pub fn requirements_for(scalar: bool, model: DescriptorModel) -> Requirements {
+    let (heap, buffer) = match model {
+        DescriptorModel::DescriptorHeap => (true, false),
+        DescriptorModel::DescriptorBuffer => (false, true),
+        DescriptorModel::DescriptorIndexing => (false, false),
+    };
     Requirements {
         rt_pipeline: true,
         buffer_device_address: true,
         int64: true,
         descriptor_indexing: true,
         scalar_block_layout: scalar,
+        descriptor_heap: heap,
+        untyped_pointers: heap,
+        descriptor_buffer: buffer,
         ..Requirements::default()
     }
+}
+
+/// How a harness binds its descriptors, and what each model needs at its run.
+pub struct Setup {
+    pub model: DescriptorModel,
+    /// `--spec`'s values, given to every stage that declares them.
+    pub spec: Vec<spec::SpecValue>,
+    /// The heap model's arrays as `--heap-layout` gives them (else read from the modules).
+    pub heap_layout: Option<Vec<heap::Array>>,
+}
+
+impl Default for Setup {
+    fn default() -> Setup {
+        Setup { model: DescriptorModel::DescriptorIndexing, spec: Vec::new(), heap_layout: None }
+    }
+}
+
+/// The bound descriptors: descriptor sets, descriptor buffers, or the heap model's heaps.
+enum Bound {
+    Sets,
+    Buffers(buffers::DescriptorBuffers),
+    Heap(heap::HeapModel),
 }
 
 /// A device with the scene, the resources of a set of modules and a pipeline layout for them.
@@ -75,6 +115,8 @@ pub struct Harness {
     push_ints: ints::IntWords,
     /// The fence deadline of one submission.
     timeout: Duration,
+    bound: Bound,
+    spec: Vec<spec::SpecValue>,
 }
 
 /// The groups of a pipeline from its modules (by index): raygen, misses, the triangle hit group
@@ -137,6 +179,17 @@ impl Harness {
         push_size: u32,
         timeout: Duration,
     ) -> Result<Harness, HarnessError> {
+        Harness::with_setup(gpu, modules, push_size, timeout, Setup::default())
+    }
+
+    /// [`Harness::new`] binding as `setup.model` says, specializing with `setup.spec`.
+    pub fn with_setup(
+        gpu: Gpu,
+        modules: &[&UserModule],
+        push_size: u32,
+        timeout: Duration,
+        setup: Setup,
+    ) -> Result<Harness, HarnessError> {
         let submitter = Submitter::new(&gpu)?;
         let scene = SceneGpu::build_with(
             &gpu,
@@ -155,7 +208,25 @@ impl Harness {
             .flat_map(|m| &m.iface.bindings)
             .find(|b| b.kind == BindingKind::AccelerationStructure)
             .map(|b| (b.set, b.binding));
-        let res = Resources::new(&gpu, &bindings, scene_at, &scene, extent)?;
+        let buffer_model = setup.model == DescriptorModel::DescriptorBuffer;
+        let res = Resources::new(&gpu, &bindings, scene_at, &scene, extent, buffer_model)?;
+        let bound =
+            match setup.model {
+                DescriptorModel::DescriptorHeap => {
+                    let owned: Vec<UserModule> = modules.iter().map(|m| (*m).clone()).collect();
+                    let arrays = match setup.heap_layout.clone() {
+                        Some(a) => a,
+                        None => heap::arrays(&owned)?,
+                    };
+                    let first = res.bindings.values().map(|(_, e)| e.len() as u32).sum::<u32>() + 1;
+                    let data = (first, res.sink.address);
+                    Bound::Heap(heap::HeapModel::new(&gpu, &arrays, &res.bindings, &scene, data)?)
+                }
+                DescriptorModel::DescriptorIndexing => Bound::Sets,
+                DescriptorModel::DescriptorBuffer => Bound::Buffers(
+                    buffers::DescriptorBuffers::new(&gpu, &res.set_layouts, &res.bindings)?,
+                ),
+            };
         let push_size = push_size.div_ceil(4) * 4;
         let mut push_ints = ints::IntWords::default();
         for m in modules {
@@ -168,9 +239,27 @@ impl Harness {
         if push_size > 0 {
             ci = ci.push_constant_ranges(&range);
         }
-        let layout =
-            unsafe { gpu.device.create_pipeline_layout(&ci, None) }.at("vkCreatePipelineLayout")?;
-        Ok(Harness { gpu, submitter, scene, res, layout, push_size, push_ints, timeout })
+        // A heap pipeline has no layout (VK_NULL_HANDLE with the descriptor-heap flag).
+        let layout = match bound {
+            Bound::Heap(_) => vk::PipelineLayout::null(),
+            Bound::Sets | Bound::Buffers(_) => {
+                unsafe { gpu.device.create_pipeline_layout(&ci, None) }
+                    .at("vkCreatePipelineLayout")?
+            }
+        };
+        let spec = setup.spec;
+        Ok(Harness {
+            gpu,
+            submitter,
+            scene,
+            res,
+            layout,
+            push_size,
+            push_ints,
+            timeout,
+            bound,
+            spec,
+        })
     }
 
     pub fn device_name(&self) -> String {
@@ -214,12 +303,34 @@ impl Harness {
         let (spirv, flags, names, intersection) = Self::stage_sources(modules, &g)?;
         let words: Vec<&[u32]> = spirv.iter().map(|w| w.as_slice()).collect();
         let shader_modules = pipeline::shader_modules(&self.gpu, &words)?;
+        // Each given stage's specialization (the supplied intersection shader has none).
+        let specs: Vec<_> = (0..shader_modules.len())
+            .map(|i| modules.get(i).map(|m| spec::stage_info(m, &self.spec)))
+            .collect();
+        let infos: Vec<Option<vk::SpecializationInfo>> = specs
+            .iter()
+            .map(|s| {
+                s.as_ref()
+                    .filter(|(e, _)| !e.is_empty())
+                    .map(|(e, d)| vk::SpecializationInfo::default().map_entries(e).data(d))
+            })
+            .collect();
         let stages: Vec<vk::PipelineShaderStageCreateInfo> = shader_modules
             .iter()
             .zip(&flags)
             .zip(&names)
-            .map(|((m, f), n)| {
-                vk::PipelineShaderStageCreateInfo::default().stage(*f).module(*m).name(n)
+            .zip(&infos)
+            .map(|(((m, f), n), info)| {
+                let mut st =
+                    vk::PipelineShaderStageCreateInfo::default().stage(*f).module(*m).name(n);
+                if let Some(info) = info {
+                    st = st.specialization_info(info);
+                }
+                match &self.bound {
+                    Bound::Heap(h) => st.p_next = h.mapping.stage_next(),
+                    Bound::Sets | Bound::Buffers(_) => {}
+                }
+                st
             })
             .collect();
         let idx = |i: Option<usize>| i.map_or(vk::SHADER_UNUSED_KHR, |i| i as u32);
@@ -257,12 +368,23 @@ impl Harness {
         let counts =
             SbtCounts { miss: g.misses.len() as u32, hit: 2, callable: g.callables.len() as u32 };
         let p = RtPipeline { stages: &stages, groups: &groups, counts, depth, layout: self.layout };
+        let mut f2 = match &self.bound {
+            Bound::Heap(_) => Some(
+                vk::PipelineCreateFlags2CreateInfoKHR::default()
+                    .flags(pipeline::flags2(DescriptorModel::DescriptorIndexing, true)),
+            ),
+            Bound::Sets | Bound::Buffers(_) => None,
+        };
+        let flags = match &self.bound {
+            Bound::Buffers(_) => vk::PipelineCreateFlags::DESCRIPTOR_BUFFER_EXT,
+            Bound::Sets | Bound::Heap(_) => vk::PipelineCreateFlags::empty(),
+        };
         let r = pipeline::create_rt_pipeline(
             &self.gpu,
             vk::PipelineCache::null(),
             &p,
-            vk::PipelineCreateFlags::empty(),
-            None,
+            flags,
+            f2.as_mut(),
             &|_| &[],
         );
         for m in &shader_modules {
@@ -429,18 +551,34 @@ impl Harness {
         let sbt = p.sbt.as_ref().expect("RT pipelines have an SBT");
         unsafe {
             d.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::RAY_TRACING_KHR, p.raw);
-            if !self.res.sets.is_empty() {
-                d.cmd_bind_descriptor_sets(
-                    cmd,
-                    vk::PipelineBindPoint::RAY_TRACING_KHR,
-                    self.layout,
-                    0,
-                    &self.res.sets,
-                    &[],
-                );
-            }
-            if !push.is_empty() {
-                d.cmd_push_constants(cmd, self.layout, resources::rt_stages(), 0, push);
+            match &self.bound {
+                Bound::Heap(h) => {
+                    h.heaps.bind(gpu, cmd);
+                    if !push.is_empty() {
+                        h.heaps.push(gpu, cmd, push);
+                    }
+                }
+                Bound::Buffers(b) => {
+                    b.bind(gpu, cmd, self.layout);
+                    if !push.is_empty() {
+                        d.cmd_push_constants(cmd, self.layout, resources::rt_stages(), 0, push);
+                    }
+                }
+                Bound::Sets => {
+                    if !self.res.sets.is_empty() {
+                        d.cmd_bind_descriptor_sets(
+                            cmd,
+                            vk::PipelineBindPoint::RAY_TRACING_KHR,
+                            self.layout,
+                            0,
+                            &self.res.sets,
+                            &[],
+                        );
+                    }
+                    if !push.is_empty() {
+                        d.cmd_push_constants(cmd, self.layout, resources::rt_stages(), 0, push);
+                    }
+                }
             }
             rt.cmd_trace_rays(cmd, &sbt.raygen, &sbt.miss, &sbt.hit, &sbt.callable, SIZE, SIZE, 1);
         }
@@ -465,6 +603,11 @@ impl Harness {
 impl Drop for Harness {
     fn drop(&mut self) {
         unsafe { self.gpu.device.device_wait_idle().ok() };
+        match &self.bound {
+            Bound::Heap(h) => h.destroy(&self.gpu),
+            Bound::Buffers(b) => b.destroy(&self.gpu),
+            Bound::Sets => {}
+        }
         self.res.destroy(&self.gpu);
         self.scene.destroy(&self.gpu);
         unsafe { self.gpu.device.destroy_pipeline_layout(self.layout, None) };

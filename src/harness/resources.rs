@@ -115,7 +115,7 @@ pub fn rt_stages() -> vk::ShaderStageFlags {
     RT_STAGES
 }
 
-fn descriptor_type(k: BindingKind) -> vk::DescriptorType {
+pub fn descriptor_type(k: BindingKind) -> vk::DescriptorType {
     match k {
         BindingKind::AccelerationStructure => vk::DescriptorType::ACCELERATION_STRUCTURE_KHR,
         BindingKind::StorageImage(_) => vk::DescriptorType::STORAGE_IMAGE,
@@ -134,6 +134,7 @@ impl Resources {
         scene_at: Option<(u32, u32)>,
         scene: &SceneGpu,
         extent: vk::Extent2D,
+        buffer_model: bool,
     ) -> Result<Resources, HarnessError> {
         let tlases: Vec<&crate::scene::gpu::AccelStruct> =
             std::iter::once(&scene.scene_tlas).chain(&scene.probe_tlas).collect();
@@ -177,9 +178,11 @@ impl Resources {
             }
             all.insert(key, (b, elems));
         }
-        let (set_layouts, pool, sets) = descriptor_sets(gpu, &all)?;
+        let (set_layouts, pool, sets) = descriptor_sets(gpu, &all, buffer_model)?;
         let r = Resources { bindings: all, set_layouts, pool, sets, sink };
-        r.write_sets(gpu);
+        if !buffer_model {
+            r.write_sets(gpu);
+        }
         Ok(r)
     }
 
@@ -308,12 +311,13 @@ impl Resources {
 pub type Tables = Vec<Buffer>;
 
 /// One set layout per set number up to the highest bound (empty ones between), a pool and the
-/// sets.
+/// sets; for descriptor buffers (`buffer_model`) layouts made for them, and no pool or sets.
 type Sets = (Vec<vk::DescriptorSetLayout>, vk::DescriptorPool, Vec<vk::DescriptorSet>);
 
 fn descriptor_sets(
     gpu: &Gpu,
     all: &BTreeMap<(u32, u32), (Binding, Vec<Element>)>,
+    buffer_model: bool,
 ) -> Result<Sets, VkError> {
     let d = &gpu.device;
     let n_sets = all.keys().map(|k| k.0 + 1).max().unwrap_or(0);
@@ -335,14 +339,16 @@ fn descriptor_sets(
                     .stage_flags(RT_STAGES)
             })
             .collect();
-        let l = unsafe {
-            d.create_descriptor_set_layout(
-                &vk::DescriptorSetLayoutCreateInfo::default().bindings(&lb),
-                None,
-            )
+        let mut ci = vk::DescriptorSetLayoutCreateInfo::default().bindings(&lb);
+        if buffer_model {
+            ci = ci.flags(vk::DescriptorSetLayoutCreateFlags::DESCRIPTOR_BUFFER_EXT);
         }
-        .at("vkCreateDescriptorSetLayout")?;
+        let l = unsafe { d.create_descriptor_set_layout(&ci, None) }
+            .at("vkCreateDescriptorSetLayout")?;
         layouts.push(l);
+    }
+    if buffer_model {
+        return Ok((layouts, vk::DescriptorPool::null(), Vec::new()));
     }
     let pool_sizes: Vec<vk::DescriptorPoolSize> = sizes
         .iter()

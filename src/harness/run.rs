@@ -16,11 +16,12 @@
 //! `teardown` raises SIGSEGV after the child wrote attempt K's output, before its teardown.
 use super::child::JobModule;
 use super::reflect::BindingKind;
+use super::spec::SpecValue;
 use super::supply;
 use super::{Harness, HarnessError, Part, UserModule};
 use crate::interface::{BindingDesc, DescriptorKind, HitGroup, PipelineDesc, PushRange};
 use crate::model::contract::HostContract;
-use crate::model::Outcome;
+use crate::model::{DescriptorModel, Outcome};
 use crate::vk::{features, Gpu, Instance, InstanceOptions};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -52,6 +53,15 @@ pub struct ShaderJob {
     pub timeout_ms: u64,
     /// Where the outputs go.
     pub dir: PathBuf,
+    /// How descriptors are bound (absent: descriptor indexing).
+    #[serde(default)]
+    pub model: Option<DescriptorModel>,
+    /// `--spec`'s values.
+    #[serde(default)]
+    pub spec: Vec<SpecValue>,
+    /// `--heap-layout`'s arrays.
+    #[serde(default)]
+    pub heap_layout: Option<Vec<super::heap::Array>>,
 }
 
 /// What one attempt came to.
@@ -210,7 +220,8 @@ fn harness(job: &ShaderJob) -> Result<(Harness, Vec<UserModule>), HarnessError> 
         .get(job.device_index)
         .ok_or_else(|| HarnessError::Unsupported("the device vanished".into()))?
         .clone();
-    let gpu = Gpu::new(inst, info, super::requirements(job.scalar))?;
+    let model = job.model.unwrap_or(DescriptorModel::DescriptorIndexing);
+    let gpu = Gpu::new(inst, info, super::requirements_for(job.scalar, model))?;
     let push = unpatched
         .iter()
         .chain(&variant)
@@ -219,7 +230,9 @@ fn harness(job: &ShaderJob) -> Result<(Harness, Vec<UserModule>), HarnessError> 
         .unwrap_or(0)
         .max(job.contract.as_ref().map_or(0, |c| c.push_end));
     let refs: Vec<&UserModule> = unpatched.iter().collect();
-    let h = Harness::new(gpu, &refs, push, Duration::from_millis(job.timeout_ms))?;
+    let setup =
+        super::Setup { model, spec: job.spec.clone(), heap_layout: job.heap_layout.clone() };
+    let h = Harness::with_setup(gpu, &refs, push, Duration::from_millis(job.timeout_ms), setup)?;
     Ok((h, variant))
 }
 

@@ -1,5 +1,6 @@
 //! `descriptor_buffer` (VK_EXT_descriptor_buffer): a host buffer holding every descriptor, each
-//! written with vkGetDescriptorEXT at its binding's offset in the set layout.
+//! written with vkGetDescriptorEXT at its binding's offset in the set layout (a cell's, or one
+//! set of a `run --shader` pipeline).
 use crate::exec::resources::{descriptor_type, Target};
 use crate::model::Resource;
 use crate::vk::memory::{Buffer, Location};
@@ -22,7 +23,7 @@ fn descriptor_size(
 
 /// A descriptor buffer for `layout` holding `targets[b]` at each binding b, and the usage it is
 /// bound with (SAMPLER only with samplers).
-pub(super) fn write(
+pub fn write(
     gpu: &Gpu,
     layout: vk::DescriptorSetLayout,
     targets: &[(u32, Resource, Vec<Target>)],

@@ -12,6 +12,7 @@ mod key;
 mod layout;
 mod set;
 
+pub use buffer::write as write_descriptor_buffer;
 pub use key::LayoutKey;
 pub use layout::PUSH_CONSTANT_BYTES;
 

@@ -1,10 +1,11 @@
 //! A cell's two descriptor heaps: the resource heap and the sampler heap created, written and
 //! bound (vkCmdBind{Resource,Sampler}HeapEXT), with the buffer holding the probed array's heap
-//! index that `mapped_indirect_index` reads, and the push data recorded.
+//! index that `mapped_indirect_index` reads, and the push data recorded; and heaps of descriptors
+//! at given places ([`PlacedHeaps`], `run --shader`'s heap model) made and bound the same way.
 use super::layout::{align, HeapLayout};
 use super::push;
 use super::sizes::{fns, props, Sizes};
-use super::write::{write_samplers, ResourceWrites};
+use super::write::{write_samplers, Placed, ResourceWrites};
 use crate::exec::resources::{descriptor_type, Target};
 use crate::model::Resource;
 use crate::vk::heap as h;
@@ -42,6 +43,89 @@ impl Heap {
             reserved_range_size: reserved,
         };
         Ok(Heap { buffer, bind })
+    }
+}
+
+/// The resource heap of `bytes` and the sampler heap of `samplers`, both created (neither left
+/// behind on an error).
+fn heaps(
+    gpu: &Gpu,
+    sizes: &Sizes,
+    bytes: &[u8],
+    samplers: &[vk::SamplerCreateInfo],
+) -> Result<(Heap, Heap), VkError> {
+    let p = &sizes.p;
+    let resources = Heap::create(
+        gpu,
+        bytes,
+        p.resource_heap_alignment,
+        p.min_resource_heap_reserved_range,
+        "resource heap",
+    )?;
+    let samplers = write_samplers(sizes, samplers).and_then(|sbytes| {
+        Heap::create(
+            gpu,
+            &sbytes,
+            p.sampler_heap_alignment.max(p.sampler_descriptor_alignment),
+            p.min_sampler_heap_reserved_range,
+            "sampler heap",
+        )
+    });
+    match samplers {
+        Ok(s) => Ok((resources, s)),
+        Err(e) => {
+            resources.buffer.destroy(gpu);
+            Err(e)
+        }
+    }
+}
+
+/// vkCmdBindResourceHeapEXT and vkCmdBindSamplerHeapEXT of `resources` and `samplers`.
+fn bind_heaps(gpu: &Gpu, cmd: vk::CommandBuffer, resources: &Heap, samplers: &Heap) {
+    let f = fns(gpu);
+    // SAFETY: valid command buffer in the recording state; the infos are plain values.
+    unsafe {
+        (f.cmd_bind_resource_heap)(cmd, &resources.bind);
+        (f.cmd_bind_sampler_heap)(cmd, &samplers.bind);
+    }
+}
+
+/// The stride of an array of `ty` descriptors in a heap on this device: its class's descriptor
+/// size (what `OpConstantSizeOfEXT` of the type is), never less than what a write fills.
+pub fn descriptor_stride(gpu: &Gpu, ty: vk::DescriptorType) -> u32 {
+    let sizes = Sizes { gpu, p: props(gpu), f: fns(gpu) };
+    sizes.class(ty).max(sizes.written(ty)).max(1)
+}
+
+/// Heaps of descriptors at given places, for a pipeline not made from a cell (`run --shader`):
+/// the same heap creation, descriptor writes and binding as a cell's [`HeapBinding`], the
+/// sampler heap empty.
+pub struct PlacedHeaps {
+    resources: Heap,
+    samplers: Heap,
+}
+
+impl PlacedHeaps {
+    pub fn create(gpu: &Gpu, placed: &[Placed]) -> Result<PlacedHeaps, VkError> {
+        let sizes = Sizes { gpu, p: props(gpu), f: fns(gpu) };
+        let bytes = ResourceWrites::placed(&sizes, placed).write(&sizes)?;
+        let (resources, samplers) = heaps(gpu, &sizes, &bytes, &[])?;
+        tracing::debug!(descriptors = placed.len(), bytes = bytes.len(), "placed heaps written");
+        Ok(PlacedHeaps { resources, samplers })
+    }
+
+    pub fn bind(&self, gpu: &Gpu, cmd: vk::CommandBuffer) {
+        bind_heaps(gpu, cmd, &self.resources, &self.samplers);
+    }
+
+    /// `data` as push data at offset 0 (what push-constant blocks read in a heap pipeline).
+    pub fn push(&self, gpu: &Gpu, cmd: vk::CommandBuffer, data: &[u8]) {
+        push::push(gpu, cmd, data);
+    }
+
+    pub fn destroy(&self, gpu: &Gpu) {
+        self.resources.buffer.destroy(gpu);
+        self.samplers.buffer.destroy(gpu);
     }
 }
 
@@ -85,45 +169,21 @@ impl HeapBinding {
         direct: bool,
     ) -> Result<HeapBinding, VkError> {
         let sizes = Sizes { gpu, p: props(gpu), f: fns(gpu) };
-        let p = &sizes.p;
         let layout = heap_layout(&sizes, targets, direct);
         let bytes = ResourceWrites::of(&sizes, targets, &layout).write(&sizes)?;
-        let resources = Heap::create(
-            gpu,
-            &bytes,
-            p.resource_heap_alignment,
-            p.min_resource_heap_reserved_range,
-            "resource heap",
-        )?;
-        let samplers = write_samplers(&sizes, samplers).and_then(|sbytes| {
-            Heap::create(
-                gpu,
-                &sbytes,
-                p.sampler_heap_alignment.max(p.sampler_descriptor_alignment),
-                p.min_sampler_heap_reserved_range,
-                "sampler heap",
-            )
-        });
+        let (resources, samplers) = heaps(gpu, &sizes, &bytes, samplers)?;
         let index_usage =
             vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
-        let index = samplers.and_then(|s| {
-            match Buffer::with_data(
-                gpu,
-                &layout.probe_index().to_le_bytes(),
-                index_usage,
-                "heap index",
-            ) {
-                Ok(b) => Ok((s, b)),
-                Err(e) => {
-                    s.buffer.destroy(gpu);
-                    Err(e)
-                }
-            }
-        });
-        let (samplers, index) = match index {
-            Ok(x) => x,
+        let index = match Buffer::with_data(
+            gpu,
+            &layout.probe_index().to_le_bytes(),
+            index_usage,
+            "heap index",
+        ) {
+            Ok(b) => b,
             Err(e) => {
                 resources.buffer.destroy(gpu);
+                samplers.buffer.destroy(gpu);
                 return Err(e);
             }
         };
@@ -132,12 +192,7 @@ impl HeapBinding {
     }
 
     pub fn bind(&self, gpu: &Gpu, cmd: vk::CommandBuffer) {
-        let f = fns(gpu);
-        // SAFETY: valid command buffer in the recording state; the infos are plain values.
-        unsafe {
-            (f.cmd_bind_resource_heap)(cmd, &self.resources.bind);
-            (f.cmd_bind_sampler_heap)(cmd, &self.samplers.bind);
-        }
+        bind_heaps(gpu, cmd, &self.resources, &self.samplers);
     }
 
     /// The probes' push block, the probed array's heap index and the address of the buffer

@@ -253,6 +253,24 @@ fn resource_mask(mask: u32) -> String {
     }
 }
 
+/// One mapping of set `set`, binding `binding` (all resource types) from `source`.
+fn one(
+    set: u32,
+    binding: u32,
+    (source, source_data): (MappingSource, h::MappingSourceData),
+) -> h::SetAndBindingMapping {
+    h::SetAndBindingMapping {
+        s_type: h::STRUCTURE_TYPE_DESCRIPTOR_SET_AND_BINDING_MAPPING_EXT,
+        p_next: std::ptr::null(),
+        descriptor_set: set,
+        first_binding: binding,
+        binding_count: 1,
+        resource_mask: h::SPIRV_RESOURCE_TYPE_ALL,
+        source,
+        source_data,
+    }
+}
+
 /// The set/binding → heap mapping every stage of a heap pipeline gets (boxed: the info points at
 /// the mappings).
 pub struct PipelineMapping {
@@ -265,24 +283,27 @@ impl PipelineMapping {
     /// cells map only the records and TLAS (the probe reads the heap itself).
     pub fn new(access: HeapAccess, l: &HeapLayout) -> Box<PipelineMapping> {
         let probe = probe_source(access, l);
-        let mapping =
-            |binding: u32, (source, source_data): (MappingSource, h::MappingSourceData)| {
-                h::SetAndBindingMapping {
-                    s_type: h::STRUCTURE_TYPE_DESCRIPTOR_SET_AND_BINDING_MAPPING_EXT,
-                    p_next: std::ptr::null(),
-                    descriptor_set: 0,
-                    first_binding: binding,
-                    binding_count: 1,
-                    resource_mask: h::SPIRV_RESOURCE_TYPE_ALL,
-                    source,
-                    source_data,
-                }
-            };
         let mut mappings = vec![
-            mapping(0, (MappingSource::HeapWithConstantOffset, constant(l.records, 0))),
-            mapping(1, (MappingSource::HeapWithConstantOffset, constant(l.tlas, 0))),
+            one(0, 0, (MappingSource::HeapWithConstantOffset, constant(l.records, 0))),
+            one(0, 1, (MappingSource::HeapWithConstantOffset, constant(l.tlas, 0))),
         ];
-        mappings.extend(probe.map(|p| mapping(2, p)));
+        mappings.extend(probe.map(|p| one(0, 2, p)));
+        PipelineMapping::boxed(mappings)
+    }
+
+    /// Every `(set, binding, heap offset, array stride)` mapped HEAP_WITH_CONSTANT_OFFSET: the
+    /// set/binding descriptors of a `run --shader` heap pipeline, placed in the resource heap.
+    pub fn constant_offsets(entries: &[(u32, u32, u32, u32)]) -> Box<PipelineMapping> {
+        let mappings = entries
+            .iter()
+            .map(|&(set, binding, offset, stride)| {
+                one(set, binding, (MappingSource::HeapWithConstantOffset, constant(offset, stride)))
+            })
+            .collect();
+        PipelineMapping::boxed(mappings)
+    }
+
+    fn boxed(mappings: Vec<h::SetAndBindingMapping>) -> Box<PipelineMapping> {
         let mut b = Box::new(PipelineMapping {
             info: h::ShaderSetAndBindingMappingInfo {
                 s_type: h::STRUCTURE_TYPE_SHADER_DESCRIPTOR_SET_AND_BINDING_MAPPING_INFO_EXT,
@@ -368,6 +389,21 @@ mod tests {
             PipelineMapping::new(HeapAccess::MappedPushIndex, &l).words(),
             PipelineMapping::new(HeapAccess::MappedPushIndex, &l).words()
         );
+    }
+
+    /// `run --shader`'s mappings: one constant offset per set and binding, each with its own
+    /// place and stride; the twin: another place is another pipeline identity.
+    #[test]
+    fn constant_offsets_map_each_binding_at_its_place() {
+        let m = PipelineMapping::constant_offsets(&[(0, 1, 2048, 16), (1, 0, 4096, 64)]);
+        let e = m.entries();
+        assert_eq!(e.len(), 2);
+        assert_eq!((e[1].descriptor_set, e[1].first_binding), (1, 0));
+        assert_eq!(e[1].source, "VK_DESCRIPTOR_MAPPING_SOURCE_HEAP_WITH_CONSTANT_OFFSET_EXT");
+        assert_eq!(e[0].fields[0], ("heapOffset".to_string(), "2048".to_string()));
+        assert_eq!(e[1].fields[1], ("heapArrayStride".to_string(), "64".to_string()));
+        let moved = PipelineMapping::constant_offsets(&[(0, 1, 2048, 16), (1, 0, 4160, 64)]);
+        assert_ne!(m.words(), moved.words());
     }
 
     /// The entries the report records are the structs the stages get: the records and TLAS at

@@ -27,7 +27,9 @@
 //!
 //! Files: the heap layout (`layout`), the device's descriptor sizes and heap commands (`sizes`),
 //! writing descriptors into heap bytes (`write`), the two heaps created, bound and pushed to
-//! (`binding`), push data (`push`), and the set/binding mapping of heap pipelines (`mapping`).
+//! (`binding`; `PlacedHeaps`: descriptors at given places, for `run --shader`), push data
+//! (`push`), and the set/binding mapping of heap pipelines (`mapping`; constant offsets per
+//! set and binding for `run --shader`).
 mod binding;
 mod layout;
 mod mapping;
@@ -35,7 +37,8 @@ mod push;
 mod sizes;
 mod write;
 
-pub use binding::HeapBinding;
+pub use binding::{descriptor_stride, HeapBinding, PlacedHeaps};
 pub use layout::HeapLayout;
 pub use mapping::{describe as describe_mapping, PipelineMapping};
 pub use push::{PUSH_INDEX_ADDRESS_OFFSET, PUSH_INDEX_OFFSET};
+pub use write::Placed;

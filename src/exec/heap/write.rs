@@ -11,6 +11,15 @@ use crate::vk::{VkError, VkResultExt};
 use ash::vk;
 use std::ffi::c_void;
 
+/// One descriptor placed at a byte offset of the resource heap (`run --shader`'s heap model):
+/// what it describes, its type, and an image's view format.
+pub struct Placed {
+    pub offset: usize,
+    pub ty: vk::DescriptorType,
+    pub target: Target,
+    pub format: vk::Format,
+}
+
 /// The resource descriptors to write: what each describes (`kinds`: type, image or not, index
 /// into `views` or `ranges`) and where it goes (`at`: offset and size). The write infos point
 /// into these, so they live until the write call.
@@ -33,30 +42,45 @@ impl ResourceWrites {
             let ty = &descriptor_type(*kind);
             for (i, t) in ts.iter().enumerate() {
                 w.at.push((layout.offset(*b, i), sizes.written(*ty) as usize));
-                match *t {
-                    Target::Buffer { address, range, .. } => {
-                        w.ranges.push(h::DeviceAddressRange { address, size: range });
-                        w.kinds.push((heap_type(*ty), false, w.ranges.len() - 1));
-                    }
-                    // The range of an AS descriptor is unused and may be 0 (VkResourceDescriptorInfoEXT).
-                    Target::Accel { address, .. } => {
-                        w.ranges.push(h::DeviceAddressRange { address, size: 0 });
-                        w.kinds.push((heap_type(*ty), false, w.ranges.len() - 1));
-                    }
-                    Target::Image { image, layers, .. } => {
-                        w.views.push(
-                            vk::ImageViewCreateInfo::default()
-                                .image(image)
-                                .view_type(crate::vk::memory::view_type(layers))
-                                .format(PROBE_IMAGE_FORMAT)
-                                .subresource_range(crate::vk::memory::layer_range(layers)),
-                        );
-                        w.kinds.push((heap_type(*ty), true, w.views.len() - 1));
-                    }
-                }
+                w.add(*ty, t, PROBE_IMAGE_FORMAT);
             }
         }
         w
+    }
+
+    /// The writes of descriptors at given places (`run --shader`'s heap model).
+    pub(super) fn placed(sizes: &Sizes, placed: &[Placed]) -> ResourceWrites {
+        let mut w = ResourceWrites::default();
+        for p in placed {
+            w.at.push((p.offset, sizes.written(p.ty) as usize));
+            w.add(p.ty, &p.target, p.format);
+        }
+        w
+    }
+
+    /// One descriptor of type `ty` for `t` (an image viewed as `format`).
+    fn add(&mut self, ty: vk::DescriptorType, t: &Target, format: vk::Format) {
+        match *t {
+            Target::Buffer { address, range, .. } => {
+                self.ranges.push(h::DeviceAddressRange { address, size: range });
+                self.kinds.push((heap_type(ty), false, self.ranges.len() - 1));
+            }
+            // The range of an AS descriptor is unused and may be 0 (VkResourceDescriptorInfoEXT).
+            Target::Accel { address, .. } => {
+                self.ranges.push(h::DeviceAddressRange { address, size: 0 });
+                self.kinds.push((heap_type(ty), false, self.ranges.len() - 1));
+            }
+            Target::Image { image, layers, .. } => {
+                self.views.push(
+                    vk::ImageViewCreateInfo::default()
+                        .image(image)
+                        .view_type(crate::vk::memory::view_type(layers))
+                        .format(format)
+                        .subresource_range(crate::vk::memory::layer_range(layers)),
+                );
+                self.kinds.push((heap_type(ty), true, self.views.len() - 1));
+            }
+        }
     }
 
     /// The resource heap's bytes: every descriptor written at its place.
@@ -122,6 +146,10 @@ pub(super) fn write_samplers(
     let sampler_size = sizes.written(vk::DescriptorType::SAMPLER).max(1) as usize;
     let sampler_stride = sizes.class(vk::DescriptorType::SAMPLER).max(sampler_size as u32) as usize;
     let mut sbytes = vec![0u8; sampler_stride * (samplers.len().max(1) - 1) + sampler_size];
+    if samplers.is_empty() {
+        // An empty sampler heap (`run --shader`): nothing to write (samplerCount must be > 0).
+        return Ok(sbytes);
+    }
     let sbase = sbytes.as_mut_ptr();
     // SAFETY: sampler k's range [k * stride, k * stride + size) lies inside `sbytes`.
     let sdst: Vec<h::HostAddressRange> = (0..samplers.len())

@@ -1,0 +1,200 @@
+//! `run --shader --spec ID=VALUE`: specialization constants given on the command line, each
+//! value parsed as the type its reflected `SpecId` declares (bool, signed or unsigned integer,
+//! float), and the `VkSpecializationInfo` bytes of one stage: the values of the constants that
+//! stage declares (an ID it does not declare is left out of its map).
+use super::UserModule;
+use crate::reflect::{Scalar, SpecConstant};
+use serde::{Deserialize, Serialize};
+
+/// One constant's value as the pipeline gets it: its `SpecId` and its bytes (a bool as a
+/// 4-byte VkBool32, an integer or float in its own width, little-endian).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SpecValue {
+    pub id: u32,
+    pub bytes: Vec<u8>,
+}
+
+/// A `--spec` the modules cannot take.
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+pub enum SpecError {
+    #[error("--spec {0}: give ID=VALUE, the constant's SpecId and its value (--spec 3=16)")]
+    Syntax(String),
+    #[error("--spec {given}: no stage declares SpecId {id} ({known}); give one of those IDs")]
+    UnknownId { given: String, id: u32, known: String },
+    #[error("--spec {given}: SpecId {id} is a {ty}; give {what}")]
+    BadValue { given: String, id: u32, ty: String, what: String },
+    #[error("--spec {given}: SpecId {id} is given twice; give each constant once")]
+    Twice { given: String, id: u32 },
+}
+
+/// A scalar type in words, and what a value of it looks like.
+fn describe(s: Scalar) -> (String, String) {
+    match s {
+        Scalar::Bool => ("bool".into(), "true, false, 1 or 0".into()),
+        Scalar::Int { bits, signed: true } => {
+            (format!("{bits}-bit int"), format!("an integer that fits in {bits} signed bits"))
+        }
+        Scalar::Int { bits, signed: false } => {
+            (format!("{bits}-bit uint"), format!("a non-negative integer that fits in {bits} bits"))
+        }
+        Scalar::Float { bits } => (format!("{bits}-bit float"), "a finite number".into()),
+    }
+}
+
+/// `text` as a value of type `s`, in the bytes the pipeline gets; `None` when it is not one.
+fn bytes_of(s: Scalar, text: &str) -> Option<Vec<u8>> {
+    match s {
+        Scalar::Bool => match text {
+            "true" | "1" => Some(1u32.to_le_bytes().to_vec()),
+            "false" | "0" => Some(0u32.to_le_bytes().to_vec()),
+            _ => None,
+        },
+        Scalar::Int { bits, signed: true } => {
+            let v: i64 = text.parse().ok()?;
+            let fits = bits >= 64 || (v >= -(1i64 << (bits - 1)) && v < (1i64 << (bits - 1)));
+            fits.then(|| v.to_le_bytes()[..(bits / 8) as usize].to_vec())
+        }
+        Scalar::Int { bits, signed: false } => {
+            let v: u64 = text.parse().ok()?;
+            let fits = bits >= 64 || v < (1u64 << bits);
+            fits.then(|| v.to_le_bytes()[..(bits / 8) as usize].to_vec())
+        }
+        Scalar::Float { bits: 32 } => {
+            let v: f32 = text.parse().ok().filter(|v: &f32| v.is_finite())?;
+            Some(v.to_le_bytes().to_vec())
+        }
+        Scalar::Float { bits: 64 } => {
+            let v: f64 = text.parse().ok().filter(|v: &f64| v.is_finite())?;
+            Some(v.to_le_bytes().to_vec())
+        }
+        // A 16-bit float would need a half conversion rtprobe does not make.
+        Scalar::Float { .. } => None,
+    }
+}
+
+/// Every `--spec` of `given` checked against the constants `modules` declare.
+pub fn parse_all(given: &[String], modules: &[UserModule]) -> Result<Vec<SpecValue>, SpecError> {
+    let declared: Vec<&SpecConstant> =
+        modules.iter().flat_map(|m| &m.iface.reflection.spec_constants).collect();
+    let mut out: Vec<SpecValue> = Vec::new();
+    for g in given {
+        let (id, value) = g.split_once('=').ok_or_else(|| SpecError::Syntax(g.clone()))?;
+        let id: u32 = id.trim().parse().map_err(|_| SpecError::Syntax(g.clone()))?;
+        let Some(c) = declared.iter().find(|c| c.spec_id == id) else {
+            let mut ids: Vec<u32> = declared.iter().map(|c| c.spec_id).collect();
+            ids.sort_unstable();
+            ids.dedup();
+            let known = if ids.is_empty() {
+                "the modules declare no specialization constants".to_string()
+            } else {
+                let list: Vec<String> = ids.iter().map(u32::to_string).collect();
+                format!("declared: {}", list.join(", "))
+            };
+            return Err(SpecError::UnknownId { given: g.clone(), id, known });
+        };
+        let bytes = bytes_of(c.scalar, value.trim()).ok_or_else(|| {
+            let (ty, what) = describe(c.scalar);
+            SpecError::BadValue { given: g.clone(), id, ty, what }
+        })?;
+        if out.iter().any(|v| v.id == id) {
+            return Err(SpecError::Twice { given: g.clone(), id });
+        }
+        out.push(SpecValue { id, bytes });
+    }
+    Ok(out)
+}
+
+/// The map entries and data of one stage: the values of `values` whose constant `module`
+/// declares, packed in order.
+pub fn stage_info(
+    module: &UserModule,
+    values: &[SpecValue],
+) -> (Vec<ash::vk::SpecializationMapEntry>, Vec<u8>) {
+    let (mut entries, mut data) = (Vec::new(), Vec::new());
+    let declared = &module.iface.reflection.spec_constants;
+    for v in values.iter().filter(|v| declared.iter().any(|c| c.spec_id == v.id)) {
+        entries.push(ash::vk::SpecializationMapEntry {
+            constant_id: v.id,
+            offset: data.len() as u32,
+            size: v.bytes.len(),
+        });
+        data.extend_from_slice(&v.bytes);
+    }
+    (entries, data)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn module(glsl: &str) -> UserModule {
+        let words = crate::patches::assemble(&crate::patches::compiled(
+            shaderc::ShaderKind::Miss,
+            "t",
+            glsl,
+        ));
+        UserModule::new("t.rmiss", &words).unwrap()
+    }
+
+    const SPEC: &str = "#version 460\n#extension GL_EXT_ray_tracing : require\n\
+        layout(constant_id = 3) const uint COUNT = 4u;\n\
+        layout(constant_id = 5) const float SCALE = 0.5;\n\
+        layout(constant_id = 7) const bool ON = false;\n\
+        layout(constant_id = 9) const int OFF = -1;\n\
+        layout(location = 0) rayPayloadInEXT vec4 c;\n\
+        void main() { c = vec4(float(COUNT) * SCALE + float(OFF), ON ? 1.0 : 0.0, 0.0, 1.0); }\n";
+
+    #[test]
+    fn values_take_the_declared_types_bytes() {
+        let m = module(SPEC);
+        let given: Vec<String> =
+            ["3=16", "5=2.5", "7=true", "9=-3"].iter().map(|s| s.to_string()).collect();
+        let v = parse_all(&given, std::slice::from_ref(&m)).unwrap();
+        assert_eq!(v[0], SpecValue { id: 3, bytes: 16u32.to_le_bytes().to_vec() });
+        assert_eq!(v[1].bytes, 2.5f32.to_le_bytes());
+        assert_eq!(v[2].bytes, 1u32.to_le_bytes());
+        assert_eq!(v[3].bytes, (-3i32).to_le_bytes());
+        let (entries, data) = stage_info(&m, &v);
+        assert_eq!(entries.len(), 4);
+        assert_eq!((entries[1].constant_id, entries[1].offset, entries[1].size), (5, 4, 4));
+        assert_eq!(data.len(), 16);
+    }
+
+    /// The twins: an ID no stage declares, a value not of the type, a negative uint, a
+    /// missing `=`, an ID given twice: each one line naming what to give.
+    #[test]
+    fn bad_ids_and_values_are_refused() {
+        let owned = module(SPEC);
+        let m = std::slice::from_ref(&owned);
+        let one = |s: &str| parse_all(&[s.to_string()], m);
+        let e = one("4=1").unwrap_err();
+        assert!(
+            matches!(&e, SpecError::UnknownId { id: 4, .. })
+                && e.to_string().contains("declared: 3, 5, 7, 9"),
+            "{e}"
+        );
+        assert!(matches!(one("3=-1"), Err(SpecError::BadValue { id: 3, .. })));
+        assert!(matches!(one("3=1.5"), Err(SpecError::BadValue { .. })));
+        assert!(matches!(one("5=wide"), Err(SpecError::BadValue { id: 5, .. })));
+        assert!(matches!(one("7=yes"), Err(SpecError::BadValue { id: 7, .. })));
+        assert!(matches!(one("3"), Err(SpecError::Syntax(_))));
+        assert!(matches!(one("x=3"), Err(SpecError::Syntax(_))));
+        let twice = parse_all(&["3=1".into(), "3=2".into()], m);
+        assert!(matches!(twice, Err(SpecError::Twice { id: 3, .. })));
+        for e in [one("4=1"), one("3=-1"), one("3")] {
+            assert!(!e.unwrap_err().to_string().contains('\n'));
+        }
+    }
+
+    /// A stage that does not declare a constant gets no entry for it.
+    #[test]
+    fn stages_get_only_their_own_constants() {
+        let plain = module(
+            "#version 460\n#extension GL_EXT_ray_tracing : require\n\
+            layout(location = 0) rayPayloadInEXT vec4 c;\nvoid main() { c = vec4(1.0); }\n",
+        );
+        let v = vec![SpecValue { id: 3, bytes: vec![1, 0, 0, 0] }];
+        assert!(stage_info(&plain, &v).0.is_empty());
+        assert_eq!(stage_info(&module(SPEC), &v).0.len(), 1);
+    }
+}
