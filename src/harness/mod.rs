@@ -18,6 +18,7 @@ pub mod child;
 mod compare;
 pub mod entry;
 mod error;
+pub mod inject;
 pub mod ints;
 mod module;
 pub mod reflect;
