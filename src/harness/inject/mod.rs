@@ -7,17 +7,22 @@
 //! The fault sits right after the access and is fed by the access's value ([`emit`]): the
 //! first scalar of the loaded or sampled value, as 32 bits, `& 0` — zero at run time, yet an
 //! operand of the fault — so deleting the access deletes the fault, and a module without a
-//! matching access gets none. KIND:
+//! matching access gets none. The fault's result flows back into the access's value (its first
+//! scalar plus a term that is zero at run time but not to a compiler) and so into what the
+//! shader writes: on lavapipe, a fault whose result nothing used was dropped by the driver's
+//! compiler, the load though `Volatile` and the loop though endless. KIND:
 //! - `device` (default): a `Volatile` load through the `PhysicalStorageBuffer` address
-//!   `0xdead_0000_0000 + (bits & 0)`, outside every allocation. The module gets the
+//!   `0xdead_0000_0000 + (bits & 0)`, outside every allocation; the term fed back is 1 where
+//!   the loaded word equals `0x9e3779b9`, else 0. The module gets the
 //!   `PhysicalStorageBufferAddresses` capability, `SPV_KHR_physical_storage_buffer` before
-//!   SPIR-V 1.5, and `PhysicalStorageBuffer64` addressing; `Volatile` keeps the driver's
-//!   compiler from dropping a load whose value is unused (SPIR-V 1.6 rev. 2, Memory Operands:
-//!   a volatile access "cannot be eliminated, duplicated, or combined with other accesses").
-//!   What an invalid address does is undefined (a device loss, a crash on CPU drivers, a hang
-//!   where a driver spins): rtprobe counts each as a fault.
+//!   SPIR-V 1.5, and `PhysicalStorageBuffer64` addressing. What an invalid address does is
+//!   undefined (a device loss, a crash on CPU drivers, a hang where a driver spins): rtprobe
+//!   counts each as a fault.
 //! - `hang`: a structured loop counting by two from 0 until the count equals `bits | 1`, odd,
-//!   so never. Whether or not a driver's compiler proves it endless, it does not end.
+//!   so never; the term fed back is the final count minus `bits | 1`.
+//!
+//! Where an access's block is a loop header the hang is not inserted (its back edges must keep
+//! reaching its `OpLoopMerge`): the access is listed as skipped, with why.
 //!
 //! The other kinds of `--inject-fault` (`value`, `nan`, `flaky`) are refused for a user's shader:
 //! a wrong value is caught only against a CPU reference, which a user's shader has none of, and
@@ -117,18 +122,16 @@ pub fn inject(m: &mut Module, r: &Request) -> Injected {
     found.sort_by_key(|s| std::cmp::Reverse(s.at));
     for s in &found {
         let (f, b, i) = s.at;
-        let Some((code, bits)) = s.value.and_then(|v| emit::bits(m, v)) else {
+        let Some((value, leaf)) = s.value.and_then(|v| Some((v, emit::bits(m, v)?))) else {
             out.skipped.push(format!("{}: its value has no scalar to feed a fault", describe(s)));
             continue;
         };
         let done = match r.fault {
             Fault::Device => {
-                let code = emit::device(m, code, bits);
-                let at = &mut m.functions[f].blocks[b].instructions;
-                at.splice(i + 1..i + 1, code);
+                emit::device(m, (f, b, i), value, leaf);
                 true
             }
-            Fault::Hang => emit::hang(m, f, (b, i), code, bits),
+            Fault::Hang => emit::hang(m, (f, b, i), value, leaf),
         };
         if done {
             out.sites.push(describe(s));

@@ -60,16 +60,39 @@ fn request(s: &str) -> Request {
 }
 
 /// Whether `id`'s definition tree (through instruction operands) reaches `target`.
-fn reaches(m: &Module, id: Word, target: Word, depth: u32) -> bool {
-    if id == target {
-        return true;
+fn reaches(m: &Module, id: Word, target: Word, _depth: u32) -> bool {
+    let (mut todo, mut seen) = (vec![id], std::collections::HashSet::new());
+    while let Some(x) = todo.pop() {
+        if x == target {
+            return true;
+        }
+        if !seen.insert(x) {
+            continue;
+        }
+        if let Some(d) = crate::patches::edit::def(m, x) {
+            todo.extend(d.operands.iter().filter_map(crate::patches::edit::id_from));
+        }
     }
-    let Some(d) = crate::patches::edit::def(m, id) else { return false };
-    depth > 0
-        && d.operands
-            .iter()
-            .filter_map(crate::patches::edit::id_from)
-            .any(|o| reaches(m, o, target, depth - 1))
+    false
+}
+
+/// Whether some `OpStore` (what the shader writes) depends on `target`.
+fn written(m: &Module, target: Word) -> bool {
+    m.functions
+        .iter()
+        .flat_map(|f| f.blocks.iter().flat_map(|b| b.instructions.iter()))
+        .filter(|i| i.class.opcode == Op::Store)
+        .filter_map(|i| crate::patches::edit::id_operand(i, 1))
+        .any(|v| reaches(m, v, target, 0))
+}
+
+fn phis(m: &Module) -> Vec<Word> {
+    m.functions
+        .iter()
+        .flat_map(|f| f.blocks.iter().flat_map(|b| b.instructions.iter()))
+        .filter(|i| i.class.opcode == Op::Phi)
+        .filter_map(|i| i.result_id)
+        .collect()
 }
 
 fn marked(m: &Module) -> Vec<Word> {
@@ -123,6 +146,8 @@ fn a_device_fault_follows_each_matching_access_and_is_fed_by_it() {
     let values: Vec<Word> = dynamic.iter().filter_map(|s| s.value).collect();
     for f in marked(&m) {
         assert!(values.iter().any(|v| reaches(&m, f, *v, 32)), "fault %{f} not fed by an access");
+        // … and what the shader writes depends on the fault's load: no compiler may drop it.
+        assert!(written(&m, f), "fault %{f} reaches no store");
     }
 }
 
@@ -154,7 +179,7 @@ fn a_hang_is_a_loop_after_each_access_fed_by_it() {
             .filter(|i| i.class.opcode == Op::LoopMerge)
             .count()
     };
-    let before = loops(&m);
+    let (before, old_phis) = (loops(&m), phis(&m));
     let values: Vec<Word> = sites::find(&m).iter().filter_map(|s| s.value).collect();
     let got = inject(&mut m, &request("stage=closest_hit@hang"));
     assert_eq!((got.sites.len(), count(&m)), (n, n), "{got:?}");
@@ -163,6 +188,10 @@ fn a_hang_is_a_loop_after_each_access_fed_by_it() {
     for f in marked(&m) {
         assert!(values.iter().any(|v| reaches(&m, f, *v, 32)), "loop %{f} not fed by an access");
     }
+    // What the shader writes depends on every loop's count.
+    let counts: Vec<Word> = phis(&m).into_iter().filter(|p| !old_phis.contains(p)).collect();
+    assert_eq!(counts.len(), n);
+    assert!(counts.iter().all(|c| written(&m, *c)), "a loop's count reaches no store");
     // The image read of a raygen too (another block layout: the access before a store).
     let mut g = compiled(ShaderKind::RayGeneration, "t.rgen", GEN);
     assert_eq!(inject(&mut g, &request("resource=storage_image@hang")).sites.len(), 1);
