@@ -356,8 +356,11 @@ fn uncompared_variants_and_teardown_faults_are_said() {
     assert!(stdout(&o).contains("after its last attempt"), "{}", stdout(&o));
 }
 
+/// (name, count) pairs.
+type Counts = Vec<(String, u64)>;
+
 /// The report's injection: what each module matched (by file name), and each variant's faults.
-fn injected(r: &Value) -> (Vec<(String, u64)>, Vec<(String, u64)>) {
+fn injected(r: &Value) -> (Counts, Counts) {
     let inj = &r["injection"];
     let name = |f: &Value| f.as_str().unwrap().rsplit('/').next().unwrap().to_string();
     let modules = inj["modules"].as_array().unwrap();

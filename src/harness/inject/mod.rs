@@ -66,7 +66,7 @@ pub struct Request {
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum InjectError {
     #[error("--inject-fault {spec:?}: {error}")]
-    Kind { spec: String, error: crate::model::InjectError },
+    Kind { spec: String, error: String },
     #[error("--inject-fault {spec:?}: {kind} needs a CPU reference to catch a wrong value, and a user's shader has none; use @device or @hang")]
     ValueKind { spec: String, kind: String },
     #[error("--inject-fault {spec:?}: flaky is armed through the generated probe's push constants, which a user's shader lacks; use @device or @hang")]
@@ -83,7 +83,7 @@ impl Request {
             None => (spec.as_str(), "device"),
         };
         let fault = match FaultKind::parse(kind)
-            .map_err(|error| InjectError::Kind { spec: spec.clone(), error })?
+            .map_err(|e| InjectError::Kind { spec: spec.clone(), error: e.to_string() })?
         {
             FaultKind::Device => Fault::Device,
             FaultKind::Hang => Fault::Hang,
