@@ -244,6 +244,18 @@ fn bad_input_is_one_line_and_no_report() {
             "--filter cannot be used with --shader",
         ),
         (&["raygen.rgen", "miss.rmiss"], &["--repeat", "0"], 2, "--repeat 0"),
+        (
+            &["raygen.rgen", "miss.rmiss"],
+            &["--inject-fault", "descriptor_model=descriptor_heap"],
+            2,
+            "takes stage, resource, index",
+        ),
+        (
+            &["raygen.rgen", "miss.rmiss"],
+            &["--inject-fault", "stage=raygen@value:0.5"],
+            2,
+            "needs a CPU reference",
+        ),
     ];
     for (files, extra, code, needle) in cases {
         let (o, r, _d) = shader_run(files, extra, &[]);
@@ -377,6 +389,7 @@ fn dxc_style_spirv_runs_clean_in_every_variant() {
             assert_eq!(&a["outputs"], reference, "{}", variant["name"]);
         }
     }
+}
 
 /// The unpatched pipeline's first attempt's output hashes of a clean `--repeat 1` run.
 fn first_outputs(files: &[&str], extra: &[&str]) -> Value {
@@ -466,4 +479,113 @@ fn descriptor_buffers_give_the_outputs_of_descriptor_sets() {
     let buffers = first_outputs(&files, &["--descriptor-model", "descriptor_buffer"]);
     assert!(sets.as_array().is_some_and(|a| a.len() >= 2), "{sets}");
     assert_eq!(sets, buffers);
+}
+
+/// (name, count) pairs.
+type Counts = Vec<(String, u64)>;
+
+/// The report's injection: what each module matched (by file name), and each variant's faults.
+fn injected(r: &Value) -> (Counts, Counts) {
+    let inj = &r["injection"];
+    let name = |f: &Value| f.as_str().unwrap().rsplit('/').next().unwrap().to_string();
+    let modules = inj["modules"].as_array().unwrap();
+    let variants = inj["variants"].as_array().unwrap();
+    (
+        modules.iter().map(|m| (name(&m["file"]), m["matched"].as_u64().unwrap())).collect(),
+        variants.iter().map(|v| (name(&v["name"]), v["faults"].as_u64().unwrap())).collect(),
+    )
+}
+
+/// Issue 24 (`--inject-fault` into user shaders): a `device` fault injected after the bindless
+/// closest-hit's dynamically indexed material read crashes lavapipe in every attempt of every
+/// variant (the patches rewrite the injected module and keep the fault); the report records the
+/// injection, one access matched in the closest-hit and none elsewhere; exit 1, as for findings.
+#[test]
+fn an_injected_device_fault_is_a_crash_finding_with_its_attempts() {
+    let files = ["raygen.rgen", "miss.rmiss", "bindless.rchit"];
+    let pred = "stage=closest_hit,resource=storage_buffer,index=dynamic@device";
+    let (o, r, _d) = shader_run(&files, &["--repeat", "2", "--inject-fault", pred], &[]);
+    assert_eq!(o.status.code(), Some(1), "{}{}", stdout(&o), stderr(&o));
+    let r = r.expect("the report is written");
+    assert_eq!(
+        (r["injection"]["spec"].as_str(), r["injection"]["fault"].as_str()),
+        (Some(pred), Some("device"))
+    );
+    let (modules, faults) = injected(&r);
+    let matched = |f: &str| modules.iter().find(|m| m.0 == f).map(|m| m.1);
+    assert_eq!(
+        (matched("raygen.rgen"), matched("miss.rmiss"), matched("bindless.rchit")),
+        (Some(0), Some(0), Some(1)),
+        "{modules:?}"
+    );
+    let v = variants(&r);
+    assert!(v.len() >= 2, "{}", stdout(&o));
+    assert_eq!(faults.len(), v.len());
+    for (variant, (name, n)) in v.iter().zip(&faults) {
+        assert_eq!((variant["name"].as_str().unwrap(), *n), (name.as_str(), 1), "{faults:?}");
+        assert_eq!(
+            (variant["outcome"].as_str(), variant["judgement"].as_str()),
+            (Some("crash"), Some("fault")),
+            "{variant}"
+        );
+        let outcomes: Vec<&str> =
+            attempts(variant).iter().map(|a| a["outcome"].as_str().unwrap()).collect();
+        assert_eq!(outcomes, ["crash", "crash"], "{variant}");
+        assert_eq!(
+            (&variant["incidence"]["faulted"], &variant["incidence"]["attempts"]),
+            (&Value::from(2), &Value::from(2))
+        );
+    }
+    assert_eq!(r["outcome"], "crash");
+    assert!(stdout(&o).contains("note: injected device fault"), "{}", stdout(&o));
+    assert!(stdout(&o).lines().last().unwrap().starts_with("verdict: FAIL"), "{}", stdout(&o));
+}
+
+/// Twin: a predicate on a resource the pipeline does not read (no uniform buffer anywhere)
+/// injects nothing: the run is clean, and the report and the summary say the injection matched
+/// no access.
+#[test]
+fn an_injection_matching_no_access_runs_clean_and_says_so() {
+    let files = ["raygen.rgen", "miss.rmiss", "bindless.rchit"];
+    let (o, r, _d) = shader_run(
+        &files,
+        &["--repeat", "2", "--inject-fault", "resource=uniform_buffer@device"],
+        &[],
+    );
+    let r = r.unwrap_or_else(|| panic!("no report: {}", stderr(&o)));
+    assert_clean(&o, &r, 3, 2);
+    let (modules, faults) = injected(&r);
+    assert!(modules.len() == 3 && modules.iter().all(|m| m.1 == 0), "{modules:?}");
+    assert!(faults.iter().all(|f| f.1 == 0), "{faults:?}");
+    let said = "the injection matched no access";
+    let notes = r["notes"].as_array().unwrap();
+    assert!(notes.iter().any(|n| n.as_str().unwrap().starts_with(said)), "{notes:?}");
+    assert!(stdout(&o).contains(&format!("note: {said}")), "{}", stdout(&o));
+}
+
+/// An injected `hang` after every closest-hit access: each variant's one attempt passes its
+/// fence deadline (`--timeout 3`) and is a timeout finding; exit 1.
+#[test]
+fn an_injected_hang_is_a_timeout_finding() {
+    let (o, r, _d) = shader_run(
+        &["bindless.rchit"],
+        &["--repeat", "1", "--timeout", "3", "--inject-fault", "stage=closest_hit@hang"],
+        &[],
+    );
+    assert_eq!(o.status.code(), Some(1), "{}{}", stdout(&o), stderr(&o));
+    let r = r.expect("the report is written");
+    let (modules, _) = injected(&r);
+    // The material read and the texture read.
+    assert_eq!(modules, [("bindless.rchit".to_string(), 2)]);
+    for variant in variants(&r) {
+        assert_eq!(
+            (variant["outcome"].as_str(), variant["judgement"].as_str()),
+            (Some("timeout"), Some("fault")),
+            "{variant}"
+        );
+        let a = &attempts(variant)[0];
+        assert_eq!(a["outcome"], "timeout");
+        assert!(a["detail"].as_str().unwrap().contains("within 3s"), "{a}");
+    }
+    assert_eq!(r["outcome"], "timeout");
 }

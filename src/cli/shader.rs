@@ -11,6 +11,7 @@ use super::out::outln;
 use super::shader_exec::{self, Ctx, Ran, VariantRun};
 use super::shader_plan::{self, ShaderPlan};
 use crate::harness::child::JobModule;
+use crate::harness::inject::Request;
 use crate::model::shader_run::{self, ShaderRunReport, ShaderVariant};
 use crate::model::DescriptorModel;
 use crate::report::lock::{LockError, ReportLock};
@@ -40,6 +41,7 @@ const TAKEN: &[&str] = &[
     "spec",
     "descriptor_model",
     "heap_layout",
+    "inject_fault",
     // clap's ids of the argument groups themselves.
     "RunArgs",
     "Cli",
@@ -51,14 +53,22 @@ fn refuse_others(a: &RunArgs) -> Result<()> {
         return Ok(());
     };
     let flag = format!("--{}", id.replace('_', "-"));
-    let why = match id.as_str() {
-        "inject_fault" => "fault injection does not reach user shaders yet",
-        _ => "it applies to the generated matrix, which --shader replaces",
-    };
     Err(coded(
         exit::USAGE,
-        format!("{flag} cannot be used with --shader: {why}; drop it (--shader takes --entry, -I, -D, --target-env, --spec, --descriptor-model, --heap-layout, --repeat, --timeout, --dump, -o, --device, --validate)"),
+        format!("{flag} cannot be used with --shader: it applies to the generated matrix, which --shader replaces; drop it (--shader takes --entry, -I, -D, --target-env, --spec, --descriptor-model, --heap-layout, --repeat, --timeout, --dump, -o, --device, --validate, --inject-fault)"),
     ))
+}
+
+/// `--inject-fault` for `--shader`: one at most, `device` or `hang`, on the axes of an access.
+fn injection(a: &RunArgs) -> Result<Option<Request>> {
+    match a.inject_fault.as_slice() {
+        [] => Ok(None),
+        [one] => Request::parse(one).map(Some).map_err(|e| coded(exit::USAGE, e.to_string())),
+        more => Err(coded(
+            exit::USAGE,
+            format!("--inject-fault: {} given; --shader takes one (join alternatives in one term: stage=closest_hit|any_hit)", more.len()),
+        )),
+    }
 }
 
 /// `--repeat`, `--timeout` and `--setup-timeout` checked.
@@ -210,7 +220,8 @@ pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
     refuse_others(a)?;
     refuse_early(g, a)?;
     let (repeat, timeout, setup_timeout) = numbers(a)?;
-    let plan = shader_plan::plan(a)?;
+    let inject_fault = injection(a)?;
+    let plan = shader_plan::plan(a, inject_fault.as_ref())?;
     let model = model(a, &plan)?;
     let heap_layout = heap_layout(a, &plan, model)?;
     let spec = crate::harness::spec::parse_all(&a.spec, &plan.given)
@@ -255,6 +266,7 @@ pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
         .find_map(|r| r.device.clone())
         .unwrap_or(device_name);
     let mut notes = plan.notes.clone();
+    notes.extend(plan.injection.as_ref().map(|i| i.line()));
     let judged = shader_exec::compare_all(&device, &mut unpatched, &mut patched);
     notes.extend(judged.note);
     if let Some(d) = &a.dump {
@@ -367,5 +379,6 @@ fn report(
         variants,
         outcome,
         notes,
+        injection: plan.injection.clone(),
     }
 }

@@ -9,8 +9,10 @@ use super::exit::{self, coded};
 use super::out::errln;
 use super::patch_inputs::{self, Input, InputOptions};
 use crate::harness::child::JobModule;
+use crate::harness::inject::{self as injection, Request};
 use crate::harness::{self, UserModule};
 use crate::model::contract::HostContract;
+use crate::model::shader_injection::{InjectedModule, InjectedVariant, ShaderInjection};
 use crate::model::shader_run::ShaderInput;
 use crate::patches::layout::Rules;
 use crate::patches::pipeline::{self, Stage};
@@ -31,6 +33,8 @@ pub struct PlannedVariant {
     pub contract: HostContract,
     /// What the patch did (`rtprobe patch`'s lines).
     pub lines: Vec<String>,
+    /// The injected faults its modules still hold.
+    pub faults: usize,
 }
 
 /// Everything `run --shader` runs.
@@ -45,6 +49,8 @@ pub struct ShaderPlan {
     pub variants: Vec<PlannedVariant>,
     /// Patches that do not apply, or cannot be run, and why.
     pub notes: Vec<String>,
+    /// What `--inject-fault` injected, every variant's count included.
+    pub injection: Option<ShaderInjection>,
 }
 
 /// FNV-1a 128 of `bytes`, hex.
@@ -130,8 +136,33 @@ fn validate(input: &Input, warned: &mut bool) -> Result<(Rules, Option<ValOption
     }
 }
 
-/// Read, reduce, validate and reflect every input; complete and check the pipeline.
-pub fn plan(a: &RunArgs) -> Result<ShaderPlan> {
+/// `--inject-fault`'s fault put into input `i` (its words replaced) and validated again as the
+/// input was: what it matched.
+fn inject(i: &mut Input, r: &Request, val: Option<&ValOptions>) -> Result<InjectedModule> {
+    let bad = |e: String| coded(exit::BAD_INPUT, format!("{}: {e}", i.name));
+    let mut m =
+        crate::patches::load(&spirv_tools::bytes(&i.words)).map_err(|e| bad(e.to_string()))?;
+    let done = injection::inject(&mut m, r);
+    let words = crate::patches::assemble(&m);
+    if let Some(Validation::Invalid(msg)) = val.map(|o| spirv_tools::validate(&words, o)) {
+        return Err(coded(
+            exit::INTERNAL,
+            format!("{}: the module with the injected fault fails spirv-val ({msg}); please report it with the input", i.name),
+        ));
+    }
+    i.words = words;
+    Ok(InjectedModule {
+        file: i.name.clone(),
+        stage: injection::sites::stage(&m).map(|s| s.to_string()).unwrap_or_default(),
+        matched: done.sites.len(),
+        sites: done.sites,
+        skipped: done.skipped,
+    })
+}
+
+/// Read, reduce, validate and reflect every input (each with `inject`'s fault, when given);
+/// complete and check the pipeline.
+pub fn plan(a: &RunArgs, inject_fault: Option<&Request>) -> Result<ShaderPlan> {
     let opts = InputOptions {
         glsl: false,
         stage: None,
@@ -141,11 +172,14 @@ pub fn plan(a: &RunArgs) -> Result<ShaderPlan> {
         stage_hint: "",
     };
     let mut inputs = patch_inputs::read_with(&opts, &a.shader)?;
-    let mut warned = false;
+    let (mut warned, mut injected) = (false, vec![]);
     let (mut stages, mut val, mut modules, mut described) = (vec![], vec![], vec![], vec![]);
     for i in inputs.iter_mut() {
         entry(i, a.entry.as_deref())?;
         let (rules, o) = validate(i, &mut warned)?;
+        if let Some(r) = inject_fault {
+            injected.push(inject(i, r, o.as_ref())?);
+        }
         let m = UserModule::new(&i.name, &i.words).map_err(|e| {
             coded(exit::BAD_INPUT, format!("{e} — the harness cannot run this module as it is"))
         })?;
@@ -168,7 +202,22 @@ pub fn plan(a: &RunArgs) -> Result<ShaderPlan> {
         .map_err(|e| coded(exit::BAD_INPUT, format!("--shader: {e}")))?;
     let scalar = stages.iter().any(|s| s.rules == Rules::Scalar);
     let (variants, notes) = variants(&stages, &val);
-    Ok(ShaderPlan { inputs: described, given, modules, scalar, variants, notes })
+    let injection = inject_fault.map(|r| ShaderInjection {
+        spec: r.spec.clone(),
+        fault: r.fault.as_str().into(),
+        variants: std::iter::once(InjectedVariant {
+            name: "unpatched".into(),
+            faults: stages.iter().map(|s| injection::count(&s.module)).sum(),
+        })
+        .chain(
+            variants
+                .iter()
+                .map(|v| InjectedVariant { name: v.patch.as_str().into(), faults: v.faults }),
+        )
+        .collect(),
+        modules: injected,
+    });
+    Ok(ShaderPlan { inputs: described, given, modules, scalar, variants, notes, injection })
 }
 
 /// Each differential patch applied to a copy of the pipeline: the variants that apply and
@@ -219,6 +268,7 @@ fn variants(stages: &[Stage], val: &[Option<ValOptions>]) -> (Vec<PlannedVariant
             modules,
             contract: applied.contract,
             lines: applied.lines,
+            faults: copy.iter().map(|s| injection::count(&s.module)).sum(),
         });
     }
     (out, notes)

@@ -216,6 +216,7 @@ mod tests {
             variants,
             outcome: Outcome::Pass,
             notes,
+            injection: None,
         }
     }
 

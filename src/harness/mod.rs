@@ -20,6 +20,7 @@ mod compare;
 pub mod entry;
 mod error;
 pub mod heap;
+pub mod inject;
 pub mod ints;
 mod module;
 pub mod reflect;

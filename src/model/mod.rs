@@ -27,6 +27,7 @@ pub mod plan;
 pub mod registry;
 pub mod report;
 pub mod scene;
+pub mod shader_injection;
 pub mod shader_run;
 pub mod stats;
 pub mod text;

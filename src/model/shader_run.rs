@@ -137,9 +137,12 @@ pub struct ShaderRunReport {
     /// The worst variant's outcome.
     pub outcome: Outcome,
     /// Patches that do not apply, or were not run, and why; differential checks that compared
-    /// nothing informative.
+    /// nothing informative; what an injection matched (`ShaderInjection::line`).
     #[serde(skip_serializing_if = "Vec::is_empty", default)]
     pub notes: Vec<String>,
+    /// What `--inject-fault` injected (`None`: no injection).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub injection: Option<super::shader_injection::ShaderInjection>,
 }
 
 /// An attempt's own judgement: its fault, an error, its validation messages, its outputs
