@@ -11,6 +11,7 @@ use super::out::outln;
 use super::shader_exec::{self, Ctx, Ran, VariantRun};
 use super::shader_plan::{self, ShaderPlan};
 use crate::harness::child::JobModule;
+use crate::harness::Sizes;
 use crate::model::shader_run::{self, ShaderRunReport, ShaderVariant};
 use crate::report::lock::{LockError, ReportLock};
 use anyhow::{Context, Result};
@@ -28,6 +29,8 @@ const TAKEN: &[&str] = &[
     "include_dirs",
     "defines",
     "target_env",
+    "array_size",
+    "sink_size",
     "device",
     "out",
     "dump",
@@ -53,7 +56,7 @@ fn refuse_others(a: &RunArgs) -> Result<()> {
     };
     Err(coded(
         exit::USAGE,
-        format!("{flag} cannot be used with --shader: {why}; drop it (--shader takes --entry, -I, -D, --target-env, --repeat, --timeout, --dump, -o, --device, --validate)"),
+        format!("{flag} cannot be used with --shader: {why}; drop it (--shader takes --entry, -I, -D, --target-env, --array-size, --sink-size, --repeat, --timeout, --dump, -o, --device, --validate)"),
     ))
 }
 
@@ -71,6 +74,32 @@ fn numbers(a: &RunArgs) -> Result<(u32, Duration, Duration)> {
         }
     };
     Ok((repeat, secs(a.timeout, "--timeout")?, secs(a.setup_timeout, "--setup-timeout")?))
+}
+
+/// `--array-size` and `--sink-size` checked.
+fn sizes(a: &RunArgs) -> Result<Sizes> {
+    use crate::harness::sizes::{MAX_ARRAY_SIZE, SINK_BOUNDS};
+    let array = match a.array_size {
+        Some(n) if !(1..=MAX_ARRAY_SIZE as u64).contains(&n) => {
+            return Err(coded(
+                exit::USAGE,
+                format!("--array-size {n}: give 1 to {MAX_ARRAY_SIZE} elements"),
+            ))
+        }
+        n => n.map(|n| n as u32),
+    };
+    let sink = a.sink_size.unwrap_or(crate::harness::sizes::SINK_SIZE);
+    if !SINK_BOUNDS.contains(&sink) {
+        return Err(coded(
+            exit::USAGE,
+            format!(
+                "--sink-size {sink}: give {} to {} bytes",
+                SINK_BOUNDS.start(),
+                SINK_BOUNDS.end()
+            ),
+        ));
+    }
+    Ok(Sizes { array, sink })
 }
 
 /// What is refused before any device work: `--validate=gpu-av` (only the core layer runs in
@@ -147,7 +176,9 @@ pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
     refuse_others(a)?;
     refuse_early(g, a)?;
     let (repeat, timeout, setup_timeout) = numbers(a)?;
-    let plan = shader_plan::plan(a)?;
+    let sizes = sizes(a)?;
+    let mut plan = shader_plan::plan(a)?;
+    plan.modules = sizes.apply(plan.modules);
     let (device_index, device_name) = device(g, a, &plan)?;
     let (out, _lock) = reserve_out(a, &device_name)?;
     let dir = std::env::temp_dir().join(format!("rtprobe-shader-{}", std::process::id()));
@@ -166,6 +197,7 @@ pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
         timeout,
         setup_timeout,
         dir: dir.clone(),
+        sizes,
     };
     let ran = run_all(&ctx, &plan);
     let _ = std::fs::remove_dir_all(&dir);
@@ -283,6 +315,8 @@ fn report(
         "include_dirs": a.include_dirs,
         "defines": a.defines,
         "target_env": format!("{:?}", a.target_env.unwrap_or_default()),
+        "array_size": a.array_size,
+        "sink_size": a.sink_size,
     });
     ShaderRunReport {
         schema: shader_run::SCHEMA.into(),

@@ -34,6 +34,8 @@ pub struct Ctx {
     pub setup_timeout: Duration,
     /// The run's scratch folder (job and output files).
     pub dir: PathBuf,
+    /// `--array-size` and `--sink-size`.
+    pub sizes: crate::harness::Sizes,
 }
 
 /// One attempt as it came back: the record, and the outputs when it ran.
@@ -146,6 +148,7 @@ pub fn run_variant(
             last: ctx.repeat,
             timeout_ms: ctx.timeout.as_millis() as u64,
             dir: ctx.dir.clone(),
+            sizes: ctx.sizes,
         };
         let started = Instant::now();
         let (end, step, silence) = child(ctx, variant, &job)?;

@@ -1,7 +1,8 @@
 //! The patch harness: a ray tracing pipeline built from given SPIR-V modules (raygen, misses,
 //! closest-hit, any-hit, intersection, callables; a procedural hit group without an intersection
 //! shader of its own gets one that reports nothing), its resources made from the modules'
-//! reflected interface ([`reflect`]) with distinct data in every descriptor ([`resources`]), the
+//! reflected interface ([`reflect`]) with distinct data in every descriptor ([`resources`],
+//! [`textures`]; runtime arrays and the sink sized by [`sizes`]), the
 //! harness scene ([`scene`]: every index it produces within the runtime arrays) traced 64×64
 //! from its raygen, and every storage image and every writable storage buffer read back. Running
 //! the unpatched pipeline and the patched one — fed as the host contract says: each address in
@@ -24,12 +25,15 @@ pub mod reflect;
 mod resources;
 pub mod run;
 pub mod scene;
+pub mod sizes;
 mod supply;
+mod textures;
 
 pub use bindings::check as check_bindings;
 pub use compare::{compare, judge, Compared, Part, PartKind, Verdict};
 pub use error::HarnessError;
 pub use module::UserModule;
+pub use sizes::Sizes;
 pub use supply::{supply, MISS_MARKER};
 
 use crate::exec::pipeline::{self, Pipeline, RtPipeline, SbtCounts};
@@ -130,12 +134,14 @@ const NO_INTERSECTION: &str =
 impl Harness {
     /// The scene and resources for `modules` (every module the pipelines will use, unpatched:
     /// the patched ones read the same resources through addresses), push constants of
-    /// `push_size` bytes, each submission fenced with `timeout`.
+    /// `push_size` bytes, each submission fenced with `timeout`, the sink of `sink_size` bytes
+    /// (`Sizes::sink`).
     pub fn new(
         gpu: Gpu,
         modules: &[&UserModule],
         push_size: u32,
         timeout: Duration,
+        sink_size: u64,
     ) -> Result<Harness, HarnessError> {
         let submitter = Submitter::new(&gpu)?;
         let scene = SceneGpu::build_with(
@@ -155,7 +161,8 @@ impl Harness {
             .flat_map(|m| &m.iface.bindings)
             .find(|b| b.kind == BindingKind::AccelerationStructure)
             .map(|b| (b.set, b.binding));
-        let res = Resources::new(&gpu, &bindings, scene_at, &scene, extent)?;
+        let res = Resources::new(&gpu, &bindings, scene_at, &scene, extent, sink_size)?;
+        textures::upload(&gpu, &submitter, timeout, &res.textures())?;
         let push_size = push_size.div_ceil(4) * 4;
         let mut push_ints = ints::IntWords::default();
         for m in modules {
@@ -514,7 +521,7 @@ pub fn verify_with(
     let push =
         b.iter().chain(&a).map(|m| m.iface.push_end).max().unwrap_or(0).max(contract.push_end);
     step("scene");
-    let h = Harness::new(gpu, &b, push, timeout)?;
+    let h = Harness::new(gpu, &b, push, timeout, sizes::SINK_SIZE)?;
     step("trace unpatched");
     let unpatched = h.trace(&b, None)?;
     // Twice: what differs between two unpatched runs (an append queue's order) is not compared.

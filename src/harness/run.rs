@@ -52,6 +52,9 @@ pub struct ShaderJob {
     pub timeout_ms: u64,
     /// Where the outputs go.
     pub dir: PathBuf,
+    /// `--array-size` and `--sink-size`.
+    #[serde(default)]
+    pub sizes: super::Sizes,
 }
 
 /// What one attempt came to.
@@ -112,6 +115,9 @@ pub fn pipeline_desc(modules: &[UserModule], max_hit_attribute: u32) -> Pipeline
             BindingKind::StorageImage(_) => DescriptorKind::StorageImage,
             BindingKind::StorageBuffer(_) => DescriptorKind::StorageBuffer,
             BindingKind::UniformBuffer(_) => DescriptorKind::UniformBuffer,
+            BindingKind::SampledImage => DescriptorKind::SampledImage,
+            BindingKind::Sampler => DescriptorKind::Sampler,
+            BindingKind::CombinedImageSampler => DescriptorKind::CombinedImageSampler,
         };
         bindings.push(BindingDesc { set: b.set, binding: b.binding, kind, count: b.count, stages });
     }
@@ -204,6 +210,7 @@ fn harness(job: &ShaderJob) -> Result<(Harness, Vec<UserModule>), HarnessError> 
     // Stages the modules lack supplied, at the same bindings in every variant (as `verify_with`).
     let at = supply::free_binding(&unpatched).max(supply::free_binding(&variant));
     let (unpatched, variant) = (supply::supply_at(unpatched, at)?, supply::supply_at(variant, at)?);
+    let (unpatched, variant) = (job.sizes.apply(unpatched), job.sizes.apply(variant));
     let inst = Arc::new(Instance::new(&InstanceOptions { validate: job.validate, gpu_av: false })?);
     let all = features::query_all(&inst)?;
     let info = all
@@ -219,7 +226,8 @@ fn harness(job: &ShaderJob) -> Result<(Harness, Vec<UserModule>), HarnessError> 
         .unwrap_or(0)
         .max(job.contract.as_ref().map_or(0, |c| c.push_end));
     let refs: Vec<&UserModule> = unpatched.iter().collect();
-    let h = Harness::new(gpu, &refs, push, Duration::from_millis(job.timeout_ms))?;
+    let timeout = Duration::from_millis(job.timeout_ms);
+    let h = Harness::new(gpu, &refs, push, timeout, job.sizes.sink)?;
     Ok((h, variant))
 }
 
