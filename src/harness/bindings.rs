@@ -124,6 +124,19 @@ mod tests {
         assert_eq!(m.len(), 2);
     }
 
+    /// A texture or a sampler declared at a combined image sampler's binding is that combined
+    /// image sampler; a texture and a sampler at one binding are not.
+    #[test]
+    fn textures_at_a_combined_samplers_binding_are_it() {
+        use BindingKind::{CombinedImageSampler, SampledImage, Sampler};
+        for other in [SampledImage, Sampler, CombinedImageSampler] {
+            let m = merged(&[b(0, other, 1), b(0, CombinedImageSampler, 8)]).unwrap();
+            assert_eq!((m[&(1, 0)].kind, m[&(1, 0)].count), (CombinedImageSampler, 8));
+        }
+        let e = merged(&[b(0, SampledImage, 1), b(0, Sampler, 1)]).unwrap_err().to_string();
+        assert!(e.contains("as a sampled image and as a sampler"), "{e}");
+    }
+
     /// Twin: kinds no one descriptor serves are refused, naming the binding.
     #[test]
     fn incompatible_kinds_at_one_binding_are_refused() {

@@ -162,7 +162,7 @@ impl Harness {
             .find(|b| b.kind == BindingKind::AccelerationStructure)
             .map(|b| (b.set, b.binding));
         let res = Resources::new(&gpu, &bindings, scene_at, &scene, extent, sink_size)?;
-        textures::upload(&gpu, &submitter, timeout, &res.textures())?;
+        res.textures.upload(&gpu, &submitter, timeout)?;
         let push_size = push_size.div_ceil(4) * 4;
         let mut push_ints = ints::IntWords::default();
         for m in modules {

@@ -25,8 +25,9 @@ pub enum Element {
     Tlas(vk::AccelerationStructureKHR, u64),
     Image(Image),
     Buffer(Buffer),
-    /// A texture (sampled image, or combined with the sampler) and its texture number.
-    Texture(Image, u32),
+    /// A texture (sampled image, or combined with the sampler): its view, which
+    /// `Resources::textures` owns.
+    Texture(vk::ImageView),
     /// The harness's sampler.
     Sampler,
 }
@@ -41,6 +42,8 @@ pub struct Resources {
     pub sink: Buffer,
     /// The sampler of every sampler and combined image sampler element.
     pub sampler: vk::Sampler,
+    /// Every texture element's image and view.
+    pub textures: textures::Textures,
 }
 const SINK_USAGE: vk::BufferUsageFlags = vk::BufferUsageFlags::from_raw(
     vk::BufferUsageFlags::STORAGE_BUFFER.as_raw()
@@ -161,6 +164,7 @@ fn storage_image(
 /// What [`Resources::new`] makes every element from.
 struct Making<'a> {
     tlases: Vec<&'a crate::scene::gpu::AccelStruct>,
+    textures: &'a textures::Textures,
     scene_at: Option<(u32, u32)>,
     extent: vk::Extent2D,
     sink: u64,
@@ -193,7 +197,7 @@ impl Making<'_> {
             }
             BindingKind::SampledImage | BindingKind::CombinedImageSampler => {
                 made.textures += 1;
-                Element::Texture(textures::new_texture(gpu)?, made.textures - 1)
+                Element::Texture(self.textures.views[made.textures as usize - 1])
             }
             BindingKind::Sampler => Element::Sampler,
         })
@@ -204,7 +208,7 @@ impl Resources {
     /// Resources for `bindings` (one per set and binding, aliases merged: `super::bindings`),
     /// TLASes from `scene` (the scene TLAS at `scene_at`, the supplied raygen's), images of
     /// `extent`, and the sink buffer of `sink_size` bytes. The textures are not filled yet
-    /// ([`Resources::textures`] lists them for `super::textures::upload`).
+    /// (`textures.upload`).
     pub fn new(
         gpu: &Gpu,
         bindings: &[Binding],
@@ -216,8 +220,18 @@ impl Resources {
         let unique = super::bindings::merged(bindings)?;
         let sink = Buffer::new(gpu, sink_size, SINK_USAGE, Location::Host, "harness sink")?;
         sink.write(0, &vec![0; sink_size as usize]);
+        let n_textures = unique
+            .values()
+            .filter(|b| {
+                matches!(b.kind, BindingKind::SampledImage | BindingKind::CombinedImageSampler)
+            })
+            .map(|b| b.count)
+            .sum();
+        let max_layers = gpu.info.properties.core.limits.max_image_array_layers;
+        let textures = textures::Textures::new(gpu, n_textures, max_layers)?;
         let making = Making {
             tlases: std::iter::once(&scene.scene_tlas).chain(&scene.probe_tlas).collect(),
+            textures: &textures,
             scene_at,
             extent,
             sink: sink.address,
@@ -232,20 +246,9 @@ impl Resources {
         }
         let sampler = textures::new_sampler(gpu)?;
         let (set_layouts, pool, sets) = descriptor_sets(gpu, &all)?;
-        let r = Resources { bindings: all, set_layouts, pool, sets, sink, sampler };
+        let r = Resources { bindings: all, set_layouts, pool, sets, sink, sampler, textures };
         r.write_sets(gpu);
         Ok(r)
-    }
-
-    /// Every texture element with its texture number, in binding order.
-    pub fn textures(&self) -> Vec<(&Image, u32)> {
-        let elems = self.bindings.values().flat_map(|(_, e)| e);
-        elems
-            .filter_map(|e| match e {
-                Element::Texture(i, k) => Some((i, *k)),
-                _ => None,
-            })
-            .collect()
     }
 
     /// Every buffer back to its own data (a shader may have written it).
@@ -313,12 +316,12 @@ impl Resources {
             (Element::Image(i), _) => {
                 info.image_view(i.view).image_layout(vk::ImageLayout::GENERAL)
             }
-            (Element::Texture(i, _), BindingKind::CombinedImageSampler) => info
-                .image_view(i.view)
+            (Element::Texture(v), BindingKind::CombinedImageSampler) => info
+                .image_view(*v)
                 .image_layout(vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL)
                 .sampler(self.sampler),
-            (Element::Texture(i, _), _) => {
-                info.image_view(i.view).image_layout(vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL)
+            (Element::Texture(v), _) => {
+                info.image_view(*v).image_layout(vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL)
             }
             (Element::Sampler, _) => info.sampler(self.sampler),
             (Element::Tlas(..) | Element::Buffer(_), _) => return None,
@@ -373,12 +376,13 @@ impl Resources {
         }
         self.sink.destroy(gpu);
         unsafe { gpu.device.destroy_sampler(self.sampler, None) };
+        self.textures.destroy(gpu);
         for (_, elems) in self.bindings.values() {
             for e in elems {
                 match e {
-                    Element::Image(i) | Element::Texture(i, _) => i.destroy(gpu),
+                    Element::Image(i) => i.destroy(gpu),
                     Element::Buffer(b) => b.destroy(gpu),
-                    Element::Tlas(..) | Element::Sampler => {}
+                    Element::Tlas(..) | Element::Texture(..) | Element::Sampler => {}
                 }
             }
         }

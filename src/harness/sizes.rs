@@ -47,3 +47,35 @@ impl Sizes {
         modules
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `--array-size` reaches every runtime descriptor array and no fixed one; without it the
+    /// reflected counts stay.
+    #[test]
+    fn the_array_size_replaces_only_runtime_counts() {
+        let glsl = "#version 460\n#extension GL_EXT_ray_tracing : require\n\
+            #extension GL_EXT_nonuniform_qualifier : require\n\
+            layout(set = 1, binding = 0) uniform sampler2D maps[];\n\
+            layout(set = 1, binding = 1) uniform sampler2D fixed4[4];\n\
+            layout(set = 1, binding = 2) readonly buffer B { vec4 v[]; } bufs[];\n\
+            layout(location = 0) rayPayloadInEXT vec4 c;\n\
+            void main() { uint k = uint(c.w);\n\
+            c = textureLod(maps[nonuniformEXT(k)], vec2(0), 0.0)\n\
+            + textureLod(fixed4[k & 3u], vec2(0), 0.0) + bufs[nonuniformEXT(k)].v[0]; }\n";
+        let words = crate::shadergen::compile::Compiler::new()
+            .unwrap()
+            .compile_glsl(shaderc::ShaderKind::Miss, "t.rmiss", glsl)
+            .unwrap();
+        let m = UserModule::new("t.rmiss", &words).unwrap();
+        let counts = |ms: &[UserModule]| -> Vec<u32> {
+            ms[0].iface.bindings.iter().map(|b| b.count).collect()
+        };
+        let default = super::super::reflect::RUNTIME_ELEMENTS;
+        assert_eq!(counts(&Sizes::default().apply(vec![m.clone()])), [default, 4, default]);
+        let sized = Sizes { array: Some(300), sink: SINK_SIZE };
+        assert_eq!(counts(&sized.apply(vec![m])), [300, 4, 300]);
+    }
+}

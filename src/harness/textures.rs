@@ -1,13 +1,15 @@
 //! The harness's textures and sampler. Every element of every sampled-image or combined
-//! image sampler binding is its own [`TEXTURE_SIZE`]² `R32G32B32A32_SFLOAT` image whose texels
+//! image sampler binding is its own [`TEXTURE_SIZE`]² `R32G32B32A32_SFLOAT` 2D view whose texels
 //! encode the texture's number (counted over every texture element, as buffers are numbered)
 //! and the texel's own coordinates ([`texel`]), so a read of another element or of another
-//! texel changes what the shader computes. The images are filled through one staging buffer and
-//! left `SHADER_READ_ONLY_OPTIMAL` ([`upload`]); shaders only read them, so they are never
-//! refilled. One nearest, clamp-to-edge sampler (`exec::samplers::sampler_info`) serves every
+//! texel changes what the shader computes. The views are layers of a few array images
+//! ([`Textures`]: up to `maxImageArrayLayers` layers each, so 65,536 textures are not 65,536
+//! images and allocations, which lavapipe cannot map), filled through one staging buffer and
+//! left `SHADER_READ_ONLY_OPTIMAL` ([`Textures::upload`]); shaders only read them, so they are
+//! never refilled. One nearest, clamp-to-edge sampler (`exec::samplers::sampler_info`) serves every
 //! sampler and combined image sampler element.
 use super::error::HarnessError;
-use crate::vk::memory::{transition, Buffer, Image, Transition};
+use crate::vk::memory::{color_range, transition, Buffer, Image, Transition};
 use crate::vk::submit::{Submitter, Waited};
 use crate::vk::{Gpu, VkError, VkResultExt};
 use ash::vk;
@@ -43,11 +45,85 @@ pub fn texels(k: u32) -> Vec<u8> {
         .collect()
 }
 
-/// One texture, not yet filled.
-pub fn new_texture(gpu: &Gpu) -> Result<Image, VkError> {
-    let extent = vk::Extent2D { width: TEXTURE_SIZE, height: TEXTURE_SIZE };
-    let usage = vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST;
-    Image::new(gpu, extent, TEXTURE_FORMAT, usage)
+/// Every texture of a pipeline: array images, and a 2D view of each layer, texture `k` at
+/// layer `k mod max_layers` of image `k / max_layers`.
+pub struct Textures {
+    images: Vec<Image>,
+    pub views: Vec<vk::ImageView>,
+    max_layers: u32,
+}
+
+impl Textures {
+    /// `n` textures, not yet filled, in images of at most `max_layers` layers.
+    pub fn new(gpu: &Gpu, n: u32, max_layers: u32) -> Result<Textures, VkError> {
+        let max_layers = max_layers.max(1);
+        let mut t = Textures { images: Vec::new(), views: Vec::new(), max_layers };
+        let extent = vk::Extent2D { width: TEXTURE_SIZE, height: TEXTURE_SIZE };
+        let usage = vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST;
+        for first in (0..n).step_by(max_layers as usize) {
+            let layers = (n - first).min(max_layers);
+            let img = Image::with_layers(gpu, extent, TEXTURE_FORMAT, usage, Some(layers))
+                .inspect_err(|_| t.destroy(gpu))?;
+            let raw = img.raw;
+            t.images.push(img);
+            for layer in 0..layers {
+                let view = layer_view(gpu, raw, layer).inspect_err(|_| t.destroy(gpu))?;
+                t.views.push(view);
+            }
+        }
+        Ok(t)
+    }
+
+    /// Fill every texture with its [`texels`] in one submission fenced with `timeout`, leaving
+    /// them `SHADER_READ_ONLY_OPTIMAL`.
+    pub fn upload(
+        &self,
+        gpu: &Gpu,
+        submitter: &Submitter,
+        timeout: Duration,
+    ) -> Result<(), HarnessError> {
+        if self.views.is_empty() {
+            return Ok(());
+        }
+        let bytes: Vec<u8> = (0..self.views.len() as u32).flat_map(texels).collect();
+        let staging =
+            Buffer::with_data(gpu, &bytes, vk::BufferUsageFlags::TRANSFER_SRC, "texture staging")?;
+        let per = (TEXTURE_SIZE * TEXTURE_SIZE * TEXEL_BYTES) as u64;
+        let n = self.views.len() as u32;
+        let waited = submitter.run(gpu, timeout, |cmd| {
+            for (c, img) in self.images.iter().enumerate() {
+                let first = c as u32 * self.max_layers;
+                let layers = (n - first).min(self.max_layers);
+                record_copy(gpu, cmd, img, &staging, (first as u64 * per, layers));
+            }
+        });
+        staging.destroy(gpu);
+        match waited? {
+            Waited::Done(_) => Ok(()),
+            Waited::TimedOut => Err(HarnessError::Timeout(timeout)),
+        }
+    }
+
+    pub fn destroy(&self, gpu: &Gpu) {
+        for v in &self.views {
+            unsafe { gpu.device.destroy_image_view(*v, None) };
+        }
+        for i in &self.images {
+            i.destroy(gpu);
+        }
+    }
+}
+
+/// A 2D view of layer `layer` of `image`.
+fn layer_view(gpu: &Gpu, image: vk::Image, layer: u32) -> Result<vk::ImageView, VkError> {
+    let range =
+        vk::ImageSubresourceRange { base_array_layer: layer, layer_count: 1, ..color_range() };
+    let vci = vk::ImageViewCreateInfo::default()
+        .image(image)
+        .view_type(vk::ImageViewType::TYPE_2D)
+        .format(TEXTURE_FORMAT)
+        .subresource_range(range);
+    unsafe { gpu.device.create_image_view(&vci, None) }.at("vkCreateImageView")
 }
 
 /// The sampler of every sampler and combined image sampler element.
@@ -56,36 +132,15 @@ pub fn new_sampler(gpu: &Gpu) -> Result<vk::Sampler, VkError> {
     unsafe { gpu.device.create_sampler(&info, None) }.at("vkCreateSampler")
 }
 
-/// Fill each of `textures` (image, texture number) with its [`texels`] in one submission fenced
-/// with `timeout`, leaving them `SHADER_READ_ONLY_OPTIMAL`.
-pub fn upload(
+/// Record the copy of `staging`'s bytes at `offset` into the first `layers` layers of `img`:
+/// UNDEFINED → TRANSFER_DST, the copy, then SHADER_READ_ONLY_OPTIMAL for the trace's reads.
+fn record_copy(
     gpu: &Gpu,
-    submitter: &Submitter,
-    timeout: Duration,
-    textures: &[(&Image, u32)],
-) -> Result<(), HarnessError> {
-    if textures.is_empty() {
-        return Ok(());
-    }
-    let bytes: Vec<u8> = textures.iter().flat_map(|(_, k)| texels(*k)).collect();
-    let staging =
-        Buffer::with_data(gpu, &bytes, vk::BufferUsageFlags::TRANSFER_SRC, "texture staging")?;
-    let per = (TEXTURE_SIZE * TEXTURE_SIZE * TEXEL_BYTES) as u64;
-    let waited = submitter.run(gpu, timeout, |cmd| {
-        for (n, (img, _)) in textures.iter().enumerate() {
-            record_copy(gpu, cmd, img, &staging, n as u64 * per);
-        }
-    });
-    staging.destroy(gpu);
-    match waited? {
-        Waited::Done(_) => Ok(()),
-        Waited::TimedOut => Err(HarnessError::Timeout(timeout)),
-    }
-}
-
-/// Record the copy of `staging`'s bytes at `offset` into `img`: UNDEFINED → TRANSFER_DST, the
-/// copy, then SHADER_READ_ONLY_OPTIMAL for the trace's reads.
-fn record_copy(gpu: &Gpu, cmd: vk::CommandBuffer, img: &Image, staging: &Buffer, offset: u64) {
+    cmd: vk::CommandBuffer,
+    img: &Image,
+    staging: &Buffer,
+    (offset, layers): (u64, u32),
+) {
     let top =
         (vk::ImageLayout::UNDEFINED, vk::AccessFlags::empty(), vk::PipelineStageFlags::TOP_OF_PIPE);
     let dst = (
@@ -105,7 +160,7 @@ fn record_copy(gpu: &Gpu, cmd: vk::CommandBuffer, img: &Image, staging: &Buffer,
             aspect_mask: vk::ImageAspectFlags::COLOR,
             mip_level: 0,
             base_array_layer: 0,
-            layer_count: 1,
+            layer_count: layers,
         })
         .image_extent(vk::Extent3D { width: TEXTURE_SIZE, height: TEXTURE_SIZE, depth: 1 });
     unsafe {
