@@ -85,6 +85,55 @@ fn a_bindless_closest_hit_runs_clean_in_every_variant() {
     assert!(std::fs::read(&png).is_ok_and(|b| b.starts_with(b"\x89PNG")), "{}", png.display());
 }
 
+/// Issue #24 (textures): bindless closest-hits indexing an SSBO array and a texture array by a
+/// push-constant base plus gl_InstanceCustomIndexEXT, `nonuniformEXT` — combined image samplers,
+/// and separate `texture2D[]` with a `sampler` — clean in every variant: no validation message,
+/// no fault, the same outputs.
+#[test]
+fn bindless_textured_closest_hits_run_clean_in_every_variant() {
+    for hit in ["textured.rchit", "textured_split.rchit"] {
+        let (o, r, _d) = shader_run(&["raygen.rgen", "miss.rmiss", hit], &["--repeat", "2"], &[]);
+        let r = r.unwrap_or_else(|| panic!("{hit}: no report: {}", stderr(&o)));
+        assert_clean(&o, &r, 2, 2);
+    }
+}
+
+/// Issue #24 (textures): a glTF-style closest-hit — a scene-description SSBO of buffer-reference
+/// addresses and per-mesh offsets, the base colour from `textureSamplers[nonuniformEXT(txtId)]`
+/// — clean in every variant.
+#[test]
+fn a_gltf_closest_hit_with_textures_runs_clean_in_every_variant() {
+    let (o, r, _d) =
+        shader_run(&["raygen.rgen", "miss.rmiss", "gltf.rchit"], &["--repeat", "2"], &[]);
+    let r = r.unwrap_or_else(|| panic!("no report: {}", stderr(&o)));
+    assert_clean(&o, &r, 2, 2);
+}
+
+/// `--array-size` and `--sink-size` reach the children: a texture array of 128 elements and a
+/// 64 KiB sink run clean, recorded in the report's options; out of their bounds, one line.
+#[test]
+fn array_and_sink_sizes_are_taken_and_checked() {
+    let files = ["raygen.rgen", "miss.rmiss", "gltf.rchit"];
+    let sized = ["--repeat", "1", "--array-size", "128", "--sink-size", "65536"];
+    let (o, r, _d) = shader_run(&files, &sized, &[]);
+    let r = r.unwrap_or_else(|| panic!("no report: {}", stderr(&o)));
+    assert_clean(&o, &r, 2, 1);
+    assert_eq!(
+        (&r["options"]["array_size"], &r["options"]["sink_size"]),
+        (&128.into(), &65536.into())
+    );
+    for (flag, value, needle) in [
+        ("--array-size", "0", "--array-size 0: give 1 to 65536 elements"),
+        ("--array-size", "65537", "--array-size 65537: give 1 to 65536"),
+        ("--sink-size", "8", "--sink-size 8: give 16 to 1073741824 bytes"),
+        ("--sink-size", "2000000000", "--sink-size 2000000000: give 16"),
+    ] {
+        let (o, r, _d) = shader_run(&files, &[flag, value], &[]);
+        assert_one_line_error(&o, 2, needle);
+        assert!(r.is_none(), "no report for {flag} {value}");
+    }
+}
+
 /// (f) The bindless closest-hit given alone: rtprobe supplies a raygen sending its payload type
 /// and a miss; clean in every variant, the supplied raygen's payload words among the outputs.
 #[test]
@@ -268,13 +317,25 @@ fn bad_input_is_one_line_and_no_report() {
     let (o, r, _d) = shader_run(&[node.to_str().unwrap()], &[], &[]);
     assert_one_line_error(&o, 9, "give your raygen with --shader");
     assert!(r.is_none(), "no report for node.rchit");
-    // A binding the harness cannot make (a combined image sampler) and an invalid module.
+    // Textures the harness does not make (a 3D one, a cube map) and a storage image of unknown
+    // format: one line naming the set and binding.
     let d = tempfile::tempdir().unwrap();
-    let tex = d.path().join("tex.rchit");
-    std::fs::write(&tex, "#version 460\n#extension GL_EXT_ray_tracing : require\nlayout(set = 1, binding = 0) uniform sampler2D albedo;\nlayout(location = 0) rayPayloadInEXT vec4 p;\nvoid main() { p = texture(albedo, vec2(0.5)); }\n").unwrap();
-    let (o, r, _d2) = shader_run(&["raygen.rgen", "miss.rmiss", tex.to_str().unwrap()], &[], &[]);
-    assert_one_line_error(&o, 9, "set 1 binding 0");
-    assert!(r.is_none());
+    for (decl, read, what) in [
+        ("uniform sampler3D volume", "textureLod(volume, vec3(0.5), 0.0)", "a 3D texture"),
+        ("uniform samplerCube sky", "textureLod(sky, vec3(0, 0, 1), 0.0)", "a cube texture"),
+        (
+            "uniform readonly image2D raw",
+            "imageLoad(raw, ivec2(0))",
+            "a StorageImage(Unknown) descriptor",
+        ),
+    ] {
+        let tex = d.path().join("tex.rchit");
+        std::fs::write(&tex, format!("#version 460\n#extension GL_EXT_ray_tracing : require\n#extension GL_EXT_shader_image_load_formatted : require\nlayout(set = 1, binding = 3) {decl};\nlayout(location = 0) rayPayloadInEXT vec4 p;\nvoid main() {{ p = {read}; }}\n")).unwrap();
+        let (o, r, _d2) =
+            shader_run(&["raygen.rgen", "miss.rmiss", tex.to_str().unwrap()], &[], &[]);
+        assert_one_line_error(&o, 9, &format!("set 1 binding 3: {what}"));
+        assert!(r.is_none());
+    }
     // A stage the harness does not run, and a raygen without its capability (spirv-val fails).
     let frag = "OpCapability Shader\nOpMemoryModel Logical GLSL450\nOpEntryPoint Fragment %main \"main\"\nOpExecutionMode %main OriginUpperLeft\n";
     let rgen = "OpCapability Shader\nOpMemoryModel Logical GLSL450\nOpEntryPoint RayGenerationKHR %main \"main\"\n";

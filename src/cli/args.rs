@@ -372,6 +372,15 @@ pub struct RunArgs {
     /// the modules alone do not determine (docs/your-shader.md)
     #[arg(long, value_name = "FILE", requires = "shader", help_heading = "Your shaders")]
     pub heap_layout: Option<PathBuf>,
+    /// With --shader: the elements of every runtime-sized descriptor array (`textures[]`,
+    /// `buffer B {…} b[]`), 1 to 65536 (default: one per index the harness scene produces, 64)
+    #[arg(long, value_name = "N", requires = "shader", help_heading = "Your shaders")]
+    pub array_size: Option<u64>,
+
+    /// With --shader: the bytes of the zero-filled sink buffer every 64-bit integer and
+    /// buffer_reference pointer points at, 16 to 1073741824 (default 4 MiB)
+    #[arg(long, value_name = "BYTES", requires = "shader", help_heading = "Your shaders")]
+    pub sink_size: Option<u64>,
 
     /// Set by `--cell-spec`: the bundle's `shaders/` folder, whose SPIR-V the worker runs instead
     /// of compiling the GLSL (not a flag).

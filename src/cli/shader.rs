@@ -12,6 +12,7 @@ use super::shader_exec::{self, Ctx, Ran, VariantRun};
 use super::shader_plan::{self, ShaderPlan};
 use crate::harness::child::JobModule;
 use crate::harness::inject::Request;
+use crate::harness::Sizes;
 use crate::model::shader_run::{self, ShaderRunReport, ShaderVariant};
 use crate::model::DescriptorModel;
 use crate::report::lock::{LockError, ReportLock};
@@ -30,6 +31,8 @@ const TAKEN: &[&str] = &[
     "include_dirs",
     "defines",
     "target_env",
+    "array_size",
+    "sink_size",
     "device",
     "out",
     "dump",
@@ -55,7 +58,7 @@ fn refuse_others(a: &RunArgs) -> Result<()> {
     let flag = format!("--{}", id.replace('_', "-"));
     Err(coded(
         exit::USAGE,
-        format!("{flag} cannot be used with --shader: it applies to the generated matrix, which --shader replaces; drop it (--shader takes --entry, -I, -D, --target-env, --spec, --descriptor-model, --heap-layout, --repeat, --timeout, --dump, -o, --device, --validate, --inject-fault)"),
+        format!("{flag} cannot be used with --shader: it applies to the generated matrix, which --shader replaces; drop it (--shader takes --entry, -I, -D, --target-env, --spec, --descriptor-model, --heap-layout, --array-size, --sink-size, --repeat, --timeout, --dump, -o, --device, --validate, --inject-fault)"),
     ))
 }
 
@@ -85,6 +88,32 @@ fn numbers(a: &RunArgs) -> Result<(u32, Duration, Duration)> {
         }
     };
     Ok((repeat, secs(a.timeout, "--timeout")?, secs(a.setup_timeout, "--setup-timeout")?))
+}
+
+/// `--array-size` and `--sink-size` checked.
+fn sizes(a: &RunArgs) -> Result<Sizes> {
+    use crate::harness::sizes::{MAX_ARRAY_SIZE, SINK_BOUNDS};
+    let array = match a.array_size {
+        Some(n) if !(1..=MAX_ARRAY_SIZE as u64).contains(&n) => {
+            return Err(coded(
+                exit::USAGE,
+                format!("--array-size {n}: give 1 to {MAX_ARRAY_SIZE} elements"),
+            ))
+        }
+        n => n.map(|n| n as u32),
+    };
+    let sink = a.sink_size.unwrap_or(crate::harness::sizes::SINK_SIZE);
+    if !SINK_BOUNDS.contains(&sink) {
+        return Err(coded(
+            exit::USAGE,
+            format!(
+                "--sink-size {sink}: give {} to {} bytes",
+                SINK_BOUNDS.start(),
+                SINK_BOUNDS.end()
+            ),
+        ));
+    }
+    Ok(Sizes { array, sink })
 }
 
 /// What is refused before any device work: `--validate=gpu-av` (only the core layer runs in
@@ -165,6 +194,28 @@ fn reserve_out(a: &RunArgs, device: &str) -> Result<(PathBuf, ReportLock)> {
 /// The descriptor model `--descriptor-model` asks for, checked against what the modules read:
 /// heap modules run only with the heap model, set/binding modules never with it.
 fn model(a: &RunArgs, plan: &ShaderPlan) -> Result<DescriptorModel> {
+    let m = model_of(a, plan)?;
+    let texture = plan.modules.iter().flat_map(|m| &m.iface.bindings).find(|b| {
+        use crate::harness::reflect::BindingKind as K;
+        match b.kind {
+            K::SampledImage | K::Sampler | K::CombinedImageSampler => true,
+            K::AccelerationStructure
+            | K::StorageImage(_)
+            | K::StorageBuffer(_)
+            | K::UniformBuffer(_) => false,
+        }
+    });
+    match (m, texture) {
+        (DescriptorModel::DescriptorIndexing, _) | (_, None) => Ok(m),
+        (DescriptorModel::DescriptorBuffer | DescriptorModel::DescriptorHeap, Some(b)) => Err(coded(
+            exit::USAGE,
+            format!("--descriptor-model {}: set {} binding {} is a texture or sampler, which the harness binds with descriptor sets only for now; run with descriptor_indexing", m.as_str(), b.set, b.binding),
+        )),
+    }
+}
+
+/// The model `--descriptor-model` asks for, or the one the modules imply.
+fn model_of(a: &RunArgs, plan: &ShaderPlan) -> Result<DescriptorModel> {
     let heap = crate::harness::heap::uses_heap(&plan.given);
     let bad = |m: &str, why: &str| coded(exit::USAGE, format!("--descriptor-model {m}: {why}"));
     match (a.descriptor_model, heap) {
@@ -220,8 +271,10 @@ pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
     refuse_others(a)?;
     refuse_early(g, a)?;
     let (repeat, timeout, setup_timeout) = numbers(a)?;
+    let sizes = sizes(a)?;
     let inject_fault = injection(a)?;
-    let plan = shader_plan::plan(a, inject_fault.as_ref())?;
+    let mut plan = shader_plan::plan(a, inject_fault.as_ref())?;
+    plan.modules = sizes.apply(plan.modules);
     let model = model(a, &plan)?;
     let heap_layout = heap_layout(a, &plan, model)?;
     let spec = crate::harness::spec::parse_all(&a.spec, &plan.given)
@@ -247,6 +300,7 @@ pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
         model,
         spec,
         heap_layout,
+        sizes,
     };
     let ran = run_all(&ctx, &plan);
     let _ = std::fs::remove_dir_all(&dir);
@@ -368,6 +422,8 @@ fn report(
         "target_env": format!("{:?}", a.target_env.unwrap_or_default()),
         "spec": a.spec,
         "heap_layout": a.heap_layout,
+        "array_size": a.array_size,
+        "sink_size": a.sink_size,
     });
     ShaderRunReport {
         schema: shader_run::SCHEMA.into(),

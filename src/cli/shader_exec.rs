@@ -38,6 +38,8 @@ pub struct Ctx {
     pub model: DescriptorModel,
     pub spec: Vec<SpecValue>,
     pub heap_layout: Option<Vec<crate::harness::heap::Array>>,
+    /// `--array-size` and `--sink-size`.
+    pub sizes: crate::harness::Sizes,
 }
 
 /// One attempt as it came back: the record, and the outputs when it ran.
@@ -153,6 +155,7 @@ pub fn run_variant(
             model: Some(ctx.model),
             spec: ctx.spec.clone(),
             heap_layout: ctx.heap_layout.clone(),
+            sizes: ctx.sizes,
         };
         let started = Instant::now();
         let (end, step, silence) = child(ctx, variant, &job)?;

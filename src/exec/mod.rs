@@ -37,7 +37,7 @@ pub mod prebuild;
 mod record;
 pub mod resources;
 mod run;
-mod samplers;
+pub mod samplers;
 mod seen;
 mod setup;
 

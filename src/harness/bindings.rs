@@ -3,7 +3,8 @@
 //! binding, as bindless engines declare `buffer Floats {vec4 v[];}` and `buffer Words {uint
 //! u[];}` at one set/binding), is one binding: of the largest buffer size, the largest array
 //! count, every declaration's integer and address words (`ints::IntWords::merge`), writable or
-//! atomic when any declaration is. Kinds that cannot share one descriptor (a storage buffer and
+//! atomic when any declaration is; a texture or a sampler at a combined image sampler's binding is
+//! that combined image sampler. Kinds that cannot share one descriptor (a storage buffer and
 //! a uniform buffer, an image and a buffer, two image formats) are refused with an error naming
 //! the binding, before any device work (`run::check_pipeline`).
 use super::error::HarnessError;
@@ -19,7 +20,21 @@ fn common_kind(a: BindingKind, b: BindingKind) -> Option<BindingKind> {
         (UniformBuffer(x), UniformBuffer(y)) => Some(UniformBuffer(x.max(y))),
         (AccelerationStructure, AccelerationStructure) => Some(AccelerationStructure),
         (StorageImage(f), StorageImage(g)) if f == g => Some(a),
-        (StorageBuffer(_) | UniformBuffer(_) | AccelerationStructure | StorageImage(_), _) => None,
+        (SampledImage, SampledImage) => Some(SampledImage),
+        (Sampler, Sampler) => Some(Sampler),
+        // A combined image sampler serves a texture or a sampler declared at its binding.
+        (CombinedImageSampler, CombinedImageSampler | SampledImage | Sampler)
+        | (SampledImage | Sampler, CombinedImageSampler) => Some(CombinedImageSampler),
+        (
+            StorageBuffer(_)
+            | UniformBuffer(_)
+            | AccelerationStructure
+            | StorageImage(_)
+            | SampledImage
+            | Sampler
+            | CombinedImageSampler,
+            _,
+        ) => None,
     }
 }
 
@@ -64,6 +79,9 @@ fn describe(k: BindingKind) -> String {
         BindingKind::StorageImage(f) => format!("a {f:?} storage image"),
         BindingKind::StorageBuffer(_) => "a storage buffer".into(),
         BindingKind::UniformBuffer(_) => "a uniform buffer".into(),
+        BindingKind::SampledImage => "a sampled image".into(),
+        BindingKind::Sampler => "a sampler".into(),
+        BindingKind::CombinedImageSampler => "a combined image sampler".into(),
     }
 }
 
@@ -104,6 +122,19 @@ mod tests {
         use crate::harness::ints::Fill;
         assert_eq!((one.ints.at(8), one.ints.at(12)), (Fill::AddressLow, Fill::AddressHigh));
         assert_eq!(m.len(), 2);
+    }
+
+    /// A texture or a sampler declared at a combined image sampler's binding is that combined
+    /// image sampler; a texture and a sampler at one binding are not.
+    #[test]
+    fn textures_at_a_combined_samplers_binding_are_it() {
+        use BindingKind::{CombinedImageSampler, SampledImage, Sampler};
+        for other in [SampledImage, Sampler, CombinedImageSampler] {
+            let m = merged(&[b(0, other, 1), b(0, CombinedImageSampler, 8)]).unwrap();
+            assert_eq!((m[&(1, 0)].kind, m[&(1, 0)].count), (CombinedImageSampler, 8));
+        }
+        let e = merged(&[b(0, SampledImage, 1), b(0, Sampler, 1)]).unwrap_err().to_string();
+        assert!(e.contains("as a sampled image and as a sampler"), "{e}");
     }
 
     /// Twin: kinds no one descriptor serves are refused, naming the binding.

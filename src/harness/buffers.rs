@@ -19,12 +19,17 @@ pub struct DescriptorBuffers {
     sets: Vec<(u32, Buffer, vk::BufferUsageFlags)>,
 }
 
-fn resource(kind: BindingKind) -> Resource {
+/// The matrix's resource of a binding kind; textures and samplers are not written into
+/// descriptor buffers yet (`heap::target` says so).
+fn resource(kind: BindingKind) -> Option<Resource> {
     match kind {
-        BindingKind::AccelerationStructure => Resource::AccelerationStructure,
-        BindingKind::StorageImage(_) => Resource::StorageImage,
-        BindingKind::StorageBuffer(_) => Resource::StorageBuffer,
-        BindingKind::UniformBuffer(_) => Resource::UniformBuffer,
+        BindingKind::AccelerationStructure => Some(Resource::AccelerationStructure),
+        BindingKind::StorageImage(_) => Some(Resource::StorageImage),
+        BindingKind::StorageBuffer(_) => Some(Resource::StorageBuffer),
+        BindingKind::UniformBuffer(_) => Some(Resource::UniformBuffer),
+        BindingKind::SampledImage | BindingKind::Sampler | BindingKind::CombinedImageSampler => {
+            None
+        }
     }
 }
 
@@ -43,13 +48,23 @@ impl DescriptorBuffers {
         let mut out = DescriptorBuffers { sets: Vec::new() };
         for (set, layout) in layouts.iter().enumerate() {
             let set = set as u32;
-            let targets: Vec<(u32, Resource, Vec<Target>)> = all
+            let targets: Result<Vec<(u32, Resource, Vec<Target>)>, HarnessError> = all
                 .iter()
                 .filter(|(k, _)| k.0 == set)
                 .map(|(k, (b, elems))| {
-                    (k.1, resource(b.kind), elems.iter().map(|e| target(e, b.kind).0).collect())
+                    let ts: Result<Vec<Target>, HarnessError> =
+                        elems.iter().map(|e| target(e, b.kind).map(|t| t.0)).collect();
+                    let r = resource(b.kind).ok_or_else(|| HarnessError::Unsupported("textures and samplers are bound with descriptor sets only for now: run without --descriptor-model descriptor_buffer".into()))?;
+                    Ok((k.1, r, ts?))
                 })
                 .collect();
+            let targets = match targets {
+                Ok(t) => t,
+                Err(e) => {
+                    out.destroy(gpu);
+                    return Err(e);
+                }
+            };
             if targets.is_empty() {
                 continue;
             }

@@ -195,13 +195,17 @@ pub struct HeapModel {
     pub mapping: Box<PipelineMapping>,
 }
 
-/// The descriptor of element `e` of a set/binding binding of kind `kind`, and its view format.
-pub(super) fn target(e: &Element, kind: BindingKind) -> (Target, vk::Format) {
+/// The descriptor of element `e` of a set/binding binding of kind `kind`, and its view format;
+/// a texture or sampler is not placed in a heap or descriptor buffer yet: an error saying so.
+pub(super) fn target(e: &Element, kind: BindingKind) -> Result<(Target, vk::Format), HarnessError> {
     let format = match kind {
         BindingKind::StorageImage(f) => resources::format(f).map_or(vk::Format::UNDEFINED, |x| x.0),
         BindingKind::AccelerationStructure
         | BindingKind::StorageBuffer(_)
-        | BindingKind::UniformBuffer(_) => vk::Format::UNDEFINED,
+        | BindingKind::UniformBuffer(_)
+        | BindingKind::SampledImage
+        | BindingKind::Sampler
+        | BindingKind::CombinedImageSampler => vk::Format::UNDEFINED,
     };
     let t = match e {
         Element::Tlas(raw, address) => Target::Accel { raw: *raw, address: *address },
@@ -209,8 +213,11 @@ pub(super) fn target(e: &Element, kind: BindingKind) -> (Target, vk::Format) {
             Target::Image { image: i.raw, view: i.view, sampler: vk::Sampler::null(), layers: None }
         }
         Element::Buffer(b) => Target::Buffer { raw: b.raw, address: b.address, range: b.size },
+        Element::Texture(_) | Element::Sampler => {
+            return Err(HarnessError::Unsupported("textures and samplers are bound with descriptor sets only for now: run without --descriptor-model (descriptor_indexing)".into()))
+        }
     };
-    (t, format)
+    Ok((t, format))
 }
 
 impl HeapModel {
@@ -273,7 +280,15 @@ impl HeapModel {
             let stride = descriptor_stride(gpu, ty);
             let base = align(end, 256);
             for (k, e) in elems.iter().enumerate() {
-                let (target, format) = target(e, b.kind);
+                let (target, format) = match target(e, b.kind) {
+                    Ok(t) => t,
+                    Err(e) => {
+                        for b in &buffers {
+                            b.destroy(gpu);
+                        }
+                        return Err(e);
+                    }
+                };
                 placed.push(Placed {
                     offset: (base + k as u64 * stride as u64) as usize,
                     ty,

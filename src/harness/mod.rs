@@ -1,7 +1,8 @@
 //! The patch harness: a ray tracing pipeline built from given SPIR-V modules (raygen, misses,
 //! closest-hit, any-hit, intersection, callables; a procedural hit group without an intersection
 //! shader of its own gets one that reports nothing), its resources made from the modules'
-//! reflected interface ([`reflect`]) with distinct data in every descriptor ([`resources`]), the
+//! reflected interface ([`reflect`]) with distinct data in every descriptor ([`resources`],
+//! [`textures`]; runtime arrays and the sink sized by [`sizes`]), the
 //! harness scene ([`scene`]: every index it produces within the runtime arrays) traced 64×64
 //! from its raygen, and every storage image and every writable storage buffer read back. Running
 //! the unpatched pipeline and the patched one — fed as the host contract says: each address in
@@ -27,13 +28,16 @@ pub mod reflect;
 mod resources;
 pub mod run;
 pub mod scene;
+pub mod sizes;
 pub mod spec;
 mod supply;
+mod textures;
 
 pub use bindings::check as check_bindings;
 pub use compare::{compare, judge, Compared, Part, PartKind, Verdict};
 pub use error::HarnessError;
 pub use module::UserModule;
+pub use sizes::Sizes;
 pub use supply::{supply, MISS_MARKER};
 
 use crate::exec::pipeline::{self, Pipeline, RtPipeline, SbtCounts};
@@ -89,11 +93,18 @@ pub struct Setup {
     pub spec: Vec<spec::SpecValue>,
     /// The heap model's arrays as `--heap-layout` gives them (else read from the modules).
     pub heap_layout: Option<Vec<heap::Array>>,
+    /// The sink buffer's bytes (`--sink-size`).
+    pub sink: u64,
 }
 
 impl Default for Setup {
     fn default() -> Setup {
-        Setup { model: DescriptorModel::DescriptorIndexing, spec: Vec::new(), heap_layout: None }
+        Setup {
+            model: DescriptorModel::DescriptorIndexing,
+            spec: Vec::new(),
+            heap_layout: None,
+            sink: sizes::SINK_SIZE,
+        }
     }
 }
 
@@ -173,14 +184,22 @@ const NO_INTERSECTION: &str =
 impl Harness {
     /// The scene and resources for `modules` (every module the pipelines will use, unpatched:
     /// the patched ones read the same resources through addresses), push constants of
-    /// `push_size` bytes, each submission fenced with `timeout`.
+    /// `push_size` bytes, each submission fenced with `timeout`, the sink of `sink_size` bytes
+    /// (`Sizes::sink`).
     pub fn new(
         gpu: Gpu,
         modules: &[&UserModule],
         push_size: u32,
         timeout: Duration,
+        sink_size: u64,
     ) -> Result<Harness, HarnessError> {
-        Harness::with_setup(gpu, modules, push_size, timeout, Setup::default())
+        Harness::with_setup(
+            gpu,
+            modules,
+            push_size,
+            timeout,
+            Setup { sink: sink_size, ..Setup::default() },
+        )
     }
 
     /// [`Harness::new`] binding as `setup.model` says, specializing with `setup.spec`.
@@ -210,7 +229,9 @@ impl Harness {
             .find(|b| b.kind == BindingKind::AccelerationStructure)
             .map(|b| (b.set, b.binding));
         let buffer_model = setup.model == DescriptorModel::DescriptorBuffer;
-        let res = Resources::new(&gpu, &bindings, scene_at, &scene, extent, buffer_model)?;
+        let res =
+            Resources::new(&gpu, &bindings, scene_at, &scene, extent, (setup.sink, buffer_model))?;
+        res.textures.upload(&gpu, &submitter, timeout)?;
         let bound =
             match setup.model {
                 DescriptorModel::DescriptorHeap => {
@@ -658,7 +679,7 @@ pub fn verify_with(
     let push =
         b.iter().chain(&a).map(|m| m.iface.push_end).max().unwrap_or(0).max(contract.push_end);
     step("scene");
-    let h = Harness::new(gpu, &b, push, timeout)?;
+    let h = Harness::new(gpu, &b, push, timeout, sizes::SINK_SIZE)?;
     step("trace unpatched");
     let unpatched = h.trace(&b, None)?;
     // Twice: what differs between two unpatched runs (an append queue's order) is not compared.

@@ -1,14 +1,15 @@
 //! What a module asks of its host, the harness's view of its [`crate::reflect`]ion: its stage
 //! and entry point, its descriptor bindings (set, binding, type, array size; runtime arrays
 //! included) with the byte size of each buffer, and the bytes its push-constant block reads. Only the binding types the harness can
-//! make are accepted (acceleration structures, storage images, storage and uniform buffers); any
-//! other is refused naming its set and binding.
+//! make are accepted (acceleration structures, storage images of a known format, storage and
+//! uniform buffers, and 2D float textures: sampled images, samplers, combined image samplers);
+//! any other is refused naming its set and binding.
 use super::ints::{self, IntWords};
 use super::scene::{INDEX_BOUND, TRACE_SIZE};
 use crate::patches::{edit, push};
 use crate::reflect::{self, Count, Descriptor};
-use rspirv::dr::Module;
-use rspirv::spirv::{Decoration, ImageFormat, Op, Word};
+use rspirv::dr::{Module, Operand};
+use rspirv::spirv::{Decoration, Dim, ImageFormat, Op, Word};
 
 /// Elements given to a runtime-sized array of descriptors: one per index the harness scene can
 /// produce (`super::scene::INDEX_BOUND`), so an array indexed by `gl_InstanceCustomIndexEXT` and
@@ -36,6 +37,12 @@ pub enum BindingKind {
     StorageBuffer(u32),
     /// A uniform buffer of this many bytes (each element).
     UniformBuffer(u32),
+    /// A 2D float sampled image (`texture2D`): the harness's textures (`super::textures`).
+    SampledImage,
+    /// A sampler (`sampler`): the harness's one nearest, clamp-to-edge sampler.
+    Sampler,
+    /// A combined image sampler (`sampler2D`): a texture with that sampler.
+    CombinedImageSampler,
 }
 
 /// One descriptor binding.
@@ -98,14 +105,21 @@ fn binding(m: &Module, b: &reflect::Binding) -> Result<Binding, ReflectError> {
         Descriptor::StorageImage(f) if f != ImageFormat::Unknown => BindingKind::StorageImage(f),
         Descriptor::StorageBuffer => BindingKind::StorageBuffer(size()),
         Descriptor::UniformBuffer => BindingKind::UniformBuffer(size()),
+        Descriptor::Sampler => BindingKind::Sampler,
+        Descriptor::SampledImage | Descriptor::CombinedImageSampler => {
+            if let Some(why) = texture_refusal(m, b) {
+                return Err(refuse(&why));
+            }
+            match b.descriptor {
+                Descriptor::SampledImage => BindingKind::SampledImage,
+                _ => BindingKind::CombinedImageSampler,
+            }
+        }
         Descriptor::StorageImage(_)
-        | Descriptor::SampledImage
-        | Descriptor::CombinedImageSampler
-        | Descriptor::Sampler
         | Descriptor::UniformTexelBuffer
         | Descriptor::StorageTexelBuffer
         | Descriptor::InputAttachment => {
-            return Err(refuse(&format!("a {:?} descriptor, which the harness cannot make yet (acceleration structures, storage images of a known format, storage and uniform buffers)", b.descriptor)))
+            return Err(refuse(&format!("a {:?} descriptor, which the harness cannot make yet (acceleration structures, storage images of a known format, storage and uniform buffers, 2D float textures and samplers)", b.descriptor)))
         }
     };
     let (count, runtime) = match b.count {
@@ -114,7 +128,7 @@ fn binding(m: &Module, b: &reflect::Binding) -> Result<Binding, ReflectError> {
         Count::Runtime => (RUNTIME_ELEMENTS, true),
     };
     let writable = matches!(kind, BindingKind::StorageBuffer(_)) && b.writable;
-    let st = block_struct(m, b);
+    let st = element_type(m, b);
     let ints = match kind {
         BindingKind::StorageBuffer(_) | BindingKind::UniformBuffer(_) => {
             st.and_then(|st| ints::of_block(m, st)).unwrap_or_default()
@@ -136,8 +150,9 @@ fn binding(m: &Module, b: &reflect::Binding) -> Result<Binding, ReflectError> {
     })
 }
 
-/// The block struct of binding `b`'s variable (for [`ints::of_block`], which reads the module).
-fn block_struct(m: &Module, b: &reflect::Binding) -> Option<Word> {
+/// The element type of binding `b`'s variable: its pointee, arrays unwrapped (a buffer's block
+/// struct, for [`ints::of_block`], which reads the module).
+fn element_type(m: &Module, b: &reflect::Binding) -> Option<Word> {
     let var = m.types_global_values.iter().find(|v| {
         v.class.opcode == Op::Variable
             && v.result_id.is_some_and(|id| {
@@ -151,6 +166,38 @@ fn block_struct(m: &Module, b: &reflect::Binding) -> Option<Word> {
         Op::TypeArray | Op::TypeRuntimeArray => edit::id_operand(d, 0),
         _ => Some(pointee),
     }
+}
+
+/// Why the harness cannot make the texture of binding `b` (`None`: a 2D, non-arrayed,
+/// single-sampled, non-depth float image, which it makes).
+fn texture_refusal(m: &Module, b: &reflect::Binding) -> Option<String> {
+    let mut ty = edit::def(m, element_type(m, b)?)?;
+    if ty.class.opcode == Op::TypeSampledImage {
+        ty = edit::def(m, edit::id_operand(ty, 0)?)?;
+    }
+    let lit = |k: usize| match ty.operands.get(k) {
+        Some(Operand::LiteralBit32(v)) => Some(*v),
+        _ => None,
+    };
+    let dim = match ty.operands.get(1) {
+        Some(Operand::Dim(d)) => *d,
+        _ => return Some("an image type the harness cannot read".into()),
+    };
+    let float = edit::id_operand(ty, 0)
+        .and_then(|t| edit::def(m, t))
+        .is_some_and(|t| t.class.opcode == Op::TypeFloat);
+    let shape = match (dim, lit(2), lit(3), lit(4)) {
+        (Dim::Dim2D, Some(0 | 2), Some(0), Some(0)) if float => return None,
+        (Dim::Dim2D, Some(1), ..) => "a depth (shadow) texture".to_string(),
+        (Dim::Dim2D, _, Some(1), _) => "a 2D array texture".to_string(),
+        (Dim::Dim2D, _, _, Some(1)) => "a multisampled texture".to_string(),
+        (Dim::Dim2D, ..) => "an integer texture".to_string(),
+        (Dim::Dim1D, ..) => "a 1D texture".to_string(),
+        (Dim::Dim3D, ..) => "a 3D texture".to_string(),
+        (Dim::DimCube, ..) => "a cube texture".to_string(),
+        (d, ..) => format!("a {d:?} texture"),
+    };
+    Some(format!("{shape}, which the harness cannot make yet (it makes 2D float textures: texture2D, sampler2D)"))
 }
 
 /// The interface of module `m` (its only entry point).
@@ -207,12 +254,56 @@ mod tests {
                 (3, 0, BindingKind::AccelerationStructure, 2, false, false),
             ]
         );
-        // A sampled texture is not made yet: refused naming its binding.
+    }
+
+    /// 2D float textures are made: a combined image sampler, a separate texture array and its
+    /// sampler; their array counts as for buffers.
+    #[test]
+    fn two_d_float_textures_and_samplers_are_accepted() {
         let tex = "#version 460\n#extension GL_EXT_ray_tracing : require\n\
-            layout(set = 4, binding = 2) uniform sampler2D t;\nlayout(location = 0) rayPayloadInEXT vec4 c;\n\
-            void main() { c = textureLod(t, vec2(0), 0.0); }\n";
-        let e = reflect(&module(shaderc::ShaderKind::Miss, tex)).unwrap_err();
-        assert!(e.0.starts_with("set 4 binding 2: a CombinedImageSampler"), "{e}");
+            #extension GL_EXT_nonuniform_qualifier : require\n\
+            layout(set = 4, binding = 2) uniform sampler2D t;\n\
+            layout(set = 4, binding = 3) uniform texture2D maps[];\n\
+            layout(set = 4, binding = 4) uniform sampler nearest;\n\
+            layout(set = 4, binding = 5) uniform sampler2D fixed4[4];\n\
+            layout(location = 0) rayPayloadInEXT vec4 c;\n\
+            void main() { uint k = uint(c.w);\n\
+            c = textureLod(t, vec2(0), 0.0) + textureLod(fixed4[k & 3u], vec2(0), 0.0)\n\
+            + textureLod(sampler2D(maps[nonuniformEXT(k)], nearest), vec2(0.5), 0.0); }\n";
+        let i = reflect(&module(shaderc::ShaderKind::Miss, tex)).unwrap();
+        let b: Vec<(u32, BindingKind, u32, bool)> =
+            i.bindings.iter().map(|b| (b.binding, b.kind, b.count, b.runtime)).collect();
+        assert_eq!(
+            b,
+            vec![
+                (2, BindingKind::CombinedImageSampler, 1, false),
+                (3, BindingKind::SampledImage, RUNTIME_ELEMENTS, true),
+                (4, BindingKind::Sampler, 1, false),
+                (5, BindingKind::CombinedImageSampler, 4, false),
+            ]
+        );
+    }
+
+    /// Twin: textures the harness does not make (3D, cube, integer, depth, arrayed) are refused
+    /// in one line naming their set and binding.
+    #[test]
+    fn other_textures_are_refused_naming_their_binding() {
+        for (decl, read, what) in [
+            ("sampler3D", "vec3(0)", "a 3D texture"),
+            ("samplerCube", "vec3(0, 0, 1)", "a cube texture"),
+            ("sampler2DArray", "vec3(0)", "a 2D array texture"),
+            ("usampler2D", "vec2(0)", "an integer texture"),
+        ] {
+            let tex = format!(
+                "#version 460\n#extension GL_EXT_ray_tracing : require\n\
+                layout(set = 4, binding = 2) uniform {decl} t;\n\
+                layout(location = 0) rayPayloadInEXT vec4 c;\n\
+                void main() {{ c = vec4(textureLod(t, {read}, 0.0)); }}\n"
+            );
+            let e = reflect(&module(shaderc::ShaderKind::Miss, &tex)).unwrap_err();
+            assert!(e.0.starts_with(&format!("set 4 binding 2: {what}, ")), "{decl}: {e}");
+            assert!(!e.0.contains('\n'), "{e}");
+        }
     }
 
     /// An append queue's buffer is atomic (its counter is); a buffer only stored to is not,

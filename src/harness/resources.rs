@@ -3,12 +3,14 @@
 //! (the scene TLAS, then the AS probe's variants: other instances, other custom indices; the
 //! supplied raygen's binding always the scene TLAS), every buffer holds floats that encode its
 //! own descriptor (small integers in its integer words, the zero-filled sink buffer's address in
-//! its 64-bit integers and pointers), storage images start at zero. Plus the descriptor sets
-//! that bind them, and the address tables a host contract asks for.
+//! its 64-bit integers and pointers), storage images start at zero, textures hold texels that
+//! encode their element and coordinates (`super::textures`), every sampler is the harness's one.
+//! Plus the descriptor sets that bind them, and the address tables a host contract asks for.
 use super::error::HarnessError;
 use super::ints::{Fill, IntWords};
 use super::reflect::{Binding, BindingKind};
 use super::scene::INDEX_BOUND;
+use super::textures;
 use crate::model::contract::{AddressKind, HostContract};
 use crate::scene::gpu::SceneGpu;
 use crate::vk::memory::{Buffer, Image, Location};
@@ -23,6 +25,11 @@ pub enum Element {
     Tlas(vk::AccelerationStructureKHR, u64),
     Image(Image),
     Buffer(Buffer),
+    /// A texture (sampled image, or combined with the sampler): its view, which
+    /// `Resources::textures` owns.
+    Texture(vk::ImageView),
+    /// The harness's sampler.
+    Sampler,
 }
 
 /// Every binding's elements, and the sets binding them.
@@ -31,13 +38,13 @@ pub struct Resources {
     pub set_layouts: Vec<vk::DescriptorSetLayout>,
     pub pool: vk::DescriptorPool,
     pub sets: Vec<vk::DescriptorSet>,
-    /// The zero-filled buffer every address word points at ([`SINK_SIZE`] bytes).
+    /// The zero-filled buffer every address word points at (`Sizes::sink` bytes).
     pub sink: Buffer,
+    /// The sampler of every sampler and combined image sampler element.
+    pub sampler: vk::Sampler,
+    /// Every texture element's image and view.
+    pub textures: textures::Textures,
 }
-
-/// The sink's size: every 64-bit integer and pointer the harness fills holds its address, so a
-/// shader reads zeros through it up to this many bytes past it.
-pub const SINK_SIZE: u64 = 4 << 20;
 const SINK_USAGE: vk::BufferUsageFlags = vk::BufferUsageFlags::from_raw(
     vk::BufferUsageFlags::STORAGE_BUFFER.as_raw()
         | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS.as_raw(),
@@ -121,65 +128,125 @@ pub fn descriptor_type(k: BindingKind) -> vk::DescriptorType {
         BindingKind::StorageImage(_) => vk::DescriptorType::STORAGE_IMAGE,
         BindingKind::StorageBuffer(_) => vk::DescriptorType::STORAGE_BUFFER,
         BindingKind::UniformBuffer(_) => vk::DescriptorType::UNIFORM_BUFFER,
+        BindingKind::SampledImage => vk::DescriptorType::SAMPLED_IMAGE,
+        BindingKind::Sampler => vk::DescriptorType::SAMPLER,
+        BindingKind::CombinedImageSampler => vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+    }
+}
+
+/// Resources made so far, by kind: the numbers the next ones take.
+#[derive(Default)]
+struct Made {
+    tlases: usize,
+    buffers: u32,
+    textures: u32,
+}
+
+/// The storage image of binding `b`, of `extent`.
+fn storage_image(
+    gpu: &Gpu,
+    b: &Binding,
+    f: ImageFormat,
+    extent: vk::Extent2D,
+) -> Result<Image, HarnessError> {
+    let (vf, _) = format(f).ok_or_else(|| {
+        HarnessError::Unsupported(format!(
+            "set {} binding {}: storage image format {f:?}",
+            b.set, b.binding
+        ))
+    })?;
+    let usage = vk::ImageUsageFlags::STORAGE
+        | vk::ImageUsageFlags::TRANSFER_SRC
+        | vk::ImageUsageFlags::TRANSFER_DST;
+    Ok(Image::new(gpu, extent, vf, usage)?)
+}
+
+/// What [`Resources::new`] makes every element from.
+struct Making<'a> {
+    tlases: Vec<&'a crate::scene::gpu::AccelStruct>,
+    textures: &'a textures::Textures,
+    scene_at: Option<(u32, u32)>,
+    extent: vk::Extent2D,
+    sink: u64,
+}
+
+impl Making<'_> {
+    /// The next element of binding `b` at `key`.
+    fn element(
+        &self,
+        gpu: &Gpu,
+        key: (u32, u32),
+        b: &Binding,
+        made: &mut Made,
+    ) -> Result<Element, HarnessError> {
+        Ok(match b.kind {
+            BindingKind::AccelerationStructure => {
+                let t = self.tlases
+                    [tlas_index(key, self.scene_at, &mut made.tlases, self.tlases.len())];
+                Element::Tlas(t.raw, t.address)
+            }
+            BindingKind::StorageImage(f) => Element::Image(storage_image(gpu, b, f, self.extent)?),
+            BindingKind::StorageBuffer(size) | BindingKind::UniformBuffer(size) => {
+                let usage = vk::BufferUsageFlags::STORAGE_BUFFER
+                    | vk::BufferUsageFlags::UNIFORM_BUFFER
+                    | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+                let buf = Buffer::new(gpu, size as u64, usage, Location::Host, "harness buffer")?;
+                buf.write(0, &buffer_data(made.buffers, size, &b.ints, self.sink));
+                made.buffers += 1;
+                Element::Buffer(buf)
+            }
+            BindingKind::SampledImage | BindingKind::CombinedImageSampler => {
+                made.textures += 1;
+                Element::Texture(self.textures.views[made.textures as usize - 1])
+            }
+            BindingKind::Sampler => Element::Sampler,
+        })
     }
 }
 
 impl Resources {
     /// Resources for `bindings` (one per set and binding, aliases merged: `super::bindings`),
     /// TLASes from `scene` (the scene TLAS at `scene_at`, the supplied raygen's), images of
-    /// `extent`, and the sink buffer.
+    /// `extent`, and the sink buffer of `sink_size` bytes. The textures are not filled yet
+    /// (`textures.upload`).
     pub fn new(
         gpu: &Gpu,
         bindings: &[Binding],
         scene_at: Option<(u32, u32)>,
         scene: &SceneGpu,
         extent: vk::Extent2D,
-        buffer_model: bool,
+        (sink_size, buffer_model): (u64, bool),
     ) -> Result<Resources, HarnessError> {
-        let tlases: Vec<&crate::scene::gpu::AccelStruct> =
-            std::iter::once(&scene.scene_tlas).chain(&scene.probe_tlas).collect();
         let unique = super::bindings::merged(bindings)?;
-        let sink = Buffer::new(gpu, SINK_SIZE, SINK_USAGE, Location::Host, "harness sink")?;
-        sink.write(0, &vec![0; SINK_SIZE as usize]);
-        let sink_address = sink.address;
+        let sink = Buffer::new(gpu, sink_size, SINK_USAGE, Location::Host, "harness sink")?;
+        sink.write(0, &vec![0; sink_size as usize]);
+        let n_textures = unique
+            .values()
+            .filter(|b| {
+                matches!(b.kind, BindingKind::SampledImage | BindingKind::CombinedImageSampler)
+            })
+            .map(|b| b.count)
+            .sum();
+        let max_layers = gpu.info.properties.core.limits.max_image_array_layers;
+        let textures = textures::Textures::new(gpu, n_textures, max_layers)?;
+        let making = Making {
+            tlases: std::iter::once(&scene.scene_tlas).chain(&scene.probe_tlas).collect(),
+            textures: &textures,
+            scene_at,
+            extent,
+            sink: sink.address,
+        };
         let mut all: BTreeMap<(u32, u32), (Binding, Vec<Element>)> = BTreeMap::new();
-        let (mut n_as, mut n_buf) = (0usize, 0u32);
+        let mut made = Made::default();
         for (key, b) in unique {
-            let mut elems = Vec::new();
-            for _ in 0..b.count {
-                elems.push(match b.kind {
-                    BindingKind::AccelerationStructure => {
-                        let t = tlases[tlas_index(key, scene_at, &mut n_as, tlases.len())];
-                        Element::Tlas(t.raw, t.address)
-                    }
-                    BindingKind::StorageImage(f) => {
-                        let (vf, _) = format(f).ok_or_else(|| {
-                            HarnessError::Unsupported(format!(
-                                "set {} binding {}: storage image format {f:?}",
-                                b.set, b.binding
-                            ))
-                        })?;
-                        let usage = vk::ImageUsageFlags::STORAGE
-                            | vk::ImageUsageFlags::TRANSFER_SRC
-                            | vk::ImageUsageFlags::TRANSFER_DST;
-                        Element::Image(Image::new(gpu, extent, vf, usage)?)
-                    }
-                    BindingKind::StorageBuffer(size) | BindingKind::UniformBuffer(size) => {
-                        let usage = vk::BufferUsageFlags::STORAGE_BUFFER
-                            | vk::BufferUsageFlags::UNIFORM_BUFFER
-                            | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
-                        let buf =
-                            Buffer::new(gpu, size as u64, usage, Location::Host, "harness buffer")?;
-                        buf.write(0, &buffer_data(n_buf, size, &b.ints, sink_address));
-                        n_buf += 1;
-                        Element::Buffer(buf)
-                    }
-                });
-            }
+            let elems = (0..b.count)
+                .map(|_| making.element(gpu, key, &b, &mut made))
+                .collect::<Result<Vec<_>, _>>()?;
             all.insert(key, (b, elems));
         }
+        let sampler = textures::new_sampler(gpu)?;
         let (set_layouts, pool, sets) = descriptor_sets(gpu, &all, buffer_model)?;
-        let r = Resources { bindings: all, set_layouts, pool, sets, sink };
+        let r = Resources { bindings: all, set_layouts, pool, sets, sink, sampler, textures };
         if !buffer_model {
             r.write_sets(gpu);
         }
@@ -188,7 +255,7 @@ impl Resources {
 
     /// Every buffer back to its own data (a shader may have written it).
     pub fn refill(&self) {
-        self.sink.write(0, &vec![0; SINK_SIZE as usize]);
+        self.sink.write(0, &vec![0; self.sink.size as usize]);
         let mut d = 0;
         for (b, elems) in self.bindings.values() {
             if let BindingKind::StorageBuffer(size) | BindingKind::UniformBuffer(size) = b.kind {
@@ -212,17 +279,8 @@ impl Resources {
                     _ => None,
                 })
                 .collect();
-            let images: Vec<vk::DescriptorImageInfo> = elems
-                .iter()
-                .filter_map(|e| match e {
-                    Element::Image(i) => Some(
-                        vk::DescriptorImageInfo::default()
-                            .image_view(i.view)
-                            .image_layout(vk::ImageLayout::GENERAL),
-                    ),
-                    _ => None,
-                })
-                .collect();
+            let images: Vec<vk::DescriptorImageInfo> =
+                elems.iter().filter_map(|e| self.image_info(e, b.kind)).collect();
             let buffers: Vec<vk::DescriptorBufferInfo> = elems
                 .iter()
                 .filter_map(|e| match e {
@@ -241,11 +299,35 @@ impl Resources {
                 .descriptor_count(b.count);
             w = match b.kind {
                 BindingKind::AccelerationStructure => w.push_next(&mut as_info),
-                BindingKind::StorageImage(_) => w.image_info(&images),
-                _ => w.buffer_info(&buffers),
+                BindingKind::StorageImage(_)
+                | BindingKind::SampledImage
+                | BindingKind::Sampler
+                | BindingKind::CombinedImageSampler => w.image_info(&images),
+                BindingKind::StorageBuffer(_) | BindingKind::UniformBuffer(_) => {
+                    w.buffer_info(&buffers)
+                }
             };
             unsafe { gpu.device.update_descriptor_sets(&[w], &[]) };
         }
+    }
+
+    /// The image descriptor of element `e` of a binding of `kind` (`None`: not an image's).
+    fn image_info(&self, e: &Element, kind: BindingKind) -> Option<vk::DescriptorImageInfo> {
+        let info = vk::DescriptorImageInfo::default();
+        Some(match (e, kind) {
+            (Element::Image(i), _) => {
+                info.image_view(i.view).image_layout(vk::ImageLayout::GENERAL)
+            }
+            (Element::Texture(v), BindingKind::CombinedImageSampler) => info
+                .image_view(*v)
+                .image_layout(vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL)
+                .sampler(self.sampler),
+            (Element::Texture(v), _) => {
+                info.image_view(*v).image_layout(vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL)
+            }
+            (Element::Sampler, _) => info.sampler(self.sampler),
+            (Element::Tlas(..) | Element::Buffer(_), _) => return None,
+        })
     }
 
     /// The 8-byte addresses a host contract asks for, each at its push-constant offset, and the
@@ -269,7 +351,7 @@ impl Resources {
                 .map(|e| match e {
                     Element::Tlas(_, addr) => *addr,
                     Element::Buffer(b) => b.address,
-                    Element::Image(_) => 0,
+                    Element::Image(_) | Element::Texture(..) | Element::Sampler => 0,
                 })
                 .collect();
             match a.kind {
@@ -295,12 +377,14 @@ impl Resources {
             }
         }
         self.sink.destroy(gpu);
+        unsafe { gpu.device.destroy_sampler(self.sampler, None) };
+        self.textures.destroy(gpu);
         for (_, elems) in self.bindings.values() {
             for e in elems {
                 match e {
                     Element::Image(i) => i.destroy(gpu),
                     Element::Buffer(b) => b.destroy(gpu),
-                    Element::Tlas(..) => {}
+                    Element::Tlas(..) | Element::Texture(..) | Element::Sampler => {}
                 }
             }
         }

@@ -62,6 +62,9 @@ pub struct ShaderJob {
     /// `--heap-layout`'s arrays.
     #[serde(default)]
     pub heap_layout: Option<Vec<super::heap::Array>>,
+    /// `--array-size` and `--sink-size`.
+    #[serde(default)]
+    pub sizes: super::Sizes,
 }
 
 /// What one attempt came to.
@@ -122,6 +125,9 @@ pub fn pipeline_desc(modules: &[UserModule], max_hit_attribute: u32) -> Pipeline
             BindingKind::StorageImage(_) => DescriptorKind::StorageImage,
             BindingKind::StorageBuffer(_) => DescriptorKind::StorageBuffer,
             BindingKind::UniformBuffer(_) => DescriptorKind::UniformBuffer,
+            BindingKind::SampledImage => DescriptorKind::SampledImage,
+            BindingKind::Sampler => DescriptorKind::Sampler,
+            BindingKind::CombinedImageSampler => DescriptorKind::CombinedImageSampler,
         };
         bindings.push(BindingDesc { set: b.set, binding: b.binding, kind, count: b.count, stages });
     }
@@ -214,6 +220,7 @@ fn harness(job: &ShaderJob) -> Result<(Harness, Vec<UserModule>), HarnessError> 
     // Stages the modules lack supplied, at the same bindings in every variant (as `verify_with`).
     let at = supply::free_binding(&unpatched).max(supply::free_binding(&variant));
     let (unpatched, variant) = (supply::supply_at(unpatched, at)?, supply::supply_at(variant, at)?);
+    let (unpatched, variant) = (job.sizes.apply(unpatched), job.sizes.apply(variant));
     let inst = Arc::new(Instance::new(&InstanceOptions { validate: job.validate, gpu_av: false })?);
     let all = features::query_all(&inst)?;
     let info = all
@@ -230,8 +237,12 @@ fn harness(job: &ShaderJob) -> Result<(Harness, Vec<UserModule>), HarnessError> 
         .unwrap_or(0)
         .max(job.contract.as_ref().map_or(0, |c| c.push_end));
     let refs: Vec<&UserModule> = unpatched.iter().collect();
-    let setup =
-        super::Setup { model, spec: job.spec.clone(), heap_layout: job.heap_layout.clone() };
+    let setup = super::Setup {
+        model,
+        spec: job.spec.clone(),
+        heap_layout: job.heap_layout.clone(),
+        sink: job.sizes.sink,
+    };
     let h = Harness::with_setup(gpu, &refs, push, Duration::from_millis(job.timeout_ms), setup)?;
     Ok((h, variant))
 }
