@@ -267,7 +267,9 @@ fn heap_layout(
     }
 }
 
-pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
+/// Everything checked and planned before the report is reserved: the plan, the children's
+/// context (its temporary folder made) and the device's name.
+fn prepare(g: &Globals, a: &RunArgs) -> Result<(ShaderPlan, Ctx, String)> {
     refuse_others(a)?;
     refuse_early(g, a)?;
     let (repeat, timeout, setup_timeout) = numbers(a)?;
@@ -280,10 +282,7 @@ pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
     let spec = crate::harness::spec::parse_all(&a.spec, &plan.given)
         .map_err(|e| coded(exit::USAGE, e.to_string()))?;
     let (device_index, device_name) = device(g, a, &plan, model)?;
-    let (out, _lock) = reserve_out(a, &device_name)?;
     let dir = std::env::temp_dir().join(format!("rtprobe-shader-{}", std::process::id()));
-    std::fs::create_dir_all(&dir)
-        .with_context(|| format!("creating the --shader folder {}", dir.display()))?;
     let ctx = Ctx {
         device_index,
         validate: g.validate,
@@ -296,12 +295,21 @@ pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
         repeat,
         timeout,
         setup_timeout,
-        dir: dir.clone(),
+        dir,
         model,
         spec,
         heap_layout,
         sizes,
     };
+    Ok((plan, ctx, device_name))
+}
+
+pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
+    let (plan, ctx, device_name) = prepare(g, a)?;
+    let (repeat, timeout, model, dir) = (ctx.repeat, ctx.timeout, ctx.model, ctx.dir.clone());
+    let (out, _lock) = reserve_out(a, &device_name)?;
+    std::fs::create_dir_all(&dir)
+        .with_context(|| format!("creating the --shader folder {}", dir.display()))?;
     let ran = run_all(&ctx, &plan);
     let _ = std::fs::remove_dir_all(&dir);
     let (unpatched, patched) = ran?;

@@ -220,6 +220,30 @@ pub(super) fn target(e: &Element, kind: BindingKind) -> Result<(Target, vk::Form
     Ok((t, format))
 }
 
+/// The set/binding descriptors of `bindings` placed after the heap arrays (which end at byte
+/// `end`), each binding at a 256-byte aligned base: the mapping's (set, binding, base, stride).
+fn place_bindings(
+    gpu: &Gpu,
+    bindings: &BTreeMap<(u32, u32), (Binding, Vec<Element>)>,
+    mut end: u64,
+    placed: &mut Vec<Placed>,
+) -> Result<Vec<(u32, u32, u32, u32)>, HarnessError> {
+    let mut entries = Vec::new();
+    for ((set, binding), (b, elems)) in bindings {
+        let ty = resources::descriptor_type(b.kind);
+        let stride = descriptor_stride(gpu, ty);
+        let base = align(end, 256);
+        for (k, e) in elems.iter().enumerate() {
+            let (target, format) = target(e, b.kind)?;
+            let offset = (base + k as u64 * stride as u64) as usize;
+            placed.push(Placed { offset, ty, target, format });
+        }
+        entries.push((*set, *binding, base as u32, stride));
+        end = base + elems.len() as u64 * stride as u64;
+    }
+    Ok(entries)
+}
+
 impl HeapModel {
     /// Heaps for `arrays` (buffers numbered from `first_data`, so their data is their own) and
     /// the set/binding `bindings` after them, TLASes from `scene`.
@@ -274,38 +298,15 @@ impl HeapModel {
             }
             end = end.max(start as u64 + (a.count * stride) as u64);
         }
-        let mut entries = Vec::new();
-        for ((set, binding), (b, elems)) in bindings {
-            let ty = resources::descriptor_type(b.kind);
-            let stride = descriptor_stride(gpu, ty);
-            let base = align(end, 256);
-            for (k, e) in elems.iter().enumerate() {
-                let (target, format) = match target(e, b.kind) {
-                    Ok(t) => t,
-                    Err(e) => {
-                        for b in &buffers {
-                            b.destroy(gpu);
-                        }
-                        return Err(e);
-                    }
-                };
-                placed.push(Placed {
-                    offset: (base + k as u64 * stride as u64) as usize,
-                    ty,
-                    target,
-                    format,
-                });
-            }
-            entries.push((*set, *binding, base as u32, stride));
-            end = base + elems.len() as u64 * stride as u64;
-        }
-        let heaps = match PlacedHeaps::create(gpu, &placed) {
-            Ok(h) => h,
+        let made = place_bindings(gpu, bindings, end, &mut placed)
+            .and_then(|entries| Ok((PlacedHeaps::create(gpu, &placed)?, entries)));
+        let (heaps, entries) = match made {
+            Ok(m) => m,
             Err(e) => {
                 for b in &buffers {
                     b.destroy(gpu);
                 }
-                return Err(e.into());
+                return Err(e);
             }
         };
         Ok(HeapModel { buffers, heaps, mapping: PipelineMapping::constant_offsets(&entries) })

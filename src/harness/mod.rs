@@ -181,6 +181,41 @@ type Sources = (Vec<Vec<u32>>, Vec<vk::ShaderStageFlags>, Vec<CString>, usize);
 const NO_INTERSECTION: &str =
     "#version 460\n#extension GL_EXT_ray_tracing : require\nvoid main() {}\n";
 
+/// The pipeline's shader groups: the raygen, each miss, the triangle and procedural hit groups
+/// (the latter with `intersection`), each callable.
+fn shader_groups(
+    g: &Groups,
+    intersection: usize,
+) -> Vec<vk::RayTracingShaderGroupCreateInfoKHR<'static>> {
+    let idx = |i: Option<usize>| i.map_or(vk::SHADER_UNUSED_KHR, |i| i as u32);
+    let general = |i: usize| {
+        vk::RayTracingShaderGroupCreateInfoKHR::default()
+            .ty(vk::RayTracingShaderGroupTypeKHR::GENERAL)
+            .general_shader(i as u32)
+            .closest_hit_shader(vk::SHADER_UNUSED_KHR)
+            .any_hit_shader(vk::SHADER_UNUSED_KHR)
+            .intersection_shader(vk::SHADER_UNUSED_KHR)
+    };
+    let hit = |ty, chit: Option<usize>, isect: Option<usize>| {
+        vk::RayTracingShaderGroupCreateInfoKHR::default()
+            .ty(ty)
+            .general_shader(vk::SHADER_UNUSED_KHR)
+            .closest_hit_shader(idx(chit))
+            .any_hit_shader(idx(g.any_hit))
+            .intersection_shader(idx(isect))
+    };
+    let mut groups = vec![general(g.raygen)];
+    groups.extend(g.misses.iter().map(|i| general(*i)));
+    groups.push(hit(vk::RayTracingShaderGroupTypeKHR::TRIANGLES_HIT_GROUP, g.hit[0], None));
+    groups.push(hit(
+        vk::RayTracingShaderGroupTypeKHR::PROCEDURAL_HIT_GROUP,
+        g.hit[1],
+        Some(intersection),
+    ));
+    groups.extend(g.callables.iter().map(|i| general(*i)));
+    groups
+}
+
 impl Harness {
     /// The scene and resources for `modules` (every module the pipelines will use, unpatched:
     /// the patched ones read the same resources through addresses), push constants of
@@ -355,32 +390,7 @@ impl Harness {
                 st
             })
             .collect();
-        let idx = |i: Option<usize>| i.map_or(vk::SHADER_UNUSED_KHR, |i| i as u32);
-        let general = |i: usize| {
-            vk::RayTracingShaderGroupCreateInfoKHR::default()
-                .ty(vk::RayTracingShaderGroupTypeKHR::GENERAL)
-                .general_shader(i as u32)
-                .closest_hit_shader(vk::SHADER_UNUSED_KHR)
-                .any_hit_shader(vk::SHADER_UNUSED_KHR)
-                .intersection_shader(vk::SHADER_UNUSED_KHR)
-        };
-        let hit = |ty, chit: Option<usize>, isect: Option<usize>| {
-            vk::RayTracingShaderGroupCreateInfoKHR::default()
-                .ty(ty)
-                .general_shader(vk::SHADER_UNUSED_KHR)
-                .closest_hit_shader(idx(chit))
-                .any_hit_shader(idx(g.any_hit))
-                .intersection_shader(idx(isect))
-        };
-        let mut groups = vec![general(g.raygen)];
-        groups.extend(g.misses.iter().map(|i| general(*i)));
-        groups.push(hit(vk::RayTracingShaderGroupTypeKHR::TRIANGLES_HIT_GROUP, g.hit[0], None));
-        groups.push(hit(
-            vk::RayTracingShaderGroupTypeKHR::PROCEDURAL_HIT_GROUP,
-            g.hit[1],
-            Some(intersection),
-        ));
-        groups.extend(g.callables.iter().map(|i| general(*i)));
+        let groups = shader_groups(&g, intersection);
         let depth = self
             .gpu
             .info
@@ -534,6 +544,40 @@ impl Harness {
         out
     }
 
+    /// Bind the descriptors as the model says, and push `push`.
+    unsafe fn bind(&self, cmd: vk::CommandBuffer, push: &[u8]) {
+        let (gpu, d) = (&self.gpu, &self.gpu.device);
+        match &self.bound {
+            Bound::Heap(h) => {
+                h.heaps.bind(gpu, cmd);
+                if !push.is_empty() {
+                    h.heaps.push(gpu, cmd, push);
+                }
+            }
+            Bound::Buffers(b) => {
+                b.bind(gpu, cmd, self.layout);
+                if !push.is_empty() {
+                    d.cmd_push_constants(cmd, self.layout, resources::rt_stages(), 0, push);
+                }
+            }
+            Bound::Sets => {
+                if !self.res.sets.is_empty() {
+                    d.cmd_bind_descriptor_sets(
+                        cmd,
+                        vk::PipelineBindPoint::RAY_TRACING_KHR,
+                        self.layout,
+                        0,
+                        &self.res.sets,
+                        &[],
+                    );
+                }
+                if !push.is_empty() {
+                    d.cmd_push_constants(cmd, self.layout, resources::rt_stages(), 0, push);
+                }
+            }
+        }
+    }
+
     /// Clear the images, trace, copy the images out.
     fn record(
         &self,
@@ -573,35 +617,7 @@ impl Harness {
         let sbt = p.sbt.as_ref().expect("RT pipelines have an SBT");
         unsafe {
             d.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::RAY_TRACING_KHR, p.raw);
-            match &self.bound {
-                Bound::Heap(h) => {
-                    h.heaps.bind(gpu, cmd);
-                    if !push.is_empty() {
-                        h.heaps.push(gpu, cmd, push);
-                    }
-                }
-                Bound::Buffers(b) => {
-                    b.bind(gpu, cmd, self.layout);
-                    if !push.is_empty() {
-                        d.cmd_push_constants(cmd, self.layout, resources::rt_stages(), 0, push);
-                    }
-                }
-                Bound::Sets => {
-                    if !self.res.sets.is_empty() {
-                        d.cmd_bind_descriptor_sets(
-                            cmd,
-                            vk::PipelineBindPoint::RAY_TRACING_KHR,
-                            self.layout,
-                            0,
-                            &self.res.sets,
-                            &[],
-                        );
-                    }
-                    if !push.is_empty() {
-                        d.cmd_push_constants(cmd, self.layout, resources::rt_stages(), 0, push);
-                    }
-                }
-            }
+            self.bind(cmd, push);
             rt.cmd_trace_rays(cmd, &sbt.raygen, &sbt.miss, &sbt.hit, &sbt.callable, SIZE, SIZE, 1);
         }
         full_barrier(gpu, cmd);

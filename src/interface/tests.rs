@@ -168,19 +168,6 @@ fn every_twin_is_a_mismatch_naming_what_does_not_fit() {
     );
     let e = fit(&other, &layout()).unwrap_err();
     assert!(matches!(&e, Mismatch::Payload { got, .. } if got == "vec4<f32> (16 bytes)"), "{e}");
-    // the same size, another structure (a float where the raygen sends a uint): a mismatch
-    // the old size-only check let through; the same structure under other names is not one
-    other[1] = compile(
-        ShaderKind::Miss,
-        "struct Sky { vec4 c; float t; uint i; };\nlayout(location = 0) rayPayloadInEXT Sky sky;\nvoid main() { sky.c = vec4(1.0); }\n",
-    );
-    let e = fit(&other, &layout()).unwrap_err();
-    assert!(matches!(&e, Mismatch::Payload { got, .. } if got.contains("f32, u32}")), "{e}");
-    other[1] = compile(
-        ShaderKind::Miss,
-        "struct Sky { vec4 c; uint t; uint i; };\nlayout(location = 0) rayPayloadInEXT Sky sky;\nvoid main() { sky.c = vec4(1.0); }\n",
-    );
-    fit(&other, &layout()).unwrap();
     let mut other = m.clone();
     other[3] = compile(ShaderKind::Intersection, "hitAttributeEXT vec4 uvw;\nvoid main() { uvw = vec4(0.5); reportIntersectionEXT(1.0, 0u); }\n");
     let e = fit(&other, &layout()).unwrap_err();
@@ -199,6 +186,33 @@ fn every_twin_is_a_mismatch_naming_what_does_not_fit() {
     );
     let e = fit(&other, &layout()).unwrap_err();
     assert!(matches!(&e, Mismatch::HitAttribute { got, .. } if got.contains("12 bytes")), "{e}");
+    // not SPIR-V at all
+    let e = fit(&[vec![0x0723_0203, 0, 0, 9, 0, 0x0009_0011]], &layout()).unwrap_err();
+    assert!(matches!(e, Mismatch::Unreadable { module: 0, .. }), "{e}");
+    assert!(matches!(fit(&[vec![1, 2, 3]], &layout()), Err(Mismatch::Unreadable { .. })));
+}
+
+/// Payloads and hit attributes compare by their scalars, not their size: a float where the
+/// raygen sends a uint in the same bytes is a mismatch (the size-only check let it through); the
+/// same scalars under other names, or grouped otherwise (DXC's struct-wrapped barycentrics), are
+/// not one.
+#[test]
+fn the_same_size_with_other_scalars_is_a_mismatch() {
+    let m = engine();
+    let mut other = m.clone();
+    // the same size, another structure (a float where the raygen sends a uint): a mismatch
+    // the old size-only check let through; the same structure under other names is not one
+    other[1] = compile(
+        ShaderKind::Miss,
+        "struct Sky { vec4 c; float t; uint i; };\nlayout(location = 0) rayPayloadInEXT Sky sky;\nvoid main() { sky.c = vec4(1.0); }\n",
+    );
+    let e = fit(&other, &layout()).unwrap_err();
+    assert!(matches!(&e, Mismatch::Payload { got, .. } if got.contains("f32, u32}")), "{e}");
+    other[1] = compile(
+        ShaderKind::Miss,
+        "struct Sky { vec4 c; uint t; uint i; };\nlayout(location = 0) rayPayloadInEXT Sky sky;\nvoid main() { sky.c = vec4(1.0); }\n",
+    );
+    fit(&other, &layout()).unwrap();
     // a struct of two floats is the two floats (DXC's BuiltInTriangleIntersectionAttributes is
     // a struct of one float2); a float and a uint in the same 8 bytes are not
     let uv = |decl: &str| {
@@ -216,10 +230,6 @@ fn every_twin_is_a_mismatch_naming_what_does_not_fit() {
         matches!(&e, Mismatch::HitAttribute { got, .. } if got == "{f32, u32} (8 bytes)"),
         "{e}"
     );
-    // not SPIR-V at all
-    let e = fit(&[vec![0x0723_0203, 0, 0, 9, 0, 0x0009_0011]], &layout()).unwrap_err();
-    assert!(matches!(e, Mismatch::Unreadable { module: 0, .. }), "{e}");
-    assert!(matches!(fit(&[vec![1, 2, 3]], &layout()), Err(Mismatch::Unreadable { .. })));
 }
 
 /// A raygen that traces no ray (as rtprobe's canaries) sends no payload, so the stages that would
