@@ -650,3 +650,21 @@ fn an_injected_hang_is_a_timeout_finding() {
     }
     assert_eq!(r["outcome"], "timeout");
 }
+
+/// Review of issue 24: the harness scene was opaque, so a given any-hit never ran and a fault in
+/// it passed. With an any-hit in the pipeline every instance is FORCE_NO_OPAQUE: a device fault
+/// injected after the alpha test's uniform read is a crash finding (the twin of
+/// `an_any_hit_alpha_test_runs_clean`, whose outputs are identical without it).
+#[test]
+fn a_fault_in_a_given_any_hit_is_found() {
+    let (o, r, _d) = shader_run(
+        &["raygen.rgen", "miss.rmiss", "plain.rchit", "alpha.rahit"],
+        &["--repeat", "1", "--inject-fault", "stage=any_hit@device"],
+        &[],
+    );
+    let r = r.unwrap_or_else(|| panic!("no report: {}", stderr(&o)));
+    assert_eq!(o.status.code(), Some(1), "{}{}", stdout(&o), stderr(&o));
+    for v in variants(&r) {
+        assert_eq!(v["outcome"], "crash", "{v}");
+    }
+}

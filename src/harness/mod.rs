@@ -246,13 +246,10 @@ impl Harness {
         setup: Setup,
     ) -> Result<Harness, HarnessError> {
         let submitter = Submitter::new(&gpu)?;
-        let scene = SceneGpu::build_with(
-            &gpu,
-            &scene::build(SIZE),
-            &submitter,
-            timeout,
-            scene::variant_custom,
-        )?;
+        let mut built = scene::build(SIZE);
+        // A given any-hit runs on every candidate, as on an engine's alpha-tested geometry.
+        built.no_opaque = modules.iter().any(|m| m.iface.stage == "any_hit");
+        let scene = SceneGpu::build_with(&gpu, &built, &submitter, timeout, scene::variant_custom)?;
         let bindings: Vec<reflect::Binding> =
             modules.iter().flat_map(|m| m.iface.bindings.iter().cloned()).collect();
         let extent = vk::Extent2D { width: SIZE, height: SIZE };

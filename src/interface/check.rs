@@ -117,7 +117,11 @@ fn hit_attributes(read: &[ModuleInterface], p: &PipelineDesc) -> Result<(), Mism
         };
         for k in [g.closest_hit, g.any_hit].into_iter().flatten() {
             let Some(m) = read.get(k) else { continue };
-            if let Some(a) = m.hit_attribute.as_ref().filter(|a| **a != want) {
+            let fits = |a: &IoShape| match g.intersection {
+                Some(_) => *a == want,
+                None => a.is_barycentrics(),
+            };
+            if let Some(a) = m.hit_attribute.as_ref().filter(|a| !fits(a)) {
                 let (got, expected) = (a.to_string(), what);
                 return Err(Mismatch::HitAttribute { stage: m.stage, got, expected });
             }

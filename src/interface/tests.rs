@@ -192,10 +192,10 @@ fn every_twin_is_a_mismatch_naming_what_does_not_fit() {
     assert!(matches!(fit(&[vec![1, 2, 3]], &layout()), Err(Mismatch::Unreadable { .. })));
 }
 
-/// Payloads and hit attributes compare by their scalars, not their size: a float where the
-/// raygen sends a uint in the same bytes is a mismatch (the size-only check let it through); the
-/// same scalars under other names, or grouped otherwise (DXC's struct-wrapped barycentrics), are
-/// not one.
+/// Payloads compare by structure, not size: a float where the raygen sends a uint in the same
+/// bytes is a mismatch (the size-only check let it through), and so are the same scalars grouped
+/// otherwise; the same structure under other names is not one. A triangle hit's attribute is
+/// two floats however grouped (DXC's struct-wrapped barycentrics), a float and a uint are not.
 #[test]
 fn the_same_size_with_other_scalars_is_a_mismatch() {
     let m = engine();
@@ -213,6 +213,15 @@ fn the_same_size_with_other_scalars_is_a_mismatch() {
         "struct Sky { vec4 c; uint t; uint i; };\nlayout(location = 0) rayPayloadInEXT Sky sky;\nvoid main() { sky.c = vec4(1.0); }\n",
     );
     fit(&other, &layout()).unwrap();
+    other[1] = compile(
+        ShaderKind::Miss,
+        "struct Sky { float r; float g; float b; float a; uint t; uint i; };\nlayout(location = 0) rayPayloadInEXT Sky sky;\nvoid main() { sky.r = 1.0; }\n",
+    );
+    let e = fit(&other, &layout()).unwrap_err();
+    assert!(
+        matches!(&e, Mismatch::Payload { got, .. } if got.starts_with("{f32, f32, f32, f32, u32, u32}")),
+        "{e}"
+    );
     // a struct of two floats is the two floats (DXC's BuiltInTriangleIntersectionAttributes is
     // a struct of one float2); a float and a uint in the same 8 bytes are not
     let uv = |decl: &str| {

@@ -34,16 +34,16 @@ pub struct ModuleInterface {
 
 /// A payload, callable data or hit attribute as the interface check compares it: its size in
 /// bytes at scalar alignment (as `maxPipelineRayPayloadSize` and `maxRayHitAttributeSize`
-/// count), its structure for messages ([`reflect::Ty::structure`], names left out), and its
-/// scalars in order ([`reflect::Ty::leaves`]), which two shapes must share to be equal.
+/// count), its structure ([`reflect::Ty::structure`], names left out), which two shapes must
+/// share to be equal, and its scalars in order ([`reflect::Ty::leaves`]).
 ///
 /// The rule (Vulkan 1.4.360, "Ray Tracing Pipeline Interface", a *must*): a payload "must be the
 /// same structure for all shader stages using the payload for that ray"; callable data and an
-/// intersection's hit attribute likewise; a triangle hit's attribute "must be a vector of 2
-/// 32-bit floating-point values". rtprobe compares the flattened scalars, not the grouping:
-/// DXC declares the triangle attribute as `BuiltInTriangleIntersectionAttributes`, a struct of
-/// one `float2`, which the validation layers and drivers take as the vector. A different scalar
-/// in the same bytes (a float where a uint is sent) is a mismatch the size alone let through.
+/// intersection's hit attribute likewise: compared by structure. A triangle hit's attribute
+/// "must be a vector of 2 32-bit floating-point values": compared by its scalars
+/// ([`IoShape::is_barycentrics`]), because DXC declares it as
+/// `BuiltInTriangleIntersectionAttributes`, a struct of one `float2`, which drivers and the
+/// validation layers take as that vector — the one place rtprobe is looser than the text.
 #[derive(Clone, Debug, Eq)]
 pub struct IoShape {
     pub size: u32,
@@ -60,11 +60,16 @@ impl IoShape {
     pub fn barycentrics() -> IoShape {
         IoShape { size: 8, structure: "vec2<f32>".into(), leaves: "f32 f32".into() }
     }
+
+    /// Whether this is two 32-bit floats however grouped (`vec2`, DXC's struct of a `float2`).
+    pub fn is_barycentrics(&self) -> bool {
+        self.size == 8 && self.leaves == "f32 f32"
+    }
 }
 
 impl PartialEq for IoShape {
     fn eq(&self, other: &IoShape) -> bool {
-        self.size == other.size && self.leaves == other.leaves
+        self.size == other.size && self.structure == other.structure
     }
 }
 

@@ -50,10 +50,15 @@ impl ShaderInjection {
     pub fn line(&self) -> String {
         let n = self.matched();
         if n == 0 {
-            return format!(
-                "{MATCHED_NOTHING} ({}): no module has such an access, so none can fault",
-                self.spec
-            );
+            let skipped: usize = self.modules.iter().map(|m| m.skipped.len()).sum();
+            let why = match skipped {
+                0 => "no access rtprobe finds matches the predicate (it sees set/binding \
+                      descriptor reads in the entry point's own functions; not heap arrays, not \
+                      handles passed to a called function), so nothing was made to fault"
+                    .to_string(),
+                n => format!("{n} matching accesses were skipped (the report's `skipped` says why), so nothing was made to fault"),
+            };
+            return format!("{MATCHED_NOTHING} ({}): {why}", self.spec);
         }
         let files: Vec<String> = self
             .modules

@@ -185,12 +185,17 @@ fn instance_lists(
         Geometry::Mesh(m) => m,
         Geometry::Sphere => scene.meshes.len(),
     };
+    let flags = if scene.no_opaque {
+        vk::GeometryInstanceFlagsKHR::FORCE_NO_OPAQUE.as_raw() as u8
+    } else {
+        0
+    };
     let instance = |i: &Instance, custom: u32| vk::AccelerationStructureInstanceKHR {
         transform: vk::TransformMatrixKHR { matrix: bytemuck_transform(&i.transform) },
         instance_custom_index_and_mask: vk::Packed24_8::new(custom, 0xff),
         instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(
             i.sbt_offset(),
-            0,
+            flags,
         ),
         acceleration_structure_reference: vk::AccelerationStructureReferenceKHR {
             device_handle: blas[blas_index(i.geometry)].address,

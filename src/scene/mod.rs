@@ -82,6 +82,10 @@ pub struct Scene {
     pub instances: Vec<Instance>,
     /// The floor: only in the AS probe's TLASes, as instance number `instances.len()`.
     pub floor: Instance,
+    /// Every instance built with `FORCE_NO_OPAQUE`, so any-hit shaders run on every candidate
+    /// (as an engine marks alpha-tested geometry): `run --shader` with a user's any-hit. The
+    /// matrix's scene is opaque; its any-hit cells trace with `gl_RayFlagsNoOpaqueEXT`.
+    pub no_opaque: bool,
 }
 
 /// Split `n` triangles into `parts` contiguous geometries.
@@ -195,7 +199,7 @@ impl Scene {
             geometry: Geometry::Mesh(meshes.len()),
         };
         meshes.push(floor_quad());
-        Scene { params: *params, meshes, instances, floor }
+        Scene { params: *params, meshes, instances, floor, no_opaque: false }
     }
 
     /// The primary ray of pixel (x, y): origin and direction, exactly as the shaders compute them.

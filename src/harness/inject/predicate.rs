@@ -46,7 +46,9 @@ impl Predicate {
             }
         }
         let f = Filter::parse(s).map_err(|e| {
-            PredicateError::Syntax(e.to_string().replace("--filter", "the predicate"))
+            PredicateError::Syntax(
+                e.to_string().replace("--filter", "predicate").replace("the the ", "the "),
+            )
         })?;
         let mut p = Predicate::default();
         for (axis, values) in &f.terms {
