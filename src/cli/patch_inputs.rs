@@ -218,7 +218,7 @@ pub fn read_with(a: &InputOptions, paths: &[PathBuf]) -> Result<Vec<Input>> {
         let (words, identity) = if !a.glsl && is_spirv(path, &bytes) {
             let m = crate::patches::load(&bytes)
                 .map_err(|e| coded(exit::BAD_INPUT, format!("{name}: {e}")))?;
-            let identity = super::shader_plan::hash_hex(&bytes);
+            let identity = hash_hex(&bytes);
             let words = if bytes.starts_with(&0x0723_0203u32.to_le_bytes()) {
                 bytes
                     .chunks_exact(4)
@@ -234,6 +234,11 @@ pub fn read_with(a: &InputOptions, paths: &[PathBuf]) -> Result<Vec<Input>> {
         out.push(Input { path: path.clone(), name, words, identity });
     }
     Ok(out)
+}
+
+/// FNV-1a 128 of `bytes`, hex.
+pub fn hash_hex(bytes: &[u8]) -> String {
+    format!("{:032x}", crate::stable_hash::StableHash::default().bytes(bytes).finish())
 }
 
 /// Where one output goes.

@@ -17,7 +17,6 @@ use crate::model::shader_run::ShaderInput;
 use crate::patches::layout::Rules;
 use crate::patches::pipeline::{self, Stage};
 use crate::patches::{PatchError, PatchName, Validation};
-use crate::stable_hash::StableHash;
 use crate::tools::spirv::{self as spirv_tools, ValOptions};
 use anyhow::Result;
 use rspirv::spirv::ExecutionModel;
@@ -53,10 +52,7 @@ pub struct ShaderPlan {
     pub injection: Option<ShaderInjection>,
 }
 
-/// FNV-1a 128 of `bytes`, hex.
-pub fn hash_hex(bytes: &[u8]) -> String {
-    format!("{:032x}", StableHash::default().bytes(bytes).finish())
-}
+pub use super::patch_inputs::hash_hex;
 
 /// Whether a patch runs as a variant: one that reads what the original reads. `pin-index`
 /// replaces the runtime index by a constant, so its outputs differ by design.
