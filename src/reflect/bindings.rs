@@ -167,7 +167,8 @@ fn atomically_accessed(m: &Module, var: Word) -> bool {
     })
 }
 
-fn is_atomic(op: Op) -> bool {
+/// Every atomic instruction (its pointer is operand 0).
+pub(crate) fn is_atomic(op: Op) -> bool {
     matches!(
         op,
         Op::AtomicLoad

@@ -17,7 +17,7 @@
 //! Files: the result's types (`reflection`), the type tree (`ty`) and its GLSL (`glsl`), ids by
 //! definition, name and decoration (`index`), the entry point (`entry`), bindings and blocks
 //! (`bindings`), pointer paths (`pointers`), heaps (`heap`), errors (`error`).
-mod bindings;
+pub(crate) mod bindings;
 mod entry;
 mod error;
 pub mod glsl;

@@ -98,26 +98,10 @@ fn reads_image(op: Op) -> bool {
     )
 }
 
-/// Buffer instructions that read through a pointer (operand 0) and have a value.
+/// Buffer instructions that read through a pointer (operand 0) and have a value: a load or
+/// any atomic but a store.
 fn reads_buffer(op: Op) -> bool {
-    matches!(
-        op,
-        Op::Load
-            | Op::AtomicLoad
-            | Op::AtomicExchange
-            | Op::AtomicCompareExchange
-            | Op::AtomicIIncrement
-            | Op::AtomicIDecrement
-            | Op::AtomicIAdd
-            | Op::AtomicISub
-            | Op::AtomicSMin
-            | Op::AtomicUMin
-            | Op::AtomicSMax
-            | Op::AtomicUMax
-            | Op::AtomicAnd
-            | Op::AtomicOr
-            | Op::AtomicXor
-    )
+    op == Op::Load || (crate::reflect::bindings::is_atomic(op) && op != Op::AtomicStore)
 }
 
 /// What a pointer or handle derives from: its descriptor variable and array index.
