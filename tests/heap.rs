@@ -738,6 +738,21 @@ fn sid_a_direct_heap_read_of_index_zero_is_a_mismatch() {
     }
 }
 
+/// `args` run in the sid root with `-o` a report named `name`: the report, the exit code 0
+/// asserted.
+fn sid_shader_report(name: &str, args: &[&str]) -> serde_json::Value {
+    let path = report_path(name);
+    let mut all = args.to_vec();
+    all.extend(["-o", path.to_str().unwrap()]);
+    let o = in_sid(&all);
+    let r: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(&path).unwrap_or_else(|e| panic!("no report ({e}): {}", stderr(&o))),
+    )
+    .unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    r
+}
+
 /// Issue #24: a heap closest-hit like the original fault (a `layout(descriptor_heap)` SSBO
 /// array indexed by a push-data base plus gl_InstanceCustomIndexEXT) run with `--shader` on
 /// lavapipe 26 under `--validate`: the heap model chosen, no validation message, no fault, and
@@ -748,16 +763,8 @@ fn sid_a_heap_closest_hit_runs_clean_with_shader() {
         return;
     }
     let shader = repo().join("tests/shaders/user/heap.rchit");
-    let path = report_path("shader-heap");
     let args = ["run", "--validate", "--repeat", "2", "--shader", shader.to_str().unwrap()];
-    let mut all = args.to_vec();
-    all.extend(["-o", path.to_str().unwrap()]);
-    let o = in_sid(&all);
-    let r: serde_json::Value = serde_json::from_slice(
-        &std::fs::read(&path).unwrap_or_else(|e| panic!("no report ({e}): {}", stderr(&o))),
-    )
-    .unwrap();
-    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    let r = sid_shader_report("shader-heap", &args);
     assert_eq!(r["options"]["descriptor_model"], "descriptor_heap");
     let variants = r["variants"].as_array().unwrap();
     let reference = &variants[0]["attempts"][0]["outputs"];
@@ -776,17 +783,9 @@ fn sid_a_heap_closest_hit_runs_clean_with_shader() {
     // each with data of its own, so the outputs differ; the same ranges given as a
     // --heap-layout file change nothing.
     let run = |name: &str, extra: &[&str]| {
-        let path = report_path(name);
         let mut all = vec!["run", "--repeat", "1", "--shader", shader.to_str().unwrap()];
         all.extend_from_slice(extra);
-        all.extend(["-o", path.to_str().unwrap()]);
-        let o = in_sid(&all);
-        let r: serde_json::Value = serde_json::from_slice(
-            &std::fs::read(&path).unwrap_or_else(|e| panic!("no report ({e}): {}", stderr(&o))),
-        )
-        .unwrap();
-        assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
-        r["variants"][0]["attempts"][0]["outputs"].clone()
+        sid_shader_report(name, &all)["variants"][0]["attempts"][0]["outputs"].clone()
     };
     let shifted = run("shader-heap-shift", &["-D", "MATERIAL_SHIFT=1"]);
     assert_ne!(&shifted, reference, "another index, other descriptors");

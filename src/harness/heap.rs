@@ -345,13 +345,14 @@ mod tests {
         #extension GL_EXT_descriptor_heap : require\n\
         layout(location = 0) rayPayloadInEXT vec4 c;\n";
 
+    /// A closest-hit reading a storage-buffer heap array by its instance's custom index.
+    const MATS: &str = "layout(descriptor_heap) readonly buffer M { vec4 v[]; } mats[];\n\
+        void main() { c = mats[nonuniformEXT(gl_InstanceCustomIndexEXT)].v[0]; }\n";
+
     /// A storage-buffer heap array strides by the device's descriptor size from heap byte 0.
     #[test]
     fn a_buffer_heap_array_is_laid_out_from_the_module() {
-        let glsl = format!(
-            "{HEAD}layout(descriptor_heap) readonly buffer M {{ vec4 v[]; }} mats[];\n\
-            void main() {{ c = mats[nonuniformEXT(gl_InstanceCustomIndexEXT)].v[0]; }}\n"
-        );
+        let glsl = format!("{HEAD}{MATS}");
         let Some(m) = heap_module(&glsl) else { return };
         let ms = std::slice::from_ref(&m);
         assert!(uses_heap(ms));
@@ -413,10 +414,7 @@ mod tests {
     fn a_stride_the_module_does_not_state_names_heap_layout() {
         use rspirv::dr::{Instruction, Operand};
         use rspirv::spirv::{Decoration, Op};
-        let glsl = format!(
-            "{HEAD}layout(descriptor_heap) readonly buffer M {{ vec4 v[]; }} mats[];\n\
-            void main() {{ c = mats[nonuniformEXT(gl_InstanceCustomIndexEXT)].v[0]; }}\n"
-        );
+        let glsl = format!("{HEAD}{MATS}");
         let Some(m) = heap_module(&glsl) else { return };
         let mut module = crate::patches::load(&crate::tools::spirv::bytes(&m.words)).unwrap();
         let uint = module
