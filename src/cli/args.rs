@@ -80,6 +80,10 @@ pub enum Command {
     /// wrong values against image size, detection of flaky faults against repeats, time per phase
     /// per run configuration; writes DIR/bench.json (rtprobe.bench/1) and SVG plots
     Bench(BenchArgs),
+    /// glTF scenes: what rtprobe reads from one (`info`), or write the test scene or a large one
+    /// for measurements (`make`)
+    #[command(subcommand)]
+    Scene(SceneCommand),
     /// Internal: run cells for the supervisor (`rtprobe run`); not for direct use
     #[command(name = "__worker", hide = true)]
     Worker {
@@ -516,6 +520,28 @@ pub struct CapsArgs {
     /// Do not create a logical device to check that the features the matrix needs can be enabled
     #[arg(long)]
     pub no_device_check: bool,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum SceneCommand {
+    /// Load a glTF 2.0 scene (.gltf or .glb) as `--scene` would and print its meshes,
+    /// triangles, instances, materials, camera, the bytes of its geometry and the time it took
+    Info {
+        /// The scene file
+        file: PathBuf,
+    },
+    /// Write a glTF scene made by rtprobe: the test scene (three meshes, a node hierarchy, three
+    /// materials, one alpha-masked, two PNG textures, a camera), or with --triangles a large one
+    Make {
+        /// The folder to write it into (created if missing)
+        dir: PathBuf,
+        /// Make a large scene of at least this many triangles (16 height-field meshes)
+        #[arg(long, value_name = "N")]
+        triangles: Option<u64>,
+        /// Write one binary .glb (images in buffer views) instead of .gltf, .bin and PNGs
+        #[arg(long)]
+        glb: bool,
+    },
 }
 
 #[derive(Args, Debug)]

@@ -167,6 +167,8 @@ pub fn code_for(err: &anyhow::Error) -> u8 {
         }
         if cause.downcast_ref::<crate::atomic::WriteError>().is_some()
             || cause.downcast_ref::<std::io::Error>().is_some()
+            || cause.downcast_ref::<crate::scene::gltf::LoadError>().is_some()
+            || cause.downcast_ref::<crate::scene::gltf::make::MakeError>().is_some()
         {
             return BAD_INPUT;
         }

@@ -19,6 +19,7 @@ pub mod report;
 pub mod repro;
 pub mod resume;
 pub mod run;
+pub mod scene;
 pub mod shader;
 mod shader_exec;
 mod shader_plan;
@@ -170,6 +171,7 @@ pub fn main_entry() -> u8 {
         Command::Repro(a) => repro::repro(&g, a),
         Command::Stress(a) => stress::stress(&g, a),
         Command::Bench(a) => bench::bench(&g, a),
+        Command::Scene(c) => scene::scene(c),
         Command::Baseline(a) => fleet::baseline(a),
         Command::Merge(a) => fleet::merge_cmd(a),
         Command::Diff(a) => fleet::diff_cmd(a),

@@ -7,6 +7,7 @@
 //! exists only in the AS probe's TLASes. The camera is orthographic with exactly representable ray
 //! origins, so the GPU and the CPU reference trace bit-identical rays. `gpu` uploads it and builds
 //! BLAS/TLAS.
+pub mod gltf;
 pub mod gpu;
 pub mod rng;
 
@@ -152,7 +153,7 @@ impl Scene {
     pub fn build(params: &SceneParams) -> Scene {
         let mut rng = Rng::new(params.seed);
         let d = params.mesh_detail;
-        let mut meshes = vec![
+        let meshes = vec![
             height_field(d / 4, &mut rng),
             height_field(d / 2, &mut rng),
             height_field(d, &mut rng),
@@ -189,6 +190,16 @@ impl Scene {
         for (i, c) in instances.iter_mut().zip(custom_indices(n, params.seed)) {
             i.custom_index = c;
         }
+        Scene::with_meshes(params, meshes, instances)
+    }
+
+    /// A scene of the given meshes and instances (a loaded glTF scene's, or the procedural one's),
+    /// with the AS probe's floor quad after the meshes; `params.instances` becomes the count.
+    pub fn with_meshes(
+        params: &SceneParams,
+        mut meshes: Vec<Mesh>,
+        instances: Vec<Instance>,
+    ) -> Scene {
         let floor = Instance {
             transform: [
                 [FLOOR_HALF, 0.0, 0.0, 0.0],
@@ -199,7 +210,8 @@ impl Scene {
             geometry: Geometry::Mesh(meshes.len()),
         };
         meshes.push(floor_quad());
-        Scene { params: *params, meshes, instances, floor, no_opaque: false }
+        let params = SceneParams { instances: instances.len() as u32, ..*params };
+        Scene { params, meshes, instances, floor, no_opaque: false }
     }
 
     /// The primary ray of pixel (x, y): origin and direction, exactly as the shaders compute them.

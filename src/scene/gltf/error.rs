@@ -1,0 +1,50 @@
+//! What loading a glTF scene can fail with: each one line naming the part of the file (a mesh, a
+//! primitive, a buffer, an image, a required extension) and what to do.
+use std::path::PathBuf;
+
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    #[error("cannot read scene {path}: {message}; give a .gltf or .glb file that exists")]
+    Read { path: PathBuf, message: String },
+    #[error(
+        "scene {path} is not glTF 2.0: {message}; export it again as glTF 2.0 (.gltf or .glb)"
+    )]
+    Parse { path: PathBuf, message: String },
+    #[error(
+        "scene {path} requires extension {extension}, which rtprobe does not read; export it \
+         without {extension} (e.g. `gltf-transform` can decompress/dequantize it)"
+    )]
+    Extension { path: PathBuf, extension: String },
+    #[error("scene {path}: {part}: {message}")]
+    Part { path: PathBuf, part: String, message: String },
+    #[error("scene {path} has no triangles: give a scene whose default scene has triangle meshes")]
+    Empty { path: PathBuf },
+}
+
+impl LoadError {
+    pub(super) fn part(
+        path: &std::path::Path,
+        part: impl Into<String>,
+        message: impl Into<String>,
+    ) -> Self {
+        LoadError::Part { path: path.to_path_buf(), part: part.into(), message: message.into() }
+    }
+}
+
+/// The first line of a `gltf::Error`, without the crate's multi-line validation lists.
+pub(super) fn one_line(e: &gltf::Error) -> String {
+    match e {
+        gltf::Error::Validation(list) => match list.first() {
+            Some((path, err)) => {
+                let more = if list.len() > 1 {
+                    format!(" (and {} more)", list.len() - 1)
+                } else {
+                    String::new()
+                };
+                format!("invalid at {}: {err}{more}", path.as_str())
+            }
+            None => "invalid".into(),
+        },
+        other => other.to_string().lines().next().unwrap_or_default().to_string(),
+    }
+}

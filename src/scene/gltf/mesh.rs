@@ -1,0 +1,141 @@
+//! A glTF mesh's triangle primitives read into one vertex and index list per mesh: each primitive
+//! a range of triangles (a BLAS geometry of the mesh's BLAS, as the glTF ray tracing tutorial
+//! builds one BLAS per mesh), with its vertex offset, first triangle and material — the
+//! tutorial's `PrimMeshInfo {indexOffset, vertexOffset, materialIndex}`. Indices stay relative
+//! to the primitive's first vertex (the tutorial adds `vertexOffset` in the shader); [`LoadedMesh::triangle`]
+//! adds it back.
+use super::error::LoadError;
+use std::path::Path;
+
+/// One primitive of a mesh.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Primitive {
+    /// First vertex of the primitive in the mesh's vertex lists.
+    pub vertex_offset: u32,
+    /// First triangle of the primitive in the mesh's triangle list.
+    pub first_triangle: u32,
+    pub triangles: u32,
+    /// Index into [`super::Loaded::materials`]; `None`: glTF's default material.
+    pub material: Option<usize>,
+}
+
+/// One glTF mesh: every primitive's vertices, one after the other.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LoadedMesh {
+    pub name: String,
+    pub positions: Vec<[f32; 3]>,
+    /// Empty when a primitive has no normals (none then has them here).
+    pub normals: Vec<[f32; 3]>,
+    /// TEXCOORD_0; empty when a primitive has none.
+    pub uvs: Vec<[f32; 2]>,
+    /// Per primitive, relative to its `vertex_offset`.
+    pub indices: Vec<[u32; 3]>,
+    pub primitives: Vec<Primitive>,
+}
+
+impl LoadedMesh {
+    /// Triangle `t`'s vertex indices into the mesh's vertex lists.
+    pub fn triangle(&self, t: u32) -> [u32; 3] {
+        let p = self
+            .primitives
+            .iter()
+            .find(|p| (p.first_triangle..p.first_triangle + p.triangles).contains(&t))
+            .expect("t is a triangle of the mesh");
+        self.indices[t as usize].map(|i| i + p.vertex_offset)
+    }
+
+    pub fn triangle_count(&self) -> u32 {
+        self.indices.len() as u32
+    }
+}
+
+/// What one primitive read.
+struct Read {
+    positions: Vec<[f32; 3]>,
+    normals: Option<Vec<[f32; 3]>>,
+    uvs: Option<Vec<[f32; 2]>>,
+    indices: Vec<[u32; 3]>,
+}
+
+pub(super) fn read(
+    path: &Path,
+    mesh: &gltf::Mesh,
+    buffers: &[gltf::buffer::Data],
+) -> Result<LoadedMesh, LoadError> {
+    let name = mesh.name().map_or_else(
+        || format!("mesh {}", mesh.index()),
+        |n| format!("mesh {} ({n})", mesh.index()),
+    );
+    let mut out = LoadedMesh { name: name.clone(), ..Default::default() };
+    let (mut all_normals, mut all_uvs) = (true, true);
+    let mut reads = Vec::new();
+    for p in mesh.primitives() {
+        let part = format!("{name}, primitive {}", p.index());
+        let r = read_primitive(path, &part, &p, buffers)?;
+        all_normals &= r.normals.is_some();
+        all_uvs &= r.uvs.is_some();
+        reads.push((r, p.material().index()));
+    }
+    for (r, material) in reads {
+        out.primitives.push(Primitive {
+            vertex_offset: out.positions.len() as u32,
+            first_triangle: out.indices.len() as u32,
+            triangles: r.indices.len() as u32,
+            material,
+        });
+        out.positions.extend(r.positions);
+        if all_normals {
+            out.normals.extend(r.normals.unwrap_or_default());
+        }
+        if all_uvs {
+            out.uvs.extend(r.uvs.unwrap_or_default());
+        }
+        out.indices.extend(r.indices);
+    }
+    Ok(out)
+}
+
+fn read_primitive(
+    path: &Path,
+    part: &str,
+    p: &gltf::Primitive,
+    buffers: &[gltf::buffer::Data],
+) -> Result<Read, LoadError> {
+    if p.mode() != gltf::mesh::Mode::Triangles {
+        return Err(LoadError::part(
+            path,
+            part,
+            format!("mode {:?}, not triangles; triangulate it when exporting (ray tracing needs triangles)", p.mode()),
+        ));
+    }
+    let reader = p.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+    let positions: Vec<[f32; 3]> = reader
+        .read_positions()
+        .ok_or_else(|| {
+            LoadError::part(path, part, "no POSITION attribute; export the mesh with positions")
+        })?
+        .collect();
+    let n = positions.len() as u32;
+    let flat: Vec<u32> = match reader.read_indices() {
+        Some(i) => i.into_u32().collect(),
+        None => (0..n).collect(),
+    };
+    if flat.len() % 3 != 0 {
+        return Err(LoadError::part(
+            path,
+            part,
+            format!("{} indices, not a multiple of 3", flat.len()),
+        ));
+    }
+    if let Some(bad) = flat.iter().find(|i| **i >= n) {
+        return Err(LoadError::part(path, part, format!("index {bad} past its {n} vertices")));
+    }
+    let normals =
+        reader.read_normals().map(|i| i.collect::<Vec<_>>()).filter(|v| v.len() == positions.len());
+    let uvs = reader
+        .read_tex_coords(0)
+        .map(|t| t.into_f32().collect::<Vec<_>>())
+        .filter(|v| v.len() == positions.len());
+    let indices = flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    Ok(Read { positions, normals, uvs, indices })
+}

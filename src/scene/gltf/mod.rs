@@ -1,0 +1,96 @@
+//! glTF 2.0 scenes (`.gltf` with its `.bin` files and images, or `.glb`), read with the `gltf`
+//! crate into what rtprobe builds acceleration structures and buffers from: each mesh's triangle
+//! primitives (`mesh`), the default scene's nodes as instances with world transforms and the
+//! first camera (`nodes`), materials with `alphaMode` and base colour textures, each image
+//! decoded only when asked (`material`), and the scene fitted into the probes' orthographic view
+//! (`fit`). Every failure is one line naming the part of the file (`error`). `make` writes the
+//! test scene and the large scene for measurements.
+pub mod error;
+pub mod fit;
+pub mod make;
+pub mod material;
+pub mod mesh;
+pub mod nodes;
+mod open;
+
+pub use error::LoadError;
+pub use material::{Alpha, Material, Texture};
+pub use mesh::{LoadedMesh, Primitive};
+pub use nodes::{Camera, NodeInstance};
+
+use std::path::{Path, PathBuf};
+
+/// A loaded glTF scene.
+pub struct Loaded {
+    pub path: PathBuf,
+    pub meshes: Vec<LoadedMesh>,
+    /// One per node with a mesh, depth first from the default scene's roots.
+    pub instances: Vec<NodeInstance>,
+    pub materials: Vec<Material>,
+    pub camera: Option<Camera>,
+    /// Images in the document (decoded only by [`Loaded::decode_image`]).
+    pub images: usize,
+    document: gltf::Document,
+    buffers: Vec<gltf::buffer::Data>,
+}
+
+impl Loaded {
+    /// Read `path`: the document, validated, its buffers, meshes, nodes and materials; no image
+    /// is decoded.
+    pub fn load(path: &Path) -> Result<Loaded, LoadError> {
+        let open::Opened { document, buffers } = open::open(path)?;
+        let meshes = document
+            .meshes()
+            .map(|m| mesh::read(path, &m, &buffers))
+            .collect::<Result<Vec<_>, _>>()?;
+        let (instances, camera) = nodes::walk(&document);
+        if instances.iter().all(|i| meshes[i.mesh].indices.is_empty()) {
+            return Err(LoadError::Empty { path: path.to_path_buf() });
+        }
+        let materials = document.materials().map(|m| material::read(&m)).collect();
+        let images = document.images().count();
+        Ok(Loaded {
+            path: path.to_path_buf(),
+            meshes,
+            instances,
+            materials,
+            camera,
+            images,
+            document,
+            buffers,
+        })
+    }
+
+    /// Image `index` decoded to RGBA8 (a material's `base_color_image`).
+    pub fn decode_image(&self, index: usize) -> Result<Texture, LoadError> {
+        material::decode(&self.path, &self.document, &self.buffers, index)
+    }
+
+    /// Triangles of every instance (a mesh instanced by two nodes counts twice).
+    pub fn triangles(&self) -> u64 {
+        self.instances.iter().map(|i| self.meshes[i.mesh].indices.len() as u64).sum()
+    }
+
+    /// Bytes of the tutorial's shared geometry buffers: positions, normals, UVs, indices and the
+    /// per-primitive table (12 bytes a primitive), each mesh once.
+    pub fn geometry_bytes(&self) -> u64 {
+        self.meshes
+            .iter()
+            .map(|m| {
+                (m.positions.len() * 12
+                    + m.normals.len() * 12
+                    + m.uvs.len() * 8
+                    + m.indices.len() * 12) as u64
+                    + 12 * m.primitives.len() as u64
+            })
+            .sum()
+    }
+
+    /// Whether primitive `p` of mesh `m` is opaque (its material's `alphaMode` is OPAQUE).
+    pub fn opaque(&self, m: usize, p: usize) -> bool {
+        self.meshes[m].primitives[p].material.is_none_or(|k| self.materials[k].alpha.opaque())
+    }
+}
+
+#[cfg(test)]
+mod tests;

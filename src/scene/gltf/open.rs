@@ -1,0 +1,80 @@
+//! Opening a glTF file: the JSON (or GLB) read without validation first, so that an unsupported
+//! `extensionsRequired` entry is named in rtprobe's own words, then validated by the `gltf`
+//! crate, then its buffers (`.bin` files, data URIs, the GLB blob) read. Images are not touched
+//! here: each is decoded only when a cell needs it ([`super::Loaded::decode_image`]).
+use super::error::{one_line, LoadError};
+use std::path::Path;
+
+/// Required extensions rtprobe reads (none changes how geometry is stored: texture transform
+/// and the material extensions only change shading, which rtprobe's cells do not use).
+const READ: &[&str] =
+    &["KHR_materials_emissive_strength", "KHR_texture_transform", "KHR_materials_unlit"];
+
+pub(super) struct Opened {
+    pub document: gltf::Document,
+    pub buffers: Vec<gltf::buffer::Data>,
+}
+
+pub(super) fn open(path: &Path) -> Result<Opened, LoadError> {
+    let bytes = std::fs::read(path)
+        .map_err(|e| LoadError::Read { path: path.to_path_buf(), message: e.to_string() })?;
+    let parse =
+        |e: gltf::Error| LoadError::Parse { path: path.to_path_buf(), message: one_line(&e) };
+    let gltf::Gltf { document, blob } =
+        gltf::Gltf::from_slice_without_validation(&bytes).map_err(parse)?;
+    if let Some(ext) = document.extensions_required().find(|e| !READ.contains(e)) {
+        return Err(LoadError::Extension { path: path.to_path_buf(), extension: ext.to_string() });
+    }
+    let root = document.into_json();
+    positions_in_range(path, &root)?;
+    let document = gltf::Document::from_json(root).map_err(parse)?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    let buffers = read_buffers(path, &document, base, blob)?;
+    Ok(Opened { document, buffers })
+}
+
+/// Each buffer's bytes, or one line naming the buffer that could not be read.
+fn read_buffers(
+    path: &Path,
+    document: &gltf::Document,
+    base: &Path,
+    blob: Option<Vec<u8>>,
+) -> Result<Vec<gltf::buffer::Data>, LoadError> {
+    gltf::import_buffers(document, Some(base), blob).map_err(|e| {
+        let which = match &e {
+            gltf::Error::BufferLength { buffer, expected, actual } => {
+                return LoadError::part(
+                    path,
+                    format!("buffer {buffer}"),
+                    format!("{actual} bytes where the file says {expected}; the .bin file is truncated or another one"),
+                )
+            }
+            gltf::Error::Io(_) => "a buffer's file",
+            _ => "a buffer",
+        };
+        LoadError::part(path, which, format!("{}; put the buffers beside the .gltf file", one_line(&e)))
+    })
+}
+
+/// Every primitive's POSITION accessor exists: gltf-json 1.4.1's validation indexes the
+/// accessors with it unchecked (`primitive_validate_hook`) and panics on a file that names an
+/// accessor past the end.
+fn positions_in_range(path: &Path, root: &gltf::json::Root) -> Result<(), LoadError> {
+    use gltf::json::validation::Checked;
+    let n = root.accessors.len();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            let pos = prim.attributes.get(&Checked::Valid(gltf::json::mesh::Semantic::Positions));
+            if let Some(a) = pos.filter(|a| a.value() >= n) {
+                return Err(LoadError::Parse {
+                    path: path.to_path_buf(),
+                    message: format!(
+                        "invalid at meshes[{m}].primitives[{p}].attributes.POSITION: accessor {} of {n}",
+                        a.value()
+                    ),
+                });
+            }
+        }
+    }
+    Ok(())
+}

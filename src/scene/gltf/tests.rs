@@ -1,0 +1,159 @@
+//! The loader against scenes `make` writes, edited into every kind of bad input.
+use super::make::{make, MakeOptions};
+use super::*;
+use crate::model::SceneParams;
+use glam::{Mat4, Quat, Vec3};
+
+fn scene(glb: bool) -> (tempfile::TempDir, std::path::PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = make(dir.path(), MakeOptions { triangles: 0, glb }).unwrap();
+    (dir, path)
+}
+
+/// The loader's error for `path` after `edit` changed its JSON.
+fn edited(edit: impl Fn(&mut serde_json::Value)) -> String {
+    let (dir, path) = scene(false);
+    let mut doc: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    edit(&mut doc);
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let e = Loaded::load(&path).err().expect("the edit breaks the scene").to_string();
+    drop(dir);
+    assert!(!e.contains('\n'), "one line: {e}");
+    e
+}
+
+#[test]
+fn the_test_scene_loads_with_its_meshes_nodes_materials_and_camera() {
+    let (_d, path) = scene(false);
+    let s = Loaded::load(&path).unwrap();
+    let tris: Vec<u32> = s.meshes.iter().map(|m| m.triangle_count()).collect();
+    assert_eq!(tris, vec![128, 6, 2]);
+    assert_eq!(s.meshes[1].primitives.len(), 2);
+    assert_eq!(s.meshes[1].primitives[1].first_triangle, 4);
+    assert_eq!(s.meshes[1].primitives[1].vertex_offset, 12);
+    assert_eq!(s.meshes[1].triangle(4), [12, 13, 14]);
+    assert_eq!(s.instances.iter().map(|i| i.mesh).collect::<Vec<_>>(), vec![0, 1, 2, 2, 2]);
+    assert_eq!(s.triangles(), 128 + 6 + 3 * 2);
+    assert_eq!(s.materials[2].alpha, Alpha::Mask(0.5));
+    assert!(s.opaque(0, 0) && s.opaque(1, 0) && !s.opaque(1, 1) && !s.opaque(2, 0));
+    assert_eq!(s.materials[0].base_color_image, Some(0));
+    assert!(s.camera.is_some());
+    assert_eq!(s.meshes[0].normals.len(), s.meshes[0].positions.len());
+    assert_eq!(s.meshes[0].uvs.len(), s.meshes[0].positions.len());
+    // The world matrix of "leaf b": world root, then "bush", then its own.
+    let y = Vec3::Y;
+    let root =
+        Mat4::from_rotation_translation(Quat::from_axis_angle(y, 0.3), Vec3::new(0.0, -0.2, 0.0));
+    let bush =
+        Mat4::from_rotation_translation(Quat::from_axis_angle(y, 0.8), Vec3::new(1.2, 0.3, -0.4));
+    let leaf =
+        Mat4::from_rotation_translation(Quat::from_axis_angle(y, 1.2), Vec3::new(0.4, 0.6, 0.2));
+    assert!(
+        s.instances[3].world.abs_diff_eq(root * bush * leaf, 1e-5),
+        "{:?}",
+        s.instances[3].world
+    );
+}
+
+#[test]
+fn images_are_decoded_one_at_a_time_when_asked() {
+    for glb in [false, true] {
+        let (_d, path) = scene(glb);
+        let s = Loaded::load(&path).unwrap();
+        assert_eq!(s.images, 2);
+        let checker = s.decode_image(0).unwrap();
+        assert_eq!((checker.width, checker.height, checker.rgba8.len()), (16, 16, 1024));
+        assert_eq!(&checker.rgba8[..4], &[230, 230, 230, 255]);
+        let stripes = s.decode_image(1).unwrap();
+        assert_eq!((stripes.rgba8[3], stripes.rgba8[4 * 4 + 3]), (255, 0), "alpha stripes");
+        assert!(s.decode_image(2).unwrap_err().to_string().contains("image 2"));
+    }
+}
+
+#[test]
+fn a_glb_holds_the_same_scene_as_the_gltf() {
+    let (_a, gltf) = scene(false);
+    let (_b, glb) = scene(true);
+    let (a, b) = (Loaded::load(&gltf).unwrap(), Loaded::load(&glb).unwrap());
+    assert_eq!(a.meshes, b.meshes);
+    assert_eq!(a.instances, b.instances);
+    assert_eq!(a.materials, b.materials);
+}
+
+#[test]
+fn the_fitted_scene_fills_the_view_keeps_facing_and_uses_mesh_indices() {
+    let (_d, path) = scene(false);
+    let s = Loaded::load(&path).unwrap();
+    let scene = fit::to_scene(&s, &SceneParams::default());
+    assert_eq!(scene.instances.len(), 5);
+    assert_eq!(scene.params.instances, 5);
+    assert_eq!(scene.meshes.len(), 4, "three meshes and the floor");
+    assert_eq!(scene.meshes[1].geometries, vec![0..4, 4..6]);
+    let customs: Vec<u32> = scene.instances.iter().map(|i| i.custom_index).collect();
+    assert_eq!(customs, vec![0, 1, 2, 2, 2]);
+    let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
+    for i in &scene.instances {
+        let t = i.transform;
+        let m = Mat4::from_cols_array_2d(&[
+            [t[0][0], t[1][0], t[2][0], 0.0],
+            [t[0][1], t[1][1], t[2][1], 0.0],
+            [t[0][2], t[1][2], t[2][2], 0.0],
+            [t[0][3], t[1][3], t[2][3], 1.0],
+        ]);
+        assert!(m.determinant() > 0.0, "a rotation and a positive scale keep triangle facing");
+        let crate::scene::Geometry::Mesh(k) = i.geometry else { panic!("meshes only") };
+        for p in &scene.meshes[k].positions {
+            let q = m.transform_point3(Vec3::from(*p));
+            (lo, hi) = (lo.min(q), hi.max(q));
+        }
+    }
+    let half = crate::scene::VIEW_HALF;
+    assert!(lo.x >= -half && hi.x <= half && lo.y >= -half && hi.y <= half, "{lo} {hi}");
+    assert!((hi.x - lo.x).max(hi.y - lo.y) > 1.7 * half, "fills the view: {lo} {hi}");
+    assert!(lo.z >= -9.0 - 1e-4 && (hi.z - 5.0).abs() < 1e-4, "{lo} {hi}");
+}
+
+#[test]
+fn a_large_scene_has_the_triangles_asked_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = make(dir.path(), MakeOptions { triangles: 20_000, glb: true }).unwrap();
+    let s = Loaded::load(&path).unwrap();
+    assert!(s.triangles() >= 20_000, "{}", s.triangles());
+    assert_eq!(s.instances.len(), 16);
+}
+
+#[test]
+fn bad_input_is_one_line_naming_the_part() {
+    let e =
+        Loaded::load(std::path::Path::new("/nonexistent/scene.gltf")).err().unwrap().to_string();
+    assert!(e.contains("cannot read scene") && !e.contains('\n'), "{e}");
+    let e = edited(|d| d["extensionsRequired"] = serde_json::json!(["KHR_draco_mesh_compression"]));
+    assert!(e.contains("requires extension KHR_draco_mesh_compression"), "{e}");
+    let e = edited(|d| d["meshes"][0]["primitives"][0]["mode"] = serde_json::json!(1));
+    assert!(e.contains("mesh 0 (ground), primitive 0") && e.contains("not triangles"), "{e}");
+    let e = edited(|d| d["buffers"][0]["byteLength"] = serde_json::json!(99_999_999));
+    assert!(e.contains("buffer 0") && e.contains("truncated"), "{e}");
+    let e = edited(|d| d["buffers"][0]["uri"] = serde_json::json!("missing.bin"));
+    assert!(e.contains("beside the .gltf"), "{e}");
+    let e = edited(|d| {
+        d["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = serde_json::json!(999)
+    });
+    assert!(e.contains("not glTF 2.0") && e.contains("invalid at"), "{e}");
+    let e = edited(|d| d["scenes"][0]["nodes"] = serde_json::json!([7]));
+    assert!(e.contains("no triangles"), "{e}");
+}
+
+#[test]
+fn broken_json_and_a_texture_file_that_is_gone_are_refused() {
+    let (_d, path) = scene(false);
+    let text = std::fs::read(&path).unwrap();
+    std::fs::write(&path, &text[..text.len() / 2]).unwrap();
+    let e = Loaded::load(&path).err().unwrap().to_string();
+    assert!(e.contains("not glTF 2.0") && !e.contains('\n'), "{e}");
+    let (d2, path) = scene(false);
+    std::fs::remove_file(d2.path().join("checker.png")).unwrap();
+    let s = Loaded::load(&path).expect("images are not read at load");
+    let e = s.decode_image(0).unwrap_err().to_string();
+    assert!(e.contains("image 0") && !e.contains('\n'), "{e}");
+}
