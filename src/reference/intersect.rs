@@ -51,11 +51,25 @@ fn object_ray(inst: &Instance, o: DVec3, d: DVec3) -> (DVec3, DVec3) {
 
 /// Whether the object-space ray can come within a margin of the object-space box `lo..hi`
 /// inside the ray's t range (a conservative quick reject).
-fn may_hit_box(o: DVec3, d: DVec3, lo: [f64; 3], hi: [f64; 3]) -> bool {
+pub(super) fn may_hit_box(o: DVec3, d: DVec3, lo: [f64; 3], hi: [f64; 3]) -> bool {
+    may_hit_padded(o, d, (lo, hi), box_pads(lo, hi))
+}
+
+/// The margin per axis the quick reject widens a mesh's box by.
+pub(super) fn box_pads(lo: [f64; 3], hi: [f64; 3]) -> [f64; 3] {
+    [0, 1, 2].map(|a| 1e-3 * (hi[a] - lo[a]).max(1.0))
+}
+
+/// Whether the ray can meet the box `lo..hi` widened by `pad` per axis inside the ray's t range.
+pub(super) fn may_hit_padded(
+    o: DVec3,
+    d: DVec3,
+    (lo, hi): ([f64; 3], [f64; 3]),
+    pad: [f64; 3],
+) -> bool {
     let (mut t0, mut t1) = (RAY_TMIN as f64 * 0.5, RAY_TMAX as f64 * 1.01);
     for a in 0..3 {
-        let m = 1e-3 * (hi[a] - lo[a]).max(1.0);
-        let (l, h) = (lo[a] - m, hi[a] + m);
+        let (l, h) = (lo[a] - pad[a], hi[a] + pad[a]);
         if d[a] == 0.0 {
             if o[a] < l || o[a] > h {
                 return false;
@@ -69,7 +83,13 @@ fn may_hit_box(o: DVec3, d: DVec3, lo: [f64; 3], hi: [f64; 3]) -> bool {
     t0 <= t1 * (1.0 + 1e-6) + 1e-6
 }
 
-fn triangle(o: DVec3, d: DVec3, v0: DVec3, v1: DVec3, v2: DVec3) -> Option<(f64, f64, f64, bool)> {
+pub(super) fn triangle(
+    o: DVec3,
+    d: DVec3,
+    v0: DVec3,
+    v1: DVec3,
+    v2: DVec3,
+) -> Option<(f64, f64, f64, bool)> {
     let e1 = v1 - v0;
     let e2 = v2 - v0;
     let p = d.cross(e2);
