@@ -166,7 +166,7 @@ mod tests {
             ]);
         }
         let indices: Vec<[u32; 3]> = (0..n).map(|k| [3 * k, 3 * k + 1, 3 * k + 2]).collect();
-        Mesh { positions, indices, geometries: vec![0..n] }
+        Mesh { positions, indices, geometries: std::iter::once(0..n).collect() }
     }
 
     #[test]
