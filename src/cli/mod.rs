@@ -21,6 +21,7 @@ pub mod resume;
 pub mod run;
 pub mod shader;
 mod shader_exec;
+mod shader_fill;
 mod shader_plan;
 mod shader_report;
 pub mod shared;

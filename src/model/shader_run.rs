@@ -143,6 +143,9 @@ pub struct ShaderRunReport {
     /// What `--inject-fault` injected (`None`: no injection).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub injection: Option<super::shader_injection::ShaderInjection>,
+    /// The options that changed what ran, hashed into the cell id (none in older reports).
+    #[serde(skip_serializing_if = "super::shader_options::CellOptions::is_empty", default)]
+    pub cell_options: super::shader_options::CellOptions,
 }
 
 /// An attempt's own judgement: its fault, an error, its validation messages, its outputs
