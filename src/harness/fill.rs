@@ -119,8 +119,8 @@ pub fn random_bytes(seed: u64, n: usize) -> Vec<u8> {
     out
 }
 
-/// The bytes and size of what a target holds: a buffer element's bytes, or the bytes from
-/// OFFSET to the block's end; and the words that name it in errors.
+/// The bytes target `r.target` holds in `modules`: a buffer element's size, or the bytes from
+/// OFFSET to the block's end; a target they do not have is refused naming what they have.
 fn room(r: &Request, modules: &[UserModule]) -> Result<u32, FillError> {
     let refuse = |why: String| FillError::Target(r.text.clone(), why);
     match r.target {
@@ -137,7 +137,11 @@ fn room(r: &Request, modules: &[UserModule]) -> Result<u32, FillError> {
             };
             let size = match b.kind {
                 BindingKind::StorageBuffer(n) | BindingKind::UniformBuffer(n) => n,
-                k => return Err(refuse(format!("set {set} binding {binding} is {}, not a buffer; --fill fills buffers, push constants and shader records", kind_words(k)))),
+                BindingKind::AccelerationStructure
+                | BindingKind::StorageImage(_)
+                | BindingKind::SampledImage
+                | BindingKind::Sampler
+                | BindingKind::CombinedImageSampler => return Err(refuse(format!("set {set} binding {binding} is {}, not a buffer; --fill fills buffers, push constants and shader records", kind_words(b.kind)))),
             };
             match element {
                 Some(e) if e >= b.count => Err(refuse(format!(
@@ -164,7 +168,7 @@ fn block_room(offset: u32, end: u32, what: &str, prefix: &str) -> Result<u32, St
     match end {
         0 => Err(format!("no module has a {what}; drop this --fill")),
         _ if offset >= end => Err(format!(
-            "byte {offset} is past the {what}' end ({end} bytes); give {prefix}.0 to {prefix}.{}",
+            "byte {offset} is past the end of the {what} ({end} bytes); give {prefix}.0 to {prefix}.{}",
             end - 1
         )),
         _ => Ok(end - offset),
