@@ -350,7 +350,7 @@ pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
     );
     report.options["descriptor_model"] = serde_json::json!(model.as_str());
     report.options["fill"] = serde_json::json!(cell_options.fill);
-    report.cell = crate::model::shader_options::cell_id(&plan.inputs, &cell_options);
+    report.cell = shader_run::cell_id_with(&plan.inputs, &cell_options);
     report.cell_options = cell_options;
     for (v, t) in report.variants.iter_mut().zip(teardowns) {
         v.teardown = t;

@@ -1,10 +1,9 @@
 //! The options of `run --shader` that change what runs, beyond the inputs' own hashes: the entry
 //! point, specialization constants, fills (a file's by its hash), runtime array and sink sizes,
 //! a descriptor model other than the one the modules imply, and a heap layout (by its hash).
-//! [`cell_id`] names a run with them: the inputs' id as before when none is given (reports
-//! written before these options keep their ids), else that id and `#` with 12 hex digits of the
-//! options' FNV-1a 64 hash.
-use super::shader_run::{self, ShaderInput};
+//! `shader_run::cell_id_with` names a run with them: the inputs' id as before when none is
+//! given (reports written before these options keep their ids), else that id and `#` with 12 hex
+//! digits of the options' FNV-1a 64 hash.
 use serde::{Deserialize, Serialize};
 
 /// What a run was given that changes what runs; absent fields were not given.
@@ -69,57 +68,9 @@ impl CellOptions {
     }
 }
 
-/// The cell id of a run of `inputs` with `options`: [`shader_run::cell_id`], then `#` and the
-/// options hash's first 12 hex digits when any option was given.
-pub fn cell_id(inputs: &[ShaderInput], options: &CellOptions) -> String {
-    let id = shader_run::cell_id(inputs);
-    if options.is_empty() {
-        return id;
-    }
-    format!("{id}#{}", &options.hash()[..12])
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn inputs() -> Vec<ShaderInput> {
-        vec![ShaderInput {
-            file: "hit.rchit".into(),
-            stage: "closest_hit".into(),
-            entry: "main".into(),
-            hash: "0123456789abcdef0123".into(),
-        }]
-    }
-
-    /// Without options the id is the inputs' id as before; `--entry` and `--fill` (a file's
-    /// content hash included) each change it, and the same options give the same id.
-    #[test]
-    fn the_cell_id_changes_with_entry_and_fill() {
-        let plain = cell_id(&inputs(), &CellOptions::default());
-        assert_eq!(plain, "shader:hit.rchit@0123456789ab");
-        let entry = CellOptions { entry: Some("shadeB".into()), ..CellOptions::default() };
-        let other = CellOptions { entry: Some("shadeC".into()), ..CellOptions::default() };
-        let fill = |f: &str| CellOptions { fill: vec![f.into()], ..CellOptions::default() };
-        let ids = [
-            cell_id(&inputs(), &entry),
-            cell_id(&inputs(), &other),
-            cell_id(&inputs(), &fill("0.1=zero")),
-            cell_id(&inputs(), &fill("0.1=file:aaaa")),
-            cell_id(&inputs(), &fill("0.1=file:bbbb")),
-            cell_id(&inputs(), &fill("push.0=zero")),
-        ];
-        for (i, a) in ids.iter().enumerate() {
-            assert!(a.starts_with(&format!("{plain}#")) && a.len() == plain.len() + 13, "{a}");
-            for b in &ids[i + 1..] {
-                assert_ne!(a, b);
-            }
-        }
-        assert_eq!(cell_id(&inputs(), &entry), ids[0]);
-        // A field's value never passes for another field's.
-        let spec = CellOptions { spec: vec!["shadeB".into()], ..CellOptions::default() };
-        assert_ne!(cell_id(&inputs(), &spec), ids[0]);
-    }
 
     /// Old reports have no `cell_options`: they load as none.
     #[test]
