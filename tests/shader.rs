@@ -668,3 +668,111 @@ fn a_fault_in_a_given_any_hit_is_found() {
         assert_eq!(v["outcome"], "crash", "{v}");
     }
 }
+
+/// FNV-1a 128 of `bytes` after their length, as the report hashes an output.
+fn output_hash(bytes: &[u8]) -> String {
+    let mut h: u128 = 0x6c62_272e_07bb_0142_62b8_2175_6295_c58d;
+    let prime: u128 = 0x0000_0000_0100_0000_0000_0000_0000_013b;
+    for b in (bytes.len() as u64).to_le_bytes().iter().chain(bytes) {
+        h ^= *b as u128;
+        h = h.wrapping_mul(prime);
+    }
+    format!("{h:032x}")
+}
+
+/// The `filled.rchit` run with `extra`: the hash of its `seen` buffer in every attempt of every
+/// variant (asserted to be one), and the report.
+fn seen_hash(extra: &[&str]) -> (String, Value) {
+    let mut args = vec!["--repeat", "1"];
+    args.extend_from_slice(extra);
+    let (o, r, _d) = shader_run(&["filled.rchit"], &args, &[]);
+    let r = r.unwrap_or_else(|| panic!("no report: {}", stderr(&o)));
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    let mut hashes = std::collections::BTreeSet::new();
+    for variant in variants(&r) {
+        assert_eq!(variant["outcome"], "pass", "{variant}");
+        for a in attempts(variant) {
+            assert_eq!(a["validation_messages"], 0, "{a}");
+            let seen = a["outputs"].as_array().unwrap().iter().find(|p| {
+                p["label"].as_str().unwrap().starts_with("storage buffer set 0 binding 1[")
+            });
+            hashes.insert(
+                seen.unwrap_or_else(|| panic!("{a}"))["hash"].as_str().unwrap().to_string(),
+            );
+        }
+    }
+    assert_eq!(hashes.len(), 1, "{hashes:?}");
+    (hashes.into_iter().next().unwrap(), r)
+}
+
+/// The bytes the closest-hit writes when it reads `material`, `light` and `texture`.
+fn seen_bytes(material: u32, light: u32, texture: u32) -> Vec<u8> {
+    [material, light, texture, 0xC0FFEE].iter().flat_map(|w| w.to_le_bytes()).collect()
+}
+
+/// `--fill` from files: the closest-hit reads the files' values from its buffer binding, its
+/// push constants and its shader record, and writes them; `zero` gives zeros. The twin: without
+/// the fills it reads the harness's data, so the written bytes differ. The options are in the
+/// report and the cell id (the plain run's has no options hash).
+#[test]
+fn fills_put_a_files_bytes_in_buffers_push_constants_and_records() {
+    let d = tempfile::tempdir().unwrap();
+    let file = |name: &str, bytes: &[u8]| {
+        let p = d.path().join(name);
+        std::fs::write(&p, bytes).unwrap();
+        p.to_string_lossy().into_owned()
+    };
+    let mat = file("mat.bin", &[0, 0, 0, 0, 0x44, 0x33, 0x22, 0x11]);
+    let light = file("light.bin", &0x0BAD_F00D_u32.to_le_bytes());
+    let tex = file("tex.bin", &0x5EED_1234_u32.to_le_bytes());
+    let (a, b, c) = (format!("0.0={mat}"), format!("push.4={light}"), format!("record.4={tex}"));
+    let (filled, r) = seen_hash(&["--fill", &a, "--fill", &b, "--fill", &c]);
+    assert_eq!(filled, output_hash(&seen_bytes(0x1122_3344, 0x0BAD_F00D, 0x5EED_1234)));
+    let fills = r["options"]["fill"].as_array().unwrap();
+    assert_eq!(fills.len(), 3);
+    assert!(fills[0].as_str().unwrap().starts_with("0.0=file:"), "{fills:?}");
+    let cell = r["cell"].as_str().unwrap();
+    assert!(cell.starts_with("shader:filled.rchit@") && cell.contains('#'), "{cell}");
+    let zero = ["--fill", "0.0=zero", "--fill", "push.4=zero", "--fill", "record.4=zero"];
+    assert_eq!(seen_hash(&zero).0, output_hash(&seen_bytes(0, 0, 0)));
+    let (plain, r) = seen_hash(&[]);
+    assert_ne!(plain, filled, "without --fill the harness's data is read");
+    assert_ne!(plain, output_hash(&seen_bytes(0, 0, 0)));
+    assert!(!r["cell"].as_str().unwrap().contains('#'), "{}", r["cell"]);
+}
+
+/// Bad `--fill`: a target the modules lack, a binding that is no buffer, an element or offset
+/// out of range, a scene source, a missing or too large file: one line, exit 2 or 9, no report.
+#[test]
+fn bad_fills_are_one_line_and_no_report() {
+    let d = tempfile::tempdir().unwrap();
+    let report = d.path().join("r.json").to_string_lossy().into_owned();
+    let big = d.path().join("big.bin");
+    std::fs::write(&big, [7u8; 17]).unwrap();
+    let big = format!("0.0={}", big.display());
+    let f = |n: &str| user().join(n).to_string_lossy().into_owned();
+    let (filled, textured) = (f("filled.rchit"), f("textured.rchit"));
+    let cases: &[(&str, &str, i32, &str)] = &[
+        (&filled, "9.9=zero", 2, "no module binds set 9 binding 9 (bound: 0.0, 0.1)"),
+        (&filled, "0.0[1]=zero", 2, "has 1 element(s)"),
+        (&filled, "push.8=zero", 2, "past the end of the push constants (8 bytes)"),
+        (&filled, "record.8=zero", 2, "past the end of the shader record block (8 bytes)"),
+        (&filled, "0.0=scene.positions", 2, "--scene (issue 28)"),
+        (&filled, "0.0=random:x", 2, "random:42"),
+        (&filled, "0.0", 2, "give TARGET=SOURCE"),
+        (&filled, "0.0=/nonexistent/fill.bin", 9, "give a readable file"),
+        (&filled, &big, 9, "holds 17 bytes, more than the 16"),
+        (
+            &textured,
+            "1.1=zero",
+            2,
+            "set 1 binding 1 is a texture (combined image sampler), not a buffer",
+        ),
+    ];
+    for (file, fill, code, needle) in cases {
+        let args = ["run", "--shader", file, "-o", &report, "--fill", fill];
+        let o = run_env(&args, &[]);
+        assert_one_line_error(&o, *code, needle);
+        assert!(!Path::new(&report).exists(), "no report for {fill}");
+    }
+}

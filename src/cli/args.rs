@@ -376,6 +376,17 @@ pub struct RunArgs {
     /// the modules alone do not determine (docs/your-shader.md)
     #[arg(long, value_name = "FILE", requires = "shader", help_heading = "Your shaders")]
     pub heap_layout: Option<PathBuf>,
+    /// With --shader: data in place of the harness's, TARGET=SOURCE (repeatable): TARGET is
+    /// SET.BINDING (a buffer, every element), SET.BINDING[ELEM], push.OFFSET or record.OFFSET
+    /// (bytes); SOURCE is zero, random:SEED or a file's bytes (docs/your-shader.md)
+    #[arg(
+        long = "fill",
+        value_name = "TARGET=SOURCE",
+        requires = "shader",
+        help_heading = "Your shaders"
+    )]
+    pub fill: Vec<String>,
+
     /// With --shader: the elements of every runtime-sized descriptor array (`textures[]`,
     /// `buffer B {…} b[]`), 1 to 65536 (default: one per index the harness scene produces, 64)
     #[arg(long, value_name = "N", requires = "shader", help_heading = "Your shaders")]

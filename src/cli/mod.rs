@@ -22,6 +22,7 @@ pub mod run;
 pub mod scene;
 pub mod shader;
 mod shader_exec;
+mod shader_fill;
 mod shader_plan;
 mod shader_report;
 pub mod shared;

@@ -13,6 +13,7 @@ use super::shader_plan::{self, ShaderPlan};
 use crate::harness::child::JobModule;
 use crate::harness::inject::Request;
 use crate::harness::Sizes;
+use crate::model::shader_options::CellOptions;
 use crate::model::shader_run::{self, ShaderRunReport, ShaderVariant};
 use crate::model::DescriptorModel;
 use crate::report::lock::{LockError, ReportLock};
@@ -45,6 +46,7 @@ const TAKEN: &[&str] = &[
     "descriptor_model",
     "heap_layout",
     "inject_fault",
+    "fill",
     // clap's ids of the argument groups themselves.
     "RunArgs",
     "Cli",
@@ -58,7 +60,7 @@ fn refuse_others(a: &RunArgs) -> Result<()> {
     let flag = format!("--{}", id.replace('_', "-"));
     Err(coded(
         exit::USAGE,
-        format!("{flag} cannot be used with --shader: it applies to the generated matrix, which --shader replaces; drop it (--shader takes --entry, -I, -D, --target-env, --spec, --descriptor-model, --heap-layout, --array-size, --sink-size, --repeat, --timeout, --dump, -o, --device, --validate, --inject-fault)"),
+        format!("{flag} cannot be used with --shader: it applies to the generated matrix, which --shader replaces; drop it (--shader takes --entry, -I, -D, --target-env, --spec, --descriptor-model, --heap-layout, --array-size, --sink-size, --fill, --repeat, --timeout, --dump, -o, --device, --validate, --inject-fault)"),
     ))
 }
 
@@ -268,8 +270,8 @@ fn heap_layout(
 }
 
 /// Everything checked and planned before the report is reserved: the plan, the children's
-/// context (its temporary folder made) and the device's name.
-fn prepare(g: &Globals, a: &RunArgs) -> Result<(ShaderPlan, Ctx, String)> {
+/// context (its temporary folder made), the device's name and the options in the cell id.
+fn prepare(g: &Globals, a: &RunArgs) -> Result<(ShaderPlan, Ctx, String, CellOptions)> {
     refuse_others(a)?;
     refuse_early(g, a)?;
     let (repeat, timeout, setup_timeout) = numbers(a)?;
@@ -281,6 +283,8 @@ fn prepare(g: &Globals, a: &RunArgs) -> Result<(ShaderPlan, Ctx, String)> {
     let heap_layout = heap_layout(a, &plan, model)?;
     let spec = crate::harness::spec::parse_all(&a.spec, &plan.given)
         .map_err(|e| coded(exit::USAGE, e.to_string()))?;
+    let (fills, fill_words) = super::shader_fill::fills(a, &plan, &sizes)?;
+    let cell_options = super::shader_fill::cell_options(a, &plan, model, fill_words)?;
     let (device_index, device_name) = device(g, a, &plan, model)?;
     let dir = std::env::temp_dir().join(format!("rtprobe-shader-{}", std::process::id()));
     let ctx = Ctx {
@@ -300,12 +304,13 @@ fn prepare(g: &Globals, a: &RunArgs) -> Result<(ShaderPlan, Ctx, String)> {
         spec,
         heap_layout,
         sizes,
+        fills,
     };
-    Ok((plan, ctx, device_name))
+    Ok((plan, ctx, device_name, cell_options))
 }
 
 pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
-    let (plan, ctx, device_name) = prepare(g, a)?;
+    let (plan, ctx, device_name, cell_options) = prepare(g, a)?;
     let (repeat, timeout, model, dir) = (ctx.repeat, ctx.timeout, ctx.model, ctx.dir.clone());
     let (out, _lock) = reserve_out(a, &device_name)?;
     std::fs::create_dir_all(&dir)
@@ -344,6 +349,9 @@ pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
         (repeat, timeout, g.validate),
     );
     report.options["descriptor_model"] = serde_json::json!(model.as_str());
+    report.options["fill"] = serde_json::json!(cell_options.fill);
+    report.cell = shader_run::cell_id_with(&plan.inputs, &cell_options);
+    report.cell_options = cell_options;
     for (v, t) in report.variants.iter_mut().zip(teardowns) {
         v.teardown = t;
     }
@@ -444,5 +452,6 @@ fn report(
         outcome,
         notes,
         injection: plan.injection.clone(),
+        cell_options: Default::default(),
     }
 }

@@ -40,6 +40,8 @@ pub struct Ctx {
     pub heap_layout: Option<Vec<crate::harness::heap::Array>>,
     /// `--array-size` and `--sink-size`.
     pub sizes: crate::harness::Sizes,
+    /// `--fill`'s bytes.
+    pub fills: crate::harness::fill::Fills,
 }
 
 /// One attempt as it came back: the record, and the outputs when it ran.
@@ -156,6 +158,7 @@ pub fn run_variant(
             spec: ctx.spec.clone(),
             heap_layout: ctx.heap_layout.clone(),
             sizes: ctx.sizes,
+            fills: ctx.fills.clone(),
         };
         let started = Instant::now();
         let (end, step, silence) = child(ctx, variant, &job)?;

@@ -217,6 +217,7 @@ mod tests {
             outcome: Outcome::Pass,
             notes,
             injection: None,
+            cell_options: Default::default(),
         }
     }
 

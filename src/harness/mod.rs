@@ -20,10 +20,12 @@ pub mod child;
 mod compare;
 pub mod entry;
 mod error;
+pub mod fill;
 pub mod heap;
 pub mod inject;
 pub mod ints;
 mod module;
+mod record;
 pub mod reflect;
 mod resources;
 pub mod run;
@@ -95,6 +97,8 @@ pub struct Setup {
     pub heap_layout: Option<Vec<heap::Array>>,
     /// The sink buffer's bytes (`--sink-size`).
     pub sink: u64,
+    /// `--fill`'s bytes over the harness's data.
+    pub fills: fill::Fills,
 }
 
 impl Default for Setup {
@@ -104,6 +108,7 @@ impl Default for Setup {
             spec: Vec::new(),
             heap_layout: None,
             sink: sizes::SINK_SIZE,
+            fills: fill::Fills::default(),
         }
     }
 }
@@ -129,6 +134,10 @@ pub struct Harness {
     timeout: Duration,
     bound: Bound,
     spec: Vec<spec::SpecValue>,
+    /// `--fill`'s bytes (push constants; the buffers' are in `res`).
+    fills: fill::Fills,
+    /// The shader record data after every SBT handle ([`record`]).
+    record: Vec<u8>,
 }
 
 /// The groups of a pipeline from its modules (by index): raygen, misses, the triangle hit group
@@ -261,8 +270,12 @@ impl Harness {
             .find(|b| b.kind == BindingKind::AccelerationStructure)
             .map(|b| (b.set, b.binding));
         let buffer_model = setup.model == DescriptorModel::DescriptorBuffer;
-        let res =
-            Resources::new(&gpu, &bindings, scene_at, &scene, extent, (setup.sink, buffer_model))?;
+        let sizes = (setup.sink, buffer_model);
+        let res = Resources::new(&gpu, &bindings, scene_at, &scene, extent, sizes, &setup.fills)?;
+        let record = record::data(modules, res.sink.address, &setup.fills);
+        if let Some(p) = gpu.info.properties.rt_pipeline {
+            record::check(record.len(), p.shader_group_handle_size, p.max_shader_group_stride)?;
+        }
         res.textures.upload(&gpu, &submitter, timeout)?;
         let bound =
             match setup.model {
@@ -301,7 +314,7 @@ impl Harness {
                     .at("vkCreatePipelineLayout")?
             }
         };
-        let spec = setup.spec;
+        let (spec, fills) = (setup.spec, setup.fills);
         Ok(Harness {
             gpu,
             submitter,
@@ -313,6 +326,8 @@ impl Harness {
             timeout,
             bound,
             spec,
+            fills,
+            record,
         })
     }
 
@@ -414,7 +429,7 @@ impl Harness {
             &p,
             flags,
             f2.as_mut(),
-            &|_| &[],
+            &|_| self.record.as_slice(),
         );
         for m in &shader_modules {
             unsafe { self.gpu.device.destroy_shader_module(*m, None) };
@@ -424,7 +439,8 @@ impl Harness {
 
     /// The push-constant bytes: floats `0.5 + w / 4` for word `w`, small integers in the words a
     /// module's block reads as integers (a material index: [`ints`]), the sink's address in its
-    /// 64-bit integers and pointers, then each contract address.
+    /// 64-bit integers and pointers, `--fill push.OFFSET`'s bytes over them, then each contract
+    /// address.
     fn push_bytes(&self, addresses: &[(u32, u64)]) -> Vec<u8> {
         let mut p: Vec<u8> = (0..self.push_size / 4)
             .flat_map(|w| match self.push_ints.at(4 * w) {
@@ -432,6 +448,7 @@ impl Harness {
                 fill => resources::word(0, w, fill, self.res.sink.address),
             })
             .collect();
+        self.fills.overlay(false, &mut p);
         for (off, a) in addresses {
             p[*off as usize..*off as usize + 8].copy_from_slice(&a.to_le_bytes());
         }
@@ -528,7 +545,7 @@ impl Harness {
                         bytes: resources::mask_sink(buf.read(size as usize), sink),
                         texel: 4,
                         initial: Some(resources::mask_sink(
-                            resources::buffer_data(d, size, &b.ints, sink),
+                            self.res.element_data(d, (*set, *binding), k as u32, b),
                             sink,
                         )),
                         scheduled: b.atomic,

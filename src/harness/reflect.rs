@@ -79,6 +79,10 @@ pub struct Interface {
     pub push_end: u32,
     /// The integer words of its push-constant block (offsets in the push range).
     pub push_ints: IntWords,
+    /// The end of its shader record block's fixed part (0: none).
+    pub record_end: u32,
+    /// The integer words of its shader record block.
+    pub record_ints: IntWords,
     /// The whole reflection the harness's view was made from.
     pub reflection: reflect::Reflection,
 }
@@ -207,8 +211,29 @@ pub fn reflect(m: &Module) -> Result<Interface, ReflectError> {
     let push_end = r.push.as_ref().map_or(0, |p| p.end);
     let block = push::block(m, "harness").map_err(|e| ReflectError(e.to_string()))?;
     let push_ints = block.and_then(|b| ints::of_block(m, b.st)).unwrap_or_default();
+    let record_end = r.record.as_ref().map_or(0, |b| b.end);
+    let record_ints = record_block(m).and_then(|st| ints::of_block(m, st)).unwrap_or_default();
     let (stage, entry) = (r.stage.clone(), r.entry.clone());
-    Ok(Interface { stage, entry, bindings, push_end, push_ints, reflection: r })
+    Ok(Interface {
+        stage,
+        entry,
+        bindings,
+        push_end,
+        push_ints,
+        record_end,
+        record_ints,
+        reflection: r,
+    })
+}
+
+/// The block struct of the module's `ShaderRecordBufferKHR` variable.
+fn record_block(m: &Module) -> Option<Word> {
+    let var = m.types_global_values.iter().find(|i| {
+        i.class.opcode == Op::Variable
+            && i.operands.first()
+                == Some(&Operand::StorageClass(rspirv::spirv::StorageClass::ShaderRecordBufferKHR))
+    })?;
+    edit::pointer_info(m, var.result_type?).map(|(_, st)| st)
 }
 
 #[cfg(test)]

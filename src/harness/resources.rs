@@ -7,6 +7,7 @@
 //! encode their element and coordinates (`super::textures`), every sampler is the harness's one.
 //! Plus the descriptor sets that bind them, and the address tables a host contract asks for.
 use super::error::HarnessError;
+use super::fill::Fills;
 use super::ints::{Fill, IntWords};
 use super::reflect::{Binding, BindingKind};
 use super::scene::INDEX_BOUND;
@@ -44,6 +45,8 @@ pub struct Resources {
     pub sampler: vk::Sampler,
     /// Every texture element's image and view.
     pub textures: textures::Textures,
+    /// `--fill`'s buffer bytes, in place of [`buffer_data`] where given.
+    pub fills: Fills,
 }
 const SINK_USAGE: vk::BufferUsageFlags = vk::BufferUsageFlags::from_raw(
     vk::BufferUsageFlags::STORAGE_BUFFER.as_raw()
@@ -96,6 +99,23 @@ pub fn format(f: ImageFormat) -> Option<(vk::Format, u32)> {
 /// device address, so a shader dereferencing it reads zeros ([`super::ints`] says why).
 pub fn buffer_data(d: u32, bytes: u32, ints: &IntWords, sink: u64) -> Vec<u8> {
     (0..bytes / 4).flat_map(|w| word(d, w, ints.at(4 * w), sink)).collect()
+}
+
+/// The data of element `k` of the buffer binding `b` at `key`, buffer number `d`: `fills`'
+/// bytes where a fill names it, else [`buffer_data`].
+fn element_data(fills: &Fills, d: u32, key: (u32, u32), k: u32, b: &Binding, sink: u64) -> Vec<u8> {
+    let size = match b.kind {
+        BindingKind::StorageBuffer(n) | BindingKind::UniformBuffer(n) => n,
+        BindingKind::AccelerationStructure
+        | BindingKind::StorageImage(_)
+        | BindingKind::SampledImage
+        | BindingKind::Sampler
+        | BindingKind::CombinedImageSampler => 0,
+    };
+    match fills.buffer(key, k) {
+        Some(bytes) => bytes.to_vec(),
+        None => buffer_data(d, size, &b.ints, sink),
+    }
 }
 
 /// The bytes of word `w` of data set `d` holding `fill` (an address word: half of `sink`).
@@ -168,14 +188,15 @@ struct Making<'a> {
     scene_at: Option<(u32, u32)>,
     extent: vk::Extent2D,
     sink: u64,
+    fills: &'a Fills,
 }
 
 impl Making<'_> {
-    /// The next element of binding `b` at `key`.
+    /// Element `k` of binding `b` at `key`.
     fn element(
         &self,
         gpu: &Gpu,
-        key: (u32, u32),
+        (key, k): ((u32, u32), u32),
         b: &Binding,
         made: &mut Made,
     ) -> Result<Element, HarnessError> {
@@ -191,7 +212,7 @@ impl Making<'_> {
                     | vk::BufferUsageFlags::UNIFORM_BUFFER
                     | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
                 let buf = Buffer::new(gpu, size as u64, usage, Location::Host, "harness buffer")?;
-                buf.write(0, &buffer_data(made.buffers, size, &b.ints, self.sink));
+                buf.write(0, &element_data(self.fills, made.buffers, key, k, b, self.sink));
                 made.buffers += 1;
                 Element::Buffer(buf)
             }
@@ -216,6 +237,7 @@ impl Resources {
         scene: &SceneGpu,
         extent: vk::Extent2D,
         (sink_size, buffer_model): (u64, bool),
+        fills: &Fills,
     ) -> Result<Resources, HarnessError> {
         let unique = super::bindings::merged(bindings)?;
         let sink = Buffer::new(gpu, sink_size, SINK_USAGE, Location::Host, "harness sink")?;
@@ -235,18 +257,21 @@ impl Resources {
             scene_at,
             extent,
             sink: sink.address,
+            fills,
         };
         let mut all: BTreeMap<(u32, u32), (Binding, Vec<Element>)> = BTreeMap::new();
         let mut made = Made::default();
         for (key, b) in unique {
             let elems = (0..b.count)
-                .map(|_| making.element(gpu, key, &b, &mut made))
+                .map(|k| making.element(gpu, (key, k), &b, &mut made))
                 .collect::<Result<Vec<_>, _>>()?;
             all.insert(key, (b, elems));
         }
         let sampler = textures::new_sampler(gpu)?;
         let (set_layouts, pool, sets) = descriptor_sets(gpu, &all, buffer_model)?;
-        let r = Resources { bindings: all, set_layouts, pool, sets, sink, sampler, textures };
+        let fills = fills.clone();
+        let r =
+            Resources { bindings: all, set_layouts, pool, sets, sink, sampler, textures, fills };
         if !buffer_model {
             r.write_sets(gpu);
         }
@@ -257,16 +282,22 @@ impl Resources {
     pub fn refill(&self) {
         self.sink.write(0, &vec![0; self.sink.size as usize]);
         let mut d = 0;
-        for (b, elems) in self.bindings.values() {
-            if let BindingKind::StorageBuffer(size) | BindingKind::UniformBuffer(size) = b.kind {
-                for e in elems {
+        for (key, (b, elems)) in &self.bindings {
+            if let BindingKind::StorageBuffer(_) | BindingKind::UniformBuffer(_) = b.kind {
+                for (k, e) in elems.iter().enumerate() {
                     if let Element::Buffer(buf) = e {
-                        buf.write(0, &buffer_data(d, size, &b.ints, self.sink.address));
+                        buf.write(0, &self.element_data(d, *key, k as u32, b));
                     }
                     d += 1;
                 }
             }
         }
+    }
+
+    /// The data of element `k` of buffer binding `b` at `key`, buffer number `d`: its fill's
+    /// bytes, else [`buffer_data`].
+    pub fn element_data(&self, d: u32, key: (u32, u32), k: u32, b: &Binding) -> Vec<u8> {
+        element_data(&self.fills, d, key, k, b, self.sink.address)
     }
 
     fn write_sets(&self, gpu: &Gpu) {

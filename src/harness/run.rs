@@ -65,6 +65,9 @@ pub struct ShaderJob {
     /// `--array-size` and `--sink-size`.
     #[serde(default)]
     pub sizes: super::Sizes,
+    /// `--fill`'s bytes.
+    #[serde(default)]
+    pub fills: super::fill::Fills,
 }
 
 /// What one attempt came to.
@@ -242,6 +245,7 @@ fn harness(job: &ShaderJob) -> Result<(Harness, Vec<UserModule>), HarnessError> 
         spec: job.spec.clone(),
         heap_layout: job.heap_layout.clone(),
         sink: job.sizes.sink,
+        fills: job.fills.clone(),
     };
     let h = Harness::with_setup(gpu, &refs, push, Duration::from_millis(job.timeout_ms), setup)?;
     Ok((h, variant))

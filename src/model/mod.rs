@@ -28,6 +28,7 @@ pub mod registry;
 pub mod report;
 pub mod scene;
 pub mod shader_injection;
+pub mod shader_options;
 pub mod shader_run;
 pub mod stats;
 pub mod text;

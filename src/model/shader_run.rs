@@ -6,6 +6,7 @@
 //! rtprobe could not run, is an `error` (no evidence about the driver); unpatched attempts whose
 //! outputs differ from the first are `unstable` (outcome `mismatch`); a patched variant whose
 //! outputs differ from the unpatched ones is a `mismatch` naming the patch.
+use super::shader_options::CellOptions;
 use super::{Attempt, Incidence, Outcome};
 use serde::{Deserialize, Serialize};
 
@@ -38,6 +39,16 @@ pub fn cell_id(inputs: &[ShaderInput]) -> String {
         })
         .collect();
     format!("shader:{}", parts.join("+"))
+}
+
+/// The cell id of a run of `inputs` with `options` (`--entry`, `--fill`, …): [`cell_id`], then
+/// `#` and the options hash's first 12 hex digits when any option was given.
+pub fn cell_id_with(inputs: &[ShaderInput], options: &CellOptions) -> String {
+    let id = cell_id(inputs);
+    if options.is_empty() {
+        return id;
+    }
+    format!("{id}#{}", &options.hash()[..12])
 }
 
 /// One written output of an attempt: its label (`set 0 binding 1[0]`, `storage buffer …`) and
@@ -143,6 +154,9 @@ pub struct ShaderRunReport {
     /// What `--inject-fault` injected (`None`: no injection).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub injection: Option<super::shader_injection::ShaderInjection>,
+    /// The options that changed what ran, hashed into the cell id (none in older reports).
+    #[serde(skip_serializing_if = "CellOptions::is_empty", default)]
+    pub cell_options: CellOptions,
 }
 
 /// An attempt's own judgement: its fault, an error, its validation messages, its outputs
@@ -323,5 +337,43 @@ mod tests {
         };
         let id = cell_id(&[input("a/b/cam.rgen", "0123456789abcdef"), input("hit.rchit", "ff")]);
         assert_eq!(id, "shader:cam.rgen@0123456789ab+hit.rchit@ff");
+    }
+
+    fn options_inputs() -> Vec<ShaderInput> {
+        vec![ShaderInput {
+            file: "hit.rchit".into(),
+            stage: "closest_hit".into(),
+            entry: "main".into(),
+            hash: "0123456789abcdef0123".into(),
+        }]
+    }
+
+    /// Without options the id is the inputs' id as before; `--entry` and `--fill` (a file's
+    /// content hash included) each change it, and the same options give the same id.
+    #[test]
+    fn the_cell_id_changes_with_entry_and_fill() {
+        let plain = cell_id_with(&options_inputs(), &CellOptions::default());
+        assert_eq!(plain, "shader:hit.rchit@0123456789ab");
+        let entry = CellOptions { entry: Some("shadeB".into()), ..CellOptions::default() };
+        let other = CellOptions { entry: Some("shadeC".into()), ..CellOptions::default() };
+        let fill = |f: &str| CellOptions { fill: vec![f.into()], ..CellOptions::default() };
+        let ids = [
+            cell_id_with(&options_inputs(), &entry),
+            cell_id_with(&options_inputs(), &other),
+            cell_id_with(&options_inputs(), &fill("0.1=zero")),
+            cell_id_with(&options_inputs(), &fill("0.1=file:aaaa")),
+            cell_id_with(&options_inputs(), &fill("0.1=file:bbbb")),
+            cell_id_with(&options_inputs(), &fill("push.0=zero")),
+        ];
+        for (i, a) in ids.iter().enumerate() {
+            assert!(a.starts_with(&format!("{plain}#")) && a.len() == plain.len() + 13, "{a}");
+            for b in &ids[i + 1..] {
+                assert_ne!(a, b);
+            }
+        }
+        assert_eq!(cell_id_with(&options_inputs(), &entry), ids[0]);
+        // A field's value never passes for another field's.
+        let spec = CellOptions { spec: vec!["shadeB".into()], ..CellOptions::default() };
+        assert_ne!(cell_id_with(&options_inputs(), &spec), ids[0]);
     }
 }

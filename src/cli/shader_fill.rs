@@ -1,0 +1,77 @@
+//! `run --shader`'s `--fill` planned before any device work (`harness::fill`: parsed, held to
+//! the given modules as they run, the bytes made; a problem is one line and exit 2, or 9 for a
+//! file that cannot be read or does not fit), and the options that change what runs, for the
+//! cell id (`model::shader_options`).
+use super::args::RunArgs;
+use super::exit::{self, coded};
+use super::shader_plan::{hash_hex, ShaderPlan};
+use crate::harness::fill::{self, FillError, Fills, Source, Target};
+use crate::harness::Sizes;
+use crate::model::shader_options::CellOptions;
+use crate::model::DescriptorModel;
+use anyhow::Result;
+
+/// Every `--fill`, resolved against the given modules sized by `sizes`, with each one's words
+/// for the cell options (`TARGET=zero`, `TARGET=random:SEED`, `TARGET=file:HASH`).
+pub fn fills(a: &RunArgs, plan: &ShaderPlan, sizes: &Sizes) -> Result<(Fills, Vec<String>)> {
+    let given = sizes.apply(plan.given.clone());
+    let (mut out, mut words) = (Vec::new(), Vec::new());
+    for text in &a.fill {
+        let coded_err = |e: FillError| match e {
+            FillError::Syntax(..) | FillError::Target(..) => coded(exit::USAGE, e.to_string()),
+            FillError::Source(..) => coded(exit::BAD_INPUT, e.to_string()),
+        };
+        let r = fill::parse(text).map_err(coded_err)?;
+        let f = fill::resolve(&r, &given).map_err(coded_err)?;
+        let source = match &r.source {
+            Source::Zero => "zero".to_string(),
+            Source::Random(seed) => format!("random:{seed}"),
+            Source::File(_) => format!("file:{}", hash_hex(&f.bytes)),
+        };
+        words.push(format!("{}={source}", target_words(r.target)));
+        out.push(f);
+    }
+    Ok((Fills(out), words))
+}
+
+/// A target as `--fill` writes it.
+fn target_words(t: Target) -> String {
+    match t {
+        Target::Binding { set, binding, element: None } => format!("{set}.{binding}"),
+        Target::Binding { set, binding, element: Some(e) } => format!("{set}.{binding}[{e}]"),
+        Target::Push(o) => format!("push.{o}"),
+        Target::Record(o) => format!("record.{o}"),
+    }
+}
+
+/// The options of this run that change what runs: `--entry`, `--spec`, `--fill` (`fill_words`),
+/// `--array-size`, `--sink-size`, a `model` other than the modules imply, `--heap-layout`'s
+/// content hash.
+pub fn cell_options(
+    a: &RunArgs,
+    plan: &ShaderPlan,
+    model: DescriptorModel,
+    fill_words: Vec<String>,
+) -> Result<CellOptions> {
+    let implied = if crate::harness::heap::uses_heap(&plan.given) {
+        DescriptorModel::DescriptorHeap
+    } else {
+        DescriptorModel::DescriptorIndexing
+    };
+    let heap_layout =
+        match &a.heap_layout {
+            Some(f) => Some(hash_hex(&std::fs::read(f).map_err(|e| {
+                coded(exit::BAD_INPUT, format!("--heap-layout {}: {e}", f.display()))
+            })?)),
+            None => None,
+        };
+    Ok(CellOptions {
+        entry: a.entry.clone(),
+        spec: a.spec.clone(),
+        fill: fill_words,
+        array_size: a.array_size,
+        sink_size: a.sink_size,
+        descriptor_model: (model != implied).then(|| model.as_str().to_string()),
+        heap_layout,
+    })
+}
