@@ -372,6 +372,12 @@ pub struct RunArgs {
     /// the modules alone do not determine (docs/your-shader.md)
     #[arg(long, value_name = "FILE", requires = "shader", help_heading = "Your shaders")]
     pub heap_layout: Option<PathBuf>,
+
+    /// With --shader: the engine's device features as a Vulkan Profiles JSON (what `caps
+    /// --profile` writes): robustness enabled and descriptor binding flags as the engine's
+    /// (docs/your-shader.md)
+    #[arg(long, value_name = "FILE", requires = "shader", help_heading = "Your shaders")]
+    pub profile: Option<PathBuf>,
     /// With --shader: the elements of every runtime-sized descriptor array (`textures[]`,
     /// `buffer B {…} b[]`), 1 to 65536 (default: one per index the harness scene produces, 64)
     #[arg(long, value_name = "N", requires = "shader", help_heading = "Your shaders")]

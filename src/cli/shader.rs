@@ -10,9 +10,11 @@ use super::exit::{self, coded};
 use super::out::outln;
 use super::shader_exec::{self, Ctx, Ran, VariantRun};
 use super::shader_plan::{self, ShaderPlan};
+use super::shader_profile;
 use crate::harness::child::JobModule;
 use crate::harness::inject::Request;
 use crate::harness::Sizes;
+use crate::model::profile::ProfileRecord;
 use crate::model::shader_run::{self, ShaderRunReport, ShaderVariant};
 use crate::model::DescriptorModel;
 use crate::report::lock::{LockError, ReportLock};
@@ -45,6 +47,7 @@ const TAKEN: &[&str] = &[
     "descriptor_model",
     "heap_layout",
     "inject_fault",
+    "profile",
     // clap's ids of the argument groups themselves.
     "RunArgs",
     "Cli",
@@ -58,7 +61,7 @@ fn refuse_others(a: &RunArgs) -> Result<()> {
     let flag = format!("--{}", id.replace('_', "-"));
     Err(coded(
         exit::USAGE,
-        format!("{flag} cannot be used with --shader: it applies to the generated matrix, which --shader replaces; drop it (--shader takes --entry, -I, -D, --target-env, --spec, --descriptor-model, --heap-layout, --array-size, --sink-size, --repeat, --timeout, --dump, -o, --device, --validate, --inject-fault)"),
+        format!("{flag} cannot be used with --shader: it applies to the generated matrix, which --shader replaces; drop it (--shader takes --entry, -I, -D, --target-env, --spec, --descriptor-model, --heap-layout, --profile, --array-size, --sink-size, --repeat, --timeout, --dump, -o, --device, --validate, --inject-fault)"),
     ))
 }
 
@@ -116,15 +119,9 @@ fn sizes(a: &RunArgs) -> Result<Sizes> {
     Ok(Sizes { array, sink })
 }
 
-/// What is refused before any device work: `--validate=gpu-av` (only the core layer runs in
-/// `--shader`'s children), `-o` naming a folder, `--dump` naming something not a folder.
-fn refuse_early(g: &Globals, a: &RunArgs) -> Result<()> {
-    if g.gpu_av {
-        return Err(coded(
-            exit::USAGE,
-            "--validate=gpu-av: not yet with --shader; use --validate (the core layer)",
-        ));
-    }
+/// What is refused before any device work: `-o` naming a folder, `--dump` naming something
+/// not a folder.
+fn refuse_early(a: &RunArgs) -> Result<()> {
     if let Some(o) = a.out.as_ref().filter(|o| o.is_dir()) {
         return Err(coded(
             exit::USAGE,
@@ -143,19 +140,22 @@ fn refuse_early(g: &Globals, a: &RunArgs) -> Result<()> {
     Ok(())
 }
 
-/// The device `--device` names, checked for what the harness needs and for the pipeline's
-/// interface (`interface::check` against the harness's layout and the device's hit-attribute
-/// limit): its index and name.
+/// The device `--device` names, checked for what the harness needs, for `--profile`'s
+/// features, and for the pipeline's interface (`interface::check` against the harness's layout
+/// and the device's hit-attribute limit): its index and name, and what the profile enabled.
 fn device(
     g: &Globals,
     a: &RunArgs,
     plan: &ShaderPlan,
-    model: DescriptorModel,
-) -> Result<(usize, String)> {
+    (model, profile): (DescriptorModel, Option<&shader_profile::Loaded>),
+) -> Result<(usize, String, Option<ProfileRecord>)> {
     let inst = open_instance(g)?;
     let all = crate::vk::features::query_all(&inst)?;
     let info = crate::vk::features::select(&all, a.device.as_deref())?;
-    let missing = crate::harness::requirements_for(plan.scalar, model).missing_on(info);
+    let mut req = crate::harness::requirements_for(plan.scalar, model);
+    req.robustness = shader_profile::setup(profile).robustness();
+    let record = profile.map(|p| shader_profile::check(p, info, &req, model)).transpose()?;
+    let missing = req.missing_on(info);
     if !missing.is_empty() {
         return Err(coded(
             exit::UNSUPPORTED_DEVICE,
@@ -175,7 +175,7 @@ fn device(
             format!("--shader: the pipeline does not fit the harness's layout: {e}"),
         )
     })?;
-    Ok((info.index, info.name()))
+    Ok((info.index, info.name(), record))
 }
 
 /// Where the report goes, locked: `-o`, else the first free `reports/shader-<time>-<device>.json`.
@@ -269,9 +269,10 @@ fn heap_layout(
 
 /// Everything checked and planned before the report is reserved: the plan, the children's
 /// context (its temporary folder made) and the device's name.
-fn prepare(g: &Globals, a: &RunArgs) -> Result<(ShaderPlan, Ctx, String)> {
+fn prepare(g: &Globals, a: &RunArgs) -> Result<(ShaderPlan, Ctx, String, Option<ProfileRecord>)> {
     refuse_others(a)?;
-    refuse_early(g, a)?;
+    refuse_early(a)?;
+    let profile = shader_profile::read(a.profile.as_deref())?;
     let (repeat, timeout, setup_timeout) = numbers(a)?;
     let sizes = sizes(a)?;
     let inject_fault = injection(a)?;
@@ -281,7 +282,7 @@ fn prepare(g: &Globals, a: &RunArgs) -> Result<(ShaderPlan, Ctx, String)> {
     let heap_layout = heap_layout(a, &plan, model)?;
     let spec = crate::harness::spec::parse_all(&a.spec, &plan.given)
         .map_err(|e| coded(exit::USAGE, e.to_string()))?;
-    let (device_index, device_name) = device(g, a, &plan, model)?;
+    let (device_index, device_name, record) = device(g, a, &plan, (model, profile.as_ref()))?;
     let dir = std::env::temp_dir().join(format!("rtprobe-shader-{}", std::process::id()));
     let ctx = Ctx {
         device_index,
@@ -300,19 +301,26 @@ fn prepare(g: &Globals, a: &RunArgs) -> Result<(ShaderPlan, Ctx, String)> {
         spec,
         heap_layout,
         sizes,
+        profile: shader_profile::setup(profile.as_ref()),
+        gpu_av: false,
     };
-    Ok((plan, ctx, device_name))
+    Ok((plan, ctx, device_name, record))
 }
 
 pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
-    let (plan, ctx, device_name) = prepare(g, a)?;
+    let (plan, ctx, device_name, profile) = prepare(g, a)?;
     let (repeat, timeout, model, dir) = (ctx.repeat, ctx.timeout, ctx.model, ctx.dir.clone());
     let (out, _lock) = reserve_out(a, &device_name)?;
     std::fs::create_dir_all(&dir)
         .with_context(|| format!("creating the --shader folder {}", dir.display()))?;
     let ran = run_all(&ctx, &plan);
-    let _ = std::fs::remove_dir_all(&dir);
-    let (unpatched, patched) = ran?;
+    let (unpatched, patched) = match ran {
+        Ok(r) => r,
+        Err(e) => {
+            let _ = std::fs::remove_dir_all(&dir);
+            return Err(e);
+        }
+    };
     let (mut unpatched, unpatched_teardown) = (unpatched.ran, unpatched.teardown);
     let mut teardowns = vec![unpatched_teardown];
     let mut patched: Patched = patched
@@ -344,9 +352,19 @@ pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
         (repeat, timeout, g.validate),
     );
     report.options["descriptor_model"] = serde_json::json!(model.as_str());
+    report.options["profile"] = serde_json::json!(profile.as_ref().map(|p| &p.hash));
+    report.options["gpu_av"] = serde_json::json!(g.gpu_av);
+    report.profile = profile;
     for (v, t) in report.variants.iter_mut().zip(teardowns) {
         v.teardown = t;
     }
+    if g.gpu_av {
+        let rerun = super::shader_gpu_av::rerun(&ctx, &plan, std::mem::take(&mut report.variants));
+        let _ = std::fs::remove_dir_all(&dir);
+        report.variants = rerun?;
+        report.refresh_outcome();
+    }
+    let _ = std::fs::remove_dir_all(&dir);
     let json = serde_json::to_vec_pretty(&report).context("the report's JSON")?;
     crate::atomic::write_atomic(&out, &json)
         .map_err(|e| coded(exit::BAD_INPUT, format!("writing {}: {e}", out.display())))?;
@@ -444,5 +462,6 @@ fn report(
         outcome,
         notes,
         injection: plan.injection.clone(),
+        profile: None,
     }
 }

@@ -24,6 +24,7 @@ pub mod heap;
 pub mod inject;
 pub mod ints;
 mod module;
+pub mod profile;
 pub mod reflect;
 mod resources;
 pub mod run;
@@ -95,6 +96,8 @@ pub struct Setup {
     pub heap_layout: Option<Vec<heap::Array>>,
     /// The sink buffer's bytes (`--sink-size`).
     pub sink: u64,
+    /// `--profile`'s robustness (the device's, already enabled) and binding flags.
+    pub profile: profile::ProfileSetup,
 }
 
 impl Default for Setup {
@@ -104,6 +107,7 @@ impl Default for Setup {
             spec: Vec::new(),
             heap_layout: None,
             sink: sizes::SINK_SIZE,
+            profile: Default::default(),
         }
     }
 }
@@ -261,8 +265,15 @@ impl Harness {
             .find(|b| b.kind == BindingKind::AccelerationStructure)
             .map(|b| (b.set, b.binding));
         let buffer_model = setup.model == DescriptorModel::DescriptorBuffer;
-        let res =
-            Resources::new(&gpu, &bindings, scene_at, &scene, extent, (setup.sink, buffer_model))?;
+        // Binding flags only on descriptor sets the shaders bind through.
+        let flags = match setup.model {
+            DescriptorModel::DescriptorIndexing => setup.profile.flags,
+            DescriptorModel::DescriptorBuffer | DescriptorModel::DescriptorHeap => {
+                Default::default()
+            }
+        };
+        let made = (setup.sink, buffer_model, flags);
+        let res = Resources::new(&gpu, &bindings, scene_at, &scene, extent, made)?;
         res.textures.upload(&gpu, &submitter, timeout)?;
         let bound =
             match setup.model {

@@ -122,6 +122,9 @@ pub struct ShaderVariant {
     /// How a child that wrote every output then ended (a crash or hang in teardown).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub teardown: Option<String>,
+    /// A faulting variant's re-run under GPU-AV (`--validate=gpu-av`), its attempts apart.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub gpu_av: Option<super::shader_gpu_av::ShaderGpuAv>,
 }
 
 /// The report `run --shader` writes.
@@ -143,6 +146,9 @@ pub struct ShaderRunReport {
     /// What `--inject-fault` injected (`None`: no injection).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub injection: Option<super::shader_injection::ShaderInjection>,
+    /// What `--profile` enabled and bound (`None`: no profile).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub profile: Option<super::profile::ProfileRecord>,
 }
 
 /// An attempt's own judgement: its fault, an error, its validation messages, its outputs
@@ -220,11 +226,31 @@ impl ShaderVariant {
             incidence,
             uncompared,
             teardown: None,
+            gpu_av: None,
         }
+    }
+
+    /// The variant with its GPU-AV re-run: one GPU-AV reports is the shader's or the harness's
+    /// `error` (judgement `validation`), no finding; else its verdict stands.
+    pub fn with_gpu_av(mut self, g: super::shader_gpu_av::ShaderGpuAv) -> ShaderVariant {
+        if g.judgement == super::shader_gpu_av::GpuAvJudgement::Reports {
+            self.outcome = Outcome::Error;
+            self.judgement = Judgement::Validation;
+            self.detail = Some(g.line.clone());
+            self.incidence = None;
+        }
+        self.gpu_av = Some(g);
+        self
     }
 }
 
 impl ShaderRunReport {
+    /// The worst variant's outcome again (after a GPU-AV re-run changed a variant's).
+    pub fn refresh_outcome(&mut self) {
+        let worst = self.variants.iter().map(|v| v.outcome).max_by_key(|o| o.severity());
+        self.outcome = worst.unwrap_or(Outcome::Error);
+    }
+
     /// The variant whose verdict decides the run's: the worst, the first of equals.
     pub fn worst(&self) -> Option<&ShaderVariant> {
         self.variants
