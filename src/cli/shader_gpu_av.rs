@@ -40,7 +40,7 @@ pub fn rerun(
             Some(p) => run_variant(&gpu, &v.name, &p.modules, Some(&p.contract))?,
         };
         let attempts = ran.ran.into_iter().map(|r| r.attempt).collect();
-        out.push(v.with_gpu_av(shader_gpu_av::judge(attempts)));
+        out.push(shader_gpu_av::apply(v, shader_gpu_av::judge(attempts)));
     }
     Ok(out)
 }

@@ -4,31 +4,9 @@
 //! is gone under GPU-AV, as engines that debug with it see), **reports** it (messages: the
 //! shader's own invalid access — an out-of-range index, a bad address — which makes the variant
 //! an `error` of the shader or harness, not a driver finding), or the variant **still faults**.
-use super::shader_run::ShaderAttempt;
+pub use super::shader_run::{GpuAvJudgement, ShaderGpuAv};
+use super::shader_run::{Judgement, ShaderAttempt, ShaderVariant};
 use super::Outcome;
-use serde::{Deserialize, Serialize};
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum GpuAvJudgement {
-    /// Every attempt passed with no message: GPU-AV hides the fault.
-    Masks,
-    /// GPU-AV reported the shader's invalid access: an `error`, not a finding.
-    Reports,
-    /// An attempt faulted under GPU-AV too (and no message explains it).
-    StillFaults,
-    /// The attempts under GPU-AV could not run (a harness error): nothing said.
-    Error,
-}
-
-/// A faulting variant's re-run under GPU-AV.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct ShaderGpuAv {
-    pub attempts: Vec<ShaderAttempt>,
-    pub judgement: GpuAvJudgement,
-    /// The judgement in words.
-    pub line: String,
-}
 
 fn faulted(a: &ShaderAttempt) -> bool {
     match a.attempt.outcome {
@@ -71,6 +49,19 @@ pub fn judge(attempts: Vec<ShaderAttempt>) -> ShaderGpuAv {
         (GpuAvJudgement::Error, format!("GPU-AV re-run did not run{why}"))
     };
     ShaderGpuAv { attempts, judgement, line }
+}
+
+/// `v` with its GPU-AV re-run: one GPU-AV reports is the shader's or the harness's `error`
+/// (judgement `validation`), no finding; else its verdict stands.
+pub fn apply(mut v: ShaderVariant, g: ShaderGpuAv) -> ShaderVariant {
+    if g.judgement == GpuAvJudgement::Reports {
+        v.outcome = Outcome::Error;
+        v.judgement = Judgement::Validation;
+        v.detail = Some(g.line.clone());
+        v.incidence = None;
+    }
+    v.gpu_av = Some(g);
+    v
 }
 
 #[cfg(test)]

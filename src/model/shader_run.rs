@@ -124,7 +124,29 @@ pub struct ShaderVariant {
     pub teardown: Option<String>,
     /// A faulting variant's re-run under GPU-AV (`--validate=gpu-av`), its attempts apart.
     #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub gpu_av: Option<super::shader_gpu_av::ShaderGpuAv>,
+    pub gpu_av: Option<ShaderGpuAv>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GpuAvJudgement {
+    /// Every attempt passed with no message: GPU-AV hides the fault.
+    Masks,
+    /// GPU-AV reported the shader's invalid access: an `error`, not a finding.
+    Reports,
+    /// An attempt faulted under GPU-AV too (and no message explains it).
+    StillFaults,
+    /// The attempts under GPU-AV could not run (a harness error): nothing said.
+    Error,
+}
+
+/// A faulting variant's re-run under GPU-AV (`super::shader_gpu_av` judges it).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ShaderGpuAv {
+    pub attempts: Vec<ShaderAttempt>,
+    pub judgement: GpuAvJudgement,
+    /// The judgement in words.
+    pub line: String,
 }
 
 /// The report `run --shader` writes.
@@ -228,19 +250,6 @@ impl ShaderVariant {
             teardown: None,
             gpu_av: None,
         }
-    }
-
-    /// The variant with its GPU-AV re-run: one GPU-AV reports is the shader's or the harness's
-    /// `error` (judgement `validation`), no finding; else its verdict stands.
-    pub fn with_gpu_av(mut self, g: super::shader_gpu_av::ShaderGpuAv) -> ShaderVariant {
-        if g.judgement == super::shader_gpu_av::GpuAvJudgement::Reports {
-            self.outcome = Outcome::Error;
-            self.judgement = Judgement::Validation;
-            self.detail = Some(g.line.clone());
-            self.incidence = None;
-        }
-        self.gpu_av = Some(g);
-        self
     }
 }
 
