@@ -363,8 +363,7 @@ fn bad_input_is_one_line_and_no_report() {
     }
 }
 
-/// Issue 24 (B2, B4, B5): refused in one line before any device work — `--validate=gpu-av`, `-o`
-/// naming a folder, `--dump` naming a file, `--entry` naming no entry point of a module, and a
+/// Issue 24 (B2, B4, B5): refused in one line before any device work — `-o` naming a folder, `--dump` naming a file, `--entry` naming no entry point of a module, and a
 /// GLSL file with many errors (its first error and how many more, not every one).
 #[test]
 fn refusals_before_the_device_are_one_short_line() {
@@ -380,7 +379,6 @@ fn refusals_before_the_device_are_one_short_line() {
     std::fs::write(&many, format!("#version 460\n#extension GL_EXT_ray_tracing : require\nlayout(location = 0) rayPayloadInEXT vec4 p;\nvoid main() {{\n{body}}}\n")).unwrap();
     let many = many.to_string_lossy().into_owned();
     let cases: &[(&[&str], i32, &str)] = &[
-        (&["--validate=gpu-av", "-o", &report], 2, "not yet with --shader"),
         (&["-o", dir], 2, "is a folder"),
         (&["-o", &report, "--dump", file], 2, "is a file"),
         (&["-o", &report, "--entry", "nope"], 9, "has no entry point \"nope\""),
