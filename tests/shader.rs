@@ -21,7 +21,11 @@ fn shader_run(
 ) -> (std::process::Output, Option<Value>, tempfile::TempDir) {
     let d = tempfile::tempdir().unwrap();
     let out = d.path().join("report.json");
-    let mut args: Vec<String> = vec!["run".into(), "--validate".into()];
+    let mut args: Vec<String> = vec!["run".into()];
+    // `--validate=gpu-av` in `extra` replaces the plain one.
+    if !extra.iter().any(|e| e.starts_with("--validate")) {
+        args.push("--validate".into());
+    }
     for f in files {
         args.push("--shader".into());
         args.push(user().join(f).to_string_lossy().into_owned());
@@ -359,8 +363,7 @@ fn bad_input_is_one_line_and_no_report() {
     }
 }
 
-/// Issue 24 (B2, B4, B5): refused in one line before any device work — `--validate=gpu-av`, `-o`
-/// naming a folder, `--dump` naming a file, `--entry` naming no entry point of a module, and a
+/// Issue 24 (B2, B4, B5): refused in one line before any device work — `-o` naming a folder, `--dump` naming a file, `--entry` naming no entry point of a module, and a
 /// GLSL file with many errors (its first error and how many more, not every one).
 #[test]
 fn refusals_before_the_device_are_one_short_line() {
@@ -376,7 +379,6 @@ fn refusals_before_the_device_are_one_short_line() {
     std::fs::write(&many, format!("#version 460\n#extension GL_EXT_ray_tracing : require\nlayout(location = 0) rayPayloadInEXT vec4 p;\nvoid main() {{\n{body}}}\n")).unwrap();
     let many = many.to_string_lossy().into_owned();
     let cases: &[(&[&str], i32, &str)] = &[
-        (&["--validate=gpu-av", "-o", &report], 2, "not yet with --shader"),
         (&["-o", dir], 2, "is a folder"),
         (&["-o", &report, "--dump", file], 2, "is a file"),
         (&["-o", &report, "--entry", "nope"], 9, "has no entry point \"nope\""),
@@ -775,4 +777,174 @@ fn bad_fills_are_one_line_and_no_report() {
         assert_one_line_error(&o, *code, needle);
         assert!(!Path::new(&report).exists(), "no report for {fill}");
     }
+}
+
+/// A Vulkan Profiles JSON written for a test: `features` as `"VkStruct": {"member": true}`.
+fn profile_file(dir: &Path, name: &str, features: Value) -> String {
+    let p = dir.join(name);
+    let json =
+        serde_json::json!({"capabilities": {"engine": {"features": features}}, "profiles": {}});
+    std::fs::write(&p, serde_json::to_vec(&json).unwrap()).unwrap();
+    p.to_string_lossy().into_owned()
+}
+
+/// Issue 24 (`--profile`): an engine's profile enabling robustBufferAccess2 and partially bound,
+/// update-after-bind and variable-count bindings (by the pre-1.2 struct names an engine may
+/// use): the bindless pipeline runs clean under `--validate` with those flags on its set
+/// layouts, and the report records what was enabled and bound and the profile's hash.
+#[test]
+fn a_profile_with_robustness_and_binding_flags_runs_clean() {
+    let d = tempfile::tempdir().unwrap();
+    let features = serde_json::json!({
+        "VkPhysicalDeviceRobustness2FeaturesKHR": {"robustBufferAccess2": true, "nullDescriptor": false},
+        "VkPhysicalDeviceDescriptorIndexingFeatures": {
+            "descriptorBindingPartiallyBound": true,
+            "descriptorBindingStorageBufferUpdateAfterBind": true,
+            "descriptorBindingStorageImageUpdateAfterBind": true,
+            "descriptorBindingVariableDescriptorCount": true,
+            "runtimeDescriptorArray": true
+        }
+    });
+    let file = profile_file(d.path(), "engine.json", features);
+    let (o, r, _d) = shader_run(
+        &["raygen.rgen", "miss.rmiss", "bindless.rchit"],
+        &["--repeat", "2", "--profile", &file],
+        &[],
+    );
+    let r = r.unwrap_or_else(|| panic!("no report: {}", stderr(&o)));
+    assert_clean(&o, &r, 3, 2);
+    let p = &r["profile"];
+    let enabled: Vec<&str> =
+        p["enabled"].as_array().unwrap().iter().map(|v| v.as_str().unwrap()).collect();
+    for want in [
+        "VkPhysicalDeviceRobustness2FeaturesEXT.robustBufferAccess2",
+        "VkPhysicalDeviceVulkan12Features.descriptorBindingPartiallyBound",
+        "VkPhysicalDeviceVulkan12Features.descriptorBindingVariableDescriptorCount",
+    ] {
+        assert!(enabled.contains(&want), "{want} not in {enabled:?}");
+    }
+    // false enables nothing.
+    assert!(!enabled.iter().any(|e| e.ends_with("nullDescriptor")), "{enabled:?}");
+    assert_eq!(
+        p["binding_flags"],
+        serde_json::json!([
+            "partially_bound",
+            "update_after_bind(storage_buffer, storage_image)",
+            "variable_descriptor_count"
+        ])
+    );
+    // robustBufferAccess2 without robustBufferAccess: the harness adds it, with the VUID.
+    let implied = p["implied"][0].as_str().unwrap_or_default();
+    assert!(implied.contains("robustBufferAccess2-04000"), "{p}");
+    assert_eq!(r["options"]["profile"], p["hash"]);
+    assert_eq!(p["hash"].as_str().map(str::len), Some(32));
+}
+
+/// Twins: a profile naming a feature lavapipe lacks (VK_NV_ray_tracing_motion_blur's) is
+/// refused before any run in one line naming it (exit 5), a feature that is not a boolean and
+/// a file that is not JSON in one line each (exit 9); no report in any case.
+#[test]
+fn a_profile_the_device_cannot_meet_or_that_is_malformed_is_one_line() {
+    let d = tempfile::tempdir().unwrap();
+    let lacks = profile_file(
+        d.path(),
+        "lacks.json",
+        serde_json::json!({
+            "VkPhysicalDeviceRayTracingMotionBlurFeaturesNV": {"rayTracingMotionBlur": true},
+            "VkPhysicalDeviceRobustness2FeaturesEXT": {"robustBufferAccess2": true}
+        }),
+    );
+    let not_bool = profile_file(
+        d.path(),
+        "not_bool.json",
+        serde_json::json!({"VkPhysicalDeviceFeatures": {"robustBufferAccess": "yes"}}),
+    );
+    let broken = d.path().join("broken.json");
+    std::fs::write(&broken, "{\"capabilities\": ").unwrap();
+    let broken = broken.to_string_lossy().into_owned();
+    let cases = [
+        (
+            lacks.as_str(),
+            5,
+            "lacks VkPhysicalDeviceRayTracingMotionBlurFeaturesNV.rayTracingMotionBlur",
+        ),
+        (not_bool.as_str(), 9, "robustBufferAccess: not true or false"),
+        (broken.as_str(), 9, "not JSON"),
+    ];
+    for (file, code, says) in cases {
+        let (o, r, _d) = shader_run(&["bindless.rchit"], &["--profile", file], &[]);
+        assert_eq!(o.status.code(), Some(code), "{file}: {}{}", stdout(&o), stderr(&o));
+        let err = stderr(&o);
+        assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+        assert!(err.contains(says), "{err}");
+        assert!(r.is_none(), "{file}: a report was written");
+    }
+}
+
+/// Issue 24 (GPU-AV re-runs): an injected `device` fault under `--validate=gpu-av` — each
+/// faulting variant is re-run under GPU-AV with as many attempts, kept apart in `gpu_av`, and
+/// its judgement follows from those attempts: messages → `reports` (the variant an `error`),
+/// else a fault → `still_faults` (the variant stays a crash finding), else `masks`.
+#[test]
+fn an_injected_fault_is_re_run_under_gpu_av_with_its_attempts() {
+    let files = ["raygen.rgen", "miss.rmiss", "bindless.rchit"];
+    let pred = "stage=closest_hit,resource=storage_buffer,index=dynamic@device";
+    let (o, r, _d) =
+        shader_run(&files, &["--validate=gpu-av", "--repeat", "2", "--inject-fault", pred], &[]);
+    assert_eq!(o.status.code(), Some(1), "{}{}", stdout(&o), stderr(&o));
+    let r = r.expect("the report is written");
+    assert_eq!(r["options"]["gpu_av"], true);
+    for v in variants(&r) {
+        let own: Vec<&str> = attempts(v).iter().map(|a| a["outcome"].as_str().unwrap()).collect();
+        assert_eq!(own, ["crash", "crash"], "{v}");
+        let g = &v["gpu_av"];
+        let tries = g["attempts"].as_array().unwrap_or_else(|| panic!("no gpu_av: {v}"));
+        assert_eq!(tries.len(), 2, "{g}");
+        let messages: u64 = tries.iter().map(|a| a["validation_messages"].as_u64().unwrap()).sum();
+        let faults =
+            tries.iter().filter(|a| a["outcome"] != "pass" && a["outcome"] != "error").count();
+        let (judgement, outcome) = match (messages, faults) {
+            (m, _) if m > 0 => ("reports", "error"),
+            (0, f) if f > 0 => ("still_faults", "crash"),
+            _ => ("masks", "crash"),
+        };
+        assert_eq!(
+            (g["judgement"].as_str(), v["outcome"].as_str()),
+            (Some(judgement), Some(outcome)),
+            "{v}"
+        );
+        assert!(stdout(&o).contains("GPU-AV"), "{}", stdout(&o));
+    }
+}
+
+/// Issue 24: an out-of-range descriptor index (`--array-size 2` under a shader indexing up to
+/// 63) crashes lavapipe; under GPU-AV the layer reports it, so the variant is the shader's
+/// `error` (judgement `validation`), not a driver finding. Twin: without GPU-AV the same run is
+/// a crash finding with no `gpu_av`.
+#[test]
+fn an_index_gpu_av_reports_out_of_range_is_an_error_not_a_finding() {
+    let files = ["raygen.rgen", "miss.rmiss", "bindless.rchit"];
+    let args = ["--repeat", "1", "--array-size", "2"];
+    let (o, r, _d) = shader_run(&files, &args, &[]);
+    let r = r.unwrap_or_else(|| panic!("no report: {}", stderr(&o)));
+    let v = &variants(&r)[0];
+    assert_eq!(
+        (v["outcome"].as_str(), v["judgement"].as_str()),
+        (Some("crash"), Some("fault")),
+        "{v}"
+    );
+    assert!(v.get("gpu_av").is_none(), "{v}");
+    let with: Vec<&str> = ["--validate=gpu-av"].into_iter().chain(args).collect();
+    let (o, r, _d) = shader_run(&files, &with, &[]);
+    assert_eq!(o.status.code(), Some(1), "{}{}", stdout(&o), stderr(&o));
+    let r = r.expect("the report is written");
+    let v = &variants(&r)[0];
+    assert_eq!(v["gpu_av"]["judgement"], "reports", "{v}");
+    assert_eq!(
+        (v["outcome"].as_str(), v["judgement"].as_str()),
+        (Some("error"), Some("validation"))
+    );
+    let first = v["gpu_av"]["attempts"][0]["validation"][0].as_str().unwrap();
+    assert!(first.contains("out of bounds"), "{first}");
+    assert!(v["detail"].as_str().unwrap().contains("not a driver finding"), "{v}");
 }

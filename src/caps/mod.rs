@@ -3,6 +3,7 @@
 //! which matrix axis values the device can run, with reasons.
 pub mod fields;
 pub mod profile;
+pub mod profile_check;
 pub mod support;
 pub mod text;
 

@@ -372,6 +372,12 @@ pub struct RunArgs {
     )]
     pub descriptor_model: Option<crate::model::DescriptorModel>,
 
+
+    /// With --shader: the engine's device features as a Vulkan Profiles JSON (what `caps
+    /// --profile` writes): robustness enabled and descriptor binding flags as the engine's
+    /// (docs/your-shader.md)
+    #[arg(long, value_name = "FILE", requires = "shader", help_heading = "Your shaders")]
+    pub profile: Option<PathBuf>,
     /// With --shader: the descriptor heap's ranges as a JSON file, for heap modules whose layout
     /// the modules alone do not determine (docs/your-shader.md)
     #[arg(long, value_name = "FILE", requires = "shader", help_heading = "Your shaders")]

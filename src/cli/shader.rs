@@ -10,9 +10,11 @@ use super::exit::{self, coded};
 use super::out::outln;
 use super::shader_exec::{self, Ctx, Ran, VariantRun};
 use super::shader_plan::{self, ShaderPlan};
+use super::shader_profile;
 use crate::harness::child::JobModule;
 use crate::harness::inject::Request;
 use crate::harness::Sizes;
+use crate::model::profile::ProfileRecord;
 use crate::model::shader_options::CellOptions;
 use crate::model::shader_run::{self, ShaderRunReport, ShaderVariant};
 use crate::model::DescriptorModel;
@@ -45,6 +47,7 @@ const TAKEN: &[&str] = &[
     "spec",
     "descriptor_model",
     "heap_layout",
+    "profile",
     "inject_fault",
     "fill",
     // clap's ids of the argument groups themselves.
@@ -60,7 +63,7 @@ fn refuse_others(a: &RunArgs) -> Result<()> {
     let flag = format!("--{}", id.replace('_', "-"));
     Err(coded(
         exit::USAGE,
-        format!("{flag} cannot be used with --shader: it applies to the generated matrix, which --shader replaces; drop it (--shader takes --entry, -I, -D, --target-env, --spec, --descriptor-model, --heap-layout, --array-size, --sink-size, --fill, --repeat, --timeout, --dump, -o, --device, --validate, --inject-fault)"),
+        format!("{flag} cannot be used with --shader: it applies to the generated matrix, which --shader replaces; drop it (--shader takes --entry, -I, -D, --target-env, --spec, --descriptor-model, --heap-layout, --profile, --array-size, --sink-size, --fill, --repeat, --timeout, --dump, -o, --device, --validate, --inject-fault)"),
     ))
 }
 
@@ -118,15 +121,9 @@ fn sizes(a: &RunArgs) -> Result<Sizes> {
     Ok(Sizes { array, sink })
 }
 
-/// What is refused before any device work: `--validate=gpu-av` (only the core layer runs in
-/// `--shader`'s children), `-o` naming a folder, `--dump` naming something not a folder.
-fn refuse_early(g: &Globals, a: &RunArgs) -> Result<()> {
-    if g.gpu_av {
-        return Err(coded(
-            exit::USAGE,
-            "--validate=gpu-av: not yet with --shader; use --validate (the core layer)",
-        ));
-    }
+/// What is refused before any device work: `-o` naming a folder, `--dump` naming something
+/// not a folder.
+fn refuse_early(a: &RunArgs) -> Result<()> {
     if let Some(o) = a.out.as_ref().filter(|o| o.is_dir()) {
         return Err(coded(
             exit::USAGE,
@@ -145,19 +142,22 @@ fn refuse_early(g: &Globals, a: &RunArgs) -> Result<()> {
     Ok(())
 }
 
-/// The device `--device` names, checked for what the harness needs and for the pipeline's
-/// interface (`interface::check` against the harness's layout and the device's hit-attribute
-/// limit): its index and name.
+/// The device `--device` names, checked for what the harness needs, for `--profile`'s
+/// features, and for the pipeline's interface (`interface::check` against the harness's layout
+/// and the device's hit-attribute limit): its index and name, and what the profile enabled.
 fn device(
     g: &Globals,
     a: &RunArgs,
     plan: &ShaderPlan,
-    model: DescriptorModel,
-) -> Result<(usize, String)> {
+    (model, profile): (DescriptorModel, Option<&shader_profile::Loaded>),
+) -> Result<(usize, String, Option<ProfileRecord>)> {
     let inst = open_instance(g)?;
     let all = crate::vk::features::query_all(&inst)?;
     let info = crate::vk::features::select(&all, a.device.as_deref())?;
-    let missing = crate::harness::requirements_for(plan.scalar, model).missing_on(info);
+    let mut req = crate::harness::requirements_for(plan.scalar, model);
+    req.robustness = shader_profile::setup(profile).robustness();
+    let record = profile.map(|p| shader_profile::check(p, info, &req, model)).transpose()?;
+    let missing = req.missing_on(info);
     if !missing.is_empty() {
         return Err(coded(
             exit::UNSUPPORTED_DEVICE,
@@ -177,7 +177,7 @@ fn device(
             format!("--shader: the pipeline does not fit the harness's layout: {e}"),
         )
     })?;
-    Ok((info.index, info.name()))
+    Ok((info.index, info.name(), record))
 }
 
 /// Where the report goes, locked: `-o`, else the first free `reports/shader-<time>-<device>.json`.
@@ -271,9 +271,10 @@ fn heap_layout(
 
 /// Everything checked and planned before the report is reserved: the plan, the children's
 /// context (its temporary folder made), the device's name and the options in the cell id.
-fn prepare(g: &Globals, a: &RunArgs) -> Result<(ShaderPlan, Ctx, String, CellOptions)> {
+fn prepare(g: &Globals, a: &RunArgs) -> Result<Prepared> {
     refuse_others(a)?;
-    refuse_early(g, a)?;
+    refuse_early(a)?;
+    let profile = shader_profile::read(a.profile.as_deref())?;
     let (repeat, timeout, setup_timeout) = numbers(a)?;
     let sizes = sizes(a)?;
     let inject_fault = injection(a)?;
@@ -285,7 +286,7 @@ fn prepare(g: &Globals, a: &RunArgs) -> Result<(ShaderPlan, Ctx, String, CellOpt
         .map_err(|e| coded(exit::USAGE, e.to_string()))?;
     let (fills, fill_words) = super::shader_fill::fills(a, &plan, &sizes)?;
     let cell_options = super::shader_fill::cell_options(a, &plan, model, fill_words)?;
-    let (device_index, device_name) = device(g, a, &plan, model)?;
+    let (device_index, device_name, record) = device(g, a, &plan, (model, profile.as_ref()))?;
     let dir = std::env::temp_dir().join(format!("rtprobe-shader-{}", std::process::id()));
     let ctx = Ctx {
         device_index,
@@ -305,19 +306,35 @@ fn prepare(g: &Globals, a: &RunArgs) -> Result<(ShaderPlan, Ctx, String, CellOpt
         heap_layout,
         sizes,
         fills,
+        profile: shader_profile::setup(profile.as_ref()),
+        gpu_av: false,
     };
-    Ok((plan, ctx, device_name, cell_options))
+    Ok(Prepared { plan, ctx, device_name, cell_options, profile: record })
+}
+
+/// What [`prepare`] checked and planned.
+struct Prepared {
+    plan: ShaderPlan,
+    ctx: Ctx,
+    device_name: String,
+    cell_options: CellOptions,
+    /// What `--profile` enabled.
+    profile: Option<ProfileRecord>,
 }
 
 pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
-    let (plan, ctx, device_name, cell_options) = prepare(g, a)?;
+    let Prepared { plan, ctx, device_name, cell_options, profile } = prepare(g, a)?;
     let (repeat, timeout, model, dir) = (ctx.repeat, ctx.timeout, ctx.model, ctx.dir.clone());
     let (out, _lock) = reserve_out(a, &device_name)?;
     std::fs::create_dir_all(&dir)
         .with_context(|| format!("creating the --shader folder {}", dir.display()))?;
-    let ran = run_all(&ctx, &plan);
-    let _ = std::fs::remove_dir_all(&dir);
-    let (unpatched, patched) = ran?;
+    let (unpatched, patched) = match run_all(&ctx, &plan) {
+        Ok(r) => r,
+        Err(e) => {
+            let _ = std::fs::remove_dir_all(&dir);
+            return Err(e);
+        }
+    };
     let (mut unpatched, unpatched_teardown) = (unpatched.ran, unpatched.teardown);
     let mut teardowns = vec![unpatched_teardown];
     let mut patched: Patched = patched
@@ -352,9 +369,19 @@ pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
     report.options["fill"] = serde_json::json!(cell_options.fill);
     report.cell = shader_run::cell_id_with(&plan.inputs, &cell_options);
     report.cell_options = cell_options;
+    report.options["profile"] = serde_json::json!(profile.as_ref().map(|p| &p.hash));
+    report.options["gpu_av"] = serde_json::json!(g.gpu_av);
+    report.profile = profile;
     for (v, t) in report.variants.iter_mut().zip(teardowns) {
         v.teardown = t;
     }
+    if g.gpu_av {
+        let rerun = super::shader_gpu_av::rerun(&ctx, &plan, std::mem::take(&mut report.variants));
+        let _ = std::fs::remove_dir_all(&dir);
+        report.variants = rerun?;
+        report.refresh_outcome();
+    }
+    let _ = std::fs::remove_dir_all(&dir);
     let json = serde_json::to_vec_pretty(&report).context("the report's JSON")?;
     crate::atomic::write_atomic(&out, &json)
         .map_err(|e| coded(exit::BAD_INPUT, format!("writing {}: {e}", out.display())))?;
@@ -452,6 +479,7 @@ fn report(
         outcome,
         notes,
         injection: plan.injection.clone(),
+        profile: None,
         cell_options: Default::default(),
     }
 }

@@ -25,6 +25,7 @@ const GRACE: Duration = Duration::from_secs(2);
 const KILL_WAIT: Duration = Duration::from_secs(5);
 
 /// What every child of a run shares.
+#[derive(Clone)]
 pub struct Ctx {
     pub device_index: usize,
     pub validate: bool,
@@ -40,6 +41,10 @@ pub struct Ctx {
     pub heap_layout: Option<Vec<crate::harness::heap::Array>>,
     /// `--array-size` and `--sink-size`.
     pub sizes: crate::harness::Sizes,
+    /// `--profile`'s robustness and binding flags.
+    pub profile: crate::harness::profile::ProfileSetup,
+    /// The children's instance with GPU-AV (a faulting variant's re-run).
+    pub gpu_av: bool,
     /// `--fill`'s bytes.
     pub fills: crate::harness::fill::Fills,
 }
@@ -156,6 +161,8 @@ pub fn run_variant(
             dir: ctx.dir.clone(),
             model: Some(ctx.model),
             spec: ctx.spec.clone(),
+            profile: ctx.profile,
+            gpu_av: ctx.gpu_av,
             heap_layout: ctx.heap_layout.clone(),
             sizes: ctx.sizes,
             fills: ctx.fills.clone(),

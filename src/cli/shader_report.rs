@@ -21,16 +21,22 @@ pub fn variant_line(v: &ShaderVariant) -> String {
             (None, 1) if v.patch.is_none() => "one attempt, nothing to compare".into(),
             (None, _) => format!("outputs identical, {messages} validation messages"),
         },
-        Judgement::Validation => {
-            format!("{messages} validation messages: not evidence about the driver")
-        }
+        Judgement::Validation => match &v.gpu_av {
+            Some(g) => format!("faulted; re-run under GPU-AV ({} attempts)", g.attempts.len()),
+            None => format!("{messages} validation messages: not evidence about the driver"),
+        },
         Judgement::Fault | Judgement::Unstable | Judgement::PatchDiffers | Judgement::Error => {
             v.incidence.as_ref().map(|i| i.label()).unwrap_or_default()
         }
     };
     let detail = v.detail.as_deref().map(|d| format!(": {d}")).unwrap_or_default();
     let teardown = v.teardown.as_deref().map(|t| format!("; {t}")).unwrap_or_default();
-    format!("{head} — {tail}{detail}{teardown}")
+    let gpu_av = match (&v.gpu_av, v.judgement) {
+        // A report is the variant's detail already.
+        (Some(g), Judgement::Fault) => format!("; {}", g.line),
+        _ => String::new(),
+    };
+    format!("{head} — {tail}{detail}{teardown}{gpu_av}")
 }
 
 fn plural_s(n: usize) -> &'static str {
@@ -217,6 +223,7 @@ mod tests {
             outcome: Outcome::Pass,
             notes,
             injection: None,
+            profile: None,
             cell_options: Default::default(),
         }
     }

@@ -24,6 +24,7 @@ pub mod fill;
 pub mod heap;
 pub mod inject;
 pub mod ints;
+pub mod profile;
 mod module;
 mod record;
 pub mod reflect;
@@ -95,6 +96,8 @@ pub struct Setup {
     pub spec: Vec<spec::SpecValue>,
     /// The heap model's arrays as `--heap-layout` gives them (else read from the modules).
     pub heap_layout: Option<Vec<heap::Array>>,
+    /// `--profile`'s robustness (the device's, already enabled) and binding flags.
+    pub profile: profile::ProfileSetup,
     /// The sink buffer's bytes (`--sink-size`).
     pub sink: u64,
     /// `--fill`'s bytes over the harness's data.
@@ -104,6 +107,7 @@ pub struct Setup {
 impl Default for Setup {
     fn default() -> Setup {
         Setup {
+            profile: Default::default(),
             model: DescriptorModel::DescriptorIndexing,
             spec: Vec::new(),
             heap_layout: None,
@@ -270,8 +274,15 @@ impl Harness {
             .find(|b| b.kind == BindingKind::AccelerationStructure)
             .map(|b| (b.set, b.binding));
         let buffer_model = setup.model == DescriptorModel::DescriptorBuffer;
-        let sizes = (setup.sink, buffer_model);
-        let res = Resources::new(&gpu, &bindings, scene_at, &scene, extent, sizes, &setup.fills)?;
+        // Binding flags only on descriptor sets the shaders bind through.
+        let flags = match setup.model {
+            DescriptorModel::DescriptorIndexing => setup.profile.flags,
+            DescriptorModel::DescriptorBuffer | DescriptorModel::DescriptorHeap => {
+                Default::default()
+            }
+        };
+        let made = (setup.sink, buffer_model, flags);
+        let res = Resources::new(&gpu, &bindings, scene_at, &scene, extent, made, &setup.fills)?;
         let record = record::data(modules, res.sink.address, &setup.fills);
         if let Some(p) = gpu.info.properties.rt_pipeline {
             record::check(record.len(), p.shader_group_handle_size, p.max_shader_group_stride)?;

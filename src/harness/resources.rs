@@ -9,10 +9,12 @@
 use super::error::HarnessError;
 use super::fill::Fills;
 use super::ints::{Fill, IntWords};
+use super::profile::set_flags;
 use super::reflect::{Binding, BindingKind};
 use super::scene::INDEX_BOUND;
 use super::textures;
 use crate::model::contract::{AddressKind, HostContract};
+use crate::model::profile::BindingFlags;
 use crate::scene::gpu::SceneGpu;
 use crate::vk::memory::{Buffer, Image, Location};
 use crate::vk::{Gpu, VkError, VkResultExt};
@@ -236,7 +238,7 @@ impl Resources {
         scene_at: Option<(u32, u32)>,
         scene: &SceneGpu,
         extent: vk::Extent2D,
-        (sink_size, buffer_model): (u64, bool),
+        (sink_size, buffer_model, flags): (u64, bool, BindingFlags),
         fills: &Fills,
     ) -> Result<Resources, HarnessError> {
         let unique = super::bindings::merged(bindings)?;
@@ -268,7 +270,7 @@ impl Resources {
             all.insert(key, (b, elems));
         }
         let sampler = textures::new_sampler(gpu)?;
-        let (set_layouts, pool, sets) = descriptor_sets(gpu, &all, buffer_model)?;
+        let (set_layouts, pool, sets) = descriptor_sets(gpu, &all, buffer_model, &flags)?;
         let fills = fills.clone();
         let r =
             Resources { bindings: all, set_layouts, pool, sets, sink, sampler, textures, fills };
@@ -433,6 +435,7 @@ fn descriptor_sets(
     gpu: &Gpu,
     all: &BTreeMap<(u32, u32), (Binding, Vec<Element>)>,
     buffer_model: bool,
+    flags: &BindingFlags,
 ) -> Result<Sets, VkError> {
     let d = &gpu.device;
     let n_sets = all.keys().map(|k| k.0 + 1).max().unwrap_or(0);
@@ -441,22 +444,37 @@ fn descriptor_sets(
     }
     let mut layouts = Vec::new();
     let mut sizes: BTreeMap<i32, u32> = BTreeMap::new();
+    let (mut any_uab, mut variable) = (false, Vec::new());
     for set in 0..n_sets {
-        let lb: Vec<vk::DescriptorSetLayoutBinding> = all
+        let bs: Vec<&Binding> = all.iter().filter(|(k, _)| k.0 == set).map(|(_, v)| &v.0).collect();
+        let lb: Vec<vk::DescriptorSetLayoutBinding> = bs
             .iter()
-            .filter(|(k, _)| k.0 == set)
-            .map(|(k, (b, _))| {
+            .map(|b| {
                 *sizes.entry(descriptor_type(b.kind).as_raw()).or_default() += b.count;
                 vk::DescriptorSetLayoutBinding::default()
-                    .binding(k.1)
+                    .binding(b.binding)
                     .descriptor_type(descriptor_type(b.kind))
                     .descriptor_count(b.count)
                     .stage_flags(RT_STAGES)
             })
             .collect();
+        // Binding flags only with descriptor sets (`--profile`; none without one).
+        let (bf, uab) = if buffer_model { (Vec::new(), false) } else { set_flags(flags, &bs) };
+        any_uab |= uab;
+        let var = bf
+            .iter()
+            .zip(&bs)
+            .find(|(f, _)| f.contains(vk::DescriptorBindingFlags::VARIABLE_DESCRIPTOR_COUNT));
+        variable.push(var.map_or(0, |(_, b)| b.count));
+        let mut fci = vk::DescriptorSetLayoutBindingFlagsCreateInfo::default().binding_flags(&bf);
         let mut ci = vk::DescriptorSetLayoutCreateInfo::default().bindings(&lb);
         if buffer_model {
             ci = ci.flags(vk::DescriptorSetLayoutCreateFlags::DESCRIPTOR_BUFFER_EXT);
+        } else if bf.iter().any(|f| !f.is_empty()) {
+            ci = ci.push_next(&mut fci);
+        }
+        if uab {
+            ci = ci.flags(vk::DescriptorSetLayoutCreateFlags::UPDATE_AFTER_BIND_POOL);
         }
         let l = unsafe { d.create_descriptor_set_layout(&ci, None) }
             .at("vkCreateDescriptorSetLayout")?;
@@ -465,6 +483,26 @@ fn descriptor_sets(
     if buffer_model {
         return Ok((layouts, vk::DescriptorPool::null(), Vec::new()));
     }
+    let pool = pool(gpu, &sizes, n_sets, any_uab)?;
+    let mut counts = vk::DescriptorSetVariableDescriptorCountAllocateInfo::default()
+        .descriptor_counts(&variable);
+    let mut ai =
+        vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&layouts);
+    if variable.iter().any(|n| *n > 0) {
+        ai = ai.push_next(&mut counts);
+    }
+    let sets = unsafe { d.allocate_descriptor_sets(&ai) }.at("vkAllocateDescriptorSets")?;
+    Ok((layouts, pool, sets))
+}
+
+/// A pool for `n_sets` sets of the descriptors `sizes` counts by type (`uab`: for sets with
+/// UPDATE_AFTER_BIND bindings).
+fn pool(
+    gpu: &Gpu,
+    sizes: &BTreeMap<i32, u32>,
+    n_sets: u32,
+    uab: bool,
+) -> Result<vk::DescriptorPool, VkError> {
     let pool_sizes: Vec<vk::DescriptorPoolSize> = sizes
         .iter()
         .map(|(t, n)| vk::DescriptorPoolSize {
@@ -472,28 +510,12 @@ fn descriptor_sets(
             descriptor_count: *n,
         })
         .collect();
-    let pool = unsafe {
-        d.create_descriptor_pool(
-            &vk::DescriptorPoolCreateInfo::default()
-                .max_sets(n_sets.max(1))
-                .pool_sizes(&pool_sizes),
-            None,
-        )
+    let mut ci =
+        vk::DescriptorPoolCreateInfo::default().max_sets(n_sets.max(1)).pool_sizes(&pool_sizes);
+    if uab {
+        ci = ci.flags(vk::DescriptorPoolCreateFlags::UPDATE_AFTER_BIND);
     }
-    .at("vkCreateDescriptorPool")?;
-    let sets = if layouts.is_empty() {
-        Vec::new()
-    } else {
-        unsafe {
-            d.allocate_descriptor_sets(
-                &vk::DescriptorSetAllocateInfo::default()
-                    .descriptor_pool(pool)
-                    .set_layouts(&layouts),
-            )
-        }
-        .at("vkAllocateDescriptorSets")?
-    };
-    Ok((layouts, pool, sets))
+    unsafe { gpu.device.create_descriptor_pool(&ci, None) }.at("vkCreateDescriptorPool")
 }
 
 #[cfg(test)]

@@ -65,6 +65,12 @@ pub struct ShaderJob {
     /// `--array-size` and `--sink-size`.
     #[serde(default)]
     pub sizes: super::Sizes,
+    /// `--profile`: robustness features and binding flags.
+    #[serde(default)]
+    pub profile: super::profile::ProfileSetup,
+    /// The validation layer with GPU-AV (a re-run of a faulting variant).
+    #[serde(default)]
+    pub gpu_av: bool,
     /// `--fill`'s bytes.
     #[serde(default)]
     pub fills: super::fill::Fills,
@@ -224,14 +230,17 @@ fn harness(job: &ShaderJob) -> Result<(Harness, Vec<UserModule>), HarnessError> 
     let at = supply::free_binding(&unpatched).max(supply::free_binding(&variant));
     let (unpatched, variant) = (supply::supply_at(unpatched, at)?, supply::supply_at(variant, at)?);
     let (unpatched, variant) = (job.sizes.apply(unpatched), job.sizes.apply(variant));
-    let inst = Arc::new(Instance::new(&InstanceOptions { validate: job.validate, gpu_av: false })?);
+    let options = InstanceOptions { validate: job.validate || job.gpu_av, gpu_av: job.gpu_av };
+    let inst = Arc::new(Instance::new(&options)?);
     let all = features::query_all(&inst)?;
     let info = all
         .get(job.device_index)
         .ok_or_else(|| HarnessError::Unsupported("the device vanished".into()))?
         .clone();
     let model = job.model.unwrap_or(DescriptorModel::DescriptorIndexing);
-    let gpu = Gpu::new(inst, info, super::requirements_for(job.scalar, model))?;
+    let mut req = super::requirements_for(job.scalar, model);
+    req.robustness = job.profile.robustness();
+    let gpu = Gpu::new(inst, info, req)?;
     let push = unpatched
         .iter()
         .chain(&variant)
@@ -245,6 +254,7 @@ fn harness(job: &ShaderJob) -> Result<(Harness, Vec<UserModule>), HarnessError> 
         spec: job.spec.clone(),
         heap_layout: job.heap_layout.clone(),
         sink: job.sizes.sink,
+        profile: job.profile,
         fills: job.fills.clone(),
     };
     let h = Harness::with_setup(gpu, &refs, push, Duration::from_millis(job.timeout_ms), setup)?;

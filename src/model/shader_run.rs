@@ -133,6 +133,31 @@ pub struct ShaderVariant {
     /// How a child that wrote every output then ended (a crash or hang in teardown).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub teardown: Option<String>,
+    /// A faulting variant's re-run under GPU-AV (`--validate=gpu-av`), its attempts apart.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub gpu_av: Option<ShaderGpuAv>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GpuAvJudgement {
+    /// Every attempt passed with no message: GPU-AV hides the fault.
+    Masks,
+    /// GPU-AV reported the shader's invalid access: an `error`, not a finding.
+    Reports,
+    /// An attempt faulted under GPU-AV too (and no message explains it).
+    StillFaults,
+    /// The attempts under GPU-AV could not run (a harness error): nothing said.
+    Error,
+}
+
+/// A faulting variant's re-run under GPU-AV (`super::shader_gpu_av` judges it).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ShaderGpuAv {
+    pub attempts: Vec<ShaderAttempt>,
+    pub judgement: GpuAvJudgement,
+    /// The judgement in words.
+    pub line: String,
 }
 
 /// The report `run --shader` writes.
@@ -154,6 +179,9 @@ pub struct ShaderRunReport {
     /// What `--inject-fault` injected (`None`: no injection).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub injection: Option<super::shader_injection::ShaderInjection>,
+    /// What `--profile` enabled and bound (`None`: no profile).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub profile: Option<super::profile::ProfileRecord>,
     /// The options that changed what ran, hashed into the cell id (none in older reports).
     #[serde(skip_serializing_if = "CellOptions::is_empty", default)]
     pub cell_options: CellOptions,
@@ -234,11 +262,18 @@ impl ShaderVariant {
             incidence,
             uncompared,
             teardown: None,
+            gpu_av: None,
         }
     }
 }
 
 impl ShaderRunReport {
+    /// The worst variant's outcome again (after a GPU-AV re-run changed a variant's).
+    pub fn refresh_outcome(&mut self) {
+        let worst = self.variants.iter().map(|v| v.outcome).max_by_key(|o| o.severity());
+        self.outcome = worst.unwrap_or(Outcome::Error);
+    }
+
     /// The variant whose verdict decides the run's: the worst, the first of equals.
     pub fn worst(&self) -> Option<&ShaderVariant> {
         self.variants

@@ -44,6 +44,8 @@ pub fn requirements(info: &crate::vk::DeviceInfo, cells: &[Cell]) -> Requirement
         scalar_block_layout: false,
         pipeline_library: false,
         disable_internal_cache: false,
+        // The matrix's cells run without robustness: their reads are in bounds by design.
+        robustness: crate::vk::Robustness::default(),
     }
 }
 

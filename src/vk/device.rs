@@ -45,6 +45,50 @@ pub struct Requirements {
     /// is VK_KHR_pipeline_binary's: that extension and VK_KHR_maintenance5, which it requires,
     /// are enabled with it).
     pub disable_internal_cache: bool,
+    /// Robust buffer and image access an engine turns on (`run --shader --profile`).
+    pub robustness: Robustness,
+}
+
+/// The robustness features, each enabled only when asked for: driver faults often depend on
+/// them, so a harness reproducing an engine's device enables what the engine enables.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Robustness {
+    /// `VkPhysicalDeviceFeatures::robustBufferAccess`.
+    pub robust_buffer_access: bool,
+    /// `VkPhysicalDeviceVulkan13Features::robustImageAccess`.
+    pub robust_image_access: bool,
+    /// VK_EXT_robustness2's `robustBufferAccess2`, `robustImageAccess2`, `nullDescriptor`.
+    pub robust_buffer_access2: bool,
+    pub robust_image_access2: bool,
+    pub null_descriptor: bool,
+}
+
+impl Robustness {
+    /// Whether VK_EXT_robustness2 is needed.
+    fn robustness2(&self) -> bool {
+        self.robust_buffer_access2 || self.robust_image_access2 || self.null_descriptor
+    }
+
+    /// What `info` lacks of these.
+    fn missing_on(&self, info: &DeviceInfo) -> Vec<String> {
+        let f = &info.features;
+        let r2 = f.robustness2.unwrap_or_default();
+        // VK_EXT_robustness2's bits count only where the extension can be enabled.
+        let r2_ext = info.has_extension(ext::robustness2::NAME);
+        let r2_has = |bit: vk::Bool32| if r2_ext { bit } else { vk::FALSE };
+        let v13 = f.v13.unwrap_or_default();
+        [
+            (self.robust_buffer_access, f.core.robust_buffer_access, "robustBufferAccess"),
+            (self.robust_image_access, v13.robust_image_access, "robustImageAccess"),
+            (self.robust_buffer_access2, r2_has(r2.robust_buffer_access2), "robustBufferAccess2"),
+            (self.robust_image_access2, r2_has(r2.robust_image_access2), "robustImageAccess2"),
+            (self.null_descriptor, r2_has(r2.null_descriptor), "nullDescriptor"),
+        ]
+        .iter()
+        .filter(|(asked, has, _)| *asked && *has != vk::TRUE)
+        .map(|(_, _, name)| name.to_string())
+        .collect()
+    }
 }
 
 impl Requirements {
@@ -105,6 +149,7 @@ impl Requirements {
             m.push("rayTracingInvocationReorder (VK_NV_ray_tracing_invocation_reorder)".into());
         }
         m.extend(self.missing_pipeline_creation(info));
+        m.extend(self.robustness.missing_on(info));
         m
     }
 
@@ -160,6 +205,7 @@ struct Chosen {
     m5: vk::PhysicalDeviceMaintenance5FeaturesKHR<'static>,
     up: super::heap::PhysicalDeviceShaderUntypedPointersFeaturesKHR,
     icc: super::binary::DevicePipelineBinaryInternalCacheControlKHR,
+    r2: vk::PhysicalDeviceRobustness2FeaturesEXT<'static>,
 }
 
 impl Chosen {
@@ -190,6 +236,7 @@ impl Chosen {
                 disable_internal_cache: vk::TRUE,
                 ..Default::default()
             },
+            r2: Default::default(),
         };
         let bda = req.buffer_device_address
             || req.rt_pipeline
@@ -220,7 +267,21 @@ impl Chosen {
         c.core.shader_int64 = if req.int64 || bda { sup.core.shader_int64 } else { vk::FALSE };
         c.core.fragment_stores_and_atomics = if req.fragment_stores { vk::TRUE } else { vk::FALSE };
         c.core.vertex_pipeline_stores_and_atomics = vk::FALSE;
+        c.robustness(&req.robustness);
         c
+    }
+
+    /// The robustness bits asked for (VK_EXT_robustness2's with its extension).
+    fn robustness(&mut self, r: &Robustness) {
+        let b = |on: bool| if on { vk::TRUE } else { vk::FALSE };
+        self.core.robust_buffer_access = b(r.robust_buffer_access);
+        self.v13.robust_image_access = b(r.robust_image_access);
+        if r.robustness2() {
+            self.exts.push(ext::robustness2::NAME);
+            self.r2.robust_buffer_access2 = b(r.robust_buffer_access2);
+            self.r2.robust_image_access2 = b(r.robust_image_access2);
+            self.r2.null_descriptor = b(r.null_descriptor);
+        }
     }
 
     /// Acceleration structures, the RT pipeline and ray queries.
@@ -319,8 +380,11 @@ impl Chosen {
         let ext_ptrs: Vec<*const i8> = self.exts.iter().map(|e| e.as_ptr()).collect();
         let mut f2 =
             vk::PhysicalDeviceFeatures2::default().features(self.core).push_next(&mut self.v12);
-        if req.dynamic_rendering {
+        if req.dynamic_rendering || req.robustness.robust_image_access {
             f2 = f2.push_next(&mut self.v13);
+        }
+        if req.robustness.robustness2() {
+            f2 = f2.push_next(&mut self.r2);
         }
         if req.rt_pipeline || req.ray_query {
             f2 = f2.push_next(&mut self.accel);
@@ -370,6 +434,7 @@ impl Chosen {
     fn core_names(&self) -> Vec<Option<String>> {
         let core = &self.core;
         vec![
+            given("robustBufferAccess", core.robust_buffer_access),
             given("shaderInt64", core.shader_int64),
             given("fragmentStoresAndAtomics", core.fragment_stores_and_atomics),
             given(
@@ -443,8 +508,16 @@ impl Chosen {
     /// structs.
     fn extension_names(&self, req: &Requirements) -> Vec<Option<String>> {
         let rtq = req.rt_pipeline || req.ray_query;
+        let (v13, r2) = (
+            req.dynamic_rendering || req.robustness.robust_image_access,
+            req.robustness.robustness2(),
+        );
         vec![
-            on("dynamicRendering", self.v13.dynamic_rendering, req.dynamic_rendering),
+            on("dynamicRendering", self.v13.dynamic_rendering, v13),
+            on("robustImageAccess", self.v13.robust_image_access, v13),
+            on("robustBufferAccess2", self.r2.robust_buffer_access2, r2),
+            on("robustImageAccess2", self.r2.robust_image_access2, r2),
+            on("nullDescriptor", self.r2.null_descriptor, r2),
             on("accelerationStructure", self.accel.acceleration_structure, rtq),
             on(
                 "descriptorBindingAccelerationStructureUpdateAfterBind",
@@ -478,6 +551,14 @@ fn on(name: &str, bit: vk::Bool32, chained: bool) -> Option<String> {
 /// `name` when `bit` is true in a struct that is always chained (1.0, 1.2).
 fn given(name: &str, bit: vk::Bool32) -> Option<String> {
     on(name, bit, true)
+}
+
+/// Every feature bit (Vulkan member name) a device created on `info` with `req` is given, as
+/// [`Gpu::enabled_names`] lists them after the extensions; nothing is created.
+pub fn enabled_feature_names(req: &Requirements, info: &DeviceInfo) -> Vec<String> {
+    let c = Chosen::of(req, &info.features);
+    let n = c.exts.len();
+    c.names(req).split_off(n)
 }
 
 impl Gpu {
