@@ -20,6 +20,7 @@ pub mod repro;
 pub mod resume;
 pub mod run;
 pub mod shader;
+mod shader_compare;
 mod shader_exec;
 mod shader_plan;
 mod shader_report;

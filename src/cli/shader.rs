@@ -45,6 +45,11 @@ const TAKEN: &[&str] = &[
     "descriptor_model",
     "heap_layout",
     "inject_fault",
+    "compare",
+    "tolerance",
+    "junit",
+    "baseline",
+    "allow_improvements",
     // clap's ids of the argument groups themselves.
     "RunArgs",
     "Cli",
@@ -58,7 +63,7 @@ fn refuse_others(a: &RunArgs) -> Result<()> {
     let flag = format!("--{}", id.replace('_', "-"));
     Err(coded(
         exit::USAGE,
-        format!("{flag} cannot be used with --shader: it applies to the generated matrix, which --shader replaces; drop it (--shader takes --entry, -I, -D, --target-env, --spec, --descriptor-model, --heap-layout, --array-size, --sink-size, --repeat, --timeout, --dump, -o, --device, --validate, --inject-fault)"),
+        format!("{flag} cannot be used with --shader: it applies to the generated matrix, which --shader replaces; drop it (--shader takes --entry, -I, -D, --target-env, --spec, --descriptor-model, --heap-layout, --array-size, --sink-size, --repeat, --timeout, --dump, -o, --device, --validate, --inject-fault, --compare, --tolerance, --junit, --baseline, --allow-improvements)"),
     ))
 }
 
@@ -267,9 +272,27 @@ fn heap_layout(
     }
 }
 
-/// Everything checked and planned before the report is reserved: the plan, the children's
-/// context (its temporary folder made) and the device's name.
-fn prepare(g: &Globals, a: &RunArgs) -> Result<(ShaderPlan, Ctx, String)> {
+/// `--compare`'s report, read and checked against the plan's cell, and `--tolerance` checked.
+fn other_report(a: &RunArgs, plan: &ShaderPlan) -> Result<Option<ShaderRunReport>> {
+    if let Some(t) = a.tolerance.filter(|t| !(t.is_finite() && *t >= 0.0)) {
+        return Err(coded(exit::USAGE, format!("--tolerance {t}: give a finite number >= 0")));
+    }
+    let cell = shader_run::cell_id(&plan.inputs);
+    a.compare.as_deref().map(|p| super::shader_compare::load(p, &cell)).transpose()
+}
+
+/// What a run takes before its device: the plan, the children's context (its temporary folder
+/// made), the device's name, `--compare`'s report and `--baseline`'s expectations.
+struct Prepared {
+    plan: ShaderPlan,
+    ctx: Ctx,
+    device_name: String,
+    other: Option<ShaderRunReport>,
+    baseline: Option<crate::model::Baseline>,
+}
+
+/// Everything checked and planned before the report is reserved.
+fn prepare(g: &Globals, a: &RunArgs) -> Result<Prepared> {
     refuse_others(a)?;
     refuse_early(g, a)?;
     let (repeat, timeout, setup_timeout) = numbers(a)?;
@@ -281,6 +304,9 @@ fn prepare(g: &Globals, a: &RunArgs) -> Result<(ShaderPlan, Ctx, String)> {
     let heap_layout = heap_layout(a, &plan, model)?;
     let spec = crate::harness::spec::parse_all(&a.spec, &plan.given)
         .map_err(|e| coded(exit::USAGE, e.to_string()))?;
+    let other = other_report(a, &plan)?;
+    let baseline = a.baseline.as_deref().map(super::fleet::load_baseline).transpose()?;
+    super::paths::writable_files(&[("--junit", a.junit.as_deref())])?;
     let (device_index, device_name) = device(g, a, &plan, model)?;
     let dir = std::env::temp_dir().join(format!("rtprobe-shader-{}", std::process::id()));
     let ctx = Ctx {
@@ -301,17 +327,17 @@ fn prepare(g: &Globals, a: &RunArgs) -> Result<(ShaderPlan, Ctx, String)> {
         heap_layout,
         sizes,
     };
-    Ok((plan, ctx, device_name))
+    Ok(Prepared { plan, ctx, device_name, other, baseline })
 }
 
 pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
-    let (plan, ctx, device_name) = prepare(g, a)?;
-    let (repeat, timeout, model, dir) = (ctx.repeat, ctx.timeout, ctx.model, ctx.dir.clone());
-    let (out, _lock) = reserve_out(a, &device_name)?;
-    std::fs::create_dir_all(&dir)
-        .with_context(|| format!("creating the --shader folder {}", dir.display()))?;
-    let ran = run_all(&ctx, &plan);
-    let _ = std::fs::remove_dir_all(&dir);
+    let p = prepare(g, a)?;
+    let (plan, ctx) = (&p.plan, &p.ctx);
+    let (out, _lock) = reserve_out(a, &p.device_name)?;
+    std::fs::create_dir_all(&ctx.dir)
+        .with_context(|| format!("creating the --shader folder {}", ctx.dir.display()))?;
+    let ran = run_all(ctx, plan);
+    let _ = std::fs::remove_dir_all(&ctx.dir);
     let (unpatched, patched) = ran?;
     let (mut unpatched, unpatched_teardown) = (unpatched.ran, unpatched.teardown);
     let mut teardowns = vec![unpatched_teardown];
@@ -326,31 +352,69 @@ pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
         .iter()
         .chain(patched.iter().flat_map(|p| &p.1))
         .find_map(|r| r.device.clone())
-        .unwrap_or(device_name);
+        .unwrap_or(p.device_name.clone());
     let mut notes = plan.notes.clone();
     notes.extend(plan.injection.as_ref().map(|i| i.line()));
     let judged = shader_exec::compare_all(&device, &mut unpatched, &mut patched);
     notes.extend(judged.note);
+    let compared = p.other.as_ref().map(|other| {
+        let against = super::shader_compare::Against {
+            other,
+            path: a.compare.as_deref().unwrap_or(Path::new("")),
+            tolerance: a.tolerance,
+            modules: &plan.modules,
+        };
+        super::shader_compare::compare_all(&against, &mut unpatched, &mut patched)
+    });
     if let Some(d) = &a.dump {
-        dump(d, &plan, &unpatched, &patched)?;
+        dump(d, plan, &unpatched, &patched)?;
     }
+    let (data, capped) = embedded(&unpatched, &patched);
+    notes.extend(capped);
+    let (compare_notes, compare) = compared.unzip();
+    notes.extend(compare_notes.into_iter().flatten());
     let mut report = report(
         a,
-        &plan,
+        plan,
         device,
         unpatched,
         patched,
         (notes, judged.uncompared),
-        (repeat, timeout, g.validate),
+        (ctx.repeat, ctx.timeout, g.validate),
     );
-    report.options["descriptor_model"] = serde_json::json!(model.as_str());
-    for (v, t) in report.variants.iter_mut().zip(teardowns) {
-        v.teardown = t;
+    report.options["descriptor_model"] = serde_json::json!(ctx.model.as_str());
+    for ((v, t), d) in report.variants.iter_mut().zip(teardowns).zip(data) {
+        (v.teardown, v.data) = (t, d);
+    }
+    report.compare = compare;
+    finish(a, &p, report, &out)
+}
+
+/// Each variant's outputs to embed, and a note for those over the cap.
+fn embedded(
+    unpatched: &[shader_exec::Ran],
+    patched: &Patched,
+) -> (Vec<Vec<crate::model::shader_outputs::OutputData>>, Option<String>) {
+    let mut all: Vec<(&str, &[shader_exec::Ran])> = vec![("unpatched", unpatched)];
+    all.extend(patched.iter().map(|(n, r)| (n.as_str(), r.as_slice())));
+    super::shader_compare::embed(&all)
+}
+
+/// The baseline's check, the report (atomically), `--junit`, the summary; the exit code.
+fn finish(a: &RunArgs, p: &Prepared, mut report: ShaderRunReport, out: &Path) -> Result<u8> {
+    if let (Some(b), Some(path)) = (&p.baseline, &a.baseline) {
+        let source = path.display().to_string();
+        report.baseline = Some(crate::fleet::shader_baseline::check(&report, b, &source));
     }
     let json = serde_json::to_vec_pretty(&report).context("the report's JSON")?;
-    crate::atomic::write_atomic(&out, &json)
+    crate::atomic::write_atomic(out, &json)
         .map_err(|e| coded(exit::BAD_INPUT, format!("writing {}: {e}", out.display())))?;
-    let (lines, code) = super::shader_report::summary(&report, &out);
+    if let Some(j) = &a.junit {
+        let xml = crate::report::shader_junit::render(&report);
+        crate::atomic::write_atomic(j, xml.as_bytes())
+            .map_err(|e| coded(exit::BAD_INPUT, format!("writing {}: {e}", j.display())))?;
+    }
+    let (lines, code) = super::shader_report::summary(&report, out, a.allow_improvements);
     for l in lines {
         outln!("{l}");
     }
@@ -444,5 +508,7 @@ fn report(
         outcome,
         notes,
         injection: plan.injection.clone(),
+        compare: None,
+        baseline: None,
     }
 }

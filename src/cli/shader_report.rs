@@ -24,9 +24,11 @@ pub fn variant_line(v: &ShaderVariant) -> String {
         Judgement::Validation => {
             format!("{messages} validation messages: not evidence about the driver")
         }
-        Judgement::Fault | Judgement::Unstable | Judgement::PatchDiffers | Judgement::Error => {
-            v.incidence.as_ref().map(|i| i.label()).unwrap_or_default()
-        }
+        Judgement::Fault
+        | Judgement::Unstable
+        | Judgement::PatchDiffers
+        | Judgement::CompareDiffers
+        | Judgement::Error => v.incidence.as_ref().map(|i| i.label()).unwrap_or_default(),
     };
     let detail = v.detail.as_deref().map(|d| format!(": {d}")).unwrap_or_default();
     let teardown = v.teardown.as_deref().map(|t| format!("; {t}")).unwrap_or_default();
@@ -86,13 +88,18 @@ fn differences(r: &ShaderRunReport) -> String {
     }
 }
 
-/// The summary lines, verdict last.
-pub fn summary(r: &ShaderRunReport, report_path: &Path) -> (Vec<String>, u8) {
+/// The summary lines, verdict last; with a baseline, its lines, and the exit code says only
+/// what it did not expect (as `run --baseline`).
+pub fn summary(r: &ShaderRunReport, report_path: &Path, allow: bool) -> (Vec<String>, u8) {
     let mut lines = vec![format!("{} on {}", r.cell, r.device)];
     lines.extend(r.variants.iter().map(variant_line));
     lines.extend(r.notes.iter().map(|n| format!("  note: {n}")));
     lines.push(format!("report: {}", report_path.display()));
-    let (v, code) = verdict(r);
+    let (v, mut code) = verdict(r);
+    if let Some(b) = &r.baseline {
+        lines.extend(crate::fleet::baseline::render(b, allow).lines().map(String::from));
+        code = if b.ok(allow) { exit::OK } else { exit::FINDINGS };
+    }
     lines.push(v);
     (lines, code)
 }
@@ -199,6 +206,7 @@ mod tests {
             validation: vec![],
             outputs: vec![],
             differs: None,
+            against: None,
         };
         let name = patch.unwrap_or("unpatched");
         let p = patch.map(String::from);
@@ -217,6 +225,8 @@ mod tests {
             outcome: Outcome::Pass,
             notes,
             injection: None,
+            compare: None,
+            baseline: None,
         }
     }
 

@@ -34,7 +34,7 @@ mod supply;
 mod textures;
 
 pub use bindings::check as check_bindings;
-pub use compare::{compare, judge, Compared, Part, PartKind, Verdict};
+pub use compare::{compare, compare_within, judge, Compared, Part, PartKind, Tolerance, Verdict};
 pub use error::HarnessError;
 pub use module::UserModule;
 pub use sizes::Sizes;

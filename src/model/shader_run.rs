@@ -6,6 +6,7 @@
 //! rtprobe could not run, is an `error` (no evidence about the driver); unpatched attempts whose
 //! outputs differ from the first are `unstable` (outcome `mismatch`); a patched variant whose
 //! outputs differ from the unpatched ones is a `mismatch` naming the patch.
+use super::shader_outputs::{CompareInfo, OutputData};
 use super::{Attempt, Incidence, Outcome};
 use serde::{Deserialize, Serialize};
 
@@ -66,6 +67,10 @@ pub struct ShaderAttempt {
     /// `harness::judge`'s words; `None`: identical, or nothing to compare.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub differs: Option<String>,
+    /// How its outputs differ beyond `--tolerance` from the `--compare` report's (a finding);
+    /// `None`: within it, or no tolerance given (differences are then notes).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub against: Option<String>,
 }
 
 /// What a variant's attempts come to.
@@ -80,6 +85,8 @@ pub enum Judgement {
     Unstable,
     /// A patched variant whose outputs differ from the unpatched ones.
     PatchDiffers,
+    /// Outputs that differ beyond `--tolerance` from the `--compare` report's.
+    CompareDiffers,
     /// Validation messages: the harness or the input misused the API; not evidence.
     Validation,
     /// rtprobe could not run the attempt (a Vulkan error, an input the harness cannot make).
@@ -93,6 +100,7 @@ impl Judgement {
             Judgement::Fault => "fault",
             Judgement::Unstable => "unstable",
             Judgement::PatchDiffers => "patch_differs",
+            Judgement::CompareDiffers => "compare_differs",
             Judgement::Validation => "validation",
             Judgement::Error => "error",
         }
@@ -122,6 +130,9 @@ pub struct ShaderVariant {
     /// How a child that wrote every output then ended (a crash or hang in teardown).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub teardown: Option<String>,
+    /// The first attempt's outputs, for another run's `--compare` (`shader_outputs`).
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub data: Vec<OutputData>,
 }
 
 /// The report `run --shader` writes.
@@ -143,6 +154,12 @@ pub struct ShaderRunReport {
     /// What `--inject-fault` injected (`None`: no injection).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub injection: Option<super::shader_injection::ShaderInjection>,
+    /// What `--compare` compared the run with.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub compare: Option<CompareInfo>,
+    /// The run held to `--baseline` (by `cell id/variant`).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub baseline: Option<super::BaselineCheck>,
 }
 
 /// An attempt's own judgement: its fault, an error, its validation messages, its outputs
@@ -159,6 +176,8 @@ fn judge_attempt(a: &ShaderAttempt, patched: bool) -> (Outcome, Judgement) {
             } else if a.differs.is_some() {
                 let j = if patched { Judgement::PatchDiffers } else { Judgement::Unstable };
                 (Outcome::Mismatch, j)
+            } else if a.against.is_some() {
+                (Outcome::Mismatch, Judgement::CompareDiffers)
             } else {
                 (Outcome::Pass, Judgement::Pass)
             }
@@ -182,7 +201,8 @@ pub fn judge_variant(
     };
     let (outcome, judgement) = judged[worst];
     let a = &attempts[worst];
-    let detail = a.differs.clone().or_else(|| a.attempt.detail.clone());
+    let detail =
+        a.differs.clone().or_else(|| a.against.clone()).or_else(|| a.attempt.detail.clone());
     let evidence: Vec<&(Outcome, Judgement)> =
         judged.iter().filter(|j| j.0 != Outcome::Error).collect();
     let (n, k) = (evidence.len() as u32, evidence.iter().filter(|j| j.0.is_finding()).count());
@@ -220,6 +240,7 @@ impl ShaderVariant {
             incidence,
             uncompared,
             teardown: None,
+            data: vec![],
         }
     }
 }
@@ -246,6 +267,7 @@ mod tests {
             validation: vec![],
             outputs: vec![],
             differs: differs.map(String::from),
+            against: None,
         }
     }
 
