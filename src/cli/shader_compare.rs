@@ -314,3 +314,58 @@ pub fn compare_all(
     };
     (notes, info)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::shader_run::ShaderAttempt;
+    use crate::model::{Attempt, Outcome};
+
+    fn ran(words: &[u8]) -> Ran {
+        let part = Part {
+            label: "storage buffer set 0 binding 3[0]".into(),
+            kind: PartKind::Buffer,
+            bytes: words.iter().flat_map(|w| [*w, 0, 0, 0]).collect(),
+            texel: 4,
+            initial: Some(vec![0xEE; words.len() * 4]),
+            scheduled: false,
+            records: Some((0, 4)),
+        };
+        let attempt = ShaderAttempt {
+            attempt: Attempt::new(Outcome::Pass, true),
+            validation_messages: 0,
+            validation: vec![],
+            outputs: vec![],
+            differs: None,
+            against: None,
+        };
+        Ran { attempt, parts: Some(vec![part]), device: None }
+    }
+
+    #[test]
+    fn embedded_outputs_round_trip_with_their_unstable_units() {
+        let runs = [ran(&[1, 2, 3]), ran(&[1, 9, 3])];
+        let data = to_data(&runs);
+        assert_eq!(data[0].unstable, [1]);
+        let back = from_data(&data[0]).unwrap();
+        assert_eq!(&back, &runs[0].parts.as_ref().unwrap()[0]);
+        let (all, note) = embed(&[("unpatched", &runs)]);
+        assert_eq!((all[0].len(), note), (1, None));
+        // Twin: a flipped unit differs from the original, and is left out by the comparer.
+        let mut again = back.clone();
+        flip(&mut again, &[1]);
+        assert_ne!(again.bytes[4], back.bytes[4]);
+        let other = runs[1].parts.clone().unwrap();
+        let c = harness::compare(std::slice::from_ref(&back), &[again], &other);
+        assert_eq!((c[0].unstable, c[0].differing), (1, 0));
+        let c = harness::compare(std::slice::from_ref(&back), std::slice::from_ref(&back), &other);
+        assert_eq!(c[0].differing, 1);
+    }
+
+    #[test]
+    fn unreadable_data_is_an_error() {
+        let mut d = to_data(&[ran(&[1])]).remove(0);
+        d.bytes = "!!".into();
+        assert!(from_data(&d).is_err());
+    }
+}

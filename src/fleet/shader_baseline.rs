@@ -136,3 +136,73 @@ pub fn check(r: &ShaderRunReport, b: &Baseline, source: &str) -> BaselineCheck {
     out.not_run = out.not_run_cells.len();
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::shader_run::{ShaderAttempt, ShaderVariant};
+    use crate::model::Attempt;
+
+    fn variant(name: &str, outcomes: &[Outcome]) -> ShaderVariant {
+        let attempts = outcomes
+            .iter()
+            .map(|o| ShaderAttempt {
+                attempt: Attempt::new(*o, true),
+                validation_messages: 0,
+                validation: vec![],
+                outputs: vec![],
+                differs: None,
+                against: None,
+            })
+            .collect();
+        ShaderVariant::judged(name, None, vec![], attempts, None)
+    }
+
+    fn report(variants: Vec<ShaderVariant>) -> ShaderRunReport {
+        ShaderRunReport {
+            schema: String::new(),
+            rtprobe_version: String::new(),
+            device: "d".into(),
+            cell: "shader:hit.rchit@0123".into(),
+            options: serde_json::Value::Null,
+            inputs: vec![],
+            outcome: Outcome::Pass,
+            variants,
+            notes: vec![],
+            injection: None,
+            compare: None,
+            baseline: None,
+        }
+    }
+
+    #[test]
+    fn findings_are_expected_by_variant_and_a_pass_is_an_improvement() {
+        use Outcome::{Crash, Pass};
+        let faulty = report(vec![variant("unpatched", &[Crash, Crash]), variant("p", &[Pass])]);
+        let b = from_report(&faulty, "f.json");
+        let ids: Vec<&str> = b.expected.iter().map(|e| e.cell.as_str()).collect();
+        assert_eq!(ids, ["shader:hit.rchit@0123/unpatched"]);
+        let c = check(&faulty, &b, "b");
+        assert!(c.ok(false) && c.expected == 2, "{c:?}");
+        // Twins: the fault gone is an unexpected pass; a new fault in another variant is a
+        // regression; a variant the run lacks is missing.
+        let clean = report(vec![variant("unpatched", &[Pass]), variant("p", &[Pass])]);
+        let c = check(&clean, &b, "b");
+        assert_eq!((c.improvements().count(), c.ok(false), c.ok(true)), (1, false, true));
+        let worse = report(vec![variant("unpatched", &[Crash]), variant("p", &[Crash])]);
+        assert_eq!(check(&worse, &b, "b").regressions().count(), 1);
+        let fewer = report(vec![variant("p", &[Pass])]);
+        assert_eq!(check(&fewer, &b, "b").missing().count(), 1);
+    }
+
+    #[test]
+    fn a_fault_in_some_attempts_is_a_flake_held_to_its_rate() {
+        use Outcome::{Crash, Pass};
+        let flaky = report(vec![variant("unpatched", &[Crash, Pass, Pass, Pass])]);
+        let b = from_report(&flaky, "f.json");
+        assert!(b.expected[0].flake, "{b:?}");
+        assert_eq!(check(&flaky, &b, "b").known_flakes, 1);
+        let always = report(vec![variant("unpatched", &[Crash; 12])]);
+        assert_eq!(check(&always, &b, "b").regressions().count(), 1);
+    }
+}

@@ -329,6 +329,22 @@ mod tests {
     }
 
     #[test]
+    fn outputs_beyond_the_compare_tolerance_are_a_mismatch_below_faults_and_messages() {
+        let against =
+            |o, m| ShaderAttempt { against: Some("x differs".into()), ..attempt(o, m, None) };
+        let (o, j, d, i) = judge_variant(&[pass(), against(Outcome::Pass, 0)], false);
+        assert_eq!(
+            (o, j, d.as_deref()),
+            (Outcome::Mismatch, Judgement::CompareDiffers, Some("x differs"))
+        );
+        assert_eq!(i.map(|i| (i.faulted, i.attempts)), Some((1, 2)));
+        let (o, j, _, _) = judge_variant(&[against(Outcome::Crash, 0)], false);
+        assert_eq!((o, j), (Outcome::Crash, Judgement::Fault));
+        let (o, j, _, _) = judge_variant(&[against(Outcome::Pass, 1)], false);
+        assert_eq!((o, j), (Outcome::Error, Judgement::Validation));
+    }
+
+    #[test]
     fn no_attempt_is_an_error() {
         let (o, j, d, i) = judge_variant(&[], false);
         assert_eq!((o, j, i), (Outcome::Error, Judgement::Error, None));
