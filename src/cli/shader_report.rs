@@ -95,10 +95,13 @@ pub fn summary(r: &ShaderRunReport, report_path: &Path, allow: bool) -> (Vec<Str
     lines.extend(r.variants.iter().map(variant_line));
     lines.extend(r.notes.iter().map(|n| format!("  note: {n}")));
     lines.push(format!("report: {}", report_path.display()));
-    let (v, mut code) = verdict(r);
+    let (mut v, mut code) = verdict(r);
     if let Some(b) = &r.baseline {
         lines.extend(crate::fleet::baseline::render(b, allow).lines().map(String::from));
         code = if b.ok(allow) { exit::OK } else { exit::FINDINGS };
+        if code == exit::OK && v.starts_with("verdict: FAIL") {
+            v += " (as the baseline expects)";
+        }
     }
     lines.push(v);
     (lines, code)
