@@ -155,6 +155,16 @@ pub struct RunArgs {
     #[arg(long, value_name = "FILE")]
     pub junit: Option<PathBuf>,
 
+    /// With --shader: compare each variant's outputs with another `run --shader` report of the
+    /// same cell (another device or driver); differences are notes unless --tolerance is given
+    #[arg(long, value_name = "REPORT")]
+    pub compare: Option<PathBuf>,
+
+    /// With --compare: outputs whose 32-bit float words differ by more than T (absolute; a
+    /// NaN or an infinity never passes), or whose other words differ at all, are a `mismatch`
+    #[arg(long, value_name = "T", requires = "compare")]
+    pub tolerance: Option<f32>,
+
     /// Write each cell's generated GLSL and SPIR-V and the records it read back (records.bin)
     /// under DIR/<cell id>/, and for a cell whose records mismatch, pictures of them there:
     /// expected.png, actual.png, diff.png
@@ -371,7 +381,6 @@ pub struct RunArgs {
         help_heading = "Your shaders"
     )]
     pub descriptor_model: Option<crate::model::DescriptorModel>,
-
 
     /// With --shader: the engine's device features as a Vulkan Profiles JSON (what `caps
     /// --profile` writes): robustness enabled and descriptor binding flags as the engine's

@@ -16,8 +16,24 @@ fn load(p: &Path) -> Result<RunReport> {
     RunReport::load(p).map_err(|e| coded(exit::BAD_INPUT, e))
 }
 
+/// A `run --shader` report, when `p` is one (its schema); `None` for any other file.
+fn shader_run(p: &Path) -> Result<Option<crate::model::shader_run::ShaderRunReport>> {
+    use crate::model::shader_run::SCHEMA;
+    let Ok(text) = std::fs::read(p) else { return Ok(None) };
+    let Ok(v) = serde_json::from_slice::<serde_json::Value>(&text) else { return Ok(None) };
+    if v["schema"] != SCHEMA {
+        return Ok(None);
+    }
+    serde_json::from_value(v).map(Some).map_err(|e| {
+        coded(exit::BAD_INPUT, format!("{}: not a readable {SCHEMA} report ({e})", p.display()))
+    })
+}
+
 pub fn baseline(a: &BaselineArgs) -> Result<u8> {
     super::paths::writable_file(&a.out, "-o")?;
+    if let Some(r) = shader_run(&a.report)? {
+        return shader_baseline(a, &r);
+    }
     let r = load(&a.report)?;
     if !r.complete {
         return Err(coded(
@@ -52,6 +68,30 @@ pub fn baseline(a: &BaselineArgs) -> Result<u8> {
         b.expected.len(),
         b.expected.iter().filter(|e| e.flake).count(),
         b.performance.len(),
+        a.out.display()
+    );
+    Ok(exit::OK)
+}
+
+/// `rtprobe baseline` of a `run --shader` report: its findings by `cell id/variant`, JSON only.
+fn shader_baseline(a: &BaselineArgs, r: &crate::model::shader_run::ShaderRunReport) -> Result<u8> {
+    if !a.perf.is_empty() {
+        return Err(coded(exit::USAGE, "--perf: a run --shader report times no phase; drop it"));
+    }
+    let mut b = crate::fleet::shader_baseline::from_report(r, &a.report.display().to_string());
+    for e in &mut b.expected {
+        e.bug.clone_from(&a.bug);
+    }
+    let text = match a.format {
+        BaselineFormat::Json => b.to_json(),
+        BaselineFormat::Deqp => b.to_deqp(),
+    };
+    write_atomic(&a.out, text.as_bytes()).with_context(|| "writing the baseline")?;
+    outln!(
+        "baseline: {} expected variants with findings ({} flaky) of {} → {}",
+        b.expected.len(),
+        b.expected.iter().filter(|e| e.flake).count(),
+        r.cell,
         a.out.display()
     );
     Ok(exit::OK)

@@ -21,6 +21,7 @@ pub mod resume;
 pub mod run;
 pub mod scene;
 pub mod shader;
+mod shader_compare;
 mod shader_exec;
 mod shader_fill;
 mod shader_gpu_av;

@@ -50,6 +50,11 @@ const TAKEN: &[&str] = &[
     "profile",
     "inject_fault",
     "fill",
+    "compare",
+    "tolerance",
+    "junit",
+    "baseline",
+    "allow_improvements",
     // clap's ids of the argument groups themselves.
     "RunArgs",
     "Cli",
@@ -63,7 +68,7 @@ fn refuse_others(a: &RunArgs) -> Result<()> {
     let flag = format!("--{}", id.replace('_', "-"));
     Err(coded(
         exit::USAGE,
-        format!("{flag} cannot be used with --shader: it applies to the generated matrix, which --shader replaces; drop it (--shader takes --entry, -I, -D, --target-env, --spec, --descriptor-model, --heap-layout, --profile, --array-size, --sink-size, --fill, --repeat, --timeout, --dump, -o, --device, --validate, --inject-fault)"),
+        format!("{flag} cannot be used with --shader: it applies to the generated matrix, which --shader replaces; drop it (--shader takes --entry, -I, -D, --target-env, --spec, --descriptor-model, --heap-layout, --profile, --array-size, --sink-size, --fill, --repeat, --timeout, --dump, -o, --device, --validate, --inject-fault, --compare, --tolerance, --junit, --baseline, --allow-improvements)"),
     ))
 }
 
@@ -269,8 +274,29 @@ fn heap_layout(
     }
 }
 
-/// Everything checked and planned before the report is reserved: the plan, the children's
-/// context (its temporary folder made), the device's name and the options in the cell id.
+/// `--compare`'s report, read and checked against the run's cell (its options included), and
+/// `--tolerance` checked.
+fn other_report(a: &RunArgs, cell: &str) -> Result<Option<ShaderRunReport>> {
+    if let Some(t) = a.tolerance.filter(|t| !(t.is_finite() && *t >= 0.0)) {
+        return Err(coded(exit::USAGE, format!("--tolerance {t}: give a finite number >= 0")));
+    }
+    a.compare.as_deref().map(|p| super::shader_compare::load(p, cell)).transpose()
+}
+
+/// What a run takes before its device: the plan, the children's context (its temporary folder
+/// made), the device's name, the options in the cell id, what `--profile` enabled,
+/// `--compare`'s report and `--baseline`'s expectations.
+struct Prepared {
+    plan: ShaderPlan,
+    ctx: Ctx,
+    device_name: String,
+    cell_options: CellOptions,
+    profile: Option<ProfileRecord>,
+    other: Option<ShaderRunReport>,
+    baseline: Option<crate::model::Baseline>,
+}
+
+/// Everything checked and planned before the report is reserved.
 fn prepare(g: &Globals, a: &RunArgs) -> Result<Prepared> {
     refuse_others(a)?;
     refuse_early(a)?;
@@ -286,6 +312,9 @@ fn prepare(g: &Globals, a: &RunArgs) -> Result<Prepared> {
         .map_err(|e| coded(exit::USAGE, e.to_string()))?;
     let (fills, fill_words) = super::shader_fill::fills(a, &plan, &sizes)?;
     let cell_options = super::shader_fill::cell_options(a, &plan, model, fill_words)?;
+    let other = other_report(a, &shader_run::cell_id_with(&plan.inputs, &cell_options))?;
+    let baseline = a.baseline.as_deref().map(super::fleet::load_baseline).transpose()?;
+    super::paths::writable_files(&[("--junit", a.junit.as_deref())])?;
     let (device_index, device_name, record) = device(g, a, &plan, (model, profile.as_ref()))?;
     let dir = std::env::temp_dir().join(format!("rtprobe-shader-{}", std::process::id()));
     let ctx = Ctx {
@@ -309,32 +338,34 @@ fn prepare(g: &Globals, a: &RunArgs) -> Result<Prepared> {
         profile: shader_profile::setup(profile.as_ref()),
         gpu_av: false,
     };
-    Ok(Prepared { plan, ctx, device_name, cell_options, profile: record })
-}
-
-/// What [`prepare`] checked and planned.
-struct Prepared {
-    plan: ShaderPlan,
-    ctx: Ctx,
-    device_name: String,
-    cell_options: CellOptions,
-    /// What `--profile` enabled.
-    profile: Option<ProfileRecord>,
+    let profile = record;
+    Ok(Prepared { plan, ctx, device_name, cell_options, profile, other, baseline })
 }
 
 pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
-    let Prepared { plan, ctx, device_name, cell_options, profile } = prepare(g, a)?;
-    let (repeat, timeout, model, dir) = (ctx.repeat, ctx.timeout, ctx.model, ctx.dir.clone());
-    let (out, _lock) = reserve_out(a, &device_name)?;
+    let mut p = prepare(g, a)?;
+    let (out, _lock) = reserve_out(a, &p.device_name)?;
+    let dir = p.ctx.dir.clone();
     std::fs::create_dir_all(&dir)
         .with_context(|| format!("creating the --shader folder {}", dir.display()))?;
-    let (unpatched, patched) = match run_all(&ctx, &plan) {
-        Ok(r) => r,
-        Err(e) => {
-            let _ = std::fs::remove_dir_all(&dir);
-            return Err(e);
+    let report = judged_report(g, a, &mut p);
+    let report = report.and_then(|mut r| {
+        if g.gpu_av {
+            r.variants =
+                super::shader_gpu_av::rerun(&p.ctx, &p.plan, std::mem::take(&mut r.variants))?;
+            r.refresh_outcome();
         }
-    };
+        Ok(r)
+    });
+    let _ = std::fs::remove_dir_all(&dir);
+    finish(a, &p, report?, &out)
+}
+
+/// The variants run, compared among themselves and with `--compare`'s report, `--dump`ed, and
+/// the report made with the options that changed what ran.
+fn judged_report(g: &Globals, a: &RunArgs, p: &mut Prepared) -> Result<ShaderRunReport> {
+    let (plan, ctx) = (&p.plan, &p.ctx);
+    let (unpatched, patched) = run_all(ctx, plan)?;
     let (mut unpatched, unpatched_teardown) = (unpatched.ran, unpatched.teardown);
     let mut teardowns = vec![unpatched_teardown];
     let mut patched: Patched = patched
@@ -348,44 +379,76 @@ pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
         .iter()
         .chain(patched.iter().flat_map(|p| &p.1))
         .find_map(|r| r.device.clone())
-        .unwrap_or(device_name);
+        .unwrap_or(p.device_name.clone());
     let mut notes = plan.notes.clone();
     notes.extend(plan.injection.as_ref().map(|i| i.line()));
     let judged = shader_exec::compare_all(&device, &mut unpatched, &mut patched);
     notes.extend(judged.note);
+    let compared = p.other.as_ref().map(|other| {
+        let against = super::shader_compare::Against {
+            other,
+            path: a.compare.as_deref().unwrap_or(Path::new("")),
+            tolerance: a.tolerance,
+            modules: &plan.modules,
+        };
+        super::shader_compare::compare_all(&against, &mut unpatched, &mut patched)
+    });
     if let Some(d) = &a.dump {
-        dump(d, &plan, &unpatched, &patched)?;
+        dump(d, plan, &unpatched, &patched)?;
     }
+    let (data, capped) = embedded(&unpatched, &patched);
+    notes.extend(capped);
+    let (compare_notes, compare) = compared.unzip();
+    notes.extend(compare_notes.into_iter().flatten());
     let mut report = report(
         a,
-        &plan,
+        plan,
         device,
         unpatched,
         patched,
         (notes, judged.uncompared),
-        (repeat, timeout, g.validate),
+        (ctx.repeat, ctx.timeout, g.validate),
     );
-    report.options["descriptor_model"] = serde_json::json!(model.as_str());
+    report.options["descriptor_model"] = serde_json::json!(ctx.model.as_str());
+    for ((v, t), d) in report.variants.iter_mut().zip(teardowns).zip(data) {
+        (v.teardown, v.data) = (t, d);
+    }
+    report.compare = compare;
+    let cell_options = std::mem::take(&mut p.cell_options);
     report.options["fill"] = serde_json::json!(cell_options.fill);
     report.cell = shader_run::cell_id_with(&plan.inputs, &cell_options);
     report.cell_options = cell_options;
-    report.options["profile"] = serde_json::json!(profile.as_ref().map(|p| &p.hash));
+    report.options["profile"] = serde_json::json!(p.profile.as_ref().map(|p| &p.hash));
     report.options["gpu_av"] = serde_json::json!(g.gpu_av);
-    report.profile = profile;
-    for (v, t) in report.variants.iter_mut().zip(teardowns) {
-        v.teardown = t;
+    report.profile = p.profile.take();
+    Ok(report)
+}
+
+/// Each variant's outputs to embed, and a note for those over the cap.
+fn embedded(
+    unpatched: &[shader_exec::Ran],
+    patched: &Patched,
+) -> (Vec<Vec<crate::model::shader_outputs::OutputData>>, Option<String>) {
+    let mut all: Vec<(&str, &[shader_exec::Ran])> = vec![("unpatched", unpatched)];
+    all.extend(patched.iter().map(|(n, r)| (n.as_str(), r.as_slice())));
+    super::shader_compare::embed(&all)
+}
+
+/// The baseline's check, the report (atomically), `--junit`, the summary; the exit code.
+fn finish(a: &RunArgs, p: &Prepared, mut report: ShaderRunReport, out: &Path) -> Result<u8> {
+    if let (Some(b), Some(path)) = (&p.baseline, &a.baseline) {
+        let source = path.display().to_string();
+        report.baseline = Some(crate::fleet::shader_baseline::check(&report, b, &source));
     }
-    if g.gpu_av {
-        let rerun = super::shader_gpu_av::rerun(&ctx, &plan, std::mem::take(&mut report.variants));
-        let _ = std::fs::remove_dir_all(&dir);
-        report.variants = rerun?;
-        report.refresh_outcome();
-    }
-    let _ = std::fs::remove_dir_all(&dir);
     let json = serde_json::to_vec_pretty(&report).context("the report's JSON")?;
-    crate::atomic::write_atomic(&out, &json)
+    crate::atomic::write_atomic(out, &json)
         .map_err(|e| coded(exit::BAD_INPUT, format!("writing {}: {e}", out.display())))?;
-    let (lines, code) = super::shader_report::summary(&report, &out);
+    if let Some(j) = &a.junit {
+        let xml = crate::report::shader_junit::render(&report);
+        crate::atomic::write_atomic(j, xml.as_bytes())
+            .map_err(|e| coded(exit::BAD_INPUT, format!("writing {}: {e}", j.display())))?;
+    }
+    let (lines, code) = super::shader_report::summary(&report, out, a.allow_improvements);
     for l in lines {
         outln!("{l}");
     }
@@ -481,5 +544,7 @@ fn report(
         injection: plan.injection.clone(),
         profile: None,
         cell_options: Default::default(),
+        compare: None,
+        baseline: None,
     }
 }

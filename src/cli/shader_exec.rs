@@ -107,6 +107,7 @@ fn read_output(path: &Path, wall_ms: f64) -> Option<Ran> {
                 validation: validation_texts,
                 outputs,
                 differs: None,
+                against: None,
             };
             Ran { attempt, parts: Some(parts), device: Some(device) }
         }
@@ -118,6 +119,7 @@ fn read_output(path: &Path, wall_ms: f64) -> Option<Ran> {
                 validation: validation_texts,
                 outputs: vec![],
                 differs: None,
+                against: None,
             };
             Ran { attempt, parts: None, device: None }
         }
@@ -201,6 +203,7 @@ pub fn run_variant(
             validation: vec![],
             outputs: vec![],
             differs: None,
+            against: None,
         };
         out.push(Ran { attempt, parts: None, device: None });
         k += 1;

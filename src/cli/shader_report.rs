@@ -25,9 +25,11 @@ pub fn variant_line(v: &ShaderVariant) -> String {
             Some(g) => format!("faulted; re-run under GPU-AV ({} attempts)", g.attempts.len()),
             None => format!("{messages} validation messages: not evidence about the driver"),
         },
-        Judgement::Fault | Judgement::Unstable | Judgement::PatchDiffers | Judgement::Error => {
-            v.incidence.as_ref().map(|i| i.label()).unwrap_or_default()
-        }
+        Judgement::Fault
+        | Judgement::Unstable
+        | Judgement::PatchDiffers
+        | Judgement::CompareDiffers
+        | Judgement::Error => v.incidence.as_ref().map(|i| i.label()).unwrap_or_default(),
     };
     let detail = v.detail.as_deref().map(|d| format!(": {d}")).unwrap_or_default();
     let teardown = v.teardown.as_deref().map(|t| format!("; {t}")).unwrap_or_default();
@@ -92,13 +94,21 @@ fn differences(r: &ShaderRunReport) -> String {
     }
 }
 
-/// The summary lines, verdict last.
-pub fn summary(r: &ShaderRunReport, report_path: &Path) -> (Vec<String>, u8) {
+/// The summary lines, verdict last; with a baseline, its lines, and the exit code says only
+/// what it did not expect (as `run --baseline`).
+pub fn summary(r: &ShaderRunReport, report_path: &Path, allow: bool) -> (Vec<String>, u8) {
     let mut lines = vec![format!("{} on {}", r.cell, r.device)];
     lines.extend(r.variants.iter().map(variant_line));
     lines.extend(r.notes.iter().map(|n| format!("  note: {n}")));
     lines.push(format!("report: {}", report_path.display()));
-    let (v, code) = verdict(r);
+    let (mut v, mut code) = verdict(r);
+    if let Some(b) = &r.baseline {
+        lines.extend(crate::fleet::baseline::render(b, allow).lines().map(String::from));
+        code = if b.ok(allow) { exit::OK } else { exit::FINDINGS };
+        if code == exit::OK && v.starts_with("verdict: FAIL") {
+            v += " (as the baseline expects)";
+        }
+    }
     lines.push(v);
     (lines, code)
 }
@@ -205,6 +215,7 @@ mod tests {
             validation: vec![],
             outputs: vec![],
             differs: None,
+            against: None,
         };
         let name = patch.unwrap_or("unpatched");
         let p = patch.map(String::from);
@@ -225,6 +236,8 @@ mod tests {
             injection: None,
             profile: None,
             cell_options: Default::default(),
+            compare: None,
+            baseline: None,
         }
     }
 

@@ -173,7 +173,7 @@ fn same_fault(a: Outcome, b: Outcome) -> bool {
         )
 }
 
-fn accepts(e: &Expectation, o: Outcome) -> bool {
+pub fn accepts(e: &Expectation, o: Outcome) -> bool {
     std::iter::once(e.outcome).chain(e.also.iter().copied()).any(|k| same_fault(k, o))
 }
 

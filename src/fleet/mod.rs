@@ -8,4 +8,5 @@ pub mod deqp;
 pub mod deqp_files;
 pub mod diff;
 pub mod merge;
+pub mod shader_baseline;
 pub mod shard;

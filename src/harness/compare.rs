@@ -84,10 +84,65 @@ impl Compared {
 /// atomic counter; fields of a `uint data[]` queue swapped). The verdict then rests on the other
 /// outputs, else the run is unfit. Unstable units alone never allow a multiset; images never.
 pub fn compare(before: &[Part], again: &[Part], after: &[Part]) -> Vec<Compared> {
-    before.iter().zip(again).zip(after).map(|((b, g), a)| compare_one(b, g, a)).collect()
+    compare_within(before, again, after, None)
 }
 
-fn compare_one<'a>(b: &'a Part, g: &'a Part, a: &'a Part) -> Compared {
+/// How far a 32-bit float word of `after` may be from `before`'s and still count as equal
+/// (`run --shader --compare --tolerance`): an absolute difference, and which words are floats.
+pub struct Tolerance<'a> {
+    /// The largest absolute difference that passes (0: only equal values, `0.0 == -0.0`).
+    pub abs: f32,
+    /// Whether the 4-byte word at byte `offset` of output `part` (its index) is a 32-bit float;
+    /// every other word must be bit-identical.
+    pub float: &'a dyn Fn(usize, usize) -> bool,
+}
+
+impl Tolerance<'_> {
+    /// Whether unit `k` of output `part` (`t` bytes: a texel or a word) is equal within the
+    /// tolerance: bit-identical words are; else a float word whose values are both finite and
+    /// at most `abs` apart (a NaN or an infinity never passes); any other word never.
+    fn same(&self, part: usize, k: usize, x: &[u8], y: &[u8]) -> bool {
+        if x.len() != y.len() {
+            return false;
+        }
+        let word = |c: &[u8]| c.try_into().map(f32::from_le_bytes).ok();
+        x.chunks(4).zip(y.chunks(4)).enumerate().all(|(j, (wx, wy))| {
+            wx == wy
+                || ((self.float)(part, k * x.len() + 4 * j)
+                    && matches!((word(wx), word(wy)), (Some(a), Some(b))
+                        if a.is_finite() && b.is_finite() && (a - b).abs() <= self.abs))
+        })
+    }
+}
+
+/// [`compare`], units equal within `tol` where one is given (bit-identical without): the one
+/// comparer of `--verify`, `run --shader`'s variants and `--compare`.
+pub fn compare_within(
+    before: &[Part],
+    again: &[Part],
+    after: &[Part],
+    tol: Option<&Tolerance>,
+) -> Vec<Compared> {
+    before
+        .iter()
+        .zip(again)
+        .zip(after)
+        .enumerate()
+        .map(|(n, ((b, g), a))| {
+            compare_one(b, g, a, |k, x, y| match tol {
+                Some(t) => t.same(n, k, x, y),
+                None => x == y,
+            })
+        })
+        .collect()
+}
+
+fn compare_one<'a>(
+    b: &'a Part,
+    g: &'a Part,
+    a: &'a Part,
+    same: impl Fn(usize, &[u8], &[u8]) -> bool,
+) -> Compared {
     let t = b.texel.max(1) as usize;
     let units = |p: &'a Part| -> Vec<&'a [u8]> { p.bytes.chunks(t).collect() };
     let (bs, gs, as_) = (units(b), units(g), units(a));
@@ -109,7 +164,7 @@ fn compare_one<'a>(b: &'a Part, g: &'a Part, a: &'a Part) -> Compared {
         if let Some(y) = y {
             kept_a.push(*y);
         }
-        differing += usize::from(y != Some(x));
+        differing += usize::from(!y.is_some_and(|y| same(k, x, y)));
     }
     // Units only the patched output has (the loop counted those only the unpatched one has).
     differing += as_.len().saturating_sub(bs.len());
@@ -278,6 +333,54 @@ mod tests {
             }
             v => panic!("{v:?}"),
         }
+    }
+
+    /// `--compare --tolerance`: a float word within the tolerance is equal, one beyond it or a
+    /// non-finite one differs, an integer word must be identical; words the harness left
+    /// unwritten or unstable stay out as without a tolerance.
+    #[test]
+    fn a_tolerance_passes_near_floats_only() {
+        let floats = |v: &[f32]| Part {
+            bytes: v.iter().flat_map(|x| x.to_le_bytes()).collect(),
+            ..part(PartKind::Image, &[0; 4])
+        };
+        let (a, near, far) = (
+            floats(&[1.0, 2.0, 3.0, 4.0]),
+            floats(&[1.0, 2.0005, 3.0, 4.0]),
+            floats(&[1.0, 2.1, 3.0, 4.0]),
+        );
+        let all = |_: usize, _: usize| true;
+        let t = Tolerance { abs: 1e-3, float: &all };
+        let within = |x: &Part, y: &Part, t: Option<&Tolerance>| {
+            compare_within(
+                std::slice::from_ref(x),
+                std::slice::from_ref(x),
+                std::slice::from_ref(y),
+                t,
+            )[0]
+            .differing
+        };
+        assert_eq!((within(&a, &near, Some(&t)), within(&a, &far, Some(&t))), (0, 1));
+        // Twin: without a tolerance, or at 0, the near one differs too.
+        assert_eq!(within(&a, &near, None), 1);
+        assert_eq!(within(&a, &near, Some(&Tolerance { abs: 0.0, float: &all })), 1);
+        // Non-finite values never pass; identical bits do.
+        let nan = floats(&[1.0, f32::NAN, 3.0, 4.0]);
+        let inf = floats(&[1.0, f32::INFINITY, 3.0, 4.0]);
+        let huge = Tolerance { abs: f32::MAX, float: &all };
+        assert_eq!((within(&a, &nan, Some(&huge)), within(&a, &inf, Some(&huge))), (1, 1));
+        assert_eq!(within(&nan, &nan, Some(&huge)), 0);
+        // Integer words (here the second) must be identical, whatever the tolerance.
+        let ints = |_: usize, offset: usize| offset % 16 != 4;
+        assert_eq!(within(&a, &near, Some(&Tolerance { abs: 1.0, float: &ints })), 1);
+        // An unstable unit stays out.
+        let c = compare_within(
+            std::slice::from_ref(&a),
+            std::slice::from_ref(&far),
+            std::slice::from_ref(&far),
+            Some(&t),
+        );
+        assert_eq!((c[0].unstable, c[0].differing), (1, 0));
     }
 
     /// Review item 4: a one-valued image used to make the run unfit before any difference was

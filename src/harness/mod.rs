@@ -24,8 +24,8 @@ pub mod fill;
 pub mod heap;
 pub mod inject;
 pub mod ints;
-pub mod profile;
 mod module;
+pub mod profile;
 mod record;
 pub mod reflect;
 mod resources;
@@ -37,7 +37,7 @@ mod supply;
 mod textures;
 
 pub use bindings::check as check_bindings;
-pub use compare::{compare, judge, Compared, Part, PartKind, Verdict};
+pub use compare::{compare, compare_within, judge, Compared, Part, PartKind, Tolerance, Verdict};
 pub use error::HarnessError;
 pub use module::UserModule;
 pub use sizes::Sizes;

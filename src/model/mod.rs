@@ -5,6 +5,7 @@
 //! nextest keeps its schema below its runner).
 pub mod attempt;
 pub mod axes;
+pub mod base64;
 pub mod baseline;
 pub mod bisection;
 pub mod bundle;
@@ -31,6 +32,7 @@ pub mod scene;
 pub mod shader_gpu_av;
 pub mod shader_injection;
 pub mod shader_options;
+pub mod shader_outputs;
 pub mod shader_run;
 pub mod stats;
 pub mod text;

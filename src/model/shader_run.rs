@@ -7,6 +7,7 @@
 //! outputs differ from the first are `unstable` (outcome `mismatch`); a patched variant whose
 //! outputs differ from the unpatched ones is a `mismatch` naming the patch.
 use super::shader_options::CellOptions;
+use super::shader_outputs::{CompareInfo, OutputData};
 use super::{Attempt, Incidence, Outcome};
 use serde::{Deserialize, Serialize};
 
@@ -77,6 +78,10 @@ pub struct ShaderAttempt {
     /// `harness::judge`'s words; `None`: identical, or nothing to compare.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub differs: Option<String>,
+    /// How its outputs differ beyond `--tolerance` from the `--compare` report's (a finding);
+    /// `None`: within it, or no tolerance given (differences are then notes).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub against: Option<String>,
 }
 
 /// What a variant's attempts come to.
@@ -91,6 +96,8 @@ pub enum Judgement {
     Unstable,
     /// A patched variant whose outputs differ from the unpatched ones.
     PatchDiffers,
+    /// Outputs that differ beyond `--tolerance` from the `--compare` report's.
+    CompareDiffers,
     /// Validation messages: the harness or the input misused the API; not evidence.
     Validation,
     /// rtprobe could not run the attempt (a Vulkan error, an input the harness cannot make).
@@ -104,6 +111,7 @@ impl Judgement {
             Judgement::Fault => "fault",
             Judgement::Unstable => "unstable",
             Judgement::PatchDiffers => "patch_differs",
+            Judgement::CompareDiffers => "compare_differs",
             Judgement::Validation => "validation",
             Judgement::Error => "error",
         }
@@ -133,6 +141,9 @@ pub struct ShaderVariant {
     /// How a child that wrote every output then ended (a crash or hang in teardown).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub teardown: Option<String>,
+    /// The first attempt's outputs, for another run's `--compare` (`shader_outputs`).
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub data: Vec<OutputData>,
     /// A faulting variant's re-run under GPU-AV (`--validate=gpu-av`), its attempts apart.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub gpu_av: Option<ShaderGpuAv>,
@@ -185,6 +196,12 @@ pub struct ShaderRunReport {
     /// The options that changed what ran, hashed into the cell id (none in older reports).
     #[serde(skip_serializing_if = "CellOptions::is_empty", default)]
     pub cell_options: CellOptions,
+    /// What `--compare` compared the run with.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub compare: Option<CompareInfo>,
+    /// The run held to `--baseline` (by `cell id/variant`).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub baseline: Option<super::BaselineCheck>,
 }
 
 /// An attempt's own judgement: its fault, an error, its validation messages, its outputs
@@ -201,6 +218,8 @@ fn judge_attempt(a: &ShaderAttempt, patched: bool) -> (Outcome, Judgement) {
             } else if a.differs.is_some() {
                 let j = if patched { Judgement::PatchDiffers } else { Judgement::Unstable };
                 (Outcome::Mismatch, j)
+            } else if a.against.is_some() {
+                (Outcome::Mismatch, Judgement::CompareDiffers)
             } else {
                 (Outcome::Pass, Judgement::Pass)
             }
@@ -224,7 +243,8 @@ pub fn judge_variant(
     };
     let (outcome, judgement) = judged[worst];
     let a = &attempts[worst];
-    let detail = a.differs.clone().or_else(|| a.attempt.detail.clone());
+    let detail =
+        a.differs.clone().or_else(|| a.against.clone()).or_else(|| a.attempt.detail.clone());
     let evidence: Vec<&(Outcome, Judgement)> =
         judged.iter().filter(|j| j.0 != Outcome::Error).collect();
     let (n, k) = (evidence.len() as u32, evidence.iter().filter(|j| j.0.is_finding()).count());
@@ -263,6 +283,7 @@ impl ShaderVariant {
             uncompared,
             teardown: None,
             gpu_av: None,
+            data: vec![],
         }
     }
 }
@@ -295,6 +316,7 @@ mod tests {
             validation: vec![],
             outputs: vec![],
             differs: differs.map(String::from),
+            against: None,
         }
     }
 
@@ -352,6 +374,22 @@ mod tests {
         assert_eq!((o, j, i), (Outcome::Error, Judgement::Validation, None));
         // Messages beside a difference: the messages decide (the difference is no evidence).
         let (o, j, _, _) = judge_variant(&[attempt(Outcome::Pass, 1, Some("d"))], true);
+        assert_eq!((o, j), (Outcome::Error, Judgement::Validation));
+    }
+
+    #[test]
+    fn outputs_beyond_the_compare_tolerance_are_a_mismatch_below_faults_and_messages() {
+        let against =
+            |o, m| ShaderAttempt { against: Some("x differs".into()), ..attempt(o, m, None) };
+        let (o, j, d, i) = judge_variant(&[pass(), against(Outcome::Pass, 0)], false);
+        assert_eq!(
+            (o, j, d.as_deref()),
+            (Outcome::Mismatch, Judgement::CompareDiffers, Some("x differs"))
+        );
+        assert_eq!(i.map(|i| (i.faulted, i.attempts)), Some((1, 2)));
+        let (o, j, _, _) = judge_variant(&[against(Outcome::Crash, 0)], false);
+        assert_eq!((o, j), (Outcome::Crash, Judgement::Fault));
+        let (o, j, _, _) = judge_variant(&[against(Outcome::Pass, 1)], false);
         assert_eq!((o, j), (Outcome::Error, Judgement::Validation));
     }
 

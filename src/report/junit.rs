@@ -4,7 +4,7 @@ use crate::model::Outcome;
 use crate::model::RunReport;
 use crate::model::Status;
 
-fn esc(s: &str) -> String {
+pub fn esc(s: &str) -> String {
     s.chars()
         .map(|c| match c {
             '&' => "&amp;".into(),
