@@ -4,6 +4,7 @@
 //! traversal may legitimately pick the other surface, so those pixels are not compared.
 //! [`candidates`] collects every instance's hits of one ray once; [`resolve`] picks the closest
 //! among the instances a TLAS holds, so the AS probe's TLAS variants cost one traversal.
+use super::bvh::Bvh;
 use crate::scene::{Geometry, Instance, Scene, RAY_TMAX, RAY_TMIN, SPHERE_RADIUS};
 use glam::DVec3;
 
@@ -153,9 +154,99 @@ fn sphere(o: DVec3, d: DVec3) -> Option<(f64, bool)> {
     Some((t, marginal))
 }
 
+/// Meshes with more triangles than this are traversed through their [`Bvh`].
+pub const BVH_ABOVE: usize = 256;
+
+/// What culls a scene's triangles, built once per scene: each mesh's box (for the whole-mesh
+/// quick reject) and, for meshes above [`BVH_ABOVE`] triangles, its BVH. Computing the boxes per
+/// ray cost a pass over every vertex of the scene for every ray.
+pub struct Culling {
+    bounds: Vec<([f64; 3], [f64; 3])>,
+    bvhs: Vec<Option<Bvh>>,
+}
+
+impl Culling {
+    pub fn of(scene: &Scene) -> Culling {
+        let bounds = scene
+            .meshes
+            .iter()
+            .map(|mesh| {
+                let (mut lo, mut hi) = ([f64::MAX; 3], [f64::MIN; 3]);
+                for v in &mesh.positions {
+                    for a in 0..3 {
+                        lo[a] = lo[a].min(v[a] as f64);
+                        hi[a] = hi[a].max(v[a] as f64);
+                    }
+                }
+                (lo, hi)
+            })
+            .collect();
+        let bvhs = scene
+            .meshes
+            .iter()
+            .map(|m| (m.indices.len() > BVH_ABOVE).then(|| Bvh::build(m)))
+            .collect();
+        Culling { bounds, bvhs }
+    }
+
+    /// Without BVHs: every triangle of a mesh the quick reject keeps is tested.
+    #[cfg(test)]
+    fn brute(scene: &Scene) -> Culling {
+        Culling { bvhs: scene.meshes.iter().map(|_| None).collect(), ..Culling::of(scene) }
+    }
+}
+
+/// The triangles of mesh `m` the object-space ray may hit, in index order: every one, or those
+/// its BVH does not cull (the same candidates: `bvh`'s tests).
+fn triangles_to_test(scene: &Scene, cull: &Culling, m: usize, (o, d): (DVec3, DVec3)) -> Vec<u32> {
+    match &cull.bvhs[m] {
+        Some(bvh) => {
+            let mut tris = Vec::new();
+            bvh.visit(o, d, |t| tris.push(t));
+            // Index order, as without the BVH: `resolve` keeps the first of equally close hits.
+            tris.sort_unstable();
+            tris
+        }
+        None => (0..scene.meshes[m].indices.len() as u32).collect(),
+    }
+}
+
+fn mesh_candidates(
+    scene: &Scene,
+    cull: &Culling,
+    (id, inst, m): (u32, &Instance, usize),
+    (oo, od): (DVec3, DVec3),
+    cands: &mut Vec<Candidate>,
+) {
+    let mesh = &scene.meshes[m];
+    if !may_hit_box(oo, od, cull.bounds[m].0, cull.bounds[m].1) {
+        return;
+    }
+    let p = |i: u32| {
+        let v = mesh.positions[i as usize];
+        DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64)
+    };
+    for tri_index in triangles_to_test(scene, cull, m, (oo, od)) {
+        let tri = mesh.indices[tri_index as usize];
+        if let Some((t, u, v, marginal)) = triangle(oo, od, p(tri[0]), p(tri[1]), p(tri[2])) {
+            let (geometry, primitive) = mesh.geometry_of(tri_index);
+            let hit = Hit {
+                instance: inst.custom_index,
+                instance_id: id,
+                geometry,
+                primitive,
+                t,
+                bary: [u, v],
+                sphere: false,
+            };
+            cands.push(Candidate { hit, marginal });
+        }
+    }
+}
+
 /// Every hit of the ray with `instances` (each with its instance id), marginal ones included.
 pub fn candidates<'a>(
-    scene: &Scene,
+    (scene, cull): (&Scene, &Culling),
     origin: [f32; 3],
     dir: [f32; 3],
     instances: impl Iterator<Item = (u32, &'a Instance)>,
@@ -163,50 +254,10 @@ pub fn candidates<'a>(
     let o = DVec3::new(origin[0] as f64, origin[1] as f64, origin[2] as f64);
     let d = DVec3::new(dir[0] as f64, dir[1] as f64, dir[2] as f64);
     let mut cands: Vec<Candidate> = Vec::new();
-    let bounds: Vec<([f64; 3], [f64; 3])> = scene
-        .meshes
-        .iter()
-        .map(|mesh| {
-            let (mut lo, mut hi) = ([f64::MAX; 3], [f64::MIN; 3]);
-            for v in &mesh.positions {
-                for a in 0..3 {
-                    lo[a] = lo[a].min(v[a] as f64);
-                    hi[a] = hi[a].max(v[a] as f64);
-                }
-            }
-            (lo, hi)
-        })
-        .collect();
     for (id, inst) in instances {
         let (oo, od) = object_ray(inst, o, d);
         match inst.geometry {
-            Geometry::Mesh(m) => {
-                let mesh = &scene.meshes[m];
-                if !may_hit_box(oo, od, bounds[m].0, bounds[m].1) {
-                    continue;
-                }
-                let p = |i: u32| {
-                    let v = mesh.positions[i as usize];
-                    DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64)
-                };
-                for (tri_index, tri) in mesh.indices.iter().enumerate() {
-                    if let Some((t, u, v, marginal)) =
-                        triangle(oo, od, p(tri[0]), p(tri[1]), p(tri[2]))
-                    {
-                        let (geometry, primitive) = mesh.geometry_of(tri_index as u32);
-                        let hit = Hit {
-                            instance: inst.custom_index,
-                            instance_id: id,
-                            geometry,
-                            primitive,
-                            t,
-                            bary: [u, v],
-                            sphere: false,
-                        };
-                        cands.push(Candidate { hit, marginal });
-                    }
-                }
-            }
+            Geometry::Mesh(m) => mesh_candidates(scene, cull, (id, inst, m), (oo, od), &mut cands),
             Geometry::Sphere => {
                 if let Some((t, marginal)) = sphere(oo, od) {
                     let hit = Hit {
@@ -250,14 +301,14 @@ pub fn resolve(cands: &[Candidate], include: impl Fn(&Hit) -> bool) -> TraceRef 
 
 /// Closest hit of the ray among the scene instances `include` accepts.
 pub fn trace(
-    scene: &Scene,
+    (scene, cull): (&Scene, &Culling),
     origin: [f32; 3],
     dir: [f32; 3],
     include: impl Fn(&Instance) -> bool,
 ) -> TraceRef {
     let insts =
         scene.instances.iter().enumerate().map(|(k, i)| (k as u32, i)).filter(|&(_, i)| include(i));
-    resolve(&candidates(scene, origin, dir, insts), |_| true)
+    resolve(&candidates((scene, cull), origin, dir, insts), |_| true)
 }
 
 #[cfg(test)]
@@ -297,6 +348,24 @@ mod tests {
         assert!(!inside.3, "{inside:?}");
         // Face-on, the floor still holds: 1e-6 inside a unit triangle's edge is marginal.
         assert!(triangle(DVec3::new(0.5, 1e-6, -1.0), DVec3::Z, v0, v1, DVec3::Y).unwrap().3);
+    }
+
+    #[test]
+    fn every_pixel_traces_the_same_through_the_bvh_as_through_every_triangle() {
+        let p = crate::model::SceneParams { mesh_detail: 32, ..Default::default() };
+        let scene = Scene::build(&p);
+        assert!(scene.meshes.iter().any(|m| m.indices.len() > BVH_ABOVE));
+        let (bvh, brute) = (Culling::of(&scene), Culling::brute(&scene));
+        let mut ambiguous = 0;
+        for y in 0..p.height {
+            for x in 0..p.width {
+                let (o, d) = scene.primary_ray(x, y);
+                let want = trace((&scene, &brute), o, d, |_| true);
+                assert_eq!(trace((&scene, &bvh), o, d, |_| true), want, "pixel {x},{y}");
+                ambiguous += want.ambiguous as u32;
+            }
+        }
+        assert!(ambiguous > 0, "ambiguous pixels compared too");
     }
 
     #[test]

@@ -78,11 +78,12 @@ pub struct SceneReference {
 /// only this count, and the whole reference is the worker's.
 pub fn ambiguous_primaries(scene: &Scene) -> usize {
     let (w, h) = (scene.params.width, scene.params.height);
+    let cull = intersect::Culling::of(scene);
     let rows = on_every_core(h, |y| {
         (0..w)
             .filter(|&x| {
                 let (o, d) = scene.primary_ray(x, y);
-                intersect::trace(scene, o, d, |_| true).ambiguous
+                intersect::trace((scene, &cull), o, d, |_| true).ambiguous
             })
             .count()
     });
@@ -121,12 +122,17 @@ impl SceneReference {
             .map(|(k, i)| (k as u32, i))
             .chain(std::iter::once((n, &scene.floor)))
             .collect();
+        let cull = intersect::Culling::of(scene);
         // One pixel: its primary ray, and the AS probe ray through every variant.
         let pixel = |x: u32, y: u32| {
             let (o, d) = scene.primary_ray(x, y);
-            let full = intersect::trace(scene, o, d, |_| true);
-            let cands =
-                intersect::candidates(scene, o, probe::PROBE_DIR, with_floor.iter().copied());
+            let full = intersect::trace((scene, &cull), o, d, |_| true);
+            let cands = intersect::candidates(
+                (scene, &cull),
+                o,
+                probe::PROBE_DIR,
+                with_floor.iter().copied(),
+            );
             let probes: Vec<TraceRef> = (0..variants)
                 .map(|v| {
                     intersect::resolve(&cands, |h| {

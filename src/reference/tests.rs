@@ -989,9 +989,10 @@ fn ambiguous_primaries_match_the_full_reference() {
 fn the_reference_on_every_core_keeps_each_pixel_in_place() {
     let (scene, r) = world();
     let w = scene.params.width;
+    let cull = intersect::Culling::of(scene);
     for p in (0..r.full.len()).step_by(97).chain([r.full.len() - 1]) {
         let (o, d) = scene.primary_ray(p as u32 % w, p as u32 / w);
-        assert_eq!(r.full[p], intersect::trace(scene, o, d, |_| true), "pixel {p}");
+        assert_eq!(r.full[p], intersect::trace((scene, &cull), o, d, |_| true), "pixel {p}");
     }
     assert_eq!(r.full.len(), scene.params.pixels());
     assert!(r.probe.iter().all(|v| v.len() == r.full.len()));
