@@ -28,6 +28,7 @@ pub fn rerun(
             Judgement::Pass
             | Judgement::Unstable
             | Judgement::PatchDiffers
+            | Judgement::CompareDiffers
             | Judgement::Validation
             | Judgement::Error => false,
         };

@@ -172,6 +172,8 @@ mod tests {
             injection: None,
             compare: None,
             baseline: None,
+            profile: None,
+            cell_options: Default::default(),
         }
     }
 

@@ -76,6 +76,7 @@ mod tests {
             validation: (0..messages).map(|k| format!("VUID-x {k}")).collect(),
             outputs: vec![],
             differs: None,
+            against: None,
         }
     }
 
