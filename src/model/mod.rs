@@ -24,6 +24,7 @@ pub mod options;
 pub mod outcome;
 pub mod phase;
 pub mod plan;
+pub mod reduce;
 pub mod registry;
 pub mod report;
 pub mod scene;
