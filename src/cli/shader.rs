@@ -269,7 +269,7 @@ fn heap_layout(
 
 /// Everything checked and planned before the report is reserved: the plan, the children's
 /// context (its temporary folder made) and the device's name.
-fn prepare(g: &Globals, a: &RunArgs) -> Result<(ShaderPlan, Ctx, String)> {
+pub(super) fn prepare(g: &Globals, a: &RunArgs) -> Result<(ShaderPlan, Ctx, String)> {
     refuse_others(a)?;
     refuse_early(g, a)?;
     let (repeat, timeout, setup_timeout) = numbers(a)?;

@@ -18,6 +18,8 @@ pub enum OutOfBounds {
     Constant { var: String, value: u64, len: u32 },
     #[error("a read's pointer %{ptr} is OpUndef")]
     UndefPointer { ptr: Word },
+    #[error("%{user} uses %{handle}, an OpUndef {what}")]
+    UndefHandle { user: Word, handle: Word, what: &'static str },
 }
 
 /// Check every access chain rooted at a descriptor variable: no index reached by `OpUndef`;
@@ -34,6 +36,7 @@ pub fn check(m: &Module, runtime_len: u32) -> Result<(), OutOfBounds> {
                 }
             }
         }
+        undef_handle(&d, i)?;
         if !is_chain(i.class.opcode) {
             continue;
         }
@@ -91,4 +94,24 @@ fn constant(d: &Defs, o: &Operand) -> Option<u64> {
         (Op::ConstantNull, _) => Some(0),
         _ => None,
     }
+}
+
+/// An instruction using an `OpUndef` image, sampler, acceleration structure or pointer: what
+/// it reads is no descriptor at all.
+fn undef_handle(d: &Defs, i: &rspirv::dr::Instruction) -> Result<(), OutOfBounds> {
+    for o in &i.operands {
+        let Operand::IdRef(x) = o else { continue };
+        let Some(u) = d.get(*x).filter(|u| u.class.opcode == Op::Undef) else { continue };
+        let what = match u.result_type.and_then(|t| d.get(t)).map(|t| t.class.opcode) {
+            Some(Op::TypeImage) => "image",
+            Some(Op::TypeSampledImage) => "sampled image",
+            Some(Op::TypeSampler) => "sampler",
+            Some(Op::TypeAccelerationStructureKHR) => "acceleration structure",
+            Some(Op::TypePointer) => "pointer",
+            _ => continue,
+        };
+        let user = i.result_id.unwrap_or(0);
+        return Err(OutOfBounds::UndefHandle { user, handle: *x, what });
+    }
+    Ok(())
 }

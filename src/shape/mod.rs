@@ -4,12 +4,14 @@
 //! resource, index source and where the index comes from ([`index`]), `NonUniform`, and
 //! whether it goes through a set/binding variable, a descriptor heap or an address
 //! ([`classify`]); whether every descriptor index is provably in bounds ([`bounds`]); the
-//! accesses rendered GLSL-like ([`render`]); function-body instruction counts ([`count`]).
+//! accesses rendered GLSL-like ([`render`]); function-body instruction counts ([`count`]); the
+//! dead decorated instructions spirv-reduce leaves ([`dead`]).
 //!
 //! Independent of `harness::inject` by design (issue 25): the injected fault's trigger finds
 //! its sites with its own code, so a reduction judged by this classifier cannot be circular.
 pub mod bounds;
 pub mod count;
+pub mod dead;
 pub mod defs;
 pub mod index;
 pub mod render;
@@ -162,11 +164,20 @@ fn descriptor_read(
         nonuniform,
         set: Some(set),
         binding,
-        variable: d.name(var),
+        variable: variable_name(d, var, set, binding),
         through: if heap { "heap" } else { "descriptor" }.into(),
         op: format!("Op{:?}", i.class.opcode),
     };
     Some(Found { class, var, index })
+}
+
+/// A variable's name, else `set_S_binding_B` (spirv-reduce strips names).
+fn variable_name(d: &Defs, var: Word, set: u32, binding: Option<u32>) -> String {
+    let n = d.name(var);
+    if !n.starts_with('%') {
+        return n;
+    }
+    format!("set{set}_binding{}", binding.unwrap_or(0))
 }
 
 /// An acceleration structure made from a 64-bit address.

@@ -112,3 +112,46 @@ fn function_bodies_count_from_op_function_to_op_function_end() {
     // OpFunction, OpLabel, 7 instructions, OpReturn, OpFunctionEnd.
     assert_eq!(count::function_body(&module(true, None)), 11);
 }
+
+#[test]
+fn an_undefined_image_handle_is_refused() {
+    let text = "OpCapability Shader
+OpCapability StorageImageReadWithoutFormat
+OpMemoryModel Logical GLSL450
+OpEntryPoint GLCompute %main \"main\"
+OpExecutionMode %main LocalSize 1 1 1
+%void = OpTypeVoid
+%fn = OpTypeFunction %void
+%float = OpTypeFloat 32
+%v4 = OpTypeVector %float 4
+%int = OpTypeInt 32 1
+%v2 = OpTypeVector %int 2
+%img = OpTypeImage %float 2D 0 0 0 2 Unknown
+%u = OpUndef %img
+%c = OpConstantNull %v2
+%main = OpFunction %void None %fn
+%l = OpLabel
+%r = OpImageRead %v4 %u %c
+OpReturn
+OpFunctionEnd
+";
+    let m = rspirv::dr::load_words(assemble(text)).unwrap();
+    let e = bounds::check(&m, 64).unwrap_err();
+    assert!(matches!(e, bounds::OutOfBounds::UndefHandle { what: "image", .. }), "{e}");
+}
+
+#[test]
+fn dead_decorated_loads_go_with_their_decorations_and_live_ones_stay() {
+    let mut m = module(true, None);
+    // %v is loaded and used by nothing: it goes, then %p, %idx (NonUniform), and so on.
+    let n = dead::strip(&mut m);
+    assert_eq!(n, 7, "every instruction but OpReturn");
+    assert!(m
+        .annotations
+        .iter()
+        .all(|a| a.operands.get(1) != Some(&Operand::Decoration(Decoration::NonUniform))));
+    assert!(classify(&m).is_empty());
+    // Twin: nothing dead, nothing removed.
+    let mut again = m.clone();
+    assert_eq!(dead::strip(&mut again), 0);
+}
