@@ -44,7 +44,8 @@ fn reduce(report: &Path, out: &Path, extra: &[&str]) -> (std::process::Output, O
     let t = std::time::Instant::now();
     let o = run(&args);
     eprintln!("reduce took {:.1} s: {}", t.elapsed().as_secs_f64(), stdout(&o));
-    let r = std::fs::read(out.join("reduce.json")).ok().map(|b| serde_json::from_slice(&b).unwrap());
+    let r =
+        std::fs::read(out.join("reduce.json")).ok().map(|b| serde_json::from_slice(&b).unwrap());
     (o, r)
 }
 
@@ -78,7 +79,9 @@ fn full(hit: &str, pred: &str, by_hand: &str) -> Value {
     let asm = std::fs::read_to_string(out.join("reduced.spvasm")).unwrap();
     assert!(!asm.contains("rtprobe_injected_"), "the reduced module holds no injected fault");
     assert!(asm.contains("OpFunctionEnd"));
-    assert!(std::fs::read_to_string(out.join("access.txt")).unwrap().contains(by_hand.split(',').nth(1).unwrap().trim_start_matches("resource=")));
+    assert!(std::fs::read_to_string(out.join("access.txt"))
+        .unwrap()
+        .contains(by_hand.split(',').nth(1).unwrap().trim_start_matches("resource=")));
     assert!(!out.join(".reduce-work").exists(), "the scratch folder is removed");
     still_faults(d.path(), &out.join("reduced.spv"), pred);
     r
@@ -93,7 +96,10 @@ fn a_bindless_material_read_reduces_to_its_shape() {
     let r = full("bindless.rchit", pred, "stage=closest_hit,resource=storage_buffer,index=dynamic");
     let c = &r["classification"][0];
     assert_eq!(c["nonuniform"], true, "{c}");
-    assert!(c["index_from"].as_array().unwrap().contains(&Value::from("gl_InstanceCustomIndexEXT")), "{c}");
+    assert!(
+        c["index_from"].as_array().unwrap().contains(&Value::from("gl_InstanceCustomIndexEXT")),
+        "{c}"
+    );
 }
 
 /// Issue 25: the glTF-style closest-hit's texture read (combined image samplers indexed by the

@@ -113,7 +113,7 @@ mod tests {
     fn one_access_is_one_value_per_axis_and_others_are_alternatives() {
         let a = access(Stage::ClosestHit, Resource::StorageBuffer, IndexSource::Dynamic);
         assert_eq!(
-            predicate(&[a.clone()]),
+            predicate(std::slice::from_ref(&a)),
             "stage=closest_hit,resource=storage_buffer,index=dynamic"
         );
         let b = access(Stage::ClosestHit, Resource::SampledImage, IndexSource::Literal);

@@ -12,7 +12,7 @@ use rspirv::spirv::{Decoration, Op, Word};
 /// Why an index is not provably in bounds.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum OutOfBounds {
-    #[error("an access chain into {var} has an undefined index (OpUndef reaches %{index})")]
+    #[error("an access chain into {var} has an undefined index (OpUndef or a never-written variable reaches %{index})")]
     Undef { var: String, index: Word },
     #[error("{var}[{value}]: a constant index past its {len} descriptors")]
     Constant { var: String, value: u64, len: u32 },

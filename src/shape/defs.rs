@@ -136,14 +136,21 @@ impl<'m> Defs<'m> {
             .unwrap_or_else(|| format!("%{id}"))
     }
 
-    /// Every value stored to variable `var` directly.
-    pub fn stored_values(&self, var: Word) -> Vec<Word> {
-        self.m
-            .functions
-            .iter()
-            .flat_map(|f| f.blocks.iter().flat_map(|b| b.instructions.iter()))
-            .filter(|i| i.class.opcode == Op::Store && id_at(i, 0) == Some(var))
-            .filter_map(|i| id_at(i, 1))
-            .collect()
+    /// Every value stored to variable `var` or through a chain into it, and whether it starts
+    /// with a value (an initializer, or an `OpCopyMemory` into it: then as good as dynamic).
+    pub fn stored_values(&self, var: Word) -> (Vec<Word>, bool) {
+        let body =
+            self.m.functions.iter().flat_map(|f| f.blocks.iter().flat_map(|b| &b.instructions));
+        let mut values = Vec::new();
+        let mut known = self.get(var).is_some_and(|v| v.operands.len() > 1);
+        for i in body {
+            let Some(p) = id_at(i, 0) else { continue };
+            match i.class.opcode {
+                Op::Store if self.root(p).0 == var => values.extend(id_at(i, 1)),
+                Op::CopyMemory if self.root(p).0 == var => known = true,
+                _ => {}
+            }
+        }
+        (values, known)
     }
 }

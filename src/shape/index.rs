@@ -101,7 +101,15 @@ fn load(d: &Defs, ptr: Option<Word>, out: &mut Leaves, seen: &mut HashSet<Word>)
     match d.storage_class(root) {
         Some(StorageClass::PushConstant) => out.push = true,
         Some(StorageClass::Function | StorageClass::Private) => {
-            for v in d.stored_values(root) {
+            let (values, known) = d.stored_values(root);
+            // Never written: the load reads an undefined value.
+            if values.is_empty() && !known {
+                out.undef = true;
+            }
+            if known {
+                out.dynamic.push(format!("copy into {}", d.name(root)));
+            }
+            for v in values {
                 walk(d, v, out, seen);
             }
         }

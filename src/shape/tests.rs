@@ -81,7 +81,7 @@ fn a_bindless_read_is_dynamic_from_the_custom_index_and_push_constants() {
     assert!(c.nonuniform);
     assert_eq!((c.set, c.binding, c.variable.as_str()), (Some(1), Some(0), "mats"));
     assert_eq!(
-        crate::model::reduce::predicate(&[c.clone()]),
+        crate::model::reduce::predicate(std::slice::from_ref(c)),
         "stage=closest_hit,resource=storage_buffer,index=dynamic"
     );
     let text = render::render(&module(true, None), &found);
@@ -154,4 +154,50 @@ fn dead_decorated_loads_go_with_their_decorations_and_live_ones_stay() {
     // Twin: nothing dead, nothing removed.
     let mut again = m.clone();
     assert_eq!(dead::strip(&mut again), 0);
+}
+
+#[test]
+fn an_index_read_from_a_never_written_local_is_undefined() {
+    let text = |store: &str| {
+        format!(
+            "OpCapability Shader
+OpCapability RuntimeDescriptorArray
+OpExtension \"SPV_EXT_descriptor_indexing\"
+OpMemoryModel Logical GLSL450
+OpEntryPoint GLCompute %main \"main\" %mats
+OpExecutionMode %main LocalSize 1 1 1
+OpDecorate %mats DescriptorSet 0
+OpDecorate %mats Binding 0
+OpDecorate %Mat Block
+OpMemberDecorate %Mat 0 Offset 0
+%void = OpTypeVoid
+%fn = OpTypeFunction %void
+%uint = OpTypeInt 32 0
+%Mat = OpTypeStruct %uint
+%rt = OpTypeRuntimeArray %Mat
+%prt = OpTypePointer StorageBuffer %rt
+%mats = OpVariable %prt StorageBuffer
+%pu = OpTypePointer StorageBuffer %uint
+%pf = OpTypePointer Function %uint
+%uint_0 = OpConstant %uint 0
+%uint_3 = OpConstant %uint 3
+%main = OpFunction %void None %fn
+%l = OpLabel
+%local = OpVariable %pf Function
+{store}%x = OpLoad %uint %local
+%idx = OpIAdd %uint %uint_3 %x
+%p = OpAccessChain %pu %mats %idx %uint_0
+%v = OpLoad %uint %p
+OpReturn
+OpFunctionEnd
+"
+        )
+    };
+    let never = rspirv::dr::load_words(assemble(&text(""))).unwrap();
+    let e = bounds::check(&never, 64).unwrap_err();
+    assert!(matches!(e, bounds::OutOfBounds::Undef { .. }), "{e}");
+    // Twin: the local written with a constant first is a literal index, in bounds.
+    let written = rspirv::dr::load_words(assemble(&text("OpStore %local %uint_3\n"))).unwrap();
+    assert_eq!(bounds::check(&written, 64), Ok(()));
+    assert_eq!(classify(&written)[0].class.index, IndexSource::Literal);
 }
