@@ -5,7 +5,8 @@
 //! the module's layout options) fails; one whose descriptor indices are not provably in bounds
 //! (`shape::bounds`: an `OpUndef` index, a constant past the array); one where the finding's
 //! `--inject-fault` request, applied again, matches no access (the access that faulted is
-//! gone). Then it runs the pipeline with the candidate as `run --shader` runs a variant (the
+//! gone); one whose pipeline fails `run --shader`'s interface check (a payload spirv-reduce
+//! shrank). Then it runs the pipeline with the candidate as `run --shader` runs a variant (the
 //! same `__shader` children, the job's attempts) and says yes only when some attempt faults
 //! with one of the finding's outcomes, and no attempt faults otherwise or has validation
 //! messages. Each run appends one line to the job's log (`RunLine`).
@@ -89,7 +90,27 @@ fn prepare(job: &InterestingJob, candidate: &Path) -> Result<Vec<JobModule>, Str
     let mut modules = job.modules.clone();
     let target = modules.get_mut(job.target).ok_or("the job's target is not a module")?;
     target.words = words;
+    interface(&modules)?;
     Ok(modules)
+}
+
+/// Vulkan's least `maxRayHitAttributeSize`: the interface check's limit for candidates.
+const MIN_MAX_HIT_ATTRIBUTE: u32 = 32;
+
+/// The candidate pipeline against the harness's layout, as `run --shader` checks it before
+/// the device: a candidate whose payload no longer matches the other stages' is refused.
+fn interface(modules: &[JobModule]) -> Result<(), String> {
+    use crate::harness::{run, UserModule};
+    let users = modules
+        .iter()
+        .map(|m| UserModule::new(&m.name, &m.words))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| e.to_string())?;
+    let full = run::full_pipeline(users).map_err(|e| e.to_string())?;
+    run::check_pipeline(&full).map_err(|e| e.to_string())?;
+    let desc = run::pipeline_desc(&full, MIN_MAX_HIT_ATTRIBUTE);
+    let words: Vec<&[u32]> = full.iter().map(|m| m.words.as_slice()).collect();
+    crate::interface::check(&words, &desc).map_err(|e| format!("the interface: {e}"))
 }
 
 /// Whether the candidate's attempts reproduce the finding, and why (not).
