@@ -24,6 +24,7 @@ pub mod report;
 pub mod runner;
 pub mod scene;
 pub mod shadergen;
+pub mod shape;
 pub mod stable_hash;
 pub mod stress;
 pub mod tools;

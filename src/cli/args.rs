@@ -84,6 +84,19 @@ pub enum Command {
     /// for measurements (`make`)
     #[command(subcommand)]
     Scene(SceneCommand),
+    /// Shrink a faulting user shader of a `run --shader` report with spirv-reduce (rtprobe is its
+    /// interestingness test: same fault, valid, every descriptor index in bounds) and name the
+    /// remaining access's shape as a `--filter` predicate; writes DIR/reduced.spv, .spvasm,
+    /// access.txt and reduce.json (rtprobe.reduce/1)
+    Reduce(ReduceArgs),
+    /// Internal: spirv-reduce's interestingness test for `rtprobe reduce`; not for direct use
+    #[command(name = "__interesting", hide = true)]
+    Interesting {
+        /// The job file written by `rtprobe reduce`
+        job: PathBuf,
+        /// The candidate module spirv-reduce appends
+        candidate: PathBuf,
+    },
     /// Internal: run cells for the supervisor (`rtprobe run`); not for direct use
     #[command(name = "__worker", hide = true)]
     Worker {
@@ -108,6 +121,32 @@ pub enum Command {
         /// The job file written by `rtprobe patch`
         job: PathBuf,
     },
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct ReduceArgs {
+    /// A `run --shader` report (rtprobe.shader-run/1) with a fault
+    pub report: PathBuf,
+
+    /// The report's cell id (optional: a `run --shader` report has one cell)
+    #[arg(long, value_name = "ID")]
+    pub cell: Option<String>,
+
+    /// Output folder (refused when not empty, unless --force)
+    #[arg(long, short = 'o', value_name = "DIR")]
+    pub out: PathBuf,
+
+    /// Write into a non-empty output folder
+    #[arg(long)]
+    pub force: bool,
+
+    /// Device index or case-insensitive name substring (default: the first RT-capable device)
+    #[arg(long, short = 'd', value_name = "INDEX|NAME")]
+    pub device: Option<String>,
+
+    /// spirv-reduce's --step-limit: the most reduction steps it tries
+    #[arg(long, default_value_t = 2500, value_name = "N")]
+    pub step_limit: u32,
 }
 
 #[derive(Args, Debug, Clone)]

@@ -15,6 +15,9 @@ mod patch_verify;
 pub mod paths;
 pub mod plan;
 pub mod progress;
+pub mod reduce;
+mod reduce_job;
+mod reduce_out;
 pub mod report;
 pub mod repro;
 pub mod resume;
@@ -179,6 +182,8 @@ pub fn main_entry() -> u8 {
         Command::Baseline(a) => fleet::baseline(a),
         Command::Merge(a) => fleet::merge_cmd(a),
         Command::Diff(a) => fleet::diff_cmd(a),
+        Command::Reduce(a) => reduce::reduce(&g, a),
+        Command::Interesting { job, candidate } => return reduce_job::main(job, candidate),
         Command::Worker { job } => return crate::runner::worker::main(job),
         Command::StressWorker { job } => return crate::stress::worker::main(job),
         Command::VerifyWorker { job } => return crate::harness::child::main(job),

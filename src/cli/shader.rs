@@ -286,10 +286,10 @@ fn other_report(a: &RunArgs, cell: &str) -> Result<Option<ShaderRunReport>> {
 /// What a run takes before its device: the plan, the children's context (its temporary folder
 /// made), the device's name, the options in the cell id, what `--profile` enabled,
 /// `--compare`'s report and `--baseline`'s expectations.
-struct Prepared {
-    plan: ShaderPlan,
-    ctx: Ctx,
-    device_name: String,
+pub(super) struct Prepared {
+    pub(super) plan: ShaderPlan,
+    pub(super) ctx: Ctx,
+    pub(super) device_name: String,
     cell_options: CellOptions,
     profile: Option<ProfileRecord>,
     other: Option<ShaderRunReport>,
@@ -297,7 +297,7 @@ struct Prepared {
 }
 
 /// Everything checked and planned before the report is reserved.
-fn prepare(g: &Globals, a: &RunArgs) -> Result<Prepared> {
+pub(super) fn prepare(g: &Globals, a: &RunArgs) -> Result<Prepared> {
     refuse_others(a)?;
     refuse_early(a)?;
     let profile = shader_profile::read(a.profile.as_deref())?;

@@ -26,6 +26,7 @@ pub mod outcome;
 pub mod phase;
 pub mod plan;
 pub mod profile;
+pub mod reduce;
 pub mod registry;
 pub mod report;
 pub mod scene;

@@ -1,0 +1,126 @@
+//! `rtprobe reduce`'s file (`rtprobe.reduce/1`): the finding it started from (report, cell,
+//! the original module's hash and outcome), what spirv-reduce did (steps, interestingness
+//! runs, wall time), function-body instruction counts before and after, and the remaining
+//! descriptor accesses classified on the matrix's axes with the `--filter` predicate they make.
+use super::{IndexSource, Outcome, Resource, Stage};
+use serde::{Deserialize, Serialize};
+
+pub const SCHEMA: &str = "rtprobe.reduce/1";
+
+/// One remaining descriptor access, on the matrix's axes.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct AccessClass {
+    pub stage: Stage,
+    pub resource: Resource,
+    pub index: IndexSource,
+    /// What makes the index what it is: built-ins (`gl_InstanceCustomIndexEXT`), loads,
+    /// `push_constant`, `spec_constant`, `literal`.
+    pub index_from: Vec<String>,
+    /// The access (or its index) is decorated `NonUniform`.
+    pub nonuniform: bool,
+    /// The variable's set and binding (`None`: a heap or address access).
+    pub set: Option<u32>,
+    pub binding: Option<u32>,
+    pub variable: String,
+    /// `descriptor` (a set/binding variable), `heap` (a descriptor heap), `address` (an
+    /// acceleration structure from a 64-bit address).
+    pub through: String,
+    /// The instruction (`OpLoad`, `OpAtomicIAdd`, …).
+    pub op: String,
+}
+
+/// The `--filter` predicate of accesses: each axis's values, joined by `|` where they differ.
+pub fn predicate(accesses: &[AccessClass]) -> String {
+    fn axis<T: Ord + Copy>(accesses: &[AccessClass], f: fn(&AccessClass) -> T) -> Vec<T> {
+        let mut v: Vec<T> = accesses.iter().map(f).collect();
+        v.sort();
+        v.dedup();
+        v
+    }
+    let join = |v: Vec<&str>| v.join("|");
+    let stage = join(axis(accesses, |a| a.stage).iter().map(|s| s.as_str()).collect());
+    let resource = join(axis(accesses, |a| a.resource).iter().map(|s| s.as_str()).collect());
+    let index = join(axis(accesses, |a| a.index).iter().map(|s| s.as_str()).collect());
+    if accesses.is_empty() {
+        return String::new();
+    }
+    format!("stage={stage},resource={resource},index={index}")
+}
+
+/// Function-body instruction counts (`OpFunction` through `OpFunctionEnd`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Counts {
+    pub before: usize,
+    pub after: usize,
+}
+
+/// What `reduce` did.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ReduceReport {
+    pub schema: String,
+    pub rtprobe_version: String,
+    /// The `run --shader` report reduced from.
+    pub report: String,
+    pub cell: String,
+    pub device: String,
+    /// The module reduced: its file and the FNV-1a 128 hash of its input.
+    pub module: String,
+    pub original_hash: String,
+    /// Why this module (`the injection matched it`, `the faulting stage`, …).
+    pub chosen_because: String,
+    /// The finding's outcomes a candidate had to reproduce (`crash`, …).
+    pub outcomes: Vec<Outcome>,
+    /// `--inject-fault`'s request re-applied to every candidate.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub injection: Option<String>,
+    /// Attempts per candidate, from the finding's incidence.
+    pub attempts_per_candidate: u32,
+    /// The chance that the final step's attempts all missed a fault of the finding's rate.
+    pub final_miss_probability: f64,
+    /// Candidates spirv-reduce found interesting (its steps that stuck).
+    pub steps: u32,
+    /// Times the interestingness test ran.
+    pub interestingness_runs: u32,
+    /// Of those, refused before any device run (spirv-val, an index not provably in bounds).
+    pub refused_statically: u32,
+    pub wall_s: f64,
+    pub instructions: Counts,
+    pub reducer: String,
+    pub classification: Vec<AccessClass>,
+    pub predicate: String,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn access(stage: Stage, resource: Resource, index: IndexSource) -> AccessClass {
+        AccessClass {
+            stage,
+            resource,
+            index,
+            index_from: vec![],
+            nonuniform: false,
+            set: Some(0),
+            binding: Some(0),
+            variable: "v".into(),
+            through: "descriptor".into(),
+            op: "OpLoad".into(),
+        }
+    }
+
+    #[test]
+    fn one_access_is_one_value_per_axis_and_others_are_alternatives() {
+        let a = access(Stage::ClosestHit, Resource::StorageBuffer, IndexSource::Dynamic);
+        assert_eq!(
+            predicate(std::slice::from_ref(&a)),
+            "stage=closest_hit,resource=storage_buffer,index=dynamic"
+        );
+        let b = access(Stage::ClosestHit, Resource::SampledImage, IndexSource::Literal);
+        assert_eq!(
+            predicate(&[a, b]),
+            "stage=closest_hit,resource=storage_buffer|sampled_image,index=literal|dynamic"
+        );
+        assert_eq!(predicate(&[]), "");
+    }
+}

@@ -1,0 +1,203 @@
+//! The classifier on modules assembled for these tests.
+use super::*;
+use crate::model::IndexSource;
+
+/// A closest-hit reading `mats[base + gl_InstanceCustomIndexEXT]` (an SSBO array), `base` from
+/// push constants, the index `NonUniform` when `nonuniform`; the index replaced by `index` when given.
+fn module(nonuniform: bool, index: Option<&str>) -> Module {
+    let dec = if nonuniform { "OpDecorate %idx NonUniform\n" } else { "" };
+    let idx = index.unwrap_or("%idx");
+    let text = format!(
+        "OpCapability RayTracingKHR
+OpCapability RuntimeDescriptorArray
+OpCapability StorageBufferArrayNonUniformIndexing
+OpExtension \"SPV_KHR_ray_tracing\"
+OpExtension \"SPV_EXT_descriptor_indexing\"
+OpMemoryModel Logical GLSL450
+OpEntryPoint ClosestHitKHR %main \"main\" %mats %cidx %pc
+OpName %mats \"mats\"
+OpDecorate %mats DescriptorSet 1
+OpDecorate %mats Binding 0
+OpDecorate %cidx BuiltIn InstanceCustomIndexKHR
+OpDecorate %Mat Block
+OpMemberDecorate %Mat 0 Offset 0
+OpDecorate %Pc Block
+OpMemberDecorate %Pc 0 Offset 0
+{dec}%void = OpTypeVoid
+%fn = OpTypeFunction %void
+%uint = OpTypeInt 32 0
+%int = OpTypeInt 32 1
+%Mat = OpTypeStruct %uint
+%rt = OpTypeRuntimeArray %Mat
+%prt = OpTypePointer StorageBuffer %rt
+%mats = OpVariable %prt StorageBuffer
+%pu = OpTypePointer StorageBuffer %uint
+%pint = OpTypePointer Input %int
+%cidx = OpVariable %pint Input
+%Pc = OpTypeStruct %uint
+%ppc = OpTypePointer PushConstant %Pc
+%pc = OpVariable %ppc PushConstant
+%ppcu = OpTypePointer PushConstant %uint
+%int_0 = OpConstant %int 0
+%uint_7 = OpConstant %uint 7
+%uint_99 = OpConstant %uint 99
+%und = OpUndef %uint
+%main = OpFunction %void None %fn
+%l = OpLabel
+%bp = OpAccessChain %ppcu %pc %int_0
+%base = OpLoad %uint %bp
+%ci = OpLoad %int %cidx
+%ciu = OpBitcast %uint %ci
+%idx = OpIAdd %uint %base %ciu
+%p = OpAccessChain %pu %mats {idx} %int_0
+%v = OpLoad %uint %p
+OpReturn
+OpFunctionEnd
+"
+    );
+    let words = assemble(&text);
+    rspirv::dr::load_words(&words).unwrap()
+}
+
+fn assemble(text: &str) -> Vec<u32> {
+    let dir = tempfile::tempdir().unwrap();
+    let (src, out) = (dir.path().join("m.spvasm"), dir.path().join("m.spv"));
+    std::fs::write(&src, text).unwrap();
+    crate::tools::spirv::assemble(&src, &out, "vulkan1.2").unwrap();
+    let b = std::fs::read(&out).unwrap();
+    b.chunks(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect()
+}
+
+#[test]
+fn a_bindless_read_is_dynamic_from_the_custom_index_and_push_constants() {
+    let found = classify(&module(true, None));
+    assert_eq!(found.len(), 1, "{found:?}");
+    let c = &found[0].class;
+    assert_eq!(
+        (c.stage, c.resource, c.index),
+        (Stage::ClosestHit, Resource::StorageBuffer, IndexSource::Dynamic)
+    );
+    assert_eq!(c.index_from, ["gl_InstanceCustomIndexEXT", "push_constant"]);
+    assert!(c.nonuniform);
+    assert_eq!((c.set, c.binding, c.variable.as_str()), (Some(1), Some(0), "mats"));
+    assert_eq!(
+        crate::model::reduce::predicate(std::slice::from_ref(c)),
+        "stage=closest_hit,resource=storage_buffer,index=dynamic"
+    );
+    let text = render::render(&module(true, None), &found);
+    assert!(text.contains("mats[nonuniformEXT((%"), "{text}");
+}
+
+#[test]
+fn twins_a_literal_index_and_no_nonuniform() {
+    let found = classify(&module(false, Some("%uint_7")));
+    let c = &found[0].class;
+    assert_eq!((c.index, c.nonuniform), (IndexSource::Literal, false));
+    assert_eq!(c.index_from, ["literal"]);
+}
+
+#[test]
+fn undefined_and_constant_past_the_array_indices_are_refused() {
+    assert_eq!(bounds::check(&module(true, None), 64), Ok(()));
+    assert_eq!(bounds::check(&module(false, Some("%uint_7")), 64), Ok(()));
+    let e = bounds::check(&module(false, Some("%und")), 64).unwrap_err();
+    assert!(matches!(e, bounds::OutOfBounds::Undef { .. }), "{e}");
+    let e = bounds::check(&module(false, Some("%uint_99")), 64).unwrap_err();
+    assert_eq!(e.to_string(), "mats[99]: a constant index past its 64 descriptors");
+    assert_eq!(bounds::check(&module(false, Some("%uint_99")), 100), Ok(()));
+}
+
+#[test]
+fn function_bodies_count_from_op_function_to_op_function_end() {
+    // OpFunction, OpLabel, 7 instructions, OpReturn, OpFunctionEnd.
+    assert_eq!(count::function_body(&module(true, None)), 11);
+}
+
+#[test]
+fn an_undefined_image_handle_is_refused() {
+    let text = "OpCapability Shader
+OpCapability StorageImageReadWithoutFormat
+OpMemoryModel Logical GLSL450
+OpEntryPoint GLCompute %main \"main\"
+OpExecutionMode %main LocalSize 1 1 1
+%void = OpTypeVoid
+%fn = OpTypeFunction %void
+%float = OpTypeFloat 32
+%v4 = OpTypeVector %float 4
+%int = OpTypeInt 32 1
+%v2 = OpTypeVector %int 2
+%img = OpTypeImage %float 2D 0 0 0 2 Unknown
+%u = OpUndef %img
+%c = OpConstantNull %v2
+%main = OpFunction %void None %fn
+%l = OpLabel
+%r = OpImageRead %v4 %u %c
+OpReturn
+OpFunctionEnd
+";
+    let m = rspirv::dr::load_words(assemble(text)).unwrap();
+    let e = bounds::check(&m, 64).unwrap_err();
+    assert!(matches!(e, bounds::OutOfBounds::UndefHandle { what: "image", .. }), "{e}");
+}
+
+#[test]
+fn dead_decorated_loads_go_with_their_decorations_and_live_ones_stay() {
+    let mut m = module(true, None);
+    // %v is loaded and used by nothing: it goes, then %p, %idx (NonUniform), and so on.
+    let n = dead::strip(&mut m);
+    assert_eq!(n, 7, "every instruction but OpReturn");
+    assert!(m
+        .annotations
+        .iter()
+        .all(|a| a.operands.get(1) != Some(&Operand::Decoration(Decoration::NonUniform))));
+    assert!(classify(&m).is_empty());
+    // Twin: nothing dead, nothing removed.
+    let mut again = m.clone();
+    assert_eq!(dead::strip(&mut again), 0);
+}
+
+#[test]
+fn an_index_read_from_a_never_written_local_is_undefined() {
+    let text = |store: &str| {
+        format!(
+            "OpCapability Shader
+OpCapability RuntimeDescriptorArray
+OpExtension \"SPV_EXT_descriptor_indexing\"
+OpMemoryModel Logical GLSL450
+OpEntryPoint GLCompute %main \"main\" %mats
+OpExecutionMode %main LocalSize 1 1 1
+OpDecorate %mats DescriptorSet 0
+OpDecorate %mats Binding 0
+OpDecorate %Mat Block
+OpMemberDecorate %Mat 0 Offset 0
+%void = OpTypeVoid
+%fn = OpTypeFunction %void
+%uint = OpTypeInt 32 0
+%Mat = OpTypeStruct %uint
+%rt = OpTypeRuntimeArray %Mat
+%prt = OpTypePointer StorageBuffer %rt
+%mats = OpVariable %prt StorageBuffer
+%pu = OpTypePointer StorageBuffer %uint
+%pf = OpTypePointer Function %uint
+%uint_0 = OpConstant %uint 0
+%uint_3 = OpConstant %uint 3
+%main = OpFunction %void None %fn
+%l = OpLabel
+%local = OpVariable %pf Function
+{store}%x = OpLoad %uint %local
+%idx = OpIAdd %uint %uint_3 %x
+%p = OpAccessChain %pu %mats %idx %uint_0
+%v = OpLoad %uint %p
+OpReturn
+OpFunctionEnd
+"
+        )
+    };
+    let never = rspirv::dr::load_words(assemble(&text(""))).unwrap();
+    let e = bounds::check(&never, 64).unwrap_err();
+    assert!(matches!(e, bounds::OutOfBounds::Undef { .. }), "{e}");
+    // Twin: the local written with a constant first is a literal index, in bounds.
+    let written = rspirv::dr::load_words(assemble(&text("OpStore %local %uint_3\n"))).unwrap();
+    assert_eq!(bounds::check(&written, 64), Ok(()));
+    assert_eq!(classify(&written)[0].class.index, IndexSource::Literal);
+}
