@@ -762,7 +762,8 @@ fn bad_fills_are_one_line_and_no_report() {
         (&filled, "0.0=scene.positions", 2, "--scene (issue 28)"),
         (&filled, "0.0=random:x", 2, "random:42"),
         (&filled, "0.0", 2, "give TARGET=SOURCE"),
-        (&filled, "0.0=/nonexistent/fill.bin", 9, "give a readable file"),
+        (&filled, "0.0=/nonexistent/fill.bin", 9, "give a readable regular file"),
+        (&filled, "0.0=/dev/zero", 9, "not a regular file"),
         (&filled, &big, 9, "holds 17 bytes, more than the 16"),
         (
             &textured,

@@ -132,6 +132,10 @@ fn judge(job: &InterestingJob, modules: Vec<JobModule>) -> Result<(bool, String)
         spec: job.spec.clone(),
         heap_layout: job.heap_layout.clone(),
         sizes: job.sizes,
+        // Not yet carried into the reduction's job: the run's --fill, --profile (docs: Not yet).
+        fills: Default::default(),
+        profile: Default::default(),
+        gpu_av: false,
     };
     let ran = shader_exec::run_variant(&ctx, "candidate", &modules, None);
     let _ = std::fs::remove_dir_all(&dir);

@@ -2,14 +2,30 @@
 //! (and how long loading took, with the peak memory of the process); `make` writes the test scene
 //! or a large one (`scene::gltf::make`).
 use super::args::SceneCommand;
+use super::exit::{self, coded};
 use crate::scene::gltf::{make, Alpha, Loaded};
 use anyhow::Result;
 use std::time::Instant;
+
+/// The largest scene `scene make --triangles` writes (about 0.9 GB of buffers).
+const MAX_TRIANGLES: u64 = 32_000_000;
 
 pub fn scene(c: &SceneCommand) -> Result<u8> {
     match c {
         SceneCommand::Info { file } => info(file),
         SceneCommand::Make { dir, triangles, glb } => {
+            if let Some(t) = triangles.filter(|t| !(1..=MAX_TRIANGLES).contains(t)) {
+                return Err(coded(exit::USAGE, format!("--triangles {t}: give 1 to {MAX_TRIANGLES} (leave it out for the test scene)")));
+            }
+            if dir.exists() && !dir.is_dir() {
+                return Err(coded(
+                    exit::USAGE,
+                    format!(
+                        "{}: is not a folder; give the folder to write the scene into",
+                        dir.display()
+                    ),
+                ));
+            }
             let path = make::make(
                 dir,
                 make::MakeOptions { triangles: triangles.unwrap_or(0), glb: *glb },

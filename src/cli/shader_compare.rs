@@ -206,6 +206,8 @@ fn unit(kind: PartKind) -> &'static str {
 struct Came {
     note: Option<String>,
     differed: bool,
+    /// Output units compared (written, and stable on both devices).
+    compared: usize,
 }
 
 /// The other report's outputs of `name` and `again`: a copy with the units unstable on either
@@ -244,7 +246,7 @@ fn theirs(a: &Against, name: &str, ran: &[Ran]) -> Result<(Vec<Part>, Vec<Part>)
 fn compare_variant(a: &Against, name: &str, ran: &mut [Ran]) -> Came {
     let (before, again) = match theirs(a, name, ran) {
         Ok(t) => t,
-        Err(note) => return Came { note: Some(note), differed: false },
+        Err(note) => return Came { note: Some(note), differed: false, compared: 0 },
     };
     let floats: Vec<Floats> = before.iter().map(|p| floats_of(a.modules, &p.label)).collect();
     let float = |n: usize, offset: usize| floats.get(n).is_some_and(|f| f.at(offset));
@@ -252,6 +254,7 @@ fn compare_variant(a: &Against, name: &str, ran: &mut [Ran]) -> Came {
     let (path, device) = (a.path.display(), &a.other.device);
     let beyond = a.tolerance.map(|t| format!(" beyond --tolerance {t}")).unwrap_or_default();
     let mut first = None;
+    let mut compared = 0;
     for r in ran.iter_mut() {
         let Some(parts) = &r.parts else { continue };
         let labels = |p: &[Part]| p.iter().map(|p| p.label.clone()).collect::<Vec<_>>();
@@ -263,6 +266,7 @@ fn compare_variant(a: &Against, name: &str, ran: &mut [Ran]) -> Came {
             ))
         } else {
             let c = harness::compare_within(&before, &again, parts, tol.as_ref());
+            compared += c.iter().map(|c| c.written.saturating_sub(c.unstable)).sum::<usize>();
             c.iter().find(|c| c.differing > 0).map(|d| {
                 format!(
                     "{name}: {} differs from {path}'s (on {device}) in {} of {} {}{beyond}",
@@ -284,7 +288,7 @@ fn compare_variant(a: &Against, name: &str, ran: &mut [Ran]) -> Came {
             "compared: {l} (a note: a driver may round otherwise; --tolerance makes it a finding)"
         )
     });
-    Came { note, differed }
+    Came { note, differed, compared }
 }
 
 /// Every variant against the other report: the notes and what the report records.
@@ -298,8 +302,15 @@ pub fn compare_all(
         all.push(compare_variant(a, name, ran));
     }
     let differences = all.iter().filter(|c| c.differed).count();
+    let compared: usize = all.iter().map(|c| c.compared).sum();
     let mut notes: Vec<String> = all.into_iter().filter_map(|c| c.note).collect();
-    if differences == 0 {
+    if compared == 0 && differences == 0 {
+        notes.push(format!(
+            "compared with {} (on {}): nothing was compared — no output unit written and stable in both runs — so this is no evidence that the outputs agree",
+            a.path.display(),
+            a.other.device
+        ));
+    } else if differences == 0 {
         notes.push(format!(
             "compared with {} (on {}): no variant's outputs differ",
             a.path.display(),

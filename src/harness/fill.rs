@@ -196,10 +196,10 @@ pub fn resolve(r: &Request, modules: &[UserModule]) -> Result<Fill, FillError> {
         Source::Zero => vec![0; room],
         Source::Random(seed) => random_bytes(*seed, room),
         Source::File(p) => {
-            let mut b = std::fs::read(p).map_err(|e| {
+            let mut b = read_bounded(p, room).map_err(|e| {
                 FillError::Source(
                     r.text.clone(),
-                    format!("{}: {e}; give a readable file", p.display()),
+                    format!("{}: {e}; give a readable regular file", p.display()),
                 )
             })?;
             if b.len() > room {
@@ -248,6 +248,19 @@ impl Fills {
             }
         }
     }
+}
+
+/// A regular file's bytes, at most `room` + 1 of them (enough to tell that it is too large):
+/// `/dev/zero` or a FIFO must neither fill the memory nor block.
+fn read_bounded(p: &std::path::Path, room: usize) -> std::io::Result<Vec<u8>> {
+    use std::io::Read;
+    let f = std::fs::File::open(p)?;
+    if !f.metadata()?.is_file() {
+        return Err(std::io::Error::other("not a regular file"));
+    }
+    let mut b = Vec::new();
+    f.take(room as u64 + 1).read_to_end(&mut b)?;
+    Ok(b)
 }
 
 #[cfg(test)]

@@ -229,6 +229,24 @@ fn shader_groups(
     groups
 }
 
+/// The integer and address words of the push block, from every module's reflection.
+fn push_ints(modules: &[&UserModule]) -> ints::IntWords {
+    let mut out = ints::IntWords::default();
+    for m in modules {
+        out.fixed.low.extend(&m.iface.push_ints.fixed.low);
+        out.fixed.addr.extend(&m.iface.push_ints.fixed.addr);
+    }
+    out
+}
+
+/// `--profile`'s binding flags: only on descriptor sets the shaders bind through.
+fn binding_flags(setup: &Setup) -> crate::model::profile::BindingFlags {
+    match setup.model {
+        DescriptorModel::DescriptorIndexing => setup.profile.flags,
+        DescriptorModel::DescriptorBuffer | DescriptorModel::DescriptorHeap => Default::default(),
+    }
+}
+
 impl Harness {
     /// The scene and resources for `modules` (every module the pipelines will use, unpatched:
     /// the patched ones read the same resources through addresses), push constants of
@@ -274,14 +292,7 @@ impl Harness {
             .find(|b| b.kind == BindingKind::AccelerationStructure)
             .map(|b| (b.set, b.binding));
         let buffer_model = setup.model == DescriptorModel::DescriptorBuffer;
-        // Binding flags only on descriptor sets the shaders bind through.
-        let flags = match setup.model {
-            DescriptorModel::DescriptorIndexing => setup.profile.flags,
-            DescriptorModel::DescriptorBuffer | DescriptorModel::DescriptorHeap => {
-                Default::default()
-            }
-        };
-        let made = (setup.sink, buffer_model, flags);
+        let made = (setup.sink, buffer_model, binding_flags(&setup));
         let res = Resources::new(&gpu, &bindings, scene_at, &scene, extent, made, &setup.fills)?;
         let record = record::data(modules, res.sink.address, &setup.fills);
         if let Some(p) = gpu.info.properties.rt_pipeline {
@@ -306,11 +317,7 @@ impl Harness {
                 ),
             };
         let push_size = push_size.div_ceil(4) * 4;
-        let mut push_ints = ints::IntWords::default();
-        for m in modules {
-            push_ints.fixed.low.extend(&m.iface.push_ints.fixed.low);
-            push_ints.fixed.addr.extend(&m.iface.push_ints.fixed.addr);
-        }
+        let push_ints = push_ints(modules);
         let range =
             [vk::PushConstantRange::default().stage_flags(resources::rt_stages()).size(push_size)];
         let mut ci = vk::PipelineLayoutCreateInfo::default().set_layouts(&res.set_layouts);

@@ -7,7 +7,7 @@
 //! same f64 test. The tests hold the BVH's candidates equal to testing every triangle, on rays
 //! aimed at vertices and edges (the ambiguous hits) as well as at random. Built by median split
 //! of the triangles' centroids on the widest axis; leaves of at most [`LEAF`] triangles.
-use super::intersect::{box_pads, may_hit_padded};
+use super::boxes::{box_pads, may_hit_padded};
 use crate::scene::Mesh;
 use glam::DVec3;
 

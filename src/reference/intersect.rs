@@ -4,6 +4,7 @@
 //! traversal may legitimately pick the other surface, so those pixels are not compared.
 //! [`candidates`] collects every instance's hits of one ray once; [`resolve`] picks the closest
 //! among the instances a TLAS holds, so the AS probe's TLAS variants cost one traversal.
+use super::boxes::{box_pads, may_hit_padded};
 use super::bvh::Bvh;
 use crate::scene::{Geometry, Instance, Scene, RAY_TMAX, RAY_TMIN, SPHERE_RADIUS};
 use glam::DVec3;
@@ -54,34 +55,6 @@ fn object_ray(inst: &Instance, o: DVec3, d: DVec3) -> (DVec3, DVec3) {
 /// inside the ray's t range (a conservative quick reject).
 pub(super) fn may_hit_box(o: DVec3, d: DVec3, lo: [f64; 3], hi: [f64; 3]) -> bool {
     may_hit_padded(o, d, (lo, hi), box_pads(lo, hi))
-}
-
-/// The margin per axis the quick reject widens a mesh's box by.
-pub(super) fn box_pads(lo: [f64; 3], hi: [f64; 3]) -> [f64; 3] {
-    [0, 1, 2].map(|a| 1e-3 * (hi[a] - lo[a]).max(1.0))
-}
-
-/// Whether the ray can meet the box `lo..hi` widened by `pad` per axis inside the ray's t range.
-pub(super) fn may_hit_padded(
-    o: DVec3,
-    d: DVec3,
-    (lo, hi): ([f64; 3], [f64; 3]),
-    pad: [f64; 3],
-) -> bool {
-    let (mut t0, mut t1) = (RAY_TMIN as f64 * 0.5, RAY_TMAX as f64 * 1.01);
-    for a in 0..3 {
-        let (l, h) = (lo[a] - pad[a], hi[a] + pad[a]);
-        if d[a] == 0.0 {
-            if o[a] < l || o[a] > h {
-                return false;
-            }
-            continue;
-        }
-        let (ta, tb) = ((l - o[a]) / d[a], (h - o[a]) / d[a]);
-        t0 = t0.max(ta.min(tb));
-        t1 = t1.min(ta.max(tb));
-    }
-    t0 <= t1 * (1.0 + 1e-6) + 1e-6
 }
 
 pub(super) fn triangle(

@@ -44,6 +44,7 @@
 //! Discrimination: on each exactly checked probe pixel, whether every other slot of the array and
 //! every other element of the slot holds a different value, i.e. whether reading any wrong
 //! element would have been caught there.
+mod boxes;
 pub mod bvh;
 mod compare;
 pub mod intersect;

@@ -112,7 +112,7 @@ fn read_primitive(
     let positions: Vec<[f32; 3]> = reader
         .read_positions()
         .ok_or_else(|| {
-            LoadError::part(path, part, "no POSITION attribute; export the mesh with positions")
+            LoadError::part(path, part, "no readable POSITION attribute (none, or its accessor runs past its buffer view or buffer); export the mesh again with positions")
         })?
         .collect();
     let n = positions.len() as u32;

@@ -43,7 +43,9 @@ impl Loaded {
             .meshes()
             .map(|m| mesh::read(path, &m, &buffers))
             .collect::<Result<Vec<_>, _>>()?;
-        let (instances, camera) = nodes::walk(&document);
+        let (instances, camera) = nodes::walk(&document).map_err(|n| {
+            LoadError::part(path, format!("node {n}"), "reached twice: the node hierarchy must be disjoint trees (glTF 2.0, nodes); fix the exporter's children lists")
+        })?;
         if instances.iter().all(|i| meshes[i.mesh].indices.is_empty()) {
             return Err(LoadError::Empty { path: path.to_path_buf() });
         }

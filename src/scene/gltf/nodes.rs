@@ -20,18 +20,25 @@ pub struct Camera {
     pub world: Mat4,
 }
 
-/// Instances and the first camera of `document`'s default scene (else its first scene).
-pub(super) fn walk(document: &gltf::Document) -> (Vec<NodeInstance>, Option<Camera>) {
+/// Instances and the first camera of `document`'s default scene (else its first scene); a node
+/// reached twice (a cycle, or a node that two parents name: glTF 2.0 requires the hierarchy to
+/// be disjoint trees, and gltf-json 1.4.1 does not check it) is `Err(node)`.
+pub(super) fn walk(
+    document: &gltf::Document,
+) -> Result<(Vec<NodeInstance>, Option<Camera>), usize> {
     let scene = document.default_scene().or_else(|| document.scenes().next());
     let mut out = (Vec::new(), None);
     let roots: Vec<gltf::Node> = match scene {
         Some(s) => s.nodes().collect(),
-        None => return out,
+        None => return Ok(out),
     };
-    // Depth first; glTF forbids cycles (the crate's validation checks the hierarchy is a forest).
+    let mut seen = vec![false; document.nodes().count()];
     let mut stack: Vec<(gltf::Node, Mat4)> =
         roots.into_iter().rev().map(|n| (n, Mat4::IDENTITY)).collect();
     while let Some((node, parent)) = stack.pop() {
+        if std::mem::replace(&mut seen[node.index()], true) {
+            return Err(node.index());
+        }
         let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
         if let Some(m) = node.mesh() {
             out.0.push(NodeInstance { node: node.index(), mesh: m.index(), world });
@@ -46,5 +53,5 @@ pub(super) fn walk(document: &gltf::Document) -> (Vec<NodeInstance>, Option<Came
         let children: Vec<gltf::Node> = node.children().collect();
         stack.extend(children.into_iter().rev().map(|c| (c, world)));
     }
-    out
+    Ok(out)
 }

@@ -1,14 +1,9 @@
 //! Opening a glTF file: the JSON (or GLB) read without validation first, so that an unsupported
-//! `extensionsRequired` entry is named in rtprobe's own words, then validated by the `gltf`
+//! `extensionsRequired` entry (any: rtprobe reads none) is named in rtprobe's own words, then validated by the `gltf`
 //! crate, then its buffers (`.bin` files, data URIs, the GLB blob) read. Images are not touched
 //! here: each is decoded only when a cell needs it ([`super::Loaded::decode_image`]).
 use super::error::{one_line, LoadError};
 use std::path::Path;
-
-/// Required extensions rtprobe reads (none changes how geometry is stored: texture transform
-/// and the material extensions only change shading, which rtprobe's cells do not use).
-const READ: &[&str] =
-    &["KHR_materials_emissive_strength", "KHR_texture_transform", "KHR_materials_unlit"];
 
 pub(super) struct Opened {
     pub document: gltf::Document,
@@ -22,7 +17,9 @@ pub(super) fn open(path: &Path) -> Result<Opened, LoadError> {
         |e: gltf::Error| LoadError::Parse { path: path.to_path_buf(), message: one_line(&e) };
     let gltf::Gltf { document, blob } =
         gltf::Gltf::from_slice_without_validation(&bytes).map_err(parse)?;
-    if let Some(ext) = document.extensions_required().find(|e| !READ.contains(e)) {
+    // No required extension is read: the gltf crate is built without them, and one a file
+    // requires changes what its data means.
+    if let Some(ext) = document.extensions_required().next() {
         return Err(LoadError::Extension { path: path.to_path_buf(), extension: ext.to_string() });
     }
     let root = document.into_json();

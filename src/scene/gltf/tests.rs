@@ -140,6 +140,10 @@ fn bad_input_is_one_line_naming_the_part() {
         d["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = serde_json::json!(999)
     });
     assert!(e.contains("not glTF 2.0") && e.contains("invalid at"), "{e}");
+    let e = edited(|d| d["nodes"][4]["children"] = serde_json::json!([3]));
+    assert!(e.contains("node 3: reached twice"), "a cycle ends: {e}");
+    let e = edited(|d| d["extensionsRequired"] = serde_json::json!(["KHR_texture_transform"]));
+    assert!(e.contains("requires extension KHR_texture_transform"), "{e}");
     let e = edited(|d| d["scenes"][0]["nodes"] = serde_json::json!([7]));
     assert!(e.contains("no triangles"), "{e}");
 }
