@@ -55,14 +55,7 @@ pub fn baseline(a: &BaselineArgs) -> Result<u8> {
         a.perf_slack_ms,
     )
     .map_err(|e| coded(exit::USAGE, e))?;
-    for e in &mut b.expected {
-        e.bug.clone_from(&a.bug);
-    }
-    let text = match a.format {
-        BaselineFormat::Json => b.to_json(),
-        BaselineFormat::Deqp => b.to_deqp(),
-    };
-    write_atomic(&a.out, text.as_bytes()).with_context(|| "writing the baseline")?;
+    write_baseline(a, &mut b)?;
     outln!(
         "baseline: {} expected non-pass cells ({} flaky), {} performance bounds → {}",
         b.expected.len(),
@@ -73,12 +66,8 @@ pub fn baseline(a: &BaselineArgs) -> Result<u8> {
     Ok(exit::OK)
 }
 
-/// `rtprobe baseline` of a `run --shader` report: its findings by `cell id/variant`, JSON only.
-fn shader_baseline(a: &BaselineArgs, r: &crate::model::shader_run::ShaderRunReport) -> Result<u8> {
-    if !a.perf.is_empty() {
-        return Err(coded(exit::USAGE, "--perf: a run --shader report times no phase; drop it"));
-    }
-    let mut b = crate::fleet::shader_baseline::from_report(r, &a.report.display().to_string());
+/// `b` with `--bug` on every expectation, written to `--out` in `--format`.
+fn write_baseline(a: &BaselineArgs, b: &mut crate::model::Baseline) -> Result<()> {
     for e in &mut b.expected {
         e.bug.clone_from(&a.bug);
     }
@@ -86,7 +75,16 @@ fn shader_baseline(a: &BaselineArgs, r: &crate::model::shader_run::ShaderRunRepo
         BaselineFormat::Json => b.to_json(),
         BaselineFormat::Deqp => b.to_deqp(),
     };
-    write_atomic(&a.out, text.as_bytes()).with_context(|| "writing the baseline")?;
+    write_atomic(&a.out, text.as_bytes()).with_context(|| "writing the baseline")
+}
+
+/// `rtprobe baseline` of a `run --shader` report: its findings by `cell id/variant`, JSON only.
+fn shader_baseline(a: &BaselineArgs, r: &crate::model::shader_run::ShaderRunReport) -> Result<u8> {
+    if !a.perf.is_empty() {
+        return Err(coded(exit::USAGE, "--perf: a run --shader report times no phase; drop it"));
+    }
+    let mut b = crate::fleet::shader_baseline::from_report(r, &a.report.display().to_string());
+    write_baseline(a, &mut b)?;
     outln!(
         "baseline: {} expected variants with findings ({} flaky) of {} → {}",
         b.expected.len(),
