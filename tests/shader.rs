@@ -682,10 +682,10 @@ fn output_hash(bytes: &[u8]) -> String {
     format!("{h:032x}")
 }
 
-/// The `filled.rchit` run with `extra`: the hash of its `seen` buffer in every attempt of every
-/// variant (asserted to be one), and the report.
+/// The `filled.rchit` run with `extra` (`--repeat 1` unless it has a `--repeat`): the hash of its
+/// `seen` buffer in every attempt of every variant (asserted to be one), and the report.
 fn seen_hash(extra: &[&str]) -> (String, Value) {
-    let mut args = vec!["--repeat", "1"];
+    let mut args = if extra.contains(&"--repeat") { vec![] } else { vec!["--repeat", "1"] };
     args.extend_from_slice(extra);
     let (o, r, _d) = shader_run(&["filled.rchit"], &args, &[]);
     let r = r.unwrap_or_else(|| panic!("no report: {}", stderr(&o)));
@@ -728,7 +728,9 @@ fn fills_put_a_files_bytes_in_buffers_push_constants_and_records() {
     let light = file("light.bin", &0x0BAD_F00D_u32.to_le_bytes());
     let tex = file("tex.bin", &0x5EED_1234_u32.to_le_bytes());
     let (a, b, c) = (format!("0.0={mat}"), format!("push.4={light}"), format!("record.4={tex}"));
-    let (filled, r) = seen_hash(&["--fill", &a, "--fill", &b, "--fill", &c]);
+    // Three attempts: the bytes are the same in each (one pixel writes them; a racing write from
+    // every hit once made this unstable on lavapipe).
+    let (filled, r) = seen_hash(&["--repeat", "3", "--fill", &a, "--fill", &b, "--fill", &c]);
     assert_eq!(filled, output_hash(&seen_bytes(0x1122_3344, 0x0BAD_F00D, 0x5EED_1234)));
     let fills = r["options"]["fill"].as_array().unwrap();
     assert_eq!(fills.len(), 3);
@@ -948,4 +950,41 @@ fn an_index_gpu_av_reports_out_of_range_is_an_error_not_a_finding() {
     let first = v["gpu_av"]["attempts"][0]["validation"][0].as_str().unwrap();
     assert!(first.contains("out of bounds"), "{first}");
     assert!(v["detail"].as_str().unwrap().contains("not a driver finding"), "{v}");
+}
+
+/// The two words of `shadow.rchit`'s counter buffer in `variant`'s embedded outputs, less their
+/// initial values: (shadowed hits, lit hits).
+fn shadow_counts(variant: &Value) -> (u32, u32) {
+    let data = variant["data"].as_array().unwrap();
+    let d =
+        data.iter().find(|d| d["label"].as_str().unwrap().contains("set 0 binding 1[")).unwrap();
+    let word = |b: &[u8], k: usize| u32::from_le_bytes(b[4 * k..4 * k + 4].try_into().unwrap());
+    let (now, then) = (unb64(d["bytes"].as_str().unwrap()), unb64(d["initial"].as_str().unwrap()));
+    (word(&now, 0).wrapping_sub(word(&then, 0)), word(&now, 1).wrapping_sub(word(&then, 1)))
+}
+
+/// A closest-hit shading with a shadow ray (miss index 1, a `bool` payload at location 1,
+/// closest-hits skipped) runs clean: the harness supplies a miss at each index, the shadow one
+/// clearing the bool, so hits are counted both shadowed and lit. The twin: the shadow ray
+/// without the skip flag would run the closest-hit with a `bool` payload — refused in one line,
+/// exit 9, no report.
+#[test]
+fn a_shadow_ray_gets_a_miss_of_its_own_and_its_payload_is_held() {
+    let (o, r, _d) = shader_run(&["shadow.rchit"], &["--repeat", "2"], &[]);
+    let r = r.unwrap_or_else(|| panic!("no report: {}", stderr(&o)));
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    for v in variants(&r) {
+        assert_eq!(v["outcome"], "pass", "{v}");
+        for a in attempts(v) {
+            assert_eq!(a["validation_messages"], 0, "{a}");
+        }
+    }
+    let (shadowed, lit) = shadow_counts(&variants(&r)[0]);
+    assert!(shadowed > 0 && lit > 0, "shadowed {shadowed}, lit {lit}");
+    let (o, r, _d) = shader_run(&["shadow.rchit"], &["-D", "SHADOW_RUNS_CLOSEST_HIT"], &[]);
+    assert_eq!(o.status.code(), Some(9), "{}{}", stdout(&o), stderr(&o));
+    assert!(r.is_none());
+    let e = stderr(&o);
+    assert_eq!(e.trim_end().lines().count(), 1, "{e}");
+    assert!(e.contains("payload `shadowed`") && e.contains("(closest_hit)"), "{e}");
 }

@@ -40,33 +40,6 @@ fn notes(r: &Value) -> Vec<String> {
     r["notes"].as_array().map_or(vec![], |n| n.iter().map(|n| n.as_str().unwrap().into()).collect())
 }
 
-/// Standard base64 decode/encode, to edit an embedded output (a test's own, not rtprobe's).
-fn b64(bytes: &[u8]) -> String {
-    const A: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut s = String::new();
-    for c in bytes.chunks(3) {
-        let n = (c[0] as u32) << 16
-            | (*c.get(1).unwrap_or(&0) as u32) << 8
-            | *c.get(2).unwrap_or(&0) as u32;
-        for k in 0..4 {
-            s.push(if k <= c.len() { A[(n >> (18 - 6 * k) & 63) as usize] as char } else { '=' });
-        }
-    }
-    s
-}
-
-fn unb64(s: &str) -> Vec<u8> {
-    const A: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut out = Vec::new();
-    for c in s.as_bytes().chunks(4) {
-        let pad = c.iter().filter(|b| **b == b'=').count();
-        let n =
-            c.iter().fold(0u32, |n, b| n << 6 | A.iter().position(|a| a == b).unwrap_or(0) as u32);
-        out.extend_from_slice(&n.to_be_bytes()[1..4 - pad]);
-    }
-    out
-}
-
 /// The earlier run every comparison uses, written once per test.
 fn earlier(dir: &Path) -> Value {
     let (o, r) = shader_run(dir, "earlier", &[]);

@@ -35,6 +35,7 @@ pub mod sizes;
 pub mod spec;
 mod supply;
 mod textures;
+mod traces;
 
 pub use bindings::check as check_bindings;
 pub use compare::{compare, compare_within, judge, Compared, Part, PartKind, Tolerance, Verdict};

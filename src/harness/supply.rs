@@ -4,13 +4,15 @@
 //! primary_ray`'s orthographic rays) and written back word by word — each 32-bit scalar member
 //! by member (`floatBitsToUint`, `uint(…)`) — to a storage buffer of `SIZE·SIZE·words` uints at
 //! set 0, at the two bindings after the highest one any user module declares there (the TLAS
-//! first); without a miss shader, one that writes [`MISS_MARKER`] into the payload's first
-//! scalar. Hit groups stay as `Harness::pipeline` makes them (a procedural group without an
+//! first); without a miss shader, one that writes [`MISS_MARKER`] (a bool: `false`) into the
+//! payload's first scalar — one per miss index the rays use, each receiving that ray's payload (`traces`), after
+//! the given misses. Hit groups stay as `Harness::pipeline` makes them (a procedural group without an
 //! intersection shader gets the one that reports nothing). A payload the GLSL cannot mirror word
 //! for word (a pointer, a runtime array, a scalar not 32 bits wide) is a typed error naming it.
 use super::error::HarnessError;
 use super::module::UserModule;
 use super::scene::TRACE_SIZE as SIZE;
+use super::traces;
 use crate::reflect::glsl::{self, Glsl};
 use crate::reflect::{Scalar, Ty};
 use crate::scene::{RAY_TMAX, RAY_TMIN, RAY_Z, VIEW_HALF};
@@ -120,7 +122,8 @@ pub fn raygen_glsl(ty: &Ty, what: &str, binding: u32) -> Result<String, HarnessE
     ))
 }
 
-/// The miss shader's GLSL: the marker in the payload's first scalar.
+/// The miss shader's GLSL: the marker in the payload's first scalar — a bool gets `false`, the
+/// shadow-ray idiom's miss (the tracer sets `shadowed = true`, a miss clears it).
 pub fn miss_glsl(ty: &Ty, what: &str) -> Result<String, HarnessError> {
     let l = leaves(ty, what)?;
     let (preamble, decl) = declared(ty, what, "rayPayloadInEXT")?;
@@ -130,7 +133,7 @@ pub fn miss_glsl(ty: &Ty, what: &str) -> Result<String, HarnessError> {
         }
         Some((Scalar::Int { signed: false, .. }, at)) => format!("    {at} = {MISS_MARKER:#x}u;\n"),
         Some((Scalar::Int { signed: true, .. }, at)) => format!("    {at} = {MISS_MARKER:#x};\n"),
-        Some((Scalar::Bool, at)) => format!("    {at} = true;\n"),
+        Some((Scalar::Bool, at)) => format!("    {at} = false;\n"),
         None => String::new(),
     };
     Ok(format!("{HEAD}{preamble}{decl}void main() {{\n{mark}}}\n"))
@@ -163,24 +166,31 @@ pub fn supply(modules: Vec<UserModule>) -> Result<Vec<UserModule>, HarnessError>
 }
 
 /// [`supply`] with the raygen's TLAS at set 0 `binding` and its words at `binding + 1` (a
-/// patched pipeline that no longer declares a binding keeps the unpatched one's).
+/// patched pipeline that no longer declares a binding keeps the unpatched one's). Misses are
+/// supplied after the given ones, one per miss index the rays use ([`traces::miss_payloads`]),
+/// and every ray is then held to the stages it invokes ([`traces::check`]).
 pub fn supply_at(
     mut modules: Vec<UserModule>,
     binding: u32,
 ) -> Result<Vec<UserModule>, HarnessError> {
     let has = |s: &str, m: &[UserModule]| m.iter().any(|m| m.iface.stage == s);
-    let (raygen, miss) = (has("raygen", &modules), has("miss", &modules));
-    if raygen && miss {
-        return Ok(modules);
-    }
+    let raygen = has("raygen", &modules);
     let (ty, what) = payload(&modules);
-    if !miss {
-        modules.push(compiled(ShaderKind::Miss, "supplied miss", &miss_glsl(&ty, &what)?)?);
+    let needed = traces::miss_payloads(&modules, (!raygen).then_some((&ty, what.as_str())))?;
+    let given = modules.iter().filter(|m| m.iface.stage == "miss").count();
+    for k in given..needed.len().max(1) {
+        let (ty, what) = needed.get(k).cloned().flatten().unwrap_or((ty.clone(), what.clone()));
+        let name = match k {
+            0 => "supplied miss".to_string(),
+            k => format!("supplied miss {k}"),
+        };
+        modules.push(compiled(ShaderKind::Miss, &name, &miss_glsl(&ty, &what)?)?);
     }
     if !raygen {
         let glsl = raygen_glsl(&ty, &what, binding)?;
         modules.insert(0, compiled(ShaderKind::RayGeneration, RAYGEN_NAME, &glsl)?);
     }
+    traces::check(&modules)?;
     Ok(modules)
 }
 

@@ -16,7 +16,8 @@
 //!
 //! Files: the result's types (`reflection`), the type tree (`ty`) and its GLSL (`glsl`), ids by
 //! definition, name and decoration (`index`), the entry point (`entry`), bindings and blocks
-//! (`bindings`), pointer paths (`pointers`), heaps (`heap`), errors (`error`).
+//! (`bindings`), pointer paths (`pointers`), heaps (`heap`), the rays traced (`traces`),
+//! errors (`error`).
 pub(crate) mod bindings;
 mod entry;
 mod error;
@@ -25,6 +26,7 @@ mod heap;
 mod index;
 mod pointers;
 mod reflection;
+mod traces;
 mod ty;
 
 pub use entry::stage_name;
@@ -33,6 +35,7 @@ pub use reflection::{
     Binding, Block, Count, Descriptor, Heap, HeapAccess, HeapKind, HeapStride, Io, PointerPath,
     Reflection, SpecConstant, Tail,
 };
+pub use traces::{Trace, FLAG_OPAQUE, FLAG_SKIP_CLOSEST_HIT};
 pub use ty::{Member, Scalar, Struct, Ty};
 
 use index::Index;
@@ -53,6 +56,7 @@ pub fn reflect(m: &Module, entry: Option<&str>) -> Result<Reflection, ReflectErr
     // Only the globals the entry point's call tree names: a linked module (or one `--entry`
     // reduced) keeps other entry points' globals, which are not this one's interface.
     let used = entry::used(m, e.function);
+    let traces = traces::traces(m, &x, e.function)?;
     let mut r = Reflection {
         model: e.model,
         stage: entry::stage_name(e.model),
@@ -68,6 +72,7 @@ pub fn reflect(m: &Module, entry: Option<&str>) -> Result<Reflection, ReflectErr
         incoming_callable_data: None,
         hit_attribute: None,
         pointers: Vec::new(),
+        traces,
     };
     for i in &m.types_global_values {
         let Some(id) = i.result_id else { continue };

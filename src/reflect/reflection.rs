@@ -159,4 +159,6 @@ pub struct Reflection {
     pub incoming_callable_data: Option<Io>,
     pub hit_attribute: Option<Io>,
     pub pointers: Vec<PointerPath>,
+    /// Every `OpTraceRayKHR` the entry point's call tree executes.
+    pub traces: Vec<super::Trace>,
 }

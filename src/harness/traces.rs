@@ -1,0 +1,120 @@
+//! The rays the modules trace, against the pipeline the harness builds from them. [`miss_payloads`]
+//! says which miss shaders the pipeline needs: one per constant `MissIndex` any `OpTraceRayKHR`
+//! uses, each receiving that ray's payload (the miss record is `pMissShaderBindingTable->stride ×
+//! missIndex` from the table's start, and "All data accessed must be less than
+//! pMissShaderBindingTable->size bytes from the base address": Vulkan 1.4.360, Ray Tracing,
+//! Shader Binding Table Indexing Rules). [`check`] holds every stage a traced ray can invoke to
+//! its payload: "The ray payload for a shader invoked by a ray tracing command must be the same
+//! structure for all shader stages using the payload for that ray" (Vulkan 1.4.360, Shader
+//! Interfaces, Ray Tracing Pipeline Interface) — a closest-hit unless the ray's constant flags
+//! skip it (`gl_RayFlagsSkipClosestHitShaderEXT`), an any-hit unless they make it opaque, the
+//! miss at its index. Only SBT record offset 0 runs: the harness scene's instances select hit
+//! group 0 (triangles) or 1 (procedural), each BLAS one geometry, so a ray with offset k would
+//! reach a group of the other geometry type or past the hit table.
+use super::error::HarnessError;
+use super::module::UserModule;
+use crate::reflect::{Trace, Ty, FLAG_OPAQUE, FLAG_SKIP_CLOSEST_HIT};
+
+/// Miss indices beyond this are refused (no engine has that many miss shaders).
+pub const MAX_MISS_INDEX: u32 = 63;
+
+fn unsupported(s: String) -> HarnessError {
+    HarnessError::Unsupported(s)
+}
+
+/// A trace's payload as the messages name it.
+fn said(t: &Trace) -> String {
+    match t.payload_name.as_str() {
+        "" => format!("a payload of type {}", t.payload.leaves()),
+        n => format!("payload `{n}` ({})", t.payload.leaves()),
+    }
+}
+
+/// Per miss index 0..=max used, the payload type the rays with that index carry and what it is
+/// ("NAME's payload `p`"; `None`: no ray uses the index). `raygen` is the supplied raygen's
+/// payload and what it is (it traces with miss index 0). A non-constant or too large index, or two payload types at one index, is
+/// refused in one line.
+pub fn miss_payloads(
+    modules: &[UserModule],
+    raygen: Option<(&Ty, &str)>,
+) -> Result<Vec<Option<(Ty, String)>>, HarnessError> {
+    let mut out: Vec<Option<(Ty, String)>> = Vec::new();
+    let supplied = raygen.map(|(ty, what)| (0, ty.clone(), what.to_string()));
+    let traced = modules.iter().flat_map(|m| m.iface.reflection.traces.iter().map(move |t| (m, t)));
+    let mut rays = Vec::new();
+    for (m, t) in traced {
+        let Some(k) = t.miss_index else {
+            return Err(unsupported(format!("{} traces a ray whose miss index is not a constant; rtprobe supplies one miss shader per constant index: make the index a literal", m.name)));
+        };
+        if k > MAX_MISS_INDEX {
+            return Err(unsupported(format!("{} traces a ray with miss index {k}; rtprobe supplies miss shaders up to index {MAX_MISS_INDEX}", m.name)));
+        }
+        rays.push((k, t.payload.clone(), format!("{}'s payload `{}`", m.name, t.payload_name)));
+    }
+    for (k, ty, who) in supplied.into_iter().chain(rays) {
+        let k = k as usize;
+        if out.len() <= k {
+            out.resize(k + 1, None);
+        }
+        match &out[k] {
+            Some((seen, first)) if seen.shape() != ty.shape() => {
+                return Err(unsupported(format!("{who} and {first} are traced with miss index {k} but differ ({} and {}): one miss shader cannot receive both; give your miss shaders with --shader", ty.leaves(), seen.leaves())));
+            }
+            Some(_) => {}
+            None => out[k] = Some((ty, who)),
+        }
+    }
+    Ok(out)
+}
+
+/// `stage` receives its incoming payload from ray `t` traced by `tracer`: the same structure.
+fn receives(tracer: &str, t: &Trace, stage: &UserModule) -> Result<(), HarnessError> {
+    let Some(p) = &stage.iface.reflection.incoming_payload else { return Ok(()) };
+    if p.ty.shape() == t.payload.shape() {
+        return Ok(());
+    }
+    Err(HarnessError::Interface(format!(
+        "{tracer} traces a ray with {} that {} ({}) would receive as `{}` ({}): every stage a ray invokes must use its payload's structure (Vulkan 1.4.360, Ray Tracing Pipeline Interface); set gl_RayFlagsSkipClosestHitShaderEXT (or Opaque for an any-hit) on that ray if it skips the stage, or give the stages that ray really invokes",
+        said(t),
+        stage.name,
+        stage.iface.stage,
+        p.name,
+        p.ty.leaves()
+    )))
+}
+
+/// Every ray the modules trace against the stages of the pipeline `super::groups` makes of them.
+pub fn check(modules: &[UserModule]) -> Result<(), HarnessError> {
+    let refs: Vec<&UserModule> = modules.iter().collect();
+    let g = super::groups(&refs)?;
+    for m in modules {
+        for t in &m.iface.reflection.traces {
+            match t.sbt_offset {
+                Some(0) => {}
+                Some(k) => return Err(unsupported(format!("{} traces a ray with SBT record offset {k}; the harness scene has one hit group per geometry type (triangles at 0, procedural at 1), so only offset 0 runs: make the offset 0 to run it here", m.name))),
+                None => return Err(unsupported(format!("{} traces a ray whose SBT record offset is not a constant; the harness scene runs offset 0 only", m.name))),
+            }
+            let miss = t.miss_index.and_then(|k| g.misses.get(k as usize));
+            let Some(&miss) = miss else {
+                return Err(unsupported(format!(
+                    "{} traces a ray with a miss index the pipeline has no miss shader for",
+                    m.name
+                )));
+            };
+            receives(&m.name, t, &modules[miss])?;
+            if !t.has_flag(FLAG_SKIP_CLOSEST_HIT) {
+                let procedural = g.intersection.is_some().then_some(g.hit[1]).flatten();
+                for k in g.hit[0].into_iter().chain(procedural) {
+                    receives(&m.name, t, &modules[k])?;
+                }
+            }
+            if let Some(k) = g.any_hit.filter(|_| !t.has_flag(FLAG_OPAQUE)) {
+                receives(&m.name, t, &modules[k])?;
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests;

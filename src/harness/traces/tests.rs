@@ -1,0 +1,108 @@
+//! An nvpro-style closest-hit that traces a shadow ray (miss index 1, its own `bool` payload,
+//! closest-hit skipped) gets a miss per index, each receiving its ray's payload; the twins: the
+//! same ray without the skip flag, a computed miss index, an SBT offset of 1, two payloads at one
+//! index and a given miss with the wrong payload are each refused in one line.
+use super::super::supply::supply;
+use super::*;
+use shaderc::ShaderKind;
+
+fn module(kind: ShaderKind, name: &str, glsl: &str) -> UserModule {
+    let words =
+        crate::shadergen::compile::Compiler::new().unwrap().compile_glsl(kind, name, glsl).unwrap();
+    UserModule::new(name, &words).unwrap()
+}
+
+/// A closest-hit tracing a shadow ray with `flags` (statements setting the local `flags`), SBT
+/// offset `offset` and miss index `miss`.
+fn shadowing(flags: &str, offset: &str, miss: &str) -> UserModule {
+    let glsl = format!(
+        r#"#version 460
+#extension GL_EXT_ray_tracing : require
+struct Shade {{ vec3 color; float dist; }};
+layout(set = 0, binding = 0) uniform accelerationStructureEXT scene;
+layout(push_constant) uniform P {{ uint missIndex; }} p;
+layout(location = 0) rayPayloadInEXT Shade shade;
+layout(location = 1) rayPayloadEXT bool shadowed;
+hitAttributeEXT vec2 bary;
+void main() {{
+    shadowed = true;
+    vec3 at = gl_WorldRayOriginEXT + gl_WorldRayDirectionEXT * gl_HitTEXT;
+    uint flags;
+    {flags}
+    traceRayEXT(scene, flags, 0xFF, {offset}, 0, {miss}, at, 0.001, vec3(0, 1, 0), 100.0, 1);
+    shade.color = shadowed ? vec3(0.1) : vec3(bary, 1.0);
+    shade.dist = gl_HitTEXT;
+}}
+"#
+    );
+    module(ShaderKind::ClosestHit, "shadow.rchit", &glsl)
+}
+
+const SKIP: &str = "flags = gl_RayFlagsTerminateOnFirstHitEXT | gl_RayFlagsOpaqueEXT | gl_RayFlagsSkipClosestHitShaderEXT;";
+
+fn error(r: Result<Vec<UserModule>, HarnessError>) -> String {
+    let e = r.map(|m| m.iter().map(|m| m.name.clone()).collect::<Vec<_>>()).unwrap_err();
+    let s = e.to_string();
+    assert!(!s.contains('\n'), "{s}");
+    s
+}
+
+#[test]
+fn a_shadow_ray_gets_its_own_miss_with_its_payload() {
+    let m = shadowing(SKIP, "0", "1");
+    let t = &m.iface.reflection.traces;
+    assert_eq!(t.len(), 1);
+    assert_eq!(
+        (t[0].miss_index, t[0].sbt_offset, t[0].has_flag(FLAG_SKIP_CLOSEST_HIT)),
+        (Some(1), Some(0), true)
+    );
+    let all = supply(vec![m]).unwrap();
+    let names: Vec<&str> = all.iter().map(|m| m.name.as_str()).collect();
+    assert_eq!(names, ["supplied raygen", "shadow.rchit", "supplied miss", "supplied miss 1"]);
+    let incoming = |k: usize| all[k].iface.reflection.incoming_payload.as_ref().unwrap().ty.shape();
+    let shade = all[1].iface.reflection.incoming_payload.as_ref().unwrap().ty.shape();
+    assert_eq!(incoming(2), shade);
+    assert_eq!(incoming(3), all[1].iface.reflection.traces[0].payload.shape());
+    assert_ne!(incoming(3), shade);
+}
+
+#[test]
+fn a_shadow_ray_that_would_invoke_the_closest_hit_is_refused() {
+    let e = error(supply(vec![shadowing("flags = gl_RayFlagsOpaqueEXT;", "0", "1")]));
+    assert!(e.contains("payload `shadowed`") && e.contains("shadow.rchit (closest_hit)"), "{e}");
+    assert!(e.contains("Ray Tracing Pipeline Interface"), "{e}");
+    // Flags that are the skip only on some paths are not known to skip.
+    let sometimes = format!("{SKIP} if (gl_HitTEXT > 1.0) flags = gl_RayFlagsOpaqueEXT;");
+    let m = shadowing(&sometimes, "0", "1");
+    assert_eq!(m.iface.reflection.traces[0].flags, None);
+    let e = error(supply(vec![m]));
+    assert!(e.contains("payload `shadowed`"), "{e}");
+}
+
+#[test]
+fn computed_miss_indices_offsets_and_clashing_payloads_are_refused() {
+    let e = error(supply(vec![shadowing(SKIP, "0", "p.missIndex")]));
+    assert!(e.contains("miss index is not a constant"), "{e}");
+    let e = error(supply(vec![shadowing(SKIP, "1", "1")]));
+    assert!(e.contains("SBT record offset 1"), "{e}");
+    let e = error(supply(vec![shadowing(SKIP, "p.missIndex", "1")]));
+    assert!(e.contains("SBT record offset is not a constant"), "{e}");
+    // Miss index 0: the supplied raygen's payload (a Shade) and the shadow ray's bool.
+    let e = error(supply(vec![shadowing(SKIP, "0", "0")]));
+    assert!(
+        e.contains("shadow.rchit's payload `shadowed`") && e.contains("miss index 0 but differ"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_given_miss_with_another_payload_is_refused() {
+    let miss = module(
+        ShaderKind::Miss,
+        "sky.rmiss",
+        "#version 460\n#extension GL_EXT_ray_tracing : require\n\
+         layout(location = 0) rayPayloadInEXT vec4 sky;\nvoid main() { sky = vec4(1.0); }\n",
+    );
+    let e = error(supply(vec![shadowing(SKIP, "0", "1"), miss]));
+    assert!(e.contains("sky.rmiss (miss)"), "{e}");
+}
