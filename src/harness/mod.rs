@@ -21,6 +21,7 @@ mod compare;
 pub mod entry;
 mod error;
 pub mod fill;
+mod groups;
 pub mod heap;
 pub mod inject;
 pub mod ints;
@@ -52,6 +53,7 @@ use crate::vk::memory::{color_range, full_barrier, transition, Buffer, Location,
 use crate::vk::submit::{Submitter, Waited};
 use crate::vk::{Gpu, Requirements, VkResultExt};
 use ash::vk;
+use groups::{groups, Groups};
 use reflect::BindingKind;
 use resources::{Element, Resources};
 use std::ffi::CString;
@@ -143,48 +145,6 @@ pub struct Harness {
     fills: fill::Fills,
     /// The shader record data after every SBT handle ([`record`]).
     record: Vec<u8>,
-}
-
-/// The groups of a pipeline from its modules (by index): raygen, misses, the triangle hit group
-/// (closest-hit, any-hit), the procedural one (intersection, second closest-hit), callables.
-struct Groups {
-    raygen: usize,
-    misses: Vec<usize>,
-    hit: [Option<usize>; 2],
-    any_hit: Option<usize>,
-    intersection: Option<usize>,
-    callables: Vec<usize>,
-}
-
-fn groups(modules: &[&UserModule]) -> Result<Groups, HarnessError> {
-    let mut g = Groups {
-        raygen: usize::MAX,
-        misses: vec![],
-        hit: [None, None],
-        any_hit: None,
-        intersection: None,
-        callables: vec![],
-    };
-    let mut chits = Vec::new();
-    for (i, m) in modules.iter().enumerate() {
-        match m.iface.stage.as_str() {
-            "raygen" if g.raygen == usize::MAX => g.raygen = i,
-            "miss" => g.misses.push(i),
-            "closest_hit" => chits.push(i),
-            "any_hit" if g.any_hit.is_none() => g.any_hit = Some(i),
-            "intersection" if g.intersection.is_none() => g.intersection = Some(i),
-            "callable" => g.callables.push(i),
-            s => return Err(HarnessError::Unsupported(format!("{}: the harness runs one raygen with its misses, hit shaders and callables; a {s} module is not one of them", m.name))),
-        }
-    }
-    if g.raygen == usize::MAX || g.misses.is_empty() {
-        return Err(HarnessError::Unsupported(
-            "the harness needs a raygen and a miss shader (`supply` adds them where missing)"
-                .into(),
-        ));
-    }
-    g.hit = [chits.first().copied(), chits.get(1).copied()];
-    Ok(g)
 }
 
 /// Each stage's SPIR-V, stage flag and entry name, and the intersection shader's index.

@@ -83,10 +83,10 @@ fn receives(tracer: &str, t: &Trace, stage: &UserModule) -> Result<(), HarnessEr
     )))
 }
 
-/// Every ray the modules trace against the stages of the pipeline `super::groups` makes of them.
+/// Every ray the modules trace against the stages of the pipeline `groups` makes of them.
 pub fn check(modules: &[UserModule]) -> Result<(), HarnessError> {
     let refs: Vec<&UserModule> = modules.iter().collect();
-    let g = super::groups(&refs)?;
+    let g = super::groups::groups(&refs)?;
     for m in modules {
         for t in &m.iface.reflection.traces {
             match t.sbt_offset {
