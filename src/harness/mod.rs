@@ -35,11 +35,12 @@ pub mod sizes;
 pub mod spec;
 mod supply;
 mod textures;
+pub mod variable;
 
 pub use bindings::check as check_bindings;
 pub use compare::{compare, compare_within, judge, Compared, Part, PartKind, Tolerance, Verdict};
 pub use error::HarnessError;
-pub use module::UserModule;
+pub use module::{google, UserModule};
 pub use sizes::Sizes;
 pub use supply::{supply, MISS_MARKER};
 
