@@ -46,9 +46,14 @@ pub fn spirv_extensions(words: &[u32]) -> Vec<String> {
 
 /// The VK_GOOGLE extensions `modules` need (DXC's `-fspv-reflect` output).
 pub fn google<'a>(modules: impl IntoIterator<Item = &'a UserModule>) -> GoogleHlsl {
+    google_of(modules.into_iter().map(|m| m.words.as_slice()))
+}
+
+/// [`google`] of modules given as their SPIR-V words.
+pub fn google_of<'a>(modules: impl IntoIterator<Item = &'a [u32]>) -> GoogleHlsl {
     let mut g = GoogleHlsl::default();
-    for m in modules {
-        spirv_extensions(&m.words).iter().for_each(|e| g.note(e));
+    for words in modules {
+        spirv_extensions(words).iter().for_each(|e| g.note(e));
     }
     g
 }
