@@ -454,6 +454,76 @@ fn dxc_style_spirv_runs_clean_in_every_variant() {
     }
 }
 
+/// The DXC raygen and miss of the patch corpus, and `closest_hit` (SPIR-V assembly text), each
+/// assembled for Vulkan 1.2 into `dir`: the `--shader` paths.
+fn dxc_pipeline(dir: &Path, closest_hit: &str) -> Vec<String> {
+    let corpus = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/patch-corpus/dxc");
+    let hit = dir.join("closesthit.spvasm");
+    std::fs::write(&hit, closest_hit).unwrap();
+    let sources = [corpus.join("raygen.spvasm"), corpus.join("miss.spvasm"), hit];
+    let mut files = Vec::new();
+    for (k, src) in sources.iter().enumerate() {
+        let spv = dir.join(format!("{k}.spv"));
+        rtprobe::tools::spirv::assemble(src, &spv, "vulkan1.2")
+            .unwrap_or_else(|e| panic!("{}: {e}", src.display()));
+        files.push(spv.to_string_lossy().into_owned());
+    }
+    files
+}
+
+/// Issue 24: a DXC `-fspv-reflect` closest-hit (`reflect.rchit.spvasm`: UserSemantic strings,
+/// UserTypeGOOGLE, OpDecorateId CounterBuffer) runs with the VK_GOOGLE extensions its
+/// SPV_GOOGLE extensions need: without SPV_GOOGLE_user_type (lavapipe 25 lacks its device
+/// extension) clean under `--validate` in every variant; with it, clean where the device has
+/// VK_GOOGLE_user_type and refused in one line naming it (exit 5, no report) where not. Twin:
+/// the device extension hidden, the same module is refused before any run.
+#[test]
+fn dxc_reflect_modules_get_their_google_extensions() {
+    let d = tempfile::tempdir().unwrap();
+    let full = std::fs::read_to_string(user().join("reflect.rchit.spvasm")).unwrap();
+    let no_user_type: String = full
+        .lines()
+        .filter(|l| !l.contains("user_type") && !l.contains("UserTypeGOOGLE"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    assert!(no_user_type.contains("CounterBuffer") && no_user_type.contains("UserSemantic"));
+    let files = dxc_pipeline(d.path(), &no_user_type);
+    let names: Vec<&str> = files.iter().map(String::as_str).collect();
+    let (o, r, _d) = shader_run(&names, &["--repeat", "1"], &[]);
+    let r = r.unwrap_or_else(|| panic!("no report: {}{}", stdout(&o), stderr(&o)));
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    assert!(variants(&r).len() >= 2);
+    for v in variants(&r) {
+        assert_eq!(v["outcome"], "pass", "{v}");
+        assert!(attempts(v).iter().all(|a| a["validation_messages"] == 0), "{v}");
+    }
+    let hide = [("RTPROBE_HIDE_EXTENSIONS", "VK_GOOGLE_hlsl_functionality1")];
+    let (o, r, _d) = shader_run(&names, &["--repeat", "1"], &hide);
+    assert_one_line_error(
+        &o,
+        5,
+        "missing VK_GOOGLE_hlsl_functionality1 (the modules declare SPV_GOOGLE_hlsl_functionality1",
+    );
+    assert!(stderr(&o).contains("without -fspv-reflect"), "{}", stderr(&o));
+    assert!(r.is_none(), "no report");
+    let d2 = tempfile::tempdir().unwrap();
+    let files = dxc_pipeline(d2.path(), &full);
+    let names: Vec<&str> = files.iter().map(String::as_str).collect();
+    let (o, r, _d) = shader_run(&names, &["--repeat", "1"], &[]);
+    match o.status.code() {
+        Some(0) => {
+            let r = r.expect("a report");
+            for v in variants(&r) {
+                assert!(attempts(v).iter().all(|a| a["validation_messages"] == 0), "{v}");
+            }
+        }
+        _ => {
+            assert_one_line_error(&o, 5, "missing VK_GOOGLE_user_type");
+            assert!(r.is_none(), "no report");
+        }
+    }
+}
+
 /// The unpatched pipeline's first attempt's output hashes of a clean `--repeat 1` run.
 fn first_outputs(files: &[&str], extra: &[&str]) -> Value {
     let mut args = vec!["--repeat", "1"];
@@ -841,6 +911,87 @@ fn a_profile_with_robustness_and_binding_flags_runs_clean() {
     assert!(implied.contains("robustBufferAccess2-04000"), "{p}");
     assert_eq!(r["options"]["profile"], p["hash"]);
     assert_eq!(p["hash"].as_str().map(str::len), Some(32));
+    assert_variable_count(p, "set 1 binding 1", 64);
+}
+
+/// The report's variable-sized binding `at`: allocated `allocated` (`--array-size`) under a
+/// layout bound larger than that (the device's limits less the other bindings).
+fn assert_variable_count(profile: &Value, at: &str, allocated: u64) {
+    let counts = profile["variable_counts"].as_array().unwrap_or_else(|| panic!("{profile}"));
+    assert_eq!(counts.len(), 1, "{profile}");
+    let line = counts[0].as_str().unwrap();
+    let (binding, rest) = line.split_once(": layout ").unwrap_or_else(|| panic!("{line}"));
+    let (layout, alloc) = rest.split_once(", allocated ").unwrap_or_else(|| panic!("{line}"));
+    let (layout, alloc): (u64, u64) = (layout.parse().unwrap(), alloc.parse().unwrap());
+    assert_eq!((binding, alloc), (at, allocated), "{line}");
+    assert!(layout > alloc, "the layout's maximum is the device's bound, not the count: {line}");
+}
+
+/// The cell id of a clean `--repeat 1` run of `files` with `extra`, and its report.
+fn clean_cell(files: &[&str], extra: &[&str]) -> (String, Value) {
+    let mut args = vec!["--repeat", "1"];
+    args.extend_from_slice(extra);
+    let (o, r, _d) = shader_run(files, &args, &[]);
+    let r = r.unwrap_or_else(|| panic!("no report: {}{}", stdout(&o), stderr(&o)));
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    for v in variants(&r) {
+        assert!(attempts(v).iter().all(|a| a["validation_messages"] == 0), "{v}");
+    }
+    (r["cell"].as_str().unwrap().to_string(), r)
+}
+
+/// Issue 24: `--profile` is in the cell id by what it turns on, not by its file: the same
+/// features in another file at another path, written in another order, are the same cell; one
+/// feature more is another; no profile is another again. The variable-count profile allocates
+/// the 64 textures (`--array-size`'s default) under a layout bound at the device's limit, clean
+/// under `--validate`.
+#[test]
+fn the_profile_is_in_the_cell_id_by_what_it_turns_on() {
+    let d = tempfile::tempdir().unwrap();
+    let files = ["raygen.rgen", "miss.rmiss", "textured.rchit"];
+    let partially = serde_json::json!({
+        "VkPhysicalDeviceDescriptorIndexingFeatures": {"descriptorBindingPartiallyBound": true}
+    });
+    let a = profile_file(d.path(), "a.json", partially);
+    std::fs::create_dir(d.path().join("other")).unwrap();
+    let b = d.path().join("other/engine.json");
+    std::fs::write(
+        &b,
+        r#"{"profiles": {}, "capabilities": {"x": {"features": {"VkPhysicalDeviceVulkan12Features": {"shaderInt8": false, "descriptorBindingPartiallyBound": true}}}}}"#,
+    )
+    .unwrap();
+    let variable = profile_file(
+        d.path(),
+        "variable.json",
+        serde_json::json!({"VkPhysicalDeviceDescriptorIndexingFeatures": {
+            "descriptorBindingPartiallyBound": true,
+            "descriptorBindingVariableDescriptorCount": true
+        }}),
+    );
+    let (id_a, ra) = clean_cell(&files, &["--profile", &a]);
+    let (id_b, _) = clean_cell(&files, &["--profile", b.to_str().unwrap()]);
+    let (id_var, rv) = clean_cell(&files, &["--profile", &variable]);
+    let (id_none, _) = clean_cell(&files, &[]);
+    assert_eq!(id_a, id_b, "the same features in another file");
+    assert!(id_a.starts_with(&format!("{id_none}#")), "{id_a}");
+    assert_eq!(ra["cell_options"]["profile"], serde_json::json!(["partially_bound"]));
+    assert_ne!(id_var, id_a, "one feature more is another cell");
+    assert_variable_count(&rv["profile"], "set 1 binding 1", 64);
+}
+
+/// Issue 24: `--spec` is in the cell id in a normal form: the order given and the spelling of a
+/// value (`05`, `0.50`) do not change the id; another value does. The report's options keep
+/// the values as given.
+#[test]
+fn spec_values_are_one_cell_in_any_order_and_spelling() {
+    let files = ["tinted.rchit"];
+    let (id, r) = clean_cell(&files, &["--spec", "2=0.5", "--spec", "1=5"]);
+    let (same, r2) = clean_cell(&files, &["--spec", "1=05", "--spec", "2=0.50"]);
+    let (other, _) = clean_cell(&files, &["--spec", "1=6", "--spec", "2=0.5"]);
+    assert_eq!(id, same);
+    assert_ne!(id, other);
+    assert_eq!(r["cell_options"]["spec"], serde_json::json!(["1=5", "2=0.5"]));
+    assert_eq!(r2["options"]["spec"], serde_json::json!(["1=05", "2=0.50"]));
 }
 
 /// Twins: a profile naming a feature lavapipe lacks (VK_NV_ray_tracing_motion_blur's) is

@@ -38,12 +38,14 @@ fn reflect(inputs: &[Input], words: &[&[u32]]) -> Result<Vec<JobModule>> {
     Ok(modules.into_iter().map(|m| JobModule { name: m.name, words: m.words }).collect())
 }
 
-/// The device `--device` names, checked for what the harness needs: its index.
-fn device(g: &Globals, a: &PatchArgs, scalar: bool) -> Result<usize> {
+/// The device `--device` names, checked for what the harness needs for `modules`: its index.
+fn device(g: &Globals, a: &PatchArgs, scalar: bool, modules: &[&JobModule]) -> Result<usize> {
     let inst = super::commands::open_instance(g)?;
     let all = crate::vk::features::query_all(&inst)?;
     let info = crate::vk::features::select(&all, a.device.as_deref())?;
-    let missing = harness::requirements(scalar).missing_on(info);
+    let mut req = harness::requirements(scalar);
+    req.google = harness::google_of(modules.iter().map(|m| m.words.as_slice()));
+    let missing = req.missing_on(info);
     if !missing.is_empty() {
         return Err(coded(
             exit::UNSUPPORTED_DEVICE,
@@ -68,7 +70,7 @@ pub fn verify(
 ) -> Result<Vec<String>> {
     let before = reflect(inputs, &inputs.iter().map(|i| i.words.as_slice()).collect::<Vec<_>>())?;
     let after = reflect(inputs, &patched.iter().map(|w| w.as_slice()).collect::<Vec<_>>())?;
-    let device_index = device(g, a, scalar)?;
+    let device_index = device(g, a, scalar, &before.iter().chain(&after).collect::<Vec<_>>())?;
     let dir = std::env::temp_dir().join(format!("rtprobe-verify-{}", std::process::id()));
     std::fs::create_dir_all(&dir)
         .with_context(|| format!("creating the --verify folder {}", dir.display()))?;

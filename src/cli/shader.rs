@@ -161,7 +161,10 @@ fn device(
     let info = crate::vk::features::select(&all, a.device.as_deref())?;
     let mut req = crate::harness::requirements_for(plan.scalar, model);
     req.robustness = shader_profile::setup(profile).robustness();
-    let record = profile.map(|p| shader_profile::check(p, info, &req, model)).transpose()?;
+    req.google = crate::harness::google(&plan.modules);
+    let record = profile
+        .map(|p| shader_profile::check(p, info, &req, (model, &plan.modules)))
+        .transpose()?;
     let missing = req.missing_on(info);
     if !missing.is_empty() {
         return Err(coded(
@@ -311,7 +314,13 @@ pub(super) fn prepare(g: &Globals, a: &RunArgs) -> Result<Prepared> {
     let spec = crate::harness::spec::parse_all(&a.spec, &plan.given)
         .map_err(|e| coded(exit::USAGE, e.to_string()))?;
     let (fills, fill_words) = super::shader_fill::fills(a, &plan, &sizes)?;
-    let cell_options = super::shader_fill::cell_options(a, &plan, model, fill_words)?;
+    let resolved = super::shader_fill::Resolved {
+        spec: crate::harness::spec::canonical(&spec, &plan.given),
+        fill: fill_words,
+        profile: shader_profile::setup(profile.as_ref())
+            .effective(model == DescriptorModel::DescriptorIndexing),
+    };
+    let cell_options = super::shader_fill::cell_options(a, &plan, model, resolved)?;
     let other = other_report(a, &shader_run::cell_id_with(&plan.inputs, &cell_options))?;
     let baseline = a.baseline.as_deref().map(super::fleet::load_baseline).transpose()?;
     super::paths::writable_files(&[("--junit", a.junit.as_deref())])?;

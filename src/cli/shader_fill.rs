@@ -44,14 +44,22 @@ fn target_words(t: Target) -> String {
     }
 }
 
-/// The options of this run that change what runs: `--entry`, `--spec`, `--fill` (`fill_words`),
+/// What a run's cell id takes beyond its arguments: `--spec`'s values in their normal form,
+/// `--fill`'s words, and `--profile`'s effect on the harness.
+pub struct Resolved {
+    pub spec: Vec<String>,
+    pub fill: Vec<String>,
+    pub profile: Vec<String>,
+}
+
+/// The options of this run that change what runs: `--entry`, `--spec`, `--fill`,
 /// `--array-size`, `--sink-size`, a `model` other than the modules imply, `--heap-layout`'s
-/// content hash.
+/// content hash, `--profile`'s effect (`resolved`).
 pub fn cell_options(
     a: &RunArgs,
     plan: &ShaderPlan,
     model: DescriptorModel,
-    fill_words: Vec<String>,
+    resolved: Resolved,
 ) -> Result<CellOptions> {
     let implied = if crate::harness::heap::uses_heap(&plan.given) {
         DescriptorModel::DescriptorHeap
@@ -67,11 +75,12 @@ pub fn cell_options(
         };
     Ok(CellOptions {
         entry: a.entry.clone(),
-        spec: a.spec.clone(),
-        fill: fill_words,
+        spec: resolved.spec,
+        fill: resolved.fill,
         array_size: a.array_size,
         sink_size: a.sink_size,
         descriptor_model: (model != implied).then(|| model.as_str().to_string()),
         heap_layout,
+        profile: resolved.profile,
     })
 }

@@ -5,6 +5,7 @@
 use super::exit::{self, coded};
 use crate::caps::profile_check;
 use crate::harness::profile::ProfileSetup;
+use crate::harness::UserModule;
 use crate::model::profile::{DeviceProfile, ProfileRecord};
 use crate::model::DescriptorModel;
 use crate::vk::{DeviceInfo, Requirements};
@@ -43,12 +44,12 @@ pub fn setup(loaded: Option<&Loaded>) -> ProfileSetup {
 
 /// `loaded` held to `info`: a feature the device lacks is one line naming every one (exit 5);
 /// else what the device `req` makes is given of the profile, and the binding flags under
-/// `model`.
+/// `model` with the variable-sized bindings of `modules` (the full pipeline).
 pub fn check(
     loaded: &Loaded,
     info: &DeviceInfo,
     req: &Requirements,
-    model: DescriptorModel,
+    (model, modules): (DescriptorModel, &[UserModule]),
 ) -> Result<ProfileRecord> {
     let sorted = profile_check::check(&loaded.profile, info);
     if !sorted.lacks.is_empty() {
@@ -65,9 +66,14 @@ pub fn check(
     let given = crate::vk::device::enabled_feature_names(req, info);
     let (enabled, not_enabled): (Vec<_>, Vec<_>) =
         sorted.has.iter().partition(|f| given.contains(&f.member));
-    let flags = match model {
-        DescriptorModel::DescriptorIndexing => setup(Some(loaded)).flags.words(),
-        DescriptorModel::DescriptorBuffer | DescriptorModel::DescriptorHeap => Vec::new(),
+    let flags = setup(Some(loaded)).flags;
+    let (flags, variable_counts) = match model {
+        DescriptorModel::DescriptorIndexing => {
+            (flags.words(), crate::harness::run::variable_counts(modules, &flags, info))
+        }
+        DescriptorModel::DescriptorBuffer | DescriptorModel::DescriptorHeap => {
+            (Vec::new(), Vec::new())
+        }
     };
     Ok(ProfileRecord {
         file: loaded.file.clone(),
@@ -77,5 +83,6 @@ pub fn check(
         unknown: sorted.unknown,
         implied: crate::harness::profile::implied(&loaded.profile),
         binding_flags: flags,
+        variable_counts,
     })
 }

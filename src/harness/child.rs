@@ -138,7 +138,9 @@ fn run(job: &VerifyJob) -> Result<VerifyOutput, HarnessError> {
         .get(job.device_index)
         .ok_or_else(|| HarnessError::Unsupported("the device vanished".into()))?
         .clone();
-    let gpu = Gpu::new(inst, info, super::requirements(job.scalar))?;
+    let mut req = super::requirements(job.scalar);
+    req.google = super::google(before.iter().chain(&after));
+    let gpu = Gpu::new(inst, info, req)?;
     let messages = crate::vk::instance::validation_error_count();
     let timeout = Duration::from_millis(job.timeout_ms);
     let contract = wrong_contract(&job.contract);

@@ -37,11 +37,12 @@ pub mod spec;
 mod supply;
 mod textures;
 mod traces;
+pub mod variable;
 
 pub use bindings::check as check_bindings;
 pub use compare::{compare, compare_within, judge, Compared, Part, PartKind, Tolerance, Verdict};
 pub use error::HarnessError;
-pub use module::UserModule;
+pub use module::{google, google_of, UserModule};
 pub use sizes::Sizes;
 pub use supply::{supply, MISS_MARKER};
 

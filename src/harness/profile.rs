@@ -44,6 +44,25 @@ impl ProfileSetup {
         }
     }
 
+    /// What this setup changes in the harness, in words and one order: each robustness feature
+    /// it enables (`robustBufferAccess2`), then, with descriptor sets (`sets`), the binding
+    /// flags (`BindingFlags::words`). The cell id's `profile` (`model::shader_options`).
+    pub fn effective(&self, sets: bool) -> Vec<String> {
+        let robust = [
+            (self.robust_buffer_access, "robustBufferAccess"),
+            (self.robust_image_access, "robustImageAccess"),
+            (self.robust_buffer_access2, "robustBufferAccess2"),
+            (self.robust_image_access2, "robustImageAccess2"),
+            (self.null_descriptor, "nullDescriptor"),
+        ];
+        let mut out: Vec<String> =
+            robust.iter().filter(|(on, _)| *on).map(|(_, n)| n.to_string()).collect();
+        if sets {
+            out.extend(self.flags.words());
+        }
+        out
+    }
+
     pub fn robustness(&self) -> Robustness {
         Robustness {
             robust_buffer_access: self.robust_buffer_access,
@@ -144,6 +163,28 @@ mod tests {
         assert!(implied(&both).is_empty());
         let none = ProfileSetup::of(&DeviceProfile::default());
         assert!(!none.robust_buffer_access && !none.robust_buffer_access2);
+    }
+
+    /// Issue 24: the cell id's profile words are the setup's effect: one feature more is
+    /// another word; a feature the harness does not turn on, or the binding flags under a model
+    /// without sets, none.
+    #[test]
+    fn effective_words_follow_what_the_harness_turns_on() {
+        let p = |json: &str| ProfileSetup::of(&DeviceProfile::parse(json).unwrap());
+        let base = p(
+            r#"{"capabilities": {"a": {"features": {"VkPhysicalDeviceRobustness2FeaturesEXT": {"robustBufferAccess2": true}, "VkPhysicalDeviceVulkan12Features": {"descriptorBindingPartiallyBound": true}}}}}"#,
+        );
+        let words = base.effective(true);
+        assert_eq!(words, ["robustBufferAccess", "robustBufferAccess2", "partially_bound"]);
+        assert_eq!(base.effective(false), ["robustBufferAccess", "robustBufferAccess2"]);
+        let more = p(
+            r#"{"capabilities": {"a": {"features": {"VkPhysicalDeviceRobustness2FeaturesEXT": {"robustBufferAccess2": true, "nullDescriptor": true}, "VkPhysicalDeviceVulkan12Features": {"descriptorBindingPartiallyBound": true}}}}}"#,
+        );
+        assert_ne!(more.effective(true), words);
+        let inert = p(
+            r#"{"capabilities": {"a": {"features": {"VkPhysicalDeviceFeatures": {"shaderInt64": true}}}}}"#,
+        );
+        assert!(inert.effective(true).is_empty());
     }
 
     #[test]

@@ -445,27 +445,27 @@ fn descriptor_sets(
     let mut layouts = Vec::new();
     let mut sizes: BTreeMap<i32, u32> = BTreeMap::new();
     let (mut any_uab, mut variable) = (false, Vec::new());
+    let counts = if buffer_model { BTreeMap::new() } else { variable_counts(gpu, all, flags) };
     for set in 0..n_sets {
         let bs: Vec<&Binding> = all.iter().filter(|(k, _)| k.0 == set).map(|(_, v)| &v.0).collect();
         let lb: Vec<vk::DescriptorSetLayoutBinding> = bs
             .iter()
             .map(|b| {
+                // The pool holds the descriptors allocated (`super::variable` says why).
                 *sizes.entry(descriptor_type(b.kind).as_raw()).or_default() += b.count;
+                let layout = counts.get(&(b.set, b.binding)).map_or(b.count, |c| c.layout);
                 vk::DescriptorSetLayoutBinding::default()
                     .binding(b.binding)
                     .descriptor_type(descriptor_type(b.kind))
-                    .descriptor_count(b.count)
+                    .descriptor_count(layout)
                     .stage_flags(RT_STAGES)
             })
             .collect();
         // Binding flags only with descriptor sets (`--profile`; none without one).
         let (bf, uab) = if buffer_model { (Vec::new(), false) } else { set_flags(flags, &bs) };
         any_uab |= uab;
-        let var = bf
-            .iter()
-            .zip(&bs)
-            .find(|(f, _)| f.contains(vk::DescriptorBindingFlags::VARIABLE_DESCRIPTOR_COUNT));
-        variable.push(var.map_or(0, |(_, b)| b.count));
+        let var = bs.iter().find_map(|b| counts.get(&(b.set, b.binding)));
+        variable.push(var.map_or(0, |c| c.allocated));
         let mut fci = vk::DescriptorSetLayoutBindingFlagsCreateInfo::default().binding_flags(&bf);
         let mut ci = vk::DescriptorSetLayoutCreateInfo::default().bindings(&lb);
         if buffer_model {
@@ -493,6 +493,22 @@ fn descriptor_sets(
     }
     let sets = unsafe { d.allocate_descriptor_sets(&ai) }.at("vkAllocateDescriptorSets")?;
     Ok((layouts, pool, sets))
+}
+
+/// The variable-sized bindings of `all` under `flags`, their layout bound from the device's
+/// limits (`super::variable`).
+fn variable_counts(
+    gpu: &Gpu,
+    all: &BTreeMap<(u32, u32), (Binding, Vec<Element>)>,
+    flags: &BindingFlags,
+) -> BTreeMap<(u32, u32), super::variable::VariableCount> {
+    let bindings: BTreeMap<(u32, u32), Binding> =
+        all.iter().map(|(k, (b, _))| (*k, b.clone())).collect();
+    let counts = super::variable::counts(&bindings, flags, &super::variable::limits(&gpu.info));
+    for line in super::variable::words(&counts) {
+        tracing::info!("variable descriptor count: {line}");
+    }
+    counts
 }
 
 /// A pool for `n_sets` sets of the descriptors `sizes` counts by type (`uab`: for sets with

@@ -163,6 +163,21 @@ pub fn pipeline_desc(modules: &[UserModule], max_hit_attribute: u32) -> Pipeline
     }
 }
 
+/// The variable-sized bindings the harness makes for `modules` (the full pipeline) under
+/// `flags` on `info`, in words (`super::variable`): what each child's layouts and allocations
+/// will be.
+pub fn variable_counts(
+    modules: &[UserModule],
+    flags: &crate::model::profile::BindingFlags,
+    info: &crate::vk::DeviceInfo,
+) -> Vec<String> {
+    let all: Vec<super::reflect::Binding> =
+        modules.iter().flat_map(|m| m.iface.bindings.iter().cloned()).collect();
+    let Ok(merged) = super::bindings::merged(&all) else { return Vec::new() };
+    let counts = super::variable::counts(&merged, flags, &super::variable::limits(info));
+    super::variable::words(&counts)
+}
+
 /// The file attempt `k` of `variant` writes.
 pub fn output_path(dir: &Path, variant: &str, k: u32) -> PathBuf {
     dir.join(format!("{variant}-{k}.json"))
@@ -240,6 +255,7 @@ fn harness(job: &ShaderJob) -> Result<(Harness, Vec<UserModule>), HarnessError> 
     let model = job.model.unwrap_or(DescriptorModel::DescriptorIndexing);
     let mut req = super::requirements_for(job.scalar, model);
     req.robustness = job.profile.robustness();
+    req.google = super::google(unpatched.iter().chain(&variant));
     let gpu = Gpu::new(inst, info, req)?;
     let push = unpatched
         .iter()

@@ -104,6 +104,48 @@ pub fn parse_all(given: &[String], modules: &[UserModule]) -> Result<Vec<SpecVal
     Ok(out)
 }
 
+/// `values` in a normal form for the cell id: sorted by ID, each `ID=VALUE` with the value as
+/// its declared type reads it back (`true`/`false`, a decimal integer, the shortest decimal
+/// that is the float), so `--spec 1=02 --spec 0=5` and `--spec 0=5 --spec 1=2` are one cell.
+pub fn canonical(values: &[SpecValue], modules: &[UserModule]) -> Vec<String> {
+    let declared: Vec<&SpecConstant> =
+        modules.iter().flat_map(|m| &m.iface.reflection.spec_constants).collect();
+    let mut sorted: Vec<&SpecValue> = values.iter().collect();
+    sorted.sort_by_key(|v| v.id);
+    sorted
+        .iter()
+        .map(|v| {
+            let scalar = declared.iter().find(|c| c.spec_id == v.id).map(|c| c.scalar);
+            let text = scalar.and_then(|s| value_text(s, &v.bytes));
+            format!("{}={}", v.id, text.unwrap_or_else(|| hex(&v.bytes)))
+        })
+        .collect()
+}
+
+/// The bytes of a value of type `s` in words; `None` when they are not one.
+fn value_text(s: Scalar, bytes: &[u8]) -> Option<String> {
+    let mut wide = [0u8; 8];
+    wide.get_mut(..bytes.len())?.copy_from_slice(bytes);
+    let unsigned = u64::from_le_bytes(wide);
+    Some(match s {
+        Scalar::Bool => (unsigned != 0).to_string(),
+        Scalar::Int { bits, signed: true } if bits < 64 => {
+            let shift = 64 - bits;
+            (((unsigned << shift) as i64) >> shift).to_string()
+        }
+        Scalar::Int { signed: true, .. } => (unsigned as i64).to_string(),
+        Scalar::Int { signed: false, .. } => unsigned.to_string(),
+        Scalar::Float { bits: 32 } => f32::from_le_bytes(bytes.try_into().ok()?).to_string(),
+        Scalar::Float { bits: 64 } => f64::from_le_bytes(bytes.try_into().ok()?).to_string(),
+        Scalar::Float { .. } => return None,
+    })
+}
+
+/// Bytes as hex, for a value whose type is unknown.
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
 /// The map entries and data of one stage: the values of `values` whose constant `module`
 /// declares, packed in order.
 pub fn stage_info(
@@ -184,6 +226,26 @@ mod tests {
         for e in [one("4=1"), one("3=-1"), one("3")] {
             assert!(!e.unwrap_err().to_string().contains('\n'));
         }
+    }
+
+    /// Issue 24: the order given and each value's spelling do not change the normal form; a
+    /// different value does (the twin).
+    #[test]
+    fn the_normal_form_sorts_and_spells_values_one_way() {
+        let m = module(SPEC);
+        let norm = |given: &[&str]| {
+            let given: Vec<String> = given.iter().map(|s| s.to_string()).collect();
+            canonical(
+                &parse_all(&given, std::slice::from_ref(&m)).unwrap(),
+                std::slice::from_ref(&m),
+            )
+        };
+        let a = norm(&["9=-3", "3=16", "7=true", "5=2.5"]);
+        assert_eq!(a, ["3=16", "5=2.5", "7=true", "9=-3"]);
+        assert_eq!(norm(&["5=2.50", "3=016", "7=1", "9=-03"]), a);
+        assert_eq!(norm(&["3=+16", "5=25e-1", "9=-3", "7=true"]), a);
+        assert_ne!(norm(&["3=17", "5=2.5", "7=true", "9=-3"]), a);
+        assert_ne!(norm(&["3=16", "5=2.5", "7=false", "9=-3"]), a);
     }
 
     /// A stage that does not declare a constant gets no entry for it.

@@ -206,6 +206,10 @@ pub struct ProfileRecord {
     /// The descriptor set layouts' binding flags (`BindingFlags::words`).
     #[serde(default)]
     pub binding_flags: Vec<String>,
+    /// Each variable-sized binding's layout bound and allocated count
+    /// (`set 1 binding 3: layout 999998, allocated 64`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub variable_counts: Vec<String>,
 }
 
 #[cfg(test)]

@@ -1,6 +1,7 @@
 //! The options of `run --shader` that change what runs, beyond the inputs' own hashes: the entry
-//! point, specialization constants, fills (a file's by its hash), runtime array and sink sizes,
-//! a descriptor model other than the one the modules imply, and a heap layout (by its hash).
+//! point, specialization constants (normalised), fills (a file's by its hash), runtime array and
+//! sink sizes, a descriptor model other than the one the modules imply, a heap layout (by its
+//! hash), and what `--profile` turns on (by its effect, not its file).
 //! `shader_run::cell_id_with` names a run with them: the inputs' id as before when none is
 //! given (reports written before these options keep their ids), else that id and `#` with 12 hex
 //! digits of the options' FNV-1a 64 hash.
@@ -12,7 +13,8 @@ pub struct CellOptions {
     /// `--entry`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub entry: Option<String>,
-    /// `--spec`, as given.
+    /// `--spec`, in a normal form (`harness::spec::canonical`: sorted by ID, each value as its
+    /// type reads it back).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub spec: Vec<String>,
     /// `--fill`, each `TARGET=SOURCE` with a file source as `file:` and its content hash.
@@ -30,6 +32,11 @@ pub struct CellOptions {
     /// `--heap-layout`: the content hash of its file.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub heap_layout: Option<String>,
+    /// `--profile`'s effect on the harness, normalised: the robustness features it turns on
+    /// and the binding flags it gives (not the file's bytes or name, so the same features in
+    /// another file are the same cell). Empty: no profile, or one that changes nothing.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub profile: Vec<String>,
 }
 
 impl CellOptions {
@@ -59,7 +66,10 @@ impl CellOptions {
             ("descriptor_model", vec![opt(&self.descriptor_model)]),
             ("heap_layout", vec![opt(&self.heap_layout)]),
         ];
-        for (name, values) in fields {
+        // Fields added later are hashed only when given: ids of runs without them stay.
+        let later = [("profile", self.profile.clone())];
+        let later = later.into_iter().filter(|(_, v)| !v.is_empty());
+        for (name, values) in fields.into_iter().chain(later) {
             put(name.as_bytes());
             put(&(values.len() as u64).to_le_bytes());
             values.iter().for_each(|v| put(v.as_bytes()));

@@ -449,4 +449,24 @@ mod tests {
         let spec = CellOptions { spec: vec!["shadeB".into()], ..CellOptions::default() };
         assert_ne!(cell_id_with(&options_inputs(), &spec), ids[0]);
     }
+
+    /// Issue 24: `--profile`'s effect is in the id; one word more is another id; a profile that
+    /// changes nothing leaves the id (and every earlier id, hashed without the field) as it was.
+    #[test]
+    fn the_cell_id_changes_with_the_profiles_effect() {
+        let with = |words: &[&str]| CellOptions {
+            array_size: Some(8),
+            profile: words.iter().map(|w| w.to_string()).collect(),
+            ..CellOptions::default()
+        };
+        let none = cell_id_with(&options_inputs(), &with(&[]));
+        let one = cell_id_with(&options_inputs(), &with(&["partially_bound"]));
+        let two = cell_id_with(&options_inputs(), &with(&["partially_bound", "nullDescriptor"]));
+        assert!(none != one && one != two && none != two, "{none} {one} {two}");
+        assert_eq!(one, cell_id_with(&options_inputs(), &with(&["partially_bound"])));
+        let plain = CellOptions { array_size: Some(8), ..CellOptions::default() };
+        assert_eq!(none, cell_id_with(&options_inputs(), &plain));
+        let only = CellOptions { profile: vec!["robustBufferAccess".into()], ..Default::default() };
+        assert!(cell_id_with(&options_inputs(), &only).contains('#'));
+    }
 }

@@ -46,6 +46,8 @@ pub fn requirements(info: &crate::vk::DeviceInfo, cells: &[Cell]) -> Requirement
         disable_internal_cache: false,
         // The matrix's cells run without robustness: their reads are in bounds by design.
         robustness: crate::vk::Robustness::default(),
+        // Generated GLSL declares no SPV_GOOGLE extension.
+        google: crate::vk::GoogleHlsl::default(),
     }
 }
 

@@ -4,7 +4,7 @@
 use super::error::{VkError, VkResultExt};
 use super::features::DeviceInfo;
 use super::instance::Instance;
-use ash::{ext, khr, nv, vk};
+use ash::{ext, google, khr, nv, vk};
 use std::ffi::CStr;
 use std::sync::Arc;
 
@@ -47,6 +47,70 @@ pub struct Requirements {
     pub disable_internal_cache: bool,
     /// Robust buffer and image access an engine turns on (`run --shader --profile`).
     pub robustness: Robustness,
+    /// The VK_GOOGLE extensions of the SPIR-V extensions DXC's `-fspv-reflect` writes.
+    pub google: GoogleHlsl,
+}
+
+/// The device extensions a module's `SPV_GOOGLE_*` extensions need, DXC's `-fspv-reflect`
+/// output. VUID-VkShaderModuleCreateInfo-pCode-08742 (Vulkan 1.4.360): "If pCode declares any
+/// of the SPIR-V extensions listed in the SPIR-V Environment appendix, one of the corresponding
+/// requirements must be satisfied"; the appendix (vk.xml's `spirvextension`) gives each its
+/// device extension of the same name: SPV_GOOGLE_hlsl_functionality1 needs
+/// VK_GOOGLE_hlsl_functionality1, SPV_GOOGLE_user_type VK_GOOGLE_user_type,
+/// SPV_GOOGLE_decorate_string VK_GOOGLE_decorate_string.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct GoogleHlsl {
+    pub hlsl_functionality1: bool,
+    pub user_type: bool,
+    pub decorate_string: bool,
+}
+
+impl GoogleHlsl {
+    /// The SPIR-V extensions and their device extensions, as asked for.
+    fn asked(&self) -> Vec<(&'static str, &'static CStr)> {
+        [
+            (
+                self.hlsl_functionality1,
+                "SPV_GOOGLE_hlsl_functionality1",
+                google::hlsl_functionality1::NAME,
+            ),
+            (self.user_type, "SPV_GOOGLE_user_type", google::user_type::NAME),
+            (self.decorate_string, "SPV_GOOGLE_decorate_string", google::decorate_string::NAME),
+        ]
+        .into_iter()
+        .filter(|(on, _, _)| *on)
+        .map(|(_, spv, vk)| (spv, vk))
+        .collect()
+    }
+
+    /// Whether `spirv_extension` (an `OpExtension` name) is one of these; sets it.
+    pub fn note(&mut self, spirv_extension: &str) {
+        match spirv_extension {
+            "SPV_GOOGLE_hlsl_functionality1" => self.hlsl_functionality1 = true,
+            "SPV_GOOGLE_user_type" => self.user_type = true,
+            "SPV_GOOGLE_decorate_string" => self.decorate_string = true,
+            _ => {}
+        }
+    }
+
+    /// The device extensions to enable.
+    pub fn extensions(&self) -> Vec<&'static CStr> {
+        self.asked().into_iter().map(|(_, vk)| vk).collect()
+    }
+
+    /// Those a device with extensions `has` lacks, each with what to do.
+    pub fn missing(&self, has: impl Fn(&CStr) -> bool) -> Vec<String> {
+        self.asked()
+            .into_iter()
+            .filter(|(_, vk)| !has(vk))
+            .map(|(spv, vk)| {
+                format!(
+                    "{} (the modules declare {spv}, which DXC's -fspv-reflect writes: build them without -fspv-reflect)",
+                    vk.to_string_lossy()
+                )
+            })
+            .collect()
+    }
 }
 
 /// The robustness features, each enabled only when asked for: driver faults often depend on
@@ -150,6 +214,7 @@ impl Requirements {
         }
         m.extend(self.missing_pipeline_creation(info));
         m.extend(self.robustness.missing_on(info));
+        m.extend(self.google.missing(|e| info.has_extension(e)));
         m
     }
 
@@ -268,6 +333,7 @@ impl Chosen {
         c.core.fragment_stores_and_atomics = if req.fragment_stores { vk::TRUE } else { vk::FALSE };
         c.core.vertex_pipeline_stores_and_atomics = vk::FALSE;
         c.robustness(&req.robustness);
+        c.exts.extend(req.google.extensions());
         c
     }
 

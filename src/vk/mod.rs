@@ -10,7 +10,7 @@ pub mod heap;
 pub mod instance;
 pub mod rt_ext;
 
-pub use device::{Gpu, Requirements, Robustness};
+pub use device::{GoogleHlsl, Gpu, Requirements, Robustness};
 pub use error::{VkError, VkResultExt};
 pub use features::DeviceInfo;
 pub use instance::{Instance, InstanceOptions};
