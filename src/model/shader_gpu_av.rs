@@ -238,7 +238,7 @@ mod tests {
         let v = apply(fault_variant(), g);
         assert_eq!((v.outcome, v.judgement), (Outcome::Crash, Judgement::Fault));
         // The setup error next to passes: judged as passes (here: masks), not `error`.
-        let mut ok = passes(5);
+        let mut ok = passes(6);
         ok[0] = with_error(Outcome::Pass, SETUP);
         let g = judge(ok, vec![attempt(Outcome::Crash)], Some(&incidence(5, 5)));
         assert_eq!(g.judgement, GpuAvJudgement::Masks, "{}", g.line);
