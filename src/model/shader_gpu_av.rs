@@ -296,7 +296,7 @@ mod tests {
     #[test]
     fn attempts_that_did_not_run_are_an_error() {
         let failed = ShaderAttempt {
-            attempt: Attempt::new(Outcome::Error, true).with_detail("setup: no device".into()),
+            attempt: Attempt::new(Outcome::Error, true).with_detail("setup: no device"),
             ..pass()
         };
         let g = judge(vec![failed], vec![], None);
