@@ -261,7 +261,8 @@ mod tests {
         let g = judge(passes(6), ctl(), Some(&steady));
         assert_eq!(g.judgement, GpuAvJudgement::Masks, "{}", g.line);
         let m = crate::model::stats::pass_miss(5, 5, 6);
-        assert_eq!(g.miss_probability, Some(m));
+        // The same function as `run`'s round (f64 rounding aside: its bound is an iteration).
+        assert!(g.miss_probability.is_some_and(|p| (p - m).abs() < 1e-12), "{g:?}");
         assert!(m < MAX_MISS);
         assert!(g.line.starts_with("GPU-AV masks the fault: passes (6 of 6; a fault as frequent as this finding's would be missed with p ≤"), "{}", g.line);
         assert!(g.line.ends_with("its control, the variant without GPU-AV in the same round, faulted 1 of 2 attempts"), "{}", g.line);
