@@ -109,6 +109,17 @@ unsafe extern "system" fn debug_callback(
     } else {
         CStr::from_ptr((*data).p_message).to_string_lossy()
     };
+    // The message's id (its VUID) leads the text, where the layer did not put it there itself:
+    // it is what `kind` reads.
+    let id = if data.is_null() || (*data).p_message_id_name.is_null() {
+        None
+    } else {
+        Some(CStr::from_ptr((*data).p_message_id_name).to_string_lossy())
+    };
+    let msg = match id {
+        Some(id) if !id.is_empty() && !msg.contains(&*id) => format!("[ {id} ] {msg}").into(),
+        _ => msg,
+    };
     if severity.contains(vk::DebugUtilsMessageSeverityFlagsEXT::ERROR) {
         VALIDATION_ERRORS.fetch_add(1, Ordering::Relaxed);
         if kind(&msg) == MessageKind::InvalidAccess {
