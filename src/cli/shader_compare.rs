@@ -345,6 +345,8 @@ mod tests {
         let attempt = ShaderAttempt {
             attempt: Attempt::new(Outcome::Pass, true),
             validation_messages: 0,
+            invalid_access: 0,
+            validation_warnings: 0,
             validation: vec![],
             outputs: vec![],
             differs: None,

@@ -89,7 +89,7 @@ fn child(ctx: &Ctx, variant: &str, job: &ShaderJob) -> Result<(ChildEnd, String,
 fn read_output(path: &Path, wall_ms: f64) -> Option<Ran> {
     let out: AttemptOutput = serde_json::from_slice(&std::fs::read(path).ok()?).ok()?;
     Some(match out {
-        AttemptOutput::Ran { device, parts, validation_messages, validation_texts } => {
+        AttemptOutput::Ran { device, parts, validation_messages, validation_texts, kinds } => {
             let outputs = parts
                 .iter()
                 .map(|p| OutputHash {
@@ -104,6 +104,8 @@ fn read_output(path: &Path, wall_ms: f64) -> Option<Ran> {
             let attempt = ShaderAttempt {
                 attempt,
                 validation_messages,
+                invalid_access: kinds.invalid_access,
+                validation_warnings: kinds.warnings,
                 validation: validation_texts,
                 outputs,
                 differs: None,
@@ -111,11 +113,19 @@ fn read_output(path: &Path, wall_ms: f64) -> Option<Ran> {
             };
             Ran { attempt, parts: Some(parts), device: Some(device) }
         }
-        AttemptOutput::Failed { outcome, message, validation_messages, validation_texts } => {
+        AttemptOutput::Failed {
+            outcome,
+            message,
+            validation_messages,
+            validation_texts,
+            kinds,
+        } => {
             let attempt = Attempt::new(outcome, true).with_detail(message).with_wall_ms(wall_ms);
             let attempt = ShaderAttempt {
                 attempt,
                 validation_messages,
+                invalid_access: kinds.invalid_access,
+                validation_warnings: kinds.warnings,
                 validation: validation_texts,
                 outputs: vec![],
                 differs: None,
@@ -200,6 +210,8 @@ pub fn run_variant(
         let attempt = ShaderAttempt {
             attempt,
             validation_messages: 0,
+            invalid_access: 0,
+            validation_warnings: 0,
             validation: vec![],
             outputs: vec![],
             differs: None,

@@ -149,6 +149,8 @@ mod tests {
             .map(|o| ShaderAttempt {
                 attempt: Attempt::new(*o, true),
                 validation_messages: 0,
+                invalid_access: 0,
+                validation_warnings: 0,
                 validation: vec![],
                 outputs: vec![],
                 differs: None,

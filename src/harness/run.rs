@@ -21,6 +21,7 @@ use super::supply;
 use super::{Harness, HarnessError, Part, UserModule};
 use crate::interface::{BindingDesc, DescriptorKind, HitGroup, PipelineDesc, PushRange};
 use crate::model::contract::HostContract;
+use crate::model::validation_message::MessageCounts;
 use crate::model::{DescriptorModel, Outcome};
 use crate::vk::{features, Gpu, Instance, InstanceOptions};
 use serde::{Deserialize, Serialize};
@@ -76,6 +77,14 @@ pub struct ShaderJob {
     pub fills: super::fill::Fills,
 }
 
+/// An attempt's messages beside its error count (`model::validation_message`): the errors that
+/// report an invalid access, and the warnings.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Kinds {
+    pub invalid_access: u64,
+    pub warnings: u64,
+}
+
 /// What one attempt came to.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -87,6 +96,9 @@ pub enum AttemptOutput {
         /// The first few messages' text, with their VUIDs.
         #[serde(default)]
         validation_texts: Vec<String>,
+        /// Of the messages, those that report an invalid access, and the warnings.
+        #[serde(default)]
+        kinds: Kinds,
     },
     Failed {
         outcome: Outcome,
@@ -94,6 +106,8 @@ pub enum AttemptOutput {
         validation_messages: u64,
         #[serde(default)]
         validation_texts: Vec<String>,
+        #[serde(default)]
+        kinds: Kinds,
     },
 }
 
@@ -280,19 +294,22 @@ fn harness(job: &ShaderJob) -> Result<(Harness, Vec<UserModule>), HarnessError> 
 /// Run the job's attempts; an error is the write's.
 fn run(job: &ShaderJob) -> Result<(), String> {
     say("setup");
-    let mut seen = crate::vk::instance::validation_error_count();
-    let messages = |seen: &mut u64| {
-        let now = crate::vk::instance::validation_error_count();
-        std::mem::replace(seen, now).abs_diff(now)
+    let mut seen = crate::vk::instance::validation_counts();
+    let messages = |seen: &mut MessageCounts| {
+        let now = crate::vk::instance::validation_counts();
+        let c = now.since(std::mem::replace(seen, now));
+        (c.errors, Kinds { invalid_access: c.invalid_access, warnings: c.warnings })
     };
     let (h, variant) = match harness(job) {
         Ok(x) => x,
         Err(e) => {
+            let (validation_messages, kinds) = messages(&mut seen);
             let out = AttemptOutput::Failed {
                 outcome: outcome_of(&e),
                 message: format!("setup: {e}"),
-                validation_messages: messages(&mut seen),
+                validation_messages,
                 validation_texts: crate::vk::instance::take_validation_texts(),
+                kinds,
             };
             return write(job, job.first, &out);
         }
@@ -310,21 +327,24 @@ fn run(job: &ShaderJob) -> Result<(), String> {
                 {
                     *b ^= 0xFF;
                 }
-                let validation_messages = messages(&mut seen);
+                let (validation_messages, kinds) = messages(&mut seen);
                 AttemptOutput::Ran {
                     device: h.device_name(),
                     parts,
                     validation_messages,
                     validation_texts: crate::vk::instance::take_validation_texts(),
+                    kinds,
                 }
             }
             Err(e) => {
                 let outcome = outcome_of(&e);
+                let (validation_messages, kinds) = messages(&mut seen);
                 let out = AttemptOutput::Failed {
                     outcome,
                     message: e.to_string(),
-                    validation_messages: messages(&mut seen),
+                    validation_messages,
                     validation_texts: crate::vk::instance::take_validation_texts(),
+                    kinds,
                 };
                 if outcome.ends_worker() {
                     write(job, k, &out)?;

@@ -37,6 +37,7 @@ pub mod shader_outputs;
 pub mod shader_run;
 pub mod stats;
 pub mod text;
+pub mod validation_message;
 
 pub use attempt::{signal_name, Attempt, Halt, Isolation, WorkerEvent, WorkerExit};
 pub use axes::{

@@ -69,6 +69,13 @@ pub struct ShaderAttempt {
     /// of a child also counts its setup's).
     #[serde(default)]
     pub validation_messages: u64,
+    /// Of `validation_messages`, the GPU-AV errors that report an invalid access by the shader
+    /// (`super::validation_message`; none in older reports).
+    #[serde(skip_serializing_if = "is_zero", default)]
+    pub invalid_access: u64,
+    /// Validation-layer warnings while it ran (GPU-AV's setup among them): counted, no verdict.
+    #[serde(skip_serializing_if = "is_zero", default)]
+    pub validation_warnings: u64,
     /// The first few validation messages' text, with their VUIDs.
     #[serde(skip_serializing_if = "Vec::is_empty", default)]
     pub validation: Vec<String>,
@@ -82,6 +89,10 @@ pub struct ShaderAttempt {
     /// `None`: within it, or no tolerance given (differences are then notes).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub against: Option<String>,
+}
+
+fn is_zero(n: &u64) -> bool {
+    *n == 0
 }
 
 /// What a variant's attempts come to.
@@ -152,14 +163,31 @@ pub struct ShaderVariant {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum GpuAvJudgement {
-    /// Every attempt passed with no message: GPU-AV hides the fault.
+    /// Every attempt passed with no invalid-access report, enough of them that a fault as
+    /// frequent as the variant's would have shown (miss probability below 1%), and the control
+    /// (the variant without GPU-AV, in the same round) faulted again: GPU-AV hides the fault.
     Masks,
-    /// GPU-AV reported the shader's invalid access: an `error`, not a finding.
+    /// Every attempt passed, but that is no proof: too few passes for the variant's incidence,
+    /// or the control did not fault again (the fault did not repeat in this round).
+    Inconclusive,
+    /// GPU-AV reported an invalid access by the shader: an `error`, not a finding.
     Reports,
-    /// An attempt faulted under GPU-AV too (and no message explains it).
+    /// An attempt faulted under GPU-AV too (and no invalid-access report explains it).
     StillFaults,
     /// The attempts under GPU-AV could not run (a harness error): nothing said.
     Error,
+}
+
+/// The messages of the attempts under GPU-AV by kind (`super::validation_message`): only
+/// `invalid_access` can change the verdict.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct GpuAvMessages {
+    /// Errors that report an invalid access by the shader.
+    pub invalid_access: u64,
+    /// Other errors (GPU-AV's setup, API usage not about the access).
+    pub other_errors: u64,
+    /// Warnings (GPU-AV's setup, performance).
+    pub warnings: u64,
 }
 
 /// A faulting variant's re-run under GPU-AV (`super::shader_gpu_av` judges it).
@@ -169,6 +197,17 @@ pub struct ShaderGpuAv {
     pub judgement: GpuAvJudgement,
     /// The judgement in words.
     pub line: String,
+    /// The control: the variant traced again without GPU-AV in the same round, when every
+    /// attempt under GPU-AV passed (`masks` needs it to fault again).
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub control: Vec<ShaderAttempt>,
+    /// When every attempt under GPU-AV passed: the chance that they all missed a fault as
+    /// frequent as the variant's (`super::stats::pass_miss` on its incidence).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub miss_probability: Option<f64>,
+    /// The attempts' messages by kind (none in older reports).
+    #[serde(default)]
+    pub messages: GpuAvMessages,
 }
 
 /// The report `run --shader` writes.
@@ -313,6 +352,8 @@ mod tests {
         ShaderAttempt {
             attempt: Attempt::new(outcome, true).with_detail(format!("{}!", outcome.as_str())),
             validation_messages: messages,
+            invalid_access: 0,
+            validation_warnings: 0,
             validation: vec![],
             outputs: vec![],
             differs: differs.map(String::from),

@@ -28,7 +28,14 @@ pub const CAP: u32 = 20;
 
 /// Passes under GPU-AV that `finding` needs before `masked` (its own k of n, see the module doc).
 pub fn passes_needed(finding: &crate::model::CellReport) -> u32 {
-    let (k, n) = finding.incidence.as_ref().map(|i| (i.faulted, i.attempts)).unwrap_or((0, 0));
+    passes_needed_for(finding.incidence.as_ref())
+}
+
+/// Passes under GPU-AV that a fault of `incidence` needs before `masked`: enough that a fault as
+/// frequent as its Clopper–Pearson bound shows with probability above 1 - [`MAX_MISS`], at
+/// most [`CAP`] (also `run --shader`'s GPU-AV re-runs).
+pub fn passes_needed_for(incidence: Option<&crate::model::Incidence>) -> u32 {
+    let (k, n) = incidence.map(|i| (i.faulted, i.attempts)).unwrap_or((0, 0));
     crate::model::stats::attempts_needed(crate::model::stats::rate_bound(k, n), MAX_MISS, CAP)
 }
 

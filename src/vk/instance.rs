@@ -1,9 +1,11 @@
 //! The Vulkan instance: loading the loader, the optional validation layer with a debug messenger
-//! that counts validation errors (and, asked for, GPU-Assisted Validation: the `gpuav_enable`
+//! that counts validation errors, those of them that report an invalid access
+//! (`model::validation_message`), and warnings (and, asked for, GPU-Assisted Validation: the `gpuav_enable`
 //! layer setting through VK_EXT_layer_settings where the layer offers that extension, else
 //! VkValidationFeaturesEXT's GPU_ASSISTED enable, which is how layers before VK_EXT_layer_settings
 //! such as Debian bookworm's 1.3.239 turn it on), and enumerating physical devices.
 use super::error::{VkError, VkResultExt};
+use crate::model::validation_message::{kind, MessageCounts, MessageKind};
 use ash::{ext, vk};
 use std::ffi::{c_void, CStr};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -11,10 +13,22 @@ use std::sync::atomic::{AtomicU64, Ordering};
 pub const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
 
 static VALIDATION_ERRORS: AtomicU64 = AtomicU64::new(0);
+static INVALID_ACCESS: AtomicU64 = AtomicU64::new(0);
+static VALIDATION_WARNINGS: AtomicU64 = AtomicU64::new(0);
 
 /// Number of validation-layer errors reported since the process started.
 pub fn validation_error_count() -> u64 {
     VALIDATION_ERRORS.load(Ordering::Relaxed)
+}
+
+/// The messages since the process started by severity and kind (`model::validation_message`:
+/// the errors that report an invalid access counted apart).
+pub fn validation_counts() -> MessageCounts {
+    MessageCounts {
+        errors: VALIDATION_ERRORS.load(Ordering::Relaxed),
+        invalid_access: INVALID_ACCESS.load(Ordering::Relaxed),
+        warnings: VALIDATION_WARNINGS.load(Ordering::Relaxed),
+    }
 }
 
 /// How many error messages' text is kept until [`take_validation_texts`], and how much of each.
@@ -22,11 +36,18 @@ pub const KEPT_TEXTS: usize = 4;
 const KEPT_CHARS: usize = 400;
 static VALIDATION_TEXTS: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
 
-/// Keep the first [`KEPT_TEXTS`] error messages (their VUID leads the layer's text).
+/// Keep the first [`KEPT_TEXTS`] error messages (their VUID leads the layer's text), and the
+/// first invalid access among them even after as many others (it then replaces the last).
 fn keep_text(msg: &str) {
     let Ok(mut kept) = VALIDATION_TEXTS.lock() else { return };
+    let access = |t: &str| kind(t) == MessageKind::InvalidAccess;
+    let text: String = msg.chars().take(KEPT_CHARS).collect();
     if kept.len() < KEPT_TEXTS {
-        kept.push(msg.chars().take(KEPT_CHARS).collect());
+        kept.push(text);
+    } else if access(&text) && !kept.iter().any(|t| access(t)) {
+        if let Some(last) = kept.last_mut() {
+            *last = text;
+        }
     }
 }
 
@@ -88,11 +109,26 @@ unsafe extern "system" fn debug_callback(
     } else {
         CStr::from_ptr((*data).p_message).to_string_lossy()
     };
+    // The message's id (its VUID) leads the text, where the layer did not put it there itself:
+    // it is what `kind` reads.
+    let id = if data.is_null() || (*data).p_message_id_name.is_null() {
+        None
+    } else {
+        Some(CStr::from_ptr((*data).p_message_id_name).to_string_lossy())
+    };
+    let msg = match id {
+        Some(id) if !id.is_empty() && !msg.contains(&*id) => format!("[ {id} ] {msg}").into(),
+        _ => msg,
+    };
     if severity.contains(vk::DebugUtilsMessageSeverityFlagsEXT::ERROR) {
         VALIDATION_ERRORS.fetch_add(1, Ordering::Relaxed);
+        if kind(&msg) == MessageKind::InvalidAccess {
+            INVALID_ACCESS.fetch_add(1, Ordering::Relaxed);
+        }
         keep_text(&msg);
         tracing::error!(target: "validation", "{msg}");
     } else if severity.contains(vk::DebugUtilsMessageSeverityFlagsEXT::WARNING) {
+        VALIDATION_WARNINGS.fetch_add(1, Ordering::Relaxed);
         tracing::warn!(target: "validation", "{msg}");
     } else {
         tracing::debug!(target: "validation", "{msg}");
@@ -212,7 +248,8 @@ impl Layers {
     }
 }
 
-/// The debug messenger that counts validation errors and logs warnings ([`debug_callback`]).
+/// The debug messenger that counts validation errors and warnings (performance warnings among
+/// them) and logs them ([`debug_callback`]).
 fn messenger(
     entry: &ash::Entry,
     raw: &ash::Instance,
@@ -225,7 +262,8 @@ fn messenger(
         )
         .message_type(
             vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
-                | vk::DebugUtilsMessageTypeFlagsEXT::GENERAL,
+                | vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
+                | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
         )
         .pfn_user_callback(Some(debug_callback));
     let m = unsafe { du.create_debug_utils_messenger(&ci, None) }
