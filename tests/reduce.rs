@@ -115,14 +115,18 @@ fn a_gltf_texture_read_reduces_to_its_shape() {
 }
 
 /// CI's reduction: the bindless finding with `--step-limit 20`, every file written, at most 20
-/// steps, fewer instructions, and the result still crashes with the injection.
+/// steps, fewer instructions, and the result still crashes with the injection. Then step 6:
+/// `ssbo-to-address` on the original is verified (the injection re-applied to the patched
+/// module finds no SSBO read, the outputs equal the original's) and written with its contract;
+/// step 5: the matrix's slice of the shape, capped to a shard, runs and faults too (same
+/// injection); step 7: `rtprobe report` writes the issue from reduce.json.
 #[test]
 fn a_short_reduction_writes_its_files_and_still_faults() {
     let d = tempfile::tempdir().unwrap();
     let pred = "stage=closest_hit,resource=storage_buffer,index=dynamic@device";
     let report = finding(d.path(), &user().join("bindless.rchit"), pred);
     let out = d.path().join("out");
-    let (o, r) = reduce(&report, &out, &["--step-limit", "20"]);
+    let (o, r) = reduce(&report, &out, &["--step-limit", "20", "--slice-cells", "4"]);
     assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
     let r = r.expect("reduce.json");
     for f in ["reduced.spv", "reduced.spvasm", "access.txt"] {
@@ -136,10 +140,80 @@ fn a_short_reduction_writes_its_files_and_still_faults() {
     assert_eq!(r["outcomes"], serde_json::json!(["crash"]));
     assert_eq!(r["attempts_per_candidate"], 1);
     assert!(r["predicate"].as_str().unwrap().contains("resource=storage_buffer"), "{r}");
+    workaround_on_the_original(&r, &out);
+    the_slice_faults_too(&r);
+    the_issue_from_reduce_json(&out);
     still_faults(d.path(), &out.join("reduced.spv"), pred);
     // Twin: the folder is not empty now; without --force it is refused, nothing rewritten.
     let (o, _) = reduce(&report, &out, &[]);
     assert_one_line_error(&o, 2, "is not empty");
+}
+
+/// Step 6 on the bindless shader: ssbo-to-address verified, its module and contract written.
+fn workaround_on_the_original(r: &Value, out: &Path) {
+    let all = r["workarounds"].as_array().expect("workarounds");
+    let w = all.iter().find(|w| w["patch"] == "ssbo-to-address").unwrap_or_else(|| panic!("{r}"));
+    assert_eq!(w["verified"], true, "{w}");
+    assert_eq!(w["injected_faults"], 0, "the patch removed the injected shape: {w}");
+    assert_eq!((w["faulted"].as_u64(), w["validation_messages"].as_u64()), (Some(0), Some(0)));
+    assert_eq!(w["compared"], true, "{w}");
+    let spv = std::fs::read(out.join("patched-ssbo-to-address.spv")).unwrap();
+    assert_eq!(&spv[..4], &0x0723_0203u32.to_le_bytes());
+    assert_ne!(spv, std::fs::read(out.join("reduced.spv")).unwrap());
+    let contract: Value = serde_json::from_slice(
+        &std::fs::read(out.join("patched-ssbo-to-address.contract.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(contract["schema"], "rtprobe.patch-contract/1");
+    assert!(!contract["addresses"].as_array().unwrap().is_empty(), "{contract}");
+    // Twin: as-to-address patches the raygen's acceleration structure; the SSBO read stays, the
+    // injection re-applied puts the fault back, and the patch is not verified nor written.
+    let a = all.iter().find(|w| w["patch"] == "as-to-address").unwrap_or_else(|| panic!("{r}"));
+    assert_eq!((a["verified"].as_bool(), a["injected_faults"].as_u64()), (Some(false), Some(1)));
+    assert!(a["faulted"].as_u64().unwrap() >= 1, "{a}");
+    for w in all.iter().filter(|w| w["verified"] == false) {
+        let name = format!("patched-{}.spv", w["patch"].as_str().unwrap());
+        assert!(!out.join(name).exists(), "{w}");
+    }
+}
+
+/// Step 5: the predicate's matrix cells, a shard of them (`--slice-cells 4`), same injection.
+fn the_slice_faults_too(r: &Value) {
+    let s = &r["slice"];
+    assert!(s["planned"].as_u64().unwrap() <= 4, "{s}");
+    assert!(s["generated"].as_u64() > s["planned"].as_u64(), "{s}");
+    assert!(s["ran"].as_u64().unwrap() >= 1, "{s}");
+    // The injection faults the storage-buffer cells; the 20-step module's other access
+    // (a storage image) widens the predicate, and those cells pass.
+    let faulted = s["faulted"].as_array().unwrap();
+    assert!(!faulted.is_empty(), "{s}");
+    assert!(faulted.iter().all(|c| c.as_str().unwrap().contains(".storage_buffer.dynamic")), "{s}");
+    assert!(s["line"].as_str().unwrap().contains("faults too"), "{s}");
+    assert!(s["command"].as_str().unwrap().contains("--shard 1/"), "{s}");
+}
+
+/// Step 7: the issue from reduce.json; twin: without reduced.spvasm beside it, one line.
+fn the_issue_from_reduce_json(out: &Path) {
+    let issue = out.join("issue.md");
+    let json = out.join("reduce.json");
+    let o = run(&["report", json.to_str().unwrap(), "-o", issue.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    let md = std::fs::read_to_string(&issue).unwrap();
+    assert!(md.starts_with("# [injected, not a driver bug]"), "{md}");
+    for part in [
+        "FNV-1a 128",
+        "--filter stage=closest_hit",
+        "## Isolation",
+        "ssbo-to-address: verified",
+        "OpFunctionEnd",
+    ] {
+        assert!(md.contains(part), "{part}: {md}");
+    }
+    let lone = out.join("lone");
+    std::fs::create_dir_all(&lone).unwrap();
+    std::fs::copy(&json, lone.join("reduce.json")).unwrap();
+    let o = run(&["report", lone.join("reduce.json").to_str().unwrap()]);
+    assert_one_line_error(&o, 9, "beside reduce.json");
 }
 
 /// Refusals are one line, before any reduction: another cell, an input changed since the run,

@@ -16,6 +16,9 @@ use crate::report::issue::{self, Format};
 use anyhow::{Context, Result};
 
 pub fn report(g: &Globals, a: &ReportArgs) -> Result<u8> {
+    if super::report_reduce::is_reduce(a) {
+        return super::report_reduce::report(a);
+    }
     super::paths::writable_files(&[("-o", a.out.as_deref())])?;
     let r = load_report(&a.report)?;
     let ro = ReportOptions::of(&r)
