@@ -15,10 +15,15 @@ fn user() -> PathBuf {
 
 /// `run --shader` of raygen, miss and `hit` with `--inject-fault pred`, its report in `dir`.
 fn finding(dir: &Path, hit: &Path, pred: &str) -> PathBuf {
+    finding_with(dir, hit, pred, &[])
+}
+
+/// [`finding`] with more `run` arguments.
+fn finding_with(dir: &Path, hit: &Path, pred: &str, extra: &[&str]) -> PathBuf {
     let report = dir.join("run.json");
     let u = user();
     let (rgen, miss) = (u.join("raygen.rgen"), u.join("miss.rmiss"));
-    let o = run(&[
+    let mut args = vec![
         "run",
         "--shader",
         rgen.to_str().unwrap(),
@@ -32,7 +37,9 @@ fn finding(dir: &Path, hit: &Path, pred: &str) -> PathBuf {
         pred,
         "-o",
         report.to_str().unwrap(),
-    ]);
+    ];
+    args.extend(extra);
+    let o = run(&args);
     assert_eq!(o.status.code(), Some(1), "a finding: {}{}", stdout(&o), stderr(&o));
     report
 }
@@ -232,6 +239,16 @@ fn refusals_are_one_line() {
     std::fs::write(&hit, std::fs::read_to_string(&hit).unwrap() + "\n// edited\n").unwrap();
     let (o, _) = reduce(&report, &out, &[]);
     assert_one_line_error(&o, 9, "changed since the run");
+    // reduce re-creates the run's harness: a --fill file whose bytes changed is refused.
+    let fill = d.path().join("base.bin");
+    std::fs::write(&fill, 0u32.to_le_bytes()).unwrap();
+    let filled = d.path().join("filled");
+    std::fs::create_dir_all(&filled).unwrap();
+    let arg = format!("push.0={}", fill.display());
+    let report = finding_with(&filled, &user().join("bindless.rchit"), pred, &["--fill", &arg]);
+    std::fs::write(&fill, 7u32.to_le_bytes()).unwrap();
+    let (o, _) = reduce(&report, &filled.join("out"), &[]);
+    assert_one_line_error(&o, 9, "--fill's sources changed since the run");
     // The negative: the plain closest-hit reads no SSBO; the injection matches nothing, the
     // run passes, and there is nothing to reduce.
     let plain = d.path().join("plain");
