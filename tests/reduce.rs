@@ -44,12 +44,15 @@ fn finding_with(dir: &Path, hit: &Path, pred: &str, extra: &[&str]) -> PathBuf {
     report
 }
 
-/// `reduce REPORT -o DIR EXTRA…`: the output and reduce.json when written.
+/// `reduce REPORT -o DIR EXTRA…` run in DIR's parent with DIR relative (spirv-reduce runs in a
+/// folder of its own, so every path it is given must hold from there): the output and
+/// reduce.json when written.
 fn reduce(report: &Path, out: &Path, extra: &[&str]) -> (std::process::Output, Option<Value>) {
-    let mut args = vec!["reduce", report.to_str().unwrap(), "-o", out.to_str().unwrap()];
+    let name = out.file_name().unwrap().to_str().unwrap();
+    let mut args = vec!["reduce", report.to_str().unwrap(), "-o", name];
     args.extend(extra);
     let t = std::time::Instant::now();
-    let o = run(&args);
+    let o = bin().current_dir(out.parent().unwrap()).args(&args).output().unwrap();
     eprintln!("reduce took {:.1} s: {}", t.elapsed().as_secs_f64(), stdout(&o));
     let r =
         std::fs::read(out.join("reduce.json")).ok().map(|b| serde_json::from_slice(&b).unwrap());

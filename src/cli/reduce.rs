@@ -169,7 +169,9 @@ fn out_dir(a: &ReduceArgs) -> Result<PathBuf> {
             format!("-o {}: is not empty; give an empty folder or --force", d.display()),
         ));
     }
-    let work = d.join(".reduce-work");
+    // Absolute: spirv-reduce runs in it, and is given the paths of files in it.
+    let work = std::path::absolute(d.join(".reduce-work"))
+        .map_err(|e| coded(exit::BAD_INPUT, format!("-o {}: {e}", d.display())))?;
     let _ = std::fs::remove_dir_all(&work);
     std::fs::create_dir_all(&work)
         .map_err(|e| coded(exit::BAD_INPUT, format!("-o {}: {e}", d.display())))?;
