@@ -515,7 +515,8 @@ pub struct BisectArgs {
 
 #[derive(Args, Debug)]
 pub struct ReportArgs {
-    /// The run report (rtprobe.report/1)
+    /// The run report (rtprobe.report/1), or `rtprobe reduce`'s DIR/reduce.json (the issue of
+    /// the reduced shader)
     pub report: PathBuf,
 
     /// A bisection of that report (`rtprobe bisect --json FILE`); without it, the report's own

@@ -11,7 +11,10 @@ use super::commands::Globals;
 use super::exit::{self, coded};
 use super::out::outln;
 use super::reduce_job::{is_fault, InterestingJob, RunLine};
+use super::shader_exec::Ctx;
+use super::shader_plan::ShaderPlan;
 use crate::harness::inject::Request;
+use crate::model::reduce::ReduceReport;
 use crate::model::shader_run::{ShaderRunReport, ShaderVariant, SCHEMA};
 use crate::model::{stats, Outcome};
 use crate::tools::spirv::{self as spirv_tools, SpirvTool};
@@ -198,11 +201,7 @@ pub fn reduce(g: &Globals, a: &ReduceArgs) -> Result<u8> {
     let p = super::shader::prepare(&g, &args)?;
     same_harness(&report, &p)?;
     let (plan, ctx, device) = (p.plan, p.ctx, p.device_name);
-    for (now, then) in plan.inputs.iter().zip(&report.inputs) {
-        if now.hash != then.hash {
-            return Err(coded(exit::BAD_INPUT, format!("{} changed since the run (hash {}, the report's {}): reduce needs the inputs the run had", now.file, &now.hash[..12], &then.hash[..12.min(then.hash.len())])));
-        }
-    }
+    same_inputs(&plan, &report)?;
     let (k, why) = target(&report);
     let work = out_dir(a)?;
     let original = ctx.unpatched[k].words.clone();
@@ -257,8 +256,36 @@ pub fn reduce(g: &Globals, a: &ReduceArgs) -> Result<u8> {
         runs: &runs,
     };
     let mut r = super::reduce_out::report(&done, &original, &reduced)?;
-    let request = report.injection.as_ref().and_then(|i| Request::parse(&i.spec).ok());
-    r.workarounds = super::reduce_patch::verify(&ctx, &plan, (request.as_ref(), n), &work, &a.out)?;
+    generalize(&mut r, (&ctx, &plan), n, &work, a)?;
+    let code = super::reduce_out::write(&done, &r, &reduced)?;
+    if std::env::var_os(KEEP_ENV).is_none() {
+        let _ = std::fs::remove_dir_all(&work);
+    }
+    Ok(code)
+}
+
+/// Each input still hashes as the report recorded it.
+fn same_inputs(plan: &ShaderPlan, report: &ShaderRunReport) -> Result<()> {
+    for (now, then) in plan.inputs.iter().zip(&report.inputs) {
+        if now.hash != then.hash {
+            return Err(coded(exit::BAD_INPUT, format!("{} changed since the run (hash {}, the report's {}): reduce needs the inputs the run had", now.file, &now.hash[..12], &then.hash[..12.min(then.hash.len())])));
+        }
+    }
+    Ok(())
+}
+
+/// Steps 6 and 5 after the reduction: each applicable patch verified on the original modules
+/// (`n` attempts, the finding's request applied again when injected), then the predicate's
+/// matrix slice.
+fn generalize(
+    r: &mut ReduceReport,
+    (ctx, plan): (&Ctx, &ShaderPlan),
+    n: u32,
+    work: &Path,
+    a: &ReduceArgs,
+) -> Result<()> {
+    let request = r.injection.as_deref().and_then(|s| Request::parse(s).ok());
+    r.workarounds = super::reduce_patch::verify(ctx, plan, (request.as_ref(), n), work, &a.out)?;
     r.not_applicable = plan
         .notes
         .iter()
@@ -273,11 +300,7 @@ pub fn reduce(g: &Globals, a: &ReduceArgs) -> Result<u8> {
         device: a.device.as_deref(),
     };
     r.slice = super::reduce_slice::run(&slice, &a.out)?;
-    let code = super::reduce_out::write(&done, &r, &reduced)?;
-    if std::env::var_os(KEEP_ENV).is_none() {
-        let _ = std::fs::remove_dir_all(&work);
-    }
-    Ok(code)
+    Ok(())
 }
 
 /// spirv-reduce on `original`, its temporary files in `work`: the reduced module's words.

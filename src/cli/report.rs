@@ -1,6 +1,7 @@
 //! `rtprobe report REPORT [--bisect FILE] [--lanes REPORT] [--no-validation-run] -o issue.md
 //! [--format md|json]`: the vendor issue for a run's fault (see `report::issue`), with the
-//! failing cell re-run under the validation layer (`issue_run`), written atomically.
+//! failing cell re-run under the validation layer (`issue_run`), written atomically. A
+//! `reduce.json` goes to `report_reduce` instead.
 use super::args::ReportArgs;
 use super::bisect::offline;
 use super::commands::Globals;
