@@ -15,10 +15,15 @@ fn user() -> PathBuf {
 
 /// `run --shader` of raygen, miss and `hit` with `--inject-fault pred`, its report in `dir`.
 fn finding(dir: &Path, hit: &Path, pred: &str) -> PathBuf {
+    finding_with(dir, hit, pred, &[])
+}
+
+/// [`finding`] with more `run` arguments.
+fn finding_with(dir: &Path, hit: &Path, pred: &str, extra: &[&str]) -> PathBuf {
     let report = dir.join("run.json");
     let u = user();
     let (rgen, miss) = (u.join("raygen.rgen"), u.join("miss.rmiss"));
-    let o = run(&[
+    let mut args = vec![
         "run",
         "--shader",
         rgen.to_str().unwrap(),
@@ -32,17 +37,22 @@ fn finding(dir: &Path, hit: &Path, pred: &str) -> PathBuf {
         pred,
         "-o",
         report.to_str().unwrap(),
-    ]);
+    ];
+    args.extend(extra);
+    let o = run(&args);
     assert_eq!(o.status.code(), Some(1), "a finding: {}{}", stdout(&o), stderr(&o));
     report
 }
 
-/// `reduce REPORT -o DIR EXTRA…`: the output and reduce.json when written.
+/// `reduce REPORT -o DIR EXTRA…` run in DIR's parent with DIR relative (spirv-reduce runs in a
+/// folder of its own, so every path it is given must hold from there): the output and
+/// reduce.json when written.
 fn reduce(report: &Path, out: &Path, extra: &[&str]) -> (std::process::Output, Option<Value>) {
-    let mut args = vec!["reduce", report.to_str().unwrap(), "-o", out.to_str().unwrap()];
+    let name = out.file_name().unwrap().to_str().unwrap();
+    let mut args = vec!["reduce", report.to_str().unwrap(), "-o", name];
     args.extend(extra);
     let t = std::time::Instant::now();
-    let o = run(&args);
+    let o = bin().current_dir(out.parent().unwrap()).args(&args).output().unwrap();
     eprintln!("reduce took {:.1} s: {}", t.elapsed().as_secs_f64(), stdout(&o));
     let r =
         std::fs::read(out.join("reduce.json")).ok().map(|b| serde_json::from_slice(&b).unwrap());
@@ -100,6 +110,12 @@ fn a_bindless_material_read_reduces_to_its_shape() {
         c["index_from"].as_array().unwrap().contains(&Value::from("gl_InstanceCustomIndexEXT")),
         "{c}"
     );
+    // Issue 25: the verified workaround for a dynamic SSBO index, on the original.
+    let w = r["workarounds"].as_array().unwrap();
+    let verified: Vec<&Value> = w.iter().filter(|w| w["verified"] == true).collect();
+    assert_eq!(verified.len(), 1, "{w:?}");
+    assert_eq!(verified[0]["patch"], "ssbo-to-address");
+    assert!(r["slice"]["faulted"].as_array().is_some_and(|f| !f.is_empty()), "{}", r["slice"]);
 }
 
 /// Issue 25: the glTF-style closest-hit's texture read (combined image samplers indexed by the
@@ -111,18 +127,26 @@ fn a_bindless_material_read_reduces_to_its_shape() {
 fn a_gltf_texture_read_reduces_to_its_shape() {
     let pred = "stage=closest_hit,resource=sampled_image,index=dynamic@device";
     let by_hand = "stage=closest_hit,resource=storage_buffer|sampled_image,index=literal|dynamic";
-    full("gltf.rchit", pred, by_hand);
+    let r = full("gltf.rchit", pred, by_hand);
+    // No patch removes a texture read's shape: none is verified (as-to-address leaves it).
+    let w = r["workarounds"].as_array().unwrap();
+    assert!(w.iter().all(|w| w["verified"] == false), "{w:?}");
+    assert!(r["slice"]["ran"].as_u64().unwrap() >= 1, "{}", r["slice"]);
 }
 
 /// CI's reduction: the bindless finding with `--step-limit 20`, every file written, at most 20
-/// steps, fewer instructions, and the result still crashes with the injection.
+/// steps, fewer instructions, and the result still crashes with the injection. Then step 6:
+/// `ssbo-to-address` on the original is verified (the injection re-applied to the patched
+/// module finds no SSBO read, the outputs equal the original's) and written with its contract;
+/// step 5: the matrix's slice of the shape, capped to a shard, runs and faults too (same
+/// injection); step 7: `rtprobe report` writes the issue from reduce.json.
 #[test]
 fn a_short_reduction_writes_its_files_and_still_faults() {
     let d = tempfile::tempdir().unwrap();
     let pred = "stage=closest_hit,resource=storage_buffer,index=dynamic@device";
     let report = finding(d.path(), &user().join("bindless.rchit"), pred);
     let out = d.path().join("out");
-    let (o, r) = reduce(&report, &out, &["--step-limit", "20"]);
+    let (o, r) = reduce(&report, &out, &["--step-limit", "20", "--slice-cells", "4"]);
     assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
     let r = r.expect("reduce.json");
     for f in ["reduced.spv", "reduced.spvasm", "access.txt"] {
@@ -136,10 +160,80 @@ fn a_short_reduction_writes_its_files_and_still_faults() {
     assert_eq!(r["outcomes"], serde_json::json!(["crash"]));
     assert_eq!(r["attempts_per_candidate"], 1);
     assert!(r["predicate"].as_str().unwrap().contains("resource=storage_buffer"), "{r}");
+    workaround_on_the_original(&r, &out);
+    the_slice_faults_too(&r);
+    the_issue_from_reduce_json(&out);
     still_faults(d.path(), &out.join("reduced.spv"), pred);
     // Twin: the folder is not empty now; without --force it is refused, nothing rewritten.
     let (o, _) = reduce(&report, &out, &[]);
     assert_one_line_error(&o, 2, "is not empty");
+}
+
+/// Step 6 on the bindless shader: ssbo-to-address verified, its module and contract written.
+fn workaround_on_the_original(r: &Value, out: &Path) {
+    let all = r["workarounds"].as_array().expect("workarounds");
+    let w = all.iter().find(|w| w["patch"] == "ssbo-to-address").unwrap_or_else(|| panic!("{r}"));
+    assert_eq!(w["verified"], true, "{w}");
+    assert_eq!(w["injected_faults"], 0, "the patch removed the injected shape: {w}");
+    assert_eq!((w["faulted"].as_u64(), w["validation_messages"].as_u64()), (Some(0), Some(0)));
+    assert_eq!(w["compared"], true, "{w}");
+    let spv = std::fs::read(out.join("patched-ssbo-to-address.spv")).unwrap();
+    assert_eq!(&spv[..4], &0x0723_0203u32.to_le_bytes());
+    assert_ne!(spv, std::fs::read(out.join("reduced.spv")).unwrap());
+    let contract: Value = serde_json::from_slice(
+        &std::fs::read(out.join("patched-ssbo-to-address.contract.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(contract["schema"], "rtprobe.patch-contract/1");
+    assert!(!contract["addresses"].as_array().unwrap().is_empty(), "{contract}");
+    // Twin: as-to-address patches the raygen's acceleration structure; the SSBO read stays, the
+    // injection re-applied puts the fault back, and the patch is not verified nor written.
+    let a = all.iter().find(|w| w["patch"] == "as-to-address").unwrap_or_else(|| panic!("{r}"));
+    assert_eq!((a["verified"].as_bool(), a["injected_faults"].as_u64()), (Some(false), Some(1)));
+    assert!(a["faulted"].as_u64().unwrap() >= 1, "{a}");
+    for w in all.iter().filter(|w| w["verified"] == false) {
+        let name = format!("patched-{}.spv", w["patch"].as_str().unwrap());
+        assert!(!out.join(name).exists(), "{w}");
+    }
+}
+
+/// Step 5: the predicate's matrix cells, a shard of them (`--slice-cells 4`), same injection.
+fn the_slice_faults_too(r: &Value) {
+    let s = &r["slice"];
+    assert!(s["planned"].as_u64().unwrap() <= 4, "{s}");
+    assert!(s["generated"].as_u64() > s["planned"].as_u64(), "{s}");
+    assert!(s["ran"].as_u64().unwrap() >= 1, "{s}");
+    // The injection faults the storage-buffer cells; the 20-step module's other access
+    // (a storage image) widens the predicate, and those cells pass.
+    let faulted = s["faulted"].as_array().unwrap();
+    assert!(!faulted.is_empty(), "{s}");
+    assert!(faulted.iter().all(|c| c.as_str().unwrap().contains(".storage_buffer.dynamic")), "{s}");
+    assert!(s["line"].as_str().unwrap().contains("faults too"), "{s}");
+    assert!(s["command"].as_str().unwrap().contains("--shard 1/"), "{s}");
+}
+
+/// Step 7: the issue from reduce.json; twin: without reduced.spvasm beside it, one line.
+fn the_issue_from_reduce_json(out: &Path) {
+    let issue = out.join("issue.md");
+    let json = out.join("reduce.json");
+    let o = run(&["report", json.to_str().unwrap(), "-o", issue.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    let md = std::fs::read_to_string(&issue).unwrap();
+    assert!(md.starts_with("# [injected, not a driver bug]"), "{md}");
+    for part in [
+        "FNV-1a 128",
+        "--filter stage=closest_hit",
+        "## Isolation",
+        "ssbo-to-address: verified",
+        "OpFunctionEnd",
+    ] {
+        assert!(md.contains(part), "{part}: {md}");
+    }
+    let lone = out.join("lone");
+    std::fs::create_dir_all(&lone).unwrap();
+    std::fs::copy(&json, lone.join("reduce.json")).unwrap();
+    let o = run(&["report", lone.join("reduce.json").to_str().unwrap()]);
+    assert_one_line_error(&o, 9, "beside reduce.json");
 }
 
 /// Refusals are one line, before any reduction: another cell, an input changed since the run,
@@ -158,6 +252,16 @@ fn refusals_are_one_line() {
     std::fs::write(&hit, std::fs::read_to_string(&hit).unwrap() + "\n// edited\n").unwrap();
     let (o, _) = reduce(&report, &out, &[]);
     assert_one_line_error(&o, 9, "changed since the run");
+    // reduce re-creates the run's harness: a --fill file whose bytes changed is refused.
+    let fill = d.path().join("base.bin");
+    std::fs::write(&fill, 0u32.to_le_bytes()).unwrap();
+    let filled = d.path().join("filled");
+    std::fs::create_dir_all(&filled).unwrap();
+    let arg = format!("push.0={}", fill.display());
+    let report = finding_with(&filled, &user().join("bindless.rchit"), pred, &["--fill", &arg]);
+    std::fs::write(&fill, 7u32.to_le_bytes()).unwrap();
+    let (o, _) = reduce(&report, &filled.join("out"), &[]);
+    assert_one_line_error(&o, 9, "--fill's sources changed since the run");
     // The negative: the plain closest-hit reads no SSBO; the injection matches nothing, the
     // run passes, and there is nothing to reduce.
     let plain = d.path().join("plain");

@@ -147,6 +147,11 @@ pub struct ReduceArgs {
     /// spirv-reduce's --step-limit: the most reduction steps it tries
     #[arg(long, default_value_t = 2500, value_name = "N")]
     pub step_limit: u32,
+
+    /// The most matrix cells of the predicate's slice to run (a shard when it generates more;
+    /// 0: no slice)
+    #[arg(long, default_value_t = 16, value_name = "N")]
+    pub slice_cells: u32,
 }
 
 #[derive(Args, Debug, Clone)]
@@ -510,7 +515,8 @@ pub struct BisectArgs {
 
 #[derive(Args, Debug)]
 pub struct ReportArgs {
-    /// The run report (rtprobe.report/1)
+    /// The run report (rtprobe.report/1), or `rtprobe reduce`'s DIR/reduce.json (the issue of
+    /// the reduced shader)
     pub report: PathBuf,
 
     /// A bisection of that report (`rtprobe bisect --json FILE`); without it, the report's own

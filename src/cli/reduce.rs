@@ -3,12 +3,18 @@
 //! (the one the finding's injection matched, else the first hit stage, else the first given),
 //! and `spirv-reduce` driven with `rtprobe __interesting` as its test ([`super::reduce_job`]);
 //! then the reduced module classified (`shape`) and written with its disassembly, its
-//! accesses GLSL-like and `reduce.json` ([`super::reduce_out`]).
+//! accesses GLSL-like and `reduce.json` ([`super::reduce_out`]), after each applicable patch
+//! was verified on the original modules ([`super::reduce_patch`]) and the matrix's slice of the
+//! predicate ran ([`super::reduce_slice`]).
 use super::args::{Cli, Command, ReduceArgs, RunArgs};
 use super::commands::Globals;
 use super::exit::{self, coded};
 use super::out::outln;
 use super::reduce_job::{is_fault, InterestingJob, RunLine};
+use super::shader_exec::Ctx;
+use super::shader_plan::ShaderPlan;
+use crate::harness::inject::Request;
+use crate::model::reduce::ReduceReport;
 use crate::model::shader_run::{ShaderRunReport, ShaderVariant, SCHEMA};
 use crate::model::{stats, Outcome};
 use crate::tools::spirv::{self as spirv_tools, SpirvTool};
@@ -76,6 +82,12 @@ fn run_args(r: &ShaderRunReport, device: Option<&str>) -> Result<RunArgs> {
     flag("--sink-size", &o["sink_size"]);
     flag("--timeout", &o["timeout_s"]);
     flag("--descriptor-model", &o["descriptor_model"]);
+    for f in fill_args(r)? {
+        argv.extend(["--fill".into(), f]);
+    }
+    if let Some(p) = &r.profile {
+        argv.extend(["--profile".into(), p.file.clone()]);
+    }
     let env = match o["target_env"].as_str() {
         Some("Vulkan1_3") => "vulkan1.3",
         Some("Vulkan1_4") => "vulkan1.4",
@@ -98,6 +110,37 @@ fn run_args(r: &ShaderRunReport, device: Option<&str>) -> Result<RunArgs> {
         Command::Run(a) => Ok(a),
         _ => Err(coded(exit::INTERNAL, "the report's options parsed as another command")),
     }
+}
+
+/// `--fill` as the run had it: the arguments it recorded, else its cell options' words when
+/// none names a file (reports before `fill_args` recorded a file only by its hash).
+fn fill_args(r: &ShaderRunReport) -> Result<Vec<String>> {
+    if let Some(list) = r.options["fill_args"].as_array() {
+        return Ok(list.iter().filter_map(|v| v.as_str().map(String::from)).collect());
+    }
+    let words = &r.cell_options.fill;
+    if let Some(f) = words.iter().find(|w| w.contains("=file:")) {
+        return Err(coded(exit::BAD_INPUT, format!("the report's --fill {f} names its file only by its hash: run run --shader again with this rtprobe, then reduce its report")));
+    }
+    Ok(words.clone())
+}
+
+/// `--fill`'s bytes and `--profile`'s file as the run had them, else one line.
+fn same_harness(r: &ShaderRunReport, p: &super::shader::Prepared) -> Result<()> {
+    if p.cell_options.fill != r.cell_options.fill {
+        return Err(coded(exit::BAD_INPUT, format!("--fill's sources changed since the run ({:?}, the report's {:?}): reduce needs the harness the run had", p.cell_options.fill, r.cell_options.fill)));
+    }
+    let (now, then) = (p.profile.as_ref().map(|x| &x.hash), r.profile.as_ref().map(|x| &x.hash));
+    if now != then {
+        return Err(coded(
+            exit::BAD_INPUT,
+            format!(
+                "--profile {} changed since the run: reduce needs the harness the run had",
+                r.profile.as_ref().map_or("", |x| x.file.as_str())
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// The module to reduce and why: the one the injection matched, else the first hit stage.
@@ -129,7 +172,9 @@ fn out_dir(a: &ReduceArgs) -> Result<PathBuf> {
             format!("-o {}: is not empty; give an empty folder or --force", d.display()),
         ));
     }
-    let work = d.join(".reduce-work");
+    // Absolute: spirv-reduce runs in it, and is given the paths of files in it.
+    let work = std::path::absolute(d.join(".reduce-work"))
+        .map_err(|e| coded(exit::BAD_INPUT, format!("-o {}: {e}", d.display())))?;
     let _ = std::fs::remove_dir_all(&work);
     std::fs::create_dir_all(&work)
         .map_err(|e| coded(exit::BAD_INPUT, format!("-o {}: {e}", d.display())))?;
@@ -154,12 +199,9 @@ pub fn reduce(g: &Globals, a: &ReduceArgs) -> Result<u8> {
     let validate = report.options["validate"].as_bool().unwrap_or(false);
     let g = Globals { validate: validate || g.validate, gpu_av: false };
     let p = super::shader::prepare(&g, &args)?;
+    same_harness(&report, &p)?;
     let (plan, ctx, device) = (p.plan, p.ctx, p.device_name);
-    for (now, then) in plan.inputs.iter().zip(&report.inputs) {
-        if now.hash != then.hash {
-            return Err(coded(exit::BAD_INPUT, format!("{} changed since the run (hash {}, the report's {}): reduce needs the inputs the run had", now.file, &now.hash[..12], &then.hash[..12.min(then.hash.len())])));
-        }
-    }
+    same_inputs(&plan, &report)?;
     let (k, why) = target(&report);
     let work = out_dir(a)?;
     let original = ctx.unpatched[k].words.clone();
@@ -175,6 +217,8 @@ pub fn reduce(g: &Globals, a: &ReduceArgs) -> Result<u8> {
         spec: ctx.spec.clone(),
         heap_layout: ctx.heap_layout.clone(),
         sizes: ctx.sizes,
+        fills: ctx.fills.clone(),
+        profile: ctx.profile,
         modules: ctx.unpatched.clone(),
         target: k,
         val_env: spirv_tools::tool(SpirvTool::Val).map(|_| val.env.clone()),
@@ -211,11 +255,52 @@ pub fn reduce(g: &Globals, a: &ReduceArgs) -> Result<u8> {
         wall_s,
         runs: &runs,
     };
-    let code = super::reduce_out::write(&done, &original, &reduced)?;
+    let mut r = super::reduce_out::report(&done, &original, &reduced)?;
+    generalize(&mut r, (&ctx, &plan), n, &work, a)?;
+    let code = super::reduce_out::write(&done, &r, &reduced)?;
     if std::env::var_os(KEEP_ENV).is_none() {
         let _ = std::fs::remove_dir_all(&work);
     }
     Ok(code)
+}
+
+/// Each input still hashes as the report recorded it.
+fn same_inputs(plan: &ShaderPlan, report: &ShaderRunReport) -> Result<()> {
+    for (now, then) in plan.inputs.iter().zip(&report.inputs) {
+        if now.hash != then.hash {
+            return Err(coded(exit::BAD_INPUT, format!("{} changed since the run (hash {}, the report's {}): reduce needs the inputs the run had", now.file, &now.hash[..12], &then.hash[..12.min(then.hash.len())])));
+        }
+    }
+    Ok(())
+}
+
+/// Steps 6 and 5 after the reduction: each applicable patch verified on the original modules
+/// (`n` attempts, the finding's request applied again when injected), then the predicate's
+/// matrix slice.
+fn generalize(
+    r: &mut ReduceReport,
+    (ctx, plan): (&Ctx, &ShaderPlan),
+    n: u32,
+    work: &Path,
+    a: &ReduceArgs,
+) -> Result<()> {
+    let request = r.injection.as_deref().and_then(|s| Request::parse(s).ok());
+    r.workarounds = super::reduce_patch::verify(ctx, plan, (request.as_ref(), n), work, &a.out)?;
+    r.not_applicable = plan
+        .notes
+        .iter()
+        .filter(|l| l.contains(" does not apply") || l.contains(" not run"))
+        .cloned()
+        .collect();
+    let slice = super::reduce_slice::SliceArgs {
+        predicate: &r.predicate,
+        injection: r.injection.as_deref(),
+        attempts: n,
+        cap: a.slice_cells,
+        device: a.device.as_deref(),
+    };
+    r.slice = super::reduce_slice::run(&slice, &a.out)?;
+    Ok(())
 }
 
 /// spirv-reduce on `original`, its temporary files in `work`: the reduced module's words.

@@ -33,6 +33,11 @@ pub struct InterestingJob {
     pub spec: Vec<crate::harness::spec::SpecValue>,
     pub heap_layout: Option<Vec<crate::harness::heap::Array>>,
     pub sizes: crate::harness::Sizes,
+    /// The run's `--fill` bytes and `--profile` setup: the harness the finding ran in.
+    #[serde(default)]
+    pub fills: crate::harness::fill::Fills,
+    #[serde(default)]
+    pub profile: crate::harness::profile::ProfileSetup,
     /// The given modules, unreduced and without the injected fault.
     pub modules: Vec<JobModule>,
     /// Which of them the candidate replaces.
@@ -132,9 +137,8 @@ fn judge(job: &InterestingJob, modules: Vec<JobModule>) -> Result<(bool, String)
         spec: job.spec.clone(),
         heap_layout: job.heap_layout.clone(),
         sizes: job.sizes,
-        // Not yet carried into the reduction's job: the run's --fill, --profile (docs: Not yet).
-        fills: Default::default(),
-        profile: Default::default(),
+        fills: job.fills.clone(),
+        profile: job.profile,
         gpu_av: false,
     };
     let ran = shader_exec::run_variant(&ctx, "candidate", &modules, None);

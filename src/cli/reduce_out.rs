@@ -37,8 +37,9 @@ fn module(words: &[u32], what: &str) -> Result<rspirv::dr::Module> {
         .map_err(|e| coded(exit::INTERNAL, format!("the {what} module does not load: {e}")))
 }
 
-/// The report's data for `done`, from the original and reduced words.
-fn report(d: &Done, original: &[u32], reduced: &[u32]) -> Result<ReduceReport> {
+/// The report's data for `done`, from the original and reduced words (no workaround or slice
+/// yet: `reduce` adds them).
+pub fn report(d: &Done, original: &[u32], reduced: &[u32]) -> Result<ReduceReport> {
     let (before, after) = (module(original, "original")?, module(reduced, "reduced")?);
     let found = crate::shape::classify(&after);
     let classification: Vec<_> = found.into_iter().map(|f| f.class).collect();
@@ -69,12 +70,14 @@ fn report(d: &Done, original: &[u32], reduced: &[u32]) -> Result<ReduceReport> {
         reducer: spirv_tools::tool(SpirvTool::Reduce).map(|t| t.describe()).unwrap_or_default(),
         predicate: predicate(&classification),
         classification,
+        workarounds: vec![],
+        not_applicable: vec![],
+        slice: None,
     })
 }
 
 /// Write DIR's files and print the summary; the exit code.
-pub fn write(d: &Done, original: &[u32], reduced: &[u32]) -> Result<u8> {
-    let r = report(d, original, reduced)?;
+pub fn write(d: &Done, r: &ReduceReport, reduced: &[u32]) -> Result<u8> {
     let dir = &d.a.out;
     let dis = spirv_tools::disassemble(reduced, false)
         .unwrap_or_else(|e| format!("; spirv-dis failed: {e}\n"));
@@ -83,7 +86,7 @@ pub fn write(d: &Done, original: &[u32], reduced: &[u32]) -> Result<u8> {
     put(dir, "reduced.spv", &spirv_tools::bytes(reduced))?;
     put(dir, "reduced.spvasm", dis.as_bytes())?;
     put(dir, "access.txt", access.as_bytes())?;
-    put(dir, "reduce.json", &serde_json::to_vec_pretty(&r)?)?;
+    put(dir, "reduce.json", &serde_json::to_vec_pretty(r)?)?;
     let c = r.instructions;
     outln!(
         "reduced: {} function-body instructions to {} ({:.0}%), {} steps, {} interestingness runs ({} refused before the device), {:.1} s",
@@ -117,6 +120,26 @@ pub fn write(d: &Done, original: &[u32], reduced: &[u32]) -> Result<u8> {
         outln!("predicate: none (no descriptor access remains)");
     } else {
         outln!("predicate: --filter {}", r.predicate);
+    }
+    for w in &r.workarounds {
+        outln!("workaround {}", w.line);
+        if w.verified {
+            outln!(
+                "  wrote {} with {}: {}",
+                w.files.join(", "),
+                w.contract_file.as_deref().unwrap_or(""),
+                w.host_contract
+            );
+        }
+    }
+    for l in &r.not_applicable {
+        outln!("workaround {l}");
+    }
+    if let Some(s) = &r.slice {
+        outln!("slice: {}", s.line);
+        if !s.command.is_empty() {
+            outln!("  ran: {} (report: {})", s.command, dir.join(&s.report).display());
+        }
     }
     outln!("wrote: {}", dir.join("reduce.json").display());
     Ok(exit::OK)

@@ -1,6 +1,7 @@
 //! `rtprobe report REPORT [--bisect FILE] [--lanes REPORT] [--no-validation-run] -o issue.md
 //! [--format md|json]`: the vendor issue for a run's fault (see `report::issue`), with the
-//! failing cell re-run under the validation layer (`issue_run`), written atomically.
+//! failing cell re-run under the validation layer (`issue_run`), written atomically. A
+//! `reduce.json` goes to `report_reduce` instead.
 use super::args::ReportArgs;
 use super::bisect::offline;
 use super::commands::Globals;
@@ -16,6 +17,9 @@ use crate::report::issue::{self, Format};
 use anyhow::{Context, Result};
 
 pub fn report(g: &Globals, a: &ReportArgs) -> Result<u8> {
+    if super::report_reduce::is_reduce(a) {
+        return super::report_reduce::report(a);
+    }
     super::paths::writable_files(&[("-o", a.out.as_deref())])?;
     let r = load_report(&a.report)?;
     let ro = ReportOptions::of(&r)

@@ -293,8 +293,8 @@ pub(super) struct Prepared {
     pub(super) plan: ShaderPlan,
     pub(super) ctx: Ctx,
     pub(super) device_name: String,
-    cell_options: CellOptions,
-    profile: Option<ProfileRecord>,
+    pub(super) cell_options: CellOptions,
+    pub(super) profile: Option<ProfileRecord>,
     other: Option<ShaderRunReport>,
     baseline: Option<crate::model::Baseline>,
 }
@@ -425,6 +425,8 @@ fn judged_report(g: &Globals, a: &RunArgs, p: &mut Prepared) -> Result<ShaderRun
     report.compare = compare;
     let cell_options = std::mem::take(&mut p.cell_options);
     report.options["fill"] = serde_json::json!(cell_options.fill);
+    // The `--fill` arguments as given: `reduce` re-creates the run from them.
+    report.options["fill_args"] = serde_json::json!(a.fill);
     report.cell = shader_run::cell_id_with(&plan.inputs, &cell_options);
     report.cell_options = cell_options;
     report.options["profile"] = serde_json::json!(p.profile.as_ref().map(|p| &p.hash));

@@ -88,6 +88,65 @@ pub struct ReduceReport {
     pub reducer: String,
     pub classification: Vec<AccessClass>,
     pub predicate: String,
+    /// Each applicable patch run on the original modules (step 6), verified or not.
+    #[serde(default)]
+    pub workarounds: Vec<ReduceWorkaround>,
+    /// Patches that do not apply to the original, and why.
+    #[serde(default)]
+    pub not_applicable: Vec<String>,
+    /// The matrix's slice of the predicate (step 5); `None`: not run.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub slice: Option<Slice>,
+}
+
+/// One patch run on the user's original modules with the finding's evidence.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ReduceWorkaround {
+    pub patch: String,
+    /// No attempt faulted, none had a validation message or differed from the original's.
+    pub verified: bool,
+    /// The verdict in words.
+    pub line: String,
+    pub attempts: u32,
+    pub faulted: u32,
+    pub validation_messages: u64,
+    /// The first difference from the original's outputs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub differs: Option<String>,
+    /// Whether the outputs were compared with the original's (false: it produced none).
+    pub compared: bool,
+    /// With an injected finding: the faults its request put into the patched original (0: the
+    /// patch removed the shape).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub injected_faults: Option<usize>,
+    /// What the host must bind or pass differently (`rtprobe patch`'s sentence).
+    pub host_contract: String,
+    /// The patched modules written into DIR (`patched-PATCH.spv (FILE)`), when verified.
+    #[serde(default)]
+    pub files: Vec<String>,
+    /// The host contract's file in DIR (`rtprobe.patch-contract/1`), when verified.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contract_file: Option<String>,
+}
+
+/// rtprobe's own cells of the predicate's shape, run (step 5).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Slice {
+    /// The `rtprobe run` command that ran them.
+    pub command: String,
+    /// Its report, in DIR.
+    pub report: String,
+    /// Cells the predicate generates, and those this slice planned (a shard when capped).
+    pub generated: u32,
+    pub planned: u32,
+    /// Cells that ran, and those that faulted.
+    pub ran: u32,
+    pub faulted: Vec<String>,
+    /// The injection the slice ran with (the finding's predicate), when the finding was injected.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub injection: Option<String>,
+    /// The verdict in words.
+    pub line: String,
 }
 
 #[cfg(test)]

@@ -10,6 +10,7 @@ pub mod junit;
 pub mod lock;
 pub mod mutants;
 pub mod recommended;
+pub mod reduce_issue;
 pub mod shader_junit;
 pub mod shaders;
 pub mod summary;
