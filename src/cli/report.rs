@@ -11,8 +11,8 @@ use super::shared::load_report;
 use crate::atomic::write_atomic;
 use crate::bisect::scope::ReportOptions;
 use crate::bisect::Settings;
-use crate::model::BisectFile;
 use crate::model::PatchMode;
+use crate::model::{BisectFile, RunReport};
 use crate::report::issue::{self, Format};
 use anyhow::{Context, Result};
 
@@ -24,48 +24,7 @@ pub fn report(g: &Globals, a: &ReportArgs) -> Result<u8> {
     let r = load_report(&a.report)?;
     let ro = ReportOptions::of(&r)
         .map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.report.display())))?;
-    let b = match &a.bisect {
-        Some(p) => {
-            let b = BisectFile::load(p).map_err(|e| coded(exit::BAD_INPUT, e))?;
-            if b.device["name"] != r.device["name"]
-                || b.device["driver_uuid"] != r.device["driver_uuid"]
-            {
-                return Err(coded(
-                    exit::BAD_INPUT,
-                    format!(
-                        "{} bisects a report of another device ({}), not {}",
-                        p.display(),
-                        b.device["name"],
-                        a.report.display()
-                    ),
-                ));
-            }
-            // The same run: its start stamp and its injections (an injected fault must never be
-            // written up as a driver bug through another report's issue).
-            let report_inject: Vec<String> = ro.inject.iter().map(|i| i.spec.clone()).collect();
-            if b.report_started != r.started || b.inject != report_inject {
-                return Err(coded(
-                    exit::BAD_INPUT,
-                    format!(
-                        "{} bisects another run ({}), not {} ({}); bisect this report first",
-                        p.display(),
-                        b.report.display(),
-                        a.report.display(),
-                        r.started
-                    ),
-                ));
-            }
-            b
-        }
-        None => {
-            let filters = ro.scope_filters(&[]).map_err(|e| coded(exit::BAD_INPUT, e))?;
-            let patches =
-                if ro.patches == PatchMode::All { PatchMode::All } else { PatchMode::None };
-            let bi = offline(&r, &filters, patches, Settings::default(), &ro.inject, None)
-                .map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.report.display())))?;
-            BisectFile::new(&a.report, &r, &filters, &ro.inject, true, bi)
-        }
-    };
+    let b = bisection(a, &r, &ro)?;
     let lanes = match &a.lanes {
         Some(p) => Some(lanes_report(p, &r)?),
         None => None,
@@ -139,4 +98,51 @@ fn lanes_report(
         ));
     }
     Ok(l)
+}
+
+/// The bisection the issue is written from: `--bisect`'s file, checked to be of this report's
+/// device and run, or an offline bisection of the report itself.
+fn bisection(a: &ReportArgs, r: &RunReport, ro: &ReportOptions) -> Result<BisectFile> {
+    Ok(match &a.bisect {
+        Some(p) => {
+            let b = BisectFile::load(p).map_err(|e| coded(exit::BAD_INPUT, e))?;
+            if b.device["name"] != r.device["name"]
+                || b.device["driver_uuid"] != r.device["driver_uuid"]
+            {
+                return Err(coded(
+                    exit::BAD_INPUT,
+                    format!(
+                        "{} bisects a report of another device ({}), not {}",
+                        p.display(),
+                        b.device["name"],
+                        a.report.display()
+                    ),
+                ));
+            }
+            // The same run: its start stamp and its injections (an injected fault must never be
+            // written up as a driver bug through another report's issue).
+            let report_inject: Vec<String> = ro.inject.iter().map(|i| i.spec.clone()).collect();
+            if b.report_started != r.started || b.inject != report_inject {
+                return Err(coded(
+                    exit::BAD_INPUT,
+                    format!(
+                        "{} bisects another run ({}), not {} ({}); bisect this report first",
+                        p.display(),
+                        b.report.display(),
+                        a.report.display(),
+                        r.started
+                    ),
+                ));
+            }
+            b
+        }
+        None => {
+            let filters = ro.scope_filters(&[]).map_err(|e| coded(exit::BAD_INPUT, e))?;
+            let patches =
+                if ro.patches == PatchMode::All { PatchMode::All } else { PatchMode::None };
+            let bi = offline(&r, &filters, patches, Settings::default(), &ro.inject, None)
+                .map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.report.display())))?;
+            BisectFile::new(&a.report, &r, &filters, &ro.inject, true, bi)
+        }
+    })
 }
