@@ -140,9 +140,9 @@ fn bisection(a: &ReportArgs, r: &RunReport, ro: &ReportOptions) -> Result<Bisect
             let filters = ro.scope_filters(&[]).map_err(|e| coded(exit::BAD_INPUT, e))?;
             let patches =
                 if ro.patches == PatchMode::All { PatchMode::All } else { PatchMode::None };
-            let bi = offline(&r, &filters, patches, Settings::default(), &ro.inject, None)
+            let bi = offline(r, &filters, patches, Settings::default(), &ro.inject, None)
                 .map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", a.report.display())))?;
-            BisectFile::new(&a.report, &r, &filters, &ro.inject, true, bi)
+            BisectFile::new(&a.report, r, &filters, &ro.inject, true, bi)
         }
     })
 }
