@@ -567,7 +567,11 @@ fn bad_spec_and_descriptor_models_are_one_line() {
     let f = |n: &str| user().join(n).to_string_lossy().into_owned();
     let (tinted, bindless) = (f("tinted.rchit"), f("bindless.rchit"));
     let cases: &[(&str, &[&str], &str)] = &[
-        (&tinted, &["--spec", "9=1"], "no stage declares SpecId 9 (declared: 1, 2)"),
+        (
+            &tinted,
+            &["--spec", "9=1"],
+            "no stage declares SpecId 9; give one of the declared IDs: 1, 2",
+        ),
         (&tinted, &["--spec", "1=-4"], "SpecId 1 is a 32-bit uint"),
         (&tinted, &["--spec", "2=bright"], "SpecId 2 is a 32-bit float"),
         (&tinted, &["--spec", "TINT"], "give ID=VALUE"),

@@ -256,7 +256,7 @@ pub fn reduce(g: &Globals, a: &ReduceArgs) -> Result<u8> {
         runs: &runs,
     };
     let mut r = super::reduce_out::report(&done, &original, &reduced)?;
-    generalize(&mut r, (&ctx, &plan), n, &work, a)?;
+    generalize(&mut r, (&ctx, &plan), (n, variant.incidence.as_ref()), &work, a)?;
     let code = super::reduce_out::write(&done, &r, &reduced)?;
     if std::env::var_os(KEEP_ENV).is_none() {
         let _ = std::fs::remove_dir_all(&work);
@@ -280,12 +280,13 @@ fn same_inputs(plan: &ShaderPlan, report: &ShaderRunReport) -> Result<()> {
 fn generalize(
     r: &mut ReduceReport,
     (ctx, plan): (&Ctx, &ShaderPlan),
-    n: u32,
+    (n, incidence): (u32, Option<&crate::model::Incidence>),
     work: &Path,
     a: &ReduceArgs,
 ) -> Result<()> {
     let request = r.injection.as_deref().and_then(|s| Request::parse(s).ok());
-    r.workarounds = super::reduce_patch::verify(ctx, plan, (request.as_ref(), n), work, &a.out)?;
+    r.workarounds =
+        super::reduce_patch::verify(ctx, plan, (request.as_ref(), n, incidence), work, &a.out)?;
     r.not_applicable = plan
         .notes
         .iter()

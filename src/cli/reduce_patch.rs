@@ -22,7 +22,7 @@ use super::shader_plan::ShaderPlan;
 use crate::harness::child::JobModule;
 use crate::harness::inject::{self, Request};
 use crate::model::reduce::ReduceWorkaround;
-use crate::model::Outcome;
+use crate::model::{stats, Incidence, Outcome};
 use crate::tools::spirv as spirv_tools;
 use anyhow::Result;
 use std::path::Path;
@@ -53,8 +53,14 @@ fn reinject(modules: &[JobModule], injection: Option<&Request>) -> (Vec<JobModul
     (out, Some(faults))
 }
 
-/// The verdict of one variant's attempts, judged against the original's.
-fn verdict(c: &Candidate, ran: &[Ran], compared: bool, injected: bool) -> ReduceWorkaround {
+/// The verdict of one variant's attempts, judged against the original's; `proof` is whether
+/// its passes are evidence enough ([`proof`]).
+fn verdict(
+    c: &Candidate,
+    ran: &[Ran],
+    (compared, injected): (bool, bool),
+    proof: Result<(), String>,
+) -> ReduceWorkaround {
     let faulted = ran.iter().filter(|r| is_fault(r.attempt.attempt.outcome)).count() as u32;
     let messages: u64 = ran.iter().map(|r| r.attempt.validation_messages).sum();
     let differs = ran.iter().find_map(|r| r.attempt.differs.clone());
@@ -62,7 +68,8 @@ fn verdict(c: &Candidate, ran: &[Ran], compared: bool, injected: bool) -> Reduce
         let o = r.attempt.attempt.outcome;
         !is_fault(o) && o != Outcome::Pass
     });
-    let verified = faulted == 0 && messages == 0 && differs.is_none() && failed.is_none();
+    let clean = faulted == 0 && messages == 0 && differs.is_none() && failed.is_none();
+    let verified = clean && proof.is_ok();
     let n = ran.len();
     let line = if verified {
         let outputs = if compared {
@@ -75,6 +82,8 @@ fn verdict(c: &Candidate, ran: &[Ran], compared: bool, injected: bool) -> Reduce
             _ => "",
         };
         format!("{}: verified on the original — {n} of {n} attempts pass, 0 validation messages, {outputs}{model}", c.name)
+    } else if let (true, Err(why)) = (clean, &proof) {
+        format!("{}: not verified — {n} of {n} attempts pass, but {why}", c.name)
     } else if faulted > 0 {
         let why = match c.injected {
             Some(k) if k > 0 => format!(
@@ -108,12 +117,47 @@ fn verdict(c: &Candidate, ran: &[Ran], compared: bool, injected: bool) -> Reduce
     }
 }
 
+/// Whether a patched variant's passes prove the fault gone: structurally when the re-applied
+/// injection matches no access of it (the injected fault cannot happen); else its passes must
+/// miss a fault as frequent as the finding's (its `incidence`, Clopper–Pearson lower bound:
+/// `stats::pass_miss`) with probability below `stats::DEFAULT_MAX_MISS` — the rule `run`'s
+/// verified workarounds are held to — and, for a real fault, the original (the control, traced
+/// in the same round) must have faulted again.
+fn proof(
+    c: &Candidate,
+    ran: &[Ran],
+    incidence: Option<&Incidence>,
+    control_faults: Option<usize>,
+) -> Result<(), String> {
+    if c.injected == Some(0) {
+        return Ok(());
+    }
+    let passes = ran.iter().filter(|r| r.attempt.attempt.outcome == Outcome::Pass).count() as u32;
+    let Some(i) = incidence else {
+        return Err("the finding has no incidence to hold the passes to".into());
+    };
+    let m = stats::pass_miss(i.faulted, i.attempts, passes);
+    if m >= stats::DEFAULT_MAX_MISS {
+        return Err(format!(
+            "{} would miss a fault as frequent as the finding's with p = {m:.3} (≥ {})",
+            stats::passes_text(passes, passes, Some(m)),
+            stats::DEFAULT_MAX_MISS
+        ));
+    }
+    match control_faults {
+        Some(0) => {
+            Err("the original, traced in the same round as the control, did not fault again".into())
+        }
+        Some(_) | None => Ok(()),
+    }
+}
+
 /// Run every applicable patch of `plan` on the original modules (`ctx.unpatched`), `attempts`
 /// each (the finding's evidence, as each candidate had), and write the verified ones into `out`.
 pub fn verify(
     ctx: &Ctx,
     plan: &ShaderPlan,
-    (injection, attempts): (Option<&Request>, u32),
+    (injection, attempts, incidence): (Option<&Request>, u32, Option<&Incidence>),
     work: &Path,
     out: &Path,
 ) -> Result<Vec<ReduceWorkaround>> {
@@ -121,7 +165,9 @@ pub fn verify(
         return Ok(vec![]);
     }
     let mut ctx = ctx.clone();
-    ctx.repeat = attempts.max(1);
+    // A real fault's passes are held to its incidence (`proof`): as many as that needs.
+    let needed = crate::report::gpu_av::passes_needed_for(incidence);
+    ctx.repeat = if injection.is_some() { attempts.max(1) } else { attempts.max(needed) };
     ctx.dir = work.join("workarounds");
     std::fs::create_dir_all(&ctx.dir)
         .map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", ctx.dir.display())))?;
@@ -146,9 +192,15 @@ pub fn verify(
         .unwrap_or_default();
     let judged = shader_exec::compare_all(&device, &mut original, &mut patched);
     let compared = judged.uncompared.is_none();
+    // The original runs uninjected: for a real fault it is the control, for an injected one
+    // the output reference only.
+    let control = injection
+        .is_none()
+        .then(|| original.iter().filter(|r| is_fault(r.attempt.attempt.outcome)).count());
     let mut found = Vec::new();
     for ((c, (_, ran)), planned) in candidates.iter().zip(&patched).zip(&plan.variants) {
-        let mut w = verdict(c, ran, compared, injection.is_some());
+        let proven = proof(c, ran, incidence, control);
+        let mut w = verdict(c, ran, (compared, injection.is_some()), proven);
         if w.verified {
             write(&mut w, &planned.modules, planned.contract.clone(), out)?;
         }
@@ -218,7 +270,39 @@ mod tests {
             contract: &contract,
             injected,
         };
-        verdict(&c, attempts, true, injected.is_some())
+        let proven = proof(&c, attempts, Some(&incidence(3, 3)), None);
+        verdict(&c, attempts, (true, injected.is_some()), proven)
+    }
+
+    fn incidence(faulted: u32, attempts: u32) -> Incidence {
+        Incidence { faulted, attempts, reproduced_alone: None, miss_probability: 0.0 }
+    }
+
+    /// Passes of a patch the injection still matches, or of a real fault, prove nothing below
+    /// the finding's miss probability, nor without a control that faulted again.
+    #[test]
+    fn passes_are_held_to_the_incidence_and_the_control() {
+        let contract = HostContract::default();
+        let c = |injected| Candidate {
+            name: "ssbo-to-address".into(),
+            modules: vec![],
+            contract: &contract,
+            injected,
+        };
+        let pass = || ran(Outcome::Pass, 0, None);
+        let one = [pass()];
+        let many: Vec<Ran> = (0..20).map(|_| pass()).collect();
+        let i = incidence(3, 3);
+        let e = proof(&c(None), &one, Some(&i), Some(3)).unwrap_err();
+        assert!(e.contains("would miss"), "{e}");
+        assert!(proof(&c(None), &many, Some(&i), Some(3)).is_ok());
+        let e = proof(&c(None), &many, Some(&i), Some(0)).unwrap_err();
+        assert!(e.contains("did not fault again"), "{e}");
+        assert!(proof(&c(None), &many, None, Some(3)).is_err());
+        assert!(proof(&c(Some(2)), &one, Some(&i), None).is_err());
+        assert!(proof(&c(Some(0)), &one, Some(&i), None).is_ok());
+        let w = verdict(&c(None), &one, (true, false), proof(&c(None), &one, Some(&i), Some(3)));
+        assert!(!w.verified && w.line.contains("1 of 1 attempts pass, but"), "{}", w.line);
     }
 
     #[test]

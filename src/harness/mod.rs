@@ -383,12 +383,8 @@ impl Harness {
             })
             .collect();
         let groups = shader_groups(&g, intersection);
-        let depth = self
-            .gpu
-            .info
-            .properties
-            .rt_pipeline
-            .map_or(1, |p| p.max_ray_recursion_depth.clamp(1, 2));
+        let max = self.gpu.info.properties.rt_pipeline.map_or(1, |p| p.max_ray_recursion_depth);
+        let depth = traces::recursion_depth(modules, max);
         let counts =
             SbtCounts { miss: g.misses.len() as u32, hit: 2, callable: g.callables.len() as u32 };
         let p = RtPipeline { stages: &stages, groups: &groups, counts, depth, layout: self.layout };

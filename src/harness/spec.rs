@@ -19,12 +19,18 @@ pub struct SpecValue {
 pub enum SpecError {
     #[error("--spec {0}: give ID=VALUE, the constant's SpecId and its value (--spec 3=16)")]
     Syntax(String),
-    #[error("--spec {given}: no stage declares SpecId {id} ({known}); give one of those IDs")]
+    #[error("--spec {given}: no stage declares SpecId {id}; {known}")]
     UnknownId { given: String, id: u32, known: String },
     #[error("--spec {given}: SpecId {id} is a {ty}; give {what}")]
     BadValue { given: String, id: u32, ty: String, what: String },
     #[error("--spec {given}: SpecId {id} is given twice; give each constant once")]
     Twice { given: String, id: u32 },
+    /// Stages declaring one SpecId with different types: one map entry's size cannot match
+    /// both ("For a constantID specialization constant declared in a shader, size must match
+    /// the byte size of the constantID": VUID-VkSpecializationMapEntry-constantID-00776,
+    /// Vulkan 1.4.360).
+    #[error("--spec {given}: the stages declare SpecId {id} as a {a} and as a {b}; one value cannot be both (VUID-VkSpecializationMapEntry-constantID-00776): give the stages one type for it")]
+    Clash { given: String, id: u32, a: String, b: String },
 }
 
 /// A scalar type in words, and what a value of it looks like.
@@ -85,13 +91,18 @@ pub fn parse_all(given: &[String], modules: &[UserModule]) -> Result<Vec<SpecVal
             ids.sort_unstable();
             ids.dedup();
             let known = if ids.is_empty() {
-                "the modules declare no specialization constants".to_string()
+                "the modules declare no specialization constants: drop --spec".to_string()
             } else {
                 let list: Vec<String> = ids.iter().map(u32::to_string).collect();
-                format!("declared: {}", list.join(", "))
+                format!("give one of the declared IDs: {}", list.join(", "))
             };
             return Err(SpecError::UnknownId { given: g.clone(), id, known });
         };
+        let other = declared.iter().find(|d| d.spec_id == id && d.scalar != c.scalar);
+        if let Some(d) = other {
+            let (a, b) = (describe(c.scalar).0, describe(d.scalar).0);
+            return Err(SpecError::Clash { given: g.clone(), id, a, b });
+        }
         let bytes = bytes_of(c.scalar, value.trim()).ok_or_else(|| {
             let (ty, what) = describe(c.scalar);
             SpecError::BadValue { given: g.clone(), id, ty, what }
@@ -212,7 +223,7 @@ mod tests {
         let e = one("4=1").unwrap_err();
         assert!(
             matches!(&e, SpecError::UnknownId { id: 4, .. })
-                && e.to_string().contains("declared: 3, 5, 7, 9"),
+                && e.to_string().contains("declared IDs: 3, 5, 7, 9"),
             "{e}"
         );
         assert!(matches!(one("3=-1"), Err(SpecError::BadValue { id: 3, .. })));
@@ -226,6 +237,25 @@ mod tests {
         for e in [one("4=1"), one("3=-1"), one("3")] {
             assert!(!e.unwrap_err().to_string().contains('\n'));
         }
+    }
+
+    /// Two stages declaring SpecId 3 as a uint and as a bool: refused whatever the value; the
+    /// twin, both uints, takes it.
+    #[test]
+    fn one_spec_id_of_two_types_is_refused() {
+        let other = |ty: &str, v: &str| {
+            module(&format!(
+                "#version 460\n#extension GL_EXT_ray_tracing : require\n\
+                layout(constant_id = 3) const {ty} K = {v};\n\
+                layout(location = 0) rayPayloadInEXT vec4 c;\n\
+                void main() {{ c = vec4(float(K)); }}\n"
+            ))
+        };
+        let given = ["3=1".to_string()];
+        let e = parse_all(&given, &[module(SPEC), other("bool", "true")]).unwrap_err();
+        assert!(matches!(e, SpecError::Clash { id: 3, .. }), "{e}");
+        assert!(e.to_string().contains("constantID-00776"), "{e}");
+        assert!(parse_all(&given, &[module(SPEC), other("uint", "2u")]).is_ok());
     }
 
     /// Issue 24: the order given and each value's spelling do not change the normal form; a

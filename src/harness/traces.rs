@@ -15,6 +15,23 @@ use super::error::HarnessError;
 use super::module::UserModule;
 use crate::reflect::{Trace, Ty, FLAG_OPAQUE, FLAG_SKIP_CLOSEST_HIT};
 
+/// The pipeline's `maxPipelineRayRecursionDepth` for `modules` on a device allowing `max`: 2
+/// (at most `max`) when only the raygen traces, else `max` itself — a closest-hit or miss that
+/// traces may recurse as deep as its own guard, and "This command must not cause a shader call
+/// instruction to be executed from a shader invocation with a recursion depth greater than the
+/// value of maxPipelineRayRecursionDepth used to create the bound ray tracing pipeline"
+/// (VUID-vkCmdTraceRaysKHR-maxPipelineRayRecursionDepth-03679, Vulkan 1.4.360): a guard deeper
+/// than the device allows is the shader's undefined behaviour, which no pipeline can avoid.
+pub fn recursion_depth(modules: &[&UserModule], max: u32) -> u32 {
+    let deep =
+        modules.iter().any(|m| m.iface.stage != "raygen" && !m.iface.reflection.traces.is_empty());
+    if deep {
+        max.max(1)
+    } else {
+        max.clamp(1, 2)
+    }
+}
+
 /// Miss indices beyond this are refused (no engine has that many miss shaders).
 pub const MAX_MISS_INDEX: u32 = 63;
 
@@ -68,18 +85,21 @@ pub fn miss_payloads(
 }
 
 /// `stage` receives its incoming payload from ray `t` traced by `tracer`: the same structure.
+/// A ray whose flags are no constant may skip the stage: refused as unknown, not as invalid.
 fn receives(tracer: &str, t: &Trace, stage: &UserModule) -> Result<(), HarnessError> {
     let Some(p) = &stage.iface.reflection.incoming_payload else { return Ok(()) };
     if p.ty.shape() == t.payload.shape() {
         return Ok(());
     }
+    let (ray, theirs) = (said(t), format!("{} ({})", stage.name, stage.iface.stage));
+    let got = format!("`{}` ({})", p.name, p.ty.leaves());
+    if t.flags.is_none() && stage.iface.stage != "miss" {
+        return Err(unsupported(format!(
+            "{tracer} traces a ray with {ray} whose flags are not a constant where it traces (a function parameter or a computed value), so rtprobe cannot tell whether it skips {theirs}, which receives {got}: pass the flags as a literal, or compile with optimization so they fold"
+        )));
+    }
     Err(HarnessError::Interface(format!(
-        "{tracer} traces a ray with {} that {} ({}) would receive as `{}` ({}): every stage a ray invokes must use its payload's structure (Vulkan 1.4.360, Ray Tracing Pipeline Interface); set gl_RayFlagsSkipClosestHitShaderEXT (or Opaque for an any-hit) on that ray if it skips the stage, or give the stages that ray really invokes",
-        said(t),
-        stage.name,
-        stage.iface.stage,
-        p.name,
-        p.ty.leaves()
+        "{tracer} traces a ray with {ray} that {theirs} would receive as {got}: every stage a ray invokes must use its payload's structure (Vulkan 1.4.360, Ray Tracing Pipeline Interface); set gl_RayFlagsSkipClosestHitShaderEXT (or Opaque for an any-hit) on that ray if it skips the stage, or give the stages that ray really invokes"
     )))
 }
 

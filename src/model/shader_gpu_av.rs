@@ -12,7 +12,8 @@
 //!   fault as frequent as the variant's (`super::stats::pass_miss` on its incidence) is below
 //!   [`MAX_MISS`], the verified-workaround rule `run`'s round holds `masked` to.
 //! - **inconclusive**: every attempt passed, but the control did not fault (the fault did not
-//!   repeat in this round), or too few passes for the variant's incidence.
+//!   repeat in this round), too few passes for the variant's incidence, or GPU-AV reported a
+//!   setup problem (it may not have instrumented the pipeline).
 //! - **error**: the attempts under GPU-AV could not run.
 pub use super::shader_run::{GpuAvJudgement, GpuAvMessages, ShaderGpuAv};
 use super::shader_run::{Judgement, ShaderAttempt, ShaderVariant};
@@ -70,6 +71,11 @@ fn s(n: u64) -> &'static str {
     }
 }
 
+/// The first kept text that is GPU-AV's own setup message.
+fn setup_message(attempts: &[ShaderAttempt]) -> Option<&String> {
+    attempts.iter().flat_map(|a| &a.validation).find(|t| kind(t) == MessageKind::GpuAvSetup)
+}
+
 /// The first kept text that reports an invalid access, else the first kept text.
 fn first_access(attempts: &[ShaderAttempt]) -> Option<&String> {
     let texts = || attempts.iter().flat_map(|a| &a.validation);
@@ -103,6 +109,13 @@ pub fn judge(
         (
             GpuAvJudgement::StillFaults,
             format!("still faults under GPU-AV ({faults} of {n} attempts){none}{others}"),
+        )
+    } else if let Some(t) = setup_message(&attempts).filter(|_| passes as usize == n) {
+        // Passes beside a GPU-AV setup error are passes of a pipeline GPU-AV may not have
+        // instrumented: they cannot show that GPU-AV masks anything.
+        (
+            GpuAvJudgement::Inconclusive,
+            format!("inconclusive: {passes} of {n} attempts pass, but GPU-AV reported a setup problem, so it may not have instrumented the pipeline ({t}){others}"),
         )
     } else if n > 0 && passes as usize == n {
         miss_probability =
@@ -237,10 +250,14 @@ mod tests {
         assert_eq!(g.line, "still faults under GPU-AV (2 of 2 attempts); 3 other messages, not about the access (1 error, 2 warnings): no verdict");
         let v = apply(fault_variant(), g);
         assert_eq!((v.outcome, v.judgement), (Outcome::Crash, Judgement::Fault));
-        // The setup error next to passes: judged as passes (here: masks), not `error`.
+        // The setup error next to passes: not `error`, and not `masks` either (GPU-AV may not
+        // have instrumented the pipeline); the same passes without it are `masks`.
         let mut ok = passes(6);
         ok[0] = with_error(Outcome::Pass, SETUP);
         let g = judge(ok, vec![attempt(Outcome::Crash)], Some(&incidence(5, 5)));
+        assert_eq!(g.judgement, GpuAvJudgement::Inconclusive, "{}", g.line);
+        assert!(g.line.contains("may not have instrumented"), "{}", g.line);
+        let g = judge(passes(6), vec![attempt(Outcome::Crash)], Some(&incidence(5, 5)));
         assert_eq!(g.judgement, GpuAvJudgement::Masks, "{}", g.line);
     }
 

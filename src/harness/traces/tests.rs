@@ -76,7 +76,7 @@ fn a_shadow_ray_that_would_invoke_the_closest_hit_is_refused() {
     let m = shadowing(&sometimes, "0", "1");
     assert_eq!(m.iface.reflection.traces[0].flags, None);
     let e = error(supply(vec![m]));
-    assert!(e.contains("payload `shadowed`"), "{e}");
+    assert!(e.contains("payload `shadowed`") && e.contains("flags are not a constant"), "{e}");
 }
 
 #[test]
@@ -105,4 +105,76 @@ fn a_given_miss_with_another_payload_is_refused() {
     );
     let e = error(supply(vec![shadowing(SKIP, "0", "1"), miss]));
     assert!(e.contains("sky.rmiss (miss)"), "{e}");
+}
+
+/// The tutorials' helper: `traceShadow(origin, flags)` traces with a parameter's flags. The trace
+/// is found in the called function; unoptimized, the flags are a parameter, so a closest-hit
+/// that would receive another payload is refused as unknown, not as invalid; with a literal in
+/// the helper it runs, and with a literal lacking the skip flag it is invalid.
+#[test]
+fn a_trace_in_a_called_function_is_found() {
+    let helper = |flags: &str| {
+        let glsl = format!(
+            r#"#version 460
+#extension GL_EXT_ray_tracing : require
+layout(set = 0, binding = 0) uniform accelerationStructureEXT scene;
+layout(location = 0) rayPayloadInEXT vec4 color;
+layout(location = 1) rayPayloadEXT bool shadowed;
+bool traceShadow(vec3 at, uint flags) {{
+    shadowed = true;
+    traceRayEXT(scene, {flags}, 0xFF, 0, 0, 1, at, 0.001, vec3(0, 1, 0), 100.0, 1);
+    return shadowed;
+}}
+void main() {{
+    const uint skip = gl_RayFlagsOpaqueEXT | gl_RayFlagsSkipClosestHitShaderEXT;
+    color = traceShadow(gl_WorldRayOriginEXT, skip) ? vec4(0.1) : vec4(1.0);
+}}
+"#
+        );
+        module(ShaderKind::ClosestHit, "helper.rchit", &glsl)
+    };
+    let m = helper("flags");
+    assert_eq!((m.iface.reflection.traces.len(), m.iface.reflection.traces[0].flags), (1, None));
+    let e = supply(vec![m]).map(|_| ()).unwrap_err();
+    assert!(matches!(e, HarnessError::Unsupported(_)), "{e}");
+    assert!(e.to_string().contains("not a constant where it traces"), "{e}");
+    let literal = "gl_RayFlagsOpaqueEXT | gl_RayFlagsSkipClosestHitShaderEXT";
+    assert!(supply(vec![helper(literal)]).is_ok());
+    let e = supply(vec![helper("gl_RayFlagsNoneEXT")]).map(|_| ()).unwrap_err();
+    assert!(matches!(e, HarnessError::Interface(_)), "{e}");
+}
+
+/// An any-hit (receiving the primary ray's `Shade`) is held to the shadow ray's payload unless
+/// that ray's flags make every geometry opaque.
+#[test]
+fn an_any_hit_is_held_to_the_payload_unless_the_ray_is_opaque() {
+    let ahit = module(
+        ShaderKind::AnyHit,
+        "alpha.rahit",
+        "#version 460\n#extension GL_EXT_ray_tracing : require\n\
+         struct Shade { vec3 color; float dist; };\n\
+         layout(location = 0) rayPayloadInEXT Shade s;\nvoid main() { if (s.dist < 0.5) ignoreIntersectionEXT; }\n",
+    );
+    let skip_only = "flags = gl_RayFlagsSkipClosestHitShaderEXT;";
+    let e = error(supply(vec![shadowing(skip_only, "0", "1"), ahit.clone()]));
+    assert!(e.contains("alpha.rahit (any_hit)"), "{e}");
+    assert!(supply(vec![shadowing(SKIP, "0", "1"), ahit]).is_ok());
+}
+
+/// A closest-hit that traces gets the device's whole recursion depth; a pipeline where only the
+/// raygen traces keeps 2.
+#[test]
+fn a_tracing_hit_shader_gets_the_devices_recursion_depth() {
+    let all = supply(vec![shadowing(SKIP, "0", "1")]).unwrap();
+    let refs: Vec<&UserModule> = all.iter().collect();
+    assert_eq!((recursion_depth(&refs, 31), recursion_depth(&refs, 1)), (31, 1));
+    let plain = module(
+        ShaderKind::ClosestHit,
+        "plain.rchit",
+        "#version 460\n#extension GL_EXT_ray_tracing : require\n\
+         layout(location = 0) rayPayloadInEXT vec4 c;\nvoid main() { c = vec4(1.0); }\n",
+    );
+    let all = supply(vec![plain]).unwrap();
+    let refs: Vec<&UserModule> = all.iter().collect();
+    assert_eq!(recursion_depth(&refs, 31), 2);
 }
