@@ -1,6 +1,7 @@
-//! Choosing the entry point ([`choose`]) and the global ids its functions use ([`used`]).
+//! Choosing the entry point ([`choose`]), the functions it calls ([`call_tree`]) and the global
+//! ids they use ([`used`]).
 use super::error::ReflectError;
-use rspirv::dr::{Instruction, Module, Operand};
+use rspirv::dr::{Function, Instruction, Module, Operand};
 use rspirv::spirv::{ExecutionModel, Op, Word};
 use std::collections::HashSet;
 
@@ -36,9 +37,9 @@ pub fn choose(m: &Module, name: Option<&str>) -> Result<Entry, ReflectError> {
     }
 }
 
-/// Every id named by an instruction of `function` or a function it calls (transitively).
-pub fn used(m: &Module, function: Word) -> HashSet<Word> {
-    let mut out = HashSet::new();
+/// `function` and every function it calls (transitively), each once.
+pub fn call_tree(m: &Module, function: Word) -> Vec<&Function> {
+    let mut out = Vec::new();
     let mut todo = vec![function];
     let mut seen = HashSet::new();
     while let Some(f) = todo.pop() {
@@ -54,13 +55,22 @@ pub fn used(m: &Module, function: Word) -> HashSet<Word> {
             if i.class.opcode == Op::FunctionCall {
                 todo.extend(super::index::id(i.operands.first()));
             }
-            out.extend(i.operands.iter().filter_map(|o| match o {
-                Operand::IdRef(w) => Some(*w),
-                _ => None,
-            }));
         }
+        out.push(func);
     }
     out
+}
+
+/// Every id named by an instruction of `function` or a function it calls (transitively).
+pub fn used(m: &Module, function: Word) -> HashSet<Word> {
+    let body =
+        call_tree(m, function).into_iter().flat_map(|f| &f.blocks).flat_map(|b| &b.instructions);
+    body.flat_map(|i| &i.operands)
+        .filter_map(|o| match o {
+            Operand::IdRef(w) => Some(*w),
+            _ => None,
+        })
+        .collect()
 }
 
 /// The stage name of an execution model (`patches`' spelling).

@@ -13,7 +13,6 @@ use super::ty::Ty;
 use super::ReflectError;
 use rspirv::dr::{Function, Instruction, Module};
 use rspirv::spirv::{Op, Word};
-use std::collections::HashSet;
 
 /// `gl_RayFlagsOpaqueEXT`: no any-hit shader runs for the ray.
 pub const FLAG_OPAQUE: u32 = 0x1;
@@ -94,23 +93,11 @@ fn trace(x: &Index, f: &Function, i: &Instruction) -> Result<Trace, ReflectError
 
 /// Every `OpTraceRayKHR` of `function` and the functions it calls.
 pub fn traces(m: &Module, x: &Index, function: Word) -> Result<Vec<Trace>, ReflectError> {
-    let mut todo = vec![function];
-    let mut seen = HashSet::new();
     let mut out = Vec::new();
-    while let Some(f) = todo.pop() {
-        if !seen.insert(f) {
-            continue;
-        }
-        let Some(func) =
-            m.functions.iter().find(|x| x.def.as_ref().and_then(|d| d.result_id) == Some(f))
-        else {
-            continue;
-        };
+    for func in super::entry::call_tree(m, function) {
         for i in func.blocks.iter().flat_map(|b| &b.instructions) {
-            match i.class.opcode {
-                Op::FunctionCall => todo.extend(index::id(i.operands.first())),
-                Op::TraceRayKHR => out.push(trace(x, func, i)?),
-                _ => {}
+            if i.class.opcode == Op::TraceRayKHR {
+                out.push(trace(x, func, i)?);
             }
         }
     }
