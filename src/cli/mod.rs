@@ -6,6 +6,7 @@ pub mod bisect;
 pub mod commands;
 pub mod exit;
 pub mod fleet;
+mod issue_out;
 pub mod issue_run;
 pub mod out;
 pub mod output_dir;

@@ -87,28 +87,9 @@ pub fn write(d: &Done, r: &ReduceReport, reduced: &[u32]) -> Result<u8> {
     put(dir, "reduced.spvasm", dis.as_bytes())?;
     put(dir, "access.txt", access.as_bytes())?;
     put(dir, "reduce.json", &serde_json::to_vec_pretty(r)?)?;
-    let c = r.instructions;
-    outln!(
-        "reduced: {} function-body instructions to {} ({:.0}%), {} steps, {} interestingness runs ({} refused before the device), {:.1} s",
-        c.before,
-        c.after,
-        100.0 * c.after as f64 / c.before.max(1) as f64,
-        r.steps,
-        r.interestingness_runs,
-        r.refused_statically,
-        r.wall_s
-    );
+    outln!("reduced: {}", r.reduction_text());
     for a in &r.classification {
-        outln!(
-            "  access: {} reads {} {} ({} index from {}{}), through {}",
-            a.stage,
-            a.resource,
-            a.variable,
-            a.index,
-            a.index_from.join(", "),
-            if a.nonuniform { ", NonUniform" } else { "" },
-            a.through
-        );
+        outln!("  access: {}", a.sentence());
     }
     outln!(
         "  final step: {} attempt{} per candidate; a fault as frequent as the finding's is missed with p = {:.3}",

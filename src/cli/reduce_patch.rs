@@ -250,14 +250,9 @@ mod tests {
 
     fn ran(outcome: Outcome, messages: u64, differs: Option<&str>) -> Ran {
         let attempt = ShaderAttempt {
-            attempt: Attempt::new(outcome, true),
             validation_messages: messages,
-            invalid_access: 0,
-            validation_warnings: 0,
-            validation: vec![],
-            outputs: vec![],
             differs: differs.map(String::from),
-            against: None,
+            ..ShaderAttempt::bare(Attempt::new(outcome, true))
         };
         Ran { attempt, parts: None, device: None }
     }

@@ -6,15 +6,13 @@ use super::args::ReportArgs;
 use super::bisect::offline;
 use super::commands::Globals;
 use super::exit::{self, coded};
-use super::out::{out, outln};
 use super::shared::load_report;
-use crate::atomic::write_atomic;
 use crate::bisect::scope::ReportOptions;
 use crate::bisect::Settings;
 use crate::model::PatchMode;
 use crate::model::{BisectFile, RunReport};
-use crate::report::issue::{self, Format};
-use anyhow::{Context, Result};
+use crate::report::issue;
+use anyhow::Result;
 
 pub fn report(g: &Globals, a: &ReportArgs) -> Result<u8> {
     if super::report_reduce::is_reduce(a) {
@@ -43,18 +41,7 @@ pub fn report(g: &Globals, a: &ReportArgs) -> Result<u8> {
     let extras = issue::Extras { lanes: lanes.as_ref(), validation, sbt };
     let issue = issue::build(&r, &a.report.display().to_string(), &b, &ro.inject, &extras)
         .map_err(|e| coded(exit::BAD_INPUT, e))?;
-    let text = match a.format {
-        Format::Md => issue.markdown(),
-        Format::Json => serde_json::to_string_pretty(&issue)? + "\n",
-    };
-    match &a.out {
-        Some(o) => {
-            write_atomic(o, text.as_bytes()).context("writing the issue")?;
-            outln!("issue: {}", o.display());
-        }
-        None => out!("{text}"),
-    }
-    Ok(exit::OK)
+    super::issue_out::emit(a, || issue.markdown(), &issue)
 }
 
 /// The `--lanes` report must hold lane evidence for the issue's cell (`id`): else the option

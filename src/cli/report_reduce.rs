@@ -3,12 +3,9 @@
 //! `reduced.spvasm` beside it, written atomically.
 use super::args::ReportArgs;
 use super::exit::{self, coded};
-use super::out::{out, outln};
-use crate::atomic::write_atomic;
 use crate::model::reduce::{ReduceReport, SCHEMA};
-use crate::report::issue::Format;
 use crate::report::reduce_issue;
-use anyhow::{Context, Result};
+use anyhow::Result;
 
 /// Whether `a.report` is a `reduce.json` (its `schema`), read without judging the rest.
 pub fn is_reduce(a: &ReportArgs) -> bool {
@@ -46,16 +43,5 @@ pub fn report(a: &ReportArgs) -> Result<u8> {
         })
     };
     let issue = reduce_issue::build(&r, read("access.txt")?, read("reduced.spvasm")?);
-    let text = match a.format {
-        Format::Md => issue.markdown(),
-        Format::Json => serde_json::to_string_pretty(&issue)? + "\n",
-    };
-    match &a.out {
-        Some(o) => {
-            write_atomic(o, text.as_bytes()).context("writing the issue")?;
-            outln!("issue: {}", o.display());
-        }
-        None => out!("{text}"),
-    }
-    Ok(exit::OK)
+    super::issue_out::emit(a, || issue.markdown(), &issue)
 }

@@ -342,16 +342,7 @@ mod tests {
             scheduled: false,
             records: Some((0, 4)),
         };
-        let attempt = ShaderAttempt {
-            attempt: Attempt::new(Outcome::Pass, true),
-            validation_messages: 0,
-            invalid_access: 0,
-            validation_warnings: 0,
-            validation: vec![],
-            outputs: vec![],
-            differs: None,
-            against: None,
-        };
+        let attempt = ShaderAttempt::bare(Attempt::new(Outcome::Pass, true));
         Ran { attempt, parts: Some(vec![part]), device: None }
     }
 

@@ -207,16 +207,7 @@ pub fn run_variant(
             .with_detail(line)
             .with_exit(end.exit.clone())
             .with_wall_ms(started.elapsed().as_secs_f64() * 1000.0);
-        let attempt = ShaderAttempt {
-            attempt,
-            validation_messages: 0,
-            invalid_access: 0,
-            validation_warnings: 0,
-            validation: vec![],
-            outputs: vec![],
-            differs: None,
-            against: None,
-        };
+        let attempt = ShaderAttempt::bare(attempt);
         out.push(Ran { attempt, parts: None, device: None });
         k += 1;
     }

@@ -209,16 +209,7 @@ mod tests {
     use crate::model::{Attempt, Outcome};
 
     fn variant(patch: Option<&str>, uncompared: Option<&str>) -> ShaderVariant {
-        let a = ShaderAttempt {
-            attempt: Attempt::new(Outcome::Pass, true),
-            validation_messages: 0,
-            invalid_access: 0,
-            validation_warnings: 0,
-            validation: vec![],
-            outputs: vec![],
-            differs: None,
-            against: None,
-        };
+        let a = ShaderAttempt::bare(Attempt::new(Outcome::Pass, true));
         let name = patch.unwrap_or("unpatched");
         let p = patch.map(String::from);
         ShaderVariant::judged(name, p, vec![], vec![a.clone(), a], uncompared.map(String::from))

@@ -144,19 +144,8 @@ mod tests {
     use crate::model::Attempt;
 
     fn variant(name: &str, outcomes: &[Outcome]) -> ShaderVariant {
-        let attempts = outcomes
-            .iter()
-            .map(|o| ShaderAttempt {
-                attempt: Attempt::new(*o, true),
-                validation_messages: 0,
-                invalid_access: 0,
-                validation_warnings: 0,
-                validation: vec![],
-                outputs: vec![],
-                differs: None,
-                against: None,
-            })
-            .collect();
+        let attempts =
+            outcomes.iter().map(|o| ShaderAttempt::bare(Attempt::new(*o, true))).collect();
         ShaderVariant::judged(name, None, vec![], attempts, None)
     }
 

@@ -29,6 +29,23 @@ pub struct AccessClass {
     pub op: String,
 }
 
+impl AccessClass {
+    /// The access in words: `closest_hit reads storage_buffer `buf` (dynamic index from
+    /// gl_InstanceCustomIndexEXT, NonUniform), through descriptor`.
+    pub fn sentence(&self) -> String {
+        format!(
+            "{} reads {} `{}` ({} index from {}{}), through {}",
+            self.stage,
+            self.resource,
+            self.variable,
+            self.index,
+            self.index_from.join(", "),
+            if self.nonuniform { ", NonUniform" } else { "" },
+            self.through
+        )
+    }
+}
+
 /// The `--filter` predicate of accesses: each axis's values, joined by `|` where they differ.
 pub fn predicate(accesses: &[AccessClass]) -> String {
     fn axis<T: Ord + Copy>(accesses: &[AccessClass], f: fn(&AccessClass) -> T) -> Vec<T> {
@@ -97,6 +114,23 @@ pub struct ReduceReport {
     /// The matrix's slice of the predicate (step 5); `None`: not run.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub slice: Option<Slice>,
+}
+
+impl ReduceReport {
+    /// The reduction in words: instructions before and after, steps, runs, wall time.
+    pub fn reduction_text(&self) -> String {
+        let c = self.instructions;
+        format!(
+            "{} function-body instructions to {} ({:.0}%), {} steps, {} interestingness runs ({} refused before the device), {:.1} s",
+            c.before,
+            c.after,
+            100.0 * c.after as f64 / c.before.max(1) as f64,
+            self.steps,
+            self.interestingness_runs,
+            self.refused_statically,
+            self.wall_s
+        )
+    }
 }
 
 /// One patch run on the user's original modules with the finding's evidence.
@@ -181,5 +215,39 @@ mod tests {
             "stage=closest_hit,resource=storage_buffer|sampled_image,index=literal|dynamic"
         );
         assert_eq!(predicate(&[]), "");
+    }
+
+    #[test]
+    fn an_access_sentence_names_its_index_sources_and_nonuniform() {
+        let mut a = access(Stage::ClosestHit, Resource::StorageBuffer, IndexSource::Dynamic);
+        a.index_from = vec!["gl_InstanceCustomIndexEXT".into(), "push_constant".into()];
+        assert_eq!(
+            a.sentence(),
+            "closest_hit reads storage_buffer `v` (dynamic index from gl_InstanceCustomIndexEXT, push_constant), through descriptor"
+        );
+        a.nonuniform = true;
+        assert!(a.sentence().contains("push_constant, NonUniform)"), "{}", a.sentence());
+    }
+
+    #[test]
+    fn the_reduction_text_gives_the_share_left_and_survives_an_empty_original() {
+        let text = |before, after| {
+            let r: ReduceReport = serde_json::from_value(serde_json::json!({
+                "schema": SCHEMA, "rtprobe_version": "0", "report": "r.json", "cell": "c",
+                "device": "d", "module": "m", "original_hash": "h", "chosen_because": "b",
+                "outcomes": ["crash"], "attempts_per_candidate": 3,
+                "final_miss_probability": 0.001, "steps": 48, "interestingness_runs": 164,
+                "refused_statically": 61, "wall_s": 55.96,
+                "instructions": {"before": before, "after": after}, "reducer": "spirv-reduce",
+                "classification": [], "predicate": ""
+            }))
+            .unwrap();
+            r.reduction_text()
+        };
+        assert_eq!(
+            text(61, 16),
+            "61 function-body instructions to 16 (26%), 48 steps, 164 interestingness runs (61 refused before the device), 56.0 s"
+        );
+        assert!(text(0, 0).starts_with("0 function-body instructions to 0 (0%)"));
     }
 }

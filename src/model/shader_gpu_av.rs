@@ -182,16 +182,7 @@ mod tests {
     use crate::model::Attempt;
 
     fn attempt(outcome: Outcome) -> ShaderAttempt {
-        ShaderAttempt {
-            attempt: Attempt::new(outcome, true),
-            validation_messages: 0,
-            invalid_access: 0,
-            validation_warnings: 0,
-            validation: vec![],
-            outputs: vec![],
-            differs: None,
-            against: None,
-        }
+        ShaderAttempt::bare(Attempt::new(outcome, true))
     }
 
     fn pass() -> ShaderAttempt {

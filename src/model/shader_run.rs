@@ -91,6 +91,22 @@ pub struct ShaderAttempt {
     pub against: Option<String>,
 }
 
+impl ShaderAttempt {
+    /// `attempt` alone: no validation message, no output, no difference.
+    pub fn bare(attempt: Attempt) -> ShaderAttempt {
+        ShaderAttempt {
+            attempt,
+            validation_messages: 0,
+            invalid_access: 0,
+            validation_warnings: 0,
+            validation: vec![],
+            outputs: vec![],
+            differs: None,
+            against: None,
+        }
+    }
+}
+
 fn is_zero(n: &u64) -> bool {
     *n == 0
 }
@@ -350,14 +366,11 @@ mod tests {
 
     fn attempt(outcome: Outcome, messages: u64, differs: Option<&str>) -> ShaderAttempt {
         ShaderAttempt {
-            attempt: Attempt::new(outcome, true).with_detail(format!("{}!", outcome.as_str())),
             validation_messages: messages,
-            invalid_access: 0,
-            validation_warnings: 0,
-            validation: vec![],
-            outputs: vec![],
             differs: differs.map(String::from),
-            against: None,
+            ..ShaderAttempt::bare(
+                Attempt::new(outcome, true).with_detail(format!("{}!", outcome.as_str())),
+            )
         }
     }
 

@@ -5,7 +5,7 @@
 //! `--filter` predicate, the isolation lines (the matrix's slice of that shape), the
 //! workarounds verified on the original with their host contracts, and the reduced shader.
 //! [`ReduceIssue`] is the data (`--format json`), [`ReduceIssue::markdown`] the text.
-use crate::model::reduce::ReduceReport;
+use crate::model::reduce::{AccessClass, ReduceReport};
 use serde::Serialize;
 
 pub const SCHEMA: &str = "rtprobe.reduce-issue/1";
@@ -97,33 +97,8 @@ pub fn build(r: &ReduceReport, access: String, disassembly: String) -> ReduceIss
         if r.attempts_per_candidate == 1 { "" } else { "s" },
         r.final_miss_probability
     );
-    let c = r.instructions;
-    let reduction = format!(
-        "{} function-body instructions to {} ({:.0}%), {} steps, {} interestingness runs ({} refused before the device), {:.1} s",
-        c.before,
-        c.after,
-        100.0 * c.after as f64 / c.before.max(1) as f64,
-        r.steps,
-        r.interestingness_runs,
-        r.refused_statically,
-        r.wall_s
-    );
-    let classification = r
-        .classification
-        .iter()
-        .map(|a| {
-            format!(
-                "{} reads {} `{}` ({} index from {}{}), through {}",
-                a.stage,
-                a.resource,
-                a.variable,
-                a.index,
-                a.index_from.join(", "),
-                if a.nonuniform { ", NonUniform" } else { "" },
-                a.through
-            )
-        })
-        .collect();
+    let reduction = r.reduction_text();
+    let classification = r.classification.iter().map(AccessClass::sentence).collect();
     ReduceIssue {
         schema: SCHEMA.into(),
         title,
