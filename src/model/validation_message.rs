@@ -37,7 +37,13 @@ pub enum MessageKind {
 }
 
 /// The ids (VUIDs, or the layer's `UNASSIGNED-` ids) GPU-AV reports an invalid access with (the
-/// module doc has their rules); matched as substrings of the message.
+/// module doc has their rules), matched against the message's id only (never its prose): one
+/// starting with `-` is a VUID's command-independent tail (`VUID-{cmd}-None-10068`), any other
+/// a prefix of the id. Checked against the strings of the layers rtprobe runs with (`strings
+/// libVkLayer_khronos_validation.so`): 1.3.239 (Debian 12) holds `-None-08114`, `-06935`,
+/// `-06936` and the `UNASSIGNED-Descriptor index out of bounds` / `uninitialized` / `Device
+/// address out of bounds` ids; 1.4.363 (the sid root) holds every VUID below and the
+/// `UNASSIGNED-Descriptor Texel Buffer texel out of bounds` / `Descriptor destroyed` ids.
 pub const INVALID_ACCESS_IDS: &[&str] = &[
     "-None-10068",
     "-None-08114",
@@ -54,15 +60,33 @@ pub const INVALID_ACCESS_IDS: &[&str] = &[
     "UNASSIGNED-Device address out of bounds",
 ];
 
-/// How GPU-AV's setup messages name themselves (1.3.2xx: `UNASSIGNED-GPU-Assisted Validation
-/// Error. …` / `… Warning`; later layers: `WARNING-GPU-Assisted-Validation…`, `GPU-AV setup`).
-const SETUP_MARKERS: &[&str] =
-    &["GPU-Assisted Validation", "GPU-Assisted-Validation", "GPU-AV setup", "GPUAV-Setup"];
+/// How GPU-AV's own messages name themselves: ids (1.3.239: `UNASSIGNED-GPU-Assisted Validation
+/// Setup Error.`, `… Warning`, `UNASSIGNED-GPU-Assisted-Validation`; 1.4.363:
+/// `WARNING-GPU-Assisted-Validation`, `WARNING-GPU-AV-…`) and, where a message has none, its
+/// prose (`… Aborting GPU-AV`, `GPU-Assisted validation requires …`). Matched anywhere: a
+/// setup message makes a verdict `inconclusive`, never lenient.
+const SETUP_MARKERS: &[&str] = &["GPU-Assisted", "GPU-AV", "GPU Assisted"];
+
+/// The message's id: the first `[ ID ]` of the text (the layer writes it there, and the
+/// messenger callback puts `pMessageIdName` there where the layer did not).
+fn message_id(text: &str) -> Option<&str> {
+    let start = text.find("[ ")? + 2;
+    let len = text[start..].find(" ]")?;
+    Some(text[start..start + len].trim())
+}
+
+/// Whether `id` is one of [`INVALID_ACCESS_IDS`].
+fn is_access_id(id: &str) -> bool {
+    INVALID_ACCESS_IDS.iter().any(|rule| match rule.strip_prefix('-') {
+        Some(_) => id.starts_with("VUID-") && id.ends_with(rule),
+        None => id.starts_with(rule),
+    })
+}
 
 /// What `text` (a message as the layer wrote it, its id leading) is about; an invalid-access id
 /// wins over a setup marker.
 pub fn kind(text: &str) -> MessageKind {
-    if INVALID_ACCESS_IDS.iter().any(|id| text.contains(id)) {
+    if message_id(text).is_some_and(is_access_id) {
         MessageKind::InvalidAccess
     } else if SETUP_MARKERS.iter().any(|m| text.contains(m)) {
         MessageKind::GpuAvSetup
@@ -117,6 +141,19 @@ mod tests {
         assert_eq!(kind(other), MessageKind::Other);
         // "out of bounds" in prose is not the id: it does not decide.
         assert_eq!(kind("Validation Warning: a copy may be out of bounds"), MessageKind::Other);
+        // An access VUID in another message's prose is not its id.
+        let prose = "Validation Error: [ VUID-vkCmdTraceRaysKHR-None-08600 ] layout incompatible; see also VUID-vkCmdTraceRaysKHR-None-10068";
+        assert_eq!(kind(prose), MessageKind::Other);
+        // A rule's number under another rule's name is not the rule.
+        assert_eq!(kind("[ VUID-vkCmdTraceRaysKHR-None-100689 ] x"), MessageKind::Other);
+        assert_eq!(kind("[ VUID-vkCmdDraw-None-10068 ] Index of 9"), MessageKind::InvalidAccess);
+        // Setup messages as 1.3.239 names them, and one without an id.
+        let old_setup = "Validation Error: [ UNASSIGNED-GPU-Assisted Validation Setup Error. ] Unable to allocate descriptor set.  Aborting GPU-AV";
+        assert_eq!(kind(old_setup), MessageKind::GpuAvSetup);
+        assert_eq!(
+            kind("Unable to create shader module.  Aborting GPU-AV"),
+            MessageKind::GpuAvSetup
+        );
     }
 
     #[test]
