@@ -202,6 +202,10 @@ pub fn reduce(g: &Globals, a: &ReduceArgs) -> Result<u8> {
     same_harness(&report, &p)?;
     let (plan, ctx, device) = (p.plan, p.ctx, p.device_name);
     same_inputs(&plan, &report)?;
+    let refs: Vec<&crate::harness::UserModule> = plan.modules.iter().collect();
+    if let Some(cycle) = crate::harness::traces::unbounded_recursion(&refs) {
+        return Err(coded(exit::BAD_INPUT, format!("{cycle}. reduce refuses it: spirv-reduce may drop that guard, and a candidate recursing past the limit faults by the shader's undefined behaviour, not the driver's; reduce a copy whose hit shaders do not trace again")));
+    }
     let (k, why) = target(&report);
     let work = out_dir(a)?;
     let original = ctx.unpatched[k].words.clone();

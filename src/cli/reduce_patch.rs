@@ -117,8 +117,9 @@ fn verdict(
     }
 }
 
-/// Whether a patched variant's passes prove the fault gone: structurally when the re-applied
-/// injection matches no access of it (the injected fault cannot happen); else its passes must
+/// Whether a patched variant's passes prove the fault gone: for an injected finding only
+/// structurally, when the re-applied injection matches no access of it (the injected fault
+/// cannot happen); for a real one its passes must
 /// miss a fault as frequent as the finding's (its `incidence`, Clopper–Pearson lower bound:
 /// `stats::pass_miss`) with probability below `stats::DEFAULT_MAX_MISS` — the rule `run`'s
 /// verified workarounds are held to — and, for a real fault, the original (the control, traced
@@ -129,8 +130,14 @@ fn proof(
     incidence: Option<&Incidence>,
     control_faults: Option<usize>,
 ) -> Result<(), String> {
-    if c.injected == Some(0) {
-        return Ok(());
+    match c.injected {
+        Some(0) => return Ok(()),
+        // Passes of a module that still holds the injected fault prove nothing of the patch:
+        // an injected finding's workaround is proven only by its absence (docs/your-shader.md).
+        Some(k) => {
+            return Err(format!("the injected fault is still in the patched modules ({k} access{}): only its absence proves a workaround of an injected finding", if k == 1 { "" } else { "es" }))
+        }
+        None => {}
     }
     let passes = ran.iter().filter(|r| r.attempt.attempt.outcome == Outcome::Pass).count() as u32;
     let Some(i) = incidence else {
@@ -295,6 +302,9 @@ mod tests {
         assert!(e.contains("did not fault again"), "{e}");
         assert!(proof(&c(None), &many, None, Some(3)).is_err());
         assert!(proof(&c(Some(2)), &one, Some(&i), None).is_err());
+        // The reviewer's case: many passes while the injected fault is still there.
+        let e = proof(&c(Some(1)), &many, Some(&i), Some(3)).unwrap_err();
+        assert!(e.contains("still in the patched modules (1 access)"), "{e}");
         assert!(proof(&c(Some(0)), &one, Some(&i), None).is_ok());
         let w = verdict(&c(None), &one, (true, false), proof(&c(None), &one, Some(&i), Some(3)));
         assert!(!w.verified && w.line.contains("1 of 1 attempts pass, but"), "{}", w.line);

@@ -185,7 +185,7 @@ fn device(
             format!("--shader: the pipeline does not fit the harness's layout: {e}"),
         )
     })?;
-    Ok((info.index, info.name(), record))
+    Ok((info.index, info.label(), record))
 }
 
 /// Where the report goes, locked: `-o`, else the first free `reports/shader-<time>-<device>.json`.
@@ -195,7 +195,9 @@ fn reserve_out(a: &RunArgs, device: &str) -> Result<(PathBuf, ReportLock)> {
         Some(o) => Ok((o.clone(), ReportLock::acquire(o).map_err(busy)?)),
         None => {
             let stamp = crate::report::time::stamp(crate::report::time::now_unix());
-            let stem = format!("shader-{stamp}-{}", super::run::slug(device));
+            // The device's name alone: its label's driver in parentheses is no file name's.
+            let name = device.rsplit_once(" (").map_or(device, |(n, _)| n);
+            let stem = format!("shader-{stamp}-{}", super::run::slug(name));
             ReportLock::unique(Path::new("reports"), &stem).map_err(busy)
         }
     }
@@ -287,7 +289,7 @@ fn other_report(a: &RunArgs, cell: &str) -> Result<Option<ShaderRunReport>> {
 }
 
 /// What a run takes before its device: the plan, the children's context (its temporary folder
-/// made), the device's name, the options in the cell id, what `--profile` enabled,
+/// made), the device's label (name and driver), the options in the cell id, what `--profile` enabled,
 /// `--compare`'s report and `--baseline`'s expectations.
 pub(super) struct Prepared {
     pub(super) plan: ShaderPlan,

@@ -197,7 +197,9 @@ pub fn plan(a: &RunArgs, inject_fault: Option<&Request>) -> Result<ShaderPlan> {
     harness::run::check_pipeline(&modules)
         .map_err(|e| coded(exit::BAD_INPUT, format!("--shader: {e}")))?;
     let scalar = stages.iter().any(|s| s.rules == Rules::Scalar);
-    let (variants, notes) = variants(&stages, &val);
+    let (variants, mut notes) = variants(&stages, &val);
+    let refs: Vec<&harness::UserModule> = modules.iter().collect();
+    notes.extend(harness::traces::unbounded_recursion(&refs));
     let injection = inject_fault.map(|r| ShaderInjection {
         spec: r.spec.clone(),
         fault: r.fault.as_str().into(),

@@ -10,8 +10,22 @@ use anyhow::Result;
 use rspirv::spirv::ImageFormat;
 use std::path::{Path, PathBuf};
 
-/// One line for a variant: its verdict, its attempts and what decided it.
-pub fn variant_line(v: &ShaderVariant) -> String {
+/// The validation layer's word on `v`'s attempts: errors and warnings, or that none ran.
+fn messages_text(v: &ShaderVariant, validated: bool) -> String {
+    if !validated {
+        return "not validated (--validate runs the validation layer)".into();
+    }
+    let errors: u64 = v.attempts.iter().map(|a| a.validation_messages).sum();
+    let warnings: u64 = v.attempts.iter().map(|a| a.validation_warnings).sum();
+    match warnings {
+        0 => format!("{errors} validation errors"),
+        w => format!("{errors} validation errors, {w} warnings (counted, no verdict)"),
+    }
+}
+
+/// One line for a variant: its verdict, its attempts and what decided it (`validated`: the run
+/// had the validation layer).
+pub fn variant_line(v: &ShaderVariant, validated: bool) -> String {
     let n = v.attempts.len();
     let messages: u64 = v.attempts.iter().map(|a| a.validation_messages).sum();
     let head = format!("  {}: {} ({n} attempt{})", v.name, v.judgement.as_str(), plural_s(n));
@@ -19,7 +33,7 @@ pub fn variant_line(v: &ShaderVariant) -> String {
         Judgement::Pass => match (&v.uncompared, n) {
             (Some(why), _) => format!("attempts agree among themselves, {why}"),
             (None, 1) if v.patch.is_none() => "one attempt, nothing to compare".into(),
-            (None, _) => format!("outputs identical, {messages} validation messages"),
+            (None, _) => format!("outputs identical, {}", messages_text(v, validated)),
         },
         Judgement::Validation => match &v.gpu_av {
             Some(g) => format!("faulted; re-run under GPU-AV ({} attempts)", g.attempts.len()),
@@ -65,14 +79,28 @@ pub fn verdict(r: &ShaderRunReport) -> (String, u8) {
         ),
         _ => (
             format!(
-                "verdict: PASS — {}: {} variant{}, {attempts} attempts, no fault, no message, {}",
+                "verdict: PASS — {}: {} variant{}, {attempts} attempts, no fault, {}, {}",
                 r.cell,
                 r.variants.len(),
                 plural_s(r.variants.len()),
+                verdict_messages(r),
                 differences(r)
             ),
             exit::OK,
         ),
+    }
+}
+
+/// What a PASS says of validation: no error (and the warnings counted), or that none ran.
+fn verdict_messages(r: &ShaderRunReport) -> String {
+    if !r.options["validate"].as_bool().unwrap_or(false) {
+        return "not validated".into();
+    }
+    let warnings: u64 =
+        r.variants.iter().flat_map(|v| &v.attempts).map(|a| a.validation_warnings).sum();
+    match warnings {
+        0 => "no validation message".into(),
+        w => format!("no validation error ({w} warnings)"),
     }
 }
 
@@ -98,7 +126,8 @@ fn differences(r: &ShaderRunReport) -> String {
 /// what it did not expect (as `run --baseline`).
 pub fn summary(r: &ShaderRunReport, report_path: &Path, allow: bool) -> (Vec<String>, u8) {
     let mut lines = vec![format!("{} on {}", r.cell, r.device)];
-    lines.extend(r.variants.iter().map(variant_line));
+    let validated = r.options["validate"].as_bool().unwrap_or(false);
+    lines.extend(r.variants.iter().map(|v| variant_line(v, validated)));
     lines.extend(r.notes.iter().map(|n| format!("  note: {n}")));
     lines.push(format!("report: {}", report_path.display()));
     let (mut v, mut code) = verdict(r);
@@ -234,12 +263,29 @@ mod tests {
         }
     }
 
+    /// Warnings are counted where errors are; a run without the layer says so, never "0".
+    #[test]
+    fn validation_is_said_as_it_ran() {
+        let mut v = variant(Some("as-to-address"), None);
+        assert!(variant_line(&v, false).contains("outputs identical, not validated"));
+        assert!(variant_line(&v, true).ends_with("outputs identical, 0 validation errors"));
+        v.attempts[0].validation_warnings = 2;
+        let line = variant_line(&v, true);
+        assert!(line.ends_with("0 validation errors, 2 warnings (counted, no verdict)"), "{line}");
+        let mut r = report(vec![v], vec![]);
+        assert!(verdict(&r).0.contains("no fault, not validated,"), "{}", verdict(&r).0);
+        r.options = serde_json::json!({ "validate": true });
+        assert!(verdict(&r).0.contains("no fault, no validation error (2 warnings),"));
+        r.variants[0].attempts[0].validation_warnings = 0;
+        assert!(verdict(&r).0.contains("no fault, no validation message,"));
+    }
+
     #[test]
     fn identical_is_said_only_of_outputs_compared() {
         let compared = variant(Some("as-to-address"), None);
-        assert!(variant_line(&compared).contains("outputs identical"));
+        assert!(variant_line(&compared, true).contains("outputs identical"));
         let alone = variant(Some("as-to-address"), Some("not compared: none"));
-        let line = variant_line(&alone);
+        let line = variant_line(&alone, true);
         assert!(!line.contains("identical") && line.contains("not compared: none"), "{line}");
         let (v, _) = verdict(&report(vec![alone], vec![]));
         assert!(!v.ends_with("no difference"), "{v}");
@@ -250,7 +296,7 @@ mod tests {
         assert!(v.ends_with("no difference"), "{v}");
         let mut torn = compared;
         torn.teardown = Some("after its last attempt, the child process died".into());
-        assert!(variant_line(&torn).contains("after its last attempt"));
+        assert!(variant_line(&torn, true).contains("after its last attempt"));
         let (v, _) = verdict(&report(vec![torn], vec![]));
         assert!(v.contains("failed in teardown"), "{v}");
     }

@@ -36,7 +36,7 @@ pub mod sizes;
 pub mod spec;
 mod supply;
 mod textures;
-mod traces;
+pub mod traces;
 pub mod variable;
 
 pub use bindings::check as check_bindings;
@@ -312,12 +312,7 @@ impl Harness {
     }
 
     pub fn device_name(&self) -> String {
-        format!(
-            "{} ({} {})",
-            self.gpu.info.name(),
-            self.gpu.info.driver_name(),
-            self.gpu.info.driver_version()
-        )
+        self.gpu.info.label()
     }
 
     /// The SPIR-V, stage flags and entry names of `modules`, plus the reporting-nothing
@@ -384,7 +379,7 @@ impl Harness {
             .collect();
         let groups = shader_groups(&g, intersection);
         let max = self.gpu.info.properties.rt_pipeline.map_or(1, |p| p.max_ray_recursion_depth);
-        let depth = traces::recursion_depth(modules, max);
+        let depth = traces::recursion_depth(modules, max)?;
         let counts =
             SbtCounts { miss: g.misses.len() as u32, hit: 2, callable: g.callables.len() as u32 };
         let p = RtPipeline { stages: &stages, groups: &groups, counts, depth, layout: self.layout };

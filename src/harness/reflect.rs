@@ -1,7 +1,7 @@
 //! What a module asks of its host, the harness's view of its [`crate::reflect`]ion: its stage
 //! and entry point, its descriptor bindings (set, binding, type, array size; runtime arrays
 //! included) with the byte size of each buffer, and the bytes its push-constant block reads. Only the binding types the harness can
-//! make are accepted (acceleration structures, storage images of a known format, storage and
+//! make are accepted (acceleration structures, storage images (RGBA32F where the shader gives no format), storage and
 //! uniform buffers, and 2D float textures: sampled images, samplers, combined image samplers);
 //! any other is refused naming its set and binding.
 use super::ints::{self, IntWords};
@@ -107,6 +107,11 @@ fn binding(m: &Module, b: &reflect::Binding) -> Result<Binding, ReflectError> {
     let kind = match b.descriptor {
         Descriptor::AccelerationStructure => BindingKind::AccelerationStructure,
         Descriptor::StorageImage(f) if f != ImageFormat::Unknown => BindingKind::StorageImage(f),
+        // No format in the shader (HLSL's `RWTexture2D<float4>`, Slang's, GLSL's `writeonly
+        // image2D`): reads and writes go through the view's format, any storage format, with
+        // shaderStorageImageRead/WriteWithoutFormat (the module's `StorageImage*WithoutFormat`
+        // capabilities ask for them); rtprobe makes it RGBA32F, which holds any four components.
+        Descriptor::StorageImage(_) => BindingKind::StorageImage(ImageFormat::Rgba32f),
         Descriptor::StorageBuffer => BindingKind::StorageBuffer(size()),
         Descriptor::UniformBuffer => BindingKind::UniformBuffer(size()),
         Descriptor::Sampler => BindingKind::Sampler,
@@ -119,11 +124,10 @@ fn binding(m: &Module, b: &reflect::Binding) -> Result<Binding, ReflectError> {
                 _ => BindingKind::CombinedImageSampler,
             }
         }
-        Descriptor::StorageImage(_)
-        | Descriptor::UniformTexelBuffer
+        Descriptor::UniformTexelBuffer
         | Descriptor::StorageTexelBuffer
         | Descriptor::InputAttachment => {
-            return Err(refuse(&format!("a {:?} descriptor, which the harness cannot make yet (acceleration structures, storage images of a known format, storage and uniform buffers, 2D float textures and samplers)", b.descriptor)))
+            return Err(refuse(&format!("a {:?} descriptor, which the harness cannot make yet (acceleration structures, storage images, storage and uniform buffers, 2D float textures and samplers)", b.descriptor)))
         }
     };
     let (count, runtime) = match b.count {
@@ -329,6 +333,25 @@ mod tests {
             assert!(e.0.starts_with(&format!("set 4 binding 2: {what}, ")), "{decl}: {e}");
             assert!(!e.0.contains('\n'), "{e}");
         }
+    }
+
+    /// A storage image without a format (GLSL `writeonly image2D`, HLSL `RWTexture2D<float4>`)
+    /// is made RGBA32F; with one, that format.
+    #[test]
+    fn a_storage_image_without_a_format_is_rgba32f() {
+        let glsl = "#version 460\n#extension GL_EXT_ray_tracing : require\n\
+            layout(set = 0, binding = 1) writeonly uniform image2D out_;\n\
+            layout(set = 0, binding = 2, r32f) uniform image2D depth;\n\
+            void main() { imageStore(out_, ivec2(0), vec4(imageLoad(depth, ivec2(0)).x)); }\n";
+        let r = reflect(&module(shaderc::ShaderKind::RayGeneration, glsl)).unwrap();
+        let kinds: Vec<_> = r.bindings.iter().map(|b| (b.binding, b.kind)).collect();
+        assert_eq!(
+            kinds,
+            vec![
+                (1, BindingKind::StorageImage(ImageFormat::Rgba32f)),
+                (2, BindingKind::StorageImage(ImageFormat::R32f))
+            ]
+        );
     }
 
     /// An append queue's buffer is atomic (its counter is); a buffer only stored to is not,

@@ -7,11 +7,15 @@ use crate::reflect::{Scalar, SpecConstant};
 use serde::{Deserialize, Serialize};
 
 /// One constant's value as the pipeline gets it: its `SpecId` and its bytes (a bool as a
-/// 4-byte VkBool32, an integer or float in its own width, little-endian).
+/// 4-byte VkBool32, an integer or float in its own width, little-endian) as the first stage
+/// declaring it types it, and the value as given: a stage declaring the ID with another type
+/// gets the value in that type's bytes ([`stage_info`]).
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct SpecValue {
     pub id: u32,
     pub bytes: Vec<u8>,
+    #[serde(default)]
+    pub text: String,
 }
 
 /// A `--spec` the modules cannot take.
@@ -25,11 +29,12 @@ pub enum SpecError {
     BadValue { given: String, id: u32, ty: String, what: String },
     #[error("--spec {given}: SpecId {id} is given twice; give each constant once")]
     Twice { given: String, id: u32 },
-    /// Stages declaring one SpecId with different types: one map entry's size cannot match
-    /// both ("For a constantID specialization constant declared in a shader, size must match
-    /// the byte size of the constantID": VUID-VkSpecializationMapEntry-constantID-00776,
-    /// Vulkan 1.4.360).
-    #[error("--spec {given}: the stages declare SpecId {id} as a {a} and as a {b}; one value cannot be both (VUID-VkSpecializationMapEntry-constantID-00776): give the stages one type for it")]
+    /// Stages declaring one SpecId with different types, and a value that is not one of both.
+    /// Each stage gets its own map entry, sized for its own type ("For a constantID
+    /// specialization constant declared in a shader, size must match the byte size of the
+    /// constantID": VUID-VkSpecializationMapEntry-constantID-00776, Vulkan 1.4.360), so the
+    /// types may differ; the value must fit each.
+    #[error("--spec {given}: the stages declare SpecId {id} as a {a} and as a {b}, and the value is not one of both: give a value each type can hold")]
     Clash { given: String, id: u32, a: String, b: String },
 }
 
@@ -98,19 +103,20 @@ pub fn parse_all(given: &[String], modules: &[UserModule]) -> Result<Vec<SpecVal
             };
             return Err(SpecError::UnknownId { given: g.clone(), id, known });
         };
-        let other = declared.iter().find(|d| d.spec_id == id && d.scalar != c.scalar);
-        if let Some(d) = other {
-            let (a, b) = (describe(c.scalar).0, describe(d.scalar).0);
-            return Err(SpecError::Clash { given: g.clone(), id, a, b });
-        }
         let bytes = bytes_of(c.scalar, value.trim()).ok_or_else(|| {
             let (ty, what) = describe(c.scalar);
             SpecError::BadValue { given: g.clone(), id, ty, what }
         })?;
+        let other =
+            declared.iter().find(|d| d.spec_id == id && bytes_of(d.scalar, value.trim()).is_none());
+        if let Some(d) = other {
+            let (a, b) = (describe(c.scalar).0, describe(d.scalar).0);
+            return Err(SpecError::Clash { given: g.clone(), id, a, b });
+        }
         if out.iter().any(|v| v.id == id) {
             return Err(SpecError::Twice { given: g.clone(), id });
         }
-        out.push(SpecValue { id, bytes });
+        out.push(SpecValue { id, bytes, text: value.trim().to_string() });
     }
     Ok(out)
 }
@@ -165,13 +171,15 @@ pub fn stage_info(
 ) -> (Vec<ash::vk::SpecializationMapEntry>, Vec<u8>) {
     let (mut entries, mut data) = (Vec::new(), Vec::new());
     let declared = &module.iface.reflection.spec_constants;
-    for v in values.iter().filter(|v| declared.iter().any(|c| c.spec_id == v.id)) {
+    for v in values {
+        let Some(c) = declared.iter().find(|c| c.spec_id == v.id) else { continue };
+        let bytes = bytes_of(c.scalar, &v.text).unwrap_or_else(|| v.bytes.clone());
         entries.push(ash::vk::SpecializationMapEntry {
             constant_id: v.id,
             offset: data.len() as u32,
-            size: v.bytes.len(),
+            size: bytes.len(),
         });
-        data.extend_from_slice(&v.bytes);
+        data.extend_from_slice(&bytes);
     }
     (entries, data)
 }
@@ -203,7 +211,10 @@ mod tests {
         let given: Vec<String> =
             ["3=16", "5=2.5", "7=true", "9=-3"].iter().map(|s| s.to_string()).collect();
         let v = parse_all(&given, std::slice::from_ref(&m)).unwrap();
-        assert_eq!(v[0], SpecValue { id: 3, bytes: 16u32.to_le_bytes().to_vec() });
+        assert_eq!(
+            v[0],
+            SpecValue { id: 3, bytes: 16u32.to_le_bytes().to_vec(), text: "16".into() }
+        );
         assert_eq!(v[1].bytes, 2.5f32.to_le_bytes());
         assert_eq!(v[2].bytes, 1u32.to_le_bytes());
         assert_eq!(v[3].bytes, (-3i32).to_le_bytes());
@@ -239,10 +250,10 @@ mod tests {
         }
     }
 
-    /// Two stages declaring SpecId 3 as a uint and as a bool: refused whatever the value; the
-    /// twin, both uints, takes it.
+    /// Two stages declaring SpecId 3 as a uint and as a bool, or as a uint and a float: each
+    /// stage gets the value in its own type's bytes; a value one type cannot hold is refused.
     #[test]
-    fn one_spec_id_of_two_types_is_refused() {
+    fn one_spec_id_of_two_types_gets_each_stage_its_bytes() {
         let other = |ty: &str, v: &str| {
             module(&format!(
                 "#version 460\n#extension GL_EXT_ray_tracing : require\n\
@@ -252,9 +263,17 @@ mod tests {
             ))
         };
         let given = ["3=1".to_string()];
-        let e = parse_all(&given, &[module(SPEC), other("bool", "true")]).unwrap_err();
+        let (uint, boolean) = (module(SPEC), other("bool", "true"));
+        let v = parse_all(&given, &[module(SPEC), other("bool", "true")]).unwrap();
+        assert_eq!(stage_info(&uint, &v).1, 1u32.to_le_bytes());
+        assert_eq!(stage_info(&boolean, &v).1, 1u32.to_le_bytes());
+        let float = other("float", "0.5");
+        let v = parse_all(&["3=2".to_string()], &[module(SPEC), other("float", "0.5")]).unwrap();
+        assert_eq!(stage_info(&float, &v).1, 2.0f32.to_le_bytes());
+        assert_eq!(stage_info(&uint, &v).1, 2u32.to_le_bytes());
+        let e = parse_all(&["3=2".into()], &[module(SPEC), other("bool", "true")]).unwrap_err();
         assert!(matches!(e, SpecError::Clash { id: 3, .. }), "{e}");
-        assert!(e.to_string().contains("constantID-00776"), "{e}");
+        assert!(e.to_string().contains("not one of both"), "{e}");
         assert!(parse_all(&given, &[module(SPEC), other("uint", "2u")]).is_ok());
     }
 
@@ -285,7 +304,7 @@ mod tests {
             "#version 460\n#extension GL_EXT_ray_tracing : require\n\
             layout(location = 0) rayPayloadInEXT vec4 c;\nvoid main() { c = vec4(1.0); }\n",
         );
-        let v = vec![SpecValue { id: 3, bytes: vec![1, 0, 0, 0] }];
+        let v = vec![SpecValue { id: 3, bytes: vec![1, 0, 0, 0], text: "1".into() }];
         assert!(stage_info(&plain, &v).0.is_empty());
         assert_eq!(stage_info(&module(SPEC), &v).0.len(), 1);
     }

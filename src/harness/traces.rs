@@ -22,14 +22,45 @@ use crate::reflect::{Trace, Ty, FLAG_OPAQUE, FLAG_SKIP_CLOSEST_HIT};
 /// value of maxPipelineRayRecursionDepth used to create the bound ray tracing pipeline"
 /// (VUID-vkCmdTraceRaysKHR-maxPipelineRayRecursionDepth-03679, Vulkan 1.4.360): a guard deeper
 /// than the device allows is the shader's undefined behaviour, which no pipeline can avoid.
-pub fn recursion_depth(modules: &[&UserModule], max: u32) -> u32 {
+pub fn recursion_depth(modules: &[&UserModule], max: u32) -> Result<u32, HarnessError> {
     let deep =
-        modules.iter().any(|m| m.iface.stage != "raygen" && !m.iface.reflection.traces.is_empty());
-    if deep {
-        max.max(1)
-    } else {
-        max.clamp(1, 2)
+        modules.iter().find(|m| m.iface.stage != "raygen" && !m.iface.reflection.traces.is_empty());
+    match deep {
+        Some(m) if max < 2 => Err(unsupported(format!("{} ({}) traces a ray, but this device's maxRayRecursionDepth is {max}: its trace would run at depth 2, past the limit, which is undefined (VUID-vkCmdTraceRaysKHR-maxPipelineRayRecursionDepth-03679, Vulkan 1.4.360); run it on a device allowing 2 or more", m.name, m.iface.stage))),
+        Some(_) => Ok(max),
+        None => Ok(max.clamp(1, 2)),
     }
+}
+
+/// The stages a ray `t` can invoke in the pipeline `g` makes of `modules`: its miss, the
+/// closest-hits unless its constant flags skip them (any-hit and intersection shaders cannot
+/// trace, so they are left out).
+fn invoked<'a>(
+    modules: &'a [&UserModule],
+    g: &super::groups::Groups,
+    t: &Trace,
+) -> Vec<&'a UserModule> {
+    let miss = t.miss_index.and_then(|k| g.misses.get(k as usize)).map(|&i| modules[i]);
+    let hits = if t.has_flag(FLAG_SKIP_CLOSEST_HIT) { [None, None] } else { g.hit };
+    miss.into_iter().chain(hits.into_iter().flatten().map(|i| modules[i])).collect()
+}
+
+/// Whether the pipeline recurses without a bound rtprobe can see: a ray traced by a hit or miss
+/// shader can invoke a stage that traces again, so the depth reached is the shaders' own guard's
+/// (a payload depth counter), which rtprobe cannot read. The sentence names the cycle's first
+/// pair and the rule that makes a guard past the device's limit undefined.
+pub fn unbounded_recursion(modules: &[&UserModule]) -> Option<String> {
+    let g = super::groups::groups(modules).ok()?;
+    for m in modules.iter().filter(|m| m.iface.stage != "raygen") {
+        for t in &m.iface.reflection.traces {
+            let again =
+                invoked(modules, &g, t).into_iter().find(|s| !s.iface.reflection.traces.is_empty());
+            if let Some(s) = again {
+                return Some(format!("{} traces rays that invoke {}, which traces again: the depth reached is your shaders' own guard's, which rtprobe cannot see; a fault is the driver's only if that guard stops at the device's maxRayRecursionDepth, past which a trace is undefined (VUID-vkCmdTraceRaysKHR-maxPipelineRayRecursionDepth-03679, Vulkan 1.4.360)", m.name, s.name));
+            }
+        }
+    }
+    None
 }
 
 /// Miss indices beyond this are refused (no engine has that many miss shaders).
@@ -95,7 +126,7 @@ fn receives(tracer: &str, t: &Trace, stage: &UserModule) -> Result<(), HarnessEr
     let got = format!("`{}` ({})", p.name, p.ty.leaves());
     if t.flags.is_none() && stage.iface.stage != "miss" {
         return Err(unsupported(format!(
-            "{tracer} traces a ray with {ray} whose flags are not a constant where it traces (a function parameter or a computed value), so rtprobe cannot tell whether it skips {theirs}, which receives {got}: pass the flags as a literal, or compile with optimization so they fold"
+            "{tracer} traces a ray with {ray} whose flags are not a constant where it traces (a function parameter or a computed value), so rtprobe cannot tell whether it skips {theirs}, which receives {got}: pass the flags as a literal, or compile with `glslangValidator -V -Os` and give the .spv so they fold"
         )));
     }
     Err(HarnessError::Interface(format!(
@@ -112,7 +143,7 @@ pub fn check(modules: &[UserModule]) -> Result<(), HarnessError> {
             match t.sbt_offset {
                 Some(0) => {}
                 Some(k) => return Err(unsupported(format!("{} traces a ray with SBT record offset {k}; the harness scene has one hit group per geometry type (triangles at 0, procedural at 1), so only offset 0 runs: make the offset 0 to run it here", m.name))),
-                None => return Err(unsupported(format!("{} traces a ray whose SBT record offset is not a constant; the harness scene runs offset 0 only", m.name))),
+                None => return Err(unsupported(format!("{} traces a ray whose SBT record offset is not a constant (a function parameter or a computed value); the harness scene runs offset 0 only: pass 0 as a literal, or compile with `glslangValidator -V -Os` and give the .spv so it folds", m.name))),
             }
             let miss = t.miss_index.and_then(|k| g.misses.get(k as usize));
             let Some(&miss) = miss else {

@@ -21,7 +21,12 @@
 //!   Buffer texel out of bounds` for texel buffers);
 //! - `VUID-RuntimeSpirv-PhysicalStorageBuffer64-11819`: a buffer-address access must reference
 //!   a buffer with device-address usage (layers before it: `UNASSIGNED-Device address out of
-//!   bounds`).
+//!   bounds`);
+//! - `VUID-RuntimeSpirv-OpTraceRayKHR-*` (06355–06360, 06552–06554, 06892, 06893, 11855): a
+//!   traced ray's origin and direction finite, no NaN, `0 ≤ tMin ≤ tMax`, its flags not
+//!   contradicting each other or the pipeline's, its TLAS a top-level one. The harness's data
+//!   can make a user's raygen compute such a ray (a camera matrix of arbitrary floats), so a
+//!   fault after one is no driver finding either.
 use serde::{Deserialize, Serialize};
 
 /// What one message is about.
@@ -52,6 +57,7 @@ pub const INVALID_ACCESS_IDS: &[&str] = &[
     "-None-08612",
     "-None-08613",
     "VUID-RuntimeSpirv-PhysicalStorageBuffer64-11819",
+    "VUID-RuntimeSpirv-OpTraceRayKHR-",
     "UNASSIGNED-Descriptor index out of bounds",
     "UNASSIGNED-Descriptor uninitialized",
     "UNASSIGNED-Descriptor destroyed",
@@ -132,6 +138,8 @@ mod tests {
         assert_eq!(kind(bda), MessageKind::InvalidAccess);
         let uninit = "Validation Error: [ VUID-vkCmdTraceRaysKHR-None-08114 ] Descriptor index 5 is uninitialized.";
         assert_eq!(kind(uninit), MessageKind::InvalidAccess);
+        let nan_ray = "Validation Error: [ VUID-RuntimeSpirv-OpTraceRayKHR-06355 ] vkCmdTraceRaysKHR(): OpTraceRayKHR ray origin is not finite";
+        assert_eq!(kind(nan_ray), MessageKind::InvalidAccess);
         let setup = "Validation Error: [ UNASSIGNED-GPU-Assisted Validation Error. ] Unable to reserve descriptor binding slot";
         assert_eq!(kind(setup), MessageKind::GpuAvSetup);
         let warn = "Validation Warning: [ WARNING-GPU-Assisted-Validation-Setup ] Internal pipeline layout";

@@ -330,6 +330,11 @@ impl DeviceInfo {
         })
     }
 
+    /// The device with its driver, as reports name it: `llvmpipe (…) (llvmpipe 25.0.7)`.
+    pub fn label(&self) -> String {
+        format!("{} ({} {})", self.name(), self.driver_name(), self.driver_version())
+    }
+
     pub fn name(&self) -> String {
         self.properties
             .core

@@ -36,22 +36,32 @@ pub const KEPT_TEXTS: usize = 4;
 const KEPT_CHARS: usize = 400;
 static VALIDATION_TEXTS: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
 
-/// Keep the first [`KEPT_TEXTS`] error messages (their VUID leads the layer's text), and the
-/// first invalid access among them even after as many others (it then replaces the last).
+/// Keep the first [`KEPT_TEXTS`] error messages (their VUID leads the layer's text), and GPU-AV's
+/// setup warnings with them ([`keep`]).
 fn keep_text(msg: &str) {
-    let Ok(mut kept) = VALIDATION_TEXTS.lock() else { return };
-    let access = |t: &str| kind(t) == MessageKind::InvalidAccess;
-    let text: String = msg.chars().take(KEPT_CHARS).collect();
+    if let Ok(mut kept) = VALIDATION_TEXTS.lock() {
+        keep(&mut kept, msg.chars().take(KEPT_CHARS).collect());
+    }
+}
+
+/// `text` into `kept`: among the first [`KEPT_TEXTS`]; past them, the first invalid access and
+/// the first GPU-AV setup message still, each replacing the last message of neither kind — each
+/// decides a GPU-AV verdict (`model::shader_gpu_av`: a setup message makes it `inconclusive`,
+/// never `masks`).
+fn keep(kept: &mut Vec<String>, text: String) {
     if kept.len() < KEPT_TEXTS {
         kept.push(text);
-    } else if access(&text) && !kept.iter().any(|t| access(t)) {
-        if let Some(last) = kept.last_mut() {
-            *last = text;
+        return;
+    }
+    let k = kind(&text);
+    if k != MessageKind::Other && !kept.iter().any(|t| kind(t) == k) {
+        if let Some(slot) = kept.iter_mut().rev().find(|t| kind(t) == MessageKind::Other) {
+            *slot = text;
         }
     }
 }
 
-/// The error messages kept since the last call (the first few, shortened), and forget them.
+/// The messages kept since the last call (the first few, shortened), and forget them.
 pub fn take_validation_texts() -> Vec<String> {
     VALIDATION_TEXTS.lock().map(|mut k| std::mem::take(&mut *k)).unwrap_or_default()
 }
@@ -129,6 +139,11 @@ unsafe extern "system" fn debug_callback(
         tracing::error!(target: "validation", "{msg}");
     } else if severity.contains(vk::DebugUtilsMessageSeverityFlagsEXT::WARNING) {
         VALIDATION_WARNINGS.fetch_add(1, Ordering::Relaxed);
+        // GPU-AV's setup warnings say it may not have checked what ran: kept, so a GPU-AV
+        // verdict is `inconclusive`, never `masks`.
+        if kind(&msg) == MessageKind::GpuAvSetup {
+            keep_text(&msg);
+        }
         tracing::warn!(target: "validation", "{msg}");
     } else {
         tracing::debug!(target: "validation", "{msg}");
@@ -321,5 +336,25 @@ mod tests {
             Some("validation layers 1.3.239 predate VK_EXT_descriptor_heap")
         );
         assert_eq!(gpu_av_heap_gap(vk::make_api_version(0, 1, 4, 363)), None);
+    }
+
+    /// Past the first few messages an invalid access and a GPU-AV setup message are still kept,
+    /// each once; other messages are not.
+    #[test]
+    fn access_and_setup_messages_are_kept_past_the_first_few() {
+        let mut kept = Vec::new();
+        for i in 0..KEPT_TEXTS + 2 {
+            keep(&mut kept, format!("[ VUID-vkCmdTraceRaysKHR-None-0860{i} ] other"));
+        }
+        assert_eq!(kept.len(), KEPT_TEXTS);
+        let setup = "[ WARNING-GPU-Assisted-Validation ] could not reserve a slot".to_string();
+        let access = "[ VUID-vkCmdTraceRaysKHR-None-10068 ] Index of 63".to_string();
+        keep(&mut kept, setup.clone());
+        keep(&mut kept, access.clone());
+        keep(&mut kept, "[ VUID-vkCmdTraceRaysKHR-None-10068 ] Index of 64".into());
+        assert_eq!(kept.len(), KEPT_TEXTS);
+        assert_eq!(kept.iter().filter(|t| **t == setup).count(), 1, "{kept:?}");
+        assert_eq!(kept.iter().filter(|t| **t == access).count(), 1, "{kept:?}");
+        assert!(kept[0].contains("08600"), "the first messages stay first: {kept:?}");
     }
 }

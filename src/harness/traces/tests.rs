@@ -161,13 +161,46 @@ fn an_any_hit_is_held_to_the_payload_unless_the_ray_is_opaque() {
     assert!(supply(vec![shadowing(SKIP, "0", "1"), ahit]).is_ok());
 }
 
-/// A closest-hit that traces gets the device's whole recursion depth; a pipeline where only the
-/// raygen traces keeps 2.
+/// A closest-hit that traces gets the device's whole recursion depth, and is refused on a device
+/// allowing depth 1 (its trace would be undefined); a pipeline where only the raygen traces
+/// keeps 2.
 #[test]
 fn a_tracing_hit_shader_gets_the_devices_recursion_depth() {
     let all = supply(vec![shadowing(SKIP, "0", "1")]).unwrap();
     let refs: Vec<&UserModule> = all.iter().collect();
-    assert_eq!((recursion_depth(&refs, 31), recursion_depth(&refs, 1)), (31, 1));
+    assert_eq!(recursion_depth(&refs, 31).unwrap(), 31);
+    let e = recursion_depth(&refs, 1).unwrap_err().to_string();
+    assert!(e.starts_with("shadow.rchit (closest_hit) traces a ray") && e.contains("03679"), "{e}");
+    // The shadow ray skips the closest-hit and its miss does not trace: bounded.
+    assert_eq!(unbounded_recursion(&refs), None);
+    // The same ray invoking the closest-hit recurses as deep as the shader's own guard.
+    let reflective = module(
+        ShaderKind::ClosestHit,
+        "mirror.rchit",
+        r#"#version 460
+#extension GL_EXT_ray_tracing : require
+struct Shade { vec3 color; float dist; };
+layout(set = 0, binding = 0) uniform accelerationStructureEXT scene;
+layout(location = 0) rayPayloadInEXT Shade shade;
+layout(location = 1) rayPayloadEXT Shade bounce;
+void main() {
+    bounce.color = vec3(0.0);
+    bounce.dist = shade.dist + 1.0;
+    if (shade.dist < 4.0) {
+        traceRayEXT(scene, 0u, 0xFF, 0, 0, 0, gl_WorldRayOriginEXT, 0.001, vec3(0, 0, 1), 100.0, 1);
+    }
+    shade.color = bounce.color * 0.5 + vec3(0.1);
+    shade.dist = gl_HitTEXT;
+}
+"#,
+    );
+    let all = supply(vec![reflective]).unwrap();
+    let refs: Vec<&UserModule> = all.iter().collect();
+    let r = unbounded_recursion(&refs).unwrap();
+    assert!(
+        r.starts_with("mirror.rchit traces rays that invoke mirror.rchit, which traces again"),
+        "{r}"
+    );
     let plain = module(
         ShaderKind::ClosestHit,
         "plain.rchit",
@@ -176,5 +209,6 @@ fn a_tracing_hit_shader_gets_the_devices_recursion_depth() {
     );
     let all = supply(vec![plain]).unwrap();
     let refs: Vec<&UserModule> = all.iter().collect();
-    assert_eq!(recursion_depth(&refs, 31), 2);
+    assert_eq!(recursion_depth(&refs, 31).unwrap(), 2);
+    assert_eq!(recursion_depth(&refs, 1).unwrap(), 1);
 }
