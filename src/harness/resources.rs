@@ -213,7 +213,9 @@ impl Making<'_> {
                 let usage = vk::BufferUsageFlags::STORAGE_BUFFER
                     | vk::BufferUsageFlags::UNIFORM_BUFFER
                     | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
-                let buf = Buffer::new(gpu, size as u64, usage, Location::Host, "harness buffer")?;
+                // A fill larger than the reflected block (`--scene`'s data) sizes the buffer.
+                let size = self.fills.buffer(key, k).map_or(0, |b| b.len() as u64).max(size as u64);
+                let buf = Buffer::new(gpu, size, usage, Location::Host, "harness buffer")?;
                 buf.write(0, &element_data(self.fills, made.buffers, key, k, b, self.sink));
                 made.buffers += 1;
                 Element::Buffer(buf)
