@@ -167,6 +167,27 @@ fn a_tutorial_closest_hit_renders_the_scene_as_the_cpu_does() {
     assert!(c.hits > 100, "the scene is in view: {c:?}");
     assert!(matches(&c), "{c:?}");
 
+    // The scene description and the normals in buffer bindings: the same image.
+    let binding = [
+        "--fill",
+        "1.0=scene.scene_desc",
+        "--fill",
+        "1.1=scene.normals",
+        "--repeat",
+        "1",
+        "-D",
+        "DESC_BINDING",
+        "--validate",
+    ];
+    let (o, r) = scene_run(&scene, &binding);
+    let r = r.unwrap_or_else(|| panic!("no report: {}{}", stdout(&o), stderr(&o)));
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    let a = &r["variants"][0]["attempts"][0];
+    assert_eq!(a["validation_messages"], 0, "{a}");
+    let c = compare(&scene, &r);
+    println!("bindings: {c:?}");
+    assert!(matches(&c), "{c:?}");
+
     let mut wrong = fill.to_vec();
     wrong.extend(["-D", "WRONG_PRIM"]);
     let (o, r) = scene_run(&scene, &wrong);

@@ -190,13 +190,16 @@ fn device(
     Ok((info.index, info.name(), record, heap))
 }
 
-/// `--scene`'s file loaded (the loader's one-line error, exit 9) and its content hash.
+/// `--scene`'s file loaded (the loader's one-line error, exit 9) and its content hash: the
+/// file's bytes and the data read from its buffers (a `.gltf`'s `.bin` edited is another cell).
 fn load_scene(a: &RunArgs) -> Result<Option<(crate::scene::gltf::Loaded, String)>> {
+    use crate::harness::scene_data::{bytes, DESC_ORDER};
     let Some(p) = &a.scene else { return Ok(None) };
     let loaded = crate::scene::gltf::Loaded::load(p)?;
-    let bytes = std::fs::read(p)
+    let mut all = std::fs::read(p)
         .map_err(|e| coded(exit::BAD_INPUT, format!("--scene {}: {e}", p.display())))?;
-    Ok(Some((loaded, super::patch_inputs::hash_hex(&bytes))))
+    DESC_ORDER.iter().for_each(|i| all.extend(bytes(&loaded, *i)));
+    Ok(Some((loaded, super::patch_inputs::hash_hex(&all))))
 }
 
 /// The scene's device memory — its geometry for the acceleration structures and the buffers

@@ -46,29 +46,62 @@ layout(push_constant) uniform Constants {
     uint64_t sceneDesc;
 } pc;
 
+#ifdef DESC_BINDING
+// `-D DESC_BINDING`: the scene description in a storage buffer binding, and the normals read
+// from a binding of their own instead of through its address.
+layout(set = 1, binding = 0, scalar) readonly buffer SceneDescBlock {
+    uint64_t vertexAddress;
+    uint64_t normalAddress;
+    uint64_t uvAddress;
+    uint64_t indexAddress;
+    uint64_t materialAddress;
+    uint64_t primInfoAddress;
+} descBlock;
+layout(set = 1, binding = 1, scalar) readonly buffer NormalBlock { vec3 v[]; } normalBlock;
+#endif
+
 layout(location = 0) rayPayloadInEXT Shade shade;
 hitAttributeEXT vec2 bary;
 
 const vec3 LIGHT = vec3(0.48, 0.64, -0.6);
 const float AMBIENT = 0.2;
 
+vec3 normalAt(uint k, uint64_t normalAddress) {
+#ifdef DESC_BINDING
+    return normalBlock.v[k];
+#else
+    return Vertices(normalAddress).v[k];
+#endif
+}
+
 void main() {
+#ifdef DESC_BINDING
+    uint64_t primInfoAddress = descBlock.primInfoAddress;
+    uint64_t indexAddress = descBlock.indexAddress;
+    uint64_t materialAddress = descBlock.materialAddress;
+    uint64_t normalAddress = descBlock.normalAddress;
+#else
     SceneDesc desc = SceneDesc(pc.sceneDesc);
-    PrimInfos infos = PrimInfos(desc.primInfoAddress);
+    uint64_t primInfoAddress = desc.primInfoAddress;
+    uint64_t indexAddress = desc.indexAddress;
+    uint64_t materialAddress = desc.materialAddress;
+    uint64_t normalAddress = desc.normalAddress;
+#endif
+    PrimInfos infos = PrimInfos(primInfoAddress);
 #ifdef WRONG_PRIM
     PrimMeshInfo prim = infos.p[gl_InstanceCustomIndexEXT + gl_GeometryIndexEXT];
 #else
     uint first = infos.p[gl_InstanceCustomIndexEXT].indexOffset;
     PrimMeshInfo prim = infos.p[first + uint(gl_GeometryIndexEXT)];
 #endif
-    Indices indices = Indices(desc.indexAddress);
+    Indices indices = Indices(indexAddress);
     uint base = prim.indexOffset + 3u * uint(gl_PrimitiveID);
     uvec3 tri = uvec3(indices.i[base], indices.i[base + 1u], indices.i[base + 2u]) + prim.vertexOffset;
-    Vertices normals = Vertices(desc.normalAddress);
     vec3 w = vec3(1.0 - bary.x - bary.y, bary.x, bary.y);
-    vec3 n = normals.v[tri.x] * w.x + normals.v[tri.y] * w.y + normals.v[tri.z] * w.z;
+    vec3 n = normalAt(tri.x, normalAddress) * w.x + normalAt(tri.y, normalAddress) * w.y
+        + normalAt(tri.z, normalAddress) * w.z;
     vec3 worldN = normalize(vec3(n * gl_WorldToObjectEXT));
-    GltfMaterial mat = Materials(desc.materialAddress).m[prim.materialIndex];
+    GltfMaterial mat = Materials(materialAddress).m[prim.materialIndex];
     float lambert = max(dot(worldN, normalize(LIGHT)), 0.0);
     shade.color = mat.baseColorFactor.rgb * (AMBIENT + (1.0 - AMBIENT) * lambert);
     shade.dist = gl_HitTEXT;
