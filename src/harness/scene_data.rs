@@ -321,6 +321,22 @@ mod tests {
         assert_ne!(&info[0..3], &info[3 * info[0] as usize..3 * info[0] as usize + 3]);
     }
 
+    /// The largest device-local heap: a host-only heap larger than it does not count (the
+    /// twin: counting every heap would give the host heap).
+    #[test]
+    fn the_largest_heap_is_a_device_local_one() {
+        let mut m =
+            vk::PhysicalDeviceMemoryProperties { memory_heap_count: 3, ..Default::default() };
+        m.memory_heaps[0] =
+            vk::MemoryHeap { size: 8 << 30, flags: vk::MemoryHeapFlags::DEVICE_LOCAL };
+        m.memory_heaps[1] = vk::MemoryHeap { size: 64 << 30, flags: vk::MemoryHeapFlags::empty() };
+        m.memory_heaps[2] =
+            vk::MemoryHeap { size: 256 << 20, flags: vk::MemoryHeapFlags::DEVICE_LOCAL };
+        assert_eq!(largest_device_heap(&m), 8 << 30);
+        m.memory_heap_count = 0;
+        assert_eq!(largest_device_heap(&m), 0);
+    }
+
     #[test]
     fn materials_and_vertex_lists_have_their_sizes() {
         let (_d, l) = test_scene();
