@@ -222,6 +222,22 @@ fn binding_flags(setup: &Setup) -> crate::model::profile::BindingFlags {
     }
 }
 
+/// The scene the harness traces — `--scene`'s, fitted, else the harness's — with the buffers
+/// its fills name and every fill placed.
+fn traced_scene(
+    gpu: &Gpu,
+    setup: &Setup,
+) -> Result<(crate::scene::Scene, Option<scene_data::SceneBuffers>, fill::Fills), HarnessError> {
+    Ok(match &setup.scene {
+        Some(s) => {
+            let b = scene_data::SceneBuffers::new(gpu, &s.loaded, &s.fills)?;
+            let fills = b.placed(&s.loaded, &setup.fills, &s.fills);
+            (scene::loaded(&s.loaded, SIZE), Some(b), fills)
+        }
+        None => (scene::build(SIZE), None, setup.fills.clone()),
+    })
+}
+
 impl Harness {
     /// The scene and resources for `modules` (every module the pipelines will use, unpatched:
     /// the patched ones read the same resources through addresses), push constants of
@@ -252,14 +268,7 @@ impl Harness {
         setup: Setup,
     ) -> Result<Harness, HarnessError> {
         let submitter = Submitter::new(&gpu)?;
-        let (mut built, scene_buffers, fills) = match &setup.scene {
-            Some(s) => {
-                let b = scene_data::SceneBuffers::new(&gpu, &s.loaded, &s.fills)?;
-                let fills = b.placed(&s.loaded, &setup.fills, &s.fills);
-                (scene::loaded(&s.loaded, SIZE), Some(b), fills)
-            }
-            None => (scene::build(SIZE), None, setup.fills.clone()),
-        };
+        let (mut built, scene_buffers, fills) = traced_scene(&gpu, &setup)?;
         // A given any-hit runs on every candidate, as on an engine's alpha-tested geometry.
         built.no_opaque = modules.iter().any(|m| m.iface.stage == "any_hit");
         let scene = SceneGpu::build_with(&gpu, &built, &submitter, timeout, scene::variant_custom)?;
