@@ -843,7 +843,7 @@ fn bad_fills_are_one_line_and_no_report() {
         (&filled, "0.0[1]=zero", 2, "has 1 element(s)"),
         (&filled, "push.8=zero", 2, "past the end of the push constants (8 bytes)"),
         (&filled, "record.8=zero", 2, "past the end of the shader record block (8 bytes)"),
-        (&filled, "0.0=scene.positions", 2, "--scene (issue 28)"),
+        (&filled, "0.0=scene.positions", 2, "scene.positions needs --scene FILE"),
         (&filled, "0.0=random:x", 2, "random:42"),
         (&filled, "0.0", 2, "give TARGET=SOURCE"),
         (&filled, "0.0=/nonexistent/fill.bin", 9, "give a readable regular file"),

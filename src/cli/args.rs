@@ -437,7 +437,8 @@ pub struct RunArgs {
     pub heap_layout: Option<PathBuf>,
     /// With --shader: data in place of the harness's, TARGET=SOURCE (repeatable): TARGET is
     /// SET.BINDING (a buffer, every element), SET.BINDING[ELEM], push.OFFSET or record.OFFSET
-    /// (bytes); SOURCE is zero, random:SEED or a file's bytes (docs/your-shader.md)
+    /// (bytes); SOURCE is zero, random:SEED, a file's bytes or, with --scene, scene.NAME:
+    /// positions, indices, normals, uvs, materials, prim_info, scene_desc (docs/your-shader.md)
     #[arg(
         long = "fill",
         value_name = "TARGET=SOURCE",
@@ -445,6 +446,12 @@ pub struct RunArgs {
         help_heading = "Your shaders"
     )]
     pub fill: Vec<String>,
+
+    /// With --shader: trace this glTF 2.0 scene (.gltf or .glb) instead of the harness's seeded
+    /// one; `--fill TARGET=scene.NAME` puts its data in buffers, push constants or records
+    /// (docs/your-shader.md)
+    #[arg(long, value_name = "FILE", requires = "shader", help_heading = "Your shaders")]
+    pub scene: Option<PathBuf>,
 
     /// With --shader: the elements of every runtime-sized descriptor array (`textures[]`,
     /// `buffer B {…} b[]`), 1 to 65536 (default: one per index the harness scene produces, 64)

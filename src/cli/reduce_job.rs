@@ -138,6 +138,8 @@ fn judge(job: &InterestingJob, modules: Vec<JobModule>) -> Result<(bool, String)
         heap_layout: job.heap_layout.clone(),
         sizes: job.sizes,
         fills: job.fills.clone(),
+        scene: None,
+        scene_fills: Vec::new(),
         profile: job.profile,
         gpu_av: false,
     };

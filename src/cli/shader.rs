@@ -50,6 +50,7 @@ const TAKEN: &[&str] = &[
     "profile",
     "inject_fault",
     "fill",
+    "scene",
     "compare",
     "tolerance",
     "junit",
@@ -68,7 +69,7 @@ fn refuse_others(a: &RunArgs) -> Result<()> {
     let flag = format!("--{}", id.replace('_', "-"));
     Err(coded(
         exit::USAGE,
-        format!("{flag} cannot be used with --shader: it applies to the generated matrix, which --shader replaces; drop it (--shader takes --entry, -I, -D, --target-env, --spec, --descriptor-model, --heap-layout, --profile, --array-size, --sink-size, --fill, --repeat, --timeout, --dump, -o, --device, --validate, --inject-fault, --compare, --tolerance, --junit, --baseline, --allow-improvements)"),
+        format!("{flag} cannot be used with --shader: it applies to the generated matrix, which --shader replaces; drop it (--shader takes --entry, -I, -D, --target-env, --spec, --descriptor-model, --heap-layout, --profile, --array-size, --sink-size, --fill, --scene, --repeat, --timeout, --dump, -o, --device, --validate, --inject-fault, --compare, --tolerance, --junit, --baseline, --allow-improvements)"),
     ))
 }
 
@@ -155,7 +156,7 @@ fn device(
     a: &RunArgs,
     plan: &ShaderPlan,
     (model, profile): (DescriptorModel, Option<&shader_profile::Loaded>),
-) -> Result<(usize, String, Option<ProfileRecord>)> {
+) -> Result<(usize, String, Option<ProfileRecord>, u64)> {
     let inst = open_instance(g)?;
     let all = crate::vk::features::query_all(&inst)?;
     let info = crate::vk::features::select(&all, a.device.as_deref())?;
@@ -185,7 +186,45 @@ fn device(
             format!("--shader: the pipeline does not fit the harness's layout: {e}"),
         )
     })?;
-    Ok((info.index, info.label(), record))
+    let heap = crate::harness::scene_data::largest_device_heap(&info.memory);
+    Ok((info.index, info.label(), record, heap))
+}
+
+/// `--scene`'s file loaded (the loader's one-line error, exit 9) and its content hash: the
+/// file's bytes and the data read from its buffers (a `.gltf`'s `.bin` edited is another cell).
+fn load_scene(a: &RunArgs) -> Result<Option<(crate::scene::gltf::Loaded, String)>> {
+    use crate::harness::scene_data::{bytes, DESC_ORDER};
+    let Some(p) = &a.scene else { return Ok(None) };
+    let loaded = crate::scene::gltf::Loaded::load(p)?;
+    let mut all = std::fs::read(p)
+        .map_err(|e| coded(exit::BAD_INPUT, format!("--scene {}: {e}", p.display())))?;
+    DESC_ORDER.iter().for_each(|i| all.extend(bytes(&loaded, *i)));
+    Ok(Some((loaded, super::patch_inputs::hash_hex(&all))))
+}
+
+/// The scene's device memory — its geometry for the acceleration structures and the buffers
+/// its fills name — held to the device's largest device-local heap, before any upload.
+fn scene_fits(
+    a: &RunArgs,
+    l: &crate::scene::gltf::Loaded,
+    fills: &[crate::harness::scene_data::SceneFill],
+    heap: u64,
+) -> Result<()> {
+    let items: Vec<_> = fills.iter().map(|f| f.item).collect();
+    let need = l.geometry_bytes() + crate::harness::scene_data::bytes_needed(l, &items, 0);
+    if need <= heap {
+        return Ok(());
+    }
+    let mib = |b: u64| b.div_ceil(1 << 20);
+    Err(coded(
+        exit::UNSUPPORTED_DEVICE,
+        format!(
+            "--scene {}: needs {} MiB of device memory, more than the device's largest device-local heap ({} MiB); give a smaller scene or fewer scene fills",
+            a.scene.as_deref().unwrap_or(Path::new("")).display(),
+            mib(need),
+            mib(heap)
+        ),
+    ))
 }
 
 /// Where the report goes, locked: `-o`, else the first free `reports/shader-<time>-<device>.json`.
@@ -307,7 +346,12 @@ pub(super) fn prepare(g: &Globals, a: &RunArgs) -> Result<Prepared> {
     refuse_early(a)?;
     let profile = shader_profile::read(a.profile.as_deref())?;
     let (repeat, timeout, setup_timeout) = numbers(a)?;
-    let sizes = sizes(a)?;
+    let scene = load_scene(a)?;
+    let mut sizes = sizes(a)?;
+    if let (Some((l, _)), None) = (&scene, sizes.array) {
+        let most = crate::harness::sizes::MAX_ARRAY_SIZE;
+        sizes.array = Some(crate::harness::scene::loaded_bound(l).min(most));
+    }
     let inject_fault = injection(a)?;
     let mut plan = shader_plan::plan(a, inject_fault.as_ref())?;
     plan.modules = sizes.apply(plan.modules);
@@ -315,18 +359,23 @@ pub(super) fn prepare(g: &Globals, a: &RunArgs) -> Result<Prepared> {
     let heap_layout = heap_layout(a, &plan, model)?;
     let spec = crate::harness::spec::parse_all(&a.spec, &plan.given)
         .map_err(|e| coded(exit::USAGE, e.to_string()))?;
-    let (fills, fill_words) = super::shader_fill::fills(a, &plan, &sizes)?;
+    let (fills, scene_fills, fill_words) =
+        super::shader_fill::fills(a, &plan, &sizes, scene.is_some())?;
     let resolved = super::shader_fill::Resolved {
         spec: crate::harness::spec::canonical(&spec, &plan.given),
         fill: fill_words,
         profile: shader_profile::setup(profile.as_ref())
             .effective(model == DescriptorModel::DescriptorIndexing),
+        scene: scene.as_ref().map(|(_, h)| h.clone()),
     };
     let cell_options = super::shader_fill::cell_options(a, &plan, model, resolved)?;
     let other = other_report(a, &shader_run::cell_id_with(&plan.inputs, &cell_options))?;
     let baseline = a.baseline.as_deref().map(super::fleet::load_baseline).transpose()?;
     super::paths::writable_files(&[("--junit", a.junit.as_deref())])?;
-    let (device_index, device_name, record) = device(g, a, &plan, (model, profile.as_ref()))?;
+    let (device_index, device_name, record, heap) = device(g, a, &plan, (model, profile.as_ref()))?;
+    if let Some((l, _)) = &scene {
+        scene_fits(a, l, &scene_fills, heap)?;
+    }
     let dir = std::env::temp_dir().join(format!("rtprobe-shader-{}", std::process::id()));
     let ctx = Ctx {
         device_index,
@@ -346,6 +395,8 @@ pub(super) fn prepare(g: &Globals, a: &RunArgs) -> Result<Prepared> {
         heap_layout,
         sizes,
         fills,
+        scene: a.scene.as_ref().map(|p| std::path::absolute(p).unwrap_or(p.clone())),
+        scene_fills,
         profile: shader_profile::setup(profile.as_ref()),
         gpu_av: false,
     };
@@ -433,6 +484,7 @@ fn judged_report(g: &Globals, a: &RunArgs, p: &mut Prepared) -> Result<ShaderRun
     report.cell_options = cell_options;
     report.options["profile"] = serde_json::json!(p.profile.as_ref().map(|p| &p.hash));
     report.options["gpu_av"] = serde_json::json!(g.gpu_av);
+    report.options["scene"] = serde_json::json!(a.scene.as_ref().map(|p| p.display().to_string()));
     report.profile = p.profile.take();
     Ok(report)
 }

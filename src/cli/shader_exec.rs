@@ -47,6 +47,9 @@ pub struct Ctx {
     pub gpu_av: bool,
     /// `--fill`'s bytes.
     pub fills: crate::harness::fill::Fills,
+    /// `--scene`'s file, and the fills that read it.
+    pub scene: Option<PathBuf>,
+    pub scene_fills: Vec<crate::harness::scene_data::SceneFill>,
 }
 
 /// One attempt as it came back: the record, and the outputs when it ran.
@@ -178,6 +181,8 @@ pub fn run_variant(
             heap_layout: ctx.heap_layout.clone(),
             sizes: ctx.sizes,
             fills: ctx.fills.clone(),
+            scene: ctx.scene.clone(),
+            scene_fills: ctx.scene_fills.clone(),
         };
         let started = Instant::now();
         let (end, step, silence) = child(ctx, variant, &job)?;

@@ -6,32 +6,57 @@ use super::args::RunArgs;
 use super::exit::{self, coded};
 use super::shader_plan::{hash_hex, ShaderPlan};
 use crate::harness::fill::{self, FillError, Fills, Source, Target};
+use crate::harness::scene_data::SceneFill;
 use crate::harness::Sizes;
 use crate::model::shader_options::CellOptions;
 use crate::model::DescriptorModel;
 use anyhow::Result;
 
 /// Every `--fill`, resolved against the given modules sized by `sizes`, with each one's words
-/// for the cell options (`TARGET=zero`, `TARGET=random:SEED`, `TARGET=file:HASH`).
-pub fn fills(a: &RunArgs, plan: &ShaderPlan, sizes: &Sizes) -> Result<(Fills, Vec<String>)> {
+/// for the cell options (`TARGET=zero`, `TARGET=random:SEED`, `TARGET=file:HASH`,
+/// `TARGET=scene.NAME`); the `scene.NAME` ones apart, placed by the child (`scene`: whether
+/// `--scene` was given).
+pub fn fills(
+    a: &RunArgs,
+    plan: &ShaderPlan,
+    sizes: &Sizes,
+    scene: bool,
+) -> Result<(Fills, Vec<SceneFill>, Vec<String>)> {
     let given = sizes.apply(plan.given.clone());
-    let (mut out, mut words) = (Vec::new(), Vec::new());
-    for text in &a.fill {
+    let (mut out, mut scene_fills, mut words) = (Vec::new(), Vec::new(), Vec::new());
+    for (at, text) in a.fill.iter().enumerate() {
         let coded_err = |e: FillError| match e {
             FillError::Syntax(..) | FillError::Target(..) => coded(exit::USAGE, e.to_string()),
             FillError::Source(..) => coded(exit::BAD_INPUT, e.to_string()),
         };
         let r = fill::parse(text).map_err(coded_err)?;
+        if let Source::Scene(item) = r.source {
+            if !scene {
+                return Err(coded(
+                    exit::USAGE,
+                    format!(
+                        "--fill {text}: scene.{} needs --scene FILE; give the glTF scene it reads",
+                        item.name()
+                    ),
+                ));
+            }
+            scene_fills.push(
+                crate::harness::scene_data::resolve_scene(&r, &given, at).map_err(coded_err)?,
+            );
+            words.push(format!("{}=scene.{}", target_words(r.target), item.name()));
+            continue;
+        }
         let f = fill::resolve(&r, &given).map_err(coded_err)?;
         let source = match &r.source {
             Source::Zero => "zero".to_string(),
             Source::Random(seed) => format!("random:{seed}"),
             Source::File(_) => format!("file:{}", hash_hex(&f.bytes)),
+            Source::Scene(item) => format!("scene.{}", item.name()),
         };
         words.push(format!("{}={source}", target_words(r.target)));
         out.push(f);
     }
-    Ok((Fills(out), words))
+    Ok((Fills(out), scene_fills, words))
 }
 
 /// A target as `--fill` writes it.
@@ -50,6 +75,8 @@ pub struct Resolved {
     pub spec: Vec<String>,
     pub fill: Vec<String>,
     pub profile: Vec<String>,
+    /// `--scene`'s file hash.
+    pub scene: Option<String>,
 }
 
 /// The options of this run that change what runs: `--entry`, `--spec`, `--fill`,
@@ -82,5 +109,6 @@ pub fn cell_options(
         descriptor_model: (model != implied).then(|| model.as_str().to_string()),
         heap_layout,
         profile: resolved.profile,
+        scene: resolved.scene,
     })
 }

@@ -46,6 +46,8 @@ pub enum Source {
     /// SplitMix64 seeded with this value.
     Random(u64),
     File(PathBuf),
+    /// `scene.NAME`: the `--scene` file's data (laid out by the `scene_data` module).
+    Scene(super::scene_item::Item),
 }
 
 /// One `--fill` as given.
@@ -64,7 +66,7 @@ pub struct Fill {
 }
 
 /// What the `--fill` forms are, for errors.
-const FORMS: &str = "give TARGET=SOURCE: TARGET is SET.BINDING, SET.BINDING[ELEM], push.OFFSET or record.OFFSET; SOURCE is zero, random:SEED or a file";
+const FORMS: &str = "give TARGET=SOURCE: TARGET is SET.BINDING, SET.BINDING[ELEM], push.OFFSET or record.OFFSET; SOURCE is zero, random:SEED, a file or scene.NAME";
 
 fn number<T: std::str::FromStr>(s: &str) -> Option<T> {
     s.trim().parse().ok()
@@ -85,14 +87,20 @@ fn target(t: &str) -> Option<Target> {
     Some(Target::Binding { set: number(set)?, binding: number(binding)?, element })
 }
 
-/// `TARGET=SOURCE`. A `scene.…` source is issue 28's, refused here.
+/// `TARGET=SOURCE`.
 pub fn parse(text: &str) -> Result<Request, FillError> {
     let syntax = |why: String| FillError::Syntax(text.to_string(), why);
     let (t, s) = text.split_once('=').ok_or_else(|| syntax(FORMS.into()))?;
     let target = target(t).ok_or_else(|| syntax(format!("target `{t}`: {FORMS}")))?;
     let source = match s {
         "zero" => Source::Zero,
-        _ if s.starts_with("scene.") => return Err(syntax(format!("`{s}`: scene data sources come with --scene (issue 28), which rtprobe does not have yet; give zero, random:SEED or a file"))),
+        _ if s.starts_with("scene.") => {
+            let item = super::scene_item::Item::parse(&s["scene.".len()..]).ok_or_else(|| {
+                let names: Vec<&str> = super::scene_item::ALL.iter().map(|i| i.name()).collect();
+                syntax(format!("`{s}`: give scene.NAME, NAME one of {}", names.join(", ")))
+            })?;
+            Source::Scene(item)
+        }
         _ => match s.strip_prefix("random:") {
             Some(seed) => Source::Random(number(seed).ok_or_else(|| {
                 syntax(format!("`{s}`: the seed is an unsigned 64-bit integer (random:42)"))
@@ -121,7 +129,7 @@ pub fn random_bytes(seed: u64, n: usize) -> Vec<u8> {
 
 /// The bytes target `r.target` holds in `modules`: a buffer element's size, or the bytes from
 /// OFFSET to the block's end; a target they do not have is refused naming what they have.
-fn room(r: &Request, modules: &[UserModule]) -> Result<u32, FillError> {
+pub(super) fn room(r: &Request, modules: &[UserModule]) -> Result<u32, FillError> {
     let refuse = |why: String| FillError::Target(r.text.clone(), why);
     match r.target {
         Target::Binding { set, binding, element } => {
@@ -193,6 +201,7 @@ pub fn resolve(r: &Request, modules: &[UserModule]) -> Result<Fill, FillError> {
     let room = room(r, modules)? as usize;
     let buffer = matches!(r.target, Target::Binding { .. });
     let bytes = match &r.source {
+        Source::Scene(_) => Vec::new(),
         Source::Zero => vec![0; room],
         Source::Random(seed) => random_bytes(*seed, room),
         Source::File(p) => {
@@ -285,8 +294,10 @@ mod tests {
             let e = parse(bad).unwrap_err().to_string();
             assert!(e.starts_with(&format!("--fill {bad}: ")) && !e.contains('\n'), "{e}");
         }
-        let e = parse("0.1=scene.positions").unwrap_err().to_string();
-        assert!(e.contains("--scene (issue 28)"), "{e}");
+        let p = parse("push.8=scene.scene_desc").unwrap();
+        assert_eq!(p.source, Source::Scene(super::super::scene_item::Item::SceneDesc));
+        let e = parse("0.1=scene.vertices").unwrap_err().to_string();
+        assert!(e.contains("scene.NAME, NAME one of positions,"), "{e}");
     }
 
     /// SplitMix64 from seed 0 gives its published first output; another seed other bytes.

@@ -32,6 +32,8 @@ pub mod reflect;
 mod resources;
 pub mod run;
 pub mod scene;
+pub mod scene_data;
+mod scene_item;
 pub mod sizes;
 pub mod spec;
 mod supply;
@@ -106,6 +108,14 @@ pub struct Setup {
     pub sink: u64,
     /// `--fill`'s bytes over the harness's data.
     pub fills: fill::Fills,
+    /// `--scene`: the loaded scene traced instead of the harness's, and its `scene.NAME` fills.
+    pub scene: Option<SceneSetup>,
+}
+
+/// `run --shader --scene`'s scene and the fills that read it.
+pub struct SceneSetup {
+    pub loaded: crate::scene::gltf::Loaded,
+    pub fills: Vec<scene_data::SceneFill>,
 }
 
 impl Default for Setup {
@@ -117,6 +127,7 @@ impl Default for Setup {
             heap_layout: None,
             sink: sizes::SINK_SIZE,
             fills: fill::Fills::default(),
+            scene: None,
         }
     }
 }
@@ -146,6 +157,8 @@ pub struct Harness {
     fills: fill::Fills,
     /// The shader record data after every SBT handle ([`record`]).
     record: Vec<u8>,
+    /// `--scene`'s buffers that fills name.
+    scene_buffers: Option<scene_data::SceneBuffers>,
 }
 
 /// Each stage's SPIR-V, stage flag and entry name, and the intersection shader's index.
@@ -209,6 +222,22 @@ fn binding_flags(setup: &Setup) -> crate::model::profile::BindingFlags {
     }
 }
 
+/// The scene the harness traces — `--scene`'s, fitted, else the harness's — with the buffers
+/// its fills name and every fill placed.
+fn traced_scene(
+    gpu: &Gpu,
+    setup: &Setup,
+) -> Result<(crate::scene::Scene, Option<scene_data::SceneBuffers>, fill::Fills), HarnessError> {
+    Ok(match &setup.scene {
+        Some(s) => {
+            let b = scene_data::SceneBuffers::new(gpu, &s.loaded, &s.fills)?;
+            let fills = b.placed(&s.loaded, &setup.fills, &s.fills);
+            (scene::loaded(&s.loaded, SIZE), Some(b), fills)
+        }
+        None => (scene::build(SIZE), None, setup.fills.clone()),
+    })
+}
+
 impl Harness {
     /// The scene and resources for `modules` (every module the pipelines will use, unpatched:
     /// the patched ones read the same resources through addresses), push constants of
@@ -239,7 +268,7 @@ impl Harness {
         setup: Setup,
     ) -> Result<Harness, HarnessError> {
         let submitter = Submitter::new(&gpu)?;
-        let mut built = scene::build(SIZE);
+        let (mut built, scene_buffers, fills) = traced_scene(&gpu, &setup)?;
         // A given any-hit runs on every candidate, as on an engine's alpha-tested geometry.
         built.no_opaque = modules.iter().any(|m| m.iface.stage == "any_hit");
         let scene = SceneGpu::build_with(&gpu, &built, &submitter, timeout, scene::variant_custom)?;
@@ -255,8 +284,8 @@ impl Harness {
             .map(|b| (b.set, b.binding));
         let buffer_model = setup.model == DescriptorModel::DescriptorBuffer;
         let made = (setup.sink, buffer_model, binding_flags(&setup));
-        let res = Resources::new(&gpu, &bindings, scene_at, &scene, extent, made, &setup.fills)?;
-        let record = record::data(modules, res.sink.address, &setup.fills);
+        let res = Resources::new(&gpu, &bindings, scene_at, &scene, extent, made, &fills)?;
+        let record = record::data(modules, res.sink.address, &fills);
         if let Some(p) = gpu.info.properties.rt_pipeline {
             record::check(record.len(), p.shader_group_handle_size, p.max_shader_group_stride)?;
         }
@@ -294,7 +323,7 @@ impl Harness {
                     .at("vkCreatePipelineLayout")?
             }
         };
-        let (spec, fills) = (setup.spec, setup.fills);
+        let spec = setup.spec;
         Ok(Harness {
             gpu,
             submitter,
@@ -308,6 +337,7 @@ impl Harness {
             spec,
             fills,
             record,
+            scene_buffers,
         })
     }
 
@@ -632,6 +662,9 @@ impl Drop for Harness {
             Bound::Sets => {}
         }
         self.res.destroy(&self.gpu);
+        if let Some(b) = &self.scene_buffers {
+            b.destroy(&self.gpu);
+        }
         self.scene.destroy(&self.gpu);
         unsafe { self.gpu.device.destroy_pipeline_layout(self.layout, None) };
         self.submitter.destroy(&self.gpu);

@@ -213,7 +213,10 @@ impl Making<'_> {
                 let usage = vk::BufferUsageFlags::STORAGE_BUFFER
                     | vk::BufferUsageFlags::UNIFORM_BUFFER
                     | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
-                let buf = Buffer::new(gpu, size as u64, usage, Location::Host, "harness buffer")?;
+                // A filled buffer holds the fill's bytes (`--scene`'s data: sized to them).
+                let size =
+                    self.fills.buffer(key, k).map_or(size as u64, |b| b.len().max(16) as u64);
+                let buf = Buffer::new(gpu, size, usage, Location::Host, "harness buffer")?;
                 buf.write(0, &element_data(self.fills, made.buffers, key, k, b, self.sink));
                 made.buffers += 1;
                 Element::Buffer(buf)

@@ -75,6 +75,12 @@ pub struct ShaderJob {
     /// `--fill`'s bytes.
     #[serde(default)]
     pub fills: super::fill::Fills,
+    /// `--scene`: the glTF file traced instead of the harness scene.
+    #[serde(default)]
+    pub scene: Option<PathBuf>,
+    /// `--fill TARGET=scene.NAME`: placed by the child from the loaded scene.
+    #[serde(default)]
+    pub scene_fills: Vec<super::scene_data::SceneFill>,
 }
 
 /// An attempt's messages beside its error count (`model::validation_message`): the errors that
@@ -279,6 +285,14 @@ fn harness(job: &ShaderJob) -> Result<(Harness, Vec<UserModule>), HarnessError> 
         .unwrap_or(0)
         .max(job.contract.as_ref().map_or(0, |c| c.push_end));
     let refs: Vec<&UserModule> = unpatched.iter().collect();
+    let scene = match &job.scene {
+        Some(p) => Some(super::SceneSetup {
+            loaded: crate::scene::gltf::Loaded::load(p)
+                .map_err(|e| HarnessError::Unsupported(e.to_string()))?,
+            fills: job.scene_fills.clone(),
+        }),
+        None => None,
+    };
     let setup = super::Setup {
         model,
         spec: job.spec.clone(),
@@ -286,6 +300,7 @@ fn harness(job: &ShaderJob) -> Result<(Harness, Vec<UserModule>), HarnessError> 
         sink: job.sizes.sink,
         profile: job.profile,
         fills: job.fills.clone(),
+        scene,
     };
     let h = Harness::with_setup(gpu, &refs, push, Duration::from_millis(job.timeout_ms), setup)?;
     Ok((h, variant))

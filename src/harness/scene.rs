@@ -43,6 +43,21 @@ pub fn build(size: u32) -> Scene {
     s
 }
 
+/// A `--scene` file's scene as the harness traces it: fitted into the view at `size`×`size`
+/// (`scene::gltf::fit`), custom index the mesh's index.
+pub fn loaded(l: &crate::scene::gltf::Loaded, size: u32) -> Scene {
+    crate::scene::gltf::fit::to_scene(l, &params(size))
+}
+
+/// The runtime array elements a `--scene` file needs: one more than every index its hit
+/// shaders can see (custom index, instance, geometry, primitive within a geometry, and the
+/// probe TLAS variants' custom indices), at least [`INDEX_BOUND`].
+pub fn loaded_bound(l: &crate::scene::gltf::Loaded) -> u32 {
+    let s = loaded(l, TRACE_SIZE);
+    let variants = crate::probe::as_variants(s.instances.len() as u32);
+    index_bound(&s, variants, variant_custom).max(INDEX_BOUND)
+}
+
 /// One more than the largest index `scene` can produce in a hit shader, with its probe TLAS
 /// variants' custom indices from `custom` (over `variants` variants).
 pub fn index_bound(scene: &Scene, variants: u32, custom: fn(u32, u32) -> u32) -> u32 {
@@ -66,6 +81,20 @@ pub fn index_bound(scene: &Scene, variants: u32, custom: fn(u32, u32) -> u32) ->
 mod tests {
     use super::*;
     use crate::harness::reflect::{RUNTIME_ELEMENTS, RUNTIME_MEMBERS};
+
+    /// A loaded scene's bound covers its largest primitive index: the test scene's ground has
+    /// 128 triangles in one geometry, more than the harness scene's bound.
+    #[test]
+    fn a_loaded_scenes_bound_covers_its_primitives() {
+        let d = tempfile::tempdir().unwrap();
+        let o = crate::scene::gltf::make::MakeOptions { triangles: 0, glb: false };
+        let l =
+            crate::scene::gltf::Loaded::load(&crate::scene::gltf::make::make(d.path(), o).unwrap())
+                .unwrap();
+        let most = l.meshes.iter().flat_map(|m| m.primitives.iter().map(|p| p.triangles)).max();
+        assert!(loaded_bound(&l) >= most.unwrap(), "{}", loaded_bound(&l));
+        assert!(most.unwrap() > INDEX_BOUND, "the twin: the default bound would not cover it");
+    }
 
     #[test]
     fn runtime_arrays_cover_every_index_the_harness_scene_produces() {

@@ -1,7 +1,8 @@
 //! The options of `run --shader` that change what runs, beyond the inputs' own hashes: the entry
 //! point, specialization constants (normalised), fills (a file's by its hash), runtime array and
 //! sink sizes, a descriptor model other than the one the modules imply, a heap layout (by its
-//! hash), and what `--profile` turns on (by its effect, not its file).
+//! hash), what `--profile` turns on (by its effect, not its file), and `--scene`'s file (by
+//! its hash).
 //! `shader_run::cell_id_with` names a run with them: the inputs' id as before when none is
 //! given (reports written before these options keep their ids), else that id and `#` with 12 hex
 //! digits of the options' FNV-1a 64 hash.
@@ -37,6 +38,9 @@ pub struct CellOptions {
     /// another file are the same cell). Empty: no profile, or one that changes nothing.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub profile: Vec<String>,
+    /// `--scene`: the content hash of the scene file.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scene: Option<String>,
 }
 
 impl CellOptions {
@@ -67,7 +71,8 @@ impl CellOptions {
             ("heap_layout", vec![opt(&self.heap_layout)]),
         ];
         // Fields added later are hashed only when given: ids of runs without them stay.
-        let later = [("profile", self.profile.clone())];
+        let scene = self.scene.iter().cloned().collect();
+        let later = [("profile", self.profile.clone()), ("scene", scene)];
         let later = later.into_iter().filter(|(_, v)| !v.is_empty());
         for (name, values) in fields.into_iter().chain(later) {
             put(name.as_bytes());

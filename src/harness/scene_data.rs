@@ -1,0 +1,358 @@
+//! `run --shader --scene FILE`'s data: the loaded glTF scene laid out the way the glTF ray
+//! tracing tutorial lays it out, each mesh once, for `--fill TARGET=scene.NAME` ([`Item`]).
+//! Positions and normals are tightly packed `vec3` (scalar layout), UVs `vec2`, indices `uint`
+//! relative to their primitive's first vertex (the shader adds `vertexOffset`), a mesh without
+//! normals or UVs holds zeros there so every vertex list stays aligned with the positions.
+//! Materials are [`MATERIAL_BYTES`] each (`vec4 baseColorFactor; int baseColorTexture; float
+//! alphaCutoff; uint alphaMode; uint pad`), the document's then glTF's default material (a
+//! primitive without one points at it). `prim_info` starts with one header per mesh
+//! `{firstEntry, primitiveCount, meshIndex}` (indexed by the custom index, which is the mesh's
+//! index), then one `PrimMeshInfo {indexOffset, vertexOffset, materialIndex}` per primitive,
+//! entry `firstEntry + gl_GeometryIndexEXT` (offsets in the shared index and vertex lists).
+//! `scene_desc` is the device addresses of the six buffers as `uint64`. The child makes the
+//! buffers named by the fills ([`SceneBuffers`]); the parent sums their bytes first ([`bytes_needed`]).
+use super::error::HarnessError;
+use super::fill::{Fill, FillError, Fills, Request, Source, Target};
+use super::module::UserModule;
+pub use super::scene_item::{Item, ALL, DESC_ORDER};
+use crate::scene::gltf::{Alpha, Loaded};
+use crate::vk::memory::{Buffer, Location};
+use crate::vk::Gpu;
+use ash::vk;
+use serde::{Deserialize, Serialize};
+
+/// Bytes of one material: `vec4 baseColorFactor; int baseColorTexture; float alphaCutoff;
+/// uint alphaMode; uint pad`.
+pub const MATERIAL_BYTES: usize = 32;
+/// Bytes of one `prim_info` entry (a mesh header or a `PrimMeshInfo`).
+pub const PRIM_INFO_BYTES: usize = 12;
+/// Bytes of `scene_desc`: six device addresses.
+pub const SCENE_DESC_BYTES: usize = 48;
+
+fn floats<const N: usize>(out: &mut Vec<u8>, v: &[[f32; N]]) {
+    out.extend(v.iter().flatten().flat_map(|f| f.to_le_bytes()));
+}
+
+/// Per mesh, its first vertex and first index in the shared lists.
+fn mesh_bases(loaded: &Loaded) -> Vec<(u32, u32)> {
+    let (mut v, mut i) = (0u32, 0u32);
+    loaded
+        .meshes
+        .iter()
+        .map(|m| {
+            let at = (v, i);
+            v += m.positions.len() as u32;
+            i += 3 * m.indices.len() as u32;
+            at
+        })
+        .collect()
+}
+
+/// The materials: the document's, then glTF's default (white, opaque, no texture).
+fn materials(loaded: &Loaded) -> Vec<u8> {
+    let mut out = Vec::new();
+    let default = crate::scene::gltf::Material {
+        name: "default".into(),
+        base_color: [1.0; 4],
+        base_color_image: None,
+        alpha: Alpha::Opaque,
+    };
+    for m in loaded.materials.iter().chain([&default]) {
+        out.extend(m.base_color.iter().flat_map(|f| f.to_le_bytes()));
+        out.extend(m.base_color_image.map_or(-1, |i| i as i32).to_le_bytes());
+        let (cutoff, mode) = match m.alpha {
+            Alpha::Opaque => (0.5, 0u32),
+            Alpha::Mask(c) => (c, 1),
+            Alpha::Blend => (0.5, 2),
+        };
+        out.extend(cutoff.to_le_bytes());
+        out.extend(mode.to_le_bytes());
+        out.extend(0u32.to_le_bytes());
+    }
+    out
+}
+
+/// The mesh headers, then every primitive's `PrimMeshInfo`.
+fn prim_info(loaded: &Loaded) -> Vec<u8> {
+    let mut out = Vec::new();
+    let mut entry = loaded.meshes.len() as u32;
+    for (k, m) in loaded.meshes.iter().enumerate() {
+        let n = m.primitives.len() as u32;
+        [entry, n, k as u32].iter().for_each(|w| out.extend(w.to_le_bytes()));
+        entry += n;
+    }
+    let default = loaded.materials.len() as i32;
+    for (m, (v, i)) in loaded.meshes.iter().zip(mesh_bases(loaded)) {
+        for p in &m.primitives {
+            out.extend((i + 3 * p.first_triangle).to_le_bytes());
+            out.extend((v + p.vertex_offset).to_le_bytes());
+            out.extend(p.material.map_or(default, |k| k as i32).to_le_bytes());
+        }
+    }
+    out
+}
+
+/// The bytes of `item` (`scene_desc` and `textures` are not bytes of the scene: empty).
+pub fn bytes(loaded: &Loaded, item: Item) -> Vec<u8> {
+    let mut out = Vec::new();
+    for m in &loaded.meshes {
+        let n = m.positions.len();
+        match item {
+            Item::Positions => floats(&mut out, &m.positions),
+            Item::Normals if m.normals.len() == n => floats(&mut out, &m.normals),
+            Item::Normals => out.resize(out.len() + 12 * n, 0),
+            Item::Uvs if m.uvs.len() == n => floats(&mut out, &m.uvs),
+            Item::Uvs => out.resize(out.len() + 8 * n, 0),
+            Item::Indices => out.extend(m.indices.iter().flatten().flat_map(|i| i.to_le_bytes())),
+            Item::Materials | Item::PrimInfo | Item::SceneDesc | Item::Textures => break,
+        }
+    }
+    match item {
+        Item::Materials => materials(loaded),
+        Item::PrimInfo => prim_info(loaded),
+        Item::Positions
+        | Item::Normals
+        | Item::Uvs
+        | Item::Indices
+        | Item::SceneDesc
+        | Item::Textures => out,
+    }
+}
+
+/// The buffers `items` need made: each named one, and all six behind a `scene_desc`.
+fn buffers_for(items: &[Item]) -> Vec<Item> {
+    let mut out: Vec<Item> = items.iter().copied().filter(|i| *i != Item::Textures).collect();
+    if items.contains(&Item::SceneDesc) {
+        out.extend(DESC_ORDER);
+    }
+    out.sort();
+    out.dedup();
+    out
+}
+
+/// The device memory `items` take on the device: their buffers' bytes, and for `textures`
+/// each image's RGBA8 texels (`texture_bytes`, from the images' sizes).
+pub fn bytes_needed(loaded: &Loaded, items: &[Item], texture_bytes: u64) -> u64 {
+    let buffers: u64 = buffers_for(items)
+        .into_iter()
+        .map(|i| match i {
+            Item::SceneDesc => SCENE_DESC_BYTES as u64,
+            _ => bytes(loaded, i).len() as u64,
+        })
+        .sum();
+    buffers + if items.contains(&Item::Textures) { texture_bytes } else { 0 }
+}
+
+/// The largest device-local heap of a device, in bytes.
+pub fn largest_device_heap(memory: &vk::PhysicalDeviceMemoryProperties) -> u64 {
+    memory.memory_heaps[..memory.memory_heap_count as usize]
+        .iter()
+        .filter(|h| h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL))
+        .map(|h| h.size)
+        .max()
+        .unwrap_or(0)
+}
+
+/// One scene fill as the job carries it: its place among the fills, its target and item.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SceneFill {
+    /// Its index among `--fill`'s (a later fill over an earlier one where they meet).
+    pub at: usize,
+    pub target: Target,
+    pub item: Item,
+}
+
+/// A `scene.NAME` fill held to `modules`: a buffer item into a buffer binding (the buffer is
+/// then sized to the scene's bytes) or as an 8-byte address at a push or record offset;
+/// `textures` only into a texture binding. `at`: its place among the run's fills.
+pub fn resolve_scene(
+    r: &Request,
+    modules: &[UserModule],
+    at: usize,
+) -> Result<SceneFill, FillError> {
+    let Source::Scene(item) = r.source else {
+        return Err(FillError::Syntax(r.text.clone(), "not a scene source".into()));
+    };
+    let refuse = |why: String| FillError::Target(r.text.clone(), why);
+    if item == Item::Textures {
+        return Err(refuse(if texture_binding(r.target, modules) {
+            "scene.textures into a texture array is not implemented yet (issue 28); fill buffers, push constants or records with the other scene.NAME sources".to_string()
+        } else {
+            "scene.textures goes to a sampled-image or combined-image-sampler array binding; give one of those as TARGET".to_string()
+        }));
+    }
+    let room = super::fill::room(r, modules)?;
+    if matches!(r.target, Target::Push(_) | Target::Record(_)) && room < 8 {
+        return Err(refuse(format!("only {room} bytes from there to the block's end, where a device address takes 8; give an offset at least 8 bytes before the end")));
+    }
+    Ok(SceneFill { at, target: r.target, item })
+}
+
+/// Whether `target` is a binding of sampled images or combined image samplers in `modules`.
+fn texture_binding(target: Target, modules: &[UserModule]) -> bool {
+    let Target::Binding { set, binding, .. } = target else { return false };
+    modules.iter().flat_map(|m| &m.iface.bindings).any(|b| {
+        (b.set, b.binding) == (set, binding)
+            && matches!(
+                b.kind,
+                super::reflect::BindingKind::SampledImage
+                    | super::reflect::BindingKind::CombinedImageSampler
+            )
+    })
+}
+
+/// The scene's buffers on the device, made for the fills that name them.
+pub struct SceneBuffers {
+    made: Vec<(Item, Buffer)>,
+}
+
+impl SceneBuffers {
+    /// The buffers `fills` need, written from `loaded` (`scene_desc` after the others, from
+    /// their addresses).
+    pub fn new(gpu: &Gpu, loaded: &Loaded, fills: &[SceneFill]) -> Result<Self, HarnessError> {
+        let items: Vec<Item> = fills.iter().map(|f| f.item).collect();
+        let mut made: Vec<(Item, Buffer)> = Vec::new();
+        let usage =
+            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+        for item in buffers_for(&items) {
+            let data = match item {
+                Item::SceneDesc => DESC_ORDER
+                    .iter()
+                    .flat_map(|d| {
+                        made.iter()
+                            .find(|(i, _)| i == d)
+                            .map_or(0, |(_, b)| b.address)
+                            .to_le_bytes()
+                    })
+                    .collect(),
+                _ => bytes(loaded, item),
+            };
+            let what = "scene buffer";
+            let buf = Buffer::new(gpu, data.len().max(16) as u64, usage, Location::Host, what)?;
+            buf.write(0, &data);
+            made.push((item, buf));
+        }
+        Ok(SceneBuffers { made })
+    }
+
+    /// `fills` with each scene fill put in its place: a binding gets its buffer's bytes, a
+    /// push or record offset the buffer's 8-byte device address.
+    pub fn placed(&self, loaded: &Loaded, fills: &Fills, scene: &[SceneFill]) -> Fills {
+        let mut out = fills.0.clone();
+        for f in scene {
+            let Some((_, buf)) = self.made.iter().find(|(i, _)| *i == f.item) else { continue };
+            let bytes = match f.target {
+                Target::Binding { .. } if f.item == Item::SceneDesc => {
+                    let all = DESC_ORDER.iter().flat_map(|d| {
+                        self.made
+                            .iter()
+                            .find(|(i, _)| i == d)
+                            .map_or(0, |(_, b)| b.address)
+                            .to_le_bytes()
+                    });
+                    all.collect()
+                }
+                Target::Binding { .. } => bytes(loaded, f.item),
+                Target::Push(_) | Target::Record(_) => buf.address.to_le_bytes().to_vec(),
+            };
+            out.insert(f.at.min(out.len()), Fill { target: f.target, bytes });
+        }
+        Fills(out)
+    }
+
+    pub fn destroy(&self, gpu: &Gpu) {
+        self.made.iter().for_each(|(_, b)| b.destroy(gpu));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn test_scene() -> (tempfile::TempDir, Loaded) {
+        let d = tempfile::tempdir().unwrap();
+        let o = crate::scene::gltf::make::MakeOptions { triangles: 0, glb: false };
+        let path = crate::scene::gltf::make::make(d.path(), o).unwrap();
+        let l = Loaded::load(&path).unwrap();
+        (d, l)
+    }
+
+    fn words(b: &[u8]) -> Vec<u32> {
+        b.chunks(4).map(|c| u32::from_le_bytes(c.try_into().unwrap())).collect()
+    }
+
+    /// Every `PrimMeshInfo` points at its primitive's triangles and vertices in the shared
+    /// lists: the triangle the loader holds is the one the layout gives.
+    #[test]
+    fn prim_info_finds_every_primitives_triangles() {
+        let (_d, l) = test_scene();
+        let info = words(&bytes(&l, Item::PrimInfo));
+        let idx = words(&bytes(&l, Item::Indices));
+        let pos = bytes(&l, Item::Positions);
+        let (mut bases_v, mut seen) = (0usize, 0);
+        for (k, m) in l.meshes.iter().enumerate() {
+            let first = info[3 * k] as usize;
+            assert_eq!(info[3 * k + 1] as usize, m.primitives.len());
+            for (g, p) in m.primitives.iter().enumerate() {
+                let e = &info[3 * (first + g)..3 * (first + g) + 3];
+                for t in 0..p.triangles {
+                    let want = m.triangle(p.first_triangle + t);
+                    let got: Vec<u32> =
+                        (0..3).map(|c| idx[(e[0] + 3 * t + c) as usize] + e[1]).collect();
+                    for c in 0..3 {
+                        let at = 12 * got[c] as usize;
+                        let v = &pos[at..at + 12];
+                        let w: Vec<u8> = m.positions[want[c] as usize]
+                            .iter()
+                            .flat_map(|f| f.to_le_bytes())
+                            .collect();
+                        assert_eq!(v, &w[..], "mesh {k} primitive {g} triangle {t}");
+                        assert_eq!(got[c] as usize - bases_v, want[c] as usize);
+                    }
+                    seen += 1;
+                }
+                let mat = e[2] as usize;
+                assert_eq!(Some(mat).filter(|m| *m < l.materials.len()), p.material);
+            }
+            bases_v += m.positions.len();
+        }
+        assert_eq!(seen, l.meshes.iter().map(|m| m.indices.len()).sum::<usize>());
+        // Twin: the header read as a primitive (indexing by the custom index alone) is not it.
+        assert_ne!(&info[0..3], &info[3 * info[0] as usize..3 * info[0] as usize + 3]);
+    }
+
+    /// The largest device-local heap: a host-only heap larger than it does not count (the
+    /// twin: counting every heap would give the host heap).
+    #[test]
+    fn the_largest_heap_is_a_device_local_one() {
+        let mut m =
+            vk::PhysicalDeviceMemoryProperties { memory_heap_count: 3, ..Default::default() };
+        m.memory_heaps[0] =
+            vk::MemoryHeap { size: 8 << 30, flags: vk::MemoryHeapFlags::DEVICE_LOCAL };
+        m.memory_heaps[1] = vk::MemoryHeap { size: 64 << 30, flags: vk::MemoryHeapFlags::empty() };
+        m.memory_heaps[2] =
+            vk::MemoryHeap { size: 256 << 20, flags: vk::MemoryHeapFlags::DEVICE_LOCAL };
+        assert_eq!(largest_device_heap(&m), 8 << 30);
+        m.memory_heap_count = 0;
+        assert_eq!(largest_device_heap(&m), 0);
+    }
+
+    #[test]
+    fn materials_and_vertex_lists_have_their_sizes() {
+        let (_d, l) = test_scene();
+        let verts: usize = l.meshes.iter().map(|m| m.positions.len()).sum();
+        assert_eq!(bytes(&l, Item::Positions).len(), 12 * verts);
+        assert_eq!(bytes(&l, Item::Normals).len(), 12 * verts);
+        assert_eq!(bytes(&l, Item::Uvs).len(), 8 * verts);
+        let m = bytes(&l, Item::Materials);
+        assert_eq!(m.len(), MATERIAL_BYTES * (l.materials.len() + 1));
+        let w = words(&m);
+        assert_eq!(f32::from_bits(w[0]), l.materials[0].base_color[0]);
+        let needed = bytes_needed(&l, &[Item::SceneDesc], 0);
+        let six: u64 = DESC_ORDER.iter().map(|i| bytes(&l, *i).len() as u64).sum();
+        assert_eq!(needed, six + SCENE_DESC_BYTES as u64);
+        assert_eq!(bytes_needed(&l, &[Item::Uvs], 100), 8 * verts as u64);
+        assert_eq!(Item::parse("prim_info"), Some(Item::PrimInfo));
+        assert_eq!(Item::parse("prims"), None);
+    }
+}

@@ -1,0 +1,235 @@
+//! End-to-end tests of `rtprobe run --shader --scene` on lavapipe: a glTF-tutorial-style
+//! closest-hit written for these tests (`tests/shaders/user/tutorial.rchit`) reads the test
+//! scene (`rtprobe scene make`) through the scene description's address in a push constant, and
+//! its image is held to a CPU rendering of the same shading over the same fitted scene and rays
+//! (the reference's f64 intersection; ambiguous pixels excluded and counted). Its twin, built
+//! with `-D WRONG_PRIM`, fails that comparison. Scene fills and scene files given wrongly are
+//! one line, a non-zero exit and no report.
+mod common;
+use common::*;
+use glam::{DMat3, DVec3};
+use rtprobe::harness::MISS_MARKER;
+use rtprobe::reference::intersect::{self, Culling};
+use rtprobe::scene::gltf::Loaded;
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+
+/// The light and ambient term of `tutorial.rchit`.
+const LIGHT: [f64; 3] = [0.48, 0.64, -0.6];
+const AMBIENT: f64 = 0.2;
+/// `Shade`'s words per pixel (`common.glsl`): colour, distance, instance, bounces.
+const WORDS: usize = 6;
+
+fn user(f: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/shaders/user").join(f).display().to_string()
+}
+
+/// The test scene written into a temporary folder.
+fn test_scene() -> (tempfile::TempDir, PathBuf) {
+    let d = tempfile::tempdir().unwrap();
+    let o = run(&["scene", "make", &d.path().display().to_string()]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let p = d.path().join("scene.gltf");
+    (d, p)
+}
+
+/// `run --shader F --scene S` with `extra`: the output and the report, if written.
+fn scene_run(scene: &Path, extra: &[&str]) -> (std::process::Output, Option<Value>) {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("report.json");
+    let (shader, scene, out_s) =
+        (user("tutorial.rchit"), scene.display().to_string(), out.display().to_string());
+    let mut args = vec!["run", "--shader", &shader, "--scene", &scene, "-o", &out_s];
+    args.extend_from_slice(extra);
+    let o = run(&args);
+    let report = std::fs::read(&out).ok().map(|b| serde_json::from_slice(&b).unwrap());
+    (o, report)
+}
+
+/// The colour the CPU gives pixel (`x`, `y`): `None` for a miss, else the closest hit's shading
+/// as `tutorial.rchit` computes it, in f64; and whether the pixel is ambiguous.
+fn cpu_pixel(
+    l: &Loaded,
+    s: &rtprobe::scene::Scene,
+    cull: &Culling,
+    x: u32,
+    y: u32,
+) -> (Option<[f64; 3]>, bool) {
+    let (o, d) = s.primary_ray(x, y);
+    let r = intersect::trace((s, cull), o, d, |_| true);
+    let Some(h) = r.hit else { return (None, r.ambiguous) };
+    let inst = &s.instances[h.instance_id as usize];
+    let m = &l.meshes[h.instance as usize];
+    let p = &m.primitives[h.geometry as usize];
+    let tri = m.triangle(p.first_triangle + h.primitive);
+    let w = [1.0 - h.bary[0] - h.bary[1], h.bary[0], h.bary[1]];
+    let n = (0..3).fold(DVec3::ZERO, |n, k| {
+        n + DVec3::from(m.normals[tri[k] as usize].map(|f| f as f64)) * w[k]
+    });
+    let t = inst.transform;
+    let obj = DMat3::from_cols_array_2d(&[0, 1, 2].map(|c| [0, 1, 2].map(|r| t[r][c] as f64)));
+    let world_n = (obj.inverse().transpose() * n).normalize();
+    let lambert = world_n.dot(DVec3::from(LIGHT).normalize()).max(0.0);
+    let base = p.material.map_or([1.0; 4], |k| l.materials[k].base_color);
+    let c = [0, 1, 2].map(|k| base[k] as f64 * (AMBIENT + (1.0 - AMBIENT) * lambert));
+    (Some(c), r.ambiguous)
+}
+
+/// How the device's image compares with the CPU's: pixels within 2/255 per channel (a miss
+/// where the CPU misses counts as within), pixels outside, ambiguous pixels left out.
+#[derive(Debug, Default)]
+struct Counts {
+    within: u32,
+    outside: u32,
+    ambiguous: u32,
+    hits: u32,
+    /// Of the CPU's hits, those the device's colour is within.
+    hits_within: u32,
+}
+
+fn compare(scene: &Path, report: &Value) -> Counts {
+    let l = Loaded::load(scene).unwrap();
+    let size = rtprobe::harness::SIZE;
+    let s = rtprobe::harness::scene::loaded(&l, size);
+    let cull = Culling::of(&s);
+    let v = &report["variants"][0];
+    assert_eq!(v["outcome"], "pass", "{v}");
+    let data = v["data"].as_array().unwrap();
+    let out =
+        data.iter().find(|d| d["label"].as_str().unwrap().starts_with("storage buffer")).unwrap();
+    let bytes = unb64(out["bytes"].as_str().unwrap());
+    assert_eq!(bytes.len(), (size * size) as usize * WORDS * 4);
+    let word = |k: usize| u32::from_le_bytes(bytes[4 * k..4 * k + 4].try_into().unwrap());
+    let mut c = Counts::default();
+    for y in 0..size {
+        for x in 0..size {
+            let at = (y * size + x) as usize * WORDS;
+            let (cpu, ambiguous) = cpu_pixel(&l, &s, &cull, x, y);
+            if ambiguous {
+                c.ambiguous += 1;
+                continue;
+            }
+            let gpu = (word(at) != MISS_MARKER)
+                .then(|| [0, 1, 2].map(|k| f32::from_bits(word(at + k)) as f64));
+            c.hits += cpu.is_some() as u32;
+            let same = match (cpu, gpu) {
+                (None, None) => true,
+                (Some(a), Some(b)) => (0..3).all(|k| (a[k] - b[k]).abs() <= 2.0 / 255.0),
+                (None, Some(_)) | (Some(_), None) => false,
+            };
+            c.hits_within += (same && cpu.is_some()) as u32;
+            if same {
+                c.within += 1;
+            } else {
+                c.outside += 1;
+            }
+        }
+    }
+    c
+}
+
+/// At least 99.5% of the judged pixels within 2/255, and of the hit pixels among them (a
+/// shading error on the scene's few pixels must not hide among the misses).
+fn matches(c: &Counts) -> bool {
+    let judged = c.within + c.outside;
+    judged > 0
+        && c.within as f64 >= 0.995 * judged as f64
+        && c.hits_within as f64 >= 0.995 * c.hits as f64
+}
+
+/// The tutorial-style closest-hit on the test scene under `--validate`: no message, no fault,
+/// its image the CPU's within 2/255 on at least 99.5% of the unambiguous pixels. The twin: the
+/// per-primitive table indexed by the custom index alone fails the same comparison.
+#[test]
+fn a_tutorial_closest_hit_renders_the_scene_as_the_cpu_does() {
+    let (_d, scene) = test_scene();
+    let fill = ["--fill", "push.16=scene.scene_desc", "--repeat", "1"];
+    let mut args = vec!["--validate"];
+    args.extend_from_slice(&fill);
+    let (o, r) = scene_run(&scene, &args);
+    let r = r.unwrap_or_else(|| panic!("no report: {}{}", stdout(&o), stderr(&o)));
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    for v in r["variants"].as_array().unwrap() {
+        for a in v["attempts"].as_array().unwrap() {
+            assert_eq!(a["outcome"], "pass", "{a}");
+            assert_eq!(a["validation_messages"], 0, "{a}");
+        }
+    }
+    assert_eq!(r["cell_options"]["fill"], serde_json::json!(["push.16=scene.scene_desc"]));
+    assert!(
+        r["cell_options"]["scene"].as_str().is_some_and(|h| h.len() >= 12),
+        "{}",
+        r["cell_options"]
+    );
+    assert_eq!(r["options"]["scene"], scene.display().to_string());
+    let c = compare(&scene, &r);
+    println!("tutorial: {c:?}");
+    assert!(c.hits > 100, "the scene is in view: {c:?}");
+    assert!(matches(&c), "{c:?}");
+
+    // The scene description and the normals in buffer bindings: the same image.
+    let binding = [
+        "--fill",
+        "1.0=scene.scene_desc",
+        "--fill",
+        "1.1=scene.normals",
+        "--repeat",
+        "1",
+        "-D",
+        "DESC_BINDING",
+        "--validate",
+    ];
+    let (o, r) = scene_run(&scene, &binding);
+    let r = r.unwrap_or_else(|| panic!("no report: {}{}", stdout(&o), stderr(&o)));
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    let a = &r["variants"][0]["attempts"][0];
+    assert_eq!(a["validation_messages"], 0, "{a}");
+    let c = compare(&scene, &r);
+    println!("bindings: {c:?}");
+    assert!(matches(&c), "{c:?}");
+
+    let mut wrong = fill.to_vec();
+    wrong.extend(["-D", "WRONG_PRIM"]);
+    let (o, r) = scene_run(&scene, &wrong);
+    let r = r.unwrap_or_else(|| panic!("no report: {}{}", stdout(&o), stderr(&o)));
+    let c = compare(&scene, &r);
+    println!("WRONG_PRIM: {c:?}");
+    assert!(!matches(&c), "the wrong table index must fail the comparison: {c:?}");
+}
+
+/// A scene fill without `--scene`, `scene.textures` into an address, an unknown item, an address
+/// past the push block's end, a missing or broken scene file: one line each, no report.
+#[test]
+fn scene_fills_given_wrongly_are_one_line_and_no_report() {
+    let (_d, scene) = test_scene();
+    // A scene fill without --scene.
+    let shader = user("tutorial.rchit");
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("r.json").display().to_string();
+    let o = run(&["run", "--shader", &shader, "--fill", "push.16=scene.scene_desc", "-o", &out]);
+    assert_one_line_error(&o, 2, "needs --scene FILE");
+    assert!(!Path::new(&out).exists());
+    // scene.textures into a buffer address.
+    let (o, r) = scene_run(&scene, &["--fill", "push.16=scene.textures"]);
+    assert_one_line_error(&o, 2, "scene.textures goes to a sampled-image");
+    assert!(r.is_none());
+    // An unknown scene item.
+    let (o, r) = scene_run(&scene, &["--fill", "push.16=scene.vertices"]);
+    assert_one_line_error(&o, 2, "NAME one of positions");
+    assert!(r.is_none());
+    // An address too close to the push block's end.
+    let (o, r) = scene_run(&scene, &["--fill", "push.20=scene.positions"]);
+    assert_one_line_error(&o, 2, "a device address takes 8");
+    assert!(r.is_none());
+    // A missing scene file: the loader's line, exit 9.
+    let gone = d.path().join("gone.gltf");
+    let (o, r) = scene_run(&gone, &["--fill", "push.16=scene.scene_desc"]);
+    assert_one_line_error(&o, 9, "gone.gltf");
+    assert!(r.is_none());
+    // A broken one.
+    let broken = d.path().join("broken.gltf");
+    std::fs::write(&broken, "{\"asset\": ").unwrap();
+    let (o, r) = scene_run(&broken, &[]);
+    assert_one_line_error(&o, 9, "broken.gltf");
+    assert!(r.is_none());
+}
