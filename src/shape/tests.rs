@@ -156,6 +156,64 @@ fn dead_decorated_loads_go_with_their_decorations_and_live_ones_stay() {
     assert_eq!(dead::strip(&mut again), 0);
 }
 
+/// Issue 25: DXC's `NonUniformResourceIndex(InstanceID() % 3)` is an `OpUMod` decorated
+/// `NonUniform`; once its access is gone, it goes too (it stayed, one instruction over the
+/// DXC closest-hit's third).
+#[test]
+fn dead_decorated_arithmetic_of_any_kind_goes() {
+    for op in [Op::UMod, Op::UDiv, Op::ShiftRightLogical, Op::BitwiseXor] {
+        let mut m = module(true, None);
+        let body = m.functions[0].blocks[0].instructions.iter_mut();
+        let add = body.into_iter().find(|i| i.class.opcode == Op::IAdd).unwrap();
+        *add =
+            rspirv::dr::Instruction::new(op, add.result_type, add.result_id, add.operands.clone());
+        assert_eq!(dead::strip(&mut m), 7, "{op:?}: every instruction but OpReturn");
+    }
+}
+
+/// A raygen's storage image, `write` only (`OpImageWrite`) or also read (`OpImageRead`).
+fn storage_image(read: bool) -> Module {
+    let read = if read { "%t = OpImageRead %v4 %h %c\n" } else { "" };
+    let text = format!(
+        "OpCapability RayTracingKHR
+OpCapability StorageImageReadWithoutFormat
+OpExtension \"SPV_KHR_ray_tracing\"
+OpMemoryModel Logical GLSL450
+OpEntryPoint RayGenerationKHR %main \"main\" %target
+OpDecorate %target DescriptorSet 0
+OpDecorate %target Binding 1
+%void = OpTypeVoid
+%fn = OpTypeFunction %void
+%float = OpTypeFloat 32
+%int = OpTypeInt 32 1
+%v4 = OpTypeVector %float 4
+%v2i = OpTypeVector %int 2
+%img = OpTypeImage %float 2D 0 0 0 2 Unknown
+%pimg = OpTypePointer UniformConstant %img
+%target = OpVariable %pimg UniformConstant
+%c = OpConstantNull %v2i
+%zero = OpConstantNull %v4
+%main = OpFunction %void None %fn
+%l = OpLabel
+%h = OpLoad %img %target
+{read}OpImageWrite %h %c %zero
+OpReturn
+OpFunctionEnd
+"
+    );
+    rspirv::dr::load_words(assemble(&text)).unwrap()
+}
+
+/// Issue 25: a raygen's colour target, only written, is no read: the reduced raygen's
+/// predicate names its uniform buffer alone. Twin: an image read through the same handle is.
+#[test]
+fn a_storage_image_only_written_is_no_access() {
+    assert!(classify(&storage_image(false)).is_empty());
+    let read = classify(&storage_image(true));
+    assert_eq!(read.len(), 1, "{read:?}");
+    assert_eq!(read[0].class.resource, Resource::StorageImage);
+}
+
 #[test]
 fn an_index_read_from_a_never_written_local_is_undefined() {
     let text = |store: &str| {
