@@ -14,6 +14,7 @@ pub mod bounds;
 pub mod count;
 pub mod dead;
 pub mod defs;
+pub mod heap;
 pub mod index;
 pub mod render;
 
@@ -146,7 +147,8 @@ fn only_written(m: &Module, id: Option<Word>) -> bool {
         && uses.all(|i| i.class.opcode == Op::ImageWrite && id_at(i, 0) == Some(id))
 }
 
-/// A read through pointer operand `o` of `i`, when it is rooted at a descriptor variable.
+/// A read through pointer operand `o` of `i`, when it is rooted at a descriptor variable or
+/// the resource heap.
 fn descriptor_read(
     d: &Defs,
     i: &Instruction,
@@ -155,11 +157,17 @@ fn descriptor_read(
     heap: bool,
 ) -> Option<Found> {
     let Operand::IdRef(ptr) = o else { return None };
-    let (var, chains) = d.root(*ptr);
-    let set = d.decoration(var, Decoration::DescriptorSet)?;
-    let binding = d.decoration(var, Decoration::Binding);
-    let (resource, arrayed) = resource(d, var)?;
-    let index = if arrayed { chains.last().and_then(|c| c.first().copied()) } else { None };
+    let (root, chains) = d.root(*ptr);
+    let (var, set, binding, resource, index, variable) = match heap::access(d, root) {
+        Some(h) => (h.heap, None, None, h.resource, Some(h.index), "resource_heap".to_string()),
+        None => {
+            let set = d.decoration(root, Decoration::DescriptorSet)?;
+            let binding = d.decoration(root, Decoration::Binding);
+            let (resource, arrayed) = resource(d, root)?;
+            let index = if arrayed { chains.last().and_then(|c| c.first().copied()) } else { None };
+            (root, Some(set), binding, resource, index, variable_name(d, root, set, binding))
+        }
+    };
     let leaves = index.map(|x| index::leaves(d, x)).unwrap_or_default();
     let source = if index.is_some() { leaves.source() } else { crate::model::IndexSource::Literal };
     let mut from = leaves.dynamic.clone();
@@ -176,9 +184,9 @@ fn descriptor_read(
         index: source,
         index_from: from,
         nonuniform,
-        set: Some(set),
+        set,
         binding,
-        variable: variable_name(d, var, set, binding),
+        variable,
         through: if heap { "heap" } else { "descriptor" }.into(),
         op: format!("Op{:?}", i.class.opcode),
     };

@@ -210,6 +210,34 @@ fn a_fault_feeds_every_lane_of_a_vector_value() {
     assert!(reaches(&m, part, fault, 32), "the alpha does not depend on the fault");
 }
 
+/// `tests/shaders/user/heap.rchit` as the sid root's glslang 16.6 compiles it (the host's
+/// compilers predate GL_EXT_descriptor_heap; `tests/fixtures/heap/README.md`).
+fn heap_module() -> Module {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/heap/heap.rchit.spv");
+    crate::patches::load(&std::fs::read(path).unwrap()).unwrap()
+}
+
+/// Issue 25: a `layout(descriptor_heap)` material read (an untyped access chain into
+/// `ResourceHeapEXT`, its `OpBufferPointerEXT`, a load) is a storage-buffer access with a
+/// dynamic index, and gets the fault; twin: a uniform-buffer predicate matches nothing.
+#[test]
+fn a_descriptor_heap_read_is_an_access() {
+    let mut m = heap_module();
+    let want = Access {
+        stage: Stage::ClosestHit,
+        resource: Resource::StorageBuffer,
+        index: IndexSource::Dynamic,
+    };
+    assert_eq!(accesses(&m), [want]);
+    assert!(inject(&mut m.clone(), &request("resource=uniform_buffer")).sites.is_empty());
+    let got = inject(&mut m, &request("resource=storage_buffer,index=dynamic@device"));
+    assert_eq!(got.sites.len(), 1, "{got:?}");
+    assert!(got.sites[0].contains("resource_heap"), "{got:?}");
+    assert_eq!(count(&m), 1);
+    let fault = marked(&m)[0];
+    assert!(written(&m, fault), "the fault reaches no store");
+}
+
 #[test]
 fn a_hang_is_a_loop_after_each_access_fed_by_it() {
     let mut m = hit();
