@@ -214,20 +214,23 @@ fn a_storage_image_only_written_is_no_access() {
     assert_eq!(read[0].class.resource, Resource::StorageImage);
 }
 
-/// Issue 25: the heap closest-hit's material read is classified through the heap: a storage
-/// buffer of `resource_heap`, its index dynamic from the custom index and push data.
+/// Issue 25: the heap closest-hit's reads are classified through the heap: storage buffers of
+/// `resource_heap`, their indices dynamic from the custom index, the material's from push
+/// data too.
 #[test]
-fn a_descriptor_heap_read_is_classified_through_the_heap() {
+fn descriptor_heap_reads_are_classified_through_the_heap() {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/heap/heap.rchit.spv");
     let m = crate::patches::load(&std::fs::read(path).unwrap()).unwrap();
     let found = classify(&m);
-    assert_eq!(found.len(), 1, "{found:?}");
-    let c = &found[0].class;
-    assert_eq!((c.resource, c.index), (Resource::StorageBuffer, IndexSource::Dynamic), "{c:?}");
-    assert_eq!((c.through.as_str(), c.variable.as_str()), ("heap", "resource_heap"));
-    assert_eq!((c.set, c.binding), (None, None));
-    assert!(c.index_from.iter().any(|f| f == "gl_InstanceCustomIndexEXT"), "{c:?}");
-    assert!(c.index_from.iter().any(|f| f == "push_constant"), "{c:?}");
+    assert_eq!(found.len(), 4, "{found:?}");
+    for c in found.iter().map(|f| &f.class) {
+        assert_eq!((c.resource, c.index), (Resource::StorageBuffer, IndexSource::Dynamic), "{c:?}");
+        assert_eq!((c.through.as_str(), c.variable.as_str()), ("heap", "resource_heap"));
+        assert_eq!((c.set, c.binding), (None, None));
+        assert!(c.index_from.iter().any(|f| f == "gl_InstanceCustomIndexEXT"), "{c:?}");
+    }
+    let pushed = found.iter().filter(|f| f.class.index_from.iter().any(|x| x == "push_constant"));
+    assert_eq!(pushed.count(), 1, "the material's index alone reads push data");
 }
 
 #[test]

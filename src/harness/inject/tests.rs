@@ -217,25 +217,27 @@ fn heap_module() -> Module {
     crate::patches::load(&std::fs::read(path).unwrap()).unwrap()
 }
 
-/// Issue 25: a `layout(descriptor_heap)` material read (an untyped access chain into
-/// `ResourceHeapEXT`, its `OpBufferPointerEXT`, a load) is a storage-buffer access with a
-/// dynamic index, and gets the fault; twin: a uniform-buffer predicate matches nothing.
+/// Issue 25: `layout(descriptor_heap)` reads (an untyped access chain into `ResourceHeapEXT`,
+/// its `OpBufferPointerEXT`, a load): heap.rchit's material read and its three normal reads are
+/// storage-buffer accesses with dynamic indices, and each gets the fault; twin: a
+/// uniform-buffer predicate matches nothing.
 #[test]
-fn a_descriptor_heap_read_is_an_access() {
+fn descriptor_heap_reads_are_accesses() {
     let mut m = heap_module();
     let want = Access {
         stage: Stage::ClosestHit,
         resource: Resource::StorageBuffer,
         index: IndexSource::Dynamic,
     };
-    assert_eq!(accesses(&m), [want]);
+    assert_eq!(accesses(&m), [want; 4]);
     assert!(inject(&mut m.clone(), &request("resource=uniform_buffer")).sites.is_empty());
     let got = inject(&mut m, &request("resource=storage_buffer,index=dynamic@device"));
-    assert_eq!(got.sites.len(), 1, "{got:?}");
-    assert!(got.sites[0].contains("resource_heap"), "{got:?}");
-    assert_eq!(count(&m), 1);
-    let fault = marked(&m)[0];
-    assert!(written(&m, fault), "the fault reaches no store");
+    assert_eq!(got.sites.len(), 4, "{got:?}");
+    assert!(got.sites.iter().all(|s| s.contains("resource_heap")), "{got:?}");
+    assert_eq!(count(&m), 4);
+    for f in marked(&m) {
+        assert!(written(&m, f), "fault %{f} reaches no store");
+    }
 }
 
 #[test]
