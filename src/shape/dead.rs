@@ -50,6 +50,9 @@ fn pure(op: Op) -> bool {
             | Op::CompositeExtract
             | Op::CompositeConstruct
             | Op::SampledImage
+            | Op::UntypedAccessChainKHR
+            | Op::UntypedInBoundsAccessChainKHR
+            | Op::BufferPointerEXT
     )
 }
 

@@ -233,6 +233,33 @@ fn descriptor_heap_reads_are_classified_through_the_heap() {
     assert_eq!(pushed.count(), 1, "the material's index alone reads push data");
 }
 
+/// Issue 25: a heap reduction kept a heap index loaded from a never-written local (an undefined
+/// index): refused like a descriptor array's. Twin: heap.rchit as compiled passes.
+#[test]
+fn an_undefined_heap_index_is_refused() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/heap/heap.rchit.spv");
+    let mut m = crate::patches::load(&std::fs::read(path).unwrap()).unwrap();
+    assert_eq!(bounds::check(&m, 64), Ok(()));
+    let body = m.functions[0].blocks.iter().flat_map(|b| &b.instructions);
+    let chain = body.clone().find(|i| i.class.opcode == Op::UntypedAccessChainKHR).unwrap();
+    let Some(Operand::IdRef(index)) = chain.operands.get(2).cloned() else { panic!() };
+    let ty = body.clone().find(|i| i.result_id == Some(index)).and_then(|i| i.result_type).unwrap();
+    let undef = crate::patches::edit::next_id(&mut m);
+    m.types_global_values.push(rspirv::dr::Instruction::new(
+        Op::Undef,
+        Some(ty),
+        Some(undef),
+        vec![],
+    ));
+    for b in &mut m.functions[0].blocks {
+        for i in b.instructions.iter_mut().filter(|i| i.class.opcode == Op::UntypedAccessChainKHR) {
+            i.operands[2] = Operand::IdRef(undef);
+        }
+    }
+    let e = bounds::check(&m, 64).unwrap_err();
+    assert!(matches!(e, bounds::OutOfBounds::Undef { .. }), "{e}");
+}
+
 #[test]
 fn an_index_read_from_a_never_written_local_is_undefined() {
     let text = |store: &str| {
