@@ -20,24 +20,19 @@ fn finding(dir: &Path, hit: &Path, pred: &str) -> PathBuf {
 
 /// [`finding`] with more `run` arguments.
 fn finding_with(dir: &Path, hit: &Path, pred: &str, extra: &[&str]) -> PathBuf {
-    let report = dir.join("run.json");
     let u = user();
-    let (rgen, miss) = (u.join("raygen.rgen"), u.join("miss.rmiss"));
-    let mut args = vec![
-        "run",
-        "--shader",
-        rgen.to_str().unwrap(),
-        "--shader",
-        miss.to_str().unwrap(),
-        "--shader",
-        hit.to_str().unwrap(),
-        "--repeat",
-        "1",
-        "--inject-fault",
-        pred,
-        "-o",
-        report.to_str().unwrap(),
-    ];
+    finding_of(dir, &[u.join("raygen.rgen"), u.join("miss.rmiss"), hit.to_path_buf()], pred, extra)
+}
+
+/// `run --shader` of `modules` with `--inject-fault pred` and `extra`: a finding, its report
+/// in `dir`.
+fn finding_of(dir: &Path, modules: &[PathBuf], pred: &str, extra: &[&str]) -> PathBuf {
+    let report = dir.join("run.json");
+    let mut args = vec!["run"];
+    for m in modules {
+        args.extend(["--shader", m.to_str().unwrap()]);
+    }
+    args.extend(["--repeat", "1", "--inject-fault", pred, "-o", report.to_str().unwrap()]);
     args.extend(extra);
     let o = run(&args);
     assert_eq!(o.status.code(), Some(1), "a finding: {}{}", stdout(&o), stderr(&o));
@@ -59,23 +54,38 @@ fn reduce(report: &Path, out: &Path, extra: &[&str]) -> (std::process::Output, O
     (o, r)
 }
 
-/// The reduced module still faults: `run --shader` with it in place of `hit`, same injection.
-fn still_faults(dir: &Path, reduced: &Path, pred: &str) {
-    let hit = dir.join("reduced.rchit.spv");
-    std::fs::copy(reduced, &hit).unwrap();
+/// The reduced module still faults: `run --shader` with it in place of `modules[k]`, same
+/// injection, which matches one access of it.
+fn still_faults(dir: &Path, modules: &[PathBuf], k: usize, reduced: &Path, pred: &str) {
+    let name = modules[k].file_name().unwrap().to_str().unwrap();
+    let stage = name.split('.').nth(1).unwrap();
+    let mut given = modules.to_vec();
+    given[k] = dir.join(format!("reduced.{stage}.spv"));
+    std::fs::copy(reduced, &given[k]).unwrap();
     let again = dir.join("again");
     std::fs::create_dir_all(&again).unwrap();
-    let r = finding(&again, &hit, pred);
+    let r = finding_of(&again, &given, pred, &[]);
     let r: Value = serde_json::from_slice(&std::fs::read(r).unwrap()).unwrap();
     assert_eq!(r["variants"][0]["outcome"], "crash", "{}", r["variants"][0]);
-    assert_eq!(r["injection"]["modules"][2]["matched"], 1);
+    assert_eq!(r["injection"]["modules"][k]["matched"], 1);
+}
+
+/// The raygen, the miss and `hit`, as `run --shader` is given them.
+fn with_hit(hit: &str) -> Vec<PathBuf> {
+    let u = user();
+    vec![u.join("raygen.rgen"), u.join("miss.rmiss"), u.join(hit)]
 }
 
 /// A full reduction held to issue 25's bar: at most a third of the function-body
 /// instructions, the predicate written by hand, no injected instruction left, still a crash.
 fn full(hit: &str, pred: &str, by_hand: &str) -> Value {
+    full_of(&with_hit(hit), 2, pred, by_hand)
+}
+
+/// [`full`] of the pipeline `modules`, the injection matching `modules[k]`.
+fn full_of(modules: &[PathBuf], k: usize, pred: &str, by_hand: &str) -> Value {
     let d = tempfile::tempdir().unwrap();
-    let report = finding(d.path(), &user().join(hit), pred);
+    let report = finding_of(d.path(), modules, pred, &[]);
     let out = d.path().join("out");
     let (o, r) = reduce(&report, &out, &[]);
     assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
@@ -93,7 +103,7 @@ fn full(hit: &str, pred: &str, by_hand: &str) -> Value {
     let resource = by_hand.split(',').nth(1).unwrap().trim_start_matches("resource=");
     assert!(resource.split('|').all(|x| access.contains(x)), "{access}");
     assert!(!out.join(".reduce-work").exists(), "the scratch folder is removed");
-    still_faults(d.path(), &out.join("reduced.spv"), pred);
+    still_faults(d.path(), modules, k, &out.join("reduced.spv"), pred);
     r
 }
 
@@ -134,6 +144,98 @@ fn a_gltf_texture_read_reduces_to_its_shape() {
     assert!(r["slice"]["ran"].as_u64().unwrap() >= 1, "{}", r["slice"]);
 }
 
+/// Issue 25: the engine-like alpha test (`alpha.rahit`: the material by custom index and
+/// geometry, the UV interpolated from the index and UV buffers, the base colour texture's alpha
+/// against the material's cutoff) with a device fault at its texture read. The reduced any-hit
+/// keeps the material read that feeds the texture index, as the glTF one does.
+#[test]
+#[ignore = "a full reduction, 1.5 min on 2 cores: run with --ignored"]
+fn an_alpha_test_texture_read_reduces_to_its_shape() {
+    let u = user();
+    let modules = ["raygen.rgen", "miss.rmiss", "plain.rchit", "alpha.rahit"].map(|m| u.join(m));
+    let pred = "stage=any_hit,resource=sampled_image,index=dynamic@device";
+    let by_hand = "stage=any_hit,resource=storage_buffer|sampled_image,index=literal|dynamic";
+    let r = full_of(&modules, 3, pred, by_hand);
+    let texture =
+        r["classification"].as_array().unwrap().iter().find(|c| c["resource"] == "sampled_image");
+    assert_eq!(texture.map(|c| c["nonuniform"].clone()), Some(Value::from(true)), "{r}");
+    // No patch removes a texture read's shape (ssbo-to-address needs an SSBO array).
+    let w = r["workarounds"].as_array().unwrap();
+    assert!(w.iter().all(|w| w["verified"] == false), "{w:?}");
+}
+
+/// The DXC raygen and miss of the patch corpus and the DXC `-fspv-reflect` closest-hit
+/// (`reflect.rchit.spvasm` without its SPV_GOOGLE_user_type lines: lavapipe 25 lacks
+/// VK_GOOGLE_user_type), assembled for Vulkan 1.2 into `dir`.
+fn dxc_reflect(dir: &Path) -> Vec<PathBuf> {
+    let corpus = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/patch-corpus/dxc");
+    let full = std::fs::read_to_string(user().join("reflect.rchit.spvasm")).unwrap();
+    let hit: String = full
+        .lines()
+        .filter(|l| !l.contains("user_type") && !l.contains("UserTypeGOOGLE"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let src = dir.join("reflect.spvasm");
+    std::fs::write(&src, hit).unwrap();
+    let sources = [
+        (corpus.join("raygen.spvasm"), "dxc.rgen.spv"),
+        (corpus.join("miss.spvasm"), "dxc.rmiss.spv"),
+        (src, "reflect.rchit.spv"),
+    ];
+    sources
+        .into_iter()
+        .map(|(src, name)| {
+            let spv = dir.join(name);
+            rtprobe::tools::spirv::assemble(&src, &spv, "vulkan1.2")
+                .unwrap_or_else(|e| panic!("{}: {e}", src.display()));
+            spv
+        })
+        .collect()
+}
+
+/// Issue 25: the DXC closest-hit's `Colors[NonUniformResourceIndex(InstanceID() % 3)]` read
+/// with a device fault, reduced to that read (its dead `OpUMod` gone with its `NonUniform`),
+/// and `ssbo-to-address` verified on the original (a dynamic SSBO index).
+#[test]
+#[ignore = "a full reduction, 30 s on 2 cores: run with --ignored"]
+fn a_dxc_structured_buffer_read_reduces_to_its_shape() {
+    let d = tempfile::tempdir().unwrap();
+    let modules = dxc_reflect(d.path());
+    let pred = "stage=closest_hit,resource=storage_buffer,index=dynamic@device";
+    let r = full_of(&modules, 2, pred, "stage=closest_hit,resource=storage_buffer,index=dynamic");
+    let w = r["workarounds"].as_array().unwrap();
+    let verified: Vec<&Value> = w.iter().filter(|w| w["verified"] == true).collect();
+    assert_eq!(verified.len(), 1, "{w:?}");
+    assert_eq!(verified[0]["patch"], "ssbo-to-address");
+}
+
+/// Issue 25: the procedural-sphere intersection shader's sphere read (by gl_PrimitiveID from
+/// one SSBO: a literal descriptor index) with a device fault, reduced to that read.
+#[test]
+#[ignore = "a full reduction, 1 min on 2 cores: run with --ignored"]
+fn an_intersection_sphere_read_reduces_to_its_shape() {
+    let u = user();
+    let names = ["raygen.rgen", "miss.rmiss", "plain.rchit", "sphere.rint", "sphere.rchit"];
+    let pred = "stage=intersection,resource=storage_buffer,index=literal@device";
+    let by_hand = "stage=intersection,resource=storage_buffer,index=literal";
+    let r = full_of(&names.map(|m| u.join(m)), 3, pred, by_hand);
+    assert!(r["workarounds"].as_array().unwrap().iter().all(|w| w["verified"] == false), "{r}");
+}
+
+/// Issue 25: an engine's raygen (`camera.rgen`: `raygen.rgen`, whose only descriptor reads are
+/// an acceleration structure (no bits to feed a fault) and written images, with a per-frame
+/// camera uniform buffer) with a device fault at the camera read, reduced to it. The colour
+/// target it keeps is only written: not an access, not in the predicate.
+#[test]
+#[ignore = "a full reduction, 1.5 min on 2 cores: run with --ignored"]
+fn a_raygen_camera_read_reduces_to_its_shape() {
+    let u = user();
+    let modules = ["camera.rgen", "miss.rmiss", "plain.rchit"].map(|m| u.join(m));
+    let pred = "stage=raygen,resource=uniform_buffer,index=literal@device";
+    let r = full_of(&modules, 0, pred, "stage=raygen,resource=uniform_buffer,index=literal");
+    assert!(r["workarounds"].as_array().unwrap().iter().all(|w| w["verified"] == false), "{r}");
+}
+
 /// CI's reduction: the bindless finding with `--step-limit 20`, every file written, at most 20
 /// steps, fewer instructions, and the result still crashes with the injection. Then step 6:
 /// `ssbo-to-address` on the original is verified (the injection re-applied to the patched
@@ -163,7 +265,7 @@ fn a_short_reduction_writes_its_files_and_still_faults() {
     workaround_on_the_original(&r, &out);
     the_slice_faults_too(&r);
     the_issue_from_reduce_json(&out);
-    still_faults(d.path(), &out.join("reduced.spv"), pred);
+    still_faults(d.path(), &with_hit("bindless.rchit"), 2, &out.join("reduced.spv"), pred);
     // Twin: the folder is not empty now; without --force it is refused, nothing rewritten.
     let (o, _) = reduce(&report, &out, &[]);
     assert_one_line_error(&o, 2, "is not empty");
@@ -234,6 +336,60 @@ fn the_issue_from_reduce_json(out: &Path) {
     std::fs::copy(&json, lone.join("reduce.json")).unwrap();
     let o = run(&["report", lone.join("reduce.json").to_str().unwrap()]);
     assert_one_line_error(&o, 9, "beside reduce.json");
+}
+
+/// Issue 25: `--profile` is carried into the interestingness job. A finding under an engine's
+/// profile (robustBufferAccess2, partially bound bindings), reduced a few steps: the job every
+/// `__interesting` run reads holds the profile's setup, and the reduced module still faults
+/// when run under the profile. Twin: the job without the carry (`ProfileSetup::default()`)
+/// holds no robustness and fails the first assertion.
+#[test]
+fn the_profile_is_carried_into_the_interestingness_job() {
+    let d = tempfile::tempdir().unwrap();
+    let profile = d.path().join("engine.json");
+    let features = serde_json::json!({
+        "VkPhysicalDeviceRobustness2FeaturesEXT": {"robustBufferAccess2": true},
+        "VkPhysicalDeviceDescriptorIndexingFeatures": {"descriptorBindingPartiallyBound": true}
+    });
+    let json =
+        serde_json::json!({"capabilities": {"engine": {"features": features}}, "profiles": {}});
+    std::fs::write(&profile, serde_json::to_vec(&json).unwrap()).unwrap();
+    let pred = "stage=closest_hit,resource=storage_buffer,index=dynamic@device";
+    let extra = ["--profile", profile.to_str().unwrap()];
+    let report = finding_with(d.path(), &user().join("bindless.rchit"), pred, &extra);
+    let out = d.path().join("out");
+    let name = out.file_name().unwrap().to_str().unwrap();
+    let args = ["reduce", report.to_str().unwrap(), "-o", name, "--step-limit", "3"];
+    let o = bin()
+        .current_dir(d.path())
+        .env("RTPROBE_REDUCE_KEEP", "1")
+        .args(args)
+        .args(["--slice-cells", "0"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    let job: Value =
+        serde_json::from_slice(&std::fs::read(out.join(".reduce-work/job.json")).unwrap()).unwrap();
+    let p = &job["profile"];
+    assert_eq!(p["robust_buffer_access2"], true, "the job lacks the profile: {p}");
+    assert_eq!(p["robust_buffer_access"], true, "{p}");
+    assert_eq!(p["flags"]["partially_bound"], true, "the profile's binding flags: {p}");
+    // The interestingness runs ran (each under the job's profile) and kept the fault.
+    let runs = std::fs::read_to_string(out.join(".reduce-work/runs.jsonl")).unwrap();
+    assert!(runs.lines().any(|l| l.contains("\"interesting\":true")), "{runs}");
+    let again = d.path().join("again");
+    std::fs::create_dir_all(&again).unwrap();
+    let mut given = with_hit("bindless.rchit");
+    given[2] = d.path().join("reduced.rchit.spv");
+    std::fs::copy(out.join("reduced.spv"), &given[2]).unwrap();
+    let r = finding_of(&again, &given, pred, &extra);
+    let r: Value = serde_json::from_slice(&std::fs::read(r).unwrap()).unwrap();
+    assert_eq!(r["variants"][0]["outcome"], "crash", "{}", r["variants"][0]);
+    assert!(
+        r["profile"]["enabled"].to_string().contains("robustBufferAccess2"),
+        "{}",
+        r["profile"]
+    );
 }
 
 /// Refusals are one line, before any reduction: another cell, an input changed since the run,

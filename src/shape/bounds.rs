@@ -22,9 +22,10 @@ pub enum OutOfBounds {
     UndefHandle { user: Word, handle: Word, what: &'static str },
 }
 
-/// Check every access chain rooted at a descriptor variable: no index reached by `OpUndef`;
-/// a constant descriptor index below the array's length (`runtime_len` for a runtime array:
-/// the descriptors the harness writes).
+/// Check every access chain rooted at a descriptor variable or the resource heap: no index
+/// reached by `OpUndef` (or a never-written variable); a constant descriptor index below the
+/// array's length (`runtime_len` for a runtime array: the descriptors the harness writes; a
+/// heap's constant index is not checked, its bound is the heap layout's).
 pub fn check(m: &Module, runtime_len: u32) -> Result<(), OutOfBounds> {
     let d = Defs::new(m);
     let body = m.functions.iter().flat_map(|f| f.blocks.iter().flat_map(|b| &b.instructions));
@@ -37,12 +38,20 @@ pub fn check(m: &Module, runtime_len: u32) -> Result<(), OutOfBounds> {
             }
         }
         undef_handle(&d, i)?;
+        if let Some(h) = i.result_id.and_then(|r| super::heap::access(&d, r)) {
+            // A heap index's bound is the heap layout's, not known here: undef only.
+            if index::leaves(&d, h.index).undef {
+                return Err(OutOfBounds::Undef { var: "resource_heap".into(), index: h.index });
+            }
+            continue;
+        }
         if !is_chain(i.class.opcode) {
             continue;
         }
         let Some(Operand::IdRef(base)) = i.operands.first() else { continue };
         let (var, _) = d.root(*base);
-        if d.decoration(var, Decoration::DescriptorSet).is_none() {
+        let heap = super::heap::access(&d, var).is_some();
+        if d.decoration(var, Decoration::DescriptorSet).is_none() && !heap {
             continue;
         }
         for x in i.operands.iter().skip(1).filter_map(|o| match o {

@@ -7,7 +7,8 @@ use rspirv::dr::{Module, Operand};
 use rspirv::spirv::{Op, Word};
 use std::collections::HashSet;
 
-/// Whether `op` has no effect beyond its result.
+/// Whether `op` has no effect beyond its result (a division by zero gives an undefined
+/// value, no effect: SPIR-V 1.6, OpUDiv).
 fn pure(op: Op) -> bool {
     matches!(
         op,
@@ -24,12 +25,34 @@ fn pure(op: Op) -> bool {
             | Op::IAdd
             | Op::ISub
             | Op::IMul
+            | Op::UDiv
+            | Op::SDiv
+            | Op::UMod
+            | Op::SMod
+            | Op::SRem
+            | Op::SNegate
+            | Op::Not
+            | Op::ShiftLeftLogical
+            | Op::ShiftRightLogical
+            | Op::ShiftRightArithmetic
             | Op::BitwiseAnd
             | Op::BitwiseOr
+            | Op::BitwiseXor
+            | Op::FAdd
+            | Op::FSub
+            | Op::FMul
+            | Op::FDiv
+            | Op::FNegate
+            | Op::ConvertFToU
+            | Op::ConvertFToS
+            | Op::Select
             | Op::VectorShuffle
             | Op::CompositeExtract
             | Op::CompositeConstruct
             | Op::SampledImage
+            | Op::UntypedAccessChainKHR
+            | Op::UntypedInBoundsAccessChainKHR
+            | Op::BufferPointerEXT
     )
 }
 

@@ -1,11 +1,12 @@
 //! The shape of a module's descriptor accesses on the matrix's axes, for `rtprobe reduce`:
 //! each read through a descriptor (a buffer load or atomic, an image, sampler or acceleration
-//! structure handle load, an acceleration structure made from an address) with its stage,
-//! resource, index source and where the index comes from ([`index`]), `NonUniform`, and
-//! whether it goes through a set/binding variable, a descriptor heap or an address
-//! ([`classify`]); whether every descriptor index is provably in bounds ([`bounds`]); the
-//! accesses rendered GLSL-like ([`render`]); function-body instruction counts ([`count`]); the
-//! dead decorated instructions spirv-reduce leaves ([`dead`]).
+//! structure handle load — a storage image's unless it is only written through —, an
+//! acceleration structure made from an address) with its stage, resource, index source and
+//! where the index comes from ([`index`]), `NonUniform`, and whether it goes through a
+//! set/binding variable, a descriptor heap or an address ([`classify`]); whether every
+//! descriptor index is provably in bounds ([`bounds`]); the accesses rendered GLSL-like
+//! ([`render`]); function-body instruction counts ([`count`]); the dead decorated
+//! instructions spirv-reduce leaves ([`dead`]).
 //!
 //! Independent of `harness::inject` by design (issue 25): the injected fault's trigger finds
 //! its sites with its own code, so a reduction judged by this classifier cannot be circular.
@@ -13,6 +14,7 @@ pub mod bounds;
 pub mod count;
 pub mod dead;
 pub mod defs;
+pub mod heap;
 pub mod index;
 pub mod render;
 
@@ -126,13 +128,27 @@ pub fn classify(m: &Module) -> Vec<Found> {
             continue;
         }
         if let Some(f) = i.operands.first().and_then(|o| descriptor_read(&d, i, o, stage, heap)) {
+            if f.class.resource == Resource::StorageImage && only_written(m, i.result_id) {
+                continue;
+            }
             out.push(f);
         }
     }
     out
 }
 
-/// A read through pointer operand `o` of `i`, when it is rooted at a descriptor variable.
+/// Whether the storage image handle `id` is only written through (`OpImageWrite`, a store
+/// with no value): its load is no read (the raygen's colour target, issue 25).
+fn only_written(m: &Module, id: Option<Word>) -> bool {
+    let Some(id) = id else { return false };
+    let body = m.functions.iter().flat_map(|f| f.blocks.iter().flat_map(|b| &b.instructions));
+    let mut uses = body.filter(|i| i.operands.contains(&Operand::IdRef(id))).peekable();
+    uses.peek().is_some()
+        && uses.all(|i| i.class.opcode == Op::ImageWrite && id_at(i, 0) == Some(id))
+}
+
+/// A read through pointer operand `o` of `i`, when it is rooted at a descriptor variable or
+/// the resource heap.
 fn descriptor_read(
     d: &Defs,
     i: &Instruction,
@@ -141,11 +157,17 @@ fn descriptor_read(
     heap: bool,
 ) -> Option<Found> {
     let Operand::IdRef(ptr) = o else { return None };
-    let (var, chains) = d.root(*ptr);
-    let set = d.decoration(var, Decoration::DescriptorSet)?;
-    let binding = d.decoration(var, Decoration::Binding);
-    let (resource, arrayed) = resource(d, var)?;
-    let index = if arrayed { chains.last().and_then(|c| c.first().copied()) } else { None };
+    let (root, chains) = d.root(*ptr);
+    let (var, set, binding, resource, index, variable) = match heap::access(d, root) {
+        Some(h) => (h.heap, None, None, h.resource, Some(h.index), "resource_heap".to_string()),
+        None => {
+            let set = d.decoration(root, Decoration::DescriptorSet)?;
+            let binding = d.decoration(root, Decoration::Binding);
+            let (resource, arrayed) = resource(d, root)?;
+            let index = if arrayed { chains.last().and_then(|c| c.first().copied()) } else { None };
+            (root, Some(set), binding, resource, index, variable_name(d, root, set, binding))
+        }
+    };
     let leaves = index.map(|x| index::leaves(d, x)).unwrap_or_default();
     let source = if index.is_some() { leaves.source() } else { crate::model::IndexSource::Literal };
     let mut from = leaves.dynamic.clone();
@@ -162,9 +184,9 @@ fn descriptor_read(
         index: source,
         index_from: from,
         nonuniform,
-        set: Some(set),
+        set,
         binding,
-        variable: variable_name(d, var, set, binding),
+        variable,
         through: if heap { "heap" } else { "descriptor" }.into(),
         op: format!("Op{:?}", i.class.opcode),
     };

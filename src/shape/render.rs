@@ -5,6 +5,7 @@
 use super::defs::Defs;
 use super::index::builtin_name;
 use super::Found;
+use crate::model::Resource;
 use crate::reflect::glsl::Glsl;
 use rspirv::dr::{Module, Operand};
 use rspirv::spirv::{Op, StorageClass, Word};
@@ -38,7 +39,14 @@ pub fn render(m: &Module, found: &[Found]) -> String {
             let mut g = Glsl::default();
             let dims = if f.index.is_some() { "[]" } else { "" };
             let q = format!("set = {}, binding = {}", b.0.set, b.0.binding);
-            if let Ok(text) = g.block(&q, "buffer", &b.1.ty, &format!("{}{dims}", c.variable)) {
+            let kind = match c.resource {
+                Resource::UniformBuffer => "uniform",
+                Resource::StorageBuffer
+                | Resource::SampledImage
+                | Resource::StorageImage
+                | Resource::AccelerationStructure => "buffer",
+            };
+            if let Ok(text) = g.block(&q, kind, &b.1.ty, &format!("{}{dims}", c.variable)) {
                 out.push_str(&g.preamble());
                 out.push_str(&text);
             }

@@ -2,7 +2,8 @@
 //! value: the first scalar of the value as 32 bits ([`bits`]), then either a volatile load
 //! through an invalid `PhysicalStorageBuffer` address plus `bits & 0` ([`device`]) or a loop
 //! counting by two from 0 until it equals `bits | 1`, an odd number it never reaches ([`hang`]);
-//! the fault's result then feeds the access's value in all its uses (`feed`).
+//! the fault's result then feeds the access's value in all its uses (`feed`: its first scalar, and
+//! every component when that scalar is a vector's).
 //! Each fault's last instruction is named `rtprobe_injected_*` ([`MARKER`]) so it can be
 //! counted after a patch rewrote the module.
 use crate::patches::edit::{self, id_operand, next_id};
@@ -98,12 +99,72 @@ pub fn bits(m: &mut Module, value: Word) -> Option<Leaf> {
 }
 
 /// The access's value with `bump` (a u32, zero at run time but not to a compiler) added to its
-/// first scalar: the instructions and the new value, which replaces the access's value in every
-/// use, so the fault's result reaches what the shader writes and no compiler may drop it.
-/// `None` for a pointer (no arithmetic on it): the fault then only depends on the access.
+/// first scalar and, when that scalar is a vector's, to every component of that vector (a
+/// shader reading only a texel's alpha still uses the fault): the instructions and the new
+/// value, which replaces the access's value in every use, so the fault's result reaches what
+/// the shader writes and no compiler may drop it. `None` for a pointer (no arithmetic on it):
+/// the fault then only depends on the access.
 fn feed(m: &mut Module, l: &Leaf, bump: Word) -> Option<(Vec<Instruction>, Word)> {
-    let d = edit::def(m, l.leaf_ty)?.clone();
-    let (mut out, id) = (Vec::new(), Operand::IdRef);
+    let mut out = Vec::new();
+    let mut cur = bumped(m, l.leaf_ty, l.leaf, bump, &mut out)?;
+    let mut path = l.path.iter().rev().peekable();
+    if let Some(&&(vector, ty)) = path.peek() {
+        let d = edit::def(m, ty)?.clone();
+        if d.class.opcode == Op::TypeVector {
+            path.next();
+            cur = insert(m, &mut out, (vector, ty), cur, 0);
+            let lanes = match d.operands.get(1) {
+                Some(Operand::LiteralBit32(n)) => *n,
+                _ => 1,
+            };
+            for k in 1..lanes {
+                let x = next_id(m);
+                out.push(op(
+                    Op::CompositeExtract,
+                    Some(l.leaf_ty),
+                    x,
+                    vec![Operand::IdRef(vector), Operand::LiteralBit32(k)],
+                ));
+                let y = bumped(m, l.leaf_ty, x, bump, &mut out)?;
+                cur = insert(m, &mut out, (cur, ty), y, k);
+            }
+        }
+    }
+    for &(composite, ty) in path {
+        cur = insert(m, &mut out, (composite, ty), cur, 0);
+    }
+    Some((out, cur))
+}
+
+/// `composite` (of type `ty`) with `part` at `index`, appended to `out`: its id.
+fn insert(
+    m: &mut Module,
+    out: &mut Vec<Instruction>,
+    (composite, ty): (Word, Word),
+    part: Word,
+    index: u32,
+) -> Word {
+    let next = next_id(m);
+    out.push(op(
+        Op::CompositeInsert,
+        Some(ty),
+        next,
+        vec![Operand::IdRef(part), Operand::IdRef(composite), Operand::LiteralBit32(index)],
+    ));
+    next
+}
+
+/// The scalar `x` of type `ty` with `bump` added (for a bool: flipped when `bump` is not 0),
+/// its instructions appended to `out`; `None` for a type without arithmetic.
+fn bumped(
+    m: &mut Module,
+    ty: Word,
+    x: Word,
+    bump: Word,
+    out: &mut Vec<Instruction>,
+) -> Option<Word> {
+    let d = edit::def(m, ty)?.clone();
+    let id = Operand::IdRef;
     let new = next_id(m);
     match d.class.opcode {
         Op::TypeInt => {
@@ -118,33 +179,22 @@ fn feed(m: &mut Module, l: &Leaf, bump: Word) -> Option<(Vec<Instruction>, Word)
                 out.push(op(Op::UConvert, Some(t), c, vec![id(bump)]));
                 c
             };
-            out.push(op(Op::IAdd, Some(l.leaf_ty), new, vec![id(l.leaf), id(b)]));
+            out.push(op(Op::IAdd, Some(ty), new, vec![id(x), id(b)]));
         }
         Op::TypeFloat => {
             let c = next_id(m);
-            out.push(op(Op::ConvertUToF, Some(l.leaf_ty), c, vec![id(bump)]));
-            out.push(op(Op::FAdd, Some(l.leaf_ty), new, vec![id(l.leaf), id(c)]));
+            out.push(op(Op::ConvertUToF, Some(ty), c, vec![id(bump)]));
+            out.push(op(Op::FAdd, Some(ty), new, vec![id(x), id(c)]));
         }
         Op::TypeBool => {
             let (u32_t, bool_t) = (edit::type_int(m, 32, false), type_bool(m));
             let (zero, c) = (edit::constant(m, u32_t, 0, false), next_id(m));
             out.push(op(Op::INotEqual, Some(bool_t), c, vec![id(bump), id(zero)]));
-            out.push(op(Op::LogicalNotEqual, Some(bool_t), new, vec![id(l.leaf), id(c)]));
+            out.push(op(Op::LogicalNotEqual, Some(bool_t), new, vec![id(x), id(c)]));
         }
         _ => return None,
     }
-    let mut cur = new;
-    for (composite, ty) in l.path.iter().rev() {
-        let next = next_id(m);
-        out.push(op(
-            Op::CompositeInsert,
-            Some(*ty),
-            next,
-            vec![id(cur), id(*composite), Operand::LiteralBit32(0)],
-        ));
-        cur = next;
-    }
-    Some((out, cur))
+    Some(new)
 }
 
 /// Every use of `old` in function `f` made a use of `new`.

@@ -6,12 +6,14 @@
 //! (through local variables' stores): only constants `literal` (a descriptor that is no array
 //! too), a spec constant among them `spec_constant`, push constants among them `push_constant`,
 //! anything else (built-ins, other loads, parameters) `dynamic`. Acceleration structures are
-//! found but carry no value a fault could take ([`Site::value`] is `None`).
+//! found but carry no value a fault could take ([`Site::value`] is `None`). A descriptor heap
+//! access (`layout(descriptor_heap)`: an untyped access chain into `ResourceHeapEXT`) is one
+//! too, the chain's index its descriptor index.
 use super::predicate::Access;
 use crate::model::{IndexSource, Resource, Stage};
 use crate::patches::edit::{self, id_operand};
 use rspirv::dr::{Instruction, Module, Operand};
-use rspirv::spirv::{Decoration, ExecutionModel, Op, StorageClass, Word};
+use rspirv::spirv::{BuiltIn, Decoration, ExecutionModel, Op, StorageClass, Word};
 use std::collections::HashMap;
 
 /// One access: where it is (function, block, instruction) and its value.
@@ -110,7 +112,7 @@ type Origin = (Word, Option<Word>);
 /// Every descriptor access of `m`, in instruction order.
 pub fn find(m: &Module) -> Vec<Site> {
     let Some(stage) = stage(m) else { return vec![] };
-    let vars: HashMap<Word, (Resource, bool)> = edit::descriptor_variables(m)
+    let mut vars: HashMap<Word, (Resource, bool)> = edit::descriptor_variables(m)
         .into_iter()
         .filter_map(|v| Some((v, resource(m, v)?)))
         .collect();
@@ -121,6 +123,11 @@ pub fn find(m: &Module) -> Vec<Site> {
     for (fi, f) in m.functions.iter().enumerate() {
         for (bi, b) in f.blocks.iter().enumerate() {
             for (ii, i) in b.instructions.iter().enumerate() {
+                if let Some((r, resource, at)) = heap_chain(m, i) {
+                    vars.insert(r, (resource, true));
+                    ptrs.insert(r, (r, Some(at)));
+                    continue;
+                }
                 let (Some(r), Some(a)) = (i.result_id, id_operand(i, 0)) else { continue };
                 let from_var = vars.get(&a).map(|(_, arrayed)| (a, *arrayed));
                 match i.class.opcode {
@@ -132,7 +139,7 @@ pub fn find(m: &Module) -> Vec<Site> {
                         }
                         continue;
                     }
-                    Op::CopyObject if ptrs.contains_key(&a) => {
+                    Op::CopyObject | Op::BufferPointerEXT if ptrs.contains_key(&a) => {
                         ptrs.insert(r, ptrs[&a]);
                         continue;
                     }
@@ -146,7 +153,10 @@ pub fn find(m: &Module) -> Vec<Site> {
                 let site = |origin: Origin, value| {
                     let (resource, _) = vars[&origin.0];
                     let index = origin.1.map_or(IndexSource::Literal, |x| index.of(x));
-                    let name = name_of(m, origin.0);
+                    let name = match heap_chain(m, edit::def(m, origin.0).unwrap_or(i)) {
+                        Some(_) => "resource_heap".to_string(),
+                        None => name_of(m, origin.0),
+                    };
                     Site {
                         at: (fi, bi, ii),
                         value,
@@ -173,6 +183,41 @@ pub fn find(m: &Module) -> Vec<Site> {
         }
     }
     out
+}
+
+/// An `OpUntypedAccessChainKHR` into the `ResourceHeapEXT` variable (SPV_EXT_descriptor_heap):
+/// its result, the resource its base type's element is (`OpTypeBufferEXT`, an image, a
+/// sampler) and its descriptor index. A buffer is then read through the `OpBufferPointerEXT`
+/// of it, an image loaded from it.
+fn heap_chain(m: &Module, i: &Instruction) -> Option<(Word, Resource, Word)> {
+    if !matches!(i.class.opcode, Op::UntypedAccessChainKHR | Op::UntypedInBoundsAccessChainKHR) {
+        return None;
+    }
+    let (ty, heap, at) = (id_operand(i, 0)?, id_operand(i, 1)?, id_operand(i, 2)?);
+    let is_heap = m.annotations.iter().any(|a| {
+        id_operand(a, 0) == Some(heap)
+            && a.operands.get(2) == Some(&Operand::BuiltIn(BuiltIn::ResourceHeapEXT))
+    });
+    if !is_heap {
+        return None;
+    }
+    let mut d = edit::def(m, ty)?;
+    if matches!(d.class.opcode, Op::TypeArray | Op::TypeRuntimeArray) {
+        d = edit::def(m, id_operand(d, 0)?)?;
+    }
+    let r = match (d.class.opcode, d.operands.first()) {
+        (Op::TypeBufferEXT, Some(Operand::StorageClass(StorageClass::Uniform))) => {
+            Resource::UniformBuffer
+        }
+        (Op::TypeBufferEXT, _) => Resource::StorageBuffer,
+        (Op::TypeImage, _) => match d.operands.get(5) {
+            Some(Operand::LiteralBit32(2)) => Resource::StorageImage,
+            _ => Resource::SampledImage,
+        },
+        (Op::TypeSampledImage, _) => Resource::SampledImage,
+        _ => return None,
+    };
+    Some((i.result_id?, r, at))
 }
 
 /// The `OpName` of `id`, or nothing.

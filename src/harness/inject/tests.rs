@@ -168,6 +168,78 @@ fn twins_a_constant_index_and_another_stage_get_nothing() {
     assert_eq!(count(&m), 0);
 }
 
+/// The part a chain of `OpCompositeInsert`s ending in `composite` holds at `lane`, if one
+/// of them put it there.
+fn lane_part(m: &Module, mut composite: Word, lane: u32) -> Option<Word> {
+    loop {
+        let d = crate::patches::edit::def(m, composite)?;
+        if d.class.opcode != Op::CompositeInsert {
+            return None;
+        }
+        let (part, whole) =
+            (crate::patches::edit::id_operand(d, 0)?, crate::patches::edit::id_operand(d, 1)?);
+        if d.operands.get(2) == Some(&Operand::LiteralBit32(lane)) && d.operands.len() == 3 {
+            return Some(part);
+        }
+        composite = whole;
+    }
+}
+
+/// Issue 25: an alpha test reads a texel's alpha alone. The fault feeds every lane of a vector
+/// value, so the alpha the shader writes depends on it (fed into `.x` alone, a compiler
+/// drops the fault with the unused lanes: lavapipe did).
+#[test]
+fn a_fault_feeds_every_lane_of_a_vector_value() {
+    const ALPHA: &str = "#version 460\n#extension GL_EXT_ray_tracing : require\n\
+        layout(set = 0, binding = 0) uniform sampler2D base;\n\
+        layout(location = 0) rayPayloadInEXT float alpha;\n\
+        void main() { alpha = textureLod(base, vec2(0.5), 0.0).a; }\n";
+    let mut m = compiled(ShaderKind::ClosestHit, "a.rchit", ALPHA);
+    assert_eq!(inject(&mut m, &request("resource=sampled_image@device")).sites.len(), 1);
+    valid(&m);
+    let fault = marked(&m)[0];
+    let body =
+        || m.functions.iter().flat_map(|f| f.blocks.iter().flat_map(|b| b.instructions.iter()));
+    let store = body().find(|i| i.class.opcode == Op::Store).expect("the payload's store");
+    let value = crate::patches::edit::id_operand(store, 1).unwrap();
+    let alpha = body().find(|i| i.result_id == Some(value)).unwrap();
+    assert_eq!(alpha.class.opcode, Op::CompositeExtract);
+    assert_eq!(alpha.operands[1], Operand::LiteralBit32(3));
+    let texel = crate::patches::edit::id_operand(alpha, 0).unwrap();
+    let part = lane_part(&m, texel, 3).expect("lane 3 is the fault's");
+    assert!(reaches(&m, part, fault, 32), "the alpha does not depend on the fault");
+}
+
+/// `tests/shaders/user/heap.rchit` as the sid root's glslang 16.6 compiles it (the host's
+/// compilers predate GL_EXT_descriptor_heap; `tests/fixtures/heap/README.md`).
+fn heap_module() -> Module {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/heap/heap.rchit.spv");
+    crate::patches::load(&std::fs::read(path).unwrap()).unwrap()
+}
+
+/// Issue 25: `layout(descriptor_heap)` reads (an untyped access chain into `ResourceHeapEXT`,
+/// its `OpBufferPointerEXT`, a load): heap.rchit's material read and its three normal reads are
+/// storage-buffer accesses with dynamic indices, and each gets the fault; twin: a
+/// uniform-buffer predicate matches nothing.
+#[test]
+fn descriptor_heap_reads_are_accesses() {
+    let mut m = heap_module();
+    let want = Access {
+        stage: Stage::ClosestHit,
+        resource: Resource::StorageBuffer,
+        index: IndexSource::Dynamic,
+    };
+    assert_eq!(accesses(&m), [want; 4]);
+    assert!(inject(&mut m.clone(), &request("resource=uniform_buffer")).sites.is_empty());
+    let got = inject(&mut m, &request("resource=storage_buffer,index=dynamic@device"));
+    assert_eq!(got.sites.len(), 4, "{got:?}");
+    assert!(got.sites.iter().all(|s| s.contains("resource_heap")), "{got:?}");
+    assert_eq!(count(&m), 4);
+    for f in marked(&m) {
+        assert!(written(&m, f), "fault %{f} reaches no store");
+    }
+}
+
 #[test]
 fn a_hang_is_a_loop_after_each_access_fed_by_it() {
     let mut m = hit();
