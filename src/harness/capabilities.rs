@@ -228,3 +228,114 @@ fn other_capability(c: Capability, n: &mut Needs) -> Result<(), String> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A module header, then each capability, then each extension.
+    fn module(caps: &[Capability], exts: &[&str]) -> Vec<u32> {
+        let mut words = vec![0x0723_0203, 0x0001_0500, 0, 16, 0];
+        for c in caps {
+            words.extend([(2 << 16) | OP_CAPABILITY, *c as u32]);
+        }
+        for e in exts {
+            let mut bytes = e.as_bytes().to_vec();
+            bytes.resize((bytes.len() / 4 + 1) * 4, 0);
+            let ops: Vec<u32> =
+                bytes.chunks(4).map(|c| u32::from_le_bytes(c.try_into().unwrap())).collect();
+            words.push(((ops.len() as u32 + 1) << 16) | OP_EXTENSION);
+            words.extend(ops);
+        }
+        words
+    }
+
+    fn of(caps: &[Capability], exts: &[&str]) -> Result<Needs, String> {
+        needs([module(caps, exts).as_slice()])
+    }
+
+    /// Float16, 16-bit storage and a ray query ask for their bits and VK_KHR_ray_query; 8-bit
+    /// storage, Int8, Int16, Float64, Int64Atomics, the formatless image accesses and position
+    /// fetch theirs; over two modules the needs add up.
+    #[test]
+    fn capabilities_ask_for_their_features() {
+        use Capability as C;
+        let n = of(
+            &[C::Shader, C::RayTracingKHR, C::Float16, C::StorageBuffer16BitAccess, C::RayQueryKHR],
+            &["SPV_KHR_ray_tracing", "SPV_KHR_ray_query", "SPV_KHR_16bit_storage"],
+        )
+        .unwrap();
+        assert!(n.shader.float16 && n.shader.storage_buffer16 && n.ray_query);
+        assert!(!n.shader.int16 && !n.shader.uniform_and_storage_buffer16);
+        let caps = [
+            C::Int8,
+            C::Int16,
+            C::Float64,
+            C::Int64Atomics,
+            C::StorageBuffer8BitAccess,
+            C::UniformAndStorageBuffer8BitAccess,
+            C::StoragePushConstant8,
+            C::UniformAndStorageBuffer16BitAccess,
+            C::StoragePushConstant16,
+            C::StorageImageReadWithoutFormat,
+            C::StorageImageWriteWithoutFormat,
+            C::RayTracingPositionFetchKHR,
+            C::GroupNonUniformBallot,
+        ];
+        let two =
+            [module(&caps, &["SPV_KHR_ray_tracing_position_fetch"]), module(&[C::Float16], &[])];
+        let n = needs(two.iter().map(Vec::as_slice)).unwrap();
+        let s = n.shader;
+        assert!(s.int8 && s.int16 && s.float64 && s.int64_atomics && s.float16);
+        assert!(s.storage_buffer8 && s.uniform_and_storage_buffer8 && s.storage_push_constant8);
+        assert!(s.uniform_and_storage_buffer16 && s.storage_push_constant16);
+        assert!(s.read_without_format && s.write_without_format && s.position_fetch);
+        assert_eq!(s.subgroup, ash::vk::SubgroupFeatureFlags::BALLOT);
+        assert!(!n.ray_query);
+        let mut req = Requirements { ray_query: false, ..Requirements::default() };
+        n.apply(&mut req);
+        assert_eq!(req.shader, s);
+    }
+
+    /// Twin: capabilities core in Vulkan 1.0–1.2 or always enabled by the harness ask for
+    /// nothing more.
+    #[test]
+    fn core_capabilities_ask_for_nothing() {
+        use Capability as C;
+        let caps = [
+            C::Shader,
+            C::Matrix,
+            C::ImageQuery,
+            C::Int64,
+            C::ShaderNonUniform,
+            C::PhysicalStorageBufferAddresses,
+            C::RayTracingKHR,
+        ];
+        let exts = [
+            "SPV_KHR_ray_tracing",
+            "SPV_EXT_descriptor_indexing",
+            "SPV_KHR_physical_storage_buffer",
+        ];
+        assert_eq!(of(&caps, &exts).unwrap(), Needs::default());
+    }
+
+    /// SPV_NV_ray_tracing / RayTracingNV say how to recompile; opacity micromaps, a capability
+    /// outside the table and an unknown extension are refused in one line naming them.
+    #[test]
+    fn what_rtprobe_does_not_enable_is_refused_in_one_line() {
+        use Capability as C;
+        let nv = of(&[C::RayTracingNV], &[]).unwrap_err();
+        assert!(nv.contains("`-fspv-target-env=vulkan1.2` (SPV_KHR_ray_tracing)"), "{nv}");
+        let nv_ext = of(&[C::Shader], &["SPV_NV_ray_tracing"]).unwrap_err();
+        assert!(nv_ext.contains("SPV_NV_ray_tracing"), "{nv_ext}");
+        let omm = of(&[C::RayTracingOpacityMicromapEXT], &[]).unwrap_err();
+        assert!(omm.contains("RayTracingOpacityMicromapEXT"), "{omm}");
+        let geometry = of(&[C::Geometry], &[]).unwrap_err();
+        assert!(geometry.contains("capability Geometry"), "{geometry}");
+        let ext = of(&[C::Shader], &["SPV_KHR_made_up"]).unwrap_err();
+        assert!(ext.contains("SPV_KHR_made_up"), "{ext}");
+        for e in [nv, nv_ext, omm, geometry, ext] {
+            assert!(!e.contains('\n'), "{e}");
+        }
+    }
+}

@@ -337,3 +337,63 @@ impl ShaderFeatures {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A device with the given core 1.0 and 1.2 features, and API version `api`.
+    fn device(
+        core: vk::PhysicalDeviceFeatures,
+        v12: vk::PhysicalDeviceVulkan12Features<'static>,
+        api: u32,
+    ) -> DeviceInfo {
+        let mut info = DeviceInfo {
+            index: 0,
+            raw: vk::PhysicalDevice::null(),
+            extensions: Default::default(),
+            features: Default::default(),
+            properties: Default::default(),
+            queue_families: vec![],
+            memory: Default::default(),
+            probe_image_format: Default::default(),
+        };
+        info.features.core = core;
+        info.features.v12 = Some(v12);
+        info.properties.core.api_version = api;
+        info
+    }
+
+    /// Each asked bit the device lacks is named; the twin, a device with it, lacks nothing and
+    /// gets the bit enabled. Formatless storage-image reads are satisfied by Vulkan 1.3.
+    #[test]
+    fn missing_bits_are_named_and_present_ones_enabled() {
+        let asked = ShaderFeatures { float16: true, int16: true, ..Default::default() };
+        let bare = device(Default::default(), Default::default(), vk::API_VERSION_1_2);
+        assert_eq!(asked.missing_on(&bare), ["shaderFloat16", "shaderInt16"]);
+        let core = vk::PhysicalDeviceFeatures::default().shader_int16(true);
+        let v12 = vk::PhysicalDeviceVulkan12Features::default().shader_float16(true);
+        let full = device(core, v12, vk::API_VERSION_1_2);
+        assert!(asked.missing_on(&full).is_empty());
+        let (mut c, mut v11, mut v12) = Default::default();
+        let (mut rt, mut pf, mut m1) = Default::default();
+        let t = Targets {
+            core: &mut c,
+            v11: &mut v11,
+            v12: &mut v12,
+            rt: &mut rt,
+            pf: &mut pf,
+            m1: &mut m1,
+        };
+        asked.enable(&full, t);
+        assert_eq!((c.shader_int16, v12.shader_float16), (vk::TRUE, vk::TRUE));
+        assert_eq!(c.shader_float64, vk::FALSE, "only what was asked for");
+        let read = ShaderFeatures { read_without_format: true, ..Default::default() };
+        assert_eq!(read.missing_on(&bare), ["shaderStorageImageReadWithoutFormat"]);
+        let v13 = device(Default::default(), Default::default(), vk::API_VERSION_1_3);
+        assert!(read.missing_on(&v13).is_empty());
+        let rq =
+            ShaderFeatures { subgroup: vk::SubgroupFeatureFlags::BALLOT, ..Default::default() };
+        assert_eq!(rq.missing_on(&full).len(), 1, "no subgroup operations reported");
+    }
+}
