@@ -64,8 +64,8 @@ fn a_half_precision_closest_hit_gets_its_features() {
 }
 
 /// A closest-hit testing its shadow with a ray query: clean under `--validate` where the device
-/// reports rayQuery (VK_KHR_ray_query enabled from the module's RayQueryKHR); else refused in
-/// one line naming it.
+/// reports rayQuery (VK_KHR_ray_query enabled from the module's RayQueryKHR); else, and on the
+/// device with VK_KHR_ray_query hidden, refused in one line naming it.
 #[test]
 fn a_ray_query_shadow_in_a_closest_hit_gets_ray_query() {
     let caps = json(&run(&["caps", "--json"]));
@@ -78,6 +78,14 @@ fn a_ray_query_shadow_in_a_closest_hit_gets_ray_query() {
         assert!(r.is_none());
         assert_one_line_error(&o, 5, "rayQuery (VK_KHR_ray_query)");
     }
+    // Twin: the device without VK_KHR_ray_query (hidden) is refused, naming it; no report.
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("report.json");
+    let hit = user().join("rayquery_shadow.rchit");
+    let args = ["run", "--shader", hit.to_str().unwrap(), "-o", out.to_str().unwrap()];
+    let o = run_env(&args, &[("RTPROBE_HIDE_EXTENSIONS", "VK_KHR_ray_query")]);
+    assert_one_line_error(&o, 5, "rayQuery (VK_KHR_ray_query)");
+    assert!(!out.exists(), "no report");
 }
 
 /// An old DXC closest-hit (RayTracingNV, SPV_NV_ray_tracing) is refused before any device
