@@ -44,7 +44,8 @@ fn device(g: &Globals, a: &PatchArgs, scalar: bool, modules: &[&JobModule]) -> R
     let all = crate::vk::features::query_all(&inst)?;
     let info = crate::vk::features::select(&all, a.device.as_deref())?;
     let mut req = harness::requirements(scalar);
-    req.google = harness::google_of(modules.iter().map(|m| m.words.as_slice()));
+    harness::enable_needs(modules.iter().map(|m| m.words.as_slice()), &mut req)
+        .map_err(|e| coded(exit::BAD_INPUT, format!("--verify: {e}")))?;
     let missing = req.missing_on(info);
     if !missing.is_empty() {
         return Err(coded(

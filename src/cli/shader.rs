@@ -162,7 +162,8 @@ fn device(
     let info = crate::vk::features::select(&all, a.device.as_deref())?;
     let mut req = crate::harness::requirements_for(plan.scalar, model);
     req.robustness = shader_profile::setup(profile).robustness();
-    req.google = crate::harness::google(&plan.modules);
+    crate::harness::enable_needs(plan.modules.iter().map(|m| m.words.as_slice()), &mut req)
+        .map_err(|e| coded(exit::BAD_INPUT, format!("--shader: {e}")))?;
     let record = profile
         .map(|p| shader_profile::check(p, info, &req, (model, &plan.modules)))
         .transpose()?;

@@ -139,7 +139,7 @@ fn run(job: &VerifyJob) -> Result<VerifyOutput, HarnessError> {
         .ok_or_else(|| HarnessError::Unsupported("the device vanished".into()))?
         .clone();
     let mut req = super::requirements(job.scalar);
-    req.google = super::google(before.iter().chain(&after));
+    super::enable_needs(before.iter().chain(&after).map(|m| m.words.as_slice()), &mut req)?;
     let gpu = Gpu::new(inst, info, req)?;
     let messages = crate::vk::instance::validation_error_count();
     let timeout = Duration::from_millis(job.timeout_ms);

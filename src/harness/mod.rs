@@ -16,6 +16,7 @@
 //! (`rtprobe __shader JOB`, [`run`]), `--entry` reducing a module to one entry point ([`entry`]).
 mod bindings;
 mod buffers;
+mod capabilities;
 pub mod child;
 mod compare;
 pub mod entry;
@@ -44,7 +45,7 @@ pub mod variable;
 pub use bindings::check as check_bindings;
 pub use compare::{compare, compare_within, judge, Compared, Part, PartKind, Tolerance, Verdict};
 pub use error::HarnessError;
-pub use module::{google, google_of, UserModule};
+pub use module::{enable_needs, google, google_of, UserModule};
 pub use sizes::Sizes;
 pub use supply::{supply, MISS_MARKER};
 

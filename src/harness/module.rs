@@ -1,9 +1,11 @@
 //! One module of a user pipeline as the harness holds it ([`UserModule`]): its name, SPIR-V and
-//! reflected interface; and the VK_GOOGLE device extensions its `SPV_GOOGLE_*` extensions need
-//! ([`google`]).
+//! reflected interface; the VK_GOOGLE device extensions its `SPV_GOOGLE_*` extensions need
+//! ([`google`]); and everything its capabilities and extensions need ([`needs`]).
+use super::capabilities::{self, Needs};
 use super::error::HarnessError;
 use super::reflect::{self, Interface};
 use crate::vk::GoogleHlsl;
+use crate::vk::Requirements;
 
 /// One module of a pipeline: its name, SPIR-V and interface.
 #[derive(Clone, Debug)]
@@ -15,6 +17,8 @@ pub struct UserModule {
 
 impl UserModule {
     pub fn new(name: &str, words: &[u32]) -> Result<UserModule, HarnessError> {
+        capabilities::needs([words])
+            .map_err(|e| HarnessError::Unsupported(format!("{name}: {e}")))?;
         let m = crate::patches::load(&crate::tools::spirv::bytes(words))
             .map_err(|e| HarnessError::Interface(format!("{name}: {e}")))?;
         let iface =
@@ -23,25 +27,21 @@ impl UserModule {
     }
 }
 
-/// `OpExtension`'s opcode.
-const OP_EXTENSION: u32 = 10;
-
 /// The names of the SPIR-V extensions `words` declares (`OpExtension`); words past a truncated
 /// instruction are not read.
 pub fn spirv_extensions(words: &[u32]) -> Vec<String> {
-    let mut out = Vec::new();
-    let mut at = 5;
-    while let Some(&first) = words.get(at) {
-        let (count, op) = ((first >> 16) as usize, first & 0xffff);
-        let Some(operands) = words.get(at + 1..at + count.max(1)) else { break };
-        if op == OP_EXTENSION {
-            let bytes: Vec<u8> = operands.iter().flat_map(|w| w.to_le_bytes()).collect();
-            let end = bytes.iter().position(|b| *b == 0).unwrap_or(bytes.len());
-            out.push(String::from_utf8_lossy(&bytes[..end]).into_owned());
-        }
-        at += count.max(1);
-    }
-    out
+    capabilities::spirv_extensions(words)
+}
+
+/// What `modules` need of the device from their capabilities and extensions, set in `req`
+/// (given as SPIR-V words; each [`UserModule`] was checked when it was made).
+pub fn enable_needs<'a>(
+    modules: impl IntoIterator<Item = &'a [u32]>,
+    req: &mut Requirements,
+) -> Result<Needs, HarnessError> {
+    let n = capabilities::needs(modules).map_err(HarnessError::Unsupported)?;
+    n.apply(req);
+    Ok(n)
 }
 
 /// The VK_GOOGLE extensions `modules` need (DXC's `-fspv-reflect` output).
@@ -73,7 +73,7 @@ mod tests {
             bytes.resize((bytes.len() / 4 + 1) * 4, 0);
             let ops: Vec<u32> =
                 bytes.chunks(4).map(|c| u32::from_le_bytes(c.try_into().unwrap())).collect();
-            let mut i = vec![((ops.len() as u32 + 1) << 16) | OP_EXTENSION];
+            let mut i = vec![((ops.len() as u32 + 1) << 16) | 10]; // OpExtension
             i.extend(ops);
             i
         };

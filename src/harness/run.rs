@@ -275,7 +275,7 @@ fn harness(job: &ShaderJob) -> Result<(Harness, Vec<UserModule>), HarnessError> 
     let model = job.model.unwrap_or(DescriptorModel::DescriptorIndexing);
     let mut req = super::requirements_for(job.scalar, model);
     req.robustness = job.profile.robustness();
-    req.google = super::google(unpatched.iter().chain(&variant));
+    super::enable_needs(unpatched.iter().chain(&variant).map(|m| m.words.as_slice()), &mut req)?;
     let gpu = Gpu::new(inst, info, req)?;
     let push = unpatched
         .iter()

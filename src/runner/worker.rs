@@ -48,6 +48,8 @@ pub fn requirements(info: &crate::vk::DeviceInfo, cells: &[Cell]) -> Requirement
         robustness: crate::vk::Robustness::default(),
         // Generated GLSL declares no SPV_GOOGLE extension.
         google: crate::vk::GoogleHlsl::default(),
+        // Generated GLSL uses no capability beyond the fields above.
+        shader: crate::vk::ShaderFeatures::default(),
     }
 }
 

@@ -4,6 +4,7 @@
 use super::error::{VkError, VkResultExt};
 use super::features::DeviceInfo;
 use super::instance::Instance;
+use super::shader_features::{ShaderFeatures, Targets};
 use ash::{ext, google, khr, nv, vk};
 use std::ffi::CStr;
 use std::sync::Arc;
@@ -49,6 +50,8 @@ pub struct Requirements {
     pub robustness: Robustness,
     /// The VK_GOOGLE extensions of the SPIR-V extensions DXC's `-fspv-reflect` writes.
     pub google: GoogleHlsl,
+    /// The feature bits the user's modules' capabilities need (`harness::capabilities`).
+    pub shader: ShaderFeatures,
 }
 
 /// The device extensions a module's `SPV_GOOGLE_*` extensions need, DXC's `-fspv-reflect`
@@ -215,6 +218,7 @@ impl Requirements {
         m.extend(self.missing_pipeline_creation(info));
         m.extend(self.robustness.missing_on(info));
         m.extend(self.google.missing(|e| info.has_extension(e)));
+        m.extend(self.shader.missing_on(info));
         m
     }
 
@@ -258,6 +262,9 @@ pub struct Gpu {
 struct Chosen {
     exts: Vec<&'static CStr>,
     core: vk::PhysicalDeviceFeatures,
+    v11: vk::PhysicalDeviceVulkan11Features<'static>,
+    pf: vk::PhysicalDeviceRayTracingPositionFetchFeaturesKHR<'static>,
+    m1: vk::PhysicalDeviceRayTracingMaintenance1FeaturesKHR<'static>,
     v12: vk::PhysicalDeviceVulkan12Features<'static>,
     v13: vk::PhysicalDeviceVulkan13Features<'static>,
     rt: vk::PhysicalDeviceRayTracingPipelineFeaturesKHR<'static>,
@@ -275,10 +282,14 @@ struct Chosen {
 
 impl Chosen {
     /// The extensions and feature bits `req` needs on a device that supports `sup`.
-    fn of(req: &Requirements, sup: &super::features::Features) -> Chosen {
+    fn of(req: &Requirements, info: &DeviceInfo) -> Chosen {
+        let sup = &info.features;
         let mut c = Chosen {
             exts: Vec::new(),
             core: vk::PhysicalDeviceFeatures::default(),
+            v11: Default::default(),
+            pf: Default::default(),
+            m1: Default::default(),
             v12: vk::PhysicalDeviceVulkan12Features::default(),
             v13: vk::PhysicalDeviceVulkan13Features::default()
                 .dynamic_rendering(req.dynamic_rendering),
@@ -334,7 +345,21 @@ impl Chosen {
         c.core.vertex_pipeline_stores_and_atomics = vk::FALSE;
         c.robustness(&req.robustness);
         c.exts.extend(req.google.extensions());
+        c.exts.extend(req.shader.extensions());
+        req.shader.enable(info, c.targets());
         c
+    }
+
+    /// The structs [`ShaderFeatures`] sets its bits in.
+    fn targets(&mut self) -> Targets<'_> {
+        Targets {
+            core: &mut self.core,
+            v11: &mut self.v11,
+            v12: &mut self.v12,
+            rt: &mut self.rt,
+            pf: &mut self.pf,
+            m1: &mut self.m1,
+        }
     }
 
     /// The robustness bits asked for (VK_EXT_robustness2's with its extension).
@@ -479,6 +504,15 @@ impl Chosen {
         if req.invocation_reorder {
             f2 = f2.push_next(&mut self.reorder);
         }
+        if req.shader.v11() {
+            f2 = f2.push_next(&mut self.v11);
+        }
+        if req.shader.position_fetch {
+            f2 = f2.push_next(&mut self.pf);
+        }
+        if req.shader.cull_mask {
+            f2 = f2.push_next(&mut self.m1);
+        }
         let mut ci = vk::DeviceCreateInfo::default()
             .queue_create_infos(&qci)
             .enabled_extension_names(&ext_ptrs)
@@ -493,7 +527,23 @@ impl Chosen {
     fn names(&self, req: &Requirements) -> Vec<String> {
         let exts = self.exts.iter().map(|e| e.to_string_lossy().into_owned());
         let bits = [self.core_names(), self.v12_names(), self.extension_names(req)];
-        exts.chain(bits.into_iter().flatten().flatten()).collect()
+        let mut names: Vec<String> = exts.chain(bits.into_iter().flatten().flatten()).collect();
+        let (mut core, mut v11, mut v12) = (self.core, self.v11, self.v12);
+        let (mut rt, mut pf, mut m1) = (self.rt, self.pf, self.m1);
+        let mut t = Targets {
+            core: &mut core,
+            v11: &mut v11,
+            v12: &mut v12,
+            rt: &mut rt,
+            pf: &mut pf,
+            m1: &mut m1,
+        };
+        for r in super::shader_features::rows().iter().filter(|r| (r.asked)(&req.shader)) {
+            if *t.bit(r.slot) == vk::TRUE && !names.iter().any(|n| n == r.name) {
+                names.push(r.name.to_string());
+            }
+        }
+        names
     }
 
     /// The Vulkan 1.0 feature bits given as true.
@@ -622,7 +672,7 @@ fn given(name: &str, bit: vk::Bool32) -> Option<String> {
 /// Every feature bit (Vulkan member name) a device created on `info` with `req` is given, as
 /// [`Gpu::enabled_names`] lists them after the extensions; nothing is created.
 pub fn enabled_feature_names(req: &Requirements, info: &DeviceInfo) -> Vec<String> {
-    let c = Chosen::of(req, &info.features);
+    let c = Chosen::of(req, info);
     let n = c.exts.len();
     c.names(req).split_off(n)
 }
@@ -646,7 +696,7 @@ impl Gpu {
             name: info.name(),
             missing: "a graphics+compute queue".into(),
         })?;
-        let mut chosen = Chosen::of(&req, &info.features);
+        let mut chosen = Chosen::of(&req, &info);
         let device = chosen.create_device(&instance, &info, queue_family, &req)?;
         let enabled_names = chosen.names(&req);
         let queue = unsafe { device.get_device_queue(queue_family, 0) };

@@ -9,11 +9,13 @@ pub mod features;
 pub mod heap;
 pub mod instance;
 pub mod rt_ext;
+pub mod shader_features;
 
 pub use device::{GoogleHlsl, Gpu, Requirements, Robustness};
 pub use error::{VkError, VkResultExt};
 pub use features::DeviceInfo;
 pub use instance::{Instance, InstanceOptions};
+pub use shader_features::ShaderFeatures;
 pub mod fault;
 pub mod memory;
 pub mod submit;
