@@ -338,6 +338,35 @@ fn the_issue_from_reduce_json(out: &Path) {
     assert_one_line_error(&o, 9, "beside reduce.json");
 }
 
+/// A finding on a `--scene` is reduced on that scene: the job carries it, so candidates trace
+/// the glTF scene the finding traced (without it they would trace the seeded one).
+#[test]
+fn the_scene_is_carried_into_the_interestingness_job() {
+    let d = tempfile::tempdir().unwrap();
+    let o = run(&["scene", "make", d.path().to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let scene = d.path().join("scene.gltf");
+    let pred = "stage=closest_hit,resource=storage_buffer,index=dynamic@device";
+    let extra = ["--scene", scene.to_str().unwrap()];
+    let report = finding_with(d.path(), &user().join("bindless.rchit"), pred, &extra);
+    let out = d.path().join("out");
+    let name = out.file_name().unwrap().to_str().unwrap();
+    let args = ["reduce", report.to_str().unwrap(), "-o", name, "--step-limit", "2"];
+    let o = bin()
+        .current_dir(d.path())
+        .env("RTPROBE_REDUCE_KEEP", "1")
+        .args(args)
+        .args(["--slice-cells", "0"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    let job: Value =
+        serde_json::from_slice(&std::fs::read(out.join(".reduce-work/job.json")).unwrap()).unwrap();
+    assert_eq!(job["scene"].as_str(), scene.to_str(), "the job lacks the scene");
+    let runs = std::fs::read_to_string(out.join(".reduce-work/runs.jsonl")).unwrap();
+    assert!(runs.lines().any(|l| l.contains("\"interesting\":true")), "{runs}");
+}
+
 /// Issue 25: `--profile` is carried into the interestingness job. A finding under an engine's
 /// profile (robustBufferAccess2, partially bound bindings), reduced a few steps: the job every
 /// `__interesting` run reads holds the profile's setup, and the reduced module still faults

@@ -82,6 +82,7 @@ fn run_args(r: &ShaderRunReport, device: Option<&str>) -> Result<RunArgs> {
     flag("--sink-size", &o["sink_size"]);
     flag("--timeout", &o["timeout_s"]);
     flag("--descriptor-model", &o["descriptor_model"]);
+    flag("--scene", &o["scene"]);
     for f in fill_args(r)? {
         argv.extend(["--fill".into(), f]);
     }
@@ -202,10 +203,7 @@ pub fn reduce(g: &Globals, a: &ReduceArgs) -> Result<u8> {
     same_harness(&report, &p)?;
     let (plan, ctx, device) = (p.plan, p.ctx, p.device_name);
     same_inputs(&plan, &report)?;
-    let refs: Vec<&crate::harness::UserModule> = plan.modules.iter().collect();
-    if let Some(cycle) = crate::harness::traces::unbounded_recursion(&refs) {
-        return Err(coded(exit::BAD_INPUT, format!("{cycle}. reduce refuses it: spirv-reduce may drop that guard, and a candidate recursing past the limit faults by the shader's undefined behaviour, not the driver's; reduce a copy whose hit shaders do not trace again")));
-    }
+    bounded_recursion(&plan)?;
     let (k, why) = target(&report);
     let work = out_dir(a)?;
     let original = ctx.unpatched[k].words.clone();
@@ -223,6 +221,8 @@ pub fn reduce(g: &Globals, a: &ReduceArgs) -> Result<u8> {
         sizes: ctx.sizes,
         fills: ctx.fills.clone(),
         profile: ctx.profile,
+        scene: ctx.scene.clone(),
+        scene_fills: ctx.scene_fills.clone(),
         modules: ctx.unpatched.clone(),
         target: k,
         val_env: spirv_tools::tool(SpirvTool::Val).map(|_| val.env.clone()),
@@ -266,6 +266,17 @@ pub fn reduce(g: &Globals, a: &ReduceArgs) -> Result<u8> {
         let _ = std::fs::remove_dir_all(&work);
     }
     Ok(code)
+}
+
+/// A pipeline whose recursion depth is its shaders' own guard's is refused: spirv-reduce may drop
+/// the guard, and a candidate recursing past the device's limit faults by the shader's undefined
+/// behaviour (VUID-vkCmdTraceRaysKHR-maxPipelineRayRecursionDepth-03679), not the driver's.
+fn bounded_recursion(plan: &ShaderPlan) -> Result<()> {
+    let refs: Vec<&crate::harness::UserModule> = plan.modules.iter().collect();
+    match crate::harness::traces::unbounded_recursion(&refs) {
+        Some(cycle) => Err(coded(exit::BAD_INPUT, format!("{cycle}. reduce refuses it: spirv-reduce may drop that guard, and a candidate recursing past the limit faults by the shader's undefined behaviour, not the driver's; reduce a copy whose hit shaders do not trace again"))),
+        None => Ok(()),
+    }
 }
 
 /// Each input still hashes as the report recorded it.

@@ -38,6 +38,11 @@ pub struct InterestingJob {
     pub fills: crate::harness::fill::Fills,
     #[serde(default)]
     pub profile: crate::harness::profile::ProfileSetup,
+    /// The run's `--scene` and the fills that read it: candidates trace the scene the finding did.
+    #[serde(default)]
+    pub scene: Option<std::path::PathBuf>,
+    #[serde(default)]
+    pub scene_fills: Vec<crate::harness::scene_data::SceneFill>,
     /// The given modules, unreduced and without the injected fault.
     pub modules: Vec<JobModule>,
     /// Which of them the candidate replaces.
@@ -138,8 +143,8 @@ fn judge(job: &InterestingJob, modules: Vec<JobModule>) -> Result<(bool, String)
         heap_layout: job.heap_layout.clone(),
         sizes: job.sizes,
         fills: job.fills.clone(),
-        scene: None,
-        scene_fills: Vec::new(),
+        scene: job.scene.clone(),
+        scene_fills: job.scene_fills.clone(),
         profile: job.profile,
         gpu_av: false,
     };
