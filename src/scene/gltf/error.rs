@@ -11,14 +11,28 @@ pub enum LoadError {
     )]
     Parse { path: PathBuf, message: String },
     #[error(
-        "scene {path} requires extension {extension}, which rtprobe does not read; export it \
-         without {extension} (e.g. `gltf-transform` can decompress/dequantize it)"
+        "scene {path} requires extension {extension}, which rtprobe does not read; {}",
+        remedy(extension)
     )]
     Extension { path: PathBuf, extension: String },
     #[error("scene {path}: {part}: {message}")]
     Part { path: PathBuf, part: String, message: String },
     #[error("scene {path} has no triangles: give a scene whose default scene has triangle meshes")]
     Empty { path: PathBuf },
+}
+
+/// What to do about a required extension, by what it changes.
+fn remedy(extension: &str) -> String {
+    match extension {
+        "KHR_draco_mesh_compression" | "EXT_meshopt_compression" => {
+            "export it with mesh compression off (Draco, meshopt), or decompress it with a glTF tool".into()
+        }
+        "KHR_mesh_quantization" => "export it with float positions (no quantization), or dequantize it with a glTF tool".into(),
+        "KHR_texture_basisu" | "EXT_texture_webp" => {
+            "export its textures as PNG or JPEG".into()
+        }
+        other => format!("export it without {other}, or with the extension baked into the data"),
+    }
 }
 
 impl LoadError {

@@ -130,6 +130,7 @@ fn bad_input_is_one_line_naming_the_part() {
     assert!(e.contains("cannot read scene") && !e.contains('\n'), "{e}");
     let e = edited(|d| d["extensionsRequired"] = serde_json::json!(["KHR_draco_mesh_compression"]));
     assert!(e.contains("requires extension KHR_draco_mesh_compression"), "{e}");
+    assert!(e.contains("mesh compression off"), "{e}");
     let e = edited(|d| d["meshes"][0]["primitives"][0]["mode"] = serde_json::json!(1));
     assert!(e.contains("mesh 0 (ground), primitive 0") && e.contains("not triangles"), "{e}");
     let e = edited(|d| d["buffers"][0]["byteLength"] = serde_json::json!(99_999_999));
@@ -144,6 +145,7 @@ fn bad_input_is_one_line_naming_the_part() {
     assert!(e.contains("node 3: reached twice"), "a cycle ends: {e}");
     let e = edited(|d| d["extensionsRequired"] = serde_json::json!(["KHR_texture_transform"]));
     assert!(e.contains("requires extension KHR_texture_transform"), "{e}");
+    assert!(e.contains("export it without KHR_texture_transform") && !e.contains("compression"));
     let e = edited(|d| d["scenes"][0]["nodes"] = serde_json::json!([7]));
     assert!(e.contains("no triangles"), "{e}");
 }
