@@ -338,6 +338,23 @@ fn the_issue_from_reduce_json(out: &Path) {
     assert_one_line_error(&o, 9, "beside reduce.json");
 }
 
+/// `reduce REPORT` for `steps` steps in `dir`, its work folder kept, without the matrix slice:
+/// the output folder and the interestingness job it wrote.
+fn kept_reduction(dir: &Path, report: &Path, steps: &str) -> (PathBuf, Value) {
+    let out = dir.join("out");
+    let args = ["reduce", report.to_str().unwrap(), "-o", "out", "--step-limit", steps];
+    let o = bin()
+        .current_dir(dir)
+        .env("RTPROBE_REDUCE_KEEP", "1")
+        .args(args)
+        .args(["--slice-cells", "0"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    let job = std::fs::read(out.join(".reduce-work/job.json")).unwrap();
+    (out, serde_json::from_slice(&job).unwrap())
+}
+
 /// A finding on a `--scene` is reduced on that scene: the job carries it, so candidates trace
 /// the glTF scene the finding traced (without it they would trace the seeded one).
 #[test]
@@ -349,19 +366,7 @@ fn the_scene_is_carried_into_the_interestingness_job() {
     let pred = "stage=closest_hit,resource=storage_buffer,index=dynamic@device";
     let extra = ["--scene", scene.to_str().unwrap()];
     let report = finding_with(d.path(), &user().join("bindless.rchit"), pred, &extra);
-    let out = d.path().join("out");
-    let name = out.file_name().unwrap().to_str().unwrap();
-    let args = ["reduce", report.to_str().unwrap(), "-o", name, "--step-limit", "2"];
-    let o = bin()
-        .current_dir(d.path())
-        .env("RTPROBE_REDUCE_KEEP", "1")
-        .args(args)
-        .args(["--slice-cells", "0"])
-        .output()
-        .unwrap();
-    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
-    let job: Value =
-        serde_json::from_slice(&std::fs::read(out.join(".reduce-work/job.json")).unwrap()).unwrap();
+    let (out, job) = kept_reduction(d.path(), &report, "2");
     assert_eq!(job["scene"].as_str(), scene.to_str(), "the job lacks the scene");
     let runs = std::fs::read_to_string(out.join(".reduce-work/runs.jsonl")).unwrap();
     assert!(runs.lines().any(|l| l.contains("\"interesting\":true")), "{runs}");
@@ -386,19 +391,7 @@ fn the_profile_is_carried_into_the_interestingness_job() {
     let pred = "stage=closest_hit,resource=storage_buffer,index=dynamic@device";
     let extra = ["--profile", profile.to_str().unwrap()];
     let report = finding_with(d.path(), &user().join("bindless.rchit"), pred, &extra);
-    let out = d.path().join("out");
-    let name = out.file_name().unwrap().to_str().unwrap();
-    let args = ["reduce", report.to_str().unwrap(), "-o", name, "--step-limit", "3"];
-    let o = bin()
-        .current_dir(d.path())
-        .env("RTPROBE_REDUCE_KEEP", "1")
-        .args(args)
-        .args(["--slice-cells", "0"])
-        .output()
-        .unwrap();
-    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
-    let job: Value =
-        serde_json::from_slice(&std::fs::read(out.join(".reduce-work/job.json")).unwrap()).unwrap();
+    let (out, job) = kept_reduction(d.path(), &report, "3");
     let p = &job["profile"];
     assert_eq!(p["robust_buffer_access2"], true, "the job lacks the profile: {p}");
     assert_eq!(p["robust_buffer_access"], true, "{p}");
