@@ -89,6 +89,9 @@ pub fn assert_one_line_error(o: &Output, code: i32, needle: &str) {
     let lines: Vec<&str> = err.lines().filter(|l| l.starts_with("rtprobe: error:")).collect();
     assert_eq!(lines.len(), 1, "one error line expected, got: {err}");
     assert!(lines[0].contains(needle), "{needle:?} not in {:?}", lines[0]);
+    // Nothing else may look like an error either: no second hint line, no compiler output.
+    let noisy = err.lines().filter(|l| l.to_lowercase().contains("error") || l.contains("hint:"));
+    assert_eq!(noisy.count(), 1, "one line mentioning the error expected, got: {err}");
     assert!(!err.contains("panicked"), "panic: {err}");
 }
 

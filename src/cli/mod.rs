@@ -74,7 +74,7 @@ fn usage_error(e: &clap::Error, command: &str) -> String {
             .map(|c| c.get_name().to_string())
             .collect();
         return format!(
-            "rtprobe: error: no command given: one of {}\nrtprobe: hint: `rtprobe --help` says what each does\n",
+            "rtprobe: error: no command given: one of {}; `rtprobe --help` says what each does\n",
             names.join(", ")
         );
     }
@@ -104,7 +104,7 @@ fn usage_error(e: &clap::Error, command: &str) -> String {
         what = format!("{what}: {}", details.join(", "));
     }
     let tips = if tips.is_empty() { String::new() } else { format!(" ({})", tips.join("; ")) };
-    format!("rtprobe: error: {what}{tips}\nrtprobe: hint: `{command} --help` lists every option\n")
+    format!("rtprobe: error: {what}{tips}; `{command} --help` lists every option\n")
 }
 
 /// `rtprobe NAME` when the first argument names one of rtprobe's commands, else `rtprobe`.
