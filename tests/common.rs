@@ -3,7 +3,12 @@
 use std::process::{Command, Output};
 
 pub fn bin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_rtprobe"));
+    bin_at(std::path::Path::new(env!("CARGO_BIN_EXE_rtprobe")))
+}
+
+/// [`bin`] of the executable at `exe` (a copy of the binary).
+pub fn bin_at(exe: &std::path::Path) -> Command {
+    let mut c = Command::new(exe);
     // Validation on by default in tests when the layer is installed (see docs/environment.md).
     if std::path::Path::new("/usr/share/vulkan/explicit_layer.d/VkLayer_khronos_validation.json")
         .exists()

@@ -271,6 +271,50 @@ fn a_short_reduction_writes_its_files_and_still_faults() {
     assert_one_line_error(&o, 2, "is not empty");
 }
 
+/// A build that replaces rtprobe's file while `reduce` runs (a `cargo build` beside a long
+/// reduction: the heap row's `No such file or directory (os error 2)`, exit 9). A copy of the
+/// binary reduces the bindless finding; once spirv-reduce has run a candidate, the copy's path
+/// is replaced as cargo replaces it. Every child started after that — spirv-reduce's
+/// `__interesting` runs, the dead-code strip's check, the workaround's `__shader` children, the
+/// slice's `run` — still starts the running file (`runner::self_exe`), and the reduction ends
+/// well. Before the fix `reduce` started `PATH (deleted)` (its `current_exe()`) and failed.
+#[test]
+fn a_binary_replaced_mid_reduction_still_starts_its_children() {
+    let d = tempfile::tempdir().unwrap();
+    let pred = "stage=closest_hit,resource=storage_buffer,index=dynamic@device";
+    let report = finding(d.path(), &user().join("bindless.rchit"), pred);
+    let exe = d.path().join("rtprobe");
+    std::fs::copy(env!("CARGO_BIN_EXE_rtprobe"), &exe).unwrap();
+    let args = ["reduce", report.to_str().unwrap(), "-o", "out", "--step-limit", "12"];
+    let mut child = bin_at(&exe)
+        .current_dir(d.path())
+        .args(args)
+        .args(["--slice-cells", "1"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let log = d.path().join("out/.reduce-work/runs.jsonl");
+    let t = std::time::Instant::now();
+    while std::fs::read_to_string(&log).unwrap_or_default().lines().count() < 2 {
+        assert!(t.elapsed().as_secs() < 300, "no interestingness run in 5 minutes");
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    let new = d.path().join("rtprobe.new");
+    std::fs::copy(&exe, &new).unwrap();
+    std::fs::rename(&new, &exe).unwrap();
+    let running = child.try_wait().unwrap().is_none();
+    let o = child.wait_with_output().unwrap();
+    assert!(running, "reduce ended before its file was replaced: {}", stdout(&o));
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    let r: Value =
+        serde_json::from_slice(&std::fs::read(d.path().join("out/reduce.json")).unwrap()).unwrap();
+    // The workaround's and the slice's children ran after the swap.
+    let w = r["workarounds"].as_array().unwrap();
+    assert!(w.iter().any(|w| w["patch"] == "ssbo-to-address" && w["verified"] == true), "{r}");
+    assert!(r["slice"]["ran"].as_u64().unwrap() >= 1, "{}", r["slice"]);
+}
+
 /// Step 6 on the bindless shader: ssbo-to-address verified, its module and contract written.
 fn workaround_on_the_original(r: &Value, out: &Path) {
     let all = r["workarounds"].as_array().expect("workarounds");
