@@ -3,7 +3,12 @@
 use std::process::{Command, Output};
 
 pub fn bin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_rtprobe"));
+    bin_at(std::path::Path::new(env!("CARGO_BIN_EXE_rtprobe")))
+}
+
+/// [`bin`] of the executable at `exe` (a copy of the binary).
+pub fn bin_at(exe: &std::path::Path) -> Command {
+    let mut c = Command::new(exe);
     // Validation on by default in tests when the layer is installed (see docs/environment.md).
     if std::path::Path::new("/usr/share/vulkan/explicit_layer.d/VkLayer_khronos_validation.json")
         .exists()
@@ -121,4 +126,26 @@ pub fn unb64(s: &str) -> Vec<u8> {
         out.extend_from_slice(&n.to_be_bytes()[1..4 - pad]);
     }
     out
+}
+
+/// The Debian sid root made by scripts/setup-sid (lavapipe 26, VK_EXT_descriptor_heap).
+pub fn sid_root() -> std::path::PathBuf {
+    std::env::var_os("RTPROBE_SID_ROOT")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| std::path::PathBuf::from("/var/lib/rtprobe/sid-root"))
+}
+
+/// Whether the sid root exists and scripts/in-sid may enter it (root, or sudo without a
+/// password); panics when it must (RTPROBE_REQUIRE_SID=1).
+pub fn have_sid() -> bool {
+    let can_chroot = unsafe { libc::geteuid() } == 0
+        || Command::new("sudo").args(["-n", "true"]).output().is_ok_and(|o| o.status.success());
+    let ok = sid_root().join("etc/rtprobe-sid.stamp").exists() && can_chroot;
+    if !ok && std::env::var("RTPROBE_REQUIRE_SID").is_ok_and(|v| v == "1") {
+        panic!("RTPROBE_REQUIRE_SID=1 but there is no sid root at {} (make it with scripts/setup-sid), or no root rights to enter it", sid_root().display());
+    }
+    if !ok {
+        eprintln!("skipped: no sid root at {} (scripts/setup-sid makes it), or no root rights to enter it", sid_root().display());
+    }
+    ok
 }

@@ -12,27 +12,6 @@ fn repo() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
 }
 
-fn sid_root() -> PathBuf {
-    std::env::var_os("RTPROBE_SID_ROOT")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from("/var/lib/rtprobe/sid-root"))
-}
-
-/// Whether the sid root exists and scripts/in-sid may enter it (root, or sudo without a
-/// password); panics when it must (RTPROBE_REQUIRE_SID=1).
-fn have_sid() -> bool {
-    let can_chroot = unsafe { libc::geteuid() } == 0
-        || Command::new("sudo").args(["-n", "true"]).output().is_ok_and(|o| o.status.success());
-    let ok = sid_root().join("etc/rtprobe-sid.stamp").exists() && can_chroot;
-    if !ok && std::env::var("RTPROBE_REQUIRE_SID").is_ok_and(|v| v == "1") {
-        panic!("RTPROBE_REQUIRE_SID=1 but there is no sid root at {} (make it with scripts/setup-sid), or no root rights to enter it", sid_root().display());
-    }
-    if !ok {
-        eprintln!("skipped: no sid root at {} (scripts/setup-sid makes it), or no root rights to enter it", sid_root().display());
-    }
-    ok
-}
-
 /// This build's rtprobe, inside the sid root.
 fn in_sid(args: &[&str]) -> Output {
     in_sid_env(args, &[])

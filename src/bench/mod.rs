@@ -1,5 +1,5 @@
 //! `rtprobe bench`: run time against error. It measures rtprobe by running it: every point is
-//! a child `rtprobe run` (this executable, `std::env::current_exe()`) with `-o` into a temporary
+//! a child `rtprobe run` (this executable, `runner::self_exe`) with `-o` into a temporary
 //! directory, whose report is read back and deleted. That keeps each point exactly the command a
 //! user would type (recorded per point), runs the whole product (supervisor, workers, report),
 //! and lets the run-argument sweep be a list of plain arguments.

@@ -199,8 +199,7 @@ fn options(g: &Globals, a: &BenchArgs) -> Result<BenchOptions> {
     } else {
         a.mutants_sizes.iter().map(|s| parse_size("--mutants-sizes", s)).collect::<Result<_>>()?
     };
-    let exe = std::env::current_exe()
-        .map_err(|e| coded(exit::INTERNAL, format!("cannot find the rtprobe executable: {e}")))?;
+    let exe = crate::runner::self_exe::spawn_path();
     Ok(BenchOptions {
         exe,
         work_dir: std::env::temp_dir().join(format!("rtprobe-bench-{}", std::process::id())),

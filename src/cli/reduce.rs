@@ -17,6 +17,7 @@ use crate::harness::inject::Request;
 use crate::model::reduce::ReduceReport;
 use crate::model::shader_run::{ShaderRunReport, ShaderVariant, SCHEMA};
 use crate::model::{stats, Outcome};
+use crate::runner::self_exe;
 use crate::tools::spirv::{self as spirv_tools, SpirvTool};
 use anyhow::Result;
 use clap::Parser;
@@ -337,7 +338,8 @@ fn run_reducer(
     let (input, output) = (work.join("original.spv"), work.join("reduced.spv"));
     crate::atomic::write_atomic(&input, &spirv_tools::bytes(original))
         .map_err(|e| coded(exit::BAD_INPUT, format!("writing {}: {e}", input.display())))?;
-    let exe = std::env::current_exe()?;
+    // This very file, even when a build replaces its path while spirv-reduce runs.
+    let exe = self_exe::shared_path();
     let mut c = tool.command();
     if val.scalar_block_layout {
         c.arg("--scalar-block-layout");
@@ -352,8 +354,9 @@ fn run_reducer(
         .arg("__interesting")
         .arg(&job_path)
         .current_dir(work);
-    let out =
-        c.output().map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", tool.describe())))?;
+    let out = c
+        .output()
+        .map_err(|e| coded(exit::BAD_INPUT, format!("starting {}: {e}", tool.describe())))?;
     let words = std::fs::read(&output).ok().filter(|_| out.status.success());
     let Some(bytes) = words else {
         let runs = read_log(&job.log);
@@ -392,11 +395,14 @@ fn strip_dead(work: &Path, reduced: Vec<u32>) -> Result<Vec<u32>> {
     let path = work.join("stripped.spv");
     crate::atomic::write_atomic(&path, &spirv_tools::bytes(&words))
         .map_err(|e| coded(exit::BAD_INPUT, format!("writing {}: {e}", path.display())))?;
-    let status = std::process::Command::new(std::env::current_exe()?)
+    let status = std::process::Command::new(self_exe::spawn_path())
         .arg("__interesting")
         .arg(work.join("job.json"))
         .arg(&path)
-        .status()?;
+        .status()
+        .map_err(|e| {
+            coded(exit::BAD_INPUT, self_exe::start_error("the dead-code strip's check", &e))
+        })?;
     Ok(if status.success() { words } else { reduced })
 }
 

@@ -5,9 +5,11 @@
 //! at most `--slice-cells` cells are planned (a deterministic shard `1/K` of the slice when it
 //! generates more); the line says how many ran. When rtprobe's own variant of the shape faults
 //! too, the finding joins the matrix's findings: `rtprobe bisect DIR/slice.json` narrows it.
+use super::exit::{self, coded};
 use super::reduce_job::is_fault;
 use crate::model::reduce::Slice;
 use crate::model::{Filter, Outcome};
+use crate::runner::self_exe;
 use anyhow::Result;
 use std::path::Path;
 
@@ -64,10 +66,11 @@ pub fn run(s: &SliceArgs, dir: &Path) -> Result<Option<Slice>> {
     let (args, shards) = argv(s, generated, &report);
     let command = format!("rtprobe {}", args.join(" "));
     tracing::info!("reduce: the slice: {command}");
-    let out = std::process::Command::new(std::env::current_exe()?)
+    let out = std::process::Command::new(self_exe::spawn_path())
         .args(&args)
         .stdin(std::process::Stdio::null())
-        .output()?;
+        .output()
+        .map_err(|e| coded(exit::BAD_INPUT, self_exe::start_error("the matrix's slice", &e)))?;
     let mut slice = Slice {
         command,
         report: "slice.json".into(),

@@ -13,5 +13,6 @@ pub mod oracle;
 pub mod process;
 pub mod protocol;
 mod schedule;
+pub mod self_exe;
 pub mod supervisor;
 pub mod worker;

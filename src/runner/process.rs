@@ -22,6 +22,11 @@ const STDERR_TAIL: usize = 4000;
 /// What a worker's output becomes: its slot, its id and one input.
 pub(super) type Line = (usize, u64, Input);
 
+/// `e` of a child that did not start, its line naming the executable and what it was for.
+fn named(e: &std::io::Error, what: &str) -> std::io::Error {
+    std::io::Error::new(e.kind(), super::self_exe::start_error(what, e))
+}
+
 /// A running worker process.
 pub(super) struct Proc {
     child: Child,
@@ -35,14 +40,14 @@ impl Proc {
     /// Starts this executable as worker `worker` of slot `slot` on `job`; its lines go to `tx`,
     /// ending with [`Input::Eof`].
     pub fn start(job: &Path, slot: usize, worker: u64, tx: Sender<Line>) -> std::io::Result<Proc> {
-        let mut cmd = Command::new(std::env::current_exe()?);
+        let mut cmd = Command::new(super::self_exe::spawn_path());
         cmd.arg("__worker")
             .arg(job)
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped());
         groups::harden(&mut cmd);
-        let mut child = cmd.spawn()?;
+        let mut child = cmd.spawn().map_err(|e| named(&e, "a worker"))?;
         let pid = child.id() as i32;
         groups::register(pid);
         let stdout = child.stdout.take().expect("piped stdout");
@@ -147,10 +152,10 @@ pub fn run_to_end(
     (grace, kill_wait): (Duration, Duration),
     on_line: &mut dyn FnMut(&str) -> Duration,
 ) -> std::io::Result<ChildEnd> {
-    let mut cmd = Command::new(std::env::current_exe()?);
+    let mut cmd = Command::new(super::self_exe::spawn_path());
     cmd.arg(subcommand).arg(job).stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped());
     groups::harden(&mut cmd);
-    let mut child = cmd.spawn()?;
+    let mut child = cmd.spawn().map_err(|e| named(&e, subcommand))?;
     let pid = child.id() as i32;
     groups::register(pid);
     let (tx, rx) = channel::<String>();
