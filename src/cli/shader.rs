@@ -385,7 +385,11 @@ pub(super) fn prepare(g: &Globals, a: &RunArgs) -> Result<Prepared> {
         unpatched: plan
             .given
             .iter()
-            .map(|m| JobModule { name: m.name.clone(), words: m.words.clone() })
+            .map(|m| JobModule {
+                name: m.name.clone(),
+                words: m.words.clone(),
+                ray_type: m.ray_type,
+            })
             .collect(),
         repeat,
         timeout,
