@@ -101,7 +101,9 @@ fn hit_shaders_go_by_payload_and_ambiguity_names_hit_group() {
         module(
             ShaderKind::ClosestHit,
             name,
-            &format!("layout(location = 3) rayPayloadInEXT {ty} p;\nvoid main() {{}}"),
+            &format!(
+                "layout(location = 3) rayPayloadInEXT {ty} p;\nvoid main() {{ p = {ty}(0); }}"
+            ),
         )
     };
     let r = raygen(&[("0", "0", "0", 0), ("1", "2", "0", 1)]);
