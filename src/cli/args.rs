@@ -375,6 +375,17 @@ pub struct RunArgs {
     #[arg(long, value_name = "NAME", requires = "shader", help_heading = "Your shaders")]
     pub entry: Option<String>,
 
+    /// With --shader: put hit shaders in ray type K's hit groups (K = the SBT record offset its
+    /// rays trace with; repeatable), where their payload does not say it (two ray types with one
+    /// payload structure, an any-hit without a payload). See docs/your-shader.md#ray-types
+    #[arg(
+        long = "hit-group",
+        value_name = "K=FILE[,FILE…]",
+        requires = "shader",
+        help_heading = "Your shaders"
+    )]
+    pub hit_groups: Vec<String>,
+
     /// With --shader: a folder `#include "…"` searches (repeatable), as glslang's -I
     #[arg(
         short = 'I',

@@ -32,6 +32,7 @@ mod shader_compare;
 mod shader_exec;
 mod shader_fill;
 mod shader_gpu_av;
+mod shader_hit_groups;
 mod shader_plan;
 mod shader_profile;
 mod shader_report;

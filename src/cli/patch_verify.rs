@@ -35,7 +35,10 @@ fn reflect(inputs: &[Input], words: &[&[u32]]) -> Result<Vec<JobModule>> {
         .map(|(i, w)| UserModule::new(&i.name, w).map_err(bad))
         .collect::<Result<_>>()?;
     harness::check_bindings(&modules).map_err(bad)?;
-    Ok(modules.into_iter().map(|m| JobModule { name: m.name, words: m.words }).collect())
+    Ok(modules
+        .into_iter()
+        .map(|m| JobModule { name: m.name, words: m.words, ray_type: m.ray_type })
+        .collect())
 }
 
 /// The device `--device` names, checked for what the harness needs for `modules`: its index.

@@ -47,7 +47,11 @@ fn reinject(modules: &[JobModule], injection: Option<&Request>) -> (Vec<JobModul
             };
             let done = inject::inject(&mut m, r);
             faults += done.sites.len();
-            JobModule { name: j.name.clone(), words: crate::patches::assemble(&m) }
+            JobModule {
+                name: j.name.clone(),
+                words: crate::patches::assemble(&m),
+                ray_type: j.ray_type,
+            }
         })
         .collect();
     (out, Some(faults))
@@ -329,7 +333,7 @@ mod tests {
 
     #[test]
     fn reinjecting_nothing_leaves_the_modules() {
-        let m = vec![JobModule { name: "a".into(), words: vec![1, 2, 3] }];
+        let m = vec![JobModule { name: "a".into(), words: vec![1, 2, 3], ray_type: None }];
         let (out, n) = reinject(&m, None);
         assert_eq!((out[0].words.clone(), n), (vec![1, 2, 3], None));
     }

@@ -31,6 +31,7 @@ pub const DEFAULT_REPEAT: u32 = 3;
 const TAKEN: &[&str] = &[
     "shader",
     "entry",
+    "hit_groups",
     "include_dirs",
     "defines",
     "target_env",
@@ -69,7 +70,7 @@ fn refuse_others(a: &RunArgs) -> Result<()> {
     let flag = format!("--{}", id.replace('_', "-"));
     Err(coded(
         exit::USAGE,
-        format!("{flag} cannot be used with --shader: it applies to the generated matrix, which --shader replaces; drop it (--shader takes --entry, -I, -D, --target-env, --spec, --descriptor-model, --heap-layout, --profile, --array-size, --sink-size, --fill, --scene, --repeat, --timeout, --dump, -o, --device, --validate, --inject-fault, --compare, --tolerance, --junit, --baseline, --allow-improvements)"),
+        format!("{flag} cannot be used with --shader: it applies to the generated matrix, which --shader replaces; drop it (--shader takes --entry, --hit-group, -I, -D, --target-env, --spec, --descriptor-model, --heap-layout, --profile, --array-size, --sink-size, --fill, --scene, --repeat, --timeout, --dump, -o, --device, --validate, --inject-fault, --compare, --tolerance, --junit, --baseline, --allow-improvements)"),
     ))
 }
 
@@ -385,7 +386,11 @@ pub(super) fn prepare(g: &Globals, a: &RunArgs) -> Result<Prepared> {
         unpatched: plan
             .given
             .iter()
-            .map(|m| JobModule { name: m.name.clone(), words: m.words.clone() })
+            .map(|m| JobModule {
+                name: m.name.clone(),
+                words: m.words.clone(),
+                ray_type: m.ray_type,
+            })
             .collect(),
         repeat,
         timeout,

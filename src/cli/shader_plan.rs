@@ -168,6 +168,7 @@ pub fn plan(a: &RunArgs, inject_fault: Option<&Request>) -> Result<ShaderPlan> {
         stage_hint: "",
     };
     let mut inputs = patch_inputs::read_with(&opts, &a.shader)?;
+    let ray_types = super::shader_hit_groups::parse(&a.hit_groups, &inputs)?;
     let (mut warned, mut injected) = (false, vec![]);
     let (mut stages, mut val, mut modules, mut described) = (vec![], vec![], vec![], vec![]);
     for i in inputs.iter_mut() {
@@ -176,9 +177,16 @@ pub fn plan(a: &RunArgs, inject_fault: Option<&Request>) -> Result<ShaderPlan> {
         if let Some(r) = inject_fault {
             injected.push(inject(i, r, o.as_ref())?);
         }
-        let m = UserModule::new(&i.name, &i.words).map_err(|e| {
+        let mut m = UserModule::new(&i.name, &i.words).map_err(|e| {
             coded(exit::BAD_INPUT, format!("{e} — the harness cannot run this module as it is"))
         })?;
+        m.ray_type = ray_types.get(&i.name).copied();
+        if m.ray_type.is_some()
+            && !matches!(m.iface.stage.as_str(), "closest_hit" | "any_hit" | "intersection")
+        {
+            let why = format!("--hit-group: {} is a {} shader; hit groups hold closest-hit, any-hit and intersection shaders", i.name, m.iface.stage);
+            return Err(coded(exit::USAGE, why));
+        }
         let module = crate::patches::load(&spirv_tools::bytes(&i.words))
             .map_err(|e| coded(exit::BAD_INPUT, format!("{}: {e}", i.name)))?;
         described.push(ShaderInput {
@@ -197,7 +205,7 @@ pub fn plan(a: &RunArgs, inject_fault: Option<&Request>) -> Result<ShaderPlan> {
     harness::run::check_pipeline(&modules)
         .map_err(|e| coded(exit::BAD_INPUT, format!("--shader: {e}")))?;
     let scalar = stages.iter().any(|s| s.rules == Rules::Scalar);
-    let (variants, mut notes) = variants(&stages, &val);
+    let (variants, mut notes) = variants(&stages, &val, &ray_types);
     let refs: Vec<&harness::UserModule> = modules.iter().collect();
     notes.extend(harness::traces::unbounded_recursion(&refs));
     let injection = inject_fault.map(|r| ShaderInjection {
@@ -220,7 +228,11 @@ pub fn plan(a: &RunArgs, inject_fault: Option<&Request>) -> Result<ShaderPlan> {
 
 /// Each differential patch applied to a copy of the pipeline: the variants that apply and
 /// validate, and a note for each that does not.
-fn variants(stages: &[Stage], val: &[Option<ValOptions>]) -> (Vec<PlannedVariant>, Vec<String>) {
+fn variants(
+    stages: &[Stage],
+    val: &[Option<ValOptions>],
+    ray_types: &BTreeMap<String, u32>,
+) -> (Vec<PlannedVariant>, Vec<String>) {
     let (mut out, mut notes) = (Vec::new(), Vec::new());
     let names = crate::patches::LIST.iter().filter_map(|p| PatchName::parse(p.0).ok());
     for p in names.filter(|p| differential(*p)) {
@@ -259,7 +271,11 @@ fn variants(stages: &[Stage], val: &[Option<ValOptions>]) -> (Vec<PlannedVariant
         let modules = copy
             .iter()
             .zip(words)
-            .map(|(s, words)| JobModule { name: s.file.clone(), words })
+            .map(|(s, words)| JobModule {
+                name: s.file.clone(),
+                words,
+                ray_type: ray_types.get(&s.file).copied(),
+            })
             .collect();
         out.push(PlannedVariant {
             patch: p,

@@ -26,6 +26,18 @@ pub const FAULT_ENV: &str = "RTPROBE_VERIFY_FAULT";
 pub struct JobModule {
     pub name: String,
     pub words: Vec<u32>,
+    /// `--hit-group`'s ray type for this hit shader (`UserModule::ray_type`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ray_type: Option<u32>,
+}
+
+impl JobModule {
+    /// The module as the harness holds it, with its ray type.
+    pub fn user_module(&self) -> Result<UserModule, HarnessError> {
+        let mut m = UserModule::new(&self.name, &self.words)?;
+        m.ray_type = self.ray_type;
+        Ok(m)
+    }
 }
 
 /// What the parent asks of the child.
@@ -126,7 +138,7 @@ fn wrong_contract(c: &HostContract) -> HostContract {
 }
 
 fn modules(list: &[JobModule]) -> Result<Vec<UserModule>, HarnessError> {
-    list.iter().map(|m| UserModule::new(&m.name, &m.words)).collect()
+    list.iter().map(JobModule::user_module).collect()
 }
 
 fn run(job: &VerifyJob) -> Result<VerifyOutput, HarnessError> {

@@ -24,10 +24,12 @@ mod error;
 pub mod fill;
 mod groups;
 pub mod heap;
+pub mod hit_table;
 pub mod inject;
 pub mod ints;
 mod module;
 pub mod profile;
+pub mod ray_types;
 mod record;
 pub mod reflect;
 mod resources;
@@ -160,6 +162,10 @@ pub struct Harness {
     record: Vec<u8>,
     /// `--scene`'s buffers that fills name.
     scene_buffers: Option<scene_data::SceneBuffers>,
+    /// The most geometries a triangle BLAS of the scene has, and the sphere instances' SBT
+    /// offset the hit table was laid out with ([`hit_table`]).
+    geometries: u32,
+    procedural: u32,
 }
 
 /// Each stage's SPIR-V, stage flag and entry name, and the intersection shader's index.
@@ -170,12 +176,15 @@ type Sources = (Vec<Vec<u32>>, Vec<vk::ShaderStageFlags>, Vec<CString>, usize);
 const NO_INTERSECTION: &str =
     "#version 460\n#extension GL_EXT_ray_tracing : require\nvoid main() {}\n";
 
-/// The pipeline's shader groups: the raygen, each miss, the triangle and procedural hit groups
-/// (the latter with `intersection`), each callable.
+/// The pipeline's shader groups: the raygen, each miss, one hit group per record of `table`
+/// (its ray type's triangle or procedural group, the latter with that type's intersection
+/// shader or `intersection`; an empty triangle group where no ray reaches), each callable.
 fn shader_groups(
     g: &Groups,
+    table: &hit_table::HitTable,
     intersection: usize,
 ) -> Vec<vk::RayTracingShaderGroupCreateInfoKHR<'static>> {
+    use hit_table::Geometry;
     let idx = |i: Option<usize>| i.map_or(vk::SHADER_UNUSED_KHR, |i| i as u32);
     let general = |i: usize| {
         vk::RayTracingShaderGroupCreateInfoKHR::default()
@@ -185,22 +194,34 @@ fn shader_groups(
             .any_hit_shader(vk::SHADER_UNUSED_KHR)
             .intersection_shader(vk::SHADER_UNUSED_KHR)
     };
-    let hit = |ty, chit: Option<usize>, isect: Option<usize>| {
+    let hit = |ty, chit: Option<usize>, any: Option<usize>, isect: Option<usize>| {
         vk::RayTracingShaderGroupCreateInfoKHR::default()
             .ty(ty)
             .general_shader(vk::SHADER_UNUSED_KHR)
             .closest_hit_shader(idx(chit))
-            .any_hit_shader(idx(g.any_hit))
+            .any_hit_shader(idx(any))
             .intersection_shader(idx(isect))
     };
     let mut groups = vec![general(g.raygen)];
     groups.extend(g.misses.iter().map(|i| general(*i)));
-    groups.push(hit(vk::RayTracingShaderGroupTypeKHR::TRIANGLES_HIT_GROUP, g.hit[0], None));
-    groups.push(hit(
-        vk::RayTracingShaderGroupTypeKHR::PROCEDURAL_HIT_GROUP,
-        g.hit[1],
-        Some(intersection),
-    ));
+    for r in &table.records {
+        let t = r.map(|(kind, k)| (kind, g.types[k as usize]));
+        groups.push(match t {
+            Some((Geometry::Procedural, t)) => hit(
+                vk::RayTracingShaderGroupTypeKHR::PROCEDURAL_HIT_GROUP,
+                t.hit[1],
+                t.any_hit,
+                Some(t.intersection.unwrap_or(intersection)),
+            ),
+            Some((Geometry::Triangles, t)) => hit(
+                vk::RayTracingShaderGroupTypeKHR::TRIANGLES_HIT_GROUP,
+                t.hit[0],
+                t.any_hit,
+                None,
+            ),
+            None => hit(vk::RayTracingShaderGroupTypeKHR::TRIANGLES_HIT_GROUP, None, None, None),
+        });
+    }
     groups.extend(g.callables.iter().map(|i| general(*i)));
     groups
 }
@@ -272,6 +293,10 @@ impl Harness {
         let (mut built, scene_buffers, fills) = traced_scene(&gpu, &setup)?;
         // A given any-hit runs on every candidate, as on an engine's alpha-tested geometry.
         built.no_opaque = modules.iter().any(|m| m.iface.stage == "any_hit");
+        let geometries = built.meshes.iter().map(|m| m.geometries.len() as u32).max().unwrap_or(1);
+        let types = groups(modules)?.types.len() as u32;
+        let procedural = hit_table::layout(modules, types, geometries)?.procedural;
+        built.procedural_sbt_offset = procedural;
         let scene = SceneGpu::build_with(&gpu, &built, &submitter, timeout, scene::variant_custom)?;
         let bindings: Vec<reflect::Binding> =
             modules.iter().flat_map(|m| m.iface.bindings.iter().cloned()).collect();
@@ -339,6 +364,8 @@ impl Harness {
             fills,
             record,
             scene_buffers,
+            geometries,
+            procedural,
         })
     }
 
@@ -356,7 +383,8 @@ impl Harness {
             .iter()
             .map(|m| CString::new(m.iface.entry.clone()).unwrap_or_default())
             .collect();
-        if let Some(i) = g.intersection {
+        let given = g.types.iter().find_map(|t| t.intersection);
+        if let (Some(i), true) = (given, g.types.iter().all(|t| t.intersection.is_some())) {
             return Ok((spirv, flags, names, i));
         }
         let unsupported =
@@ -408,11 +436,18 @@ impl Harness {
                 st
             })
             .collect();
-        let groups = shader_groups(&g, intersection);
+        let table = hit_table::layout(modules, g.types.len() as u32, self.geometries)?;
+        if table.procedural != self.procedural {
+            return Err(HarnessError::Unsupported(format!("this variant's rays need the sphere instances' SBT offset at {}, the unpatched pipeline's at {}: a patch must not change the rays' SBT offsets or strides", table.procedural, self.procedural)));
+        }
+        let groups = shader_groups(&g, &table, intersection);
         let max = self.gpu.info.properties.rt_pipeline.map_or(1, |p| p.max_ray_recursion_depth);
         let depth = traces::recursion_depth(modules, max)?;
-        let counts =
-            SbtCounts { miss: g.misses.len() as u32, hit: 2, callable: g.callables.len() as u32 };
+        let counts = SbtCounts {
+            miss: g.misses.len() as u32,
+            hit: table.records.len() as u32,
+            callable: g.callables.len() as u32,
+        };
         let p = RtPipeline { stages: &stages, groups: &groups, counts, depth, layout: self.layout };
         let mut f2 = match &self.bound {
             Bound::Heap(_) => Some(

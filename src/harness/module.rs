@@ -13,6 +13,9 @@ pub struct UserModule {
     pub name: String,
     pub words: Vec<u32>,
     pub iface: Interface,
+    /// The ray type (SBT record offset) whose hit groups hold this hit shader, where
+    /// `--hit-group` says it (else `ray_types::assign` reads it from the payload).
+    pub ray_type: Option<u32>,
 }
 
 impl UserModule {
@@ -23,7 +26,7 @@ impl UserModule {
             .map_err(|e| HarnessError::Interface(format!("{name}: {e}")))?;
         let iface =
             reflect::reflect(&m).map_err(|e| HarnessError::Unsupported(format!("{name}: {e}")))?;
-        Ok(UserModule { name: name.to_string(), words: words.to_vec(), iface })
+        Ok(UserModule { name: name.to_string(), words: words.to_vec(), iface, ray_type: None })
     }
 }
 

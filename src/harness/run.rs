@@ -137,8 +137,8 @@ pub fn check_pipeline(modules: &[UserModule]) -> Result<(), HarnessError> {
 /// binding the modules reflect, aliases merged (`super::bindings`; where they cannot be, the
 /// first declaration of a set and binding), seen by
 /// every ray tracing stage; the push range of the longest block; the device's hit-attribute
-/// limit; the two hit groups [`Harness`] makes (the procedural one with the harness's own
-/// intersection shader, not among `modules`, when none is given).
+/// limit; per ray type the two hit groups [`Harness`] makes (the procedural one with the
+/// harness's own intersection shader, not among `modules`, when none is given).
 pub fn pipeline_desc(modules: &[UserModule], max_hit_attribute: u32) -> PipelineDesc {
     let stages = super::resources::rt_stages();
     let mut bindings: Vec<BindingDesc> = Vec::new();
@@ -165,14 +165,16 @@ pub fn pipeline_desc(modules: &[UserModule], max_hit_attribute: u32) -> Pipeline
     let hit_groups = super::groups(&refs).map_or_else(
         |_| vec![],
         |g| {
-            vec![
-                HitGroup { closest_hit: g.hit[0], any_hit: g.any_hit, intersection: None },
-                HitGroup {
-                    closest_hit: g.hit[1],
-                    any_hit: g.any_hit,
-                    intersection: g.intersection,
-                },
-            ]
+            g.types
+                .iter()
+                .flat_map(|t| {
+                    let (closest_hit, any_hit) = (t.hit[0], t.any_hit);
+                    [
+                        HitGroup { closest_hit, any_hit, intersection: None },
+                        HitGroup { closest_hit: t.hit[1], any_hit, intersection: t.intersection },
+                    ]
+                })
+                .collect()
         },
     );
     PipelineDesc {
@@ -254,7 +256,7 @@ fn write(job: &ShaderJob, k: u32, out: &AttemptOutput) -> Result<(), String> {
 }
 
 fn modules(list: &[JobModule]) -> Result<Vec<UserModule>, HarnessError> {
-    list.iter().map(|m| UserModule::new(&m.name, &m.words)).collect()
+    list.iter().map(JobModule::user_module).collect()
 }
 
 /// The harness of `job`: its device, the unpatched pipeline's resources, a push range that fits

@@ -7,7 +7,10 @@
 //! first); without a miss shader, one that writes [`MISS_MARKER`] (a bool: `false`) into the
 //! payload's first scalar — one per miss index the rays use, each receiving that ray's payload (`traces`), after
 //! the given misses. Hit groups stay as `Harness::pipeline` makes them (a procedural group without an
-//! intersection shader gets the one that reports nothing). A payload the GLSL cannot mirror word
+//! intersection shader gets the one that reports nothing), except that a ray type (SBT record
+//! offset, `ray_types`) above 0 without a hit shader of its own, whose rays do not all skip the
+//! closest-hit, gets a closest-hit that writes its payload zero ([`closest_hit_glsl`]; one whose
+//! rays all skip it keeps an empty group). A payload the GLSL cannot mirror word
 //! for word (a pointer, a runtime array, a scalar not 32 bits wide) is a typed error naming it.
 use super::error::HarnessError;
 use super::module::UserModule;
@@ -139,6 +142,43 @@ pub fn miss_glsl(ty: &Ty, what: &str) -> Result<String, HarnessError> {
     Ok(format!("{HEAD}{preamble}{decl}void main() {{\n{mark}}}\n"))
 }
 
+/// A closest-hit for a ray type without one: every scalar of its payload zero.
+pub fn closest_hit_glsl(ty: &Ty, what: &str) -> Result<String, HarnessError> {
+    let l = leaves(ty, what)?;
+    let (preamble, decl) = declared(ty, what, "rayPayloadInEXT")?;
+    let zeros: String = l.iter().map(|(s, at)| format!("    {at} = {};\n", zero(*s))).collect();
+    Ok(format!("{HEAD}{preamble}{decl}void main() {{\n{zeros}}}\n"))
+}
+
+/// A generated closest-hit for each ray type above 0 that has no hit shader, where some of its
+/// rays do not skip the closest-hit.
+fn closest_hits(modules: &mut Vec<UserModule>) -> Result<(), HarnessError> {
+    let refs: Vec<&UserModule> = modules.iter().collect();
+    let g = super::groups::groups(&refs)?;
+    let payloads = super::ray_types::payloads(&refs, g.types.len() as u32);
+    let runs_chit = |k: usize| {
+        refs.iter().flat_map(|m| &m.iface.reflection.traces).any(|t| {
+            t.sbt_offset == Some(k as u32) && !t.has_flag(crate::reflect::FLAG_SKIP_CLOSEST_HIT)
+        })
+    };
+    let mut made = Vec::new();
+    for (k, t) in g.types.iter().enumerate().skip(1) {
+        let (Some((ty, what)), true) = (&payloads[k], t.hit == [None, None] && t.any_hit.is_none())
+        else {
+            continue;
+        };
+        if runs_chit(k) {
+            let name = format!("supplied closest-hit {k}");
+            let glsl = closest_hit_glsl(ty, what)?;
+            let mut m = compiled(ShaderKind::ClosestHit, &name, &glsl)?;
+            m.ray_type = Some(k as u32);
+            made.push(m);
+        }
+    }
+    modules.extend(made);
+    Ok(())
+}
+
 fn compiled(kind: ShaderKind, name: &str, glsl: &str) -> Result<UserModule, HarnessError> {
     let fail = |e: crate::shadergen::compile::CompileError| {
         HarnessError::Unsupported(format!("{name}: the supplied stage does not compile: {e}"))
@@ -190,6 +230,7 @@ pub fn supply_at(
         let glsl = raygen_glsl(&ty, &what, binding)?;
         modules.insert(0, compiled(ShaderKind::RayGeneration, RAYGEN_NAME, &glsl)?);
     }
+    closest_hits(&mut modules)?;
     traces::check(&modules)?;
     Ok(modules)
 }

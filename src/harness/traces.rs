@@ -8,10 +8,10 @@
 //! structure for all shader stages using the payload for that ray" (Vulkan 1.4.360, Shader
 //! Interfaces, Ray Tracing Pipeline Interface) — a closest-hit unless the ray's constant flags
 //! skip it (`gl_RayFlagsSkipClosestHitShaderEXT`), an any-hit unless they make it opaque, the
-//! miss at its index. Only SBT record offset 0 runs: the harness scene's instances select hit
-//! group 0 (triangles) or 1 (procedural), each BLAS one geometry, so a ray with offset k would
-//! reach a group of the other geometry type or past the hit table.
+//! miss at its index — of the hit groups of the ray's type (its constant SBT record offset,
+//! `ray_types`; the hit table in `hit_table`).
 use super::error::HarnessError;
+use super::groups::{Groups, TypeGroups};
 use super::module::UserModule;
 use crate::reflect::{Trace, Ty, FLAG_OPAQUE, FLAG_SKIP_CLOSEST_HIT};
 
@@ -32,16 +32,20 @@ pub fn recursion_depth(modules: &[&UserModule], max: u32) -> Result<u32, Harness
     }
 }
 
-/// The stages a ray `t` can invoke in the pipeline `g` makes of `modules`: its miss, the
-/// closest-hits unless its constant flags skip them (any-hit and intersection shaders cannot
-/// trace, so they are left out).
-fn invoked<'a>(
-    modules: &'a [&UserModule],
-    g: &super::groups::Groups,
-    t: &Trace,
-) -> Vec<&'a UserModule> {
+/// The ray type's groups ray `t` reaches in `g` (none: a non-constant or unknown offset).
+fn type_of(g: &Groups, t: &Trace) -> Option<TypeGroups> {
+    t.sbt_offset.and_then(|k| g.types.get(k as usize)).copied()
+}
+
+/// The stages a ray `t` can invoke in the pipeline `g` makes of `modules`: its miss, its ray
+/// type's closest-hits unless its constant flags skip them (any-hit and intersection shaders
+/// cannot trace, so they are left out).
+fn invoked<'a>(modules: &'a [&UserModule], g: &Groups, t: &Trace) -> Vec<&'a UserModule> {
     let miss = t.miss_index.and_then(|k| g.misses.get(k as usize)).map(|&i| modules[i]);
-    let hits = if t.has_flag(FLAG_SKIP_CLOSEST_HIT) { [None, None] } else { g.hit };
+    let hits = match type_of(g, t) {
+        Some(ty) if !t.has_flag(FLAG_SKIP_CLOSEST_HIT) => ty.hit,
+        _ => [None, None],
+    };
     miss.into_iter().chain(hits.into_iter().flatten().map(|i| modules[i])).collect()
 }
 
@@ -134,17 +138,20 @@ fn receives(tracer: &str, t: &Trace, stage: &UserModule) -> Result<(), HarnessEr
     )))
 }
 
-/// Every ray the modules trace against the stages of the pipeline `groups` makes of them.
+/// Every ray the modules trace against the stages of the pipeline `groups` makes of them: its
+/// miss, and its ray type's closest-hits (unless skipped), any-hit (unless opaque) and
+/// intersection shader; the hit table laid out over the harness scene's meshes
+/// (`hit_table::layout`: strides that make two ray types share a record are refused).
 pub fn check(modules: &[UserModule]) -> Result<(), HarnessError> {
     let refs: Vec<&UserModule> = modules.iter().collect();
     let g = super::groups::groups(&refs)?;
+    let geometries = crate::scene::GEOMETRIES_PER_MESH;
+    super::hit_table::layout(&refs, g.types.len() as u32, geometries)?;
     for m in modules {
         for t in &m.iface.reflection.traces {
-            match t.sbt_offset {
-                Some(0) => {}
-                Some(k) => return Err(unsupported(format!("{} traces a ray with SBT record offset {k}; the harness scene has one hit group per geometry type (triangles at 0, procedural at 1), so only offset 0 runs: make the offset 0 to run it here", m.name))),
-                None => return Err(unsupported(format!("{} traces a ray whose SBT record offset is not a constant (a function parameter or a computed value); the harness scene runs offset 0 only: pass 0 as a literal, or compile with `glslangValidator -V -Os` and give the .spv so it folds", m.name))),
-            }
+            let Some(ty) = type_of(&g, t) else {
+                return Err(unsupported(format!("{} traces a ray whose SBT record offset is not a constant; pass it as a literal", m.name)));
+            };
             let miss = t.miss_index.and_then(|k| g.misses.get(k as usize));
             let Some(&miss) = miss else {
                 return Err(unsupported(format!(
@@ -154,12 +161,12 @@ pub fn check(modules: &[UserModule]) -> Result<(), HarnessError> {
             };
             receives(&m.name, t, &modules[miss])?;
             if !t.has_flag(FLAG_SKIP_CLOSEST_HIT) {
-                let procedural = g.intersection.is_some().then_some(g.hit[1]).flatten();
-                for k in g.hit[0].into_iter().chain(procedural) {
+                let procedural = ty.intersection.is_some().then_some(ty.hit[1]).flatten();
+                for k in ty.hit[0].into_iter().chain(procedural) {
                     receives(&m.name, t, &modules[k])?;
                 }
             }
-            if let Some(k) = g.any_hit.filter(|_| !t.has_flag(FLAG_OPAQUE)) {
+            if let Some(k) = ty.any_hit.filter(|_| !t.has_flag(FLAG_OPAQUE)) {
                 receives(&m.name, t, &modules[k])?;
             }
         }

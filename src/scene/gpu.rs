@@ -190,13 +190,14 @@ fn instance_lists(
     } else {
         0
     };
+    let sbt = |i: &Instance| match i.geometry {
+        Geometry::Mesh(_) => i.sbt_offset(),
+        Geometry::Sphere => scene.procedural_sbt_offset,
+    };
     let instance = |i: &Instance, custom: u32| vk::AccelerationStructureInstanceKHR {
         transform: vk::TransformMatrixKHR { matrix: bytemuck_transform(&i.transform) },
         instance_custom_index_and_mask: vk::Packed24_8::new(custom, 0xff),
-        instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(
-            i.sbt_offset(),
-            flags,
-        ),
+        instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(sbt(i), flags),
         acceleration_structure_reference: vk::AccelerationStructureReferenceKHR {
             device_handle: blas[blas_index(i.geometry)].address,
         },

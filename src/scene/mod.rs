@@ -87,6 +87,9 @@ pub struct Scene {
     /// (as an engine marks alpha-tested geometry): `run --shader` with a user's any-hit. The
     /// matrix's scene is opaque; its any-hit cells trace with `gl_RayFlagsNoOpaqueEXT`.
     pub no_opaque: bool,
+    /// The sphere instances' `instanceShaderBindingTableRecordOffset`: 1 (after the triangle
+    /// group), or past `run --shader`'s triangle records of every ray type (`harness::hit_table`).
+    pub procedural_sbt_offset: u32,
 }
 
 /// Split `n` triangles into `parts` contiguous geometries.
@@ -211,7 +214,7 @@ impl Scene {
         };
         meshes.push(floor_quad());
         let params = SceneParams { instances: instances.len() as u32, ..*params };
-        Scene { params, meshes, instances, floor, no_opaque: false }
+        Scene { params, meshes, instances, floor, no_opaque: false, procedural_sbt_offset: 1 }
     }
 
     /// The primary ray of pixel (x, y): origin and direction, exactly as the shaders compute them.

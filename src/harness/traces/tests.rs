@@ -1,7 +1,8 @@
 //! An nvpro-style closest-hit that traces a shadow ray (miss index 1, its own `bool` payload,
 //! closest-hit skipped) gets a miss per index, each receiving its ray's payload; the twins: the
-//! same ray without the skip flag, a computed miss index, an SBT offset of 1, two payloads at one
-//! index and a given miss with the wrong payload are each refused in one line.
+//! same ray without the skip flag, a computed miss index, SBT offsets with a gap, two payloads at
+//! one index and a given miss with the wrong payload are each refused in one line. With SBT
+//! offset 1 the shadow ray is a ray type of its own.
 use super::super::supply::supply;
 use super::*;
 use shaderc::ShaderKind;
@@ -83,8 +84,8 @@ fn a_shadow_ray_that_would_invoke_the_closest_hit_is_refused() {
 fn computed_miss_indices_offsets_and_clashing_payloads_are_refused() {
     let e = error(supply(vec![shadowing(SKIP, "0", "p.missIndex")]));
     assert!(e.contains("miss index is not a constant"), "{e}");
-    let e = error(supply(vec![shadowing(SKIP, "1", "1")]));
-    assert!(e.contains("SBT record offset 1"), "{e}");
+    let e = error(supply(vec![shadowing(SKIP, "2", "1")]));
+    assert!(e.contains("offset 2 but none uses offset 1"), "{e}");
     let e = error(supply(vec![shadowing(SKIP, "p.missIndex", "1")]));
     assert!(e.contains("SBT record offset is not a constant"), "{e}");
     // Miss index 0: the supplied raygen's payload (a Shade) and the shadow ray's bool.
@@ -93,6 +94,24 @@ fn computed_miss_indices_offsets_and_clashing_payloads_are_refused() {
         e.contains("shadow.rchit's payload `shadowed`") && e.contains("miss index 0 but differ"),
         "{e}"
     );
+}
+
+/// A shadow ray of its own ray type (SBT record offset 1): skipping the closest-hit it keeps an
+/// empty hit group; without the skip, a supplied closest-hit of that type receives its `bool`,
+/// and the shading closest-hit (type 0) is not held to it.
+#[test]
+fn a_shadow_ray_type_gets_an_empty_group_or_a_supplied_closest_hit() {
+    let all = supply(vec![shadowing(SKIP, "1", "1")]).unwrap();
+    let names: Vec<&str> = all.iter().map(|m| m.name.as_str()).collect();
+    assert_eq!(names, ["supplied raygen", "shadow.rchit", "supplied miss", "supplied miss 1"]);
+    let refs: Vec<&UserModule> = all.iter().collect();
+    let g = super::super::groups::groups(&refs).unwrap();
+    assert_eq!((g.types.len(), g.types[0].hit[0], g.types[1]), (2, Some(1), TypeGroups::default()));
+    let all = supply(vec![shadowing("flags = gl_RayFlagsOpaqueEXT;", "1", "1")]).unwrap();
+    let made = all.iter().find(|m| m.name == "supplied closest-hit 1").unwrap();
+    assert_eq!(made.ray_type, Some(1));
+    let p = made.iface.reflection.incoming_payload.as_ref().unwrap();
+    assert_eq!(p.ty.shape(), all[1].iface.reflection.traces[0].payload.shape());
 }
 
 #[test]
