@@ -84,6 +84,7 @@ fn run_args(r: &ShaderRunReport, device: Option<&str>) -> Result<RunArgs> {
     flag("--timeout", &o["timeout_s"]);
     flag("--descriptor-model", &o["descriptor_model"]);
     flag("--scene", &o["scene"]);
+    flag("--hit-group", &o["hit_groups"]);
     for f in fill_args(r)? {
         argv.extend(["--fill".into(), f]);
     }

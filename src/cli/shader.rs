@@ -491,6 +491,7 @@ fn judged_report(g: &Globals, a: &RunArgs, p: &mut Prepared) -> Result<ShaderRun
     report.options["profile"] = serde_json::json!(p.profile.as_ref().map(|p| &p.hash));
     report.options["gpu_av"] = serde_json::json!(g.gpu_av);
     report.options["scene"] = serde_json::json!(a.scene.as_ref().map(|p| p.display().to_string()));
+    report.options["hit_groups"] = serde_json::json!(a.hit_groups);
     report.profile = p.profile.take();
     Ok(report)
 }

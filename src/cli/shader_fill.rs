@@ -110,5 +110,10 @@ pub fn cell_options(
         heap_layout,
         profile: resolved.profile,
         scene: resolved.scene,
+        hit_groups: {
+            let mut h = a.hit_groups.clone();
+            h.sort();
+            h
+        },
     })
 }

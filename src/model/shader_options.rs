@@ -1,8 +1,8 @@
 //! The options of `run --shader` that change what runs, beyond the inputs' own hashes: the entry
 //! point, specialization constants (normalised), fills (a file's by its hash), runtime array and
 //! sink sizes, a descriptor model other than the one the modules imply, a heap layout (by its
-//! hash), what `--profile` turns on (by its effect, not its file), and `--scene`'s file (by
-//! its hash).
+//! hash), what `--profile` turns on (by its effect, not its file), `--scene`'s file (by
+//! its hash) and `--hit-group`'s ray types (sorted).
 //! `shader_run::cell_id_with` names a run with them: the inputs' id as before when none is
 //! given (reports written before these options keep their ids), else that id and `#` with 12 hex
 //! digits of the options' FNV-1a 64 hash.
@@ -41,6 +41,10 @@ pub struct CellOptions {
     /// `--scene`: the content hash of the scene file.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub scene: Option<String>,
+    /// `--hit-group`, each `K=FILE[,FILE…]` as given, sorted: which ray type a hit shader serves
+    /// changes the pipeline.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub hit_groups: Vec<String>,
 }
 
 impl CellOptions {
@@ -72,7 +76,11 @@ impl CellOptions {
         ];
         // Fields added later are hashed only when given: ids of runs without them stay.
         let scene = self.scene.iter().cloned().collect();
-        let later = [("profile", self.profile.clone()), ("scene", scene)];
+        let later = [
+            ("profile", self.profile.clone()),
+            ("scene", scene),
+            ("hit_groups", self.hit_groups.clone()),
+        ];
         let later = later.into_iter().filter(|(_, v)| !v.is_empty());
         for (name, values) in fields.into_iter().chain(later) {
             put(name.as_bytes());

@@ -523,4 +523,22 @@ mod tests {
         let only = CellOptions { profile: vec!["robustBufferAccess".into()], ..Default::default() };
         assert!(cell_id_with(&options_inputs(), &only).contains('#'));
     }
+
+    /// `--hit-group` is in the id: a shader serving another ray type is another pipeline; the
+    /// same groups give the same id, and runs without it keep their ids.
+    #[test]
+    fn the_cell_id_changes_with_the_hit_groups() {
+        let with = |groups: &[&str]| CellOptions {
+            array_size: Some(8),
+            hit_groups: groups.iter().map(|g| g.to_string()).collect(),
+            ..CellOptions::default()
+        };
+        let none = cell_id_with(&options_inputs(), &with(&[]));
+        let one = cell_id_with(&options_inputs(), &with(&["1=shadow.rahit"]));
+        let other = cell_id_with(&options_inputs(), &with(&["0=shadow.rahit"]));
+        assert!(none != one && one != other && none != other, "{none} {one} {other}");
+        assert_eq!(one, cell_id_with(&options_inputs(), &with(&["1=shadow.rahit"])));
+        let plain = CellOptions { array_size: Some(8), ..CellOptions::default() };
+        assert_eq!(none, cell_id_with(&options_inputs(), &plain));
+    }
 }
