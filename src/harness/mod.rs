@@ -35,6 +35,7 @@ pub mod run;
 pub mod scene;
 pub mod scene_data;
 mod scene_item;
+pub mod scene_textures;
 pub mod sizes;
 pub mod spec;
 mod supply;
@@ -160,6 +161,8 @@ pub struct Harness {
     record: Vec<u8>,
     /// `--scene`'s buffers that fills name.
     scene_buffers: Option<scene_data::SceneBuffers>,
+    /// `--scene`'s images, when `scene.textures` fills a texture array.
+    scene_textures: Option<scene_textures::SceneTextures>,
 }
 
 /// Each stage's SPIR-V, stage flag and entry name, and the intersection shader's index.
@@ -239,6 +242,18 @@ fn traced_scene(
     })
 }
 
+/// `--scene`'s images on the device, when a `scene.textures` fill puts them in a texture array.
+fn scene_images(
+    gpu: &Gpu,
+    setup: &Setup,
+    fenced: (&Submitter, Duration),
+) -> Result<Option<scene_textures::SceneTextures>, HarnessError> {
+    match &setup.scene {
+        Some(s) => scene_textures::SceneTextures::new(gpu, &s.loaded, &s.fills, fenced),
+        None => Ok(None),
+    }
+}
+
 impl Harness {
     /// The scene and resources for `modules` (every module the pipelines will use, unpatched:
     /// the patched ones read the same resources through addresses), push constants of
@@ -285,7 +300,9 @@ impl Harness {
             .map(|b| (b.set, b.binding));
         let buffer_model = setup.model == DescriptorModel::DescriptorBuffer;
         let made = (setup.sink, buffer_model, binding_flags(&setup));
-        let res = Resources::new(&gpu, &bindings, scene_at, &scene, extent, made, &fills)?;
+        let scene_textures = scene_images(&gpu, &setup, (&submitter, timeout))?;
+        let given = (&fills, scene_textures.as_ref());
+        let res = Resources::new(&gpu, &bindings, scene_at, &scene, extent, made, given)?;
         let record = record::data(modules, res.sink.address, &fills);
         if let Some(p) = gpu.info.properties.rt_pipeline {
             record::check(record.len(), p.shader_group_handle_size, p.max_shader_group_stride)?;
@@ -339,6 +356,7 @@ impl Harness {
             fills,
             record,
             scene_buffers,
+            scene_textures,
         })
     }
 
@@ -665,6 +683,9 @@ impl Drop for Harness {
         self.res.destroy(&self.gpu);
         if let Some(b) = &self.scene_buffers {
             b.destroy(&self.gpu);
+        }
+        if let Some(t) = &self.scene_textures {
+            t.destroy(&self.gpu);
         }
         self.scene.destroy(&self.gpu);
         unsafe { self.gpu.device.destroy_pipeline_layout(self.layout, None) };
