@@ -141,3 +141,62 @@ impl SceneTextures {
         self.images.iter().for_each(|i| i.destroy(gpu));
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GLSL: &str = "#version 460\n#extension GL_EXT_ray_tracing : require\n\
+        #extension GL_EXT_nonuniform_qualifier : require\n\
+        layout(set = 0, binding = 0) buffer B { vec4 v[]; } b;\n\
+        layout(set = 0, binding = 1) uniform sampler2D fixedMaps[3];\n\
+        layout(set = 0, binding = 2) uniform texture2D maps[];\n\
+        layout(set = 0, binding = 3) uniform sampler s;\n\
+        layout(location = 0) rayPayloadInEXT vec4 c;\n\
+        void main() { c = textureLod(fixedMaps[uint(c.x) % 3u], vec2(0.5), 0.0) + b.v[0]\n\
+          + textureLod(sampler2D(maps[nonuniformEXT(uint(c.y))], s), vec2(0.5), 0.0); }\n";
+
+    fn modules() -> Vec<UserModule> {
+        let words = crate::patches::assemble(&crate::patches::compiled(
+            shaderc::ShaderKind::Miss,
+            "t",
+            GLSL,
+        ));
+        vec![UserModule::new("t.rmiss", &words).unwrap()]
+    }
+
+    fn checked(text: &str, images: usize) -> Result<(), String> {
+        let r = super::super::fill::parse(text).unwrap();
+        check(&r, &modules(), images).map_err(|e| e.to_string())
+    }
+
+    /// A texture array with room for every image takes them; the twins — a buffer, a sampler,
+    /// an address, one element, too small an array, no images — are one line each saying what
+    /// to give.
+    #[test]
+    fn only_a_texture_array_with_room_for_every_image_takes_them() {
+        assert_eq!(checked("0.1=scene.textures", 3), Ok(()));
+        assert_eq!(checked("0.2=scene.textures", 64), Ok(()));
+        let refused = [
+            ("0.0=scene.textures", 2, "set 0 binding 0 is not an array of sampled images"),
+            ("0.3=scene.textures", 2, "set 0 binding 3 is not an array of sampled images"),
+            ("push.0=scene.textures", 2, "give one of those as TARGET"),
+            ("0.1[0]=scene.textures", 2, "(SET.BINDING, no element)"),
+            ("0.1=scene.textures", 4, "holds 3 textures, the scene has 4 images; declare it"),
+            ("0.2=scene.textures", 65, "give --array-size at least 65"),
+            ("0.1=scene.textures", 0, "the scene has no images"),
+        ];
+        for (text, images, why) in refused {
+            let e = checked(text, images).unwrap_err();
+            assert!(e.contains(why) && !e.contains('\n'), "{text}: {e}");
+        }
+    }
+
+    #[test]
+    fn the_images_bytes_are_their_rgba8_texels() {
+        let t =
+            |w: u32, h: u32| Texture { width: w, height: h, rgba8: vec![0; (4 * w * h) as usize] };
+        assert_eq!(bytes(&[t(16, 16), t(3, 5)]), 4 * (256 + 15));
+        assert_eq!(bytes(&[]), 0);
+    }
+}
