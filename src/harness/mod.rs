@@ -242,6 +242,16 @@ fn traced_scene(
     })
 }
 
+/// The supplied raygen's TLAS binding: it traces the scene, so it gets the scene TLAS.
+fn scene_tlas_binding(modules: &[&UserModule]) -> Option<(u32, u32)> {
+    modules
+        .iter()
+        .filter(|m| m.name == supply::RAYGEN_NAME)
+        .flat_map(|m| &m.iface.bindings)
+        .find(|b| b.kind == BindingKind::AccelerationStructure)
+        .map(|b| (b.set, b.binding))
+}
+
 /// `--scene`'s images on the device, when a `scene.textures` fill puts them in a texture array.
 fn scene_images(
     gpu: &Gpu,
@@ -291,13 +301,7 @@ impl Harness {
         let bindings: Vec<reflect::Binding> =
             modules.iter().flat_map(|m| m.iface.bindings.iter().cloned()).collect();
         let extent = vk::Extent2D { width: SIZE, height: SIZE };
-        // The supplied raygen traces the scene: its TLAS binding gets the scene TLAS.
-        let scene_at = modules
-            .iter()
-            .filter(|m| m.name == supply::RAYGEN_NAME)
-            .flat_map(|m| &m.iface.bindings)
-            .find(|b| b.kind == BindingKind::AccelerationStructure)
-            .map(|b| (b.set, b.binding));
+        let scene_at = scene_tlas_binding(modules);
         let buffer_model = setup.model == DescriptorModel::DescriptorBuffer;
         let made = (setup.sink, buffer_model, binding_flags(&setup));
         let scene_textures = scene_images(&gpu, &setup, (&submitter, timeout))?;
