@@ -218,7 +218,8 @@ fn scene_images(
     fills: &[crate::harness::scene_data::SceneFill],
 ) -> Result<SceneImages> {
     use crate::harness::scene_textures as tex;
-    let Some((l, hash)) = scene.filter(|_| tex::wanted(fills)) else {
+    let wanted = !crate::harness::scene_data::texture_targets(fills).is_empty();
+    let Some((l, hash)) = scene.filter(|_| wanted) else {
         return Ok(SceneImages::default());
     };
     let decoded = tex::decoded(l)?;

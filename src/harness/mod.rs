@@ -259,7 +259,10 @@ fn scene_images(
     fenced: (&Submitter, Duration),
 ) -> Result<Option<scene_textures::SceneTextures>, HarnessError> {
     match &setup.scene {
-        Some(s) => scene_textures::SceneTextures::new(gpu, &s.loaded, &s.fills, fenced),
+        Some(s) => {
+            let targets = scene_data::texture_targets(&s.fills);
+            scene_textures::SceneTextures::new(gpu, &s.loaded, targets, fenced)
+        }
         None => Ok(None),
     }
 }

@@ -186,6 +186,15 @@ pub fn resolve_scene(
     Ok(SceneFill { at, target: r.target, item })
 }
 
+/// The bindings the `scene.textures` fills target (`super::scene_textures`).
+pub fn texture_targets(fills: &[SceneFill]) -> Vec<(u32, u32)> {
+    let binding = |f: &SceneFill| match f.target {
+        Target::Binding { set, binding, .. } => Some((set, binding)),
+        Target::Push(_) | Target::Record(_) => None,
+    };
+    fills.iter().filter(|f| f.item == Item::Textures).filter_map(binding).collect()
+}
+
 /// The scene's buffers on the device, made for the fills that name them.
 pub struct SceneBuffers {
     made: Vec<(Item, Buffer)>,

@@ -12,8 +12,6 @@ use super::error::HarnessError;
 use super::fill::{FillError, Request, Target};
 use super::module::UserModule;
 use super::reflect::BindingKind;
-use super::scene_data::SceneFill;
-use super::scene_item::Item;
 use crate::scene::gltf::{LoadError, Loaded, Texture};
 use crate::vk::memory::{Buffer, Image};
 use crate::vk::submit::{Submitter, Waited};
@@ -54,11 +52,6 @@ pub fn check(r: &Request, modules: &[UserModule], images: usize) -> Result<(), F
     Ok(())
 }
 
-/// Whether `fills` put the scene's images anywhere.
-pub fn wanted(fills: &[SceneFill]) -> bool {
-    fills.iter().any(|f| f.item == Item::Textures)
-}
-
 /// Every image of `loaded`, decoded (the parent's memory check and cell id).
 pub fn decoded(loaded: &Loaded) -> Result<Vec<Texture>, LoadError> {
     (0..loaded.images).map(|i| loaded.decode_image(i)).collect()
@@ -76,26 +69,19 @@ pub struct SceneTextures {
 }
 
 impl SceneTextures {
-    /// The images of `loaded` when `fills` name `scene.textures`, decoded, uploaded in one
-    /// submission fenced with `timeout`, left `SHADER_READ_ONLY_OPTIMAL`.
+    /// The images of `loaded` for the bindings `targets` that `scene.textures` fills (none:
+    /// nothing made), decoded, uploaded in one submission fenced with `timeout`, left
+    /// `SHADER_READ_ONLY_OPTIMAL`.
     pub fn new(
         gpu: &Gpu,
         loaded: &Loaded,
-        fills: &[SceneFill],
+        targets: Vec<(u32, u32)>,
         (submitter, timeout): (&Submitter, Duration),
     ) -> Result<Option<SceneTextures>, HarnessError> {
-        if !wanted(fills) {
+        if targets.is_empty() {
             return Ok(None);
         }
         let decoded = decoded(loaded).map_err(|e| HarnessError::Unsupported(e.to_string()))?;
-        let targets = fills
-            .iter()
-            .filter(|f| f.item == Item::Textures)
-            .filter_map(|f| match f.target {
-                Target::Binding { set, binding, .. } => Some((set, binding)),
-                Target::Push(_) | Target::Record(_) => None,
-            })
-            .collect();
         let mut t = SceneTextures { images: Vec::new(), targets };
         let usage = vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST;
         for d in &decoded {
