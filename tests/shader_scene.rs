@@ -3,14 +3,17 @@
 //! scene (`rtprobe scene make`) through the scene description's address in a push constant, and
 //! its image is held to a CPU rendering of the same shading over the same fitted scene and rays
 //! (the reference's f64 intersection; ambiguous pixels excluded and counted). Its twin, built
-//! with `-D WRONG_PRIM`, fails that comparison. Scene fills and scene files given wrongly are
-//! one line, a non-zero exit and no report.
+//! with `-D WRONG_PRIM`, fails that comparison. With `-D TEXTURED` it multiplies the base colour
+//! by the material's texture from `--fill 1.2=scene.textures`, held to the CPU sampling the
+//! decoded images as the harness's sampler does (nearest, clamp to edge, sRGB decoded); its twin
+//! `-D WRONG_TEX` (the next image) fails. Scene fills and scene files given wrongly are one line,
+//! a non-zero exit and no report.
 mod common;
 use common::*;
 use glam::{DMat3, DVec3};
 use rtprobe::harness::MISS_MARKER;
 use rtprobe::reference::intersect::{self, Culling};
-use rtprobe::scene::gltf::Loaded;
+use rtprobe::scene::gltf::{Loaded, Texture};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 
@@ -46,18 +49,55 @@ fn scene_run(scene: &Path, extra: &[&str]) -> (std::process::Output, Option<Valu
     (o, report)
 }
 
+/// Texel-edge margin, in texels: a UV whose `u·w` or `v·h` lies this close to an integer may
+/// pick the neighbouring texel on the device (f32 interpolation) and not on the CPU (f64).
+const TEXEL_MARGIN: f64 = 0.01;
+
+/// sRGB-encoded byte `b` as the linear value an `R8G8B8A8_SRGB` sample returns.
+fn srgb(b: u8) -> f64 {
+    let c = b as f64 / 255.0;
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// `t` sampled at `uv` as the harness's sampler does (nearest, clamp to edge, LOD 0: texel
+/// `clamp(floor(u·w), 0, w − 1)`), and whether `uv` lies within [`TEXEL_MARGIN`] of a texel edge.
+fn sample(t: &Texture, uv: [f64; 2]) -> ([f64; 3], bool) {
+    let texel = |u: f64, n: u32| {
+        let x = u * n as f64;
+        ((x.floor().clamp(0.0, n as f64 - 1.0)) as usize, (x - x.round()).abs() < TEXEL_MARGIN)
+    };
+    let ((x, ex), (y, ey)) = (texel(uv[0], t.width), texel(uv[1], t.height));
+    let at = 4 * (y * t.width as usize + x);
+    ([0, 1, 2].map(|k| srgb(t.rgba8[at + k])), ex || ey)
+}
+
+/// What the CPU gives one pixel: its colour (`None` for a miss), whether the ray is ambiguous,
+/// whether its texture coordinate lies on a texel edge, whether it sampled a texture.
+struct CpuPixel {
+    color: Option<[f64; 3]>,
+    ambiguous: bool,
+    edge: bool,
+    textured: bool,
+}
+
 /// The colour the CPU gives pixel (`x`, `y`): `None` for a miss, else the closest hit's shading
-/// as `tutorial.rchit` computes it, in f64; and whether the pixel is ambiguous.
+/// as `tutorial.rchit` computes it, in f64 (with `tex`, the scene's decoded images: as
+/// `-D TEXTURED` computes it); and whether the pixel is ambiguous.
 fn cpu_pixel(
     l: &Loaded,
-    s: &rtprobe::scene::Scene,
-    cull: &Culling,
+    (s, cull): (&rtprobe::scene::Scene, &Culling),
+    tex: Option<&[Texture]>,
     x: u32,
     y: u32,
-) -> (Option<[f64; 3]>, bool) {
+) -> CpuPixel {
     let (o, d) = s.primary_ray(x, y);
     let r = intersect::trace((s, cull), o, d, |_| true);
-    let Some(h) = r.hit else { return (None, r.ambiguous) };
+    let mut px = CpuPixel { color: None, ambiguous: r.ambiguous, edge: false, textured: false };
+    let Some(h) = r.hit else { return px };
     let inst = &s.instances[h.instance_id as usize];
     let m = &l.meshes[h.instance as usize];
     let p = &m.primitives[h.geometry as usize];
@@ -71,8 +111,19 @@ fn cpu_pixel(
     let world_n = (obj.inverse().transpose() * n).normalize();
     let lambert = world_n.dot(DVec3::from(LIGHT).normalize()).max(0.0);
     let base = p.material.map_or([1.0; 4], |k| l.materials[k].base_color);
-    let c = [0, 1, 2].map(|k| base[k] as f64 * (AMBIENT + (1.0 - AMBIENT) * lambert));
-    (Some(c), r.ambiguous)
+    let mut albedo = [0, 1, 2].map(|k| base[k] as f64);
+    let image = p.material.and_then(|k| l.materials[k].base_color_image);
+    if let (Some(tex), Some(i)) = (tex, image) {
+        let uv = (0..3).fold([0.0; 2], |uv, k| {
+            let t = m.uvs[tri[k] as usize];
+            [uv[0] + t[0] as f64 * w[k], uv[1] + t[1] as f64 * w[k]]
+        });
+        let (texel, edge) = sample(&tex[i], uv);
+        (0..3).for_each(|k| albedo[k] *= texel[k]);
+        (px.edge, px.textured) = (edge, true);
+    }
+    px.color = Some(albedo.map(|a| a * (AMBIENT + (1.0 - AMBIENT) * lambert)));
+    px
 }
 
 /// How the device's image compares with the CPU's: pixels within 2/255 per channel (a miss
@@ -82,13 +133,20 @@ struct Counts {
     within: u32,
     outside: u32,
     ambiguous: u32,
+    /// Pixels left out because their texture coordinate lies on a texel edge.
+    texel_edge: u32,
+    /// Of the judged hits, those that sampled a texture.
+    textured: u32,
     hits: u32,
     /// Of the CPU's hits, those the device's colour is within.
     hits_within: u32,
 }
 
-fn compare(scene: &Path, report: &Value) -> Counts {
+/// The device's image in `report` against the CPU's (`textured`: shaded as `-D TEXTURED` does).
+fn compare(scene: &Path, report: &Value, textured: bool) -> Counts {
     let l = Loaded::load(scene).unwrap();
+    let tex: Option<Vec<Texture>> =
+        textured.then(|| (0..l.images).map(|i| l.decode_image(i).unwrap()).collect());
     let size = rtprobe::harness::SIZE;
     let s = rtprobe::harness::scene::loaded(&l, size);
     let cull = Culling::of(&s);
@@ -104,11 +162,17 @@ fn compare(scene: &Path, report: &Value) -> Counts {
     for y in 0..size {
         for x in 0..size {
             let at = (y * size + x) as usize * WORDS;
-            let (cpu, ambiguous) = cpu_pixel(&l, &s, &cull, x, y);
-            if ambiguous {
+            let px = cpu_pixel(&l, (&s, &cull), tex.as_deref(), x, y);
+            if px.ambiguous {
                 c.ambiguous += 1;
                 continue;
             }
+            if px.edge {
+                c.texel_edge += 1;
+                continue;
+            }
+            let cpu = px.color;
+            c.textured += px.textured as u32;
             let gpu = (word(at) != MISS_MARKER)
                 .then(|| [0, 1, 2].map(|k| f32::from_bits(word(at + k)) as f64));
             c.hits += cpu.is_some() as u32;
@@ -162,7 +226,7 @@ fn a_tutorial_closest_hit_renders_the_scene_as_the_cpu_does() {
         r["cell_options"]
     );
     assert_eq!(r["options"]["scene"], scene.display().to_string());
-    let c = compare(&scene, &r);
+    let c = compare(&scene, &r, false);
     println!("tutorial: {c:?}");
     assert!(c.hits > 100, "the scene is in view: {c:?}");
     assert!(matches(&c), "{c:?}");
@@ -184,7 +248,7 @@ fn a_tutorial_closest_hit_renders_the_scene_as_the_cpu_does() {
     assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
     let a = &r["variants"][0]["attempts"][0];
     assert_eq!(a["validation_messages"], 0, "{a}");
-    let c = compare(&scene, &r);
+    let c = compare(&scene, &r, false);
     println!("bindings: {c:?}");
     assert!(matches(&c), "{c:?}");
 
@@ -192,9 +256,83 @@ fn a_tutorial_closest_hit_renders_the_scene_as_the_cpu_does() {
     wrong.extend(["-D", "WRONG_PRIM"]);
     let (o, r) = scene_run(&scene, &wrong);
     let r = r.unwrap_or_else(|| panic!("no report: {}{}", stdout(&o), stderr(&o)));
-    let c = compare(&scene, &r);
+    let c = compare(&scene, &r, false);
     println!("WRONG_PRIM: {c:?}");
     assert!(!matches(&c), "the wrong table index must fail the comparison: {c:?}");
+}
+
+/// `-D TEXTURED`: the base colour texture from `--fill 1.2=scene.textures` under `--validate`:
+/// no message, no fault, the image the CPU's sampling of the decoded images within 2/255 on at
+/// least 99.5% of the pixels judged (ambiguous and texel-edge pixels left out and counted). The
+/// twin: `-D WRONG_TEX` (the next element: the other image, or past the images) fails.
+#[test]
+fn scene_textures_render_as_the_cpu_samples_them() {
+    let (_d, scene) = test_scene();
+    let fill = [
+        "--fill",
+        "push.16=scene.scene_desc",
+        "--fill",
+        "1.2=scene.textures",
+        "-D",
+        "TEXTURED",
+        "--repeat",
+        "1",
+    ];
+    let mut args = vec!["--validate"];
+    args.extend_from_slice(&fill);
+    let (o, r) = scene_run(&scene, &args);
+    let r = r.unwrap_or_else(|| panic!("no report: {}{}", stdout(&o), stderr(&o)));
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    for v in r["variants"].as_array().unwrap() {
+        for a in v["attempts"].as_array().unwrap() {
+            assert_eq!(a["outcome"], "pass", "{a}");
+            assert_eq!(a["validation_messages"], 0, "{a}");
+        }
+    }
+    let want = serde_json::json!(["push.16=scene.scene_desc", "1.2=scene.textures"]);
+    assert_eq!(r["cell_options"]["fill"], want);
+    let c = compare(&scene, &r, true);
+    println!("textured: {c:?}");
+    assert!(c.textured > 100, "textured pixels are in view: {c:?}");
+    assert!(matches(&c), "{c:?}");
+    // The untextured shading is not this image: the texture changed what was compared.
+    assert!(!matches(&compare(&scene, &r, false)));
+
+    let mut wrong = fill.to_vec();
+    wrong.extend(["-D", "WRONG_TEX"]);
+    let (o, r) = scene_run(&scene, &wrong);
+    let r = r.unwrap_or_else(|| panic!("no report: {}{}", stdout(&o), stderr(&o)));
+    let c = compare(&scene, &r, true);
+    println!("WRONG_TEX: {c:?}");
+    assert!(!matches(&c), "the wrong texture must fail the comparison: {c:?}");
+}
+
+/// `scene.textures` given wrongly: into a buffer binding, into an array smaller than the
+/// scene's images, from a scene without images: one line each, exit 2, no report.
+#[test]
+fn scene_textures_given_wrongly_are_one_line_and_no_report() {
+    let (d, scene) = test_scene();
+    let tex = ["-D", "TEXTURED", "-D", "DESC_BINDING"];
+    let (o, r) = scene_run(&scene, &[&tex[..], &["--fill", "1.0=scene.textures"]].concat());
+    assert_one_line_error(&o, 2, "set 1 binding 0 is not an array of sampled images");
+    assert!(r.is_none());
+    let small = ["--fill", "1.2=scene.textures", "--array-size", "1"];
+    let (o, r) = scene_run(&scene, &[&tex[..], &small].concat());
+    assert_one_line_error(&o, 2, "give --array-size at least 2");
+    assert!(r.is_none());
+    // The test scene without its images and textures.
+    let mut gltf: Value = serde_json::from_slice(&std::fs::read(&scene).unwrap()).unwrap();
+    for k in ["images", "textures", "samplers"] {
+        gltf.as_object_mut().unwrap().remove(k);
+    }
+    for m in gltf["materials"].as_array_mut().unwrap() {
+        m["pbrMetallicRoughness"].as_object_mut().unwrap().remove("baseColorTexture");
+    }
+    let plain = d.path().join("plain.gltf");
+    std::fs::write(&plain, serde_json::to_vec(&gltf).unwrap()).unwrap();
+    let (o, r) = scene_run(&plain, &[&tex[..], &["--fill", "1.2=scene.textures"]].concat());
+    assert_one_line_error(&o, 2, "the scene has no images");
+    assert!(r.is_none());
 }
 
 /// A scene fill without `--scene`, `scene.textures` into an address, an unknown item, an address

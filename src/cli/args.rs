@@ -449,7 +449,8 @@ pub struct RunArgs {
     /// With --shader: data in place of the harness's, TARGET=SOURCE (repeatable): TARGET is
     /// SET.BINDING (a buffer, every element), SET.BINDING[ELEM], push.OFFSET or record.OFFSET
     /// (bytes); SOURCE is zero, random:SEED, a file's bytes or, with --scene, scene.NAME:
-    /// positions, indices, normals, uvs, materials, prim_info, scene_desc (docs/your-shader.md)
+    /// positions, indices, normals, uvs, materials, prim_info, scene_desc, or textures (the
+    /// scene's images into a texture array binding) (docs/your-shader.md)
     #[arg(
         long = "fill",
         value_name = "TARGET=SOURCE",
@@ -459,8 +460,8 @@ pub struct RunArgs {
     pub fill: Vec<String>,
 
     /// With --shader: trace this glTF 2.0 scene (.gltf or .glb) instead of the harness's seeded
-    /// one; `--fill TARGET=scene.NAME` puts its data in buffers, push constants or records
-    /// (docs/your-shader.md)
+    /// one; `--fill TARGET=scene.NAME` puts its data in buffers, push constants, records or
+    /// (scene.textures) a texture array (docs/your-shader.md)
     #[arg(long, value_name = "FILE", requires = "shader", help_heading = "Your shaders")]
     pub scene: Option<PathBuf>,
 

@@ -204,16 +204,48 @@ fn load_scene(a: &RunArgs) -> Result<Option<(crate::scene::gltf::Loaded, String)
     Ok(Some((loaded, super::patch_inputs::hash_hex(&all))))
 }
 
-/// The scene's device memory — its geometry for the acceleration structures and the buffers
-/// its fills name — held to the device's largest device-local heap, before any upload.
+/// What `scene.textures` takes: the decoded images' device bytes, and the scene's hash with
+/// their texels (an image file beside the scene edited is another cell); nothing without it.
+#[derive(Default)]
+struct SceneImages {
+    bytes: u64,
+    hash: Option<String>,
+}
+
+/// Every image of the scene decoded when a fill puts them in a texture array (one that does not
+/// decode: the loader's line, exit 9, before any device work).
+fn scene_images(
+    scene: Option<&(crate::scene::gltf::Loaded, String)>,
+    fills: &[crate::harness::scene_data::SceneFill],
+) -> Result<SceneImages> {
+    use crate::harness::scene_textures as tex;
+    let wanted = !crate::harness::scene_data::texture_targets(fills).is_empty();
+    let Some((l, hash)) = scene.filter(|_| wanted) else {
+        return Ok(SceneImages::default());
+    };
+    let decoded = tex::decoded(l)?;
+    let mut all = hash.clone().into_bytes();
+    for t in &decoded {
+        all.extend(t.width.to_le_bytes());
+        all.extend(t.height.to_le_bytes());
+        all.extend(&t.rgba8);
+    }
+    let hash = Some(super::patch_inputs::hash_hex(&all));
+    Ok(SceneImages { bytes: tex::bytes(&decoded), hash })
+}
+
+/// The scene's device memory — its geometry for the acceleration structures, the buffers its
+/// fills name and the images `scene.textures` uploads — held to the device's largest
+/// device-local heap, before any upload.
 fn scene_fits(
     a: &RunArgs,
     l: &crate::scene::gltf::Loaded,
-    fills: &[crate::harness::scene_data::SceneFill],
+    (fills, texture_bytes): (&[crate::harness::scene_data::SceneFill], u64),
     heap: u64,
 ) -> Result<()> {
     let items: Vec<_> = fills.iter().map(|f| f.item).collect();
-    let need = l.geometry_bytes() + crate::harness::scene_data::bytes_needed(l, &items, 0);
+    let need =
+        l.geometry_bytes() + crate::harness::scene_data::bytes_needed(l, &items, texture_bytes);
     if need <= heap {
         return Ok(());
     }
@@ -362,13 +394,14 @@ pub(super) fn prepare(g: &Globals, a: &RunArgs) -> Result<Prepared> {
     let spec = crate::harness::spec::parse_all(&a.spec, &plan.given)
         .map_err(|e| coded(exit::USAGE, e.to_string()))?;
     let (fills, scene_fills, fill_words) =
-        super::shader_fill::fills(a, &plan, &sizes, scene.is_some())?;
+        super::shader_fill::fills(a, &plan, &sizes, scene.as_ref().map(|(l, _)| l))?;
+    let images = scene_images(scene.as_ref(), &scene_fills)?;
     let resolved = super::shader_fill::Resolved {
         spec: crate::harness::spec::canonical(&spec, &plan.given),
         fill: fill_words,
         profile: shader_profile::setup(profile.as_ref())
             .effective(model == DescriptorModel::DescriptorIndexing),
-        scene: scene.as_ref().map(|(_, h)| h.clone()),
+        scene: scene.as_ref().map(|(_, h)| images.hash.clone().unwrap_or(h.clone())),
     };
     let cell_options = super::shader_fill::cell_options(a, &plan, model, resolved)?;
     let other = other_report(a, &shader_run::cell_id_with(&plan.inputs, &cell_options))?;
@@ -376,7 +409,7 @@ pub(super) fn prepare(g: &Globals, a: &RunArgs) -> Result<Prepared> {
     super::paths::writable_files(&[("--junit", a.junit.as_deref())])?;
     let (device_index, device_name, record, heap) = device(g, a, &plan, (model, profile.as_ref()))?;
     if let Some((l, _)) = &scene {
-        scene_fits(a, l, &scene_fills, heap)?;
+        scene_fits(a, l, (&scene_fills, images.bytes), heap)?;
     }
     let dir = std::env::temp_dir().join(format!("rtprobe-shader-{}", std::process::id()));
     let ctx = Ctx {

@@ -14,13 +14,13 @@ use anyhow::Result;
 
 /// Every `--fill`, resolved against the given modules sized by `sizes`, with each one's words
 /// for the cell options (`TARGET=zero`, `TARGET=random:SEED`, `TARGET=file:HASH`,
-/// `TARGET=scene.NAME`); the `scene.NAME` ones apart, placed by the child (`scene`: whether
-/// `--scene` was given).
+/// `TARGET=scene.NAME`); the `scene.NAME` ones apart, placed by the child (`scene`: `--scene`'s
+/// loaded scene).
 pub fn fills(
     a: &RunArgs,
     plan: &ShaderPlan,
     sizes: &Sizes,
-    scene: bool,
+    scene: Option<&crate::scene::gltf::Loaded>,
 ) -> Result<(Fills, Vec<SceneFill>, Vec<String>)> {
     let given = sizes.apply(plan.given.clone());
     let (mut out, mut scene_fills, mut words) = (Vec::new(), Vec::new(), Vec::new());
@@ -31,7 +31,7 @@ pub fn fills(
         };
         let r = fill::parse(text).map_err(coded_err)?;
         if let Source::Scene(item) = r.source {
-            if !scene {
+            let Some(loaded) = scene else {
                 return Err(coded(
                     exit::USAGE,
                     format!(
@@ -39,9 +39,11 @@ pub fn fills(
                         item.name()
                     ),
                 ));
-            }
+            };
+            let images = loaded.images;
             scene_fills.push(
-                crate::harness::scene_data::resolve_scene(&r, &given, at).map_err(coded_err)?,
+                crate::harness::scene_data::resolve_scene(&r, &given, (at, images))
+                    .map_err(coded_err)?,
             );
             words.push(format!("{}=scene.{}", target_words(r.target), item.name()));
             continue;

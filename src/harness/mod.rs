@@ -37,6 +37,7 @@ pub mod run;
 pub mod scene;
 pub mod scene_data;
 mod scene_item;
+pub mod scene_textures;
 pub mod sizes;
 pub mod spec;
 mod supply;
@@ -166,6 +167,8 @@ pub struct Harness {
     /// offset the hit table was laid out with ([`hit_table`]).
     geometries: u32,
     procedural: u32,
+    /// `--scene`'s images, when `scene.textures` fills a texture array.
+    scene_textures: Option<scene_textures::SceneTextures>,
 }
 
 /// Each stage's SPIR-V, stage flag and entry name, and the intersection shader's index.
@@ -260,6 +263,31 @@ fn traced_scene(
     })
 }
 
+/// The supplied raygen's TLAS binding: it traces the scene, so it gets the scene TLAS.
+fn scene_tlas_binding(modules: &[&UserModule]) -> Option<(u32, u32)> {
+    modules
+        .iter()
+        .filter(|m| m.name == supply::RAYGEN_NAME)
+        .flat_map(|m| &m.iface.bindings)
+        .find(|b| b.kind == BindingKind::AccelerationStructure)
+        .map(|b| (b.set, b.binding))
+}
+
+/// `--scene`'s images on the device, when a `scene.textures` fill puts them in a texture array.
+fn scene_images(
+    gpu: &Gpu,
+    setup: &Setup,
+    fenced: (&Submitter, Duration),
+) -> Result<Option<scene_textures::SceneTextures>, HarnessError> {
+    match &setup.scene {
+        Some(s) => {
+            let targets = scene_data::texture_targets(&s.fills);
+            scene_textures::SceneTextures::new(gpu, &s.loaded, targets, fenced)
+        }
+        None => Ok(None),
+    }
+}
+
 impl Harness {
     /// The scene and resources for `modules` (every module the pipelines will use, unpatched:
     /// the patched ones read the same resources through addresses), push constants of
@@ -301,16 +329,12 @@ impl Harness {
         let bindings: Vec<reflect::Binding> =
             modules.iter().flat_map(|m| m.iface.bindings.iter().cloned()).collect();
         let extent = vk::Extent2D { width: SIZE, height: SIZE };
-        // The supplied raygen traces the scene: its TLAS binding gets the scene TLAS.
-        let scene_at = modules
-            .iter()
-            .filter(|m| m.name == supply::RAYGEN_NAME)
-            .flat_map(|m| &m.iface.bindings)
-            .find(|b| b.kind == BindingKind::AccelerationStructure)
-            .map(|b| (b.set, b.binding));
+        let scene_at = scene_tlas_binding(modules);
         let buffer_model = setup.model == DescriptorModel::DescriptorBuffer;
         let made = (setup.sink, buffer_model, binding_flags(&setup));
-        let res = Resources::new(&gpu, &bindings, scene_at, &scene, extent, made, &fills)?;
+        let scene_textures = scene_images(&gpu, &setup, (&submitter, timeout))?;
+        let given = (&fills, scene_textures.as_ref());
+        let res = Resources::new(&gpu, &bindings, scene_at, &scene, extent, made, given)?;
         let record = record::data(modules, res.sink.address, &fills);
         if let Some(p) = gpu.info.properties.rt_pipeline {
             record::check(record.len(), p.shader_group_handle_size, p.max_shader_group_stride)?;
@@ -366,6 +390,7 @@ impl Harness {
             scene_buffers,
             geometries,
             procedural,
+            scene_textures,
         })
     }
 
@@ -700,6 +725,9 @@ impl Drop for Harness {
         self.res.destroy(&self.gpu);
         if let Some(b) = &self.scene_buffers {
             b.destroy(&self.gpu);
+        }
+        if let Some(t) = &self.scene_textures {
+            t.destroy(&self.gpu);
         }
         self.scene.destroy(&self.gpu);
         unsafe { self.gpu.device.destroy_pipeline_layout(self.layout, None) };

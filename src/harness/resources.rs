@@ -12,6 +12,7 @@ use super::ints::{Fill, IntWords};
 use super::profile::set_flags;
 use super::reflect::{Binding, BindingKind};
 use super::scene::INDEX_BOUND;
+use super::scene_textures::SceneTextures;
 use super::textures;
 use crate::model::contract::{AddressKind, HostContract};
 use crate::model::profile::BindingFlags;
@@ -187,6 +188,8 @@ fn storage_image(
 struct Making<'a> {
     tlases: Vec<&'a crate::scene::gpu::AccelStruct>,
     textures: &'a textures::Textures,
+    /// `scene.textures`' images, in place of the harness's textures where a fill put them.
+    scene_textures: Option<&'a SceneTextures>,
     scene_at: Option<(u32, u32)>,
     extent: vk::Extent2D,
     sink: u64,
@@ -223,7 +226,9 @@ impl Making<'_> {
             }
             BindingKind::SampledImage | BindingKind::CombinedImageSampler => {
                 made.textures += 1;
-                Element::Texture(self.textures.views[made.textures as usize - 1])
+                let own = self.textures.views[made.textures as usize - 1];
+                let scene = self.scene_textures.and_then(|s| s.view(key, k));
+                Element::Texture(scene.unwrap_or(own))
             }
             BindingKind::Sampler => Element::Sampler,
         })
@@ -233,8 +238,9 @@ impl Making<'_> {
 impl Resources {
     /// Resources for `bindings` (one per set and binding, aliases merged: `super::bindings`),
     /// TLASes from `scene` (the scene TLAS at `scene_at`, the supplied raygen's), images of
-    /// `extent`, and the sink buffer of `sink_size` bytes. The textures are not filled yet
-    /// (`textures.upload`).
+    /// `extent`, and the sink buffer of `sink_size` bytes; `fills`' bytes in the buffers they name
+    /// and `scene_textures`' images in the texture elements they fill. The textures are not
+    /// filled yet (`textures.upload`).
     pub fn new(
         gpu: &Gpu,
         bindings: &[Binding],
@@ -242,7 +248,7 @@ impl Resources {
         scene: &SceneGpu,
         extent: vk::Extent2D,
         (sink_size, buffer_model, flags): (u64, bool, BindingFlags),
-        fills: &Fills,
+        (fills, scene_textures): (&Fills, Option<&SceneTextures>),
     ) -> Result<Resources, HarnessError> {
         let unique = super::bindings::merged(bindings)?;
         let sink = Buffer::new(gpu, sink_size, SINK_USAGE, Location::Host, "harness sink")?;
@@ -259,6 +265,7 @@ impl Resources {
         let making = Making {
             tlases: std::iter::once(&scene.scene_tlas).chain(&scene.probe_tlas).collect(),
             textures: &textures,
+            scene_textures,
             scene_at,
             extent,
             sink: sink.address,

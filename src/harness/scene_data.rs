@@ -164,22 +164,20 @@ pub struct SceneFill {
 
 /// A `scene.NAME` fill held to `modules`: a buffer item into a buffer binding (the buffer is
 /// then sized to the scene's bytes) or as an 8-byte address at a push or record offset;
-/// `textures` only into a texture binding. `at`: its place among the run's fills.
+/// `textures` only into a texture array binding with room for the scene's `images`
+/// (`super::scene_textures::check`). `at`: its place among the run's fills.
 pub fn resolve_scene(
     r: &Request,
     modules: &[UserModule],
-    at: usize,
+    (at, images): (usize, usize),
 ) -> Result<SceneFill, FillError> {
     let Source::Scene(item) = r.source else {
         return Err(FillError::Syntax(r.text.clone(), "not a scene source".into()));
     };
     let refuse = |why: String| FillError::Target(r.text.clone(), why);
     if item == Item::Textures {
-        return Err(refuse(if texture_binding(r.target, modules) {
-            "scene.textures into a texture array is not implemented yet (issue 28); fill buffers, push constants or records with the other scene.NAME sources".to_string()
-        } else {
-            "scene.textures goes to a sampled-image or combined-image-sampler array binding; give one of those as TARGET".to_string()
-        }));
+        super::scene_textures::check(r, modules, images)?;
+        return Ok(SceneFill { at, target: r.target, item });
     }
     let room = super::fill::room(r, modules)?;
     if matches!(r.target, Target::Push(_) | Target::Record(_)) && room < 8 {
@@ -188,17 +186,13 @@ pub fn resolve_scene(
     Ok(SceneFill { at, target: r.target, item })
 }
 
-/// Whether `target` is a binding of sampled images or combined image samplers in `modules`.
-fn texture_binding(target: Target, modules: &[UserModule]) -> bool {
-    let Target::Binding { set, binding, .. } = target else { return false };
-    modules.iter().flat_map(|m| &m.iface.bindings).any(|b| {
-        (b.set, b.binding) == (set, binding)
-            && matches!(
-                b.kind,
-                super::reflect::BindingKind::SampledImage
-                    | super::reflect::BindingKind::CombinedImageSampler
-            )
-    })
+/// The bindings the `scene.textures` fills target (`super::scene_textures`).
+pub fn texture_targets(fills: &[SceneFill]) -> Vec<(u32, u32)> {
+    let binding = |f: &SceneFill| match f.target {
+        Target::Binding { set, binding, .. } => Some((set, binding)),
+        Target::Push(_) | Target::Record(_) => None,
+    };
+    fills.iter().filter(|f| f.item == Item::Textures).filter_map(binding).collect()
 }
 
 /// The scene's buffers on the device, made for the fills that name them.
@@ -239,7 +233,7 @@ impl SceneBuffers {
     /// push or record offset the buffer's 8-byte device address.
     pub fn placed(&self, loaded: &Loaded, fills: &Fills, scene: &[SceneFill]) -> Fills {
         let mut out = fills.0.clone();
-        for f in scene {
+        for f in scene.iter().filter(|f| f.item != Item::Textures) {
             let Some((_, buf)) = self.made.iter().find(|(i, _)| *i == f.item) else { continue };
             let bytes = match f.target {
                 Target::Binding { .. } if f.item == Item::SceneDesc => {

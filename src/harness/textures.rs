@@ -132,9 +132,10 @@ pub fn new_sampler(gpu: &Gpu) -> Result<vk::Sampler, VkError> {
     unsafe { gpu.device.create_sampler(&info, None) }.at("vkCreateSampler")
 }
 
-/// Record the copy of `staging`'s bytes at `offset` into the first `layers` layers of `img`:
-/// UNDEFINED → TRANSFER_DST, the copy, then SHADER_READ_ONLY_OPTIMAL for the trace's reads.
-fn record_copy(
+/// Record the copy of `staging`'s bytes at `offset` into the first `layers` layers of `img`
+/// (its whole extent): UNDEFINED → TRANSFER_DST, the copy, then SHADER_READ_ONLY_OPTIMAL for the
+/// trace's reads.
+pub(super) fn record_copy(
     gpu: &Gpu,
     cmd: vk::CommandBuffer,
     img: &Image,
@@ -162,7 +163,11 @@ fn record_copy(
             base_array_layer: 0,
             layer_count: layers,
         })
-        .image_extent(vk::Extent3D { width: TEXTURE_SIZE, height: TEXTURE_SIZE, depth: 1 });
+        .image_extent(vk::Extent3D {
+            width: img.extent.width,
+            height: img.extent.height,
+            depth: 1,
+        });
     unsafe {
         gpu.device.cmd_copy_buffer_to_image(
             cmd,

@@ -7,12 +7,20 @@
 // light direction plus an ambient term, times the material's base colour factor.
 // `-D WRONG_PRIM`: the per-primitive table indexed by the custom index alone (the header read as
 // if it were the primitive's entry), as a tutorial with one BLAS per primitive would.
+// `-D TEXTURED`: the base colour factor times the material's base colour texture, sampled at the
+// interpolated UV from the scene's texture array (`--fill 1.2=scene.textures`, element = the
+// image index the material holds); `textureLod` at LOD 0, as ray tracing stages have no implicit
+// derivatives. `-D WRONG_TEX` (with TEXTURED): the texture one element past the material's.
 #extension GL_EXT_ray_tracing : require
 #extension GL_EXT_buffer_reference2 : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #extension GL_EXT_scalar_block_layout : require
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
+#ifdef TEXTURED
+#extension GL_EXT_nonuniform_qualifier : require
+layout(set = 1, binding = 2) uniform sampler2D textures[];
+#endif
 
 struct PrimMeshInfo {
     uint indexOffset;
@@ -29,6 +37,7 @@ struct GltfMaterial {
 };
 
 layout(buffer_reference, scalar) readonly buffer Vertices { vec3 v[]; };
+layout(buffer_reference, scalar) readonly buffer Uvs { vec2 u[]; };
 layout(buffer_reference, scalar) readonly buffer Indices { uint i[]; };
 layout(buffer_reference, scalar) readonly buffer Materials { GltfMaterial m[]; };
 layout(buffer_reference, scalar) readonly buffer PrimInfos { PrimMeshInfo p[]; };
@@ -80,12 +89,14 @@ void main() {
     uint64_t indexAddress = descBlock.indexAddress;
     uint64_t materialAddress = descBlock.materialAddress;
     uint64_t normalAddress = descBlock.normalAddress;
+    uint64_t uvAddress = descBlock.uvAddress;
 #else
     SceneDesc desc = SceneDesc(pc.sceneDesc);
     uint64_t primInfoAddress = desc.primInfoAddress;
     uint64_t indexAddress = desc.indexAddress;
     uint64_t materialAddress = desc.materialAddress;
     uint64_t normalAddress = desc.normalAddress;
+    uint64_t uvAddress = desc.uvAddress;
 #endif
     PrimInfos infos = PrimInfos(primInfoAddress);
 #ifdef WRONG_PRIM
@@ -103,7 +114,19 @@ void main() {
     vec3 worldN = normalize(vec3(n * gl_WorldToObjectEXT));
     GltfMaterial mat = Materials(materialAddress).m[prim.materialIndex];
     float lambert = max(dot(worldN, normalize(LIGHT)), 0.0);
-    shade.color = mat.baseColorFactor.rgb * (AMBIENT + (1.0 - AMBIENT) * lambert);
+    vec3 albedo = mat.baseColorFactor.rgb;
+#ifdef TEXTURED
+    int tex = mat.baseColorTexture;
+    if (tex >= 0) {
+#ifdef WRONG_TEX
+        tex += 1;
+#endif
+        Uvs uvs = Uvs(uvAddress);
+        vec2 uv = uvs.u[tri.x] * w.x + uvs.u[tri.y] * w.y + uvs.u[tri.z] * w.z;
+        albedo *= textureLod(textures[nonuniformEXT(tex)], uv, 0.0).rgb;
+    }
+#endif
+    shade.color = albedo * (AMBIENT + (1.0 - AMBIENT) * lambert);
     shade.dist = gl_HitTEXT;
     shade.instance = uint(gl_InstanceCustomIndexEXT);
 }
