@@ -24,14 +24,13 @@ pub struct NotSameRun {
 /// The report of a run that has not run a cell yet. `started`: seconds since the epoch.
 pub fn fresh(
     info: &DeviceInfo,
-    params: SceneParams,
+    scene: SceneSummary,
     plan: &RunPlan,
     sharded_out: usize,
     options: RunOptions,
     command_line: Vec<String>,
     started: u64,
 ) -> RunReport {
-    let scene = Scene::build(&params);
     RunReport {
         schema: SCHEMA.into(),
         tool: json!({ "name": "rtprobe", "version": env!("CARGO_PKG_VERSION") }),
@@ -43,13 +42,7 @@ pub fn fresh(
         device: crate::caps::device_json(info),
         matrix_support: crate::caps::matrix_json(info),
         matrix_support_schema: Some(crate::caps::SCHEMA.into()),
-        scene: SceneSummary {
-            params,
-            instances: scene.instances.len(),
-            blas: scene.meshes.len() + 1,
-            triangles: scene.triangle_count(),
-            ambiguous_pixels: crate::reference::ambiguous_primaries(&scene),
-        },
+        scene,
         options,
         plan: PlanSummary {
             generated: plan.generated,
@@ -72,6 +65,25 @@ pub fn fresh(
         mutants: None,
         driver_cache: None,
         cells: vec![],
+    }
+}
+
+/// The report's scene: `params` (a `--scene` file's identity among them) and what `scene`, made
+/// from them, holds; the cells it cannot discriminate and its CPU cost.
+pub fn scene_summary(
+    params: SceneParams,
+    scene: &Scene,
+    limits: Vec<crate::model::SceneLimit>,
+    cost: crate::model::SceneCost,
+) -> SceneSummary {
+    SceneSummary {
+        params,
+        instances: scene.instances.len(),
+        blas: scene.meshes.len() + 1,
+        triangles: scene.triangle_count(),
+        ambiguous_pixels: crate::reference::ambiguous_primaries(scene),
+        limits,
+        cost: Some(cost),
     }
 }
 

@@ -459,10 +459,11 @@ pub struct RunArgs {
     )]
     pub fill: Vec<String>,
 
-    /// With --shader: trace this glTF 2.0 scene (.gltf or .glb) instead of the harness's seeded
-    /// one; `--fill TARGET=scene.NAME` puts its data in buffers, push constants, records or
-    /// (scene.textures) a texture array (docs/your-shader.md)
-    #[arg(long, value_name = "FILE", requires = "shader", help_heading = "Your shaders")]
+    /// Trace this glTF 2.0 scene (.gltf or .glb) instead of the seeded procedural one: the
+    /// generated cells on its meshes and instances (custom index = mesh index; docs/scenes.md),
+    /// or with --shader the harness's, `--fill TARGET=scene.NAME` putting its data in buffers,
+    /// push constants, records or (scene.textures) a texture array (docs/your-shader.md)
+    #[arg(long, value_name = "FILE", help_heading = "Your shaders")]
     pub scene: Option<PathBuf>,
 
     /// With --shader: the elements of every runtime-sized descriptor array (`textures[]`,

@@ -76,7 +76,7 @@ pub fn bisect(g: &Globals, a: &BisectArgs) -> Result<u8> {
         let jobs = a.jobs.or(ro.jobs).unwrap_or_else(|| super::shared::default_jobs(&info));
         let mut opts = super::shared::supervisor_options(
             info.index,
-            report.scene.params,
+            report.scene.params.clone(),
             jobs,
             ro.isolation,
             ro.timeout_s,

@@ -77,7 +77,7 @@ fn run_validated(
 ) -> Option<crate::model::Attempt> {
     let mut opts = supervisor_options(
         device,
-        r.scene.params,
+        r.scene.params.clone(),
         1,
         ro.isolation,
         ro.timeout_s,

@@ -88,6 +88,9 @@ impl CellSpec {
             size: format!("{}x{}", p.width, p.height),
             instances: p.instances,
             mesh_detail: p.mesh_detail,
+            // A `--scene` run's file, loaded again by path (its hash held to the bundle's by
+            // `cli::run`'s `cell_spec_args`).
+            scene: p.file.as_ref().map(|f| std::path::PathBuf::from(&f.path)),
             timeout: self.timeout_s,
             cell_spec: None,
             spirv_dir: None,
@@ -302,7 +305,7 @@ impl Bundle<'_> {
             id: cell.id(),
             description: describe(&cell),
             cell,
-            scene: report.scene.params,
+            scene: report.scene.params.clone(),
             inject: self.inject.iter().map(|i| i.spec.clone()).collect(),
             timeout_s: self.ro.timeout_s,
             binding_stages: report.options.binding_stages.clone(),

@@ -13,7 +13,7 @@ use anyhow::Result;
 use std::path::Path;
 
 /// The arguments that make the scene.
-const SCENE: &[&str] = &["seed", "size", "instances", "mesh_detail"];
+const SCENE: &[&str] = &["seed", "size", "instances", "mesh_detail", "scene"];
 
 /// Which arguments were given, and the report they are held to.
 struct Given<'a> {
@@ -78,6 +78,23 @@ fn scene(g: &Given, a: &mut RunArgs, p: &SceneParams) -> Result<()> {
     let mut given = normal(&a.size);
     g.take("size", "--size", &mut given, size, String::clone)?;
     a.size = given;
+    let file = p.file.as_ref().map(|f| std::path::PathBuf::from(&f.path));
+    let show = |f: &Option<std::path::PathBuf>| {
+        f.as_ref().map_or("none (the procedural scene)".into(), |p| p.display().to_string())
+    };
+    let mut given = a.scene.as_ref().map(|s| std::path::absolute(s).unwrap_or(s.clone()));
+    g.take("scene", "--scene", &mut given, file, show)?;
+    a.scene = given;
+    if p.file.is_some() {
+        // The file's instance count: `--instances` makes nothing then.
+        return g.take(
+            "mesh_detail",
+            "--mesh-detail",
+            &mut a.mesh_detail,
+            p.mesh_detail,
+            u32::to_string,
+        );
+    }
     g.take("instances", "--instances", &mut a.instances, p.instances, u32::to_string)?;
     g.take("mesh_detail", "--mesh-detail", &mut a.mesh_detail, p.mesh_detail, u32::to_string)
 }

@@ -36,15 +36,57 @@ fn scene_params(a: &RunArgs) -> Result<SceneParams> {
         .ok_or_else(|| {
             coded(exit::USAGE, format!("--size {:?} is not WIDTHxHEIGHT (e.g. 64x64)", a.size))
         })?;
-    let p = SceneParams {
+    let mut p = SceneParams {
         seed: a.seed,
         width: w,
         height: h,
         instances: a.instances,
         mesh_detail: a.mesh_detail,
+        file: None,
     };
+    if let Some(path) = &a.scene {
+        // The loader's one-line error (exit 9) before any device work; the file's instances
+        // replace `--instances`.
+        let loaded = crate::scene::gltf::Loaded::load(path)?;
+        p.instances = loaded.instances.len() as u32;
+        p.file = Some(crate::scene::file::identity(&loaded)?);
+        p.validate()
+            .map_err(|e| coded(exit::BAD_INPUT, format!("--scene {}: {e}", path.display())))?;
+    }
     p.validate().map_err(|e| coded(exit::USAGE, format!("scene: {e}")))?;
     Ok(p)
+}
+
+/// The run's scene made on the CPU (a `--scene` file loaded again and held to its hash), traced
+/// by the reference, timed, and held to the plan's cells: those it cannot discriminate.
+fn scene_summary(
+    params: &SceneParams,
+    plan: &RunPlan,
+) -> Result<crate::model::report::SceneSummary> {
+    let t = Instant::now();
+    let scene = crate::scene::Scene::of(params)?;
+    let load_ms = t.elapsed().as_secs_f64() * 1e3;
+    let t = Instant::now();
+    let sref = crate::reference::SceneReference::compute(&scene);
+    let reference_ms = t.elapsed().as_secs_f64() * 1e3;
+    let cells: Vec<Cell> = plan.to_run().copied().collect();
+    let limits = crate::reference::limits::of(&scene, &sref, &cells);
+    let cost = crate::model::SceneCost { load_ms, reference_ms, peak_mib: peak_mib() };
+    if params.file.is_some() {
+        errln!(
+            "scene: loaded in {load_ms:.0} ms, CPU reference in {reference_ms:.0} ms, peak memory {}",
+            cost.peak_mib.map_or("unknown".into(), |m| format!("{m} MiB"))
+        );
+    }
+    Ok(start::scene_summary(params.clone(), &scene, limits, cost))
+}
+
+/// This process's peak resident memory (VmHWM), in MiB.
+fn peak_mib() -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib.div_ceil(1024))
 }
 
 /// `--pipeline-cache DIR|off`, else the default folder (`None`: off, or no folder known).
@@ -107,9 +149,10 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     tracing::debug!("run: planned");
     let started = time::now_unix();
     let (out, _lock) = reserve_out(a, started, &info, resumed.is_some())?;
+    let scene = scene_summary(&c.params, &the_plan)?;
     let fresh = start::fresh(
         &info,
-        c.params,
+        scene,
         &the_plan,
         sharded_out,
         options.clone(),
@@ -169,7 +212,7 @@ fn run_rounds(
     let supported = |cell: &Cell| plan::device_support(info, cell).is_supported();
     let policy = Policy::of(&options, || inst.validation_layer_version());
     // The mutants' reference (a scene and its trace on the CPU), made only when asked for.
-    let prefilter = policy.mutants.as_ref().map(|_| Prefilter::new(&c.params));
+    let prefilter = policy.mutants.as_ref().map(|_| Prefilter::new(&c.params)).transpose()?;
     let applies = |cell: &Cell| -> Result<MutantPrediction, String> {
         prefilter.as_ref().ok_or_else(|| "no --mutants".to_string())?.applies(cell)
     };
@@ -210,6 +253,9 @@ fn save_failed(e: WriteError, a: &RunArgs, out: &Path) -> anyhow::Error {
 /// stages, its SPIR-V when the bundle has it, and no persisted pipeline cache.
 fn cell_spec_args(a: &RunArgs, p: &Path) -> Result<(RunArgs, Option<String>)> {
     let spec = crate::model::bundle::CellSpec::load(p)?;
+    if let Some(f) = &spec.scene.file {
+        crate::scene::file::load_same(f)?;
+    }
     let mut args = spec.run_args(a)?;
     args.spirv_dir = spec.spirv_dir(p)?;
     // The cell's own compile, not a binary a cache kept from another run (docs/performance.md).
@@ -460,7 +506,7 @@ fn supervisor(a: &RunArgs, o: &RunOptions, info: &DeviceInfo, c: &Checked) -> Su
         linked: o.pipelines == Some(crate::model::PipelineMode::Linked),
         ..supervisor_options(
             info.index,
-            c.params,
+            c.params.clone(),
             o.jobs.unwrap_or_else(|| default_jobs(info)),
             o.isolation,
             o.timeout_s,

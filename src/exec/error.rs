@@ -36,6 +36,9 @@ pub enum CellError {
     /// cell's `error`, never handed to the driver.
     #[error("the shaders do not fit the cell's pipeline layout: {0}")]
     Interface(crate::interface::Mismatch),
+    /// The run's scene file (`run --scene`) could not be loaded again, or changed.
+    #[error(transparent)]
+    Scene(#[from] crate::scene::gltf::LoadError),
 }
 
 impl CellError {
@@ -49,7 +52,8 @@ impl CellError {
             | CellError::Io(_)
             | CellError::Patch(_)
             | CellError::Mutant(_)
-            | CellError::Interface(_) => Outcome::Error,
+            | CellError::Interface(_)
+            | CellError::Scene(_) => Outcome::Error,
             CellError::NotImplemented(_) => Outcome::NotImplemented,
             CellError::Unsupported(_) => Outcome::Unsupported,
         }

@@ -101,7 +101,7 @@ impl Executor {
     /// The shader compiler failing to start is `CellError::Compile(CompileError::Init)`, not a
     /// Vulkan error: the worker's setup reports it as such.
     pub fn new(gpu: Gpu, params: &SceneParams, opts: ExecOptions) -> Result<Self, CellError> {
-        let scene = Scene::build(params);
+        let scene = Scene::of(params)?;
         let t = Instant::now();
         let sref = SceneReference::compute(&scene);
         let reference_ms = t.elapsed().as_secs_f64() * 1e3;

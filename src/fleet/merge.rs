@@ -46,8 +46,11 @@ pub fn human(v: &Value) -> String {
 
 /// A scene as `run`'s flags give it.
 fn scene(p: &SceneParams) -> String {
+    let file = p.file.as_ref().map_or(String::new(), |f| {
+        format!(" --scene {} (content {})", f.path, &f.hash[..f.hash.len().min(12)])
+    });
     format!(
-        "--seed {} --size {}x{} --instances {} --mesh-detail {}",
+        "--seed {} --size {}x{} --instances {} --mesh-detail {}{file}",
         p.seed, p.width, p.height, p.instances, p.mesh_detail
     )
 }
@@ -95,7 +98,7 @@ pub fn same_run(a: &RunReport, b: &RunReport, options: &[ResultOption]) -> Resul
         }
     }
     if a.scene.params != b.scene.params {
-        return Err(NotSameRun::Scene(a.scene.params, b.scene.params));
+        return Err(NotSameRun::Scene(a.scene.params.clone(), b.scene.params.clone()));
     }
     for key in options {
         let (va, vb) = (key.value(&a.options), key.value(&b.options));

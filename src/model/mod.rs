@@ -63,5 +63,5 @@ pub use outcome::{CellResult, Outcome, Timings};
 pub use phase::Phase;
 pub use plan::{NotGenerated, PatchMode, PlanStatus, PlannedCell, RunPlan};
 pub use report::{CellReport, Incidence, RunReport, WorkaroundResult};
-pub use scene::{SceneError, SceneParams};
+pub use scene::{SceneCost, SceneError, SceneFile, SceneLimit, SceneParams};
 pub use text::{nearest, plural};

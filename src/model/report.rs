@@ -325,6 +325,12 @@ pub struct SceneSummary {
     pub triangles: usize,
     /// Pixels skipped by the comparison because their primary hit lies within the margin.
     pub ambiguous_pixels: usize,
+    /// Cells the scene cannot discriminate, by why (`run --scene`; `reference::limits`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub limits: Vec<crate::model::SceneLimit>,
+    /// The scene's CPU cost before any cell (absent in reports before it was measured).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cost: Option<crate::model::SceneCost>,
 }
 
 /// What the run found, beside the outcome counts.
@@ -477,6 +483,8 @@ impl RunReport {
                 blas: 4,
                 triangles: 0,
                 ambiguous_pixels: 0,
+                limits: vec![],
+                cost: None,
             },
             options: RunOptions::for_tests(),
             plan: PlanSummary {

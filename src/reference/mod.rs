@@ -49,6 +49,7 @@ pub mod bvh;
 mod compare;
 pub mod intersect;
 pub mod lanes;
+pub mod limits;
 pub mod mutation;
 mod rules;
 pub mod watertight;

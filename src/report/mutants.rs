@@ -28,10 +28,11 @@ pub struct Prefilter {
 }
 
 impl Prefilter {
-    pub fn new(params: &SceneParams) -> Prefilter {
-        let scene = Scene::build(params);
+    /// The run's scene (a `--scene` file loaded again: its one-line error) traced on the CPU.
+    pub fn new(params: &SceneParams) -> Result<Prefilter, crate::scene::gltf::LoadError> {
+        let scene = Scene::of(params)?;
         let sref = SceneReference::compute(&scene);
-        Prefilter { scene, sref }
+        Ok(Prefilter { scene, sref })
     }
 
     /// Whether mutant cell `c` can apply ([`Applies`]).

@@ -32,6 +32,7 @@ pub fn render(r: &RunReport) -> String {
 pub fn render_quiet(r: &RunReport, quiet: Quiet) -> String {
     let mut s = String::new();
     header(&mut s, r);
+    scene_notes(&mut s, r);
     worker_and_canary_notes(&mut s, r);
     spec_and_injection_notes(&mut s, r);
     findings(&mut s, r);
@@ -69,6 +70,30 @@ fn header(s: &mut String, r: &RunReport) {
             "resumed: {} kept from the interrupted run (not run again), {} run now",
             plural(last.kept, "cell"),
             plural(last.to_run, "cell")
+        );
+    }
+}
+
+/// A `--scene` run's scene, and the cells it cannot discriminate (`reference::limits`): their
+/// passes prove less, so the summary says which and why.
+fn scene_notes(s: &mut String, r: &RunReport) {
+    let Some(f) = &r.scene.params.file else { return };
+    let _ = writeln!(
+        s,
+        "scene: {} ({} instances, {} triangles)",
+        f.path, r.scene.instances, r.scene.triangles
+    );
+    for l in &r.scene.limits {
+        let first: Vec<&str> = l.cells.iter().take(3).map(String::as_str).collect();
+        let more = l.cells.len().saturating_sub(first.len());
+        let _ = writeln!(
+            s,
+            "  undiscriminating: {} on {:.0}% of their pixels: {} (e.g. {}{}; all in the report's scene.limits)",
+            plural(l.cells.len(), "cell"),
+            l.share * 100.0,
+            l.why,
+            first.join(", "),
+            if more > 0 { format!(" and {more} more") } else { String::new() }
         );
     }
 }

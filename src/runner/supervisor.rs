@@ -181,7 +181,7 @@ impl Supervisor {
         let seed = self.injections.deal(id, &job.cells);
         let job = WorkerJob {
             device_index: self.opts.device_index,
-            scene: self.opts.scene,
+            scene: self.opts.scene.clone(),
             fence_timeout_ms: (self.opts.timeout.as_millis() as u64 * 8 / 10).max(100),
             validate: self.opts.validate,
             gpu_av: self.opts.gpu_av,

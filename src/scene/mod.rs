@@ -7,6 +7,7 @@
 //! exists only in the AS probe's TLASes. The camera is orthographic with exactly representable ray
 //! origins, so the GPU and the CPU reference trace bit-identical rays. `gpu` uploads it and builds
 //! BLAS/TLAS.
+pub mod file;
 pub mod gltf;
 pub mod gpu;
 pub mod rng;
@@ -213,7 +214,7 @@ impl Scene {
             geometry: Geometry::Mesh(meshes.len()),
         };
         meshes.push(floor_quad());
-        let params = SceneParams { instances: instances.len() as u32, ..*params };
+        let params = SceneParams { instances: instances.len() as u32, ..params.clone() };
         Scene { params, meshes, instances, floor, no_opaque: false, procedural_sbt_offset: 1 }
     }
 

@@ -9,6 +9,8 @@ use crate::probe::spec::{Access, Base, ElementMap, ProbeSpec, Sampler};
 pub enum Unfit {
     #[error("canaries are not probe cells (they hang or fault on purpose)")]
     Canary,
+    #[error("the run traced a glTF scene (run --scene): rtprobe writes Amber scripts of its procedural scene only (not implemented); `rtprobe run --cell-spec` re-runs the cell on the scene file")]
+    SceneFile,
     /// The injection's spec.
     #[error("the cell has an injected fault ({0}): Amber cannot reproduce rtprobe's injection (a load through a device address in push constants, per-attempt dice)")]
     Injected(String),

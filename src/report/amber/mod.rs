@@ -38,6 +38,9 @@ pub fn script(
     origin: &str,
 ) -> Result<String, Unfit> {
     fits(cell, inject)?;
+    if scene.file.is_some() {
+        return Err(Unfit::SceneFile);
+    }
     let body = match cell.stage {
         Stage::Compute => {
             let [shader] = shaders else {

@@ -275,14 +275,21 @@ fn dynamic_index(
     match spec.stage {
         Stage::ClosestHit | Stage::AnyHit | Stage::Intersection => {
             let mask = probe::dyn_mask(spec.resource, params.instances);
-            let scene = crate::scene::Scene::build(params);
+            let (blo, bhi) = base_range(spec.base, params.instances);
+            // A `--scene` file's custom indices need the file: without it, the whole mask.
+            let scene = match crate::scene::Scene::of(params) {
+                Ok(s) => s,
+                Err(e) => {
+                    let text = format!("base + (gl_InstanceCustomIndexEXT & {mask:#x}), base = {}; the scene file's custom indices unknown ({e})", base_text(spec.base));
+                    return (text, blo, bhi + mask);
+                }
+            };
             let customs: Vec<u32> = scene.instances.iter().map(|i| i.custom_index).collect();
             let (cmin, cmax) = (
                 customs.iter().min().copied().unwrap_or(0),
                 customs.iter().max().copied().unwrap_or(0),
             );
             let masked: Vec<u32> = customs.iter().map(|c| c & mask).collect();
-            let (blo, bhi) = base_range(spec.base, params.instances);
             let (mlo, mhi) = (
                 masked.iter().min().copied().unwrap_or(0),
                 masked.iter().max().copied().unwrap_or(0),

@@ -19,6 +19,8 @@ pub enum LoadError {
     Part { path: PathBuf, part: String, message: String },
     #[error("scene {path} has no triangles: give a scene whose default scene has triangle meshes")]
     Empty { path: PathBuf },
+    #[error("scene {path} changed since the run began (content hash {now}, the report's {was}): put the run's scene file back, or start a new run")]
+    Changed { path: PathBuf, was: String, now: String },
 }
 
 /// What to do about a required extension, by what it changes.
