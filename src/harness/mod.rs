@@ -27,6 +27,7 @@ pub mod heap;
 pub mod inject;
 pub mod ints;
 mod module;
+pub mod per_primitive;
 pub mod profile;
 mod record;
 pub mod reflect;
