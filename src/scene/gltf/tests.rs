@@ -91,7 +91,7 @@ fn the_fitted_scene_fills_the_view_keeps_facing_and_uses_mesh_indices() {
     assert_eq!(scene.instances.len(), 5);
     assert_eq!(scene.params.instances, 5);
     assert_eq!(scene.meshes.len(), 4, "three meshes and the floor");
-    assert_eq!(scene.meshes[1].geometries, vec![0..4, 4..6]);
+    assert_eq!(scene.meshes[1].geometries, vec![0..2, 2..6]);
     let customs: Vec<u32> = scene.instances.iter().map(|i| i.custom_index).collect();
     assert_eq!(customs, vec![0, 1, 2, 2, 2]);
     let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
