@@ -828,7 +828,8 @@ fn fills_put_a_files_bytes_in_buffers_push_constants_and_records() {
 }
 
 /// Bad `--fill`: a target the modules lack, a binding that is no buffer, an element or offset
-/// out of range, a scene source, a missing or too large file: one line, exit 2 or 9, no report.
+/// out of range, a scene source, a missing or too large file, two fills that overlap: one line,
+/// exit 2 or 9, no report.
 #[test]
 fn bad_fills_are_one_line_and_no_report() {
     let d = tempfile::tempdir().unwrap();
@@ -862,6 +863,20 @@ fn bad_fills_are_one_line_and_no_report() {
         assert_one_line_error(&o, *code, needle);
         assert!(!Path::new(&report).exists(), "no report for {fill}");
     }
+    // Two fills that overlap (push bytes 4..8 both write): one line, exit 2, no report.
+    let args = [
+        "run",
+        "--shader",
+        &filled,
+        "-o",
+        &report,
+        "--fill",
+        "push.0=zero",
+        "--fill",
+        "push.4=random:1",
+    ];
+    assert_one_line_error(&run_env(&args, &[]), 2, "push.4=random:1: overlaps --fill push.0=zero");
+    assert!(!Path::new(&report).exists(), "no report for overlapping fills");
 }
 
 /// A Vulkan Profiles JSON written for a test: `features` as `"VkStruct": {"member": true}`.

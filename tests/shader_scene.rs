@@ -2,12 +2,13 @@
 //! closest-hit written for these tests (`tests/shaders/user/tutorial.rchit`) reads the test
 //! scene (`rtprobe scene make`) through the scene description's address in a push constant, and
 //! its image is held to a CPU rendering of the same shading over the same fitted scene and rays
-//! (the reference's f64 intersection; ambiguous pixels excluded and counted). Its twin, built
-//! with `-D WRONG_PRIM`, fails that comparison. With `-D TEXTURED` it multiplies the base colour
-//! by the material's texture from `--fill 1.2=scene.textures`, held to the CPU sampling the
-//! decoded images as the harness's sampler does (nearest, clamp to edge, sRGB decoded); its twin
-//! `-D WRONG_TEX` (the next image) fails. Scene fills and scene files given wrongly are one line,
-//! a non-zero exit and no report.
+//! (the reference's f64 intersection; ambiguous pixels excluded and counted), one BLAS per
+//! primitive with the global primitive index as custom index (the tutorial's layout). Its
+//! twins, built with `-D WRONG_PRIM_ZERO` and `-D WRONG_POSITIONS`, fail that comparison. With
+//! `-D TEXTURED` it multiplies the base colour by the material's texture from `--fill
+//! 1.2=scene.textures`, held to the CPU sampling the decoded images as the harness's sampler does
+//! (nearest, clamp to edge, sRGB decoded); its twin `-D WRONG_TEX` (the next image) fails. Scene
+//! fills and scene files given wrongly are one line, a non-zero exit and no report.
 mod common;
 use common::*;
 use glam::{DMat3, DVec3};
@@ -49,6 +50,16 @@ fn scene_run(scene: &Path, extra: &[&str]) -> (std::process::Output, Option<Valu
     (o, report)
 }
 
+/// Per global primitive index (the custom index the harness gives it: primitives numbered mesh
+/// by mesh), its mesh and its index in the mesh.
+fn primitives(l: &Loaded) -> Vec<(usize, usize)> {
+    l.meshes
+        .iter()
+        .enumerate()
+        .flat_map(|(m, mesh)| (0..mesh.primitives.len()).map(move |p| (m, p)))
+        .collect()
+}
+
 /// Texel-edge margin, in texels: a UV whose `u·w` or `v·h` lies this close to an integer may
 /// pick the neighbouring texel on the device (f32 interpolation) and not on the CPU (f64).
 const TEXEL_MARGIN: f64 = 0.01;
@@ -75,18 +86,18 @@ fn sample(t: &Texture, uv: [f64; 2]) -> ([f64; 3], bool) {
     ([0, 1, 2].map(|k| srgb(t.rgba8[at + k])), ex || ey)
 }
 
-/// What the CPU gives one pixel: its colour (`None` for a miss), whether the ray is ambiguous,
-/// whether its texture coordinate lies on a texel edge, whether it sampled a texture.
+/// What the CPU gives one pixel: its colour and the hit's custom index (`None` for a miss),
+/// whether the ray is ambiguous, whether its texture coordinate lies on a texel edge, whether it
+/// sampled a texture.
 struct CpuPixel {
-    color: Option<[f64; 3]>,
+    color: Option<([f64; 3], u32)>,
     ambiguous: bool,
     edge: bool,
     textured: bool,
 }
 
-/// The colour the CPU gives pixel (`x`, `y`): `None` for a miss, else the closest hit's shading
-/// as `tutorial.rchit` computes it, in f64 (with `tex`, the scene's decoded images: as
-/// `-D TEXTURED` computes it); and whether the pixel is ambiguous.
+/// The CPU's pixel (`x`, `y`): the closest hit's shading as `tutorial.rchit` computes it, in
+/// f64 (with `tex`, the scene's decoded images: as `-D TEXTURED` computes it).
 fn cpu_pixel(
     l: &Loaded,
     (s, cull): (&rtprobe::scene::Scene, &Culling),
@@ -98,22 +109,30 @@ fn cpu_pixel(
     let r = intersect::trace((s, cull), o, d, |_| true);
     let mut px = CpuPixel { color: None, ambiguous: r.ambiguous, edge: false, textured: false };
     let Some(h) = r.hit else { return px };
+    assert_eq!(h.geometry, 0, "one geometry per BLAS");
     let inst = &s.instances[h.instance_id as usize];
-    let m = &l.meshes[h.instance as usize];
-    let p = &m.primitives[h.geometry as usize];
+    let (mi, pi) = primitives(l)[h.instance as usize];
+    let m = &l.meshes[mi];
+    let p = &m.primitives[pi];
     let tri = m.triangle(p.first_triangle + h.primitive);
     let w = [1.0 - h.bary[0] - h.bary[1], h.bary[0], h.bary[1]];
-    let n = (0..3).fold(DVec3::ZERO, |n, k| {
-        n + DVec3::from(m.normals[tri[k] as usize].map(|f| f as f64)) * w[k]
-    });
+    let lerp = |v: &[[f32; 3]]| {
+        (0..3)
+            .fold(DVec3::ZERO, |n, k| n + DVec3::from(v[tri[k] as usize].map(|f| f as f64)) * w[k])
+    };
     let t = inst.transform;
     let obj = DMat3::from_cols_array_2d(&[0, 1, 2].map(|c| [0, 1, 2].map(|r| t[r][c] as f64)));
-    let world_n = (obj.inverse().transpose() * n).normalize();
+    let world_n = (obj.inverse().transpose() * lerp(&m.normals)).normalize();
+    let world_p =
+        obj * lerp(&m.positions) + DVec3::new(t[0][3] as f64, t[1][3] as f64, t[2][3] as f64);
+    let place = 0.8 + 0.2 * (1.7 * world_p.x + 1.1 * world_p.y).sin();
     let lambert = world_n.dot(DVec3::from(LIGHT).normalize()).max(0.0);
-    let base = p.material.map_or([1.0; 4], |k| l.materials[k].base_color);
+    let mat = p.material.map(|k| &l.materials[k]);
+    let base = mat.map_or([1.0; 4], |m| m.base_color);
+    let emissive = mat.map_or([0.0; 3], |m| m.emissive);
+    let textured = if mat.and_then(|m| m.base_color_texture).is_some() { 0.9 } else { 1.0 };
     let mut albedo = [0, 1, 2].map(|k| base[k] as f64);
-    let image = p.material.and_then(|k| l.materials[k].base_color_image);
-    if let (Some(tex), Some(i)) = (tex, image) {
+    if let (Some(tex), Some(i)) = (tex, mat.and_then(|m| m.base_color_image)) {
         let uv = (0..3).fold([0.0; 2], |uv, k| {
             let t = m.uvs[tri[k] as usize];
             [uv[0] + t[0] as f64 * w[k], uv[1] + t[1] as f64 * w[k]]
@@ -122,7 +141,10 @@ fn cpu_pixel(
         (0..3).for_each(|k| albedo[k] *= texel[k]);
         (px.edge, px.textured) = (edge, true);
     }
-    px.color = Some(albedo.map(|a| a * (AMBIENT + (1.0 - AMBIENT) * lambert)));
+    let c = [0, 1, 2].map(|k| {
+        albedo[k] * (AMBIENT + (1.0 - AMBIENT) * lambert) * place * textured + emissive[k] as f64
+    });
+    px.color = Some((c, h.instance));
     px
 }
 
@@ -140,6 +162,8 @@ struct Counts {
     hits: u32,
     /// Of the CPU's hits, those the device's colour is within.
     hits_within: u32,
+    /// Per custom index (global primitive index), the CPU's unambiguous hits on it.
+    per_primitive: Vec<u32>,
 }
 
 /// The device's image in `report` against the CPU's (`textured`: shaded as `-D TEXTURED` does).
@@ -158,7 +182,7 @@ fn compare(scene: &Path, report: &Value, textured: bool) -> Counts {
     let bytes = unb64(out["bytes"].as_str().unwrap());
     assert_eq!(bytes.len(), (size * size) as usize * WORDS * 4);
     let word = |k: usize| u32::from_le_bytes(bytes[4 * k..4 * k + 4].try_into().unwrap());
-    let mut c = Counts::default();
+    let mut c = Counts { per_primitive: vec![0; primitives(&l).len()], ..Counts::default() };
     for y in 0..size {
         for x in 0..size {
             let at = (y * size + x) as usize * WORDS;
@@ -176,9 +200,14 @@ fn compare(scene: &Path, report: &Value, textured: bool) -> Counts {
             let gpu = (word(at) != MISS_MARKER)
                 .then(|| [0, 1, 2].map(|k| f32::from_bits(word(at + k)) as f64));
             c.hits += cpu.is_some() as u32;
+            if let Some((_, custom)) = cpu {
+                c.per_primitive[custom as usize] += 1;
+            }
             let same = match (cpu, gpu) {
                 (None, None) => true,
-                (Some(a), Some(b)) => (0..3).all(|k| (a[k] - b[k]).abs() <= 2.0 / 255.0),
+                (Some((a, custom)), Some(b)) => {
+                    (0..3).all(|k| (a[k] - b[k]).abs() <= 2.0 / 255.0) && word(at + 4) == custom
+                }
                 (None, Some(_)) | (Some(_), None) => false,
             };
             c.hits_within += (same && cpu.is_some()) as u32;
@@ -202,8 +231,9 @@ fn matches(c: &Counts) -> bool {
 }
 
 /// The tutorial-style closest-hit on the test scene under `--validate`: no message, no fault,
-/// its image the CPU's within 2/255 on at least 99.5% of the unambiguous pixels. The twin: the
-/// per-primitive table indexed by the custom index alone fails the same comparison.
+/// its image the CPU's within 2/255 on at least 99.5% of the unambiguous pixels, every primitive
+/// of the scene hit. The twins: the table's entry 0 whatever the custom index, and positions
+/// read without the vertex offset, fail the same comparison.
 #[test]
 fn a_tutorial_closest_hit_renders_the_scene_as_the_cpu_does() {
     let (_d, scene) = test_scene();
@@ -230,6 +260,10 @@ fn a_tutorial_closest_hit_renders_the_scene_as_the_cpu_does() {
     println!("tutorial: {c:?}");
     assert!(c.hits > 100, "the scene is in view: {c:?}");
     assert!(matches(&c), "{c:?}");
+    // Every primitive is hit, the second primitive of the two-primitive pyramid among them, so
+    // a shader reading the wrong primitive's entry shows in the image.
+    assert!(c.per_primitive.len() >= 4, "{c:?}");
+    assert!(c.per_primitive.iter().all(|n| *n >= 8), "every primitive in view: {c:?}");
 
     // The scene description and the normals in buffer bindings: the same image.
     let binding = [
@@ -252,13 +286,26 @@ fn a_tutorial_closest_hit_renders_the_scene_as_the_cpu_does() {
     println!("bindings: {c:?}");
     assert!(matches(&c), "{c:?}");
 
-    let mut wrong = fill.to_vec();
-    wrong.extend(["-D", "WRONG_PRIM"]);
-    let (o, r) = scene_run(&scene, &wrong);
+    // An engine's `customIndex + gl_GeometryIndexEXT` reads the same entry: the same image.
+    let mut engine = fill.to_vec();
+    engine.extend(["-D", "ENGINE_STYLE"]);
+    let (o, r) = scene_run(&scene, &engine);
     let r = r.unwrap_or_else(|| panic!("no report: {}{}", stdout(&o), stderr(&o)));
     let c = compare(&scene, &r, false);
-    println!("WRONG_PRIM: {c:?}");
-    assert!(!matches(&c), "the wrong table index must fail the comparison: {c:?}");
+    println!("ENGINE_STYLE: {c:?}");
+    assert!(matches(&c), "{c:?}");
+
+    // The twins: the custom index ignored (entry 0 for every hit), and positions read without
+    // the primitive's vertex offset, each fail the comparison.
+    for twin in ["WRONG_PRIM_ZERO", "WRONG_POSITIONS"] {
+        let mut wrong = fill.to_vec();
+        wrong.extend(["-D", twin]);
+        let (o, r) = scene_run(&scene, &wrong);
+        let r = r.unwrap_or_else(|| panic!("no report: {}{}", stdout(&o), stderr(&o)));
+        let c = compare(&scene, &r, false);
+        println!("{twin}: {c:?}");
+        assert!(!matches(&c), "{twin} must fail the comparison: {c:?}");
+    }
 }
 
 /// `-D TEXTURED`: the base colour texture from `--fill 1.2=scene.textures` under `--validate`:
@@ -335,8 +382,9 @@ fn scene_textures_given_wrongly_are_one_line_and_no_report() {
     assert!(r.is_none());
 }
 
-/// A scene fill without `--scene`, `scene.textures` into an address, an unknown item, an address
-/// past the push block's end, a missing or broken scene file: one line each, no report.
+/// A scene fill without `--scene`, `scene.textures` into an address, an unknown item, a fill
+/// over a scene address, an address past the push block's end, a missing or broken scene file:
+/// one line each, no report.
 #[test]
 fn scene_fills_given_wrongly_are_one_line_and_no_report() {
     let (_d, scene) = test_scene();
@@ -354,6 +402,11 @@ fn scene_fills_given_wrongly_are_one_line_and_no_report() {
     // An unknown scene item.
     let (o, r) = scene_run(&scene, &["--fill", "push.16=scene.vertices"]);
     assert_one_line_error(&o, 2, "NAME one of positions");
+    assert!(r.is_none());
+    // A fill over the scene description's address slot, before any device work.
+    let over = ["--fill", "push.16=scene.scene_desc", "--fill", "push.16=zero"];
+    let (o, r) = scene_run(&scene, &over);
+    assert_one_line_error(&o, 2, "push.16=zero: overlaps --fill push.16=scene.scene_desc");
     assert!(r.is_none());
     // An address too close to the push block's end.
     let (o, r) = scene_run(&scene, &["--fill", "push.20=scene.positions"]);

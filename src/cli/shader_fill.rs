@@ -1,7 +1,7 @@
 //! `run --shader`'s `--fill` planned before any device work (`harness::fill`: parsed, held to
-//! the given modules as they run, the bytes made; a problem is one line and exit 2, or 9 for a
-//! file that cannot be read or does not fit), and the options that change what runs, for the
-//! cell id (`model::shader_options`).
+//! the given modules as they run, the bytes made, fills that overlap refused; a problem is one
+//! line and exit 2, or 9 for a file that cannot be read or does not fit), and the options that
+//! change what runs, for the cell id (`model::shader_options`).
 use super::args::RunArgs;
 use super::exit::{self, coded};
 use super::shader_plan::{hash_hex, ShaderPlan};
@@ -24,6 +24,8 @@ pub fn fills(
 ) -> Result<(Fills, Vec<SceneFill>, Vec<String>)> {
     let given = sizes.apply(plan.given.clone());
     let (mut out, mut scene_fills, mut words) = (Vec::new(), Vec::new(), Vec::new());
+    // Each fill's text, target and bytes placed, for the overlap check.
+    let mut spans = Vec::new();
     for (at, text) in a.fill.iter().enumerate() {
         let coded_err = |e: FillError| match e {
             FillError::Syntax(..) | FillError::Target(..) => coded(exit::USAGE, e.to_string()),
@@ -45,6 +47,7 @@ pub fn fills(
                 crate::harness::scene_data::resolve_scene(&r, &given, (at, images))
                     .map_err(coded_err)?,
             );
+            spans.push((text.clone(), r.target, 8));
             words.push(format!("{}=scene.{}", target_words(r.target), item.name()));
             continue;
         }
@@ -56,8 +59,10 @@ pub fn fills(
             Source::Scene(item) => format!("scene.{}", item.name()),
         };
         words.push(format!("{}={source}", target_words(r.target)));
+        spans.push((text.clone(), r.target, f.bytes.len() as u32));
         out.push(f);
     }
+    fill::check_disjoint(&spans).map_err(|e| coded(exit::USAGE, e.to_string()))?;
     Ok((Fills(out), scene_fills, words))
 }
 

@@ -75,15 +75,67 @@ pub fn needs<'a>(modules: impl IntoIterator<Item = &'a [u32]>) -> Result<Needs, 
         for e in spirv_extensions(words) {
             extension(&e, &mut n)?;
         }
+        let mut subgroup = false;
         for operands in operands_of(words, OP_CAPABILITY) {
             let Some(&value) = operands.first() else { continue };
             match Capability::from_u32(value) {
-                Some(c) => capability(c, &mut n)?,
+                Some(c) => {
+                    subgroup |= is_subgroup(c);
+                    capability(c, &mut n)?
+                }
                 None => return Err(format!("declares capability {value}, unknown to rtprobe's SPIR-V grammar: rtprobe cannot enable what it needs")),
             }
         }
+        if subgroup {
+            n.shader.subgroup_stages |= stages(words);
+        }
     }
     Ok(n)
+}
+
+/// `OpEntryPoint`'s opcode.
+const OP_ENTRY_POINT: u32 = 15;
+
+/// Whether `c` is a subgroup operation's capability (`GroupNonUniform*`).
+fn is_subgroup(c: Capability) -> bool {
+    use Capability as C;
+    matches!(
+        c,
+        C::GroupNonUniform
+            | C::GroupNonUniformVote
+            | C::GroupNonUniformArithmetic
+            | C::GroupNonUniformBallot
+            | C::GroupNonUniformShuffle
+            | C::GroupNonUniformShuffleRelative
+            | C::GroupNonUniformClustered
+            | C::GroupNonUniformQuad
+    )
+}
+
+/// The stages of `words`' entry points (their execution models).
+fn stages(words: &[u32]) -> ash::vk::ShaderStageFlags {
+    use ash::vk::ShaderStageFlags as S;
+    use rspirv::spirv::ExecutionModel as E;
+    let stage = |model: u32| match E::from_u32(model) {
+        Some(E::Vertex) => S::VERTEX,
+        Some(E::Fragment) => S::FRAGMENT,
+        Some(E::GLCompute) => S::COMPUTE,
+        Some(E::RayGenerationKHR) => S::RAYGEN_KHR,
+        Some(E::IntersectionKHR) => S::INTERSECTION_KHR,
+        Some(E::AnyHitKHR) => S::ANY_HIT_KHR,
+        Some(E::ClosestHitKHR) => S::CLOSEST_HIT_KHR,
+        Some(E::MissKHR) => S::MISS_KHR,
+        Some(E::CallableKHR) => S::CALLABLE_KHR,
+        Some(E::TaskEXT) => S::TASK_EXT,
+        Some(E::MeshEXT) => S::MESH_EXT,
+        // Other execution models (geometry, tessellation, the NV ones) are refused by their
+        // capabilities before this matters; nothing to ask of subgroupSupportedStages.
+        _ => S::empty(),
+    };
+    operands_of(words, OP_ENTRY_POINT)
+        .into_iter()
+        .filter_map(|o| o.first().copied())
+        .fold(S::empty(), |acc, m| acc | stage(m))
 }
 
 /// The recompile hint for DXC's old ray tracing output.
@@ -204,7 +256,13 @@ fn other_capability(c: Capability, n: &mut Needs) -> Result<(), String> {
         Capability::SampledImageArrayNonUniformIndexing => s.sampled_image_non_uniform = true,
         Capability::StorageBufferArrayNonUniformIndexing => s.storage_buffer_non_uniform = true,
         Capability::StorageImageArrayNonUniformIndexing => s.storage_image_non_uniform = true,
-        Capability::VariablePointers => s.variable_pointers = true,
+        // VUID-VkPhysicalDeviceVariablePointersFeatures-variablePointers-01431 (Vulkan
+        // 1.4.360): "If variablePointers is enabled then variablePointersStorageBuffer must also
+        // be enabled".
+        Capability::VariablePointers => {
+            s.variable_pointers = true;
+            s.variable_pointers_storage_buffer = true;
+        }
         Capability::VariablePointersStorageBuffer => s.variable_pointers_storage_buffer = true,
         Capability::DrawParameters => s.draw_parameters = true,
         Capability::VulkanMemoryModel => s.vulkan_memory_model = true,
@@ -295,6 +353,31 @@ mod tests {
         let mut req = Requirements { ray_query: false, ..Requirements::default() };
         n.apply(&mut req);
         assert_eq!(req.shader, s);
+    }
+
+    /// Subgroup operations record the stages of the modules that use them (for
+    /// `subgroupSupportedStages`); the twin: a module without them adds no stage.
+    #[test]
+    fn subgroup_operations_record_their_stage() {
+        use Capability as C;
+        let mut chit = module(&[C::Shader, C::GroupNonUniformBallot], &[]);
+        chit.extend([(3 << 16) | OP_ENTRY_POINT, 5316, 1]);
+        let mut plain = module(&[C::Shader], &[]);
+        plain.extend([(3 << 16) | OP_ENTRY_POINT, 5313, 2]);
+        let n = needs([chit.as_slice(), plain.as_slice()]).unwrap();
+        assert_eq!(n.shader.subgroup_stages, ash::vk::ShaderStageFlags::CLOSEST_HIT_KHR);
+        assert!(needs([plain.as_slice()]).unwrap().shader.subgroup_stages.is_empty());
+    }
+
+    /// `VariablePointers` alone enables `variablePointersStorageBuffer` too (VUID-…-01431); the
+    /// twin: `VariablePointersStorageBuffer` alone leaves `variablePointers` off.
+    #[test]
+    fn variable_pointers_bring_their_storage_buffer_bit() {
+        use Capability as C;
+        let s = of(&[C::VariablePointers], &["SPV_KHR_variable_pointers"]).unwrap().shader;
+        assert!(s.variable_pointers && s.variable_pointers_storage_buffer);
+        let s = of(&[C::VariablePointersStorageBuffer], &[]).unwrap().shader;
+        assert!(s.variable_pointers_storage_buffer && !s.variable_pointers);
     }
 
     /// Twin: capabilities core in Vulkan 1.0–1.2 or always enabled by the harness ask for

@@ -226,7 +226,52 @@ pub fn resolve(r: &Request, modules: &[UserModule]) -> Result<Fill, FillError> {
     Ok(Fill { target: r.target, bytes })
 }
 
-/// The fills of a run, in the order given (a later one over an earlier one where they meet).
+/// Where a fill's bytes go: a buffer binding (its element, or every element: `None`), or a byte
+/// range of the push constants (`false`) or the shader record (`true`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Span {
+    Binding(u32, u32, Option<u32>),
+    Block(bool, u32, u32),
+}
+
+impl Span {
+    fn of(target: Target, len: u32) -> Span {
+        match target {
+            Target::Binding { set, binding, element } => Span::Binding(set, binding, element),
+            Target::Push(o) => Span::Block(false, o, o + len),
+            Target::Record(o) => Span::Block(true, o, o + len),
+        }
+    }
+
+    fn meets(self, other: Span) -> bool {
+        match (self, other) {
+            (Span::Binding(s, b, e), Span::Binding(s2, b2, e2)) => {
+                (s, b) == (s2, b2) && (e.is_none() || e2.is_none() || e == e2)
+            }
+            (Span::Block(r, a, b), Span::Block(r2, a2, b2)) => r == r2 && a < b2 && a2 < b,
+            (Span::Binding(..), Span::Block(..)) | (Span::Block(..), Span::Binding(..)) => false,
+        }
+    }
+}
+
+/// Two of `fills` (each its text, target and the bytes it places: a scene address's 8) that
+/// meet — the same buffer element, or overlapping push or record bytes — refused naming both:
+/// which one the shader would read is no choice rtprobe should make silently.
+pub fn check_disjoint(fills: &[(String, Target, u32)]) -> Result<(), FillError> {
+    for (k, (text, target, len)) in fills.iter().enumerate() {
+        let here = Span::of(*target, *len);
+        if let Some((first, ..)) = fills[..k].iter().find(|(_, t, l)| Span::of(*t, *l).meets(here))
+        {
+            return Err(FillError::Target(
+                text.clone(),
+                format!("overlaps --fill {first} (the same buffer element, or push or record bytes both write); give fills that do not overlap (a zero or random fill runs to the block's end: fill the bytes before the other instead, or give a file)"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The fills of a run, in the order given (none overlaps another: [`check_disjoint`]).
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Fills(pub Vec<Fill>);
 
@@ -298,6 +343,26 @@ mod tests {
         assert_eq!(p.source, Source::Scene(super::super::scene_item::Item::SceneDesc));
         let e = parse("0.1=scene.vertices").unwrap_err().to_string();
         assert!(e.contains("scene.NAME, NAME one of positions,"), "{e}");
+    }
+
+    /// Fills that meet are refused naming both: a scene address under a zero fill, two push
+    /// ranges overlapping by one byte, an element under a whole-binding fill. The twins:
+    /// adjacent push ranges, push and record at one offset, two elements of one binding.
+    #[test]
+    fn overlapping_fills_are_refused() {
+        let f = |t: &str, len| (t.to_string(), parse(t).unwrap().target, len);
+        let e = check_disjoint(&[f("push.16=scene.scene_desc", 8), f("push.16=zero", 16)]);
+        let e = e.unwrap_err().to_string();
+        assert!(
+            e.starts_with("--fill push.16=zero: overlaps --fill push.16=scene.scene_desc"),
+            "{e}"
+        );
+        assert!(!e.contains('\n'));
+        assert!(check_disjoint(&[f("push.0=zero", 9), f("push.8=zero", 8)]).is_err());
+        assert!(check_disjoint(&[f("1.0=zero", 64), f("1.0[2]=zero", 64)]).is_err());
+        assert!(check_disjoint(&[f("push.0=zero", 8), f("push.8=zero", 8)]).is_ok());
+        assert!(check_disjoint(&[f("push.0=zero", 8), f("record.0=zero", 8)]).is_ok());
+        assert!(check_disjoint(&[f("1.0[1]=zero", 64), f("1.0[2]=zero", 64)]).is_ok());
     }
 
     /// SplitMix64 from seed 0 gives its published first output; another seed other bytes.

@@ -28,6 +28,7 @@ pub mod hit_table;
 pub mod inject;
 pub mod ints;
 mod module;
+pub mod per_primitive;
 pub mod profile;
 pub mod ray_types;
 mod record;

@@ -44,9 +44,11 @@ pub fn build(size: u32) -> Scene {
 }
 
 /// A `--scene` file's scene as the harness traces it: fitted into the view at `size`×`size`
-/// (`scene::gltf::fit`), custom index the mesh's index.
+/// (`scene::gltf::fit`), then one BLAS per primitive and one instance per (node, primitive),
+/// custom index the primitive's global index, as the glTF ray tracing tutorial
+/// (`per_primitive::flatten`).
 pub fn loaded(l: &crate::scene::gltf::Loaded, size: u32) -> Scene {
-    crate::scene::gltf::fit::to_scene(l, &params(size))
+    super::per_primitive::flatten(crate::scene::gltf::fit::to_scene(l, &params(size)))
 }
 
 /// The runtime array elements a `--scene` file needs: one more than every index its hit

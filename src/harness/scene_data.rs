@@ -3,12 +3,13 @@
 //! Positions and normals are tightly packed `vec3` (scalar layout), UVs `vec2`, indices `uint`
 //! relative to their primitive's first vertex (the shader adds `vertexOffset`), a mesh without
 //! normals or UVs holds zeros there so every vertex list stays aligned with the positions.
-//! Materials are [`MATERIAL_BYTES`] each (`vec4 baseColorFactor; int baseColorTexture; float
-//! alphaCutoff; uint alphaMode; uint pad`), the document's then glTF's default material (a
-//! primitive without one points at it). `prim_info` starts with one header per mesh
-//! `{firstEntry, primitiveCount, meshIndex}` (indexed by the custom index, which is the mesh's
-//! index), then one `PrimMeshInfo {indexOffset, vertexOffset, materialIndex}` per primitive,
-//! entry `firstEntry + gl_GeometryIndexEXT` (offsets in the shared index and vertex lists).
+//! Materials are the tutorial's `GltfShadeMaterial` ([`MATERIAL_BYTES`] each, scalar layout:
+//! `vec4 pbrBaseColorFactor; vec3 emissiveFactor; int pbrBaseColorTexture`, the texture a glTF
+//! texture index or −1), the document's then glTF's default material (a primitive without one
+//! points at it). `prim_info` is the tutorial's flat table: one
+//! `PrimMeshInfo {indexOffset, vertexOffset, materialIndex}` per primitive, mesh by mesh, entry
+//! `gl_InstanceCustomIndexEXT` (the harness traces one BLAS per primitive, custom index the
+//! primitive's global index: `per_primitive`); offsets in the shared index and vertex lists.
 //! `scene_desc` is the device addresses of the six buffers as `uint64`. The child makes the
 //! buffers named by the fills ([`SceneBuffers`]); the parent sums their bytes first ([`bytes_needed`]).
 use super::error::HarnessError;
@@ -21,10 +22,10 @@ use crate::vk::Gpu;
 use ash::vk;
 use serde::{Deserialize, Serialize};
 
-/// Bytes of one material: `vec4 baseColorFactor; int baseColorTexture; float alphaCutoff;
-/// uint alphaMode; uint pad`.
+/// Bytes of one material: `vec4 pbrBaseColorFactor; vec3 emissiveFactor;
+/// int pbrBaseColorTexture` (scalar layout: the texture index at byte 28).
 pub const MATERIAL_BYTES: usize = 32;
-/// Bytes of one `prim_info` entry (a mesh header or a `PrimMeshInfo`).
+/// Bytes of one `prim_info` entry (`PrimMeshInfo`).
 pub const PRIM_INFO_BYTES: usize = 12;
 /// Bytes of `scene_desc`: six device addresses.
 pub const SCENE_DESC_BYTES: usize = 48;
@@ -48,39 +49,30 @@ fn mesh_bases(loaded: &Loaded) -> Vec<(u32, u32)> {
         .collect()
 }
 
-/// The materials: the document's, then glTF's default (white, opaque, no texture).
+/// The materials: the document's, then glTF's default (white, no emission, no texture).
 fn materials(loaded: &Loaded) -> Vec<u8> {
     let mut out = Vec::new();
     let default = crate::scene::gltf::Material {
         name: "default".into(),
         base_color: [1.0; 4],
         base_color_image: None,
+        base_color_texture: None,
+        emissive: [0.0; 3],
         alpha: Alpha::Opaque,
     };
     for m in loaded.materials.iter().chain([&default]) {
         out.extend(m.base_color.iter().flat_map(|f| f.to_le_bytes()));
+        out.extend(m.emissive.iter().flat_map(|f| f.to_le_bytes()));
+        // The image index, so it selects the `scene.textures` element (element i = image i); it
+        // is the glTF texture index where texture i's source is image i, as exporters write it.
         out.extend(m.base_color_image.map_or(-1, |i| i as i32).to_le_bytes());
-        let (cutoff, mode) = match m.alpha {
-            Alpha::Opaque => (0.5, 0u32),
-            Alpha::Mask(c) => (c, 1),
-            Alpha::Blend => (0.5, 2),
-        };
-        out.extend(cutoff.to_le_bytes());
-        out.extend(mode.to_le_bytes());
-        out.extend(0u32.to_le_bytes());
     }
     out
 }
 
-/// The mesh headers, then every primitive's `PrimMeshInfo`.
+/// Every primitive's `PrimMeshInfo`, mesh by mesh (entry k: global primitive k).
 fn prim_info(loaded: &Loaded) -> Vec<u8> {
     let mut out = Vec::new();
-    let mut entry = loaded.meshes.len() as u32;
-    for (k, m) in loaded.meshes.iter().enumerate() {
-        let n = m.primitives.len() as u32;
-        [entry, n, k as u32].iter().for_each(|w| out.extend(w.to_le_bytes()));
-        entry += n;
-    }
     let default = loaded.materials.len() as i32;
     for (m, (v, i)) in loaded.meshes.iter().zip(mesh_bases(loaded)) {
         for p in &m.primitives {
@@ -276,19 +268,18 @@ mod tests {
     }
 
     /// Every `PrimMeshInfo` points at its primitive's triangles and vertices in the shared
-    /// lists: the triangle the loader holds is the one the layout gives.
+    /// lists, entry k the k-th primitive mesh by mesh: the triangle the loader holds is the one
+    /// the layout gives, and the flattened scene's custom index names that entry.
     #[test]
     fn prim_info_finds_every_primitives_triangles() {
         let (_d, l) = test_scene();
         let info = words(&bytes(&l, Item::PrimInfo));
         let idx = words(&bytes(&l, Item::Indices));
         let pos = bytes(&l, Item::Positions);
-        let (mut bases_v, mut seen) = (0usize, 0);
+        let (mut bases_v, mut seen, mut entry) = (0usize, 0, 0usize);
         for (k, m) in l.meshes.iter().enumerate() {
-            let first = info[3 * k] as usize;
-            assert_eq!(info[3 * k + 1] as usize, m.primitives.len());
             for (g, p) in m.primitives.iter().enumerate() {
-                let e = &info[3 * (first + g)..3 * (first + g) + 3];
+                let e = &info[3 * entry..3 * entry + 3];
                 for t in 0..p.triangles {
                     let want = m.triangle(p.first_triangle + t);
                     let got: Vec<u32> =
@@ -307,12 +298,18 @@ mod tests {
                 }
                 let mat = e[2] as usize;
                 assert_eq!(Some(mat).filter(|m| *m < l.materials.len()), p.material);
+                entry += 1;
             }
             bases_v += m.positions.len();
         }
+        assert_eq!(info.len(), 3 * entry, "one entry per primitive, no header");
         assert_eq!(seen, l.meshes.iter().map(|m| m.indices.len()).sum::<usize>());
-        // Twin: the header read as a primitive (indexing by the custom index alone) is not it.
-        assert_ne!(&info[0..3], &info[3 * info[0] as usize..3 * info[0] as usize + 3]);
+        // The flattened scene's custom indices are exactly the entries, each primitive's.
+        let s = super::super::scene::loaded(&l, 64);
+        let mut customs: Vec<u32> = s.instances.iter().map(|i| i.custom_index).collect();
+        customs.sort_unstable();
+        customs.dedup();
+        assert_eq!(customs, (0..entry as u32).collect::<Vec<_>>());
     }
 
     /// The largest device-local heap: a host-only heap larger than it does not count (the
@@ -342,6 +339,17 @@ mod tests {
         assert_eq!(m.len(), MATERIAL_BYTES * (l.materials.len() + 1));
         let w = words(&m);
         assert_eq!(f32::from_bits(w[0]), l.materials[0].base_color[0]);
+        // The tutorial's GltfShadeMaterial: emissive at bytes 16..28, the texture at 28.
+        for (k, mat) in l.materials.iter().enumerate() {
+            let e = &w[8 * k..8 * k + 8];
+            assert_eq!(
+                e[4..7].iter().map(|b| f32::from_bits(*b)).collect::<Vec<_>>(),
+                mat.emissive
+            );
+            assert_eq!(e[7] as i32, mat.base_color_image.map_or(-1, |t| t as i32));
+        }
+        assert!(l.materials.iter().any(|m| m.emissive != [0.0; 3]), "the test scene emits");
+        assert_eq!(w[8 * l.materials.len() + 7] as i32, -1, "the default has no texture");
         let needed = bytes_needed(&l, &[Item::SceneDesc], 0);
         let six: u64 = DESC_ORDER.iter().map(|i| bytes(&l, *i).len() as u64).sum();
         assert_eq!(needed, six + SCENE_DESC_BYTES as u64);

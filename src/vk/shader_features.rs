@@ -53,6 +53,9 @@ pub struct ShaderFeatures {
     /// The subgroup operations (`GroupNonUniform*`) the modules use; the appendix asks them of
     /// `VkPhysicalDeviceVulkan11Properties::subgroupSupportedOperations`.
     pub subgroup: vk::SubgroupFeatureFlags,
+    /// The stages of the modules that use subgroup operations: VUID-RuntimeSpirv-None-06343
+    /// (Vulkan 1.4.360) asks them of `subgroupSupportedStages`.
+    pub subgroup_stages: vk::ShaderStageFlags,
     /// A SPIR-V extension the appendix enables with Vulkan 1.3 (`SPV_KHR_non_semantic_info`, …).
     pub vulkan13: bool,
 }
@@ -323,6 +326,16 @@ impl ShaderFeatures {
         if !ops.contains(self.subgroup) {
             m.push(format!("subgroupSupportedOperations {:?}", self.subgroup & !ops));
         }
+        let stages = info
+            .properties
+            .v11
+            .map_or(vk::ShaderStageFlags::empty(), |p| p.subgroup_supported_stages);
+        if !stages.contains(self.subgroup_stages) {
+            m.push(format!(
+                "subgroupSupportedStages {:?} (subgroup operations in that stage)",
+                self.subgroup_stages & !stages
+            ));
+        }
         if self.vulkan13 && !v13 {
             m.push("Vulkan 1.3 (a SPIR-V extension core in 1.3)".into());
         }
@@ -395,5 +408,22 @@ mod tests {
         let rq =
             ShaderFeatures { subgroup: vk::SubgroupFeatureFlags::BALLOT, ..Default::default() };
         assert_eq!(rq.missing_on(&full).len(), 1, "no subgroup operations reported");
+        // Subgroup operations in a closest-hit: the stage must be in subgroupSupportedStages.
+        let chit = vk::ShaderStageFlags::CLOSEST_HIT_KHR;
+        let ballot = vk::SubgroupFeatureFlags::BALLOT;
+        let asked =
+            ShaderFeatures { subgroup: ballot, subgroup_stages: chit, ..Default::default() };
+        let mut dev = device(Default::default(), Default::default(), vk::API_VERSION_1_2);
+        let v11 = vk::PhysicalDeviceVulkan11Properties::default()
+            .subgroup_supported_operations(ballot)
+            .subgroup_supported_stages(vk::ShaderStageFlags::COMPUTE);
+        dev.properties.v11 = Some(v11);
+        let m = asked.missing_on(&dev);
+        assert_eq!(m.len(), 1, "{m:?}");
+        assert!(m[0].starts_with("subgroupSupportedStages CLOSEST_HIT_KHR"), "{m:?}");
+        // The twin: the stage supported, nothing missing.
+        dev.properties.v11 =
+            Some(v11.subgroup_supported_stages(chit | vk::ShaderStageFlags::COMPUTE));
+        assert!(asked.missing_on(&dev).is_empty());
     }
 }

@@ -1,8 +1,9 @@
 //! Writes glTF scenes for tests and measurements (`rtprobe scene make`), so no scene is
 //! downloaded: the **test scene** — three meshes (a textured ground height field, a pyramid whose
-//! two primitives have different materials, an alpha-masked leaf quad instanced by three nodes),
-//! a node hierarchy with translations, rotations and scales, three materials (one with
-//! `alphaMode` MASK), two PNG textures and a camera — and, with `triangles`, a **large scene** of
+//! two primitives — two opposite sides, then the other two with the base — have different
+//! materials, an alpha-masked leaf quad instanced by three nodes), a node hierarchy with
+//! translations, rotations and scales, three materials (one with `alphaMode` MASK, one with an
+//! `emissiveFactor`), two PNG textures and a camera — and, with `triangles`, a **large scene** of
 //! height-field meshes with at least that many triangles. As `.gltf` + `.bin` + PNGs, or one
 //! `.glb` with the images in buffer views. Every file is written atomically.
 use serde_json::{json, Value};
@@ -115,26 +116,34 @@ fn height_field(n: u32, material: usize, phase: f32) -> Prim {
     Prim { positions, normals, uvs, indices, material }
 }
 
+/// A pyramid of two primitives: two opposite sides (red), then the other two sides with the base
+/// (the leaf's material), so that from any side both primitives are in view.
 fn pyramid() -> Vec<Prim> {
     let apex = [0.0, 1.0, 0.0];
     let b = [[-0.5, 0.0, -0.5], [0.5, 0.0, -0.5], [0.5, 0.0, 0.5], [-0.5, 0.0, 0.5]];
-    let mut sides =
-        Prim { positions: vec![], normals: vec![], uvs: vec![], indices: vec![], material: 1 };
-    for k in 0..4 {
-        let base = sides.positions.len() as u32;
-        sides.positions.extend([b[k], b[(k + 1) % 4], apex]);
-        sides.normals.extend([[0.0, 0.45, 0.9]; 3]);
-        sides.uvs.extend([[0.0, 0.0], [1.0, 0.0], [0.5, 1.0]]);
-        sides.indices.extend([base, base + 2, base + 1]);
-    }
-    let base = Prim {
-        positions: b.to_vec(),
-        normals: vec![[0.0, -1.0, 0.0]; 4],
-        uvs: vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
-        indices: vec![0, 1, 2, 0, 2, 3],
-        material: 2,
+    let prim = |material| Prim {
+        positions: vec![],
+        normals: vec![],
+        uvs: vec![],
+        indices: vec![],
+        material,
     };
-    vec![sides, base]
+    let mut sides = [prim(1), prim(2)];
+    for k in 0..4 {
+        let p = &mut sides[k % 2];
+        let base = p.positions.len() as u32;
+        p.positions.extend([b[k], b[(k + 1) % 4], apex]);
+        p.normals.extend([[0.0, 0.45, 0.9]; 3]);
+        p.uvs.extend([[0.0, 0.0], [1.0, 0.0], [0.5, 1.0]]);
+        p.indices.extend([base, base + 2, base + 1]);
+    }
+    let [red, mut rest] = sides;
+    let base = rest.positions.len() as u32;
+    rest.positions.extend(b);
+    rest.normals.extend([[0.0, -1.0, 0.0]; 4]);
+    rest.uvs.extend([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]);
+    rest.indices.extend([0, 1, 2, 0, 2, 3].map(|i| base + i));
+    vec![red, rest]
 }
 
 fn leaf() -> Prim {
@@ -179,7 +188,7 @@ fn quat(axis: [f32; 3], angle: f32) -> [f32; 4] {
 fn materials() -> Value {
     json!([
         {"name": "checker", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}, "baseColorFactor": [1.0, 1.0, 1.0, 1.0]}},
-        {"name": "red", "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.1, 0.1, 1.0]}},
+        {"name": "red", "emissiveFactor": [0.05, 0.0, 0.15], "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.1, 0.1, 1.0]}},
         {"name": "leaf", "alphaMode": "MASK", "alphaCutoff": 0.5, "doubleSided": true,
          "pbrMetallicRoughness": {"baseColorTexture": {"index": 1}}}
     ])

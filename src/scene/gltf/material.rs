@@ -25,6 +25,11 @@ pub struct Material {
     pub base_color: [f32; 4],
     /// The base colour texture's image: an index into the document's images.
     pub base_color_image: Option<usize>,
+    /// The base colour texture: an index into the document's textures (the glTF ray tracing
+    /// tutorial's `pbrBaseColorTexture`).
+    pub base_color_texture: Option<usize>,
+    /// `emissiveFactor` (glTF's default: black).
+    pub emissive: [f32; 3],
     pub alpha: Alpha,
 }
 
@@ -39,6 +44,8 @@ pub(super) fn read(m: &gltf::Material) -> Material {
         name: m.name().map_or_else(|| format!("material {}", m.index().unwrap_or(0)), String::from),
         base_color: pbr.base_color_factor(),
         base_color_image: pbr.base_color_texture().map(|t| t.texture().source().index()),
+        base_color_texture: pbr.base_color_texture().map(|t| t.texture().index()),
+        emissive: m.emissive_factor(),
         alpha,
     }
 }

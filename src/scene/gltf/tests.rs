@@ -30,9 +30,11 @@ fn the_test_scene_loads_with_its_meshes_nodes_materials_and_camera() {
     let tris: Vec<u32> = s.meshes.iter().map(|m| m.triangle_count()).collect();
     assert_eq!(tris, vec![128, 6, 2]);
     assert_eq!(s.meshes[1].primitives.len(), 2);
-    assert_eq!(s.meshes[1].primitives[1].first_triangle, 4);
-    assert_eq!(s.meshes[1].primitives[1].vertex_offset, 12);
-    assert_eq!(s.meshes[1].triangle(4), [12, 13, 14]);
+    assert_eq!(s.meshes[1].primitives[1].first_triangle, 2);
+    assert_eq!(s.meshes[1].primitives[1].vertex_offset, 6);
+    assert_eq!(s.meshes[1].triangle(2), [6, 8, 7]);
+    assert_eq!(s.materials[1].emissive, [0.05, 0.0, 0.15]);
+    assert_eq!(s.materials[2].base_color_texture, Some(1));
     assert_eq!(s.instances.iter().map(|i| i.mesh).collect::<Vec<_>>(), vec![0, 1, 2, 2, 2]);
     assert_eq!(s.triangles(), 128 + 6 + 3 * 2);
     assert_eq!(s.materials[2].alpha, Alpha::Mask(0.5));
@@ -89,7 +91,7 @@ fn the_fitted_scene_fills_the_view_keeps_facing_and_uses_mesh_indices() {
     assert_eq!(scene.instances.len(), 5);
     assert_eq!(scene.params.instances, 5);
     assert_eq!(scene.meshes.len(), 4, "three meshes and the floor");
-    assert_eq!(scene.meshes[1].geometries, vec![0..4, 4..6]);
+    assert_eq!(scene.meshes[1].geometries, vec![0..2, 2..6]);
     let customs: Vec<u32> = scene.instances.iter().map(|i| i.custom_index).collect();
     assert_eq!(customs, vec![0, 1, 2, 2, 2]);
     let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
