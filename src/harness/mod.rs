@@ -341,23 +341,7 @@ impl Harness {
             record::check(record.len(), p.shader_group_handle_size, p.max_shader_group_stride)?;
         }
         res.textures.upload(&gpu, &submitter, timeout)?;
-        let bound =
-            match setup.model {
-                DescriptorModel::DescriptorHeap => {
-                    let owned: Vec<UserModule> = modules.iter().map(|m| (*m).clone()).collect();
-                    let arrays = match setup.heap_layout.clone() {
-                        Some(a) => a,
-                        None => heap::arrays(&owned)?,
-                    };
-                    let first = res.bindings.values().map(|(_, e)| e.len() as u32).sum::<u32>() + 1;
-                    let data = (first, res.sink.address);
-                    Bound::Heap(heap::HeapModel::new(&gpu, &arrays, &res.bindings, &scene, data)?)
-                }
-                DescriptorModel::DescriptorIndexing => Bound::Sets,
-                DescriptorModel::DescriptorBuffer => Bound::Buffers(
-                    buffers::DescriptorBuffers::new(&gpu, &res.set_layouts, &res.bindings)?,
-                ),
-            };
+        let bound = bind_model(&gpu, &setup, modules, &res, &scene)?;
         let push_size = push_size.div_ceil(4) * 4;
         let push_ints = push_ints(modules);
         let range =
@@ -787,4 +771,31 @@ pub fn verify_with(
     step("trace patched");
     let patched = h.trace(&a, Some(contract))?;
     Ok((h.device_name(), compare(&unpatched, &again, &patched)))
+}
+
+/// The descriptors bound for `setup`'s descriptor model: the heaps (the layout from
+/// `--heap-layout` or the modules), the sets, or the descriptor buffers.
+fn bind_model(
+    gpu: &Gpu,
+    setup: &Setup,
+    modules: &[&UserModule],
+    res: &Resources,
+    scene: &SceneGpu,
+) -> Result<Bound, HarnessError> {
+    Ok(match setup.model {
+        DescriptorModel::DescriptorHeap => {
+            let owned: Vec<UserModule> = modules.iter().map(|m| (*m).clone()).collect();
+            let arrays = match setup.heap_layout.clone() {
+                Some(a) => a,
+                None => heap::arrays(&owned)?,
+            };
+            let first = res.bindings.values().map(|(_, e)| e.len() as u32).sum::<u32>() + 1;
+            let data = (first, res.sink.address);
+            Bound::Heap(heap::HeapModel::new(gpu, &arrays, &res.bindings, scene, data)?)
+        }
+        DescriptorModel::DescriptorIndexing => Bound::Sets,
+        DescriptorModel::DescriptorBuffer => {
+            Bound::Buffers(buffers::DescriptorBuffers::new(gpu, &res.set_layouts, &res.bindings)?)
+        }
+    })
 }

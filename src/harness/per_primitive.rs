@@ -17,7 +17,7 @@ fn geometry_mesh(m: &Mesh, g: &std::ops::Range<u32>) -> Mesh {
     let indices: Vec<[u32; 3]> = tris.iter().map(|t| t.map(|i| i - lo)).collect();
     Mesh {
         positions: m.positions[lo as usize..hi as usize].to_vec(),
-        geometries: vec![0..indices.len() as u32],
+        geometries: std::iter::once(0..indices.len() as u32).collect(),
         indices,
     }
 }
@@ -64,7 +64,8 @@ pub fn flatten(scene: Scene) -> Scene {
         ..scene.floor
     };
     let params = crate::model::SceneParams { instances: instances.len() as u32, ..scene.params };
-    Scene { params, meshes, instances, floor, no_opaque: scene.no_opaque }
+    let procedural_sbt_offset = scene.procedural_sbt_offset;
+    Scene { params, meshes, instances, floor, no_opaque: scene.no_opaque, procedural_sbt_offset }
 }
 
 #[cfg(test)]
@@ -86,7 +87,11 @@ mod tests {
             indices: vec![[0, 1, 2], [1, 3, 2], [4, 5, 6]],
             geometries: vec![0..2, 2..3],
         };
-        let b = Mesh { positions: quad(2.0), indices: vec![[0, 1, 2]], geometries: vec![0..1] };
+        let b = Mesh {
+            positions: quad(2.0),
+            indices: vec![[0, 1, 2]],
+            geometries: std::iter::once(0..1).collect(),
+        };
         let inst = |m, x| Instance {
             transform: [[1.0, 0.0, 0.0, x], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]],
             custom_index: 99,
@@ -118,6 +123,8 @@ mod tests {
         assert_eq!(tri(0, 1), old[1]);
         assert_eq!(tri(1, 0), old[2]);
         assert_eq!(f.meshes[1].positions.len(), 3);
-        assert!(f.meshes[..3].iter().all(|m| m.geometries == vec![0..m.indices.len() as u32]));
+        assert!(f.meshes[..3]
+            .iter()
+            .all(|m| m.geometries.len() == 1 && m.geometries[0] == (0..m.indices.len() as u32)));
     }
 }
