@@ -116,7 +116,12 @@ fn element_data(fills: &Fills, d: u32, key: (u32, u32), k: u32, b: &Binding, sin
         | BindingKind::CombinedImageSampler => 0,
     };
     match fills.buffer(key, k) {
-        Some(bytes) => bytes.to_vec(),
+        // Fewer bytes than the block: zeros past them, so the block the shader reads is there.
+        Some(bytes) => {
+            let mut v = bytes.to_vec();
+            v.resize(v.len().max(size as usize), 0);
+            v
+        }
         None => buffer_data(d, size, &b.ints, sink),
     }
 }
@@ -216,9 +221,10 @@ impl Making<'_> {
                 let usage = vk::BufferUsageFlags::STORAGE_BUFFER
                     | vk::BufferUsageFlags::UNIFORM_BUFFER
                     | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
-                // A filled buffer holds the fill's bytes (`--scene`'s data: sized to them).
-                let size =
-                    self.fills.buffer(key, k).map_or(size as u64, |b| b.len().max(16) as u64);
+                // A filled buffer holds the fill's bytes (`--scene`'s data: sized to them), and
+                // at least the reflected block, zero-padded (`element_data`).
+                let filled = self.fills.buffer(key, k).map(|b| b.len().max(16) as u64);
+                let size = filled.map_or(size as u64, |f| f.max(size as u64));
                 let buf = Buffer::new(gpu, size, usage, Location::Host, "harness buffer")?;
                 buf.write(0, &element_data(self.fills, made.buffers, key, k, b, self.sink));
                 made.buffers += 1;
@@ -567,6 +573,32 @@ mod tests {
         let masked = mask_sink(data.clone(), sink);
         assert_eq!(&masked[8..16], &SINK_MARK.to_le_bytes());
         assert_eq!((&masked[..8], &masked[16..]), (&data[..8], &data[16..]));
+    }
+
+    /// A fill shorter than its block (36 bytes of scene positions into a `vec4 v[4]` block) is
+    /// zero-padded to the block: the shader's 64 bytes are there. A longer fill is kept whole.
+    #[test]
+    fn a_short_fill_is_padded_to_its_block() {
+        use super::super::fill::{Fill, Target};
+        let b = Binding {
+            set: 0,
+            binding: 1,
+            kind: BindingKind::UniformBuffer(64),
+            count: 1,
+            runtime: false,
+            writable: false,
+            ints: IntWords::default(),
+            atomic: false,
+            records: None,
+        };
+        let fill = |n: usize| {
+            let target = Target::Binding { set: 0, binding: 1, element: None };
+            Fills(vec![Fill { target, bytes: vec![7; n] }])
+        };
+        let short = element_data(&fill(36), 0, (0, 1), 0, &b, 0);
+        assert_eq!(short.len(), 64);
+        assert!(short[..36].iter().all(|x| *x == 7) && short[36..].iter().all(|x| *x == 0));
+        assert_eq!(element_data(&fill(100), 0, (0, 1), 0, &b, 0), vec![7; 100]);
     }
 
     /// The supplied raygen's TLAS binding is the scene TLAS; other TLAS bindings take turns.
