@@ -11,8 +11,10 @@
 use super::error::HarnessError;
 use super::module::UserModule;
 
-/// Strides beyond this are refused (a table of `geometries × stride` records).
-pub const MAX_STRIDE: u32 = 64;
+/// Strides beyond this are refused: "Only the 4 least-significant bits of SBT Offset and SBT
+/// Stride are used by this instruction - other bits are ignored" (SPIR-V 1.6, OpTraceRayKHR), so
+/// a driver traces stride 17 as stride 1 and a table laid out for 17 would be the wrong one.
+pub const MAX_STRIDE: u32 = 15;
 
 /// A hit group: for geometry of this kind, of this ray type.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -49,7 +51,7 @@ pub fn layout(
             let Some(k) = t.sbt_offset else { continue };
             let stride = match t.sbt_stride {
                 Some(s) if s <= MAX_STRIDE => s,
-                Some(s) => return Err(unsupported(format!("{} traces a ray with sbtRecordStride {s}; the harness lays out strides up to {MAX_STRIDE}", m.name))),
+                Some(s) => return Err(unsupported(format!("{} traces a ray with sbtRecordStride {s}; OpTraceRayKHR uses only its 4 low bits (SPIR-V 1.6), so strides 0 to {MAX_STRIDE} run here: give the stride your hit table really has", m.name))),
                 None if geometries <= 1 => 0,
                 None => return Err(unsupported(format!("{} traces a ray whose sbtRecordStride is not a constant; the harness scene's meshes have {geometries} geometries each, so the stride picks the hit group (geometryIndex × sbtRecordStride + sbtRecordOffset, Vulkan 1.4.360, Shader Binding Table, Hit Shaders): pass it as a literal, or compile with `glslangValidator -V -Os` and give the .spv so it folds", m.name))),
             };

@@ -313,9 +313,20 @@ impl SceneGpu {
     ) -> Result<(AccelStruct, Buffer, vk::AccelerationStructureBuildGeometryInfoKHR<'a>), VkError>
     {
         let accel = gpu.accel.as_ref().expect("acceleration structures enabled");
+        // A module reading `HitTriangleVertexPositionsKHR`: "The acceleration structure
+        // corresponding to the current intersection must have been built with
+        // VK_BUILD_ACCELERATION_STRUCTURE_ALLOW_DATA_ACCESS_BIT_KHR"
+        // (VUID-HitTriangleVertexPositionsKHR-None-08751, Vulkan 1.4.360). Set on every BLAS of a
+        // device given rayTracingPositionFetch, which only such modules ask for.
+        let mut flags = vk::BuildAccelerationStructureFlagsKHR::PREFER_FAST_TRACE;
+        if gpu.enabled.shader.position_fetch
+            && p.ty == vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL
+        {
+            flags |= vk::BuildAccelerationStructureFlagsKHR::ALLOW_DATA_ACCESS;
+        }
         let mut info = vk::AccelerationStructureBuildGeometryInfoKHR::default()
             .ty(p.ty)
-            .flags(vk::BuildAccelerationStructureFlagsKHR::PREFER_FAST_TRACE)
+            .flags(flags)
             .mode(vk::BuildAccelerationStructureModeKHR::BUILD)
             .geometries(&p.geometries);
         let counts: Vec<u32> = p.ranges.iter().map(|r| r.primitive_count).collect();

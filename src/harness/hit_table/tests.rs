@@ -77,6 +77,11 @@ fn strides_that_share_a_record_or_are_unknown_are_refused() {
     let e = error(layout(&[&r], 1, 3));
     assert!(e.contains("sbtRecordStride is not a constant"), "{e}");
     assert!(layout(&[&r], 1, 1).is_ok(), "one geometry: any stride reaches record 0");
+    // Stride 17: the driver uses its 4 low bits (1), so no table laid out for 17 is right.
+    let r = raygen(&[("0", "17", "0", 0)]);
+    let e = error(layout(&[&r], 1, 3));
+    assert!(e.contains("sbtRecordStride 17") && e.contains("4 low bits"), "{e}");
+    assert!(layout(&[&raygen(&[("0", "15", "0", 0)])], 1, 3).is_ok(), "stride 15 runs");
 }
 
 #[test]
