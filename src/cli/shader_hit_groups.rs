@@ -29,7 +29,7 @@ pub fn parse(values: &[String], inputs: &[Input]) -> Result<BTreeMap<String, u32
                 return Err(usage(v, &format!("{file} is none of the --shader files")));
             };
             if out.insert(i.name.clone(), k).is_some_and(|was| was != k) {
-                return Err(usage(v, &format!("{file} is given two ray types")));
+                return Err(usage(v, &format!("{file} is given two ray types: a module serves one here; give a copy under another file name for the second")));
             }
         }
     }

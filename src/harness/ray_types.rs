@@ -81,7 +81,7 @@ pub fn assign(
         return Ok(None);
     }
     let Some(p) = &m.iface.reflection.incoming_payload else {
-        return Err(unsupported(format!("{} ({}) has no incoming payload, so rtprobe cannot tell which of the {types} ray types (SBT record offsets 0 to {}) it serves: say it with --hit-group K=FILE", m.name, m.iface.stage, types - 1)));
+        return Err(unsupported(format!("{} ({}) has no incoming payload it uses (one declared but never read or written is not in the entry point's interface), so rtprobe cannot tell which of the {types} ray types (SBT record offsets 0 to {}) it serves: say it with --hit-group K=FILE", m.name, m.iface.stage, types - 1)));
     };
     let shape = p.ty.shape();
     let matching: Vec<u32> = (0..types)
