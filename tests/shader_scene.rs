@@ -230,17 +230,12 @@ fn matches(c: &Counts) -> bool {
         && c.hits_within as f64 >= 0.995 * c.hits as f64
 }
 
-/// The tutorial-style closest-hit on the test scene under `--validate`: no message, no fault,
-/// its image the CPU's within 2/255 on at least 99.5% of the unambiguous pixels, every primitive
-/// of the scene hit. The twins: the table's entry 0 whatever the custom index, and positions
-/// read without the vertex offset, fail the same comparison.
-#[test]
-fn a_tutorial_closest_hit_renders_the_scene_as_the_cpu_does() {
-    let (_d, scene) = test_scene();
-    let fill = ["--fill", "push.16=scene.scene_desc", "--repeat", "1"];
+/// `scene_run` under `--validate` with `fill`: its report, the run exiting 0 with every attempt
+/// of every variant a pass without a validation message.
+fn validated(scene: &Path, fill: &[&str]) -> Value {
     let mut args = vec!["--validate"];
-    args.extend_from_slice(&fill);
-    let (o, r) = scene_run(&scene, &args);
+    args.extend_from_slice(fill);
+    let (o, r) = scene_run(scene, &args);
     let r = r.unwrap_or_else(|| panic!("no report: {}{}", stdout(&o), stderr(&o)));
     assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
     for v in r["variants"].as_array().unwrap() {
@@ -249,6 +244,30 @@ fn a_tutorial_closest_hit_renders_the_scene_as_the_cpu_does() {
             assert_eq!(a["validation_messages"], 0, "{a}");
         }
     }
+    r
+}
+
+/// The shader built with `fill` and `-D twin` must fail the comparison with the CPU's image
+/// (`textured`: shaded as `-D TEXTURED` does).
+fn twin_fails(scene: &Path, fill: &[&str], twin: &str, textured: bool) {
+    let mut wrong = fill.to_vec();
+    wrong.extend(["-D", twin]);
+    let (o, r) = scene_run(scene, &wrong);
+    let r = r.unwrap_or_else(|| panic!("no report: {}{}", stdout(&o), stderr(&o)));
+    let c = compare(scene, &r, textured);
+    println!("{twin}: {c:?}");
+    assert!(!matches(&c), "{twin} must fail the comparison: {c:?}");
+}
+
+/// The tutorial-style closest-hit on the test scene under `--validate`: no message, no fault,
+/// its image the CPU's within 2/255 on at least 99.5% of the unambiguous pixels, every primitive
+/// of the scene hit. The twins: the table's entry 0 whatever the custom index, and positions
+/// read without the vertex offset, fail the same comparison.
+#[test]
+fn a_tutorial_closest_hit_renders_the_scene_as_the_cpu_does() {
+    let (_d, scene) = test_scene();
+    let fill = ["--fill", "push.16=scene.scene_desc", "--repeat", "1"];
+    let r = validated(&scene, &fill);
     assert_eq!(r["cell_options"]["fill"], serde_json::json!(["push.16=scene.scene_desc"]));
     assert!(
         r["cell_options"]["scene"].as_str().is_some_and(|h| h.len() >= 12),
@@ -298,13 +317,7 @@ fn a_tutorial_closest_hit_renders_the_scene_as_the_cpu_does() {
     // The twins: the custom index ignored (entry 0 for every hit), and positions read without
     // the primitive's vertex offset, each fail the comparison.
     for twin in ["WRONG_PRIM_ZERO", "WRONG_POSITIONS"] {
-        let mut wrong = fill.to_vec();
-        wrong.extend(["-D", twin]);
-        let (o, r) = scene_run(&scene, &wrong);
-        let r = r.unwrap_or_else(|| panic!("no report: {}{}", stdout(&o), stderr(&o)));
-        let c = compare(&scene, &r, false);
-        println!("{twin}: {c:?}");
-        assert!(!matches(&c), "{twin} must fail the comparison: {c:?}");
+        twin_fails(&scene, &fill, twin, false);
     }
 }
 
@@ -325,17 +338,7 @@ fn scene_textures_render_as_the_cpu_samples_them() {
         "--repeat",
         "1",
     ];
-    let mut args = vec!["--validate"];
-    args.extend_from_slice(&fill);
-    let (o, r) = scene_run(&scene, &args);
-    let r = r.unwrap_or_else(|| panic!("no report: {}{}", stdout(&o), stderr(&o)));
-    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
-    for v in r["variants"].as_array().unwrap() {
-        for a in v["attempts"].as_array().unwrap() {
-            assert_eq!(a["outcome"], "pass", "{a}");
-            assert_eq!(a["validation_messages"], 0, "{a}");
-        }
-    }
+    let r = validated(&scene, &fill);
     let want = serde_json::json!(["push.16=scene.scene_desc", "1.2=scene.textures"]);
     assert_eq!(r["cell_options"]["fill"], want);
     let c = compare(&scene, &r, true);
@@ -345,13 +348,7 @@ fn scene_textures_render_as_the_cpu_samples_them() {
     // The untextured shading is not this image: the texture changed what was compared.
     assert!(!matches(&compare(&scene, &r, false)));
 
-    let mut wrong = fill.to_vec();
-    wrong.extend(["-D", "WRONG_TEX"]);
-    let (o, r) = scene_run(&scene, &wrong);
-    let r = r.unwrap_or_else(|| panic!("no report: {}{}", stdout(&o), stderr(&o)));
-    let c = compare(&scene, &r, true);
-    println!("WRONG_TEX: {c:?}");
-    assert!(!matches(&c), "the wrong texture must fail the comparison: {c:?}");
+    twin_fails(&scene, &fill, "WRONG_TEX", true);
 }
 
 /// `scene.textures` given wrongly: into a buffer binding, into an array smaller than the
