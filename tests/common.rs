@@ -149,3 +149,29 @@ pub fn have_sid() -> bool {
     }
     ok
 }
+
+/// `rtprobe run --validate --shader F… -o OUT extra…` over the test shaders `files` of
+/// `tests/shaders/user`, with `env`: the output and the report at `out`, if written. `extra`'s
+/// own `--validate=…` replaces the plain one.
+pub fn run_user_shaders(
+    files: &[&str],
+    out: &std::path::Path,
+    extra: &[&str],
+    env: &[(&str, &str)],
+) -> (Output, Option<serde_json::Value>) {
+    let user = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/shaders/user");
+    let mut args: Vec<String> = vec!["run".into()];
+    if !extra.iter().any(|e| e.starts_with("--validate")) {
+        args.push("--validate".into());
+    }
+    for f in files {
+        args.push("--shader".into());
+        args.push(user.join(f).to_string_lossy().into_owned());
+    }
+    args.extend(["-o".to_string(), out.to_string_lossy().into_owned()]);
+    args.extend(extra.iter().map(|s| s.to_string()));
+    let argv: Vec<&str> = args.iter().map(String::as_str).collect();
+    let o = run_env(&argv, env);
+    let report = std::fs::read(out).ok().map(|b| serde_json::from_slice(&b).unwrap());
+    (o, report)
+}

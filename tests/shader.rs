@@ -20,21 +20,7 @@ fn shader_run(
     env: &[(&str, &str)],
 ) -> (std::process::Output, Option<Value>, tempfile::TempDir) {
     let d = tempfile::tempdir().unwrap();
-    let out = d.path().join("report.json");
-    let mut args: Vec<String> = vec!["run".into()];
-    // `--validate=gpu-av` in `extra` replaces the plain one.
-    if !extra.iter().any(|e| e.starts_with("--validate")) {
-        args.push("--validate".into());
-    }
-    for f in files {
-        args.push("--shader".into());
-        args.push(user().join(f).to_string_lossy().into_owned());
-    }
-    args.extend(["-o".to_string(), out.to_string_lossy().into_owned()]);
-    args.extend(extra.iter().map(|s| s.to_string()));
-    let argv: Vec<&str> = args.iter().map(String::as_str).collect();
-    let o = run_env(&argv, env);
-    let report = std::fs::read(&out).ok().map(|b| serde_json::from_slice(&b).unwrap());
+    let (o, report) = run_user_shaders(files, &d.path().join("report.json"), extra, env);
     (o, report, d)
 }
 

@@ -15,20 +15,9 @@ const FAULT: &str = "stage=closest_hit,resource=storage_buffer,index=dynamic@dev
 /// `run --validate --shader FILES --repeat 2 -o DIR/NAME.json` with `extra`: the output and the
 /// report, if written.
 fn shader_run(dir: &Path, name: &str, extra: &[&str]) -> (std::process::Output, Option<Value>) {
-    let user = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/shaders/user");
     let out = dir.join(format!("{name}.json"));
-    let mut args: Vec<String> =
-        vec!["run".into(), "--validate".into(), "--repeat".into(), "2".into()];
-    for f in FILES {
-        args.push("--shader".into());
-        args.push(user.join(f).to_string_lossy().into_owned());
-    }
-    args.extend(["-o".to_string(), out.to_string_lossy().into_owned()]);
-    args.extend(extra.iter().map(|s| s.to_string()));
-    let argv: Vec<&str> = args.iter().map(String::as_str).collect();
-    let o = run(&argv);
-    let report = std::fs::read(&out).ok().map(|b| serde_json::from_slice(&b).unwrap());
-    (o, report)
+    let extra = [&["--repeat", "2"][..], extra].concat();
+    run_user_shaders(&FILES, &out, &extra, &[])
 }
 
 fn write(path: &Path, v: &Value) -> String {

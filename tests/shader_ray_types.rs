@@ -8,27 +8,11 @@
 mod common;
 use common::*;
 use serde_json::Value;
-use std::path::{Path, PathBuf};
-
-fn user() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/shaders/user")
-}
 
 /// `run --validate --shader F… extra`: the output and the report, if written.
 fn shader_run(files: &[&str], extra: &[&str]) -> (std::process::Output, Option<Value>) {
     let d = tempfile::tempdir().unwrap();
-    let out = d.path().join("report.json");
-    let mut args: Vec<String> = vec!["run".into(), "--validate".into()];
-    for f in files {
-        args.push("--shader".into());
-        args.push(user().join(f).to_string_lossy().into_owned());
-    }
-    args.extend(["-o".to_string(), out.to_string_lossy().into_owned()]);
-    args.extend(extra.iter().map(|s| s.to_string()));
-    let argv: Vec<&str> = args.iter().map(String::as_str).collect();
-    let o = run(&argv);
-    let report = std::fs::read(&out).ok().map(|b| serde_json::from_slice(&b).unwrap());
-    (o, report)
+    run_user_shaders(files, &d.path().join("report.json"), extra, &[])
 }
 
 /// The counters of `shadow_types.glsl` (set 0 binding 1) in the unpatched variant, less their
