@@ -3,7 +3,9 @@
 //! through an invalid `PhysicalStorageBuffer` address plus `bits & 0` ([`device`]) or a loop
 //! counting by two from 0 until it equals `bits | 1`, an odd number it never reaches ([`hang`]);
 //! the fault's result then feeds the access's value in all its uses (`feed`: its first scalar, and
-//! every component when that scalar is a vector's).
+//! every component when that scalar is a vector's). An acceleration structure's handle has no
+//! bits: its fault takes the constant 0 and feeds the cull mask of each ray the handle traces
+//! ([`Tie::Handle`], `super::handle`).
 //! Each fault's last instruction is named `rtprobe_injected_*` ([`MARKER`]) so it can be
 //! counted after a patch rewrote the module.
 use crate::patches::edit::{self, id_operand, next_id};
@@ -45,6 +47,45 @@ pub struct Leaf {
     path: Vec<(Word, Word)>,
     leaf: Word,
     leaf_ty: Word,
+}
+
+/// What a fault is fed by and feeds: an access's value (`value`, and 32 bits of its first
+/// scalar), or an acceleration structure handle (the constant 0 in, its rays' cull masks out).
+pub enum Tie {
+    Value(Word, Leaf),
+    Handle(Word),
+}
+
+impl Tie {
+    /// The fault's input instructions and its 32 bits.
+    fn input(&self, m: &mut Module) -> (Vec<Instruction>, Word) {
+        match self {
+            Tie::Value(_, l) => (l.code.clone(), l.bits),
+            Tie::Handle(_) => {
+                let u32_t = edit::type_int(m, 32, false);
+                (vec![], edit::constant(m, u32_t, 0, false))
+            }
+        }
+    }
+
+    /// `bump` (zero at run time) fed into what uses the access in function `f`: the value's
+    /// uses renamed to the bumped value (its instructions returned, to follow the fault), or
+    /// the handle's cull masks OR-ed with it (inserted before each consumer).
+    fn feed(&self, m: &mut Module, f: usize, bump: Word) -> Vec<Instruction> {
+        match self {
+            Tie::Value(value, l) => match feed(m, l, bump) {
+                Some((code, new)) => {
+                    rename(m, f, *value, new);
+                    code
+                }
+                None => vec![],
+            },
+            Tie::Handle(h) => {
+                super::handle::feed(m, f, *h, bump);
+                vec![]
+            }
+        }
+    }
 }
 
 /// Instructions computing 32 bits of `value`'s first scalar (its first component, member or
@@ -226,8 +267,8 @@ fn unlikely(m: &mut Module, x: Word) -> (Vec<Instruction>, Word) {
     (code, bump)
 }
 
-/// The device fault after the access at `(f, b, i)` whose value is `value`.
-pub fn device(m: &mut Module, (f, b, i): (usize, usize, usize), value: Word, l: Leaf) {
+/// The device fault after the access at `(f, b, i)`, tied as `tie` says.
+pub fn device(m: &mut Module, (f, b, i): (usize, usize, usize), tie: Tie) {
     let u32_t = edit::type_int(m, 32, false);
     let u64_t = edit::type_int(m, 64, false);
     edit::enable_physical_storage_buffer(m);
@@ -237,9 +278,9 @@ pub fn device(m: &mut Module, (f, b, i): (usize, usize, usize), value: Word, l: 
     let (zero, wide, addr, p, loaded) =
         (next_id(m), next_id(m), next_id(m), next_id(m), next_id(m));
     let id = Operand::IdRef;
-    let mut code = l.code.clone();
+    let (mut code, bits) = tie.input(m);
     code.extend([
-        op(Op::BitwiseAnd, Some(u32_t), zero, vec![id(l.bits), id(zero_c)]),
+        op(Op::BitwiseAnd, Some(u32_t), zero, vec![id(bits), id(zero_c)]),
         op(Op::UConvert, Some(u64_t), wide, vec![id(zero)]),
         op(Op::IAdd, Some(u64_t), addr, vec![id(wide), id(bad)]),
         op(Op::ConvertUToPtr, Some(ptr), p, vec![id(addr)]),
@@ -257,10 +298,9 @@ pub fn device(m: &mut Module, (f, b, i): (usize, usize, usize), value: Word, l: 
     name(m, loaded, "device");
     let (more, bump) = unlikely(m, loaded);
     code.extend(more);
-    if let Some((more, new)) = feed(m, &l, bump) {
-        rename(m, f, value, new);
-        code.extend(more);
-    }
+    // The handle's consumers come after the access: feeding them first keeps `i + 1` the
+    // place right after it.
+    code.extend(tie.feed(m, f, bump));
     m.functions[f].blocks[b].instructions.splice(i + 1..i + 1, code);
 }
 
@@ -276,7 +316,7 @@ fn name(m: &mut Module, id: Word, kind: &str) {
 /// The endless loop after instruction `at` of function `f`: block `at.0` is split after the
 /// access (and `code`), the rest moving to the loop's merge block. `false` (nothing changed)
 /// when that block is a loop header: its back edges must keep reaching its `OpLoopMerge`.
-pub fn hang(m: &mut Module, (f, b, i): (usize, usize, usize), value: Word, l: Leaf) -> bool {
+pub fn hang(m: &mut Module, (f, b, i): (usize, usize, usize), tie: Tie) -> bool {
     let block = &m.functions[f].blocks[b];
     if block.instructions.iter().any(|x| x.class.opcode == Op::LoopMerge) {
         return false;
@@ -291,7 +331,8 @@ pub fn hang(m: &mut Module, (f, b, i): (usize, usize, usize), value: Word, l: Le
     );
     let (odd, h, c, merge, count, next, done) =
         (next_id(m), next_id(m), next_id(m), next_id(m), next_id(m), next_id(m), next_id(m));
-    let (id, mut code, bits) = (Operand::IdRef, l.code.clone(), l.bits);
+    let id = Operand::IdRef;
+    let (mut code, bits) = tie.input(m);
     let label = |l| Some(Instruction::new(Op::Label, None, Some(l), vec![]));
     let branch = |to| Instruction::new(Op::Branch, None, None, vec![id(to)]);
     code.push(op(Op::BitwiseOr, Some(u32_t), odd, vec![id(bits), id(c1)]));
@@ -316,10 +357,7 @@ pub fn hang(m: &mut Module, (f, b, i): (usize, usize, usize), value: Word, l: Le
     // After the loop: the count's distance to `bits | 1` (zero, were it ever to end) fed back.
     let (gap, mut after) = (next_id(m), vec![]);
     after.push(op(Op::ISub, Some(u32_t), gap, vec![id(next), id(odd)]));
-    if let Some((more, new)) = feed(m, &l, gap) {
-        rename(m, f, value, new);
-        after.extend(more);
-    }
+    after.extend(tie.feed(m, f, gap));
     let func = &mut m.functions[f];
     let mut tail = func.blocks[b].instructions.split_off(i + 1);
     tail.splice(0..0, after);

@@ -10,7 +10,14 @@
 //! matching access gets none. The fault's result flows back into the access's value (its first
 //! scalar plus a term that is zero at run time but not to a compiler) and so into what the
 //! shader writes: on lavapipe, a fault whose result nothing used was dropped by the driver's
-//! compiler, the load though `Volatile` and the loop though endless. KIND:
+//! compiler, the load though `Volatile` and the loop though endless.
+//!
+//! An acceleration structure access (the `OpLoad` of an `accelerationStructureEXT` descriptor,
+//! an array's element too) has no bits: its fault, right after the load, takes the constant 0
+//! as `bits`, and its result feeds the cull mask of every ray the handle traces in that
+//! function ([`handle`]); a handle that traces none gets no fault (listed as skipped). Deleting
+//! the load deletes the site: a module whose AS comes from an address
+//! (`OpConvertUToAccelerationStructureKHR`, what `as-to-address` writes) has no AS access. KIND:
 //! - `device` (default): a `Volatile` load through the `PhysicalStorageBuffer` address
 //!   `0xdead_0000_0000 + (bits & 0)`, outside every allocation; the term fed back is 1 where
 //!   the loaded word equals `0x9e3779b9`, else 0. The module gets the
@@ -28,12 +35,15 @@
 //! a wrong value is caught only against a CPU reference, which a user's shader has none of, and
 //! `flaky` is armed through the generated probe's push constants.
 pub mod emit;
+pub mod handle;
 pub mod predicate;
 pub mod sites;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_as;
 
-use crate::model::FaultKind;
+use crate::model::{FaultKind, Resource};
 pub use predicate::{Access, Predicate, PredicateError};
 use rspirv::dr::Module;
 
@@ -113,6 +123,33 @@ fn describe(s: &sites::Site) -> String {
     format!("{} reads {} {} ({} index)", a.stage, a.resource, s.var, a.index)
 }
 
+/// What the fault at site `s` is fed by and feeds, or why it gets none.
+fn tie(m: &mut Module, s: &sites::Site) -> Result<emit::Tie, &'static str> {
+    let (f, b, i) = s.at;
+    match (s.access.resource, s.value) {
+        (Resource::AccelerationStructure, _) => {
+            let handle = m.functions[f].blocks[b].instructions[i].result_id;
+            match handle.filter(|h| !handle::consumers(m, f, *h).is_empty()) {
+                Some(h) => Ok(emit::Tie::Handle(h)),
+                None => {
+                    Err("its handle traces no ray in its function (nothing would use the fault)")
+                }
+            }
+        }
+        (
+            Resource::StorageBuffer
+            | Resource::UniformBuffer
+            | Resource::SampledImage
+            | Resource::StorageImage,
+            Some(v),
+        ) => match emit::bits(m, v) {
+            Some(leaf) => Ok(emit::Tie::Value(v, leaf)),
+            None => Err("its value has no scalar to feed a fault"),
+        },
+        (_, None) => Err("its value has no scalar to feed a fault"),
+    }
+}
+
 /// Insert `r`'s fault after every access of `m` that its predicate matches.
 pub fn inject(m: &mut Module, r: &Request) -> Injected {
     let mut found: Vec<sites::Site> =
@@ -122,16 +159,19 @@ pub fn inject(m: &mut Module, r: &Request) -> Injected {
     found.sort_by_key(|s| std::cmp::Reverse(s.at));
     for s in &found {
         let (f, b, i) = s.at;
-        let Some((value, leaf)) = s.value.and_then(|v| Some((v, emit::bits(m, v)?))) else {
-            out.skipped.push(format!("{}: its value has no scalar to feed a fault", describe(s)));
-            continue;
+        let tie = match tie(m, s) {
+            Ok(t) => t,
+            Err(why) => {
+                out.skipped.push(format!("{}: {why}", describe(s)));
+                continue;
+            }
         };
         let done = match r.fault {
             Fault::Device => {
-                emit::device(m, (f, b, i), value, leaf);
+                emit::device(m, (f, b, i), tie);
                 true
             }
-            Fault::Hang => emit::hang(m, (f, b, i), value, leaf),
+            Fault::Hang => emit::hang(m, (f, b, i), tie),
         };
         if done {
             out.sites.push(describe(s));

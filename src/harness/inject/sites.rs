@@ -5,8 +5,10 @@
 //! point's; the index is how the descriptor array's index is produced, from its definitions
 //! (through local variables' stores): only constants `literal` (a descriptor that is no array
 //! too), a spec constant among them `spec_constant`, push constants among them `push_constant`,
-//! anything else (built-ins, other loads, parameters) `dynamic`. Acceleration structures are
-//! found but carry no value a fault could take ([`Site::value`] is `None`). A descriptor heap
+//! anything else (built-ins, other loads, parameters) `dynamic`. An acceleration structure's
+//! handle load is one too but carries no value a fault could take ([`Site::value`] is `None`:
+//! its fault ties to the handle's rays instead, `super::handle`); an acceleration structure
+//! made from an address (`OpConvertUToAccelerationStructureKHR`) reads no descriptor and is none. A descriptor heap
 //! access (`layout(descriptor_heap)`: an untyped access chain into `ResourceHeapEXT`) is one
 //! too, the chain's index its descriptor index.
 use super::predicate::Access;

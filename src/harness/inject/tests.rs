@@ -10,7 +10,7 @@ use shaderc::ShaderKind;
 
 /// An engine-like closest-hit: a bindless material array at a dynamic index, a constant-index
 /// scene UBO, a spec-constant-indexed lights SSBO array, a texture array at a push-constant index.
-const HIT: &str = r#"#version 460
+pub(super) const HIT: &str = r#"#version 460
 #extension GL_EXT_ray_tracing : require
 #extension GL_EXT_nonuniform_qualifier : require
 struct Material { vec4 albedo; uint flags; };
@@ -50,7 +50,7 @@ fn accesses(m: &Module) -> Vec<Access> {
     sites::find(m).iter().map(|s| s.access).collect()
 }
 
-fn valid(m: &Module) {
+pub(super) fn valid(m: &Module) {
     let v = validate(&assemble(m));
     assert!(matches!(v, Validation::Valid), "{v:?}\n{}", crate::patches::disassemble(m));
 }
@@ -60,7 +60,7 @@ fn request(s: &str) -> Request {
 }
 
 /// Whether `id`'s definition tree (through instruction operands) reaches `target`.
-fn reaches(m: &Module, id: Word, target: Word, _depth: u32) -> bool {
+pub(super) fn reaches(m: &Module, id: Word, target: Word, _depth: u32) -> bool {
     let (mut todo, mut seen) = (vec![id], std::collections::HashSet::new());
     while let Some(x) = todo.pop() {
         if x == target {
@@ -95,7 +95,7 @@ fn phis(m: &Module) -> Vec<Word> {
         .collect()
 }
 
-fn marked(m: &Module) -> Vec<Word> {
+pub(super) fn marked(m: &Module) -> Vec<Word> {
     m.debug_names
         .iter()
         .filter(|n| matches!(n.operands.get(1), Some(Operand::LiteralString(s)) if s.starts_with(emit::MARKER)))
