@@ -70,7 +70,7 @@ impl Tie {
 
     /// `bump` (zero at run time) fed into what uses the access in function `f`: the value's
     /// uses renamed to the bumped value (its instructions returned, to follow the fault), or
-    /// the handle's cull masks OR-ed with it (inserted before each consumer).
+    /// the handle's cull masks XOR-ed with it (inserted before each consumer).
     fn feed(&self, m: &mut Module, f: usize, bump: Word) -> Vec<Instruction> {
         match self {
             Tie::Value(value, l) => match feed(m, l, bump) {

@@ -1,18 +1,18 @@
 //! An acceleration structure access's fault tied to the handle's use: an AS handle has no bits
 //! (SPIR-V converts integers to acceleration structures, never back), so the fault after its
 //! descriptor load takes a constant input, and its result (`bump`, zero at run time but not to
-//! a compiler) is OR-ed into the cull mask of every ray the handle traces — each
+//! a compiler) is XOR-ed into the cull mask of every ray the handle traces — each
 //! `OpTraceRayKHR`, `OpRayQueryInitializeKHR`, `OpHitObjectTraceRay*`, `OpTrace*NV` taking it
-//! (or an `OpCopyObject` of it) in the load's function ([`consumers`], [`feed`]). The OR sits
+//! (or an `OpCopyObject` of it) in the load's function ([`consumers`], [`feed`]). The XOR sits
 //! right before its consumer: the load's block dominates every use of the handle, so the fault
-//! (right after the load) dominates the OR, and the cull mask (the consumer's operand) does too.
+//! (right after the load) dominates the XOR, and the cull mask (the consumer's operand) does too.
 //!
 //! Deleting the trace deletes the tie; a handle with no such consumer in its function (passed
 //! to another function, or unused) is not injected at all (`inject` lists it as skipped): a
 //! fault nothing uses can be dropped by a driver's compiler, and a reduction must not keep a
-//! load for a fault that no longer does anything. The bump is at most 1, and a cull mask's low
-//! bit already set by `0xFF`: where the impossible read returned the magic word the ray would
-//! still be the same.
+//! load for a fault that no longer does anything. The mask is XOR-ed, not OR-ed: the bump is
+//! 0 or 1, and `0xFF | bump` is `0xFF` to a compiler that knows the bump's bits (lavapipe
+//! folded it and dropped the fault: the first shadow run passed); `0xFF ^ bump` is not.
 use crate::patches::edit::{self, id_operand, next_id};
 use rspirv::dr::{Instruction, Module, Operand};
 use rspirv::spirv::{Op, Word};
@@ -60,7 +60,7 @@ pub fn consumers(m: &Module, f: usize, handle: Word) -> Vec<(usize, usize, usize
     out
 }
 
-/// Each consumer's cull mask made `mask | bump`; how many were fed.
+/// Each consumer's cull mask made `mask ^ bump`; how many were fed.
 pub fn feed(m: &mut Module, f: usize, handle: Word, bump: Word) -> usize {
     let found = consumers(m, f, handle);
     // Last first: an insertion never moves a consumer still to do.
@@ -72,15 +72,15 @@ pub fn feed(m: &mut Module, f: usize, handle: Word, bump: Word) -> usize {
             .and_then(|d| d.result_type)
             .unwrap_or_else(|| edit::type_int(m, 32, false));
         let new = next_id(m);
-        let or = Instruction::new(
-            Op::BitwiseOr,
+        let xor = Instruction::new(
+            Op::BitwiseXor,
             Some(ty),
             Some(new),
             vec![Operand::IdRef(mask), Operand::IdRef(bump)],
         );
         let block = &mut m.functions[f].blocks[b];
         block.instructions[i].operands[at] = Operand::IdRef(new);
-        block.instructions.insert(i, or);
+        block.instructions.insert(i, xor);
     }
     found.len()
 }
