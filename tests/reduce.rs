@@ -236,8 +236,8 @@ fn an_intersection_sphere_read_reduces_to_its_shape() {
 }
 
 /// Issue 25: an engine's raygen (`camera.rgen`: `raygen.rgen`, whose only descriptor reads are
-/// an acceleration structure (no bits to feed a fault) and written images, with a per-frame
-/// camera uniform buffer) with a device fault at the camera read, reduced to it. The colour
+/// an acceleration structure (not injectable when this row was made) and written images, with
+/// a per-frame camera uniform buffer) with a device fault at the camera read, reduced to it. The colour
 /// target it keeps is only written: not an access, not in the predicate.
 #[test]
 #[ignore = "a full reduction, 1.5 min on 2 cores: run with --ignored"]
