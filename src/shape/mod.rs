@@ -5,7 +5,8 @@
 //! where the index comes from ([`index`]), `NonUniform`, and whether it goes through a
 //! set/binding variable, a descriptor heap or an address ([`classify`]); whether every
 //! descriptor index is provably in bounds ([`bounds`]); the accesses rendered GLSL-like
-//! ([`render`]); function-body instruction counts ([`count`]); the dead decorated
+//! ([`render`]; an acceleration structure's as the call that traces with it, [`render_as`]);
+//! function-body instruction counts ([`count`]); the dead decorated
 //! instructions spirv-reduce leaves ([`dead`]).
 //!
 //! Independent of `harness::inject` by design (issue 25): the injected fault's trigger finds
@@ -17,6 +18,7 @@ pub mod defs;
 pub mod heap;
 pub mod index;
 pub mod render;
+pub mod render_as;
 
 use crate::model::reduce::AccessClass;
 use crate::model::{Resource, Stage};

@@ -57,6 +57,19 @@ pub fn render(m: &Module, found: &[Found]) -> String {
             (true, true) => format!("[nonuniformEXT({index})]"),
             (true, false) => format!("[{index}]"),
         };
+        if c.resource == Resource::AccelerationStructure {
+            let handle = match (c.through.as_str(), c.set, c.binding) {
+                ("address", _, _) => format!("accelerationStructureEXT({})", c.variable),
+                (_, Some(set), Some(b)) => {
+                    let dims = if f.index.is_some() { "[]" } else { "" };
+                    out.push_str(&format!("layout(set = {set}, binding = {b}) uniform accelerationStructureEXT {}{dims};\n", c.variable));
+                    format!("{}{index}", c.variable)
+                }
+                _ => format!("{}{index}", c.variable),
+            };
+            out.push_str(&super::render_as::use_line(&d, f.var, &handle));
+            continue;
+        }
         out.push_str(&format!("... = {}{index}...;\n\n", c.variable));
     }
     out

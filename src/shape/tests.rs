@@ -305,3 +305,57 @@ OpFunctionEnd
     assert_eq!(bounds::check(&written, 64), Ok(()));
     assert_eq!(classify(&written)[0].class.index, IndexSource::Literal);
 }
+
+/// A shadow ray through a TLAS and a ray query through an AS array element (GLSL written for
+/// this test).
+const AS_HIT: &str = r#"#version 460
+#extension GL_EXT_ray_tracing : require
+#extension GL_EXT_ray_query : require
+layout(set = 0, binding = 0) uniform accelerationStructureEXT tlas;
+layout(set = 0, binding = 1) uniform accelerationStructureEXT cascades[2];
+layout(location = 0) rayPayloadInEXT vec4 shade;
+layout(location = 1) rayPayloadEXT bool shadowed;
+void main() {
+    traceRayEXT(tlas, 4u, 0xFF, 0, 0, 1, vec3(0.0), 0.01, vec3(0.0, 1.0, 0.0), 100.0, 1);
+    rayQueryEXT q;
+    rayQueryInitializeEXT(q, cascades[1], 4u, 0xFF, vec3(0.0), 0.01, vec3(0.0, 1.0, 0.0), 100.0);
+    rayQueryProceedEXT(q);
+    shade = vec4(shadowed ? 0.2 : 1.0);
+}
+"#;
+
+/// An acceleration structure read renders as the call that traces with it (a buffer's
+/// `... = NAME...;` said nothing of a handle); after `as-to-address` as one made from its
+/// address. Twin: a handle no trace uses renders bare.
+#[test]
+fn an_acceleration_structure_read_renders_as_its_trace() {
+    use crate::patches::{compiled, PatchName};
+    let m = compiled(shaderc::ShaderKind::ClosestHit, "as.rchit", AS_HIT);
+    let found = classify(&m);
+    assert_eq!(found.len(), 2, "{found:?}");
+    let text = render::render(&m, &found);
+    for part in [
+        "layout(set = 0, binding = 0) uniform accelerationStructureEXT tlas;",
+        "traceRayEXT(tlas, ...);",
+        "uniform accelerationStructureEXT cascades[];",
+        "rayQueryInitializeEXT(q, cascades[1u], ...);",
+    ] {
+        assert!(text.contains(part), "{part}: {text}");
+    }
+    assert!(!text.contains("... = tlas"), "{text}");
+    let mut patched = m.clone();
+    crate::patches::apply(&mut patched, &[PatchName::AsToAddress], &Default::default()).unwrap();
+    let found = classify(&patched);
+    assert!(found.iter().all(|f| f.class.through == "address"), "{found:?}");
+    let text = render::render(&patched, &found);
+    assert!(text.contains("traceRayEXT(accelerationStructureEXT(%"), "{text}");
+    // Twin: the trace removed, the load renders bare.
+    let mut bare = m.clone();
+    for f in bare.functions.iter_mut() {
+        for b in f.blocks.iter_mut() {
+            b.instructions.retain(|i| i.class.opcode != Op::TraceRayKHR);
+        }
+    }
+    let text = render::render(&bare, &classify(&bare));
+    assert!(text.contains("... tlas ...;") && !text.contains("traceRayEXT"), "{text}");
+}
