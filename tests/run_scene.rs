@@ -38,6 +38,7 @@ fn the_test_scene_gives_the_procedural_verdicts_and_names_its_limits() {
     ]);
     assert_eq!(o.status.code(), Some(0), "{}\n{}", stdout(&o), stderr(&o));
     assert!(stdout(&o).contains("undiscriminating: "), "{}", stdout(&o));
+    let o_scene = o;
     let o = run(&["run", "--filter", FILTER, "-o", p.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let read = |p: &std::path::Path| -> Value {
@@ -67,6 +68,37 @@ fn the_test_scene_gives_the_procedural_verdicts_and_names_its_limits() {
     assert!(named("custom index").iter().all(|c| c.starts_with("closest_hit.")));
     assert!(!named("custom index").is_empty());
     assert!(cost_is_measured(&rs["scene"]["cost"]));
+    assert!(as_build_is_timed(&rs["timing"]), "{}", rs["timing"]);
+    assert!(stdout(&o_scene).contains("AS build "), "{}", stdout(&o_scene));
+}
+
+/// Every worker built the scene's AS, timed apart from (and within) its device setup.
+fn as_build_is_timed(t: &Value) -> bool {
+    let (mean, max) =
+        (t["as_build_ms_mean"].as_f64().unwrap(), t["as_build_ms_max"].as_f64().unwrap());
+    t["as_builds"] == t["workers_started"]
+        && t["as_builds"].as_u64().is_some_and(|n| n > 0)
+        && mean > 0.0
+        && max >= mean
+        && mean <= t["device_ms_mean"].as_f64().unwrap()
+}
+
+/// The AS build's twin: a worker whose cells never trace the scene builds no AS, and the report
+/// says so instead of a made-up time.
+#[test]
+fn a_run_that_traces_no_scene_times_no_as_build() {
+    let dir = tempfile::tempdir().unwrap();
+    let r = dir.path().join("c.json");
+    let filter =
+        "stage=compute,descriptor_model=descriptor_indexing,resource=storage_buffer,index=literal";
+    let o = run(&["run", "--filter", filter, "-o", r.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let rep: Value = serde_json::from_slice(&std::fs::read(&r).unwrap()).unwrap();
+    let t = &rep["timing"];
+    assert!(t["workers_started"].as_u64().is_some_and(|n| n > 0), "{t}");
+    assert_eq!(t["as_builds"], 0, "{t}");
+    assert!(!as_build_is_timed(t));
+    assert!(!stdout(&o).contains("AS build"), "{}", stdout(&o));
 }
 
 fn cost_is_measured(c: &Value) -> bool {

@@ -32,6 +32,10 @@ pub struct Recorder {
     pub progress: Box<dyn Progress>,
     /// Sum of the workers' device setup times (for `timing.device_ms_mean`).
     pub device_ms_sum: f64,
+    /// Sum and count of this session's scene AS builds (for `timing.as_build_ms_mean`; a
+    /// resumed report's earlier builds are in its mean already).
+    pub as_build_ms_sum: f64,
+    pub as_builds: usize,
     /// The first save that failed (the run goes on; the CLI reports it at the end).
     pub save_error: Option<WriteError>,
     /// What stopped the run ([`Event::Halt`]): no round runs anything more.
@@ -47,6 +51,8 @@ impl Recorder {
             writer,
             progress,
             device_ms_sum: 0.0,
+            as_build_ms_sum: 0.0,
+            as_builds: 0,
             save_error: None,
             halted: None,
             last_save: Instant::now(),
@@ -70,9 +76,16 @@ impl Recorder {
 
     pub fn on_event(&mut self, ev: Event) {
         match ev {
-            Event::WorkerReady { device_ms, pipeline_cache, driver_cache, .. } => {
-                self.writer.report.timing.workers_started += 1;
+            Event::WorkerReady { device_ms, as_build_ms, pipeline_cache, driver_cache, .. } => {
+                let t = &mut self.writer.report.timing;
+                t.workers_started += 1;
                 self.device_ms_sum += device_ms;
+                if let Some(ms) = as_build_ms {
+                    t.as_builds += 1;
+                    t.as_build_ms_max = t.as_build_ms_max.max(ms);
+                    self.as_build_ms_sum += ms;
+                    self.as_builds += 1;
+                }
                 if let Some(c) = driver_cache {
                     self.writer.report.driver_cache.get_or_insert_with(Default::default).ready(c);
                 }

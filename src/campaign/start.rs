@@ -138,6 +138,13 @@ pub fn finish(rec: &mut Recorder, wall: Duration, baseline: Option<(&Baseline, &
     } else {
         0.0
     };
+    if rec.as_builds > 0 {
+        // Builds recorded before a `--resume` keep their share of the mean.
+        let before = r.timing.as_builds - rec.as_builds;
+        r.timing.as_build_ms_mean = (r.timing.as_build_ms_mean * before as f64
+            + rec.as_build_ms_sum)
+            / r.timing.as_builds as f64;
+    }
     let now = time::now_unix();
     r.finished = Some(time::rfc3339(now));
     r.complete = true;

@@ -34,6 +34,12 @@ impl Executor {
         Ok(())
     }
 
+    /// The host-side wall time of the scene's acceleration structures' build (geometry upload,
+    /// BLAS and TLAS builds, the fence wait), when this executor built them.
+    pub fn as_build_ms(&self) -> Option<f64> {
+        self.scene_gpu.as_ref().map(|s| s.build_ms)
+    }
+
     fn ensure_scene(&mut self) -> Result<&SceneGpu, CellError> {
         if self.scene_gpu.is_none() {
             self.scene_gpu =

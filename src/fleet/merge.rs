@@ -292,6 +292,14 @@ fn add_timing(t: &mut TimingSummary, r: &TimingSummary) {
             / workers as f64;
     }
     t.workers_started = workers;
+    let builds = t.as_builds + r.as_builds;
+    if builds > 0 {
+        t.as_build_ms_mean = (t.as_build_ms_mean * t.as_builds as f64
+            + r.as_build_ms_mean * r.as_builds as f64)
+            / builds as f64;
+    }
+    t.as_builds = builds;
+    t.as_build_ms_max = t.as_build_ms_max.max(r.as_build_ms_max);
     t.wall_ms += r.wall_ms;
     t.compile_ms += r.compile_ms;
     t.pipeline_ms += r.pipeline_ms;
@@ -432,6 +440,23 @@ mod tests {
         let other = BaselineCheck { source: "c.json".into(), ..a.clone() };
         assert!(carried_check(&[Some(&a), Some(&other)]).unwrap_err().contains("b.json, c.json"));
         assert!(carried_check(&[Some(&a), None]).is_err());
+    }
+
+    #[test]
+    fn shards_as_builds_join_as_a_weighted_mean_and_the_slowest() {
+        let t = |n, mean, max| TimingSummary {
+            workers_started: n,
+            as_builds: n,
+            as_build_ms_mean: mean,
+            as_build_ms_max: max,
+            ..Default::default()
+        };
+        let mut into = t(1, 10.0, 10.0);
+        add_timing(&mut into, &t(3, 2.0, 4.0));
+        assert_eq!((into.as_builds, into.as_build_ms_mean, into.as_build_ms_max), (4, 4.0, 10.0));
+        // A shard without a scene AS (say, compute cells only) leaves the mean alone.
+        add_timing(&mut into, &TimingSummary { workers_started: 2, ..Default::default() });
+        assert_eq!((into.as_builds, into.as_build_ms_mean), (4, 4.0));
     }
 
     fn entry(cell: &str, mutant: Mutant, status: MutantStatus) -> MutantEntry {

@@ -354,8 +354,18 @@ pub struct Tally {
 pub struct TimingSummary {
     pub wall_ms: f64,
     pub workers_started: usize,
-    /// Mean device creation time of the workers.
+    /// Mean device setup time of the workers (instance, device, the scene's acceleration
+    /// structures, resources; the AS build below is part of it).
     pub device_ms_mean: f64,
+    /// Workers that built the scene's acceleration structures in their setup, and the build's
+    /// host-side wall time (geometry upload, BLAS and TLAS builds, the fence wait): mean and
+    /// slowest worker. Part of `device_ms_mean`.
+    #[serde(default)]
+    pub as_builds: usize,
+    #[serde(default)]
+    pub as_build_ms_mean: f64,
+    #[serde(default)]
+    pub as_build_ms_max: f64,
     /// Sums over cells of the worker-side split.
     pub compile_ms: f64,
     pub pipeline_ms: f64,

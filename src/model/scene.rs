@@ -97,7 +97,7 @@ pub struct SceneLimit {
 /// What the run's scene cost on the CPU before any cell: load (a `--scene` file read and fitted,
 /// or the procedural scene built), the CPU reference's traces, and the process's peak memory
 /// after both. The acceleration structures are built by each worker: `TimingSummary`'s
-/// `as_build_ms_max`.
+/// `as_build_ms_mean` and `as_build_ms_max`.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct SceneCost {
     pub load_ms: f64,

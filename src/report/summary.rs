@@ -83,6 +83,9 @@ fn scene_notes(s: &mut String, r: &RunReport) {
         "scene: {} ({} instances, {} triangles)",
         f.path, r.scene.instances, r.scene.triangles
     );
+    if let Some(line) = scene_cost(r) {
+        let _ = writeln!(s, "  {line}");
+    }
     for l in &r.scene.limits {
         let first: Vec<&str> = l.cells.iter().take(3).map(String::as_str).collect();
         let more = l.cells.len().saturating_sub(first.len());
@@ -96,6 +99,27 @@ fn scene_notes(s: &mut String, r: &RunReport) {
             if more > 0 { format!(" and {more} more") } else { String::new() }
         );
     }
+}
+
+/// The scene's costs: load, CPU reference, the workers' AS builds, the CLI's peak memory.
+fn scene_cost(r: &RunReport) -> Option<String> {
+    let c = r.scene.cost.as_ref()?;
+    let t = &r.timing;
+    let build = if t.as_builds > 0 {
+        format!(
+            "AS build {:.0} ms (mean of {}, slowest {:.0} ms)",
+            t.as_build_ms_mean,
+            plural(t.as_builds, "worker"),
+            t.as_build_ms_max
+        )
+    } else {
+        "no AS built".into()
+    };
+    let peak = c.peak_mib.map_or("unknown".into(), |m| format!("{m} MiB"));
+    Some(format!(
+        "cost: load {:.1} ms, CPU reference {:.0} ms, {build}, peak memory {peak} (CLI)",
+        c.load_ms, c.reference_ms
+    ))
 }
 
 /// The retries a round added (workaround variants, recommended patterns), apart from the plan.
@@ -312,10 +336,15 @@ fn timing(s: &mut String, r: &RunReport, quiet: Quiet) {
     let n = t.cells_timed.max(1) as f64;
     let _ = writeln!(
         s,
-        "time: {:.1} s wall, {} (device {:.0} ms each); per cell: compile {:.1} ms, pipeline {:.1} ms, trace {:.1} ms, check {:.1} ms, overhead {:.1} ms",
+        "time: {:.1} s wall, {} (device {:.0} ms each{}); per cell: compile {:.1} ms, pipeline {:.1} ms, trace {:.1} ms, check {:.1} ms, overhead {:.1} ms",
         t.wall_ms / 1e3,
         plural(t.workers_started, "worker"),
         t.device_ms_mean,
+        if t.as_builds > 0 {
+            format!(", of it AS build {:.0} ms", t.as_build_ms_mean)
+        } else {
+            String::new()
+        },
         t.compile_ms / n,
         t.pipeline_ms / n,
         t.trace_ms / n,
@@ -345,6 +374,29 @@ fn timing(s: &mut String, r: &RunReport, quiet: Quiet) {
             pc.loaded_bytes,
             plural(pc.workers_loaded, "worker"),
             pc.saved_bytes
+        );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_scene_cost_line_says_the_as_build_or_that_none_was_built() {
+        let mut r = RunReport::for_tests(vec![]);
+        assert_eq!(scene_cost(&r), None, "no cost recorded: no line");
+        r.scene.cost =
+            Some(crate::model::SceneCost { load_ms: 0.3, reference_ms: 90.0, peak_mib: Some(80) });
+        let line = scene_cost(&r).unwrap();
+        assert!(line.contains("no AS built") && line.contains("80 MiB"), "{line}");
+        r.timing.as_builds = 2;
+        r.timing.as_build_ms_mean = 4.2;
+        r.timing.as_build_ms_max = 24.0;
+        let line = scene_cost(&r).unwrap();
+        assert_eq!(
+            line,
+            "cost: load 0.3 ms, CPU reference 90 ms, AS build 4 ms (mean of 2 workers, slowest 24 ms), peak memory 80 MiB (CLI)"
         );
     }
 }

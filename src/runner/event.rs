@@ -14,6 +14,8 @@ pub enum Event {
     WorkerReady {
         device_ms: f64,
         reference_ms: f64,
+        /// The scene AS build within `device_ms`, when the worker built one.
+        as_build_ms: Option<f64>,
         pipeline_cache: Option<crate::exec::pipeline_cache::Loaded>,
         driver_cache: Option<crate::model::DriverCache>,
     },

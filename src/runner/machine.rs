@@ -211,6 +211,7 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
         WorkerMsg::Ready {
             device_ms,
             reference_ms,
+            as_build_ms,
             device_features,
             pipeline_cache,
             driver_cache,
@@ -220,6 +221,7 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
             fx.push(Effect::Report(Event::WorkerReady {
                 device_ms,
                 reference_ms,
+                as_build_ms,
                 pipeline_cache,
                 driver_cache,
             }));

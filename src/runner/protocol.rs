@@ -77,6 +77,10 @@ pub enum WorkerMsg {
     Ready {
         device_ms: f64,
         reference_ms: f64,
+        /// The scene's acceleration structures' build within `device_ms` (none: no cell of the
+        /// worker traces the scene).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        as_build_ms: Option<f64>,
         #[serde(default)]
         device_features: Vec<String>,
         /// The pipeline cache file and what was loaded from it (absent: `--pipeline-cache off`).

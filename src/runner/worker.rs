@@ -284,6 +284,7 @@ pub fn main(job_path: &std::path::Path) -> u8 {
     send(&WorkerMsg::Ready {
         device_ms: t.elapsed().as_secs_f64() * 1e3 - exec.reference_ms,
         reference_ms: exec.reference_ms,
+        as_build_ms: exec.as_build_ms(),
         device_features: exec.gpu.enabled_names.clone(),
         pipeline_cache: exec.cache_status.clone(),
         driver_cache: Some(driver_cache(&exec, &job)),

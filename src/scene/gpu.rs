@@ -24,6 +24,8 @@ pub struct SceneGpu {
     /// The AS probe's TLAS variants (`probe::as_variants` of them).
     pub probe_tlas: Vec<AccelStruct>,
     inputs: Vec<Buffer>,
+    /// Host-side wall time of [`SceneGpu::build`]: geometry upload, BLAS and TLAS builds and
+    /// the fence wait (the run report's `timing.as_build_ms_*`).
     pub build_ms: f64,
 }
 

@@ -38,6 +38,7 @@ fn ready() -> Input {
     msg(WorkerMsg::Ready {
         device_ms: 1.0,
         reference_ms: 2.0,
+        as_build_ms: Some(0.5),
         device_features: vec!["VK_KHR_ray_tracing_pipeline".into()],
         pipeline_cache: None,
         driver_cache: None,
