@@ -48,6 +48,7 @@ mod boxes;
 pub mod bvh;
 mod compare;
 pub mod intersect;
+mod key;
 pub mod lanes;
 pub mod limits;
 pub mod mutation;
@@ -60,6 +61,7 @@ use crate::probe::{self, HitIds, Record, FLAG_HIT, FLAG_LANES, FLAG_PROBE, MAX_A
 use crate::scene::Scene;
 pub use compare::{compare, compare_with};
 use intersect::TraceRef;
+pub use key::{ExpectedKey, ExpectedMemo};
 pub use rules::{Expected, Undefined, ValueRule, BARY_TOL, T_REL_TOL};
 
 /// Primary rays of every pixel through the scene TLAS, and AS probe rays through every probe TLAS
