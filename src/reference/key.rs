@@ -1,13 +1,11 @@
 //! What a cell's expected records depend on besides the scene ([`ExpectedKey`]): the fields of
 //! its probe spec the reference reads, what is undefined, and whether the records carry lane
 //! words. Cells with equal keys have identical expected records, so a caller judging cell after
-//! cell keeps the last cell's (the plan's descriptor-model siblings are neighbours and share
-//! them) instead of computing them again.
-use super::rules::{Expected, Undefined};
-use super::SceneReference;
+//! cell keeps the last cell's (`ExpectedMemo`; the plan's descriptor-model siblings are
+//! neighbours and share them) instead of computing them again.
+use super::rules::Undefined;
 use crate::model::{Cell, LaneEvidence, Resource, Stage};
 use crate::probe::spec::{Base, ElementMap, ProbeSpec, ReadIndex, Sampler, SlotSource};
-use crate::scene::Scene;
 
 /// The inputs of [`super::expected_into`] and [`super::expect_lanes`] apart from the scene.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -54,39 +52,13 @@ impl ExpectedKey {
     }
 }
 
-/// The last cell's expected records and their key, kept from cell to cell (one scene: a caller
-/// keeps one memo per scene).
-#[derive(Default)]
-pub struct ExpectedMemo {
-    key: Option<ExpectedKey>,
-    records: Vec<Expected>,
-}
-
-impl ExpectedMemo {
-    /// `cell`'s expected records judged as `undefined` says, with lane evidence `lanes`: the kept
-    /// ones where its key is the last cell's, else computed into the kept buffer.
-    pub fn get(
-        &mut self,
-        cell: &Cell,
-        world: (&Scene, &SceneReference),
-        undefined: Undefined,
-        lanes: LaneEvidence,
-    ) -> &[Expected] {
-        let key = ExpectedKey::of(cell, undefined, lanes);
-        if self.key != Some(key) {
-            super::expected_into(&mut self.records, cell, world, undefined);
-            super::expect_lanes(&mut self.records, lanes);
-            self.key = Some(key);
-        }
-        &self.records
-    }
-}
-
 #[cfg(test)]
 mod tests {
+    use super::super::{Expected, ExpectedMemo, SceneReference};
     use super::*;
     use crate::model::SceneParams;
     use crate::probe::spec::ProbeSpec;
+    use crate::scene::Scene;
 
     fn same(a: &[Expected], b: &[Expected]) -> bool {
         a.len() == b.len()
