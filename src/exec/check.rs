@@ -8,17 +8,18 @@ use super::pictures;
 use crate::model::{Cell, CellResult, Outcome, Timings};
 use crate::probe::spec::ProbeSpec;
 use crate::probe::Record;
-use crate::reference::{self, Expected};
+use crate::reference::{self, ExpectedMemo};
 use std::time::Instant;
 
 impl Executor {
     /// The cell's result from its records: [`Executor::check`] (its time added to
     /// `timings.check_ms`), with the note on what the driver saw after its detail. `expected`:
-    /// a buffer for the reference's records, kept from cell to cell.
+    /// the reference's records, kept from cell to cell (and reused by the next cell with the
+    /// same key).
     pub(super) fn judge(
         &self,
         cell: &Cell,
-        (records, expected): (&[Record], &mut Vec<Expected>),
+        (records, expected): (&[Record], &mut ExpectedMemo),
         seen: Seen,
         timings: &mut Timings,
     ) -> CellResult {
@@ -33,12 +34,12 @@ impl Executor {
         CellResult { timings: timings.clone(), detail, ..r }
     }
 
-    /// Compare `records` with the reference (written into `expected`); `seen`: whether the driver
-    /// saw the cell's descriptor index as undefined, and the lane evidence the records carry.
+    /// Compare `records` with the reference (from `expected`); `seen`: whether the driver saw
+    /// the cell's descriptor index as undefined, and the lane evidence the records carry.
     fn check(
         &self,
         cell: &Cell,
-        (records, expected): (&[Record], &mut Vec<Expected>),
+        (records, expected): (&[Record], &mut ExpectedMemo),
         seen: Seen,
     ) -> CellResult {
         let none = |outcome, detail: &str| CellResult {
@@ -59,9 +60,7 @@ impl Executor {
             );
         }
         let undefined = reference::Undefined { descriptor: seen.undefined(cell) };
-        reference::expected_into(expected, cell, (&self.scene, &self.sref), undefined);
-        reference::expect_lanes(expected, seen.lanes);
-        let expected: &[Expected] = expected;
+        let expected = expected.get(cell, (&self.scene, &self.sref), undefined, seen.lanes);
         let (w, h) = (self.scene.params.width, self.scene.params.height);
         let lanes = seen.lanes.recorded().then(|| {
             reference::lanes::Lanes::for_stage(records, cell.stage).judged_by(seen.lanes.usable())

@@ -89,12 +89,12 @@ pub struct Executor {
 }
 
 /// Buffers every cell's readback and check fill, reused from cell to cell so that their pages
-/// stay mapped and warm: the records' bytes, the records, and the reference's expected records.
+/// stay mapped and warm: the records, and the reference's expected records (the last cell's,
+/// reused by a next cell with the same key).
 #[derive(Default)]
 pub(super) struct Scratch {
-    pub(super) bytes: Vec<u8>,
     pub(super) records: Vec<crate::probe::Record>,
-    pub(super) expected: Vec<crate::reference::Expected>,
+    pub(super) expected: crate::reference::ExpectedMemo,
 }
 
 impl Executor {
@@ -114,7 +114,7 @@ impl Executor {
             vk::BufferUsageFlags::STORAGE_BUFFER
                 | vk::BufferUsageFlags::TRANSFER_DST
                 | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
-            Location::Host,
+            Location::Readback,
             "records",
         )?;
         let sampler = samplers::create_sampler(&gpu)?;

@@ -102,12 +102,11 @@ impl Executor {
         }
         on_phase(Phase::Readback)?;
         let t = Instant::now();
-        let bytes = &mut self.scratch.bytes;
-        self.records.read_into(self.scene.params.pixels() * RECORD_SIZE, bytes);
         let mut recs = std::mem::take(&mut self.scratch.records);
-        recs.clear();
-        recs.extend(bytes.chunks_exact(RECORD_SIZE).map(Record::from_bytes));
-        timings.check_ms = t.elapsed().as_secs_f64() * 1e3;
+        let bytes = self.records.mapped(self.scene.params.pixels() * RECORD_SIZE);
+        Record::decode_all(bytes, &mut recs);
+        timings.readback_ms = t.elapsed().as_secs_f64() * 1e3;
+        timings.check_ms = timings.readback_ms;
         Ok((recs, bound.seen))
     }
 }

@@ -306,6 +306,7 @@ fn add_timing(t: &mut TimingSummary, r: &TimingSummary) {
     t.setup_ms += r.setup_ms;
     t.trace_ms += r.trace_ms;
     t.check_ms += r.check_ms;
+    t.readback_ms += r.readback_ms;
     t.overhead_ms += r.overhead_ms;
     t.cells_timed += r.cells_timed;
     t.prebuild_ms += r.prebuild_ms;

@@ -112,6 +112,10 @@ pub struct Timings {
     pub trace_ms: f64,
     /// Reading back and comparing the records.
     pub check_ms: f64,
+    /// The readback alone (copying and decoding the records; part of `check_ms`; 0 in older
+    /// reports).
+    #[serde(default)]
+    pub readback_ms: f64,
     pub total_ms: f64,
 }
 

@@ -372,6 +372,9 @@ pub struct TimingSummary {
     pub setup_ms: f64,
     pub trace_ms: f64,
     pub check_ms: f64,
+    /// Of `check_ms`, the records' readback (0 in older reports).
+    #[serde(default)]
+    pub readback_ms: f64,
     /// Supervisor-observed wall time of all attempts minus the worker-side split: process,
     /// protocol and bookkeeping overhead.
     pub overhead_ms: f64,

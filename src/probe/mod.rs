@@ -115,6 +115,30 @@ impl Record {
         b
     }
 
+    /// Every whole record of `bytes` into `out` (cleared first): what [`Record::from_bytes`]
+    /// gives record by record, on a little-endian host in one copy.
+    pub fn decode_all(bytes: &[u8], out: &mut Vec<Record>) {
+        let n = bytes.len() / RECORD_SIZE;
+        out.clear();
+        if cfg!(target_endian = "little") {
+            out.reserve(n);
+            // SAFETY: a `Record` is `repr(C)`, 20 four-byte fields and no padding (80 bytes,
+            // asserted), each a `u32` or an `f32`, so every bit pattern is one; the GPU writes it
+            // in that order (`from_bytes` reads each field at its `offset_of!`), little-endian as
+            // the host. `out` has room for `n` records, all written before the length is set.
+            unsafe {
+                std::ptr::copy_nonoverlapping(
+                    bytes.as_ptr(),
+                    out.as_mut_ptr().cast::<u8>(),
+                    n * RECORD_SIZE,
+                );
+                out.set_len(n);
+            }
+        } else {
+            out.extend(bytes.chunks_exact(RECORD_SIZE).map(Record::from_bytes));
+        }
+    }
+
     pub fn from_bytes(b: &[u8]) -> Record {
         let u = |o: usize| u32::from_le_bytes(b[o..o + 4].try_into().expect("4 bytes"));
         let f = |o: usize| f32::from_bits(u(o));

@@ -81,6 +81,28 @@ fn samplers_pick_the_texels_their_address_modes_say() {
     assert_eq!((0..6).map(sampler_slot).collect::<Vec<_>>(), [0, 1, 2, 0, 1, 2]);
 }
 
+/// The one-copy decode reads what `from_bytes` reads, record by record (every field distinct,
+/// a NaN's bits kept, a trailing partial record left out); the twin: a byte moved within a
+/// record changes what both read.
+#[test]
+fn decode_all_reads_as_from_bytes_does() {
+    let mut bytes: Vec<u8> = (0..3 * RECORD_SIZE + 7).map(|i| (i * 37 % 251) as u8).collect();
+    bytes[RECORD_SIZE + offset_of!(Record, t)..][..4]
+        .copy_from_slice(&0x7fc0_0001u32.to_le_bytes());
+    let mut out = vec![Record::default(); 9];
+    Record::decode_all(&bytes, &mut out);
+    let one_by_one: Vec<Record> = bytes.chunks_exact(RECORD_SIZE).map(Record::from_bytes).collect();
+    assert_eq!(out.len(), 3);
+    let as_bytes = |v: &[Record]| v.iter().flat_map(Record::to_bytes).collect::<Vec<u8>>();
+    assert_eq!(as_bytes(&out), as_bytes(&one_by_one));
+    assert_eq!(as_bytes(&out), bytes[..3 * RECORD_SIZE]);
+    assert_eq!(out[1].t.to_bits(), 0x7fc0_0001);
+    bytes.swap(offset_of!(Record, slot), offset_of!(Record, element));
+    Record::decode_all(&bytes, &mut out);
+    assert_ne!((out[0].slot, out[0].element), (one_by_one[0].slot, one_by_one[0].element));
+    assert_eq!(out[0].slot, Record::from_bytes(&bytes).slot);
+}
+
 #[test]
 fn record_round_trips_through_bytes() {
     let r = Record {

@@ -53,9 +53,10 @@ fn compare_hit(c: &mut Comparison, bad: &mut Bad, r: &Record, a: &Record) {
 }
 
 /// The lane words: consistent where the probe measured them (`FLAG_LANES`), else all zero.
-fn compare_lanes(bad: &mut Bad, r: &Record, a: &Record, pixels: usize) {
+/// `words`: [`LaneWords::of`] the actual record.
+fn compare_lanes(bad: &mut Bad, r: &Record, a: &Record, words: LaneWords) {
     if r.flags & FLAG_LANES != 0 {
-        if let Some(why) = super::lanes::inconsistency(a, pixels) {
+        if let LaneWords::Inconsistent(why) = words {
             let words = format!(
                 "lane {} leader {} mask {:#x} count {}",
                 a.lane, a.leader, a.active_mask, a.active_count
@@ -72,6 +73,29 @@ fn compare_lanes(bad: &mut Bad, r: &Record, a: &Record, pixels: usize) {
                 ("lanes", 0, a.active_count),
             ],
         );
+    }
+}
+
+/// What an expected record's lane words ask of the actual one, checked once per pixel (the
+/// comparison and the lane split both need it).
+#[derive(Clone, Copy)]
+enum LaneWords {
+    /// The expected record carries no lane words (`FLAG_LANES` clear).
+    Absent,
+    Consistent,
+    /// [`super::lanes::inconsistency`]'s reason.
+    Inconsistent(&'static str),
+}
+
+impl LaneWords {
+    fn of(r: &Record, a: &Record, pixels: usize) -> LaneWords {
+        if r.flags & FLAG_LANES == 0 {
+            return LaneWords::Absent;
+        }
+        match super::lanes::inconsistency(a, pixels) {
+            Some(why) => LaneWords::Inconsistent(why),
+            None => LaneWords::Consistent,
+        }
     }
 }
 
@@ -270,7 +294,8 @@ pub fn compare_with(
             // (the denominator of the discrimination: exact pixels whose probe fields were read)
             exact_probe_pixels += usize::from(e.rule == ValueRule::Exact && r.flags == a.flags);
         }
-        let mut bad = compare_pixel(&mut c, (e, a, i), &others, expected.len());
+        let words = LaneWords::of(r, a, expected.len());
+        let mut bad = compare_pixel(&mut c, (e, a, i), &others, words);
         let contradiction = lanes.and_then(|l| Some((l.contradiction(i)?, l.judged)));
         c.lane_contradictions += usize::from(contradiction.is_some());
         if let Some((c, true)) = contradiction {
@@ -280,8 +305,7 @@ pub fn compare_with(
                 c.why.into(),
             ));
         }
-        let lane_words =
-            r.flags & FLAG_LANES != 0 && super::lanes::inconsistency(a, expected.len()).is_none();
+        let lane_words = matches!(words, LaneWords::Consistent);
         match (lane_words, contradiction) {
             (true, None) => {
                 split.add((a.lane, a.active_mask, a.leader as usize, i), !bad.is_empty())
@@ -324,7 +348,7 @@ fn compare_pixel(
     c: &mut Comparison,
     (e, a, i): (&Expected, &Record, usize),
     others: &OtherLanes,
-    pixels: usize,
+    words: LaneWords,
 ) -> Bad {
     let r = &e.record;
     let mut bad: Bad = Vec::new();
@@ -348,7 +372,7 @@ fn compare_pixel(
             ],
         );
     }
-    compare_lanes(&mut bad, r, a, pixels);
+    compare_lanes(&mut bad, r, a, words);
     if r.flags & FLAG_PROBE != 0 {
         compare_probe(c, &mut bad, (e, a, i), others);
     } else {

@@ -48,6 +48,7 @@ mod boxes;
 pub mod bvh;
 mod compare;
 pub mod intersect;
+mod key;
 pub mod lanes;
 pub mod limits;
 pub mod mutation;
@@ -60,6 +61,7 @@ use crate::probe::{self, HitIds, Record, FLAG_HIT, FLAG_LANES, FLAG_PROBE, MAX_A
 use crate::scene::Scene;
 pub use compare::{compare, compare_with};
 use intersect::TraceRef;
+pub use key::ExpectedKey;
 pub use rules::{Expected, Undefined, ValueRule, BARY_TOL, T_REL_TOL};
 
 /// Primary rays of every pixel through the scene TLAS, and AS probe rays through every probe TLAS
@@ -492,6 +494,34 @@ fn expected_probed(
             }
             out.push(e);
         }
+    }
+}
+
+/// The last cell's expected records and their key, kept from cell to cell (one scene: a caller
+/// keeps one memo per scene).
+#[derive(Default)]
+pub struct ExpectedMemo {
+    key: Option<ExpectedKey>,
+    records: Vec<Expected>,
+}
+
+impl ExpectedMemo {
+    /// `cell`'s expected records judged as `undefined` says, with lane evidence `lanes`: the kept
+    /// ones where its key is the last cell's, else computed into the kept buffer.
+    pub fn get(
+        &mut self,
+        cell: &Cell,
+        world: (&Scene, &SceneReference),
+        undefined: Undefined,
+        lanes: LaneEvidence,
+    ) -> &[Expected] {
+        let key = ExpectedKey::of(cell, undefined, lanes);
+        if self.key != Some(key) {
+            expected_into(&mut self.records, cell, world, undefined);
+            expect_lanes(&mut self.records, lanes);
+            self.key = Some(key);
+        }
+        &self.records
     }
 }
 

@@ -936,39 +936,72 @@ fn a_uniform_subgroup_is_judged_exactly() {
     assert!(mixed.by_subgroup > 0, "{mixed:?}");
 }
 
+/// This thread's CPU time in seconds (a shared machine's load inflates wall time, not this).
+fn thread_cpu() -> f64 {
+    let mut t = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+    // SAFETY: a valid clock id and a timespec to write.
+    unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut t) };
+    t.tv_sec as f64 + t.tv_nsec as f64 * 1e-9
+}
+
 /// Not a check: where a cell's CPU check spends its time (`cargo test --release --lib
 /// reference::tests::check_cost -- --ignored --nocapture`), over every cell of the default plan
-/// with the lane evidence of 8-lane subgroups.
+/// in plan order with the lane evidence of 8-lane subgroups, in this thread's CPU time: the
+/// records decoded from their bytes record by record (as before) and in one copy (as the
+/// worker's readback now does), the expected records computed for every cell (as before) and
+/// through the memo (as the executor now does), the lane evidence, the comparison. Three
+/// rounds; each figure is the least of them.
 #[test]
 #[ignore]
 fn check_cost() {
     let (scene, r) = world();
     let (cells, _) = crate::matrix::plan::all_cells();
-    let (mut t_exp, mut t_lanes, mut t_cmp) = (0.0, 0.0, 0.0);
-    let secs = |t: std::time::Instant| t.elapsed().as_secs_f64();
-    let mut e = Vec::new();
-    for c in &cells {
-        let t = std::time::Instant::now();
-        let undefined = Undefined { descriptor: ProbeSpec::of(c).read == ReadIndex::Undefined };
-        expected_into(&mut e, c, (scene, r), undefined);
-        expect_lanes(&mut e, LaneEvidence::Supported);
-        t_exp += secs(t);
-        let good = with_lanes(&e);
-        let t = std::time::Instant::now();
-        let lanes = lanes::Lanes::for_stage(&good, c.stage);
-        t_lanes += secs(t);
-        let t = std::time::Instant::now();
-        let cmp = compare_with(&e, &good, 64, Some(&lanes));
-        t_cmp += secs(t);
-        assert!(cmp.passed(), "{}", c.id());
+    let mut best = [f64::INFINITY; 6];
+    let (mut e, mut decoded, mut memo) = (Vec::new(), Vec::new(), ExpectedMemo::default());
+    for _ in 0..3 {
+        let mut round = [0.0; 6];
+        let mut time = |k: usize, t: f64| round[k] += thread_cpu() - t;
+        for c in &cells {
+            let undefined = Undefined { descriptor: ProbeSpec::of(c).read == ReadIndex::Undefined };
+            let t = thread_cpu();
+            expected_into(&mut e, c, (scene, r), undefined);
+            expect_lanes(&mut e, LaneEvidence::Supported);
+            time(2, t);
+            let t = thread_cpu();
+            let kept = memo.get(c, (scene, r), undefined, LaneEvidence::Supported).len();
+            time(3, t);
+            assert_eq!(kept, e.len());
+            let good = with_lanes(&e);
+            let bytes: Vec<u8> = good.iter().flat_map(|g| g.to_bytes()).collect();
+            let t = thread_cpu();
+            decoded.clear();
+            decoded.extend(bytes.chunks_exact(probe::RECORD_SIZE).map(Record::from_bytes));
+            time(0, t);
+            let t = thread_cpu();
+            Record::decode_all(&bytes, &mut decoded);
+            time(1, t);
+            let t = thread_cpu();
+            let lanes = lanes::Lanes::for_stage(&decoded, c.stage);
+            time(4, t);
+            let t = thread_cpu();
+            let cmp = compare_with(&e, &decoded, 64, Some(&lanes));
+            time(5, t);
+            assert!(cmp.passed(), "{}", c.id());
+        }
+        for (b, x) in best.iter_mut().zip(round) {
+            *b = b.min(x);
+        }
     }
-    let n = cells.len() as f64 / 1e3;
+    let ms = best.map(|b| b / cells.len() as f64 * 1e3);
     eprintln!(
-        "{} cells, per cell: expected {:.3} ms, lanes {:.3} ms, compare {:.3} ms",
+        "{} cells, CPU ms per cell: decode {:.3} (one copy {:.3}), expected {:.3} (memo {:.3}), lanes {:.3}, compare {:.3}",
         cells.len(),
-        t_exp / n,
-        t_lanes / n,
-        t_cmp / n
+        ms[0],
+        ms[1],
+        ms[2],
+        ms[3],
+        ms[4],
+        ms[5]
     );
 }
 

@@ -336,7 +336,7 @@ fn timing(s: &mut String, r: &RunReport, quiet: Quiet) {
     let n = t.cells_timed.max(1) as f64;
     let _ = writeln!(
         s,
-        "time: {:.1} s wall, {} (device {:.0} ms each{}); per cell: compile {:.1} ms, pipeline {:.1} ms, trace {:.1} ms, check {:.1} ms, overhead {:.1} ms",
+        "time: {:.1} s wall, {} (device {:.0} ms each{}); per cell: compile {:.1} ms, pipeline {:.1} ms, trace {:.1} ms, check {:.2} ms (readback {:.2}), overhead {:.1} ms",
         t.wall_ms / 1e3,
         plural(t.workers_started, "worker"),
         t.device_ms_mean,
@@ -349,6 +349,7 @@ fn timing(s: &mut String, r: &RunReport, quiet: Quiet) {
         t.pipeline_ms / n,
         t.trace_ms / n,
         t.check_ms / n,
+        t.readback_ms / n,
         t.overhead_ms / n
     );
     if t.prebuilt_pipelines > 0 {

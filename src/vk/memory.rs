@@ -8,6 +8,10 @@ use ash::vk;
 pub enum Location {
     /// HOST_VISIBLE | HOST_COHERENT, persistently mapped.
     Host,
+    /// What the device writes and the host reads back: HOST_VISIBLE | HOST_COHERENT, and
+    /// HOST_CACHED where a type has it (host reads of uncached memory, write-combined or over
+    /// the bus, are many times slower), persistently mapped.
+    Readback,
     /// DEVICE_LOCAL.
     Device,
 }
@@ -28,24 +32,12 @@ fn allocate(
     device_address: bool,
     what: &'static str,
 ) -> Result<vk::DeviceMemory, VkError> {
-    let flags = match loc {
-        Location::Host => {
-            vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_COHERENT
-        }
-        Location::Device => vk::MemoryPropertyFlags::DEVICE_LOCAL,
-    };
-    let type_index = gpu
-        .info
-        .memory_type_index(req.memory_type_bits, flags)
-        .or_else(|| {
-            (loc == Location::Device)
-                .then(|| {
-                    gpu.info
-                        .memory_type_index(req.memory_type_bits, vk::MemoryPropertyFlags::empty())
-                })
-                .flatten()
-        })
-        .ok_or(VkError::NoMemoryType { what, type_bits: req.memory_type_bits, flags })?;
+    let find = |f| gpu.info.memory_type_index(req.memory_type_bits, f);
+    let type_index = pick(loc, find).ok_or(VkError::NoMemoryType {
+        what,
+        type_bits: req.memory_type_bits,
+        flags: preferred(loc)[0],
+    })?;
     let mut flags_info =
         vk::MemoryAllocateFlagsInfo::default().flags(vk::MemoryAllocateFlags::DEVICE_ADDRESS);
     let mut info =
@@ -54,6 +46,28 @@ fn allocate(
         info = info.push_next(&mut flags_info);
     }
     unsafe { gpu.device.allocate_memory(&info, None) }.at("vkAllocateMemory")
+}
+
+/// The memory property flags a location takes, best first: the first that some allowed type
+/// has is used (`DeviceInfo::memory_type_index`: the lowest such type).
+fn preferred(loc: Location) -> Vec<vk::MemoryPropertyFlags> {
+    use vk::MemoryPropertyFlags as F;
+    match loc {
+        Location::Host => vec![F::HOST_VISIBLE | F::HOST_COHERENT],
+        Location::Readback => {
+            vec![
+                F::HOST_VISIBLE | F::HOST_COHERENT | F::HOST_CACHED,
+                F::HOST_VISIBLE | F::HOST_COHERENT,
+            ]
+        }
+        Location::Device => vec![F::DEVICE_LOCAL, F::empty()],
+    }
+}
+
+/// The memory type for `loc`: the first of its [`preferred`] flags that `find` (the lowest
+/// allowed type having them) finds.
+fn pick(loc: Location, find: impl Fn(vk::MemoryPropertyFlags) -> Option<u32>) -> Option<u32> {
+    preferred(loc).into_iter().find_map(find)
 }
 
 impl Buffer {
@@ -80,11 +94,12 @@ impl Buffer {
             }
         };
         unsafe { d.bind_buffer_memory(raw, memory, 0) }.at("vkBindBufferMemory")?;
-        let mapped = if loc == Location::Host {
-            unsafe { d.map_memory(memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty()) }
-                .at("vkMapMemory")? as *mut u8
-        } else {
-            std::ptr::null_mut()
+        let mapped = match loc {
+            Location::Host | Location::Readback => {
+                unsafe { d.map_memory(memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty()) }
+                    .at("vkMapMemory")? as *mut u8
+            }
+            Location::Device => std::ptr::null_mut(),
         };
         let address = if bda {
             unsafe {
@@ -126,19 +141,14 @@ impl Buffer {
         v
     }
 
-    /// [`Buffer::read`] into `out` (its contents replaced, its allocation kept): a buffer read
-    /// back after every cell reuses one vector.
-    pub fn read_into(&self, len: usize, out: &mut Vec<u8>) {
+    /// The first `len` bytes of the mapping (clamped to the buffer), read in place: what the
+    /// device wrote, once the work that wrote it is known complete (a fence waited on).
+    pub fn mapped(&self, len: usize) -> &[u8] {
         assert!(!self.mapped.is_null(), "read from a device-local buffer");
         let len = len.min(self.size as usize);
-        out.clear();
-        out.reserve(len);
-        // SAFETY: mapped for the buffer's whole size; len clamped; `out` holds at least len
-        // bytes of capacity, all written before its length is set.
-        unsafe {
-            std::ptr::copy_nonoverlapping(self.mapped, out.as_mut_ptr(), len);
-            out.set_len(len);
-        }
+        // SAFETY: mapped for the buffer's whole size (host coherent) for as long as `self`
+        // lives; len clamped; the caller reads it only after the device's writes completed.
+        unsafe { std::slice::from_raw_parts(self.mapped, len) }
     }
 
     /// Set `len` bytes from `offset` to `byte` (no staging vector).
@@ -298,4 +308,32 @@ pub fn transition(gpu: &Gpu, cmd: vk::CommandBuffer, image: vk::Image, t: Transi
             &[b],
         )
     };
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use vk::MemoryPropertyFlags as F;
+
+    /// The lowest of `types` having `flags` (as `DeviceInfo::memory_type_index` finds).
+    fn lowest(types: &[F], flags: F) -> Option<u32> {
+        types.iter().position(|t| t.contains(flags)).map(|i| i as u32)
+    }
+
+    /// A discrete GPU's order (the spec sorts a type before its supersets): device local, then
+    /// host visible and coherent (uncached: write-combined), then the same cached. Readback
+    /// takes the cached type, other host buffers the first; without a cached type, readback
+    /// falls back to the coherent one (the twin).
+    #[test]
+    fn readback_prefers_cached_host_memory() {
+        let hv = F::HOST_VISIBLE | F::HOST_COHERENT;
+        let discrete = [F::empty(), F::DEVICE_LOCAL, hv, hv | F::HOST_CACHED];
+        assert_eq!(pick(Location::Readback, |f| lowest(&discrete, f)), Some(3));
+        assert_eq!(pick(Location::Host, |f| lowest(&discrete, f)), Some(2));
+        assert_eq!(pick(Location::Device, |f| lowest(&discrete, f)), Some(1));
+        let uncached = [F::DEVICE_LOCAL, hv];
+        assert_eq!(pick(Location::Readback, |f| lowest(&uncached, f)), Some(1));
+        assert_eq!(pick(Location::Device, |f| lowest(&[hv], f)), Some(0));
+        assert_eq!(pick(Location::Host, |f| lowest(&[F::DEVICE_LOCAL], f)), None);
+    }
 }
