@@ -141,7 +141,7 @@ fn default_matrix_passes_on_lavapipe_and_canaries_are_classified() {
 fn injected_wrong_values_are_reported_as_confirmed_mismatches() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("r.json");
-    let filter = "stage=raygen|closest_hit,resource=storage_buffer,descriptor_model=descriptor_indexing,reorder=none,base=push_data|none";
+    let filter = "stage=raygen|closest_hit,resource=storage_buffer,descriptor_model=descriptor_indexing,reorder=none,base=push_data|none,scene_layout=none";
     let o = run(&[
         "run",
         "--inject-fault",

@@ -4,7 +4,7 @@
 use crate::model::registry::AxisId;
 use crate::model::{
     AsAccess, BaseSource, Canary, DescriptorModel, HeapAccess, IndexSource, Mutant, Reorder,
-    Resource, SamplerIndex, Stage, Workaround,
+    Resource, SamplerIndex, SceneLayout, Stage, Workaround,
 };
 use crate::vk::{heap, DeviceInfo};
 use ash::{ext, khr, nv, vk};
@@ -322,6 +322,16 @@ pub fn value(info: &DeviceInfo, axis: AxisId, v: &str) -> Support {
             Some(Workaround::Nonuniform | Workaround::PinIndex) | None => Support::Supported,
         },
         AxisId::Mutant => of(Mutant::parse(v).map(|m| mutant(info, m, None))),
+        AxisId::SceneLayout => of(SceneLayout::parse(v).map(|l| scene_layout(info, l))),
+    }
+}
+
+/// A scene layout: `shared_buffers` loads through device addresses (`uvec2` buffer references, no
+/// 64-bit integers), `per_mesh` indexes a storage-buffer array non-uniformly.
+pub fn scene_layout(info: &DeviceInfo, l: SceneLayout) -> Support {
+    match l {
+        SceneLayout::SharedBuffers => base(info, BaseSource::Buffer),
+        SceneLayout::PerMesh => dynamic_index(info, Resource::StorageBuffer, true),
     }
 }
 

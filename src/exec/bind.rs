@@ -7,7 +7,7 @@ use super::built::{Addresses, Bound, Compiled};
 use super::error::CellError;
 use super::executor::Executor;
 use super::pipeline_key;
-use crate::model::{Cell, Timings};
+use crate::model::{Cell, SceneLayout, Timings};
 use crate::probe::spec::{ArrayAt, ProbeSpec};
 use crate::shadergen::{CellShaders, PipelineKind};
 use ash::vk;
@@ -41,6 +41,7 @@ pub(super) fn layout_key(spec: &ProbeSpec, shaders: &CellShaders, all_stages: bo
         probe: shaders.uses_probe_binding.then_some(spec.resource),
         heap_direct: spec.array == ArrayAt::Heap,
         packed: spec.packed(),
+        per_mesh: spec.layout == Some(SceneLayout::PerMesh),
     }
 }
 
@@ -95,6 +96,10 @@ impl Executor {
         } else {
             0
         };
-        Addresses { as_table, patched_table, base }
+        let scene_desc = match (&self.shared_layout, spec.scene_desc()) {
+            (Some(s), true) => s.desc.address,
+            (None, _) | (Some(_), false) => 0,
+        };
+        Addresses { as_table, patched_table, base, scene_desc }
     }
 }

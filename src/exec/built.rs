@@ -30,6 +30,8 @@ pub(super) struct Addresses {
     pub(super) patched_table: u64,
     /// The per-instance bases (`base=buffer`).
     pub(super) base: u64,
+    /// The `SceneDesc` of `scene_layout=shared_buffers`.
+    pub(super) scene_desc: u64,
 }
 
 /// A cell ready to record: its descriptor binding, the key of its (created) pipeline, the

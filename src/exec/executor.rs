@@ -70,6 +70,10 @@ pub struct Executor {
     pub(super) ssbo_table: Option<Buffer>,
     /// `base=buffer`: one base per scene instance (`probe::base_buffer`).
     pub(super) bases: Option<Buffer>,
+    /// `scene_layout=shared_buffers`' buffers and `SceneDesc`.
+    pub(super) shared_layout: Option<super::layout_buffers::SharedBuffers>,
+    /// `scene_layout=per_mesh`'s mesh buffers.
+    pub(super) mesh_layout: Option<super::layout_buffers::MeshBuffers>,
     pub(super) color: Option<Image>,
     pub(super) bindings: HashMap<LayoutKey, Binding>,
     pub(super) pipelines: HashMap<u64, Pipeline>,
@@ -135,6 +139,8 @@ impl Executor {
             as_table: None,
             ssbo_table: None,
             bases: None,
+            shared_layout: None,
+            mesh_layout: None,
             color: None,
             bindings: HashMap::new(),
             pipelines: HashMap::new(),
@@ -195,6 +201,12 @@ impl Drop for Executor {
         }
         for t in self.as_table.iter().chain(self.ssbo_table.iter()).chain(self.bases.iter()) {
             t.destroy(gpu);
+        }
+        if let Some(s) = &self.shared_layout {
+            s.destroy(gpu);
+        }
+        if let Some(m) = &self.mesh_layout {
+            m.destroy(gpu);
         }
         if let Some(c) = &self.color {
             c.destroy(gpu);

@@ -13,7 +13,7 @@
 //! (`seen`), whether its modules fit its layout (`fit`), the turn itself (`run`), recording the
 //! three pipeline kinds (`record`), judging the records (`check`, `pictures`), a mutant cell's
 //! mutation and prediction (`mutant`), error → outcome (`error`); below them resources and
-//! samplers, bindings, the descriptor heap, pipelines whole or linked from group libraries
+//! samplers, the scene-layout cells' buffers (`layout_buffers`), bindings, the descriptor heap, pipelines whole or linked from group libraries
 //! (`pipeline_library`), the pipeline cache kept between runs, and files (library and layout
 //! identities use `crate::stable_hash`).
 mod bind;
@@ -27,6 +27,7 @@ mod executor;
 mod files;
 mod fit;
 pub mod heap;
+mod layout_buffers;
 mod mutant;
 pub mod pictures;
 pub mod pipeline;

@@ -52,6 +52,7 @@ impl Executor {
             ),
             as_table: b.addresses.as_table,
             base_address: b.addresses.base,
+            scene_desc: b.addresses.scene_desc,
             bad_address: if spec.canary == Some(Canary::InvalidAddress) || injected_bad {
                 CANARY_BAD_ADDRESS
             } else {

@@ -1,13 +1,14 @@
 //! What cells need built on the device before they bind: the scene's acceleration structures,
-//! the probed resource arrays, the SSBO and AS address tables, the per-instance bases and the color
+//! the probed resource arrays, the scene-layout cells' buffers, the SSBO and AS address tables, the per-instance bases and the color
 //! target (all built once, normally by [`Executor::prepare`] before the first cell), and the
 //! targets of a layout's bindings 0..=2 taken from them.
 use super::bindings::LayoutKey;
 use super::error::CellError;
 use super::executor::Executor;
+use super::layout_buffers::{MeshBuffers, SharedBuffers};
 use super::pipeline;
 use super::resources::{self, ResourceArray, Target};
-use crate::model::{Cell, Outcome, Resource};
+use crate::model::{Cell, Outcome, Resource, SceneLayout};
 use crate::probe;
 use crate::probe::spec::ProbeSpec;
 use crate::scene::gpu::SceneGpu;
@@ -77,7 +78,10 @@ impl Executor {
         }
         if let Some(r) = key.probe {
             let slots = self.slots(r);
-            let targets = if r == Resource::AccelerationStructure {
+            let targets = if key.per_mesh {
+                self.ensure_layout(SceneLayout::PerMesh)?;
+                self.mesh_layout.as_ref().expect("made above").targets()
+            } else if r == Resource::AccelerationStructure {
                 let s = self.ensure_scene()?;
                 (0..slots)
                     .map(|k| {
@@ -113,7 +117,9 @@ impl Executor {
         {
             self.ensure_scene()?;
         }
-        if shaders.uses_probe_binding && spec.resource != Resource::AccelerationStructure {
+        if let Some(l) = spec.layout {
+            self.ensure_layout(l)?;
+        } else if shaders.uses_probe_binding && spec.resource != Resource::AccelerationStructure {
             self.ensure_array(spec.resource)?;
         }
         if spec.addresses.ssbo_table && self.ssbo_table.is_none() {
@@ -143,6 +149,20 @@ impl Executor {
                 pipeline::COLOR_FORMAT,
                 vk::ImageUsageFlags::COLOR_ATTACHMENT,
             )?);
+        }
+        Ok(())
+    }
+
+    /// The buffers of scene layout `l`, made once (only the layout a cell reads).
+    fn ensure_layout(&mut self, l: SceneLayout) -> Result<(), CellError> {
+        match l {
+            SceneLayout::SharedBuffers if self.shared_layout.is_none() => {
+                self.shared_layout = Some(SharedBuffers::create(&self.gpu, &self.scene)?);
+            }
+            SceneLayout::PerMesh if self.mesh_layout.is_none() => {
+                self.mesh_layout = Some(MeshBuffers::create(&self.gpu, &self.scene)?);
+            }
+            SceneLayout::SharedBuffers | SceneLayout::PerMesh => {}
         }
         Ok(())
     }

@@ -4,7 +4,7 @@
 use crate::caps::support::{self, Support};
 use crate::model::{
     AsAccess, BaseSource, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource,
-    SamplerIndex, Stage,
+    SamplerIndex, SceneLayout, Stage,
 };
 use crate::model::{
     Canary, Cell, Filter, NotGenerated, PatchMode, PlanStatus, PlannedCell, RunPlan,
@@ -59,6 +59,9 @@ pub fn device_support(info: &DeviceInfo, cell: &Cell) -> Support {
     if let Some(m) = cell.mutant {
         checks.push(support::mutant(info, m, Some(cell.stage)));
     }
+    if let Some(l) = cell.scene_layout {
+        checks.push(support::scene_layout(info, l));
+    }
     if matches!(
         cell.patch,
         Some(crate::model::Workaround::AsToAddress | crate::model::Workaround::SsboToAddress)
@@ -100,6 +103,7 @@ struct Skipped {
     packed_elsewhere: usize,
     base_elsewhere: usize,
     sampler_elsewhere: usize,
+    layout_elsewhere: usize,
 }
 
 impl Skipped {
@@ -116,6 +120,10 @@ impl Skipped {
             NotGenerated {
                 rule: "sampler=constant|dynamic only applies to heap_access=direct sampled images (set/binding shaders sample combined image samplers)".into(),
                 count: self.sampler_elsewhere,
+            },
+            NotGenerated {
+                rule: "scene_layout only applies to stage=closest_hit storage_buffer index=dynamic cells of set-based models without base or reorder; per_mesh with nonuniform (without it the descriptor read is undefined), shared_buffers without (it indexes no descriptor)".into(),
+                count: self.layout_elsewhere,
             },
             NotGenerated { rule: "heap_access=mapped_shader_record_index needs a shader record (ray tracing pipelines only)".into(), count: self.record_outside_rt },
             NotGenerated {
@@ -217,6 +225,14 @@ fn heap_cells(base: Cell, cells: &mut Vec<Cell>, skipped: &mut Skipped) {
             } else {
                 skipped.base_elsewhere += BaseSource::ALL.len();
             }
+            let layout =
+                if cell.nonuniform { SceneLayout::PerMesh } else { SceneLayout::SharedBuffers };
+            if cell.scene_layout_applies() {
+                cells.push(Cell { scene_layout: Some(layout), ..cell });
+                skipped.layout_elsewhere += SceneLayout::ALL.len() - 1;
+            } else {
+                skipped.layout_elsewhere += SceneLayout::ALL.len();
+            }
         }
     }
 }
@@ -303,6 +319,9 @@ mod tests {
         // (4 x 2 + 2) in 2 set-based models and 5 heap ways, plus the direct sampled ones' second
         // sampler value (3), again with each of the 2 non-default bases.
         let base_extra = 2 * ((4 * 2 + 2) * 7 + 3);
+        // scene_layout: closest-hit dynamic storage-buffer cells of the 2 set-based models, one
+        // layout each (per_mesh with nonuniform, shared_buffers without).
+        let layouts = 2 * 2;
         assert_eq!(
             n,
             8 * (4 * 5 + 14) * 2
@@ -313,6 +332,7 @@ mod tests {
                 + 2 * packed(4)
                 + sampler_extra
                 + base_extra
+                + layouts
         );
         assert!(cells.iter().all(|c| c.sampler.is_some() == c.sampler_applies()));
         assert!(cells.iter().all(|c| c.base.is_none() || c.base_applies()));
@@ -331,9 +351,12 @@ mod tests {
                 && !c.nonuniform
                 && c.applicable_patches().is_empty()
         }));
-        // Every dynamic storage-buffer / sampled-image cell has its recommended pattern in the matrix.
+        // Every dynamic storage-buffer / sampled-image cell has its recommended pattern in the
+        // matrix (a scene-layout cell is an engine's layout itself: its alternative is the other).
         for c in cells.iter().filter(|c| {
-            c.index == IndexSource::Dynamic && Cell::dynamic_element_applies(c.resource)
+            c.index == IndexSource::Dynamic
+                && Cell::dynamic_element_applies(c.resource)
+                && c.scene_layout.is_none()
         }) {
             let (_, r) = c.recommended_pattern().unwrap();
             assert!(cells.contains(&r), "{} -> {}", c.id(), r.id());

@@ -115,6 +115,19 @@ axis!(
     }
 );
 
+axis!(
+    /// How a scene-layout cell's closest-hit fetches the hit triangle's data (its three vertex
+    /// indices, one coordinate of each vertex and its material index), the two layouts engines
+    /// switch between: `shared_buffers`, the glTF ray tracing tutorial's — one position and one
+    /// index buffer for the whole scene, a `PrimMeshInfo {indexOffset, vertexOffset,
+    /// materialIndex}` table and a `SceneDesc` of device addresses, no descriptor indexed — and
+    /// `per_mesh`, one storage buffer per mesh in a descriptor array selected by the custom index.
+    /// Only on the cells that have it (`Cell::scene_layout_applies`).
+    SceneLayout {
+        SharedBuffers = "shared_buffers", PerMesh = "per_mesh",
+    }
+);
+
 impl Stage {
     /// Stages of a ray tracing pipeline (the rest are graphics / compute).
     pub fn is_ray_tracing(self) -> bool {

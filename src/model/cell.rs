@@ -1,10 +1,10 @@
 //! One cell of the matrix: its axis values, where each optional axis applies, and its stable id,
 //! built from the axes by the registry (never from run order):
-//! `stage.resource.index[.nonuniform][.as_access].descriptor_model[.heap_access][.reorder][.base_<base>][.sampler_<sampler>][.patch-<name>][.mutant-<name>]`,
+//! `stage.resource.index[.nonuniform][.as_access].descriptor_model[.heap_access][.reorder][.base_<base>][.sampler_<sampler>][.scene_layout][.patch-<name>][.mutant-<name>]`,
 //! or `canary.<name>`.
 use super::axes::{
     AsAccess, BaseSource, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource,
-    SamplerIndex, Stage,
+    SamplerIndex, SceneLayout, Stage,
 };
 use serde::{Deserialize, Serialize};
 
@@ -142,6 +142,10 @@ pub struct Cell {
     /// --mutants`; none for plan cells): a mutant attempt's identity.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mutant: Option<super::mutant::Mutant>,
+    /// How the closest-hit fetches the hit triangle's data (`scene_layout` axis); only where
+    /// [`Cell::scene_layout_applies`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scene_layout: Option<SceneLayout>,
     /// `run --cells-scale`: copy k (≥ 1) of the cell, with shaders of its own (a constant in
     /// the first stage that never changes what it records), so that it makes a pipeline of its
     /// own; 0 for the matrix's cells. Id suffix `.copy-k`.
@@ -177,6 +181,7 @@ impl Cell {
             base: None,
             sampler: None,
             mutant: None,
+            scene_layout: None,
             copy: 0,
         }
     }
@@ -204,6 +209,7 @@ impl Cell {
             && self.index == IndexSource::Dynamic
             && self.descriptor_model != DescriptorModel::DescriptorHeap
             && self.base.is_none()
+            && self.scene_layout.is_none()
     }
 
     /// The `base` axis: the original fault's shape is a closest-hit shader indexing with `base +
@@ -216,6 +222,21 @@ impl Cell {
             && self.stage == Stage::ClosestHit
             && matches!(self.index, IndexSource::Dynamic | IndexSource::DynamicElement)
             && self.resource != Resource::AccelerationStructure
+            && self.reorder.is_none()
+            && self.scene_layout.is_none()
+    }
+
+    /// The `scene_layout` axis: a closest-hit that fetches its hit triangle's indices, positions
+    /// and material the way engines lay scene geometry out. Its index is the custom index (a
+    /// dynamic one); set/binding models only (heap cells would need a mesh array in the heap: not
+    /// built), no base, reorder or sampler variant (the layout cells vary the layout only).
+    pub fn scene_layout_applies(&self) -> bool {
+        self.canary.is_none()
+            && self.stage == Stage::ClosestHit
+            && self.resource == Resource::StorageBuffer
+            && self.index == IndexSource::Dynamic
+            && self.descriptor_model != DescriptorModel::DescriptorHeap
+            && self.base.is_none()
             && self.reorder.is_none()
     }
 
@@ -251,6 +272,9 @@ impl Cell {
         if self.canary.is_some() {
             return Err("canaries have no recommended pattern".into());
         }
+        if let Some(l) = self.scene_layout {
+            return Err(format!("scene_layout={l} is itself an engine's layout (its alternative is the other scene_layout value)"));
+        }
         let pattern = Pattern::of(self.resource)
             .ok_or_else(|| format!("rtprobe has no recommended single-descriptor pattern for {} (only storage buffers: geometry, sampled images: materials)", self.resource))?;
         if self.index == IndexSource::DynamicElement && self.patch.is_none() {
@@ -282,9 +306,11 @@ impl Cell {
     /// The workarounds that apply to this cell's shaders.
     pub fn applicable_patches(&self) -> Vec<Workaround> {
         // Direct heap reads are untyped access chains, which no workaround rewrites.
+        // Scene-layout cells fetch through their own layout, which the workarounds do not know.
         if self.canary.is_some()
             || self.patch.is_some()
             || self.mutant.is_some()
+            || self.scene_layout.is_some()
             || self.heap_access == Some(HeapAccess::Direct)
         {
             return vec![];
@@ -347,8 +373,14 @@ pub fn undefined_descriptor_read(cell: &Cell) -> bool {
         ) => true,
         Some(HeapAccess::Direct) => false,
     };
+    // `shared_buffers` reads memory through addresses: no descriptor is indexed.
+    let layout_descriptor = match cell.scene_layout {
+        None | Some(SceneLayout::PerMesh) => true,
+        Some(SceneLayout::SharedBuffers) => false,
+    };
     cell.index == IndexSource::Dynamic
         && !cell.nonuniform
+        && layout_descriptor
         && descriptor_indexed
         && patch_keeps_it
         && set_binding

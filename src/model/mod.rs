@@ -42,7 +42,7 @@ pub mod validation_message;
 pub use attempt::{signal_name, Attempt, Halt, Isolation, WorkerEvent, WorkerExit};
 pub use axes::{
     AsAccess, BaseSource, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource,
-    SamplerIndex, Stage,
+    SamplerIndex, SceneLayout, Stage,
 };
 pub use baseline::{
     Baseline, BaselineCheck, CellCheck, Expectation, PerfBound, Status, WorkerFault,

@@ -10,7 +10,7 @@
 //! consumer covers every value.
 use super::axes::{
     AsAccess, BaseSource, DescriptorModel, HeapAccess, IndexSource, Reorder, Resource,
-    SamplerIndex, Stage,
+    SamplerIndex, SceneLayout, Stage,
 };
 use super::cell::{Canary, Cell, Workaround};
 use super::mutant::Mutant;
@@ -31,6 +31,7 @@ pub enum AxisId {
     Sampler,
     Patch,
     Mutant,
+    SceneLayout,
 }
 
 /// Whether bisection describes a fault by this axis before the others: secondary axes (where a
@@ -295,6 +296,25 @@ pub const AXES: &[Axis] = &[
         set: |c, v| set_opt(&mut c.mutant, Mutant::parse, v),
         phrase: |c| c.mutant.map(|m| format!(", mutated with {}", m.as_str())).unwrap_or_default(),
     },
+    Axis {
+        id: AxisId::SceneLayout,
+        name: "scene_layout",
+        help: "how a closest-hit fetches its hit triangle's data (scene-layout cells only)",
+        values: SceneLayout::NAMES,
+        stand_ins: &["none"],
+        rank: Rank::Primary,
+        segment: Segment::Value,
+        get: |c| c.scene_layout.map(SceneLayout::as_str).unwrap_or("none"),
+        set: |c, v| set_opt(&mut c.scene_layout, SceneLayout::parse, v),
+        phrase: |c| {
+            match c.scene_layout {
+                None => "",
+                Some(SceneLayout::SharedBuffers) => ", the hit triangle fetched from shared scene buffers through a SceneDesc of addresses",
+                Some(SceneLayout::PerMesh) => ", the hit triangle fetched from its mesh's storage buffer selected by the custom index",
+            }
+            .into()
+        },
+    },
 ];
 
 /// The axis called `name`.
@@ -515,7 +535,8 @@ mod tests {
                 "reorder",
                 "base",
                 "sampler",
-                "mutant"
+                "mutant",
+                "scene_layout"
             ]
         );
         let c = Cell {
@@ -530,7 +551,7 @@ mod tests {
         };
         assert_eq!(
             exact_filter(&c),
-            "stage=closest_hit,resource=storage_buffer,index=dynamic,nonuniform=true,as_access=none,descriptor_model=descriptor_indexing,heap_access=none,canary=none,patch=pin-index,reorder=none,base=push_data,sampler=none,mutant=none"
+            "stage=closest_hit,resource=storage_buffer,index=dynamic,nonuniform=true,as_access=none,descriptor_model=descriptor_indexing,heap_access=none,canary=none,patch=pin-index,reorder=none,base=push_data,sampler=none,mutant=none,scene_layout=none"
         );
         assert_eq!(describe(&c), "closest_hit reading storage_buffer with dynamic index (nonuniformEXT), descriptor_indexing, patched with pin-index");
     }

@@ -187,6 +187,8 @@ pub struct PushConstants {
     pub bad_address: u64,
     /// Device address of the per-instance bases (`base=buffer`; [`base_buffer`]).
     pub base_address: u64,
+    /// Device address of the `SceneDesc` of `scene_layout=shared_buffers` (`scene::layout`).
+    pub scene_desc: u64,
 }
 
 pub const PUSH_FIELDS: &[Field] = fields!(PushConstants {
@@ -201,6 +203,7 @@ pub const PUSH_FIELDS: &[Field] = fields!(PushConstants {
     as_table: "asTable" "uvec2",
     bad_address: "badAddress" "uvec2",
     base_address: "baseAddress" "uvec2",
+    scene_desc: "sceneDesc" "uvec2",
 });
 
 /// Bytes of the probes' own push-constant block.
@@ -227,11 +230,16 @@ impl PushConstants {
         put(offset_of!(PushConstants, as_table), &self.as_table.to_le_bytes());
         put(offset_of!(PushConstants, bad_address), &self.bad_address.to_le_bytes());
         put(offset_of!(PushConstants, base_address), &self.base_address.to_le_bytes());
+        put(offset_of!(PushConstants, scene_desc), &self.scene_desc.to_le_bytes());
         put(PATCHED_TABLE_OFFSET as usize, &patched_table.to_le_bytes());
         b
     }
 }
 
+/// A scene-layout record (`scene_layout` cells): `element`, `pad` and `pad2` hold the hit
+/// triangle's three vertex indices and `value` one coordinate of each vertex and its material
+/// (`scene::layout::Fetched`), so the check compares `pad` and `pad2` too.
+pub const FLAG_LAYOUT: u32 = 8;
 /// The primary ray hit something.
 pub const FLAG_HIT: u32 = 1;
 /// The probed stage ran for this pixel and wrote `slot`, `element` and `value`.
@@ -536,7 +544,7 @@ pub fn glsl_declarations() -> String {
         s += &format!("    layout(offset = {}) {} {};\n", f.offset, f.glsl_type, f.glsl_name);
     }
     s += "} pc;\n\n";
-    s += &format!("const uint FLAG_HIT = {FLAG_HIT}u;\nconst uint FLAG_PROBE = {FLAG_PROBE}u;\nconst uint FLAG_LANES = {FLAG_LANES}u;\nconst uint ELEMENTS = {ELEMENTS}u;\n");
+    s += &format!("const uint FLAG_HIT = {FLAG_HIT}u;\nconst uint FLAG_PROBE = {FLAG_PROBE}u;\nconst uint FLAG_LANES = {FLAG_LANES}u;\nconst uint FLAG_LAYOUT = {FLAG_LAYOUT}u;\nconst uint ELEMENTS = {ELEMENTS}u;\n");
     // The GLSL twin of packed_element.
     s += "uint packedElement(uint slot, uint element) { return slot * ELEMENTS + element; }\n";
     s += &format!(

@@ -12,7 +12,7 @@
 //! what their generated GLSL does, which the reference then checks.
 use crate::model::{
     AsAccess, BaseSource, Canary, Cell, DescriptorModel, HeapAccess, IndexSource, Mutant, Reorder,
-    Resource, SamplerIndex, Stage, Workaround,
+    Resource, SamplerIndex, SceneLayout, Stage, Workaround,
 };
 use serde::Serialize;
 
@@ -185,6 +185,11 @@ pub struct ProbeSpec {
     /// changes: the GLSL, the resources and the reference are the unmutated cell's, so a mutant
     /// is judged against what the probe must read.
     pub mutant: Option<Mutant>,
+    /// A scene-layout cell: the closest-hit fetches the hit triangle's data through this layout
+    /// (`scene::layout`) instead of reading a probe resource; `per_mesh` through the descriptor at
+    /// the recorded slot of binding 2 (the mesh array), `shared_buffers` through the `SceneDesc`
+    /// address in push constant `sceneDesc`, no descriptor at all.
+    pub layout: Option<SceneLayout>,
 }
 
 /// Whether the stage has a hit (its dynamic value adds a base to the custom index).
@@ -225,6 +230,7 @@ impl ProbeSpec {
             base,
             sampler,
             mutant,
+            scene_layout,
             // A `--cells-scale` copy reads what its base cell reads (only its first stage's
             // shader has a constant of its own, shadergen::copy_constant).
             copy: _,
@@ -299,7 +305,8 @@ impl ProbeSpec {
             None if slot == SlotSource::Dynamic
                 && access == (Access::Slot { nonuniform: false })
                 && patched_to_address.is_none()
-                && array == ArrayAt::Binding =>
+                && array == ArrayAt::Binding
+                && scene_layout != Some(SceneLayout::SharedBuffers) =>
             {
                 ReadIndex::Undefined
             }
@@ -329,7 +336,13 @@ impl ProbeSpec {
             read,
             addresses,
             mutant,
+            layout: scene_layout,
         }
+    }
+
+    /// Whether the probe reads the `shared_buffers` layout through its `SceneDesc` address.
+    pub fn scene_desc(&self) -> bool {
+        self.layout == Some(SceneLayout::SharedBuffers)
     }
 
     /// The SPIR-V workarounds applied to the compiled GLSL, in order: as-to-address for
@@ -371,6 +384,9 @@ impl ProbeSpec {
         }
         if self.instance_bases() {
             v.push("baseAddress");
+        }
+        if self.scene_desc() {
+            v.push("sceneDesc");
         }
         if self.workarounds().any(loads_address) {
             v.push("patchedTable");

@@ -7,7 +7,7 @@ use super::rules::{Expected, ValueRule, BARY_TOL, T_REL_TOL};
 use crate::model::{
     Comparison, ElementReads, LaneSplit, Mismatch, NO_NONUNIFORM_VUID, OTHER_LANE_HEURISTIC,
 };
-use crate::probe::{Record, FLAG_HIT, FLAG_LANES, FLAG_PROBE};
+use crate::probe::{Record, FLAG_HIT, FLAG_LANES, FLAG_LAYOUT, FLAG_PROBE};
 
 /// The larger error, NaN when either is NaN (`f64::max` would drop it).
 fn worst(acc: f64, e: f64) -> f64 {
@@ -209,6 +209,14 @@ fn compare_probe(
     for (name, x, g) in [("slot", r.slot, a.slot), ("element", r.element, a.element)] {
         if x != g {
             bad.push((name, x.to_string(), g.to_string()));
+        }
+    }
+    // A scene-layout record's other two vertex indices.
+    if r.flags & FLAG_LAYOUT != 0 {
+        for (name, x, g) in [("pad", r.pad, a.pad), ("pad2", r.pad2, a.pad2)] {
+            if x != g {
+                bad.push((name, x.to_string(), g.to_string()));
+            }
         }
     }
     let own = r.value == a.value;

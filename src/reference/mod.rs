@@ -57,8 +57,10 @@ pub mod watertight;
 
 use crate::model::{Cell, LaneEvidence, Resource, Stage};
 use crate::probe::spec::{ElementMap, ProbeSpec, ReadIndex, Sampler};
-use crate::probe::{self, HitIds, Record, FLAG_HIT, FLAG_LANES, FLAG_PROBE, MAX_AS_VARIANTS};
-use crate::scene::Scene;
+use crate::probe::{
+    self, HitIds, Record, FLAG_HIT, FLAG_LANES, FLAG_LAYOUT, FLAG_PROBE, MAX_AS_VARIANTS,
+};
+use crate::scene::{Geometry, Scene};
 pub use compare::{compare, compare_with};
 use intersect::TraceRef;
 pub use key::ExpectedKey;
@@ -222,6 +224,7 @@ pub fn expect_lanes(expected: &mut [Expected], lanes: LaneEvidence) {
 /// the buffer/image discrimination, which depends only on (slot, element): computed once each.
 struct Probed<'a> {
     spec: ProbeSpec,
+    scene: &'a Scene,
     sref: &'a SceneReference,
     width: u32,
     slots: u32,
@@ -242,6 +245,9 @@ impl Probed<'_> {
     ) {
         let spec = self.spec;
         let dynamic = self.dynamic_slot(x, y, hit);
+        if let (Some(_), Some(h)) = (spec.layout, hit) {
+            return self.fetch_layout(e, dynamic, h);
+        }
         // dynamic_element records the dynamic value as its slot and reads that slot's element
         // from the packed resource (probe::packed_element): the same record.
         let slot = spec.slot.fixed().unwrap_or(dynamic);
@@ -291,6 +297,23 @@ impl Probed<'_> {
             base,
             self.slots,
         )
+    }
+
+    /// A scene-layout closest-hit on triangle hit `h`, at mesh slot `slot`: the scene's own
+    /// triangle (`scene::layout::fetch`), whichever layout it went through — so both layouts'
+    /// records are the same. Every other triangle's data differs somewhere in its words (its
+    /// material index is its primitive entry's own), so the read discriminates.
+    fn fetch_layout(&self, e: &mut Expected, slot: u32, h: intersect::Hit) {
+        let Geometry::Mesh(mesh) = self.scene.instances[h.instance_id as usize].geometry else {
+            return;
+        };
+        let f = crate::scene::layout::fetch(self.scene, mesh, h.geometry, h.primitive);
+        let rec = &mut e.record;
+        rec.flags |= FLAG_PROBE | FLAG_LAYOUT;
+        rec.slot = slot;
+        [rec.element, rec.pad, rec.pad2] = f.indices;
+        rec.value = f.value();
+        e.discriminating = true;
     }
 
     /// An acceleration structure probe reading AS slot `read` at pixel `p`.
@@ -456,7 +479,7 @@ fn expected_probed(
     let variants = probe::as_variants(scene.params.instances);
     let buffer_disc = vec![None; (slots * probe::ELEMENTS) as usize];
     let mut probed =
-        Probed { spec, sref, width: w, slots, variants, undefined, buffer_disc, mutation };
+        Probed { spec, scene, sref, width: w, slots, variants, undefined, buffer_disc, mutation };
     out.clear();
     out.reserve(scene.params.pixels());
     for y in 0..h {
@@ -485,6 +508,8 @@ fn expected_probed(
             let hit = primary.hit;
             let probe_runs = match spec.stage {
                 Stage::Raygen | Stage::Callable | Stage::Fragment | Stage::Compute => true,
+                // A scene-layout closest-hit fetches triangles: the sphere's group has no probe.
+                Stage::ClosestHit if spec.layout.is_some() => hit.is_some_and(|h| !h.sphere),
                 Stage::ClosestHit | Stage::AnyHit => hit.is_some(),
                 Stage::Intersection => hit.is_some_and(|h| h.sphere),
                 Stage::Miss => hit.is_none(),

@@ -154,6 +154,7 @@ mod tests {
             sampler: (resource == Resource::SampledImage)
                 .then_some(crate::model::axes::SamplerIndex::Dynamic),
             mutant: None,
+            scene_layout: None,
             copy: 0,
         }
     }

@@ -10,6 +10,7 @@
 pub mod file;
 pub mod gltf;
 pub mod gpu;
+pub mod layout;
 pub mod rng;
 
 use crate::model::SceneParams;

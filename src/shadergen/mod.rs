@@ -203,6 +203,9 @@ reorderThreadNV(hitObj, hint, 16);\n"
 
 /// The probe's result copied into the payload (raygen, miss, closest-hit and any-hit probes).
 const STORE: &str = "    pl.flags |= FLAG_PROBE;\n    pl.slot = probeSlot;\n    pl.element = probeElement;\n    pl.value = probeValue;\n    setLanes(pl, probeLaneFlag, probeLanes);\n";
+/// A scene-layout probe's other two vertex indices (`probe::FLAG_LAYOUT`).
+const LAYOUT_STORE: &str =
+    "    pl.pad = probeTri.y;\n    pl.pad2 = probeTri.z;\n    pl.flags |= FLAG_LAYOUT;\n";
 /// What a callable probe hands back to raygen.
 const CALL_DATA: &str =
     "struct CallData { uint slot; uint element; uint laneFlag; uint p2; vec4 value; uvec4 lanes; };\n";
@@ -311,25 +314,30 @@ fn closest_hits(
         String::new()
     };
     let chit_common = "    pl.flags |= FLAG_HIT;\n    pl.custom = uint(gl_InstanceCustomIndexEXT);\n    pl.instanceId = uint(gl_InstanceID);\n    pl.geometry = uint(gl_GeometryIndexEXT);\n    pl.primitive = uint(gl_PrimitiveID);\n    pl.t = gl_HitTEXT;\n";
-    let chit_body = |extra: &str| {
+    // A scene-layout closest-hit fetches a triangle: the procedural group has none to fetch.
+    let proc_probe = if spec.layout.is_some() { None } else { chit_probe };
+    let chit_body = |extra: &str, here: Option<&ProbeCode>| {
         let mut b = String::new();
         b += "void main() {\n";
         b += &probe_ray;
         b += chit_common;
         b += extra;
-        if chit_probe.is_some() {
+        if here.is_some() {
             b += "    uvec2 px = gl_LaunchIDEXT.xy;\n";
             b += &probe.body;
             b += STORE;
+            if spec.layout.is_some() {
+                b += LAYOUT_STORE;
+            }
         }
         b += "}\n";
         b
     };
     let mut tri = header(true, chit_probe, &[]);
     tri += "layout(location = 0) rayPayloadInEXT Record pl;\nhitAttributeEXT vec2 bary;\n";
-    tri += &chit_body("    pl.bary = bary;\n");
+    tri += &chit_body("    pl.bary = bary;\n", chit_probe);
 
-    let mut proc_ = header(true, chit_probe, &[]);
+    let mut proc_ = header(true, proc_probe, &[]);
     proc_ += "layout(location = 0) rayPayloadInEXT Record pl;\n";
     proc_ += PROBE_ATTR;
     let from_attr = if spec.stage == Stage::Intersection {
@@ -338,7 +346,7 @@ setLanes(pl, (attr.packed >> 24u) != 0u ? FLAG_LANES : 0u, uvec4((attr.packed >>
     } else {
         "    pl.bary = vec2(0.0);\n"
     };
-    proc_ += &chit_body(from_attr);
+    proc_ += &chit_body(from_attr, proc_probe);
     (tri, proc_)
 }
 

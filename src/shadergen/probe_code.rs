@@ -19,9 +19,10 @@
 //! literal (`sampler=constant`) or the stage's runtime value modulo the samplers (`dynamic`).
 //! Right before the read, the body measures the probed stage's lane evidence (`probeLaneFlag`,
 //! `probeLanes`: `probe::lane_evidence_glsl`) where the cell is generated with it.
-use crate::model::{Resource, Stage};
+use crate::model::{Resource, SceneLayout, Stage};
 use crate::probe;
 use crate::probe::spec::{Access, ArrayAt, Base, ElementMap, ProbeSpec, Sampler, SlotSource};
+use crate::scene::layout;
 
 pub struct ProbeCode {
     pub extensions: Vec<&'static str>,
@@ -185,6 +186,9 @@ impl ProbeCode {
     /// The probe `spec` describes, measuring its lane evidence where `lanes` (the device's
     /// subgroup ballot works in the probed stage, or the run forces it).
     pub fn new(spec: &ProbeSpec, lanes: bool) -> Self {
+        if let Some(layout) = spec.layout {
+            return Self::scene_layout(spec, layout, lanes);
+        }
         let idx = index_expr(spec);
         let sub = descriptor_expr(spec, &idx);
         let mut extensions = vec!["GL_EXT_nonuniform_qualifier"];
@@ -254,6 +258,40 @@ impl ProbeCode {
             Resource::AccelerationStructure => p.trace_as(spec, &idx, &sub),
         }
         p
+    }
+
+    /// A scene-layout closest-hit: the mesh slot from the custom index, the hit triangle fetched
+    /// through the layout (`scene::layout`), its first index as `probeElement` (`probeTri` holds
+    /// the other two for `LAYOUT_STORE`).
+    fn scene_layout(spec: &ProbeSpec, layout: SceneLayout, lanes: bool) -> Self {
+        let mut extensions = vec!["GL_EXT_nonuniform_qualifier"];
+        if lanes {
+            extensions.push(probe::LANE_EXTENSION);
+        }
+        let (decls, fetch, uses_binding) = match layout {
+            SceneLayout::SharedBuffers => {
+                extensions.extend(["GL_EXT_buffer_reference", "GL_EXT_buffer_reference_uvec2"]);
+                (layout::SHARED_DECLS, layout::SHARED_BODY.to_string(), false)
+            }
+            SceneLayout::PerMesh => (
+                layout::PER_MESH_DECLS,
+                layout::per_mesh_body(&descriptor_expr(spec, "probeSlot")),
+                true,
+            ),
+        };
+        let body = format!(
+            "    uint probeSlot = {};\n{fetch}    uint probeElement = probeTri.x;\n{}",
+            index_expr(spec),
+            probe::lane_evidence_glsl(lanes)
+        );
+        ProbeCode {
+            extensions,
+            decls: decls.into(),
+            body,
+            uses_binding,
+            traces: false,
+            ray_query: false,
+        }
     }
 
     /// Declare the probed array (`decl`) and read `probeValue` as `value`.

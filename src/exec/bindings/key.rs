@@ -16,4 +16,7 @@ pub struct LayoutKey {
     /// `index=dynamic_element`: the packed resource at `probe::PACKED_SLOT`
     /// (`resources::ResourceArray::targets`).
     pub packed: bool,
+    /// `scene_layout=per_mesh`: binding 2 holds the mesh buffers (`layout_buffers`), not the
+    /// probe resources.
+    pub per_mesh: bool,
 }
