@@ -4,7 +4,7 @@
 //! cell keeps the last cell's (`ExpectedMemo`; the plan's descriptor-model siblings are
 //! neighbours and share them) instead of computing them again.
 use super::rules::Undefined;
-use crate::model::{Cell, LaneEvidence, Resource, Stage};
+use crate::model::{Cell, LaneEvidence, Resource, SceneLayout, Stage};
 use crate::probe::spec::{Base, ElementMap, ProbeSpec, ReadIndex, Sampler, SlotSource};
 
 /// The inputs of [`super::expected_into`] and [`super::expect_lanes`] apart from the scene.
@@ -17,6 +17,7 @@ pub struct ExpectedKey {
     element: ElementMap,
     base: Base,
     sampler: Sampler,
+    layout: Option<SceneLayout>,
     undefined: Undefined,
     lanes: bool,
 }
@@ -33,6 +34,8 @@ impl ExpectedKey {
             element,
             base,
             sampler,
+            // a scene-layout cell records the hit triangle's own data
+            layout,
             // how the descriptor reaches the shader, never what it reads or where
             model: _,
             heap: _,
@@ -48,7 +51,18 @@ impl ExpectedKey {
             mutant: _,
         } = ProbeSpec::of(cell);
         let lanes = lanes.recorded();
-        ExpectedKey { stage, resource, slot, read, element, base, sampler, undefined, lanes }
+        ExpectedKey {
+            stage,
+            resource,
+            slot,
+            read,
+            element,
+            base,
+            sampler,
+            layout,
+            undefined,
+            lanes,
+        }
     }
 }
 
