@@ -43,6 +43,13 @@ fn reinject(modules: &[JobModule], injection: Option<&Request>) -> (Vec<JobModul
         .iter()
         .map(|j| {
             let Ok(mut m) = crate::patches::load(&spirv_tools::bytes(&j.words)) else {
+                // A module that cannot be read back cannot be shown free of the fault: counted
+                // as still holding it, so the patch is never "verified" by a failed parse.
+                tracing::warn!(
+                    "{}: the patched module could not be read to re-apply the injection",
+                    j.name
+                );
+                faults += 1;
                 return j.clone();
             };
             let done = inject::inject(&mut m, r);

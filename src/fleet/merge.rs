@@ -283,22 +283,22 @@ fn absorb_mutants(out: &mut MutantReport, m: MutantReport) {
     out.recount();
 }
 
+/// The mean over `n` and `m` items of two means `a` and `b`; `a` where there are none.
+fn weighted_mean(a: f64, n: usize, b: f64, m: usize) -> f64 {
+    if n + m == 0 {
+        return a;
+    }
+    (a * n as f64 + b * m as f64) / (n + m) as f64
+}
+
 /// `r`'s times added to `t`: sums, and the device time's mean over both reports' workers.
 fn add_timing(t: &mut TimingSummary, r: &TimingSummary) {
-    let workers = t.workers_started + r.workers_started;
-    if workers > 0 {
-        t.device_ms_mean = (t.device_ms_mean * t.workers_started as f64
-            + r.device_ms_mean * r.workers_started as f64)
-            / workers as f64;
-    }
-    t.workers_started = workers;
-    let builds = t.as_builds + r.as_builds;
-    if builds > 0 {
-        t.as_build_ms_mean = (t.as_build_ms_mean * t.as_builds as f64
-            + r.as_build_ms_mean * r.as_builds as f64)
-            / builds as f64;
-    }
-    t.as_builds = builds;
+    t.device_ms_mean =
+        weighted_mean(t.device_ms_mean, t.workers_started, r.device_ms_mean, r.workers_started);
+    t.workers_started += r.workers_started;
+    t.as_build_ms_mean =
+        weighted_mean(t.as_build_ms_mean, t.as_builds, r.as_build_ms_mean, r.as_builds);
+    t.as_builds += r.as_builds;
     t.as_build_ms_max = t.as_build_ms_max.max(r.as_build_ms_max);
     t.wall_ms += r.wall_ms;
     t.compile_ms += r.compile_ms;

@@ -51,6 +51,14 @@ pub fn site(spec: &ProbeSpec, m: Mutant, slots: u32) -> Result<Mutation, String>
     if spec.canary.is_some() {
         return Err("a canary has no probe".into());
     }
+    if spec.layout.is_some() {
+        // The reference predicts a scene-layout cell's fetch unmutated (`fetch_layout`): a
+        // mutant there would be judged "equivalent" whatever the GPU did.
+        return Err(
+            "a scene-layout cell: the reference does not predict mutated fetches (not implemented)"
+                .into(),
+        );
+    }
     let samplers = crate::probe::SAMPLER_MODES.len() as u32;
     match m {
         Mutant::IndexZero => descriptor(spec, IndexFn::Zero),

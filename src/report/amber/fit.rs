@@ -16,6 +16,8 @@ pub enum Unfit {
     Injected(String),
     #[error("the cell runs a mutant (an emulated driver bug rtprobe writes into the SPIR-V), not a driver's behaviour")]
     Mutant,
+    #[error("scene-layout cells (scene_layout=per_mesh): rtprobe does not write the per-mesh scene buffers in AmberScript (not implemented)")]
+    SceneLayout,
     #[error("Amber has no VK_EXT_descriptor_buffer")]
     DescriptorBuffer,
     #[error("Amber has no VK_EXT_descriptor_heap")]
@@ -59,6 +61,10 @@ pub fn fits(cell: &Cell, inject: Option<&Injection>) -> Result<(), Unfit> {
     }
     if spec.mutant.is_some() {
         return Err(Unfit::Mutant);
+    }
+    // shared_buffers is refused below for its push-constant address (sceneDesc)
+    if spec.layout == Some(crate::model::SceneLayout::PerMesh) {
+        return Err(Unfit::SceneLayout);
     }
     match spec.model {
         DescriptorModel::DescriptorIndexing => {}
