@@ -7,8 +7,9 @@
 //! right before its consumer: the load's block dominates every use of the handle, so the fault
 //! (right after the load) dominates the XOR, and the cull mask (the consumer's operand) does too.
 //!
-//! Deleting the trace deletes the tie; a handle with no such consumer in its function (passed
-//! to another function, or unused) is not injected at all (`inject` lists it as skipped): a
+//! Deleting the trace deletes the tie; a loaded handle with no such consumer in its function
+//! (handed to another function, or unused) is not injected at all (`inject` lists it as
+//! skipped; a TLAS variable passed by pointer and loaded in the callee is no site at all): a
 //! fault nothing uses can be dropped by a driver's compiler, and a reduction must not keep a
 //! load for a fault that no longer does anything. The mask is XOR-ed, not OR-ed: the bump is
 //! 0 or 1, and `0xFF | bump` is `0xFF` to a compiler that knows the bump's bits (lavapipe
