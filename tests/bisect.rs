@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 /// Small scopes: lavapipe runs take seconds, and the machine is shared.
-const SCOPE: &str = "stage=raygen|closest_hit,resource=storage_buffer|uniform_buffer,descriptor_model=descriptor_indexing";
+const SCOPE: &str = "stage=raygen|closest_hit,resource=storage_buffer|uniform_buffer,descriptor_model=descriptor_indexing,scene_layout=none";
 
 fn json_file(p: &Path) -> Value {
     serde_json::from_slice(&std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display())))

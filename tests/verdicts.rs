@@ -47,7 +47,7 @@ fn each_fault_kind_lands_on_exactly_its_cells_with_the_expected_outcome() {
     ];
     let mut args = vec![
         "run".to_string(), "--patches".into(), "none".into(), "--timeout".into(), "4".into(),
-        "--filter".into(), "stage=raygen|closest_hit,resource=storage_buffer|uniform_buffer,descriptor_model=descriptor_indexing,reorder=none,base=push_data|none".into(),
+        "--filter".into(), "stage=raygen|closest_hit,resource=storage_buffer|uniform_buffer,descriptor_model=descriptor_indexing,reorder=none,base=push_data|none,scene_layout=none".into(),
         "-o".into(), out.to_str().unwrap().into(), "--junit".into(), junit.to_str().unwrap().into(),
     ];
     for (p, k, _) in &injections {

@@ -299,7 +299,7 @@ pub const AXES: &[Axis] = &[
     Axis {
         id: AxisId::SceneLayout,
         name: "scene_layout",
-        help: "how a closest-hit fetches its hit triangle's data (scene-layout cells only)",
+        help: "how a closest-hit fetches its hit triangle's data, in scene-layout cells only",
         values: SceneLayout::NAMES,
         stand_ins: &["none"],
         rank: Rank::Primary,
