@@ -293,15 +293,29 @@ fn a_shadow_ray_tlas_read_reduces_and_as_to_address_removes_it() {
     assert_one_line_error(&o, 2, "is not empty");
 }
 
+/// The workaround `patch` of `reduce.json` `r`, held to what a verified one of an injected finding
+/// is: verified, the re-applied injection matching nothing, no fault, no message, outputs compared;
+/// and its written contract (`DIR/patched-PATCH.contract.json`), with its schema checked.
+fn verified_workaround<'a>(r: &'a Value, out: &Path, patch: &str, why: &str) -> (&'a Value, Value) {
+    let all = r["workarounds"].as_array().expect("workarounds");
+    let w = all.iter().find(|w| w["patch"] == patch).unwrap_or_else(|| panic!("{r}"));
+    assert_eq!(w["verified"], true, "{w}");
+    assert_eq!(w["injected_faults"], 0, "{why}: {w}");
+    assert_eq!((w["faulted"].as_u64(), w["validation_messages"].as_u64()), (Some(0), Some(0)));
+    assert_eq!(w["compared"], true, "{w}");
+    let contract: Value = serde_json::from_slice(
+        &std::fs::read(out.join(format!("patched-{patch}.contract.json"))).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(contract["schema"], "rtprobe.patch-contract/1");
+    (w, contract)
+}
+
 /// Step 6 on an AS read: `as-to-address` verified on the original (the injection re-applied
 /// matches nothing: the TLAS is made from an address), its module and contract written.
 fn as_to_address_on_the_original(r: &Value, out: &Path) {
-    let all = r["workarounds"].as_array().expect("workarounds");
-    let w = all.iter().find(|w| w["patch"] == "as-to-address").unwrap_or_else(|| panic!("{r}"));
-    assert_eq!(w["verified"], true, "{w}");
-    assert_eq!(w["injected_faults"], 0, "the patch removed the AS descriptor read: {w}");
-    assert_eq!((w["faulted"].as_u64(), w["validation_messages"].as_u64()), (Some(0), Some(0)));
-    assert_eq!(w["compared"], true, "{w}");
+    let (w, _) =
+        verified_workaround(r, out, "as-to-address", "the patch removed the AS descriptor read");
     let spv = std::fs::read(out.join("patched-as-to-address.spv")).unwrap();
     let m = rtprobe::patches::load(&spv).unwrap();
     let ops = m.functions.iter().flat_map(|f| f.blocks.iter().flat_map(|b| &b.instructions));
@@ -309,11 +323,6 @@ fn as_to_address_on_the_original(r: &Value, out: &Path) {
         .filter(|i| i.class.opcode == rspirv::spirv::Op::ConvertUToAccelerationStructureKHR)
         .count();
     assert_eq!(converts, 1, "the TLAS is made from its address");
-    let contract: Value = serde_json::from_slice(
-        &std::fs::read(out.join("patched-as-to-address.contract.json")).unwrap(),
-    )
-    .unwrap();
-    assert_eq!(contract["schema"], "rtprobe.patch-contract/1");
     assert!(
         w["host_contract"].as_str().unwrap().contains("vkGetAccelerationStructureDeviceAddressKHR"),
         "{w}"
@@ -456,19 +465,11 @@ fn a_binary_replaced_mid_reduction_still_starts_its_children() {
 /// Step 6 on the bindless shader: ssbo-to-address verified, its module and contract written.
 fn workaround_on_the_original(r: &Value, out: &Path) {
     let all = r["workarounds"].as_array().expect("workarounds");
-    let w = all.iter().find(|w| w["patch"] == "ssbo-to-address").unwrap_or_else(|| panic!("{r}"));
-    assert_eq!(w["verified"], true, "{w}");
-    assert_eq!(w["injected_faults"], 0, "the patch removed the injected shape: {w}");
-    assert_eq!((w["faulted"].as_u64(), w["validation_messages"].as_u64()), (Some(0), Some(0)));
-    assert_eq!(w["compared"], true, "{w}");
+    let (_, contract) =
+        verified_workaround(r, out, "ssbo-to-address", "the patch removed the injected shape");
     let spv = std::fs::read(out.join("patched-ssbo-to-address.spv")).unwrap();
     assert_eq!(&spv[..4], &0x0723_0203u32.to_le_bytes());
     assert_ne!(spv, std::fs::read(out.join("reduced.spv")).unwrap());
-    let contract: Value = serde_json::from_slice(
-        &std::fs::read(out.join("patched-ssbo-to-address.contract.json")).unwrap(),
-    )
-    .unwrap();
-    assert_eq!(contract["schema"], "rtprobe.patch-contract/1");
     assert!(!contract["addresses"].as_array().unwrap().is_empty(), "{contract}");
     // Twin: as-to-address patches the raygen's acceleration structure; the SSBO read stays, the
     // injection re-applied puts the fault back, and the patch is not verified nor written.
