@@ -1,7 +1,10 @@
 //! The `scene_layout` cells on lavapipe: both layouts on the test scene (`scene make`) and on the
 //! procedural scene pass, and their records agree word for word per cell pair (the lane words
-//! aside: they say which lanes ran together); the twin — a wrong value injected into the
-//! per_mesh fetch — is a mismatch and breaks the agreement.
+//! aside: they say which lanes ran together); the twins — a wrong value injected into the
+//! per_mesh fetch is a mismatch and breaks the agreement; the two layouts fed different scenes
+//! (seeds) both pass and disagree. The texture cells (`resource=sampled_image`) pass on both
+//! scenes, sample several textures and fetch the geometry cells' triangles; an injected wrong
+//! value is a mismatch; on a glTF scene without textures they are `not_implemented` with why.
 mod common;
 use common::*;
 use serde_json::Value;
@@ -47,6 +50,30 @@ fn outcome(r: &Value, id: &str) -> String {
     c["outcome"].as_str().unwrap().into()
 }
 
+fn reason(r: &Value, id: &str) -> String {
+    let cells = r["cells"].as_array().unwrap();
+    let c = cells.iter().find(|c| c["id"] == id).unwrap_or_else(|| panic!("{id} not run"));
+    c["reason"].as_str().unwrap_or_default().into()
+}
+
+/// The texture cell of each set-based model.
+fn texture_cells() -> Vec<String> {
+    ["descriptor_indexing", "descriptor_buffer"]
+        .iter()
+        .map(|m| format!("closest_hit.sampled_image.dynamic.nonuniform.{m}.shared_buffers"))
+        .collect()
+}
+
+/// The layout records' value words, as floats.
+fn values(records: &[u8]) -> Vec<[f32; 4]> {
+    let word = |r: &[u8], k: usize| u32::from_le_bytes(r[k..k + 4].try_into().unwrap());
+    records
+        .chunks(RECORD)
+        .filter(|r| word(r, 0) & FLAG_LAYOUT != 0)
+        .map(|r| [0, 1, 2, 3].map(|k| f32::from_bits(word(r, 48 + 4 * k))))
+        .collect()
+}
+
 fn records(dir: &Path, id: &str) -> Vec<u8> {
     std::fs::read(dir.join("dump").join(id).join("records.bin")).unwrap()
 }
@@ -60,9 +87,25 @@ fn disagreement(a: &[u8], b: &[u8]) -> (usize, usize) {
     (differ, layout.count())
 }
 
-fn layouts_pass_and_agree(dir: &Path, scene: Option<&Path>) {
+/// Both layouts pass and agree; the texture cells pass, sample at least `textures` texture
+/// elements, and hold the geometry cells' vertex indices (their words before the value).
+fn layouts_pass_and_agree(dir: &Path, scene: Option<&Path>, textures: usize) {
     let (code, r) = run_layouts(dir, scene, &[]);
     assert_eq!(code, Some(0), "{r}");
+    let (shared, _) = &pairs()[0];
+    for id in texture_cells() {
+        assert_eq!(outcome(&r, &id), "pass", "{id}: {}", reason(&r, &id));
+        let (recs, geometry) = (records(dir, &id), records(dir, shared));
+        let mut elements: Vec<i64> = values(&recs).iter().map(|v| v[2] as i64).collect();
+        elements.sort_unstable();
+        elements.dedup();
+        elements.retain(|e| *e >= 0);
+        assert!(elements.len() >= textures, "{id}: sampled only texture elements {elements:?}");
+        let indices = |b: &[u8]| -> Vec<Vec<u8>> {
+            b.chunks(RECORD).map(|r| [&r[..4], &r[32..48]].concat()).collect()
+        };
+        assert_eq!(indices(&recs), indices(&geometry), "{id}: other triangles than {shared}");
+    }
     for (shared, per_mesh) in pairs() {
         assert_eq!((outcome(&r, &shared), outcome(&r, &per_mesh)), ("pass".into(), "pass".into()));
         let (differ, fetched) = disagreement(&records(dir, &shared), &records(dir, &per_mesh));
@@ -77,8 +120,55 @@ fn both_layouts_pass_and_agree_word_for_word_on_both_scenes() {
     let o = run(&["scene", "make", dir.path().to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
     let (file, procedural) = (dir.path().join("file"), dir.path().join("procedural"));
-    layouts_pass_and_agree(&file, Some(&dir.path().join("scene.gltf")));
-    layouts_pass_and_agree(&procedural, None);
+    layouts_pass_and_agree(&file, Some(&dir.path().join("scene.gltf")), 2);
+    layouts_pass_and_agree(&procedural, None, 4);
+}
+
+/// The agreement check's own twin: each layout on a scene of its own (another seed) passes
+/// against its reference, and the records disagree.
+#[test]
+fn layouts_fed_different_scenes_pass_but_disagree() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+    let (code_a, ra) = run_layouts(&a, None, &["--seed", "1"]);
+    let (code_b, rb) = run_layouts(&b, None, &["--seed", "2"]);
+    assert_eq!((code_a, code_b), (Some(0), Some(0)), "{ra}\n{rb}");
+    for (shared, per_mesh) in pairs() {
+        let (differ, _) = disagreement(&records(&a, &shared), &records(&b, &per_mesh));
+        assert!(
+            differ > 100,
+            "{shared} (seed 1) and {per_mesh} (seed 2) agree: the check cannot fail"
+        );
+    }
+}
+
+/// The texture cells on a glTF scene whose materials have no texture: not run, with why and
+/// what to do; the geometry cells still pass.
+#[test]
+fn a_scene_without_textures_leaves_the_texture_cells_not_implemented() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = run(&["scene", "make", dir.path().to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut g: Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("scene.gltf")).unwrap()).unwrap();
+    for m in g["materials"].as_array_mut().unwrap() {
+        m["pbrMetallicRoughness"].as_object_mut().unwrap().remove("baseColorTexture");
+    }
+    for k in ["textures", "images", "samplers"] {
+        g.as_object_mut().unwrap().remove(k);
+    }
+    let bare = dir.path().join("bare.gltf");
+    std::fs::write(&bare, serde_json::to_vec(&g).unwrap()).unwrap();
+    let (code, r) = run_layouts(&dir.path().join("out"), Some(&bare), &[]);
+    assert_eq!(code, Some(0), "{r}");
+    for id in texture_cells() {
+        assert_eq!(outcome(&r, &id), "not_implemented");
+        let why = reason(&r, &id);
+        assert!(why.contains("no base-colour texture") && why.contains("--filter"), "{why}");
+    }
+    for (shared, per_mesh) in pairs() {
+        assert_eq!((outcome(&r, &shared), outcome(&r, &per_mesh)), ("pass".into(), "pass".into()));
+    }
 }
 
 #[test]
@@ -95,5 +185,45 @@ fn a_wrong_fetch_is_a_mismatch_and_breaks_the_agreement() {
         let (differ, _) =
             disagreement(&records(dir.path(), &shared), &records(dir.path(), &per_mesh));
         assert!(differ > 0, "{per_mesh}: the injected fault changed no record");
+    }
+    for id in texture_cells() {
+        assert_eq!(outcome(&r, &id), "pass", "{id}: the per_mesh fault leaked");
+    }
+    let (code, r) = run_layouts(
+        &dir.path().join("tex"),
+        None,
+        &["--inject-fault", "resource=sampled_image@value:0.5:7"],
+    );
+    assert_ne!(code, Some(0));
+    for id in texture_cells() {
+        assert_eq!(outcome(&r, &id), "mismatch", "{id}: a wrong texel passed");
+    }
+}
+
+/// GPU twins of the texture cells: `run --mutants` rewrites their texture element (index-zero,
+/// index-next: the wrong texture), the reference predicts the wrong texel, and lavapipe's
+/// mismatch kills each; a survivor (or a pair left unrun) fails here. Every other pair is listed
+/// with why.
+#[test]
+fn the_texture_cells_kill_their_wrong_texture_mutants() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("m.json");
+    let filter = "scene_layout=shared_buffers,resource=sampled_image";
+    let o = run(&["run", "--mutants", "--filter", filter, "-o", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}\n{}", stdout(&o), stderr(&o));
+    let r: Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
+    let entries = r["mutants"]["entries"].as_array().unwrap();
+    for cell in texture_cells() {
+        for m in ["index-zero", "index-next"] {
+            let e = entries
+                .iter()
+                .find(|e| e["cell"] == cell.as_str() && e["mutant"] == m)
+                .unwrap_or_else(|| panic!("{cell} {m}: no entry"));
+            assert_eq!(e["status"], "killed", "{cell} {m}: {e}");
+            assert!(e["outcome"] == "mismatch" && e["prediction"]["caught"].as_u64() > Some(0));
+        }
+    }
+    for e in entries.iter().filter(|e| e["status"] != "killed") {
+        assert!(e["status"] == "no_target" && !e["why"].as_str().unwrap().is_empty(), "{e}");
     }
 }

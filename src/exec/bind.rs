@@ -42,6 +42,7 @@ pub(super) fn layout_key(spec: &ProbeSpec, shaders: &CellShaders, all_stages: bo
         heap_direct: spec.array == ArrayAt::Heap,
         packed: spec.packed(),
         per_mesh: spec.layout == Some(SceneLayout::PerMesh),
+        textures: spec.layout_textures(),
     }
 }
 

@@ -74,6 +74,8 @@ pub struct Executor {
     pub(super) shared_layout: Option<super::layout_buffers::SharedBuffers>,
     /// `scene_layout=per_mesh`'s mesh buffers.
     pub(super) mesh_layout: Option<super::layout_buffers::MeshBuffers>,
+    /// The `scene_layout` texture cells' textures and material table.
+    pub(super) layout_textures: Option<super::layout_textures::LayoutTextures>,
     pub(super) color: Option<Image>,
     pub(super) bindings: HashMap<LayoutKey, Binding>,
     pub(super) pipelines: HashMap<u64, Pipeline>,
@@ -141,6 +143,7 @@ impl Executor {
             bases: None,
             shared_layout: None,
             mesh_layout: None,
+            layout_textures: None,
             color: None,
             bindings: HashMap::new(),
             pipelines: HashMap::new(),
@@ -207,6 +210,9 @@ impl Drop for Executor {
         }
         if let Some(m) = &self.mesh_layout {
             m.destroy(gpu);
+        }
+        if let Some(t) = &self.layout_textures {
+            t.destroy(gpu);
         }
         if let Some(c) = &self.color {
             c.destroy(gpu);

@@ -41,7 +41,10 @@ impl SharedBuffers {
         ] {
             parts.push(Buffer::with_data(gpu, &bytes, USAGE, what)?);
         }
-        let addrs: Vec<u8> = parts.iter().flat_map(|b| b.address.to_le_bytes()).collect();
+        // The fifth address, the material table's, stays 0 until a texture cell needs it
+        // (`layout_textures`).
+        let addrs: Vec<u8> =
+            parts.iter().map(|b| b.address).chain([0]).flat_map(u64::to_le_bytes).collect();
         let desc = Buffer::with_data(gpu, &addrs, USAGE, "scene description")?;
         Ok(SharedBuffers { parts, desc })
     }

@@ -28,6 +28,7 @@ mod files;
 mod fit;
 pub mod heap;
 mod layout_buffers;
+mod layout_textures;
 mod mutant;
 pub mod pictures;
 pub mod pipeline;

@@ -6,6 +6,7 @@ use super::bindings::LayoutKey;
 use super::error::CellError;
 use super::executor::Executor;
 use super::layout_buffers::{MeshBuffers, SharedBuffers};
+use super::layout_textures::LayoutTextures;
 use super::pipeline;
 use super::resources::{self, ResourceArray, Target};
 use crate::model::{Cell, Outcome, Resource, SceneLayout};
@@ -21,15 +22,23 @@ impl Executor {
     /// structures, resource arrays, address tables, the color target. A device loss or a fence
     /// timeout here is the worker's setup fault (no cell ran on this device). A plain creation
     /// error (say, a format the driver refuses) is left to the cells that need that resource:
-    /// they retry it and report it as their own `error`.
+    /// they retry it and report it as their own `error`; so is a scene rtprobe cannot probe (a
+    /// scene-layout cell's slot clash, a texture cell on a scene without textures): those cells
+    /// are `not_implemented` with the reason, the worker's other cells run.
     pub fn prepare(&mut self, cells: &[Cell]) -> Result<(), CellError> {
         for cell in cells {
             let shaders = shadergen::generate(cell);
             if let Err(e) = self.ensure_resources(cell, &shaders) {
-                if e.outcome() != Outcome::Error {
-                    return Err(e);
+                match e.outcome() {
+                    Outcome::Error | Outcome::NotImplemented | Outcome::Unsupported => {
+                        tracing::warn!("setup for {}: {e}; left to the cell", cell.id());
+                    }
+                    Outcome::Pass
+                    | Outcome::Mismatch
+                    | Outcome::DeviceLost
+                    | Outcome::Crash
+                    | Outcome::Timeout => return Err(e),
                 }
-                tracing::warn!("setup for {}: {e}; left to the cell", cell.id());
             }
         }
         Ok(())
@@ -78,7 +87,10 @@ impl Executor {
         }
         if let Some(r) = key.probe {
             let slots = self.slots(r);
-            let targets = if key.per_mesh {
+            let targets = if key.textures {
+                self.ensure_textures()?;
+                self.layout_textures.as_ref().expect("made above").targets(self.sampler)
+            } else if key.per_mesh {
                 self.ensure_layout(SceneLayout::PerMesh)?;
                 self.mesh_layout.as_ref().expect("made above").targets()
             } else if r == Resource::AccelerationStructure {
@@ -119,6 +131,9 @@ impl Executor {
         }
         if let Some(l) = spec.layout {
             self.ensure_layout(l)?;
+            if spec.layout_textures() {
+                self.ensure_textures()?;
+            }
         } else if shaders.uses_probe_binding && spec.resource != Resource::AccelerationStructure {
             self.ensure_array(spec.resource)?;
         }
@@ -163,6 +178,19 @@ impl Executor {
                 self.mesh_layout = Some(MeshBuffers::create(&self.gpu, &self.scene)?);
             }
             SceneLayout::SharedBuffers | SceneLayout::PerMesh => {}
+        }
+        Ok(())
+    }
+
+    /// The texture cells' textures and material table, made once (after `shared_buffers`' own
+    /// buffers, whose `SceneDesc` gets the table's address).
+    fn ensure_textures(&mut self) -> Result<(), CellError> {
+        self.ensure_layout(SceneLayout::SharedBuffers)?;
+        if self.layout_textures.is_none() {
+            let shared = self.shared_layout.as_ref().expect("made above");
+            let how = (&self.submitter, self.opts.timeout);
+            let what = (&self.scene, self.slots(Resource::SampledImage));
+            self.layout_textures = Some(LayoutTextures::create(&self.gpu, what, shared, how)?);
         }
         Ok(())
     }

@@ -65,7 +65,19 @@ pub fn flatten(scene: Scene) -> Scene {
     };
     let params = crate::model::SceneParams { instances: instances.len() as u32, ..scene.params };
     let procedural_sbt_offset = scene.procedural_sbt_offset;
-    Scene { params, meshes, instances, floor, no_opaque: scene.no_opaque, procedural_sbt_offset }
+    // The matrix's scene-layout texture cells never run on a flattened scene: its own synthetic
+    // textures, per geometry of the new meshes.
+    let geometries: Vec<usize> = meshes.iter().map(|m| m.geometries.len()).collect();
+    let textures = crate::scene::textures::SceneTextures::synthetic(&geometries, params.seed);
+    Scene {
+        params,
+        meshes,
+        instances,
+        floor,
+        no_opaque: scene.no_opaque,
+        procedural_sbt_offset,
+        textures,
+    }
 }
 
 #[cfg(test)]

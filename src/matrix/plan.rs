@@ -122,7 +122,7 @@ impl Skipped {
                 count: self.sampler_elsewhere,
             },
             NotGenerated {
-                rule: "scene_layout only applies to stage=closest_hit storage_buffer index=dynamic cells of set-based models without base or reorder; per_mesh with nonuniform (without it the descriptor read is undefined), shared_buffers without (it indexes no descriptor)".into(),
+                rule: "scene_layout only applies to stage=closest_hit index=dynamic cells of set-based models without base or reorder: storage_buffer ones, per_mesh with nonuniform (without it the descriptor read is undefined), shared_buffers without (it indexes no descriptor); sampled_image ones with nonuniform, shared_buffers with the scene's textures (a per_mesh texture cell would need a second descriptor array: not built)".into(),
                 count: self.layout_elsewhere,
             },
             NotGenerated { rule: "heap_access=mapped_shader_record_index needs a shader record (ray tracing pipelines only)".into(), count: self.record_outside_rt },
@@ -225,9 +225,7 @@ fn heap_cells(base: Cell, cells: &mut Vec<Cell>, skipped: &mut Skipped) {
             } else {
                 skipped.base_elsewhere += BaseSource::ALL.len();
             }
-            let layout =
-                if cell.nonuniform { SceneLayout::PerMesh } else { SceneLayout::SharedBuffers };
-            if cell.scene_layout_applies() {
+            if let Some(layout) = cell.planned_layout() {
                 cells.push(Cell { scene_layout: Some(layout), ..cell });
                 skipped.layout_elsewhere += SceneLayout::ALL.len() - 1;
             } else {
@@ -320,8 +318,9 @@ mod tests {
         // sampler value (3), again with each of the 2 non-default bases.
         let base_extra = 2 * ((4 * 2 + 2) * 7 + 3);
         // scene_layout: closest-hit dynamic storage-buffer cells of the 2 set-based models, one
-        // layout each (per_mesh with nonuniform, shared_buffers without).
-        let layouts = 2 * 2;
+        // layout each (per_mesh with nonuniform, shared_buffers without), and the nonuniform
+        // sampled-image ones (the texture cells, shared_buffers).
+        let layouts = 2 * 2 + 2;
         assert_eq!(
             n,
             8 * (4 * 5 + 14) * 2

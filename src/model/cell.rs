@@ -231,13 +231,32 @@ impl Cell {
     /// dynamic one); set/binding models only (heap cells would need a mesh array in the heap: not
     /// built), no base, reorder or sampler variant (the layout cells vary the layout only).
     pub fn scene_layout_applies(&self) -> bool {
-        self.canary.is_none()
+        self.planned_layout().is_some()
+    }
+
+    /// The scene layout the plan gives this cell, where the axis applies: storage-buffer cells
+    /// fetch geometry, `per_mesh` with `nonuniform` (without it its descriptor read is
+    /// undefined), `shared_buffers` without (it indexes no descriptor); sampled-image cells with
+    /// `nonuniform` are the texture cells, `shared_buffers` with the scene's textures in a
+    /// descriptor array indexed by the fetched material (`scene::textures`; a `per_mesh` one
+    /// would need a second descriptor array: not built).
+    pub fn planned_layout(&self) -> Option<SceneLayout> {
+        let layout = match (self.resource, self.nonuniform) {
+            (Resource::StorageBuffer, true) => SceneLayout::PerMesh,
+            (Resource::StorageBuffer, false) | (Resource::SampledImage, true) => {
+                SceneLayout::SharedBuffers
+            }
+            (Resource::SampledImage, false)
+            | (Resource::UniformBuffer | Resource::StorageImage, _)
+            | (Resource::AccelerationStructure, _) => return None,
+        };
+        let applies = self.canary.is_none()
             && self.stage == Stage::ClosestHit
-            && self.resource == Resource::StorageBuffer
             && self.index == IndexSource::Dynamic
             && self.descriptor_model != DescriptorModel::DescriptorHeap
             && self.base.is_none()
-            && self.reorder.is_none()
+            && self.reorder.is_none();
+        applies.then_some(layout)
     }
 
     /// Whether a `sampler=dynamic` cell's sampler index carries `nonuniformEXT`: always, except in
@@ -376,7 +395,7 @@ pub fn undefined_descriptor_read(cell: &Cell) -> bool {
     // `shared_buffers` reads memory through addresses: no descriptor is indexed.
     let layout_descriptor = match cell.scene_layout {
         None | Some(SceneLayout::PerMesh) => true,
-        Some(SceneLayout::SharedBuffers) => false,
+        Some(SceneLayout::SharedBuffers) => cell.resource == Resource::SampledImage,
     };
     cell.index == IndexSource::Dynamic
         && !cell.nonuniform

@@ -51,9 +51,24 @@ pub fn site(spec: &ProbeSpec, m: Mutant, slots: u32) -> Result<Mutation, String>
     if spec.canary.is_some() {
         return Err("a canary has no probe".into());
     }
+    if spec.layout_textures() {
+        // The texture cells: a wrong texture element, which the reference predicts
+        // (`fetch_layout`: the table's element recorded, the rewritten element's texel read).
+        return match m {
+            Mutant::IndexZero => descriptor(spec, IndexFn::Zero),
+            Mutant::IndexNext => descriptor(spec, IndexFn::Next(slots)),
+            Mutant::IndexBroadcast
+            | Mutant::StrideDouble
+            | Mutant::BaseDropped
+            | Mutant::ElementZero
+            | Mutant::SamplerNext
+            | Mutant::TlasOther
+            | Mutant::ValueBits => Err("a scene-layout texture cell: the reference predicts only a wrong texture element (index-zero, index-next; not implemented)".into()),
+        };
+    }
     if spec.layout.is_some() {
-        // The reference predicts a scene-layout cell's fetch unmutated (`fetch_layout`): a
-        // mutant there would be judged "equivalent" whatever the GPU did.
+        // The reference predicts a scene-layout geometry cell's fetch unmutated (`fetch_layout`):
+        // a mutant there would be judged "equivalent" whatever the GPU did.
         return Err(
             "a scene-layout cell: the reference does not predict mutated fetches (not implemented)"
                 .into(),

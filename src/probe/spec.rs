@@ -306,7 +306,9 @@ impl ProbeSpec {
                 && access == (Access::Slot { nonuniform: false })
                 && patched_to_address.is_none()
                 && array == ArrayAt::Binding
-                && scene_layout != Some(SceneLayout::SharedBuffers) =>
+                // shared_buffers' geometry indexes no descriptor; its texture cell's does
+                && !(scene_layout == Some(SceneLayout::SharedBuffers)
+                    && resource != Resource::SampledImage) =>
             {
                 ReadIndex::Undefined
             }
@@ -338,6 +340,13 @@ impl ProbeSpec {
             mutant,
             layout: scene_layout,
         }
+    }
+
+    /// Whether the probe is a scene-layout texture cell: its closest-hit samples the hit
+    /// primitive's material's base-colour texture from the descriptor array at binding 2
+    /// (`scene::textures`), after fetching the material through the layout.
+    pub fn layout_textures(&self) -> bool {
+        self.layout == Some(SceneLayout::SharedBuffers) && self.resource == Resource::SampledImage
     }
 
     /// Whether the probe reads the `shared_buffers` layout through its `SceneDesc` address.

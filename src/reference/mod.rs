@@ -246,7 +246,7 @@ impl Probed<'_> {
         let spec = self.spec;
         let dynamic = self.dynamic_slot(x, y, hit);
         if let (Some(_), Some(h)) = (spec.layout, hit) {
-            return self.fetch_layout(e, dynamic, h);
+            return self.fetch_layout(e, dynamic, (h, p));
         }
         // dynamic_element records the dynamic value as its slot and reads that slot's element
         // from the packed resource (probe::packed_element): the same record.
@@ -303,7 +303,7 @@ impl Probed<'_> {
     /// triangle (`scene::layout::fetch`), whichever layout it went through — so both layouts'
     /// records are the same. Every other triangle's data differs somewhere in its words (its
     /// material index is its primitive entry's own), so the read discriminates.
-    fn fetch_layout(&self, e: &mut Expected, slot: u32, h: intersect::Hit) {
+    fn fetch_layout(&self, e: &mut Expected, slot: u32, (h, p): (intersect::Hit, usize)) {
         let Geometry::Mesh(mesh) = self.scene.instances[h.instance_id as usize].geometry else {
             return;
         };
@@ -313,6 +313,15 @@ impl Probed<'_> {
         rec.slot = slot;
         [rec.element, rec.pad, rec.pad2] = f.indices;
         rec.value = f.value();
+        if self.spec.layout_textures() {
+            // The texture cell samples the entry's material's texture (`scene::textures`); a
+            // scene without textures never runs it (the executor refuses the cell).
+            // A mutant's rewritten element is read instead (`mutants::site`: index-zero, -next).
+            if let Ok(t) = self.scene.textures.decoded() {
+                let read = |el: u32| self.mutation.map_or(el, |m| m.read_slot(el, el, p));
+                rec.value = t.fetch_read(f.material, h.primitive, read).value();
+            }
+        }
         e.discriminating = true;
     }
 

@@ -13,7 +13,12 @@ impl Scene {
     /// recorded, and fitted), else the procedural scene of `Scene::build`.
     pub fn of(params: &SceneParams) -> Result<Scene, LoadError> {
         match &params.file {
-            Some(f) => Ok(super::gltf::fit::to_scene(&load_same(f)?, params)),
+            Some(f) => {
+                let loaded = load_same(f)?;
+                let mut scene = super::gltf::fit::to_scene(&loaded, params);
+                scene.textures = super::textures::SceneTextures::of_file(loaded);
+                Ok(scene)
+            }
             None => Ok(Scene::build(params)),
         }
     }

@@ -7,7 +7,8 @@
 //! mesh's positions in one tightly packed `vec3` buffer, every mesh's indices (relative to the
 //! mesh's first vertex) in one `uint` buffer, one `PrimMeshInfo {indexOffset, vertexOffset,
 //! materialIndex}` per (mesh, BLAS geometry) — the tutorial's primitive —, and per mesh slot the
-//! mesh's first `PrimMeshInfo`; a `SceneDesc` holds the four buffers' device addresses.
+//! mesh's first `PrimMeshInfo`; a `SceneDesc` holds the four buffers' device addresses, then the
+//! material table's (`scene::textures`; 0 until a texture cell needs it).
 //! `per_mesh` keeps one storage buffer per mesh slot in a descriptor array (binding 2), each
 //! with the mesh's own header, indices, primitive table and positions ([`LayoutData::mesh_words`]).
 //!
@@ -22,7 +23,7 @@ use crate::probe;
 /// Words of one `PrimMeshInfo` (`indexOffset`, `vertexOffset`, `materialIndex`).
 pub const PRIM_INFO_WORDS: usize = 3;
 /// The material index of primitive entry 0 (so that materials are unlike small vertex indices).
-const MATERIAL_BASE: u32 = 100;
+const MATERIAL_BASE: u32 = super::textures::FIRST_MATERIAL;
 /// Words before a `per_mesh` buffer's indices: the positions' word offset, the primitive table's.
 const MESH_HEADER_WORDS: u32 = 2;
 /// Words of one `per_mesh` primitive-table entry: its first index (in words after the header)
@@ -195,7 +196,7 @@ impl LayoutData {
 /// The GLSL of a `shared_buffers` fetch: declarations, and statements that read the hit
 /// triangle through `pc.sceneDesc` for mesh slot `probeSlot`, defining `uvec3 probeTri` and
 /// `vec4 probeValue` (the CPU twin: [`read_shared`]).
-pub const SHARED_DECLS: &str = "layout(buffer_reference, std430, buffer_reference_align = 8) readonly buffer SceneDesc { uvec2 positions; uvec2 indices; uvec2 primInfo; uvec2 meshFirst; };\n\
+pub const SHARED_DECLS: &str = "layout(buffer_reference, std430, buffer_reference_align = 8) readonly buffer SceneDesc { uvec2 positions; uvec2 indices; uvec2 primInfo; uvec2 meshFirst; uvec2 materials; };\n\
 layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer SceneWords { uint w[]; };\n\
 layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer ScenePositions { float p[]; };\n";
 

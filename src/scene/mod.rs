@@ -12,6 +12,7 @@ pub mod gltf;
 pub mod gpu;
 pub mod layout;
 pub mod rng;
+pub mod textures;
 
 use crate::model::SceneParams;
 use glam::{Mat3, Quat, Vec3};
@@ -92,6 +93,9 @@ pub struct Scene {
     /// The sphere instances' `instanceShaderBindingTableRecordOffset`: 1 (after the triangle
     /// group), or past `run --shader`'s triangle records of every ray type (`harness::hit_table`).
     pub procedural_sbt_offset: u32,
+    /// Per primitive entry, the base-colour image the `scene_layout` texture cells sample
+    /// (`textures`): the procedural scene's synthetic ones, a glTF file's materials' images.
+    pub textures: textures::SceneTextures,
 }
 
 /// Split `n` triangles into `parts` contiguous geometries.
@@ -216,7 +220,17 @@ impl Scene {
         };
         meshes.push(floor_quad());
         let params = SceneParams { instances: instances.len() as u32, ..params.clone() };
-        Scene { params, meshes, instances, floor, no_opaque: false, procedural_sbt_offset: 1 }
+        let geometries: Vec<usize> = meshes.iter().map(|m| m.geometries.len()).collect();
+        let textures = textures::SceneTextures::synthetic(&geometries, params.seed);
+        Scene {
+            params,
+            meshes,
+            instances,
+            floor,
+            no_opaque: false,
+            procedural_sbt_offset: 1,
+            textures,
+        }
     }
 
     /// The primary ray of pixel (x, y): origin and direction, exactly as the shaders compute them.

@@ -22,7 +22,7 @@
 use crate::model::{Resource, SceneLayout, Stage};
 use crate::probe;
 use crate::probe::spec::{Access, ArrayAt, Base, ElementMap, ProbeSpec, Sampler, SlotSource};
-use crate::scene::layout;
+use crate::scene::{layout, textures};
 
 pub struct ProbeCode {
     pub extensions: Vec<&'static str>,
@@ -269,12 +269,17 @@ impl ProbeCode {
             extensions.push(probe::LANE_EXTENSION);
         }
         let (decls, fetch, uses_binding) = match layout {
+            SceneLayout::SharedBuffers if spec.layout_textures() => {
+                extensions.extend(["GL_EXT_buffer_reference", "GL_EXT_buffer_reference_uvec2"]);
+                let decls = format!("{}{}", layout::SHARED_DECLS, textures::DECLS);
+                (decls, format!("{}{}", layout::SHARED_BODY, textures::BODY), true)
+            }
             SceneLayout::SharedBuffers => {
                 extensions.extend(["GL_EXT_buffer_reference", "GL_EXT_buffer_reference_uvec2"]);
-                (layout::SHARED_DECLS, layout::SHARED_BODY.to_string(), false)
+                (layout::SHARED_DECLS.into(), layout::SHARED_BODY.to_string(), false)
             }
             SceneLayout::PerMesh => (
-                layout::PER_MESH_DECLS,
+                layout::PER_MESH_DECLS.into(),
                 layout::per_mesh_body(&descriptor_expr(spec, "probeSlot")),
                 true,
             ),
@@ -284,14 +289,7 @@ impl ProbeCode {
             index_expr(spec),
             probe::lane_evidence_glsl(lanes)
         );
-        ProbeCode {
-            extensions,
-            decls: decls.into(),
-            body,
-            uses_binding,
-            traces: false,
-            ray_query: false,
-        }
+        ProbeCode { extensions, decls, body, uses_binding, traces: false, ray_query: false }
     }
 
     /// Declare the probed array (`decl`) and read `probeValue` as `value`.

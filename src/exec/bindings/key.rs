@@ -19,4 +19,6 @@ pub struct LayoutKey {
     /// `scene_layout=per_mesh`: binding 2 holds the mesh buffers (`layout_buffers`), not the
     /// probe resources.
     pub per_mesh: bool,
+    /// A `scene_layout` texture cell: binding 2 holds the scene's textures (`layout_textures`).
+    pub textures: bool,
 }
