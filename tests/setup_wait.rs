@@ -38,7 +38,8 @@ fn sid_a_slow_acceleration_structure_build_is_no_setup_crash() {
         .env_remove("RTPROBE_INJECT_FAULT")
         .output()
         .expect("spawn scripts/in-sid");
-    let bytes = std::fs::read(&report).unwrap_or_else(|e| panic!("no report ({e}): {}", stderr(&o)));
+    let bytes =
+        std::fs::read(&report).unwrap_or_else(|e| panic!("no report ({e}): {}", stderr(&o)));
     let r: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
     let workers = r["workers"].as_array().unwrap();
     let setups: Vec<_> = workers.iter().filter(|w| w["phase"] == "setup").collect();

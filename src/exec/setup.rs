@@ -172,13 +172,7 @@ impl Executor {
 
     fn ensure_array(&mut self, r: Resource, wait: Duration) -> Result<(), CellError> {
         if !self.arrays.contains_key(&r) {
-            let a = ResourceArray::create(
-                &self.gpu,
-                r,
-                self.slots(r),
-                &self.submitter,
-                wait,
-            )?;
+            let a = ResourceArray::create(&self.gpu, r, self.slots(r), &self.submitter, wait)?;
             self.arrays.insert(r, a);
         }
         Ok(())
