@@ -57,7 +57,7 @@ impl Executor {
     ) -> Result<Bound, CellError> {
         let t = Instant::now();
         let spec = ProbeSpec::of(cell);
-        self.ensure_resources(cell, &c.shaders)?;
+        self.ensure_resources(cell, &c.shaders, self.opts.timeout)?;
         let key = layout_key(&spec, &c.shaders, self.opts.all_stages);
         self.fit(key, &c.shaders, &c.spirv)?;
         self.ensure_binding(key)?;

@@ -28,8 +28,13 @@ use std::time::{Duration, Instant};
 
 #[derive(Clone, Debug)]
 pub struct ExecOptions {
-    /// Fence deadline per submission.
+    /// Fence deadline per submission of a cell (and of what a cell builds at its turn).
     pub timeout: Duration,
+    /// Fence deadline of the setup's submissions ([`Executor::prepare`]: the scene's AS build,
+    /// image uploads), inside the supervisor's setup deadline, not a cell's: a worker that
+    /// compiles afresh builds the AS with the driver's build shaders uncompiled (lavapipe 26:
+    /// 1.7 s alone, past 16 s on a loaded machine), and that is no cell's timeout.
+    pub setup_timeout: Duration,
     /// `--inject-fault`: cells matching one of these misbehave at the probed read.
     pub inject: Vec<crate::model::Injection>,
     /// Seed of this worker's flaky-injection dice (recorded in each injected result).

@@ -61,7 +61,11 @@ impl LayoutTextures {
             }
         }
         if let Err(e) = made.upload(gpu, t, submitter, timeout) {
-            made.destroy(gpu);
+            // After a timed-out copy the images may still be written: they are left alive
+            // (leaked), as VUID-vkDestroyImage-image-01000 asks; any other error ran no copy.
+            if !matches!(e, VkError::Call { result: vk::Result::TIMEOUT, .. }) {
+                made.destroy(gpu);
+            }
             return Err(e.into());
         }
         shared.desc.write(MATERIALS_OFFSET, &made.materials.address.to_le_bytes());
@@ -88,13 +92,17 @@ impl LayoutTextures {
                 offset += tex.rgba8.len() as u64;
             }
         });
-        staging.destroy(gpu);
         match waited? {
+            // The copy may still be running: the staging buffer is left alive (leaked), as
+            // VUID-vkDestroyBuffer-buffer-00922 asks (see `SceneGpu::build_with`).
             Waited::TimedOut => Err(VkError::Call {
                 call: "texture upload (fence wait)",
                 result: vk::Result::TIMEOUT,
             }),
-            Waited::Done(_) => Ok(()),
+            Waited::Done(_) => {
+                staging.destroy(gpu);
+                Ok(())
+            }
         }
     }
 

@@ -177,14 +177,16 @@ impl ResourceArray {
                 record_upload(gpu, cmd, img, *layers, st);
             }
         });
-        for st in &staging {
-            st.destroy(gpu);
-        }
         if waited? == Waited::TimedOut {
+            // The copies may still be running: the staging buffers are left alive (leaked), as
+            // VUID-vkDestroyBuffer-buffer-00922 asks (see `SceneGpu::build_with`).
             return Err(VkError::Call {
                 call: "image upload (fence wait)",
                 result: vk::Result::TIMEOUT,
             });
+        }
+        for st in &staging {
+            st.destroy(gpu);
         }
         Ok(())
     }

@@ -16,6 +16,7 @@ use crate::scene::gpu::SceneGpu;
 use crate::shadergen::{self, PipelineKind};
 use crate::vk::memory::{Buffer, Image};
 use ash::vk;
+use std::time::Duration;
 
 impl Executor {
     /// Build everything `cells` need before any of them runs: the scene's acceleration
@@ -28,7 +29,7 @@ impl Executor {
     pub fn prepare(&mut self, cells: &[Cell]) -> Result<(), CellError> {
         for cell in cells {
             let shaders = shadergen::generate(cell);
-            if let Err(e) = self.ensure_resources(cell, &shaders) {
+            if let Err(e) = self.ensure_resources(cell, &shaders, self.opts.setup_timeout) {
                 match e.outcome() {
                     Outcome::Error | Outcome::NotImplemented | Outcome::Unsupported => {
                         tracing::warn!("setup for {}: {e}; left to the cell", cell.id());
@@ -50,10 +51,10 @@ impl Executor {
         self.scene_gpu.as_ref().map(|s| s.build_ms)
     }
 
-    fn ensure_scene(&mut self) -> Result<&SceneGpu, CellError> {
+    /// The scene's acceleration structures, built if missing with a fence wait of at most `wait`.
+    fn ensure_scene(&mut self, wait: Duration) -> Result<&SceneGpu, CellError> {
         if self.scene_gpu.is_none() {
-            self.scene_gpu =
-                Some(SceneGpu::build(&self.gpu, &self.scene, &self.submitter, self.opts.timeout)?);
+            self.scene_gpu = Some(SceneGpu::build(&self.gpu, &self.scene, &self.submitter, wait)?);
         }
         Ok(self.scene_gpu.as_ref().expect("built above"))
     }
@@ -78,7 +79,7 @@ impl Executor {
             }],
         )];
         if key.scene_tlas {
-            let s = self.ensure_scene()?;
+            let s = self.ensure_scene(self.opts.timeout)?;
             t.push((
                 1,
                 Resource::AccelerationStructure,
@@ -88,13 +89,13 @@ impl Executor {
         if let Some(r) = key.probe {
             let slots = self.slots(r);
             let targets = if key.textures {
-                self.ensure_textures()?;
+                self.ensure_textures(wait)?;
                 self.layout_textures.as_ref().expect("made above").targets(self.sampler)
             } else if key.per_mesh {
                 self.ensure_layout(SceneLayout::PerMesh)?;
                 self.mesh_layout.as_ref().expect("made above").targets()
             } else if r == Resource::AccelerationStructure {
-                let s = self.ensure_scene()?;
+                let s = self.ensure_scene(self.opts.timeout)?;
                 (0..slots)
                     .map(|k| {
                         let a = &s.probe_tlas[probe::as_slot_tlas(k)];
@@ -102,7 +103,7 @@ impl Executor {
                     })
                     .collect()
             } else {
-                self.ensure_array(r)?;
+                self.ensure_array(r, self.opts.timeout)?;
                 self.arrays[&r].targets(self.sampler, r, key.packed).map_err(|e| match e {
                     resources::PackedError::TooManyLayers { .. } => {
                         CellError::Unsupported(e.to_string())
@@ -116,36 +117,38 @@ impl Executor {
     }
 
     /// The scene, resource arrays, address tables and color target `cell` needs (built once,
-    /// normally by [`Executor::prepare`]).
+    /// normally by [`Executor::prepare`]); `wait` bounds each build's fence wait (the setup's
+    /// deadline in `prepare`, the cell's at its turn).
     pub(super) fn ensure_resources(
         &mut self,
         cell: &Cell,
         shaders: &shadergen::CellShaders,
+        wait: Duration,
     ) -> Result<(), CellError> {
         let spec = ProbeSpec::of(cell);
         if shaders.kind == PipelineKind::RayTracing
             || shaders.uses_scene_tlas
             || spec.resource == Resource::AccelerationStructure
         {
-            self.ensure_scene()?;
+            self.ensure_scene(wait)?;
         }
         if let Some(l) = spec.layout {
             self.ensure_layout(l)?;
             if spec.layout_textures() {
-                self.ensure_textures()?;
+                self.ensure_textures(wait)?;
             }
         } else if shaders.uses_probe_binding && spec.resource != Resource::AccelerationStructure {
-            self.ensure_array(spec.resource)?;
+            self.ensure_array(spec.resource, wait)?;
         }
         if spec.addresses.ssbo_table && self.ssbo_table.is_none() {
-            self.ensure_array(Resource::StorageBuffer)?;
+            self.ensure_array(Resource::StorageBuffer, wait)?;
             let addrs: Vec<u64> =
                 self.arrays[&Resource::StorageBuffer].buffers.iter().map(|b| b.address).collect();
             self.ssbo_table =
                 Some(resources::address_table(&self.gpu, &addrs, "SSBO address table")?);
         }
         if spec.addresses.as_table && self.as_table.is_none() {
-            let s = self.ensure_scene()?;
+            let s = self.ensure_scene(wait)?;
             let addrs: Vec<u64> = s.probe_tlas.iter().map(|t| t.address).collect();
             let slots = self.slots(Resource::AccelerationStructure);
             self.as_table = Some(resources::as_table(&self.gpu, &addrs, slots)?);
@@ -184,26 +187,20 @@ impl Executor {
 
     /// The texture cells' textures and material table, made once (after `shared_buffers`' own
     /// buffers, whose `SceneDesc` gets the table's address).
-    fn ensure_textures(&mut self) -> Result<(), CellError> {
+    fn ensure_textures(&mut self, wait: Duration) -> Result<(), CellError> {
         self.ensure_layout(SceneLayout::SharedBuffers)?;
         if self.layout_textures.is_none() {
             let shared = self.shared_layout.as_ref().expect("made above");
-            let how = (&self.submitter, self.opts.timeout);
+            let how = (&self.submitter, wait);
             let what = (&self.scene, self.slots(Resource::SampledImage));
             self.layout_textures = Some(LayoutTextures::create(&self.gpu, what, shared, how)?);
         }
         Ok(())
     }
 
-    fn ensure_array(&mut self, r: Resource) -> Result<(), CellError> {
+    fn ensure_array(&mut self, r: Resource, wait: Duration) -> Result<(), CellError> {
         if !self.arrays.contains_key(&r) {
-            let a = ResourceArray::create(
-                &self.gpu,
-                r,
-                self.slots(r),
-                &self.submitter,
-                self.opts.timeout,
-            )?;
+            let a = ResourceArray::create(&self.gpu, r, self.slots(r), &self.submitter, wait)?;
             self.arrays.insert(r, a);
         }
         Ok(())

@@ -110,9 +110,13 @@ impl SceneTextures {
                 offset += d.rgba8.len() as u64;
             }
         });
-        staging.destroy(gpu);
         match waited? {
-            Waited::Done(_) => Ok(()),
+            Waited::Done(_) => {
+                staging.destroy(gpu);
+                Ok(())
+            }
+            // The copy may still be running: the staging buffer is left alive (leaked), as
+            // VUID-vkDestroyBuffer-buffer-00922 asks.
             Waited::TimedOut => Err(HarnessError::Timeout(timeout)),
         }
     }

@@ -97,9 +97,13 @@ impl Textures {
                 record_copy(gpu, cmd, img, &staging, (first as u64 * per, layers));
             }
         });
-        staging.destroy(gpu);
         match waited? {
-            Waited::Done(_) => Ok(()),
+            Waited::Done(_) => {
+                staging.destroy(gpu);
+                Ok(())
+            }
+            // The copy may still be running: the staging buffer is left alive (leaked), as
+            // VUID-vkDestroyBuffer-buffer-00922 asks.
             Waited::TimedOut => Err(HarnessError::Timeout(timeout)),
         }
     }

@@ -15,6 +15,10 @@ pub struct WorkerJob {
     pub scene: SceneParams,
     /// Fence deadline inside the worker (shorter than the supervisor's hard deadline).
     pub fence_timeout_ms: u64,
+    /// Fence deadline of the setup's submissions (the scene's AS build, image uploads), inside
+    /// the supervisor's setup deadline (absent: `fence_timeout_ms`).
+    #[serde(default)]
+    pub setup_fence_timeout_ms: u64,
     pub validate: bool,
     /// GPU-Assisted Validation on (`--validate=gpu-av`'s re-runs of findings).
     #[serde(default)]
@@ -173,6 +177,7 @@ mod tests {
             device_index: 0,
             scene: SceneParams::default(),
             fence_timeout_ms: 100,
+            setup_fence_timeout_ms: 100,
             validate: false,
             gpu_av: false,
             inject: vec![],

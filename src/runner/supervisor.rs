@@ -76,6 +76,12 @@ pub struct SupervisorOptions {
     pub linked: bool,
 }
 
+/// A worker's own fence deadline for `deadline` of the supervisor's: shorter, so that the worker
+/// reports a hung submission before the supervisor kills it (at least 100 ms).
+fn fence_ms(deadline: Duration) -> u64 {
+    (deadline.as_millis() as u64 * 8 / 10).max(100)
+}
+
 /// A worker the supervisor runs: its process, and its state as [`machine`] keeps it.
 struct Running {
     process: Proc,
@@ -182,7 +188,8 @@ impl Supervisor {
         let job = WorkerJob {
             device_index: self.opts.device_index,
             scene: self.opts.scene.clone(),
-            fence_timeout_ms: (self.opts.timeout.as_millis() as u64 * 8 / 10).max(100),
+            fence_timeout_ms: fence_ms(self.opts.timeout),
+            setup_fence_timeout_ms: fence_ms(self.opts.setup_timeout),
             validate: self.opts.validate,
             gpu_av: self.opts.gpu_av,
             inject: self.injections.list().to_vec(),
@@ -314,5 +321,20 @@ impl Supervisor {
     fn record(&self, cell: Cell, mut attempt: Attempt, on: &mut dyn FnMut(Event)) {
         self.injections.tag(&cell, &mut attempt);
         on(Event::Attempt { cell, attempt });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::fence_ms;
+    use std::time::Duration;
+
+    #[test]
+    fn the_setup_waits_on_the_setup_deadline_not_a_cells() {
+        // Before, the worker's setup (the scene's AS build) waited at most the cell's fence
+        // deadline (16 s of --timeout 20) though the supervisor allowed it 120 s.
+        assert_eq!(fence_ms(Duration::from_secs(20)), 16_000);
+        assert_eq!(fence_ms(Duration::from_secs(120)), 96_000);
+        assert_eq!(fence_ms(Duration::from_millis(50)), 100);
     }
 }

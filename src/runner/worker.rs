@@ -176,6 +176,7 @@ fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
     let gpu = Gpu::new(inst, info, req)?;
     let opts = ExecOptions {
         timeout: Duration::from_millis(job.fence_timeout_ms),
+        setup_timeout: Duration::from_millis(job.setup_fence_timeout_ms.max(job.fence_timeout_ms)),
         inject: job.inject.clone(),
         inject_seed: job.inject_seed,
         dump: job.dump.clone(),

@@ -272,14 +272,19 @@ impl SceneGpu {
 
         let waited = submitter
             .run(gpu, timeout, |cmd| record_builds(gpu, cmd, &[&blas_builds, &tlas_builds]))?;
+        if waited == Waited::TimedOut {
+            // The builds may still be running: their scratch, inputs and structures are left
+            // alive (leaked), never freed under them. "All submitted commands that refer to
+            // buffer [...] must have completed execution" (VUID-vkDestroyBuffer-buffer-00922,
+            // Vulkan 1.4.360): freeing the scratch here made lavapipe 26's build shader read
+            // unmapped memory (SIGSEGV in setup; reports/lavapipe-26/FINDINGS.md).
+            return Err(BuildError::TimedOut(timeout));
+        }
         for s in &all_scratch {
             s.destroy(gpu);
         }
         drop(blas_pending);
         drop(tlas_pending);
-        if waited == Waited::TimedOut {
-            return Err(BuildError::TimedOut(timeout));
-        }
         let probe_tlas = tlas.split_off(1);
         let scene_tlas = tlas.pop().expect("the scene TLAS");
         Ok(SceneGpu {
