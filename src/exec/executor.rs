@@ -126,8 +126,13 @@ impl Executor {
         let sampler = samplers::create_sampler(&gpu)?;
         let (cache, cache_status) = pipeline_cache::open(&gpu, opts.pipeline_cache.as_deref())?;
         let libraries = gpu.enabled.pipeline_library.then(Arc::default);
+        // `Gpu` holds raw create-info pointers, so it is not `Send`/`Sync` by itself; the only
+        // other thread that sees it is a prebuild's pipeline thread, through
+        // `pipeline_pool::Maker`, whose `unsafe impl` says why that is sound.
+        #[allow(clippy::arc_with_non_send_sync)]
+        let gpu = Arc::new(gpu);
         Ok(Executor {
-            gpu: Arc::new(gpu),
+            gpu,
             scene,
             sref,
             opts,

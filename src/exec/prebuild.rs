@@ -284,10 +284,11 @@ impl Executor {
 
     /// Keep a made pipeline; one whose key a cell made meanwhile at its turn is destroyed.
     fn keep_pipeline(&mut self, pkey: u64, p: Pipeline) {
-        if self.pipelines.contains_key(&pkey) {
-            p.destroy(&self.gpu);
-        } else {
-            self.pipelines.insert(pkey, p);
+        match self.pipelines.entry(pkey) {
+            std::collections::hash_map::Entry::Vacant(e) => {
+                e.insert(p);
+            }
+            std::collections::hash_map::Entry::Occupied(_) => p.destroy(&self.gpu),
         }
     }
 }
