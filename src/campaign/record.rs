@@ -76,9 +76,17 @@ impl Recorder {
 
     pub fn on_event(&mut self, ev: Event) {
         match ev {
-            Event::WorkerReady { device_ms, as_build_ms, pipeline_cache, driver_cache, .. } => {
+            Event::WorkerReady {
+                device_ms,
+                create_ms,
+                as_build_ms,
+                pipeline_cache,
+                driver_cache,
+                ..
+            } => {
                 let t = &mut self.writer.report.timing;
                 t.workers_started += 1;
+                t.device_create_ms += create_ms;
                 self.device_ms_sum += device_ms;
                 if let Some(ms) = as_build_ms {
                     t.as_builds += 1;
@@ -101,9 +109,10 @@ impl Recorder {
                     }
                 }
             }
-            Event::Prebuilt { wall_ms, pipelines, .. } => {
+            Event::Prebuilt { wall_ms, pipelines, overlapped, .. } => {
                 self.writer.report.timing.prebuild_ms += wall_ms;
                 self.writer.report.timing.prebuilt_pipelines += pipelines;
+                self.writer.report.timing.overlapped_cells += overlapped;
             }
             Event::CacheSaved(saved) => {
                 let s = self.writer.report.pipeline_cache.get_or_insert_with(Default::default);

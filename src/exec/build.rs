@@ -1,7 +1,7 @@
 //! Building a cell at its turn: compile, bind and create its pipeline phase by phase (the
 //! second half of phase `pipeline` creates the pipeline unless an identical one exists), or take
 //! what a prebuild made for it; and what creating a cell's pipeline needs.
-use super::built::{Bound, Compiled, PipelineInput};
+use super::built::{Bound, Compiled, PipelineInput, PipelineParts};
 use super::error::CellError;
 use super::executor::{Executor, PhaseHook};
 use super::{heap, pipeline};
@@ -10,22 +10,15 @@ use crate::probe::spec::ProbeSpec;
 use std::time::Instant;
 
 impl Executor {
-    /// What creating the cell's pipeline needs, apart from the device and cache.
-    pub(super) fn pipeline_input<'a>(
-        &self,
-        cell: &Cell,
-        c: &'a Compiled,
-        b: &Bound,
-    ) -> PipelineInput<'a> {
+    /// What creating the cell's pipeline needs, apart from the device, cache and shaders.
+    pub(super) fn pipeline_parts(&self, cell: &Cell, b: &Bound) -> PipelineParts {
         let spec = ProbeSpec::of(cell);
         let binding = &self.bindings[&b.key];
         let layout = binding.heap_layout();
         let mapping =
             spec.heap.zip(layout.as_ref()).map(|(access, l)| heap::PipelineMapping::new(access, l));
         let records = pipeline::shader_records(&spec, layout.as_ref());
-        PipelineInput {
-            shaders: &c.shaders,
-            spirv: &c.spirv,
+        PipelineParts {
             layout: binding.pipeline_layout,
             model: spec.model,
             mapping,
@@ -44,10 +37,13 @@ impl Executor {
         timings: &mut Timings,
     ) -> Result<(), CellError> {
         if !self.pipelines.contains_key(&b.pkey) {
-            let input = self.pipeline_input(cell, c, b);
+            let parts = self.pipeline_parts(cell, b);
+            let input = PipelineInput { shaders: &c.shaders, spirv: &c.spirv, parts: &parts };
             let t = Instant::now();
             let p = input.create(&self.gpu, &self.creation())?;
             timings.pipeline_ms = t.elapsed().as_secs_f64() * 1e3;
+            // Made on the cell thread, at its turn: all of it is the cell thread's wait.
+            timings.pipeline_wait_ms = timings.pipeline_ms;
             self.pipelines.insert(b.pkey, p);
         }
         Ok(())

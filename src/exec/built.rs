@@ -52,10 +52,8 @@ pub(super) struct Prebuilt {
     pub(super) result: Result<Bound, CellError>,
 }
 
-/// What creating one pipeline needs apart from the device and how it is made.
-pub(super) struct PipelineInput<'a> {
-    pub(super) shaders: &'a CellShaders,
-    pub(super) spirv: &'a [Arc<Vec<u32>>],
+/// What creating one pipeline needs apart from the device, how it is made and the shaders.
+pub(super) struct PipelineParts {
     pub(super) layout: vk::PipelineLayout,
     pub(super) model: DescriptorModel,
     pub(super) mapping: Option<Box<PipelineMapping>>,
@@ -65,16 +63,24 @@ pub(super) struct PipelineInput<'a> {
     pub(super) layout_digest: u128,
 }
 
+/// What creating one pipeline needs apart from the device and how it is made.
+pub(super) struct PipelineInput<'a> {
+    pub(super) shaders: &'a CellShaders,
+    pub(super) spirv: &'a [Arc<Vec<u32>>],
+    pub(super) parts: &'a PipelineParts,
+}
+
 impl PipelineInput<'_> {
     pub(super) fn desc(&self) -> pipeline::Desc<'_> {
+        let p = self.parts;
         pipeline::Desc {
             shaders: self.shaders,
             spirv: self.spirv,
-            layout: self.layout,
-            model: self.model,
-            heap: self.mapping.as_deref(),
-            records: &self.records,
-            specialization: &self.specialization,
+            layout: p.layout,
+            model: p.model,
+            heap: p.mapping.as_deref(),
+            records: &p.records,
+            specialization: &p.specialization,
         }
     }
 
@@ -85,11 +91,11 @@ impl PipelineInput<'_> {
     /// heap verdict is not trusted.
     pub(super) fn create(&self, gpu: &Gpu, how: &Creation) -> Result<Pipeline, VkError> {
         let d = self.desc();
-        let heap =
-            self.mapping.is_some() || self.model == crate::model::DescriptorModel::DescriptorHeap;
+        let p = self.parts;
+        let heap = p.mapping.is_some() || p.model == crate::model::DescriptorModel::DescriptorHeap;
         match how.libraries {
             Some(l) if d.shaders.kind == PipelineKind::RayTracing && !heap => {
-                l.make(gpu, how.cache, &d, self.layout_digest)
+                l.make(gpu, how.cache, &d, p.layout_digest)
             }
             Some(_) | None => pipeline::create(gpu, how.cache, &d),
         }

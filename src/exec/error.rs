@@ -39,6 +39,10 @@ pub enum CellError {
     /// The run's scene file (`run --scene`) could not be loaded again, or changed.
     #[error(transparent)]
     Scene(#[from] crate::scene::gltf::LoadError),
+    /// The prebuild's pipeline threads ended before making every pipeline (one panicked): the
+    /// worker's, never a cell's (`exec::prebuild` aborts the batch with it).
+    #[error("the prebuild's pipeline threads ended before making every pipeline")]
+    PoolEnded,
 }
 
 impl CellError {
@@ -53,7 +57,8 @@ impl CellError {
             | CellError::Patch(_)
             | CellError::Mutant(_)
             | CellError::Interface(_)
-            | CellError::Scene(_) => Outcome::Error,
+            | CellError::Scene(_)
+            | CellError::PoolEnded => Outcome::Error,
             CellError::NotImplemented(_) => Outcome::NotImplemented,
             CellError::Unsupported(_) => Outcome::Unsupported,
         }

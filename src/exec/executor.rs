@@ -24,6 +24,7 @@ use crate::vk::{Gpu, VkError};
 use ash::vk;
 use std::collections::HashMap;
 use std::path::PathBuf;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 #[derive(Clone, Debug)]
@@ -60,7 +61,8 @@ pub struct ExecOptions {
 pub type PhaseHook<'a> = &'a mut dyn FnMut(Phase) -> Result<(), VkError>;
 
 pub struct Executor {
-    pub gpu: Gpu,
+    /// Shared with the prebuild's pipeline threads (`pipeline_pool`).
+    pub gpu: Arc<Gpu>,
     pub(super) scene: Scene,
     pub(super) sref: SceneReference,
     pub(super) opts: ExecOptions,
@@ -90,7 +92,7 @@ pub struct Executor {
     pub cache_status: Option<pipeline_cache::Loaded>,
     /// Group libraries of ray tracing pipelines (a device created with VK_KHR_pipeline_library:
     /// its RT pipelines are linked from them).
-    pub(super) libraries: Option<Libraries>,
+    pub(super) libraries: Option<Arc<Libraries>>,
     /// Milliseconds the CPU reference took.
     pub reference_ms: f64,
     /// What a cell's readback and check fill, kept from cell to cell.
@@ -130,7 +132,12 @@ impl Executor {
         )?;
         let sampler = samplers::create_sampler(&gpu)?;
         let (cache, cache_status) = pipeline_cache::open(&gpu, opts.pipeline_cache.as_deref())?;
-        let libraries = gpu.enabled.pipeline_library.then(Libraries::default);
+        let libraries = gpu.enabled.pipeline_library.then(Arc::default);
+        // `Gpu` holds raw create-info pointers, so it is not `Send`/`Sync` by itself; the only
+        // other thread that sees it is a prebuild's pipeline thread, through
+        // `pipeline_pool::Maker`, whose `unsafe impl` says why that is sound.
+        #[allow(clippy::arc_with_non_send_sync)]
+        let gpu = Arc::new(gpu);
         Ok(Executor {
             gpu,
             scene,
@@ -171,13 +178,13 @@ impl Executor {
         self.pipelines.clear();
         if let Some(l) = self.libraries.take() {
             l.destroy(&self.gpu);
-            self.libraries = Some(Libraries::default());
+            self.libraries = Some(Arc::default());
         }
     }
 
     /// How this executor makes pipelines.
     pub(super) fn creation(&self) -> Creation<'_> {
-        Creation { cache: self.cache, libraries: self.libraries.as_ref() }
+        Creation { cache: self.cache, libraries: self.libraries.as_deref() }
     }
 
     /// Write the pipeline cache back to its file (merged with what is there): the bytes written;

@@ -35,6 +35,7 @@ pub mod pipeline;
 pub mod pipeline_cache;
 mod pipeline_key;
 mod pipeline_library;
+mod pipeline_pool;
 pub mod prebuild;
 mod record;
 pub mod resources;

@@ -1,25 +1,29 @@
-//! Building a batch of cells ahead of their turn: the batch's GLSL compiled on a pool of threads
-//! into the compiler's per-source cache, then workarounds and descriptor bindings in cell order
-//! on the calling thread (cheap), then every distinct pipeline the batch needs on the pool.
-//! `vkCreateRayTracingPipelinesKHR`, `vkCreateGraphicsPipelines` and `vkCreateComputePipelines`
-//! may be called from several threads at once (Vulkan spec, "Threading Behavior": only the
-//! pipeline cache, when created with `EXTERNALLY_SYNCHRONIZED`, needs external synchronization;
-//! ours is not). Every error is kept for its cell, with its phase, and becomes the cell's result
-//! at its turn, exactly as if the cell had been built then, except one whose outcome ends the
-//! worker (a lost device, a fence past its deadline): that aborts the prebuild, since the device
-//! is unusable and no cell of the batch can be blamed. Each unit of work (the threaded GLSL, each
-//! cell's compile and bindings, each pipeline) is reported as a [`Step`], so the supervisor's
-//! deadline measures silence, not the batch's size. Traces still run one cell at a time.
-use super::built::{Bound, Compiled, Creation, PipelineInput, Prebuilt};
+//! Building a batch of cells ahead of their turns, streamed: the batch's GLSL compiled on a pool
+//! of threads into the compiler's per-source cache, then workarounds and descriptor bindings in
+//! cell order on the calling thread (the staging), each distinct pipeline's input handed to a
+//! pool of threads ([`super::pipeline_pool`]) as soon as its first cell is staged; then the
+//! cells take their turns on the calling thread as their pipelines arrive ([`Prebuild::turn`]),
+//! while later pipelines are still being made. `vkCreateRayTracingPipelinesKHR`,
+//! `vkCreateGraphicsPipelines` and `vkCreateComputePipelines` may be called from several threads
+//! at once (Vulkan spec, "Threading Behavior": only the pipeline cache, when created with
+//! `EXTERNALLY_SYNCHRONIZED`, needs external synchronization; ours is not). Every error is kept
+//! for its cell, with its phase, and becomes the cell's result at its turn, exactly as if the
+//! cell had been built then, except one whose outcome ends the worker (a lost device, a fence
+//! past its deadline): that aborts the prebuild, since the device is unusable and no cell of the
+//! batch can be blamed. Each unit of work (the threaded GLSL, each cell's compile and bindings,
+//! each pipeline) is reported as a [`Step`], so the supervisor's deadline measures silence, not
+//! the batch's size. Traces still run one cell at a time, on the calling thread.
+use super::built::{Bound, Compiled, Prebuilt};
 use super::error::CellError;
 use super::executor::Executor;
 use super::pipeline::Pipeline;
+use super::pipeline_pool::{Job, Made, Maker, Pool};
 use crate::model::Cell;
 use crate::model::Phase;
 use crate::model::Timings;
 use crate::shadergen::CellShaders;
-use crate::vk::{Gpu, VkError};
-use std::collections::HashSet;
+use std::collections::{HashSet, VecDeque};
+use std::sync::Arc;
 use std::time::Instant;
 
 /// A unit of prebuild progress, reported as it happens (the worker sends it as the step of phase
@@ -30,7 +34,8 @@ pub enum Step {
     Glsl(usize, usize),
     /// Cells compiled and bound, in order on the calling thread (k of n).
     Compiled(usize, usize),
-    /// Pipelines created on the threads (k of n).
+    /// Pipelines created on the threads (k of the n handed to them so far: n grows while cells
+    /// are still being staged).
     Pipelines(usize, usize),
 }
 
@@ -43,6 +48,9 @@ impl std::fmt::Display for Step {
         }
     }
 }
+
+/// Told each [`Step`], from the calling thread and the pool's threads.
+pub type Progress = Arc<dyn Fn(Step) + Send + Sync>;
 
 /// An error met while prebuilding: kept for its cell's turn (`Ok`), or returned to abort the
 /// prebuild (`Err`) when its outcome ends the worker: after a device loss or a hung fence no
@@ -63,70 +71,89 @@ pub struct PrebuildStats {
     pub threads: usize,
 }
 
-/// The pipelines' inputs shared by the threads.
-struct Shared<'a> {
-    gpu: &'a Gpu,
-    how: Creation<'a>,
-    inputs: Vec<PipelineInput<'a>>,
+/// A staged cell waiting for its turn: `maker` is the index of the pipeline it makes (the first
+/// cell of each pipeline not created yet; its timings get the time), `None` when another cell
+/// makes it.
+struct Waiting {
+    id: String,
+    timings: Timings,
+    bound: Bound,
+    maker: Option<usize>,
 }
 
-// SAFETY: the inputs are plain Vulkan handles and create-info data (the heap mapping's pNext
-// pointers point into its own box) that live for the thread scope and are only read; the device
-// functions are thread-safe for pipeline creation (module doc), `Gpu` is only read, and the binary
-// store keeps its counts behind a mutex and writes each pipeline's own file, and the libraries'
-// slots are behind mutexes.
-unsafe impl Sync for Shared<'_> {}
+/// A batch's prebuild under way: its staged cells waiting for their turns, and the pipelines the
+/// pool's threads make for them.
+pub struct Prebuild {
+    pool: Option<Pool>,
+    waiting: VecDeque<Waiting>,
+    /// Pipelines received from the threads (or their errors, kept for their maker's turn), with
+    /// each one's milliseconds on its thread, by maker index, until their maker's turn.
+    made: Vec<Option<(Result<Pipeline, CellError>, f64)>>,
+    received: usize,
+    /// Keys of the pipelines that failed: their other cells build at their turn.
+    failed: HashSet<u64>,
+    /// Time the calling thread waited for pipelines and no cell has been charged with yet.
+    unclaimed_wait_ms: f64,
+    pub stats: PrebuildStats,
+}
 
-/// A created pipeline handed back from a thread.
-struct Made(Result<Pipeline, VkError>, f64);
-// SAFETY: a pipeline is Vulkan handles and its SBT buffer's mapping; the thread that made it
-// no longer touches it once it is handed over.
-unsafe impl Send for Made {}
+impl Prebuild {
+    /// Every pipeline of the batch made (and received).
+    pub fn done(&self) -> bool {
+        self.received == self.made.len()
+    }
 
-/// A cell compiled and bound on the calling thread, waiting for its pipeline.
-struct Staged {
-    cell: Cell,
-    timings: Timings,
-    compiled: Compiled,
-    bound: Bound,
+    /// Let the pool's threads go on where the worker's test hook held them (the first cell ran).
+    pub fn release(&self) {
+        if let Some(p) = &self.pool {
+            p.open();
+        }
+    }
 }
 
 impl Executor {
-    /// Build `cells` (compile, bind, create pipelines on `threads` threads), keeping each cell's
-    /// result for [`Executor::run`]. `progress` is called after every unit of work ([`Step`]).
-    /// An error whose outcome ends the worker is returned ([`keep`]): no cell of the batch can be
-    /// blamed.
+    /// Start building `cells`: compile and bind them in order, each new pipeline handed to
+    /// `threads` threads as soon as its cell is staged (`held`: the test hook's, the threads
+    /// make only the first pipeline until [`Prebuild::release`]). `progress` is told every unit
+    /// of work ([`Step`]). An error whose outcome ends the worker is returned ([`keep`]): no cell
+    /// of the batch can be blamed.
     pub fn prebuild(
         &mut self,
         cells: &[Cell],
         threads: usize,
-        progress: &(dyn Fn(Step) + Sync),
-    ) -> Result<PrebuildStats, CellError> {
-        let generated = self.precompile(cells, threads, progress);
-        let mut staged = Vec::new();
+        held: bool,
+        progress: Progress,
+    ) -> Result<Prebuild, CellError> {
+        let generated = self.precompile(cells, threads, &*progress);
+        let maker =
+            Maker { gpu: self.gpu.clone(), cache: self.cache, libraries: self.libraries.clone() };
+        let p = progress.clone();
+        let pool =
+            Pool::start(maker, threads, held, Arc::new(move |k, n| p(Step::Pipelines(k, n))));
+        let mut pb = Prebuild {
+            pool: Some(pool),
+            waiting: VecDeque::new(),
+            made: Vec::new(),
+            received: 0,
+            failed: HashSet::new(),
+            unclaimed_wait_ms: 0.0,
+            stats: PrebuildStats::default(),
+        };
+        let mut seen = HashSet::new();
         for (k, (cell, shaders)) in cells.iter().zip(generated).enumerate() {
-            if let Some(s) = self.stage(cell, shaders)? {
-                staged.push(s);
+            if let Some((compiled, w)) = self.stage(cell, shaders)? {
+                pb.push(self, cell, compiled, w, &mut seen);
             }
             progress(Step::Compiled(k + 1, cells.len()));
         }
-        let makers = self.makers(&staged);
-        let made = self.make_pipelines(&staged, &makers, threads, progress);
-        let failed = self.keep_pipelines(&mut staged, &makers, made)?;
-        // A failed pipeline's maker keeps its error (above); the other cells of that pipeline try
-        // again at their turn, as they would have without the prebuild.
-        for Staged { cell, timings, bound, .. } in staged {
-            if !failed.contains(&bound.pkey) {
-                self.prebuilt.insert(
-                    cell.id(),
-                    Prebuilt { timings, phase: Phase::Pipeline, result: Ok(bound) },
-                );
-            }
+        if let Some(p) = &mut pb.pool {
+            p.close();
         }
-        Ok(PrebuildStats {
-            pipelines: makers.len(),
-            threads: threads.clamp(1, makers.len().max(1)),
-        })
+        pb.stats = PrebuildStats {
+            pipelines: pb.made.len(),
+            threads: threads.clamp(1, pb.made.len().max(1)),
+        };
+        Ok(pb)
     }
 
     /// Each cell's GLSL, generated once; compiled on the threads first (into the compiler's
@@ -135,7 +162,7 @@ impl Executor {
         &mut self,
         cells: &[Cell],
         threads: usize,
-        progress: &(dyn Fn(Step) + Sync),
+        progress: &(dyn Fn(Step) + Send + Sync),
     ) -> Vec<CellShaders> {
         let generated: Vec<_> = cells
             .iter()
@@ -159,12 +186,19 @@ impl Executor {
 
     /// Compile and bind one cell on the calling thread: `Some` when it is ready for its pipeline;
     /// `None` when its error is kept for its turn; `Err` when the error ends the worker.
-    fn stage(&mut self, cell: &Cell, shaders: CellShaders) -> Result<Option<Staged>, CellError> {
+    fn stage(
+        &mut self,
+        cell: &Cell,
+        shaders: CellShaders,
+    ) -> Result<Option<(Compiled, Waiting)>, CellError> {
         let mut timings = Timings::default();
         let (phase, e) = match self.compile_cell(cell, shaders, &mut timings) {
             Err(e) => (Phase::Compile, e),
             Ok(compiled) => match self.bind_cell(cell, &compiled, &mut timings) {
-                Ok(bound) => return Ok(Some(Staged { cell: *cell, timings, compiled, bound })),
+                Ok(bound) => {
+                    let w = Waiting { id: cell.id(), timings, bound, maker: None };
+                    return Ok(Some((compiled, w)));
+                }
                 Err(e) => (Phase::Pipeline, e),
             },
         };
@@ -173,95 +207,134 @@ impl Executor {
         Ok(None)
     }
 
-    /// Which staged cells make a pipeline: the first cell of each pipeline not created yet (its
-    /// timings get the time).
-    fn makers(&self, staged: &[Staged]) -> Vec<usize> {
-        let mut seen = HashSet::new();
-        (0..staged.len())
-            .filter(|&i| {
-                let pkey = staged[i].bound.pkey;
-                !self.pipelines.contains_key(&pkey) && seen.insert(pkey)
-            })
-            .collect()
-    }
-
-    /// The makers' pipelines, created on `threads` threads, in the makers' order.
-    fn make_pipelines(
-        &self,
-        staged: &[Staged],
-        makers: &[usize],
-        threads: usize,
-        progress: &(dyn Fn(Step) + Sync),
-    ) -> Vec<Made> {
-        let shared = Shared {
-            gpu: &self.gpu,
-            how: self.creation(),
-            inputs: makers
-                .iter()
-                .map(|&i| {
-                    let s = &staged[i];
-                    self.pipeline_input(&s.cell, &s.compiled, &s.bound)
-                })
-                .collect(),
-        };
-        create_all(&shared, threads, &|k, n| progress(Step::Pipelines(k, n)))
-    }
-
-    /// Keep each made pipeline, or its error for its maker's turn (with the time in its timings);
-    /// the keys of the pipelines that failed. An error that ends the worker is returned.
-    fn keep_pipelines(
-        &mut self,
-        staged: &mut [Staged],
-        makers: &[usize],
-        made: Vec<Made>,
-    ) -> Result<HashSet<u64>, CellError> {
-        let mut failed: HashSet<u64> = HashSet::new();
-        for (&i, Made(result, ms)) in makers.iter().zip(made) {
-            let s = &mut staged[i];
-            s.timings.pipeline_ms = ms;
-            match result {
-                Ok(p) => {
-                    self.pipelines.insert(s.bound.pkey, p);
-                }
-                Err(e) => {
-                    let e = keep(e.into())?;
-                    failed.insert(s.bound.pkey);
-                    let timings = s.timings.clone();
-                    self.prebuilt.insert(
-                        s.cell.id(),
-                        Prebuilt { timings, phase: Phase::Pipeline, result: Err(e) },
-                    );
-                }
+    /// Before `cell`'s turn: if it was staged, its pipeline waited for (the wait in its timings)
+    /// and what it needs kept for [`Executor::run`]. An error that ends the worker (from any
+    /// pipeline received meanwhile) is returned.
+    pub fn turn(&mut self, pb: &mut Prebuild, cell: &Cell) -> Result<(), CellError> {
+        if pb.waiting.front().is_none_or(|w| w.id != cell.id()) {
+            return Ok(()); // not staged: its error is kept already, or it builds at its turn
+        }
+        let Some(mut w) = pb.waiting.pop_front() else { return Ok(()) };
+        let t = Instant::now();
+        if let Some(j) = w.maker {
+            while pb.made[j].is_none() {
+                let m = pb.pool.as_ref().and_then(Pool::recv);
+                pb.receive(m.ok_or(CellError::PoolEnded)?)?;
             }
         }
-        Ok(failed)
+        w.timings.pipeline_wait_ms =
+            t.elapsed().as_secs_f64() * 1e3 + std::mem::take(&mut pb.unclaimed_wait_ms);
+        let result = match w.maker.and_then(|j| pb.made[j].take()) {
+            Some((result, ms)) => {
+                w.timings.pipeline_ms = ms;
+                match result {
+                    Ok(p) => {
+                        self.keep_pipeline(w.bound.pkey, p);
+                        Ok(w.bound)
+                    }
+                    Err(e) => {
+                        pb.failed.insert(w.bound.pkey);
+                        Err(e)
+                    }
+                }
+            }
+            // A failed pipeline's maker keeps its error; the other cells of that pipeline try
+            // again at their turn, as they would have without the prebuild.
+            None if pb.failed.contains(&w.bound.pkey) => return Ok(()),
+            None => Ok(w.bound),
+        };
+        let entry = Prebuilt { timings: w.timings, phase: Phase::Pipeline, result };
+        self.prebuilt.insert(w.id, entry);
+        Ok(())
+    }
+
+    /// Take the pipelines made so far without waiting: whether all are made. An error that ends
+    /// the worker is returned.
+    pub fn poll(&mut self, pb: &mut Prebuild) -> Result<bool, CellError> {
+        while let Some(m) = pb.pool.as_ref().and_then(Pool::try_recv) {
+            pb.receive(m)?;
+        }
+        Ok(pb.done())
+    }
+
+    /// Wait for every pipeline of the batch (the wait is charged to the next cell's turn).
+    pub fn wait_all(&mut self, pb: &mut Prebuild) -> Result<(), CellError> {
+        let t = Instant::now();
+        pb.release();
+        while !pb.done() {
+            let m = pb.pool.as_ref().and_then(Pool::recv);
+            pb.receive(m.ok_or(CellError::PoolEnded)?)?;
+        }
+        pb.unclaimed_wait_ms += t.elapsed().as_secs_f64() * 1e3;
+        Ok(())
+    }
+
+    /// The batch is over: the threads joined, and any pipeline no cell took (none, when every
+    /// cell had its turn) destroyed: no cell used it.
+    pub fn end(&mut self, mut pb: Prebuild) {
+        if let Some(p) = pb.pool.take() {
+            p.join();
+        }
+        for (r, _) in pb.made.iter_mut().filter_map(Option::take) {
+            if let Ok(p) = r {
+                p.destroy(&self.gpu);
+            }
+        }
+    }
+
+    /// Keep a made pipeline; one whose key a cell made meanwhile at its turn is destroyed.
+    fn keep_pipeline(&mut self, pkey: u64, p: Pipeline) {
+        match self.pipelines.entry(pkey) {
+            std::collections::hash_map::Entry::Vacant(e) => {
+                e.insert(p);
+            }
+            std::collections::hash_map::Entry::Occupied(_) => p.destroy(&self.gpu),
+        }
     }
 }
 
-/// Create every input's pipeline on `threads` threads, in the inputs' order.
-fn create_all(
-    shared: &Shared,
-    threads: usize,
-    progress: &(dyn Fn(usize, usize) + Sync),
-) -> Vec<Made> {
-    let made = crate::pool::map(
-        shared.inputs.len(),
-        threads,
-        || Some(()),
-        |(), i| {
-            let t = Instant::now();
-            let r = shared.inputs[i].create(shared.gpu, &shared.how);
-            Made(r, t.elapsed().as_secs_f64() * 1e3)
-        },
-        progress,
-    );
-    made.into_iter().map(|m| m.expect("every thread takes items (its init cannot fail)")).collect()
+impl Prebuild {
+    /// A staged cell queued for its turn; a new pipeline's input handed to the threads.
+    fn push(
+        &mut self,
+        exec: &Executor,
+        cell: &Cell,
+        compiled: Compiled,
+        mut w: Waiting,
+        seen: &mut HashSet<u64>,
+    ) {
+        let pkey = w.bound.pkey;
+        if !exec.pipelines.contains_key(&pkey) && seen.insert(pkey) {
+            let index = self.made.len();
+            self.made.push(None);
+            w.maker = Some(index);
+            let parts = exec.pipeline_parts(cell, &w.bound);
+            if let Some(p) = &mut self.pool {
+                p.send(Job { index, compiled, parts });
+            }
+        }
+        self.waiting.push_back(w);
+    }
+
+    /// A pipeline from the threads, kept until its maker's turn; an error that ends the worker
+    /// is returned at once.
+    fn receive(&mut self, m: Made) -> Result<(), CellError> {
+        self.received += 1;
+        let Made { index, result, ms } = m;
+        let result = match result {
+            Ok(p) => Ok(p),
+            Err(e) => Err(keep(e.into())?),
+        };
+        self.made[index] = Some((result, ms));
+        Ok(())
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::scene::gpu::BuildError;
+    use crate::vk::VkError;
     use ash::vk;
     use std::time::Duration;
 

@@ -311,6 +311,11 @@ fn add_timing(t: &mut TimingSummary, r: &TimingSummary) {
     t.cells_timed += r.cells_timed;
     t.prebuild_ms += r.prebuild_ms;
     t.prebuilt_pipelines += r.prebuilt_pipelines;
+    t.overlapped_cells += r.overlapped_cells;
+    t.device_create_ms += r.device_create_ms;
+    t.pipeline_wait_ms += r.pipeline_wait_ms;
+    // The runs' own times add up as their walls do (absent in either: unknown).
+    t.own_ms = t.own_ms.zip(r.own_ms).map(|(a, b)| a + b);
 }
 
 /// The merged report made whole: cells in plan order, the plan and tallies recounted, shard

@@ -117,6 +117,12 @@ pub struct Timings {
     #[serde(default)]
     pub readback_ms: f64,
     pub total_ms: f64,
+    /// Time the worker's cell thread spent on this cell's pipeline: creating it at the cell's
+    /// turn (then equal to `pipeline_ms`, inside `total_ms`), or blocked waiting for the
+    /// prebuild's threads to make it (before the turn, outside `total_ms`). 0 when the pipeline
+    /// was ready (and in older reports).
+    #[serde(default)]
+    pub pipeline_wait_ms: f64,
 }
 
 /// What a worker reports for one cell.

@@ -387,6 +387,50 @@ pub struct TimingSummary {
     /// Pipelines those prebuilds created.
     #[serde(default)]
     pub prebuilt_pipelines: usize,
+    /// Cells that ran while their prebuild's pipelines were still being made (overlapped).
+    #[serde(default)]
+    pub overlapped_cells: usize,
+    /// The workers' instance and device creation, summed (part of `device_ms_mean`'s workers'
+    /// setup; 0 in older reports).
+    #[serde(default)]
+    pub device_create_ms: f64,
+    /// Sum over timed cells of `Timings::pipeline_wait_ms`: the cell thread blocked on, or
+    /// creating, a pipeline (0 in older reports).
+    #[serde(default)]
+    pub pipeline_wait_ms: f64,
+    /// rtprobe's own time: `wall_ms` less the driver's time on the critical path (device
+    /// creation, pipeline waits, fence waits); see [`own_ms`] and docs/performance.md. `None`
+    /// in older reports.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub own_ms: Option<f64>,
+}
+
+/// rtprobe's own time in a run of `wall_ms`: the wall less the driver's time on the critical
+/// path, that is the workers' instance and device creation (`create_ms`), the cell thread's
+/// pipeline waits (`wait_ms`) and the cells' submit-to-fence time (`fence_ms`, the timed cells'
+/// `trace_ms`), all summed over workers and divided by the `slots` that ran at once (exact for
+/// one slot; with several an estimate that assumes the driver's time spread evenly). Never
+/// below 0.
+pub fn own_ms(wall_ms: f64, create_ms: f64, wait_ms: f64, fence_ms: f64, slots: usize) -> f64 {
+    let driver = (create_ms + wait_ms + fence_ms) / slots.max(1) as f64;
+    (wall_ms - driver).max(0.0)
+}
+
+#[cfg(test)]
+mod own_tests {
+    use super::own_ms;
+
+    #[test]
+    fn own_time_is_the_wall_less_the_driver_on_the_critical_path() {
+        // The H200's warm run's shape: 2.4 s wall, 0.38 s device, 0.9 s waits, 0.1 s fences.
+        assert!((own_ms(2400.0, 380.0, 900.0, 100.0, 1) - 1020.0).abs() < 1e-9);
+        // Two slots at once: the driver's sums are shared between them.
+        assert!((own_ms(2400.0, 760.0, 1800.0, 200.0, 2) - 1020.0).abs() < 1e-9);
+        // No slot recorded (a run with no worker): counted as one.
+        assert_eq!(own_ms(10.0, 4.0, 0.0, 0.0, 0), 6.0);
+        // Garbage in (driver sums beyond the wall, NaN-free): never negative.
+        assert_eq!(own_ms(100.0, 80.0, 50.0, 0.0, 1), 0.0);
+    }
 }
 
 /// The persisted pipeline cache of a run (`--pipeline-cache`): what the workers loaded and saved.

@@ -330,14 +330,29 @@ fn finding(s: &mut String, c: &crate::model::CellReport, expected: bool) {
     }
 }
 
+/// rtprobe's own share of the wall (`timing.own_ms`) and the driver's time taken from it; empty
+/// for reports without it.
+fn own(t: &crate::model::report::TimingSummary) -> String {
+    t.own_ms.map_or(String::new(), |own| {
+        format!(
+            " (own {:.2} s; driver: device creation {:.2} s, pipeline waits {:.2} s, fence waits {:.2} s)",
+            own / 1e3,
+            t.device_create_ms / 1e3,
+            t.pipeline_wait_ms / 1e3,
+            t.trace_ms / 1e3
+        )
+    })
+}
+
 /// Time per phase, the prebuild and the pipeline cache.
 fn timing(s: &mut String, r: &RunReport, quiet: Quiet) {
     let t = &r.timing;
     let n = t.cells_timed.max(1) as f64;
     let _ = writeln!(
         s,
-        "time: {:.1} s wall, {} (device {:.0} ms each{}); per cell: compile {:.1} ms, pipeline {:.1} ms, trace {:.1} ms, check {:.2} ms (readback {:.2}), overhead {:.1} ms",
+        "time: {:.1} s wall{}, {} (device {:.0} ms each{}); per cell: compile {:.1} ms, pipeline {:.1} ms, trace {:.1} ms, check {:.2} ms (readback {:.2}), overhead {:.1} ms",
         t.wall_ms / 1e3,
+        own(t),
         plural(t.workers_started, "worker"),
         t.device_ms_mean,
         if t.as_builds > 0 {
@@ -355,7 +370,7 @@ fn timing(s: &mut String, r: &RunReport, quiet: Quiet) {
     if t.prebuilt_pipelines > 0 {
         let threads =
             r.options.threads.map(|n| n.to_string()).unwrap_or_else(|| "--threads".into());
-        let _ = writeln!(s, "prebuild: {} pipelines created on {threads} threads ahead of their cells, {:.1} s wall (their per-cell time above is each one's time on its thread)", t.prebuilt_pipelines, t.prebuild_ms / 1e3);
+        let _ = writeln!(s, "prebuild: {} pipelines created on {threads} threads ahead of their cells, {:.1} s wall, {} cells run meanwhile (their per-cell time above is each one's time on its thread)", t.prebuilt_pipelines, t.prebuild_ms / 1e3, t.overlapped_cells);
     }
     if let Some(pc) = &r.pipeline_cache {
         let file = pc.file.as_ref().map(|f| f.display().to_string()).unwrap_or_default();

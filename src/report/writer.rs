@@ -80,6 +80,7 @@ impl ReportWriter {
             t.trace_ms += tm.trace_ms;
             t.check_ms += tm.check_ms;
             t.readback_ms += tm.readback_ms;
+            t.pipeline_wait_ms += tm.pipeline_wait_ms;
             t.overhead_ms += (attempt.wall_ms - tm.total_ms).max(0.0)
                 + (tm.total_ms
                     - tm.compile_ms

@@ -13,6 +13,8 @@ pub enum Event {
     /// A worker finished its setup.
     WorkerReady {
         device_ms: f64,
+        /// Of `device_ms`, the instance and device creation.
+        create_ms: f64,
         reference_ms: f64,
         /// The scene AS build within `device_ms`, when the worker built one.
         as_build_ms: Option<f64>,
@@ -20,7 +22,8 @@ pub enum Event {
         driver_cache: Option<crate::model::DriverCache>,
     },
     /// A worker built a batch of cells ahead of their turns.
-    Prebuilt { wall_ms: f64, pipelines: usize, threads: usize },
+    /// `overlapped`: cells that ran while its pipelines were still being made.
+    Prebuilt { wall_ms: f64, pipelines: usize, threads: usize, overlapped: usize },
     /// A worker wrote the pipeline cache back (`Err`: why not).
     CacheSaved(Result<u64, String>),
     /// A worker's setup finished or failed, or it faulted outside a cell.

@@ -210,6 +210,7 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
         }
         WorkerMsg::Ready {
             device_ms,
+            create_ms,
             reference_ms,
             as_build_ms,
             device_features,
@@ -220,6 +221,7 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
             w.device_features = device_features;
             fx.push(Effect::Report(Event::WorkerReady {
                 device_ms,
+                create_ms,
                 reference_ms,
                 as_build_ms,
                 pipeline_cache,
@@ -247,10 +249,11 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
             "worker {} sent prebuild while not between cells; ignored",
             w.id
         ))),
-        WorkerMsg::Prebuilt { wall_ms, pipelines, threads } => {
+        WorkerMsg::Prebuilt { wall_ms, pipelines, threads, overlapped } => {
             if matches!(w.state, State::Prebuild { .. }) {
                 w.enter(State::Between { since: now }, Phase::BetweenCells);
-                fx.push(Effect::Report(Event::Prebuilt { wall_ms, pipelines, threads }));
+                let ev = Event::Prebuilt { wall_ms, pipelines, threads, overlapped };
+                fx.push(Effect::Report(ev));
             }
         }
         WorkerMsg::CacheSaved { bytes, error } => fx.push(Effect::Report(Event::CacheSaved(
@@ -304,7 +307,10 @@ fn finished(
     };
     let c = w.pending.remove(pos);
     let ends = result.outcome.ends_worker();
-    let attempt = attempt(w, result.outcome).with_result(result).with_wall_ms(ms(since, now));
+    // A cell that overlapped a prebuild sends its lines after `prebuilt`, together: its wall
+    // time is the worker's own measure then, never less.
+    let wall_ms = ms(since, now).max(result.timings.total_ms);
+    let attempt = attempt(w, result.outcome).with_result(result).with_wall_ms(wall_ms);
     w.progressed = true;
     if ends || w.pending.is_empty() {
         w.enter(State::Teardown { since: now }, Phase::Teardown);

@@ -13,13 +13,19 @@
 //! crashing device creation); a `setup` loss happens after it, where the scene's acceleration
 //! structures are built (a loss needs a device). A `prebuild` action happens as the worker starts
 //! building a batch ahead of the cells' turns (only where it prebuilds: `--threads` above 1).
+//!
+//! `overlap:<hang|crash|spam|lose|hold>` acts in the `trace` of the first cell that runs while
+//! the prebuild's threads still make pipelines (an overlapped cell, `runner::overlap`), and
+//! nowhere else. With it the pool is held: its threads make the first pipeline only until that
+//! cell is done, so the overlap happens whatever the machine's speed. `hold` only holds (for
+//! twins of a real fault, an `--inject-fault` hang, say, in an overlapped cell).
 use crate::model::Phase;
 use crate::shadergen::compile::CompileError;
 use crate::vk::VkError;
 use std::io::Write;
 
 pub const ENV: &str = "RTPROBE_WORKER_FAULT";
-const ACTIONS: &str = "hang|crash|spam|lose|no_compiler";
+const ACTIONS: &str = "hang|crash|spam|lose|no_compiler|hold";
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Action {
@@ -28,12 +34,16 @@ pub enum Action {
     Spam,
     Lose,
     NoCompiler,
+    /// `overlap:hold`: nothing but the pool held.
+    Hold,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Misbehave {
     pub phase: Phase,
     pub action: Action,
+    /// `overlap:`: only in an overlapped cell's `phase` (`trace`), and the pool held.
+    pub overlap: bool,
 }
 
 /// Where in the setup the hook runs (see the module doc).
@@ -50,8 +60,12 @@ impl Misbehave {
         let (p, a) = spec
             .split_once(':')
             .ok_or_else(|| format!("{ENV}={spec:?}: expected <phase>:<{ACTIONS}>"))?;
-        let phase = Phase::parse(p).ok_or_else(|| format!("{ENV}: unknown phase {p:?}"))?;
+        let overlap = p == "overlap";
+        let phase = if overlap { Some(Phase::Trace) } else { Phase::parse(p) };
+        let phase = phase.ok_or_else(|| format!("{ENV}: unknown phase {p:?}"))?;
         let action = match a {
+            "hold" if overlap => Action::Hold,
+            "hold" => return Err(format!("{ENV}: hold is an overlap action")),
             "hang" => Action::Hang,
             "crash" => Action::Crash,
             "spam" => Action::Spam,
@@ -60,7 +74,7 @@ impl Misbehave {
             "no_compiler" => return Err(format!("{ENV}: no_compiler is a setup action")),
             other => return Err(format!("{ENV}: unknown action {other:?} ({ACTIONS})")),
         };
-        Ok(Misbehave { phase, action })
+        Ok(Misbehave { phase, action, overlap })
     }
 
     /// The hook of this process, read once from the environment.
@@ -71,11 +85,24 @@ impl Misbehave {
         }
     }
 
-    /// Called as the worker enters `phase` (with the setup step, for `setup`).
+    /// Called as the worker enters `phase` (with the setup step, for `setup`) outside an
+    /// overlapped cell.
     pub fn at(&self, phase: Phase, step: Option<SetupStep>) -> Result<(), VkError> {
+        if phase != self.phase || self.overlap {
+            return Ok(());
+        }
+        self.act(phase, step)
+    }
+
+    /// Called as an overlapped cell enters `phase` (`overlap:` hooks and phase hooks alike act).
+    pub fn at_overlapped(&self, phase: Phase) -> Result<(), VkError> {
         if phase != self.phase {
             return Ok(());
         }
+        self.act(phase, None)
+    }
+
+    fn act(&self, phase: Phase, step: Option<SetupStep>) -> Result<(), VkError> {
         let wanted =
             if self.action == Action::Lose { SetupStep::Scene } else { SetupStep::CreateDevice };
         if phase == Phase::Setup && step != Some(wanted) {
@@ -100,7 +127,7 @@ impl Misbehave {
             Action::Lose => {
                 Err(VkError::DeviceLost { call: "injected device loss (RTPROBE_WORKER_FAULT)" })
             }
-            Action::NoCompiler => Ok(()),
+            Action::NoCompiler | Action::Hold => Ok(()),
         }
     }
 
@@ -121,8 +148,14 @@ mod tests {
     fn parses_phase_and_action() {
         assert_eq!(
             Misbehave::parse("pipeline:hang"),
-            Ok(Misbehave { phase: Phase::Pipeline, action: Action::Hang })
+            Ok(Misbehave { phase: Phase::Pipeline, action: Action::Hang, overlap: false })
         );
+        assert_eq!(
+            Misbehave::parse("overlap:crash"),
+            Ok(Misbehave { phase: Phase::Trace, action: Action::Crash, overlap: true })
+        );
+        assert_eq!(Misbehave::parse("overlap:hold").unwrap().action, Action::Hold);
+        assert!(Misbehave::parse("trace:hold").is_err(), "hold only holds the overlap's pool");
         assert_eq!(Misbehave::parse("between_cells:crash").unwrap().action, Action::Crash);
         assert!(Misbehave::parse("pipeline").is_err());
         assert!(Misbehave::parse("nowhere:hang").is_err());
@@ -133,10 +166,15 @@ mod tests {
 
     #[test]
     fn loss_fires_only_in_its_phase() {
-        let m = Misbehave { phase: Phase::Trace, action: Action::Lose };
+        let m = Misbehave { phase: Phase::Trace, action: Action::Lose, overlap: false };
         assert!(m.at(Phase::Compile, None).is_ok());
         assert!(m.at(Phase::Trace, None).unwrap_err().is_device_lost());
-        let s = Misbehave { phase: Phase::Setup, action: Action::Lose };
+        assert!(m.at_overlapped(Phase::Trace).unwrap_err().is_device_lost(), "in any cell");
+        let o = Misbehave { overlap: true, ..m };
+        assert!(o.at(Phase::Trace, None).is_ok(), "an overlap hook spares the other cells");
+        assert!(o.at_overlapped(Phase::Compile).is_ok());
+        assert!(o.at_overlapped(Phase::Trace).unwrap_err().is_device_lost());
+        let s = Misbehave { phase: Phase::Setup, action: Action::Lose, overlap: false };
         assert!(s.at(Phase::Setup, Some(SetupStep::CreateDevice)).is_ok());
         assert!(s.at(Phase::Setup, Some(SetupStep::Scene)).is_err());
         assert!(s.compiler().is_ok(), "a device loss leaves the compiler alone");

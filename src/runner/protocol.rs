@@ -80,6 +80,10 @@ pub enum WorkerMsg {
     /// feature bits), copied into each attempt.
     Ready {
         device_ms: f64,
+        /// Of `device_ms`, the instance and device creation (`vkCreateInstance`, the devices'
+        /// query, `vkCreateDevice`): the driver's time (0 from older workers).
+        #[serde(default)]
+        create_ms: f64,
         reference_ms: f64,
         /// The scene's acceleration structures' build within `device_ms` (none: no cell of the
         /// worker traces the scene).
@@ -102,11 +106,15 @@ pub enum WorkerMsg {
         cells: Vec<String>,
         threads: usize,
     },
-    /// The prebuild finished; each cell's result (or error) waits for its turn.
+    /// The prebuild finished: every pipeline of the batch is made. Each cell's result (or
+    /// error) waits for its turn; the `overlapped` cells that ran meanwhile send their held
+    /// `start` and `result` lines right after this one (`runner::overlap`).
     Prebuilt {
         wall_ms: f64,
         pipelines: usize,
         threads: usize,
+        #[serde(default)]
+        overlapped: usize,
     },
     /// After the last cell: the pipeline cache was written (`bytes`) or not (`error`).
     CacheSaved {

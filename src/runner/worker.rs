@@ -7,8 +7,9 @@
 //! supervisor dies (PR_SET_PDEATHSIG, set at spawn). A setup failure that no worker can get past
 //! (the shader compiler cannot start) says so in its `fatal` message (`halt`): the run stops.
 use super::misbehave::{Misbehave, SetupStep};
+use super::overlap;
 use super::protocol::{WorkerJob, WorkerMsg};
-use crate::exec::prebuild::Step;
+use super::worker_io::{halt_of, send};
 use crate::exec::{CellError, ExecOptions, Executor};
 use crate::model::Phase;
 use crate::model::{Cell, DescriptorModel, Resource, Stage};
@@ -17,7 +18,6 @@ use crate::probe::spec::{ArrayAt, ProbeSpec};
 use crate::shadergen::compile::CompileError;
 use crate::vk::{features, Gpu, Instance, InstanceOptions, Requirements, VkError};
 use std::collections::HashSet;
-use std::io::Write;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -86,13 +86,6 @@ fn driver_cache(exec: &Executor, job: &WorkerJob) -> crate::model::DriverCache {
     }
 }
 
-fn send(msg: &WorkerMsg) {
-    let mut out = std::io::stdout().lock();
-    let _ = serde_json::to_writer(&mut out, msg);
-    let _ = out.write_all(b"\n");
-    let _ = out.flush();
-}
-
 /// Tells the supervisor each phase, then runs the test hook (if any) for it.
 struct Phases {
     hook: Option<Misbehave>,
@@ -105,6 +98,14 @@ impl Phases {
             Some(h) => h.at(phase, step.map(|(s, _)| s)),
             None => Ok(()),
         }
+    }
+
+    /// An overlapped cell enters `phase` (`runner::overlap`): told as a `prebuild` step naming
+    /// the cell, then the test hook's turn.
+    fn enter_overlapped(&self, cell: &str, phase: Phase) -> Result<(), VkError> {
+        let step = format!("cell {cell}: {phase}");
+        send(&WorkerMsg::Phase { phase: Phase::Prebuild, step: Some(step) });
+        self.hook.as_ref().map_or(Ok(()), |h| h.at_overlapped(phase))
     }
 
     /// The test hook's turn as the setup starts the shader compiler (`setup:no_compiler`).
@@ -126,15 +127,6 @@ impl From<CellError> for SetupFailure {
     }
 }
 
-/// What of `e` no worker can get past: the shader compiler not starting, in setup or on a
-/// prebuild thread alike.
-fn halt_of(e: &CellError) -> Option<Halt> {
-    match e {
-        CellError::Compile(CompileError::Init) => Some(Halt::NoShaderCompiler),
-        _ => None,
-    }
-}
-
 impl From<CompileError> for SetupFailure {
     fn from(e: CompileError) -> Self {
         CellError::Compile(e).into()
@@ -147,7 +139,8 @@ impl From<VkError> for SetupFailure {
     }
 }
 
-fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
+/// The worker's executor, and the milliseconds its instance and device creation took.
+fn setup(job: &WorkerJob, phases: &Phases) -> Result<(Executor, f64), SetupFailure> {
     if env_switch(job) {
         for (k, v) in FRESH_ENV {
             // Single-threaded here: no other thread reads the environment yet.
@@ -155,9 +148,11 @@ fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
         }
     }
     phases.enter(Phase::Setup, Some((SetupStep::CreateInstance, "vkCreateInstance")))?;
+    let t = Instant::now();
     let inst =
         Arc::new(Instance::new(&InstanceOptions { validate: job.validate, gpu_av: job.gpu_av })?);
     let all = features::query_all(&inst)?;
+    let mut create_ms = t.elapsed().as_secs_f64() * 1e3;
     let info = all
         .get(job.device_index)
         .ok_or_else(|| SetupFailure {
@@ -173,7 +168,9 @@ fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
     });
     pipeline_creation(&info, job, &mut req);
     phases.enter(Phase::Setup, Some((SetupStep::CreateDevice, "vkCreateDevice")))?;
+    let t = Instant::now();
     let gpu = Gpu::new(inst, info, req)?;
+    create_ms += t.elapsed().as_secs_f64() * 1e3;
     let opts = ExecOptions {
         timeout: Duration::from_millis(job.fence_timeout_ms),
         setup_timeout: Duration::from_millis(job.setup_fence_timeout_ms.max(job.fence_timeout_ms)),
@@ -197,56 +194,12 @@ fn setup(job: &WorkerJob, phases: &Phases) -> Result<Executor, SetupFailure> {
     phases
         .enter(Phase::Setup, Some((SetupStep::Scene, "acceleration structures and resources")))?;
     exec.prepare(&job.cells)?;
-    Ok(exec)
+    Ok((exec, create_ms))
 }
 
 /// Cells prebuilt at once: bounds the batch a fault in the prebuild sends back to the sequential
 /// path, and lets traces start before every pipeline of a large job exists.
 const PREBUILD_CHUNK: usize = 512;
-
-/// Build `chunk`'s cells (but the serial ones) ahead of their turns on `threads` threads. Only
-/// worth it for two cells or more; with one thread each cell builds at its turn. Every unit of
-/// work is sent as a `phase prebuild` step (`glsl k/n`, `compiled k/n`, `pipelines k/n`): each
-/// restarts the supervisor's deadline. An error that ends the worker (a device loss, a hung
-/// fence, or the test hook's) is the worker's: it reports it as fatal and exits, and the
-/// supervisor runs these cells again without prebuilding.
-fn prebuild(
-    exec: &mut Executor,
-    chunk: &[Cell],
-    serial: &HashSet<&str>,
-    threads: usize,
-    phases: &Phases,
-) {
-    let cells: Vec<Cell> =
-        chunk.iter().filter(|c| !serial.contains(c.id().as_str())).copied().collect();
-    if threads <= 1 || cells.len() < 2 {
-        return;
-    }
-    send(&WorkerMsg::Prebuild { cells: cells.iter().map(Cell::id).collect(), threads });
-    let t = Instant::now();
-    let progress = |step: Step| {
-        send(&WorkerMsg::Phase { phase: Phase::Prebuild, step: Some(step.to_string()) })
-    };
-    match phases
-        .enter(Phase::Prebuild, None)
-        .map_err(CellError::from)
-        .and_then(|()| exec.prebuild(&cells, threads, &progress))
-    {
-        Ok(stats) => send(&WorkerMsg::Prebuilt {
-            wall_ms: t.elapsed().as_secs_f64() * 1e3,
-            pipelines: stats.pipelines,
-            threads: stats.threads,
-        }),
-        Err(e) => {
-            send(&WorkerMsg::Fatal {
-                message: format!("building a batch of cells on {threads} threads: {e}"),
-                outcome: e.outcome(),
-                halt: halt_of(&e),
-            });
-            unsafe { libc::_exit(0) };
-        }
-    }
-}
 
 /// Runs the job; returns the process exit code (the process may also `_exit` early).
 pub fn main(job_path: &std::path::Path) -> u8 {
@@ -275,7 +228,7 @@ pub fn main(job_path: &std::path::Path) -> u8 {
     // Read: the supervisor keeps no use for it, and an interrupted run leaves nothing behind.
     let _ = std::fs::remove_file(job_path);
     let t = Instant::now();
-    let mut exec = match setup(&job, &phases) {
+    let (mut exec, create_ms) = match setup(&job, &phases) {
         Ok(e) => e,
         Err(SetupFailure { outcome, message, halt }) => {
             send(&WorkerMsg::Fatal { message, outcome, halt });
@@ -284,6 +237,7 @@ pub fn main(job_path: &std::path::Path) -> u8 {
     };
     send(&WorkerMsg::Ready {
         device_ms: t.elapsed().as_secs_f64() * 1e3 - exec.reference_ms,
+        create_ms,
         reference_ms: exec.reference_ms,
         as_build_ms: exec.as_build_ms(),
         device_features: exec.gpu.enabled_names.clone(),
@@ -293,17 +247,19 @@ pub fn main(job_path: &std::path::Path) -> u8 {
     let serial: HashSet<&str> = job.serial.iter().map(String::as_str).collect();
     let chunks = job.cells.len().div_ceil(PREBUILD_CHUNK);
     for (k, chunk) in job.cells.chunks(PREBUILD_CHUNK).enumerate() {
-        prebuild(&mut exec, chunk, &serial, job.threads, &phases);
+        let overlap = !(job.validate || job.gpu_av);
+        let hook = phases.hook.as_ref();
+        let mut batch = overlap::start(&mut exec, chunk, &serial, job.threads, overlap, hook);
         for (i, cell) in chunk.iter().enumerate() {
-            let id = cell.id();
-            send(&WorkerMsg::Start { cell: id.clone() });
-            let result = exec.run(cell, &mut |p| phases.enter(p, None));
-            let ends = result.outcome.ends_worker();
-            send(&WorkerMsg::Result { cell: id, result });
-            if ends {
-                // The device is lost or hung: do not run destructors that may wait on it.
-                unsafe { libc::_exit(0) };
-            }
+            let last = i + 1 == chunk.len();
+            run_cell(
+                &mut exec,
+                cell,
+                serial.contains(cell.id().as_str()),
+                &phases,
+                &mut batch,
+                last,
+            );
             let next = if k * PREBUILD_CHUNK + i + 1 < job.cells.len() {
                 Phase::BetweenCells
             } else {
@@ -311,6 +267,9 @@ pub fn main(job_path: &std::path::Path) -> u8 {
             };
             // A loss injected here has nothing to fail; hang, crash and spam act by themselves.
             let _ = phases.enter(next, None);
+        }
+        if let Some(b) = batch {
+            b.end(&mut exec);
         }
         // The chunk's cells ran: its pipelines go, so the live ones stay a chunk's whatever
         // the job's size (a later cell that shares one makes it again, from the cache). The
@@ -320,6 +279,44 @@ pub fn main(job_path: &std::path::Path) -> u8 {
         }
     }
     finish(exec, job.validate)
+}
+
+/// One cell's turn: its `start`, phases and `result`, or, while the batch's pipelines are still
+/// being made (`runner::overlap`), its phases as prebuild steps and its lines held back for
+/// `prebuilt`. The batch's `prebuilt` goes out after the chunk's `last` cell at the latest.
+fn run_cell(
+    exec: &mut Executor,
+    cell: &Cell,
+    serial: bool,
+    phases: &Phases,
+    batch: &mut Option<overlap::Batch>,
+    last: bool,
+) {
+    let id = cell.id();
+    let overlapped = batch.as_mut().is_some_and(|b| b.before(exec, cell, serial));
+    match batch.as_mut().filter(|_| overlapped) {
+        Some(b) => {
+            b.hold(WorkerMsg::Start { cell: id.clone() });
+            let result = exec.run(cell, &mut |p| phases.enter_overlapped(&id, p));
+            if result.outcome.ends_worker() {
+                b.ended(&id, &result);
+            }
+            b.hold(WorkerMsg::Result { cell: id, result });
+        }
+        None => {
+            send(&WorkerMsg::Start { cell: id.clone() });
+            let result = exec.run(cell, &mut |p| phases.enter(p, None));
+            let ends = result.outcome.ends_worker();
+            send(&WorkerMsg::Result { cell: id, result });
+            if ends {
+                // The device is lost or hung: do not run destructors that may wait on it.
+                unsafe { libc::_exit(0) };
+            }
+        }
+    }
+    if let Some(b) = batch {
+        b.after(exec, overlapped, last);
+    }
 }
 
 /// After the last cell: the pipeline cache saved (`cache_saved`), then the exit — with every

@@ -37,6 +37,7 @@ fn msg(m: WorkerMsg) -> Input {
 fn ready() -> Input {
     msg(WorkerMsg::Ready {
         device_ms: 1.0,
+        create_ms: 0.7,
         reference_ms: 2.0,
         as_build_ms: Some(0.5),
         device_features: vec!["VK_KHR_ray_tracing_pipeline".into()],
@@ -444,9 +445,15 @@ fn a_prebuild_step_restarts_the_deadline() {
     let (w, _) = feed(w, phase(Phase::Prebuild, Some("pipelines 1/3")), at(t0, 9_000));
     assert_eq!(w.deadline(&LIMITS), Some(at(t0, 9_000) + LIMITS.timeout));
     assert_eq!(w.where_(), "prebuild (pipelines 1/3)");
-    let (w, fx) =
-        feed(w, msg(WorkerMsg::Prebuilt { wall_ms: 5.0, pipelines: 3, threads: 4 }), at(t0, 9_500));
-    assert_eq!(fx, [Effect::Report(Event::Prebuilt { wall_ms: 5.0, pipelines: 3, threads: 4 })]);
+    let (w, fx) = feed(
+        w,
+        msg(WorkerMsg::Prebuilt { wall_ms: 5.0, pipelines: 3, threads: 4, overlapped: 1 }),
+        at(t0, 9_500),
+    );
+    assert_eq!(
+        fx,
+        [Effect::Report(Event::Prebuilt { wall_ms: 5.0, pipelines: 3, threads: 4, overlapped: 1 })]
+    );
     assert_eq!(w.state, State::Between { since: at(t0, 9_500) });
 }
 
@@ -498,6 +505,51 @@ fn a_death_while_prebuilding_sends_its_batch_cell_by_cell() {
     }
 }
 
+/// Cells that ran while the prebuild's pipelines were still being made (`runner::overlap`):
+/// their phases come as prebuild steps and their lines after `prebuilt`. A death before it is
+/// the prebuild's, blamed on no cell, whichever cell's phase was named last; after it, the held
+/// lines are ordinary attempts, timed by the worker (they arrive together).
+#[test]
+fn overlapped_cells_are_blamed_on_no_cell_until_prebuilt() {
+    let t0 = Instant::now();
+    let ids: Vec<String> = cells().iter().map(Cell::id).collect();
+    let (w, _) = feed(
+        ready_worker(t0),
+        msg(WorkerMsg::Prebuild { cells: ids.clone(), threads: 4 }),
+        at(t0, 200),
+    );
+    let step = format!("cell {}: trace", ids[0]);
+    let (w, _) = feed(w, phase(Phase::Prebuild, Some(&step)), at(t0, 5_000));
+    assert_eq!(
+        w.deadline(&LIMITS),
+        Some(at(t0, 5_000) + LIMITS.timeout),
+        "a cell's phase is progress"
+    );
+    assert_eq!(w.where_(), format!("prebuild ({step})"));
+    for (cause, ended, outcome) in [
+        (Input::Eof, exit(None, Some(libc::SIGSEGV)), Outcome::Crash),
+        (Input::Deadline, exit(None, Some(libc::SIGTERM)), Outcome::Timeout),
+    ] {
+        let (_, fx) = dies(w.clone(), cause, ended, at(t0, 6_000));
+        assert_eq!(fx[0], Effect::Serial(ids.clone()), "every unfinished cell goes serial");
+        assert_eq!((events(&fx)[0].phase, events(&fx)[0].outcome), (Phase::Prebuild, outcome));
+        assert!(attempts(&fx).is_empty(), "no cell blamed: {fx:?}");
+    }
+    let done = WorkerMsg::Prebuilt { wall_ms: 9.0, pipelines: 3, threads: 4, overlapped: 1 };
+    let (w, _) = feed(w, msg(done), at(t0, 7_000));
+    let (w, _) = feed(w, start(&cells()[0]), at(t0, 7_000));
+    let Input::Msg(WorkerMsg::Result { cell, mut result }) = result(&cells()[0], Outcome::Pass)
+    else {
+        unreachable!()
+    };
+    result.timings.total_ms = 40.0;
+    let (w, fx) = feed(w, msg(WorkerMsg::Result { cell, result }), at(t0, 7_001));
+    let a = attempts(&fx);
+    assert_eq!((a.len(), a[0].1.outcome), (1, Outcome::Pass));
+    assert_eq!(a[0].1.wall_ms, 40.0, "the worker's time, not the 1 ms between the lines");
+    assert_eq!(w.state, State::Between { since: at(t0, 7_001) });
+}
+
 #[test]
 fn garbage_lines_are_counted_and_logged_up_to_a_limit() {
     let t0 = Instant::now();
@@ -536,7 +588,7 @@ fn lines_out_of_place_are_ignored() {
     assert!(fx.is_empty() && w2.state == w.state, "nor is it recorded");
     let (w2, fx) = feed(
         w.clone(),
-        msg(WorkerMsg::Prebuilt { wall_ms: 1.0, pipelines: 1, threads: 2 }),
+        msg(WorkerMsg::Prebuilt { wall_ms: 1.0, pipelines: 1, threads: 2, overlapped: 0 }),
         at(t0, 400),
     );
     assert!(fx.is_empty() && w2.state == w.state, "prebuilt without a prebuild");
