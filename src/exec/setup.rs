@@ -89,7 +89,7 @@ impl Executor {
         if let Some(r) = key.probe {
             let slots = self.slots(r);
             let targets = if key.textures {
-                self.ensure_textures(wait)?;
+                self.ensure_textures(self.opts.timeout)?;
                 self.layout_textures.as_ref().expect("made above").targets(self.sampler)
             } else if key.per_mesh {
                 self.ensure_layout(SceneLayout::PerMesh)?;
