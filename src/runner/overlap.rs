@@ -90,7 +90,8 @@ impl Batch {
             self.finish(exec);
         }
         let polled = exec.turn(&mut self.pb, cell).and_then(|()| exec.poll(&mut self.pb));
-        if self.check(polled) {
+        // `prebuilt` goes out once per batch: after it, every later cell runs as usual.
+        if self.check(polled) && !self.announced {
             self.announce();
         }
         !self.announced
