@@ -8,12 +8,15 @@ use super::layout_buffers::SharedBuffers;
 use super::resources::Target;
 use crate::scene::textures::{TextureError, Textures};
 use crate::scene::Scene;
-use crate::vk::memory::{transition, Buffer, Image, Transition};
+use crate::vk::memory::{record_image_upload, Buffer, Image, ImageUse};
 use crate::vk::submit::{Submitter, Waited};
 use crate::vk::{Gpu, VkError};
 use ash::vk;
 use std::time::Duration;
 
+/// The textures' use after their copy: GENERAL, read by any shader.
+const SHADER_GENERAL: ImageUse =
+    (vk::ImageLayout::GENERAL, vk::AccessFlags::SHADER_READ, vk::PipelineStageFlags::ALL_COMMANDS);
 /// The textures' format: `texelFetch` returns each byte / 255, which the probe rounds back.
 pub const FORMAT: vk::Format = vk::Format::R8G8B8A8_UNORM;
 /// The material table's offset in the `SceneDesc`: after the four geometry addresses.
@@ -88,7 +91,7 @@ impl LayoutTextures {
             let mut offset = 0u64;
             for (img, tex) in self.images.iter().zip(&t.images) {
                 // SAFETY: cmd is recording; the image and staging buffer live past the wait.
-                unsafe { record_copy(gpu, cmd, img, &staging, offset) };
+                record_image_upload(gpu, cmd, img, &staging, (offset, 1), SHADER_GENERAL);
                 offset += tex.rgba8.len() as u64;
             }
         });
@@ -120,43 +123,4 @@ impl LayoutTextures {
         self.images.iter().for_each(|i| i.destroy(gpu));
         self.materials.destroy(gpu);
     }
-}
-
-/// Record the copy of `st` from `offset` into `img`: UNDEFINED → TRANSFER_DST, the copy, then
-/// GENERAL for shader reads.
-unsafe fn record_copy(gpu: &Gpu, cmd: vk::CommandBuffer, img: &Image, st: &Buffer, offset: u64) {
-    let dst = (
-        vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-        vk::AccessFlags::TRANSFER_WRITE,
-        vk::PipelineStageFlags::TRANSFER,
-    );
-    let top =
-        (vk::ImageLayout::UNDEFINED, vk::AccessFlags::empty(), vk::PipelineStageFlags::TOP_OF_PIPE);
-    transition(gpu, cmd, img.raw, Transition { from: top, to: dst });
-    let region = vk::BufferImageCopy::default()
-        .buffer_offset(offset)
-        .image_subresource(vk::ImageSubresourceLayers {
-            aspect_mask: vk::ImageAspectFlags::COLOR,
-            mip_level: 0,
-            base_array_layer: 0,
-            layer_count: 1,
-        })
-        .image_extent(vk::Extent3D {
-            width: img.extent.width,
-            height: img.extent.height,
-            depth: 1,
-        });
-    gpu.device.cmd_copy_buffer_to_image(
-        cmd,
-        st.raw,
-        img.raw,
-        vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-        &[region],
-    );
-    let general = (
-        vk::ImageLayout::GENERAL,
-        vk::AccessFlags::SHADER_READ,
-        vk::PipelineStageFlags::ALL_COMMANDS,
-    );
-    transition(gpu, cmd, img.raw, Transition { from: dst, to: general });
 }

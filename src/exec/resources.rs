@@ -10,7 +10,7 @@
 use crate::model::Resource;
 use crate::probe;
 use crate::vk::features::PROBE_IMAGE_FORMAT;
-use crate::vk::memory::{transition, Buffer, Image, Transition};
+use crate::vk::memory::{record_image_upload, Buffer, Image};
 use crate::vk::submit::{Submitter, Waited};
 use crate::vk::{Gpu, VkError};
 use ash::vk;
@@ -172,9 +172,14 @@ impl ResourceArray {
         };
         let uploads: Vec<(&Image, u32)> =
             self.images.iter().map(|i| (i, 1)).chain(packed_image).collect();
-        let waited = submitter.run(gpu, timeout, |cmd| unsafe {
+        let general = (
+            vk::ImageLayout::GENERAL,
+            vk::AccessFlags::SHADER_READ,
+            vk::PipelineStageFlags::ALL_COMMANDS,
+        );
+        let waited = submitter.run(gpu, timeout, |cmd| {
             for ((img, layers), st) in uploads.iter().zip(&staging) {
-                record_upload(gpu, cmd, img, *layers, st);
+                record_image_upload(gpu, cmd, img, st, (0, *layers), general);
             }
         });
         if waited? == Waited::TimedOut {
@@ -273,40 +278,6 @@ fn value_bytes(kind: Resource, slot: u32) -> Vec<u8> {
 /// A host buffer holding `bytes` to copy into an image.
 fn staging_buffer(gpu: &Gpu, bytes: &[u8]) -> Result<Buffer, VkError> {
     Buffer::with_data(gpu, bytes, vk::BufferUsageFlags::TRANSFER_SRC, "staging")
-}
-
-/// Record the copy of `st` into the first `layers` layers of `img`: UNDEFINED → TRANSFER_DST,
-/// the copy, then GENERAL for shader reads.
-unsafe fn record_upload(gpu: &Gpu, cmd: vk::CommandBuffer, img: &Image, layers: u32, st: &Buffer) {
-    let dst = (
-        vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-        vk::AccessFlags::TRANSFER_WRITE,
-        vk::PipelineStageFlags::TRANSFER,
-    );
-    let top =
-        (vk::ImageLayout::UNDEFINED, vk::AccessFlags::empty(), vk::PipelineStageFlags::TOP_OF_PIPE);
-    transition(gpu, cmd, img.raw, Transition { from: top, to: dst });
-    let region = vk::BufferImageCopy::default()
-        .image_subresource(vk::ImageSubresourceLayers {
-            aspect_mask: vk::ImageAspectFlags::COLOR,
-            mip_level: 0,
-            base_array_layer: 0,
-            layer_count: layers,
-        })
-        .image_extent(vk::Extent3D { width: 2, height: 2, depth: 1 });
-    gpu.device.cmd_copy_buffer_to_image(
-        cmd,
-        st.raw,
-        img.raw,
-        vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-        &[region],
-    );
-    let general = (
-        vk::ImageLayout::GENERAL,
-        vk::AccessFlags::SHADER_READ,
-        vk::PipelineStageFlags::ALL_COMMANDS,
-    );
-    transition(gpu, cmd, img.raw, Transition { from: dst, to: general });
 }
 
 pub fn descriptor_type(kind: Resource) -> vk::DescriptorType {

@@ -12,8 +12,9 @@ use super::error::HarnessError;
 use super::fill::{FillError, Request, Target};
 use super::module::UserModule;
 use super::reflect::BindingKind;
+use super::textures::TRACE_READ;
 use crate::scene::gltf::{LoadError, Loaded, Texture};
-use crate::vk::memory::{Buffer, Image};
+use crate::vk::memory::{record_image_upload, Buffer, Image};
 use crate::vk::submit::{Submitter, Waited};
 use crate::vk::Gpu;
 use ash::vk;
@@ -106,7 +107,7 @@ impl SceneTextures {
         let waited = submitter.run(gpu, timeout, |cmd| {
             let mut offset = 0u64;
             for (img, d) in self.images.iter().zip(decoded) {
-                super::textures::record_copy(gpu, cmd, img, &staging, (offset, 1));
+                record_image_upload(gpu, cmd, img, &staging, (offset, 1), TRACE_READ);
                 offset += d.rgba8.len() as u64;
             }
         });

@@ -9,7 +9,7 @@
 //! never refilled. One nearest, clamp-to-edge sampler (`exec::samplers::sampler_info`) serves every
 //! sampler and combined image sampler element.
 use super::error::HarnessError;
-use crate::vk::memory::{color_range, transition, Buffer, Image, Transition};
+use crate::vk::memory::{color_range, record_image_upload, Buffer, Image, ImageUse};
 use crate::vk::submit::{Submitter, Waited};
 use crate::vk::{Gpu, VkError, VkResultExt};
 use ash::vk;
@@ -94,7 +94,14 @@ impl Textures {
             for (c, img) in self.images.iter().enumerate() {
                 let first = c as u32 * self.max_layers;
                 let layers = (n - first).min(self.max_layers);
-                record_copy(gpu, cmd, img, &staging, (first as u64 * per, layers));
+                record_image_upload(
+                    gpu,
+                    cmd,
+                    img,
+                    &staging,
+                    (first as u64 * per, layers),
+                    TRACE_READ,
+                );
             }
         });
         match waited? {
@@ -136,53 +143,12 @@ pub fn new_sampler(gpu: &Gpu) -> Result<vk::Sampler, VkError> {
     unsafe { gpu.device.create_sampler(&info, None) }.at("vkCreateSampler")
 }
 
-/// Record the copy of `staging`'s bytes at `offset` into the first `layers` layers of `img`
-/// (its whole extent): UNDEFINED → TRANSFER_DST, the copy, then SHADER_READ_ONLY_OPTIMAL for the
-/// trace's reads.
-pub(super) fn record_copy(
-    gpu: &Gpu,
-    cmd: vk::CommandBuffer,
-    img: &Image,
-    staging: &Buffer,
-    (offset, layers): (u64, u32),
-) {
-    let top =
-        (vk::ImageLayout::UNDEFINED, vk::AccessFlags::empty(), vk::PipelineStageFlags::TOP_OF_PIPE);
-    let dst = (
-        vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-        vk::AccessFlags::TRANSFER_WRITE,
-        vk::PipelineStageFlags::TRANSFER,
-    );
-    let read = (
-        vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
-        vk::AccessFlags::SHADER_READ,
-        vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR,
-    );
-    transition(gpu, cmd, img.raw, Transition { from: top, to: dst });
-    let region = vk::BufferImageCopy::default()
-        .buffer_offset(offset)
-        .image_subresource(vk::ImageSubresourceLayers {
-            aspect_mask: vk::ImageAspectFlags::COLOR,
-            mip_level: 0,
-            base_array_layer: 0,
-            layer_count: layers,
-        })
-        .image_extent(vk::Extent3D {
-            width: img.extent.width,
-            height: img.extent.height,
-            depth: 1,
-        });
-    unsafe {
-        gpu.device.cmd_copy_buffer_to_image(
-            cmd,
-            staging.raw,
-            img.raw,
-            vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-            &[region],
-        )
-    };
-    transition(gpu, cmd, img.raw, Transition { from: dst, to: read });
-}
+/// The textures' use after their copy: SHADER_READ_ONLY_OPTIMAL for the trace's reads.
+pub(super) const TRACE_READ: ImageUse = (
+    vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
+    vk::AccessFlags::SHADER_READ,
+    vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR,
+);
 
 #[cfg(test)]
 mod tests {

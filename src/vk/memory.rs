@@ -310,6 +310,54 @@ pub fn transition(gpu: &Gpu, cmd: vk::CommandBuffer, image: vk::Image, t: Transi
     };
 }
 
+/// An uploaded image's use after its copy: the layout, the access and the stage that read it.
+pub type ImageUse = (vk::ImageLayout, vk::AccessFlags, vk::PipelineStageFlags);
+
+/// Record the copy of `staging` from `offset` into the first `layers` layers of `img` (its
+/// whole extent): UNDEFINED → TRANSFER_DST, the copy, then `then` for the shaders' reads.
+pub fn record_image_upload(
+    gpu: &Gpu,
+    cmd: vk::CommandBuffer,
+    img: &Image,
+    staging: &Buffer,
+    (offset, layers): (u64, u32),
+    then: ImageUse,
+) {
+    let top =
+        (vk::ImageLayout::UNDEFINED, vk::AccessFlags::empty(), vk::PipelineStageFlags::TOP_OF_PIPE);
+    let dst = (
+        vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+        vk::AccessFlags::TRANSFER_WRITE,
+        vk::PipelineStageFlags::TRANSFER,
+    );
+    transition(gpu, cmd, img.raw, Transition { from: top, to: dst });
+    let region = vk::BufferImageCopy::default()
+        .buffer_offset(offset)
+        .image_subresource(vk::ImageSubresourceLayers {
+            aspect_mask: vk::ImageAspectFlags::COLOR,
+            mip_level: 0,
+            base_array_layer: 0,
+            layer_count: layers,
+        })
+        .image_extent(vk::Extent3D {
+            width: img.extent.width,
+            height: img.extent.height,
+            depth: 1,
+        });
+    // SAFETY: `cmd` is recording; the caller keeps `img` and `staging` alive until the
+    // submission's fence has signalled.
+    unsafe {
+        gpu.device.cmd_copy_buffer_to_image(
+            cmd,
+            staging.raw,
+            img.raw,
+            vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+            &[region],
+        )
+    };
+    transition(gpu, cmd, img.raw, Transition { from: dst, to: then });
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
