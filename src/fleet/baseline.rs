@@ -48,10 +48,17 @@ pub fn phase_mean(r: &RunReport, phase: &str) -> Option<f64> {
     (t.cells_timed > 0).then(|| sum / t.cells_timed as f64)
 }
 
+/// The report's worker faults a baseline holds it to: every one but those a cell's own verdict
+/// explains (a worker that died while an overlapped cell ran, where that cell, re-run alone, is
+/// itself a crash, device loss or timeout: the fault is that cell's, and the cell is held to its
+/// own expectation; `WorkerEvent::explained_by`). Whether a cell overlapped depends on timing,
+/// so without this a run would differ from its baseline by scheduling alone.
 fn worker_faults(r: &RunReport) -> Vec<(WorkerFault, String)> {
+    let verdicts: std::collections::HashMap<&str, Outcome> =
+        r.cells.iter().map(|c| (c.id.as_str(), c.outcome)).collect();
     r.workers
         .iter()
-        .filter(|w| w.is_fault())
+        .filter(|w| w.is_fault() && !w.explained_by(|id| verdicts.get(id).copied()))
         .map(|w| {
             (
                 WorkerFault { phase: w.phase.to_string(), outcome: w.outcome },
@@ -462,6 +469,40 @@ mod tests {
         ]);
         let c = check(&fixed, &b, "b", &Scope::default());
         assert_eq!((c.improvements().count(), c.regressions().count()), (1, 1), "{c:?}");
+    }
+
+    /// A worker that died while an overlapped cell ran is that cell's fault when the cell,
+    /// re-run alone, crashed too: a baseline of the crash expects the run whether the cell
+    /// overlapped or not. Its twins: the cell passed alone (a fault that did not repeat), or the
+    /// entry names no cell — both stay unexpected worker faults.
+    #[test]
+    fn an_overlapped_cells_own_fault_explains_the_prebuild_death() {
+        use crate::model::{IndexSource as I, Phase, WorkerEvent};
+        let crash = cell_with(I::Literal, &[Outcome::Crash, Outcome::Crash]);
+        let b =
+            Baseline::from_report(&RunReport::for_tests(vec![crash.clone()]), "r", &[], 2.0, 1.0)
+                .unwrap();
+        let death = |cell: Option<&str>| WorkerEvent {
+            worker: 1,
+            phase: Phase::Prebuild,
+            outcome: Outcome::Crash,
+            detail: Some("worker killed by signal 11 (SIGSEGV) in prebuild".into()),
+            cells: 2,
+            wall_ms: 1.0,
+            device_features: vec![],
+            worker_exit: None,
+            halt: None,
+            overlapped_cell: cell.map(String::from),
+        };
+        let unexpected = |cells: Vec<CellReport>, w: WorkerEvent| {
+            let mut r = RunReport::for_tests(cells);
+            r.workers.push(w);
+            check(&r, &b, "b", &Scope::default()).worker_faults.len()
+        };
+        assert_eq!(unexpected(vec![crash.clone()], death(Some(&crash.id))), 0);
+        let passed = cell_with(I::Literal, &[Outcome::Pass]);
+        assert_eq!(unexpected(vec![passed], death(Some(&crash.id))), 1);
+        assert_eq!(unexpected(vec![crash.clone()], death(None)), 1);
     }
 
     fn expect(cell: &CellReport, outcome: Outcome, flake: bool, rate: Option<&str>) -> Baseline {

@@ -145,9 +145,22 @@ pub struct WorkerEvent {
     /// it out, and a `--resume` after the cause is fixed passes clean.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub halt: Option<Halt>,
+    /// A worker that ended before `prebuilt` while cells overlapped the prebuild: the last
+    /// overlapped cell it told of (its `cell ID: phase` steps). The batch runs again serially,
+    /// where that cell's own fault, if it repeats, is its verdict; a baseline counts this entry
+    /// as that cell's ([`WorkerEvent::explained_by`]).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub overlapped_cell: Option<String>,
 }
 
 impl WorkerEvent {
+    /// The cell this worker fault is that cell's own, once re-run alone: the overlapped cell it
+    /// ran, when that cell's verdict is itself a fault that ends a worker (a crash, a device loss
+    /// or a timeout). A fault that did not repeat is explained by no cell.
+    pub fn explained_by(&self, verdict: impl Fn(&str) -> Option<Outcome>) -> bool {
+        self.overlapped_cell.as_deref().and_then(verdict).is_some_and(Outcome::ends_worker)
+    }
+
     /// A fault of the driver outside any cell: a failing outcome that did not halt the run.
     pub fn is_fault(&self) -> bool {
         self.outcome.is_finding() && self.halt.is_none()

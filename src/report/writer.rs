@@ -292,6 +292,7 @@ mod tests {
                     device_features: vec![],
                     worker_exit: None,
                     halt: None,
+                    overlapped_cell: None,
                 });
             }
             if k % 97 == 0 || k == 5999 {

@@ -44,10 +44,12 @@ pub(super) enum State {
     Between {
         since: Instant,
     },
-    /// Building `cells` ahead of their turns; `since` restarts at each step of progress.
+    /// Building `cells` ahead of their turns; `since` restarts at each step of progress;
+    /// `overlapped` is the last cell told of by an overlapped step (`cell ID: phase`).
     Prebuild {
         cells: Vec<String>,
         since: Instant,
+        overlapped: Option<String>,
     },
     /// After its last result, or a result that ends it: it must exit.
     Teardown {
@@ -231,8 +233,13 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
         }
         WorkerMsg::Phase { phase, step } => {
             // Prebuild progress (GLSL, a cell compiled and bound, a pipeline) restarts its clock.
-            if let (Phase::Prebuild, State::Prebuild { since, .. }) = (phase, &mut w.state) {
+            if let (Phase::Prebuild, State::Prebuild { since, overlapped, .. }) =
+                (phase, &mut w.state)
+            {
                 *since = now;
+                if let Some(cell) = step.as_deref().and_then(super::protocol::overlapped_cell) {
+                    *overlapped = Some(cell.to_string());
+                }
             }
             w.phase = phase;
             w.step = step;
@@ -243,7 +250,7 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
                 w.id,
                 cells.len()
             )));
-            w.enter(State::Prebuild { cells, since: now }, Phase::Prebuild);
+            w.enter(State::Prebuild { cells, since: now, overlapped: None }, Phase::Prebuild);
         }
         WorkerMsg::Prebuild { .. } => fx.push(Effect::Log(format!(
             "worker {} sent prebuild while not between cells; ignored",
@@ -396,8 +403,8 @@ fn exited(w: &mut Worker, exit: WorkerExit, now: Instant, limits: &Limits, fx: &
                 .with_wall_ms(ms(since, now));
             fx.push(Effect::Report(Event::Attempt { cell, attempt }));
         }
-        State::Prebuild { cells, .. } if halt.is_none() => {
-            prebuild_failed(w, cells, outcome, detail, exit, now, fx)
+        State::Prebuild { cells, overlapped, .. } if halt.is_none() => {
+            prebuild_failed(w, (cells, overlapped), outcome, detail, exit, now, fx)
         }
         _ => worker_failed(w, outcome, detail, exit, halt, now, fx),
     }
@@ -408,7 +415,7 @@ fn exited(w: &mut Worker, exit: WorkerExit, now: Instant, limits: &Limits, fx: &
 /// path: later workers build each at its turn, where a fault is exactly one cell's verdict.
 fn prebuild_failed(
     w: &Worker,
-    cells: Vec<String>,
+    (cells, overlapped): (Vec<String>, Option<String>),
     outcome: Outcome,
     detail: String,
     exit: WorkerExit,
@@ -417,7 +424,9 @@ fn prebuild_failed(
 ) {
     fx.push(Effect::Serial(cells));
     let detail = format!("{detail}; its batch runs again, each cell building at its turn");
-    fx.push(record(w, Phase::Prebuild, outcome, Some(detail), Some(exit), now));
+    let mut event = worker_event(w, Phase::Prebuild, outcome, Some(detail), Some(exit), now);
+    event.overlapped_cell = overlapped;
+    fx.push(Effect::Report(Event::Worker(event)));
 }
 
 /// A worker failed outside any cell: in setup, between cells or in teardown. Its own event;
@@ -466,7 +475,18 @@ fn record(
     worker_exit: Option<WorkerExit>,
     now: Instant,
 ) -> Effect {
-    Effect::Report(Event::Worker(WorkerEvent {
+    Effect::Report(Event::Worker(worker_event(w, phase, outcome, detail, worker_exit, now)))
+}
+
+fn worker_event(
+    w: &Worker,
+    phase: Phase,
+    outcome: Outcome,
+    detail: Option<String>,
+    worker_exit: Option<WorkerExit>,
+    now: Instant,
+) -> WorkerEvent {
+    WorkerEvent {
         worker: w.id,
         phase,
         outcome,
@@ -476,7 +496,8 @@ fn record(
         device_features: w.device_features.clone(),
         worker_exit,
         halt: None,
-    }))
+        overlapped_cell: None,
+    }
 }
 
 fn ms(since: Instant, now: Instant) -> f64 {

@@ -158,6 +158,17 @@ fn error_outcome() -> Outcome {
     Outcome::Error
 }
 
+/// The `prebuild` step an overlapped cell's phase is told as (`runner::overlap`).
+pub fn overlapped_step(cell: &str, phase: Phase) -> String {
+    format!("cell {cell}: {phase}")
+}
+
+/// The cell an [`overlapped_step`] names, else `None` (a pool's step: `glsl k/n`, `compiled k/n`,
+/// `pipelines k/n`).
+pub fn overlapped_cell(step: &str) -> Option<&str> {
+    step.strip_prefix("cell ")?.rsplit_once(": ").map(|(cell, _)| cell)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -215,5 +226,14 @@ mod tests {
         v.as_object_mut().unwrap().remove("lane_evidence");
         let old = serde_json::from_value::<WorkerJob>(v).unwrap();
         assert_eq!((old.binding_stages, old.lane_evidence), (None, crate::model::LaneMode::Auto));
+    }
+
+    #[test]
+    fn an_overlapped_step_names_its_cell_and_a_pool_step_none() {
+        let id = "closest_hit.storage_buffer.dynamic.descriptor_indexing";
+        assert_eq!(overlapped_cell(&overlapped_step(id, Phase::Trace)), Some(id));
+        for step in ["pipelines 3/9", "compiled 1/512", "glsl 4/9"] {
+            assert_eq!(overlapped_cell(step), None, "{step}");
+        }
     }
 }

@@ -103,7 +103,7 @@ impl Phases {
     /// An overlapped cell enters `phase` (`runner::overlap`): told as a `prebuild` step naming
     /// the cell, then the test hook's turn.
     fn enter_overlapped(&self, cell: &str, phase: Phase) -> Result<(), VkError> {
-        let step = format!("cell {cell}: {phase}");
+        let step = super::protocol::overlapped_step(cell, phase);
         send(&WorkerMsg::Phase { phase: Phase::Prebuild, step: Some(step) });
         self.hook.as_ref().map_or(Ok(()), |h| h.at_overlapped(phase))
     }

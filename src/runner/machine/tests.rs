@@ -534,7 +534,21 @@ fn overlapped_cells_are_blamed_on_no_cell_until_prebuilt() {
         assert_eq!(fx[0], Effect::Serial(ids.clone()), "every unfinished cell goes serial");
         assert_eq!((events(&fx)[0].phase, events(&fx)[0].outcome), (Phase::Prebuild, outcome));
         assert!(attempts(&fx).is_empty(), "no cell blamed: {fx:?}");
+        // The entry names the overlapped cell, for a baseline to hold it to that cell's verdict.
+        assert_eq!(events(&fx)[0].overlapped_cell.as_deref(), Some(ids[0].as_str()));
     }
+    // A pool step after it keeps the cell named; a death before any overlapped step names none.
+    let (w2, _) = feed(w.clone(), phase(Phase::Prebuild, Some("pipelines 2/3")), at(t0, 5_500));
+    let (_, fx) = dies(w2, Input::Eof, exit(None, Some(libc::SIGSEGV)), at(t0, 6_000));
+    assert_eq!(events(&fx)[0].overlapped_cell.as_deref(), Some(ids[0].as_str()));
+    let fresh = feed(
+        ready_worker(t0),
+        msg(WorkerMsg::Prebuild { cells: ids.clone(), threads: 4 }),
+        at(t0, 200),
+    )
+    .0;
+    let (_, fx) = dies(fresh, Input::Eof, exit(None, Some(libc::SIGSEGV)), at(t0, 6_000));
+    assert_eq!(events(&fx)[0].overlapped_cell, None);
     let done = WorkerMsg::Prebuilt { wall_ms: 9.0, pipelines: 3, threads: 4, overlapped: 1 };
     let (w, _) = feed(w, msg(done), at(t0, 7_000));
     let (w, _) = feed(w, start(&cells()[0]), at(t0, 7_000));
