@@ -498,37 +498,43 @@ fn a_fault_while_prebuilding_is_the_workers_and_the_batch_runs_cell_by_cell() {
         ("prebuild:hang", "timeout"),
         ("prebuild:lose", "device_lost"),
     ] {
-        // Validation off: under --validate a worker never prebuilds (one thread).
-        let (o, r, took) = fault_run_with(
-            &["--validate=off"],
-            fault,
-            TWO,
-            &["--threads", "2", "--timeout", "3"],
-            Duration::from_secs(120),
-        );
-        assert_eq!(o.status.code(), Some(1), "{fault}: {}", stderr(&o));
-        assert!(took < Duration::from_secs(60), "{fault} took {took:?}");
-        let ws = workers(&r);
-        let pre: Vec<_> = ws.iter().filter(|w| w["phase"] == "prebuild").collect();
-        assert_eq!(pre.len(), 1, "{fault}: {ws:?}");
-        assert_eq!(pre[0]["outcome"], outcome, "{fault}: {}", pre[0]);
-        assert!(
-            pre[0]["detail"].as_str().unwrap().contains("each cell building at its turn"),
-            "{}",
-            pre[0]
-        );
-        let cs = cells(&r);
-        assert_eq!(cs.len(), 2, "{fault}");
-        for c in &cs {
-            assert_eq!(c["outcome"], "pass", "{fault}: {c}");
-            assert_eq!(c["attempts"].as_array().unwrap().len(), 1, "{fault}: {c}");
-            assert_ne!(
-                c["attempts"][0]["worker"], pre[0]["worker"],
-                "{fault}: the failed prebuild's worker has no attempt: {c}"
-            );
-        }
+        let (r, _) = prebuild_fault(fault, outcome);
         assert_eq!(r["options"]["threads"], 2);
     }
+}
+
+/// A `--threads 2` run of [`TWO`] with `fault` injected (validation off: under --validate a
+/// worker never prebuilds, one thread), held to what every fault before `prebuilt` gives: exit 1
+/// within a minute, one `prebuild` worker entry of `outcome` whose batch runs again cell by cell,
+/// and both cells passing on another worker, one attempt each. The report and that entry.
+fn prebuild_fault(fault: &str, outcome: &str) -> (Value, Value) {
+    let (o, r, took) = fault_run_with(
+        &["--validate=off"],
+        fault,
+        TWO,
+        &["--threads", "2", "--timeout", "3"],
+        Duration::from_secs(120),
+    );
+    assert_eq!(o.status.code(), Some(1), "{fault}: {}", stderr(&o));
+    assert!(took < Duration::from_secs(60), "{fault} took {took:?}");
+    let ws = workers(&r);
+    let pre: Vec<_> = ws.iter().filter(|w| w["phase"] == "prebuild").collect();
+    assert_eq!(pre.len(), 1, "{fault}: {ws:?}");
+    let pre = pre[0].clone();
+    assert_eq!(pre["outcome"], outcome, "{fault}: {pre}");
+    let detail = pre["detail"].as_str().unwrap();
+    assert!(detail.contains("each cell building at its turn"), "{fault}: {detail}");
+    let cs = cells(&r);
+    assert_eq!(cs.len(), 2, "{fault}");
+    for c in &cs {
+        assert_eq!(c["outcome"], "pass", "{fault}: {c}");
+        assert_eq!(c["attempts"].as_array().unwrap().len(), 1, "{fault}: {c}");
+        assert_ne!(
+            c["attempts"][0]["worker"], pre["worker"],
+            "{fault}: the failed prebuild's worker has no attempt: {c}"
+        );
+    }
+    (r, pre)
 }
 
 /// Twin: with one thread the worker never prebuilds, so the same hook never fires.
@@ -583,29 +589,11 @@ fn a_fault_in_an_overlapped_cell_is_the_prebuilds_and_its_cells_run_again_alone(
     for (fault, outcome) in
         [("overlap:crash", "crash"), ("overlap:hang", "timeout"), ("overlap:lose", "device_lost")]
     {
-        let (o, r, took) = fault_run_with(
-            &["--validate=off"],
-            fault,
-            TWO,
-            &["--threads", "2", "--timeout", "3"],
-            Duration::from_secs(120),
-        );
-        assert_eq!(o.status.code(), Some(1), "{fault}: {}", stderr(&o));
-        assert!(took < Duration::from_secs(60), "{fault} took {took:?}");
-        let ws = workers(&r);
-        let pre: Vec<_> = ws.iter().filter(|w| w["phase"] == "prebuild").collect();
-        assert_eq!(pre.len(), 1, "{fault}: {ws:?}");
-        assert_eq!(pre[0]["outcome"], outcome, "{fault}: {}", pre[0]);
-        let detail = pre[0]["detail"].as_str().unwrap();
-        assert!(detail.contains("each cell building at its turn"), "{fault}: {detail}");
+        let (r, pre) = prebuild_fault(fault, outcome);
+        let detail = pre["detail"].as_str().unwrap();
         assert!(detail.contains(": trace"), "{fault}: the overlapped cell's phase named: {detail}");
-        let cs = cells(&r);
-        assert_eq!(cs.len(), 2, "{fault}");
-        for c in &cs {
-            assert_eq!(c["outcome"], "pass", "{fault}: {c}");
-            assert_eq!(c["attempts"].as_array().unwrap().len(), 1, "{fault}: {c}");
-            assert_ne!(c["attempts"][0]["worker"], pre[0]["worker"], "{fault}: {c}");
-        }
+        let ids: Vec<Value> = cells(&r).iter().map(|c| c["id"].clone()).collect();
+        assert!(ids.contains(&pre["overlapped_cell"]), "{fault}: the entry names it: {pre}");
         assert_eq!(r["timing"]["overlapped_cells"], 0, "{fault}: the re-run overlaps nothing");
     }
 }

@@ -467,15 +467,17 @@ fn a_phase_or_a_repeated_start_mid_cell_does_not_restart_the_deadline() {
     assert_eq!((w.phase, w.deadline(&LIMITS)), (Phase::Trace, Some(at(t0, 200) + LIMITS.timeout)));
 }
 
+/// A ready worker that began prebuilding every cell of [`cells`] at 200 ms, and their ids.
+fn prebuilding(t0: Instant) -> (Worker, Vec<String>) {
+    let ids: Vec<String> = cells().iter().map(Cell::id).collect();
+    let msg = msg(WorkerMsg::Prebuild { cells: ids.clone(), threads: 4 });
+    (feed(ready_worker(t0), msg, at(t0, 200)).0, ids)
+}
+
 #[test]
 fn a_death_while_prebuilding_sends_its_batch_cell_by_cell() {
     let t0 = Instant::now();
-    let ids: Vec<String> = cells().iter().map(Cell::id).collect();
-    let (w, _) = feed(
-        ready_worker(t0),
-        msg(WorkerMsg::Prebuild { cells: ids.clone(), threads: 4 }),
-        at(t0, 200),
-    );
+    let (w, ids) = prebuilding(t0);
     for (cause, ended, outcome) in [
         (Input::Deadline, exit(None, Some(libc::SIGTERM)), Outcome::Timeout),
         (Input::Eof, exit(None, Some(libc::SIGSEGV)), Outcome::Crash),
@@ -512,13 +514,8 @@ fn a_death_while_prebuilding_sends_its_batch_cell_by_cell() {
 #[test]
 fn overlapped_cells_are_blamed_on_no_cell_until_prebuilt() {
     let t0 = Instant::now();
-    let ids: Vec<String> = cells().iter().map(Cell::id).collect();
-    let (w, _) = feed(
-        ready_worker(t0),
-        msg(WorkerMsg::Prebuild { cells: ids.clone(), threads: 4 }),
-        at(t0, 200),
-    );
-    let step = format!("cell {}: trace", ids[0]);
+    let (w, ids) = prebuilding(t0);
+    let step = crate::runner::protocol::overlapped_step(&ids[0], Phase::Trace);
     let (w, _) = feed(w, phase(Phase::Prebuild, Some(&step)), at(t0, 5_000));
     assert_eq!(
         w.deadline(&LIMITS),
@@ -541,12 +538,7 @@ fn overlapped_cells_are_blamed_on_no_cell_until_prebuilt() {
     let (w2, _) = feed(w.clone(), phase(Phase::Prebuild, Some("pipelines 2/3")), at(t0, 5_500));
     let (_, fx) = dies(w2, Input::Eof, exit(None, Some(libc::SIGSEGV)), at(t0, 6_000));
     assert_eq!(events(&fx)[0].overlapped_cell.as_deref(), Some(ids[0].as_str()));
-    let fresh = feed(
-        ready_worker(t0),
-        msg(WorkerMsg::Prebuild { cells: ids.clone(), threads: 4 }),
-        at(t0, 200),
-    )
-    .0;
+    let (fresh, _) = prebuilding(t0);
     let (_, fx) = dies(fresh, Input::Eof, exit(None, Some(libc::SIGSEGV)), at(t0, 6_000));
     assert_eq!(events(&fx)[0].overlapped_cell, None);
     let done = WorkerMsg::Prebuilt { wall_ms: 9.0, pipelines: 3, threads: 4, overlapped: 1 };
