@@ -1,7 +1,7 @@
 //! End-to-end tests that every verdict can fail, on lavapipe: injected faults of each kind land on
 //! exactly the cells their predicate names, with the expected outcome; a fault that does not
-//! repeat stays a finding (flaky, k of N, miss probability); `--resume` refuses a report it
-//! cannot continue.
+//! repeat stays a finding (flaky, k of N, miss probability), also with its re-runs side by side
+//! on a CPU device; `--resume` refuses a report it cannot continue.
 mod common;
 use common::*;
 use serde_json::Value;
@@ -107,23 +107,32 @@ fn a_fault_that_does_not_repeat_stays_a_finding_with_its_rate() {
     // probability 2^-10.
     let filter =
         "stage=raygen|compute,resource=storage_buffer,descriptor_model=descriptor_indexing";
-    let o = run(&[
-        "run",
-        "--patches",
-        "none",
-        "--repeat",
-        "8",
-        "--filter",
-        filter,
-        "--inject-fault",
-        &format!("{filter}@flaky:0.5"),
-        "-o",
-        out.to_str().unwrap(),
-        "--junit",
-        junit.to_str().unwrap(),
-    ]);
-    assert_eq!(o.status.code(), Some(1), "{}\n{}", stdout(&o), stderr(&o));
+    // The supervisor's timeline (each worker's lines in order) and the rounds' progress lines.
+    let o = run_env(
+        &[
+            "run",
+            "--patches",
+            "none",
+            "--repeat",
+            "8",
+            "--filter",
+            filter,
+            "--inject-fault",
+            &format!("{filter}@flaky:0.5"),
+            "-o",
+            out.to_str().unwrap(),
+            "--junit",
+            junit.to_str().unwrap(),
+        ],
+        &[
+            ("RUST_LOG", "rtprobe::runner::supervisor=trace"),
+            ("RTPROBE_PROGRESS_SECS", "0"),
+            ("CI", "true"),
+        ],
+    );
+    assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
     let r = report(&out);
+    reruns_ran_side_by_side_each_alone(&r, &stderr(&o));
     let findings: Vec<&Value> = cells(&r).iter().filter(|c| c["outcome"] != "pass").collect();
     assert!(!findings.is_empty());
     let mut flaky = 0;
@@ -161,6 +170,45 @@ fn a_fault_that_does_not_repeat_stays_a_finding_with_its_rate() {
     assert!(text.contains("[FLAKY]") && text.contains("of 8 attempts"), "{text}");
     let xml = std::fs::read_to_string(&junit).unwrap();
     assert!(xml.contains("(flaky)") && xml.contains("name=\"flaky\""), "{xml}");
+}
+
+/// On a CPU device (lavapipe) the re-runs alone run side by side, one per core at most
+/// (`options.rerun_jobs`), and each is still alone in its own worker: every re-run attempt has a
+/// worker of its own, and with two cores or more some re-run worker was ready before another's
+/// result came (`err`: the supervisor's trace, after the first re-run round's progress line).
+fn reruns_ran_side_by_side_each_alone(r: &Value, err: &str) {
+    let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
+    let jobs = r["options"]["jobs"].as_u64().unwrap() as usize;
+    assert_eq!(r["options"]["rerun_jobs"].as_u64(), Some(jobs.min(cores) as u64));
+    let isolated: Vec<u64> = cells(r)
+        .iter()
+        .flat_map(|c| c["attempts"].as_array().unwrap())
+        .filter(|a| a["isolated"] == true)
+        .map(|a| a["worker"].as_u64().unwrap())
+        .collect();
+    let mut distinct = isolated.clone();
+    distinct.sort();
+    distinct.dedup();
+    assert!(!isolated.is_empty());
+    assert_eq!(distinct.len(), isolated.len(), "each re-run alone in its worker: {isolated:?}");
+    let reruns = &err[err.find("round confirm:").expect("a confirm round")..];
+    // (worker, ready) in the order the supervisor read them: `true` its `ready`, `false` the end
+    // of its cell (its result, or the end of its output where the injected crash killed it).
+    let lines: Vec<(u64, bool)> = reruns
+        .lines()
+        .filter_map(|l| {
+            let (_, rest) = l.split_once(" worker ")?;
+            let (id, input) = rest.split_once(": ")?;
+            let ready = input.starts_with("Msg(Ready");
+            let end = input.starts_with("Msg(Result") || input.starts_with("Eof");
+            (ready || end).then_some((id.parse().ok()?, ready))
+        })
+        .collect();
+    // Some worker was ready while another was between its `ready` and its cell's end.
+    let side_by_side = lines.iter().enumerate().any(|(i, &(a, ready))| {
+        ready && lines[i + 1..].iter().take_while(|&&(w, r)| w != a || r).any(|&(w, r)| r && w != a)
+    });
+    assert_eq!(side_by_side, jobs.min(cores) > 1, "{lines:?}");
 }
 
 #[test]

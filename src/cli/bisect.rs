@@ -86,6 +86,7 @@ pub fn bisect(g: &Globals, a: &BisectArgs) -> Result<u8> {
         if let Some(s) = ro.setup_timeout_s.filter(|s| *s > 0.0 && *s <= 3600.0) {
             opts.setup_timeout = std::time::Duration::from_secs_f64(s);
         }
+        opts.rerun_jobs = super::shared::rerun_jobs(&info, jobs);
         // The report's options that change results: the cells bisect runs use them too.
         super::shared::as_the_report_ran(&mut opts, &report.options);
         let job_dir = opts.job_dir.clone();

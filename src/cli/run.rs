@@ -7,7 +7,9 @@ use super::commands::{open_instance, Globals};
 use super::exit::{self, coded};
 use super::out::{errln, out, outln};
 use super::plan::{self as run_plan, PlanArgs};
-use super::shared::{default_jobs, default_threads, supervisor_options, SupervisorOracle};
+use super::shared::{
+    default_jobs, default_threads, rerun_jobs, supervisor_options, SupervisorOracle,
+};
 use crate::atomic::{write_atomic, WriteError};
 use crate::campaign::{start, Campaign, Policy, Recorder};
 use crate::fleet::baseline::Scope;
@@ -458,11 +460,13 @@ fn run_options(
     // own work, so its pipelines must be created at its turn: VUIDs raised on prebuild threads
     // would fall outside every cell's window. `--validate` (any mode) runs with one thread.
     let threads = if g.validate { 1 } else { a.threads.unwrap_or_else(|| default_threads(info)) };
+    let jobs = a.jobs.unwrap_or_else(|| default_jobs(info));
     if g.validate && a.threads.is_some_and(|t| t > 1) {
         errln!("rtprobe: note: --validate runs with --threads 1, so that each validation error is counted for the cell that raised it");
     }
     RunOptions {
-        jobs: Some(a.jobs.unwrap_or_else(|| default_jobs(info))),
+        jobs: Some(jobs),
+        rerun_jobs: Some(rerun_jobs(info, jobs)),
         threads: Some(threads),
         pipeline_cache: pipeline_cache_dir(a.pipeline_cache.as_deref()),
         rerun_pipeline_cache: None,
@@ -504,6 +508,7 @@ fn supervisor(a: &RunArgs, o: &RunOptions, info: &DeviceInfo, c: &Checked) -> Su
         fresh: a.fresh,
         internal_cache_control: crate::vk::device::internal_cache_control(info),
         linked: o.pipelines == Some(crate::model::PipelineMode::Linked),
+        rerun_jobs: o.rerun_jobs.unwrap_or_else(|| rerun_jobs(info, o.jobs.unwrap_or(1))),
         ..supervisor_options(
             info.index,
             c.params.clone(),

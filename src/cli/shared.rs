@@ -69,6 +69,20 @@ pub(crate) fn default_jobs(info: &crate::vk::DeviceInfo) -> usize {
     }
 }
 
+/// Fresh workers at once when cells are re-run alone (confirm, repeats, verifying repeats,
+/// GPU-AV, bisect's repeats), each still alone in its own process: on CPU devices `jobs`, at
+/// most one per core (lavapipe JITs each pipeline on one thread, so two processes use two
+/// cores); on GPUs one, whatever `-j` says: a device loss or hang in one process can take the
+/// other processes' contexts on the same GPU with it, and its fault would then be theirs too.
+pub(crate) fn rerun_jobs(info: &crate::vk::DeviceInfo, jobs: usize) -> usize {
+    if info.properties.core.device_type == ash::vk::PhysicalDeviceType::CPU {
+        let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
+        jobs.clamp(1, cores.max(1))
+    } else {
+        1
+    }
+}
+
 /// `--pipelines` for `info`: `auto` resolved (linked on GPUs with VK_KHR_pipeline_library, whole
 /// on CPU devices); `linked` on a device without the extension is an error.
 pub(crate) fn pipeline_mode(
@@ -117,6 +131,8 @@ pub(crate) fn supervisor_options(
         device_index,
         scene,
         jobs,
+        // One at a time unless the caller knows the device ([`rerun_jobs`]).
+        rerun_jobs: 1,
         isolation,
         timeout: Duration::from_secs_f64(timeout_s),
         setup_timeout: Duration::from_secs(120),
@@ -230,6 +246,34 @@ mod tests {
     use super::*;
     use crate::model::options::RunOptions;
     use crate::model::PipelineMode;
+
+    /// Re-runs alone on a CPU device run side by side, up to `-j` and the cores; on a GPU one
+    /// at a time whatever `-j` says (a device loss in one process can take the others').
+    #[test]
+    fn reruns_run_side_by_side_on_cpu_devices_only() {
+        let device = |t: ash::vk::PhysicalDeviceType| {
+            let mut info = crate::vk::DeviceInfo {
+                index: 0,
+                raw: ash::vk::PhysicalDevice::null(),
+                extensions: Default::default(),
+                features: Default::default(),
+                properties: Default::default(),
+                queue_families: vec![],
+                memory: Default::default(),
+                probe_image_format: Default::default(),
+            };
+            info.properties.core.device_type = t;
+            info
+        };
+        let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
+        let cpu = device(ash::vk::PhysicalDeviceType::CPU);
+        assert_eq!(rerun_jobs(&cpu, 64), cores, "at most one per core");
+        assert_eq!(rerun_jobs(&cpu, 1), 1, "-j 1 is one at a time");
+        assert_eq!(rerun_jobs(&cpu, 2), 2.min(cores));
+        let gpu = device(ash::vk::PhysicalDeviceType::DISCRETE_GPU);
+        assert_eq!(rerun_jobs(&gpu, 8), 1);
+        assert_eq!(rerun_jobs(&device(ash::vk::PhysicalDeviceType::INTEGRATED_GPU), 4), 1);
+    }
 
     /// A re-run of a report's cells (bisect, the validated run) makes its ray tracing
     /// pipelines as the report's run did; whole where the report says whole or says nothing (it

@@ -48,7 +48,7 @@ pub struct ExecOptions {
     /// Folder of the persisted pipeline caches (`None`: an empty cache, nothing saved).
     pub pipeline_cache: Option<PathBuf>,
     /// Folder whose `glsl/` keeps GLSL compiles between runs (`shadergen::disk_cache`; `None`:
-    /// compile afresh, as re-runs and mutants do).
+    /// compile afresh, as bisect's, repro's, GPU-AV's and mutant workers do).
     pub glsl_cache: Option<PathBuf>,
     /// `RTPROBE_BINDING_STAGES=all` of the run (the job file's `binding_stages`).
     pub all_stages: bool,

@@ -3,7 +3,8 @@
 //! it is ready) — the device's `VkPhysicalDevicePipelineBinaryPropertiesKHR` as it saw them, and
 //! which switch it used: `disableInternalCache` (VK_KHR_pipeline_binary) where
 //! `pipelineBinaryInternalCacheControl` allows it, else the drivers' documented environment
-//! switches — and for the run ([`DriverCacheSummary`]).
+//! switches —, whether it ran kept SPIR-V (rtprobe's own GLSL cache, which is not the driver's),
+//! and for the run ([`DriverCacheSummary`]).
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -23,6 +24,10 @@ pub struct DriverCache {
     /// the driver.
     #[serde(default)]
     pub env_switch: bool,
+    /// It read kept GLSL → SPIR-V compiles (rtprobe's own cache, `shadergen::disk_cache`; not
+    /// the driver's, which a fresh worker still bypasses).
+    #[serde(default)]
+    pub glsl_cache: bool,
 }
 
 /// The run's driver caches: the pipeline-binary properties (from the first worker that read
@@ -33,6 +38,10 @@ pub struct DriverCacheSummary {
     pub fresh_workers: usize,
     pub internal_cache_disabled: usize,
     pub env_switch: usize,
+    /// Fresh workers that ran the SPIR-V kept from an earlier compile (their GLSL not compiled
+    /// again; their pipelines still compiled afresh).
+    #[serde(default)]
+    pub glsl_cache: usize,
 }
 
 impl DriverCacheSummary {
@@ -42,6 +51,7 @@ impl DriverCacheSummary {
             self.fresh_workers += 1;
             self.internal_cache_disabled += usize::from(c.internal_cache_disabled);
             self.env_switch += usize::from(c.env_switch);
+            self.glsl_cache += usize::from(c.glsl_cache);
         }
         // The environment switch can hide the driver's cache, and its properties with it.
         if self.properties.is_empty() || !c.env_switch {
@@ -70,9 +80,11 @@ mod tests {
             properties: props(true),
             fresh: true,
             internal_cache_disabled: true,
+            glsl_cache: true,
             ..Default::default()
         });
         assert_eq!((s.fresh_workers, s.internal_cache_disabled, s.env_switch), (2, 1, 1));
+        assert_eq!(s.glsl_cache, 1, "the fresh worker that ran kept SPIR-V");
         assert_eq!(
             s.properties,
             props(true),

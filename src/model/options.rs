@@ -16,6 +16,11 @@ pub struct RunOptions {
     /// Workers at once (`None`: a report without it, or with `null`: readers pick their own
     /// default, as bisect picks the device's).
     pub jobs: Option<usize>,
+    /// Fresh workers at once for cells re-run alone (confirm, repeats, verifying repeats): `jobs`
+    /// at most one per core on CPU devices, 1 on GPUs (absent in reports before it; changes no
+    /// result: each re-run is still alone in its process).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rerun_jobs: Option<usize>,
     /// Threads a worker creates pipelines on (absent in reports before the prebuild).
     #[serde(default)]
     pub threads: Option<usize>,
@@ -93,6 +98,7 @@ impl Default for RunOptions {
     fn default() -> RunOptions {
         RunOptions {
             jobs: None,
+            rerun_jobs: None,
             threads: None,
             pipeline_cache: None,
             rerun_pipeline_cache: None,

@@ -12,7 +12,9 @@ pub enum Mode {
     /// As the plan runs: cells share workers (per `--isolation`), with the persisted pipeline
     /// cache (the matrix, the first run of workaround and pattern cells, canaries).
     Shared,
-    /// Each cell alone in a fresh worker, cold (confirmation, repeats, verifying workarounds and
+    /// Each cell alone in a fresh worker, its pipeline compiled cold (the SPIR-V may be kept:
+    /// `runner::protocol::WorkerJob::glsl_cache`), several side by side on CPU devices
+    /// (`SupervisorOptions::rerun_jobs`) (confirmation, repeats, verifying workarounds and
     /// patterns, bisection's repeats).
     Alone,
     /// Alone, under the validation layer with GPU-AV on, one thread, no pipeline cache

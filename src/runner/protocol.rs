@@ -45,6 +45,12 @@ pub struct WorkerJob {
     /// Folder of the persisted pipeline caches (`--pipeline-cache`; `None`: off).
     #[serde(default)]
     pub pipeline_cache: Option<PathBuf>,
+    /// Folder whose `glsl/` keeps GLSL → SPIR-V compiles (`shadergen::disk_cache`): rtprobe's
+    /// own compiler's cache, not the driver's, so re-runs alone get it too and run the SPIR-V
+    /// the matrix compiled while their pipelines still compile afresh; `None` (bisect, repro,
+    /// GPU-AV, `--pipeline-cache off`) compiles the GLSL too. Mutant workers never read it.
+    #[serde(default)]
+    pub glsl_cache: Option<PathBuf>,
     /// `RTPROBE_BINDING_STAGES` of the run (`all`: bindings and push constants for every stage).
     /// It changes results, so it travels in the job, not through the worker's environment.
     #[serde(default)]
@@ -207,6 +213,7 @@ mod tests {
             threads: 1,
             serial: vec![],
             pipeline_cache: None,
+            glsl_cache: None,
             binding_stages: Some("all".into()),
             lane_evidence: crate::model::LaneMode::Force,
             fresh: false,

@@ -37,6 +37,10 @@ pub struct SupervisorOptions {
     pub device_index: usize,
     pub scene: SceneParams,
     pub jobs: usize,
+    /// Fresh workers at once when cells are re-run alone (each still alone in its process):
+    /// the cores on CPU devices, whose JIT is single-threaded; 1 on GPUs, where a device loss
+    /// in one process can take the other processes' contexts with it (`cli::shared::rerun_jobs`).
+    pub rerun_jobs: usize,
     pub isolation: Isolation,
     /// Hard deadline for one cell; also for the gap between two cells and for teardown.
     pub timeout: Duration,
@@ -111,11 +115,13 @@ impl Supervisor {
     }
 
     /// Run `cells`, calling `on` for each attempt as it finishes. `isolated` forces one fresh
-    /// worker per cell, without the persisted pipeline cache (a re-run).
+    /// worker per cell, without the persisted pipeline cache (a re-run), `rerun_jobs` of them at
+    /// once.
     pub fn run(&mut self, cells: &[Cell], isolated: bool, on: &mut dyn FnMut(Event)) {
         self.rerun = isolated;
         let per_cell = isolated || self.opts.isolation == Isolation::ProcessPerCell;
-        let mut schedule: Schedule<Running> = Schedule::new(cells, self.opts.jobs, per_cell);
+        let jobs = if isolated { self.opts.rerun_jobs } else { self.opts.jobs };
+        let mut schedule: Schedule<Running> = Schedule::new(cells, jobs, per_cell);
         loop {
             if schedule.halted() {
                 self.stop(&mut schedule);
@@ -200,6 +206,9 @@ impl Supervisor {
             cells: job.cells,
             threads: self.opts.threads.max(1),
             pipeline_cache: self.opts.pipeline_cache.clone().filter(|_| !self.fresh()),
+            // rtprobe's own GLSL cache, for re-runs alone too; a fresh supervisor (bisect, repro,
+            // GPU-AV) compiles its GLSL as well.
+            glsl_cache: self.opts.pipeline_cache.clone().filter(|_| !self.opts.fresh),
             binding_stages: self.opts.binding_stages.clone(),
             lane_evidence: self.opts.lane_evidence,
             fresh: self.fresh(),

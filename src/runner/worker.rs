@@ -75,6 +75,14 @@ fn env_switch(job: &WorkerJob) -> bool {
 const FRESH_ENV: &[(&str, &str)] =
     &[("__GL_SHADER_DISK_CACHE", "0"), ("MESA_SHADER_CACHE_DISABLE", "true")];
 
+/// Where the worker keeps GLSL compiles: the job's folder, unless a cell is a mutant (a mutant
+/// rewrites the SPIR-V, and its round is about what the compiled code does, so it compiles its
+/// own). A re-run alone reads it too: the rule that re-runs compile afresh is about the driver's
+/// pipeline compile, which [`pipeline_creation`] and [`env_switch`] keep afresh.
+fn glsl_cache(job: &WorkerJob) -> Option<std::path::PathBuf> {
+    job.glsl_cache.clone().filter(|_| job.cells.iter().all(|c| c.mutant.is_none()))
+}
+
 /// What the report records of the driver's own cache for this worker.
 fn driver_cache(exec: &Executor, job: &WorkerJob) -> crate::model::DriverCache {
     let gpu = &exec.gpu;
@@ -83,6 +91,7 @@ fn driver_cache(exec: &Executor, job: &WorkerJob) -> crate::model::DriverCache {
         fresh: job.fresh,
         internal_cache_disabled: gpu.enabled.disable_internal_cache,
         env_switch: env_switch(job),
+        glsl_cache: glsl_cache(job).is_some(),
     }
 }
 
@@ -178,12 +187,7 @@ fn setup(job: &WorkerJob, phases: &Phases) -> Result<(Executor, f64), SetupFailu
         inject_seed: job.inject_seed,
         dump: job.dump.clone(),
         pipeline_cache: job.pipeline_cache.clone(),
-        // Kept compiles only where the pipeline cache is loaded (never in a fresh worker) and
-        // no cell is a mutant: those re-runs must not depend on a cache being right.
-        glsl_cache: job
-            .pipeline_cache
-            .clone()
-            .filter(|_| !job.fresh && job.cells.iter().all(|c| c.mutant.is_none())),
+        glsl_cache: glsl_cache(job),
         spirv_dir: job.spirv_dir.clone(),
         all_stages: job.binding_stages.as_deref() == Some("all"),
         lanes: job.lane_evidence,
@@ -379,5 +383,38 @@ mod tests {
         assert_eq!(SetupFailure::from(glsl).halt, None);
         let lost = SetupFailure::from(VkError::DeviceLost { call: "vkQueueSubmit" });
         assert_eq!((lost.outcome, lost.halt), (Outcome::DeviceLost, None));
+    }
+    fn job(cells: &[Cell], glsl: Option<&str>) -> WorkerJob {
+        serde_json::from_value(serde_json::json!({
+            "device_index": 0,
+            "scene": crate::model::SceneParams::default(),
+            "fence_timeout_ms": 100,
+            "validate": false,
+            "dump": null,
+            "cells": cells,
+            "fresh": true,
+            "glsl_cache": glsl,
+        }))
+        .unwrap()
+    }
+
+    /// A re-run alone (fresh: the driver's cache switched off) runs the SPIR-V kept in
+    /// rtprobe's own GLSL cache, and keeps the driver afresh; a mutant compiles its own, and a
+    /// job without the folder compiles the GLSL too.
+    #[test]
+    fn a_fresh_worker_reads_kept_spirv_but_not_the_drivers_cache_and_a_mutant_neither() {
+        use crate::model::{DescriptorModel, IndexSource, Mutant, Resource, Stage};
+        let cell = Cell::new(
+            Stage::ClosestHit,
+            Resource::StorageBuffer,
+            IndexSource::Dynamic,
+            DescriptorModel::DescriptorIndexing,
+        );
+        let rerun = job(&[cell], Some("/cache"));
+        assert_eq!(glsl_cache(&rerun).as_deref(), Some(std::path::Path::new("/cache")));
+        assert!(env_switch(&rerun), "the driver's own cache is still bypassed");
+        let mutant = Cell { mutant: Some(Mutant::IndexZero), ..cell };
+        assert_eq!(glsl_cache(&job(&[cell, mutant], Some("/cache"))), None);
+        assert_eq!(glsl_cache(&job(&[cell], None)), None);
     }
 }

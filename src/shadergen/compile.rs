@@ -91,7 +91,7 @@ impl Compiler {
     }
 
     /// Keep compiles of generated GLSL under `cache_dir` (`<cache_dir>/glsl`) and read them back
-    /// instead of compiling; `None`: compile afresh (re-runs that must not depend on a cache).
+    /// instead of compiling; `None`: compile afresh (bisect, repro, GPU-AV and mutant workers).
     pub fn use_disk_cache(&mut self, cache_dir: Option<&std::path::Path>) {
         self.disk = cache_dir.map(DiskCache::under);
     }
@@ -457,7 +457,7 @@ mod tests {
     /// A second compiler over the same cache folder (a warm run's worker) compiles nothing and
     /// gets the same SPIR-V, in `compile` and in `precompile`. Its twins: garbage planted in the
     /// cache file is detected and compiled again (and the file repaired), and a compiler without
-    /// the folder (a re-run that must compile afresh) compiles though the file is there.
+    /// the folder (a mutant's or bisect's worker) compiles though the file is there.
     #[test]
     fn a_warm_compiler_reads_kept_compiles_and_recompiles_garbage() {
         let d = tempfile::tempdir().unwrap();

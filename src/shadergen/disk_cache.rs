@@ -9,8 +9,10 @@
 //! words. A file that is short, not this key's, fails its checksum or does not start with the
 //! SPIR-V magic is [`Lookup::Corrupt`]: the caller compiles afresh and writes the file again.
 //! Files are written atomically (tmp + rename); two workers writing the same key write the same
-//! bytes. Re-runs that must compile afresh (confirm, repeat, bisect, repro, GPU-AV, mutants) get
-//! no cache folder, so they never read it.
+//! bytes. It is rtprobe's own compiler's cache, not the driver's: the run's re-runs alone
+//! (confirm, repeats, verifying repeats) read it and still compile their pipelines afresh; the
+//! workers of bisect, repro and GPU-AV, and mutant workers (a mutant rewrites the SPIR-V) get no
+//! cache folder, so they never read it.
 use crate::stable_hash::StableHash;
 use std::path::{Path, PathBuf};
 
