@@ -623,9 +623,17 @@ fn an_overlapped_cell_without_a_fault_is_reported_after_the_prebuild() {
         let total = c["attempts"][0]["result"]["timings"]["total_ms"].as_f64().unwrap();
         assert!(wall >= total, "the held lines keep the worker's time: {c}");
     }
-    let own = r["timing"]["own_ms"].as_f64().expect("own time recorded");
-    let wall = r["timing"]["wall_ms"].as_f64().unwrap();
+    let t = &r["timing"];
+    let own = t["own_ms"].as_f64().expect("own time recorded");
+    let wall = t["wall_ms"].as_f64().unwrap();
     assert!(own > 0.0 && own < wall, "own {own} of {wall}");
+    // The setup waited on the queue for the scene's AS build: the driver's, left out of `own`.
+    let ms = |k: &str| t[k].as_f64().unwrap_or_else(|| panic!("timing.{k}: {t}"));
+    let setup_wait = ms("setup_wait_ms");
+    let setups = ms("device_ms_mean") * ms("workers_started");
+    assert!(setup_wait > 0.0 && setup_wait < setups, "{t}");
+    let driver = ms("device_create_ms") + setup_wait + ms("pipeline_wait_ms") + ms("trace_ms");
+    assert!((own - (wall - driver).max(0.0)).abs() < 1e-6, "own {own}, wall {wall}: {t}");
 }
 
 /// A real hang in an overlapped cell (an injected endless loop in the raygen cell, which runs
@@ -660,8 +668,10 @@ fn a_hang_in_an_overlapped_cell_times_out_and_is_pinned_when_it_runs_alone() {
     }
 }
 
-/// Twin of the overlap: under validation every pipeline is made before the first cell, so an
-/// `overlap:` fault never fires (and the worker never prebuilds: `--validate` runs one thread).
+/// Twin of the overlap, through the CLI: under `--validate` the CLI runs one thread, so the
+/// worker never prebuilds and an `overlap:` fault never fires. The worker's own rule (validation
+/// with several threads never overlaps) is `runner::protocol`'s unit test
+/// `validation_never_overlaps_whatever_the_threads`, since this run cannot reach it.
 #[test]
 fn validation_never_overlaps() {
     let (o, r, _) = fault_run_with(

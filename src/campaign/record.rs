@@ -80,6 +80,7 @@ impl Recorder {
                 device_ms,
                 create_ms,
                 as_build_ms,
+                setup_wait_ms,
                 pipeline_cache,
                 driver_cache,
                 ..
@@ -87,6 +88,7 @@ impl Recorder {
                 let t = &mut self.writer.report.timing;
                 t.workers_started += 1;
                 t.device_create_ms += create_ms;
+                t.setup_wait_ms += setup_wait_ms;
                 self.device_ms_sum += device_ms;
                 if let Some(ms) = as_build_ms {
                     t.as_builds += 1;

@@ -135,13 +135,8 @@ pub fn finish(rec: &mut Recorder, wall: Duration, baseline: Option<(&Baseline, &
     r.timing.wall_ms += wall.as_secs_f64() * 1e3;
     let t = &r.timing;
     let slots = r.options.jobs.unwrap_or(1).min(t.workers_started);
-    r.timing.own_ms = Some(crate::model::report::own_ms(
-        t.wall_ms,
-        t.device_create_ms,
-        t.pipeline_wait_ms,
-        t.trace_ms,
-        slots,
-    ));
+    use crate::model::report::{own_ms, DriverMs};
+    r.timing.own_ms = Some(own_ms(t.wall_ms, DriverMs::of(t), slots));
     r.timing.device_ms_mean = if r.timing.workers_started > 0 {
         rec.device_ms_sum / r.timing.workers_started as f64
     } else {

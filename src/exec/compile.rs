@@ -48,8 +48,19 @@ impl Executor {
         cell: &Cell,
         injected: Option<&InjectedFault>,
     ) -> CellShaders {
+        let (fault, lanes) = self.generation(cell, injected);
+        shadergen::generate_with(cell, fault, lanes)
+    }
+
+    /// What `cell`'s GLSL is generated with ([`shadergen::generate_with`]): its injected fault,
+    /// and whether it records lane evidence.
+    pub(super) fn generation(
+        &self,
+        cell: &Cell,
+        injected: Option<&InjectedFault>,
+    ) -> (Option<crate::model::FaultKind>, bool) {
         let lanes = cell.canary.is_none() && self.lane_evidence(cell).recorded();
-        shadergen::generate_with(cell, injected.map(|i| i.fault), lanes)
+        (injected.map(|i| i.fault), lanes)
     }
 
     /// GLSL → SPIR-V (cached per source), the cell's workarounds, `--dump`: phase `compile`.

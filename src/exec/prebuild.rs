@@ -1,5 +1,6 @@
-//! Building a batch of cells ahead of their turns, streamed: the batch's GLSL compiled on a pool
-//! of threads into the compiler's per-source cache, then workarounds and descriptor bindings in
+//! Building a batch of cells ahead of their turns, streamed: the batch's GLSL generated, then
+//! compiled or read from the disk cache, on a pool of threads into the compiler's per-source
+//! cache, then workarounds and descriptor bindings in
 //! cell order on the calling thread (the staging), each distinct pipeline's input handed to a
 //! pool of threads ([`super::pipeline_pool`]) as soon as its first cell is staged; then the
 //! cells take their turns on the calling thread as their pipelines arrive ([`Prebuild::turn`]),
@@ -156,24 +157,37 @@ impl Executor {
         Ok(pb)
     }
 
-    /// Each cell's GLSL, generated once; compiled on the threads first (into the compiler's
-    /// per-source cache), then taken by each cell's compile in order.
+    /// Each cell's GLSL, generated once on the threads (what [`Executor::cell_shaders`] makes:
+    /// the injected fault and lane evidence decided here first); compiled or read from the disk
+    /// cache on the threads (into the compiler's per-source cache), then taken by each cell's
+    /// compile in order.
     fn precompile(
         &mut self,
         cells: &[Cell],
         threads: usize,
         progress: &(dyn Fn(Step) + Send + Sync),
     ) -> Vec<CellShaders> {
-        let generated: Vec<_> = cells
+        let how: Vec<_> = cells
             .iter()
             .map(|c| {
-                self.cell_shaders(
-                    c,
-                    crate::model::inject::roll(&self.opts.inject, c, self.opts.inject_seed)
-                        .as_ref(),
-                )
+                let roll = crate::model::inject::roll(&self.opts.inject, c, self.opts.inject_seed);
+                self.generation(c, roll.as_ref())
             })
             .collect();
+        let generated: Vec<_> = crate::pool::map(
+            cells.len(),
+            threads,
+            || Some(()),
+            |_, k| crate::shadergen::generate_with(&cells[k], how[k].0, how[k].1),
+            &|_, _| {},
+        )
+        .into_iter()
+        .zip(cells.iter().zip(&how))
+        // Every item is taken (each thread's state is `Some`); made here should one not be.
+        .map(|(g, (c, &(fault, lanes)))| {
+            g.unwrap_or_else(|| crate::shadergen::generate_with(c, fault, lanes))
+        })
+        .collect();
         if self.opts.spirv_dir.is_none() {
             let sources: Vec<_> = generated
                 .iter()

@@ -51,6 +51,13 @@ impl Executor {
         self.scene_gpu.as_ref().map(|s| s.build_ms)
     }
 
+    /// Milliseconds this executor's thread has spent waiting on the queue so far (every fence
+    /// wait of its submitter: the scene's AS build, uploads, traces). Read after
+    /// [`Executor::prepare`] it is the setup's queue waits (`timing.setup_wait_ms`).
+    pub fn fence_wait_ms(&self) -> f64 {
+        self.submitter.waited().as_secs_f64() * 1e3
+    }
+
     /// The scene's acceleration structures, built if missing with a fence wait of at most `wait`.
     fn ensure_scene(&mut self, wait: Duration) -> Result<&SceneGpu, CellError> {
         if self.scene_gpu.is_none() {

@@ -493,6 +493,7 @@ mod tests {
             worker_exit: None,
             halt: None,
             overlapped_cell: cell.map(String::from),
+            fault: None,
         };
         let unexpected = |cells: Vec<CellReport>, w: WorkerEvent| {
             let mut r = RunReport::for_tests(cells);

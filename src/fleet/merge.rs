@@ -314,6 +314,7 @@ fn add_timing(t: &mut TimingSummary, r: &TimingSummary) {
     t.overlapped_cells += r.overlapped_cells;
     t.device_create_ms += r.device_create_ms;
     t.pipeline_wait_ms += r.pipeline_wait_ms;
+    t.setup_wait_ms += r.setup_wait_ms;
     // The runs' own times add up as their walls do (absent in either: unknown).
     t.own_ms = t.own_ms.zip(r.own_ms).map(|(a, b)| a + b);
 }

@@ -151,6 +151,11 @@ pub struct WorkerEvent {
     /// as that cell's ([`WorkerEvent::explained_by`]).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub overlapped_cell: Option<String>,
+    /// VK_EXT_device_fault's data of that overlapped cell's device loss, when it ended the
+    /// worker itself (queried by the worker before its `fatal`; its serial re-run queries its
+    /// own).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub fault: Option<crate::model::FaultInfo>,
 }
 
 impl WorkerEvent {

@@ -398,38 +398,96 @@ pub struct TimingSummary {
     /// creating, a pipeline (0 in older reports).
     #[serde(default)]
     pub pipeline_wait_ms: f64,
+    /// The workers' setup time blocked on the queue (fence waits of the scene's AS build and
+    /// the uploads), summed (part of `device_ms_mean`'s workers' setup; 0 in older reports).
+    #[serde(default)]
+    pub setup_wait_ms: f64,
     /// rtprobe's own time: `wall_ms` less the driver's time on the critical path (device
-    /// creation, pipeline waits, fence waits); see [`own_ms`] and docs/performance.md. `None`
-    /// in older reports.
+    /// creation, the setup's queue waits, pipeline waits, the cells' fence waits); see
+    /// [`own_ms`] and docs/performance.md. `None` in older reports.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub own_ms: Option<f64>,
 }
 
+/// The driver's time on a run's critical path, each part summed over workers.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct DriverMs {
+    /// The workers' instance and device creation.
+    pub create: f64,
+    /// The workers' setup blocked on the queue (AS build, uploads).
+    pub setup_wait: f64,
+    /// The cell thread's pipeline waits.
+    pub pipeline_wait: f64,
+    /// The cells' submit-to-fence time (the timed cells' `trace_ms`).
+    pub fence: f64,
+}
+
+impl DriverMs {
+    /// The parts a report's timing holds.
+    pub fn of(t: &TimingSummary) -> Self {
+        DriverMs {
+            create: t.device_create_ms,
+            setup_wait: t.setup_wait_ms,
+            pipeline_wait: t.pipeline_wait_ms,
+            fence: t.trace_ms,
+        }
+    }
+}
+
 /// rtprobe's own time in a run of `wall_ms`: the wall less the driver's time on the critical
-/// path, that is the workers' instance and device creation (`create_ms`), the cell thread's
-/// pipeline waits (`wait_ms`) and the cells' submit-to-fence time (`fence_ms`, the timed cells'
-/// `trace_ms`), all summed over workers and divided by the `slots` that ran at once (exact for
-/// one slot; with several an estimate that assumes the driver's time spread evenly). Never
-/// below 0.
-pub fn own_ms(wall_ms: f64, create_ms: f64, wait_ms: f64, fence_ms: f64, slots: usize) -> f64 {
-    let driver = (create_ms + wait_ms + fence_ms) / slots.max(1) as f64;
+/// path ([`DriverMs`]: device creation, the setup's queue waits, the cell thread's pipeline
+/// waits, the cells' queue waits), summed over workers and divided by the `slots` that ran at
+/// once (exact for one slot; with several an estimate that assumes the driver's time spread
+/// evenly). Never below 0.
+pub fn own_ms(wall_ms: f64, d: DriverMs, slots: usize) -> f64 {
+    let driver = (d.create + d.setup_wait + d.pipeline_wait + d.fence) / slots.max(1) as f64;
     (wall_ms - driver).max(0.0)
 }
 
 #[cfg(test)]
 mod own_tests {
-    use super::own_ms;
+    use super::{own_ms, DriverMs, TimingSummary};
+
+    fn d(create: f64, setup_wait: f64, pipeline_wait: f64, fence: f64) -> DriverMs {
+        DriverMs { create, setup_wait, pipeline_wait, fence }
+    }
 
     #[test]
     fn own_time_is_the_wall_less_the_driver_on_the_critical_path() {
         // The H200's warm run's shape: 2.4 s wall, 0.38 s device, 0.9 s waits, 0.1 s fences.
-        assert!((own_ms(2400.0, 380.0, 900.0, 100.0, 1) - 1020.0).abs() < 1e-9);
+        assert!((own_ms(2400.0, d(380.0, 0.0, 900.0, 100.0), 1) - 1020.0).abs() < 1e-9);
         // Two slots at once: the driver's sums are shared between them.
-        assert!((own_ms(2400.0, 760.0, 1800.0, 200.0, 2) - 1020.0).abs() < 1e-9);
+        assert!((own_ms(2400.0, d(760.0, 0.0, 1800.0, 200.0), 2) - 1020.0).abs() < 1e-9);
         // No slot recorded (a run with no worker): counted as one.
-        assert_eq!(own_ms(10.0, 4.0, 0.0, 0.0, 0), 6.0);
+        assert_eq!(own_ms(10.0, d(4.0, 0.0, 0.0, 0.0), 0), 6.0);
         // Garbage in (driver sums beyond the wall, NaN-free): never negative.
-        assert_eq!(own_ms(100.0, 80.0, 50.0, 0.0, 1), 0.0);
+        assert_eq!(own_ms(100.0, d(80.0, 0.0, 50.0, 0.0), 1), 0.0);
+    }
+
+    #[test]
+    fn the_setups_queue_waits_are_the_drivers_not_rtprobes() {
+        // s31's H200 warm run: 1.9 s wall, device 0.35 s, pipeline waits 0.29 s, fences 0.12 s;
+        // a setup that waited 0.08 s on its AS build and uploads: own 1.14 s, not 1.22 s.
+        let t = TimingSummary {
+            device_create_ms: 350.0,
+            setup_wait_ms: 80.0,
+            pipeline_wait_ms: 290.0,
+            trace_ms: 120.0,
+            ..Default::default()
+        };
+        let with = own_ms(1980.0, DriverMs::of(&t), 1);
+        assert!((with - 1140.0).abs() < 1e-9, "{with}");
+        // Its twin: the same run without the setup's waits counts them as rtprobe's.
+        let without = own_ms(1980.0, DriverMs { setup_wait: 0.0, ..DriverMs::of(&t) }, 1);
+        assert!((without - with - 80.0).abs() < 1e-9, "{without} against {with}");
+        // An older report's timing (no `setup_wait_ms`) still loads, with 0 for it.
+        let old: TimingSummary = serde_json::from_str(
+            r#"{"wall_ms":1,"workers_started":1,"device_ms_mean":1,"compile_ms":0,
+               "pipeline_ms":0,"setup_ms":0,"trace_ms":0,"check_ms":0,"overhead_ms":0,
+               "cells_timed":0}"#,
+        )
+        .expect("an old timing loads");
+        assert_eq!(old.setup_wait_ms, 0.0);
     }
 }
 

@@ -335,9 +335,10 @@ fn finding(s: &mut String, c: &crate::model::CellReport, expected: bool) {
 fn own(t: &crate::model::report::TimingSummary) -> String {
     t.own_ms.map_or(String::new(), |own| {
         format!(
-            " (own {:.2} s; driver: device creation {:.2} s, pipeline waits {:.2} s, fence waits {:.2} s)",
+            " (own {:.2} s; driver: device creation {:.2} s, setup waits {:.2} s, pipeline waits {:.2} s, fence waits {:.2} s)",
             own / 1e3,
             t.device_create_ms / 1e3,
+            t.setup_wait_ms / 1e3,
             t.pipeline_wait_ms / 1e3,
             t.trace_ms / 1e3
         )

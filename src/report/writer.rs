@@ -293,6 +293,7 @@ mod tests {
                     worker_exit: None,
                     halt: None,
                     overlapped_cell: None,
+                    fault: None,
                 });
             }
             if k % 97 == 0 || k == 5999 {

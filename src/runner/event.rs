@@ -18,6 +18,8 @@ pub enum Event {
         reference_ms: f64,
         /// The scene AS build within `device_ms`, when the worker built one.
         as_build_ms: Option<f64>,
+        /// Of `device_ms`, the time blocked on the queue (fence waits of the AS build, uploads).
+        setup_wait_ms: f64,
         pipeline_cache: Option<crate::exec::pipeline_cache::Loaded>,
         driver_cache: Option<crate::model::DriverCache>,
     },

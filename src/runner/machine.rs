@@ -45,11 +45,13 @@ pub(super) enum State {
         since: Instant,
     },
     /// Building `cells` ahead of their turns; `since` restarts at each step of progress;
-    /// `overlapped` is the last cell told of by an overlapped step (`cell ID: phase`).
+    /// `overlapped` is the last cell told of by an overlapped step (`cell ID: phase`); `fault`:
+    /// the VK_EXT_device_fault data an overlapped cell's device loss sent before its `fatal`.
     Prebuild {
         cells: Vec<String>,
         since: Instant,
         overlapped: Option<String>,
+        fault: Option<Box<crate::model::FaultInfo>>,
     },
     /// After its last result, or a result that ends it: it must exit.
     Teardown {
@@ -215,6 +217,7 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
             create_ms,
             reference_ms,
             as_build_ms,
+            setup_wait_ms,
             device_features,
             pipeline_cache,
             driver_cache,
@@ -226,6 +229,7 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
                 create_ms,
                 reference_ms,
                 as_build_ms,
+                setup_wait_ms,
                 pipeline_cache,
                 driver_cache,
             }));
@@ -250,7 +254,8 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
                 w.id,
                 cells.len()
             )));
-            w.enter(State::Prebuild { cells, since: now, overlapped: None }, Phase::Prebuild);
+            let state = State::Prebuild { cells, since: now, overlapped: None, fault: None };
+            w.enter(state, Phase::Prebuild);
         }
         WorkerMsg::Prebuild { .. } => fx.push(Effect::Log(format!(
             "worker {} sent prebuild while not between cells; ignored",
@@ -278,6 +283,13 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
         ))),
         WorkerMsg::Start { cell } => start(w, cell, now, fx),
         WorkerMsg::Result { cell, result } => finished(w, &cell, result, now, fx),
+        WorkerMsg::DeviceFault { cell, fault } => match &mut w.state {
+            State::Prebuild { fault: kept, .. } => *kept = Some(Box::new(fault)),
+            _ => fx.push(Effect::Log(format!(
+                "worker {} sent a device fault of {cell} outside a prebuild; ignored",
+                w.id
+            ))),
+        },
         WorkerMsg::Fatal { message, outcome, halt } => {
             dying(w, Cause::Fatal { message, outcome, halt }, fx)
         }
@@ -403,8 +415,9 @@ fn exited(w: &mut Worker, exit: WorkerExit, now: Instant, limits: &Limits, fx: &
                 .with_wall_ms(ms(since, now));
             fx.push(Effect::Report(Event::Attempt { cell, attempt }));
         }
-        State::Prebuild { cells, overlapped, .. } if halt.is_none() => {
-            prebuild_failed(w, (cells, overlapped), outcome, detail, exit, now, fx)
+        State::Prebuild { cells, overlapped, fault, .. } if halt.is_none() => {
+            let fault = fault.map(|f| *f);
+            prebuild_failed(w, (cells, overlapped, fault), outcome, detail, exit, now, fx)
         }
         _ => worker_failed(w, outcome, detail, exit, halt, now, fx),
     }
@@ -415,7 +428,7 @@ fn exited(w: &mut Worker, exit: WorkerExit, now: Instant, limits: &Limits, fx: &
 /// path: later workers build each at its turn, where a fault is exactly one cell's verdict.
 fn prebuild_failed(
     w: &Worker,
-    (cells, overlapped): (Vec<String>, Option<String>),
+    (cells, overlapped, fault): (Vec<String>, Option<String>, Option<crate::model::FaultInfo>),
     outcome: Outcome,
     detail: String,
     exit: WorkerExit,
@@ -426,6 +439,7 @@ fn prebuild_failed(
     let detail = format!("{detail}; its batch runs again, each cell building at its turn");
     let mut event = worker_event(w, Phase::Prebuild, outcome, Some(detail), Some(exit), now);
     event.overlapped_cell = overlapped;
+    event.fault = fault;
     fx.push(Effect::Report(Event::Worker(event)));
 }
 
@@ -497,6 +511,7 @@ fn worker_event(
         worker_exit,
         halt: None,
         overlapped_cell: None,
+        fault: None,
     }
 }
 

@@ -105,6 +105,9 @@ impl Batch {
     /// After an overlapped cell whose result ends the worker: the worker's fatal message (the
     /// cell cannot be blamed while pipelines were being made), then its exit.
     pub(super) fn ended(&self, cell: &str, r: &crate::model::CellResult) -> ! {
+        if let Some(fault) = r.fault.clone() {
+            send(&WorkerMsg::DeviceFault { cell: cell.to_string(), fault });
+        }
         let what = format!(
             "cell {cell} ended {} while pipelines were still being made ({}); it runs again \
              with nothing else running",

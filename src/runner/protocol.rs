@@ -76,6 +76,16 @@ fn one() -> usize {
     1
 }
 
+impl WorkerJob {
+    /// The runner's rule: whether a prebuilding worker may run cells while its batch's pipelines
+    /// are still being made. Never under `--validate` or GPU-AV (validation errors are counted
+    /// per cell around its own work, so nothing else may run meanwhile), whatever `--threads`;
+    /// and only with more than one thread (one thread prebuilds nothing).
+    pub fn overlaps(&self) -> bool {
+        self.threads > 1 && !(self.validate || self.gpu_av)
+    }
+}
+
 #[derive(Clone, Debug, Serialize, Deserialize)]
 // One message per line, moved once: boxing the large variant would buy nothing.
 #[allow(clippy::large_enum_variant)]
@@ -95,6 +105,10 @@ pub enum WorkerMsg {
         /// worker traces the scene).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         as_build_ms: Option<f64>,
+        /// Of `device_ms`, the time blocked on fences (the scene's AS build, uploads): queue
+        /// waits, the driver's time (0 from older workers).
+        #[serde(default)]
+        setup_wait_ms: f64,
         #[serde(default)]
         device_features: Vec<String>,
         /// The pipeline cache file and what was loaded from it (absent: `--pipeline-cache off`).
@@ -147,6 +161,12 @@ pub enum WorkerMsg {
         cell: String,
         result: CellResult,
     },
+    /// VK_EXT_device_fault's data of an overlapped cell whose device loss ends the worker, sent
+    /// right before that `fatal` (`runner::overlap`): the prebuild's death keeps it.
+    DeviceFault {
+        cell: String,
+        fault: crate::model::FaultInfo,
+    },
     /// Setup failed: the worker cannot run its cells (or, during a prebuild, an error that ends
     /// the worker: a device loss or a hung fence). `outcome` classifies the failure
     /// (`device_lost`, `timeout` of a fence in an upload or AS build, `error`). `halt`: what
@@ -196,9 +216,8 @@ mod tests {
         assert!(matches!(back, WorkerMsg::Fatal { halt: Some(Halt::NoShaderCompiler), .. }));
     }
 
-    #[test]
-    fn the_binding_stages_travel_in_the_job_and_older_jobs_have_none() {
-        let job = WorkerJob {
+    fn job() -> WorkerJob {
+        WorkerJob {
             device_index: 0,
             scene: SceneParams::default(),
             fence_timeout_ms: 100,
@@ -214,12 +233,31 @@ mod tests {
             serial: vec![],
             pipeline_cache: None,
             glsl_cache: None,
-            binding_stages: Some("all".into()),
+            binding_stages: None,
             lane_evidence: crate::model::LaneMode::Force,
             fresh: false,
             internal_cache_control: false,
             linked: false,
-        };
+        }
+    }
+
+    /// The runner's own rule, apart from the CLI (which already runs one thread under
+    /// `--validate`): a job with validation or GPU-AV on and several threads never overlaps.
+    #[test]
+    fn validation_never_overlaps_whatever_the_threads() {
+        for threads in [2, 4, 64] {
+            let plain = WorkerJob { threads, ..job() };
+            assert!(plain.overlaps(), "{threads} threads, no validation: cells overlap");
+            assert!(!WorkerJob { validate: true, threads, ..job() }.overlaps(), "{threads}");
+            assert!(!WorkerJob { gpu_av: true, threads, ..job() }.overlaps(), "{threads}");
+        }
+        // One thread prebuilds nothing, so nothing overlaps either.
+        assert!(!WorkerJob { threads: 1, ..job() }.overlaps());
+    }
+
+    #[test]
+    fn the_binding_stages_travel_in_the_job_and_older_jobs_have_none() {
+        let job = WorkerJob { binding_stages: Some("all".into()), ..job() };
         let mut v = serde_json::to_value(&job).unwrap();
         assert_eq!(
             serde_json::from_value::<WorkerJob>(v.clone()).unwrap().binding_stages.as_deref(),

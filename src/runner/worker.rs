@@ -244,6 +244,7 @@ pub fn main(job_path: &std::path::Path) -> u8 {
         create_ms,
         reference_ms: exec.reference_ms,
         as_build_ms: exec.as_build_ms(),
+        setup_wait_ms: exec.fence_wait_ms(),
         device_features: exec.gpu.enabled_names.clone(),
         pipeline_cache: exec.cache_status.clone(),
         driver_cache: Some(driver_cache(&exec, &job)),
@@ -251,7 +252,7 @@ pub fn main(job_path: &std::path::Path) -> u8 {
     let serial: HashSet<&str> = job.serial.iter().map(String::as_str).collect();
     let chunks = job.cells.len().div_ceil(PREBUILD_CHUNK);
     for (k, chunk) in job.cells.chunks(PREBUILD_CHUNK).enumerate() {
-        let overlap = !(job.validate || job.gpu_av);
+        let overlap = job.overlaps();
         let hook = phases.hook.as_ref();
         let mut batch = overlap::start(&mut exec, chunk, &serial, job.threads, overlap, hook);
         for (i, cell) in chunk.iter().enumerate() {

@@ -41,6 +41,19 @@ pub const SYSTEM_SHADERC: bool = cfg!(system_shaderc);
 /// Whether the linked shaderc knows a Vulkan 1.4 environment (the system's 2023.2 does not).
 pub const KNOWS_VULKAN_1_4: bool = !cfg!(shaderc_without_vulkan_1_4);
 
+/// A compile of `glsl` kept in `disk`; a damaged file is said and left to be written again.
+fn kept_in(disk: &DiskCache, role: Role, glsl: &str) -> Option<Vec<u32>> {
+    let key = disk_key(role, glsl);
+    match disk.load(key) {
+        Lookup::Hit(words) => Some(words),
+        Lookup::Miss => None,
+        Lookup::Corrupt(why) => {
+            tracing::warn!("{}: {why}; compiled again", disk.path(key).display());
+            None
+        }
+    }
+}
+
 /// Whether `glsl` needs the external glslangValidator (it enables an extension of
 /// [`super::glslang::EXTENSIONS`], such as GL_EXT_descriptor_heap).
 pub fn uses_external(glsl: &str) -> bool {
@@ -98,16 +111,7 @@ impl Compiler {
 
     /// A kept compile of `glsl`; a damaged file is said and left to be written again.
     fn kept(&self, role: Role, glsl: &str) -> Option<Vec<u32>> {
-        let disk = self.disk.as_ref()?;
-        let key = disk_key(role, glsl);
-        match disk.load(key) {
-            Lookup::Hit(words) => Some(words),
-            Lookup::Miss => None,
-            Lookup::Corrupt(why) => {
-                tracing::warn!("{}: {why}; compiled again", disk.path(key).display());
-                None
-            }
-        }
+        kept_in(self.disk.as_ref()?, role, glsl)
     }
 
     fn to_disk(&self, role: Role, glsl: &str, words: &[u32]) {
@@ -137,14 +141,28 @@ impl Compiler {
                 !uses_external(glsl) && !self.cache.contains_key(&key) && seen.insert(key)
             })
             .collect();
-        // Those kept on disk are read, not compiled.
-        todo.retain(|&(key, role, glsl)| {
-            let t = Instant::now();
-            let Some(words) = self.kept(role, glsl) else { return true };
-            self.cache.insert(key, Arc::new(words));
-            self.precompiled_ms.insert(key, t.elapsed().as_secs_f64() * 1e3);
-            false
-        });
+        // Those kept on disk are read, not compiled: on the threads too (a warm run's whole
+        // precompile is these reads and their checksums, else on the worker's cell thread).
+        if let Some(disk) = &self.disk {
+            let kept = crate::pool::map(
+                todo.len(),
+                threads,
+                || Some(()),
+                |_, i| {
+                    let (_, role, glsl) = todo[i];
+                    let t = Instant::now();
+                    kept_in(disk, role, glsl).map(|w| (w, t.elapsed().as_secs_f64() * 1e3))
+                },
+                &|_, _| {},
+            );
+            let mut kept = kept.into_iter();
+            todo.retain(|&(key, _, _)| {
+                let Some((words, ms)) = kept.next().flatten().flatten() else { return true };
+                self.cache.insert(key, Arc::new(words));
+                self.precompiled_ms.insert(key, ms);
+                false
+            });
+        }
         if todo.is_empty() {
             return;
         }
@@ -501,5 +519,32 @@ mod tests {
         fresh.use_disk_cache(None);
         assert_eq!(fresh.compile(Role::Miss, SKY_MISS).unwrap().0, words);
         assert_eq!(fresh.compiled, 1, "no folder: compiled afresh");
+    }
+
+    /// The precompile reads kept compiles on its threads: each source gets its own file's
+    /// SPIR-V whatever thread read it, and only the missing and the damaged ones are compiled.
+    #[test]
+    fn kept_compiles_read_on_threads_go_to_their_own_sources() {
+        let d = tempfile::tempdir().unwrap();
+        let skies: Vec<String> =
+            (0..7).map(|k| SKY_MISS.replace("0.5, 0.7", &format!("0.{k}, 0.7"))).collect();
+        let mut cold = Compiler::new().unwrap();
+        cold.use_disk_cache(Some(d.path()));
+        let want: Vec<_> = skies.iter().map(|g| cold.compile(Role::Miss, g).unwrap().0).collect();
+        assert!(want.windows(2).all(|w| w[0] != w[1]), "distinct sources, distinct SPIR-V");
+        // Two files gone, one damaged: those three are compiled, the other four read.
+        let file = |g: &str| DiskCache::under(d.path()).path(disk_key(Role::Miss, g));
+        std::fs::remove_file(file(&skies[1])).unwrap();
+        std::fs::remove_file(file(&skies[4])).unwrap();
+        std::fs::write(file(&skies[6]), b"garbage").unwrap();
+        let mut warm = Compiler::new().unwrap();
+        warm.use_disk_cache(Some(d.path()));
+        let sources: Vec<(Role, &str)> = skies.iter().map(|g| (Role::Miss, g.as_str())).collect();
+        warm.precompile(&sources, 3, &|_, _| {});
+        assert_eq!(warm.compiled, 3, "only the missing and damaged sources compiled");
+        for (g, w) in skies.iter().zip(&want) {
+            assert_eq!(&warm.compile(Role::Miss, g).unwrap().0, w);
+        }
+        assert_eq!(warm.compiled, 3, "every source was ready after the precompile");
     }
 }

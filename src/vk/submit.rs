@@ -1,15 +1,19 @@
 //! Recording and submitting one command buffer and waiting for it with a deadline. A fence wait
 //! that runs out is a [`Waited::TimedOut`] (the cell hangs), not an error; a lost device is
-//! `VkError::DeviceLost`.
+//! `VkError::DeviceLost`. The submitter sums the time it spent submitted-and-waiting
+//! ([`Submitter::waited`]): the queue waits that a run's own time (`timing.own_ms`) leaves out.
 use super::error::{VkError, VkResultExt};
 use super::Gpu;
 use ash::vk;
+use std::cell::Cell;
 use std::time::{Duration, Instant};
 
 pub struct Submitter {
     pool: vk::CommandPool,
     cmd: vk::CommandBuffer,
     fence: vk::Fence,
+    /// Submit-to-fence time of every submission so far, a timed-out wait's included.
+    waited: Cell<Duration>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -41,7 +45,7 @@ impl Submitter {
         .at("vkAllocateCommandBuffers")?[0];
         let fence =
             unsafe { d.create_fence(&vk::FenceCreateInfo::default(), None) }.at("vkCreateFence")?;
-        Ok(Self { pool, cmd, fence })
+        Ok(Self { pool, cmd, fence, waited: Cell::new(Duration::ZERO) })
     }
 
     /// Record with `f`, submit, and wait up to `timeout`.
@@ -70,11 +74,20 @@ impl Submitter {
         let start = Instant::now();
         unsafe { d.queue_submit(gpu.queue, &submit, self.fence) }.at("vkQueueSubmit")?;
         let ns = timeout.as_nanos().min(u64::MAX as u128) as u64;
-        match unsafe { d.wait_for_fences(&[self.fence], true, ns) } {
-            Ok(()) => Ok(Waited::Done(start.elapsed())),
+        let r = unsafe { d.wait_for_fences(&[self.fence], true, ns) };
+        let took = start.elapsed();
+        self.waited.set(self.waited.get() + took);
+        match r {
+            Ok(()) => Ok(Waited::Done(took)),
             Err(vk::Result::TIMEOUT) => Ok(Waited::TimedOut),
             Err(e) => Err(VkError::from_result("vkWaitForFences", e)),
         }
+    }
+
+    /// The submit-to-fence time of every submission so far (a wait that ran out counts whole):
+    /// the time the calling thread spent on the queue rather than on its own work.
+    pub fn waited(&self) -> Duration {
+        self.waited.get()
     }
 
     pub fn destroy(&self, gpu: &Gpu) {

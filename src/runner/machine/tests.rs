@@ -40,6 +40,7 @@ fn ready() -> Input {
         create_ms: 0.7,
         reference_ms: 2.0,
         as_build_ms: Some(0.5),
+        setup_wait_ms: 0.4,
         device_features: vec!["VK_KHR_ray_tracing_pipeline".into()],
         pipeline_cache: None,
         driver_cache: None,
@@ -505,6 +506,39 @@ fn a_death_while_prebuilding_sends_its_batch_cell_by_cell() {
             "blamed on no cell, and no give-up: {fx:?}"
         );
     }
+}
+
+/// An overlapped cell that loses the device ends the worker with its `fatal`: the
+/// VK_EXT_device_fault data it sent just before stays in the prebuild's death record.
+#[test]
+fn an_overlapped_device_loss_keeps_its_fault_data() {
+    let t0 = Instant::now();
+    let (w, ids) = prebuilding(t0);
+    let step = crate::runner::protocol::overlapped_step(&ids[0], Phase::Trace);
+    let (w, _) = feed(w, phase(Phase::Prebuild, Some(&step)), at(t0, 5_000));
+    let fault = crate::model::FaultInfo {
+        description: "page fault at 0xdead0000".into(),
+        vendor_binary_bytes: 64,
+        ..Default::default()
+    };
+    let sent = WorkerMsg::DeviceFault { cell: ids[0].clone(), fault: fault.clone() };
+    let (with, fx) = feed(w.clone(), msg(sent.clone()), at(t0, 5_001));
+    assert!(fx.is_empty(), "{fx:?}");
+    let lost = || {
+        msg(WorkerMsg::Fatal { message: "lost".into(), outcome: Outcome::DeviceLost, halt: None })
+    };
+    let (_, fx) = dies(with, lost(), exit(Some(0), None), at(t0, 5_002));
+    let ev = events(&fx)[0];
+    assert_eq!((ev.phase, ev.outcome), (Phase::Prebuild, Outcome::DeviceLost));
+    assert_eq!(ev.overlapped_cell.as_deref(), Some(ids[0].as_str()));
+    assert_eq!(ev.fault.as_ref(), Some(&fault));
+    // The twin: a death without the message has no fault data.
+    let (_, fx) = dies(w, lost(), exit(Some(0), None), at(t0, 5_002));
+    assert_eq!(events(&fx)[0].fault, None);
+    // Outside a prebuild it is no one's: logged and ignored.
+    let (between, fx) = feed(ready_worker(t0), msg(sent), at(t0, 300));
+    assert!(matches!(&fx[..], [Effect::Log(l)] if l.contains("ignored")), "{fx:?}");
+    assert!(matches!(between.state, State::Between { .. }));
 }
 
 /// Cells that ran while the prebuild's pipelines were still being made (`runner::overlap`):
