@@ -156,9 +156,10 @@ mod tests {
         };
         info.properties.core.limits.max_per_stage_descriptor_sampled_images = 16;
         info.properties.core.limits.max_image_dimension2_d = 4096;
-        let mut v12 = ash::vk::PhysicalDeviceVulkan12Properties::default();
-        v12.max_per_stage_descriptor_update_after_bind_sampled_images = 500_000;
-        info.properties.v12 = Some(v12);
+        info.properties.v12 = Some(ash::vk::PhysicalDeviceVulkan12Properties {
+            max_per_stage_descriptor_update_after_bind_sampled_images: 500_000,
+            ..Default::default()
+        });
         let plain = TextureLimits::of(&info, false);
         assert_eq!(plain.dimension.value, 4096);
         assert_eq!(
