@@ -111,3 +111,126 @@ fn a_broken_scene_is_one_line_before_the_device() {
     let o = run(&["run", "--scene", "/nonexistent.glb", "--filter", FILTER]);
     assert_one_line_error(&o, 9, "cannot read scene");
 }
+
+/// The test scene written into `dir`, its glTF JSON read back.
+fn made_scene(dir: &std::path::Path) -> (std::path::PathBuf, Value) {
+    let o = run(&["scene", "make", dir.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let path = dir.join("scene.gltf");
+    let doc = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    (path, doc)
+}
+
+/// The texture cells and the geometry cells of the `shared_buffers` layout.
+const TEXTURE_CELLS: &str = "scene_layout=shared_buffers,resource=sampled_image";
+const GEOMETRY_CELLS: &str = "scene_layout=shared_buffers|per_mesh,resource=storage_buffer";
+
+/// A base-colour image that is gone, garbage, or not PNG/JPEG by its uri or mimeType is one line
+/// naming `images[N]` and its uri, exit 9 and no report, before any device work, when a texture
+/// cell is planned; a run filtered to geometry cells on a scene with both images broken decodes
+/// none and passes.
+#[test]
+fn a_broken_base_colour_image_is_one_line_only_when_a_texture_cell_needs_it() {
+    type Break = fn(&std::path::Path, &mut Value);
+    let breaks: [(&str, Break, &str); 4] = [
+        (
+            "gone",
+            |d, _| std::fs::remove_file(d.join("checker.png")).unwrap(),
+            "images[0] (uri \"checker.png\"): cannot read the image file",
+        ),
+        (
+            "garbage",
+            |d, _| std::fs::write(d.join("stripes.png"), b"not a png at all").unwrap(),
+            "images[1] (uri \"stripes.png\"): does not decode",
+        ),
+        (
+            "gif",
+            |d, doc| {
+                std::fs::copy(d.join("checker.png"), d.join("checker.gif")).unwrap();
+                doc["images"][0]["uri"] = "checker.gif".into();
+            },
+            "images[0] (uri \"checker.gif\"): unsupported image encoding",
+        ),
+        (
+            "ktx2",
+            |_, doc| doc["images"][1]["mimeType"] = "image/ktx2".into(),
+            "images[1] (uri \"stripes.png\"): unsupported image encoding",
+        ),
+    ];
+    for (name, edit, needle) in breaks {
+        let dir = tempfile::tempdir().unwrap();
+        let (path, mut doc) = made_scene(dir.path());
+        edit(dir.path(), &mut doc);
+        std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+        let report = dir.path().join("r.json");
+        let (p, r) = (path.to_str().unwrap(), report.to_str().unwrap());
+        let o = run(&["run", "--scene", p, "--filter", TEXTURE_CELLS, "-o", r]);
+        assert_one_line_error(&o, 9, needle);
+        assert!(!report.exists(), "{name}: a report was written");
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (path, _) = made_scene(dir.path());
+    std::fs::remove_file(dir.path().join("checker.png")).unwrap();
+    std::fs::write(dir.path().join("stripes.png"), b"garbage").unwrap();
+    let report = dir.path().join("r.json");
+    let (p, r) = (path.to_str().unwrap(), report.to_str().unwrap());
+    let o = run(&["run", "--scene", p, "--filter", GEOMETRY_CELLS, "-o", r]);
+    assert_eq!(o.status.code(), Some(0), "{}\n{}", stdout(&o), stderr(&o));
+    let rep: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    let got = outcomes(&rep);
+    assert_eq!(got.len(), 4, "{got:?}");
+    assert!(got.values().all(|v| v == "pass"), "{got:?}");
+    assert!(stderr(&o).contains("textures none"), "{}", stderr(&o));
+}
+
+/// An image one texel wider than lavapipe's queried `maxImageDimension2D` makes both texture
+/// cells `unsupported` naming the image, its size and the limit, counted with the plan's
+/// unsupported cells; the geometry cells still run. The scene's device memory is printed.
+#[test]
+fn an_image_past_max_image_dimension_makes_the_texture_cells_unsupported() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, _) = made_scene(dir.path());
+    let o = run(&["caps", "--json", "--no-device-check"]);
+    let caps: Value = serde_json::from_slice(&o.stdout).expect("caps --json");
+    let max = find_u64(&caps, "maxImageDimension2D").expect("the queried limit") as u32;
+    let file = std::fs::File::create(dir.path().join("checker.png")).unwrap();
+    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), max + 1, 1);
+    enc.set_color(png::ColorType::Rgba);
+    enc.set_depth(png::BitDepth::Eight);
+    let texels = vec![200u8; 4 * (max as usize + 1)];
+    enc.write_header().unwrap().write_image_data(&texels).unwrap();
+    let report = dir.path().join("r.json");
+    let (p, r) = (path.to_str().unwrap(), report.to_str().unwrap());
+    let o =
+        run(&["run", "--scene", p, "--filter", "scene_layout=shared_buffers|per_mesh", "-o", r]);
+    assert_eq!(o.status.code(), Some(0), "{}\n{}", stdout(&o), stderr(&o));
+    let rep: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    let cells = rep["cells"].as_array().unwrap();
+    let textures: Vec<&Value> =
+        cells.iter().filter(|c| c["id"].as_str().unwrap().contains("sampled_image")).collect();
+    assert_eq!(textures.len(), 2);
+    let want = format!("images[0] (uri \"checker.png\") is {}×1 texels, more than the device's maxImageDimension2D ({max})", max + 1);
+    for c in &textures {
+        assert_eq!(c["outcome"], "unsupported", "{c}");
+        assert!(c["reason"].as_str().unwrap().contains(&want), "{c}");
+    }
+    let ran = cells.iter().filter(|c| c["outcome"] == "pass").count();
+    assert_eq!(ran, 4, "{}", stdout(&o));
+    assert!(stdout(&o).contains("4 to run, 2 unsupported"), "{}", stdout(&o));
+    assert!(
+        stderr(&o).contains("scene: needs ") && stderr(&o).contains("textures none"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+/// The first number under key `key` anywhere in `v`.
+fn find_u64(v: &Value, key: &str) -> Option<u64> {
+    match v {
+        Value::Object(m) => {
+            m.get(key).and_then(Value::as_u64).or_else(|| m.values().find_map(|x| find_u64(x, key)))
+        }
+        Value::Array(a) => a.iter().find_map(|x| find_u64(x, key)),
+        _ => None,
+    }
+}

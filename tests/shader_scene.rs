@@ -421,3 +421,57 @@ fn scene_fills_given_wrongly_are_one_line_and_no_report() {
     assert_one_line_error(&o, 9, "broken.gltf");
     assert!(r.is_none());
 }
+
+/// `--fill 1.2=scene.textures` with a base-colour image that does not decode: one line naming
+/// `images[0]` and its uri, exit 9 and no report, before any device work; the same scene without
+/// the textures fill decodes no image and passes.
+#[test]
+fn a_broken_scene_image_is_one_line_only_when_scene_textures_reads_it() {
+    let (d, scene) = test_scene();
+    std::fs::write(d.path().join("checker.png"), b"garbage, not a PNG").unwrap();
+    let textured = [
+        "--fill",
+        "push.16=scene.scene_desc",
+        "--fill",
+        "1.2=scene.textures",
+        "-D",
+        "TEXTURED",
+        "--repeat",
+        "1",
+    ];
+    let (o, r) = scene_run(&scene, &textured);
+    assert_one_line_error(&o, 9, "images[0] (uri \"checker.png\"): does not decode");
+    assert!(r.is_none());
+    let (o, r) = scene_run(&scene, &["--fill", "push.16=scene.scene_desc", "--repeat", "1"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!(r.unwrap()["outcome"], "pass");
+}
+
+/// The scene's acceleration-structure build in the child's setup waits under `--setup-timeout`,
+/// not a trace's `--timeout`: a scene of 400,000 triangles, whose build on lavapipe 25 took longer
+/// than 0.1 s before (the setup failed: "acceleration structure build did not finish within
+/// 100ms"), passes with `--timeout 0.1`. The twin: `--setup-timeout 0.01` is a timeout of the
+/// setup, reported as such.
+#[test]
+fn a_large_scene_build_waits_under_the_setup_deadline() {
+    let d = tempfile::tempdir().unwrap();
+    let dir = d.path().display().to_string();
+    let o = run(&["scene", "make", &dir, "--triangles", "400000", "--glb"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let scene = d.path().join("scene.glb");
+    let fill = ["--fill", "push.16=scene.scene_desc", "--repeat", "1", "--timeout", "0.1"];
+    let (o, r) = scene_run(&scene, &fill);
+    let r = r.unwrap_or_else(|| panic!("no report: {}", stderr(&o)));
+    assert_eq!(r["variants"][0]["attempts"][0]["outcome"], "pass", "{}", r["variants"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let short: Vec<&str> = fill.iter().copied().chain(["--setup-timeout", "0.01"]).collect();
+    let (o, r) = scene_run(&scene, &short);
+    assert_ne!(o.status.code(), Some(0), "{}", stderr(&o));
+    let attempt = &r.unwrap()["variants"][0]["attempts"][0];
+    assert_eq!(attempt["outcome"], "timeout", "{attempt}");
+    let detail = attempt["detail"].as_str().unwrap_or_default();
+    assert!(
+        detail.starts_with("setup: acceleration structure build did not finish within 10ms"),
+        "{attempt}"
+    );
+}

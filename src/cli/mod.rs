@@ -27,6 +27,7 @@ pub mod repro;
 pub mod resume;
 pub mod run;
 pub mod scene;
+mod scene_check;
 pub mod shader;
 mod shader_compare;
 mod shader_exec;

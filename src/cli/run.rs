@@ -59,15 +59,13 @@ fn scene_params(a: &RunArgs) -> Result<SceneParams> {
     Ok(p)
 }
 
-/// The run's scene made on the CPU (a `--scene` file loaded again and held to its hash), traced
-/// by the reference, timed, and held to the plan's cells: those it cannot discriminate.
+/// The run's scene made on the CPU (`load_ms`: how long that took), traced by the reference,
+/// timed, and held to the plan's cells: those it cannot discriminate.
 fn scene_summary(
     params: &SceneParams,
+    (scene, load_ms): (crate::scene::Scene, f64),
     plan: &RunPlan,
 ) -> Result<crate::model::report::SceneSummary> {
-    let t = Instant::now();
-    let scene = crate::scene::Scene::of(params)?;
-    let load_ms = t.elapsed().as_secs_f64() * 1e3;
     let t = Instant::now();
     let sref = crate::reference::SceneReference::compute(&scene);
     let reference_ms = t.elapsed().as_secs_f64() * 1e3;
@@ -143,15 +141,22 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
         run_plan::print_list(&the_plan, c.shard, sharded_out);
         return run_plan::nothing_planned(&the_plan, &pa, sharded_out).map_or(Ok(exit::OK), Err);
     }
-    if let Some(e) = run_plan::nothing_planned(&the_plan, &pa, sharded_out)
-        .or_else(|| run_plan::nothing_runs(&the_plan, &info, sharded_out))
-    {
+    if let Some(e) = run_plan::nothing_planned(&the_plan, &pa, sharded_out) {
+        return Err(e);
+    }
+    // The scene made on the CPU (a `--scene` file loaded again and held to its hash) and held to
+    // the plan and the device before anything is written (`scene_check`).
+    let t = Instant::now();
+    let scene = crate::scene::Scene::of(&c.params)?;
+    let load_ms = t.elapsed().as_secs_f64() * 1e3;
+    super::scene_check::check(&scene, &mut the_plan, &info)?;
+    if let Some(e) = run_plan::nothing_runs(&the_plan, &info, sharded_out) {
         return Err(e);
     }
     tracing::debug!("run: planned");
     let started = time::now_unix();
     let (out, _lock) = reserve_out(a, started, &info, resumed.is_some())?;
-    let scene = scene_summary(&c.params, &the_plan)?;
+    let scene = scene_summary(&c.params, (scene, load_ms), &the_plan)?;
     let fresh = start::fresh(
         &info,
         scene,

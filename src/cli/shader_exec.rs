@@ -173,6 +173,7 @@ pub fn run_variant(
             first: k,
             last: ctx.repeat,
             timeout_ms: ctx.timeout.as_millis() as u64,
+            setup_timeout_ms: Some(ctx.setup_timeout.as_millis() as u64),
             dir: ctx.dir.clone(),
             model: Some(ctx.model),
             spec: ctx.spec.clone(),

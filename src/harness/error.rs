@@ -15,6 +15,8 @@ pub enum HarnessError {
     /// The modules disagree with each other or with the contract.
     #[error("{0}")]
     Interface(String),
-    #[error("the trace did not finish within {0:?}")]
+    /// A fence wait past its deadline: a trace's (`--timeout`), or the setup's uploads'
+    /// (`--setup-timeout`; the child's message then starts `setup:`).
+    #[error("a submission did not finish within {0:?}")]
     Timeout(Duration),
 }

@@ -115,6 +115,9 @@ pub struct Setup {
     pub fills: fill::Fills,
     /// `--scene`: the loaded scene traced instead of the harness's, and its `scene.NAME` fills.
     pub scene: Option<SceneSetup>,
+    /// The fence deadline of the setup's submissions (acceleration-structure builds, uploads):
+    /// `--setup-timeout`, not a trace's; `None`: the trace's.
+    pub setup_timeout: Option<Duration>,
 }
 
 /// `run --shader --scene`'s scene and the fills that read it.
@@ -133,6 +136,7 @@ impl Default for Setup {
             sink: sizes::SINK_SIZE,
             fills: fill::Fills::default(),
             scene: None,
+            setup_timeout: None,
         }
     }
 }
@@ -319,6 +323,9 @@ impl Harness {
         setup: Setup,
     ) -> Result<Harness, HarnessError> {
         let submitter = Submitter::new(&gpu)?;
+        // The setup's builds and uploads wait as long as the setup may take: a large scene's
+        // build outlasts a trace's deadline.
+        let wait = setup.setup_timeout.unwrap_or(timeout);
         let (mut built, scene_buffers, fills) = traced_scene(&gpu, &setup)?;
         // A given any-hit runs on every candidate, as on an engine's alpha-tested geometry.
         built.no_opaque = modules.iter().any(|m| m.iface.stage == "any_hit");
@@ -326,21 +333,21 @@ impl Harness {
         let types = groups(modules)?.types.len() as u32;
         let procedural = hit_table::layout(modules, types, geometries)?.procedural;
         built.procedural_sbt_offset = procedural;
-        let scene = SceneGpu::build_with(&gpu, &built, &submitter, timeout, scene::variant_custom)?;
+        let scene = SceneGpu::build_with(&gpu, &built, &submitter, wait, scene::variant_custom)?;
         let bindings: Vec<reflect::Binding> =
             modules.iter().flat_map(|m| m.iface.bindings.iter().cloned()).collect();
         let extent = vk::Extent2D { width: SIZE, height: SIZE };
         let scene_at = scene_tlas_binding(modules);
         let buffer_model = setup.model == DescriptorModel::DescriptorBuffer;
         let made = (setup.sink, buffer_model, binding_flags(&setup));
-        let scene_textures = scene_images(&gpu, &setup, (&submitter, timeout))?;
+        let scene_textures = scene_images(&gpu, &setup, (&submitter, wait))?;
         let given = (&fills, scene_textures.as_ref());
         let res = Resources::new(&gpu, &bindings, scene_at, &scene, extent, made, given)?;
         let record = record::data(modules, res.sink.address, &fills);
         if let Some(p) = gpu.info.properties.rt_pipeline {
             record::check(record.len(), p.shader_group_handle_size, p.max_shader_group_stride)?;
         }
-        res.textures.upload(&gpu, &submitter, timeout)?;
+        res.textures.upload(&gpu, &submitter, wait)?;
         let bound = bind_model(&gpu, &setup, modules, &res, &scene)?;
         let push_size = push_size.div_ceil(4) * 4;
         let push_ints = push_ints(modules);

@@ -23,6 +23,7 @@ use crate::interface::{BindingDesc, DescriptorKind, HitGroup, PipelineDesc, Push
 use crate::model::contract::HostContract;
 use crate::model::validation_message::MessageCounts;
 use crate::model::{DescriptorModel, Outcome};
+use crate::scene::gpu::BuildError;
 use crate::vk::{features, Gpu, Instance, InstanceOptions};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -52,6 +53,9 @@ pub struct ShaderJob {
     pub last: u32,
     /// The fence deadline of one submission.
     pub timeout_ms: u64,
+    /// The fence deadline of the setup's submissions (`--setup-timeout`; absent: `timeout_ms`).
+    #[serde(default)]
+    pub setup_timeout_ms: Option<u64>,
     /// Where the outputs go.
     pub dir: PathBuf,
     /// How descriptors are bound (absent: descriptor indexing).
@@ -209,9 +213,10 @@ pub fn output_path(dir: &Path, variant: &str, k: u32) -> PathBuf {
 pub fn outcome_of(e: &HarnessError) -> Outcome {
     match e {
         HarnessError::Vk(v) if v.is_device_lost() => Outcome::DeviceLost,
-        HarnessError::Timeout(_) => Outcome::Timeout,
+        // A setup's build past `--setup-timeout` is a timeout as a trace past `--timeout` is.
+        HarnessError::Timeout(_) | HarnessError::Build(BuildError::TimedOut(_)) => Outcome::Timeout,
         HarnessError::Vk(_)
-        | HarnessError::Build(_)
+        | HarnessError::Build(BuildError::Vk(_))
         | HarnessError::Unsupported(_)
         | HarnessError::Interface(_) => Outcome::Error,
     }
@@ -303,6 +308,7 @@ fn harness(job: &ShaderJob) -> Result<(Harness, Vec<UserModule>), HarnessError> 
         profile: job.profile,
         fills: job.fills.clone(),
         scene,
+        setup_timeout: job.setup_timeout_ms.map(Duration::from_millis),
     };
     let h = Harness::with_setup(gpu, &refs, push, Duration::from_millis(job.timeout_ms), setup)?;
     Ok((h, variant))
@@ -422,6 +428,8 @@ mod tests {
     #[test]
     fn faults_end_the_child_and_input_errors_do_not() {
         assert_eq!(outcome_of(&HarnessError::Timeout(Duration::from_secs(1))), Outcome::Timeout);
+        let build = HarnessError::Build(BuildError::TimedOut(Duration::from_millis(10)));
+        assert_eq!(outcome_of(&build), Outcome::Timeout);
         assert_eq!(outcome_of(&HarnessError::Unsupported("x".into())), Outcome::Error);
         assert!(outcome_of(&HarnessError::Timeout(Duration::ZERO)).ends_worker());
     }

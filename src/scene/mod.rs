@@ -12,6 +12,7 @@ pub mod gltf;
 pub mod gpu;
 pub mod layout;
 pub mod rng;
+pub mod texture_limits;
 pub mod textures;
 
 use crate::model::SceneParams;

@@ -89,6 +89,45 @@ impl SceneTextures {
     }
 }
 
+impl SceneTextures {
+    /// The images some primitive entry samples, ascending; none is refused.
+    fn used(&self) -> Result<Vec<usize>, TextureError> {
+        let mut used: Vec<usize> =
+            self.geometry_image.iter().flatten().flatten().copied().collect();
+        used.sort_unstable();
+        used.dedup();
+        if used.is_empty() {
+            return Err(TextureError::NoTextures);
+        }
+        Ok(used)
+    }
+
+    /// The name and size of each image [`Textures::of`] would hold, in its order, each decoded
+    /// and dropped in turn (the run's check before any GPU work holds no texel: `cli::scene_check`).
+    pub fn sizes(&self) -> Result<Vec<(String, u32, u32)>, TextureError> {
+        let used = self.used()?;
+        Ok(match &self.source {
+            ImageSource::Synthetic(_) => used
+                .iter()
+                .map(|&i| {
+                    let (w, h) = SYNTHETIC_SIZES[i % SYNTHETIC];
+                    (format!("synthetic texture {i}"), w, h)
+                })
+                .collect(),
+            ImageSource::File(l) => used
+                .iter()
+                .map(|&i| l.decode_image(i).map(|t| (l.image_name(i), t.width, t.height)))
+                .collect::<Result<Vec<_>, _>>()?,
+        })
+    }
+}
+
+/// The descriptors of a texture cell's array of `images` images and `slots` probe slots
+/// ([`Textures::elements`]).
+pub fn element_count(images: usize, slots: u32) -> usize {
+    (slots as usize).max(images)
+}
+
 /// Why a scene cannot run the texture cells (not the device's fault).
 #[derive(Debug, thiserror::Error)]
 pub enum TextureError {
@@ -102,6 +141,8 @@ pub enum TextureError {
 /// its element or [`NO_TEXTURE`].
 pub struct Textures {
     pub images: Vec<Texture>,
+    /// Each image's name in messages: the file's `images[N] (uri …)`, or `synthetic texture k`.
+    pub names: Vec<String>,
     pub material_texture: Vec<u32>,
 }
 
@@ -109,17 +150,16 @@ impl Textures {
     /// The images the scene's primitive entries sample, each decoded once, in ascending image
     /// order; a scene where none samples an image is refused.
     pub fn of(t: &SceneTextures) -> Result<Textures, TextureError> {
-        let mut used: Vec<usize> = t.geometry_image.iter().flatten().flatten().copied().collect();
-        used.sort_unstable();
-        used.dedup();
-        if used.is_empty() {
-            return Err(TextureError::NoTextures);
-        }
-        let images = match &t.source {
-            ImageSource::Synthetic(seed) => used.iter().map(|&i| synthetic(i, *seed)).collect(),
-            ImageSource::File(l) => {
-                used.iter().map(|&i| l.decode_image(i)).collect::<Result<Vec<_>, _>>()?
-            }
+        let used = t.used()?;
+        let (images, names) = match &t.source {
+            ImageSource::Synthetic(seed) => (
+                used.iter().map(|&i| synthetic(i, *seed)).collect(),
+                used.iter().map(|i| format!("synthetic texture {i}")).collect(),
+            ),
+            ImageSource::File(l) => (
+                used.iter().map(|&i| l.decode_image(i)).collect::<Result<Vec<_>, _>>()?,
+                used.iter().map(|&i| l.image_name(i)).collect(),
+            ),
         };
         let entries = t.geometry_image.iter().flatten();
         let mut material_texture = vec![NO_TEXTURE; FIRST_MATERIAL as usize];
@@ -127,7 +167,7 @@ impl Textures {
             Some(i) => used.binary_search(i).expect("collected above") as u32,
             None => NO_TEXTURE,
         }));
-        Ok(Textures { images, material_texture })
+        Ok(Textures { images, names, material_texture })
     }
 
     /// The image of texture element `e`: the array at binding 2 holds the images again and again
@@ -140,7 +180,7 @@ impl Textures {
     /// The elements of the texture array of a cell whose array holds `slots` descriptors: every
     /// element's image, at least one element per image.
     pub fn elements(&self, slots: u32) -> Vec<usize> {
-        (0..(slots as usize).max(self.images.len())).map(|e| self.element_image(e as u32)).collect()
+        (0..element_count(self.images.len(), slots)).map(|e| self.element_image(e as u32)).collect()
     }
 
     /// The material table as the shader reads it: one word per material index.

@@ -59,35 +59,65 @@ pub struct Texture {
 }
 
 /// Image `index` of `document`, decoded (PNG or JPEG, from a file beside the scene, a data URI or
-/// a buffer view) and converted to RGBA8.
+/// a buffer view) and converted to RGBA8; a failure names the image as the file does
+/// (`images[N]` and its URI or buffer view, [`describe`]) and what to do.
 pub(super) fn decode(
     path: &Path,
     document: &gltf::Document,
     buffers: &[gltf::buffer::Data],
     index: usize,
 ) -> Result<Texture, LoadError> {
-    let part = format!("image {index}");
-    let image = document
-        .images()
-        .nth(index)
-        .ok_or_else(|| LoadError::part(path, &part, "no such image"))?;
+    let image = document.images().nth(index).ok_or_else(|| {
+        LoadError::part(path, format!("images[{index}]"), "no such image in the file")
+    })?;
+    let part = describe(&image);
     let base = path.parent().unwrap_or(Path::new("."));
-    let data =
-        gltf::image::Data::from_source(image.source(), Some(base), buffers).map_err(|e| {
-            LoadError::part(
-                path,
-                &part,
-                format!("{}; give a PNG or JPEG image", super::error::one_line(&e)),
-            )
-        })?;
+    let data = gltf::image::Data::from_source(image.source(), Some(base), buffers)
+        .map_err(|e| LoadError::part(path, &part, why_not(&e)))?;
     let rgba8 = to_rgba8(&data).ok_or_else(|| {
         LoadError::part(
             path,
             &part,
-            format!("format {:?}; rtprobe reads 8- and 16-bit images", data.format),
+            format!(
+                "format {:?}; rtprobe reads 8- and 16-bit images: export it as an 8-bit PNG or JPEG",
+                data.format
+            ),
         )
     })?;
     Ok(Texture { width: data.width, height: data.height, rgba8 })
+}
+
+/// How the file names image `image`: `images[N] (uri "…")` (a data URI cut short) or
+/// `images[N] (bufferView V, MIME)`.
+pub fn describe(image: &gltf::Image) -> String {
+    let n = image.index();
+    match image.source() {
+        gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => {
+            let head: String = uri.chars().take(32).collect();
+            format!("images[{n}] (uri \"{head}…\")")
+        }
+        gltf::image::Source::Uri { uri, .. } => format!("images[{n}] (uri \"{uri}\")"),
+        gltf::image::Source::View { view, mime_type } => {
+            format!("images[{n}] (bufferView {}, {mime_type})", view.index())
+        }
+    }
+}
+
+/// Why an image's bytes do not decode, and what to do, in one line.
+fn why_not(e: &gltf::Error) -> String {
+    let first = super::error::one_line(e);
+    match e {
+        gltf::Error::Io(_) => format!(
+            "cannot read the image file: {first}; put it beside the .gltf file (the uri is relative to it) or fix the uri"
+        ),
+        gltf::Error::UnsupportedImageEncoding => format!(
+            "{first} (neither the mimeType nor the uri's extension says PNG or JPEG); rtprobe reads PNG and JPEG base-colour images: convert it to PNG"
+        ),
+        gltf::Error::Image(_) => {
+            format!("does not decode: {first}; export the image again as PNG or JPEG")
+        }
+        _ => format!("{first}; give a PNG or JPEG image by a relative uri, a data URI or a bufferView"),
+    }
 }
 
 fn to_rgba8(d: &gltf::image::Data) -> Option<Vec<u8>> {

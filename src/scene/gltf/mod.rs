@@ -68,6 +68,14 @@ impl Loaded {
         material::decode(&self.path, &self.document, &self.buffers, index)
     }
 
+    /// How the file names image `index`: `images[N]` and its URI or buffer view.
+    pub fn image_name(&self, index: usize) -> String {
+        self.document
+            .images()
+            .nth(index)
+            .map_or_else(|| format!("images[{index}]"), |i| material::describe(&i))
+    }
+
     /// Triangles of every instance (a mesh instanced by two nodes counts twice).
     pub fn triangles(&self) -> u64 {
         self.instances.iter().map(|i| self.meshes[i.mesh].indices.len() as u64).sum()

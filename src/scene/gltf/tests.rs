@@ -69,7 +69,7 @@ fn images_are_decoded_one_at_a_time_when_asked() {
         assert_eq!(&checker.rgba8[..4], &[230, 230, 230, 255]);
         let stripes = s.decode_image(1).unwrap();
         assert_eq!((stripes.rgba8[3], stripes.rgba8[4 * 4 + 3]), (255, 0), "alpha stripes");
-        assert!(s.decode_image(2).unwrap_err().to_string().contains("image 2"));
+        assert!(s.decode_image(2).unwrap_err().to_string().contains("images[2]"));
     }
 }
 
@@ -163,5 +163,9 @@ fn broken_json_and_a_texture_file_that_is_gone_are_refused() {
     std::fs::remove_file(d2.path().join("checker.png")).unwrap();
     let s = Loaded::load(&path).expect("images are not read at load");
     let e = s.decode_image(0).unwrap_err().to_string();
-    assert!(e.contains("image 0") && !e.contains('\n'), "{e}");
+    assert!(
+        e.contains("images[0] (uri \"checker.png\"): cannot read the image file")
+            && !e.contains('\n'),
+        "{e}"
+    );
 }
