@@ -5,6 +5,7 @@
 //! (seeds) both pass and disagree. The texture cells (`resource=sampled_image`) pass on both
 //! scenes, sample several textures and fetch the geometry cells' triangles; an injected wrong
 //! value is a mismatch; on a glTF scene without textures they are `not_implemented` with why.
+//! The mutants' twins: a wrong texture or mesh buffer (`run --mutants`) is killed on both scenes.
 mod common;
 use common::*;
 use serde_json::Value;
@@ -200,30 +201,59 @@ fn a_wrong_fetch_is_a_mismatch_and_breaks_the_agreement() {
     }
 }
 
-/// GPU twins of the texture cells: `run --mutants` rewrites their texture element (index-zero,
-/// index-next: the wrong texture), the reference predicts the wrong texel, and lavapipe's
-/// mismatch kills each; a survivor (or a pair left unrun) fails here. Every other pair is listed
-/// with why.
+/// GPU twins of the layout cells: `run --mutants` rewrites the texture cells' texture element
+/// and the `per_mesh` cells' mesh slot (index-zero, index-next, stride-double: the wrong
+/// texture or the wrong mesh buffer, read in bounds), the reference predicts what each reads,
+/// and lavapipe's mismatch kills each, on the procedural scene and on `scene make`'s; a survivor
+/// (or a pair left unrun) fails here. `index-broadcast` (lane 0's index for all lanes) is killed
+/// where the device lists subgroup ballot in closest-hit, else not run with that reason (lavapipe
+/// lists only fragment, compute, task and mesh). Every other pair is listed with why.
 #[test]
-fn the_texture_cells_kill_their_wrong_texture_mutants() {
+fn the_layout_cells_kill_their_wrong_descriptor_mutants() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("m.json");
-    let filter = "scene_layout=shared_buffers,resource=sampled_image";
-    let o = run(&["run", "--mutants", "--filter", filter, "-o", out.to_str().unwrap()]);
-    assert_eq!(o.status.code(), Some(0), "{}\n{}", stdout(&o), stderr(&o));
-    let r: Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
-    let entries = r["mutants"]["entries"].as_array().unwrap();
-    for cell in texture_cells() {
-        for m in ["index-zero", "index-next"] {
+    let o = run(&["scene", "make", dir.path().to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let scene = dir.path().join("scene.gltf");
+    for (name, extra) in [("proc", vec![]), ("file", vec!["--scene", scene.to_str().unwrap()])] {
+        let out = dir.path().join(format!("{name}.json"));
+        let mut args = vec!["run", "--mutants", "--filter", LAYOUTS, "-o", out.to_str().unwrap()];
+        args.extend(extra);
+        let o = run(&args);
+        assert_eq!(o.status.code(), Some(0), "{name}: {}\n{}", stdout(&o), stderr(&o));
+        let r: Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
+        let entries = r["mutants"]["entries"].as_array().unwrap();
+        let cells = texture_cells().into_iter().chain(pairs().into_iter().map(|(_, p)| p));
+        for cell in cells {
+            for m in ["index-zero", "index-next", "stride-double", "index-broadcast"] {
+                let e = entries
+                    .iter()
+                    .find(|e| e["cell"] == cell.as_str() && e["mutant"] == m)
+                    .unwrap_or_else(|| panic!("{name} {cell} {m}: no entry"));
+                let why = e["why"].as_str().unwrap_or_default();
+                if m == "index-broadcast" && e["status"] == "not_run" {
+                    assert!(why.contains("no subgroup ballot in closest_hit"), "{e}");
+                    continue;
+                }
+                assert_eq!(e["status"], "killed", "{name} {cell} {m}: {e}");
+                assert!(e["outcome"] == "mismatch" && e["prediction"]["caught"].as_u64() > Some(0));
+            }
+        }
+        for e in
+            entries.iter().filter(|e| e["status"] != "killed" && e["mutant"] != "index-broadcast")
+        {
+            assert!(e["status"] == "no_target" && !e["why"].as_str().unwrap().is_empty(), "{e}");
+        }
+        // The shared_buffers geometry cells index no descriptor: nothing to rewrite, said so.
+        for (shared, _) in pairs() {
             let e = entries
                 .iter()
-                .find(|e| e["cell"] == cell.as_str() && e["mutant"] == m)
-                .unwrap_or_else(|| panic!("{cell} {m}: no entry"));
-            assert_eq!(e["status"], "killed", "{cell} {m}: {e}");
-            assert!(e["outcome"] == "mismatch" && e["prediction"]["caught"].as_u64() > Some(0));
+                .find(|e| e["cell"] == shared.as_str() && e["mutant"] == "index-next")
+                .unwrap();
+            assert!(
+                e["status"] == "no_target"
+                    && e["why"].as_str().unwrap().contains("reads no descriptor"),
+                "{e}"
+            );
         }
-    }
-    for e in entries.iter().filter(|e| e["status"] != "killed") {
-        assert!(e["status"] == "no_target" && !e["why"].as_str().unwrap().is_empty(), "{e}");
     }
 }

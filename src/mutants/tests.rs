@@ -393,7 +393,9 @@ fn scene_layout_cells_rewrite_the_descriptor_they_select() {
     let per_mesh = layout(Resource::StorageBuffer, true, SceneLayout::PerMesh);
     let sites = |m: &Module| locate::descriptor_indices(m, false);
     for (c, accesses) in [(&textures, 2), (&per_mesh, 8)] {
-        for m in [Mutant::IndexZero, Mutant::IndexNext, Mutant::IndexBroadcast, Mutant::StrideDouble] {
+        for m in
+            [Mutant::IndexZero, Mutant::IndexNext, Mutant::IndexBroadcast, Mutant::StrideDouble]
+        {
             let got = mutated(c, m).unwrap();
             assert_eq!(got.len(), 1, "{} {m:?}: only the triangles' closest-hit", c.id());
             let (_, before, after) = &got[0];
@@ -409,7 +411,13 @@ fn scene_layout_cells_rewrite_the_descriptor_they_select() {
             }
         }
         let spec = crate::probe::spec::ProbeSpec::of(c);
-        for m in [Mutant::BaseDropped, Mutant::ElementZero, Mutant::SamplerNext, Mutant::TlasOther, Mutant::ValueBits] {
+        for m in [
+            Mutant::BaseDropped,
+            Mutant::ElementZero,
+            Mutant::SamplerNext,
+            Mutant::TlasOther,
+            Mutant::ValueBits,
+        ] {
             assert!(site(&spec, m, SLOTS).is_err(), "{} {m:?}", c.id());
         }
     }

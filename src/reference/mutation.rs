@@ -185,10 +185,8 @@ pub fn broadcast(site: Site) -> bool {
 /// ([`selecting_index`]) is not the first one's may read another descriptor (0: all compute the
 /// same index, the broadcast is equivalent: the scene's data cannot discriminate it).
 pub fn one_slot(expected: &[Expected], textures: bool) -> MutantPrediction {
-    let mut slots = expected
-        .iter()
-        .filter(|e| !e.ambiguous)
-        .filter_map(|e| selecting_index(e, textures));
+    let mut slots =
+        expected.iter().filter(|e| !e.ambiguous).filter_map(|e| selecting_index(e, textures));
     let first = slots.next();
     let differing = slots.filter(|s| Some(*s) != first).count();
     MutantPrediction { differing, caught: differing, caught_by_heuristic: 0, from_lanes: true }

@@ -143,7 +143,12 @@ impl LayoutData {
             first_entry: first_entries(scene),
             first_vertex,
             first_index,
-            most_geometries: scene.meshes.iter().map(|m| m.geometries.len() as u32).max().unwrap_or(0),
+            most_geometries: scene
+                .meshes
+                .iter()
+                .map(|m| m.geometries.len() as u32)
+                .max()
+                .unwrap_or(0),
             most_triangles: geometries.map(|r| r.end - r.start).max().unwrap_or(0),
         })
     }

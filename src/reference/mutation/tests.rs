@@ -15,7 +15,12 @@ use crate::reference::{
 use crate::scene::Scene;
 
 fn layout_cell(resource: Resource, layout: SceneLayout) -> Cell {
-    let c = Cell::new(Stage::ClosestHit, resource, IndexSource::Dynamic, DescriptorModel::DescriptorIndexing);
+    let c = Cell::new(
+        Stage::ClosestHit,
+        resource,
+        IndexSource::Dynamic,
+        DescriptorModel::DescriptorIndexing,
+    );
     Cell { nonuniform: true, scene_layout: Some(layout), ..c }
 }
 
@@ -80,7 +85,11 @@ fn a_texture_cells_broadcast_reads_the_first_textured_lanes_texture() {
     let mut past_an_untextured_leader = 0;
     for (p, got) in leaders.iter().enumerate() {
         let Some(group) = lanes.subgroup(p) else { continue };
-        let first = group.iter().copied().filter(|&q| element(q).is_some()).min_by_key(|&q| records[q].lane);
+        let first = group
+            .iter()
+            .copied()
+            .filter(|&q| element(q).is_some())
+            .min_by_key(|&q| records[q].lane);
         let want = element(p).and(first).and_then(element);
         assert_eq!(*got, want, "pixel {p}");
         let leader = group.iter().copied().min_by_key(|&q| records[q].lane).unwrap();
