@@ -5,13 +5,17 @@
 //! (seeds) both pass and disagree. The texture cells (`resource=sampled_image`) pass on both
 //! scenes, sample several textures and fetch the geometry cells' triangles; an injected wrong
 //! value is a mismatch; on a glTF scene without textures they are `not_implemented` with why.
-//! The mutants' twins: a wrong texture or mesh buffer (`run --mutants`) is killed on both scenes.
+//! The texture cells of both layouts agree word for word too (`per_mesh`'s reads its material
+//! through the mesh buffers). The mutants' twins: a wrong texture or mesh buffer (`run
+//! --mutants`) is killed on both scenes.
 mod common;
 use common::*;
 use serde_json::Value;
 use std::path::Path;
 
 const LAYOUTS: &str = "scene_layout=shared_buffers|per_mesh";
+/// A wrong value injected into the per_mesh geometry cells only.
+const GEOMETRY_FAULT: &str = "scene_layout=per_mesh,resource=storage_buffer@value:0.5:7";
 /// Bytes of a record before its lane words (`probe::Record`).
 const WORDS: usize = 64;
 const RECORD: usize = 80;
@@ -57,11 +61,19 @@ fn reason(r: &Value, id: &str) -> String {
     c["reason"].as_str().unwrap_or_default().into()
 }
 
-/// The texture cell of each set-based model.
+/// The texture cells of each set-based model, in both layouts.
 fn texture_cells() -> Vec<String> {
+    texture_pairs().into_iter().flat_map(|(s, p)| [s, p]).collect()
+}
+
+/// The (shared_buffers, per_mesh) texture cells of each set-based model.
+fn texture_pairs() -> Vec<(String, String)> {
     ["descriptor_indexing", "descriptor_buffer"]
         .iter()
-        .map(|m| format!("closest_hit.sampled_image.dynamic.nonuniform.{m}.shared_buffers"))
+        .map(|m| {
+            let c = format!("closest_hit.sampled_image.dynamic.nonuniform.{m}");
+            (format!("{c}.shared_buffers"), format!("{c}.per_mesh"))
+        })
         .collect()
 }
 
@@ -107,7 +119,7 @@ fn layouts_pass_and_agree(dir: &Path, scene: Option<&Path>, textures: usize) {
         };
         assert_eq!(indices(&recs), indices(&geometry), "{id}: other triangles than {shared}");
     }
-    for (shared, per_mesh) in pairs() {
+    for (shared, per_mesh) in pairs().into_iter().chain(texture_pairs()) {
         assert_eq!((outcome(&r, &shared), outcome(&r, &per_mesh)), ("pass".into(), "pass".into()));
         let (differ, fetched) = disagreement(&records(dir, &shared), &records(dir, &per_mesh));
         assert_eq!(differ, 0, "{shared} and {per_mesh} disagree on {differ} records");
@@ -134,7 +146,7 @@ fn layouts_fed_different_scenes_pass_but_disagree() {
     let (code_a, ra) = run_layouts(&a, None, &["--seed", "1"]);
     let (code_b, rb) = run_layouts(&b, None, &["--seed", "2"]);
     assert_eq!((code_a, code_b), (Some(0), Some(0)), "{ra}\n{rb}");
-    for (shared, per_mesh) in pairs() {
+    for (shared, per_mesh) in pairs().into_iter().chain(texture_pairs()) {
         let (differ, _) = disagreement(&records(&a, &shared), &records(&b, &per_mesh));
         assert!(
             differ > 100,
@@ -175,8 +187,7 @@ fn a_scene_without_textures_leaves_the_texture_cells_not_implemented() {
 #[test]
 fn a_wrong_fetch_is_a_mismatch_and_breaks_the_agreement() {
     let dir = tempfile::tempdir().unwrap();
-    let (code, r) =
-        run_layouts(dir.path(), None, &["--inject-fault", "scene_layout=per_mesh@value:0.5:7"]);
+    let (code, r) = run_layouts(dir.path(), None, &["--inject-fault", GEOMETRY_FAULT]);
     assert_ne!(code, Some(0));
     for (shared, per_mesh) in pairs() {
         assert_eq!(

@@ -391,8 +391,10 @@ fn scene_layout_cells_rewrite_the_descriptor_they_select() {
     };
     let textures = layout(Resource::SampledImage, true, SceneLayout::SharedBuffers);
     let per_mesh = layout(Resource::StorageBuffer, true, SceneLayout::PerMesh);
+    // the per_mesh texture cell: binding 2 holds its textures (the mesh buffers are at 3)
+    let per_mesh_textures = layout(Resource::SampledImage, true, SceneLayout::PerMesh);
     let sites = |m: &Module| locate::descriptor_indices(m, false);
-    for (c, accesses) in [(&textures, 2), (&per_mesh, 8)] {
+    for (c, accesses) in [(&textures, 2), (&per_mesh, 8), (&per_mesh_textures, 2)] {
         for m in
             [Mutant::IndexZero, Mutant::IndexNext, Mutant::IndexBroadcast, Mutant::StrideDouble]
         {

@@ -499,14 +499,14 @@ fn expected_probed(
     let slots = probe::slot_count(spec.resource, scene.params.instances);
     let variants = probe::as_variants(scene.params.instances);
     let buffer_disc = vec![None; (slots * probe::ELEMENTS) as usize];
-    let mesh_words = match (spec.layout, mutation) {
-        (Some(crate::model::SceneLayout::PerMesh), Some(_)) => {
-            crate::scene::layout::LayoutData::new(scene).map_or(vec![], |d| {
-                (0..d.slot_mesh.len()).map(|s| d.mesh_words(scene, s)).collect()
-            })
-        }
-        (Some(crate::model::SceneLayout::SharedBuffers) | None, _)
-        | (Some(crate::model::SceneLayout::PerMesh), None) => vec![],
+    // A per_mesh geometry cell's mutant reads another slot's buffer (a texture cell's rewrites
+    // its texture element: binding 2 holds the textures there).
+    let per_mesh = spec.layout == Some(crate::model::SceneLayout::PerMesh);
+    let mesh_words = if per_mesh && !spec.layout_textures() && mutation.is_some() {
+        crate::scene::layout::LayoutData::new(scene)
+            .map_or(vec![], |d| (0..d.slot_mesh.len()).map(|s| d.mesh_words(scene, s)).collect())
+    } else {
+        vec![]
     };
     let mut probed = Probed {
         spec,

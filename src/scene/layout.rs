@@ -235,11 +235,16 @@ uvec3 probeTri = uvec3(sceneIndices.w[firstIndex], sceneIndices.w[firstIndex + 1
 ScenePositions scenePositions = ScenePositions(sceneDesc.positions);\n    \
 vec4 probeValue = vec4(scenePositions.p[3u * (vertexOffset + probeTri.x)], scenePositions.p[3u * (vertexOffset + probeTri.y) + 1u], scenePositions.p[3u * (vertexOffset + probeTri.z) + 2u], float(materialIndex));\n";
 
-/// The GLSL of a `per_mesh` fetch: declarations, and statements that read the hit triangle from
-/// mesh buffer `meshes[SUB]` (`SUB`: the descriptor index expression), defining `uvec3 probeTri`
-/// and `vec4 probeValue` (the CPU twin: [`read_per_mesh`]).
-pub const PER_MESH_DECLS: &str =
-    "layout(set = 0, binding = 2, std430) readonly buffer MeshData { uint w[]; } meshes[];\n";
+/// The GLSL of a `per_mesh` fetch: declarations (the mesh buffers at `binding`: 2, or 3 in a
+/// texture cell, whose textures are at 2), and statements that read the hit triangle from mesh
+/// buffer `meshes[SUB]` (`SUB`: the descriptor index expression), defining `uvec3 probeTri`,
+/// `uint materialIndex` and `vec4 probeValue` (the CPU twin: [`read_per_mesh`]).
+pub fn per_mesh_decls(binding: u32) -> String {
+    format!("layout(set = 0, binding = {binding}, std430) readonly buffer MeshData {{ uint w[]; }} meshes[];\n")
+}
+
+/// The binding of a texture cell's mesh buffers (`per_mesh`): after the textures at 2.
+pub const TEXTURE_CELL_MESH_BINDING: u32 = 3;
 
 pub fn per_mesh_body(sub: &str) -> String {
     format!(
