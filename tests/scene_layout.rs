@@ -5,12 +5,17 @@
 //! (seeds) both pass and disagree. The texture cells (`resource=sampled_image`) pass on both
 //! scenes, sample several textures and fetch the geometry cells' triangles; an injected wrong
 //! value is a mismatch; on a glTF scene without textures they are `not_implemented` with why.
+//! The texture cells of both layouts agree word for word too (`per_mesh`'s reads its material
+//! through the mesh buffers). The mutants' twins: a wrong texture or mesh buffer (`run
+//! --mutants`) is killed on both scenes.
 mod common;
 use common::*;
 use serde_json::Value;
 use std::path::Path;
 
 const LAYOUTS: &str = "scene_layout=shared_buffers|per_mesh";
+/// A wrong value injected into the per_mesh geometry cells only.
+const GEOMETRY_FAULT: &str = "scene_layout=per_mesh,resource=storage_buffer@value:0.5:7";
 /// Bytes of a record before its lane words (`probe::Record`).
 const WORDS: usize = 64;
 const RECORD: usize = 80;
@@ -56,11 +61,19 @@ fn reason(r: &Value, id: &str) -> String {
     c["reason"].as_str().unwrap_or_default().into()
 }
 
-/// The texture cell of each set-based model.
+/// The texture cells of each set-based model, in both layouts.
 fn texture_cells() -> Vec<String> {
+    texture_pairs().into_iter().flat_map(|(s, p)| [s, p]).collect()
+}
+
+/// The (shared_buffers, per_mesh) texture cells of each set-based model.
+fn texture_pairs() -> Vec<(String, String)> {
     ["descriptor_indexing", "descriptor_buffer"]
         .iter()
-        .map(|m| format!("closest_hit.sampled_image.dynamic.nonuniform.{m}.shared_buffers"))
+        .map(|m| {
+            let c = format!("closest_hit.sampled_image.dynamic.nonuniform.{m}");
+            (format!("{c}.shared_buffers"), format!("{c}.per_mesh"))
+        })
         .collect()
 }
 
@@ -106,7 +119,7 @@ fn layouts_pass_and_agree(dir: &Path, scene: Option<&Path>, textures: usize) {
         };
         assert_eq!(indices(&recs), indices(&geometry), "{id}: other triangles than {shared}");
     }
-    for (shared, per_mesh) in pairs() {
+    for (shared, per_mesh) in pairs().into_iter().chain(texture_pairs()) {
         assert_eq!((outcome(&r, &shared), outcome(&r, &per_mesh)), ("pass".into(), "pass".into()));
         let (differ, fetched) = disagreement(&records(dir, &shared), &records(dir, &per_mesh));
         assert_eq!(differ, 0, "{shared} and {per_mesh} disagree on {differ} records");
@@ -133,7 +146,7 @@ fn layouts_fed_different_scenes_pass_but_disagree() {
     let (code_a, ra) = run_layouts(&a, None, &["--seed", "1"]);
     let (code_b, rb) = run_layouts(&b, None, &["--seed", "2"]);
     assert_eq!((code_a, code_b), (Some(0), Some(0)), "{ra}\n{rb}");
-    for (shared, per_mesh) in pairs() {
+    for (shared, per_mesh) in pairs().into_iter().chain(texture_pairs()) {
         let (differ, _) = disagreement(&records(&a, &shared), &records(&b, &per_mesh));
         assert!(
             differ > 100,
@@ -174,8 +187,7 @@ fn a_scene_without_textures_leaves_the_texture_cells_not_implemented() {
 #[test]
 fn a_wrong_fetch_is_a_mismatch_and_breaks_the_agreement() {
     let dir = tempfile::tempdir().unwrap();
-    let (code, r) =
-        run_layouts(dir.path(), None, &["--inject-fault", "scene_layout=per_mesh@value:0.5:7"]);
+    let (code, r) = run_layouts(dir.path(), None, &["--inject-fault", GEOMETRY_FAULT]);
     assert_ne!(code, Some(0));
     for (shared, per_mesh) in pairs() {
         assert_eq!(
@@ -200,30 +212,59 @@ fn a_wrong_fetch_is_a_mismatch_and_breaks_the_agreement() {
     }
 }
 
-/// GPU twins of the texture cells: `run --mutants` rewrites their texture element (index-zero,
-/// index-next: the wrong texture), the reference predicts the wrong texel, and lavapipe's
-/// mismatch kills each; a survivor (or a pair left unrun) fails here. Every other pair is listed
-/// with why.
+/// GPU twins of the layout cells: `run --mutants` rewrites the texture cells' texture element
+/// and the `per_mesh` cells' mesh slot (index-zero, index-next, stride-double: the wrong
+/// texture or the wrong mesh buffer, read in bounds), the reference predicts what each reads,
+/// and lavapipe's mismatch kills each, on the procedural scene and on `scene make`'s; a survivor
+/// (or a pair left unrun) fails here. `index-broadcast` (lane 0's index for all lanes) is killed
+/// where the device lists subgroup ballot in closest-hit, else not run with that reason (lavapipe
+/// lists only fragment, compute, task and mesh). Every other pair is listed with why.
 #[test]
-fn the_texture_cells_kill_their_wrong_texture_mutants() {
+fn the_layout_cells_kill_their_wrong_descriptor_mutants() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("m.json");
-    let filter = "scene_layout=shared_buffers,resource=sampled_image";
-    let o = run(&["run", "--mutants", "--filter", filter, "-o", out.to_str().unwrap()]);
-    assert_eq!(o.status.code(), Some(0), "{}\n{}", stdout(&o), stderr(&o));
-    let r: Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
-    let entries = r["mutants"]["entries"].as_array().unwrap();
-    for cell in texture_cells() {
-        for m in ["index-zero", "index-next"] {
+    let o = run(&["scene", "make", dir.path().to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let scene = dir.path().join("scene.gltf");
+    for (name, extra) in [("proc", vec![]), ("file", vec!["--scene", scene.to_str().unwrap()])] {
+        let out = dir.path().join(format!("{name}.json"));
+        let mut args = vec!["run", "--mutants", "--filter", LAYOUTS, "-o", out.to_str().unwrap()];
+        args.extend(extra);
+        let o = run(&args);
+        assert_eq!(o.status.code(), Some(0), "{name}: {}\n{}", stdout(&o), stderr(&o));
+        let r: Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
+        let entries = r["mutants"]["entries"].as_array().unwrap();
+        let cells = texture_cells().into_iter().chain(pairs().into_iter().map(|(_, p)| p));
+        for cell in cells {
+            for m in ["index-zero", "index-next", "stride-double", "index-broadcast"] {
+                let e = entries
+                    .iter()
+                    .find(|e| e["cell"] == cell.as_str() && e["mutant"] == m)
+                    .unwrap_or_else(|| panic!("{name} {cell} {m}: no entry"));
+                let why = e["why"].as_str().unwrap_or_default();
+                if m == "index-broadcast" && e["status"] == "not_run" {
+                    assert!(why.contains("no subgroup ballot in closest_hit"), "{e}");
+                    continue;
+                }
+                assert_eq!(e["status"], "killed", "{name} {cell} {m}: {e}");
+                assert!(e["outcome"] == "mismatch" && e["prediction"]["caught"].as_u64() > Some(0));
+            }
+        }
+        for e in
+            entries.iter().filter(|e| e["status"] != "killed" && e["mutant"] != "index-broadcast")
+        {
+            assert!(e["status"] == "no_target" && !e["why"].as_str().unwrap().is_empty(), "{e}");
+        }
+        // The shared_buffers geometry cells index no descriptor: nothing to rewrite, said so.
+        for (shared, _) in pairs() {
             let e = entries
                 .iter()
-                .find(|e| e["cell"] == cell.as_str() && e["mutant"] == m)
-                .unwrap_or_else(|| panic!("{cell} {m}: no entry"));
-            assert_eq!(e["status"], "killed", "{cell} {m}: {e}");
-            assert!(e["outcome"] == "mismatch" && e["prediction"]["caught"].as_u64() > Some(0));
+                .find(|e| e["cell"] == shared.as_str() && e["mutant"] == "index-next")
+                .unwrap();
+            assert!(
+                e["status"] == "no_target"
+                    && e["why"].as_str().unwrap().contains("reads no descriptor"),
+                "{e}"
+            );
         }
-    }
-    for e in entries.iter().filter(|e| e["status"] != "killed") {
-        assert!(e["status"] == "no_target" && !e["why"].as_str().unwrap().is_empty(), "{e}");
     }
 }

@@ -30,6 +30,11 @@ pub(super) fn pipeline_desc(
     }
     if let Some(r) = key.probe.filter(|_| !key.heap_direct) {
         bindings.push(binding(2, kind(r), slots));
+        if key.textures && key.per_mesh {
+            // a per_mesh texture cell's mesh buffers, one per mesh slot (as many as the textures')
+            let meshes = crate::scene::layout::TEXTURE_CELL_MESH_BINDING;
+            bindings.push(binding(meshes, DescriptorKind::StorageBuffer, slots));
+        }
     }
     let at = |role| shaders.shaders.iter().position(|s| s.role == role);
     let hit_groups = if at(Role::Raygen).is_some() {

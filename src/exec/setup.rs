@@ -119,6 +119,13 @@ impl Executor {
                 })?
             };
             t.push((2, r, targets));
+            if key.textures && key.per_mesh {
+                // a per_mesh texture cell: its mesh buffers after the textures
+                self.ensure_layout(SceneLayout::PerMesh)?;
+                let meshes = self.mesh_layout.as_ref().expect("made above").targets();
+                let binding = crate::scene::layout::TEXTURE_CELL_MESH_BINDING;
+                t.push((binding, Resource::StorageBuffer, meshes));
+            }
         }
         Ok(t)
     }

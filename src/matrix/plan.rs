@@ -61,6 +61,10 @@ pub fn device_support(info: &DeviceInfo, cell: &Cell) -> Support {
     }
     if let Some(l) = cell.scene_layout {
         checks.push(support::scene_layout(info, l));
+        if cell.resource == Resource::SampledImage {
+            // every texture cell reads its material table through the SceneDesc's address
+            checks.push(support::scene_layout(info, SceneLayout::SharedBuffers));
+        }
     }
     if matches!(
         cell.patch,
@@ -122,7 +126,7 @@ impl Skipped {
                 count: self.sampler_elsewhere,
             },
             NotGenerated {
-                rule: "scene_layout only applies to stage=closest_hit index=dynamic cells of set-based models without base or reorder: storage_buffer ones, per_mesh with nonuniform (without it the descriptor read is undefined), shared_buffers without (it indexes no descriptor); sampled_image ones with nonuniform, shared_buffers with the scene's textures (a per_mesh texture cell would need a second descriptor array: not built)".into(),
+                rule: "scene_layout only applies to stage=closest_hit index=dynamic cells of set-based models without base or reorder: storage_buffer ones, per_mesh with nonuniform (without it the descriptor read is undefined), shared_buffers without (it indexes no descriptor); sampled_image ones with nonuniform in both layouts, with the scene's textures in a descriptor array".into(),
                 count: self.layout_elsewhere,
             },
             NotGenerated { rule: "heap_access=mapped_shader_record_index needs a shader record (ray tracing pipelines only)".into(), count: self.record_outside_rt },
@@ -225,12 +229,9 @@ fn heap_cells(base: Cell, cells: &mut Vec<Cell>, skipped: &mut Skipped) {
             } else {
                 skipped.base_elsewhere += BaseSource::ALL.len();
             }
-            if let Some(layout) = cell.planned_layout() {
-                cells.push(Cell { scene_layout: Some(layout), ..cell });
-                skipped.layout_elsewhere += SceneLayout::ALL.len() - 1;
-            } else {
-                skipped.layout_elsewhere += SceneLayout::ALL.len();
-            }
+            let layouts = cell.planned_layouts();
+            cells.extend(layouts.iter().map(|l| Cell { scene_layout: Some(*l), ..cell }));
+            skipped.layout_elsewhere += SceneLayout::ALL.len() - layouts.len();
         }
     }
 }
@@ -319,8 +320,8 @@ mod tests {
         let base_extra = 2 * ((4 * 2 + 2) * 7 + 3);
         // scene_layout: closest-hit dynamic storage-buffer cells of the 2 set-based models, one
         // layout each (per_mesh with nonuniform, shared_buffers without), and the nonuniform
-        // sampled-image ones (the texture cells, shared_buffers).
-        let layouts = 2 * 2 + 2;
+        // sampled-image ones (the texture cells) in both layouts.
+        let layouts = 2 * 2 + 2 * 2;
         assert_eq!(
             n,
             8 * (4 * 5 + 14) * 2

@@ -231,24 +231,23 @@ impl Cell {
     /// dynamic one); set/binding models only (heap cells would need a mesh array in the heap: not
     /// built), no base, reorder or sampler variant (the layout cells vary the layout only).
     pub fn scene_layout_applies(&self) -> bool {
-        self.planned_layout().is_some()
+        !self.planned_layouts().is_empty()
     }
 
-    /// The scene layout the plan gives this cell, where the axis applies: storage-buffer cells
+    /// The scene layouts the plan gives this cell, where the axis applies: storage-buffer cells
     /// fetch geometry, `per_mesh` with `nonuniform` (without it its descriptor read is
     /// undefined), `shared_buffers` without (it indexes no descriptor); sampled-image cells with
-    /// `nonuniform` are the texture cells, `shared_buffers` with the scene's textures in a
-    /// descriptor array indexed by the fetched material (`scene::textures`; a `per_mesh` one
-    /// would need a second descriptor array: not built).
-    pub fn planned_layout(&self) -> Option<SceneLayout> {
-        let layout = match (self.resource, self.nonuniform) {
-            (Resource::StorageBuffer, true) => SceneLayout::PerMesh,
-            (Resource::StorageBuffer, false) | (Resource::SampledImage, true) => {
-                SceneLayout::SharedBuffers
-            }
+    /// `nonuniform` are the texture cells, in both layouts, with the scene's textures in a
+    /// descriptor array indexed by the fetched material (`scene::textures`; `per_mesh` reads the
+    /// material through the mesh buffers, a second descriptor array at binding 3).
+    pub fn planned_layouts(&self) -> &'static [SceneLayout] {
+        let layouts: &'static [SceneLayout] = match (self.resource, self.nonuniform) {
+            (Resource::StorageBuffer, true) => &[SceneLayout::PerMesh],
+            (Resource::StorageBuffer, false) => &[SceneLayout::SharedBuffers],
+            (Resource::SampledImage, true) => &[SceneLayout::SharedBuffers, SceneLayout::PerMesh],
             (Resource::SampledImage, false)
             | (Resource::UniformBuffer | Resource::StorageImage, _)
-            | (Resource::AccelerationStructure, _) => return None,
+            | (Resource::AccelerationStructure, _) => return &[],
         };
         let applies = self.canary.is_none()
             && self.stage == Stage::ClosestHit
@@ -256,7 +255,11 @@ impl Cell {
             && self.descriptor_model != DescriptorModel::DescriptorHeap
             && self.base.is_none()
             && self.reorder.is_none();
-        applies.then_some(layout)
+        if applies {
+            layouts
+        } else {
+            &[]
+        }
     }
 
     /// Whether a `sampler=dynamic` cell's sampler index carries `nonuniformEXT`: always, except in

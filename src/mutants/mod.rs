@@ -51,28 +51,8 @@ pub fn site(spec: &ProbeSpec, m: Mutant, slots: u32) -> Result<Mutation, String>
     if spec.canary.is_some() {
         return Err("a canary has no probe".into());
     }
-    if spec.layout_textures() {
-        // The texture cells: a wrong texture element, which the reference predicts
-        // (`fetch_layout`: the table's element recorded, the rewritten element's texel read).
-        return match m {
-            Mutant::IndexZero => descriptor(spec, IndexFn::Zero),
-            Mutant::IndexNext => descriptor(spec, IndexFn::Next(slots)),
-            Mutant::IndexBroadcast
-            | Mutant::StrideDouble
-            | Mutant::BaseDropped
-            | Mutant::ElementZero
-            | Mutant::SamplerNext
-            | Mutant::TlasOther
-            | Mutant::ValueBits => Err("a scene-layout texture cell: the reference predicts only a wrong texture element (index-zero, index-next; not implemented)".into()),
-        };
-    }
     if spec.layout.is_some() {
-        // The reference predicts a scene-layout geometry cell's fetch unmutated (`fetch_layout`):
-        // a mutant there would be judged "equivalent" whatever the GPU did.
-        return Err(
-            "a scene-layout cell: the reference does not predict mutated fetches (not implemented)"
-                .into(),
-        );
+        return layout_site(spec, m, slots);
     }
     let samplers = crate::probe::SAMPLER_MODES.len() as u32;
     match m {
@@ -111,6 +91,30 @@ pub fn site(spec: &ProbeSpec, m: Mutant, slots: u32) -> Result<Mutation, String>
         Mutant::TlasOther => Err("the acceleration structure is not reached by address (index-* mutants rewrite its descriptor index)".into()),
         Mutant::ValueBits => Ok(Mutation::ValueBits),
     }
+}
+
+/// What mutant `m` rewrites in a scene-layout cell (`scene_layout`): the descriptor index of the
+/// array at binding 2 — the texture element of a texture cell, the mesh slot of a `per_mesh`
+/// cell — which the reference predicts (`fetch_layout`: the record keeps the index the cell
+/// computed, the fetch reads the rewritten texture, or the rewritten slot's mesh buffer, padded
+/// so that it reads in bounds: `scene::layout`). A `shared_buffers` geometry cell reads no
+/// descriptor; the other mutants have no prediction there.
+fn layout_site(spec: &ProbeSpec, m: Mutant, slots: u32) -> Result<Mutation, String> {
+    let to = match m {
+        Mutant::IndexZero => IndexFn::Zero,
+        Mutant::IndexNext => IndexFn::Next(slots),
+        Mutant::IndexBroadcast => IndexFn::Broadcast,
+        Mutant::StrideDouble => IndexFn::Doubled(slots),
+        Mutant::BaseDropped => return Err("a scene-layout cell adds no runtime base to its index".into()),
+        Mutant::ElementZero => return Err("not index=dynamic_element: no element offset inside one descriptor".into()),
+        Mutant::SamplerNext => return Err("no separate sampler index (the texture cells read combined samplers with texelFetch)".into()),
+        Mutant::TlasOther => return Err("a scene-layout cell reads no acceleration structure by address".into()),
+        Mutant::ValueBits => return Err("a scene-layout cell: the reference does not predict a corrupted fetched word (not implemented)".into()),
+    };
+    if spec.layout_textures() || spec.layout == Some(crate::model::SceneLayout::PerMesh) {
+        return Ok(Mutation::DescriptorIndex { heap: spec.array == ArrayAt::Heap, to });
+    }
+    Err("a shared_buffers geometry cell reads no descriptor: its buffers are reached by address through the SceneDesc (no mutant rewrites an address yet)".into())
 }
 
 /// The descriptor-index site of `spec`'s probe, rewritten with `to`.

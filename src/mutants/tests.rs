@@ -375,3 +375,59 @@ fn workaround_variants_keep_their_sites_or_say_why_not() {
     )
     .is_err());
 }
+
+/// The scene-layout cells: the texture cells' texture element and the `per_mesh` cells' mesh
+/// slot are rewritten at every access into binding 2 (a `per_mesh` fetch reads its buffer
+/// several times: each read goes to the same wrong buffer), broadcast included, each module
+/// valid; a `shared_buffers` geometry cell reads no descriptor, and the mutants without a
+/// prediction there say why.
+#[test]
+fn scene_layout_cells_rewrite_the_descriptor_they_select() {
+    use crate::model::SceneLayout;
+    let layout = |resource, nonuniform, l| Cell {
+        nonuniform,
+        scene_layout: Some(l),
+        ..cell(Stage::ClosestHit, resource, IndexSource::Dynamic)
+    };
+    let textures = layout(Resource::SampledImage, true, SceneLayout::SharedBuffers);
+    let per_mesh = layout(Resource::StorageBuffer, true, SceneLayout::PerMesh);
+    // the per_mesh texture cell: binding 2 holds its textures (the mesh buffers are at 3)
+    let per_mesh_textures = layout(Resource::SampledImage, true, SceneLayout::PerMesh);
+    let sites = |m: &Module| locate::descriptor_indices(m, false);
+    for (c, accesses) in [(&textures, 2), (&per_mesh, 8), (&per_mesh_textures, 2)] {
+        for m in
+            [Mutant::IndexZero, Mutant::IndexNext, Mutant::IndexBroadcast, Mutant::StrideDouble]
+        {
+            let got = mutated(c, m).unwrap();
+            assert_eq!(got.len(), 1, "{} {m:?}: only the triangles' closest-hit", c.id());
+            let (_, before, after) = &got[0];
+            let pairs = rewritten(before, after, sites);
+            assert!(pairs.len() >= accesses, "{} {m:?}: {} sites", c.id(), pairs.len());
+            assert_eq!(changed(before, after).len(), pairs.len(), "{} {m:?}", c.id());
+            if m == Mutant::IndexBroadcast {
+                for (old, new) in pairs {
+                    let d = def(after, new);
+                    assert_eq!(d.class.opcode, Op::GroupNonUniformBroadcastFirst);
+                    assert_eq!(edit::id_operand(d, 1), Some(old));
+                }
+            }
+        }
+        let spec = crate::probe::spec::ProbeSpec::of(c);
+        for m in [
+            Mutant::BaseDropped,
+            Mutant::ElementZero,
+            Mutant::SamplerNext,
+            Mutant::TlasOther,
+            Mutant::ValueBits,
+        ] {
+            assert!(site(&spec, m, SLOTS).is_err(), "{} {m:?}", c.id());
+        }
+    }
+    let shared = layout(Resource::StorageBuffer, false, SceneLayout::SharedBuffers);
+    let spec = crate::probe::spec::ProbeSpec::of(&shared);
+    let why = site(&spec, Mutant::IndexBroadcast, SLOTS).unwrap_err();
+    assert!(why.contains("reads no descriptor"), "{why}");
+    for m in Mutant::ALL {
+        assert!(site(&spec, *m, SLOTS).is_err(), "{m:?}");
+    }
+}

@@ -344,14 +344,16 @@ impl ProbeSpec {
 
     /// Whether the probe is a scene-layout texture cell: its closest-hit samples the hit
     /// primitive's material's base-colour texture from the descriptor array at binding 2
-    /// (`scene::textures`), after fetching the material through the layout.
+    /// (`scene::textures`), after fetching the material through the layout (`per_mesh`: the
+    /// mesh buffers at binding 3).
     pub fn layout_textures(&self) -> bool {
-        self.layout == Some(SceneLayout::SharedBuffers) && self.resource == Resource::SampledImage
+        self.layout.is_some() && self.resource == Resource::SampledImage
     }
 
-    /// Whether the probe reads the `shared_buffers` layout through its `SceneDesc` address.
+    /// Whether the probe reads its `SceneDesc` address: the `shared_buffers` layout, and the
+    /// material table of every texture cell.
     pub fn scene_desc(&self) -> bool {
-        self.layout == Some(SceneLayout::SharedBuffers)
+        self.layout == Some(SceneLayout::SharedBuffers) || self.layout_textures()
     }
 
     /// The SPIR-V workarounds applied to the compiled GLSL, in order: as-to-address for

@@ -233,6 +233,9 @@ struct Probed<'a> {
     buffer_disc: Vec<Option<bool>>,
     /// A mutant's mutation (`mutation`): what the mutated probe reads instead.
     mutation: Option<&'a mutation::Mutation>,
+    /// A mutated `per_mesh` cell's buffers, per mesh slot (`scene::layout::LayoutData::mesh_words`):
+    /// what a hit reads through a mutant's wrong slot; empty otherwise.
+    mesh_words: Vec<Vec<u32>>,
 }
 
 impl Probed<'_> {
@@ -302,12 +305,22 @@ impl Probed<'_> {
     /// A scene-layout closest-hit on triangle hit `h`, at mesh slot `slot`: the scene's own
     /// triangle (`scene::layout::fetch`), whichever layout it went through — so both layouts'
     /// records are the same. Every other triangle's data differs somewhere in its words (its
-    /// material index is its primitive entry's own), so the read discriminates.
+    /// material index is its primitive entry's own), so the read discriminates. A mutant's
+    /// rewritten descriptor index (`mutants::site`) reads another slot's mesh buffer
+    /// (`per_mesh`) or another texture element (texture cells); the record keeps the slot and
+    /// the element the cell computed.
     fn fetch_layout(&self, e: &mut Expected, slot: u32, (h, p): (intersect::Hit, usize)) {
         let Geometry::Mesh(mesh) = self.scene.instances[h.instance_id as usize].geometry else {
             return;
         };
-        let f = crate::scene::layout::fetch(self.scene, mesh, h.geometry, h.primitive);
+        let read = |index: u32| self.mutation.map_or(index, |m| m.read_slot(index, index, p));
+        let own = crate::scene::layout::fetch(self.scene, mesh, h.geometry, h.primitive);
+        let f = match self.mesh_words.get(read(slot) as usize) {
+            Some(w) if read(slot) != slot => {
+                crate::scene::layout::read_mesh_words(w, h.geometry, h.primitive).unwrap_or(own)
+            }
+            Some(_) | None => own,
+        };
         let rec = &mut e.record;
         rec.flags |= FLAG_PROBE | FLAG_LAYOUT;
         rec.slot = slot;
@@ -316,9 +329,7 @@ impl Probed<'_> {
         if self.spec.layout_textures() {
             // The texture cell samples the entry's material's texture (`scene::textures`); a
             // scene without textures never runs it (the executor refuses the cell).
-            // A mutant's rewritten element is read instead (`mutants::site`: index-zero, -next).
             if let Ok(t) = self.scene.textures.decoded() {
-                let read = |el: u32| self.mutation.map_or(el, |m| m.read_slot(el, el, p));
                 rec.value = t.fetch_read(f.material, h.primitive, read).value();
             }
         }
@@ -449,7 +460,8 @@ pub fn mutant_after_run(
     let from_lanes = mutation::broadcast(site);
     let subgroups = lanes::Lanes::for_stage(records, cell.stage);
     if from_lanes {
-        m.leader_slots = mutation::leader_slots(expected, &subgroups);
+        let textures = ProbeSpec::of(cell).layout_textures();
+        m.leader_slots = mutation::leader_slots(expected, (records, &subgroups), textures);
     }
     let mut mutated = expected_mutated(cell, scene, sref, undefined, &m);
     expect_lanes(&mut mutated, lanes);
@@ -468,7 +480,7 @@ pub fn mutant_before_run(
 ) -> crate::model::MutantPrediction {
     let expected = expected_with(cell, scene, sref, undefined);
     if mutation::broadcast(site) {
-        return mutation::one_slot(&expected);
+        return mutation::one_slot(&expected, ProbeSpec::of(cell).layout_textures());
     }
     let mutated = expected_mutated(cell, scene, sref, undefined, &mutation::Mutation::new(site));
     mutation::predict(&expected, &mutated, (None, None), scene.params.width)
@@ -487,8 +499,27 @@ fn expected_probed(
     let slots = probe::slot_count(spec.resource, scene.params.instances);
     let variants = probe::as_variants(scene.params.instances);
     let buffer_disc = vec![None; (slots * probe::ELEMENTS) as usize];
-    let mut probed =
-        Probed { spec, scene, sref, width: w, slots, variants, undefined, buffer_disc, mutation };
+    // A per_mesh geometry cell's mutant reads another slot's buffer (a texture cell's rewrites
+    // its texture element: binding 2 holds the textures there).
+    let per_mesh = spec.layout == Some(crate::model::SceneLayout::PerMesh);
+    let mesh_words = if per_mesh && !spec.layout_textures() && mutation.is_some() {
+        crate::scene::layout::LayoutData::new(scene)
+            .map_or(vec![], |d| (0..d.slot_mesh.len()).map(|s| d.mesh_words(scene, s)).collect())
+    } else {
+        vec![]
+    };
+    let mut probed = Probed {
+        spec,
+        scene,
+        sref,
+        width: w,
+        slots,
+        variants,
+        undefined,
+        buffer_disc,
+        mutation,
+        mesh_words,
+    };
     out.clear();
     out.reserve(scene.params.pixels());
     for y in 0..h {

@@ -88,15 +88,45 @@ impl Mutation {
     }
 }
 
-/// Per pixel, the slot its subgroup's first active lane computed (what `subgroupBroadcastFirst`
-/// of the index hands every lane): the expected slot of its leader pixel, read from the device's
-/// lane evidence (`lanes`: where the pixel's record carries consistent evidence and its leader
-/// is a probe pixel).
-pub fn leader_slots(expected: &[Expected], lanes: &Lanes) -> Vec<Option<u32>> {
+/// The descriptor index pixel `p`'s probe selects with, as a broadcast hands it on: a texture
+/// cell's texture element where its hit's material has a texture (`None` without: that lane
+/// takes the untextured branch and reads no texture), else the slot (`None`: no probe).
+pub fn selecting_index(e: &Expected, textures: bool) -> Option<u32> {
+    if e.record.flags & FLAG_PROBE == 0 {
+        return None;
+    }
+    if !textures {
+        return Some(e.record.slot);
+    }
+    let element = e.record.value[2];
+    (element >= 0.0).then_some(element as u32)
+}
+
+/// Per pixel, the index its subgroup's first active lane computed (what `subgroupBroadcastFirst`
+/// of the index hands every lane), read from the device's lane evidence (`lanes`, from the
+/// device's `records`). Where the index is read on every probe lane (`textures` false) that is
+/// the slot of the pixel's leader (where its record carries consistent evidence and its leader
+/// is a probe pixel). A texture cell reads its texture inside the branch its textured lanes
+/// take (`scene::textures::BODY`), so there the first active lane is the textured member of the
+/// pixel's subgroup with the lowest lane, known only where the records show the whole subgroup.
+pub fn leader_slots(
+    expected: &[Expected],
+    (records, lanes): (&[Record], &Lanes),
+    textures: bool,
+) -> Vec<Option<u32>> {
     (0..expected.len())
         .map(|p| {
-            let leader = expected.get(lanes.leader(p)?)?;
-            (leader.record.flags & FLAG_PROBE != 0).then_some(leader.record.slot)
+            if !textures {
+                let leader = expected.get(lanes.leader(p)?)?;
+                return (leader.record.flags & FLAG_PROBE != 0).then_some(leader.record.slot);
+            }
+            selecting_index(expected.get(p)?, true)?;
+            let first = lanes
+                .subgroup(p)?
+                .iter()
+                .filter(|&&q| selecting_index(&expected[q], true).is_some())
+                .min_by_key(|&&q| records.get(q).map_or(u32::MAX, |r| r.lane))?;
+            selecting_index(&expected[*first], true)
         })
         .collect()
 }
@@ -151,14 +181,16 @@ pub fn broadcast(site: Site) -> bool {
     )
 }
 
-/// A broadcast's prediction before the run: every checked probe pixel whose slot is not the
-/// first one's may read another slot (0: all compute the same slot, the broadcast is equivalent).
-pub fn one_slot(expected: &[Expected]) -> MutantPrediction {
-    let mut slots = expected
-        .iter()
-        .filter(|e| !e.ambiguous && e.record.flags & FLAG_PROBE != 0)
-        .map(|e| e.record.slot);
+/// A broadcast's prediction before the run: every checked probe pixel whose selecting index
+/// ([`selecting_index`]) is not the first one's may read another descriptor (0: all compute the
+/// same index, the broadcast is equivalent: the scene's data cannot discriminate it).
+pub fn one_slot(expected: &[Expected], textures: bool) -> MutantPrediction {
+    let mut slots =
+        expected.iter().filter(|e| !e.ambiguous).filter_map(|e| selecting_index(e, textures));
     let first = slots.next();
     let differing = slots.filter(|s| Some(*s) != first).count();
     MutantPrediction { differing, caught: differing, caught_by_heuristic: 0, from_lanes: true }
 }
+
+#[cfg(test)]
+mod tests;

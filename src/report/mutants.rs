@@ -124,7 +124,7 @@ pub fn schedule(
                 Err(why) => decided.push(entry(&c.cell, m, MutantStatus::NoTarget, why)),
                 Ok(p) if !p.applicable() => decided.push(MutantEntry {
                     prediction: Some(p),
-                    ..entry(&c.cell, m, MutantStatus::Equivalent, "the reference predicts the same records on every checked pixel")
+                    ..entry(&c.cell, m, MutantStatus::Equivalent, equivalent_why(m))
                 }),
                 Ok(_) if c.outcome != Outcome::Pass => decided.push(entry(&c.cell, m, MutantStatus::NotRun, format!("the cell itself did not pass ({}): a kill could not be told from its own fault", c.outcome.as_str()))),
                 Ok(_) if !supported(&mc) => decided.push(entry(&c.cell, m, MutantStatus::NotRun, unsupported_why(m, &c.cell))),
@@ -144,6 +144,23 @@ pub fn schedule(
         decided.retain(|e| kept.contains(&e.cell));
     }
     (run, decided)
+}
+
+/// Why mutant `m` is equivalent before the run: for a broadcast, the cell's data select one
+/// descriptor index on every checked pixel, so lane 0's index for all lanes cannot be told from
+/// each lane's own (undiscriminating here, never counted killed).
+fn equivalent_why(m: Mutant) -> &'static str {
+    match m {
+        Mutant::IndexBroadcast => "undiscriminating: every checked pixel selects the same descriptor index, so lane 0's index for all lanes reads what each lane reads (the scene's data cannot tell this mutant apart)",
+        Mutant::IndexZero
+        | Mutant::IndexNext
+        | Mutant::BaseDropped
+        | Mutant::ElementZero
+        | Mutant::StrideDouble
+        | Mutant::SamplerNext
+        | Mutant::TlasOther
+        | Mutant::ValueBits => "the reference predicts the same records on every checked pixel",
+    }
 }
 
 /// Why the device cannot run mutant `m` on `cell` (its support is `caps::support::mutant`'s).
@@ -207,7 +224,7 @@ pub fn verdict(
         MutantStatus::Survived if probe_defect => format!("PROBE DEFECT: the reference predicts {} of {} differing pixels the comparison must flag, and it flagged none", prediction.caught_exactly(), prediction.differing),
         MutantStatus::Survived if prediction.caught_by_heuristic > 0 => format!("allowed: the spec leaves this read undefined ({}), and the mutated read too (no NonUniform on it either): a per-lane read of it would be caught on {} of {} differing pixels, but the driver may read through any lane's index, and rtprobe's lenient rule (an index another lane of the subgroup computed) accepted what it read", allowed_by.as_deref().unwrap_or(""), prediction.caught_by_heuristic, prediction.differing),
         MutantStatus::Survived => format!("allowed: the spec leaves this read undefined ({}); rtprobe's lenient rule for it (an index another lane computed) accepts what the mutant read on all {} differing pixels", allowed_by.as_deref().unwrap_or(""), prediction.differing),
-        MutantStatus::Equivalent => "the device's lane evidence shows every subgroup computed one slot: the reference predicts the same records".into(),
+        MutantStatus::Equivalent => "undiscriminating: the device's lane evidence shows every subgroup computed one descriptor index, so the reference predicts the same records".into(),
         MutantStatus::Killed
         | MutantStatus::Fault
         | MutantStatus::NotRun

@@ -10,7 +10,10 @@
 //! mesh's first `PrimMeshInfo`; a `SceneDesc` holds the four buffers' device addresses, then the
 //! material table's (`scene::textures`; 0 until a texture cell needs it).
 //! `per_mesh` keeps one storage buffer per mesh slot in a descriptor array (binding 2), each
-//! with the mesh's own header, indices, primitive table and positions ([`LayoutData::mesh_words`]).
+//! with the mesh's own header, indices, primitive table and positions ([`LayoutData::mesh_words`]),
+//! padded so that a hit on any mesh's (geometry, primitive) reads inside every slot's buffer: a
+//! mutant's wrong buffer (`run --mutants`: index-zero, -next, -broadcast, stride-double) reads
+//! another mesh's data in bounds, which the reference predicts ([`read_mesh_words`]).
 //!
 //! Both are selected by the hit's custom index as the matrix's dynamic cells select a slot:
 //! slot `DYNAMIC_BASE + (custom & dyn_mask)` ([`crate::probe::dynamic_slot`]). The matrix's
@@ -99,6 +102,10 @@ pub struct LayoutData {
     first_entry: Vec<u32>,
     first_vertex: Vec<u32>,
     first_index: Vec<u32>,
+    /// The most BLAS geometries of any mesh, and the most triangles of any geometry: what a hit
+    /// read through another slot's buffer can index ([`LayoutData::mesh_words`]'s padding).
+    most_geometries: u32,
+    most_triangles: u32,
 }
 
 fn words_bytes(words: impl IntoIterator<Item = u32>) -> Vec<u8> {
@@ -130,11 +137,19 @@ impl LayoutData {
             v += m.positions.len() as u32;
             i += 3 * m.indices.len() as u32;
         }
+        let geometries = scene.meshes.iter().flat_map(|m| m.geometries.iter());
         Ok(LayoutData {
             slot_mesh: slot_mesh.into_iter().map(|s| s.map(|(_, m)| m)).collect(),
             first_entry: first_entries(scene),
             first_vertex,
             first_index,
+            most_geometries: scene
+                .meshes
+                .iter()
+                .map(|m| m.geometries.len() as u32)
+                .max()
+                .unwrap_or(0),
+            most_triangles: geometries.map(|r| r.end - r.start).max().unwrap_or(0),
         })
     }
 
@@ -177,16 +192,27 @@ impl LayoutData {
 
     /// `per_mesh`'s buffer of slot `slot`, as words: `[positions offset, primitive table offset]`,
     /// the mesh's indices, its primitive table (`[first index after the header, material]` per
-    /// geometry), its positions' bits.
+    /// geometry), its positions' bits. Padded for a hit on another mesh read through this buffer
+    /// (a mutant's wrong descriptor): the table up to the most geometries of any mesh (entries
+    /// `[0, material of the mesh's first entry]`), the indices with zeros up to the last
+    /// geometry's start plus the most triangles of any geometry, so every word such a hit reads
+    /// lies inside the buffer and every index read is a vertex of this mesh.
     pub fn mesh_words(&self, scene: &Scene, slot: usize) -> Vec<u32> {
         let m = self.held(scene, slot);
         let mesh = &scene.meshes[m];
-        let table = MESH_HEADER_WORDS + 3 * mesh.indices.len() as u32;
-        let positions = table + MESH_PRIM_WORDS * mesh.geometries.len() as u32;
+        let last_start = mesh.geometries.iter().map(|r| r.start).max().unwrap_or(0);
+        let index_words = 3 * (mesh.indices.len() as u32).max(last_start + self.most_triangles);
+        let table = MESH_HEADER_WORDS + index_words;
+        let entries = self.most_geometries.max(mesh.geometries.len() as u32);
+        let positions = table + MESH_PRIM_WORDS * entries;
         let mut w = vec![positions, table];
         w.extend(mesh.indices.iter().flatten());
+        w.resize(table as usize, 0);
         for (g, range) in mesh.geometries.iter().enumerate() {
             w.extend([3 * range.start, material(self.first_entry[m] + g as u32)]);
+        }
+        while w.len() < positions as usize {
+            w.extend([0, material(self.first_entry[m])]);
         }
         w.extend(mesh.positions.iter().flatten().map(|f| f.to_bits()));
         w
@@ -209,11 +235,16 @@ uvec3 probeTri = uvec3(sceneIndices.w[firstIndex], sceneIndices.w[firstIndex + 1
 ScenePositions scenePositions = ScenePositions(sceneDesc.positions);\n    \
 vec4 probeValue = vec4(scenePositions.p[3u * (vertexOffset + probeTri.x)], scenePositions.p[3u * (vertexOffset + probeTri.y) + 1u], scenePositions.p[3u * (vertexOffset + probeTri.z) + 2u], float(materialIndex));\n";
 
-/// The GLSL of a `per_mesh` fetch: declarations, and statements that read the hit triangle from
-/// mesh buffer `meshes[SUB]` (`SUB`: the descriptor index expression), defining `uvec3 probeTri`
-/// and `vec4 probeValue` (the CPU twin: [`read_per_mesh`]).
-pub const PER_MESH_DECLS: &str =
-    "layout(set = 0, binding = 2, std430) readonly buffer MeshData { uint w[]; } meshes[];\n";
+/// The GLSL of a `per_mesh` fetch: declarations (the mesh buffers at `binding`: 2, or 3 in a
+/// texture cell, whose textures are at 2), and statements that read the hit triangle from mesh
+/// buffer `meshes[SUB]` (`SUB`: the descriptor index expression), defining `uvec3 probeTri`,
+/// `uint materialIndex` and `vec4 probeValue` (the CPU twin: [`read_per_mesh`]).
+pub fn per_mesh_decls(binding: u32) -> String {
+    format!("layout(set = 0, binding = {binding}, std430) readonly buffer MeshData {{ uint w[]; }} meshes[];\n")
+}
+
+/// The binding of a texture cell's mesh buffers (`per_mesh`): after the textures at 2.
+pub const TEXTURE_CELL_MESH_BINDING: u32 = 3;
 
 pub fn per_mesh_body(sub: &str) -> String {
     format!(
@@ -250,18 +281,29 @@ pub fn read_shared(
 }
 
 /// What [`per_mesh_body`] reads from slot `slot`'s buffer for a hit on (geometry, primitive),
-/// emulated on the CPU.
+/// emulated on the CPU (`None`: a read outside the buffer, [`read_mesh_words`]).
 pub fn read_per_mesh(
     d: &LayoutData,
     scene: &Scene,
     (slot, geometry, primitive): (u32, u32, u32),
-) -> Fetched {
-    let w = d.mesh_words(scene, slot as usize);
-    let prim = (w[1] + MESH_PRIM_WORDS * geometry) as usize;
-    let first = (MESH_HEADER_WORDS + w[prim] + 3 * primitive) as usize;
-    let indices = [w[first], w[first + 1], w[first + 2]];
-    let coords = [0, 1, 2].map(|k| f32::from_bits(w[(w[0] + 3 * indices[k]) as usize + k]));
-    Fetched { indices, coords, material: w[prim + 1] }
+) -> Option<Fetched> {
+    read_mesh_words(&d.mesh_words(scene, slot as usize), geometry, primitive)
+}
+
+/// What [`per_mesh_body`] reads from a mesh buffer's words `w` ([`LayoutData::mesh_words`]) for
+/// a hit on (geometry, primitive); `None` where a word it reads lies outside `w` (never for a
+/// hit on one of the scene's meshes: the buffers are padded for it).
+pub fn read_mesh_words(w: &[u32], geometry: u32, primitive: u32) -> Option<Fetched> {
+    let at = |k: u32| w.get(k as usize).copied();
+    let prim = at(1)? + MESH_PRIM_WORDS * geometry;
+    let first = MESH_HEADER_WORDS + at(prim)? + 3 * primitive;
+    let indices = [at(first)?, at(first + 1)?, at(first + 2)?];
+    let positions = at(0)?;
+    let mut coords = [0.0; 3];
+    for k in 0..3 {
+        coords[k] = f32::from_bits(at(positions + 3 * indices[k] + k as u32)?);
+    }
+    Some(Fetched { indices, coords, material: at(prim + 1)? })
 }
 
 #[cfg(test)]

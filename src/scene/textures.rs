@@ -251,7 +251,8 @@ impl Textured {
     }
 }
 
-/// The GLSL of the texture read, after a `shared_buffers` fetch (which defines `materialIndex`):
+/// The GLSL of the texture read, after either layout's fetch (which defines `materialIndex`; the
+/// `per_mesh` one after `SceneDesc sceneDesc`, for the material table's address):
 /// the material table's element, `nonuniformEXT`, `texelFetch` at the primitive's texel.
 pub const DECLS: &str = "layout(set = 0, binding = 2) uniform sampler2D sceneTex[];\n";
 

@@ -278,8 +278,21 @@ impl ProbeCode {
                 extensions.extend(["GL_EXT_buffer_reference", "GL_EXT_buffer_reference_uvec2"]);
                 (layout::SHARED_DECLS.into(), layout::SHARED_BODY.to_string(), false)
             }
+            SceneLayout::PerMesh if spec.layout_textures() => {
+                // The material read through the mesh buffers (binding 3), its texture element
+                // from the SceneDesc's material table, the texture from binding 2.
+                extensions.extend(["GL_EXT_buffer_reference", "GL_EXT_buffer_reference_uvec2"]);
+                let meshes = layout::per_mesh_decls(layout::TEXTURE_CELL_MESH_BINDING);
+                let decls = format!("{}{meshes}{}", layout::SHARED_DECLS, textures::DECLS);
+                let fetch = format!(
+                    "    SceneDesc sceneDesc = SceneDesc(pc.sceneDesc);\n{}{}",
+                    layout::per_mesh_body("nonuniformEXT(probeSlot)"),
+                    textures::BODY
+                );
+                (decls, fetch, true)
+            }
             SceneLayout::PerMesh => (
-                layout::PER_MESH_DECLS.into(),
+                layout::per_mesh_decls(2),
                 layout::per_mesh_body(&descriptor_expr(spec, "probeSlot")),
                 true,
             ),

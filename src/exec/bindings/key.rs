@@ -17,7 +17,7 @@ pub struct LayoutKey {
     /// (`resources::ResourceArray::targets`).
     pub packed: bool,
     /// `scene_layout=per_mesh`: binding 2 holds the mesh buffers (`layout_buffers`), not the
-    /// probe resources.
+    /// probe resources; in a texture cell (`textures`) binding 3 holds them.
     pub per_mesh: bool,
     /// A `scene_layout` texture cell: binding 2 holds the scene's textures (`layout_textures`).
     pub textures: bool,

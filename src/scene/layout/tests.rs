@@ -25,7 +25,7 @@ fn both_layouts_read_the_scenes_own_triangles() {
     for &(slot, m, g, p) in &all {
         let truth = fetch(&scene, m, g, p);
         assert_eq!(read_shared(&d, &scene, (slot, g, p)), truth);
-        assert_eq!(read_per_mesh(&d, &scene, (slot, g, p)), truth);
+        assert_eq!(read_per_mesh(&d, &scene, (slot, g, p)), Some(truth));
     }
 }
 
@@ -43,7 +43,7 @@ fn twins_read_other_data() {
     // The wrong mesh's descriptor: the next slot.
     let next_slot = differs(&|s, _, g, p| {
         let n = (s + 1) % slots;
-        (p < 3).then(|| read_per_mesh(&d, &scene, (n, g, p)))
+        Some(read_per_mesh(&d, &scene, (n, g, p)).expect("padded: in bounds"))
     });
     // The wrong element: the next primitive of the same geometry.
     let next_prim = differs(&|s, m, g, p| {
@@ -60,6 +60,47 @@ fn twins_read_other_data() {
         next_slot > 0 && next_prim > 0 && next_entry > 0,
         "{next_slot} {next_prim} {next_entry}"
     );
+}
+
+/// A mutant's wrong descriptor reads another slot's buffer: for a hit on any mesh's (geometry,
+/// primitive), every slot's buffer holds every word the fetch reads (the padding), and the
+/// indices it reads are vertices of the buffer's own mesh; the twin: the unpadded words (the
+/// mesh's own data only) leave some such read outside.
+#[test]
+fn every_slots_buffer_holds_every_hits_reads() {
+    let scene = Scene::build(&SceneParams::default());
+    let d = LayoutData::new(&scene).unwrap();
+    let (mut reads, mut outside_unpadded) = (0, 0);
+    for slot in 0..d.slot_mesh.len() {
+        let w = d.mesh_words(&scene, slot);
+        let own = &scene.meshes[d.held(&scene, slot)];
+        let unpadded = unpadded_words(&scene, &d, slot);
+        for mesh in &scene.meshes {
+            for (g, r) in mesh.geometries.iter().enumerate() {
+                for p in 0..r.end - r.start {
+                    let f = read_mesh_words(&w, g as u32, p);
+                    let f = f.unwrap_or_else(|| panic!("slot {slot}: ({g}, {p}) read outside"));
+                    assert!(f.indices.iter().all(|&i| (i as usize) < own.positions.len()));
+                    reads += 1;
+                    outside_unpadded += read_mesh_words(&unpadded, g as u32, p).is_none() as usize;
+                }
+            }
+        }
+    }
+    assert!(reads > 1000 && outside_unpadded > 0, "{reads} reads, {outside_unpadded} need padding");
+}
+
+/// Slot `slot`'s buffer without the padding: header, the mesh's indices, table, positions.
+fn unpadded_words(scene: &Scene, d: &LayoutData, slot: usize) -> Vec<u32> {
+    let mesh = &scene.meshes[d.held(scene, slot)];
+    let table = 2 + 3 * mesh.indices.len() as u32;
+    let mut w = vec![table + 2 * mesh.geometries.len() as u32, table];
+    w.extend(mesh.indices.iter().flatten());
+    let padded = d.mesh_words(scene, slot);
+    let (t, pos) = (padded[1] as usize, padded[0] as usize);
+    w.extend(&padded[t..t + 2 * mesh.geometries.len()]);
+    w.extend(&padded[pos..]);
+    w
 }
 
 #[test]
