@@ -59,32 +59,59 @@ pub struct Texture {
 }
 
 /// Image `index` of `document`, decoded (PNG or JPEG, from a file beside the scene, a data URI or
-/// a buffer view) and converted to RGBA8; a failure names the image as the file does
-/// (`images[N]` and its URI or buffer view, [`describe`]) and what to do.
+/// a buffer view: [`super::uri`], [`super::pixels`]) and converted to RGBA8; a failure names the
+/// image as the file does (`images[N]` and its URI or buffer view, [`describe`]) and what to do.
 pub(super) fn decode(
     path: &Path,
     document: &gltf::Document,
-    buffers: &[gltf::buffer::Data],
+    buffers: &[Vec<u8>],
     index: usize,
 ) -> Result<Texture, LoadError> {
     let image = document.images().nth(index).ok_or_else(|| {
         LoadError::part(path, format!("images[{index}]"), "no such image in the file")
     })?;
     let part = describe(&image);
-    let base = path.parent().unwrap_or(Path::new("."));
-    let data = gltf::image::Data::from_source(image.source(), Some(base), buffers)
-        .map_err(|e| LoadError::part(path, &part, why_not(&e)))?;
-    let rgba8 = to_rgba8(&data).ok_or_else(|| {
-        LoadError::part(
-            path,
-            &part,
-            format!(
-                "format {:?}; rtprobe reads 8- and 16-bit images: export it as an 8-bit PNG or JPEG",
-                data.format
-            ),
-        )
-    })?;
-    Ok(Texture { width: data.width, height: data.height, rgba8 })
+    let fail = |why: String| LoadError::part(path, &part, why);
+    let bytes = match image.source() {
+        gltf::image::Source::View { view, mime_type } => {
+            declared(Some(mime_type), None).map_err(fail)?;
+            let b = buffers.get(view.buffer().index()).map_or(&[][..], |b| &b[..]);
+            let range = view.offset()..view.offset() + view.length();
+            b.get(range)
+                .ok_or_else(|| {
+                    fail("its bufferView runs past its buffer; export the scene again".into())
+                })?
+                .to_vec()
+        }
+        gltf::image::Source::Uri { uri, mime_type } => {
+            declared(mime_type, Some(uri)).map_err(fail)?;
+            let base = path.parent().unwrap_or(Path::new("."));
+            super::uri::read(base, uri, "image").map_err(fail)?
+        }
+    };
+    super::pixels::decode(&bytes).map_err(fail)
+}
+
+/// What the file declares the image to be — its `mimeType`, else its file URI's extension — is
+/// PNG or JPEG (glTF 2.0, `image.mimeType`: "image/jpeg" or "image/png"), or nothing is declared.
+fn declared(mime: Option<&str>, uri: Option<&str>) -> Result<(), String> {
+    let refuse = |what: String| {
+        Err(format!("unsupported image encoding ({what}); rtprobe reads PNG and JPEG base-colour images: convert it to PNG"))
+    };
+    match mime {
+        Some("image/png" | "image/jpeg") => return Ok(()),
+        Some(other) => return refuse(format!("mimeType {other}")),
+        None => {}
+    }
+    let ext = uri
+        .filter(|u| !u.starts_with("data:"))
+        .and_then(|u| u.rsplit_once('.'))
+        .map(|(_, e)| e.to_ascii_lowercase())
+        .filter(|e| !e.contains('/'));
+    match ext.as_deref() {
+        None | Some("png" | "jpg" | "jpeg") => Ok(()),
+        Some(e) => refuse(format!("extension .{e}")),
+    }
 }
 
 /// How the file names image `image`: `images[N] (uri "…")` (a data URI cut short) or
@@ -101,54 +128,4 @@ pub fn describe(image: &gltf::Image) -> String {
             format!("images[{n}] (bufferView {}, {mime_type})", view.index())
         }
     }
-}
-
-/// Why an image's bytes do not decode, and what to do, in one line.
-fn why_not(e: &gltf::Error) -> String {
-    let first = super::error::one_line(e);
-    match e {
-        gltf::Error::Io(_) => format!(
-            "cannot read the image file: {first}; put it beside the .gltf file (the uri is relative to it) or fix the uri"
-        ),
-        gltf::Error::UnsupportedImageEncoding => format!(
-            "{first} (neither the mimeType nor the uri's extension says PNG or JPEG); rtprobe reads PNG and JPEG base-colour images: convert it to PNG"
-        ),
-        gltf::Error::Image(_) => {
-            format!("does not decode: {first}; export the image again as PNG or JPEG")
-        }
-        _ => format!("{first}; give a PNG or JPEG image by a relative uri, a data URI or a bufferView"),
-    }
-}
-
-fn to_rgba8(d: &gltf::image::Data) -> Option<Vec<u8>> {
-    use gltf::image::Format as F;
-    let px = &d.pixels;
-    let (channels, wide) = match d.format {
-        F::R8 => (1, false),
-        F::R8G8 => (2, false),
-        F::R8G8B8 => (3, false),
-        F::R8G8B8A8 => (4, false),
-        F::R16 => (1, true),
-        F::R16G16 => (2, true),
-        F::R16G16B16 => (3, true),
-        F::R16G16B16A16 => (4, true),
-        F::R32G32B32FLOAT | F::R32G32B32A32FLOAT => return None,
-    };
-    let step = if wide { 2 } else { 1 };
-    // 16-bit channels are native-endian u16s: their high byte is the 8-bit value.
-    let byte =
-        |i: usize| if wide { (u16::from_ne_bytes([px[i], px[i + 1]]) >> 8) as u8 } else { px[i] };
-    let texels = px.len() / (channels * step);
-    let mut out = Vec::with_capacity(texels * 4);
-    for t in 0..texels {
-        let c = |k: usize| byte((t * channels + k) * step);
-        let rgba = match channels {
-            1 => [c(0), c(0), c(0), 255],
-            2 => [c(0), c(0), c(0), c(1)],
-            3 => [c(0), c(1), c(2), 255],
-            _ => [c(0), c(1), c(2), c(3)],
-        };
-        out.extend(rgba);
-    }
-    Some(out)
 }

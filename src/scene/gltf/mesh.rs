@@ -60,7 +60,7 @@ struct Read {
 pub(super) fn read(
     path: &Path,
     mesh: &gltf::Mesh,
-    buffers: &[gltf::buffer::Data],
+    buffers: &[Vec<u8>],
 ) -> Result<LoadedMesh, LoadError> {
     let name = mesh.name().map_or_else(
         || format!("mesh {}", mesh.index()),
@@ -99,7 +99,7 @@ fn read_primitive(
     path: &Path,
     part: &str,
     p: &gltf::Primitive,
-    buffers: &[gltf::buffer::Data],
+    buffers: &[Vec<u8>],
 ) -> Result<Read, LoadError> {
     if p.mode() != gltf::mesh::Mode::Triangles {
         return Err(LoadError::part(
@@ -108,7 +108,7 @@ fn read_primitive(
             format!("mode {:?}, not triangles; triangulate it when exporting (ray tracing needs triangles)", p.mode()),
         ));
     }
-    let reader = p.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+    let reader = p.reader(|b| buffers.get(b.index()).map(|d| &d[..]));
     let positions: Vec<[f32; 3]> = reader
         .read_positions()
         .ok_or_else(|| {

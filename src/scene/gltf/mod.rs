@@ -12,6 +12,8 @@ pub mod material;
 pub mod mesh;
 pub mod nodes;
 mod open;
+mod pixels;
+mod uri;
 
 pub use error::LoadError;
 pub use material::{Alpha, Material, Texture};
@@ -31,7 +33,7 @@ pub struct Loaded {
     /// Images in the document (decoded only by [`Loaded::decode_image`]).
     pub images: usize,
     document: gltf::Document,
-    buffers: Vec<gltf::buffer::Data>,
+    buffers: Vec<Vec<u8>>,
 }
 
 impl Loaded {

@@ -1,13 +1,13 @@
 //! Opening a glTF file: the JSON (or GLB) read without validation first, so that an unsupported
 //! `extensionsRequired` entry (any: rtprobe reads none) is named in rtprobe's own words, then validated by the `gltf`
-//! crate, then its buffers (`.bin` files, data URIs, the GLB blob) read. Images are not touched
+//! crate, then its buffers (`.bin` files, data URIs, the GLB blob) read (`uri`). Images are not touched
 //! here: each is decoded only when a cell needs it ([`super::Loaded::decode_image`]).
 use super::error::{one_line, LoadError};
 use std::path::Path;
 
 pub(super) struct Opened {
     pub document: gltf::Document,
-    pub buffers: Vec<gltf::buffer::Data>,
+    pub buffers: Vec<Vec<u8>>,
 }
 
 pub(super) fn open(path: &Path) -> Result<Opened, LoadError> {
@@ -30,27 +30,39 @@ pub(super) fn open(path: &Path) -> Result<Opened, LoadError> {
     Ok(Opened { document, buffers })
 }
 
-/// Each buffer's bytes, or one line naming the buffer that could not be read.
+/// Each buffer's bytes (the GLB blob, a data URI or a file beside the scene: [`super::uri`]), at
+/// least its `byteLength`, or one line naming the buffer that could not be read.
 fn read_buffers(
     path: &Path,
     document: &gltf::Document,
     base: &Path,
-    blob: Option<Vec<u8>>,
-) -> Result<Vec<gltf::buffer::Data>, LoadError> {
-    gltf::import_buffers(document, Some(base), blob).map_err(|e| {
-        let which = match &e {
-            gltf::Error::BufferLength { buffer, expected, actual } => {
-                return LoadError::part(
-                    path,
-                    format!("buffer {buffer}"),
-                    format!("{actual} bytes where the file says {expected}; the .bin file is truncated or another one"),
-                )
+    mut blob: Option<Vec<u8>>,
+) -> Result<Vec<Vec<u8>>, LoadError> {
+    let mut out = Vec::new();
+    for b in document.buffers() {
+        let part = format!("buffer {}", b.index());
+        let data = match b.source() {
+            gltf::buffer::Source::Bin => blob.take().ok_or_else(|| {
+                LoadError::part(path, &part, "refers to the GLB binary chunk, which is missing or used twice; export the scene again")
+            })?,
+            gltf::buffer::Source::Uri(uri) => {
+                super::uri::read(base, uri, "buffer").map_err(|e| LoadError::part(path, &part, e))?
             }
-            gltf::Error::Io(_) => "a buffer's file",
-            _ => "a buffer",
         };
-        LoadError::part(path, which, format!("{}; put the buffers beside the .gltf file", one_line(&e)))
-    })
+        if data.len() < b.length() {
+            return Err(LoadError::part(
+                path,
+                part,
+                format!(
+                    "{} bytes where the file says {}; the .bin file is truncated or another one",
+                    data.len(),
+                    b.length()
+                ),
+            ));
+        }
+        out.push(data);
+    }
+    Ok(out)
 }
 
 /// Every primitive's POSITION accessor exists: gltf-json 1.4.1's validation indexes the
