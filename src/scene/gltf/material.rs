@@ -1,6 +1,7 @@
 //! Materials (base colour factor and texture, `alphaMode`) and the one image a cell needs,
 //! decoded on demand into RGBA8: `gltf::import` would decode every image of the file.
 use super::error::LoadError;
+pub use super::pixels::Texture;
 use std::path::Path;
 
 /// glTF's `alphaMode`: MASK and BLEND make a primitive's geometry non-opaque, so any-hit
@@ -48,14 +49,6 @@ pub(super) fn read(m: &gltf::Material) -> Material {
         emissive: m.emissive_factor(),
         alpha,
     }
-}
-
-/// An image decoded to 8-bit RGBA.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Texture {
-    pub width: u32,
-    pub height: u32,
-    pub rgba8: Vec<u8>,
 }
 
 /// Image `index` of `document`, decoded (PNG or JPEG, from a file beside the scene, a data URI or

@@ -2,7 +2,14 @@
 //! `tRNS` expanded, 16-bit channels cut to their high byte), JPEG with `zune-jpeg` (output as
 //! RGBA); the two formats glTF 2.0's core allows (`image/png`, `image/jpeg`), told apart by their
 //! signatures rather than by a MIME type or file extension, which exporters get wrong.
-use super::material::Texture;
+
+/// An image decoded to 8-bit RGBA.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Texture {
+    pub width: u32,
+    pub height: u32,
+    pub rgba8: Vec<u8>,
+}
 
 const PNG: &[u8] = b"\x89PNG\r\n\x1a\n";
 const JPEG: &[u8] = b"\xff\xd8\xff";

@@ -22,7 +22,7 @@ pub(super) fn read(base: &Path, uri: &str, what: &str) -> Result<Vec<u8>, String
     let path = path_of(base, uri)?;
     std::fs::read(&path).map_err(|e| {
         format!(
-            "cannot read the {what} file {}: {e}; put it beside the .gltf file (the URI is relative to it) or fix the URI",
+            "cannot read the {what} file {}: {e}; put the {what}s beside the .gltf file (URIs are relative to it) or fix the URI",
             path.display()
         )
     })
@@ -73,7 +73,8 @@ mod tests {
         assert_eq!(read(d.path(), "a%20b.bin", "buffer").unwrap(), [7, 7, 7]);
         let missing = read(d.path(), "gone.bin", "buffer").unwrap_err();
         assert!(
-            missing.contains("gone.bin") && missing.contains("beside the .gltf file"),
+            missing.contains("gone.bin")
+                && missing.contains("put the buffers beside the .gltf file"),
             "{missing}"
         );
         assert!(read(d.path(), "https://example.com/a.bin", "buffer")
