@@ -234,3 +234,37 @@ fn find_u64(v: &Value, key: &str) -> Option<u64> {
         _ => None,
     }
 }
+
+/// A scene whose materials have no base-colour texture: the texture cells are counted in the plan
+/// as not run, with the reason, and the verdict says how many did not run (before, the worker
+/// found it and the verdict said every planned cell ran); the geometry cells pass.
+#[test]
+fn a_scene_without_textures_counts_its_texture_cells_as_not_run_with_why() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, mut doc) = made_scene(dir.path());
+    for m in doc["materials"].as_array_mut().unwrap() {
+        m["pbrMetallicRoughness"].as_object_mut().unwrap().remove("baseColorTexture");
+    }
+    for k in ["textures", "images", "samplers"] {
+        doc.as_object_mut().unwrap().remove(k);
+    }
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let report = dir.path().join("r.json");
+    let (p, r) = (path.to_str().unwrap(), report.to_str().unwrap());
+    let o =
+        run(&["run", "--scene", p, "--filter", "scene_layout=shared_buffers|per_mesh", "-o", r]);
+    assert_eq!(o.status.code(), Some(0), "{}\n{}", stdout(&o), stderr(&o));
+    let out = stdout(&o);
+    assert!(out.contains("(4 to run, 0 unsupported, 4 not implemented in rtprobe)"), "{out}");
+    assert!(out.contains("4 planned cells did not run"), "{out}");
+    let rep: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    let cells = rep["cells"].as_array().unwrap();
+    let textures: Vec<&Value> =
+        cells.iter().filter(|c| c["id"].as_str().unwrap().contains("sampled_image")).collect();
+    assert_eq!(textures.len(), 4);
+    for c in &textures {
+        assert_eq!(c["outcome"], "not_implemented", "{c}");
+        assert!(c["reason"].as_str().unwrap().contains("no base-colour texture"), "{c}");
+    }
+    assert_eq!(cells.iter().filter(|c| c["outcome"] == "pass").count(), 4, "{out}");
+}

@@ -3,7 +3,8 @@
 //! and only when such a cell is planned, so a run filtered to geometry cells decodes none), a
 //! broken one the loader's one line naming `images[N]` and its URI (exit 9, as a missing `.bin`);
 //! each texture cell whose images or array exceed the device's queried limits made `unsupported`
-//! with why (`scene::texture_limits`); and the device memory a `--scene` file needs — its
+//! with why (`scene::texture_limits`); a scene without textures makes them not run, with that
+//! reason, in the plan (counted there, not found by the worker); and the device memory a `--scene` file needs — its
 //! geometry and those textures — printed and held to the device's largest device-local heap
 //! (exit 5, as `run --shader --scene`).
 use super::exit::{self, coded};
@@ -31,8 +32,13 @@ pub fn check(scene: &Scene, plan: &mut RunPlan, info: &DeviceInfo) -> Result<()>
     if !cells.is_empty() {
         let t = Instant::now();
         match scene.textures.sizes() {
-            // The worker makes the texture cells `not_implemented` with that reason.
-            Err(TextureError::NoTextures) => {}
+            // Nothing to sample: no device feature is missing, so not `unsupported`; the cells
+            // are counted as not run with the reason, in the plan, before any worker starts.
+            Err(e @ TextureError::NoTextures) => {
+                for &i in &cells {
+                    plan.cells[i].status = PlanStatus::NotImplemented { reason: e.to_string() };
+                }
+            }
             Err(TextureError::Load(e)) => return Err(coded(exit::BAD_INPUT, e)),
             Ok(sizes) => {
                 if matches!(scene.textures.source, ImageSource::File(_)) {
