@@ -268,3 +268,40 @@ fn a_scene_without_textures_counts_its_texture_cells_as_not_run_with_why() {
     }
     assert_eq!(cells.iter().filter(|c| c["outcome"] == "pass").count(), 4, "{out}");
 }
+
+/// An image whose header claims 40000 × 40000 texels (its body one texel): its size comes from
+/// the header alone, so the texture cells are `unsupported` by the device's limit and nothing
+/// allocates its 6.4 GB of texels (before, the check decoded first and a run under a memory
+/// limit aborted with a backtrace).
+#[test]
+fn an_oversized_header_is_unsupported_without_decoding_the_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, _) = made_scene(dir.path());
+    let mut bytes = Vec::new();
+    let mut enc = png::Encoder::new(&mut bytes, 1, 1);
+    enc.set_color(png::ColorType::Rgba);
+    enc.set_depth(png::BitDepth::Eight);
+    enc.write_header().unwrap().write_image_data(&[1, 2, 3, 4]).unwrap();
+    bytes[16..20].copy_from_slice(&40000u32.to_be_bytes());
+    bytes[20..24].copy_from_slice(&40000u32.to_be_bytes());
+    let mut c = !0u32;
+    for &b in &bytes[12..29] {
+        c ^= u32::from(b);
+        for _ in 0..8 {
+            c = if c & 1 != 0 { 0xedb8_8320 ^ (c >> 1) } else { c >> 1 };
+        }
+    }
+    bytes[29..33].copy_from_slice(&(!c).to_be_bytes());
+    std::fs::write(dir.path().join("checker.png"), &bytes).unwrap();
+    let report = dir.path().join("r.json");
+    let (p, r) = (path.to_str().unwrap(), report.to_str().unwrap());
+    let o = run(&["run", "--scene", p, "--filter", TEXTURE_CELLS, "-o", r]);
+    assert_eq!(o.status.code(), Some(0), "{}\n{}", stdout(&o), stderr(&o));
+    let rep: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    let cells = rep["cells"].as_array().unwrap();
+    assert!(!cells.is_empty());
+    for c in cells {
+        assert_eq!(c["outcome"], "unsupported", "{c}");
+        assert!(c["reason"].as_str().unwrap().contains("40000×40000"), "{c}");
+    }
+}

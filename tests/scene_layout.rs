@@ -218,7 +218,7 @@ fn a_wrong_fetch_is_a_mismatch_and_breaks_the_agreement() {
 /// and lavapipe's mismatch kills each, on the procedural scene and on `scene make`'s; a survivor
 /// (or a pair left unrun) fails here. `index-broadcast` (lane 0's index for all lanes) is killed
 /// where the device lists subgroup ballot in closest-hit, else not run with that reason (lavapipe
-/// lists only fragment, compute, task and mesh). Every other pair is listed with why.
+/// 25's `subgroupSupportedStages` lacks closest-hit). Every other pair is listed with why.
 #[test]
 fn the_layout_cells_kill_their_wrong_descriptor_mutants() {
     let dir = tempfile::tempdir().unwrap();

@@ -41,15 +41,18 @@ pub fn check(scene: &Scene, plan: &mut RunPlan, info: &DeviceInfo) -> Result<()>
             }
             Err(TextureError::Load(e)) => return Err(coded(exit::BAD_INPUT, e)),
             Ok(sizes) => {
-                if matches!(scene.textures.source, ImageSource::File(_)) {
-                    errln!(
-                        "scene: {} image{} the texture cells sample decoded in {:.0} ms",
-                        sizes.len(),
-                        if sizes.len() == 1 { "" } else { "s" },
-                        t.elapsed().as_secs_f64() * 1e3
-                    );
-                }
                 if limit_cells(scene, &sizes, (plan, &cells), info) {
+                    // Within the limits: each image decoded once and dropped, so a broken body
+                    // is the one-line error here, not a worker's finding.
+                    scene.textures.validate().map_err(|e| coded(exit::BAD_INPUT, e))?;
+                    if matches!(scene.textures.source, ImageSource::File(_)) {
+                        errln!(
+                            "scene: {} image{} the texture cells sample decoded in {:.0} ms",
+                            sizes.len(),
+                            if sizes.len() == 1 { "" } else { "s" },
+                            t.elapsed().as_secs_f64() * 1e3
+                        );
+                    }
                     texture_bytes =
                         sizes.iter().map(|(_, w, h)| 4 * u64::from(*w) * u64::from(*h)).sum();
                 }

@@ -102,8 +102,9 @@ impl SceneTextures {
         Ok(used)
     }
 
-    /// The name and size of each image [`Textures::of`] would hold, in its order, each decoded
-    /// and dropped in turn (the run's check before any GPU work holds no texel: `cli::scene_check`).
+    /// The name and size of each image [`Textures::of`] would hold, in its order, from each
+    /// image's header alone: no texel is decoded, so an image larger than the device allows is
+    /// refused (`cli::scene_check`) without allocating it; [`SceneTextures::validate`] decodes.
     pub fn sizes(&self) -> Result<Vec<(String, u32, u32)>, TextureError> {
         let used = self.used()?;
         Ok(match &self.source {
@@ -116,9 +117,20 @@ impl SceneTextures {
                 .collect(),
             ImageSource::File(l) => used
                 .iter()
-                .map(|&i| l.decode_image(i).map(|t| (l.image_name(i), t.width, t.height)))
+                .map(|&i| l.image_size(i).map(|(w, h)| (l.image_name(i), w, h)))
                 .collect::<Result<Vec<_>, _>>()?,
         })
+    }
+
+    /// Each image [`Textures::of`] would hold decoded and dropped in turn (a header can be whole
+    /// over a broken body): the run's check before any GPU work, holding no texel.
+    pub fn validate(&self) -> Result<(), TextureError> {
+        if let ImageSource::File(l) = &self.source {
+            for i in self.used()? {
+                l.decode_image(i)?;
+            }
+        }
+        Ok(())
     }
 }
 

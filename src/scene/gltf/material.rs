@@ -60,6 +60,29 @@ pub(super) fn decode(
     buffers: &[Vec<u8>],
     index: usize,
 ) -> Result<Texture, LoadError> {
+    let (part, bytes) = image_bytes(path, document, buffers, index)?;
+    super::pixels::decode(&bytes).map_err(|why| LoadError::part(path, &part, why))
+}
+
+/// Image `index`'s width and height from its header alone (no texel decoded: an image too large
+/// for the device is refused without allocating it).
+pub(super) fn size(
+    path: &Path,
+    document: &gltf::Document,
+    buffers: &[Vec<u8>],
+    index: usize,
+) -> Result<(u32, u32), LoadError> {
+    let (part, bytes) = image_bytes(path, document, buffers, index)?;
+    super::pixels::size(&bytes).map_err(|why| LoadError::part(path, &part, why))
+}
+
+/// How the file names image `index`, and its encoded bytes.
+fn image_bytes(
+    path: &Path,
+    document: &gltf::Document,
+    buffers: &[Vec<u8>],
+    index: usize,
+) -> Result<(String, Vec<u8>), LoadError> {
     let image = document.images().nth(index).ok_or_else(|| {
         LoadError::part(path, format!("images[{index}]"), "no such image in the file")
     })?;
@@ -82,7 +105,7 @@ pub(super) fn decode(
             super::uri::read(base, uri, "image").map_err(fail)?
         }
     };
-    super::pixels::decode(&bytes).map_err(fail)
+    Ok((part, bytes))
 }
 
 /// What the file declares the image to be — its `mimeType`, else its file URI's extension — is

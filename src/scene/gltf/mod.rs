@@ -70,6 +70,11 @@ impl Loaded {
         material::decode(&self.path, &self.document, &self.buffers, index)
     }
 
+    /// Image `index`'s width and height from its header (no texel decoded).
+    pub fn image_size(&self, index: usize) -> Result<(u32, u32), LoadError> {
+        material::size(&self.path, &self.document, &self.buffers, index)
+    }
+
     /// How the file names image `index`: `images[N]` and its URI or buffer view.
     pub fn image_name(&self, index: usize) -> String {
         self.document

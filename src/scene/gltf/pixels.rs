@@ -26,6 +26,24 @@ pub(super) fn decode(bytes: &[u8]) -> Result<Texture, String> {
     }
 }
 
+/// `bytes`' width and height from the PNG or JPEG header alone, or why not (as [`decode`]).
+pub(super) fn size(bytes: &[u8]) -> Result<(u32, u32), String> {
+    if bytes.starts_with(PNG) {
+        let r = png::Decoder::new(std::io::Cursor::new(bytes)).read_info();
+        let r = r.map_err(|e| {
+            format!("does not decode: its PNG: {e}; export it again as PNG or JPEG")
+        })?;
+        Ok((r.info().width, r.info().height))
+    } else if bytes.starts_with(JPEG) {
+        let mut d = jpeg_decoder(bytes);
+        d.decode_headers()
+            .map_err(|e| format!("does not decode: its JPEG: {e}; export it again as PNG"))?;
+        Ok(d.info().map_or((0, 0), |i| (u32::from(i.width), u32::from(i.height))))
+    } else {
+        decode(bytes).map(|t| (t.width, t.height))
+    }
+}
+
 fn png(bytes: &[u8]) -> Result<Texture, png::DecodingError> {
     let mut d = png::Decoder::new(std::io::Cursor::new(bytes));
     d.set_transformations(png::Transformations::normalize_to_color8());
@@ -45,12 +63,24 @@ fn png(bytes: &[u8]) -> Result<Texture, png::DecodingError> {
 }
 
 fn jpeg(bytes: &[u8]) -> Result<Texture, zune_jpeg::errors::DecodeErrors> {
-    use zune_jpeg::zune_core::{bytestream::ZCursor, colorspace::ColorSpace, options};
-    let o = options::DecoderOptions::default().jpeg_set_out_colorspace(ColorSpace::RGBA);
-    let mut d = zune_jpeg::JpegDecoder::new_with_options(ZCursor::new(bytes), o);
+    let mut d = jpeg_decoder(bytes);
     let rgba8 = d.decode()?;
     let (w, h) = d.info().map_or((0, 0), |i| (u32::from(i.width), u32::from(i.height)));
     Ok(Texture { width: w, height: h, rgba8 })
+}
+
+/// A JPEG decoder to RGBA over `bytes`, its size limits JPEG's own (65,535 a side; zune's default
+/// of 16,384 would make a valid image bad input where the device allows more).
+fn jpeg_decoder(
+    bytes: &[u8],
+) -> zune_jpeg::JpegDecoder<zune_jpeg::zune_core::bytestream::ZCursor<&[u8]>> {
+    use zune_jpeg::zune_core::{bytestream::ZCursor, colorspace::ColorSpace, options};
+    let max = usize::from(u16::MAX);
+    let o = options::DecoderOptions::default()
+        .jpeg_set_out_colorspace(ColorSpace::RGBA)
+        .set_max_width(max)
+        .set_max_height(max);
+    zune_jpeg::JpegDecoder::new_with_options(ZCursor::new(bytes), o)
 }
 
 /// 8-bit texels of `channels` (grey, grey + alpha, RGB, RGBA) as RGBA.
@@ -99,6 +129,32 @@ mod tests {
             decode(&png(C::Rgb, B::Sixteen, 1, &[1, 0xff, 2, 0, 3, 0x80])).unwrap().rgba8,
             [1, 2, 3, 255]
         );
+    }
+
+    #[test]
+    fn the_header_alone_gives_the_size() {
+        use png::{BitDepth as B, ColorType as C};
+        // A header that claims 40000 x 40000: its size without allocating its texels.
+        let mut big = png(C::Rgba, B::Eight, 1, &[1, 2, 3, 4]);
+        big[16..20].copy_from_slice(&40000u32.to_be_bytes());
+        big[20..24].copy_from_slice(&40000u32.to_be_bytes());
+        let crc = crc32(&big[12..29]);
+        big[29..33].copy_from_slice(&crc.to_be_bytes());
+        assert_eq!(super::size(&big).unwrap(), (40000, 40000));
+        assert_eq!(super::size(&png(C::Rgb, B::Eight, 3, &[0; 9])).unwrap(), (3, 1));
+        assert!(super::size(b"GIF89a").unwrap_err().contains("convert it to PNG"));
+    }
+
+    /// PNG's chunk CRC (ISO 3309), for the edited header above.
+    fn crc32(bytes: &[u8]) -> u32 {
+        let mut c = !0u32;
+        for &b in bytes {
+            c ^= u32::from(b);
+            for _ in 0..8 {
+                c = if c & 1 != 0 { 0xedb8_8320 ^ (c >> 1) } else { c >> 1 };
+            }
+        }
+        !c
     }
 
     #[test]
