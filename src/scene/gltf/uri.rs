@@ -38,7 +38,23 @@ fn path_of(base: &Path, uri: &str) -> Result<PathBuf, String> {
             "URI {uri} is not a local file; download it beside the scene and give its relative path"
         ));
     }
-    Ok(base.join(decoded(uri)?))
+    Ok(base.join(lexical(&decoded(uri)?)))
+}
+
+/// A relative URI reference's path with its `.` and `..` segments resolved as text (RFC 3986,
+/// 5.2.4), as a URI's are: `sub/../a.png` is `a.png` whether or not `sub/` exists.
+fn lexical(path: &str) -> PathBuf {
+    let mut out: Vec<&str> = Vec::new();
+    for seg in path.split('/') {
+        match seg {
+            "." | "" => {}
+            ".." => {
+                out.pop();
+            }
+            s => out.push(s),
+        }
+    }
+    out.iter().collect()
 }
 
 fn decoded(s: &str) -> Result<String, String> {
@@ -71,6 +87,7 @@ mod tests {
         let d = tempfile::tempdir().unwrap();
         std::fs::write(d.path().join("a b.bin"), [7u8; 3]).unwrap();
         assert_eq!(read(d.path(), "a%20b.bin", "buffer").unwrap(), [7, 7, 7]);
+        assert_eq!(read(d.path(), "./gone/../a%20b.bin", "buffer").unwrap(), [7, 7, 7]);
         let missing = read(d.path(), "gone.bin", "buffer").unwrap_err();
         assert!(
             missing.contains("gone.bin")
