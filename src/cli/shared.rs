@@ -252,16 +252,7 @@ mod tests {
     #[test]
     fn reruns_run_side_by_side_on_cpu_devices_only() {
         let device = |t: ash::vk::PhysicalDeviceType| {
-            let mut info = crate::vk::DeviceInfo {
-                index: 0,
-                raw: ash::vk::PhysicalDevice::null(),
-                extensions: Default::default(),
-                features: Default::default(),
-                properties: Default::default(),
-                queue_families: vec![],
-                memory: Default::default(),
-                probe_image_format: Default::default(),
-            };
+            let mut info = crate::vk::features::blank_device();
             info.properties.core.device_type = t;
             info
         };

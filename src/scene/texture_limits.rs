@@ -144,16 +144,7 @@ mod tests {
     /// array; lavapipe's limits (its `DeviceInfo`) are read, not assumed.
     #[test]
     fn update_after_bind_limits_apply_only_to_update_after_bind_arrays() {
-        let mut info = crate::vk::DeviceInfo {
-            index: 0,
-            raw: ash::vk::PhysicalDevice::null(),
-            extensions: Default::default(),
-            features: Default::default(),
-            properties: Default::default(),
-            queue_families: vec![],
-            memory: Default::default(),
-            probe_image_format: Default::default(),
-        };
+        let mut info = crate::vk::features::blank_device();
         info.properties.core.limits.max_per_stage_descriptor_sampled_images = 16;
         info.properties.core.limits.max_image_dimension2_d = 4096;
         info.properties.v12 = Some(ash::vk::PhysicalDeviceVulkan12Properties {

@@ -147,6 +147,22 @@ pub struct DeviceInfo {
     pub probe_image_format: vk::FormatProperties,
 }
 
+/// A device that lists nothing: no extension, feature, property, queue family or memory, for
+/// tests that set the fields they hold to.
+#[cfg(test)]
+pub fn blank_device() -> DeviceInfo {
+    DeviceInfo {
+        index: 0,
+        raw: vk::PhysicalDevice::null(),
+        extensions: Default::default(),
+        features: Default::default(),
+        properties: Default::default(),
+        queue_families: vec![],
+        memory: Default::default(),
+        probe_image_format: Default::default(),
+    }
+}
+
 /// The format rtprobe's sampled and storage image probes use.
 pub const PROBE_IMAGE_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
 

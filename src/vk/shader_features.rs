@@ -361,16 +361,7 @@ mod tests {
         v12: vk::PhysicalDeviceVulkan12Features<'static>,
         api: u32,
     ) -> DeviceInfo {
-        let mut info = DeviceInfo {
-            index: 0,
-            raw: vk::PhysicalDevice::null(),
-            extensions: Default::default(),
-            features: Default::default(),
-            properties: Default::default(),
-            queue_families: vec![],
-            memory: Default::default(),
-            probe_image_format: Default::default(),
-        };
+        let mut info = crate::vk::features::blank_device();
         info.features.core = core;
         info.features.v12 = Some(v12);
         info.properties.core.api_version = api;
