@@ -212,42 +212,8 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
             // Only once, at the end of setup: it must not restart any clock.
             fx.push(Effect::Log(format!("worker {} sent ready again; ignored", w.id)));
         }
-        WorkerMsg::Ready {
-            device_ms,
-            create_ms,
-            reference_ms,
-            as_build_ms,
-            setup_wait_ms,
-            device_features,
-            pipeline_cache,
-            driver_cache,
-        } => {
-            w.enter(State::Between { since: now }, Phase::BetweenCells);
-            w.device_features = device_features;
-            fx.push(Effect::Report(Event::WorkerReady {
-                device_ms,
-                create_ms,
-                reference_ms,
-                as_build_ms,
-                setup_wait_ms,
-                pipeline_cache,
-                driver_cache,
-            }));
-            fx.push(record(w, Phase::Setup, Outcome::Pass, None, None, now));
-        }
-        WorkerMsg::Phase { phase, step } => {
-            // Prebuild progress (GLSL, a cell compiled and bound, a pipeline) restarts its clock.
-            if let (Phase::Prebuild, State::Prebuild { since, overlapped, .. }) =
-                (phase, &mut w.state)
-            {
-                *since = now;
-                if let Some(cell) = step.as_deref().and_then(super::protocol::overlapped_cell) {
-                    *overlapped = Some(cell.to_string());
-                }
-            }
-            w.phase = phase;
-            w.step = step;
-        }
+        ready @ WorkerMsg::Ready { .. } => setup_done(w, ready, now, fx),
+        WorkerMsg::Phase { phase, step } => phase_told(w, phase, step, now),
         WorkerMsg::Prebuild { cells, threads } if matches!(w.state, State::Between { .. }) => {
             fx.push(Effect::Log(format!(
                 "worker {} prebuilds {} cells on {threads} threads",
@@ -294,6 +260,48 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
             dying(w, Cause::Fatal { message, outcome, halt }, fx)
         }
     }
+}
+
+/// The worker's `ready`: setup done, its figures reported and its setup recorded.
+fn setup_done(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
+    let WorkerMsg::Ready {
+        device_ms,
+        create_ms,
+        reference_ms,
+        as_build_ms,
+        setup_wait_ms,
+        device_features,
+        pipeline_cache,
+        driver_cache,
+    } = msg
+    else {
+        return;
+    };
+    w.enter(State::Between { since: now }, Phase::BetweenCells);
+    w.device_features = device_features;
+    fx.push(Effect::Report(Event::WorkerReady {
+        device_ms,
+        create_ms,
+        reference_ms,
+        as_build_ms,
+        setup_wait_ms,
+        pipeline_cache,
+        driver_cache,
+    }));
+    fx.push(record(w, Phase::Setup, Outcome::Pass, None, None, now));
+}
+
+/// A `phase` line: prebuild progress (GLSL, a cell compiled and bound, a pipeline) restarts its
+/// clock and names the overlapped cell it is at.
+fn phase_told(w: &mut Worker, phase: Phase, step: Option<String>, now: Instant) {
+    if let (Phase::Prebuild, State::Prebuild { since, overlapped, .. }) = (phase, &mut w.state) {
+        *since = now;
+        if let Some(cell) = step.as_deref().and_then(super::protocol::overlapped_cell) {
+            *overlapped = Some(cell.to_string());
+        }
+    }
+    w.phase = phase;
+    w.step = step;
 }
 
 fn start(w: &mut Worker, cell: String, now: Instant, fx: &mut Vec<Effect>) {
