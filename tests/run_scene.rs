@@ -125,6 +125,18 @@ fn made_scene(dir: &std::path::Path) -> (std::path::PathBuf, Value) {
 const TEXTURE_CELLS: &str = "scene_layout=shared_buffers,resource=sampled_image";
 const GEOMETRY_CELLS: &str = "scene_layout=shared_buffers|per_mesh,resource=storage_buffer";
 
+/// Every `scene_layout` cell (both layouts, geometry and texture) run on the scene at `path`,
+/// which must exit 0: its output and its report's cells (the report beside the scene).
+fn layout_run(path: &std::path::Path) -> (std::process::Output, Vec<Value>) {
+    let report = path.with_file_name("r.json");
+    let (p, r) = (path.to_str().unwrap(), report.to_str().unwrap());
+    let o =
+        run(&["run", "--scene", p, "--filter", "scene_layout=shared_buffers|per_mesh", "-o", r]);
+    assert_eq!(o.status.code(), Some(0), "{}\n{}", stdout(&o), stderr(&o));
+    let rep: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    (o, rep["cells"].as_array().unwrap().clone())
+}
+
 /// A base-colour image that is gone, garbage, or not PNG/JPEG by its uri or mimeType is one line
 /// naming `images[N]` and its uri, exit 9 and no report, before any device work, when a texture
 /// cell is planned; a run filtered to geometry cells on a scene with both images broken decodes
@@ -199,13 +211,7 @@ fn an_image_past_max_image_dimension_makes_the_texture_cells_unsupported() {
     enc.set_depth(png::BitDepth::Eight);
     let texels = vec![200u8; 4 * (max as usize + 1)];
     enc.write_header().unwrap().write_image_data(&texels).unwrap();
-    let report = dir.path().join("r.json");
-    let (p, r) = (path.to_str().unwrap(), report.to_str().unwrap());
-    let o =
-        run(&["run", "--scene", p, "--filter", "scene_layout=shared_buffers|per_mesh", "-o", r]);
-    assert_eq!(o.status.code(), Some(0), "{}\n{}", stdout(&o), stderr(&o));
-    let rep: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
-    let cells = rep["cells"].as_array().unwrap();
+    let (o, cells) = layout_run(&path);
     let textures: Vec<&Value> =
         cells.iter().filter(|c| c["id"].as_str().unwrap().contains("sampled_image")).collect();
     assert_eq!(textures.len(), 4);
@@ -249,16 +255,10 @@ fn a_scene_without_textures_counts_its_texture_cells_as_not_run_with_why() {
         doc.as_object_mut().unwrap().remove(k);
     }
     std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
-    let report = dir.path().join("r.json");
-    let (p, r) = (path.to_str().unwrap(), report.to_str().unwrap());
-    let o =
-        run(&["run", "--scene", p, "--filter", "scene_layout=shared_buffers|per_mesh", "-o", r]);
-    assert_eq!(o.status.code(), Some(0), "{}\n{}", stdout(&o), stderr(&o));
+    let (o, cells) = layout_run(&path);
     let out = stdout(&o);
     assert!(out.contains("(4 to run, 0 unsupported, 4 not implemented in rtprobe)"), "{out}");
     assert!(out.contains("4 planned cells did not run"), "{out}");
-    let rep: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
-    let cells = rep["cells"].as_array().unwrap();
     let textures: Vec<&Value> =
         cells.iter().filter(|c| c["id"].as_str().unwrap().contains("sampled_image")).collect();
     assert_eq!(textures.len(), 4);
@@ -293,13 +293,7 @@ fn an_oversized_header_is_unsupported_without_decoding_the_image() {
     }
     bytes[29..33].copy_from_slice(&(!c).to_be_bytes());
     std::fs::write(dir.path().join("checker.png"), &bytes).unwrap();
-    let report = dir.path().join("r.json");
-    let (p, r) = (path.to_str().unwrap(), report.to_str().unwrap());
-    let o =
-        run(&["run", "--scene", p, "--filter", "scene_layout=shared_buffers|per_mesh", "-o", r]);
-    assert_eq!(o.status.code(), Some(0), "{}\n{}", stdout(&o), stderr(&o));
-    let rep: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
-    let cells = rep["cells"].as_array().unwrap();
+    let (o, cells) = layout_run(&path);
     let (textures, geometry): (Vec<&Value>, Vec<&Value>) =
         cells.iter().partition(|c| c["id"].as_str().unwrap().contains("sampled_image"));
     assert_eq!(textures.len(), 4);

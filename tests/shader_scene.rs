@@ -230,6 +230,19 @@ fn matches(c: &Counts) -> bool {
         && c.hits_within as f64 >= 0.995 * c.hits as f64
 }
 
+/// The shader's textured build: the scene description by push constant, the scene's images as
+/// the texture array at set 1 binding 2, one attempt.
+const TEXTURED: [&str; 8] = [
+    "--fill",
+    "push.16=scene.scene_desc",
+    "--fill",
+    "1.2=scene.textures",
+    "-D",
+    "TEXTURED",
+    "--repeat",
+    "1",
+];
+
 /// `scene_run` under `--validate` with `fill`: its report, the run exiting 0 with every attempt
 /// of every variant a pass without a validation message.
 fn validated(scene: &Path, fill: &[&str]) -> Value {
@@ -328,16 +341,7 @@ fn a_tutorial_closest_hit_renders_the_scene_as_the_cpu_does() {
 #[test]
 fn scene_textures_render_as_the_cpu_samples_them() {
     let (_d, scene) = test_scene();
-    let fill = [
-        "--fill",
-        "push.16=scene.scene_desc",
-        "--fill",
-        "1.2=scene.textures",
-        "-D",
-        "TEXTURED",
-        "--repeat",
-        "1",
-    ];
+    let fill = TEXTURED;
     let r = validated(&scene, &fill);
     let want = serde_json::json!(["push.16=scene.scene_desc", "1.2=scene.textures"]);
     assert_eq!(r["cell_options"]["fill"], want);
@@ -429,16 +433,7 @@ fn scene_fills_given_wrongly_are_one_line_and_no_report() {
 fn a_broken_scene_image_is_one_line_only_when_scene_textures_reads_it() {
     let (d, scene) = test_scene();
     std::fs::write(d.path().join("checker.png"), b"garbage, not a PNG").unwrap();
-    let textured = [
-        "--fill",
-        "push.16=scene.scene_desc",
-        "--fill",
-        "1.2=scene.textures",
-        "-D",
-        "TEXTURED",
-        "--repeat",
-        "1",
-    ];
+    let textured = TEXTURED;
     let (o, r) = scene_run(&scene, &textured);
     assert_one_line_error(&o, 9, "images[0] (uri \"checker.png\"): does not decode");
     assert!(r.is_none());

@@ -13,6 +13,9 @@ pub struct Texture {
 
 const PNG: &[u8] = b"\x89PNG\r\n\x1a\n";
 const JPEG: &[u8] = b"\xff\xd8\xff";
+/// Bytes with neither signature.
+const NEITHER: &str =
+    "does not decode: neither PNG nor JPEG (the formats glTF 2.0 allows); convert it to PNG";
 
 /// `bytes` decoded, or why not (one line saying what to do).
 pub(super) fn decode(bytes: &[u8]) -> Result<Texture, String> {
@@ -22,7 +25,7 @@ pub(super) fn decode(bytes: &[u8]) -> Result<Texture, String> {
     } else if bytes.starts_with(JPEG) {
         jpeg(bytes).map_err(|e| format!("does not decode: its JPEG: {e}; export it again as PNG"))
     } else {
-        Err("does not decode: neither PNG nor JPEG (the formats glTF 2.0 allows); convert it to PNG".into())
+        Err(NEITHER.into())
     }
 }
 
@@ -40,7 +43,7 @@ pub(super) fn size(bytes: &[u8]) -> Result<(u32, u32), String> {
             .map_err(|e| format!("does not decode: its JPEG: {e}; export it again as PNG"))?;
         Ok(d.info().map_or((0, 0), |i| (u32::from(i.width), u32::from(i.height))))
     } else {
-        decode(bytes).map(|t| (t.width, t.height))
+        Err(NEITHER.into())
     }
 }
 
