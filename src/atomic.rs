@@ -53,7 +53,7 @@ mod tests {
 
     #[test]
     fn writes_and_replaces() {
-        let d = tempfile::tempdir().unwrap();
+        let d = crate::tempdir::tempdir().unwrap();
         let p = d.path().join("sub/r.json");
         write_atomic(&p, b"one").unwrap();
         write_atomic(&p, b"two").unwrap();

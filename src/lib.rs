@@ -27,5 +27,6 @@ pub mod shadergen;
 pub mod shape;
 pub mod stable_hash;
 pub mod stress;
+pub mod tempdir;
 pub mod tools;
 pub mod vk;

@@ -20,7 +20,7 @@ const WRONG_ID: &str = "miss.storage_buffer.push_constant.descriptor_indexing";
 const PLANTED_ID: &str = "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_indexing";
 
 struct Run {
-    dir: tempfile::TempDir,
+    dir: rtprobe::tempdir::TempDir,
     v: serde_json::Value,
     /// Per cell of the run: its id, its script (None: refused) and the README's line on it.
     bundles: Vec<(String, Option<String>, String)>,
@@ -30,7 +30,7 @@ struct Run {
 fn shared() -> &'static Run {
     static S: OnceLock<Run> = OnceLock::new();
     S.get_or_init(|| {
-        let dir = tempfile::tempdir().unwrap();
+        let dir = rtprobe::tempdir::tempdir().unwrap();
         let report = dir.path().join("r.json");
         let dump = dir.path().join("dump");
         let o = run(&[

@@ -14,7 +14,7 @@ fn points<'a>(v: &'a Value, section: &str) -> &'a Vec<Value> {
 
 #[test]
 fn quick_bench_writes_its_contract_and_detection_follows_the_injection() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let out = dir.path().join("b");
     let o = run(&[
         "bench",
@@ -145,7 +145,7 @@ fn quick_bench_writes_its_contract_and_detection_follows_the_injection() {
 
 #[test]
 fn bench_bad_input_is_one_line_and_writes_nothing() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let out = dir.path().join("b");
     let o_arg = out.to_str().unwrap();
     for (args, needle) in [

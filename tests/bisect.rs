@@ -56,10 +56,10 @@ fn last_line(s: &str) -> &str {
 }
 
 /// One report shared by the report and repro tests: a two-axis injected predicate.
-fn shared() -> &'static (tempfile::TempDir, PathBuf) {
-    static S: OnceLock<(tempfile::TempDir, PathBuf)> = OnceLock::new();
+fn shared() -> &'static (rtprobe::tempdir::TempDir, PathBuf) {
+    static S: OnceLock<(rtprobe::tempdir::TempDir, PathBuf)> = OnceLock::new();
     S.get_or_init(|| {
-        let dir = tempfile::tempdir().unwrap();
+        let dir = rtprobe::tempdir::tempdir().unwrap();
         let r = run_report(
             dir.path(),
             "two-axis.json",
@@ -73,7 +73,7 @@ fn shared() -> &'static (tempfile::TempDir, PathBuf) {
 
 #[test]
 fn single_axis_two_axis_and_value_set_predicates_come_back_exactly() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let cases = [
         // Not `index=dynamic`: its cells without nonuniformEXT are no evidence (undefined reads), so
         // the trusted faults are exactly the nonuniform=true ones and `nonuniform=true` separates
@@ -145,7 +145,7 @@ fn single_axis_two_axis_and_value_set_predicates_come_back_exactly() {
 
 #[test]
 fn a_flaky_injection_is_recovered_with_repeats_and_its_miss_probability() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let scope = "stage=raygen|closest_hit,resource=storage_buffer,index=literal|dynamic,descriptor_model=descriptor_indexing";
     // The run itself may miss both injected cells (1 in 4: each fires with probability 1/2 and
     // `--repeat` repeats only cells that faulted); run again until it has a finding (8 misses in
@@ -224,7 +224,7 @@ fn a_flaky_injection_is_recovered_with_repeats_and_its_miss_probability() {
 
 #[test]
 fn a_fault_no_conjunction_separates_is_said_so_with_a_disjunction() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let scope =
         "stage=raygen|closest_hit,resource=storage_buffer,descriptor_model=descriptor_indexing";
     let report = run_report(
@@ -411,7 +411,7 @@ fn a_repro_bundle_reruns_its_cell_with_the_same_verdict() {
 
 #[test]
 fn nothing_to_bisect_and_a_wrong_cell_are_one_line_errors() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let report = run_report(
         dir.path(),
         "clean.json",
@@ -473,7 +473,7 @@ fn passes_below_the_threshold_are_not_concluded_on() {
 
 #[test]
 fn a_bundle_is_replaced_whole_runs_its_own_spirv_and_has_an_amber_script_where_it_fits() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let filter = "stage=compute|closest_hit,resource=storage_buffer,index=literal|push_constant|spec_constant,descriptor_model=descriptor_indexing";
     let report = run_report(dir.path(), "mixed.json", filter, &[], &[]);
     let b = dir.path().join("bundle");
@@ -563,7 +563,7 @@ fn a_bundle_is_replaced_whole_runs_its_own_spirv_and_has_an_amber_script_where_i
 #[test]
 fn force_replaces_only_a_bundle_and_never_the_folder_of_the_report_or_the_current_directory() {
     let (_, report) = shared();
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let cell = "raygen.storage_buffer.literal.descriptor_indexing";
     let repro = |out: &Path, from: &Path| {
         run(&[
@@ -685,7 +685,7 @@ fn another_card_of_the_same_driver_bisects_and_another_driver_build_is_refused()
 /// pipeline crashed and was reported as a `crash`).
 #[test]
 fn a_bundle_whose_spirv_does_not_fit_its_cell_is_an_error_naming_the_binding() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let filter = "stage=compute,resource=storage_buffer|sampled_image,index=literal,descriptor_model=descriptor_indexing";
     let report = run_report(dir.path(), "two.json", filter, &[], &[]);
     let bundle = |id: &str, name: &str| {

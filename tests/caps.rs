@@ -183,7 +183,7 @@ fn every_rt_extension_is_listed_and_agrees_with_vulkaninfo() {
         vi.contains_key("VK_NV_ray_tracing")
     );
     // The text output groups them; the profile export carries present ones and their structs.
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let prof = dir.path().join("p.json");
     let o = run(&["caps", "--profile", prof.to_str().unwrap()]);
     let text = stdout(&o);
@@ -215,7 +215,7 @@ fn caps_runs_clean_under_validation() {
 
 #[test]
 fn caps_text_and_profile_export() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let prof = dir.path().join("p.json");
     let out = dir.path().join("caps.json");
     let o = run(&["caps", "--profile", prof.to_str().unwrap(), "-o", out.to_str().unwrap()]);

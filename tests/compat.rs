@@ -177,7 +177,7 @@ fn a_bundle_an_earlier_release_wrote_runs_and_gives_its_verdict() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let spec = root.join("tests/fixtures/compat/bundle/cell.json");
     let original: Value = serde_json::from_slice(&std::fs::read(&spec).unwrap()).unwrap();
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let out = dir.path().join("rerun.json");
     let o = run(&["run", "--cell-spec", spec.to_str().unwrap(), "-o", out.to_str().unwrap()]);
     assert!(o.status.code().is_some_and(|c| c <= 1), "{}", stderr(&o));

@@ -63,7 +63,7 @@ fn no_panic(o: &std::process::Output) {
 
 #[test]
 fn a_closed_stdout_is_a_normal_end() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     // `rtprobe run --list | head -2`: two lines read, the pipe closed, the rest never written.
     let mut c = spawn(&["run", "--list"], dir.path());
     let mut lines = BufReader::new(c.stdout.take().unwrap()).lines();
@@ -134,7 +134,7 @@ fn a_filter_that_matches_nothing_fails_with_the_reason() {
 
 #[test]
 fn runs_started_together_never_share_a_default_report() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let args = [
         "run",
         "--filter",
@@ -160,7 +160,7 @@ fn runs_started_together_never_share_a_default_report() {
 
 #[test]
 fn a_report_being_written_is_neither_overwritten_nor_resumed() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let x = dir.path().join("x.json");
     // A run that takes a while: every cell hangs until its 2 s deadline.
     let mut first = spawn(
@@ -199,7 +199,7 @@ fn a_report_being_written_is_neither_overwritten_nor_resumed() {
 
 #[test]
 fn an_interrupted_run_resumes_with_the_command_it_prints() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let x = dir.path().join("r.json");
     // Options that differ from every default: the printed command alone must carry them.
     let args = [
@@ -259,7 +259,7 @@ fn an_interrupted_run_resumes_with_the_command_it_prints() {
 /// their workarounds tried) runs nothing again: not the confirm round, not the workaround cells.
 #[test]
 fn resuming_a_complete_report_runs_no_cell_again() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let x = dir.path().join("done.json");
     let args = ["run", "--filter", SMALL, "--inject-fault", CRASH, "-o", "done.json"];
     let o = bin().args(args).current_dir(dir.path()).output().unwrap();
@@ -285,7 +285,7 @@ fn resuming_a_complete_report_runs_no_cell_again() {
 
 #[test]
 fn a_ci_log_shows_progress_counts_that_add_up_and_one_verdict_line() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let r = dir.path().join("r.json");
     let o = run_env(
         &["run", "--filter", SMALL, "--inject-fault", CRASH, "-o", r.to_str().unwrap()],
@@ -348,7 +348,7 @@ fn a_ci_log_shows_progress_counts_that_add_up_and_one_verdict_line() {
 
 #[test]
 fn a_baseline_that_expects_the_findings_passes_and_retries_are_no_regressions() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let (first, base) = (dir.path().join("first.json"), dir.path().join("base.json"));
     // The baseline of a run without workaround retries.
     let o = run(&[
@@ -471,7 +471,7 @@ fn usage_errors_are_rtprobes_one_line_with_the_help_to_read() {
     let o = run(&["run", "--filter", "stage=closesthit"]);
     assert_one_line_error(&o, 2, "(did you mean closest_hit?)");
     // --output is -o.
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let out = dir.path().join("o.json");
     let o = run(&[
         "run",
@@ -529,11 +529,11 @@ fn unwritable_outputs_fail_before_any_work_in_one_line() {
 }
 
 /// A tmpfs of `kib` KiB at a fresh folder (root only), unmounted when dropped.
-struct Tmpfs(tempfile::TempDir);
+struct Tmpfs(rtprobe::tempdir::TempDir);
 
 impl Tmpfs {
     fn new(kib: u32) -> Option<Tmpfs> {
-        let d = tempfile::tempdir().ok()?;
+        let d = rtprobe::tempdir::tempdir().ok()?;
         let ok = std::process::Command::new("mount")
             .args([
                 "-t",
@@ -629,7 +629,7 @@ fn shard_runs(dir: &Path, name: &str, extra: &[&str]) -> Vec<PathBuf> {
 
 #[test]
 fn merging_shards_held_to_a_baseline_gives_the_ci_verdict() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let (first, base) = (dir.path().join("first.json"), dir.path().join("base.json"));
     run(&["run", "--filter", SMALL, "--inject-fault", CRASH, "-o", first.to_str().unwrap()]);
     assert!(run(&["baseline", first.to_str().unwrap(), "-o", base.to_str().unwrap()])
@@ -698,7 +698,7 @@ fn merging_shards_held_to_a_baseline_gives_the_ci_verdict() {
 
 #[test]
 fn diff_warns_of_two_devices_and_writes_its_file_alone() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let a = dir.path().join("a.json");
     let o = run(&["run", "--filter", SMALL, "--patches", "none", "-o", a.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -731,7 +731,7 @@ fn diff_warns_of_two_devices_and_writes_its_file_alone() {
 
 #[test]
 fn output_dir_holds_deqp_runners_files() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let out = dir.path().join("out");
     let skips = dir.path().join("skips.txt");
     std::fs::write(&skips, "# not these\nraygen\\..*\\.push_constant\\.\n").unwrap();

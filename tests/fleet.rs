@@ -37,7 +37,7 @@ fn run_to(dir: &Path, name: &str, extra: &[&str]) -> (PathBuf, std::process::Out
 
 #[test]
 fn shards_merged_equal_the_unsharded_run() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let (all, o) = run_to(dir.path(), "all.json", &["--inject-fault", KNOWN]);
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     let mut parts = vec![];
@@ -99,7 +99,7 @@ fn shards_merged_equal_the_unsharded_run() {
 
 #[test]
 fn a_baseline_expects_known_faults_and_names_new_ones() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let (first, _) = run_to(dir.path(), "first.json", &["--inject-fault", KNOWN]);
     let base = dir.path().join("base.json");
     let o = run(&[
@@ -189,7 +189,7 @@ fn a_baseline_expects_known_faults_and_names_new_ones() {
 
 #[test]
 fn a_phase_slower_than_its_bound_fails_the_run() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let (first, _) = run_to(dir.path(), "first.json", &[]);
     let base = dir.path().join("base.json");
     let o = run(&[
@@ -231,7 +231,7 @@ fn a_phase_slower_than_its_bound_fails_the_run() {
 
 #[test]
 fn diff_of_a_report_with_itself_is_empty_and_with_an_edit_shows_the_edit() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let (r, _) = run_to(dir.path(), "r.json", &[]);
     let o = run(&["diff", r.to_str().unwrap(), r.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(0), "{}", stdout(&o));
@@ -271,7 +271,7 @@ fn diff_of_a_report_with_itself_is_empty_and_with_an_edit_shows_the_edit() {
 /// is missing or the shard counts differ — never merged into a `complete` report of some cells.
 #[test]
 fn a_sharded_run_with_a_baseline_and_a_missing_shard_is_refused_at_the_merge() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let (first, _) = run_to(dir.path(), "first.json", &["--inject-fault", KNOWN]);
     let base = dir.path().join("base.json");
     let o = run(&["baseline", first.to_str().unwrap(), "-o", base.to_str().unwrap()]);
@@ -312,7 +312,7 @@ fn write_baseline(dir: &Path, name: &str, expected: Value) -> PathBuf {
 /// Issue 22's T1, T2 and T4, reproduced with injected faults: each fails the run.
 #[test]
 fn a_baseline_does_not_let_another_fault_a_risen_flake_or_a_vanished_cell_through() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     // T1: `error` expected, a mismatch got.
     let known = "miss.storage_buffer.literal.descriptor_indexing";
     let b = write_baseline(

@@ -77,7 +77,7 @@ fn sid_relative_output_paths_land_in_the_callers_folder() {
     }
     // A folder outside the repository: before, the root's shell fell back to `cd /` and the file
     // landed inside the root.
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let o = Command::new(repo().join("scripts/in-sid"))
         .current_dir(dir.path())
         .args([env!("CARGO_BIN_EXE_rtprobe"), "caps", "--no-device-check", "-o", "caps.json"])

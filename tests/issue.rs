@@ -32,7 +32,7 @@ fn injected_report(dir: &Path) -> std::path::PathBuf {
 
 #[test]
 fn an_issue_has_one_screen_of_facts_and_a_validation_run() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let report = injected_report(dir.path());
     let md = dir.path().join("issue.md");
     let o = run(&["report", report.to_str().unwrap(), "-o", md.to_str().unwrap()]);
@@ -85,7 +85,7 @@ fn a_page_longer_than_one_screen_fails_the_rule() {
 
 #[test]
 fn a_lanes_report_of_another_device_is_refused() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let report = injected_report(dir.path());
     let other = dir.path().join("other.json");
     let mut v: serde_json::Value =

@@ -18,7 +18,7 @@ const SAMPLE: &str = "24:3";
 
 #[test]
 fn a_sampled_share_of_the_mutants_is_all_caught_in_under_three_minutes() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let out = dir.path().join("r.json");
     let t = Instant::now();
     let o =

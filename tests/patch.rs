@@ -43,7 +43,7 @@ fn shaders() -> PathBuf {
 
 #[test]
 fn as_to_address_rewrites_hand_written_spirv() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let input = d.path().join("in.spv");
     let out = d.path().join("out.spv");
     assemble(&shaders().join("as_array.spvasm"), &input);
@@ -84,7 +84,7 @@ fn as_to_address_rewrites_hand_written_spirv() {
 
 #[test]
 fn nonuniform_and_pin_index_rewrite_hand_written_spirv() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let input = d.path().join("in.spv");
     assemble(&shaders().join("as_array.spvasm"), &input);
     // nonuniform: the push-constant index, the chain into the AS array and the loaded handle.
@@ -151,7 +151,7 @@ fn nonuniform_and_pin_index_rewrite_hand_written_spirv() {
 
 #[test]
 fn engine_shaders_are_patched_from_glsl() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let chit = shaders().join("engine_closest_hit.rchit");
     let rgen = shaders().join("engine_raygen.rgen");
     // nonuniform: the mesh and material indices become NonUniform (the engine forgot nonuniformEXT).
@@ -242,7 +242,7 @@ fn as_to_address_sizes_an_engine_camera_push_block() {
     // the table address goes right after it without --option offset, and an offset inside it is
     // refused. The block is 193 bytes: past the 128 every device has, refused unless the device
     // has more (--max-push-constants 256, as NVIDIA's).
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let rgen = shaders().join("engine_camera.rgen");
     let out = d.path().join("camera_addr.spv");
     let patch = |extra: &[&str]| {
@@ -281,7 +281,7 @@ fn as_to_address_sizes_an_engine_camera_push_block() {
 
 #[test]
 fn ssbo_to_address_turns_the_mesh_array_into_address_loads() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let chit = shaders().join("engine_closest_hit.rchit");
     let out = d.path().join("chit_addr.spv");
     let o = run(&[
@@ -323,7 +323,7 @@ fn ssbo_to_address_turns_the_mesh_array_into_address_loads() {
 
 #[test]
 fn bad_input_is_refused_with_one_line_and_no_output() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let out = d.path().join("out.spv");
     let outs = out.to_str().unwrap();
     let junk = d.path().join("junk.spv");
@@ -433,7 +433,7 @@ fn bad_input_is_refused_with_one_line_and_no_output() {
 
 #[test]
 fn random_and_truncated_modules_never_panic() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let good = d.path().join("good.spv");
     assemble(&shaders().join("as_array.spvasm"), &good);
     let bytes = std::fs::read(&good).unwrap();
@@ -476,7 +476,7 @@ fn random_and_truncated_modules_never_panic() {
 /// including file and through the search path, `-D` with and without a value, `--target-env`.
 #[test]
 fn glsl_shader_tree_with_includes_and_defines_is_patched() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let tree = shaders().join("tree");
     let chit = tree.join("shaders/gbuffer.rchit");
     let inc = tree.join("engine/include");
@@ -543,7 +543,7 @@ fn glsl_shader_tree_with_includes_and_defines_is_patched() {
 /// `OpExecutionModeId ... LocalSizeId`, which the patcher must load and write back.
 #[test]
 fn glsl_compute_at_spirv_1_6_is_patched() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let src = d.path().join("d.comp");
     std::fs::write(&src, "#version 460\n#extension GL_EXT_nonuniform_qualifier : require\nlayout(local_size_x = 8) in;\nlayout(binding = 0) buffer B { uint x; } b[4];\nlayout(push_constant) uniform P { uint i; } p;\nvoid main() { b[p.i].x = 1u; }\n").unwrap();
     for env in ["vulkan1.2", "vulkan1.3", "vulkan1.4"] {
@@ -572,7 +572,7 @@ fn glsl_compute_at_spirv_1_6_is_patched() {
 /// (tests/heap.rs compiles it in the sid root); without one, one line names the extension.
 #[test]
 fn glsl_with_a_newer_extension_needs_the_external_glslang() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let src = d.path().join("ser.rgen");
     std::fs::write(&src, "#version 460\n#extension GL_EXT_ray_tracing : require\n#extension GL_EXT_shader_invocation_reorder : require\nvoid main() {}\n").unwrap();
     let out = d.path().join("out.spv");
@@ -599,7 +599,7 @@ fn glsl_with_a_newer_extension_needs_the_external_glslang() {
 
 #[test]
 fn glsl_include_errors_are_one_line_naming_the_file_and_chain() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let out = d.path().join("out.spv");
     let tree = shaders().join("tree");
     let chit = tree.join("shaders/gbuffer.rchit");
@@ -670,7 +670,7 @@ fn corpus() -> PathBuf {
 /// compiled input.
 #[test]
 fn inputs_stages_and_outputs_need_no_flags() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let rgen = d.path().join("camera.rgen");
     std::fs::copy(corpus().join("nested/raygen.rgen"), &rgen).unwrap();
     let inc = corpus().join("include");
@@ -753,7 +753,7 @@ fn inputs_stages_and_outputs_need_no_flags() {
 /// its pipeline, its address goes past the other stages' push data and nobody warns.
 #[test]
 fn a_lone_stage_without_push_constants_is_warned_about() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let inc = corpus().join("include");
     let rgen = corpus().join("push/raygen.rgen");
     let o = run(&[
@@ -803,7 +803,7 @@ fn a_lone_stage_without_push_constants_is_warned_about() {
 /// An input that fails spirv-val is said to be invalid before any patch — never the patch's fault.
 #[test]
 fn an_invalid_input_is_blamed_on_the_input() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let good = d.path().join("good.spv");
     assemble(&shaders().join("as_array.spvasm"), &good);
     let b = std::fs::read(&good).unwrap();
@@ -845,7 +845,7 @@ fn a_validator_too_old_for_a_module_is_named_not_blamed() {
         eprintln!("skipped: no sid root (scripts/setup-sid) to assemble Slang's module");
         return;
     };
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let spv = d.path().join("slang.spv");
     rtprobe::tools::spirv::assemble(&corpus().join("slang/closesthit.spvasm"), &spv, "vulkan1.2")
         .unwrap();
@@ -869,7 +869,7 @@ fn a_validator_too_old_for_a_module_is_named_not_blamed() {
 /// sid root's glslang 16.6 compiles the SER raygen, and without it the error says so in one line.
 #[test]
 fn a_ser_raygen_compiles_with_the_sid_roots_glslang_or_says_why_not() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let rgen = corpus().join("ser/raygen.rgen");
     let inc = corpus().join("include");
     let out = d.path().join("o.spv");

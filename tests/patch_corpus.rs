@@ -294,7 +294,7 @@ fn check_patched(
 }
 
 fn run_case(case: &Case, t: &mut Tally) {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let inputs = prepare(case.inputs, d.path());
     let out = d.path().join("out");
     let unpatched = d.path().join("out");
@@ -390,7 +390,7 @@ fn indices_read_from_buffers_and_push_constants_verify() {
 /// pixel, and the per-pixel accumulation buffer is compared whole.
 #[test]
 fn per_pixel_runtime_arrays_cover_the_trace() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let inputs = prepare(PER_PIXEL.inputs, d.path());
     let out = d.path().join("out");
     let mut args: Vec<String> = vec!["patch".into()];
@@ -414,8 +414,8 @@ fn verify_cli(
     patches: &str,
     extra: &[&str],
     env: &[(&str, &str)],
-) -> (std::process::Output, tempfile::TempDir) {
-    let d = tempfile::tempdir().unwrap();
+) -> (std::process::Output, rtprobe::tempdir::TempDir) {
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let inputs = prepare(inputs, d.path());
     let out = d.path().join("out");
     std::fs::create_dir_all(&out).unwrap();
@@ -470,7 +470,7 @@ fn an_append_queue_verifies_every_time() {
 /// `RTPROBE_VERIFY_FAULT=swap`) makes `rtprobe patch --verify` exit 1 and write nothing.
 #[test]
 fn a_wrong_patch_exits_1_and_writes_nothing() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let (args, out) = bindless_args(d.path(), &["--verify"]);
     let refs: Vec<&str> = args.iter().map(String::as_str).collect();
     let o = run_env(&refs, &[("RTPROBE_VERIFY_FAULT", "swap")]);
@@ -550,8 +550,8 @@ fn table(t: &Tally) -> String {
 }
 
 /// The two-TLAS case patched (no --verify): its directory, inputs, outputs and contract path.
-fn two_tlas_case() -> (tempfile::TempDir, Vec<(PathBuf, PathBuf)>, PathBuf) {
-    let d = tempfile::tempdir().unwrap();
+fn two_tlas_case() -> (rtprobe::tempdir::TempDir, Vec<(PathBuf, PathBuf)>, PathBuf) {
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let inputs = prepare(SCENE, d.path());
     let out = d.path().join("out");
     let mut args: Vec<String> = vec!["patch".into()];
@@ -714,7 +714,7 @@ fn bindless_args(dir: &Path, extra: &[&str]) -> (Vec<String>, PathBuf) {
 /// a SIGSEGV. Now every index the scene produces is in bounds, and the writable log is compared.
 #[test]
 fn verify_runs_unbounded_arrays_indexed_by_the_custom_index() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let (args, _) = bindless_args(d.path(), &["--verify"]);
     let refs: Vec<&str> = args.iter().map(String::as_str).collect();
     let o = run(&refs);
@@ -732,7 +732,7 @@ fn a_crashing_or_hanging_verify_child_is_one_line_and_nothing_written() {
         ("crash", "died of signal 11 (SIGSEGV) at `trace patched`"),
         ("hang", "was silent for 12s and was killed at `trace patched`"),
     ] {
-        let d = tempfile::tempdir().unwrap();
+        let d = rtprobe::tempdir::tempdir().unwrap();
         let (args, out) = bindless_args(d.path(), &["--verify", "--verify-timeout", "1"]);
         let refs: Vec<&str> = args.iter().map(String::as_str).collect();
         let o = run_env(&refs, &[("RTPROBE_VERIFY_FAULT", fault)]);
@@ -752,7 +752,7 @@ fn a_crashing_or_hanging_verify_child_is_one_line_and_nothing_written() {
 /// crashed".
 #[test]
 fn a_crash_of_the_unpatched_pipeline_is_unrunnable_input() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let (args, out) = bindless_args(d.path(), &["--verify"]);
     let refs: Vec<&str> = args.iter().map(String::as_str).collect();
     let o = run_env(&refs, &[("RTPROBE_VERIFY_FAULT", "crash-unpatched")]);
@@ -767,7 +767,7 @@ fn a_crash_of_the_unpatched_pipeline_is_unrunnable_input() {
 #[test]
 fn verify_fails_when_only_a_writable_buffer_differs() {
     use rtprobe::harness::{self, judge, PartKind, UserModule, Verdict};
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let (args, out) = bindless_args(d.path(), &["--emit-unpatched"]);
     let mut args = args;
     args.push(out.to_string_lossy().into_owned());
@@ -803,7 +803,7 @@ fn verify_fails_when_only_a_writable_buffer_differs() {
 #[test]
 fn a_closest_hit_alone_verifies_with_supplied_stages() {
     let verify = |file: &str| {
-        let d = tempfile::tempdir().unwrap();
+        let d = rtprobe::tempdir::tempdir().unwrap();
         let (src, out) = (corpus().join(file), d.path().join("out.spv"));
         let args = ["patch", src.to_str().unwrap(), "-a", "ssbo-to-address", "-o"];
         let o = run(&[&args[..], &[out.to_str().unwrap(), "--verify"]].concat());

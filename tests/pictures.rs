@@ -35,7 +35,7 @@ fn run_cell(extra: &[&str], dir: &Path) -> (std::process::Output, Value) {
 
 #[test]
 fn a_mismatch_leaves_pictures_that_agree_with_the_report() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let (o, r) = run_cell(&["--inject-fault", "stage=closest_hit@value:0.1"], dir.path());
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     let c =
@@ -91,7 +91,7 @@ fn a_mismatch_leaves_pictures_that_agree_with_the_report() {
 
 #[test]
 fn a_passing_cell_leaves_no_pictures() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let (o, r) = run_cell(&[], dir.path());
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let c = &r["cells"][0];

@@ -27,7 +27,7 @@ fn ran(r: &Value) -> Vec<&Value> {
 
 #[test]
 fn cells_scale_runs_exactly_n_distinct_cells_and_bad_counts_are_refused() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let out = dir.path().join("r.json");
     let o = out.to_str().unwrap();
     let args = ["run", "--filter", COMPUTE, "--no-confirm", "--patches", "none", "-o", o];
@@ -71,7 +71,7 @@ fn cells_scale_runs_exactly_n_distinct_cells_and_bad_counts_are_refused() {
 
 #[test]
 fn pipelines_auto_is_whole_on_lavapipe_and_linked_is_recorded() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let out = dir.path().join("r.json");
     let o = out.to_str().unwrap();
     let filter =

@@ -86,7 +86,7 @@ fn full(hit: &str, pred: &str, by_hand: &str) -> Value {
 
 /// [`full`] of the pipeline `modules`, the injection matching `modules[k]`.
 fn full_of(modules: &[PathBuf], k: usize, pred: &str, by_hand: &str) -> Value {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     full_in(d.path(), modules, k, (pred, by_hand), &[])
 }
 
@@ -212,7 +212,7 @@ fn dxc_reflect(dir: &Path) -> Vec<PathBuf> {
 #[test]
 #[ignore = "a full reduction, 30 s on 2 cores: run with --ignored"]
 fn a_dxc_structured_buffer_read_reduces_to_its_shape() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let modules = dxc_reflect(d.path());
     let pred = "stage=closest_hit,resource=storage_buffer,index=dynamic@device";
     let r = full_of(&modules, 2, pred, "stage=closest_hit,resource=storage_buffer,index=dynamic");
@@ -264,7 +264,7 @@ const SHADOW_BY_HAND: &str = "stage=closest_hit,resource=acceleration_structure,
 /// not empty now; without --force it is refused.
 #[test]
 fn a_shadow_ray_tlas_read_reduces_and_as_to_address_removes_it() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let modules = [user().join("shadow.rchit")];
     let by_hand = (SHADOW_PRED, SHADOW_BY_HAND);
     let r = full_in(d.path(), &modules, 0, by_hand, &["--slice-cells", "4"]);
@@ -335,7 +335,7 @@ fn as_to_address_on_the_original(r: &Value, out: &Path) {
 #[test]
 #[ignore = "a full reduction, 1.5 min on 2 cores under load: run with --ignored"]
 fn a_ray_query_tlas_read_reduces_and_as_to_address_removes_it() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let modules = [user().join("rayquery_shadow.rchit")];
     let r = full_in(d.path(), &modules, 0, (SHADOW_PRED, SHADOW_BY_HAND), &[]);
     let asm = std::fs::read_to_string(d.path().join("out/reduced.spvasm")).unwrap();
@@ -383,7 +383,7 @@ fn a_heap_read_reduces_to_its_shape() {
     if !have_sid() {
         return;
     }
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let pred = "stage=closest_hit,resource=storage_buffer,index=dynamic@device";
     let hit = user().join("heap.rchit");
     let first = heap_run(d.path(), hit.to_str().unwrap(), "heap", pred);
@@ -428,7 +428,7 @@ fn a_heap_read_reduces_to_its_shape() {
 /// well. Before the fix `reduce` started `PATH (deleted)` (its `current_exe()`) and failed.
 #[test]
 fn a_binary_replaced_mid_reduction_still_starts_its_children() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let pred = "stage=closest_hit,resource=storage_buffer,index=dynamic@device";
     let report = finding(d.path(), &user().join("bindless.rchit"), pred);
     let exe = d.path().join("rtprobe");
@@ -524,7 +524,7 @@ fn kept_reduction(dir: &Path, report: &Path, steps: &str) -> (PathBuf, Value) {
 /// the glTF scene the finding traced (without it they would trace the seeded one).
 #[test]
 fn the_scene_is_carried_into_the_interestingness_job() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let o = run(&["scene", "make", d.path().to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let scene = d.path().join("scene.gltf");
@@ -544,7 +544,7 @@ fn the_scene_is_carried_into_the_interestingness_job() {
 /// holds no robustness and fails the first assertion.
 #[test]
 fn the_profile_is_carried_into_the_interestingness_job() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let profile = d.path().join("engine.json");
     let features = serde_json::json!({
         "VkPhysicalDeviceRobustness2FeaturesEXT": {"robustBufferAccess2": true},
@@ -583,7 +583,7 @@ fn the_profile_is_carried_into_the_interestingness_job() {
 /// and a report without a fault (a shader without the access: the injection never faults).
 #[test]
 fn refusals_are_one_line() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let hit = d.path().join("hit.rchit");
     std::fs::copy(user().join("bindless.rchit"), &hit).unwrap();
     std::fs::copy(user().join("common.glsl"), d.path().join("common.glsl")).unwrap();

@@ -17,7 +17,7 @@ fn cells(r: &Value) -> &Vec<Value> {
 
 #[test]
 fn default_matrix_passes_on_lavapipe_and_canaries_are_classified() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let out = dir.path().join("r.json");
     let junit = dir.path().join("j.xml");
     let o = run(&[
@@ -139,7 +139,7 @@ fn default_matrix_passes_on_lavapipe_and_canaries_are_classified() {
 
 #[test]
 fn injected_wrong_values_are_reported_as_confirmed_mismatches() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let out = dir.path().join("r.json");
     let filter = "stage=raygen|closest_hit,resource=storage_buffer,descriptor_model=descriptor_indexing,reorder=none,base=push_data|none,scene_layout=none";
     let o = run(&[
@@ -175,7 +175,7 @@ fn reports_carry_discrimination_and_the_reads_of_cells_without_nonuniform() {
     // AS cells (the weakest probes before: miss cells always expected 0) and the dynamic cells
     // without nonuniformEXT, on lavapipe: no false finding, every exactly checked cell catches a
     // wrong slot or element on at least half of its pixels, the others count what they read.
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let out = dir.path().join("r.json");
     let o = run(&[
         "run", "--patches", "none", "--filter", "stage=miss|closest_hit|compute,resource=acceleration_structure|uniform_buffer,descriptor_model=descriptor_indexing,base=none|push_data",
@@ -262,7 +262,7 @@ fn bad_run_arguments_are_usage_errors() {
     assert_one_line_error(&run(&["run", "--jobs", "0"]), 2, "--jobs");
     assert_one_line_error(&run(&["run", "--threads", "0"]), 2, "--threads");
     assert_one_line_error(&run(&["run", "--threads", "65"]), 2, "--threads");
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let bad = dir.path().join("bad.json");
     std::fs::write(&bad, b"{not json").unwrap();
     assert_one_line_error(
@@ -274,7 +274,7 @@ fn bad_run_arguments_are_usage_errors() {
 
 #[test]
 fn killed_supervisor_loses_no_finished_cell_and_resume_completes() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let out = dir.path().join("r.json");
     let filter =
         "descriptor_model=descriptor_indexing,resource=storage_buffer|uniform_buffer,reorder=none,base=none|push_data";
@@ -331,7 +331,7 @@ fn killed_supervisor_loses_no_finished_cell_and_resume_completes() {
 
 #[test]
 fn process_per_cell_starts_a_worker_per_cell() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let out = dir.path().join("r.json");
     let o = run(&[
         "run",
@@ -350,7 +350,7 @@ fn process_per_cell_starts_a_worker_per_cell() {
 
 #[test]
 fn dump_writes_glsl_and_valid_spirv() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let dump = dir.path().join("dump");
     let out = dir.path().join("r.json");
     let o = run(&[
@@ -384,7 +384,7 @@ fn dump_writes_glsl_and_valid_spirv() {
 
 #[test]
 fn patched_variants_render_like_the_originals() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let out = dir.path().join("r.json");
     let o = run(&[
         "run", "--patches", "all", "--filter", "stage=closest_hit|compute|fragment,resource=storage_buffer|sampled_image|acceleration_structure,index=dynamic,descriptor_model=descriptor_indexing,base=none|push_data",
@@ -414,7 +414,7 @@ fn patched_variants_render_like_the_originals() {
 /// pattern cells are outside the filter: the run schedules them, as often as their findings ran.
 #[test]
 fn findings_say_whether_the_recommended_pattern_works() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let filter = "stage=closest_hit,resource=storage_buffer|sampled_image,index=dynamic,nonuniform=true,descriptor_model=descriptor_indexing,reorder=none";
     let out = dir.path().join("r.json");
     let o = run(&[
@@ -497,7 +497,7 @@ fn findings_say_whether_the_recommended_pattern_works() {
 /// literal-index sibling that passed), recorded apart from the cell's own attempts.
 #[test]
 fn gpu_av_reruns_each_finding_and_says_whether_it_masks_it() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let out = dir.path().join("r.json");
     let filter = "stage=closest_hit,resource=storage_buffer,index=dynamic|literal,nonuniform=false,descriptor_model=descriptor_indexing,reorder=none";
     let o = run(&[
@@ -566,7 +566,7 @@ fn gpu_av_reruns_each_finding_and_says_whether_it_masks_it() {
 /// the same run without validation prebuilds on 4.
 #[test]
 fn validate_runs_with_one_thread() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let filter = "stage=raygen|closest_hit,resource=storage_buffer,index=literal,descriptor_model=descriptor_indexing,reorder=none";
     let go = |extra: &[&str], name: &str| {
         let out = dir.path().join(name);
@@ -602,7 +602,7 @@ fn validate_runs_with_one_thread() {
 /// own compile.
 #[test]
 fn confirmations_run_without_the_persisted_pipeline_cache() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let cache = dir.path().join("cache");
     let out = dir.path().join("r.json");
     let one =
@@ -642,7 +642,7 @@ fn confirmations_run_without_the_persisted_pipeline_cache() {
 
 #[test]
 fn faulting_cells_are_retried_with_each_applicable_workaround() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let out = dir.path().join("r.json");
     let filter = "stage=closest_hit,resource=storage_buffer,index=dynamic,nonuniform=false,descriptor_model=descriptor_indexing";
     // The fault follows the shape wherever it goes, patched variants included: nothing verifies.
@@ -763,7 +763,7 @@ fn faulting_cells_are_retried_with_each_applicable_workaround() {
 /// crashes in its trace like the cell it patches.)
 #[test]
 fn threads_change_no_verdict() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let mut seen = vec![];
     for t in ["1", "2"] {
         let out = dir.path().join(format!("t{t}.json"));
@@ -830,7 +830,7 @@ fn cache_file(dir: &Path) -> std::path::PathBuf {
 /// foreign file is ignored with its reason (never a crash) and replaced by a valid one.
 #[test]
 fn a_corrupt_pipeline_cache_is_ignored_and_replaced() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let cache = dir.path().join("cache");
     let out = dir.path().join("r.json");
     let one =

@@ -22,7 +22,7 @@ fn outcomes(r: &Value) -> BTreeMap<String, String> {
 
 #[test]
 fn the_test_scene_gives_the_procedural_verdicts_and_names_its_limits() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let o = run(&["scene", "make", dir.path().to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
     let scene = dir.path().join("scene.gltf");
@@ -87,7 +87,7 @@ fn as_build_is_timed(t: &Value) -> bool {
 /// says so instead of a made-up time.
 #[test]
 fn a_run_that_traces_no_scene_times_no_as_build() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let r = dir.path().join("c.json");
     let filter =
         "stage=compute,descriptor_model=descriptor_indexing,resource=storage_buffer,index=literal";
@@ -170,7 +170,7 @@ fn a_broken_base_colour_image_is_one_line_only_when_a_texture_cell_needs_it() {
         ),
     ];
     for (name, edit, needle) in breaks {
-        let dir = tempfile::tempdir().unwrap();
+        let dir = rtprobe::tempdir::tempdir().unwrap();
         let (path, mut doc) = made_scene(dir.path());
         edit(dir.path(), &mut doc);
         std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
@@ -180,7 +180,7 @@ fn a_broken_base_colour_image_is_one_line_only_when_a_texture_cell_needs_it() {
         assert_one_line_error(&o, 9, needle);
         assert!(!report.exists(), "{name}: a report was written");
     }
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let (path, _) = made_scene(dir.path());
     std::fs::remove_file(dir.path().join("checker.png")).unwrap();
     std::fs::write(dir.path().join("stripes.png"), b"garbage").unwrap();
@@ -200,7 +200,7 @@ fn a_broken_base_colour_image_is_one_line_only_when_a_texture_cell_needs_it() {
 /// unsupported cells; the geometry cells still run. The scene's device memory is printed.
 #[test]
 fn an_image_past_max_image_dimension_makes_the_texture_cells_unsupported() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let (path, _) = made_scene(dir.path());
     let o = run(&["caps", "--json", "--no-device-check"]);
     let caps: Value = serde_json::from_slice(&o.stdout).expect("caps --json");
@@ -246,7 +246,7 @@ fn find_u64(v: &Value, key: &str) -> Option<u64> {
 /// found it and the verdict said every planned cell ran); the geometry cells pass.
 #[test]
 fn a_scene_without_textures_counts_its_texture_cells_as_not_run_with_why() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let (path, mut doc) = made_scene(dir.path());
     for m in doc["materials"].as_array_mut().unwrap() {
         m["pbrMetallicRoughness"].as_object_mut().unwrap().remove("baseColorTexture");
@@ -275,7 +275,7 @@ fn a_scene_without_textures_counts_its_texture_cells_as_not_run_with_why() {
 /// limit aborted with a backtrace).
 #[test]
 fn an_oversized_header_is_unsupported_without_decoding_the_image() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let (path, _) = made_scene(dir.path());
     let mut bytes = Vec::new();
     let mut enc = png::Encoder::new(&mut bytes, 1, 1);

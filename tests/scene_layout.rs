@@ -129,7 +129,7 @@ fn layouts_pass_and_agree(dir: &Path, scene: Option<&Path>, textures: usize) {
 
 #[test]
 fn both_layouts_pass_and_agree_word_for_word_on_both_scenes() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let o = run(&["scene", "make", dir.path().to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
     let (file, procedural) = (dir.path().join("file"), dir.path().join("procedural"));
@@ -141,7 +141,7 @@ fn both_layouts_pass_and_agree_word_for_word_on_both_scenes() {
 /// against its reference, and the records disagree.
 #[test]
 fn layouts_fed_different_scenes_pass_but_disagree() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let (a, b) = (dir.path().join("a"), dir.path().join("b"));
     let (code_a, ra) = run_layouts(&a, None, &["--seed", "1"]);
     let (code_b, rb) = run_layouts(&b, None, &["--seed", "2"]);
@@ -159,7 +159,7 @@ fn layouts_fed_different_scenes_pass_but_disagree() {
 /// what to do; the geometry cells still pass.
 #[test]
 fn a_scene_without_textures_leaves_the_texture_cells_not_implemented() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let o = run(&["scene", "make", dir.path().to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
     let mut g: Value =
@@ -186,7 +186,7 @@ fn a_scene_without_textures_leaves_the_texture_cells_not_implemented() {
 
 #[test]
 fn a_wrong_fetch_is_a_mismatch_and_breaks_the_agreement() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let (code, r) = run_layouts(dir.path(), None, &["--inject-fault", GEOMETRY_FAULT]);
     assert_ne!(code, Some(0));
     for (shared, per_mesh) in pairs() {
@@ -221,7 +221,7 @@ fn a_wrong_fetch_is_a_mismatch_and_breaks_the_agreement() {
 /// 25's `subgroupSupportedStages` lacks closest-hit). Every other pair is listed with why.
 #[test]
 fn the_layout_cells_kill_their_wrong_descriptor_mutants() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let o = run(&["scene", "make", dir.path().to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
     let scene = dir.path().join("scene.gltf");

@@ -5,7 +5,7 @@ use common::*;
 
 #[test]
 fn the_test_scene_is_written_and_read_back_in_both_containers() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     for (sub, glb, file) in [("a", false, "scene.gltf"), ("b", true, "scene.glb")] {
         let out = dir.path().join(sub);
         let mut args = vec!["scene", "make", out.to_str().unwrap()];
@@ -31,7 +31,7 @@ fn the_test_scene_is_written_and_read_back_in_both_containers() {
 
 #[test]
 fn a_broken_scene_is_one_line_and_exit_9() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let o = run(&["scene", "make", dir.path().to_str().unwrap()]);
     assert!(o.status.success());
     let path = dir.path().join("scene.gltf");

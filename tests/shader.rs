@@ -18,8 +18,8 @@ fn shader_run(
     files: &[&str],
     extra: &[&str],
     env: &[(&str, &str)],
-) -> (std::process::Output, Option<Value>, tempfile::TempDir) {
-    let d = tempfile::tempdir().unwrap();
+) -> (std::process::Output, Option<Value>, rtprobe::tempdir::TempDir) {
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let (o, report) = run_user_shaders(files, &d.path().join("report.json"), extra, env);
     (o, report, d)
 }
@@ -60,7 +60,7 @@ fn assert_clean(o: &std::process::Output, r: &Value, min_variants: usize, repeat
 /// unpatched and under as-to-address and ssbo-to-address, with the colour target dumped.
 #[test]
 fn a_bindless_closest_hit_runs_clean_in_every_variant() {
-    let dump = tempfile::tempdir().unwrap();
+    let dump = rtprobe::tempdir::tempdir().unwrap();
     let dir = dump.path().to_str().unwrap();
     let (o, r, _d) = shader_run(
         &["raygen.rgen", "miss.rmiss", "bindless.rchit"],
@@ -179,7 +179,7 @@ fn aliased_blocks_at_one_binding_run_clean() {
 /// before any child, one line, exit 9, no report.
 #[test]
 fn incompatible_kinds_at_one_binding_are_refused_at_plan_time() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let f = d.path().join("clash.rchit");
     std::fs::write(&f, "#version 460\n#extension GL_EXT_ray_tracing : require\nlayout(set = 1, binding = 0) readonly buffer S { vec4 s[]; } sb;\nlayout(set = 1, binding = 0) uniform U { vec4 u; } ub;\nlayout(location = 0) rayPayloadInEXT vec4 p;\nvoid main() { p = sb.s[1] + ub.u; }\n").unwrap();
     let (o, r, _d2) = shader_run(&[f.to_str().unwrap()], &[], &[]);
@@ -309,7 +309,7 @@ fn bad_input_is_one_line_and_no_report() {
     assert!(r.is_none(), "no report for node.rchit");
     // Textures the harness does not make (a 3D one, a cube map): one line naming the set and
     // binding.
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     for (decl, read, what) in [
         ("uniform sampler3D volume", "textureLod(volume, vec3(0.5), 0.0)", "a 3D texture"),
         ("uniform samplerCube sky", "textureLod(sky, vec3(0, 0, 1), 0.0)", "a cube texture"),
@@ -361,7 +361,7 @@ fn bad_input_is_one_line_and_no_report() {
 /// GLSL file with many errors (its first error and how many more, not every one).
 #[test]
 fn refusals_before_the_device_are_one_short_line() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let f = |n: &str| user().join(n).to_string_lossy().into_owned();
     let (rgen, miss) = (f("raygen.rgen"), f("miss.rmiss"));
     let report = d.path().join("r.json").to_string_lossy().into_owned();
@@ -420,7 +420,7 @@ fn uncompared_variants_and_teardown_faults_are_said() {
 /// as given: clean in every variant, its closest-hit's SSBO arrays bound as reflected.
 #[test]
 fn dxc_style_spirv_runs_clean_in_every_variant() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let corpus = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/patch-corpus/dxc");
     let mut files = Vec::new();
     for stage in ["raygen", "closesthit", "miss"] {
@@ -473,7 +473,7 @@ fn dxc_pipeline(dir: &Path, closest_hit: &str) -> Vec<String> {
 /// the device extension hidden, the same module is refused before any run.
 #[test]
 fn dxc_reflect_modules_get_their_google_extensions() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let full = std::fs::read_to_string(user().join("reflect.rchit.spvasm")).unwrap();
     let no_user_type: String = full
         .lines()
@@ -500,7 +500,7 @@ fn dxc_reflect_modules_get_their_google_extensions() {
     );
     assert!(stderr(&o).contains("without -fspv-reflect"), "{}", stderr(&o));
     assert!(r.is_none(), "no report");
-    let d2 = tempfile::tempdir().unwrap();
+    let d2 = rtprobe::tempdir::tempdir().unwrap();
     let files = dxc_pipeline(d2.path(), &full);
     let names: Vec<&str> = files.iter().map(String::as_str).collect();
     let (o, r, _d) = shader_run(&names, &["--repeat", "1"], &[]);
@@ -556,7 +556,7 @@ fn a_spec_constant_reaches_the_pipeline() {
 /// Bad `--spec` and `--descriptor-model` values: one line each, exit 2, no report.
 #[test]
 fn bad_spec_and_descriptor_models_are_one_line() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let report = d.path().join("r.json").to_string_lossy().into_owned();
     let f = |n: &str| user().join(n).to_string_lossy().into_owned();
     let (tinted, bindless) = (f("tinted.rchit"), f("bindless.rchit"));
@@ -586,7 +586,7 @@ fn bad_spec_and_descriptor_models_are_one_line() {
 /// exit naming the feature; a set/binding model for it is refused before the device.
 #[test]
 fn a_heap_shader_on_a_device_without_heaps_is_unsupported() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let report = d.path().join("r.json").to_string_lossy().into_owned();
     let heap = user().join("heap.rchit").to_string_lossy().into_owned();
     let o = run_env(&["run", "--shader", &heap, "-o", &report], &[]);
@@ -786,7 +786,7 @@ fn seen_bytes(material: u32, light: u32, texture: u32) -> Vec<u8> {
 /// report and the cell id (the plain run's has no options hash).
 #[test]
 fn fills_put_a_files_bytes_in_buffers_push_constants_and_records() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let file = |name: &str, bytes: &[u8]| {
         let p = d.path().join(name);
         std::fs::write(&p, bytes).unwrap();
@@ -818,7 +818,7 @@ fn fills_put_a_files_bytes_in_buffers_push_constants_and_records() {
 /// exit 2 or 9, no report.
 #[test]
 fn bad_fills_are_one_line_and_no_report() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let report = d.path().join("r.json").to_string_lossy().into_owned();
     let big = d.path().join("big.bin");
     std::fs::write(&big, [7u8; 17]).unwrap();
@@ -880,7 +880,7 @@ fn profile_file(dir: &Path, name: &str, features: Value) -> String {
 /// layouts, and the report records what was enabled and bound and the profile's hash.
 #[test]
 fn a_profile_with_robustness_and_binding_flags_runs_clean() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let features = serde_json::json!({
         "VkPhysicalDeviceRobustness2FeaturesKHR": {"robustBufferAccess2": true, "nullDescriptor": false},
         "VkPhysicalDeviceDescriptorIndexingFeatures": {
@@ -960,7 +960,7 @@ fn clean_cell(files: &[&str], extra: &[&str]) -> (String, Value) {
 /// under `--validate`.
 #[test]
 fn the_profile_is_in_the_cell_id_by_what_it_turns_on() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let files = ["raygen.rgen", "miss.rmiss", "textured.rchit"];
     let partially = serde_json::json!({
         "VkPhysicalDeviceDescriptorIndexingFeatures": {"descriptorBindingPartiallyBound": true}
@@ -1012,7 +1012,7 @@ fn spec_values_are_one_cell_in_any_order_and_spelling() {
 /// a file that is not JSON in one line each (exit 9); no report in any case.
 #[test]
 fn a_profile_the_device_cannot_meet_or_that_is_malformed_is_one_line() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let lacks = profile_file(
         d.path(),
         "lacks.json",

@@ -38,7 +38,7 @@ fn earlier(dir: &Path) -> Value {
 
 #[test]
 fn a_run_against_its_own_report_has_no_notes_and_an_edited_one_differs() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let mut r = earlier(d.path());
     let data = r["variants"][0]["data"].as_array().unwrap();
     assert!(!data.is_empty(), "the report embeds the outputs");
@@ -80,7 +80,7 @@ fn a_run_against_its_own_report_has_no_notes_and_an_edited_one_differs() {
 
 #[test]
 fn another_cells_report_is_refused_in_one_line() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let mut r = earlier(d.path());
     r["cell"] = Value::from("shader:other.rchit@0123456789ab");
     let other = write(&d.path().join("other.json"), &r);
@@ -98,7 +98,7 @@ fn another_cells_report_is_refused_in_one_line() {
 
 #[test]
 fn junit_has_one_testcase_per_variant() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let xml = d.path().join("junit.xml");
     let (o, r) = shader_run(d.path(), "j", &["--junit", xml.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
@@ -135,7 +135,7 @@ fn assert_well_formed(xml: &str) {
 
 #[test]
 fn a_baseline_expecting_the_injected_fault_passes_the_run() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let (o, r) = shader_run(d.path(), "faulty", &["--inject-fault", FAULT]);
     assert_eq!(o.status.code(), Some(1), "{}{}", stdout(&o), stderr(&o));
     assert_eq!(r.unwrap()["outcome"], "crash");

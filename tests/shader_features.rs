@@ -14,7 +14,7 @@ fn user() -> PathBuf {
 
 /// `run --validate --shader FILE -o DIR/report.json`: the output and the report, if written.
 fn run_one(file: &Path) -> (std::process::Output, Option<Value>) {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let out = d.path().join("report.json");
     let o = run(&[
         "run",
@@ -79,7 +79,7 @@ fn a_ray_query_shadow_in_a_closest_hit_gets_ray_query() {
         assert_one_line_error(&o, 5, "rayQuery (VK_KHR_ray_query)");
     }
     // Twin: the device without VK_KHR_ray_query (hidden) is refused, naming it; no report.
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let out = d.path().join("report.json");
     let hit = user().join("rayquery_shadow.rchit");
     let args = ["run", "--shader", hit.to_str().unwrap(), "-o", out.to_str().unwrap()];
@@ -93,7 +93,7 @@ fn a_ray_query_shadow_in_a_closest_hit_gets_ray_query() {
 /// assembled as SPV_KHR_ray_tracing, is not refused for its capabilities.
 #[test]
 fn an_nv_ray_tracing_module_is_refused_in_one_line() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let src = std::fs::read_to_string(user().join("nv_closest.rchit.spvasm")).unwrap();
     let assemble = |text: &str, name: &str| {
         let (asm, spv) = (d.path().join(format!("{name}.spvasm")), d.path().join(name));

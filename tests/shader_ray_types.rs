@@ -11,7 +11,7 @@ use serde_json::Value;
 
 /// `run --validate --shader F… extra`: the output and the report, if written.
 fn shader_run(files: &[&str], extra: &[&str]) -> (std::process::Output, Option<Value>) {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     run_user_shaders(files, &d.path().join("report.json"), extra, &[])
 }
 

@@ -29,8 +29,8 @@ fn user(f: &str) -> String {
 }
 
 /// The test scene written into a temporary folder.
-fn test_scene() -> (tempfile::TempDir, PathBuf) {
-    let d = tempfile::tempdir().unwrap();
+fn test_scene() -> (rtprobe::tempdir::TempDir, PathBuf) {
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let o = run(&["scene", "make", &d.path().display().to_string()]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let p = d.path().join("scene.gltf");
@@ -39,7 +39,7 @@ fn test_scene() -> (tempfile::TempDir, PathBuf) {
 
 /// `run --shader F --scene S` with `extra`: the output and the report, if written.
 fn scene_run(scene: &Path, extra: &[&str]) -> (std::process::Output, Option<Value>) {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let out = d.path().join("report.json");
     let (shader, scene, out_s) =
         (user("tutorial.rchit"), scene.display().to_string(), out.display().to_string());
@@ -391,7 +391,7 @@ fn scene_fills_given_wrongly_are_one_line_and_no_report() {
     let (_d, scene) = test_scene();
     // A scene fill without --scene.
     let shader = user("tutorial.rchit");
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let out = d.path().join("r.json").display().to_string();
     let o = run(&["run", "--shader", &shader, "--fill", "push.16=scene.scene_desc", "-o", &out]);
     assert_one_line_error(&o, 2, "needs --scene FILE");
@@ -449,7 +449,7 @@ fn a_broken_scene_image_is_one_line_only_when_scene_textures_reads_it() {
 /// setup, reported as such.
 #[test]
 fn a_large_scene_build_waits_under_the_setup_deadline() {
-    let d = tempfile::tempdir().unwrap();
+    let d = rtprobe::tempdir::tempdir().unwrap();
     let dir = d.path().display().to_string();
     let o = run(&["scene", "make", &dir, "--triangles", "400000", "--glb"]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));

@@ -3,8 +3,8 @@
 mod common;
 use common::*;
 
-fn stress(args: &[&str]) -> (std::process::Output, serde_json::Value, tempfile::TempDir) {
-    let dir = tempfile::tempdir().unwrap();
+fn stress(args: &[&str]) -> (std::process::Output, serde_json::Value, rtprobe::tempdir::TempDir) {
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let json = dir.path().join("stress.json");
     let mut all = vec!["stress", "--json", json.to_str().unwrap()];
     all.extend_from_slice(args);
@@ -34,7 +34,7 @@ fn f(c: &serde_json::Value, field: &str) -> f64 {
 
 #[test]
 fn stress_report_has_every_case_with_the_contract_fields() {
-    let svg_dir = tempfile::tempdir().unwrap();
+    let svg_dir = rtprobe::tempdir::tempdir().unwrap();
     let svg_path = svg_dir.path().join("far.svg");
     let (out, doc, _dir) = stress(&["--svg", svg_path.to_str().unwrap()]);
     assert_eq!(doc["schema"], "rtprobe.stress/3");
@@ -179,7 +179,7 @@ fn self_hits_are_counted_and_the_offset_removes_them() {
 }
 
 fn stress_env(args: &[&str], env: &[(&str, &str)]) -> (std::process::Output, serde_json::Value) {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let json = dir.path().join("stress.json");
     let mut all = vec!["stress", "--json", json.to_str().unwrap()];
     all.extend_from_slice(args);
@@ -345,7 +345,7 @@ fn stress_bad_input_is_one_line() {
         "unknown stress case `nope`",
     );
     assert_one_line_error(&run(&["stress", "--timeout", "0"]), 2, "--timeout");
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     std::fs::write(dir.path().join("a-file"), b"").unwrap();
     let bad = dir.path().join("a-file").join("x.json");
     let o = run(&["stress", "--cases", "tmin", "--json", bad.to_str().unwrap()]);

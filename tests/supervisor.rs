@@ -75,7 +75,7 @@ fn fault_run_with(
     extra: &[&str],
     limit: Duration,
 ) -> (Output, Value, Duration) {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let out = dir.path().join("r.json");
     let mut args = global.to_vec();
     args.extend_from_slice(&[
@@ -148,7 +148,7 @@ fn hung_device_creation_makes_the_cells_timeout_in_setup() {
 fn a_worker_without_a_shader_compiler_stops_the_run_with_exit_12() {
     // Two workers at once: the first whose shader compiler cannot start halts the run. The other
     // is killed, no worker is retried, no cell is given up as not run, and the CLI exits 12.
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let out = dir.path().join("r.json");
     let args = [
         "run",
@@ -273,7 +273,7 @@ fn a_hang_in_teardown_is_bounded_and_reported() {
 
 #[test]
 fn every_attempt_records_the_features_its_worker_enabled() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let out = dir.path().join("r.json");
     let (o, _) = run_bounded(
         &[
@@ -427,7 +427,7 @@ const MANY: &str = "descriptor_model=descriptor_indexing,resource=storage_buffer
 
 #[test]
 fn ctrl_c_kills_every_worker_keeps_the_report_and_resume_finishes() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let out = dir.path().join("r.json");
     let (status, err) = interrupt_mid_run(&out, libc::SIGINT, MANY, None);
     assert_eq!(status.code(), Some(130), "{status:?}");
@@ -471,7 +471,7 @@ fn ctrl_c_kills_every_worker_keeps_the_report_and_resume_finishes() {
 
 #[test]
 fn sigterm_kills_a_hung_worker_too() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let (status, err) =
         interrupt_mid_run(&dir.path().join("r.json"), libc::SIGTERM, ONE, Some("pipeline:hang"));
     assert_eq!(status.code(), Some(143), "{status:?}");
@@ -481,7 +481,7 @@ fn sigterm_kills_a_hung_worker_too() {
 #[test]
 fn a_killed_supervisor_leaves_no_worker_running() {
     // The worker hangs in pipeline creation: nothing but the supervisor's death can end it.
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let (status, _) =
         interrupt_mid_run(&dir.path().join("r.json"), libc::SIGKILL, ONE, Some("pipeline:hang"));
     use std::os::unix::process::ExitStatusExt;

@@ -31,7 +31,7 @@ fn satisfies(cell: &Value, predicate: &str) -> bool {
 
 #[test]
 fn each_fault_kind_lands_on_exactly_its_cells_with_the_expected_outcome() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let out = dir.path().join("r.json");
     let junit = dir.path().join("j.xml");
     // Predicates: a single axis value set, two axes, three axes; disjoint, so each cell has one.
@@ -100,7 +100,7 @@ fn each_fault_kind_lands_on_exactly_its_cells_with_the_expected_outcome() {
 
 #[test]
 fn a_fault_that_does_not_repeat_stays_a_finding_with_its_rate() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let out = dir.path().join("r.json");
     let junit = dir.path().join("j.xml");
     // 10 cells each faulting with probability 0.5 per attempt: all pass the first attempt with
@@ -213,7 +213,7 @@ fn reruns_ran_side_by_side_each_alone(r: &Value, err: &str) {
 
 #[test]
 fn resume_refuses_another_device_scene_or_injection() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = rtprobe::tempdir::tempdir().unwrap();
     let out = dir.path().join("r.json");
     let filter =
         "stage=raygen,resource=storage_buffer,index=literal,descriptor_model=descriptor_indexing";

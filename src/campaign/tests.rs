@@ -94,14 +94,14 @@ impl Progress for Rc<Counts> {
 }
 
 struct World {
-    _dir: tempfile::TempDir,
+    _dir: crate::tempdir::TempDir,
     oracle: Script,
     rec: Recorder,
     counts: Rc<Counts>,
 }
 
 fn world(plan: &[Cell], oracle: Script) -> World {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = crate::tempdir::tempdir().unwrap();
     let p = RunPlan {
         generated: plan.len(),
         cells: plan.iter().map(|c| PlannedCell { cell: *c, status: PlanStatus::Run }).collect(),

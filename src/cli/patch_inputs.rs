@@ -307,7 +307,7 @@ mod tests {
     /// a file that includes nothing new is not changed by an unrelated header.
     #[test]
     fn a_glsl_inputs_identity_covers_its_includes_and_defines() {
-        let d = tempfile::tempdir().unwrap();
+        let d = crate::tempdir::tempdir().unwrap();
         let hit = d.path().join("hit.rchit");
         std::fs::write(&hit, "#version 460\n#extension GL_EXT_ray_tracing : require\n#include \"common.glsl\"\nlayout(location = 0) rayPayloadInEXT vec4 p;\nvoid main() { p = vec4(K); }\n").unwrap();
         let header = d.path().join("common.glsl");

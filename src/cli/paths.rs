@@ -68,7 +68,7 @@ mod tests {
 
     #[test]
     fn an_unwritable_output_is_one_line_before_any_work() {
-        let d = tempfile::tempdir().unwrap();
+        let d = crate::tempdir::tempdir().unwrap();
         writable_file(&d.path().join("new/sub/r.json"), "-o").unwrap();
         assert!(d.path().join("new/sub").is_dir(), "made, as the write would");
         assert_eq!(

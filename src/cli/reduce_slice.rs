@@ -175,7 +175,7 @@ mod tests {
 
     #[test]
     fn no_cap_no_slice() {
-        let d = tempfile::tempdir().unwrap();
+        let d = crate::tempdir::tempdir().unwrap();
         assert_eq!(run(&args(0), d.path()).unwrap(), None);
     }
 }

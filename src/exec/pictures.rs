@@ -177,7 +177,7 @@ mod tests {
             e(rec(0, 0, 0.0), false),
         ];
         let actual = vec![rec(3, 4, 5.0), rec(3, 4, 6.0), rec(3, 9, 5.0), rec(0, 0, 0.0)];
-        let d = tempfile::tempdir().unwrap();
+        let d = crate::tempdir::tempdir().unwrap();
         let paths = write(d.path(), &expected, &actual, 2, 2).unwrap();
         assert_eq!(paths.len(), 3);
         let (w, h, diff) = decode(&paths[2]);
@@ -201,7 +201,7 @@ mod tests {
 
     #[test]
     fn wrong_lengths_are_an_error_not_a_panic() {
-        let d = tempfile::tempdir().unwrap();
+        let d = crate::tempdir::tempdir().unwrap();
         assert!(matches!(
             write(d.path(), &[], &[Record::default()], 1, 1),
             Err(PictureError::Length { .. })

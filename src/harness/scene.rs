@@ -88,7 +88,7 @@ mod tests {
     /// 128 triangles in one geometry, more than the harness scene's bound.
     #[test]
     fn a_loaded_scenes_bound_covers_its_primitives() {
-        let d = tempfile::tempdir().unwrap();
+        let d = crate::tempdir::tempdir().unwrap();
         let o = crate::scene::gltf::make::MakeOptions { triangles: 0, glb: false };
         let l =
             crate::scene::gltf::Loaded::load(&crate::scene::gltf::make::make(d.path(), o).unwrap())

@@ -255,8 +255,8 @@ impl SceneBuffers {
 mod tests {
     use super::*;
 
-    fn test_scene() -> (tempfile::TempDir, Loaded) {
-        let d = tempfile::tempdir().unwrap();
+    fn test_scene() -> (crate::tempdir::TempDir, Loaded) {
+        let d = crate::tempdir::tempdir().unwrap();
         let o = crate::scene::gltf::make::MakeOptions { triangles: 0, glb: false };
         let path = crate::scene::gltf::make::make(d.path(), o).unwrap();
         let l = Loaded::load(&path).unwrap();

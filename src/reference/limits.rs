@@ -127,7 +127,7 @@ mod tests {
     /// The test scene: custom indices 0, 1, 2, 2, 2 (the mesh's) on instances 0..5, no sphere.
     #[test]
     fn the_test_scene_names_what_it_breaks_and_where() {
-        let dir = tempfile::tempdir().unwrap();
+        let dir = crate::tempdir::tempdir().unwrap();
         let path = make(dir.path(), MakeOptions { triangles: 0, glb: false }).unwrap();
         let loaded = crate::scene::gltf::Loaded::load(&path).unwrap();
         let scene = crate::scene::gltf::fit::to_scene(&loaded, &SceneParams::default());

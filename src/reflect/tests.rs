@@ -306,7 +306,7 @@ const DXC: &str = r#"
 "#;
 
 fn assembled(src: &str) -> Option<Module> {
-    let d = tempfile::tempdir().ok()?;
+    let d = crate::tempdir::tempdir().ok()?;
     let (s, o) = (d.path().join("m.spvasm"), d.path().join("m.spv"));
     std::fs::write(&s, src).ok()?;
     if crate::tools::spirv::tool(crate::tools::spirv::SpirvTool::As).is_none() {

@@ -110,7 +110,7 @@ mod tests {
 
     #[test]
     fn a_report_has_one_writer_and_is_free_again_after_it() {
-        let d = tempfile::tempdir().unwrap();
+        let d = crate::tempdir::tempdir().unwrap();
         let r = d.path().join("r.json");
         let first = ReportLock::acquire(&r).unwrap();
         // flock locks belong to the open file: a second open, even in this process, is refused.
@@ -127,7 +127,7 @@ mod tests {
 
     #[test]
     fn default_names_skip_reports_that_exist_or_are_being_written() {
-        let d = tempfile::tempdir().unwrap();
+        let d = crate::tempdir::tempdir().unwrap();
         let (a, la) = ReportLock::unique(d.path(), "run-x").unwrap();
         assert_eq!(a.file_name().unwrap(), "run-x.json");
         // A second run in the same second, while the first still writes (its report not yet

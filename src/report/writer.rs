@@ -169,7 +169,7 @@ mod tests {
             cells.iter().map(|&cell| PlannedCell { cell, status: PlanStatus::Run }).collect();
         planned[3].status = PlanStatus::Unsupported { reason: "x".into() };
         let plan = RunPlan { generated: 8, cells: planned, not_generated: vec![], filtered_out: 0 };
-        let dir = tempfile::tempdir().unwrap();
+        let dir = crate::tempdir::tempdir().unwrap();
         let mut w =
             ReportWriter::new(dir.path().join("r.json"), RunReport::for_tests(vec![]), &plan);
         let variant = Cell { patch: Some(Workaround::PinIndex), ..cells[1] };

@@ -51,7 +51,7 @@ mod tests {
     fn the_running_file_starts_after_its_path_is_gone() {
         // A copy of a small executable, started, then its path removed: /proc/PID/exe still
         // starts the file, as spawn_path and shared_path give it.
-        let d = tempfile::tempdir().unwrap();
+        let d = crate::tempdir::tempdir().unwrap();
         let exe = d.path().join("sleeper");
         std::fs::copy("/bin/sleep", &exe).unwrap();
         let mut child = std::process::Command::new(&exe).arg("5").spawn().unwrap();

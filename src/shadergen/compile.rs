@@ -478,7 +478,7 @@ mod tests {
     /// the folder (a mutant's or bisect's worker) compiles though the file is there.
     #[test]
     fn a_warm_compiler_reads_kept_compiles_and_recompiles_garbage() {
-        let d = tempfile::tempdir().unwrap();
+        let d = crate::tempdir::tempdir().unwrap();
         let mut cold = Compiler::new().unwrap();
         cold.use_disk_cache(Some(d.path()));
         let (words, _) = cold.compile(Role::Miss, SKY_MISS).unwrap();
@@ -525,7 +525,7 @@ mod tests {
     /// SPIR-V whatever thread read it, and only the missing and the damaged ones are compiled.
     #[test]
     fn kept_compiles_read_on_threads_go_to_their_own_sources() {
-        let d = tempfile::tempdir().unwrap();
+        let d = crate::tempdir::tempdir().unwrap();
         let skies: Vec<String> =
             (0..7).map(|k| SKY_MISS.replace("0.5, 0.7", &format!("0.{k}, 0.7"))).collect();
         let mut cold = Compiler::new().unwrap();

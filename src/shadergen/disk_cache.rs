@@ -167,7 +167,7 @@ mod tests {
     /// and non-SPIR-V are each `Corrupt`, never a hit.
     #[test]
     fn a_damaged_file_is_corrupt_never_a_hit() {
-        let d = tempfile::tempdir().unwrap();
+        let d = crate::tempdir::tempdir().unwrap();
         let c = DiskCache::under(d.path());
         let words = vec![SPIRV_MAGIC, 0x0001_0500, 7, 9, 1];
         assert_eq!(c.load(1), Lookup::Miss);

@@ -8,7 +8,6 @@
 use super::error::CompileError;
 use super::Role;
 use crate::tools::Tool;
-use std::path::PathBuf;
 
 /// The GLSL extension of rtprobe's heap shaders, which only this compiler handles.
 pub const HEAP_EXTENSION: &str = "GL_EXT_descriptor_heap";
@@ -98,14 +97,14 @@ pub fn compile_with(
         file: file.clone(),
         message: missing_for(extension),
     })?;
-    let dir = TempDir::new().map_err(|e| CompileError::Glsl {
+    let dir = crate::tempdir::TempDir::new().map_err(|e| CompileError::Glsl {
         file: file.clone(),
         message: format!("temporary folder: {e}"),
     })?;
     // The source keeps its own name (glslang's messages name it), without its folders.
     let base = std::path::Path::new(&file).file_name().map_or("shader".into(), |b| b.to_owned());
-    let src = dir.0.join(base);
-    let spv = dir.0.join("out.spv");
+    let src = dir.path().join(base);
+    let spv = dir.path().join("out.spv");
     std::fs::write(&src, glsl)
         .map_err(|e| CompileError::Glsl { file: file.clone(), message: e.to_string() })?;
     let out = g
@@ -123,7 +122,7 @@ pub fn compile_with(
     if !out.status.success() {
         let msg = String::from_utf8_lossy(&out.stdout).to_string()
             + &String::from_utf8_lossy(&out.stderr);
-        let msg = msg.replace(&format!("{}/", dir.0.display()), "");
+        let msg = msg.replace(&format!("{}/", dir.path().display()), "");
         return Err(CompileError::Glsl {
             file,
             message: format!("glslang {}: {}", g.version_text, msg.trim().replace('\n', " | ")),
@@ -138,25 +137,6 @@ pub fn compile_with(
         });
     }
     Ok(bytes.chunks_exact(4).map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]])).collect())
-}
-
-/// A private folder under the system temp dir, removed on drop.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new() -> std::io::Result<TempDir> {
-        static N: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
-        let n = N.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        let p = std::env::temp_dir().join(format!("rtprobe-glslang-{}-{n}", std::process::id()));
-        std::fs::create_dir_all(&p)?;
-        Ok(TempDir(p))
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
 }
 
 #[cfg(test)]

@@ -155,8 +155,8 @@ impl Includes {
 mod tests {
     use super::*;
 
-    fn tree() -> tempfile::TempDir {
-        let d = tempfile::tempdir().unwrap();
+    fn tree() -> crate::tempdir::TempDir {
+        let d = crate::tempdir::tempdir().unwrap();
         std::fs::create_dir_all(d.path().join("inc/sub")).unwrap();
         std::fs::write(
             d.path().join("main.rgen"),

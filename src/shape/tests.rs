@@ -60,7 +60,7 @@ OpFunctionEnd
 }
 
 fn assemble(text: &str) -> Vec<u32> {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = crate::tempdir::tempdir().unwrap();
     let (src, out) = (dir.path().join("m.spvasm"), dir.path().join("m.spv"));
     std::fs::write(&src, text).unwrap();
     crate::tools::spirv::assemble(&src, &out, "vulkan1.2").unwrap();

@@ -155,7 +155,7 @@ mod tests {
 
     #[test]
     fn a_root_without_its_stamp_or_loader_offers_nothing() {
-        let d = tempfile::tempdir().unwrap();
+        let d = crate::tempdir::tempdir().unwrap();
         assert!(in_sid_root(d.path(), "spirv-val").is_none());
         std::fs::create_dir_all(d.path().join("usr/bin")).unwrap();
         std::fs::write(d.path().join("usr/bin/spirv-val"), "").unwrap();

@@ -4,8 +4,8 @@ use super::*;
 use crate::model::SceneParams;
 use glam::{Mat4, Quat, Vec3};
 
-fn scene(glb: bool) -> (tempfile::TempDir, std::path::PathBuf) {
-    let dir = tempfile::tempdir().unwrap();
+fn scene(glb: bool) -> (crate::tempdir::TempDir, std::path::PathBuf) {
+    let dir = crate::tempdir::tempdir().unwrap();
     let path = make(dir.path(), MakeOptions { triangles: 0, glb }).unwrap();
     (dir, path)
 }
@@ -118,7 +118,7 @@ fn the_fitted_scene_fills_the_view_keeps_facing_and_uses_mesh_indices() {
 
 #[test]
 fn a_large_scene_has_the_triangles_asked_for() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = crate::tempdir::tempdir().unwrap();
     let path = make(dir.path(), MakeOptions { triangles: 20_000, glb: true }).unwrap();
     let s = Loaded::load(&path).unwrap();
     assert!(s.triangles() >= 20_000, "{}", s.triangles());

@@ -84,7 +84,7 @@ mod tests {
 
     #[test]
     fn relative_paths_are_percent_decoded_and_remote_ones_refused() {
-        let d = tempfile::tempdir().unwrap();
+        let d = crate::tempdir::tempdir().unwrap();
         std::fs::write(d.path().join("a b.bin"), [7u8; 3]).unwrap();
         assert_eq!(read(d.path(), "a%20b.bin", "buffer").unwrap(), [7, 7, 7]);
         assert_eq!(read(d.path(), "./gone/../a%20b.bin", "buffer").unwrap(), [7, 7, 7]);
