@@ -41,10 +41,13 @@ fn versions_other_than_2_x_are_refused() {
     assert!(version(None).unwrap_err().contains("asset: missing"));
 }
 
+/// An edit of the scene's JSON.
+type Edit = fn(&mut Value);
+
 #[test]
 fn indices_past_their_arrays_name_the_property() {
     let s = scene();
-    let cases: [(&str, fn(&mut Value)); 9] = [
+    let cases: [(&str, Edit); 9] = [
         ("meshes[0].primitives[1].indices: accessor 99 of", |d| {
             d["meshes"][0]["primitives"]
                 .as_array_mut()
