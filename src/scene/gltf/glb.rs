@@ -1,8 +1,9 @@
 //! The GLB container (glTF 2.0, "GLB File Format Specification"): a 12-byte header (magic
 //! `glTF`, container version 2, the total length), then chunks of `u32` length, `u32` type and
 //! data — the JSON chunk first, an optional BIN chunk second, any later chunk of another type
-//! ignored ("Chunks": client implementations MUST ignore chunks with unknown types). Each chunk
-//! starts and ends on a 4-byte boundary ("Chunks": MUST). Every length is checked against the
+//! ignored ("Chunks": client implementations MUST ignore chunks with unknown types). The JSON
+//! chunk ends on a 4-byte boundary ("Chunks": MUST); a BIN chunk that does not (as rtprobe's own
+//! `scene make --glb` wrote them before) is still read: its bytes are read one by one. Every length is checked against the
 //! bytes there before it is used, so no file makes this panic or allocate.
 
 /// `glTF`, little endian.
@@ -61,7 +62,9 @@ fn chunk(bytes: &[u8], at: usize, n: usize) -> Result<(u32, &[u8]), String> {
     let short = || format!("GLB chunk {n}: its 8-byte header runs past the end of the file");
     let length = u32_at(bytes, at).ok_or_else(short)? as usize;
     let kind = u32_at(bytes, at + 4).ok_or_else(short)?;
-    if length % 4 != 0 {
+    // The BIN chunk's end is not held to it: rtprobe's `scene make --glb` wrote it unpadded
+    // before, and nothing after it is read at an offset it would misalign.
+    if length % 4 != 0 && n == 0 {
         return Err(format!(
             "GLB chunk {n}: length {length}, not a multiple of 4 (chunks MUST be 4-byte aligned)"
         ));
@@ -121,6 +124,11 @@ mod tests {
         assert!(with(8, 9999).contains("length 9999 where the file has"));
         assert!(split(&good[..good.len() - 4]).unwrap_err().contains("truncated"));
         assert!(with(12, 3).contains("not a multiple of 4"));
+        let mut unpadded = good[..good.len() - 3].to_vec();
+        let n = unpadded.len() as u32;
+        unpadded[8..12].copy_from_slice(&n.to_le_bytes());
+        unpadded[24..28].copy_from_slice(&5u32.to_le_bytes());
+        assert_eq!(split(&unpadded).unwrap().bin, Some(&[0u8; 5][..]), "an unpadded BIN chunk");
         assert!(with(12, u32::MAX - 3).contains("chunk 0: length"), "oversized, no overflow");
         assert!(with(16, BIN).contains("not JSON"));
         assert!(with(24, 4096).contains("chunk 1: length 4096 runs past"));
