@@ -46,21 +46,3 @@ impl LoadError {
         LoadError::Part { path: path.to_path_buf(), part: part.into(), message: message.into() }
     }
 }
-
-/// The first line of a `gltf::Error`, without the crate's multi-line validation lists.
-pub(super) fn one_line(e: &gltf::Error) -> String {
-    match e {
-        gltf::Error::Validation(list) => match list.first() {
-            Some((path, err)) => {
-                let more = if list.len() > 1 {
-                    format!(" (and {} more)", list.len() - 1)
-                } else {
-                    String::new()
-                };
-                format!("invalid at {}: {err}{more}", path.as_str())
-            }
-            None => "invalid".into(),
-        },
-        other => other.to_string().lines().next().unwrap_or_default().to_string(),
-    }
-}

@@ -288,9 +288,15 @@ pub fn make(dir: &Path, o: MakeOptions) -> Result<PathBuf, MakeError> {
 
 /// A binary glTF container: the 12-byte header, the JSON chunk padded with spaces, the BIN chunk
 /// padded with zeros (glTF 2.0, "Binary glTF Layout").
-fn glb(mut json: Vec<u8>, bin: &[u8]) -> Vec<u8> {
+/// A GLB of `json` and `bin`, each chunk padded to 4 bytes (glTF 2.0, "Chunks": JSON with
+/// spaces, BIN with zeros).
+pub(super) fn glb(mut json: Vec<u8>, bin: &[u8]) -> Vec<u8> {
     while json.len() % 4 != 0 {
         json.push(b' ');
+    }
+    let mut bin = bin.to_vec();
+    while bin.len() % 4 != 0 {
+        bin.push(0);
     }
     let total = 12 + 8 + json.len() + 8 + bin.len();
     let mut out = Vec::with_capacity(total);

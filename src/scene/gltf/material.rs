@@ -1,5 +1,6 @@
 //! Materials (base colour factor and texture, `alphaMode`) and the one image a cell needs,
-//! decoded on demand into RGBA8: `gltf::import` would decode every image of the file.
+//! decoded on demand into RGBA8 (never all images of the file at once).
+use super::doc::{Image, Root};
 use super::error::LoadError;
 pub use super::pixels::Texture;
 use std::path::Path;
@@ -34,33 +35,45 @@ pub struct Material {
     pub alpha: Alpha,
 }
 
-pub(super) fn read(m: &gltf::Material) -> Material {
-    let pbr = m.pbr_metallic_roughness();
-    let alpha = match m.alpha_mode() {
-        gltf::material::AlphaMode::Opaque => Alpha::Opaque,
-        gltf::material::AlphaMode::Mask => Alpha::Mask(m.alpha_cutoff().unwrap_or(0.5)),
-        gltf::material::AlphaMode::Blend => Alpha::Blend,
+/// Material `index` of `root` (validated: its alpha mode known, its texture and image indices
+/// in range). glTF 2.0, "Alpha Coverage": `alphaCutoff` defaults to 0.5. A base colour texture
+/// of another set than TEXCOORD_0 is read with TEXCOORD_0 (the one set rtprobe reads), logged.
+pub(super) fn read(root: &Root, index: usize) -> Material {
+    let m = &root.materials[index];
+    let pbr = &m.pbr_metallic_roughness;
+    let alpha = match m.alpha_mode.as_str() {
+        "MASK" => Alpha::Mask(m.alpha_cutoff.unwrap_or(0.5)),
+        "BLEND" => Alpha::Blend,
+        _ => Alpha::Opaque,
     };
+    let texture = pbr.base_color_texture.as_ref();
+    if let Some(t) = texture.filter(|t| t.tex_coord != 0) {
+        tracing::warn!(
+            material = index,
+            tex_coord = t.tex_coord,
+            "base colour texture of another set than TEXCOORD_0: read with TEXCOORD_0"
+        );
+    }
     Material {
-        name: m.name().map_or_else(|| format!("material {}", m.index().unwrap_or(0)), String::from),
-        base_color: pbr.base_color_factor(),
-        base_color_image: pbr.base_color_texture().map(|t| t.texture().source().index()),
-        base_color_texture: pbr.base_color_texture().map(|t| t.texture().index()),
-        emissive: m.emissive_factor(),
+        name: m.name.clone().unwrap_or_else(|| format!("material {index}")),
+        base_color: pbr.base_color_factor,
+        base_color_image: texture.and_then(|t| root.textures[t.index].source),
+        base_color_texture: texture.map(|t| t.index),
+        emissive: m.emissive_factor,
         alpha,
     }
 }
 
-/// Image `index` of `document`, decoded (PNG or JPEG, from a file beside the scene, a data URI or
-/// a buffer view: [`super::uri`], [`super::pixels`]) and converted to RGBA8; a failure names the
+/// Image `index` of `root`, decoded (PNG or JPEG, from a file beside the scene, a data URI or a
+/// buffer view: [`super::uri`], [`super::pixels`]) and converted to RGBA8; a failure names the
 /// image as the file does (`images[N]` and its URI or buffer view, [`describe`]) and what to do.
 pub(super) fn decode(
     path: &Path,
-    document: &gltf::Document,
+    root: &Root,
     buffers: &[Vec<u8>],
     index: usize,
 ) -> Result<Texture, LoadError> {
-    let (part, bytes) = image_bytes(path, document, buffers, index)?;
+    let (part, bytes) = image_bytes(path, root, buffers, index)?;
     super::pixels::decode(&bytes).map_err(|why| LoadError::part(path, &part, why))
 }
 
@@ -68,39 +81,44 @@ pub(super) fn decode(
 /// for the device is refused without allocating it).
 pub(super) fn size(
     path: &Path,
-    document: &gltf::Document,
+    root: &Root,
     buffers: &[Vec<u8>],
     index: usize,
 ) -> Result<(u32, u32), LoadError> {
-    let (part, bytes) = image_bytes(path, document, buffers, index)?;
+    let (part, bytes) = image_bytes(path, root, buffers, index)?;
     super::pixels::size(&bytes).map_err(|why| LoadError::part(path, &part, why))
 }
 
 /// How the file names image `index`, and its encoded bytes.
 fn image_bytes(
     path: &Path,
-    document: &gltf::Document,
+    root: &Root,
     buffers: &[Vec<u8>],
     index: usize,
 ) -> Result<(String, Vec<u8>), LoadError> {
-    let image = document.images().nth(index).ok_or_else(|| {
+    let image = root.images.get(index).ok_or_else(|| {
         LoadError::part(path, format!("images[{index}]"), "no such image in the file")
     })?;
-    let part = describe(&image);
+    let part = describe(image, index);
     let fail = |why: String| LoadError::part(path, &part, why);
-    let bytes = match image.source() {
-        gltf::image::Source::View { view, mime_type } => {
-            declared(Some(mime_type), None).map_err(fail)?;
-            let b = buffers.get(view.buffer().index()).map_or(&[][..], |b| &b[..]);
-            let range = view.offset()..view.offset() + view.length();
-            b.get(range)
+    let bytes = match (&image.uri, image.buffer_view) {
+        (None, Some(v)) => {
+            declared(image.mime_type.as_deref(), None).map_err(fail)?;
+            let view = &root.buffer_views[v];
+            let b = buffers.get(view.buffer).map_or(&[][..], |b| &b[..]);
+            let range = usize::try_from(view.byte_offset)
+                .ok()
+                .zip(usize::try_from(view.byte_offset.saturating_add(view.byte_length)).ok());
+            range
+                .and_then(|(s, e)| b.get(s..e))
                 .ok_or_else(|| {
                     fail("its bufferView runs past its buffer; export the scene again".into())
                 })?
                 .to_vec()
         }
-        gltf::image::Source::Uri { uri, mime_type } => {
-            declared(mime_type, Some(uri)).map_err(fail)?;
+        (uri, _) => {
+            let uri = uri.as_deref().unwrap_or_default();
+            declared(image.mime_type.as_deref(), Some(uri)).map_err(fail)?;
             let base = path.parent().unwrap_or(Path::new("."));
             super::uri::read(base, uri, "image").map_err(fail)?
         }
@@ -130,18 +148,18 @@ fn declared(mime: Option<&str>, uri: Option<&str>) -> Result<(), String> {
     }
 }
 
-/// How the file names image `image`: `images[N] (uri "…")` (a data URI cut short) or
-/// `images[N] (bufferView V, MIME)`.
-pub fn describe(image: &gltf::Image) -> String {
-    let n = image.index();
-    match image.source() {
-        gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => {
+/// How the file names image `image` (number `n`): `images[N] (uri "…")` (a data URI cut short)
+/// or `images[N] (bufferView V, MIME)`.
+pub(super) fn describe(image: &Image, n: usize) -> String {
+    match (&image.uri, image.buffer_view) {
+        (Some(uri), _) if uri.starts_with("data:") => {
             let head: String = uri.chars().take(32).collect();
             format!("images[{n}] (uri \"{head}…\")")
         }
-        gltf::image::Source::Uri { uri, .. } => format!("images[{n}] (uri \"{uri}\")"),
-        gltf::image::Source::View { view, mime_type } => {
-            format!("images[{n}] (bufferView {}, {mime_type})", view.index())
+        (Some(uri), _) => format!("images[{n}] (uri \"{uri}\")"),
+        (None, Some(v)) => {
+            format!("images[{n}] (bufferView {v}, {})", image.mime_type.as_deref().unwrap_or(""))
         }
+        (None, None) => format!("images[{n}]"),
     }
 }

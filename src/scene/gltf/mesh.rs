@@ -4,6 +4,8 @@
 //! tutorial's `PrimMeshInfo {indexOffset, vertexOffset, materialIndex}`. Indices stay relative
 //! to the primitive's first vertex (the tutorial adds `vertexOffset` in the shader); [`LoadedMesh::triangle`]
 //! adds it back.
+use super::accessor;
+use super::doc::{self, Root};
 use super::error::LoadError;
 use std::path::Path;
 
@@ -57,24 +59,31 @@ struct Read {
     indices: Vec<[u32; 3]>,
 }
 
+/// glTF 2.0's primitive modes ("Meshes", `mesh.primitive.mode`), by number.
+const MODES: [&str; 7] =
+    ["Points", "Lines", "LineLoop", "LineStrip", "Triangles", "TriangleStrip", "TriangleFan"];
+
+/// Mesh `index` of `root`, validated ([`super::validate`]), read from `buffers`.
 pub(super) fn read(
     path: &Path,
-    mesh: &gltf::Mesh,
+    root: &Root,
+    index: usize,
     buffers: &[Vec<u8>],
 ) -> Result<LoadedMesh, LoadError> {
-    let name = mesh.name().map_or_else(
-        || format!("mesh {}", mesh.index()),
-        |n| format!("mesh {} ({n})", mesh.index()),
-    );
+    let mesh = &root.meshes[index];
+    let name = mesh
+        .name
+        .as_ref()
+        .map_or_else(|| format!("mesh {index}"), |n| format!("mesh {index} ({n})"));
     let mut out = LoadedMesh { name: name.clone(), ..Default::default() };
     let (mut all_normals, mut all_uvs) = (true, true);
     let mut reads = Vec::new();
-    for p in mesh.primitives() {
-        let part = format!("{name}, primitive {}", p.index());
-        let r = read_primitive(path, &part, &p, buffers)?;
+    for (k, p) in mesh.primitives.iter().enumerate() {
+        let part = format!("{name}, primitive {k}");
+        let r = read_primitive(path, &part, root, p, buffers)?;
         all_normals &= r.normals.is_some();
         all_uvs &= r.uvs.is_some();
-        reads.push((r, p.material().index()));
+        reads.push((r, p.material));
     }
     for (r, material) in reads {
         out.primitives.push(Primitive {
@@ -95,47 +104,51 @@ pub(super) fn read(
     Ok(out)
 }
 
+/// One triangle primitive's vertices and indices; NORMAL and TEXCOORD_0 kept only when they have
+/// one element per position (glTF 2.0, "Meshes": all attribute accessors MUST have the same
+/// count; one that does not is dropped, not read past).
 fn read_primitive(
     path: &Path,
     part: &str,
-    p: &gltf::Primitive,
+    root: &Root,
+    p: &doc::Primitive,
     buffers: &[Vec<u8>],
 ) -> Result<Read, LoadError> {
-    if p.mode() != gltf::mesh::Mode::Triangles {
+    if p.mode != 4 {
+        let mode = MODES.get(p.mode as usize).copied().unwrap_or("unknown");
         return Err(LoadError::part(
             path,
             part,
-            format!("mode {:?}, not triangles; triangulate it when exporting (ray tracing needs triangles)", p.mode()),
+            format!("mode {mode}, not triangles; triangulate it when exporting (ray tracing needs triangles)"),
         ));
     }
-    let reader = p.reader(|b| buffers.get(b.index()).map(|d| &d[..]));
-    let positions: Vec<[f32; 3]> = reader
-        .read_positions()
-        .ok_or_else(|| {
-            LoadError::part(path, part, "no readable POSITION attribute (none, or its accessor runs past its buffer view or buffer); export the mesh again with positions")
-        })?
-        .collect();
+    let fail = |what: String| LoadError::part(path, part, what);
+    let a = &p.attributes;
+    let pos = a.position.ok_or_else(|| {
+        fail("no POSITION attribute; export the mesh again with positions".into())
+    })?;
+    let positions = accessor::vec3(root, buffers, pos).map_err(fail)?;
     let n = positions.len() as u32;
-    let flat: Vec<u32> = match reader.read_indices() {
-        Some(i) => i.into_u32().collect(),
+    let flat: Vec<u32> = match p.indices {
+        Some(i) => accessor::indices(root, buffers, i).map_err(fail)?,
         None => (0..n).collect(),
     };
     if flat.len() % 3 != 0 {
-        return Err(LoadError::part(
-            path,
-            part,
-            format!("{} indices, not a multiple of 3", flat.len()),
-        ));
+        return Err(fail(format!("{} indices, not a multiple of 3", flat.len())));
     }
     if let Some(bad) = flat.iter().find(|i| **i >= n) {
-        return Err(LoadError::part(path, part, format!("index {bad} past its {n} vertices")));
+        return Err(fail(format!("index {bad} past its {n} vertices")));
     }
-    let normals =
-        reader.read_normals().map(|i| i.collect::<Vec<_>>()).filter(|v| v.len() == positions.len());
-    let uvs = reader
-        .read_tex_coords(0)
-        .map(|t| t.into_f32().collect::<Vec<_>>())
-        .filter(|v| v.len() == positions.len());
+    let same = |v: &Vec<_>| v.len() == positions.len();
+    let normals = match a.normal {
+        Some(k) => Some(accessor::vec3(root, buffers, k).map_err(fail)?).filter(same),
+        None => None,
+    };
+    let uvs = match a.texcoord0 {
+        Some(k) => Some(accessor::vec2(root, buffers, k).map_err(fail)?)
+            .filter(|v| v.len() == positions.len()),
+        None => None,
+    };
     let indices = flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
     Ok(Read { positions, normals, uvs, indices })
 }

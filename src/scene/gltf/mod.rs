@@ -1,12 +1,17 @@
-//! glTF 2.0 scenes (`.gltf` with its `.bin` files and images, or `.glb`), read with the `gltf`
-//! crate into what rtprobe builds acceleration structures and buffers from: each mesh's triangle
+//! glTF 2.0 scenes (`.gltf` with its `.bin` files and images, or `.glb`), read by rtprobe's own
+//! reader over `serde_json` — the container (`glb`), the document as far as rtprobe reads it
+//! (`doc`), checked before use (`validate`), accessors read (`accessor`) — into what rtprobe
+//! builds acceleration structures and buffers from: each mesh's triangle
 //! primitives (`mesh`), the default scene's nodes as instances with world transforms and the
 //! first camera (`nodes`), materials with `alphaMode` and base colour textures, each image
 //! decoded only when asked (`material`), and the scene fitted into the probes' orthographic view
 //! (`fit`). Every failure is one line naming the part of the file (`error`). `make` writes the
 //! test scene and the large scene for measurements.
+mod accessor;
+mod doc;
 pub mod error;
 pub mod fit;
+mod glb;
 pub mod make;
 pub mod material;
 pub mod mesh;
@@ -14,6 +19,7 @@ pub mod nodes;
 mod open;
 mod pixels;
 mod uri;
+mod validate;
 
 pub use error::LoadError;
 pub use material::{Alpha, Material, Texture};
@@ -32,7 +38,7 @@ pub struct Loaded {
     pub camera: Option<Camera>,
     /// Images in the document (decoded only by [`Loaded::decode_image`]).
     pub images: usize,
-    document: gltf::Document,
+    root: doc::Root,
     buffers: Vec<Vec<u8>>,
 }
 
@@ -40,19 +46,18 @@ impl Loaded {
     /// Read `path`: the document, validated, its buffers, meshes, nodes and materials; no image
     /// is decoded.
     pub fn load(path: &Path) -> Result<Loaded, LoadError> {
-        let open::Opened { document, buffers } = open::open(path)?;
-        let meshes = document
-            .meshes()
-            .map(|m| mesh::read(path, &m, &buffers))
+        let open::Opened { root, buffers } = open::open(path)?;
+        let meshes = (0..root.meshes.len())
+            .map(|m| mesh::read(path, &root, m, &buffers))
             .collect::<Result<Vec<_>, _>>()?;
-        let (instances, camera) = nodes::walk(&document).map_err(|n| {
+        let (instances, camera) = nodes::walk(&root).map_err(|n| {
             LoadError::part(path, format!("node {n}"), "reached twice: the node hierarchy must be disjoint trees (glTF 2.0, nodes); fix the exporter's children lists")
         })?;
         if instances.iter().all(|i| meshes[i.mesh].indices.is_empty()) {
             return Err(LoadError::Empty { path: path.to_path_buf() });
         }
-        let materials = document.materials().map(|m| material::read(&m)).collect();
-        let images = document.images().count();
+        let materials = (0..root.materials.len()).map(|m| material::read(&root, m)).collect();
+        let images = root.images.len();
         Ok(Loaded {
             path: path.to_path_buf(),
             meshes,
@@ -60,27 +65,27 @@ impl Loaded {
             materials,
             camera,
             images,
-            document,
+            root,
             buffers,
         })
     }
 
     /// Image `index` decoded to RGBA8 (a material's `base_color_image`).
     pub fn decode_image(&self, index: usize) -> Result<Texture, LoadError> {
-        material::decode(&self.path, &self.document, &self.buffers, index)
+        material::decode(&self.path, &self.root, &self.buffers, index)
     }
 
     /// Image `index`'s width and height from its header (no texel decoded).
     pub fn image_size(&self, index: usize) -> Result<(u32, u32), LoadError> {
-        material::size(&self.path, &self.document, &self.buffers, index)
+        material::size(&self.path, &self.root, &self.buffers, index)
     }
 
     /// How the file names image `index`: `images[N]` and its URI or buffer view.
     pub fn image_name(&self, index: usize) -> String {
-        self.document
-            .images()
-            .nth(index)
-            .map_or_else(|| format!("images[{index}]"), |i| material::describe(&i))
+        self.root
+            .images
+            .get(index)
+            .map_or_else(|| format!("images[{index}]"), |i| material::describe(i, index))
     }
 
     /// Triangles of every instance (a mesh instanced by two nodes counts twice).

@@ -1,89 +1,72 @@
-//! Opening a glTF file: the JSON (or GLB) read without validation first, so that an unsupported
-//! `extensionsRequired` entry (any: rtprobe reads none) is named in rtprobe's own words, then validated by the `gltf`
-//! crate, then its buffers (`.bin` files, data URIs, the GLB blob) read (`uri`). Images are not touched
-//! here: each is decoded only when a cell needs it ([`super::Loaded::decode_image`]).
-use super::error::{one_line, LoadError};
+//! Opening a glTF file: its JSON (a `.gltf`, or a GLB's JSON chunk: [`super::glb`]) read first
+//! for `extensionsRequired` alone, so that any required extension (rtprobe reads none) is named in
+//! rtprobe's own words before anything else, then the asset version and the whole document
+//! ([`super::doc`]) read and checked ([`super::validate`]), then its buffers (`.bin` files, data
+//! URIs, the GLB's BIN chunk) read ([`super::uri`]), each at least its `byteLength`. Images are
+//! not touched here: each is decoded only when a cell needs it ([`super::Loaded::decode_image`]).
+use super::doc::{Head, Root};
+use super::error::LoadError;
 use std::path::Path;
 
 pub(super) struct Opened {
-    pub document: gltf::Document,
+    pub root: Root,
     pub buffers: Vec<Vec<u8>>,
 }
 
 pub(super) fn open(path: &Path) -> Result<Opened, LoadError> {
     let bytes = std::fs::read(path)
         .map_err(|e| LoadError::Read { path: path.to_path_buf(), message: e.to_string() })?;
-    let parse =
-        |e: gltf::Error| LoadError::Parse { path: path.to_path_buf(), message: one_line(&e) };
-    let gltf::Gltf { document, blob } =
-        gltf::Gltf::from_slice_without_validation(&bytes).map_err(parse)?;
-    // No required extension is read: the gltf crate is built without them, and one a file
-    // requires changes what its data means.
-    if let Some(ext) = document.extensions_required().next() {
-        return Err(LoadError::Extension { path: path.to_path_buf(), extension: ext.to_string() });
+    let parse = |message: String| LoadError::Parse { path: path.to_path_buf(), message };
+    let (json, bin) = match super::glb::is_glb(&bytes) {
+        true => super::glb::split(&bytes).map(|g| (g.json, g.bin)).map_err(parse)?,
+        false => (&bytes[..], None),
+    };
+    let head: Head = serde_json::from_slice(json).map_err(|e| parse(e.to_string()))?;
+    // No required extension is read: one a file requires changes what its data means.
+    if let Some(ext) = head.extensions_required.into_iter().next() {
+        return Err(LoadError::Extension { path: path.to_path_buf(), extension: ext });
     }
-    let root = document.into_json();
-    positions_in_range(path, &root)?;
-    let document = gltf::Document::from_json(root).map_err(parse)?;
+    super::validate::version(head.asset.as_ref()).map_err(parse)?;
+    let root: Root = serde_json::from_slice(json).map_err(|e| parse(e.to_string()))?;
+    super::validate::check(&root).map_err(parse)?;
     let base = path.parent().unwrap_or(Path::new("."));
-    let buffers = read_buffers(path, &document, base, blob)?;
-    Ok(Opened { document, buffers })
+    let buffers = read_buffers(path, &root, base, bin)?;
+    Ok(Opened { root, buffers })
 }
 
-/// Each buffer's bytes (the GLB blob, a data URI or a file beside the scene: [`super::uri`]), at
-/// least its `byteLength`, or one line naming the buffer that could not be read.
+/// Each buffer's bytes (the GLB's BIN chunk, a data URI or a file beside the scene:
+/// [`super::uri`]), at least its `byteLength`, or one line naming the buffer that could not be
+/// read. The BIN chunk is the first buffer's when that has no `uri` (glTF 2.0, "GLB-stored
+/// Buffer"); another buffer without one is refused.
 fn read_buffers(
     path: &Path,
-    document: &gltf::Document,
+    root: &Root,
     base: &Path,
-    mut blob: Option<Vec<u8>>,
+    bin: Option<&[u8]>,
 ) -> Result<Vec<Vec<u8>>, LoadError> {
     let mut out = Vec::new();
-    for b in document.buffers() {
-        let part = format!("buffer {}", b.index());
-        let data = match b.source() {
-            gltf::buffer::Source::Bin => blob.take().ok_or_else(|| {
-                LoadError::part(path, &part, "refers to the GLB binary chunk, which is missing or used twice; export the scene again")
+    for (i, b) in root.buffers.iter().enumerate() {
+        let part = format!("buffer {i}");
+        let data = match &b.uri {
+            None => bin.filter(|_| i == 0).map(<[u8]>::to_vec).ok_or_else(|| {
+                LoadError::part(path, &part, "has no uri, so it is the GLB's BIN chunk, which is missing (or it is not the first buffer); export the scene again")
             })?,
-            gltf::buffer::Source::Uri(uri) => {
+            Some(uri) => {
                 super::uri::read(base, uri, "buffer").map_err(|e| LoadError::part(path, &part, e))?
             }
         };
-        if data.len() < b.length() {
+        if (data.len() as u64) < b.byte_length {
             return Err(LoadError::part(
                 path,
                 part,
                 format!(
                     "{} bytes where the file says {}; the .bin file is truncated or another one",
                     data.len(),
-                    b.length()
+                    b.byte_length
                 ),
             ));
         }
         out.push(data);
     }
     Ok(out)
-}
-
-/// Every primitive's POSITION accessor exists: gltf-json 1.4.1's validation indexes the
-/// accessors with it unchecked (`primitive_validate_hook`) and panics on a file that names an
-/// accessor past the end.
-fn positions_in_range(path: &Path, root: &gltf::json::Root) -> Result<(), LoadError> {
-    use gltf::json::validation::Checked;
-    let n = root.accessors.len();
-    for (m, mesh) in root.meshes.iter().enumerate() {
-        for (p, prim) in mesh.primitives.iter().enumerate() {
-            let pos = prim.attributes.get(&Checked::Valid(gltf::json::mesh::Semantic::Positions));
-            if let Some(a) = pos.filter(|a| a.value() >= n) {
-                return Err(LoadError::Parse {
-                    path: path.to_path_buf(),
-                    message: format!(
-                        "invalid at meshes[{m}].primitives[{p}].attributes.POSITION: accessor {} of {n}",
-                        a.value()
-                    ),
-                });
-            }
-        }
-    }
-    Ok(())
 }

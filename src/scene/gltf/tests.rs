@@ -169,3 +169,137 @@ fn broken_json_and_a_texture_file_that_is_gone_are_refused() {
         "{e}"
     );
 }
+
+/// A GLB of `json` alone (no BIN chunk).
+fn glb_without_bin(json: &[u8]) -> Vec<u8> {
+    let mut json = json.to_vec();
+    while json.len() % 4 != 0 {
+        json.push(b' ');
+    }
+    let mut out = b"glTF".to_vec();
+    out.extend(2u32.to_le_bytes());
+    out.extend((20 + json.len() as u32).to_le_bytes());
+    out.extend((json.len() as u32).to_le_bytes());
+    out.extend(b"JSON");
+    out.extend(json);
+    out
+}
+
+#[test]
+fn a_glb_without_bin_reads_data_uris_and_refuses_a_buffer_that_needs_bin() {
+    use base64::Engine as _;
+    let (d, path) = scene(false);
+    let mut doc: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    let bin = std::fs::read(d.path().join("scene.bin")).unwrap();
+    let data = base64::engine::general_purpose::STANDARD.encode(bin);
+    doc["buffers"][0]["uri"] =
+        serde_json::json!(format!("data:application/octet-stream;base64,{data}"));
+    let glb = d.path().join("embedded.glb");
+    std::fs::write(&glb, glb_without_bin(&serde_json::to_vec(&doc).unwrap())).unwrap();
+    let (a, b) = (Loaded::load(&path).unwrap(), Loaded::load(&glb).unwrap());
+    assert_eq!(a.meshes, b.meshes);
+    assert_eq!(b.decode_image(0).unwrap(), a.decode_image(0).unwrap(), "its images beside it");
+    doc["buffers"][0].as_object_mut().unwrap().remove("uri");
+    std::fs::write(&glb, glb_without_bin(&serde_json::to_vec(&doc).unwrap())).unwrap();
+    let e = Loaded::load(&glb).err().unwrap().to_string();
+    assert!(
+        e.contains("buffer 0: has no uri, so it is the GLB's BIN chunk, which is missing"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_truncated_glb_and_other_versions_are_not_gltf_2() {
+    let (_d, path) = scene(true);
+    let bytes = std::fs::read(&path).unwrap();
+    std::fs::write(&path, &bytes[..bytes.len() - 8]).unwrap();
+    let e = Loaded::load(&path).err().unwrap().to_string();
+    assert!(e.contains("not glTF 2.0: GLB header: length") && !e.contains('\n'), "{e}");
+    let e = edited(|d| d["asset"]["version"] = serde_json::json!("1.0"));
+    assert!(e.contains("not glTF 2.0: invalid at asset.version: \"1.0\", not 2.x"), "{e}");
+    let e = edited(|d| {
+        d["asset"]["version"] = serde_json::json!("1.0");
+        d["extensionsRequired"] = serde_json::json!(["KHR_materials_common"]);
+    });
+    assert!(e.contains("requires extension KHR_materials_common"), "extensions first: {e}");
+}
+
+/// The bytes that once panicked gltf-json 1.4.1's validation (a POSITION accessor past the end,
+/// indexed unchecked), and the checks of index values and counts the reader makes itself.
+#[test]
+fn accessor_indices_and_values_out_of_range_are_one_line() {
+    let e = edited(|d| {
+        d["meshes"][1]["primitives"][1]["attributes"]["POSITION"] = serde_json::json!(4096)
+    });
+    assert!(
+        e.contains("invalid at meshes[1].primitives[1].attributes.POSITION: accessor 4096 of"),
+        "{e}"
+    );
+    let e = edited(|d| d["accessors"][0]["count"] = serde_json::json!(3));
+    assert!(
+        e.contains("mesh 0 (ground), primitive 0: index") && e.contains("past its 3 vertices"),
+        "{e}"
+    );
+    let e = edited(|d| d["accessors"][3]["count"] = serde_json::json!(4));
+    assert!(e.contains("4 indices, not a multiple of 3"), "{e}");
+    let e = edited(|d| d["accessors"][0]["count"] = serde_json::json!(u32::MAX));
+    assert!(e.contains("invalid at accessors[0]: 4294967295 elements"), "no allocation: {e}");
+    let e = edited(|d| {
+        d["meshes"][0]["primitives"][0]["attributes"].as_object_mut().unwrap().remove("POSITION");
+    });
+    assert!(e.contains("primitive 0: no POSITION attribute"), "{e}");
+}
+
+/// Seeded byte edits of the test GLB (its header, JSON and BIN; some cut short) and edits of the
+/// numbers of its JSON (indices, counts, offsets, lengths, strides): each loads or is one line, never a panic. `rtprobe scene info` with the `gltf`
+/// crate panicked on 7 of 1,800 such files (its mesh reader, mesh/mod.rs:396 and :430).
+#[test]
+fn mutated_files_load_or_fail_in_one_line() {
+    let (d, path) = scene(true);
+    let good = std::fs::read(&path).unwrap();
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = move |n: usize| {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state % n as u64) as usize
+    };
+    let numbers = [0u64, 1, 3, 7, 255, 256, 65535, 1 << 31, u32::MAX as u64, 1 << 53, u64::MAX];
+    let mut loaded = 0;
+    for i in 0..400 {
+        let mut b = good.clone();
+        for _ in 0..1 + next(4) {
+            let k = if next(10) < 7 { next(2000) } else { next(b.len()) };
+            b[k] = next(256) as u8;
+        }
+        if i % 5 == 0 {
+            b.truncate(next(b.len()));
+        }
+        let file = d.path().join("m.glb");
+        std::fs::write(&file, &b).unwrap();
+        match Loaded::load(&file) {
+            Ok(_) => loaded += 1,
+            Err(e) => assert!(!e.to_string().contains('\n'), "{e}"),
+        }
+    }
+    assert!(loaded > 0 && loaded < 400, "some edits load, others are refused: {loaded}");
+    let (t, path) = scene(false);
+    let text = std::fs::read_to_string(&path).unwrap();
+    loaded = 0;
+    let spots: Vec<usize> = (text.match_indices(':').map(|(k, _)| k + 1))
+        .filter(|&k| text.as_bytes().get(k).is_some_and(u8::is_ascii_digit))
+        .collect();
+    for _ in 0..200 {
+        let at = spots[next(spots.len())];
+        let len = text[at..].find(|c: char| !c.is_ascii_digit()).unwrap_or(0);
+        let n = numbers[next(numbers.len())];
+        let file = t.path().join("m.gltf");
+        std::fs::write(&file, format!("{}{n}{}", &text[..at], &text[at + len..])).unwrap();
+        match Loaded::load(&file) {
+            Ok(_) => loaded += 1,
+            Err(e) => assert!(!e.to_string().contains('\n'), "{e}"),
+        }
+    }
+    assert!(loaded > 0 && loaded < 200, "some edits load, others are refused: {loaded}");
+}
