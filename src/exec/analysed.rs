@@ -1,0 +1,154 @@
+//! The part of a prebuild's compile that needs nothing of the executor, on threads of its own
+//! running ahead of the staging ([`Executor::analysed_in_order`]): each cell's modules are taken
+//! from the compiler's cache in order on the calling thread; then, on the threads, they are
+//! patched with the spec's workarounds, read for what the driver sees of them (`seen`: a SPIR-V
+//! parse of each probed module) and hashed, and each module's interface not read yet, which the
+//! staging checks against its layout (`fit`), is read by the one thread that claims it first.
+//! The calling thread stages each cell as soon as it is analysed, in cell order, so the first
+//! pipeline goes to the pool at once. These were most of the staging's CPU time (perf on
+//! lavapipe 25: `Seen::of`, the workarounds, the interface reads) and ran serially on the cell
+//! thread before (0.24 s for 512 cells on the H200, s32's trace); the staging keeps `--dump`,
+//! the bindings and the pipeline key. A mutant cell's modules are mutated with the executor's
+//! reference, so it is compiled whole at its staging, as before. Every error is its cell's, in
+//! phase `compile`, as if it had been compiled at its staging; a module whose interface another
+//! cell's thread claimed and has not handed over yet is read again by `fit`.
+use super::built::{Compiled, Seen};
+use super::compile::patch_workarounds;
+use super::error::CellError;
+use super::executor::Executor;
+use super::fit::module_key;
+use crate::interface::ModuleInterface;
+use crate::model::{Cell, LaneEvidence, Timings};
+use crate::probe::spec::ProbeSpec;
+use crate::shadergen::CellShaders;
+use std::collections::HashSet;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::mpsc::channel;
+use std::sync::{Arc, Mutex};
+
+/// A cell of a prebuild, analysed.
+pub(super) enum Analysed {
+    /// Compiled, its workarounds patched in and its modules hashed, with the interfaces its
+    /// thread read: `--dump` and the bindings are left.
+    Compiled(Compiled, Timings, Vec<(u128, ModuleInterface)>),
+    /// A mutant cell's GLSL: compiled whole at its staging (`Executor::compile_cell`).
+    Whole(CellShaders),
+    /// Its compile failed (phase `compile`).
+    Failed(CellError, Timings),
+}
+
+/// A cell's modules as the compiler's cache gave them, for the threads.
+enum Looked {
+    Modules { shaders: CellShaders, spirv: Vec<Arc<Vec<u32>>>, lanes: LaneEvidence, t: Timings },
+    Done(Analysed),
+}
+
+/// What the threads share: the cells' modules (each taken once), whether to patch (false for a
+/// bundle's SPIR-V, patched already), and the module keys whose interface is read or claimed.
+struct Shared<'a> {
+    cells: &'a [Cell],
+    looked: Vec<Mutex<Option<Looked>>>,
+    patch: bool,
+    claimed: Mutex<HashSet<u128>>,
+}
+
+impl Shared<'_> {
+    /// Cell `k` analysed (`None`: taken already).
+    fn analyse(&self, k: usize) -> Option<Analysed> {
+        let looked = self.looked[k].lock().unwrap_or_else(|p| p.into_inner()).take()?;
+        let (shaders, mut spirv, lanes, mut t) = match looked {
+            Looked::Done(a) => return Some(a),
+            Looked::Modules { shaders, spirv, lanes, t } => (shaders, spirv, lanes, t),
+        };
+        let cell = &self.cells[k];
+        if let Err(e) = patch_workarounds(cell, &mut spirv, self.patch, &mut t) {
+            return Some(Analysed::Failed(e, t));
+        }
+        let seen = Seen::of(cell, &shaders, &spirv, lanes);
+        let keys: Vec<u128> = spirv.iter().map(|w| module_key(w)).collect();
+        let mut interfaces = Vec::new();
+        for (i, (w, key)) in spirv.iter().zip(&keys).enumerate() {
+            if self.claimed.lock().unwrap_or_else(|p| p.into_inner()).insert(*key) {
+                // One that cannot be read is left to `fit`, which makes it the cell's error.
+                if let Ok(m) = crate::interface::read(i, w) {
+                    interfaces.push((*key, m));
+                }
+            }
+        }
+        let compiled = Compiled { shaders, spirv, seen, keys: Some(keys) };
+        Some(Analysed::Compiled(compiled, t, interfaces))
+    }
+}
+
+impl Executor {
+    /// `stage(executor, k, cell k analysed)` for each of `cells` (with its `generated` GLSL), in
+    /// order, each as soon as one of `threads` threads has analysed it. An error of `stage` stops
+    /// the threads and is returned.
+    pub(super) fn analysed_in_order<E>(
+        &mut self,
+        cells: &[Cell],
+        generated: Vec<CellShaders>,
+        threads: usize,
+        mut stage: impl FnMut(&mut Executor, usize, Analysed) -> Result<(), E>,
+    ) -> Result<(), E> {
+        let shared = Shared {
+            cells,
+            looked: cells
+                .iter()
+                .zip(generated)
+                .map(|(c, s)| Mutex::new(Some(self.look(c, s))))
+                .collect(),
+            patch: self.opts.spirv_dir.is_none(),
+            claimed: Mutex::new(self.interfaces.keys().copied().collect()),
+        };
+        let (next, stop) = (AtomicUsize::new(0), AtomicBool::new(false));
+        std::thread::scope(|s| {
+            let (tx, rx) = channel();
+            for _ in 0..threads.clamp(1, cells.len().max(1)) {
+                let (tx, shared, next, stop) = (tx.clone(), &shared, &next, &stop);
+                s.spawn(move || loop {
+                    let k = next.fetch_add(1, Ordering::Relaxed);
+                    if k >= cells.len() || stop.load(Ordering::Relaxed) {
+                        return;
+                    }
+                    if tx.send((k, shared.analyse(k))).is_err() {
+                        return;
+                    }
+                });
+            }
+            drop(tx);
+            let mut ready: Vec<Option<Analysed>> = cells.iter().map(|_| None).collect();
+            for k in 0..cells.len() {
+                while ready[k].is_none() {
+                    match rx.recv() {
+                        Ok((j, a)) => ready[j] = a,
+                        Err(_) => break, // every thread ended: what is left is taken here
+                    }
+                }
+                let Some(a) = ready[k].take().or_else(|| shared.analyse(k)) else { continue };
+                if let Err(e) = stage(self, k, a) {
+                    stop.store(true, Ordering::Relaxed);
+                    return Err(e);
+                }
+            }
+            Ok(())
+        })
+    }
+
+    /// The executor's part of a cell, on the calling thread: its modules from the compiler's
+    /// cache and the lane evidence its records carry (read before the workarounds: only a
+    /// bundle's SPIR-V is inspected for it, and a bundle is never patched).
+    fn look(&mut self, cell: &Cell, shaders: CellShaders) -> Looked {
+        if ProbeSpec::of(cell).mutant.is_some() {
+            return Looked::Done(Analysed::Whole(shaders));
+        }
+        let mut t = Timings::default();
+        match self.look_up(cell, shaders, &mut t) {
+            Ok((shaders, spirv)) => {
+                let lanes = self.recorded_lanes(cell, &shaders, &spirv);
+                Looked::Modules { shaders, spirv, lanes, t }
+            }
+            Err(e) => Looked::Done(Analysed::Failed(e, t)),
+        }
+    }
+}
