@@ -152,3 +152,69 @@ impl Executor {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{DescriptorModel, IndexSource, Resource, Stage, Workaround};
+    use crate::shadergen::compile::Compiler;
+
+    fn looked(c: &mut Compiler, cell: &Cell) -> Looked {
+        let shaders = crate::shadergen::generate(cell);
+        let spirv = shaders.shaders.iter().map(|s| c.compile(s.role, &s.glsl).unwrap().0).collect();
+        let (lanes, t) = (LaneEvidence::Absent, Timings::default());
+        Looked::Modules { shaders, spirv, lanes, t }
+    }
+
+    /// On a thread, a cell's workarounds are patched in and what the driver sees read from the
+    /// patched modules, exactly as its compile at its turn does; a module two cells share has
+    /// its interface read once. Twin: a module that is not SPIR-V fails its cell's compile
+    /// (never a panic), and its interface is left to `fit`.
+    #[test]
+    fn a_cell_analysed_on_a_thread_is_compiled_as_at_its_turn_and_garbage_fails_it() {
+        let mut c = Compiler::new().unwrap();
+        let plain = Cell::new(
+            Stage::ClosestHit,
+            Resource::StorageBuffer,
+            IndexSource::Dynamic,
+            DescriptorModel::DescriptorIndexing,
+        );
+        let patched = Cell { patch: Some(Workaround::Nonuniform), ..plain };
+        let mut garbage = looked(&mut c, &plain);
+        if let Looked::Modules { spirv, .. } = &mut garbage {
+            spirv.iter_mut().for_each(|w| *w = Arc::new(vec![0xdead_beef; 12]));
+        }
+        let cells = [plain, patched, patched];
+        let shared = Shared {
+            cells: &cells,
+            looked: vec![
+                Mutex::new(Some(looked(&mut c, &plain))),
+                Mutex::new(Some(looked(&mut c, &patched))),
+                Mutex::new(Some(garbage)),
+            ],
+            patch: true,
+            claimed: Mutex::new(HashSet::new()),
+        };
+        let Some(Analysed::Compiled(p, _, first)) = shared.analyse(0) else { panic!("plain") };
+        let Some(Analysed::Compiled(n, _, second)) = shared.analyse(1) else { panic!("patched") };
+        assert!(shared.analyse(1).is_none(), "a cell is taken once");
+        // The patch reached the probed module, and `seen` was read after it.
+        let (mut want, mut t) = (looked(&mut c, &patched), Timings::default());
+        let Looked::Modules { shaders, spirv, lanes, .. } = &mut want else { unreachable!() };
+        patch_workarounds(&patched, spirv, true, &mut t).unwrap();
+        assert_eq!(n.spirv, *spirv);
+        assert_ne!(n.spirv, p.spirv, "the workaround was not applied");
+        assert_eq!(n.seen, Seen::of(&patched, shaders, spirv, *lanes));
+        assert_eq!(n.keys, Some(spirv.iter().map(|w| module_key(w)).collect()));
+        // Shared modules (raygen, misses) are read by the first cell only.
+        let distinct: HashSet<_> = p.keys.iter().flatten().collect();
+        assert_eq!(first.len(), distinct.len());
+        assert!(second.len() < n.spirv.len() && !second.is_empty(), "{}", second.len());
+        // The twin: garbage words fail the cell, and no interface of them is kept.
+        match shared.analyse(2) {
+            Some(Analysed::Failed(CellError::Patch(_), _)) => {}
+            Some(Analysed::Failed(e, _)) => panic!("another error: {e}"),
+            _ => panic!("garbage SPIR-V compiled"),
+        }
+    }
+}

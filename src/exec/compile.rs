@@ -14,6 +14,9 @@ use crate::shadergen::{self, CellShaders};
 use std::sync::Arc;
 use std::time::Instant;
 
+/// A cell's shaders and their SPIR-V modules, in the same order.
+pub(super) type Modules = (CellShaders, Vec<Arc<Vec<u32>>>);
+
 /// SPIR-V `OpCapability` and `Capability GroupNonUniformBallot` (SPIR-V 1.6 unified spec).
 const OP_CAPABILITY: u32 = 17;
 const CAPABILITY_GROUP_NON_UNIFORM_BALLOT: u32 = 64;
@@ -90,7 +93,7 @@ impl Executor {
         cell: &Cell,
         shaders: CellShaders,
         timings: &mut Timings,
-    ) -> Result<(CellShaders, Vec<Arc<Vec<u32>>>), CellError> {
+    ) -> Result<Modules, CellError> {
         if ProbeSpec::of(cell).array == ArrayAt::Heap && shadergen::glslang::find().is_none() {
             return Err(CellError::NotImplemented(shadergen::glslang::missing_reason()));
         }
