@@ -1,6 +1,7 @@
 //! The part of a prebuild's compile that needs nothing of the executor, on threads of its own
 //! running ahead of the staging ([`Executor::analysed_in_order`]): each cell's modules are taken
-//! from the compiler's cache in order on the calling thread; then, on the threads, they are
+//! from the compiler's cache in order on the calling thread, a few cells ahead of the one it
+//! stages; then, on the threads, they are
 //! patched with the spec's workarounds, read for what the driver sees of them (`seen`: a SPIR-V
 //! parse of each probed module) and hashed, and each module's interface not read yet, which the
 //! staging checks against its layout (`fit`), is read by the one thread that claims it first.
@@ -22,9 +23,9 @@ use crate::model::{Cell, LaneEvidence, Timings};
 use crate::probe::spec::ProbeSpec;
 use crate::shadergen::CellShaders;
 use std::collections::HashSet;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::mpsc::channel;
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Condvar, Mutex};
 
 /// A cell of a prebuild, analysed.
 pub(super) enum Analysed {
@@ -44,15 +45,45 @@ enum Looked {
 }
 
 /// What the threads share: the cells' modules (each taken once), whether to patch (false for a
-/// bundle's SPIR-V, patched already), and the module keys whose interface is read or claimed.
+/// bundle's SPIR-V, patched already), the module keys whose interface is read or claimed, and how
+/// many cells the calling thread has looked up (the threads wait for them) and whether it stopped.
 struct Shared<'a> {
     cells: &'a [Cell],
     looked: Vec<Mutex<Option<Looked>>>,
     patch: bool,
     claimed: Mutex<HashSet<u128>>,
+    state: Mutex<(usize, bool)>,
+    more: Condvar,
+}
+
+/// Stops the threads when dropped: at the end, after an error, or while unwinding, so that no
+/// thread is left waiting for a cell that will not be looked up.
+struct Stop<'a, 'b>(&'a Shared<'b>);
+
+impl Drop for Stop<'_, '_> {
+    fn drop(&mut self) {
+        self.0.state.lock().unwrap_or_else(|p| p.into_inner()).1 = true;
+        self.0.more.notify_all();
+    }
 }
 
 impl Shared<'_> {
+    /// Wait until cell `k` is looked up: false when the calling thread stopped first.
+    fn wait_for(&self, k: usize) -> bool {
+        let mut state = self.state.lock().unwrap_or_else(|p| p.into_inner());
+        while state.0 <= k && !state.1 {
+            state = self.more.wait(state).unwrap_or_else(|p| p.into_inner());
+        }
+        state.0 > k
+    }
+
+    /// Cell `k` looked up (`None`: none to analyse), for the threads.
+    fn publish(&self, k: usize, looked: Option<Looked>) {
+        *self.looked[k].lock().unwrap_or_else(|p| p.into_inner()) = looked;
+        self.state.lock().unwrap_or_else(|p| p.into_inner()).0 = k + 1;
+        self.more.notify_all();
+    }
+
     /// Cell `k` analysed (`None`: taken already).
     fn analyse(&self, k: usize) -> Option<Analysed> {
         let looked = self.looked[k].lock().unwrap_or_else(|p| p.into_inner()).take()?;
@@ -82,8 +113,9 @@ impl Shared<'_> {
 
 impl Executor {
     /// `stage(executor, k, cell k analysed)` for each of `cells` (with its `generated` GLSL), in
-    /// order, each as soon as one of `threads` threads has analysed it. An error of `stage` stops
-    /// the threads and is returned.
+    /// order, each as soon as one of `threads` threads has analysed it; the calling thread looks
+    /// cells up (`look`) a few ahead of the one it stages, so the threads start at once. An
+    /// error of `stage` stops the threads and is returned.
     pub(super) fn analysed_in_order<E>(
         &mut self,
         cells: &[Cell],
@@ -93,32 +125,34 @@ impl Executor {
     ) -> Result<(), E> {
         let shared = Shared {
             cells,
-            looked: cells
-                .iter()
-                .zip(generated)
-                .map(|(c, s)| Mutex::new(Some(self.look(c, s))))
-                .collect(),
+            looked: cells.iter().map(|_| Mutex::new(None)).collect(),
             patch: self.opts.spirv_dir.is_none(),
             claimed: Mutex::new(self.interfaces.keys().copied().collect()),
+            state: Mutex::new((0, false)),
+            more: Condvar::new(),
         };
-        let (next, stop) = (AtomicUsize::new(0), AtomicBool::new(false));
+        let (n, ahead, next) = (cells.len(), 2 * threads.max(1), AtomicUsize::new(0));
+        let mut generated = generated.into_iter();
         std::thread::scope(|s| {
             let (tx, rx) = channel();
-            for _ in 0..threads.clamp(1, cells.len().max(1)) {
-                let (tx, shared, next, stop) = (tx.clone(), &shared, &next, &stop);
+            for _ in 0..threads.clamp(1, n.max(1)) {
+                let (tx, shared, next) = (tx.clone(), &shared, &next);
                 s.spawn(move || loop {
                     let k = next.fetch_add(1, Ordering::Relaxed);
-                    if k >= cells.len() || stop.load(Ordering::Relaxed) {
-                        return;
-                    }
-                    if tx.send((k, shared.analyse(k))).is_err() {
+                    if k >= n || !shared.wait_for(k) || tx.send((k, shared.analyse(k))).is_err() {
                         return;
                     }
                 });
             }
             drop(tx);
-            let mut ready: Vec<Option<Analysed>> = cells.iter().map(|_| None).collect();
-            for k in 0..cells.len() {
+            let _stop = Stop(&shared);
+            let (mut ready, mut looked_up) = (cells.iter().map(|_| None).collect::<Vec<_>>(), 0);
+            for k in 0..n {
+                while looked_up < n && looked_up <= k + ahead {
+                    let l = generated.next().map(|g| self.look(&cells[looked_up], g));
+                    shared.publish(looked_up, l);
+                    looked_up += 1;
+                }
                 while ready[k].is_none() {
                     match rx.recv() {
                         Ok((j, a)) => ready[j] = a,
@@ -126,10 +160,7 @@ impl Executor {
                     }
                 }
                 let Some(a) = ready[k].take().or_else(|| shared.analyse(k)) else { continue };
-                if let Err(e) = stage(self, k, a) {
-                    stop.store(true, Ordering::Relaxed);
-                    return Err(e);
-                }
+                stage(self, k, a)?;
             }
             Ok(())
         })
@@ -194,6 +225,8 @@ mod tests {
             ],
             patch: true,
             claimed: Mutex::new(HashSet::new()),
+            state: Mutex::new((3, false)),
+            more: Condvar::new(),
         };
         let Some(Analysed::Compiled(p, _, first)) = shared.analyse(0) else { panic!("plain") };
         let Some(Analysed::Compiled(n, _, second)) = shared.analyse(1) else { panic!("patched") };
@@ -216,5 +249,35 @@ mod tests {
             Some(Analysed::Failed(e, _)) => panic!("another error: {e}"),
             _ => panic!("garbage SPIR-V compiled"),
         }
+    }
+
+    /// A thread waits for a cell until the calling thread looks it up, and is let go, told so,
+    /// when the calling thread stops first (an error, the end, or unwinding): none is left
+    /// waiting for a cell that will never come.
+    #[test]
+    fn threads_wait_for_looked_up_cells_and_a_stop_lets_them_go() {
+        let cells = [Cell::new(
+            Stage::Raygen,
+            Resource::StorageBuffer,
+            IndexSource::Literal,
+            DescriptorModel::DescriptorIndexing,
+        ); 2];
+        let shared = Shared {
+            cells: &cells,
+            looked: cells.iter().map(|_| Mutex::new(None)).collect(),
+            patch: true,
+            claimed: Mutex::new(HashSet::new()),
+            state: Mutex::new((0, false)),
+            more: Condvar::new(),
+        };
+        std::thread::scope(|s| {
+            let first = s.spawn(|| shared.wait_for(0));
+            let second = s.spawn(|| shared.wait_for(1));
+            shared.publish(0, None);
+            assert!(first.join().unwrap(), "cell 0 was looked up");
+            drop(Stop(&shared));
+            assert!(!second.join().unwrap(), "cell 1 never was: the stop says so");
+        });
+        assert!(shared.analyse(0).is_none(), "nothing to analyse in a cell published empty");
     }
 }
