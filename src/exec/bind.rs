@@ -59,7 +59,7 @@ impl Executor {
         let spec = ProbeSpec::of(cell);
         self.ensure_resources(cell, &c.shaders, self.opts.timeout)?;
         let key = layout_key(&spec, &c.shaders, self.opts.all_stages);
-        self.fit(key, &c.shaders, &c.spirv)?;
+        self.fit(key, &c.shaders, (&c.spirv, c.keys.as_deref()))?;
         self.ensure_binding(key)?;
         let addresses = self.addresses(&spec);
         timings.setup_ms = t.elapsed().as_secs_f64() * 1e3;

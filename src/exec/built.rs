@@ -19,6 +19,9 @@ pub(super) struct Compiled {
     pub(super) shaders: CellShaders,
     pub(super) spirv: Vec<Arc<Vec<u32>>>,
     pub(super) seen: Seen,
+    /// Each module's `StableHash` of its words, where the prebuild's threads computed it (the
+    /// key of the executor's interface cache: `fit`); `None`: `fit` hashes them itself.
+    pub(super) keys: Option<Vec<u128>>,
 }
 
 /// The device addresses a cell's push constants carry (0 where the cell has none).

@@ -14,6 +14,9 @@ use crate::shadergen::{self, CellShaders};
 use std::sync::Arc;
 use std::time::Instant;
 
+/// A cell's shaders and their SPIR-V modules, in the same order.
+pub(super) type Modules = (CellShaders, Vec<Arc<Vec<u32>>>);
+
 /// SPIR-V `OpCapability` and `Capability GroupNonUniformBallot` (SPIR-V 1.6 unified spec).
 const OP_CAPABILITY: u32 = 17;
 const CAPABILITY_GROUP_NON_UNIFORM_BALLOT: u32 = 64;
@@ -71,31 +74,49 @@ impl Executor {
         timings: &mut Timings,
     ) -> Result<Compiled, CellError> {
         let spec = ProbeSpec::of(cell);
-        if spec.array == ArrayAt::Heap && shadergen::glslang::find().is_none() {
-            return Err(CellError::NotImplemented(shadergen::glslang::missing_reason()));
-        }
-        let mut spirv = self.spirv(&shaders, timings)?;
-        // The spec's workarounds: as-to-address for address_patched cells, then the cell's own
-        // patch. A bundle's SPIR-V is patched already.
-        let workarounds = spec.workarounds().filter(|_| self.opts.spirv_dir.is_none());
-        for w in workarounds {
-            patch_all(&mut spirv, w, timings)?;
-        }
+        let (shaders, mut spirv) = self.look_up(cell, shaders, timings)?;
+        patch_workarounds(cell, &mut spirv, self.opts.spirv_dir.is_none(), timings)?;
         // Then a mutant's mutation (`run --mutants`).
         if let (Some(m), Some(mutation)) = (spec.mutant, self.mutation(&spec)?) {
             super::mutant::mutate_all(&mut spirv, mutation, m.as_str(), timings)?;
         }
-        if let Some(dir) = &self.opts.dump {
-            files::dump(dir, cell, &shaders, &spirv).map_err(CellError::Io)?;
-        }
+        self.dump(cell, &shaders, &spirv)?;
         let lanes = self.recorded_lanes(cell, &shaders, &spirv);
         let seen = Seen::of(cell, &shaders, &spirv, lanes);
-        Ok(Compiled { shaders, spirv, seen })
+        Ok(Compiled { shaders, spirv, seen, keys: None })
+    }
+
+    /// The executor's part of phase `compile`: the cell's modules, compiled (or taken from the
+    /// compiler's cache) or read from a bundle, unpatched.
+    pub(super) fn look_up(
+        &mut self,
+        cell: &Cell,
+        shaders: CellShaders,
+        timings: &mut Timings,
+    ) -> Result<Modules, CellError> {
+        if ProbeSpec::of(cell).array == ArrayAt::Heap && shadergen::glslang::find().is_none() {
+            return Err(CellError::NotImplemented(shadergen::glslang::missing_reason()));
+        }
+        let spirv = self.spirv(&shaders, timings)?;
+        Ok((shaders, spirv))
+    }
+
+    /// `--dump`: the cell's GLSL and SPIR-V written out.
+    pub(super) fn dump(
+        &self,
+        cell: &Cell,
+        shaders: &CellShaders,
+        spirv: &[Arc<Vec<u32>>],
+    ) -> Result<(), CellError> {
+        match &self.opts.dump {
+            Some(dir) => files::dump(dir, cell, shaders, spirv).map_err(CellError::Io),
+            None => Ok(()),
+        }
     }
 
     /// The lane evidence the cell's records will carry: as generated, or for a bundle's SPIR-V,
     /// whether its probed module measures it (declares `GroupNonUniformBallot`).
-    fn recorded_lanes(
+    pub(super) fn recorded_lanes(
         &self,
         cell: &Cell,
         shaders: &CellShaders,
@@ -141,6 +162,21 @@ impl Executor {
         }
         Ok(spirv)
     }
+}
+
+/// The spec's workarounds patched into `spirv`: as-to-address for address_patched cells, then
+/// the cell's own patch (`patch`: false for a bundle's SPIR-V, patched already). Needs nothing of
+/// the executor: the prebuild runs it on its threads.
+pub(super) fn patch_workarounds(
+    cell: &Cell,
+    spirv: &mut [Arc<Vec<u32>>],
+    patch: bool,
+    timings: &mut Timings,
+) -> Result<(), CellError> {
+    for w in ProbeSpec::of(cell).workarounds().filter(|_| patch) {
+        patch_all(spirv, w, timings)?;
+    }
+    Ok(())
 }
 
 /// Apply workaround `w` to every module that has the access it rewrites (the time added to

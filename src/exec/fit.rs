@@ -69,18 +69,22 @@ impl Executor {
     /// `shaders`' modules (`spirv`) against what a pipeline of `key` provides them. Each distinct
     /// module is reflected once per executor (`interfaces`, keyed by a hash of its words): most
     /// cells share their raygen and miss, and reading a module costs more than checking it.
+    /// `keys`: the modules' keys, where the prebuild's threads hashed them (`analysed`).
     pub(super) fn fit(
         &mut self,
         key: LayoutKey,
         shaders: &CellShaders,
-        spirv: &[Arc<Vec<u32>>],
+        (spirv, keys): (&[Arc<Vec<u32>>], Option<&[u128]>),
     ) -> Result<(), CellError> {
         let slots = key.probe.map(|r| self.slots(r)).unwrap_or(0);
         let max_hit = self.gpu.info.properties.rt_pipeline.map(|p| p.max_ray_hit_attribute_size);
         let desc = pipeline_desc(key, shaders, slots, max_hit.unwrap_or(0));
         let mut read = Vec::with_capacity(spirv.len());
         for (k, w) in spirv.iter().enumerate() {
-            let key = crate::stable_hash::StableHash::default().words(w).finish();
+            let key = match keys.and_then(|keys| keys.get(k)) {
+                Some(&key) => key,
+                None => module_key(w),
+            };
             let m = match self.interfaces.get(&key) {
                 Some(m) => m.clone(),
                 None => interface::read(k, w).map_err(CellError::Interface)?,
@@ -90,6 +94,11 @@ impl Executor {
         }
         interface::check_read(&read, &desc).map_err(CellError::Interface)
     }
+}
+
+/// The key of a module's interface in the executor's cache: its words hashed.
+pub(super) fn module_key(words: &[u32]) -> u128 {
+    crate::stable_hash::StableHash::default().words(words).finish()
 }
 
 #[cfg(test)]

@@ -8,14 +8,17 @@
 //!
 //! Files, in the order a cell meets them: the executor and its options (`executor`), what the
 //! cells need built first (`setup`), phase `compile` (`compile`), binding and the pipeline key
-//! (`bind`, `pipeline_key`), building at the cell's turn or ahead of it (`build`, `prebuild`),
+//! (`bind`, `pipeline_key`), building at the cell's turn or ahead of it (`build`, `prebuild`, with the compile's
+//! executor-free part on the prebuild's threads: `analysed`),
 //! what each step hands to the next (`built`) and what the driver saw of the cell's shape
 //! (`seen`), whether its modules fit its layout (`fit`), the turn itself (`run`), recording the
 //! three pipeline kinds (`record`), judging the records (`check`, `pictures`), a mutant cell's
 //! mutation and prediction (`mutant`), error → outcome (`error`); below them resources and
 //! samplers, the scene-layout cells' buffers (`layout_buffers`), bindings, the descriptor heap, pipelines whole or linked from group libraries
-//! (`pipeline_library`), the pipeline cache kept between runs, and files (library and layout
+//! (`pipeline_library`), the pipeline cache kept between runs, a released chunk's pipelines destroyed off the cell
+//! thread (`reaper`), and files (library and layout
 //! identities use `crate::stable_hash`).
+mod analysed;
 mod bind;
 pub mod bindings;
 mod build;
@@ -37,6 +40,7 @@ mod pipeline_key;
 mod pipeline_library;
 mod pipeline_pool;
 pub mod prebuild;
+mod reaper;
 mod record;
 pub mod resources;
 mod run;

@@ -1,6 +1,8 @@
 //! Building a batch of cells ahead of their turns, streamed: the batch's GLSL generated, then
 //! compiled or read from the disk cache, on a pool of threads into the compiler's per-source
-//! cache, then workarounds and descriptor bindings in
+//! cache; each cell's modules taken from that cache in order, then, on the threads again, what
+//! needs nothing of the executor ([`super::analysed`]: workarounds patched in, what the driver
+//! sees of the modules, their interfaces read); then descriptor bindings in
 //! cell order on the calling thread (the staging), each distinct pipeline's input handed to a
 //! pool of threads ([`super::pipeline_pool`]) as soon as its first cell is staged; then the
 //! cells take their turns on the calling thread as their pipelines arrive ([`Prebuild::turn`]),
@@ -14,6 +16,7 @@
 //! batch can be blamed. Each unit of work (the threaded GLSL, each cell's compile and bindings,
 //! each pipeline) is reported as a [`Step`], so the supervisor's deadline measures silence, not
 //! the batch's size. Traces still run one cell at a time, on the calling thread.
+use super::analysed::Analysed;
 use super::built::{Bound, Compiled, Prebuilt};
 use super::error::CellError;
 use super::executor::Executor;
@@ -22,7 +25,6 @@ use super::pipeline_pool::{Job, Made, Maker, Pool};
 use crate::model::Cell;
 use crate::model::Phase;
 use crate::model::Timings;
-use crate::shadergen::CellShaders;
 use std::collections::{HashSet, VecDeque};
 use std::sync::Arc;
 use std::time::Instant;
@@ -141,12 +143,14 @@ impl Executor {
             stats: PrebuildStats::default(),
         };
         let mut seen = HashSet::new();
-        for (k, (cell, shaders)) in cells.iter().zip(generated).enumerate() {
-            if let Some((compiled, w)) = self.stage(cell, shaders)? {
-                pb.push(self, cell, compiled, w, &mut seen);
+        // Each cell staged as soon as the threads have analysed it, in order.
+        self.analysed_in_order(cells, generated, threads, |exec, k, a| {
+            if let Some((compiled, w)) = exec.stage(&cells[k], a)? {
+                pb.push(exec, &cells[k], compiled, w, &mut seen);
             }
             progress(Step::Compiled(k + 1, cells.len()));
-        }
+            Ok::<(), CellError>(())
+        })?;
         if let Some(p) = &mut pb.pool {
             p.close();
         }
@@ -166,7 +170,7 @@ impl Executor {
         cells: &[Cell],
         threads: usize,
         progress: &(dyn Fn(Step) + Send + Sync),
-    ) -> Vec<CellShaders> {
+    ) -> Vec<crate::shadergen::CellShaders> {
         let how: Vec<_> = cells
             .iter()
             .map(|c| {
@@ -198,15 +202,27 @@ impl Executor {
         generated
     }
 
-    /// Compile and bind one cell on the calling thread: `Some` when it is ready for its pipeline;
-    /// `None` when its error is kept for its turn; `Err` when the error ends the worker.
+    /// Bind one cell on the calling thread, compiled on the threads (the interfaces they read
+    /// kept, its `--dump` written here) or here: `Some` when it is ready for its pipeline; `None` when its error is kept for its
+    /// turn; `Err` when the error ends the worker.
     fn stage(
         &mut self,
         cell: &Cell,
-        shaders: CellShaders,
+        a: Analysed,
     ) -> Result<Option<(Compiled, Waiting)>, CellError> {
-        let mut timings = Timings::default();
-        let (phase, e) = match self.compile_cell(cell, shaders, &mut timings) {
+        let (mut timings, compiled) = match a {
+            Analysed::Compiled(c, t, interfaces) => {
+                self.interfaces.extend(interfaces);
+                (t, self.dump(cell, &c.shaders, &c.spirv).map(|()| c))
+            }
+            Analysed::Whole(shaders) => {
+                let mut t = Timings::default();
+                let c = self.compile_cell(cell, shaders, &mut t);
+                (t, c)
+            }
+            Analysed::Failed(e, t) => (t, Err(e)),
+        };
+        let (phase, e) = match compiled {
             Err(e) => (Phase::Compile, e),
             Ok(compiled) => match self.bind_cell(cell, &compiled, &mut timings) {
                 Ok(bound) => {

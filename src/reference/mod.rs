@@ -67,16 +67,25 @@ pub use key::ExpectedKey;
 pub use rules::{Expected, Undefined, ValueRule, BARY_TOL, T_REL_TOL};
 
 /// Primary rays of every pixel through the scene TLAS, and AS probe rays through every probe TLAS
-/// variant.
+/// variant, traced the first time a cell reads them ([`SceneReference::as_probe`]).
 pub struct SceneReference {
     /// Primary rays through the scene TLAS.
     pub full: Vec<TraceRef>,
-    /// `probe[v][pixel]`: the AS probe ray through probe TLAS variant `v`.
-    pub probe: Vec<Vec<TraceRef>>,
+    /// The AS probe rays, traced on every core at the first read of a cell that needs them
+    /// (its AS probe, or an undefined read judged against every variant's value): the CLI's
+    /// scene summary reads only `full`, and a re-run worker's cells often have no AS probe
+    /// (90 ms of such a worker on lavapipe 25).
+    as_probe: std::sync::OnceLock<AsProbe>,
+}
+
+/// The AS probe rays of every pixel through every probe TLAS variant, and their values.
+pub struct AsProbe {
+    /// `rays[v][pixel]`: the AS probe ray through probe TLAS variant `v`.
+    pub rays: Vec<Vec<TraceRef>>,
     /// The AS probe's value and ambiguity per pixel and variant (`[pixel * variants + v]`), read
-    /// from `probe` once: what [`SceneReference::as_value`] answers for every cell, the variants
-    /// of one pixel side by side.
-    as_table: Vec<([f32; 4], bool)>,
+    /// from `rays` once: what [`AsProbe::value`] answers for every cell, the variants of one
+    /// pixel side by side.
+    table: Vec<([f32; 4], bool)>,
 }
 
 /// How many of `scene`'s primary rays are ambiguous (what [`SceneReference::ambiguous_pixels`]
@@ -117,7 +126,41 @@ fn on_every_core<T: Send>(rows: u32, row: impl Fn(u32) -> T + Sync) -> Vec<T> {
 }
 
 impl SceneReference {
+    /// Every pixel's primary ray traced (the AS probe rays wait for a cell that reads them).
     pub fn compute(scene: &Scene) -> Self {
+        let (w, h) = (scene.params.width, scene.params.height);
+        let cull = intersect::Culling::of(scene);
+        let rows = on_every_core(h, |y| {
+            (0..w)
+                .map(|x| {
+                    let (o, d) = scene.primary_ray(x, y);
+                    intersect::trace((scene, &cull), o, d, |_| true)
+                })
+                .collect::<Vec<_>>()
+        });
+        let full = rows.into_iter().flatten().collect();
+        Self { full, as_probe: std::sync::OnceLock::new() }
+    }
+
+    pub fn ambiguous_pixels(&self) -> usize {
+        self.full.iter().filter(|t| t.ambiguous).count()
+    }
+
+    /// The AS probe rays of `scene` (the scene `full` was traced in), traced at the first call.
+    pub fn as_probe(&self, scene: &Scene) -> &AsProbe {
+        debug_assert_eq!(scene.params.pixels(), self.full.len(), "another scene");
+        self.as_probe.get_or_init(|| AsProbe::trace(scene))
+    }
+
+    /// Whether the AS probe rays have been traced.
+    pub fn as_probe_traced(&self) -> bool {
+        self.as_probe.get().is_some()
+    }
+}
+
+impl AsProbe {
+    /// The AS probe ray of every pixel through every variant, on every core.
+    fn trace(scene: &Scene) -> Self {
         let (w, h) = (scene.params.width, scene.params.height);
         let n = scene.instances.len() as u32;
         let variants = probe::as_variants(scene.params.instances);
@@ -129,59 +172,52 @@ impl SceneReference {
             .chain(std::iter::once((n, &scene.floor)))
             .collect();
         let cull = intersect::Culling::of(scene);
-        // One pixel: its primary ray, and the AS probe ray through every variant.
+        // One pixel: the AS probe ray through every variant.
         let pixel = |x: u32, y: u32| {
-            let (o, d) = scene.primary_ray(x, y);
-            let full = intersect::trace((scene, &cull), o, d, |_| true);
+            let (o, _) = scene.primary_ray(x, y);
             let cands = intersect::candidates(
                 (scene, &cull),
                 o,
                 probe::PROBE_DIR,
                 with_floor.iter().copied(),
             );
-            let probes: Vec<TraceRef> = (0..variants)
+            (0..variants)
                 .map(|v| {
                     intersect::resolve(&cands, |h| {
                         h.instance_id == n || probe::as_variant_has(v, h.instance_id)
                     })
                 })
-                .collect();
-            (full, probes)
+                .collect::<Vec<TraceRef>>()
         };
         let rows = on_every_core(h, |y| (0..w).map(|x| pixel(x, y)).collect::<Vec<_>>());
-        let mut full = Vec::with_capacity(scene.params.pixels());
-        let mut probe_rays: Vec<Vec<TraceRef>> =
+        let mut rays: Vec<Vec<TraceRef>> =
             (0..variants).map(|_| Vec::with_capacity(scene.params.pixels())).collect();
-        for (f, probes) in rows.into_iter().flatten() {
-            full.push(f);
-            for (rays, t) in probe_rays.iter_mut().zip(probes) {
-                rays.push(t);
+        for probes in rows.into_iter().flatten() {
+            for (r, t) in rays.iter_mut().zip(probes) {
+                r.push(t);
             }
         }
-        let as_table = (0..full.len())
-            .flat_map(|p| (0..probe_rays.len()).map(move |v| (p, v)))
+        let pixels = scene.params.pixels();
+        let table = (0..pixels)
+            .flat_map(|p| (0..rays.len()).map(move |v| (p, v)))
             .map(|(p, v)| {
-                let t = probe_rays[v][p];
+                let t = rays[v][p];
                 (Self::probe_value(v, t), t.ambiguous)
             })
             .collect();
-        Self { full, probe: probe_rays, as_table }
-    }
-
-    pub fn ambiguous_pixels(&self) -> usize {
-        self.full.iter().filter(|t| t.ambiguous).count()
+        AsProbe { rays, table }
     }
 
     /// The AS probe's value through AS slot `slot` at pixel `p`, and whether it is ambiguous.
-    pub fn as_value(&self, slot: u32, p: usize) -> ([f32; 4], bool) {
+    pub fn value(&self, slot: u32, p: usize) -> ([f32; 4], bool) {
         let v = probe::as_slot_tlas(slot);
-        let variants = self.probe.len();
-        if v >= variants || p >= self.full.len() {
-            // no such variant or pixel: indexing `probe` says so, as it always did
-            let t = self.probe[v][p];
+        let variants = self.rays.len();
+        if v >= variants || p >= self.table.len() / variants.max(1) {
+            // no such variant or pixel: indexing `rays` says so, as it always did
+            let t = self.rays[v][p];
             return (Self::probe_value(v, t), t.ambiguous);
         }
-        self.as_table[p * variants + v]
+        self.table[p * variants + v]
     }
 
     /// The AS probe's value for probe ray `t` through TLAS variant `v`.
@@ -338,11 +374,11 @@ impl Probed<'_> {
 
     /// An acceleration structure probe reading AS slot `read` at pixel `p`.
     fn read_as(&self, e: &mut Expected, read: u32, p: usize) {
-        let (value, amb) = self.sref.as_value(read, p);
+        let probe = self.sref.as_probe(self.scene);
+        let (value, amb) = probe.value(read, p);
         e.ambiguous |= amb;
         e.record.value = value;
-        e.discriminating =
-            (0..self.slots).all(|s| s == read || self.sref.as_value(s, p).0 != value);
+        e.discriminating = (0..self.slots).all(|s| s == read || probe.value(s, p).0 != value);
     }
 
     /// A buffer or image probe reading slot `read` at pixel (x, y); `dynamic` is the stage's
@@ -387,8 +423,9 @@ impl Probed<'_> {
     fn any_element(&self, e: &mut Expected, p: usize) {
         let mut as_values = [0.0; MAX_AS_VARIANTS as usize];
         if self.spec.element == ElementMap::None {
+            let probe = self.sref.as_probe(self.scene);
             for v in 0..self.variants {
-                let (value, amb) = self.sref.as_value(v, p);
+                let (value, amb) = probe.value(v, p);
                 as_values[v as usize] = value[0];
                 e.ambiguous |= amb;
             }

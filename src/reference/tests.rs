@@ -70,13 +70,14 @@ fn default_scene_has_hits_misses_spheres_and_few_ambiguous_pixels() {
         r.full.iter().filter_map(|t| t.hit.map(|h| h.geometry)).collect();
     assert!(geoms.len() >= 3, "{geoms:?}");
     // the probe rays hit in every variant almost everywhere (the floor), with different instance sets
-    for v in &r.probe {
+    let probe = r.as_probe(&world().0);
+    for v in &probe.rays {
         assert!(v.iter().filter(|t| t.hit.is_some()).count() > n * 9 / 10);
     }
     assert!(
         (0..n)
-            .filter(|p| r.probe[0][*p].hit.map(|h| h.instance_id)
-                != r.probe[1][*p].hit.map(|h| h.instance_id))
+            .filter(|p| probe.rays[0][*p].hit.map(|h| h.instance_id)
+                != probe.rays[1][*p].hit.map(|h| h.instance_id))
             .count()
             > n / 10
     );
@@ -455,7 +456,7 @@ fn a_driver_returning_instance_id_as_custom_index_is_caught() {
                         slots,
                     );
                     a.value = if resource == Resource::AccelerationStructure {
-                        r.as_value(a.slot, p).0
+                        r.as_probe(scene).value(a.slot, p).0
                     } else {
                         crate::probe::resource_value(resource, a.slot, a.element)
                     };
@@ -585,7 +586,7 @@ fn an_index_no_lane_computed_is_a_mismatch_without_nonuniform() {
                     let mut a = x.record;
                     if a.flags & FLAG_PROBE != 0 {
                         a.value = if resource == Resource::AccelerationStructure {
-                            r.as_value(0, p).0
+                            r.as_probe(scene).value(0, p).0
                         } else {
                             probe::resource_value(resource, 0, a.element)
                         };
@@ -764,7 +765,7 @@ fn as_cells_discriminate_in_a_large_scene() {
     });
     let r = SceneReference::compute(&scene);
     assert_eq!(
-        r.probe.len() as u32,
+        r.as_probe(&scene).rays.len() as u32,
         crate::probe::slot_count(Resource::AccelerationStructure, 256)
     );
     for stage in [Stage::Raygen, Stage::ClosestHit, Stage::Miss, Stage::Compute] {
@@ -1028,5 +1029,35 @@ fn the_reference_on_every_core_keeps_each_pixel_in_place() {
         assert_eq!(r.full[p], intersect::trace((scene, &cull), o, d, |_| true), "pixel {p}");
     }
     assert_eq!(r.full.len(), scene.params.pixels());
-    assert!(r.probe.iter().all(|v| v.len() == r.full.len()));
+    assert!(r.as_probe(scene).rays.iter().all(|v| v.len() == r.full.len()));
+}
+
+/// The AS probe rays are traced at the first cell that reads them, never for the others (the
+/// CLI's scene summary, a re-run worker of buffer cells), and what a later AS cell is judged by
+/// is what they hold: a probe pixel's value is its ray's instance through the cell's variant.
+#[test]
+fn the_as_probe_rays_are_traced_only_for_a_cell_that_reads_them() {
+    let scene = Scene::build(&SceneParams::default());
+    let r = SceneReference::compute(&scene);
+    for index in [IndexSource::Literal, IndexSource::Dynamic] {
+        let e = expected(&cell(Stage::ClosestHit, index), &scene, &r);
+        assert!(e.iter().any(|x| x.record.flags & FLAG_PROBE != 0));
+    }
+    assert!(!r.as_probe_traced(), "a storage-buffer cell traced the AS probe rays");
+    let c = Cell {
+        resource: Resource::AccelerationStructure,
+        as_access: Some(AsAccess::Descriptor),
+        ..cell(Stage::Raygen, IndexSource::Literal)
+    };
+    let e = expected(&c, &scene, &r);
+    assert!(r.as_probe_traced(), "an AS cell judged without its probe rays");
+    let probe = r.as_probe(&scene);
+    let mut judged = 0;
+    for (p, x) in e.iter().enumerate().filter(|(_, x)| x.record.flags & FLAG_PROBE != 0) {
+        let v = crate::probe::as_slot_tlas(x.record.slot);
+        let custom = probe.rays[v][p].hit.map(|h| crate::probe::as_custom(v as u32, h.instance_id));
+        assert_eq!(x.record.value, crate::probe::as_value(custom), "pixel {p}");
+        judged += 1;
+    }
+    assert!(judged > e.len() / 2, "{judged} probe pixels of {}", e.len());
 }
