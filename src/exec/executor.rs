@@ -221,7 +221,12 @@ impl Executor {
             pipelines: self.pipelines.drain().map(|(_, p)| p).collect(),
             libraries: self.libraries.as_mut().map(std::mem::take),
         };
-        if background {
+        // Never with group libraries: destroying a chunk's linked pipelines and their libraries
+        // on the reaper's thread while the next chunk's pool linked new ones, NVIDIA 580.159.04
+        // made no pipeline for 20 s (`run --patches all`, both warm runs; the build without the
+        // reaper and `--pipelines whole` ran: reports/nvidia-h200/perf/s33b/). Which of the two
+        // destroys it was is not pinned down, so linked pipelines are all destroyed here.
+        if background && garbage.libraries.is_none() {
             self.reaper.send(garbage);
         } else {
             garbage.destroy(&self.gpu);

@@ -1,0 +1,27 @@
+#!/bin/bash
+# One call (session 2026-12-04 (e)): issue 26's default runs with this session's build (staging
+# checks off the cell thread, own glTF reader), an interleaved A/B against the s32 build (old),
+# with its own caches, then the scene cells on the test scene (the glTF reader on the GPU).
+for f in .gl/*.deb; do dpkg -x $f / >/dev/null 2>&1; done; ldconfig
+export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
+cd .dev/h200 && for b in rtprobe rtprobe-old; do xz -d -k $b.xz && chmod +x $b; done; cd ../..
+R=$PWD; B=$R/.dev/h200/rtprobe; A=$R/.dev/h200/rtprobe-old; O=$OUT/s33; mkdir -p $O; cd $O
+export __GL_SHADER_DISK_CACHE_PATH=/tmp/nv RTPROBE_CACHE_DIR=/tmp/rc; mkdir -p /tmp/nv /tmp/rc /tmp/nvo /tmp/rco
+t() { local n=$1; shift; local s=$(date +%s%N); "$@" > $n.txt 2>&1; local rc=$?; local e=$(date +%s%N); echo "$n rc=$rc process_ms=$(( (e-s)/1000000 ))" | tee -a times.txt; echo "\$ $*" >> $n.cmd; }
+$B devices > devices.txt 2>&1; nproc > nproc.txt; uptime > uptime.txt
+rm -rf /tmp/nv/* /tmp/rc/*
+t default-cold $B run -o default-cold.json
+for i in 1 2 3; do t default-warm$i $B run -o default-warm$i.json; done
+t patches-all-warm0 $B run --patches all -o patches-all-warm0.json
+t patches-all-warm1 $B run --patches all -o patches-all-warm1.json
+RUST_LOG=trace $B run -o default-warm-trace.json > default-warm-trace.txt 2> default-warm-trace.log; echo "trace rc=$?" >> times.txt
+__GL_SHADER_DISK_CACHE_PATH=/tmp/nvo RTPROBE_CACHE_DIR=/tmp/rco t ab-old-cold $A run -o ab-old-cold.json
+for i in 1 2 3; do
+  __GL_SHADER_DISK_CACHE_PATH=/tmp/nvo RTPROBE_CACHE_DIR=/tmp/rco t ab-old-warm$i $A run -o ab-old-warm$i.json
+  t ab-new-warm$i $B run -o ab-new-warm$i.json
+done
+$B scene make sc > make.txt 2>&1
+t scene-default $B run --scene sc/scene.gltf -o scene-default.json
+t layout-scene $B run --scene sc/scene.gltf --filter 'scene_layout=shared_buffers|per_mesh' -o layout-scene.json
+grep -H -E '^time:|^prebuild:' *.txt > summary-times.txt
+rm -rf sc; gzip -f *.json *.log; cd $OUT && tar czf s33.tgz s33 && rm -rf s33

@@ -1,0 +1,1 @@
+$ /work/main/.dev/h200/rtprobe-vB run --patches all -o vB.json
