@@ -71,6 +71,34 @@ fn shared() -> &'static (rtprobe::tempdir::TempDir, PathBuf) {
     })
 }
 
+/// `bisect` of [`shared`]'s report with no options: its stdout and JSON, made once for the
+/// predicate test and the issue test (each asserted what it reads from the same bisection).
+fn shared_bisect() -> &'static (String, Value) {
+    static B: OnceLock<(String, Value)> = OnceLock::new();
+    B.get_or_init(|| bisect(&shared().1, &[]))
+}
+
+/// `bisect` of [`shared`]'s report with `--max-attempts 2` (too few to conclude on a pass): its
+/// output and JSON, made once for the threshold test and the same-card twin of the other-card test.
+fn shared_capped() -> &'static (std::process::Output, Value) {
+    static C: OnceLock<(std::process::Output, Value)> = OnceLock::new();
+    C.get_or_init(|| {
+        let report = &shared().1;
+        let json = report.with_extension("capped.bisect.json");
+        let o = run(&[
+            "bisect",
+            report.to_str().unwrap(),
+            "--max-attempts",
+            "2",
+            "--json",
+            json.to_str().unwrap(),
+        ]);
+        assert_eq!(o.status.code(), Some(0), "{}\n{}", stdout(&o), stderr(&o));
+        let j = json_file(&json);
+        (o, j)
+    })
+}
+
 #[test]
 fn single_axis_two_axis_and_value_set_predicates_come_back_exactly() {
     let dir = rtprobe::tempdir::tempdir().unwrap();
@@ -95,7 +123,8 @@ fn single_axis_two_axis_and_value_set_predicates_come_back_exactly() {
         ),
     ];
     for (p, report) in &cases {
-        let (text, j) = bisect(report, &[]);
+        let (text, j) =
+            if *report == shared().1 { shared_bisect().clone() } else { bisect(report, &[]) };
         assert_eq!(last_line(&text), format!("minimal: {p}"), "{text}");
         assert_eq!(j["minimal"], *p);
         assert_eq!(j["separable"], true);
@@ -248,7 +277,7 @@ fn a_fault_no_conjunction_separates_is_said_so_with_a_disjunction() {
 #[test]
 fn the_issue_has_every_section() {
     let (dir, report) = shared();
-    let (_, j) = bisect(report, &[]);
+    let (_, j) = shared_bisect();
     let bis = report.with_extension("bisect.json");
     let md = dir.path().join("issue.md");
     let o = run(&[
@@ -443,18 +472,8 @@ fn nothing_to_bisect_and_a_wrong_cell_are_one_line_errors() {
 fn passes_below_the_threshold_are_not_concluded_on() {
     // Two attempts at most: a fault seen 2 of 2 is only p >= 0.05^(1/2) at 95%, and two passing
     // attempts would miss such a fault with probability (1 - 0.05^(1/2))^2, far above 1%.
-    let (_, report) = shared();
-    let json = report.with_extension("capped.bisect.json");
-    let o = run(&[
-        "bisect",
-        report.to_str().unwrap(),
-        "--max-attempts",
-        "2",
-        "--json",
-        json.to_str().unwrap(),
-    ]);
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    let (text, j) = (stdout(&o), json_file(&json));
+    let (o, j) = shared_capped();
+    let text = stdout(o);
     let miss = stats::miss(stats::rate_bound(2, 2), 2);
     assert!(miss >= 0.01);
     assert!(text.contains("NOT CONCLUDED"), "{text}");
@@ -655,19 +674,11 @@ fn another_card_of_the_same_driver_bisects_and_another_driver_build_is_refused()
         stdout(&issue),
         stderr(&issue)
     );
-    // Twin: the report's own card gives no warning and no device_uuid_rerun.
-    let same_json = dir.path().join("same-card.bisect.json");
-    let o = run(&[
-        "bisect",
-        shared_report.to_str().unwrap(),
-        "--max-attempts",
-        "2",
-        "--json",
-        same_json.to_str().unwrap(),
-    ]);
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    assert!(!stderr(&o).contains("is not here"), "{}", stderr(&o));
-    assert!(json_file(&same_json).get("device_uuid_rerun").is_none());
+    // Twin: the report's own card (the same bisection, `--max-attempts 2`) gives no warning and
+    // no device_uuid_rerun.
+    let (o, same) = shared_capped();
+    assert!(!stderr(o).contains("is not here"), "{}", stderr(o));
+    assert!(same.get("device_uuid_rerun").is_none(), "{same}");
     // Twin: a different driver build is not the device the fault was seen on.
     r["device"]["driver_uuid"] = Value::from("00000000000000000000000000000000");
     let other_driver = dir.path().join("other-driver.json");

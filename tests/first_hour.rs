@@ -9,6 +9,7 @@ use serde_json::Value;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Stdio};
+use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
 /// Raygen and miss shaders reading storage buffers: 12 cells, seconds on lavapipe.
@@ -283,22 +284,34 @@ fn resuming_a_complete_report_runs_no_cell_again() {
 
 // ---- 6.–9., 11. what a run prints ----
 
+/// `run --filter SMALL --inject-fault CRASH` as a CI log gets it (progress every line, `CI=true`:
+/// output only, the run is the same): its output and report, made once for the CI-log test and as
+/// the baseline of the merge test.
+fn crash_run() -> &'static (rtprobe::tempdir::TempDir, std::process::Output, PathBuf) {
+    static R: OnceLock<(rtprobe::tempdir::TempDir, std::process::Output, PathBuf)> =
+        OnceLock::new();
+    R.get_or_init(|| {
+        let dir = rtprobe::tempdir::tempdir().unwrap();
+        let r = dir.path().join("r.json");
+        let o = run_env(
+            &["run", "--filter", SMALL, "--inject-fault", CRASH, "-o", r.to_str().unwrap()],
+            &[("RTPROBE_PROGRESS_SECS", "0"), ("CI", "true")],
+        );
+        (dir, o, r)
+    })
+}
+
 #[test]
 fn a_ci_log_shows_progress_counts_that_add_up_and_one_verdict_line() {
-    let dir = rtprobe::tempdir::tempdir().unwrap();
-    let r = dir.path().join("r.json");
-    let o = run_env(
-        &["run", "--filter", SMALL, "--inject-fault", CRASH, "-o", r.to_str().unwrap()],
-        &[("RTPROBE_PROGRESS_SECS", "0"), ("CI", "true")],
-    );
-    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
-    let (out, err) = (stdout(&o), stderr(&o));
+    let (_, o, r) = crash_run();
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(o));
+    let (out, err) = (stdout(o), stderr(o));
     // 6: progress lines on a stderr that is no terminal.
     assert!(err.lines().any(|l| l.starts_with('[') && l.contains(" attempts (pass ")), "{err}");
     assert!(err.contains("round confirm: 2 attempts, each alone in a fresh worker"), "{err}");
     assert!(err.lines().any(|l| l.contains("] done: ")), "{err}");
     // 7: the outcomes add up to the plan; the retries are counted apart.
-    let j = report(&r);
+    let j = report(r);
     let planned = j["plan"]["planned"].as_u64().unwrap();
     let outcomes = out.lines().find(|l| l.starts_with("outcomes:")).unwrap();
     let sum: u64 = outcomes.split_whitespace().filter_map(|w| w.parse::<u64>().ok()).sum();
@@ -630,8 +643,7 @@ fn shard_runs(dir: &Path, name: &str, extra: &[&str]) -> Vec<PathBuf> {
 #[test]
 fn merging_shards_held_to_a_baseline_gives_the_ci_verdict() {
     let dir = rtprobe::tempdir::tempdir().unwrap();
-    let (first, base) = (dir.path().join("first.json"), dir.path().join("base.json"));
-    run(&["run", "--filter", SMALL, "--inject-fault", CRASH, "-o", first.to_str().unwrap()]);
+    let (first, base) = (&crash_run().2, dir.path().join("base.json"));
     assert!(run(&["baseline", first.to_str().unwrap(), "-o", base.to_str().unwrap()])
         .status
         .success());
