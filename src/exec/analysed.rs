@@ -111,6 +111,15 @@ impl Shared<'_> {
     }
 }
 
+/// Cell `k` analysed on a thread, its panic caught to be handed to the calling thread: a thread
+/// that died instead would leave the calling thread waiting for cell `k` for ever (the other
+/// threads wait for cells it has not looked up yet), a hang the supervisor could only time out.
+type Caught = std::thread::Result<Option<Analysed>>;
+
+fn caught(shared: &Shared<'_>, k: usize) -> Caught {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| shared.analyse(k)))
+}
+
 impl Executor {
     /// `stage(executor, k, cell k analysed)` for each of `cells` (with its `generated` GLSL), in
     /// order, each as soon as one of `threads` threads has analysed it; the calling thread looks
@@ -139,7 +148,7 @@ impl Executor {
                 let (tx, shared, next) = (tx.clone(), &shared, &next);
                 s.spawn(move || loop {
                     let k = next.fetch_add(1, Ordering::Relaxed);
-                    if k >= n || !shared.wait_for(k) || tx.send((k, shared.analyse(k))).is_err() {
+                    if k >= n || !shared.wait_for(k) || tx.send((k, caught(shared, k))).is_err() {
                         return;
                     }
                 });
@@ -155,11 +164,17 @@ impl Executor {
                 }
                 while ready[k].is_none() {
                     match rx.recv() {
-                        Ok((j, a)) => ready[j] = a,
+                        Ok((j, Ok(a))) => ready[j] = Some(a),
+                        // A panic in a thread's analysis is the cell thread's, as when the
+                        // analysis ran here: the worker dies on it, in cell `j`'s staging.
+                        Ok((_, Err(panic))) => std::panic::resume_unwind(panic),
                         Err(_) => break, // every thread ended: what is left is taken here
                     }
                 }
-                let Some(a) = ready[k].take().or_else(|| shared.analyse(k)) else { continue };
+                // `Some(None)`: its thread found nothing to analyse (taken already).
+                let Some(a) = ready[k].take().flatten().or_else(|| shared.analyse(k)) else {
+                    continue;
+                };
                 stage(self, k, a)?;
             }
             Ok(())
@@ -249,6 +264,41 @@ mod tests {
             Some(Analysed::Failed(e, _)) => panic!("another error: {e}"),
             _ => panic!("garbage SPIR-V compiled"),
         }
+    }
+
+    /// A panic in a thread's analysis comes back as that cell's, to be resumed on the calling
+    /// thread, never a thread that ends silently (which would leave the calling thread waiting
+    /// for the cell for ever). Twin: an analysis that does not panic comes back as itself.
+    #[test]
+    fn a_panicking_analysis_is_handed_to_the_calling_thread() {
+        let mut c = Compiler::new().unwrap();
+        let cell = Cell::new(
+            Stage::Raygen,
+            Resource::StorageBuffer,
+            IndexSource::Literal,
+            DescriptorModel::DescriptorIndexing,
+        );
+        // A cell index past `cells` makes `analyse` panic (its `cells[k]`).
+        let shared = Shared {
+            cells: &[],
+            looked: vec![Mutex::new(Some(looked(&mut c, &cell)))],
+            patch: true,
+            claimed: Mutex::new(HashSet::new()),
+            state: Mutex::new((1, false)),
+            more: Condvar::new(),
+        };
+        let hook = std::panic::take_hook();
+        std::panic::set_hook(Box::new(|_| {}));
+        let got = caught(&shared, 0);
+        std::panic::set_hook(hook);
+        assert!(got.is_err(), "the panic was lost");
+        let cells = [cell];
+        let fine = Shared {
+            cells: &cells,
+            looked: vec![Mutex::new(Some(looked(&mut c, &cell)))],
+            ..shared
+        };
+        assert!(matches!(caught(&fine, 0), Ok(Some(Analysed::Compiled(..)))));
     }
 
     /// A thread waits for a cell until the calling thread looks it up, and is let go, told so,
