@@ -2,7 +2,9 @@
 //! next chunk builds and runs. Destroying a chunk's pipelines and group libraries took the cell
 //! thread 0.40 s on the H200 (s32's trace, `reports/nvidia-h200/perf/s32/`: 512 pipelines, from
 //! the chunk's last result at 46.063 s to the next chunk's `prebuild` at 46.465 s), a serial gap
-//! of a run's wall that is all rtprobe's own time.
+//! of a run's wall that is all rtprobe's own time. Only whole pipelines come here: linked ones and
+//! their group libraries are destroyed on the cell thread (`Executor::release_pipelines`: the
+//! H200 made no pipeline for 20 s when they went here, reports/nvidia-h200/perf/s33/).
 //!
 //! Sound (Vulkan 1.4.360, Vulkan-Docs HEAD): "All commands support being called concurrently
 //! from multiple threads, but certain parameters, or components of parameters are defined to be

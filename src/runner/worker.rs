@@ -202,8 +202,11 @@ fn setup(job: &WorkerJob, phases: &Phases) -> Result<(Executor, f64), SetupFailu
 }
 
 /// Cells prebuilt at once: bounds the batch a fault in the prebuild sends back to the sequential
-/// path, and lets traces start before every pipeline of a large job exists.
-const PREBUILD_CHUNK: usize = 512;
+/// path and the driver's live pipelines (each chunk's are destroyed before the next). 1,024
+/// makes the default matrix one chunk: at 512 its two chunks cost the H200's cell thread 0.3 s
+/// of own time destroying the first (reports/nvidia-h200/perf/s33/: own 0.97-1.03 s at 512,
+/// 0.63-0.67 s at 1,024; `--patches all` 3.0-3.2 s against 2.6-2.8 s).
+const PREBUILD_CHUNK: usize = 1024;
 
 /// Runs the job; returns the process exit code (the process may also `_exit` early).
 pub fn main(job_path: &std::path::Path) -> u8 {
