@@ -205,6 +205,26 @@ mod tests {
     use crate::model::{DescriptorModel, IndexSource, Resource, Stage, Workaround};
     use crate::shadergen::compile::Compiler;
 
+    fn buffer_cell(stage: Stage, index: IndexSource) -> Cell {
+        Cell::new(stage, Resource::StorageBuffer, index, DescriptorModel::DescriptorIndexing)
+    }
+
+    /// Threads' shared state over `cells`, `looked` up to `published`.
+    fn shared_of<'a>(
+        cells: &'a [Cell],
+        looked: Vec<Option<Looked>>,
+        published: usize,
+    ) -> Shared<'a> {
+        Shared {
+            cells,
+            looked: looked.into_iter().map(Mutex::new).collect(),
+            patch: true,
+            claimed: Mutex::new(HashSet::new()),
+            state: Mutex::new((published, false)),
+            more: Condvar::new(),
+        }
+    }
+
     fn looked(c: &mut Compiler, cell: &Cell) -> Looked {
         let shaders = crate::shadergen::generate(cell);
         let spirv = shaders.shaders.iter().map(|s| c.compile(s.role, &s.glsl).unwrap().0).collect();
@@ -219,30 +239,15 @@ mod tests {
     #[test]
     fn a_cell_analysed_on_a_thread_is_compiled_as_at_its_turn_and_garbage_fails_it() {
         let mut c = Compiler::new().unwrap();
-        let plain = Cell::new(
-            Stage::ClosestHit,
-            Resource::StorageBuffer,
-            IndexSource::Dynamic,
-            DescriptorModel::DescriptorIndexing,
-        );
+        let plain = buffer_cell(Stage::ClosestHit, IndexSource::Dynamic);
         let patched = Cell { patch: Some(Workaround::Nonuniform), ..plain };
         let mut garbage = looked(&mut c, &plain);
         if let Looked::Modules { spirv, .. } = &mut garbage {
             spirv.iter_mut().for_each(|w| *w = Arc::new(vec![0xdead_beef; 12]));
         }
         let cells = [plain, patched, patched];
-        let shared = Shared {
-            cells: &cells,
-            looked: vec![
-                Mutex::new(Some(looked(&mut c, &plain))),
-                Mutex::new(Some(looked(&mut c, &patched))),
-                Mutex::new(Some(garbage)),
-            ],
-            patch: true,
-            claimed: Mutex::new(HashSet::new()),
-            state: Mutex::new((3, false)),
-            more: Condvar::new(),
-        };
+        let all = vec![Some(looked(&mut c, &plain)), Some(looked(&mut c, &patched)), Some(garbage)];
+        let shared = shared_of(&cells, all, 3);
         let Some(Analysed::Compiled(p, _, first)) = shared.analyse(0) else { panic!("plain") };
         let Some(Analysed::Compiled(n, _, second)) = shared.analyse(1) else { panic!("patched") };
         assert!(shared.analyse(1).is_none(), "a cell is taken once");
@@ -272,21 +277,9 @@ mod tests {
     #[test]
     fn a_panicking_analysis_is_handed_to_the_calling_thread() {
         let mut c = Compiler::new().unwrap();
-        let cell = Cell::new(
-            Stage::Raygen,
-            Resource::StorageBuffer,
-            IndexSource::Literal,
-            DescriptorModel::DescriptorIndexing,
-        );
+        let cell = buffer_cell(Stage::Raygen, IndexSource::Literal);
         // A cell index past `cells` makes `analyse` panic (its `cells[k]`).
-        let shared = Shared {
-            cells: &[],
-            looked: vec![Mutex::new(Some(looked(&mut c, &cell)))],
-            patch: true,
-            claimed: Mutex::new(HashSet::new()),
-            state: Mutex::new((1, false)),
-            more: Condvar::new(),
-        };
+        let shared = shared_of(&[], vec![Some(looked(&mut c, &cell))], 1);
         let hook = std::panic::take_hook();
         std::panic::set_hook(Box::new(|_| {}));
         let got = caught(&shared, 0);
@@ -306,20 +299,8 @@ mod tests {
     /// waiting for a cell that will never come.
     #[test]
     fn threads_wait_for_looked_up_cells_and_a_stop_lets_them_go() {
-        let cells = [Cell::new(
-            Stage::Raygen,
-            Resource::StorageBuffer,
-            IndexSource::Literal,
-            DescriptorModel::DescriptorIndexing,
-        ); 2];
-        let shared = Shared {
-            cells: &cells,
-            looked: cells.iter().map(|_| Mutex::new(None)).collect(),
-            patch: true,
-            claimed: Mutex::new(HashSet::new()),
-            state: Mutex::new((0, false)),
-            more: Condvar::new(),
-        };
+        let cells = [buffer_cell(Stage::Raygen, IndexSource::Literal); 2];
+        let shared = shared_of(&cells, vec![None, None], 0);
         std::thread::scope(|s| {
             let first = s.spawn(|| shared.wait_for(0));
             let second = s.spawn(|| shared.wait_for(1));
