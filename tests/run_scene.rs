@@ -303,3 +303,25 @@ fn an_oversized_header_is_unsupported_without_decoding_the_image() {
     }
     assert!(geometry.iter().all(|c| c["outcome"] == "pass"), "{}", stdout(&o));
 }
+
+/// A large scene's acceleration-structure cells are judged under a short `--timeout`: the CPU
+/// reference's AS probe rays are traced in the worker's setup (under `--setup-timeout`), not in
+/// the first AS cell's check, where on a 2M-triangle scene they took ~0.6 s and every AS cell
+/// timed out in its check in turn (6 false `timeout` findings before the fix).
+#[test]
+fn a_large_scenes_as_cells_are_not_timed_out_by_the_reference() {
+    let dir = rtprobe::tempdir::tempdir().unwrap();
+    let scene = dir.path().join("big");
+    let made = run(&["scene", "make", "--triangles", "2000000", "--glb", scene.to_str().unwrap()]);
+    assert_eq!(made.status.code(), Some(0), "{}", stderr(&made));
+    let r = dir.path().join("as.json");
+    let filter = "stage=raygen|miss,resource=acceleration_structure|storage_buffer,index=literal,descriptor_model=descriptor_indexing";
+    let glb = scene.join("scene.glb");
+    let args = ["run", "--scene", glb.to_str().unwrap(), "--filter", filter, "--patches", "none"];
+    let o = run(&[&args[..], &["-j", "1", "--timeout", "0.4", "-o", r.to_str().unwrap()]].concat());
+    let rep: Value = serde_json::from_slice(&std::fs::read(&r).unwrap()).unwrap();
+    let got = outcomes(&rep);
+    assert!(got.keys().any(|id| id.contains("acceleration_structure")), "{got:?}");
+    assert!(got.values().all(|o| o == "pass"), "{got:?}\n{}", stdout(&o));
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+}
