@@ -144,6 +144,9 @@ impl Executor {
         let mut generated = generated.into_iter();
         std::thread::scope(|s| {
             let (tx, rx) = channel();
+            // Made before the first thread: should a later one fail to start (a panic in
+            // `spawn`), the started ones are let go instead of waiting for cell 0 for ever.
+            let _stop = Stop(&shared);
             for _ in 0..threads.clamp(1, n.max(1)) {
                 let (tx, shared, next) = (tx.clone(), &shared, &next);
                 s.spawn(move || loop {
@@ -154,7 +157,6 @@ impl Executor {
                 });
             }
             drop(tx);
-            let _stop = Stop(&shared);
             let (mut ready, mut looked_up) = (cells.iter().map(|_| None).collect::<Vec<_>>(), 0);
             for k in 0..n {
                 while looked_up < n && looked_up <= k + ahead {
