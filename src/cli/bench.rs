@@ -286,7 +286,7 @@ fn print_summary(v: &serde_json::Value) {
         if let (Some(ms), Some(s), Some(r2)) =
             (f["per_cell_ms"].as_f64(), f["fixed_s"].as_f64(), f["r2"].as_f64())
         {
-            println!("cells, {name}: {ms:.2} ms per cell + {s:.2} s fixed (R² {r2:.4})");
+            outln!("cells, {name}: {ms:.2} ms per cell + {s:.2} s fixed (R² {r2:.4})");
         }
     }
     if v.get("cells").is_some() {

@@ -3,6 +3,7 @@
 //! or a large one (`scene::gltf::make`).
 use super::args::SceneCommand;
 use super::exit::{self, coded};
+use super::out::outln;
 use crate::scene::gltf::{make, Alpha, Loaded};
 use anyhow::Result;
 use std::time::Instant;
@@ -30,7 +31,7 @@ pub fn scene(c: &SceneCommand) -> Result<u8> {
                 dir,
                 make::MakeOptions { triangles: triangles.unwrap_or(0), glb: *glb },
             )?;
-            println!("wrote {}", path.display());
+            outln!("wrote {}", path.display());
             Ok(0)
         }
     }
@@ -40,8 +41,8 @@ fn info(file: &std::path::Path) -> Result<u8> {
     let t = Instant::now();
     let s = Loaded::load(file)?;
     let load = t.elapsed();
-    println!("scene {}", file.display());
-    println!(
+    outln!("scene {}", file.display());
+    outln!(
         "  {} meshes, {} instances, {} triangles traced ({} stored), {} materials, {} images",
         s.meshes.len(),
         s.instances.len(),
@@ -52,7 +53,7 @@ fn info(file: &std::path::Path) -> Result<u8> {
     );
     for m in &s.meshes {
         let tris: Vec<String> = m.primitives.iter().map(|p| p.triangles.to_string()).collect();
-        println!(
+        outln!(
             "  {}: {} vertices, primitives of {} triangles",
             m.name,
             m.positions.len(),
@@ -67,16 +68,16 @@ fn info(file: &std::path::Path) -> Result<u8> {
         };
         let tex =
             m.base_color_image.map_or("no texture".into(), |i| format!("base colour image {i}"));
-        println!("  material {}: {alpha}, {tex}", m.name);
+        outln!("  material {}: {alpha}, {tex}", m.name);
     }
     match &s.camera {
-        Some(c) => println!(
+        Some(c) => outln!(
             "  camera at node {} (its orientation is the view; rtprobe's rays are orthographic)",
             c.node
         ),
-        None => println!("  no camera: the view is fitted to the bounds from the front"),
+        None => outln!("  no camera: the view is fitted to the bounds from the front"),
     }
-    println!(
+    outln!(
         "  geometry {} bytes; loaded in {:.1} ms; peak memory {} MiB",
         s.geometry_bytes(),
         load.as_secs_f64() * 1e3,
