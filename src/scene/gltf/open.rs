@@ -28,7 +28,15 @@ pub(super) fn open(path: &Path) -> Result<Opened, LoadError> {
     }
     super::validate::version(head.asset.as_ref()).map_err(parse)?;
     let root: Root = serde_json::from_slice(json).map_err(|e| parse(e.to_string()))?;
-    super::validate::check(&root).map_err(parse)?;
+    super::validate::check(&root).map_err(|m| match m.strip_suffix(super::validate::SPARSE) {
+        // Valid glTF 2.0 that rtprobe does not read: the part, not "is not glTF 2.0".
+        Some(at) => LoadError::part(
+            path,
+            at.trim_start_matches("invalid at ").trim_end_matches(": "),
+            "a sparse accessor (valid glTF 2.0), which rtprobe does not read; export the scene without sparse accessors, or apply them with a glTF tool",
+        ),
+        None => parse(m),
+    })?;
     let base = path.parent().unwrap_or(Path::new("."));
     let buffers = read_buffers(path, &root, base, bin)?;
     Ok(Opened { root, buffers })

@@ -303,3 +303,22 @@ fn mutated_files_load_or_fail_in_one_line() {
     }
     assert!(loaded > 0 && loaded < 200, "some edits load, others are refused: {loaded}");
 }
+
+/// A sparse accessor is valid glTF 2.0 that rtprobe does not read: named as the part of the file
+/// with what to do, never as a file that "is not glTF 2.0". Twin: a broken accessor (not sparse)
+/// is still the parse error.
+#[test]
+fn a_sparse_accessor_is_named_as_a_part_not_as_a_broken_file() {
+    let sparse = edited(|d| {
+        let pos = d["meshes"][0]["primitives"][0]["attributes"]["POSITION"].as_u64().unwrap();
+        d["accessors"][pos as usize]["sparse"] = serde_json::json!({"count": 1});
+    });
+    assert!(sparse.contains("attributes.POSITION: accessor"), "{sparse}");
+    assert!(sparse.contains("a sparse accessor (valid glTF 2.0)"), "{sparse}");
+    assert!(!sparse.contains("is not glTF 2.0"), "{sparse}");
+    let broken = edited(|d| {
+        let pos = d["meshes"][0]["primitives"][0]["attributes"]["POSITION"].as_u64().unwrap();
+        d["accessors"][pos as usize]["type"] = serde_json::json!("VEC2");
+    });
+    assert!(broken.contains("is not glTF 2.0"), "{broken}");
+}

@@ -12,6 +12,11 @@
 use super::accessor::{component_size, element_size, F32, U16, U32, U8};
 use super::doc::{Accessor, Asset, Primitive, Root};
 
+/// How a sparse accessor's refusal ends: valid glTF 2.0 that rtprobe does not read, so the
+/// loader names it as a part of the file, not as a file that is not glTF (`open`).
+pub(super) const SPARSE: &str =
+    "sparse, which rtprobe does not read; export it without sparse accessors";
+
 /// `invalid at {at}: {what}`.
 fn bad(at: impl std::fmt::Display, what: impl std::fmt::Display) -> String {
     format!("invalid at {at}: {what}")
@@ -201,9 +206,7 @@ fn semantic(a: &Accessor, allowed: &Allowed) -> Result<(), String> {
         ));
     }
     if a.sparse.is_some() {
-        return Err(
-            "sparse, which rtprobe does not read; export it without sparse accessors".into()
-        );
+        return Err(SPARSE.into());
     }
     Ok(())
 }
