@@ -10,7 +10,6 @@ use super::error::CellError;
 use super::pipeline::Pipeline;
 use super::pipeline_cache;
 use super::pipeline_library::Libraries;
-use super::reaper::Reaper;
 use super::resources::ResourceArray;
 use super::samplers;
 use crate::model::{Phase, Resource, SceneParams};
@@ -100,44 +99,6 @@ pub struct Executor {
     pub(super) scratch: Scratch,
     /// Each distinct module's interface, read once (`fit`), by a hash of its words.
     pub(super) interfaces: std::collections::HashMap<u128, crate::interface::ModuleInterface>,
-    /// Destroys released pipelines and libraries off the cell thread (`release_pipelines`).
-    reaper: Reaper<Garbage>,
-}
-
-/// What [`Executor::release_pipelines`] lets go: pipelines, then the group libraries they were
-/// linked from.
-struct Garbage {
-    pipelines: Vec<Pipeline>,
-    libraries: Option<Arc<Libraries>>,
-}
-
-// SAFETY: Vulkan handles and the SBT buffers' mappings, which the executor no longer holds once
-// it hands them over: only the thread that takes them touches them (`exec::reaper` quotes the
-// spec on destroying objects from another thread).
-unsafe impl Send for Garbage {}
-
-impl Garbage {
-    fn destroy(self, gpu: &Gpu) {
-        for p in &self.pipelines {
-            p.destroy(gpu);
-        }
-        if let Some(l) = &self.libraries {
-            l.destroy(gpu);
-        }
-    }
-}
-
-/// The device, for the reaper's thread.
-struct ReaperGpu(Arc<Gpu>);
-
-// SAFETY: `Gpu` is handles and function tables, only read (as `pipeline_pool::Maker` shares it).
-unsafe impl Send for ReaperGpu {}
-
-impl ReaperGpu {
-    /// Through a method, so that a closure captures the whole (`Send`) wrapper, not its field.
-    fn gpu(&self) -> &Gpu {
-        &self.0
-    }
 }
 
 /// Buffers every cell's readback and check fill, reused from cell to cell so that their pages
@@ -177,8 +138,6 @@ impl Executor {
         // `pipeline_pool::Maker`, whose `unsafe impl` says why that is sound.
         #[allow(clippy::arc_with_non_send_sync)]
         let gpu = Arc::new(gpu);
-        let reaper_gpu = ReaperGpu(gpu.clone());
-        let reaper = Reaper::new(move |g: Garbage| g.destroy(reaper_gpu.gpu()));
         Ok(Executor {
             gpu,
             scene,
@@ -206,30 +165,20 @@ impl Executor {
             reference_ms,
             scratch: Scratch::default(),
             interfaces: Default::default(),
-            reaper,
         })
     }
 
-    /// Let go of every pipeline and group library made so far (each cell's submission has been
+    /// Destroy every pipeline and group library made so far (each cell's submission has been
     /// waited for): what a later cell needs is made again, from the pipeline cache. Keeps the
     /// driver's live pipelines to a chunk's (a driver's creation time can grow with them).
-    /// `background`: destroyed on the reaper's thread while the next chunk goes on
-    /// (`exec::reaper`); else here, before this returns (under validation, so that no message
-    /// of theirs falls into a later cell's count).
-    pub fn release_pipelines(&mut self, background: bool) {
-        let garbage = Garbage {
-            pipelines: self.pipelines.drain().map(|(_, p)| p).collect(),
-            libraries: self.libraries.as_mut().map(std::mem::take),
-        };
-        // Never with group libraries: destroying a chunk's linked pipelines and their libraries
-        // on the reaper's thread while the next chunk's pool linked new ones, NVIDIA 580.159.04
-        // made no pipeline for 20 s (`run --patches all`, both warm runs; the build without the
-        // reaper and `--pipelines whole` ran: reports/nvidia-h200/perf/s33b/). Which of the two
-        // destroys it was is not pinned down, so linked pipelines are all destroyed here.
-        if background && garbage.libraries.is_none() {
-            self.reaper.send(garbage);
-        } else {
-            garbage.destroy(&self.gpu);
+    pub fn release_pipelines(&mut self) {
+        for p in self.pipelines.values() {
+            p.destroy(&self.gpu);
+        }
+        self.pipelines.clear();
+        if let Some(l) = self.libraries.take() {
+            l.destroy(&self.gpu);
+            self.libraries = Some(Arc::default());
         }
     }
 
@@ -249,8 +198,6 @@ impl Executor {
 
 impl Drop for Executor {
     fn drop(&mut self) {
-        // What the reaper still holds goes first: nothing is destroyed after its device.
-        self.reaper.join();
         let gpu = &self.gpu;
         unsafe {
             let _ = gpu.device.device_wait_idle();

@@ -15,8 +15,7 @@
 //! three pipeline kinds (`record`), judging the records (`check`, `pictures`), a mutant cell's
 //! mutation and prediction (`mutant`), error → outcome (`error`); below them resources and
 //! samplers, the scene-layout cells' buffers (`layout_buffers`), bindings, the descriptor heap, pipelines whole or linked from group libraries
-//! (`pipeline_library`), the pipeline cache kept between runs, a released chunk's pipelines destroyed off the cell
-//! thread (`reaper`), and files (library and layout
+//! (`pipeline_library`), the pipeline cache kept between runs, and files (library and layout
 //! identities use `crate::stable_hash`).
 mod analysed;
 mod bind;
@@ -40,7 +39,6 @@ mod pipeline_key;
 mod pipeline_library;
 mod pipeline_pool;
 pub mod prebuild;
-mod reaper;
 mod record;
 pub mod resources;
 mod run;

@@ -203,8 +203,8 @@ impl Executor {
     }
 
     /// Bind one cell on the calling thread, compiled on the threads (the interfaces they read
-    /// kept, its `--dump` written here) or here: `Some` when it is ready for its pipeline; `None` when its error is kept for its
-    /// turn; `Err` when the error ends the worker.
+    /// kept, its `--dump` written here) or here: `Some` when it is ready for its pipeline; `None`
+    /// when its error is kept for its turn; `Err` when the error ends the worker.
     fn stage(
         &mut self,
         cell: &Cell,

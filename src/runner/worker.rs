@@ -279,12 +279,11 @@ pub fn main(job_path: &std::path::Path) -> u8 {
         if let Some(b) = batch {
             b.end(&mut exec);
         }
-        // The chunk's cells ran: its pipelines go (on the reaper's thread, but under
-        // validation), so the live ones stay a chunk's whatever the job's size (a later cell
-        // that shares one makes it again, from the cache). The last chunk's go with the
-        // process, but under validation.
+        // The chunk's cells ran: its pipelines go, so the live ones stay a chunk's whatever
+        // the job's size (a later cell that shares one makes it again, from the cache). The
+        // last chunk's go with the process, but under validation.
         if k + 1 < chunks || job.validate {
-            exec.release_pipelines(!(job.validate || job.gpu_av));
+            exec.release_pipelines();
         }
     }
     finish(exec, job.validate)
