@@ -61,7 +61,9 @@ pub fn stress(g: &Globals, args: &StressArgs) -> Result<u8> {
         mode.as_str()
     );
     crate::runner::groups::install_handlers();
-    let dir = tempfile_dir()?;
+    // A private folder of its own (mode 0700, never an existing one), removed below.
+    let tmp = crate::tempdir::TempDir::new().context("creating the stress workers' folder")?;
+    let dir = tmp.path().to_path_buf();
     let runner = Supervised {
         device_index: info.index,
         timeout: Duration::from_secs_f64(args.timeout),
@@ -81,7 +83,7 @@ pub fn stress(g: &Globals, args: &StressArgs) -> Result<u8> {
             r
         })
         .collect();
-    let _ = std::fs::remove_dir_all(&dir);
+    drop(tmp);
     out!("{}", report::text(&name, &results));
     if let Some(path) = &args.json {
         let validation = (validation_active, validation_errors);
@@ -130,12 +132,4 @@ fn can_run(info: &crate::vk::DeviceInfo, mode: Mode) -> Result<()> {
             format!("setting up the stress pipeline: {e}"),
         )
     })
-}
-
-/// A fresh folder for the workers' job and result files.
-fn tempfile_dir() -> Result<std::path::PathBuf> {
-    let dir = std::env::temp_dir().join(format!("rtprobe-stress-{}", std::process::id()));
-    std::fs::create_dir_all(&dir)
-        .with_context(|| format!("creating the stress workers' folder {}", dir.display()))?;
-    Ok(dir)
 }
