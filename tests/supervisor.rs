@@ -636,6 +636,35 @@ fn an_overlapped_cell_without_a_fault_is_reported_after_the_prebuild() {
     assert!((own - (wall - driver).max(0.0)).abs() < 1e-6, "own {own}, wall {wall}: {t}");
 }
 
+/// Twin of the checker thread (`exec::checker`): an overlapped cell's records are judged off the
+/// cell thread, and a wrong value there is still that cell's mismatch — garbage (NaN) in the
+/// raygen cell, which runs first and overlapped — while the other cell passes; no cell is lost
+/// or swapped on the way back.
+#[test]
+fn an_overlapped_cells_wrong_values_are_its_mismatch_when_judged_off_the_cell_thread() {
+    let (o, r, _) = fault_run_with(
+        &["--validate=off"],
+        "overlap:hold",
+        TWO,
+        &["--threads", "2", "--inject-fault", "stage=raygen@nan"],
+        Duration::from_secs(120),
+    );
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(r["timing"]["overlapped_cells"].as_u64().unwrap() >= 1, "{}", r["timing"]);
+    let ws = workers(&r);
+    assert!(ws.iter().all(|w| w["phase"] == "setup" && w["outcome"] == "pass"), "{ws:?}");
+    let cs = cells(&r);
+    assert_eq!(cs.len(), 2);
+    for c in &cs {
+        let want = if c["stage"] == "raygen" { "mismatch" } else { "pass" };
+        assert_eq!(c["outcome"], want, "{c}");
+        assert_eq!(c["attempts"][0]["worker"], ws[0]["worker"], "{c}");
+    }
+    let raygen = cs.iter().find(|c| c["stage"] == "raygen").unwrap();
+    let cmp = &raygen["attempts"][0]["result"]["comparison"];
+    assert!(cmp["mismatched_pixels"].as_u64().unwrap() > 0, "{cmp}");
+}
+
 /// A real hang in an overlapped cell (an injected endless loop in the raygen cell, which runs
 /// first): the worker's fence deadline ends it, in `prebuild`, blamed on no cell; the cell then
 /// runs alone and its timeout is pinned on it, in `trace`, while the other cell passes.

@@ -63,8 +63,9 @@ pub type PhaseHook<'a> = &'a mut dyn FnMut(Phase) -> Result<(), VkError>;
 pub struct Executor {
     /// Shared with the prebuild's pipeline threads (`pipeline_pool`).
     pub gpu: Arc<Gpu>,
-    pub(super) scene: Scene,
-    pub(super) sref: SceneReference,
+    /// Shared with a checker thread (`checker`), as is the reference.
+    pub(super) scene: Arc<Scene>,
+    pub(super) sref: Arc<SceneReference>,
     pub(super) opts: ExecOptions,
     pub(super) compiler: Compiler,
     pub(super) submitter: Submitter,
@@ -93,6 +94,8 @@ pub struct Executor {
     /// Group libraries of ray tracing pipelines (a device created with VK_KHR_pipeline_library:
     /// its RT pipelines are linked from them).
     pub(super) libraries: Option<Arc<Libraries>>,
+    /// The stages where the device lists subgroup ballot (`DeviceInfo::subgroup_ballot`).
+    pub(super) ballot: Vec<crate::model::Stage>,
     /// Milliseconds the CPU reference took.
     pub reference_ms: f64,
     /// What a cell's readback and check fill, kept from cell to cell.
@@ -138,10 +141,13 @@ impl Executor {
         // `pipeline_pool::Maker`, whose `unsafe impl` says why that is sound.
         #[allow(clippy::arc_with_non_send_sync)]
         let gpu = Arc::new(gpu);
+        let stages = crate::model::Stage::ALL.iter().copied();
+        let ballot = stages.filter(|&s| gpu.info.subgroup_ballot(s)).collect();
         Ok(Executor {
             gpu,
-            scene,
-            sref,
+            ballot,
+            scene: Arc::new(scene),
+            sref: Arc::new(sref),
             opts,
             compiler,
             submitter,

@@ -12,7 +12,8 @@
 //! executor-free part on the prebuild's threads: `analysed`),
 //! what each step hands to the next (`built`) and what the driver saw of the cell's shape
 //! (`seen`), whether its modules fit its layout (`fit`), the turn itself (`run`), recording the
-//! three pipeline kinds (`record`), judging the records (`check`, `pictures`), a mutant cell's
+//! three pipeline kinds (`record`), judging the records (`check`, `pictures`; an overlapped cell's on a thread of its own:
+//! `checker`), a mutant cell's
 //! mutation and prediction (`mutant`), error → outcome (`error`); below them resources and
 //! samplers, the scene-layout cells' buffers (`layout_buffers`), bindings, the descriptor heap, pipelines whole or linked from group libraries
 //! (`pipeline_library`), the pipeline cache kept between runs, and files (library and layout
@@ -23,6 +24,7 @@ pub mod bindings;
 mod build;
 mod built;
 mod check;
+pub mod checker;
 mod compile;
 pub mod error;
 mod executor;
@@ -48,4 +50,4 @@ mod setup;
 
 pub use error::CellError;
 pub use executor::{ExecOptions, Executor, PhaseHook};
-pub use run::CANARY_BAD_ADDRESS;
+pub use run::{Ran, Traced, CANARY_BAD_ADDRESS};

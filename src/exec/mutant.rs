@@ -1,6 +1,7 @@
 //! A mutant cell's part of its run (`run --mutants`): the mutation applied to the probed stage's
 //! modules after the cell's workarounds (phase `compile`), and the reference's prediction for it
 //! added to the comparison, which judges the records against the unmutated probe.
+use super::check::World;
 use super::error::CellError;
 use super::executor::Executor;
 use crate::model::{Cell, LaneEvidence, Mutant, MutantPrediction, Timings};
@@ -13,6 +14,13 @@ use std::sync::Arc;
 use std::time::Instant;
 
 impl Executor {
+    /// What `spec`'s mutant rewrites ([`World::mutation`]).
+    pub(super) fn mutation(&self, spec: &ProbeSpec) -> Result<Option<Mutation>, CellError> {
+        self.world().mutation(spec)
+    }
+}
+
+impl World<'_> {
     /// What `spec`'s mutant rewrites (`None`: no mutant); one with nothing to rewrite in this
     /// cell is an error (the mutants round never schedules one), and so is a broadcast whose
     /// prediction would lack the device's lane evidence (its leaders): it needs evidence the
@@ -25,7 +33,7 @@ impl Executor {
             CellError::Mutant(PatchError::NothingToPatch { patch: m.as_str(), what })
         };
         let site = mutants::site(spec, m, slots).map_err(refuse)?;
-        let lanes = self.opts.lanes.evidence(self.gpu.info.subgroup_ballot(spec.stage));
+        let lanes = self.opts.lanes.evidence(self.ballot.contains(&spec.stage));
         if m == Mutant::IndexBroadcast && lanes != LaneEvidence::Supported {
             return Err(refuse(format!(
                 "its prediction needs the device's lane evidence in {} (subgroup ballot listed for the stage, --lane-evidence auto; {})",
@@ -47,7 +55,7 @@ impl Executor {
         records: &[Record],
     ) -> Option<MutantPrediction> {
         let site = self.mutation(&ProbeSpec::of(cell)).ok().flatten()?;
-        let world = (&self.scene, &self.sref);
+        let world = (self.scene, self.sref);
         Some(reference::mutant_after_run(cell, world, judged, site, (expected, records)))
     }
 }

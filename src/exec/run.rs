@@ -2,22 +2,84 @@
 //! filled with the sentinel, the work recorded and submitted with a deadline, the records read
 //! back and judged; the phases told to the caller, and every failure made the cell's result.
 use super::built::{Bound, Seen};
+use super::check::World;
 use super::error::CellError;
 use super::executor::{Executor, PhaseHook};
 use super::record::{self, Work};
+use crate::model::comparison::HeapDetail;
 use crate::model::inject::{self, FaultKind};
 use crate::model::{Canary, Cell, CellResult, InjectedFault, Phase, Timings};
 use crate::probe::spec::ProbeSpec;
 use crate::probe::{self, Record, RECORD_SIZE};
+use crate::reference::ExpectedMemo;
 use crate::vk::submit::Waited;
 use std::time::Instant;
 
 /// An address no driver maps: the invalid-address canary reads there.
 pub const CANARY_BAD_ADDRESS: u64 = 0xdead_0000_0000;
 
+/// A cell whose device work is over, its records read back: what judging it needs
+/// ([`World::finish`]), on the cell thread or a checker's.
+pub struct Traced {
+    pub(super) cell: Cell,
+    pub(super) records: Vec<Record>,
+    pub(super) seen: Seen,
+    /// A heap cell's descriptors, read from the executor's bindings before the hand-off.
+    pub(super) heap: Option<HeapDetail>,
+    pub(super) timings: Timings,
+    /// Milliseconds from the cell's start to its readback's end.
+    pub(super) device_part_ms: f64,
+    pub(super) validation_errors: u64,
+}
+
+/// A cell's turn up to its check: its result already (a failure before the check), or its records
+/// to judge.
+// One per cell, moved once: boxing the large variant would buy nothing.
+#[allow(clippy::large_enum_variant)]
+pub enum Ran {
+    Done(CellResult),
+    Traced(Traced),
+}
+
+impl World<'_> {
+    /// The traced cell's result: judged against the reference (`expected` kept from cell to
+    /// cell), its total time its device part's and its check's. The records' vector comes back
+    /// for reuse.
+    pub(super) fn finish(
+        &self,
+        t: Traced,
+        expected: &mut ExpectedMemo,
+    ) -> (CellResult, Vec<Record>) {
+        let Traced { cell, records, seen, heap, mut timings, device_part_ms, validation_errors } =
+            t;
+        let started = Instant::now();
+        let mut out = self.judge(&cell, (&records, expected), (seen, heap), &mut timings);
+        out.timings.total_ms = device_part_ms + started.elapsed().as_secs_f64() * 1e3;
+        out.validation_errors = validation_errors;
+        (out, records)
+    }
+}
+
 impl Executor {
     /// Run one cell. Never panics on driver misbehaviour; every failure is an outcome.
     pub fn run(&mut self, cell: &Cell, on_phase: PhaseHook) -> CellResult {
+        match self.run_traced(cell, on_phase) {
+            Ran::Done(r) => r,
+            Ran::Traced(t) => self.judge_traced(t),
+        }
+    }
+
+    /// A traced cell's result, judged on this thread.
+    pub fn judge_traced(&mut self, t: Traced) -> CellResult {
+        let mut expected = std::mem::take(&mut self.scratch.expected);
+        let (out, records) = self.world().finish(t, &mut expected);
+        (self.scratch.records, self.scratch.expected) = (records, expected);
+        out
+    }
+
+    /// Run one cell up to its check (phase `check` entered): its records to judge, or its result
+    /// where it failed before. Never panics on driver misbehaviour.
+    pub fn run_traced(&mut self, cell: &Cell, on_phase: PhaseHook) -> Ran {
         let start = Instant::now();
         let validation_before = crate::vk::instance::validation_error_count();
         let mut timings = Timings::default();
@@ -25,18 +87,31 @@ impl Executor {
         let result = self
             .try_run(cell, injected.as_ref(), &mut timings, on_phase)
             .and_then(|done| on_phase(Phase::Check).map(|()| done).map_err(CellError::from));
-        let mut out = match result {
-            Ok((records, seen)) => {
-                let mut expected = std::mem::take(&mut self.scratch.expected);
-                let out = self.judge(cell, (&records, &mut expected), seen, &mut timings);
-                (self.scratch.records, self.scratch.expected) = (records, expected);
-                out
+        let validation_errors = crate::vk::instance::validation_error_count() - validation_before;
+        match result {
+            Ok((records, seen)) => Ran::Traced(Traced {
+                cell: *cell,
+                records,
+                seen,
+                heap: self.heap_detail(cell),
+                timings,
+                device_part_ms: start.elapsed().as_secs_f64() * 1e3,
+                validation_errors,
+            }),
+            Err(e) => {
+                let mut out = e.result(&self.gpu, self.opts.timeout, timings.clone());
+                out.timings.total_ms = start.elapsed().as_secs_f64() * 1e3;
+                out.validation_errors = validation_errors;
+                Ran::Done(out)
             }
-            Err(e) => e.result(&self.gpu, self.opts.timeout, timings.clone()),
-        };
-        out.timings.total_ms = start.elapsed().as_secs_f64() * 1e3;
-        out.validation_errors = crate::vk::instance::validation_error_count() - validation_before;
-        out
+        }
+    }
+
+    /// A records vector a checker is done with, kept for the next cell's readback.
+    pub fn reuse_records(&mut self, records: Vec<Record>) {
+        if self.scratch.records.capacity() < records.capacity() {
+            self.scratch.records = records;
+        }
     }
 
     /// The cell's push constants (layout: probe::PushConstants, then the patches' table address).

@@ -213,7 +213,7 @@ impl Executor {
         if self.layout_textures.is_none() {
             let shared = self.shared_layout.as_ref().expect("made above");
             let how = (&self.submitter, wait);
-            let what = (&self.scene, self.slots(Resource::SampledImage));
+            let what = (&*self.scene, self.slots(Resource::SampledImage));
             self.layout_textures = Some(LayoutTextures::create(&self.gpu, what, shared, how)?);
         }
         Ok(())

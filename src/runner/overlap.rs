@@ -17,24 +17,43 @@
 //! `prebuild`, never as the cell's result. A hang ends in a timeout either way: the worker's
 //! fence deadline, or the supervisor's prebuild deadline once the pool is silent.
 //!
+//! An overlapped cell's records are judged on a checker thread (`exec::checker`) while the cell
+//! thread goes on to the next cell: its `result` is held back anyway, so a later result changes
+//! nothing the supervisor sees; `prebuilt` waits for every check, and the held lines go out in
+//! order. A cell after `prebuilt` is judged on the cell thread, between its `start` and `result`.
+//!
 //! `--validate` (and GPU-AV) keep the batch unoverlapped: every pipeline is made before the
 //! first cell runs, so each cell's validation messages are its own. A serial cell never runs
 //! overlapped either: the batch's pipelines are all made before its turn.
 use super::misbehave::Misbehave;
 use super::protocol::WorkerMsg;
 use super::worker_io::{halt_of, send};
+use crate::exec::checker::Checker;
 use crate::exec::prebuild::{Prebuild, Step};
-use crate::exec::{CellError, Executor};
+use crate::exec::{CellError, Executor, Traced};
 use crate::model::{Cell, Halt, Phase};
-use std::collections::HashSet;
+use std::collections::{HashSet, VecDeque};
 use std::sync::Arc;
 use std::time::Instant;
+
+/// An overlapped cell's line held back: a `start` or `result`, or the `result` of a cell whose
+/// check the checker thread has not handed back yet.
+// One per overlapped cell, moved once, as `WorkerMsg` itself.
+#[allow(clippy::large_enum_variant)]
+enum Held {
+    Line(WorkerMsg),
+    Checking(String),
+}
 
 /// A chunk's prebuild under way, as the worker runs its cells.
 pub(super) struct Batch {
     pb: Prebuild,
     /// `start` and `result` lines of the overlapped cells, sent right after `prebuilt`.
-    held: Vec<WorkerMsg>,
+    held: Vec<Held>,
+    /// Where in `held` the cells handed to `checker` are, oldest first.
+    checking: VecDeque<usize>,
+    /// Judges the overlapped cells off the cell thread (`exec::checker`), started at the first.
+    checker: Option<Checker>,
     /// `prebuilt` sent: every pipeline made, no cell overlaps any more.
     announced: bool,
     started: Instant,
@@ -75,7 +94,16 @@ pub(super) fn start(
         .map_err(CellError::from)
         .and_then(|()| exec.prebuild(&cells, threads, held, progress))
         .unwrap_or_else(|e| fatal(threads, &e.to_string(), e.outcome(), halt_of(&e)));
-    let mut b = Batch { pb, held: vec![], announced: false, started, threads, overlapped: 0 };
+    let mut b = Batch {
+        pb,
+        held: vec![],
+        checking: VecDeque::new(),
+        checker: None,
+        announced: false,
+        started,
+        threads,
+        overlapped: 0,
+    };
     if !overlap {
         b.finish(exec);
     }
@@ -92,14 +120,53 @@ impl Batch {
         let polled = exec.turn(&mut self.pb, cell).and_then(|()| exec.poll(&mut self.pb));
         // `prebuilt` goes out once per batch: after it, every later cell runs as usual.
         if self.check(polled) && !self.announced {
-            self.announce();
+            self.announce(exec);
         }
         !self.announced
     }
 
     /// An overlapped cell's `start` or `result`, held back until `prebuilt`.
     pub(super) fn hold(&mut self, msg: WorkerMsg) {
-        self.held.push(msg);
+        self.held.push(Held::Line(msg));
+    }
+
+    /// An overlapped cell's records, judged on the checker thread (started at the first; where
+    /// it cannot start, here); its `result` held back until `prebuilt` as another's.
+    pub(super) fn judge(&mut self, exec: &mut Executor, cell: String, traced: Traced) {
+        if self.checker.is_none() {
+            self.checker = Checker::start(exec)
+                .inspect_err(|e| tracing::warn!("no checker thread ({e}): checks inline"))
+                .ok();
+        }
+        match self.checker.as_mut() {
+            Some(c) => {
+                c.submit(traced);
+                self.checking.push_back(self.held.len());
+                self.held.push(Held::Checking(cell));
+            }
+            None => {
+                let result = exec.judge_traced(traced);
+                self.hold(WorkerMsg::Result { cell, result });
+            }
+        }
+    }
+
+    /// The checker's results so far put in their places (`wait`: every one, waited for); each
+    /// records vector kept for a next readback.
+    fn collect(&mut self, exec: &mut Executor, wait: bool) {
+        let Some(c) = self.checker.as_mut() else { return };
+        while let Some(&at) = self.checking.front() {
+            let Some((result, records)) = (if wait { Some(c.take()) } else { c.try_take() }) else {
+                return;
+            };
+            self.checking.pop_front();
+            exec.reuse_records(records);
+            let slot = &mut self.held[at];
+            if let Held::Checking(cell) = slot {
+                let cell = std::mem::take(cell);
+                *slot = Held::Line(WorkerMsg::Result { cell, result });
+            }
+        }
     }
 
     /// After an overlapped cell whose result ends the worker: the worker's fatal message (the
@@ -122,12 +189,13 @@ impl Batch {
     pub(super) fn after(&mut self, exec: &mut Executor, overlapped: bool, last: bool) {
         self.overlapped += usize::from(overlapped);
         self.pb.release();
+        self.collect(exec, false);
         if last {
             self.finish(exec);
         } else if !self.announced {
             let polled = exec.poll(&mut self.pb);
             if self.check(polled) {
-                self.announce();
+                self.announce(exec);
             }
         }
     }
@@ -143,7 +211,7 @@ impl Batch {
         if !self.announced {
             let waited = exec.wait_all(&mut self.pb).map(|()| true);
             self.check(waited);
-            self.announce();
+            self.announce(exec);
         }
     }
 
@@ -151,8 +219,10 @@ impl Batch {
         r.unwrap_or_else(|e| fatal(self.threads, &e.to_string(), e.outcome(), halt_of(&e)))
     }
 
-    /// `prebuilt`, then the overlapped cells' held lines in order.
-    fn announce(&mut self) {
+    /// `prebuilt`, then the overlapped cells' held lines in order (their checks waited for).
+    fn announce(&mut self, exec: &mut Executor) {
+        self.collect(exec, true);
+        self.checker = None;
         self.announced = true;
         send(&WorkerMsg::Prebuilt {
             wall_ms: self.started.elapsed().as_secs_f64() * 1e3,
@@ -160,8 +230,11 @@ impl Batch {
             threads: self.pb.stats.threads,
             overlapped: self.overlapped,
         });
-        for m in self.held.drain(..) {
-            send(&m);
+        for h in self.held.drain(..) {
+            match h {
+                Held::Line(m) => send(&m),
+                Held::Checking(cell) => unreachable!("cell {cell}'s check was waited for"),
+            }
         }
     }
 }

@@ -10,7 +10,7 @@ use super::misbehave::{Misbehave, SetupStep};
 use super::overlap;
 use super::protocol::{WorkerJob, WorkerMsg};
 use super::worker_io::{halt_of, send};
-use crate::exec::{CellError, ExecOptions, Executor};
+use crate::exec::{CellError, ExecOptions, Executor, Ran};
 use crate::model::Phase;
 use crate::model::{Cell, DescriptorModel, Resource, Stage};
 use crate::model::{Halt, Outcome};
@@ -305,11 +305,15 @@ fn run_cell(
     match batch.as_mut().filter(|_| overlapped) {
         Some(b) => {
             b.hold(WorkerMsg::Start { cell: id.clone() });
-            let result = exec.run(cell, &mut |p| phases.enter_overlapped(&id, p));
-            if result.outcome.ends_worker() {
-                b.ended(&id, &result);
+            match exec.run_traced(cell, &mut |p| phases.enter_overlapped(&id, p)) {
+                Ran::Done(result) => {
+                    if result.outcome.ends_worker() {
+                        b.ended(&id, &result);
+                    }
+                    b.hold(WorkerMsg::Result { cell: id, result });
+                }
+                Ran::Traced(traced) => b.judge(exec, id, traced),
             }
-            b.hold(WorkerMsg::Result { cell: id, result });
         }
         None => {
             send(&WorkerMsg::Start { cell: id.clone() });
