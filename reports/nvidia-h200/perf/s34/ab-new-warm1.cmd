@@ -1,0 +1,1 @@
+$ /work/main/.dev/h200/rtprobe-new run -o ab-new-warm1.json

@@ -1,0 +1,1 @@
+$ /work/main/.dev/h200/rtprobe-old run -o ab-old-warm1.json
