@@ -651,6 +651,8 @@ fn an_overlapped_cells_wrong_values_are_its_mismatch_when_judged_off_the_cell_th
     );
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(r["timing"]["overlapped_cells"].as_u64().unwrap() >= 1, "{}", r["timing"]);
+    // (the overlapped cell's check did go to the checker thread)
+    assert!(r["timing"]["checked_apart"].as_u64().unwrap() >= 1, "{}", r["timing"]);
     let ws = workers(&r);
     assert!(ws.iter().all(|w| w["phase"] == "setup" && w["outcome"] == "pass"), "{ws:?}");
     let cs = cells(&r);

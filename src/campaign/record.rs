@@ -111,10 +111,11 @@ impl Recorder {
                     }
                 }
             }
-            Event::Prebuilt { wall_ms, pipelines, overlapped, .. } => {
+            Event::Prebuilt { wall_ms, pipelines, overlapped, checked_apart, .. } => {
                 self.writer.report.timing.prebuild_ms += wall_ms;
                 self.writer.report.timing.prebuilt_pipelines += pipelines;
                 self.writer.report.timing.overlapped_cells += overlapped;
+                self.writer.report.timing.checked_apart += checked_apart;
             }
             Event::CacheSaved(saved) => {
                 let s = self.writer.report.pipeline_cache.get_or_insert_with(Default::default);

@@ -201,6 +201,7 @@ pub fn main_entry() -> u8 {
         Command::VerifyWorker { job } => return crate::harness::child::main(job),
         Command::ShaderWorker { job } => return crate::harness::run::main(job),
     };
+    tracing::debug!("command done: its objects dropped");
     match result {
         Ok(code) => code,
         Err(e) => {

@@ -6,9 +6,11 @@
 //! supervisor sees, and a death before `prebuilt` is the batch's, re-run serially, where every
 //! check is on the cell thread again. Results come back in the order the cells were handed
 //! over. The thread reads a copy of the executor's [`World`] (the scene and its reference are
-//! shared, and nothing of them changes after the setup) and keeps its own expected-records memo;
-//! a panic there is caught and resumed on the cell thread when that cell's result is taken (the
-//! worker then dies as it would have with the check inline).
+//! shared; the reference's AS probe rays, filled once behind a `OnceLock`, are traced in the
+//! setup where a cell needs them) and keeps its own expected-records memo. A panic there is caught
+//! and handed back as that cell's [`Judged`]: the caller names the cell to the supervisor, then
+//! resumes it (`runner::held`), so the worker's death is pinned on that cell as it would be with
+//! the check inline.
 use super::check::World;
 use super::executor::{ExecOptions, Executor};
 use super::run::Traced;
@@ -20,8 +22,10 @@ use crate::scene::Scene;
 use std::sync::{mpsc, Arc};
 use std::thread::JoinHandle;
 
-/// Cells handed over and not yet judged before [`Checker::submit`] waits: bounds the records kept.
-const QUEUE: usize = 16;
+/// Cells handed over and not yet taken at most: a caller waits for the oldest before handing over
+/// more (`runner::held`), so the records kept stay a few cells' and a check that hangs is found
+/// within a few cells of its own.
+pub const QUEUE: usize = 4;
 
 /// What the thread judges with: the executor's world, owned.
 struct Owned {
@@ -31,7 +35,8 @@ struct Owned {
     ballot: Vec<Stage>,
 }
 
-type Judged = std::thread::Result<(CellResult, Vec<Record>)>;
+/// A cell's result and its records' vector, or the payload of the check's panic.
+pub type Judged = std::thread::Result<(CellResult, Vec<Record>)>;
 
 /// A checker thread and the cells handed to it.
 pub struct Checker {
@@ -68,7 +73,7 @@ impl Checker {
     }
 
     /// A checker thread judging each cell with `judge`.
-    fn with(
+    pub(crate) fn with(
         judge: impl FnMut(Traced) -> (CellResult, Vec<Record>) + Send + 'static,
     ) -> std::io::Result<Checker> {
         let (jobs, rx) = mpsc::sync_channel::<Traced>(QUEUE);
@@ -94,27 +99,27 @@ impl Checker {
         self.pending
     }
 
-    /// The oldest pending cell's result and its records' vector, waiting for it; a panic of the
-    /// thread resumed here.
-    pub fn take(&mut self) -> (CellResult, Vec<Record>) {
+    /// The oldest pending cell's result and its records' vector, waiting for it, or its check's
+    /// panic (for the caller to resume once it has said which cell it was).
+    pub fn take(&mut self) -> Judged {
         assert!(self.pending > 0, "no cell handed to the checker");
         self.pending -= 1;
         match self.results.recv() {
-            Ok(judged) => judged.unwrap_or_else(|payload| std::panic::resume_unwind(payload)),
+            Ok(judged) => judged,
             Err(mpsc::RecvError) => panic!("the checker thread ended with cells pending"),
         }
     }
 
     /// The oldest pending cell's result where it is judged already ([`Checker::take`] without
     /// the wait).
-    pub fn try_take(&mut self) -> Option<(CellResult, Vec<Record>)> {
+    pub fn try_take(&mut self) -> Option<Judged> {
         if self.pending == 0 {
             return None;
         }
         match self.results.try_recv() {
             Ok(judged) => {
                 self.pending -= 1;
-                Some(judged.unwrap_or_else(|payload| std::panic::resume_unwind(payload)))
+                Some(judged)
             }
             Err(mpsc::TryRecvError::Empty) => None,
             Err(mpsc::TryRecvError::Disconnected) => Some(self.take()),
@@ -227,7 +232,7 @@ mod tests {
         }
         assert_eq!(checker.pending(), 3);
         for want in &inline {
-            let (got, records) = checker.take();
+            let (got, records) = checker.take().unwrap();
             assert_eq!(got.outcome, want.outcome);
             // (Debug: the garbage's worst value is NaN, which `==` never equals)
             assert_eq!(format!("{:?}", got.comparison), format!("{:?}", want.comparison));
@@ -258,20 +263,19 @@ mod tests {
         assert!(c.try_take().is_none());
         assert_eq!(c.pending(), 1);
         go.send(()).unwrap();
-        let (r, _) = c.take();
+        let (r, _) = c.take().unwrap();
         assert_eq!(r.detail.as_deref(), Some("judged"));
     }
 
     #[test]
-    fn a_check_that_panics_panics_the_cell_thread_when_its_result_is_taken() {
+    fn a_check_that_panics_hands_its_panic_back_as_that_cells_result() {
         let mut checker = Checker::with(|_| panic!("the check's own bug")).unwrap();
         checker.submit(traced(cell(Stage::Raygen), vec![]));
         // A cell handed over after the thread stopped is still counted, never lost silently.
         std::thread::sleep(Duration::from_millis(50));
         checker.submit(traced(cell(Stage::Miss), vec![]));
         assert_eq!(checker.pending(), 2);
-        let taken = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| checker.take()));
-        let Err(payload) = taken else { panic!("the panic was not resumed") };
+        let Err(payload) = checker.take() else { panic!("the panic was not handed back") };
         assert_eq!(payload.downcast_ref::<&str>(), Some(&"the check's own bug"));
     }
 }

@@ -32,6 +32,27 @@ pub struct Traced {
     pub(super) validation_errors: u64,
 }
 
+#[cfg(test)]
+impl Traced {
+    /// `cell` traced with no records, for tests of what carries traced cells.
+    pub fn for_tests(cell: Cell) -> Traced {
+        let seen = Seen { heap_capability: false, dropped: false, lanes: Default::default() };
+        Traced {
+            cell,
+            records: vec![],
+            seen,
+            heap: None,
+            timings: Timings::default(),
+            device_part_ms: 0.0,
+            validation_errors: 0,
+        }
+    }
+
+    pub fn cell(&self) -> &Cell {
+        &self.cell
+    }
+}
+
 /// A cell's turn up to its check: its result already (a failure before the check), or its records
 /// to judge.
 // One per cell, moved once: boxing the large variant would buy nothing.
@@ -93,7 +114,8 @@ impl Executor {
                 cell: *cell,
                 records,
                 seen,
-                heap: self.heap_detail(cell),
+                // (a canary's check never reads it)
+                heap: cell.canary.is_none().then(|| self.heap_detail(cell)).flatten(),
                 timings,
                 device_part_ms: start.elapsed().as_secs_f64() * 1e3,
                 validation_errors,

@@ -312,6 +312,7 @@ fn add_timing(t: &mut TimingSummary, r: &TimingSummary) {
     t.prebuild_ms += r.prebuild_ms;
     t.prebuilt_pipelines += r.prebuilt_pipelines;
     t.overlapped_cells += r.overlapped_cells;
+    t.checked_apart += r.checked_apart;
     t.device_create_ms += r.device_create_ms;
     t.pipeline_wait_ms += r.pipeline_wait_ms;
     t.setup_wait_ms += r.setup_wait_ms;

@@ -390,6 +390,10 @@ pub struct TimingSummary {
     /// Cells that ran while their prebuild's pipelines were still being made (overlapped).
     #[serde(default)]
     pub overlapped_cells: usize,
+    /// Of those, the cells whose records were judged on a checker thread while the cell thread
+    /// went on (`exec::checker`; 0 in older reports).
+    #[serde(default)]
+    pub checked_apart: usize,
     /// The workers' instance and device creation, summed (part of `device_ms_mean`'s workers'
     /// setup; 0 in older reports).
     #[serde(default)]

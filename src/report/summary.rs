@@ -371,7 +371,7 @@ fn timing(s: &mut String, r: &RunReport, quiet: Quiet) {
     if t.prebuilt_pipelines > 0 {
         let threads =
             r.options.threads.map(|n| n.to_string()).unwrap_or_else(|| "--threads".into());
-        let _ = writeln!(s, "prebuild: {} pipelines created on {threads} threads ahead of their cells, {:.1} s wall, {} cells run meanwhile (their per-cell time above is each one's time on its thread)", t.prebuilt_pipelines, t.prebuild_ms / 1e3, t.overlapped_cells);
+        let _ = writeln!(s, "prebuild: {} pipelines created on {threads} threads ahead of their cells, {:.1} s wall, {} cells run meanwhile, {} of them judged on a checker thread (their per-cell time above is each one's time on its thread)", t.prebuilt_pipelines, t.prebuild_ms / 1e3, t.overlapped_cells, t.checked_apart);
     }
     if let Some(pc) = &r.pipeline_cache {
         let file = pc.file.as_ref().map(|f| f.display().to_string()).unwrap_or_default();

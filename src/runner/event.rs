@@ -24,8 +24,15 @@ pub enum Event {
         driver_cache: Option<crate::model::DriverCache>,
     },
     /// A worker built a batch of cells ahead of their turns.
-    /// `overlapped`: cells that ran while its pipelines were still being made.
-    Prebuilt { wall_ms: f64, pipelines: usize, threads: usize, overlapped: usize },
+    /// `overlapped`: cells that ran while its pipelines were still being made; `checked_apart`:
+    /// those judged on the checker thread.
+    Prebuilt {
+        wall_ms: f64,
+        pipelines: usize,
+        threads: usize,
+        overlapped: usize,
+        checked_apart: usize,
+    },
     /// A worker wrote the pipeline cache back (`Err`: why not).
     CacheSaved(Result<u64, String>),
     /// A worker's setup finished or failed, or it faulted outside a cell.

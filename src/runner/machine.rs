@@ -227,10 +227,10 @@ fn message(w: &mut Worker, msg: WorkerMsg, now: Instant, fx: &mut Vec<Effect>) {
             "worker {} sent prebuild while not between cells; ignored",
             w.id
         ))),
-        WorkerMsg::Prebuilt { wall_ms, pipelines, threads, overlapped } => {
+        WorkerMsg::Prebuilt { wall_ms, pipelines, threads, overlapped, checked_apart } => {
             if matches!(w.state, State::Prebuild { .. }) {
                 w.enter(State::Between { since: now }, Phase::BetweenCells);
-                let ev = Event::Prebuilt { wall_ms, pipelines, threads, overlapped };
+                let ev = Event::Prebuilt { wall_ms, pipelines, threads, overlapped, checked_apart };
                 fx.push(Effect::Report(ev));
             }
         }

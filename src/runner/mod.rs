@@ -6,6 +6,7 @@
 //! injected into each attempt (`injection`) and the processes themselves (`process`).
 pub mod event;
 pub mod groups;
+mod held;
 mod injection;
 mod machine;
 pub mod misbehave;

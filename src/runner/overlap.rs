@@ -18,42 +18,31 @@
 //! fence deadline, or the supervisor's prebuild deadline once the pool is silent.
 //!
 //! An overlapped cell's records are judged on a checker thread (`exec::checker`) while the cell
-//! thread goes on to the next cell: its `result` is held back anyway, so a later result changes
-//! nothing the supervisor sees; `prebuilt` waits for every check, and the held lines go out in
-//! order. A cell after `prebuilt` is judged on the cell thread, between its `start` and `result`.
+//! thread goes on to the next cell: its `result` is held back anyway; `prebuilt` waits for every
+//! check, and the held lines go out in order (`runner::held`, which also keeps a check's hang or
+//! panic pinned on its own cell). A cell after `prebuilt` is judged on the cell thread, between its
+//! `start` and `result`.
 //!
 //! `--validate` (and GPU-AV) keep the batch unoverlapped: every pipeline is made before the
 //! first cell runs, so each cell's validation messages are its own. A serial cell never runs
 //! overlapped either: the batch's pipelines are all made before its turn.
+use super::held::Held;
 use super::misbehave::Misbehave;
 use super::protocol::WorkerMsg;
 use super::worker_io::{halt_of, send};
-use crate::exec::checker::Checker;
 use crate::exec::prebuild::{Prebuild, Step};
 use crate::exec::{CellError, Executor, Traced};
 use crate::model::{Cell, Halt, Phase};
-use std::collections::{HashSet, VecDeque};
+use std::collections::HashSet;
 use std::sync::Arc;
 use std::time::Instant;
-
-/// An overlapped cell's line held back: a `start` or `result`, or the `result` of a cell whose
-/// check the checker thread has not handed back yet.
-// One per overlapped cell, moved once, as `WorkerMsg` itself.
-#[allow(clippy::large_enum_variant)]
-enum Held {
-    Line(WorkerMsg),
-    Checking(String),
-}
 
 /// A chunk's prebuild under way, as the worker runs its cells.
 pub(super) struct Batch {
     pb: Prebuild,
-    /// `start` and `result` lines of the overlapped cells, sent right after `prebuilt`.
-    held: Vec<Held>,
-    /// Where in `held` the cells handed to `checker` are, oldest first.
-    checking: VecDeque<usize>,
-    /// Judges the overlapped cells off the cell thread (`exec::checker`), started at the first.
-    checker: Option<Checker>,
+    /// `start` and `result` lines of the overlapped cells, sent right after `prebuilt`; their
+    /// checks on the checker thread (`runner::held`).
+    held: Held,
     /// `prebuilt` sent: every pipeline made, no cell overlaps any more.
     announced: bool,
     started: Instant,
@@ -96,9 +85,7 @@ pub(super) fn start(
         .unwrap_or_else(|e| fatal(threads, &e.to_string(), e.outcome(), halt_of(&e)));
     let mut b = Batch {
         pb,
-        held: vec![],
-        checking: VecDeque::new(),
-        checker: None,
+        held: Held::new(super::held::tell_supervisor()),
         announced: false,
         started,
         threads,
@@ -127,46 +114,13 @@ impl Batch {
 
     /// An overlapped cell's `start` or `result`, held back until `prebuilt`.
     pub(super) fn hold(&mut self, msg: WorkerMsg) {
-        self.held.push(Held::Line(msg));
+        self.held.push(msg);
     }
 
-    /// An overlapped cell's records, judged on the checker thread (started at the first; where
-    /// it cannot start, here); its `result` held back until `prebuilt` as another's.
+    /// An overlapped cell's records, judged on the checker thread; its `result` held back until
+    /// `prebuilt` as another's (`runner::held`).
     pub(super) fn judge(&mut self, exec: &mut Executor, cell: String, traced: Traced) {
-        if self.checker.is_none() {
-            self.checker = Checker::start(exec)
-                .inspect_err(|e| tracing::warn!("no checker thread ({e}): checks inline"))
-                .ok();
-        }
-        match self.checker.as_mut() {
-            Some(c) => {
-                c.submit(traced);
-                self.checking.push_back(self.held.len());
-                self.held.push(Held::Checking(cell));
-            }
-            None => {
-                let result = exec.judge_traced(traced);
-                self.hold(WorkerMsg::Result { cell, result });
-            }
-        }
-    }
-
-    /// The checker's results so far put in their places (`wait`: every one, waited for); each
-    /// records vector kept for a next readback.
-    fn collect(&mut self, exec: &mut Executor, wait: bool) {
-        let Some(c) = self.checker.as_mut() else { return };
-        while let Some(&at) = self.checking.front() {
-            let Some((result, records)) = (if wait { Some(c.take()) } else { c.try_take() }) else {
-                return;
-            };
-            self.checking.pop_front();
-            exec.reuse_records(records);
-            let slot = &mut self.held[at];
-            if let Held::Checking(cell) = slot {
-                let cell = std::mem::take(cell);
-                *slot = Held::Line(WorkerMsg::Result { cell, result });
-            }
-        }
+        self.held.judge(exec, cell, traced);
     }
 
     /// After an overlapped cell whose result ends the worker: the worker's fatal message (the
@@ -189,7 +143,7 @@ impl Batch {
     pub(super) fn after(&mut self, exec: &mut Executor, overlapped: bool, last: bool) {
         self.overlapped += usize::from(overlapped);
         self.pb.release();
-        self.collect(exec, false);
+        self.held.collect(&mut |r| exec.reuse_records(r), false);
         if last {
             self.finish(exec);
         } else if !self.announced {
@@ -221,20 +175,17 @@ impl Batch {
 
     /// `prebuilt`, then the overlapped cells' held lines in order (their checks waited for).
     fn announce(&mut self, exec: &mut Executor) {
-        self.collect(exec, true);
-        self.checker = None;
+        let (held, checked_apart) = self.held.drain(&mut |r| exec.reuse_records(r));
         self.announced = true;
         send(&WorkerMsg::Prebuilt {
             wall_ms: self.started.elapsed().as_secs_f64() * 1e3,
             pipelines: self.pb.stats.pipelines,
             threads: self.pb.stats.threads,
             overlapped: self.overlapped,
+            checked_apart,
         });
-        for h in self.held.drain(..) {
-            match h {
-                Held::Line(m) => send(&m),
-                Held::Checking(cell) => unreachable!("cell {cell}'s check was waited for"),
-            }
+        for m in held {
+            send(&m);
         }
     }
 }

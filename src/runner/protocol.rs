@@ -135,6 +135,10 @@ pub enum WorkerMsg {
         threads: usize,
         #[serde(default)]
         overlapped: usize,
+        /// Of those, the cells whose records were judged on the checker thread
+        /// (`exec::checker`).
+        #[serde(default)]
+        checked_apart: usize,
     },
     /// After the last cell: the pipeline cache was written (`bytes`) or not (`error`).
     CacheSaved {

@@ -448,12 +448,24 @@ fn a_prebuild_step_restarts_the_deadline() {
     assert_eq!(w.where_(), "prebuild (pipelines 1/3)");
     let (w, fx) = feed(
         w,
-        msg(WorkerMsg::Prebuilt { wall_ms: 5.0, pipelines: 3, threads: 4, overlapped: 1 }),
+        msg(WorkerMsg::Prebuilt {
+            wall_ms: 5.0,
+            pipelines: 3,
+            threads: 4,
+            overlapped: 1,
+            checked_apart: 1,
+        }),
         at(t0, 9_500),
     );
     assert_eq!(
         fx,
-        [Effect::Report(Event::Prebuilt { wall_ms: 5.0, pipelines: 3, threads: 4, overlapped: 1 })]
+        [Effect::Report(Event::Prebuilt {
+            wall_ms: 5.0,
+            pipelines: 3,
+            threads: 4,
+            overlapped: 1,
+            checked_apart: 1
+        })]
     );
     assert_eq!(w.state, State::Between { since: at(t0, 9_500) });
 }
@@ -575,7 +587,13 @@ fn overlapped_cells_are_blamed_on_no_cell_until_prebuilt() {
     let (fresh, _) = prebuilding(t0);
     let (_, fx) = dies(fresh, Input::Eof, exit(None, Some(libc::SIGSEGV)), at(t0, 6_000));
     assert_eq!(events(&fx)[0].overlapped_cell, None);
-    let done = WorkerMsg::Prebuilt { wall_ms: 9.0, pipelines: 3, threads: 4, overlapped: 1 };
+    let done = WorkerMsg::Prebuilt {
+        wall_ms: 9.0,
+        pipelines: 3,
+        threads: 4,
+        overlapped: 1,
+        checked_apart: 1,
+    };
     let (w, _) = feed(w, msg(done), at(t0, 7_000));
     let (w, _) = feed(w, start(&cells()[0]), at(t0, 7_000));
     let Input::Msg(WorkerMsg::Result { cell, mut result }) = result(&cells()[0], Outcome::Pass)
@@ -628,7 +646,13 @@ fn lines_out_of_place_are_ignored() {
     assert!(fx.is_empty() && w2.state == w.state, "nor is it recorded");
     let (w2, fx) = feed(
         w.clone(),
-        msg(WorkerMsg::Prebuilt { wall_ms: 1.0, pipelines: 1, threads: 2, overlapped: 0 }),
+        msg(WorkerMsg::Prebuilt {
+            wall_ms: 1.0,
+            pipelines: 1,
+            threads: 2,
+            overlapped: 0,
+            checked_apart: 0,
+        }),
         at(t0, 400),
     );
     assert!(fx.is_empty() && w2.state == w.state, "prebuilt without a prebuild");
