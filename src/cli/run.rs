@@ -172,7 +172,7 @@ pub fn run(g: &Globals, a: &RunArgs) -> Result<u8> {
     };
     let scope = Scope { elsewhere: made.elsewhere, filters: c.filters.clone() };
     let c = Checked { baseline: with_flakes(&c, &the_plan), scope, ..c };
-    run_rounds(inst, a, &c, &info, &the_plan, options, base, out)
+    run_rounds(&inst, a, &c, &info, &the_plan, options, base, out)
 }
 
 /// `--resume REPORT`: the report locked (no other run writes it) and read, and the arguments
@@ -198,7 +198,7 @@ fn resumed_args(
 /// end: summary, files, verdict.
 #[allow(clippy::too_many_arguments)] // one call, from `run`, with what it resolved
 fn run_rounds(
-    inst: std::sync::Arc<crate::vk::Instance>,
+    inst: &crate::vk::Instance,
     a: &RunArgs,
     c: &Checked,
     info: &DeviceInfo,
@@ -218,8 +218,6 @@ fn run_rounds(
     let wall = Instant::now();
     let supported = |cell: &Cell| plan::device_support(info, cell).is_supported();
     let policy = Policy::of(&options, || inst.validation_layer_version());
-    // The CLI's instance is needed no more (the workers make their own): destroyed meanwhile.
-    let _released = crate::vk::instance::release_in_background(inst);
     // The mutants' reference (a scene and its trace on the CPU), made only when asked for.
     let prefilter = policy.mutants.as_ref().map(|_| Prefilter::new(&c.params)).transpose()?;
     let applies = |cell: &Cell| -> Result<MutantPrediction, String> {

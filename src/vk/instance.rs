@@ -325,31 +325,6 @@ impl Drop for Instance {
     }
 }
 
-/// An instance being destroyed on a thread of its own ([`release_in_background`]); dropping this
-/// waits for that thread, so the process never exits while the driver is still tearing it down.
-pub struct Released(Option<std::thread::JoinHandle<()>>);
-
-/// Drop `inst` (destroying the instance where this was its last reference) on a thread of its
-/// own, for a caller that needs it no more but goes on for a while: on the H200 (NVIDIA
-/// 580.159.04) the CLI's `vkDestroyInstance` at the end of a warm default run took 0.25–0.26 s,
-/// an eighth of the process's wall, with nothing waiting on it
-/// (`reports/nvidia-h200/perf/s34/README.md`). Where no thread can start, it is dropped here.
-pub fn release_in_background(inst: std::sync::Arc<Instance>) -> Released {
-    let spawned = std::thread::Builder::new().name("instance-release".into()).spawn(move || {
-        drop(inst);
-        tracing::debug!("an instance released in the background");
-    });
-    Released(spawned.inspect_err(|e| tracing::debug!("instance dropped inline: {e}")).ok())
-}
-
-impl Drop for Released {
-    fn drop(&mut self) {
-        if let Some(t) = self.0.take() {
-            let _ = t.join();
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
