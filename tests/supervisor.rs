@@ -247,6 +247,30 @@ fn a_crash_between_cells_is_recorded_and_the_rest_still_run() {
     assert!(stdout(&o).contains("worker faults outside cells (1)"), "{}", stdout(&o));
 }
 
+/// A real fault (an invalid write, as a driver's crash) mid-cell: the cell's crash, and the
+/// worker's stderr tail carries its native backtrace — the signal, the address, frames naming
+/// the binary and offsets — which the report keeps. Twin of `crash` (a raised SIGSEGV, no fault
+/// address): no backtrace line there, the handler leaves signals it did not see fault alone.
+#[test]
+fn a_real_fault_mid_cell_comes_with_its_native_backtrace() {
+    let (o, r, _) = fault_run("trace:fault", TWO, &[], Duration::from_secs(180));
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let crashed: Vec<Value> = cells(&r).into_iter().filter(|c| c["outcome"] == "crash").collect();
+    assert!(!crashed.is_empty(), "{:?}", cells(&r));
+    let exit = &crashed[0]["attempts"][0]["worker_exit"];
+    assert_eq!(exit["signal"], 11, "{exit}");
+    let tail = exit["stderr_tail"].as_str().unwrap_or_default();
+    assert!(tail.contains("rtprobe worker: fatal signal 11 (fault address 0x"), "{tail}");
+    assert!(
+        tail.lines().filter(|l| l.contains("(+0x") || l.contains("[0x")).count() >= 3,
+        "{tail}"
+    );
+    let (_, raised, _) = fault_run("trace:crash", TWO, &[], Duration::from_secs(180));
+    let c = cells(&raised).into_iter().find(|c| c["outcome"] == "crash").expect("a crash");
+    let tail = c["attempts"][0]["worker_exit"]["stderr_tail"].as_str().unwrap_or_default();
+    assert!(!tail.contains("fatal signal"), "{tail}");
+}
+
 #[test]
 fn a_hang_between_cells_is_the_workers_and_the_next_cell_still_runs() {
     let (o, r, took) =

@@ -21,6 +21,7 @@ pub mod inject;
 pub mod lanes;
 pub mod load;
 pub mod mutant;
+pub mod native_backtrace;
 pub mod options;
 pub mod outcome;
 pub mod phase;

@@ -4,7 +4,8 @@
 //! crashes, floods its output or loses its device on demand (as nextest and deqp-runner test
 //! their runners). Read once when the worker starts; without the variable nothing here runs.
 //!
-//! Actions: `hang` (sleeps forever), `crash` (SIGSEGV), `spam` (prints non-protocol lines
+//! Actions: `hang` (sleeps forever), `crash` (SIGSEGV, raised), `fault` (SIGSEGV from a real
+//! invalid write, so the worker's fault handler writes its native backtrace), `spam` (prints non-protocol lines
 //! without pause, never progresses), `lose` (the phase fails with `VK_ERROR_DEVICE_LOST`),
 //! `no_compiler` (`setup` only: the shader compiler fails to start, as `shaderc::Compiler::new`
 //! does when memory runs out, its only failure; the worker meets it where the executor starts
@@ -25,12 +26,15 @@ use crate::vk::VkError;
 use std::io::Write;
 
 pub const ENV: &str = "RTPROBE_WORKER_FAULT";
-const ACTIONS: &str = "hang|crash|spam|lose|no_compiler|hold";
+const ACTIONS: &str = "hang|crash|fault|spam|lose|no_compiler|hold";
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Action {
     Hang,
     Crash,
+    /// A real invalid memory access (a write to a page mapped with no access): a SIGSEGV from
+    /// the kernel, through the worker's fault handler (`native_crash`), as a driver's crash.
+    Fault,
     Spam,
     Lose,
     NoCompiler,
@@ -68,6 +72,7 @@ impl Misbehave {
             "hold" => return Err(format!("{ENV}: hold is an overlap action")),
             "hang" => Action::Hang,
             "crash" => Action::Crash,
+            "fault" => Action::Fault,
             "spam" => Action::Spam,
             "lose" => Action::Lose,
             "no_compiler" if phase == Phase::Setup => Action::NoCompiler,
@@ -116,6 +121,18 @@ impl Misbehave {
                 // Rust's own SIGSEGV handler ignores a raised signal; restore the default first.
                 libc::signal(libc::SIGSEGV, libc::SIG_DFL);
                 libc::raise(libc::SIGSEGV);
+                libc::_exit(139)
+            },
+            Action::Fault => unsafe {
+                let page = libc::mmap(
+                    std::ptr::null_mut(),
+                    4096,
+                    libc::PROT_NONE,
+                    libc::MAP_PRIVATE | libc::MAP_ANONYMOUS,
+                    -1,
+                    0,
+                );
+                (page as *mut u8).write_volatile(1);
                 libc::_exit(139)
             },
             Action::Spam => {

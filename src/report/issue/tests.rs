@@ -415,3 +415,42 @@ fn a_validation_run_that_crashed_mid_cell_reproduced_the_finding() {
     assert!(mismatch.contains("not the fault the run recorded (mismatch"), "{mismatch}");
     assert!(text(&entry, "").contains("No validation message in the worker's stderr before it."));
 }
+
+/// A crash whose worker wrote its native backtrace: the issue quotes where it faulted (the
+/// driver's frame first), not the last stderr lines (the process's start on a deep stack). The twin without a
+/// backtrace keeps the last lines.
+#[test]
+fn a_crash_with_a_native_backtrace_quotes_where_it_faulted() {
+    use crate::model::{Attempt, CellReport, Outcome, Phase, WorkerExit};
+    let (r, _, _) = lavapipe_26();
+    let tail = "rtprobe worker: fatal signal 11 (fault address 0x10); native backtrace:\n\
+                /proc/self/exe(+0x525f7a)[0x55ccc2235f7a]\n\
+                /lib/x86_64-linux-gnu/libc.so.6(+0x3c050)[0x7fa0ea37a050]\n\
+                /usr/lib/x86_64-linux-gnu/libnvidia-glcore.so.580.159.04(+0x1a2b3c)[0x7f0]\n\
+                /lib/x86_64-linux-gnu/libc.so.6(__libc_start_main+0x85)[0x7fa0ea365305]\n";
+    let with = |tail: &str| {
+        let a = Attempt::new(Outcome::Crash, false)
+            .with_worker(1, Phase::Trace, vec![])
+            .with_detail("worker killed by signal 11 (SIGSEGV) mid-cell, in trace")
+            .with_exit(WorkerExit {
+                signal: Some(11),
+                stderr_tail: tail.into(),
+                ..Default::default()
+            });
+        let mut c: CellReport = r.cells[0].clone();
+        c.outcome = Outcome::Crash;
+        c.attempts = vec![a];
+        text::actual_text(Some(&c), Outcome::Crash)
+    };
+    let t = with(tail);
+    assert!(
+        t.contains("where it faulted (innermost first): `rtprobe worker: fatal signal 11"),
+        "{t}"
+    );
+    assert!(t.contains("libnvidia-glcore.so.580.159.04(+0x1a2b3c)"), "{t}");
+    // (the handler's own frame and the signal trampoline are left out: the driver's frame first)
+    assert!(t.contains("native backtrace: | /usr/lib/x86_64-linux-gnu/libnvidia-glcore"), "{t}");
+    assert!(!t.contains("+0x525f7a") && !t.contains("last stderr lines"), "{t}");
+    let plain = with("lavapipe: boom\n");
+    assert!(plain.contains("last stderr lines: `lavapipe: boom`"), "{plain}");
+}

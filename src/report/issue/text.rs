@@ -332,7 +332,9 @@ pub(super) fn actual_text(rep: Option<&CellReport>, outcome: Outcome) -> String 
             );
         }
         let tail: Vec<&str> = x.stderr_tail.trim().lines().rev().take(3).collect();
-        if !tail.is_empty() {
+        if let Some(frames) = crate::model::native_backtrace::top(&x.stderr_tail, 6) {
+            t += &format!("; where it faulted (innermost first): `{frames}`");
+        } else if !tail.is_empty() {
             let tail: Vec<&str> = tail.into_iter().rev().collect();
             t += &format!("; last stderr lines: `{}`", tail.join(" | "));
         }
