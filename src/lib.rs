@@ -15,6 +15,7 @@ pub mod interface;
 pub mod matrix;
 pub mod model;
 pub mod mutants;
+pub mod native_crash;
 pub mod patches;
 pub mod pool;
 pub mod probe;

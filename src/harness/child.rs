@@ -167,6 +167,7 @@ fn run(job: &VerifyJob) -> Result<VerifyOutput, HarnessError> {
 
 /// The child's entry: 0 when it wrote its result, 2 otherwise.
 pub fn main(job_path: &Path) -> u8 {
+    crate::native_crash::install();
     let read = std::fs::read(job_path)
         .map_err(|e| e.to_string())
         .and_then(|b| serde_json::from_slice::<VerifyJob>(&b).map_err(|e| e.to_string()));

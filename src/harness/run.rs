@@ -388,6 +388,7 @@ fn run(job: &ShaderJob) -> Result<(), String> {
 
 /// The child's entry: 0 when it wrote its results, 2 otherwise.
 pub fn main(job_path: &Path) -> u8 {
+    crate::native_crash::install();
     let read = std::fs::read(job_path)
         .map_err(|e| e.to_string())
         .and_then(|b| serde_json::from_slice::<ShaderJob>(&b).map_err(|e| e.to_string()));

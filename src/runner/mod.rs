@@ -10,7 +10,6 @@ mod held;
 mod injection;
 mod machine;
 pub mod misbehave;
-pub mod native_crash;
 pub mod oracle;
 mod overlap;
 pub mod process;

@@ -210,7 +210,7 @@ const PREBUILD_CHUNK: usize = 1024;
 
 /// Runs the job; returns the process exit code (the process may also `_exit` early).
 pub fn main(job_path: &std::path::Path) -> u8 {
-    super::native_crash::install();
+    crate::native_crash::install();
     let hook = match Misbehave::from_env() {
         Ok(h) => h,
         Err(message) => {

@@ -286,6 +286,7 @@ fn run(job: &CaseJob, kind: CaseKind) -> CaseResult {
 
 /// The worker's entry: 0 when it wrote its result, 2 for a job it cannot read.
 pub fn main(job_path: &Path) -> u8 {
+    crate::native_crash::install();
     let read = std::fs::read(job_path)
         .map_err(|e| e.to_string())
         .and_then(|b| serde_json::from_slice::<CaseJob>(&b).map_err(|e| e.to_string()));

@@ -1,8 +1,10 @@
-//! A worker's fatal signal with its native backtrace ([`install`]): when a driver (or rtprobe)
-//! faults inside a worker — SIGSEGV, SIGBUS, SIGILL, SIGFPE — the faulting thread writes one line
+//! A child process's fatal signal with its native backtrace ([`install`], called first by each
+//! child that drives a GPU: `run`'s worker, `run --shader`'s, `patch --verify`'s, `stress`'s):
+//! when a driver (or rtprobe) faults inside one — SIGSEGV, SIGBUS, SIGILL, SIGFPE — the faulting thread writes one line
 //! naming the signal and the fault address, then its frames as glibc's `backtrace_symbols_fd`
-//! writes them (`/path/libnvidia-….so(+0x1a2b3c)[0x…]`), to stderr. The supervisor keeps a
-//! worker's stderr tail in the attempt's `worker_exit` (and `report`'s issue text quotes it), so a
+//! writes them (`/path/libnvidia-….so(+0x1a2b3c)[0x…]`), to stderr. `run`'s supervisor keeps a
+//! worker's stderr tail in the attempt's `worker_exit` (and `report`'s issue text quotes it), the
+//! other children's supervisors their stderr tails where they report a fault, so a
 //! crash in the driver names the library and offset a driver team needs, where before the report
 //! said only "killed by signal 11".
 //!
