@@ -35,6 +35,12 @@ struct Owned {
     ballot: Vec<Stage>,
 }
 
+impl Owned {
+    fn world(&self) -> World<'_> {
+        World { scene: &self.scene, sref: &self.sref, opts: &self.opts, ballot: &self.ballot }
+    }
+}
+
 /// A cell's result and its records' vector, or the payload of the check's panic.
 pub type Judged = std::thread::Result<(CellResult, Vec<Record>)>;
 
@@ -61,15 +67,7 @@ impl Checker {
     /// A checker thread judging in `owned`'s world.
     fn of(owned: Owned) -> std::io::Result<Checker> {
         let mut memo = ExpectedMemo::default();
-        Checker::with(move |t| {
-            let world = World {
-                scene: &owned.scene,
-                sref: &owned.sref,
-                opts: &owned.opts,
-                ballot: &owned.ballot,
-            };
-            world.finish(t, &mut memo)
-        })
+        Checker::with(move |t| owned.world().finish(t, &mut memo))
     }
 
     /// A checker thread judging each cell with `judge`.
@@ -154,8 +152,7 @@ fn judge_all(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::exec::built::Seen;
-    use crate::model::{Cell, DescriptorModel, IndexSource, LaneEvidence, Outcome, Resource};
+    use crate::model::{Cell, DescriptorModel, IndexSource, Outcome, Resource};
     use crate::model::{SceneParams, Timings};
     use std::time::Duration;
 
@@ -185,17 +182,7 @@ mod tests {
 
     /// `cell` traced with `records`.
     fn traced(cell: Cell, records: Vec<Record>) -> Traced {
-        let seen = Seen { heap_capability: false, dropped: false, lanes: LaneEvidence::Absent };
-        let timings = Timings::default();
-        Traced {
-            cell,
-            records,
-            seen,
-            heap: None,
-            timings,
-            device_part_ms: 1.0,
-            validation_errors: 0,
-        }
+        Traced { records, device_part_ms: 1.0, ..Traced::for_tests(cell) }
     }
 
     /// What a correct driver writes for `cell`: the reference's records.
@@ -217,7 +204,7 @@ mod tests {
             corrupted += 1;
         }
         assert!(corrupted > 0, "the raygen cell probes some pixel");
-        let world = World { scene: &o.scene, sref: &o.sref, opts: &o.opts, ballot: &o.ballot };
+        let world = o.world();
         let mut memo = ExpectedMemo::default();
         let inline: Vec<CellResult> = cells
             .iter()

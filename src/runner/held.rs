@@ -10,18 +10,18 @@
 //! pinned on its own cell, not on a later one the cell thread ran meanwhile. At most
 //! [`QUEUE`] cells wait for their checks, so a hang is found within that many cells.
 use super::protocol::WorkerMsg;
-use crate::exec::checker::{Checker, Judged, QUEUE};
+use crate::exec::checker::{Checker, QUEUE};
 use crate::exec::{Executor, Traced};
-use crate::model::{CellResult, Phase};
+use crate::model::Phase;
 use crate::probe::Record;
 use std::collections::VecDeque;
 
-/// One held line: a message, or the `result` of a cell whose check has not come back yet.
+/// One held line: a message, or the place of a `result` whose check has not come back yet.
 // One per overlapped cell, moved once, as `WorkerMsg` itself.
 #[allow(clippy::large_enum_variant)]
 enum Line {
     Msg(WorkerMsg),
-    Checking(String),
+    Checking,
 }
 
 /// Names a cell to the supervisor (its overlapped `check` step).
@@ -30,8 +30,8 @@ pub(super) type Tell = Box<dyn Fn(&str)>;
 /// The held lines and the checker thread of one overlapped batch.
 pub(super) struct Held {
     lines: Vec<Line>,
-    /// Where in `lines` the cells handed to `checker` are, oldest first.
-    checking: VecDeque<usize>,
+    /// The cells handed to `checker` and where in `lines` their results go, oldest first.
+    checking: VecDeque<(usize, String)>,
     /// Started at the first cell handed over (`None` before, or where no thread could start).
     checker: Option<Checker>,
     /// Cells judged on the checker thread (`prebuilt`'s `checked_apart`).
@@ -41,10 +41,7 @@ pub(super) struct Held {
 
 /// The worker's [`Tell`]: a `phase prebuild` step `cell ID: check`.
 pub(super) fn tell_supervisor() -> Tell {
-    Box::new(|cell| {
-        let step = super::protocol::overlapped_step(cell, Phase::Check);
-        super::worker_io::send(&WorkerMsg::Phase { phase: Phase::Prebuild, step: Some(step) })
-    })
+    Box::new(|cell| super::worker_io::send_overlapped(cell, Phase::Check))
 }
 
 impl Held {
@@ -81,8 +78,8 @@ impl Held {
         }
         if let Some(c) = self.checker.as_mut() {
             c.submit(traced);
-            self.checking.push_back(self.lines.len());
-            self.lines.push(Line::Checking(cell));
+            self.checking.push_back((self.lines.len(), cell));
+            self.lines.push(Line::Checking);
         }
     }
 
@@ -95,11 +92,8 @@ impl Held {
     /// The oldest waiting cell's result put in its place, if it is back (`wait`: waited for,
     /// the cell named first); its check's panic resumed after naming the cell. Whether one was.
     fn collect_one(&mut self, reuse: &mut dyn FnMut(Vec<Record>), wait: bool) -> bool {
-        let (Some(&at), Some(c)) = (self.checking.front(), self.checker.as_mut()) else {
+        let (Some((_, cell)), Some(c)) = (self.checking.front(), self.checker.as_mut()) else {
             return false;
-        };
-        let Line::Checking(cell) = &self.lines[at] else {
-            unreachable!("line {at} waits for a check")
         };
         if wait {
             (self.tell)(cell);
@@ -107,26 +101,15 @@ impl Held {
         let Some(judged) = (if wait { Some(c.take()) } else { c.try_take() }) else {
             return false;
         };
-        self.checking.pop_front();
-        let result = self.judged(at, judged);
-        reuse(result.1);
-        let cell = std::mem::take(match &mut self.lines[at] {
-            Line::Checking(cell) => cell,
-            Line::Msg(_) => unreachable!("line {at} waits for a check"),
+        let Some((at, cell)) = self.checking.pop_front() else { return false };
+        let (result, records) = judged.unwrap_or_else(|payload| {
+            (self.tell)(&cell);
+            std::panic::resume_unwind(payload)
         });
-        self.lines[at] = Line::Msg(WorkerMsg::Result { cell, result: result.0 });
+        reuse(records);
+        self.lines[at] = Line::Msg(WorkerMsg::Result { cell, result });
         self.checked_apart += 1;
         true
-    }
-
-    /// A check's outcome at line `at`: its result, or its panic resumed once its cell is named.
-    fn judged(&self, at: usize, judged: Judged) -> (CellResult, Vec<Record>) {
-        judged.unwrap_or_else(|payload| {
-            if let Line::Checking(cell) = &self.lines[at] {
-                (self.tell)(cell);
-            }
-            std::panic::resume_unwind(payload)
-        })
     }
 
     /// Every held line in order, every check waited for first; the checker thread ended. With
@@ -136,7 +119,7 @@ impl Held {
         self.checker = None;
         let lines = std::mem::take(&mut self.lines).into_iter().map(|l| match l {
             Line::Msg(m) => m,
-            Line::Checking(cell) => unreachable!("cell {cell}'s check was waited for"),
+            Line::Checking => unreachable!("every check was waited for"),
         });
         (lines.collect(), std::mem::take(&mut self.checked_apart))
     }

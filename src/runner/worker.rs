@@ -112,8 +112,7 @@ impl Phases {
     /// An overlapped cell enters `phase` (`runner::overlap`): told as a `prebuild` step naming
     /// the cell, then the test hook's turn.
     fn enter_overlapped(&self, cell: &str, phase: Phase) -> Result<(), VkError> {
-        let step = super::protocol::overlapped_step(cell, phase);
-        send(&WorkerMsg::Phase { phase: Phase::Prebuild, step: Some(step) });
+        super::worker_io::send_overlapped(cell, phase);
         self.hook.as_ref().map_or(Ok(()), |h| h.at_overlapped(phase))
     }
 

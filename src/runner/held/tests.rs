@@ -1,7 +1,8 @@
 //! The held lines with a checker thread whose judge is the test's: each result names the cell it
 //! was judged for, so a result put in another cell's place shows.
 use super::*;
-use crate::model::{Cell, DescriptorModel, IndexSource, Outcome, Resource, Stage, Timings};
+use crate::model::Timings;
+use crate::model::{Cell, CellResult, DescriptorModel, IndexSource, Outcome, Resource, Stage};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
