@@ -325,3 +325,42 @@ fn a_large_scenes_as_cells_are_not_timed_out_by_the_reference() {
     assert!(got.values().all(|o| o == "pass"), "{got:?}\n{}", stdout(&o));
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
 }
+
+/// A `--scene` file with one instance: the probed arrays still hold the constant slots
+/// (`SPEC_SLOT` 5, `PUSH_SLOT` 7). Before, one instance gave arrays of 4 slots, the
+/// spec-constant and push-constant cells read past them, and lavapipe crashed on 236 cells of a
+/// public sample scene — false findings of rtprobe's own making.
+#[test]
+fn a_one_instance_scene_keeps_the_constant_slots_inside_the_arrays() {
+    let dir = rtprobe::tempdir::tempdir().unwrap();
+    let (path, mut doc) = made_scene(dir.path());
+    let node = doc["nodes"].as_array().unwrap().iter().position(|n| n.get("mesh").is_some());
+    let node = node.expect("a node with a mesh");
+    doc["scenes"][0]["nodes"] = serde_json::json!([node]);
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let info = run(&["scene", "info", path.to_str().unwrap()]);
+    assert!(stdout(&info).contains(" 1 instances"), "{}", stdout(&info));
+    let out = dir.path().join("r.json");
+    let filter = "stage=raygen|closest_hit,resource=storage_buffer|acceleration_structure,\
+                  index=spec_constant|push_constant,descriptor_model=descriptor_indexing";
+    let o = run(&[
+        "run",
+        "--scene",
+        path.to_str().unwrap(),
+        "--filter",
+        filter,
+        "--no-confirm",
+        "--patches",
+        "none",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let r: Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
+    let ran: Vec<&Value> =
+        r["cells"].as_array().unwrap().iter().filter(|c| c["outcome"] != "unsupported").collect();
+    assert!(ran.len() >= 8, "{}", stdout(&o));
+    for c in &ran {
+        assert_eq!(c["outcome"], "pass", "{c}");
+    }
+    assert_eq!(o.status.code(), Some(0), "{}", stdout(&o));
+}

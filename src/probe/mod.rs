@@ -298,9 +298,12 @@ pub fn dyn_mask(resource: Resource, instances: u32) -> u32 {
 }
 
 /// Number of descriptors in the probed array of `resource` (and of addresses in the AS address
-/// table): the base, then one slot per value of the masked custom index.
+/// table): the base, then one slot per value of the masked custom index — and never fewer than
+/// the constant slots' (`LITERAL_SLOT`, `SPEC_SLOT`, `PUSH_SLOT`) need. A procedural scene has
+/// 16 instances or more, so the masked index covers them; a `--scene` file may have one instance
+/// (mask 0: four slots), where a spec-constant or push-constant index would read past the array.
 pub fn slot_count(resource: Resource, instances: u32) -> u32 {
-    DYNAMIC_BASE + dyn_mask(resource, instances) + 1
+    (DYNAMIC_BASE + dyn_mask(resource, instances) + 1).max(PUSH_SLOT + 1)
 }
 
 /// The push constants of a probe cell reading `resource` (the canary fields and table address

@@ -162,6 +162,15 @@ fn slots_fit_the_array_and_values_are_distinct() {
     assert_eq!(slot_count(Resource::StorageBuffer, 4096), DYNAMIC_BASE + 4096);
     assert_eq!(as_variants(4096), MAX_AS_VARIANTS);
     assert!([LITERAL_SLOT, SPEC_SLOT, PUSH_SLOT].iter().all(|s| *s < n));
+    // A `--scene` file's few instances: the constant slots still inside every array (one
+    // instance gave 4 slots, and lavapipe crashed reading slot 5 and 7 past them).
+    for instances in 1..=16 {
+        for r in Resource::ALL {
+            let n = slot_count(*r, instances);
+            assert!([LITERAL_SLOT, SPEC_SLOT, PUSH_SLOT, PACKED_SLOT].iter().all(|s| *s < n));
+            assert!(DYNAMIC_BASE + dyn_mask(*r, instances) < n, "{r:?} {instances}");
+        }
+    }
     assert_eq!(
         dynamic_slot(Stage::ClosestHit, 0, 0, 64, 0xfffff5, DYNAMIC_BASE, n),
         DYNAMIC_BASE + 5
