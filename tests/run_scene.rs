@@ -327,22 +327,32 @@ fn a_large_scenes_as_cells_are_not_timed_out_by_the_reference() {
 }
 
 /// A `--scene` file with one instance: the probed arrays still hold the constant slots
-/// (`SPEC_SLOT` 5, `PUSH_SLOT` 7). Before, one instance gave arrays of 4 slots, the
+/// (`SPEC_SLOT` 5, `PUSH_SLOT` 7), and a dynamic index keeps the shader's mask. Before, one
+/// instance gave arrays of 4 slots, the
 /// spec-constant and push-constant cells read past them, and lavapipe crashed on 236 cells of a
 /// public sample scene — false findings of rtprobe's own making.
 #[test]
 fn a_one_instance_scene_keeps_the_constant_slots_inside_the_arrays() {
     let dir = rtprobe::tempdir::tempdir().unwrap();
     let (path, mut doc) = made_scene(dir.path());
-    let node = doc["nodes"].as_array().unwrap().iter().position(|n| n.get("mesh").is_some());
-    let node = node.expect("a node with a mesh");
+    // A node whose mesh index (the custom index) has bit 2 set: the hit stages' mask must stay
+    // the push block's (0 for one instance), not one derived from the widened slot count.
+    // (copies of the first mesh up to index 4)
+    let meshes = doc["meshes"].as_array_mut().unwrap();
+    while meshes.len() < 5 {
+        meshes.push(meshes[0].clone());
+    }
+    let mesh = 4;
+    let nodes = doc["nodes"].as_array().unwrap();
+    let node = nodes.iter().position(|n| n.get("mesh").is_some()).expect("a node with a mesh");
+    doc["nodes"][node]["mesh"] = serde_json::json!(mesh);
     doc["scenes"][0]["nodes"] = serde_json::json!([node]);
     std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
     let info = run(&["scene", "info", path.to_str().unwrap()]);
     assert!(stdout(&info).contains(" 1 instances"), "{}", stdout(&info));
     let out = dir.path().join("r.json");
     let filter = "stage=raygen|closest_hit,resource=storage_buffer|acceleration_structure,\
-                  index=spec_constant|push_constant,descriptor_model=descriptor_indexing";
+                  index=spec_constant|push_constant|dynamic,descriptor_model=descriptor_indexing";
     let o = run(&[
         "run",
         "--scene",

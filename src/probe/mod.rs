@@ -463,20 +463,18 @@ pub fn as_value(hit_custom: Option<u32>) -> [f32; 4] {
 }
 
 /// The slot `index=dynamic` selects in `stage` for pixel (x, y); in hit stages `base` ([`spec::Base::value`])
-/// plus the masked custom index of the hit.
+/// plus the custom index of the hit masked with `mask` ([`dyn_mask`], the push block's
+/// `dynMask`: not derived from `slots`, which a few-instance scene's constant slots widen);
+/// elsewhere the pixel's index modulo `slots` ([`slot_count`]).
 pub fn dynamic_slot(
     stage: Stage,
-    x: u32,
-    y: u32,
-    width: u32,
+    (x, y, width): (u32, u32, u32),
     hit_custom: u32,
     base: u32,
-    slots: u32,
+    (slots, mask): (u32, u32),
 ) -> u32 {
     match stage {
-        Stage::ClosestHit | Stage::AnyHit | Stage::Intersection => {
-            base + (hit_custom & (slots - DYNAMIC_BASE - 1))
-        }
+        Stage::ClosestHit | Stage::AnyHit | Stage::Intersection => base + (hit_custom & mask),
         Stage::Raygen | Stage::Miss | Stage::Callable | Stage::Compute => (x + y * width) % slots,
         Stage::Fragment => ((y / TILE) * (width / TILE) + x / TILE) % slots,
     }

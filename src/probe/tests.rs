@@ -172,10 +172,19 @@ fn slots_fit_the_array_and_values_are_distinct() {
         }
     }
     assert_eq!(
-        dynamic_slot(Stage::ClosestHit, 0, 0, 64, 0xfffff5, DYNAMIC_BASE, n),
+        dynamic_slot(Stage::ClosestHit, (0, 0, 64), 0xfffff5, DYNAMIC_BASE, (n, 15)),
         DYNAMIC_BASE + 5
     );
-    assert!(dynamic_slot(Stage::Fragment, 63, 63, 64, 0, DYNAMIC_BASE, n) < n);
+    assert!(dynamic_slot(Stage::Fragment, (63, 63, 64), 0, DYNAMIC_BASE, (n, 15)) < n);
+    // One instance: 8 slots for the constant ones, but the hit stages' mask stays the push
+    // block's `dynMask` (0), whatever the custom index (a mesh index with bit 2 set read slot
+    // base + 4 in the reference while the GPU read the base).
+    let (n1, m1) = (slot_count(Resource::StorageBuffer, 1), dyn_mask(Resource::StorageBuffer, 1));
+    assert_eq!((n1, m1), (PUSH_SLOT + 1, 0));
+    assert_eq!(
+        dynamic_slot(Stage::ClosestHit, (0, 0, 64), 4, DYNAMIC_BASE, (n1, m1)),
+        DYNAMIC_BASE
+    );
     let mut seen = std::collections::HashSet::new();
     for r in Resource::ALL {
         for s in 0..n {

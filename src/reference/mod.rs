@@ -263,7 +263,8 @@ struct Probed<'a> {
     scene: &'a Scene,
     sref: &'a SceneReference,
     width: u32,
-    slots: u32,
+    /// The array's slots and the hit stages' mask of the custom index (`probe::dynamic_slot`).
+    slots: (u32, u32),
     variants: u32,
     undefined: Undefined,
     buffer_disc: Vec<Option<bool>>,
@@ -319,7 +320,7 @@ impl Probed<'_> {
     /// `base-dropped` reads.
     fn masked_slot(&self, x: u32, y: u32, hit: Option<intersect::Hit>) -> u32 {
         let custom = hit.map(|h| h.instance).unwrap_or(0);
-        probe::dynamic_slot(self.spec.stage, x, y, self.width, custom, 0, self.slots)
+        probe::dynamic_slot(self.spec.stage, (x, y, self.width), custom, 0, self.slots)
     }
 
     /// The stage's runtime value at pixel (x, y): the dynamic slot, the dynamic sampler's source.
@@ -327,15 +328,8 @@ impl Probed<'_> {
         let spec = self.spec;
         let base =
             hit.map(|h| spec.base.value(h.instance_id, h.sphere)).unwrap_or(probe::DYNAMIC_BASE);
-        probe::dynamic_slot(
-            spec.stage,
-            x,
-            y,
-            self.width,
-            hit.map(|h| h.instance).unwrap_or(0),
-            base,
-            self.slots,
-        )
+        let custom = hit.map(|h| h.instance).unwrap_or(0);
+        probe::dynamic_slot(spec.stage, (x, y, self.width), custom, base, self.slots)
     }
 
     /// A scene-layout closest-hit on triangle hit `h`, at mesh slot `slot`: the scene's own
@@ -378,7 +372,7 @@ impl Probed<'_> {
         let (value, amb) = probe.value(read, p);
         e.ambiguous |= amb;
         e.record.value = value;
-        e.discriminating = (0..self.slots).all(|s| s == read || probe.value(s, p).0 != value);
+        e.discriminating = (0..self.slots.0).all(|s| s == read || probe.value(s, p).0 != value);
     }
 
     /// A buffer or image probe reading slot `read` at pixel (x, y); `dynamic` is the stage's
@@ -414,7 +408,7 @@ impl Probed<'_> {
         let (read, texel) = self.mutation.map_or((read, texel), |m| m.packed(read, texel));
         rec.value = probe::resource_value(spec.resource, read, texel);
         let k = (read * probe::ELEMENTS + texel) as usize;
-        let slots = self.slots;
+        let slots = self.slots.0;
         e.discriminating = *self.buffer_disc[k]
             .get_or_insert_with(|| buffer_value_discriminates(spec.resource, slots, read, texel));
     }
@@ -550,7 +544,7 @@ fn expected_probed(
         scene,
         sref,
         width: w,
-        slots,
+        slots: (slots, probe::dyn_mask(spec.resource, scene.params.instances)),
         variants,
         undefined,
         buffer_disc,

@@ -448,12 +448,10 @@ fn a_driver_returning_instance_id_as_custom_index_is_caught() {
                     a.custom = a.instance_id;
                     a.slot = crate::probe::dynamic_slot(
                         Stage::ClosestHit,
-                        0,
-                        0,
-                        64,
+                        (0, 0, 64),
                         a.instance_id,
                         probe::DYNAMIC_BASE,
-                        slots,
+                        (slots, probe::dyn_mask(resource, scene.params.instances)),
                     );
                     a.value = if resource == Resource::AccelerationStructure {
                         r.as_probe(scene).value(a.slot, p).0

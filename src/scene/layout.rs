@@ -83,8 +83,12 @@ pub fn fetch(scene: &Scene, mesh: usize, geometry: u32, primitive: u32) -> Fetch
 
 /// The mesh slot a custom index selects (the slot of `index=dynamic` closest-hit cells).
 pub fn slot_of(scene: &Scene, custom: u32) -> u32 {
-    let slots = probe::slot_count(Resource::StorageBuffer, scene.params.instances);
-    probe::dynamic_slot(Stage::ClosestHit, 0, 0, 0, custom, probe::DYNAMIC_BASE, slots)
+    let i = scene.params.instances;
+    let slots = (
+        probe::slot_count(Resource::StorageBuffer, i),
+        probe::dyn_mask(Resource::StorageBuffer, i),
+    );
+    probe::dynamic_slot(Stage::ClosestHit, (0, 0, 0), custom, probe::DYNAMIC_BASE, slots)
 }
 
 /// A scene whose custom indices cannot select its meshes.
