@@ -10,13 +10,21 @@
 //!
 //! The process still dies of the same signal: after writing, the handler puts back the handler
 //! it replaced (Rust's own, which tells a stack overflow from other faults) and returns, so the
-//! faulting instruction runs again under it; a signal some process sent (not a fault) is raised
-//! again with the default action. Only async-signal-safe calls in the handler: `backtrace` is
-//! called once at install so that its first call's library load happens outside it; the line is
-//! formatted on the stack; `write`, `backtrace_symbols_fd` and `sigaction` do not allocate. It runs
-//! on the thread's alternate stack where Rust made one (its main thread and the threads it
-//! spawns), so a stack overflow there still gets its line.
+//! faulting instruction runs again under it; a signal some process sent (not a fault) gets its
+//! line too, then is raised again with the default action. Only the first thread to fault writes
+//! (two threads faulting at once would interleave their frames); the others go straight on to
+//! die. The handler allocates nothing (`backtrace` is called once at install so that its first
+//! call's library load happens outside it; the line is formatted on the stack), but glibc marks
+//! `backtrace` and `backtrace_symbols_fd` AS-Unsafe (the loader's and the unwinder's locks): a fault
+//! inside `dlopen` or an unwind could hang there, and the supervisor then reports a timeout, not a
+//! crash. It runs on the thread's alternate stack where Rust made one (its main thread and the
+//! threads it spawns); that stack is small (about 8 KiB), so on a stack overflow the backtrace may
+//! itself overflow it and the process dies of SIGSEGV without Rust's overflow message.
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::OnceLock;
+
+/// A thread has written its backtrace: later faults do not write theirs.
+static WRITTEN: AtomicBool = AtomicBool::new(false);
 
 /// The fatal signals a fault raises, with the handler each had before [`install`].
 static PREVIOUS: OnceLock<Vec<(libc::c_int, libc::sigaction)>> = OnceLock::new();
@@ -59,10 +67,12 @@ extern "C" fn on_fatal(sig: libc::c_int, info: *mut libc::siginfo_t, _: *mut lib
     line.number(addr as u64, 16);
     line.push(b"); native backtrace:\n");
     let mut frames = [std::ptr::null_mut(); 64];
-    unsafe {
-        libc::write(2, line.buf.as_ptr().cast(), line.len);
-        let n = libc::backtrace(frames.as_mut_ptr(), frames.len() as libc::c_int);
-        libc::backtrace_symbols_fd(frames.as_ptr(), n, 2);
+    if !WRITTEN.swap(true, Ordering::SeqCst) {
+        unsafe {
+            libc::write(2, line.buf.as_ptr().cast(), line.len);
+            let n = libc::backtrace(frames.as_mut_ptr(), frames.len() as libc::c_int);
+            libc::backtrace_symbols_fd(frames.as_ptr(), n, 2);
+        }
     }
     let previous = PREVIOUS.get().and_then(|p| p.iter().find(|(s, _)| *s == sig));
     // A fault (the kernel's, `si_code` > 0) happens again under the previous handler on return;

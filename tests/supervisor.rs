@@ -250,7 +250,8 @@ fn a_crash_between_cells_is_recorded_and_the_rest_still_run() {
 /// A real fault (an invalid write, as a driver's crash) mid-cell: the cell's crash, and the
 /// worker's stderr tail carries its native backtrace — the signal, the address, frames naming
 /// the binary and offsets — which the report keeps. Twin of `crash` (a raised SIGSEGV, no fault
-/// address): no backtrace line there, the handler leaves signals it did not see fault alone.
+/// address): no backtrace line there — that injection puts the default action back before it
+/// raises, so the handler never runs (a raised signal with the handler in place is not tested).
 #[test]
 fn a_real_fault_mid_cell_comes_with_its_native_backtrace() {
     let (o, r, _) = fault_run("trace:fault", TWO, &[], Duration::from_secs(180));
