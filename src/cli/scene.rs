@@ -52,6 +52,10 @@ fn info(file: &std::path::Path) -> Result<u8> {
         s.images
     );
     for m in &s.meshes {
+        if m.unused {
+            outln!("  {}: no node uses it (not read)", m.name);
+            continue;
+        }
         let tris: Vec<String> = m.primitives.iter().map(|p| p.triangles.to_string()).collect();
         outln!(
             "  {}: {} vertices, primitives of {} triangles",

@@ -76,6 +76,9 @@ pub struct SceneReference {
     /// scene summary reads only `full`, and a re-run worker's cells often have no AS probe
     /// (90 ms of such a worker on lavapipe 25).
     as_probe: std::sync::OnceLock<AsProbe>,
+    /// What culls the scene's triangles, built once for the primary rays and kept for the AS
+    /// probe rays.
+    cull: intersect::Culling,
 }
 
 /// The AS probe rays of every pixel through every probe TLAS variant, and their values.
@@ -139,7 +142,7 @@ impl SceneReference {
                 .collect::<Vec<_>>()
         });
         let full = rows.into_iter().flatten().collect();
-        Self { full, as_probe: std::sync::OnceLock::new() }
+        Self { full, as_probe: std::sync::OnceLock::new(), cull }
     }
 
     pub fn ambiguous_pixels(&self) -> usize {
@@ -149,7 +152,7 @@ impl SceneReference {
     /// The AS probe rays of `scene` (the scene `full` was traced in), traced at the first call.
     pub fn as_probe(&self, scene: &Scene) -> &AsProbe {
         debug_assert_eq!(scene.params.pixels(), self.full.len(), "another scene");
-        self.as_probe.get_or_init(|| AsProbe::trace(scene))
+        self.as_probe.get_or_init(|| AsProbe::trace(scene, &self.cull))
     }
 
     /// Whether the AS probe rays have been traced.
@@ -159,8 +162,9 @@ impl SceneReference {
 }
 
 impl AsProbe {
-    /// The AS probe ray of every pixel through every variant, on every core.
-    fn trace(scene: &Scene) -> Self {
+    /// The AS probe ray of every pixel through every variant, on every core (`cull`: the
+    /// scene's, built with its reference).
+    fn trace(scene: &Scene, cull: &intersect::Culling) -> Self {
         let (w, h) = (scene.params.width, scene.params.height);
         let n = scene.instances.len() as u32;
         let variants = probe::as_variants(scene.params.instances);
@@ -171,12 +175,11 @@ impl AsProbe {
             .map(|(k, i)| (k as u32, i))
             .chain(std::iter::once((n, &scene.floor)))
             .collect();
-        let cull = intersect::Culling::of(scene);
         // One pixel: the AS probe ray through every variant.
         let pixel = |x: u32, y: u32| {
             let (o, _) = scene.primary_ray(x, y);
             let cands = intersect::candidates(
-                (scene, &cull),
+                (scene, cull),
                 o,
                 probe::PROBE_DIR,
                 with_floor.iter().copied(),

@@ -4,8 +4,15 @@
 //! packed), components little endian ("Buffers and Buffer Views"). Normalized unsigned integers
 //! become `c / 255.0` and `c / 65535.0` ("Animations", the normalization table). The sizes here
 //! are what [`super::validate`] checks every accessor's range with, before any is read; a read
-//! still checks its range, so an unvalidated accessor is an error, not a panic.
+//! still checks its range, so an unvalidated accessor is an error, not a panic. An accessor
+//! without a `bufferView` reads as zeros (the `accessor.bufferView` schema: "When undefined, the
+//! accessor MUST be initialized with zeros; `sparse` property or extensions MAY override zeros
+//! with actual values"; a sparse one is refused before this, in `open`).
 use super::doc::{Accessor, Root};
+
+/// The bytes of any element of an accessor without a `bufferView`: the largest element (MAT4
+/// of floats) is 64 bytes.
+static ZEROS: [u8; 64] = [0; 64];
 
 pub(super) const I8: u32 = 5120;
 pub(super) const U8: u32 = 5121;
@@ -89,13 +96,22 @@ impl Elements<'_> {
     }
 }
 
-/// Accessor `index`'s elements, or why they cannot be read (one line): it is missing, has no
-/// buffer view, or its last element lies past its view or buffer.
+/// Accessor `index`'s elements, or why they cannot be read (one line): it is missing, names a
+/// buffer view that is not there, or its last element lies past its view or buffer. Without a
+/// buffer view every element is [`ZEROS`] (stride 0).
 fn elements<'a>(root: &Root, buffers: &'a [Vec<u8>], index: usize) -> Result<Elements<'a>, String> {
     let a: &Accessor = root.accessors.get(index).ok_or(format!("no accessor {index}"))?;
     let size = element_size(a.component_type, &a.kind)
         .ok_or(format!("accessor {index}: unknown componentType or type"))?;
-    let v = a.buffer_view.ok_or(format!("accessor {index}: no bufferView"))?;
+    let Some(v) = a.buffer_view else {
+        return Ok(Elements {
+            bytes: &ZEROS[..size as usize],
+            stride: 0,
+            count: a.count as usize,
+            component_type: a.component_type,
+            normalized: a.normalized,
+        });
+    };
     let view = root.buffer_views.get(v).ok_or(format!("accessor {index}: no bufferView {v}"))?;
     let stride = view.byte_stride.unwrap_or(size);
     let span = a

@@ -88,3 +88,18 @@ fn reads_past_a_range_are_errors() {
     assert!(vec3(&doc(narrow, a(2, 0)), &bytes(), 0).is_err(), "stride below 12 bytes");
     assert!(vec3(&doc(view, a(1, 0)), &bytes(), 1).unwrap_err().contains("no accessor 1"));
 }
+
+/// Without a `bufferView` every element is zeros, whatever its type, and no buffer is needed.
+#[test]
+fn an_accessor_without_a_view_reads_zeros() {
+    let root = |kind: &str, count: u64| -> Root {
+        serde_json::from_value(serde_json::json!({
+            "asset": {"version": "2.0"},
+            "accessors": [{"componentType": F32, "count": count, "type": kind}],
+        }))
+        .unwrap()
+    };
+    assert_eq!(vec3(&root("VEC3", 3), &[], 0).unwrap(), [[0.0; 3]; 3]);
+    assert_eq!(vec2(&root("VEC2", 2), &[], 0).unwrap(), [[0.0; 2]; 2]);
+    assert_eq!(element_size(F32, "MAT4"), Some(ZEROS.len() as u64), "the largest element fits");
+}

@@ -25,6 +25,9 @@ pub struct Primitive {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct LoadedMesh {
     pub name: String,
+    /// No node of the default scene uses it: not read (a mesh of lines or points that no node
+    /// places does not refuse the file), every list empty.
+    pub unused: bool,
     pub positions: Vec<[f32; 3]>,
     /// Empty when a primitive has no normals (none then has them here).
     pub normals: Vec<[f32; 3]>,
@@ -63,6 +66,19 @@ struct Read {
 const MODES: [&str; 7] =
     ["Points", "Lines", "LineLoop", "LineStrip", "Triangles", "TriangleStrip", "TriangleFan"];
 
+/// `mesh N` or `mesh N (name)`.
+fn name(root: &Root, index: usize) -> String {
+    root.meshes[index]
+        .name
+        .as_ref()
+        .map_or_else(|| format!("mesh {index}"), |n| format!("mesh {index} ({n})"))
+}
+
+/// Mesh `index`, which no node uses: named, nothing read.
+pub(super) fn unused(root: &Root, index: usize) -> LoadedMesh {
+    LoadedMesh { name: name(root, index), unused: true, ..Default::default() }
+}
+
 /// Mesh `index` of `root`, validated ([`super::validate`]), read from `buffers`.
 pub(super) fn read(
     path: &Path,
@@ -71,10 +87,7 @@ pub(super) fn read(
     buffers: &[Vec<u8>],
 ) -> Result<LoadedMesh, LoadError> {
     let mesh = &root.meshes[index];
-    let name = mesh
-        .name
-        .as_ref()
-        .map_or_else(|| format!("mesh {index}"), |n| format!("mesh {index} ({n})"));
+    let name = name(root, index);
     let mut out = LoadedMesh { name: name.clone(), ..Default::default() };
     let (mut all_normals, mut all_uvs) = (true, true);
     let mut reads = Vec::new();
@@ -106,7 +119,7 @@ pub(super) fn read(
 
 /// One triangle primitive's vertices and indices; NORMAL and TEXCOORD_0 kept only when they have
 /// one element per position (glTF 2.0, "Meshes": all attribute accessors MUST have the same
-/// count; one that does not is dropped, not read past).
+/// count; one that does not is dropped, not read past), zeros where they have no bufferView.
 fn read_primitive(
     path: &Path,
     part: &str,
@@ -127,6 +140,15 @@ fn read_primitive(
     let pos = a.position.ok_or_else(|| {
         fail("no POSITION attribute; export the mesh again with positions".into())
     })?;
+    // An accessor without a bufferView is zeros (valid glTF 2.0): positions or indices of zeros
+    // make no triangle, and their count would bound no read by the file's size.
+    let viewless = |k: usize| root.accessors.get(k).is_some_and(|a| a.buffer_view.is_none());
+    if viewless(pos) {
+        return Err(fail(format!("POSITION accessor {pos} has no bufferView, so every vertex is zero (valid glTF 2.0, no triangle to trace); export the mesh with its positions")));
+    }
+    if let Some(i) = p.indices.filter(|&i| viewless(i)) {
+        return Err(fail(format!("indices accessor {i} has no bufferView, so every index is zero (valid glTF 2.0, no triangle to trace); export the mesh with its indices")));
+    }
     let positions = accessor::vec3(root, buffers, pos).map_err(fail)?;
     let n = positions.len() as u32;
     let flat: Vec<u32> = match p.indices {
@@ -139,14 +161,16 @@ fn read_primitive(
     if let Some(bad) = flat.iter().find(|i| **i >= n) {
         return Err(fail(format!("index {bad} past its {n} vertices")));
     }
-    let same = |v: &Vec<_>| v.len() == positions.len();
-    let normals = match a.normal {
-        Some(k) => Some(accessor::vec3(root, buffers, k).map_err(fail)?).filter(same),
+    // Counted before reading: a NORMAL or TEXCOORD_0 without a bufferView (zeros) is then never
+    // longer than the positions the file holds.
+    let same =
+        |k: &usize| root.accessors.get(*k).is_some_and(|a| a.count == positions.len() as u64);
+    let normals = match a.normal.filter(same) {
+        Some(k) => Some(accessor::vec3(root, buffers, k).map_err(fail)?),
         None => None,
     };
-    let uvs = match a.texcoord0 {
-        Some(k) => Some(accessor::vec2(root, buffers, k).map_err(fail)?)
-            .filter(|v| v.len() == positions.len()),
+    let uvs = match a.texcoord0.filter(same) {
+        Some(k) => Some(accessor::vec2(root, buffers, k).map_err(fail)?),
         None => None,
     };
     let indices = flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();

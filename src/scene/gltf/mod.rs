@@ -43,16 +43,21 @@ pub struct Loaded {
 }
 
 impl Loaded {
-    /// Read `path`: the document, validated, its buffers, meshes, nodes and materials; no image
-    /// is decoded.
+    /// Read `path`: the document, validated, its buffers, nodes, the meshes they use (the others
+    /// [`LoadedMesh::unused`]) and materials; no image is decoded.
     pub fn load(path: &Path) -> Result<Loaded, LoadError> {
         let open::Opened { root, buffers } = open::open(path)?;
-        let meshes = (0..root.meshes.len())
-            .map(|m| mesh::read(path, &root, m, &buffers))
-            .collect::<Result<Vec<_>, _>>()?;
         let (instances, camera) = nodes::walk(&root).map_err(|n| {
             LoadError::part(path, format!("node {n}"), "reached twice: the node hierarchy must be disjoint trees (glTF 2.0, nodes); fix the exporter's children lists")
         })?;
+        // Only the meshes a node places are read: one no node uses cannot refuse the file.
+        let used: std::collections::HashSet<usize> = instances.iter().map(|i| i.mesh).collect();
+        let meshes = (0..root.meshes.len())
+            .map(|m| match used.contains(&m) {
+                true => mesh::read(path, &root, m, &buffers),
+                false => Ok(mesh::unused(&root, m)),
+            })
+            .collect::<Result<Vec<_>, _>>()?;
         if instances.iter().all(|i| meshes[i.mesh].indices.is_empty()) {
             return Err(LoadError::Empty { path: path.to_path_buf() });
         }

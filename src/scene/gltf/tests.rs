@@ -322,3 +322,85 @@ fn a_sparse_accessor_is_named_as_a_part_not_as_a_broken_file() {
     });
     assert!(broken.contains("is not glTF 2.0"), "{broken}");
 }
+
+/// The scene `make` writes, its JSON edited by `edit`, loaded.
+fn load_edited(edit: impl Fn(&mut serde_json::Value)) -> Result<Loaded, String> {
+    let (_dir, path) = scene(false);
+    let mut doc: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    edit(&mut doc);
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    Loaded::load(&path).map_err(|e| e.to_string())
+}
+
+/// An accessor without a `bufferView` is zeros (the `accessor.bufferView` schema: "When
+/// undefined, the accessor MUST be initialized with zeros"): a NORMAL or TEXCOORD_0 so loads as
+/// zeros, and is dropped, never read, where its count is not the positions' (2^40 here: no
+/// allocation of it). Twins: the same edit on POSITION or on the indices is refused in one line
+/// (every vertex or index zero: no triangle to trace), and the file as written has no zeros.
+#[test]
+fn an_accessor_without_a_buffer_view_is_zeros() {
+    let attr = |d: &serde_json::Value, name: &str| {
+        d["meshes"][0]["primitives"][0]["attributes"][name].as_u64().unwrap() as usize
+    };
+    let plain = load_edited(|_| {}).unwrap();
+    assert!(plain.meshes[0].normals.iter().any(|n| *n != [0.0; 3]));
+    assert!(plain.meshes[0].uvs.iter().any(|t| *t != [0.0; 2]));
+    let zeros = load_edited(|d| {
+        for name in ["NORMAL", "TEXCOORD_0"] {
+            let k = attr(d, name);
+            d["accessors"][k].as_object_mut().unwrap().remove("bufferView");
+        }
+    })
+    .unwrap();
+    let m = &zeros.meshes[0];
+    assert_eq!((m.normals.len(), m.uvs.len()), (m.positions.len(), m.positions.len()));
+    assert!(m.normals.iter().all(|n| *n == [0.0; 3]) && m.uvs.iter().all(|t| *t == [0.0; 2]));
+    let huge = load_edited(|d| {
+        let k = attr(d, "NORMAL");
+        d["accessors"][k].as_object_mut().unwrap().remove("bufferView");
+        d["accessors"][k]["count"] = serde_json::json!(1u64 << 40);
+    })
+    .unwrap();
+    assert!(huge.meshes[0].normals.is_empty(), "a count unlike the positions' is dropped");
+    let positions = edited(|d| {
+        let k = attr(d, "POSITION");
+        d["accessors"][k].as_object_mut().unwrap().remove("bufferView");
+    });
+    assert!(
+        positions.contains("POSITION accessor") && positions.contains("no bufferView"),
+        "{positions}"
+    );
+    let indices = edited(|d| {
+        let k = d["meshes"][0]["primitives"][0]["indices"].as_u64().unwrap() as usize;
+        d["accessors"][k].as_object_mut().unwrap().remove("bufferView");
+    });
+    assert!(indices.contains("indices accessor") && indices.contains("no bufferView"), "{indices}");
+}
+
+/// A mesh no node uses is not read: one of lines loads (named unused, empty), and the file's
+/// other meshes are as before. Twin: the same mesh placed by a node refuses the file.
+#[test]
+fn a_mesh_no_node_uses_is_not_read() {
+    let add_lines = |d: &mut serde_json::Value| {
+        let mut lines = d["meshes"][0].clone();
+        lines["primitives"][0]["mode"] = serde_json::json!(1);
+        lines["name"] = serde_json::json!("debug lines");
+        d["meshes"].as_array_mut().unwrap().push(lines);
+    };
+    let s = load_edited(add_lines).unwrap();
+    let last = s.meshes.last().unwrap();
+    assert!(last.unused && last.positions.is_empty() && last.primitives.is_empty(), "{last:?}");
+    assert!(s.meshes[..s.meshes.len() - 1].iter().all(|m| !m.unused && !m.indices.is_empty()));
+    let placed = edited(|d| {
+        add_lines(d);
+        let m = d["meshes"].as_array().unwrap().len() - 1;
+        d["nodes"].as_array_mut().unwrap().push(serde_json::json!({"mesh": m}));
+        let n = d["nodes"].as_array().unwrap().len() - 1;
+        d["scenes"][0]["nodes"].as_array_mut().unwrap().push(serde_json::json!(n));
+    });
+    assert!(
+        placed.contains("(debug lines), primitive 0") && placed.contains("not triangles"),
+        "{placed}"
+    );
+}

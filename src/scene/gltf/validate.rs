@@ -87,7 +87,8 @@ fn buffers(root: &Root) -> Result<(), String> {
     Ok(())
 }
 
-/// Each accessor's types known, its view named, its last element inside its view.
+/// Each accessor's types known, its count at least 1, its view (where it names one) there and its
+/// last element inside that view.
 fn accessors(root: &Root) -> Result<(), String> {
     for (i, a) in root.accessors.iter().enumerate() {
         let at = |field: &str| format!("accessors[{i}].{field}");
@@ -99,16 +100,14 @@ fn accessors(root: &Root) -> Result<(), String> {
         }
         let size = element_size(a.component_type, &a.kind)
             .ok_or_else(|| bad(at("type"), format!("\"{}\", not SCALAR, VECn or MATn", a.kind)))?;
-        let Some(v) = a.buffer_view else {
-            if a.sparse.is_none() {
-                return Err(bad(at("bufferView"), "missing (it has no sparse either)"));
-            }
-            continue;
-        };
-        index(|| at("bufferView"), "bufferView", v, root.buffer_views.len())?;
         if a.count == 0 {
             return Err(bad(at("count"), "0 (at least 1)"));
         }
+        // No bufferView: zeros (the `accessor.bufferView` schema), nothing to hold to a view.
+        let Some(v) = a.buffer_view else {
+            continue;
+        };
+        index(|| at("bufferView"), "bufferView", v, root.buffer_views.len())?;
         let view = &root.buffer_views[v];
         let stride = view.byte_stride.unwrap_or(size);
         if stride < size {
