@@ -56,17 +56,11 @@ fn last_line(s: &str) -> &str {
 }
 
 /// One report shared by the report and repro tests: a two-axis injected predicate.
-fn shared() -> &'static (rtprobe::tempdir::TempDir, PathBuf) {
-    static S: OnceLock<(rtprobe::tempdir::TempDir, PathBuf)> = OnceLock::new();
+fn shared() -> &'static (PathBuf, PathBuf) {
+    static S: OnceLock<(PathBuf, PathBuf)> = OnceLock::new();
     S.get_or_init(|| {
-        let dir = rtprobe::tempdir::tempdir().unwrap();
-        let r = run_report(
-            dir.path(),
-            "two-axis.json",
-            SCOPE,
-            &["stage=closest_hit,index=dynamic"],
-            &[],
-        );
+        let dir = tempdir_until_exit();
+        let r = run_report(&dir, "two-axis.json", SCOPE, &["stage=closest_hit,index=dynamic"], &[]);
         (dir, r)
     })
 }
@@ -279,7 +273,7 @@ fn the_issue_has_every_section() {
     let (dir, report) = shared();
     let (_, j) = shared_bisect();
     let bis = report.with_extension("bisect.json");
-    let md = dir.path().join("issue.md");
+    let md = dir.join("issue.md");
     let o = run(&[
         "report",
         report.to_str().unwrap(),
@@ -366,8 +360,8 @@ fn the_issue_has_every_section() {
     }
     // Bad input and unwritable output: one line, exit 9, no file.
     assert_one_line_error(&run(&["report", "/nonexistent/r.json"]), 9, "cannot read");
-    let bad = dir.path().join("no/such/dir");
-    std::fs::write(dir.path().join("no"), b"a file").unwrap();
+    let bad = dir.join("no/such/dir");
+    std::fs::write(dir.join("no"), b"a file").unwrap();
     assert_one_line_error(
         &run(&["report", report.to_str().unwrap(), "-o", bad.join("i.md").to_str().unwrap()]),
         9,
@@ -391,7 +385,7 @@ fn a_repro_bundle_reruns_its_cell_with_the_same_verdict() {
         let want = r["cells"].as_array().unwrap().iter().find(|c| c["id"] == id).unwrap()
             ["outcome"]
             .clone();
-        let b = dir.path().join(format!("repro-{id}"));
+        let b = dir.join(format!("repro-{id}"));
         let o = run(&["repro", id, "--from", report.to_str().unwrap(), "-o", b.to_str().unwrap()]);
         assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
         for f in [
@@ -641,9 +635,9 @@ fn another_card_of_the_same_driver_bisects_and_another_driver_build_is_refused()
     let (dir, shared_report) = shared();
     let mut r = json_file(shared_report);
     r["device"]["device_uuid"] = Value::from("00000000000000000000000000000000");
-    let other_card = dir.path().join("other-card.json");
+    let other_card = dir.join("other-card.json");
     std::fs::write(&other_card, serde_json::to_vec(&r).unwrap()).unwrap();
-    let json = dir.path().join("other-card.bisect.json");
+    let json = dir.join("other-card.bisect.json");
     let o = run(&[
         "bisect",
         other_card.to_str().unwrap(),
@@ -681,7 +675,7 @@ fn another_card_of_the_same_driver_bisects_and_another_driver_build_is_refused()
     assert!(same.get("device_uuid_rerun").is_none(), "{same}");
     // Twin: a different driver build is not the device the fault was seen on.
     r["device"]["driver_uuid"] = Value::from("00000000000000000000000000000000");
-    let other_driver = dir.path().join("other-driver.json");
+    let other_driver = dir.join("other-driver.json");
     std::fs::write(&other_driver, serde_json::to_vec(&r).unwrap()).unwrap();
     assert_one_line_error(
         &run(&["bisect", other_driver.to_str().unwrap()]),

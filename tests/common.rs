@@ -27,8 +27,57 @@ pub fn bin_at(exe: &std::path::Path) -> Command {
 pub fn cache_dir() -> std::path::PathBuf {
     match std::env::var_os("RTPROBE_TEST_CACHE_DIR") {
         Some(d) if !d.is_empty() => d.into(),
-        _ => std::env::temp_dir().join(format!("rtprobe-test-cache-{}", std::process::id())),
+        _ => {
+            let dir =
+                std::env::temp_dir().join(format!("rtprobe-test-cache-{}", std::process::id()));
+            static ONCE: std::sync::Once = std::sync::Once::new();
+            // This process's own cache, removed with the shared folders when it exits.
+            ONCE.call_once(|| remove_when_exiting(Removal::Path(dir.clone())));
+            dir
+        }
     }
+}
+
+/// A folder removed when this test process exits.
+enum Removal {
+    /// Removed by its drop.
+    Temp(rtprobe::tempdir::TempDir),
+    Path(std::path::PathBuf),
+}
+
+/// Folders removed when this test process exits. A `static` is never dropped, so a `TempDir` a
+/// suite shares through one (made once, read by several tests) used to stay in /tmp after every
+/// run (bisect's shared report with its bundles and dumps: 50 MB a run), and so did the
+/// per-process cache folder.
+static AT_EXIT: std::sync::Mutex<Vec<Removal>> = std::sync::Mutex::new(Vec::new());
+
+fn remove_when_exiting(r: Removal) {
+    static REGISTERED: std::sync::Once = std::sync::Once::new();
+    REGISTERED.call_once(|| {
+        // SAFETY: `remove_at_exit` is a plain `extern "C" fn()`.
+        unsafe { libc::atexit(remove_at_exit) };
+    });
+    AT_EXIT.lock().unwrap_or_else(|e| e.into_inner()).push(r);
+}
+
+extern "C" fn remove_at_exit() {
+    for r in std::mem::take(&mut *AT_EXIT.lock().unwrap_or_else(|e| e.into_inner())) {
+        match r {
+            Removal::Temp(dir) => drop(dir),
+            Removal::Path(p) => {
+                let _ = std::fs::remove_dir_all(p);
+            }
+        }
+    }
+}
+
+/// A fresh temporary folder that lives until this test process exits (the test harness returns
+/// from `main`, or exits on a failure: both run `atexit` handlers), for a `static` to share.
+pub fn tempdir_until_exit() -> std::path::PathBuf {
+    let dir = rtprobe::tempdir::tempdir().expect("a temporary folder");
+    let path = dir.path().to_path_buf();
+    remove_when_exiting(Removal::Temp(dir));
+    path
 }
 
 pub fn run(args: &[&str]) -> Output {

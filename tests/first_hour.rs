@@ -287,12 +287,11 @@ fn resuming_a_complete_report_runs_no_cell_again() {
 /// `run --filter SMALL --inject-fault CRASH` as a CI log gets it (progress every line, `CI=true`:
 /// output only, the run is the same): its output and report, made once for the CI-log test and as
 /// the baseline of the merge test.
-fn crash_run() -> &'static (rtprobe::tempdir::TempDir, std::process::Output, PathBuf) {
-    static R: OnceLock<(rtprobe::tempdir::TempDir, std::process::Output, PathBuf)> =
-        OnceLock::new();
+fn crash_run() -> &'static (PathBuf, std::process::Output, PathBuf) {
+    static R: OnceLock<(PathBuf, std::process::Output, PathBuf)> = OnceLock::new();
     R.get_or_init(|| {
-        let dir = rtprobe::tempdir::tempdir().unwrap();
-        let r = dir.path().join("r.json");
+        let dir = tempdir_until_exit();
+        let r = dir.join("r.json");
         let o = run_env(
             &["run", "--filter", SMALL, "--inject-fault", CRASH, "-o", r.to_str().unwrap()],
             &[("RTPROBE_PROGRESS_SECS", "0"), ("CI", "true")],
