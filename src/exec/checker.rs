@@ -230,6 +230,25 @@ mod tests {
         assert!(checker.try_take().is_none());
     }
 
+    /// The checker holds the stages where the device lists subgroup ballot: an index-broadcast
+    /// mutant's prediction needs its stage among them (`World::mutation`), so a checker without
+    /// that copy would judge the mutant with no prediction. Twin: listed, it has one.
+    #[test]
+    fn a_broadcast_mutants_prediction_needs_the_ballot_stages_the_checker_holds() {
+        let model = DescriptorModel::DescriptorIndexing;
+        let mut c = Cell::new(Stage::Raygen, Resource::StorageBuffer, IndexSource::Dynamic, model);
+        c.nonuniform = true;
+        c.mutant = Some(crate::model::Mutant::IndexBroadcast);
+        let records = correct(&owned(), &c);
+        for (ballot, want) in [(vec![], false), (vec![Stage::Miss, Stage::Raygen], true)] {
+            let mut checker = Checker::of(Owned { ballot: ballot.clone(), ..owned() }).unwrap();
+            checker.submit(traced(c, records.clone()));
+            let (r, _) = checker.take().unwrap();
+            let predicted = r.comparison.as_ref().is_some_and(|cmp| cmp.mutant.is_some());
+            assert_eq!(predicted, want, "ballot in {ballot:?}: {:?}", r.detail);
+        }
+    }
+
     #[test]
     fn a_result_not_judged_yet_is_not_taken_without_waiting() {
         let (go, wait) = mpsc::channel::<()>();

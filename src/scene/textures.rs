@@ -75,13 +75,15 @@ impl SceneTextures {
 
 impl SceneTextures {
     /// A glTF file's: each primitive's material's base-colour image (none for a primitive
-    /// without a material or texture), then the AS probe's floor quad's two untextured entries
-    /// (`Scene::with_meshes` puts it after the file's meshes).
+    /// without a material or texture) of each mesh a node places, then the AS probe's floor
+    /// quad's two untextured entries (`Scene::with_meshes` puts it after the file's meshes).
     pub fn of_file(loaded: Loaded) -> SceneTextures {
         let image = |m: Option<usize>| m.and_then(|k| loaded.materials[k].base_color_image);
+        // Per BLAS, as `fit::to_scene` makes them: the meshes a node places, in file order.
         let mut geometry_image: Vec<Vec<Option<usize>>> = loaded
             .meshes
             .iter()
+            .filter(|m| !m.unused)
             .map(|m| m.primitives.iter().map(|p| image(p.material)).collect())
             .collect();
         geometry_image.push(vec![None; 2]);

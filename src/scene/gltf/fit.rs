@@ -52,17 +52,26 @@ fn rows(m: Mat4) -> [[f32; 4]; 3] {
 /// The loaded scene as a [`Scene`]: each glTF mesh one BLAS, its primitives the geometries; one
 /// instance per node with a mesh, custom index the mesh's index; `params`' image size and seed.
 pub fn to_scene(loaded: &Loaded, params: &SceneParams) -> Scene {
+    // Only the meshes a node places: one no node uses (`LoadedMesh::unused`, empty) would be a
+    // BLAS of no geometry. `slot[m]`: glTF mesh m's place among them.
+    let mut slot = vec![usize::MAX; loaded.meshes.len()];
     let meshes = loaded
         .meshes
         .iter()
-        .map(|m| Mesh {
-            positions: m.positions.clone(),
-            indices: (0..m.triangle_count()).map(|t| m.triangle(t)).collect(),
-            geometries: m
-                .primitives
-                .iter()
-                .map(|p| p.first_triangle..p.first_triangle + p.triangles)
-                .collect(),
+        .enumerate()
+        .filter(|(_, m)| !m.unused)
+        .enumerate()
+        .map(|(k, (m, mesh))| {
+            slot[m] = k;
+            Mesh {
+                positions: mesh.positions.clone(),
+                indices: (0..mesh.triangle_count()).map(|t| mesh.triangle(t)).collect(),
+                geometries: mesh
+                    .primitives
+                    .iter()
+                    .map(|p| p.first_triangle..p.first_triangle + p.triangles)
+                    .collect(),
+            }
         })
         .collect();
     let v = view(loaded);
@@ -71,8 +80,9 @@ pub fn to_scene(loaded: &Loaded, params: &SceneParams) -> Scene {
         .iter()
         .map(|i| Instance {
             transform: rows(v * i.world),
+            // The file's mesh index, as the user knows it.
             custom_index: i.mesh as u32,
-            geometry: Geometry::Mesh(i.mesh),
+            geometry: Geometry::Mesh(slot[i.mesh]),
         })
         .collect();
     Scene::with_meshes(params, meshes, instances)

@@ -402,5 +402,47 @@ fn a_mesh_no_node_uses_is_not_read() {
     assert!(
         placed.contains("(debug lines), primitive 0") && placed.contains("not triangles"),
         "{placed}"
-    );
+    ); // Unnamed by any node, its accessors are not held to what rtprobe reads (sparse: valid glTF
+       // 2.0 it does not read); the sparse test above is the twin for a mesh a node places.
+    let sparse = load_edited(|d| {
+        add_lines(d);
+        let pos = d["meshes"][0]["primitives"][0]["attributes"]["POSITION"].as_u64().unwrap();
+        let mut copy = d["accessors"][pos as usize].clone();
+        copy["sparse"] = serde_json::json!({"count": 1});
+        d["accessors"].as_array_mut().unwrap().push(copy);
+        let k = d["accessors"].as_array().unwrap().len() - 1;
+        let last = d["meshes"].as_array().unwrap().len() - 1;
+        d["meshes"][last]["primitives"][0]["attributes"]["POSITION"] = serde_json::json!(k);
+    });
+    assert!(sparse.is_ok_and(|s| s.meshes.last().unwrap().unused));
+}
+
+/// An unused mesh before the used ones: the fitted scene has a BLAS for each mesh a node places
+/// and none for it (no empty one), each instance on its own mesh's triangles and its custom
+/// index still the file's mesh index; the texture table has an entry per BLAS.
+#[test]
+fn an_unused_mesh_first_is_no_blas_and_shifts_no_instance() {
+    let s = load_edited(|d| {
+        let mut lines = d["meshes"][0].clone();
+        lines["primitives"][0]["mode"] = serde_json::json!(1);
+        d["meshes"].as_array_mut().unwrap().insert(0, lines);
+        for n in d["nodes"].as_array_mut().unwrap() {
+            if let Some(m) = n["mesh"].as_u64() {
+                n["mesh"] = serde_json::json!(m + 1);
+            }
+        }
+    })
+    .unwrap();
+    assert!(s.meshes[0].unused);
+    let scene = fit::to_scene(&s, &SceneParams::default());
+    assert_eq!(scene.meshes.len(), 4, "three meshes and the floor");
+    assert!(scene.meshes.iter().all(|m| !m.indices.is_empty() && !m.geometries.is_empty()));
+    for (inst, node) in scene.instances.iter().zip(&s.instances) {
+        let crate::scene::Geometry::Mesh(g) = inst.geometry else { panic!("a mesh instance") };
+        assert_eq!(scene.meshes[g].indices.len() as u32, s.meshes[node.mesh].triangle_count());
+        assert_eq!(scene.meshes[g].positions, s.meshes[node.mesh].positions);
+        assert_eq!(inst.custom_index, node.mesh as u32);
+    }
+    let textures = crate::scene::textures::SceneTextures::of_file(s);
+    assert_eq!(textures.geometry_image.len(), scene.meshes.len(), "one entry per BLAS");
 }

@@ -133,6 +133,10 @@ fn accessors(root: &Root) -> Result<(), String> {
 
 /// Each primitive's accessors and material named, of the types their semantics allow.
 fn meshes(root: &Root) -> Result<(), String> {
+    // A sparse accessor (valid glTF 2.0) refuses only a mesh some node names: one no node names
+    // is never read (`Loaded::load`), so it cannot refuse the file.
+    let named: std::collections::HashSet<usize> =
+        root.nodes.iter().filter_map(|n| n.mesh).collect();
     for (m, mesh) in root.meshes.iter().enumerate() {
         for (p, prim) in mesh.primitives.iter().enumerate() {
             let at = |field: &str| format!("meshes[{m}].primitives[{p}].{field}");
@@ -142,7 +146,7 @@ fn meshes(root: &Root) -> Result<(), String> {
             if let Some(k) = prim.material {
                 index(|| at("material"), "material", k, root.materials.len())?;
             }
-            primitive(root, prim, &at)?;
+            primitive(root, prim, &at, named.contains(&m))?;
         }
     }
     Ok(())
@@ -160,19 +164,26 @@ const FLOAT_VEC3: Allowed = Allowed { kind: "VEC3", types: &[F32], normalized_in
 const TEXCOORD: Allowed = Allowed { kind: "VEC2", types: &[F32, U8, U16], normalized_ints: true };
 const INDICES: Allowed = Allowed { kind: "SCALAR", types: &[U8, U16, U32], normalized_ints: false };
 
-fn primitive(root: &Root, prim: &Primitive, at: &dyn Fn(&str) -> String) -> Result<(), String> {
+/// `read`: whether the loader may read the primitive (its mesh named by a node): only then is a
+/// sparse accessor refused.
+fn primitive(
+    root: &Root,
+    prim: &Primitive,
+    at: &dyn Fn(&str) -> String,
+    read: bool,
+) -> Result<(), String> {
     let n = root.accessors.len();
     let attrs = &prim.attributes;
-    let read = [
+    let semantics = [
         ("attributes.POSITION", attrs.position, &FLOAT_VEC3),
         ("attributes.NORMAL", attrs.normal, &FLOAT_VEC3),
         ("attributes.TEXCOORD_0", attrs.texcoord0, &TEXCOORD),
         ("indices", prim.indices, &INDICES),
     ];
-    for (field, a, allowed) in read {
+    for (field, a, allowed) in semantics {
         let Some(a) = a else { continue };
         index(|| at(field), "accessor", a, n)?;
-        semantic(&root.accessors[a], allowed)
+        semantic(&root.accessors[a], allowed, read)
             .map_err(|what| bad(at(field), format!("accessor {a}: {what}")))?;
     }
     if let Some(a) = prim.indices.and_then(|a| root.accessors[a].buffer_view) {
@@ -191,8 +202,9 @@ fn primitive(root: &Root, prim: &Primitive, at: &dyn Fn(&str) -> String) -> Resu
     Ok(())
 }
 
-/// `a` is of a type `allowed`, and dense (rtprobe does not read sparse accessors).
-fn semantic(a: &Accessor, allowed: &Allowed) -> Result<(), String> {
+/// `a` is of a type `allowed`, and dense where it is `read` (rtprobe does not read sparse
+/// accessors).
+fn semantic(a: &Accessor, allowed: &Allowed, read: bool) -> Result<(), String> {
     let int = a.component_type != F32;
     if a.kind != allowed.kind
         || !allowed.types.contains(&a.component_type)
@@ -204,7 +216,7 @@ fn semantic(a: &Accessor, allowed: &Allowed) -> Result<(), String> {
             a.kind, a.component_type
         ));
     }
-    if a.sparse.is_some() {
+    if read && a.sparse.is_some() {
         return Err(SPARSE.into());
     }
     Ok(())
