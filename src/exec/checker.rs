@@ -230,9 +230,10 @@ mod tests {
         assert!(checker.try_take().is_none());
     }
 
-    /// The checker holds the stages where the device lists subgroup ballot: an index-broadcast
-    /// mutant's prediction needs its stage among them (`World::mutation`), so a checker without
-    /// that copy would judge the mutant with no prediction. Twin: listed, it has one.
+    /// A checker judges with the ballot stages it holds (`Owned::ballot`, what `Checker::start`
+    /// copies from the executor): an index-broadcast mutant has its prediction only where its own
+    /// stage is among them (`World::mutation`). Twins: none listed, or another stage only, and
+    /// it has none.
     #[test]
     fn a_broadcast_mutants_prediction_needs_the_ballot_stages_the_checker_holds() {
         let model = DescriptorModel::DescriptorIndexing;
@@ -240,7 +241,9 @@ mod tests {
         c.nonuniform = true;
         c.mutant = Some(crate::model::Mutant::IndexBroadcast);
         let records = correct(&owned(), &c);
-        for (ballot, want) in [(vec![], false), (vec![Stage::Miss, Stage::Raygen], true)] {
+        let cases =
+            [(vec![], false), (vec![Stage::Miss], false), (vec![Stage::Miss, Stage::Raygen], true)];
+        for (ballot, want) in cases {
             let mut checker = Checker::of(Owned { ballot: ballot.clone(), ..owned() }).unwrap();
             checker.submit(traced(c, records.clone()));
             let (r, _) = checker.take().unwrap();

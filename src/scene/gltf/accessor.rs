@@ -7,7 +7,8 @@
 //! still checks its range, so an unvalidated accessor is an error, not a panic. An accessor
 //! without a `bufferView` reads as zeros (the `accessor.bufferView` schema: "When undefined, the
 //! accessor MUST be initialized with zeros; `sparse` property or extensions MAY override zeros
-//! with actual values"; a sparse one is refused before this, in `open`).
+//! with actual values"; a sparse one is refused, by validation where a read mesh holds it, and
+//! here).
 use super::doc::{Accessor, Root};
 
 /// The bytes of any element of an accessor without a `bufferView`: the largest element (MAT4
@@ -103,6 +104,11 @@ fn elements<'a>(root: &Root, buffers: &'a [Vec<u8>], index: usize) -> Result<Ele
     let a: &Accessor = root.accessors.get(index).ok_or(format!("no accessor {index}"))?;
     let size = element_size(a.component_type, &a.kind)
         .ok_or(format!("accessor {index}: unknown componentType or type"))?;
+    // Validation refuses it where a read mesh holds it; here too, so that no path reads a
+    // sparse accessor's base values (or zeros) as if they were its elements.
+    if a.sparse.is_some() {
+        return Err(format!("accessor {index}: sparse, which rtprobe does not read"));
+    }
     let Some(v) = a.buffer_view else {
         return Ok(Elements {
             bytes: &ZEROS[..size as usize],

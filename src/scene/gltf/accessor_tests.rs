@@ -103,3 +103,13 @@ fn an_accessor_without_a_view_reads_zeros() {
     assert_eq!(vec2(&root("VEC2", 2), &[], 0).unwrap(), [[0.0; 2]; 2]);
     assert_eq!(element_size(F32, "MAT4"), Some(ZEROS.len() as u64), "the largest element fits");
 }
+
+/// A sparse accessor is never read, with a view or without one (its base values or zeros are not
+/// its elements).
+#[test]
+fn a_sparse_accessor_is_refused_by_the_read_itself() {
+    let view = serde_json::json!({"buffer": 0, "byteLength": 24});
+    let a = serde_json::json!({"bufferView": 0, "componentType": F32, "count": 2, "type": "VEC3", "sparse": {"count": 1}});
+    let e = vec3(&doc(view, a), &bytes(), 0).unwrap_err();
+    assert!(e.contains("sparse"), "{e}");
+}

@@ -138,6 +138,10 @@ fn meshes(root: &Root) -> Result<(), String> {
     let named: std::collections::HashSet<usize> =
         root.nodes.iter().filter_map(|n| n.mesh).collect();
     for (m, mesh) in root.meshes.iter().enumerate() {
+        // (the `mesh.primitives` schema: at least one; none would be a BLAS of no geometry)
+        if mesh.primitives.is_empty() {
+            return Err(bad(format!("meshes[{m}].primitives"), "empty (at least 1)"));
+        }
         for (p, prim) in mesh.primitives.iter().enumerate() {
             let at = |field: &str| format!("meshes[{m}].primitives[{p}].{field}");
             if prim.mode > 6 {

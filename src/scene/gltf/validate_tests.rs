@@ -147,6 +147,9 @@ fn accessor_types_must_suit_their_semantics() {
     check(&serde_json::from_value(viewless.clone()).unwrap()).unwrap();
     let e = broken(&viewless, set(idx, "count", json!(0)));
     assert!(e.contains("accessors[3].count: 0"), "{e}");
+    // A mesh of no primitive (the schema's minimum is 1) would be a BLAS of no geometry.
+    let e = broken(&s, |d| d["meshes"][0]["primitives"] = json!([]));
+    assert!(e.contains("meshes[0].primitives: empty (at least 1)"), "{e}");
 }
 
 #[test]
