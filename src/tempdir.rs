@@ -57,6 +57,25 @@ fn make(parent: &Path, mut names: impl FnMut() -> String) -> std::io::Result<Tem
     Err(last.unwrap_or_else(|| std::io::Error::other("no free temporary folder name")))
 }
 
+/// `path` made (with missing parents) mode 0700, or used as it is where it already exists, but
+/// only as a private folder of this user: not a link, owned by the effective user, no access for
+/// group or others — checked after the make, so that a folder planted under a predictable name
+/// (a run's job folder `rtprobe-<pid>` in /tmp) is refused rather than written into.
+pub fn private_dir(path: &Path) -> std::io::Result<()> {
+    use std::os::unix::fs::{DirBuilderExt, MetadataExt};
+    std::fs::DirBuilder::new().recursive(true).mode(0o700).create(path)?;
+    let m = std::fs::symlink_metadata(path)?;
+    // SAFETY: geteuid has no preconditions.
+    let euid = unsafe { libc::geteuid() };
+    if m.is_dir() && m.uid() == euid && m.mode() & 0o077 == 0 {
+        return Ok(());
+    }
+    Err(std::io::Error::other(format!(
+        "{} exists and is not a private folder of this user (a link, another owner, or open to others); remove it",
+        path.display()
+    )))
+}
+
 /// A new [`TempDir`] (what tests call, as they called `tempfile::tempdir`).
 pub fn tempdir() -> std::io::Result<TempDir> {
     TempDir::new()
@@ -78,6 +97,26 @@ mod tests {
         let p = a.path().to_path_buf();
         drop(a);
         assert!(!p.exists());
+    }
+
+    /// A private folder is made 0700 and used again; a planted one is refused: a link to a
+    /// private folder, or a folder others can enter.
+    #[test]
+    fn a_private_folder_is_made_or_refused_where_planted() {
+        use std::os::unix::fs::PermissionsExt;
+        let parent = TempDir::new().unwrap();
+        let job = parent.path().join("rtprobe-1/gpu-av");
+        private_dir(&job).unwrap();
+        let mode = std::fs::metadata(&job).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode, 0o700);
+        private_dir(&job).unwrap();
+        let link = parent.path().join("link");
+        std::os::unix::fs::symlink(&job, &link).unwrap();
+        assert!(private_dir(&link).unwrap_err().to_string().contains("not a private folder"));
+        let open = parent.path().join("open");
+        std::fs::create_dir(&open).unwrap();
+        std::fs::set_permissions(&open, std::fs::Permissions::from_mode(0o777)).unwrap();
+        assert!(private_dir(&open).unwrap_err().to_string().contains("remove it"));
     }
 
     #[test]

@@ -215,7 +215,8 @@ impl Supervisor {
             internal_cache_control: self.opts.internal_cache_control,
             linked: self.opts.linked,
         };
-        std::fs::create_dir_all(&self.opts.job_dir)?;
+        // (a predictable name in /tmp: a folder someone else planted there is refused)
+        crate::tempdir::private_dir(&self.opts.job_dir)?;
         let path = self.opts.job_dir.join(format!("job-{}-{id}.json", std::process::id()));
         std::fs::write(&path, serde_json::to_vec(&job).map_err(std::io::Error::other)?)?;
         let process = Proc::start(&path, slot, id, self.tx.clone())?;
