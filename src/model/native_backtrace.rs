@@ -1,4 +1,4 @@
-//! What a worker's fault handler writes to stderr (`runner::native_crash`): a line starting with
+//! What a worker's fault handler writes to stderr (`crate::native_crash`): a line starting with
 //! [`MARK`] (the signal and the fault address), then one frame a line, innermost first, as
 //! glibc's `backtrace_symbols_fd` writes them. [`top`] reads them back out of a stderr tail for the
 //! texts that quote a crash: the frames where it faulted, not the process's start.

@@ -12,13 +12,7 @@ fn scene(glb: bool) -> (crate::tempdir::TempDir, std::path::PathBuf) {
 
 /// The loader's error for `path` after `edit` changed its JSON.
 fn edited(edit: impl Fn(&mut serde_json::Value)) -> String {
-    let (dir, path) = scene(false);
-    let mut doc: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
-    edit(&mut doc);
-    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
-    let e = Loaded::load(&path).err().expect("the edit breaks the scene").to_string();
-    drop(dir);
+    let e = load_edited(edit).err().expect("the edit breaks the scene");
     assert!(!e.contains('\n'), "one line: {e}");
     e
 }
