@@ -1,5 +1,8 @@
 //! A private temporary folder removed on drop: what rtprobe's own temporary files (an external
-//! glslang's input and output) and its tests use. std-only on purpose: the `tempfile` crate as a
+//! glslang's input and output, a supervisor's job files, `spirv-val`'s and `spirv-dis`'s input,
+//! `bench`'s and `--verify`'s work) and its tests use. Never a predictable name in /tmp: a folder
+//! `rtprobe-<pid>` that an earlier process with the same pid left (or someone planted) made runs
+//! fail (CI, 2026-12-04) or would have been written into. std-only on purpose: the `tempfile` crate as a
 //! dev-dependency turned on `rustix`'s `fs` feature in test builds only, so `cargo test
 //! --release` after `cargo build --release` recompiled `rustix`, `clap` and the whole library
 //! (issue 27: one build for both).
@@ -14,19 +17,29 @@ pub struct TempDir(PathBuf);
 impl TempDir {
     /// Make a new folder `rtprobe-<pid>-<n>-<nanos>` under [`std::env::temp_dir`].
     pub fn new() -> std::io::Result<TempDir> {
-        Self::new_in(&std::env::temp_dir())
+        Self::named("rtprobe")
+    }
+
+    /// Make a new folder `<prefix>-<pid>-<n>-<nanos>` under [`std::env::temp_dir`]: what names
+    /// a folder by its use (a supervisor's job files, `spirv-val`'s input).
+    pub fn named(prefix: &str) -> std::io::Result<TempDir> {
+        Self::new_in_named(&std::env::temp_dir(), prefix)
     }
 
     /// Make a new folder under `parent`. A name already taken (another process's, or one planted
     /// there) is never reused: `create_dir` fails on it and the next name is tried.
     pub fn new_in(parent: &Path) -> std::io::Result<TempDir> {
+        Self::new_in_named(parent, "rtprobe")
+    }
+
+    fn new_in_named(parent: &Path, prefix: &str) -> std::io::Result<TempDir> {
         static N: AtomicU32 = AtomicU32::new(0);
         make(parent, || {
             let n = N.fetch_add(1, Ordering::Relaxed);
             let nanos = std::time::SystemTime::now()
                 .duration_since(std::time::UNIX_EPOCH)
                 .map_or(0, |d| d.subsec_nanos());
-            format!("rtprobe-{}-{n}-{nanos}", std::process::id())
+            format!("{prefix}-{}-{n}-{nanos}", std::process::id())
         })
     }
 
@@ -57,25 +70,6 @@ fn make(parent: &Path, mut names: impl FnMut() -> String) -> std::io::Result<Tem
     Err(last.unwrap_or_else(|| std::io::Error::other("no free temporary folder name")))
 }
 
-/// `path` made (with missing parents) mode 0700, or used as it is where it already exists, but
-/// only as a private folder of this user: not a link, owned by the effective user, no access for
-/// group or others — checked after the make, so that a folder planted under a predictable name
-/// (a run's job folder `rtprobe-<pid>` in /tmp) is refused rather than written into.
-pub fn private_dir(path: &Path) -> std::io::Result<()> {
-    use std::os::unix::fs::{DirBuilderExt, MetadataExt};
-    std::fs::DirBuilder::new().recursive(true).mode(0o700).create(path)?;
-    let m = std::fs::symlink_metadata(path)?;
-    // SAFETY: geteuid has no preconditions.
-    let euid = unsafe { libc::geteuid() };
-    if m.is_dir() && m.uid() == euid && m.mode() & 0o077 == 0 {
-        return Ok(());
-    }
-    Err(std::io::Error::other(format!(
-        "{} exists and is not a private folder of this user (a link, another owner, or open to others); remove it",
-        path.display()
-    )))
-}
-
 /// A new [`TempDir`] (what tests call, as they called `tempfile::tempdir`).
 pub fn tempdir() -> std::io::Result<TempDir> {
     TempDir::new()
@@ -97,26 +91,6 @@ mod tests {
         let p = a.path().to_path_buf();
         drop(a);
         assert!(!p.exists());
-    }
-
-    /// A private folder is made 0700 and used again; a planted one is refused: a link to a
-    /// private folder, or a folder others can enter.
-    #[test]
-    fn a_private_folder_is_made_or_refused_where_planted() {
-        use std::os::unix::fs::PermissionsExt;
-        let parent = TempDir::new().unwrap();
-        let job = parent.path().join("rtprobe-1/gpu-av");
-        private_dir(&job).unwrap();
-        let mode = std::fs::metadata(&job).unwrap().permissions().mode() & 0o777;
-        assert_eq!(mode, 0o700);
-        private_dir(&job).unwrap();
-        let link = parent.path().join("link");
-        std::os::unix::fs::symlink(&job, &link).unwrap();
-        assert!(private_dir(&link).unwrap_err().to_string().contains("not a private folder"));
-        let open = parent.path().join("open");
-        std::fs::create_dir(&open).unwrap();
-        std::fs::set_permissions(&open, std::fs::Permissions::from_mode(0o777)).unwrap();
-        assert!(private_dir(&open).unwrap_err().to_string().contains("remove it"));
     }
 
     #[test]

@@ -93,7 +93,7 @@ fn a_mismatch_leaves_pictures_that_agree_with_the_report() {
 fn a_passing_cell_leaves_no_pictures() {
     let dir = rtprobe::tempdir::tempdir().unwrap();
     let (o, r) = run_cell(&[], dir.path());
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!(o.status.code(), Some(0), "{}\n{:#}", stderr(&o), r["cells"][0]);
     let c = &r["cells"][0];
     assert_eq!(c["outcome"], "pass");
     assert!(c["attempts"][0]["result"]["comparison"].get("pictures").is_none());

@@ -387,6 +387,8 @@ fn interrupt_mid_run(
     if let Some(f) = fault {
         c.env("RTPROBE_WORKER_FAULT", f);
     }
+    // Its temporary folders next to the report, for the tests to look at.
+    c.env("TMPDIR", out.parent().unwrap());
     let mut child = c
         .args([
             "run",
@@ -405,7 +407,8 @@ fn interrupt_mid_run(
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    let job_dir = format!("rtprobe-{}/", child.id());
+    // The supervisor's job folder, `rtprobe-jobs-<pid>-<n>-<nanos>`.
+    let job_dir = format!("rtprobe-jobs-{}-", child.id());
     let start = Instant::now();
     loop {
         let done = std::fs::read(out)
@@ -501,6 +504,43 @@ fn sigterm_kills_a_hung_worker_too() {
         interrupt_mid_run(&dir.path().join("r.json"), libc::SIGTERM, ONE, Some("pipeline:hang"));
     assert_eq!(status.code(), Some(143), "{status:?}");
     assert!(err.contains("terminated (SIGTERM)"), "{err}");
+    // The handler removed the supervisor's job folder too (the hung worker had read its job).
+    assert_eq!(job_folders(dir.path()), Vec::<String>::new());
+}
+
+/// The `rtprobe-jobs-*` folders in `dir`.
+fn job_folders(dir: &Path) -> Vec<String> {
+    let names = std::fs::read_dir(dir).unwrap().flatten();
+    names
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with("rtprobe-jobs-"))
+        .collect()
+}
+
+/// A run's job files lie in a fresh private folder of its own, removed when the run ends: never
+/// a predictable name (`rtprobe-<pid>`), which made a run fail in CI when an earlier process with
+/// the same pid had left one behind. A planted folder of the old name is left alone.
+#[test]
+fn a_run_leaves_no_folder_in_its_temporary_folder() {
+    let tmp = rtprobe::tempdir::tempdir().unwrap();
+    let planted = tmp.path().join("rtprobe-1");
+    std::fs::create_dir(&planted).unwrap();
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&planted, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let out = tmp.path().join("r.json");
+    let o = run_env(
+        &["run", "--patches", "none", "--filter", ONE, "-o", out.to_str().unwrap()],
+        &[("TMPDIR", tmp.path().to_str().unwrap())],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(cells(&report(&out)).iter().all(|c| c["outcome"] == "pass"));
+    let mut left: Vec<String> = std::fs::read_dir(tmp.path())
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    left.sort();
+    assert_eq!(left, ["r.json", "rtprobe-1"]);
 }
 
 #[test]

@@ -202,7 +202,8 @@ fn options(g: &Globals, a: &BenchArgs) -> Result<BenchOptions> {
     let exe = crate::runner::self_exe::spawn_path();
     Ok(BenchOptions {
         exe,
-        work_dir: std::env::temp_dir().join(format!("rtprobe-bench-{}", std::process::id())),
+        // Set by `bench` to its work folder, made once the options are checked.
+        work_dir: PathBuf::new(),
         device: a.device.clone(),
         validate: g.validate,
         sizes,
@@ -248,17 +249,16 @@ fn check_cells(cells: &[usize]) -> Result<Vec<usize>> {
 }
 
 pub fn bench(g: &Globals, a: &BenchArgs) -> Result<u8> {
-    let opts = options(g, a)?;
+    let mut opts = options(g, a)?;
     let out = a.out.clone().unwrap_or_else(|| {
         PathBuf::from("reports").join(format!("bench-{}", time::stamp(time::now_unix())))
     });
     bench::check_out_dir(&out).map_err(|e| coded(exit::BAD_INPUT, format!("-o: {e}")))?;
-    std::fs::create_dir_all(&opts.work_dir).map_err(|e| {
-        coded(exit::BAD_INPUT, format!("cannot create {}: {e}", opts.work_dir.display()))
-    })?;
+    let work = super::paths::work_dir("rtprobe-bench")?;
+    opts.work_dir = work.path().to_path_buf();
     let mut progress = |line: &str| errln!("bench: {line}");
     let result = Bench::new(&opts, &mut progress).run_all();
-    let _ = std::fs::remove_dir_all(&opts.work_dir);
+    drop(work);
     let value = result.map_err(|e| match &e {
         // A run's own usage or device error keeps its exit code.
         BenchError::RunFailed { code, .. } if (2..=10).contains(code) => {

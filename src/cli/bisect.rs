@@ -89,14 +89,11 @@ pub fn bisect(g: &Globals, a: &BisectArgs) -> Result<u8> {
         opts.rerun_jobs = super::shared::rerun_jobs(&info, jobs);
         // The report's options that change results: the cells bisect runs use them too.
         super::shared::as_the_report_ran(&mut opts, &report.options);
-        let job_dir = opts.job_dir.clone();
         let mut oracle = SupervisorOracle::for_bisect(opts);
         let supported = |c: &Cell| plan::device_support(&info, c).is_supported();
         let settings = Settings { batch: 2 * jobs, ..settings };
-        let r = Bisector::new(scope, verdicts, &mut oracle, settings, ro.inject.clone())
-            .bisect(a.cell.as_deref(), &supported);
-        let _ = std::fs::remove_dir_all(&job_dir);
-        r
+        Bisector::new(scope, verdicts, &mut oracle, settings, ro.inject.clone())
+            .bisect(a.cell.as_deref(), &supported)
     };
     let b = result.map_err(|e| match e {
         bisect::BisectError::Halted(h) => exit::bisect_halted(h),

@@ -85,7 +85,6 @@ fn run_validated(
         ro.inject.clone(),
     );
     super::shared::as_the_report_ran(&mut opts, &r.options);
-    let job_dir = opts.job_dir.clone();
     let mut oracle = SupervisorOracle::for_run(opts);
     let mut got = None;
     oracle.run(&[cell], Mode::Alone, &mut |ev| {
@@ -93,6 +92,5 @@ fn run_validated(
             got = Some(attempt);
         }
     });
-    let _ = std::fs::remove_dir_all(&job_dir);
     got
 }

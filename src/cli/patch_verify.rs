@@ -75,9 +75,8 @@ pub fn verify(
     let before = reflect(inputs, &inputs.iter().map(|i| i.words.as_slice()).collect::<Vec<_>>())?;
     let after = reflect(inputs, &patched.iter().map(|w| w.as_slice()).collect::<Vec<_>>())?;
     let device_index = device(g, a, scalar, &before.iter().chain(&after).collect::<Vec<_>>())?;
-    let dir = std::env::temp_dir().join(format!("rtprobe-verify-{}", std::process::id()));
-    std::fs::create_dir_all(&dir)
-        .with_context(|| format!("creating the --verify folder {}", dir.display()))?;
+    let work = super::paths::work_dir("rtprobe-verify")?;
+    let dir = work.path();
     let job = VerifyJob {
         device_index,
         validate: g.validate,
@@ -88,9 +87,7 @@ pub fn verify(
         timeout_ms: a.verify_timeout.clamp(1, 3600) * 1000,
         result: dir.join("result.json"),
     };
-    let out = run_child(&job, dir.join("job.json"));
-    let _ = std::fs::remove_dir_all(&dir);
-    let (out, stderr) = out?;
+    let (out, stderr) = run_child(&job, dir.join("job.json"))?;
     outcome(out, &stderr)
 }
 

@@ -6,6 +6,20 @@ use super::exit::{self, coded};
 use anyhow::Result;
 use std::path::Path;
 
+/// A fresh private work folder `<prefix>-<pid>-…` under the temporary folder (children's job
+/// and result files), removed when dropped; or a one-line error (exit 9) that says what to do.
+pub fn work_dir(prefix: &str) -> Result<crate::tempdir::TempDir> {
+    crate::tempdir::TempDir::named(prefix).map_err(|e| {
+        coded(
+            exit::BAD_INPUT,
+            format!(
+                "cannot make a work folder in {}: {e}; set TMPDIR to a folder you can write",
+                std::env::temp_dir().display()
+            ),
+        )
+    })
+}
+
 /// Whether a file can be written in `dir` (created when missing); the OS error when not.
 fn probe(dir: &Path) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;

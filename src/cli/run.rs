@@ -212,7 +212,6 @@ fn run_rounds(
     writer.save(false).with_context(|| "writing the report")?;
     crate::runner::groups::set_resume_hint(&super::resume::command(a, &out));
     let opts = supervisor(a, &options, info, c);
-    let job_dir = opts.job_dir.clone();
     let mut oracle = SupervisorOracle::for_run(opts);
     let mut rec = Recorder::new(writer, super::progress::for_stderr());
     let wall = Instant::now();
@@ -228,7 +227,6 @@ fn run_rounds(
         .run(&policy, &cells, &canaries);
     tracing::debug!("run: rounds done");
     rec.progress.finish();
-    let _ = std::fs::remove_dir_all(&job_dir);
     if let Some(e) = rec.save_error.take() {
         return Err(save_failed(e, a, &out));
     }

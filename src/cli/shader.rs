@@ -372,6 +372,8 @@ pub(super) struct Prepared {
     pub(super) profile: Option<ProfileRecord>,
     other: Option<ShaderRunReport>,
     baseline: Option<crate::model::Baseline>,
+    /// `ctx.dir`: the children's job and result files, removed with this.
+    _work: crate::tempdir::TempDir,
 }
 
 /// Everything checked and planned before the report is reserved.
@@ -411,7 +413,8 @@ pub(super) fn prepare(g: &Globals, a: &RunArgs) -> Result<Prepared> {
     if let Some((l, _)) = &scene {
         scene_fits(a, l, (&scene_fills, images.bytes), heap)?;
     }
-    let dir = std::env::temp_dir().join(format!("rtprobe-shader-{}", std::process::id()));
+    let work = super::paths::work_dir("rtprobe-shader")?;
+    let dir = work.path().to_path_buf();
     let ctx = Ctx {
         device_index,
         validate: g.validate,
@@ -440,15 +443,12 @@ pub(super) fn prepare(g: &Globals, a: &RunArgs) -> Result<Prepared> {
         gpu_av: false,
     };
     let profile = record;
-    Ok(Prepared { plan, ctx, device_name, cell_options, profile, other, baseline })
+    Ok(Prepared { plan, ctx, device_name, cell_options, profile, other, baseline, _work: work })
 }
 
 pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
     let mut p = prepare(g, a)?;
     let (out, _lock) = reserve_out(a, &p.device_name)?;
-    let dir = p.ctx.dir.clone();
-    std::fs::create_dir_all(&dir)
-        .with_context(|| format!("creating the --shader folder {}", dir.display()))?;
     let report = judged_report(g, a, &mut p);
     let report = report.and_then(|mut r| {
         if g.gpu_av {
@@ -458,7 +458,6 @@ pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
         }
         Ok(r)
     });
-    let _ = std::fs::remove_dir_all(&dir);
     finish(a, &p, report?, &out)
 }
 

@@ -143,7 +143,6 @@ pub(crate) fn supervisor_options(
         inject,
         dump: None,
         spirv_dir: None,
-        job_dir: std::env::temp_dir().join(format!("rtprobe-{}", std::process::id())),
         threads: 1,
         pipeline_cache: None,
         binding_stages: None,
@@ -230,7 +229,6 @@ impl Oracle for SupervisorOracle {
                     threads: 1,
                     pipeline_cache: None,
                     fresh: true,
-                    job_dir: self.opts.job_dir.join("gpu-av"),
                     ..self.opts.clone()
                 };
                 Supervisor::new(o).run(cells, true, on)

@@ -62,8 +62,8 @@ mod tests {
 
     #[test]
     fn messages_name_the_file_and_what_is_wrong() {
-        let dir = std::env::temp_dir().join(format!("rtprobe-load-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let tmp = crate::tempdir::tempdir().unwrap();
+        let dir = tmp.path();
         let missing = dir.join("missing.json");
         let e = read_json::<serde_json::Value>(&missing, "run report").unwrap_err();
         assert!(e.to_string().starts_with(&format!("cannot read {}: ", missing.display())), "{e}");
@@ -87,6 +87,5 @@ mod tests {
         assert!(e.to_string().contains("is a `run --shader` report, not an rtprobe run report: reduce its finding with `rtprobe reduce"), "{e}");
         let e = read_json::<crate::model::RunReport>(&shader, "a run --shader report").unwrap_err();
         assert!(matches!(e, LoadError::NotThatKind { .. }), "{e}");
-        let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -70,13 +70,11 @@ pub fn cell_shaders(
 
 /// `spirv-dis` of `words`, or `None` when it is not installed (or fails).
 pub fn spirv_dis(words: &[u32]) -> Option<String> {
-    static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    let path = std::env::temp_dir().join(format!("rtprobe-dis-{}-{n}.spv", std::process::id()));
-    let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
-    std::fs::write(&path, bytes).ok()?;
+    // A fresh private folder, never a predictable name in /tmp.
+    let dir = crate::tempdir::TempDir::named("rtprobe-dis").ok()?;
+    let path = dir.path().join("m.spv");
+    std::fs::write(&path, spirv_bytes(words)).ok()?;
     let out = std::process::Command::new("spirv-dis").arg(&path).output();
-    let _ = std::fs::remove_file(&path);
     match out {
         Ok(o) if o.status.success() => Some(String::from_utf8_lossy(&o.stdout).into_owned()),
         Ok(_) | Err(_) => None,

@@ -6,7 +6,9 @@
 //! async-signal-safe calls run in the handler; the report on disk stays whole (rewritten
 //! atomically: at once after a fault, after passes at most every 100 ms) and `--resume` finishes
 //! the run, running again the passes of the last 0.1 s that were not saved. The message ends with
-//! the command that does ([`set_resume_hint`]), made before the handler can need it.
+//! the command that does ([`set_resume_hint`]), made before the handler can need it. The handler
+//! also removes each live supervisor's [`JobFolder`] (`rmdir`: empty once every worker has read
+//! and removed its job file, as each does at its start).
 use std::os::unix::process::CommandExt;
 use std::process::Command;
 use std::sync::atomic::{AtomicI32, AtomicPtr, AtomicUsize, Ordering};
@@ -91,8 +93,65 @@ pub fn kill_all() {
     }
 }
 
+/// A supervisor's folder of job files: a fresh private one, removed when dropped, and by the
+/// signal handler when the process is interrupted.
+#[derive(Debug)]
+pub struct JobFolder {
+    dir: crate::tempdir::TempDir,
+    slot: Option<usize>,
+}
+
+const MAX_FOLDERS: usize = 16;
+/// The live job folders' paths, NUL-terminated (leaked: the handler may read one at any time).
+static FOLDERS: [AtomicPtr<libc::c_char>; MAX_FOLDERS] =
+    [const { AtomicPtr::new(std::ptr::null_mut()) }; MAX_FOLDERS];
+
+impl JobFolder {
+    /// A new folder `rtprobe-jobs-<pid>-…` under the temporary folder.
+    pub fn new() -> std::io::Result<JobFolder> {
+        use std::os::unix::ffi::OsStrExt;
+        let dir = crate::tempdir::TempDir::named("rtprobe-jobs")?;
+        let c = std::ffi::CString::new(dir.path().as_os_str().as_bytes())
+            .map_err(std::io::Error::other)?;
+        let p = c.into_raw();
+        let slot = FOLDERS.iter().position(|f| {
+            f.compare_exchange(std::ptr::null_mut(), p, Ordering::SeqCst, Ordering::SeqCst).is_ok()
+        });
+        if slot.is_none() {
+            // SAFETY: `p` came from `into_raw` above and was stored nowhere.
+            drop(unsafe { std::ffi::CString::from_raw(p) });
+        }
+        Ok(JobFolder { dir, slot })
+    }
+
+    pub fn path(&self) -> &std::path::Path {
+        self.dir.path()
+    }
+}
+
+impl Drop for JobFolder {
+    fn drop(&mut self) {
+        // The path stays allocated: a handler running on another thread may be reading it.
+        if let Some(i) = self.slot {
+            FOLDERS[i].store(std::ptr::null_mut(), Ordering::SeqCst);
+        }
+    }
+}
+
+/// `rmdir` every live job folder (async-signal-safe; a folder still holding a job file stays).
+fn remove_folders() {
+    for f in &FOLDERS {
+        let p = f.load(Ordering::SeqCst);
+        if !p.is_null() {
+            // SAFETY: rmdir(2) is async-signal-safe; `p` is a leaked NUL-terminated path.
+            unsafe { libc::rmdir(p) };
+        }
+    }
+}
+
 extern "C" fn on_signal(sig: libc::c_int) {
     kill_all();
+    remove_folders();
     let msg: &[u8] = match sig {
         libc::SIGINT => b"\nrtprobe: interrupted (SIGINT): every worker was killed; the report keeps every fault and all passes but those of the last 0.1 s (complete: false)",
         libc::SIGTERM => b"\nrtprobe: terminated (SIGTERM): every worker was killed; the report keeps every fault and all passes but those of the last 0.1 s (complete: false)",

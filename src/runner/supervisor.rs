@@ -58,7 +58,6 @@ pub struct SupervisorOptions {
     pub dump: Option<PathBuf>,
     /// A repro bundle's `shaders/` (`run --cell-spec`): workers run its SPIR-V.
     pub spirv_dir: Option<PathBuf>,
-    pub job_dir: PathBuf,
     /// Threads a worker creates pipelines on, ahead of the cells' turns (1: no prebuild).
     pub threads: usize,
     /// Folder of the persisted pipeline caches (`None`: off). Used only by workers of a
@@ -100,6 +99,9 @@ pub struct Supervisor {
     generation: u64,
     /// The current `run` re-runs cells alone: its workers load no persisted pipeline cache.
     rerun: bool,
+    /// This supervisor's job files' folder (`rtprobe-jobs-<pid>-…`, made afresh at the first
+    /// worker's start, removed with the supervisor or by the interrupt handler).
+    jobs: Option<super::groups::JobFolder>,
 }
 
 impl Supervisor {
@@ -107,7 +109,7 @@ impl Supervisor {
         super::groups::install_handlers();
         let (tx, rx) = channel();
         let injections = Injections::new(opts.inject.clone());
-        Supervisor { opts, injections, tx, rx, generation: 0, rerun: false }
+        Supervisor { opts, injections, tx, rx, generation: 0, rerun: false, jobs: None }
     }
 
     fn limits(&self) -> Limits {
@@ -186,6 +188,14 @@ impl Supervisor {
         self.rerun || self.opts.fresh
     }
 
+    /// The folder of this supervisor's job files, made at the first call.
+    fn job_folder(&mut self) -> std::io::Result<&std::path::Path> {
+        if self.jobs.is_none() {
+            self.jobs = Some(super::groups::JobFolder::new()?);
+        }
+        Ok(self.jobs.as_ref().expect("made above").path())
+    }
+
     /// Writes worker `id`'s job file and starts it.
     fn spawn(&mut self, slot: usize, job: Job, per_cell: bool) -> std::io::Result<Running> {
         self.generation += 1;
@@ -215,9 +225,7 @@ impl Supervisor {
             internal_cache_control: self.opts.internal_cache_control,
             linked: self.opts.linked,
         };
-        // (a predictable name in /tmp: a folder someone else planted there is refused)
-        crate::tempdir::private_dir(&self.opts.job_dir)?;
-        let path = self.opts.job_dir.join(format!("job-{}-{id}.json", std::process::id()));
+        let path = self.job_folder()?.join(format!("job-{id}.json"));
         std::fs::write(&path, serde_json::to_vec(&job).map_err(std::io::Error::other)?)?;
         let process = Proc::start(&path, slot, id, self.tx.clone())?;
         Ok(Running {

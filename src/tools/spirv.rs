@@ -96,11 +96,16 @@ pub fn bytes(words: &[u32]) -> Vec<u8> {
     words.iter().flat_map(|w| w.to_le_bytes()).collect()
 }
 
-/// A private temporary file path (no other call in this process uses it at the same time).
-fn temp_path(tag: &str) -> std::path::PathBuf {
-    static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    std::env::temp_dir().join(format!("rtprobe-{tag}-{}-{n}", std::process::id()))
+/// `words` written to `<tag>.spv` in a fresh private folder (removed when the folder is
+/// dropped): never a predictable name in /tmp, where a planted link would be written through.
+fn temp_module(
+    tag: &str,
+    words: &[u32],
+) -> std::io::Result<(crate::tempdir::TempDir, std::path::PathBuf)> {
+    let dir = crate::tempdir::TempDir::named("rtprobe-spv")?;
+    let path = dir.path().join(format!("{tag}.spv"));
+    std::fs::write(&path, bytes(words))?;
+    Ok((dir, path))
 }
 
 /// Validate `words` with `opts`.
@@ -108,12 +113,10 @@ pub fn validate(words: &[u32], opts: &ValOptions) -> Validation {
     let Some(val) = tool(SpirvTool::Val) else {
         return Validation::Unavailable;
     };
-    let path = temp_path("val");
-    if std::fs::write(&path, bytes(words)).is_err() {
+    let Ok((_dir, path)) = temp_module("val", words) else {
         return Validation::Unavailable;
-    }
+    };
     let out = val.command().args(opts.args()).arg(&path).output();
-    let _ = std::fs::remove_file(&path);
     let Ok(o) = out else {
         return Validation::Unavailable;
     };
@@ -207,14 +210,12 @@ fn source_language(n: u32) -> String {
 /// `spirv-dis` of `words` (`--raw-id` when `raw_ids`), or why not.
 pub fn disassemble(words: &[u32], raw_ids: bool) -> Result<String, String> {
     let dis = tool(SpirvTool::Dis).ok_or("spirv-dis is not installed")?;
-    let path = temp_path("dis");
-    std::fs::write(&path, bytes(words)).map_err(|e| e.to_string())?;
+    let (_dir, path) = temp_module("dis", words).map_err(|e| e.to_string())?;
     let mut c = dis.command();
     if raw_ids {
         c.arg("--raw-id");
     }
     let out = c.arg(&path).output();
-    let _ = std::fs::remove_file(&path);
     let o = out.map_err(|e| format!("{}: {e}", dis.describe()))?;
     if !o.status.success() {
         return Err(String::from_utf8_lossy(&o.stderr).trim().replace('\n', " | "));
