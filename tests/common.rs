@@ -18,7 +18,16 @@ pub fn bin_at(exe: &std::path::Path) -> Command {
     c.env_remove("RUST_LOG");
     // Never the user's pipeline cache: one folder per test binary.
     c.env("RTPROBE_CACHE_DIR", cache_dir());
+    // Its temporary folders (job files, work folders) in one of this test process's, removed
+    // when it exits: a run a test kills (SIGKILL: no handler runs) leaves nothing in /tmp.
+    c.env("TMPDIR", temp_dir());
     c
+}
+
+/// The temporary folder of the runs this test process starts.
+pub fn temp_dir() -> std::path::PathBuf {
+    static DIR: std::sync::OnceLock<std::path::PathBuf> = std::sync::OnceLock::new();
+    DIR.get_or_init(tempdir_until_exit).clone()
 }
 
 /// The cache folder (pipeline cache, compiled GLSL) of this test binary's runs: its own, or the
@@ -28,22 +37,23 @@ pub fn cache_dir() -> std::path::PathBuf {
     match std::env::var_os("RTPROBE_TEST_CACHE_DIR") {
         Some(d) if !d.is_empty() => d.into(),
         _ => {
-            let dir =
-                std::env::temp_dir().join(format!("rtprobe-test-cache-{}", std::process::id()));
-            static ONCE: std::sync::Once = std::sync::Once::new();
-            // This process's own cache, removed with the shared folders when it exits.
-            ONCE.call_once(|| remove_when_exiting(Removal::Path(dir.clone())));
-            dir
+            // This process's own cache (a fresh name: never a folder an earlier process with the
+            // same pid left), removed with the shared folders when it exits.
+            static DIR: std::sync::OnceLock<std::path::PathBuf> = std::sync::OnceLock::new();
+            DIR.get_or_init(|| {
+                let dir = rtprobe::tempdir::TempDir::named("rtprobe-test-cache")
+                    .expect("a temporary folder");
+                let path = dir.path().to_path_buf();
+                remove_when_exiting(Removal(dir));
+                path
+            })
+            .clone()
         }
     }
 }
 
-/// A folder removed when this test process exits.
-enum Removal {
-    /// Removed by its drop.
-    Temp(rtprobe::tempdir::TempDir),
-    Path(std::path::PathBuf),
-}
+/// A folder removed (by its drop) when this test process exits.
+struct Removal(rtprobe::tempdir::TempDir);
 
 /// Folders removed when this test process exits. A `static` is never dropped, so a `TempDir` a
 /// suite shares through one (made once, read by several tests) used to stay in /tmp after every
@@ -61,14 +71,7 @@ fn remove_when_exiting(r: Removal) {
 }
 
 extern "C" fn remove_at_exit() {
-    for r in std::mem::take(&mut *AT_EXIT.lock().unwrap_or_else(|e| e.into_inner())) {
-        match r {
-            Removal::Temp(dir) => drop(dir),
-            Removal::Path(p) => {
-                let _ = std::fs::remove_dir_all(p);
-            }
-        }
-    }
+    drop(std::mem::take(&mut *AT_EXIT.lock().unwrap_or_else(|e| e.into_inner())));
 }
 
 /// A fresh temporary folder that lives until this test process exits (the test harness returns
@@ -76,7 +79,7 @@ extern "C" fn remove_at_exit() {
 pub fn tempdir_until_exit() -> std::path::PathBuf {
     let dir = rtprobe::tempdir::tempdir().expect("a temporary folder");
     let path = dir.path().to_path_buf();
-    remove_when_exiting(Removal::Temp(dir));
+    remove_when_exiting(Removal(dir));
     path
 }
 

@@ -543,6 +543,15 @@ fn unwritable_outputs_fail_before_any_work_in_one_line() {
     ] {
         assert_one_line_error(&run(&args), 9, "/proc/rtprobe-nowhere");
     }
+    // A temporary folder that takes no folder: one line before any cell runs, not a report of
+    // every cell as an `error` finding (the job files go there).
+    let r = tempdir_until_exit().join("tmp-r.json");
+    let o = run_env(
+        &["run", "--filter", SMALL, "-o", r.to_str().unwrap()],
+        &[("TMPDIR", "/proc/rtprobe-nowhere")],
+    );
+    assert_one_line_error(&o, 9, "set TMPDIR to a folder you can write");
+    assert!(!r.exists(), "no report begun");
 }
 
 /// A tmpfs of `kib` KiB at a fresh folder (root only), unmounted when dropped.

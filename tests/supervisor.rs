@@ -7,7 +7,7 @@ mod common;
 use common::*;
 use serde_json::Value;
 use std::path::Path;
-use std::process::{Output, Stdio};
+use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 /// One raygen cell.
@@ -518,20 +518,27 @@ fn job_folders(dir: &Path) -> Vec<String> {
 }
 
 /// A run's job files lie in a fresh private folder of its own, removed when the run ends: never
-/// a predictable name (`rtprobe-<pid>`), which made a run fail in CI when an earlier process with
-/// the same pid had left one behind. A planted folder of the old name is left alone.
+/// a predictable name. The old one, `rtprobe-<pid>`, made runs fail in CI (every cell an `error`
+/// at 0.0 s) when an earlier process with the same pid had left it with mode 0755: planted here
+/// under the run's own pid (`exec` keeps the shell's), the run passes and leaves it alone.
 #[test]
-fn a_run_leaves_no_folder_in_its_temporary_folder() {
+fn a_folder_left_under_the_runs_pid_is_no_matter_and_the_run_leaves_none() {
     let tmp = rtprobe::tempdir::tempdir().unwrap();
-    let planted = tmp.path().join("rtprobe-1");
-    std::fs::create_dir(&planted).unwrap();
-    use std::os::unix::fs::PermissionsExt;
-    std::fs::set_permissions(&planted, std::fs::Permissions::from_mode(0o755)).unwrap();
     let out = tmp.path().join("r.json");
-    let o = run_env(
-        &["run", "--patches", "none", "--filter", ONE, "-o", out.to_str().unwrap()],
-        &[("TMPDIR", tmp.path().to_str().unwrap())],
-    );
+    let mut c = Command::new("sh");
+    let plant = r#"mkdir -m 755 "$TMPDIR/rtprobe-$$" && exec "$0" "$@""#;
+    c.args(["-c", plant, env!("CARGO_BIN_EXE_rtprobe")]);
+    c.args(["run", "--patches", "none", "--filter", ONE, "-o", out.to_str().unwrap()]);
+    for (k, v) in bin().get_envs() {
+        match v {
+            Some(v) => c.env(k, v),
+            None => c.env_remove(k),
+        };
+    }
+    c.env("TMPDIR", tmp.path());
+    let child = c.stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
+    let pid = child.id();
+    let o = child.wait_with_output().unwrap();
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     assert!(cells(&report(&out)).iter().all(|c| c["outcome"] == "pass"));
     let mut left: Vec<String> = std::fs::read_dir(tmp.path())
@@ -540,7 +547,7 @@ fn a_run_leaves_no_folder_in_its_temporary_folder() {
         .map(|e| e.file_name().to_string_lossy().into_owned())
         .collect();
     left.sort();
-    assert_eq!(left, ["r.json", "rtprobe-1"]);
+    assert_eq!(left, ["r.json".to_string(), format!("rtprobe-{pid}")]);
 }
 
 #[test]

@@ -20,11 +20,21 @@ pub fn work_dir(prefix: &str) -> Result<crate::tempdir::TempDir> {
     })
 }
 
-/// Whether a file can be written in `dir` (created when missing); the OS error when not.
+/// The temporary folder takes a private work folder (the supervisor's job files go there), or a
+/// one-line error (exit 9) before any GPU work: else every cell would be an `error` finding.
+pub fn temp_usable() -> Result<()> {
+    work_dir("rtprobe-check").map(drop)
+}
+
+/// Whether a file can be written in `dir` (created when missing); the OS error when not. The
+/// probe file is made new (`O_EXCL`: a link planted under its name is never written through).
 fn probe(dir: &Path) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
     let p = dir.join(format!(".rtprobe-write-check-{}", std::process::id()));
-    std::fs::write(&p, b"")?;
+    // A stale one (a killed check of a process with this pid), or a planted link: removed, not
+    // followed.
+    let _ = std::fs::remove_file(&p);
+    std::fs::OpenOptions::new().write(true).create_new(true).open(&p)?;
     std::fs::remove_file(&p)
 }
 

@@ -227,6 +227,12 @@ pub fn repro(g: &Globals, a: &ReproArgs) -> Result<u8> {
             coded(exit::BAD_INPUT, format!("cannot create {}: {e}", parent.display()))
         })?;
     }
+    // The bundle's folder made new: a stale one of this pid, or a link planted under its name,
+    // is removed (the link itself) and never written through.
+    let _ = std::fs::remove_file(&tmp);
+    let _ = std::fs::remove_dir_all(&tmp);
+    std::fs::create_dir(&tmp)
+        .map_err(|e| coded(exit::BAD_INPUT, format!("cannot create {}: {e}", tmp.display())))?;
     let bundle =
         Bundle { g, a, report: &report, ro: &ro, cell, entry, inject: &inject, shaders: &shaders };
     let built = bundle.build(&tmp);

@@ -404,6 +404,7 @@ fn check_ranges(a: &RunArgs) -> Result<()> {
 /// Every file and folder the run will write, writable before it starts.
 fn check_outputs(a: &RunArgs) -> Result<()> {
     super::paths::writable_files(&[("-o", a.out.as_deref()), ("--junit", a.junit.as_deref())])?;
+    super::paths::temp_usable()?;
     for (flag, dir) in [("--output-dir", &a.output_dir), ("--dump", &a.dump)] {
         if let Some(d) = dir {
             super::paths::writable_dir(d, flag)?;

@@ -7,7 +7,7 @@
 //! empty of meaning, and the next lock of that report takes it over).
 use std::fs::File;
 use std::io::{Read, Seek, Write};
-use std::os::unix::fs::MetadataExt;
+use std::os::unix::fs::{MetadataExt, OpenOptionsExt};
 use std::os::unix::io::AsRawFd;
 use std::path::{Path, PathBuf};
 
@@ -44,11 +44,14 @@ impl ReportLock {
             std::fs::create_dir_all(dir).map_err(io)?;
         }
         loop {
+            // O_NOFOLLOW: a link planted under the lock's name is refused (ELOOP), never written
+            // through.
             let mut file = std::fs::OpenOptions::new()
                 .read(true)
                 .write(true)
                 .create(true)
                 .truncate(false)
+                .custom_flags(libc::O_NOFOLLOW)
                 .open(&lock)
                 .map_err(io)?;
             // SAFETY: flock(2) on a descriptor this function owns.
@@ -123,6 +126,21 @@ mod tests {
         let again = ReportLock::acquire(&r).unwrap();
         assert!(lock_path(&r).exists());
         drop(again);
+    }
+
+    /// A link planted under the lock's name is refused, and what it points to is untouched.
+    #[test]
+    fn a_planted_lock_link_is_refused_not_written_through() {
+        let d = crate::tempdir::tempdir().unwrap();
+        let victim = d.path().join("victim");
+        std::fs::write(&victim, b"keep").unwrap();
+        let r = d.path().join("r.json");
+        std::os::unix::fs::symlink(&victim, lock_path(&r)).unwrap();
+        match ReportLock::acquire(&r) {
+            Err(LockError::Io { err, .. }) => assert_eq!(err.raw_os_error(), Some(libc::ELOOP)),
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(std::fs::read(&victim).unwrap(), b"keep");
     }
 
     #[test]

@@ -68,17 +68,10 @@ pub fn cell_shaders(
     Ok(out)
 }
 
-/// `spirv-dis` of `words`, or `None` when it is not installed (or fails).
+/// `spirv-dis` of `words` (the newest of the sid root's and PATH's, `tools::spirv`), or `None`
+/// when it is not installed (or fails).
 pub fn spirv_dis(words: &[u32]) -> Option<String> {
-    // A fresh private folder, never a predictable name in /tmp.
-    let dir = crate::tempdir::TempDir::named("rtprobe-dis").ok()?;
-    let path = dir.path().join("m.spv");
-    std::fs::write(&path, spirv_bytes(words)).ok()?;
-    let out = std::process::Command::new("spirv-dis").arg(&path).output();
-    match out {
-        Ok(o) if o.status.success() => Some(String::from_utf8_lossy(&o.stdout).into_owned()),
-        Ok(_) | Err(_) => None,
-    }
+    crate::tools::spirv::disassemble(words, false).ok()
 }
 
 pub fn spirv_bytes(words: &[u32]) -> Vec<u8> {

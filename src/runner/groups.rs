@@ -7,8 +7,7 @@
 //! atomically: at once after a fault, after passes at most every 100 ms) and `--resume` finishes
 //! the run, running again the passes of the last 0.1 s that were not saved. The message ends with
 //! the command that does ([`set_resume_hint`]), made before the handler can need it. The handler
-//! also removes each live supervisor's [`JobFolder`] (`rmdir`: empty once every worker has read
-//! and removed its job file, as each does at its start).
+//! also removes each live supervisor's [`JobFolder`] with the job files no worker read yet.
 use std::os::unix::process::CommandExt;
 use std::process::Command;
 use std::sync::atomic::{AtomicI32, AtomicPtr, AtomicUsize, Ordering};
@@ -120,6 +119,10 @@ impl JobFolder {
         if slot.is_none() {
             // SAFETY: `p` came from `into_raw` above and was stored nowhere.
             drop(unsafe { std::ffi::CString::from_raw(p) });
+            tracing::warn!(
+                "more than {MAX_FOLDERS} live job folders; {} is left to its supervisor alone",
+                dir.path().display()
+            );
         }
         Ok(JobFolder { dir, slot })
     }
@@ -138,15 +141,55 @@ impl Drop for JobFolder {
     }
 }
 
-/// `rmdir` every live job folder (async-signal-safe; a folder still holding a job file stays).
+/// Remove every live job folder with the job files no worker read yet (async-signal-safe: raw
+/// `open`, `getdents64`, `unlinkat`, `rmdir` on a buffer on the stack).
 fn remove_folders() {
     for f in &FOLDERS {
         let p = f.load(Ordering::SeqCst);
         if !p.is_null() {
-            // SAFETY: rmdir(2) is async-signal-safe; `p` is a leaked NUL-terminated path.
-            unsafe { libc::rmdir(p) };
+            // SAFETY: `p` is a leaked NUL-terminated path; only async-signal-safe calls.
+            unsafe {
+                empty(p);
+                libc::rmdir(p);
+            }
         }
     }
+}
+
+/// Unlink the files of the folder `path` (a job folder holds files only).
+///
+/// # Safety
+/// `path` is a NUL-terminated path.
+unsafe fn empty(path: *const libc::c_char) {
+    let fd =
+        libc::open(path, libc::O_RDONLY | libc::O_DIRECTORY | libc::O_NOFOLLOW | libc::O_CLOEXEC);
+    if fd < 0 {
+        return;
+    }
+    // u64s: `linux_dirent64` records are 8-byte aligned.
+    let mut buf = [0u64; 512];
+    loop {
+        let n =
+            libc::syscall(libc::SYS_getdents64, fd, buf.as_mut_ptr(), std::mem::size_of_val(&buf));
+        if n <= 0 {
+            break;
+        }
+        let base = buf.as_ptr().cast::<u8>();
+        let mut off = 0usize;
+        while off < n as usize {
+            let d = base.add(off).cast::<libc::dirent64>();
+            let name = std::ptr::addr_of!((*d).d_name).cast::<libc::c_char>();
+            let dot = *name == b'.' as libc::c_char;
+            let special = dot
+                && (*name.add(1) == 0
+                    || (*name.add(1) == b'.' as libc::c_char && *name.add(2) == 0));
+            if !special {
+                libc::unlinkat(fd, name, 0);
+            }
+            off += (*d).d_reclen as usize;
+        }
+    }
+    libc::close(fd);
 }
 
 extern "C" fn on_signal(sig: libc::c_int) {
@@ -192,6 +235,40 @@ mod tests {
             .starts_with("; finish it with `rtprobe run --resume "));
         set_resume_hint("rtprobe run --resume reports/r.json");
         assert_eq!(resume_hint(), b"; finish it with `rtprobe run --resume reports/r.json`\n");
+    }
+
+    /// The handler's unlinking empties a job folder of many unread job files (more than one
+    /// `getdents64` buffer's worth), so that its `rmdir` succeeds; without it the `rmdir` fails.
+    #[test]
+    fn the_handler_empties_a_job_folder_then_removes_it() {
+        let dir = crate::tempdir::TempDir::named("rtprobe-jobs-test").unwrap();
+        for i in 0..300 {
+            std::fs::write(dir.path().join(format!("job-{i}.json")), b"{}").unwrap();
+        }
+        let c = std::ffi::CString::new(dir.path().to_str().unwrap()).unwrap();
+        // The twin: rmdir alone leaves it (ENOTEMPTY).
+        assert_ne!(unsafe { libc::rmdir(c.as_ptr()) }, 0);
+        unsafe { empty(c.as_ptr()) };
+        assert_eq!(unsafe { libc::rmdir(c.as_ptr()) }, 0, "{:?}", std::io::Error::last_os_error());
+        assert!(!dir.path().exists());
+    }
+
+    #[test]
+    fn a_job_folder_is_registered_while_it_lives() {
+        let f = JobFolder::new().unwrap();
+        let path = f.path().to_path_buf();
+        let named = |p: &std::path::Path| {
+            FOLDERS.iter().any(|s| {
+                let q = s.load(Ordering::SeqCst);
+                // SAFETY: registered paths are leaked NUL-terminated strings.
+                !q.is_null()
+                    && unsafe { std::ffi::CStr::from_ptr(q) }.to_bytes()
+                        == p.as_os_str().as_encoded_bytes()
+            })
+        };
+        assert!(named(&path));
+        drop(f);
+        assert!(!named(&path) && !path.exists());
     }
 
     #[test]

@@ -203,7 +203,16 @@ impl Supervisor {
     /// The folder of this supervisor's job files, made at the first call.
     fn job_folder(&mut self) -> std::io::Result<&std::path::Path> {
         if self.jobs.is_none() {
-            self.jobs = Some(super::groups::JobFolder::new()?);
+            let folder = super::groups::JobFolder::new().map_err(|e| {
+                std::io::Error::new(
+                    e.kind(),
+                    format!(
+                        "cannot make a job folder in {}: {e}; set TMPDIR to a folder you can write",
+                        std::env::temp_dir().display()
+                    ),
+                )
+            })?;
+            self.jobs = Some(folder);
         }
         Ok(self.jobs.as_ref().expect("made above").path())
     }
