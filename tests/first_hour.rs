@@ -332,23 +332,18 @@ fn a_ci_log_shows_progress_counts_that_add_up_and_one_verdict_line() {
         assert!(!out.contains(bad) && !err.contains(bad), "{bad:?} in:\n{out}\n{err}");
     }
     assert!(out.contains("not proven (2 passes; need 19 for 99%)"), "{out}");
-    // Every re-run alone of a finding compiled its pipeline afresh (the driver's cache off:
-    // lavapipe has no pipelineBinaryInternalCacheControl, so by the environment switch) and ran
-    // the SPIR-V the matrix compiled (rtprobe's own GLSL cache, not the driver's); the repeats
-    // that verify a passing workaround or pattern kept the driver's cache.
-    let isolated = |pass: bool| {
-        j["cells"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .filter(|c| (c["outcome"] == "pass") == pass)
-            .flat_map(|c| c["attempts"].as_array().unwrap())
-            .filter(|a| a["isolated"] == true)
-            .count() as u64
-    };
-    let (reruns, verifying) = (isolated(false), isolated(true));
+    // Every re-run alone compiled its pipeline afresh (the driver's cache off: lavapipe has no
+    // pipelineBinaryInternalCacheControl, so by the environment switch) and ran the SPIR-V the
+    // matrix compiled (rtprobe's own GLSL cache, not the driver's).
+    let reruns = j["cells"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|c| c["attempts"].as_array().unwrap())
+        .filter(|a| a["isolated"] == true)
+        .count() as u64;
     let dc = &j["driver_cache"];
-    assert!(reruns >= 2 && verifying >= 1, "{reruns} {verifying} {dc}");
+    assert!(reruns >= 2, "{dc}");
     assert_eq!(dc["fresh_workers"], reruns, "{dc}");
     assert_eq!(
         dc["env_switch"].as_u64().unwrap() + dc["internal_cache_disabled"].as_u64().unwrap(),

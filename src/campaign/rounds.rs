@@ -96,17 +96,11 @@ impl Campaign<'_> {
         self.batch(cells, mode)
     }
 
-    /// Run `next(report)` as `mode` (one of the two alone) until it is empty (or a batch adds
-    /// nothing).
-    fn until_done(
-        &mut self,
-        name: &'static str,
-        mode: Mode,
-        next: &dyn Fn(&RunReport) -> Vec<Cell>,
-    ) {
+    /// Run `next(report)` alone until it is empty (or a batch adds nothing).
+    fn until_done(&mut self, name: &'static str, next: &dyn Fn(&RunReport) -> Vec<Cell>) {
         loop {
             let more = next(&self.rec.writer.report);
-            if more.is_empty() || self.round(name, &more, mode) == 0 {
+            if more.is_empty() || self.round(name, &more, Mode::Alone) == 0 {
                 break;
             }
         }
@@ -125,7 +119,7 @@ impl Campaign<'_> {
 
     /// Every faulting cell until it has `n` attempts in all, each alone in a fresh worker.
     pub fn repeat(&mut self, n: u32) {
-        self.until_done("repeat", Mode::Alone, &|r| repeat_cells(r, n));
+        self.until_done("repeat", &|r| repeat_cells(r, n));
     }
 
     /// The findings' workaround variants the device can run, once, together.
@@ -146,10 +140,9 @@ impl Campaign<'_> {
         self.round("patterns", &patterns, Mode::Shared);
     }
 
-    /// Passing variants and patterns again, alone, until they have their finding's attempts;
-    /// with the driver's own shader cache ([`Mode::AloneWarm`]).
+    /// Passing variants and patterns again, alone, until they have their finding's attempts.
     pub fn verify(&mut self) {
-        self.until_done("verify", Mode::AloneWarm, &verify_cells);
+        self.until_done("verify", &verify_cells);
     }
 
     /// Each finding again, alone, under GPU-AV, next to its control (`report::gpu_av`), kept

@@ -327,8 +327,7 @@ fn workaround_world() -> (World, Cell, Vec<Cell>) {
 fn check_workarounds(w: &World, finding: Cell, v: &[Cell]) -> Result<(), String> {
     let (first, verify) = w.oracle.batches.split_first().ok_or("no batch")?;
     same_batches(std::slice::from_ref(first), &[(Mode::Shared, vec![v[0], v[1]])])?;
-    // Alone, with the driver's own cache: the finding's re-runs compiled afresh, not these.
-    expect("verifying batches run alone", verify.iter().all(|(m, _)| *m == Mode::AloneWarm), true)?;
+    expect("verifying batches run alone", verify.iter().all(|(m, _)| *m == Mode::Alone), true)?;
     expect(
         "the passing workaround, as often as its finding",
         w.attempts(&v[0]),
@@ -385,11 +384,7 @@ fn pattern_world() -> (World, [Cell; 4]) {
 fn check_patterns(w: &World, [f, _, pf, ph]: [Cell; 4]) -> Result<(), String> {
     let (first, verify) = w.oracle.batches.split_first().ok_or("no batch")?;
     same_batches(std::slice::from_ref(first), &[(Mode::Shared, vec![pf])])?;
-    expect(
-        "verifying batches",
-        verify.iter().all(|(m, c)| *m == Mode::AloneWarm && c == &[pf]),
-        true,
-    )?;
+    expect("verifying batches", verify.iter().all(|(m, c)| *m == Mode::Alone && c == &[pf]), true)?;
     expect(
         "the pattern, as often as its finding",
         w.attempts(&pf),
@@ -524,9 +519,7 @@ fn rounds_of(batches: &[(Mode, Vec<Cell>)]) -> Vec<&'static str> {
             (Mode::Shared, _) if patched => "workarounds",
             (Mode::Shared, _) => "patterns",
             (Mode::Alone, false) => "again",
-            (Mode::Alone, true) => "verify with a cold compile",
-            (Mode::AloneWarm, true) => "verify",
-            (Mode::AloneWarm, false) => "a finding's re-run with the driver's cache",
+            (Mode::Alone, true) => "verify",
             (Mode::GpuAv, _) => "gpu_av",
         };
         if out.last() != Some(&round) {

@@ -220,6 +220,7 @@ impl Oracle for SupervisorOracle {
             *attempts += matches!(ev, Event::Attempt { .. }) as usize;
             on(ev)
         };
+        let isolated = mode != Mode::Shared;
         match (mode, &mut self.shared) {
             (Mode::GpuAv, _) => {
                 let o = SupervisorOptions {
@@ -230,10 +231,10 @@ impl Oracle for SupervisorOracle {
                     fresh: true,
                     ..self.opts.clone()
                 };
-                Supervisor::new(o).run(cells, mode, on)
+                Supervisor::new(o).run(cells, true, on)
             }
-            (_, Some(sup)) => sup.run(cells, mode, on),
-            (_, None) => Supervisor::new(self.opts.clone()).run(cells, mode, on),
+            (_, Some(sup)) => sup.run(cells, isolated, on),
+            (_, None) => Supervisor::new(self.opts.clone()).run(cells, isolated, on),
         }
     }
 }

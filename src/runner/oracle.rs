@@ -14,16 +14,9 @@ pub enum Mode {
     Shared,
     /// Each cell alone in a fresh worker, its pipeline compiled cold (the SPIR-V may be kept:
     /// `runner::protocol::WorkerJob::glsl_cache`), several side by side on CPU devices
-    /// (`SupervisorOptions::rerun_jobs`) (confirmation, repeats, bisection's repeats).
+    /// (`SupervisorOptions::rerun_jobs`) (confirmation, repeats, verifying workarounds and
+    /// patterns, bisection's repeats).
     Alone,
-    /// Each cell alone in a fresh worker as [`Mode::Alone`], but with the driver's own shader
-    /// cache (no persisted pipeline cache either way): verifying that a passing workaround or
-    /// pattern passes again, as often as its finding was seen. A pass may come from the driver's
-    /// cache, as the matrix's passes do; the re-runs that compile afresh are a finding's own
-    /// (confirm, repeat, bisect, repro, GPU-AV, mutants; issue 26), so that no finding is a
-    /// cache's artefact. A verifying re-run that faults ends the workaround's claim (the
-    /// conservative side). On lavapipe this skips a JIT of about 140 ms a re-run.
-    AloneWarm,
     /// Alone, under the validation layer with GPU-AV on, one thread, no pipeline cache
     /// (`report::gpu_av`); its attempts never join the cells' own.
     GpuAv,

@@ -20,7 +20,6 @@
 use super::event::Event;
 use super::injection::Injections;
 use super::machine::{self, Effect, Input, Limits};
-use super::oracle::Mode;
 use super::process::{Line, Proc};
 use super::protocol::WorkerJob;
 use super::schedule::{Job, Schedule};
@@ -98,8 +97,8 @@ pub struct Supervisor {
     tx: Sender<Line>,
     rx: Receiver<Line>,
     generation: u64,
-    /// How the current `run` runs its cells.
-    mode: Mode,
+    /// The current `run` re-runs cells alone: its workers load no persisted pipeline cache.
+    rerun: bool,
     /// This supervisor's job files' folder (`rtprobe-jobs-<pid>-…`, made afresh at the first
     /// worker's start, removed with the supervisor or by the interrupt handler).
     jobs: Option<super::groups::JobFolder>,
@@ -110,19 +109,18 @@ impl Supervisor {
         super::groups::install_handlers();
         let (tx, rx) = channel();
         let injections = Injections::new(opts.inject.clone());
-        Supervisor { opts, injections, tx, rx, generation: 0, mode: Mode::Shared, jobs: None }
+        Supervisor { opts, injections, tx, rx, generation: 0, rerun: false, jobs: None }
     }
 
     fn limits(&self) -> Limits {
         Limits { timeout: self.opts.timeout, setup_timeout: self.opts.setup_timeout }
     }
 
-    /// Run `cells`, calling `on` for each attempt as it finishes. Any mode but `Shared` runs one
-    /// fresh worker per cell, without the persisted pipeline cache (a re-run), `rerun_jobs` of
-    /// them at once; `Alone` and `GpuAv` compile afresh as well ([`Supervisor::fresh`]).
-    pub fn run(&mut self, cells: &[Cell], mode: Mode, on: &mut dyn FnMut(Event)) {
-        self.mode = mode;
-        let isolated = mode != Mode::Shared;
+    /// Run `cells`, calling `on` for each attempt as it finishes. `isolated` forces one fresh
+    /// worker per cell, without the persisted pipeline cache (a re-run), `rerun_jobs` of them at
+    /// once.
+    pub fn run(&mut self, cells: &[Cell], isolated: bool, on: &mut dyn FnMut(Event)) {
+        self.rerun = isolated;
         let per_cell = isolated || self.opts.isolation == Isolation::ProcessPerCell;
         let jobs = if isolated { self.opts.rerun_jobs } else { self.opts.jobs };
         let mut schedule: Schedule<Running> = Schedule::new(cells, jobs, per_cell);
@@ -184,20 +182,10 @@ impl Supervisor {
         }
     }
 
-    /// Whether workers started now compile afresh: re-runs alone but for verifying ones, and
-    /// every worker of a fresh supervisor.
+    /// Whether workers started now compile afresh: re-runs alone, and every worker of a fresh
+    /// supervisor.
     fn fresh(&self) -> bool {
-        let rerun = match self.mode {
-            Mode::Shared | Mode::AloneWarm => false,
-            Mode::Alone | Mode::GpuAv => true,
-        };
-        rerun || self.opts.fresh
-    }
-
-    /// Whether workers started now load (and save) the persisted pipeline cache: those of a
-    /// non-fresh supervisor's shared runs alone.
-    fn persisted_cache(&self) -> bool {
-        self.mode == Mode::Shared && !self.opts.fresh
+        self.rerun || self.opts.fresh
     }
 
     /// The folder of this supervisor's job files, made at the first call.
@@ -236,7 +224,7 @@ impl Supervisor {
             serial: job.serial,
             cells: job.cells,
             threads: self.opts.threads.max(1),
-            pipeline_cache: self.opts.pipeline_cache.clone().filter(|_| self.persisted_cache()),
+            pipeline_cache: self.opts.pipeline_cache.clone().filter(|_| !self.fresh()),
             // rtprobe's own GLSL cache, for re-runs alone too; a fresh supervisor (bisect, repro,
             // GPU-AV) compiles its GLSL as well.
             glsl_cache: self.opts.pipeline_cache.clone().filter(|_| !self.opts.fresh),
