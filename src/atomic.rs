@@ -30,14 +30,8 @@ pub fn write_atomic_with(path: &Path, bytes: &[u8], sync: bool) -> Result<(), Wr
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(err)?;
     }
-    let name =
-        path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
-    // One name per call (threads of one process may write the same file: the GLSL cache).
-    static N: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-    let n = N.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    let tmp = path.with_file_name(format!(".{name}.tmp-{}-{n}", std::process::id()));
+    let (tmp, mut f) = create_temp(path).map_err(err)?;
     let result = (|| {
-        let mut f = create_new(&tmp)?;
         f.write_all(bytes)?;
         if sync {
             f.sync_all()?;
@@ -50,18 +44,28 @@ pub fn write_atomic_with(path: &Path, bytes: &[u8], sync: bool) -> Result<(), Wr
     result.map_err(err)
 }
 
-/// `path` made new (`O_EXCL`): what is there already — a killed writer's temp file of this pid,
-/// or a link someone planted under the name — is removed (the link, not what it points to) and
-/// never written through.
-fn create_new(path: &Path) -> std::io::Result<std::fs::File> {
-    let open = || std::fs::OpenOptions::new().write(true).create_new(true).open(path);
-    match open() {
-        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
-            std::fs::remove_file(path)?;
-            open()
+/// The number of the next temp name [`create_temp`] tries (process-wide).
+static NEXT_TEMP: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
+/// A new file beside `path`, `.NAME.tmp-PID-N` (`O_EXCL`): a name that is taken — another
+/// writer's live temp file (a process of this pid in another pid namespace sharing the folder),
+/// a killed writer's, a link someone planted — is never written through nor removed; the next
+/// name is tried (at most 100).
+fn create_temp(path: &Path) -> std::io::Result<(PathBuf, std::fs::File)> {
+    // One name per call (threads of one process may write the same file: the GLSL cache).
+    let name =
+        path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
+    let mut last = None;
+    for _ in 0..100 {
+        let n = NEXT_TEMP.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let tmp = path.with_file_name(format!(".{name}.tmp-{}-{n}", std::process::id()));
+        match std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp) {
+            Ok(f) => return Ok((tmp, f)),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => last = Some(e),
+            Err(e) => return Err(e),
         }
-        r => r,
     }
+    Err(last.unwrap_or_else(|| std::io::Error::other("no free temporary name")))
 }
 
 #[cfg(test)]
@@ -78,22 +82,28 @@ mod tests {
         assert_eq!(std::fs::read_dir(p.parent().unwrap()).unwrap().count(), 1, "no temp file left");
     }
 
-    /// A link planted where the temp file goes is removed, not written through; its twin, a
-    /// plain `File::create`, would have written into the victim.
+    /// Every temp name this process would try next taken by a planted link: the write still
+    /// lands, through none of them, and none is removed. Its twin, a plain `File::create` of the
+    /// name, writes into the victim.
     #[test]
-    fn a_planted_link_is_not_written_through() {
+    fn a_planted_link_is_neither_written_through_nor_removed() {
         let d = crate::tempdir::tempdir().unwrap();
         let victim = d.path().join("victim");
         std::fs::write(&victim, b"keep").unwrap();
-        let planted = d.path().join(".r.json.tmp");
-        std::os::unix::fs::symlink(&victim, &planted).unwrap();
-        let mut f = create_new(&planted).unwrap();
-        f.write_all(b"new").unwrap();
+        let r = d.path().join("r.json");
+        let pid = std::process::id();
+        // The counter is the process's: plant the next names other tests may take meanwhile too.
+        let from = NEXT_TEMP.load(std::sync::atomic::Ordering::Relaxed);
+        let planted: Vec<PathBuf> =
+            (from..from + 40).map(|n| d.path().join(format!(".r.json.tmp-{pid}-{n}"))).collect();
+        for p in &planted {
+            std::os::unix::fs::symlink(&victim, p).unwrap();
+        }
+        write_atomic(&r, b"new").unwrap();
+        assert_eq!(std::fs::read(&r).unwrap(), b"new");
         assert_eq!(std::fs::read(&victim).unwrap(), b"keep");
-        assert!(std::fs::symlink_metadata(&planted).unwrap().file_type().is_file());
-        std::fs::remove_file(&planted).unwrap();
-        std::os::unix::fs::symlink(&victim, &planted).unwrap();
-        std::fs::File::create(&planted).unwrap().write_all(b"twin").unwrap();
+        assert!(planted.iter().all(|p| std::fs::symlink_metadata(p).unwrap().is_symlink()));
+        std::fs::File::create(&planted[0]).unwrap().write_all(b"twin").unwrap();
         assert_eq!(std::fs::read(&victim).unwrap(), b"twin", "the twin writes through");
     }
 

@@ -462,6 +462,8 @@ fn ctrl_c_kills_every_worker_keeps_the_report_and_resume_finishes() {
     assert!(err.contains("interrupted (SIGINT)") && err.contains("--resume"), "{err}");
     let r = report(&out);
     assert_eq!(r["complete"], false);
+    // The handler removed the job folder, with any job file no worker had read yet.
+    assert_eq!(job_folders(dir.path()), Vec::<String>::new());
     // The same result-changing options as the interrupted run (a different --timeout is refused).
     let o = run(&[
         "run",

@@ -105,6 +105,28 @@ fn write(dir: &Path, name: &str, bytes: &[u8]) -> Result<()> {
     write_atomic(&dir.join(name), bytes).context("writing the repro bundle")
 }
 
+/// The bundle's staging folder beside `out`, `.NAME.tmp-PID-K`, made new (`create_dir`): a
+/// name that is taken (a killed run's, a live one of this pid in another pid namespace, a planted
+/// link) is neither entered nor removed; the next is tried.
+fn staging_dir(out: &Path, name: &str) -> Result<std::path::PathBuf> {
+    let mut last = None;
+    for k in 0..100 {
+        let tmp = out.with_file_name(format!(".{name}.tmp-{}-{k}", std::process::id()));
+        match std::fs::create_dir(&tmp) {
+            Ok(()) => return Ok(tmp),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => last = Some(e),
+            Err(e) => {
+                return Err(coded(exit::BAD_INPUT, format!("cannot create {}: {e}", tmp.display())))
+            }
+        }
+    }
+    let e = last.map_or_else(|| "no free name".to_string(), |e| e.to_string());
+    Err(coded(
+        exit::BAD_INPUT,
+        format!("cannot make a staging folder beside {}: {e}", out.display()),
+    ))
+}
+
 /// Move the bundle built in `tmp` to `out` by renames, so that `out` is either what it was or
 /// the whole new bundle: a missing or empty `out` is replaced; a non-empty one only with
 /// `force` (moved aside first, removed once the new bundle is in place, put back on failure).
@@ -221,18 +243,12 @@ pub fn repro(g: &Globals, a: &ReproArgs) -> Result<u8> {
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "repro".into());
-    let tmp = a.out.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
     if let Some(parent) = a.out.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent).map_err(|e| {
             coded(exit::BAD_INPUT, format!("cannot create {}: {e}", parent.display()))
         })?;
     }
-    // The bundle's folder made new: a stale one of this pid, or a link planted under its name,
-    // is removed (the link itself) and never written through.
-    let _ = std::fs::remove_file(&tmp);
-    let _ = std::fs::remove_dir_all(&tmp);
-    std::fs::create_dir(&tmp)
-        .map_err(|e| coded(exit::BAD_INPUT, format!("cannot create {}: {e}", tmp.display())))?;
+    let tmp = staging_dir(&a.out, &name)?;
     let bundle =
         Bundle { g, a, report: &report, ro: &ro, cell, entry, inject: &inject, shaders: &shaders };
     let built = bundle.build(&tmp);
