@@ -47,25 +47,28 @@ pub fn write_atomic_with(path: &Path, bytes: &[u8], sync: bool) -> Result<(), Wr
 /// The number of the next temp name [`create_temp`] tries (process-wide).
 static NEXT_TEMP: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 
-/// A new file beside `path`, `.NAME.tmp-PID-N` (`O_EXCL`): a name that is taken — another
-/// writer's live temp file (a process of this pid in another pid namespace sharing the folder),
-/// a killed writer's, a link someone planted — is never written through nor removed; the next
-/// name is tried (at most 100).
+/// A new file beside `path`, `.NAME.tmp-PID-N` (`O_EXCL`), by [`crate::tempdir::first_free`]:
+/// a name that is taken — another writer's live temp file (a process of this pid in another pid
+/// namespace sharing the folder), a killed writer's, a link someone planted — is never written
+/// through nor removed.
 fn create_temp(path: &Path) -> std::io::Result<(PathBuf, std::fs::File)> {
     // One name per call (threads of one process may write the same file: the GLSL cache).
     let name =
         path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
-    let mut last = None;
-    for _ in 0..100 {
+    crate::tempdir::first_free(|_| {
         let n = NEXT_TEMP.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let tmp = path.with_file_name(format!(".{name}.tmp-{}-{n}", std::process::id()));
-        match std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp) {
-            Ok(f) => return Ok((tmp, f)),
-            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => last = Some(e),
-            Err(e) => return Err(e),
-        }
-    }
-    Err(last.unwrap_or_else(|| std::io::Error::other("no free temporary name")))
+        let f = std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp)?;
+        Ok((tmp, f))
+    })
+}
+
+/// Whether a file can be written in `dir` (made when missing): a new temp file is made there
+/// ([`create_temp`]: nothing there is followed or removed) and removed. The OS error when not.
+pub fn can_write_in(dir: &Path) -> std::io::Result<()> {
+    std::fs::create_dir_all(dir)?;
+    let (tmp, _) = create_temp(&dir.join(".rtprobe-write-check"))?;
+    std::fs::remove_file(tmp)
 }
 
 #[cfg(test)]

@@ -1,8 +1,9 @@
 //! A private temporary folder removed on drop: what rtprobe's own temporary files (an external
 //! glslang's input and output, a supervisor's job files, `spirv-val`'s and `spirv-dis`'s input,
-//! `bench`'s and `--verify`'s work) and its tests use. Never a predictable name in /tmp: a folder
-//! `rtprobe-<pid>` that an earlier process with the same pid left (or someone planted) made runs
-//! fail (CI, 2026-12-04) or would have been written into. std-only on purpose: the `tempfile` crate as a
+//! `bench`'s and `--verify`'s work) and its tests use, and [`first_free`], how every name rtprobe
+//! makes beside others is chosen. Never a predictable name in /tmp: a folder `rtprobe-<pid>` that
+//! an earlier process with the same pid left (or someone planted) made runs fail (CI,
+//! 2026-12-04) or would have been written into. std-only on purpose: the `tempfile` crate as a
 //! dev-dependency turned on `rustix`'s `fs` feature in test builds only, so `cargo test
 //! --release` after `cargo build --release` recompiled `rustix`, `clap` and the whole library
 //! (issue 27: one build for both).
@@ -22,8 +23,16 @@ impl TempDir {
 
     /// Make a new folder `<prefix>-<pid>-<n>-<nanos>` under [`std::env::temp_dir`]: what names
     /// a folder by its use (a supervisor's job files, `spirv-val`'s input).
+    /// Its error names the temporary folder and says what to do.
     pub fn named(prefix: &str) -> std::io::Result<TempDir> {
-        Self::new_in_named(&std::env::temp_dir(), prefix)
+        let tmp = std::env::temp_dir();
+        Self::new_in_named(&tmp, prefix).map_err(|e| {
+            let what = format!(
+                "cannot make a folder in {}: {e}; set TMPDIR to a folder you can write",
+                tmp.display()
+            );
+            std::io::Error::new(e.kind(), what)
+        })
     }
 
     /// Make a new folder under `parent`. A name already taken (another process's, or one planted
@@ -58,16 +67,27 @@ impl Drop for TempDir {
 /// The first of `names` (at most 100 tried) that `create_dir` makes under `parent`, mode 0700.
 fn make(parent: &Path, mut names: impl FnMut() -> String) -> std::io::Result<TempDir> {
     use std::os::unix::fs::DirBuilderExt;
-    let mut last = None;
-    for _ in 0..100 {
+    first_free(|_| {
         let p = parent.join(names());
-        match std::fs::DirBuilder::new().mode(0o700).create(&p) {
-            Ok(()) => return Ok(TempDir(p)),
+        std::fs::DirBuilder::new().mode(0o700).create(&p).map(|()| TempDir(p))
+    })
+}
+
+/// What `try_make(k)` makes first, for k = 0, 1, … (at most 100 tries): a candidate whose name
+/// is taken (`AlreadyExists`: another process's, a killed one's, a link someone planted) is
+/// skipped, never entered nor removed; any other error ends the search. The one mechanism of
+/// every new file or folder rtprobe names itself beside others (temp folders, the atomic
+/// writer's temp files, repro's staging folder).
+pub fn first_free<T>(mut try_make: impl FnMut(u32) -> std::io::Result<T>) -> std::io::Result<T> {
+    let mut last = None;
+    for k in 0..100 {
+        match try_make(k) {
+            Ok(made) => return Ok(made),
             Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => last = Some(e),
             Err(e) => return Err(e),
         }
     }
-    Err(last.unwrap_or_else(|| std::io::Error::other("no free temporary folder name")))
+    Err(last.unwrap_or_else(|| std::io::Error::other("no free name")))
 }
 
 /// A new [`TempDir`] (what tests call, as they called `tempfile::tempdir`).

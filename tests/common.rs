@@ -40,34 +40,25 @@ pub fn cache_dir() -> std::path::PathBuf {
             // This process's own cache (a fresh name: never a folder an earlier process with the
             // same pid left), removed with the shared folders when it exits.
             static DIR: std::sync::OnceLock<std::path::PathBuf> = std::sync::OnceLock::new();
-            DIR.get_or_init(|| {
-                let dir = rtprobe::tempdir::TempDir::named("rtprobe-test-cache")
-                    .expect("a temporary folder");
-                let path = dir.path().to_path_buf();
-                remove_when_exiting(Removal(dir));
-                path
-            })
-            .clone()
+            DIR.get_or_init(|| tempdir_until_exit_named("rtprobe-test-cache")).clone()
         }
     }
 }
-
-/// A folder removed (by its drop) when this test process exits.
-struct Removal(rtprobe::tempdir::TempDir);
 
 /// Folders removed when this test process exits. A `static` is never dropped, so a `TempDir` a
 /// suite shares through one (made once, read by several tests) used to stay in /tmp after every
 /// run (bisect's shared report with its bundles and dumps: 50 MB a run), and so did the
 /// per-process cache folder.
-static AT_EXIT: std::sync::Mutex<Vec<Removal>> = std::sync::Mutex::new(Vec::new());
+static AT_EXIT: std::sync::Mutex<Vec<rtprobe::tempdir::TempDir>> =
+    std::sync::Mutex::new(Vec::new());
 
-fn remove_when_exiting(r: Removal) {
+fn remove_when_exiting(dir: rtprobe::tempdir::TempDir) {
     static REGISTERED: std::sync::Once = std::sync::Once::new();
     REGISTERED.call_once(|| {
         // SAFETY: `remove_at_exit` is a plain `extern "C" fn()`.
         unsafe { libc::atexit(remove_at_exit) };
     });
-    AT_EXIT.lock().unwrap_or_else(|e| e.into_inner()).push(r);
+    AT_EXIT.lock().unwrap_or_else(|e| e.into_inner()).push(dir);
 }
 
 extern "C" fn remove_at_exit() {
@@ -77,9 +68,14 @@ extern "C" fn remove_at_exit() {
 /// A fresh temporary folder that lives until this test process exits (the test harness returns
 /// from `main`, or exits on a failure: both run `atexit` handlers), for a `static` to share.
 pub fn tempdir_until_exit() -> std::path::PathBuf {
-    let dir = rtprobe::tempdir::tempdir().expect("a temporary folder");
+    tempdir_until_exit_named("rtprobe")
+}
+
+/// [`tempdir_until_exit`], named `<prefix>-<pid>-…`.
+pub fn tempdir_until_exit_named(prefix: &str) -> std::path::PathBuf {
+    let dir = rtprobe::tempdir::TempDir::named(prefix).expect("a temporary folder");
     let path = dir.path().to_path_buf();
-    remove_when_exiting(Removal(dir));
+    remove_when_exiting(dir);
     path
 }
 

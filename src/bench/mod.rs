@@ -142,14 +142,6 @@ fn default_statement(o: &BenchOptions, size_time: &Value, detection: &Value) -> 
 /// written and removed.
 pub fn check_out_dir(dir: &Path) -> Result<(), OutDirError> {
     std::fs::create_dir_all(dir).map_err(|err| OutDirError::Create { dir: dir.into(), err })?;
-    let probe = dir.join(format!(".rtprobe-bench-{}", std::process::id()));
-    // Made new (O_EXCL) after removing what is there: a planted link is never written through.
-    let _ = std::fs::remove_file(&probe);
-    std::fs::OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .open(&probe)
-        .map_err(|err| OutDirError::NotWritable { dir: dir.into(), err })?;
-    let _ = std::fs::remove_file(&probe);
-    Ok(())
+    crate::atomic::can_write_in(dir)
+        .map_err(|err| OutDirError::NotWritable { dir: dir.into(), err })
 }

@@ -9,33 +9,13 @@ use std::path::Path;
 /// A fresh private work folder `<prefix>-<pid>-…` under the temporary folder (children's job
 /// and result files), removed when dropped; or a one-line error (exit 9) that says what to do.
 pub fn work_dir(prefix: &str) -> Result<crate::tempdir::TempDir> {
-    crate::tempdir::TempDir::named(prefix).map_err(|e| {
-        coded(
-            exit::BAD_INPUT,
-            format!(
-                "cannot make a work folder in {}: {e}; set TMPDIR to a folder you can write",
-                std::env::temp_dir().display()
-            ),
-        )
-    })
+    crate::tempdir::TempDir::named(prefix).map_err(|e| coded(exit::BAD_INPUT, e.to_string()))
 }
 
 /// The temporary folder takes a private work folder (the supervisor's job files go there), or a
 /// one-line error (exit 9) before any GPU work: else every cell would be an `error` finding.
 pub fn temp_usable() -> Result<()> {
     work_dir("rtprobe-check").map(drop)
-}
-
-/// Whether a file can be written in `dir` (created when missing); the OS error when not. The
-/// probe file is made new (`O_EXCL`: a link planted under its name is never written through).
-fn probe(dir: &Path) -> std::io::Result<()> {
-    std::fs::create_dir_all(dir)?;
-    let p = dir.join(format!(".rtprobe-write-check-{}", std::process::id()));
-    // A stale one (a killed check of a process with this pid), or a planted link: removed, not
-    // followed.
-    let _ = std::fs::remove_file(&p);
-    std::fs::OpenOptions::new().write(true).create_new(true).open(&p)?;
-    std::fs::remove_file(&p)
 }
 
 /// `flag`'s output file `path` can be written (its folder exists or can be made, and takes a
@@ -48,7 +28,7 @@ pub fn writable_file(path: &Path, flag: &str) -> Result<()> {
         ));
     }
     let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    probe(dir).map_err(|e| {
+    crate::atomic::can_write_in(dir).map_err(|e| {
         coded(
             exit::BAD_INPUT,
             format!(
@@ -68,7 +48,7 @@ pub fn writable_dir(dir: &Path, flag: &str) -> Result<()> {
             format!("{flag} {} is a file, not a folder", dir.display()),
         ));
     }
-    probe(dir).map_err(|e| {
+    crate::atomic::can_write_in(dir).map_err(|e| {
         coded(
             exit::BAD_INPUT,
             format!("{flag} {}: cannot write there: {e}; choose another folder", dir.display()),

@@ -105,26 +105,20 @@ fn write(dir: &Path, name: &str, bytes: &[u8]) -> Result<()> {
     write_atomic(&dir.join(name), bytes).context("writing the repro bundle")
 }
 
-/// The bundle's staging folder beside `out`, `.NAME.tmp-PID-K`, made new (`create_dir`): a
-/// name that is taken (a killed run's, a live one of this pid in another pid namespace, a planted
-/// link) is neither entered nor removed; the next is tried.
+/// The bundle's staging folder beside `out`, `.NAME.tmp-PID-K`, made new (`create_dir`, by
+/// [`crate::tempdir::first_free`]: a name that is taken — a killed run's, a live one of this pid
+/// in another pid namespace, a planted link — is neither entered nor removed).
 fn staging_dir(out: &Path, name: &str) -> Result<std::path::PathBuf> {
-    let mut last = None;
-    for k in 0..100 {
+    crate::tempdir::first_free(|k| {
         let tmp = out.with_file_name(format!(".{name}.tmp-{}-{k}", std::process::id()));
-        match std::fs::create_dir(&tmp) {
-            Ok(()) => return Ok(tmp),
-            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => last = Some(e),
-            Err(e) => {
-                return Err(coded(exit::BAD_INPUT, format!("cannot create {}: {e}", tmp.display())))
-            }
-        }
-    }
-    let e = last.map_or_else(|| "no free name".to_string(), |e| e.to_string());
-    Err(coded(
-        exit::BAD_INPUT,
-        format!("cannot make a staging folder beside {}: {e}", out.display()),
-    ))
+        std::fs::create_dir(&tmp).map(|()| tmp)
+    })
+    .map_err(|e| {
+        coded(
+            exit::BAD_INPUT,
+            format!("cannot make a staging folder beside {}: {e}", out.display()),
+        )
+    })
 }
 
 /// Move the bundle built in `tmp` to `out` by renames, so that `out` is either what it was or

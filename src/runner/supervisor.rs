@@ -191,16 +191,8 @@ impl Supervisor {
     /// The folder of this supervisor's job files, made at the first call.
     fn job_folder(&mut self) -> std::io::Result<&std::path::Path> {
         if self.jobs.is_none() {
-            let folder = super::groups::JobFolder::new().map_err(|e| {
-                std::io::Error::new(
-                    e.kind(),
-                    format!(
-                        "cannot make a job folder in {}: {e}; set TMPDIR to a folder you can write",
-                        std::env::temp_dir().display()
-                    ),
-                )
-            })?;
-            self.jobs = Some(folder);
+            // (its error names the temporary folder and says to set TMPDIR)
+            self.jobs = Some(super::groups::JobFolder::new()?);
         }
         Ok(self.jobs.as_ref().expect("made above").path())
     }

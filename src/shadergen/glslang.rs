@@ -97,9 +97,8 @@ pub fn compile_with(
         file: file.clone(),
         message: missing_for(extension),
     })?;
-    let dir = crate::tempdir::TempDir::named("rtprobe-glslang").map_err(|e| {
-        CompileError::Glsl { file: file.clone(), message: format!("temporary folder: {e}") }
-    })?;
+    let dir = crate::tempdir::TempDir::named("rtprobe-glslang")
+        .map_err(|e| CompileError::Glsl { file: file.clone(), message: e.to_string() })?;
     // The source keeps its own name (glslang's messages name it), without its folders.
     let base = std::path::Path::new(&file).file_name().map_or("shader".into(), |b| b.to_owned());
     let src = dir.path().join(base);
