@@ -67,7 +67,7 @@ fn create_temp(path: &Path) -> std::io::Result<(PathBuf, std::fs::File)> {
 /// ([`create_temp`]: nothing there is followed or removed) and removed. The OS error when not.
 pub fn can_write_in(dir: &Path) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
-    let (tmp, _) = create_temp(&dir.join(".rtprobe-write-check"))?;
+    let (tmp, _) = create_temp(&dir.join("rtprobe-write-check"))?;
     std::fs::remove_file(tmp)
 }
 
@@ -108,6 +108,24 @@ mod tests {
         assert!(planted.iter().all(|p| std::fs::symlink_metadata(p).unwrap().is_symlink()));
         std::fs::File::create(&planted[0]).unwrap().write_all(b"twin").unwrap();
         assert_eq!(std::fs::read(&victim).unwrap(), b"twin", "the twin writes through");
+    }
+
+    /// The write check makes its own file and removes only that: a link planted under the
+    /// name it tries first is neither followed nor removed.
+    #[test]
+    fn the_write_check_follows_and_removes_nothing_planted() {
+        let d = crate::tempdir::tempdir().unwrap();
+        let victim = d.path().join("victim");
+        std::fs::write(&victim, b"keep").unwrap();
+        let (pid, from) =
+            (std::process::id(), NEXT_TEMP.load(std::sync::atomic::Ordering::Relaxed));
+        let planted = d.path().join(format!(".rtprobe-write-check.tmp-{pid}-{from}"));
+        std::os::unix::fs::symlink(&victim, &planted).unwrap();
+        can_write_in(d.path()).unwrap();
+        assert_eq!(std::fs::read(&victim).unwrap(), b"keep");
+        assert!(std::fs::symlink_metadata(&planted).unwrap().is_symlink());
+        assert_eq!(std::fs::read_dir(d.path()).unwrap().count(), 2, "its own file removed");
+        assert!(can_write_in(Path::new("/proc/rtprobe-nowhere")).is_err());
     }
 
     #[test]

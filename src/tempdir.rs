@@ -113,6 +113,25 @@ mod tests {
         assert!(!p.exists());
     }
 
+    /// Only a taken name moves on to the next; any other error ends the search at once, and
+    /// nothing but taken names is `AlreadyExists` after the last try.
+    #[test]
+    fn first_free_skips_taken_names_only() {
+        use std::io::{Error, ErrorKind};
+        let mut tries = 0;
+        let e = first_free::<()>(|_| {
+            tries += 1;
+            Err(Error::from(ErrorKind::PermissionDenied))
+        })
+        .unwrap_err();
+        assert_eq!((e.kind(), tries), (ErrorKind::PermissionDenied, 1));
+        let got =
+            first_free(|k| if k < 3 { Err(Error::from(ErrorKind::AlreadyExists)) } else { Ok(k) });
+        assert_eq!(got.unwrap(), 3);
+        let e = first_free::<()>(|_| Err(Error::from(ErrorKind::AlreadyExists))).unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::AlreadyExists);
+    }
+
     #[test]
     fn a_taken_name_is_not_reused() {
         let parent = TempDir::new().unwrap();
