@@ -471,6 +471,12 @@ pub struct RunArgs {
     #[arg(long, value_name = "N", requires = "shader", help_heading = "Your shaders")]
     pub array_size: Option<u64>,
 
+    /// With --shader: skip the descriptor-index check that runs first (each array's largest
+    /// index on the run's data; runtime arrays sized up where the harness's own data goes past
+    /// them). An index past its binding then runs as given: undefined, the shader's fault
+    #[arg(long, requires = "shader", help_heading = "Your shaders")]
+    pub no_index_check: bool,
+
     /// With --shader: the bytes of the zero-filled sink buffer every 64-bit integer and
     /// buffer_reference pointer points at, 16 to 1073741824 (default 4 MiB)
     #[arg(long, value_name = "BYTES", requires = "shader", help_heading = "Your shaders")]

@@ -36,6 +36,7 @@ const TAKEN: &[&str] = &[
     "defines",
     "target_env",
     "array_size",
+    "no_index_check",
     "sink_size",
     "device",
     "out",
@@ -464,6 +465,11 @@ pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
 /// The variants run, compared among themselves and with `--compare`'s report, `--dump`ed, and
 /// the report made with the options that changed what ran.
 fn judged_report(g: &Globals, a: &RunArgs, p: &mut Prepared) -> Result<ShaderRunReport> {
+    let bounds = if a.no_index_check {
+        crate::model::index_bounds::IndexBounds::unchecked("--no-index-check")
+    } else {
+        super::shader_bounds::check(&mut p.ctx, &mut p.plan, a.array_size.is_some())?
+    };
     let (plan, ctx) = (&p.plan, &p.ctx);
     let (unpatched, patched) = run_all(ctx, plan)?;
     let (mut unpatched, unpatched_teardown) = (unpatched.ran, unpatched.teardown);
@@ -482,6 +488,7 @@ fn judged_report(g: &Globals, a: &RunArgs, p: &mut Prepared) -> Result<ShaderRun
         .unwrap_or(p.device_name.clone());
     let mut notes = plan.notes.clone();
     notes.extend(plan.injection.as_ref().map(|i| i.line()));
+    notes.extend(bounds.note());
     let judged = shader_exec::compare_all(&device, &mut unpatched, &mut patched);
     notes.extend(judged.note);
     let compared = p.other.as_ref().map(|other| {
@@ -513,7 +520,13 @@ fn judged_report(g: &Globals, a: &RunArgs, p: &mut Prepared) -> Result<ShaderRun
     for ((v, t), d) in report.variants.iter_mut().zip(teardowns).zip(data) {
         (v.teardown, v.data) = (t, d);
     }
+    super::shader_uniform::judge(&ctx.unpatched, &mut report.variants);
     report.compare = compare;
+    if let Some((_, to)) = bounds.grown {
+        // What ran: `reduce` re-creates the run from it.
+        report.options["array_size"] = serde_json::json!(to);
+    }
+    report.index_bounds = (!bounds.is_empty()).then_some(bounds);
     let cell_options = std::mem::take(&mut p.cell_options);
     report.options["fill"] = serde_json::json!(cell_options.fill);
     // The `--fill` arguments as given: `reduce` re-creates the run from them.
@@ -649,6 +662,7 @@ fn report(
         profile: None,
         cell_options: Default::default(),
         compare: None,
+        index_bounds: None,
         baseline: None,
     }
 }

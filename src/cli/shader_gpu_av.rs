@@ -79,6 +79,7 @@ pub fn rerun(
             Judgement::Pass
             | Judgement::Unstable
             | Judgement::PatchDiffers
+            | Judgement::ShaderUndefined
             | Judgement::CompareDiffers
             | Judgement::Validation
             | Judgement::Error => false,

@@ -42,6 +42,7 @@ pub fn variant_line(v: &ShaderVariant, validated: bool) -> String {
         Judgement::Fault
         | Judgement::Unstable
         | Judgement::PatchDiffers
+        | Judgement::ShaderUndefined
         | Judgement::CompareDiffers
         | Judgement::Error => v.incidence.as_ref().map(|i| i.label()).unwrap_or_default(),
     };
@@ -259,6 +260,7 @@ mod tests {
             profile: None,
             cell_options: Default::default(),
             compare: None,
+            index_bounds: None,
             baseline: None,
         }
     }

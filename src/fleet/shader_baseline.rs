@@ -162,6 +162,7 @@ mod tests {
             notes: vec![],
             injection: None,
             compare: None,
+            index_bounds: None,
             baseline: None,
             profile: None,
             cell_options: Default::default(),

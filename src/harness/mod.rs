@@ -51,7 +51,7 @@ pub use compare::{compare, compare_within, judge, Compared, Part, PartKind, Tole
 pub use error::HarnessError;
 pub use module::{enable_needs, google, google_of, UserModule};
 pub use sizes::Sizes;
-pub use supply::{supply, MISS_MARKER};
+pub use supply::{free_binding, supply, MISS_MARKER};
 
 use crate::exec::pipeline::{self, Pipeline, RtPipeline, SbtCounts};
 use crate::model::contract::HostContract;

@@ -17,6 +17,7 @@ pub mod driver_cache;
 pub mod fault;
 pub mod filter;
 pub mod findings;
+pub mod index_bounds;
 pub mod inject;
 pub mod lanes;
 pub mod load;

@@ -123,6 +123,11 @@ pub enum Judgement {
     Unstable,
     /// A patched variant whose outputs differ from the unpatched ones.
     PatchDiffers,
+    /// The `nonuniform` variant differs from the unpatched pipeline, whose modules index
+    /// descriptor arrays dynamically without `NonUniform`: the unpatched reads are undefined
+    /// where an index differs within a subgroup (`VUID-RuntimeSpirv-None-10148`, a must), so
+    /// the difference is the shader's, not evidence against the driver.
+    ShaderUndefined,
     /// Outputs that differ beyond `--tolerance` from the `--compare` report's.
     CompareDiffers,
     /// Validation messages: the harness or the input misused the API; not evidence.
@@ -138,6 +143,7 @@ impl Judgement {
             Judgement::Fault => "fault",
             Judgement::Unstable => "unstable",
             Judgement::PatchDiffers => "patch_differs",
+            Judgement::ShaderUndefined => "shader_undefined",
             Judgement::CompareDiffers => "compare_differs",
             Judgement::Validation => "validation",
             Judgement::Error => "error",
@@ -254,6 +260,9 @@ pub struct ShaderRunReport {
     /// What `--compare` compared the run with.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub compare: Option<CompareInfo>,
+    /// The descriptor-index check before the variants ran (none in older reports).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub index_bounds: Option<super::index_bounds::IndexBounds>,
     /// The run held to `--baseline` (by `cell id/variant`).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub baseline: Option<super::BaselineCheck>,

@@ -1,6 +1,7 @@
 //! Finding dynamically indexed descriptor-array accesses: an `OpAccessChain` whose base is a
 //! descriptor variable (decorated `DescriptorSet`) of array type and whose first index is not a
-//! constant. Shared by `nonuniform` and `pin-index`.
+//! constant. Shared by `nonuniform` and `pin-index`; [`find_all`] (constant indices too) by the
+//! `index_bounds` instrumentation.
 use super::edit::{self, id_operand};
 use rspirv::dr::Module;
 use rspirv::spirv::{Op, StorageClass, Word};
@@ -18,6 +19,15 @@ pub struct Access {
 }
 
 pub fn find(m: &Module) -> Vec<Access> {
+    accesses(m, true)
+}
+
+/// Every descriptor-array access, its index constant or not.
+pub fn find_all(m: &Module) -> Vec<Access> {
+    accesses(m, false)
+}
+
+fn accesses(m: &Module, dynamic_only: bool) -> Vec<Access> {
     let vars = edit::descriptor_variables(m);
     let mut out = Vec::new();
     for (fi, f) in m.functions.iter().enumerate() {
@@ -31,7 +41,7 @@ pub fn find(m: &Module) -> Vec<Access> {
                 else {
                     continue;
                 };
-                if !vars.contains(&base) || edit::is_constant(m, index) {
+                if !vars.contains(&base) || (dynamic_only && edit::is_constant(m, index)) {
                     continue;
                 }
                 let Some(var) = edit::def(m, base) else {

@@ -10,6 +10,7 @@ mod dynamic_access;
 pub mod edit;
 mod error;
 mod guard;
+pub mod index_bounds;
 pub mod layout;
 mod name;
 pub mod nonuniform;

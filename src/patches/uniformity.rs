@@ -65,13 +65,38 @@ pub fn of_words(words: &[u32]) -> Uniformity {
         return Uniformity::default();
     };
     let accesses = dynamic_access::find(&m);
-    let decorated = |a: &dynamic_access::Access| {
-        let mut ids: HashSet<u32> = [a.index, a.chain].into();
-        super::nonuniform::derived_objects(&m, a.chain, &mut ids);
-        ids.iter().any(|id| edit::has_decoration(&m, *id, Decoration::NonUniform))
-    };
-    let dynamic_decorated = (!accesses.is_empty()).then(|| accesses.iter().all(decorated));
+    let dynamic_decorated =
+        (!accesses.is_empty()).then(|| accesses.iter().all(|a| decorated(&m, a)));
     Uniformity { heap_capability: false, dynamic_decorated }
+}
+
+/// Whether `a` carries `NonUniform` on its index, its chain or an object loaded from it.
+fn decorated(m: &rspirv::dr::Module, a: &dynamic_access::Access) -> bool {
+    let mut ids: HashSet<u32> = [a.index, a.chain].into();
+    super::nonuniform::derived_objects(m, a.chain, &mut ids);
+    ids.iter().any(|id| edit::has_decoration(m, *id, Decoration::NonUniform))
+}
+
+/// The (set, binding)s of the module's dynamically indexed accesses without `NonUniform`,
+/// sorted, each once; none for a module declaring `DescriptorHeapEXT` or one rspirv cannot
+/// read. Never panics.
+pub fn undecorated(words: &[u32]) -> Vec<(u32, u32)> {
+    if declares_heap_capability(words) {
+        return vec![];
+    }
+    let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+    let Ok(m) = super::load(&bytes) else {
+        return vec![];
+    };
+    let lit = |v, d| edit::decoration_literal(&m, v, d).unwrap_or(0);
+    let mut out: Vec<(u32, u32)> = dynamic_access::find(&m)
+        .iter()
+        .filter(|a| !decorated(&m, a))
+        .map(|a| (lit(a.var, Decoration::DescriptorSet), lit(a.var, Decoration::Binding)))
+        .collect();
+    out.sort_unstable();
+    out.dedup();
+    out
 }
 
 #[cfg(test)]
@@ -110,6 +135,9 @@ mod tests {
             crate::patches::nonuniform::apply(&mut m, true).unwrap();
             let stripped = crate::patches::assemble(&m);
             assert_eq!(of_words(&stripped).dynamic_decorated, Some(false), "{resource:?}");
+            assert_eq!(undecorated(&probed(&c)).len(), 1, "{resource:?}");
+            assert_eq!(undecorated(&words), [], "{resource:?}");
+            assert_eq!(undecorated(&stripped).len(), 1, "{resource:?}");
             let literal = of_words(&probed(&Cell { index: IndexSource::Literal, ..c }));
             assert_eq!(literal.dynamic_decorated, None);
         }

@@ -1,0 +1,112 @@
+//! What `run --shader`'s descriptor-index check saw (`cli::shader_bounds`): the largest index
+//! each descriptor array was read with on the run's data, against the descriptors its binding
+//! holds. An index at or past them is the input's fault ([`RULE`]), never a driver finding.
+use serde::{Deserialize, Serialize};
+
+/// The rule an index past a runtime-sized array's binding breaks, as the report and the error
+/// quote it (Vulkan 1.4.360, checked against Vulkan-Docs).
+pub const RULE: &str = "Vulkan 1.4.360, Shader Interfaces, DescriptorSet and Binding Assignment: \
+\"If the array is runtime-sized, then array elements greater than or equal to the size of that \
+binding in the bound descriptor set must not be used\"";
+
+/// The same for a fixed-size array: SPIR-V leaves an access chain past its array's size
+/// undefined, and Vulkan binds no more descriptors than the array declares.
+pub const FIXED_RULE: &str = "SPIR-V: an access chain index past its array's size is undefined \
+(\"Validity and Defined Behavior\"), and the array is \"no larger than the number of descriptors \
+in the binding\" (Vulkan 1.4.360, Shader Interfaces)";
+
+/// One descriptor array the check watched.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct IndexedArray {
+    pub set: u32,
+    pub binding: u32,
+    /// Descriptors the harness bound there.
+    pub elements: u32,
+    /// A runtime-sized array (sized by `--array-size` or the harness).
+    pub runtime: bool,
+    /// The largest index any access read it with (0 also when none ran).
+    pub largest: u32,
+}
+
+impl IndexedArray {
+    /// Whether some access went past the binding.
+    pub fn outside(&self) -> bool {
+        self.largest >= self.elements
+    }
+
+    /// `set 1 binding 3: up to 126 of 127 elements`.
+    pub fn line(&self) -> String {
+        let kind = if self.runtime { "runtime array" } else { "array" };
+        format!(
+            "set {} binding {}: up to {} ({kind} of {})",
+            self.set, self.binding, self.largest, self.elements
+        )
+    }
+}
+
+/// The check's record in a `run --shader` report.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct IndexBounds {
+    /// The watched arrays as the last check saw them.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub arrays: Vec<IndexedArray>,
+    /// Runtime arrays the harness sized up so the run's own data stays inside: from, to.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub grown: Option<(u32, u32)>,
+    /// Why the indices were not checked (then `arrays` is empty).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub unchecked: Option<String>,
+}
+
+impl IndexBounds {
+    /// Not checked, and why.
+    pub fn unchecked(why: &str) -> IndexBounds {
+        IndexBounds { unchecked: Some(why.into()), ..IndexBounds::default() }
+    }
+
+    /// Nothing checked and nothing to say: no module indexes a descriptor array.
+    pub fn is_empty(&self) -> bool {
+        *self == IndexBounds::default()
+    }
+
+    /// The report's note (`None` when [`IndexBounds::is_empty`]).
+    pub fn note(&self) -> Option<String> {
+        if self.is_empty() {
+            return None;
+        }
+        if let Some(why) = &self.unchecked {
+            return Some(format!("descriptor indices not checked: {why}"));
+        }
+        let arrays: Vec<String> = self.arrays.iter().map(IndexedArray::line).collect();
+        let grown = self.grown.map_or(String::new(), |(from, to)| {
+            format!(
+                "; runtime arrays sized {to} instead of {from}, as the harness's own data indexes \
+                 past {from} ({RULE})"
+            )
+        });
+        Some(format!("descriptor indices inside their bindings: {}{grown}", arrays.join(", ")))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_index_at_the_size_is_outside_and_notes_say_what_was_grown() {
+        let a = IndexedArray { set: 1, binding: 3, elements: 64, runtime: true, largest: 64 };
+        assert!(a.outside());
+        assert!(!IndexedArray { largest: 63, ..a.clone() }.outside());
+        let b = IndexBounds {
+            arrays: vec![IndexedArray { elements: 127, largest: 126, ..a }],
+            grown: Some((64, 127)),
+            unchecked: None,
+        };
+        let n = b.note().unwrap();
+        assert!(n.contains("set 1 binding 3: up to 126 (runtime array of 127)"), "{n}");
+        assert!(n.contains("sized 127 instead of 64") && n.contains("must not be used"), "{n}");
+        let u = IndexBounds { unchecked: Some("why".into()), ..IndexBounds::default() };
+        assert_eq!(u.note().as_deref(), Some("descriptor indices not checked: why"));
+        assert_eq!(IndexBounds::default().note(), None);
+    }
+}

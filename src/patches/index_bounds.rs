@@ -1,0 +1,310 @@
+//! `index_bounds`: an instrumentation, not a workaround — every dynamically indexed
+//! descriptor-array access records its index and reads a clamped one, so `run --shader` can tell
+//! whether the data it traced with sends a shader past a binding before it calls a fault the
+//! driver's (`cli::shader_bounds` runs it).
+//!
+//! Each `OpAccessChain` / `OpInBoundsAccessChain` whose base is a descriptor variable of array
+//! type listed in the [`Probe`] gets, right before it, with `i` its first index as 32-bit
+//! unsigned (`OpBitcast` of a signed one):
+//! `OpAtomicUMax(seen[slot], i)` on the probe's storage buffer (`uint seen[K]` at the probe's set
+//! and binding, zero-filled by the caller), and the chain then indexes `i < count ? i : count - 1`
+//! (`OpULessThan`, `OpSelect`), so the instrumented pipeline itself stays inside every binding.
+//!
+//! The rules relied on (Vulkan 1.4.360, checked against Vulkan-Docs):
+//! - chapter "Shader Interfaces", DescriptorSet and Binding Assignment: "If the array is
+//!   runtime-sized, then array elements greater than or equal to the size of that binding in the
+//!   bound descriptor set must not be used", and a fixed-size array "must be no larger than the
+//!   number of descriptors in the binding"; SPIR-V leaves an access chain index past its array's
+//!   size undefined ("Validity and Defined Behavior"). An index outside the binding is the
+//!   input's fault, whatever the driver then does.
+//! - an access-chain index may be any scalar integer of either signedness; a `NonUniform`
+//!   decoration on the replaced index is put on its replacement (and on the unsigned copy), so a
+//!   `nonuniformEXT` index stays decorated; the chain's own decorations stay.
+//! - the atomic's memory scope is `Device`, or `QueueFamily` in a module of the Vulkan memory
+//!   model (where `Device` needs `vulkanMemoryModelDeviceScope`); semantics `None` (relaxed):
+//!   only the maximum is read, after the trace.
+//! - SPIR-V 1.4 and later list every global a function uses in the entry point's interface.
+//!
+//! Indices of another width than 32 bits are left alone and counted in [`Report::skipped`].
+use super::dynamic_access;
+use super::edit;
+use rspirv::dr::{Instruction, Module, Operand};
+use rspirv::spirv::{Decoration, MemoryModel, Op, StorageClass, Word};
+
+/// One descriptor array the probe watches: its slot is its place in [`Probe::slots`].
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Slot {
+    pub set: u32,
+    pub binding: u32,
+    /// Descriptors in the binding as the harness makes it.
+    pub count: u32,
+}
+
+/// Where the probe's buffer goes and which arrays it watches (the same for every module of a
+/// pipeline, so a slot means one binding in every stage).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Probe {
+    pub set: u32,
+    pub binding: u32,
+    pub slots: Vec<Slot>,
+}
+
+/// What the instrumentation did to one module.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Report {
+    /// Accesses that now record and clamp their index.
+    pub instrumented: usize,
+    /// Accesses of watched arrays left alone (an index that is not a 32-bit integer).
+    pub skipped: usize,
+}
+
+/// The ids the inserted code shares.
+struct Ids {
+    uint: Word,
+    bool_t: Word,
+    ptr_uint: Word,
+    var: Word,
+    zero: Word,
+    scope: Word,
+    relaxed: Word,
+}
+
+fn type_bool(m: &mut Module) -> Word {
+    if let Some(id) = m
+        .types_global_values
+        .iter()
+        .find(|i| i.class.opcode == Op::TypeBool)
+        .and_then(|i| i.result_id)
+    {
+        return id;
+    }
+    let id = edit::next_id(m);
+    m.types_global_values.insert(0, Instruction::new(Op::TypeBool, None, Some(id), vec![]));
+    id
+}
+
+/// The probe's `buffer { uint seen[K]; }` at its set and binding, and the shared ids.
+fn declare(m: &mut Module, p: &Probe) -> Ids {
+    let uint = edit::type_int(m, 32, false);
+    let bool_t = type_bool(m);
+    let len = edit::constant(m, uint, p.slots.len().max(1) as u64, false);
+    let (arr, st, var) = (edit::next_id(m), edit::next_id(m), edit::next_id(m));
+    let g = &mut m.types_global_values;
+    g.push(Instruction::new(
+        Op::TypeArray,
+        None,
+        Some(arr),
+        vec![Operand::IdRef(uint), Operand::IdRef(len)],
+    ));
+    g.push(Instruction::new(Op::TypeStruct, None, Some(st), vec![Operand::IdRef(arr)]));
+    let ptr_st = edit::type_pointer(m, StorageClass::StorageBuffer, st);
+    m.types_global_values.push(Instruction::new(
+        Op::Variable,
+        Some(ptr_st),
+        Some(var),
+        vec![Operand::StorageClass(StorageClass::StorageBuffer)],
+    ));
+    edit::decorate(m, arr, Decoration::ArrayStride, &[Operand::LiteralBit32(4)]);
+    edit::decorate(m, st, Decoration::Block, &[]);
+    m.annotations.push(Instruction::new(
+        Op::MemberDecorate,
+        None,
+        None,
+        vec![
+            Operand::IdRef(st),
+            Operand::LiteralBit32(0),
+            Operand::Decoration(Decoration::Offset),
+            Operand::LiteralBit32(0),
+        ],
+    ));
+    edit::decorate(m, var, Decoration::DescriptorSet, &[Operand::LiteralBit32(p.set)]);
+    edit::decorate(m, var, Decoration::Binding, &[Operand::LiteralBit32(p.binding)]);
+    m.debug_names.push(Instruction::new(
+        Op::Name,
+        None,
+        None,
+        vec![Operand::IdRef(var), Operand::LiteralString("rtprobeIndexBounds".into())],
+    ));
+    edit::add_to_interfaces(m, var);
+    let ptr_uint = edit::type_pointer(m, StorageClass::StorageBuffer, uint);
+    let vulkan_model = m
+        .memory_model
+        .as_ref()
+        .is_some_and(|i| i.operands.get(1) == Some(&Operand::MemoryModel(MemoryModel::Vulkan)));
+    // Scope Device = 1, QueueFamily = 5; MemorySemantics None = 0.
+    let scope = edit::constant(m, uint, if vulkan_model { 5 } else { 1 }, false);
+    let zero = edit::constant(m, uint, 0, false);
+    Ids { uint, bool_t, ptr_uint, var, zero, scope, relaxed: zero }
+}
+
+/// Record and clamp every watched descriptor-array index of `m` (see the module's doc).
+pub fn apply(m: &mut Module, p: &Probe) -> Report {
+    let lit = |m: &Module, v, d| edit::decoration_literal(m, v, d).unwrap_or(0);
+    let mut watched: Vec<(dynamic_access::Access, usize)> = dynamic_access::find_all(m)
+        .into_iter()
+        .filter_map(|a| {
+            let key =
+                (lit(m, a.var, Decoration::DescriptorSet), lit(m, a.var, Decoration::Binding));
+            let slot = p.slots.iter().position(|s| (s.set, s.binding) == key)?;
+            Some((a, slot))
+        })
+        .collect();
+    let mut report = Report::default();
+    if watched.is_empty() {
+        return report;
+    }
+    let ids = declare(m, p);
+    // Last first, so the positions of the accesses still to come stay right.
+    watched.sort_by_key(|(a, _)| std::cmp::Reverse((a.func, a.block, a.inst)));
+    for (a, slot) in watched {
+        match edit::int_type_of(m, a.index) {
+            Some((32, signed)) => {
+                let code = clamp(m, &ids, (a.index, signed), slot as u32, p.slots[slot].count);
+                let (code, clamped) = code;
+                let b = &mut m.functions[a.func].blocks[a.block];
+                b.instructions[a.inst].operands[1] = Operand::IdRef(clamped);
+                b.instructions.splice(a.inst..a.inst, code);
+                report.instrumented += 1;
+            }
+            _ => report.skipped += 1,
+        }
+    }
+    report
+}
+
+/// The instructions that record `index` in `slot` and give it clamped below `count`, and the
+/// clamped index's id.
+fn clamp(
+    m: &mut Module,
+    ids: &Ids,
+    index: (Word, bool),
+    slot: u32,
+    count: u32,
+) -> (Vec<Instruction>, Word) {
+    let (index, signed) = index;
+    let nonuniform = edit::has_decoration(m, index, Decoration::NonUniform);
+    let mut code = Vec::new();
+    let u = if signed {
+        let u = edit::next_id(m);
+        code.push(Instruction::new(
+            Op::Bitcast,
+            Some(ids.uint),
+            Some(u),
+            vec![Operand::IdRef(index)],
+        ));
+        u
+    } else {
+        index
+    };
+    let slot_c = edit::constant(m, ids.uint, slot as u64, false);
+    let count_c = edit::constant(m, ids.uint, count as u64, false);
+    let last_c = edit::constant(m, ids.uint, count.saturating_sub(1) as u64, false);
+    let (ptr, max, lt, clamped) =
+        (edit::next_id(m), edit::next_id(m), edit::next_id(m), edit::next_id(m));
+    let id = Operand::IdRef;
+    code.push(Instruction::new(
+        Op::AccessChain,
+        Some(ids.ptr_uint),
+        Some(ptr),
+        vec![id(ids.var), id(ids.zero), id(slot_c)],
+    ));
+    code.push(Instruction::new(
+        Op::AtomicUMax,
+        Some(ids.uint),
+        Some(max),
+        vec![id(ptr), id(ids.scope), id(ids.relaxed), id(u)],
+    ));
+    code.push(Instruction::new(
+        Op::ULessThan,
+        Some(ids.bool_t),
+        Some(lt),
+        vec![id(u), id(count_c)],
+    ));
+    code.push(Instruction::new(
+        Op::Select,
+        Some(ids.uint),
+        Some(clamped),
+        vec![id(lt), id(u), id(last_c)],
+    ));
+    if nonuniform {
+        if u != index {
+            edit::decorate(m, u, Decoration::NonUniform, &[]);
+        }
+        edit::decorate(m, clamped, Decoration::NonUniform, &[]);
+    }
+    (code, clamped)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::patches::{assemble, validate, Validation};
+
+    const GLSL: &str = "#version 460\n#extension GL_EXT_ray_tracing : require\n\
+        #extension GL_EXT_nonuniform_qualifier : require\n\
+        layout(set = 1, binding = 0) uniform sampler2D maps[];\n\
+        layout(set = 1, binding = 1) readonly buffer B { vec4 v[]; } bufs[4];\n\
+        layout(set = 1, binding = 2) readonly buffer Ids { int id[]; } ids;\n\
+        layout(location = 0) rayPayloadInEXT vec4 c;\n\
+        void main() { int k = ids.id[gl_InstanceCustomIndexEXT];\n\
+        c = textureLod(maps[nonuniformEXT(k + 1)], vec2(0), 0.0) + bufs[uint(k) & 3u].v[0]\n\
+          + bufs[2].v[1]; }\n";
+
+    fn probe() -> Probe {
+        let slot = |binding, count| Slot { set: 1, binding, count };
+        Probe { set: 1, binding: 9, slots: vec![slot(0, 64), slot(1, 4)] }
+    }
+
+    fn ops(m: &Module, op: Op) -> Vec<&Instruction> {
+        m.functions
+            .iter()
+            .flat_map(|f| f.blocks.iter().flat_map(|b| b.instructions.iter()))
+            .filter(|i| i.class.opcode == op)
+            .collect()
+    }
+
+    /// Both watched arrays' accesses (the constant index too) record and clamp; the result
+    /// validates; the buffer sits at the probe's place; `nonuniformEXT` stays on the new index.
+    #[test]
+    fn every_watched_access_records_and_clamps_its_index() {
+        let mut m = crate::patches::compiled(shaderc::ShaderKind::ClosestHit, "t.rchit", GLSL);
+        let r = apply(&mut m, &probe());
+        assert_eq!(r, Report { instrumented: 3, skipped: 0 });
+        assert_eq!(ops(&m, Op::AtomicUMax).len(), 3);
+        let v = validate(&assemble(&m));
+        assert!(matches!(v, Validation::Valid | Validation::Unavailable), "{v:?}");
+        let var = m
+            .debug_names
+            .iter()
+            .find(|n| {
+                n.operands.get(1) == Some(&Operand::LiteralString("rtprobeIndexBounds".into()))
+            })
+            .and_then(|n| edit::id_operand(n, 0))
+            .expect("the probe's buffer is named");
+        assert_eq!(edit::decoration_literal(&m, var, Decoration::Binding), Some(9));
+        assert_eq!(edit::decoration_literal(&m, var, Decoration::DescriptorSet), Some(1));
+        // Every watched chain now indexes an OpSelect's result: the clamp.
+        let selects: Vec<Word> = ops(&m, Op::Select).iter().filter_map(|i| i.result_id).collect();
+        let chained = ops(&m, Op::AccessChain)
+            .iter()
+            .filter(|i| edit::id_operand(i, 1).is_some_and(|x| selects.contains(&x)))
+            .count();
+        assert_eq!(chained, 3);
+        let decorated = selects
+            .iter()
+            .filter(|s| edit::has_decoration(&m, **s, Decoration::NonUniform))
+            .count();
+        assert_eq!(decorated, 1, "only the nonuniformEXT index is decorated");
+    }
+
+    /// An array the probe does not list is left alone, and a module without watched accesses
+    /// gets no buffer at all.
+    #[test]
+    fn unwatched_arrays_are_left_alone() {
+        let mut m = crate::patches::compiled(shaderc::ShaderKind::ClosestHit, "t.rchit", GLSL);
+        let before = assemble(&m);
+        let p = Probe { set: 1, binding: 9, slots: vec![Slot { set: 2, binding: 0, count: 8 }] };
+        assert_eq!(apply(&mut m, &p), Report::default());
+        assert_eq!(assemble(&m), before);
+    }
+}
