@@ -5,8 +5,12 @@
 //! so the sum reaches past a 64-element array: the check sizes runtime arrays up (the run
 //! passes, the report says so), and refuses what it may not size — a `--array-size` the user
 //! gave, a fixed-size array — in one line, exit 9, no report. Its twins: an in-bounds shader is
-//! left at its size, and a shader without `nonuniformEXT` whose `nonuniform` variant differs is
-//! judged the shader's (`shader_undefined`), never `patch_differs`.
+//! left at its size; the check's figure is the index the pipeline itself read
+//! (`light_table.rchit` writes it: the check's buffer shifting the harness's data once made them
+//! differ); and a shader without `nonuniformEXT` whose `nonuniform` variant differs stays
+//! `patch_differs` on lavapipe, whose ray tracing stages have no subgroup vote to show the index
+//! differing within a subgroup (`shader_undefined` needs that evidence: unit tests in
+//! `cli::shader_uniform`).
 mod common;
 use common::*;
 use serde_json::Value;
@@ -43,6 +47,28 @@ fn data_past_a_runtime_array_sizes_it_up_and_the_run_passes() {
     assert_eq!(r["options"]["array_size"], 128, "what ran, for reduce");
     assert!(stdout(&o).contains("runtime arrays sized 128 instead of 64"), "{}", stdout(&o));
     assert_eq!(variant(&r, "unpatched")["judgement"], "pass");
+    // What ran is what `--array-size 128` runs: the same cell id.
+    let (o, sized, _d) = run(&["object_table.rchit"], &["--array-size", "128"]);
+    let sized = sized.unwrap_or_else(|| panic!("no report: {}", stderr(&o)));
+    assert!(sized.get("index_bounds").unwrap().get("grown").is_none());
+    assert_eq!(r["cell"], sized["cell"]);
+}
+
+/// The check's largest index is the one the unpatched pipeline read (the shader writes it to
+/// `set 1 binding 2`): the check traces the variants' data.
+#[test]
+fn the_checks_index_is_the_one_the_pipeline_reads() {
+    let (o, r, _d) = run(&["light_table.rchit"], &[]);
+    let r = r.unwrap_or_else(|| panic!("no report: {}", stderr(&o)));
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    let data = variant(&r, "unpatched")["data"].as_array().unwrap();
+    let used = data.iter().find(|d| d["label"] == "storage buffer set 1 binding 2[0]").unwrap();
+    let bytes = unb64(used["bytes"].as_str().unwrap());
+    let read = u32::from_le_bytes(bytes[..4].try_into().unwrap());
+    let a = &r["index_bounds"]["arrays"][0];
+    assert_eq!((a["set"].as_u64(), a["binding"].as_u64()), (Some(1), Some(1)), "{a}");
+    assert_eq!(a["largest"].as_u64(), Some(read as u64), "{a}");
+    assert_eq!(a["smallest"].as_u64(), Some(read as u64), "one light: {a}");
 }
 
 /// Twins that make the check fail: the user's own `--array-size 64` is not sized up, and a
@@ -77,22 +103,23 @@ fn indices_inside_their_arrays_leave_the_sizes_alone() {
     assert!(r["options"]["array_size"].is_null());
 }
 
-/// Without `nonuniformEXT` the unpatched reads are undefined where the index differs in a
-/// subgroup; lavapipe's unpatched and `nonuniform` pipelines then differ, and the variant is
-/// the shader's failure (exit 1, `shader_undefined`, the bindings and the VUID named).
+/// Without `nonuniformEXT` lavapipe's unpatched and `nonuniform` pipelines differ; lavapipe's
+/// ray tracing stages have no subgroup vote, so the check cannot show an index differing
+/// within a subgroup: the variant stays `patch_differs` (exit 1), with what was seen — the
+/// bindings and the range their index took over the trace — and the rule that would apply.
 #[test]
-fn a_nonuniform_difference_of_an_undecorated_shader_is_the_shaders() {
+fn a_nonuniform_difference_without_subgroup_evidence_stays_the_patchs() {
     let (o, r, _d) = run(&["object_table.rchit"], &["-D", "NO_NONUNIFORM"]);
     let r = r.unwrap_or_else(|| panic!("no report: {}", stderr(&o)));
     assert_eq!(o.status.code(), Some(1), "{}{}", stdout(&o), stderr(&o));
+    let arrays = r["index_bounds"]["arrays"].as_array().unwrap();
+    assert!(arrays.iter().all(|a| a.get("nonuniform").is_none()), "not measured: {arrays:?}");
     let v = variant(&r, "nonuniform");
-    assert_eq!(v["judgement"], "shader_undefined", "{v}");
-    assert_eq!(v["outcome"], "mismatch");
+    assert_eq!(v["judgement"], "patch_differs", "{v}");
     let d = v["detail"].as_str().unwrap();
+    assert!(d.contains("set 1 binding 1 (") && d.contains("set 1 binding 2 ("), "{d}");
     assert!(
-        d.contains("set 1 binding 1, set 1 binding 2")
-            && d.contains("VUID-RuntimeSpirv-None-10148"),
+        d.contains("VUID-RuntimeSpirv-subgroupSize-10149") && d.contains("no subgroup vote"),
         "{d}"
     );
-    assert!(stdout(&o).contains("mismatch of nonuniform (shader_undefined)"), "{}", stdout(&o));
 }

@@ -14,6 +14,7 @@ use super::shader_profile;
 use crate::harness::child::JobModule;
 use crate::harness::inject::Request;
 use crate::harness::Sizes;
+use crate::model::index_bounds::IndexBounds;
 use crate::model::profile::ProfileRecord;
 use crate::model::shader_options::CellOptions;
 use crate::model::shader_run::{self, ShaderRunReport, ShaderVariant};
@@ -158,7 +159,7 @@ fn device(
     a: &RunArgs,
     plan: &ShaderPlan,
     (model, profile): (DescriptorModel, Option<&shader_profile::Loaded>),
-) -> Result<(usize, String, Option<ProfileRecord>, u64)> {
+) -> Result<(usize, String, Option<ProfileRecord>, u64, bool)> {
     let inst = open_instance(g)?;
     let all = crate::vk::features::query_all(&inst)?;
     let info = crate::vk::features::select(&all, a.device.as_deref())?;
@@ -190,7 +191,7 @@ fn device(
         )
     })?;
     let heap = crate::harness::scene_data::largest_device_heap(&info.memory);
-    Ok((info.index, info.label(), record, heap))
+    Ok((info.index, info.label(), record, heap, info.subgroup_vote_in_ray_tracing()))
 }
 
 /// `--scene`'s file loaded (the loader's one-line error, exit 9) and its content hash: the
@@ -359,7 +360,8 @@ fn other_report(a: &RunArgs, cell: &str) -> Result<Option<ShaderRunReport>> {
     if let Some(t) = a.tolerance.filter(|t| !(t.is_finite() && *t >= 0.0)) {
         return Err(coded(exit::USAGE, format!("--tolerance {t}: give a finite number >= 0")));
     }
-    a.compare.as_deref().map(|p| super::shader_compare::load(p, cell)).transpose()
+    let unsized_run = a.array_size.is_none();
+    a.compare.as_deref().map(|p| super::shader_compare::load(p, cell, unsized_run)).transpose()
 }
 
 /// What a run takes before its device: the plan, the children's context (its temporary folder
@@ -371,6 +373,8 @@ pub(super) struct Prepared {
     pub(super) device_name: String,
     pub(super) cell_options: CellOptions,
     pub(super) profile: Option<ProfileRecord>,
+    /// The device has subgroup vote in every ray tracing stage (the index check's uniformity).
+    vote: bool,
     other: Option<ShaderRunReport>,
     baseline: Option<crate::model::Baseline>,
     /// `ctx.dir`: the children's job and result files, removed with this.
@@ -410,7 +414,8 @@ pub(super) fn prepare(g: &Globals, a: &RunArgs) -> Result<Prepared> {
     let other = other_report(a, &shader_run::cell_id_with(&plan.inputs, &cell_options))?;
     let baseline = a.baseline.as_deref().map(super::fleet::load_baseline).transpose()?;
     super::paths::writable_files(&[("--junit", a.junit.as_deref())])?;
-    let (device_index, device_name, record, heap) = device(g, a, &plan, (model, profile.as_ref()))?;
+    let (device_index, device_name, record, heap, vote) =
+        device(g, a, &plan, (model, profile.as_ref()))?;
     if let Some((l, _)) = &scene {
         scene_fits(a, l, (&scene_fills, images.bytes), heap)?;
     }
@@ -444,7 +449,17 @@ pub(super) fn prepare(g: &Globals, a: &RunArgs) -> Result<Prepared> {
         gpu_av: false,
     };
     let profile = record;
-    Ok(Prepared { plan, ctx, device_name, cell_options, profile, other, baseline, _work: work })
+    Ok(Prepared {
+        plan,
+        ctx,
+        device_name,
+        cell_options,
+        profile,
+        vote,
+        other,
+        baseline,
+        _work: work,
+    })
 }
 
 pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
@@ -464,12 +479,27 @@ pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
 
 /// The variants run, compared among themselves and with `--compare`'s report, `--dump`ed, and
 /// the report made with the options that changed what ran.
-fn judged_report(g: &Globals, a: &RunArgs, p: &mut Prepared) -> Result<ShaderRunReport> {
+/// The descriptor-index check (`shader_bounds`), its size-up in the cell id, and `--compare`'s
+/// report held to that id.
+fn index_check(a: &RunArgs, p: &mut Prepared) -> Result<IndexBounds> {
     let bounds = if a.no_index_check {
-        crate::model::index_bounds::IndexBounds::unchecked("--no-index-check")
+        IndexBounds::unchecked("--no-index-check")
     } else {
-        super::shader_bounds::check(&mut p.ctx, &mut p.plan, a.array_size.is_some())?
+        super::shader_bounds::check(&mut p.ctx, &mut p.plan, (a.array_size.is_some(), p.vote))?
     };
+    if let Some((_, to)) = bounds.grown {
+        // What runs is what `--array-size` would have run: the same cell.
+        p.cell_options.array_size = Some(to as u64);
+    }
+    let cell = shader_run::cell_id_with(&p.plan.inputs, &p.cell_options);
+    if let (Some(other), Some(path)) = (&p.other, &a.compare) {
+        super::shader_compare::same_cell(path, other, &cell)?;
+    }
+    Ok(bounds)
+}
+
+fn judged_report(g: &Globals, a: &RunArgs, p: &mut Prepared) -> Result<ShaderRunReport> {
+    let bounds = index_check(a, p)?;
     let (plan, ctx) = (&p.plan, &p.ctx);
     let (unpatched, patched) = run_all(ctx, plan)?;
     let (mut unpatched, unpatched_teardown) = (unpatched.ran, unpatched.teardown);
@@ -520,7 +550,7 @@ fn judged_report(g: &Globals, a: &RunArgs, p: &mut Prepared) -> Result<ShaderRun
     for ((v, t), d) in report.variants.iter_mut().zip(teardowns).zip(data) {
         (v.teardown, v.data) = (t, d);
     }
-    super::shader_uniform::judge(&ctx.unpatched, &mut report.variants);
+    super::shader_uniform::judge(&ctx.unpatched, &bounds, &mut report.variants);
     report.compare = compare;
     if let Some((_, to)) = bounds.grown {
         // What ran: `reduce` re-creates the run from it.

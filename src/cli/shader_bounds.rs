@@ -1,6 +1,9 @@
 //! `run --shader`'s descriptor-index check, before any variant runs: the given modules with
-//! every descriptor-array access recording its index and reading a clamped one
-//! (`patches::index_bounds`), traced once in a child on the run's own data. An index at or past
+//! every descriptor-array access recording its index, whether it differed within the subgroup,
+//! and reading a clamped one (`patches::index_bounds`), traced once in a child on the run's own
+//! data — the probe's buffer the last in (set, binding) order, so the harness's data of every
+//! other buffer is what the variants get. The indices are as the device under test computed
+//! them: the refusal says so and names `--no-index-check`. An index at or past
 //! its binding is undefined (`model::index_bounds::RULE`), so a fault it brings is the input's,
 //! not the driver's: the harness's data (small integers below the scene's bound in every integer
 //! word, so `base + offset` can reach twice it) sizes runtime arrays up to cover it, unless
@@ -17,50 +20,71 @@ use crate::model::DescriptorModel;
 use crate::patches::index_bounds::{self as pass, Probe, Slot};
 use anyhow::Result;
 
-/// Checks after a size-up before giving up (each size-up can move the harness's data).
+/// Checks before giving up (each size-up can move the harness's data).
 const ROUNDS: usize = 3;
 
-/// The probe's place and slots for `plan`'s modules: every binding they declare, at the first
-/// free set-0 binding (the supplied raygen goes after it).
-fn probe(plan: &ShaderPlan) -> (Probe, Vec<bool>) {
+/// The probe's place and slots for `plan`'s modules: every binding they declare (runtime if
+/// any declaration is), the probe's buffer after the last one of the highest set, so no
+/// buffer's data comes after it.
+fn probe(plan: &ShaderPlan, vote: bool) -> (Probe, Vec<bool>) {
     let mut slots: Vec<Slot> = Vec::new();
-    let mut runtime = Vec::new();
+    let mut runtime: Vec<bool> = Vec::new();
     for b in plan.modules.iter().flat_map(|m| m.iface.bindings.iter()) {
-        match slots.iter_mut().position(|s| (s.set, s.binding) == (b.set, b.binding)) {
-            Some(k) => slots[k].count = slots[k].count.min(b.count),
+        match slots.iter().position(|s| (s.set, s.binding) == (b.set, b.binding)) {
+            Some(k) => {
+                slots[k].count = slots[k].count.min(b.count);
+                runtime[k] |= b.runtime;
+            }
             None => {
                 slots.push(Slot { set: b.set, binding: b.binding, count: b.count });
                 runtime.push(b.runtime);
             }
         }
     }
-    let binding = crate::harness::free_binding(&plan.modules);
-    (Probe { set: 0, binding, slots }, runtime)
+    let set = slots.iter().map(|s| s.set).max().unwrap_or(0);
+    let binding = slots.iter().filter(|s| s.set == set).map(|s| s.binding + 1).max().unwrap_or(0);
+    (Probe { set, binding, slots, vote }, runtime)
 }
 
-/// The given modules instrumented, or `None` when no module indexes a descriptor array.
-fn instrument(ctx: &Ctx, p: &Probe) -> Result<Option<Vec<JobModule>>> {
+/// The given modules instrumented (`None`: no module indexes a descriptor array), or why the
+/// pass cannot see every access.
+fn instrument(ctx: &Ctx, p: &Probe) -> Result<Result<Option<Vec<JobModule>>, String>> {
     let mut out = Vec::new();
-    let mut any = 0;
+    let mut total = pass::Report::default();
     for m in &ctx.unpatched {
         let bytes: Vec<u8> = m.words.iter().flat_map(|w| w.to_le_bytes()).collect();
         let mut module = crate::patches::load(&bytes)
             .map_err(|e| coded(exit::INTERNAL, format!("the index check: {}: {e}", m.name)))?;
-        any += pass::apply(&mut module, p).instrumented;
+        let r = pass::apply(&mut module, p);
+        (total.instrumented, total.skipped, total.escaped) = (
+            total.instrumented + r.instrumented,
+            total.skipped + r.skipped,
+            total.escaped + r.escaped,
+        );
         out.push(JobModule { words: crate::patches::assemble(&module), ..m.clone() });
     }
-    Ok((any > 0).then_some(out))
+    if total.escaped > 0 {
+        return Ok(Err("a descriptor array is passed to a function or copied, and the check does not follow it".into()));
+    }
+    if total.skipped > 0 {
+        return Ok(Err("a descriptor-array index is wider than 32 bits".into()));
+    }
+    Ok(Ok((total.instrumented > 0).then_some(out)))
 }
 
 /// One check: the arrays' largest indices, or why there are none.
-fn once(ctx: &Ctx, plan: &ShaderPlan) -> Result<Result<Vec<IndexedArray>, String>> {
-    let (p, runtime) = probe(plan);
-    let Some(modules) = instrument(ctx, &p)? else { return Ok(Ok(vec![])) };
+fn once(ctx: &Ctx, plan: &ShaderPlan, vote: bool) -> Result<Result<Vec<IndexedArray>, String>> {
+    let (p, runtime) = probe(plan, vote);
+    let modules = match instrument(ctx, &p)? {
+        Ok(Some(modules)) => modules,
+        Ok(None) => return Ok(Ok(vec![])),
+        Err(why) => return Ok(Err(why)),
+    };
     let mut c = ctx.clone();
     (c.repeat, c.validate, c.gpu_av) = (1, false, false);
     c.unpatched = modules.clone();
     let key = Target::Binding { set: p.set, binding: p.binding, element: None };
-    c.fills.0.push(Fill { target: key, bytes: vec![0; 4 * p.slots.len()] });
+    c.fills.0.push(Fill { target: key, bytes: p.initial() });
     let run = shader_exec::run_variant(&c, "index-bounds", &modules, None)?;
     let first = run.ran.into_iter().next();
     let label = format!("storage buffer set {} binding {}[0]", p.set, p.binding);
@@ -74,86 +98,135 @@ fn once(ctx: &Ctx, plan: &ShaderPlan) -> Result<Result<Vec<IndexedArray>, String
     let word = |k: usize| {
         seen.bytes.get(4 * k..4 * k + 4).map(|b| u32::from_le_bytes(b.try_into().unwrap()))
     };
+    let n = p.slots.len();
     Ok(Ok(p
         .slots
         .iter()
         .zip(runtime)
         .enumerate()
         .filter_map(|(k, (s, runtime))| {
+            let flags = word(n + k)?;
             Some(IndexedArray {
                 set: s.set,
                 binding: s.binding,
                 elements: s.count,
                 runtime,
                 largest: word(k)?,
+                smallest: word(2 * n + k)?,
+                accessed: flags & 1 != 0,
+                nonuniform: vote.then_some(flags & 2 != 0),
             })
         })
-        .filter(|a| a.elements > 1 || a.runtime || a.largest > 0)
+        .filter(|a| a.elements > 1 || a.runtime || a.accessed)
         .collect()))
 }
 
 /// The one line for an index past a binding the harness may not size up.
 fn refusal(a: &IndexedArray, given: bool) -> anyhow::Error {
-    let what = if a.runtime && given {
-        format!("{} descriptors, as --array-size gave", a.elements)
-    } else if a.runtime {
-        format!("{} descriptors, the most --array-size allows", a.elements)
-    } else {
-        format!("an array of {}", a.elements)
+    let most = crate::harness::sizes::MAX_ARRAY_SIZE as u64;
+    let index = match a.largest as i32 {
+        i if i < 0 => format!("{i} (negative as a signed index)"),
+        _ => a.largest.to_string(),
     };
-    let fix = if a.runtime {
-        let size = (a.largest as u64 + 1).next_power_of_two();
-        format!("give --array-size {size} or more (descriptors are numbered over every array, so the data moves with the size)")
+    let need = (a.largest as u64 + 1).next_power_of_two();
+    let what = match (a.runtime, given) {
+        (true, true) => format!("{} descriptors, as --array-size gave", a.elements),
+        (true, false) => format!("a runtime array of {}", a.elements),
+        (false, _) => format!("an array of {}", a.elements),
+    };
+    let fix = if a.runtime && need <= most {
+        format!("give --array-size {need} or more (descriptors are numbered over every array, so the data moves with the size)")
     } else {
         "--fill the words the index is read from (rtprobe puts small integers in every integer word, docs/your-shader.md)".into()
     };
     coded(
         exit::BAD_INPUT,
         format!(
-            "the shader indexes set {} binding {} ({what}) with {} on this run's data: an index past its binding is undefined ({}), so no result would be evidence; {fix}",
-            a.set, a.binding, a.largest, if a.runtime { RULE } else { FIXED_RULE }
+            "the shader indexes set {} binding {} ({what}) with {index} on this run's data, as this device computed it: an index past its binding is undefined ({}), so no result would be evidence; {fix}, or --no-index-check to run it as given",
+            a.set, a.binding, if a.runtime { RULE } else { FIXED_RULE }
         ),
     )
 }
 
 /// Check the run's indices, sizing runtime arrays up where the harness's own data goes past
-/// them; `given`: `--array-size` was.
-pub fn check(ctx: &mut Ctx, plan: &mut ShaderPlan, given: bool) -> Result<IndexBounds> {
-    let unchecked = IndexBounds::unchecked;
+/// them; `given`: `--array-size` was; `vote`: the device has subgroup vote in every ray
+/// tracing stage.
+pub fn check(
+    ctx: &mut Ctx,
+    plan: &mut ShaderPlan,
+    (given, vote): (bool, bool),
+) -> Result<IndexBounds> {
     if ctx.model == DescriptorModel::DescriptorHeap {
-        return Ok(unchecked("descriptor heap arrays are not instrumented yet"));
+        return Ok(IndexBounds::unchecked("descriptor heap arrays are not instrumented yet"));
     }
     if plan.injection.is_some() {
-        return Ok(unchecked("--inject-fault's fault is in every module"));
+        return Ok(IndexBounds::unchecked("--inject-fault's fault is in every module"));
     }
-    let most = crate::harness::sizes::MAX_ARRAY_SIZE;
-    let mut grown = None;
-    for _ in 0..ROUNDS {
-        let arrays = match once(ctx, plan)? {
+    let most = crate::harness::sizes::MAX_ARRAY_SIZE as u64;
+    let mut grown: Option<(u32, u32)> = None;
+    for round in 0..ROUNDS {
+        let arrays = match once(ctx, plan, vote)? {
             Ok(arrays) => arrays,
-            Err(why) => return Ok(IndexBounds { grown, ..unchecked(&why) }),
+            Err(why) => return Ok(IndexBounds { grown, ..IndexBounds::unchecked(&why) }),
         };
         let lines: Vec<String> = arrays.iter().map(IndexedArray::line).collect();
         tracing::info!("descriptor indices: {}", lines.join(", "));
-        let outside: Vec<&IndexedArray> = arrays.iter().filter(|a| a.outside()).collect();
-        if outside.is_empty() {
+        let Some(worst) = arrays.iter().filter(|a| a.outside()).max_by_key(|a| a.largest) else {
             return Ok(IndexBounds { arrays, grown, unchecked: None });
-        }
-        let need = outside.iter().map(|a| a.largest as u64 + 1).max().unwrap_or(0);
-        if let Some(a) = outside.iter().find(|a| !a.runtime || given || need > most as u64) {
+        };
+        let need = (worst.largest as u64 + 1).next_power_of_two();
+        if let Some(a) = arrays.iter().find(|a| a.outside() && !a.runtime) {
             return Err(refusal(a, given));
+        }
+        if given || need > most {
+            return Err(refusal(worst, given));
+        }
+        if round + 1 == ROUNDS {
+            // Still past after every size-up: the data keeps moving with the size.
+            return Err(refusal(worst, given));
         }
         // A power of two above the need: the data moves with the size (descriptors are
         // numbered over every array), and the harness's own words make sums of two below
         // twice the scene's bound, so headroom settles it in one more check.
-        let size = need.next_power_of_two().min(most as u64) as u32;
-        let from = grown.map_or(outside[0].elements, |(f, _)| f);
-        grown = Some((from, size));
-        ctx.sizes.array = Some(size);
+        grown = Some((grown.map_or(worst.elements, |(from, _)| from), need as u32));
+        ctx.sizes.array = Some(need as u32);
         plan.modules = ctx.sizes.apply(std::mem::take(&mut plan.modules));
     }
-    Ok(IndexBounds {
-        grown,
-        ..unchecked("the harness's data kept moving past the sized-up arrays")
-    })
+    unreachable!("every round returns or sizes up, and the last returns")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn array(largest: u32, runtime: bool) -> IndexedArray {
+        IndexedArray {
+            set: 1,
+            binding: 2,
+            elements: 64,
+            runtime,
+            largest,
+            smallest: 0,
+            accessed: true,
+            nonuniform: None,
+        }
+    }
+
+    /// The refusal names the index as the shader computed it (a negative one as negative), asks
+    /// for a size only where one can hold it, and always names `--no-index-check`.
+    #[test]
+    fn refusals_give_advice_that_can_be_followed() {
+        let e = refusal(&array(119, true), true).to_string();
+        assert!(e.contains("(64 descriptors, as --array-size gave) with 119"), "{e}");
+        assert!(
+            e.contains("give --array-size 128 or more") && e.contains("--no-index-check"),
+            "{e}"
+        );
+        let e = refusal(&array(-89i32 as u32, true), false).to_string();
+        assert!(e.contains("with -89 (negative as a signed index)"), "{e}");
+        assert!(!e.contains("--array-size 4294967296") && e.contains("--fill"), "{e}");
+        let e = refusal(&array(70, false), false).to_string();
+        assert!(e.contains("(an array of 64)") && e.contains("SPIR-V"), "{e}");
+        assert_eq!(e.lines().count(), 1);
+    }
 }

@@ -18,7 +18,8 @@ use rspirv::spirv::ImageFormat;
 use std::path::Path;
 
 /// The `--compare` report, read and checked: a shader-run report of `cell`, else one line.
-pub fn load(path: &Path, cell: &str) -> Result<ShaderRunReport> {
+/// `cell_options_without_size`: this run has no `--array-size` of its own.
+pub fn load(path: &Path, cell: &str, cell_options_without_size: bool) -> Result<ShaderRunReport> {
     let bad = |why: String| coded(exit::BAD_INPUT, format!("--compare {}: {why}", path.display()));
     let text = std::fs::read(path).map_err(|e| bad(e.to_string()))?;
     let v: serde_json::Value = serde_json::from_slice(&text)
@@ -31,13 +32,29 @@ pub fn load(path: &Path, cell: &str) -> Result<ShaderRunReport> {
     }
     let r: ShaderRunReport = serde_json::from_value(v)
         .map_err(|e| bad(format!("not a readable {SCHEMA} report ({e})")))?;
-    if r.cell != cell {
-        return Err(bad(format!(
-            "a report of another cell ({}), not this run's {cell}; compare reports of the same shaders",
-            r.cell
-        )));
+    // A report whose arrays the index check sized up has that size in its id: this run's
+    // check may size its own alike, and the id is held to it again then.
+    let sized_up = r.index_bounds.as_ref().is_some_and(|b| b.grown.is_some());
+    if !(sized_up && cell_options_without_size) {
+        same_cell(path, &r, cell)?;
     }
     Ok(r)
+}
+
+/// `--compare`'s report `r` is of this run's `cell` (checked again once the index check has
+/// sized arrays up: the size is in the cell id).
+pub fn same_cell(path: &Path, r: &ShaderRunReport, cell: &str) -> Result<()> {
+    if r.cell == cell {
+        return Ok(());
+    }
+    Err(coded(
+        exit::BAD_INPUT,
+        format!(
+            "--compare {}: a report of another cell ({}), not this run's {cell}; compare reports of the same shaders",
+            path.display(),
+            r.cell
+        ),
+    ))
 }
 
 /// The units (texels, words) of each output in which a later attempt differs from the first.

@@ -24,19 +24,36 @@ pub struct IndexedArray {
     pub elements: u32,
     /// A runtime-sized array (sized by `--array-size` or the harness).
     pub runtime: bool,
-    /// The largest index any access read it with (0 also when none ran).
+    /// The largest index any access read it with (0 when none ran).
     pub largest: u32,
+    /// The smallest index any access read it with (`u32::MAX` when none ran).
+    #[serde(default)]
+    pub smallest: u32,
+    /// Some access of it ran.
+    #[serde(default)]
+    pub accessed: bool,
+    /// Some access's index differed among its subgroup's active invocations (not uniform
+    /// within the subgroup, `VUID-RuntimeSpirv-subgroupSize-10149`'s words); `None`: not
+    /// measured (no subgroup vote in the device's ray tracing stages).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nonuniform: Option<bool>,
 }
 
 impl IndexedArray {
     /// Whether some access went past the binding.
     pub fn outside(&self) -> bool {
-        self.largest >= self.elements
+        self.accessed && self.largest >= self.elements
     }
 
     /// `set 1 binding 3: up to 126 of 127 elements`.
     pub fn line(&self) -> String {
         let kind = if self.runtime { "runtime array" } else { "array" };
+        if !self.accessed {
+            return format!(
+                "set {} binding {}: not reached ({kind} of {})",
+                self.set, self.binding, self.elements
+            );
+        }
         format!(
             "set {} binding {}: up to {} ({kind} of {})",
             self.set, self.binding, self.largest, self.elements
@@ -80,8 +97,8 @@ impl IndexBounds {
         let arrays: Vec<String> = self.arrays.iter().map(IndexedArray::line).collect();
         let grown = self.grown.map_or(String::new(), |(from, to)| {
             format!(
-                "; runtime arrays sized {to} instead of {from}, as the harness's own data indexes \
-                 past {from} ({RULE})"
+                "; runtime arrays sized {to} instead of {from}, as the harness's own data, as this \
+                 device computed the indices, reaches past {from} ({RULE})"
             )
         });
         Some(format!("descriptor indices inside their bindings: {}{grown}", arrays.join(", ")))
@@ -94,8 +111,20 @@ mod tests {
 
     #[test]
     fn an_index_at_the_size_is_outside_and_notes_say_what_was_grown() {
-        let a = IndexedArray { set: 1, binding: 3, elements: 64, runtime: true, largest: 64 };
+        let a = IndexedArray {
+            set: 1,
+            binding: 3,
+            elements: 64,
+            runtime: true,
+            largest: 64,
+            smallest: 3,
+            accessed: true,
+            nonuniform: None,
+        };
         assert!(a.outside());
+        let never = IndexedArray { accessed: false, largest: 0, ..a.clone() };
+        assert!(!never.outside());
+        assert_eq!(never.line(), "set 1 binding 3: not reached (runtime array of 64)");
         assert!(!IndexedArray { largest: 63, ..a.clone() }.outside());
         let b = IndexBounds {
             arrays: vec![IndexedArray { elements: 127, largest: 126, ..a }],

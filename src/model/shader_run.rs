@@ -124,9 +124,9 @@ pub enum Judgement {
     /// A patched variant whose outputs differ from the unpatched ones.
     PatchDiffers,
     /// The `nonuniform` variant differs from the unpatched pipeline, whose modules index
-    /// descriptor arrays dynamically without `NonUniform`: the unpatched reads are undefined
-    /// where an index differs within a subgroup (`VUID-RuntimeSpirv-None-10148`, a must), so
-    /// the difference is the shader's, not evidence against the driver.
+    /// descriptor arrays dynamically without `NonUniform` and whose index the index check saw
+    /// differ within a subgroup: those reads are undefined (`VUID-RuntimeSpirv-subgroupSize-10149`,
+    /// a must), so the difference is the shader's, not evidence against the driver.
     ShaderUndefined,
     /// Outputs that differ beyond `--tolerance` from the `--compare` report's.
     CompareDiffers,

@@ -5,10 +5,20 @@
 //!
 //! Each `OpAccessChain` / `OpInBoundsAccessChain` whose base is a descriptor variable of array
 //! type listed in the [`Probe`] gets, right before it, with `i` its first index as 32-bit
-//! unsigned (`OpBitcast` of a signed one):
-//! `OpAtomicUMax(seen[slot], i)` on the probe's storage buffer (`uint seen[K]` at the probe's set
-//! and binding, zero-filled by the caller), and the chain then indexes `i < count ? i : count - 1`
-//! (`OpULessThan`, `OpSelect`), so the instrumented pipeline itself stays inside every binding.
+//! unsigned (`OpBitcast` of a signed one), on the probe's storage buffer (`uint seen[3K]` at the
+//! probe's set and binding, filled by the caller: zeros, then `0xffffffff` from `2K`):
+//! - `OpAtomicUMax(seen[slot], i)`: the largest index;
+//! - `OpAtomicUMin(seen[2K + slot], i)`: the smallest;
+//! - `OpAtomicOr(seen[K + slot], 1 | 2 * !OpGroupNonUniformAllEqual(Subgroup, i))`: bit 0 the
+//!   access ran, bit 1 its index differed among the subgroup's active invocations (what
+//!   `VUID-RuntimeSpirv-subgroupSize-10149` calls "not uniform within the subgroup") — only with
+//!   [`Probe::vote`], where the device has subgroup vote in every ray tracing stage (lavapipe 25
+//!   has no subgroup operations there); else `OpAtomicOr(…, 1)`;
+//!
+//! and the chain then indexes `i < count ? i : count - 1` (`OpULessThan`, `OpSelect`), so the
+//! instrumented pipeline itself stays inside every binding. A watched variable used any other way
+//! (passed to a function, copied, loaded whole) is counted in [`Report::escaped`]: its accesses
+//! are out of the pass's sight.
 //!
 //! The rules relied on (Vulkan 1.4.360, checked against Vulkan-Docs):
 //! - chapter "Shader Interfaces", DescriptorSet and Binding Assignment: "If the array is
@@ -25,11 +35,14 @@
 //!   only the maximum is read, after the trace.
 //! - SPIR-V 1.4 and later list every global a function uses in the entry point's interface.
 //!
+//! - with [`Probe::vote`], `GroupNonUniformVote` (with `GroupNonUniform`) is added; the harness
+//!   asks the device for subgroup vote in the stages that run it.
+//!
 //! Indices of another width than 32 bits are left alone and counted in [`Report::skipped`].
 use super::dynamic_access;
 use super::edit;
 use rspirv::dr::{Instruction, Module, Operand};
-use rspirv::spirv::{Decoration, MemoryModel, Op, StorageClass, Word};
+use rspirv::spirv::{Capability, Decoration, MemoryModel, Op, StorageClass, Word};
 
 /// One descriptor array the probe watches: its slot is its place in [`Probe::slots`].
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -47,6 +60,19 @@ pub struct Probe {
     pub set: u32,
     pub binding: u32,
     pub slots: Vec<Slot>,
+    /// Record whether an index differed within its subgroup (`OpGroupNonUniformAllEqual`).
+    pub vote: bool,
+}
+
+impl Probe {
+    /// The bytes the probe's buffer starts with: each slot's largest index and flags 0, its
+    /// smallest index `u32::MAX`.
+    pub fn initial(&self) -> Vec<u8> {
+        let k = self.slots.len().max(1);
+        let mut v = vec![0u8; 8 * k];
+        v.extend(std::iter::repeat_n(0xff, 4 * k));
+        v
+    }
 }
 
 /// What the instrumentation did to one module.
@@ -56,6 +82,28 @@ pub struct Report {
     pub instrumented: usize,
     /// Accesses of watched arrays left alone (an index that is not a 32-bit integer).
     pub skipped: usize,
+    /// Uses of a watched array other than as an access chain's base (a function argument, a
+    /// copy, a whole load): accesses the pass cannot follow.
+    pub escaped: usize,
+}
+
+/// Uses of the watched variables `vars` other than as the base of an access chain.
+fn escapes(m: &Module, vars: &[Word]) -> usize {
+    let chain =
+        |i: &Instruction| matches!(i.class.opcode, Op::AccessChain | Op::InBoundsAccessChain);
+    m.functions
+        .iter()
+        .flat_map(|f| f.blocks.iter().flat_map(|b| b.instructions.iter()))
+        .map(|i| {
+            i.operands
+                .iter()
+                .enumerate()
+                .filter(|(k, o)| {
+                    matches!(o, Operand::IdRef(w) if vars.contains(w)) && !(chain(i) && *k == 0)
+                })
+                .count()
+        })
+        .sum()
 }
 
 /// The ids the inserted code shares.
@@ -67,6 +115,10 @@ struct Ids {
     zero: Word,
     scope: Word,
     relaxed: Word,
+    subgroup: Word,
+    /// The flags' first word: the number of slots.
+    flags: u32,
+    vote: bool,
 }
 
 fn type_bool(m: &mut Module) -> Word {
@@ -87,7 +139,7 @@ fn type_bool(m: &mut Module) -> Word {
 fn declare(m: &mut Module, p: &Probe) -> Ids {
     let uint = edit::type_int(m, 32, false);
     let bool_t = type_bool(m);
-    let len = edit::constant(m, uint, p.slots.len().max(1) as u64, false);
+    let len = edit::constant(m, uint, 3 * p.slots.len().max(1) as u64, false);
     let (arr, st, var) = (edit::next_id(m), edit::next_id(m), edit::next_id(m));
     let g = &mut m.types_global_values;
     g.push(Instruction::new(
@@ -134,7 +186,14 @@ fn declare(m: &mut Module, p: &Probe) -> Ids {
     // Scope Device = 1, QueueFamily = 5; MemorySemantics None = 0.
     let scope = edit::constant(m, uint, if vulkan_model { 5 } else { 1 }, false);
     let zero = edit::constant(m, uint, 0, false);
-    Ids { uint, bool_t, ptr_uint, var, zero, scope, relaxed: zero }
+    // Scope Subgroup = 3.
+    let subgroup = edit::constant(m, uint, 3, false);
+    if p.vote {
+        edit::add_capability(m, Capability::GroupNonUniform);
+        edit::add_capability(m, Capability::GroupNonUniformVote);
+    }
+    let flags = p.slots.len().max(1) as u32;
+    Ids { uint, bool_t, ptr_uint, var, zero, scope, relaxed: zero, subgroup, flags, vote: p.vote }
 }
 
 /// Record and clamp every watched descriptor-array index of `m` (see the module's doc).
@@ -149,7 +208,14 @@ pub fn apply(m: &mut Module, p: &Probe) -> Report {
             Some((a, slot))
         })
         .collect();
-    let mut report = Report::default();
+    let vars: Vec<Word> = edit::descriptor_variables(m)
+        .into_iter()
+        .filter(|v| {
+            let key = (lit(m, *v, Decoration::DescriptorSet), lit(m, *v, Decoration::Binding));
+            p.slots.iter().any(|s| (s.set, s.binding) == key)
+        })
+        .collect();
+    let mut report = Report { escaped: escapes(m, &vars), ..Report::default() };
     if watched.is_empty() {
         return report;
     }
@@ -214,6 +280,7 @@ fn clamp(
         Some(max),
         vec![id(ptr), id(ids.scope), id(ids.relaxed), id(u)],
     ));
+    code.extend(flag(m, ids, u, slot));
     code.push(Instruction::new(
         Op::ULessThan,
         Some(ids.bool_t),
@@ -235,6 +302,56 @@ fn clamp(
     (code, clamped)
 }
 
+/// `OpAtomic{op}(seen[word], value)`.
+fn atomic(m: &mut Module, ids: &Ids, op: Op, word: u32, value: Word) -> [Instruction; 2] {
+    let id = Operand::IdRef;
+    let at = edit::constant(m, ids.uint, word as u64, false);
+    let (ptr, res) = (edit::next_id(m), edit::next_id(m));
+    [
+        Instruction::new(
+            Op::AccessChain,
+            Some(ids.ptr_uint),
+            Some(ptr),
+            vec![id(ids.var), id(ids.zero), id(at)],
+        ),
+        Instruction::new(
+            op,
+            Some(ids.uint),
+            Some(res),
+            vec![id(ptr), id(ids.scope), id(ids.relaxed), id(value)],
+        ),
+    ]
+}
+
+/// `seen[2K + slot] = min(…, i)` and `seen[K + slot] |= 1 | (i differs in the subgroup ? 2 : 0)`
+/// (bit 1 only with [`Probe::vote`]).
+fn flag(m: &mut Module, ids: &Ids, u: Word, slot: u32) -> Vec<Instruction> {
+    let id = Operand::IdRef;
+    let one = edit::constant(m, ids.uint, 1, false);
+    let mut code = atomic(m, ids, Op::AtomicUMin, 2 * ids.flags + slot, u).to_vec();
+    let bits = if ids.vote {
+        let three = edit::constant(m, ids.uint, 3, false);
+        let (all, bits) = (edit::next_id(m), edit::next_id(m));
+        code.push(Instruction::new(
+            Op::GroupNonUniformAllEqual,
+            Some(ids.bool_t),
+            Some(all),
+            vec![id(ids.subgroup), id(u)],
+        ));
+        code.push(Instruction::new(
+            Op::Select,
+            Some(ids.uint),
+            Some(bits),
+            vec![id(all), id(one), id(three)],
+        ));
+        bits
+    } else {
+        one
+    };
+    code.extend(atomic(m, ids, Op::AtomicOr, ids.flags + slot, bits));
+    code
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -252,7 +369,7 @@ mod tests {
 
     fn probe() -> Probe {
         let slot = |binding, count| Slot { set: 1, binding, count };
-        Probe { set: 1, binding: 9, slots: vec![slot(0, 64), slot(1, 4)] }
+        Probe { set: 1, binding: 9, slots: vec![slot(0, 64), slot(1, 4)], vote: true }
     }
 
     fn ops(m: &Module, op: Op) -> Vec<&Instruction> {
@@ -269,7 +386,8 @@ mod tests {
     fn every_watched_access_records_and_clamps_its_index() {
         let mut m = crate::patches::compiled(shaderc::ShaderKind::ClosestHit, "t.rchit", GLSL);
         let r = apply(&mut m, &probe());
-        assert_eq!(r, Report { instrumented: 3, skipped: 0 });
+        assert_eq!(r, Report { instrumented: 3, skipped: 0, escaped: 0 });
+        assert_eq!(ops(&m, Op::GroupNonUniformAllEqual).len(), 3);
         assert_eq!(ops(&m, Op::AtomicUMax).len(), 3);
         let v = validate(&assemble(&m));
         assert!(matches!(v, Validation::Valid | Validation::Unavailable), "{v:?}");
@@ -297,13 +415,29 @@ mod tests {
         assert_eq!(decorated, 1, "only the nonuniformEXT index is decorated");
     }
 
+    /// An array passed to a function is out of the pass's sight: counted as escaped, so the
+    /// caller can say the check did not see every access.
+    #[test]
+    fn an_array_passed_to_a_function_escapes() {
+        let glsl = "#version 460\n#extension GL_EXT_ray_tracing : require\n\
+            layout(set = 1, binding = 0) uniform sampler2D maps[8];\n\
+            layout(location = 0) rayPayloadInEXT vec4 c;\n\
+            vec4 look(sampler2D s[8], uint i) { return textureLod(s[i], vec2(0), 0.0); }\n\
+            void main() { c = look(maps, uint(gl_InstanceCustomIndexEXT) & 7u); }\n";
+        let mut m = crate::patches::compiled(shaderc::ShaderKind::ClosestHit, "t.rchit", glsl);
+        let slots = vec![Slot { set: 1, binding: 0, count: 8 }];
+        let r = apply(&mut m, &Probe { set: 1, binding: 9, slots, vote: false });
+        assert!(r.escaped >= 1, "{r:?}");
+    }
+
     /// An array the probe does not list is left alone, and a module without watched accesses
     /// gets no buffer at all.
     #[test]
     fn unwatched_arrays_are_left_alone() {
         let mut m = crate::patches::compiled(shaderc::ShaderKind::ClosestHit, "t.rchit", GLSL);
         let before = assemble(&m);
-        let p = Probe { set: 1, binding: 9, slots: vec![Slot { set: 2, binding: 0, count: 8 }] };
+        let slots = vec![Slot { set: 2, binding: 0, count: 8 }];
+        let p = Probe { set: 1, binding: 9, slots, vote: false };
         assert_eq!(apply(&mut m, &p), Report::default());
         assert_eq!(assemble(&m), before);
     }

@@ -380,6 +380,22 @@ impl DeviceInfo {
         })
     }
 
+    /// Whether subgroup vote works in every ray tracing stage (`subgroupSupportedStages` and
+    /// `subgroupSupportedOperations`): `run --shader`'s index check then records whether an
+    /// index differed within its subgroup.
+    pub fn subgroup_vote_in_ray_tracing(&self) -> bool {
+        let rt = vk::ShaderStageFlags::RAYGEN_KHR
+            | vk::ShaderStageFlags::CLOSEST_HIT_KHR
+            | vk::ShaderStageFlags::ANY_HIT_KHR
+            | vk::ShaderStageFlags::MISS_KHR
+            | vk::ShaderStageFlags::INTERSECTION_KHR
+            | vk::ShaderStageFlags::CALLABLE_KHR;
+        self.properties.v11.is_some_and(|p| {
+            p.subgroup_supported_stages.contains(rt)
+                && p.subgroup_supported_operations.contains(vk::SubgroupFeatureFlags::VOTE)
+        })
+    }
+
     pub fn has_extension(&self, name: &CStr) -> bool {
         self.extensions.contains_key(name.to_str().unwrap_or_default())
     }
