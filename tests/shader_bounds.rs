@@ -7,10 +7,10 @@
 //! gave, a fixed-size array — in one line, exit 9, no report. Its twins: an in-bounds shader is
 //! left at its size; the check's figure is the index the pipeline itself read
 //! (`light_table.rchit` writes it: the check's buffer shifting the harness's data once made them
-//! differ); and a shader without `nonuniformEXT` whose `nonuniform` variant differs stays
-//! `patch_differs` on lavapipe, whose ray tracing stages have no subgroup vote to show the index
-//! differing within a subgroup (`shader_undefined` needs that evidence: unit tests in
-//! `cli::shader_uniform`).
+//! differ); a user raygen that traces its TLAS leaves the check on; and a shader without
+//! `nonuniformEXT` whose `nonuniform` variant differs stays `patch_differs`, its detail saying
+//! what the check saw of the index (on lavapipe, whose ray tracing stages have no subgroup vote,
+//! its range over the trace) and the rule.
 mod common;
 use common::*;
 use serde_json::Value;
@@ -32,10 +32,12 @@ fn variant<'a>(r: &'a Value, name: &str) -> &'a Value {
 
 /// The sum reaches past 64: the runtime arrays are sized up to 128, the indices the check saw
 /// are in the report (the texture array's above 64, so the size-up was needed), and the run
-/// passes with no fault and no validation message.
+/// passes with no fault and no validation message — with the user's own raygen and miss, whose
+/// TLAS and image loads are no descriptor-array access the check must follow.
 #[test]
 fn data_past_a_runtime_array_sizes_it_up_and_the_run_passes() {
-    let (o, r, _d) = run(&["object_table.rchit"], &[]);
+    let files = ["raygen.rgen", "miss.rmiss", "object_table.rchit"];
+    let (o, r, _d) = run(&files, &[]);
     let r = r.unwrap_or_else(|| panic!("no report: {}", stderr(&o)));
     assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
     let b = &r["index_bounds"];
@@ -48,7 +50,7 @@ fn data_past_a_runtime_array_sizes_it_up_and_the_run_passes() {
     assert!(stdout(&o).contains("runtime arrays sized 128 instead of 64"), "{}", stdout(&o));
     assert_eq!(variant(&r, "unpatched")["judgement"], "pass");
     // What ran is what `--array-size 128` runs: the same cell id.
-    let (o, sized, _d) = run(&["object_table.rchit"], &["--array-size", "128"]);
+    let (o, sized, _d) = run(&files, &["--array-size", "128"]);
     let sized = sized.unwrap_or_else(|| panic!("no report: {}", stderr(&o)));
     assert!(sized.get("index_bounds").unwrap().get("grown").is_none());
     assert_eq!(r["cell"], sized["cell"]);
@@ -103,10 +105,9 @@ fn indices_inside_their_arrays_leave_the_sizes_alone() {
     assert!(r["options"]["array_size"].is_null());
 }
 
-/// Without `nonuniformEXT` lavapipe's unpatched and `nonuniform` pipelines differ; lavapipe's
-/// ray tracing stages have no subgroup vote, so the check cannot show an index differing
-/// within a subgroup: the variant stays `patch_differs` (exit 1), with what was seen — the
-/// bindings and the range their index took over the trace — and the rule that would apply.
+/// Without `nonuniformEXT` lavapipe's unpatched and `nonuniform` pipelines differ: the variant
+/// stays `patch_differs` (exit 1), with what the check saw — lavapipe's ray tracing stages have
+/// no subgroup vote, so each binding's range over the trace — and the rule that would apply.
 #[test]
 fn a_nonuniform_difference_without_subgroup_evidence_stays_the_patchs() {
     let (o, r, _d) = run(&["object_table.rchit"], &["-D", "NO_NONUNIFORM"]);
@@ -118,8 +119,7 @@ fn a_nonuniform_difference_without_subgroup_evidence_stays_the_patchs() {
     assert_eq!(v["judgement"], "patch_differs", "{v}");
     let d = v["detail"].as_str().unwrap();
     assert!(d.contains("set 1 binding 1 (") && d.contains("set 1 binding 2 ("), "{d}");
-    assert!(
-        d.contains("VUID-RuntimeSpirv-subgroupSize-10149") && d.contains("no subgroup vote"),
-        "{d}"
-    );
+    assert!(d.contains("over the trace, no subgroup vote here"), "{d}");
+    assert!(d.contains("VUID-RuntimeSpirv-subgroupSize-10149"), "{d}");
+    assert!(d.contains("add nonuniformEXT"), "{d}");
 }

@@ -479,15 +479,19 @@ pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
 
 /// The variants run, compared among themselves and with `--compare`'s report, `--dump`ed, and
 /// the report made with the options that changed what ran.
-/// The descriptor-index check (`shader_bounds`), its size-up in the cell id, and `--compare`'s
-/// report held to that id.
-fn index_check(a: &RunArgs, p: &mut Prepared) -> Result<IndexBounds> {
+/// The descriptor-index check (`shader_bounds`); after a size-up, the device's checks and
+/// `--profile`'s record made again for the sized pipeline and the size in the cell id; then
+/// `--compare`'s report held to that id.
+fn index_check(g: &Globals, a: &RunArgs, p: &mut Prepared) -> Result<IndexBounds> {
     let bounds = if a.no_index_check {
         IndexBounds::unchecked("--no-index-check")
     } else {
         super::shader_bounds::check(&mut p.ctx, &mut p.plan, (a.array_size.is_some(), p.vote))?
     };
     if let Some((_, to)) = bounds.grown {
+        let profile = shader_profile::read(a.profile.as_deref())?;
+        let model = (p.ctx.model, profile.as_ref());
+        p.profile = device(g, a, &p.plan, model)?.2;
         // What runs is what `--array-size` would have run: the same cell.
         p.cell_options.array_size = Some(to as u64);
     }
@@ -499,7 +503,7 @@ fn index_check(a: &RunArgs, p: &mut Prepared) -> Result<IndexBounds> {
 }
 
 fn judged_report(g: &Globals, a: &RunArgs, p: &mut Prepared) -> Result<ShaderRunReport> {
-    let bounds = index_check(a, p)?;
+    let bounds = index_check(g, a, p)?;
     let (plan, ctx) = (&p.plan, &p.ctx);
     let (unpatched, patched) = run_all(ctx, plan)?;
     let (mut unpatched, unpatched_teardown) = (unpatched.ran, unpatched.teardown);
@@ -550,7 +554,7 @@ fn judged_report(g: &Globals, a: &RunArgs, p: &mut Prepared) -> Result<ShaderRun
     for ((v, t), d) in report.variants.iter_mut().zip(teardowns).zip(data) {
         (v.teardown, v.data) = (t, d);
     }
-    super::shader_uniform::judge(&ctx.unpatched, &bounds, &mut report.variants);
+    super::shader_uniform::explain(&ctx.unpatched, &bounds, &mut report.variants);
     report.compare = compare;
     if let Some((_, to)) = bounds.grown {
         // What ran: `reduce` re-creates the run from it.

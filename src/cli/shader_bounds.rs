@@ -1,8 +1,9 @@
 //! `run --shader`'s descriptor-index check, before any variant runs: the given modules with
 //! every descriptor-array access recording its index, whether it differed within the subgroup,
 //! and reading a clamped one (`patches::index_bounds`), traced once in a child on the run's own
-//! data — the probe's buffer the last in (set, binding) order, so the harness's data of every
-//! other buffer is what the variants get. The indices are as the device under test computed
+//! data — the probe's buffer alone in the set after the highest one, so it is the last in
+//! (set, binding) order (the harness's data of every other buffer is what the variants get) and
+//! no set's last binding changes (a profile's variable descriptor count stays where it was). The indices are as the device under test computed
 //! them: the refusal says so and names `--no-index-check`. An index at or past
 //! its binding is undefined (`model::index_bounds::RULE`), so a fault it brings is the input's,
 //! not the driver's: the harness's data (small integers below the scene's bound in every integer
@@ -24,8 +25,7 @@ use anyhow::Result;
 const ROUNDS: usize = 3;
 
 /// The probe's place and slots for `plan`'s modules: every binding they declare (runtime if
-/// any declaration is), the probe's buffer after the last one of the highest set, so no
-/// buffer's data comes after it.
+/// any declaration is), the probe's buffer at binding 0 of the set after the highest.
 fn probe(plan: &ShaderPlan, vote: bool) -> (Probe, Vec<bool>) {
     let mut slots: Vec<Slot> = Vec::new();
     let mut runtime: Vec<bool> = Vec::new();
@@ -41,9 +41,8 @@ fn probe(plan: &ShaderPlan, vote: bool) -> (Probe, Vec<bool>) {
             }
         }
     }
-    let set = slots.iter().map(|s| s.set).max().unwrap_or(0);
-    let binding = slots.iter().filter(|s| s.set == set).map(|s| s.binding + 1).max().unwrap_or(0);
-    (Probe { set, binding, slots, vote }, runtime)
+    let set = slots.iter().map(|s| s.set.saturating_add(1)).max().unwrap_or(0);
+    (Probe { set, binding: 0, slots, vote }, runtime)
 }
 
 /// The given modules instrumented (`None`: no module indexes a descriptor array), or why the
@@ -64,7 +63,7 @@ fn instrument(ctx: &Ctx, p: &Probe) -> Result<Result<Option<Vec<JobModule>>, Str
         out.push(JobModule { words: crate::patches::assemble(&module), ..m.clone() });
     }
     if total.escaped > 0 {
-        return Ok(Err("a descriptor array is passed to a function or copied, and the check does not follow it".into()));
+        return Ok(Err("a descriptor array is used other than by indexing it (passed to a function, copied, taken whole), and the check does not follow it".into()));
     }
     if total.skipped > 0 {
         return Ok(Err("a descriptor-array index is wider than 32 bits".into()));
@@ -125,7 +124,7 @@ fn once(ctx: &Ctx, plan: &ShaderPlan, vote: bool) -> Result<Result<Vec<IndexedAr
 fn refusal(a: &IndexedArray, given: bool) -> anyhow::Error {
     let most = crate::harness::sizes::MAX_ARRAY_SIZE as u64;
     let index = match a.largest as i32 {
-        i if i < 0 => format!("{i} (negative as a signed index)"),
+        i if i < 0 => format!("{} ({i} if the index is signed)", a.largest),
         _ => a.largest.to_string(),
     };
     let need = (a.largest as u64 + 1).next_power_of_two();
@@ -223,7 +222,7 @@ mod tests {
             "{e}"
         );
         let e = refusal(&array(-89i32 as u32, true), false).to_string();
-        assert!(e.contains("with -89 (negative as a signed index)"), "{e}");
+        assert!(e.contains("with 4294967207 (-89 if the index is signed)"), "{e}");
         assert!(!e.contains("--array-size 4294967296") && e.contains("--fill"), "{e}");
         let e = refusal(&array(70, false), false).to_string();
         assert!(e.contains("(an array of 64)") && e.contains("SPIR-V"), "{e}");

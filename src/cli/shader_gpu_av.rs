@@ -79,7 +79,6 @@ pub fn rerun(
             Judgement::Pass
             | Judgement::Unstable
             | Judgement::PatchDiffers
-            | Judgement::ShaderUndefined
             | Judgement::CompareDiffers
             | Judgement::Validation
             | Judgement::Error => false,

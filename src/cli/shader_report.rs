@@ -42,7 +42,6 @@ pub fn variant_line(v: &ShaderVariant, validated: bool) -> String {
         Judgement::Fault
         | Judgement::Unstable
         | Judgement::PatchDiffers
-        | Judgement::ShaderUndefined
         | Judgement::CompareDiffers
         | Judgement::Error => v.incidence.as_ref().map(|i| i.label()).unwrap_or_default(),
     };

@@ -1,16 +1,21 @@
 //! `run --shader`'s `nonuniform` variant against a shader that reads descriptors with dynamic
 //! indices and no `NonUniform`: where the patched pipeline (the same modules with the decoration
-//! added) differs from the unpatched one, and the descriptor-index check saw such an index
-//! differ among a subgroup's active invocations, the unpatched reads were the undefined ones —
-//! `VUID-RuntimeSpirv-subgroupSize-10149` (Vulkan 1.4.360, checked against Vulkan-Docs: with an
-//! effective subgroup size above 1, a resource "not uniform within the invocation group, and not
-//! uniform within the subgroup" must be decorated `NonUniform`, in a module that does not declare
-//! `DescriptorHeapEXT`). A must broken is a failure, but the shader's: the variant is judged
-//! [`Judgement::ShaderUndefined`], its outcome still a mismatch. Without that evidence (an
-//! index uniform in every subgroup needs no decoration, and adding one must change nothing) the
-//! difference stays `patch_differs`.
+//! added) differs from the unpatched one, the variant's detail says what the descriptor-index
+//! check saw of each such binding's index — that it differed among a subgroup's active
+//! invocations (subgroup vote, where the device has it in its ray tracing stages), that it only
+//! varied over the trace, or that it was uniform in every subgroup — and the rule that would
+//! make the unpatched reads undefined: `VUID-RuntimeSpirv-subgroupSize-10149` (Vulkan 1.4.360,
+//! checked against Vulkan-Docs: with an effective subgroup size above 1, a resource "not uniform
+//! within the invocation group, and not uniform within the subgroup" must be decorated
+//! `NonUniform`, in a module that does not declare `DescriptorHeapEXT`).
+//!
+//! The judgement stays `patch_differs`: a ray tracing invocation group is "an
+//! implementation-dependent subset" of a trace's invocations (chapter Shaders, Scope) and a
+//! subgroup need only share a device scope instance, so no observation proves the index not
+//! uniform within its invocation group; and the patch decorates every access at once, so one
+//! uniform access whose decoration changes the result (a driver bug) looks the same.
 use crate::harness::child::JobModule;
-use crate::model::index_bounds::IndexBounds;
+use crate::model::index_bounds::{IndexBounds, IndexedArray};
 use crate::model::shader_run::{Judgement, ShaderVariant};
 
 /// The variant the rule applies to.
@@ -25,57 +30,49 @@ fn undecorated(modules: &[JobModule]) -> Vec<(u32, u32)> {
     all
 }
 
-/// Judge a differing `nonuniform` variant the shader's undefined read, naming the bindings:
-/// those indexed without `NonUniform` whose index the check saw differ within a subgroup.
-pub fn judge(unpatched: &[JobModule], bounds: &IndexBounds, variants: &mut [ShaderVariant]) {
+/// What the check saw of one array's index.
+fn seen(a: Option<&IndexedArray>) -> String {
+    match a {
+        None => "not checked".into(),
+        Some(a) if !a.accessed => "not reached".into(),
+        Some(a) => match a.nonuniform {
+            Some(true) => "differed within a subgroup".into(),
+            Some(false) => "uniform in every subgroup".into(),
+            None if a.smallest != a.largest => {
+                format!("{}..{} over the trace, no subgroup vote here", a.smallest, a.largest)
+            }
+            None => format!("{} throughout", a.largest),
+        },
+    }
+}
+
+/// Add to a differing `nonuniform` variant's detail what the check saw of each binding the
+/// unpatched modules index without `NonUniform`, and the rule.
+pub fn explain(unpatched: &[JobModule], bounds: &IndexBounds, variants: &mut [ShaderVariant]) {
     let Some(v) = variants
         .iter_mut()
         .find(|v| v.patch.as_deref() == Some(NONUNIFORM) && v.judgement == Judgement::PatchDiffers)
     else {
         return;
     };
-    let seen = |b: &(u32, u32)| {
-        bounds.arrays.iter().any(|a| (a.set, a.binding) == *b && a.nonuniform == Some(true))
-    };
-    let undecorated = undecorated(unpatched);
-    let bindings: Vec<(u32, u32)> = undecorated.iter().copied().filter(seen).collect();
+    let bindings = undecorated(unpatched);
     if bindings.is_empty() {
-        hint(&undecorated, bounds, v);
         return;
     }
-    let list: Vec<String> = bindings.iter().map(|(s, b)| format!("set {s} binding {b}")).collect();
-    let was = v.detail.take().unwrap_or_default();
-    v.judgement = Judgement::ShaderUndefined;
-    v.detail = Some(format!(
-        "the shader indexes {} without nonuniformEXT, and the index check saw the index differ \
-         within a subgroup: those reads are undefined (VUID-RuntimeSpirv-subgroupSize-10149, \
-         Vulkan 1.4.360: must be decorated NonUniform), and adding the decoration changed the \
-         outputs, so the difference is the shader's, not the driver's: add nonuniformEXT to \
-         those indices ({was})",
-        list.join(", ")
-    ));
-}
-
-/// Without subgroup evidence: where an undecorated binding's index varied over the trace,
-/// say what would make the difference the shader's (the judgement stays `patch_differs`).
-fn hint(undecorated: &[(u32, u32)], bounds: &IndexBounds, v: &mut ShaderVariant) {
-    let varied: Vec<String> = bounds
-        .arrays
+    let each: Vec<String> = bindings
         .iter()
-        .filter(|a| a.nonuniform.is_none() && a.accessed && a.smallest != a.largest)
-        .filter(|a| undecorated.contains(&(a.set, a.binding)))
-        .map(|a| format!("set {} binding {} ({}..{})", a.set, a.binding, a.smallest, a.largest))
+        .map(|&(s, b)| {
+            let a = bounds.arrays.iter().find(|a| (a.set, a.binding) == (s, b));
+            format!("set {s} binding {b} ({})", seen(a))
+        })
         .collect();
-    if varied.is_empty() {
-        return;
-    }
     let was = v.detail.take().unwrap_or_default();
     v.detail = Some(format!(
-        "{was}; the shader indexes {} without nonuniformEXT and the index varied over the trace: \
-         where it differs within a subgroup the reads are undefined \
-         (VUID-RuntimeSpirv-subgroupSize-10149), which this device's ray tracing stages cannot \
-         show (no subgroup vote there), so the difference is not judged the shader's",
-        varied.join(", ")
+        "{was}; the shader indexes {} without nonuniformEXT: where such an index is not uniform \
+         within its invocation group and its subgroup the unpatched reads are undefined \
+         (VUID-RuntimeSpirv-subgroupSize-10149, Vulkan 1.4.360, a must) — add nonuniformEXT; a \
+         difference is evidence against the driver only where the index is uniform",
+        each.join(", ")
     ));
 }
 
@@ -105,53 +102,48 @@ mod tests {
         ShaderVariant::judged(name, Some(name.into()), vec![], vec![a], None)
     }
 
-    fn seen(nonuniform: bool) -> IndexBounds {
-        let a = crate::model::index_bounds::IndexedArray {
+    fn bounds(nonuniform: Option<bool>, smallest: u32) -> IndexBounds {
+        let a = IndexedArray {
             set: 1,
             binding: 3,
             elements: 64,
             runtime: true,
             largest: 9,
-            smallest: 2,
+            smallest,
             accessed: true,
-            nonuniform: Some(nonuniform),
+            nonuniform,
         };
         IndexBounds { arrays: vec![a], ..IndexBounds::default() }
     }
 
-    /// Only a differing `nonuniform` variant of undecorated modules whose index the check saw
-    /// differ within a subgroup is the shader's; a decorated module's, a uniform index's, an
-    /// unchecked run's or another patch's difference stays `patch_differs`.
-    #[test]
-    fn a_differing_nonuniform_variant_of_undecorated_reads_is_the_shaders() {
-        let m = |nonuniform| {
-            vec![JobModule { name: "t".into(), words: words(nonuniform), ray_type: None }]
-        };
+    fn detail(nonuniform: bool, b: &IndexBounds) -> (Judgement, String) {
+        let m = vec![JobModule { name: "t".into(), words: words(nonuniform), ray_type: None }];
         let mut vs = vec![variant("as-to-address", true), variant(NONUNIFORM, true)];
-        assert_eq!(vs[1].judgement, Judgement::PatchDiffers);
-        judge(&m(true), &seen(true), &mut vs);
-        assert_eq!(vs[1].judgement, Judgement::PatchDiffers);
-        judge(&m(false), &seen(false), &mut vs);
-        assert_eq!(vs[1].judgement, Judgement::PatchDiffers, "uniform in every subgroup");
-        judge(&m(false), &IndexBounds::unchecked("x"), &mut vs);
-        assert_eq!(vs[1].judgement, Judgement::PatchDiffers, "no evidence");
-        let mut unmeasured = seen(false);
-        unmeasured.arrays[0].nonuniform = None;
-        judge(&m(false), &unmeasured, &mut vs);
-        assert_eq!(vs[1].judgement, Judgement::PatchDiffers, "not measured");
-        let d = vs[1].detail.clone().unwrap();
-        assert!(d.contains("set 1 binding 3 (2..9)") && d.contains("no subgroup vote"), "{d}");
-        judge(&m(false), &seen(true), &mut vs);
-        assert_eq!(vs[0].judgement, Judgement::PatchDiffers);
-        assert_eq!(vs[1].judgement, Judgement::ShaderUndefined);
-        let d = vs[1].detail.as_deref().unwrap();
+        explain(&m, b, &mut vs);
         assert!(
-            d.contains("set 1 binding 3") && d.contains("VUID-RuntimeSpirv-subgroupSize-10149"),
-            "{d}"
+            !vs[0].detail.clone().unwrap_or_default().contains("nonuniformEXT"),
+            "another patch's"
         );
-        assert!(d.contains("2780 of 12288"), "{d}");
-        let mut same = vec![variant(NONUNIFORM, false)];
-        judge(&m(false), &seen(true), &mut same);
-        assert_eq!(same[0].judgement, Judgement::Pass);
+        (vs[1].judgement, vs[1].detail.clone().unwrap_or_default())
+    }
+
+    /// A differing `nonuniform` variant of undecorated modules says what the check saw and the
+    /// rule, and stays `patch_differs` whatever it saw; a decorated module's gets nothing.
+    #[test]
+    fn a_differing_nonuniform_variant_says_what_the_check_saw() {
+        let (j, d) = detail(false, &bounds(Some(true), 2));
+        assert_eq!(j, Judgement::PatchDiffers);
+        assert!(d.starts_with("2780 of 12288") || d.contains("2780 of 12288"), "{d}");
+        assert!(d.contains("set 1 binding 3 (differed within a subgroup)"), "{d}");
+        assert!(d.contains("VUID-RuntimeSpirv-subgroupSize-10149"), "{d}");
+        let (_, d) = detail(false, &bounds(Some(false), 2));
+        assert!(d.contains("(uniform in every subgroup)"), "{d}");
+        let (_, d) = detail(false, &bounds(None, 2));
+        assert!(d.contains("(2..9 over the trace, no subgroup vote here)"), "{d}");
+        let (_, d) = detail(false, &IndexBounds::unchecked("x"));
+        assert!(d.contains("(not checked)"), "{d}");
+        let (j, d) = detail(true, &bounds(Some(true), 2));
+        assert_eq!(j, Judgement::PatchDiffers);
+        assert!(!d.contains("nonuniformEXT"), "a decorated module: {d}");
     }
 }

@@ -92,7 +92,10 @@ impl IndexBounds {
             return None;
         }
         if let Some(why) = &self.unchecked {
-            return Some(format!("descriptor indices not checked: {why}"));
+            let grown = self.grown.map_or(String::new(), |(from, to)| {
+                format!(" (runtime arrays sized {to} instead of {from} before that)")
+            });
+            return Some(format!("descriptor indices not checked: {why}{grown}"));
         }
         let arrays: Vec<String> = self.arrays.iter().map(IndexedArray::line).collect();
         let grown = self.grown.map_or(String::new(), |(from, to)| {

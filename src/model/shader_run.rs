@@ -123,11 +123,6 @@ pub enum Judgement {
     Unstable,
     /// A patched variant whose outputs differ from the unpatched ones.
     PatchDiffers,
-    /// The `nonuniform` variant differs from the unpatched pipeline, whose modules index
-    /// descriptor arrays dynamically without `NonUniform` and whose index the index check saw
-    /// differ within a subgroup: those reads are undefined (`VUID-RuntimeSpirv-subgroupSize-10149`,
-    /// a must), so the difference is the shader's, not evidence against the driver.
-    ShaderUndefined,
     /// Outputs that differ beyond `--tolerance` from the `--compare` report's.
     CompareDiffers,
     /// Validation messages: the harness or the input misused the API; not evidence.
@@ -143,7 +138,6 @@ impl Judgement {
             Judgement::Fault => "fault",
             Judgement::Unstable => "unstable",
             Judgement::PatchDiffers => "patch_differs",
-            Judgement::ShaderUndefined => "shader_undefined",
             Judgement::CompareDiffers => "compare_differs",
             Judgement::Validation => "validation",
             Judgement::Error => "error",

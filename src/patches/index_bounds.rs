@@ -87,6 +87,16 @@ pub struct Report {
     pub escaped: usize,
 }
 
+/// Whether variable `v` is an array of descriptors (what the pass watches; a single
+/// descriptor's loads are no index to check).
+fn is_array(m: &Module, v: Word) -> bool {
+    let pointee = edit::def(m, v)
+        .and_then(|d| d.result_type)
+        .and_then(|t| edit::pointer_info(m, t))
+        .and_then(|(_, p)| edit::def(m, p));
+    pointee.is_some_and(|a| matches!(a.class.opcode, Op::TypeArray | Op::TypeRuntimeArray))
+}
+
 /// Uses of the watched variables `vars` other than as the base of an access chain.
 fn escapes(m: &Module, vars: &[Word]) -> usize {
     let chain =
@@ -99,7 +109,10 @@ fn escapes(m: &Module, vars: &[Word]) -> usize {
                 .iter()
                 .enumerate()
                 .filter(|(k, o)| {
-                    matches!(o, Operand::IdRef(w) if vars.contains(w)) && !(chain(i) && *k == 0)
+                    // A chain with an index is watched; one without (the whole array again)
+                    // is not.
+                    let based = chain(i) && *k == 0 && i.operands.len() > 1;
+                    matches!(o, Operand::IdRef(w) if vars.contains(w)) && !based
                 })
                 .count()
         })
@@ -212,7 +225,7 @@ pub fn apply(m: &mut Module, p: &Probe) -> Report {
         .into_iter()
         .filter(|v| {
             let key = (lit(m, *v, Decoration::DescriptorSet), lit(m, *v, Decoration::Binding));
-            p.slots.iter().any(|s| (s.set, s.binding) == key)
+            p.slots.iter().any(|s| (s.set, s.binding) == key) && is_array(m, *v)
         })
         .collect();
     let mut report = Report { escaped: escapes(m, &vars), ..Report::default() };
@@ -389,8 +402,9 @@ mod tests {
         assert_eq!(r, Report { instrumented: 3, skipped: 0, escaped: 0 });
         assert_eq!(ops(&m, Op::GroupNonUniformAllEqual).len(), 3);
         assert_eq!(ops(&m, Op::AtomicUMax).len(), 3);
+        // spirv-val is installed wherever the tests run (scripts/setup): a missing one fails.
         let v = validate(&assemble(&m));
-        assert!(matches!(v, Validation::Valid | Validation::Unavailable), "{v:?}");
+        assert!(matches!(v, Validation::Valid), "{v:?}");
         let var = m
             .debug_names
             .iter()
@@ -428,6 +442,25 @@ mod tests {
         let slots = vec![Slot { set: 1, binding: 0, count: 8 }];
         let r = apply(&mut m, &Probe { set: 1, binding: 9, slots, vote: false });
         assert!(r.escaped >= 1, "{r:?}");
+    }
+
+    /// Loads of single descriptors (a texture, the TLAS a raygen traces) are no escape: only
+    /// arrays are watched.
+    #[test]
+    fn single_descriptors_do_not_escape() {
+        let glsl = "#version 460\n#extension GL_EXT_ray_tracing : require\n\
+            layout(set = 1, binding = 0) uniform sampler2D maps[8];\n\
+            layout(set = 1, binding = 1) uniform sampler2D env;\n\
+            layout(set = 0, binding = 0) uniform accelerationStructureEXT scene;\n\
+            layout(location = 0) rayPayloadInEXT vec4 c;\n\
+            void main() { c = textureLod(maps[uint(gl_InstanceCustomIndexEXT) & 7u], vec2(0), 0.0)\n\
+              + textureLod(env, vec2(0), 0.0);\n\
+              traceRayEXT(scene, 0u, 255u, 0u, 0u, 0u, vec3(0), 0.0, vec3(1, 0, 0), 1.0, 0); }\n";
+        let mut m = crate::patches::compiled(shaderc::ShaderKind::ClosestHit, "t.rchit", glsl);
+        let slot = |set, binding, count| Slot { set, binding, count };
+        let slots = vec![slot(1, 0, 8), slot(1, 1, 1), slot(0, 0, 1)];
+        let r = apply(&mut m, &Probe { set: 2, binding: 0, slots, vote: false });
+        assert_eq!(r, Report { instrumented: 1, skipped: 0, escaped: 0 });
     }
 
     /// An array the probe does not list is left alone, and a module without watched accesses
