@@ -155,6 +155,17 @@ pub fn type_int(m: &mut Module, width: u32, signed: bool) -> Word {
     id
 }
 
+/// `OpTypeBool`, found or appended.
+pub fn type_bool(m: &mut Module) -> Word {
+    let found = m.types_global_values.iter().find(|i| i.class.opcode == Op::TypeBool);
+    if let Some(id) = found.and_then(|i| i.result_id) {
+        return id;
+    }
+    let id = next_id(m);
+    m.types_global_values.push(Instruction::new(Op::TypeBool, None, Some(id), vec![]));
+    id
+}
+
 /// `OpTypePointer sc pointee`, found or appended.
 pub fn type_pointer(m: &mut Module, sc: StorageClass, pointee: Word) -> Word {
     let found = m.types_global_values.iter().find(|i| {

@@ -134,24 +134,10 @@ struct Ids {
     vote: bool,
 }
 
-fn type_bool(m: &mut Module) -> Word {
-    if let Some(id) = m
-        .types_global_values
-        .iter()
-        .find(|i| i.class.opcode == Op::TypeBool)
-        .and_then(|i| i.result_id)
-    {
-        return id;
-    }
-    let id = edit::next_id(m);
-    m.types_global_values.insert(0, Instruction::new(Op::TypeBool, None, Some(id), vec![]));
-    id
-}
-
 /// The probe's `buffer { uint seen[K]; }` at its set and binding, and the shared ids.
 fn declare(m: &mut Module, p: &Probe) -> Ids {
     let uint = edit::type_int(m, 32, false);
-    let bool_t = type_bool(m);
+    let bool_t = edit::type_bool(m);
     let len = edit::constant(m, uint, 3 * p.slots.len().max(1) as u64, false);
     let (arr, st, var) = (edit::next_id(m), edit::next_id(m), edit::next_id(m));
     let g = &mut m.types_global_values;

@@ -23,21 +23,6 @@ fn op(o: Op, ty: Option<Word>, id: Word, operands: Vec<Operand>) -> Instruction 
     Instruction::new(o, ty, Some(id), operands)
 }
 
-/// `OpTypeBool`, found or appended.
-fn type_bool(m: &mut Module) -> Word {
-    if let Some(id) = m
-        .types_global_values
-        .iter()
-        .find(|i| i.class.opcode == Op::TypeBool)
-        .and_then(|i| i.result_id)
-    {
-        return id;
-    }
-    let id = next_id(m);
-    m.types_global_values.push(op(Op::TypeBool, None, id, vec![]));
-    id
-}
-
 /// The first scalar of an access's value: how it was reached, and 32 bits of it.
 pub struct Leaf {
     /// The extractions, then the conversion to 32 bits.
@@ -228,7 +213,7 @@ fn bumped(
             out.push(op(Op::FAdd, Some(ty), new, vec![id(x), id(c)]));
         }
         Op::TypeBool => {
-            let (u32_t, bool_t) = (edit::type_int(m, 32, false), type_bool(m));
+            let (u32_t, bool_t) = (edit::type_int(m, 32, false), edit::type_bool(m));
             let (zero, c) = (edit::constant(m, u32_t, 0, false), next_id(m));
             out.push(op(Op::INotEqual, Some(bool_t), c, vec![id(bump), id(zero)]));
             out.push(op(Op::LogicalNotEqual, Some(bool_t), new, vec![id(x), id(c)]));
@@ -252,7 +237,7 @@ fn rename(m: &mut Module, f: usize, old: Word, new: Word) {
 /// `x` compared with a constant no read returns by design, as a u32 0 or 1 (`bump` of [`feed`]).
 fn unlikely(m: &mut Module, x: Word) -> (Vec<Instruction>, Word) {
     const MAGIC: u64 = 0x9e37_79b9;
-    let (u32_t, bool_t) = (edit::type_int(m, 32, false), type_bool(m));
+    let (u32_t, bool_t) = (edit::type_int(m, 32, false), edit::type_bool(m));
     let (magic, one, zero) = (
         edit::constant(m, u32_t, MAGIC, false),
         edit::constant(m, u32_t, 1, false),
@@ -323,7 +308,7 @@ pub fn hang(m: &mut Module, (f, b, i): (usize, usize, usize), tie: Tie) -> bool 
     }
     let Some(from) = block.label_id() else { return false };
     let u32_t = edit::type_int(m, 32, false);
-    let bool_t = type_bool(m);
+    let bool_t = edit::type_bool(m);
     let (c0, c1, c2) = (
         edit::constant(m, u32_t, 0, false),
         edit::constant(m, u32_t, 1, false),
