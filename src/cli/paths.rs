@@ -7,9 +7,11 @@ use anyhow::Result;
 use std::path::Path;
 
 /// A fresh private work folder `<prefix>-<pid>-…` under the temporary folder (children's job
-/// and result files), removed when dropped; or a one-line error (exit 9) that says what to do.
-pub fn work_dir(prefix: &str) -> Result<crate::tempdir::TempDir> {
-    crate::tempdir::TempDir::named(prefix).map_err(|e| coded(exit::BAD_INPUT, e.to_string()))
+/// and result files), removed when dropped and by the interrupt handler where the command
+/// installs it; or a one-line error (exit 9) that says what to do.
+pub fn work_dir(prefix: &str) -> Result<crate::runner::groups::JobFolder> {
+    crate::runner::groups::JobFolder::named(prefix)
+        .map_err(|e| coded(exit::BAD_INPUT, e.to_string()))
 }
 
 /// The temporary folder takes a private work folder (the supervisor's job files go there), or a

@@ -378,10 +378,18 @@ pub(super) struct Prepared {
     other: Option<ShaderRunReport>,
     baseline: Option<crate::model::Baseline>,
     /// `ctx.dir`: the children's job and result files, removed with this.
-    _work: crate::tempdir::TempDir,
+    _work: crate::runner::groups::JobFolder,
 }
 
 /// Everything checked and planned before the report is reserved.
+/// The children's work folder, and the interrupt handler that kills them, removes it and says
+/// no report was written.
+fn work_folder() -> Result<crate::runner::groups::JobFolder> {
+    crate::runner::groups::interrupt_without_report();
+    crate::runner::groups::install_handlers();
+    super::paths::work_dir("rtprobe-shader")
+}
+
 pub(super) fn prepare(g: &Globals, a: &RunArgs) -> Result<Prepared> {
     refuse_others(a)?;
     refuse_early(a)?;
@@ -419,7 +427,7 @@ pub(super) fn prepare(g: &Globals, a: &RunArgs) -> Result<Prepared> {
     if let Some((l, _)) = &scene {
         scene_fits(a, l, (&scene_fills, images.bytes), heap)?;
     }
-    let work = super::paths::work_dir("rtprobe-shader")?;
+    let work = work_folder()?;
     let dir = work.path().to_path_buf();
     let ctx = Ctx {
         device_index,

@@ -10,7 +10,7 @@
 //! also removes each live supervisor's [`JobFolder`] with the job files no worker read yet.
 use std::os::unix::process::CommandExt;
 use std::process::Command;
-use std::sync::atomic::{AtomicI32, AtomicPtr, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicI32, AtomicPtr, AtomicUsize, Ordering};
 use std::sync::Once;
 
 /// The end of the interrupt message: `; finish it with `COMMAND`\n` (leaked once per run, so the
@@ -108,8 +108,14 @@ static FOLDERS: [AtomicPtr<libc::c_char>; MAX_FOLDERS] =
 impl JobFolder {
     /// A new folder `rtprobe-jobs-<pid>-…` under the temporary folder.
     pub fn new() -> std::io::Result<JobFolder> {
+        JobFolder::named("rtprobe-jobs")
+    }
+
+    /// A new folder `<prefix>-<pid>-…` under the temporary folder (a command's children's work:
+    /// `run --shader`'s, `patch --verify`'s, `bench`'s).
+    pub fn named(prefix: &str) -> std::io::Result<JobFolder> {
         use std::os::unix::ffi::OsStrExt;
-        let dir = crate::tempdir::TempDir::named("rtprobe-jobs")?;
+        let dir = crate::tempdir::TempDir::named(prefix)?;
         let c = std::ffi::CString::new(dir.path().as_os_str().as_bytes())
             .map_err(std::io::Error::other)?;
         let p = c.into_raw();
@@ -156,16 +162,26 @@ fn remove_folders() {
     }
 }
 
-/// Unlink the files of the folder `path` (a job folder holds files only).
+/// Unlink the files of the folder `path` and of its folders, two levels down (a job folder
+/// holds files; `run --shader`'s GPU-AV re-runs put theirs in folders of its work folder).
 ///
 /// # Safety
 /// `path` is a NUL-terminated path.
 unsafe fn empty(path: *const libc::c_char) {
     let fd =
         libc::open(path, libc::O_RDONLY | libc::O_DIRECTORY | libc::O_NOFOLLOW | libc::O_CLOEXEC);
-    if fd < 0 {
-        return;
+    if fd >= 0 {
+        empty_fd(fd, 2);
+        libc::close(fd);
     }
+}
+
+/// Unlink every entry of the open folder `fd`; a folder among them (where `depth` allows) is
+/// emptied and removed. Only async-signal-safe calls; 4 KiB of stack per level.
+///
+/// # Safety
+/// `fd` is an open folder.
+unsafe fn empty_fd(fd: libc::c_int, depth: u32) {
     // u64s: `linux_dirent64` records are 8-byte aligned.
     let mut buf = [0u64; 512];
     loop {
@@ -183,18 +199,48 @@ unsafe fn empty(path: *const libc::c_char) {
             let special = dot
                 && (*name.add(1) == 0
                     || (*name.add(1) == b'.' as libc::c_char && *name.add(2) == 0));
-            if !special {
-                libc::unlinkat(fd, name, 0);
+            if !special && libc::unlinkat(fd, name, 0) != 0 && depth > 0 {
+                let flags = libc::O_RDONLY | libc::O_DIRECTORY | libc::O_NOFOLLOW | libc::O_CLOEXEC;
+                let sub = libc::openat(fd, name, flags);
+                if sub >= 0 {
+                    empty_fd(sub, depth - 1);
+                    libc::close(sub);
+                    libc::unlinkat(fd, name, libc::AT_REMOVEDIR);
+                }
             }
             off += (*d).d_reclen as usize;
         }
     }
-    libc::close(fd);
+}
+
+/// The process writes no report until its end (`run --shader`): the interrupt message says so,
+/// not `run`'s.
+static NO_REPORT: AtomicBool = AtomicBool::new(false);
+
+/// Say on an interrupt that no report was written (`run --shader`'s, which writes it at its end).
+pub fn interrupt_without_report() {
+    NO_REPORT.store(true, Ordering::SeqCst);
 }
 
 extern "C" fn on_signal(sig: libc::c_int) {
     kill_all();
     remove_folders();
+    if NO_REPORT.load(Ordering::SeqCst) {
+        let msg: &[u8] = match sig {
+            libc::SIGINT => {
+                b"\nrtprobe: interrupted (SIGINT): every child was killed; no report was written\n"
+            }
+            libc::SIGTERM => {
+                b"\nrtprobe: terminated (SIGTERM): every child was killed; no report was written\n"
+            }
+            _ => b"\nrtprobe: hung up (SIGHUP): every child was killed; no report was written\n",
+        };
+        // SAFETY: write(2) and _exit(2) are async-signal-safe; the message is static.
+        unsafe {
+            libc::write(2, msg.as_ptr().cast(), msg.len());
+            libc::_exit(128 + sig);
+        }
+    }
     let msg: &[u8] = match sig {
         libc::SIGINT => b"\nrtprobe: interrupted (SIGINT): every worker was killed; the report keeps every fault and all passes but those of the last 0.1 s (complete: false)",
         libc::SIGTERM => b"\nrtprobe: terminated (SIGTERM): every worker was killed; the report keeps every fault and all passes but those of the last 0.1 s (complete: false)",
@@ -245,12 +291,20 @@ mod tests {
         for i in 0..300 {
             std::fs::write(dir.path().join(format!("job-{i}.json")), b"{}").unwrap();
         }
+        // A GPU-AV re-run's folder of `run --shader`, with its own files.
+        std::fs::create_dir(dir.path().join("gpu-av")).unwrap();
+        std::fs::write(dir.path().join("gpu-av/unpatched-job-1.json"), b"{}").unwrap();
+        // A link to a folder is unlinked, never followed.
+        let outside = crate::tempdir::TempDir::named("rtprobe-outside-test").unwrap();
+        std::fs::write(outside.path().join("keep"), b"1").unwrap();
+        std::os::unix::fs::symlink(outside.path(), dir.path().join("link")).unwrap();
         let c = std::ffi::CString::new(dir.path().to_str().unwrap()).unwrap();
         // The twin: rmdir alone leaves it (ENOTEMPTY).
         assert_ne!(unsafe { libc::rmdir(c.as_ptr()) }, 0);
         unsafe { empty(c.as_ptr()) };
         assert_eq!(unsafe { libc::rmdir(c.as_ptr()) }, 0, "{:?}", std::io::Error::last_os_error());
         assert!(!dir.path().exists());
+        assert!(outside.path().join("keep").exists(), "the link's target is left alone");
     }
 
     #[test]
