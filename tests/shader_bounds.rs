@@ -123,3 +123,21 @@ fn a_nonuniform_difference_without_subgroup_evidence_stays_the_patchs() {
     assert!(d.contains("VUID-RuntimeSpirv-subgroupSize-10149"), "{d}");
     assert!(d.contains("add nonuniformEXT"), "{d}");
 }
+
+/// A binding declared twice — `textures[]` in the closest-hit, `textures[8]` in the any-hit —
+/// is one binding of the larger count (the harness's) with each declaration held to its own
+/// size: the any-hit's element 1 inside its eight, the closest-hit's sums inside the runtime
+/// array, no refusal (it once merged them at the smaller count and refused).
+#[test]
+fn each_declaration_is_held_to_its_own_size() {
+    let (o, r, _d) = run(&["object_table.rchit", "alpha_table.rahit"], &[]);
+    let r = r.unwrap_or_else(|| panic!("no report: {}{}", stdout(&o), stderr(&o)));
+    let arrays = r["index_bounds"]["arrays"].as_array().unwrap();
+    let of = |runtime: bool| {
+        arrays.iter().find(|a| a["binding"] == 2 && a["runtime"] == runtime).unwrap().clone()
+    };
+    let (fixed, runtime) = (of(false), of(true));
+    assert_eq!((fixed["elements"].as_u64(), fixed["largest"].as_u64()), (Some(8), Some(1)));
+    assert!(runtime["largest"].as_u64().unwrap() >= 8, "{runtime}");
+    assert_eq!(variant(&r, "unpatched")["judgement"], "pass", "{r}");
+}

@@ -151,6 +151,18 @@ fn refuse_early(a: &RunArgs) -> Result<()> {
     Ok(())
 }
 
+/// What `run --shader` takes from the device it runs on: its index and label, what `--profile`
+/// enabled, its largest device-local heap, whether it has subgroup vote in every ray tracing
+/// stage and its `maxBoundDescriptorSets` (the index check's).
+struct Chosen {
+    index: usize,
+    name: String,
+    profile: Option<ProfileRecord>,
+    heap: u64,
+    vote: bool,
+    max_sets: u32,
+}
+
 /// The device `--device` names, checked for what the harness needs, for `--profile`'s
 /// features, and for the pipeline's interface (`interface::check` against the harness's layout
 /// and the device's hit-attribute limit): its index and name, and what the profile enabled.
@@ -159,7 +171,7 @@ fn device(
     a: &RunArgs,
     plan: &ShaderPlan,
     (model, profile): (DescriptorModel, Option<&shader_profile::Loaded>),
-) -> Result<(usize, String, Option<ProfileRecord>, u64, bool)> {
+) -> Result<Chosen> {
     let inst = open_instance(g)?;
     let all = crate::vk::features::query_all(&inst)?;
     let info = crate::vk::features::select(&all, a.device.as_deref())?;
@@ -191,7 +203,14 @@ fn device(
         )
     })?;
     let heap = crate::harness::scene_data::largest_device_heap(&info.memory);
-    Ok((info.index, info.label(), record, heap, info.subgroup_vote_in_ray_tracing()))
+    Ok(Chosen {
+        index: info.index,
+        name: info.label(),
+        profile: record,
+        heap,
+        vote: info.subgroup_vote_in_ray_tracing(),
+        max_sets: info.properties.core.limits.max_bound_descriptor_sets,
+    })
 }
 
 /// `--scene`'s file loaded (the loader's one-line error, exit 9) and its content hash: the
@@ -375,6 +394,8 @@ pub(super) struct Prepared {
     pub(super) profile: Option<ProfileRecord>,
     /// The device has subgroup vote in every ray tracing stage (the index check's uniformity).
     vote: bool,
+    /// The device's `maxBoundDescriptorSets` (the index check needs one set more).
+    max_sets: u32,
     other: Option<ShaderRunReport>,
     baseline: Option<crate::model::Baseline>,
     /// `ctx.dir`: the children's job and result files, removed with this.
@@ -422,7 +443,7 @@ pub(super) fn prepare(g: &Globals, a: &RunArgs) -> Result<Prepared> {
     let other = other_report(a, &shader_run::cell_id_with(&plan.inputs, &cell_options))?;
     let baseline = a.baseline.as_deref().map(super::fleet::load_baseline).transpose()?;
     super::paths::writable_files(&[("--junit", a.junit.as_deref())])?;
-    let (device_index, device_name, record, heap, vote) =
+    let Chosen { index: device_index, name: device_name, profile: record, heap, vote, max_sets } =
         device(g, a, &plan, (model, profile.as_ref()))?;
     if let Some((l, _)) = &scene {
         scene_fits(a, l, (&scene_fills, images.bytes), heap)?;
@@ -464,6 +485,7 @@ pub(super) fn prepare(g: &Globals, a: &RunArgs) -> Result<Prepared> {
         cell_options,
         profile,
         vote,
+        max_sets,
         other,
         baseline,
         _work: work,
@@ -494,12 +516,16 @@ fn index_check(g: &Globals, a: &RunArgs, p: &mut Prepared) -> Result<IndexBounds
     let bounds = if a.no_index_check {
         IndexBounds::unchecked("--no-index-check")
     } else {
-        super::shader_bounds::check(&mut p.ctx, &mut p.plan, (a.array_size.is_some(), p.vote))?
+        super::shader_bounds::check(
+            &mut p.ctx,
+            &mut p.plan,
+            (a.array_size.is_some(), (p.vote, p.max_sets)),
+        )?
     };
     if let Some((_, to)) = bounds.grown {
         let profile = shader_profile::read(a.profile.as_deref())?;
         let model = (p.ctx.model, profile.as_ref());
-        p.profile = device(g, a, &p.plan, model)?.2;
+        p.profile = device(g, a, &p.plan, model)?.profile;
         // What runs is what `--array-size` would have run: the same cell.
         p.cell_options.array_size = Some(to as u64);
     }

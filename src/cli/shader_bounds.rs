@@ -16,7 +16,7 @@ use super::shader_exec::{self, Ctx};
 use super::shader_plan::ShaderPlan;
 use crate::harness::child::JobModule;
 use crate::harness::fill::{Fill, Target};
-use crate::model::index_bounds::{IndexBounds, IndexedArray, FIXED_RULE, RULE};
+use crate::model::index_bounds::{IndexBounds, IndexSeen, IndexedArray, FIXED_RULE, RULE};
 use crate::model::DescriptorModel;
 use crate::patches::index_bounds::{self as pass, Probe, Slot};
 use anyhow::Result;
@@ -24,25 +24,25 @@ use anyhow::Result;
 /// Checks before giving up (each size-up can move the harness's data).
 const ROUNDS: usize = 3;
 
-/// The probe's place and slots for `plan`'s modules: every binding they declare (runtime if
-/// any declaration is), the probe's buffer at binding 0 of the set after the highest.
-fn probe(plan: &ShaderPlan, vote: bool) -> (Probe, Vec<bool>) {
+/// The probe's place and slots for `plan`'s modules: each binding as each declaration declares
+/// it — a fixed-size one held to its own size, a runtime-sized one to the descriptors the harness
+/// binds (the largest declaration's, `harness::bindings`) — and the probe's buffer at binding 0
+/// of the set after the highest.
+fn probe(plan: &ShaderPlan, vote: bool) -> Probe {
+    let all = || plan.modules.iter().flat_map(|m| m.iface.bindings.iter());
+    let bound = |set, binding| {
+        all().filter(|b| (b.set, b.binding) == (set, binding)).map(|b| b.count).max().unwrap_or(0)
+    };
     let mut slots: Vec<Slot> = Vec::new();
-    let mut runtime: Vec<bool> = Vec::new();
-    for b in plan.modules.iter().flat_map(|m| m.iface.bindings.iter()) {
-        match slots.iter().position(|s| (s.set, s.binding) == (b.set, b.binding)) {
-            Some(k) => {
-                slots[k].count = slots[k].count.min(b.count);
-                runtime[k] |= b.runtime;
-            }
-            None => {
-                slots.push(Slot { set: b.set, binding: b.binding, count: b.count });
-                runtime.push(b.runtime);
-            }
+    for b in all() {
+        let count = if b.runtime { bound(b.set, b.binding) } else { b.count };
+        let slot = Slot { set: b.set, binding: b.binding, fixed: !b.runtime, count };
+        if !slots.contains(&slot) {
+            slots.push(slot);
         }
     }
     let set = slots.iter().map(|s| s.set.saturating_add(1)).max().unwrap_or(0);
-    (Probe { set, binding: 0, slots, vote }, runtime)
+    Probe { set, binding: 0, slots, vote }
 }
 
 /// The given modules instrumented (`None`: no module indexes a descriptor array), or why the
@@ -72,8 +72,18 @@ fn instrument(ctx: &Ctx, p: &Probe) -> Result<Result<Option<Vec<JobModule>>, Str
 }
 
 /// One check: the arrays' largest indices, or why there are none.
-fn once(ctx: &Ctx, plan: &ShaderPlan, vote: bool) -> Result<Result<Vec<IndexedArray>, String>> {
-    let (p, runtime) = probe(plan, vote);
+fn once(
+    ctx: &Ctx,
+    plan: &ShaderPlan,
+    (vote, max_sets): (bool, u32),
+) -> Result<Result<Vec<IndexedArray>, String>> {
+    let p = probe(plan, vote);
+    if p.set >= max_sets {
+        return Ok(Err(format!(
+            "no descriptor set is free for the check's buffer (the pipeline uses sets up to {}, maxBoundDescriptorSets {max_sets})",
+            p.set.saturating_sub(1)
+        )));
+    }
     let modules = match instrument(ctx, &p)? {
         Ok(Some(modules)) => modules,
         Ok(None) => return Ok(Ok(vec![])),
@@ -98,23 +108,32 @@ fn once(ctx: &Ctx, plan: &ShaderPlan, vote: bool) -> Result<Result<Vec<IndexedAr
         seen.bytes.get(4 * k..4 * k + 4).map(|b| u32::from_le_bytes(b.try_into().unwrap()))
     };
     let n = p.slots.len();
+    // Group g's largest, flags and smallest of slot k.
+    let seen = |g: usize, k: usize| -> Option<IndexSeen> {
+        let flags = word(3 * g * n + n + k)?;
+        (flags & 1 != 0).then_some(IndexSeen {
+            largest: word(3 * g * n + k)?,
+            smallest: word(3 * g * n + 2 * n + k)?,
+            nonuniform: vote.then_some(flags & 2 != 0),
+        })
+    };
     Ok(Ok(p
         .slots
         .iter()
-        .zip(runtime)
         .enumerate()
-        .filter_map(|(k, (s, runtime))| {
-            let flags = word(n + k)?;
-            Some(IndexedArray {
+        .map(|(k, s)| {
+            let all = seen(0, k);
+            IndexedArray {
                 set: s.set,
                 binding: s.binding,
                 elements: s.count,
-                runtime,
-                largest: word(k)?,
-                smallest: word(2 * n + k)?,
-                accessed: flags & 1 != 0,
-                nonuniform: vote.then_some(flags & 2 != 0),
-            })
+                runtime: !s.fixed,
+                largest: all.as_ref().map_or(0, |a| a.largest),
+                smallest: all.as_ref().map_or(u32::MAX, |a| a.smallest),
+                accessed: all.is_some(),
+                nonuniform: all.and_then(|a| a.nonuniform),
+                undecorated: seen(1, k),
+            }
         })
         .filter(|a| a.elements > 1 || a.runtime || a.accessed)
         .collect()))
@@ -136,7 +155,7 @@ fn refusal(a: &IndexedArray, given: bool) -> anyhow::Error {
     let fix = if a.runtime && need <= most {
         format!("give --array-size {need} or more (descriptors are numbered over every array, so the data moves with the size)")
     } else {
-        "--fill the words the index is read from (rtprobe puts small integers in every integer word, docs/your-shader.md)".into()
+        "--fill the words the index is read from (rtprobe puts small integers in every integer word, docs/your-shader.md), or give --spec a value that keeps a spec-constant index inside".into()
     };
     coded(
         exit::BAD_INPUT,
@@ -148,12 +167,12 @@ fn refusal(a: &IndexedArray, given: bool) -> anyhow::Error {
 }
 
 /// Check the run's indices, sizing runtime arrays up where the harness's own data goes past
-/// them; `given`: `--array-size` was; `vote`: the device has subgroup vote in every ray
-/// tracing stage.
+/// them; `given`: `--array-size` was; `device`: whether it has subgroup vote in every ray
+/// tracing stage, and its `maxBoundDescriptorSets`.
 pub fn check(
     ctx: &mut Ctx,
     plan: &mut ShaderPlan,
-    (given, vote): (bool, bool),
+    (given, device): (bool, (bool, u32)),
 ) -> Result<IndexBounds> {
     if ctx.model == DescriptorModel::DescriptorHeap {
         return Ok(IndexBounds::unchecked("descriptor heap arrays are not instrumented yet"));
@@ -164,7 +183,7 @@ pub fn check(
     let most = crate::harness::sizes::MAX_ARRAY_SIZE as u64;
     let mut grown: Option<(u32, u32)> = None;
     for round in 0..ROUNDS {
-        let arrays = match once(ctx, plan, vote)? {
+        let arrays = match once(ctx, plan, device)? {
             Ok(arrays) => arrays,
             Err(why) => return Ok(IndexBounds { grown, ..IndexBounds::unchecked(&why) }),
         };
@@ -208,6 +227,7 @@ mod tests {
             smallest: 0,
             accessed: true,
             nonuniform: None,
+            undecorated: None,
         }
     }
 

@@ -30,11 +30,14 @@ fn undecorated(modules: &[JobModule]) -> Vec<(u32, u32)> {
     all
 }
 
-/// What the check saw of one array's index.
-fn seen(a: Option<&IndexedArray>) -> String {
-    match a {
-        None => "not checked".into(),
-        Some(a) if !a.accessed => "not reached".into(),
+/// What the check saw of one binding's dynamic indices without `NonUniform` (each declaration's
+/// slot: the first that saw one).
+fn seen(arrays: &[&IndexedArray]) -> String {
+    if arrays.is_empty() {
+        return "not checked".into();
+    }
+    match arrays.iter().find_map(|a| a.undecorated.as_ref()) {
+        None => "not reached".into(),
         Some(a) => match a.nonuniform {
             Some(true) => "differed within a subgroup".into(),
             Some(false) => "uniform in every subgroup".into(),
@@ -62,8 +65,9 @@ pub fn explain(unpatched: &[JobModule], bounds: &IndexBounds, variants: &mut [Sh
     let each: Vec<String> = bindings
         .iter()
         .map(|&(s, b)| {
-            let a = bounds.arrays.iter().find(|a| (a.set, a.binding) == (s, b));
-            format!("set {s} binding {b} ({})", seen(a))
+            let arrays: Vec<&IndexedArray> =
+                bounds.arrays.iter().filter(|a| (a.set, a.binding) == (s, b)).collect();
+            format!("set {s} binding {b} ({})", seen(&arrays))
         })
         .collect();
     let was = v.detail.take().unwrap_or_default();
@@ -79,6 +83,7 @@ pub fn explain(unpatched: &[JobModule], bounds: &IndexBounds, variants: &mut [Sh
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::index_bounds::IndexSeen;
     use crate::model::shader_run::ShaderAttempt;
     use crate::model::{Attempt, Outcome};
 
@@ -108,10 +113,11 @@ mod tests {
             binding: 3,
             elements: 64,
             runtime: true,
-            largest: 9,
-            smallest,
+            largest: 63,
+            smallest: 0,
             accessed: true,
-            nonuniform,
+            nonuniform: Some(true),
+            undecorated: Some(IndexSeen { smallest, largest: 9, nonuniform }),
         };
         IndexBounds { arrays: vec![a], ..IndexBounds::default() }
     }

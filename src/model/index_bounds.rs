@@ -15,7 +15,21 @@ pub const FIXED_RULE: &str = "SPIR-V: an access chain index past its array's siz
 (\"Validity and Defined Behavior\"), and the array is \"no larger than the number of descriptors \
 in the binding\" (Vulkan 1.4.360, Shader Interfaces)";
 
-/// One descriptor array the check watched.
+/// What the check saw of a set of accesses' indices.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct IndexSeen {
+    pub smallest: u32,
+    pub largest: u32,
+    /// Some index differed among its subgroup's active invocations; `None`: not measured.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nonuniform: Option<bool>,
+}
+
+fn yes() -> bool {
+    true
+}
+
+/// One descriptor array the check watched (a binding as one declaration declares it).
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct IndexedArray {
     pub set: u32,
@@ -26,17 +40,22 @@ pub struct IndexedArray {
     pub runtime: bool,
     /// The largest index any access read it with (0 when none ran).
     pub largest: u32,
-    /// The smallest index any access read it with (`u32::MAX` when none ran).
+    /// The smallest index any access read it with (`u32::MAX` when none ran; 0 in a report
+    /// without it).
     #[serde(default)]
     pub smallest: u32,
     /// Some access of it ran.
-    #[serde(default)]
+    #[serde(default = "yes")]
     pub accessed: bool,
     /// Some access's index differed among its subgroup's active invocations (not uniform
     /// within the subgroup, `VUID-RuntimeSpirv-subgroupSize-10149`'s words); `None`: not
     /// measured (no subgroup vote in the device's ray tracing stages).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub nonuniform: Option<bool>,
+    /// The same of its dynamic accesses without `NonUniform` alone, where one ran (what the
+    /// `nonuniform` variant's explanation reads).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub undecorated: Option<IndexSeen>,
 }
 
 impl IndexedArray {
@@ -123,6 +142,7 @@ mod tests {
             smallest: 3,
             accessed: true,
             nonuniform: None,
+            undecorated: None,
         };
         assert!(a.outside());
         let never = IndexedArray { accessed: false, largest: 0, ..a.clone() };

@@ -5,15 +5,17 @@
 //!
 //! Each `OpAccessChain` / `OpInBoundsAccessChain` whose base is a descriptor variable of array
 //! type listed in the [`Probe`] gets, right before it, with `i` its first index as 32-bit
-//! unsigned (`OpBitcast` of a signed one), on the probe's storage buffer (`uint seen[3K]` at the
-//! probe's set and binding, filled by the caller: zeros, then `0xffffffff` from `2K`):
-//! - `OpAtomicUMax(seen[slot], i)`: the largest index;
-//! - `OpAtomicUMin(seen[2K + slot], i)`: the smallest;
-//! - `OpAtomicOr(seen[K + slot], 1 | 2 * !OpGroupNonUniformAllEqual(Subgroup, i))`: bit 0 the
-//!   access ran, bit 1 its index differed among the subgroup's active invocations (what
+//! unsigned (`OpBitcast` of a signed one), on the probe's storage buffer (`uint seen[6K]` at the
+//! probe's set and binding, K slots, filled by the caller as [`Probe::initial`] says), in group
+//! 0 for every access and again in group 1 for one whose index is dynamic and carries no
+//! `NonUniform` (group `g` at word `3gK`):
+//! - `OpAtomicUMax(seen[3gK + slot], i)`: the largest index;
+//! - `OpAtomicOr(seen[3gK + K + slot], 1 | 2 * !OpGroupNonUniformAllEqual(Subgroup, i))`: bit 0
+//!   the access ran, bit 1 its index differed among the subgroup's active invocations (what
 //!   `VUID-RuntimeSpirv-subgroupSize-10149` calls "not uniform within the subgroup") — only with
 //!   [`Probe::vote`], where the device has subgroup vote in every ray tracing stage (lavapipe 25
 //!   has no subgroup operations there); else `OpAtomicOr(…, 1)`;
+//! - `OpAtomicUMin(seen[3gK + 2K + slot], i)`: the smallest;
 //!
 //! and the chain then indexes `i < count ? i : count - 1` (`OpULessThan`, `OpSelect`), so the
 //! instrumented pipeline itself stays inside every binding. A watched variable used any other way
@@ -44,12 +46,16 @@ use super::edit;
 use rspirv::dr::{Instruction, Module, Operand};
 use rspirv::spirv::{Capability, Decoration, MemoryModel, Op, StorageClass, Word};
 
-/// One descriptor array the probe watches: its slot is its place in [`Probe::slots`].
+/// One descriptor array the probe watches — a binding as one declaration declares it: its slot
+/// is its place in [`Probe::slots`].
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Slot {
     pub set: u32,
     pub binding: u32,
-    /// Descriptors in the binding as the harness makes it.
+    /// A fixed-size declaration (`count` its own size), else a runtime-sized one (`count` the
+    /// descriptors the harness binds).
+    pub fixed: bool,
+    /// The elements an index must stay below.
     pub count: u32,
 }
 
@@ -65,13 +71,13 @@ pub struct Probe {
 }
 
 impl Probe {
-    /// The bytes the probe's buffer starts with: each slot's largest index and flags 0, its
-    /// smallest index `u32::MAX`.
+    /// The bytes the probe's buffer starts with: in both groups each slot's largest index and
+    /// flags 0, its smallest index `u32::MAX`.
     pub fn initial(&self) -> Vec<u8> {
         let k = self.slots.len().max(1);
-        let mut v = vec![0u8; 8 * k];
-        v.extend(std::iter::repeat_n(0xff, 4 * k));
-        v
+        let mut group = vec![0u8; 8 * k];
+        group.extend(std::iter::repeat_n(0xff, 4 * k));
+        [group.clone(), group].concat()
     }
 }
 
@@ -85,6 +91,15 @@ pub struct Report {
     /// Uses of a watched array other than as an access chain's base (a function argument, a
     /// copy, a whole load): accesses the pass cannot follow.
     pub escaped: usize,
+}
+
+/// The size of variable `v`'s fixed-size array type (`None`: runtime-sized or not an array).
+fn declared_size(m: &Module, v: Word) -> Option<u32> {
+    let pointee = edit::def(m, v)
+        .and_then(|d| d.result_type)
+        .and_then(|t| edit::pointer_info(m, t))
+        .and_then(|(_, p)| edit::def(m, p))?;
+    (pointee.class.opcode == Op::TypeArray).then(|| edit::array_length(m, pointee)).flatten()
 }
 
 /// Whether variable `v` is an array of descriptors (what the pass watches; a single
@@ -129,8 +144,8 @@ struct Ids {
     scope: Word,
     relaxed: Word,
     subgroup: Word,
-    /// The flags' first word: the number of slots.
-    flags: u32,
+    /// The number of slots, K.
+    k: u32,
     vote: bool,
 }
 
@@ -138,7 +153,7 @@ struct Ids {
 fn declare(m: &mut Module, p: &Probe) -> Ids {
     let uint = edit::type_int(m, 32, false);
     let bool_t = edit::type_bool(m);
-    let len = edit::constant(m, uint, 3 * p.slots.len().max(1) as u64, false);
+    let len = edit::constant(m, uint, 6 * p.slots.len().max(1) as u64, false);
     let (arr, st, var) = (edit::next_id(m), edit::next_id(m), edit::next_id(m));
     let g = &mut m.types_global_values;
     g.push(Instruction::new(
@@ -191,20 +206,26 @@ fn declare(m: &mut Module, p: &Probe) -> Ids {
         edit::add_capability(m, Capability::GroupNonUniform);
         edit::add_capability(m, Capability::GroupNonUniformVote);
     }
-    let flags = p.slots.len().max(1) as u32;
-    Ids { uint, bool_t, ptr_uint, var, zero, scope, relaxed: zero, subgroup, flags, vote: p.vote }
+    let k = p.slots.len().max(1) as u32;
+    Ids { uint, bool_t, ptr_uint, var, zero, scope, relaxed: zero, subgroup, k, vote: p.vote }
 }
 
 /// Record and clamp every watched descriptor-array index of `m` (see the module's doc).
 pub fn apply(m: &mut Module, p: &Probe) -> Report {
     let lit = |m: &Module, v, d| edit::decoration_literal(m, v, d).unwrap_or(0);
-    let mut watched: Vec<(dynamic_access::Access, usize)> = dynamic_access::find_all(m)
+    let mut watched: Vec<(dynamic_access::Access, usize, bool)> = dynamic_access::find_all(m)
         .into_iter()
         .filter_map(|a| {
             let key =
                 (lit(m, a.var, Decoration::DescriptorSet), lit(m, a.var, Decoration::Binding));
-            let slot = p.slots.iter().position(|s| (s.set, s.binding) == key)?;
-            Some((a, slot))
+            let fixed = declared_size(m, a.var);
+            let slot = p.slots.iter().position(|s| {
+                (s.set, s.binding) == key
+                    && s.fixed == fixed.is_some()
+                    && fixed.is_none_or(|n| n == s.count)
+            })?;
+            let plain = !edit::is_constant(m, a.index) && !super::uniformity::decorated(m, &a);
+            Some((a, slot, plain))
         })
         .collect();
     let vars: Vec<Word> = edit::descriptor_variables(m)
@@ -220,11 +241,12 @@ pub fn apply(m: &mut Module, p: &Probe) -> Report {
     }
     let ids = declare(m, p);
     // Last first, so the positions of the accesses still to come stay right.
-    watched.sort_by_key(|(a, _)| std::cmp::Reverse((a.func, a.block, a.inst)));
-    for (a, slot) in watched {
+    watched.sort_by_key(|(a, _, _)| std::cmp::Reverse((a.func, a.block, a.inst)));
+    for (a, slot, plain) in watched {
         match edit::int_type_of(m, a.index) {
             Some((32, signed)) => {
-                let code = clamp(m, &ids, (a.index, signed), slot as u32, p.slots[slot].count);
+                let at = (slot as u32, p.slots[slot].count, plain);
+                let code = clamp(m, &ids, (a.index, signed), at);
                 let (code, clamped) = code;
                 let b = &mut m.functions[a.func].blocks[a.block];
                 b.instructions[a.inst].operands[1] = Operand::IdRef(clamped);
@@ -237,14 +259,13 @@ pub fn apply(m: &mut Module, p: &Probe) -> Report {
     report
 }
 
-/// The instructions that record `index` in `slot` and give it clamped below `count`, and the
-/// clamped index's id.
+/// The instructions that record `index` in `slot` (in group 1 too when `plain`: dynamic, no
+/// `NonUniform`) and give it clamped below `count`, and the clamped index's id.
 fn clamp(
     m: &mut Module,
     ids: &Ids,
     index: (Word, bool),
-    slot: u32,
-    count: u32,
+    (slot, count, plain): (u32, u32, bool),
 ) -> (Vec<Instruction>, Word) {
     let (index, signed) = index;
     let nonuniform = edit::has_decoration(m, index, Decoration::NonUniform);
@@ -261,25 +282,14 @@ fn clamp(
     } else {
         index
     };
-    let slot_c = edit::constant(m, ids.uint, slot as u64, false);
     let count_c = edit::constant(m, ids.uint, count as u64, false);
     let last_c = edit::constant(m, ids.uint, count.saturating_sub(1) as u64, false);
-    let (ptr, max, lt, clamped) =
-        (edit::next_id(m), edit::next_id(m), edit::next_id(m), edit::next_id(m));
+    let (lt, clamped) = (edit::next_id(m), edit::next_id(m));
     let id = Operand::IdRef;
-    code.push(Instruction::new(
-        Op::AccessChain,
-        Some(ids.ptr_uint),
-        Some(ptr),
-        vec![id(ids.var), id(ids.zero), id(slot_c)],
-    ));
-    code.push(Instruction::new(
-        Op::AtomicUMax,
-        Some(ids.uint),
-        Some(max),
-        vec![id(ptr), id(ids.scope), id(ids.relaxed), id(u)],
-    ));
-    code.extend(flag(m, ids, u, slot));
+    code.extend(record(m, ids, u, slot));
+    if plain {
+        code.extend(record(m, ids, u, 3 * ids.k + slot));
+    }
     code.push(Instruction::new(
         Op::ULessThan,
         Some(ids.bool_t),
@@ -322,12 +332,13 @@ fn atomic(m: &mut Module, ids: &Ids, op: Op, word: u32, value: Word) -> [Instruc
     ]
 }
 
-/// `seen[2K + slot] = min(…, i)` and `seen[K + slot] |= 1 | (i differs in the subgroup ? 2 : 0)`
-/// (bit 1 only with [`Probe::vote`]).
-fn flag(m: &mut Module, ids: &Ids, u: Word, slot: u32) -> Vec<Instruction> {
+/// `seen[at] = max(…, i)`, `seen[2K + at] = min(…, i)` and `seen[K + at] |= 1 | (i differs in
+/// the subgroup ? 2 : 0)` (bit 1 only with [`Probe::vote`]).
+fn record(m: &mut Module, ids: &Ids, u: Word, at: u32) -> Vec<Instruction> {
     let id = Operand::IdRef;
     let one = edit::constant(m, ids.uint, 1, false);
-    let mut code = atomic(m, ids, Op::AtomicUMin, 2 * ids.flags + slot, u).to_vec();
+    let mut code = atomic(m, ids, Op::AtomicUMax, at, u).to_vec();
+    code.extend(atomic(m, ids, Op::AtomicUMin, 2 * ids.k + at, u));
     let bits = if ids.vote {
         let three = edit::constant(m, ids.uint, 3, false);
         let (all, bits) = (edit::next_id(m), edit::next_id(m));
@@ -347,7 +358,7 @@ fn flag(m: &mut Module, ids: &Ids, u: Word, slot: u32) -> Vec<Instruction> {
     } else {
         one
     };
-    code.extend(atomic(m, ids, Op::AtomicOr, ids.flags + slot, bits));
+    code.extend(atomic(m, ids, Op::AtomicOr, ids.k + at, bits));
     code
 }
 
@@ -367,8 +378,11 @@ mod tests {
           + bufs[2].v[1]; }\n";
 
     fn probe() -> Probe {
-        let slot = |binding, count| Slot { set: 1, binding, count };
-        Probe { set: 1, binding: 9, slots: vec![slot(0, 64), slot(1, 4)], vote: true }
+        let slots = vec![
+            Slot { set: 1, binding: 0, fixed: false, count: 64 },
+            Slot { set: 1, binding: 1, fixed: true, count: 4 },
+        ];
+        Probe { set: 1, binding: 9, slots, vote: true }
     }
 
     fn ops(m: &Module, op: Op) -> Vec<&Instruction> {
@@ -386,8 +400,10 @@ mod tests {
         let mut m = crate::patches::compiled(shaderc::ShaderKind::ClosestHit, "t.rchit", GLSL);
         let r = apply(&mut m, &probe());
         assert_eq!(r, Report { instrumented: 3, skipped: 0, escaped: 0 });
-        assert_eq!(ops(&m, Op::GroupNonUniformAllEqual).len(), 3);
-        assert_eq!(ops(&m, Op::AtomicUMax).len(), 3);
+        // Group 0 for each of the three, group 1 again for the one dynamic index without
+        // `NonUniform` (`bufs[uint(k) & 3u]`): not the `nonuniformEXT` one, not the constant.
+        assert_eq!(ops(&m, Op::AtomicUMax).len(), 4);
+        assert_eq!(ops(&m, Op::GroupNonUniformAllEqual).len(), 4);
         // spirv-val is installed wherever the tests run (scripts/setup): a missing one fails.
         let v = validate(&assemble(&m));
         assert!(matches!(v, Validation::Valid), "{v:?}");
@@ -425,7 +441,7 @@ mod tests {
             vec4 look(sampler2D s[8], uint i) { return textureLod(s[i], vec2(0), 0.0); }\n\
             void main() { c = look(maps, uint(gl_InstanceCustomIndexEXT) & 7u); }\n";
         let mut m = crate::patches::compiled(shaderc::ShaderKind::ClosestHit, "t.rchit", glsl);
-        let slots = vec![Slot { set: 1, binding: 0, count: 8 }];
+        let slots = vec![Slot { set: 1, binding: 0, fixed: true, count: 8 }];
         let r = apply(&mut m, &Probe { set: 1, binding: 9, slots, vote: false });
         assert!(r.escaped >= 1, "{r:?}");
     }
@@ -443,7 +459,7 @@ mod tests {
               + textureLod(env, vec2(0), 0.0);\n\
               traceRayEXT(scene, 0u, 255u, 0u, 0u, 0u, vec3(0), 0.0, vec3(1, 0, 0), 1.0, 0); }\n";
         let mut m = crate::patches::compiled(shaderc::ShaderKind::ClosestHit, "t.rchit", glsl);
-        let slot = |set, binding, count| Slot { set, binding, count };
+        let slot = |set, binding, count| Slot { set, binding, fixed: true, count };
         let slots = vec![slot(1, 0, 8), slot(1, 1, 1), slot(0, 0, 1)];
         let r = apply(&mut m, &Probe { set: 2, binding: 0, slots, vote: false });
         assert_eq!(r, Report { instrumented: 1, skipped: 0, escaped: 0 });
@@ -455,7 +471,7 @@ mod tests {
     fn unwatched_arrays_are_left_alone() {
         let mut m = crate::patches::compiled(shaderc::ShaderKind::ClosestHit, "t.rchit", GLSL);
         let before = assemble(&m);
-        let slots = vec![Slot { set: 2, binding: 0, count: 8 }];
+        let slots = vec![Slot { set: 2, binding: 0, fixed: true, count: 8 }];
         let p = Probe { set: 1, binding: 9, slots, vote: false };
         assert_eq!(apply(&mut m, &p), Report::default());
         assert_eq!(assemble(&m), before);

@@ -71,7 +71,7 @@ pub fn of_words(words: &[u32]) -> Uniformity {
 }
 
 /// Whether `a` carries `NonUniform` on its index, its chain or an object loaded from it.
-fn decorated(m: &rspirv::dr::Module, a: &dynamic_access::Access) -> bool {
+pub(super) fn decorated(m: &rspirv::dr::Module, a: &dynamic_access::Access) -> bool {
     let mut ids: HashSet<u32> = [a.index, a.chain].into();
     super::nonuniform::derived_objects(m, a.chain, &mut ids);
     ids.iter().any(|id| edit::has_decoration(m, *id, Decoration::NonUniform))
