@@ -66,7 +66,7 @@ fn instrument(ctx: &Ctx, p: &Probe) -> Result<Result<Option<Vec<JobModule>>, Str
         return Ok(Err("a descriptor array is used other than by indexing it (passed to a function, copied, taken whole), and the check does not follow it".into()));
     }
     if total.skipped > 0 {
-        return Ok(Err("a descriptor-array index is wider than 32 bits".into()));
+        return Ok(Err("a descriptor-array index is wider than 32 bits, or an array's size is one the check cannot read".into()));
     }
     Ok(Ok((total.instrumented > 0).then_some(out)))
 }

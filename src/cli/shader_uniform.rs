@@ -15,7 +15,7 @@
 //! uniform within its invocation group; and the patch decorates every access at once, so one
 //! uniform access whose decoration changes the result (a driver bug) looks the same.
 use crate::harness::child::JobModule;
-use crate::model::index_bounds::{IndexBounds, IndexedArray};
+use crate::model::index_bounds::{IndexBounds, IndexSeen, IndexedArray};
 use crate::model::shader_run::{Judgement, ShaderVariant};
 
 /// The variant the rule applies to.
@@ -30,23 +30,29 @@ fn undecorated(modules: &[JobModule]) -> Vec<(u32, u32)> {
     all
 }
 
-/// What the check saw of one binding's dynamic indices without `NonUniform` (each declaration's
-/// slot: the first that saw one).
+/// What the check saw of one binding's dynamic indices without `NonUniform`, merged over its
+/// declarations' slots: the widest range; differed within a subgroup if any did, uniform only if
+/// every one that ran was measured uniform.
 fn seen(arrays: &[&IndexedArray]) -> String {
     if arrays.is_empty() {
         return "not checked".into();
     }
-    match arrays.iter().find_map(|a| a.undecorated.as_ref()) {
-        None => "not reached".into(),
-        Some(a) => match a.nonuniform {
-            Some(true) => "differed within a subgroup".into(),
-            Some(false) => "uniform in every subgroup".into(),
-            None if a.smallest != a.largest => {
-                format!("{}..{} over the trace, no subgroup vote here", a.smallest, a.largest)
-            }
-            None => format!("{} throughout", a.largest),
-        },
+    let ran: Vec<&IndexSeen> = arrays.iter().filter_map(|a| a.undecorated.as_ref()).collect();
+    if ran.is_empty() {
+        return "not reached".into();
     }
+    let smallest = ran.iter().map(|a| a.smallest).min().unwrap_or(0);
+    let largest = ran.iter().map(|a| a.largest).max().unwrap_or(0);
+    if ran.iter().any(|a| a.nonuniform == Some(true)) {
+        return "differed within a subgroup".into();
+    }
+    if ran.iter().all(|a| a.nonuniform == Some(false)) {
+        return "uniform in every subgroup".into();
+    }
+    if smallest != largest {
+        return format!("{smallest}..{largest} over the trace, no subgroup vote here");
+    }
+    format!("{largest} throughout")
 }
 
 /// Add to a differing `nonuniform` variant's detail what the check saw of each binding the
@@ -83,7 +89,6 @@ pub fn explain(unpatched: &[JobModule], bounds: &IndexBounds, variants: &mut [Sh
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::index_bounds::IndexSeen;
     use crate::model::shader_run::ShaderAttempt;
     use crate::model::{Attempt, Outcome};
 
@@ -148,6 +153,16 @@ mod tests {
         assert!(d.contains("(2..9 over the trace, no subgroup vote here)"), "{d}");
         let (_, d) = detail(false, &IndexBounds::unchecked("x"));
         assert!(d.contains("(not checked)"), "{d}");
+        // Two declarations of the binding: the widest range, and "uniform" only if both are.
+        let mut two = bounds(Some(false), 2);
+        let other = IndexSeen { smallest: 12, largest: 116, nonuniform: Some(true) };
+        two.arrays.push(IndexedArray { undecorated: Some(other), ..two.arrays[0].clone() });
+        let (_, d) = detail(false, &two);
+        assert!(d.contains("(differed within a subgroup)"), "{d}");
+        two.arrays[1].undecorated.as_mut().unwrap().nonuniform = None;
+        two.arrays[0].undecorated.as_mut().unwrap().nonuniform = None;
+        let (_, d) = detail(false, &two);
+        assert!(d.contains("(2..116 over the trace"), "{d}");
         let (j, d) = detail(true, &bounds(Some(true), 2));
         assert_eq!(j, Judgement::PatchDiffers);
         assert!(!d.contains("nonuniformEXT"), "a decorated module: {d}");

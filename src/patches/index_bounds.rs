@@ -86,20 +86,33 @@ impl Probe {
 pub struct Report {
     /// Accesses that now record and clamp their index.
     pub instrumented: usize,
-    /// Accesses of watched arrays left alone (an index that is not a 32-bit integer).
+    /// Accesses of watched arrays left alone (an index that is not a 32-bit integer, a
+    /// declaration no slot matches).
     pub skipped: usize,
     /// Uses of a watched array other than as an access chain's base (a function argument, a
     /// copy, a whole load): accesses the pass cannot follow.
     pub escaped: usize,
 }
 
-/// The size of variable `v`'s fixed-size array type (`None`: runtime-sized or not an array).
-fn declared_size(m: &Module, v: Word) -> Option<u32> {
+/// Variable `v`'s array: `Some(Some(n))` fixed-size of `n` — an `OpConstant` length or an
+/// `OpSpecConstant`'s default, as the harness's reflection reads it (`reflect::index`) —,
+/// `Some(None)` runtime-sized, `None` not an array or a length neither says.
+fn declared_size(m: &Module, v: Word) -> Option<Option<u32>> {
     let pointee = edit::def(m, v)
         .and_then(|d| d.result_type)
         .and_then(|t| edit::pointer_info(m, t))
         .and_then(|(_, p)| edit::def(m, p))?;
-    (pointee.class.opcode == Op::TypeArray).then(|| edit::array_length(m, pointee)).flatten()
+    match pointee.class.opcode {
+        Op::TypeRuntimeArray => Some(None),
+        Op::TypeArray => {
+            let len = edit::def(m, edit::id_operand(pointee, 1)?)?;
+            match (len.class.opcode, len.operands.first()) {
+                (Op::Constant | Op::SpecConstant, Some(Operand::LiteralBit32(n))) => Some(Some(*n)),
+                _ => None,
+            }
+        }
+        _ => None,
+    }
 }
 
 /// Whether variable `v` is an array of descriptors (what the pass watches; a single
@@ -213,21 +226,31 @@ fn declare(m: &mut Module, p: &Probe) -> Ids {
 /// Record and clamp every watched descriptor-array index of `m` (see the module's doc).
 pub fn apply(m: &mut Module, p: &Probe) -> Report {
     let lit = |m: &Module, v, d| edit::decoration_literal(m, v, d).unwrap_or(0);
-    let mut watched: Vec<(dynamic_access::Access, usize, bool)> = dynamic_access::find_all(m)
-        .into_iter()
-        .filter_map(|a| {
-            let key =
-                (lit(m, a.var, Decoration::DescriptorSet), lit(m, a.var, Decoration::Binding));
-            let fixed = declared_size(m, a.var);
-            let slot = p.slots.iter().position(|s| {
-                (s.set, s.binding) == key
-                    && s.fixed == fixed.is_some()
-                    && fixed.is_none_or(|n| n == s.count)
-            })?;
-            let plain = !edit::is_constant(m, a.index) && !super::uniformity::decorated(m, &a);
-            Some((a, slot, plain))
-        })
-        .collect();
+    let mut unmatched = 0;
+    let mut watched: Vec<(dynamic_access::Access, usize, bool)> = Vec::new();
+    for a in dynamic_access::find_all(m) {
+        let key = (lit(m, a.var, Decoration::DescriptorSet), lit(m, a.var, Decoration::Binding));
+        if !p.slots.iter().any(|s| (s.set, s.binding) == key) {
+            continue;
+        }
+        // A watched binding's access whose declaration no slot matches is out of sight: said,
+        // never run unclamped as if checked.
+        let Some(fixed) = declared_size(m, a.var) else {
+            unmatched += 1;
+            continue;
+        };
+        let slot = p.slots.iter().position(|s| {
+            (s.set, s.binding) == key
+                && s.fixed == fixed.is_some()
+                && fixed.is_none_or(|n| n == s.count)
+        });
+        let Some(slot) = slot else {
+            unmatched += 1;
+            continue;
+        };
+        let plain = !edit::is_constant(m, a.index) && !super::uniformity::decorated(m, &a);
+        watched.push((a, slot, plain));
+    }
     let vars: Vec<Word> = edit::descriptor_variables(m)
         .into_iter()
         .filter(|v| {
@@ -235,7 +258,7 @@ pub fn apply(m: &mut Module, p: &Probe) -> Report {
             p.slots.iter().any(|s| (s.set, s.binding) == key) && is_array(m, *v)
         })
         .collect();
-    let mut report = Report { escaped: escapes(m, &vars), ..Report::default() };
+    let mut report = Report { escaped: escapes(m, &vars), skipped: unmatched, ..Report::default() };
     if watched.is_empty() {
         return report;
     }
@@ -463,6 +486,25 @@ mod tests {
         let slots = vec![slot(1, 0, 8), slot(1, 1, 1), slot(0, 0, 1)];
         let r = apply(&mut m, &Probe { set: 2, binding: 0, slots, vote: false });
         assert_eq!(r, Report { instrumented: 1, skipped: 0, escaped: 0 });
+    }
+
+    /// A fixed array whose length is a spec constant is held to the constant's default (as the
+    /// harness's reflection sizes it); a declaration no slot matches is skipped, never left
+    /// unclamped as if checked.
+    #[test]
+    fn a_spec_constant_length_is_its_default_and_a_stranger_is_skipped() {
+        let glsl = "#version 460\n#extension GL_EXT_ray_tracing : require\n\
+            layout(constant_id = 0) const int N = 4;\n\
+            layout(set = 1, binding = 0) uniform sampler2D maps[N];\n\
+            layout(location = 0) rayPayloadInEXT vec4 c;\n\
+            void main() { c = textureLod(maps[uint(gl_InstanceCustomIndexEXT)], vec2(0), 0.0); }\n";
+        let module = crate::patches::compiled(shaderc::ShaderKind::ClosestHit, "t.rchit", glsl);
+        let slot = |count| Slot { set: 1, binding: 0, fixed: true, count };
+        let probe = |count| Probe { set: 2, binding: 0, slots: vec![slot(count)], vote: false };
+        let r = apply(&mut module.clone(), &probe(4));
+        assert_eq!(r, Report { instrumented: 1, skipped: 0, escaped: 0 });
+        let r = apply(&mut module.clone(), &probe(5));
+        assert_eq!(r, Report { instrumented: 0, skipped: 1, escaped: 0 });
     }
 
     /// An array the probe does not list is left alone, and a module without watched accesses
