@@ -3,8 +3,9 @@
 //! and reading a clamped one (`patches::index_bounds`), traced once in a child on the run's own
 //! data — the probe's buffer alone in the set after the highest one, so it is the last in
 //! (set, binding) order (the harness's data of every other buffer is what the variants get) and
-//! no set's last binding changes (a profile's variable descriptor count stays where it was). The indices are as the device under test computed
-//! them: the refusal says so and names `--no-index-check`. An index at or past
+//! no set's last binding changes (a profile's variable descriptor count stays where it was). The
+//! indices are as the device under test computed them: the refusal says so and names
+//! `--no-index-check`. An index at or past
 //! its binding is undefined (`model::index_bounds::RULE`), so a fault it brings is the input's,
 //! not the driver's: the harness's data (small integers below the scene's bound in every integer
 //! word, so `base + offset` can reach twice it) sizes runtime arrays up to cover it, unless

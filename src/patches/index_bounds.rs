@@ -98,10 +98,7 @@ pub struct Report {
 /// `OpSpecConstant`'s default, as the harness's reflection reads it (`reflect::index`) —,
 /// `Some(None)` runtime-sized, `None` not an array or a length neither says.
 fn declared_size(m: &Module, v: Word) -> Option<Option<u32>> {
-    let pointee = edit::def(m, v)
-        .and_then(|d| d.result_type)
-        .and_then(|t| edit::pointer_info(m, t))
-        .and_then(|(_, p)| edit::def(m, p))?;
+    let pointee = pointee(m, v)?;
     match pointee.class.opcode {
         Op::TypeRuntimeArray => Some(None),
         Op::TypeArray => {
@@ -115,14 +112,16 @@ fn declared_size(m: &Module, v: Word) -> Option<Option<u32>> {
     }
 }
 
+/// The type variable `v` points at.
+fn pointee(m: &Module, v: Word) -> Option<&Instruction> {
+    let (_, p) = edit::pointer_info(m, edit::def(m, v)?.result_type?)?;
+    edit::def(m, p)
+}
+
 /// Whether variable `v` is an array of descriptors (what the pass watches; a single
 /// descriptor's loads are no index to check).
 fn is_array(m: &Module, v: Word) -> bool {
-    let pointee = edit::def(m, v)
-        .and_then(|d| d.result_type)
-        .and_then(|t| edit::pointer_info(m, t))
-        .and_then(|(_, p)| edit::def(m, p));
-    pointee.is_some_and(|a| matches!(a.class.opcode, Op::TypeArray | Op::TypeRuntimeArray))
+    pointee(m, v).is_some_and(|a| matches!(a.class.opcode, Op::TypeArray | Op::TypeRuntimeArray))
 }
 
 /// Uses of the watched variables `vars` other than as the base of an access chain.

@@ -225,32 +225,24 @@ pub fn interrupt_without_report() {
 extern "C" fn on_signal(sig: libc::c_int) {
     kill_all();
     remove_folders();
-    if NO_REPORT.load(Ordering::SeqCst) {
-        let msg: &[u8] = match sig {
-            libc::SIGINT => {
-                b"\nrtprobe: interrupted (SIGINT): every child was killed; no report was written\n"
-            }
-            libc::SIGTERM => {
-                b"\nrtprobe: terminated (SIGTERM): every child was killed; no report was written\n"
-            }
-            _ => b"\nrtprobe: hung up (SIGHUP): every child was killed; no report was written\n",
-        };
-        // SAFETY: write(2) and _exit(2) are async-signal-safe; the message is static.
-        unsafe {
-            libc::write(2, msg.as_ptr().cast(), msg.len());
-            libc::_exit(128 + sig);
-        }
-    }
-    let msg: &[u8] = match sig {
-        libc::SIGINT => b"\nrtprobe: interrupted (SIGINT): every worker was killed; the report keeps every fault and all passes but those of the last 0.1 s (complete: false)",
-        libc::SIGTERM => b"\nrtprobe: terminated (SIGTERM): every worker was killed; the report keeps every fault and all passes but those of the last 0.1 s (complete: false)",
-        _ => b"\nrtprobe: hung up (SIGHUP): every worker was killed; the report keeps every fault and all passes but those of the last 0.1 s (complete: false)",
+    let what: &[u8] = match sig {
+        libc::SIGINT => b"\nrtprobe: interrupted (SIGINT): ",
+        libc::SIGTERM => b"\nrtprobe: terminated (SIGTERM): ",
+        _ => b"\nrtprobe: hung up (SIGHUP): ",
     };
-    let hint = resume_hint();
-    // SAFETY: write(2) and _exit(2) are async-signal-safe; the hint is a static slice.
+    let (then, hint): (&[u8], &[u8]) = if NO_REPORT.load(Ordering::SeqCst) {
+        (b"every child was killed; no report was written\n", b"")
+    } else {
+        (
+            b"every worker was killed; the report keeps every fault and all passes but those of the last 0.1 s (complete: false)",
+            resume_hint(),
+        )
+    };
+    // SAFETY: write(2) and _exit(2) are async-signal-safe; the pieces are static slices.
     unsafe {
-        libc::write(2, msg.as_ptr().cast(), msg.len());
-        libc::write(2, hint.as_ptr().cast(), hint.len());
+        for piece in [what, then, hint] {
+            libc::write(2, piece.as_ptr().cast(), piece.len());
+        }
         libc::_exit(128 + sig);
     }
 }
