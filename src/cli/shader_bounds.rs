@@ -122,32 +122,27 @@ fn once(
         .slots
         .iter()
         .enumerate()
-        .map(|(k, s)| {
-            let all = seen(0, k);
-            IndexedArray {
-                set: s.set,
-                binding: s.binding,
-                elements: s.count,
-                runtime: !s.fixed,
-                largest: all.as_ref().map_or(0, |a| a.largest),
-                smallest: all.as_ref().map_or(u32::MAX, |a| a.smallest),
-                accessed: all.is_some(),
-                nonuniform: all.and_then(|a| a.nonuniform),
-                undecorated: seen(1, k),
-            }
+        .map(|(k, s)| IndexedArray {
+            set: s.set,
+            binding: s.binding,
+            elements: s.count,
+            runtime: !s.fixed,
+            seen: seen(0, k),
+            undecorated: seen(1, k),
         })
-        .filter(|a| a.elements > 1 || a.runtime || a.accessed)
+        .filter(|a| a.elements > 1 || a.runtime || a.seen.is_some())
         .collect()))
 }
 
 /// The one line for an index past a binding the harness may not size up.
 fn refusal(a: &IndexedArray, given: bool) -> anyhow::Error {
     let most = crate::harness::sizes::MAX_ARRAY_SIZE as u64;
-    let index = match a.largest as i32 {
-        i if i < 0 => format!("{} ({i} if the index is signed)", a.largest),
-        _ => a.largest.to_string(),
+    let largest = a.largest();
+    let index = match largest as i32 {
+        i if i < 0 => format!("{largest} ({i} if the index is signed)"),
+        _ => largest.to_string(),
     };
-    let need = (a.largest as u64 + 1).next_power_of_two();
+    let need = (largest as u64 + 1).next_power_of_two();
     let what = match (a.runtime, given) {
         (true, true) => format!("{} descriptors, as --array-size gave", a.elements),
         (true, false) => format!("a runtime array of {}", a.elements),
@@ -190,10 +185,10 @@ pub fn check(
         };
         let lines: Vec<String> = arrays.iter().map(IndexedArray::line).collect();
         tracing::info!("descriptor indices: {}", lines.join(", "));
-        let Some(worst) = arrays.iter().filter(|a| a.outside()).max_by_key(|a| a.largest) else {
+        let Some(worst) = arrays.iter().filter(|a| a.outside()).max_by_key(|a| a.largest()) else {
             return Ok(IndexBounds { arrays, grown, unchecked: None });
         };
-        let need = (worst.largest as u64 + 1).next_power_of_two();
+        let need = (worst.largest() as u64 + 1).next_power_of_two();
         if let Some(a) = arrays.iter().find(|a| a.outside() && !a.runtime) {
             return Err(refusal(a, given));
         }
@@ -224,10 +219,7 @@ mod tests {
             binding: 2,
             elements: 64,
             runtime,
-            largest,
-            smallest: 0,
-            accessed: true,
-            nonuniform: None,
+            seen: Some(IndexSeen { smallest: 0, largest, nonuniform: None }),
             undecorated: None,
         }
     }

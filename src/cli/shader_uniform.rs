@@ -118,10 +118,7 @@ mod tests {
             binding: 3,
             elements: 64,
             runtime: true,
-            largest: 63,
-            smallest: 0,
-            accessed: true,
-            nonuniform: Some(true),
+            seen: Some(IndexSeen { smallest: 0, largest: 63, nonuniform: Some(true) }),
             undecorated: Some(IndexSeen { smallest, largest: 9, nonuniform }),
         };
         IndexBounds { arrays: vec![a], ..IndexBounds::default() }

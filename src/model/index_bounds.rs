@@ -25,10 +25,6 @@ pub struct IndexSeen {
     pub nonuniform: Option<bool>,
 }
 
-fn yes() -> bool {
-    true
-}
-
 /// One descriptor array the check watched (a binding as one declaration declares it).
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct IndexedArray {
@@ -38,20 +34,12 @@ pub struct IndexedArray {
     pub elements: u32,
     /// A runtime-sized array (sized by `--array-size` or the harness).
     pub runtime: bool,
-    /// The largest index any access read it with (0 when none ran).
-    pub largest: u32,
-    /// The smallest index any access read it with (`u32::MAX` when none ran; 0 in a report
-    /// without it).
-    #[serde(default)]
-    pub smallest: u32,
-    /// Some access of it ran.
-    #[serde(default = "yes")]
-    pub accessed: bool,
-    /// Some access's index differed among its subgroup's active invocations (not uniform
-    /// within the subgroup, `VUID-RuntimeSpirv-subgroupSize-10149`'s words); `None`: not
-    /// measured (no subgroup vote in the device's ray tracing stages).
+    /// What its accesses' indices were (`None`: no access of it ran). `nonuniform`: some index
+    /// differed among its subgroup's active invocations (not uniform within the subgroup,
+    /// `VUID-RuntimeSpirv-subgroupSize-10149`'s words); `None` there: not measured (no subgroup
+    /// vote in the device's ray tracing stages).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub nonuniform: Option<bool>,
+    pub seen: Option<IndexSeen>,
     /// The same of its dynamic accesses without `NonUniform` alone, where one ran (what the
     /// `nonuniform` variant's explanation reads).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -59,24 +47,29 @@ pub struct IndexedArray {
 }
 
 impl IndexedArray {
+    /// The largest index an access read it with (0 when none ran).
+    pub fn largest(&self) -> u32 {
+        self.seen.as_ref().map_or(0, |s| s.largest)
+    }
+
     /// Whether some access went past the binding.
     pub fn outside(&self) -> bool {
-        self.accessed && self.largest >= self.elements
+        self.seen.as_ref().is_some_and(|s| s.largest >= self.elements)
     }
 
     /// `set 1 binding 3: up to 126 of 127 elements`.
     pub fn line(&self) -> String {
         let kind = if self.runtime { "runtime array" } else { "array" };
-        if !self.accessed {
-            return format!(
+        match &self.seen {
+            None => format!(
                 "set {} binding {}: not reached ({kind} of {})",
                 self.set, self.binding, self.elements
-            );
+            ),
+            Some(s) => format!(
+                "set {} binding {}: up to {} ({kind} of {})",
+                self.set, self.binding, s.largest, self.elements
+            ),
         }
-        format!(
-            "set {} binding {}: up to {} ({kind} of {})",
-            self.set, self.binding, self.largest, self.elements
-        )
     }
 }
 
@@ -138,19 +131,21 @@ mod tests {
             binding: 3,
             elements: 64,
             runtime: true,
-            largest: 64,
-            smallest: 3,
-            accessed: true,
-            nonuniform: None,
+            seen: Some(IndexSeen { smallest: 3, largest: 64, nonuniform: None }),
             undecorated: None,
         };
         assert!(a.outside());
-        let never = IndexedArray { accessed: false, largest: 0, ..a.clone() };
+        let never = IndexedArray { seen: None, ..a.clone() };
         assert!(!never.outside());
         assert_eq!(never.line(), "set 1 binding 3: not reached (runtime array of 64)");
-        assert!(!IndexedArray { largest: 63, ..a.clone() }.outside());
+        let seen = Some(IndexSeen { smallest: 3, largest: 63, nonuniform: None });
+        assert!(!IndexedArray { seen, ..a.clone() }.outside());
         let b = IndexBounds {
-            arrays: vec![IndexedArray { elements: 127, largest: 126, ..a }],
+            arrays: vec![IndexedArray {
+                elements: 127,
+                seen: Some(IndexSeen { smallest: 3, largest: 126, nonuniform: None }),
+                ..a
+            }],
             grown: Some((64, 127)),
             unchecked: None,
         };
