@@ -42,6 +42,7 @@ pub fn requirements(info: &crate::vk::DeviceInfo, cells: &[Cell]) -> Requirement
         dynamic_rendering: fragment,
         invocation_reorder: any(&|s| s.reorder.is_some()),
         scalar_block_layout: false,
+        timeline_semaphore: false,
         pipeline_library: false,
         disable_internal_cache: false,
         // The matrix's cells run without robustness: their reads are in bounds by design.

@@ -243,6 +243,8 @@ pub struct GpuTracer {
     mode: Mode,
     /// Told (rays traced, rays in the part) after each submission of a part's trace.
     on_chunk: Option<Box<dyn FnMut(usize, usize)>>,
+    /// The gate the next submission is held behind ([`GpuTracer::hold_first_submission`]).
+    held: std::cell::Cell<Option<vk::Semaphore>>,
 }
 
 /// Rays per submission: a part's trace is cut into submissions of this many rays, each fenced
@@ -296,7 +298,33 @@ impl GpuTracer {
             broken: None,
             mode,
             on_chunk: None,
+            held: Default::default(),
         })
+    }
+
+    /// Whether a timeout or a device loss stopped this tracer: its objects may still be in use.
+    pub fn is_broken(&self) -> bool {
+        self.broken.is_some()
+    }
+
+    /// Holds the next submission until its fence wait has run out (`Submitter::run_held`): the
+    /// `stall` test hook's GPU that is slower than any deadline. The device must have been opened
+    /// with `timelineSemaphore`.
+    pub fn hold_first_submission(&mut self) -> Result<(), TraceError> {
+        self.held.set(Some(Submitter::gate(&self.gpu).map_err(vk_err)?));
+        Ok(())
+    }
+
+    /// Records with `f`, submits and waits up to the deadline; held behind the gate once where
+    /// one is set.
+    fn submit(&self, f: impl FnOnce(vk::CommandBuffer)) -> Result<Waited, TraceError> {
+        let Some(gate) = self.held.take() else {
+            return self.submitter.run(&self.gpu, self.timeout, f).map_err(vk_err);
+        };
+        let waited = self.submitter.run_held(&self.gpu, self.timeout, gate, f).map_err(vk_err)?;
+        // The held work has finished: nothing waits on the gate any more.
+        unsafe { self.gpu.device.destroy_semaphore(gate, None) };
+        Ok(waited)
     }
 
     fn build(
@@ -350,16 +378,16 @@ impl GpuTracer {
         }];
         let (mut tlas, tlas_builds) =
             SceneGpu::prepare_all(gpu, &tlas_pending, &mut scratch).map_err(vk_err)?;
-        let waited = self
-            .submitter
-            .run(gpu, self.timeout, |cmd| record_builds(gpu, cmd, &[&blas_builds, &tlas_builds]));
-        for s in &scratch {
-            s.destroy(gpu);
-        }
+        let waited = self.submit(|cmd| record_builds(gpu, cmd, &[&blas_builds, &tlas_builds]))?;
         let tlas = tlas.pop().expect("one TLAS");
-        match waited.map_err(vk_err)? {
-            Waited::Done(_) => Ok((blas, tlas)),
-            // The build may still run: its objects are leaked, not destroyed under it.
+        match waited {
+            Waited::Done(_) => {
+                for s in &scratch {
+                    s.destroy(gpu);
+                }
+                Ok((blas, tlas))
+            }
+            // The build may still run: its objects and scratch are leaked, not freed under it.
             Waited::TimedOut => Err(TraceError::Timeout(self.timeout)),
         }
     }
@@ -397,8 +425,7 @@ impl GpuTracer {
             push.extend((len as u32).to_le_bytes());
             push.extend(LAUNCH_WIDTH.to_le_bytes());
             push.extend(part.ray_flags.to_le_bytes());
-            let waited = self.submitter.run(gpu, self.timeout, |cmd| self.record(cmd, &push, len));
-            if let Waited::TimedOut = waited.map_err(vk_err)? {
+            if let Waited::TimedOut = self.submit(|cmd| self.record(cmd, &push, len))? {
                 return Err(TraceError::Timeout(self.timeout));
             }
             if let Some(f) = self.on_chunk.as_mut() {

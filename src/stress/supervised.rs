@@ -60,7 +60,7 @@ impl Supervised {
             case: name.into(),
             seed: opts.seed,
             full: opts.full,
-            timeout_ms: self.timeout.as_millis() as u64,
+            timeout: self.timeout,
             ray_query: self.ray_query,
             validate: self.validate,
             result: result.clone(),

@@ -9,7 +9,9 @@
 //! process and nothing else: the parent records it as the case's outcome.
 //!
 //! Test hook: `RTPROBE_STRESS_FAULT=<case>:<crash|hang>` makes that case's worker raise SIGSEGV
-//! or sleep forever where its first part would be traced; `<case>:slow_<step>:SECS` makes the
+//! or sleep forever where its first part would be traced; `<case>:stall` holds the case's first
+//! submission on the device until its fence wait has run out (a GPU slower than any deadline:
+//! the driver's own wait times out); `<case>:slow_<step>:SECS` makes the
 //! check's step (`index`, `check` or `facing`) take SECS more, spread over its units (slow,
 //! progressing), and `<case>:stalled_<step>:SECS` stalls it SECS at its first unit, heartbeat
 //! running (`tests/stress.rs`).
@@ -33,7 +35,7 @@ pub struct CaseJob {
     pub seed: u64,
     pub full: bool,
     /// Fence deadline of one submission.
-    pub timeout_ms: u64,
+    pub timeout: Duration,
     pub ray_query: bool,
     pub validate: bool,
     /// Where the worker writes its [`CaseOutput`].
@@ -83,6 +85,8 @@ fn tell(p: Progress) {
 enum Hook {
     Crash,
     Hang,
+    /// The first submission is held on the device past its deadline.
+    Stall,
     /// The check's step takes this much longer, spread over its units.
     Slow(Work, Duration),
     /// The check's step stalls this long at its first unit, the heartbeat running.
@@ -111,6 +115,7 @@ fn hook(case: &str) -> Option<Hook> {
     Some(match how.split_once(':') {
         None if how == "crash" => Hook::Crash,
         None if how == "hang" => Hook::Hang,
+        None if how == "stall" => Hook::Stall,
         Some((h, s)) => {
             let d = Duration::from_secs_f64(secs(s)?);
             match h.split_once('_')? {
@@ -144,7 +149,7 @@ impl Tracer for Announced {
             Some(Hook::Hang) => loop {
                 std::thread::sleep(Duration::from_secs(3600));
             },
-            Some(Hook::Slow(..) | Hook::Stalled(..)) | None => {}
+            Some(Hook::Stall | Hook::Slow(..) | Hook::Stalled(..)) | None => {}
         }
         let step = format!("trace {}", part.label);
         self.inner.on_chunk(Box::new(move |done, total| {
@@ -159,8 +164,9 @@ impl Tracer for Announced {
     }
 }
 
-/// Opens the job's device and the stress pipeline on it.
-fn open(job: &CaseJob) -> Result<GpuTracer, String> {
+/// Opens the job's device and the stress pipeline on it; `stall`: its first submission held
+/// (the device opened with `timelineSemaphore`).
+fn open(job: &CaseJob, stall: bool) -> Result<GpuTracer, String> {
     let inst = Arc::new(
         Instance::new(&InstanceOptions { validate: job.validate, gpu_av: false })
             .map_err(|e| e.to_string())?,
@@ -168,9 +174,13 @@ fn open(job: &CaseJob) -> Result<GpuTracer, String> {
     let all = features::query_all(&inst).map_err(|e| e.to_string())?;
     let info = all.get(job.device_index).ok_or("the device vanished")?.clone();
     let mode = if job.ray_query { Mode::RayQuery } else { Mode::Pipeline };
-    let req = mode.requirements();
+    let req = crate::vk::Requirements { timeline_semaphore: stall, ..mode.requirements() };
     let gpu = Gpu::new(inst, info, req).map_err(|e| e.to_string())?;
-    GpuTracer::new(gpu, Duration::from_millis(job.timeout_ms), mode).map_err(|e| e.to_string())
+    let mut tracer = GpuTracer::new(gpu, job.timeout, mode).map_err(|e| e.to_string())?;
+    if stall {
+        tracer.hold_first_submission().map_err(|e| e.to_string())?;
+    }
+    Ok(tracer)
 }
 
 /// What the check has done: per step (`step_of`) the units done and their total, and the step
@@ -257,7 +267,8 @@ fn judge(kind: CaseKind, trace: &super::CaseTrace, hook: Option<Hook>) -> CaseRe
             Some(Hook::Stalled(h, d)) if h == w && !stalled.swap(true, Ordering::Relaxed) => {
                 std::thread::sleep(d);
             }
-            Some(Hook::Crash | Hook::Hang | Hook::Slow(..) | Hook::Stalled(..)) | None => {}
+            Some(Hook::Crash | Hook::Hang | Hook::Stall | Hook::Slow(..) | Hook::Stalled(..))
+            | None => {}
         }
         c.done[k].fetch_add(1, Ordering::Relaxed);
     };
@@ -266,7 +277,8 @@ fn judge(kind: CaseKind, trace: &super::CaseTrace, hook: Option<Hook>) -> CaseRe
 
 fn run(job: &CaseJob, kind: CaseKind) -> CaseResult {
     say("setup");
-    let inner = match open(job) {
+    let hook = hook(kind.as_str());
+    let inner = match open(job, hook == Some(Hook::Stall)) {
         Ok(t) => t,
         Err(e) => {
             let detail = format!("setting up the stress pipeline: {e}");
@@ -274,11 +286,16 @@ fn run(job: &CaseJob, kind: CaseKind) -> CaseResult {
         }
     };
     say("ready");
-    let hook = hook(kind.as_str());
     let mut tracer = Announced { inner, hook };
     let opts = StressOptions { cases: vec![kind], seed: job.seed, full: job.full };
     let start = std::time::Instant::now();
     let trace = super::trace_case(&mut tracer, kind, &opts);
+    if tracer.inner.is_broken() {
+        // A timed-out or lost submission may still run: destroying the device would wait for
+        // it (a hung driver hangs the worker before its result is written) or free what it
+        // uses. The process exits after the result; the driver reclaims it all then.
+        std::mem::forget(tracer);
+    }
     let mut r = judge(kind, &trace, hook);
     r.ms = start.elapsed().as_secs_f64() * 1e3;
     r
@@ -312,5 +329,28 @@ pub fn main(job_path: &Path) -> u8 {
             eprintln!("rtprobe __stress: writing {}: {e}", job.result.display());
             2
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A deadline below a millisecond reaches the worker as given (it was once sent in whole
+    /// milliseconds: `--timeout 0.0009` became a deadline of zero).
+    #[test]
+    fn a_job_keeps_a_deadline_below_a_millisecond() {
+        let job = CaseJob {
+            device_index: 0,
+            case: "tmin".into(),
+            seed: 1,
+            full: false,
+            timeout: Duration::from_micros(900),
+            ray_query: false,
+            validate: false,
+            result: PathBuf::from("r.json"),
+        };
+        let back: CaseJob = serde_json::from_slice(&serde_json::to_vec(&job).unwrap()).unwrap();
+        assert_eq!(back.timeout, Duration::from_micros(900));
     }
 }

@@ -39,6 +39,9 @@ pub struct Requirements {
     pub invocation_reorder: bool,
     /// scalarBlockLayout (user modules whose blocks use `layout(scalar)`).
     pub scalar_block_layout: bool,
+    /// timelineSemaphore (Vulkan 1.2): a submission held until the host signals a value later
+    /// (`Submitter::run_held`, stress's `stall` test hook).
+    pub timeline_semaphore: bool,
     /// VK_KHR_pipeline_library: ray tracing pipelines linked from libraries.
     pub pipeline_library: bool,
     /// `VkDevicePipelineBinaryInternalCacheControlKHR::disableInternalCache`: the driver keeps no
@@ -201,6 +204,9 @@ impl Requirements {
         if self.scalar_block_layout && v12.scalar_block_layout == vk::FALSE {
             m.push("scalarBlockLayout".into());
         }
+        if self.timeline_semaphore && v12.timeline_semaphore == vk::FALSE {
+            m.push("timelineSemaphore".into());
+        }
         if self.int64 && f.core.shader_int64 == vk::FALSE {
             m.push("shaderInt64".into());
         }
@@ -325,6 +331,9 @@ impl Chosen {
         }
         if req.scalar_block_layout {
             c.v12.scalar_block_layout = vk::TRUE;
+        }
+        if req.timeline_semaphore {
+            c.v12.timeline_semaphore = vk::TRUE;
         }
         if req.descriptor_indexing {
             c.descriptor_indexing(sup);
@@ -578,6 +587,7 @@ impl Chosen {
         vec![
             given("bufferDeviceAddress", v12.buffer_device_address),
             given("scalarBlockLayout", v12.scalar_block_layout),
+            given("timelineSemaphore", v12.timeline_semaphore),
             given("descriptorIndexing", v12.descriptor_indexing),
             given("runtimeDescriptorArray", v12.runtime_descriptor_array),
             given("descriptorBindingPartiallyBound", v12.descriptor_binding_partially_bound),

@@ -55,6 +55,37 @@ impl Submitter {
         timeout: Duration,
         f: impl FnOnce(vk::CommandBuffer),
     ) -> Result<Waited, VkError> {
+        self.record(gpu, f)?;
+        self.submit_and_wait(gpu, timeout, None)
+    }
+
+    /// [`Submitter::run`] with the submission held behind `gate`, a timeline semaphore at 0
+    /// (the device's `timelineSemaphore` enabled): its work cannot start before the host
+    /// signals 1, which happens only once the wait has run out — a submission past its
+    /// deadline, whatever the deadline and however fast the device (a test hook's stalled
+    /// GPU). Vulkan 1.4.360, Command Buffers, Queue Submission: "When using timeline
+    /// semaphores, wait-before-signal behavior is well-defined and applications can submit work
+    /// via vkQueueSubmit defining a timeline semaphore wait operation before submitting a
+    /// corresponding semaphore signal operation". After the signal the work runs
+    /// and this waits for it without a deadline, so nothing is freed under it; the result is
+    /// the first wait's.
+    pub fn run_held(
+        &self,
+        gpu: &Gpu,
+        timeout: Duration,
+        gate: vk::Semaphore,
+        f: impl FnOnce(vk::CommandBuffer),
+    ) -> Result<Waited, VkError> {
+        self.record(gpu, f)?;
+        let first = self.submit_and_wait(gpu, timeout, Some(gate));
+        let d = &gpu.device;
+        unsafe { d.signal_semaphore(&vk::SemaphoreSignalInfo::default().semaphore(gate).value(1)) }
+            .at("vkSignalSemaphore")?;
+        unsafe { d.wait_for_fences(&[self.fence], true, u64::MAX) }.at("vkWaitForFences")?;
+        first
+    }
+
+    fn record(&self, gpu: &Gpu, f: impl FnOnce(vk::CommandBuffer)) -> Result<(), VkError> {
         let d = &gpu.device;
         unsafe {
             d.reset_command_buffer(self.cmd, vk::CommandBufferResetFlags::empty())
@@ -67,12 +98,35 @@ impl Submitter {
             .at("vkBeginCommandBuffer")?;
         }
         f(self.cmd);
-        unsafe { d.end_command_buffer(self.cmd) }.at("vkEndCommandBuffer")?;
+        unsafe { d.end_command_buffer(self.cmd) }.at("vkEndCommandBuffer")
+    }
+
+    /// Submits the recorded buffer (after `gate` reaches 1, where given) and waits up to
+    /// `timeout`.
+    fn submit_and_wait(
+        &self,
+        gpu: &Gpu,
+        timeout: Duration,
+        gate: Option<vk::Semaphore>,
+    ) -> Result<Waited, VkError> {
+        let d = &gpu.device;
         unsafe { d.reset_fences(&[self.fence]) }.at("vkResetFences")?;
         let cmds = [self.cmd];
-        let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
+        let (gates, values, stages) = match gate {
+            Some(g) => (vec![g], vec![1u64], vec![vk::PipelineStageFlags::ALL_COMMANDS]),
+            None => (vec![], vec![], vec![]),
+        };
+        let mut timeline =
+            vk::TimelineSemaphoreSubmitInfo::default().wait_semaphore_values(&values);
+        let mut submit = vk::SubmitInfo::default().command_buffers(&cmds);
+        if gate.is_some() {
+            submit = submit
+                .wait_semaphores(&gates)
+                .wait_dst_stage_mask(&stages)
+                .push_next(&mut timeline);
+        }
         let start = Instant::now();
-        unsafe { d.queue_submit(gpu.queue, &submit, self.fence) }.at("vkQueueSubmit")?;
+        unsafe { d.queue_submit(gpu.queue, &[submit], self.fence) }.at("vkQueueSubmit")?;
         let ns = timeout.as_nanos().min(u64::MAX as u128) as u64;
         let r = unsafe { d.wait_for_fences(&[self.fence], true, ns) };
         let took = start.elapsed();
@@ -82,6 +136,15 @@ impl Submitter {
             Err(vk::Result::TIMEOUT) => Ok(Waited::TimedOut),
             Err(e) => Err(VkError::from_result("vkWaitForFences", e)),
         }
+    }
+
+    /// A timeline semaphore at 0, for [`Submitter::run_held`]; the caller destroys it.
+    pub fn gate(gpu: &Gpu) -> Result<vk::Semaphore, VkError> {
+        let mut ty = vk::SemaphoreTypeCreateInfo::default()
+            .semaphore_type(vk::SemaphoreType::TIMELINE)
+            .initial_value(0);
+        let info = vk::SemaphoreCreateInfo::default().push_next(&mut ty);
+        unsafe { gpu.device.create_semaphore(&info, None) }.at("vkCreateSemaphore")
     }
 
     /// The submit-to-fence time of every submission so far (a wait that ran out counts whole):
