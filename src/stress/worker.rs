@@ -275,14 +275,16 @@ fn judge(kind: CaseKind, trace: &super::CaseTrace, hook: Option<Hook>) -> CaseRe
     super::judge_counting(kind, trace, &on_work)
 }
 
-fn run(job: &CaseJob, kind: CaseKind) -> CaseResult {
+/// The case's result, and whether its device was left as it was (a submission timed out or the
+/// device was lost): the process must then end without the driver's teardown.
+fn run(job: &CaseJob, kind: CaseKind) -> (CaseResult, bool) {
     say("setup");
     let hook = hook(kind.as_str());
     let inner = match open(job, hook == Some(Hook::Stall)) {
         Ok(t) => t,
         Err(e) => {
             let detail = format!("setting up the stress pipeline: {e}");
-            return CaseResult::without_results(kind, Verdict::Error, detail, 0);
+            return (CaseResult::without_results(kind, Verdict::Error, detail, 0), false);
         }
     };
     say("ready");
@@ -290,15 +292,16 @@ fn run(job: &CaseJob, kind: CaseKind) -> CaseResult {
     let opts = StressOptions { cases: vec![kind], seed: job.seed, full: job.full };
     let start = std::time::Instant::now();
     let trace = super::trace_case(&mut tracer, kind, &opts);
-    if tracer.inner.is_broken() {
+    let broken = tracer.inner.is_broken();
+    if broken {
         // A timed-out or lost submission may still run: destroying the device would wait for
         // it (a hung driver hangs the worker before its result is written) or free what it
-        // uses. The process exits after the result; the driver reclaims it all then.
+        // uses. The process `_exit`s after the result (`main`); the OS reclaims it all then.
         std::mem::forget(tracer);
     }
     let mut r = judge(kind, &trace, hook);
     r.ms = start.elapsed().as_secs_f64() * 1e3;
-    r
+    (r, broken)
 }
 
 /// The worker's entry: 0 when it wrote its result, 2 for a job it cannot read.
@@ -319,17 +322,23 @@ pub fn main(job_path: &Path) -> u8 {
         eprintln!("rtprobe __stress: unknown case {:?}", job.case);
         return 2;
     };
-    let result = run(&job, kind);
+    let (result, broken) = run(&job, kind);
     let out =
         CaseOutput { result, validation_errors: crate::vk::instance::validation_error_count() };
     let bytes = serde_json::to_vec(&out).expect("a case result serializes");
-    match crate::atomic::write_atomic(&job.result, &bytes) {
+    let code = match crate::atomic::write_atomic(&job.result, &bytes) {
         Ok(()) => 0,
         Err(e) => {
             eprintln!("rtprobe __stress: writing {}: {e}", job.result.display());
             2
         }
+    };
+    if broken {
+        // `_exit`, not a return: the driver's atexit handlers would tear down the device the
+        // worker left, waiting for its hung work (as `run`'s worker does, `runner::worker`).
+        unsafe { libc::_exit(code.into()) }
     }
+    code
 }
 
 #[cfg(test)]
