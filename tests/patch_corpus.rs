@@ -758,6 +758,7 @@ fn a_crash_of_the_unpatched_pipeline_is_unrunnable_input() {
     let o = run_env(&refs, &[("RTPROBE_VERIFY_FAULT", "crash-unpatched")]);
     assert_one_line_error(&o, 9, "at `trace unpatched`: the harness cannot run this input");
     assert!(!stderr(&o).contains("driver crashed"), "{}", stderr(&o));
+    assert!(stderr(&o).contains("`rtprobe run --shader` runs the same patches"), "{}", stderr(&o));
     assert!(std::fs::read_dir(&out).unwrap().next().is_none(), "nothing written");
 }
 

@@ -136,7 +136,7 @@ pub fn died(end: &ChildEnd, step: &str, silence: Duration) -> String {
 /// a buffer whose descriptor reads the driver bounds-checked (lavapipe does, for descriptors).
 fn died_error(line: &str, step: &str) -> anyhow::Error {
     if step.starts_with("trace unpatched") {
-        return coded(exit::BAD_INPUT, format!("--verify: {line}: the harness cannot run this input (the unpatched pipeline faults on the harness's scene and resources, so the run says nothing about the patch); nothing written"));
+        return coded(exit::BAD_INPUT, format!("--verify: {line}: the harness cannot run this input (the unpatched pipeline faults on the harness's scene and resources, so the run says nothing about the patch); nothing written; `rtprobe run --shader` runs the same patches with a check of the shader's descriptor indices, which sizes runtime arrays to the harness's data (docs/your-shader.md)"));
     }
     if step.starts_with("trace patched") {
         return coded(exit::DEVICE_LOST, format!("--verify: {line}: the patched pipeline faulted where the unpatched one ran; through device addresses it may read past a buffer whose descriptor reads the driver bounds-checked (check the shader's indices and the host contract); nothing written"));
@@ -206,5 +206,6 @@ mod tests {
         let e = outcome(Err((t, "trace unpatched".into())), "").unwrap_err();
         assert_eq!(exit::code_for(&e), exit::BAD_INPUT);
         assert!(exit::one_line(&e).contains("the harness cannot run this input"));
+        assert!(exit::one_line(&e).contains("rtprobe run --shader"));
     }
 }
