@@ -20,7 +20,9 @@ const WRONG_ID: &str = "miss.storage_buffer.push_constant.descriptor_indexing";
 const PLANTED_ID: &str = "closest_hit.storage_buffer.dynamic.nonuniform.descriptor_indexing";
 
 struct Run {
-    dir: rtprobe::tempdir::TempDir,
+    /// Removed when the test process exits (a `static`'s `TempDir` is never dropped: this
+    /// suite's folder once stayed in /tmp after every run).
+    dir: PathBuf,
     v: serde_json::Value,
     /// Per cell of the run: its id, its script (None: refused) and the README's line on it.
     bundles: Vec<(String, Option<String>, String)>,
@@ -30,9 +32,9 @@ struct Run {
 fn shared() -> &'static Run {
     static S: OnceLock<Run> = OnceLock::new();
     S.get_or_init(|| {
-        let dir = rtprobe::tempdir::tempdir().unwrap();
-        let report = dir.path().join("r.json");
-        let dump = dir.path().join("dump");
+        let dir = tempdir_until_exit();
+        let report = dir.join("r.json");
+        let dump = dir.join("dump");
         let o = run(&[
             "run",
             "--patches",
@@ -56,7 +58,7 @@ fn shared() -> &'static Run {
             .iter()
             .map(|c| {
                 let id = c["id"].as_str().unwrap().to_string();
-                let bundle = dir.path().join("bundles").join(&id);
+                let bundle = dir.join("bundles").join(&id);
                 let r = report.to_str().unwrap();
                 let o = run(&["repro", &id, "--from", r, "-o", bundle.to_str().unwrap()]);
                 assert_eq!(o.status.code(), Some(0), "{id}: {}", stderr(&o));
@@ -109,7 +111,7 @@ fn plant(script: &str) -> (String, usize) {
 #[test]
 fn every_expect_of_every_ray_tracing_script_holds_against_rtprobes_records() {
     let r = shared();
-    let dump = r.dir.path().join("dump");
+    let dump = r.dir.join("dump");
     let mut scripts = 0;
     for (id, script, _) in &r.bundles {
         let Some(amber) = script else { continue };
@@ -150,11 +152,7 @@ fn a_planted_wrong_expectation_fails() {
     let r = shared();
     let (_, script, _) = r.bundles.iter().find(|(id, _, _)| id == PLANTED_ID).unwrap();
     let (planted, _) = plant(script.as_ref().unwrap());
-    assert_expectations_hold(
-        PLANTED_ID,
-        &planted,
-        &records(&r.dir.path().join("dump"), PLANTED_ID),
-    );
+    assert_expectations_hold(PLANTED_ID, &planted, &records(&r.dir.join("dump"), PLANTED_ID));
 }
 
 /// The records of a driver that read a wrong value fail the cell's script (its own bundle has
@@ -169,8 +167,7 @@ fn a_wrong_read_fails_the_script() {
     let params: rtprobe::model::SceneParams =
         serde_json::from_value(r.v["scene"]["params"].clone()).unwrap();
     let amber = script(&cell, &shaders, &params, None, false, "test").unwrap();
-    let (failures, _) =
-        check(&amber, RECORDS, &records(&r.dir.path().join("dump"), WRONG_ID)).unwrap();
+    let (failures, _) = check(&amber, RECORDS, &records(&r.dir.join("dump"), WRONG_ID)).unwrap();
     let mismatched =
         c["attempts"][0]["result"]["comparison"]["mismatched_pixels"].as_u64().unwrap() as usize;
     assert!(
@@ -215,7 +212,7 @@ fn amber_itself_passes_every_script_and_fails_the_planted_one() {
         if script.is_none() {
             continue;
         }
-        let path = r.dir.path().join("bundles").join(id).join("cell.amber");
+        let path = r.dir.join("bundles").join(id).join("cell.amber");
         let (passed, out) = amber(&bin, &path);
         assert!(passed, "{id}: {out}");
         eprintln!("amber {}: {id}: passed", bin.display());
@@ -224,7 +221,7 @@ fn amber_itself_passes_every_script_and_fails_the_planted_one() {
     assert_eq!(ran, 35);
     let (_, script, _) = r.bundles.iter().find(|(id, _, _)| id == PLANTED_ID).unwrap();
     let (planted, line) = plant(script.as_ref().unwrap());
-    let path = r.dir.path().join("planted.amber");
+    let path = r.dir.join("planted.amber");
     std::fs::write(&path, planted).unwrap();
     let (passed, out) = amber(&bin, &path);
     assert!(!passed && out.contains(&format!("Line {line}: Verifier failed: ")), "{out}");
