@@ -196,3 +196,22 @@ fn bench_bad_input_is_one_line_and_writes_nothing() {
     );
     assert_eq!(std::fs::read_dir(&out).unwrap().count(), 0, "no half-written output");
 }
+
+/// SIGTERM to `bench` mid-run (a `timeout` wrapper, a cancelled CI job) kills its `rtprobe run`
+/// child with that child's workers, removes its work folder with what they wrote there (the
+/// child's job folder lies inside it), says nothing was written, and writes nothing in `-o`
+/// (made beforehand to know it takes files). Twin:
+/// the children once ran in bench's process group, unhardened, and outlived a SIGTERM to bench.
+#[test]
+fn sigterm_during_bench_kills_its_runs_and_leaves_nothing() {
+    let dir = rtprobe::tempdir::tempdir().unwrap();
+    let out = dir.path().join("b");
+    let mut c = bin();
+    c.args(["bench", "--quick", "-o"]).arg(&out).env("TMPDIR", dir.path());
+    let (status, err) = interrupt_once_children_run(c, dir.path(), libc::SIGTERM);
+    assert_eq!(status.code(), Some(143), "{status:?} {err}");
+    assert!(err.contains("terminated (SIGTERM)") && err.contains("nothing was written"), "{err}");
+    assert!(!err.contains("--resume"), "{err}");
+    assert_eq!(entries(&out), Vec::<String>::new(), "-o checked writable, nothing written");
+    assert_eq!(entries(dir.path()), vec!["b"], "the work folder and all in it");
+}

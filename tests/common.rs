@@ -223,3 +223,65 @@ pub fn run_user_shaders(
     let report = std::fs::read(out).ok().map(|b| serde_json::from_slice(&b).unwrap());
     (o, report)
 }
+
+/// Live (not zombie) processes other than `except` whose command line names `dir`: a command's
+/// children, whose job and output paths lie under the TMPDIR the test gave it.
+pub fn live_processes_naming(dir: &std::path::Path, except: u32) -> Vec<i32> {
+    let mut found = vec![];
+    for e in std::fs::read_dir("/proc").unwrap().flatten() {
+        let Ok(pid) = e.file_name().to_string_lossy().parse::<i32>() else {
+            continue;
+        };
+        let cmd = std::fs::read(format!("/proc/{pid}/cmdline")).unwrap_or_default();
+        let cmd = String::from_utf8_lossy(&cmd).replace('\0', " ");
+        let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
+        let zombie = stat.rsplit_once(')').is_some_and(|(_, r)| r.trim_start().starts_with('Z'));
+        if pid as u32 != except && cmd.contains(dir.to_str().unwrap()) && !zombie {
+            found.push(pid);
+        }
+    }
+    found
+}
+
+/// Start `c` (TMPDIR set to `dir` by the caller), wait until one of its children is alive, send
+/// it `sig`, and return how it ended and its stderr; then wait (3 s at most) until no process
+/// naming `dir` is left, panicking if one outlives it.
+pub fn interrupt_once_children_run(
+    mut c: Command,
+    dir: &std::path::Path,
+    sig: i32,
+) -> (std::process::ExitStatus, String) {
+    use std::io::Read;
+    use std::time::{Duration, Instant};
+    let mut child = c
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("spawn rtprobe");
+    let start = Instant::now();
+    while live_processes_naming(dir, child.id()).is_empty() {
+        assert!(start.elapsed() < Duration::from_secs(60), "no child started");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    unsafe { libc::kill(child.id() as i32, sig) };
+    let status = child.wait().unwrap();
+    let mut err = String::new();
+    child.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+    let start = Instant::now();
+    while !live_processes_naming(dir, child.id()).is_empty() {
+        assert!(start.elapsed() < Duration::from_secs(3), "children outlived rtprobe: {err}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    (status, err)
+}
+
+/// The names of `dir`'s entries.
+pub fn entries(dir: &std::path::Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}

@@ -762,6 +762,26 @@ fn a_crash_of_the_unpatched_pipeline_is_unrunnable_input() {
     assert!(std::fs::read_dir(&out).unwrap().next().is_none(), "nothing written");
 }
 
+/// Ctrl-C while `patch --verify`'s child runs (here hung by the test hook): the child is killed,
+/// the work folder `rtprobe-verify-<pid>-…` goes with its job file, the message says nothing was
+/// written (not `run`'s `--resume`), and the output folder stays empty. Twin: without the
+/// handler the folder stayed in TMPDIR.
+#[test]
+fn ctrl_c_during_verify_kills_its_child_and_leaves_nothing() {
+    let d = rtprobe::tempdir::tempdir().unwrap();
+    let (args, out) = bindless_args(d.path(), &["--verify"]);
+    let tmp = d.path().join("tmp");
+    std::fs::create_dir(&tmp).unwrap();
+    let mut c = bin();
+    c.args(&args).env("TMPDIR", &tmp).env("RTPROBE_VERIFY_FAULT", "hang");
+    let (status, err) = interrupt_once_children_run(c, &tmp, libc::SIGINT);
+    assert_eq!(status.code(), Some(130), "{status:?} {err}");
+    assert!(err.contains("interrupted (SIGINT)") && err.contains("nothing was written"), "{err}");
+    assert!(!err.contains("--resume"), "{err}");
+    assert_eq!(entries(&tmp), Vec::<String>::new(), "the work folder and its job file");
+    assert_eq!(entries(&out), Vec::<String>::new(), "nothing written");
+}
+
 /// Item 2 of the review: verify compares every writable storage buffer too. The patched hit
 /// shader fed the materials' table where the lights' belongs writes other lights into its log
 /// while the image (from the materials) stays identical: verify must fail on the buffer.

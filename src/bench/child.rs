@@ -74,14 +74,23 @@ impl<'a> Bench<'a> {
         stdout: Stdio,
         env: &[(&str, std::path::PathBuf)],
     ) -> Result<std::process::Output, BenchError> {
-        Command::new(&self.opts.exe)
-            .args(args)
+        let mut c = Command::new(&self.opts.exe);
+        c.args(args)
             .envs(env.iter().map(|(k, v)| (*k, v)))
+            // Its job folder inside bench's work folder, which an interrupt removes.
+            .env("TMPDIR", &self.opts.work_dir)
             .stdin(Stdio::null())
             .stdout(stdout)
-            .stderr(Stdio::piped())
-            .output()
-            .map_err(|source| BenchError::Spawn { cmd: cmd.to_string(), source })
+            .stderr(Stdio::piped());
+        // Its own process group, dying with bench, killed by bench's interrupt handler.
+        crate::runner::groups::harden(&mut c);
+        let spawn_err = |source| BenchError::Spawn { cmd: cmd.to_string(), source };
+        let child = c.spawn().map_err(spawn_err)?;
+        let pgid = child.id() as i32;
+        crate::runner::groups::register(pgid);
+        let out = child.wait_with_output().map_err(spawn_err);
+        crate::runner::groups::unregister(pgid);
+        out
     }
 
     /// `rtprobe run ARGS` (plus the base arguments), its report read back and deleted.

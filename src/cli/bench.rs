@@ -254,6 +254,10 @@ pub fn bench(g: &Globals, a: &BenchArgs) -> Result<u8> {
         PathBuf::from("reports").join(format!("bench-{}", time::stamp(time::now_unix())))
     });
     bench::check_out_dir(&out).map_err(|e| coded(exit::BAD_INPUT, format!("-o: {e}")))?;
+    // An interrupt kills the `rtprobe run` children (each in its own process group, its
+    // temporary folder inside the work folder) and removes the work folder; nothing written.
+    crate::runner::groups::install_handlers();
+    crate::runner::groups::interrupt_with_nothing_written();
     let work = super::paths::work_dir("rtprobe-bench")?;
     opts.work_dir = work.path().to_path_buf();
     let mut progress = |line: &str| errln!("bench: {line}");

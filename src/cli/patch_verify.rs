@@ -75,6 +75,9 @@ pub fn verify(
     let before = reflect(inputs, &inputs.iter().map(|i| i.words.as_slice()).collect::<Vec<_>>())?;
     let after = reflect(inputs, &patched.iter().map(|w| w.as_slice()).collect::<Vec<_>>())?;
     let device_index = device(g, a, scalar, &before.iter().chain(&after).collect::<Vec<_>>())?;
+    // An interrupt kills the child and removes the work folder; nothing is written yet.
+    crate::runner::groups::install_handlers();
+    crate::runner::groups::interrupt_with_nothing_written();
     let work = super::paths::work_dir("rtprobe-verify")?;
     let dir = work.path();
     let job = VerifyJob {

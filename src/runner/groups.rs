@@ -10,7 +10,7 @@
 //! also removes each live supervisor's [`JobFolder`] with the job files no worker read yet.
 use std::os::unix::process::CommandExt;
 use std::process::Command;
-use std::sync::atomic::{AtomicBool, AtomicI32, AtomicPtr, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicI32, AtomicPtr, AtomicU8, AtomicUsize, Ordering};
 use std::sync::Once;
 
 /// The end of the interrupt message: `; finish it with `COMMAND`\n` (leaked once per run, so the
@@ -213,13 +213,19 @@ unsafe fn empty_fd(fd: libc::c_int, depth: u32) {
     }
 }
 
-/// The process writes no report until its end (`run --shader`): the interrupt message says so,
-/// not `run`'s.
-static NO_REPORT: AtomicBool = AtomicBool::new(false);
+/// What the interrupt message says was left: `run`'s report (0), no report (1: `run --shader`,
+/// which writes it at its end), or nothing (2: `patch --verify`, `bench`, which write their
+/// outputs at their end).
+static LEFT: AtomicU8 = AtomicU8::new(0);
 
 /// Say on an interrupt that no report was written (`run --shader`'s, which writes it at its end).
 pub fn interrupt_without_report() {
-    NO_REPORT.store(true, Ordering::SeqCst);
+    LEFT.store(1, Ordering::SeqCst);
+}
+
+/// Say on an interrupt that nothing was written (`patch --verify`'s and `bench`'s outputs).
+pub fn interrupt_with_nothing_written() {
+    LEFT.store(2, Ordering::SeqCst);
 }
 
 extern "C" fn on_signal(sig: libc::c_int) {
@@ -230,13 +236,13 @@ extern "C" fn on_signal(sig: libc::c_int) {
         libc::SIGTERM => b"\nrtprobe: terminated (SIGTERM): ",
         _ => b"\nrtprobe: hung up (SIGHUP): ",
     };
-    let (then, hint): (&[u8], &[u8]) = if NO_REPORT.load(Ordering::SeqCst) {
-        (b"every child was killed; no report was written\n", b"")
-    } else {
-        (
+    let (then, hint): (&[u8], &[u8]) = match LEFT.load(Ordering::SeqCst) {
+        1 => (b"every child was killed; no report was written\n", b""),
+        2 => (b"every child was killed; nothing was written\n", b""),
+        _ => (
             b"every worker was killed; the report keeps every fault and all passes but those of the last 0.1 s (complete: false)",
             resume_hint(),
-        )
+        ),
     };
     // SAFETY: write(2) and _exit(2) are async-signal-safe; the pieces are static slices.
     unsafe {
