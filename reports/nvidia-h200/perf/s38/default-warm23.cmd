@@ -1,0 +1,1 @@
+$ /work/main/.dev/h200/rtprobe run -o default-warm23.json

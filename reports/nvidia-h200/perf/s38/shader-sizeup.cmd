@@ -1,0 +1,1 @@
+$ /work/main/.dev/h200/rtprobe run --shader /work/main/tests/shaders/user/raygen.rgen --shader /work/main/tests/shaders/user/miss.rmiss --shader /work/main/tests/shaders/user/object_table.rchit --repeat 2 -o shader-sizeup.json
