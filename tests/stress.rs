@@ -189,11 +189,12 @@ fn stress_env(args: &[&str], env: &[(&str, &str)]) -> (std::process::Output, ser
     (out, serde_json::from_str(&text).unwrap())
 }
 
-/// A submission past its fence deadline is that case's `timeout`; each case runs in a worker of
-/// its own, so the next case still runs and passes (under the same 5 s deadline, unheld, as
-/// tmin does in the other tests). The device is made slower than the deadline
-/// by the test hook `stall` (tmin's first submission held behind a timeline semaphore the worker
-/// signals only once its fence wait has run out): the driver's own wait times out, whatever the
+/// A submission past its fence deadline is that case's `timeout`, said by the worker itself (not
+/// a worker killed for its silence, which reads the same but for the detail); each case runs in
+/// a worker of its own, so the next case still runs and passes (under the same 5 s deadline,
+/// unheld, as tmin does in the other tests). The device is made slower than the deadline by the
+/// test hook `stall` (tmin's first submission held behind a timeline semaphore the worker signals
+/// only once its fence wait has run out): the driver's own wait times out, whatever the
 /// machine's load. With a 1 µs deadline and no hook, a small case could finish before its wait
 /// began and pass, one CI run in many.
 #[test]
@@ -205,8 +206,24 @@ fn a_fence_past_its_deadline_is_that_cases_timeout_and_the_next_case_runs() {
     assert_eq!(out.status.code(), Some(1), "{}", stdout(&out));
     let tmin = case(&doc, "tmin");
     assert_eq!(tmin["verdict"], "timeout", "{tmin}");
+    assert_eq!(tmin["detail"], "the trace did not finish within 5s", "{tmin}");
     assert!(n(tmin, "rays") > 0, "the rays that could not run are counted");
     assert_eq!(case(&doc, "transform")["verdict"], "pass");
+}
+
+/// A GPU that never finishes (`stall_forever`: the submission held for good): the worker still
+/// reports its own timeout and exits — it leaves the device as it is rather than wait for work
+/// that never ends (waiting, it was killed for its silence instead). The deadline below a
+/// millisecond reaches the worker as given (it was once sent in whole milliseconds: zero).
+#[test]
+fn a_hung_gpu_is_the_workers_own_timeout_and_a_short_deadline_is_kept() {
+    let (out, doc) = stress_env(
+        &["--cases", "tmin", "--timeout", "0.0009"],
+        &[("RTPROBE_STRESS_FAULT", "tmin:stall_forever")],
+    );
+    assert_eq!(out.status.code(), Some(1), "{}", stdout(&out));
+    let tmin = case(&doc, "tmin");
+    assert_eq!(tmin["detail"], "the trace did not finish within 900µs", "{tmin}");
 }
 
 /// Issue 22 item 4: a driver crash in one case (SIGSEGV in its worker, planted by the test

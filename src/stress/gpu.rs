@@ -243,8 +243,11 @@ pub struct GpuTracer {
     mode: Mode,
     /// Told (rays traced, rays in the part) after each submission of a part's trace.
     on_chunk: Option<Box<dyn FnMut(usize, usize)>>,
-    /// The gate the next submission is held behind ([`GpuTracer::hold_first_submission`]).
-    held: std::cell::Cell<Option<vk::Semaphore>>,
+    /// The gate the next submission is held behind, and whether it is released after the
+    /// wait ([`GpuTracer::hold_first_submission`]).
+    held: std::cell::Cell<Option<(vk::Semaphore, bool)>>,
+    /// A held submission failed after it may have been submitted: it may still be pending.
+    stuck: std::cell::Cell<bool>,
 }
 
 /// Rays per submission: a part's trace is cut into submissions of this many rays, each fenced
@@ -299,32 +302,40 @@ impl GpuTracer {
             mode,
             on_chunk: None,
             held: Default::default(),
+            stuck: Default::default(),
         })
     }
 
-    /// Whether a timeout or a device loss stopped this tracer: its objects may still be in use.
+    /// Whether a timeout or a device loss stopped this tracer (or a held submission failed):
+    /// its objects may still be in use.
     pub fn is_broken(&self) -> bool {
-        self.broken.is_some()
+        self.broken.is_some() || self.stuck.get()
     }
 
     /// Holds the next submission until its fence wait has run out (`Submitter::run_held`): the
-    /// `stall` test hook's GPU that is slower than any deadline. The device must have been opened
-    /// with `timelineSemaphore`.
-    pub fn hold_first_submission(&mut self) -> Result<(), TraceError> {
-        self.held.set(Some(Submitter::gate(&self.gpu).map_err(vk_err)?));
+    /// test hooks' GPU that is slower than any deadline, then released (`stall`), or never
+    /// (`stall_forever`: a hung GPU). The device must have been opened with `timelineSemaphore`.
+    pub fn hold_first_submission(&mut self, release: bool) -> Result<(), TraceError> {
+        self.held.set(Some((Submitter::gate(&self.gpu).map_err(vk_err)?, release)));
         Ok(())
     }
 
     /// Records with `f`, submits and waits up to the deadline; held behind the gate once where
     /// one is set.
     fn submit(&self, f: impl FnOnce(vk::CommandBuffer)) -> Result<Waited, TraceError> {
-        let Some(gate) = self.held.take() else {
+        let Some((gate, release)) = self.held.take() else {
             return self.submitter.run(&self.gpu, self.timeout, f).map_err(vk_err);
         };
-        let waited = self.submitter.run_held(&self.gpu, self.timeout, gate, f).map_err(vk_err)?;
-        // The held work has finished: nothing waits on the gate any more.
-        unsafe { self.gpu.device.destroy_semaphore(gate, None) };
-        Ok(waited)
+        let waited = self.submitter.run_held(&self.gpu, self.timeout, (gate, release), f);
+        match (&waited, release) {
+            // Released and finished: nothing waits on the gate any more.
+            (Ok(_), true) => unsafe { self.gpu.device.destroy_semaphore(gate, None) },
+            // Still held, a hung GPU: the timeout makes the tracer broken (`trace`).
+            (Ok(_), false) => {}
+            // Failed, perhaps past its submission: left as it is.
+            (Err(_), _) => self.stuck.set(true),
+        }
+        waited.map_err(vk_err)
     }
 
     fn build(
@@ -531,10 +542,13 @@ impl Tracer for GpuTracer {
 
 impl Drop for GpuTracer {
     fn drop(&mut self) {
-        if self.broken.is_some() {
+        if self.is_broken() {
             return;
         }
         unsafe { self.gpu.device.device_wait_idle().ok() };
+        if let Some((gate, _)) = self.held.take() {
+            unsafe { self.gpu.device.destroy_semaphore(gate, None) };
+        }
         self.pipeline.destroy(&self.gpu);
         unsafe { self.gpu.device.destroy_pipeline_layout(self.layout, None) };
         self.submitter.destroy(&self.gpu);

@@ -11,7 +11,8 @@
 //! Test hook: `RTPROBE_STRESS_FAULT=<case>:<crash|hang>` makes that case's worker raise SIGSEGV
 //! or sleep forever where its first part would be traced; `<case>:stall` holds the case's first
 //! submission on the device until its fence wait has run out (a GPU slower than any deadline:
-//! the driver's own wait times out); `<case>:slow_<step>:SECS` makes the
+//! the driver's own wait times out), `<case>:stall_forever` for good (a hung GPU: the worker
+//! must still write its result and exit); `<case>:slow_<step>:SECS` makes the
 //! check's step (`index`, `check` or `facing`) take SECS more, spread over its units (slow,
 //! progressing), and `<case>:stalled_<step>:SECS` stalls it SECS at its first unit, heartbeat
 //! running (`tests/stress.rs`).
@@ -85,8 +86,11 @@ fn tell(p: Progress) {
 enum Hook {
     Crash,
     Hang,
-    /// The first submission is held on the device past its deadline.
-    Stall,
+    /// The first submission is held on the device past its deadline, then released (`false`:
+    /// never, `stall_forever`).
+    Stall {
+        release: bool,
+    },
     /// The check's step takes this much longer, spread over its units.
     Slow(Work, Duration),
     /// The check's step stalls this long at its first unit, the heartbeat running.
@@ -115,7 +119,8 @@ fn hook(case: &str) -> Option<Hook> {
     Some(match how.split_once(':') {
         None if how == "crash" => Hook::Crash,
         None if how == "hang" => Hook::Hang,
-        None if how == "stall" => Hook::Stall,
+        None if how == "stall" => Hook::Stall { release: true },
+        None if how == "stall_forever" => Hook::Stall { release: false },
         Some((h, s)) => {
             let d = Duration::from_secs_f64(secs(s)?);
             match h.split_once('_')? {
@@ -149,7 +154,7 @@ impl Tracer for Announced {
             Some(Hook::Hang) => loop {
                 std::thread::sleep(Duration::from_secs(3600));
             },
-            Some(Hook::Stall | Hook::Slow(..) | Hook::Stalled(..)) | None => {}
+            Some(Hook::Stall { .. } | Hook::Slow(..) | Hook::Stalled(..)) | None => {}
         }
         let step = format!("trace {}", part.label);
         self.inner.on_chunk(Box::new(move |done, total| {
@@ -164,9 +169,9 @@ impl Tracer for Announced {
     }
 }
 
-/// Opens the job's device and the stress pipeline on it; `stall`: its first submission held
-/// (the device opened with `timelineSemaphore`).
-fn open(job: &CaseJob, stall: bool) -> Result<GpuTracer, String> {
+/// Opens the job's device and the stress pipeline on it; `stall`: its first submission held,
+/// then released or not (the device opened with `timelineSemaphore`).
+fn open(job: &CaseJob, stall: Option<bool>) -> Result<GpuTracer, String> {
     let inst = Arc::new(
         Instance::new(&InstanceOptions { validate: job.validate, gpu_av: false })
             .map_err(|e| e.to_string())?,
@@ -174,11 +179,12 @@ fn open(job: &CaseJob, stall: bool) -> Result<GpuTracer, String> {
     let all = features::query_all(&inst).map_err(|e| e.to_string())?;
     let info = all.get(job.device_index).ok_or("the device vanished")?.clone();
     let mode = if job.ray_query { Mode::RayQuery } else { Mode::Pipeline };
-    let req = crate::vk::Requirements { timeline_semaphore: stall, ..mode.requirements() };
+    let req =
+        crate::vk::Requirements { timeline_semaphore: stall.is_some(), ..mode.requirements() };
     let gpu = Gpu::new(inst, info, req).map_err(|e| e.to_string())?;
     let mut tracer = GpuTracer::new(gpu, job.timeout, mode).map_err(|e| e.to_string())?;
-    if stall {
-        tracer.hold_first_submission().map_err(|e| e.to_string())?;
+    if let Some(release) = stall {
+        tracer.hold_first_submission(release).map_err(|e| e.to_string())?;
     }
     Ok(tracer)
 }
@@ -267,7 +273,9 @@ fn judge(kind: CaseKind, trace: &super::CaseTrace, hook: Option<Hook>) -> CaseRe
             Some(Hook::Stalled(h, d)) if h == w && !stalled.swap(true, Ordering::Relaxed) => {
                 std::thread::sleep(d);
             }
-            Some(Hook::Crash | Hook::Hang | Hook::Stall | Hook::Slow(..) | Hook::Stalled(..))
+            Some(
+                Hook::Crash | Hook::Hang | Hook::Stall { .. } | Hook::Slow(..) | Hook::Stalled(..),
+            )
             | None => {}
         }
         c.done[k].fetch_add(1, Ordering::Relaxed);
@@ -280,7 +288,11 @@ fn judge(kind: CaseKind, trace: &super::CaseTrace, hook: Option<Hook>) -> CaseRe
 fn run(job: &CaseJob, kind: CaseKind) -> (CaseResult, bool) {
     say("setup");
     let hook = hook(kind.as_str());
-    let inner = match open(job, hook == Some(Hook::Stall)) {
+    let stall = match hook {
+        Some(Hook::Stall { release }) => Some(release),
+        Some(Hook::Crash | Hook::Hang | Hook::Slow(..) | Hook::Stalled(..)) | None => None,
+    };
+    let inner = match open(job, stall) {
         Ok(t) => t,
         Err(e) => {
             let detail = format!("setting up the stress pipeline: {e}");
@@ -339,27 +351,4 @@ pub fn main(job_path: &Path) -> u8 {
         unsafe { libc::_exit(code.into()) }
     }
     code
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A deadline below a millisecond reaches the worker as given (it was once sent in whole
-    /// milliseconds: `--timeout 0.0009` became a deadline of zero).
-    #[test]
-    fn a_job_keeps_a_deadline_below_a_millisecond() {
-        let job = CaseJob {
-            device_index: 0,
-            case: "tmin".into(),
-            seed: 1,
-            full: false,
-            timeout: Duration::from_micros(900),
-            ray_query: false,
-            validate: false,
-            result: PathBuf::from("r.json"),
-        };
-        let back: CaseJob = serde_json::from_slice(&serde_json::to_vec(&job).unwrap()).unwrap();
-        assert_eq!(back.timeout, Duration::from_micros(900));
-    }
 }

@@ -66,23 +66,27 @@ impl Submitter {
     /// GPU). Vulkan 1.4.360, Command Buffers, Queue Submission: "When using timeline
     /// semaphores, wait-before-signal behavior is well-defined and applications can submit work
     /// via vkQueueSubmit defining a timeline semaphore wait operation before submitting a
-    /// corresponding semaphore signal operation". After the signal the work runs
-    /// and this waits for it without a deadline, so nothing is freed under it; the result is
-    /// the first wait's.
+    /// corresponding semaphore signal operation". With `release` the host then signals and
+    /// waits for the work without a deadline, so nothing is freed under it; without, the work
+    /// stays pending for good (a hung GPU: the caller must leave the device as it is). The
+    /// result is the first wait's; an error in recording, submitting or that wait returns at
+    /// once (nothing was submitted, or the device is lost).
     pub fn run_held(
         &self,
         gpu: &Gpu,
         timeout: Duration,
-        gate: vk::Semaphore,
+        (gate, release): (vk::Semaphore, bool),
         f: impl FnOnce(vk::CommandBuffer),
     ) -> Result<Waited, VkError> {
         self.record(gpu, f)?;
-        let first = self.submit_and_wait(gpu, timeout, Some(gate));
-        let d = &gpu.device;
-        unsafe { d.signal_semaphore(&vk::SemaphoreSignalInfo::default().semaphore(gate).value(1)) }
-            .at("vkSignalSemaphore")?;
-        unsafe { d.wait_for_fences(&[self.fence], true, u64::MAX) }.at("vkWaitForFences")?;
-        first
+        let first = self.submit_and_wait(gpu, timeout, Some(gate))?;
+        if release {
+            let d = &gpu.device;
+            let info = vk::SemaphoreSignalInfo::default().semaphore(gate).value(1);
+            unsafe { d.signal_semaphore(&info) }.at("vkSignalSemaphore")?;
+            unsafe { d.wait_for_fences(&[self.fence], true, u64::MAX) }.at("vkWaitForFences")?;
+        }
+        Ok(first)
     }
 
     fn record(&self, gpu: &Gpu, f: impl FnOnce(vk::CommandBuffer)) -> Result<(), VkError> {
