@@ -208,7 +208,8 @@ fn sigterm_during_bench_kills_its_runs_and_leaves_nothing() {
     let out = dir.path().join("b");
     let mut c = bin();
     c.args(["bench", "--quick", "-o"]).arg(&out).env("TMPDIR", dir.path());
-    let (status, err) = interrupt_once_children_run(c, dir.path(), libc::SIGTERM);
+    let (status, err) =
+        interrupt_once_children_run(c, (dir.path(), " run "), libc::SIGTERM, |_| {});
     assert_eq!(status.code(), Some(143), "{status:?} {err}");
     assert!(err.contains("terminated (SIGTERM)") && err.contains("nothing was written"), "{err}");
     assert!(!err.contains("--resume"), "{err}");

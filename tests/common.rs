@@ -224,9 +224,10 @@ pub fn run_user_shaders(
     (o, report)
 }
 
-/// Live (not zombie) processes other than `except` whose command line names `dir`: a command's
-/// children, whose job and output paths lie under the TMPDIR the test gave it.
-pub fn live_processes_naming(dir: &std::path::Path, except: u32) -> Vec<i32> {
+/// Live (not zombie or dead) processes other than `except` whose command line names `dir` and
+/// holds `marker` (`__worker`, `__shader`; "" for any): a command's children, whose job and
+/// output paths lie under the TMPDIR the test gave it.
+pub fn live_processes(dir: &str, marker: &str, except: u32) -> Vec<i32> {
     let mut found = vec![];
     for e in std::fs::read_dir("/proc").unwrap().flatten() {
         let Ok(pid) = e.file_name().to_string_lossy().parse::<i32>() else {
@@ -234,22 +235,32 @@ pub fn live_processes_naming(dir: &std::path::Path, except: u32) -> Vec<i32> {
         };
         let cmd = std::fs::read(format!("/proc/{pid}/cmdline")).unwrap_or_default();
         let cmd = String::from_utf8_lossy(&cmd).replace('\0', " ");
+        if pid as u32 == except || !cmd.contains(dir) || !cmd.contains(marker) {
+            continue;
+        }
         let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
-        let zombie = stat.rsplit_once(')').is_some_and(|(_, r)| r.trim_start().starts_with('Z'));
-        if pid as u32 != except && cmd.contains(dir.to_str().unwrap()) && !zombie {
+        let state = stat.rsplit_once(')').and_then(|(_, r)| r.split_whitespace().next());
+        if !matches!(state, Some("Z" | "X") | None) {
             found.push(pid);
         }
     }
     found
 }
 
-/// Start `c` (TMPDIR set to `dir` by the caller), wait until one of its children is alive, send
-/// it `sig`, and return how it ended and its stderr; then wait (3 s at most) until no process
-/// naming `dir` is left, panicking if one outlives it.
+/// [`live_processes`] naming `dir`, any command.
+pub fn live_processes_naming(dir: &std::path::Path, except: u32) -> Vec<i32> {
+    live_processes(dir.to_str().unwrap(), "", except)
+}
+
+/// Start `c` (TMPDIR set to `dir` by the caller), wait until one of its children whose command
+/// line holds `marker` is alive (another may come first: a validator on a temporary file),
+/// call `while_running` with its pid, send it `sig`, and return how it ended and its stderr;
+/// then wait (3 s at most) until no process naming `dir` is left, panicking if one outlives it.
 pub fn interrupt_once_children_run(
     mut c: Command,
-    dir: &std::path::Path,
+    (dir, marker): (&std::path::Path, &str),
     sig: i32,
+    while_running: impl FnOnce(u32),
 ) -> (std::process::ExitStatus, String) {
     use std::io::Read;
     use std::time::{Duration, Instant};
@@ -259,10 +270,11 @@ pub fn interrupt_once_children_run(
         .spawn()
         .expect("spawn rtprobe");
     let start = Instant::now();
-    while live_processes_naming(dir, child.id()).is_empty() {
+    while live_processes(dir.to_str().unwrap(), marker, child.id()).is_empty() {
         assert!(start.elapsed() < Duration::from_secs(60), "no child started");
         std::thread::sleep(Duration::from_millis(20));
     }
+    while_running(child.id());
     unsafe { libc::kill(child.id() as i32, sig) };
     let status = child.wait().unwrap();
     let mut err = String::new();

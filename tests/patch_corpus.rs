@@ -774,7 +774,7 @@ fn ctrl_c_during_verify_kills_its_child_and_leaves_nothing() {
     std::fs::create_dir(&tmp).unwrap();
     let mut c = bin();
     c.args(&args).env("TMPDIR", &tmp).env("RTPROBE_VERIFY_FAULT", "hang");
-    let (status, err) = interrupt_once_children_run(c, &tmp, libc::SIGINT);
+    let (status, err) = interrupt_once_children_run(c, (&tmp, "__verify"), libc::SIGINT, |_| {});
     assert_eq!(status.code(), Some(130), "{status:?} {err}");
     assert!(err.contains("interrupted (SIGINT)") && err.contains("nothing was written"), "{err}");
     assert!(!err.contains("--resume"), "{err}");

@@ -347,31 +347,9 @@ fn every_attempt_records_the_features_its_worker_enabled() {
 
 // ---- no orphans ----------------------------------------------------------------------------
 
-/// Live (not zombie) `rtprobe __worker` processes whose job file lies in `job_dir`.
+/// Live `rtprobe __worker` processes whose job file lies in `job_dir`.
 fn live_workers(job_dir: &str) -> Vec<i32> {
-    let mut found = vec![];
-    for e in std::fs::read_dir("/proc").unwrap().flatten() {
-        let Ok(pid) = e.file_name().to_string_lossy().parse::<i32>() else {
-            continue;
-        };
-        let Ok(cmd) = std::fs::read(format!("/proc/{pid}/cmdline")) else {
-            continue;
-        };
-        let cmd = String::from_utf8_lossy(&cmd).replace('\0', " ");
-        if !cmd.contains("__worker") || !cmd.contains(job_dir) {
-            continue;
-        }
-        let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
-        let state = stat
-            .rsplit_once(')')
-            .and_then(|(_, r)| r.split_whitespace().next())
-            .unwrap_or("?")
-            .to_string();
-        if state != "Z" && state != "X" {
-            found.push(pid);
-        }
-    }
-    found
+    live_processes(job_dir, "__worker", 0)
 }
 
 /// Start a run (with the worker fault `fault`, if any), wait until a worker runs (and, without a
@@ -791,24 +769,6 @@ fn validation_never_overlaps() {
     assert!(cells(&r).iter().all(|c| c["outcome"] == "pass"));
 }
 
-/// Live `rtprobe __shader` children whose job is under `dir`.
-fn live_shader_children(dir: &Path) -> Vec<i32> {
-    let mut found = vec![];
-    for e in std::fs::read_dir("/proc").unwrap().flatten() {
-        let Ok(pid) = e.file_name().to_string_lossy().parse::<i32>() else {
-            continue;
-        };
-        let cmd = std::fs::read(format!("/proc/{pid}/cmdline")).unwrap_or_default();
-        let cmd = String::from_utf8_lossy(&cmd).replace('\0', " ");
-        let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
-        let zombie = stat.rsplit_once(')').is_some_and(|(_, r)| r.trim_start().starts_with('Z'));
-        if cmd.contains("__shader") && cmd.contains(dir.to_str().unwrap()) && !zombie {
-            found.push(pid);
-        }
-    }
-    found
-}
-
 /// Ctrl-C during `run --shader` (here in its index check or a variant's child): every child is
 /// killed, the work folder `rtprobe-shader-<pid>-…` goes with its job and output files, no
 /// report is written, and the message says so (not `run`'s `--resume`). Twin: before the
@@ -818,42 +778,23 @@ fn ctrl_c_during_run_shader_kills_its_children_and_leaves_nothing() {
     let dir = rtprobe::tempdir::tempdir().unwrap();
     let out = dir.path().join("r.json");
     let hit = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/shaders/user/object_table.rchit");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_rtprobe"))
-        .args(["run", "--repeat", "50", "--shader", hit.to_str().unwrap(), "-o"])
+    let mut c = Command::new(env!("CARGO_BIN_EXE_rtprobe"));
+    c.args(["run", "--repeat", "50", "--shader", hit.to_str().unwrap(), "-o"])
         .arg(&out)
-        .env("TMPDIR", dir.path())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let start = Instant::now();
-    while live_shader_children(dir.path()).is_empty() {
-        assert!(start.elapsed() < Duration::from_secs(60), "no child started");
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    let work = format!("rtprobe-shader-{}-", child.id());
-    let folders = |d: &Path| -> Vec<String> {
-        std::fs::read_dir(d)
-            .unwrap()
-            .flatten()
-            .map(|e| e.file_name().to_string_lossy().into_owned())
-            .filter(|n| n.starts_with(&work))
-            .collect()
+        .env("TMPDIR", dir.path());
+    let work = |pid: u32| {
+        let prefix = format!("rtprobe-shader-{pid}-");
+        entries(dir.path()).into_iter().filter(|n| n.starts_with(&prefix)).count()
     };
-    assert_eq!(folders(dir.path()).len(), 1, "the work folder while it runs");
-    unsafe { libc::kill(child.id() as i32, libc::SIGINT) };
-    let status = child.wait().unwrap();
-    let mut err = String::new();
-    use std::io::Read;
-    child.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+    let (status, err) =
+        interrupt_once_children_run(c, (dir.path(), "__shader"), libc::SIGINT, |pid| {
+            assert_eq!(work(pid), 1, "the work folder while it runs")
+        });
     assert_eq!(status.code(), Some(130), "{status:?} {err}");
     assert!(err.contains("interrupted (SIGINT)") && err.contains("no report was written"), "{err}");
     assert!(!err.contains("--resume"), "{err}");
     assert!(!out.exists());
-    assert_eq!(folders(dir.path()), Vec::<String>::new());
-    let start = Instant::now();
-    while !live_shader_children(dir.path()).is_empty() {
-        assert!(start.elapsed() < Duration::from_secs(3), "children outlived rtprobe");
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    // The report's lock file stays, as after any killed run (`report::lock`: the next lock of
+    // that report takes it over); nothing else.
+    assert_eq!(entries(dir.path()), vec![".r.json.lock"]);
 }

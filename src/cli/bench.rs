@@ -273,6 +273,7 @@ pub fn bench(g: &Globals, a: &BenchArgs) -> Result<u8> {
             coded(exit::INTERNAL, e.to_string())
         }
     })?;
+    crate::runner::groups::interrupt_while_writing();
     let json = serde_json::to_vec_pretty(&value).expect("bench value serializes");
     let plots = bench::plots::all(&value);
     for (name, svg) in &plots {

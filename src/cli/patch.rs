@@ -174,6 +174,7 @@ pub fn patch(g: &Globals, a: &PatchArgs) -> Result<u8> {
     } else {
         Vec::new()
     };
+    crate::runner::groups::interrupt_while_writing();
     for (p, i) in unpatched.iter().zip(&inputs) {
         write_module(&Dest::File(p.clone()), &i.words)?;
     }

@@ -92,6 +92,33 @@ pub fn kill_all() {
     }
 }
 
+/// Wait (1 s at most in all) for the killed groups' leaders, this process's children, to die:
+/// until then one may still write in a folder the handler removes. Async-signal-safe.
+fn reap_killed() {
+    for _ in 0..100 {
+        let mut alive = false;
+        for g in &GROUPS {
+            let pgid = g.load(Ordering::SeqCst);
+            // SAFETY: waitpid(2) is async-signal-safe; 0: not dead yet (-1: not a child).
+            if pgid > 0 && unsafe { libc::waitpid(pgid, std::ptr::null_mut(), libc::WNOHANG) } == 0
+            {
+                alive = true;
+            }
+        }
+        if !alive {
+            return;
+        }
+        sleep_ms(10);
+    }
+}
+
+/// nanosleep(2), async-signal-safe.
+fn sleep_ms(ms: u64) {
+    let t = libc::timespec { tv_sec: 0, tv_nsec: (ms * 1_000_000) as libc::c_long };
+    // SAFETY: plain syscall on a stack value.
+    unsafe { libc::nanosleep(&t, std::ptr::null_mut()) };
+}
+
 /// A supervisor's folder of job files: a fresh private one, removed when dropped, and by the
 /// signal handler when the process is interrupted.
 #[derive(Debug)]
@@ -162,8 +189,12 @@ fn remove_folders() {
     }
 }
 
-/// Unlink the files of the folder `path` and of its folders, two levels down (a job folder
-/// holds files; `run --shader`'s GPU-AV re-runs put theirs in folders of its work folder).
+/// How deep the handler empties a work folder: a job folder holds files; `run --shader`'s GPU-AV
+/// re-runs put theirs in folders of its work folder; `bench --cells-cold`'s driver caches lie
+/// five levels down (`cold-N/mesa/mesa_shader_cache_db/partK/FILE`).
+const DEPTH: u32 = 8;
+
+/// Unlink the files of the folder `path` and of its folders, [`DEPTH`] levels down.
 ///
 /// # Safety
 /// `path` is a NUL-terminated path.
@@ -171,7 +202,7 @@ unsafe fn empty(path: *const libc::c_char) {
     let fd =
         libc::open(path, libc::O_RDONLY | libc::O_DIRECTORY | libc::O_NOFOLLOW | libc::O_CLOEXEC);
     if fd >= 0 {
-        empty_fd(fd, 2);
+        empty_fd(fd, DEPTH);
         libc::close(fd);
     }
 }
@@ -214,8 +245,8 @@ unsafe fn empty_fd(fd: libc::c_int, depth: u32) {
 }
 
 /// What the interrupt message says was left: `run`'s report (0), no report (1: `run --shader`,
-/// which writes it at its end), or nothing (2: `patch --verify`, `bench`, which write their
-/// outputs at their end).
+/// which writes it at its end), nothing (2: `patch --verify`, `bench`, which write their
+/// outputs at their end), or outputs being written (3: theirs, once their children ended).
 static LEFT: AtomicU8 = AtomicU8::new(0);
 
 /// Say on an interrupt that no report was written (`run --shader`'s, which writes it at its end).
@@ -228,8 +259,19 @@ pub fn interrupt_with_nothing_written() {
     LEFT.store(2, Ordering::SeqCst);
 }
 
+/// Say on an interrupt that the outputs were being written (`patch --verify`, `bench` once their
+/// children have ended).
+pub fn interrupt_while_writing() {
+    LEFT.store(3, Ordering::SeqCst);
+}
+
 extern "C" fn on_signal(sig: libc::c_int) {
     kill_all();
+    reap_killed();
+    remove_folders();
+    // A grandchild (a killed child's worker, dying by PR_SET_PDEATHSIG) may still have made
+    // something in a folder: once more after it has had time to die.
+    sleep_ms(50);
     remove_folders();
     let what: &[u8] = match sig {
         libc::SIGINT => b"\nrtprobe: interrupted (SIGINT): ",
@@ -239,6 +281,7 @@ extern "C" fn on_signal(sig: libc::c_int) {
     let (then, hint): (&[u8], &[u8]) = match LEFT.load(Ordering::SeqCst) {
         1 => (b"every child was killed; no report was written\n", b""),
         2 => (b"every child was killed; nothing was written\n", b""),
+        3 => (b"interrupted while writing the outputs: each one finished is whole, the one being written is left as `.NAME.tmp-PID-N` beside it\n", b""),
         _ => (
             b"every worker was killed; the report keeps every fault and all passes but those of the last 0.1 s (complete: false)",
             resume_hint(),
@@ -292,6 +335,10 @@ mod tests {
         // A GPU-AV re-run's folder of `run --shader`, with its own files.
         std::fs::create_dir(dir.path().join("gpu-av")).unwrap();
         std::fs::write(dir.path().join("gpu-av/unpatched-job-1.json"), b"{}").unwrap();
+        // `bench --cells-cold`'s driver cache, five levels down.
+        let deep = dir.path().join("cold-1/mesa/mesa_shader_cache_db/part0");
+        std::fs::create_dir_all(&deep).unwrap();
+        std::fs::write(deep.join("mesa_cache.db"), b"x").unwrap();
         // A link to a folder is unlinked, never followed.
         let outside = crate::tempdir::TempDir::named("rtprobe-outside-test").unwrap();
         std::fs::write(outside.path().join("keep"), b"1").unwrap();
