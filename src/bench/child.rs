@@ -85,9 +85,8 @@ impl<'a> Bench<'a> {
         // Its own process group, dying with bench, killed by bench's interrupt handler.
         crate::runner::groups::harden(&mut c);
         let spawn_err = |source| BenchError::Spawn { cmd: cmd.to_string(), source };
-        let child = c.spawn().map_err(spawn_err)?;
+        let child = crate::runner::groups::spawn_registered(&mut c).map_err(spawn_err)?;
         let pgid = child.id() as i32;
-        crate::runner::groups::register(pgid);
         let out = child.wait_with_output().map_err(spawn_err);
         crate::runner::groups::unregister(pgid);
         out

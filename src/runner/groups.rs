@@ -56,6 +56,10 @@ pub fn harden(cmd: &mut Command) {
                 // The supervisor died between fork and prctl.
                 libc::_exit(1);
             }
+            // `spawn_registered` blocks the interrupt signals around the fork: not in the child.
+            let mut none: libc::sigset_t = std::mem::zeroed();
+            libc::sigemptyset(&mut none);
+            libc::sigprocmask(libc::SIG_SETMASK, &none, std::ptr::null_mut());
             Ok(())
         });
     }
@@ -71,6 +75,39 @@ pub fn register(pgid: i32) {
     tracing::warn!(
         "more than {MAX_GROUPS} live workers; worker {pgid} relies on PR_SET_PDEATHSIG alone"
     );
+}
+
+/// The interrupt signals the handler takes.
+const SIGNALS: [libc::c_int; 3] = [libc::SIGINT, libc::SIGTERM, libc::SIGHUP];
+
+/// The interrupt signals as a set.
+fn signal_set() -> libc::sigset_t {
+    // SAFETY: sigemptyset/sigaddset fill a set on the stack.
+    unsafe {
+        let mut set: libc::sigset_t = std::mem::zeroed();
+        libc::sigemptyset(&mut set);
+        for s in SIGNALS {
+            libc::sigaddset(&mut set, s);
+        }
+        set
+    }
+}
+
+/// Spawn `cmd` ([`harden`]ed) and [`register`] it with the interrupt signals blocked in between:
+/// an interrupt that came after the fork and before the registration would leave the new child
+/// to `PR_SET_PDEATHSIG` alone, alive while the handler removes its folders. The child starts
+/// with no signal blocked (`harden`'s `pre_exec`).
+pub fn spawn_registered(cmd: &mut Command) -> std::io::Result<std::process::Child> {
+    let set = signal_set();
+    let mut old: libc::sigset_t = unsafe { std::mem::zeroed() };
+    // SAFETY: this thread's mask, set and restored around the spawn.
+    unsafe { libc::pthread_sigmask(libc::SIG_BLOCK, &set, &mut old) };
+    let child = cmd.spawn();
+    if let Ok(c) = &child {
+        register(c.id() as i32);
+    }
+    unsafe { libc::pthread_sigmask(libc::SIG_SETMASK, &old, std::ptr::null_mut()) };
+    child
 }
 
 pub fn unregister(pgid: i32) {
@@ -92,8 +129,10 @@ pub fn kill_all() {
     }
 }
 
-/// Wait (1 s at most in all) for the killed groups' leaders, this process's children, to die:
-/// until then one may still write in a folder the handler removes. Async-signal-safe.
+/// Wait (1 s at most in all) for the killed groups' leaders, this process's children, to die: a
+/// child's own children (bench's `rtprobe run`'s workers, in groups of their own) are killed by
+/// `PR_SET_PDEATHSIG` only once it has died, and may write in the folders until then — the
+/// handler removes them after this, and once more 50 ms later. Async-signal-safe.
 fn reap_killed() {
     for _ in 0..100 {
         let mut alive = false;
@@ -191,7 +230,7 @@ fn remove_folders() {
 
 /// How deep the handler empties a work folder: a job folder holds files; `run --shader`'s GPU-AV
 /// re-runs put theirs in folders of its work folder; `bench --cells-cold`'s driver caches lie
-/// five levels down (`cold-N/mesa/mesa_shader_cache_db/partK/FILE`).
+/// five levels down (`cold-N/mesa/mesa_shader_cache_db/partK/FILE`) and deeper on NVIDIA.
 const DEPTH: u32 = 8;
 
 /// Unlink the files of the folder `path` and of its folders, [`DEPTH`] levels down.
@@ -281,7 +320,7 @@ extern "C" fn on_signal(sig: libc::c_int) {
     let (then, hint): (&[u8], &[u8]) = match LEFT.load(Ordering::SeqCst) {
         1 => (b"every child was killed; no report was written\n", b""),
         2 => (b"every child was killed; nothing was written\n", b""),
-        3 => (b"interrupted while writing the outputs: each one finished is whole, the one being written is left as `.NAME.tmp-PID-N` beside it\n", b""),
+        3 => (b"every child had ended and the outputs were being written: each file finished is whole; one cut short, if any, is left as `.NAME.tmp-PID-N` beside it (or cut short on stdout)\n", b""),
         _ => (
             b"every worker was killed; the report keeps every fault and all passes but those of the last 0.1 s (complete: false)",
             resume_hint(),
@@ -299,12 +338,14 @@ extern "C" fn on_signal(sig: libc::c_int) {
 /// Install the supervisor's SIGINT / SIGTERM / SIGHUP handler (once per process).
 pub fn install_handlers() {
     INSTALL.call_once(|| {
-        for sig in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
+        for sig in SIGNALS {
             // SAFETY: a plain handler that only calls async-signal-safe functions.
             unsafe {
                 let mut sa: libc::sigaction = std::mem::zeroed();
                 sa.sa_sigaction = on_signal as extern "C" fn(libc::c_int) as usize;
-                libc::sigemptyset(&mut sa.sa_mask);
+                // The others blocked while it runs (it waits up to 1 s): a second signal must not
+                // run it again over the first, with its own message and exit status.
+                sa.sa_mask = signal_set();
                 libc::sigaction(sig, &sa, std::ptr::null_mut());
             }
         }
@@ -335,10 +376,18 @@ mod tests {
         // A GPU-AV re-run's folder of `run --shader`, with its own files.
         std::fs::create_dir(dir.path().join("gpu-av")).unwrap();
         std::fs::write(dir.path().join("gpu-av/unpatched-job-1.json"), b"{}").unwrap();
-        // `bench --cells-cold`'s driver cache, five levels down.
-        let deep = dir.path().join("cold-1/mesa/mesa_shader_cache_db/part0");
-        std::fs::create_dir_all(&deep).unwrap();
-        std::fs::write(deep.join("mesa_cache.db"), b"x").unwrap();
+        // `bench --cells-cold`'s driver cache, five levels down, and a file as deep as the
+        // handler goes (DEPTH folders: one level less and it stays).
+        let mesa = dir.path().join("cold-1/mesa/mesa_shader_cache_db/part0");
+        std::fs::create_dir_all(&mesa).unwrap();
+        std::fs::write(mesa.join("mesa_cache.db"), b"x").unwrap();
+        // NVIDIA's cache is deeper (`GLCache/<key>/<h>/<h>/FILE`): DEPTH below 6 leaves it.
+        let nv = dir.path().join("cold-2/nvidia/GLCache/k/0a/1b");
+        std::fs::create_dir_all(&nv).unwrap();
+        std::fs::write(nv.join("cache"), b"x").unwrap();
+        let deep: std::path::PathBuf = (0..DEPTH).map(|k| format!("d{k}")).collect();
+        std::fs::create_dir_all(dir.path().join(&deep)).unwrap();
+        std::fs::write(dir.path().join(&deep).join("f"), b"x").unwrap();
         // A link to a folder is unlinked, never followed.
         let outside = crate::tempdir::TempDir::named("rtprobe-outside-test").unwrap();
         std::fs::write(outside.path().join("keep"), b"1").unwrap();

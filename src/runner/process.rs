@@ -47,9 +47,8 @@ impl Proc {
             .stdout(Stdio::piped())
             .stderr(Stdio::piped());
         groups::harden(&mut cmd);
-        let mut child = cmd.spawn().map_err(|e| named(&e, "a worker"))?;
+        let mut child = groups::spawn_registered(&mut cmd).map_err(|e| named(&e, "a worker"))?;
         let pid = child.id() as i32;
-        groups::register(pid);
         let stdout = child.stdout.take().expect("piped stdout");
         std::thread::spawn(move || {
             for line in BufReader::new(stdout).lines() {
@@ -155,9 +154,8 @@ pub fn run_to_end(
     let mut cmd = Command::new(super::self_exe::spawn_path());
     cmd.arg(subcommand).arg(job).stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped());
     groups::harden(&mut cmd);
-    let mut child = cmd.spawn().map_err(|e| named(&e, subcommand))?;
+    let mut child = groups::spawn_registered(&mut cmd).map_err(|e| named(&e, subcommand))?;
     let pid = child.id() as i32;
-    groups::register(pid);
     let (tx, rx) = channel::<String>();
     let stdout = child.stdout.take().expect("piped stdout");
     std::thread::spawn(move || {

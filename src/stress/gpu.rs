@@ -517,6 +517,9 @@ impl Tracer for GpuTracer {
         if let Some(why) = &self.broken {
             return Err(TraceError::Failed(format!("not traced: {why} in an earlier case")));
         }
+        if self.stuck.get() {
+            return Err(TraceError::Failed("not traced: a held submission failed earlier".into()));
+        }
         let mut keep = Vec::new();
         let result = self.build(part, &mut keep).and_then(|(blas, tlas)| {
             let r = self.launch(part, &tlas, &mut keep);
