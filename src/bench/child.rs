@@ -82,9 +82,8 @@ impl<'a> Bench<'a> {
             .stdin(Stdio::null())
             .stdout(stdout)
             .stderr(Stdio::piped());
-        // Its own process group, dying with bench, killed by bench's interrupt handler.
-        crate::runner::groups::harden(&mut c);
         let spawn_err = |source| BenchError::Spawn { cmd: cmd.to_string(), source };
+        // Its own process group, dying with bench, killed by bench's interrupt handler.
         let child = crate::runner::groups::spawn_registered(&mut c).map_err(spawn_err)?;
         let pgid = child.id() as i32;
         let out = child.wait_with_output().map_err(spawn_err);

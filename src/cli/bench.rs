@@ -256,8 +256,7 @@ pub fn bench(g: &Globals, a: &BenchArgs) -> Result<u8> {
     bench::check_out_dir(&out).map_err(|e| coded(exit::BAD_INPUT, format!("-o: {e}")))?;
     // An interrupt kills the `rtprobe run` children (each in its own process group, its
     // temporary folder inside the work folder) and removes the work folder; nothing written.
-    crate::runner::groups::install_handlers();
-    crate::runner::groups::interrupt_with_nothing_written();
+    crate::runner::groups::handle_interrupts(crate::runner::groups::Left::Nothing);
     let work = super::paths::work_dir("rtprobe-bench")?;
     opts.work_dir = work.path().to_path_buf();
     let mut progress = |line: &str| errln!("bench: {line}");
@@ -273,7 +272,7 @@ pub fn bench(g: &Globals, a: &BenchArgs) -> Result<u8> {
             coded(exit::INTERNAL, e.to_string())
         }
     })?;
-    crate::runner::groups::interrupt_while_writing();
+    crate::runner::groups::handle_interrupts(crate::runner::groups::Left::Writing);
     let json = serde_json::to_vec_pretty(&value).expect("bench value serializes");
     let plots = bench::plots::all(&value);
     for (name, svg) in &plots {

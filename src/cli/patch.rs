@@ -174,7 +174,9 @@ pub fn patch(g: &Globals, a: &PatchArgs) -> Result<u8> {
     } else {
         Vec::new()
     };
-    crate::runner::groups::interrupt_while_writing();
+    if a.verify {
+        crate::runner::groups::handle_interrupts(crate::runner::groups::Left::Writing);
+    }
     for (p, i) in unpatched.iter().zip(&inputs) {
         write_module(&Dest::File(p.clone()), &i.words)?;
     }

@@ -76,8 +76,7 @@ pub fn verify(
     let after = reflect(inputs, &patched.iter().map(|w| w.as_slice()).collect::<Vec<_>>())?;
     let device_index = device(g, a, scalar, &before.iter().chain(&after).collect::<Vec<_>>())?;
     // An interrupt kills the child and removes the work folder; nothing is written yet.
-    crate::runner::groups::install_handlers();
-    crate::runner::groups::interrupt_with_nothing_written();
+    crate::runner::groups::handle_interrupts(crate::runner::groups::Left::Nothing);
     let work = super::paths::work_dir("rtprobe-verify")?;
     let dir = work.path();
     let job = VerifyJob {

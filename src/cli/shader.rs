@@ -402,15 +402,14 @@ pub(super) struct Prepared {
     _work: crate::runner::groups::JobFolder,
 }
 
-/// Everything checked and planned before the report is reserved.
 /// The children's work folder, and the interrupt handler that kills them, removes it and says
 /// no report was written.
 fn work_folder() -> Result<crate::runner::groups::JobFolder> {
-    crate::runner::groups::interrupt_without_report();
-    crate::runner::groups::install_handlers();
+    crate::runner::groups::handle_interrupts(crate::runner::groups::Left::NoReport);
     super::paths::work_dir("rtprobe-shader")
 }
 
+/// Everything checked and planned before the report is reserved.
 pub(super) fn prepare(g: &Globals, a: &RunArgs) -> Result<Prepared> {
     refuse_others(a)?;
     refuse_early(a)?;
@@ -507,8 +506,6 @@ pub fn run_shaders(g: &Globals, a: &RunArgs) -> Result<u8> {
     finish(a, &p, report?, &out)
 }
 
-/// The variants run, compared among themselves and with `--compare`'s report, `--dump`ed, and
-/// the report made with the options that changed what ran.
 /// The descriptor-index check (`shader_bounds`); after a size-up, the device's checks and
 /// `--profile`'s record made again for the sized pipeline and the size in the cell id; then
 /// `--compare`'s report held to that id.
@@ -536,6 +533,8 @@ fn index_check(g: &Globals, a: &RunArgs, p: &mut Prepared) -> Result<IndexBounds
     Ok(bounds)
 }
 
+/// The variants run, compared among themselves and with `--compare`'s report, `--dump`ed, and
+/// the report made with the options that changed what ran.
 fn judged_report(g: &Globals, a: &RunArgs, p: &mut Prepared) -> Result<ShaderRunReport> {
     let bounds = index_check(g, a, p)?;
     let (plan, ctx) = (&p.plan, &p.ctx);

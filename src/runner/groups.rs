@@ -43,7 +43,7 @@ static GROUPS: [AtomicI32; MAX_GROUPS] = [const { AtomicI32::new(0) }; MAX_GROUP
 static INSTALL: Once = Once::new();
 
 /// Make `cmd` start a worker that dies with this process, in its own process group.
-pub fn harden(cmd: &mut Command) {
+fn harden(cmd: &mut Command) {
     let parent = std::process::id() as libc::pid_t;
     cmd.process_group(0);
     // SAFETY: only async-signal-safe syscalls between fork and exec; no allocation.
@@ -93,11 +93,13 @@ fn signal_set() -> libc::sigset_t {
     }
 }
 
-/// Spawn `cmd` ([`harden`]ed) and [`register`] it with the interrupt signals blocked in between:
-/// an interrupt that came after the fork and before the registration would leave the new child
-/// to `PR_SET_PDEATHSIG` alone, alive while the handler removes its folders. The child starts
-/// with no signal blocked (`harden`'s `pre_exec`).
+/// Spawn `cmd` [`harden`]ed — in its own process group, dying with this process — and
+/// [`register`] it with the interrupt signals blocked in between: an interrupt that came after
+/// the fork and before the registration would leave the new child to `PR_SET_PDEATHSIG` alone,
+/// alive while the handler removes its folders. The child starts with no signal blocked
+/// (`harden`'s `pre_exec`).
 pub fn spawn_registered(cmd: &mut Command) -> std::io::Result<std::process::Child> {
+    harden(cmd);
     let set = signal_set();
     let mut old: libc::sigset_t = unsafe { std::mem::zeroed() };
     // SAFETY: this thread's mask, set and restored around the spawn.
@@ -283,25 +285,53 @@ unsafe fn empty_fd(fd: libc::c_int, depth: u32) {
     }
 }
 
-/// What the interrupt message says was left: `run`'s report (0), no report (1: `run --shader`,
-/// which writes it at its end), nothing (2: `patch --verify`, `bench`, which write their
-/// outputs at their end), or outputs being written (3: theirs, once their children ended).
-static LEFT: AtomicU8 = AtomicU8::new(0);
-
-/// Say on an interrupt that no report was written (`run --shader`'s, which writes it at its end).
-pub fn interrupt_without_report() {
-    LEFT.store(1, Ordering::SeqCst);
+/// What an interrupt leaves behind, as its message says.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Left {
+    /// `run`'s report: every fault and all passes but those of the last 0.1 s (`--resume`).
+    Report,
+    /// No report: `run --shader` writes it at its end.
+    NoReport,
+    /// Nothing: `patch --verify`, `bench` and `stress` write their outputs at their end.
+    Nothing,
+    /// Outputs being written: theirs, once their children have ended.
+    Writing,
 }
 
-/// Say on an interrupt that nothing was written (`patch --verify`'s and `bench`'s outputs).
-pub fn interrupt_with_nothing_written() {
-    LEFT.store(2, Ordering::SeqCst);
+impl Left {
+    const fn code(self) -> u8 {
+        match self {
+            Left::Report => 0,
+            Left::NoReport => 1,
+            Left::Nothing => 2,
+            Left::Writing => 3,
+        }
+    }
 }
 
-/// Say on an interrupt that the outputs were being written (`patch --verify`, `bench` once their
-/// children have ended).
-pub fn interrupt_while_writing() {
-    LEFT.store(3, Ordering::SeqCst);
+/// What an interrupt leaves, as [`Left::code`] (the handler reads it without allocating).
+static LEFT: AtomicU8 = AtomicU8::new(Left::Report.code());
+
+/// Install the handler (once per process) and say what an interrupt leaves from now on.
+pub fn handle_interrupts(left: Left) {
+    install_handlers();
+    LEFT.store(left.code(), Ordering::SeqCst);
+}
+
+/// The message's end for what is left, and the resume hint where a report is.
+fn left_message() -> (&'static [u8], &'static [u8]) {
+    const NO_REPORT: u8 = Left::NoReport.code();
+    const NOTHING: u8 = Left::Nothing.code();
+    const WRITING: u8 = Left::Writing.code();
+    match LEFT.load(Ordering::SeqCst) {
+        NO_REPORT => (b"every child was killed; no report was written\n", b""),
+        NOTHING => (b"every child was killed; nothing was written\n", b""),
+        WRITING => (b"every child had ended and the outputs were being written: each file finished is whole; one cut short, if any, is left as `.NAME.tmp-PID-N` beside it (or cut short on stdout)\n", b""),
+        _ => (
+            b"every worker was killed; the report keeps every fault and all passes but those of the last 0.1 s (complete: false)",
+            resume_hint(),
+        ),
+    }
 }
 
 extern "C" fn on_signal(sig: libc::c_int) {
@@ -317,15 +347,7 @@ extern "C" fn on_signal(sig: libc::c_int) {
         libc::SIGTERM => b"\nrtprobe: terminated (SIGTERM): ",
         _ => b"\nrtprobe: hung up (SIGHUP): ",
     };
-    let (then, hint): (&[u8], &[u8]) = match LEFT.load(Ordering::SeqCst) {
-        1 => (b"every child was killed; no report was written\n", b""),
-        2 => (b"every child was killed; nothing was written\n", b""),
-        3 => (b"every child had ended and the outputs were being written: each file finished is whole; one cut short, if any, is left as `.NAME.tmp-PID-N` beside it (or cut short on stdout)\n", b""),
-        _ => (
-            b"every worker was killed; the report keeps every fault and all passes but those of the last 0.1 s (complete: false)",
-            resume_hint(),
-        ),
-    };
+    let (then, hint) = left_message();
     // SAFETY: write(2) and _exit(2) are async-signal-safe; the pieces are static slices.
     unsafe {
         for piece in [what, then, hint] {
@@ -335,7 +357,8 @@ extern "C" fn on_signal(sig: libc::c_int) {
     }
 }
 
-/// Install the supervisor's SIGINT / SIGTERM / SIGHUP handler (once per process).
+/// Install the SIGINT / SIGTERM / SIGHUP handler (once per process), leaving what it says as it
+/// is (a supervisor inside `run --shader` keeps its message).
 pub fn install_handlers() {
     INSTALL.call_once(|| {
         for sig in SIGNALS {

@@ -46,7 +46,6 @@ impl Proc {
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped());
-        groups::harden(&mut cmd);
         let mut child = groups::spawn_registered(&mut cmd).map_err(|e| named(&e, "a worker"))?;
         let pid = child.id() as i32;
         let stdout = child.stdout.take().expect("piped stdout");
@@ -153,7 +152,6 @@ pub fn run_to_end(
 ) -> std::io::Result<ChildEnd> {
     let mut cmd = Command::new(super::self_exe::spawn_path());
     cmd.arg(subcommand).arg(job).stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped());
-    groups::harden(&mut cmd);
     let mut child = groups::spawn_registered(&mut cmd).map_err(|e| named(&e, subcommand))?;
     let pid = child.id() as i32;
     let (tx, rx) = channel::<String>();

@@ -238,16 +238,15 @@ pub struct GpuTracer {
     layout: vk::PipelineLayout,
     pipeline: Pipeline,
     timeout: Duration,
-    /// Set after a device loss or a timeout: later parts are not traced on this device.
-    broken: Option<String>,
+    /// Set after a device loss, a timeout or a failed held submission (`submit`, which holds
+    /// `&self`): later parts are not traced on this device.
+    broken: std::cell::RefCell<Option<String>>,
     mode: Mode,
     /// Told (rays traced, rays in the part) after each submission of a part's trace.
     on_chunk: Option<Box<dyn FnMut(usize, usize)>>,
     /// The gate the next submission is held behind, and whether it is released after the
     /// wait ([`GpuTracer::hold_first_submission`]).
     held: std::cell::Cell<Option<(vk::Semaphore, bool)>>,
-    /// A held submission failed after it may have been submitted: it may still be pending.
-    stuck: std::cell::Cell<bool>,
 }
 
 /// Rays per submission: a part's trace is cut into submissions of this many rays, each fenced
@@ -298,18 +297,17 @@ impl GpuTracer {
             layout,
             pipeline,
             timeout,
-            broken: None,
+            broken: Default::default(),
             mode,
             on_chunk: None,
             held: Default::default(),
-            stuck: Default::default(),
         })
     }
 
     /// Whether a timeout or a device loss stopped this tracer (or a held submission failed):
     /// its objects may still be in use.
     pub fn is_broken(&self) -> bool {
-        self.broken.is_some() || self.stuck.get()
+        self.broken.borrow().is_some()
     }
 
     /// Holds the next submission until its fence wait has run out (`Submitter::run_held`): the
@@ -333,7 +331,7 @@ impl GpuTracer {
             // Still held, a hung GPU: the timeout makes the tracer broken (`trace`).
             (Ok(_), false) => {}
             // Failed, perhaps past its submission: left as it is.
-            (Err(_), _) => self.stuck.set(true),
+            (Err(e), _) => *self.broken.borrow_mut() = Some(format!("a held submission: {e}")),
         }
         waited.map_err(vk_err)
     }
@@ -514,11 +512,8 @@ impl Tracer for GpuTracer {
     }
 
     fn trace(&mut self, part: &Part) -> Result<Vec<Traced>, TraceError> {
-        if let Some(why) = &self.broken {
+        if let Some(why) = self.broken.get_mut() {
             return Err(TraceError::Failed(format!("not traced: {why} in an earlier case")));
-        }
-        if self.stuck.get() {
-            return Err(TraceError::Failed("not traced: a held submission failed earlier".into()));
         }
         let mut keep = Vec::new();
         let result = self.build(part, &mut keep).and_then(|(blas, tlas)| {
@@ -531,7 +526,7 @@ impl Tracer for GpuTracer {
         match &result {
             // A hung submission may still use them: leak rather than free under it.
             Err(e @ (TraceError::Timeout(_) | TraceError::DeviceLost(_))) => {
-                self.broken = Some(e.to_string())
+                *self.broken.get_mut() = Some(e.to_string())
             }
             _ => {
                 for b in &keep {
