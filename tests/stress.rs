@@ -382,3 +382,26 @@ fn stress_bad_input_is_one_line() {
         run(&["stress", "--cases", "tmin", "--svg", dir.path().join("f.svg").to_str().unwrap()]);
     assert_one_line_error(&o, 9, "--svg needs the far case");
 }
+
+/// Ctrl-C while a stress case's worker runs (held by the test hook `hang`): the worker is
+/// killed, the workers' folder `rtprobe-stress-<pid>-…` goes with its job file, and the message
+/// says nothing was written — not `run`'s report and `--resume`, which stress has none of.
+/// Twin: stress once said `run`'s message and left its folder in TMPDIR.
+#[test]
+fn ctrl_c_during_stress_kills_its_worker_and_leaves_nothing() {
+    let dir = rtprobe::tempdir::tempdir().unwrap();
+    let json = dir.path().join("s.json");
+    let tmp = dir.path().join("tmp");
+    std::fs::create_dir(&tmp).unwrap();
+    let mut c = bin();
+    c.args(["stress", "--cases", "tmin", "--json"])
+        .arg(&json)
+        .env("TMPDIR", &tmp)
+        .env("RTPROBE_STRESS_FAULT", "tmin:hang");
+    let (status, err) = interrupt_once_children_run(c, (&tmp, "__stress"), libc::SIGINT, |_| {});
+    assert_eq!(status.code(), Some(130), "{status:?} {err}");
+    assert!(err.contains("interrupted (SIGINT)") && err.contains("nothing was written"), "{err}");
+    assert!(!err.contains("--resume"), "{err}");
+    assert!(!json.exists());
+    assert_eq!(entries(&tmp), Vec::<String>::new(), "the workers' folder and its job file");
+}

@@ -60,9 +60,10 @@ pub fn stress(g: &Globals, args: &StressArgs) -> Result<u8> {
         info.driver_version(),
         mode.as_str()
     );
-    crate::runner::groups::install_handlers();
+    // An interrupt kills the case's worker and removes the workers' folder; nothing written.
+    crate::runner::groups::handle_interrupts(crate::runner::groups::Left::Nothing);
     // A private folder of its own (mode 0700, never an existing one), removed below.
-    let tmp = crate::tempdir::TempDir::new().context("creating the stress workers' folder")?;
+    let tmp = super::paths::work_dir("rtprobe-stress")?;
     let dir = tmp.path().to_path_buf();
     let runner = Supervised {
         device_index: info.index,
@@ -84,6 +85,7 @@ pub fn stress(g: &Globals, args: &StressArgs) -> Result<u8> {
         })
         .collect();
     drop(tmp);
+    crate::runner::groups::handle_interrupts(crate::runner::groups::Left::Writing);
     out!("{}", report::text(&name, &results));
     if let Some(path) = &args.json {
         let validation = (validation_active, validation_errors);
