@@ -180,7 +180,7 @@ impl JobFolder {
     }
 
     /// A new folder `<prefix>-<pid>-…` under the temporary folder (a command's children's work:
-    /// `run --shader`'s, `patch --verify`'s, `bench`'s).
+    /// `run --shader`'s, `patch --verify`'s, `bench`'s, `stress`'s).
     pub fn named(prefix: &str) -> std::io::Result<JobFolder> {
         use std::os::unix::ffi::OsStrExt;
         let dir = crate::tempdir::TempDir::named(prefix)?;
@@ -287,6 +287,7 @@ unsafe fn empty_fd(fd: libc::c_int, depth: u32) {
 
 /// What an interrupt leaves behind, as its message says.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
 pub enum Left {
     /// `run`'s report: every fault and all passes but those of the last 0.1 s (`--resume`).
     Report,
@@ -298,31 +299,21 @@ pub enum Left {
     Writing,
 }
 
-impl Left {
-    const fn code(self) -> u8 {
-        match self {
-            Left::Report => 0,
-            Left::NoReport => 1,
-            Left::Nothing => 2,
-            Left::Writing => 3,
-        }
-    }
-}
-
-/// What an interrupt leaves, as [`Left::code`] (the handler reads it without allocating).
-static LEFT: AtomicU8 = AtomicU8::new(Left::Report.code());
+/// What an interrupt leaves, as a [`Left`] (the handler reads it without allocating).
+static LEFT: AtomicU8 = AtomicU8::new(Left::Report as u8);
 
 /// Install the handler (once per process) and say what an interrupt leaves from now on.
 pub fn handle_interrupts(left: Left) {
+    // The message first: a signal right after the install says the right thing.
+    LEFT.store(left as u8, Ordering::SeqCst);
     install_handlers();
-    LEFT.store(left.code(), Ordering::SeqCst);
 }
 
 /// The message's end for what is left, and the resume hint where a report is.
 fn left_message() -> (&'static [u8], &'static [u8]) {
-    const NO_REPORT: u8 = Left::NoReport.code();
-    const NOTHING: u8 = Left::Nothing.code();
-    const WRITING: u8 = Left::Writing.code();
+    const NO_REPORT: u8 = Left::NoReport as u8;
+    const NOTHING: u8 = Left::Nothing as u8;
+    const WRITING: u8 = Left::Writing as u8;
     match LEFT.load(Ordering::SeqCst) {
         NO_REPORT => (b"every child was killed; no report was written\n", b""),
         NOTHING => (b"every child was killed; nothing was written\n", b""),

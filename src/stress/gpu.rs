@@ -331,7 +331,9 @@ impl GpuTracer {
             // Still held, a hung GPU: the timeout makes the tracer broken (`trace`).
             (Ok(_), false) => {}
             // Failed, perhaps past its submission: left as it is.
-            (Err(e), _) => *self.broken.borrow_mut() = Some(format!("a held submission: {e}")),
+            (Err(e), _) => {
+                *self.broken.borrow_mut() = Some(format!("a held submission failed ({e})"))
+            }
         }
         waited.map_err(vk_err)
     }
